@@ -1,0 +1,1 @@
+//! The discrete thin plate (DESIGN §4) and its multigrid solver.

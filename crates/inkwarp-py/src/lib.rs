@@ -1,0 +1,14 @@
+//! The PyO3 adapter: converts between NumPy/Python values and `inkwarp-core`, and maps
+//! core errors to Python exceptions. No engine logic lives here.
+
+use pyo3::prelude::*;
+
+mod errors;
+
+/// The compiled core of the `inkwarp` Python package.
+#[pymodule]
+fn _inkwarp(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    errors::register(m)?;
+    Ok(())
+}

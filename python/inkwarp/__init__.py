@@ -1,0 +1,9 @@
+"""inkwarp: animate a still image by animating a drawing traced over it.
+
+The grid thin plate of Litwinowicz & Williams ("Animating Images with Drawings",
+SIGGRAPH '94), solved by multigrid in a compiled core.
+"""
+
+from inkwarp._inkwarp import __version__
+
+__all__ = ["__version__"]

@@ -1,0 +1,3 @@
+"""Type stubs for the compiled core. The public API is the `inkwarp` package."""
+
+__version__: str
