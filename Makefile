@@ -35,7 +35,7 @@ $(BUILD_STAMP): $(DEPS_STAMP) $(RUST_SOURCES) $(shell find python -type f -not -
 build: $(BUILD_STAMP) ## Build the engine and install the Python package into .venv.
 
 demo: build ## Render the bundled demo and print where it went.
-	$(VPY) -m inkwarp.cli demo -o out
+	$(VENV)/bin/inkwarp demo -o out
 
 test: test-rust test-python ## Run every test suite (what CI runs).
 

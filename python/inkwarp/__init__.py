@@ -5,5 +5,6 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 """
 
 from inkwarp._inkwarp import __version__
+from inkwarp.errors import InkwarpError, SceneError
 
-__all__ = ["__version__"]
+__all__ = ["InkwarpError", "SceneError", "__version__"]

@@ -1,0 +1,5 @@
+import sys
+
+from inkwarp.cli import main
+
+sys.exit(main())

@@ -1,0 +1,29 @@
+"""The exceptions inkwarp raises. Every core error maps to one of these."""
+
+from __future__ import annotations
+
+
+class InkwarpError(Exception):
+    """Base class of every error inkwarp raises on purpose."""
+
+
+class SceneError(InkwarpError, ValueError):
+    """A scene file (or dict) is invalid.
+
+    Attributes
+    ----------
+    file : str or None
+        The scene file, when the scene came from one.
+    path : str
+        Where in the scene the problem is, as a JSON path such as
+        ``features[3].keys[1].points`` (empty for the whole document).
+    problems : list of tuple(str, str)
+        Every ``(path, message)`` found, the first of which is ``path``/the message.
+    """
+
+    def __init__(self, message: str, *, file: str | None = None, path: str = "",
+                 problems: list[tuple[str, str]] | None = None) -> None:
+        super().__init__(message)
+        self.file = file
+        self.path = path
+        self.problems = problems if problems is not None else [(path, message)]
