@@ -1,0 +1,197 @@
+"""Thin-plate field benchmark: inkwarp's grid solve against the thin-plate warps users
+would otherwise pick (scipy RBFInterpolator, scikit-image ThinPlateSplineTransform,
+OpenCV's ThinPlateSplineShapeTransformer), on the same points, in the same run.
+
+Every tool produces the full (H, W, 2) displacement field on every pixel centre from N
+scattered constraints. Times are medians of repeated runs (wall clock, one process);
+ratios are peer / inkwarp (> 1 means inkwarp is faster). Peak memory of the big grids is
+the resident-set high-water mark of a fresh child process.
+
+Usage: python benchmarks/solve.py [--quick] [--sizes 257,513] [--counts 10,100,1000,4000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+import inkwarp
+
+
+def constraints(n: int, height: int, width: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """N distinct random nodes with displacements of a smooth motion plus noise."""
+    rng = np.random.default_rng(seed)
+    flat = rng.choice(height * width, size=n, replace=False)
+    pts = np.stack([flat % width, flat // width], axis=1).astype(np.float64)
+    u = pts / [width, height]
+    disp = np.stack([8 * np.sin(3 * u[:, 1]) + 2 * rng.standard_normal(n),
+                     6 * np.cos(2 * u[:, 0]) + 2 * rng.standard_normal(n)], axis=1)
+    return pts, disp
+
+
+def median_time(fn: Callable[[], object], repeats: int) -> float:
+    fn()  # warm-up: first-call costs (thread pools, page faults) are not the steady state
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def nodes(height: int, width: int) -> np.ndarray:
+    ys, xs = np.mgrid[0:height, 0:width]
+    return np.stack([xs.ravel(), ys.ravel()], axis=1).astype(np.float64)
+
+
+def peer_scipy(pts, disp, shape):
+    from scipy.interpolate import RBFInterpolator
+
+    grid = nodes(*shape)
+    return RBFInterpolator(pts, disp, kernel="thin_plate_spline")(grid)
+
+
+def peer_skimage(pts, disp, shape):
+    from skimage.transform import ThinPlateSplineTransform
+
+    grid = nodes(*shape)
+    tform = ThinPlateSplineTransform.from_estimate(pts, pts + disp)
+    return tform(grid) - grid
+
+
+def peer_opencv(pts, disp, shape):
+    import cv2
+
+    grid = nodes(*shape).astype(np.float32)
+    tps = cv2.createThinPlateSplineShapeTransformer()
+    src = pts.astype(np.float32).reshape(1, -1, 2)
+    dst = (pts + disp).astype(np.float32).reshape(1, -1, 2)
+    matches = [cv2.DMatch(i, i, 0) for i in range(len(pts))]
+    # OpenCV's transformer maps the shape given second onto the first.
+    tps.estimateTransformation(dst, src, matches)
+    _, out = tps.applyTransformation(grid.reshape(1, -1, 2))
+    return out.reshape(-1, 2) - grid
+
+
+PEERS = {
+    "scipy RBF": peer_scipy,
+    "skimage TPS": peer_skimage,
+    "opencv TPS": peer_opencv,
+}
+
+
+def available(name: str) -> bool:
+    try:
+        PEERS[name](np.array([[0.0, 0], [5, 0], [0, 5], [5, 5]]), np.ones((4, 2)), (6, 6))
+        return True
+    except Exception:  # noqa: BLE001 - a peer that is not installed is reported as such
+        return False
+
+
+def bench_grid(size: int, counts: list[int], repeats: int, peer_budget_s: float) -> list[dict]:
+    shape = (size, size)
+    rows = []
+    peers = [p for p in PEERS if available(p)]
+    for n in counts:
+        pts, disp = constraints(n, *shape)
+        field = inkwarp.thin_plate(pts, disp, shape)
+        nudged = disp * 1.02 + 0.05  # the next frame of an animation: a small change
+
+        row = {"size": size, "n": n}
+        row["cold"] = median_time(lambda: inkwarp.thin_plate(pts, disp, shape), repeats)
+        row["warm"] = median_time(
+            lambda: inkwarp.thin_plate(pts, nudged, shape, initial=field), repeats)
+        _, report = inkwarp.thin_plate_report(pts, disp, shape)
+        row["cycles"] = report.cycles
+        for peer in peers:
+            # Slow peers at large N get one timed run, not `repeats`.
+            t0 = time.perf_counter()
+            PEERS[peer](pts, disp, shape)
+            once = time.perf_counter() - t0
+            reps = repeats if once * repeats < peer_budget_s else 1
+            row[peer] = once if reps == 1 else median_time(
+                lambda: PEERS[peer](pts, disp, shape), reps)
+        rows.append(row)
+        print_row(row, peers, flush=True)
+    return rows
+
+
+HEADER_DONE = set()
+
+
+def print_row(row: dict, peers: list[str], flush: bool = False) -> None:
+    key = tuple(peers)
+    if key not in HEADER_DONE:
+        HEADER_DONE.add(key)
+        cols = ["grid", "N", "cold ms", "warm ms", "cycles"] + [f"{p} ms (×)" for p in peers]
+        print("| " + " | ".join(cols) + " |")
+        print("|" + "|".join("---" for _ in cols) + "|")
+    cells = [f"{row['size']}×{row['size']}", str(row["n"]), f"{row['cold'] * 1e3:.1f}",
+             f"{row['warm'] * 1e3:.1f}", str(row["cycles"])]
+    for p in peers:
+        cells.append(f"{row[p] * 1e3:.0f} ({row[p] / row['cold']:.0f}×)")
+    print("| " + " | ".join(cells) + " |", flush=flush)
+
+
+def big_child(height: int, width: int) -> None:
+    """Runs in a fresh process: one cold solve, prints its time and peak RSS as JSON."""
+    import resource
+
+    pts, disp = constraints(1000, height, width)
+    t0 = time.perf_counter()
+    inkwarp.thin_plate(pts, disp, (height, width))
+    seconds = time.perf_counter() - t0
+    peak_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    print(json.dumps({"seconds": seconds, "peak_mib": peak_kib / 1024}))
+
+
+def bench_big(shapes: list[tuple[int, int]]) -> None:
+    print("\n| grid | N | cold solve s | peak memory MiB (whole process) |")
+    print("|---|---|---|---|")
+    for h, w in shapes:
+        out = subprocess.run(
+            [sys.executable, __file__, "--child", f"{h},{w}"],
+            check=True, capture_output=True, text=True, env=os.environ.copy())
+        res = json.loads(out.stdout.strip().splitlines()[-1])
+        print(f"| {w}×{h} | 1000 | {res['seconds']:.2f} | {res['peak_mib']:.0f} |", flush=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="small sizes and counts, for a smoke run")
+    ap.add_argument("--sizes", default="257,513")
+    ap.add_argument("--counts", default="10,100,1000,4000")
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--no-big", action="store_true", help="skip the 2048² and 3840×2160 runs")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        h, w = map(int, args.child.split(","))
+        big_child(h, w)
+        return
+    sizes = [65, 129] if args.quick else [int(s) for s in args.sizes.split(",")]
+    counts = [10, 100] if args.quick else [int(c) for c in args.counts.split(",")]
+    print(f"## Thin-plate field, inkwarp {inkwarp.__version__}: median of {args.repeats} runs, "
+          f"{os.cpu_count()} cores\n")
+    all_rows = []
+    for size in sizes:
+        all_rows += bench_grid(size, counts, args.repeats, peer_budget_s=20.0)
+    for size in sizes:
+        rows = {r["n"]: r for r in all_rows if r["size"] == size}
+        if min(counts) in rows and max(counts) in rows:
+            ratio = rows[max(counts)]["cold"] / rows[min(counts)]["cold"]
+            print(f"\n{size}×{size}: cold solve at N={max(counts)} is {ratio:.2f}× N={min(counts)}")
+    if not (args.quick or args.no_big):
+        bench_big([(2048, 2048), (2160, 3840)])
+
+
+if __name__ == "__main__":
+    main()
