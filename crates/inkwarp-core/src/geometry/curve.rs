@@ -142,6 +142,14 @@ impl Curve {
         hermite(s, u)
     }
 
+    /// Span `span` in Hermite form: `[start, start tangent, end tangent, end]`, the
+    /// tangents with respect to the span parameter, so that the point at `u` is
+    /// `Σ hermite_basis(u)[k] · data[k]` (for a segment, its lerp).
+    pub fn span_hermite(&self, span: usize) -> [Point; 4] {
+        let s = &self.spans[span];
+        [s.p0, s.t0, s.t1, s.p1]
+    }
+
     /// The length of span `span`, exact for line segments and to about 1e-12 relative
     /// for spline spans (composite Gauss–Legendre quadrature of the speed).
     pub fn span_length(&self, span: usize) -> f64 {
@@ -295,6 +303,20 @@ fn catmull_rom_span(a: Point, b: Point, c: Point, d: Point) -> Span {
         t1,
         p1: c,
     }
+}
+
+/// The cubic Hermite basis at `u`: the weights of start, start tangent, end tangent and
+/// end (see [`Curve::span_hermite`]).
+#[inline]
+pub fn hermite_basis(u: f64) -> [f64; 4] {
+    let u2 = u * u;
+    let u3 = u2 * u;
+    [
+        2.0 * u3 - 3.0 * u2 + 1.0,
+        u3 - 2.0 * u2 + u,
+        u3 - u2,
+        -2.0 * u3 + 3.0 * u2,
+    ]
 }
 
 #[inline]

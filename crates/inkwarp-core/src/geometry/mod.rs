@@ -9,6 +9,7 @@
 
 mod curve;
 mod region;
+mod sampler;
 
 use std::fmt;
 use std::str::FromStr;
@@ -18,8 +19,9 @@ use thiserror::Error;
 
 use crate::grid::Grid;
 
-pub use curve::{Curve, CurveParameter};
+pub use curve::{hermite_basis, Curve, CurveParameter};
 pub use region::{mean_value_interpolate, nodes_inside, MeanValueInterpolator, MvcScratch};
+pub use sampler::FeatureSampler;
 
 /// A position `(x, y)` in pixels: pixel centres at integer coordinates, y down.
 pub type Point = [f64; 2];

@@ -196,22 +196,35 @@ impl MeanValueInterpolator {
     /// # Panics
     /// If `weights.len() != self.len()`.
     pub fn weights_at(&self, x: Point, scratch: &mut MvcScratch, weights: &mut [f64]) -> bool {
+        match self.unnormalized_weights_at(x, scratch, weights) {
+            Some(sum) => {
+                let inv = 1.0 / sum;
+                weights.iter_mut().for_each(|w| *w *= inv);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The mean value weights of `x` before normalisation, and their sum.
+    pub(crate) fn unnormalized_weights_at(
+        &self,
+        x: Point,
+        scratch: &mut MvcScratch,
+        weights: &mut [f64],
+    ) -> Option<f64> {
         let m = self.len();
         assert_eq!(weights.len(), m, "one weight per vertex");
         if m == 0 || !self.tangents(x, scratch) {
-            return false;
+            return None;
         }
-        let (r, t) = (&scratch.r, &scratch.t);
-        let mut sum = 0.0;
-        for i in 0..m {
-            let prev = if i == 0 { t[m - 1] } else { t[i - 1] };
-            let w = (prev + t[i]) / r[i];
-            weights[i] = w;
-            sum += w;
+        let (r, t) = (&scratch.r[..m], &scratch.t[..m]);
+        let weights = &mut weights[..m];
+        weights[0] = (t[m - 1] + t[0]) / r[0];
+        for i in 1..m {
+            weights[i] = (t[i - 1] + t[i]) / r[i];
         }
-        let inv = 1.0 / sum;
-        weights.iter_mut().for_each(|w| *w *= inv);
-        true
+        Some(weights.iter().sum())
     }
 
     /// The interpolated value at `x`, or `None` when `x` lies on the outline (within
@@ -221,14 +234,14 @@ impl MeanValueInterpolator {
         if m == 0 || !self.tangents(x, scratch) {
             return None;
         }
-        let (r, t) = (&scratch.r, &scratch.t);
-        let (mut nx, mut ny, mut den) = (0.0, 0.0, 0.0);
-        let mut prev = t[m - 1];
-        for i in 0..m {
-            let w = (prev + t[i]) / r[i];
-            prev = t[i];
-            nx += w * self.values[i][0];
-            ny += w * self.values[i][1];
+        let (r, t) = (&scratch.r[..m], &scratch.t[..m]);
+        let values = &self.values[..m];
+        let w0 = (t[m - 1] + t[0]) / r[0];
+        let (mut nx, mut ny, mut den) = (w0 * values[0][0], w0 * values[0][1], w0);
+        for i in 1..m {
+            let w = (t[i - 1] + t[i]) / r[i];
+            nx += w * values[i][0];
+            ny += w * values[i][1];
             den += w;
         }
         Some([nx / den, ny / den])
@@ -250,20 +263,25 @@ impl MeanValueInterpolator {
                 .zip(sy.iter())
                 .map(|(&a, &b)| (a * a + b * b).sqrt()),
         );
+        let (sx0, sx1) = (&sx[..m], &sx[1..=m]);
+        let (sy0, sy1) = (&sy[..m], &sy[1..=m]);
+        let (r0, r1) = (&r[..m], &r[1..=m]);
+        let lengths = &self.lengths[..m];
+        t.resize(m, 0.0);
         let mut on_outline = false;
-        t.extend((0..m).map(|i| {
-            let det = sx[i] * sy[i + 1] - sy[i] * sx[i + 1];
-            let dot = sx[i] * sx[i + 1] + sy[i] * sy[i + 1];
-            let rr = r[i] * r[i + 1];
+        for i in 0..m {
+            let det = sx0[i] * sy1[i] - sy0[i] * sx1[i];
+            let dot = sx0[i] * sx1[i] + sy0[i] * sy1[i];
+            let rr = r0[i] * r1[i];
             // tan(α/2) without cancellation (see `half_angle_tan`)
             let acute = dot >= 0.0;
             let num = if acute { det } else { rr - dot };
             let den = if acute { rr + dot } else { det };
-            on_outline |= r[i] <= ON_OUTLINE_PX
-                || (!acute
-                    && det.abs() <= ON_OUTLINE_PX * self.lengths[i] + 4.0 * f64::EPSILON * rr);
-            num / den
-        }));
+            // (bitwise, not short-circuit, so that the loop stays branch-free)
+            on_outline |= (r0[i] <= ON_OUTLINE_PX)
+                | (!acute & (det.abs() <= ON_OUTLINE_PX * lengths[i] + 4.0 * f64::EPSILON * rr));
+            t[i] = num / den;
+        }
         !on_outline
     }
 }

@@ -463,3 +463,53 @@ fn curve_polyline_by_kind() {
         curve_polyline(Kind::Spline, &pts, false, false, 1.0)
     );
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    #[test]
+    fn feature_sampler_matches_sample_feature(
+        radii in prop::collection::vec(6.0..25.0f64, 3..8),
+        wobble in prop::collection::vec((-6.0..6.0f64, -6.0..6.0f64), 8),
+        kind in prop_oneof![Just(Kind::Point), Just(Kind::Polyline), Just(Kind::Spline), Just(Kind::Region), Just(Kind::Cut)],
+        closed: bool, spline_outline: bool, small_limit: bool,
+    ) {
+        let mut rest = star_polygon(&radii, [30.2, 29.6]);
+        if kind == Kind::Point {
+            rest.truncate(1);
+        }
+        let pose: Vec<Point> = rest.iter().zip(&wobble).map(|(p, w)| [p[0] + w.0, p[1] + w.1 + 0.01 * p[0] * p[0]]).collect();
+        let o = SampleOptions { closed, spline_outline, spacing_px: 1.0 };
+        let grid = Grid::new(60, 60);
+        let limit = if small_limit { 10 } else { usize::MAX };
+        let sampler = FeatureSampler::with_limit(kind, &rest, &o, Some(&grid), limit).unwrap();
+        let fast = sampler.sample(&pose).unwrap();
+        let slow = sample_feature(kind, &rest, &pose, &o, Some(&grid)).unwrap();
+        prop_assert_eq!(fast.len(), slow.len());
+        prop_assert_eq!(fast.len(), sampler.len());
+        let scale = slow.iter().map(|s| s.displacement[0].abs().max(s.displacement[1].abs())).fold(1.0, f64::max);
+        for (a, b) in fast.iter().zip(&slow) {
+            prop_assert_eq!(a.rest, b.rest);
+            prop_assert!(dist(a.displacement, b.displacement) < 1e-6 * scale, "{:?} vs {:?}", a, b);
+        }
+    }
+}
+
+#[test]
+fn feature_sampler_checks_its_poses() {
+    let rest = [[0.0, 0.0], [5.0, 0.0], [5.0, 5.0]];
+    let s = FeatureSampler::new(Kind::Spline, &rest, &SampleOptions::default(), None).unwrap();
+    assert_eq!(
+        s.sample(&rest[..2]).unwrap_err(),
+        GeometryError::CountMismatch { rest: 3, pose: 2 }
+    );
+    let bad = [[0.0, 0.0], [5.0, f64::INFINITY], [5.0, 5.0]];
+    assert!(matches!(
+        s.sample(&bad).unwrap_err(),
+        GeometryError::NonFinite { index: 1, .. }
+    ));
+    assert_eq!(
+        FeatureSampler::new(Kind::Region, &rest, &SampleOptions::default(), None).unwrap_err(),
+        GeometryError::RegionWithoutDomain
+    );
+}
