@@ -5,6 +5,7 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 """
 
 from inkwarp._inkwarp import __version__
+from inkwarp.drawing import sample
 from inkwarp.errors import InkwarpError, SceneError
 
-__all__ = ["InkwarpError", "SceneError", "__version__"]
+__all__ = ["InkwarpError", "SceneError", "__version__", "sample"]

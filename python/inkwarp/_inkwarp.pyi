@@ -1,3 +1,25 @@
 """Type stubs for the compiled core. The public API is the `inkwarp` package."""
 
 __version__: str
+
+# --- geometry (feature sampling) ---
+import numpy as np
+import numpy.typing as npt
+
+def sample_feature(
+    kind: str,
+    rest: npt.NDArray[np.float64],
+    pose: npt.NDArray[np.float64],
+    closed: bool = False,
+    spacing: float = 1.0,
+    spline_outline: bool = False,
+    shape: tuple[int, int] | None = None,
+    mask: npt.NDArray[np.uint8] | None = None,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def curve_polyline(
+    kind: str,
+    points: npt.NDArray[np.float64],
+    closed: bool = False,
+    spline_outline: bool = False,
+    spacing: float = 1.0,
+) -> npt.NDArray[np.float64]: ...
