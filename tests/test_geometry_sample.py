@@ -88,10 +88,11 @@ def test_polyline_partners_are_at_the_same_fraction_of_their_segment(rest, offse
         for a, b, a2, b2 in zip(ring[:-1], ring[1:], ring_pose[:-1], ring_pose[1:]):
             d = b - a
             L2 = d @ d
-            u = 0.0 if L2 == 0 else float(np.clip((p - a) @ d / L2, 0, 1))
-            if np.linalg.norm(a + u * d - p) < 1e-7 and np.linalg.norm(a2 + u * (b2 - a2) - q) < 1e-7:
-                found = True
-                break
+            # a zero-length rest segment has samples at both of its ends
+            us = [0.0, 1.0] if L2 == 0 else [float(np.clip((p - a) @ d / L2, 0, 1))]
+            for u in us:
+                if np.linalg.norm(a + u * d - p) < 1e-7 and np.linalg.norm(a2 + u * (b2 - a2) - q) < 1e-7:
+                    found = True
         assert found
 
 
