@@ -195,3 +195,16 @@ def test_curve_polyline_of_a_closed_spline_returns_to_its_start():
     line = inkwarp._inkwarp.curve_polyline("spline", square, closed=True, spacing=0.5)
     assert (line[0] == line[-1]).all()
     assert (np.linalg.norm(np.diff(line, axis=0), axis=1) <= 0.5 + 1e-12).all()
+
+
+def test_the_documented_examples_run():
+    import doctest
+    from pathlib import Path as FilePath
+
+    import inkwarp.drawing
+
+    result = doctest.testmod(inkwarp.drawing)
+    assert result.attempted > 0 and result.failed == 0
+    page = FilePath(__file__).resolve().parents[1] / "docs" / "concepts" / "drawings.md"
+    result = doctest.testfile(str(page), module_relative=False)
+    assert result.attempted > 0 and result.failed == 0
