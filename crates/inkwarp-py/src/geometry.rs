@@ -8,6 +8,9 @@ use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
+/// A pair of `(N, 2)` float64 arrays: points and displacements.
+type PointPair<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+
 fn value_error(e: GeometryError) -> PyErr {
     PyValueError::new_err(e.to_string())
 }
@@ -24,10 +27,15 @@ fn points_of(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> 
     Ok((0..shape[0]).map(|i| [v[[i, 0]], v[[i, 1]]]).collect())
 }
 
-fn array_of(py: Python<'_>, points: impl ExactSizeIterator<Item = Point>) -> Bound<'_, PyArray2<f64>> {
+fn array_of(
+    py: Python<'_>,
+    points: impl ExactSizeIterator<Item = Point>,
+) -> Bound<'_, PyArray2<f64>> {
     let n = points.len();
-    let flat: Vec<f64> = points.flat_map(|p| p).collect();
-    Array2::from_shape_vec((n, 2), flat).expect("n × 2 values").into_pyarray(py)
+    let flat: Vec<f64> = points.flatten().collect();
+    Array2::from_shape_vec((n, 2), flat)
+        .expect("n × 2 values")
+        .into_pyarray(py)
 }
 
 /// sample_feature(kind, rest, pose, closed=False, spacing=1.0, spline_outline=False,
@@ -46,7 +54,7 @@ fn sample_feature<'py>(
     spline_outline: bool,
     shape: Option<(usize, usize)>,
     mask: Option<PyReadonlyArray2<'py, u8>>,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+) -> PyResult<PointPair<'py>> {
     let kind: Kind = kind.parse().map_err(value_error)?;
     let rest = points_of("rest", &rest)?;
     let pose = points_of("pose", &pose)?;
@@ -60,15 +68,25 @@ fn sample_feature<'py>(
                 )));
             }
             let m = mask.as_array();
-            Some(Grid::from_matte(width, height, &m.iter().copied().collect::<Vec<u8>>()))
+            Some(Grid::from_matte(
+                width,
+                height,
+                &m.iter().copied().collect::<Vec<u8>>(),
+            ))
         }
         (Some((height, width)), None) => Some(Grid::new(width, height)),
         (None, Some(_)) => {
-            return Err(PyValueError::new_err("mask needs shape: pass shape=(H, W) with the mask."));
+            return Err(PyValueError::new_err(
+                "mask needs shape: pass shape=(H, W) with the mask.",
+            ));
         }
         (None, None) => None,
     };
-    let opts = SampleOptions { closed, spline_outline, spacing_px: spacing };
+    let opts = SampleOptions {
+        closed,
+        spline_outline,
+        spacing_px: spacing,
+    };
     let samples = py
         .detach(|| geometry::sample_feature(kind, &rest, &pose, &opts, grid.as_ref()))
         .map_err(value_error)?;
