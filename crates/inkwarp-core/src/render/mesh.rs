@@ -22,6 +22,9 @@ pub(super) const ALL_SIDES: u8 = 15;
 /// Bits of a block's byte in [`Plan::signs`].
 pub(super) const COMPLETE: u8 = 0x80; // the block is one quad; bit 0 = the quad is flipped
 pub(super) const ANY: u8 = 0x40; // some pixel of the block is drawn; bit k = quarter k flipped
+/// A complete block whose four neighbours are complete with the same orientation: none of
+/// its edges is an outline or a fold line, so only its centres need colouring.
+pub(super) const SIMPLE: u8 = 0x20;
 
 /// Blocks per chunk of a block row in [`Plan::ranges`].
 pub(super) const CHUNK: usize = 32;
@@ -148,7 +151,10 @@ pub(super) fn shading_mask(present: u8, links: u8, k: usize) -> u8 {
         let (a, b) = (CYCLE[side], CYCLE[(side + 1) % 4]);
         present >> a & 1 != 0 && present >> b & 1 != 0 && links & SIDE[side] == 0
     };
-    let start = CYCLE.iter().position(|&c| c == k).expect("corner index below 4");
+    let start = CYCLE
+        .iter()
+        .position(|&c| c == k)
+        .expect("corner index below 4");
     let mut mask = 1u8 << k;
     // Clockwise, then counter-clockwise, until a broken side.
     for step in 1..4 {
@@ -203,32 +209,57 @@ impl Layer {
         let (ox, oy) = (offset[0] as f32, offset[1] as f32);
         let mut pos = vec![[0.0f32; 2]; w * h];
         let mut col = vec![[0.0f32; 4]; w * h];
-        pos.par_chunks_mut(w).zip(col.par_chunks_mut(w)).enumerate().for_each(|(y, (prow, crow))| {
-            for x in 0..w {
-                let i = y * w + x;
-                let px = [image.data[4 * i], image.data[4 * i + 1], image.data[4 * i + 2], image.data[4 * i + 3]];
-                let p = [x as f32 + field.dx[i] + ox, y as f32 + field.dy[i] + oy];
-                let drawn = (grid.active[i] || px[3] > 0) && p[0].is_finite() && p[1].is_finite();
-                prow[x] = if drawn { p } else { [f32::NAN; 2] };
-                crow[x] = premultiply(px);
-            }
-        });
+        pos.par_chunks_mut(w)
+            .zip(col.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, (prow, crow))| {
+                let r = y * w..(y + 1) * w;
+                let pixels = image.data[4 * r.start..4 * r.end].chunks_exact(4);
+                let inputs = field.dx[r.clone()]
+                    .iter()
+                    .zip(&field.dy[r.clone()])
+                    .zip(&grid.active[r])
+                    .zip(pixels);
+                for (x, ((p, c), (((&dx, &dy), &active), px))) in
+                    prow.iter_mut().zip(crow.iter_mut()).zip(inputs).enumerate()
+                {
+                    *c = premultiply([px[0], px[1], px[2], px[3]]);
+                    let at = [x as f32 + dx + ox, y as f32 + dy + oy];
+                    let drawn = (active || px[3] > 0) && at[0].is_finite() && at[1].is_finite();
+                    *p = if drawn { at } else { [f32::NAN; 2] };
+                }
+            });
         let mut links = vec![0u8; w * h];
-        links.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            let drawn = |i: usize| !pos[i][0].is_nan();
+        links.par_chunks_mut(w).enumerate().for_each(|(y, lrow)| {
+            let r = y * w..(y + 1) * w;
+            let here = &pos[r.clone()];
+            let below = if y + 1 < h {
+                &pos[r.end..r.end + w]
+            } else {
+                here
+            };
+            let (right, down) = (&grid.link_right[r.clone()], &grid.link_down[r]);
             for x in 0..w {
-                let i = y * w + x;
+                if here[x][0].is_nan() {
+                    continue;
+                }
                 let mut l = 0;
-                if x + 1 < w && grid.link_right[i] && drawn(i) && drawn(i + 1) {
+                if x + 1 < w && right[x] && !here[x + 1][0].is_nan() {
                     l |= LINK_RIGHT;
                 }
-                if y + 1 < h && grid.link_down[i] && drawn(i) && drawn(i + w) {
+                if y + 1 < h && down[x] && !below[x][0].is_nan() {
                     l |= LINK_DOWN;
                 }
-                row[x] = l;
+                lrow[x] = l;
             }
         });
-        Layer { w, h, pos, col, links }
+        Layer {
+            w,
+            h,
+            pos,
+            col,
+            links,
+        }
     }
 
     /// Block `(bc, br)`, whose top-left pixel is `(bc - 1, br - 1)`; `bc ≤ w`, `br ≤ h`.
@@ -303,7 +334,11 @@ impl Layer {
 
     /// The skirt points of a block that is not a complete quad.
     pub fn skirts(&self, b: &Block) -> Skirts {
-        let mut s = Skirts { h: [[0.0; 2]; 4], v: [[0.0; 2]; 4], c: [[0.0; 2]; 4] };
+        let mut s = Skirts {
+            h: [[0.0; 2]; 4],
+            v: [[0.0; 2]; 4],
+            c: [[0.0; 2]; 4],
+        };
         // The parallelogram completion of each corner.
         let mut completion = [[0.0f32; 2]; 4];
         for k in 0..4 {
@@ -357,39 +392,90 @@ impl Layer {
         let nchunks = bw.div_ceil(CHUNK);
         let mut signs = vec![0u8; bw * bh];
         let mut ranges = vec![[f32::INFINITY, f32::NEG_INFINITY]; bh * nchunks];
-        signs.par_chunks_mut(bw).zip(ranges.par_chunks_mut(nchunks)).enumerate().for_each(
-            |(br, (srow, rrow))| {
+        let w = self.w;
+        signs
+            .par_chunks_mut(bw)
+            .zip(ranges.par_chunks_mut(nchunks))
+            .enumerate()
+            .for_each(|(br, (srow, rrow))| {
+                let extend = |range: &mut [f32; 2], q: &[V2; 4]| {
+                    for p in q {
+                        if p[1] < range[0] {
+                            range[0] = p[1];
+                        }
+                        if p[1] > range[1] {
+                            range[1] = p[1];
+                        }
+                    }
+                };
+                // Rows above and below the block row, for the complete quads inside.
+                let rows = (br >= 1 && br < self.h).then(|| {
+                    let (a, b) = ((br - 1) * w, br * w);
+                    (
+                        &self.pos[a..a + w],
+                        &self.pos[b..b + w],
+                        &self.links[a..a + w],
+                        &self.links[b..b + w],
+                    )
+                });
                 for bc in 0..bw {
+                    if let Some((p0, p1, l0, l1)) = rows {
+                        if bc >= 1 && bc < w {
+                            let x = bc - 1;
+                            if l0[x] & (LINK_RIGHT | LINK_DOWN) == LINK_RIGHT | LINK_DOWN
+                                && l0[x + 1] & LINK_DOWN != 0
+                                && l1[x] & LINK_RIGHT != 0
+                            {
+                                let q = [p0[x], p0[x + 1], p1[x + 1], p1[x]];
+                                srow[bc] = COMPLETE | ANY | is_flipped(&q) as u8;
+                                extend(&mut rrow[bc / CHUNK], &q);
+                                continue;
+                            }
+                        }
+                    }
                     let b = self.block(bc, br);
                     if b.present == 0 {
                         continue;
                     }
-                    let range = &mut rrow[bc / CHUNK];
-                    let mut extend = |q: &[V2; 4]| {
-                        for p in q {
-                            range[0] = range[0].min(p[1]);
-                            range[1] = range[1].max(p[1]);
+                    debug_assert!(!b.complete(), "complete blocks are found above");
+                    let s = self.skirts(&b);
+                    let mut byte = ANY;
+                    for k in 0..4 {
+                        if b.present >> k & 1 != 0 {
+                            let q = quarter_corners(&b, &s, k);
+                            byte |= (is_flipped(&q) as u8) << k;
+                            extend(&mut rrow[bc / CHUNK], &q);
                         }
-                    };
-                    if b.complete() {
-                        let q = [b.p[0], b.p[1], b.p[3], b.p[2]];
-                        srow[bc] = COMPLETE | ANY | is_flipped(&q) as u8;
-                        extend(&q);
-                    } else {
-                        let s = self.skirts(&b);
-                        let mut byte = ANY;
-                        for k in 0..4 {
-                            if b.present >> k & 1 != 0 {
-                                let q = quarter_corners(&b, &s, k);
-                                byte |= (is_flipped(&q) as u8) << k;
-                                extend(&q);
-                            }
-                        }
-                        srow[bc] = byte;
                     }
+                    srow[bc] = byte;
                 }
-            },
-        );
-        Plan { signs, ranges, nchunks }
+            });
+        // Mark the quads inside pieces, away from folds.
+        let plain = signs.clone();
+        signs.par_chunks_mut(bw).enumerate().for_each(|(br, srow)| {
+            if br == 0 || br + 1 >= bh {
+                return;
+            }
+            let (above, here, below) = (
+                &plain[(br - 1) * bw..br * bw],
+                &plain[br * bw..(br + 1) * bw],
+                &plain[(br + 1) * bw..(br + 2) * bw],
+            );
+            for bc in 1..bw - 1 {
+                let kind = here[bc] & (COMPLETE | 1);
+                if here[bc] & COMPLETE != 0
+                    && [above[bc], below[bc], here[bc - 1], here[bc + 1]]
+                        .iter()
+                        .all(|&n| n & (COMPLETE | 1) == kind)
+                {
+                    srow[bc] |= SIMPLE;
+                }
+            }
+        });
+        Plan {
+            signs,
+            ranges,
+            nchunks,
+        }
     }
 }

@@ -64,7 +64,12 @@ pub enum RenderError {
         "The RGBA data holds {actual} bytes, but a {width}×{height} RGBA image needs {expected} \
          (4 bytes per pixel, row-major)."
     )]
-    ImageDataLength { width: usize, height: usize, expected: usize, actual: usize },
+    ImageDataLength {
+        width: usize,
+        height: usize,
+        expected: usize,
+        actual: usize,
+    },
     /// A field or grid whose size differs from the layer image.
     #[error(
         "The {what} is {got_width}×{got_height}, but the layer image is {width}×{height}; \
@@ -91,7 +96,11 @@ pub struct RgbaImage {
 impl RgbaImage {
     /// A fully transparent image.
     pub fn new(width: usize, height: usize) -> Self {
-        RgbaImage { width, height, data: vec![0; width * height * 4] }
+        RgbaImage {
+            width,
+            height,
+            data: vec![0; width * height * 4],
+        }
     }
 
     /// An image from raw RGBA bytes.
@@ -105,9 +114,18 @@ impl RgbaImage {
     pub fn from_raw(width: usize, height: usize, data: Vec<u8>) -> Result<Self, RenderError> {
         let expected = width * height * 4;
         if data.len() != expected {
-            return Err(RenderError::ImageDataLength { width, height, expected, actual: data.len() });
+            return Err(RenderError::ImageDataLength {
+                width,
+                height,
+                expected,
+                actual: data.len(),
+            });
         }
-        Ok(RgbaImage { width, height, data })
+        Ok(RgbaImage {
+            width,
+            height,
+            data,
+        })
     }
 
     /// The RGBA value of pixel `(x, y)`.
@@ -115,21 +133,31 @@ impl RgbaImage {
     /// # Panics
     /// If `(x, y)` is outside the image.
     pub fn pixel(&self, x: usize, y: usize) -> [u8; 4] {
-        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) is outside the image");
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) is outside the image"
+        );
         let i = (y * self.width + x) * 4;
-        [self.data[i], self.data[i + 1], self.data[i + 2], self.data[i + 3]]
+        [
+            self.data[i],
+            self.data[i + 1],
+            self.data[i + 2],
+            self.data[i + 3],
+        ]
     }
 }
 
 /// Straight 8-bit RGBA → premultiplied RGBA in `[0, 1]`.
 #[inline]
 pub fn premultiply(rgba: [u8; 4]) -> [f32; 4] {
-    let a = rgba[3] as f32 / 255.0;
+    // The integer products are exact in f32; one rounding each.
+    const INV: f32 = 1.0 / (255.0 * 255.0);
+    let a = rgba[3] as f32;
     [
-        rgba[0] as f32 / 255.0 * a,
-        rgba[1] as f32 / 255.0 * a,
-        rgba[2] as f32 / 255.0 * a,
-        a,
+        rgba[0] as f32 * a * INV,
+        rgba[1] as f32 * a * INV,
+        rgba[2] as f32 * a * INV,
+        a * (1.0 / 255.0),
     ]
 }
 
@@ -139,12 +167,14 @@ pub fn premultiply(rgba: [u8; 4]) -> [f32; 4] {
 /// no colour in a premultiplied pipeline.
 #[inline]
 pub fn unpremultiply(p: [f32; 4]) -> [u8; 4] {
+    // `x + 0.5` truncated rounds non-negative values to nearest without a libm call.
     let a = p[3].clamp(0.0, 1.0);
-    let a8 = (a * 255.0).round() as u8;
+    let a8 = (a * 255.0 + 0.5) as u8;
     if a8 == 0 {
         return [0; 4];
     }
-    let c = |v: f32| ((v / a).clamp(0.0, 1.0) * 255.0).round() as u8;
+    let scale = 255.0 / a;
+    let c = |v: f32| ((v * scale).clamp(0.0, 255.0) + 0.5) as u8;
     [c(p[0]), c(p[1]), c(p[2]), a8]
 }
 
@@ -161,7 +191,11 @@ pub struct Canvas {
 impl Canvas {
     /// A canvas filled with `background` (straight RGBA8).
     pub fn new(width: usize, height: usize, background: [u8; 4]) -> Self {
-        Canvas { width, height, data: vec![premultiply(background); width * height] }
+        Canvas {
+            width,
+            height,
+            data: vec![premultiply(background); width * height],
+        }
     }
 
     /// Forward-maps `image` by `field` over the mesh of `grid`'s links, shifted by `offset`
@@ -207,7 +241,11 @@ impl Canvas {
         for &p in &self.data {
             data.extend_from_slice(&unpremultiply(p));
         }
-        RgbaImage { width: self.width, height: self.height, data }
+        RgbaImage {
+            width: self.width,
+            height: self.height,
+            data,
+        }
     }
 
     /// The premultiplied value of pixel `(x, y)`.
@@ -215,7 +253,10 @@ impl Canvas {
     /// # Panics
     /// If `(x, y)` is outside the canvas.
     pub fn pixel(&self, x: usize, y: usize) -> [f32; 4] {
-        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) is outside the canvas");
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) is outside the canvas"
+        );
         self.data[y * self.width + x]
     }
 }
@@ -274,7 +315,11 @@ pub fn warp_image(image: &RgbaImage, field: &Field, grid: &Grid) -> RgbaImage {
 }
 
 /// [`warp_image`], with an error instead of a panic when the sizes differ.
-pub fn try_warp_image(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<RgbaImage, RenderError> {
+pub fn try_warp_image(
+    image: &RgbaImage,
+    field: &Field,
+    grid: &Grid,
+) -> Result<RgbaImage, RenderError> {
     let mut canvas = Canvas::new(image.width, image.height, [0; 4]);
     canvas.try_draw_layer(image, field, grid, [0.0, 0.0])?;
     Ok(canvas.to_rgba8())

@@ -13,15 +13,16 @@
 //!   ranked by the rest-space distance of the preimage (nearest wins).
 
 use super::mesh::{
-    cross, shading_mask, mid, quarter_corners, shade, sub, Layer, Plan, Rgba, V2, ANY, BOTTOM, CHUNK,
-    COMPLETE, LEFT, RIGHT, TOP,
+    cross, mid, quarter_corners, shade, shading_mask, sub, Layer, Plan, Rgba, ANY, BOTTOM, CHUNK,
+    COMPLETE, LEFT, RIGHT, SIMPLE, TOP, V2,
 };
 use super::{Canvas, RgbaImage};
 use crate::{Field, Grid};
 use rayon::prelude::*;
+use std::cell::RefCell;
 
 /// Canvas rows per band.
-const BAND_ROWS: usize = 16;
+const BAND_ROWS: usize = 32;
 
 /// How each edge of a skirt quarter meets its neighbours, per corner `k`, for the edges
 /// top-left→top-right, top-right→bottom-right, bottom-right→bottom-left,
@@ -47,18 +48,59 @@ const QUARTER_EDGES: [[EdgeKind; 4]; 4] = [
     [VInner, VBlock, HBlock, HInner],
 ];
 
-pub(super) fn draw_layer(canvas: &mut Canvas, image: &RgbaImage, field: &Field, grid: &Grid, offset: [f64; 2]) {
+pub(super) fn draw_layer(
+    canvas: &mut Canvas,
+    image: &RgbaImage,
+    field: &Field,
+    grid: &Grid,
+    offset: [f64; 2],
+) {
     let cw = canvas.width;
     if image.width == 0 || image.height == 0 || cw == 0 || canvas.height == 0 {
         return;
     }
     let layer = Layer::prepare(image, field, grid, offset);
     let plan = layer.plan();
-    canvas.data.par_chunks_mut(BAND_ROWS * cw).enumerate().for_each(|(band, dst)| {
-        let mut b = Band::new(cw, band * BAND_ROWS, dst.len() / cw);
-        b.render(&layer, &plan);
-        b.composite(dst);
-    });
+    canvas
+        .data
+        .par_chunks_mut(BAND_ROWS * cw)
+        .enumerate()
+        .for_each(|(band, dst)| {
+            SCRATCH.with(|scratch| {
+                let mut b = scratch.borrow_mut();
+                b.reset(cw, band * BAND_ROWS, dst.len() / cw);
+                b.render(&layer, &plan);
+                b.composite(dst);
+            })
+        });
+}
+
+thread_local! {
+    /// Each worker thread reuses its band buffers from one layer to the next.
+    static SCRATCH: RefCell<Band> = RefCell::new(Band::default());
+}
+
+/// Bounding box of some points.
+#[derive(Clone, Copy)]
+struct Bbox {
+    x0: f32,
+    x1: f32,
+    y0: f32,
+    y1: f32,
+}
+
+/// (Plain comparisons: the points are finite, and `f32::min` would pay for NaN.)
+#[inline]
+fn bbox(points: &[V2; 4]) -> Bbox {
+    let lo = |a: f32, b: f32| if b < a { b } else { a };
+    let hi = |a: f32, b: f32| if b > a { b } else { a };
+    let [a, b, c, d] = *points;
+    Bbox {
+        x0: lo(lo(a[0], b[0]), lo(c[0], d[0])),
+        x1: hi(hi(a[0], b[0]), hi(c[0], d[0])),
+        y0: lo(lo(a[1], b[1]), lo(c[1], d[1])),
+        y1: hi(hi(a[1], b[1]), hi(c[1], d[1])),
+    }
 }
 
 /// Whether the element of corner `k` in block `(bc, br)` is flipped.
@@ -72,82 +114,188 @@ fn flipped_at(plan: &Plan, w: usize, bc: usize, br: usize, k: usize) -> bool {
     }
 }
 
-/// The element being drawn: its outline (corners, plus link midpoints where a neighbour
-/// splits a side), its bilinear corners, its rest square inside its block, and its shading.
-struct Element<'a> {
-    outline: &'a [V2],
+/// An element being drawn: its bilinear corners, its rest square inside its block, and
+/// its shading.
+struct Element {
     q: [V2; 4],
     u0: f32,
     v0: f32,
     size: f32,
-    col: &'a [Rgba; 4],
+    col: [Rgba; 4],
     mask: u8,
     own: usize,
 }
 
-impl Element<'_> {
+impl Element {
     #[inline]
     fn colour(&self, s: f32, t: f32) -> Rgba {
         let u = (self.u0 + s * self.size).clamp(0.0, 1.0);
         let v = (self.v0 + t * self.size).clamp(0.0, 1.0);
-        shade(self.col, self.mask, self.own, u, v)
+        shade(&self.col, self.mask, self.own, u, v)
     }
 }
 
-/// Preimages `(s, t)` of `p` under the bilinear map of `q` (corners top-left, top-right,
-/// bottom-right, bottom-left): `p = q0 + s·e + t·f + s·t·g`. Picks the root nearest to the
-/// unit square (within a small tolerance), the larger `t` on a tie; returns it with its
-/// squared distance from the unit square.
-#[inline]
-fn preimage(q: &[V2; 4], p: V2) -> Option<([f32; 2], f32)> {
-    let e = sub(q[1], q[0]);
-    let f = sub(q[3], q[0]);
-    let g = [q[0][0] - q[1][0] + q[2][0] - q[3][0], q[0][1] - q[1][1] + q[2][1] - q[3][1]];
-    let h = sub(p, q[0]);
-    let k2 = cross(g, f);
-    let k1 = cross(e, f) + cross(h, g);
-    let k0 = cross(h, e);
-    let w = (k1 * k1 - 4.0 * k0 * k2).max(0.0).sqrt();
-    // The numerically stable pair of roots: k0 / m and m / k2.
-    let m = -0.5 * (k1 + w.copysign(k1));
-    let mut best: Option<([f32; 2], f32, f32)> = None;
-    let mut consider = |t: f32| {
-        if !t.is_finite() {
-            return;
+/// The bilinear map of a quadrilateral `q` (corners top-left, top-right, bottom-right,
+/// bottom-left of its rest square): `p = q0 + s·e + t·f + s·t·g`, `(s, t) ∈ [0, 1]²`.
+struct Bilinear {
+    q0: V2,
+    e: V2,
+    f: V2,
+    g: V2,
+    /// `cross(e, f)` and `cross(g, f)`, the constant parts of the quadratic in `t`.
+    kef: f32,
+    k2: f32,
+    /// `1 / cross(e, f)` when the quad is a parallelogram (`g` negligible): the inverse
+    /// is then affine. Zero otherwise.
+    affine_inv: f32,
+}
+
+impl Bilinear {
+    #[inline]
+    fn new(q: &[V2; 4]) -> Bilinear {
+        let e = sub(q[1], q[0]);
+        let f = sub(q[3], q[0]);
+        let g = [
+            q[0][0] - q[1][0] + q[2][0] - q[3][0],
+            q[0][1] - q[1][1] + q[2][1] - q[3][1],
+        ];
+        let kef = cross(e, f);
+        // Dropping `s·t·g` moves the preimage by about |g| / 4 of the quad's size: below
+        // 1e-4 here, far below a level of colour.
+        let scale = e[0].abs() + e[1].abs() + f[0].abs() + f[1].abs();
+        let parallelogram = g[0].abs() + g[1].abs() <= 2e-4 * scale && kef != 0.0;
+        let affine_inv = if parallelogram { 1.0 / kef } else { 0.0 };
+        Bilinear {
+            q0: q[0],
+            e,
+            f,
+            g,
+            kef,
+            k2: cross(g, f),
+            affine_inv,
         }
-        let dx = e[0] + g[0] * t;
-        let dy = e[1] + g[1] * t;
-        let s = if dx.abs() >= dy.abs() { (h[0] - f[0] * t) / dx } else { (h[1] - f[1] * t) / dy };
-        if !s.is_finite() {
-            return;
+    }
+
+    /// The preimage of a point inside the quad, clamped to the unit square.
+    #[inline]
+    fn preimage_inside(&self, p: V2) -> Option<[f32; 2]> {
+        if self.affine_inv != 0.0 {
+            let h = sub(p, self.q0);
+            let s = cross(h, self.f) * self.affine_inv;
+            let t = cross(self.e, h) * self.affine_inv;
+            return Some([s.clamp(0.0, 1.0), t.clamp(0.0, 1.0)]);
         }
+        self.preimage(p)
+            .map(|([s, t], _)| [s.clamp(0.0, 1.0), t.clamp(0.0, 1.0)])
+    }
+
+    /// The preimage `(s, t)` of `p` nearest to the unit square (within a small
+    /// tolerance), the larger `t` on a tie, with its squared distance from the unit square.
+    #[inline]
+    fn preimage(&self, p: V2) -> Option<([f32; 2], f32)> {
         const TOL: f32 = 1e-4;
-        let out = |v: f32| (-v - TOL).max(v - 1.0 - TOL).max(0.0);
-        let d_tol = out(s).powi(2) + out(t).powi(2);
-        let better = match best {
-            None => true,
-            Some((r, _, bd)) => d_tol < bd || (d_tol == bd && t > r[1]),
-        };
-        if better {
-            let exact = |v: f32| (-v).max(v - 1.0).max(0.0);
-            best = Some(([s, t], exact(s).powi(2) + exact(t).powi(2), d_tol));
+        let outside = |v: f32, tol: f32| (-v - tol).max(v - 1.0 - tol).max(0.0);
+        let distance = |s: f32, t: f32, tol: f32| outside(s, tol).powi(2) + outside(t, tol).powi(2);
+        let Bilinear { e, f, g, k2, .. } = *self;
+        let h = sub(p, self.q0);
+        if self.affine_inv != 0.0 {
+            let s = cross(h, f) * self.affine_inv;
+            let t = cross(e, h) * self.affine_inv;
+            return Some(([s, t], distance(s, t, 0.0)));
         }
-    };
-    if m != 0.0 {
-        consider(k0 / m);
+        let k1 = self.kef + cross(h, g);
+        let k0 = cross(h, e);
+        let w = (k1 * k1 - 4.0 * k0 * k2).max(0.0).sqrt();
+        // The numerically stable pair of roots: k0 / m and m / k2.
+        let m = -0.5 * (k1 + w.copysign(k1));
+        let solve_s = |t: f32| {
+            let dx = e[0] + g[0] * t;
+            let dy = e[1] + g[1] * t;
+            if dx.abs() >= dy.abs() {
+                (h[0] - f[0] * t) / dx
+            } else {
+                (h[1] - f[1] * t) / dy
+            }
+        };
+        let mut best: Option<([f32; 2], f32)> = None;
+        if m != 0.0 {
+            let t = k0 / m;
+            let s = solve_s(t);
+            if s.is_finite() && t.is_finite() {
+                best = Some(([s, t], distance(s, t, TOL)));
+            }
+        }
+        if k2 != 0.0 {
+            let t = m / k2;
+            let s = solve_s(t);
+            if s.is_finite() && t.is_finite() {
+                let d = distance(s, t, TOL);
+                let better = match best {
+                    None => true,
+                    Some((r, bd)) => d < bd || (d == bd && t > r[1]),
+                };
+                if better {
+                    best = Some(([s, t], d));
+                }
+            }
+        }
+        best.map(|([s, t], _)| ([s, t], distance(s, t, 0.0)))
     }
-    if k2 != 0.0 {
-        consider(m / k2);
-    }
-    best.map(|(r, d, _)| (r, d))
 }
 
+/// `⌈x⌉` as a float, without a libm call (baseline x86-64 has no rounding instruction).
+#[inline]
+fn ceil_f(x: f32) -> f32 {
+    // Adding and removing 1.5·2²³ rounds |x| < 2²² to an integer; larger values are ones.
+    const MAGIC: f32 = 12_582_912.0;
+    if x.abs() < 4_194_304.0 {
+        let r = (x + MAGIC) - MAGIC;
+        if r < x {
+            r + 1.0
+        } else {
+            r
+        }
+    } else {
+        x
+    }
+}
+
+/// `⌈x⌉` (NaN gives 0).
+#[inline]
+fn ceil_i(x: f32) -> i64 {
+    ceil_f(x) as i64
+}
+
+/// `⌊x⌋` without a libm call.
+#[inline]
+fn floor_i(x: f32) -> i64 {
+    -ceil_i(-x)
+}
+
+/// Where the edge between `a` and `b` crosses the scanline `y`, if it does: the edge owns
+/// the scanlines with `lo.y ≤ y < hi.y` (`lo` its end with the smaller `y`), and the
+/// crossing is computed from `(lo, hi)` alone, so every element beside an edge gets the
+/// same value bit for bit. Returns `(x, direction)`, direction +1 where `a → b` runs
+/// towards larger `y`.
+#[inline]
+fn crossing(a: V2, b: V2, y: f32) -> Option<(f32, i32)> {
+    let (lo, hi, dir) = if a[1] < b[1] { (a, b, 1) } else { (b, a, -1) };
+    (lo[1] <= y && y < hi[1]).then(|| {
+        (
+            lo[0] + (y - lo[1]) * ((hi[0] - lo[0]) / (hi[1] - lo[1])),
+            dir,
+        )
+    })
+}
+
+#[derive(Default)]
 struct Band {
     cw: usize,
     y0: usize,
     rows: usize,
     /// Candidate colour per pixel, and its priority (0 = centre inside an element, higher
-    /// for colours offered from outside, see [`Band::offer`]).
+    /// for colours offered from outside, see [`Band::offer`]); the colour is meaningful
+    /// only where the priority is finite.
     col: Vec<Rgba>,
     prio: Vec<f32>,
     /// Signed-area accumulator, `rows × stride`; the running row sum is the coverage.
@@ -156,17 +304,16 @@ struct Band {
 }
 
 impl Band {
-    fn new(cw: usize, y0: usize, rows: usize) -> Band {
-        let stride = cw + 2;
-        Band {
-            cw,
-            y0,
-            rows,
-            col: vec![[0.0; 4]; rows * cw],
-            prio: vec![f32::INFINITY; rows * cw],
-            acc: vec![0.0; rows * stride],
-            stride,
-        }
+    fn reset(&mut self, cw: usize, y0: usize, rows: usize) {
+        self.cw = cw;
+        self.y0 = y0;
+        self.rows = rows;
+        self.stride = cw + 2;
+        self.col.resize(rows * cw, [0.0; 4]);
+        self.prio.clear();
+        self.prio.resize(rows * cw, f32::INFINITY);
+        self.acc.clear();
+        self.acc.resize(rows * self.stride, 0.0);
     }
 
     /// Rows of element geometry that can touch this band: centres `y0 .. y0 + rows` and
@@ -177,22 +324,16 @@ impl Band {
     }
 
     #[inline]
-    fn reaches(&self, q: &[V2]) -> bool {
+    fn reaches(&self, b: Bbox) -> bool {
         let (lo, hi) = self.y_window();
-        let (mut x0, mut x1, mut y0, mut y1) = (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
-        for p in q {
-            x0 = x0.min(p[0]);
-            x1 = x1.max(p[0]);
-            y0 = y0.min(p[1]);
-            y1 = y1.max(p[1]);
-        }
         // Elements left of the canvas still matter: their edges add coverage to the row.
-        y1 >= lo && y0 <= hi && x0 <= self.cw as f32
+        b.y1 >= lo && b.y0 <= hi && b.x0 <= self.cw as f32
     }
 
     fn render(&mut self, layer: &Layer, plan: &Plan) {
         let (lo, hi) = self.y_window();
         let bw = layer.w + 1;
+        let w = layer.w;
         for br in 0..=layer.h {
             for ch in 0..plan.nchunks {
                 let [ymin, ymax] = plan.ranges[br * plan.nchunks + ch];
@@ -201,8 +342,11 @@ impl Band {
                 }
                 for bc in ch * CHUNK..((ch + 1) * CHUNK).min(bw) {
                     let byte = plan.signs[br * bw + bc];
-                    if byte & COMPLETE != 0 {
-                        self.quad(layer, plan, bc, br);
+                    if byte & SIMPLE != 0 {
+                        // Interior, so `br ≥ 1` and `bc ≥ 1`: its top-left pixel.
+                        self.simple_quad(layer, (br - 1) * w + bc - 1);
+                    } else if byte & COMPLETE != 0 {
+                        self.quad(layer, plan, bc, br, byte);
                     } else if byte & ANY != 0 {
                         self.partial(layer, plan, bc, br);
                     }
@@ -211,32 +355,85 @@ impl Band {
         }
     }
 
-    /// A complete block: one bilinear quad.
-    fn quad(&mut self, layer: &Layer, plan: &Plan, bc: usize, br: usize) {
-        let b = layer.block(bc, br);
-        let q = [b.p[0], b.p[1], b.p[3], b.p[2]];
-        if !self.reaches(&q) {
+    /// A quad inside a piece and away from folds: colour the centres inside it. `i` is
+    /// its top-left pixel.
+    #[inline(never)]
+    fn simple_quad(&mut self, layer: &Layer, i: usize) {
+        let w = layer.w;
+        let pos = &layer.pos;
+        let q = [pos[i], pos[i + 1], pos[i + w + 1], pos[i + w]];
+        let [tl, tr, br, bl] = q;
+        let lo = |a: f32, b: f32| if b < a { b } else { a };
+        let hi = |a: f32, b: f32| if b > a { b } else { a };
+        // The core: scanlines below both top corners and above both bottom corners, where
+        // only the left (bl–tl) and right (tr–br) edges cross. Elsewhere: the general path.
+        let (top, bottom) = (hi(tl[1], tr[1]), lo(bl[1], br[1]));
+        let (y_min, y_max) = (
+            lo(lo(tl[1], tr[1]), lo(bl[1], br[1])),
+            hi(hi(tl[1], tr[1]), hi(bl[1], br[1])),
+        );
+        // All scanlines of the quad (y_min ≤ Y < y_max) are core scanlines when these agree.
+        let first = ceil_f(top);
+        let end = ceil_f(bottom);
+        let c = &layer.col;
+        let colour = |s, t| shade(&[c[i], c[i + 1], c[i + w], c[i + w + 1]], 0b1111, 0, s, t);
+        if first != ceil_f(y_min) || end != ceil_f(y_max) {
+            let bb = bbox(&q);
+            let (lo_y, hi_y) = self.y_window();
+            if bb.y1 >= lo_y && bb.y0 <= hi_y {
+                self.fill(&q, &q, bb, colour);
+            }
             return;
         }
-        let bw = layer.w + 1;
-        let flipped = plan.signs[br * bw + bc] & 1 != 0;
-        // Sides top, right, bottom, left: the neighbouring block, and which of its corners
-        // are this side's first and second end.
-        let sides = [
-            (bc, br - 1, 2, 3),
-            (bc + 1, br, 0, 2),
-            (bc, br + 1, 1, 0),
-            (bc - 1, br, 3, 1),
+        let first = (first as i64).max(self.y0 as i64);
+        let end = (end as i64).min((self.y0 + self.rows) as i64);
+        if first >= end {
+            return;
+        }
+        let map = Bilinear::new(&q);
+        for row in first..end {
+            let y = row as f32;
+            let (Some((xl, _)), Some((xr, _))) = (crossing(bl, tl, y), crossing(tr, br, y)) else {
+                continue;
+            };
+            let (x_from, x_to) = if xl <= xr { (xl, xr) } else { (xr, xl) };
+            self.span(row, x_from, x_to, &map, &colour);
+        }
+    }
+
+    /// A complete block: one bilinear quad.
+    #[inline(never)]
+    fn quad(&mut self, layer: &Layer, plan: &Plan, bc: usize, br: usize, byte: u8) {
+        let w = layer.w;
+        let i = (br - 1) * w + bc - 1;
+        let pos = &layer.pos;
+        let q = [pos[i], pos[i + 1], pos[i + w + 1], pos[i + w]];
+        let bb = bbox(&q);
+        if !self.reaches(bb) {
+            return;
+        }
+        let bw = w + 1;
+        let bi = br * bw + bc;
+        // Neighbouring blocks top, right, bottom, left, and which of their corners are
+        // this side's first and second end.
+        let signs = &plan.signs;
+        let neighbours = [
+            (signs[bi - bw], 2, 3),
+            (signs[bi + 1], 0, 2),
+            (signs[bi + bw], 1, 0),
+            (signs[bi - 1], 3, 1),
         ];
+        let c = &layer.col;
+        let col = [c[i], c[i + 1], c[i + w], c[i + w + 1]];
+        let flipped = byte & 1 != 0;
         let mut outline = [[0.0f32; 2]; 8];
         let mut n = 0;
         let mut edges = [([0.0f32; 2], [0.0f32; 2]); 8];
         let mut ne = 0;
-        for (side, &(nc, nr, ka, kb)) in sides.iter().enumerate() {
+        for (side, &(nbyte, ka, kb)) in neighbours.iter().enumerate() {
             let (a, z) = (q[side], q[(side + 1) % 4]);
             outline[n] = a;
             n += 1;
-            let nbyte = plan.signs[nr * bw + nc];
             if nbyte & COMPLETE != 0 {
                 if (nbyte & 1 != 0) != flipped {
                     edges[ne] = (a, z);
@@ -258,17 +455,33 @@ impl Band {
                 }
             }
         }
-        let el = Element { outline: &outline[..n], q, u0: 0.0, v0: 0.0, size: 1.0, col: &b.col, mask: 0b1111, own: 0 };
-        self.fill(&el);
+        for k in n..8 {
+            outline[k] = outline[n - 1];
+        }
+        let el = Element {
+            q,
+            u0: 0.0,
+            v0: 0.0,
+            size: 1.0,
+            col,
+            mask: 0b1111,
+            own: 0,
+        };
+        self.fill(&outline, &q, bb, |s, t| el.colour(s, t));
         if ne > 0 {
             for &(a, z) in &edges[..ne] {
-                if flipped { self.accumulate(z, a) } else { self.accumulate(a, z) }
+                if flipped {
+                    self.accumulate(z, a)
+                } else {
+                    self.accumulate(a, z)
+                }
             }
-            self.offer(&el);
+            self.offer(&el, bb);
         }
     }
 
     /// A block that is not a complete quad: one skirt quarter per drawn pixel.
+    #[inline(never)]
     fn partial(&mut self, layer: &Layer, plan: &Plan, bc: usize, br: usize) {
         let b = layer.block(bc, br);
         let s = layer.skirts(&b);
@@ -279,7 +492,8 @@ impl Band {
                 continue;
             }
             let q = quarter_corners(&b, &s, k);
-            if !self.reaches(&q) {
+            let bb = bbox(&q);
+            if !self.reaches(bb) {
                 continue;
             }
             let flipped = byte >> k & 1 != 0;
@@ -287,10 +501,24 @@ impl Band {
             let mut ne = 0;
             for (e, kind) in QUARTER_EDGES[k].iter().enumerate() {
                 let neighbour_flipped = match kind {
-                    HBlock => Some(flipped_at(plan, w, bc, if k < 2 { br - 1 } else { br + 1 }, k ^ 2)),
-                    VBlock => Some(flipped_at(plan, w, if k & 1 == 0 { bc - 1 } else { bc + 1 }, br, k ^ 1)),
-                    HInner => (b.links & if k < 2 { TOP } else { BOTTOM } != 0).then(|| byte >> (k ^ 1) & 1 != 0),
-                    VInner => (b.links & if k & 1 == 0 { LEFT } else { RIGHT } != 0).then(|| byte >> (k ^ 2) & 1 != 0),
+                    HBlock => Some(flipped_at(
+                        plan,
+                        w,
+                        bc,
+                        if k < 2 { br - 1 } else { br + 1 },
+                        k ^ 2,
+                    )),
+                    VBlock => Some(flipped_at(
+                        plan,
+                        w,
+                        if k & 1 == 0 { bc - 1 } else { bc + 1 },
+                        br,
+                        k ^ 1,
+                    )),
+                    HInner => (b.links & if k < 2 { TOP } else { BOTTOM } != 0)
+                        .then(|| byte >> (k ^ 1) & 1 != 0),
+                    VInner => (b.links & if k & 1 == 0 { LEFT } else { RIGHT } != 0)
+                        .then(|| byte >> (k ^ 2) & 1 != 0),
                 };
                 if neighbour_flipped != Some(flipped) {
                     edges[ne] = (q[e], q[(e + 1) % 4]);
@@ -298,77 +526,92 @@ impl Band {
                 }
             }
             let el = Element {
-                outline: &q,
                 q,
                 u0: (k & 1) as f32 * 0.5,
                 v0: (k >> 1) as f32 * 0.5,
                 size: 0.5,
-                col: &b.col,
+                col: b.col,
                 mask: shading_mask(b.present, b.links, k),
                 own: k,
             };
-            self.fill(&el);
+            self.fill(&q, &q, bb, |s, t| el.colour(s, t));
             if ne > 0 {
                 for &(a, z) in &edges[..ne] {
-                    if flipped { self.accumulate(z, a) } else { self.accumulate(a, z) }
+                    if flipped {
+                        self.accumulate(z, a)
+                    } else {
+                        self.accumulate(a, z)
+                    }
                 }
-                self.offer(&el);
+                self.offer(&el, bb);
             }
         }
     }
 
-    /// Colours the pixel centres inside the element (non-zero winding of its outline).
-    fn fill(&mut self, el: &Element) {
-        let outline = el.outline;
-        let (mut ymin, mut ymax) = (f32::INFINITY, f32::NEG_INFINITY);
-        for p in outline {
-            ymin = ymin.min(p[1]);
-            ymax = ymax.max(p[1]);
+    /// Colours the pixel centres inside an element (bilinear corners `q`, `outline` the
+    /// corners plus any link midpoints that split its sides): the centres of each scanline
+    /// where the winding number of `outline` is not zero, counting the edges that cross
+    /// the scanline at or left of the centre (see [`crossing`]). Every element beside an
+    /// edge sees the same crossing, so every centre has exactly one owner.
+    fn fill<const N: usize>(
+        &mut self,
+        outline: &[V2; N],
+        q: &[V2; 4],
+        bb: Bbox,
+        colour: impl Fn(f32, f32) -> Rgba,
+    ) {
+        // Scanlines with y0 ≤ Y < y1.
+        let ya = ceil_i(bb.y0).max(self.y0 as i64);
+        let yb = (ceil_i(bb.y1) - 1).min((self.y0 + self.rows) as i64 - 1);
+        if ya > yb || bb.x1 < 0.0 {
+            return;
         }
-        // Centre rows with ymin ≤ Y < ymax, inside the band.
-        let first = (ymin.ceil().max(self.y0 as f32)) as i64;
-        let last = (ymax.ceil() - 1.0).min((self.y0 + self.rows - 1) as f32) as i64;
-        let cw = self.cw as i64;
-        for row in first..=last {
+        let map = Bilinear::new(q);
+        for row in ya..yb + 1 {
             let y = row as f32;
-            let mut xs = [(0.0f32, 0i32); 8];
+            let mut xs = [(0.0f32, 0i32); N];
             let mut n = 0;
-            for i in 0..outline.len() {
-                let (a, z) = (outline[i], outline[(i + 1) % outline.len()]);
-                let (lo, hi, dir) = if a[1] < z[1] {
-                    (a, z, 1)
-                } else if z[1] < a[1] {
-                    (z, a, -1)
-                } else {
-                    continue;
-                };
-                if lo[1] <= y && y < hi[1] {
-                    let x = lo[0] + (y - lo[1]) * (hi[0] - lo[0]) / (hi[1] - lo[1]);
+            for k in 0..N {
+                if let Some(c) = crossing(outline[(k + N - 1) % N], outline[k], y) {
                     // Insertion sort by x.
                     let mut j = n;
-                    while j > 0 && xs[j - 1].0 > x {
+                    while j > 0 && xs[j - 1].0 > c.0 {
                         xs[j] = xs[j - 1];
                         j -= 1;
                     }
-                    xs[j] = (x, dir);
+                    xs[j] = c;
                     n += 1;
                 }
             }
             let mut winding = 0;
-            for i in 0..n.saturating_sub(1) {
-                winding += xs[i].1;
-                if winding == 0 {
-                    continue;
+            for k in 0..n.saturating_sub(1) {
+                winding += xs[k].1;
+                if winding != 0 {
+                    self.span(row, xs[k].0, xs[k + 1].0, &map, &colour);
                 }
-                let start = (xs[i].0.ceil() as i64).max(0);
-                let end = (xs[i + 1].0.ceil() as i64 - 1).min(cw - 1);
-                for x in start..=end {
-                    if let Some(([s, t], _)) = preimage(&el.q, [x as f32, y]) {
-                        let i = (row as usize - self.y0) * self.cw + x as usize;
-                        self.col[i] = el.colour(s.clamp(0.0, 1.0), t.clamp(0.0, 1.0));
-                        self.prio[i] = 0.0;
-                    }
-                }
+            }
+        }
+    }
+
+    /// Colours the centres `x_from ≤ X < x_to` of scanline `row`.
+    #[inline(always)]
+    fn span(
+        &mut self,
+        row: i64,
+        x_from: f32,
+        x_to: f32,
+        map: &Bilinear,
+        colour: &impl Fn(f32, f32) -> Rgba,
+    ) {
+        let start = ceil_i(x_from).max(0);
+        let end = ceil_i(x_to).min(self.cw as i64);
+        let line = (row as usize - self.y0) * self.cw;
+        let y = row as f32;
+        for x in start..end {
+            if let Some([s, t]) = map.preimage_inside([x as f32, y]) {
+                let i = line + x as usize;
+                self.col[i] = colour(s, t);
+                self.prio[i] = 0.0;
             }
         }
     }
@@ -377,21 +620,15 @@ impl Band {
     /// its bounding box, for those not inside any element: elements whose block holds the
     /// preimage of the centre first, then by the rest-space distance of the preimage from
     /// the element.
-    fn offer(&mut self, el: &Element) {
-        let (mut x0, mut x1, mut y0, mut y1) = (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
-        for p in &el.q {
-            x0 = x0.min(p[0]);
-            x1 = x1.max(p[0]);
-            y0 = y0.min(p[1]);
-            y1 = y1.max(p[1]);
-        }
-        let xa = ((x0 - 0.5).ceil() as i64).max(0);
-        let xb = ((x1 + 0.5).floor() as i64).min(self.cw as i64 - 1);
-        let ya = ((y0 - 0.5).ceil() as i64).max(self.y0 as i64);
-        let yb = ((y1 + 0.5).floor() as i64).min((self.y0 + self.rows) as i64 - 1);
+    fn offer(&mut self, el: &Element, bb: Bbox) {
+        let map = Bilinear::new(&el.q);
+        let xa = ceil_i(bb.x0 - 0.5).max(0);
+        let xb = floor_i(bb.x1 + 0.5).min(self.cw as i64 - 1);
+        let ya = ceil_i(bb.y0 - 0.5).max(self.y0 as i64);
+        let yb = floor_i(bb.y1 + 0.5).min((self.y0 + self.rows) as i64 - 1);
         for row in ya..=yb {
             for x in xa..=xb {
-                let Some(([s, t], d2)) = preimage(&el.q, [x as f32, row as f32]) else {
+                let Some(([s, t], d2)) = map.preimage([x as f32, row as f32]) else {
                     continue;
                 };
                 // Elements of the block that holds the preimage come first (for a
@@ -419,7 +656,11 @@ impl Band {
         if ay == zy {
             return;
         }
-        let (dir, (x0, y0), (x1, y1)) = if ay < zy { (1.0, (ax, ay), (zx, zy)) } else { (-1.0, (zx, zy), (ax, ay)) };
+        let (dir, (x0, y0), (x1, y1)) = if ay < zy {
+            (1.0, (ax, ay), (zx, zy))
+        } else {
+            (-1.0, (zx, zy), (ax, ay))
+        };
         let dxdy = (x1 - x0) / (y1 - y0);
         let top = self.y0 as f64;
         let bottom = (self.y0 + self.rows) as f64;

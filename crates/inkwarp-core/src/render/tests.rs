@@ -37,10 +37,14 @@ fn constant_field(width: usize, height: usize, t: [f64; 2]) -> Field {
 
 /// Deterministic pseudo-random bytes (a 64-bit LCG), for images in plain unit tests.
 fn noise(seed: u64, n: usize) -> Vec<u8> {
-    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let mut s = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     (0..n)
         .map(|_| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (s >> 56) as u8
         })
         .collect()
@@ -66,13 +70,14 @@ fn box_reference(image: &RgbaImage, t: [f64; 2], cw: usize, ch: usize) -> RgbaIm
         for ox in 0..cw {
             let mut acc = [0.0f64; 4];
             for y in 0..image.height {
-                let ov_y = (oy as f64 + 0.5).min(y as f64 + t[1] + 0.5) - (oy as f64 - 0.5).max(y as f64 + t[1] - 0.5);
+                let ov_y = (oy as f64 + 0.5).min(y as f64 + t[1] + 0.5)
+                    - (oy as f64 - 0.5).max(y as f64 + t[1] - 0.5);
                 if ov_y <= 0.0 {
                     continue;
                 }
                 for x in 0..image.width {
-                    let ov_x =
-                        (ox as f64 + 0.5).min(x as f64 + t[0] + 0.5) - (ox as f64 - 0.5).max(x as f64 + t[0] - 0.5);
+                    let ov_x = (ox as f64 + 0.5).min(x as f64 + t[0] + 0.5)
+                        - (ox as f64 - 0.5).max(x as f64 + t[0] - 0.5);
                     if ov_x <= 0.0 {
                         continue;
                     }
@@ -107,14 +112,25 @@ fn max_channel_diff(a: &RgbaImage, b: &RgbaImage) -> u8 {
             if p[3] == 0 || q[3] == 0 {
                 p[3].abs_diff(q[3])
             } else {
-                p.iter().zip(q).map(|(&x, &y)| x.abs_diff(y)).max().unwrap_or(0)
+                p.iter()
+                    .zip(q)
+                    .map(|(&x, &y)| x.abs_diff(y))
+                    .max()
+                    .unwrap_or(0)
             }
         })
         .max()
         .unwrap_or(0)
 }
 
-fn render(image: &RgbaImage, field: &Field, grid: &Grid, cw: usize, ch: usize, offset: [f64; 2]) -> RgbaImage {
+fn render(
+    image: &RgbaImage,
+    field: &Field,
+    grid: &Grid,
+    cw: usize,
+    ch: usize,
+    offset: [f64; 2],
+) -> RgbaImage {
     let mut canvas = Canvas::new(cw, ch, [0; 4]);
     canvas.draw_layer(image, field, grid, offset);
     canvas.to_rgba8()
@@ -248,7 +264,10 @@ fn render_shift(image: &RgbaImage, tx: i32, ty: i32, cw: usize, ch: usize) -> Rg
 #[test]
 fn identity_on_a_large_opaque_image_is_exact() {
     let image = opaque_noise(67, 45, 7);
-    assert_eq!(warp_image(&image, &Field::zeros(67, 45), &Grid::new(67, 45)), image);
+    assert_eq!(
+        warp_image(&image, &Field::zeros(67, 45), &Grid::new(67, 45)),
+        image
+    );
 }
 
 #[test]
@@ -257,7 +276,12 @@ fn sine_warp_has_no_cracks() {
     let image = opaque_noise(w, h, 3);
     let (amp, period) = (3.0, 24.0);
     let tau = std::f64::consts::TAU;
-    let warp = |x: f64, y: f64| [x + amp * (tau * y / period).sin(), y + amp * (tau * x / period).sin()];
+    let warp = |x: f64, y: f64| {
+        [
+            x + amp * (tau * y / period).sin(),
+            y + amp * (tau * x / period).sin(),
+        ]
+    };
     let field = field_from(w, h, |x, y| {
         let p = warp(x, y);
         [p[0] - x, p[1] - y]
@@ -277,13 +301,24 @@ fn sine_warp_has_no_cracks() {
         }
         p
     };
-    let inside = |p: [f64; 2]| p[0] > -0.45 && p[0] < w as f64 - 0.55 && p[1] > -0.45 && p[1] < h as f64 - 0.55;
+    let inside = |p: [f64; 2]| {
+        p[0] > -0.45 && p[0] < w as f64 - 0.55 && p[1] > -0.45 && p[1] < h as f64 - 0.55
+    };
     let mut checked = 0;
     for oy in 0..ch {
         for ox in 0..cw {
             // Pixels whose whole unit square maps back inside the rest rectangle.
-            let corners = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5], [0.0, 0.0]];
-            if corners.iter().all(|d| inside(unwarp([ox as f64 - 5.0 + d[0], oy as f64 - 5.0 + d[1]]))) {
+            let corners = [
+                [-0.5, -0.5],
+                [0.5, -0.5],
+                [0.5, 0.5],
+                [-0.5, 0.5],
+                [0.0, 0.0],
+            ];
+            if corners
+                .iter()
+                .all(|d| inside(unwarp([ox as f64 - 5.0 + d[0], oy as f64 - 5.0 + d[1]])))
+            {
                 assert_eq!(out.pixel(ox, oy)[3], 255, "crack at ({ox}, {oy})");
                 checked += 1;
             }
@@ -333,12 +368,18 @@ fn a_hole_opens_when_the_field_pulls_it_apart() {
     let grid = alpha_matte(&image);
     // Everything left of the hole's centre moves left by 3, everything right of it right
     // by 3, smoothly across a band above and below, pulling the hole's sides apart.
-    let field = field_from(w, h, |x, _| [3.0 * ((x - 11.5) / 2.0).clamp(-1.0, 1.0), 0.0]);
+    let field = field_from(w, h, |x, _| {
+        [3.0 * ((x - 11.5) / 2.0).clamp(-1.0, 1.0), 0.0]
+    });
     let out = render(&image, &field, &grid, w, h, [0.0, 0.0]);
     // Hole rows: the gap now spans 9.5 - 3 .. 14.5 + 3, i.e. pixels 7..=16 are clear.
     for y in 11..13 {
         for x in 7..=16 {
-            assert_eq!(out.pixel(x, y)[3], 0, "({x}, {y}) should be in the opened hole");
+            assert_eq!(
+                out.pixel(x, y)[3],
+                0,
+                "({x}, {y}) should be in the opened hole"
+            );
         }
     }
     // Rows away from the hole are stretched, not torn.
@@ -362,7 +403,11 @@ fn fold_overs_put_the_later_rest_pixels_in_front() {
     let out = render(&image, &field, &Grid::new(w, h), w, h, [0.0, 0.0]);
     for y in 0..h {
         for x in 4..16 {
-            assert_eq!(out.pixel(x, y), [0, 0, 255, 255], "({x}, {y}): the right part is in front");
+            assert_eq!(
+                out.pixel(x, y),
+                [0, 0, 255, 255],
+                "({x}, {y}): the right part is in front"
+            );
         }
         for x in 0..4 {
             assert_eq!(out.pixel(x, y), [255, 0, 0, 255], "({x}, {y})");
@@ -376,7 +421,9 @@ fn a_flap_folded_back_over_its_piece_stays_covered() {
     // under it have opposite orientations, and the flap must still cover.
     let (w, h) = (32, 8);
     let image = opaque_noise(w, h, 11);
-    let field = field_from(w, h, |x, _| [if x > 23.0 { 2.0 * (23.0 - x) } else { 0.0 }, 0.0]);
+    let field = field_from(w, h, |x, _| {
+        [if x > 23.0 { 2.0 * (23.0 - x) } else { 0.0 }, 0.0]
+    });
     let out = render(&image, &field, &Grid::new(w, h), w, h, [0.0, 0.0]);
     for y in 0..h {
         for x in 0..=23 {
@@ -387,7 +434,11 @@ fn a_flap_folded_back_over_its_piece_stays_covered() {
         }
         // The flap (rest columns 24..31, now at 22..15) is in front of the sheet.
         for x in 17..=22 {
-            assert_eq!(out.pixel(x, y), image.pixel(46 - x, y), "({x}, {y}) shows the flap");
+            assert_eq!(
+                out.pixel(x, y),
+                image.pixel(46 - x, y),
+                "({x}, {y}) shows the flap"
+            );
         }
     }
 }
@@ -398,7 +449,12 @@ fn layers_composite_back_to_front_over_the_background() {
     let red = solid(3, 1, [255, 0, 0, 255]);
     let half_blue = solid(3, 1, [0, 0, 255, 128]);
     canvas.draw_layer(&red, &Field::zeros(3, 1), &Grid::new(3, 1), [0.0, 0.0]);
-    canvas.draw_layer(&half_blue, &Field::zeros(3, 1), &Grid::new(3, 1), [1.0, 0.0]);
+    canvas.draw_layer(
+        &half_blue,
+        &Field::zeros(3, 1),
+        &Grid::new(3, 1),
+        [1.0, 0.0],
+    );
     let out = canvas.to_rgba8();
     assert_eq!(out.pixel(0, 0), [255, 0, 0, 255]);
     // Blue at alpha 128/255 over red: 127 red, 128 blue.
@@ -409,7 +465,12 @@ fn layers_composite_back_to_front_over_the_background() {
 
     // The other order: red covers blue entirely.
     let mut canvas = Canvas::new(4, 1, [0, 0, 0, 255]);
-    canvas.draw_layer(&half_blue, &Field::zeros(3, 1), &Grid::new(3, 1), [1.0, 0.0]);
+    canvas.draw_layer(
+        &half_blue,
+        &Field::zeros(3, 1),
+        &Grid::new(3, 1),
+        [1.0, 0.0],
+    );
     canvas.draw_layer(&red, &Field::zeros(3, 1), &Grid::new(3, 1), [0.0, 0.0]);
     let out = canvas.to_rgba8();
     assert_eq!(out.pixel(1, 0), [255, 0, 0, 255]);
@@ -433,13 +494,21 @@ fn inactive_visible_pixels_are_drawn_as_isolated_squares() {
 fn output_does_not_depend_on_the_number_of_threads() {
     let (w, h) = (70, 53);
     let image = opaque_noise(w, h, 9);
-    let field = field_from(w, h, |x, y| [4.0 * (y / 7.0).sin() - 0.03 * x, 3.0 * (x / 9.0).cos() + 0.02 * y]);
+    let field = field_from(w, h, |x, y| {
+        [
+            4.0 * (y / 7.0).sin() - 0.03 * x,
+            3.0 * (x / 9.0).cos() + 0.02 * y,
+        ]
+    });
     let mut grid = Grid::new(w, h);
     for y in 10..40 {
         grid.link_right[y * w + 30] = false;
     }
     let run = |threads| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         pool.install(|| {
             let mut canvas = Canvas::new(w + 6, h + 6, [10, 20, 30, 255]);
             canvas.draw_layer(&image, &field, &grid, [3.0, 3.0]);
@@ -448,7 +517,11 @@ fn output_does_not_depend_on_the_number_of_threads() {
     };
     let one = run(1);
     let three = run(3);
-    assert!(one.data.iter().zip(&three.data).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)));
+    assert!(one
+        .data
+        .iter()
+        .zip(&three.data)
+        .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)));
 }
 
 #[test]
@@ -496,7 +569,10 @@ fn empty_layers_and_canvases_draw_nothing() {
 fn premultiply_round_trips_every_value() {
     for a in 1..=255u8 {
         for c in 0..=255u8 {
-            assert_eq!(unpremultiply(premultiply([c, 255 - c, c / 2, a])), [c, 255 - c, c / 2, a]);
+            assert_eq!(
+                unpremultiply(premultiply([c, 255 - c, c / 2, a])),
+                [c, 255 - c, c / 2, a]
+            );
         }
     }
     assert_eq!(unpremultiply(premultiply([10, 20, 30, 0])), [0, 0, 0, 0]);
