@@ -7,5 +7,6 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 from inkwarp._inkwarp import __version__
 from inkwarp.drawing import sample
 from inkwarp.errors import InkwarpError, SceneError
+from inkwarp.imaging import warp_image
 
-__all__ = ["InkwarpError", "SceneError", "__version__", "sample"]
+__all__ = ["InkwarpError", "SceneError", "__version__", "sample", "warp_image"]

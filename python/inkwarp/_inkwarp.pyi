@@ -23,3 +23,10 @@ def curve_polyline(
     spline_outline: bool = False,
     spacing: float = 1.0,
 ) -> npt.NDArray[np.float64]: ...
+
+# --- render (forward mapping) ---
+def warp_image(
+    image: npt.NDArray[np.uint8], field: npt.NDArray[np.float32], matte: npt.NDArray[np.uint8]
+) -> npt.NDArray[np.uint8]:
+    """Forward-map C-contiguous uint8 RGBA (H, W, 4) by float32 (H, W, 2) over uint8 matte
+    (H, W); see `inkwarp.warp_image` for the checked, documented entry point."""
