@@ -28,7 +28,10 @@ fn warp_image<'py>(
     let shape = image.shape();
     let (h, w) = (shape[0], shape[1]);
     if shape[2] != 4 {
-        return Err(PyValueError::new_err(format!("image must have 4 channels (RGBA), got {}", shape[2])));
+        return Err(PyValueError::new_err(format!(
+            "image must have 4 channels (RGBA), got {}",
+            shape[2]
+        )));
     }
     if field.shape() != [h, w, 2] {
         return Err(PyValueError::new_err(format!(

@@ -243,21 +243,16 @@ impl Bilinear {
     }
 }
 
-/// `⌈x⌉` as a float, without a libm call (baseline x86-64 has no rounding instruction).
+/// `⌈x⌉` as a float, without a libm call (baseline x86-64 has no rounding instruction)
+/// and without branches. Only meaningful for |x| < 2²²; larger values are clamped there,
+/// far outside any canvas.
 #[inline]
 fn ceil_f(x: f32) -> f32 {
-    // Adding and removing 1.5·2²³ rounds |x| < 2²² to an integer; larger values are ones.
+    // Adding and removing 1.5·2²³ rounds to the nearest integer.
     const MAGIC: f32 = 12_582_912.0;
-    if x.abs() < 4_194_304.0 {
-        let r = (x + MAGIC) - MAGIC;
-        if r < x {
-            r + 1.0
-        } else {
-            r
-        }
-    } else {
-        x
-    }
+    let x = x.clamp(-4_194_304.0, 4_194_304.0);
+    let r = (x + MAGIC) - MAGIC;
+    r + f32::from(u8::from(r < x))
 }
 
 /// `⌈x⌉` (NaN gives 0).
@@ -333,71 +328,87 @@ impl Band {
     fn render(&mut self, layer: &Layer, plan: &Plan) {
         let (lo, hi) = self.y_window();
         let bw = layer.w + 1;
-        let w = layer.w;
         for br in 0..=layer.h {
             for ch in 0..plan.nchunks {
                 let [ymin, ymax] = plan.ranges[br * plan.nchunks + ch];
                 if ymax < lo || ymin > hi {
                     continue;
                 }
-                for bc in ch * CHUNK..((ch + 1) * CHUNK).min(bw) {
-                    let byte = plan.signs[br * bw + bc];
+                let row = &plan.signs[br * bw..(br + 1) * bw];
+                let (mut bc, end) = (ch * CHUNK, ((ch + 1) * CHUNK).min(bw));
+                while bc < end {
+                    let byte = row[bc];
                     if byte & SIMPLE != 0 {
-                        // Interior, so `br ≥ 1` and `bc ≥ 1`: its top-left pixel.
-                        self.simple_quad(layer, (br - 1) * w + bc - 1);
+                        // A run of interior quads (so `br ≥ 1` and `bc ≥ 1`).
+                        let mut run_end = bc + 1;
+                        while run_end < end && row[run_end] & SIMPLE != 0 {
+                            run_end += 1;
+                        }
+                        self.simple_run(layer, br, bc, run_end);
+                        bc = run_end;
+                        continue;
                     } else if byte & COMPLETE != 0 {
                         self.quad(layer, plan, bc, br, byte);
                     } else if byte & ANY != 0 {
                         self.partial(layer, plan, bc, br);
                     }
+                    bc += 1;
                 }
             }
         }
     }
 
-    /// A quad inside a piece and away from folds: colour the centres inside it. `i` is
-    /// its top-left pixel.
+    /// Quads inside a piece and away from folds, blocks `bc0 .. bc1` of block row `br`:
+    /// colour the centres inside them. On a quad's core scanlines (below both top
+    /// corners, above both bottom corners) only its left and right edges cross, so its
+    /// centres there are the span between the two crossings; the crossing of the edge two
+    /// neighbours share is computed once. Quads with other scanlines take the general path.
     #[inline(never)]
-    fn simple_quad(&mut self, layer: &Layer, i: usize) {
+    fn simple_run(&mut self, layer: &Layer, br: usize, bc0: usize, bc1: usize) {
         let w = layer.w;
-        let pos = &layer.pos;
-        let q = [pos[i], pos[i + 1], pos[i + w + 1], pos[i + w]];
-        let [tl, tr, br, bl] = q;
+        let (above, below) = ((br - 1) * w, br * w);
+        let top = &layer.pos[above..above + w];
+        let bottom = &layer.pos[below..below + w];
+        let (band_first, band_end) = (self.y0 as f32, (self.y0 + self.rows) as f32);
         let lo = |a: f32, b: f32| if b < a { b } else { a };
         let hi = |a: f32, b: f32| if b > a { b } else { a };
-        // The core: scanlines below both top corners and above both bottom corners, where
-        // only the left (bl–tl) and right (tr–br) edges cross. Elsewhere: the general path.
-        let (top, bottom) = (hi(tl[1], tr[1]), lo(bl[1], br[1]));
-        let (y_min, y_max) = (
-            lo(lo(tl[1], tr[1]), lo(bl[1], br[1])),
-            hi(hi(tl[1], tr[1]), hi(bl[1], br[1])),
-        );
-        // All scanlines of the quad (y_min ≤ Y < y_max) are core scanlines when these agree.
-        let first = ceil_f(top);
-        let end = ceil_f(bottom);
-        let c = &layer.col;
-        let colour = |s, t| shade(&[c[i], c[i + 1], c[i + w], c[i + w + 1]], 0b1111, 0, s, t);
-        if first != ceil_f(y_min) || end != ceil_f(y_max) {
-            let bb = bbox(&q);
-            let (lo_y, hi_y) = self.y_window();
-            if bb.y1 >= lo_y && bb.y0 <= hi_y {
-                self.fill(&q, &q, bb, colour);
-            }
-            return;
-        }
-        let first = (first as i64).max(self.y0 as i64);
-        let end = (end as i64).min((self.y0 + self.rows) as i64);
-        if first >= end {
-            return;
-        }
-        let map = Bilinear::new(&q);
-        for row in first..end {
-            let y = row as f32;
-            let (Some((xl, _)), Some((xr, _))) = (crossing(bl, tl, y), crossing(tr, br, y)) else {
+        // The crossing of the left edge of quad `x` on scanline `y`, when known.
+        let mut shared: Option<(usize, f32, f32)> = None;
+        for x in bc0 - 1..bc1 - 1 {
+            let (tl, tr, bl, br) = (top[x], top[x + 1], bottom[x], bottom[x + 1]);
+            let y_min = lo(lo(tl[1], tr[1]), lo(bl[1], br[1]));
+            let y_max = hi(hi(tl[1], tr[1]), hi(bl[1], br[1]));
+            if y_max < band_first - 1.0 || y_min > band_end {
                 continue;
-            };
-            let (x_from, x_to) = if xl <= xr { (xl, xr) } else { (xr, xl) };
-            self.span(row, x_from, x_to, &map, &colour);
+            }
+            let i = above + x;
+            let c = &layer.col;
+            let colour = |s, t| shade(&[c[i], c[i + 1], c[i + w], c[i + w + 1]], 0b1111, 0, s, t);
+            let (first, end) = (ceil_f(hi(tl[1], tr[1])), ceil_f(lo(bl[1], br[1])));
+            if first != ceil_f(y_min) || end != ceil_f(y_max) {
+                let q = [tl, tr, br, bl];
+                self.fill(&q, &q, bbox(&q), colour);
+                continue;
+            }
+            let (first, end) = (first.max(band_first), end.min(band_end));
+            if first >= end {
+                continue;
+            }
+            let map = Bilinear::new(&[tl, tr, br, bl]);
+            let mut y = first;
+            while y < end {
+                let left = match shared {
+                    Some((sx, sy, cx)) if sx == x && sy == y => Some(cx),
+                    _ => crossing(bl, tl, y).map(|c| c.0),
+                };
+                let right = crossing(tr, br, y).map(|c| c.0);
+                if let (Some(xl), Some(xr)) = (left, right) {
+                    shared = Some((x + 1, y, xr));
+                    let (x_from, x_to) = if xl <= xr { (xl, xr) } else { (xr, xl) };
+                    self.span(y as i64, x_from, x_to, &map, &colour);
+                }
+                y += 1.0;
+            }
         }
     }
 
