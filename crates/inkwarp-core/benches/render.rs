@@ -95,10 +95,14 @@ fn main() {
             ),
         ];
         let full = Grid::new(w, h);
+        // A transparent hole, out of the continuity matte as well (the usual case: the
+        // default matte is alpha > 0).
+        let mut holed_img = img.clone();
         let mut holed = vec![1u8; w * h];
         for y in h / 3..h / 2 {
             for x in w / 3..w / 2 {
                 holed[y * w + x] = 0;
+                holed_img.data[(y * w + x) * 4..(y * w + x) * 4 + 4].copy_from_slice(&[0; 4]);
             }
         }
         let holed = Grid::from_matte(w, h, &holed);
@@ -107,13 +111,13 @@ fn main() {
             if only.as_deref().is_some_and(|o| !name.starts_with(o)) {
                 continue;
             }
-            for (gname, grid) in [("open", &full), ("hole", &holed)] {
+            for (gname, grid, img) in [("open", &full, &img), ("hole", &holed, &holed_img)] {
                 if only.is_some() && gname == "hole" {
                     continue;
                 }
                 let mut canvas = Canvas::new(w, h, [0, 0, 0, 0]);
                 let (draw, draw_min, draw_cpu) =
-                    time_ms(runs, || canvas.draw_layer(&img, f, grid, [0.0, 0.0]));
+                    time_ms(runs, || canvas.draw_layer(img, f, grid, [0.0, 0.0]));
                 let (to8, _, _) = time_ms(runs, || {
                     std::hint::black_box(canvas.to_rgba8());
                 });

@@ -16,10 +16,11 @@
 //! - In any other block each drawn pixel owns the quarter of the block nearest to it, a
 //!   **skirt quarter**. Its corners are the pixel, the two points half way to its block
 //!   neighbours (the midpoint of the link where the link exists, otherwise half a pixel
-//!   along the pixel's local frame `ex`, `ey`, which is the displaced link to the other
-//!   side, or a perpendicular, or the rest axis), and the block's centre point (the mean of
-//!   the parallelogram completions of its drawn pixels). Its colour is the bilinear
-//!   interpolation over the pixels linked to it *within the block*, renormalised.
+//!   along the pixel's local frame `ex`, `ey`: the displaced link to the other side, or a
+//!   perpendicular, or the rest axis), and a centre point shared by the pixels linked to
+//!   it within the block (the mean of their parallelogram completions). Its colour is the
+//!   bilinear interpolation, renormalised, over the block's pixels that can be reached
+//!   from it around the block without crossing a *broken* side (both ends drawn, no link).
 //!
 //! The quads and quarters tile each pixel's unit square exactly, so the identity field
 //! reproduces the layer, border pixels included, and the mesh is watertight: a connected
@@ -41,8 +42,9 @@
 //!   top-left, top-right, bottom-left, bottom-right; within one folded quad the preimage
 //!   with the larger rest `y` wins. So where the mesh folds, the part that comes from
 //!   further down (then further right) in the rest image is in front. When no element
-//!   contains the centre (a pixel straddling the edge of a piece), the colour is taken from
-//!   the nearest edge element in rest space, at the centre's preimage clamped to its block.
+//!   contains the centre (a pixel straddling the edge of a piece), the colour comes from
+//!   an element at the edge: one whose block holds the centre's preimage if any, else the
+//!   nearest in rest space; it is evaluated at the preimage clamped to that block.
 //! - **coverage** = `min(1, Σ over elements of the area of the pixel's unit square inside the
 //!   element)`, computed exactly (analytic antialiasing, not point sampling).
 //! - the layer's pixel = colour × coverage, composited "over" the canvas.
