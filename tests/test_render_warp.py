@@ -207,3 +207,29 @@ def test_accepts_non_contiguous_and_float64_input():
     assert not transposed.flags.c_contiguous
     out = inkwarp.warp_image(transposed, np.zeros((10, 8, 2), np.float64))
     np.testing.assert_array_equal(out, image)
+
+
+# ---------------------------------------------------------------- docs
+
+
+def test_the_documented_examples_run():
+    import doctest
+    from pathlib import Path
+
+    import inkwarp.imaging
+
+    result = doctest.testmod(inkwarp.imaging)
+    assert result.attempted > 0 and result.failed == 0
+    page = Path(__file__).resolve().parents[1] / "docs" / "concepts" / "forward-mapping.md"
+    result = doctest.testfile(str(page), module_relative=False)
+    assert result.attempted > 0 and result.failed == 0
+
+
+def test_the_pages_figures_exist():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    page = (root / "docs" / "concepts" / "forward-mapping.md").read_text()
+    for name in ("mesh", "warps", "edges"):
+        assert f"figures/forward-mapping-{name}.png" in page
+        assert (root / "docs" / "concepts" / "figures" / f"forward-mapping-{name}.png").is_file()
