@@ -239,10 +239,16 @@ impl Canvas {
 
     /// The canvas as straight RGBA8 (see [`unpremultiply`]).
     pub fn to_rgba8(&self) -> RgbaImage {
-        let mut data = Vec::with_capacity(self.data.len() * 4);
-        for &p in &self.data {
-            data.extend_from_slice(&unpremultiply(p));
-        }
+        use rayon::prelude::*;
+        const CHUNK: usize = 1 << 14;
+        let mut data = vec![0u8; self.data.len() * 4];
+        data.par_chunks_mut(4 * CHUNK)
+            .zip(self.data.par_chunks(CHUNK))
+            .for_each(|(out, pixels)| {
+                for (o, &p) in out.chunks_exact_mut(4).zip(pixels) {
+                    o.copy_from_slice(&unpremultiply(p));
+                }
+            });
         RgbaImage {
             width: self.width,
             height: self.height,
