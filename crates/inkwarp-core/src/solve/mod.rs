@@ -1,0 +1,626 @@
+//! The discrete thin plate (DESIGN §4) and its multigrid solver.
+//!
+//! For a scalar field `u` on the active nodes of a [`Grid`]:
+//!
+//! ```text
+//! E_plate(u) =   Σ horizontal triples with both links   (u[p−] − 2u[p] + u[p+])²
+//!              + Σ vertical triples with both links     (same)
+//!              + 2 Σ 2×2 cells with all four links       (u00 − u10 − u01 + u11)²
+//! E_membrane(u) = Σ links (u[p] − u[q])²
+//! E = E_plate + τ · E_membrane
+//! ```
+//!
+//! [`solve`] minimises `E` for Δx and Δy (one matrix, solved together) with the nodes that
+//! carry samples fixed ([`crate::grid::constrain`]). Where the minimiser is not unique it
+//! returns the limit τ → 0⁺, piece by piece (a piece is a connected component of the links):
+//!
+//! - a piece with no constraint does not move;
+//! - a piece with one constrained node translates with it (for any τ);
+//! - at τ = 0, a piece whose constrained nodes lie on one line L: `E_plate` is unchanged by
+//!   adding any affine function, so its minimisers are `u₀ + c·ℓ` with `ℓ` the affine
+//!   function that vanishes on L; the solver pins one extra node off L, solves, and then
+//!   picks `c` minimising `E_membrane` in closed form,
+//!   `c = −⟨u₀, ℓ⟩ / ⟨ℓ, ℓ⟩` with `⟨a, b⟩ = Σ_links (a_p − a_q)(b_p − b_q)`.
+//!
+//! Pieces whose plate energy vanishes on more than the affine functions (two parts joined
+//! only by a one-node-wide corridor, a staircase of links with no straight triple) have a
+//! plate minimiser that the constraints may not pin; there the solver returns the minimiser
+//! its iteration reaches. Any tension τ > 0 makes every constrained piece unique.
+//!
+//! # The multigrid
+//!
+//! Geometric hierarchy (node (X, Y) of level k+1 sits on (2X, 2Y) of level k) with
+//! *link-aware* bilinear prolongation that never interpolates across a missing link or from
+//! an inactive node, *Galerkin* coarse operators `Pᵀ A P` stored as 5 × 5 stencils per node
+//! (so every coarse level sees the exact energy of its coarse functions on the fine domain,
+//! however thin the holes and cuts), Chebyshev–Jacobi smoothing (symmetric, parallel), a
+//! banded Cholesky solve on the coarsest level, a coarse-to-fine start, then V-cycles.
+
+mod cycle;
+mod level;
+mod southwell;
+mod upsample;
+
+use std::time::Instant;
+
+use thiserror::Error;
+
+use crate::field::Field;
+use crate::geometry::Sample;
+use crate::grid::{constrain, Constraints, Grid};
+
+use cycle::Hierarchy;
+use level::{Geometry, Level, V2};
+
+/// How the linear system is relaxed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SolveMethod {
+    /// Coarse-to-fine start plus V-cycles until the tolerance is met.
+    #[default]
+    Multigrid,
+    /// The coarse-to-fine start plus a fixed budget of greedy single-node relaxations
+    /// (Southwell), as the paper offers for a fixed amount of work.
+    Southwell,
+}
+
+/// Options of [`solve`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolveOptions {
+    /// τ ≥ 0: weight of the membrane energy.
+    pub tension: f64,
+    /// Stop when the estimated largest remaining error of any node is below this (pixels).
+    pub tolerance_px: f64,
+    /// Solve on every `grid_step`-th node and upsample (1 = every pixel).
+    pub grid_step: usize,
+    /// At most this many cycles (default: 100).
+    pub max_cycles: Option<usize>,
+    pub method: SolveMethod,
+    /// Southwell budget: single-node relaxations, in units of the number of unknowns.
+    pub southwell_sweeps: f64,
+}
+
+impl Default for SolveOptions {
+    fn default() -> Self {
+        SolveOptions {
+            tension: 0.0,
+            tolerance_px: 0.01,
+            grid_step: 1,
+            max_cycles: None,
+            method: SolveMethod::Multigrid,
+            southwell_sweeps: 10.0,
+        }
+    }
+}
+
+/// What a solve did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SolveReport {
+    /// V-cycles run after the coarse-to-fine start (Southwell: relaxation passes).
+    pub cycles: usize,
+    /// Largest change of any node in the last cycle (pixels).
+    pub final_change_px: f64,
+    /// Largest residual of any unknown after the solve, scaled by its diagonal
+    /// (`max |r_i| / a_ii`, pixels: how far one relaxation would still move it).
+    pub residual: f64,
+    /// The same before the first cycle (after the start).
+    pub initial_residual: f64,
+    /// Nodes fixed by samples.
+    pub constrained_nodes: usize,
+    /// Samples that constrain a node.
+    pub constrained_samples: usize,
+    /// Samples outside the grid or on inactive nodes.
+    pub dropped_samples: usize,
+    /// Wall time of the whole solve.
+    pub seconds: f64,
+    /// Whether the tolerance was met (Southwell: whether the budget was spent).
+    pub converged: bool,
+}
+
+/// Why a solve was refused.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum SolveError {
+    #[error("The grid is inconsistent: its activity and link vectors must have width × height entries and links may only join active neighbours.")]
+    InconsistentGrid,
+    #[error("Sample {index} has a non-finite rest position or displacement; every number must be finite.")]
+    NonFiniteSample { index: usize },
+    #[error("The tension must be a finite number ≥ 0, got {0}.")]
+    BadTension(f64),
+    #[error("The tolerance must be a finite number ≥ 0 (pixels), got {0}.")]
+    BadTolerance(f64),
+    #[error("The grid step must be at least 1, got 0.")]
+    BadGridStep,
+    #[error("The Southwell budget must be a finite number ≥ 0, got {0}.")]
+    BadBudget(f64),
+    #[error("The initial field is {got_w}×{got_h} but the grid is {want_w}×{want_h}; pass a field of the grid's size.")]
+    InitialSize { got_w: usize, got_h: usize, want_w: usize, want_h: usize },
+    #[error("The initial field has non-finite values; every displacement must be finite.")]
+    NonFiniteInitial,
+}
+
+/// Solves the thin plate on `grid` for the samples (see the module docs).
+///
+/// ```
+/// use inkwarp_core::{solve::{solve, SolveOptions}, Grid, Sample};
+/// let grid = Grid::new(33, 33);
+/// // Three pinned corners and one pulled point.
+/// let s = |x, y, dx, dy| Sample { rest: [x, y], displacement: [dx, dy] };
+/// let samples = [s(0.0, 0.0, 0.0, 0.0), s(32.0, 0.0, 0.0, 0.0), s(0.0, 32.0, 0.0, 0.0),
+///                s(16.0, 16.0, 4.0, -2.0)];
+/// let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+/// assert!(report.converged);
+/// let [dx, dy] = field.at(16, 16);
+/// assert_eq!((dx, dy), (4.0, -2.0));
+/// ```
+pub fn solve(
+    grid: &Grid,
+    samples: &[Sample],
+    options: &SolveOptions,
+    initial: Option<&Field>,
+) -> Result<(Field, SolveReport), SolveError> {
+    let start = Instant::now();
+    validate(grid, samples, options, initial)?;
+    let (field, mut report) = if options.grid_step > 1 {
+        upsample::solve_coarse(grid, samples, options, initial)
+    } else {
+        let constraints = constrain(grid, samples);
+        solve_constrained(grid, &constraints, options, initial)
+    };
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok((field, report))
+}
+
+fn validate(
+    grid: &Grid,
+    samples: &[Sample],
+    options: &SolveOptions,
+    initial: Option<&Field>,
+) -> Result<(), SolveError> {
+    if !grid.is_consistent() {
+        return Err(SolveError::InconsistentGrid);
+    }
+    if !(options.tension.is_finite() && options.tension >= 0.0) {
+        return Err(SolveError::BadTension(options.tension));
+    }
+    if !(options.tolerance_px.is_finite() && options.tolerance_px >= 0.0) {
+        return Err(SolveError::BadTolerance(options.tolerance_px));
+    }
+    if options.grid_step == 0 {
+        return Err(SolveError::BadGridStep);
+    }
+    if !(options.southwell_sweeps.is_finite() && options.southwell_sweeps >= 0.0) {
+        return Err(SolveError::BadBudget(options.southwell_sweeps));
+    }
+    for (index, s) in samples.iter().enumerate() {
+        if !s.rest.iter().chain(s.displacement.iter()).all(|v| v.is_finite()) {
+            return Err(SolveError::NonFiniteSample { index });
+        }
+    }
+    if let Some(f) = initial {
+        if f.width != grid.width || f.height != grid.height || f.dx.len() != grid.len() || f.dy.len() != grid.len() {
+            return Err(SolveError::InitialSize {
+                got_w: f.width,
+                got_h: f.height,
+                want_w: grid.width,
+                want_h: grid.height,
+            });
+        }
+        if !f.dx.iter().chain(f.dy.iter()).all(|v| v.is_finite()) {
+            return Err(SolveError::NonFiniteInitial);
+        }
+    }
+    Ok(())
+}
+
+/// What the τ → 0⁺ rule makes of a connected piece.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Piece {
+    Zero,
+    Translate([f64; 2]),
+    /// Constraints on the line through `a` with direction `d`; `gauge` is the pinned node.
+    Line { a: [i64; 2], d: [i64; 2], gauge: usize },
+    General,
+}
+
+/// The solve with constraints already attached to nodes.
+pub(crate) fn solve_constrained(
+    grid: &Grid,
+    constraints: &Constraints,
+    options: &SolveOptions,
+    initial: Option<&Field>,
+) -> (Field, SolveReport) {
+    let (w, h) = (grid.width, grid.height);
+    let n = w * h;
+    let tau = options.tension;
+    let mut report = SolveReport {
+        constrained_nodes: constraints.len(),
+        constrained_samples: constraints.used_samples,
+        dropped_samples: constraints.dropped_samples,
+        converged: true,
+        ..Default::default()
+    };
+    let mut field = Field::zeros(w, h);
+    if n == 0 {
+        return (field, report);
+    }
+    let (labels, count) = grid.pieces();
+    let pieces = classify(grid, &labels, count, constraints, tau);
+
+    // The nodes left to the multigrid, with the pinned ones.
+    let solved = |i: usize| {
+        labels[i] != u32::MAX && matches!(pieces[labels[i] as usize], Piece::Line { .. } | Piece::General)
+    };
+    let active: Vec<bool> = (0..n).map(solved).collect();
+    for i in 0..n {
+        if labels[i] == u32::MAX {
+            continue;
+        }
+        if let Piece::Translate(v) = pieces[labels[i] as usize] {
+            field.dx[i] = v[0] as f32;
+            field.dy[i] = v[1] as f32;
+        }
+    }
+    if !active.iter().any(|&a| a) {
+        return (field, report);
+    }
+    let mut fixed = vec![false; n];
+    let mut value: Vec<V2> = vec![[0.0; 2]; n];
+    for (k, &i) in constraints.nodes.iter().enumerate() {
+        if active[i] {
+            fixed[i] = true;
+            value[i] = constraints.values[k];
+        }
+    }
+    // Gauge pins of the one-line pieces: the warm start's value, else the mean constraint.
+    let mut piece_mean = vec![[0.0f64; 3]; count];
+    for (k, &i) in constraints.nodes.iter().enumerate() {
+        let m = &mut piece_mean[labels[i] as usize];
+        m[0] += constraints.values[k][0];
+        m[1] += constraints.values[k][1];
+        m[2] += 1.0;
+    }
+    for (l, p) in pieces.iter().enumerate() {
+        if let Piece::Line { gauge, .. } = *p {
+            fixed[gauge] = true;
+            value[gauge] = match initial {
+                Some(f) => [f.dx[gauge] as f64, f.dy[gauge] as f64],
+                None => [piece_mean[l][0] / piece_mean[l][2], piece_mean[l][1] / piece_mean[l][2]],
+            };
+        }
+    }
+    let geo = Geometry {
+        w,
+        h,
+        right: (0..n).map(|i| grid.link_right[i] && active[i]).collect(),
+        down: (0..n).map(|i| grid.link_down[i] && active[i]).collect(),
+        active,
+        fixed: Some(fixed.clone()),
+        prow: Vec::new(),
+    }
+    .with_rows();
+    let fine = Level::fine(geo, tau);
+    let mut u: Vec<V2> = vec![[0.0; 2]; fine.len_padded()];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let p = fine.pidx(x, y);
+            if fixed[i] {
+                u[p] = value[i];
+            } else if fine.inv_diag[p] != 0.0 {
+                if let Some(f) = initial {
+                    u[p] = [f.dx[i] as f64, f.dy[i] as f64];
+                }
+            }
+        }
+    }
+    let trace = std::env::var("IW_TRACE").is_ok();
+    let t0 = Instant::now();
+    let mut hier = Hierarchy::new(fine, std::env::var("IW_DEGREE").ok().and_then(|v| v.parse().ok()).unwrap_or(3));
+    hier.gamma = std::env::var("IW_GAMMA").ok().and_then(|v| v.parse().ok()).unwrap_or(1);
+    let t1 = Instant::now();
+    if initial.is_none() {
+        hier.coarse_to_fine(&mut u);
+    }
+    let t2 = Instant::now();
+    report.initial_residual = scaled_residual(&hier.levels[0], &u);
+    let max_cycles = options.max_cycles.unwrap_or(100);
+    match options.method {
+        SolveMethod::Multigrid => {
+            report.converged = false;
+            let mut last_change = f64::INFINITY;
+            let mut stop = |change: f64, cycle: usize, report: &mut SolveReport| {
+                report.cycles = cycle;
+                report.final_change_px = change;
+                // Geometric convergence at rate ρ leaves at most change·ρ/(1−ρ) to go.
+                let rho = if last_change.is_finite() && last_change > 0.0 {
+                    (change / last_change).min(0.99)
+                } else {
+                    0.5
+                };
+                last_change = change;
+                change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
+            };
+            if std::env::var("IW_PCG").map_or(true, |v| v != "0") {
+                let fine = &hier.levels[0];
+                let len = u.len();
+                let (mut r, mut z, mut q) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
+                fine.residual(&u, None, &mut r);
+                hier.precondition(&r, &mut z);
+                let mut p = z.clone();
+                let mut rz = dot2(&r, &z);
+                let mut r_old = r.clone();
+                for cycle in 1..=max_cycles {
+                    let fine = &hier.levels[0];
+                    fine.residual(&p, None, &mut q); // q = −A p
+                    let pq = dot2(&p, &q);
+                    let alpha = [
+                        if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
+                        if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
+                    ];
+                    let mut change: f64 = 0.0;
+                    r_old.copy_from_slice(&r);
+                    for i in 0..len {
+                        let d = [alpha[0] * p[i][0], alpha[1] * p[i][1]];
+                        u[i][0] += d[0];
+                        u[i][1] += d[1];
+                        change = change.max(d[0].abs()).max(d[1].abs());
+                        r[i][0] += alpha[0] * q[i][0];
+                        r[i][1] += alpha[1] * q[i][1];
+                    }
+                    if stop(change, cycle, &mut report) {
+                        report.converged = true;
+                        break;
+                    }
+                    hier.precondition(&r, &mut z);
+                    // Flexible (Polak–Ribière) β: the preconditioner's line searches make it
+                    // slightly nonlinear.
+                    let rz_new = dot2(&r, &z);
+                    let zr_old = dot2(&z, &r_old);
+                    let beta = [
+                        if rz[0] > 0.0 { ((rz_new[0] - zr_old[0]) / rz[0]).max(0.0) } else { 0.0 },
+                        if rz[1] > 0.0 { ((rz_new[1] - zr_old[1]) / rz[1]).max(0.0) } else { 0.0 },
+                    ];
+                    for i in 0..len {
+                        p[i][0] = z[i][0] + beta[0] * p[i][0];
+                        p[i][1] = z[i][1] + beta[1] * p[i][1];
+                    }
+                    rz = rz_new;
+                }
+            } else {
+                let mut prev = u.clone();
+                for cycle in 1..=max_cycles {
+                    prev.copy_from_slice(&u);
+                    hier.cycle(&mut u);
+                    let change = max_change(&hier.levels[0], &u, &prev);
+                    if stop(change, cycle, &mut report) {
+                        report.converged = true;
+                        break;
+                    }
+                }
+            }
+        }
+        SolveMethod::Southwell => {
+            let budget = (options.southwell_sweeps * count_unknowns(&hier.levels[0]) as f64).round() as usize;
+            let (passes, change) = southwell::relax(&hier.levels[0], &mut u, budget);
+            report.cycles = passes;
+            report.final_change_px = change;
+            report.converged = true;
+        }
+    }
+    report.residual = scaled_residual(&hier.levels[0], &u);
+    if trace {
+        eprintln!(
+            "setup {:.1} ms, start {:.1} ms, {} cycles {:.1} ms, levels {}",
+            (t1 - t0).as_secs_f64() * 1e3,
+            (t2 - t1).as_secs_f64() * 1e3,
+            report.cycles,
+            t2.elapsed().as_secs_f64() * 1e3,
+            hier.levels.len()
+        );
+    }
+    let fine = &hier.levels[0];
+    let mut out: Vec<V2> = vec![[0.0; 2]; n];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if fine.geo.active[i] {
+                out[i] = u[fine.pidx(x, y)];
+            }
+        }
+    }
+    for (l, p) in pieces.iter().enumerate() {
+        if let Piece::Line { a, d, .. } = *p {
+            line_correction(grid, &labels, l as u32, a, d, &mut out);
+        }
+    }
+    for i in 0..n {
+        if fine.geo.active[i] {
+            field.dx[i] = out[i][0] as f32;
+            field.dy[i] = out[i][1] as f32;
+        }
+    }
+    (field, report)
+}
+
+fn classify(grid: &Grid, labels: &[u32], count: usize, c: &Constraints, tau: f64) -> Vec<Piece> {
+    let w = grid.width;
+    let xy = |i: usize| [(i % w) as i64, (i / w) as i64];
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); count];
+    for (k, &i) in c.nodes.iter().enumerate() {
+        members[labels[i] as usize].push(k);
+    }
+    let mut pieces = vec![Piece::General; count];
+    let mut line_pieces = Vec::new();
+    for (l, m) in members.iter().enumerate() {
+        pieces[l] = match m.len() {
+            0 => Piece::Zero,
+            1 => Piece::Translate(c.values[m[0]]),
+            _ => {
+                let a = xy(c.nodes[m[0]]);
+                let far = m
+                    .iter()
+                    .map(|&k| xy(c.nodes[k]))
+                    .max_by_key(|p| (p[0] - a[0]).pow(2) + (p[1] - a[1]).pow(2))
+                    .unwrap();
+                let d = [far[0] - a[0], far[1] - a[1]];
+                let collinear = m.iter().all(|&k| {
+                    let p = xy(c.nodes[k]);
+                    d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0]) == 0
+                });
+                if collinear && tau == 0.0 {
+                    line_pieces.push(l);
+                    Piece::Line { a, d, gauge: usize::MAX }
+                } else {
+                    Piece::General
+                }
+            }
+        };
+    }
+    if !line_pieces.is_empty() {
+        // The node of each one-line piece farthest from its line becomes the gauge pin.
+        let mut best = vec![(0i64, usize::MAX); count];
+        for (i, &l) in labels.iter().enumerate() {
+            if l == u32::MAX {
+                continue;
+            }
+            if let Piece::Line { a, d, .. } = pieces[l as usize] {
+                let p = xy(i);
+                let dist = (d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0])).abs();
+                if dist > best[l as usize].0 {
+                    best[l as usize] = (dist, i);
+                }
+            }
+        }
+        for l in line_pieces {
+            if let Piece::Line { a, d, .. } = pieces[l] {
+                pieces[l] = if best[l].1 == usize::MAX {
+                    // The whole piece lies on the line: the constraints pin it.
+                    Piece::General
+                } else {
+                    Piece::Line { a, d, gauge: best[l].1 }
+                };
+            }
+        }
+    }
+    pieces
+}
+
+/// Adds `c·ℓ` to a one-line piece, `ℓ(p) = d × (p − a)`, with `c` minimising the membrane
+/// energy: `c = −⟨u, ℓ⟩ / ⟨ℓ, ℓ⟩` over the piece's links.
+fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64; 2], u: &mut [V2]) {
+    let w = grid.width;
+    // ℓ(p + x̂) − ℓ(p) = −d_y, ℓ(p + ŷ) − ℓ(p) = d_x.
+    let (lx, ly) = (-(d[1] as f64), d[0] as f64);
+    let mut num = [0.0f64; 2];
+    let mut den = 0.0f64;
+    for i in 0..grid.len() {
+        if labels[i] != piece {
+            continue;
+        }
+        if grid.link_right[i] {
+            for k in 0..2 {
+                num[k] += (u[i + 1][k] - u[i][k]) * lx;
+            }
+            den += lx * lx;
+        }
+        if grid.link_down[i] {
+            for k in 0..2 {
+                num[k] += (u[i + w][k] - u[i][k]) * ly;
+            }
+            den += ly * ly;
+        }
+    }
+    if den == 0.0 {
+        return;
+    }
+    let c = [-num[0] / den, -num[1] / den];
+    for i in 0..grid.len() {
+        if labels[i] == piece {
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            let l = (d[0] * (y - a[1]) - d[1] * (x - a[0])) as f64;
+            u[i][0] += c[0] * l;
+            u[i][1] += c[1] * l;
+        }
+    }
+}
+
+fn max_change(level: &Level, u: &[V2], prev: &[V2]) -> f64 {
+    let mut m: f64 = 0.0;
+    for (p, (a, b)) in u.iter().zip(prev).enumerate() {
+        if level.inv_diag[p] != 0.0 {
+            m = m.max((a[0] - b[0]).abs()).max((a[1] - b[1]).abs());
+        }
+    }
+    m
+}
+
+fn dot2(a: &[V2], b: &[V2]) -> [f64; 2] {
+    let mut s = [0.0f64; 2];
+    for (x, y) in a.iter().zip(b) {
+        s[0] += x[0] * y[0];
+        s[1] += x[1] * y[1];
+    }
+    s
+}
+
+fn count_unknowns(level: &Level) -> usize {
+    level.inv_diag.iter().filter(|&&d| d != 0.0).count()
+}
+
+fn scaled_residual(level: &Level, u: &[V2]) -> f64 {
+    let mut r = vec![[0.0; 2]; u.len()];
+    level.residual(u, None, &mut r);
+    let mut m: f64 = 0.0;
+    for (p, ri) in r.iter().enumerate() {
+        let d = level.inv_diag[p];
+        if d != 0.0 {
+            m = m.max(ri[0].abs() * d).max(ri[1].abs() * d);
+        }
+    }
+    m
+}
+
+/// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.
+///
+/// ```
+/// use inkwarp_core::{solve::energy, Field, Grid};
+/// let grid = Grid::new(4, 4);
+/// let mut field = Field::zeros(4, 4);
+/// field.dx[5] = 1.0; // node (1, 1)
+/// let [ex, ey] = energy(&grid, &field, 0.0);
+/// // triples: 2 centred on it (4 each) + 4 having it at an end (1 each); cells: 4 × 2
+/// assert_eq!((ex, ey), (4.0 + 4.0 + 1.0 + 1.0 + 1.0 + 1.0 + 8.0, 0.0));
+/// ```
+pub fn energy(grid: &Grid, field: &Field, tension: f64) -> [f64; 2] {
+    let (w, h) = (grid.width, grid.height);
+    let mut e = [0.0f64; 2];
+    let comps = [&field.dx, &field.dy];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            for k in 0..2 {
+                let u = |j: usize| comps[k][j] as f64;
+                if x > 0 && grid.link_right[i - 1] && grid.link_right[i] {
+                    e[k] += (u(i - 1) - 2.0 * u(i) + u(i + 1)).powi(2);
+                }
+                if y > 0 && grid.link_down[i - w] && grid.link_down[i] {
+                    e[k] += (u(i - w) - 2.0 * u(i) + u(i + w)).powi(2);
+                }
+                if grid.link_right[i] && grid.link_down[i] && grid.link_down[i + 1] && grid.link_right[i + w] {
+                    e[k] += 2.0 * (u(i) - u(i + 1) - u(i + w) + u(i + w + 1)).powi(2);
+                }
+                if tension != 0.0 {
+                    if grid.link_right[i] {
+                        e[k] += tension * (u(i) - u(i + 1)).powi(2);
+                    }
+                    if grid.link_down[i] {
+                        e[k] += tension * (u(i) - u(i + w)).powi(2);
+                    }
+                }
+            }
+        }
+    }
+    e
+}
+
+#[cfg(test)]
+mod tests;
