@@ -8,5 +8,15 @@ from inkwarp._inkwarp import __version__
 from inkwarp.drawing import sample
 from inkwarp.errors import InkwarpError, SceneError
 from inkwarp.imaging import warp_image
+from inkwarp.plate import SolveReport, thin_plate, thin_plate_report
 
-__all__ = ["InkwarpError", "SceneError", "__version__", "sample", "warp_image"]
+__all__ = [
+    "InkwarpError",
+    "SceneError",
+    "SolveReport",
+    "__version__",
+    "sample",
+    "thin_plate",
+    "thin_plate_report",
+    "warp_image",
+]

@@ -427,6 +427,9 @@ pub(crate) fn solve_constrained(
             }
         }
     }
+    if tau == 0.0 {
+        settle_loose_nodes(&fine.geo, &fixed, &mut out);
+    }
     for (l, p) in pieces.iter().enumerate() {
         if let Piece::Line { a, d, .. } = *p {
             line_correction(grid, &labels, l as u32, a, d, &mut out);
@@ -541,6 +544,187 @@ fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64
             u[i][1] += c[1] * l;
         }
     }
+}
+
+/// Loose nodes: free nodes that are no corner of a 2 × 2 cell with all four links
+/// (strands, dangling nodes, one-node corridors). The plate energy may leave some of their
+/// values undetermined; the τ → 0⁺ limit picks, among the plate minimisers, the least
+/// membrane energy. Each connected group of loose nodes (up to `MAX_GROUP` nodes) is solved
+/// exactly for that limit with the rest of the field held, by two dense solves at tiny
+/// tensions and Richardson extrapolation.
+fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
+    const MAX_GROUP: usize = 400;
+    let (w, h) = (geo.w, geo.h);
+    let n = w * h;
+    let mut core = vec![false; n];
+    for y in 0..h.saturating_sub(1) {
+        for x in 0..w.saturating_sub(1) {
+            let i = y * w + x;
+            if geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w] {
+                core[i] = true;
+                core[i + 1] = true;
+                core[i + w] = true;
+                core[i + w + 1] = true;
+            }
+        }
+    }
+    let loose = |i: usize| geo.active[i] && !fixed[i] && !core[i];
+    let mut group_of = vec![usize::MAX; n];
+    for start in 0..n {
+        if !loose(start) || group_of[start] != usize::MAX {
+            continue;
+        }
+        // the group by flood fill over links
+        let mut group = vec![start];
+        group_of[start] = start;
+        let mut k = 0;
+        while k < group.len() {
+            let i = group[k];
+            k += 1;
+            let (x, y) = (i % w, i / w);
+            let mut nb = [usize::MAX; 4];
+            if geo.right[i] {
+                nb[0] = i + 1;
+            }
+            if x > 0 && geo.right[i - 1] {
+                nb[1] = i - 1;
+            }
+            if geo.down[i] {
+                nb[2] = i + w;
+            }
+            if y > 0 && geo.down[i - w] {
+                nb[3] = i - w;
+            }
+            for j in nb {
+                if j != usize::MAX && loose(j) && group_of[j] == usize::MAX {
+                    group_of[j] = start;
+                    group.push(j);
+                }
+            }
+        }
+        if group.len() <= MAX_GROUP {
+            settle_group(geo, &group, &group_of, start, u);
+        }
+    }
+}
+
+/// The τ → 0⁺ minimiser over one group of loose nodes (all other values held).
+fn settle_group(geo: &Geometry, group: &[usize], group_of: &[usize], id: usize, u: &mut [V2]) {
+    let w = geo.w;
+    let k = group.len();
+    let local = |i: usize| if group_of[i] == id { group.iter().position(|&g| g == i) } else { None };
+    // Terms touching the group: (nodes, coefficients, is_plate).
+    let mut terms: Vec<(Vec<usize>, Vec<f64>, bool)> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for &i in group {
+        let (x, y) = ((i % w) as isize, (i / w) as isize);
+        for d in -1isize..=1 {
+            // horizontal triple centred at (x + d, y), vertical at (x, y + d)
+            let c = (x + d, y);
+            if c.0 >= 1 && c.0 + 1 < w as isize {
+                let ci = (c.1 * w as isize + c.0) as usize;
+                if geo.right[ci - 1] && geo.right[ci] && seen.insert((0u8, ci)) {
+                    terms.push((vec![ci - 1, ci, ci + 1], vec![1.0, -2.0, 1.0], true));
+                }
+            }
+            let c = (x, y + d);
+            if c.1 >= 1 && c.1 + 1 < geo.h as isize {
+                let ci = (c.1 * w as isize + c.0) as usize;
+                if geo.down[ci - w] && geo.down[ci] && seen.insert((1u8, ci)) {
+                    terms.push((vec![ci - w, ci, ci + w], vec![1.0, -2.0, 1.0], true));
+                }
+            }
+        }
+        for (ox, oy) in [(0isize, 0isize), (1, 0), (0, 1), (1, 1)] {
+            let (cx, cy) = (x - ox, y - oy);
+            if cx >= 0 && cy >= 0 && cx + 1 < w as isize && cy + 1 < geo.h as isize {
+                let ci = (cy * w as isize + cx) as usize;
+                if geo.right[ci] && geo.down[ci] && geo.down[ci + 1] && geo.right[ci + w] && seen.insert((2u8, ci)) {
+                    terms.push((vec![ci, ci + 1, ci + w, ci + w + 1], vec![2f64.sqrt(), -(2f64.sqrt()), -(2f64.sqrt()), 2f64.sqrt()], true));
+                }
+            }
+        }
+    }
+    for &i in group {
+        let (x, y) = (i % w, i / w);
+        if geo.right[i] && seen.insert((3u8, i)) {
+            terms.push((vec![i, i + 1], vec![1.0, -1.0], false));
+        }
+        if x > 0 && geo.right[i - 1] && seen.insert((3u8, i - 1)) {
+            terms.push((vec![i - 1, i], vec![1.0, -1.0], false));
+        }
+        if geo.down[i] && seen.insert((4u8, i)) {
+            terms.push((vec![i, i + w], vec![1.0, -1.0], false));
+        }
+        if y > 0 && geo.down[i - w] && seen.insert((4u8, i - w)) {
+            terms.push((vec![i - w, i], vec![1.0, -1.0], false));
+        }
+    }
+    let index: Vec<Vec<Option<usize>>> = terms.iter().map(|t| t.0.iter().map(|&j| local(j)).collect()).collect();
+    let solve_at = |tau: f64| -> Option<Vec<V2>> {
+        let mut m = vec![vec![0.0f64; k]; k];
+        let mut rhs = vec![[0.0f64; 2]; k];
+        for (t, idx) in terms.iter().zip(&index) {
+            let wgt = if t.2 { 1.0 } else { tau };
+            let mut fixed_part = [0.0f64; 2];
+            for (j, (&node, &c)) in t.0.iter().zip(&t.1).enumerate() {
+                if idx[j].is_none() {
+                    fixed_part[0] += c * u[node][0];
+                    fixed_part[1] += c * u[node][1];
+                }
+            }
+            for (a, &ca) in idx.iter().zip(&t.1) {
+                let Some(a) = *a else { continue };
+                rhs[a][0] -= wgt * ca * fixed_part[0];
+                rhs[a][1] -= wgt * ca * fixed_part[1];
+                for (b, &cb) in idx.iter().zip(&t.1) {
+                    if let Some(b) = *b {
+                        m[a][b] += wgt * ca * cb;
+                    }
+                }
+            }
+        }
+        dense_solve(m, rhs)
+    };
+    let t = 1e-9;
+    if let (Some(a), Some(b)) = (solve_at(t), solve_at(2.0 * t)) {
+        for (g, &i) in group.iter().enumerate() {
+            u[i] = [2.0 * a[g][0] - b[g][0], 2.0 * a[g][1] - b[g][1]];
+        }
+    }
+}
+
+/// Gaussian elimination with partial pivoting for two right-hand sides.
+fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<V2>> {
+    let k = m.len();
+    for col in 0..k {
+        let piv = (col..k).max_by(|&p, &q| m[p][col].abs().total_cmp(&m[q][col].abs()))?;
+        if m[piv][col].abs() < 1e-300 {
+            return None;
+        }
+        m.swap(col, piv);
+        rhs.swap(col, piv);
+        for r in col + 1..k {
+            let f = m[r][col] / m[col][col];
+            if f != 0.0 {
+                for c in col..k {
+                    m[r][c] -= f * m[col][c];
+                }
+                rhs[r][0] -= f * rhs[col][0];
+                rhs[r][1] -= f * rhs[col][1];
+            }
+        }
+    }
+    let mut x = vec![[0.0f64; 2]; k];
+    for r in (0..k).rev() {
+        let mut s = rhs[r];
+        for c in r + 1..k {
+            s[0] -= m[r][c] * x[c][0];
+            s[1] -= m[r][c] * x[c][1];
+        }
+        x[r] = [s[0] / m[r][r], s[1] / m[r][r]];
+    }
+    Some(x)
 }
 
 fn max_change(level: &Level, u: &[V2], prev: &[V2]) -> f64 {
