@@ -29,6 +29,8 @@ pub(crate) mod bit {
     pub const DOWN: u8 = 32;
     /// Active (free or fixed).
     pub const ACTIVE: u8 = 64;
+    /// Free, with every term of the interior 13-point molecule present.
+    pub const REGULAR: u8 = 128;
 }
 
 /// Rows per parallel task; levels smaller than `PAR_MIN_NODES` run on one thread.
@@ -265,6 +267,19 @@ impl Level {
                 flags[(y + PAD) * wp + x + PAD] = f;
             }
         }
+        for y in 0..h {
+            for x in 0..w {
+                let p = (y + PAD) * wp + x + PAD;
+                let has = |q: usize, b: u8| flags[q] & b != 0;
+                if has(p, bit::FREE)
+                    && [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
+                    && [p - wp, p, p + wp].iter().all(|&q| has(q, bit::VTRI))
+                    && [p, p - 1, p - wp, p - wp - 1].iter().all(|&q| has(q, bit::CELL))
+                {
+                    flags[p] |= bit::REGULAR;
+                }
+            }
+        }
         let mut inv_diag = vec![0.0; wp * hp];
         let mut lam_max: f64 = 0.0;
         for y in 0..h {
@@ -363,17 +378,10 @@ impl Level {
     }
 }
 
-#[inline(always)]
-fn sel(on: bool, v: V2) -> V2 {
-    if on {
-        v
-    } else {
-        [0.0; 2]
-    }
-}
 
-/// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level: the energy
-/// terms are evaluated once per row (triples, cells, links) and then gathered.
+/// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level. Runs of
+/// regular nodes take the interior molecule (the square of the 5-point Laplacian, plus τ
+/// times the Laplacian) in a tight loop; the others sum their energy terms one by one.
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn fine_band(
@@ -387,93 +395,59 @@ fn fine_band(
     r1: usize,
     out: &mut [V2],
 ) {
-    thread_local! {
-        static SCRATCH: std::cell::RefCell<Vec<V2>> = const { std::cell::RefCell::new(Vec::new()) };
-    }
-    let nr = r1 - r0;
-    // Term rows for padded rows r0-1 ..= r1 (index row - (r0 - 1)).
-    let rows = nr + 2;
-    let len = rows * wp;
-    let mut scratch = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
-    scratch.clear();
-    scratch.resize(5 * len, [0.0; 2]);
-    let (th, rest) = scratch.split_at_mut(len);
-    let (tv, rest) = rest.split_at_mut(len);
-    let (tc, rest) = rest.split_at_mut(len);
-    let (lr, ld) = rest.split_at_mut(len);
-    let (lr, ld) = if tau != 0.0 { (lr, &mut ld[..len]) } else { (&mut lr[..0], &mut ld[..0]) };
-    for k in 0..rows {
-        let r = r0 - 1 + k;
-        let xm = &x[(r - 1) * wp..r * wp];
-        let x0 = &x[r * wp..(r + 1) * wp];
-        let xp = &x[(r + 1) * wp..(r + 2) * wp];
-        let fr = &flags[r * wp..(r + 1) * wp];
-        let thr = &mut th[k * wp..(k + 1) * wp];
-        for ((o, w3), &fl) in thr[1..wp - 1].iter_mut().zip(x0.windows(3)).zip(&fr[1..wp - 1]) {
-            *o = sel(fl & bit::HTRI != 0, [w3[0][0] - 2.0 * w3[1][0] + w3[2][0], w3[0][1] - 2.0 * w3[1][1] + w3[2][1]]);
-        }
-        let tvr = &mut tv[k * wp..(k + 1) * wp];
-        for ((((o, a), b), c), &fl) in tvr.iter_mut().zip(xm).zip(x0).zip(xp).zip(fr) {
-            *o = sel(fl & bit::VTRI != 0, [a[0] - 2.0 * b[0] + c[0], a[1] - 2.0 * b[1] + c[1]]);
-        }
-        let tcr = &mut tc[k * wp..(k + 1) * wp];
-        for (((o, a), b), &fl) in tcr[..wp - 1].iter_mut().zip(x0.windows(2)).zip(xp.windows(2)).zip(&fr[..wp - 1]) {
-            *o = sel(
-                fl & bit::CELL != 0,
-                [2.0 * (a[0][0] - a[1][0] - b[0][0] + b[1][0]), 2.0 * (a[0][1] - a[1][1] - b[0][1] + b[1][1])],
-            );
-        }
-        if tau != 0.0 {
-            let lrr = &mut lr[k * wp..(k + 1) * wp];
-            for ((o, a), &fl) in lrr[..wp - 1].iter_mut().zip(x0.windows(2)).zip(&fr[..wp - 1]) {
-                *o = sel(fl & bit::RIGHT != 0, [tau * (a[0][0] - a[1][0]), tau * (a[0][1] - a[1][1])]);
-            }
-            let ldr = &mut ld[k * wp..(k + 1) * wp];
-            for (((o, a), b), &fl) in ldr.iter_mut().zip(x0).zip(xp).zip(fr) {
-                *o = sel(fl & bit::DOWN != 0, [tau * (a[0] - b[0]), tau * (a[1] - b[1])]);
-            }
-        }
-    }
-    for k in 0..nr {
-        let r = r0 + k;
-        let j = k + 1; // term-row index of row r
-        let lo = PAD;
-        let hi = PAD + w;
-        fn row(v: &[V2], wp: usize, lo: usize, len: usize, jj: usize, off: isize) -> &[V2] {
-            let s = ((jj * wp + lo) as isize + off) as usize;
-            &v[s..s + len]
-        }
-        let row = |v, jj, off| row(v, wp, lo, hi - lo, jj, off);
-        let (thm, th0, thp) = (row(&th, j, -1), row(&th, j, 0), row(&th, j, 1));
-        let (tvm, tv0, tvp) = (row(&tv, j - 1, 0), row(&tv, j, 0), row(&tv, j + 1, 0));
-        let (tc00, tc0m, tcm0, tcmm) = (row(&tc, j, 0), row(&tc, j, -1), row(&tc, j - 1, 0), row(&tc, j - 1, -1));
-        let fr = &flags[r * wp + lo..r * wp + hi];
-        let orow = &mut out[k * wp + lo..k * wp + hi];
-        let frow = f.map(|f| &f[r * wp + lo..r * wp + hi]);
-        for c in 0..w {
-            let mut a = [0.0f64; 2];
-            for q in 0..2 {
-                a[q] = thm[c][q] - 2.0 * th0[c][q] + thp[c][q] + tvm[c][q] - 2.0 * tv0[c][q] + tvp[c][q] + tc00[c][q]
-                    - tc0m[c][q]
-                    - tcm0[c][q]
-                    + tcmm[c][q];
-            }
-            let fv = frow.map_or([0.0; 2], |f| f[c]);
-            orow[c] = sel(fr[c] & bit::FREE != 0, [fv[0] - a[0], fv[1] - a[1]]);
-        }
-        if tau != 0.0 {
-            let (lr0, lrm) = (row(&lr, j, 0), row(&lr, j, -1));
-            let (ld0, ldm) = (row(&ld, j, 0), row(&ld, j - 1, 0));
-            for c in 0..w {
-                if fr[c] & bit::FREE != 0 {
-                    for q in 0..2 {
-                        orow[c][q] -= lr0[c][q] - lrm[c][q] + ld0[c][q] - ldm[c][q];
-                    }
+    for (k, r) in (r0..r1).enumerate() {
+        let base = r * wp;
+        let orow = &mut out[k * wp..(k + 1) * wp];
+        let fr = &flags[base..base + wp];
+        let mut c = PAD;
+        while c < PAD + w {
+            if fr[c] & bit::REGULAR != 0 {
+                let mut e = c + 1;
+                while e < PAD + w && fr[e] & bit::REGULAR != 0 {
+                    e += 1;
                 }
+                regular_run(x, f, tau, wp, base, c, e, orow);
+                c = e;
+            } else {
+                let p = base + c;
+                orow[c] = if fr[c] & bit::FREE != 0 {
+                    let a = fine_apply(flags, x, p, wp, tau);
+                    let fv = f.map_or([0.0; 2], |f| f[p]);
+                    [fv[0] - a[0], fv[1] - a[1]]
+                } else {
+                    [0.0; 2]
+                };
+                c += 1;
             }
         }
     }
-    SCRATCH.with(|s| *s.borrow_mut() = scratch);
+}
+
+/// The interior molecule on columns `c0..c1` of one row (all regular).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn regular_run(x: &[V2], f: Option<&[V2]>, tau: f64, wp: usize, base: usize, c0: usize, c1: usize, orow: &mut [V2]) {
+    let n = c1 - c0;
+    let at = |dr: isize, dc: isize| -> &[V2] {
+        let s = ((base + c0) as isize + dr * wp as isize + dc) as usize;
+        &x[s..s + n]
+    };
+    let (x0, xl, xr, xu, xd) = (at(0, 0), at(0, -1), at(0, 1), at(-1, 0), at(1, 0));
+    let (xul, xur, xdl, xdr) = (at(-1, -1), at(-1, 1), at(1, -1), at(1, 1));
+    let (xll, xrr, xuu, xdd) = (at(0, -2), at(0, 2), at(-2, 0), at(2, 0));
+    let o = &mut orow[c0..c1];
+    let fz = f.map(|f| &f[base + c0..base + c1]);
+    for i in 0..n {
+        let mut a = [0.0f64; 2];
+        for q in 0..2 {
+            let edge = xl[i][q] + xr[i][q] + xu[i][q] + xd[i][q];
+            let diag = xul[i][q] + xur[i][q] + xdl[i][q] + xdr[i][q];
+            let far = xll[i][q] + xrr[i][q] + xuu[i][q] + xdd[i][q];
+            a[q] = 20.0 * x0[i][q] - 8.0 * edge + 2.0 * diag + far + tau * (4.0 * x0[i][q] - edge);
+        }
+        let fv = fz.map_or([0.0; 2], |f| f[i]);
+        o[i] = [fv[0] - a[0], fv[1] - a[1]];
+    }
 }
 
 /// `(A x)_p` on the finest level from the energy terms that contain node p.

@@ -771,8 +771,9 @@ fn scaled_residual(level: &Level, u: &[V2]) -> f64 {
 /// let mut field = Field::zeros(4, 4);
 /// field.dx[5] = 1.0; // node (1, 1)
 /// let [ex, ey] = energy(&grid, &field, 0.0);
-/// // triples: 2 centred on it (4 each) + 4 having it at an end (1 each); cells: 4 × 2
-/// assert_eq!((ex, ey), (4.0 + 4.0 + 1.0 + 1.0 + 1.0 + 1.0 + 8.0, 0.0));
+/// // triples: one horizontal and one vertical centred on it (4 each), one of each with it
+/// // at an end (1 each; the other ends fall off the grid); cells: 4, each weighing 2.
+/// assert_eq!((ex, ey), (2.0 * (4.0 + 1.0) + 4.0 * 2.0, 0.0));
 /// ```
 pub fn energy(grid: &Grid, field: &Field, tension: f64) -> [f64; 2] {
     let (w, h) = (grid.width, grid.height);
