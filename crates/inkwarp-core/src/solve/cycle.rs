@@ -37,8 +37,7 @@ impl Hierarchy {
         let mut levels = vec![fine];
         loop {
             let last = levels.last().unwrap();
-            let cn = std::env::var("IW_COARSEST").ok().and_then(|v| v.parse().ok()).unwrap_or(COARSEST_NODES);
-            if last.geo.w * last.geo.h <= cn || last.geo.w <= 2 || last.geo.h <= 2 {
+            if last.geo.w * last.geo.h <= COARSEST_NODES || last.geo.w <= 2 || last.geo.h <= 2 {
                 break;
             }
             let next = galerkin(last);
@@ -51,47 +50,20 @@ impl Hierarchy {
                 Work { x: vec![[0.0; 2]; n], f: vec![[0.0; 2]; n], r: vec![[0.0; 2]; n], d: vec![[0.0; 2]; n] }
             })
             .collect();
-        let iters: usize = std::env::var("IW_PITER").ok().and_then(|v| v.parse().ok()).unwrap_or(6);
-        let safety: f64 = std::env::var("IW_PSAFE").ok().and_then(|v| v.parse().ok()).unwrap_or(1.1);
-        if iters > 0 {
-            for l in levels.iter_mut() {
-                let est = power_estimate(l, iters) * safety;
-                l.lam_max = l.lam_max.min(est);
-            }
-        }
-        if std::env::var("IW_POWER").is_ok() {
-            for l in levels.iter_mut() {
-                let est = power_estimate(l, 20);
-                eprintln!("level {}x{}: gershgorin {:.3} power {:.3}", l.geo.w, l.geo.h, l.lam_max, est);
-            }
+        // Chebyshev needs the top of the spectrum of D⁻¹A: a few power steps from a
+        // checkerboard, with a margin, capped by the (safe, loose) Gershgorin bound.
+        for l in levels.iter_mut() {
+            let est = power_estimate(l, 6) * 1.1;
+            l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, gamma: 1, line_search: std::env::var("IW_LS").map_or(true, |v| v != "0") }
-    }
-
-    /// One V-cycle on the finest level for `u` (fixed nodes hold their values).
-    pub fn cycle(&mut self, u: &mut [V2]) {
-        if self.levels.len() == 1 {
-            self.direct(u);
-            return;
-        }
-        let mut work = std::mem::take(&mut self.work);
-        let mut r = vec![[0.0; 2]; u.len()];
-        self.levels[0].residual(u, None, &mut r);
-        work[0].f.copy_from_slice(&r);
-        fill_zero(&mut work[0].x);
-        self.solve_level(0, &mut work, true);
-        for (a, e) in u.iter_mut().zip(&work[0].x) {
-            a[0] += e[0];
-            a[1] += e[1];
-        }
-        self.work = work;
+        Hierarchy { levels, work, coarsest, degree, gamma: 1, line_search: true }
     }
 
     /// Smoothing steps on level k: coarse levels are cheap, so they get more.
     fn degree_at(&self, k: usize) -> usize {
-        let extra: usize = std::env::var("IW_EXTRA").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
-        self.degree + extra * k
+        let _ = k;
+        self.degree
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
@@ -263,7 +235,7 @@ pub(crate) fn smooth(
         return;
     }
     let b = level.lam_max;
-    let a = b / std::env::var("IW_RATIO").ok().and_then(|v| v.parse().ok()).unwrap_or(CHEB_RATIO);
+    let a = b / CHEB_RATIO;
     let theta = 0.5 * (b + a);
     let delta = 0.5 * (b - a);
     let sigma = theta / delta;

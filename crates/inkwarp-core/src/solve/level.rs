@@ -350,34 +350,67 @@ impl Level {
         match &self.op {
             Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
             Operator::Stored { ids, table } => {
-                let shared = table[0];
-                for c in PAD..PAD + self.geo.w {
+                // Corners of the 5 × 5 window are always zero (see `galerkin`).
+                const TAPS: [(usize, usize); 21] = [
+                    (0, 1), (0, 2), (0, 3),
+                    (1, 0), (1, 1), (1, 2), (1, 3), (1, 4),
+                    (2, 0), (2, 1), (2, 2), (2, 3), (2, 4),
+                    (3, 0), (3, 1), (3, 2), (3, 3), (3, 4),
+                    (4, 1), (4, 2), (4, 3),
+                ];
+                let shared = &table[0];
+                let mut c = PAD;
+                let end = PAD + self.geo.w;
+                while c < end {
                     let p = base + c;
                     if self.inv_diag[p] == 0.0 {
                         out[c] = [0.0; 2];
+                        c += 1;
                         continue;
                     }
-                    let id = ids[p] as usize;
-                    let s = if id == 0 { &shared } else { &table[id] };
-                    let mut acc = [0.0f64; 2];
-                    // Corners of the 5 × 5 window are always zero (see `galerkin`).
-                    for (dy, lo, hi) in [(0usize, 1usize, 4usize), (1, 0, 5), (2, 0, 5), (3, 0, 5), (4, 1, 4)] {
-                        let q = p + dy * wp - 2 * wp - 2;
-                        let sr = &s[dy * 5 + lo..dy * 5 + hi];
-                        let xr = &x[q + lo..q + hi];
-                        for (a, xv) in sr.iter().zip(xr) {
-                            acc[0] += a * xv[0];
-                            acc[1] += a * xv[1];
+                    if ids[p] == 0 {
+                        // A run of regular nodes: one stencil, applied tap by tap.
+                        let mut e = c + 1;
+                        while e < end && ids[base + e] == 0 && self.inv_diag[base + e] != 0.0 {
+                            e += 1;
                         }
+                        let mut s0 = c;
+                        while s0 < e {
+                            let m = (e - s0).min(64);
+                            let mut acc = [[0.0f64; 2]; 64];
+                            for &(dy, dx) in &TAPS {
+                                let a = shared[dy * 5 + dx];
+                                let q = base + s0 + dy * wp + dx - 2 * wp - 2;
+                                for (o, xv) in acc[..m].iter_mut().zip(&x[q..q + m]) {
+                                    o[0] += a * xv[0];
+                                    o[1] += a * xv[1];
+                                }
+                            }
+                            for i in 0..m {
+                                let fv = f.map_or([0.0; 2], |f| f[base + s0 + i]);
+                                out[s0 + i] = [fv[0] - acc[i][0], fv[1] - acc[i][1]];
+                            }
+                            s0 += m;
+                        }
+                        c = e;
+                        continue;
+                    }
+                    let s = &table[ids[p] as usize];
+                    let mut acc = [0.0f64; 2];
+                    for &(dy, dx) in &TAPS {
+                        let a = s[dy * 5 + dx];
+                        let xv = x[p + dy * wp + dx - 2 * wp - 2];
+                        acc[0] += a * xv[0];
+                        acc[1] += a * xv[1];
                     }
                     let fv = f.map_or([0.0; 2], |f| f[p]);
                     out[c] = [fv[0] - acc[0], fv[1] - acc[1]];
+                    c += 1;
                 }
             }
         }
     }
 }
-
 
 /// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level. Runs of
 /// regular nodes take the interior molecule (the square of the 5-point Laplacian, plus τ
