@@ -41,7 +41,8 @@ fn main() {
         .collect();
     let grid = Grid::new(size, height);
     let opts = SolveOptions { max_cycles: cycles, tolerance_px: if cycles.is_some() { 0.0 } else { 0.01 }, ..Default::default() };
-    for run in 0..3 {
+    let runs: usize = std::env::var("RUNS").ok().and_then(|v| v.parse().ok()).unwrap_or(3);
+    for run in 0..runs {
         let (t, c) = (Instant::now(), cpu_ns());
         let (field, rep) = solve(&grid, &samples, &opts, None).unwrap();
         let (cold, cold_cpu) = (t.elapsed().as_secs_f64(), (cpu_ns() - c) as f64 * 1e-9);

@@ -57,7 +57,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, gamma: 1, line_search: true }
+        Hierarchy { levels, work, coarsest, degree, gamma: 2, line_search: true }
     }
 
     /// Smoothing steps on level k: coarse levels are cheap, so they get more.

@@ -358,7 +358,6 @@ pub(crate) fn solve_constrained(
                 hier.precondition(&r, &mut z);
                 let mut p = z.clone();
                 let mut rz = dot2(&r, &z);
-                let mut r_old = r.clone();
                 for cycle in 1..=max_cycles {
                     let fine = &hier.levels[0];
                     fine.residual(&p, None, &mut q); // q = −A p
@@ -368,7 +367,6 @@ pub(crate) fn solve_constrained(
                         if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
                     ];
                     let mut change: f64 = 0.0;
-                    r_old.copy_from_slice(&r);
                     for i in 0..len {
                         let d = [alpha[0] * p[i][0], alpha[1] * p[i][1]];
                         u[i][0] += d[0];
@@ -382,13 +380,13 @@ pub(crate) fn solve_constrained(
                         break;
                     }
                     hier.precondition(&r, &mut z);
-                    // Flexible (Polak–Ribière) β: the preconditioner's line searches make it
-                    // slightly nonlinear.
+                    // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
+                    // the preconditioner's line searches make it slightly nonlinear.
                     let rz_new = dot2(&r, &z);
-                    let zr_old = dot2(&z, &r_old);
+                    let zq = dot2(&z, &q);
                     let beta = [
-                        if rz[0] > 0.0 { ((rz_new[0] - zr_old[0]) / rz[0]).max(0.0) } else { 0.0 },
-                        if rz[1] > 0.0 { ((rz_new[1] - zr_old[1]) / rz[1]).max(0.0) } else { 0.0 },
+                        if rz[0] > 0.0 { ((alpha[0] * zq[0]) / rz[0]).max(0.0) } else { 0.0 },
+                        if rz[1] > 0.0 { ((alpha[1] * zq[1]) / rz[1]).max(0.0) } else { 0.0 },
                     ];
                     for i in 0..len {
                         p[i][0] = z[i][0] + beta[0] * p[i][0];
