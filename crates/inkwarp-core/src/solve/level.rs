@@ -60,20 +60,26 @@ impl Geometry {
     /// The next coarser geometry: node (X, Y) sits on (2X, 2Y); two coarse neighbours are
     /// linked when the straight two-link path between them is linked here.
     pub fn coarsen(&self) -> Geometry {
-        let (w, h) = ((self.w + 1) / 2, (self.h + 1) / 2);
+        // ⌊n/2⌋ + 1 coarse nodes: for an even n the last one is a ghost just outside the
+        // grid (at fine position n), so that the last fine node still sits between two
+        // coarse nodes and interpolation keeps reproducing linear functions there.
+        let (fw, fh) = (self.w, self.h);
+        let (w, h) = (fw / 2 + 1, fh / 2 + 1);
+        let fx = |x: usize| (2 * x).min(fw - 1);
+        let fy = |y: usize| (2 * y).min(fh - 1);
         let mut active = vec![false; w * h];
         let mut right = vec![false; w * h];
         let mut down = vec![false; w * h];
         for y in 0..h {
             for x in 0..w {
-                let f = self.idx(2 * x, 2 * y);
                 let c = y * w + x;
+                let f = self.idx(fx(x), fy(y));
                 active[c] = self.active[f];
                 if x + 1 < w {
-                    right[c] = self.right[f] && self.right[f + 1];
+                    right[c] = self.right[f] && (2 * x + 2 == fw || self.right[f + 1]);
                 }
                 if y + 1 < h {
-                    down[c] = self.down[f] && self.down[f + self.w];
+                    down[c] = self.down[f] && (2 * y + 2 == fh || self.down[f + fw]);
                 }
             }
         }
@@ -116,14 +122,16 @@ impl Geometry {
         }
         match (x & 1, y & 1) {
             (0, 0) => [1.0, 0.0, 0.0, 0.0],
+            // The last node of an even-sized row or column has the ghost coarse node
+            // beyond it (see `coarsen`).
             (1, 0) => {
                 let l = self.right[i - 1];
-                let r = x + 1 < self.w && self.right[i];
+                let r = x + 1 == self.w || self.right[i];
                 pair(l, r, 0, 1)
             }
             (0, 1) => {
                 let u = self.down[i - self.w];
-                let d = y + 1 < self.h && self.down[i];
+                let d = y + 1 == self.h || self.down[i];
                 pair(u, d, 0, 2)
             }
             _ => {
@@ -138,7 +146,12 @@ impl Geometry {
                         k += 1.0;
                     }
                 }
-                if x + 1 < self.w && self.right[i] {
+                if x + 1 == self.w {
+                    // the ghost column
+                    acc[1] += 0.5;
+                    acc[3] += 0.5;
+                    k += 1.0;
+                } else if self.right[i] {
                     let r = self.geo_row(x + 1, y);
                     if r[0] + r[2] > 0.0 {
                         acc[1] += r[0];
@@ -154,7 +167,11 @@ impl Geometry {
                         k += 1.0;
                     }
                 }
-                if y + 1 < self.h && self.down[i] {
+                if y + 1 == self.h {
+                    acc[2] += 0.5;
+                    acc[3] += 0.5;
+                    k += 1.0;
+                } else if self.down[i] {
                     let r = self.geo_row(x, y + 1);
                     if r[0] + r[1] > 0.0 {
                         acc[2] += r[0];
