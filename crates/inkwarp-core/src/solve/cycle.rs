@@ -68,12 +68,19 @@ impl Hierarchy {
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
     /// usable as a conjugate-gradient preconditioner).
-    pub fn precondition(&mut self, r: &[V2], z: &mut [V2]) {
+    ///
+    /// `r` and `z` are swapped with the finest level's work vectors for the duration (no
+    /// copies: this matters for 4K grids); `z` may come in empty and leaves full length.
+    pub fn precondition(&mut self, r: &mut Vec<V2>, z: &mut Vec<V2>) {
         let mut work = std::mem::take(&mut self.work);
-        work[0].f.copy_from_slice(r);
+        std::mem::swap(&mut work[0].f, r);
+        std::mem::swap(&mut work[0].x, z);
+        let len = work[0].f.len();
+        work[0].x.resize(len, [0.0; 2]);
         fill_zero(&mut work[0].x);
         self.solve_level(0, &mut work, true);
-        z.copy_from_slice(&work[0].x);
+        std::mem::swap(&mut work[0].f, r);
+        std::mem::swap(&mut work[0].x, z);
         self.work = work;
     }
 

@@ -29,12 +29,17 @@
 //!
 //! # The multigrid
 //!
-//! Geometric hierarchy (node (X, Y) of level k+1 sits on (2X, 2Y) of level k) with
-//! *link-aware* bilinear prolongation that never interpolates across a missing link or from
-//! an inactive node, *Galerkin* coarse operators `Pᵀ A P` stored as 5 × 5 stencils per node
-//! (so every coarse level sees the exact energy of its coarse functions on the fine domain,
-//! however thin the holes and cuts), Chebyshev–Jacobi smoothing (symmetric, parallel), a
-//! banded Cholesky solve on the coarsest level, a coarse-to-fine start, then V-cycles.
+//! Geometric hierarchy (node (X, Y) of level k+1 sits on (2X, 2Y) of level k, with a ghost
+//! node past the last column and row of even-sized levels) with *link-aware* bilinear
+//! prolongation that never interpolates across a missing link or from an inactive node,
+//! *Galerkin* coarse operators `Pᵀ A P` stored as 5 × 5 stencils per node (so every coarse
+//! level sees the exact energy of its coarse functions on the fine domain, however thin the
+//! holes and cuts), Chebyshev–Jacobi smoothing (symmetric, parallel), energy line searches on
+//! the coarse corrections, W-cycles below the finest level, a banded Cholesky solve on the
+//! coarsest level, a coarse-to-fine start, and the cycle as the preconditioner of a flexible
+//! conjugate gradient on the finest level. Loose nodes (no corner of a fully linked cell)
+//! are settled to the τ → 0⁺ limit afterwards. `docs/concepts/thin-plate.md` explains the
+//! choices and lists the measured figures.
 
 mod cycle;
 mod level;
@@ -263,11 +268,12 @@ pub(crate) fn solve_constrained(
         return (field, report);
     }
     let mut fixed = vec![false; n];
-    let mut value: Vec<V2> = vec![[0.0; 2]; n];
+    // (node, value) of every fixed node: the constrained ones, then the gauge pins.
+    let mut value: Vec<(usize, V2)> = Vec::with_capacity(constraints.len());
     for (k, &i) in constraints.nodes.iter().enumerate() {
         if active[i] {
             fixed[i] = true;
-            value[i] = constraints.values[k];
+            value.push((i, constraints.values[k]));
         }
     }
     // Gauge pins of the one-line pieces: the warm start's value, else the mean constraint.
@@ -281,10 +287,13 @@ pub(crate) fn solve_constrained(
     for (l, p) in pieces.iter().enumerate() {
         if let Piece::Line { gauge, .. } = *p {
             fixed[gauge] = true;
-            value[gauge] = match initial {
-                Some(f) => [f.dx[gauge] as f64, f.dy[gauge] as f64],
-                None => [piece_mean[l][0] / piece_mean[l][2], piece_mean[l][1] / piece_mean[l][2]],
-            };
+            value.push((
+                gauge,
+                match initial {
+                    Some(f) => [f.dx[gauge] as f64, f.dy[gauge] as f64],
+                    None => [piece_mean[l][0] / piece_mean[l][2], piece_mean[l][1] / piece_mean[l][2]],
+                },
+            ));
         }
     }
     let key = CacheKey {
@@ -313,18 +322,19 @@ pub(crate) fn solve_constrained(
     let mut u: Vec<V2> = vec![[0.0; 2]; hier.levels[0].len_padded()];
     {
         let fine = &hier.levels[0];
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                let p = fine.pidx(x, y);
-                if fixed[i] {
-                    u[p] = value[i];
-                } else if fine.inv_diag[p] != 0.0 {
-                    if let Some(f) = initial {
+        if let Some(f) = initial {
+            for y in 0..h {
+                for x in 0..w {
+                    let i = y * w + x;
+                    let p = fine.pidx(x, y);
+                    if fine.inv_diag[p] != 0.0 {
                         u[p] = [f.dx[i] as f64, f.dy[i] as f64];
                     }
                 }
             }
+        }
+        for &(i, v) in &value {
+            u[fine.pidx(i % w, i / w)] = v;
         }
     }
     if initial.is_none() {
@@ -354,8 +364,8 @@ pub(crate) fn solve_constrained(
                 STOP_MARGIN * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
             };
             {
-                let (mut z, mut q) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
-                hier.precondition(&r, &mut z);
+                let (mut z, mut q) = (Vec::new(), vec![[0.0; 2]; len]);
+                hier.precondition(&mut r, &mut z);
                 let mut p = z.clone();
                 let mut rz = dot2(&r, &z);
                 for cycle in 1..=max_cycles {
@@ -379,7 +389,7 @@ pub(crate) fn solve_constrained(
                         report.converged = true;
                         break;
                     }
-                    hier.precondition(&r, &mut z);
+                    hier.precondition(&mut r, &mut z);
                     // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
                     // the preconditioner's line searches make it slightly nonlinear.
                     let rz_new = dot2(&r, &z);
@@ -408,6 +418,7 @@ pub(crate) fn solve_constrained(
     // The conjugate-gradient residual is updated, not recomputed: it is the residual of u
     // up to rounding.
     report.residual = scaled_max(&hier.levels[0], &r);
+    drop(r);
     let fine = &hier.levels[0];
     let mut out: Vec<V2> = vec![[0.0; 2]; n];
     for y in 0..h {
