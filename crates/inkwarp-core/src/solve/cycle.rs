@@ -60,12 +60,6 @@ impl Hierarchy {
         Hierarchy { levels, work, coarsest, degree, gamma: 2, line_search: true }
     }
 
-    /// Smoothing steps on level k: coarse levels are cheap, so they get more.
-    fn degree_at(&self, k: usize) -> usize {
-        let _ = k;
-        self.degree
-    }
-
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
     /// usable as a conjugate-gradient preconditioner).
     ///
@@ -88,7 +82,7 @@ impl Hierarchy {
     fn direct(&mut self, u: &mut [V2]) {
         let w0 = &mut self.work[0];
         self.levels[0].residual(u, None, &mut w0.r);
-        self.coarsest.solve(&self.levels[0], &w0.r, &mut w0.x);
+        self.coarsest.solve(&w0.r, &mut w0.x);
         for (p, e) in w0.x.iter().enumerate() {
             if self.levels[0].inv_diag[p] != 0.0 {
                 u[p][0] += e[0];
@@ -103,13 +97,13 @@ impl Hierarchy {
         let level = &self.levels[k];
         if k + 1 == self.levels.len() {
             let w = &mut work[0];
-            self.coarsest.solve(level, &w.f, &mut w.x);
+            self.coarsest.solve(&w.f, &mut w.x);
             return;
         }
         {
             let w = &mut work[0];
             let Work { x, f, r, d } = w;
-            smooth(level, x, Some(f), r, d, self.degree_at(k), x_zero);
+            smooth(level, x, Some(f), r, d, self.degree, x_zero);
             level.residual(x, Some(f), r);
         }
         let (head, tail) = work.split_at_mut(1);
@@ -152,7 +146,7 @@ impl Hierarchy {
             }
         }
         let Work { x, f, r, d } = w;
-        smooth(level, x, Some(f), r, d, self.degree_at(k), false);
+        smooth(level, x, Some(f), r, d, self.degree, false);
     }
 
     /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on
@@ -173,7 +167,7 @@ impl Hierarchy {
         }
         {
             let w = &mut work[nl - 1];
-            self.coarsest.solve(&self.levels[nl - 1], &w.f, &mut w.x);
+            self.coarsest.solve(&w.f, &mut w.x);
         }
         for k in (1..nl - 1).rev() {
             let (head, tail) = work.split_at_mut(k + 1);
@@ -399,8 +393,7 @@ impl Banded {
         Banded { n, bw, l, map, dropped: vec![] }
     }
 
-    fn solve(&self, level: &Level, f: &[V2], x: &mut [V2]) {
-        let _ = level;
+    fn solve(&self, f: &[V2], x: &mut [V2]) {
         let (n, bw) = (self.n, self.bw);
         let width = bw + 1;
         let mut z: Vec<V2> = self.map.iter().map(|&p| f[p]).collect();
