@@ -636,12 +636,48 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let build_row = |yc: usize| -> (Vec<u32>, Vec<[f64; 25]>) {
         let mut ids = vec![0u32; wpc];
         let mut own = Vec::new();
-        for xc in 0..wc {
-            if !geo.active[yc * wc + xc] || regular(xc, yc) {
-                continue;
+        let irregular: Vec<usize> = (0..wc).filter(|&xc| geo.active[yc * wc + xc] && !regular(xc, yc)).collect();
+        if irregular.is_empty() {
+            return (ids, own);
+        }
+        // A P for the fine rows of this coarse row's children, once per needed fine node.
+        let y_lo = (2 * yc).saturating_sub(1);
+        let y_hi = (2 * yc + 1).min(fh - 1);
+        let mut ap = vec![[0.0f64; 16]; (y_hi - y_lo + 1) * fw];
+        let mut done = vec![false; (y_hi - y_lo + 1) * fw];
+        for &xc in &irregular {
+            let mut acc = [0.0f64; 25];
+            for iy in y_lo..=y_hi {
+                for ix in (2 * xc).saturating_sub(1)..=(2 * xc + 1).min(fw - 1) {
+                    let sx = xc as isize - (ix / 2) as isize;
+                    let sy = yc as isize - (iy / 2) as isize;
+                    if !(0..2).contains(&sx) || !(0..2).contains(&sy) {
+                        continue;
+                    }
+                    let wi = fine.geo.p_row(ix, iy)[(sy * 2 + sx) as usize];
+                    if wi == 0.0 {
+                        continue;
+                    }
+                    let k = (iy - y_lo) * fw + ix;
+                    if !done[k] {
+                        ap[k] = ap_row(fine, ix, iy);
+                        done[k] = true;
+                    }
+                    // ap[k] is indexed by coarse offsets (-1..=2) from (ix/2, iy/2)
+                    let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
+                    for oy in 0..4isize {
+                        for ox in 0..4isize {
+                            let v = ap[k][(oy * 4 + ox) as usize];
+                            if v != 0.0 {
+                                let (cx, cy) = (bx + ox - 1, by + oy - 1);
+                                acc[((cy + 2) * 5 + cx + 2) as usize] += wi * v;
+                            }
+                        }
+                    }
+                }
             }
-            let s = galerkin_node(fine, xc, yc);
-            own.push(s);
+            debug_assert!([0, 4, 20, 24].iter().all(|&k| acc[k] == 0.0), "coarse stencils never reach (±2, ±2)");
+            own.push(acc);
             ids[xc + PAD] = own.len() as u32; // local, 1-based
         }
         (ids, own)
@@ -726,6 +762,34 @@ fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
     }
     debug_assert!([0, 4, 20, 24].iter().all(|&k| acc[k] == 0.0), "coarse stencils never reach (±2, ±2)");
     acc
+}
+
+/// Row `i = (ix, iy)` of `A P`: `Σ_j A_ij P_j`, over the coarse nodes at offsets −1..=2 from
+/// `(ix / 2, iy / 2)` (a 4 × 4 window, row-major).
+fn ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
+    let mut out = [0.0f64; 16];
+    let arow = fine.row(fine.pidx(ix, iy));
+    let (bx, by) = ((ix / 2) as isize, (iy / 2) as isize);
+    for dy in -2isize..=2 {
+        for dx in -2isize..=2 {
+            let a = arow[((dy + 2) * 5 + dx + 2) as usize];
+            if a == 0.0 {
+                continue;
+            }
+            let jx = (ix as isize + dx) as usize;
+            let jy = (iy as isize + dy) as usize;
+            let pj = fine.geo.p_row(jx, jy);
+            let (cjx, cjy) = ((jx / 2) as isize - bx, (jy / 2) as isize - by);
+            for (slot, &wj) in pj.iter().enumerate() {
+                if wj != 0.0 {
+                    let ox = cjx + (slot & 1) as isize + 1;
+                    let oy = cjy + (slot >> 1) as isize + 1;
+                    out[(oy * 4 + ox) as usize] += a * wj;
+                }
+            }
+        }
+    }
+    out
 }
 
 /// `coarse = Pᵀ fine_v` (restriction of a residual).

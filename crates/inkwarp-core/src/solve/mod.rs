@@ -48,6 +48,7 @@ mod upsample;
 
 use std::time::Instant;
 
+use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::field::Field;
@@ -376,15 +377,23 @@ pub(crate) fn solve_constrained(
                         if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
                         if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
                     ];
-                    let mut change: f64 = 0.0;
-                    for i in 0..len {
-                        let d = [alpha[0] * p[i][0], alpha[1] * p[i][1]];
-                        u[i][0] += d[0];
-                        u[i][1] += d[1];
-                        change = change.max(d[0].abs()).max(d[1].abs());
-                        r[i][0] += alpha[0] * q[i][0];
-                        r[i][1] += alpha[1] * q[i][1];
-                    }
+                    let change = u
+                        .par_chunks_mut(CHUNK)
+                        .zip(r.par_chunks_mut(CHUNK))
+                        .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
+                        .map(|((u, r), (p, q))| {
+                            let mut change: f64 = 0.0;
+                            for i in 0..u.len() {
+                                let d = [alpha[0] * p[i][0], alpha[1] * p[i][1]];
+                                u[i][0] += d[0];
+                                u[i][1] += d[1];
+                                change = change.max(d[0].abs()).max(d[1].abs());
+                                r[i][0] += alpha[0] * q[i][0];
+                                r[i][1] += alpha[1] * q[i][1];
+                            }
+                            change
+                        })
+                        .reduce(|| 0.0, f64::max);
                     if stop(change, cycle, &mut report) {
                         report.converged = true;
                         break;
@@ -398,10 +407,12 @@ pub(crate) fn solve_constrained(
                         if rz[0] > 0.0 { ((alpha[0] * zq[0]) / rz[0]).max(0.0) } else { 0.0 },
                         if rz[1] > 0.0 { ((alpha[1] * zq[1]) / rz[1]).max(0.0) } else { 0.0 },
                     ];
-                    for i in 0..len {
-                        p[i][0] = z[i][0] + beta[0] * p[i][0];
-                        p[i][1] = z[i][1] + beta[1] * p[i][1];
-                    }
+                    p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| {
+                        for i in 0..p.len() {
+                            p[i][0] = z[i][0] + beta[0] * p[i][0];
+                            p[i][1] = z[i][1] + beta[1] * p[i][1];
+                        }
+                    });
                     rz = rz_new;
                 }
             }
@@ -772,13 +783,24 @@ fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<V2>> {
     Some(x)
 }
 
+/// Vector chunk for parallel loops (large enough that small grids stay on one thread).
+const CHUNK: usize = 16_384;
+
+/// Per-component dot products; the chunked sum keeps the result independent of threads.
 fn dot2(a: &[V2], b: &[V2]) -> [f64; 2] {
-    let mut s = [0.0f64; 2];
-    for (x, y) in a.iter().zip(b) {
-        s[0] += x[0] * y[0];
-        s[1] += x[1] * y[1];
-    }
-    s
+    let parts: Vec<[f64; 2]> = a
+        .par_chunks(CHUNK)
+        .zip(b.par_chunks(CHUNK))
+        .map(|(a, b)| {
+            let mut s = [0.0f64; 2];
+            for (x, y) in a.iter().zip(b) {
+                s[0] += x[0] * y[0];
+                s[1] += x[1] * y[1];
+            }
+            s
+        })
+        .collect();
+    parts.iter().fold([0.0; 2], |s, p| [s[0] + p[0], s[1] + p[1]])
 }
 
 fn count_unknowns(level: &Level) -> usize {
