@@ -1,0 +1,335 @@
+//! The scene engine: the drawing at time t, its samples per layer, the layer's field (warm
+//! started from the previous frame), and the frame composited back to front.
+
+use std::ops::Range;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+
+use super::doc::{Method, Scheme, SolverDoc};
+use super::stand_in::{
+    points_at, sample_feature, solve, Canvas, RgbaImage, SampleOptions, SolveMethod, SolveOptions, SolveReport,
+};
+use super::{Scene, SceneError};
+use crate::field::Field;
+use crate::geometry::{Kind, Point, Sample};
+use crate::grid::Grid;
+
+/// Whether `method` can compute fields in this build. `tps` always can; the other
+/// interpolants (DESIGN §6) come from the `methods` module through [`compute_field`].
+pub fn method_available(method: Method) -> bool {
+    matches!(method, Method::Tps)
+}
+
+/// The one place where a layer's field is computed by its method.
+fn compute_field(
+    method: Method,
+    grid: &Grid,
+    samples: &[Sample],
+    options: &SolveOptions,
+    initial: Option<&Field>,
+) -> Result<(Field, Option<SolveReport>), String> {
+    match method {
+        Method::Tps => solve(grid, samples, options, initial)
+            .map(|(field, report)| (field, Some(report)))
+            .map_err(|e| e.to_string()),
+        other => Err(format!("the method \"{}\" is not available in this version of inkwarp yet", other.name())),
+    }
+}
+
+/// The engine's solve options for a layer's settings.
+pub(crate) fn solve_options(solver: &SolverDoc) -> SolveOptions {
+    SolveOptions {
+        tension: solver.tension,
+        tolerance_px: solver.tolerance,
+        grid_step: solver.grid_step as usize,
+        max_cycles: solver.max_cycles.map(|c| c as usize),
+        method: match solver.scheme {
+            Scheme::Multigrid => SolveMethod::Multigrid,
+            Scheme::Southwell => SolveMethod::Southwell,
+        },
+    }
+}
+
+/// A layer's field at one time, with the solver's report (`None` for methods that have no
+/// iterations to report).
+#[derive(Clone, Debug)]
+pub struct LayerSolve {
+    pub field: Field,
+    pub report: Option<SolveReport>,
+}
+
+/// Consecutive frames are solved in chains of this many, each chain starting cold at a
+/// frame index that is a multiple of it and warm-starting every later frame from the one
+/// before. Because the chains do not depend on how many threads render them, a frame's
+/// pixels do not depend on the number of cores.
+pub const WARM_CHAIN_FRAMES: usize = 16;
+
+impl Scene {
+    /// The control points of feature `feature` at time `time_s`.
+    pub fn pose_at(&self, feature: usize, time_s: f64) -> Vec<Point> {
+        let track = &self.tracks()[feature];
+        points_at(&track.rest, &track.keys, time_s)
+    }
+
+    /// The constraints that drive layer `layer` at time `time_s`: every driving feature
+    /// sampled at the layer's grid spacing, region interiors on the layer's grid.
+    pub fn layer_samples(&self, layer: usize, time_s: f64) -> Result<Vec<Sample>, SceneError> {
+        let layer_ref = &self.layers()[layer];
+        let spacing_px = layer_ref.solver.grid_step as f64;
+        let mut samples = Vec::new();
+        for &i in &layer_ref.drivers {
+            let track = &self.tracks()[i];
+            let pose = self.pose_at(i, time_s);
+            let options =
+                SampleOptions { closed: track.closed, spline_outline: track.spline_outline, spacing_px };
+            let domain = (track.kind == Kind::Region).then_some(&layer_ref.grid);
+            let mut some = sample_feature(track.kind, &track.rest, &pose, &options, domain).map_err(|e| {
+                SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"))
+            })?;
+            samples.append(&mut some);
+        }
+        Ok(samples)
+    }
+
+    /// The field of layer `layer` at time `time_s`, starting from `initial` (warm start)
+    /// or from zero.
+    pub fn layer_field(&self, layer: usize, time_s: f64, initial: Option<&Field>) -> Result<LayerSolve, SceneError> {
+        let layer_ref = &self.layers()[layer];
+        let samples = self.layer_samples(layer, time_s)?;
+        let options = solve_options(&layer_ref.solver);
+        let initial = initial.filter(|f| f.width == self.width() && f.height == self.height());
+        let (field, report) = compute_field(layer_ref.solver.method, &layer_ref.grid, &samples, &options, initial)
+            .map_err(|e| SceneError::one(format!("layers[{layer}]"), format!("at t = {time_s} s: {e}")))?;
+        Ok(LayerSolve { field, report })
+    }
+
+    /// Whether layer `layer` shows in frames (visible, with an image).
+    pub fn layer_is_drawn(&self, layer: usize) -> bool {
+        let l = &self.layers()[layer];
+        l.visible && l.image.is_some()
+    }
+
+    /// Composites the drawn layers, back to front, each warped by its field (`fields[j]`
+    /// for layer `j`; ignored for layers that are not drawn) over the background.
+    pub fn composite(&self, fields: &[Option<Field>]) -> RgbaImage {
+        let mut canvas = Canvas::new(self.width(), self.height(), self.doc().background);
+        for (j, layer) in self.layers().iter().enumerate() {
+            if let (true, Some(image), Some(Some(field))) = (layer.visible, &layer.image, fields.get(j)) {
+                canvas.draw_layer(image, field, &layer.grid, layer.offset);
+            }
+        }
+        canvas.to_rgba8()
+    }
+
+    /// The frame at time `time_s`, every field solved cold.
+    pub fn render(&self, time_s: f64) -> Result<RgbaImage, SceneError> {
+        Animator::new(self).render(time_s)
+    }
+
+    /// Frames `frames` rendered by up to `threads` threads (0: one per core), delivered in
+    /// order. See [`WARM_CHAIN_FRAMES`] for how warm starts are chained.
+    pub fn frames(self: &Arc<Self>, frames: Range<usize>, threads: usize) -> FrameStream {
+        FrameStream::new(Arc::clone(self), frames, threads)
+    }
+}
+
+/// Renders frames one after another, warm-starting each layer's solve from that layer's
+/// previous field.
+#[derive(Debug)]
+pub struct Animator<'a> {
+    scene: &'a Scene,
+    warm: Vec<Option<Field>>,
+}
+
+impl<'a> Animator<'a> {
+    /// An animator with no previous fields (the first solve is cold).
+    pub fn new(scene: &'a Scene) -> Self {
+        Animator { scene, warm: vec![None; scene.layers().len()] }
+    }
+
+    /// Forgets the previous fields, so that the next solves are cold.
+    pub fn reset(&mut self) {
+        self.warm.iter_mut().for_each(|f| *f = None);
+    }
+
+    /// The field of layer `layer` at `time_s`, warm-started from its previous one.
+    pub fn layer_field(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
+        let solved = self.scene.layer_field(layer, time_s, self.warm[layer].as_ref())?;
+        self.warm[layer] = Some(solved.field.clone());
+        Ok(solved)
+    }
+
+    /// The frame at `time_s`: every drawn layer solved (warm) and composited.
+    pub fn render(&mut self, time_s: f64) -> Result<RgbaImage, SceneError> {
+        for layer in 0..self.scene.layers().len() {
+            if self.scene.layer_is_drawn(layer) {
+                let solved = self.scene.layer_field(layer, time_s, self.warm[layer].as_ref())?;
+                self.warm[layer] = Some(solved.field);
+            }
+        }
+        Ok(self.scene.composite(&self.warm))
+    }
+}
+
+type FrameResult = Result<(usize, RgbaImage), SceneError>;
+
+/// An animation's frames, in order, as an iterator of `(index, image)`; rendered on
+/// worker threads (one warm-start chain per thread at a time) when more than one thread is
+/// allowed and there is more than one chain. Dropping it stops the workers.
+#[derive(Debug)]
+pub struct FrameStream {
+    scene: Arc<Scene>,
+    chains: Vec<Range<usize>>,
+    next_chain: usize,
+    /// Sequential mode: the chain being rendered here and its animator state.
+    sequential: Option<(Range<usize>, Vec<Option<Field>>)>,
+    receivers: Vec<Receiver<FrameResult>>,
+    workers: Vec<JoinHandle<()>>,
+    failed: bool,
+}
+
+impl FrameStream {
+    /// Frames `frames` (clamped to the scene) by up to `threads` threads (0: one per core).
+    pub fn new(scene: Arc<Scene>, frames: Range<usize>, threads: usize) -> Self {
+        let end = frames.end.min(scene.frame_count());
+        let mut chains = Vec::new();
+        let mut start = frames.start;
+        while start < end {
+            let stop = ((start / WARM_CHAIN_FRAMES + 1) * WARM_CHAIN_FRAMES).min(end);
+            chains.push(start..stop);
+            start = stop;
+        }
+        let threads = if threads == 0 {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        } else {
+            threads
+        }
+        .min(chains.len());
+        let mut stream = FrameStream {
+            scene,
+            chains,
+            next_chain: 0,
+            sequential: None,
+            receivers: Vec::new(),
+            workers: Vec::new(),
+            failed: false,
+        };
+        if threads > 1 {
+            stream.start_workers(threads);
+        }
+        stream
+    }
+
+    /// Number of frames this stream delivers in all.
+    pub fn len(&self) -> usize {
+        self.chains.iter().map(|c| c.len()).sum()
+    }
+
+    /// Whether the stream delivers no frame at all.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn start_workers(&mut self, threads: usize) {
+        let mut senders = Vec::with_capacity(self.chains.len());
+        for _ in &self.chains {
+            // Two frames of slack per chain bound the memory held by workers running ahead.
+            let (tx, rx) = sync_channel::<FrameResult>(2);
+            senders.push(Some(tx));
+            self.receivers.push(rx);
+        }
+        let senders: Arc<Mutex<Vec<Option<SyncSender<FrameResult>>>>> = Arc::new(Mutex::new(senders));
+        let next = Arc::new(AtomicUsize::new(0));
+        let chains = Arc::new(self.chains.clone());
+        for _ in 0..threads {
+            let (scene, senders, next, chains) =
+                (Arc::clone(&self.scene), Arc::clone(&senders), Arc::clone(&next), Arc::clone(&chains));
+            self.workers.push(std::thread::spawn(move || {
+                let mut animator = Animator::new(&scene);
+                loop {
+                    let c = next.fetch_add(1, Ordering::Relaxed);
+                    if c >= chains.len() {
+                        return;
+                    }
+                    // Taking the sender means it is dropped when this worker finishes the
+                    // chain or dies, which the consumer sees as a disconnection.
+                    let Some(tx) = senders.lock().map(|mut s| s[c].take()).ok().flatten() else {
+                        return;
+                    };
+                    animator.reset();
+                    for i in chains[c].clone() {
+                        let frame = animator.render(scene.frame_time_s(i)).map(|image| (i, image));
+                        let stop = frame.is_err();
+                        if tx.send(frame).is_err() || stop {
+                            return;
+                        }
+                    }
+                }
+            }));
+        }
+    }
+
+    fn next_sequential(&mut self) -> Option<FrameResult> {
+        if self.sequential.as_ref().map_or(true, |(range, _)| range.is_empty()) {
+            let chain = self.chains.get(self.next_chain)?.clone();
+            self.next_chain += 1;
+            self.sequential = Some((chain, vec![None; self.scene.layers().len()]));
+        }
+        let scene = Arc::clone(&self.scene);
+        let (range, warm) = self.sequential.as_mut()?;
+        let i = range.next()?;
+        let mut animator = Animator { scene: &scene, warm: std::mem::take(warm) };
+        let frame = animator.render(scene.frame_time_s(i)).map(|image| (i, image));
+        *warm = animator.warm;
+        Some(frame)
+    }
+}
+
+impl Iterator for FrameStream {
+    type Item = FrameResult;
+
+    fn next(&mut self) -> Option<FrameResult> {
+        if self.failed {
+            return None;
+        }
+        let item = if self.receivers.is_empty() {
+            self.next_sequential()
+        } else {
+            loop {
+                let c = self.next_chain;
+                let receiver = self.receivers.get(c)?;
+                let chain_end = self.chains[c].end;
+                match receiver.recv() {
+                    Ok(item) => {
+                        if matches!(&item, Ok((i, _)) if i + 1 == chain_end) {
+                            self.next_chain += 1;
+                        }
+                        break Some(item);
+                    }
+                    Err(_) => {
+                        break Some(Err(SceneError::one(
+                            "",
+                            "a rendering thread stopped unexpectedly (this is a bug in inkwarp)",
+                        )))
+                    }
+                }
+            }
+        };
+        if matches!(item, Some(Err(_))) {
+            self.failed = true;
+        }
+        item
+    }
+}
+
+impl Drop for FrameStream {
+    fn drop(&mut self) {
+        // Dropping the receivers makes every blocked worker's send fail, so it exits.
+        self.receivers.clear();
+        for worker in self.workers.drain(..) {
+            let _ = worker.join();
+        }
+    }
+}
