@@ -7,5 +7,16 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 from inkwarp._inkwarp import __version__
 from inkwarp.drawing import sample
 from inkwarp.errors import InkwarpError, SceneError
+from inkwarp.scene import Frames, Scene, image_data_uri, scene_schema, validate_scene
 
-__all__ = ["InkwarpError", "SceneError", "__version__", "sample"]
+__all__ = [
+    "Frames",
+    "InkwarpError",
+    "Scene",
+    "SceneError",
+    "__version__",
+    "image_data_uri",
+    "sample",
+    "scene_schema",
+    "validate_scene",
+]

@@ -5,6 +5,7 @@ use pyo3::prelude::*;
 
 mod errors;
 mod geometry;
+mod scene;
 
 /// The compiled core of the `inkwarp` Python package.
 #[pymodule]
@@ -12,5 +13,6 @@ fn _inkwarp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     geometry::register(m)?;
+    scene::register(m)?;
     Ok(())
 }

@@ -11,12 +11,8 @@ use serde_json::{Map, Value};
 
 use super::Problem;
 
-/// Every shape problem of `doc` against `schema` (the root schema with its `$defs`).
-pub(crate) fn check(doc: &Value, schema: &Value) -> Vec<Problem> {
-    check_detailed(doc, schema).0
-}
-
-/// [`check`], and the paths of the unknown keys among the problems.
+/// Every shape problem of `doc` against `schema` (the root schema with its `$defs`), and
+/// the paths of the unknown keys among them.
 pub(crate) fn check_detailed(doc: &Value, schema: &Value) -> (Vec<Problem>, Vec<String>) {
     let mut walker = Walker { root: schema, problems: Vec::new(), unknown_keys: Vec::new() };
     if !doc.is_object() {

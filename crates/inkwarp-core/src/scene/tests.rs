@@ -272,7 +272,7 @@ fn the_schema_knows_every_field_and_accepts_the_valid_scene() {
     let kinds = &schema["$defs"]["FeatureKind"]["oneOf"];
     let names: Vec<&str> = kinds.as_array().unwrap().iter().map(|k| k["const"].as_str().unwrap()).collect();
     assert_eq!(names, ["point", "polyline", "spline", "region", "cut"]);
-    assert!(shape::check(&valid_scene(), &schema).is_empty());
+    assert!(shape::check_detailed(&valid_scene(), &schema).0.is_empty());
 }
 
 #[test]
