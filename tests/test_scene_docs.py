@@ -33,16 +33,20 @@ def _anchor(heading: str) -> str:
     return "".join(c for c in heading.lower().replace(" ", "-") if c.isalnum() or c == "-")
 
 
-def _type(schema: dict, defs: dict) -> str:
+def _number(x: float) -> str:
+    return str(int(x)) if float(x).is_integer() else str(x)
+
+
+def _type(schema: dict, defs: dict, plural: bool = False) -> str:
+    s = "s" if plural else ""
     if "$ref" in schema:
         name = schema["$ref"].rsplit("/", 1)[1]
         if name in ENUMS:
-            return f"[{name}](#{name.lower()})"
+            return f"[{name}](#{name.lower()}){' names' if plural else ''}"
         heading = dict((d, h) for d, h in OBJECTS)[name]
-        return f"object ([{heading}](#{_anchor(heading)}))"
+        return f"[{heading}](#{_anchor(heading)}) object{s}"
     if "anyOf" in schema:
-        kinds = [_type(s, defs) for s in schema["anyOf"] if s.get("type") != "null"]
-        return " or ".join(kinds)
+        return " or ".join(_type(a, defs, plural) for a in schema["anyOf"] if a.get("type") != "null")
     kind = schema.get("type")
     if isinstance(kind, list):
         kind = [k for k in kind if k != "null"][0]
@@ -50,17 +54,19 @@ def _type(schema: dict, defs: dict) -> str:
         items = schema.get("items", {})
         if items.get("type") == "array" and items.get("minItems") == 2:
             return "list of [x, y]"
-        if schema.get("minItems") == schema.get("maxItems") and schema.get("minItems"):
-            return f"list of {schema['minItems']} {_type(items, defs)}s"
-        return f"list of {_type(items, defs)}s"
+        count = schema.get("minItems") if schema.get("minItems") == schema.get("maxItems") else None
+        return f"list of {count or ''}{' ' if count else ''}{_type(items, defs, plural=True)}"
     if kind == "integer":
         low, high = schema.get("minimum"), schema.get("maximum")
         if low is not None and high is not None:
-            return f"integer {low}–{high}"
-        return "integer" if low in (None, 0) else f"integer ≥ {low}"
+            return f"integer{s} {_number(low)}–{_number(high)}"
+        return f"integer{s}" if low in (None, 0) else f"integer{s} ≥ {_number(low)}"
     if kind == "number":
-        return "number" if schema.get("minimum") is None else f"number ≥ {schema['minimum']}"
-    return kind or "any"
+        low = schema.get("minimum")
+        return f"number{s}" if low is None else f"number{s} ≥ {_number(low)}"
+    if kind == "boolean":
+        return "true or false"
+    return f"{kind or 'value'}{s}"
 
 
 def render_tables(schema: dict) -> str:

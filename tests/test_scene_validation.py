@@ -22,7 +22,9 @@ def changed(pointer: str, value):
     target = scene
     for part in parents:
         target = target[int(part)] if isinstance(target, list) else target[part]
-    if isinstance(target, list):
+    if isinstance(target, list) and int(last) == len(target):
+        target.append(value)
+    elif isinstance(target, list):
         target[int(last)] = value
     else:
         target[last] = value
@@ -37,7 +39,7 @@ MISTAKES = [
     ("keys out of order", changed("features/0/keys/1/t", 5), "features[0].keys[2].t", "sort the keys"),
     ("keys at equal times", changed("features/0/keys/1/t", 0), "features[0].keys[1].t", "two keys at t = 0"),
     ("unknown feature id", changed("layers/1/features/1", "brw"), "layers[1].features[1]", 'did you mean "brow"'),
-    ("duplicate id", changed("features/2/id", "dot"), "features[2].id", "already used"),
+    ("duplicate id", changed("features/3", {"id": "dot", "kind": "point", "rest": [[1, 1]]}), "features[3].id", "already used"),
     ("negative tension", changed("solver", {"tension": -0.1}), "solver.tension", "at least 0"),
     ("zero fps", changed("fps", 0), "fps", "> 0"),
     ("zero duration", changed("duration", 0), "duration", "> 0"),

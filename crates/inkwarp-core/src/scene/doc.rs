@@ -50,7 +50,7 @@ pub struct SceneDoc {
     pub features: Vec<FeatureDoc>,
 }
 
-/// The interpolant that turns the drawing into a displacement field (DESIGN §6).
+/// The interpolant that turns the drawing into a displacement field.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
@@ -202,6 +202,7 @@ pub struct LayerDoc {
     pub continuity: Option<String>,
     /// Where the warped layer is placed in the frame, `[dx, dy]` pixels.
     #[serde(default, skip_serializing_if = "is_zero_offset")]
+    #[schemars(extend("default" = [0.0, 0.0]))]
     pub offset: [f64; 2],
     /// Ids of the features that drive this layer. Default: every feature.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -211,6 +212,7 @@ pub struct LayerDoc {
     pub solver: Option<SolverOverrides>,
     /// Whether the layer is drawn (its field can be computed either way).
     #[serde(default = "default_true", skip_serializing_if = "is_true")]
+    #[schemars(extend("default" = true))]
     pub visible: bool,
 }
 
@@ -307,6 +309,7 @@ pub struct FeatureDoc {
     /// Whether a polyline or spline joins its last point back to its first (regions are
     /// always closed).
     #[serde(default, skip_serializing_if = "is_false")]
+    #[schemars(extend("default" = false))]
     pub closed: bool,
     /// Regions only: the outline through the points, `polyline` (default) or `spline`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -314,6 +317,7 @@ pub struct FeatureDoc {
     /// The feature at other times, in increasing time order. Without keys it stays at rest;
     /// before the first key it holds the first, after the last it holds the last.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(extend("default" = []))]
     pub keys: Vec<KeyDoc>,
 }
 
@@ -341,6 +345,7 @@ pub struct KeyDoc {
     /// How the points move from this key to the next: `smooth` (default), `linear` or
     /// `hold`.
     #[serde(default, skip_serializing_if = "is_smooth")]
+    #[schemars(extend("default" = "smooth"))]
     pub interpolation: Interpolation,
 }
 

@@ -296,8 +296,8 @@ pub fn solve(
         }
         report.cycles += 1;
         report.final_change_px = change;
-        if change < options.tolerance_px * 0.01 || report.cycles >= max_cycles {
-            report.converged = change < options.tolerance_px * 0.01;
+        if change < 1e-6 || report.cycles >= max_cycles {
+            report.converged = change < 1e-6;
             break;
         }
     }
