@@ -9,7 +9,7 @@ use std::thread::JoinHandle;
 
 use super::doc::{Method, Scheme, SolverDoc};
 use super::stand_in::{
-    points_at, sample_feature, solve, Canvas, RgbaImage, SampleOptions, SolveMethod, SolveOptions, SolveReport,
+    points_at, solve, Canvas, FeatureSampler, RgbaImage, SampleOptions, SolveMethod, SolveOptions, SolveReport,
 };
 use super::{Scene, SceneError};
 use crate::field::Field;
@@ -49,6 +49,7 @@ pub(crate) fn solve_options(solver: &SolverDoc) -> SolveOptions {
             Scheme::Multigrid => SolveMethod::Multigrid,
             Scheme::Southwell => SolveMethod::Southwell,
         },
+        ..SolveOptions::default()
     }
 }
 
@@ -79,16 +80,22 @@ impl Scene {
         let layer_ref = &self.layers()[layer];
         let spacing_px = layer_ref.solver.grid_step as f64;
         let mut samples = Vec::new();
-        for &i in &layer_ref.drivers {
+        for (&i, sampler) in layer_ref.drivers.iter().zip(&layer_ref.samplers) {
             let track = &self.tracks()[i];
+            let fail = |e: String| SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"));
+            // The rest geometry is prepared once per layer (for a region: its interior
+            // nodes and their mean value coordinates); each frame only poses it.
+            let sampler = sampler
+                .get_or_init(|| {
+                    let options =
+                        SampleOptions { closed: track.closed, spline_outline: track.spline_outline, spacing_px };
+                    let domain = (track.kind == Kind::Region).then_some(&layer_ref.grid);
+                    FeatureSampler::new(track.kind, &track.rest, &options, domain).map_err(|e| e.to_string())
+                })
+                .as_ref()
+                .map_err(|e| fail(e.clone()))?;
             let pose = self.pose_at(i, time_s);
-            let options =
-                SampleOptions { closed: track.closed, spline_outline: track.spline_outline, spacing_px };
-            let domain = (track.kind == Kind::Region).then_some(&layer_ref.grid);
-            let mut some = sample_feature(track.kind, &track.rest, &pose, &options, domain).map_err(|e| {
-                SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"))
-            })?;
-            samples.append(&mut some);
+            samples.append(&mut sampler.sample(&pose).map_err(|e| fail(e.to_string()))?);
         }
         Ok(samples)
     }

@@ -356,6 +356,9 @@ pub struct Layer {
     pub solver: SolverDoc,
     /// Whether the layer is drawn.
     pub visible: bool,
+    /// Per driver (same order as `drivers`): its rest geometry prepared for sampling on
+    /// this layer's grid, built on first use.
+    pub(crate) samplers: Vec<OnceLock<Result<stand_in::FeatureSampler, String>>>,
 }
 
 /// Reads the bytes behind an image reference that is not a `data:` URI (a path relative to
@@ -475,7 +478,7 @@ impl Scene {
                     .keys
                     .iter()
                     .map(|k| stand_in::Key {
-                        t: k.t,
+                        time_s: k.t,
                         points: k.points.clone(),
                         interpolation: match k.interpolation {
                             Interpolation::Smooth => stand_in::Interpolation::Smooth,
@@ -525,7 +528,9 @@ impl Scene {
                     drivers.push(i);
                 }
             }
+            let samplers = drivers.iter().map(|_| OnceLock::new()).collect();
             layers.push(Layer {
+                samplers,
                 name: layer.name.clone(),
                 image,
                 grid,

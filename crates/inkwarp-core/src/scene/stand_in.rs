@@ -20,7 +20,7 @@ pub enum Interpolation {
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Key {
-    pub t: f64,
+    pub time_s: f64,
     pub points: Vec<Point>,
     pub interpolation: Interpolation,
 }
@@ -30,23 +30,23 @@ pub fn points_at(rest: &[Point], keys: &[Key], t: f64) -> Vec<Point> {
     if keys.is_empty() {
         return rest.to_vec();
     }
-    if t <= keys[0].t {
+    if t <= keys[0].time_s {
         return keys[0].points.clone();
     }
     let last = keys.len() - 1;
-    if t >= keys[last].t {
+    if t >= keys[last].time_s {
         return keys[last].points.clone();
     }
-    let i = keys.iter().rposition(|k| k.t <= t).unwrap();
+    let i = keys.iter().rposition(|k| k.time_s <= t).unwrap();
     let (a, b) = (&keys[i], &keys[i + 1]);
-    let u = (t - a.t) / (b.t - a.t);
+    let u = (t - a.time_s) / (b.time_s - a.time_s);
     match a.interpolation {
         Interpolation::Hold => a.points.clone(),
         Interpolation::Linear => lerp_points(&a.points, &b.points, u),
         Interpolation::Smooth => {
             let p0 = if i > 0 { &keys[i - 1] } else { a };
             let p3 = if i + 2 <= last { &keys[i + 2] } else { b };
-            let (t0, t1, t2, t3) = (p0.t, a.t, b.t, p3.t);
+            let (t0, t1, t2, t3) = (p0.time_s, a.time_s, b.time_s, p3.time_s);
             (0..a.points.len())
                 .map(|j| {
                     let mut out = [0.0; 2];
@@ -126,6 +126,25 @@ pub fn sample_feature(
         }
     }
     Ok(out)
+}
+
+/// A feature's rest geometry prepared for sampling many poses.
+#[derive(Clone, Debug)]
+pub struct FeatureSampler {
+    kind: Kind,
+    rest: Vec<Point>,
+    opts: SampleOptions,
+    domain: Option<Grid>,
+}
+
+impl FeatureSampler {
+    pub fn new(kind: Kind, rest: &[Point], opts: &SampleOptions, domain: Option<&Grid>) -> Result<Self, GeometryError> {
+        Ok(FeatureSampler { kind, rest: rest.to_vec(), opts: *opts, domain: domain.cloned() })
+    }
+
+    pub fn sample(&self, pose: &[Point]) -> Result<Vec<Sample>, GeometryError> {
+        sample_feature(self.kind, &self.rest, pose, &self.opts, self.domain.as_ref())
+    }
 }
 
 /// Stand-in: the control polygon.
