@@ -137,3 +137,11 @@ def test_data_uri_images(tmp_path):
     data["layers"][1]["image"] = inkwarp.image_data_uri(np.asarray(Image.fromarray(gradient()).convert("RGB")))
     scene = inkwarp.Scene.from_dict(data)
     np.testing.assert_array_equal(scene.render(), gradient())
+
+
+def test_the_method_can_be_chosen_per_call(scene):
+    np.testing.assert_array_equal(scene.render(time=0.7, method="tps"), scene.render(time=0.7))
+    np.testing.assert_array_equal(scene.field(time=0.7, layer=0, method="tps"), scene.field(time=0.7, layer=0))
+    with pytest.raises(ValueError, match='unknown method "rbf"; use one of "tps"'):
+        scene.render(time=0.7, method="rbf")
+    assert len(list(scene.frames(0, 3, method="tps"))) == 3

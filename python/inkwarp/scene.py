@@ -390,20 +390,35 @@ class Scene:
             return names.index(layer)
         raise ValueError(f"no layer is called {layer!r}; the layers are {', '.join(names)}")
 
-    def render(self, time: float | None = None, frame: int | None = None) -> np.ndarray:
+    def render(self, time: float | None = None, frame: int | None = None, *, method: str | None = None) -> np.ndarray:
         """The frame at ``time`` seconds (or frame number ``frame``; default: time 0).
 
         Every layer is solved from scratch (no warm start); :meth:`frames` is faster for
         consecutive frames.
+
+        Parameters
+        ----------
+        time, frame : optional
+            When (default: time 0). Give one of them.
+        method : str, optional
+            ``"tps"``, ``"tps-exact"``, ``"triangulation"`` or ``"beier-neely"`` for every
+            layer instead of the scene's ``solver.method``.
 
         Returns
         -------
         ndarray
             RGBA uint8 ``(height, width, 4)``, straight alpha.
         """
-        return self._core.render(self._time(time, frame))
+        return self._core.render(self._time(time, frame), method)
 
-    def field(self, time: float | None = None, frame: int | None = None, layer: str | int | None = None) -> np.ndarray:
+    def field(
+        self,
+        time: float | None = None,
+        frame: int | None = None,
+        layer: str | int | None = None,
+        *,
+        method: str | None = None,
+    ) -> np.ndarray:
         """The displacement field of one layer at ``time`` seconds (or frame ``frame``).
 
         Parameters
@@ -412,6 +427,8 @@ class Scene:
             When (default: time 0). Give one of them.
         layer : str or int, optional
             Layer name or index; may be left out when the scene has one layer.
+        method : str, optional
+            The interpolant instead of the layer's ``solver.method`` (see :meth:`render`).
 
         Returns
         -------
@@ -419,9 +436,11 @@ class Scene:
             float32 ``(height, width, 2)``: pixel ``(x, y)`` of the layer's rest image moves
             to ``(x + f[y, x, 0], y + f[y, x, 1])``.
         """
-        return self._core.field(self._layer_index(layer), self._time(time, frame))
+        return self._core.field(self._layer_index(layer), self._time(time, frame), method)
 
-    def frames(self, start: int = 0, stop: int | None = None, *, threads: int | None = None) -> Frames:
+    def frames(
+        self, start: int = 0, stop: int | None = None, *, threads: int | None = None, method: str | None = None
+    ) -> Frames:
         """Frames ``start`` to ``stop - 1``, each warm-started from the one before.
 
         Frames are solved in chains of 16 (frame numbers that are multiples of 16 start a
@@ -434,6 +453,8 @@ class Scene:
             Frame range, like ``range(start, stop)``; ``stop`` defaults to the last frame.
         threads : int, optional
             Worker threads; 1 renders on the calling thread only.
+        method : str, optional
+            The interpolant instead of each layer's ``solver.method`` (see :meth:`render`).
 
         Returns
         -------
@@ -446,7 +467,7 @@ class Scene:
             raise ValueError(f"frames({start}, {stop}) is not a range of this scene's frames 0 to {self.frame_count}")
         if threads is not None and int(threads) < 1:
             raise ValueError(f"threads must be at least 1, got {threads}")
-        return Frames(self._core.frames(start, stop, 0 if threads is None else int(threads)), start)
+        return Frames(self._core.frames(start, stop, 0 if threads is None else int(threads), method), start)
 
     # ---- the document -------------------------------------------------------------------
 

@@ -5,10 +5,10 @@
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
-use inkwarp_core::scene::{self, FrameStream, Scene, SceneError};
+use inkwarp_core::scene::{self, FrameStream, Method, Scene, SceneError};
 use inkwarp_core::Field;
 use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::PyIndexError;
+use pyo3::exceptions::{PyIndexError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
 
@@ -54,6 +54,17 @@ fn image_to_numpy<'py>(py: Python<'py>, image: scene::RgbaImage) -> PyResult<Bou
 
 fn field_to_numpy<'py>(py: Python<'py>, field: &Field) -> PyResult<Bound<'py, PyAny>> {
     Ok(PyArray1::from_vec(py, field.to_interleaved()).reshape([field.height, field.width, 2])?.into_any())
+}
+
+/// The method called `name`; `None` for `None`.
+fn method_named(name: Option<&str>) -> PyResult<Option<Method>> {
+    name.map(|n| {
+        Method::from_name(n).ok_or_else(|| {
+            let names: Vec<String> = Method::ALL.iter().map(|m| format!("\"{}\"", m.name())).collect();
+            PyValueError::new_err(format!("unknown method \"{n}\"; use one of {}", names.join(", ")))
+        })
+    })
+    .transpose()
 }
 
 /// A resolved scene (images decoded, mattes and cuts applied), ready to render.
@@ -126,33 +137,39 @@ impl SceneCore {
         serde_json::to_string(self.scene.doc()).expect("a scene document is always valid JSON")
     }
 
-    /// The frame at `time` (seconds) as an RGBA uint8 array `(H, W, 4)`, solved cold.
-    fn render<'py>(&self, py: Python<'py>, time: f64) -> PyResult<Bound<'py, PyAny>> {
+    /// The frame at `time` (seconds) as an RGBA uint8 array `(H, W, 4)`, solved cold, by
+    /// `method` instead of each layer's own when given.
+    #[pyo3(signature = (time, method=None))]
+    fn render<'py>(&self, py: Python<'py>, time: f64, method: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
+        let method = method_named(method)?;
         let scene = Arc::clone(&self.scene);
-        match py.detach(move || scene.render(time)) {
+        match py.detach(move || scene.render_with(time, method)) {
             Ok(image) => image_to_numpy(py, image),
             Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
         }
     }
 
     /// The displacement field of layer `layer` (an index) at `time`, float32 `(H, W, 2)`.
-    fn field<'py>(&self, py: Python<'py>, layer: usize, time: f64) -> PyResult<Bound<'py, PyAny>> {
+    #[pyo3(signature = (layer, time, method=None))]
+    fn field<'py>(&self, py: Python<'py>, layer: usize, time: f64, method: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
+        let method = method_named(method)?;
         if layer >= self.scene.layers().len() {
             return Err(PyIndexError::new_err(format!("layer index {layer} is out of range")));
         }
         let scene = Arc::clone(&self.scene);
-        match py.detach(move || scene.layer_field(layer, time, None)) {
+        match py.detach(move || scene.layer_field_with(layer, time, None, method)) {
             Ok(solved) => field_to_numpy(py, &solved.field),
             Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
         }
     }
 
     /// Frames `start..stop`, warm-started, by up to `threads` threads (0: one per core).
-    #[pyo3(signature = (start, stop, threads=0))]
-    fn frames(&self, start: usize, stop: usize, threads: usize) -> FrameIter {
-        let stream = FrameStream::new(Arc::clone(&self.scene), start..stop, threads);
+    #[pyo3(signature = (start, stop, threads=0, method=None))]
+    fn frames(&self, start: usize, stop: usize, threads: usize, method: Option<&str>) -> PyResult<FrameIter> {
+        let method = method_named(method)?;
+        let stream = FrameStream::with_method(Arc::clone(&self.scene), start..stop, threads, method);
         let remaining = stream.len();
-        FrameIter { stream: Mutex::new(Some(stream)), remaining: Mutex::new(remaining), file: self.file.clone() }
+        Ok(FrameIter { stream: Mutex::new(Some(stream)), remaining: Mutex::new(remaining), file: self.file.clone() })
     }
 }
 

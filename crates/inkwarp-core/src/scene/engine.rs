@@ -22,20 +22,42 @@ pub fn method_available(method: Method) -> bool {
     matches!(method, Method::Tps)
 }
 
-/// The one place where a layer's field is computed by its method.
+/// The one place where a layer's field is computed by its method: the grid thin plate
+/// here, the other interpolants (DESIGN §6) through the `methods` module. They get the
+/// samples grouped by feature, because Beier–Neely needs each curve's samples in order
+/// (its line pairs) apart from the points.
 fn compute_field(
     method: Method,
     grid: &Grid,
-    samples: &[Sample],
+    features: &[FeatureSamples],
     options: &SolveOptions,
     initial: Option<&Field>,
 ) -> Result<(Field, Option<SolveReport>), String> {
     match method {
-        Method::Tps => solve(grid, samples, options, initial)
-            .map(|(field, report)| (field, Some(report)))
-            .map_err(|e| e.to_string()),
-        other => Err(format!("the method \"{}\" is not available in this version of inkwarp yet", other.name())),
+        Method::Tps => {
+            let samples: Vec<Sample> = features.iter().flat_map(|f| f.samples.iter().copied()).collect();
+            solve(grid, &samples, options, initial).map(|(field, report)| (field, Some(report))).map_err(|e| e.to_string())
+        }
+        other => Err(not_available(other)),
     }
+}
+
+fn not_available(method: Method) -> String {
+    format!("the method \"{}\" is not available in this version of inkwarp yet; use \"tps\"", method.name())
+}
+
+/// One driving feature's samples at one time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FeatureSamples {
+    /// Index of the feature in the scene.
+    pub feature: usize,
+    /// Its kind.
+    pub kind: Kind,
+    /// Whether its curve is closed (regions always are).
+    pub closed: bool,
+    /// Its samples: a curve's in order along the curve (a region's outline first, then
+    /// its interior nodes).
+    pub samples: Vec<Sample>,
 }
 
 /// The engine's solve options for a layer's settings.
@@ -74,12 +96,13 @@ impl Scene {
         points_at(&track.rest, &track.keys, time_s)
     }
 
-    /// The constraints that drive layer `layer` at time `time_s`: every driving feature
-    /// sampled at the layer's grid spacing, region interiors on the layer's grid.
-    pub fn layer_samples(&self, layer: usize, time_s: f64) -> Result<Vec<Sample>, SceneError> {
+    /// The constraints that drive layer `layer` at time `time_s`, feature by feature:
+    /// every driving feature sampled at the layer's grid spacing, region interiors on the
+    /// layer's grid.
+    pub fn layer_feature_samples(&self, layer: usize, time_s: f64) -> Result<Vec<FeatureSamples>, SceneError> {
         let layer_ref = &self.layers()[layer];
         let spacing_px = layer_ref.solver.grid_step as f64;
-        let mut samples = Vec::new();
+        let mut out = Vec::with_capacity(layer_ref.drivers.len());
         for (&i, sampler) in layer_ref.drivers.iter().zip(&layer_ref.samplers) {
             let track = &self.tracks()[i];
             let fail = |e: String| SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"));
@@ -95,19 +118,41 @@ impl Scene {
                 .as_ref()
                 .map_err(|e| fail(e.clone()))?;
             let pose = self.pose_at(i, time_s);
-            samples.append(&mut sampler.sample(&pose).map_err(|e| fail(e.to_string()))?);
+            let samples = sampler.sample(&pose).map_err(|e| fail(e.to_string()))?;
+            out.push(FeatureSamples { feature: i, kind: track.kind, closed: track.closed, samples });
         }
-        Ok(samples)
+        Ok(out)
+    }
+
+    /// All the constraints that drive layer `layer` at time `time_s` (see
+    /// [`Scene::layer_feature_samples`]).
+    pub fn layer_samples(&self, layer: usize, time_s: f64) -> Result<Vec<Sample>, SceneError> {
+        Ok(self.layer_feature_samples(layer, time_s)?.into_iter().flat_map(|f| f.samples).collect())
     }
 
     /// The field of layer `layer` at time `time_s`, starting from `initial` (warm start)
     /// or from zero.
     pub fn layer_field(&self, layer: usize, time_s: f64, initial: Option<&Field>) -> Result<LayerSolve, SceneError> {
+        self.layer_field_with(layer, time_s, initial, None)
+    }
+
+    /// [`Scene::layer_field`] with `method` instead of the layer's own, when given.
+    pub fn layer_field_with(
+        &self,
+        layer: usize,
+        time_s: f64,
+        initial: Option<&Field>,
+        method: Option<Method>,
+    ) -> Result<LayerSolve, SceneError> {
         let layer_ref = &self.layers()[layer];
-        let samples = self.layer_samples(layer, time_s)?;
+        let method = method.unwrap_or(layer_ref.solver.method);
+        if !method_available(method) {
+            return Err(SceneError::one("", not_available(method)));
+        }
+        let features = self.layer_feature_samples(layer, time_s)?;
         let options = solve_options(&layer_ref.solver);
         let initial = initial.filter(|f| f.width == self.width() && f.height == self.height());
-        let (field, report) = compute_field(layer_ref.solver.method, &layer_ref.grid, &samples, &options, initial)
+        let (field, report) = compute_field(method, &layer_ref.grid, &features, &options, initial)
             .map_err(|e| SceneError::one(format!("layers[{layer}]"), format!("at t = {time_s} s: {e}")))?;
         Ok(LayerSolve { field, report })
     }
@@ -135,6 +180,12 @@ impl Scene {
         Animator::new(self).render(time_s)
     }
 
+    /// [`Scene::render`] with every layer's field computed by `method` instead of the
+    /// layer's own, when given.
+    pub fn render_with(&self, time_s: f64, method: Option<Method>) -> Result<RgbaImage, SceneError> {
+        Animator::with_method(self, method).render(time_s)
+    }
+
     /// Frames `frames` rendered by up to `threads` threads (0: one per core), delivered in
     /// order. See [`WARM_CHAIN_FRAMES`] for how warm starts are chained.
     pub fn frames(self: &Arc<Self>, frames: Range<usize>, threads: usize) -> FrameStream {
@@ -148,12 +199,19 @@ impl Scene {
 pub struct Animator<'a> {
     scene: &'a Scene,
     warm: Vec<Option<Field>>,
+    method: Option<Method>,
 }
 
 impl<'a> Animator<'a> {
     /// An animator with no previous fields (the first solve is cold).
     pub fn new(scene: &'a Scene) -> Self {
-        Animator { scene, warm: vec![None; scene.layers().len()] }
+        Self::with_method(scene, None)
+    }
+
+    /// An animator that computes every field with `method` (when given) instead of each
+    /// layer's own.
+    pub fn with_method(scene: &'a Scene, method: Option<Method>) -> Self {
+        Animator { scene, warm: vec![None; scene.layers().len()], method }
     }
 
     /// Forgets the previous fields, so that the next solves are cold.
@@ -163,7 +221,7 @@ impl<'a> Animator<'a> {
 
     /// The field of layer `layer` at `time_s`, warm-started from its previous one.
     pub fn layer_field(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
-        let solved = self.scene.layer_field(layer, time_s, self.warm[layer].as_ref())?;
+        let solved = self.scene.layer_field_with(layer, time_s, self.warm[layer].as_ref(), self.method)?;
         self.warm[layer] = Some(solved.field.clone());
         Ok(solved)
     }
@@ -172,7 +230,7 @@ impl<'a> Animator<'a> {
     pub fn render(&mut self, time_s: f64) -> Result<RgbaImage, SceneError> {
         for layer in 0..self.scene.layers().len() {
             if self.scene.layer_is_drawn(layer) {
-                let solved = self.scene.layer_field(layer, time_s, self.warm[layer].as_ref())?;
+                let solved = self.scene.layer_field_with(layer, time_s, self.warm[layer].as_ref(), self.method)?;
                 self.warm[layer] = Some(solved.field);
             }
         }
@@ -192,6 +250,7 @@ pub struct FrameStream {
     next_chain: usize,
     /// Sequential mode: the chain being rendered here and its animator state.
     sequential: Option<(Range<usize>, Vec<Option<Field>>)>,
+    method: Option<Method>,
     receivers: Vec<Receiver<FrameResult>>,
     workers: Vec<JoinHandle<()>>,
     failed: bool,
@@ -200,6 +259,12 @@ pub struct FrameStream {
 impl FrameStream {
     /// Frames `frames` (clamped to the scene) by up to `threads` threads (0: one per core).
     pub fn new(scene: Arc<Scene>, frames: Range<usize>, threads: usize) -> Self {
+        Self::with_method(scene, frames, threads, None)
+    }
+
+    /// [`FrameStream::new`], every field computed by `method` (when given) instead of each
+    /// layer's own.
+    pub fn with_method(scene: Arc<Scene>, frames: Range<usize>, threads: usize, method: Option<Method>) -> Self {
         let end = frames.end.min(scene.frame_count());
         let mut chains = Vec::new();
         let mut start = frames.start;
@@ -219,6 +284,7 @@ impl FrameStream {
             chains,
             next_chain: 0,
             sequential: None,
+            method,
             receivers: Vec::new(),
             workers: Vec::new(),
             failed: false,
@@ -250,11 +316,12 @@ impl FrameStream {
         let senders: Arc<Mutex<Vec<Option<SyncSender<FrameResult>>>>> = Arc::new(Mutex::new(senders));
         let next = Arc::new(AtomicUsize::new(0));
         let chains = Arc::new(self.chains.clone());
+        let method = self.method;
         for _ in 0..threads {
             let (scene, senders, next, chains) =
                 (Arc::clone(&self.scene), Arc::clone(&senders), Arc::clone(&next), Arc::clone(&chains));
             self.workers.push(std::thread::spawn(move || {
-                let mut animator = Animator::new(&scene);
+                let mut animator = Animator::with_method(&scene, method);
                 loop {
                     let c = next.fetch_add(1, Ordering::Relaxed);
                     if c >= chains.len() {
@@ -287,7 +354,7 @@ impl FrameStream {
         let scene = Arc::clone(&self.scene);
         let (range, warm) = self.sequential.as_mut()?;
         let i = range.next()?;
-        let mut animator = Animator { scene: &scene, warm: std::mem::take(warm) };
+        let mut animator = Animator { scene: &scene, warm: std::mem::take(warm), method: self.method };
         let frame = animator.render(scene.frame_time_s(i)).map(|image| (i, image));
         *warm = animator.warm;
         Some(frame)

@@ -37,7 +37,7 @@ use serde::Serialize;
 use serde_json::Value;
 
 pub use doc::*;
-pub use engine::{method_available, Animator, FrameStream, LayerSolve, WARM_CHAIN_FRAMES};
+pub use engine::{method_available, Animator, FeatureSamples, FrameStream, LayerSolve, WARM_CHAIN_FRAMES};
 pub use stand_in::RgbaImage;
 pub use validate::validate_doc;
 

@@ -392,3 +392,24 @@ fn alpha_and_continuity_mattes_apply() {
     assert_eq!(&frame.data[(6 * 16 + 12) * 4..(6 * 16 + 12) * 4 + 4], &[0, 0, 255, 255]);
     assert_ne!(&frame.data[(6 * 16 + 2) * 4..(6 * 16 + 2) * 4 + 4], &[0, 0, 255, 255]);
 }
+
+#[test]
+fn the_method_can_be_chosen_per_call() {
+    let scene = small_scene();
+    assert_eq!(scene.render_with(0.7, Some(Method::Tps)).unwrap(), scene.render(0.7).unwrap());
+    let err = scene.render_with(0.7, Some(Method::BeierNeely)).unwrap_err();
+    assert!(err.to_string().contains("\"beier-neely\" is not available"), "{err}");
+    let mut stream = FrameStream::with_method(Arc::clone(&scene), 0..3, 2, Some(Method::Triangulation));
+    assert!(stream.next().unwrap().is_err());
+    assert!(stream.next().is_none(), "a stream stops at its first error");
+}
+
+#[test]
+fn samples_come_grouped_by_feature_in_curve_order() {
+    let scene = small_scene();
+    let groups = scene.layer_feature_samples(0, 0.5).unwrap();
+    assert_eq!(groups.iter().map(|g| (g.feature, g.kind)).collect::<Vec<_>>(), [(0, crate::Kind::Point), (1, crate::Kind::Spline)]);
+    let lid = &groups[1].samples;
+    assert_eq!((lid[0].rest, lid[lid.len() - 1].rest), ([8.0, 2.0], [12.0, 2.0]));
+    assert_eq!(scene.layer_samples(0, 0.5).unwrap().len(), groups.iter().map(|g| g.samples.len()).sum::<usize>());
+}
