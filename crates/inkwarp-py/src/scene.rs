@@ -18,8 +18,11 @@ fn scene_error(py: Python<'_>, err: &SceneError, file: Option<&str>) -> PyErr {
         Some(file) => format!("{file}: {err}"),
         None => err.to_string(),
     };
-    let problems: Vec<(String, String)> =
-        err.problems.iter().map(|p| (p.path.clone(), p.message.clone())).collect();
+    let problems: Vec<(String, String)> = err
+        .problems
+        .iter()
+        .map(|p| (p.path.clone(), p.message.clone()))
+        .collect();
     let build = || -> PyResult<PyErr> {
         let class = py.import("inkwarp.errors")?.getattr("SceneError")?;
         let kwargs = pyo3::types::PyDict::new(py);
@@ -49,19 +52,29 @@ fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>,
 
 fn image_to_numpy<'py>(py: Python<'py>, image: scene::RgbaImage) -> PyResult<Bound<'py, PyAny>> {
     let (h, w) = (image.height, image.width);
-    Ok(PyArray1::from_vec(py, image.data).reshape([h, w, 4])?.into_any())
+    Ok(PyArray1::from_vec(py, image.data)
+        .reshape([h, w, 4])?
+        .into_any())
 }
 
 fn field_to_numpy<'py>(py: Python<'py>, field: &Field) -> PyResult<Bound<'py, PyAny>> {
-    Ok(PyArray1::from_vec(py, field.to_interleaved()).reshape([field.height, field.width, 2])?.into_any())
+    Ok(PyArray1::from_vec(py, field.to_interleaved())
+        .reshape([field.height, field.width, 2])?
+        .into_any())
 }
 
 /// The method called `name`; `None` for `None`.
 fn method_named(name: Option<&str>) -> PyResult<Option<Method>> {
     name.map(|n| {
         Method::from_name(n).ok_or_else(|| {
-            let names: Vec<String> = Method::ALL.iter().map(|m| format!("\"{}\"", m.name())).collect();
-            PyValueError::new_err(format!("unknown method \"{n}\"; use one of {}", names.join(", ")))
+            let names: Vec<String> = Method::ALL
+                .iter()
+                .map(|m| format!("\"{}\"", m.name()))
+                .collect();
+            PyValueError::new_err(format!(
+                "unknown method \"{n}\"; use one of {}",
+                names.join(", ")
+            ))
         })
     })
     .transpose()
@@ -81,13 +94,21 @@ impl SceneCore {
     /// Raises `inkwarp.SceneError` with every problem.
     #[staticmethod]
     #[pyo3(signature = (text, base_dir=None, file=None))]
-    fn from_json(py: Python<'_>, text: String, base_dir: Option<PathBuf>, file: Option<String>) -> PyResult<Self> {
+    fn from_json(
+        py: Python<'_>,
+        text: String,
+        base_dir: Option<PathBuf>,
+        file: Option<String>,
+    ) -> PyResult<Self> {
         let result = py.detach(move || {
             let mut load = file_loader(base_dir);
             Scene::from_json(&text, &mut load)
         });
         match result {
-            Ok(scene) => Ok(SceneCore { scene: Arc::new(scene), file }),
+            Ok(scene) => Ok(SceneCore {
+                scene: Arc::new(scene),
+                file,
+            }),
             Err(err) => Err(scene_error(py, &err, file.as_deref())),
         }
     }
@@ -124,7 +145,12 @@ impl SceneCore {
 
     #[getter]
     fn feature_ids(&self) -> Vec<String> {
-        self.scene.doc().features.iter().map(|f| f.id.clone()).collect()
+        self.scene
+            .doc()
+            .features
+            .iter()
+            .map(|f| f.id.clone())
+            .collect()
     }
 
     /// The time of frame `frame` in seconds.
@@ -140,7 +166,12 @@ impl SceneCore {
     /// The frame at `time` (seconds) as an RGBA uint8 array `(H, W, 4)`, solved cold, by
     /// `method` instead of each layer's own when given.
     #[pyo3(signature = (time, method=None))]
-    fn render<'py>(&self, py: Python<'py>, time: f64, method: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
+    fn render<'py>(
+        &self,
+        py: Python<'py>,
+        time: f64,
+        method: Option<&str>,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let method = method_named(method)?;
         let scene = Arc::clone(&self.scene);
         match py.detach(move || scene.render_with(time, method)) {
@@ -151,10 +182,18 @@ impl SceneCore {
 
     /// The displacement field of layer `layer` (an index) at `time`, float32 `(H, W, 2)`.
     #[pyo3(signature = (layer, time, method=None))]
-    fn field<'py>(&self, py: Python<'py>, layer: usize, time: f64, method: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
+    fn field<'py>(
+        &self,
+        py: Python<'py>,
+        layer: usize,
+        time: f64,
+        method: Option<&str>,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let method = method_named(method)?;
         if layer >= self.scene.layers().len() {
-            return Err(PyIndexError::new_err(format!("layer index {layer} is out of range")));
+            return Err(PyIndexError::new_err(format!(
+                "layer index {layer} is out of range"
+            )));
         }
         let scene = Arc::clone(&self.scene);
         match py.detach(move || scene.layer_field_with(layer, time, None, method)) {
@@ -165,11 +204,22 @@ impl SceneCore {
 
     /// Frames `start..stop`, warm-started, by up to `threads` threads (0: one per core).
     #[pyo3(signature = (start, stop, threads=0, method=None))]
-    fn frames(&self, start: usize, stop: usize, threads: usize, method: Option<&str>) -> PyResult<FrameIter> {
+    fn frames(
+        &self,
+        start: usize,
+        stop: usize,
+        threads: usize,
+        method: Option<&str>,
+    ) -> PyResult<FrameIter> {
         let method = method_named(method)?;
-        let stream = FrameStream::with_method(Arc::clone(&self.scene), start..stop, threads, method);
+        let stream =
+            FrameStream::with_method(Arc::clone(&self.scene), start..stop, threads, method);
         let remaining = stream.len();
-        Ok(FrameIter { stream: Mutex::new(Some(stream)), remaining: Mutex::new(remaining), file: self.file.clone() })
+        Ok(FrameIter {
+            stream: Mutex::new(Some(stream)),
+            remaining: Mutex::new(remaining),
+            file: self.file.clone(),
+        })
     }
 }
 
@@ -232,12 +282,20 @@ fn scene_schema() -> String {
 /// Every problem of scene JSON text, images included, as `(path, message)` pairs.
 #[pyfunction]
 #[pyo3(signature = (text, base_dir=None))]
-fn scene_problems(py: Python<'_>, text: String, base_dir: Option<PathBuf>) -> Vec<(String, String)> {
+fn scene_problems(
+    py: Python<'_>,
+    text: String,
+    base_dir: Option<PathBuf>,
+) -> Vec<(String, String)> {
     py.detach(move || {
         let mut load = file_loader(base_dir);
         match Scene::from_json(&text, &mut load) {
             Ok(_) => Vec::new(),
-            Err(err) => err.problems.into_iter().map(|p| (p.path, p.message)).collect(),
+            Err(err) => err
+                .problems
+                .into_iter()
+                .map(|p| (p.path, p.message))
+                .collect(),
         }
     })
 }

@@ -67,8 +67,12 @@ pub enum Method {
 
 impl Method {
     /// Every method, in the order the docs list them.
-    pub const ALL: [Method; 4] =
-        [Method::Tps, Method::TpsExact, Method::Triangulation, Method::BeierNeely];
+    pub const ALL: [Method; 4] = [
+        Method::Tps,
+        Method::TpsExact,
+        Method::Triangulation,
+        Method::BeierNeely,
+    ];
 
     /// The name used in scene files and on the command line.
     pub fn name(self) -> &'static str {

@@ -9,7 +9,8 @@ use std::thread::JoinHandle;
 
 use super::doc::{Method, Scheme, SolverDoc};
 use super::stand_in::{
-    points_at, solve, Canvas, FeatureSampler, RgbaImage, SampleOptions, SolveMethod, SolveOptions, SolveReport,
+    points_at, solve, Canvas, FeatureSampler, RgbaImage, SampleOptions, SolveMethod, SolveOptions,
+    SolveReport,
 };
 use super::{Scene, SceneError};
 use crate::field::Field;
@@ -35,15 +36,23 @@ fn compute_field(
 ) -> Result<(Field, Option<SolveReport>), String> {
     match method {
         Method::Tps => {
-            let samples: Vec<Sample> = features.iter().flat_map(|f| f.samples.iter().copied()).collect();
-            solve(grid, &samples, options, initial).map(|(field, report)| (field, Some(report))).map_err(|e| e.to_string())
+            let samples: Vec<Sample> = features
+                .iter()
+                .flat_map(|f| f.samples.iter().copied())
+                .collect();
+            solve(grid, &samples, options, initial)
+                .map(|(field, report)| (field, Some(report)))
+                .map_err(|e| e.to_string())
         }
         other => Err(not_available(other)),
     }
 }
 
 fn not_available(method: Method) -> String {
-    format!("the method \"{}\" is not available in this version of inkwarp yet; use \"tps\"", method.name())
+    format!(
+        "the method \"{}\" is not available in this version of inkwarp yet; use \"tps\"",
+        method.name()
+    )
 }
 
 /// One driving feature's samples at one time.
@@ -61,6 +70,7 @@ pub struct FeatureSamples {
 }
 
 /// The engine's solve options for a layer's settings.
+#[allow(clippy::needless_update)] // SolveOptions has more fields than the scene sets
 pub(crate) fn solve_options(solver: &SolverDoc) -> SolveOptions {
     SolveOptions {
         tension: solver.tension,
@@ -99,27 +109,42 @@ impl Scene {
     /// The constraints that drive layer `layer` at time `time_s`, feature by feature:
     /// every driving feature sampled at the layer's grid spacing, region interiors on the
     /// layer's grid.
-    pub fn layer_feature_samples(&self, layer: usize, time_s: f64) -> Result<Vec<FeatureSamples>, SceneError> {
+    pub fn layer_feature_samples(
+        &self,
+        layer: usize,
+        time_s: f64,
+    ) -> Result<Vec<FeatureSamples>, SceneError> {
         let layer_ref = &self.layers()[layer];
         let spacing_px = layer_ref.solver.grid_step as f64;
         let mut out = Vec::with_capacity(layer_ref.drivers.len());
         for (&i, sampler) in layer_ref.drivers.iter().zip(&layer_ref.samplers) {
             let track = &self.tracks()[i];
-            let fail = |e: String| SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"));
+            let fail = |e: String| {
+                SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"))
+            };
             // The rest geometry is prepared once per layer (for a region: its interior
             // nodes and their mean value coordinates); each frame only poses it.
             let sampler = sampler
                 .get_or_init(|| {
-                    let options =
-                        SampleOptions { closed: track.closed, spline_outline: track.spline_outline, spacing_px };
+                    let options = SampleOptions {
+                        closed: track.closed,
+                        spline_outline: track.spline_outline,
+                        spacing_px,
+                    };
                     let domain = (track.kind == Kind::Region).then_some(&layer_ref.grid);
-                    FeatureSampler::new(track.kind, &track.rest, &options, domain).map_err(|e| e.to_string())
+                    FeatureSampler::new(track.kind, &track.rest, &options, domain)
+                        .map_err(|e| e.to_string())
                 })
                 .as_ref()
                 .map_err(|e| fail(e.clone()))?;
             let pose = self.pose_at(i, time_s);
             let samples = sampler.sample(&pose).map_err(|e| fail(e.to_string()))?;
-            out.push(FeatureSamples { feature: i, kind: track.kind, closed: track.closed, samples });
+            out.push(FeatureSamples {
+                feature: i,
+                kind: track.kind,
+                closed: track.closed,
+                samples,
+            });
         }
         Ok(out)
     }
@@ -127,12 +152,21 @@ impl Scene {
     /// All the constraints that drive layer `layer` at time `time_s` (see
     /// [`Scene::layer_feature_samples`]).
     pub fn layer_samples(&self, layer: usize, time_s: f64) -> Result<Vec<Sample>, SceneError> {
-        Ok(self.layer_feature_samples(layer, time_s)?.into_iter().flat_map(|f| f.samples).collect())
+        Ok(self
+            .layer_feature_samples(layer, time_s)?
+            .into_iter()
+            .flat_map(|f| f.samples)
+            .collect())
     }
 
     /// The field of layer `layer` at time `time_s`, starting from `initial` (warm start)
     /// or from zero.
-    pub fn layer_field(&self, layer: usize, time_s: f64, initial: Option<&Field>) -> Result<LayerSolve, SceneError> {
+    pub fn layer_field(
+        &self,
+        layer: usize,
+        time_s: f64,
+        initial: Option<&Field>,
+    ) -> Result<LayerSolve, SceneError> {
         self.layer_field_with(layer, time_s, initial, None)
     }
 
@@ -153,7 +187,12 @@ impl Scene {
         let options = solve_options(&layer_ref.solver);
         let initial = initial.filter(|f| f.width == self.width() && f.height == self.height());
         let (field, report) = compute_field(method, &layer_ref.grid, &features, &options, initial)
-            .map_err(|e| SceneError::one(format!("layers[{layer}]"), format!("at t = {time_s} s: {e}")))?;
+            .map_err(|e| {
+                SceneError::one(
+                    format!("layers[{layer}]"),
+                    format!("at t = {time_s} s: {e}"),
+                )
+            })?;
         Ok(LayerSolve { field, report })
     }
 
@@ -168,7 +207,9 @@ impl Scene {
     pub fn composite(&self, fields: &[Option<Field>]) -> RgbaImage {
         let mut canvas = Canvas::new(self.width(), self.height(), self.doc().background);
         for (j, layer) in self.layers().iter().enumerate() {
-            if let (true, Some(image), Some(Some(field))) = (layer.visible, &layer.image, fields.get(j)) {
+            if let (true, Some(image), Some(Some(field))) =
+                (layer.visible, &layer.image, fields.get(j))
+            {
                 canvas.draw_layer(image, field, &layer.grid, layer.offset);
             }
         }
@@ -182,7 +223,11 @@ impl Scene {
 
     /// [`Scene::render`] with every layer's field computed by `method` instead of the
     /// layer's own, when given.
-    pub fn render_with(&self, time_s: f64, method: Option<Method>) -> Result<RgbaImage, SceneError> {
+    pub fn render_with(
+        &self,
+        time_s: f64,
+        method: Option<Method>,
+    ) -> Result<RgbaImage, SceneError> {
         Animator::with_method(self, method).render(time_s)
     }
 
@@ -211,7 +256,11 @@ impl<'a> Animator<'a> {
     /// An animator that computes every field with `method` (when given) instead of each
     /// layer's own.
     pub fn with_method(scene: &'a Scene, method: Option<Method>) -> Self {
-        Animator { scene, warm: vec![None; scene.layers().len()], method }
+        Animator {
+            scene,
+            warm: vec![None; scene.layers().len()],
+            method,
+        }
     }
 
     /// Forgets the previous fields, so that the next solves are cold.
@@ -221,7 +270,9 @@ impl<'a> Animator<'a> {
 
     /// The field of layer `layer` at `time_s`, warm-started from its previous one.
     pub fn layer_field(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
-        let solved = self.scene.layer_field_with(layer, time_s, self.warm[layer].as_ref(), self.method)?;
+        let solved =
+            self.scene
+                .layer_field_with(layer, time_s, self.warm[layer].as_ref(), self.method)?;
         self.warm[layer] = Some(solved.field.clone());
         Ok(solved)
     }
@@ -230,7 +281,12 @@ impl<'a> Animator<'a> {
     pub fn render(&mut self, time_s: f64) -> Result<RgbaImage, SceneError> {
         for layer in 0..self.scene.layers().len() {
             if self.scene.layer_is_drawn(layer) {
-                let solved = self.scene.layer_field_with(layer, time_s, self.warm[layer].as_ref(), self.method)?;
+                let solved = self.scene.layer_field_with(
+                    layer,
+                    time_s,
+                    self.warm[layer].as_ref(),
+                    self.method,
+                )?;
                 self.warm[layer] = Some(solved.field);
             }
         }
@@ -264,7 +320,12 @@ impl FrameStream {
 
     /// [`FrameStream::new`], every field computed by `method` (when given) instead of each
     /// layer's own.
-    pub fn with_method(scene: Arc<Scene>, frames: Range<usize>, threads: usize, method: Option<Method>) -> Self {
+    pub fn with_method(
+        scene: Arc<Scene>,
+        frames: Range<usize>,
+        threads: usize,
+        method: Option<Method>,
+    ) -> Self {
         let end = frames.end.min(scene.frame_count());
         let mut chains = Vec::new();
         let mut start = frames.start;
@@ -313,13 +374,18 @@ impl FrameStream {
             senders.push(Some(tx));
             self.receivers.push(rx);
         }
-        let senders: Arc<Mutex<Vec<Option<SyncSender<FrameResult>>>>> = Arc::new(Mutex::new(senders));
+        let senders: Arc<Mutex<Vec<Option<SyncSender<FrameResult>>>>> =
+            Arc::new(Mutex::new(senders));
         let next = Arc::new(AtomicUsize::new(0));
         let chains = Arc::new(self.chains.clone());
         let method = self.method;
         for _ in 0..threads {
-            let (scene, senders, next, chains) =
-                (Arc::clone(&self.scene), Arc::clone(&senders), Arc::clone(&next), Arc::clone(&chains));
+            let (scene, senders, next, chains) = (
+                Arc::clone(&self.scene),
+                Arc::clone(&senders),
+                Arc::clone(&next),
+                Arc::clone(&chains),
+            );
             self.workers.push(std::thread::spawn(move || {
                 let mut animator = Animator::with_method(&scene, method);
                 loop {
@@ -334,7 +400,9 @@ impl FrameStream {
                     };
                     animator.reset();
                     for i in chains[c].clone() {
-                        let frame = animator.render(scene.frame_time_s(i)).map(|image| (i, image));
+                        let frame = animator
+                            .render(scene.frame_time_s(i))
+                            .map(|image| (i, image));
                         let stop = frame.is_err();
                         if tx.send(frame).is_err() || stop {
                             return;
@@ -346,7 +414,11 @@ impl FrameStream {
     }
 
     fn next_sequential(&mut self) -> Option<FrameResult> {
-        if self.sequential.as_ref().map_or(true, |(range, _)| range.is_empty()) {
+        if self
+            .sequential
+            .as_ref()
+            .map_or(true, |(range, _)| range.is_empty())
+        {
             let chain = self.chains.get(self.next_chain)?.clone();
             self.next_chain += 1;
             self.sequential = Some((chain, vec![None; self.scene.layers().len()]));
@@ -354,8 +426,14 @@ impl FrameStream {
         let scene = Arc::clone(&self.scene);
         let (range, warm) = self.sequential.as_mut()?;
         let i = range.next()?;
-        let mut animator = Animator { scene: &scene, warm: std::mem::take(warm), method: self.method };
-        let frame = animator.render(scene.frame_time_s(i)).map(|image| (i, image));
+        let mut animator = Animator {
+            scene: &scene,
+            warm: std::mem::take(warm),
+            method: self.method,
+        };
+        let frame = animator
+            .render(scene.frame_time_s(i))
+            .map(|image| (i, image));
         *warm = animator.warm;
         Some(frame)
     }
@@ -371,24 +449,20 @@ impl Iterator for FrameStream {
         let item = if self.receivers.is_empty() {
             self.next_sequential()
         } else {
-            loop {
-                let c = self.next_chain;
-                let receiver = self.receivers.get(c)?;
-                let chain_end = self.chains[c].end;
-                match receiver.recv() {
-                    Ok(item) => {
-                        if matches!(&item, Ok((i, _)) if i + 1 == chain_end) {
-                            self.next_chain += 1;
-                        }
-                        break Some(item);
+            let c = self.next_chain;
+            let receiver = self.receivers.get(c)?;
+            let chain_end = self.chains[c].end;
+            match receiver.recv() {
+                Ok(item) => {
+                    if matches!(&item, Ok((i, _)) if i + 1 == chain_end) {
+                        self.next_chain += 1;
                     }
-                    Err(_) => {
-                        break Some(Err(SceneError::one(
-                            "",
-                            "a rendering thread stopped unexpectedly (this is a bug in inkwarp)",
-                        )))
-                    }
+                    Some(item)
                 }
+                Err(_) => Some(Err(SceneError::one(
+                    "",
+                    "a rendering thread stopped unexpectedly (this is a bug in inkwarp)",
+                ))),
             }
         };
         if matches!(item, Some(Err(_))) {

@@ -13,17 +13,28 @@ pub fn is_data_uri(reference: &str) -> bool {
 /// The bytes of a base64 `data:` URI (`data:image/png;base64,...`).
 pub fn data_uri_bytes(uri: &str) -> Result<Vec<u8>, String> {
     let rest = &uri[5..];
-    let comma = rest
-        .find(',')
-        .ok_or_else(|| "this data: URI has no comma before its data; write data:image/png;base64,<data>".to_string())?;
+    let comma = rest.find(',').ok_or_else(|| {
+        "this data: URI has no comma before its data; write data:image/png;base64,<data>"
+            .to_string()
+    })?;
     let (header, payload) = (&rest[..comma], &rest[comma + 1..]);
-    if !header.split(';').any(|part| part.eq_ignore_ascii_case("base64")) {
-        return Err("only base64 data: URIs are supported; write data:image/png;base64,<data>".to_string());
+    if !header
+        .split(';')
+        .any(|part| part.eq_ignore_ascii_case("base64"))
+    {
+        return Err(
+            "only base64 data: URIs are supported; write data:image/png;base64,<data>".to_string(),
+        );
     }
-    let cleaned: String = payload.chars().filter(|c| !c.is_ascii_whitespace()).collect();
+    let cleaned: String = payload
+        .chars()
+        .filter(|c| !c.is_ascii_whitespace())
+        .collect();
     base64::engine::general_purpose::STANDARD
         .decode(cleaned.as_bytes())
-        .or_else(|_| base64::engine::general_purpose::STANDARD_NO_PAD.decode(cleaned.trim_end_matches('=')))
+        .or_else(|_| {
+            base64::engine::general_purpose::STANDARD_NO_PAD.decode(cleaned.trim_end_matches('='))
+        })
         .map_err(|e| format!("the data: URI is not valid base64 ({e})"))
 }
 
@@ -33,13 +44,19 @@ pub fn decode_image(bytes: &[u8]) -> Result<RgbaImage, String> {
         "not a PNG or JPEG image (unrecognised file contents); save it as PNG or JPEG".to_string()
     })?;
     if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
-        return Err(format!("a {format:?} image; inkwarp reads PNG and JPEG, save it as one of those"));
+        return Err(format!(
+            "a {format:?} image; inkwarp reads PNG and JPEG, save it as one of those"
+        ));
     }
     let decoded = image::load_from_memory_with_format(bytes, format)
         .map_err(|e| format!("the {format:?} image could not be decoded ({e})"))?;
     let rgba = decoded.to_rgba8();
     let (width, height) = (rgba.width() as usize, rgba.height() as usize);
-    Ok(RgbaImage { width, height, data: rgba.into_raw() })
+    Ok(RgbaImage {
+        width,
+        height,
+        data: rgba.into_raw(),
+    })
 }
 
 /// A matte from an image: grey level times alpha, so black or transparent pixels are 0.
@@ -85,9 +102,15 @@ mod tests {
 
     #[test]
     fn rejects_what_is_not_an_image() {
-        assert!(decode_image(b"hello").unwrap_err().contains("not a PNG or JPEG"));
-        assert!(data_uri_bytes("data:image/png,abc").unwrap_err().contains("base64"));
-        assert!(data_uri_bytes("data:image/png;base64,@@@").unwrap_err().contains("not valid base64"));
+        assert!(decode_image(b"hello")
+            .unwrap_err()
+            .contains("not a PNG or JPEG"));
+        assert!(data_uri_bytes("data:image/png,abc")
+            .unwrap_err()
+            .contains("base64"));
+        assert!(data_uri_bytes("data:image/png;base64,@@@")
+            .unwrap_err()
+            .contains("not valid base64"));
     }
 
     #[test]

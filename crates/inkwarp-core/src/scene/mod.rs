@@ -37,7 +37,9 @@ use serde::Serialize;
 use serde_json::Value;
 
 pub use doc::*;
-pub use engine::{method_available, Animator, FeatureSamples, FrameStream, LayerSolve, WARM_CHAIN_FRAMES};
+pub use engine::{
+    method_available, Animator, FeatureSamples, FrameStream, LayerSolve, WARM_CHAIN_FRAMES,
+};
 pub use stand_in::RgbaImage;
 pub use validate::validate_doc;
 
@@ -55,7 +57,10 @@ pub struct Problem {
 impl Problem {
     /// A problem at `path`.
     pub fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
-        Problem { path: path.into(), message: message.into() }
+        Problem {
+            path: path.into(),
+            message: message.into(),
+        }
     }
 }
 
@@ -78,7 +83,9 @@ pub struct SceneError {
 impl SceneError {
     /// An error with one problem.
     pub fn one(path: impl Into<String>, message: impl Into<String>) -> Self {
-        SceneError { problems: vec![Problem::new(path, message)] }
+        SceneError {
+            problems: vec![Problem::new(path, message)],
+        }
     }
 
     /// The first problem's path.
@@ -128,7 +135,13 @@ fn parse_collecting(text: &str) -> (Option<SceneDoc>, Vec<Problem>) {
     let value: Value = match serde_json::from_str(text) {
         Ok(value) => value,
         Err(err) => {
-            return (None, vec![Problem::new("", format!("the scene is not valid JSON: {err}"))]);
+            return (
+                None,
+                vec![Problem::new(
+                    "",
+                    format!("the scene is not valid JSON: {err}"),
+                )],
+            );
         }
     };
     doc_from_value(&value)
@@ -153,10 +166,14 @@ struct Parsed {
 impl Parsed {
     /// `path` (of the rebuilt document) as a path of the original one.
     fn original_path(&self, path: &str) -> String {
-        for (prefix, origin) in [("features[", &self.feature_origin), ("layers[", &self.layer_origin)] {
+        for (prefix, origin) in [
+            ("features[", &self.feature_origin),
+            ("layers[", &self.layer_origin),
+        ] {
             if let Some(rest) = path.strip_prefix(prefix) {
                 if let Some((index, tail)) = rest.split_once(']') {
-                    if let Some(&original) = index.parse::<usize>().ok().and_then(|i| origin.get(i)) {
+                    if let Some(&original) = index.parse::<usize>().ok().and_then(|i| origin.get(i))
+                    {
                         return format!("{prefix}{original}]{tail}");
                     }
                 }
@@ -178,7 +195,12 @@ impl Parsed {
 
 fn parse_value(value: &Value) -> Parsed {
     let (problems, unknown_keys) = shape::check_detailed(value, cached_schema());
-    let mut parsed = Parsed { doc: None, problems, feature_origin: Vec::new(), layer_origin: Vec::new() };
+    let mut parsed = Parsed {
+        doc: None,
+        problems,
+        feature_origin: Vec::new(),
+        layer_origin: Vec::new(),
+    };
     if parsed.problems.is_empty() {
         match serde_path_to_error::deserialize::<_, SceneDoc>(value) {
             Ok(doc) => {
@@ -191,7 +213,9 @@ fn parse_value(value: &Value) -> Parsed {
             Err(err) => {
                 let path = err.path().to_string();
                 let path = if path == "." { String::new() } else { path };
-                parsed.problems.push(Problem::new(path, err.into_inner().to_string()));
+                parsed
+                    .problems
+                    .push(Problem::new(path, err.into_inner().to_string()));
             }
         }
         return parsed;
@@ -205,9 +229,15 @@ fn parse_value(value: &Value) -> Parsed {
     strip_unknown_keys_in_map(&mut map);
     // Unknown keys were set aside, so they break nothing.
     let broken = |prefix: &str| {
-        parsed.problems.iter().filter(|p| !unknown_keys.contains(&p.path)).any(|p| {
-            p.path == prefix || p.path.starts_with(&format!("{prefix}.")) || p.path.starts_with(&format!("{prefix}["))
-        })
+        parsed
+            .problems
+            .iter()
+            .filter(|p| !unknown_keys.contains(&p.path))
+            .any(|p| {
+                p.path == prefix
+                    || p.path.starts_with(&format!("{prefix}."))
+                    || p.path.starts_with(&format!("{prefix}["))
+            })
     };
     let mut set_aside_ids = Vec::new();
     let mut feature_origin = Vec::new();
@@ -263,7 +293,13 @@ fn parse_value(value: &Value) -> Parsed {
         }
     }
     for key in ["inkwarp", "layers"] {
-        map.entry(key).or_insert_with(|| if key == "inkwarp" { Value::from(FORMAT_VERSION) } else { Value::Array(Vec::new()) });
+        map.entry(key).or_insert_with(|| {
+            if key == "inkwarp" {
+                Value::from(FORMAT_VERSION)
+            } else {
+                Value::Array(Vec::new())
+            }
+        });
     }
     parsed.feature_origin = feature_origin;
     parsed.layer_origin = layer_origin;
@@ -285,8 +321,15 @@ fn strip_unknown_keys_in_map(map: &mut serde_json::Map<String, Value>) {
 
 /// Removes object keys that the schema does not know (they were reported already).
 fn strip_unknown_keys(value: &mut Value, schema: &Value, root: &Value) {
-    let schema = match schema.get("$ref").and_then(Value::as_str).and_then(|r| r.strip_prefix("#/$defs/")) {
-        Some(name) => root.get("$defs").and_then(|d| d.get(name)).unwrap_or(schema),
+    let schema = match schema
+        .get("$ref")
+        .and_then(Value::as_str)
+        .and_then(|r| r.strip_prefix("#/$defs/"))
+    {
+        Some(name) => root
+            .get("$defs")
+            .and_then(|d| d.get(name))
+            .unwrap_or(schema),
         None => schema,
     };
     if let Some(alternatives) = schema.get("anyOf").and_then(Value::as_array) {
@@ -367,7 +410,9 @@ pub type Loader<'a> = dyn FnMut(&str) -> Result<Vec<u8>, String> + 'a;
 
 /// A [`Loader`] for scenes whose images are all `data:` URIs (or that have none).
 pub fn no_files(reference: &str) -> Result<Vec<u8>, String> {
-    Err(format!("this scene can only use data: URIs, not the path \"{reference}\""))
+    Err(format!(
+        "this scene can only use data: URIs, not the path \"{reference}\""
+    ))
 }
 
 impl Scene {
@@ -379,7 +424,9 @@ impl Scene {
         let mut parsed = parse_value(&value);
         match parsed.doc.take() {
             Some(doc) => Self::resolve_with(doc, parsed, load),
-            None => Err(SceneError { problems: parsed.problems }),
+            None => Err(SceneError {
+                problems: parsed.problems,
+            }),
         }
     }
 
@@ -394,21 +441,30 @@ impl Scene {
         Self::resolve_with(doc, parsed, load)
     }
 
-    fn resolve_with(doc: SceneDoc, mut parsed: Parsed, load: &mut Loader<'_>) -> Result<Scene, SceneError> {
+    fn resolve_with(
+        doc: SceneDoc,
+        mut parsed: Parsed,
+        load: &mut Loader<'_>,
+    ) -> Result<Scene, SceneError> {
         let mut problems = Vec::new();
         // Decode every image once, keep the problems of each place that refers to it.
         let mut decoded: HashMap<String, Result<Arc<RgbaImage>, String>> = HashMap::new();
         let mut layer_images: Vec<[Option<Arc<RgbaImage>>; 3]> = Vec::new();
         let mut size: Option<(usize, usize, String)> = match (doc.width, doc.height) {
-            (Some(w), Some(h)) if w > 0 && h > 0 => Some((w as usize, h as usize, "width and height".to_string())),
+            (Some(w), Some(h)) if w > 0 && h > 0 => {
+                Some((w as usize, h as usize, "width and height".to_string()))
+            }
             _ => None,
         };
         for (j, layer) in doc.layers.iter().enumerate() {
             let mut slots: [Option<Arc<RgbaImage>>; 3] = [None, None, None];
-            for (slot, (key, reference)) in
-                [("image", &layer.image), ("alpha", &layer.alpha), ("continuity", &layer.continuity)]
-                    .into_iter()
-                    .enumerate()
+            for (slot, (key, reference)) in [
+                ("image", &layer.image),
+                ("alpha", &layer.alpha),
+                ("continuity", &layer.continuity),
+            ]
+            .into_iter()
+            .enumerate()
             {
                 let Some(reference) = reference.as_deref().filter(|r| !r.trim().is_empty()) else {
                     continue;
@@ -464,7 +520,9 @@ impl Scene {
         }
         parsed.extend(problems);
         if !parsed.problems.is_empty() {
-            return Err(SceneError { problems: parsed.problems });
+            return Err(SceneError {
+                problems: parsed.problems,
+            });
         }
         let (width, height, _) = size.expect("checked above");
 
@@ -491,15 +549,23 @@ impl Scene {
                 spline_outline: f.curve == Some(Curve::Spline),
             })
             .collect();
-        let index_of: HashMap<&str, usize> =
-            doc.features.iter().enumerate().map(|(i, f)| (f.id.as_str(), i)).collect();
+        let index_of: HashMap<&str, usize> = doc
+            .features
+            .iter()
+            .enumerate()
+            .map(|(i, f)| (f.id.as_str(), i))
+            .collect();
 
         let mut layers = Vec::with_capacity(doc.layers.len());
         for (layer, [image, alpha, continuity]) in doc.layers.iter().zip(layer_images) {
             let image = match (image, alpha) {
                 (Some(image), Some(alpha)) => {
                     let mut with_alpha = (*image).clone();
-                    for (px, a) in with_alpha.data.chunks_exact_mut(4).zip(images::matte_values(&alpha)) {
+                    for (px, a) in with_alpha
+                        .data
+                        .chunks_exact_mut(4)
+                        .zip(images::matte_values(&alpha))
+                    {
                         px[3] = a;
                     }
                     Some(Arc::new(with_alpha))
@@ -522,7 +588,8 @@ impl Scene {
             for i in members {
                 let track = &tracks[i];
                 if track.kind == Kind::Cut {
-                    let line = stand_in::curve_polyline(Kind::Cut, &track.rest, track.closed, false, 0.5);
+                    let line =
+                        stand_in::curve_polyline(Kind::Cut, &track.rest, track.closed, false, 0.5);
                     stand_in::add_cut(&mut grid, &line);
                 } else {
                     drivers.push(i);
@@ -536,18 +603,33 @@ impl Scene {
                 grid,
                 drivers,
                 offset: layer.offset,
-                solver: layer.solver.as_ref().map_or_else(|| doc.solver.clone(), |o| o.apply(&doc.solver)),
+                solver: layer
+                    .solver
+                    .as_ref()
+                    .map_or_else(|| doc.solver.clone(), |o| o.apply(&doc.solver)),
                 visible: layer.visible,
             });
         }
 
         let fps = doc.fps;
         let duration_s = doc.duration.unwrap_or_else(|| {
-            let last_key = doc.features.iter().flat_map(|f| f.keys.iter().map(|k| k.t)).fold(0.0, f64::max);
+            let last_key = doc
+                .features
+                .iter()
+                .flat_map(|f| f.keys.iter().map(|k| k.t))
+                .fold(0.0, f64::max);
             last_key + 1.0 / fps
         });
         let frame_count = ((duration_s * fps - 1e-9).ceil() as usize).max(1);
-        Ok(Scene { doc, width, height, duration_s, frame_count, tracks, layers })
+        Ok(Scene {
+            doc,
+            width,
+            height,
+            duration_s,
+            frame_count,
+            tracks,
+            layers,
+        })
     }
 
     /// The document this scene was built from (defaults filled in).
@@ -602,7 +684,11 @@ impl Scene {
 
 fn describe_reference(reference: &str) -> String {
     if images::is_data_uri(reference) {
-        let header: String = reference.chars().take_while(|&c| c != ',').take(40).collect();
+        let header: String = reference
+            .chars()
+            .take_while(|&c| c != ',')
+            .take(40)
+            .collect();
         format!("the image in the {header},... URI")
     } else {
         format!("\"{reference}\"")

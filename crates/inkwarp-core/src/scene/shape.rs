@@ -14,7 +14,11 @@ use super::Problem;
 /// Every shape problem of `doc` against `schema` (the root schema with its `$defs`), and
 /// the paths of the unknown keys among them.
 pub(crate) fn check_detailed(doc: &Value, schema: &Value) -> (Vec<Problem>, Vec<String>) {
-    let mut walker = Walker { root: schema, problems: Vec::new(), unknown_keys: Vec::new() };
+    let mut walker = Walker {
+        root: schema,
+        problems: Vec::new(),
+        unknown_keys: Vec::new(),
+    };
     if !doc.is_object() {
         walker.problems.push(Problem::new(
             "",
@@ -53,14 +57,23 @@ impl<'a> Walker<'a> {
         let (schema, def_name) = self.resolve(schema);
         let what = def_name.map(object_noun).or(what);
 
-        if let Some(alternatives) =
-            schema.get("oneOf").or_else(|| schema.get("anyOf")).and_then(Value::as_array)
+        if let Some(alternatives) = schema
+            .get("oneOf")
+            .or_else(|| schema.get("anyOf"))
+            .and_then(Value::as_array)
         {
             return self.alternatives(value, alternatives, path, what);
         }
         if let Some(types) = schema.get("type") {
             if !type_matches(value, types) {
-                self.push(path, format!("expected {}, found {}", expected_types(types), describe(value)));
+                self.push(
+                    path,
+                    format!(
+                        "expected {}, found {}",
+                        expected_types(types),
+                        describe(value)
+                    ),
+                );
                 return false;
             }
         }
@@ -72,7 +85,14 @@ impl<'a> Walker<'a> {
         }
         if let Some(options) = schema.get("enum").and_then(Value::as_array) {
             if !options.contains(value) {
-                self.push(path, format!("{} is not allowed here; use one of {}", describe(value), list(options)));
+                self.push(
+                    path,
+                    format!(
+                        "{} is not allowed here; use one of {}",
+                        describe(value),
+                        list(options)
+                    ),
+                );
                 return false;
             }
         }
@@ -85,10 +105,18 @@ impl<'a> Walker<'a> {
         self.problems.len() == before
     }
 
-    fn alternatives(&mut self, value: &Value, alternatives: &'a [Value], path: &str, what: Option<&str>) -> bool {
+    fn alternatives(
+        &mut self,
+        value: &Value,
+        alternatives: &'a [Value],
+        path: &str,
+        what: Option<&str>,
+    ) -> bool {
         // All-constant alternatives are an enumeration of names (kinds, methods, ...).
-        let constants: Vec<&Value> =
-            alternatives.iter().filter_map(|a| self.resolve(a).0.get("const")).collect();
+        let constants: Vec<&Value> = alternatives
+            .iter()
+            .filter_map(|a| self.resolve(a).0.get("const"))
+            .collect();
         if constants.len() == alternatives.len() {
             if constants.contains(&value) {
                 return true;
@@ -111,7 +139,11 @@ impl<'a> Walker<'a> {
         // Otherwise: the first alternative that passes; failing that, the problems of the
         // alternative whose type fits the value (for `Option<T>`: T's problems).
         for alternative in alternatives {
-            let mut probe = Walker { root: self.root, problems: Vec::new(), unknown_keys: Vec::new() };
+            let mut probe = Walker {
+                root: self.root,
+                problems: Vec::new(),
+                unknown_keys: Vec::new(),
+            };
             if probe.walk(value, alternative, path, what) {
                 return true;
             }
@@ -139,7 +171,14 @@ impl<'a> Walker<'a> {
                         }
                     })
                     .collect();
-                self.push(path, format!("expected {}, found {}", expected.join(" or "), describe(value)));
+                self.push(
+                    path,
+                    format!(
+                        "expected {}, found {}",
+                        expected.join(" or "),
+                        describe(value)
+                    ),
+                );
             }
         }
         false
@@ -156,11 +195,20 @@ impl<'a> Walker<'a> {
                 ),
             );
         } else {
-            self.push(path, format!("must be {constant}, found {}", describe(value)));
+            self.push(
+                path,
+                format!("must be {constant}, found {}", describe(value)),
+            );
         }
     }
 
-    fn object(&mut self, map: &Map<String, Value>, schema: &'a Value, path: &str, what: Option<&str>) {
+    fn object(
+        &mut self,
+        map: &Map<String, Value>,
+        schema: &'a Value,
+        path: &str,
+        what: Option<&str>,
+    ) {
         let properties = schema.get("properties").and_then(Value::as_object);
         let what = what.unwrap_or("this object");
         if let Some(properties) = properties {
@@ -199,7 +247,10 @@ impl<'a> Walker<'a> {
                         .and_then(Value::as_str)
                         .map(|d| format!(" ({})", first_sentence(d)))
                         .unwrap_or_default();
-                    self.push(&join_key(path, key), format!("{what} needs \"{key}\"{about}; add it"));
+                    self.push(
+                        &join_key(path, key),
+                        format!("{what} needs \"{key}\"{about}; add it"),
+                    );
                 }
             }
         }
@@ -248,13 +299,19 @@ impl<'a> Walker<'a> {
         }
         if let Some(min) = schema.get("minimum").and_then(Value::as_f64) {
             if x < min {
-                self.push(path, format!("must be at least {}, found {value}", fmt_num(min)));
+                self.push(
+                    path,
+                    format!("must be at least {}, found {value}", fmt_num(min)),
+                );
                 return;
             }
         }
         if let Some(max) = schema.get("maximum").and_then(Value::as_f64) {
             if x > max {
-                self.push(path, format!("must be at most {}, found {value}", fmt_num(max)));
+                self.push(
+                    path,
+                    format!("must be at most {}, found {value}", fmt_num(max)),
+                );
             }
         }
     }
@@ -318,8 +375,12 @@ fn expected_types(types: &Value) -> String {
         Value::String(t) => name(t).to_string(),
         Value::Array(ts) => {
             // `Option<T>` is "T or null": null means "absent", so name only T.
-            let names: Vec<&str> =
-                ts.iter().filter_map(Value::as_str).filter(|t| *t != "null").map(name).collect();
+            let names: Vec<&str> = ts
+                .iter()
+                .filter_map(Value::as_str)
+                .filter(|t| *t != "null")
+                .map(name)
+                .collect();
             names.join(" or ")
         }
         _ => "a value".to_string(),
@@ -333,10 +394,17 @@ pub(crate) fn describe(value: &Value) -> String {
         Value::Bool(b) => b.to_string(),
         Value::Number(n) => format!("the number {n}"),
         Value::String(s) if s.chars().count() > 40 => {
-            format!("the string \"{}...\"", s.chars().take(37).collect::<String>())
+            format!(
+                "the string \"{}...\"",
+                s.chars().take(37).collect::<String>()
+            )
         }
         Value::String(s) => format!("the string \"{s}\""),
-        Value::Array(a) => format!("a list of {} item{}", a.len(), if a.len() == 1 { "" } else { "s" }),
+        Value::Array(a) => format!(
+            "a list of {} item{}",
+            a.len(),
+            if a.len() == 1 { "" } else { "s" }
+        ),
         Value::Object(_) => "an object".to_string(),
     }
 }
@@ -369,7 +437,10 @@ fn first_sentence(text: &str) -> String {
 }
 
 /// The candidate closest to `word` by edit distance, when it is close enough to be a typo.
-pub(crate) fn did_you_mean<'b>(word: &str, candidates: impl Iterator<Item = &'b str>) -> Option<&'b str> {
+pub(crate) fn did_you_mean<'b>(
+    word: &str,
+    candidates: impl Iterator<Item = &'b str>,
+) -> Option<&'b str> {
     let word_l = word.to_lowercase();
     candidates
         .map(|c| (edit_distance(&word_l, &c.to_lowercase()), c))
@@ -387,7 +458,9 @@ fn edit_distance(a: &str, b: &str) -> usize {
         row[0] = i;
         for j in 1..=b.len() {
             let above = row[j];
-            row[j] = (row[j] + 1).min(row[j - 1] + 1).min(diagonal + usize::from(a[i - 1] != b[j - 1]));
+            row[j] = (row[j] + 1)
+                .min(row[j - 1] + 1)
+                .min(diagonal + usize::from(a[i - 1] != b[j - 1]));
             diagonal = above;
         }
     }

@@ -15,7 +15,9 @@ use crate::grid::Grid;
 /// Breaks every link whose segment crosses a segment of `polyline`.
 pub fn add_cut(grid: &mut Grid, polyline: &[Point]) {
     fn cross(a: Point, b: Point, c: Point, d: Point) -> bool {
-        let o = |p: Point, q: Point, r: Point| (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]);
+        let o = |p: Point, q: Point, r: Point| {
+            (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
+        };
         let (d1, d2) = (o(a, b, c), o(a, b, d));
         let (d3, d4) = (o(c, d, a), o(c, d, b));
         d1 * d2 <= 0.0 && d3 * d4 <= 0.0 && !(d1 == 0.0 && d2 == 0.0)
@@ -24,8 +26,10 @@ pub fn add_cut(grid: &mut Grid, polyline: &[Point]) {
         let (a, b) = (seg[0], seg[1]);
         let x0 = (a[0].min(b[0]).floor() as isize - 1).max(0) as usize;
         let y0 = (a[1].min(b[1]).floor() as isize - 1).max(0) as usize;
-        let x1 = ((a[0].max(b[0]).ceil() as isize + 1).max(0) as usize).min(grid.width.saturating_sub(1));
-        let y1 = ((a[1].max(b[1]).ceil() as isize + 1).max(0) as usize).min(grid.height.saturating_sub(1));
+        let x1 = ((a[0].max(b[0]).ceil() as isize + 1).max(0) as usize)
+            .min(grid.width.saturating_sub(1));
+        let y1 = ((a[1].max(b[1]).ceil() as isize + 1).max(0) as usize)
+            .min(grid.height.saturating_sub(1));
         for y in y0..=y1 {
             for x in x0..=x1 {
                 let i = grid.index(x, y);
@@ -155,7 +159,8 @@ pub fn solve(
                 }
                 if count > 0.0 {
                     let (nx, ny) = ((acc[0] / count) as f32, (acc[1] / count) as f32);
-                    change = change.max((nx - field.dx[i]).abs().max((ny - field.dy[i]).abs()) as f64);
+                    change =
+                        change.max((nx - field.dx[i]).abs().max((ny - field.dy[i]).abs()) as f64);
                     field.dx[i] = nx;
                     field.dy[i] = ny;
                 }
@@ -196,7 +201,11 @@ impl Canvas {
             background[2] as f32 / 255.0 * a,
             a,
         ];
-        Canvas { width, height, data: px.repeat(width * height) }
+        Canvas {
+            width,
+            height,
+            data: px.repeat(width * height),
+        }
     }
 
     /// Stand-in: splats every pixel to its nearest displaced position.
@@ -231,6 +240,10 @@ impl Canvas {
             }
             data.push((a * 255.0).round().clamp(0.0, 255.0) as u8);
         }
-        RgbaImage { width: self.width, height: self.height, data }
+        RgbaImage {
+            width: self.width,
+            height: self.height,
+            data,
+        }
     }
 }

@@ -26,20 +26,35 @@ fn picture(width: u32, height: u32, hole: impl Fn(u32, u32) -> bool) -> Vec<u8> 
     for y in 0..height {
         for x in 0..width {
             let a = if hole(x, y) { 0 } else { 255 };
-            pixels.extend_from_slice(&[(x * 255 / width.max(1)) as u8, (y * 255 / height.max(1)) as u8, 64, a]);
+            pixels.extend_from_slice(&[
+                (x * 255 / width.max(1)) as u8,
+                (y * 255 / height.max(1)) as u8,
+                64,
+                a,
+            ]);
         }
     }
     png(width, height, &pixels)
 }
 
 fn data_uri(bytes: &[u8]) -> String {
-    format!("data:image/png;base64,{}", base64::engine::general_purpose::STANDARD.encode(bytes))
+    format!(
+        "data:image/png;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(bytes)
+    )
 }
 
 /// A loader over in-memory files.
 fn files(entries: &[(&str, Vec<u8>)]) -> impl FnMut(&str) -> Result<Vec<u8>, String> {
-    let map: HashMap<String, Vec<u8>> = entries.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
-    move |reference: &str| map.get(reference).cloned().ok_or_else(|| format!("no such file \"{reference}\""))
+    let map: HashMap<String, Vec<u8>> = entries
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.clone()))
+        .collect();
+    move |reference: &str| {
+        map.get(reference)
+            .cloned()
+            .ok_or_else(|| format!("no such file \"{reference}\""))
+    }
 }
 
 fn valid_scene() -> Value {
@@ -63,7 +78,10 @@ fn valid_scene() -> Value {
 }
 
 fn valid_files() -> Vec<(&'static str, Vec<u8>)> {
-    vec![("back.png", picture(16, 12, |_, _| false)), ("front.png", picture(16, 12, |x, y| x < 3 && y < 3))]
+    vec![
+        ("back.png", picture(16, 12, |_, _| false)),
+        ("front.png", picture(16, 12, |x, y| x < 3 && y < 3)),
+    ]
 }
 
 /// Every problem of a scene (with the valid files) as `path: message` lines.
@@ -82,7 +100,10 @@ fn problems_with(scene: &Value, entries: Vec<(&'static str, Vec<u8>)>) -> Vec<St
 /// `scene` with the value at JSON pointer `pointer` set (an object's key may be new).
 fn with(mut scene: Value, pointer: &str, value: Value) -> Value {
     let (parent, key) = pointer.rsplit_once('/').unwrap();
-    match scene.pointer_mut(parent).unwrap_or_else(|| panic!("no {parent}")) {
+    match scene
+        .pointer_mut(parent)
+        .unwrap_or_else(|| panic!("no {parent}"))
+    {
         Value::Object(map) => {
             map.insert(key.to_string(), value);
         }
@@ -104,7 +125,10 @@ fn paths_of(scene: &Value) -> Vec<String> {
 fn the_valid_scene_resolves() {
     let mut loader = files(&valid_files());
     let scene = Scene::from_json(&valid_scene().to_string(), &mut loader).unwrap();
-    assert_eq!((scene.width(), scene.height(), scene.frame_count()), (16, 12, 10));
+    assert_eq!(
+        (scene.width(), scene.height(), scene.frame_count()),
+        (16, 12, 10)
+    );
     assert_eq!(scene.layers().len(), 2);
     assert_eq!(scene.layers()[0].drivers, vec![0, 1]);
     assert_eq!(scene.layers()[1].drivers, vec![0, 1]);
@@ -121,36 +145,149 @@ fn the_valid_scene_resolves() {
 #[test]
 fn every_kind_of_mistake_is_reported_with_its_path() {
     let cases: Vec<(&str, Value, &str)> = vec![
-        ("unknown kind", with(valid_scene(), "/features/0/kind", json!("circle")), "features[0].kind"),
-        ("wrong key count", with(valid_scene(), "/features/1/keys/0/points", json!([[1, 1]])), "features[1].keys[0].points"),
-        ("too few points", with(valid_scene(), "/features/1", json!({"id": "lid", "kind": "spline", "rest": [[1, 1]]})), "features[1].rest"),
-        ("point with two points", with(valid_scene(), "/features/0", json!({"id": "dot", "kind": "point", "rest": [[1, 1], [2, 2]]})), "features[0].rest"),
-        ("keys out of order", with(valid_scene(), "/features/0/keys/1/t", json!(-1)), "features[0].keys[1].t"),
-        ("keys at equal times", with(valid_scene(), "/features/0/keys/1/t", json!(0)), "features[0].keys[1].t"),
-        ("unknown feature id", with(valid_scene(), "/layers/1/features/1", json!("lidd")), "layers[1].features[1]"),
-        ("duplicate feature id", with(valid_scene(), "/features/2/id", json!("dot")), "features[2].id"),
-        ("duplicate layer name", with(valid_scene(), "/layers/1/name", json!("back")), "layers[1].name"),
-        ("negative tension", with(valid_scene(), "/solver", json!({"tension": -1})), "solver.tension"),
-        ("zero tolerance", with(valid_scene(), "/solver", json!({"tolerance": 0})), "solver.tolerance"),
+        (
+            "unknown kind",
+            with(valid_scene(), "/features/0/kind", json!("circle")),
+            "features[0].kind",
+        ),
+        (
+            "wrong key count",
+            with(valid_scene(), "/features/1/keys/0/points", json!([[1, 1]])),
+            "features[1].keys[0].points",
+        ),
+        (
+            "too few points",
+            with(
+                valid_scene(),
+                "/features/1",
+                json!({"id": "lid", "kind": "spline", "rest": [[1, 1]]}),
+            ),
+            "features[1].rest",
+        ),
+        (
+            "point with two points",
+            with(
+                valid_scene(),
+                "/features/0",
+                json!({"id": "dot", "kind": "point", "rest": [[1, 1], [2, 2]]}),
+            ),
+            "features[0].rest",
+        ),
+        (
+            "keys out of order",
+            with(valid_scene(), "/features/0/keys/1/t", json!(-1)),
+            "features[0].keys[1].t",
+        ),
+        (
+            "keys at equal times",
+            with(valid_scene(), "/features/0/keys/1/t", json!(0)),
+            "features[0].keys[1].t",
+        ),
+        (
+            "unknown feature id",
+            with(valid_scene(), "/layers/1/features/1", json!("lidd")),
+            "layers[1].features[1]",
+        ),
+        (
+            "duplicate feature id",
+            with(valid_scene(), "/features/2/id", json!("dot")),
+            "features[2].id",
+        ),
+        (
+            "duplicate layer name",
+            with(valid_scene(), "/layers/1/name", json!("back")),
+            "layers[1].name",
+        ),
+        (
+            "negative tension",
+            with(valid_scene(), "/solver", json!({"tension": -1})),
+            "solver.tension",
+        ),
+        (
+            "zero tolerance",
+            with(valid_scene(), "/solver", json!({"tolerance": 0})),
+            "solver.tolerance",
+        ),
         ("zero fps", with(valid_scene(), "/fps", json!(0)), "fps"),
-        ("negative duration", with(valid_scene(), "/duration", json!(-2)), "duration"),
-        ("zero grid step", with(valid_scene(), "/solver", json!({"grid_step": 0})), "solver.grid_step"),
-        ("fractional grid step", with(valid_scene(), "/solver", json!({"grid_step": 1.5})), "solver.grid_step"),
-        ("layer override", with(valid_scene(), "/layers/0/solver", json!({"tension": -0.5})), "layers[0].solver.tension"),
-        ("unknown method", with(valid_scene(), "/solver", json!({"method": "rbf"})), "solver.method"),
-        ("method not available", with(valid_scene(), "/solver", json!({"method": "beier-neely"})), "solver.method"),
-        ("unknown key", with(valid_scene(), "/layers/0/colour", json!("red")), "layers[0].colour"),
-        ("unknown top-level key", with(valid_scene(), "/frames", json!(3)), "frames"),
-        ("wrong version", with(valid_scene(), "/inkwarp", json!(2)), "inkwarp"),
-        ("wrong type", with(valid_scene(), "/features/0/rest/0/0", json!("4")), "features[0].rest[0][0]"),
-        ("three coordinates", with(valid_scene(), "/features/0/rest/0", json!([1, 2, 3])), "features[0].rest[0]"),
-        ("missing image", with(valid_scene(), "/layers/0/image", json!("nope.png")), "layers[0].image"),
-        ("curve on a spline", with(valid_scene(), "/features/1/curve", json!("spline")), "features[1].curve"),
-        ("background out of range", with(valid_scene(), "/background", json!([0, 0, 0, 300])), "background[3]"),
+        (
+            "negative duration",
+            with(valid_scene(), "/duration", json!(-2)),
+            "duration",
+        ),
+        (
+            "zero grid step",
+            with(valid_scene(), "/solver", json!({"grid_step": 0})),
+            "solver.grid_step",
+        ),
+        (
+            "fractional grid step",
+            with(valid_scene(), "/solver", json!({"grid_step": 1.5})),
+            "solver.grid_step",
+        ),
+        (
+            "layer override",
+            with(valid_scene(), "/layers/0/solver", json!({"tension": -0.5})),
+            "layers[0].solver.tension",
+        ),
+        (
+            "unknown method",
+            with(valid_scene(), "/solver", json!({"method": "rbf"})),
+            "solver.method",
+        ),
+        (
+            "method not available",
+            with(valid_scene(), "/solver", json!({"method": "beier-neely"})),
+            "solver.method",
+        ),
+        (
+            "unknown key",
+            with(valid_scene(), "/layers/0/colour", json!("red")),
+            "layers[0].colour",
+        ),
+        (
+            "unknown top-level key",
+            with(valid_scene(), "/frames", json!(3)),
+            "frames",
+        ),
+        (
+            "wrong version",
+            with(valid_scene(), "/inkwarp", json!(2)),
+            "inkwarp",
+        ),
+        (
+            "wrong type",
+            with(valid_scene(), "/features/0/rest/0/0", json!("4")),
+            "features[0].rest[0][0]",
+        ),
+        (
+            "three coordinates",
+            with(valid_scene(), "/features/0/rest/0", json!([1, 2, 3])),
+            "features[0].rest[0]",
+        ),
+        (
+            "missing image",
+            with(valid_scene(), "/layers/0/image", json!("nope.png")),
+            "layers[0].image",
+        ),
+        (
+            "curve on a spline",
+            with(valid_scene(), "/features/1/curve", json!("spline")),
+            "features[1].curve",
+        ),
+        (
+            "background out of range",
+            with(valid_scene(), "/background", json!([0, 0, 0, 300])),
+            "background[3]",
+        ),
     ];
     for (what, scene, path) in cases {
         let paths = paths_of(&scene);
-        assert_eq!(paths, vec![path.to_string()], "{what}: {:?}", problems_of(&scene));
+        assert_eq!(
+            paths,
+            vec![path.to_string()],
+            "{what}: {:?}",
+            problems_of(&scene)
+        );
     }
 }
 
@@ -179,7 +316,11 @@ fn messages_say_how_to_fix() {
     let cases = [
         with(valid_scene(), "/features/0/kind", json!("splin")),
         with(valid_scene(), "/features/1/keys/0/points", json!([[1, 1]])),
-        with(valid_scene(), "/features/1", json!({"id": "lid", "kind": "spline", "rest": [[1, 1]]})),
+        with(
+            valid_scene(),
+            "/features/1",
+            json!({"id": "lid", "kind": "spline", "rest": [[1, 1]]}),
+        ),
         with(valid_scene(), "/features/0/keys/1/t", json!(-1)),
         with(valid_scene(), "/features/0/keys/1/t", json!(0)),
         with(valid_scene(), "/layers/1/features/1", json!("lidd")),
@@ -210,11 +351,18 @@ fn syntax_errors_give_line_and_column() {
 #[test]
 fn image_problems() {
     // Different sizes: the first image sets the size when width/height are absent.
-    let wrong_size = vec![("back.png", picture(16, 12, |_, _| false)), ("front.png", picture(8, 8, |_, _| false))];
+    let wrong_size = vec![
+        ("back.png", picture(16, 12, |_, _| false)),
+        ("front.png", picture(8, 8, |_, _| false)),
+    ];
     let problems = problems_with(&valid_scene(), wrong_size);
     insta::assert_snapshot!(problems.join("\n"), @"layers[1].image: \"front.png\" is 8×8 pixels but the scene is 16×12 (from layers[0].image); every image and matte must be the scene's size");
     // Explicit width/height win.
-    let scene = with(with(valid_scene(), "/width", json!(20)), "/height", json!(12));
+    let scene = with(
+        with(valid_scene(), "/width", json!(20)),
+        "/height",
+        json!(12),
+    );
     assert_eq!(problems_of(&scene).len(), 2);
     // Unreadable bytes and mattes of the wrong size.
     let scene = with(valid_scene(), "/layers/0/continuity", json!("matte.png"));
@@ -222,9 +370,17 @@ fn image_problems() {
     entries.push(("matte.png", b"GIF89a....".to_vec()));
     let problems = problems_with(&scene, entries);
     insta::assert_snapshot!(problems.join("\n"), @r#"layers[0].continuity: cannot use "matte.png": a Gif image; inkwarp reads PNG and JPEG, save it as one of those"#);
-    let scene = with(valid_scene(), "/layers/1/alpha", json!(data_uri(&picture(3, 3, |_, _| false))));
+    let scene = with(
+        valid_scene(),
+        "/layers/1/alpha",
+        json!(data_uri(&picture(3, 3, |_, _| false))),
+    );
     assert_eq!(paths_of(&scene), vec!["layers[1].alpha"]);
-    let scene = with(valid_scene(), "/layers/1/alpha", json!("data:image/png;base64,!!"));
+    let scene = with(
+        valid_scene(),
+        "/layers/1/alpha",
+        json!("data:image/png;base64,!!"),
+    );
     assert_eq!(paths_of(&scene), vec!["layers[1].alpha"]);
     // No image anywhere and no size.
     let scene = json!({"inkwarp": 1, "layers": [{"name": "a"}]});
@@ -242,13 +398,21 @@ fn non_finite_numbers_are_reported() {
     let paths: Vec<String> = validate_doc(&doc).into_iter().map(|p| p.path).collect();
     assert_eq!(
         paths,
-        ["fps", "solver.tension", "features[0].rest[0][0]", "features[1].keys[0].points[2][1]", "layers[1].offset[0]"]
+        [
+            "fps",
+            "solver.tension",
+            "features[0].rest[0][0]",
+            "features[1].keys[0].points[2][1]",
+            "layers[1].offset[0]"
+        ]
     );
 }
 
 #[test]
 fn numbers_too_large_for_json_are_a_syntax_error() {
-    let text = valid_scene().to_string().replace("\"fps\":10", "\"fps\":1e999");
+    let text = valid_scene()
+        .to_string()
+        .replace("\"fps\":10", "\"fps\":1e999");
     let err = parse_doc(&text).unwrap_err();
     assert!(err.to_string().contains("not valid JSON"), "{err}");
 }
@@ -262,7 +426,10 @@ fn the_document_round_trips() {
     let value: Value = serde_json::from_str(&text).unwrap();
     assert_eq!(value["solver"]["tolerance"], json!(0.01));
     assert!(value["layers"][0].get("visible").is_none());
-    assert_eq!(value["features"][0]["keys"][1]["interpolation"], json!("linear"));
+    assert_eq!(
+        value["features"][0]["keys"][1]["interpolation"],
+        json!("linear")
+    );
 }
 
 #[test]
@@ -270,7 +437,12 @@ fn the_schema_knows_every_field_and_accepts_the_valid_scene() {
     let schema = schema();
     assert_eq!(schema["properties"]["inkwarp"]["const"], json!(1));
     let kinds = &schema["$defs"]["FeatureKind"]["oneOf"];
-    let names: Vec<&str> = kinds.as_array().unwrap().iter().map(|k| k["const"].as_str().unwrap()).collect();
+    let names: Vec<&str> = kinds
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k["const"].as_str().unwrap())
+        .collect();
     assert_eq!(names, ["point", "polyline", "spline", "region", "cut"]);
     assert!(shape::check_detailed(&valid_scene(), &schema).0.is_empty());
 }
@@ -302,11 +474,18 @@ fn small_scene() -> Arc<Scene> {
 fn a_two_layer_scene_renders() {
     let scene = small_scene();
     let frame = scene.render(0.0).unwrap();
-    assert_eq!((frame.width, frame.height, frame.data.len()), (16, 12, 16 * 12 * 4));
+    assert_eq!(
+        (frame.width, frame.height, frame.data.len()),
+        (16, 12, 16 * 12 * 4)
+    );
     // At t = 0 nothing has moved: the front layer covers the back one, shifted by its
     // offset (1, 0); its transparent corner shows the back layer.
-    let front = image::load_from_memory(&valid_files()[1].1).unwrap().to_rgba8();
-    let back = image::load_from_memory(&valid_files()[0].1).unwrap().to_rgba8();
+    let front = image::load_from_memory(&valid_files()[1].1)
+        .unwrap()
+        .to_rgba8();
+    let back = image::load_from_memory(&valid_files()[0].1)
+        .unwrap()
+        .to_rgba8();
     let at = |x: usize, y: usize| &frame.data[(y * 16 + x) * 4..(y * 16 + x) * 4 + 4];
     assert_eq!(at(8, 6), front.get_pixel(7, 6).0.as_slice());
     assert_eq!(at(1, 1), back.get_pixel(1, 1).0.as_slice());
@@ -325,7 +504,9 @@ fn layer_fields_follow_the_drawing() {
     let [dx, dy] = solved.field.at(10, 3);
     assert!(dx.abs() < 0.05 && (dy - 2.0).abs() < 0.05, "{dx} {dy}");
     let samples = scene.layer_samples(1, 0.5).unwrap();
-    assert!(samples.iter().any(|s| s.rest == [10.0, 3.0] && s.displacement == [0.0, 2.0]));
+    assert!(samples
+        .iter()
+        .any(|s| s.rest == [10.0, 3.0] && s.displacement == [0.0, 2.0]));
 }
 
 #[test]
@@ -336,8 +517,17 @@ fn warm_started_frames_match_cold_frames() {
         let t = scene.frame_time_s(i);
         let warm = animator.layer_field(0, t).unwrap().field;
         let cold = scene.layer_field(0, t, None).unwrap().field;
-        let worst = warm.dx.iter().chain(&warm.dy).zip(cold.dx.iter().chain(&cold.dy)).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
-        assert!(worst < 0.05, "frame {i}: warm and cold fields differ by {worst} px");
+        let worst = warm
+            .dx
+            .iter()
+            .chain(&warm.dy)
+            .zip(cold.dx.iter().chain(&cold.dy))
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f32::max);
+        assert!(
+            worst < 0.05,
+            "frame {i}: warm and cold fields differ by {worst} px"
+        );
     }
 }
 
@@ -348,10 +538,16 @@ fn parallel_and_sequential_frames_are_identical() {
     let sequential: Vec<_> = scene.frames(0..usize::MAX, 1).map(|f| f.unwrap()).collect();
     let parallel: Vec<_> = scene.frames(0..usize::MAX, 3).map(|f| f.unwrap()).collect();
     assert_eq!(sequential.len(), scene.frame_count());
-    assert_eq!(sequential.iter().map(|f| f.0).collect::<Vec<_>>(), (0..scene.frame_count()).collect::<Vec<_>>());
+    assert_eq!(
+        sequential.iter().map(|f| f.0).collect::<Vec<_>>(),
+        (0..scene.frame_count()).collect::<Vec<_>>()
+    );
     assert!(sequential == parallel);
     // A sub-range starting on a chain boundary gives the same frames.
-    let part: Vec<_> = scene.frames(WARM_CHAIN_FRAMES..WARM_CHAIN_FRAMES + 5, 2).map(|f| f.unwrap()).collect();
+    let part: Vec<_> = scene
+        .frames(WARM_CHAIN_FRAMES..WARM_CHAIN_FRAMES + 5, 2)
+        .map(|f| f.unwrap())
+        .collect();
     assert!(part[..] == sequential[WARM_CHAIN_FRAMES..WARM_CHAIN_FRAMES + 5]);
 }
 
@@ -371,7 +567,9 @@ fn invisible_and_imageless_layers_are_not_drawn() {
     doc["layers"][1]["visible"] = json!(false);
     let scene = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
     let frame = scene.render(0.0).unwrap();
-    let back = image::load_from_memory(&valid_files()[0].1).unwrap().to_rgba8();
+    let back = image::load_from_memory(&valid_files()[0].1)
+        .unwrap()
+        .to_rgba8();
     assert_eq!(frame.data, back.into_raw());
 }
 
@@ -380,26 +578,46 @@ fn alpha_and_continuity_mattes_apply() {
     let mut loader = files(&valid_files());
     let mut doc = valid_scene();
     // Alpha matte: black everywhere but the left half.
-    let half: Vec<u8> = (0..12).flat_map(|_| (0..16).flat_map(|x| if x < 8 { [255; 4] } else { [0, 0, 0, 255] })).collect();
+    let half: Vec<u8> = (0..12)
+        .flat_map(|_| (0..16).flat_map(|x| if x < 8 { [255; 4] } else { [0, 0, 0, 255] }))
+        .collect();
     doc["layers"][0]["alpha"] = json!(data_uri(&png(16, 12, &half)));
     doc["layers"][0]["continuity"] = json!(data_uri(&png(16, 12, &[255; 16 * 12 * 4])));
     doc["background"] = json!([0, 0, 255, 255]);
     doc["layers"][1]["visible"] = json!(false);
     let scene = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
     let layer = &scene.layers()[0];
-    assert!(layer.grid.active.iter().all(|&a| a), "the continuity matte replaces the alpha-derived one");
+    assert!(
+        layer.grid.active.iter().all(|&a| a),
+        "the continuity matte replaces the alpha-derived one"
+    );
     let frame = scene.render(0.0).unwrap();
-    assert_eq!(&frame.data[(6 * 16 + 12) * 4..(6 * 16 + 12) * 4 + 4], &[0, 0, 255, 255]);
-    assert_ne!(&frame.data[(6 * 16 + 2) * 4..(6 * 16 + 2) * 4 + 4], &[0, 0, 255, 255]);
+    assert_eq!(
+        &frame.data[(6 * 16 + 12) * 4..(6 * 16 + 12) * 4 + 4],
+        &[0, 0, 255, 255]
+    );
+    assert_ne!(
+        &frame.data[(6 * 16 + 2) * 4..(6 * 16 + 2) * 4 + 4],
+        &[0, 0, 255, 255]
+    );
 }
 
 #[test]
 fn the_method_can_be_chosen_per_call() {
     let scene = small_scene();
-    assert_eq!(scene.render_with(0.7, Some(Method::Tps)).unwrap(), scene.render(0.7).unwrap());
-    let err = scene.render_with(0.7, Some(Method::BeierNeely)).unwrap_err();
-    assert!(err.to_string().contains("\"beier-neely\" is not available"), "{err}");
-    let mut stream = FrameStream::with_method(Arc::clone(&scene), 0..3, 2, Some(Method::Triangulation));
+    assert_eq!(
+        scene.render_with(0.7, Some(Method::Tps)).unwrap(),
+        scene.render(0.7).unwrap()
+    );
+    let err = scene
+        .render_with(0.7, Some(Method::BeierNeely))
+        .unwrap_err();
+    assert!(
+        err.to_string().contains("\"beier-neely\" is not available"),
+        "{err}"
+    );
+    let mut stream =
+        FrameStream::with_method(Arc::clone(&scene), 0..3, 2, Some(Method::Triangulation));
     assert!(stream.next().unwrap().is_err());
     assert!(stream.next().is_none(), "a stream stops at its first error");
 }
@@ -408,8 +626,20 @@ fn the_method_can_be_chosen_per_call() {
 fn samples_come_grouped_by_feature_in_curve_order() {
     let scene = small_scene();
     let groups = scene.layer_feature_samples(0, 0.5).unwrap();
-    assert_eq!(groups.iter().map(|g| (g.feature, g.kind)).collect::<Vec<_>>(), [(0, crate::Kind::Point), (1, crate::Kind::Spline)]);
+    assert_eq!(
+        groups
+            .iter()
+            .map(|g| (g.feature, g.kind))
+            .collect::<Vec<_>>(),
+        [(0, crate::Kind::Point), (1, crate::Kind::Spline)]
+    );
     let lid = &groups[1].samples;
-    assert_eq!((lid[0].rest, lid[lid.len() - 1].rest), ([8.0, 2.0], [12.0, 2.0]));
-    assert_eq!(scene.layer_samples(0, 0.5).unwrap().len(), groups.iter().map(|g| g.samples.len()).sum::<usize>());
+    assert_eq!(
+        (lid[0].rest, lid[lid.len() - 1].rest),
+        ([8.0, 2.0], [12.0, 2.0])
+    );
+    assert_eq!(
+        scene.layer_samples(0, 0.5).unwrap().len(),
+        groups.iter().map(|g| g.samples.len()).sum::<usize>()
+    );
 }

@@ -30,13 +30,19 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
     }
     for (key, value) in [("width", doc.width), ("height", doc.height)] {
         if value == Some(0) {
-            p.push(Problem::new(key, format!("the frame {key} must be at least 1 pixel, found 0")));
+            p.push(Problem::new(
+                key,
+                format!("the frame {key} must be at least 1 pixel, found 0"),
+            ));
         }
     }
     if !(doc.fps.is_finite() && doc.fps > 0.0) {
         p.push(Problem::new(
             "fps",
-            format!("frames per second must be a number > 0, found {}; use e.g. 24", doc.fps),
+            format!(
+                "frames per second must be a number > 0, found {}; use e.g. 24",
+                doc.fps
+            ),
         ));
     }
     if let Some(duration) = doc.duration {
@@ -57,7 +63,10 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
     for (i, feature) in doc.features.iter().enumerate() {
         let path = format!("features[{i}]");
         if feature.id.trim().is_empty() {
-            p.push(Problem::new(format!("{path}.id"), "a feature needs a non-empty id"));
+            p.push(Problem::new(
+                format!("{path}.id"),
+                "a feature needs a non-empty id",
+            ));
         } else if let Some(&first) = first_with_id.get(feature.id.as_str()) {
             p.push(Problem::new(
                 format!("{path}.id"),
@@ -81,7 +90,11 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                 format!(
                     "a {} needs {wanted} control point{}, found {n}{}",
                     kind.name(),
-                    if kind.min_points() == 1 && kind.max_points() == Some(1) { "" } else { "s" },
+                    if kind.min_points() == 1 && kind.max_points() == Some(1) {
+                        ""
+                    } else {
+                        "s"
+                    },
                     if kind == FeatureKind::Point && n > 1 {
                         "; use a polyline or a spline for several points"
                     } else {
@@ -97,12 +110,19 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                 format!(
                     "\"curve\" applies to regions only, this feature is a {}; remove it{}",
                     kind.name(),
-                    if kind == FeatureKind::Polyline { " (or use kind \"spline\" for a curve)" } else { "" }
+                    if kind == FeatureKind::Polyline {
+                        " (or use kind \"spline\" for a curve)"
+                    } else {
+                        ""
+                    }
                 ),
             ));
         }
         if feature.closed && kind == FeatureKind::Point {
-            p.push(Problem::new(format!("{path}.closed"), "a point cannot be closed; remove \"closed\""));
+            p.push(Problem::new(
+                format!("{path}.closed"),
+                "a point cannot be closed; remove \"closed\"",
+            ));
         }
         let mut previous_t: Option<f64> = None;
         for (k, key) in feature.keys.iter().enumerate() {
@@ -110,7 +130,10 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
             if !key.t.is_finite() {
                 p.push(Problem::new(
                     format!("{key_path}.t"),
-                    format!("the key time must be a finite number of seconds, found {}", key.t),
+                    format!(
+                        "the key time must be a finite number of seconds, found {}",
+                        key.t
+                    ),
                 ));
             } else if let Some(before) = previous_t {
                 if key.t == before {
@@ -163,7 +186,10 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
     for (j, layer) in doc.layers.iter().enumerate() {
         let path = format!("layers[{j}]");
         if layer.name.trim().is_empty() {
-            p.push(Problem::new(format!("{path}.name"), "a layer needs a non-empty name"));
+            p.push(Problem::new(
+                format!("{path}.name"),
+                "a layer needs a non-empty name",
+            ));
         } else if let Some(&first) = first_with_name.get(layer.name.as_str()) {
             p.push(Problem::new(
                 format!("{path}.name"),
@@ -183,7 +209,11 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                 ));
             }
         }
-        for (key, reference) in [("image", &layer.image), ("alpha", &layer.alpha), ("continuity", &layer.continuity)] {
+        for (key, reference) in [
+            ("image", &layer.image),
+            ("alpha", &layer.alpha),
+            ("continuity", &layer.continuity),
+        ] {
             if let Some(reference) = reference {
                 if reference.trim().is_empty() {
                     p.push(Problem::new(
@@ -203,8 +233,12 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                     let hint = did_you_mean(id, doc.features.iter().map(|f| f.id.as_str()))
                         .map(|s| format!("did you mean \"{s}\"? "))
                         .unwrap_or_default();
-                    let known: Vec<&str> =
-                        doc.features.iter().map(|f| f.id.as_str()).chain(other_ids.iter().map(String::as_str)).collect();
+                    let known: Vec<&str> = doc
+                        .features
+                        .iter()
+                        .map(|f| f.id.as_str())
+                        .chain(other_ids.iter().map(String::as_str))
+                        .collect();
                     let known = if known.is_empty() {
                         "the scene has no features".to_string()
                     } else {
@@ -217,7 +251,9 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                 } else if let Some(&first) = seen.get(id.as_str()) {
                     p.push(Problem::new(
                         id_path,
-                        format!("\"{id}\" is listed twice (also at features[{first}]); list it once"),
+                        format!(
+                            "\"{id}\" is listed twice (also at features[{first}]); list it once"
+                        ),
                     ));
                 } else {
                     seen.insert(id, k);
@@ -275,7 +311,9 @@ fn check_overrides(solver: &SolverOverrides, path: &str, p: &mut Vec<Problem>) {
         if !(tension.is_finite() && tension >= 0.0) {
             p.push(Problem::new(
                 format!("{path}.tension"),
-                format!("the tension must be a number ≥ 0, found {tension}; 0 is a pure thin plate"),
+                format!(
+                    "the tension must be a number ≥ 0, found {tension}; 0 is a pure thin plate"
+                ),
             ));
         }
     }
