@@ -7,6 +7,7 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 from inkwarp._inkwarp import __version__
 from inkwarp.drawing import sample
 from inkwarp.errors import InkwarpError, SceneError
+from inkwarp.imaging import warp_image
 from inkwarp.scene import Frames, Scene, image_data_uri, scene_schema, validate_scene
 
 __all__ = [
@@ -19,4 +20,5 @@ __all__ = [
     "sample",
     "scene_schema",
     "validate_scene",
+    "warp_image",
 ]

@@ -61,3 +61,10 @@ class FrameIter:
 
 def scene_schema() -> str: ...
 def scene_problems(text: str, base_dir: str | None = None) -> list[tuple[str, str]]: ...
+
+# --- render (forward mapping) ---
+def warp_image(
+    image: npt.NDArray[np.uint8], field: npt.NDArray[np.float32], matte: npt.NDArray[np.uint8]
+) -> npt.NDArray[np.uint8]:
+    """Forward-map C-contiguous uint8 RGBA (H, W, 4) by float32 (H, W, 2) over uint8 matte
+    (H, W); see `inkwarp.warp_image` for the checked, documented entry point."""

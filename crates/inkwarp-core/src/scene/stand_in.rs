@@ -1,10 +1,11 @@
 //! The interfaces the scene engine uses from the other modules, in one place. Cuts on the
-//! grid, the solver and the renderer are minimal stand-ins with the same signatures until
-//! those modules land (the real `Grid::add_cut`, `solve::solve`, `render::Canvas`).
+//! grid and the solver are minimal stand-ins with the same signatures until those modules
+//! land (the real `Grid::add_cut` and `solve::solve`).
 #![allow(dead_code)]
 
 pub use crate::anim::{points_at, Interpolation, Key};
 pub use crate::geometry::{curve_polyline, FeatureSampler, SampleOptions};
+pub use crate::render::{Canvas, RgbaImage};
 
 use crate::field::Field;
 use crate::geometry::{Point, Sample};
@@ -174,76 +175,4 @@ pub fn solve(
         }
     }
     Ok((field, report))
-}
-
-// ---- render -----------------------------------------------------------------------------
-
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct RgbaImage {
-    pub width: usize,
-    pub height: usize,
-    pub data: Vec<u8>,
-}
-
-#[derive(Clone, Debug)]
-pub struct Canvas {
-    width: usize,
-    height: usize,
-    data: Vec<f32>,
-}
-
-impl Canvas {
-    pub fn new(width: usize, height: usize, background: [u8; 4]) -> Self {
-        let a = background[3] as f32 / 255.0;
-        let px = [
-            background[0] as f32 / 255.0 * a,
-            background[1] as f32 / 255.0 * a,
-            background[2] as f32 / 255.0 * a,
-            a,
-        ];
-        Canvas {
-            width,
-            height,
-            data: px.repeat(width * height),
-        }
-    }
-
-    /// Stand-in: splats every pixel to its nearest displaced position.
-    pub fn draw_layer(&mut self, image: &RgbaImage, field: &Field, grid: &Grid, offset: [f64; 2]) {
-        let _ = grid;
-        for y in 0..image.height {
-            for x in 0..image.width {
-                let i = y * image.width + x;
-                let tx = (x as f64 + field.dx[i] as f64 + offset[0]).round();
-                let ty = (y as f64 + field.dy[i] as f64 + offset[1]).round();
-                if tx < 0.0 || ty < 0.0 || tx >= self.width as f64 || ty >= self.height as f64 {
-                    continue;
-                }
-                let j = (ty as usize * self.width + tx as usize) * 4;
-                let s = &image.data[i * 4..i * 4 + 4];
-                let a = s[3] as f32 / 255.0;
-                for c in 0..3 {
-                    self.data[j + c] = s[c] as f32 / 255.0 * a + self.data[j + c] * (1.0 - a);
-                }
-                self.data[j + 3] = a + self.data[j + 3] * (1.0 - a);
-            }
-        }
-    }
-
-    pub fn to_rgba8(&self) -> RgbaImage {
-        let mut data = Vec::with_capacity(self.data.len());
-        for px in self.data.chunks_exact(4) {
-            let a = px[3];
-            for c in 0..3 {
-                let v = if a > 0.0 { px[c] / a } else { 0.0 };
-                data.push((v * 255.0).round().clamp(0.0, 255.0) as u8);
-            }
-            data.push((a * 255.0).round().clamp(0.0, 255.0) as u8);
-        }
-        RgbaImage {
-            width: self.width,
-            height: self.height,
-            data,
-        }
-    }
 }
