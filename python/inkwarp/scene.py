@@ -199,8 +199,8 @@ def validate_scene(source: str | os.PathLike[str] | Mapping[str, Any], base_dir:
 class Frames(Iterator[np.ndarray]):
     """The frames of a scene, in order, as RGBA uint8 arrays ``(H, W, 4)``.
 
-    Rendered by the engine on worker threads while you consume them (at most a few frames
-    ahead). ``len()`` gives the number of frames still to come; ``close()`` (or leaving a
+    Rendered by the engine while you consume them (on worker threads, at most a few frames
+    ahead, when more than one thread renders). ``len()`` gives the number of frames still to come; ``close()`` (or leaving a
     ``with`` block) stops the rendering early. :attr:`index` is the frame number of the
     frame last returned.
     """
@@ -444,8 +444,9 @@ class Scene:
         """Frames ``start`` to ``stop - 1``, each warm-started from the one before.
 
         Frames are solved in chains of 16 (frame numbers that are multiples of 16 start a
-        chain cold); chains render in parallel on ``threads`` threads (default: one per
-        core). The pixels do not depend on the number of threads.
+        chain cold); chains render in parallel on ``threads`` threads. The solver and the
+        renderer already use every core inside a frame, so the default is one thread per
+        four cores. The pixels do not depend on the number of threads.
 
         Parameters
         ----------

@@ -202,7 +202,7 @@ impl SceneCore {
         }
     }
 
-    /// Frames `start..stop`, warm-started, by up to `threads` threads (0: one per core).
+    /// Frames `start..stop`, warm-started, by up to `threads` threads (0: the default).
     #[pyo3(signature = (start, stop, threads=0, method=None))]
     fn frames(
         &self,
