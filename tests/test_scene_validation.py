@@ -166,3 +166,10 @@ def test_image_paths_are_relative_to_the_scene_file(tmp_path):
     file = tmp_path / "scenes" / "s.json"
     file.write_text(json.dumps(scene))
     assert inkwarp.Scene.load(file).layers == ["back", "front"]
+
+
+def test_a_byte_order_mark_is_fine(tmp_path):
+    file = write_scene(tmp_path)
+    file.write_bytes(b"\xef\xbb\xbf" + file.read_bytes())
+    assert inkwarp.Scene.load(file).frame_count == 40
+    assert inkwarp.validate_scene(file) == []

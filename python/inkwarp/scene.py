@@ -186,7 +186,7 @@ def validate_scene(source: str | os.PathLike[str] | Mapping[str, Any], base_dir:
     else:
         path = Path(source)
         try:
-            text = path.read_text(encoding="utf-8")
+            text = path.read_text(encoding="utf-8-sig")
         except FileNotFoundError:
             return [("", f"no such scene file: {path}")]
         except (OSError, UnicodeDecodeError) as err:
@@ -269,7 +269,7 @@ class Scene:
             When the scene has problems (all of them are listed).
         """
         file = os.fspath(path)
-        text = Path(file).read_text(encoding="utf-8")
+        text = Path(file).read_text(encoding="utf-8-sig")
         base_dir = os.fspath(Path(file).resolve().parent)
         core = _inkwarp.SceneCore.from_json(text, base_dir, file)
         return cls(core, file=file, base_dir=base_dir)
