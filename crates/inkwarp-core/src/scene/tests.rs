@@ -643,3 +643,64 @@ fn samples_come_grouped_by_feature_in_curve_order() {
         groups.iter().map(|g| g.samples.len()).sum::<usize>()
     );
 }
+
+/// The JSON pointer of a problem path such as `features[1].keys[0].t`.
+fn pointer_of(path: &str) -> String {
+    let mut out = String::new();
+    for part in path.split('.').filter(|p| !p.is_empty()) {
+        let mut pieces = part.split('[');
+        out.push('/');
+        out.push_str(pieces.next().unwrap());
+        for index in pieces {
+            out.push('/');
+            out.push_str(index.trim_end_matches(']'));
+        }
+    }
+    out
+}
+
+/// Every leaf of `value` as a JSON pointer.
+fn leaves(value: &Value, at: String, out: &mut Vec<String>) {
+    match value {
+        Value::Object(map) => map.iter().for_each(|(k, v)| leaves(v, format!("{at}/{k}"), out)),
+        Value::Array(items) => items.iter().enumerate().for_each(|(i, v)| leaves(v, format!("{at}/{i}"), out)),
+        _ => out.push(at),
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+
+    /// Whatever single value is broken, checking never panics, and every problem points
+    /// into the document: its path, or the object that misses the key, exists.
+    #[test]
+    fn problems_point_into_the_document(leaf in 0usize..1000, choice in 0usize..8, number in -1e6f64..1e6) {
+        let mut scene = valid_scene();
+        let mut all = Vec::new();
+        leaves(&scene, String::new(), &mut all);
+        let pointer = &all[leaf % all.len()];
+        let replacement = match choice {
+            0 => json!(number),
+            1 => json!(-1),
+            2 => json!("text"),
+            3 => json!(null),
+            4 => json!([]),
+            5 => json!({"x": 1}),
+            6 => json!(true),
+            _ => json!(0),
+        };
+        *scene.pointer_mut(pointer).unwrap() = replacement;
+        let mut loader = files(&valid_files());
+        if let Err(err) = Scene::from_json(&scene.to_string(), &mut loader) {
+            proptest::prop_assert!(!err.problems.is_empty());
+            for problem in &err.problems {
+                let full = pointer_of(&problem.path);
+                let parent = full.rsplit_once('/').map_or("", |(p, _)| p);
+                proptest::prop_assert!(
+                    scene.pointer(&full).is_some() || scene.pointer(parent).is_some(),
+                    "{} does not point into {}", problem, scene
+                );
+            }
+        }
+    }
+}
