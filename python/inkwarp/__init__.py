@@ -9,14 +9,20 @@ from inkwarp.drawing import sample
 from inkwarp.errors import InkwarpError, SceneError
 from inkwarp.imaging import warp_image
 from inkwarp.plate import SolveReport, thin_plate, thin_plate_report
+from inkwarp.scene import Frames, Scene, image_data_uri, scene_schema, validate_scene
 
 __all__ = [
+    "Frames",
     "InkwarpError",
+    "Scene",
     "SceneError",
     "SolveReport",
     "__version__",
+    "image_data_uri",
     "sample",
+    "scene_schema",
     "thin_plate",
     "thin_plate_report",
+    "validate_scene",
     "warp_image",
 ]
