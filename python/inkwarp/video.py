@@ -235,30 +235,31 @@ class PngWriter(FrameWriter):
 class PngSequenceWriter(FrameWriter):
     """Frames as ``frame_0000.png``, ``frame_0001.png``, ... in a directory.
 
-    The frames go into a fresh temporary directory beside the target. At the end that
-    directory becomes the target, or, when the target exists, its frames replace the
-    target's (and ``frame_*.png`` files left from a longer earlier render are removed, so
-    the directory holds exactly this render).
+    Files are numbered by frame, from ``first_frame``, so a range of an animation
+    (``--frames 24:48``) lands under its own numbers and several ranges can be rendered
+    into one directory. The frames go into a fresh temporary directory beside the target;
+    at the end that directory becomes the target, or, when the target exists, its frames
+    replace the target's files of the same names (other files are left as they are).
     """
 
-    def __init__(self, target: Path, fps: float) -> None:
+    def __init__(self, target: Path, fps: float, first_frame: int = 0) -> None:
         super().__init__(target, fps)
+        self.first_frame = first_frame
         parent = target.absolute().parent
         self._temp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".part",
                                            dir=parent))
 
+    def _name(self, i: int) -> str:
+        return FRAME_PATTERN.format(self.first_frame + i)
+
     def _write(self, frame: np.ndarray) -> None:
-        _save_png(frame, self._temp / FRAME_PATTERN.format(self.frames_written))
+        _save_png(frame, self._temp / self._name(self.frames_written))
 
     def _commit(self) -> list[Path]:
-        names = [FRAME_PATTERN.format(i) for i in range(self.frames_written)]
+        names = [self._name(i) for i in range(self.frames_written)]
         if not self.target.exists():
             os.replace(self._temp, self.target)
         else:
-            keep = set(names)
-            for old in self.target.glob("frame_*.png"):
-                if old.name not in keep:
-                    old.unlink()
             for name in names:
                 os.replace(self._temp / name, self.target / name)
             shutil.rmtree(self._temp, ignore_errors=True)
@@ -362,7 +363,7 @@ class Mp4Writer(FrameWriter):
 
 
 def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
-                kind: OutputKind | None = None) -> FrameWriter:
+                kind: OutputKind | None = None, first_frame: int = 0) -> FrameWriter:
     """The writer for ``path``: ``.png`` (one frame), a directory, ``.gif`` or ``.mp4``.
 
     Parameters
@@ -373,6 +374,8 @@ def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
         Frames per second (GIF and MP4 timing).
     kind : {"png", "dir", "gif", "mp4"}, optional
         Overrides the guess from the suffix (see :func:`output_kind`).
+    first_frame : int
+        For a directory: the number of the first frame's file.
 
     Returns
     -------
@@ -384,7 +387,7 @@ def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
     if kind == "png":
         return PngWriter(target, fps)
     if kind == "dir":
-        return PngSequenceWriter(target, fps)
+        return PngSequenceWriter(target, fps, first_frame)
     if kind == "gif":
         return GifWriter(target, fps)
     if kind == "mp4":

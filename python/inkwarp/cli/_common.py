@@ -134,6 +134,7 @@ def problem_parts(problem: object) -> tuple[str, str]:
 
 
 def prefixed(message: str, prefix: str | None) -> str:
-    if not prefix or message.startswith(prefix) or f"{prefix}:" in message:
+    """``prefix: message``, unless the message already starts that way."""
+    if not prefix or message.startswith(f"{prefix}: "):
         return message
     return f"{prefix}: {message}"

@@ -12,6 +12,7 @@ examples:
   inkwarp render scene.json -o anim.mp4              every frame, H.264
   inkwarp render scene.json -o anim.gif --frames 0:24
   inkwarp render scene.json -o frames/               frame_0000.png, frame_0001.png, ...
+  inkwarp render scene.json -o frames/ --frames 24:48  frame_0024.png ... frame_0047.png
   inkwarp render scene.json -o still.png --time 1.25
   inkwarp render scene.json -o still.png --frame 30 --method triangulation
 
@@ -81,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     count = stop - start
     frames = _common.progress(scene.frames(start=start, stop=stop), count, quiet=args.quiet,
                               desc=f"render {target.name or target}")
-    with video.open_writer(target, fps=scene.fps, kind=kind) as writer:
+    with video.open_writer(target, fps=scene.fps, kind=kind, first_frame=start) as writer:
         for frame in frames:
             writer.write(frame)
         if writer.frames_written != count:  # never half a clip under the full clip's name
