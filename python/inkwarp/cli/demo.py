@@ -23,7 +23,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     parser = subparsers.add_parser(
         "demo", help="render the still demo and the example animations",
-        description="Render the still demo and the example scenes as GIF and MP4, and print "
+        description="Render the still demo and the example scenes as GIF and MP4, and print\n"
                     "the path of every file written.",
         epilog=EPILOG, formatter_class=_common.formatter)
     parser.add_argument("-o", "--output", default="out", metavar="DIR",

@@ -27,7 +27,7 @@ shows it: hue is the direction, saturation the length, arrows the motion.
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "field", help="write a scene's displacement field at one time (.npy or .png)",
-        description="Write the displacement field that a scene's drawing makes at one time: "
+        description="Write the displacement field that a scene's drawing makes at one time:\n"
                     "float32 (H, W, 2) to a .npy, or a picture of it to a .png.",
         epilog=EPILOG, formatter_class=_common.formatter)
     _common.add_scene_argument(parser)

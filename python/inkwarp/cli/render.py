@@ -9,10 +9,10 @@ from inkwarp.cli import _common
 
 EPILOG = """\
 examples:
-  inkwarp render scene.json -o anim.mp4              every frame, H.264
-  inkwarp render scene.json -o anim.gif --frames 0:24
-  inkwarp render scene.json -o frames/               frame_0000.png, frame_0001.png, ...
-  inkwarp render scene.json -o frames/ --frames 24:48  frame_0024.png ... frame_0047.png
+  inkwarp render scene.json -o anim.mp4                 every frame, H.264
+  inkwarp render scene.json -o anim.gif --frames 0:24   frames 0 to 23
+  inkwarp render scene.json -o frames/                  frame_0000.png, frame_0001.png, ...
+  inkwarp render scene.json -o frames/ --frames 24:48   frame_0024.png to frame_0047.png
   inkwarp render scene.json -o still.png --time 1.25
   inkwarp render scene.json -o still.png --frame 30 --method triangulation
 
@@ -26,8 +26,8 @@ end, so a failed or interrupted render leaves nothing behind.
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "render", help="render a scene to a PNG, a PNG sequence, a GIF or an MP4",
-        description="Render a scene: one frame to a PNG, or its frames to a directory of "
-                    "PNGs, an animated GIF or an H.264 MP4.",
+        description="Render a scene: one frame to a PNG, or its frames to a directory of PNGs,\n"
+                    "an animated GIF or an H.264 MP4.",
         epilog=EPILOG, formatter_class=_common.formatter)
     _common.add_scene_argument(parser)
     parser.add_argument("-o", "--output", required=True, metavar="OUT",

@@ -15,8 +15,8 @@ examples:
   inkwarp validate scene.json
 
 On success it prints one line, such as
-  ok: scene.json: 384x384, 2 layers (eyes, face), 12 features (1 point, 11 spline),
-  60 frames at 24 fps (2.5 s)
+  ok: scene.json: 384x384, 2 layers (eyes, face), 15 features (2 point, 3 polyline,
+  10 spline), 60 frames at 24 fps (2.5 s)
 and exits 0. Otherwise it prints each problem as FILE: JSON.PATH: what is wrong and how
 to fix it, then the count, and exits 2.
 """
@@ -25,9 +25,9 @@ to fix it, then the count, and exits 2.
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "validate", help="check a scene: list every problem, or print a summary",
-        description="Check a scene file: print every problem with its JSON path and the "
-                    "fix (exit 2), or 'ok' with a summary of its layers, features and "
-                    "frames (exit 0).",
+        description="Check a scene file: print every problem with its JSON path and the fix\n"
+                    "(exit 2), or 'ok' with a summary of its layers, features and frames\n"
+                    "(exit 0).",
         epilog=EPILOG, formatter_class=_common.formatter)
     _common.add_scene_argument(parser)
     parser.set_defaults(func=run)
