@@ -233,3 +233,26 @@ def test_the_installed_command_exits_2_without_a_traceback(tmp_path):
 def test_no_command_prints_help_and_exits_2(capsys):
     assert main([]) == 2
     assert "usage: inkwarp" in capsys.readouterr().err
+
+
+def test_sigterm_mid_render_leaves_nothing_behind(tmp_path):
+    import signal
+    import time
+
+    from _cli_scenes import square_doc
+
+    doc = square_doc()
+    doc["duration"] = 500.0  # 2000 frames: far more than the time it takes to stop it
+    scene = write_scene(tmp_path / "s", doc)
+    out = tmp_path / "frames"
+    process = subprocess.Popen([sys.executable, "-m", "inkwarp.cli", "render", str(scene),
+                                "-o", str(out), "-q"], stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not leftovers(tmp_path) and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(0.2)  # a few frames in
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 128 + signal.SIGTERM, stderr
+    assert stderr.strip().endswith("inkwarp render: terminated")
+    assert sorted(os.listdir(tmp_path)) == ["s"]

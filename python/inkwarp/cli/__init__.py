@@ -8,8 +8,11 @@ clear message, no traceback), 1 internal error.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
+import threading
 import traceback
 
 from inkwarp.cli._common import prefixed, problem_parts
@@ -72,6 +75,28 @@ def error_message(err: BaseException) -> str:
     return " ".join(str(err).split()) or type(err).__name__
 
 
+class Terminated(BaseException):
+    """SIGTERM, raised where the program is, so that writers delete their partial output."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated
+
+
+@contextlib.contextmanager
+def _sigterm_unwinds():
+    """While a command runs, SIGTERM unwinds the stack like Ctrl-C does (the default
+    action would kill the process with its temporary files in place)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -79,7 +104,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     try:
-        return int(args.func(args) or 0)
+        with _sigterm_unwinds():
+            return int(args.func(args) or 0)
     except (InkwarpError, ValueError, FileNotFoundError, PermissionError, IsADirectoryError,
             NotADirectoryError) as err:
         print(f"inkwarp {args.command}: error: {error_message(err)}", file=sys.stderr)
@@ -87,6 +113,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"inkwarp {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Terminated:
+        print(f"inkwarp {args.command}: terminated", file=sys.stderr)
+        return 128 + signal.SIGTERM
     except OSError as err:
         # Not the user's input and not a bug: a full disk, a broken pipe, ffmpeg dying.
         print(f"inkwarp {args.command}: error: {error_message(err)}", file=sys.stderr)
