@@ -38,8 +38,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     when.add_argument("--frame", type=int, metavar="N",
                       help="the frame number (from 0), instead of --time")
     parser.add_argument("--layer", metavar="NAME",
-                        help="the layer whose field to write (default: the scene's drawing "
-                             "as a whole, with every feature)")
+                        help="the layer whose field to write (each layer has its own; needed "
+                             "when the scene has more than one)")
     _common.add_method_argument(parser)
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     parser.set_defaults(func=run)
