@@ -205,3 +205,19 @@ def test_version(capsys):
         main(["--version"])
     assert stop.value.code == 0
     assert capsys.readouterr().out.strip() == f"inkwarp {inkwarp.__version__}"
+
+
+@pytest.mark.parametrize("output", ["x.png", "x.gif", "x.mp4", "frames", "f.npy"])
+def test_outputs_get_the_permissions_of_any_new_file(capsys, scene, tmp_path, output):
+    import os
+    import stat
+
+    old = os.umask(0o022)
+    try:
+        command = "field" if output.endswith(".npy") else "render"
+        extra = ["--time", "0.5"] if command == "field" else []
+        assert run(capsys, command, scene, "-o", tmp_path / output, "-q", *extra)[0] == 0
+    finally:
+        os.umask(old)
+    mode = stat.S_IMODE((tmp_path / output).stat().st_mode)
+    assert mode == (0o755 if output == "frames" else 0o644), oct(mode)

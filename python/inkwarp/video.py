@@ -26,8 +26,8 @@ Examples
 from __future__ import annotations
 
 import os
+import secrets
 import shutil
-import tempfile
 from pathlib import Path
 from types import TracebackType
 from typing import Literal
@@ -124,10 +124,50 @@ def _as_frame(frame: np.ndarray) -> np.ndarray:
 
 
 def _temp_name(target: Path, suffix: str) -> Path:
-    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{suffix}",
-                                dir=target.absolute().parent)
-    os.close(fd)
-    return Path(name)
+    """A new empty file beside ``target``, created with the permissions of any new file
+    (0o666 less the umask: mkstemp's 0o600 would survive the rename)."""
+    parent = target.absolute().parent
+    while True:
+        name = parent / f".{target.name}.{secrets.token_hex(6)}.part{suffix}"
+        try:
+            os.close(os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return name
+        except FileExistsError:
+            continue
+
+
+def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically: under a temporary name beside it, renamed at
+    the end, so ``path`` is either complete or as it was.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> target = os.path.join(tempfile.mkdtemp(), "notes.txt")
+    >>> write_bytes(target, b"hello").read_bytes()
+    b'hello'
+    """
+    target = Path(os.fspath(path))
+    temp = _temp_name(target, "")
+    try:
+        temp.write_bytes(data)
+        os.replace(temp, target)
+    except BaseException:
+        temp.unlink(missing_ok=True)
+        raise
+    return target
+
+
+def _temp_dir(target: Path) -> Path:
+    """A new empty directory beside ``target`` (0o777 less the umask)."""
+    parent = target.absolute().parent
+    while True:
+        name = parent / f".{target.name}.{secrets.token_hex(6)}.part"
+        try:
+            os.mkdir(name, 0o777)
+            return name
+        except FileExistsError:
+            continue
 
 
 class FrameWriter:
@@ -209,27 +249,29 @@ def _save_png(frame: np.ndarray, path: Path | str) -> None:
 
 
 class PngWriter(FrameWriter):
-    """Exactly one frame to one PNG file (RGBA, straight alpha)."""
+    """Exactly one frame to one PNG file (RGBA, straight alpha), written atomically by
+    :func:`inkwarp.imaging.write_png`."""
 
     def __init__(self, target: Path, fps: float = 24.0) -> None:
         super().__init__(target, fps)
-        self._temp: Path | None = None
+        self._frame: np.ndarray | None = None
 
     def _write(self, frame: np.ndarray) -> None:
         if self.frames_written:
             raise ValueError(f"{self.target}: a .png holds one frame; write a .gif, an .mp4 or "
                              "a directory for more")
-        self._temp = _temp_name(self.target, ".png")
-        _save_png(frame, self._temp)
+        self._frame = frame
 
     def _commit(self) -> list[Path]:
-        assert self._temp is not None
-        os.replace(self._temp, self.target)
+        from inkwarp.imaging import write_png
+
+        assert self._frame is not None
+        write_png(self.target, self._frame)
+        self._frame = None
         return [self.target]
 
     def _discard(self) -> None:
-        if self._temp is not None:
-            self._temp.unlink(missing_ok=True)
+        self._frame = None
 
 
 class PngSequenceWriter(FrameWriter):
@@ -245,9 +287,7 @@ class PngSequenceWriter(FrameWriter):
     def __init__(self, target: Path, fps: float, first_frame: int = 0) -> None:
         super().__init__(target, fps)
         self.first_frame = first_frame
-        parent = target.absolute().parent
-        self._temp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".part",
-                                           dir=parent))
+        self._temp = _temp_dir(target)
 
     def _name(self, i: int) -> str:
         return FRAME_PATTERN.format(self.first_frame + i)

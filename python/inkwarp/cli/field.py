@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import os
-import tempfile
+import io
 import time
 from pathlib import Path
 
@@ -64,14 +63,9 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     field = np.asarray(scene.field(time=time_s, layer=args.layer), dtype=np.float32)
     if suffix == ".npy":
-        fd, temp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.save(fh, field)
-            os.replace(temp, target)
-        except BaseException:
-            Path(temp).unlink(missing_ok=True)
-            raise
+        buffer = io.BytesIO()
+        np.save(buffer, field)
+        video.write_bytes(target, buffer.getvalue())
     else:
         with video.open_writer(target, kind="png") as writer:
             writer.write(video.field_picture(field))

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import tempfile
 from pathlib import Path
 
 from inkwarp.cli import _common
@@ -41,13 +39,8 @@ def run(args: argparse.Namespace) -> int:
     parent = target.absolute().parent
     if not parent.is_dir():
         raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
-    fd, temp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(temp, target)
-    except BaseException:
-        Path(temp).unlink(missing_ok=True)
-        raise
+    from inkwarp import video
+
+    video.write_bytes(target, text.encode("utf-8"))
     print(f"wrote {target}")
     return 0
