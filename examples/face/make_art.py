@@ -85,11 +85,11 @@ def rotate(points, degrees, pivot=PIVOT):
 
 def lids(eye, blink=0.0):
     """(upper, lower) lid control points of one eye; ``blink`` 1 lays the upper lid on the
-    lower one (1.5 px above it, so the lash line rests on the lower lid)."""
+    lower one (just over its edge, so no sliver of the eye shows between them)."""
     cx, cy = eye
     upper = np.array([[-28, 2], [-15, -14], [0, -19], [15, -14], [28, 2]], float)
     lower = np.array([[-28, 2], [-13, 13], [0, 16], [13, 13], [28, 2]], float)
-    closed = lower + [0, -1.5]
+    closed = lower + [0, 2.0]  # two pixels past the lower lid's edge, so the lids overlap
     closed[[0, -1]] = upper[[0, -1]]
     upper = (1 - blink) * upper + blink * closed
     return upper + (cx, cy), lower + (cx, cy)
@@ -239,7 +239,10 @@ def _stroke(draw, points, width, fill=INK):
 
 
 def _finish(img):
-    return img.resize((SIZE, SIZE), Image.LANCZOS)
+    # The mean of each SS x SS block: exact coverage, no ringing. (A Lanczos filter would
+    # ring around the holes, leaving faint specks of alpha inside them, and every speck is
+    # surface that the continuity matte connects.)
+    return img.reduce(SS)
 
 
 def draw_face():
@@ -309,10 +312,16 @@ def draw_face():
     upper, lower = catmull_rom(rest["lip_upper"]), catmull_rom(rest["lip_lower"])
     _stroke(d, np.concatenate([upper, lower[::-1][1:]]), 6, fill=(120, 40, 40, 255))
     hd.polygon(_s(np.concatenate([upper, lower[::-1]])), fill=255)
-    rgba = np.array(img)
-    rgba[..., 3] = (rgba[..., 3].astype(np.int32) * (255 - np.asarray(holes, np.int32))
-                    // 255).astype(np.uint8)
-    return _finish(Image.fromarray(rgba))
+    face = np.array(_finish(img))
+    # The holes get a hard edge (a pixel is in a hole when most of it is): the renderer
+    # antialiases every edge of the surface as it draws, and a soft rim of half-transparent
+    # skin would let the eyes show through when the lid is stretched shut over it.
+    # The holes are also drawn a pixel and a half inside the traced lids and lips, so that
+    # the drawing lies on skin: a sample whose nearest pixel is in a hole constrains nothing.
+    holes = holes.filter(ImageFilter.MinFilter(2 * int(1.5 * SS) + 1))
+    hole = np.asarray(holes.reduce(SS)) >= 128
+    face[hole, 3] = 0
+    return Image.fromarray(face)
 
 
 def draw_eyes():
