@@ -172,8 +172,8 @@ class _Breaks:
     def __getattr__(self, name):
         return getattr(self._real, name)
 
-    def frames(self, start=0, stop=None):
-        for i, frame in enumerate(self._real.frames(start=start, stop=stop)):
+    def frames(self, start=0, stop=None, **options):
+        for i, frame in enumerate(self._real.frames(start=start, stop=stop, **options)):
             if i == self._good:
                 raise self._error
             yield frame

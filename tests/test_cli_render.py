@@ -180,22 +180,31 @@ def test_schema_prints_the_engines_schema(capsys, tmp_path):
     assert json.loads(out.read_text()) == inkwarp.scene_schema()
 
 
-def test_method_option_replaces_the_scenes_method(capsys, scene, tmp_path, monkeypatch):
+@pytest.mark.parametrize("args", [["-o", "m.png", "--frame", "1"], ["-o", "m.gif"],
+                                  ["-o", "m.npy", "--time", "0.5"]])
+def test_method_option_reaches_the_engine(capsys, scene, tmp_path, monkeypatch, args):
     import inkwarp
 
-    seen = {}
-    real = inkwarp.Scene.from_dict
+    seen = []
+    for name in ("render", "frames", "field"):
+        real = getattr(inkwarp.Scene, name)
 
-    def spy(doc, base_dir=None):
-        seen["method"] = doc["solver"]["method"]
-        seen["base_dir"] = base_dir
-        return real(doc, base_dir=base_dir)
+        def spy(self, *a, _real=real, **kw):
+            seen.append(kw.get("method"))
+            return _real(self, *a, **kw)
 
-    monkeypatch.setattr(inkwarp.Scene, "from_dict", spy)
-    code, _, _ = run(capsys, "render", scene, "-o", tmp_path / "m.png", "--method", "tps")
-    assert code == 0
-    assert seen == {"method": "tps", "base_dir": str(scene.parent)}
-    assert_square_at(read_png(tmp_path / "m.png"), 0)
+        monkeypatch.setattr(inkwarp.Scene, name, spy)
+    command = "field" if args[1].endswith(".npy") else "render"
+    args = [tmp_path / a if a.startswith("m.") else a for a in args]
+    code, _, _ = run(capsys, command, scene, *args, "--method", "tps", "-q")
+    assert code == 0 and seen == ["tps"]
+
+
+def test_an_unknown_method_is_a_usage_error(capsys, scene, tmp_path):
+    with pytest.raises(SystemExit) as stop:
+        main(["render", str(scene), "-o", str(tmp_path / "m.png"), "--method", "rbf"])
+    assert stop.value.code == 2
+    assert "invalid choice: 'rbf'" in capsys.readouterr().err
 
 
 def test_version(capsys):

@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
 from collections.abc import Iterable, Iterator
-from pathlib import Path
 from typing import Any
 
 #: The surfaces a drawing can drive (DESIGN §6); ``tps`` is the grid thin plate.
@@ -27,44 +25,23 @@ def add_scene_argument(parser: argparse.ArgumentParser) -> None:
 def add_method_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--method", choices=METHODS, metavar="METHOD",
-        help="the surface the drawing drives, overriding the scene's solver.method: "
+        help="the surface the drawing drives, instead of every layer's solver.method: "
              + ", ".join(METHODS) + " (default: the scene's, normally tps)")
 
 
-def load_scene(path: str, method: str | None = None) -> Any:
-    """``inkwarp.Scene`` from a file, with ``solver.method`` replaced when ``method`` is set.
+def load_scene(path: str) -> Any:
+    """``inkwarp.Scene`` from a file.
 
-    Raises the engine's errors unchanged (a :class:`~inkwarp.SceneError` names the file and
-    the JSON path); a missing file is a ``FileNotFoundError`` naming it.
+    The engine's errors pass through unchanged (a :class:`~inkwarp.SceneError` names the
+    file and the JSON path); a missing file is a ``FileNotFoundError`` naming it.
     """
     import inkwarp
-    from inkwarp.errors import SceneError
 
     if not os.path.exists(path):
         raise FileNotFoundError(2, "No such file or directory", path)
     if os.path.isdir(path):
         raise IsADirectoryError(21, "is a directory, not a scene file", path)
-    if method is None:
-        return inkwarp.Scene.load(path)
-    try:
-        with open(path, encoding="utf-8") as fh:
-            doc = json.load(fh)
-    except (OSError, ValueError):
-        return inkwarp.Scene.load(path)  # the engine reports a broken file best
-    if isinstance(doc, dict):
-        for owner in [doc, *[layer for layer in doc.get("layers") or []
-                             if isinstance(layer, dict)]]:
-            solver = owner.get("solver")
-            if owner is doc or isinstance(solver, dict):
-                solver = dict(solver) if isinstance(solver, dict) else {}
-                solver["method"] = method
-                owner["solver"] = solver
-    try:
-        return inkwarp.Scene.from_dict(doc, base_dir=str(Path(path).absolute().parent))
-    except SceneError as err:
-        if err.file is None:
-            err.file = path
-        raise
+    return inkwarp.Scene.load(path)
 
 
 def parse_frames(spec: str, frame_count: int) -> tuple[int, int]:

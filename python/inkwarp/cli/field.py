@@ -55,13 +55,14 @@ def run(args: argparse.Namespace) -> int:
     parent = target.absolute().parent
     if not parent.is_dir():
         raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
-    scene = _common.load_scene(args.scene, args.method)
+    scene = _common.load_scene(args.scene)
     if args.time is not None:
         time_s = _common.check_time(args.time)
     else:
         time_s = _common.check_frame(args.frame, scene.frame_count) / scene.fps
     started = time.perf_counter()
-    field = np.asarray(scene.field(time=time_s, layer=args.layer), dtype=np.float32)
+    field = np.asarray(scene.field(time=time_s, layer=args.layer, method=args.method),
+                       dtype=np.float32)
     if suffix == ".npy":
         buffer = io.BytesIO()
         np.save(buffer, field)

@@ -60,15 +60,15 @@ def run(args: argparse.Namespace) -> int:
     if args.time is not None:
         _common.check_time(args.time)
 
-    scene = _common.load_scene(args.scene, args.method)
+    scene = _common.load_scene(args.scene)
     started = time.perf_counter()
     if kind == "png":
         if args.time is not None:
-            frame = scene.render(time=args.time)
+            frame = scene.render(time=args.time, method=args.method)
             what = f"t = {args.time:g} s"
         else:
             index = _common.check_frame(args.frame or 0, scene.frame_count)
-            frame = scene.render(frame=index)
+            frame = scene.render(frame=index, method=args.method)
             what = f"frame {index}"
         with video.open_writer(target, fps=scene.fps, kind="png") as writer:
             writer.write(frame)
@@ -80,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
     start, stop = (_common.parse_frames(args.frames, scene.frame_count)
                    if args.frames is not None else (0, scene.frame_count))
     count = stop - start
-    frames = _common.progress(scene.frames(start=start, stop=stop), count, quiet=args.quiet,
+    frames = _common.progress(scene.frames(start=start, stop=stop, method=args.method), count,
+                              quiet=args.quiet,
                               desc=f"render {target.name or target}")
     with video.open_writer(target, fps=scene.fps, kind=kind, first_frame=start) as writer:
         for frame in frames:
