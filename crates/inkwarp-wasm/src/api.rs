@@ -2,9 +2,9 @@
 
 use std::cell::RefCell;
 
-use inkwarp_core::geometry::{curve_polyline, sample_feature, SampleOptions};
-use inkwarp_core::render::{Canvas, RgbaImage};
-use inkwarp_core::solve::{solve, SolveMethod, SolveOptions};
+use crate::stand_in::{curve_polyline, sample_feature, SampleOptions};
+use crate::stand_in::{Canvas, RgbaImage};
+use crate::stand_in::{solve, SolveMethod, SolveOptions};
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
 use serde::Deserialize;
 
@@ -71,7 +71,7 @@ pub extern "C" fn iw_grid_new(
             }
         };
         for cut in &cuts {
-            grid.add_cut(cut);
+            crate::stand_in::add_cut(&mut grid, cut);
         }
     }
     GRIDS.with(|g| insert(&mut g.borrow_mut(), grid))
