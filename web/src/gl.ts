@@ -16,46 +16,24 @@ import type { FieldData } from './engine';
 const VERT = `#version 300 es
 precision highp float;
 precision highp int;
-precision highp usampler2D;
 uniform highp sampler2D uField;
-uniform usampler2D uLinks;
 uniform ivec2 uSize;
 uniform vec2 uCanvas;
 uniform vec2 uOffset;
-out vec2 vUV;
-flat out ivec2 vQuad;
+out vec2 vRest;
 
-const ivec2 CORNERS[6] = ivec2[6](ivec2(0, 0), ivec2(1, 0), ivec2(0, 1), ivec2(0, 1), ivec2(1, 0), ivec2(1, 1));
-
-uint links(int i, int j) {
-  return texelFetch(uLinks, ivec2(clamp(i, 0, uSize.x - 1), clamp(j, 0, uSize.y - 1)), 0).r;
-}
-// Links of the extended mesh: the half-pixel skirt beyond the border is joined to its
-// border node whenever that node is active.
-bool linkRight(int i, int j) {
-  uint l = links(i, j);
-  return (i < 0 || i >= uSize.x - 1) ? (l & 1u) != 0u : (l & 2u) != 0u;
-}
-bool linkDown(int i, int j) {
-  uint l = links(i, j);
-  return (j < 0 || j >= uSize.y - 1) ? (l & 1u) != 0u : (l & 4u) != 0u;
-}
-
+// Vertex k of the extended mesh: node (i, j) with i in [-1, W], j in [-1, H]; the nodes
+// beyond the border are the half-pixel skirt (rest position clamped to -0.5 / W - 0.5,
+// displacement and colour of the border node).
 void main() {
-  int cols = uSize.x + 1;
-  int qi = gl_InstanceID % cols - 1;
-  int qj = gl_InstanceID / cols - 1;
-  bool ok = linkRight(qi, qj) && linkRight(qi, qj + 1) && linkDown(qi, qj) && linkDown(qi + 1, qj);
-  ivec2 c = CORNERS[gl_VertexID];
-  int i = qi + c.x;
-  int j = qj + c.y;
-  vec2 base = vec2(clamp(float(i), -0.5, float(uSize.x) - 0.5), clamp(float(j), -0.5, float(uSize.y) - 0.5));
+  int cols = uSize.x + 2;
+  int i = gl_VertexID % cols - 1;
+  int j = gl_VertexID / cols - 1;
+  vec2 rest = vec2(clamp(float(i), -0.5, float(uSize.x) - 0.5), clamp(float(j), -0.5, float(uSize.y) - 0.5));
   vec2 d = texelFetch(uField, ivec2(clamp(i, 0, uSize.x - 1), clamp(j, 0, uSize.y - 1)), 0).rg;
-  vec2 p = base + d + uOffset;
-  vUV = vec2(c);
-  vQuad = ivec2(qi, qj);
-  gl_Position = ok ? vec4((p.x + 0.5) / uCanvas.x * 2.0 - 1.0, 1.0 - (p.y + 0.5) / uCanvas.y * 2.0, 0.0, 1.0)
-                   : vec4(2.0, 2.0, 2.0, 1.0);
+  vec2 p = rest + d + uOffset;
+  vRest = rest;
+  gl_Position = vec4((p.x + 0.5) / uCanvas.x * 2.0 - 1.0, 1.0 - (p.y + 0.5) / uCanvas.y * 2.0, 0.0, 1.0);
 }
 `;
 
@@ -65,8 +43,7 @@ precision highp int;
 uniform highp sampler2D uImage;
 uniform ivec2 uSize;
 uniform float uOpacity;
-in vec2 vUV;
-flat in ivec2 vQuad;
+in vec2 vRest;
 out vec4 outColor;
 
 vec4 px(int i, int j) {
@@ -74,10 +51,15 @@ vec4 px(int i, int j) {
   return vec4(c.rgb * c.a, c.a);
 }
 
+// The bilinear mix of the quad's four premultiplied pixels at this rest position.
 void main() {
-  vec4 top = mix(px(vQuad.x, vQuad.y), px(vQuad.x + 1, vQuad.y), vUV.x);
-  vec4 bottom = mix(px(vQuad.x, vQuad.y + 1), px(vQuad.x + 1, vQuad.y + 1), vUV.x);
-  outColor = mix(top, bottom, vUV.y) * uOpacity;
+  vec2 q = floor(vRest);
+  vec2 f = vRest - q;
+  int i = int(q.x);
+  int j = int(q.y);
+  vec4 top = mix(px(i, j), px(i + 1, j), f.x);
+  vec4 bottom = mix(px(i, j + 1), px(i + 1, j + 1), f.x);
+  outColor = mix(top, bottom, f.y) * uOpacity;
 }
 `;
 
@@ -111,7 +93,9 @@ function program(gl: WebGL2RenderingContext, vs: string, fs: string): WebGLProgr
 export class GlLayer {
   image: WebGLTexture;
   field: WebGLTexture;
-  links: WebGLTexture;
+  /** Indices of the triangles of every quad whose four links exist. */
+  indices: WebGLBuffer;
+  count = 0;
   constructor(
     private r: GlRenderer,
     readonly width: number,
@@ -120,11 +104,10 @@ export class GlLayer {
     const gl = r.gl;
     this.image = r.texture();
     this.field = r.texture();
-    this.links = r.texture();
+    this.indices = gl.createBuffer()!;
     gl.bindTexture(gl.TEXTURE_2D, this.field);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RG32F, width, height, 0, gl.RG, gl.FLOAT, new Float32Array(2 * width * height));
-    gl.bindTexture(gl.TEXTURE_2D, this.links);
-    gl.texImage2D(gl.TEXTURE_2D, 0, gl.R8UI, width, height, 0, gl.RED_INTEGER, gl.UNSIGNED_BYTE, new Uint8Array(width * height).fill(7));
+    this.setLinks(null);
   }
 
   /** Straight RGBA8 pixels of the layer. */
@@ -135,12 +118,36 @@ export class GlLayer {
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.width, this.height, 0, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(rgba.buffer, rgba.byteOffset, rgba.byteLength));
   }
 
-  /** Per node: bit 0 active, bit 1 linked right, bit 2 linked down. */
-  setLinks(links: Uint8Array): void {
+  /**
+   * The mesh from the grid's links (per node: bit 0 active, bit 1 linked right, bit 2
+   * linked down; null: everything linked). A quad is drawn when its four edges are links;
+   * the skirt beyond the border joins a border node to itself, linked when it is active.
+   */
+  setLinks(links: Uint8Array | null): void {
+    const { width: w, height: h } = this;
+    const at = (i: number, j: number) => (links ? links[Math.min(h - 1, Math.max(0, j)) * w + Math.min(w - 1, Math.max(0, i))] : 7);
+    const right = (i: number, j: number) => ((i < 0 || i >= w - 1 ? at(i, j) & 1 : at(i, j) & 2) !== 0);
+    const down = (i: number, j: number) => ((j < 0 || j >= h - 1 ? at(i, j) & 1 : at(i, j) & 4) !== 0);
+    const cols = w + 2;
+    const out = new Uint32Array(6 * (w + 1) * (h + 1));
+    let n = 0;
+    for (let j = -1; j < h; j++) {
+      for (let i = -1; i < w; i++) {
+        if (!(right(i, j) && right(i, j + 1) && down(i, j) && down(i + 1, j))) continue;
+        const k = (j + 1) * cols + (i + 1);
+        out[n++] = k;
+        out[n++] = k + 1;
+        out[n++] = k + cols;
+        out[n++] = k + cols;
+        out[n++] = k + 1;
+        out[n++] = k + cols + 1;
+      }
+    }
     const gl = this.r.gl;
-    gl.bindTexture(gl.TEXTURE_2D, this.links);
-    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
-    gl.texImage2D(gl.TEXTURE_2D, 0, gl.R8UI, this.width, this.height, 0, gl.RED_INTEGER, gl.UNSIGNED_BYTE, links);
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.indices);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, out.subarray(0, n), gl.STATIC_DRAW);
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, null);
+    this.count = n;
   }
 
   setField(field: FieldData | null): void {
@@ -161,7 +168,7 @@ export class GlLayer {
     const gl = this.r.gl;
     gl.deleteTexture(this.image);
     gl.deleteTexture(this.field);
-    gl.deleteTexture(this.links);
+    gl.deleteBuffer(this.indices);
   }
 }
 
@@ -256,21 +263,20 @@ void main() { o = texture(uTex, vPos); }`);
     gl.bindVertexArray(this.vao);
     const u = (n: string) => gl.getUniformLocation(this.mesh, n);
     gl.uniform1i(u('uField'), 0);
-    gl.uniform1i(u('uLinks'), 1);
     gl.uniform1i(u('uImage'), 2);
     gl.uniform2f(u('uCanvas'), width, height);
     for (const { layer, offset, opacity } of layers) {
       gl.activeTexture(gl.TEXTURE0);
       gl.bindTexture(gl.TEXTURE_2D, layer.field);
-      gl.activeTexture(gl.TEXTURE1);
-      gl.bindTexture(gl.TEXTURE_2D, layer.links);
       gl.activeTexture(gl.TEXTURE2);
       gl.bindTexture(gl.TEXTURE_2D, layer.image);
       gl.uniform2i(u('uSize'), layer.width, layer.height);
       gl.uniform2f(u('uOffset'), offset[0], offset[1]);
       gl.uniform1f(u('uOpacity'), opacity ?? 1);
-      gl.drawArraysInstanced(gl.TRIANGLES, 0, 6, (layer.width + 1) * (layer.height + 1));
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, layer.indices);
+      gl.drawElements(gl.TRIANGLES, layer.count, gl.UNSIGNED_INT, 0);
     }
+    gl.bindVertexArray(null);
     gl.disable(gl.BLEND);
     // Resolve the samples, then show the frame on the canvas.
     gl.bindFramebuffer(gl.READ_FRAMEBUFFER, this.msaaFbo);
