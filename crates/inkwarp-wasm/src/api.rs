@@ -2,7 +2,7 @@
 
 use std::cell::RefCell;
 
-use crate::stand_in::{curve_polyline, sample_feature, SampleOptions};
+use inkwarp_core::geometry::{curve_polyline, sample_feature, SampleOptions};
 use crate::stand_in::{Canvas, RgbaImage};
 use crate::stand_in::{solve, SolveMethod, SolveOptions};
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
