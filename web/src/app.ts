@@ -194,7 +194,7 @@ export class App {
       .then((links) => {
         if (gen !== rt.gridGen) return;
         rt.links = links;
-        rt.gl?.setLinks(links);
+        rt.gl?.setMesh(links, rt.rgba?.data ?? null);
         rt.gridReady = true;
         this.requestSolve('final');
         this.invalidate();

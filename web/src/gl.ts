@@ -1,18 +1,26 @@
-// The WebGL2 renderer: the paper's forward mapping on the GPU (DESIGN §5).
+// The WebGL2 renderer: the paper's forward mapping on the GPU (DESIGN §5), following the
+// CPU reference renderer (inkwarp-core `render`) element for element.
 //
-// Every pixel of a layer is a vertex of a mesh placed at its displaced position (read in the
-// vertex shader from a float texture holding the field); every 2×2 block of linked pixels is
-// a quad whose colour is the bilinear mix of its four pixels' premultiplied RGBA; a quad
-// with a missing link is dropped (moved outside the clip volume), so holes and cuts open.
-// The mesh is extended by half a pixel beyond the layer's border with the border pixels'
-// colour and displacement ("clamp to edge"), so the identity field covers every pixel fully.
-// Quads are drawn row by row, top to bottom, left to right; where the mesh folds over
-// itself a later quad is composited over an earlier one. Layers are composited back to
-// front with premultiplied "over" into a multisampled target (coverage antialiasing), which
-// is resolved into the canvas.
+// Every pixel of a layer is a vertex placed at its displaced position (the vertex shader
+// reads the field from a float texture). A block of four pixels joined by all four links
+// is a quad, coloured by the bilinear mix of its pixels' premultiplied RGBA; in any other
+// block (the border, a cut, a hole) each drawn pixel owns a skirt quarter, so the identity
+// field covers every pixel exactly and the two sides of a missing link separate when the
+// field pulls them apart. Quads are drawn block row by block row, top to bottom, left to
+// right, so where the mesh folds the part from further down the rest image is in front.
+// Layers are composited back to front with premultiplied "over" into a 4× multisampled
+// target (coverage antialiasing), resolved into the canvas.
+//
+// Where it differs from the CPU renderer (stated tolerances in the browser test): each
+// quad is drawn as two triangles (affine, not the exact inverse bilinear map), coverage is
+// four samples rather than exact area, and a skirt's centre point is the parallelogram
+// completion from its own pixel.
 
 import type { FieldData } from './engine';
 
+// Quads: vertex k is pixel (k % W, k / W); the index buffer lists the two triangles of
+// every block whose four links exist, each triangle's last (provoking) vertex being the
+// block's top-left pixel, so the fragment shader knows its block.
 const VERT = `#version 300 es
 precision highp float;
 precision highp int;
@@ -21,19 +29,61 @@ uniform ivec2 uSize;
 uniform vec2 uCanvas;
 uniform vec2 uOffset;
 out vec2 vRest;
+flat out vec4 vClamp;
 
-// Vertex k of the extended mesh: node (i, j) with i in [-1, W], j in [-1, H]; the nodes
-// beyond the border are the half-pixel skirt (rest position clamped to -0.5 / W - 0.5,
-// displacement and colour of the border node).
 void main() {
-  int cols = uSize.x + 2;
-  int i = gl_VertexID % cols - 1;
-  int j = gl_VertexID / cols - 1;
-  vec2 rest = vec2(clamp(float(i), -0.5, float(uSize.x) - 0.5), clamp(float(j), -0.5, float(uSize.y) - 0.5));
-  vec2 d = texelFetch(uField, ivec2(clamp(i, 0, uSize.x - 1), clamp(j, 0, uSize.y - 1)), 0).rg;
-  vec2 p = rest + d + uOffset;
+  ivec2 p = ivec2(gl_VertexID % uSize.x, gl_VertexID / uSize.x);
+  vec2 rest = vec2(p);
+  vec2 d = texelFetch(uField, p, 0).rg;
+  vec2 q = rest + d + uOffset;
   vRest = rest;
-  gl_Position = vec4((p.x + 0.5) / uCanvas.x * 2.0 - 1.0, 1.0 - (p.y + 0.5) / uCanvas.y * 2.0, 0.0, 1.0);
+  vClamp = vec4(rest, rest + 1.0);
+  gl_Position = vec4((q.x + 0.5) / uCanvas.x * 2.0 - 1.0, 1.0 - (q.y + 0.5) / uCanvas.y * 2.0, 0.0, 1.0);
+}
+`;
+
+// Skirt quarters: in a block that is not a whole quad, each drawn pixel owns the quarter
+// of the block nearest to it: the pixel, the points half way to its horizontal and vertical
+// neighbours (the link's midpoint where linked, otherwise half a pixel along the pixel's
+// displaced frame), and their parallelogram completion. Colour blends only along links.
+const SKIRT_VERT = `#version 300 es
+precision highp float;
+precision highp int;
+precision highp usampler2D;
+uniform highp sampler2D uField;
+uniform usampler2D uLinks;
+uniform ivec2 uSize;
+uniform vec2 uCanvas;
+uniform vec2 uOffset;
+in vec4 aQuarter;   // pixel x, y, and the block's side sx, sy (±1)
+in vec2 aCorner;    // (0|1, 0|1) along x and y
+out vec2 vRest;
+flat out vec4 vClamp;
+
+vec2 pos(ivec2 p) { return vec2(p) + texelFetch(uField, p, 0).rg; }
+uint links(ivec2 p) { return texelFetch(uLinks, p, 0).r; }
+bool right(ivec2 p) { return p.x >= 0 && p.x < uSize.x - 1 && (links(p) & 2u) != 0u; }
+bool down(ivec2 p) { return p.y >= 0 && p.y < uSize.y - 1 && (links(p) & 4u) != 0u; }
+
+void main() {
+  ivec2 p = ivec2(aQuarter.xy);
+  float sx = aQuarter.z;
+  float sy = aQuarter.w;
+  vec2 P = pos(p);
+  bool rx = right(p), lx = right(p - ivec2(1, 0));
+  bool dy = down(p), uy = down(p - ivec2(0, 1));
+  vec2 ex = rx ? pos(p + ivec2(1, 0)) - P : lx ? P - pos(p - ivec2(1, 0)) : vec2(0.0);
+  vec2 ey = dy ? pos(p + ivec2(0, 1)) - P : uy ? P - pos(p - ivec2(0, 1)) : vec2(0.0);
+  if (ex == vec2(0.0)) ex = ey == vec2(0.0) ? vec2(1.0, 0.0) : vec2(ey.y, -ey.x);
+  if (ey == vec2(0.0)) ey = vec2(-ex.y, ex.x);
+  vec2 q = P + 0.5 * (aCorner.x * sx * ex + aCorner.y * sy * ey) + uOffset;
+  bool linkX = sx > 0.0 ? rx : lx;
+  bool linkY = sy > 0.0 ? dy : uy;
+  vec2 rest = vec2(p);
+  vec2 far = rest + 0.5 * vec2(linkX ? sx : 0.0, linkY ? sy : 0.0);
+  vRest = rest + 0.5 * vec2(aCorner.x * (linkX ? sx : 0.0), aCorner.y * (linkY ? sy : 0.0));
+  vClamp = vec4(min(rest, far), max(rest, far));
+  gl_Position = vec4((q.x + 0.5) / uCanvas.x * 2.0 - 1.0, 1.0 - (q.y + 0.5) / uCanvas.y * 2.0, 0.0, 1.0);
 }
 `;
 
@@ -44,6 +94,7 @@ uniform highp sampler2D uImage;
 uniform ivec2 uSize;
 uniform float uOpacity;
 in vec2 vRest;
+flat in vec4 vClamp;
 out vec4 outColor;
 
 vec4 px(int i, int j) {
@@ -51,10 +102,12 @@ vec4 px(int i, int j) {
   return vec4(c.rgb * c.a, c.a);
 }
 
-// The bilinear mix of the quad's four premultiplied pixels at this rest position.
+// The bilinear mix of the block's premultiplied pixels at this rest position (clamped to
+// the element, as a pixel centre just outside an edge takes the edge's colour).
 void main() {
-  vec2 q = floor(vRest);
-  vec2 f = vRest - q;
+  vec2 r = clamp(vRest, vClamp.xy, vClamp.zw);
+  vec2 q = min(floor(r), vec2(uSize - 1));
+  vec2 f = r - q;
   int i = int(q.x);
   int j = int(q.y);
   vec4 top = mix(px(i, j), px(i + 1, j), f.x);
@@ -80,8 +133,9 @@ function compile(gl: WebGL2RenderingContext, type: number, src: string): WebGLSh
   return s;
 }
 
-function program(gl: WebGL2RenderingContext, vs: string, fs: string): WebGLProgram {
+function program(gl: WebGL2RenderingContext, vs: string, fs: string, attributes: string[] = []): WebGLProgram {
   const p = gl.createProgram()!;
+  attributes.forEach((a, i) => gl.bindAttribLocation(p, i, a));
   gl.attachShader(p, compile(gl, gl.VERTEX_SHADER, vs));
   gl.attachShader(p, compile(gl, gl.FRAGMENT_SHADER, fs));
   gl.linkProgram(p);
@@ -96,6 +150,11 @@ export class GlLayer {
   /** Indices of the triangles of every quad whose four links exist. */
   indices: WebGLBuffer;
   count = 0;
+  links: WebGLTexture;
+  /** The skirt quarters: 6 vertices each of (x, y, sx, sy, u, v). */
+  skirts: WebGLBuffer;
+  skirtVao: WebGLVertexArrayObject;
+  skirtCount = 0;
   constructor(
     private r: GlRenderer,
     readonly width: number,
@@ -105,9 +164,20 @@ export class GlLayer {
     this.image = r.texture();
     this.field = r.texture();
     this.indices = gl.createBuffer()!;
+    this.links = r.texture();
+    this.skirts = gl.createBuffer()!;
+    this.skirtVao = gl.createVertexArray()!;
+    gl.bindVertexArray(this.skirtVao);
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.skirts);
+    gl.enableVertexAttribArray(0);
+    gl.vertexAttribPointer(0, 4, gl.FLOAT, false, 24, 0);
+    gl.enableVertexAttribArray(1);
+    gl.vertexAttribPointer(1, 2, gl.FLOAT, false, 24, 16);
+    gl.bindVertexArray(null);
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
     gl.bindTexture(gl.TEXTURE_2D, this.field);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RG32F, width, height, 0, gl.RG, gl.FLOAT, new Float32Array(2 * width * height));
-    this.setLinks(null);
+    this.setMesh(null, null);
   }
 
   /** Straight RGBA8 pixels of the layer. */
@@ -120,34 +190,47 @@ export class GlLayer {
 
   /**
    * The mesh from the grid's links (per node: bit 0 active, bit 1 linked right, bit 2
-   * linked down; null: everything linked). A quad is drawn when its four edges are links;
-   * the skirt beyond the border joins a border node to itself, linked when it is active.
+   * linked down; null: everything linked) and the layer's alpha (a pixel is drawn when it
+   * is active or visible). A block whose four links exist is a quad; in any other block
+   * (at the border, along a cut, around a hole) each drawn pixel gets its skirt quarter.
    */
-  setLinks(links: Uint8Array | null): void {
+  setMesh(links: Uint8Array | null, rgba: Uint8Array | null): void {
     const { width: w, height: h } = this;
-    const at = (i: number, j: number) => (links ? links[Math.min(h - 1, Math.max(0, j)) * w + Math.min(w - 1, Math.max(0, i))] : 7);
-    const right = (i: number, j: number) => ((i < 0 || i >= w - 1 ? at(i, j) & 1 : at(i, j) & 2) !== 0);
-    const down = (i: number, j: number) => ((j < 0 || j >= h - 1 ? at(i, j) & 1 : at(i, j) & 4) !== 0);
-    const cols = w + 2;
-    const out = new Uint32Array(6 * (w + 1) * (h + 1));
+    const at = (i: number, j: number) => (links ? links[j * w + i] : i + 1 < w ? (j + 1 < h ? 7 : 3) : j + 1 < h ? 5 : 1);
+    const drawn = (i: number, j: number) => i >= 0 && j >= 0 && i < w && j < h && ((at(i, j) & 1) !== 0 || (rgba !== null && rgba[4 * (j * w + i) + 3] > 0));
+    const quads = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
+    const skirts: number[] = [];
     let n = 0;
     for (let j = -1; j < h; j++) {
       for (let i = -1; i < w; i++) {
-        if (!(right(i, j) && right(i, j + 1) && down(i, j) && down(i + 1, j))) continue;
-        const k = (j + 1) * cols + (i + 1);
-        out[n++] = k;
-        out[n++] = k + 1;
-        out[n++] = k + cols;
-        out[n++] = k + cols;
-        out[n++] = k + 1;
-        out[n++] = k + cols + 1;
+        const whole = i >= 0 && j >= 0 && i + 1 < w && j + 1 < h && (at(i, j) & 6) === 6 && (at(i, j + 1) & 2) !== 0 && (at(i + 1, j) & 4) !== 0;
+        if (whole) {
+          const k = j * w + i;
+          // Both triangles end on the block's top-left pixel (the provoking vertex).
+          quads.set([k + 1, k + w + 1, k, k + w + 1, k + w, k], n);
+          n += 6;
+          continue;
+        }
+        for (const [ci, cj, sx, sy] of [[i, j, 1, 1], [i + 1, j, -1, 1], [i, j + 1, 1, -1], [i + 1, j + 1, -1, -1]]) {
+          if (!drawn(ci, cj)) continue;
+          for (const [u, v] of [[0, 0], [1, 0], [0, 1], [0, 1], [1, 0], [1, 1]]) skirts.push(ci, cj, sx, sy, u, v);
+        }
       }
     }
     const gl = this.r.gl;
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.indices);
-    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, out.subarray(0, n), gl.STATIC_DRAW);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, quads.subarray(0, n), gl.STATIC_DRAW);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, null);
     this.count = n;
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.skirts);
+    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array(skirts), gl.STATIC_DRAW);
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
+    this.skirtCount = skirts.length / 6;
+    const l = new Uint8Array(w * h);
+    for (let j = 0; j < h; j++) for (let i = 0; i < w; i++) l[j * w + i] = at(i, j);
+    gl.bindTexture(gl.TEXTURE_2D, this.links);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.R8UI, w, h, 0, gl.RED_INTEGER, gl.UNSIGNED_BYTE, l);
   }
 
   setField(field: FieldData | null): void {
@@ -169,6 +252,9 @@ export class GlLayer {
     gl.deleteTexture(this.image);
     gl.deleteTexture(this.field);
     gl.deleteBuffer(this.indices);
+    gl.deleteBuffer(this.skirts);
+    gl.deleteTexture(this.links);
+    gl.deleteVertexArray(this.skirtVao);
   }
 }
 
@@ -181,6 +267,7 @@ export interface DrawLayer {
 export class GlRenderer {
   readonly gl: WebGL2RenderingContext;
   private mesh: WebGLProgram;
+  private skirt: WebGLProgram;
   private blit: WebGLProgram;
   private vao: WebGLVertexArrayObject;
   private msaaFbo: WebGLFramebuffer | null = null;
@@ -196,6 +283,7 @@ export class GlRenderer {
     if (!gl) throw new Error('This browser has no WebGL2; the editor needs it to draw the warped picture.');
     this.gl = gl;
     this.mesh = program(gl, VERT, FRAG);
+    this.skirt = program(gl, SKIRT_VERT, FRAG, ['aQuarter', 'aCorner']);
     this.blit = program(gl, BLIT_VERT, `#version 300 es
 precision highp float;
 uniform sampler2D uTex;
@@ -259,22 +347,32 @@ void main() { o = texture(uTex, vPos); }`);
     gl.clear(gl.COLOR_BUFFER_BIT);
     gl.enable(gl.BLEND);
     gl.blendFunc(gl.ONE, gl.ONE_MINUS_SRC_ALPHA);
-    gl.useProgram(this.mesh);
-    gl.bindVertexArray(this.vao);
-    const u = (n: string) => gl.getUniformLocation(this.mesh, n);
-    gl.uniform1i(u('uField'), 0);
-    gl.uniform1i(u('uImage'), 2);
-    gl.uniform2f(u('uCanvas'), width, height);
     for (const { layer, offset, opacity } of layers) {
       gl.activeTexture(gl.TEXTURE0);
       gl.bindTexture(gl.TEXTURE_2D, layer.field);
+      gl.activeTexture(gl.TEXTURE1);
+      gl.bindTexture(gl.TEXTURE_2D, layer.links);
       gl.activeTexture(gl.TEXTURE2);
       gl.bindTexture(gl.TEXTURE_2D, layer.image);
-      gl.uniform2i(u('uSize'), layer.width, layer.height);
-      gl.uniform2f(u('uOffset'), offset[0], offset[1]);
-      gl.uniform1f(u('uOpacity'), opacity ?? 1);
-      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, layer.indices);
-      gl.drawElements(gl.TRIANGLES, layer.count, gl.UNSIGNED_INT, 0);
+      for (const prog of [this.mesh, this.skirt]) {
+        gl.useProgram(prog);
+        const u = (n: string) => gl.getUniformLocation(prog, n);
+        gl.uniform1i(u('uField'), 0);
+        gl.uniform1i(u('uLinks'), 1);
+        gl.uniform1i(u('uImage'), 2);
+        gl.uniform2f(u('uCanvas'), width, height);
+        gl.uniform2i(u('uSize'), layer.width, layer.height);
+        gl.uniform2f(u('uOffset'), offset[0], offset[1]);
+        gl.uniform1f(u('uOpacity'), opacity ?? 1);
+        if (prog === this.mesh) {
+          gl.bindVertexArray(this.vao);
+          gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, layer.indices);
+          gl.drawElements(gl.TRIANGLES, layer.count, gl.UNSIGNED_INT, 0);
+        } else if (layer.skirtCount) {
+          gl.bindVertexArray(layer.skirtVao);
+          gl.drawArrays(gl.TRIANGLES, 0, layer.skirtCount);
+        }
+      }
     }
     gl.bindVertexArray(null);
     gl.disable(gl.BLEND);
