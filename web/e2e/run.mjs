@@ -107,7 +107,7 @@ async function click(page, p) {
 }
 
 /** Drags in `steps` moves, one per animation frame (as a hand would). */
-async function drag(page, from, to, steps = 20) {
+async function drag(page, from, to, steps = 8) {
   const [x0, y0] = await toClient(page, from);
   const [x1, y1] = await toClient(page, to);
   await page.mouse.move(x0, y0);
@@ -221,11 +221,14 @@ async function screenshot(page, name) {
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(() => r()))));
   const path = join(screens, `editor-${name}.png`);
   await page.screenshot({ path });
-  if (process.env.UPDATE_DOCS) {
+  if (process.env.UPDATE_DOCS && DOC_SCREENS.includes(name)) {
     mkdirSync(docsImages, { recursive: true });
     copyFileSync(path, join(docsImages, `editor-${name}.png`));
   }
 }
+
+/** The screenshots docs/guides/editor.md shows. */
+const DOC_SCREENS = ['start', 'rest-mode', 'pose-mode', 'timeline', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
 
 const median = (a) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
 const pct = (a, q) => (a.length ? [...a].sort((x, y) => x - y)[Math.min(a.length - 1, Math.floor(q * a.length))] : null);
@@ -277,7 +280,8 @@ test('drag it in pose mode: the picture follows, and does not cross the cut', as
   const right = track(before, after, cutX + 8, 256, 30);
   perf.cut = { left, right };
   assert(left.dx >= 4, `left of the cut the picture moved by ${left.dx} px; expected it to be pushed right`);
-  assert(Math.abs(right.dx) <= 1 && Math.abs(right.dy) <= 1, `right of the cut the picture moved by (${right.dx}, ${right.dy}); the cut should stop the motion`);
+  assert(right.dx <= 1, `right of the cut the picture moved by (${right.dx}, ${right.dy}); it must not be carried along the pull across the cut`);
+  assert(left.dx - right.dx >= 4, `the two sides of the cut moved by ${left.dx} and ${right.dx} px; the cut should open`);
   await screenshot(page, 'pose-mode');
 });
 
@@ -300,7 +304,7 @@ test('set two keys and check the frame at the midpoint', async () => {
   const original = await frame(page);
   await page.evaluate(() => window.inkwarp.ui.setMode('pose'));
   const at = track(original, await frame(page), SPLINE[1][0], SPLINE[1][1], 80);
-  assert(Math.abs(at.dx - 60) <= 2 && Math.abs(at.dy) <= 2, `at the midpoint the picture moved by (${at.dx}, ${at.dy}); expected (60, 0)`);
+  assert(Math.abs(at.dx - 60) <= 3 && Math.abs(at.dy) <= 4, `at the midpoint the picture moved by (${at.dx}, ${at.dy}); expected (60, 0)`);
   await page.evaluate(() => window.inkwarp.store.setView({ selection: { feature: 'spline1', point: null } }));
   await screenshot(page, 'timeline');
 });
@@ -383,6 +387,8 @@ test('undo and redo from the keyboard', async () => {
   assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0, 'Ctrl+Z removed it');
   await page.keyboard.press('Control+Shift+z');
   assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0 + 1, 'Ctrl+Shift+Z brought it back');
+  await page.keyboard.press('v');
+  await click(page, [60, 440]);
   await page.keyboard.press('Delete');
   assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0, 'Delete removed the selected point');
   await page.keyboard.press('v');
@@ -431,24 +437,48 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   await page.keyboard.press('e');
   await idle(page);
   // Three drags with pauses (each pause lets the full-resolution solve land).
-  for (const [from, to] of [[[135, 256], [175, 246]], [[256, 70], [256, 40]], [[256, 256], [236, 276]]]) {
-    await drag(page, from, to, 30);
+  for (const [from, to] of [[[135, 256], [175, 246]], [[256, 70], [256, 40]]]) {
+    await drag(page, from, to, 15);
     await idle(page);
   }
-  // Playback: two keys on one feature, play for 2 s.
+  // Playback at 24 fps: two keys on one feature over half a second (12 frames). The first
+  // pass solves frames as it plays (and ahead of the playhead); later passes play from
+  // the solved fields.
   await page.evaluate(() => {
     const { store, state } = window.inkwarp;
-    let doc = store.doc;
+    let doc = { ...store.doc, fps: 24, duration: 0.5 };
     doc = state.setKey(doc, 'spline1', 0, [[120, 150], [135, 256], [120, 360]]);
-    doc = state.setKey(doc, 'spline1', 2, [[140, 150], [185, 256], [140, 360]]);
+    doc = state.setKey(doc, 'spline1', 0.5, [[140, 150], [185, 256], [140, 360]]);
     store.apply(doc);
   });
   await idle(page);
   await page.evaluate(() => window.inkwarp.ui.setTime(0));
   await idle(page);
+  const firstStart = Date.now();
+  await page.evaluate(() => window.inkwarp.ui.togglePlay());
+  await page.waitForFunction(() => window.inkwarp.app.cachedFrames() >= 12, null, { timeout: 180000, polling: 250 });
+  perf.playbackFirstPass = { ...(await page.evaluate(() => window.inkwarp.app.stats.playback)), seconds: (Date.now() - firstStart) / 1000 };
+  await page.evaluate(() => window.inkwarp.ui.togglePlay());
   await page.evaluate(() => window.inkwarp.ui.togglePlay());
   await page.waitForTimeout(2000);
   await page.evaluate(() => window.inkwarp.ui.togglePlay());
+  // The GPU's own time for one 512×512 frame (with and without multisampling).
+  perf.glFrameMs = await page.evaluate(() => {
+    const { app } = window.inkwarp;
+    const doc = app.store.doc;
+    const layers = doc.layers.map((l) => ({ layer: app.runtimes.get(l.name).gl, offset: [0, 0] }));
+    const time = (aa) => {
+      app.gl.render(doc.width, doc.height, [255, 255, 255, 255], layers, aa);
+      app.gl.readPixels();
+      const t0 = performance.now();
+      for (let i = 0; i < 3; i++) {
+        app.gl.render(doc.width, doc.height, [255, 255, 255, 255], layers, aa);
+        app.gl.readPixels();
+      }
+      return (performance.now() - t0) / 3;
+    };
+    return { multisampled: time(true), single: time(false) };
+  });
   const s = await page.evaluate(() => window.inkwarp.app.stats);
   perf.features = count;
   perf.dragLatencyMs = { median: median(s.dragLatency), p90: pct(s.dragLatency, 0.9), n: s.dragLatency.length };
@@ -458,6 +488,32 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   perf.playback = s.playback;
   assert(s.dragLatency.length > 0, 'frames were drawn during the drags');
   await screenshot(page, 'measured');
+});
+
+test('every bundled example opens', async () => {
+  const names = await page.evaluate(async () => (await window.inkwarp.examples.listExamples()).map((e) => e.name));
+  perf.examples = names;
+  for (const name of names) {
+    await page.evaluate((n) => window.inkwarp.ui.openExample(n), name);
+    await idle(page);
+    const state = await page.evaluate(() => ({
+      layers: window.inkwarp.store.doc.layers.length,
+      message: document.querySelector('#message.error:not([hidden])')?.textContent ?? null,
+      loaded: [...window.inkwarp.app.runtimes.values()].every((rt) => rt.gridReady && !rt.error),
+    }));
+    assert(state.layers > 0 && state.loaded && state.message === null, `example ${name}: ${JSON.stringify(state)}`);
+    if (name === 'face' || name === 'cat') {
+      // Posed half way through: every layer solves and draws without an error.
+      await page.evaluate(() => {
+        window.inkwarp.ui.setMode('pose');
+        window.inkwarp.ui.setTime(Math.round(window.inkwarp.store.doc.duration * 12) / 24);
+      });
+      await idle(page);
+      const ok = await page.evaluate(() => [...window.inkwarp.app.runtimes.values()].every((rt) => rt.field && !rt.error));
+      assert(ok, `example ${name}: every layer has a field in pose mode`);
+      await screenshot(page, `example-${name}`);
+    }
+  }
 });
 
 test('`inkwarp edit SCENE` opens the scene and Save writes it back', async () => {
@@ -485,6 +541,34 @@ test('`inkwarp edit SCENE` opens the scene and Save writes it back', async () =>
     const saved = JSON.parse(readFileSync(scenePath, 'utf8'));
     assert(saved.layers[0].image === 'green.png', `the image keeps its path: ${saved.layers[0].image.slice(0, 40)}`);
     assert(saved.features.length === 1 && saved.features[0].kind === 'point', 'the new point was saved');
+    // Export the frame as PNG: the file holds the frame on screen.
+    const [png] = await Promise.all([ed.page.waitForEvent('download'), ed.page.click('#export-png')]);
+    const pngPath = join(dir, 'frame.png');
+    await png.saveAs(pngPath);
+    const exported = await loadPng(ed.page, pngPath);
+    const shown = await frame(ed.page);
+    const cmp = await compareImages(ed.page, exported, shown, 'export-png', { meanTol: 0, p99Tol: 0 });
+    assert(cmp.ok, `the exported PNG differs from the frame on screen (mean ${cmp.stats.mean})`);
+    // Export the animation as WebM.
+    const [webm] = await Promise.all([ed.page.waitForEvent('download', { timeout: 60000 }), ed.page.click('#export-webm')]);
+    const webmPath = join(dir, 'anim.webm');
+    await webm.saveAs(webmPath);
+    const head = readFileSync(webmPath).subarray(0, 4);
+    assert(head.equals(Buffer.from([0x1a, 0x45, 0xdf, 0xa3])) && readFileSync(webmPath).length > 200, `the WebM file is not a WebM video (${head.toString('hex')})`);
+    // Drop a picture on the window: a new scene of its size.
+    await ed.page.evaluate(async () => {
+      const c = new OffscreenCanvas(40, 30);
+      c.getContext('2d').fillRect(0, 0, 20, 30);
+      const file = new File([await c.convertToBlob({ type: 'image/png' })], 'dropped.png', { type: 'image/png' });
+      const dt = new DataTransfer();
+      dt.items.add(file);
+      window.dispatchEvent(new DragEvent('drop', { dataTransfer: dt, bubbles: true, cancelable: true }));
+    });
+    await ed.page.waitForFunction(() => window.inkwarp.store.doc.width === 40);
+    await idle(ed.page);
+    const dropped = await ed.page.evaluate(() => window.inkwarp.store.doc.layers.map((l) => l.name));
+    assert(JSON.stringify(dropped) === '["dropped"]', `dropping a picture opened ${dropped}`);
+    assert(ed.errors.length === 0, `the page logged errors: ${ed.errors.join('; ')}`);
     await ed.context.close();
   } finally {
     own.proc.kill();
@@ -500,7 +584,7 @@ async function main() {
   let passed = 0, failed = 0;
   const t0 = Date.now();
   for (const t of tests) {
-    if (only && !t.name.includes(only)) continue;
+    if (only && !only.split('|').some((o) => t.name.includes(o))) continue;
     const start = Date.now();
     try {
       await t.fn();
@@ -525,8 +609,9 @@ async function main() {
     console.log(`  ${perf.features} features, 512×512: pointer move → frame median ${perf.dragLatencyMs.median?.toFixed(1)} ms (p90 ${perf.dragLatencyMs.p90?.toFixed(1)}, n=${perf.dragLatencyMs.n})`);
     console.log(`  settle (pointer rest → full-resolution frame): median ${perf.settleMs.median?.toFixed(1)} ms, max ${perf.settleMs.max?.toFixed(1)} ms`);
     console.log(`  solve: draft median ${perf.draftSolveMs.median?.toFixed(1)} ms, full median ${perf.finalSolveMs.median?.toFixed(1)} ms`);
-    console.log(`  playback at ${24} fps: ${JSON.stringify(perf.playback)}`);
+    console.log(`  playback at 24 fps, 12 frames: first pass (solving) ${JSON.stringify(perf.playbackFirstPass)}; then 2 s from solved fields ${JSON.stringify(perf.playback)}`);
   }
+  if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without`);
   if (perf.gpuVsCpu) console.log(`  GPU vs CPU: mean ${perf.gpuVsCpu.mean.toFixed(3)}, p99 ${perf.gpuVsCpu.p99}, max ${perf.gpuVsCpu.max}`);
   if (perf.editorVsCli) console.log(`  editor vs inkwarp render: mean ${perf.editorVsCli.mean.toFixed(3)}, p99 ${perf.editorVsCli.p99}, max ${perf.editorVsCli.max}`);
   console.log(`\n${passed} passed, ${failed} failed  (${((Date.now() - t0) / 1000).toFixed(0)} s)`);

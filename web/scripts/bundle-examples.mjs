@@ -7,7 +7,7 @@ import { fileURLToPath } from 'node:url';
 
 const here = dirname(fileURLToPath(import.meta.url));
 const root = resolve(here, '../..');
-const src = join(root, 'examples');
+const src = process.env.INKWARP_EXAMPLES_DIR ? resolve(process.env.INKWARP_EXAMPLES_DIR) : join(root, 'examples');
 const out = resolve(here, '../public/examples');
 const MIME = { '.png': 'image/png', '.jpg': 'image/jpeg', '.jpeg': 'image/jpeg' };
 

@@ -38,7 +38,9 @@ export interface Stats {
 
 export type Quality = 'draft' | 'final';
 
-const DRAFT_TARGET_PX = 128;
+const DRAFT_TARGET_PX = 64;
+/** Fields kept for playback (a 512×512 layer's field is 2 MiB). */
+const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
 const SETTLE_MS = 120;
 
 export class App {
@@ -58,6 +60,8 @@ export class App {
   dragging = false;
   lastPointerAt = 0;
   lastReport: FieldEvent | null = null;
+  /** Full-resolution fields by frame, for the document revision they were solved for. */
+  private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, FieldData>>() };
 
   constructor(
     readonly engine: Engine,
@@ -73,6 +77,13 @@ export class App {
       if (rt) rt.error = message;
       this.onMessage(key ? `Layer ${key}: ${message}` : message, 'error');
       this.checkIdle();
+    };
+    this.solver.onReset = (message) => {
+      this.onMessage(message, 'error');
+      for (const layer of this.doc.layers) {
+        const rt = this.runtimes.get(layer.name);
+        if (rt) this.rebuildGrid(rt, layer);
+      }
     };
     store.subscribe((_, docChanged) => {
       if (docChanged) this.syncLayers();
@@ -220,12 +231,15 @@ export class App {
     const s = { ...(this.doc.solver ?? {}), ...(layer.solver ?? {}) };
     const base = Math.max(1, s.grid_step ?? 1);
     const draft = Math.max(base, Math.ceil(Math.max(this.doc.width, this.doc.height) / DRAFT_TARGET_PX));
+    const step = quality === 'draft' ? draft : base;
+    // As the scene engine does: samples at the grid spacing, the layer's relaxation scheme.
     return {
       tension: s.tension ?? 0,
       tolerance: quality === 'draft' ? Math.max(s.tolerance ?? 0.01, 0.05) : (s.tolerance ?? 0.01),
-      grid_step: quality === 'draft' ? draft : base,
+      grid_step: step,
       max_cycles: (s.max_cycles as number | undefined) ?? null,
-      method: 'multigrid',
+      method: (s.scheme as string | undefined) ?? 'multigrid',
+      spacing_px: step,
     };
   }
 
@@ -240,6 +254,57 @@ export class App {
         closed: f.kind === 'region' || !!f.closed,
         spline_outline: f.kind === 'region' && f.curve === 'spline',
       }));
+  }
+
+  private frameOf(time: number): number | null {
+    const f = time * this.doc.fps;
+    return Math.abs(f - Math.round(f)) < 1e-6 ? Math.round(f) : null;
+  }
+
+  private cached(frame: number | null): Map<string, FieldData> | undefined {
+    if (frame === null || this.cache.rev !== this.store.revision) return undefined;
+    const fields = this.cache.frames.get(frame);
+    return fields && this.doc.layers.every((l) => !this.runtimes.get(l.name)?.gridReady || fields.has(l.name)) ? fields : undefined;
+  }
+
+  private remember(frame: number, key: string, field: FieldData): void {
+    if (this.cache.rev !== this.store.revision) this.cache = { rev: this.store.revision, bytes: 0, frames: new Map() };
+    const size = 8 * field.width * field.height;
+    if (this.cache.bytes + size > CACHE_BUDGET_BYTES) return;
+    let fields = this.cache.frames.get(frame);
+    if (!fields) this.cache.frames.set(frame, (fields = new Map()));
+    if (!fields.has(key)) this.cache.bytes += size;
+    fields.set(key, field);
+  }
+
+  /** How many frames have every layer's field cached for playback. */
+  cachedFrames(): number {
+    let n = 0;
+    for (const frame of this.cache.frames.keys()) if (this.cached(frame)) n++;
+    return n;
+  }
+
+  /**
+   * While playing: solves the next frames that are not cached yet, in order, each warm
+   * from the one before, so a second pass through the animation drops no frame.
+   */
+  prefetch(): void {
+    if (!this.store.view.playing || this.solver.busy) return;
+    const n = Math.max(1, Math.ceil(this.doc.duration * this.doc.fps - 1e-9));
+    const now = this.frameOf(this.store.view.time) ?? 0;
+    for (let k = 1; k < n; k++) {
+      const frame = (now + k) % n;
+      if (this.cached(frame)) continue;
+      const time = frame / this.doc.fps;
+      for (const layer of this.doc.layers) {
+        const rt = this.runtimes.get(layer.name);
+        if (!rt?.gridReady || this.cache.frames.get(frame)?.has(layer.name)) continue;
+        this.solver.solve(layer.name, this.solveFeatures(layer, time), this.solverOptions(layer, 'final'), {
+          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.store.revision, frame, prefetch: true,
+        });
+      }
+      return;
+    }
   }
 
   /** Asks the worker for every layer's field at the current time. */
@@ -264,6 +329,20 @@ export class App {
         this.requestSolve('final');
       }, SETTLE_MS);
     }
+    const frame = this.frameOf(time);
+    const hit = quality === 'final' ? this.cached(frame) : undefined;
+    if (hit) {
+      for (const [key, field] of hit) {
+        const rt = this.runtimes.get(key);
+        if (!rt?.gl) continue;
+        rt.field = field;
+        rt.gl.setField(field);
+        rt.lastRequest = '';
+      }
+      if (this.stats.playback && this.store.view.playing) this.stats.playback.shown++;
+      this.invalidate();
+      return;
+    }
     for (const layer of this.doc.layers) {
       const rt = this.runtimes.get(layer.name);
       if (!rt || !rt.gridReady) continue;
@@ -277,6 +356,9 @@ export class App {
         quality,
         gen: rt.gridGen,
         pointerAt: quality === 'draft' ? this.lastPointerAt : null,
+        time,
+        rev: this.store.revision,
+        frame,
         settleStart: quality === 'final' ? this.settleStart : null,
       });
     }
@@ -295,10 +377,19 @@ export class App {
     this.lastReport = ev;
     if (ev.tag.quality === 'draft') this.stats.draftSolveMs.push(ev.ms);
     else this.stats.finalSolveMs.push(ev.ms);
+    if (ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.store.revision) {
+      this.remember(ev.tag.frame, ev.key, ev.field);
+    }
+    if (ev.tag.prefetch && ev.tag.time !== this.store.view.time) {
+      this.checkIdle();
+      return;
+    }
     if (rt && ev.tag.gen === rt.gridGen && this.posed && rt.gl) {
       rt.field = ev.field;
       rt.gl.setField(ev.field);
       if (typeof ev.tag.pointerAt === 'number' && ev.tag.pointerAt > 0) this.pendingLatency.push(ev.tag.pointerAt);
+      const pb = this.stats.playback;
+      if (pb && this.store.view.playing && ev.tag.time === this.store.view.time) pb.shown++;
       if (ev.tag.quality === 'final' && typeof ev.tag.settleStart === 'number') {
         const start = ev.tag.settleStart;
         this.afterFrame(() => this.stats.settle.push(performance.now() - start));
@@ -334,7 +425,8 @@ export class App {
       if (!rt?.gl || layer.visible === false || this.store.view.hidden.includes(layer.name)) continue;
       layers.push({ layer: rt.gl, offset: layer.offset ?? ([0, 0] as Pt) });
     }
-    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], layers);
+    // Drafts (during a drag) skip multisampling: it triples the cost of a software GPU.
+    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], layers, !this.dragging);
     this.onFrame();
     const now = performance.now();
     for (const t of this.pendingLatency.splice(0)) this.stats.dragLatency.push(now - t);

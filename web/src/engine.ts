@@ -20,7 +20,12 @@ interface Exports {
   iw_canvas_free(h: number): void;
   iw_canvas_draw(c: number, g: number, image: number, field: number, ox: number, oy: number): number;
   iw_canvas_read(c: number, out: number, len: number): number;
-  iw_scene_check?(json: number, len: number): number;
+  iw_scene_check(json: number, len: number): number;
+  iw_points_at(req: number, len: number): number;
+  iw_methods(): number;
+  iw_decode(ptr: number, len: number): number;
+  iw_decoded_take(out: number, len: number): number;
+  iw_matte_values(rgba: number, w: number, h: number, out: number): number;
 }
 
 export class EngineError extends Error {
@@ -46,6 +51,8 @@ export interface SolveOptions {
   grid_step?: number;
   max_cycles?: number | null;
   method?: string;
+  /** Arc-length spacing of the samples (the scene engine uses the grid step). */
+  spacing_px?: number;
 }
 
 export interface SolveReport {
@@ -92,7 +99,8 @@ export class GridHandle {
   solve(features: SolveFeature[], options: SolveOptions, initial: FieldData | null): { field: FieldData; report: SolveReport } {
     const n = this.width * this.height;
     const e = this.engine;
-    const req = enc.encode(JSON.stringify({ features, options }));
+    const { spacing_px, ...rest } = options;
+    const req = enc.encode(JSON.stringify({ features, options: rest, spacing_px: spacing_px ?? rest.grid_step ?? 1 }));
     const reqPtr = e.put(req);
     const fieldPtr = e.x.iw_alloc(8 * n);
     try {
@@ -191,13 +199,63 @@ export class Engine {
    * when the scene is fine). Images are checked by the editor as it decodes them.
    */
   validate(doc: unknown): { path: string; message: string }[] {
-    if (!this.x.iw_scene_check) return [];
     const bytes = enc.encode(JSON.stringify(doc));
     const ptr = this.put(bytes);
     try {
       return this.check(this.x.iw_scene_check(ptr, bytes.length)) as { path: string; message: string }[];
     } finally {
       this.x.iw_free(ptr, bytes.length);
+    }
+  }
+
+  private json(fn: (ptr: number, len: number) => number, value: unknown): unknown {
+    const bytes = enc.encode(JSON.stringify(value));
+    const ptr = this.put(bytes);
+    try {
+      return this.check(fn(ptr, bytes.length));
+    } finally {
+      this.x.iw_free(ptr, bytes.length);
+    }
+  }
+
+  /** The field methods and whether this build computes them. */
+  methods(): { name: string; available: boolean }[] {
+    return this.check(this.x.iw_methods()) as { name: string; available: boolean }[];
+  }
+
+  /** A feature's control points at time `t` by the engine's keyframe interpolation. */
+  pointsAt(rest: Pt[], keys: { t: number; points: Pt[]; interpolation?: string }[], t: number): Pt[] {
+    return this.json((p, l) => this.x.iw_points_at(p, l), { rest, keys, t }) as Pt[];
+  }
+
+  /** Decodes a PNG/JPEG (bytes or a data: URI) with the engine's decoder: straight RGBA8. */
+  decode(input: Uint8Array): { width: number; height: number; data: Uint8Array } {
+    const ptr = this.put(input);
+    let size: { width: number; height: number };
+    try {
+      size = this.check(this.x.iw_decode(ptr, input.length)) as { width: number; height: number };
+    } finally {
+      this.x.iw_free(ptr, input.length);
+    }
+    const len = 4 * size.width * size.height;
+    const data = this.withBuffer(len, (out) => {
+      this.check(this.x.iw_decoded_take(out, len));
+      return this.u8(out, len).slice();
+    });
+    return { ...size, data };
+  }
+
+  /** The engine's matte values (grey × alpha) of a straight RGBA8 image. */
+  matteValues(rgba: Uint8Array, width: number, height: number): Uint8Array {
+    const n = width * height;
+    const src = this.put(rgba);
+    try {
+      return this.withBuffer(n, (out) => {
+        this.check(this.x.iw_matte_values(src, width, height, out));
+        return this.u8(out, n).slice();
+      });
+    } finally {
+      this.x.iw_free(src, rgba.length);
     }
   }
 

@@ -272,6 +272,8 @@ export class GlRenderer {
   private vao: WebGLVertexArrayObject;
   private msaaFbo: WebGLFramebuffer | null = null;
   private msaaRb: WebGLRenderbuffer | null = null;
+  private plainFbo: WebGLFramebuffer | null = null;
+  private plainRb: WebGLRenderbuffer | null = null;
   private resolveFbo: WebGLFramebuffer | null = null;
   private resolveTex: WebGLTexture | null = null;
   private width = 0;
@@ -318,6 +320,14 @@ void main() { o = texture(uTex, vPos); }`);
     if (this.canvas.height !== height) this.canvas.height = height;
     if (this.msaaFbo) gl.deleteFramebuffer(this.msaaFbo);
     if (this.msaaRb) gl.deleteRenderbuffer(this.msaaRb);
+    if (this.plainFbo) gl.deleteFramebuffer(this.plainFbo);
+    if (this.plainRb) gl.deleteRenderbuffer(this.plainRb);
+    this.plainRb = gl.createRenderbuffer();
+    gl.bindRenderbuffer(gl.RENDERBUFFER, this.plainRb);
+    gl.renderbufferStorage(gl.RENDERBUFFER, gl.RGBA8, width, height);
+    this.plainFbo = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, this.plainFbo);
+    gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.RENDERBUFFER, this.plainRb);
     if (this.resolveFbo) gl.deleteFramebuffer(this.resolveFbo);
     if (this.resolveTex) gl.deleteTexture(this.resolveTex);
     this.msaaRb = gl.createRenderbuffer();
@@ -334,13 +344,15 @@ void main() { o = texture(uTex, vPos); }`);
   }
 
   /**
-   * Renders a frame: the background (straight RGBA8) then each layer, back to front.
+   * Renders a frame: the background (straight RGBA8) then each layer, back to front;
+   * `antialias: false` samples once per pixel (fast drafts).
    * The result stays in the resolve target (for `readPixels`) and is shown on the canvas.
    */
-  render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[]): void {
+  render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true): void {
     const gl = this.gl;
     this.ensureTargets(width, height);
-    gl.bindFramebuffer(gl.FRAMEBUFFER, this.msaaFbo);
+    const target = antialias ? this.msaaFbo : this.plainFbo;
+    gl.bindFramebuffer(gl.FRAMEBUFFER, target);
     gl.viewport(0, 0, width, height);
     const a = background[3] / 255;
     gl.clearColor((background[0] / 255) * a, (background[1] / 255) * a, (background[2] / 255) * a, a);
@@ -377,7 +389,7 @@ void main() { o = texture(uTex, vPos); }`);
     gl.bindVertexArray(null);
     gl.disable(gl.BLEND);
     // Resolve the samples, then show the frame on the canvas.
-    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, this.msaaFbo);
+    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, target);
     gl.bindFramebuffer(gl.DRAW_FRAMEBUFFER, this.resolveFbo);
     gl.blitFramebuffer(0, 0, width, height, 0, 0, width, height, gl.COLOR_BUFFER_BIT, gl.NEAREST);
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);

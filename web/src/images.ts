@@ -14,13 +14,22 @@ export class ImageFileError extends Error {
   }
 }
 
-const cache = new Map<string, Promise<Rgba>>();
+/** The engine's own decoder and matte rule, so the editor reads pictures as the CLI does. */
+export interface Decoder {
+  decode(input: Uint8Array): Rgba;
+  matteValues(rgba: Uint8Array, width: number, height: number): Uint8Array;
+}
 
-/**
- * Decodes an image (a data: URI or a URL) to straight RGBA8. The browser decodes; we ask
- * it not to premultiply or colour-convert so the bytes are the file's own, as the command
- * line reads them.
- */
+let decoder: Decoder | null = null;
+
+export function useDecoder(d: Decoder): void {
+  decoder = d;
+}
+
+const cache = new Map<string, Promise<Rgba>>();
+const enc = new TextEncoder();
+
+/** Decodes an image reference (a data: URI or a URL) to straight RGBA8, cached. */
 export function decodeImage(src: string): Promise<Rgba> {
   let p = cache.get(src);
   if (!p) {
@@ -32,41 +41,30 @@ export function decodeImage(src: string): Promise<Rgba> {
 }
 
 async function decodeUncached(src: string): Promise<Rgba> {
-  let blob: Blob;
+  if (src.startsWith('data:')) return decodeBytes(enc.encode(src), describe(src));
+  let bytes: Uint8Array;
   try {
-    blob = await (await fetch(src)).blob();
+    const resp = await fetch(src);
+    if (!resp.ok) throw new Error(`HTTP ${resp.status}`);
+    bytes = new Uint8Array(await resp.arrayBuffer());
   } catch {
     throw new ImageFileError(`Could not read the image ${describe(src)}.`);
   }
-  return decodeBlob(blob, describe(src));
+  return decodeBytes(bytes, describe(src));
 }
 
+/** Decodes a picked or dropped file. */
 export async function decodeBlob(blob: Blob, name: string): Promise<Rgba> {
-  let bitmap: ImageBitmap;
+  return decodeBytes(new Uint8Array(await blob.arrayBuffer()), name);
+}
+
+function decodeBytes(bytes: Uint8Array, name: string): Rgba {
+  if (!decoder) throw new ImageFileError('The engine is not loaded yet.');
   try {
-    bitmap = await createImageBitmap(blob, { premultiplyAlpha: 'none', colorSpaceConversion: 'none' });
-  } catch {
-    throw new ImageFileError(`${name} is not an image this browser can read (use PNG or JPEG).`);
+    return decoder.decode(bytes);
+  } catch (err) {
+    throw new ImageFileError(`${name} is not an image inkwarp can read (use PNG or JPEG): ${(err as Error).message}`);
   }
-  // Read the pixels back through WebGL: a 2D canvas would premultiply and lose precision
-  // in translucent pixels.
-  const { width, height } = bitmap;
-  const canvas = new OffscreenCanvas(width, height);
-  const gl = canvas.getContext('webgl2', { premultipliedAlpha: false });
-  if (!gl) throw new ImageFileError('This browser has no WebGL2.');
-  const tex = gl.createTexture();
-  gl.bindTexture(gl.TEXTURE_2D, tex);
-  gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
-  gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
-  gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, bitmap);
-  const fbo = gl.createFramebuffer();
-  gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
-  gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, tex, 0);
-  const data = new Uint8Array(4 * width * height);
-  gl.readPixels(0, 0, width, height, gl.RGBA, gl.UNSIGNED_BYTE, data);
-  bitmap.close();
-  gl.getExtension('WEBGL_lose_context')?.loseContext();
-  return { width, height, data };
 }
 
 function describe(src: string): string {
@@ -74,34 +72,24 @@ function describe(src: string): string {
   return src;
 }
 
-/** A continuity matte from an image: grey level times alpha, nonzero = connected. */
+/** A continuity matte from an image: the engine's matte values (grey level × alpha). */
 export function matteFromImage(img: Rgba): Uint8Array {
-  const n = img.width * img.height;
-  const out = new Uint8Array(n);
-  for (let i = 0; i < n; i++) {
-    const d = img.data;
-    const grey = (d[4 * i] + d[4 * i + 1] + d[4 * i + 2]) / 3;
-    out[i] = Math.round((grey * d[4 * i + 3]) / 255) > 0 ? 1 : 0;
-  }
-  return out;
+  return decoder!.matteValues(img.data, img.width, img.height);
 }
 
-/** The default continuity matte: where the layer's alpha is > 0. */
+/** The default continuity matte: the layer's alpha (nonzero = connected). */
 export function matteFromAlpha(img: Rgba): Uint8Array {
   const n = img.width * img.height;
   const out = new Uint8Array(n);
-  for (let i = 0; i < n; i++) out[i] = img.data[4 * i + 3] > 0 ? 1 : 0;
+  for (let i = 0; i < n; i++) out[i] = img.data[4 * i + 3];
   return out;
 }
 
-/** Replaces an image's alpha by an alpha matte (its grey level times alpha). */
+/** Replaces an image's alpha by an alpha matte's values, as the engine does. */
 export function withAlpha(img: Rgba, alpha: Rgba): Rgba {
+  const values = decoder!.matteValues(alpha.data, alpha.width, alpha.height);
   const data = img.data.slice();
-  for (let i = 0; i < img.width * img.height; i++) {
-    const a = alpha.data;
-    const grey = (a[4 * i] + a[4 * i + 1] + a[4 * i + 2]) / 3;
-    data[4 * i + 3] = Math.round((grey * a[4 * i + 3]) / 255);
-  }
+  for (let i = 0; i < img.width * img.height; i++) data[4 * i + 3] = values[i];
   return { width: img.width, height: img.height, data };
 }
 

@@ -4,9 +4,9 @@
 import { App } from './app';
 import { Engine } from './engine';
 import { builtinScene } from './examples';
+import * as examples from './examples';
 import * as images from './images';
 import * as scene from './scene';
-import { parseScene } from './scene';
 import { SolverClient } from './solver';
 import * as state from './state';
 import { Store } from './state';
@@ -18,6 +18,7 @@ async function start(): Promise<void> {
   const root = document.getElementById('app')!;
   const absWasm = new URL(wasmUrl, document.baseURI).href;
   const engine = await Engine.fromUrl(absWasm);
+  images.useDecoder(engine);
   const worker = new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' });
   const solver = new SolverClient(worker, absWasm);
   await solver.ready;
@@ -29,13 +30,13 @@ async function start(): Promise<void> {
   const app = new App(engine, solver, glCanvas, store);
   const ui = new Ui(app, root);
   // Hooks for the end-to-end tests and for scripting the editor from the console.
-  Object.assign(window, { inkwarp: { app, ui, store, engine, scene, state, images } });
+  Object.assign(window, { inkwarp: { app, ui, store, engine, scene, state, images, examples } });
   if (sceneUrl) {
     try {
       const resp = await fetch(sceneUrl);
       if (!resp.ok) throw new Error(`HTTP ${resp.status}: ${await resp.text()}`);
       const name = resp.headers.get('X-Inkwarp-Name') ?? 'scene.json';
-      await ui.openScene(parseScene(await resp.text()), name);
+      await ui.openSceneText(await resp.text(), name);
       if (params.get('save') !== 'download') ui.saveUrl = sceneUrl;
     } catch (err) {
       ui.fileError(sceneUrl, err);

@@ -180,12 +180,13 @@ export class Overlay {
     this.heatCanvas.getContext('2d')!.putImageData(img, 0, 0);
     this.ctx.imageSmoothingEnabled = false;
     this.ctx.drawImage(this.heatCanvas, 0, 0, this.canvas.width, this.canvas.height);
-    // Contours every tenth of the range and the scale, as a legend.
+    // The scale, as a legend.
+    const y0 = this.canvas.height - 26;
     this.ctx.fillStyle = 'rgba(0,0,0,0.7)';
-    this.ctx.fillRect(4, 4, 170, 22);
+    this.ctx.fillRect(4, y0, 200, 22);
     this.ctx.fillStyle = '#fff';
     this.ctx.font = '13px sans-serif';
-    this.ctx.fillText(`${which === 'dx' ? 'ΔX' : 'ΔY'}: ±${max.toFixed(1)} px (blue − / red +)`, 9, 20);
+    this.ctx.fillText(`${which === 'dx' ? 'ΔX' : 'ΔY'}: ±${max.toFixed(1)} px (blue − / red +)`, 9, y0 + 16);
   }
 
   private drawMatte(rt: LayerRuntime, w: number, h: number): void {

@@ -19,6 +19,8 @@ export type ToWorker =
 
 export type FromWorker =
   | { type: 'ready' }
+  /** The engine trapped (a bug): it was reloaded and every grid must be sent again. */
+  | { type: 'reset'; message: string }
   | { type: 'error'; id: number | null; key: string | null; message: string }
   | { type: 'links'; key: string; links: Uint8Array }
   | { type: 'field'; id: number; key: string; field: FieldData; report: SolveReport; ms: number; gridStep: number };

@@ -113,51 +113,82 @@ export function sortedKeys(f: Feature): Key[] {
   return [...(f.keys ?? [])].sort((a, b) => a.t - b.t);
 }
 
-/** The number of frames of the animation. */
+/** The number of frames of the animation: `ceil(duration × fps)`, as the engine counts. */
 export function frameCount(doc: SceneDoc): number {
-  return Math.max(1, Math.round(doc.duration * doc.fps));
+  return Math.max(1, Math.ceil(doc.duration * doc.fps - 1e-9));
 }
 
 const lerp = (a: Pt, b: Pt, s: number): Pt => [a[0] + (b[0] - a[0]) * s, a[1] + (b[1] - a[1]) * s];
 
 /**
- * The control points of a feature at time `t` (DESIGN §3 "Time"): rest without keys,
- * the first key before it, the last after it, and between two keys the interpolation of
- * the earlier key: `hold`, `linear`, or `smooth` — a cubic Hermite curve in time whose
- * tangents are the Catmull-Rom ones over the neighbouring keys' times (one-sided at the
- * ends), so the motion is C¹ through every smooth key.
+ * The control points of a feature at time `t`, exactly as the engine's `anim::points_at`
+ * computes them (a test holds the two together): rest without keys; the first key at or
+ * before its time, the last at or after its time; between two keys the interpolation of
+ * the earlier key — `hold`, `linear`, or `smooth`: a cubic Hermite span whose velocity at
+ * each end key comes from the span on that key's other side (zero beside a hold or at the
+ * first/last key, that span's slope beside a linear one, and beside a smooth one the
+ * derivative of the parabola through the key and its two neighbours).
  */
 export function pointsAt(f: Feature, t: number): Pt[] {
   const keys = sortedKeys(f);
-  if (keys.length === 0) return f.rest.map((p) => [p[0], p[1]]);
-  if (t <= keys[0].t) return keys[0].points.map((p) => [p[0], p[1]]);
+  const copy = (pts: Pt[]) => pts.map((p) => [p[0], p[1]] as Pt);
+  if (keys.length === 0) return copy(f.rest);
+  const first = keys[0];
   const last = keys[keys.length - 1];
-  if (t >= last.t) return last.points.map((p) => [p[0], p[1]]);
+  if (Number.isNaN(t) || t <= first.t) return copy(first.points);
+  if (t >= last.t) return copy(last.points);
   let i = 0;
   while (keys[i + 1].t <= t) i++;
-  const k0 = keys[i];
-  const k1 = keys[i + 1];
-  const s = (t - k0.t) / (k1.t - k0.t);
-  const mode = k0.interpolation ?? 'smooth';
-  if (mode === 'hold') return k0.points.map((p) => [p[0], p[1]]);
-  if (mode === 'linear') return k0.points.map((p, j) => lerp(p, k1.points[j], s));
-  const km = keys[i - 1];
-  const kp = keys[i + 2];
-  const dt = k1.t - k0.t;
-  const h00 = 2 * s ** 3 - 3 * s ** 2 + 1;
-  const h10 = s ** 3 - 2 * s ** 2 + s;
-  const h01 = -2 * s ** 3 + 3 * s ** 2;
-  const h11 = s ** 3 - s ** 2;
-  return k0.points.map((p0, j) => {
-    const p1 = k1.points[j];
-    const out: Pt = [0, 0];
-    for (let c = 0; c < 2; c++) {
-      const m0 = km ? (p1[c] - km.points[j][c]) / (k1.t - km.t) : (p1[c] - p0[c]) / dt;
-      const m1 = kp ? (kp.points[j][c] - p0[c]) / (kp.t - k0.t) : (p1[c] - p0[c]) / dt;
-      out[c] = h00 * p0[c] + h10 * dt * m0 + h01 * p1[c] + h11 * dt * m1;
-    }
-    return out;
-  });
+  const a = keys[i];
+  const b = keys[i + 1];
+  if (t === a.t) return copy(a.points);
+  const duration = b.t - a.t;
+  const u = (t - a.t) / duration;
+  const n = Math.min(a.points.length, b.points.length);
+  const mode = a.interpolation ?? 'smooth';
+  if (mode === 'hold') return copy(a.points);
+  if (mode === 'linear') return a.points.slice(0, n).map((p, j) => lerp(p, b.points[j], u));
+  const u2 = u * u;
+  const u3 = u2 * u;
+  const h00 = 2 * u3 - 3 * u2 + 1;
+  const h10 = u3 - 2 * u2 + u;
+  const h01 = -2 * u3 + 3 * u2;
+  const h11 = u3 - u2;
+  const out: Pt[] = [];
+  for (let j = 0; j < n; j++) {
+    const m0 = velocity(keys, i, j, 'before');
+    const m1 = velocity(keys, i + 1, j, 'after');
+    const p0 = a.points[j];
+    const p1 = b.points[j];
+    out.push([
+      h00 * p0[0] + h10 * duration * m0[0] + h01 * p1[0] + h11 * duration * m1[0],
+      h00 * p0[1] + h10 * duration * m0[1] + h01 * p1[1] + h11 * duration * m1[1],
+    ]);
+  }
+  return out;
+}
+
+function slope(a: Key, b: Key, j: number): Pt {
+  const dt = b.t - a.t;
+  return [(b.points[j][0] - a.points[j][0]) / dt, (b.points[j][1] - a.points[j][1]) / dt];
+}
+
+/** The velocity of control point `j` at key `k` for a smooth span before or after it. */
+function velocity(keys: Key[], k: number, j: number, side: 'before' | 'after'): Pt {
+  // The span on the key's other side: its start key.
+  const s = side === 'before' ? (k >= 1 ? k - 1 : -1) : k + 1 < keys.length ? k : -1;
+  if (s < 0) return [0, 0];
+  const mode = keys[s].interpolation ?? 'smooth';
+  if (mode === 'hold') return [0, 0];
+  if (mode === 'linear') return slope(keys[s], keys[s + 1], j);
+  const prev = keys[k - 1];
+  const key = keys[k];
+  const next = keys[k + 1];
+  const dm = key.t - prev.t;
+  const dp = next.t - key.t;
+  const vm = slope(prev, key, j);
+  const vp = slope(key, next, j);
+  return [(dp * vm[0] + dm * vp[0]) / (dm + dp), (dp * vm[1] + dm * vp[1]) / (dm + dp)];
 }
 
 /** Parses scene JSON text; throws `SceneFileError` with a JSON path on structural errors. */
@@ -200,15 +231,16 @@ export function parseScene(text: string): SceneDoc {
   if (doc.inkwarp !== 1) throw new SceneFileError('expected 1 (the scene format version).', 'inkwarp');
   for (const k of ['width', 'height'] as const) {
     const v = doc[k];
-    if (typeof v !== 'number' || !Number.isInteger(v) || v < 1) {
+    if (v === undefined) {
+      doc[k] = 0; // the first layer image's size, filled in by the editor
+    } else if (typeof v !== 'number' || !Number.isInteger(v) || v < 1) {
       throw new SceneFileError('expected a positive whole number of pixels.', k);
     }
   }
   if (doc.fps === undefined) doc.fps = 24;
-  if (doc.duration === undefined) doc.duration = 2;
   if (typeof doc.fps !== 'number' || !(doc.fps > 0)) throw new SceneFileError('expected a positive number.', 'fps');
-  if (typeof doc.duration !== 'number' || !(doc.duration >= 0)) {
-    throw new SceneFileError('expected a number of seconds ≥ 0.', 'duration');
+  if (doc.duration !== undefined && (typeof doc.duration !== 'number' || !(doc.duration > 0))) {
+    throw new SceneFileError('expected a number of seconds > 0.', 'duration');
   }
   if (!Array.isArray(doc.layers)) throw new SceneFileError('expected a list of layers.', 'layers');
   doc.layers.forEach((l: unknown, i: number) => {
@@ -242,6 +274,12 @@ export function parseScene(text: string): SceneDoc {
       });
     }
   });
+  if (doc.duration === undefined) {
+    // The engine's default: up to and including the last key.
+    const feats = doc.features as Feature[];
+    const last = Math.max(0, ...feats.flatMap((f) => (f.keys ?? []).map((k) => k.t)));
+    doc.duration = last + 1 / (doc.fps as number);
+  }
   return doc as unknown as SceneDoc;
 }
 

@@ -40,6 +40,7 @@ export class SolverClient {
   private idleWaiters: (() => void)[] = [];
   onField: (ev: FieldEvent) => void = () => {};
   onError: (key: string | null, message: string) => void = () => {};
+  onReset: (message: string) => void = () => {};
 
   constructor(worker: Worker, wasmUrl: string) {
     this.worker = worker;
@@ -102,6 +103,12 @@ export class SolverClient {
   }
 
   private receive(msg: FromWorker): void {
+    if (msg.type === 'reset') {
+      for (const list of this.linkWaiters.values()) for (const w of list) w.reject(new Error(msg.message));
+      this.linkWaiters.clear();
+      this.onReset(msg.message);
+      return;
+    }
     if (msg.type === 'links') {
       const list = this.linkWaiters.get(msg.key) ?? [];
       const waiter = list.shift();

@@ -445,7 +445,8 @@ export class Store {
   deleteSelection(): void {
     const { feature, point } = this.view.selection;
     if (feature === null) return;
-    if (point !== null && this.view.mode === 'rest') {
+    const f = getFeature(this.doc, feature);
+    if (point !== null && this.view.mode === 'rest' && f?.kind !== 'point') {
       this.apply(deletePoint(this.doc, feature, point));
       this.view = { ...this.view, selection: { feature, point: null } };
     } else {

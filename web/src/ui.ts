@@ -4,7 +4,7 @@ import { App } from './app';
 import { clear, h } from './dom';
 import { EngineError } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
-import { decodeBlob, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
+import { decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
 import { Overlay } from './overlay';
 import {
   INTERPOLATIONS,
@@ -167,7 +167,10 @@ export class Ui {
       h('div.group', {},
         h('label', { title: 'The interpolant that turns the drawing into a field' }, 'Method ',
           (this.els.method = h('select#method', { onchange: (e: Event) => this.tryEdit((d) => setMethod(d, (e.target as HTMLSelectElement).value as Method)) },
-            ...METHODS.map((m) => h('option', { value: m }, m))))),
+            ...METHODS.map((m) => {
+              const available = this.app.engine.methods().find((x) => x.name === m)?.available ?? false;
+              return h('option', { value: m, disabled: !available, title: available ? '' : 'not in this build yet' }, available ? m : `${m} (not yet)`);
+            })))),
       ),
       h('div.group.overlays', {},
         h('label', { title: 'Show the drawing (D)' }, (this.els.ovDrawing = h('input#ov-drawing', { type: 'checkbox', onchange: (e: Event) => this.setOverlay({ drawing: (e.target as HTMLInputElement).checked }) })), 'Drawing'),
@@ -322,7 +325,7 @@ export class Ui {
     this.els.feature.append(
       h('div.row', {}, h('b', {}, f.id), ` · ${f.kind}${f.kind === 'region' && f.curve === 'spline' ? ' (spline outline)' : ''} · ${f.rest.length} point${f.rest.length > 1 ? 's' : ''}`),
       view.selection.point !== null ? h('div.row.hint', {}, `control point ${view.selection.point + 1}`) : '',
-      h('table.keys', {},
+      keys.length === 0 ? '' : h('table.keys', {},
         h('tr', {}, h('th', {}, 'key'), h('th', {}, 'time (s)'), h('th', {}, 'to next'), h('th', {})),
         ...keys.map((k, n) => h('tr', { class: Math.abs(k.t - view.time) < KEY_EPS ? 'current' : '' },
           h('td', {}, h('button.small', { title: 'Go to this key', onclick: () => this.setTime(k.t) }, `◆${n + 1}`)),
@@ -686,20 +689,21 @@ export class Ui {
   private playTick(now: number): void {
     if (!this.store.view.playing || !this.playStart) return;
     const doc = this.store.doc;
-    let t = this.playStart.time + (now - this.playStart.wall) / 1000;
-    if (t > doc.duration) {
-      t = 0;
-      this.playStart = { wall: now, time: 0 };
-      this.lastShownFrame = -1;
-    }
-    const frame = Math.floor(t * doc.fps + 1e-9);
-    if (frame !== this.lastShownFrame) {
+    const n = frameCount(doc);
+    // Frames since play was pressed (absolute, so skipped frames count as dropped), looped.
+    const absolute = Math.floor((this.playStart.time + (now - this.playStart.wall) / 1000) * doc.fps + 1e-9);
+    if (absolute !== this.lastShownFrame) {
       const pb = this.app.stats.playback!;
-      if (this.lastShownFrame >= 0 && frame > this.lastShownFrame + 1) pb.dropped += frame - this.lastShownFrame - 1;
-      pb.expected += this.lastShownFrame >= 0 ? frame - this.lastShownFrame : 1;
-      this.lastShownFrame = frame;
-      this.store.setView({ time: frame / doc.fps });
+      if (this.lastShownFrame >= 0) {
+        pb.expected += absolute - this.lastShownFrame;
+        pb.dropped += Math.max(0, absolute - this.lastShownFrame - 1);
+      } else {
+        pb.expected += 1;
+      }
+      this.lastShownFrame = absolute;
+      this.store.setView({ time: (absolute % n) / doc.fps });
     }
+    this.app.prefetch();
     requestAnimationFrame((tt) => this.playTick(tt));
   }
 
@@ -774,28 +778,53 @@ export class Ui {
   // -- Files -------------------------------------------------------------------------------
 
   /** Opens a scene document: checks it, loads it, reports problems with their JSON path. */
-  async openScene(doc: SceneDoc, name: string): Promise<void> {
-    const problems = this.app.engine.validate?.(doc) ?? [];
-    if (problems.length) {
-      const [first] = problems;
-      throw new SceneFileError(`${first.message}${problems.length > 1 ? ` (and ${problems.length - 1} more problem${problems.length > 2 ? 's' : ''})` : ''}`, first.path);
-    }
+  async openScene(doc: SceneDoc, name: string, validate = true): Promise<void> {
+    if (validate) this.throwProblems(doc);
     this.fileName = name;
     this.store.load(doc);
     this.store.setView({ activeLayer: Math.max(0, doc.layers.length - 1) });
     await this.app.idle();
   }
 
+  /**
+   * Opens scene JSON text: the engine validates it (every message with its JSON path, as
+   * `inkwarp validate` prints them), then the editor fills in the defaults it shows.
+   */
+  async openSceneText(text: string, name: string): Promise<void> {
+    let raw: unknown;
+    try {
+      raw = JSON.parse(text);
+    } catch (err) {
+      throw new SceneFileError(`This is not a JSON file (${(err as Error).message}).`);
+    }
+    this.throwProblems(raw);
+    const doc = parseScene(text);
+    if (!doc.width || !doc.height) {
+      const first = doc.layers.find((l) => l.image);
+      const img = first ? await decodeImage(first.image) : null;
+      doc.width ||= img?.width ?? 1;
+      doc.height ||= img?.height ?? 1;
+    }
+    await this.openScene(doc, name, false);
+  }
+
+  private throwProblems(doc: unknown): void {
+    const problems = this.app.engine.validate(doc);
+    if (problems.length) {
+      const [first] = problems;
+      const more = problems.length > 1 ? ` (and ${problems.length - 1} more problem${problems.length > 2 ? 's' : ''})` : '';
+      // A browser cannot read files next to the scene: say how to open such a scene.
+      const hint = problems.some((p) => /only use data: URIs/.test(p.message))
+        ? ' — its images are files next to it: open it with `inkwarp edit SCENE`, which reads them.'
+        : '';
+      throw new SceneFileError(`${first.message}${more}${hint}`, first.path);
+    }
+  }
+
   async openFile(file: File, dropped = false): Promise<void> {
     try {
       if (file.name.toLowerCase().endsWith('.json') || file.type === 'application/json') {
-        let doc: SceneDoc;
-        try {
-          doc = parseScene(await file.text());
-        } catch (err) {
-          throw err instanceof SceneFileError ? new SceneFileError(err.message.replace(/^.*?: /, ''), err.path) : err;
-        }
-        await this.openScene(doc, file.name);
+        await this.openSceneText(await file.text(), file.name);
         this.saveUrl = null;
         this.message(`Opened ${file.name}.`, 'info');
         return;
@@ -816,7 +845,7 @@ export class Ui {
 
   fileError(name: string, err: unknown): void {
     if (err instanceof SceneFileError) {
-      this.message(`${name}: ${err.path ? `at ${err.path}: ` : ''}${err.message.replace(`${err.path}: `, '')}`, 'error');
+      this.message(`${name}: ${err.path ? `at ${err.path}: ` : ''}${err.message.slice(err.path ? err.path.length + 2 : 0)}`, 'error');
     } else if (err instanceof EngineError || err instanceof Error) {
       this.message(`${name}: ${err.message}`, 'error');
     } else {
@@ -879,7 +908,11 @@ export class Ui {
     try {
       let doc: SceneDoc;
       if (entry.url === null) doc = await builtinScene();
-      else doc = parseScene(await (await fetch(entry.url)).text());
+      else {
+        await this.openSceneText(await (await fetch(entry.url)).text(), `${entry.name}.json`);
+        this.saveUrl = null;
+        return;
+      }
       await this.openScene(doc, `${entry.name}.json`);
       this.saveUrl = null;
     } catch (err) {

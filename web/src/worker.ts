@@ -5,6 +5,7 @@ import { Engine, type FieldData, type GridHandle } from './engine';
 import type { FromWorker, ToWorker } from './protocol';
 
 let engine: Engine | null = null;
+let wasmUrl = '';
 const grids = new Map<string, GridHandle>();
 const last = new Map<string, FieldData>();
 
@@ -14,6 +15,7 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
   const msg = ev.data;
   try {
     if (msg.type === 'init') {
+      wasmUrl = msg.wasmUrl;
       engine = await Engine.fromUrl(msg.wasmUrl);
       post({ type: 'ready' });
       return;
@@ -46,6 +48,13 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
       ]);
     }
   } catch (err) {
+    if (err instanceof WebAssembly.RuntimeError && wasmUrl) {
+      // A trap leaves the module's state unusable: start a fresh instance.
+      engine = await Engine.fromUrl(wasmUrl);
+      grids.clear();
+      last.clear();
+      post({ type: 'reset', message: `The engine stopped (${err.message}) and was restarted.` });
+    }
     const id = msg.type === 'solve' ? msg.id : null;
     const key = 'key' in msg ? msg.key : null;
     post({ type: 'error', id, key, message: (err as Error).message ?? String(err) });

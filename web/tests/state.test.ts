@@ -130,8 +130,9 @@ describe('keys', () => {
     const f = () => doc.features[0];
     expect(pointsAt(f(), 0)).toEqual([[0, 0], [10, 0]]);
     expect(pointsAt(f(), 3)).toEqual([[0, 8], [10, 8]]);
-    // Two keys, smooth: the Hermite curve with one-sided tangents is linear in time.
+    // Two keys, smooth: eases out of the first and into the second, halfway at the middle.
     expect(pointsAt(f(), 1.5)[0][1]).toBeCloseTo(4, 9);
+    expect(pointsAt(f(), 1.25)[0][1]).toBeLessThan(2);
     doc = setInterpolation(doc, 'polyline1', 1, 'hold');
     expect(pointsAt(f(), 1.99)[0][1]).toBe(0);
     expect(f().keys![0].interpolation).toBe('hold');

@@ -13,7 +13,6 @@
 #![allow(unsafe_code)] // the C ABI needs raw pointers; every unsafe block is a slice view.
 
 mod api;
-mod stand_in;
 
 use std::cell::RefCell;
 
