@@ -425,8 +425,9 @@ export class App {
       if (!rt?.gl || layer.visible === false || this.store.view.hidden.includes(layer.name)) continue;
       layers.push({ layer: rt.gl, offset: layer.offset ?? ([0, 0] as Pt) });
     }
-    // Drafts (during a drag) skip multisampling: it triples the cost of a software GPU.
-    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], layers, !this.dragging);
+    // Frames during a drag are drafts: no multisampling and a coarser mesh (a software GPU
+    // pays per triangle and per sample; the full frame follows when the pointer rests).
+    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], layers, !this.dragging, this.dragging);
     this.onFrame();
     const now = performance.now();
     for (const t of this.pendingLatency.splice(0)) this.stats.dragLatency.push(now - t);

@@ -28,6 +28,7 @@ uniform highp sampler2D uField;
 uniform ivec2 uSize;
 uniform vec2 uCanvas;
 uniform vec2 uOffset;
+uniform float uBlock;
 out vec2 vRest;
 flat out vec4 vClamp;
 
@@ -37,7 +38,7 @@ void main() {
   vec2 d = texelFetch(uField, p, 0).rg;
   vec2 q = rest + d + uOffset;
   vRest = rest;
-  vClamp = vec4(rest, rest + 1.0);
+  vClamp = vec4(rest, rest + uBlock);
   gl_Position = vec4((q.x + 0.5) / uCanvas.x * 2.0 - 1.0, 1.0 - (q.y + 0.5) / uCanvas.y * 2.0, 0.0, 1.0);
 }
 `;
@@ -150,6 +151,9 @@ export class GlLayer {
   /** Indices of the triangles of every quad whose four links exist. */
   indices: WebGLBuffer;
   count = 0;
+  /** Drafts: 2×2 blocks of whole quads as one quad (a quarter of the triangles). */
+  coarse: WebGLBuffer;
+  coarseCount = 0;
   links: WebGLTexture;
   /** The skirt quarters: 6 vertices each of (x, y, sx, sy, u, v). */
   skirts: WebGLBuffer;
@@ -164,6 +168,7 @@ export class GlLayer {
     this.image = r.texture();
     this.field = r.texture();
     this.indices = gl.createBuffer()!;
+    this.coarse = gl.createBuffer()!;
     this.links = r.texture();
     this.skirts = gl.createBuffer()!;
     this.skirtVao = gl.createVertexArray()!;
@@ -217,11 +222,29 @@ export class GlLayer {
         }
       }
     }
+    // The draft mesh: the same vertices, a 2×2 block of whole quads drawn as one quad
+    // (the picture keeps every pixel: colours are still looked up per pixel).
+    const whole = (i: number, j: number) => i + 1 < w && j + 1 < h && (at(i, j) & 6) === 6 && (at(i, j + 1) & 2) !== 0 && (at(i + 1, j) & 4) !== 0;
+    const coarse = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
+    let m = 0;
+    const quad = (k: number, sx: number, sy: number) => {
+      coarse.set([k + sx, k + sy * w + sx, k, k + sy * w + sx, k + sy * w, k], m);
+      m += 6;
+    };
+    for (let j = 0; j + 1 < h; j += 2) {
+      for (let i = 0; i + 1 < w; i += 2) {
+        if (whole(i, j) && whole(i + 1, j) && whole(i, j + 1) && whole(i + 1, j + 1)) quad(j * w + i, 2, 2);
+        else for (const [a, b] of [[i, j], [i + 1, j], [i, j + 1], [i + 1, j + 1]]) if (whole(a, b)) quad(b * w + a, 1, 1);
+      }
+    }
     const gl = this.r.gl;
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.indices);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, quads.subarray(0, n), gl.STATIC_DRAW);
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.coarse);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, coarse.subarray(0, m), gl.STATIC_DRAW);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, null);
     this.count = n;
+    this.coarseCount = m;
     gl.bindBuffer(gl.ARRAY_BUFFER, this.skirts);
     gl.bufferData(gl.ARRAY_BUFFER, new Float32Array(skirts), gl.STATIC_DRAW);
     gl.bindBuffer(gl.ARRAY_BUFFER, null);
@@ -252,6 +275,7 @@ export class GlLayer {
     gl.deleteTexture(this.image);
     gl.deleteTexture(this.field);
     gl.deleteBuffer(this.indices);
+    gl.deleteBuffer(this.coarse);
     gl.deleteBuffer(this.skirts);
     gl.deleteTexture(this.links);
     gl.deleteVertexArray(this.skirtVao);
@@ -345,10 +369,11 @@ void main() { o = texture(uTex, vPos); }`);
 
   /**
    * Renders a frame: the background (straight RGBA8) then each layer, back to front;
-   * `antialias: false` samples once per pixel (fast drafts).
+   * `antialias: false` samples once per pixel; `draft` draws 2×2 blocks of whole quads as
+   * one quad (both for fast frames during a drag on a software GPU).
    * The result stays in the resolve target (for `readPixels`) and is shown on the canvas.
    */
-  render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true): void {
+  render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): void {
     const gl = this.gl;
     this.ensureTargets(width, height);
     const target = antialias ? this.msaaFbo : this.plainFbo;
@@ -376,10 +401,11 @@ void main() { o = texture(uTex, vPos); }`);
         gl.uniform2i(u('uSize'), layer.width, layer.height);
         gl.uniform2f(u('uOffset'), offset[0], offset[1]);
         gl.uniform1f(u('uOpacity'), opacity ?? 1);
+        gl.uniform1f(u('uBlock'), draft ? 2 : 1);
         if (prog === this.mesh) {
           gl.bindVertexArray(this.vao);
-          gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, layer.indices);
-          gl.drawElements(gl.TRIANGLES, layer.count, gl.UNSIGNED_INT, 0);
+          gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, draft ? layer.coarse : layer.indices);
+          gl.drawElements(gl.TRIANGLES, draft ? layer.coarseCount : layer.count, gl.UNSIGNED_INT, 0);
         } else if (layer.skirtCount) {
           gl.bindVertexArray(layer.skirtVao);
           gl.drawArrays(gl.TRIANGLES, 0, layer.skirtCount);

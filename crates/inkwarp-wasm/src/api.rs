@@ -46,7 +46,10 @@ fn insert<T>(store: &mut Vec<Option<T>>, value: T) -> u32 {
 fn with_domain<R>(handle: u32, f: impl FnOnce(&Domain) -> R) -> Result<R, String> {
     GRIDS.with(|g| {
         let store = g.borrow();
-        match store.get((handle as usize).wrapping_sub(1)).and_then(Option::as_ref) {
+        match store
+            .get((handle as usize).wrapping_sub(1))
+            .and_then(Option::as_ref)
+        {
             Some(domain) => Ok(f(domain)),
             None => Err(format!("There is no grid with handle {handle}.")),
         }
@@ -56,7 +59,10 @@ fn with_domain<R>(handle: u32, f: impl FnOnce(&Domain) -> R) -> Result<R, String
 fn with_grid<R>(handle: u32, f: impl FnOnce(&Grid) -> R) -> Result<R, String> {
     GRIDS.with(|g| {
         let store = g.borrow();
-        match store.get((handle as usize).wrapping_sub(1)).and_then(Option::as_ref) {
+        match store
+            .get((handle as usize).wrapping_sub(1))
+            .and_then(Option::as_ref)
+        {
             Some(domain) => Ok(f(&domain.grid)),
             None => Err(format!("There is no grid with handle {handle}.")),
         }
@@ -101,10 +107,24 @@ pub extern "C" fn iw_grid_new(
             }
         };
         for cut in &cuts {
-            grid.add_cut(&curve_polyline(Kind::Cut, cut, false, false, CUT_SPACING_PX));
+            grid.add_cut(&curve_polyline(
+                Kind::Cut,
+                cut,
+                false,
+                false,
+                CUT_SPACING_PX,
+            ));
         }
     }
-    GRIDS.with(|g| insert(&mut g.borrow_mut(), Domain { grid, samplers: RefCell::new(HashMap::new()) }))
+    GRIDS.with(|g| {
+        insert(
+            &mut g.borrow_mut(),
+            Domain {
+                grid,
+                samplers: RefCell::new(HashMap::new()),
+            },
+        )
+    })
 }
 
 /// Frees a grid.
@@ -125,11 +145,15 @@ pub extern "C" fn iw_grid_links(handle: u32, out_ptr: *mut u8, out_len: usize) -
     let res = with_grid(handle, |grid| {
         let n = grid.width * grid.height;
         if out_len != n {
-            return Err(format!("The link buffer has {out_len} bytes; the grid needs {n}."));
+            return Err(format!(
+                "The link buffer has {out_len} bytes; the grid needs {n}."
+            ));
         }
         let out = bytes_mut(out_ptr, out_len);
         for i in 0..n {
-            out[i] = grid.active[i] as u8 | (grid.link_right[i] as u8) << 1 | (grid.link_down[i] as u8) << 2;
+            out[i] = grid.active[i] as u8
+                | (grid.link_right[i] as u8) << 1
+                | (grid.link_down[i] as u8) << 2;
         }
         Ok(())
     });
@@ -167,7 +191,13 @@ struct OptionsIn {
 
 impl Default for OptionsIn {
     fn default() -> Self {
-        OptionsIn { tension: 0.0, tolerance: 0.01, grid_step: 1, max_cycles: None, method: "multigrid".into() }
+        OptionsIn {
+            tension: 0.0,
+            tolerance: 0.01,
+            grid_step: 1,
+            max_cycles: None,
+            method: "multigrid".into(),
+        }
     }
 }
 
@@ -181,7 +211,11 @@ struct SolveIn {
     spacing_px: Option<f64>,
 }
 
-fn samples_of(features: &[FeatureIn], domain: &Domain, spacing_px: f64) -> Result<Vec<Sample>, String> {
+fn samples_of(
+    features: &[FeatureIn],
+    domain: &Domain,
+    spacing_px: f64,
+) -> Result<Vec<Sample>, String> {
     let mut samples = Vec::new();
     let mut cache = domain.samplers.borrow_mut();
     if cache.len() > MAX_SAMPLERS {
@@ -189,14 +223,22 @@ fn samples_of(features: &[FeatureIn], domain: &Domain, spacing_px: f64) -> Resul
     }
     for (i, f) in features.iter().enumerate() {
         let name = || f.id.clone().unwrap_or_else(|| format!("#{i}"));
-        let key = serde_json::json!([f.kind, f.rest, f.closed, f.spline_outline, spacing_px]).to_string();
+        let key =
+            serde_json::json!([f.kind, f.rest, f.closed, f.spline_outline, spacing_px]).to_string();
         if !cache.contains_key(&key) {
-            let opts = SampleOptions { closed: f.closed, spline_outline: f.spline_outline, spacing_px };
+            let opts = SampleOptions {
+                closed: f.closed,
+                spline_outline: f.spline_outline,
+                spacing_px,
+            };
             let on = (f.kind == Kind::Region).then_some(&domain.grid);
-            let sampler = FeatureSampler::new(f.kind, &f.rest, &opts, on).map_err(|e| format!("Feature {}: {e}", name()))?;
+            let sampler = FeatureSampler::new(f.kind, &f.rest, &opts, on)
+                .map_err(|e| format!("Feature {}: {e}", name()))?;
             cache.insert(key.clone(), sampler);
         }
-        let posed = cache[&key].sample(&f.pose).map_err(|e| format!("Feature {}: {e}", name()))?;
+        let posed = cache[&key]
+            .sample(&f.pose)
+            .map_err(|e| format!("Feature {}: {e}", name()))?;
         samples.extend(posed);
     }
     Ok(samples)
@@ -228,7 +270,11 @@ pub extern "C" fn iw_solve(
         let method = match req.options.method.as_str() {
             "multigrid" => SolveMethod::Multigrid,
             "southwell" => SolveMethod::Southwell,
-            other => return Err(format!("Unknown solver method {other:?}; use \"multigrid\" or \"southwell\".")),
+            other => {
+                return Err(format!(
+                    "Unknown solver method {other:?}; use \"multigrid\" or \"southwell\"."
+                ))
+            }
         };
         let options = SolveOptions {
             tension: req.options.tension,
@@ -240,9 +286,15 @@ pub extern "C" fn iw_solve(
         };
         let initial = (!initial_ptr.is_null()).then(|| {
             let data = floats(initial_ptr, 2 * n);
-            Field { width: grid.width, height: grid.height, dx: data[..n].to_vec(), dy: data[n..].to_vec() }
+            Field {
+                width: grid.width,
+                height: grid.height,
+                dx: data[..n].to_vec(),
+                dy: data[n..].to_vec(),
+            }
         });
-        let (field, report) = solve(grid, &samples, &options, initial.as_ref()).map_err(|e| e.to_string())?;
+        let (field, report) =
+            solve(grid, &samples, &options, initial.as_ref()).map_err(|e| e.to_string())?;
         let out = floats_mut(out_ptr, 2 * n);
         out[..n].copy_from_slice(&field.dx);
         out[n..].copy_from_slice(&field.dy);
@@ -284,14 +336,23 @@ pub extern "C" fn iw_curve(req_ptr: *const u8, req_len: usize) -> i32 {
         Ok(r) => r,
         Err(e) => return fail(e),
     };
-    let line = curve_polyline(req.kind, &req.points, req.closed, req.spline_outline, req.spacing_px.unwrap_or(2.0));
+    let line = curve_polyline(
+        req.kind,
+        &req.points,
+        req.closed,
+        req.spline_outline,
+        req.spacing_px.unwrap_or(2.0),
+    );
     ok_json(&line)
 }
 
 fn with_canvas<R>(handle: u32, f: impl FnOnce(&mut Canvas) -> R) -> Result<R, String> {
     CANVASES.with(|c| {
         let mut store = c.borrow_mut();
-        match store.get_mut((handle as usize).wrapping_sub(1)).and_then(Option::as_mut) {
+        match store
+            .get_mut((handle as usize).wrapping_sub(1))
+            .and_then(Option::as_mut)
+        {
             Some(canvas) => Ok(f(canvas)),
             None => Err(format!("There is no canvas with handle {handle}.")),
         }
@@ -302,7 +363,12 @@ fn with_canvas<R>(handle: u32, f: impl FnOnce(&mut Canvas) -> R) -> Result<R, St
 /// (straight RGBA8). Returns a handle ≥ 1.
 #[no_mangle]
 pub extern "C" fn iw_canvas_new(width: usize, height: usize, r: u8, g: u8, b: u8, a: u8) -> u32 {
-    CANVASES.with(|c| insert(&mut c.borrow_mut(), Canvas::new(width, height, [r, g, b, a])))
+    CANVASES.with(|c| {
+        insert(
+            &mut c.borrow_mut(),
+            Canvas::new(width, height, [r, g, b, a]),
+        )
+    })
 }
 
 /// Frees a canvas.
@@ -328,10 +394,21 @@ pub extern "C" fn iw_canvas_draw(
 ) -> i32 {
     let res = with_grid(grid, |grid| {
         let n = grid.width * grid.height;
-        let image = RgbaImage { width: grid.width, height: grid.height, data: bytes(image_ptr, 4 * n).to_vec() };
+        let image = RgbaImage {
+            width: grid.width,
+            height: grid.height,
+            data: bytes(image_ptr, 4 * n).to_vec(),
+        };
         let data = floats(field_ptr, 2 * n);
-        let field = Field { width: grid.width, height: grid.height, dx: data[..n].to_vec(), dy: data[n..].to_vec() };
-        with_canvas(canvas, |c| c.draw_layer(&image, &field, grid, [offset_x, offset_y]))
+        let field = Field {
+            width: grid.width,
+            height: grid.height,
+            dx: data[..n].to_vec(),
+            dy: data[n..].to_vec(),
+        };
+        with_canvas(canvas, |c| {
+            c.draw_layer(&image, &field, grid, [offset_x, offset_y])
+        })
     });
     match res {
         Ok(Ok(())) => 0,
@@ -345,7 +422,10 @@ pub extern "C" fn iw_canvas_read(canvas: u32, out_ptr: *mut u8, out_len: usize) 
     let res = with_canvas(canvas, |c| {
         let img = c.to_rgba8();
         if img.data.len() != out_len {
-            return Err(format!("The output buffer has {out_len} bytes; the canvas needs {}.", img.data.len()));
+            return Err(format!(
+                "The output buffer has {out_len} bytes; the canvas needs {}.",
+                img.data.len()
+            ));
         }
         bytes_mut(out_ptr, out_len).copy_from_slice(&img.data);
         Ok(())
@@ -387,9 +467,17 @@ pub extern "C" fn iw_points_at(req_ptr: *const u8, req_len: usize) -> i32 {
             None | Some("smooth") => Interpolation::Smooth,
             Some("linear") => Interpolation::Linear,
             Some("hold") => Interpolation::Hold,
-            Some(other) => return fail(format!("Unknown interpolation {other:?}; use smooth, linear or hold.")),
+            Some(other) => {
+                return fail(format!(
+                    "Unknown interpolation {other:?}; use smooth, linear or hold."
+                ))
+            }
         };
-        keys.push(Key { time_s: k.t, points: k.points, interpolation });
+        keys.push(Key {
+            time_s: k.t,
+            points: k.points,
+            interpolation,
+        });
     }
     ok_json(&points_at(&req.rest, &keys, req.t))
 }
@@ -402,7 +490,10 @@ pub extern "C" fn iw_points_at(req_ptr: *const u8, req_len: usize) -> i32 {
 pub extern "C" fn iw_decode(ptr: *const u8, len: usize) -> i32 {
     let input = bytes(ptr, len);
     let raw = if input.starts_with(b"data:") {
-        match std::str::from_utf8(input).map_err(|e| e.to_string()).and_then(images::data_uri_bytes) {
+        match std::str::from_utf8(input)
+            .map_err(|e| e.to_string())
+            .and_then(images::data_uri_bytes)
+        {
             Ok(b) => b,
             Err(e) => return fail(format!("Cannot read the data: URI: {e}.")),
         }
@@ -412,7 +503,13 @@ pub extern "C" fn iw_decode(ptr: *const u8, len: usize) -> i32 {
     match images::decode_image(&raw) {
         Ok(img) => {
             let (width, height) = (img.width, img.height);
-            DECODED.with(|d| *d.borrow_mut() = Some(RgbaImage { width, height, data: img.data }));
+            DECODED.with(|d| {
+                *d.borrow_mut() = Some(RgbaImage {
+                    width,
+                    height,
+                    data: img.data,
+                })
+            });
             ok_json(&serde_json::json!({ "width": width, "height": height }))
         }
         Err(e) => fail(e),
@@ -428,7 +525,10 @@ pub extern "C" fn iw_decoded_take(out_ptr: *mut u8, out_len: usize) -> i32 {
             bytes_mut(out_ptr, out_len).copy_from_slice(&img.data);
             0
         }
-        Some(img) => fail(format!("The output buffer has {out_len} bytes; the image needs {}.", img.data.len())),
+        Some(img) => fail(format!(
+            "The output buffer has {out_len} bytes; the image needs {}.",
+            img.data.len()
+        )),
         None => fail("No image was decoded."),
     }
 }
@@ -436,9 +536,18 @@ pub extern "C" fn iw_decoded_take(out_ptr: *mut u8, out_len: usize) -> i32 {
 /// The engine's matte values of a straight RGBA8 image (grey level times alpha; 0 is a
 /// hole), one byte per pixel into `out`. Status 0/1.
 #[no_mangle]
-pub extern "C" fn iw_matte_values(rgba_ptr: *const u8, width: usize, height: usize, out_ptr: *mut u8) -> i32 {
+pub extern "C" fn iw_matte_values(
+    rgba_ptr: *const u8,
+    width: usize,
+    height: usize,
+    out_ptr: *mut u8,
+) -> i32 {
     let n = width * height;
-    let image = RgbaImage { width, height, data: bytes(rgba_ptr, 4 * n).to_vec() };
+    let image = RgbaImage {
+        width,
+        height,
+        data: bytes(rgba_ptr, 4 * n).to_vec(),
+    };
     let values = images::matte_values(&image);
     bytes_mut(out_ptr, n).copy_from_slice(&values);
     0
@@ -451,12 +560,21 @@ pub extern "C" fn iw_matte_values(rgba_ptr: *const u8, width: usize, height: usi
 pub extern "C" fn iw_scene_check(json_ptr: *const u8, json_len: usize) -> i32 {
     let text = match std::str::from_utf8(bytes(json_ptr, json_len)) {
         Ok(t) => t,
-        Err(_) => return ok_json(&[serde_json::json!({ "path": "", "message": "the scene is not UTF-8 text" })]),
+        Err(_) => {
+            return ok_json(&[
+                serde_json::json!({ "path": "", "message": "the scene is not UTF-8 text" }),
+            ])
+        }
     };
-    let problems: Vec<serde_json::Value> = match inkwarp_core::scene::Scene::from_json(text, &mut inkwarp_core::scene::no_files) {
-        Ok(_) => Vec::new(),
-        Err(err) => err.problems.iter().map(|p| serde_json::json!({ "path": p.path, "message": p.message })).collect(),
-    };
+    let problems: Vec<serde_json::Value> =
+        match inkwarp_core::scene::Scene::from_json(text, &mut inkwarp_core::scene::no_files) {
+            Ok(_) => Vec::new(),
+            Err(err) => err
+                .problems
+                .iter()
+                .map(|p| serde_json::json!({ "path": p.path, "message": p.message }))
+                .collect(),
+        };
     ok_json(&problems)
 }
 
@@ -470,7 +588,8 @@ pub extern "C" fn iw_methods() -> i32 {
     let list: Vec<serde_json::Value> = ["tps", "tps-exact", "triangulation", "beier-neely"]
         .iter()
         .map(|&name| {
-            let available = Method::from_name(name).is_some_and(|m| m == Method::Tps && method_available(m));
+            let available =
+                Method::from_name(name).is_some_and(|m| m == Method::Tps && method_available(m));
             serde_json::json!({ "name": name, "available": available })
         })
         .collect();

@@ -117,6 +117,10 @@ pub(crate) fn bytes_mut<'a>(ptr: *mut u8, len: usize) -> &'a mut [u8] {
 }
 
 /// Parses a JSON argument.
-pub(crate) fn json_arg<T: serde::de::DeserializeOwned>(ptr: *const u8, len: usize) -> Result<T, String> {
-    serde_json::from_slice(bytes(ptr, len)).map_err(|e| format!("The request is not valid JSON for this call: {e}."))
+pub(crate) fn json_arg<T: serde::de::DeserializeOwned>(
+    ptr: *const u8,
+    len: usize,
+) -> Result<T, String> {
+    serde_json::from_slice(bytes(ptr, len))
+        .map_err(|e| format!("The request is not valid JSON for this call: {e}."))
 }
