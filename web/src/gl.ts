@@ -144,6 +144,54 @@ function program(gl: WebGL2RenderingContext, vs: string, fs: string, attributes:
   return p;
 }
 
+/**
+ * The mesh of a `w × h` layer from its grid's links (per node: bit 0 active, bit 1 linked
+ * right, bit 2 linked down; null: everything linked) and its RGBA (a pixel is drawn when
+ * it is active or visible): triangle indices of the whole quads, of the draft mesh, the
+ * skirt quarters' vertices (x, y, sx, sy, u, v), and the links as given (or all).
+ */
+export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; links: Uint8Array } {
+  const at = (i: number, j: number) => (links ? links[j * w + i] : i + 1 < w ? (j + 1 < h ? 7 : 3) : j + 1 < h ? 5 : 1);
+  const drawn = (i: number, j: number) => i >= 0 && j >= 0 && i < w && j < h && ((at(i, j) & 1) !== 0 || (rgba !== null && rgba[4 * (j * w + i) + 3] > 0));
+  const quads = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
+  const skirts: number[] = [];
+  let n = 0;
+  for (let j = -1; j < h; j++) {
+    for (let i = -1; i < w; i++) {
+      const whole = i >= 0 && j >= 0 && i + 1 < w && j + 1 < h && (at(i, j) & 6) === 6 && (at(i, j + 1) & 2) !== 0 && (at(i + 1, j) & 4) !== 0;
+      if (whole) {
+        const k = j * w + i;
+        // Both triangles end on the block's top-left pixel (the provoking vertex).
+        quads.set([k + 1, k + w + 1, k, k + w + 1, k + w, k], n);
+        n += 6;
+        continue;
+      }
+      for (const [ci, cj, sx, sy] of [[i, j, 1, 1], [i + 1, j, -1, 1], [i, j + 1, 1, -1], [i + 1, j + 1, -1, -1]]) {
+        if (!drawn(ci, cj)) continue;
+        for (const [u, v] of [[0, 0], [1, 0], [0, 1], [0, 1], [1, 0], [1, 1]]) skirts.push(ci, cj, sx, sy, u, v);
+      }
+    }
+  }
+  // The draft mesh: the same vertices, a 2×2 block of whole quads drawn as one quad
+  // (the picture keeps every pixel: colours are still looked up per pixel).
+  const whole = (i: number, j: number) => i + 1 < w && j + 1 < h && (at(i, j) & 6) === 6 && (at(i, j + 1) & 2) !== 0 && (at(i + 1, j) & 4) !== 0;
+  const coarse = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
+  let m = 0;
+  const quad = (k: number, sx: number, sy: number) => {
+    coarse.set([k + sx, k + sy * w + sx, k, k + sy * w + sx, k + sy * w, k], m);
+    m += 6;
+  };
+  for (let j = 0; j + 1 < h; j += 2) {
+    for (let i = 0; i + 1 < w; i += 2) {
+      if (whole(i, j) && whole(i + 1, j) && whole(i, j + 1) && whole(i + 1, j + 1)) quad(j * w + i, 2, 2);
+      else for (const [a, b] of [[i, j], [i + 1, j], [i, j + 1], [i + 1, j + 1]]) if (whole(a, b)) quad(b * w + a, 1, 1);
+    }
+  }
+  const all = new Uint8Array(w * h);
+  for (let j = 0; j < h; j++) for (let i = 0; i < w; i++) all[j * w + i] = at(i, j);
+  return { quads: quads.slice(0, n), coarse: coarse.slice(0, m), skirts: new Float32Array(skirts), links: all };
+}
+
 /** One layer's GPU resources. */
 export class GlLayer {
   image: WebGLTexture;
@@ -201,56 +249,21 @@ export class GlLayer {
    */
   setMesh(links: Uint8Array | null, rgba: Uint8Array | null): void {
     const { width: w, height: h } = this;
-    const at = (i: number, j: number) => (links ? links[j * w + i] : i + 1 < w ? (j + 1 < h ? 7 : 3) : j + 1 < h ? 5 : 1);
-    const drawn = (i: number, j: number) => i >= 0 && j >= 0 && i < w && j < h && ((at(i, j) & 1) !== 0 || (rgba !== null && rgba[4 * (j * w + i) + 3] > 0));
-    const quads = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
-    const skirts: number[] = [];
-    let n = 0;
-    for (let j = -1; j < h; j++) {
-      for (let i = -1; i < w; i++) {
-        const whole = i >= 0 && j >= 0 && i + 1 < w && j + 1 < h && (at(i, j) & 6) === 6 && (at(i, j + 1) & 2) !== 0 && (at(i + 1, j) & 4) !== 0;
-        if (whole) {
-          const k = j * w + i;
-          // Both triangles end on the block's top-left pixel (the provoking vertex).
-          quads.set([k + 1, k + w + 1, k, k + w + 1, k + w, k], n);
-          n += 6;
-          continue;
-        }
-        for (const [ci, cj, sx, sy] of [[i, j, 1, 1], [i + 1, j, -1, 1], [i, j + 1, 1, -1], [i + 1, j + 1, -1, -1]]) {
-          if (!drawn(ci, cj)) continue;
-          for (const [u, v] of [[0, 0], [1, 0], [0, 1], [0, 1], [1, 0], [1, 1]]) skirts.push(ci, cj, sx, sy, u, v);
-        }
-      }
-    }
-    // The draft mesh: the same vertices, a 2×2 block of whole quads drawn as one quad
-    // (the picture keeps every pixel: colours are still looked up per pixel).
-    const whole = (i: number, j: number) => i + 1 < w && j + 1 < h && (at(i, j) & 6) === 6 && (at(i, j + 1) & 2) !== 0 && (at(i + 1, j) & 4) !== 0;
-    const coarse = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
-    let m = 0;
-    const quad = (k: number, sx: number, sy: number) => {
-      coarse.set([k + sx, k + sy * w + sx, k, k + sy * w + sx, k + sy * w, k], m);
-      m += 6;
-    };
-    for (let j = 0; j + 1 < h; j += 2) {
-      for (let i = 0; i + 1 < w; i += 2) {
-        if (whole(i, j) && whole(i + 1, j) && whole(i, j + 1) && whole(i + 1, j + 1)) quad(j * w + i, 2, 2);
-        else for (const [a, b] of [[i, j], [i + 1, j], [i, j + 1], [i + 1, j + 1]]) if (whole(a, b)) quad(b * w + a, 1, 1);
-      }
-    }
+    const { quads, coarse, skirts, links: l } = buildMesh(w, h, links, rgba);
+    const n = quads.length;
+    const m = coarse.length;
     const gl = this.r.gl;
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.indices);
-    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, quads.subarray(0, n), gl.STATIC_DRAW);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, quads, gl.STATIC_DRAW);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.coarse);
-    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, coarse.subarray(0, m), gl.STATIC_DRAW);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, coarse, gl.STATIC_DRAW);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, null);
     this.count = n;
     this.coarseCount = m;
     gl.bindBuffer(gl.ARRAY_BUFFER, this.skirts);
-    gl.bufferData(gl.ARRAY_BUFFER, new Float32Array(skirts), gl.STATIC_DRAW);
+    gl.bufferData(gl.ARRAY_BUFFER, skirts, gl.STATIC_DRAW);
     gl.bindBuffer(gl.ARRAY_BUFFER, null);
     this.skirtCount = skirts.length / 6;
-    const l = new Uint8Array(w * h);
-    for (let j = 0; j < h; j++) for (let i = 0; i < w; i++) l[j * w + i] = at(i, j);
     gl.bindTexture(gl.TEXTURE_2D, this.links);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.R8UI, w, h, 0, gl.RED_INTEGER, gl.UNSIGNED_BYTE, l);

@@ -353,7 +353,7 @@ export class Ui {
     const every = Math.max(1, Math.round(n / 24));
     for (let i = 0; i < n; i += every) ruler.append(h('span.tick', { style: { left: pct(i / doc.fps) } }, i % (every * 4) === 0 ? String(i + 1) : ''));
     ruler.append(h('span.playhead', { style: { left: pct(view.time) } }));
-    this.els.tracks.append(h('div.track-row', {}, h('span.track-name', {}, 'frame'), ruler));
+    this.els.tracks.append(h('div.track-row.ruler-row', {}, h('span.track-name', { title: 'Frame numbers; click or drag to set the time' }, 'frames'), ruler));
     for (const f of doc.features) {
       if (f.kind === 'cut') continue;
       const track = h('div.track', { onpointerdown: (e: PointerEvent) => this.scrubTrack(e) });
