@@ -309,7 +309,7 @@ test('set two keys and check the frame at the midpoint', async () => {
   await screenshot(page, 'timeline');
 });
 
-test('the GPU frame matches the CPU reference renderer', async () => {
+async function cpuFrame(page) {
   const r = await page.evaluate(async () => {
     const { app, engine } = window.inkwarp;
     await app.idle();
@@ -330,7 +330,11 @@ test('the GPU frame matches the CPU reference renderer', async () => {
     for (let i = 0; i < cpu.length; i += 0x8000) s += String.fromCharCode(...cpu.subarray(i, i + 0x8000));
     return { w: doc.width, h: doc.height, b64: btoa(s) };
   });
-  const cpu = { width: r.w, height: r.h, data: new Uint8Array(Buffer.from(r.b64, 'base64')) };
+  return { width: r.w, height: r.h, data: new Uint8Array(Buffer.from(r.b64, 'base64')) };
+}
+
+test('the GPU frame matches the CPU reference renderer', async () => {
+  const cpu = await cpuFrame(page);
   const gpu = await frame(page);
   const { ok, stats } = await compareImages(page, gpu, cpu, 'gpu-vs-cpu', { meanTol: 1.0, p99Tol: 12 });
   perf.gpuVsCpu = stats;
@@ -407,6 +411,40 @@ test('bad files get a clear message with the JSON path', async () => {
   const text2 = await page.textContent('#message');
   assert(/not an image/.test(text2), `message: ${text2}`);
   await page.click('#message');
+});
+
+test('the GPU frame matches the CPU renderer around a hole that opens', async () => {
+  await page.evaluate(async () => {
+    const { ui, scene } = window.inkwarp;
+    const size = 128;
+    const c = new OffscreenCanvas(size, size);
+    const ctx = c.getContext('2d');
+    for (let y = 0; y < size; y += 8) for (let x = 0; x < size; x += 8) {
+      ctx.fillStyle = `hsl(${(x * 3 + y * 5) % 360} 70% ${((x + y) / 8) % 2 ? 40 : 70}%)`;
+      ctx.fillRect(x, y, 8, 8);
+    }
+    ctx.clearRect(48, 56, 32, 16); // a transparent slot: a hole in the continuity matte
+    const uri = await window.inkwarp.images.blobToDataUri(await c.convertToBlob({ type: 'image/png' }));
+    const doc = scene.emptyScene(size, size);
+    doc.layers.push({ name: 'slotted', image: uri });
+    doc.features.push(
+      { id: 'a', kind: 'point', rest: [[8, 8]] }, { id: 'b', kind: 'point', rest: [[119, 8]] },
+      { id: 'c', kind: 'point', rest: [[8, 119]] }, { id: 'd', kind: 'point', rest: [[119, 119]] },
+      { id: 'lip', kind: 'polyline', rest: [[50, 75], [78, 75]], keys: [{ t: 0, points: [[50, 84], [78, 84]] }] },
+    );
+    await ui.openScene(doc, 'slotted.json');
+    ui.setMode('pose');
+  });
+  await idle(page);
+  const gpu = await frame(page);
+  const cpu = await cpuFrame(page);
+  // The slot opened: its lower lip moved down, leaving background where it was.
+  const i = 4 * (76 * 128 + 64);
+  assert(gpu.data[i] > 240 && gpu.data[i + 1] > 240 && gpu.data[i + 2] > 240, `the slot should open at (64, 76): ${gpu.data.subarray(i, i + 4)}`);
+  const { ok, stats } = await compareImages(page, gpu, cpu, 'gpu-vs-cpu-hole', { meanTol: 1.5, p99Tol: 40 });
+  perf.gpuVsCpuHole = stats;
+  await screenshot(page, 'hole');
+  assert(ok, `GPU and CPU frames differ around the hole: mean ${stats.mean.toFixed(3)}, p99 ${stats.p99}, max ${stats.max} (tolerance: mean ≤ 1.5, p99 ≤ 40); see test-results/gpu-vs-cpu-hole-diff.png`);
 });
 
 test('measure: drag latency, settle time and playback on 512×512 with a dozen features', async () => {
@@ -613,6 +651,7 @@ async function main() {
   }
   if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without, ${perf.glFrameMs.draft.toFixed(1)} ms draft (2×2 mesh blocks)`);
   if (perf.gpuVsCpu) console.log(`  GPU vs CPU: mean ${perf.gpuVsCpu.mean.toFixed(3)}, p99 ${perf.gpuVsCpu.p99}, max ${perf.gpuVsCpu.max}`);
+  if (perf.gpuVsCpuHole) console.log(`  GPU vs CPU around an opening hole (128×128): mean ${perf.gpuVsCpuHole.mean.toFixed(3)}, p99 ${perf.gpuVsCpuHole.p99}, max ${perf.gpuVsCpuHole.max}`);
   if (perf.editorVsCli) console.log(`  editor vs inkwarp render: mean ${perf.editorVsCli.mean.toFixed(3)}, p99 ${perf.editorVsCli.p99}, max ${perf.editorVsCli.max}`);
   console.log(`\n${passed} passed, ${failed} failed  (${((Date.now() - t0) / 1000).toFixed(0)} s)`);
   process.exit(failed ? 1 : 0);

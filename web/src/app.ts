@@ -150,6 +150,13 @@ export class App {
     rt.gridReady = false;
     this.busyCount++;
     try {
+      if (!layer.image) {
+        // A layer without a picture draws nothing (its field is only for `inkwarp field`).
+        rt.gl?.dispose();
+        rt.gl = null;
+        rt.rgba = null;
+        return;
+      }
       let img = await decodeImage(layer.image);
       const { width, height } = this.doc;
       const check = (what: string, im: Rgba) => {

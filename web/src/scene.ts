@@ -42,7 +42,8 @@ export interface Solver {
 
 export interface Layer {
   name: string;
-  image: string;
+  /** The picture; a layer without one draws nothing. */
+  image?: string;
   alpha?: string;
   continuity?: string;
   offset?: Pt;
@@ -246,7 +247,7 @@ export function parseScene(text: string): SceneDoc {
   doc.layers.forEach((l: unknown, i: number) => {
     if (typeof l !== 'object' || l === null) throw new SceneFileError('expected a layer object.', `layers[${i}]`);
     const layer = l as Record<string, unknown>;
-    if (typeof layer.image !== 'string') throw new SceneFileError('expected an image (path or data: URI).', `layers[${i}].image`);
+    if (layer.image !== undefined && typeof layer.image !== 'string') throw new SceneFileError('expected an image (path or data: URI).', `layers[${i}].image`);
     if (typeof layer.name !== 'string') layer.name = `layer${i + 1}`;
   });
   if (doc.features === undefined) doc.features = [];

@@ -801,7 +801,7 @@ export class Ui {
     const doc = parseScene(text);
     if (!doc.width || !doc.height) {
       const first = doc.layers.find((l) => l.image);
-      const img = first ? await decodeImage(first.image) : null;
+      const img = first?.image ? await decodeImage(first.image) : null;
       doc.width ||= img?.width ?? 1;
       doc.height ||= img?.height ?? 1;
     }
