@@ -124,3 +124,102 @@ pub(crate) fn json_arg<T: serde::de::DeserializeOwned>(
     serde_json::from_slice(bytes(ptr, len))
         .map_err(|e| format!("The request is not valid JSON for this call: {e}."))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn result() -> serde_json::Value {
+        let bytes = bytes(iw_result_ptr(), iw_result_len());
+        serde_json::from_slice(bytes).unwrap()
+    }
+
+    fn put(data: &[u8]) -> (*mut u8, usize) {
+        let ptr = iw_alloc(data.len());
+        bytes_mut(ptr, data.len()).copy_from_slice(data);
+        (ptr, data.len())
+    }
+
+    #[test]
+    fn allocations_are_aligned_for_floats() {
+        for len in [0, 1, 7, 8, 9, 1000] {
+            let ptr = iw_alloc(len);
+            assert_eq!(ptr as usize % 8, 0);
+            // SAFETY: allocated just above with this length.
+            unsafe { iw_free(ptr, len) };
+        }
+    }
+
+    #[test]
+    fn a_grid_reports_its_links_and_cuts_break_them() {
+        let (cuts, cuts_len) = put(br#"[[[1.5, -1.0], [1.5, 4.0]]]"#);
+        let h = iw_grid_new(4, 3, std::ptr::null(), 0, cuts, cuts_len);
+        assert!(h > 0);
+        let out = iw_alloc(12);
+        assert_eq!(iw_grid_links(h, out, 12), 0);
+        let links = bytes(out, 12);
+        // (0,0): active, right, down; (1,0): active, down, the link to (2,0) is cut.
+        assert_eq!(links[0], 0b111);
+        assert_eq!(links[1], 0b101);
+        // The last column has no right link, the last row no down link.
+        assert_eq!(links[3], 0b101);
+        assert_eq!(links[8], 0b011);
+        iw_grid_free(h);
+    }
+
+    #[test]
+    fn a_solve_through_the_c_abi_translates_a_single_point() {
+        let h = iw_grid_new(16, 12, std::ptr::null(), 0, std::ptr::null(), 0);
+        let (req, req_len) =
+            put(br#"{"features": [{"kind": "point", "rest": [[5, 5]], "pose": [[7, 4]]}]}"#);
+        let n = 16 * 12;
+        let field = iw_alloc(8 * n) as *mut f32;
+        assert_eq!(iw_solve(h, req, req_len, std::ptr::null(), field), 0);
+        let f = floats(field, 2 * n);
+        for i in [0, 77, n - 1] {
+            assert!((f[i] - 2.0).abs() < 0.05, "dx[{i}] = {}", f[i]);
+            assert!((f[n + i] + 1.0).abs() < 0.05, "dy[{i}] = {}", f[n + i]);
+        }
+        assert_eq!(result()["constrained_nodes"], 1);
+        iw_grid_free(h);
+    }
+
+    #[test]
+    fn errors_come_back_as_json_messages() {
+        let (bad, len) = put(b"{not json");
+        assert_eq!(iw_curve(bad, len), 1);
+        assert!(result()["error"]
+            .as_str()
+            .unwrap()
+            .contains("not valid JSON"));
+        assert_eq!(
+            iw_grid_new(0, 3, std::ptr::null(), 0, std::ptr::null(), 0),
+            0
+        );
+        assert!(result()["error"]
+            .as_str()
+            .unwrap()
+            .contains("at least 1 pixel"));
+        let (req, req_len) = put(br#"{"features": []}"#);
+        assert_eq!(
+            iw_solve(999, req, req_len, std::ptr::null(), std::ptr::null_mut()),
+            1
+        );
+        assert!(result()["error"]
+            .as_str()
+            .unwrap()
+            .contains("no grid with handle 999"));
+    }
+
+    #[test]
+    fn keyframes_and_methods_come_from_the_engine() {
+        let (req, len) = put(br#"{"rest": [[0, 0]], "keys": [{"t": 0, "points": [[0, 0]], "interpolation": "linear"}, {"t": 2, "points": [[4, 2]]}], "t": 1}"#);
+        assert_eq!(iw_points_at(req, len), 0);
+        assert_eq!(result(), serde_json::json!([[2.0, 1.0]]));
+        assert_eq!(iw_methods(), 0);
+        assert_eq!(
+            result()[0],
+            serde_json::json!({"name": "tps", "available": true})
+        );
+    }
+}
