@@ -196,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
 def add_parser(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "edit",
-        help="Open the browser editor (trace, animate, preview live).",
+        help="open the browser editor: trace, animate and preview live",
         description="Serve the inkwarp editor on 127.0.0.1 and open it in the browser. "
         "Given SCENE, the editor opens it and Save writes it back.",
         epilog="example: inkwarp edit examples/cat/scene.json",
