@@ -549,6 +549,9 @@ test('every bundled example opens', async () => {
       await idle(page);
       const ok = await page.evaluate(() => [...window.inkwarp.app.runtimes.values()].every((rt) => rt.field && !rt.error));
       assert(ok, `example ${name}: every layer has a field in pose mode`);
+      const cmp = await compareImages(page, await frame(page), await cpuFrame(page), `gpu-vs-cpu-${name}`, { meanTol: 1.0, p99Tol: 12 });
+      perf[`gpuVsCpu_${name}`] = cmp.stats;
+      assert(cmp.ok, `example ${name}: GPU and CPU frames differ (mean ${cmp.stats.mean.toFixed(3)}, p99 ${cmp.stats.p99}); see test-results/gpu-vs-cpu-${name}-diff.png`);
       await screenshot(page, `example-${name}`);
     }
   }
@@ -652,6 +655,10 @@ async function main() {
   if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without, ${perf.glFrameMs.draft.toFixed(1)} ms draft (2×2 mesh blocks)`);
   if (perf.gpuVsCpu) console.log(`  GPU vs CPU: mean ${perf.gpuVsCpu.mean.toFixed(3)}, p99 ${perf.gpuVsCpu.p99}, max ${perf.gpuVsCpu.max}`);
   if (perf.gpuVsCpuHole) console.log(`  GPU vs CPU around an opening hole (128×128): mean ${perf.gpuVsCpuHole.mean.toFixed(3)}, p99 ${perf.gpuVsCpuHole.p99}, max ${perf.gpuVsCpuHole.max}`);
+  for (const ex of ['face', 'cat']) {
+    const st = perf[`gpuVsCpu_${ex}`];
+    if (st) console.log(`  GPU vs CPU, ${ex} example posed half way: mean ${st.mean.toFixed(3)}, p99 ${st.p99}, max ${st.max}`);
+  }
   if (perf.editorVsCli) console.log(`  editor vs inkwarp render: mean ${perf.editorVsCli.mean.toFixed(3)}, p99 ${perf.editorVsCli.p99}, max ${perf.editorVsCli.max}`);
   console.log(`\n${passed} passed, ${failed} failed  (${((Date.now() - t0) / 1000).toFixed(0)} s)`);
   process.exit(failed ? 1 : 0);
