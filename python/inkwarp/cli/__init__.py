@@ -19,7 +19,7 @@ from inkwarp.cli._common import prefixed, problem_parts
 from inkwarp.errors import InkwarpError, SceneError
 
 # The command modules, in the order `inkwarp --help` lists them.
-COMMANDS: list[str] = ["render", "field", "validate", "schema", "demo"]
+COMMANDS: list[str] = ["render", "field", "validate", "schema", "demo", "edit"]
 
 EPILOG = """\
 examples:
@@ -27,6 +27,7 @@ examples:
   inkwarp render examples/face/scene.json --time 1.0 -o frame.png
   inkwarp validate examples/face/scene.json
   inkwarp demo -o out
+  inkwarp edit examples/cat/scene.json
 
 Run 'inkwarp COMMAND --help' for a command's options. Exit status: 0 success, 2 bad input
 (the message names the file, the place in it and the fix), 1 internal error.
