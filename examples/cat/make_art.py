@@ -38,11 +38,15 @@ DURATION = 2.5
 # Traced over the photograph (pixel centres, y down).
 EAR_RIGHT = np.array([[356, 74], [366, 53], [380, 31], [397, 6]], float)
 EAR_LEFT = np.array([[42, 104], [37, 72], [36, 38], [40, 4]], float)
-EYES = {
-    "l": (np.array([[137, 118], [146, 97], [168, 86], [190, 89], [204, 106]], float),
-          np.array([[137, 118], [150, 137], [172, 146], [193, 137], [204, 106]], float)),
-    "r": (np.array([[299, 158], [301, 135], [312, 117], [330, 109], [346, 113]], float),
-          np.array([[299, 158], [314, 164], [332, 157], [343, 138], [346, 113]], float)),
+EYES = {  # (upper lid, lower lid), corner to corner, along the dark rim of each eye
+    "l": (np.array([[135, 117], [137.5, 102], [146, 92], [158, 87.5], [170, 87.5], [182, 88.5],
+                    [193, 94], [200, 102], [205, 112]], float),
+          np.array([[135, 117], [137.5, 127], [144, 136.5], [154, 143.5], [166, 147.5], [179, 146.5],
+                    [193, 142], [203, 131], [205, 112]], float)),
+    "r": (np.array([[297, 158], [295.5, 146], [298.5, 133], [305, 121.5], [315, 114], [325, 110],
+                    [335, 109.5], [342, 111], [346, 118]], float),
+          np.array([[297, 158], [304, 163.5], [314, 164.5], [325, 161], [334, 155], [341, 147],
+                    [345, 137], [346, 127], [346, 118]], float)),
 }
 # Held above the eyes, so a blink stretches the lid and not the whole forehead.
 BROWS = {"l": np.array([[132, 98], [150, 74], [172, 66], [196, 72], [212, 92]], float),
@@ -51,8 +55,8 @@ MOUTH_CUT = np.array([[221, 277], [238, 271], [255, 268], [272, 271], [289, 277]
 LIP = np.array([[224, 273], [255, 264], [286, 273]], float)
 JAW = np.array([[226, 282], [255, 273], [284, 282]], float)
 NOSE = np.array([[255, 240]], float)
-FRAME = np.array([[0, H - 1], [0, 0], [300, 0]], float)  # left and top edges
-FRAME_RIGHT = np.array([[W - 1, 130], [W - 1, H - 1], [0, H - 1]], float)  # and the bottom
+FRAME = np.array([[0, H - 1], [0, 0], [340, 0]], float)  # left and top edges, to the ear
+FRAME_RIGHT = np.array([[W - 1, 0], [W - 1, H - 1], [0, H - 1]], float)  # right and bottom
 
 
 def channel(keys, t):
@@ -153,6 +157,7 @@ def scene():
         key_times = sorted({t for ch in channels for t, _ in ch})
         if key_times:
             feature["keys"] = [{"t": t, "points": _pts(pose_at(t)[fid])} for t in key_times]
+            hold_still(feature["keys"])
         features.append(feature)
     return {
         "inkwarp": 1, "width": W, "height": H, "fps": FPS, "duration": DURATION,
@@ -164,6 +169,15 @@ def scene():
         ],
         "features": features,
     }
+
+
+def hold_still(keys):
+    """Mark a key ``hold`` when the next key has the same points: a smooth curve in time
+    through the keys around a pause would overshoot into it (an eye that had just opened
+    would open wider, a flicked ear swing back too far)."""
+    for key, after in zip(keys, keys[1:]):
+        if key["points"] == after["points"]:
+            key["interpolation"] = "hold"
 
 
 def _pts(a):
@@ -200,11 +214,11 @@ def eye_holes(ss=4, inset_px=1.5):
 
 def split_photo(photo):
     """(face, eyes): the photograph with the eyes cut out, and the eyes alone, reaching
-    6 px past the holes under the fur."""
+    10 px past the holes under the fur."""
     holes = eye_holes()
     face = np.dstack([photo, np.where(holes, 0, 255).astype(np.uint8)])
     grown = np.asarray(Image.fromarray(holes.astype(np.uint8) * 255).filter(
-        ImageFilter.MaxFilter(13))) > 0
+        ImageFilter.MaxFilter(21))) > 0
     eyes = np.dstack([photo, np.where(grown, 255, 0).astype(np.uint8)])
     return face, eyes
 

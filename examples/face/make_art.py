@@ -201,6 +201,11 @@ def scene():
                 if BLINK in channels and 0.7 <= t < 1.2:
                     key["interpolation"] = "linear"
                 keys.append(key)
+            for key, after in zip(keys, keys[1:]):
+                # A pause holds still: a smooth curve in time through the keys around it
+                # would overshoot into it.
+                if key["points"] == after["points"]:
+                    key["interpolation"] = "hold"
             feature["keys"] = keys
         features.append(feature)
     return {
