@@ -6,5 +6,14 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 
 from inkwarp._inkwarp import __version__
 from inkwarp.errors import InkwarpError, SceneError
+from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
 
-__all__ = ["InkwarpError", "SceneError", "__version__"]
+__all__ = [
+    "InkwarpError",
+    "METHODS",
+    "SceneError",
+    "ThinPlateMap",
+    "__version__",
+    "interpolate",
+    "interpolate_report",
+]

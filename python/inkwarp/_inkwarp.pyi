@@ -1,3 +1,34 @@
 """Type stubs for the compiled core. The public API is the `inkwarp` package."""
 
 __version__: str
+
+# --- methods (comparison interpolants, thin-plate map, transfer) ---
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+def interpolate_field(
+    method: str,
+    points: npt.NDArray[np.float64],
+    displacements: npt.NDArray[np.float64],
+    height: int,
+    width: int,
+    lines_rest: npt.NDArray[np.float64] | None = None,
+    lines_pose: npt.NDArray[np.float64] | None = None,
+    max_samples: int = 1000,
+    a: float = 1.0,
+    b: float = 2.0,
+    p: float = 0.5,
+) -> tuple[npt.NDArray[np.float32], dict[str, Any]]: ...
+
+class ThinPlateMap:
+    def __init__(self, source: npt.ArrayLike, target: npt.ArrayLike) -> None: ...
+    def __call__(self, points: npt.ArrayLike) -> npt.NDArray[np.float64]: ...
+    def field(self, height: int, width: int) -> npt.NDArray[np.float32]: ...
+    def __len__(self) -> int: ...
+
+def transfer_keys(
+    source: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
+    target: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
+) -> list[list[list[tuple[float, float]]] | None]: ...

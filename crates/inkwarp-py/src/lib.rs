@@ -4,11 +4,13 @@
 use pyo3::prelude::*;
 
 mod errors;
+mod methods;
 
 /// The compiled core of the `inkwarp` Python package.
 #[pymodule]
 fn _inkwarp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
+    methods::register(m)?;
     Ok(())
 }

@@ -155,40 +155,52 @@ pub fn beier_neely_field(
     let strength_b: Vec<f64> = lines.iter().map(|l| if b == 2.0 { l.strength * l.strength } else { l.strength.powf(b) }).collect();
 
     let mut f = Field::zeros(width, height);
+    let xs: Vec<f64> = (0..width).map(|x| x as f64).collect();
+    // Row by row in parallel; within a row, one primitive at a time over all pixels,
+    // so that the inner loops are branch-free and vectorise.
     f.dx.par_chunks_mut(width).zip(f.dy.par_chunks_mut(width)).enumerate().for_each(|(y, (row_x, row_y))| {
         let yf = y as f64;
-        for x in 0..width {
-            let xf = x as f64;
-            let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
-            for (l, &sb) in lines.iter().zip(&strength_b) {
-                let r = [xf - l.p[0], yf - l.p[1]];
-                let u = dot(r, l.d) / l.len2;
-                let v = (r[1] * l.d[0] - r[0] * l.d[1]) / l.len; // r · ⊥d / |d|
-                let mut target = [l.pose_p[0] + u * l.pose_d[0], l.pose_p[1] + u * l.pose_d[1]];
-                if l.pose_len > 0.0 {
-                    target[0] -= v * l.pose_d[1] / l.pose_len;
-                    target[1] += v * l.pose_d[0] / l.pose_len;
-                }
-                let dist = if u < 0.0 {
-                    r[0].hypot(r[1])
-                } else if u > 1.0 {
-                    (xf - l.p[0] - l.d[0]).hypot(yf - l.p[1] - l.d[1])
-                } else {
-                    v.abs()
-                };
+        let mut sx = vec![0.0f64; width];
+        let mut sy = vec![0.0f64; width];
+        let mut sw = vec![0.0f64; width];
+        for (l, &sb) in lines.iter().zip(&strength_b) {
+            let (pose_ux, pose_uy) = if l.pose_len > 0.0 {
+                (l.pose_d[0] / l.pose_len, l.pose_d[1] / l.pose_len)
+            } else {
+                (0.0, 0.0)
+            };
+            let ry = yf - l.p[1];
+            let qy = ry - l.d[1];
+            for x in 0..width {
+                let xf = xs[x];
+                let rx = xf - l.p[0];
+                let u = (rx * l.d[0] + ry * l.d[1]) / l.len2;
+                let v = (ry * l.d[0] - rx * l.d[1]) / l.len; // r · ⊥d / |d|
+                let tx = l.pose_p[0] + u * l.pose_d[0] - v * pose_uy;
+                let ty = l.pose_p[1] + u * l.pose_d[1] + v * pose_ux;
+                let qx = rx - l.d[0];
+                let to_p = (rx * rx + ry * ry).sqrt();
+                let to_q = (qx * qx + qy * qy).sqrt();
+                let dist = if u < 0.0 { to_p } else if u > 1.0 { to_q } else { v.abs() };
                 let w = sb * falloff(dist);
-                sx += w * (target[0] - xf);
-                sy += w * (target[1] - yf);
-                sw += w;
+                sx[x] += w * (tx - xf);
+                sy[x] += w * (ty - yf);
+                sw[x] += w;
             }
-            for s in &pts {
-                let w = falloff((xf - s.rest[0]).hypot(yf - s.rest[1]));
-                sx += w * s.displacement[0];
-                sy += w * s.displacement[1];
-                sw += w;
+        }
+        for s in &pts {
+            let dy = yf - s.rest[1];
+            for x in 0..width {
+                let dx = xs[x] - s.rest[0];
+                let w = falloff((dx * dx + dy * dy).sqrt());
+                sx[x] += w * s.displacement[0];
+                sy[x] += w * s.displacement[1];
+                sw[x] += w;
             }
-            row_x[x] = (sx / sw) as f32;
-            row_y[x] = (sy / sw) as f32;
+        }
+        for x in 0..width {
+            row_x[x] = (sx[x] / sw[x]) as f32;
+            row_y[x] = (sy[x] / sw[x]) as f32;
         }
     });
     Ok(f)

@@ -239,21 +239,32 @@ impl ThinPlateMap {
     }
 
     /// The displacement at every pixel centre of a `width × height` image, rows in
-    /// parallel.
+    /// parallel. Within a row the loop runs over pixels for one centre at a time, so that
+    /// it vectorises (the kernel uses [`ln_fast`], accurate to ~1e-15 relative).
     pub fn field(&self, width: usize, height: usize) -> Field {
         let mut f = Field::zeros(width, height);
         if width == 0 {
             return f;
         }
         let [ax, ay] = self.affine;
+        let qx: Vec<f64> = (0..width).map(|x| (x as f64 - self.origin[0]) / self.scale).collect();
         f.dx.par_chunks_mut(width).zip(f.dy.par_chunks_mut(width)).enumerate().for_each(
             |(y, (row_x, row_y))| {
                 let qy = (y as f64 - self.origin[1]) / self.scale;
+                let mut acc_x: Vec<f64> = qx.iter().map(|&q| ax[0] + ax[1] * q + ax[2] * qy).collect();
+                let mut acc_y: Vec<f64> = qx.iter().map(|&q| ay[0] + ay[1] * q + ay[2] * qy).collect();
+                for i in 0..self.cx.len() {
+                    let (cx, wx, wy) = (self.cx[i], self.wx[i], self.wy[i]);
+                    let dy2 = sq(qy - self.cy[i]);
+                    for ((sx, sy), &q) in acc_x.iter_mut().zip(acc_y.iter_mut()).zip(&qx) {
+                        let u = phi_fast(sq(q - cx) + dy2);
+                        *sx += wx * u;
+                        *sy += wy * u;
+                    }
+                }
                 for x in 0..width {
-                    let qx = (x as f64 - self.origin[0]) / self.scale;
-                    let (kx, ky) = self.kernel_sums(qx, qy);
-                    row_x[x] = (ax[0] + ax[1] * qx + ax[2] * qy + kx) as f32;
-                    row_y[x] = (ay[0] + ay[1] * qx + ay[2] * qy + ky) as f32;
+                    row_x[x] = acc_x[x] as f32;
+                    row_y[x] = acc_y[x] as f32;
                 }
             },
         );
@@ -296,6 +307,37 @@ fn phi(r2: f64) -> f64 {
     } else {
         0.0
     }
+}
+
+/// [`phi`] without a branch or a library call, for the vectorised evaluator.
+#[inline(always)]
+fn phi_fast(r2: f64) -> f64 {
+    // r2 = 0 gives 0 · ln(MIN_POSITIVE) = 0, as it should.
+    r2 * ln_fast(r2.max(f64::MIN_POSITIVE))
+}
+
+/// The natural logarithm of a positive normal `x`, branch-free so that loops over it
+/// vectorise: `x = m·2ᵉ` with `m ∈ [√½, √2)`, and `ln m = 2 atanh(s)`, `s = (m−1)/(m+1)`,
+/// by its series to `s¹⁷` (`|s| ≤ 0.1716`, so the relative error is about 1e-15).
+#[inline(always)]
+pub(crate) fn ln_fast(x: f64) -> f64 {
+    const TWO52_PLUS_BIAS: f64 = 4_503_599_627_370_496.0 + 1023.0;
+    let bits = x.to_bits();
+    // The biased exponent as a float, by the 2⁵² trick (no int → float conversion).
+    let mut e = f64::from_bits((bits >> 52) | 0x4330_0000_0000_0000) - TWO52_PLUS_BIAS;
+    let mut m = f64::from_bits((bits & 0x000F_FFFF_FFFF_FFFF) | 0x3FF0_0000_0000_0000);
+    let big = m > std::f64::consts::SQRT_2;
+    m = if big { m * 0.5 } else { m };
+    e = if big { e + 1.0 } else { e };
+    let s = (m - 1.0) / (m + 1.0);
+    let z = s * s;
+    let series = 1.0
+        + z * (1.0 / 3.0
+            + z * (1.0 / 5.0
+                + z * (1.0 / 7.0
+                    + z * (1.0 / 9.0
+                        + z * (1.0 / 11.0 + z * (1.0 / 13.0 + z * (1.0 / 15.0 + z * (1.0 / 17.0))))))));
+    e * std::f64::consts::LN_2 + 2.0 * s * series
 }
 
 /// The directions `(dx, dy)` of the linear part the positions `q` determine: none for
@@ -455,6 +497,20 @@ mod tests {
         reversed.reverse();
         let (again, _) = ThinPlateMap::fit_samples(&reversed, 50).unwrap();
         assert_eq!(map, again);
+    }
+
+    #[test]
+    fn fast_log_matches_the_library_log() {
+        let mut x = f64::MIN_POSITIVE;
+        while x < 1e300 {
+            for k in [1.0, 1.1, 1.3, 1.41, 1.42, 1.7, 1.99] {
+                let v = x * k;
+                let (got, want) = (ln_fast(v), v.ln());
+                assert!((got - want).abs() <= 4e-15 * want.abs().max(1.0), "ln({v}) = {want}, got {got}");
+            }
+            x *= 7.3;
+        }
+        assert_eq!(phi_fast(0.0), 0.0);
     }
 
     proptest! {
