@@ -43,17 +43,14 @@ def main() -> None:
     args = parser.parse_args()
 
     methods = [m for m in args.methods if m != "tps" or hasattr(inkwarp, "thin_plate")]
-    print(f"# {args.size}×{args.size} field, median of {args.repeat} runs, {os.cpu_count()} CPU(s)")
-    header = f"{'method':<15}" + "".join(f"{'N=' + str(n):>14}" for n in args.n) + f"{'ratio':>10}"
-    print(header)
-    print("-" * len(header))
+    print(f"{args.size}×{args.size} displacement field from N random samples; median of "
+          f"{args.repeat} runs on {os.cpu_count()} CPU(s).\n")
+    print("| method | " + " | ".join(f"N={n}" for n in args.n) + f" | N={args.n[-1]} / N={args.n[0]} |")
+    print("|---|" + "---:|" * (len(args.n) + 1))
     for method in methods:
         medians = [time_method(method, n, args.size, args.repeat)[0] for n in args.n]
-        ratio = medians[-1] / medians[0]
-        cells = "".join(f"{m * 1000:>11.1f} ms" for m in medians)
-        print(f"{method:<15}{cells}{ratio:>9.1f}×")
-    print(f"(ratio: time at N={args.n[-1]} over time at N={args.n[0]})")
-
+        cells = " | ".join(f"{m * 1000:.1f} ms" for m in medians)
+        print(f"| {method} | {cells} | {medians[-1] / medians[0]:.1f}× |", flush=True)
 
 if __name__ == "__main__":
     main()

@@ -147,7 +147,7 @@ def interpolate_report(
     >>> field, report = inkwarp.interpolate_report(pts, [[1.0, 0.0]] * len(pts), (32, 48),
     ...                                            max_samples=20)
     >>> report["samples_used"], report["notes"][0][:40]
-    (20, 'tps-exact thinned 50 distinct sample po')
+    (20, 'tps-exact thinned 50 distinct sample pos')
     """
     check_method(method)
     pts = _points("points", points)
