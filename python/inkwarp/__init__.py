@@ -7,6 +7,7 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 from inkwarp._inkwarp import __version__
 from inkwarp.errors import InkwarpError, SceneError
 from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
+from inkwarp.transfer import transfer, transfer_dict
 
 __all__ = [
     "InkwarpError",
@@ -16,4 +17,6 @@ __all__ = [
     "__version__",
     "interpolate",
     "interpolate_report",
+    "transfer",
+    "transfer_dict",
 ]

@@ -14,7 +14,7 @@ import sys
 from inkwarp.errors import InkwarpError
 
 # The command modules, in the order `inkwarp --help` lists them.
-COMMANDS: list[str] = []
+COMMANDS: list[str] = ["compare", "transfer"]
 
 
 def build_parser() -> argparse.ArgumentParser:
