@@ -61,7 +61,7 @@ def test_triangulation_matches_qhull_linear_interpolation(seed):
     np.testing.assert_allclose(ours, want, atol=1e-4)
 
 
-def beier_neely_reference(points, disp, rest, pose, shape, a=1.0, b=2.0, p=0.5):
+def beier_neely_reference(points, disp, rest, pose, shape, a=1.0, b=2.0, p=0.0):
     """Beier & Neely (forward, with Shepard points) written out in NumPy."""
     X = pixel_grid(shape)
     num = np.zeros_like(X)

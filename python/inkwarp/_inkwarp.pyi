@@ -19,7 +19,7 @@ def interpolate_field(
     max_samples: int = 1000,
     a: float = 1.0,
     b: float = 2.0,
-    p: float = 0.5,
+    p: float = 0.0,
 ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]: ...
 
 class ThinPlateMap:

@@ -127,7 +127,7 @@ def interpolate_report(
     max_samples: int = 1000,
     a: float = 1.0,
     b: float = 2.0,
-    p: float = 0.5,
+    p: float = 0.0,
 ) -> tuple[np.ndarray, dict[str, Any]]:
     """:func:`interpolate`, also returning what the method did.
 
@@ -211,7 +211,7 @@ def interpolate(
     max_samples: int = 1000,
     a: float = 1.0,
     b: float = 2.0,
-    p: float = 0.5,
+    p: float = 0.0,
 ) -> np.ndarray:
     """The displacement field of the samples by one of the comparison methods.
 
@@ -238,7 +238,7 @@ def interpolate(
     max_samples : int
         ``tps-exact`` fits at most this many samples (default 1000).
     a, b, p : float
-        Beier–Neely weights (defaults 1 px, 2, 0.5): ``a`` > 0 how tightly a primitive
+        Beier–Neely weights (defaults 1 px, 2, 0): ``a`` > 0 how tightly a primitive
         holds what lies on it, ``b`` ≥ 0 how fast influence falls off, ``p`` ≥ 0 how
         much longer lines outweigh short ones.
 

@@ -52,9 +52,9 @@ fn report_dict<'py>(py: Python<'py>, r: &MethodReport) -> PyResult<Bound<'py, Py
 }
 
 /// interpolate_field(method, points, displacements, height, width, lines_rest=None,
-/// lines_pose=None, max_samples=1000, a=1.0, b=2.0, p=0.5) -> (field, report)
+/// lines_pose=None, max_samples=1000, a=1.0, b=2.0, p=0.0) -> (field, report)
 #[pyfunction]
-#[pyo3(signature = (method, points, displacements, height, width, lines_rest=None, lines_pose=None, max_samples=methods::DEFAULT_MAX_SAMPLES, a=1.0, b=2.0, p=0.5))]
+#[pyo3(signature = (method, points, displacements, height, width, lines_rest=None, lines_pose=None, max_samples=methods::DEFAULT_MAX_SAMPLES, a=1.0, b=2.0, p=0.0))]
 fn interpolate_field<'py>(
     py: Python<'py>,
     method: &str,

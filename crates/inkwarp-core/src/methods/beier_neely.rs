@@ -22,7 +22,9 @@ use crate::geometry::{Point, Sample};
 /// * `b` (≥ 0): how fast influence falls off with distance. 0 weights every primitive
 ///   equally everywhere; Beier & Neely suggest 0.5–2. Default **2**.
 /// * `p` (≥ 0): how much longer lines outweigh shorter ones; their range is 0–1.
-///   Default **0.5**.
+///   Default **0**: every line weighs the same, and as much as a point. With `p > 0` a
+///   long line (a held edge of 120 px, say) outweighs a point by `120^(p·b)` and the
+///   points of a drawing barely move anything.
 ///
 /// Points use the same formula with `length^p = 1`, i.e. Shepard's inverse-distance
 /// weights `1 / (a + dist)^b`, so a drawing of points and lines is weighted
@@ -36,7 +38,7 @@ pub struct BeierNeelyParams {
 
 impl Default for BeierNeelyParams {
     fn default() -> Self {
-        BeierNeelyParams { a: 1.0, b: 2.0, p: 0.5 }
+        BeierNeelyParams { a: 1.0, b: 2.0, p: 0.0 }
     }
 }
 
@@ -50,7 +52,7 @@ impl BeierNeelyParams {
             return Err(MethodError::BadParameter { name: "b", value: self.b, hint: "it must be finite and at least 0 (default 2)" });
         }
         if !(self.p >= 0.0 && self.p.is_finite()) {
-            return Err(MethodError::BadParameter { name: "p", value: self.p, hint: "it must be finite and at least 0 (default 0.5)" });
+            return Err(MethodError::BadParameter { name: "p", value: self.p, hint: "it must be finite and at least 0 (default 0)" });
         }
         Ok(())
     }
