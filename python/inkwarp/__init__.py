@@ -6,15 +6,19 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 
 from inkwarp._inkwarp import __version__
 from inkwarp.errors import InkwarpError, SceneError
+from inkwarp.compare import Comparison, compare, comparison_sheet
 from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
 from inkwarp.transfer import transfer, transfer_dict
 
 __all__ = [
+    "Comparison",
     "InkwarpError",
     "METHODS",
     "SceneError",
     "ThinPlateMap",
     "__version__",
+    "compare",
+    "comparison_sheet",
     "interpolate",
     "interpolate_report",
     "transfer",
