@@ -44,7 +44,7 @@ pub(crate) fn solve_dense(
         let (p, pv) = (k..n)
             .map(|i| (i, m[i * cols + k].abs()))
             .fold((k, -1.0), |best, cur| if cur.1 > best.1 { cur } else { best });
-        if !(pv > tiny) {
+        if pv.is_nan() || pv <= tiny {
             return Err(SingularPivot { row: k, pivot: pv.max(0.0) });
         }
         if p != k {
@@ -63,7 +63,7 @@ pub(crate) fn solve_dense(
                 }
             }
         };
-        if n - k - 1 >= PARALLEL_ROWS {
+        if n - k > PARALLEL_ROWS {
             tail.par_chunks_mut(cols).with_min_len(16).for_each(eliminate);
         } else {
             tail.chunks_mut(cols).for_each(eliminate);
