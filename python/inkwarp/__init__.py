@@ -5,6 +5,7 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 """
 
 from inkwarp._inkwarp import __version__
+from inkwarp.drawing import sample
 from inkwarp.errors import InkwarpError, SceneError
 from inkwarp.compare import Comparison, compare, comparison_sheet
 from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
@@ -21,6 +22,7 @@ __all__ = [
     "comparison_sheet",
     "interpolate",
     "interpolate_report",
+    "sample",
     "transfer",
     "transfer_dict",
 ]

@@ -2,11 +2,30 @@
 
 __version__: str
 
-# --- methods (comparison interpolants, thin-plate map, transfer) ---
-from typing import Any
-
+# --- geometry (feature sampling) ---
 import numpy as np
 import numpy.typing as npt
+
+def sample_feature(
+    kind: str,
+    rest: npt.NDArray[np.float64],
+    pose: npt.NDArray[np.float64],
+    closed: bool = False,
+    spacing: float = 1.0,
+    spline_outline: bool = False,
+    shape: tuple[int, int] | None = None,
+    mask: npt.NDArray[np.uint8] | None = None,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+def curve_polyline(
+    kind: str,
+    points: npt.NDArray[np.float64],
+    closed: bool = False,
+    spline_outline: bool = False,
+    spacing: float = 1.0,
+) -> npt.NDArray[np.float64]: ...
+
+# --- methods (comparison interpolants, thin-plate map, transfer) ---
+from typing import Any
 
 def interpolate_field(
     method: str,

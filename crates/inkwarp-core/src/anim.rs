@@ -1,1 +1,332 @@
-//! (under construction)
+//! Time: a feature's control points at any time from its keys (DESIGN §3, "Time").
+//!
+//! A key is the feature's drawing at one time. Between two keys the control points move
+//! by the first key's [`Interpolation`]; before the first key the feature holds the first
+//! key, after the last key the last one, and a feature without keys stays at rest.
+//!
+//! `Smooth` is a cubic Hermite curve in time through the keys, its velocity at each key
+//! (the tangent rule) chosen to match the motion on the key's other side:
+//!
+//! - between two smooth spans: the Catmull-Rom tangent for non-uniform times, the
+//!   derivative at `t_i` of the parabola through the keys `i − 1, i, i + 1`,
+//!   `m_i = (Δ⁺·v⁻ + Δ⁻·v⁺) / (Δ⁻ + Δ⁺)`, where `v⁻`, `v⁺` are the slopes of the chords
+//!   before and after the key and `Δ⁻`, `Δ⁺` their durations;
+//! - next to a linear span: that span's slope;
+//! - next to a hold, and at the first and last key: zero.
+//!
+//! Every span meeting at a key uses the same velocity there, so smooth motion is C¹ in
+//! time: through smooth keys, into and out of linear spans, and into the holds before the
+//! first and after the last key (a smooth move therefore eases in and out of its ends).
+//! Only a hold, which jumps at its end, breaks continuity. Like every interpolating cubic,
+//! smooth motion may overshoot a key between keys that reverse direction.
+
+use crate::geometry::Point;
+
+/// How the control points move from a key to the next one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Interpolation {
+    /// A C¹ cubic in time through the neighbouring keys (see the module docs).
+    #[default]
+    Smooth,
+    /// Straight lines at constant speed.
+    Linear,
+    /// The key's drawing until the next key's time, then a jump.
+    Hold,
+}
+
+/// A feature's control points at one time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Key {
+    /// When, in seconds.
+    pub time_s: f64,
+    /// The control points (as many as the feature's rest geometry).
+    pub points: Vec<Point>,
+    /// How the points move from this key to the next (ignored on the last key).
+    pub interpolation: Interpolation,
+}
+
+/// A feature's control points at `time_s`.
+///
+/// `keys` must be sorted by time with distinct times, each with as many points as `rest`
+/// (the scene validates both; points beyond the shortest of two neighbouring keys are
+/// ignored). No keys: `rest`. At or before the first key's time: the first key; at or
+/// after the last: the last. At a key's time: that key's points exactly. A NaN time is
+/// taken as before the first key.
+///
+/// ```
+/// use inkwarp_core::anim::{points_at, Interpolation, Key};
+/// let rest = vec![[0.0, 0.0]];
+/// let keys = vec![
+///     Key { time_s: 1.0, points: vec![[0.0, 0.0]], interpolation: Interpolation::Linear },
+///     Key { time_s: 3.0, points: vec![[10.0, 4.0]], interpolation: Interpolation::Linear },
+/// ];
+/// assert_eq!(points_at(&rest, &keys, 2.0), vec![[5.0, 2.0]]);
+/// assert_eq!(points_at(&rest, &keys, 9.0), vec![[10.0, 4.0]]);
+/// ```
+pub fn points_at(rest: &[Point], keys: &[Key], time_s: f64) -> Vec<Point> {
+    let (first, last) = match (keys.first(), keys.last()) {
+        (Some(f), Some(l)) => (f, l),
+        _ => return rest.to_vec(),
+    };
+    if time_s.is_nan() || time_s <= first.time_s {
+        return first.points.clone();
+    }
+    if time_s >= last.time_s {
+        return last.points.clone();
+    }
+    // the span [keys[i], keys[i + 1]) holding time_s: t_i ≤ t < t_{i+1}
+    let i = keys.partition_point(|k| k.time_s <= time_s) - 1;
+    let (a, b) = (&keys[i], &keys[i + 1]);
+    if time_s == a.time_s {
+        return a.points.clone();
+    }
+    let duration = b.time_s - a.time_s;
+    let u = (time_s - a.time_s) / duration;
+    let n = a.points.len().min(b.points.len());
+    match a.interpolation {
+        Interpolation::Hold => a.points.clone(),
+        Interpolation::Linear => (0..n).map(|j| lerp(a.points[j], b.points[j], u)).collect(),
+        Interpolation::Smooth => {
+            let u2 = u * u;
+            let u3 = u2 * u;
+            let h00 = 2.0 * u3 - 3.0 * u2 + 1.0;
+            let h10 = u3 - 2.0 * u2 + u;
+            let h01 = -2.0 * u3 + 3.0 * u2;
+            let h11 = u3 - u2;
+            (0..n)
+                .map(|j| {
+                    let m0 = velocity(keys, i, j, Side::Before);
+                    let m1 = velocity(keys, i + 1, j, Side::After);
+                    let (p0, p1) = (a.points[j], b.points[j]);
+                    [
+                        h00 * p0[0] + h10 * duration * m0[0] + h01 * p1[0] + h11 * duration * m1[0],
+                        h00 * p0[1] + h10 * duration * m0[1] + h01 * p1[1] + h11 * duration * m1[1],
+                    ]
+                })
+                .collect()
+        }
+    }
+}
+
+/// Which side of key `k` the smooth span being evaluated lies on: `Before` the span
+/// starts at the key (its other side is the span ending there), `After` it ends there.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Side {
+    Before,
+    After,
+}
+
+/// The velocity (units per second) of control point `j` at key `k`, for a smooth span on
+/// the given side of it, by the tangent rule of the module docs.
+fn velocity(keys: &[Key], k: usize, j: usize, side: Side) -> Point {
+    // the span on the key's other side: (its start key index, its interpolation)
+    let other = match side {
+        Side::Before => k.checked_sub(1).map(|s| (s, keys[s].interpolation)),
+        Side::After => (k + 1 < keys.len()).then(|| (k, keys[k].interpolation)),
+    };
+    match other {
+        None | Some((_, Interpolation::Hold)) => [0.0, 0.0],
+        Some((s, Interpolation::Linear)) => slope(&keys[s], &keys[s + 1], j),
+        Some((_, Interpolation::Smooth)) => {
+            // both neighbours exist: the parabola through keys k − 1, k, k + 1
+            let (prev, key, next) = (&keys[k - 1], &keys[k], &keys[k + 1]);
+            let dm = key.time_s - prev.time_s;
+            let dp = next.time_s - key.time_s;
+            let vm = slope(prev, key, j);
+            let vp = slope(key, next, j);
+            [
+                (dp * vm[0] + dm * vp[0]) / (dm + dp),
+                (dp * vm[1] + dm * vp[1]) / (dm + dp),
+            ]
+        }
+    }
+}
+
+/// The constant velocity of control point `j` on the straight path from `a` to `b`.
+fn slope(a: &Key, b: &Key, j: usize) -> Point {
+    let (p, q) = (point(a, j), point(b, j));
+    let dt = b.time_s - a.time_s;
+    [(q[0] - p[0]) / dt, (q[1] - p[1]) / dt]
+}
+
+/// Point `j` of a key, or the key's last point if it has fewer (invalid input that the
+/// scene rejects; this only keeps the arithmetic total).
+fn point(k: &Key, j: usize) -> Point {
+    k.points
+        .get(j)
+        .or(k.points.last())
+        .copied()
+        .unwrap_or([0.0, 0.0])
+}
+
+fn lerp(a: Point, b: Point, u: f64) -> Point {
+    [a[0] + u * (b[0] - a[0]), a[1] + u * (b[1] - a[1])]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn key(time_s: f64, x: f64, interpolation: Interpolation) -> Key {
+        Key {
+            time_s,
+            points: vec![[x, -2.0 * x]],
+            interpolation,
+        }
+    }
+
+    fn x_at(keys: &[Key], t: f64) -> f64 {
+        points_at(&[[0.0, 0.0]], keys, t)[0][0]
+    }
+
+    /// One-sided derivatives in time of control point 0's x, by Richardson extrapolation
+    /// of difference quotients (error O(h²)).
+    fn dx_left(keys: &[Key], t: f64) -> f64 {
+        let h = 1e-4;
+        let d = |h: f64| (x_at(keys, t) - x_at(keys, t - h)) / h;
+        2.0 * d(h / 2.0) - d(h)
+    }
+    fn dx_right(keys: &[Key], t: f64) -> f64 {
+        let h = 1e-4;
+        let d = |h: f64| (x_at(keys, t + h) - x_at(keys, t)) / h;
+        2.0 * d(h / 2.0) - d(h)
+    }
+
+    #[test]
+    fn no_keys_is_the_rest_drawing() {
+        let rest = vec![[1.0, 2.0], [3.0, 4.0]];
+        assert_eq!(points_at(&rest, &[], 5.0), rest);
+    }
+
+    #[test]
+    fn holds_before_the_first_and_after_the_last_key() {
+        let keys = [
+            key(1.0, 3.0, Interpolation::Smooth),
+            key(2.0, 7.0, Interpolation::Smooth),
+        ];
+        assert_eq!(points_at(&[[0.0, 0.0]], &keys, -4.0), vec![[3.0, -6.0]]);
+        assert_eq!(points_at(&[[0.0, 0.0]], &keys, 1.0), vec![[3.0, -6.0]]);
+        assert_eq!(points_at(&[[0.0, 0.0]], &keys, 2.0), vec![[7.0, -14.0]]);
+        assert_eq!(points_at(&[[0.0, 0.0]], &keys, 100.0), vec![[7.0, -14.0]]);
+        assert_eq!(points_at(&[[0.0, 0.0]], &keys, f64::NAN), vec![[3.0, -6.0]]);
+    }
+
+    #[test]
+    fn hold_keeps_the_key_until_the_next_one() {
+        let keys = [
+            key(0.0, 1.0, Interpolation::Hold),
+            key(1.0, 5.0, Interpolation::Hold),
+        ];
+        assert_eq!(x_at(&keys, 0.999_999), 1.0);
+        assert_eq!(x_at(&keys, 1.0), 5.0);
+    }
+
+    #[test]
+    fn linear_moves_at_constant_speed() {
+        let keys = [
+            key(0.0, 1.0, Interpolation::Linear),
+            key(2.0, 5.0, Interpolation::Linear),
+        ];
+        for t in [0.25, 0.5, 1.0, 1.7] {
+            assert!((x_at(&keys, t) - (1.0 + 2.0 * t)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn smooth_between_two_keys_eases_in_and_out() {
+        let keys = [
+            key(0.0, 0.0, Interpolation::Smooth),
+            key(1.0, 1.0, Interpolation::Smooth),
+        ];
+        // smoothstep: 3u² − 2u³
+        for u in [0.1, 0.5, 0.8] {
+            assert!((x_at(&keys, u) - (3.0 * u * u - 2.0 * u * u * u)).abs() < 1e-12);
+        }
+        assert!(dx_right(&keys, 0.0).abs() < 1e-5);
+        assert!(dx_left(&keys, 1.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn smooth_reproduces_a_parabola_at_interior_keys() {
+        // keys on x = t² at uneven times: the tangent at an interior key is exact (2t)
+        let times = [0.0, 0.4, 1.5, 1.9, 3.0];
+        let keys: Vec<Key> = times
+            .iter()
+            .map(|&t| key(t, t * t, Interpolation::Smooth))
+            .collect();
+        for &t in &times[1..4] {
+            assert!((dx_right(&keys, t) - 2.0 * t).abs() < 1e-4, "at {t}");
+        }
+    }
+
+    #[test]
+    fn smooth_joins_a_linear_span_with_its_slope() {
+        let keys = [
+            key(0.0, 0.0, Interpolation::Smooth),
+            key(1.0, 2.0, Interpolation::Linear),
+            key(3.0, 8.0, Interpolation::Smooth),
+            key(4.0, 8.0, Interpolation::Smooth),
+        ];
+        assert!(
+            (dx_left(&keys, 1.0) - 3.0).abs() < 1e-4 && (dx_right(&keys, 1.0) - 3.0).abs() < 1e-4
+        );
+        assert!(
+            (dx_left(&keys, 3.0) - 3.0).abs() < 1e-4 && (dx_right(&keys, 3.0) - 3.0).abs() < 1e-4
+        );
+    }
+
+    fn interpolation() -> impl Strategy<Value = Interpolation> {
+        prop_oneof![
+            Just(Interpolation::Smooth),
+            Just(Interpolation::Linear),
+            Just(Interpolation::Hold)
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(128))]
+
+        #[test]
+        fn key_values_are_hit_exactly(
+            steps in prop::collection::vec((0.05..2.0f64, -50.0..50.0f64, interpolation()), 1..7),
+        ) {
+            let mut t = -1.0;
+            let keys: Vec<Key> = steps.iter().map(|&(dt, x, i)| { t += dt; Key { time_s: t, points: vec![[x, 1.0 - x], [2.0 * x, x]], interpolation: i } }).collect();
+            for k in &keys {
+                prop_assert_eq!(points_at(&[[0.0, 0.0], [0.0, 0.0]], &keys, k.time_s), k.points.clone());
+            }
+        }
+
+        #[test]
+        fn smooth_motion_is_c1_in_time(
+            steps in prop::collection::vec((0.1..2.0f64, -50.0..50.0f64), 2..7),
+            probe in 0.0..1.0f64,
+        ) {
+            let mut t = 0.0;
+            let keys: Vec<Key> = steps.iter().map(|&(dt, x)| { t += dt; key(t, x, Interpolation::Smooth) }).collect();
+            let (t0, t1) = (keys[0].time_s, keys[keys.len() - 1].time_s);
+            // a velocity scale: the fastest chord
+            let scale = keys.windows(2).map(|w| ((w[1].points[0][0] - w[0].points[0][0]) / (w[1].time_s - w[0].time_s)).abs()).fold(1.0, f64::max);
+            // at every key, including the first and last (where the holds begin)
+            for k in &keys {
+                let (l, r) = (dx_left(&keys, k.time_s), dx_right(&keys, k.time_s));
+                prop_assert!((l - r).abs() < 1e-4 * scale, "velocity {} then {} at {}", l, r, k.time_s);
+            }
+            // and continuous in value anywhere
+            let tp = t0 + probe * (t1 - t0);
+            prop_assert!((x_at(&keys, tp + 1e-9) - x_at(&keys, tp)).abs() < 1e-6);
+        }
+
+        #[test]
+        fn linear_stays_between_its_keys_and_hold_never_leaves_its_key(
+            a in -50.0..50.0f64, b in -50.0..50.0f64, u in 0.0..1.0f64,
+        ) {
+            let lin = [key(0.0, a, Interpolation::Linear), key(1.0, b, Interpolation::Smooth)];
+            let x = x_at(&lin, u);
+            prop_assert!(x >= a.min(b) - 1e-12 && x <= a.max(b) + 1e-12);
+            let hold = [key(0.0, a, Interpolation::Hold), key(1.0, b, Interpolation::Smooth)];
+            prop_assert_eq!(x_at(&hold, u * 0.999), a);
+        }
+    }
+}

@@ -4,6 +4,7 @@
 use pyo3::prelude::*;
 
 mod errors;
+mod geometry;
 mod methods;
 
 /// The compiled core of the `inkwarp` Python package.
@@ -11,6 +12,7 @@ mod methods;
 fn _inkwarp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
+    geometry::register(m)?;
     methods::register(m)?;
     Ok(())
 }

@@ -1,0 +1,189 @@
+"""Drawings: features sampled into (rest position, displacement) constraints."""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from inkwarp import _inkwarp
+
+#: The feature kinds, in the order the documentation lists them.
+KINDS: tuple[str, ...] = ("point", "polyline", "spline", "region", "cut")
+
+#: The outline curves a region may have.
+CURVES: tuple[str, ...] = ("polyline", "spline")
+
+Kind = Literal["point", "polyline", "spline", "region", "cut"]
+
+
+def _count(n: int) -> str:
+    return f"{n} point" if n == 1 else f"{n} points"
+
+
+def _points(name: str, value: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(
+            f"{name} must be an (N, 2) array of (x, y) numbers; it could not be read as numbers ({exc})."
+        ) from None
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        hint = " For a single point, write [[x, y]]." if arr.shape == (2,) else ""
+        raise ValueError(
+            f"{name} must be an (N, 2) array of (x, y) control points; got shape {arr.shape}.{hint}"
+        )
+    if arr.shape[0] == 0:
+        raise ValueError(f"{name} is empty; give the feature's control points as an (N, 2) array.")
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(
+            f"{name}[{i}] is ({arr[i, 0]}, {arr[i, 1]}); every coordinate must be a finite number. "
+            "Fix or remove that point."
+        )
+    return np.ascontiguousarray(arr)
+
+
+def sample(
+    kind: Kind | str,
+    rest: npt.ArrayLike,
+    pose: npt.ArrayLike,
+    *,
+    closed: bool = False,
+    spacing: float = 1.0,
+    shape: tuple[int, int] | None = None,
+    curve: Literal["polyline", "spline"] | str = "polyline",
+    mask: npt.ArrayLike | None = None,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Sample a feature into constraints for :func:`inkwarp.thin_plate`.
+
+    Walks the feature's rest geometry at arc-length spacing no larger than `spacing`,
+    vertices and end points included, and pairs every sample with the point of the posed
+    geometry at the same primitive parameter (the same segment or span, the same parameter
+    within it; for a segment, the same fraction of its length). A region also samples
+    every grid node strictly inside its rest outline, moved by the mean-value-coordinate
+    interpolation of the outline's displacements, so that an affine motion of a polyline
+    outline moves the whole region by that map. See ``docs/concepts/drawings.md``.
+
+    Parameters
+    ----------
+    kind : {"point", "polyline", "spline", "region", "cut"}
+        The feature kind. ``"point"`` has exactly one position; ``"polyline"`` and
+        ``"spline"`` (an interpolating centripetal Catmull-Rom curve) at least two
+        control points; ``"region"`` at least three; a ``"cut"`` gives no samples.
+    rest : array_like, shape (N, 2)
+        The control points as traced over the original image, ``(x, y)`` in pixels
+        (pixel centres at integers, y down).
+    pose : array_like, shape (N, 2)
+        The same control points in the pose (the same count as `rest`).
+    closed : bool, default False
+        Join a polyline's or spline's last point back to its first. Regions are always
+        closed.
+    spacing : float, default 1.0
+        The largest arc length between consecutive samples, in pixels (the grid
+        spacing).
+    shape : tuple of int (H, W), optional
+        The image's shape; required for a region, whose interior nodes are the grid's.
+    curve : {"polyline", "spline"}, default "polyline"
+        A region's outline: the closed polyline through its control points or the closed
+        spline. Only regions take ``"spline"``.
+    mask : array_like, shape (H, W), optional
+        The continuity matte (nonzero = connected): a region samples only the interior
+        nodes where it is nonzero. Needs `shape`.
+
+    Returns
+    -------
+    points : ndarray of float64, shape (M, 2)
+        The samples' rest positions: the curve samples in order along the curve, then a
+        region's interior nodes row by row.
+    displacements : ndarray of float64, shape (M, 2)
+        How far each sample's partner in the pose has moved, ``(Δx, Δy)``.
+
+    Raises
+    ------
+    ValueError
+        An unknown kind or curve, arrays of the wrong shape, non-finite coordinates,
+        different numbers of rest and pose points, too few points for the kind, a
+        spacing that is not a positive number, or a region without `shape`.
+
+    Examples
+    --------
+    A segment from (0, 0) to (4, 0) whose far end moves down by 2 px, sampled every
+    pixel: each sample's partner is at the same fraction of the posed segment.
+
+    >>> import inkwarp
+    >>> points, moves = inkwarp.sample("polyline", [[0, 0], [4, 0]], [[0, 0], [4, 2]])
+    >>> points.tolist()
+    [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0], [4.0, 0.0]]
+    >>> moves[:, 1].tolist()
+    [0.0, 0.5, 1.0, 1.5, 2.0]
+
+    A square region moved 3 px to the right: its outline samples and the nodes inside
+    all move by (3, 0).
+
+    >>> square = [[2, 2], [6, 2], [6, 6], [2, 6]]
+    >>> moved = [[5, 2], [9, 2], [9, 6], [5, 6]]
+    >>> points, moves = inkwarp.sample("region", square, moved, shape=(8, 8))
+    >>> len(points), bool((abs(moves - [3, 0]) < 1e-9).all())
+    (25, True)
+    """
+    if not isinstance(kind, str) or kind not in KINDS:
+        raise ValueError(f"unknown feature kind {kind!r}; the kinds are {', '.join(KINDS)}.")
+    if not isinstance(curve, str) or curve not in CURVES:
+        raise ValueError(f"unknown curve {curve!r}; a region's outline is 'polyline' or 'spline'.")
+    if curve == "spline" and kind != "region":
+        raise ValueError(
+            f"curve='spline' is for region outlines only; for a spline feature use kind='spline' "
+            f"(this feature is a {kind})."
+        )
+    rest_arr = _points("rest", rest)
+    pose_arr = _points("pose", pose)
+    if rest_arr.shape[0] != pose_arr.shape[0]:
+        raise ValueError(
+            f"pose has {_count(pose_arr.shape[0])} but rest has {_count(rest_arr.shape[0])}; a pose "
+            "moves the same control points as the rest, so give both the same number of rows."
+        )
+    try:
+        spacing_px = float(spacing)
+    except (TypeError, ValueError):
+        raise ValueError(f"spacing must be a positive number of pixels; got {spacing!r}.") from None
+    if not (spacing_px > 0 and math.isfinite(spacing_px)):
+        raise ValueError(f"spacing must be a positive, finite number of pixels; got {spacing!r}.")
+    grid_shape: tuple[int, int] | None = None
+    if shape is not None:
+        try:
+            h, w = (int(v) for v in shape)
+        except (TypeError, ValueError):
+            raise ValueError(f"shape must be (H, W), two positive integers; got {shape!r}.") from None
+        if h <= 0 or w <= 0:
+            raise ValueError(f"shape must be (H, W), two positive integers; got {shape!r}.")
+        grid_shape = (h, w)
+    if kind == "region" and grid_shape is None:
+        raise ValueError(
+            "a region needs shape=(H, W), the image's height and width, to find the grid nodes "
+            "inside its outline."
+        )
+    mask_arr = None
+    if mask is not None:
+        if grid_shape is None:
+            raise ValueError("mask needs shape: pass shape=(H, W) with the mask.")
+        mask_arr = np.asarray(mask)
+        if mask_arr.shape != grid_shape:
+            raise ValueError(
+                f"mask has shape {mask_arr.shape} but shape is {grid_shape}; give a mask of the "
+                "image's (H, W)."
+            )
+        mask_arr = np.ascontiguousarray(mask_arr != 0, dtype=np.uint8)
+    return _inkwarp.sample_feature(
+        kind,
+        rest_arr,
+        pose_arr,
+        closed=bool(closed),
+        spacing=spacing_px,
+        spline_outline=(curve == "spline"),
+        shape=grid_shape,
+        mask=mask_arr,
+    )
