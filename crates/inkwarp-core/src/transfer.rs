@@ -56,17 +56,6 @@ pub enum TransferError {
     Map(#[from] MethodError),
 }
 
-/// The lower-case name of a kind, as in scene files.
-pub fn kind_name(kind: Kind) -> &'static str {
-    match kind {
-        Kind::Point => "point",
-        Kind::Polyline => "polyline",
-        Kind::Spline => "spline",
-        Kind::Region => "region",
-        Kind::Cut => "cut",
-    }
-}
-
 /// The pairs `(source index, target index)` of matched features, checked.
 fn match_features(
     source: &[TransferFeature],
@@ -86,8 +75,8 @@ fn match_features(
                 id: s.id.clone(),
                 source_index: si,
                 target_index: ti,
-                source_kind: kind_name(s.kind),
-                target_kind: kind_name(t.kind),
+                source_kind: s.kind.name(),
+                target_kind: t.kind.name(),
             });
         }
         if t.rest.len() != s.rest.len() {

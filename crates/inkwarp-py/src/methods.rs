@@ -150,16 +150,7 @@ impl PyThinPlateMap {
 }
 
 fn kind_of(name: &str) -> PyResult<Kind> {
-    match name {
-        "point" => Ok(Kind::Point),
-        "polyline" => Ok(Kind::Polyline),
-        "spline" => Ok(Kind::Spline),
-        "region" => Ok(Kind::Region),
-        "cut" => Ok(Kind::Cut),
-        _ => Err(PyValueError::new_err(format!(
-            "Unknown feature kind \"{name}\": use point, polyline, spline, region or cut."
-        ))),
-    }
+    name.parse().map_err(value_error)
 }
 
 type FeatureTuple = (String, String, Vec<Point>, Vec<Vec<Point>>);
