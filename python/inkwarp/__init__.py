@@ -9,6 +9,7 @@ from inkwarp.drawing import sample
 from inkwarp.errors import InkwarpError, SceneError
 from inkwarp.compare import Comparison, compare, comparison_sheet
 from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
+from inkwarp.imaging import warp_image
 from inkwarp.transfer import transfer, transfer_dict
 
 __all__ = [
@@ -25,4 +26,5 @@ __all__ = [
     "sample",
     "transfer",
     "transfer_dict",
+    "warp_image",
 ]

@@ -24,6 +24,13 @@ def curve_polyline(
     spacing: float = 1.0,
 ) -> npt.NDArray[np.float64]: ...
 
+# --- render (forward mapping) ---
+def warp_image(
+    image: npt.NDArray[np.uint8], field: npt.NDArray[np.float32], matte: npt.NDArray[np.uint8]
+) -> npt.NDArray[np.uint8]:
+    """Forward-map C-contiguous uint8 RGBA (H, W, 4) by float32 (H, W, 2) over uint8 matte
+    (H, W); see `inkwarp.warp_image` for the checked, documented entry point."""
+
 # --- methods (comparison interpolants, thin-plate map, transfer) ---
 from typing import Any
 

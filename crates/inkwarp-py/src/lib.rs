@@ -6,6 +6,7 @@ use pyo3::prelude::*;
 mod errors;
 mod geometry;
 mod methods;
+mod render;
 
 /// The compiled core of the `inkwarp` Python package.
 #[pymodule]
@@ -14,5 +15,6 @@ fn _inkwarp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     geometry::register(m)?;
     methods::register(m)?;
+    render::register(m)?;
     Ok(())
 }

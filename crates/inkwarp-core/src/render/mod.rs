@@ -1,0 +1,337 @@
+//! The forward-mapping renderer (DESIGN §5): every pixel of a layer is a vertex of a mesh
+//! placed at its displaced position, and the mesh is drawn onto a premultiplied canvas.
+//!
+//! # The mesh
+//!
+//! Pixel `(x, y)` of the layer is drawn at `(x + Δx + offset_x, y + Δy + offset_y)` on the
+//! canvas (pixel centres at integer coordinates, DESIGN §2). The rest plane is cut into
+//! *blocks*: block `(c, r)`, for `c ∈ [-1, W-1]` and `r ∈ [-1, H-1]`, is the unit square
+//! between the centres of pixels `(c, r)`, `(c+1, r)`, `(c, r+1)` and `(c+1, r+1)` (some of
+//! which lie outside the image at the border).
+//!
+//! - A block whose four pixels are joined by all four links of the [`Grid`] is one
+//!   **quad**: its four displaced pixels are the corners, the map from rest to canvas is
+//!   bilinear, and its colour is the bilinear interpolation of the four premultiplied
+//!   pixel colours.
+//! - In any other block each drawn pixel owns the quarter of the block nearest to it, a
+//!   **skirt quarter**. Its corners are the pixel, the two points half way to its block
+//!   neighbours (the midpoint of the link where the link exists, otherwise half a pixel
+//!   along the pixel's local frame `ex`, `ey`: the displaced link to the other side, or a
+//!   perpendicular, or the rest axis), and a centre point shared by the pixels linked to
+//!   it within the block (the mean of their parallelogram completions). Its colour is the
+//!   bilinear interpolation, renormalised, over the block's pixels that can be reached
+//!   from it around the block without crossing a *broken* side (both ends drawn, no link).
+//!
+//! The quads and quarters tile each pixel's unit square exactly, so the identity field
+//! reproduces the layer, border pixels included, and the mesh is watertight: a connected
+//! piece has no cracks. Where a link is missing (a hole, a cut, the image border) the two
+//! sides only share a skirt boundary at rest and separate when the field pulls them apart.
+//!
+//! A pixel is drawn when it is active in the grid or has nonzero alpha (so a continuity
+//! matte never hides visible pixels; an inactive pixel is an isolated square that follows
+//! its own displacement), and its displaced position is finite.
+//!
+//! # Shading and coverage
+//!
+//! For each canvas pixel:
+//!
+//! - **colour** = the mesh's premultiplied colour at the pixel *centre* (found by inverting
+//!   the bilinear map of the element containing it). When several elements contain it (a
+//!   fold-over), the one drawn last wins: elements are drawn block row by block row from
+//!   the top of the rest image, left to right, the quarters of a block in the order
+//!   top-left, top-right, bottom-left, bottom-right; within one folded quad the preimage
+//!   with the larger rest `y` wins. So where the mesh folds, the part that comes from
+//!   further down (then further right) in the rest image is in front. When no element
+//!   contains the centre (a pixel straddling the edge of a piece), the colour comes from
+//!   an element at the edge: one whose block holds the centre's preimage if any, else the
+//!   nearest in rest space; it is evaluated at the preimage clamped to that block.
+//! - **coverage** = `min(1, Σ over elements of the area of the pixel's unit square inside the
+//!   element)`, computed exactly (analytic antialiasing, not point sampling).
+//! - the layer's pixel = colour × coverage, composited "over" the canvas.
+//!
+//! For a translation this is exactly the area-weighted (box-filtered) image of the
+//! translated layer, edges included. `docs/concepts/forward-mapping.md` has the details
+//! and pictures.
+
+mod mesh;
+mod raster;
+
+use crate::{Field, Grid};
+
+/// Errors of the renderer: the inputs of a layer that do not fit together.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RenderError {
+    /// An RGBA buffer whose length is not `width × height × 4`.
+    #[error(
+        "The RGBA data holds {actual} bytes, but a {width}×{height} RGBA image needs {expected} \
+         (4 bytes per pixel, row-major)."
+    )]
+    ImageDataLength {
+        width: usize,
+        height: usize,
+        expected: usize,
+        actual: usize,
+    },
+    /// A field or grid whose size differs from the layer image.
+    #[error(
+        "The {what} is {got_width}×{got_height}, but the layer image is {width}×{height}; \
+         the image, its displacement field and its grid must be the same size."
+    )]
+    SizeMismatch {
+        what: &'static str,
+        got_width: usize,
+        got_height: usize,
+        width: usize,
+        height: usize,
+    },
+}
+
+/// An image with straight (not premultiplied) 8-bit RGBA, row-major, 4 bytes per pixel.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RgbaImage {
+    pub width: usize,
+    pub height: usize,
+    /// `data[(y * width + x) * 4 + channel]`, channels R, G, B, A.
+    pub data: Vec<u8>,
+}
+
+impl RgbaImage {
+    /// A fully transparent image.
+    pub fn new(width: usize, height: usize) -> Self {
+        RgbaImage {
+            width,
+            height,
+            data: vec![0; width * height * 4],
+        }
+    }
+
+    /// An image from raw RGBA bytes.
+    ///
+    /// ```
+    /// use inkwarp_core::render::RgbaImage;
+    /// let image = RgbaImage::from_raw(2, 1, vec![255, 0, 0, 255, 0, 0, 255, 128]).unwrap();
+    /// assert_eq!(image.pixel(1, 0), [0, 0, 255, 128]);
+    /// assert!(RgbaImage::from_raw(2, 2, vec![0; 3]).is_err());
+    /// ```
+    pub fn from_raw(width: usize, height: usize, data: Vec<u8>) -> Result<Self, RenderError> {
+        let expected = width * height * 4;
+        if data.len() != expected {
+            return Err(RenderError::ImageDataLength {
+                width,
+                height,
+                expected,
+                actual: data.len(),
+            });
+        }
+        Ok(RgbaImage {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// The RGBA value of pixel `(x, y)`.
+    ///
+    /// # Panics
+    /// If `(x, y)` is outside the image.
+    pub fn pixel(&self, x: usize, y: usize) -> [u8; 4] {
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) is outside the image"
+        );
+        let i = (y * self.width + x) * 4;
+        [
+            self.data[i],
+            self.data[i + 1],
+            self.data[i + 2],
+            self.data[i + 3],
+        ]
+    }
+}
+
+/// Straight 8-bit RGBA → premultiplied RGBA in `[0, 1]`.
+#[inline]
+pub fn premultiply(rgba: [u8; 4]) -> [f32; 4] {
+    // The integer products are exact in f32; one rounding each.
+    const INV: f32 = 1.0 / (255.0 * 255.0);
+    let a = rgba[3] as f32;
+    [
+        rgba[0] as f32 * a * INV,
+        rgba[1] as f32 * a * INV,
+        rgba[2] as f32 * a * INV,
+        a * (1.0 / 255.0),
+    ]
+}
+
+/// Premultiplied RGBA in `[0, 1]` → straight 8-bit RGBA, rounding to nearest.
+///
+/// A pixel whose alpha rounds to 0 becomes `[0, 0, 0, 0]`: fully transparent pixels carry
+/// no colour in a premultiplied pipeline.
+#[inline]
+pub fn unpremultiply(p: [f32; 4]) -> [u8; 4] {
+    // `x + 0.5` truncated rounds non-negative values to nearest without a libm call.
+    let a = p[3].clamp(0.0, 1.0);
+    let a8 = (a * 255.0 + 0.5) as u8;
+    if a8 == 0 {
+        return [0; 4];
+    }
+    let scale = 255.0 / a;
+    let c = |v: f32| ((v * scale).clamp(0.0, 255.0) + 0.5) as u8;
+    [c(p[0]), c(p[1]), c(p[2]), a8]
+}
+
+/// A drawing surface of premultiplied RGBA `f32` pixels in `[0, 1]`, onto which layers are
+/// forward-mapped and composited back to front.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Canvas {
+    pub width: usize,
+    pub height: usize,
+    /// Premultiplied RGBA, `data[y * width + x]`.
+    pub data: Vec<[f32; 4]>,
+}
+
+impl Canvas {
+    /// A canvas filled with `background` (straight RGBA8).
+    pub fn new(width: usize, height: usize, background: [u8; 4]) -> Self {
+        Canvas {
+            width,
+            height,
+            data: vec![premultiply(background); width * height],
+        }
+    }
+
+    /// Forward-maps `image` by `field` over the mesh of `grid`'s links, shifted by `offset`
+    /// (canvas pixels), and composites it "over" what the canvas holds.
+    ///
+    /// The output is the same for any number of threads.
+    ///
+    /// ```
+    /// use inkwarp_core::render::{Canvas, RgbaImage};
+    /// use inkwarp_core::{Field, Grid};
+    /// let image = RgbaImage::from_raw(1, 1, vec![200, 100, 0, 255]).unwrap();
+    /// let mut canvas = Canvas::new(3, 1, [0, 0, 255, 255]);
+    /// canvas.draw_layer(&image, &Field::zeros(1, 1), &Grid::new(1, 1), [1.0, 0.0]);
+    /// let out = canvas.to_rgba8();
+    /// assert_eq!(out.pixel(0, 0), [0, 0, 255, 255]);
+    /// assert_eq!(out.pixel(1, 0), [200, 100, 0, 255]);
+    /// ```
+    ///
+    /// # Panics
+    /// If the field or the grid is not the size of the image (see [`Canvas::try_draw_layer`]).
+    pub fn draw_layer(&mut self, image: &RgbaImage, field: &Field, grid: &Grid, offset: [f64; 2]) {
+        if let Err(e) = self.try_draw_layer(image, field, grid, offset) {
+            panic!("{e}");
+        }
+    }
+
+    /// [`Canvas::draw_layer`], with an error instead of a panic when the sizes differ.
+    pub fn try_draw_layer(
+        &mut self,
+        image: &RgbaImage,
+        field: &Field,
+        grid: &Grid,
+        offset: [f64; 2],
+    ) -> Result<(), RenderError> {
+        check_layer(image, field, grid)?;
+        raster::draw_layer(self, image, field, grid, offset);
+        Ok(())
+    }
+
+    /// The canvas as straight RGBA8 (see [`unpremultiply`]).
+    pub fn to_rgba8(&self) -> RgbaImage {
+        use rayon::prelude::*;
+        const CHUNK: usize = 1 << 14;
+        let mut data = vec![0u8; self.data.len() * 4];
+        data.par_chunks_mut(4 * CHUNK)
+            .zip(self.data.par_chunks(CHUNK))
+            .for_each(|(out, pixels)| {
+                for (o, &p) in out.chunks_exact_mut(4).zip(pixels) {
+                    o.copy_from_slice(&unpremultiply(p));
+                }
+            });
+        RgbaImage {
+            width: self.width,
+            height: self.height,
+            data,
+        }
+    }
+
+    /// The premultiplied value of pixel `(x, y)`.
+    ///
+    /// # Panics
+    /// If `(x, y)` is outside the canvas.
+    pub fn pixel(&self, x: usize, y: usize) -> [f32; 4] {
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) is outside the canvas"
+        );
+        self.data[y * self.width + x]
+    }
+}
+
+fn check_layer(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<(), RenderError> {
+    let (width, height) = (image.width, image.height);
+    if image.data.len() != width * height * 4 {
+        return Err(RenderError::ImageDataLength {
+            width,
+            height,
+            expected: width * height * 4,
+            actual: image.data.len(),
+        });
+    }
+    let mismatch = |what, got_width, got_height| RenderError::SizeMismatch {
+        what,
+        got_width,
+        got_height,
+        width,
+        height,
+    };
+    if (field.width, field.height) != (width, height)
+        || field.dx.len() != width * height
+        || field.dy.len() != width * height
+    {
+        return Err(mismatch("displacement field", field.width, field.height));
+    }
+    if (grid.width, grid.height) != (width, height)
+        || grid.active.len() != width * height
+        || grid.link_right.len() != width * height
+        || grid.link_down.len() != width * height
+    {
+        return Err(mismatch("grid", grid.width, grid.height));
+    }
+    Ok(())
+}
+
+/// Forward-maps `image` by `field` over `grid`'s mesh onto a transparent canvas of the
+/// image's size.
+///
+/// ```
+/// use inkwarp_core::render::{warp_image, RgbaImage};
+/// use inkwarp_core::{Field, Grid};
+/// let image = RgbaImage::from_raw(2, 2, (0..16).map(|v| v as u8 * 10 + 5).collect()).unwrap();
+/// // The identity field reproduces the image exactly.
+/// assert_eq!(warp_image(&image, &Field::zeros(2, 2), &Grid::new(2, 2)), image);
+/// ```
+///
+/// # Panics
+/// If the field or the grid is not the size of the image (see [`try_warp_image`]).
+pub fn warp_image(image: &RgbaImage, field: &Field, grid: &Grid) -> RgbaImage {
+    match try_warp_image(image, field, grid) {
+        Ok(out) => out,
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// [`warp_image`], with an error instead of a panic when the sizes differ.
+pub fn try_warp_image(
+    image: &RgbaImage,
+    field: &Field,
+    grid: &Grid,
+) -> Result<RgbaImage, RenderError> {
+    let mut canvas = Canvas::new(image.width, image.height, [0; 4]);
+    canvas.try_draw_layer(image, field, grid, [0.0, 0.0])?;
+    Ok(canvas.to_rgba8())
+}
+
+#[cfg(test)]
+mod tests;

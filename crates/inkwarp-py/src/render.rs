@@ -1,0 +1,62 @@
+//! `warp_image`: NumPy arrays in, the forward-mapped RGBA image out.
+
+use inkwarp_core::render::{try_warp_image, RgbaImage};
+use inkwarp_core::{Field, Grid};
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(warp_image, m)?)?;
+    Ok(())
+}
+
+/// Forward-maps an RGBA image by a displacement field (see `inkwarp.warp_image`, which
+/// checks and converts its arguments before calling this).
+///
+/// `image`: uint8 (H, W, 4) straight RGBA; `field`: float32 (H, W, 2); `matte`: uint8
+/// (H, W), nonzero = connected. All C-contiguous. Returns uint8 (H, W, 4).
+#[pyfunction]
+#[pyo3(signature = (image, field, matte))]
+fn warp_image<'py>(
+    py: Python<'py>,
+    image: PyReadonlyArray3<'py, u8>,
+    field: PyReadonlyArray3<'py, f32>,
+    matte: PyReadonlyArray2<'py, u8>,
+) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    let shape = image.shape();
+    let (h, w) = (shape[0], shape[1]);
+    if shape[2] != 4 {
+        return Err(PyValueError::new_err(format!(
+            "image must have 4 channels (RGBA), got {}",
+            shape[2]
+        )));
+    }
+    if field.shape() != [h, w, 2] {
+        return Err(PyValueError::new_err(format!(
+            "field must have shape ({h}, {w}, 2) to match the image, got {:?}",
+            field.shape()
+        )));
+    }
+    if matte.shape() != [h, w] {
+        return Err(PyValueError::new_err(format!(
+            "matte must have shape ({h}, {w}) to match the image, got {:?}",
+            matte.shape()
+        )));
+    }
+    let contiguous = |name: &str| PyValueError::new_err(format!("{name} must be C-contiguous"));
+    let pixels = image.as_slice().map_err(|_| contiguous("image"))?;
+    let displacement = field.as_slice().map_err(|_| contiguous("field"))?;
+    let matte = matte.as_slice().map_err(|_| contiguous("matte"))?;
+    let out = py.detach(|| {
+        let image = RgbaImage::from_raw(w, h, pixels.to_vec())?;
+        let field = Field::from_interleaved(w, h, displacement);
+        let grid = Grid::from_matte(w, h, matte);
+        try_warp_image(&image, &field, &grid)
+    });
+    let out = out.map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let array = Array3::from_shape_vec((h, w, 4), out.data)
+        .expect("the renderer returns an image of the input's size");
+    Ok(array.into_pyarray(py))
+}
