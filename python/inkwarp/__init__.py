@@ -11,12 +11,14 @@ from inkwarp.compare import Comparison, compare, comparison_sheet
 from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
 from inkwarp.imaging import warp_image
 from inkwarp.transfer import transfer, transfer_dict
+from inkwarp.plate import SolveReport, thin_plate, thin_plate_report
 
 __all__ = [
     "Comparison",
     "InkwarpError",
     "METHODS",
     "SceneError",
+    "SolveReport",
     "ThinPlateMap",
     "__version__",
     "compare",
@@ -24,6 +26,8 @@ __all__ = [
     "interpolate",
     "interpolate_report",
     "sample",
+    "thin_plate",
+    "thin_plate_report",
     "transfer",
     "transfer_dict",
     "warp_image",

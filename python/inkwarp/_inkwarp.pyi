@@ -36,6 +36,9 @@ from typing import Any
 
 def interpolate_field(
     method: str,
+
+# --- thin plate (inkwarp.plate) -------------------------------------------------------
+def thin_plate_solve(
     points: npt.NDArray[np.float64],
     displacements: npt.NDArray[np.float64],
     height: int,
@@ -58,3 +61,15 @@ def transfer_keys(
     source: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
     target: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
 ) -> list[list[list[tuple[float, float]]] | None]: ...
+
+    mask: npt.NDArray[np.uint8] | None,
+    cuts: list[npt.NDArray[np.float64]],
+    tension: float,
+    tolerance: float,
+    grid_step: int,
+    initial: npt.NDArray[np.float32] | None,
+    max_cycles: int | None,
+    method: str,
+    southwell_sweeps: float,
+) -> tuple[npt.NDArray[np.float32], dict[str, int | float | bool]]:
+    """Solve the grid thin plate; the field (H, W, 2) and the report as a dict."""

@@ -1,5 +1,27 @@
 //! The solve domain: active nodes from the continuity matte, 4-neighbour links broken by
 //! inactive nodes and by cuts, nearest-node constraints (DESIGN §4).
+//!
+//! # Cuts
+//!
+//! A link joins two 4-neighbour nodes; [`Grid::add_cut`] breaks every link whose straight
+//! segment between the two node centres is crossed by a segment of the cut polyline.
+//! Touching and collinear cases are decided by one fixed rule, as if every node centre were
+//! nudged by an infinitesimal `(+ε, +ε²)` (right, and a far smaller amount down) while the
+//! cut stays put. Consequences, all exact for cut coordinates that are multiples of a power
+//! of two (e.g. `10.5`, `3.25`, integers):
+//!
+//! - a cut running exactly along a row of node centres (`y = k`) separates the rows above
+//!   it from row `k` and the rows below (it breaks the vertical links between rows `k − 1`
+//!   and `k`); one running along a column `x = k` separates column `k − 1` from column `k`;
+//! - a cut lying on a link's own segment (collinear) never breaks that link;
+//! - a cut that ends exactly on a link, or passes exactly through a node, breaks a link
+//!   only where the nudged picture says it crosses, so a polyline whose vertices sit on
+//!   node centres still separates its two sides with no gap and no double cut.
+//!
+//! A cut is a line of zero width: it never deactivates a node. Non-finite vertices end the
+//! segments that touch them (those segments are skipped).
+
+use crate::geometry::{Point, Sample};
 
 /// Active nodes and links of a `width × height` node grid.
 #[derive(Clone, Debug, PartialEq)]
@@ -29,7 +51,12 @@ impl Grid {
         Self::from_active(width, height, matte.iter().map(|&m| m != 0).collect())
     }
 
-    fn from_active(width: usize, height: usize, active: Vec<bool>) -> Self {
+    /// A grid from per-node activity: every pair of active 4-neighbours is linked.
+    ///
+    /// # Panics
+    /// If `active.len() != width * height`.
+    pub fn from_active(width: usize, height: usize, active: Vec<bool>) -> Self {
+        assert_eq!(active.len(), width * height, "activity mask has the wrong size");
         let n = width * height;
         let mut link_right = vec![false; n];
         let mut link_down = vec![false; n];
@@ -50,5 +77,414 @@ impl Grid {
     #[inline]
     pub fn index(&self, x: usize, y: usize) -> usize {
         y * self.width + x
+    }
+
+    /// Number of nodes (`width × height`).
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// `true` for a grid without nodes.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Whether the three vectors have `width × height` entries and every link joins two
+    /// active nodes inside the grid. The solver checks this before it trusts a grid.
+    pub fn is_consistent(&self) -> bool {
+        let n = self.len();
+        if self.active.len() != n || self.link_right.len() != n || self.link_down.len() != n {
+            return false;
+        }
+        for y in 0..self.height {
+            for x in 0..self.width {
+                let i = self.index(x, y);
+                if self.link_right[i] && (x + 1 >= self.width || !self.active[i] || !self.active[i + 1]) {
+                    return false;
+                }
+                if self.link_down[i]
+                    && (y + 1 >= self.height || !self.active[i] || !self.active[i + self.width])
+                {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    /// Number of links (right plus down).
+    pub fn link_count(&self) -> usize {
+        self.link_right.iter().filter(|&&l| l).count() + self.link_down.iter().filter(|&&l| l).count()
+    }
+
+    /// Breaks every link whose segment is crossed by a segment of `polyline` (see the module
+    /// docs for the touching and collinear rule). A polyline of fewer than two points breaks
+    /// nothing; parts outside the grid are ignored.
+    ///
+    /// ```
+    /// use inkwarp_core::Grid;
+    /// let mut grid = Grid::new(4, 3);
+    /// // A vertical cut between columns 1 and 2, through the whole grid.
+    /// grid.add_cut(&[[1.5, -1.0], [1.5, 3.0]]);
+    /// assert!((0..3).all(|y| !grid.link_right[grid.index(1, y)]));
+    /// assert!(grid.link_right[grid.index(0, 0)] && grid.link_right[grid.index(2, 0)]);
+    /// ```
+    pub fn add_cut(&mut self, polyline: &[Point]) {
+        for seg in polyline.windows(2) {
+            let (a, b) = (seg[0], seg[1]);
+            if a.iter().chain(b.iter()).all(|v| v.is_finite()) {
+                self.cut_segment(a, b);
+            }
+        }
+    }
+
+    fn cut_segment(&mut self, a: Point, b: Point) {
+        let (w, h) = (self.width as i64, self.height as i64);
+        if w == 0 || h == 0 {
+            return;
+        }
+        // Horizontal links lie on the lines Y = y (+ε²). The segment crosses that line iff
+        // exactly one end has coordinate ≤ y, i.e. y ∈ [min, max) over the integers. The
+        // crossing abscissa X0 at Y = y (the ε² shift only matters when X0 is an integer,
+        // and then the crossing lies left of the nudged node): it breaks the link
+        // (x, y)–(x+1, y) with X0 ∈ (x, x + 1].
+        let (lo, hi) = (a[1].min(b[1]), a[1].max(b[1]));
+        let y0 = (lo.ceil() as i64).max(0);
+        let y1 = (hi.ceil() as i64 - 1).min(h - 1);
+        for y in y0..=y1 {
+            let yf = y as f64;
+            let x_cross = a[0] + (yf - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+            let x = x_cross.ceil() as i64 - 1;
+            if x >= 0 && x + 1 < w {
+                let i = (y * w + x) as usize;
+                self.link_right[i] = false;
+            }
+        }
+        // Vertical links lie on the lines X = x (+ε). The segment crosses iff x ∈ [min, max).
+        // The crossing ordinate at X = x + ε is Y0 + ε·slope; compared with the nudged
+        // link span (y + ε², y + 1 + ε²) an integer Y0 = k belongs to the link below k when
+        // the slope is positive and to the link above k otherwise.
+        let (lo, hi) = (a[0].min(b[0]), a[0].max(b[0]));
+        let x0 = (lo.ceil() as i64).max(0);
+        let x1 = (hi.ceil() as i64 - 1).min(w - 1);
+        let slope_positive = (b[1] - a[1]) * (b[0] - a[0]) > 0.0;
+        for x in x0..=x1 {
+            let xf = x as f64;
+            let y_cross = a[1] + (xf - a[0]) * (b[1] - a[1]) / (b[0] - a[0]);
+            let fl = y_cross.floor();
+            let y = if y_cross == fl && !slope_positive { fl as i64 - 1 } else { fl as i64 };
+            if y >= 0 && y + 1 < h {
+                let i = (y * w + x) as usize;
+                self.link_down[i] = false;
+            }
+        }
+    }
+
+    /// Connected pieces: `labels[i]` is the piece of node `i` (`u32::MAX` for inactive
+    /// nodes), pieces numbered `0..count` in order of their first node.
+    pub fn pieces(&self) -> (Vec<u32>, usize) {
+        let n = self.len();
+        let w = self.width;
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        fn find(parent: &mut [u32], mut i: u32) -> u32 {
+            while parent[i as usize] != i {
+                let p = parent[parent[i as usize] as usize];
+                parent[i as usize] = p;
+                i = p;
+            }
+            i
+        }
+        fn union(parent: &mut [u32], a: u32, b: u32) {
+            let (ra, rb) = (find(parent, a), find(parent, b));
+            if ra != rb {
+                let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+                parent[hi as usize] = lo;
+            }
+        }
+        for i in 0..n {
+            if self.link_right[i] {
+                union(&mut parent, i as u32, i as u32 + 1);
+            }
+            if self.link_down[i] {
+                union(&mut parent, i as u32, (i + w) as u32);
+            }
+        }
+        let mut labels = vec![u32::MAX; n];
+        let mut count = 0usize;
+        let mut root_label = vec![u32::MAX; n];
+        for i in 0..n {
+            if !self.active[i] {
+                continue;
+            }
+            let r = find(&mut parent, i as u32) as usize;
+            if root_label[r] == u32::MAX {
+                root_label[r] = count as u32;
+                count += 1;
+            }
+            labels[i] = root_label[r];
+        }
+        (labels, count)
+    }
+}
+
+/// Samples attached to their nearest nodes (DESIGN §4).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Constraints {
+    /// Constrained node indices, ascending, each once.
+    pub nodes: Vec<usize>,
+    /// The displacement of each constrained node: the mean of its samples' displacements.
+    pub values: Vec<[f64; 2]>,
+    /// Samples that landed on an active node (and were averaged into `values`).
+    pub used_samples: usize,
+    /// Samples that fell outside the grid, on an inactive node, or had non-finite numbers.
+    pub dropped_samples: usize,
+}
+
+impl Constraints {
+    /// Number of constrained nodes.
+    pub fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// `true` when no node is constrained.
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+}
+
+/// The node a sample at `point` constrains: `(⌊x + ½⌋, ⌊y + ½⌋)` (halves round towards +x
+/// and +y), or `None` outside the grid.
+pub fn nearest_node(grid: &Grid, point: Point) -> Option<(usize, usize)> {
+    if !(point[0].is_finite() && point[1].is_finite()) {
+        return None;
+    }
+    let x = (point[0] + 0.5).floor();
+    let y = (point[1] + 0.5).floor();
+    if x < 0.0 || y < 0.0 || x >= grid.width as f64 || y >= grid.height as f64 {
+        return None;
+    }
+    Some((x as usize, y as usize))
+}
+
+/// Attaches every sample to its nearest node ([`nearest_node`]). Several samples on one node
+/// are averaged; samples outside the grid, on an inactive node, or with a non-finite rest
+/// position or displacement are dropped and counted.
+///
+/// ```
+/// use inkwarp_core::{grid::constrain, Grid, Sample};
+/// let grid = Grid::new(5, 5);
+/// let s = |x, y, d| Sample { rest: [x, y], displacement: [d, 0.0] };
+/// let c = constrain(&grid, &[s(1.2, 1.0, 2.0), s(0.8, 1.4, 4.0), s(9.0, 0.0, 1.0)]);
+/// assert_eq!(c.nodes, vec![grid.index(1, 1)]);
+/// assert_eq!(c.values, vec![[3.0, 0.0]]);
+/// assert_eq!((c.used_samples, c.dropped_samples), (2, 1));
+/// ```
+pub fn constrain(grid: &Grid, samples: &[Sample]) -> Constraints {
+    let mut keyed: Vec<(usize, [f64; 2])> = Vec::with_capacity(samples.len());
+    let mut dropped = 0usize;
+    for s in samples {
+        let finite = s.displacement[0].is_finite() && s.displacement[1].is_finite();
+        match nearest_node(grid, s.rest) {
+            Some((x, y)) if finite && grid.active[grid.index(x, y)] => {
+                keyed.push((grid.index(x, y), s.displacement));
+            }
+            _ => dropped += 1,
+        }
+    }
+    let used = keyed.len();
+    keyed.sort_by_key(|&(i, _)| i);
+    let mut out = Constraints { used_samples: used, dropped_samples: dropped, ..Default::default() };
+    let mut k = 0;
+    while k < keyed.len() {
+        let node = keyed[k].0;
+        let mut sum = [0.0f64; 2];
+        let mut count = 0usize;
+        while k < keyed.len() && keyed[k].0 == node {
+            sum[0] += keyed[k].1[0];
+            sum[1] += keyed[k].1[1];
+            count += 1;
+            k += 1;
+        }
+        out.nodes.push(node);
+        out.values.push([sum[0] / count as f64, sum[1] / count as f64]);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn broken_right(g: &Grid) -> Vec<(usize, usize)> {
+        let mut v = vec![];
+        for y in 0..g.height {
+            for x in 0..g.width - 1 {
+                if !g.link_right[g.index(x, y)] {
+                    v.push((x, y));
+                }
+            }
+        }
+        v
+    }
+
+    fn broken_down(g: &Grid) -> Vec<(usize, usize)> {
+        let mut v = vec![];
+        for y in 0..g.height - 1 {
+            for x in 0..g.width {
+                if !g.link_down[g.index(x, y)] {
+                    v.push((x, y));
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn matte_deactivates_nodes_and_their_links() {
+        let matte = [1, 1, 1, 1, 0, 1, 1, 1, 1];
+        let g = Grid::from_matte(3, 3, &matte);
+        assert!(!g.link_right[g.index(0, 1)] && !g.link_right[g.index(1, 1)]);
+        assert!(!g.link_down[g.index(1, 0)] && !g.link_down[g.index(1, 1)]);
+        assert!(g.link_right[g.index(0, 0)]);
+        assert_eq!(g.link_count(), 8);
+        assert!(g.is_consistent());
+    }
+
+    #[test]
+    fn vertical_cut_between_columns() {
+        let mut g = Grid::new(5, 4);
+        g.add_cut(&[[2.5, 0.5], [2.5, 2.5]]);
+        assert_eq!(broken_right(&g), vec![(2, 1), (2, 2)]);
+        assert!(broken_down(&g).is_empty());
+    }
+
+    #[test]
+    fn cut_along_a_row_separates_it_from_the_row_above() {
+        let mut g = Grid::new(4, 4);
+        g.add_cut(&[[-1.0, 2.0], [5.0, 2.0]]);
+        assert_eq!(broken_down(&g), (0..4).map(|x| (x, 1)).collect::<Vec<_>>());
+        assert!(broken_right(&g).is_empty(), "collinear links stay");
+        // The same line drawn the other way round gives the same result.
+        let mut h = Grid::new(4, 4);
+        h.add_cut(&[[5.0, 2.0], [-1.0, 2.0]]);
+        assert_eq!(g, h);
+    }
+
+    #[test]
+    fn cut_along_a_column_separates_it_from_the_column_left() {
+        let mut g = Grid::new(4, 4);
+        g.add_cut(&[[2.0, -1.0], [2.0, 5.0]]);
+        assert_eq!(broken_right(&g), (0..4).map(|y| (1, y)).collect::<Vec<_>>());
+        assert!(broken_down(&g).is_empty());
+    }
+
+    #[test]
+    fn cut_ending_on_a_link_midpoint_follows_the_nudge() {
+        // Ends at (1.5, 2.0), the midpoint of link (1,2)-(2,2). Nodes are nudged down by ε²,
+        // so the link lies just below the end point: not crossed.
+        let mut g = Grid::new(4, 4);
+        g.add_cut(&[[1.5, -1.0], [1.5, 2.0]]);
+        assert_eq!(broken_right(&g), vec![(1, 0), (1, 1)]);
+        // Coming from below and ending at the same point crosses it.
+        let mut h = Grid::new(4, 4);
+        h.add_cut(&[[1.5, 5.0], [1.5, 2.0]]);
+        assert_eq!(broken_right(&h), vec![(1, 2), (1, 3)]);
+    }
+
+    #[test]
+    fn diagonal_through_node_centres_separates_without_gaps() {
+        // y = x through nodes (0,0) ... (5,5): every node on the diagonal is nudged to the
+        // upper-right side. Each lower-left node must be cut off from each upper-right one.
+        let n = 6;
+        let mut g = Grid::new(n, n);
+        g.add_cut(&[[-1.0, -1.0], [2.0, 2.0], [6.0, 6.0]]);
+        let side = |x: usize, y: usize| {
+            // nudged: (x + ε) − (y + ε²) > 0 ⇔ upper-right (or on the line)
+            x >= y
+        };
+        for y in 0..n {
+            for x in 0..n {
+                let i = g.index(x, y);
+                if x + 1 < n {
+                    assert_eq!(g.link_right[i], side(x, y) == side(x + 1, y), "right link at ({x},{y})");
+                }
+                if y + 1 < n {
+                    assert_eq!(g.link_down[i], side(x, y) == side(x, y + 1), "down link at ({x},{y})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn anti_diagonal_through_node_centres_separates_without_gaps() {
+        let n = 6;
+        let mut g = Grid::new(n, n);
+        g.add_cut(&[[-1.0, 6.0], [2.0, 3.0], [6.0, -1.0]]);
+        // line x + y = 5; nudged node sum x + y + ε + ε² > 5 for nodes on the line.
+        let side = |x: usize, y: usize| x + y >= 5;
+        for y in 0..n {
+            for x in 0..n {
+                let i = g.index(x, y);
+                if x + 1 < n {
+                    assert_eq!(g.link_right[i], side(x, y) == side(x + 1, y), "right link at ({x},{y})");
+                }
+                if y + 1 < n {
+                    assert_eq!(g.link_down[i], side(x, y) == side(x, y + 1), "down link at ({x},{y})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn closed_cut_isolates_its_inside() {
+        let mut g = Grid::new(10, 10);
+        g.add_cut(&[[2.3, 2.7], [7.1, 2.2], [6.6, 7.4], [2.9, 6.8], [2.3, 2.7]]);
+        let (labels, count) = g.pieces();
+        assert_eq!(count, 2);
+        assert_ne!(labels[g.index(0, 0)], labels[g.index(5, 5)]);
+    }
+
+    #[test]
+    fn degenerate_cuts_break_nothing() {
+        let mut g = Grid::new(4, 4);
+        g.add_cut(&[]);
+        g.add_cut(&[[1.5, 1.5]]);
+        g.add_cut(&[[1.5, 1.5], [1.5, 1.5]]);
+        g.add_cut(&[[f64::NAN, 1.0], [2.0, 2.0]]);
+        g.add_cut(&[[-10.0, -10.0], [-5.0, -3.0]]);
+        assert_eq!(g, Grid::new(4, 4));
+    }
+
+    #[test]
+    fn long_cut_outside_then_inside() {
+        let mut g = Grid::new(8, 8);
+        g.add_cut(&[[-100.0, 3.5], [100.0, 3.5]]);
+        assert_eq!(broken_down(&g), (0..8).map(|x| (x, 3)).collect::<Vec<_>>());
+        let (_, count) = g.pieces();
+        assert_eq!(count, 2);
+    }
+
+    #[test]
+    fn constraints_round_halves_up_and_count_drops() {
+        let matte: Vec<u8> = (0..16).map(|i| if i == 5 { 0 } else { 1 }).collect();
+        let g = Grid::from_matte(4, 4, &matte);
+        let s = |x, y| Sample { rest: [x, y], displacement: [1.0, -1.0] };
+        let c = constrain(
+            &g,
+            &[s(0.5, 0.5), s(-0.5, 0.0), s(-0.51, 0.0), s(3.49, 3.49), s(3.5, 0.0), s(1.0, 1.0), s(f64::NAN, 0.0)],
+        );
+        // (0.5,0.5)->(1,1) inactive; (-0.5,0)->(0,0); (-0.51,0) outside; (3.49,3.49)->(3,3);
+        // (3.5,0)->(4,0) outside; (1,1) inactive; NaN dropped.
+        assert_eq!(c.nodes, vec![g.index(0, 0), g.index(3, 3)]);
+        assert_eq!((c.used_samples, c.dropped_samples), (2, 5));
+    }
+
+    #[test]
+    fn pieces_label_in_order() {
+        let g = Grid::from_matte(3, 1, &[1, 0, 1]);
+        let (labels, count) = g.pieces();
+        assert_eq!((labels, count), (vec![0, u32::MAX, 1], 2));
     }
 }

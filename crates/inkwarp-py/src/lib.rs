@@ -7,6 +7,7 @@ mod errors;
 mod geometry;
 mod methods;
 mod render;
+mod solve;
 
 /// The compiled core of the `inkwarp` Python package.
 #[pymodule]
@@ -16,5 +17,6 @@ fn _inkwarp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     geometry::register(m)?;
     methods::register(m)?;
     render::register(m)?;
+    solve::register(m)?;
     Ok(())
 }

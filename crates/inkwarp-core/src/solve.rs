@@ -1,1 +1,0 @@
-//! The discrete thin plate (DESIGN §4) and its multigrid solver.

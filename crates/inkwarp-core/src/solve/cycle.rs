@@ -1,0 +1,432 @@
+//! Multigrid cycles over the hierarchy: Chebyshev–Jacobi smoothing, V-cycles, the
+//! coarse-to-fine start and the exact coarsest solve.
+
+use rayon::prelude::*;
+
+use super::level::{galerkin, prolong_add, restrict, Level, V2};
+
+/// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
+const CHEB_RATIO: f64 = 16.0;
+/// Stop coarsening when a level has at most this many nodes.
+const COARSEST_NODES: usize = 300;
+const PAR_MIN: usize = 12_000;
+
+/// The grid hierarchy with its work vectors.
+#[derive(Debug)]
+pub(crate) struct Hierarchy {
+    pub levels: Vec<Level>,
+    work: Vec<Work>,
+    coarsest: Banded,
+    pub degree: usize,
+    /// Coarse-grid visits per level (1: V-cycle, 2: W-cycle).
+    pub gamma: usize,
+    /// Scale every coarse correction by its energy-minimising step.
+    pub line_search: bool,
+}
+
+#[derive(Debug)]
+struct Work {
+    x: Vec<V2>,
+    f: Vec<V2>,
+    r: Vec<V2>,
+    d: Vec<V2>,
+}
+
+impl Hierarchy {
+    pub fn new(fine: Level, degree: usize) -> Hierarchy {
+        let mut levels = vec![fine];
+        loop {
+            let last = levels.last().unwrap();
+            if last.geo.w * last.geo.h <= COARSEST_NODES || last.geo.w <= 2 || last.geo.h <= 2 {
+                break;
+            }
+            let next = galerkin(last);
+            levels.push(next);
+        }
+        let work = levels
+            .iter()
+            .map(|l| {
+                let n = l.len_padded();
+                Work { x: vec![[0.0; 2]; n], f: vec![[0.0; 2]; n], r: vec![[0.0; 2]; n], d: vec![[0.0; 2]; n] }
+            })
+            .collect();
+        // Chebyshev needs the top of the spectrum of D⁻¹A: a few power steps from a
+        // checkerboard, with a margin, capped by the (safe, loose) Gershgorin bound.
+        for l in levels.iter_mut() {
+            let est = power_estimate(l, 6) * 1.1;
+            l.lam_max = l.lam_max.min(est);
+        }
+        let coarsest = Banded::new(levels.last().unwrap());
+        Hierarchy { levels, work, coarsest, degree, gamma: 2, line_search: true }
+    }
+
+    /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
+    /// usable as a conjugate-gradient preconditioner).
+    ///
+    /// `r` and `z` are swapped with the finest level's work vectors for the duration (no
+    /// copies: this matters for 4K grids); `z` may come in empty and leaves full length.
+    pub fn precondition(&mut self, r: &mut Vec<V2>, z: &mut Vec<V2>) {
+        let mut work = std::mem::take(&mut self.work);
+        std::mem::swap(&mut work[0].f, r);
+        std::mem::swap(&mut work[0].x, z);
+        let len = work[0].f.len();
+        work[0].x.resize(len, [0.0; 2]);
+        fill_zero(&mut work[0].x);
+        self.solve_level(0, &mut work, true);
+        std::mem::swap(&mut work[0].f, r);
+        std::mem::swap(&mut work[0].x, z);
+        self.work = work;
+    }
+
+    /// A one-level hierarchy: the exact solve of the finest level.
+    fn direct(&mut self, u: &mut [V2]) {
+        let w0 = &mut self.work[0];
+        self.levels[0].residual(u, None, &mut w0.r);
+        self.coarsest.solve(&w0.r, &mut w0.x);
+        for (p, e) in w0.x.iter().enumerate() {
+            if self.levels[0].inv_diag[p] != 0.0 {
+                u[p][0] += e[0];
+                u[p][1] += e[1];
+            }
+        }
+    }
+
+    /// Approximately solves `A_k x = f` on level k ≥ 1 (x, f in `work[0]`, the slice starting
+    /// at level k) by one V-cycle from `x` (zero when `x_zero`).
+    fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool) {
+        let level = &self.levels[k];
+        if k + 1 == self.levels.len() {
+            let w = &mut work[0];
+            self.coarsest.solve(&w.f, &mut w.x);
+            return;
+        }
+        {
+            let w = &mut work[0];
+            let Work { x, f, r, d } = w;
+            smooth(level, x, Some(f), r, d, self.degree, x_zero);
+            level.residual(x, Some(f), r);
+        }
+        let (head, tail) = work.split_at_mut(1);
+        let w = &mut head[0];
+        let visits = if k == 0 || k + 2 == self.levels.len() { 1 } else { self.gamma };
+        for visit in 0..visits {
+            if visit > 0 {
+                level.residual(&w.x, Some(&w.f), &mut w.r);
+            }
+            restrict(level, &self.levels[k + 1], &w.r, &mut tail[0].f);
+            fill_zero(&mut tail[0].x);
+            self.solve_level(k + 1, tail, true);
+            if self.line_search && k > 0 {
+                // The coarse correction c = P e, scaled by the step that minimises the
+                // energy along it: α = ⟨c, r⟩ / ⟨c, A c⟩ (per component).
+                fill_zero(&mut w.d);
+                prolong_add(level, &self.levels[k + 1], &tail[0].x, &mut w.d);
+                let mut ac = std::mem::take(&mut tail[0].r);
+                ac.resize(w.d.len(), [0.0; 2]);
+                level.residual(&w.d, None, &mut ac);
+                let (mut num, mut den) = ([0.0f64; 2], [0.0f64; 2]);
+                for p in 0..w.d.len() {
+                    for q in 0..2 {
+                        num[q] += w.d[p][q] * w.r[p][q];
+                        den[q] -= w.d[p][q] * ac[p][q];
+                    }
+                }
+                let alpha = [
+                    if den[0] > 0.0 { num[0] / den[0] } else { 1.0 },
+                    if den[1] > 0.0 { num[1] / den[1] } else { 1.0 },
+                ];
+                for p in 0..w.d.len() {
+                    w.x[p][0] += alpha[0] * w.d[p][0];
+                    w.x[p][1] += alpha[1] * w.d[p][1];
+                }
+                ac.truncate(tail[0].x.len());
+                tail[0].r = ac;
+            } else {
+                prolong_add(level, &self.levels[k + 1], &tail[0].x, &mut w.x);
+            }
+        }
+        let Work { x, f, r, d } = w;
+        smooth(level, x, Some(f), r, d, self.degree, false);
+    }
+
+    /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on
+    /// the coarsest, then interpolated and improved by one V-cycle per level on the way up;
+    /// `u` receives the interpolated correction on the unknowns.
+    pub fn coarse_to_fine(&mut self, u: &mut [V2]) {
+        let nl = self.levels.len();
+        if nl < 2 {
+            self.direct(u);
+            return;
+        }
+        let mut work = std::mem::take(&mut self.work);
+        self.levels[0].residual(u, None, &mut work[0].r);
+        for k in 0..nl - 1 {
+            let (head, tail) = work.split_at_mut(k + 1);
+            let src = if k == 0 { &head[0].r } else { &head[k].f };
+            restrict(&self.levels[k], &self.levels[k + 1], src, &mut tail[0].f);
+        }
+        {
+            let w = &mut work[nl - 1];
+            self.coarsest.solve(&w.f, &mut w.x);
+        }
+        for k in (1..nl - 1).rev() {
+            let (head, tail) = work.split_at_mut(k + 1);
+            let wk = &mut head[k];
+            fill_zero(&mut wk.x);
+            prolong_add(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut wk.x);
+            self.solve_level(k, &mut work[k..], false);
+        }
+        prolong_add(&self.levels[0], &self.levels[1], &work[1].x, u);
+        self.work = work;
+    }
+}
+
+/// Largest eigenvalue of D⁻¹A estimated by power iteration.
+pub(crate) fn power_estimate(level: &Level, iters: usize) -> f64 {
+    let n = level.len_padded();
+    let mut x: Vec<V2> = (0..n)
+        .map(|p| {
+            // A checkerboard (near the top eigenvector of a plate) plus a little noise.
+            let h = ((p as u64).wrapping_mul(0x9E3779B97F4A7C15) >> 40) as f64 / (1u64 << 24) as f64;
+            let (x, y) = (p % level.wp, p / level.wp);
+            let s = if (x + y) % 2 == 0 { 1.0 } else { -1.0 };
+            if level.inv_diag[p] != 0.0 { [s + 0.2 * (h - 0.5), s - 0.2 * (h - 0.5)] } else { [0.0; 2] }
+        })
+        .collect();
+    let mut y = vec![[0.0; 2]; n];
+    let mut lam = 0.0;
+    for _ in 0..iters {
+        level.residual(&x, None, &mut y);
+        let (mut nx, mut ny) = (0.0, 0.0);
+        for p in 0..n {
+            let d = level.inv_diag[p];
+            y[p] = [-y[p][0] * d, -y[p][1] * d];
+            nx += x[p][0] * x[p][0] + x[p][1] * x[p][1];
+            ny += y[p][0] * y[p][0] + y[p][1] * y[p][1];
+        }
+        if nx == 0.0 || ny == 0.0 {
+            return 0.0;
+        }
+        lam = (ny / nx).sqrt();
+        std::mem::swap(&mut x, &mut y);
+    }
+    lam
+}
+
+fn fill_zero(v: &mut [V2]) {
+    if v.len() >= PAR_MIN {
+        v.par_iter_mut().for_each(|a| *a = [0.0; 2]);
+    } else {
+        v.iter_mut().for_each(|a| *a = [0.0; 2]);
+    }
+}
+
+/// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `degree` steps aimed at
+/// the upper part `[λ/16, λ]` of the spectrum of D⁻¹A. `r` and `d` are scratch.
+pub(crate) fn smooth(
+    level: &Level,
+    x: &mut [V2],
+    f: Option<&[V2]>,
+    r: &mut [V2],
+    d: &mut [V2],
+    degree: usize,
+    x_zero: bool,
+) {
+    if degree == 0 || level.lam_max <= 0.0 {
+        return;
+    }
+    let b = level.lam_max;
+    let a = b / CHEB_RATIO;
+    let theta = 0.5 * (b + a);
+    let delta = 0.5 * (b - a);
+    let sigma = theta / delta;
+    let mut rho = 1.0 / sigma;
+    if x_zero {
+        let f = f.expect("a zero start needs a right-hand side");
+        zip_map(r, f, &level.inv_diag, |ri, fi, di| *ri = if di != 0.0 { fi } else { [0.0; 2] });
+    } else {
+        level.residual(x, f, r);
+    }
+    let inv_theta = 1.0 / theta;
+    zip_map(d, r, &level.inv_diag, |di, ri, dd| *di = [ri[0] * dd * inv_theta, ri[1] * dd * inv_theta]);
+    for k in 0..degree {
+        add_assign(x, d);
+        if k + 1 == degree {
+            break;
+        }
+        level.residual(x, f, r);
+        let rho_new = 1.0 / (2.0 * sigma - rho);
+        let c1 = rho_new * rho;
+        let c2 = 2.0 * rho_new / delta;
+        zip_map(d, r, &level.inv_diag, |di, ri, dd| {
+            *di = [c1 * di[0] + c2 * dd * ri[0], c1 * di[1] + c2 * dd * ri[1]];
+        });
+        rho = rho_new;
+    }
+}
+
+fn zip_map(out: &mut [V2], a: &[V2], dg: &[f64], f: impl Fn(&mut V2, V2, f64) + Sync + Send) {
+    if out.len() >= PAR_MIN {
+        out.par_chunks_mut(4096)
+            .zip(a.par_chunks(4096))
+            .zip(dg.par_chunks(4096))
+            .for_each(|((o, a), d)| {
+                for i in 0..o.len() {
+                    f(&mut o[i], a[i], d[i]);
+                }
+            });
+    } else {
+        for i in 0..out.len() {
+            f(&mut out[i], a[i], dg[i]);
+        }
+    }
+}
+
+fn add_assign(x: &mut [V2], d: &[V2]) {
+    if x.len() >= PAR_MIN {
+        x.par_chunks_mut(4096).zip(d.par_chunks(4096)).for_each(|(x, d)| {
+            for i in 0..x.len() {
+                x[i][0] += d[i][0];
+                x[i][1] += d[i][1];
+            }
+        });
+    } else {
+        for i in 0..x.len() {
+            x[i][0] += d[i][0];
+            x[i][1] += d[i][1];
+        }
+    }
+}
+
+/// Banded Cholesky factor of the coarsest operator (unknowns in row-major order). Pivots
+/// that vanish (a singular, consistent coarsest system) pin their unknown to zero.
+#[derive(Debug)]
+struct Banded {
+    n: usize,
+    bw: usize,
+    l: Vec<f64>,
+    /// Padded index of each unknown.
+    map: Vec<usize>,
+    dropped: Vec<bool>,
+}
+
+impl Banded {
+    fn new(level: &Level) -> Banded {
+        let (w, h) = (level.geo.w, level.geo.h);
+        let mut map = Vec::new();
+        let mut number = vec![usize::MAX; level.len_padded()];
+        for y in 0..h {
+            for x in 0..w {
+                let p = level.pidx(x, y);
+                if level.inv_diag[p] != 0.0 {
+                    number[p] = map.len();
+                    map.push(p);
+                }
+            }
+        }
+        let n = map.len();
+        // In row-major order a 5 × 5 stencil reaches at most 2 rows ahead: bandwidth ≤ 2w + 2.
+        let mut bw = 0;
+        let wp = level.wp;
+        let mut l = Vec::new();
+        if n > 0 {
+            for (k, &p) in map.iter().enumerate() {
+                let row = level.row(p);
+                for dy in 0..5 {
+                    for dx in 0..5 {
+                        if row[dy * 5 + dx] != 0.0 {
+                            let q = p + dy * wp + dx - 2 * wp - 2;
+                            if number[q] != usize::MAX && number[q] < k {
+                                bw = bw.max(k - number[q]);
+                            }
+                        }
+                    }
+                }
+            }
+            let width = bw + 1;
+            l = vec![0.0; n * width];
+            let mut diag0 = vec![0.0; n];
+            for (k, &p) in map.iter().enumerate() {
+                let row = level.row(p);
+                for dy in 0..5 {
+                    for dx in 0..5 {
+                        let a = row[dy * 5 + dx];
+                        let q = p + dy * wp + dx - 2 * wp - 2;
+                        if a != 0.0 && number[q] != usize::MAX && number[q] <= k {
+                            let j = number[q];
+                            l[k * width + (j + bw - k)] = a;
+                        }
+                    }
+                }
+                diag0[k] = row[12];
+            }
+            let mut dropped = vec![false; n];
+            for k in 0..n {
+                let j0 = k.saturating_sub(bw);
+                for j in j0..k {
+                    // l_kj = (a_kj - Σ_{m<j} l_km l_jm) / l_jj
+                    let mut s = l[k * width + (j + bw - k)];
+                    let m0 = j0.max(j.saturating_sub(bw));
+                    for m in m0..j {
+                        s -= l[k * width + (m + bw - k)] * l[j * width + (m + bw - j)];
+                    }
+                    let ljj = l[j * width + bw];
+                    l[k * width + (j + bw - k)] = if dropped[j] { 0.0 } else { s / ljj };
+                }
+                let mut s = l[k * width + bw];
+                for m in j0..k {
+                    let v = l[k * width + (m + bw - k)];
+                    s -= v * v;
+                }
+                if s <= 1e-10 * diag0[k].abs() || s <= 0.0 {
+                    dropped[k] = true;
+                    l[k * width + bw] = 1.0;
+                    for m in j0..k {
+                        l[k * width + (m + bw - k)] = 0.0;
+                    }
+                } else {
+                    l[k * width + bw] = s.sqrt();
+                }
+            }
+            return Banded { n, bw, l, map, dropped };
+        }
+        Banded { n, bw, l, map, dropped: vec![] }
+    }
+
+    fn solve(&self, f: &[V2], x: &mut [V2]) {
+        let (n, bw) = (self.n, self.bw);
+        let width = bw + 1;
+        let mut z: Vec<V2> = self.map.iter().map(|&p| f[p]).collect();
+        for k in 0..n {
+            if self.dropped[k] {
+                z[k] = [0.0; 2];
+                continue;
+            }
+            let mut s = z[k];
+            for m in k.saturating_sub(bw)..k {
+                let v = self.l[k * width + (m + bw - k)];
+                s[0] -= v * z[m][0];
+                s[1] -= v * z[m][1];
+            }
+            let d = self.l[k * width + bw];
+            z[k] = [s[0] / d, s[1] / d];
+        }
+        for k in (0..n).rev() {
+            if self.dropped[k] {
+                z[k] = [0.0; 2];
+                continue;
+            }
+            let d = self.l[k * width + bw];
+            let s = [z[k][0] / d, z[k][1] / d];
+            z[k] = s;
+            for m in k.saturating_sub(bw)..k {
+                let v = self.l[k * width + (m + bw - k)];
+                z[m][0] -= v * s[0];
+                z[m][1] -= v * s[1];
+            }
+        }
+        for (k, &p) in self.map.iter().enumerate() {
+            x[p] = z[k];
+        }
+    }
+}

@@ -1,0 +1,866 @@
+//! The grid hierarchy: the finest operator read off the links, link-aware prolongation,
+//! Galerkin coarse operators stored per node, and the matrix-vector kernels.
+//!
+//! Every vector is stored padded: a margin of two inactive nodes around the grid, so the
+//! 5 × 5 stencils never leave the array. Values are `[f64; 2]` pairs (Δx, Δy): both
+//! components share every operator and travel together.
+
+use rayon::prelude::*;
+
+/// Padding around every level's vectors.
+pub(crate) const PAD: usize = 2;
+
+/// Vector entry: (Δx, Δy).
+pub(crate) type V2 = [f64; 2];
+
+/// Node flags of the finest level.
+pub(crate) mod bit {
+    /// Active and not fixed: an unknown.
+    pub const FREE: u8 = 1;
+    /// Horizontal triple centred here (links left and right).
+    pub const HTRI: u8 = 2;
+    /// Vertical triple centred here.
+    pub const VTRI: u8 = 4;
+    /// 2 × 2 cell with this node as its top-left corner and all four links.
+    pub const CELL: u8 = 8;
+    /// Link to the right neighbour.
+    pub const RIGHT: u8 = 16;
+    /// Link to the neighbour below.
+    pub const DOWN: u8 = 32;
+    /// Active (free or fixed).
+    pub const ACTIVE: u8 = 64;
+    /// Free, with every term of the interior 13-point molecule present.
+    pub const REGULAR: u8 = 128;
+}
+
+/// Rows per parallel task; levels smaller than `PAR_MIN_NODES` run on one thread.
+const PAR_ROWS: usize = 16;
+const PAR_MIN_NODES: usize = 12_000;
+
+/// Geometry of one level: active nodes and links (unpadded, row-major).
+#[derive(Clone, Debug)]
+pub(crate) struct Geometry {
+    pub w: usize,
+    pub h: usize,
+    pub active: Vec<bool>,
+    pub right: Vec<bool>,
+    pub down: Vec<bool>,
+    /// Only on the finest level: fixed (Dirichlet) nodes, whose prolongation rows vanish.
+    pub fixed: Option<Vec<bool>>,
+    /// Prolongation rows ([`Geometry::p_row`]) in 24ths, filled by [`Geometry::with_rows`].
+    pub prow: Vec<[u8; 4]>,
+}
+
+impl Geometry {
+    #[inline]
+    fn idx(&self, x: usize, y: usize) -> usize {
+        y * self.w + x
+    }
+
+    /// The next coarser geometry: node (X, Y) sits on (2X, 2Y); two coarse neighbours are
+    /// linked when the straight two-link path between them is linked here.
+    pub fn coarsen(&self) -> Geometry {
+        // ⌊n/2⌋ + 1 coarse nodes: for an even n the last one is a ghost just outside the
+        // grid (at fine position n), so that the last fine node still sits between two
+        // coarse nodes and interpolation keeps reproducing linear functions there.
+        let (fw, fh) = (self.w, self.h);
+        let (w, h) = (fw / 2 + 1, fh / 2 + 1);
+        let fx = |x: usize| (2 * x).min(fw - 1);
+        let fy = |y: usize| (2 * y).min(fh - 1);
+        let mut active = vec![false; w * h];
+        let mut right = vec![false; w * h];
+        let mut down = vec![false; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let c = y * w + x;
+                let f = self.idx(fx(x), fy(y));
+                active[c] = self.active[f];
+                if x + 1 < w {
+                    right[c] = self.right[f] && (2 * x + 2 == fw || self.right[f + 1]);
+                }
+                if y + 1 < h {
+                    down[c] = self.down[f] && (2 * y + 2 == fh || self.down[f + fw]);
+                }
+            }
+        }
+        Geometry { w, h, active, right, down, fixed: None, prow: Vec::new() }.with_rows()
+    }
+
+    /// Fills the table of prolongation rows. Every weight is a multiple of 1/24 (halves,
+    /// and averages of up to four halves), so the table is exact.
+    pub fn with_rows(mut self) -> Geometry {
+        let mut prow = vec![[0u8; 4]; self.w * self.h];
+        for y in 0..self.h {
+            for x in 0..self.w {
+                let i = self.idx(x, y);
+                if self.fixed.as_ref().is_some_and(|f| f[i]) {
+                    continue;
+                }
+                let r = self.geo_row(x, y);
+                let mut code = [0u8; 4];
+                for k in 0..4 {
+                    let n = (r[k] * 24.0).round();
+                    debug_assert!((n / 24.0 - r[k]).abs() < 1e-12);
+                    code[k] = n as u8;
+                }
+                prow[i] = code;
+            }
+        }
+        self.prow = prow;
+        self
+    }
+
+    /// Link-aware bilinear prolongation row of node (x, y), ignoring whether the node is
+    /// fixed: weights of the coarse corners (cx, cy), (cx+1, cy), (cx, cy+1), (cx+1, cy+1)
+    /// with cx = x / 2, cy = y / 2. Natural boundaries: weights across missing links are
+    /// dropped and the rest renormalised; an odd–odd node averages the rows of its linked
+    /// edge neighbours.
+    pub fn geo_row(&self, x: usize, y: usize) -> [f64; 4] {
+        let i = self.idx(x, y);
+        if !self.active[i] {
+            return [0.0; 4];
+        }
+        match (x & 1, y & 1) {
+            (0, 0) => [1.0, 0.0, 0.0, 0.0],
+            // The last node of an even-sized row or column has the ghost coarse node
+            // beyond it (see `coarsen`).
+            (1, 0) => {
+                let l = self.right[i - 1];
+                let r = x + 1 == self.w || self.right[i];
+                pair(l, r, 0, 1)
+            }
+            (0, 1) => {
+                let u = self.down[i - self.w];
+                let d = y + 1 == self.h || self.down[i];
+                pair(u, d, 0, 2)
+            }
+            _ => {
+                let mut acc = [0.0; 4];
+                let mut k = 0.0;
+                // left neighbour (x-1, y): even-odd, corners (cx, cy), (cx, cy+1)
+                if self.right[i - 1] {
+                    let r = self.geo_row(x - 1, y);
+                    if r[0] + r[2] > 0.0 {
+                        acc[0] += r[0];
+                        acc[2] += r[2];
+                        k += 1.0;
+                    }
+                }
+                if x + 1 == self.w {
+                    // the ghost column
+                    acc[1] += 0.5;
+                    acc[3] += 0.5;
+                    k += 1.0;
+                } else if self.right[i] {
+                    let r = self.geo_row(x + 1, y);
+                    if r[0] + r[2] > 0.0 {
+                        acc[1] += r[0];
+                        acc[3] += r[2];
+                        k += 1.0;
+                    }
+                }
+                if self.down[i - self.w] {
+                    let r = self.geo_row(x, y - 1);
+                    if r[0] + r[1] > 0.0 {
+                        acc[0] += r[0];
+                        acc[1] += r[1];
+                        k += 1.0;
+                    }
+                }
+                if y + 1 == self.h {
+                    acc[2] += 0.5;
+                    acc[3] += 0.5;
+                    k += 1.0;
+                } else if self.down[i] {
+                    let r = self.geo_row(x, y + 1);
+                    if r[0] + r[1] > 0.0 {
+                        acc[2] += r[0];
+                        acc[3] += r[1];
+                        k += 1.0;
+                    }
+                }
+                if k > 0.0 {
+                    for a in &mut acc {
+                        *a /= k;
+                    }
+                }
+                acc
+            }
+        }
+    }
+
+    /// Prolongation row used by the solver: the geometric row, or nothing for a fixed node.
+    #[inline]
+    pub fn p_row(&self, x: usize, y: usize) -> [f64; 4] {
+        let c = self.prow[self.idx(x, y)];
+        [c[0] as f64 / 24.0, c[1] as f64 / 24.0, c[2] as f64 / 24.0, c[3] as f64 / 24.0]
+    }
+}
+
+#[inline]
+fn pair(a: bool, b: bool, sa: usize, sb: usize) -> [f64; 4] {
+    let mut r = [0.0; 4];
+    match (a, b) {
+        (true, true) => {
+            r[sa] = 0.5;
+            r[sb] = 0.5;
+        }
+        (true, false) => r[sa] = 1.0,
+        (false, true) => r[sb] = 1.0,
+        _ => {}
+    }
+    r
+}
+
+/// The operator of one level.
+#[derive(Debug)]
+pub(crate) enum Operator {
+    /// The finest level: the energy terms read off per-node flags.
+    Fine { flags: Vec<u8>, tau: f64 },
+    /// A Galerkin level: a 5 × 5 stencil (row-major offsets, dy outer) per padded node,
+    /// as an index into a table; entry 0 is the stencil shared by every regular node
+    /// (all zeros when there is none).
+    Stored { ids: Vec<u32>, table: Vec<[f64; 25]> },
+}
+
+/// One level of the hierarchy.
+#[derive(Debug)]
+pub(crate) struct Level {
+    pub geo: Geometry,
+    pub wp: usize,
+    pub hp: usize,
+    pub op: Operator,
+    /// 1 / a_ii for unknowns, 0 elsewhere (padded).
+    pub inv_diag: Vec<f64>,
+    /// Upper bound of the spectrum of D⁻¹A (Gershgorin).
+    pub lam_max: f64,
+    /// `clean[y * w + x]`: active, linked right and down, not fixed, and (on Galerkin
+    /// levels) carrying the regular stencil. A coarse node whose whole 9 × 9 window here is
+    /// clean gets the regular coarse stencil without computing it.
+    pub clean: Vec<bool>,
+}
+
+impl Level {
+    #[inline]
+    pub fn pidx(&self, x: usize, y: usize) -> usize {
+        (y + PAD) * self.wp + x + PAD
+    }
+
+    pub fn len_padded(&self) -> usize {
+        self.wp * self.hp
+    }
+
+    /// The finest level from its geometry (with fixed nodes) and the tension.
+    pub fn fine(geo: Geometry, tau: f64) -> Level {
+        let (w, h) = (geo.w, geo.h);
+        let (wp, hp) = (w + 2 * PAD, h + 2 * PAD);
+        let mut flags = vec![0u8; wp * hp];
+        let fixed = geo.fixed.as_ref();
+        for y in 0..h {
+            for x in 0..w {
+                let i = geo.idx(x, y);
+                if !geo.active[i] {
+                    continue;
+                }
+                let mut f = bit::ACTIVE;
+                if !fixed.is_some_and(|fx| fx[i]) {
+                    f |= bit::FREE;
+                }
+                if geo.right[i] {
+                    f |= bit::RIGHT;
+                }
+                if geo.down[i] {
+                    f |= bit::DOWN;
+                }
+                if x > 0 && geo.right[i - 1] && geo.right[i] {
+                    f |= bit::HTRI;
+                }
+                if y > 0 && geo.down[i - w] && geo.down[i] {
+                    f |= bit::VTRI;
+                }
+                if geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w] {
+                    f |= bit::CELL;
+                }
+                flags[(y + PAD) * wp + x + PAD] = f;
+            }
+        }
+        for y in 0..h {
+            for x in 0..w {
+                let p = (y + PAD) * wp + x + PAD;
+                let has = |q: usize, b: u8| flags[q] & b != 0;
+                if has(p, bit::FREE)
+                    && [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
+                    && [p - wp, p, p + wp].iter().all(|&q| has(q, bit::VTRI))
+                    && [p, p - 1, p - wp, p - wp - 1].iter().all(|&q| has(q, bit::CELL))
+                {
+                    flags[p] |= bit::REGULAR;
+                }
+            }
+        }
+        let mut inv_diag = vec![0.0; wp * hp];
+        let mut lam_max: f64 = 0.0;
+        for y in 0..h {
+            for x in 0..w {
+                let p = (y + PAD) * wp + x + PAD;
+                if flags[p] & bit::FREE == 0 {
+                    continue;
+                }
+                let (d, s) = fine_diag_and_abs(&flags, p, wp, tau);
+                if d > 0.0 {
+                    inv_diag[p] = 1.0 / d;
+                    lam_max = lam_max.max(s / d);
+                }
+            }
+        }
+        let clean = (0..w * h)
+            .map(|i| geo.active[i] && geo.right[i] && geo.down[i] && !geo.fixed.as_ref().is_some_and(|f| f[i]))
+            .collect();
+        Level { geo, wp, hp, op: Operator::Fine { flags, tau }, inv_diag, lam_max, clean }
+    }
+
+    /// The stencil row of padded node `p` as a 5 × 5 array (dy outer, dx inner).
+    pub fn row(&self, p: usize) -> [f64; 25] {
+        match &self.op {
+            Operator::Fine { flags, tau } => fine_row(flags, p, self.wp, *tau),
+            Operator::Stored { ids, table } => table[ids[p] as usize],
+        }
+    }
+
+    /// `−(A x)_p` at one node of the finest level (its residual, the right-hand side being 0).
+    pub fn fine_residual_at(&self, x: &[V2], p: usize) -> V2 {
+        match &self.op {
+            Operator::Fine { flags, tau } => {
+                let a = fine_apply(flags, x, p, self.wp, *tau);
+                [-a[0], -a[1]]
+            }
+            Operator::Stored { .. } => unreachable!("only the finest level is relaxed node by node"),
+        }
+    }
+
+    /// `y = f − A x` on unknowns (zero elsewhere), rows in parallel for large levels.
+    pub fn residual(&self, x: &[V2], f: Option<&[V2]>, out: &mut [V2]) {
+        let wp = self.wp;
+        let run = |(r, chunk): (usize, &mut [V2])| {
+            let r0 = r * PAR_ROWS + PAD;
+            let r1 = r0 + chunk.len() / wp;
+            match &self.op {
+                Operator::Fine { flags, tau } => fine_band(flags, *tau, wp, self.geo.w, x, f, r0, r1, chunk),
+                Operator::Stored { .. } => {
+                    for (k, orow) in chunk.chunks_mut(wp).enumerate() {
+                        self.residual_row(x, f, r0 + k, orow);
+                    }
+                }
+            }
+        };
+        let body = &mut out[PAD * wp..(PAD + self.geo.h) * wp];
+        if self.geo.w * self.geo.h >= PAR_MIN_NODES {
+            body.par_chunks_mut(PAR_ROWS * wp).enumerate().for_each(run);
+        } else {
+            body.chunks_mut(PAR_ROWS * wp).enumerate().for_each(run);
+        }
+    }
+
+    #[inline(never)]
+    fn residual_row(&self, x: &[V2], f: Option<&[V2]>, r: usize, out: &mut [V2]) {
+        let wp = self.wp;
+        let base = r * wp;
+        match &self.op {
+            Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
+            Operator::Stored { ids, table } => {
+                // Corners of the 5 × 5 window are always zero (see `galerkin`).
+                const TAPS: [(usize, usize); 21] = [
+                    (0, 1), (0, 2), (0, 3),
+                    (1, 0), (1, 1), (1, 2), (1, 3), (1, 4),
+                    (2, 0), (2, 1), (2, 2), (2, 3), (2, 4),
+                    (3, 0), (3, 1), (3, 2), (3, 3), (3, 4),
+                    (4, 1), (4, 2), (4, 3),
+                ];
+                let shared = &table[0];
+                let mut c = PAD;
+                let end = PAD + self.geo.w;
+                while c < end {
+                    let p = base + c;
+                    if self.inv_diag[p] == 0.0 {
+                        out[c] = [0.0; 2];
+                        c += 1;
+                        continue;
+                    }
+                    if ids[p] == 0 {
+                        // A run of regular nodes: one stencil, applied tap by tap.
+                        let mut e = c + 1;
+                        while e < end && ids[base + e] == 0 && self.inv_diag[base + e] != 0.0 {
+                            e += 1;
+                        }
+                        let mut s0 = c;
+                        while s0 < e {
+                            let m = (e - s0).min(64);
+                            let mut acc = [[0.0f64; 2]; 64];
+                            for &(dy, dx) in &TAPS {
+                                let a = shared[dy * 5 + dx];
+                                let q = base + s0 + dy * wp + dx - 2 * wp - 2;
+                                for (o, xv) in acc[..m].iter_mut().zip(&x[q..q + m]) {
+                                    o[0] += a * xv[0];
+                                    o[1] += a * xv[1];
+                                }
+                            }
+                            for i in 0..m {
+                                let fv = f.map_or([0.0; 2], |f| f[base + s0 + i]);
+                                out[s0 + i] = [fv[0] - acc[i][0], fv[1] - acc[i][1]];
+                            }
+                            s0 += m;
+                        }
+                        c = e;
+                        continue;
+                    }
+                    let s = &table[ids[p] as usize];
+                    let mut acc = [0.0f64; 2];
+                    for &(dy, dx) in &TAPS {
+                        let a = s[dy * 5 + dx];
+                        let xv = x[p + dy * wp + dx - 2 * wp - 2];
+                        acc[0] += a * xv[0];
+                        acc[1] += a * xv[1];
+                    }
+                    let fv = f.map_or([0.0; 2], |f| f[p]);
+                    out[c] = [fv[0] - acc[0], fv[1] - acc[1]];
+                    c += 1;
+                }
+            }
+        }
+    }
+}
+
+/// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level. Runs of
+/// regular nodes take the interior molecule (the square of the 5-point Laplacian, plus τ
+/// times the Laplacian) in a tight loop; the others sum their energy terms one by one.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn fine_band(
+    flags: &[u8],
+    tau: f64,
+    wp: usize,
+    w: usize,
+    x: &[V2],
+    f: Option<&[V2]>,
+    r0: usize,
+    r1: usize,
+    out: &mut [V2],
+) {
+    for (k, r) in (r0..r1).enumerate() {
+        let base = r * wp;
+        let orow = &mut out[k * wp..(k + 1) * wp];
+        let fr = &flags[base..base + wp];
+        let mut c = PAD;
+        while c < PAD + w {
+            if fr[c] & bit::REGULAR != 0 {
+                let mut e = c + 1;
+                while e < PAD + w && fr[e] & bit::REGULAR != 0 {
+                    e += 1;
+                }
+                regular_run(x, f, tau, wp, base, c, e, orow);
+                c = e;
+            } else {
+                let p = base + c;
+                orow[c] = if fr[c] & bit::FREE != 0 {
+                    let a = fine_apply(flags, x, p, wp, tau);
+                    let fv = f.map_or([0.0; 2], |f| f[p]);
+                    [fv[0] - a[0], fv[1] - a[1]]
+                } else {
+                    [0.0; 2]
+                };
+                c += 1;
+            }
+        }
+    }
+}
+
+/// The interior molecule on columns `c0..c1` of one row (all regular).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn regular_run(x: &[V2], f: Option<&[V2]>, tau: f64, wp: usize, base: usize, c0: usize, c1: usize, orow: &mut [V2]) {
+    let n = c1 - c0;
+    let at = |dr: isize, dc: isize| -> &[V2] {
+        let s = ((base + c0) as isize + dr * wp as isize + dc) as usize;
+        &x[s..s + n]
+    };
+    let (x0, xl, xr, xu, xd) = (at(0, 0), at(0, -1), at(0, 1), at(-1, 0), at(1, 0));
+    let (xul, xur, xdl, xdr) = (at(-1, -1), at(-1, 1), at(1, -1), at(1, 1));
+    let (xll, xrr, xuu, xdd) = (at(0, -2), at(0, 2), at(-2, 0), at(2, 0));
+    let o = &mut orow[c0..c1];
+    let fz = f.map(|f| &f[base + c0..base + c1]);
+    for i in 0..n {
+        let mut a = [0.0f64; 2];
+        for q in 0..2 {
+            let edge = xl[i][q] + xr[i][q] + xu[i][q] + xd[i][q];
+            let diag = xul[i][q] + xur[i][q] + xdl[i][q] + xdr[i][q];
+            let far = xll[i][q] + xrr[i][q] + xuu[i][q] + xdd[i][q];
+            a[q] = 20.0 * x0[i][q] - 8.0 * edge + 2.0 * diag + far + tau * (4.0 * x0[i][q] - edge);
+        }
+        let fv = fz.map_or([0.0; 2], |f| f[i]);
+        o[i] = [fv[0] - a[0], fv[1] - a[1]];
+    }
+}
+
+/// `(A x)_p` on the finest level from the energy terms that contain node p.
+#[inline(always)]
+fn fine_apply(flags: &[u8], x: &[V2], p: usize, wp: usize, tau: f64) -> V2 {
+    #[inline(always)]
+    fn m(flags: &[u8], q: usize, b: u8) -> f64 {
+        ((flags[q] & b) != 0) as u8 as f64
+    }
+    let mut acc = [0.0f64; 2];
+    for k in 0..2 {
+        let xv = |q: usize| x[q][k];
+        // horizontal triples centred at p-1, p, p+1 (coefficient of p: 1, -2, 1)
+        let th = |q: usize| m(flags, q, bit::HTRI) * (xv(q - 1) - 2.0 * xv(q) + xv(q + 1));
+        let tv = |q: usize| m(flags, q, bit::VTRI) * (xv(q - wp) - 2.0 * xv(q) + xv(q + wp));
+        let tc = |q: usize| m(flags, q, bit::CELL) * (xv(q) - xv(q + 1) - xv(q + wp) + xv(q + wp + 1));
+        let mut a = th(p - 1) - 2.0 * th(p) + th(p + 1) + tv(p - wp) - 2.0 * tv(p) + tv(p + wp)
+            + 2.0 * (tc(p) - tc(p - 1) - tc(p - wp) + tc(p - wp - 1));
+        if tau != 0.0 {
+            let lr = |q: usize| m(flags, q, bit::RIGHT) * (xv(q) - xv(q + 1));
+            let ld = |q: usize| m(flags, q, bit::DOWN) * (xv(q) - xv(q + wp));
+            a += tau * (lr(p) - lr(p - 1) + ld(p) - ld(p - wp));
+        }
+        acc[k] = a;
+    }
+    acc
+}
+
+/// Diagonal a_pp and the row's Gershgorin sum Σ_t w_t |c_t(p)| Σ_j |c_t(j)| ≥ Σ_j |a_pj|.
+fn fine_diag_and_abs(flags: &[u8], p: usize, wp: usize, tau: f64) -> (f64, f64) {
+    let m = |q: usize, b: u8| ((flags[q] & b) != 0) as u8 as f64;
+    let h = m(p - 1, bit::HTRI) + 4.0 * m(p, bit::HTRI) + m(p + 1, bit::HTRI);
+    let v = m(p - wp, bit::VTRI) + 4.0 * m(p, bit::VTRI) + m(p + wp, bit::VTRI);
+    let cells = m(p, bit::CELL) + m(p - 1, bit::CELL) + m(p - wp, bit::CELL) + m(p - wp - 1, bit::CELL);
+    let links = m(p, bit::RIGHT) + m(p - 1, bit::RIGHT) + m(p, bit::DOWN) + m(p - wp, bit::DOWN);
+    let d = h + v + 2.0 * cells + tau * links;
+    let hs = 4.0 * (m(p - 1, bit::HTRI) + 2.0 * m(p, bit::HTRI) + m(p + 1, bit::HTRI));
+    let vs = 4.0 * (m(p - wp, bit::VTRI) + 2.0 * m(p, bit::VTRI) + m(p + wp, bit::VTRI));
+    let s = hs + vs + 8.0 * cells + 2.0 * tau * links;
+    (d, s)
+}
+
+/// The 5 × 5 stencil row of the finest operator at padded node p.
+pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25] {
+    let mut s = [0.0f64; 25];
+    let m = |q: usize, b: u8| flags[q] & b != 0;
+    // offset of padded node q relative to p as a stencil index
+    let at = |dx: isize, dy: isize| ((dy + 2) * 5 + dx + 2) as usize;
+    // horizontal triple centred at p + d (d in -1..=1): nodes p+d-1, p+d, p+d+1
+    for d in -1isize..=1 {
+        if m((p as isize + d) as usize, bit::HTRI) {
+            let cp = if d == 0 { -2.0 } else { 1.0 };
+            for (o, c) in [(-1isize, 1.0), (0, -2.0), (1, 1.0)] {
+                s[at(d + o, 0)] += cp * c;
+            }
+        }
+        if m((p as isize + d * wp as isize) as usize, bit::VTRI) {
+            let cp = if d == 0 { -2.0 } else { 1.0 };
+            for (o, c) in [(-1isize, 1.0), (0, -2.0), (1, 1.0)] {
+                s[at(0, d + o)] += cp * c;
+            }
+        }
+    }
+    // cells with top-left corner at p - (ox, oy), ox, oy in {0, 1}
+    for oy in 0..2isize {
+        for ox in 0..2isize {
+            let q = p - oy as usize * wp - ox as usize;
+            if m(q, bit::CELL) {
+                let sign = |cx: isize, cy: isize| if (cx + cy) % 2 == 0 { 1.0 } else { -1.0 };
+                let cp = sign(ox, oy);
+                for cy in 0..2isize {
+                    for cx in 0..2isize {
+                        s[at(cx - ox, cy - oy)] += 2.0 * cp * sign(cx, cy);
+                    }
+                }
+            }
+        }
+    }
+    if tau != 0.0 {
+        if m(p, bit::RIGHT) {
+            s[at(0, 0)] += tau;
+            s[at(1, 0)] -= tau;
+        }
+        if m(p - 1, bit::RIGHT) {
+            s[at(0, 0)] += tau;
+            s[at(-1, 0)] -= tau;
+        }
+        if m(p, bit::DOWN) {
+            s[at(0, 0)] += tau;
+            s[at(0, 1)] -= tau;
+        }
+        if m(p - wp, bit::DOWN) {
+            s[at(0, 0)] += tau;
+            s[at(0, -1)] -= tau;
+        }
+    }
+    s
+}
+
+/// Galerkin coarse level `Pᵀ A P` of `fine`, with `P` the link-aware prolongation of
+/// `fine.geo` (rows of fixed nodes zero). Coarse nodes whose fine window is clean share one
+/// stencil, computed once.
+pub(crate) fn galerkin(fine: &Level) -> Level {
+    let geo = fine.geo.coarsen();
+    let (wc, hc) = (geo.w, geo.h);
+    let (wpc, hpc) = (wc + 2 * PAD, hc + 2 * PAD);
+    let (fw, fh) = (fine.geo.w, fine.geo.h);
+    // Summed-area table of the clean flags: O(1) window tests.
+    let mut sat = vec![0u32; (fw + 1) * (fh + 1)];
+    for y in 0..fh {
+        let mut run = 0u32;
+        for x in 0..fw {
+            run += fine.clean[y * fw + x] as u32;
+            sat[(y + 1) * (fw + 1) + x + 1] = sat[y * (fw + 1) + x + 1] + run;
+        }
+    }
+    let regular = |xc: usize, yc: usize| -> bool {
+        let (x0, y0) = (2 * xc as isize - 4, 2 * yc as isize - 4);
+        let (x1, y1) = (2 * xc as isize + 5, 2 * yc as isize + 5);
+        if x0 < 0 || y0 < 0 || x1 > fw as isize || y1 > fh as isize {
+            return false;
+        }
+        let (x0, y0, x1, y1) = (x0 as usize, y0 as usize, x1 as usize, y1 as usize);
+        let s = sat[y1 * (fw + 1) + x1] + sat[y0 * (fw + 1) + x0] - sat[y0 * (fw + 1) + x1] - sat[y1 * (fw + 1) + x0];
+        s as usize == (x1 - x0) * (y1 - y0)
+    };
+    let mut shared = [0.0f64; 25];
+    'find: for yc in 0..hc {
+        for xc in 0..wc {
+            if regular(xc, yc) {
+                shared = galerkin_node(fine, xc, yc);
+                break 'find;
+            }
+        }
+    }
+    let build_row = |yc: usize| -> (Vec<u32>, Vec<[f64; 25]>) {
+        let mut ids = vec![0u32; wpc];
+        let mut own = Vec::new();
+        let irregular: Vec<usize> = (0..wc).filter(|&xc| geo.active[yc * wc + xc] && !regular(xc, yc)).collect();
+        if irregular.is_empty() {
+            return (ids, own);
+        }
+        // A P for the fine rows of this coarse row's children, once per needed fine node.
+        let y_lo = (2 * yc).saturating_sub(1);
+        let y_hi = (2 * yc + 1).min(fh - 1);
+        let mut ap = vec![[0.0f64; 16]; (y_hi - y_lo + 1) * fw];
+        let mut done = vec![false; (y_hi - y_lo + 1) * fw];
+        for &xc in &irregular {
+            let mut acc = [0.0f64; 25];
+            for iy in y_lo..=y_hi {
+                for ix in (2 * xc).saturating_sub(1)..=(2 * xc + 1).min(fw - 1) {
+                    let sx = xc as isize - (ix / 2) as isize;
+                    let sy = yc as isize - (iy / 2) as isize;
+                    if !(0..2).contains(&sx) || !(0..2).contains(&sy) {
+                        continue;
+                    }
+                    let wi = fine.geo.p_row(ix, iy)[(sy * 2 + sx) as usize];
+                    if wi == 0.0 {
+                        continue;
+                    }
+                    let k = (iy - y_lo) * fw + ix;
+                    if !done[k] {
+                        ap[k] = ap_row(fine, ix, iy);
+                        done[k] = true;
+                    }
+                    // ap[k] is indexed by coarse offsets (-1..=2) from (ix/2, iy/2)
+                    let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
+                    for oy in 0..4isize {
+                        for ox in 0..4isize {
+                            let v = ap[k][(oy * 4 + ox) as usize];
+                            if v != 0.0 {
+                                let (cx, cy) = (bx + ox - 1, by + oy - 1);
+                                acc[((cy + 2) * 5 + cx + 2) as usize] += wi * v;
+                            }
+                        }
+                    }
+                }
+            }
+            debug_assert!([0, 4, 20, 24].iter().all(|&k| acc[k] == 0.0), "coarse stencils never reach (±2, ±2)");
+            own.push(acc);
+            ids[xc + PAD] = own.len() as u32; // local, 1-based
+        }
+        (ids, own)
+    };
+    let rows: Vec<(Vec<u32>, Vec<[f64; 25]>)> = if fw * fh >= PAR_MIN_NODES {
+        (0..hc).into_par_iter().map(build_row).collect()
+    } else {
+        (0..hc).map(build_row).collect()
+    };
+    let mut ids = vec![0u32; wpc * hpc];
+    let mut table = vec![shared];
+    for (yc, (row_ids, own)) in rows.into_iter().enumerate() {
+        let base = table.len() as u32 - 1;
+        for (c, &id) in row_ids.iter().enumerate() {
+            if id != 0 {
+                ids[(yc + PAD) * wpc + c] = base + id;
+            }
+        }
+        table.extend(own);
+    }
+    let mut inv_diag = vec![0.0; wpc * hpc];
+    let mut lam_max: f64 = 0.0;
+    let mut clean = vec![false; wc * hc];
+    for yc in 0..hc {
+        for xc in 0..wc {
+            let p = (yc + PAD) * wpc + xc + PAD;
+            if !geo.active[yc * wc + xc] {
+                continue;
+            }
+            let s = &table[ids[p] as usize];
+            let d = s[12];
+            // A vanishing diagonal: the coarse node has no fine children left.
+            if d > 1e-300 {
+                let sum: f64 = s.iter().map(|a| a.abs()).sum();
+                inv_diag[p] = 1.0 / d;
+                lam_max = lam_max.max(sum / d);
+            }
+            let i = yc * wc + xc;
+            clean[i] = ids[p] == 0 && geo.right[i] && geo.down[i];
+        }
+    }
+    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table }, inv_diag, lam_max, clean }
+}
+
+/// One coarse stencil `(Pᵀ A P)(C, ·)` for C = (xc, yc), straight from the definition.
+fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
+    let (fw, fh) = (fine.geo.w, fine.geo.h);
+    let mut acc = [0.0f64; 25];
+    for iy in (2 * yc).saturating_sub(1)..=(2 * yc + 1).min(fh - 1) {
+        for ix in (2 * xc).saturating_sub(1)..=(2 * xc + 1).min(fw - 1) {
+            let sx = xc as isize - (ix / 2) as isize;
+            let sy = yc as isize - (iy / 2) as isize;
+            if !(0..2).contains(&sx) || !(0..2).contains(&sy) {
+                continue;
+            }
+            let wi = fine.geo.p_row(ix, iy)[(sy * 2 + sx) as usize];
+            if wi == 0.0 {
+                continue;
+            }
+            let arow = fine.row(fine.pidx(ix, iy));
+            for dy in -2isize..=2 {
+                for dx in -2isize..=2 {
+                    let a = arow[((dy + 2) * 5 + dx + 2) as usize];
+                    if a == 0.0 {
+                        continue;
+                    }
+                    let jx = (ix as isize + dx) as usize;
+                    let jy = (iy as isize + dy) as usize;
+                    let pj = fine.geo.p_row(jx, jy);
+                    let (cjx, cjy) = ((jx / 2) as isize, (jy / 2) as isize);
+                    for (slot, &wj) in pj.iter().enumerate() {
+                        if wj == 0.0 {
+                            continue;
+                        }
+                        let ox = cjx + (slot & 1) as isize - xc as isize;
+                        let oy = cjy + (slot >> 1) as isize - yc as isize;
+                        acc[((oy + 2) * 5 + ox + 2) as usize] += wi * a * wj;
+                    }
+                }
+            }
+        }
+    }
+    debug_assert!([0, 4, 20, 24].iter().all(|&k| acc[k] == 0.0), "coarse stencils never reach (±2, ±2)");
+    acc
+}
+
+/// Row `i = (ix, iy)` of `A P`: `Σ_j A_ij P_j`, over the coarse nodes at offsets −1..=2 from
+/// `(ix / 2, iy / 2)` (a 4 × 4 window, row-major).
+fn ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
+    let mut out = [0.0f64; 16];
+    let arow = fine.row(fine.pidx(ix, iy));
+    let (bx, by) = ((ix / 2) as isize, (iy / 2) as isize);
+    for dy in -2isize..=2 {
+        for dx in -2isize..=2 {
+            let a = arow[((dy + 2) * 5 + dx + 2) as usize];
+            if a == 0.0 {
+                continue;
+            }
+            let jx = (ix as isize + dx) as usize;
+            let jy = (iy as isize + dy) as usize;
+            let pj = fine.geo.p_row(jx, jy);
+            let (cjx, cjy) = ((jx / 2) as isize - bx, (jy / 2) as isize - by);
+            for (slot, &wj) in pj.iter().enumerate() {
+                if wj != 0.0 {
+                    let ox = cjx + (slot & 1) as isize + 1;
+                    let oy = cjy + (slot >> 1) as isize + 1;
+                    out[(oy * 4 + ox) as usize] += a * wj;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// `coarse = Pᵀ fine_v` (restriction of a residual).
+pub(crate) fn restrict(fine: &Level, coarse: &Level, v: &[V2], out: &mut [V2]) {
+    let (fw, fh) = (fine.geo.w, fine.geo.h);
+    let wc = coarse.geo.w;
+    let wpc = coarse.wp;
+    let run = |yc: usize, orow: &mut [V2]| {
+        for o in orow.iter_mut() {
+            *o = [0.0; 2];
+        }
+        for iy in (2 * yc).saturating_sub(1)..=(2 * yc + 1).min(fh - 1) {
+            let sy = yc as isize - (iy / 2) as isize;
+            if !(0..2).contains(&sy) {
+                continue;
+            }
+            for ix in 0..fw {
+                let r = v[fine.pidx(ix, iy)];
+                if r[0] == 0.0 && r[1] == 0.0 {
+                    continue;
+                }
+                let pi = fine.geo.p_row(ix, iy);
+                let cx = ix / 2;
+                for sx in 0..2 {
+                    let wv = pi[(sy as usize) * 2 + sx];
+                    if wv != 0.0 && cx + sx < wc {
+                        let o = &mut orow[cx + sx + PAD];
+                        o[0] += wv * r[0];
+                        o[1] += wv * r[1];
+                    }
+                }
+            }
+        }
+    };
+    for row in out[..PAD * wpc].iter_mut() {
+        *row = [0.0; 2];
+    }
+    let body = &mut out[PAD * wpc..(PAD + coarse.geo.h) * wpc];
+    if fw * fh >= PAR_MIN_NODES {
+        body.par_chunks_mut(wpc).enumerate().for_each(|(yc, o)| run(yc, o));
+    } else {
+        body.chunks_mut(wpc).enumerate().for_each(|(yc, o)| run(yc, o));
+    }
+}
+
+/// `fine_x += P e` (prolongation of a coarse correction onto the unknowns).
+pub(crate) fn prolong_add(fine: &Level, coarse: &Level, e: &[V2], x: &mut [V2]) {
+    let (fw, fh) = (fine.geo.w, fine.geo.h);
+    let wp = fine.wp;
+    let run = |iy: usize, xrow: &mut [V2]| {
+        let cy = iy / 2;
+        for ix in 0..fw {
+            let pi = fine.geo.p_row(ix, iy);
+            let cx = ix / 2;
+            let mut acc = [0.0f64; 2];
+            for (slot, &wv) in pi.iter().enumerate() {
+                if wv != 0.0 {
+                    let c = coarse.pidx(cx + (slot & 1), cy + (slot >> 1));
+                    acc[0] += wv * e[c][0];
+                    acc[1] += wv * e[c][1];
+                }
+            }
+            let o = &mut xrow[ix + PAD];
+            o[0] += acc[0];
+            o[1] += acc[1];
+        }
+    };
+    let body = &mut x[PAD * wp..(PAD + fh) * wp];
+    if fw * fh >= PAR_MIN_NODES {
+        body.par_chunks_mut(wp).enumerate().for_each(|(iy, r)| run(iy, r));
+    } else {
+        body.chunks_mut(wp).enumerate().for_each(|(iy, r)| run(iy, r));
+    }
+}

@@ -1,0 +1,866 @@
+//! The discrete thin plate (DESIGN §4) and its multigrid solver.
+//!
+//! For a scalar field `u` on the active nodes of a [`Grid`]:
+//!
+//! ```text
+//! E_plate(u) =   Σ horizontal triples with both links   (u[p−] − 2u[p] + u[p+])²
+//!              + Σ vertical triples with both links     (same)
+//!              + 2 Σ 2×2 cells with all four links       (u00 − u10 − u01 + u11)²
+//! E_membrane(u) = Σ links (u[p] − u[q])²
+//! E = E_plate + τ · E_membrane
+//! ```
+//!
+//! [`solve`] minimises `E` for Δx and Δy (one matrix, solved together) with the nodes that
+//! carry samples fixed ([`crate::grid::constrain`]). Where the minimiser is not unique it
+//! returns the limit τ → 0⁺, piece by piece (a piece is a connected component of the links):
+//!
+//! - a piece with no constraint does not move;
+//! - a piece with one constrained node translates with it (for any τ);
+//! - at τ = 0, a piece whose constrained nodes lie on one line L: `E_plate` is unchanged by
+//!   adding any affine function, so its minimisers are `u₀ + c·ℓ` with `ℓ` the affine
+//!   function that vanishes on L; the solver pins one extra node off L, solves, and then
+//!   picks `c` minimising `E_membrane` in closed form,
+//!   `c = −⟨u₀, ℓ⟩ / ⟨ℓ, ℓ⟩` with `⟨a, b⟩ = Σ_links (a_p − a_q)(b_p − b_q)`.
+//!
+//! Pieces whose plate energy vanishes on more than the affine functions (two parts joined
+//! only by a one-node-wide corridor, a staircase of links with no straight triple) have a
+//! plate minimiser that the constraints may not pin; there the solver returns the minimiser
+//! its iteration reaches. Any tension τ > 0 makes every constrained piece unique.
+//!
+//! # The multigrid
+//!
+//! Geometric hierarchy (node (X, Y) of level k+1 sits on (2X, 2Y) of level k, with a ghost
+//! node past the last column and row of even-sized levels) with *link-aware* bilinear
+//! prolongation that never interpolates across a missing link or from an inactive node,
+//! *Galerkin* coarse operators `Pᵀ A P` stored as 5 × 5 stencils per node (so every coarse
+//! level sees the exact energy of its coarse functions on the fine domain, however thin the
+//! holes and cuts), Chebyshev–Jacobi smoothing (symmetric, parallel), energy line searches on
+//! the coarse corrections, W-cycles below the finest level, a banded Cholesky solve on the
+//! coarsest level, a coarse-to-fine start, and the cycle as the preconditioner of a flexible
+//! conjugate gradient on the finest level. Loose nodes (no corner of a fully linked cell)
+//! are settled to the τ → 0⁺ limit afterwards. `docs/concepts/thin-plate.md` explains the
+//! choices and lists the measured figures.
+
+mod cycle;
+mod level;
+mod southwell;
+mod upsample;
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+use thiserror::Error;
+
+use crate::field::Field;
+use crate::geometry::Sample;
+use crate::grid::{constrain, Constraints, Grid};
+
+use cycle::Hierarchy;
+use level::{Geometry, Level, V2};
+
+/// How the linear system is relaxed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SolveMethod {
+    /// Coarse-to-fine start plus V-cycles until the tolerance is met.
+    #[default]
+    Multigrid,
+    /// The coarse-to-fine start plus a fixed budget of greedy single-node relaxations
+    /// (Southwell), as the paper offers for a fixed amount of work.
+    Southwell,
+}
+
+/// Options of [`solve`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolveOptions {
+    /// τ ≥ 0: weight of the membrane energy.
+    pub tension: f64,
+    /// Stop when the estimated largest remaining error of any node is below this (pixels).
+    pub tolerance_px: f64,
+    /// Solve on every `grid_step`-th node and upsample (1 = every pixel).
+    pub grid_step: usize,
+    /// At most this many cycles (default: 100).
+    pub max_cycles: Option<usize>,
+    pub method: SolveMethod,
+    /// Southwell budget: single-node relaxations, in units of the number of unknowns.
+    pub southwell_sweeps: f64,
+}
+
+impl Default for SolveOptions {
+    fn default() -> Self {
+        SolveOptions {
+            tension: 0.0,
+            tolerance_px: 0.01,
+            grid_step: 1,
+            max_cycles: None,
+            method: SolveMethod::Multigrid,
+            southwell_sweeps: 10.0,
+        }
+    }
+}
+
+/// What a solve did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SolveReport {
+    /// V-cycles run after the coarse-to-fine start (Southwell: relaxation passes).
+    pub cycles: usize,
+    /// Largest change of any node in the last cycle (pixels).
+    pub final_change_px: f64,
+    /// Largest residual of any unknown after the solve, scaled by its diagonal
+    /// (`max |r_i| / a_ii`, pixels: how far one relaxation would still move it).
+    pub residual: f64,
+    /// The same before the first cycle (after the start).
+    pub initial_residual: f64,
+    /// Nodes fixed by samples.
+    pub constrained_nodes: usize,
+    /// Samples that constrain a node.
+    pub constrained_samples: usize,
+    /// Samples outside the grid or on inactive nodes.
+    pub dropped_samples: usize,
+    /// Wall time of the whole solve.
+    pub seconds: f64,
+    /// Whether the tolerance was met (Southwell: whether the budget was spent).
+    pub converged: bool,
+}
+
+/// Why a solve was refused.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum SolveError {
+    #[error("The grid is inconsistent: its activity and link vectors must have width × height entries and links may only join active neighbours.")]
+    InconsistentGrid,
+    #[error("Sample {index} has a non-finite rest position or displacement; every number must be finite.")]
+    NonFiniteSample { index: usize },
+    #[error("The tension must be a finite number ≥ 0, got {0}.")]
+    BadTension(f64),
+    #[error("The tolerance must be a finite number ≥ 0 (pixels), got {0}.")]
+    BadTolerance(f64),
+    #[error("The grid step must be at least 1, got 0.")]
+    BadGridStep,
+    #[error("The Southwell budget must be a finite number ≥ 0, got {0}.")]
+    BadBudget(f64),
+    #[error("The initial field is {got_w}×{got_h} but the grid is {want_w}×{want_h}; pass a field of the grid's size.")]
+    InitialSize { got_w: usize, got_h: usize, want_w: usize, want_h: usize },
+    #[error("The initial field has non-finite values; every displacement must be finite.")]
+    NonFiniteInitial,
+}
+
+/// Solves the thin plate on `grid` for the samples (see the module docs).
+///
+/// ```
+/// use inkwarp_core::{solve::{solve, SolveOptions}, Grid, Sample};
+/// let grid = Grid::new(33, 33);
+/// // Three pinned corners and one pulled point.
+/// let s = |x, y, dx, dy| Sample { rest: [x, y], displacement: [dx, dy] };
+/// let samples = [s(0.0, 0.0, 0.0, 0.0), s(32.0, 0.0, 0.0, 0.0), s(0.0, 32.0, 0.0, 0.0),
+///                s(16.0, 16.0, 4.0, -2.0)];
+/// let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+/// assert!(report.converged);
+/// let [dx, dy] = field.at(16, 16);
+/// assert_eq!((dx, dy), (4.0, -2.0));
+/// ```
+pub fn solve(
+    grid: &Grid,
+    samples: &[Sample],
+    options: &SolveOptions,
+    initial: Option<&Field>,
+) -> Result<(Field, SolveReport), SolveError> {
+    let start = Instant::now();
+    validate(grid, samples, options, initial)?;
+    let (field, mut report) = if options.grid_step > 1 {
+        upsample::solve_coarse(grid, samples, options, initial)
+    } else {
+        let constraints = constrain(grid, samples);
+        solve_constrained(grid, &constraints, options, initial)
+    };
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok((field, report))
+}
+
+fn validate(
+    grid: &Grid,
+    samples: &[Sample],
+    options: &SolveOptions,
+    initial: Option<&Field>,
+) -> Result<(), SolveError> {
+    if !grid.is_consistent() {
+        return Err(SolveError::InconsistentGrid);
+    }
+    if !(options.tension.is_finite() && options.tension >= 0.0) {
+        return Err(SolveError::BadTension(options.tension));
+    }
+    if !(options.tolerance_px.is_finite() && options.tolerance_px >= 0.0) {
+        return Err(SolveError::BadTolerance(options.tolerance_px));
+    }
+    if options.grid_step == 0 {
+        return Err(SolveError::BadGridStep);
+    }
+    if !(options.southwell_sweeps.is_finite() && options.southwell_sweeps >= 0.0) {
+        return Err(SolveError::BadBudget(options.southwell_sweeps));
+    }
+    for (index, s) in samples.iter().enumerate() {
+        if !s.rest.iter().chain(s.displacement.iter()).all(|v| v.is_finite()) {
+            return Err(SolveError::NonFiniteSample { index });
+        }
+    }
+    if let Some(f) = initial {
+        if f.width != grid.width || f.height != grid.height || f.dx.len() != grid.len() || f.dy.len() != grid.len() {
+            return Err(SolveError::InitialSize {
+                got_w: f.width,
+                got_h: f.height,
+                want_w: grid.width,
+                want_h: grid.height,
+            });
+        }
+        if !f.dx.iter().chain(f.dy.iter()).all(|v| v.is_finite()) {
+            return Err(SolveError::NonFiniteInitial);
+        }
+    }
+    Ok(())
+}
+
+/// What the τ → 0⁺ rule makes of a connected piece.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Piece {
+    Zero,
+    Translate([f64; 2]),
+    /// Constraints on the line through `a` with direction `d`; `gauge` is the pinned node.
+    Line { a: [i64; 2], d: [i64; 2], gauge: usize },
+    General,
+}
+
+/// The solve with constraints already attached to nodes.
+pub(crate) fn solve_constrained(
+    grid: &Grid,
+    constraints: &Constraints,
+    options: &SolveOptions,
+    initial: Option<&Field>,
+) -> (Field, SolveReport) {
+    let (w, h) = (grid.width, grid.height);
+    let n = w * h;
+    let tau = options.tension;
+    let mut report = SolveReport {
+        constrained_nodes: constraints.len(),
+        constrained_samples: constraints.used_samples,
+        dropped_samples: constraints.dropped_samples,
+        converged: true,
+        ..Default::default()
+    };
+    let mut field = Field::zeros(w, h);
+    if n == 0 {
+        return (field, report);
+    }
+    let (labels, count) = grid.pieces();
+    let pieces = classify(grid, &labels, count, constraints, tau);
+
+    // The nodes left to the multigrid, with the pinned ones.
+    let solved = |i: usize| {
+        labels[i] != u32::MAX && matches!(pieces[labels[i] as usize], Piece::Line { .. } | Piece::General)
+    };
+    let active: Vec<bool> = (0..n).map(solved).collect();
+    for i in 0..n {
+        if labels[i] == u32::MAX {
+            continue;
+        }
+        if let Piece::Translate(v) = pieces[labels[i] as usize] {
+            field.dx[i] = v[0] as f32;
+            field.dy[i] = v[1] as f32;
+        }
+    }
+    if !active.iter().any(|&a| a) {
+        return (field, report);
+    }
+    let mut fixed = vec![false; n];
+    // (node, value) of every fixed node: the constrained ones, then the gauge pins.
+    let mut value: Vec<(usize, V2)> = Vec::with_capacity(constraints.len());
+    for (k, &i) in constraints.nodes.iter().enumerate() {
+        if active[i] {
+            fixed[i] = true;
+            value.push((i, constraints.values[k]));
+        }
+    }
+    // Gauge pins of the one-line pieces: the warm start's value, else the mean constraint.
+    let mut piece_mean = vec![[0.0f64; 3]; count];
+    for (k, &i) in constraints.nodes.iter().enumerate() {
+        let m = &mut piece_mean[labels[i] as usize];
+        m[0] += constraints.values[k][0];
+        m[1] += constraints.values[k][1];
+        m[2] += 1.0;
+    }
+    for (l, p) in pieces.iter().enumerate() {
+        if let Piece::Line { gauge, .. } = *p {
+            fixed[gauge] = true;
+            value.push((
+                gauge,
+                match initial {
+                    Some(f) => [f.dx[gauge] as f64, f.dy[gauge] as f64],
+                    None => [piece_mean[l][0] / piece_mean[l][2], piece_mean[l][1] / piece_mean[l][2]],
+                },
+            ));
+        }
+    }
+    let key = CacheKey {
+        w,
+        h,
+        tau_bits: tau.to_bits(),
+        right: (0..n).map(|i| grid.link_right[i] && active[i]).collect(),
+        down: (0..n).map(|i| grid.link_down[i] && active[i]).collect(),
+        active,
+        fixed,
+    };
+    let mut hier = cache_take(&key).unwrap_or_else(|| {
+        let geo = Geometry {
+            w,
+            h,
+            active: key.active.clone(),
+            right: key.right.clone(),
+            down: key.down.clone(),
+            fixed: Some(key.fixed.clone()),
+            prow: Vec::new(),
+        }
+        .with_rows();
+        Hierarchy::new(Level::fine(geo, tau), SMOOTHING_STEPS)
+    });
+    let fixed = &key.fixed;
+    let mut u: Vec<V2> = vec![[0.0; 2]; hier.levels[0].len_padded()];
+    {
+        let fine = &hier.levels[0];
+        if let Some(f) = initial {
+            for y in 0..h {
+                for x in 0..w {
+                    let i = y * w + x;
+                    let p = fine.pidx(x, y);
+                    if fine.inv_diag[p] != 0.0 {
+                        u[p] = [f.dx[i] as f64, f.dy[i] as f64];
+                    }
+                }
+            }
+        }
+        for &(i, v) in &value {
+            u[fine.pidx(i % w, i / w)] = v;
+        }
+    }
+    if initial.is_none() {
+        hier.coarse_to_fine(&mut u);
+    }
+    let len = u.len();
+    let mut r = vec![[0.0; 2]; len];
+    hier.levels[0].residual(&u, None, &mut r);
+    report.initial_residual = scaled_max(&hier.levels[0], &r);
+    let max_cycles = options.max_cycles.unwrap_or(100);
+    match options.method {
+        SolveMethod::Multigrid => {
+            report.converged = false;
+            let mut last_change = f64::INFINITY;
+            let mut stop = |change: f64, cycle: usize, report: &mut SolveReport| {
+                report.cycles = cycle;
+                report.final_change_px = change;
+                // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go; conjugate-
+                // gradient steps are not geometric, and the smoothest error (which moves
+                // least per cycle) is measured to be up to ~2.5× that estimate: hence the margin.
+                let rho = if last_change.is_finite() && last_change > 0.0 {
+                    (change / last_change).min(0.99)
+                } else {
+                    0.5
+                };
+                last_change = change;
+                STOP_MARGIN * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
+            };
+            {
+                let (mut z, mut q) = (Vec::new(), vec![[0.0; 2]; len]);
+                hier.precondition(&mut r, &mut z);
+                let mut p = z.clone();
+                let mut rz = dot2(&r, &z);
+                for cycle in 1..=max_cycles {
+                    let fine = &hier.levels[0];
+                    fine.residual(&p, None, &mut q); // q = −A p
+                    let pq = dot2(&p, &q);
+                    let alpha = [
+                        if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
+                        if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
+                    ];
+                    let change = u
+                        .par_chunks_mut(CHUNK)
+                        .zip(r.par_chunks_mut(CHUNK))
+                        .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
+                        .map(|((u, r), (p, q))| {
+                            let mut change: f64 = 0.0;
+                            for i in 0..u.len() {
+                                let d = [alpha[0] * p[i][0], alpha[1] * p[i][1]];
+                                u[i][0] += d[0];
+                                u[i][1] += d[1];
+                                change = change.max(d[0].abs()).max(d[1].abs());
+                                r[i][0] += alpha[0] * q[i][0];
+                                r[i][1] += alpha[1] * q[i][1];
+                            }
+                            change
+                        })
+                        .reduce(|| 0.0, f64::max);
+                    if stop(change, cycle, &mut report) {
+                        report.converged = true;
+                        break;
+                    }
+                    hier.precondition(&mut r, &mut z);
+                    // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
+                    // the preconditioner's line searches make it slightly nonlinear.
+                    let rz_new = dot2(&r, &z);
+                    let zq = dot2(&z, &q);
+                    let beta = [
+                        if rz[0] > 0.0 { ((alpha[0] * zq[0]) / rz[0]).max(0.0) } else { 0.0 },
+                        if rz[1] > 0.0 { ((alpha[1] * zq[1]) / rz[1]).max(0.0) } else { 0.0 },
+                    ];
+                    p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| {
+                        for i in 0..p.len() {
+                            p[i][0] = z[i][0] + beta[0] * p[i][0];
+                            p[i][1] = z[i][1] + beta[1] * p[i][1];
+                        }
+                    });
+                    rz = rz_new;
+                }
+            }
+        }
+        SolveMethod::Southwell => {
+            let budget = (options.southwell_sweeps * count_unknowns(&hier.levels[0]) as f64).round() as usize;
+            let (passes, change) = southwell::relax(&hier.levels[0], &mut u, budget);
+            report.cycles = passes;
+            report.final_change_px = change;
+            report.converged = true;
+            hier.levels[0].residual(&u, None, &mut r);
+        }
+    }
+    // The conjugate-gradient residual is updated, not recomputed: it is the residual of u
+    // up to rounding.
+    report.residual = scaled_max(&hier.levels[0], &r);
+    drop(r);
+    let fine = &hier.levels[0];
+    let mut out: Vec<V2> = vec![[0.0; 2]; n];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if fine.geo.active[i] {
+                out[i] = u[fine.pidx(x, y)];
+            }
+        }
+    }
+    if tau == 0.0 {
+        settle_loose_nodes(&fine.geo, fixed, &mut out);
+    }
+    for (l, p) in pieces.iter().enumerate() {
+        if let Piece::Line { a, d, .. } = *p {
+            line_correction(grid, &labels, l as u32, a, d, &mut out);
+        }
+    }
+    for i in 0..n {
+        if fine.geo.active[i] {
+            field.dx[i] = out[i][0] as f32;
+            field.dy[i] = out[i][1] as f32;
+        }
+    }
+    cache_put(key, hier);
+    (field, report)
+}
+
+/// Safety factor of the stopping rule (see the multigrid loop).
+const STOP_MARGIN: f64 = 3.0;
+
+/// Smoothing steps before and after each coarse correction.
+const SMOOTHING_STEPS: usize = 2;
+
+/// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
+/// constraint values. Consecutive frames of an animation share it.
+#[derive(PartialEq)]
+struct CacheKey {
+    w: usize,
+    h: usize,
+    tau_bits: u64,
+    active: Vec<bool>,
+    right: Vec<bool>,
+    down: Vec<bool>,
+    fixed: Vec<bool>,
+}
+
+/// Recently used hierarchies (taken out while in use, so concurrent solves never share
+/// one); grids above `CACHE_MAX_NODES` are not kept, to bound memory.
+static CACHE: std::sync::Mutex<Vec<(CacheKey, Hierarchy)>> = std::sync::Mutex::new(Vec::new());
+const CACHE_ENTRIES: usize = 4;
+const CACHE_MAX_NODES: usize = 1 << 22;
+
+fn cache_take(key: &CacheKey) -> Option<Hierarchy> {
+    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+    let pos = cache.iter().position(|(k, _)| k == key)?;
+    Some(cache.remove(pos).1)
+}
+
+fn cache_put(key: CacheKey, hier: Hierarchy) {
+    if key.w * key.h > CACHE_MAX_NODES {
+        return;
+    }
+    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+    cache.push((key, hier));
+    if cache.len() > CACHE_ENTRIES {
+        cache.remove(0);
+    }
+}
+
+fn classify(grid: &Grid, labels: &[u32], count: usize, c: &Constraints, tau: f64) -> Vec<Piece> {
+    let w = grid.width;
+    let xy = |i: usize| [(i % w) as i64, (i / w) as i64];
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); count];
+    for (k, &i) in c.nodes.iter().enumerate() {
+        members[labels[i] as usize].push(k);
+    }
+    let mut pieces = vec![Piece::General; count];
+    let mut line_pieces = Vec::new();
+    for (l, m) in members.iter().enumerate() {
+        pieces[l] = match m.len() {
+            0 => Piece::Zero,
+            1 => Piece::Translate(c.values[m[0]]),
+            _ => {
+                let a = xy(c.nodes[m[0]]);
+                let far = m
+                    .iter()
+                    .map(|&k| xy(c.nodes[k]))
+                    .max_by_key(|p| (p[0] - a[0]).pow(2) + (p[1] - a[1]).pow(2))
+                    .unwrap();
+                let d = [far[0] - a[0], far[1] - a[1]];
+                let collinear = m.iter().all(|&k| {
+                    let p = xy(c.nodes[k]);
+                    d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0]) == 0
+                });
+                if collinear && tau == 0.0 {
+                    line_pieces.push(l);
+                    Piece::Line { a, d, gauge: usize::MAX }
+                } else {
+                    Piece::General
+                }
+            }
+        };
+    }
+    if !line_pieces.is_empty() {
+        // The node of each one-line piece farthest from its line becomes the gauge pin.
+        let mut best = vec![(0i64, usize::MAX); count];
+        for (i, &l) in labels.iter().enumerate() {
+            if l == u32::MAX {
+                continue;
+            }
+            if let Piece::Line { a, d, .. } = pieces[l as usize] {
+                let p = xy(i);
+                let dist = (d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0])).abs();
+                if dist > best[l as usize].0 {
+                    best[l as usize] = (dist, i);
+                }
+            }
+        }
+        for l in line_pieces {
+            if let Piece::Line { a, d, .. } = pieces[l] {
+                pieces[l] = if best[l].1 == usize::MAX {
+                    // The whole piece lies on the line: the constraints pin it.
+                    Piece::General
+                } else {
+                    Piece::Line { a, d, gauge: best[l].1 }
+                };
+            }
+        }
+    }
+    pieces
+}
+
+/// Adds `c·ℓ` to a one-line piece, `ℓ(p) = d × (p − a)`, with `c` minimising the membrane
+/// energy: `c = −⟨u, ℓ⟩ / ⟨ℓ, ℓ⟩` over the piece's links.
+fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64; 2], u: &mut [V2]) {
+    let w = grid.width;
+    // ℓ(p + x̂) − ℓ(p) = −d_y, ℓ(p + ŷ) − ℓ(p) = d_x.
+    let (lx, ly) = (-(d[1] as f64), d[0] as f64);
+    let mut num = [0.0f64; 2];
+    let mut den = 0.0f64;
+    for i in 0..grid.len() {
+        if labels[i] != piece {
+            continue;
+        }
+        if grid.link_right[i] {
+            for k in 0..2 {
+                num[k] += (u[i + 1][k] - u[i][k]) * lx;
+            }
+            den += lx * lx;
+        }
+        if grid.link_down[i] {
+            for k in 0..2 {
+                num[k] += (u[i + w][k] - u[i][k]) * ly;
+            }
+            den += ly * ly;
+        }
+    }
+    if den == 0.0 {
+        return;
+    }
+    let c = [-num[0] / den, -num[1] / den];
+    for i in 0..grid.len() {
+        if labels[i] == piece {
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            let l = (d[0] * (y - a[1]) - d[1] * (x - a[0])) as f64;
+            u[i][0] += c[0] * l;
+            u[i][1] += c[1] * l;
+        }
+    }
+}
+
+/// Loose nodes: free nodes that are no corner of a 2 × 2 cell with all four links
+/// (strands, dangling nodes, one-node corridors). The plate energy may leave some of their
+/// values undetermined; the τ → 0⁺ limit picks, among the plate minimisers, the least
+/// membrane energy. Each connected group of loose nodes (up to `MAX_GROUP` nodes) is solved
+/// exactly for that limit with the rest of the field held, by two dense solves at tiny
+/// tensions and Richardson extrapolation.
+fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
+    const MAX_GROUP: usize = 400;
+    let (w, h) = (geo.w, geo.h);
+    let n = w * h;
+    let mut core = vec![false; n];
+    for y in 0..h.saturating_sub(1) {
+        for x in 0..w.saturating_sub(1) {
+            let i = y * w + x;
+            if geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w] {
+                core[i] = true;
+                core[i + 1] = true;
+                core[i + w] = true;
+                core[i + w + 1] = true;
+            }
+        }
+    }
+    let loose = |i: usize| geo.active[i] && !fixed[i] && !core[i];
+    let mut group_of = vec![usize::MAX; n];
+    for start in 0..n {
+        if !loose(start) || group_of[start] != usize::MAX {
+            continue;
+        }
+        // the group by flood fill over links
+        let mut group = vec![start];
+        group_of[start] = start;
+        let mut k = 0;
+        while k < group.len() {
+            let i = group[k];
+            k += 1;
+            let (x, y) = (i % w, i / w);
+            let mut nb = [usize::MAX; 4];
+            if geo.right[i] {
+                nb[0] = i + 1;
+            }
+            if x > 0 && geo.right[i - 1] {
+                nb[1] = i - 1;
+            }
+            if geo.down[i] {
+                nb[2] = i + w;
+            }
+            if y > 0 && geo.down[i - w] {
+                nb[3] = i - w;
+            }
+            for j in nb {
+                if j != usize::MAX && loose(j) && group_of[j] == usize::MAX {
+                    group_of[j] = start;
+                    group.push(j);
+                }
+            }
+        }
+        if group.len() <= MAX_GROUP {
+            settle_group(geo, &group, &group_of, start, u);
+        }
+    }
+}
+
+/// The τ → 0⁺ minimiser over one group of loose nodes (all other values held).
+fn settle_group(geo: &Geometry, group: &[usize], group_of: &[usize], id: usize, u: &mut [V2]) {
+    let w = geo.w;
+    let k = group.len();
+    let local = |i: usize| if group_of[i] == id { group.iter().position(|&g| g == i) } else { None };
+    // Terms touching the group: (nodes, coefficients, is_plate).
+    let mut terms: Vec<(Vec<usize>, Vec<f64>, bool)> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for &i in group {
+        let (x, y) = ((i % w) as isize, (i / w) as isize);
+        for d in -1isize..=1 {
+            // horizontal triple centred at (x + d, y), vertical at (x, y + d)
+            let c = (x + d, y);
+            if c.0 >= 1 && c.0 + 1 < w as isize {
+                let ci = (c.1 * w as isize + c.0) as usize;
+                if geo.right[ci - 1] && geo.right[ci] && seen.insert((0u8, ci)) {
+                    terms.push((vec![ci - 1, ci, ci + 1], vec![1.0, -2.0, 1.0], true));
+                }
+            }
+            let c = (x, y + d);
+            if c.1 >= 1 && c.1 + 1 < geo.h as isize {
+                let ci = (c.1 * w as isize + c.0) as usize;
+                if geo.down[ci - w] && geo.down[ci] && seen.insert((1u8, ci)) {
+                    terms.push((vec![ci - w, ci, ci + w], vec![1.0, -2.0, 1.0], true));
+                }
+            }
+        }
+        for (ox, oy) in [(0isize, 0isize), (1, 0), (0, 1), (1, 1)] {
+            let (cx, cy) = (x - ox, y - oy);
+            if cx >= 0 && cy >= 0 && cx + 1 < w as isize && cy + 1 < geo.h as isize {
+                let ci = (cy * w as isize + cx) as usize;
+                if geo.right[ci] && geo.down[ci] && geo.down[ci + 1] && geo.right[ci + w] && seen.insert((2u8, ci)) {
+                    terms.push((vec![ci, ci + 1, ci + w, ci + w + 1], vec![2f64.sqrt(), -(2f64.sqrt()), -(2f64.sqrt()), 2f64.sqrt()], true));
+                }
+            }
+        }
+    }
+    for &i in group {
+        let (x, y) = (i % w, i / w);
+        if geo.right[i] && seen.insert((3u8, i)) {
+            terms.push((vec![i, i + 1], vec![1.0, -1.0], false));
+        }
+        if x > 0 && geo.right[i - 1] && seen.insert((3u8, i - 1)) {
+            terms.push((vec![i - 1, i], vec![1.0, -1.0], false));
+        }
+        if geo.down[i] && seen.insert((4u8, i)) {
+            terms.push((vec![i, i + w], vec![1.0, -1.0], false));
+        }
+        if y > 0 && geo.down[i - w] && seen.insert((4u8, i - w)) {
+            terms.push((vec![i - w, i], vec![1.0, -1.0], false));
+        }
+    }
+    let index: Vec<Vec<Option<usize>>> = terms.iter().map(|t| t.0.iter().map(|&j| local(j)).collect()).collect();
+    let solve_at = |tau: f64| -> Option<Vec<V2>> {
+        let mut m = vec![vec![0.0f64; k]; k];
+        let mut rhs = vec![[0.0f64; 2]; k];
+        for (t, idx) in terms.iter().zip(&index) {
+            let wgt = if t.2 { 1.0 } else { tau };
+            let mut fixed_part = [0.0f64; 2];
+            for (j, (&node, &c)) in t.0.iter().zip(&t.1).enumerate() {
+                if idx[j].is_none() {
+                    fixed_part[0] += c * u[node][0];
+                    fixed_part[1] += c * u[node][1];
+                }
+            }
+            for (a, &ca) in idx.iter().zip(&t.1) {
+                let Some(a) = *a else { continue };
+                rhs[a][0] -= wgt * ca * fixed_part[0];
+                rhs[a][1] -= wgt * ca * fixed_part[1];
+                for (b, &cb) in idx.iter().zip(&t.1) {
+                    if let Some(b) = *b {
+                        m[a][b] += wgt * ca * cb;
+                    }
+                }
+            }
+        }
+        dense_solve(m, rhs)
+    };
+    let t = 1e-9;
+    if let (Some(a), Some(b)) = (solve_at(t), solve_at(2.0 * t)) {
+        for (g, &i) in group.iter().enumerate() {
+            u[i] = [2.0 * a[g][0] - b[g][0], 2.0 * a[g][1] - b[g][1]];
+        }
+    }
+}
+
+/// Gaussian elimination with partial pivoting for two right-hand sides.
+fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<V2>> {
+    let k = m.len();
+    for col in 0..k {
+        let piv = (col..k).max_by(|&p, &q| m[p][col].abs().total_cmp(&m[q][col].abs()))?;
+        if m[piv][col].abs() < 1e-300 {
+            return None;
+        }
+        m.swap(col, piv);
+        rhs.swap(col, piv);
+        for r in col + 1..k {
+            let f = m[r][col] / m[col][col];
+            if f != 0.0 {
+                for c in col..k {
+                    m[r][c] -= f * m[col][c];
+                }
+                rhs[r][0] -= f * rhs[col][0];
+                rhs[r][1] -= f * rhs[col][1];
+            }
+        }
+    }
+    let mut x = vec![[0.0f64; 2]; k];
+    for r in (0..k).rev() {
+        let mut s = rhs[r];
+        for c in r + 1..k {
+            s[0] -= m[r][c] * x[c][0];
+            s[1] -= m[r][c] * x[c][1];
+        }
+        x[r] = [s[0] / m[r][r], s[1] / m[r][r]];
+    }
+    Some(x)
+}
+
+/// Vector chunk for parallel loops (large enough that small grids stay on one thread).
+const CHUNK: usize = 16_384;
+
+/// Per-component dot products; the chunked sum keeps the result independent of threads.
+fn dot2(a: &[V2], b: &[V2]) -> [f64; 2] {
+    let parts: Vec<[f64; 2]> = a
+        .par_chunks(CHUNK)
+        .zip(b.par_chunks(CHUNK))
+        .map(|(a, b)| {
+            let mut s = [0.0f64; 2];
+            for (x, y) in a.iter().zip(b) {
+                s[0] += x[0] * y[0];
+                s[1] += x[1] * y[1];
+            }
+            s
+        })
+        .collect();
+    parts.iter().fold([0.0; 2], |s, p| [s[0] + p[0], s[1] + p[1]])
+}
+
+fn count_unknowns(level: &Level) -> usize {
+    level.inv_diag.iter().filter(|&&d| d != 0.0).count()
+}
+
+fn scaled_max(level: &Level, r: &[V2]) -> f64 {
+    let mut m: f64 = 0.0;
+    for (p, ri) in r.iter().enumerate() {
+        let d = level.inv_diag[p];
+        if d != 0.0 {
+            m = m.max(ri[0].abs() * d).max(ri[1].abs() * d);
+        }
+    }
+    m
+}
+
+/// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.
+///
+/// ```
+/// use inkwarp_core::{solve::energy, Field, Grid};
+/// let grid = Grid::new(4, 4);
+/// let mut field = Field::zeros(4, 4);
+/// field.dx[5] = 1.0; // node (1, 1)
+/// let [ex, ey] = energy(&grid, &field, 0.0);
+/// // triples: one horizontal and one vertical centred on it (4 each), one of each with it
+/// // at an end (1 each; the other ends fall off the grid); cells: 4, each weighing 2.
+/// assert_eq!((ex, ey), (2.0 * (4.0 + 1.0) + 4.0 * 2.0, 0.0));
+/// ```
+pub fn energy(grid: &Grid, field: &Field, tension: f64) -> [f64; 2] {
+    let (w, h) = (grid.width, grid.height);
+    let mut e = [0.0f64; 2];
+    let comps = [&field.dx, &field.dy];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            for k in 0..2 {
+                let u = |j: usize| comps[k][j] as f64;
+                if x > 0 && grid.link_right[i - 1] && grid.link_right[i] {
+                    e[k] += (u(i - 1) - 2.0 * u(i) + u(i + 1)).powi(2);
+                }
+                if y > 0 && grid.link_down[i - w] && grid.link_down[i] {
+                    e[k] += (u(i - w) - 2.0 * u(i) + u(i + w)).powi(2);
+                }
+                if grid.link_right[i] && grid.link_down[i] && grid.link_down[i + 1] && grid.link_right[i + w] {
+                    e[k] += 2.0 * (u(i) - u(i + 1) - u(i + w) + u(i + w + 1)).powi(2);
+                }
+                if tension != 0.0 {
+                    if grid.link_right[i] {
+                        e[k] += tension * (u(i) - u(i + 1)).powi(2);
+                    }
+                    if grid.link_down[i] {
+                        e[k] += tension * (u(i) - u(i + w)).powi(2);
+                    }
+                }
+            }
+        }
+    }
+    e
+}
+
+#[cfg(test)]
+mod tests;

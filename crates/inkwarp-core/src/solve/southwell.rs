@@ -1,0 +1,53 @@
+//! Southwell relaxation with a fixed budget: relax the nodes whose relaxation lowers the
+//! energy most first. Each pass finds the largest energy drop `e_max` any single relaxation
+//! would bring (`e_i = |r_i|² / a_ii`) and relaxes, in order, every node whose drop is still
+//! at least `e_max / 4` when it is reached; passes repeat until the budget of single-node
+//! relaxations is spent or nothing is left to relax. (This is the thresholded form of
+//! Southwell's greedy rule: each relaxed node is within a factor 4 of the greediest choice,
+//! without a priority queue.)
+
+use super::level::{Level, V2, PAD};
+
+/// Spends at most `budget` relaxations on the finest level; returns the number of passes
+/// and the largest single change made in the last pass.
+pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (usize, f64) {
+    let (w, h) = (level.geo.w, level.geo.h);
+    let mut r = vec![[0.0; 2]; u.len()];
+    let mut left = budget;
+    let mut passes = 0;
+    let mut last_change = 0.0f64;
+    while left > 0 {
+        level.residual(u, None, &mut r);
+        let mut e_max = 0.0f64;
+        for (p, ri) in r.iter().enumerate() {
+            let d = level.inv_diag[p];
+            e_max = e_max.max((ri[0] * ri[0] + ri[1] * ri[1]) * d);
+        }
+        if e_max <= 0.0 {
+            break;
+        }
+        let threshold = e_max / 4.0;
+        passes += 1;
+        last_change = 0.0;
+        'pass: for y in 0..h {
+            for x in 0..w {
+                let p = (y + PAD) * level.wp + x + PAD;
+                let d = level.inv_diag[p];
+                if d == 0.0 {
+                    continue;
+                }
+                let ri = level.fine_residual_at(u, p);
+                if (ri[0] * ri[0] + ri[1] * ri[1]) * d >= threshold {
+                    u[p][0] += ri[0] * d;
+                    u[p][1] += ri[1] * d;
+                    last_change = last_change.max((ri[0] * d).abs()).max((ri[1] * d).abs());
+                    left -= 1;
+                    if left == 0 {
+                        break 'pass;
+                    }
+                }
+            }
+        }
+    }
+    (passes, last_change)
+}

@@ -1,0 +1,331 @@
+//! Unit tests of the solver against a dense direct solve of the same energy.
+
+use super::*;
+use crate::grid::Grid;
+
+/// Deterministic xorshift generator for test data.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// The energy's matrix assembled term by term from DESIGN §4 (dense, independent of the
+/// solver's kernels): E(u) = uᵀ A u.
+fn dense_matrix(grid: &Grid, tau: f64) -> Vec<Vec<f64>> {
+    let (w, h) = (grid.width, grid.height);
+    let n = w * h;
+    let mut a = vec![vec![0.0; n]; n];
+    let mut add = |terms: &[(usize, f64)], weight: f64| {
+        for &(i, ci) in terms {
+            for &(j, cj) in terms {
+                a[i][j] += weight * ci * cj;
+            }
+        }
+    };
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if x > 0 && x + 1 < w && grid.link_right[i - 1] && grid.link_right[i] {
+                add(&[(i - 1, 1.0), (i, -2.0), (i + 1, 1.0)], 1.0);
+            }
+            if y > 0 && y + 1 < h && grid.link_down[i - w] && grid.link_down[i] {
+                add(&[(i - w, 1.0), (i, -2.0), (i + w, 1.0)], 1.0);
+            }
+            if x + 1 < w && y + 1 < h && grid.link_right[i] && grid.link_down[i] && grid.link_down[i + 1] && grid.link_right[i + w] {
+                add(&[(i, 1.0), (i + 1, -1.0), (i + w, -1.0), (i + w + 1, 1.0)], 2.0);
+            }
+            if grid.link_right[i] {
+                add(&[(i, 1.0), (i + 1, -1.0)], tau);
+            }
+            if grid.link_down[i] {
+                add(&[(i, 1.0), (i + w, -1.0)], tau);
+            }
+        }
+    }
+    a
+}
+
+/// Direct minimiser with the given nodes fixed (the system must be nonsingular on the rest).
+fn dense_solve(grid: &Grid, tau: f64, fixed: &[(usize, f64)]) -> Vec<f64> {
+    let n = grid.len();
+    let a = dense_matrix(grid, tau);
+    let mut is_fixed = vec![None; n];
+    for &(i, v) in fixed {
+        is_fixed[i] = Some(v);
+    }
+    let free: Vec<usize> = (0..n).filter(|&i| is_fixed[i].is_none() && grid.active[i]).collect();
+    let m = free.len();
+    let mut k = vec![vec![0.0; m + 1]; m];
+    for (r, &i) in free.iter().enumerate() {
+        for (c, &j) in free.iter().enumerate() {
+            k[r][c] = a[i][j];
+        }
+        let mut rhs = 0.0;
+        for j in 0..n {
+            if let Some(v) = is_fixed[j] {
+                rhs -= a[i][j] * v;
+            }
+        }
+        k[r][m] = rhs;
+    }
+    // Gaussian elimination with partial pivoting.
+    for col in 0..m {
+        let piv = (col..m).max_by(|&p, &q| k[p][col].abs().partial_cmp(&k[q][col].abs()).unwrap()).unwrap();
+        k.swap(col, piv);
+        let d = k[col][col];
+        assert!(d.abs() > 1e-12, "singular test system");
+        for r in col + 1..m {
+            let f = k[r][col] / d;
+            if f != 0.0 {
+                for c in col..=m {
+                    k[r][c] -= f * k[col][c];
+                }
+            }
+        }
+    }
+    let mut x = vec![0.0; m];
+    for r in (0..m).rev() {
+        let mut s = k[r][m];
+        for c in r + 1..m {
+            s -= k[r][c] * x[c];
+        }
+        x[r] = s / k[r][r];
+    }
+    let mut u = vec![0.0; n];
+    for &(i, v) in fixed {
+        u[i] = v;
+    }
+    for (r, &i) in free.iter().enumerate() {
+        u[i] = x[r];
+    }
+    u
+}
+
+fn samples_at(points: &[(usize, usize, f64, f64)]) -> Vec<Sample> {
+    points
+        .iter()
+        .map(|&(x, y, dx, dy)| Sample { rest: [x as f64, y as f64], displacement: [dx, dy] })
+        .collect()
+}
+
+fn max_err(grid: &Grid, field: &Field, ux: &[f64], uy: &[f64]) -> f64 {
+    let mut m: f64 = 0.0;
+    for i in 0..grid.len() {
+        if grid.active[i] {
+            m = m.max((field.dx[i] as f64 - ux[i]).abs()).max((field.dy[i] as f64 - uy[i]).abs());
+        }
+    }
+    m
+}
+
+fn check_against_dense(grid: &Grid, samples: &[Sample], tau: f64) -> SolveReport {
+    let opts = SolveOptions { tension: tau, ..Default::default() };
+    let (field, report) = solve(grid, samples, &opts, None).unwrap();
+    let c = constrain(grid, samples);
+    let fx: Vec<(usize, f64)> = c.nodes.iter().zip(&c.values).map(|(&i, v)| (i, v[0])).collect();
+    let fy: Vec<(usize, f64)> = c.nodes.iter().zip(&c.values).map(|(&i, v)| (i, v[1])).collect();
+    let ux = dense_solve(grid, tau, &fx);
+    let uy = dense_solve(grid, tau, &fy);
+    let err = max_err(grid, &field, &ux, &uy);
+    assert!(err < 0.05, "max error {err} (report {report:?})");
+    assert!(report.converged);
+    report
+}
+
+fn random_samples(rng: &mut Rng, w: usize, h: usize, k: usize) -> Vec<Sample> {
+    (0..k)
+        .map(|_| Sample {
+            rest: [rng.next() * (w - 1) as f64, rng.next() * (h - 1) as f64],
+            displacement: [rng.next() * 20.0 - 10.0, rng.next() * 20.0 - 10.0],
+        })
+        .collect()
+}
+
+#[test]
+fn open_grid_matches_dense_solve() {
+    let mut rng = Rng(7);
+    for &(w, h) in &[(9, 9), (17, 13), (24, 20)] {
+        let grid = Grid::new(w, h);
+        let samples = random_samples(&mut rng, w, h, 6);
+        check_against_dense(&grid, &samples, 0.0);
+        check_against_dense(&grid, &samples, 0.3);
+    }
+}
+
+#[test]
+fn holes_and_cuts_match_dense_solve() {
+    let mut rng = Rng(11);
+    for trial in 0..4 {
+        let (w, h) = (26, 22);
+        let mut matte = vec![1u8; w * h];
+        for _ in 0..3 {
+            let (cx, cy, r) = (rng.next() * w as f64, rng.next() * h as f64, 1.5 + rng.next() * 3.0);
+            for y in 0..h {
+                for x in 0..w {
+                    if (x as f64 - cx).powi(2) + (y as f64 - cy).powi(2) < r * r {
+                        matte[y * w + x] = 0;
+                    }
+                }
+            }
+        }
+        let mut grid = Grid::from_matte(w, h, &matte);
+        let cut: Vec<[f64; 2]> = (0..3).map(|_| [rng.next() * w as f64, rng.next() * h as f64]).collect();
+        grid.add_cut(&cut);
+        // Enough samples that every sizeable piece is pinned by three non-collinear nodes.
+        let samples = random_samples(&mut rng, w, h, 30);
+        let tau = if trial % 2 == 0 { 0.0 } else { 0.5 };
+        let (labels, count) = grid.pieces();
+        let c = constrain(&grid, &samples);
+        // Only compare pieces that the dense solve can pin: use tension for the others.
+        let mut ok = true;
+        for l in 0..count as u32 {
+            let nodes: Vec<usize> = c.nodes.iter().copied().filter(|&i| labels[i] == l).collect();
+            let size = labels.iter().filter(|&&x| x == l).count();
+            if nodes.len() < 3 && size > nodes.len() {
+                ok = false;
+            }
+        }
+        if ok {
+            check_against_dense(&grid, &samples, tau);
+        }
+    }
+}
+
+#[test]
+fn unconstrained_piece_stays_and_one_node_translates() {
+    let matte: Vec<u8> = (0..12 * 6).map(|i| if i % 12 == 6 { 0 } else { 1 }).collect();
+    let grid = Grid::from_matte(12, 6, &matte);
+    // left piece: one sample; right piece: none
+    let samples = samples_at(&[(2, 3, 1.5, -2.0)]);
+    let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    for y in 0..6 {
+        for x in 0..12 {
+            let v = field.at(x, y);
+            if x < 6 {
+                assert_eq!(v, [1.5, -2.0]);
+            } else {
+                assert_eq!(v, [0.0, 0.0]);
+            }
+        }
+    }
+    assert_eq!(report.constrained_nodes, 1);
+}
+
+#[test]
+fn affine_constraints_give_the_affine_map() {
+    let grid = Grid::new(20, 16);
+    let f = |x: f64, y: f64| [0.3 * x - 0.2 * y + 1.0, -0.1 * x + 0.4 * y - 2.0];
+    let pts = [(1.0, 2.0), (18.0, 3.0), (5.0, 14.0), (12.0, 9.0)];
+    let samples: Vec<Sample> = pts.iter().map(|&(x, y)| Sample { rest: [x, y], displacement: f(x, y) }).collect();
+    let (field, _) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    for y in 0..16 {
+        for x in 0..20 {
+            let e = f(x as f64, y as f64);
+            let v = field.at(x, y);
+            assert!((v[0] as f64 - e[0]).abs() < 0.02 && (v[1] as f64 - e[1]).abs() < 0.02, "({x},{y}) {v:?} vs {e:?}");
+        }
+    }
+}
+
+#[test]
+fn collinear_constraints_take_the_least_membrane_plate_minimiser() {
+    // Constraints along the row y = 4 of a 15 × 11 grid: the τ → 0⁺ limit is the τ = tiny
+    // solution; compare with a small-tension dense solve.
+    let grid = Grid::new(15, 11);
+    let samples = samples_at(&[(2, 4, 1.0, 0.0), (7, 4, 3.0, 1.0), (12, 4, -1.0, 2.0)]);
+    let (field, _) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    let c = constrain(&grid, &samples);
+    let fx: Vec<(usize, f64)> = c.nodes.iter().zip(&c.values).map(|(&i, v)| (i, v[0])).collect();
+    let tiny = 1e-7;
+    let ux = dense_solve(&grid, tiny, &fx);
+    let mut m: f64 = 0.0;
+    for i in 0..grid.len() {
+        m = m.max((field.dx[i] as f64 - ux[i]).abs());
+    }
+    assert!(m < 0.02, "max deviation from the τ → 0⁺ limit: {m}");
+}
+
+#[test]
+fn coarse_levels_of_an_open_grid_reproduce_affine_functions() {
+    // Galerkin operators annihilate affine functions when P reproduces them: odd sizes, and
+    // even sizes thanks to the ghost coarse node beyond the last column and row.
+    for &(w, h) in &[(33usize, 33usize), (32, 32), (20, 17)] {
+        let grid = Grid::new(w, h);
+        let geo = level::Geometry {
+            w,
+            h,
+            active: grid.active.clone(),
+            right: grid.link_right.clone(),
+            down: grid.link_down.clone(),
+            fixed: None,
+            prow: Vec::new(),
+        }
+        .with_rows();
+        let mut lv = Level::fine(geo, 0.0);
+        for _ in 0..3 {
+            let coarse = level::galerkin(&lv);
+            for yc in 0..coarse.geo.h {
+                for xc in 0..coarse.geo.w {
+                    let row = coarse.row(coarse.pidx(xc, yc));
+                    let (mut s0, mut sx, mut sy) = (0.0, 0.0, 0.0);
+                    for dy in 0..5 {
+                        for dx in 0..5 {
+                            let a = row[dy * 5 + dx];
+                            s0 += a;
+                            sx += a * (xc as f64 + dx as f64 - 2.0);
+                            sy += a * (yc as f64 + dy as f64 - 2.0);
+                        }
+                    }
+                    assert!(
+                        s0.abs() < 1e-9 && sx.abs() < 1e-9 && sy.abs() < 1e-9,
+                        "{w}x{h} level {}x{} node ({xc},{yc}): {s0} {sx} {sy}",
+                        coarse.geo.w,
+                        coarse.geo.h
+                    );
+                }
+            }
+            lv = coarse;
+        }
+    }
+}
+
+#[test]
+fn warm_start_from_the_answer_takes_one_cycle() {
+    let mut rng = Rng(3);
+    let grid = Grid::new(40, 30);
+    let samples = random_samples(&mut rng, 40, 30, 12);
+    let (field, _) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    let (again, report) = solve(&grid, &samples, &SolveOptions::default(), Some(&field)).unwrap();
+    assert!(report.cycles <= 1 && report.converged, "{report:?}");
+    let d = field.dx.iter().zip(&again.dx).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(d < 0.01);
+}
+
+#[test]
+fn southwell_lowers_the_energy() {
+    let mut rng = Rng(5);
+    let grid = Grid::new(30, 30);
+    let samples = random_samples(&mut rng, 30, 30, 10);
+    let zero = Field::zeros(30, 30);
+    let mut opts = SolveOptions { method: SolveMethod::Southwell, southwell_sweeps: 0.0, ..Default::default() };
+    let (f0, _) = solve(&grid, &samples, &opts, Some(&zero)).unwrap();
+    opts.southwell_sweeps = 5.0;
+    let (f1, r1) = solve(&grid, &samples, &opts, Some(&zero)).unwrap();
+    let (e0, e1) = (energy(&grid, &f0, 0.0), energy(&grid, &f1, 0.0));
+    assert!(e1[0] < e0[0] && e1[1] < e0[1], "{e0:?} -> {e1:?} ({r1:?})");
+}
+
+#[test]
+fn grid_step_is_close_on_a_smooth_problem() {
+    let grid = Grid::new(65, 49);
+    let samples = samples_at(&[(4, 4, 2.0, 1.0), (60, 8, -1.0, 2.0), (8, 44, 1.0, -1.0), (56, 40, 3.0, 3.0), (32, 24, -2.0, 0.5)]);
+    let (full, _) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    let (coarse, _) = solve(&grid, &samples, &SolveOptions { grid_step: 4, ..Default::default() }, None).unwrap();
+    let d = full.dx.iter().zip(&coarse.dx).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(d < 0.3, "grid_step 4 differs by {d}");
+}

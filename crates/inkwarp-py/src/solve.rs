@@ -1,0 +1,106 @@
+//! `thin_plate_solve`: the grid thin plate for `inkwarp.thin_plate` (argument checking with
+//! friendly messages happens in `inkwarp/plate.py`; this adapter converts and calls the core).
+
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use inkwarp_core::solve::{solve, SolveMethod, SolveOptions};
+use inkwarp_core::{Field, Grid, Sample};
+
+/// Solves the thin plate; returns the float32 (H, W, 2) field and the report as a dict.
+#[pyfunction]
+#[pyo3(signature = (points, displacements, height, width, mask, cuts, tension, tolerance,
+                    grid_step, initial, max_cycles, method, southwell_sweeps))]
+#[allow(clippy::too_many_arguments)]
+fn thin_plate_solve<'py>(
+    py: Python<'py>,
+    points: PyReadonlyArray2<'py, f64>,
+    displacements: PyReadonlyArray2<'py, f64>,
+    height: usize,
+    width: usize,
+    mask: Option<PyReadonlyArray2<'py, u8>>,
+    cuts: Vec<PyReadonlyArray2<'py, f64>>,
+    tension: f64,
+    tolerance: f64,
+    grid_step: usize,
+    initial: Option<PyReadonlyArray3<'py, f32>>,
+    max_cycles: Option<usize>,
+    method: &str,
+    southwell_sweeps: f64,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
+    let method = match method {
+        "multigrid" => SolveMethod::Multigrid,
+        "southwell" => SolveMethod::Southwell,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "method must be \"multigrid\" or \"southwell\", got {other:?}."
+            )))
+        }
+    };
+    let pts = points.as_array();
+    let disp = displacements.as_array();
+    if pts.ncols() != 2 || disp.ncols() != 2 || pts.nrows() != disp.nrows() {
+        return Err(PyValueError::new_err(
+            "points and displacements must both be (N, 2) arrays of the same length.",
+        ));
+    }
+    let samples: Vec<Sample> = (0..pts.nrows())
+        .map(|k| Sample { rest: [pts[[k, 0]], pts[[k, 1]]], displacement: [disp[[k, 0]], disp[[k, 1]]] })
+        .collect();
+    let mut grid = match &mask {
+        Some(m) => {
+            if m.shape() != [height, width] {
+                return Err(PyValueError::new_err(format!(
+                    "mask has shape {:?} but the grid is ({height}, {width}); pass an (H, W) mask.",
+                    m.shape()
+                )));
+            }
+            let data: Vec<u8> = m.as_array().iter().copied().collect();
+            Grid::from_matte(width, height, &data)
+        }
+        None => Grid::new(width, height),
+    };
+    for cut in &cuts {
+        let c = cut.as_array();
+        if c.ncols() != 2 {
+            return Err(PyValueError::new_err("every cut must be a (K, 2) array of (x, y) points."));
+        }
+        let polyline: Vec<[f64; 2]> = (0..c.nrows()).map(|k| [c[[k, 0]], c[[k, 1]]]).collect();
+        grid.add_cut(&polyline);
+    }
+    let initial = match &initial {
+        Some(f) => {
+            if f.shape() != [height, width, 2] {
+                return Err(PyValueError::new_err(format!(
+                    "initial has shape {:?} but must be ({height}, {width}, 2).",
+                    f.shape()
+                )));
+            }
+            let data: Vec<f32> = f.as_array().iter().copied().collect();
+            Some(Field::from_interleaved(width, height, &data))
+        }
+        None => None,
+    };
+    let options = SolveOptions { tension, tolerance_px: tolerance, grid_step, max_cycles, method, southwell_sweeps };
+    let result = py.detach(|| solve(&grid, &samples, &options, initial.as_ref()));
+    let (field, report) = result.map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let array = PyArray1::from_vec(py, field.to_interleaved()).reshape([height, width, 2])?;
+    let d = PyDict::new(py);
+    d.set_item("cycles", report.cycles)?;
+    d.set_item("final_change", report.final_change_px)?;
+    d.set_item("residual", report.residual)?;
+    d.set_item("initial_residual", report.initial_residual)?;
+    d.set_item("constrained_nodes", report.constrained_nodes)?;
+    d.set_item("constrained_samples", report.constrained_samples)?;
+    d.set_item("dropped_samples", report.dropped_samples)?;
+    d.set_item("seconds", report.seconds)?;
+    d.set_item("converged", report.converged)?;
+    Ok((array.into_any(), d))
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(thin_plate_solve, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,109 @@
+"""`inkwarp.thin_plate`: arguments, results, and the messages for bad input."""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+
+import numpy as np
+import pytest
+
+import inkwarp
+
+PTS = [[2.0, 3.0], [20.0, 4.0], [10.0, 15.0]]
+DISP = [[1.0, 0.0], [0.0, 1.0], [-1.0, 2.0]]
+SHAPE = (18, 24)
+
+
+def test_returns_float32_height_width_2():
+    field = inkwarp.thin_plate(PTS, DISP, SHAPE)
+    assert field.shape == (18, 24, 2) and field.dtype == np.float32
+    # constrained nodes hold their displacements exactly
+    assert np.array_equal(field[3, 2], np.float32([1.0, 0.0]))
+    assert np.array_equal(field[15, 10], np.float32([-1.0, 2.0]))
+
+
+def test_report_is_a_frozen_dataclass_with_the_counts():
+    pts = PTS + [[-5.0, 1.0], [2.4, 3.3]]  # one outside, one on the same node as the first
+    disp = DISP + [[9.0, 9.0], [3.0, 0.0]]
+    field, report = inkwarp.thin_plate_report(pts, disp, SHAPE)
+    assert isinstance(report, inkwarp.SolveReport)
+    assert (report.constrained_nodes, report.constrained_samples, report.dropped_samples) == (3, 4, 1)
+    assert np.array_equal(field[3, 2], np.float32([2.0, 0.0]))  # averaged
+    assert report.converged and report.cycles >= 1 and report.seconds > 0
+    assert report.final_change <= 0.01 and report.residual >= 0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        report.cycles = 3  # type: ignore[misc]
+
+
+def test_mask_zero_pixels_do_not_move_and_samples_there_are_dropped():
+    mask = np.ones(SHAPE, bool)
+    mask[:, 12] = False
+    field, report = inkwarp.thin_plate_report(PTS + [[12, 5]], DISP + [[5, 5]], SHAPE, mask=mask)
+    assert np.all(field[:, 12] == 0)
+    assert report.dropped_samples == 1
+
+
+def test_accepts_numpy_and_lists_and_integer_types():
+    a = inkwarp.thin_plate(np.array(PTS, np.float32), np.array(DISP, np.int64), (np.int64(18), 24))
+    b = inkwarp.thin_plate(PTS, DISP, SHAPE)
+    assert np.array_equal(a, b)
+
+
+def test_southwell_and_grid_step_and_max_cycles_run():
+    f1, r1 = inkwarp.thin_plate_report(PTS, DISP, SHAPE, method="southwell")
+    f2, r2 = inkwarp.thin_plate_report(PTS, DISP, SHAPE, grid_step=3)
+    f3, r3 = inkwarp.thin_plate_report(PTS, DISP, SHAPE, max_cycles=1, tolerance=0.0)
+    assert r3.cycles == 1 and not r3.converged
+    for f in (f1, f2, f3):
+        assert f.shape == (18, 24, 2) and np.all(np.isfinite(f))
+
+
+def test_solves_run_in_parallel_threads():
+    # The GIL is released during the solve: threads finish with correct results.
+    results = {}
+
+    def work(k):
+        results[k] = inkwarp.thin_plate(PTS, np.asarray(DISP) * k, (64, 64))
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in (1, 2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert np.allclose(results[2], 2 * results[1], atol=0.05)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"points": [[1, 2, 3]]}, r"points must have shape \(N, 2\)"),
+        ({"points": [[1, np.nan]], "displacements": [[0, 0]]}, "points has a NaN or infinite value in row 0"),
+        ({"displacements": [[0, np.inf]] * 3}, "displacements has a NaN or infinite value"),
+        ({"points": np.zeros((0, 2)), "displacements": np.zeros((0, 2))}, "points is empty"),
+        ({"displacements": [[0, 0]]}, "points has 3 rows but displacements has 1"),
+        ({"points": "abc"}, "points must be an"),
+        ({"shape": (0, 5)}, r"shape must be \(height, width\)"),
+        ({"shape": (5,)}, r"shape must be \(height, width\)"),
+        ({"shape": (5.5, 3)}, r"shape must be \(height, width\)"),
+        ({"mask": np.ones((3, 3))}, r"mask has shape \(3, 3\)"),
+        ({"mask": np.full(SHAPE, np.nan)}, "mask has NaN"),
+        ({"cuts": [[[1, 1]]]}, r"cuts\[0\] has 1 point"),
+        ({"cuts": np.zeros((3, 2))}, "wrap a single cut in a list"),
+        ({"cuts": [[[1, 1], [np.nan, 2]]]}, r"cuts\[0\] has a NaN"),
+        ({"tension": -1.0}, "tension must be a finite number >= 0"),
+        ({"tension": np.inf}, "tension must be a finite number >= 0"),
+        ({"tolerance": -0.1}, "tolerance must be a finite number >= 0"),
+        ({"grid_step": 0}, "grid_step must be an integer >= 1"),
+        ({"grid_step": 1.5}, "grid_step must be an integer >= 1"),
+        ({"max_cycles": -1}, "max_cycles must be None or an integer >= 0"),
+        ({"method": "jacobi"}, "method must be one of"),
+        ({"initial": np.zeros((2, 2, 2))}, r"initial has shape \(2, 2, 2\) but must be \(18, 24, 2\)"),
+        ({"initial": np.full((18, 24, 2), np.nan)}, "initial has NaN"),
+    ],
+)
+def test_bad_arguments_say_what_to_fix(kwargs, match):
+    args = {"points": PTS, "displacements": DISP, "shape": SHAPE}
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=match):
+        inkwarp.thin_plate(args.pop("points"), args.pop("displacements"), args.pop("shape"), **args)
