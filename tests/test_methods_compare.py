@@ -1,8 +1,8 @@
 """The paper's "closing a gap in a checkerboard" plates, as numbers.
 
 A checkerboard square with a slot (the gap) cut out of its continuity matte; six points
-right of the gap are pulled left to close it, two points far left and the square's edges
-are held. With the hole, the thin plate leaves the gap's left edge nearly where it was;
+right of the gap are pulled left to close it, three points left of it and the square's
+edges are held. With the hole, the thin plate leaves the gap's left edge nearly where it was;
 without it (and with Beier–Neely, which knows no holes) the left edge is dragged along.
 """
 
@@ -14,10 +14,14 @@ from PIL import Image
 
 import inkwarp
 
+# Scenes come from the scene engine; until it is part of the package there is nothing to
+# compare.
+pytestmark = pytest.mark.skipif(not hasattr(inkwarp, "Scene"), reason="needs inkwarp.Scene")
+
 SIZE = 96
 SQUARE = (16, 79)  # first and last pixel of the square, both axes
 GAP_X = (44, 51)  # the slot's columns
-GAP_Y = (30, 65)  # the slot's rows
+GAP_Y = (20, 75)  # the slot's rows: it nearly splits the square
 PULL = -8.0  # how far the six points move (x)
 
 
@@ -43,8 +47,8 @@ def checkerboard_scene(tmp_path, *, hole: bool, method: str = "tps"):
     pulled = [[x, y] for x in (54, 60) for y in (36, 47, 58)]
     features = [
         {"id": "edges", "kind": "polyline", "closed": True, "rest": [[lo, lo], [hi, lo], [hi, hi], [lo, hi]]},
-        {"id": "held_a", "kind": "point", "rest": [[26, 40]]},
-        {"id": "held_b", "kind": "point", "rest": [[26, 56]]},
+    ] + [
+        {"id": f"held_{i}", "kind": "point", "rest": [[30, y]]} for i, y in enumerate((36, 47, 58))
     ] + [
         {"id": f"pull_{i}", "kind": "point", "rest": [p], "keys": [{"t": 1.0, "points": [[p[0] + PULL, p[1]]]}]}
         for i, p in enumerate(pulled)
