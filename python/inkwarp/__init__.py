@@ -12,23 +12,29 @@ from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_repo
 from inkwarp.imaging import warp_image
 from inkwarp.transfer import transfer, transfer_dict
 from inkwarp.plate import SolveReport, thin_plate, thin_plate_report
+from inkwarp.scene import Frames, Scene, image_data_uri, scene_schema, validate_scene
 
 __all__ = [
     "Comparison",
+    "Frames",
     "InkwarpError",
     "METHODS",
+    "Scene",
     "SceneError",
     "SolveReport",
     "ThinPlateMap",
     "__version__",
     "compare",
     "comparison_sheet",
+    "image_data_uri",
     "interpolate",
     "interpolate_report",
     "sample",
+    "scene_schema",
     "thin_plate",
     "thin_plate_report",
     "transfer",
     "transfer_dict",
+    "validate_scene",
     "warp_image",
 ]

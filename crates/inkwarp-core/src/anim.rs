@@ -313,9 +313,10 @@ mod tests {
                 let (l, r) = (dx_left(&keys, k.time_s), dx_right(&keys, k.time_s));
                 prop_assert!((l - r).abs() < 1e-4 * scale, "velocity {} then {} at {}", l, r, k.time_s);
             }
-            // and continuous in value anywhere
+            // and continuous in value anywhere: over 1e-9 s it moves no more than a velocity
+            // far above the fastest chord's allows
             let tp = t0 + probe * (t1 - t0);
-            prop_assert!((x_at(&keys, tp + 1e-9) - x_at(&keys, tp)).abs() < 1e-6);
+            prop_assert!((x_at(&keys, tp + 1e-9) - x_at(&keys, tp)).abs() < 1e-7 * scale);
         }
 
         #[test]

@@ -6,6 +6,7 @@ use pyo3::prelude::*;
 mod errors;
 mod geometry;
 mod methods;
+mod scene;
 mod render;
 mod solve;
 
@@ -16,6 +17,7 @@ fn _inkwarp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     geometry::register(m)?;
     methods::register(m)?;
+    scene::register(m)?;
     render::register(m)?;
     solve::register(m)?;
     Ok(())

@@ -8,13 +8,32 @@ clear message, no traceback), 1 internal error.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
+import threading
+import traceback
 
-from inkwarp.errors import InkwarpError
+from inkwarp.cli._common import prefixed, problem_parts
+from inkwarp.errors import InkwarpError, SceneError
 
 # The command modules, in the order `inkwarp --help` lists them.
-COMMANDS: list[str] = ["compare", "transfer"]
+COMMANDS: list[str] = ["render", "field", "validate", "schema", "demo", "edit", "compare", "transfer"]
+
+EPILOG = """\
+examples:
+  inkwarp render examples/face/scene.json -o face.mp4
+  inkwarp render examples/face/scene.json --time 1.0 -o frame.png
+  inkwarp validate examples/face/scene.json
+  inkwarp demo -o out
+  inkwarp edit examples/cat/scene.json
+  inkwarp compare examples/checkerboard-hole/with-hole.json -o sheet.png
+  inkwarp transfer --source examples/face/scene.json --target cat.json -o cat_animated.json
+
+Run 'inkwarp COMMAND --help' for a command's options. Exit status: 0 success, 2 bad input
+(the message names the file, the place in it and the fix), 1 internal error.
+"""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -23,6 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="inkwarp",
         description="Animate a still image by animating a drawing traced over it.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"inkwarp {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -31,17 +52,79 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def error_message(err: BaseException) -> str:
+    """The one line the command line prints for a bad-input error.
+
+    A :class:`~inkwarp.SceneError` becomes ``FILE: JSON.PATH: what is wrong and the fix``
+    (each part left out when unknown or already in the message), with a count of the
+    further problems that ``inkwarp validate`` lists.
+    """
+    if isinstance(err, SceneError):
+        problems = list(err.problems or [])
+        path, message = problem_parts(problems[0]) if problems else (err.path, str(err))
+        if not message:
+            message = str(err)
+        line = prefixed(message, path)
+        line = prefixed(line, err.file)
+        if len(problems) > 1:
+            more = len(problems) - 1
+            where = f"inkwarp validate {err.file}" if err.file else "inkwarp validate"
+            line += f" (and {more} more problem{'s' if more > 1 else ''}: '{where}' lists all)"
+        return " ".join(line.split())
+    if isinstance(err, FileNotFoundError) and err.filename:
+        return f"{err.filename}: no such file or directory"
+    if isinstance(err, OSError) and err.filename and err.strerror:
+        return f"{err.filename}: {err.strerror}"
+    return " ".join(str(err).split()) or type(err).__name__
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised where the program is, so that writers delete their partial output."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated
+
+
+@contextlib.contextmanager
+def _sigterm_unwinds():
+    """While a command runs, SIGTERM unwinds the stack like Ctrl-C does (the default
+    action would kill the process with its temporary files in place)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
-        parser.print_help()
+        parser.print_help(sys.stderr)
         return 2
     try:
-        return int(args.func(args) or 0)
-    except (InkwarpError, ValueError, FileNotFoundError) as err:
-        print(f"inkwarp {args.command}: error: {err}", file=sys.stderr)
+        with _sigterm_unwinds():
+            return int(args.func(args) or 0)
+    except (InkwarpError, ValueError, FileNotFoundError, PermissionError, IsADirectoryError,
+            NotADirectoryError) as err:
+        print(f"inkwarp {args.command}: error: {error_message(err)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"inkwarp {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Terminated:
+        print(f"inkwarp {args.command}: terminated", file=sys.stderr)
+        return 128 + signal.SIGTERM
+    except OSError as err:
+        # Not the user's input and not a bug: a full disk, a broken pipe, ffmpeg dying.
+        print(f"inkwarp {args.command}: error: {error_message(err)}", file=sys.stderr)
+        return 1
+    except Exception:  # noqa: BLE001 - the last line of defence: report the bug, exit 1
+        traceback.print_exc()
+        print(f"inkwarp {args.command}: internal error (a bug in inkwarp; the traceback above "
+              "says where): please report it", file=sys.stderr)
+        return 1

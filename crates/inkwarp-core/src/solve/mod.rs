@@ -46,7 +46,24 @@ mod level;
 mod southwell;
 mod upsample;
 
+#[cfg(not(all(target_arch = "wasm32", target_os = "unknown")))]
 use std::time::Instant;
+
+/// `std::time::Instant::now` panics on `wasm32-unknown-unknown` (no clock there): the
+/// browser build reports every solve time as zero instead.
+#[cfg(all(target_arch = "wasm32", target_os = "unknown"))]
+#[derive(Clone, Copy)]
+struct Instant;
+
+#[cfg(all(target_arch = "wasm32", target_os = "unknown"))]
+impl Instant {
+    fn now() -> Self {
+        Instant
+    }
+    fn elapsed(&self) -> std::time::Duration {
+        std::time::Duration::ZERO
+    }
+}
 
 use rayon::prelude::*;
 use thiserror::Error;
@@ -478,7 +495,8 @@ struct CacheKey {
 }
 
 /// Recently used hierarchies (taken out while in use, so concurrent solves never share
-/// one); grids above `CACHE_MAX_NODES` are not kept, to bound memory.
+/// one). At most `CACHE_ENTRIES` of them and `CACHE_MAX_NODES` finest nodes in all (about
+/// 150 bytes a node), so the cache stays within a few hundred megabytes.
 static CACHE: std::sync::Mutex<Vec<(CacheKey, Hierarchy)>> = std::sync::Mutex::new(Vec::new());
 const CACHE_ENTRIES: usize = 4;
 const CACHE_MAX_NODES: usize = 1 << 22;
@@ -495,7 +513,8 @@ fn cache_put(key: CacheKey, hier: Hierarchy) {
     }
     let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
     cache.push((key, hier));
-    if cache.len() > CACHE_ENTRIES {
+    // Oldest first out, until both limits hold.
+    while cache.len() > CACHE_ENTRIES || cache.iter().map(|(k, _)| k.w * k.h).sum::<usize>() > CACHE_MAX_NODES {
         cache.remove(0);
     }
 }

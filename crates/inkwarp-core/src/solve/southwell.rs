@@ -29,6 +29,7 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (usize, f64) 
         let threshold = e_max / 4.0;
         passes += 1;
         last_change = 0.0;
+        let left_before = left;
         'pass: for y in 0..h {
             for x in 0..w {
                 let p = (y + PAD) * level.wp + x + PAD;
@@ -47,6 +48,11 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (usize, f64) 
                     }
                 }
             }
+        }
+        // The largest drop can vanish before its node is reached (its neighbours were
+        // relaxed first, or it is rounding noise): a pass that relaxes nothing is the end.
+        if left == left_before {
+            break;
         }
     }
     (passes, last_change)

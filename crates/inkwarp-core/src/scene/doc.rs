@@ -1,0 +1,394 @@
+//! The scene file format, version 1 (DESIGN §8), as serde types.
+//!
+//! These types are the single source of truth for the format: the JSON Schema shipped with
+//! the package is generated from them ([`schema`]), the shape check walks that schema, and
+//! the reference documentation is checked against it. The `///` comments below become the
+//! schema's descriptions, so they are written for animators reading the schema.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::Point;
+
+/// The scene format version this engine reads and writes.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// An inkwarp scene: images in layers, a drawing traced over them, and how the drawing
+/// moves over time.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+#[schemars(title = "inkwarp scene", extend("$id" = "https://inkwarp.dev/schema/scene-1.json"))]
+pub struct SceneDoc {
+    /// The scene format version. Always 1.
+    #[schemars(extend("const" = 1))]
+    pub inkwarp: u32,
+    /// Frame width in pixels. Default: the width of the first layer image.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1))]
+    pub width: Option<u32>,
+    /// Frame height in pixels. Default: the height of the first layer image.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1))]
+    pub height: Option<u32>,
+    /// Frames per second (> 0). Frame `i` shows the drawing at time `i / fps` seconds.
+    #[serde(default = "default_fps")]
+    pub fps: f64,
+    /// Length of the animation in seconds (> 0); it has `ceil(duration * fps)` frames.
+    /// Default: up to and including the last key (one frame when there are no keys).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub duration: Option<f64>,
+    /// Straight-alpha RGBA colour behind every layer, each 0–255.
+    #[serde(default = "default_background")]
+    pub background: [u8; 4],
+    /// How the displacement field is computed (every layer, unless the layer overrides it).
+    #[serde(default)]
+    pub solver: SolverDoc,
+    /// The layers, back to front: the first is drawn first, the last ends up on top.
+    pub layers: Vec<LayerDoc>,
+    /// The drawing: every feature, traced over the rest (original) images.
+    #[serde(default)]
+    pub features: Vec<FeatureDoc>,
+}
+
+/// The interpolant that turns the drawing into a displacement field.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// The grid thin plate of the paper: respects holes in the continuity matte and cuts.
+    #[default]
+    Tps,
+    /// The continuous thin-plate spline fitted to the samples (no mattes, no cuts).
+    TpsExact,
+    /// Piecewise linear over a Delaunay triangulation of the samples and image corners.
+    Triangulation,
+    /// Beier–Neely line pairs for segments and Shepard weights for points.
+    BeierNeely,
+}
+
+impl Method {
+    /// Every method, in the order the docs list them.
+    pub const ALL: [Method; 4] = [
+        Method::Tps,
+        Method::TpsExact,
+        Method::Triangulation,
+        Method::BeierNeely,
+    ];
+
+    /// The name used in scene files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Tps => "tps",
+            Method::TpsExact => "tps-exact",
+            Method::Triangulation => "triangulation",
+            Method::BeierNeely => "beier-neely",
+        }
+    }
+
+    /// The method called `name`, if there is one.
+    pub fn from_name(name: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == name)
+    }
+}
+
+/// How the grid thin plate is relaxed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
+pub enum Scheme {
+    /// Multigrid cycles until the field changes by less than `tolerance`.
+    #[default]
+    Multigrid,
+    /// Southwell (greedy residual) relaxation, as the paper describes.
+    Southwell,
+}
+
+/// Solver settings for the whole scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SolverDoc {
+    /// `tps` (the grid thin plate, default), `tps-exact`, `triangulation` or `beier-neely`.
+    #[serde(default)]
+    pub method: Method,
+    /// Membrane weight τ ≥ 0 added to the thin-plate energy; 0 (default) is a pure plate,
+    /// larger values make the surface tauter between features.
+    #[serde(default)]
+    #[schemars(range(min = 0.0))]
+    pub tension: f64,
+    /// Stop when a cycle changes the field by less than this many pixels (> 0).
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+    /// Solve on every `grid_step`-th pixel and upsample (≥ 1; 1 solves on every pixel).
+    /// The drawing is also sampled every `grid_step` pixels.
+    #[serde(default = "default_grid_step")]
+    #[schemars(range(min = 1, max = 64))]
+    pub grid_step: u32,
+    /// At most this many multigrid cycles per solve (≥ 1). Default: until `tolerance`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1))]
+    pub max_cycles: Option<u32>,
+    /// `multigrid` (default) or `southwell`.
+    #[serde(default)]
+    pub scheme: Scheme,
+}
+
+impl Default for SolverDoc {
+    fn default() -> Self {
+        SolverDoc {
+            method: Method::Tps,
+            tension: 0.0,
+            tolerance: default_tolerance(),
+            grid_step: default_grid_step(),
+            max_cycles: None,
+            scheme: Scheme::Multigrid,
+        }
+    }
+}
+
+/// Per-layer solver overrides: each key given replaces the scene's `solver` value.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SolverOverrides {
+    /// Overrides `solver.method`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub method: Option<Method>,
+    /// Overrides `solver.tension` (≥ 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.0))]
+    pub tension: Option<f64>,
+    /// Overrides `solver.tolerance` (> 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
+    /// Overrides `solver.grid_step` (≥ 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1, max = 64))]
+    pub grid_step: Option<u32>,
+    /// Overrides `solver.max_cycles` (≥ 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1))]
+    pub max_cycles: Option<u32>,
+    /// Overrides `solver.scheme`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scheme: Option<Scheme>,
+}
+
+impl SolverOverrides {
+    /// The scene's settings with these overrides applied.
+    pub fn apply(&self, base: &SolverDoc) -> SolverDoc {
+        SolverDoc {
+            method: self.method.unwrap_or(base.method),
+            tension: self.tension.unwrap_or(base.tension),
+            tolerance: self.tolerance.unwrap_or(base.tolerance),
+            grid_step: self.grid_step.unwrap_or(base.grid_step),
+            max_cycles: self.max_cycles.or(base.max_cycles),
+            scheme: self.scheme.unwrap_or(base.scheme),
+        }
+    }
+}
+
+/// One layer: an image that the drawing warps, composited over the layers before it.
+///
+/// Image references are paths relative to the scene file, or `data:` URIs
+/// (`data:image/png;base64,...`). Every image and matte has the scene's size. A matte's
+/// value at a pixel is its grey level times its alpha (black or transparent is 0).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LayerDoc {
+    /// A name, unique among the layers (used by `scene.field(layer=...)`).
+    pub name: String,
+    /// The picture (PNG or JPEG). Without one the layer draws nothing but still has a field.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image: Option<String>,
+    /// Alpha matte: replaces the image's own alpha channel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha: Option<String>,
+    /// Continuity matte: nonzero pixels are connected surface, zero pixels are holes the
+    /// surface can tear along. Default: where the layer's alpha is > 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub continuity: Option<String>,
+    /// Where the warped layer is placed in the frame, `[dx, dy]` pixels.
+    #[serde(default, skip_serializing_if = "is_zero_offset")]
+    #[schemars(extend("default" = [0.0, 0.0]))]
+    pub offset: [f64; 2],
+    /// Ids of the features that drive this layer. Default: every feature.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub features: Option<Vec<String>>,
+    /// Solver settings for this layer only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solver: Option<SolverOverrides>,
+    /// Whether the layer is drawn (its field can be computed either way).
+    #[serde(default = "default_true", skip_serializing_if = "is_true")]
+    #[schemars(extend("default" = true))]
+    pub visible: bool,
+}
+
+/// What a feature is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum FeatureKind {
+    /// One position that pins or moves its spot.
+    Point,
+    /// A chain of line segments through ≥ 2 vertices, open or `closed`.
+    Polyline,
+    /// A centripetal Catmull-Rom curve through ≥ 2 control points, open or `closed`.
+    Spline,
+    /// A filled closed shape (≥ 3 points): outline and interior move together.
+    Region,
+    /// An open polyline (≥ 2 points) that moves nothing and breaks the surface along its
+    /// rest geometry.
+    Cut,
+}
+
+impl FeatureKind {
+    /// Every kind, in the order the docs list them.
+    pub const ALL: [FeatureKind; 5] = [
+        FeatureKind::Point,
+        FeatureKind::Polyline,
+        FeatureKind::Spline,
+        FeatureKind::Region,
+        FeatureKind::Cut,
+    ];
+
+    /// The name used in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            FeatureKind::Point => "point",
+            FeatureKind::Polyline => "polyline",
+            FeatureKind::Spline => "spline",
+            FeatureKind::Region => "region",
+            FeatureKind::Cut => "cut",
+        }
+    }
+
+    /// The fewest control points a feature of this kind can have.
+    pub fn min_points(self) -> usize {
+        match self {
+            FeatureKind::Point => 1,
+            FeatureKind::Polyline | FeatureKind::Spline | FeatureKind::Cut => 2,
+            FeatureKind::Region => 3,
+        }
+    }
+
+    /// The most control points a feature of this kind can have.
+    pub fn max_points(self) -> Option<usize> {
+        match self {
+            FeatureKind::Point => Some(1),
+            _ => None,
+        }
+    }
+
+    /// The engine's kind.
+    pub fn to_kind(self) -> crate::geometry::Kind {
+        use crate::geometry::Kind;
+        match self {
+            FeatureKind::Point => Kind::Point,
+            FeatureKind::Polyline => Kind::Polyline,
+            FeatureKind::Spline => Kind::Spline,
+            FeatureKind::Region => Kind::Region,
+            FeatureKind::Cut => Kind::Cut,
+        }
+    }
+}
+
+/// The outline of a region.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Curve {
+    /// Straight segments between the points (default).
+    #[default]
+    Polyline,
+    /// A closed centripetal Catmull-Rom spline through the points.
+    Spline,
+}
+
+/// One feature of the drawing: its rest geometry and its keys.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FeatureDoc {
+    /// A name, unique among the features (layers list features by id).
+    pub id: String,
+    /// `point`, `polyline`, `spline`, `region` or `cut`.
+    pub kind: FeatureKind,
+    /// Control points `[x, y]` traced over the original image (pixel centres at integer
+    /// coordinates, y down).
+    pub rest: Vec<Point>,
+    /// Whether a polyline or spline joins its last point back to its first (regions are
+    /// always closed).
+    #[serde(default, skip_serializing_if = "is_false")]
+    #[schemars(extend("default" = false))]
+    pub closed: bool,
+    /// Regions only: the outline through the points, `polyline` (default) or `spline`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub curve: Option<Curve>,
+    /// The feature at other times, in increasing time order. Without keys it stays at rest;
+    /// before the first key it holds the first, after the last it holds the last.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(extend("default" = []))]
+    pub keys: Vec<KeyDoc>,
+}
+
+/// How control points move from a key to the next one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Interpolation {
+    /// Catmull-Rom through the neighbouring keys (smooth in time).
+    #[default]
+    Smooth,
+    /// Straight lines at constant speed.
+    Linear,
+    /// Stay at this key until the next one.
+    Hold,
+}
+
+/// A feature's control points at one time.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct KeyDoc {
+    /// Time in seconds, strictly increasing from key to key.
+    pub t: f64,
+    /// The control points at time `t`: as many as `rest` has, in the same order.
+    pub points: Vec<Point>,
+    /// How the points move from this key to the next: `smooth` (default), `linear` or
+    /// `hold`.
+    #[serde(default, skip_serializing_if = "is_smooth")]
+    #[schemars(extend("default" = "smooth"))]
+    pub interpolation: Interpolation,
+}
+
+fn default_fps() -> f64 {
+    24.0
+}
+fn default_background() -> [u8; 4] {
+    [255, 255, 255, 255]
+}
+fn default_tolerance() -> f64 {
+    0.01
+}
+fn default_grid_step() -> u32 {
+    1
+}
+fn default_true() -> bool {
+    true
+}
+fn is_true(v: &bool) -> bool {
+    *v
+}
+fn is_false(v: &bool) -> bool {
+    !*v
+}
+fn is_zero_offset(v: &[f64; 2]) -> bool {
+    *v == [0.0, 0.0]
+}
+fn is_smooth(v: &Interpolation) -> bool {
+    *v == Interpolation::Smooth
+}
+
+/// The JSON Schema (draft 2020-12) of the scene format, generated from [`SceneDoc`].
+pub fn schema() -> serde_json::Value {
+    let settings = schemars::generate::SchemaSettings::draft2020_12();
+    let schema = settings.into_generator().into_root_schema_for::<SceneDoc>();
+    serde_json::to_value(schema).expect("a schema is always valid JSON")
+}
+
+/// [`schema`] as pretty-printed JSON text.
+pub fn schema_json() -> String {
+    serde_json::to_string_pretty(&schema()).expect("a schema is always valid JSON")
+}

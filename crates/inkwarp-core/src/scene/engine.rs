@@ -1,0 +1,490 @@
+//! The scene engine: the drawing at time t, its samples per layer, the layer's field (warm
+//! started from the previous frame), and the frame composited back to front.
+
+use std::ops::Range;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+
+use super::doc::{Method, Scheme, SolverDoc};
+use super::uses::{
+    points_at, solve, Canvas, FeatureSampler, RgbaImage, SampleOptions, SolveMethod, SolveOptions,
+    SolveReport,
+};
+use super::{Scene, SceneError};
+use crate::field::Field;
+use crate::geometry::{Kind, Point, Sample};
+use crate::grid::Grid;
+
+/// Whether `method` can compute fields in this build. `tps` always can; the other
+/// interpolants (DESIGN §6) come from the `methods` module through [`compute_field`].
+pub fn method_available(method: Method) -> bool {
+    matches!(method, Method::Tps)
+}
+
+/// The one place where a layer's field is computed by its method: the grid thin plate
+/// here, the other interpolants (DESIGN §6) through the `methods` module. They get the
+/// samples grouped by feature, because Beier–Neely needs each curve's samples in order
+/// (its line pairs) apart from the points.
+fn compute_field(
+    method: Method,
+    grid: &Grid,
+    features: &[FeatureSamples],
+    options: &SolveOptions,
+    initial: Option<&Field>,
+) -> Result<(Field, Option<SolveReport>), String> {
+    match method {
+        Method::Tps => {
+            let samples: Vec<Sample> = features
+                .iter()
+                .flat_map(|f| f.samples.iter().copied())
+                .collect();
+            solve(grid, &samples, options, initial)
+                .map(|(field, report)| (field, Some(report)))
+                .map_err(|e| e.to_string())
+        }
+        other => Err(not_available(other)),
+    }
+}
+
+fn not_available(method: Method) -> String {
+    format!(
+        "the method \"{}\" is not available in this version of inkwarp yet; use \"tps\"",
+        method.name()
+    )
+}
+
+/// One driving feature's samples at one time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FeatureSamples {
+    /// Index of the feature in the scene.
+    pub feature: usize,
+    /// Its kind.
+    pub kind: Kind,
+    /// Whether its curve is closed (regions always are).
+    pub closed: bool,
+    /// Its samples: a curve's in order along the curve (a region's outline first, then
+    /// its interior nodes).
+    pub samples: Vec<Sample>,
+}
+
+/// The engine's solve options for a layer's settings.
+#[allow(clippy::needless_update)] // SolveOptions has more fields than the scene sets
+pub(crate) fn solve_options(solver: &SolverDoc) -> SolveOptions {
+    SolveOptions {
+        tension: solver.tension,
+        tolerance_px: solver.tolerance,
+        grid_step: solver.grid_step as usize,
+        max_cycles: solver.max_cycles.map(|c| c as usize),
+        method: match solver.scheme {
+            Scheme::Multigrid => SolveMethod::Multigrid,
+            Scheme::Southwell => SolveMethod::Southwell,
+        },
+        ..SolveOptions::default()
+    }
+}
+
+/// A layer's field at one time, with the solver's report (`None` for methods that have no
+/// iterations to report).
+#[derive(Clone, Debug)]
+pub struct LayerSolve {
+    pub field: Field,
+    pub report: Option<SolveReport>,
+}
+
+/// Consecutive frames are solved in chains of this many, each chain starting cold at a
+/// frame index that is a multiple of it and warm-starting every later frame from the one
+/// before. Because the chains do not depend on how many threads render them, a frame's
+/// pixels do not depend on the number of cores.
+pub const WARM_CHAIN_FRAMES: usize = 16;
+
+impl Scene {
+    /// The control points of feature `feature` at time `time_s`.
+    pub fn pose_at(&self, feature: usize, time_s: f64) -> Vec<Point> {
+        let track = &self.tracks()[feature];
+        points_at(&track.rest, &track.keys, time_s)
+    }
+
+    /// The constraints that drive layer `layer` at time `time_s`, feature by feature:
+    /// every driving feature sampled at the layer's grid spacing, region interiors on the
+    /// layer's grid.
+    pub fn layer_feature_samples(
+        &self,
+        layer: usize,
+        time_s: f64,
+    ) -> Result<Vec<FeatureSamples>, SceneError> {
+        let layer_ref = &self.layers()[layer];
+        let spacing_px = layer_ref.solver.grid_step as f64;
+        let mut out = Vec::with_capacity(layer_ref.drivers.len());
+        for (&i, sampler) in layer_ref.drivers.iter().zip(&layer_ref.samplers) {
+            let track = &self.tracks()[i];
+            let fail = |e: String| {
+                SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"))
+            };
+            // The rest geometry is prepared once per layer (for a region: its interior
+            // nodes and their mean value coordinates); each frame only poses it.
+            let sampler = sampler
+                .get_or_init(|| {
+                    let options = SampleOptions {
+                        closed: track.closed,
+                        spline_outline: track.spline_outline,
+                        spacing_px,
+                    };
+                    let domain = (track.kind == Kind::Region).then_some(&layer_ref.grid);
+                    FeatureSampler::new(track.kind, &track.rest, &options, domain)
+                        .map_err(|e| e.to_string())
+                })
+                .as_ref()
+                .map_err(|e| fail(e.clone()))?;
+            let pose = self.pose_at(i, time_s);
+            let samples = sampler.sample(&pose).map_err(|e| fail(e.to_string()))?;
+            out.push(FeatureSamples {
+                feature: i,
+                kind: track.kind,
+                closed: track.closed,
+                samples,
+            });
+        }
+        Ok(out)
+    }
+
+    /// All the constraints that drive layer `layer` at time `time_s` (see
+    /// [`Scene::layer_feature_samples`]).
+    pub fn layer_samples(&self, layer: usize, time_s: f64) -> Result<Vec<Sample>, SceneError> {
+        Ok(self
+            .layer_feature_samples(layer, time_s)?
+            .into_iter()
+            .flat_map(|f| f.samples)
+            .collect())
+    }
+
+    /// The field of layer `layer` at time `time_s`, starting from `initial` (warm start)
+    /// or from zero.
+    pub fn layer_field(
+        &self,
+        layer: usize,
+        time_s: f64,
+        initial: Option<&Field>,
+    ) -> Result<LayerSolve, SceneError> {
+        self.layer_field_with(layer, time_s, initial, None)
+    }
+
+    /// [`Scene::layer_field`] with `method` instead of the layer's own, when given.
+    pub fn layer_field_with(
+        &self,
+        layer: usize,
+        time_s: f64,
+        initial: Option<&Field>,
+        method: Option<Method>,
+    ) -> Result<LayerSolve, SceneError> {
+        let layer_ref = &self.layers()[layer];
+        let method = method.unwrap_or(layer_ref.solver.method);
+        if !method_available(method) {
+            return Err(SceneError::one("", not_available(method)));
+        }
+        let features = self.layer_feature_samples(layer, time_s)?;
+        let options = solve_options(&layer_ref.solver);
+        let initial = initial.filter(|f| f.width == self.width() && f.height == self.height());
+        let (field, report) = compute_field(method, &layer_ref.grid, &features, &options, initial)
+            .map_err(|e| {
+                SceneError::one(
+                    format!("layers[{layer}]"),
+                    format!("at t = {time_s} s: {e}"),
+                )
+            })?;
+        Ok(LayerSolve { field, report })
+    }
+
+    /// Whether layer `layer` shows in frames (visible, with an image).
+    pub fn layer_is_drawn(&self, layer: usize) -> bool {
+        let l = &self.layers()[layer];
+        l.visible && l.image.is_some()
+    }
+
+    /// Composites the drawn layers, back to front, each warped by its field (`fields[j]`
+    /// for layer `j`; ignored for layers that are not drawn) over the background.
+    pub fn composite(&self, fields: &[Option<Field>]) -> RgbaImage {
+        let mut canvas = Canvas::new(self.width(), self.height(), self.doc().background);
+        for (j, layer) in self.layers().iter().enumerate() {
+            if let (true, Some(image), Some(Some(field))) =
+                (layer.visible, &layer.image, fields.get(j))
+            {
+                canvas.draw_layer(image, field, &layer.grid, layer.offset);
+            }
+        }
+        canvas.to_rgba8()
+    }
+
+    /// The frame at time `time_s`, every field solved cold.
+    pub fn render(&self, time_s: f64) -> Result<RgbaImage, SceneError> {
+        Animator::new(self).render(time_s)
+    }
+
+    /// [`Scene::render`] with every layer's field computed by `method` instead of the
+    /// layer's own, when given.
+    pub fn render_with(
+        &self,
+        time_s: f64,
+        method: Option<Method>,
+    ) -> Result<RgbaImage, SceneError> {
+        Animator::with_method(self, method).render(time_s)
+    }
+
+    /// Frames `frames` rendered by up to `threads` threads (0: [`default_frame_threads`]),
+    /// delivered in order. See [`WARM_CHAIN_FRAMES`] for how warm starts are chained.
+    pub fn frames(self: &Arc<Self>, frames: Range<usize>, threads: usize) -> FrameStream {
+        FrameStream::new(Arc::clone(self), frames, threads)
+    }
+}
+
+/// Renders frames one after another, warm-starting each layer's solve from that layer's
+/// previous field.
+#[derive(Debug)]
+pub struct Animator<'a> {
+    scene: &'a Scene,
+    warm: Vec<Option<Field>>,
+    method: Option<Method>,
+}
+
+impl<'a> Animator<'a> {
+    /// An animator with no previous fields (the first solve is cold).
+    pub fn new(scene: &'a Scene) -> Self {
+        Self::with_method(scene, None)
+    }
+
+    /// An animator that computes every field with `method` (when given) instead of each
+    /// layer's own.
+    pub fn with_method(scene: &'a Scene, method: Option<Method>) -> Self {
+        Animator {
+            scene,
+            warm: vec![None; scene.layers().len()],
+            method,
+        }
+    }
+
+    /// Forgets the previous fields, so that the next solves are cold.
+    pub fn reset(&mut self) {
+        self.warm.iter_mut().for_each(|f| *f = None);
+    }
+
+    /// The field of layer `layer` at `time_s`, warm-started from its previous one.
+    pub fn layer_field(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
+        let solved =
+            self.scene
+                .layer_field_with(layer, time_s, self.warm[layer].as_ref(), self.method)?;
+        self.warm[layer] = Some(solved.field.clone());
+        Ok(solved)
+    }
+
+    /// The frame at `time_s`: every drawn layer solved (warm) and composited.
+    pub fn render(&mut self, time_s: f64) -> Result<RgbaImage, SceneError> {
+        for layer in 0..self.scene.layers().len() {
+            if self.scene.layer_is_drawn(layer) {
+                let solved = self.scene.layer_field_with(
+                    layer,
+                    time_s,
+                    self.warm[layer].as_ref(),
+                    self.method,
+                )?;
+                self.warm[layer] = Some(solved.field);
+            }
+        }
+        Ok(self.scene.composite(&self.warm))
+    }
+}
+
+type FrameResult = Result<(usize, RgbaImage), SceneError>;
+
+/// How many frames [`FrameStream`] renders at once when not told: one per four cores.
+///
+/// The solver and the renderer already spread each frame over every core (rayon), so
+/// frame-level parallelism only fills their serial parts (coarse grids, sampling,
+/// compositing). On two cores it measured slower than rendering frames one at a time
+/// (0.79 against 0.74 of the cold time per frame at 512×512), hence one worker per four
+/// cores: sequential on small machines, a few chains at once on big ones.
+pub fn default_frame_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get() / 4).max(1)
+}
+
+/// An animation's frames, in order, as an iterator of `(index, image)`; rendered on
+/// worker threads (one warm-start chain per thread at a time) when more than one thread is
+/// allowed and there is more than one chain. Dropping it stops the workers.
+#[derive(Debug)]
+pub struct FrameStream {
+    scene: Arc<Scene>,
+    chains: Vec<Range<usize>>,
+    next_chain: usize,
+    /// Sequential mode: the chain being rendered here and its animator state.
+    sequential: Option<(Range<usize>, Vec<Option<Field>>)>,
+    method: Option<Method>,
+    receivers: Vec<Receiver<FrameResult>>,
+    workers: Vec<JoinHandle<()>>,
+    failed: bool,
+}
+
+impl FrameStream {
+    /// Frames `frames` (clamped to the scene) by up to `threads` threads (0: the default,
+    /// [`default_frame_threads`]).
+    pub fn new(scene: Arc<Scene>, frames: Range<usize>, threads: usize) -> Self {
+        Self::with_method(scene, frames, threads, None)
+    }
+
+    /// [`FrameStream::new`], every field computed by `method` (when given) instead of each
+    /// layer's own.
+    pub fn with_method(
+        scene: Arc<Scene>,
+        frames: Range<usize>,
+        threads: usize,
+        method: Option<Method>,
+    ) -> Self {
+        let end = frames.end.min(scene.frame_count());
+        let mut chains = Vec::new();
+        let mut start = frames.start;
+        while start < end {
+            let stop = ((start / WARM_CHAIN_FRAMES + 1) * WARM_CHAIN_FRAMES).min(end);
+            chains.push(start..stop);
+            start = stop;
+        }
+        let threads = if threads == 0 { default_frame_threads() } else { threads }.min(chains.len());
+        let mut stream = FrameStream {
+            scene,
+            chains,
+            next_chain: 0,
+            sequential: None,
+            method,
+            receivers: Vec::new(),
+            workers: Vec::new(),
+            failed: false,
+        };
+        if threads > 1 {
+            stream.start_workers(threads);
+        }
+        stream
+    }
+
+    /// Number of frames this stream delivers in all.
+    pub fn len(&self) -> usize {
+        self.chains.iter().map(|c| c.len()).sum()
+    }
+
+    /// Whether the stream delivers no frame at all.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn start_workers(&mut self, threads: usize) {
+        let mut senders = Vec::with_capacity(self.chains.len());
+        for _ in &self.chains {
+            // Two frames of slack per chain bound the memory held by workers running ahead.
+            let (tx, rx) = sync_channel::<FrameResult>(2);
+            senders.push(Some(tx));
+            self.receivers.push(rx);
+        }
+        let senders: Arc<Mutex<Vec<Option<SyncSender<FrameResult>>>>> =
+            Arc::new(Mutex::new(senders));
+        let next = Arc::new(AtomicUsize::new(0));
+        let chains = Arc::new(self.chains.clone());
+        let method = self.method;
+        for _ in 0..threads {
+            let (scene, senders, next, chains) = (
+                Arc::clone(&self.scene),
+                Arc::clone(&senders),
+                Arc::clone(&next),
+                Arc::clone(&chains),
+            );
+            self.workers.push(std::thread::spawn(move || {
+                let mut animator = Animator::with_method(&scene, method);
+                loop {
+                    let c = next.fetch_add(1, Ordering::Relaxed);
+                    if c >= chains.len() {
+                        return;
+                    }
+                    // Taking the sender means it is dropped when this worker finishes the
+                    // chain or dies, which the consumer sees as a disconnection.
+                    let Some(tx) = senders.lock().map(|mut s| s[c].take()).ok().flatten() else {
+                        return;
+                    };
+                    animator.reset();
+                    for i in chains[c].clone() {
+                        let frame = animator
+                            .render(scene.frame_time_s(i))
+                            .map(|image| (i, image));
+                        let stop = frame.is_err();
+                        if tx.send(frame).is_err() || stop {
+                            return;
+                        }
+                    }
+                }
+            }));
+        }
+    }
+
+    fn next_sequential(&mut self) -> Option<FrameResult> {
+        if self
+            .sequential
+            .as_ref()
+            .map_or(true, |(range, _)| range.is_empty())
+        {
+            let chain = self.chains.get(self.next_chain)?.clone();
+            self.next_chain += 1;
+            self.sequential = Some((chain, vec![None; self.scene.layers().len()]));
+        }
+        let scene = Arc::clone(&self.scene);
+        let (range, warm) = self.sequential.as_mut()?;
+        let i = range.next()?;
+        let mut animator = Animator {
+            scene: &scene,
+            warm: std::mem::take(warm),
+            method: self.method,
+        };
+        let frame = animator
+            .render(scene.frame_time_s(i))
+            .map(|image| (i, image));
+        *warm = animator.warm;
+        Some(frame)
+    }
+}
+
+impl Iterator for FrameStream {
+    type Item = FrameResult;
+
+    fn next(&mut self) -> Option<FrameResult> {
+        if self.failed {
+            return None;
+        }
+        let item = if self.receivers.is_empty() {
+            self.next_sequential()
+        } else {
+            let c = self.next_chain;
+            let receiver = self.receivers.get(c)?;
+            let chain_end = self.chains[c].end;
+            match receiver.recv() {
+                Ok(item) => {
+                    if matches!(&item, Ok((i, _)) if i + 1 == chain_end) {
+                        self.next_chain += 1;
+                    }
+                    Some(item)
+                }
+                Err(_) => Some(Err(SceneError::one(
+                    "",
+                    "a rendering thread stopped unexpectedly (this is a bug in inkwarp)",
+                ))),
+            }
+        };
+        if matches!(item, Some(Err(_))) {
+            self.failed = true;
+        }
+        item
+    }
+}
+
+impl Drop for FrameStream {
+    fn drop(&mut self) {
+        // Dropping the receivers makes every blocked worker's send fail, so it exits.
+        self.receivers.clear();
+        for worker in self.workers.drain(..) {
+            let _ = worker.join();
+        }
+    }
+}

@@ -1,0 +1,125 @@
+//! Image references: `data:` URIs decoded here, other references read by the front end
+//! (the core never opens files), PNG/JPEG decoded from bytes.
+
+use base64::Engine as _;
+
+use super::uses::RgbaImage;
+
+/// Whether `reference` is a `data:` URI rather than a path.
+pub fn is_data_uri(reference: &str) -> bool {
+    reference.len() >= 5 && reference[..5].eq_ignore_ascii_case("data:")
+}
+
+/// The bytes of a base64 `data:` URI (`data:image/png;base64,...`).
+pub fn data_uri_bytes(uri: &str) -> Result<Vec<u8>, String> {
+    let rest = &uri[5..];
+    let comma = rest.find(',').ok_or_else(|| {
+        "this data: URI has no comma before its data; write data:image/png;base64,<data>"
+            .to_string()
+    })?;
+    let (header, payload) = (&rest[..comma], &rest[comma + 1..]);
+    if !header
+        .split(';')
+        .any(|part| part.eq_ignore_ascii_case("base64"))
+    {
+        return Err(
+            "only base64 data: URIs are supported; write data:image/png;base64,<data>".to_string(),
+        );
+    }
+    let cleaned: String = payload
+        .chars()
+        .filter(|c| !c.is_ascii_whitespace())
+        .collect();
+    base64::engine::general_purpose::STANDARD
+        .decode(cleaned.as_bytes())
+        .or_else(|_| {
+            base64::engine::general_purpose::STANDARD_NO_PAD.decode(cleaned.trim_end_matches('='))
+        })
+        .map_err(|e| format!("the data: URI is not valid base64 ({e})"))
+}
+
+/// Decodes a PNG or JPEG into straight-alpha RGBA8.
+pub fn decode_image(bytes: &[u8]) -> Result<RgbaImage, String> {
+    let format = image::guess_format(bytes).map_err(|_| {
+        "not a PNG or JPEG image (unrecognised file contents); save it as PNG or JPEG".to_string()
+    })?;
+    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
+        return Err(format!(
+            "a {format:?} image; inkwarp reads PNG and JPEG, save it as one of those"
+        ));
+    }
+    let decoded = image::load_from_memory_with_format(bytes, format)
+        .map_err(|e| format!("the {format:?} image could not be decoded ({e})"))?;
+    let rgba = decoded.to_rgba8();
+    let (width, height) = (rgba.width() as usize, rgba.height() as usize);
+    Ok(RgbaImage {
+        width,
+        height,
+        data: rgba.into_raw(),
+    })
+}
+
+/// A matte from an image: grey level times alpha, so black or transparent pixels are 0.
+pub fn matte_values(image: &RgbaImage) -> Vec<u8> {
+    image
+        .data
+        .chunks_exact(4)
+        .map(|px| {
+            // Rec. 601 luma, then scaled by alpha; exact for pure black/white and grey.
+            let luma = (299 * px[0] as u32 + 587 * px[1] as u32 + 114 * px[2] as u32 + 500) / 1000;
+            ((luma * px[3] as u32 + 127) / 255) as u8
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn png(width: u32, height: u32, pixels: &[u8]) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        image::ImageEncoder::write_image(
+            image::codecs::png::PngEncoder::new(&mut bytes),
+            pixels,
+            width,
+            height,
+            image::ExtendedColorType::Rgba8,
+        )
+        .unwrap();
+        bytes
+    }
+
+    #[test]
+    fn decodes_a_png_data_uri_exactly() {
+        let pixels: Vec<u8> = (0..2 * 3 * 4).map(|i| (i * 10) as u8).collect();
+        let encoded = base64::engine::general_purpose::STANDARD.encode(png(2, 3, &pixels));
+        let uri = format!("data:image/png;base64,{encoded}");
+        assert!(is_data_uri(&uri));
+        let image = decode_image(&data_uri_bytes(&uri).unwrap()).unwrap();
+        assert_eq!((image.width, image.height), (2, 3));
+        assert_eq!(image.data, pixels);
+    }
+
+    #[test]
+    fn rejects_what_is_not_an_image() {
+        assert!(decode_image(b"hello")
+            .unwrap_err()
+            .contains("not a PNG or JPEG"));
+        assert!(data_uri_bytes("data:image/png,abc")
+            .unwrap_err()
+            .contains("base64"));
+        assert!(data_uri_bytes("data:image/png;base64,@@@")
+            .unwrap_err()
+            .contains("not valid base64"));
+    }
+
+    #[test]
+    fn matte_is_grey_times_alpha() {
+        let image = RgbaImage {
+            width: 3,
+            height: 1,
+            data: vec![255, 255, 255, 255, 0, 0, 0, 255, 255, 255, 255, 0],
+        };
+        assert_eq!(matte_values(&image), vec![255, 0, 0]);
+    }
+}

@@ -1,0 +1,699 @@
+//! Scenes (DESIGN §8–9): the file format, its validation, and the engine that turns a
+//! scene into fields and frames.
+//!
+//! - [`doc`]: the format as serde types, and its JSON Schema.
+//! - [`parse_doc`] / [`check_json`]: JSON text to a validated [`SceneDoc`], every problem
+//!   reported as a [`Problem`] (a JSON path and a message that says how to fix it).
+//! - [`Scene::from_json`] / [`Scene::resolve`]: a document plus its images (read by the
+//!   front end through a loader callback; `data:` URIs decoded here) to a renderable scene.
+//! - [`Scene::render`], [`Animator`], [`FrameStream`]: fields and frames, warm-started from
+//!   frame to frame, in parallel across cores for whole animations.
+//!
+//! ```
+//! use inkwarp_core::scene::{no_files, Scene};
+//!
+//! let json = r#"{"inkwarp": 1, "width": 8, "height": 6, "layers": [{"name": "main"}],
+//!                "features": [{"id": "p", "kind": "point", "rest": [[3, 3]],
+//!                              "keys": [{"t": 0, "points": [[3, 3]]},
+//!                                       {"t": 1, "points": [[4, 3]]}]}]}"#;
+//! let scene = Scene::from_json(json, &mut no_files).unwrap();
+//! assert_eq!((scene.width(), scene.height(), scene.frame_count()), (8, 6, 25));
+//! let frame = scene.render(0.5).unwrap();
+//! assert_eq!(frame.data.len(), 8 * 6 * 4);
+//! ```
+
+pub mod doc;
+mod engine;
+pub mod images;
+mod shape;
+mod uses;
+mod validate;
+
+use std::collections::HashMap;
+use std::fmt;
+use std::sync::{Arc, OnceLock};
+
+use serde::Serialize;
+use serde_json::Value;
+
+pub use doc::*;
+pub use engine::{
+    method_available, Animator, FeatureSamples, FrameStream, LayerSolve, WARM_CHAIN_FRAMES,
+};
+pub use uses::RgbaImage;
+pub use validate::validate_doc;
+
+use crate::geometry::{Kind, Point};
+use crate::grid::Grid;
+
+/// One thing wrong with a scene: where (a JSON path such as `features[3].keys[1].points`,
+/// empty for the whole document) and what, with the fix where it is clear.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct Problem {
+    pub path: String,
+    pub message: String,
+}
+
+impl Problem {
+    /// A problem at `path`.
+    pub fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
+        Problem {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+}
+
+impl fmt::Display for Problem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.path.is_empty() {
+            write!(f, "{}", self.message)
+        } else {
+            write!(f, "{}: {}", self.path, self.message)
+        }
+    }
+}
+
+/// A scene that cannot be read or rendered, with every problem found (at least one).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub struct SceneError {
+    pub problems: Vec<Problem>,
+}
+
+impl SceneError {
+    /// An error with one problem.
+    pub fn one(path: impl Into<String>, message: impl Into<String>) -> Self {
+        SceneError {
+            problems: vec![Problem::new(path, message)],
+        }
+    }
+
+    /// The first problem's path.
+    pub fn path(&self) -> &str {
+        self.problems.first().map_or("", |p| p.path.as_str())
+    }
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.problems.as_slice() {
+            [] => write!(f, "the scene is invalid"),
+            [one] => write!(f, "{one}"),
+            many => {
+                write!(f, "{} problems:", many.len())?;
+                for problem in many {
+                    write!(f, "\n  {problem}")?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// The schema as a value, generated once.
+fn cached_schema() -> &'static Value {
+    static SCHEMA: OnceLock<Value> = OnceLock::new();
+    SCHEMA.get_or_init(schema)
+}
+
+/// Parses and validates scene JSON text (everything but the images).
+pub fn parse_doc(text: &str) -> Result<SceneDoc, SceneError> {
+    let (doc, problems) = parse_collecting(text);
+    match doc {
+        Some(doc) if problems.is_empty() => Ok(doc),
+        _ => Err(SceneError { problems }),
+    }
+}
+
+/// Every problem of scene JSON text that can be found without its images.
+pub fn check_json(text: &str) -> Vec<Problem> {
+    parse_collecting(text).1
+}
+
+/// The document (when it could be built at all) and every problem found on the way.
+fn parse_collecting(text: &str) -> (Option<SceneDoc>, Vec<Problem>) {
+    let value: Value = match serde_json::from_str(text) {
+        Ok(value) => value,
+        Err(err) => {
+            return (
+                None,
+                vec![Problem::new(
+                    "",
+                    format!("the scene is not valid JSON: {err}"),
+                )],
+            );
+        }
+    };
+    doc_from_value(&value)
+}
+
+/// Shape check, then typed deserialization, then the meaning check.
+fn doc_from_value(value: &Value) -> (Option<SceneDoc>, Vec<Problem>) {
+    let parsed = parse_value(value);
+    (parsed.doc, parsed.problems)
+}
+
+/// The outcome of reading a document: the document (when one could be built), every
+/// problem found, and for a document rebuilt without its broken features and layers, where
+/// each kept one was in the original (so later problems get the original paths).
+struct Parsed {
+    doc: Option<SceneDoc>,
+    problems: Vec<Problem>,
+    feature_origin: Vec<usize>,
+    layer_origin: Vec<usize>,
+}
+
+impl Parsed {
+    /// `path` (of the rebuilt document) as a path of the original one.
+    fn original_path(&self, path: &str) -> String {
+        for (prefix, origin) in [
+            ("features[", &self.feature_origin),
+            ("layers[", &self.layer_origin),
+        ] {
+            if let Some(rest) = path.strip_prefix(prefix) {
+                if let Some((index, tail)) = rest.split_once(']') {
+                    if let Some(&original) = index.parse::<usize>().ok().and_then(|i| origin.get(i))
+                    {
+                        return format!("{prefix}{original}]{tail}");
+                    }
+                }
+            }
+        }
+        path.to_string()
+    }
+
+    /// Adds problems of the rebuilt document, skipping places that already have one.
+    fn extend(&mut self, problems: Vec<Problem>) {
+        for mut problem in problems {
+            problem.path = self.original_path(&problem.path);
+            if !self.problems.iter().any(|p| p.path == problem.path) {
+                self.problems.push(problem);
+            }
+        }
+    }
+}
+
+fn parse_value(value: &Value) -> Parsed {
+    let (problems, unknown_keys) = shape::check_detailed(value, cached_schema());
+    let mut parsed = Parsed {
+        doc: None,
+        problems,
+        feature_origin: Vec::new(),
+        layer_origin: Vec::new(),
+    };
+    if parsed.problems.is_empty() {
+        match serde_path_to_error::deserialize::<_, SceneDoc>(value) {
+            Ok(doc) => {
+                let problems = validate_doc(&doc);
+                parsed.feature_origin = (0..doc.features.len()).collect();
+                parsed.layer_origin = (0..doc.layers.len()).collect();
+                parsed.doc = Some(doc);
+                parsed.extend(problems);
+            }
+            Err(err) => {
+                let path = err.path().to_string();
+                let path = if path == "." { String::new() } else { path };
+                parsed
+                    .problems
+                    .push(Problem::new(path, err.into_inner().to_string()));
+            }
+        }
+        return parsed;
+    }
+    // With shape problems, rebuild the document without what is broken (unknown keys,
+    // features and layers with problems, top-level values replaced by their defaults) so
+    // that the meaning check and the images can report their problems too.
+    let Value::Object(mut map) = value.clone() else {
+        return parsed;
+    };
+    strip_unknown_keys_in_map(&mut map);
+    // Unknown keys were set aside, so they break nothing.
+    let broken = |prefix: &str| {
+        parsed
+            .problems
+            .iter()
+            .filter(|p| !unknown_keys.contains(&p.path))
+            .any(|p| {
+                p.path == prefix
+                    || p.path.starts_with(&format!("{prefix}."))
+                    || p.path.starts_with(&format!("{prefix}["))
+            })
+    };
+    let mut set_aside_ids = Vec::new();
+    let mut feature_origin = Vec::new();
+    if let Some(Value::Array(features)) = map.get_mut("features") {
+        let mut kept = Vec::new();
+        for (i, feature) in std::mem::take(features).into_iter().enumerate() {
+            if broken(&format!("features[{i}]")) {
+                if let Some(id) = feature.get("id").and_then(Value::as_str) {
+                    set_aside_ids.push(id.to_string());
+                }
+            } else {
+                kept.push(feature);
+                feature_origin.push(i);
+            }
+        }
+        *features = kept;
+    }
+    let mut layer_origin = Vec::new();
+    if let Some(Value::Array(layers)) = map.get_mut("layers") {
+        let mut kept = Vec::new();
+        for (j, layer) in std::mem::take(layers).into_iter().enumerate() {
+            if !broken(&format!("layers[{j}]")) {
+                kept.push(layer);
+                layer_origin.push(j);
+            }
+        }
+        *layers = kept;
+    }
+    if let Some(Value::Object(solver)) = map.get_mut("solver") {
+        solver.retain(|key, _| !broken(&format!("solver.{key}")));
+    }
+    // Arrays and the solver were repaired element by element above; they are broken as a
+    // whole only when the value itself has the wrong type.
+    let broken_top: Vec<String> = map
+        .keys()
+        .filter(|k| match k.as_str() {
+            "features" | "layers" | "solver" => parsed.problems.iter().any(|p| p.path == **k),
+            _ => broken(k),
+        })
+        .cloned()
+        .collect();
+    for key in broken_top {
+        match key.as_str() {
+            "inkwarp" => {
+                map.insert(key, Value::from(FORMAT_VERSION));
+            }
+            "layers" | "features" => {
+                map.insert(key, Value::Array(Vec::new()));
+            }
+            _ => {
+                map.remove(&key);
+            }
+        }
+    }
+    for key in ["inkwarp", "layers"] {
+        map.entry(key).or_insert_with(|| {
+            if key == "inkwarp" {
+                Value::from(FORMAT_VERSION)
+            } else {
+                Value::Array(Vec::new())
+            }
+        });
+    }
+    parsed.feature_origin = feature_origin;
+    parsed.layer_origin = layer_origin;
+    if let Ok(doc) = serde_json::from_value::<SceneDoc>(Value::Object(map)) {
+        let problems = validate::validate_doc_knowing(&doc, &set_aside_ids);
+        parsed.doc = Some(doc);
+        parsed.extend(problems);
+    }
+    parsed
+}
+
+fn strip_unknown_keys_in_map(map: &mut serde_json::Map<String, Value>) {
+    let mut value = Value::Object(std::mem::take(map));
+    strip_unknown_keys(&mut value, cached_schema(), cached_schema());
+    if let Value::Object(stripped) = value {
+        *map = stripped;
+    }
+}
+
+/// Removes object keys that the schema does not know (they were reported already).
+fn strip_unknown_keys(value: &mut Value, schema: &Value, root: &Value) {
+    let schema = match schema
+        .get("$ref")
+        .and_then(Value::as_str)
+        .and_then(|r| r.strip_prefix("#/$defs/"))
+    {
+        Some(name) => root
+            .get("$defs")
+            .and_then(|d| d.get(name))
+            .unwrap_or(schema),
+        None => schema,
+    };
+    if let Some(alternatives) = schema.get("anyOf").and_then(Value::as_array) {
+        for alternative in alternatives {
+            strip_unknown_keys(value, alternative, root);
+        }
+        return;
+    }
+    match value {
+        Value::Object(map) => {
+            if let Some(properties) = schema.get("properties").and_then(Value::as_object) {
+                map.retain(|key, _| properties.contains_key(key));
+                for (key, child) in map.iter_mut() {
+                    strip_unknown_keys(child, &properties[key], root);
+                }
+            }
+        }
+        Value::Array(items) => {
+            if let Some(item_schema) = schema.get("items") {
+                for item in items {
+                    strip_unknown_keys(item, item_schema, root);
+                }
+            }
+        }
+        _ => {}
+    }
+}
+
+/// A scene ready to render: its document, its decoded images, and per layer the solve
+/// domain (continuity matte and cuts) and the features that drive it.
+#[derive(Debug)]
+pub struct Scene {
+    doc: SceneDoc,
+    width: usize,
+    height: usize,
+    duration_s: f64,
+    frame_count: usize,
+    tracks: Vec<Track>,
+    layers: Vec<Layer>,
+}
+
+/// A feature in the engine's terms.
+#[derive(Debug)]
+pub(crate) struct Track {
+    pub kind: Kind,
+    pub rest: Vec<Point>,
+    pub keys: Vec<uses::Key>,
+    pub closed: bool,
+    pub spline_outline: bool,
+}
+
+/// A layer ready to render.
+#[derive(Debug)]
+pub struct Layer {
+    /// The layer's name.
+    pub name: String,
+    /// The picture with the alpha matte applied, when the layer has one.
+    pub image: Option<Arc<RgbaImage>>,
+    /// Active nodes and links: the continuity matte with the layer's cuts applied.
+    pub grid: Grid,
+    /// Indices (into the scene's features) of the features that move this layer (cuts
+    /// excluded: they are in `grid`).
+    pub drivers: Vec<usize>,
+    /// Where the layer is drawn in the frame.
+    pub offset: [f64; 2],
+    /// The scene's solver settings with the layer's overrides applied.
+    pub solver: SolverDoc,
+    /// Whether the layer is drawn.
+    pub visible: bool,
+    /// Per driver (same order as `drivers`): its rest geometry prepared for sampling on
+    /// this layer's grid, built on first use.
+    pub(crate) samplers: Vec<OnceLock<Result<uses::FeatureSampler, String>>>,
+}
+
+/// Reads the bytes behind an image reference that is not a `data:` URI (a path relative to
+/// the scene file); returns a message saying why when it cannot.
+pub type Loader<'a> = dyn FnMut(&str) -> Result<Vec<u8>, String> + 'a;
+
+/// A [`Loader`] for scenes whose images are all `data:` URIs (or that have none).
+pub fn no_files(reference: &str) -> Result<Vec<u8>, String> {
+    Err(format!(
+        "this scene can only use data: URIs, not the path \"{reference}\""
+    ))
+}
+
+impl Scene {
+    /// Parses, validates and resolves scene JSON text; `load` supplies the bytes of image
+    /// paths (`data:` URIs are decoded here). Every problem is reported, images included.
+    pub fn from_json(text: &str, load: &mut Loader<'_>) -> Result<Scene, SceneError> {
+        let value: Value = serde_json::from_str(text)
+            .map_err(|err| SceneError::one("", format!("the scene is not valid JSON: {err}")))?;
+        let mut parsed = parse_value(&value);
+        match parsed.doc.take() {
+            Some(doc) => Self::resolve_with(doc, parsed, load),
+            None => Err(SceneError {
+                problems: parsed.problems,
+            }),
+        }
+    }
+
+    /// Validates `doc` and loads its images (see [`Scene::from_json`]).
+    pub fn resolve(doc: SceneDoc, load: &mut Loader<'_>) -> Result<Scene, SceneError> {
+        let parsed = Parsed {
+            doc: None,
+            problems: validate_doc(&doc),
+            feature_origin: (0..doc.features.len()).collect(),
+            layer_origin: (0..doc.layers.len()).collect(),
+        };
+        Self::resolve_with(doc, parsed, load)
+    }
+
+    fn resolve_with(
+        doc: SceneDoc,
+        mut parsed: Parsed,
+        load: &mut Loader<'_>,
+    ) -> Result<Scene, SceneError> {
+        let mut problems = Vec::new();
+        // Decode every image once, keep the problems of each place that refers to it.
+        let mut decoded: HashMap<String, Result<Arc<RgbaImage>, String>> = HashMap::new();
+        let mut layer_images: Vec<[Option<Arc<RgbaImage>>; 3]> = Vec::new();
+        let mut size: Option<(usize, usize, String)> = match (doc.width, doc.height) {
+            (Some(w), Some(h)) if w > 0 && h > 0 => {
+                Some((w as usize, h as usize, "width and height".to_string()))
+            }
+            _ => None,
+        };
+        for (j, layer) in doc.layers.iter().enumerate() {
+            let mut slots: [Option<Arc<RgbaImage>>; 3] = [None, None, None];
+            for (slot, (key, reference)) in [
+                ("image", &layer.image),
+                ("alpha", &layer.alpha),
+                ("continuity", &layer.continuity),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let Some(reference) = reference.as_deref().filter(|r| !r.trim().is_empty()) else {
+                    continue;
+                };
+                let path = format!("layers[{j}].{key}");
+                let result = decoded
+                    .entry(reference.to_string())
+                    .or_insert_with(|| {
+                        let bytes = if images::is_data_uri(reference) {
+                            images::data_uri_bytes(reference)
+                        } else {
+                            load(reference)
+                        };
+                        bytes.and_then(|b| images::decode_image(&b)).map(Arc::new)
+                    })
+                    .clone();
+                match result {
+                    Ok(image) => {
+                        match &size {
+                            None => {
+                                size = Some((image.width, image.height, path.clone()));
+                            }
+                            Some((w, h, from)) if (image.width, image.height) != (*w, *h) => {
+                                problems.push(Problem::new(
+                                    &path,
+                                    format!(
+                                        "{} is {}×{} pixels but the scene is {w}×{h} (from {from}); every \
+                                         image and matte must be the scene's size",
+                                        describe_reference(reference),
+                                        image.width,
+                                        image.height
+                                    ),
+                                ));
+                                continue;
+                            }
+                            Some(_) => {}
+                        }
+                        slots[slot] = Some(image);
+                    }
+                    Err(why) => problems.push(Problem::new(
+                        &path,
+                        format!("cannot use {}: {why}", describe_reference(reference)),
+                    )),
+                }
+            }
+            layer_images.push(slots);
+        }
+        if size.is_none() && !doc.layers.is_empty() {
+            problems.push(Problem::new(
+                "width",
+                "no layer has an image to take the frame size from; set \"width\" and \"height\"",
+            ));
+        }
+        parsed.extend(problems);
+        if !parsed.problems.is_empty() {
+            return Err(SceneError {
+                problems: parsed.problems,
+            });
+        }
+        let (width, height, _) = size.expect("checked above");
+
+        let tracks: Vec<Track> = doc
+            .features
+            .iter()
+            .map(|f| Track {
+                kind: f.kind.to_kind(),
+                rest: f.rest.clone(),
+                keys: f
+                    .keys
+                    .iter()
+                    .map(|k| uses::Key {
+                        time_s: k.t,
+                        points: k.points.clone(),
+                        interpolation: match k.interpolation {
+                            Interpolation::Smooth => uses::Interpolation::Smooth,
+                            Interpolation::Linear => uses::Interpolation::Linear,
+                            Interpolation::Hold => uses::Interpolation::Hold,
+                        },
+                    })
+                    .collect(),
+                closed: f.closed || f.kind == FeatureKind::Region,
+                spline_outline: f.curve == Some(Curve::Spline),
+            })
+            .collect();
+        let index_of: HashMap<&str, usize> = doc
+            .features
+            .iter()
+            .enumerate()
+            .map(|(i, f)| (f.id.as_str(), i))
+            .collect();
+
+        let mut layers = Vec::with_capacity(doc.layers.len());
+        for (layer, [image, alpha, continuity]) in doc.layers.iter().zip(layer_images) {
+            let image = match (image, alpha) {
+                (Some(image), Some(alpha)) => {
+                    let mut with_alpha = (*image).clone();
+                    for (px, a) in with_alpha
+                        .data
+                        .chunks_exact_mut(4)
+                        .zip(images::matte_values(&alpha))
+                    {
+                        px[3] = a;
+                    }
+                    Some(Arc::new(with_alpha))
+                }
+                (image, _) => image,
+            };
+            let mut grid = match (&continuity, &image) {
+                (Some(matte), _) => Grid::from_matte(width, height, &images::matte_values(matte)),
+                (None, Some(image)) => {
+                    let alpha: Vec<u8> = image.data.chunks_exact(4).map(|px| px[3]).collect();
+                    Grid::from_matte(width, height, &alpha)
+                }
+                (None, None) => Grid::new(width, height),
+            };
+            let members: Vec<usize> = match &layer.features {
+                Some(ids) => ids.iter().map(|id| index_of[id.as_str()]).collect(),
+                None => (0..tracks.len()).collect(),
+            };
+            let mut drivers = Vec::new();
+            for i in members {
+                let track = &tracks[i];
+                if track.kind == Kind::Cut {
+                    let line =
+                        uses::curve_polyline(Kind::Cut, &track.rest, track.closed, false, 0.5);
+                    uses::add_cut(&mut grid, &line);
+                } else {
+                    drivers.push(i);
+                }
+            }
+            let samplers = drivers.iter().map(|_| OnceLock::new()).collect();
+            layers.push(Layer {
+                samplers,
+                name: layer.name.clone(),
+                image,
+                grid,
+                drivers,
+                offset: layer.offset,
+                solver: layer
+                    .solver
+                    .as_ref()
+                    .map_or_else(|| doc.solver.clone(), |o| o.apply(&doc.solver)),
+                visible: layer.visible,
+            });
+        }
+
+        let fps = doc.fps;
+        let duration_s = doc.duration.unwrap_or_else(|| {
+            let last_key = doc
+                .features
+                .iter()
+                .flat_map(|f| f.keys.iter().map(|k| k.t))
+                .fold(0.0, f64::max);
+            last_key + 1.0 / fps
+        });
+        let frame_count = ((duration_s * fps - 1e-9).ceil() as usize).max(1);
+        Ok(Scene {
+            doc,
+            width,
+            height,
+            duration_s,
+            frame_count,
+            tracks,
+            layers,
+        })
+    }
+
+    /// The document this scene was built from (defaults filled in).
+    pub fn doc(&self) -> &SceneDoc {
+        &self.doc
+    }
+
+    /// Frame width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Frame height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Frames per second.
+    pub fn fps(&self) -> f64 {
+        self.doc.fps
+    }
+
+    /// Length in seconds (the document's, or up to and including the last key).
+    pub fn duration_s(&self) -> f64 {
+        self.duration_s
+    }
+
+    /// Number of frames: `ceil(duration * fps)`, at least 1.
+    pub fn frame_count(&self) -> usize {
+        self.frame_count
+    }
+
+    /// The time of frame `i`: `i / fps` seconds.
+    pub fn frame_time_s(&self, i: usize) -> f64 {
+        i as f64 / self.doc.fps
+    }
+
+    /// The layers, back to front.
+    pub fn layers(&self) -> &[Layer] {
+        &self.layers
+    }
+
+    /// The index of the layer called `name`.
+    pub fn layer_index(&self, name: &str) -> Option<usize> {
+        self.layers.iter().position(|l| l.name == name)
+    }
+
+    pub(crate) fn tracks(&self) -> &[Track] {
+        &self.tracks
+    }
+}
+
+fn describe_reference(reference: &str) -> String {
+    if images::is_data_uri(reference) {
+        let header: String = reference
+            .chars()
+            .take_while(|&c| c != ',')
+            .take(40)
+            .collect();
+        format!("the image in the {header},... URI")
+    } else {
+        format!("\"{reference}\"")
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,706 @@
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use base64::Engine as _;
+use serde_json::{json, Value};
+
+use super::*;
+
+/// PNG bytes of an RGBA image.
+fn png(width: u32, height: u32, pixels: &[u8]) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    image::ImageEncoder::write_image(
+        image::codecs::png::PngEncoder::new(&mut bytes),
+        pixels,
+        width,
+        height,
+        image::ExtendedColorType::Rgba8,
+    )
+    .unwrap();
+    bytes
+}
+
+/// A `width × height` picture: a red-to-green gradient, opaque except `holes`.
+fn picture(width: u32, height: u32, hole: impl Fn(u32, u32) -> bool) -> Vec<u8> {
+    let mut pixels = Vec::new();
+    for y in 0..height {
+        for x in 0..width {
+            let a = if hole(x, y) { 0 } else { 255 };
+            pixels.extend_from_slice(&[
+                (x * 255 / width.max(1)) as u8,
+                (y * 255 / height.max(1)) as u8,
+                64,
+                a,
+            ]);
+        }
+    }
+    png(width, height, &pixels)
+}
+
+fn data_uri(bytes: &[u8]) -> String {
+    format!(
+        "data:image/png;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(bytes)
+    )
+}
+
+/// A loader over in-memory files.
+fn files(entries: &[(&str, Vec<u8>)]) -> impl FnMut(&str) -> Result<Vec<u8>, String> {
+    let map: HashMap<String, Vec<u8>> = entries
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.clone()))
+        .collect();
+    move |reference: &str| {
+        map.get(reference)
+            .cloned()
+            .ok_or_else(|| format!("no such file \"{reference}\""))
+    }
+}
+
+fn valid_scene() -> Value {
+    json!({
+        "inkwarp": 1,
+        "fps": 10,
+        "duration": 1.0,
+        "layers": [
+            {"name": "back", "image": "back.png"},
+            {"name": "front", "image": "front.png", "features": ["dot", "lid"], "offset": [1, 0]}
+        ],
+        "features": [
+            {"id": "dot", "kind": "point", "rest": [[4, 4]],
+             "keys": [{"t": 0, "points": [[4, 4]]}, {"t": 1, "points": [[6, 5]], "interpolation": "linear"}]},
+            {"id": "lid", "kind": "spline", "rest": [[8, 2], [10, 3], [12, 2]],
+             "keys": [{"t": 0, "points": [[8, 2], [10, 3], [12, 2]]},
+                      {"t": 0.5, "points": [[8, 2], [10, 5], [12, 2]]}]},
+            {"id": "edge", "kind": "cut", "rest": [[2.5, 7.5], [8.5, 7.5]]}
+        ]
+    })
+}
+
+fn valid_files() -> Vec<(&'static str, Vec<u8>)> {
+    vec![
+        ("back.png", picture(16, 12, |_, _| false)),
+        ("front.png", picture(16, 12, |x, y| x < 3 && y < 3)),
+    ]
+}
+
+/// Every problem of a scene (with the valid files) as `path: message` lines.
+fn problems_of(scene: &Value) -> Vec<String> {
+    problems_with(scene, valid_files())
+}
+
+fn problems_with(scene: &Value, entries: Vec<(&'static str, Vec<u8>)>) -> Vec<String> {
+    let mut loader = files(&entries);
+    match Scene::from_json(&scene.to_string(), &mut loader) {
+        Ok(_) => Vec::new(),
+        Err(err) => err.problems.iter().map(|p| p.to_string()).collect(),
+    }
+}
+
+/// `scene` with the value at JSON pointer `pointer` set (an object's key may be new).
+fn with(mut scene: Value, pointer: &str, value: Value) -> Value {
+    let (parent, key) = pointer.rsplit_once('/').unwrap();
+    match scene
+        .pointer_mut(parent)
+        .unwrap_or_else(|| panic!("no {parent}"))
+    {
+        Value::Object(map) => {
+            map.insert(key.to_string(), value);
+        }
+        Value::Array(items) => items[key.parse::<usize>().unwrap()] = value,
+        _ => panic!("{parent} is not a container"),
+    }
+    scene
+}
+
+fn paths_of(scene: &Value) -> Vec<String> {
+    let mut loader = files(&valid_files());
+    match Scene::from_json(&scene.to_string(), &mut loader) {
+        Ok(_) => Vec::new(),
+        Err(err) => err.problems.into_iter().map(|p| p.path).collect(),
+    }
+}
+
+#[test]
+fn the_valid_scene_resolves() {
+    let mut loader = files(&valid_files());
+    let scene = Scene::from_json(&valid_scene().to_string(), &mut loader).unwrap();
+    assert_eq!(
+        (scene.width(), scene.height(), scene.frame_count()),
+        (16, 12, 10)
+    );
+    assert_eq!(scene.layers().len(), 2);
+    assert_eq!(scene.layers()[0].drivers, vec![0, 1]);
+    assert_eq!(scene.layers()[1].drivers, vec![0, 1]);
+    // The cut breaks the back layer's links across y = 8 between x = 3 and x = 8 only.
+    let back = &scene.layers()[0].grid;
+    assert!(!back.link_down[back.index(4, 7)]);
+    assert!(back.link_down[back.index(12, 7)]);
+    // The front layer is not cut (it does not list the cut) but has a hole from its alpha.
+    let front = &scene.layers()[1].grid;
+    assert!(front.link_down[front.index(4, 7)]);
+    assert!(!front.active[front.index(1, 1)]);
+}
+
+#[test]
+fn every_kind_of_mistake_is_reported_with_its_path() {
+    let cases: Vec<(&str, Value, &str)> = vec![
+        (
+            "unknown kind",
+            with(valid_scene(), "/features/0/kind", json!("circle")),
+            "features[0].kind",
+        ),
+        (
+            "wrong key count",
+            with(valid_scene(), "/features/1/keys/0/points", json!([[1, 1]])),
+            "features[1].keys[0].points",
+        ),
+        (
+            "too few points",
+            with(
+                valid_scene(),
+                "/features/1",
+                json!({"id": "lid", "kind": "spline", "rest": [[1, 1]]}),
+            ),
+            "features[1].rest",
+        ),
+        (
+            "point with two points",
+            with(
+                valid_scene(),
+                "/features/0",
+                json!({"id": "dot", "kind": "point", "rest": [[1, 1], [2, 2]]}),
+            ),
+            "features[0].rest",
+        ),
+        (
+            "keys out of order",
+            with(valid_scene(), "/features/0/keys/1/t", json!(-1)),
+            "features[0].keys[1].t",
+        ),
+        (
+            "keys at equal times",
+            with(valid_scene(), "/features/0/keys/1/t", json!(0)),
+            "features[0].keys[1].t",
+        ),
+        (
+            "unknown feature id",
+            with(valid_scene(), "/layers/1/features/1", json!("lidd")),
+            "layers[1].features[1]",
+        ),
+        (
+            "duplicate feature id",
+            with(valid_scene(), "/features/2/id", json!("dot")),
+            "features[2].id",
+        ),
+        (
+            "duplicate layer name",
+            with(valid_scene(), "/layers/1/name", json!("back")),
+            "layers[1].name",
+        ),
+        (
+            "negative tension",
+            with(valid_scene(), "/solver", json!({"tension": -1})),
+            "solver.tension",
+        ),
+        (
+            "zero tolerance",
+            with(valid_scene(), "/solver", json!({"tolerance": 0})),
+            "solver.tolerance",
+        ),
+        ("zero fps", with(valid_scene(), "/fps", json!(0)), "fps"),
+        (
+            "negative duration",
+            with(valid_scene(), "/duration", json!(-2)),
+            "duration",
+        ),
+        (
+            "zero grid step",
+            with(valid_scene(), "/solver", json!({"grid_step": 0})),
+            "solver.grid_step",
+        ),
+        (
+            "fractional grid step",
+            with(valid_scene(), "/solver", json!({"grid_step": 1.5})),
+            "solver.grid_step",
+        ),
+        (
+            "layer override",
+            with(valid_scene(), "/layers/0/solver", json!({"tension": -0.5})),
+            "layers[0].solver.tension",
+        ),
+        (
+            "unknown method",
+            with(valid_scene(), "/solver", json!({"method": "rbf"})),
+            "solver.method",
+        ),
+        (
+            "method not available",
+            with(valid_scene(), "/solver", json!({"method": "beier-neely"})),
+            "solver.method",
+        ),
+        (
+            "unknown key",
+            with(valid_scene(), "/layers/0/colour", json!("red")),
+            "layers[0].colour",
+        ),
+        (
+            "unknown top-level key",
+            with(valid_scene(), "/frames", json!(3)),
+            "frames",
+        ),
+        (
+            "wrong version",
+            with(valid_scene(), "/inkwarp", json!(2)),
+            "inkwarp",
+        ),
+        (
+            "wrong type",
+            with(valid_scene(), "/features/0/rest/0/0", json!("4")),
+            "features[0].rest[0][0]",
+        ),
+        (
+            "three coordinates",
+            with(valid_scene(), "/features/0/rest/0", json!([1, 2, 3])),
+            "features[0].rest[0]",
+        ),
+        (
+            "missing image",
+            with(valid_scene(), "/layers/0/image", json!("nope.png")),
+            "layers[0].image",
+        ),
+        (
+            "curve on a spline",
+            with(valid_scene(), "/features/1/curve", json!("spline")),
+            "features[1].curve",
+        ),
+        (
+            "background out of range",
+            with(valid_scene(), "/background", json!([0, 0, 0, 300])),
+            "background[3]",
+        ),
+    ];
+    for (what, scene, path) in cases {
+        let paths = paths_of(&scene);
+        assert_eq!(
+            paths,
+            vec![path.to_string()],
+            "{what}: {:?}",
+            problems_of(&scene)
+        );
+    }
+}
+
+#[test]
+fn missing_required_keys_are_named() {
+    let mut scene = valid_scene();
+    scene["features"][0].as_object_mut().unwrap().remove("rest");
+    scene.as_object_mut().unwrap().remove("inkwarp");
+    assert_eq!(paths_of(&scene), vec!["features[0].rest", "inkwarp"]);
+}
+
+#[test]
+fn every_problem_is_reported_at_once() {
+    let mut scene = valid_scene();
+    scene["fps"] = json!(0);
+    scene["features"][0]["kind"] = json!("circle");
+    scene["features"][1]["keys"][0]["points"] = json!([[1, 1]]);
+    scene["layers"][1]["features"][0] = json!("nobody");
+    scene["layers"][0]["colour"] = json!("red");
+    scene["layers"][0]["image"] = json!("missing.png");
+    insta::assert_snapshot!(problems_of(&scene).join("\n"));
+}
+
+#[test]
+fn messages_say_how_to_fix() {
+    let cases = [
+        with(valid_scene(), "/features/0/kind", json!("splin")),
+        with(valid_scene(), "/features/1/keys/0/points", json!([[1, 1]])),
+        with(
+            valid_scene(),
+            "/features/1",
+            json!({"id": "lid", "kind": "spline", "rest": [[1, 1]]}),
+        ),
+        with(valid_scene(), "/features/0/keys/1/t", json!(-1)),
+        with(valid_scene(), "/features/0/keys/1/t", json!(0)),
+        with(valid_scene(), "/layers/1/features/1", json!("lidd")),
+        with(valid_scene(), "/features/2/id", json!("dot")),
+        with(valid_scene(), "/solver", json!({"tension": -1})),
+        with(valid_scene(), "/fps", json!(0)),
+        with(valid_scene(), "/solver", json!({"grid_step": 0})),
+        with(valid_scene(), "/solver", json!({"method": "triangulation"})),
+        with(valid_scene(), "/layers/0/visibel", json!(false)),
+        with(valid_scene(), "/inkwarp", json!(2)),
+        with(valid_scene(), "/features/0/rest/0/0", json!("4")),
+        with(valid_scene(), "/features/0/rest/0", json!([1, 2, 3])),
+        with(valid_scene(), "/layers/0/image", json!("nope.png")),
+        with(valid_scene(), "/layers", json!([])),
+        json!([1, 2]),
+    ];
+    let text: Vec<String> = cases.iter().flat_map(problems_of).collect();
+    insta::assert_snapshot!(text.join("\n"));
+}
+
+#[test]
+fn syntax_errors_give_line_and_column() {
+    let err = parse_doc("{\"inkwarp\": 1,\n \"layers\": [}").unwrap_err();
+    assert_eq!(err.problems.len(), 1);
+    insta::assert_snapshot!(err.to_string(), @"the scene is not valid JSON: expected value at line 2 column 13");
+}
+
+#[test]
+fn image_problems() {
+    // Different sizes: the first image sets the size when width/height are absent.
+    let wrong_size = vec![
+        ("back.png", picture(16, 12, |_, _| false)),
+        ("front.png", picture(8, 8, |_, _| false)),
+    ];
+    let problems = problems_with(&valid_scene(), wrong_size);
+    insta::assert_snapshot!(problems.join("\n"), @"layers[1].image: \"front.png\" is 8×8 pixels but the scene is 16×12 (from layers[0].image); every image and matte must be the scene's size");
+    // Explicit width/height win.
+    let scene = with(
+        with(valid_scene(), "/width", json!(20)),
+        "/height",
+        json!(12),
+    );
+    assert_eq!(problems_of(&scene).len(), 2);
+    // Unreadable bytes and mattes of the wrong size.
+    let scene = with(valid_scene(), "/layers/0/continuity", json!("matte.png"));
+    let mut entries = valid_files();
+    entries.push(("matte.png", b"GIF89a....".to_vec()));
+    let problems = problems_with(&scene, entries);
+    insta::assert_snapshot!(problems.join("\n"), @r#"layers[0].continuity: cannot use "matte.png": a Gif image; inkwarp reads PNG and JPEG, save it as one of those"#);
+    let scene = with(
+        valid_scene(),
+        "/layers/1/alpha",
+        json!(data_uri(&picture(3, 3, |_, _| false))),
+    );
+    assert_eq!(paths_of(&scene), vec!["layers[1].alpha"]);
+    let scene = with(
+        valid_scene(),
+        "/layers/1/alpha",
+        json!("data:image/png;base64,!!"),
+    );
+    assert_eq!(paths_of(&scene), vec!["layers[1].alpha"]);
+    // No image anywhere and no size.
+    let scene = json!({"inkwarp": 1, "layers": [{"name": "a"}]});
+    assert_eq!(paths_of(&scene), vec!["width"]);
+}
+
+#[test]
+fn non_finite_numbers_are_reported() {
+    let mut doc: SceneDoc = serde_json::from_value(valid_scene()).unwrap();
+    doc.features[1].keys[0].points[2][1] = f64::NAN;
+    doc.features[0].rest[0][0] = f64::INFINITY;
+    doc.layers[1].offset[0] = f64::NAN;
+    doc.solver.tension = f64::NAN;
+    doc.fps = f64::INFINITY;
+    let paths: Vec<String> = validate_doc(&doc).into_iter().map(|p| p.path).collect();
+    assert_eq!(
+        paths,
+        [
+            "fps",
+            "solver.tension",
+            "features[0].rest[0][0]",
+            "features[1].keys[0].points[2][1]",
+            "layers[1].offset[0]"
+        ]
+    );
+}
+
+#[test]
+fn numbers_too_large_for_json_are_a_syntax_error() {
+    let text = valid_scene()
+        .to_string()
+        .replace("\"fps\":10", "\"fps\":1e999");
+    let err = parse_doc(&text).unwrap_err();
+    assert!(err.to_string().contains("not valid JSON"), "{err}");
+}
+
+#[test]
+fn the_document_round_trips() {
+    let doc = parse_doc(&valid_scene().to_string()).unwrap();
+    let text = serde_json::to_string(&doc).unwrap();
+    assert_eq!(parse_doc(&text).unwrap(), doc);
+    // Defaults are filled in, and omitted again where they are the default.
+    let value: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(value["solver"]["tolerance"], json!(0.01));
+    assert!(value["layers"][0].get("visible").is_none());
+    assert_eq!(
+        value["features"][0]["keys"][1]["interpolation"],
+        json!("linear")
+    );
+}
+
+#[test]
+fn the_schema_knows_every_field_and_accepts_the_valid_scene() {
+    let schema = schema();
+    assert_eq!(schema["properties"]["inkwarp"]["const"], json!(1));
+    let kinds = &schema["$defs"]["FeatureKind"]["oneOf"];
+    let names: Vec<&str> = kinds
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k["const"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["point", "polyline", "spline", "region", "cut"]);
+    assert!(shape::check_detailed(&valid_scene(), &schema).0.is_empty());
+}
+
+#[test]
+fn frame_count_and_default_duration() {
+    let scene = json!({"inkwarp": 1, "width": 4, "height": 4, "fps": 24, "duration": 2.0, "layers": [{"name": "a"}]});
+    let scene = Scene::from_json(&scene.to_string(), &mut no_files).unwrap();
+    assert_eq!(scene.frame_count(), 48);
+    // Without a duration: up to and including the last key.
+    let mut doc = valid_scene();
+    doc.as_object_mut().unwrap().remove("duration");
+    let mut loader = files(&valid_files());
+    let scene = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
+    assert_eq!(scene.frame_count(), 11);
+    assert_eq!(scene.frame_time_s(10), 1.0);
+}
+
+// ---- the engine ---------------------------------------------------------------------------
+
+fn small_scene() -> Arc<Scene> {
+    let mut loader = files(&valid_files());
+    let mut doc = valid_scene();
+    doc["fps"] = json!(40);
+    Arc::new(Scene::from_json(&doc.to_string(), &mut loader).unwrap())
+}
+
+#[test]
+fn a_two_layer_scene_renders() {
+    let scene = small_scene();
+    let frame = scene.render(0.0).unwrap();
+    assert_eq!(
+        (frame.width, frame.height, frame.data.len()),
+        (16, 12, 16 * 12 * 4)
+    );
+    // At t = 0 nothing has moved: the front layer covers the back one, shifted by its
+    // offset (1, 0); its transparent corner shows the back layer.
+    let front = image::load_from_memory(&valid_files()[1].1)
+        .unwrap()
+        .to_rgba8();
+    let back = image::load_from_memory(&valid_files()[0].1)
+        .unwrap()
+        .to_rgba8();
+    let at = |x: usize, y: usize| &frame.data[(y * 16 + x) * 4..(y * 16 + x) * 4 + 4];
+    assert_eq!(at(8, 6), front.get_pixel(7, 6).0.as_slice());
+    assert_eq!(at(1, 1), back.get_pixel(1, 1).0.as_slice());
+    // The left column is not covered by the shifted front layer.
+    assert_eq!(at(0, 6), back.get_pixel(0, 6).0.as_slice());
+}
+
+#[test]
+fn layer_fields_follow_the_drawing() {
+    let scene = small_scene();
+    // At t = 1 the dot has moved by (2, 1).
+    let solved = scene.layer_field(0, 1.0, None).unwrap();
+    assert_eq!(solved.field.at(4, 4), [2.0, 1.0]);
+    // The lid is at rest at t = 0 and its middle at (10, 5) at t = 0.5.
+    let solved = scene.layer_field(0, 0.5, None).unwrap();
+    let [dx, dy] = solved.field.at(10, 3);
+    assert!(dx.abs() < 0.05 && (dy - 2.0).abs() < 0.05, "{dx} {dy}");
+    let samples = scene.layer_samples(1, 0.5).unwrap();
+    assert!(samples
+        .iter()
+        .any(|s| s.rest == [10.0, 3.0] && s.displacement == [0.0, 2.0]));
+}
+
+#[test]
+fn warm_started_frames_match_cold_frames() {
+    let scene = small_scene();
+    let mut animator = Animator::new(&scene);
+    for i in 0..scene.frame_count() {
+        let t = scene.frame_time_s(i);
+        let warm = animator.layer_field(0, t).unwrap().field;
+        let cold = scene.layer_field(0, t, None).unwrap().field;
+        let worst = warm
+            .dx
+            .iter()
+            .chain(&warm.dy)
+            .zip(cold.dx.iter().chain(&cold.dy))
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f32::max);
+        assert!(
+            worst < 0.05,
+            "frame {i}: warm and cold fields differ by {worst} px"
+        );
+    }
+}
+
+#[test]
+fn parallel_and_sequential_frames_are_identical() {
+    let scene = small_scene();
+    assert!(scene.frame_count() > 2 * WARM_CHAIN_FRAMES);
+    let sequential: Vec<_> = scene.frames(0..usize::MAX, 1).map(|f| f.unwrap()).collect();
+    let parallel: Vec<_> = scene.frames(0..usize::MAX, 3).map(|f| f.unwrap()).collect();
+    assert_eq!(sequential.len(), scene.frame_count());
+    assert_eq!(
+        sequential.iter().map(|f| f.0).collect::<Vec<_>>(),
+        (0..scene.frame_count()).collect::<Vec<_>>()
+    );
+    assert!(sequential == parallel);
+    // A sub-range starting on a chain boundary gives the same frames.
+    let part: Vec<_> = scene
+        .frames(WARM_CHAIN_FRAMES..WARM_CHAIN_FRAMES + 5, 2)
+        .map(|f| f.unwrap())
+        .collect();
+    assert!(part[..] == sequential[WARM_CHAIN_FRAMES..WARM_CHAIN_FRAMES + 5]);
+}
+
+#[test]
+fn dropping_a_stream_early_stops_its_workers() {
+    let scene = small_scene();
+    let mut stream = scene.frames(0..usize::MAX, 4);
+    assert_eq!(stream.next().unwrap().unwrap().0, 0);
+    drop(stream);
+    assert_eq!(Arc::strong_count(&scene), 1);
+}
+
+#[test]
+fn invisible_and_imageless_layers_are_not_drawn() {
+    let mut loader = files(&valid_files());
+    let mut doc = valid_scene();
+    doc["layers"][1]["visible"] = json!(false);
+    let scene = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
+    let frame = scene.render(0.0).unwrap();
+    let back = image::load_from_memory(&valid_files()[0].1)
+        .unwrap()
+        .to_rgba8();
+    assert_eq!(frame.data, back.into_raw());
+}
+
+#[test]
+fn alpha_and_continuity_mattes_apply() {
+    let mut loader = files(&valid_files());
+    let mut doc = valid_scene();
+    // Alpha matte: black everywhere but the left half.
+    let half: Vec<u8> = (0..12)
+        .flat_map(|_| (0..16).flat_map(|x| if x < 8 { [255; 4] } else { [0, 0, 0, 255] }))
+        .collect();
+    doc["layers"][0]["alpha"] = json!(data_uri(&png(16, 12, &half)));
+    doc["layers"][0]["continuity"] = json!(data_uri(&png(16, 12, &[255; 16 * 12 * 4])));
+    doc["background"] = json!([0, 0, 255, 255]);
+    doc["layers"][1]["visible"] = json!(false);
+    let scene = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
+    let layer = &scene.layers()[0];
+    assert!(
+        layer.grid.active.iter().all(|&a| a),
+        "the continuity matte replaces the alpha-derived one"
+    );
+    let frame = scene.render(0.0).unwrap();
+    assert_eq!(
+        &frame.data[(6 * 16 + 12) * 4..(6 * 16 + 12) * 4 + 4],
+        &[0, 0, 255, 255]
+    );
+    assert_ne!(
+        &frame.data[(6 * 16 + 2) * 4..(6 * 16 + 2) * 4 + 4],
+        &[0, 0, 255, 255]
+    );
+}
+
+#[test]
+fn the_method_can_be_chosen_per_call() {
+    let scene = small_scene();
+    assert_eq!(
+        scene.render_with(0.7, Some(Method::Tps)).unwrap(),
+        scene.render(0.7).unwrap()
+    );
+    let err = scene
+        .render_with(0.7, Some(Method::BeierNeely))
+        .unwrap_err();
+    assert!(
+        err.to_string().contains("\"beier-neely\" is not available"),
+        "{err}"
+    );
+    let mut stream =
+        FrameStream::with_method(Arc::clone(&scene), 0..3, 2, Some(Method::Triangulation));
+    assert!(stream.next().unwrap().is_err());
+    assert!(stream.next().is_none(), "a stream stops at its first error");
+}
+
+#[test]
+fn samples_come_grouped_by_feature_in_curve_order() {
+    let scene = small_scene();
+    let groups = scene.layer_feature_samples(0, 0.5).unwrap();
+    assert_eq!(
+        groups
+            .iter()
+            .map(|g| (g.feature, g.kind))
+            .collect::<Vec<_>>(),
+        [(0, crate::Kind::Point), (1, crate::Kind::Spline)]
+    );
+    let lid = &groups[1].samples;
+    assert_eq!(
+        (lid[0].rest, lid[lid.len() - 1].rest),
+        ([8.0, 2.0], [12.0, 2.0])
+    );
+    assert_eq!(
+        scene.layer_samples(0, 0.5).unwrap().len(),
+        groups.iter().map(|g| g.samples.len()).sum::<usize>()
+    );
+}
+
+/// The JSON pointer of a problem path such as `features[1].keys[0].t`.
+fn pointer_of(path: &str) -> String {
+    let mut out = String::new();
+    for part in path.split('.').filter(|p| !p.is_empty()) {
+        let mut pieces = part.split('[');
+        out.push('/');
+        out.push_str(pieces.next().unwrap());
+        for index in pieces {
+            out.push('/');
+            out.push_str(index.trim_end_matches(']'));
+        }
+    }
+    out
+}
+
+/// Every leaf of `value` as a JSON pointer.
+fn leaves(value: &Value, at: String, out: &mut Vec<String>) {
+    match value {
+        Value::Object(map) => map.iter().for_each(|(k, v)| leaves(v, format!("{at}/{k}"), out)),
+        Value::Array(items) => items.iter().enumerate().for_each(|(i, v)| leaves(v, format!("{at}/{i}"), out)),
+        _ => out.push(at),
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+
+    /// Whatever single value is broken, checking never panics, and every problem points
+    /// into the document: its path, or the object that misses the key, exists.
+    #[test]
+    fn problems_point_into_the_document(leaf in 0usize..1000, choice in 0usize..8, number in -1e6f64..1e6) {
+        let mut scene = valid_scene();
+        let mut all = Vec::new();
+        leaves(&scene, String::new(), &mut all);
+        let pointer = &all[leaf % all.len()];
+        let replacement = match choice {
+            0 => json!(number),
+            1 => json!(-1),
+            2 => json!("text"),
+            3 => json!(null),
+            4 => json!([]),
+            5 => json!({"x": 1}),
+            6 => json!(true),
+            _ => json!(0),
+        };
+        *scene.pointer_mut(pointer).unwrap() = replacement;
+        let mut loader = files(&valid_files());
+        if let Err(err) = Scene::from_json(&scene.to_string(), &mut loader) {
+            proptest::prop_assert!(!err.problems.is_empty());
+            for problem in &err.problems {
+                let full = pointer_of(&problem.path);
+                let parent = full.rsplit_once('/').map_or("", |(p, _)| p);
+                proptest::prop_assert!(
+                    scene.pointer(&full).is_some() || scene.pointer(parent).is_some(),
+                    "{} does not point into {}", problem, scene
+                );
+            }
+        }
+    }
+}

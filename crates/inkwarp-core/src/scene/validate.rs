@@ -1,0 +1,342 @@
+//! The meaning check: everything about a well-shaped [`SceneDoc`] that the schema cannot
+//! say (counts, order, finiteness, references, uniqueness), every problem with its path.
+
+use std::collections::HashMap;
+
+use super::doc::{FeatureKind, SceneDoc, SolverDoc, SolverOverrides, FORMAT_VERSION};
+use super::engine::method_available;
+use super::shape::did_you_mean;
+use super::Problem;
+use crate::geometry::Point;
+
+/// Every problem of `doc` that does not need its images. Empty when the document is valid.
+pub fn validate_doc(doc: &SceneDoc) -> Vec<Problem> {
+    validate_doc_knowing(doc, &[])
+}
+
+/// [`validate_doc`], taking `other_ids` as feature ids too (features that were set aside
+/// because of shape problems already reported).
+pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<Problem> {
+    let mut p = Vec::new();
+    if doc.inkwarp != FORMAT_VERSION {
+        p.push(Problem::new(
+            "inkwarp",
+            format!(
+                "this inkwarp reads scene format {FORMAT_VERSION}, found {}; set \"inkwarp\": \
+                 {FORMAT_VERSION} (and convert the scene if it was written for another format)",
+                doc.inkwarp
+            ),
+        ));
+    }
+    for (key, value) in [("width", doc.width), ("height", doc.height)] {
+        if value == Some(0) {
+            p.push(Problem::new(
+                key,
+                format!("the frame {key} must be at least 1 pixel, found 0"),
+            ));
+        }
+    }
+    if !(doc.fps.is_finite() && doc.fps > 0.0) {
+        p.push(Problem::new(
+            "fps",
+            format!(
+                "frames per second must be a number > 0, found {}; use e.g. 24",
+                doc.fps
+            ),
+        ));
+    }
+    if let Some(duration) = doc.duration {
+        if !(duration.is_finite() && duration > 0.0) {
+            p.push(Problem::new(
+                "duration",
+                format!(
+                    "the duration must be a number of seconds > 0, found {duration}; \
+                     leave it out to end at the last key"
+                ),
+            ));
+        }
+    }
+    check_solver(&doc.solver, "solver", &mut p);
+
+    // Features.
+    let mut first_with_id: HashMap<&str, usize> = HashMap::new();
+    for (i, feature) in doc.features.iter().enumerate() {
+        let path = format!("features[{i}]");
+        if feature.id.trim().is_empty() {
+            p.push(Problem::new(
+                format!("{path}.id"),
+                "a feature needs a non-empty id",
+            ));
+        } else if let Some(&first) = first_with_id.get(feature.id.as_str()) {
+            p.push(Problem::new(
+                format!("{path}.id"),
+                format!(
+                    "the id \"{}\" is already used by features[{first}]; give each feature its own id",
+                    feature.id
+                ),
+            ));
+        } else {
+            first_with_id.insert(&feature.id, i);
+        }
+        let kind = feature.kind;
+        let n = feature.rest.len();
+        if n < kind.min_points() || kind.max_points().is_some_and(|m| n > m) {
+            let wanted = match kind.max_points() {
+                Some(m) if m == kind.min_points() => format!("exactly {m}"),
+                _ => format!("at least {}", kind.min_points()),
+            };
+            p.push(Problem::new(
+                format!("{path}.rest"),
+                format!(
+                    "a {} needs {wanted} control point{}, found {n}{}",
+                    kind.name(),
+                    if kind.min_points() == 1 && kind.max_points() == Some(1) {
+                        ""
+                    } else {
+                        "s"
+                    },
+                    if kind == FeatureKind::Point && n > 1 {
+                        "; use a polyline or a spline for several points"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+        check_points(&feature.rest, &format!("{path}.rest"), &mut p);
+        if feature.curve.is_some() && kind != FeatureKind::Region {
+            p.push(Problem::new(
+                format!("{path}.curve"),
+                format!(
+                    "\"curve\" applies to regions only, this feature is a {}; remove it{}",
+                    kind.name(),
+                    if kind == FeatureKind::Polyline {
+                        " (or use kind \"spline\" for a curve)"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+        if feature.closed && kind == FeatureKind::Point {
+            p.push(Problem::new(
+                format!("{path}.closed"),
+                "a point cannot be closed; remove \"closed\"",
+            ));
+        }
+        let mut previous_t: Option<f64> = None;
+        for (k, key) in feature.keys.iter().enumerate() {
+            let key_path = format!("{path}.keys[{k}]");
+            if !key.t.is_finite() {
+                p.push(Problem::new(
+                    format!("{key_path}.t"),
+                    format!(
+                        "the key time must be a finite number of seconds, found {}",
+                        key.t
+                    ),
+                ));
+            } else if let Some(before) = previous_t {
+                if key.t == before {
+                    p.push(Problem::new(
+                        format!("{key_path}.t"),
+                        format!(
+                            "two keys at t = {before} s (keys[{}] and keys[{k}]); give each key its own time \
+                             or remove one",
+                            k - 1
+                        ),
+                    ));
+                } else if key.t < before {
+                    p.push(Problem::new(
+                        format!("{key_path}.t"),
+                        format!(
+                            "keys must be in increasing time order, but t = {} s follows t = {before} s \
+                             (keys[{}]); sort the keys by time",
+                            key.t,
+                            k - 1
+                        ),
+                    ));
+                }
+            }
+            if key.t.is_finite() {
+                previous_t = Some(key.t);
+            }
+            if key.points.len() != n {
+                p.push(Problem::new(
+                    format!("{key_path}.points"),
+                    format!(
+                        "this key has {} control point{} but the feature's rest has {n}; a key lists the \
+                         same control points as rest, in the same order",
+                        key.points.len(),
+                        if key.points.len() == 1 { "" } else { "s" }
+                    ),
+                ));
+            }
+            check_points(&key.points, &format!("{key_path}.points"), &mut p);
+        }
+    }
+
+    // Layers.
+    if doc.layers.is_empty() {
+        p.push(Problem::new(
+            "layers",
+            "a scene needs at least one layer; add one such as {\"name\": \"main\", \"image\": \"picture.png\"}",
+        ));
+    }
+    let mut first_with_name: HashMap<&str, usize> = HashMap::new();
+    for (j, layer) in doc.layers.iter().enumerate() {
+        let path = format!("layers[{j}]");
+        if layer.name.trim().is_empty() {
+            p.push(Problem::new(
+                format!("{path}.name"),
+                "a layer needs a non-empty name",
+            ));
+        } else if let Some(&first) = first_with_name.get(layer.name.as_str()) {
+            p.push(Problem::new(
+                format!("{path}.name"),
+                format!(
+                    "the name \"{}\" is already used by layers[{first}]; give each layer its own name",
+                    layer.name
+                ),
+            ));
+        } else {
+            first_with_name.insert(&layer.name, j);
+        }
+        for (c, v) in layer.offset.iter().enumerate() {
+            if !v.is_finite() {
+                p.push(Problem::new(
+                    format!("{path}.offset[{c}]"),
+                    format!("the offset must be finite, found {v}"),
+                ));
+            }
+        }
+        for (key, reference) in [
+            ("image", &layer.image),
+            ("alpha", &layer.alpha),
+            ("continuity", &layer.continuity),
+        ] {
+            if let Some(reference) = reference {
+                if reference.trim().is_empty() {
+                    p.push(Problem::new(
+                        format!("{path}.{key}"),
+                        "an empty image reference; give a path relative to the scene file or a data: URI",
+                    ));
+                }
+            }
+        }
+        if let Some(ids) = &layer.features {
+            let mut seen: HashMap<&str, usize> = HashMap::new();
+            for (k, id) in ids.iter().enumerate() {
+                let id_path = format!("{path}.features[{k}]");
+                if other_ids.contains(id) {
+                    continue;
+                } else if !first_with_id.contains_key(id.as_str()) {
+                    let hint = did_you_mean(id, doc.features.iter().map(|f| f.id.as_str()))
+                        .map(|s| format!("did you mean \"{s}\"? "))
+                        .unwrap_or_default();
+                    let known: Vec<&str> = doc
+                        .features
+                        .iter()
+                        .map(|f| f.id.as_str())
+                        .chain(other_ids.iter().map(String::as_str))
+                        .collect();
+                    let known = if known.is_empty() {
+                        "the scene has no features".to_string()
+                    } else {
+                        format!("the feature ids are {}", known.join(", "))
+                    };
+                    p.push(Problem::new(
+                        id_path,
+                        format!("no feature has the id \"{id}\"; {hint}{known}"),
+                    ));
+                } else if let Some(&first) = seen.get(id.as_str()) {
+                    p.push(Problem::new(
+                        id_path,
+                        format!(
+                            "\"{id}\" is listed twice (also at features[{first}]); list it once"
+                        ),
+                    ));
+                } else {
+                    seen.insert(id, k);
+                }
+            }
+        }
+        if let Some(overrides) = &layer.solver {
+            check_overrides(overrides, &format!("{path}.solver"), &mut p);
+        }
+    }
+    p
+}
+
+fn check_points(points: &[Point], path: &str, p: &mut Vec<Problem>) {
+    for (i, point) in points.iter().enumerate() {
+        for (c, v) in point.iter().enumerate() {
+            if !v.is_finite() {
+                p.push(Problem::new(
+                    format!("{path}[{i}][{c}]"),
+                    format!("coordinates must be finite numbers of pixels, found {v}"),
+                ));
+            }
+        }
+    }
+}
+
+fn check_solver(solver: &SolverDoc, path: &str, p: &mut Vec<Problem>) {
+    check_overrides(
+        &SolverOverrides {
+            method: Some(solver.method),
+            tension: Some(solver.tension),
+            tolerance: Some(solver.tolerance),
+            grid_step: Some(solver.grid_step),
+            max_cycles: solver.max_cycles,
+            scheme: Some(solver.scheme),
+        },
+        path,
+        p,
+    );
+}
+
+fn check_overrides(solver: &SolverOverrides, path: &str, p: &mut Vec<Problem>) {
+    if let Some(method) = solver.method {
+        if !method_available(method) {
+            p.push(Problem::new(
+                format!("{path}.method"),
+                format!(
+                    "the method \"{}\" is not available in this version of inkwarp yet; use \"tps\"",
+                    method.name()
+                ),
+            ));
+        }
+    }
+    if let Some(tension) = solver.tension {
+        if !(tension.is_finite() && tension >= 0.0) {
+            p.push(Problem::new(
+                format!("{path}.tension"),
+                format!(
+                    "the tension must be a number ≥ 0, found {tension}; 0 is a pure thin plate"
+                ),
+            ));
+        }
+    }
+    if let Some(tolerance) = solver.tolerance {
+        if !(tolerance.is_finite() && tolerance > 0.0) {
+            p.push(Problem::new(
+                format!("{path}.tolerance"),
+                format!("the tolerance must be a number of pixels > 0, found {tolerance}; the default is 0.01"),
+            ));
+        }
+    }
+    if let Some(step) = solver.grid_step {
+        if !(1..=64).contains(&step) {
+            p.push(Problem::new(
+                format!("{path}.grid_step"),
+                format!("grid_step must be a whole number from 1 to 64, found {step}; 1 solves on every pixel"),
+            ));
+        }
+    }
+    if solver.max_cycles == Some(0) {
+        p.push(Problem::new(
+            format!("{path}.max_cycles"),
+            "max_cycles must be at least 1; leave it out to run until the tolerance is met",
+        ));
+    }
+}

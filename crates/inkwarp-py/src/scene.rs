@@ -1,0 +1,310 @@
+//! Scenes for Python: `SceneCore` (a resolved scene), its frame iterator, the schema and the
+//! validator. Image paths are read here, relative to the scene's folder; the core only sees
+//! bytes. Core `SceneError`s become `inkwarp.SceneError` with the file, path and problems.
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use inkwarp_core::scene::{self, FrameStream, Method, Scene, SceneError};
+use inkwarp_core::Field;
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::exceptions::{PyIndexError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyList;
+
+/// Raises `inkwarp.SceneError` for `err`, naming `file` when there is one.
+fn scene_error(py: Python<'_>, err: &SceneError, file: Option<&str>) -> PyErr {
+    let message = match file {
+        Some(file) => format!("{file}: {err}"),
+        None => err.to_string(),
+    };
+    let problems: Vec<(String, String)> = err
+        .problems
+        .iter()
+        .map(|p| (p.path.clone(), p.message.clone()))
+        .collect();
+    let build = || -> PyResult<PyErr> {
+        let class = py.import("inkwarp.errors")?.getattr("SceneError")?;
+        let kwargs = pyo3::types::PyDict::new(py);
+        kwargs.set_item("file", file)?;
+        kwargs.set_item("path", err.path())?;
+        kwargs.set_item("problems", PyList::new(py, problems)?)?;
+        let instance = class.call((message.clone(),), Some(&kwargs))?;
+        Ok(PyErr::from_value(instance))
+    };
+    build().unwrap_or_else(|e| e)
+}
+
+/// Reads image references relative to `base_dir` (absolute paths as they are).
+fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>, String> {
+    move |reference: &str| {
+        let path = Path::new(reference);
+        let full = match (&base_dir, path.is_absolute()) {
+            (Some(base), false) => base.join(path),
+            _ => path.to_path_buf(),
+        };
+        std::fs::read(&full).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound => format!("no such file (looked for {})", full.display()),
+            _ => format!("cannot read {} ({e})", full.display()),
+        })
+    }
+}
+
+fn image_to_numpy<'py>(py: Python<'py>, image: scene::RgbaImage) -> PyResult<Bound<'py, PyAny>> {
+    let (h, w) = (image.height, image.width);
+    Ok(PyArray1::from_vec(py, image.data)
+        .reshape([h, w, 4])?
+        .into_any())
+}
+
+fn field_to_numpy<'py>(py: Python<'py>, field: &Field) -> PyResult<Bound<'py, PyAny>> {
+    Ok(PyArray1::from_vec(py, field.to_interleaved())
+        .reshape([field.height, field.width, 2])?
+        .into_any())
+}
+
+/// The method called `name`; `None` for `None`.
+fn method_named(name: Option<&str>) -> PyResult<Option<Method>> {
+    name.map(|n| {
+        Method::from_name(n).ok_or_else(|| {
+            let names: Vec<String> = Method::ALL
+                .iter()
+                .map(|m| format!("\"{}\"", m.name()))
+                .collect();
+            PyValueError::new_err(format!(
+                "unknown method \"{n}\"; use one of {}",
+                names.join(", ")
+            ))
+        })
+    })
+    .transpose()
+}
+
+/// A resolved scene (images decoded, mattes and cuts applied), ready to render.
+#[pyclass(module = "inkwarp._inkwarp", frozen)]
+#[derive(Debug)]
+pub struct SceneCore {
+    scene: Arc<Scene>,
+    file: Option<String>,
+}
+
+#[pymethods]
+impl SceneCore {
+    /// Parses, validates and resolves scene JSON; image paths are relative to `base_dir`.
+    /// Raises `inkwarp.SceneError` with every problem.
+    #[staticmethod]
+    #[pyo3(signature = (text, base_dir=None, file=None))]
+    fn from_json(
+        py: Python<'_>,
+        text: String,
+        base_dir: Option<PathBuf>,
+        file: Option<String>,
+    ) -> PyResult<Self> {
+        let result = py.detach(move || {
+            let mut load = file_loader(base_dir);
+            Scene::from_json(&text, &mut load)
+        });
+        match result {
+            Ok(scene) => Ok(SceneCore {
+                scene: Arc::new(scene),
+                file,
+            }),
+            Err(err) => Err(scene_error(py, &err, file.as_deref())),
+        }
+    }
+
+    #[getter]
+    fn width(&self) -> usize {
+        self.scene.width()
+    }
+
+    #[getter]
+    fn height(&self) -> usize {
+        self.scene.height()
+    }
+
+    #[getter]
+    fn fps(&self) -> f64 {
+        self.scene.fps()
+    }
+
+    #[getter]
+    fn duration(&self) -> f64 {
+        self.scene.duration_s()
+    }
+
+    #[getter]
+    fn frame_count(&self) -> usize {
+        self.scene.frame_count()
+    }
+
+    #[getter]
+    fn layer_names(&self) -> Vec<String> {
+        self.scene.layers().iter().map(|l| l.name.clone()).collect()
+    }
+
+    #[getter]
+    fn feature_ids(&self) -> Vec<String> {
+        self.scene
+            .doc()
+            .features
+            .iter()
+            .map(|f| f.id.clone())
+            .collect()
+    }
+
+    /// The time of frame `frame` in seconds.
+    fn frame_time(&self, frame: usize) -> f64 {
+        self.scene.frame_time_s(frame)
+    }
+
+    /// The document with its defaults filled in, as JSON text.
+    fn doc_json(&self) -> String {
+        serde_json::to_string(self.scene.doc()).expect("a scene document is always valid JSON")
+    }
+
+    /// The frame at `time` (seconds) as an RGBA uint8 array `(H, W, 4)`, solved cold, by
+    /// `method` instead of each layer's own when given.
+    #[pyo3(signature = (time, method=None))]
+    fn render<'py>(
+        &self,
+        py: Python<'py>,
+        time: f64,
+        method: Option<&str>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let method = method_named(method)?;
+        let scene = Arc::clone(&self.scene);
+        match py.detach(move || scene.render_with(time, method)) {
+            Ok(image) => image_to_numpy(py, image),
+            Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
+        }
+    }
+
+    /// The displacement field of layer `layer` (an index) at `time`, float32 `(H, W, 2)`.
+    #[pyo3(signature = (layer, time, method=None))]
+    fn field<'py>(
+        &self,
+        py: Python<'py>,
+        layer: usize,
+        time: f64,
+        method: Option<&str>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let method = method_named(method)?;
+        if layer >= self.scene.layers().len() {
+            return Err(PyIndexError::new_err(format!(
+                "layer index {layer} is out of range"
+            )));
+        }
+        let scene = Arc::clone(&self.scene);
+        match py.detach(move || scene.layer_field_with(layer, time, None, method)) {
+            Ok(solved) => field_to_numpy(py, &solved.field),
+            Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
+        }
+    }
+
+    /// Frames `start..stop`, warm-started, by up to `threads` threads (0: the default).
+    #[pyo3(signature = (start, stop, threads=0, method=None))]
+    fn frames(
+        &self,
+        start: usize,
+        stop: usize,
+        threads: usize,
+        method: Option<&str>,
+    ) -> PyResult<FrameIter> {
+        let method = method_named(method)?;
+        let stream =
+            FrameStream::with_method(Arc::clone(&self.scene), start..stop, threads, method);
+        let remaining = stream.len();
+        Ok(FrameIter {
+            stream: Mutex::new(Some(stream)),
+            remaining: Mutex::new(remaining),
+            file: self.file.clone(),
+        })
+    }
+}
+
+/// The frames of a scene as RGBA uint8 arrays, in order.
+#[pyclass(module = "inkwarp._inkwarp")]
+#[derive(Debug)]
+pub struct FrameIter {
+    stream: Mutex<Option<FrameStream>>,
+    remaining: Mutex<usize>,
+    file: Option<String>,
+}
+
+#[pymethods]
+impl FrameIter {
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __len__(&self) -> usize {
+        *self.remaining.lock().expect("frame counter")
+    }
+
+    /// The next `(index, frame)`; renders with the GIL released.
+    fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<(usize, Bound<'py, PyAny>)>> {
+        let next = py.detach(|| {
+            let mut guard = self.stream.lock().expect("frame stream");
+            guard.as_mut().and_then(|stream| stream.next())
+        });
+        match next {
+            None => {
+                self.close();
+                Ok(None)
+            }
+            Some(Ok((index, image))) => {
+                let mut remaining = self.remaining.lock().expect("frame counter");
+                *remaining = remaining.saturating_sub(1);
+                Ok(Some((index, image_to_numpy(py, image)?)))
+            }
+            Some(Err(err)) => {
+                self.close();
+                Err(scene_error(py, &err, self.file.as_deref()))
+            }
+        }
+    }
+
+    /// Stops rendering (the worker threads finish their current frame and exit).
+    fn close(&self) {
+        let stream = self.stream.lock().expect("frame stream").take();
+        *self.remaining.lock().expect("frame counter") = 0;
+        drop(stream);
+    }
+}
+
+/// The JSON Schema of the scene format, as JSON text.
+#[pyfunction]
+fn scene_schema() -> String {
+    scene::schema_json()
+}
+
+/// Every problem of scene JSON text, images included, as `(path, message)` pairs.
+#[pyfunction]
+#[pyo3(signature = (text, base_dir=None))]
+fn scene_problems(
+    py: Python<'_>,
+    text: String,
+    base_dir: Option<PathBuf>,
+) -> Vec<(String, String)> {
+    py.detach(move || {
+        let mut load = file_loader(base_dir);
+        match Scene::from_json(&text, &mut load) {
+            Ok(_) => Vec::new(),
+            Err(err) => err
+                .problems
+                .into_iter()
+                .map(|p| (p.path, p.message))
+                .collect(),
+        }
+    })
+}
+
+/// Registers the scene API in the extension module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<SceneCore>()?;
+    m.add_class::<FrameIter>()?;
+    m.add_function(wrap_pyfunction!(scene_schema, m)?)?;
+    m.add_function(wrap_pyfunction!(scene_problems, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,597 @@
+//! The exported calls: grids, solves, curves, the CPU renderer.
+
+use std::cell::RefCell;
+use std::collections::HashMap;
+
+use inkwarp_core::anim::{points_at, Interpolation, Key};
+use inkwarp_core::geometry::{curve_polyline, FeatureSampler, SampleOptions};
+use inkwarp_core::render::{Canvas, RgbaImage};
+use inkwarp_core::scene::images;
+use inkwarp_core::solve::{solve, SolveMethod, SolveOptions};
+use inkwarp_core::{Field, Grid, Kind, Point, Sample};
+use serde::Deserialize;
+
+use crate::{bytes, bytes_mut, fail, floats, floats_mut, json_arg, ok_json};
+
+/// The spacing at which the scene engine densifies a cut before breaking links.
+const CUT_SPACING_PX: f64 = 0.5;
+
+thread_local! {
+    static DECODED: RefCell<Option<RgbaImage>> = const { RefCell::new(None) };
+    static GRIDS: RefCell<Vec<Option<Domain>>> = const { RefCell::new(Vec::new()) };
+    static CANVASES: RefCell<Vec<Option<Canvas>>> = const { RefCell::new(Vec::new()) };
+}
+
+/// A grid and the features' rest geometry prepared on it (a region's interior nodes and
+/// their mean-value coordinates are computed once, as the scene engine does, not per drag
+/// event).
+#[derive(Debug)]
+struct Domain {
+    grid: Grid,
+    samplers: RefCell<HashMap<String, FeatureSampler>>,
+}
+
+/// Prepared samplers kept per grid; more than this and the cache starts over.
+const MAX_SAMPLERS: usize = 256;
+
+fn insert<T>(store: &mut Vec<Option<T>>, value: T) -> u32 {
+    if let Some(i) = store.iter().position(Option::is_none) {
+        store[i] = Some(value);
+        return i as u32 + 1;
+    }
+    store.push(Some(value));
+    store.len() as u32
+}
+
+fn with_domain<R>(handle: u32, f: impl FnOnce(&Domain) -> R) -> Result<R, String> {
+    GRIDS.with(|g| {
+        let store = g.borrow();
+        match store
+            .get((handle as usize).wrapping_sub(1))
+            .and_then(Option::as_ref)
+        {
+            Some(domain) => Ok(f(domain)),
+            None => Err(format!("There is no grid with handle {handle}.")),
+        }
+    })
+}
+
+fn with_grid<R>(handle: u32, f: impl FnOnce(&Grid) -> R) -> Result<R, String> {
+    GRIDS.with(|g| {
+        let store = g.borrow();
+        match store
+            .get((handle as usize).wrapping_sub(1))
+            .and_then(Option::as_ref)
+        {
+            Some(domain) => Ok(f(&domain.grid)),
+            None => Err(format!("There is no grid with handle {handle}.")),
+        }
+    })
+}
+
+/// Builds the solve domain of a `width × height` layer: active nodes from the continuity
+/// matte (`matte_len == 0`: every node active; else `width * height` bytes, nonzero =
+/// connected), then the cuts in `cuts_json` (their rest control points,
+/// `[[[x, y], ...], ...]`, may be empty) break the links they cross — the cut's polyline
+/// taken exactly as the scene engine takes it. Returns a handle (≥ 1), or 0 with the error in the result.
+#[no_mangle]
+pub extern "C" fn iw_grid_new(
+    width: usize,
+    height: usize,
+    matte_ptr: *const u8,
+    matte_len: usize,
+    cuts_ptr: *const u8,
+    cuts_len: usize,
+) -> u32 {
+    if width == 0 || height == 0 {
+        fail("A layer needs a width and a height of at least 1 pixel.");
+        return 0;
+    }
+    let mut grid = if matte_len == 0 {
+        Grid::new(width, height)
+    } else if matte_len != width * height {
+        fail(format!(
+            "The continuity matte has {matte_len} values but the layer is {width}×{height} = {} pixels.",
+            width * height
+        ));
+        return 0;
+    } else {
+        Grid::from_matte(width, height, bytes(matte_ptr, matte_len))
+    };
+    if cuts_len > 0 {
+        let cuts: Vec<Vec<Point>> = match json_arg(cuts_ptr, cuts_len) {
+            Ok(c) => c,
+            Err(e) => {
+                fail(e);
+                return 0;
+            }
+        };
+        for cut in &cuts {
+            grid.add_cut(&curve_polyline(
+                Kind::Cut,
+                cut,
+                false,
+                false,
+                CUT_SPACING_PX,
+            ));
+        }
+    }
+    GRIDS.with(|g| {
+        insert(
+            &mut g.borrow_mut(),
+            Domain {
+                grid,
+                samplers: RefCell::new(HashMap::new()),
+            },
+        )
+    })
+}
+
+/// Frees a grid.
+#[no_mangle]
+pub extern "C" fn iw_grid_free(handle: u32) {
+    GRIDS.with(|g| {
+        if let Some(slot) = g.borrow_mut().get_mut((handle as usize).wrapping_sub(1)) {
+            *slot = None;
+        }
+    });
+}
+
+/// Writes one byte per node into `out` (`width * height` bytes): bit 0 active, bit 1
+/// linked to the right neighbour, bit 2 linked to the neighbour below. The WebGL renderer
+/// drops the quads whose links are missing from this. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_grid_links(handle: u32, out_ptr: *mut u8, out_len: usize) -> i32 {
+    let res = with_grid(handle, |grid| {
+        let n = grid.width * grid.height;
+        if out_len != n {
+            return Err(format!(
+                "The link buffer has {out_len} bytes; the grid needs {n}."
+            ));
+        }
+        let out = bytes_mut(out_ptr, out_len);
+        for i in 0..n {
+            out[i] = grid.active[i] as u8
+                | (grid.link_right[i] as u8) << 1
+                | (grid.link_down[i] as u8) << 2;
+        }
+        Ok(())
+    });
+    match res {
+        Ok(Ok(())) => 0,
+        Ok(Err(e)) | Err(e) => fail(e),
+    }
+}
+
+/// One feature of a solve request: its kind, rest and posed control points.
+#[derive(Debug, Deserialize)]
+struct FeatureIn {
+    kind: Kind,
+    rest: Vec<Point>,
+    pose: Vec<Point>,
+    #[serde(default)]
+    closed: bool,
+    /// A region whose outline is a spline (`"curve": "spline"` in the scene).
+    #[serde(default)]
+    spline_outline: bool,
+    /// The id, only for error messages.
+    #[serde(default)]
+    id: Option<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(default)]
+struct OptionsIn {
+    tension: f64,
+    tolerance: f64,
+    grid_step: usize,
+    max_cycles: Option<usize>,
+    method: String,
+}
+
+impl Default for OptionsIn {
+    fn default() -> Self {
+        OptionsIn {
+            tension: 0.0,
+            tolerance: 0.01,
+            grid_step: 1,
+            max_cycles: None,
+            method: "multigrid".into(),
+        }
+    }
+}
+
+#[derive(Debug, Deserialize)]
+struct SolveIn {
+    features: Vec<FeatureIn>,
+    #[serde(default)]
+    options: OptionsIn,
+    /// Arc-length sampling spacing in pixels (default 1).
+    #[serde(default)]
+    spacing_px: Option<f64>,
+}
+
+fn samples_of(
+    features: &[FeatureIn],
+    domain: &Domain,
+    spacing_px: f64,
+) -> Result<Vec<Sample>, String> {
+    let mut samples = Vec::new();
+    let mut cache = domain.samplers.borrow_mut();
+    if cache.len() > MAX_SAMPLERS {
+        cache.clear();
+    }
+    for (i, f) in features.iter().enumerate() {
+        let name = || f.id.clone().unwrap_or_else(|| format!("#{i}"));
+        let key =
+            serde_json::json!([f.kind, f.rest, f.closed, f.spline_outline, spacing_px]).to_string();
+        if !cache.contains_key(&key) {
+            let opts = SampleOptions {
+                closed: f.closed,
+                spline_outline: f.spline_outline,
+                spacing_px,
+            };
+            let on = (f.kind == Kind::Region).then_some(&domain.grid);
+            let sampler = FeatureSampler::new(f.kind, &f.rest, &opts, on)
+                .map_err(|e| format!("Feature {}: {e}", name()))?;
+            cache.insert(key.clone(), sampler);
+        }
+        let posed = cache[&key]
+            .sample(&f.pose)
+            .map_err(|e| format!("Feature {}: {e}", name()))?;
+        samples.extend(posed);
+    }
+    Ok(samples)
+}
+
+/// Solves the thin plate for a drawing on a grid.
+///
+/// `req_json`: `{"features": [{"kind", "rest", "pose", "closed", "spline_outline"}],
+/// "options": {"tension", "tolerance", "grid_step", "max_cycles", "method"}, "spacing_px"}`.
+/// `initial` (`2 * width * height` floats, Δx plane then Δy plane, or null) warm-starts the
+/// solve; the field is written to `out` in the same planar layout (the two may be the same
+/// buffer). The result holds the solve report as JSON. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_solve(
+    handle: u32,
+    req_ptr: *const u8,
+    req_len: usize,
+    initial_ptr: *const f32,
+    out_ptr: *mut f32,
+) -> i32 {
+    let req: SolveIn = match json_arg(req_ptr, req_len) {
+        Ok(r) => r,
+        Err(e) => return fail(e),
+    };
+    let res = with_domain(handle, |domain| -> Result<serde_json::Value, String> {
+        let grid = &domain.grid;
+        let n = grid.width * grid.height;
+        let samples = samples_of(&req.features, domain, req.spacing_px.unwrap_or(1.0))?;
+        let method = match req.options.method.as_str() {
+            "multigrid" => SolveMethod::Multigrid,
+            "southwell" => SolveMethod::Southwell,
+            other => {
+                return Err(format!(
+                    "Unknown solver method {other:?}; use \"multigrid\" or \"southwell\"."
+                ))
+            }
+        };
+        let options = SolveOptions {
+            tension: req.options.tension,
+            tolerance_px: req.options.tolerance,
+            grid_step: req.options.grid_step.max(1),
+            max_cycles: req.options.max_cycles,
+            method,
+            ..SolveOptions::default()
+        };
+        let initial = (!initial_ptr.is_null()).then(|| {
+            let data = floats(initial_ptr, 2 * n);
+            Field {
+                width: grid.width,
+                height: grid.height,
+                dx: data[..n].to_vec(),
+                dy: data[n..].to_vec(),
+            }
+        });
+        let (field, report) =
+            solve(grid, &samples, &options, initial.as_ref()).map_err(|e| e.to_string())?;
+        let out = floats_mut(out_ptr, 2 * n);
+        out[..n].copy_from_slice(&field.dx);
+        out[n..].copy_from_slice(&field.dy);
+        Ok(serde_json::json!({
+            "cycles": report.cycles,
+            "final_change_px": report.final_change_px,
+            "residual": report.residual,
+            "constrained_nodes": report.constrained_nodes,
+            "constrained_samples": report.constrained_samples,
+            "dropped_samples": report.dropped_samples,
+            "converged": report.converged,
+            "samples": samples.len(),
+        }))
+    });
+    match res {
+        Ok(Ok(v)) => ok_json(&v),
+        Ok(Err(e)) | Err(e) => fail(e),
+    }
+}
+
+#[derive(Debug, Deserialize)]
+struct CurveIn {
+    kind: Kind,
+    points: Vec<Point>,
+    #[serde(default)]
+    closed: bool,
+    #[serde(default)]
+    spline_outline: bool,
+    #[serde(default)]
+    spacing_px: Option<f64>,
+}
+
+/// The curve through a feature's control points as a dense polyline, for overlays and
+/// cuts. `req_json`: `{"kind", "points", "closed", "spline_outline", "spacing_px"}`; the
+/// result is `[[x, y], ...]`. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_curve(req_ptr: *const u8, req_len: usize) -> i32 {
+    let req: CurveIn = match json_arg(req_ptr, req_len) {
+        Ok(r) => r,
+        Err(e) => return fail(e),
+    };
+    let line = curve_polyline(
+        req.kind,
+        &req.points,
+        req.closed,
+        req.spline_outline,
+        req.spacing_px.unwrap_or(2.0),
+    );
+    ok_json(&line)
+}
+
+fn with_canvas<R>(handle: u32, f: impl FnOnce(&mut Canvas) -> R) -> Result<R, String> {
+    CANVASES.with(|c| {
+        let mut store = c.borrow_mut();
+        match store
+            .get_mut((handle as usize).wrapping_sub(1))
+            .and_then(Option::as_mut)
+        {
+            Some(canvas) => Ok(f(canvas)),
+            None => Err(format!("There is no canvas with handle {handle}.")),
+        }
+    })
+}
+
+/// A CPU canvas (the reference renderer) of `width × height` filled with `background`
+/// (straight RGBA8). Returns a handle ≥ 1.
+#[no_mangle]
+pub extern "C" fn iw_canvas_new(width: usize, height: usize, r: u8, g: u8, b: u8, a: u8) -> u32 {
+    CANVASES.with(|c| {
+        insert(
+            &mut c.borrow_mut(),
+            Canvas::new(width, height, [r, g, b, a]),
+        )
+    })
+}
+
+/// Frees a canvas.
+#[no_mangle]
+pub extern "C" fn iw_canvas_free(handle: u32) {
+    CANVASES.with(|c| {
+        if let Some(slot) = c.borrow_mut().get_mut((handle as usize).wrapping_sub(1)) {
+            *slot = None;
+        }
+    });
+}
+
+/// Forward-maps a layer onto a canvas: `image` is straight RGBA8 of the grid's size,
+/// `field` planar (Δx plane, Δy plane), offset in pixels. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_canvas_draw(
+    canvas: u32,
+    grid: u32,
+    image_ptr: *const u8,
+    field_ptr: *const f32,
+    offset_x: f64,
+    offset_y: f64,
+) -> i32 {
+    let res = with_grid(grid, |grid| {
+        let n = grid.width * grid.height;
+        let image = RgbaImage {
+            width: grid.width,
+            height: grid.height,
+            data: bytes(image_ptr, 4 * n).to_vec(),
+        };
+        let data = floats(field_ptr, 2 * n);
+        let field = Field {
+            width: grid.width,
+            height: grid.height,
+            dx: data[..n].to_vec(),
+            dy: data[n..].to_vec(),
+        };
+        with_canvas(canvas, |c| {
+            c.draw_layer(&image, &field, grid, [offset_x, offset_y])
+        })
+    });
+    match res {
+        Ok(Ok(())) => 0,
+        Ok(Err(e)) | Err(e) => fail(e),
+    }
+}
+
+/// Copies a canvas as straight RGBA8 into `out` (`4 * width * height` bytes). Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_canvas_read(canvas: u32, out_ptr: *mut u8, out_len: usize) -> i32 {
+    let res = with_canvas(canvas, |c| {
+        let img = c.to_rgba8();
+        if img.data.len() != out_len {
+            return Err(format!(
+                "The output buffer has {out_len} bytes; the canvas needs {}.",
+                img.data.len()
+            ));
+        }
+        bytes_mut(out_ptr, out_len).copy_from_slice(&img.data);
+        Ok(())
+    });
+    match res {
+        Ok(Ok(())) => 0,
+        Ok(Err(e)) | Err(e) => fail(e),
+    }
+}
+
+#[derive(Debug, Deserialize)]
+struct KeyIn {
+    t: f64,
+    points: Vec<Point>,
+    #[serde(default)]
+    interpolation: Option<String>,
+}
+
+#[derive(Debug, Deserialize)]
+struct PoseIn {
+    rest: Vec<Point>,
+    #[serde(default)]
+    keys: Vec<KeyIn>,
+    t: f64,
+}
+
+/// A feature's control points at time `t`, by the engine's keyframe interpolation.
+/// `req_json`: `{"rest": [[x, y], ...], "keys": [{"t", "points", "interpolation"}], "t"}`;
+/// the result is `[[x, y], ...]`. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_points_at(req_ptr: *const u8, req_len: usize) -> i32 {
+    let req: PoseIn = match json_arg(req_ptr, req_len) {
+        Ok(r) => r,
+        Err(e) => return fail(e),
+    };
+    let mut keys = Vec::with_capacity(req.keys.len());
+    for k in req.keys {
+        let interpolation = match k.interpolation.as_deref() {
+            None | Some("smooth") => Interpolation::Smooth,
+            Some("linear") => Interpolation::Linear,
+            Some("hold") => Interpolation::Hold,
+            Some(other) => {
+                return fail(format!(
+                    "Unknown interpolation {other:?}; use smooth, linear or hold."
+                ))
+            }
+        };
+        keys.push(Key {
+            time_s: k.t,
+            points: k.points,
+            interpolation,
+        });
+    }
+    ok_json(&points_at(&req.rest, &keys, req.t))
+}
+
+/// Decodes an image (a `data:` URI, or the raw bytes of a PNG or JPEG when the input does
+/// not start with `data:`) with the engine's decoder, exactly as the command line reads
+/// it. The result is `{"width", "height"}`; the straight RGBA8 pixels are copied out with
+/// [`iw_decoded_take`]. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_decode(ptr: *const u8, len: usize) -> i32 {
+    let input = bytes(ptr, len);
+    let raw = if input.starts_with(b"data:") {
+        match std::str::from_utf8(input)
+            .map_err(|e| e.to_string())
+            .and_then(images::data_uri_bytes)
+        {
+            Ok(b) => b,
+            Err(e) => return fail(format!("Cannot read the data: URI: {e}.")),
+        }
+    } else {
+        input.to_vec()
+    };
+    match images::decode_image(&raw) {
+        Ok(img) => {
+            let (width, height) = (img.width, img.height);
+            DECODED.with(|d| {
+                *d.borrow_mut() = Some(RgbaImage {
+                    width,
+                    height,
+                    data: img.data,
+                })
+            });
+            ok_json(&serde_json::json!({ "width": width, "height": height }))
+        }
+        Err(e) => fail(e),
+    }
+}
+
+/// Copies the last decoded image's pixels into `out` (`4 * width * height` bytes) and
+/// forgets it. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_decoded_take(out_ptr: *mut u8, out_len: usize) -> i32 {
+    match DECODED.with(|d| d.borrow_mut().take()) {
+        Some(img) if img.data.len() == out_len => {
+            bytes_mut(out_ptr, out_len).copy_from_slice(&img.data);
+            0
+        }
+        Some(img) => fail(format!(
+            "The output buffer has {out_len} bytes; the image needs {}.",
+            img.data.len()
+        )),
+        None => fail("No image was decoded."),
+    }
+}
+
+/// The engine's matte values of a straight RGBA8 image (grey level times alpha; 0 is a
+/// hole), one byte per pixel into `out`. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_matte_values(
+    rgba_ptr: *const u8,
+    width: usize,
+    height: usize,
+    out_ptr: *mut u8,
+) -> i32 {
+    let n = width * height;
+    let image = RgbaImage {
+        width,
+        height,
+        data: bytes(rgba_ptr, 4 * n).to_vec(),
+    };
+    let values = images::matte_values(&image);
+    bytes_mut(out_ptr, n).copy_from_slice(&values);
+    0
+}
+
+/// Every problem of a scene document (validation with JSON paths, images decoded and
+/// checked), as `[{"path", "message"}]`; empty when the scene is fine. Images must be
+/// `data:` URIs (the editor inlines them). Status 0.
+#[no_mangle]
+pub extern "C" fn iw_scene_check(json_ptr: *const u8, json_len: usize) -> i32 {
+    let text = match std::str::from_utf8(bytes(json_ptr, json_len)) {
+        Ok(t) => t,
+        Err(_) => {
+            return ok_json(&[
+                serde_json::json!({ "path": "", "message": "the scene is not UTF-8 text" }),
+            ])
+        }
+    };
+    let problems: Vec<serde_json::Value> =
+        match inkwarp_core::scene::Scene::from_json(text, &mut inkwarp_core::scene::no_files) {
+            Ok(_) => Vec::new(),
+            Err(err) => err
+                .problems
+                .iter()
+                .map(|p| serde_json::json!({ "path": p.path, "message": p.message }))
+                .collect(),
+        };
+    ok_json(&problems)
+}
+
+/// The field methods of DESIGN §6 and whether the editor can preview them, as
+/// `[{"name", "available"}]` in the scene format's names: the engine must compute the
+/// method and this adapter must drive it (only the grid thin plate, `tps`, so far; the
+/// others need the scene engine's controls from features, see `iw_solve`). Status 0.
+#[no_mangle]
+pub extern "C" fn iw_methods() -> i32 {
+    use inkwarp_core::scene::{method_available, Method};
+    let list: Vec<serde_json::Value> = ["tps", "tps-exact", "triangulation", "beier-neely"]
+        .iter()
+        .map(|&name| {
+            let available =
+                Method::from_name(name).is_some_and(|m| m == Method::Tps && method_available(m));
+            serde_json::json!({ "name": name, "available": available })
+        })
+        .collect();
+    ok_json(&list)
+}

@@ -1,0 +1,46 @@
+"""``inkwarp schema``: the JSON Schema of scene files."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from inkwarp.cli import _common
+
+EPILOG = """\
+examples:
+  inkwarp schema                       print it
+  inkwarp schema -o scene.schema.json  write it to a file (for an editor's completion)
+
+The schema is generated from the engine's own types, so it is exactly what
+'inkwarp validate' and 'inkwarp render' accept.
+"""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "schema", help="print the JSON Schema of scene files",
+        description="Print the JSON Schema of inkwarp scene files (format version 1).",
+        epilog=EPILOG, formatter_class=_common.formatter)
+    parser.add_argument("-o", "--output", metavar="FILE",
+                        help="write the schema to FILE instead of printing it")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import inkwarp
+
+    text = json.dumps(inkwarp.scene_schema(), indent=2, sort_keys=False) + "\n"
+    if args.output is None:
+        print(text, end="")
+        return 0
+    target = Path(args.output)
+    parent = target.absolute().parent
+    if not parent.is_dir():
+        raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
+    from inkwarp import video
+
+    video.write_bytes(target, text.encode("utf-8"))
+    print(f"wrote {target}")
+    return 0

@@ -1,0 +1,499 @@
+"""Scenes: images in layers, a drawing traced over them, and keys that move it over time.
+
+A scene is one JSON file (the format is described in ``docs/reference/scene-format.md`` and
+by :func:`scene_schema`). :class:`Scene` reads one, checks it (every problem is reported at
+once, each with its JSON path, as :class:`inkwarp.SceneError`) and renders it with the
+compiled engine: single frames, displacement fields, or the whole animation, each frame
+warm-started from the one before.
+
+Example
+-------
+>>> import numpy as np
+>>> import inkwarp
+>>> art = np.zeros((48, 64, 4), np.uint8)
+>>> art[8:40, 16:48] = (255, 128, 0, 255)                  # an orange square
+>>> scene = inkwarp.Scene.from_dict({
+...     "inkwarp": 1, "fps": 12, "duration": 1.0,
+...     "layers": [{"name": "square", "image": inkwarp.image_data_uri(art)}],
+...     "features": [{"id": "corner", "kind": "point", "rest": [[16, 8]],
+...                   "keys": [{"t": 0, "points": [[16, 8]]},
+...                            {"t": 1, "points": [[20, 8]]}]}]})
+>>> scene.width, scene.height, scene.frame_count
+(64, 48, 12)
+>>> scene.render(time=0.0).shape
+(48, 64, 4)
+>>> scene.field(time=1.0)[8, 16]                           # (dx, dy) at x=16, y=8
+array([4., 0.], dtype=float32)
+>>> len([frame for frame in scene.frames()])
+12
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+import os
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from inkwarp import _inkwarp
+from inkwarp.errors import SceneError
+
+__all__ = ["Frames", "Scene", "image_data_uri", "scene_schema", "validate_scene"]
+
+#: One problem of a scene: ``(JSON path, message)``.
+Problem = tuple[str, str]
+
+
+def scene_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of the scene format, generated from the engine's types.
+
+    Returns
+    -------
+    dict
+        The schema; ``json.dumps(scene_schema(), indent=2)`` is what ``inkwarp schema``
+        prints.
+
+    Examples
+    --------
+    >>> import inkwarp
+    >>> schema = inkwarp.scene_schema()
+    >>> schema["properties"]["inkwarp"]["const"]
+    1
+    >>> sorted(schema["required"])
+    ['inkwarp', 'layers']
+    """
+    return json.loads(_inkwarp.scene_schema())
+
+
+def image_data_uri(image: np.ndarray) -> str:
+    """Encodes an image array as a ``data:image/png;base64,...`` URI for a scene's layers.
+
+    Parameters
+    ----------
+    image : ndarray
+        uint8 ``(H, W, 4)`` RGBA (straight alpha), ``(H, W, 3)`` RGB or ``(H, W)`` grey.
+
+    Returns
+    -------
+    str
+        A PNG data URI, usable wherever a scene takes an image path.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> image_data_uri(np.zeros((2, 2, 4), np.uint8))[:22]
+    'data:image/png;base64,'
+    """
+    from PIL import Image
+
+    array = np.asarray(image)
+    if array.dtype != np.uint8 or array.ndim not in (2, 3) or (array.ndim == 3 and array.shape[2] not in (3, 4)):
+        raise ValueError(
+            f"expected a uint8 image of shape (H, W), (H, W, 3) or (H, W, 4), got {array.dtype} {array.shape}"
+        )
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(array)).save(buffer, format="PNG")
+    return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+def _join(path: str, key: str) -> str:
+    return f"{path}.{key}" if path else key
+
+
+def _plain(value: Any, path: str, problems: list[Problem]) -> Any:
+    """``value`` as plain JSON data (NumPy arrays and scalars converted); non-finite numbers
+    and values JSON cannot hold become problems (and placeholders, so that checking goes on)."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v, _join(path, str(k)), problems) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [_plain(v, f"{path}[{i}]", problems) for i, v in enumerate(value)]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        number = float(value)
+        if not math.isfinite(number):
+            problems.append((path, f"numbers must be finite, found {number}; use a finite number"))
+            return 0.0
+        return number
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if value is None or isinstance(value, str):
+        return value
+    problems.append(
+        (path, f"a {type(value).__name__} cannot be stored in a scene; use numbers, strings, lists and dicts")
+    )
+    return None
+
+
+def _raise_for(problems: list[Problem], file: str | None) -> None:
+    if not problems:
+        return
+    if len(problems) == 1:
+        path, message = problems[0]
+        text = f"{path}: {message}" if path else message
+    else:
+        lines = [f"{p}: {m}" if p else m for p, m in problems]
+        text = f"{len(problems)} problems:\n  " + "\n  ".join(lines)
+    raise SceneError(f"{file}: {text}" if file else text, file=file, path=problems[0][0], problems=problems)
+
+
+def _dict_to_json(data: Mapping[str, Any]) -> tuple[str, list[Problem]]:
+    if not isinstance(data, Mapping):
+        raise SceneError(
+            f"a scene is a dict such as {{'inkwarp': 1, 'layers': [...]}}, got {type(data).__name__}",
+            path="",
+        )
+    problems: list[Problem] = []
+    plain = _plain(data, "", problems)
+    return json.dumps(plain), problems
+
+
+def validate_scene(source: str | os.PathLike[str] | Mapping[str, Any], base_dir: str | os.PathLike[str] | None = None) -> list[Problem]:
+    """Every problem of a scene, images included, without raising.
+
+    Parameters
+    ----------
+    source : path or dict
+        A scene file, or a scene as a dict.
+    base_dir : path, optional
+        Folder that image paths of a dict are relative to (default: the current folder; a
+        file's own folder for a file).
+
+    Returns
+    -------
+    list of (str, str)
+        ``(JSON path, message)`` for each problem; empty when the scene is valid.
+
+    Examples
+    --------
+    >>> validate_scene({"inkwarp": 1, "fps": 0, "width": 8, "height": 8,
+    ...                 "layers": [{"name": "main"}]})
+    [('fps', 'frames per second must be a number > 0, found 0; use e.g. 24')]
+    """
+    if isinstance(source, Mapping):
+        text, problems = _dict_to_json(source)
+        base = os.fspath(base_dir) if base_dir is not None else None
+    else:
+        path = Path(source)
+        try:
+            text = path.read_text(encoding="utf-8-sig")
+        except FileNotFoundError:
+            return [("", f"no such scene file: {path}")]
+        except (OSError, UnicodeDecodeError) as err:
+            return [("", f"cannot read the scene file {path}: {err}")]
+        problems = []
+        base = os.fspath(base_dir) if base_dir is not None else os.fspath(path.resolve().parent)
+    return problems + [p for p in _inkwarp.scene_problems(text, base) if p[0] not in {q[0] for q in problems}]
+
+
+class Frames(Iterator[np.ndarray]):
+    """The frames of a scene, in order, as RGBA uint8 arrays ``(H, W, 4)``.
+
+    Rendered by the engine while you consume them (on worker threads, at most a few frames
+    ahead, when more than one thread renders). ``len()`` gives the number of frames still to come; ``close()`` (or leaving a
+    ``with`` block) stops the rendering early. :attr:`index` is the frame number of the
+    frame last returned.
+    """
+
+    def __init__(self, core: Any, start: int) -> None:
+        self._core = core
+        self.index = start - 1
+
+    def __iter__(self) -> Frames:
+        return self
+
+    def __next__(self) -> np.ndarray:
+        item = self._core.__next__()
+        if item is None:
+            raise StopIteration
+        self.index, frame = item
+        return frame
+
+    def __len__(self) -> int:
+        return len(self._core)
+
+    def close(self) -> None:
+        """Stops rendering; the iterator is exhausted afterwards."""
+        self._core.close()
+
+    def __enter__(self) -> Frames:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class Scene:
+    """A scene ready to render: its layers' images decoded, mattes and cuts applied.
+
+    Build one with :meth:`load` (a file) or :meth:`from_dict`. Both check the whole scene
+    first and raise :class:`inkwarp.SceneError` listing every problem (``.problems``), the
+    first one's JSON path (``.path``) and the file (``.file``).
+
+    Times are in seconds; frame ``i`` is at time ``i / fps``. Before a feature's first key
+    it holds that key, after its last key the last one.
+    """
+
+    def __init__(self, core: Any, *, file: str | None = None, base_dir: str | None = None) -> None:
+        """Wraps a resolved engine scene; use :meth:`load` or :meth:`from_dict` instead."""
+        self._core = core
+        self.file = file
+        self.base_dir = base_dir
+
+    # ---- construction -------------------------------------------------------------------
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Scene:
+        """Reads a scene file; image paths in it are relative to its folder.
+
+        Parameters
+        ----------
+        path : path
+            The scene's JSON file.
+
+        Raises
+        ------
+        FileNotFoundError
+            When there is no such file.
+        inkwarp.SceneError
+            When the scene has problems (all of them are listed).
+        """
+        file = os.fspath(path)
+        text = Path(file).read_text(encoding="utf-8-sig")
+        base_dir = os.fspath(Path(file).resolve().parent)
+        core = _inkwarp.SceneCore.from_json(text, base_dir, file)
+        return cls(core, file=file, base_dir=base_dir)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], base_dir: str | os.PathLike[str] | None = None) -> Scene:
+        """Builds a scene from a dict in the scene format (NumPy arrays allowed for points).
+
+        Parameters
+        ----------
+        data : dict
+            The scene, as :func:`json.load` would return it.
+        base_dir : path, optional
+            Folder that image paths are relative to (default: the current folder).
+
+        Raises
+        ------
+        inkwarp.SceneError
+            When the scene has problems (all of them are listed).
+
+        Examples
+        --------
+        >>> Scene.from_dict({"inkwarp": 1, "width": 4, "height": 3,
+        ...                  "layers": [{"name": "main"}]}).render().shape
+        (3, 4, 4)
+        """
+        text, problems = _dict_to_json(data)
+        base = os.fspath(base_dir) if base_dir is not None else None
+        if problems:
+            others = _inkwarp.scene_problems(text, base)
+            _raise_for(problems + [p for p in others if p[0] not in {q[0] for q in problems}], None)
+        core = _inkwarp.SceneCore.from_json(text, base, None)
+        return cls(core, base_dir=base)
+
+    @classmethod
+    def from_json(cls, text: str, base_dir: str | os.PathLike[str] | None = None) -> Scene:
+        """Builds a scene from JSON text (see :meth:`from_dict`)."""
+        base = os.fspath(base_dir) if base_dir is not None else None
+        return cls(_inkwarp.SceneCore.from_json(text, base, None), base_dir=base)
+
+    # ---- what it is ---------------------------------------------------------------------
+
+    @property
+    def width(self) -> int:
+        """Frame width in pixels."""
+        return int(self._core.width)
+
+    @property
+    def height(self) -> int:
+        """Frame height in pixels."""
+        return int(self._core.height)
+
+    @property
+    def fps(self) -> float:
+        """Frames per second."""
+        return float(self._core.fps)
+
+    @property
+    def duration(self) -> float:
+        """Length in seconds (the file's, or up to and including the last key)."""
+        return float(self._core.duration)
+
+    @property
+    def frame_count(self) -> int:
+        """Number of frames, ``ceil(duration * fps)`` (at least 1)."""
+        return int(self._core.frame_count)
+
+    @property
+    def times(self) -> np.ndarray:
+        """The time of every frame in seconds, float64 ``(frame_count,)``."""
+        return np.arange(self.frame_count, dtype=np.float64) / self.fps
+
+    @property
+    def layers(self) -> list[str]:
+        """Layer names, back to front."""
+        return list(self._core.layer_names)
+
+    @property
+    def features(self) -> list[str]:
+        """Feature ids, in file order."""
+        return list(self._core.feature_ids)
+
+    def __repr__(self) -> str:
+        source = f" from {self.file!r}" if self.file else ""
+        return (
+            f"<inkwarp.Scene{source}: {self.width}x{self.height}, {self.frame_count} frames at "
+            f"{self.fps:g} fps, layers {self.layers}>"
+        )
+
+    # ---- rendering ----------------------------------------------------------------------
+
+    def _time(self, time: float | None, frame: int | None) -> float:
+        if time is not None and frame is not None:
+            raise ValueError("give either time= or frame=, not both")
+        if frame is not None:
+            index = int(frame)
+            if not 0 <= index < self.frame_count:
+                raise ValueError(f"frame {index} is out of range; the scene has frames 0 to {self.frame_count - 1}")
+            return float(self._core.frame_time(index))
+        if time is None:
+            return 0.0
+        value = float(time)
+        if not math.isfinite(value):
+            raise ValueError(f"time must be a finite number of seconds, got {time}")
+        return value
+
+    def _layer_index(self, layer: str | int | None) -> int:
+        names = self.layers
+        if layer is None:
+            if len(names) == 1:
+                return 0
+            raise ValueError(f"the scene has {len(names)} layers ({', '.join(names)}); choose one with layer=NAME")
+        if isinstance(layer, (int, np.integer)) and not isinstance(layer, bool):
+            if not 0 <= int(layer) < len(names):
+                raise ValueError(f"layer index {layer} is out of range; the scene has {len(names)} layers")
+            return int(layer)
+        if layer in names:
+            return names.index(layer)
+        raise ValueError(f"no layer is called {layer!r}; the layers are {', '.join(names)}")
+
+    def render(self, time: float | None = None, frame: int | None = None, *, method: str | None = None) -> np.ndarray:
+        """The frame at ``time`` seconds (or frame number ``frame``; default: time 0).
+
+        Every layer is solved from scratch (no warm start); :meth:`frames` is faster for
+        consecutive frames.
+
+        Parameters
+        ----------
+        time, frame : optional
+            When (default: time 0). Give one of them.
+        method : str, optional
+            ``"tps"``, ``"tps-exact"``, ``"triangulation"`` or ``"beier-neely"`` for every
+            layer instead of the scene's ``solver.method``.
+
+        Returns
+        -------
+        ndarray
+            RGBA uint8 ``(height, width, 4)``, straight alpha.
+        """
+        return self._core.render(self._time(time, frame), method)
+
+    def field(
+        self,
+        time: float | None = None,
+        frame: int | None = None,
+        layer: str | int | None = None,
+        *,
+        method: str | None = None,
+    ) -> np.ndarray:
+        """The displacement field of one layer at ``time`` seconds (or frame ``frame``).
+
+        Parameters
+        ----------
+        time, frame : optional
+            When (default: time 0). Give one of them.
+        layer : str or int, optional
+            Layer name or index; may be left out when the scene has one layer.
+        method : str, optional
+            The interpolant instead of the layer's ``solver.method`` (see :meth:`render`).
+
+        Returns
+        -------
+        ndarray
+            float32 ``(height, width, 2)``: pixel ``(x, y)`` of the layer's rest image moves
+            to ``(x + f[y, x, 0], y + f[y, x, 1])``.
+        """
+        return self._core.field(self._layer_index(layer), self._time(time, frame), method)
+
+    def frames(
+        self, start: int = 0, stop: int | None = None, *, threads: int | None = None, method: str | None = None
+    ) -> Frames:
+        """Frames ``start`` to ``stop - 1``, each warm-started from the one before.
+
+        Frames are solved in chains of 16 (frame numbers that are multiples of 16 start a
+        chain cold); chains render in parallel on ``threads`` threads. The solver and the
+        renderer already use every core inside a frame, so the default is one thread per
+        four cores. The pixels do not depend on the number of threads.
+
+        Parameters
+        ----------
+        start, stop : int
+            Frame range, like ``range(start, stop)``; ``stop`` defaults to the last frame.
+        threads : int, optional
+            Worker threads; 1 renders on the calling thread only.
+        method : str, optional
+            The interpolant instead of each layer's ``solver.method`` (see :meth:`render`).
+
+        Returns
+        -------
+        Frames
+            An iterator of RGBA uint8 ``(height, width, 4)`` arrays with ``len()``.
+        """
+        stop = self.frame_count if stop is None else min(int(stop), self.frame_count)
+        start = int(start)
+        if start < 0 or stop < start:
+            raise ValueError(f"frames({start}, {stop}) is not a range of this scene's frames 0 to {self.frame_count}")
+        if threads is not None and int(threads) < 1:
+            raise ValueError(f"threads must be at least 1, got {threads}")
+        return Frames(self._core.frames(start, stop, 0 if threads is None else int(threads), method), start)
+
+    # ---- the document -------------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """The scene as a dict in the scene format, defaults filled in."""
+        return json.loads(self._core.doc_json())
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Writes the scene as JSON; relative image paths are rewritten for the new folder."""
+        target = Path(path)
+        data = self.to_dict()
+        if self.base_dir is not None:
+            for layer in data.get("layers", []):
+                for key in ("image", "alpha", "continuity"):
+                    reference = layer.get(key)
+                    if reference and not reference.lower().startswith("data:") and not os.path.isabs(reference):
+                        absolute = Path(self.base_dir) / reference
+                        layer[key] = Path(os.path.relpath(absolute, target.resolve().parent)).as_posix()
+        tmp = target.with_name(target.name + ".tmp")
+        tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+        os.replace(tmp, target)
+
+    def validate(self) -> list[Problem]:
+        """Every problem of this scene's document now (images are read again).
+
+        A scene that loaded has none, unless its image files changed since.
+        """
+        return _inkwarp.scene_problems(self._core.doc_json(), self.base_dir)

@@ -1,0 +1,528 @@
+"""Writers for rendered frames: one PNG, a PNG sequence, an animated GIF, an H.264 MP4.
+
+Every writer works under a temporary name in the target's own directory and renames it to
+the target only when the last frame is in, so a render that fails or is interrupted leaves
+nothing behind (and an existing file of the same name stays as it was until then).
+
+Frames are RGBA ``uint8`` arrays of shape ``(H, W, 4)`` with straight alpha, as
+:meth:`inkwarp.Scene.render` returns them. GIF and MP4 have no (or only 1-bit) alpha, so
+their frames are flattened over white first; give the scene an opaque ``background`` to
+choose the colour yourself.
+
+Examples
+--------
+>>> import numpy as np, tempfile, os
+>>> from inkwarp.video import open_writer
+>>> frame = np.zeros((32, 48, 4), np.uint8); frame[..., 3] = 255
+>>> out = os.path.join(tempfile.mkdtemp(), "clip.gif")
+>>> with open_writer(out, fps=12) as writer:
+...     for shade in range(0, 250, 50):
+...         frame[..., 0] = shade
+...         writer.write(frame)
+>>> [os.path.basename(p) for p in writer.paths]
+['clip.gif']
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import shutil
+from pathlib import Path
+from types import TracebackType
+from typing import Literal
+
+import numpy as np
+
+OutputKind = Literal["png", "dir", "gif", "mp4"]
+
+#: Output suffixes that name a file; anything else names a directory of PNG frames.
+FILE_SUFFIXES = {".png": "png", ".gif": "gif", ".mp4": "mp4"}
+
+#: The names of the frames in a PNG sequence: ``frame_0000.png``, ``frame_0001.png``, ...
+FRAME_PATTERN = "frame_{:04d}.png"
+
+
+def output_kind(path: str | os.PathLike[str]) -> OutputKind:
+    """Which writer a path asks for, from its suffix.
+
+    ``.png`` is one frame, ``.gif`` an animated GIF, ``.mp4`` an H.264 video; an existing
+    directory, a path ending in a separator, or a path without a suffix is a directory of
+    PNG frames. Any other suffix is a ``ValueError``.
+
+    Examples
+    --------
+    >>> output_kind("a.gif"), output_kind("frames/"), output_kind("shot.MP4")
+    ('gif', 'dir', 'mp4')
+    """
+    text = os.fspath(path)
+    p = Path(text)
+    if text.endswith(("/", os.sep)) or p.is_dir():
+        return "dir"
+    suffix = p.suffix.lower()
+    if suffix in FILE_SUFFIXES:
+        return FILE_SUFFIXES[suffix]  # type: ignore[return-value]
+    if suffix == "":
+        return "dir"
+    raise ValueError(
+        f"{text}: cannot write '{suffix}' files; name the output .png (one frame), "
+        ".gif, .mp4, or a directory (a PNG sequence)"
+    )
+
+
+def check_target(path: str | os.PathLike[str]) -> Path:
+    """Check up front that ``path`` can be written, before any rendering starts.
+
+    Raises ``ValueError`` with the fix when the parent directory is missing or is not a
+    directory, when a file output names an existing directory, or when a directory output
+    names an existing file.
+    """
+    target = Path(os.fspath(path))
+    kind = output_kind(target)
+    parent = target.absolute().parent
+    if not parent.exists():
+        raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
+    if not parent.is_dir():
+        raise ValueError(f"{target}: {parent} is not a directory")
+    if kind == "dir" and target.exists() and not target.is_dir():
+        raise ValueError(f"{target}: is a file, not a directory for PNG frames")
+    if kind != "dir" and target.is_dir():
+        raise ValueError(f"{target}: is a directory; name a file, such as {target / 'out'}{target.suffix}")
+    if not os.access(parent, os.W_OK):
+        raise ValueError(f"{target}: the directory {parent} is not writable")
+    return target
+
+
+def flatten(rgba: np.ndarray, background: tuple[int, int, int] = (255, 255, 255)) -> np.ndarray:
+    """RGB ``uint8`` of a straight-alpha RGBA frame composited over an opaque colour.
+
+    Examples
+    --------
+    >>> px = np.array([[[200, 0, 0, 128]]], np.uint8)
+    >>> flatten(px).tolist()
+    [[[227, 127, 127]]]
+    """
+    frame = _as_frame(rgba)
+    if frame.shape[2] == 3:
+        return frame
+    alpha = frame[..., 3:4].astype(np.uint32)
+    if alpha.min() == 255:
+        return np.ascontiguousarray(frame[..., :3])
+    rgb = frame[..., :3].astype(np.uint32)
+    bg = np.asarray(background, np.uint32)
+    return ((rgb * alpha + bg * (255 - alpha) + 127) // 255).astype(np.uint8)
+
+
+def _as_frame(frame: np.ndarray) -> np.ndarray:
+    arr = np.asarray(frame)
+    if arr.dtype != np.uint8 or arr.ndim != 3 or arr.shape[2] not in (3, 4):
+        raise ValueError(
+            f"a frame must be a uint8 array of shape (H, W, 4) or (H, W, 3); got {arr.dtype} "
+            f"{arr.shape}"
+        )
+    return arr
+
+
+def _temp_name(target: Path, suffix: str) -> Path:
+    """A new empty file beside ``target``, created with the permissions of any new file
+    (0o666 less the umask: mkstemp's 0o600 would survive the rename)."""
+    parent = target.absolute().parent
+    while True:
+        name = parent / f".{target.name}.{secrets.token_hex(6)}.part{suffix}"
+        try:
+            os.close(os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return name
+        except FileExistsError:
+            continue
+
+
+def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically: under a temporary name beside it, renamed at
+    the end, so ``path`` is either complete or as it was.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> target = os.path.join(tempfile.mkdtemp(), "notes.txt")
+    >>> write_bytes(target, b"hello").read_bytes()
+    b'hello'
+    """
+    target = Path(os.fspath(path))
+    temp = _temp_name(target, "")
+    try:
+        temp.write_bytes(data)
+        os.replace(temp, target)
+    except BaseException:
+        temp.unlink(missing_ok=True)
+        raise
+    return target
+
+
+def _temp_dir(target: Path) -> Path:
+    """A new empty directory beside ``target`` (0o777 less the umask)."""
+    parent = target.absolute().parent
+    while True:
+        name = parent / f".{target.name}.{secrets.token_hex(6)}.part"
+        try:
+            os.mkdir(name, 0o777)
+            return name
+        except FileExistsError:
+            continue
+
+
+class FrameWriter:
+    """Writes frames to one target; a context manager that commits or leaves nothing.
+
+    Use :func:`open_writer` to get the right writer for a path. ``write(frame)`` appends a
+    frame; leaving the ``with`` block normally calls :meth:`close` (which renames the
+    temporary output into place and fills :attr:`paths`); leaving it by an exception calls
+    :meth:`abort` (which deletes it).
+    """
+
+    def __init__(self, target: Path, fps: float) -> None:
+        if not (fps > 0 and np.isfinite(fps)):
+            raise ValueError(f"fps must be a positive number; got {fps}")
+        self.target = target
+        self.fps = float(fps)
+        self.frames_written = 0
+        self.size: tuple[int, int] | None = None  # (width, height)
+        #: The paths written, filled in by :meth:`close`.
+        self.paths: list[Path] = []
+        self._closed = False
+
+    def write(self, frame: np.ndarray) -> None:
+        arr = _as_frame(frame)
+        size = (arr.shape[1], arr.shape[0])
+        if self.size is None:
+            self.size = size
+        elif size != self.size:
+            raise ValueError(f"frame {self.frames_written} is {size[0]}x{size[1]}; the others "
+                             f"are {self.size[0]}x{self.size[1]}")
+        self._write(arr)
+        self.frames_written += 1
+
+    def close(self) -> list[Path]:
+        if self._closed:
+            return self.paths
+        self._closed = True
+        if self.frames_written == 0:
+            self._discard()
+            raise ValueError(f"{self.target}: no frames to write")
+        try:
+            self.paths = self._commit()
+        except BaseException:
+            self._discard()
+            raise
+        return self.paths
+
+    def abort(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self._discard()
+
+    def __enter__(self) -> FrameWriter:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    # The three steps every writer implements.
+    def _write(self, frame: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def _commit(self) -> list[Path]:
+        raise NotImplementedError
+
+    def _discard(self) -> None:
+        raise NotImplementedError
+
+
+def _save_png(frame: np.ndarray, path: Path | str) -> None:
+    from PIL import Image
+
+    mode = "RGBA" if frame.shape[2] == 4 else "RGB"
+    Image.fromarray(frame, mode).save(path, format="PNG", compress_level=6)
+
+
+class PngWriter(FrameWriter):
+    """Exactly one frame to one PNG file (RGBA, straight alpha), written atomically by
+    :func:`inkwarp.imaging.write_png`."""
+
+    def __init__(self, target: Path, fps: float = 24.0) -> None:
+        super().__init__(target, fps)
+        self._frame: np.ndarray | None = None
+
+    def _write(self, frame: np.ndarray) -> None:
+        if self.frames_written:
+            raise ValueError(f"{self.target}: a .png holds one frame; write a .gif, an .mp4 or "
+                             "a directory for more")
+        self._frame = frame
+
+    def _commit(self) -> list[Path]:
+        from inkwarp.imaging import write_png
+
+        assert self._frame is not None
+        write_png(self.target, self._frame)
+        self._frame = None
+        return [self.target]
+
+    def _discard(self) -> None:
+        self._frame = None
+
+
+class PngSequenceWriter(FrameWriter):
+    """Frames as ``frame_0000.png``, ``frame_0001.png``, ... in a directory.
+
+    Files are numbered by frame, from ``first_frame``, so a range of an animation
+    (``--frames 24:48``) lands under its own numbers and several ranges can be rendered
+    into one directory. The frames go into a fresh temporary directory beside the target;
+    at the end that directory becomes the target, or, when the target exists, its frames
+    replace the target's files of the same names (other files are left as they are).
+    """
+
+    def __init__(self, target: Path, fps: float, first_frame: int = 0) -> None:
+        super().__init__(target, fps)
+        self.first_frame = first_frame
+        self._temp = _temp_dir(target)
+
+    def _name(self, i: int) -> str:
+        return FRAME_PATTERN.format(self.first_frame + i)
+
+    def _write(self, frame: np.ndarray) -> None:
+        _save_png(frame, self._temp / self._name(self.frames_written))
+
+    def _commit(self) -> list[Path]:
+        names = [self._name(i) for i in range(self.frames_written)]
+        if not self.target.exists():
+            os.replace(self._temp, self.target)
+        else:
+            for name in names:
+                os.replace(self._temp / name, self.target / name)
+            shutil.rmtree(self._temp, ignore_errors=True)
+        return [self.target / name for name in names]
+
+    def _discard(self) -> None:
+        shutil.rmtree(self._temp, ignore_errors=True)
+
+
+class GifWriter(FrameWriter):
+    """An animated GIF (Pillow), looping forever, each frame with its own palette.
+
+    GIF stores frame delays in hundredths of a second, so the delays are spread to keep
+    the clip's total length right (24 fps plays as 4, 4, 5, 4, 4, 5, ... hundredths).
+    """
+
+    def __init__(self, target: Path, fps: float) -> None:
+        super().__init__(target, fps)
+        self._frames: list[object] = []
+        self._temp: Path | None = None
+
+    def _write(self, frame: np.ndarray) -> None:
+        from PIL import Image
+
+        rgb = Image.fromarray(flatten(frame), "RGB")
+        # Quantised right away: a palette image is a quarter of the RGBA frame in memory.
+        self._frames.append(rgb.quantize(colors=256, method=Image.Quantize.MEDIANCUT,
+                                         dither=Image.Dither.FLOYDSTEINBERG))
+
+    def _durations_ms(self) -> list[int]:
+        n = len(self._frames)
+        ends = [round((i + 1) * 100 / self.fps) for i in range(n)]
+        starts = [0] + ends[:-1]
+        return [max(1, e - s) * 10 for s, e in zip(starts, ends)]
+
+    def _commit(self) -> list[Path]:
+        first, *rest = self._frames
+        self._temp = _temp_name(self.target, ".gif")
+        first.save(self._temp, format="GIF", save_all=True,  # type: ignore[attr-defined]
+                   append_images=rest, duration=self._durations_ms(), loop=0, optimize=False,
+                   disposal=1)
+        self._frames.clear()
+        os.replace(self._temp, self.target)
+        return [self.target]
+
+    def _discard(self) -> None:
+        self._frames.clear()
+        if self._temp is not None:
+            self._temp.unlink(missing_ok=True)
+
+
+class Mp4Writer(FrameWriter):
+    """An H.264 MP4 (yuv420p, playable everywhere) through the ffmpeg that imageio-ffmpeg
+    ships. Frames are streamed to ffmpeg, not kept in memory. H.264 in yuv420p needs even
+    sizes, so an odd width or height gets one more column or row, copied from the edge.
+
+    ``quality`` is imageio-ffmpeg's 0-10 scale (10 is best); the default 8 keeps line art
+    crisp.
+    """
+
+    def __init__(self, target: Path, fps: float, quality: float = 8.0) -> None:
+        super().__init__(target, fps)
+        self.quality = quality
+        self._temp: Path | None = None
+        self._pipe = None  # imageio_ffmpeg.write_frames generator, opened on the first frame
+
+    def _write(self, frame: np.ndarray) -> None:
+        rgb = flatten(frame)
+        h, w = rgb.shape[:2]
+        if h % 2 or w % 2:
+            rgb = np.pad(rgb, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+        if self._pipe is None:
+            import imageio_ffmpeg
+
+            self._temp = _temp_name(self.target, ".mp4")
+            self._pipe = imageio_ffmpeg.write_frames(
+                str(self._temp), (rgb.shape[1], rgb.shape[0]), pix_fmt_in="rgb24",
+                pix_fmt_out="yuv420p", fps=self.fps, codec="libx264", quality=self.quality,
+                macro_block_size=1, ffmpeg_log_level="error",
+                output_params=["-movflags", "+faststart"],
+            )
+            self._pipe.send(None)  # start ffmpeg
+        self._pipe.send(np.ascontiguousarray(rgb))
+
+    def _commit(self) -> list[Path]:
+        assert self._pipe is not None and self._temp is not None
+        self._pipe.close()  # waits for ffmpeg to finish the file
+        self._pipe = None
+        os.replace(self._temp, self.target)
+        return [self.target]
+
+    def _discard(self) -> None:
+        if self._pipe is not None:
+            try:
+                self._pipe.close()
+            except Exception:  # noqa: BLE001 - the file is deleted either way
+                pass
+            self._pipe = None
+        if self._temp is not None:
+            self._temp.unlink(missing_ok=True)
+
+
+def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
+                kind: OutputKind | None = None, first_frame: int = 0) -> FrameWriter:
+    """The writer for ``path``: ``.png`` (one frame), a directory, ``.gif`` or ``.mp4``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The output. Its parent directory must exist.
+    fps : float
+        Frames per second (GIF and MP4 timing).
+    kind : {"png", "dir", "gif", "mp4"}, optional
+        Overrides the guess from the suffix (see :func:`output_kind`).
+    first_frame : int
+        For a directory: the number of the first frame's file.
+
+    Returns
+    -------
+    FrameWriter
+        Use it as a context manager; ``writer.paths`` lists the files written.
+    """
+    target = check_target(path)
+    kind = kind or output_kind(target)
+    if kind == "png":
+        return PngWriter(target, fps)
+    if kind == "dir":
+        return PngSequenceWriter(target, fps, first_frame)
+    if kind == "gif":
+        return GifWriter(target, fps)
+    if kind == "mp4":
+        return Mp4Writer(target, fps)
+    raise ValueError(f"unknown output kind {kind!r}")
+
+
+def write_frames(path: str | os.PathLike[str], frames, *, fps: float = 24.0) -> list[Path]:
+    """Write an iterable of frames to ``path`` (see :func:`open_writer`); the paths written.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, os
+    >>> frames = [np.full((8, 8, 4), v, np.uint8) for v in (0, 255)]
+    >>> out = os.path.join(tempfile.mkdtemp(), "frames")
+    >>> [p.name for p in write_frames(out, frames, fps=2)]
+    ['frame_0000.png', 'frame_0001.png']
+    """
+    with open_writer(path, fps=fps) as writer:
+        for frame in frames:
+            writer.write(frame)
+    return writer.paths
+
+
+def field_picture(field: np.ndarray, *, arrows: int = 24, scale_px: float | None = None
+                  ) -> np.ndarray:
+    """A displacement field as an RGBA picture: colour for direction, strength for length.
+
+    Hue gives the direction a pixel moves (red right, yellow-green down, cyan-blue left,
+    purple up: the usual optical-flow wheel) and saturation its length, from white (still)
+    to full colour at ``scale_px`` (default: the largest length in the field). Arrows drawn
+    every ``arrows`` pixels (0 for none) show the motion at true length.
+
+    Parameters
+    ----------
+    field : ndarray, shape (H, W, 2)
+        ``[..., 0]`` is Δx, ``[..., 1]`` Δy, in pixels.
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W, 4)
+
+    Examples
+    --------
+    >>> f = np.zeros((4, 4, 2), np.float32); f[..., 0] = 1.0   # everything moves right
+    >>> field_picture(f, arrows=0)[0, 0].tolist()
+    [255, 0, 0, 255]
+    """
+    from PIL import Image, ImageDraw
+
+    f = np.asarray(field, dtype=np.float64)
+    if f.ndim != 3 or f.shape[2] != 2:
+        raise ValueError(f"a field must have shape (H, W, 2); got {f.shape}")
+    f = np.where(np.isfinite(f), f, 0.0)
+    dx, dy = f[..., 0], f[..., 1]
+    length = np.hypot(dx, dy)
+    top = float(scale_px) if scale_px else float(length.max())
+    sat = np.clip(length / top, 0.0, 1.0) if top > 0 else np.zeros_like(length)
+    hue = (np.arctan2(dy, dx) / (2 * np.pi)) % 1.0  # 0 = right, 1/4 = down (y grows down)
+    rgb = _hsv_to_rgb(hue, sat, np.ones_like(sat))
+    picture = np.empty(f.shape[:2] + (4,), np.uint8)
+    picture[..., :3] = np.round(rgb * 255).astype(np.uint8)
+    picture[..., 3] = 255
+    if arrows > 0 and top > 0:
+        image = Image.fromarray(picture, "RGBA")
+        draw = ImageDraw.Draw(image)
+        h, w = length.shape
+        for y in range(arrows // 2, h, arrows):
+            for x in range(arrows // 2, w, arrows):
+                ax, ay = dx[y, x], dy[y, x]
+                if np.hypot(ax, ay) < 0.5:
+                    draw.point((x, y), fill=(60, 60, 60, 255))
+                    continue
+                _arrow(draw, (x, y), (x + ax, y + ay))
+        picture = np.asarray(image).copy()
+    return picture
+
+
+def _arrow(draw, tail: tuple[float, float], head: tuple[float, float]) -> None:
+    colour = (40, 40, 40, 255)
+    draw.line([tail, head], fill=colour, width=1)
+    vx, vy = head[0] - tail[0], head[1] - tail[1]
+    n = float(np.hypot(vx, vy))
+    size = min(4.0, 0.4 * n)
+    ux, uy = vx / n, vy / n
+    left = (head[0] - size * (ux - 0.5 * uy), head[1] - size * (uy + 0.5 * ux))
+    right = (head[0] - size * (ux + 0.5 * uy), head[1] - size * (uy - 0.5 * ux))
+    draw.polygon([head, left, right], fill=colour)
+
+
+def _hsv_to_rgb(h: np.ndarray, s: np.ndarray, v: np.ndarray) -> np.ndarray:
+    i = np.floor(h * 6.0).astype(int) % 6
+    f = h * 6.0 - np.floor(h * 6.0)
+    p, q, t = v * (1 - s), v * (1 - f * s), v * (1 - (1 - f) * s)
+    r = np.choose(i, [v, q, p, p, t, v])
+    g = np.choose(i, [t, v, v, q, p, p])
+    b = np.choose(i, [p, p, t, v, v, q])
+    return np.stack([r, g, b], axis=-1)

@@ -1,0 +1,258 @@
+"""Bad input exits 2 with one line naming the file, the JSON path and the fix; a bug exits
+1; a failed or interrupted render leaves nothing behind."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from _cli_scenes import leftovers, mutated, write_scene
+from inkwarp.cli import main
+
+
+def run(capsys, *args):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _set(path, value):
+    """A change to square_doc(): set the value at a path of keys and indices."""
+    def change(doc):
+        node = doc
+        for key in path[:-1]:
+            node = node[key]
+        node[path[-1]] = value
+    return change
+
+
+def _add_layer(image):
+    def change(doc):
+        doc["layers"].append({"name": "second", "image": image})
+    return change
+
+
+# (what is wrong, the scene, files to write beside it, the JSON path the message names)
+MISTAKES = [
+    ("unknown kind", mutated(_set(["features", 0, "kind"], "circle")), {},
+     "features[0].kind"),
+    ("wrong point count in a key", mutated(_set(["features", 0, "keys", 1, "points"],
+                                                [[1, 1], [2, 2]])), {},
+     "features[0].keys[1].points"),
+    ("keys out of order", mutated(_set(["features", 0, "keys", 1, "t"], -0.5)), {},
+     "features[0].keys[1].t"),
+    ("keys at equal times", mutated(_set(["features", 0, "keys", 1, "t"], 0.0)), {},
+     "features[0].keys[1].t"),
+    ("unknown feature id in a layer", mutated(_set(["layers", 0, "features"], ["grip", "gripp"])),
+     {}, "layers[0].features[1]"),
+    ("negative tension", mutated(_set(["solver"], {"tension": -1.0})), {}, "solver.tension"),
+    ("zero fps", mutated(_set(["fps"], 0)), {}, "fps"),
+    ("unknown method", mutated(_set(["solver"], {"method": "rbf"})), {}, "solver.method"),
+    ("misspelt key", mutated(_set(["layers", 0, "colour"], "red")), {}, "layers[0].colour"),
+    ("missing image", mutated(_set(["layers", 0, "image"], "nowhere.png")), {},
+     "layers[0].image"),
+    ("unreadable image", mutated(_set(["layers", 0, "image"], "notes.png")),
+     {"notes.png": b"these are not pixels"}, "layers[0].image"),
+    ("image of another size", mutated(_add_layer("small.png")), {"small.png": (20, 20)},
+     "layers[1].image"),
+    ("matte of another size", mutated(_set(["layers", 0, "continuity"], "small.png")),
+     {"small.png": (20, 20)}, "layers[0].continuity"),
+]
+
+
+def _write_files(directory: Path, files):
+    for name, content in files.items():
+        if isinstance(content, bytes):
+            (directory / name).write_bytes(content)
+        else:
+            w, h = content
+            Image.fromarray(np.full((h, w, 4), 255, np.uint8)).save(directory / name)
+
+
+@pytest.mark.parametrize("what, doc, files, json_path", MISTAKES, ids=[m[0] for m in MISTAKES])
+@pytest.mark.parametrize("command", ["render", "validate"])
+def test_each_mistake_gets_one_clear_line(capsys, tmp_path, command, what, doc, files,
+                                          json_path):
+    scene = write_scene(tmp_path / "s", doc)
+    _write_files(scene.parent, files)
+    out = tmp_path / "anim.gif"
+    args = ["render", scene, "-o", out] if command == "render" else ["validate", scene]
+    code, stdout, stderr = run(capsys, *args)
+    assert code == 2
+    if command == "render":
+        lines = stderr.splitlines()
+        assert len(lines) == 1, stderr
+        line = lines[0]
+        assert line.startswith(f"inkwarp render: error: {scene}: {json_path}: "), line
+        assert not out.exists() and leftovers(tmp_path) == []
+    else:
+        assert f"{scene}: {json_path}: " in stdout, stdout
+        assert stderr == f"{scene}: 1 problem\n"
+    assert "Traceback" not in stdout + stderr
+    message = (stdout + stderr).split(f"{json_path}: ", 1)[1]
+    assert len(message.split()) >= 3, message  # a sentence, not a code
+
+
+def test_validate_lists_every_problem(capsys, tmp_path):
+    def many(doc):
+        doc["fps"] = 0
+        doc["features"][0]["kind"] = "circle"
+        doc["solver"] = {"tension": -1}
+    scene = write_scene(tmp_path, mutated(many))
+    code, stdout, stderr = run(capsys, "validate", scene)
+    assert code == 2
+    lines = stdout.splitlines()
+    assert sorted(line.split(": ")[1] for line in lines) == ["features[0].kind", "fps",
+                                                            "solver.tension"]
+    assert "3 problems" in stderr
+    # render names the first and says how to see the rest, on one line
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "x.gif")
+    assert code == 2 and len(stderr.splitlines()) == 1
+    assert f"(and 2 more problems: 'inkwarp validate {scene}' lists all)" in stderr
+
+
+@pytest.mark.parametrize("text, expected", [
+    ('{"inkwarp": 1, "layers": [}', "not valid JSON"),
+    ('{"inkwarp": 1, "fps": 1e999, "layers": []}', "not valid JSON"),  # not a finite number
+])
+def test_broken_json_names_the_file_and_where(capsys, tmp_path, text, expected):
+    scene = write_scene(tmp_path, text)
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "x.png")
+    assert code == 2
+    assert stderr.startswith(f"inkwarp render: error: {scene}: ") and expected in stderr
+    assert "line 1" in stderr and len(stderr.splitlines()) == 1
+
+
+def test_missing_scene_file(capsys, tmp_path):
+    code, _, stderr = run(capsys, "render", tmp_path / "nope.json", "-o", tmp_path / "x.gif")
+    assert code == 2
+    assert stderr == f"inkwarp render: error: {tmp_path / 'nope.json'}: no such file or directory\n"
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["-o", "{tmp}/x.avi"], "cannot write '.avi' files"),
+    (["-o", "{tmp}/missing/x.gif"], "does not exist; create it first"),
+    (["-o", "{tmp}/x.gif", "--time", "1"], "--time picks one frame"),
+    (["-o", "{tmp}/x.png", "--frames", "0:2"], "a .png holds one frame"),
+    (["-o", "{tmp}/x.gif", "--frames", "3:99"], "the scene has frames 0 to 3"),
+    (["-o", "{tmp}/x.gif", "--frames", "2"], "write a range A:B"),
+    (["-o", "{tmp}/x.png", "--frame", "4"], "the scene has frames 0 to 3"),
+    (["-o", "{tmp}/x.png", "--time", "nan"], "give a time in seconds"),
+])
+def test_bad_options_say_what_to_do(capsys, tmp_path, args, expected):
+    scene = write_scene(tmp_path / "s")
+    args = [a.format(tmp=tmp_path) for a in args]
+    code, _, stderr = run(capsys, "render", scene, *args)
+    assert code == 2 and expected in stderr and len(stderr.splitlines()) == 1, stderr
+    assert leftovers(tmp_path) == [] and not any(tmp_path.glob("x.*"))
+
+
+def test_field_errors(capsys, tmp_path):
+    scene = write_scene(tmp_path / "s")
+    code, _, stderr = run(capsys, "field", scene, "--time", "1", "-o", tmp_path / "f.txt")
+    assert code == 2 and "name the output .npy" in stderr
+    code, _, stderr = run(capsys, "field", scene, "--time", "1", "--layer", "nope",
+                          "-o", tmp_path / "f.npy")
+    assert code == 2 and "nope" in stderr and len(stderr.splitlines()) == 1
+    assert not (tmp_path / "f.npy").exists() and leftovers(tmp_path) == []
+
+
+class _Breaks:
+    """A scene whose frames fail (with ``error``) after ``good`` frames."""
+
+    def __init__(self, real, error, good=2):
+        self._real, self._error, self._good = real, error, good
+
+    def __getattr__(self, name):
+        return getattr(self._real, name)
+
+    def frames(self, start=0, stop=None, **options):
+        for i, frame in enumerate(self._real.frames(start=start, stop=stop, **options)):
+            if i == self._good:
+                raise self._error
+            yield frame
+
+
+@pytest.mark.parametrize("output", ["anim.gif", "anim.mp4", "frames", "frames/"])
+@pytest.mark.parametrize("error, code", [(RuntimeError("boom"), 1), (KeyboardInterrupt(), 130),
+                                         (ValueError("the solve failed"), 2)])
+def test_a_failed_render_leaves_nothing_behind(capsys, tmp_path, monkeypatch, output, error,
+                                               code):
+    import inkwarp
+
+    scene = write_scene(tmp_path / "s")
+    real_load = inkwarp.Scene.load
+    monkeypatch.setattr(inkwarp.Scene, "load",
+                        staticmethod(lambda path: _Breaks(real_load(path), error)))
+    before = sorted(os.listdir(tmp_path))
+    got, stdout, stderr = run(capsys, "render", scene, "-o", tmp_path / output)
+    assert got == code
+    assert sorted(os.listdir(tmp_path)) == before
+    if code == 1:
+        assert "internal error" in stderr and "Traceback" in stderr
+    else:
+        assert "Traceback" not in stderr
+        last = stderr.rstrip("\n").split("\n")[-1]  # after the progress bar's line
+        assert last in ("inkwarp render: interrupted", "inkwarp render: error: the solve failed")
+
+
+def test_a_failed_render_keeps_the_previous_output(capsys, tmp_path, monkeypatch):
+    import inkwarp
+
+    scene = write_scene(tmp_path / "s")
+    out = tmp_path / "anim.gif"
+    assert run(capsys, "render", scene, "-o", out, "-q")[0] == 0
+    previous = out.read_bytes()
+    real_load = inkwarp.Scene.load
+    monkeypatch.setattr(inkwarp.Scene, "load",
+                        staticmethod(lambda path: _Breaks(real_load(path), RuntimeError("x"))))
+    assert run(capsys, "render", scene, "-o", out)[0] == 1
+    assert out.read_bytes() == previous and leftovers(tmp_path) == []
+
+
+def test_the_installed_command_exits_2_without_a_traceback(tmp_path):
+    scene = write_scene(tmp_path, mutated(_set(["fps"], 0)))
+    done = subprocess.run([sys.executable, "-m", "inkwarp.cli", "render", str(scene), "-o",
+                           str(tmp_path / "x.mp4")], capture_output=True, text=True)
+    assert done.returncode == 2
+    assert done.stderr.startswith(f"inkwarp render: error: {scene}: fps: ")
+    assert len(done.stderr.splitlines()) == 1 and done.stdout == ""
+    script = Path(sys.executable).with_name("inkwarp")
+    if script.exists():
+        done = subprocess.run([str(script), "validate", str(scene)], capture_output=True,
+                              text=True)
+        assert done.returncode == 2 and f"{scene}: fps: " in done.stdout
+
+
+def test_no_command_prints_help_and_exits_2(capsys):
+    assert main([]) == 2
+    assert "usage: inkwarp" in capsys.readouterr().err
+
+
+def test_sigterm_mid_render_leaves_nothing_behind(tmp_path):
+    import signal
+    import time
+
+    from _cli_scenes import square_doc
+
+    doc = square_doc()
+    doc["duration"] = 500.0  # 2000 frames: far more than the time it takes to stop it
+    scene = write_scene(tmp_path / "s", doc)
+    out = tmp_path / "frames"
+    process = subprocess.Popen([sys.executable, "-m", "inkwarp.cli", "render", str(scene),
+                                "-o", str(out), "-q"], stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not leftovers(tmp_path) and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    time.sleep(0.2)  # a few frames in
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 128 + signal.SIGTERM, stderr
+    assert stderr.strip().endswith("inkwarp render: terminated")
+    assert sorted(os.listdir(tmp_path)) == ["s"]

@@ -1,0 +1,232 @@
+"""`inkwarp render` and `inkwarp field` on a small real scene: every output kind read back."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from _cli_scenes import (FPS, HEIGHT, SHIFT_PX, WIDTH, dark_columns, leftovers, read_mp4,
+                         square_centroid_at, write_scene)
+from inkwarp.cli import main
+
+FRAMES = 4  # ceil(DURATION * FPS)
+
+
+def run(capsys, *args):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def scene(tmp_path):
+    return write_scene(tmp_path / "scene")
+
+
+def read_png(path):
+    return np.asarray(Image.open(path).convert("RGBA"))
+
+
+def assert_square_at(frame, index, tol=0.01):
+    x, y = dark_columns(frame)
+    ex, ey = square_centroid_at(index)
+    assert abs(x - ex) <= tol and abs(y - ey) <= tol, (index, (x, y), (ex, ey))
+
+
+def test_png_at_a_time_shows_the_square_moved(capsys, scene, tmp_path):
+    out = tmp_path / "still.png"
+    code, stdout, _ = run(capsys, "render", scene, "-o", out, "--time", 0.5)
+    assert code == 0
+    frame = read_png(out)
+    assert frame.shape == (HEIGHT, WIDTH, 4)
+    assert_square_at(frame, 2)  # t = 0.5 s is frame 2 at 4 fps
+    assert str(out) in stdout
+
+
+def test_png_of_a_frame_and_the_default_frame_zero(capsys, scene, tmp_path):
+    code, _, _ = run(capsys, "render", scene, "-o", tmp_path / "f3.png", "--frame", 3)
+    assert code == 0
+    assert_square_at(read_png(tmp_path / "f3.png"), 3)
+    code, _, _ = run(capsys, "render", scene, "-o", tmp_path / "f0.png", "-q")
+    assert code == 0
+    frame0 = read_png(tmp_path / "f0.png")
+    assert_square_at(frame0, 0)
+    # At rest the layer comes back exactly: the square's pixels are the picture's.
+    assert (frame0[14:22, 10:18, :3] == (20, 30, 200)).all()
+
+
+def test_directory_holds_every_frame_in_order(capsys, scene, tmp_path):
+    out = tmp_path / "frames"
+    code, _, err = run(capsys, "render", scene, "-o", f"{out}/")
+    assert code == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [f"frame_{i:04d}.png" for i in range(FRAMES)]
+    for i, name in enumerate(names):
+        assert_square_at(read_png(out / name), i)
+    assert "frames" in err  # the progress bar, on stderr
+    assert leftovers(tmp_path) == []
+
+
+def test_directory_ranges_land_under_their_frame_numbers(capsys, scene, tmp_path):
+    out = tmp_path / "frames"
+    assert run(capsys, "render", scene, "-o", out, "--frames", "2:4", "-q")[0] == 0
+    assert sorted(p.name for p in out.iterdir()) == ["frame_0002.png", "frame_0003.png"]
+    (out / "notes.txt").write_text("mine")
+    assert run(capsys, "render", scene, "-o", out, "--frames", ":2", "-q")[0] == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [f"frame_{i:04d}.png" for i in range(FRAMES)] + ["notes.txt"]
+    for i in range(FRAMES):
+        assert_square_at(read_png(out / f"frame_{i:04d}.png"), i)
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_gif_has_every_frame_at_the_scene_rate(capsys, scene, tmp_path):
+    out = tmp_path / "anim.gif"
+    code, stdout, _ = run(capsys, "render", scene, "-o", out)
+    assert code == 0
+    with Image.open(out) as gif:
+        assert gif.size == (WIDTH, HEIGHT)
+        assert gif.n_frames == FRAMES
+        total_ms = 0
+        for i in range(FRAMES):
+            gif.seek(i)
+            total_ms += gif.info["duration"]
+            assert_square_at(np.asarray(gif.convert("RGB")), i, tol=0.05)
+    assert total_ms == 1000 * FRAMES // FPS
+    assert f"{FRAMES} frames" in stdout
+
+
+def test_frames_range_renders_only_those_frames(capsys, scene, tmp_path):
+    out = tmp_path / "part.gif"
+    assert run(capsys, "render", scene, "-o", out, "--frames", "2:", "-q")[0] == 0
+    with Image.open(out) as gif:
+        assert gif.n_frames == FRAMES - 2
+        assert_square_at(np.asarray(gif.convert("RGB")), 2, tol=0.05)
+
+
+def test_mp4_is_h264_with_every_frame(capsys, scene, tmp_path):
+    out = tmp_path / "anim.mp4"
+    code, _, _ = run(capsys, "render", scene, "-o", out)
+    assert code == 0
+    frames, info = read_mp4(out, WIDTH, HEIGHT)
+    assert re.search(rf"Video: h264 .*yuv420p.*, {WIDTH}x{HEIGHT}\b", info), info
+    assert re.search(rf"\b{FPS} fps\b", info), info
+    assert len(frames) == FRAMES
+    for i, frame in enumerate(frames):
+        assert_square_at(frame, i, tol=0.35)  # lossy, chroma-subsampled
+    assert leftovers(tmp_path) == []
+
+
+def test_odd_sizes_make_an_even_mp4(capsys, tmp_path):
+    from _cli_scenes import square_doc
+
+    doc = square_doc()
+    doc["width"], doc["height"] = 47, 39
+    scene = tmp_path / "odd" / "scene.json"
+    write_scene(scene.parent, doc)
+    Image.fromarray(np.asarray(Image.open(scene.parent / "square.png"))[:39, :47]).save(
+        scene.parent / "square.png")
+    out = tmp_path / "odd.mp4"
+    assert run(capsys, "render", scene, "-o", out, "-q")[0] == 0
+    frames, info = read_mp4(out, 48, 40)
+    assert ", 48x40" in info and len(frames) == 4
+
+
+def test_field_npy_is_the_translation(capsys, scene, tmp_path):
+    out = tmp_path / "field.npy"
+    code, stdout, _ = run(capsys, "field", scene, "--time", 0.5, "-o", out)
+    assert code == 0
+    field = np.load(out)
+    assert field.dtype == np.float32 and field.shape == (HEIGHT, WIDTH, 2)
+    square = field[14:22, 10:18]
+    assert np.allclose(square[..., 0], SHIFT_PX / 2, atol=0.01)
+    assert np.allclose(square[..., 1], 0.0, atol=0.01)
+    assert "largest move 4.00 px" in stdout
+
+
+def test_field_of_a_layer_by_frame_and_as_a_picture(capsys, scene, tmp_path):
+    npy = tmp_path / "f.npy"
+    assert run(capsys, "field", scene, "--frame", 1, "--layer", "square", "-o", npy, "-q")[0] == 0
+    assert np.allclose(np.load(npy)[14:22, 10:18, 0], SHIFT_PX / 4, atol=0.01)
+    png = tmp_path / "f.png"
+    assert run(capsys, "field", scene, "--time", 1, "-o", png, "-q")[0] == 0
+    picture = read_png(png)
+    assert picture.shape == (HEIGHT, WIDTH, 4)
+    r, g, b, _ = picture[17, 13].astype(int)  # moving right at full length: red
+    assert r == 255 and g < 60 and b < 60
+
+
+def test_validate_ok_prints_the_summary(capsys, scene):
+    code, stdout, _ = run(capsys, "validate", scene)
+    assert code == 0
+    assert stdout.startswith(f"ok: {scene}: ")
+    for part in ("48x40", "1 layer (square)", "1 feature (1 point)", "4 frames at 4 fps",
+                 "(1 s)"):
+        assert part in stdout
+
+
+def test_schema_prints_the_engines_schema(capsys, tmp_path):
+    import inkwarp
+
+    code, stdout, _ = run(capsys, "schema")
+    assert code == 0
+    assert json.loads(stdout) == inkwarp.scene_schema()
+    out = tmp_path / "scene.schema.json"
+    assert run(capsys, "schema", "-o", out)[0] == 0
+    assert json.loads(out.read_text()) == inkwarp.scene_schema()
+
+
+@pytest.mark.parametrize("args", [["-o", "m.png", "--frame", "1"], ["-o", "m.gif"],
+                                  ["-o", "m.npy", "--time", "0.5"]])
+def test_method_option_reaches_the_engine(capsys, scene, tmp_path, monkeypatch, args):
+    import inkwarp
+
+    seen = []
+    for name in ("render", "frames", "field"):
+        real = getattr(inkwarp.Scene, name)
+
+        def spy(self, *a, _real=real, **kw):
+            seen.append(kw.get("method"))
+            return _real(self, *a, **kw)
+
+        monkeypatch.setattr(inkwarp.Scene, name, spy)
+    command = "field" if args[1].endswith(".npy") else "render"
+    args = [tmp_path / a if a.startswith("m.") else a for a in args]
+    code, _, _ = run(capsys, command, scene, *args, "--method", "tps", "-q")
+    assert code == 0 and seen == ["tps"]
+
+
+def test_an_unknown_method_is_a_usage_error(capsys, scene, tmp_path):
+    with pytest.raises(SystemExit) as stop:
+        main(["render", str(scene), "-o", str(tmp_path / "m.png"), "--method", "rbf"])
+    assert stop.value.code == 2
+    assert "invalid choice: 'rbf'" in capsys.readouterr().err
+
+
+def test_version(capsys):
+    import inkwarp
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.strip() == f"inkwarp {inkwarp.__version__}"
+
+
+@pytest.mark.parametrize("output", ["x.png", "x.gif", "x.mp4", "frames", "f.npy"])
+def test_outputs_get_the_permissions_of_any_new_file(capsys, scene, tmp_path, output):
+    import os
+    import stat
+
+    old = os.umask(0o022)
+    try:
+        command = "field" if output.endswith(".npy") else "render"
+        extra = ["--time", "0.5"] if command == "field" else []
+        assert run(capsys, command, scene, "-o", tmp_path / output, "-q", *extra)[0] == 0
+    finally:
+        os.umask(old)
+    mode = stat.S_IMODE((tmp_path / output).stat().st_mode)
+    assert mode == (0o755 if output == "frames" else 0o644), oct(mode)

@@ -1,0 +1,147 @@
+"""Scenes render: single frames, fields, and whole animations (warm-started, in parallel)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+from scene_art import gradient, two_layer_scene, write_scene
+
+import inkwarp
+
+
+@pytest.fixture
+def scene(tmp_path):
+    return inkwarp.Scene.load(write_scene(tmp_path))
+
+
+def test_properties(scene):
+    assert (scene.width, scene.height, scene.fps, scene.duration, scene.frame_count) == (40, 30, 20.0, 2.0, 40)
+    assert scene.layers == ["back", "front"]
+    assert scene.features == ["dot", "brow", "slit"]
+    np.testing.assert_array_equal(scene.times, np.arange(40) / 20)
+    assert "40x30" in repr(scene)
+
+
+def test_the_first_frame_is_the_picture(scene):
+    # At t = 0 every feature is at rest: the front layer (opaque but for a hole) covers
+    # the back one, which shows through the hole.
+    frame = scene.render(time=0)
+    assert frame.dtype == np.uint8 and frame.shape == (30, 40, 4)
+    expected = gradient()
+    np.testing.assert_array_equal(frame, expected)
+    np.testing.assert_array_equal(scene.render(frame=0), frame)
+
+
+def test_a_hole_shows_the_background(tmp_path):
+    data = two_layer_scene()
+    data["layers"] = [{"name": "front", "image": "front.png"}]
+    frame = inkwarp.Scene.load(write_scene(tmp_path, data)).render()
+    np.testing.assert_array_equal(frame[4, 4], [0, 0, 0, 255])  # the hole shows the background
+    np.testing.assert_array_equal(frame[20, 20], gradient()[20, 20])
+
+
+def test_fields_follow_the_drawing(scene):
+    field = scene.field(time=1.0, layer="front")
+    assert field.dtype == np.float32 and field.shape == (30, 40, 2)
+    np.testing.assert_allclose(field[10, 10], [3, 1], atol=1e-4)     # the dot moved by (3, 1)
+    np.testing.assert_allclose(scene.field(time=0.0, layer=1), 0, atol=1e-6)
+    # Before the first key and after the last, features hold.
+    np.testing.assert_allclose(scene.field(time=5.0, layer=0), scene.field(time=2.0, layer=0), atol=1e-6)
+    with pytest.raises(ValueError, match="2 layers"):
+        scene.field(time=1.0)
+    with pytest.raises(ValueError, match="no layer is called"):
+        scene.field(time=1.0, layer="nose")
+
+
+def test_time_and_frame_arguments(scene):
+    np.testing.assert_array_equal(scene.render(frame=20), scene.render(time=1.0))
+    with pytest.raises(ValueError, match="not both"):
+        scene.render(time=1, frame=2)
+    with pytest.raises(ValueError, match="out of range"):
+        scene.render(frame=40)
+    with pytest.raises(ValueError, match="finite"):
+        scene.render(time=float("nan"))
+
+
+def test_a_moving_point_moves_the_picture(tmp_path):
+    # One layer, one point translated by a whole number of pixels: the picture moves by
+    # that much near the point.
+    data = {
+        "inkwarp": 1, "fps": 1, "duration": 2,
+        "layers": [{"name": "only", "image": "back.png"}],
+        "features": [{"id": "p", "kind": "point", "rest": [[20, 15]],
+                      "keys": [{"t": 0, "points": [[20, 15]]}, {"t": 1, "points": [[22, 15]]}]}],
+    }
+    scene = inkwarp.Scene.load(write_scene(tmp_path, data))
+    moved = scene.render(time=1.0)
+    np.testing.assert_array_equal(moved[15, 22], gradient()[15, 20])
+
+
+def test_warm_started_frames_match_cold_frames(scene):
+    warm = list(scene.frames(threads=1))
+    assert len(warm) == scene.frame_count
+    for i in (1, 7, 15, 17, 30, 39):
+        cold = scene.render(frame=i)
+        diff = np.abs(warm[i].astype(int) - cold.astype(int))
+        # Fields agree within the solver tolerance, so pixels differ by little and rarely.
+        assert diff.mean() < 0.5, (i, diff.mean())
+
+
+def test_parallel_and_sequential_frames_are_identical(scene):
+    sequential = list(scene.frames(threads=1))
+    parallel = list(scene.frames(threads=3))
+    assert len(sequential) == len(parallel) == 40
+    for a, b in zip(sequential, parallel):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_frames_iterator(scene):
+    frames = scene.frames(5, 12, threads=2)
+    assert len(frames) == 7
+    first = next(frames)
+    assert frames.index == 5 and len(frames) == 6
+    np.testing.assert_array_equal(first, scene.render(frame=5))
+    frames.close()
+    assert list(frames) == []
+    with scene.frames(threads=2) as frames:
+        next(frames)
+    assert len(scene.frames(38)) == 2
+    assert len(scene.frames(0, 1000)) == 40
+    with pytest.raises(ValueError):
+        scene.frames(10, 5)
+
+
+def test_to_dict_round_trips_and_fills_defaults(scene, tmp_path):
+    data = scene.to_dict()
+    assert data["solver"] == {"method": "tps", "tension": 0.0, "tolerance": 0.01, "grid_step": 1, "scheme": "multigrid"}
+    again = inkwarp.Scene.from_dict(data, base_dir=tmp_path)
+    assert again.to_dict() == data
+    assert scene.validate() == []
+
+
+def test_save_rewrites_relative_image_paths(scene, tmp_path):
+    (tmp_path / "elsewhere").mkdir()
+    target = tmp_path / "elsewhere" / "copy.json"
+    scene.save(target)
+    saved = json.loads(target.read_text())
+    assert saved["layers"][0]["image"] == "../back.png"
+    np.testing.assert_array_equal(inkwarp.Scene.load(target).render(time=0.7), scene.render(time=0.7))
+
+
+def test_data_uri_images(tmp_path):
+    data = two_layer_scene()
+    data["layers"][0]["image"] = inkwarp.image_data_uri(gradient())
+    data["layers"][1]["image"] = inkwarp.image_data_uri(np.asarray(Image.fromarray(gradient()).convert("RGB")))
+    scene = inkwarp.Scene.from_dict(data)
+    np.testing.assert_array_equal(scene.render(), gradient())
+
+
+def test_the_method_can_be_chosen_per_call(scene):
+    np.testing.assert_array_equal(scene.render(time=0.7, method="tps"), scene.render(time=0.7))
+    np.testing.assert_array_equal(scene.field(time=0.7, layer=0, method="tps"), scene.field(time=0.7, layer=0))
+    with pytest.raises(ValueError, match='unknown method "rbf"; use one of "tps"'):
+        scene.render(time=0.7, method="rbf")
+    assert len(list(scene.frames(0, 3, method="tps"))) == 3

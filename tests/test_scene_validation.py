@@ -1,0 +1,175 @@
+"""Every kind of mistake in a scene gives an inkwarp.SceneError naming the file and the
+JSON path of the problem, and all problems are reported at once."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+
+import numpy as np
+import pytest
+from PIL import Image
+from scene_art import gradient, two_layer_scene, write_scene
+
+import inkwarp
+
+
+def changed(pointer: str, value):
+    """The two-layer scene with the value at `pointer` (a/b/0/c) set."""
+    scene = copy.deepcopy(two_layer_scene())
+    *parents, last = pointer.split("/")
+    target = scene
+    for part in parents:
+        target = target[int(part)] if isinstance(target, list) else target[part]
+    if isinstance(target, list) and int(last) == len(target):
+        target.append(value)
+    elif isinstance(target, list):
+        target[int(last)] = value
+    else:
+        target[last] = value
+    return scene
+
+
+MISTAKES = [
+    ("unknown kind", changed("features/0/kind", "circle"), "features[0].kind", '"point", "polyline"'),
+    ("wrong control-point count", changed("features/1/keys/1/points", [[1, 1]]), "features[1].keys[1].points", "rest has 3"),
+    ("too few points", changed("features/1", {"id": "brow", "kind": "spline", "rest": [[1, 1]]}), "features[1].rest", "at least 2"),
+    ("region with two points", changed("features/1", {"id": "brow", "kind": "region", "rest": [[1, 1], [5, 5]]}), "features[1].rest", "at least 3"),
+    ("keys out of order", changed("features/0/keys/1/t", 5), "features[0].keys[2].t", "sort the keys"),
+    ("keys at equal times", changed("features/0/keys/1/t", 0), "features[0].keys[1].t", "two keys at t = 0"),
+    ("unknown feature id", changed("layers/1/features/1", "brw"), "layers[1].features[1]", 'did you mean "brow"'),
+    ("duplicate id", changed("features/3", {"id": "dot", "kind": "point", "rest": [[1, 1]]}), "features[3].id", "already used"),
+    ("negative tension", changed("solver", {"tension": -0.1}), "solver.tension", "at least 0"),
+    ("zero fps", changed("fps", 0), "fps", "> 0"),
+    ("zero duration", changed("duration", 0), "duration", "> 0"),
+    ("bad grid step", changed("solver", {"grid_step": 0}), "solver.grid_step", "at least 1"),
+    ("fractional grid step", changed("solver", {"grid_step": 2.5}), "solver.grid_step", "whole number"),
+    ("unknown method", changed("solver", {"method": "rbf"}), "solver.method", "tps"),
+    ("unknown key", changed("layers/0/opacity", 0.5), "layers[0].opacity", "unknown key"),
+    ("misspelt key", changed("features/0/keyz", []), "features[0].keyz", 'did you mean "keys"'),
+    ("wrong version", changed("inkwarp", 2), "inkwarp", "scene format 1"),
+    ("string for a number", changed("features/0/rest/0/1", "10"), "features[0].rest[0][1]", "expected a number"),
+    ("missing image", changed("layers/0/image", "nowhere.png"), "layers[0].image", "no such file"),
+    ("negative layer tension", changed("layers/1/solver", {"tension": -2}), "layers[1].solver.tension", "at least 0"),
+    ("no layers", changed("layers", []), "layers", "at least one layer"),
+]
+
+
+@pytest.mark.parametrize(("what", "scene", "path", "words"), MISTAKES, ids=[m[0] for m in MISTAKES])
+def test_each_mistake_names_its_path_and_file(tmp_path, what, scene, path, words):
+    file = write_scene(tmp_path, scene)
+    with pytest.raises(inkwarp.SceneError) as caught:
+        inkwarp.Scene.load(file)
+    err = caught.value
+    assert err.path == path, err.problems
+    assert [p for p, _ in err.problems] == [path]
+    assert words in err.problems[0][1]
+    assert err.file == str(file)
+    assert str(err).startswith(f"{file}: {path}: ")
+    assert isinstance(err, ValueError)
+    # The same mistake in a dict, and from the non-raising validator.
+    with pytest.raises(inkwarp.SceneError) as caught:
+        inkwarp.Scene.from_dict(scene, base_dir=tmp_path)
+    assert caught.value.path == path and caught.value.file is None
+    assert [p for p, _ in inkwarp.validate_scene(file)] == [path]
+
+
+def test_every_problem_is_reported_at_once(tmp_path):
+    scene = changed("fps", -1)
+    scene["features"][0]["kind"] = "circle"
+    scene["features"][1]["keys"][0]["points"] = [[0, 0]]
+    scene["layers"][0]["image"] = "missing.png"
+    scene["layers"][1]["features"] = ["nobody", "brow"]
+    with pytest.raises(inkwarp.SceneError) as caught:
+        inkwarp.Scene.load(write_scene(tmp_path, scene))
+    paths = sorted(p for p, _ in caught.value.problems)
+    assert paths == ["features[0].kind", "features[1].keys[0].points", "fps", "layers[0].image", "layers[1].features[0]"]
+    assert str(caught.value).count("\n") == 5
+
+
+def test_invalid_json_gives_line_and_column(tmp_path):
+    file = tmp_path / "scene.json"
+    file.write_text('{"inkwarp": 1,\n  "layers": [\n}')
+    with pytest.raises(inkwarp.SceneError, match="line 3 column 1") as caught:
+        inkwarp.Scene.load(file)
+    assert caught.value.path == ""
+
+
+def test_a_missing_scene_file_is_file_not_found(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        inkwarp.Scene.load(tmp_path / "absent.json")
+    assert inkwarp.validate_scene(tmp_path / "absent.json")[0][1].startswith("no such scene file")
+
+
+def test_images_of_the_wrong_size(tmp_path):
+    file = write_scene(tmp_path)
+    Image.fromarray(gradient(20, 30)).save(tmp_path / "front.png")
+    with pytest.raises(inkwarp.SceneError, match=r"20×30 pixels but the scene is 40×30 \(from layers\[0\]\.image\)") as caught:
+        inkwarp.Scene.load(file)
+    assert caught.value.path == "layers[1].image"
+
+
+def test_mattes_of_the_wrong_size_and_unreadable_images(tmp_path):
+    Image.fromarray(np.full((10, 10), 255, np.uint8)).save(tmp_path / "matte.png")
+    (tmp_path / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\n not really")
+    (tmp_path / "text.png").write_text("hello")
+    scene = changed("layers/0/continuity", "matte.png")
+    scene["layers"][1]["alpha"] = "broken.png"
+    scene["layers"][1]["continuity"] = "text.png"
+    with pytest.raises(inkwarp.SceneError) as caught:
+        inkwarp.Scene.load(write_scene(tmp_path, scene))
+    problems = dict(caught.value.problems)
+    assert set(problems) == {"layers[0].continuity", "layers[1].alpha", "layers[1].continuity"}
+    assert "10×10" in problems["layers[0].continuity"]
+    assert "could not be decoded" in problems["layers[1].alpha"]
+    assert "not a PNG or JPEG" in problems["layers[1].continuity"]
+
+
+def test_bad_data_uris(tmp_path):
+    scene = changed("layers/0/image", "data:image/png;base64,%%%")
+    scene["layers"][1]["image"] = "data:image/png,plain"
+    with pytest.raises(inkwarp.SceneError) as caught:
+        inkwarp.Scene.from_dict(scene, base_dir=tmp_path)
+    problems = dict(caught.value.problems)
+    assert "not valid base64" in problems["layers[0].image"]
+    assert "only base64" in problems["layers[1].image"]
+
+
+def test_non_finite_numbers_in_a_dict(tmp_path):
+    write_scene(tmp_path)
+    scene = changed("features/0/rest", np.array([[math.nan, 3.0]]))
+    scene["layers"][1]["offset"] = [0, float("inf")]
+    scene["fps"] = 0
+    with pytest.raises(inkwarp.SceneError) as caught:
+        inkwarp.Scene.from_dict(scene, base_dir=tmp_path)
+    problems = dict(caught.value.problems)
+    assert sorted(problems) == ["features[0].rest[0][0]", "fps", "layers[1].offset[1]"]
+    assert "finite" in problems["features[0].rest[0][0]"]
+
+
+def test_numpy_values_are_accepted(tmp_path):
+    write_scene(tmp_path)
+    scene = two_layer_scene()
+    scene["features"][0]["rest"] = np.array([[10, 10]], dtype=np.int64)
+    scene["fps"] = np.float32(20)
+    assert inkwarp.Scene.from_dict(scene, base_dir=tmp_path).frame_count == 40
+
+
+def test_image_paths_are_relative_to_the_scene_file(tmp_path):
+    (tmp_path / "art").mkdir()
+    (tmp_path / "scenes").mkdir()
+    write_scene(tmp_path / "art")
+    scene = two_layer_scene()
+    for layer in scene["layers"]:
+        layer["image"] = "../art/" + layer["image"]
+    file = tmp_path / "scenes" / "s.json"
+    file.write_text(json.dumps(scene))
+    assert inkwarp.Scene.load(file).layers == ["back", "front"]
+
+
+def test_a_byte_order_mark_is_fine(tmp_path):
+    file = write_scene(tmp_path)
+    file.write_bytes(b"\xef\xbb\xbf" + file.read_bytes())
+    assert inkwarp.Scene.load(file).frame_count == 40
+    assert inkwarp.validate_scene(file) == []

@@ -1,0 +1,676 @@
+// End-to-end tests of the editor in real headless Chromium (Debian's package), driven by
+// playwright-core. The editor is served by `inkwarp edit`, exactly as users get it.
+//
+//   node e2e/run.mjs            run every test (prints "N passed, M failed")
+//   UPDATE_DOCS=1 node e2e/run.mjs   also refresh the screenshots in docs/guides/images/
+//
+// Timings are measured and reported (web/test-results/perf.json), never asserted.
+
+import { spawn, spawnSync } from 'node:child_process';
+import { copyFileSync, mkdirSync, mkdtempSync, readFileSync, writeFileSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { dirname, join, resolve } from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { chromium } from 'playwright-core';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const repo = resolve(here, '../..');
+const results = resolve(here, '../test-results');
+const screens = join(results, 'screens');
+const docsImages = join(repo, 'docs/guides/images');
+const inkwarp = process.env.INKWARP ?? join(repo, '.venv/bin/inkwarp');
+const only = process.argv[2] ?? null;
+mkdirSync(screens, { recursive: true });
+
+export const CHROMIUM_ARGS = [
+  '--headless',
+  '--no-sandbox',
+  '--disable-gpu',
+  '--disable-background-networking',
+  '--disable-component-update',
+  '--disable-sync',
+  '--no-first-run',
+];
+
+// ---------------------------------------------------------------------------------------
+// A small runner.
+
+const tests = [];
+const test = (name, fn) => tests.push({ name, fn });
+const perf = {};
+
+class AssertionError extends Error {}
+function assert(cond, message) {
+  if (!cond) throw new AssertionError(message);
+}
+
+// ---------------------------------------------------------------------------------------
+// The server and the browser.
+
+function startServer(args = []) {
+  return new Promise((resolvePromise, reject) => {
+    const proc = spawn(inkwarp, ['edit', '--no-browser', '--port', '0', ...args], { stdio: ['ignore', 'pipe', 'pipe'] });
+    let out = '';
+    const timer = setTimeout(() => reject(new Error(`inkwarp edit printed no URL: ${out}`)), 20000);
+    proc.stdout.on('data', (d) => {
+      out += d;
+      const m = out.match(/http:\/\/127\.0\.0\.1:\d+\/\S*/);
+      if (m) {
+        clearTimeout(timer);
+        resolvePromise({ proc, url: m[0] });
+      }
+    });
+    proc.stderr.on('data', (d) => (out += d));
+    proc.on('exit', (code) => reject(new Error(`inkwarp edit exited with ${code}: ${out}`)));
+  });
+}
+
+async function openEditor(browser, url, viewport = { width: 1400, height: 900 }) {
+  const context = await browser.newContext({ viewport, acceptDownloads: true, deviceScaleFactor: 1 });
+  const page = await context.newPage();
+  const errors = [];
+  page.on('pageerror', (e) => errors.push(e.message));
+  page.on('console', (m) => {
+    if (m.type() === 'error' && !/GPU stall|Failed to load resource/.test(m.text())) errors.push(m.text());
+  });
+  await page.goto(url);
+  await page.waitForSelector('body[data-ready]', { timeout: 30000 });
+  const state = await page.evaluate(() => document.body.dataset.ready);
+  assert(state === 'true', `the editor did not start: ${await page.textContent('body')}`);
+  await idle(page);
+  return { page, context, errors };
+}
+
+const idle = (page) => page.evaluate(() => window.inkwarp.app.idle());
+
+/** The frame on screen as straight RGBA8 (from the GPU renderer). */
+async function frame(page) {
+  const { w, h, b64 } = await page.evaluate(async () => {
+    const { app } = window.inkwarp;
+    await app.idle();
+    app.renderNow();
+    const px = app.gl.readPixels();
+    let s = '';
+    for (let i = 0; i < px.length; i += 0x8000) s += String.fromCharCode(...px.subarray(i, i + 0x8000));
+    return { w: app.store.doc.width, h: app.store.doc.height, b64: btoa(s) };
+  });
+  return { width: w, height: h, data: new Uint8Array(Buffer.from(b64, 'base64')) };
+}
+
+async function toClient(page, p) {
+  return page.evaluate((q) => window.inkwarp.ui.toClient(q), p);
+}
+
+async function click(page, p) {
+  const [x, y] = await toClient(page, p);
+  await page.mouse.click(x, y);
+}
+
+/** Drags in `steps` moves, one per animation frame (as a hand would). */
+async function drag(page, from, to, steps = 8) {
+  const [x0, y0] = await toClient(page, from);
+  const [x1, y1] = await toClient(page, to);
+  await page.mouse.move(x0, y0);
+  await page.mouse.down();
+  for (let i = 1; i <= steps; i++) {
+    await page.mouse.move(x0 + ((x1 - x0) * i) / steps, y0 + ((y1 - y0) * i) / steps);
+    await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => r())));
+  }
+  await page.mouse.up();
+}
+
+// ---------------------------------------------------------------------------------------
+// Pictures.
+
+function grey(img, x, y) {
+  const i = 4 * (y * img.width + x);
+  return (img.data[i] + img.data[i + 1] + img.data[i + 2]) / 3;
+}
+
+/** Where a patch of `a` around (x, y) best matches in `b`, searching ±r horizontally/vertically. */
+function track(a, b, x, y, r = 60, half = 6) {
+  let best = { dx: 0, dy: 0, err: Infinity };
+  for (let dy = -r; dy <= r; dy++) {
+    for (let dx = -r; dx <= r; dx++) {
+      let err = 0;
+      for (let v = -half; v <= half; v++) {
+        for (let u = -half; u <= half; u++) {
+          const xa = x + u, ya = y + v, xb = x + u + dx, yb = y + v + dy;
+          if (xb < 0 || yb < 0 || xb >= b.width || yb >= b.height) {
+            err += 1e4;
+            continue;
+          }
+          const i = 4 * (ya * a.width + xa);
+          const j = 4 * (yb * b.width + xb);
+          for (let c = 0; c < 3; c++) err += Math.abs(a.data[i + c] - b.data[j + c]);
+        }
+      }
+      if (err < best.err) best = { dx, dy, err };
+    }
+  }
+  return best;
+}
+
+/** Mean absolute difference over a rectangle, per channel. */
+function meanDiff(a, b, x0, y0, x1, y1) {
+  let s = 0, n = 0;
+  for (let y = y0; y < y1; y++) for (let x = x0; x < x1; x++) {
+    const i = 4 * (y * a.width + x);
+    for (let c = 0; c < 4; c++) s += Math.abs(a.data[i + c] - b.data[i + c]);
+    n += 4;
+  }
+  return s / n;
+}
+
+/** Compares two RGBA8 images; writes a diff PNG (through the page) when they differ. */
+async function compareImages(page, a, b, name, { meanTol, p99Tol }) {
+  assert(a.width === b.width && a.height === b.height, `${name}: sizes differ (${a.width}×${a.height} vs ${b.width}×${b.height})`);
+  const diffs = new Float64Array(a.width * a.height);
+  const diffImg = new Uint8Array(a.data.length);
+  let sum = 0;
+  for (let i = 0; i < diffs.length; i++) {
+    let m = 0;
+    for (let c = 0; c < 4; c++) m = Math.max(m, Math.abs(a.data[4 * i + c] - b.data[4 * i + c]));
+    diffs[i] = m;
+    sum += m;
+    const v = Math.min(255, m * 8);
+    diffImg.set([v, v > 0 ? 0 : 40, v > 0 ? 0 : 40, 255], 4 * i);
+  }
+  const sorted = Array.from(diffs).sort((x, y) => x - y);
+  const stats = { mean: sum / diffs.length, p99: sorted[Math.floor(0.99 * (sorted.length - 1))], max: sorted[sorted.length - 1] };
+  const ok = stats.mean <= meanTol && stats.p99 <= p99Tol;
+  if (!ok) {
+    await savePng(page, { width: a.width, height: a.height, data: diffImg }, join(results, `${name}-diff.png`));
+    await savePng(page, a, join(results, `${name}-a.png`));
+    await savePng(page, b, join(results, `${name}-b.png`));
+  }
+  return { ok, stats };
+}
+
+async function savePng(page, img, path) {
+  const b64 = Buffer.from(img.data).toString('base64');
+  const png = await page.evaluate(async ({ w, h, b64 }) => {
+    const bytes = Uint8ClampedArray.from(atob(b64), (c) => c.charCodeAt(0));
+    const c = new OffscreenCanvas(w, h);
+    c.getContext('2d').putImageData(new ImageData(bytes, w, h), 0, 0);
+    const blob = await c.convertToBlob({ type: 'image/png' });
+    const buf = new Uint8Array(await blob.arrayBuffer());
+    let s = '';
+    for (let i = 0; i < buf.length; i += 0x8000) s += String.fromCharCode(...buf.subarray(i, i + 0x8000));
+    return btoa(s);
+  }, { w: img.width, h: img.height, b64 });
+  writeFileSync(path, Buffer.from(png, 'base64'));
+}
+
+/** Decodes a PNG file to RGBA8 through the page (exact bytes, no premultiplication). */
+async function loadPng(page, path) {
+  const b64 = readFileSync(path).toString('base64');
+  const { w, h, data } = await page.evaluate(async (b64) => {
+    const { decodeBlob } = window.inkwarp.images;
+    const blob = new Blob([Uint8Array.from(atob(b64), (c) => c.charCodeAt(0))], { type: 'image/png' });
+    const img = await decodeBlob(blob, 'render.png');
+    let s = '';
+    for (let i = 0; i < img.data.length; i += 0x8000) s += String.fromCharCode(...img.data.subarray(i, i + 0x8000));
+    return { w: img.width, h: img.height, data: btoa(s) };
+  }, b64);
+  return { width: w, height: h, data: new Uint8Array(Buffer.from(data, 'base64')) };
+}
+
+async function screenshot(page, name) {
+  await idle(page);
+  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(() => r()))));
+  const path = join(screens, `editor-${name}.png`);
+  await page.screenshot({ path });
+  if (process.env.UPDATE_DOCS && DOC_SCREENS.includes(name)) {
+    mkdirSync(docsImages, { recursive: true });
+    copyFileSync(path, join(docsImages, `editor-${name}.png`));
+  }
+}
+
+/** The screenshots docs/guides/editor.md shows. */
+const DOC_SCREENS = ['start', 'rest-mode', 'pose-mode', 'timeline', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
+
+const median = (a) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
+const pct = (a, q) => (a.length ? [...a].sort((x, y) => x - y)[Math.min(a.length - 1, Math.floor(q * a.length))] : null);
+
+// ---------------------------------------------------------------------------------------
+// The tests. They share one page, in order, like a user's session.
+
+let server, browser, page, errors;
+const SPLINE = [[150, 190], [165, 256], [150, 322]];
+
+test('the editor starts with the built-in example, WebGL2 on', async () => {
+  const info = await page.evaluate(() => {
+    const gl = window.inkwarp.app.gl.gl;
+    const d = gl.getExtension('WEBGL_debug_renderer_info');
+    return { renderer: d ? gl.getParameter(d.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER), layers: window.inkwarp.store.doc.layers.length };
+  });
+  perf.renderer = info.renderer;
+  assert(info.layers === 1, 'the built-in example has one layer');
+  await screenshot(page, 'start');
+});
+
+test('draw a spline in rest mode', async () => {
+  await page.keyboard.press('r');
+  await page.keyboard.press('s');
+  for (const p of SPLINE) await click(page, p);
+  await page.keyboard.press('Enter');
+  const f = await page.evaluate(() => window.inkwarp.store.doc.features.find((g) => g.id === 'spline1'));
+  assert(f && f.kind === 'spline' && f.rest.length === 3, `expected spline1 with 3 points, got ${JSON.stringify(f)}`);
+  for (let i = 0; i < 3; i++) {
+    assert(Math.hypot(f.rest[i][0] - SPLINE[i][0], f.rest[i][1] - SPLINE[i][1]) < 1, `point ${i} placed at ${f.rest[i]}, clicked at ${SPLINE[i]}`);
+  }
+  await page.keyboard.press('v');
+  await screenshot(page, 'rest-mode');
+});
+
+test('drag it in pose mode: the picture follows, and does not cross the cut', async () => {
+  await page.keyboard.press('e');
+  const before = await frame(page);
+  await drag(page, SPLINE[1], [SPLINE[1][0] + 40, SPLINE[1][1]]);
+  const after = await frame(page);
+  const key = await page.evaluate(() => window.inkwarp.store.doc.features.find((g) => g.id === 'spline1').keys);
+  assert(key?.length === 1 && key[0].t === 0, `dragging keyed the feature at t=0: ${JSON.stringify(key)}`);
+  // The picture under the dragged point moved with it (tracked from the pixels).
+  const at = track(before, after, SPLINE[1][0], SPLINE[1][1]);
+  assert(Math.abs(at.dx - 40) <= 2 && Math.abs(at.dy) <= 2, `the picture at the dragged point moved by (${at.dx}, ${at.dy}); expected (40, 0)`);
+  // Just left of the cut (x = 307) the picture is pushed; just right of it, it barely moves.
+  const cutX = 307;
+  const left = track(before, after, cutX - 8, 256, 30);
+  const right = track(before, after, cutX + 8, 256, 30);
+  perf.cut = { left, right };
+  assert(left.dx >= 4, `left of the cut the picture moved by ${left.dx} px; expected it to be pushed right`);
+  assert(right.dx <= 1, `right of the cut the picture moved by (${right.dx}, ${right.dy}); it must not be carried along the pull across the cut`);
+  assert(left.dx - right.dx >= 4, `the two sides of the cut moved by ${left.dx} and ${right.dx} px; the cut should open`);
+  await screenshot(page, 'pose-mode');
+});
+
+test('set two keys and check the frame at the midpoint', async () => {
+  // Key 1 at t=0 exists (the drag); key 2 at t=1 s, dragged 40 px further.
+  await page.evaluate(() => window.inkwarp.ui.setTime(1));
+  await drag(page, [SPLINE[1][0] + 40, SPLINE[1][1]], [SPLINE[1][0] + 80, SPLINE[1][1]]);
+  const keys = await page.evaluate(() => window.inkwarp.store.doc.features.find((g) => g.id === 'spline1').keys.map((k) => k.t));
+  assert(JSON.stringify(keys) === '[0,1]', `keys at ${keys}`);
+  await page.evaluate(() => window.inkwarp.ui.setTime(0.5));
+  const mid = await page.evaluate(() => window.inkwarp.store.doc.features.find((g) => g.id === 'spline1'));
+  const shown = await page.evaluate(() => {
+    const f = window.inkwarp.store.doc.features.find((g) => g.id === 'spline1');
+    return window.inkwarp.scene.pointsAt(f, 0.5);
+  });
+  const expected = mid.keys[0].points.map((p, i) => [(p[0] + mid.keys[1].points[i][0]) / 2, (p[1] + mid.keys[1].points[i][1]) / 2]);
+  for (let i = 0; i < 3; i++) assert(Math.hypot(shown[i][0] - expected[i][0], shown[i][1] - expected[i][1]) < 1e-6, `midpoint pose ${shown[i]} ≠ ${expected[i]}`);
+  const restFrame = await page.evaluate(() => window.inkwarp.ui.setMode('rest'));
+  void restFrame;
+  const original = await frame(page);
+  await page.evaluate(() => window.inkwarp.ui.setMode('pose'));
+  const at = track(original, await frame(page), SPLINE[1][0], SPLINE[1][1], 80);
+  assert(Math.abs(at.dx - 60) <= 3 && Math.abs(at.dy) <= 4, `at the midpoint the picture moved by (${at.dx}, ${at.dy}); expected (60, 0)`);
+  await page.evaluate(() => window.inkwarp.store.setView({ selection: { feature: 'spline1', point: null } }));
+  await screenshot(page, 'timeline');
+});
+
+async function cpuFrame(page) {
+  const r = await page.evaluate(async () => {
+    const { app, engine } = window.inkwarp;
+    await app.idle();
+    const doc = app.store.doc;
+    const layers = [];
+    const grids = [];
+    for (const l of doc.layers) {
+      const rt = app.runtimes.get(l.name);
+      const cuts = doc.features.filter((f) => f.kind === 'cut' && (!l.features || l.features.includes(f.id))).map((f) => f.rest);
+      const grid = engine.grid(doc.width, doc.height, rt.matte, cuts);
+      grids.push(grid);
+      const n = doc.width * doc.height;
+      layers.push({ image: rt.rgba.data, grid, field: rt.field ?? { width: doc.width, height: doc.height, dx: new Float32Array(n), dy: new Float32Array(n) }, offset: l.offset ?? [0, 0] });
+    }
+    const cpu = engine.renderCpu(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], layers);
+    grids.forEach((g) => g.free());
+    let s = '';
+    for (let i = 0; i < cpu.length; i += 0x8000) s += String.fromCharCode(...cpu.subarray(i, i + 0x8000));
+    return { w: doc.width, h: doc.height, b64: btoa(s) };
+  });
+  return { width: r.w, height: r.h, data: new Uint8Array(Buffer.from(r.b64, 'base64')) };
+}
+
+test('the GPU frame matches the CPU reference renderer', async () => {
+  const cpu = await cpuFrame(page);
+  const gpu = await frame(page);
+  const { ok, stats } = await compareImages(page, gpu, cpu, 'gpu-vs-cpu', { meanTol: 1.0, p99Tol: 12 });
+  perf.gpuVsCpu = stats;
+  assert(ok, `GPU and CPU frames differ: mean ${stats.mean.toFixed(3)}, p99 ${stats.p99}, max ${stats.max} levels (tolerance: mean ≤ 1, p99 ≤ 12); see test-results/gpu-vs-cpu-diff.png`);
+});
+
+test('save the scene and render it with `inkwarp render`: same frame', async () => {
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-e2e-'));
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
+  const scenePath = join(dir, 'scene.json');
+  await download.saveAs(scenePath);
+  const doc = JSON.parse(readFileSync(scenePath, 'utf8'));
+  assert(doc.inkwarp === 1 && doc.layers[0].image.startsWith('data:image/png;base64,'), 'the saved scene is one JSON file with data: URIs');
+  const out = join(dir, 'frame.png');
+  const run = spawnSync(inkwarp, ['render', scenePath, '--time', '0.5', '-o', out], { encoding: 'utf8' });
+  assert(run.status === 0, `inkwarp render failed (${run.status}): ${run.stderr}`);
+  const cli = await loadPng(page, out);
+  const editor = await frame(page);
+  const { ok, stats } = await compareImages(page, editor, cli, 'editor-vs-cli', { meanTol: 1.0, p99Tol: 12 });
+  perf.editorVsCli = stats;
+  assert(ok, `the editor's frame and inkwarp render's differ: mean ${stats.mean.toFixed(3)}, p99 ${stats.p99} (see test-results/editor-vs-cli-diff.png)`);
+});
+
+test('overlays: heat map, mesh, matte; help panel', async () => {
+  await page.evaluate(() => window.inkwarp.ui.setOverlay({ heat: 'dx' }));
+  await screenshot(page, 'heat-map');
+  await page.evaluate(() => window.inkwarp.ui.setOverlay({ heat: 'off', mesh: true }));
+  await screenshot(page, 'mesh');
+  const meshDrawn = await page.evaluate(() => {
+    const c = window.inkwarp.ui.overlayCanvas;
+    const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    let n = 0;
+    for (let i = 3; i < d.length; i += 4) if (d[i] > 0) n++;
+    return n / (c.width * c.height);
+  });
+  assert(meshDrawn > 0.02, `the mesh overlay drew on ${(meshDrawn * 100).toFixed(1)}% of the stage`);
+  await page.evaluate(() => window.inkwarp.ui.setOverlay({ mesh: false }));
+  await page.keyboard.press('?');
+  assert(await page.isVisible('#help'), 'the help panel opens with ?');
+  const rows = await page.$$eval('#help tr', (r) => r.length);
+  assert(rows >= 10, 'the help panel lists the shortcuts');
+  await screenshot(page, 'help');
+  await page.keyboard.press('Escape');
+  assert(!(await page.isVisible('#help')), 'Escape closes the help panel');
+});
+
+test('undo and redo from the keyboard', async () => {
+  const n0 = await page.evaluate(() => window.inkwarp.store.doc.features.length);
+  await page.keyboard.press('r');
+  await page.keyboard.press('p');
+  await click(page, [60, 440]);
+  assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0 + 1, 'a point was added');
+  await page.keyboard.press('Control+z');
+  assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0, 'Ctrl+Z removed it');
+  await page.keyboard.press('Control+Shift+z');
+  assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0 + 1, 'Ctrl+Shift+Z brought it back');
+  await page.keyboard.press('v');
+  await click(page, [60, 440]);
+  await page.keyboard.press('Delete');
+  assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0, 'Delete removed the selected point');
+  await page.keyboard.press('v');
+});
+
+test('bad files get a clear message with the JSON path', async () => {
+  const bad = JSON.parse(await page.evaluate(() => window.inkwarp.scene.serializeScene(window.inkwarp.store.doc)));
+  bad.features.find((f) => f.id === 'spline1').keys[0].points.pop();
+  await page.setInputFiles('input[type=file][accept^=".json"]', { name: 'broken.json', mimeType: 'application/json', buffer: Buffer.from(JSON.stringify(bad)) });
+  await page.waitForSelector('#message.error:not([hidden])');
+  const text = await page.textContent('#message');
+  assert(/broken\.json/.test(text) && /features\[\d+\]\.keys\[0\]\.points/.test(text), `message: ${text}`);
+  await screenshot(page, 'bad-file');
+  await page.setInputFiles('input[type=file][accept^=".json"]', { name: 'notes.png', mimeType: 'image/png', buffer: Buffer.from('this is not a picture') });
+  await page.waitForFunction(() => /notes\.png/.test(document.querySelector('#message')?.textContent ?? ''));
+  const text2 = await page.textContent('#message');
+  assert(/not an image/.test(text2), `message: ${text2}`);
+  await page.click('#message');
+});
+
+test('the GPU frame matches the CPU renderer around a hole that opens', async () => {
+  await page.evaluate(async () => {
+    const { ui, scene } = window.inkwarp;
+    const size = 128;
+    const c = new OffscreenCanvas(size, size);
+    const ctx = c.getContext('2d');
+    for (let y = 0; y < size; y += 8) for (let x = 0; x < size; x += 8) {
+      ctx.fillStyle = `hsl(${(x * 3 + y * 5) % 360} 70% ${((x + y) / 8) % 2 ? 40 : 70}%)`;
+      ctx.fillRect(x, y, 8, 8);
+    }
+    ctx.clearRect(48, 56, 32, 16); // a transparent slot: a hole in the continuity matte
+    const uri = await window.inkwarp.images.blobToDataUri(await c.convertToBlob({ type: 'image/png' }));
+    const doc = scene.emptyScene(size, size);
+    doc.layers.push({ name: 'slotted', image: uri });
+    doc.features.push(
+      { id: 'a', kind: 'point', rest: [[8, 8]] }, { id: 'b', kind: 'point', rest: [[119, 8]] },
+      { id: 'c', kind: 'point', rest: [[8, 119]] }, { id: 'd', kind: 'point', rest: [[119, 119]] },
+      { id: 'lip', kind: 'polyline', rest: [[50, 75], [78, 75]], keys: [{ t: 0, points: [[50, 84], [78, 84]] }] },
+    );
+    await ui.openScene(doc, 'slotted.json');
+    ui.setMode('pose');
+  });
+  await idle(page);
+  const gpu = await frame(page);
+  const cpu = await cpuFrame(page);
+  // The slot opened: its lower lip moved down, leaving background where it was.
+  const i = 4 * (76 * 128 + 64);
+  assert(gpu.data[i] > 240 && gpu.data[i + 1] > 240 && gpu.data[i + 2] > 240, `the slot should open at (64, 76): ${gpu.data.subarray(i, i + 4)}`);
+  const { ok, stats } = await compareImages(page, gpu, cpu, 'gpu-vs-cpu-hole', { meanTol: 1.5, p99Tol: 40 });
+  perf.gpuVsCpuHole = stats;
+  await screenshot(page, 'hole');
+  assert(ok, `GPU and CPU frames differ around the hole: mean ${stats.mean.toFixed(3)}, p99 ${stats.p99}, max ${stats.max} (tolerance: mean ≤ 1.5, p99 ≤ 40); see test-results/gpu-vs-cpu-hole-diff.png`);
+});
+
+test('measure: drag latency, settle time and playback on 512×512 with a dozen features', async () => {
+  // Reopen the example and trace a dozen features over it.
+  await page.evaluate(() => window.inkwarp.ui.openExample('grid'));
+  await page.evaluate(() => {
+    const { store, state } = window.inkwarp;
+    let doc = store.doc;
+    const add = (kind, pts) => (doc = state.addFeature(doc, kind, pts).doc);
+    add('spline', [[120, 150], [135, 256], [120, 360]]);
+    add('polyline', [[200, 420], [256, 440], [312, 420]]);
+    add('spline', [[200, 90], [256, 70], [312, 90]]);
+    add('point', [[256, 256]]);
+    add('point', [[420, 256]]);
+    add('region', [[380, 330], [440, 330], [440, 390], [380, 390]]);
+    add('polyline', [[60, 200], [60, 310]]);
+    store.apply(doc);
+  });
+  await idle(page);
+  await page.evaluate(() => {
+    const a = window.inkwarp.app;
+    a.stats.dragLatency.length = 0;
+    a.stats.settle.length = 0;
+    a.stats.draftSolveMs.length = 0;
+    a.stats.finalSolveMs.length = 0;
+  });
+  const count = await page.evaluate(() => window.inkwarp.store.doc.features.length);
+  await page.keyboard.press('e');
+  await idle(page);
+  // Three drags with pauses (each pause lets the full-resolution solve land).
+  for (const [from, to] of [[[135, 256], [175, 246]], [[256, 70], [256, 40]]]) {
+    await drag(page, from, to, 15);
+    await idle(page);
+  }
+  // Playback at 24 fps: two keys on one feature over a quarter second (6 frames). The first
+  // pass solves frames as it plays (and ahead of the playhead); later passes play from
+  // the solved fields.
+  await page.evaluate(() => {
+    const { store, state } = window.inkwarp;
+    let doc = { ...store.doc, fps: 24, duration: 0.25 };
+    doc = state.setKey(doc, 'spline1', 0, [[120, 150], [135, 256], [120, 360]]);
+    doc = state.setKey(doc, 'spline1', 0.25, [[140, 150], [185, 256], [140, 360]]);
+    store.apply(doc);
+  });
+  await idle(page);
+  await page.evaluate(() => window.inkwarp.ui.setTime(0));
+  await idle(page);
+  const firstStart = Date.now();
+  await page.evaluate(() => window.inkwarp.ui.togglePlay());
+  await page.waitForFunction(() => window.inkwarp.app.cachedFrames() >= 6, null, { timeout: 180000, polling: 250 });
+  perf.playbackFirstPass = { ...(await page.evaluate(() => window.inkwarp.app.stats.playback)), seconds: (Date.now() - firstStart) / 1000 };
+  await page.evaluate(() => window.inkwarp.ui.togglePlay());
+  await page.evaluate(() => window.inkwarp.ui.togglePlay());
+  await page.waitForTimeout(2000);
+  await page.evaluate(() => window.inkwarp.ui.togglePlay());
+  // The GPU's own time for one 512×512 frame (with and without multisampling).
+  perf.glFrameMs = await page.evaluate(() => {
+    const { app } = window.inkwarp;
+    const doc = app.store.doc;
+    const layers = doc.layers.map((l) => ({ layer: app.runtimes.get(l.name).gl, offset: [0, 0] }));
+    const time = (aa, draft) => {
+      app.gl.render(doc.width, doc.height, [255, 255, 255, 255], layers, aa, draft);
+      app.gl.readPixels();
+      const t0 = performance.now();
+      for (let i = 0; i < 3; i++) {
+        app.gl.render(doc.width, doc.height, [255, 255, 255, 255], layers, aa, draft);
+        app.gl.readPixels();
+      }
+      return (performance.now() - t0) / 3;
+    };
+    return { multisampled: time(true, false), single: time(false, false), draft: time(false, true) };
+  });
+  const s = await page.evaluate(() => window.inkwarp.app.stats);
+  perf.features = count;
+  perf.dragLatencyMs = { median: median(s.dragLatency), p90: pct(s.dragLatency, 0.9), n: s.dragLatency.length };
+  perf.settleMs = { median: median(s.settle), max: Math.max(...s.settle), n: s.settle.length };
+  perf.draftSolveMs = { median: median(s.draftSolveMs), n: s.draftSolveMs.length };
+  perf.finalSolveMs = { median: median(s.finalSolveMs), n: s.finalSolveMs.length };
+  perf.playback = s.playback;
+  assert(s.dragLatency.length > 0, 'frames were drawn during the drags');
+  await screenshot(page, 'measured');
+});
+
+test('every bundled example opens', async () => {
+  const names = await page.evaluate(async () => (await window.inkwarp.examples.listExamples()).map((e) => e.name));
+  perf.examples = names;
+  for (const name of names) {
+    await page.evaluate((n) => window.inkwarp.ui.openExample(n), name);
+    await idle(page);
+    const state = await page.evaluate(() => ({
+      layers: window.inkwarp.store.doc.layers.length,
+      message: document.querySelector('#message.error:not([hidden])')?.textContent ?? null,
+      loaded: [...window.inkwarp.app.runtimes.values()].every((rt) => rt.gridReady && !rt.error),
+    }));
+    assert(state.layers > 0 && state.loaded && state.message === null, `example ${name}: ${JSON.stringify(state)}`);
+    if (name === 'face' || name === 'cat') {
+      // Posed half way through: every layer solves and draws without an error.
+      await page.evaluate(() => {
+        window.inkwarp.ui.setMode('pose');
+        window.inkwarp.ui.setTime(Math.round(window.inkwarp.store.doc.duration * 12) / 24);
+      });
+      await idle(page);
+      const ok = await page.evaluate(() => [...window.inkwarp.app.runtimes.values()].every((rt) => rt.field && !rt.error));
+      assert(ok, `example ${name}: every layer has a field in pose mode`);
+      const cmp = await compareImages(page, await frame(page), await cpuFrame(page), `gpu-vs-cpu-${name}`, { meanTol: 1.0, p99Tol: 12 });
+      perf[`gpuVsCpu_${name}`] = cmp.stats;
+      assert(cmp.ok, `example ${name}: GPU and CPU frames differ (mean ${cmp.stats.mean.toFixed(3)}, p99 ${cmp.stats.p99}); see test-results/gpu-vs-cpu-${name}-diff.png`);
+      await screenshot(page, `example-${name}`);
+    }
+  }
+});
+
+test('`inkwarp edit SCENE` opens the scene and Save writes it back', async () => {
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-edit-'));
+  const png = await page.evaluate(async () => {
+    const c = new OffscreenCanvas(64, 48);
+    const ctx = c.getContext('2d');
+    ctx.fillStyle = '#3a7';
+    ctx.fillRect(0, 0, 64, 48);
+    const buf = new Uint8Array(await (await c.convertToBlob({ type: 'image/png' })).arrayBuffer());
+    return btoa(String.fromCharCode(...buf));
+  });
+  writeFileSync(join(dir, 'green.png'), Buffer.from(png, 'base64'));
+  const scenePath = join(dir, 'small.json');
+  writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, width: 64, height: 48, fps: 12, duration: 1, layers: [{ name: 'green', image: 'green.png' }], features: [] }));
+  const own = await startServer([scenePath]);
+  try {
+    const ed = await openEditor(browser, own.url);
+    const doc = await ed.page.evaluate(() => window.inkwarp.store.doc);
+    assert(doc.width === 64 && doc.layers[0].image.startsWith('data:image/png'), 'the scene opened with its image inlined');
+    await ed.page.keyboard.press('p');
+    await click(ed.page, [20, 20]);
+    await ed.page.keyboard.press('Control+s');
+    await ed.page.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
+    const saved = JSON.parse(readFileSync(scenePath, 'utf8'));
+    assert(saved.layers[0].image === 'green.png', `the image keeps its path: ${saved.layers[0].image.slice(0, 40)}`);
+    assert(saved.features.length === 1 && saved.features[0].kind === 'point', 'the new point was saved');
+    // Export the frame as PNG: the file holds the frame on screen.
+    const [png] = await Promise.all([ed.page.waitForEvent('download'), ed.page.click('#export-png')]);
+    const pngPath = join(dir, 'frame.png');
+    await png.saveAs(pngPath);
+    const exported = await loadPng(ed.page, pngPath);
+    const shown = await frame(ed.page);
+    const cmp = await compareImages(ed.page, exported, shown, 'export-png', { meanTol: 0, p99Tol: 0 });
+    assert(cmp.ok, `the exported PNG differs from the frame on screen (mean ${cmp.stats.mean})`);
+    // Export the animation as WebM.
+    const [webm] = await Promise.all([ed.page.waitForEvent('download', { timeout: 60000 }), ed.page.click('#export-webm')]);
+    const webmPath = join(dir, 'anim.webm');
+    await webm.saveAs(webmPath);
+    const head = readFileSync(webmPath).subarray(0, 4);
+    assert(head.equals(Buffer.from([0x1a, 0x45, 0xdf, 0xa3])) && readFileSync(webmPath).length > 200, `the WebM file is not a WebM video (${head.toString('hex')})`);
+    // Drop a picture on the window: a new scene of its size.
+    await ed.page.evaluate(async () => {
+      const c = new OffscreenCanvas(40, 30);
+      c.getContext('2d').fillRect(0, 0, 20, 30);
+      const file = new File([await c.convertToBlob({ type: 'image/png' })], 'dropped.png', { type: 'image/png' });
+      const dt = new DataTransfer();
+      dt.items.add(file);
+      window.dispatchEvent(new DragEvent('drop', { dataTransfer: dt, bubbles: true, cancelable: true }));
+    });
+    await ed.page.waitForFunction(() => window.inkwarp.store.doc.width === 40);
+    await idle(ed.page);
+    const dropped = await ed.page.evaluate(() => window.inkwarp.store.doc.layers.map((l) => l.name));
+    assert(JSON.stringify(dropped) === '["dropped"]', `dropping a picture opened ${dropped}`);
+    assert(ed.errors.length === 0, `the page logged errors: ${ed.errors.join('; ')}`);
+    await ed.context.close();
+  } finally {
+    own.proc.kill();
+  }
+});
+
+// ---------------------------------------------------------------------------------------
+
+async function main() {
+  server = await startServer();
+  browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: CHROMIUM_ARGS });
+  ({ page, errors } = await openEditor(browser, server.url));
+  let passed = 0, failed = 0;
+  const t0 = Date.now();
+  for (const t of tests) {
+    if (only && !only.split('|').some((o) => t.name.includes(o))) continue;
+    const start = Date.now();
+    try {
+      await t.fn();
+      passed++;
+      console.log(`PASS ${t.name} (${((Date.now() - start) / 1000).toFixed(1)} s)`);
+    } catch (err) {
+      failed++;
+      console.log(`FAIL ${t.name}\n     ${err instanceof AssertionError ? err.message : err.stack}`);
+      await page.screenshot({ path: join(results, `fail-${tests.indexOf(t)}.png`) }).catch(() => {});
+    }
+  }
+  if (errors.length) {
+    failed++;
+    console.log(`FAIL the page logged errors:\n     ${errors.join('\n     ')}`);
+  }
+  await browser.close();
+  server.proc.kill();
+  writeFileSync(join(results, 'perf.json'), JSON.stringify(perf, null, 1));
+  console.log('\nMeasured (reported, not asserted):');
+  console.log(`  renderer: ${perf.renderer}`);
+  if (perf.dragLatencyMs) {
+    console.log(`  ${perf.features} features, 512×512: pointer move → frame median ${perf.dragLatencyMs.median?.toFixed(1)} ms (p90 ${perf.dragLatencyMs.p90?.toFixed(1)}, n=${perf.dragLatencyMs.n})`);
+    console.log(`  settle (pointer rest → full-resolution frame): median ${perf.settleMs.median?.toFixed(1)} ms, max ${perf.settleMs.max?.toFixed(1)} ms`);
+    console.log(`  solve: draft median ${perf.draftSolveMs.median?.toFixed(1)} ms, full median ${perf.finalSolveMs.median?.toFixed(1)} ms`);
+    console.log(`  playback at 24 fps, 6 frames: first pass (solving) ${JSON.stringify(perf.playbackFirstPass)}; then 2 s from solved fields ${JSON.stringify(perf.playback)}`);
+  }
+  if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without, ${perf.glFrameMs.draft.toFixed(1)} ms draft (2×2 mesh blocks)`);
+  if (perf.gpuVsCpu) console.log(`  GPU vs CPU: mean ${perf.gpuVsCpu.mean.toFixed(3)}, p99 ${perf.gpuVsCpu.p99}, max ${perf.gpuVsCpu.max}`);
+  if (perf.gpuVsCpuHole) console.log(`  GPU vs CPU around an opening hole (128×128): mean ${perf.gpuVsCpuHole.mean.toFixed(3)}, p99 ${perf.gpuVsCpuHole.p99}, max ${perf.gpuVsCpuHole.max}`);
+  for (const ex of ['face', 'cat']) {
+    const st = perf[`gpuVsCpu_${ex}`];
+    if (st) console.log(`  GPU vs CPU, ${ex} example posed half way: mean ${st.mean.toFixed(3)}, p99 ${st.p99}, max ${st.max}`);
+  }
+  if (perf.editorVsCli) console.log(`  editor vs inkwarp render: mean ${perf.editorVsCli.mean.toFixed(3)}, p99 ${perf.editorVsCli.p99}, max ${perf.editorVsCli.max}`);
+  console.log(`\n${passed} passed, ${failed} failed  (${((Date.now() - t0) / 1000).toFixed(0)} s)`);
+  process.exit(failed ? 1 : 0);
+}
+
+main().catch((err) => {
+  console.error(err);
+  try {
+    server?.proc.kill();
+  } catch {
+    // already gone
+  }
+  process.exit(1);
+});
+

@@ -1,0 +1,463 @@
+// The editor's controller: keeps the engine (worker), the GPU layers and the views in step
+// with the store.
+
+import type { Engine, FieldData, SolveFeature, SolveOptions } from './engine';
+import { GlRenderer, type GlLayer } from './gl';
+import { decodeImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } from './images';
+import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './scene';
+import type { FieldEvent, SolverClient } from './solver';
+import { Store } from './state';
+
+export interface LayerRuntime {
+  name: string;
+  /** What the pictures were loaded from (image|alpha|continuity). */
+  sig: string;
+  cutsSig: string;
+  rgba: Rgba | null;
+  matte: Uint8Array | null;
+  gl: GlLayer | null;
+  links: Uint8Array | null;
+  gridReady: boolean;
+  /** Bumped when the grid is rebuilt: fields solved on an older grid are dropped. */
+  gridGen: number;
+  field: FieldData | null;
+  /** The last request sent for this layer (to skip identical ones). */
+  lastRequest: string;
+  error: string | null;
+}
+
+export interface Stats {
+  /** Pointer move → frame on screen during drags (ms). */
+  dragLatency: number[];
+  /** Pointer rest/release → full-resolution frame on screen (ms). */
+  settle: number[];
+  draftSolveMs: number[];
+  finalSolveMs: number[];
+  playback: { expected: number; shown: number; dropped: number } | null;
+}
+
+export type Quality = 'draft' | 'final';
+
+const DRAFT_TARGET_PX = 64;
+/** Fields kept for playback (a 512×512 layer's field is 2 MiB). */
+const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
+const SETTLE_MS = 120;
+
+export class App {
+  readonly store: Store;
+  readonly gl: GlRenderer;
+  readonly runtimes = new Map<string, LayerRuntime>();
+  readonly stats: Stats = { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], playback: null };
+  onMessage: (text: string, kind: 'error' | 'info') => void = () => {};
+  onFrame: () => void = () => {};
+  onSolved: (ev: FieldEvent) => void = () => {};
+  private frameQueued = false;
+  private settleTimer: number | null = null;
+  private pendingLatency: number[] = [];
+  private settleStart: number | null = null;
+  private waiters: (() => void)[] = [];
+  /** A drag is live: solve drafts. */
+  dragging = false;
+  lastPointerAt = 0;
+  lastReport: FieldEvent | null = null;
+  /** Full-resolution fields by frame, for the document revision they were solved for. */
+  private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, FieldData>>() };
+
+  constructor(
+    readonly engine: Engine,
+    readonly solver: SolverClient,
+    glCanvas: HTMLCanvasElement,
+    store: Store,
+  ) {
+    this.store = store;
+    this.gl = new GlRenderer(glCanvas);
+    this.solver.onField = (ev) => this.receive(ev);
+    this.solver.onError = (key, message) => {
+      const rt = key ? this.runtimes.get(key) : undefined;
+      if (rt) rt.error = message;
+      this.onMessage(key ? `Layer ${key}: ${message}` : message, 'error');
+      this.checkIdle();
+    };
+    this.solver.onReset = (message) => {
+      this.onMessage(message, 'error');
+      for (const layer of this.doc.layers) {
+        const rt = this.runtimes.get(layer.name);
+        if (rt) this.rebuildGrid(rt, layer);
+      }
+    };
+    store.subscribe((_, docChanged) => {
+      if (docChanged) this.syncLayers();
+      this.requestSolve(this.dragging ? 'draft' : 'final');
+      this.invalidate();
+    });
+  }
+
+  get doc(): SceneDoc {
+    return this.store.doc;
+  }
+
+  // -- Layers ---------------------------------------------------------------------------
+
+  private cutsOf(layer: Layer): Pt[][] {
+    return layerFeatures(this.doc, layer)
+      .filter((f) => f.kind === 'cut')
+      .map((f) => f.rest);
+  }
+
+  syncLayers(): void {
+    const names = new Set(this.doc.layers.map((l) => l.name));
+    for (const [name, rt] of this.runtimes) {
+      if (!names.has(name)) {
+        rt.gl?.dispose();
+        this.solver.dropGrid(name);
+        this.runtimes.delete(name);
+      }
+    }
+    for (const layer of this.doc.layers) {
+      let rt = this.runtimes.get(layer.name);
+      if (!rt) {
+        rt = {
+          name: layer.name,
+          sig: '',
+          cutsSig: '',
+          rgba: null,
+          matte: null,
+          gl: null,
+          links: null,
+          gridReady: false,
+          gridGen: 0,
+          field: null,
+          lastRequest: '',
+          error: null,
+        };
+        this.runtimes.set(layer.name, rt);
+      }
+      const sig = `${layer.image}|${layer.alpha ?? ''}|${layer.continuity ?? ''}`;
+      const cutsSig = JSON.stringify(this.cutsOf(layer));
+      if (sig !== rt.sig) {
+        rt.sig = sig;
+        rt.cutsSig = cutsSig;
+        void this.loadLayer(rt, layer);
+      } else if (cutsSig !== rt.cutsSig) {
+        rt.cutsSig = cutsSig;
+        if (rt.matte) this.rebuildGrid(rt, layer);
+      }
+    }
+  }
+
+  private async loadLayer(rt: LayerRuntime, layer: Layer): Promise<void> {
+    const sig = rt.sig;
+    rt.gridReady = false;
+    this.busyCount++;
+    try {
+      if (!layer.image) {
+        // A layer without a picture draws nothing (its field is only for `inkwarp field`).
+        rt.gl?.dispose();
+        rt.gl = null;
+        rt.rgba = null;
+        return;
+      }
+      let img = await decodeImage(layer.image);
+      const { width, height } = this.doc;
+      const check = (what: string, im: Rgba) => {
+        if (im.width !== width || im.height !== height) {
+          throw new Error(`The ${what} of layer ${layer.name} is ${im.width}×${im.height} but the scene is ${width}×${height}; every image and matte has the scene's size.`);
+        }
+      };
+      check('image', img);
+      if (layer.alpha) {
+        const a = await decodeImage(layer.alpha);
+        check('alpha matte', a);
+        img = withAlpha(img, a);
+      }
+      let matte: Uint8Array;
+      if (layer.continuity) {
+        const c = await decodeImage(layer.continuity);
+        check('continuity matte', c);
+        matte = matteFromImage(c);
+      } else {
+        matte = matteFromAlpha(img);
+      }
+      if (rt.sig !== sig) return; // superseded while decoding
+      rt.rgba = img;
+      rt.matte = matte;
+      rt.error = null;
+      if (!rt.gl || rt.gl.width !== width || rt.gl.height !== height) {
+        rt.gl?.dispose();
+        rt.gl = this.gl.layer(width, height);
+      }
+      rt.gl.setImage(img.data);
+      rt.gl.setField(null);
+      rt.field = null;
+      this.rebuildGrid(rt, this.doc.layers.find((l) => l.name === rt.name) ?? layer);
+    } catch (err) {
+      rt.error = (err as Error).message;
+      this.onMessage((err as Error).message, 'error');
+    } finally {
+      this.busyCount--;
+      this.checkIdle();
+    }
+  }
+
+  private busyCount = 0;
+
+  private rebuildGrid(rt: LayerRuntime, layer: Layer): void {
+    if (!rt.matte) return;
+    const gen = ++rt.gridGen;
+    rt.gridReady = false;
+    rt.lastRequest = '';
+    this.busyCount++;
+    this.solver
+      .setGrid(rt.name, this.doc.width, this.doc.height, rt.matte, this.cutsOf(layer))
+      .then((links) => {
+        if (gen !== rt.gridGen) return;
+        rt.links = links;
+        rt.gl?.setMesh(links, rt.rgba?.data ?? null);
+        rt.gridReady = true;
+        this.requestSolve('final');
+        this.invalidate();
+      })
+      .catch((err: Error) => {
+        rt.error = err.message;
+        this.onMessage(`Layer ${rt.name}: ${err.message}`, 'error');
+      })
+      .finally(() => {
+        this.busyCount--;
+        this.checkIdle();
+      });
+  }
+
+  // -- Solving --------------------------------------------------------------------------
+
+  /** Whether the picture shows the drawing's pose (pose mode, or playing). */
+  get posed(): boolean {
+    return this.store.view.mode === 'pose' || this.store.view.playing;
+  }
+
+  solverOptions(layer: Layer, quality: Quality): SolveOptions {
+    const s = { ...(this.doc.solver ?? {}), ...(layer.solver ?? {}) };
+    const base = Math.max(1, s.grid_step ?? 1);
+    const draft = Math.max(base, Math.ceil(Math.max(this.doc.width, this.doc.height) / DRAFT_TARGET_PX));
+    const step = quality === 'draft' ? draft : base;
+    // As the scene engine does: samples at the grid spacing, the layer's relaxation scheme.
+    return {
+      tension: s.tension ?? 0,
+      tolerance: quality === 'draft' ? Math.max(s.tolerance ?? 0.01, 0.05) : (s.tolerance ?? 0.01),
+      grid_step: step,
+      max_cycles: (s.max_cycles as number | undefined) ?? null,
+      method: (s.scheme as string | undefined) ?? 'multigrid',
+      spacing_px: step,
+    };
+  }
+
+  solveFeatures(layer: Layer, time: number): SolveFeature[] {
+    return layerFeatures(this.doc, layer)
+      .filter((f) => f.kind !== 'cut')
+      .map((f) => ({
+        id: f.id,
+        kind: f.kind,
+        rest: f.rest,
+        pose: pointsAt(f, time),
+        closed: f.kind === 'region' || !!f.closed,
+        spline_outline: f.kind === 'region' && f.curve === 'spline',
+      }));
+  }
+
+  private frameOf(time: number): number | null {
+    const f = time * this.doc.fps;
+    return Math.abs(f - Math.round(f)) < 1e-6 ? Math.round(f) : null;
+  }
+
+  private cached(frame: number | null): Map<string, FieldData> | undefined {
+    if (frame === null || this.cache.rev !== this.store.revision) return undefined;
+    const fields = this.cache.frames.get(frame);
+    return fields && this.doc.layers.every((l) => !this.runtimes.get(l.name)?.gridReady || fields.has(l.name)) ? fields : undefined;
+  }
+
+  private remember(frame: number, key: string, field: FieldData): void {
+    if (this.cache.rev !== this.store.revision) this.cache = { rev: this.store.revision, bytes: 0, frames: new Map() };
+    const size = 8 * field.width * field.height;
+    if (this.cache.bytes + size > CACHE_BUDGET_BYTES) return;
+    let fields = this.cache.frames.get(frame);
+    if (!fields) this.cache.frames.set(frame, (fields = new Map()));
+    if (!fields.has(key)) this.cache.bytes += size;
+    fields.set(key, field);
+  }
+
+  /** How many frames have every layer's field cached for playback. */
+  cachedFrames(): number {
+    let n = 0;
+    for (const frame of this.cache.frames.keys()) if (this.cached(frame)) n++;
+    return n;
+  }
+
+  /**
+   * While playing: solves the next frames that are not cached yet, in order, each warm
+   * from the one before, so a second pass through the animation drops no frame.
+   */
+  prefetch(): void {
+    if (!this.store.view.playing || this.solver.busy) return;
+    const n = Math.max(1, Math.ceil(this.doc.duration * this.doc.fps - 1e-9));
+    const now = this.frameOf(this.store.view.time) ?? 0;
+    for (let k = 1; k < n; k++) {
+      const frame = (now + k) % n;
+      if (this.cached(frame)) continue;
+      const time = frame / this.doc.fps;
+      for (const layer of this.doc.layers) {
+        const rt = this.runtimes.get(layer.name);
+        if (!rt?.gridReady || this.cache.frames.get(frame)?.has(layer.name)) continue;
+        this.solver.solve(layer.name, this.solveFeatures(layer, time), this.solverOptions(layer, 'final'), {
+          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.store.revision, frame, prefetch: true,
+        });
+      }
+      return;
+    }
+  }
+
+  /** Asks the worker for every layer's field at the current time. */
+  requestSolve(quality: Quality): void {
+    const time = this.store.view.time;
+    if (!this.posed) {
+      for (const rt of this.runtimes.values()) {
+        if (rt.field) {
+          rt.field = null;
+          rt.gl?.setField(null);
+          rt.lastRequest = '';
+        }
+      }
+      this.invalidate();
+      return;
+    }
+    if (quality === 'draft') {
+      if (this.settleTimer !== null) clearTimeout(this.settleTimer);
+      this.settleTimer = window.setTimeout(() => {
+        this.settleTimer = null;
+        this.settleStart = performance.now();
+        this.requestSolve('final');
+      }, SETTLE_MS);
+    }
+    const frame = this.frameOf(time);
+    const hit = quality === 'final' ? this.cached(frame) : undefined;
+    if (hit) {
+      for (const [key, field] of hit) {
+        const rt = this.runtimes.get(key);
+        if (!rt?.gl) continue;
+        rt.field = field;
+        rt.gl.setField(field);
+        rt.lastRequest = '';
+      }
+      if (this.stats.playback && this.store.view.playing) this.stats.playback.shown++;
+      this.invalidate();
+      return;
+    }
+    for (const layer of this.doc.layers) {
+      const rt = this.runtimes.get(layer.name);
+      if (!rt || !rt.gridReady) continue;
+      const features = this.solveFeatures(layer, time);
+      const options = this.solverOptions(layer, quality);
+      const sig = JSON.stringify([features, options]);
+      if (sig === rt.lastRequest) continue;
+      rt.lastRequest = sig;
+      this.solver.solve(layer.name, features, options, {
+        madeAt: performance.now(),
+        quality,
+        gen: rt.gridGen,
+        pointerAt: quality === 'draft' ? this.lastPointerAt : null,
+        time,
+        rev: this.store.revision,
+        frame,
+        settleStart: quality === 'final' ? this.settleStart : null,
+      });
+    }
+  }
+
+  /** The pointer stopped or was released: ask for full resolution now. */
+  settle(): void {
+    if (this.settleTimer !== null) clearTimeout(this.settleTimer);
+    this.settleTimer = null;
+    this.settleStart = performance.now();
+    this.requestSolve('final');
+  }
+
+  private receive(ev: FieldEvent): void {
+    const rt = this.runtimes.get(ev.key);
+    this.lastReport = ev;
+    if (ev.tag.quality === 'draft') this.stats.draftSolveMs.push(ev.ms);
+    else this.stats.finalSolveMs.push(ev.ms);
+    if (ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.store.revision) {
+      this.remember(ev.tag.frame, ev.key, ev.field);
+    }
+    if (ev.tag.prefetch && ev.tag.time !== this.store.view.time) {
+      this.checkIdle();
+      return;
+    }
+    if (rt && ev.tag.gen === rt.gridGen && this.posed && rt.gl) {
+      rt.field = ev.field;
+      rt.gl.setField(ev.field);
+      if (typeof ev.tag.pointerAt === 'number' && ev.tag.pointerAt > 0) this.pendingLatency.push(ev.tag.pointerAt);
+      const pb = this.stats.playback;
+      if (pb && this.store.view.playing && ev.tag.time === this.store.view.time) pb.shown++;
+      if (ev.tag.quality === 'final' && typeof ev.tag.settleStart === 'number') {
+        const start = ev.tag.settleStart;
+        this.afterFrame(() => this.stats.settle.push(performance.now() - start));
+        this.settleStart = null;
+      }
+      this.invalidate();
+    }
+    this.onSolved(ev);
+    this.checkIdle();
+  }
+
+  // -- Drawing --------------------------------------------------------------------------
+
+  private afterFrameFns: (() => void)[] = [];
+  private afterFrame(fn: () => void): void {
+    this.afterFrameFns.push(fn);
+  }
+
+  invalidate(): void {
+    if (this.frameQueued) return;
+    this.frameQueued = true;
+    requestAnimationFrame(() => {
+      this.frameQueued = false;
+      this.renderNow();
+    });
+  }
+
+  renderNow(): void {
+    const doc = this.doc;
+    const layers = [];
+    for (const layer of doc.layers) {
+      const rt = this.runtimes.get(layer.name);
+      if (!rt?.gl || layer.visible === false || this.store.view.hidden.includes(layer.name)) continue;
+      layers.push({ layer: rt.gl, offset: layer.offset ?? ([0, 0] as Pt) });
+    }
+    // Frames during a drag are drafts: no multisampling and a coarser mesh (a software GPU
+    // pays per triangle and per sample; the full frame follows when the pointer rests).
+    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], layers, !this.dragging, this.dragging);
+    this.onFrame();
+    const now = performance.now();
+    for (const t of this.pendingLatency.splice(0)) this.stats.dragLatency.push(now - t);
+    for (const fn of this.afterFrameFns.splice(0)) fn();
+    this.checkIdle();
+  }
+
+  // -- Waiting (tests, export) -----------------------------------------------------------
+
+  get busy(): boolean {
+    return this.busyCount > 0 || this.solver.busy || this.frameQueued || this.settleTimer !== null;
+  }
+
+  private checkIdle(): void {
+    if (this.busy) return;
+    for (const w of this.waiters.splice(0)) w();
+  }
+
+  /** Resolves when every layer is loaded, solved and drawn. */
+  idle(): Promise<void> {
+    return new Promise((resolve) => {
+      this.waiters.push(resolve);
+      setTimeout(() => this.checkIdle(), 0);
+    });
+  }
+}

@@ -1,0 +1,308 @@
+// Typed wrapper over the WebAssembly build of inkwarp-core (crates/inkwarp-wasm).
+//
+// The module exports a plain C ABI: we copy arguments into its linear memory, call, and
+// copy results out. JSON results come back through a result buffer.
+
+import type { Kind, Pt } from './scene';
+
+interface Exports {
+  memory: WebAssembly.Memory;
+  iw_alloc(len: number): number;
+  iw_free(ptr: number, len: number): void;
+  iw_result_ptr(): number;
+  iw_result_len(): number;
+  iw_grid_new(w: number, h: number, matte: number, matteLen: number, cuts: number, cutsLen: number): number;
+  iw_grid_free(h: number): void;
+  iw_grid_links(h: number, out: number, len: number): number;
+  iw_solve(h: number, req: number, reqLen: number, initial: number, out: number): number;
+  iw_curve(req: number, len: number): number;
+  iw_canvas_new(w: number, h: number, r: number, g: number, b: number, a: number): number;
+  iw_canvas_free(h: number): void;
+  iw_canvas_draw(c: number, g: number, image: number, field: number, ox: number, oy: number): number;
+  iw_canvas_read(c: number, out: number, len: number): number;
+  iw_scene_check(json: number, len: number): number;
+  iw_points_at(req: number, len: number): number;
+  iw_methods(): number;
+  iw_decode(ptr: number, len: number): number;
+  iw_decoded_take(out: number, len: number): number;
+  iw_matte_values(rgba: number, w: number, h: number, out: number): number;
+}
+
+export class EngineError extends Error {
+  constructor(message: string) {
+    super(message);
+    this.name = 'EngineError';
+  }
+}
+
+/** One feature as the solver sees it: rest and posed control points. */
+export interface SolveFeature {
+  id?: string;
+  kind: Kind;
+  rest: Pt[];
+  pose: Pt[];
+  closed?: boolean;
+  spline_outline?: boolean;
+}
+
+export interface SolveOptions {
+  tension?: number;
+  tolerance?: number;
+  grid_step?: number;
+  max_cycles?: number | null;
+  method?: string;
+  /** Arc-length spacing of the samples (the scene engine uses the grid step). */
+  spacing_px?: number;
+}
+
+export interface SolveReport {
+  cycles: number;
+  final_change_px: number;
+  residual: number;
+  constrained_nodes: number;
+  constrained_samples: number;
+  dropped_samples: number;
+  converged: boolean;
+  samples: number;
+}
+
+/** A displacement field, planar: `dx[y * width + x]`, `dy[...]`. */
+export interface FieldData {
+  width: number;
+  height: number;
+  dx: Float32Array;
+  dy: Float32Array;
+}
+
+const enc = new TextEncoder();
+const dec = new TextDecoder();
+
+/** A grid (solve domain) living in the module; free it when the layer goes away. */
+export class GridHandle {
+  constructor(
+    readonly engine: Engine,
+    readonly handle: number,
+    readonly width: number,
+    readonly height: number,
+  ) {}
+
+  /** Per node: bit 0 active, bit 1 linked right, bit 2 linked down. */
+  links(): Uint8Array {
+    const n = this.width * this.height;
+    return this.engine.withBuffer(n, (ptr) => {
+      this.engine.check(this.engine.x.iw_grid_links(this.handle, ptr, n));
+      return this.engine.u8(ptr, n).slice();
+    });
+  }
+
+  /** Solves the drawing; `initial` warm-starts (planar dx then dy). */
+  solve(features: SolveFeature[], options: SolveOptions, initial: FieldData | null): { field: FieldData; report: SolveReport } {
+    const n = this.width * this.height;
+    const e = this.engine;
+    const { spacing_px, ...rest } = options;
+    const req = enc.encode(JSON.stringify({ features, options: rest, spacing_px: spacing_px ?? rest.grid_step ?? 1 }));
+    const reqPtr = e.put(req);
+    const fieldPtr = e.x.iw_alloc(8 * n);
+    try {
+      if (initial) {
+        e.f32(fieldPtr, n).set(initial.dx);
+        e.f32(fieldPtr + 4 * n, n).set(initial.dy);
+      }
+      const rc = e.x.iw_solve(this.handle, reqPtr, req.length, initial ? fieldPtr : 0, fieldPtr);
+      const report = e.check(rc) as SolveReport;
+      const field = {
+        width: this.width,
+        height: this.height,
+        dx: e.f32(fieldPtr, n).slice(),
+        dy: e.f32(fieldPtr + 4 * n, n).slice(),
+      };
+      return { field, report };
+    } finally {
+      e.x.iw_free(reqPtr, req.length);
+      e.x.iw_free(fieldPtr, 8 * n);
+    }
+  }
+
+  free(): void {
+    this.engine.x.iw_grid_free(this.handle);
+  }
+}
+
+export class Engine {
+  constructor(readonly x: Exports) {}
+
+  static async fromBytes(bytes: BufferSource): Promise<Engine> {
+    const { instance } = await WebAssembly.instantiate(bytes, {});
+    return new Engine(instance.exports as unknown as Exports);
+  }
+
+  static async fromUrl(url: string): Promise<Engine> {
+    const resp = await fetch(url);
+    if (!resp.ok) throw new EngineError(`Could not load the engine from ${url} (HTTP ${resp.status}).`);
+    return Engine.fromBytes(await resp.arrayBuffer());
+  }
+
+  u8(ptr: number, len: number): Uint8Array {
+    return new Uint8Array(this.x.memory.buffer, ptr, len);
+  }
+
+  f32(ptr: number, len: number): Float32Array {
+    return new Float32Array(this.x.memory.buffer, ptr, len);
+  }
+
+  /** Copies bytes into a fresh allocation; the caller frees it with `len`. */
+  put(bytes: Uint8Array): number {
+    const ptr = this.x.iw_alloc(bytes.length);
+    this.u8(ptr, bytes.length).set(bytes);
+    return ptr;
+  }
+
+  withBuffer<T>(len: number, fn: (ptr: number) => T): T {
+    const ptr = this.x.iw_alloc(len);
+    try {
+      return fn(ptr);
+    } finally {
+      this.x.iw_free(ptr, len);
+    }
+  }
+
+  /** The result buffer parsed as JSON (null when empty). */
+  result(): unknown {
+    const len = this.x.iw_result_len();
+    if (len === 0) return null;
+    return JSON.parse(dec.decode(this.u8(this.x.iw_result_ptr(), len)));
+  }
+
+  /** Turns a status into the result or an EngineError. */
+  check(status: number): unknown {
+    const r = this.result();
+    if (status !== 0) throw new EngineError((r as { error?: string })?.error ?? 'The engine failed.');
+    return r;
+  }
+
+  grid(width: number, height: number, matte: Uint8Array | null, cuts: Pt[][]): GridHandle {
+    const mattePtr = matte ? this.put(matte) : 0;
+    const cutsBytes = enc.encode(cuts.length ? JSON.stringify(cuts) : '');
+    const cutsPtr = cutsBytes.length ? this.put(cutsBytes) : 0;
+    try {
+      const h = this.x.iw_grid_new(width, height, mattePtr, matte ? matte.length : 0, cutsPtr, cutsBytes.length);
+      if (h === 0) this.check(1);
+      return new GridHandle(this, h, width, height);
+    } finally {
+      if (matte) this.x.iw_free(mattePtr, matte.length);
+      if (cutsBytes.length) this.x.iw_free(cutsPtr, cutsBytes.length);
+    }
+  }
+
+  /**
+   * The engine's validation of a scene document: every problem with its JSON path (empty
+   * when the scene is fine). Images are checked by the editor as it decodes them.
+   */
+  validate(doc: unknown): { path: string; message: string }[] {
+    const bytes = enc.encode(JSON.stringify(doc));
+    const ptr = this.put(bytes);
+    try {
+      return this.check(this.x.iw_scene_check(ptr, bytes.length)) as { path: string; message: string }[];
+    } finally {
+      this.x.iw_free(ptr, bytes.length);
+    }
+  }
+
+  private json(fn: (ptr: number, len: number) => number, value: unknown): unknown {
+    const bytes = enc.encode(JSON.stringify(value));
+    const ptr = this.put(bytes);
+    try {
+      return this.check(fn(ptr, bytes.length));
+    } finally {
+      this.x.iw_free(ptr, bytes.length);
+    }
+  }
+
+  /** The field methods and whether this build computes them. */
+  methods(): { name: string; available: boolean }[] {
+    return this.check(this.x.iw_methods()) as { name: string; available: boolean }[];
+  }
+
+  /** A feature's control points at time `t` by the engine's keyframe interpolation. */
+  pointsAt(rest: Pt[], keys: { t: number; points: Pt[]; interpolation?: string }[], t: number): Pt[] {
+    return this.json((p, l) => this.x.iw_points_at(p, l), { rest, keys, t }) as Pt[];
+  }
+
+  /** Decodes a PNG/JPEG (bytes or a data: URI) with the engine's decoder: straight RGBA8. */
+  decode(input: Uint8Array): { width: number; height: number; data: Uint8Array } {
+    const ptr = this.put(input);
+    let size: { width: number; height: number };
+    try {
+      size = this.check(this.x.iw_decode(ptr, input.length)) as { width: number; height: number };
+    } finally {
+      this.x.iw_free(ptr, input.length);
+    }
+    const len = 4 * size.width * size.height;
+    const data = this.withBuffer(len, (out) => {
+      this.check(this.x.iw_decoded_take(out, len));
+      return this.u8(out, len).slice();
+    });
+    return { ...size, data };
+  }
+
+  /** The engine's matte values (grey × alpha) of a straight RGBA8 image. */
+  matteValues(rgba: Uint8Array, width: number, height: number): Uint8Array {
+    const n = width * height;
+    const src = this.put(rgba);
+    try {
+      return this.withBuffer(n, (out) => {
+        this.check(this.x.iw_matte_values(src, width, height, out));
+        return this.u8(out, n).slice();
+      });
+    } finally {
+      this.x.iw_free(src, rgba.length);
+    }
+  }
+
+  /** The curve through control points as a dense polyline (for overlays). */
+  curve(kind: Kind, points: Pt[], closed: boolean, splineOutline: boolean, spacingPx = 2): Pt[] {
+    const req = enc.encode(JSON.stringify({ kind, points, closed, spline_outline: splineOutline, spacing_px: spacingPx }));
+    const ptr = this.put(req);
+    try {
+      return this.check(this.x.iw_curve(ptr, req.length)) as Pt[];
+    } finally {
+      this.x.iw_free(ptr, req.length);
+    }
+  }
+
+  /**
+   * The reference CPU renderer: composites layers (straight RGBA8 images with their grids
+   * and fields) over a background, returns straight RGBA8.
+   */
+  renderCpu(
+    width: number,
+    height: number,
+    background: [number, number, number, number],
+    layers: { image: Uint8Array; grid: GridHandle; field: FieldData; offset: Pt }[],
+  ): Uint8Array {
+    const [r, g, b, a] = background;
+    const canvas = this.x.iw_canvas_new(width, height, r, g, b, a);
+    try {
+      for (const l of layers) {
+        const n = l.grid.width * l.grid.height;
+        const imgPtr = this.put(l.image);
+        const fieldPtr = this.x.iw_alloc(8 * n);
+        try {
+          this.f32(fieldPtr, n).set(l.field.dx);
+          this.f32(fieldPtr + 4 * n, n).set(l.field.dy);
+          this.check(this.x.iw_canvas_draw(canvas, l.grid.handle, imgPtr, fieldPtr, l.offset[0], l.offset[1]));
+        } finally {
+          this.x.iw_free(imgPtr, l.image.length);
+          this.x.iw_free(fieldPtr, 8 * n);
+        }
+      }
+      const len = 4 * width * height;
+      return this.withBuffer(len, (ptr) => {
+        this.check(this.x.iw_canvas_read(canvas, ptr, len));
+        return this.u8(ptr, len).slice();
+      });
+    } finally {
+      this.x.iw_canvas_free(canvas);
+    }
+  }
+}

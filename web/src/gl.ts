@@ -1,0 +1,464 @@
+// The WebGL2 renderer: the paper's forward mapping on the GPU (DESIGN §5), following the
+// CPU reference renderer (inkwarp-core `render`) element for element.
+//
+// Every pixel of a layer is a vertex placed at its displaced position (the vertex shader
+// reads the field from a float texture). A block of four pixels joined by all four links
+// is a quad, coloured by the bilinear mix of its pixels' premultiplied RGBA; in any other
+// block (the border, a cut, a hole) each drawn pixel owns a skirt quarter, so the identity
+// field covers every pixel exactly and the two sides of a missing link separate when the
+// field pulls them apart. Quads are drawn block row by block row, top to bottom, left to
+// right, so where the mesh folds the part from further down the rest image is in front.
+// Layers are composited back to front with premultiplied "over" into a 4× multisampled
+// target (coverage antialiasing), resolved into the canvas.
+//
+// Where it differs from the CPU renderer (stated tolerances in the browser test): each
+// quad is drawn as two triangles (affine, not the exact inverse bilinear map), coverage is
+// four samples rather than exact area, and a skirt's centre point is the parallelogram
+// completion from its own pixel.
+
+import type { FieldData } from './engine';
+
+// Quads: vertex k is pixel (k % W, k / W); the index buffer lists the two triangles of
+// every block whose four links exist, each triangle's last (provoking) vertex being the
+// block's top-left pixel, so the fragment shader knows its block.
+const VERT = `#version 300 es
+precision highp float;
+precision highp int;
+uniform highp sampler2D uField;
+uniform ivec2 uSize;
+uniform vec2 uCanvas;
+uniform vec2 uOffset;
+uniform float uBlock;
+out vec2 vRest;
+flat out vec4 vClamp;
+
+void main() {
+  ivec2 p = ivec2(gl_VertexID % uSize.x, gl_VertexID / uSize.x);
+  vec2 rest = vec2(p);
+  vec2 d = texelFetch(uField, p, 0).rg;
+  vec2 q = rest + d + uOffset;
+  vRest = rest;
+  vClamp = vec4(rest, rest + uBlock);
+  gl_Position = vec4((q.x + 0.5) / uCanvas.x * 2.0 - 1.0, 1.0 - (q.y + 0.5) / uCanvas.y * 2.0, 0.0, 1.0);
+}
+`;
+
+// Skirt quarters: in a block that is not a whole quad, each drawn pixel owns the quarter
+// of the block nearest to it: the pixel, the points half way to its horizontal and vertical
+// neighbours (the link's midpoint where linked, otherwise half a pixel along the pixel's
+// displaced frame), and their parallelogram completion. Colour blends only along links.
+const SKIRT_VERT = `#version 300 es
+precision highp float;
+precision highp int;
+precision highp usampler2D;
+uniform highp sampler2D uField;
+uniform usampler2D uLinks;
+uniform ivec2 uSize;
+uniform vec2 uCanvas;
+uniform vec2 uOffset;
+in vec4 aQuarter;   // pixel x, y, and the block's side sx, sy (±1)
+in vec2 aCorner;    // (0|1, 0|1) along x and y
+out vec2 vRest;
+flat out vec4 vClamp;
+
+vec2 pos(ivec2 p) { return vec2(p) + texelFetch(uField, p, 0).rg; }
+uint links(ivec2 p) { return texelFetch(uLinks, p, 0).r; }
+bool right(ivec2 p) { return p.x >= 0 && p.x < uSize.x - 1 && (links(p) & 2u) != 0u; }
+bool down(ivec2 p) { return p.y >= 0 && p.y < uSize.y - 1 && (links(p) & 4u) != 0u; }
+
+void main() {
+  ivec2 p = ivec2(aQuarter.xy);
+  float sx = aQuarter.z;
+  float sy = aQuarter.w;
+  vec2 P = pos(p);
+  bool rx = right(p), lx = right(p - ivec2(1, 0));
+  bool dy = down(p), uy = down(p - ivec2(0, 1));
+  vec2 ex = rx ? pos(p + ivec2(1, 0)) - P : lx ? P - pos(p - ivec2(1, 0)) : vec2(0.0);
+  vec2 ey = dy ? pos(p + ivec2(0, 1)) - P : uy ? P - pos(p - ivec2(0, 1)) : vec2(0.0);
+  if (ex == vec2(0.0)) ex = ey == vec2(0.0) ? vec2(1.0, 0.0) : vec2(ey.y, -ey.x);
+  if (ey == vec2(0.0)) ey = vec2(-ex.y, ex.x);
+  vec2 q = P + 0.5 * (aCorner.x * sx * ex + aCorner.y * sy * ey) + uOffset;
+  bool linkX = sx > 0.0 ? rx : lx;
+  bool linkY = sy > 0.0 ? dy : uy;
+  vec2 rest = vec2(p);
+  vec2 far = rest + 0.5 * vec2(linkX ? sx : 0.0, linkY ? sy : 0.0);
+  vRest = rest + 0.5 * vec2(aCorner.x * (linkX ? sx : 0.0), aCorner.y * (linkY ? sy : 0.0));
+  vClamp = vec4(min(rest, far), max(rest, far));
+  gl_Position = vec4((q.x + 0.5) / uCanvas.x * 2.0 - 1.0, 1.0 - (q.y + 0.5) / uCanvas.y * 2.0, 0.0, 1.0);
+}
+`;
+
+const FRAG = `#version 300 es
+precision highp float;
+precision highp int;
+uniform highp sampler2D uImage;
+uniform ivec2 uSize;
+uniform float uOpacity;
+in vec2 vRest;
+flat in vec4 vClamp;
+out vec4 outColor;
+
+vec4 px(int i, int j) {
+  vec4 c = texelFetch(uImage, ivec2(clamp(i, 0, uSize.x - 1), clamp(j, 0, uSize.y - 1)), 0);
+  return vec4(c.rgb * c.a, c.a);
+}
+
+// The bilinear mix of the block's premultiplied pixels at this rest position (clamped to
+// the element, as a pixel centre just outside an edge takes the edge's colour).
+void main() {
+  vec2 r = clamp(vRest, vClamp.xy, vClamp.zw);
+  vec2 q = min(floor(r), vec2(uSize - 1));
+  vec2 f = r - q;
+  int i = int(q.x);
+  int j = int(q.y);
+  vec4 top = mix(px(i, j), px(i + 1, j), f.x);
+  vec4 bottom = mix(px(i, j + 1), px(i + 1, j + 1), f.x);
+  outColor = mix(top, bottom, f.y) * uOpacity;
+}
+`;
+
+const BLIT_VERT = `#version 300 es
+out vec2 vPos;
+void main() {
+  vec2 p = vec2(float((gl_VertexID & 1) * 2), float((gl_VertexID >> 1) * 2));
+  vPos = p;
+  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+`;
+
+function compile(gl: WebGL2RenderingContext, type: number, src: string): WebGLShader {
+  const s = gl.createShader(type)!;
+  gl.shaderSource(s, src);
+  gl.compileShader(s);
+  if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error(`Shader failed to compile: ${gl.getShaderInfoLog(s)}`);
+  return s;
+}
+
+function program(gl: WebGL2RenderingContext, vs: string, fs: string, attributes: string[] = []): WebGLProgram {
+  const p = gl.createProgram()!;
+  attributes.forEach((a, i) => gl.bindAttribLocation(p, i, a));
+  gl.attachShader(p, compile(gl, gl.VERTEX_SHADER, vs));
+  gl.attachShader(p, compile(gl, gl.FRAGMENT_SHADER, fs));
+  gl.linkProgram(p);
+  if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error(`Shader failed to link: ${gl.getProgramInfoLog(p)}`);
+  return p;
+}
+
+/**
+ * The mesh of a `w × h` layer from its grid's links (per node: bit 0 active, bit 1 linked
+ * right, bit 2 linked down; null: everything linked) and its RGBA (a pixel is drawn when
+ * it is active or visible): triangle indices of the whole quads, of the draft mesh, the
+ * skirt quarters' vertices (x, y, sx, sy, u, v), and the links as given (or all).
+ */
+export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; links: Uint8Array } {
+  const at = (i: number, j: number) => (links ? links[j * w + i] : i + 1 < w ? (j + 1 < h ? 7 : 3) : j + 1 < h ? 5 : 1);
+  const drawn = (i: number, j: number) => i >= 0 && j >= 0 && i < w && j < h && ((at(i, j) & 1) !== 0 || (rgba !== null && rgba[4 * (j * w + i) + 3] > 0));
+  const quads = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
+  const skirts: number[] = [];
+  let n = 0;
+  for (let j = -1; j < h; j++) {
+    for (let i = -1; i < w; i++) {
+      const whole = i >= 0 && j >= 0 && i + 1 < w && j + 1 < h && (at(i, j) & 6) === 6 && (at(i, j + 1) & 2) !== 0 && (at(i + 1, j) & 4) !== 0;
+      if (whole) {
+        const k = j * w + i;
+        // Both triangles end on the block's top-left pixel (the provoking vertex).
+        quads.set([k + 1, k + w + 1, k, k + w + 1, k + w, k], n);
+        n += 6;
+        continue;
+      }
+      for (const [ci, cj, sx, sy] of [[i, j, 1, 1], [i + 1, j, -1, 1], [i, j + 1, 1, -1], [i + 1, j + 1, -1, -1]]) {
+        if (!drawn(ci, cj)) continue;
+        for (const [u, v] of [[0, 0], [1, 0], [0, 1], [0, 1], [1, 0], [1, 1]]) skirts.push(ci, cj, sx, sy, u, v);
+      }
+    }
+  }
+  // The draft mesh: the same vertices, a 2×2 block of whole quads drawn as one quad
+  // (the picture keeps every pixel: colours are still looked up per pixel).
+  const whole = (i: number, j: number) => i + 1 < w && j + 1 < h && (at(i, j) & 6) === 6 && (at(i, j + 1) & 2) !== 0 && (at(i + 1, j) & 4) !== 0;
+  const coarse = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
+  let m = 0;
+  const quad = (k: number, sx: number, sy: number) => {
+    coarse.set([k + sx, k + sy * w + sx, k, k + sy * w + sx, k + sy * w, k], m);
+    m += 6;
+  };
+  for (let j = 0; j + 1 < h; j += 2) {
+    for (let i = 0; i + 1 < w; i += 2) {
+      if (whole(i, j) && whole(i + 1, j) && whole(i, j + 1) && whole(i + 1, j + 1)) quad(j * w + i, 2, 2);
+      else for (const [a, b] of [[i, j], [i + 1, j], [i, j + 1], [i + 1, j + 1]]) if (whole(a, b)) quad(b * w + a, 1, 1);
+    }
+  }
+  const all = new Uint8Array(w * h);
+  for (let j = 0; j < h; j++) for (let i = 0; i < w; i++) all[j * w + i] = at(i, j);
+  return { quads: quads.slice(0, n), coarse: coarse.slice(0, m), skirts: new Float32Array(skirts), links: all };
+}
+
+/** One layer's GPU resources. */
+export class GlLayer {
+  image: WebGLTexture;
+  field: WebGLTexture;
+  /** Indices of the triangles of every quad whose four links exist. */
+  indices: WebGLBuffer;
+  count = 0;
+  /** Drafts: 2×2 blocks of whole quads as one quad (a quarter of the triangles). */
+  coarse: WebGLBuffer;
+  coarseCount = 0;
+  links: WebGLTexture;
+  /** The skirt quarters: 6 vertices each of (x, y, sx, sy, u, v). */
+  skirts: WebGLBuffer;
+  skirtVao: WebGLVertexArrayObject;
+  skirtCount = 0;
+  constructor(
+    private r: GlRenderer,
+    readonly width: number,
+    readonly height: number,
+  ) {
+    const gl = r.gl;
+    this.image = r.texture();
+    this.field = r.texture();
+    this.indices = gl.createBuffer()!;
+    this.coarse = gl.createBuffer()!;
+    this.links = r.texture();
+    this.skirts = gl.createBuffer()!;
+    this.skirtVao = gl.createVertexArray()!;
+    gl.bindVertexArray(this.skirtVao);
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.skirts);
+    gl.enableVertexAttribArray(0);
+    gl.vertexAttribPointer(0, 4, gl.FLOAT, false, 24, 0);
+    gl.enableVertexAttribArray(1);
+    gl.vertexAttribPointer(1, 2, gl.FLOAT, false, 24, 16);
+    gl.bindVertexArray(null);
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
+    gl.bindTexture(gl.TEXTURE_2D, this.field);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RG32F, width, height, 0, gl.RG, gl.FLOAT, new Float32Array(2 * width * height));
+    this.setMesh(null, null);
+  }
+
+  /** Straight RGBA8 pixels of the layer. */
+  setImage(rgba: Uint8Array | Uint8ClampedArray): void {
+    const gl = this.r.gl;
+    gl.bindTexture(gl.TEXTURE_2D, this.image);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.width, this.height, 0, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(rgba.buffer, rgba.byteOffset, rgba.byteLength));
+  }
+
+  /**
+   * The mesh from the grid's links (per node: bit 0 active, bit 1 linked right, bit 2
+   * linked down; null: everything linked) and the layer's alpha (a pixel is drawn when it
+   * is active or visible). A block whose four links exist is a quad; in any other block
+   * (at the border, along a cut, around a hole) each drawn pixel gets its skirt quarter.
+   */
+  setMesh(links: Uint8Array | null, rgba: Uint8Array | null): void {
+    const { width: w, height: h } = this;
+    const { quads, coarse, skirts, links: l } = buildMesh(w, h, links, rgba);
+    const n = quads.length;
+    const m = coarse.length;
+    const gl = this.r.gl;
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.indices);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, quads, gl.STATIC_DRAW);
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.coarse);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, coarse, gl.STATIC_DRAW);
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, null);
+    this.count = n;
+    this.coarseCount = m;
+    gl.bindBuffer(gl.ARRAY_BUFFER, this.skirts);
+    gl.bufferData(gl.ARRAY_BUFFER, skirts, gl.STATIC_DRAW);
+    gl.bindBuffer(gl.ARRAY_BUFFER, null);
+    this.skirtCount = skirts.length / 6;
+    gl.bindTexture(gl.TEXTURE_2D, this.links);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.R8UI, w, h, 0, gl.RED_INTEGER, gl.UNSIGNED_BYTE, l);
+  }
+
+  setField(field: FieldData | null): void {
+    const gl = this.r.gl;
+    const n = this.width * this.height;
+    const rg = new Float32Array(2 * n);
+    if (field) {
+      for (let i = 0; i < n; i++) {
+        rg[2 * i] = field.dx[i];
+        rg[2 * i + 1] = field.dy[i];
+      }
+    }
+    gl.bindTexture(gl.TEXTURE_2D, this.field);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, this.width, this.height, gl.RG, gl.FLOAT, rg);
+  }
+
+  dispose(): void {
+    const gl = this.r.gl;
+    gl.deleteTexture(this.image);
+    gl.deleteTexture(this.field);
+    gl.deleteBuffer(this.indices);
+    gl.deleteBuffer(this.coarse);
+    gl.deleteBuffer(this.skirts);
+    gl.deleteTexture(this.links);
+    gl.deleteVertexArray(this.skirtVao);
+  }
+}
+
+export interface DrawLayer {
+  layer: GlLayer;
+  offset: [number, number];
+  opacity?: number;
+}
+
+export class GlRenderer {
+  readonly gl: WebGL2RenderingContext;
+  private mesh: WebGLProgram;
+  private skirt: WebGLProgram;
+  private blit: WebGLProgram;
+  private vao: WebGLVertexArrayObject;
+  private msaaFbo: WebGLFramebuffer | null = null;
+  private msaaRb: WebGLRenderbuffer | null = null;
+  private plainFbo: WebGLFramebuffer | null = null;
+  private plainRb: WebGLRenderbuffer | null = null;
+  private resolveFbo: WebGLFramebuffer | null = null;
+  private resolveTex: WebGLTexture | null = null;
+  private width = 0;
+  private height = 0;
+  readonly samples: number;
+
+  constructor(readonly canvas: HTMLCanvasElement | OffscreenCanvas) {
+    const gl = canvas.getContext('webgl2', { antialias: false, premultipliedAlpha: true, preserveDrawingBuffer: true, alpha: true }) as WebGL2RenderingContext | null;
+    if (!gl) throw new Error('This browser has no WebGL2; the editor needs it to draw the warped picture.');
+    this.gl = gl;
+    this.mesh = program(gl, VERT, FRAG);
+    this.skirt = program(gl, SKIRT_VERT, FRAG, ['aQuarter', 'aCorner']);
+    this.blit = program(gl, BLIT_VERT, `#version 300 es
+precision highp float;
+uniform sampler2D uTex;
+in vec2 vPos;
+out vec4 o;
+void main() { o = texture(uTex, vPos); }`);
+    this.vao = gl.createVertexArray()!;
+    this.samples = Math.min(4, gl.getParameter(gl.MAX_SAMPLES) as number);
+  }
+
+  texture(): WebGLTexture {
+    const gl = this.gl;
+    const t = gl.createTexture()!;
+    gl.bindTexture(gl.TEXTURE_2D, t);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+    return t;
+  }
+
+  layer(width: number, height: number): GlLayer {
+    return new GlLayer(this, width, height);
+  }
+
+  private ensureTargets(width: number, height: number): void {
+    if (this.width === width && this.height === height && this.msaaFbo) return;
+    const gl = this.gl;
+    this.width = width;
+    this.height = height;
+    if (this.canvas.width !== width) this.canvas.width = width;
+    if (this.canvas.height !== height) this.canvas.height = height;
+    if (this.msaaFbo) gl.deleteFramebuffer(this.msaaFbo);
+    if (this.msaaRb) gl.deleteRenderbuffer(this.msaaRb);
+    if (this.plainFbo) gl.deleteFramebuffer(this.plainFbo);
+    if (this.plainRb) gl.deleteRenderbuffer(this.plainRb);
+    this.plainRb = gl.createRenderbuffer();
+    gl.bindRenderbuffer(gl.RENDERBUFFER, this.plainRb);
+    gl.renderbufferStorage(gl.RENDERBUFFER, gl.RGBA8, width, height);
+    this.plainFbo = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, this.plainFbo);
+    gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.RENDERBUFFER, this.plainRb);
+    if (this.resolveFbo) gl.deleteFramebuffer(this.resolveFbo);
+    if (this.resolveTex) gl.deleteTexture(this.resolveTex);
+    this.msaaRb = gl.createRenderbuffer();
+    gl.bindRenderbuffer(gl.RENDERBUFFER, this.msaaRb);
+    gl.renderbufferStorageMultisample(gl.RENDERBUFFER, this.samples, gl.RGBA8, width, height);
+    this.msaaFbo = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, this.msaaFbo);
+    gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.RENDERBUFFER, this.msaaRb);
+    this.resolveTex = this.texture();
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, width, height, 0, gl.RGBA, gl.UNSIGNED_BYTE, null);
+    this.resolveFbo = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, this.resolveFbo);
+    gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, this.resolveTex, 0);
+  }
+
+  /**
+   * Renders a frame: the background (straight RGBA8) then each layer, back to front;
+   * `antialias: false` samples once per pixel; `draft` draws 2×2 blocks of whole quads as
+   * one quad (both for fast frames during a drag on a software GPU).
+   * The result stays in the resolve target (for `readPixels`) and is shown on the canvas.
+   */
+  render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): void {
+    const gl = this.gl;
+    this.ensureTargets(width, height);
+    const target = antialias ? this.msaaFbo : this.plainFbo;
+    gl.bindFramebuffer(gl.FRAMEBUFFER, target);
+    gl.viewport(0, 0, width, height);
+    const a = background[3] / 255;
+    gl.clearColor((background[0] / 255) * a, (background[1] / 255) * a, (background[2] / 255) * a, a);
+    gl.clear(gl.COLOR_BUFFER_BIT);
+    gl.enable(gl.BLEND);
+    gl.blendFunc(gl.ONE, gl.ONE_MINUS_SRC_ALPHA);
+    for (const { layer, offset, opacity } of layers) {
+      gl.activeTexture(gl.TEXTURE0);
+      gl.bindTexture(gl.TEXTURE_2D, layer.field);
+      gl.activeTexture(gl.TEXTURE1);
+      gl.bindTexture(gl.TEXTURE_2D, layer.links);
+      gl.activeTexture(gl.TEXTURE2);
+      gl.bindTexture(gl.TEXTURE_2D, layer.image);
+      for (const prog of [this.mesh, this.skirt]) {
+        gl.useProgram(prog);
+        const u = (n: string) => gl.getUniformLocation(prog, n);
+        gl.uniform1i(u('uField'), 0);
+        gl.uniform1i(u('uLinks'), 1);
+        gl.uniform1i(u('uImage'), 2);
+        gl.uniform2f(u('uCanvas'), width, height);
+        gl.uniform2i(u('uSize'), layer.width, layer.height);
+        gl.uniform2f(u('uOffset'), offset[0], offset[1]);
+        gl.uniform1f(u('uOpacity'), opacity ?? 1);
+        gl.uniform1f(u('uBlock'), draft ? 2 : 1);
+        if (prog === this.mesh) {
+          gl.bindVertexArray(this.vao);
+          gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, draft ? layer.coarse : layer.indices);
+          gl.drawElements(gl.TRIANGLES, draft ? layer.coarseCount : layer.count, gl.UNSIGNED_INT, 0);
+        } else if (layer.skirtCount) {
+          gl.bindVertexArray(layer.skirtVao);
+          gl.drawArrays(gl.TRIANGLES, 0, layer.skirtCount);
+        }
+      }
+    }
+    gl.bindVertexArray(null);
+    gl.disable(gl.BLEND);
+    // Resolve the samples, then show the frame on the canvas.
+    gl.bindFramebuffer(gl.READ_FRAMEBUFFER, target);
+    gl.bindFramebuffer(gl.DRAW_FRAMEBUFFER, this.resolveFbo);
+    gl.blitFramebuffer(0, 0, width, height, 0, 0, width, height, gl.COLOR_BUFFER_BIT, gl.NEAREST);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    gl.useProgram(this.blit);
+    gl.activeTexture(gl.TEXTURE0);
+    gl.bindTexture(gl.TEXTURE_2D, this.resolveTex);
+    gl.uniform1i(gl.getUniformLocation(this.blit, 'uTex'), 0);
+    gl.drawArrays(gl.TRIANGLES, 0, 3);
+  }
+
+  /** The last frame as straight RGBA8, rows top to bottom (for tests and PNG export). */
+  readPixels(): Uint8Array {
+    const gl = this.gl;
+    const { width, height } = this;
+    const px = new Uint8Array(4 * width * height);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, this.resolveFbo);
+    gl.readPixels(0, 0, width, height, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    // Rows come bottom-up and premultiplied: flip and unpremultiply.
+    const out = new Uint8Array(px.length);
+    const row = 4 * width;
+    for (let y = 0; y < height; y++) {
+      const src = (height - 1 - y) * row;
+      for (let x = 0; x < row; x += 4) {
+        const a = px[src + x + 3];
+        const d = y * row + x;
+        out[d + 3] = a;
+        for (let c = 0; c < 3; c++) out[d + c] = a === 0 ? 0 : Math.min(255, Math.round((px[src + x + c] * 255) / a));
+      }
+    }
+    return out;
+  }
+}

@@ -1,0 +1,237 @@
+// The 2D overlay over the picture: the drawing, the draft, the ΔX/ΔY heat map, the mesh
+// wireframe and the continuity matte. Scene coordinates: pixel centres at integers.
+
+import type { Engine } from './engine';
+import type { LayerRuntime } from './app';
+import { type Feature, type Pt, isClosed } from './scene';
+import type { Store } from './state';
+import { shownPoints } from './state';
+
+const KIND_COLOURS: Record<string, string> = {
+  point: '#ff3d7f',
+  polyline: '#00b3ff',
+  spline: '#ffb000',
+  region: '#35d07f',
+  cut: '#ff2a2a',
+};
+
+export class Overlay {
+  private ctx: CanvasRenderingContext2D;
+  private curveCache = new Map<string, Pt[]>();
+  private heatCanvas: OffscreenCanvas | null = null;
+  /** The pointer's scene position (for the draft's rubber band). */
+  hover: Pt | null = null;
+
+  constructor(
+    readonly canvas: HTMLCanvasElement,
+    private engine: Engine,
+  ) {
+    this.ctx = canvas.getContext('2d')!;
+  }
+
+  /** Scene px → overlay canvas px. */
+  get scale(): number {
+    return this.canvas.width / this.sceneWidth;
+  }
+  sceneWidth = 1;
+
+  toCanvas(p: Pt): Pt {
+    const s = this.scale;
+    return [(p[0] + 0.5) * s, (p[1] + 0.5) * s];
+  }
+
+  /** The dense curve through a feature's points (cached; the engine's own curves). */
+  curve(f: Feature, pts: Pt[]): Pt[] {
+    if (f.kind === 'point') return pts;
+    const closed = isClosed(f);
+    const spline = f.kind === 'spline' || (f.kind === 'region' && f.curve === 'spline');
+    if (!spline) return closed ? [...pts, pts[0]] : pts;
+    const key = JSON.stringify([f.kind, closed, pts]);
+    let c = this.curveCache.get(key);
+    if (!c) {
+      try {
+        c = this.engine.curve('spline', pts, closed, false, 2);
+      } catch {
+        c = pts;
+      }
+      if (this.curveCache.size > 500) this.curveCache.clear();
+      this.curveCache.set(key, c);
+    }
+    return c;
+  }
+
+  draw(store: Store, rt: LayerRuntime | undefined, sceneWidth: number, sceneHeight: number): void {
+    this.sceneWidth = sceneWidth;
+    const { ctx, canvas } = this;
+    const view = store.view;
+    ctx.clearRect(0, 0, canvas.width, canvas.height);
+    const s = this.scale;
+    if (rt && view.overlays.matte && rt.matte) this.drawMatte(rt, sceneWidth, sceneHeight);
+    if (rt && view.overlays.heat !== 'off' && rt.field) this.drawHeat(rt, view.overlays.heat, sceneWidth, sceneHeight);
+    if (rt && view.overlays.mesh && rt.links) this.drawMesh(rt, sceneWidth, sceneHeight);
+    if (!view.overlays.drawing) return;
+    const posed = view.mode === 'pose';
+    for (const f of store.doc.features) {
+      const selected = f.id === view.selection.feature;
+      if (posed && f.kind !== 'cut') this.drawFeature(f, f.rest, s, false, true);
+      const pts = shownPoints(f, view.mode, view.time);
+      this.drawFeature(f, pts, s, selected, false);
+      if (posed && f.keys?.some((k) => Math.abs(k.t - view.time) < 1e-4)) {
+        const [x, y] = this.toCanvas(pts[0]);
+        ctx.fillStyle = '#fff';
+        ctx.strokeStyle = '#000';
+        ctx.lineWidth = 1;
+        ctx.beginPath();
+        ctx.moveTo(x, y - 14);
+        ctx.lineTo(x + 5, y - 9);
+        ctx.lineTo(x, y - 4);
+        ctx.lineTo(x - 5, y - 9);
+        ctx.closePath();
+        ctx.fill();
+        ctx.stroke();
+      }
+    }
+    if (view.draft.length) {
+      ctx.strokeStyle = KIND_COLOURS[view.tool] ?? '#fff';
+      ctx.setLineDash([6, 4]);
+      ctx.lineWidth = 2;
+      ctx.beginPath();
+      const pts = this.hover ? [...view.draft, this.hover] : view.draft;
+      pts.forEach((p, i) => {
+        const [x, y] = this.toCanvas(p);
+        if (i === 0) ctx.moveTo(x, y);
+        else ctx.lineTo(x, y);
+      });
+      ctx.stroke();
+      ctx.setLineDash([]);
+      for (const p of view.draft) this.handle(p, '#fff', 4);
+    }
+  }
+
+  private handle(p: Pt, colour: string, r: number): void {
+    const [x, y] = this.toCanvas(p);
+    const { ctx } = this;
+    ctx.fillStyle = colour;
+    ctx.strokeStyle = '#000';
+    ctx.lineWidth = 1.5;
+    ctx.fillRect(x - r, y - r, 2 * r, 2 * r);
+    ctx.strokeRect(x - r, y - r, 2 * r, 2 * r);
+  }
+
+  private drawFeature(f: Feature, pts: Pt[], _s: number, selected: boolean, ghost: boolean): void {
+    const { ctx } = this;
+    const colour = KIND_COLOURS[f.kind];
+    ctx.save();
+    if (ghost) {
+      ctx.globalAlpha = 0.35;
+      ctx.setLineDash([4, 4]);
+    }
+    if (f.kind === 'point') {
+      const [x, y] = this.toCanvas(pts[0]);
+      ctx.strokeStyle = '#000';
+      ctx.fillStyle = colour;
+      ctx.lineWidth = 1.5;
+      ctx.beginPath();
+      ctx.arc(x, y, selected ? 7 : 5, 0, Math.PI * 2);
+      if (!ghost) ctx.fill();
+      ctx.stroke();
+      ctx.restore();
+      return;
+    }
+    const line = this.curve(f, pts).map((p) => this.toCanvas(p));
+    ctx.beginPath();
+    line.forEach(([x, y], i) => (i === 0 ? ctx.moveTo(x, y) : ctx.lineTo(x, y)));
+    if (f.kind === 'region' && !ghost) {
+      ctx.fillStyle = colour + '33';
+      ctx.fill();
+    }
+    ctx.lineWidth = selected ? 4 : 2.5;
+    ctx.strokeStyle = '#000';
+    ctx.stroke();
+    ctx.lineWidth = selected ? 2.5 : 1.5;
+    ctx.strokeStyle = colour;
+    if (f.kind === 'cut' && !ghost) ctx.setLineDash([7, 4]);
+    ctx.stroke();
+    ctx.setLineDash([]);
+    if (!ghost) {
+      const sel = selected ? 5 : 3.5;
+      pts.forEach((p) => this.handle(p, selected ? '#fff' : colour, sel));
+    }
+    ctx.restore();
+  }
+
+  private drawHeat(rt: LayerRuntime, which: 'dx' | 'dy', w: number, h: number): void {
+    const f = rt.field!;
+    const v = which === 'dx' ? f.dx : f.dy;
+    let max = 1e-6;
+    for (let i = 0; i < v.length; i++) max = Math.max(max, Math.abs(v[i]));
+    if (!this.heatCanvas || this.heatCanvas.width !== w || this.heatCanvas.height !== h) this.heatCanvas = new OffscreenCanvas(w, h);
+    const img = new ImageData(w, h);
+    for (let i = 0; i < v.length; i++) {
+      const s = v[i] / max; // −1 … 1: blue … white … red
+      const a = Math.abs(s);
+      const [r, g, b] = s >= 0 ? [255, 255 * (1 - a), 255 * (1 - a)] : [255 * (1 - a), 255 * (1 - a), 255];
+      const active = rt.matte ? rt.matte[i] : 1;
+      img.data[4 * i] = r;
+      img.data[4 * i + 1] = g;
+      img.data[4 * i + 2] = b;
+      img.data[4 * i + 3] = active ? 190 : 0;
+    }
+    this.heatCanvas.getContext('2d')!.putImageData(img, 0, 0);
+    this.ctx.imageSmoothingEnabled = false;
+    this.ctx.drawImage(this.heatCanvas, 0, 0, this.canvas.width, this.canvas.height);
+    // The scale, as a legend.
+    const y0 = this.canvas.height - 26;
+    this.ctx.fillStyle = 'rgba(0,0,0,0.7)';
+    this.ctx.fillRect(4, y0, 200, 22);
+    this.ctx.fillStyle = '#fff';
+    this.ctx.font = '13px sans-serif';
+    this.ctx.fillText(`${which === 'dx' ? 'ΔX' : 'ΔY'}: ±${max.toFixed(1)} px (blue − / red +)`, 9, y0 + 16);
+  }
+
+  private drawMatte(rt: LayerRuntime, w: number, h: number): void {
+    const c = new OffscreenCanvas(w, h);
+    const img = new ImageData(w, h);
+    const m = rt.matte!;
+    for (let i = 0; i < m.length; i++) {
+      if (m[i]) continue;
+      img.data[4 * i] = 255;
+      img.data[4 * i + 1] = 0;
+      img.data[4 * i + 2] = 160;
+      img.data[4 * i + 3] = 110;
+    }
+    c.getContext('2d')!.putImageData(img, 0, 0);
+    this.ctx.imageSmoothingEnabled = false;
+    this.ctx.drawImage(c, 0, 0, this.canvas.width, this.canvas.height);
+  }
+
+  private drawMesh(rt: LayerRuntime, w: number, h: number): void {
+    const { ctx } = this;
+    const f = rt.field;
+    const links = rt.links!;
+    const step = Math.max(4, Math.round(Math.max(w, h) / 48));
+    const pos = (x: number, y: number): Pt => {
+      const i = y * w + x;
+      return this.toCanvas(f ? [x + f.dx[i], y + f.dy[i]] : [x, y]);
+    };
+    ctx.strokeStyle = 'rgba(20, 20, 20, 0.55)';
+    ctx.lineWidth = 1;
+    ctx.beginPath();
+    // Lines along rows and columns, broken where a link is missing.
+    for (let y = 0; y < h; y += step) {
+      ctx.moveTo(...pos(0, y));
+      for (let x = 0; x + 1 < w; x++) {
+        if (links[y * w + x] & 2) ctx.lineTo(...pos(x + 1, y));
+        else ctx.moveTo(...pos(x + 1, y));
+      }
+    }
+    for (let x = 0; x < w; x += step) {
+      ctx.moveTo(...pos(x, 0));
+      for (let y = 0; y + 1 < h; y++) {
+        if (links[y * w + x] & 4) ctx.lineTo(...pos(x, y + 1));
+        else ctx.moveTo(...pos(x, y + 1));
+      }
+    }
+    ctx.stroke();
+  }
+}

@@ -1,0 +1,26 @@
+// Messages between the page and the solver worker.
+
+import type { FieldData, SolveFeature, SolveOptions, SolveReport } from './engine';
+import type { Pt } from './scene';
+
+export type ToWorker =
+  | { type: 'init'; wasmUrl: string }
+  | { type: 'grid'; key: string; width: number; height: number; matte: Uint8Array | null; cuts: Pt[][] }
+  | { type: 'drop'; key: string }
+  | {
+      type: 'solve';
+      id: number;
+      key: string;
+      features: SolveFeature[];
+      options: SolveOptions;
+      /** Start from the last field solved for this layer. */
+      warm: boolean;
+    };
+
+export type FromWorker =
+  | { type: 'ready' }
+  /** The engine trapped (a bug): it was reloaded and every grid must be sent again. */
+  | { type: 'reset'; message: string }
+  | { type: 'error'; id: number | null; key: string | null; message: string }
+  | { type: 'links'; key: string; links: Uint8Array }
+  | { type: 'field'; id: number; key: string; field: FieldData; report: SolveReport; ms: number; gridStep: number };

@@ -1,0 +1,137 @@
+// The page's side of the solver worker: one solve in flight at a time, and for each layer
+// only the newest request waits (older ones are superseded), so a fast drag never builds a
+// queue — the picture always catches up with the pointer.
+
+import type { FieldData, SolveFeature, SolveOptions, SolveReport } from './engine';
+import type { FromWorker, ToWorker } from './protocol';
+import type { Pt } from './scene';
+
+export interface SolveTag {
+  /** When the request was made (performance.now()), for latency. */
+  madeAt: number;
+  /** Whatever the caller needs to know which picture this field belongs to. */
+  [k: string]: unknown;
+}
+
+export interface FieldEvent {
+  key: string;
+  field: FieldData;
+  report: SolveReport;
+  ms: number;
+  gridStep: number;
+  tag: SolveTag;
+}
+
+interface Request {
+  key: string;
+  features: SolveFeature[];
+  options: SolveOptions;
+  warm: boolean;
+  tag: SolveTag;
+}
+
+export class SolverClient {
+  private worker: Worker;
+  readonly ready: Promise<void>;
+  private inFlight: { id: number; req: Request } | null = null;
+  private pending = new Map<string, Request>();
+  private nextId = 1;
+  private linkWaiters = new Map<string, { resolve: (l: Uint8Array) => void; reject: (e: Error) => void }[]>();
+  private idleWaiters: (() => void)[] = [];
+  onField: (ev: FieldEvent) => void = () => {};
+  onError: (key: string | null, message: string) => void = () => {};
+  onReset: (message: string) => void = () => {};
+
+  constructor(worker: Worker, wasmUrl: string) {
+    this.worker = worker;
+    this.ready = new Promise((resolve, reject) => {
+      const first = (ev: MessageEvent<FromWorker>) => {
+        if (ev.data.type === 'ready') resolve();
+        else if (ev.data.type === 'error') reject(new Error(ev.data.message));
+        else return;
+        worker.removeEventListener('message', first);
+        worker.addEventListener('message', (e: MessageEvent<FromWorker>) => this.receive(e.data));
+      };
+      worker.addEventListener('message', first);
+    });
+    this.send({ type: 'init', wasmUrl });
+  }
+
+  private send(msg: ToWorker, transfer: Transferable[] = []): void {
+    this.worker.postMessage(msg, transfer);
+  }
+
+  /** (Re)builds a layer's solve domain; resolves with its links (for the renderer). */
+  setGrid(key: string, width: number, height: number, matte: Uint8Array | null, cuts: Pt[][]): Promise<Uint8Array> {
+    const p = new Promise<Uint8Array>((resolve, reject) => {
+      const list = this.linkWaiters.get(key) ?? [];
+      list.push({ resolve, reject });
+      this.linkWaiters.set(key, list);
+    });
+    this.send({ type: 'grid', key, width, height, matte: matte ? matte.slice() : null, cuts });
+    return p;
+  }
+
+  dropGrid(key: string): void {
+    this.pending.delete(key);
+    this.send({ type: 'drop', key });
+  }
+
+  /** Asks for a field; supersedes any request for the same layer still waiting. */
+  solve(key: string, features: SolveFeature[], options: SolveOptions, tag: SolveTag, warm = true): void {
+    this.pending.set(key, { key, features, options, warm, tag });
+    this.pump();
+  }
+
+  get busy(): boolean {
+    return this.inFlight !== null || this.pending.size > 0;
+  }
+
+  /** Resolves when nothing is waiting or being solved. */
+  idle(): Promise<void> {
+    if (!this.busy) return Promise.resolve();
+    return new Promise((resolve) => this.idleWaiters.push(resolve));
+  }
+
+  private pump(): void {
+    if (this.inFlight || this.pending.size === 0) return;
+    const [key, req] = this.pending.entries().next().value as [string, Request];
+    this.pending.delete(key);
+    const id = this.nextId++;
+    this.inFlight = { id, req };
+    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm });
+  }
+
+  private receive(msg: FromWorker): void {
+    if (msg.type === 'reset') {
+      for (const list of this.linkWaiters.values()) for (const w of list) w.reject(new Error(msg.message));
+      this.linkWaiters.clear();
+      this.onReset(msg.message);
+      return;
+    }
+    if (msg.type === 'links') {
+      const list = this.linkWaiters.get(msg.key) ?? [];
+      const waiter = list.shift();
+      if (list.length === 0) this.linkWaiters.delete(msg.key);
+      waiter?.resolve(msg.links);
+      return;
+    }
+    if (msg.type === 'field' || (msg.type === 'error' && msg.id !== null)) {
+      const done = this.inFlight;
+      this.inFlight = null;
+      if (msg.type === 'field' && done) {
+        this.onField({ key: msg.key, field: msg.field, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag });
+      } else if (msg.type === 'error') {
+        this.onError(msg.key, msg.message);
+      }
+      this.pump();
+      if (!this.busy) for (const w of this.idleWaiters.splice(0)) w();
+      return;
+    }
+    if (msg.type === 'error') {
+      const waiter = msg.key !== null ? this.linkWaiters.get(msg.key)?.shift() : undefined;
+      if (waiter) waiter.reject(new Error(msg.message));
+      else this.onError(msg.key, msg.message);
+    }
+  }
+}

@@ -1,0 +1,458 @@
+// The editor's state: the scene document, what the user is doing with it, and undo.
+//
+// Edits are pure functions `SceneDoc -> SceneDoc` (unit-tested without a browser); the
+// `Store` applies them, keeps the undo history and tells the views.
+
+import {
+  type Feature,
+  type Interpolation,
+  type Key,
+  type Kind,
+  type Layer,
+  type Method,
+  type Pt,
+  type SceneDoc,
+  freshId,
+  minPoints,
+  pointsAt,
+  sortedKeys,
+} from './scene';
+
+export type Mode = 'rest' | 'pose';
+export type Tool = 'select' | Kind;
+export type Heat = 'off' | 'dx' | 'dy';
+
+/** Two key times closer than this are the same key (well under a frame at 1000 fps). */
+export const KEY_EPS = 1e-4;
+
+export interface Selection {
+  feature: string | null;
+  /** A control point of the selected feature, or null for the whole feature. */
+  point: number | null;
+}
+
+export interface View {
+  mode: Mode;
+  tool: Tool;
+  time: number;
+  selection: Selection;
+  activeLayer: number;
+  /** Points placed so far by a drawing tool (not yet a feature). */
+  draft: Pt[];
+  /** Names of the layers hidden in the view (not saved: every layer renders). */
+  hidden: string[];
+  overlays: { drawing: boolean; heat: Heat; mesh: boolean; matte: boolean };
+  snap: boolean;
+  playing: boolean;
+}
+
+export function initialView(): View {
+  return {
+    mode: 'rest',
+    tool: 'select',
+    time: 0,
+    selection: { feature: null, point: null },
+    activeLayer: 0,
+    draft: [],
+    hidden: [],
+    overlays: { drawing: true, heat: 'off', mesh: false, matte: false },
+    snap: false,
+    playing: false,
+  };
+}
+
+// ---------------------------------------------------------------------------------------
+// Pure edits of the document.
+
+function mapFeature(doc: SceneDoc, id: string, fn: (f: Feature) => Feature): SceneDoc {
+  let found = false;
+  const features = doc.features.map((f) => {
+    if (f.id !== id) return f;
+    found = true;
+    return fn(f);
+  });
+  if (!found) throw new Error(`There is no feature ${id}.`);
+  return { ...doc, features };
+}
+
+export function getFeature(doc: SceneDoc, id: string | null): Feature | undefined {
+  return id === null ? undefined : doc.features.find((f) => f.id === id);
+}
+
+/**
+ * Adds a feature traced in rest mode. When the layer lists its features explicitly the new
+ * one is added to that list so it drives the layer it was drawn on.
+ */
+export function addFeature(
+  doc: SceneDoc,
+  kind: Kind,
+  points: Pt[],
+  opts: { closed?: boolean; curve?: 'polyline' | 'spline'; layer?: number; id?: string } = {},
+): { doc: SceneDoc; id: string } {
+  const closed = kind === 'region' ? undefined : opts.closed || undefined;
+  if (points.length < minPoints(kind, !!closed)) {
+    throw new Error(`A ${kind} needs at least ${minPoints(kind, !!closed)} points.`);
+  }
+  const id = opts.id ?? freshId(doc, kind);
+  const feature: Feature = { id, kind, rest: points.map((p) => [p[0], p[1]] as Pt) };
+  if (closed) feature.closed = true;
+  if (kind === 'region' && opts.curve === 'spline') feature.curve = 'spline';
+  let layers = doc.layers;
+  if (opts.layer !== undefined && doc.layers[opts.layer]?.features) {
+    layers = doc.layers.map((l, i) => (i === opts.layer ? { ...l, features: [...(l.features ?? []), id] } : l));
+  }
+  return { doc: { ...doc, layers, features: [...doc.features, feature] }, id };
+}
+
+/** Removes a feature and its mentions in layers. */
+export function deleteFeature(doc: SceneDoc, id: string): SceneDoc {
+  return {
+    ...doc,
+    features: doc.features.filter((f) => f.id !== id),
+    layers: doc.layers.map((l) => (l.features ? { ...l, features: l.features.filter((x) => x !== id) } : l)),
+  };
+}
+
+/** Removes one control point (rest and every key), keeping the kind's minimum. */
+export function deletePoint(doc: SceneDoc, id: string, index: number): SceneDoc {
+  return mapFeature(doc, id, (f) => {
+    if (f.rest.length - 1 < minPoints(f.kind, !!f.closed)) {
+      throw new Error(`A ${f.kind} needs at least ${minPoints(f.kind, !!f.closed)} points; delete the whole feature instead.`);
+    }
+    const drop = <T>(a: T[]) => a.filter((_, i) => i !== index);
+    return { ...f, rest: drop(f.rest), keys: f.keys?.map((k) => ({ ...k, points: drop(k.points) })) };
+  });
+}
+
+/** The index of the key at time `t` (within KEY_EPS), or -1. */
+export function keyIndexAt(f: Feature, t: number): number {
+  return (f.keys ?? []).findIndex((k) => Math.abs(k.t - t) < KEY_EPS);
+}
+
+function withKeys(f: Feature, keys: Key[]): Feature {
+  const sorted = [...keys].sort((a, b) => a.t - b.t);
+  const out: Feature = { ...f, keys: sorted };
+  if (sorted.length === 0) delete out.keys;
+  return out;
+}
+
+/** Sets (or adds) the key of a feature at time `t` with the given points. */
+export function setKey(doc: SceneDoc, id: string, t: number, points: Pt[]): SceneDoc {
+  return mapFeature(doc, id, (f) => {
+    if (points.length !== f.rest.length) throw new Error(`A key of ${id} needs ${f.rest.length} points.`);
+    const keys = [...(f.keys ?? [])];
+    const i = keyIndexAt(f, t);
+    const pts = points.map((p) => [p[0], p[1]] as Pt);
+    if (i >= 0) keys[i] = { ...keys[i], points: pts };
+    else keys.push({ t, points: pts });
+    return withKeys(f, keys);
+  });
+}
+
+/** Adds a key at `t` holding the feature where it is now (no-op if one is there). */
+export function addKeyHere(doc: SceneDoc, id: string, t: number): SceneDoc {
+  const f = getFeature(doc, id);
+  if (!f || keyIndexAt(f, t) >= 0) return doc;
+  return setKey(doc, id, t, pointsAt(f, t));
+}
+
+/** Deletes the key of a feature at time `t` (no-op without one). */
+export function deleteKey(doc: SceneDoc, id: string, t: number): SceneDoc {
+  return mapFeature(doc, id, (f) => {
+    const i = keyIndexAt(f, t);
+    if (i < 0) return f;
+    return withKeys(f, (f.keys ?? []).filter((_, j) => j !== i));
+  });
+}
+
+/** Moves a key from time `from` to time `to`; refuses to land on another key. */
+export function moveKey(doc: SceneDoc, id: string, from: number, to: number): SceneDoc {
+  return mapFeature(doc, id, (f) => {
+    const i = keyIndexAt(f, from);
+    if (i < 0) throw new Error(`${id} has no key at ${from.toFixed(3)} s.`);
+    const t = Math.max(0, to);
+    const j = keyIndexAt(f, t);
+    if (j >= 0 && j !== i) throw new Error(`${id} already has a key at ${t.toFixed(3)} s.`);
+    const keys = (f.keys ?? []).map((k, n) => (n === i ? { ...k, t } : k));
+    return withKeys(f, keys);
+  });
+}
+
+/** Sets how the feature moves from its key at `t` to the next one. */
+export function setInterpolation(doc: SceneDoc, id: string, t: number, interpolation: Interpolation): SceneDoc {
+  return mapFeature(doc, id, (f) => {
+    const i = keyIndexAt(f, t);
+    if (i < 0) throw new Error(`${id} has no key at ${t.toFixed(3)} s.`);
+    const keys = (f.keys ?? []).map((k, n) => {
+      if (n !== i) return k;
+      const out: Key = { ...k, interpolation };
+      if (interpolation === 'smooth') delete out.interpolation;
+      return out;
+    });
+    return withKeys(f, keys);
+  });
+}
+
+/**
+ * Moves control point `index` of a feature to `p`. In rest mode this retraces the rest
+ * drawing (keys keep their poses); in pose mode it sets the key at `time`, creating it
+ * from the current pose when there is none (auto-key).
+ */
+export function movePoint(doc: SceneDoc, mode: Mode, time: number, id: string, index: number, p: Pt): SceneDoc {
+  const f = getFeature(doc, id);
+  if (!f) throw new Error(`There is no feature ${id}.`);
+  if (mode === 'rest') {
+    return mapFeature(doc, id, (g) => ({ ...g, rest: g.rest.map((q, i) => (i === index ? [p[0], p[1]] : q)) }));
+  }
+  const pts = pointsAt(f, time);
+  pts[index] = [p[0], p[1]];
+  return setKey(doc, id, time, pts);
+}
+
+/** Moves a whole feature by `delta` (rest geometry, or the pose at `time`). */
+export function moveFeature(doc: SceneDoc, mode: Mode, time: number, id: string, base: Pt[], delta: Pt): SceneDoc {
+  const pts = base.map((q) => [q[0] + delta[0], q[1] + delta[1]] as Pt);
+  if (mode === 'rest') return mapFeature(doc, id, (g) => ({ ...g, rest: pts }));
+  return setKey(doc, id, time, pts);
+}
+
+/** The control points of a feature as shown in a mode at a time. */
+export function shownPoints(f: Feature, mode: Mode, time: number): Pt[] {
+  return mode === 'rest' ? f.rest : pointsAt(f, time);
+}
+
+export function setLayerFeatures(doc: SceneDoc, layer: number, features: string[] | undefined): SceneDoc {
+  return {
+    ...doc,
+    layers: doc.layers.map((l, i) => {
+      if (i !== layer) return l;
+      const out: Layer = { ...l, features };
+      if (features === undefined) delete out.features;
+      return out;
+    }),
+  };
+}
+
+/** Moves layer `from` to index `to` (back to front order). */
+export function reorderLayer(doc: SceneDoc, from: number, to: number): SceneDoc {
+  const layers = [...doc.layers];
+  const [l] = layers.splice(from, 1);
+  layers.splice(Math.max(0, Math.min(layers.length, to)), 0, l);
+  return { ...doc, layers };
+}
+
+export function updateLayer(doc: SceneDoc, index: number, patch: Partial<Layer>): SceneDoc {
+  return {
+    ...doc,
+    layers: doc.layers.map((l, i) => {
+      if (i !== index) return l;
+      const out = { ...l, ...patch } as Layer;
+      for (const [k, v] of Object.entries(patch)) if (v === undefined) delete out[k];
+      return out;
+    }),
+  };
+}
+
+export function deleteLayer(doc: SceneDoc, index: number): SceneDoc {
+  return { ...doc, layers: doc.layers.filter((_, i) => i !== index) };
+}
+
+export function setMethod(doc: SceneDoc, method: Method): SceneDoc {
+  return { ...doc, solver: { ...(doc.solver ?? {}), method } };
+}
+
+/** Every key time of the scene, sorted and deduplicated (for the timeline ruler). */
+export function allKeyTimes(doc: SceneDoc): number[] {
+  const times: number[] = [];
+  for (const f of doc.features) for (const k of sortedKeys(f)) if (!times.some((t) => Math.abs(t - k.t) < KEY_EPS)) times.push(k.t);
+  return times.sort((a, b) => a - b);
+}
+
+// ---------------------------------------------------------------------------------------
+// The store: document + view + undo.
+
+export type Listener = (store: Store, docChanged: boolean) => void;
+
+export class Store {
+  doc: SceneDoc;
+  view: View;
+  private undoStack: SceneDoc[] = [];
+  private redoStack: SceneDoc[] = [];
+  private txBase: SceneDoc | null = null;
+  private listeners: Listener[] = [];
+  /** Bumps on every document change (views compare it to know what to redo). */
+  revision = 0;
+
+  constructor(doc: SceneDoc, view: View = initialView()) {
+    this.doc = doc;
+    this.view = view;
+  }
+
+  subscribe(fn: Listener): () => void {
+    this.listeners.push(fn);
+    return () => {
+      this.listeners = this.listeners.filter((l) => l !== fn);
+    };
+  }
+
+  private emit(docChanged: boolean): void {
+    for (const l of this.listeners) l(this, docChanged);
+  }
+
+  /** Replaces the document with a new one (undoable unless inside a transaction). */
+  apply(next: SceneDoc): void {
+    if (next === this.doc) return;
+    if (this.txBase === null) {
+      this.undoStack.push(this.doc);
+      if (this.undoStack.length > 500) this.undoStack.shift();
+      this.redoStack = [];
+    }
+    this.doc = next;
+    this.revision++;
+    this.emit(true);
+  }
+
+  /** Applies an edit function; errors leave the document as it was and are rethrown. */
+  edit(fn: (doc: SceneDoc) => SceneDoc): void {
+    this.apply(fn(this.doc));
+  }
+
+  /** Starts a gesture (a drag): its many changes undo as one step. */
+  begin(): void {
+    if (this.txBase === null) this.txBase = this.doc;
+  }
+
+  /** Ends a gesture. */
+  commit(): void {
+    const base = this.txBase;
+    this.txBase = null;
+    if (base !== null && base !== this.doc) {
+      this.undoStack.push(base);
+      this.redoStack = [];
+    }
+  }
+
+  /** Abandons a gesture, restoring the document from before it. */
+  cancel(): void {
+    const base = this.txBase;
+    this.txBase = null;
+    if (base !== null && base !== this.doc) {
+      this.doc = base;
+      this.revision++;
+      this.emit(true);
+    }
+  }
+
+  get inGesture(): boolean {
+    return this.txBase !== null;
+  }
+
+  canUndo(): boolean {
+    return this.undoStack.length > 0;
+  }
+
+  canRedo(): boolean {
+    return this.redoStack.length > 0;
+  }
+
+  undo(): void {
+    this.commit();
+    const prev = this.undoStack.pop();
+    if (!prev) return;
+    this.redoStack.push(this.doc);
+    this.doc = prev;
+    this.fixSelection();
+    this.revision++;
+    this.emit(true);
+  }
+
+  redo(): void {
+    const next = this.redoStack.pop();
+    if (!next) return;
+    this.undoStack.push(this.doc);
+    this.doc = next;
+    this.fixSelection();
+    this.revision++;
+    this.emit(true);
+  }
+
+  /** Replaces the whole document (opening a file): a fresh history. */
+  load(doc: SceneDoc): void {
+    this.doc = doc;
+    this.undoStack = [];
+    this.redoStack = [];
+    this.txBase = null;
+    this.view = { ...initialView(), overlays: this.view.overlays };
+    this.revision++;
+    this.emit(true);
+  }
+
+  /** Changes what the user is doing (not undoable). */
+  setView(patch: Partial<View>): void {
+    this.view = { ...this.view, ...patch };
+    if (patch.tool !== undefined && patch.tool !== 'select') this.view.draft = [];
+    this.emit(false);
+  }
+
+  private fixSelection(): void {
+    const f = getFeature(this.doc, this.view.selection.feature);
+    if (!f) this.view = { ...this.view, selection: { feature: null, point: null } };
+    else if (this.view.selection.point !== null && this.view.selection.point >= f.rest.length) {
+      this.view = { ...this.view, selection: { feature: f.id, point: null } };
+    }
+    if (this.view.activeLayer >= this.doc.layers.length) this.view = { ...this.view, activeLayer: Math.max(0, this.doc.layers.length - 1) };
+  }
+
+  // -- Tools ---------------------------------------------------------------------------
+
+  /** A click of a drawing tool: adds a point to the draft (a point tool finishes at once). */
+  placePoint(p: Pt): void {
+    const tool = this.view.tool;
+    if (tool === 'select') return;
+    if (this.view.mode !== 'rest') throw new Error('Switch to rest mode (R) to trace new features.');
+    if (tool === 'point') {
+      this.finishDraft([p]);
+      return;
+    }
+    this.setView({ draft: [...this.view.draft, [p[0], p[1]]] });
+  }
+
+  /**
+   * Finishes the feature being drawn (Enter, double-click, or a click on the first point
+   * which closes a polyline or spline). Too few points: the draft is kept and an error thrown.
+   */
+  finishDraft(points: Pt[] = this.view.draft, closed = false): string | null {
+    const tool = this.view.tool;
+    if (tool === 'select' || points.length === 0) return null;
+    const kind: Kind = tool;
+    const opts = {
+      closed: kind === 'polyline' || kind === 'spline' ? closed : undefined,
+      curve: kind === 'region' ? ('spline' as const) : undefined,
+      layer: this.view.activeLayer,
+    };
+    const { doc, id } = addFeature(this.doc, kind, points, opts);
+    this.apply(doc);
+    this.view = { ...this.view, draft: [], selection: { feature: id, point: null } };
+    this.emit(false);
+    return id;
+  }
+
+  cancelDraft(): void {
+    this.setView({ draft: [] });
+  }
+
+  /** Deletes the selection: the control point, else the feature. */
+  deleteSelection(): void {
+    const { feature, point } = this.view.selection;
+    if (feature === null) return;
+    const f = getFeature(this.doc, feature);
+    if (point !== null && this.view.mode === 'rest' && f?.kind !== 'point') {
+      this.apply(deletePoint(this.doc, feature, point));
+      this.view = { ...this.view, selection: { feature, point: null } };
+    } else {
+      this.apply(deleteFeature(this.doc, feature));
+      this.view = { ...this.view, selection: { feature: null, point: null } };
+    }
+    this.emit(false);
+  }
+}

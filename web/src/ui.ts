@@ -1,0 +1,995 @@
+// The editor's page: toolbar, layers, stage, inspector, timeline, help; pointer and keys.
+
+import { App } from './app';
+import { clear, h } from './dom';
+import { EngineError } from './engine';
+import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
+import { decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
+import { Overlay } from './overlay';
+import {
+  INTERPOLATIONS,
+  METHODS,
+  SceneFileError,
+  emptyScene,
+  frameCount,
+  layerFeatures,
+  parseScene,
+  serializeScene,
+  sortedKeys,
+  type Interpolation,
+  type Method,
+  type Pt,
+  type SceneDoc,
+} from './scene';
+import {
+  KEY_EPS,
+  addKeyHere,
+  deleteKey,
+  getFeature,
+  moveFeature,
+  moveKey,
+  movePoint,
+  reorderLayer,
+  setInterpolation,
+  setLayerFeatures,
+  setMethod,
+  shownPoints,
+  updateLayer,
+  deleteLayer,
+  type Tool,
+} from './state';
+
+export const TOOLS: { tool: Tool; key: string; label: string; title: string }[] = [
+  { tool: 'select', key: 'v', label: 'Select', title: 'Select and move control points or whole features (V)' },
+  { tool: 'point', key: 'p', label: 'Point', title: 'Point: pins or moves one spot (P)' },
+  { tool: 'polyline', key: 'l', label: 'Polyline', title: 'Polyline: click the vertices, Enter to finish (L)' },
+  { tool: 'spline', key: 's', label: 'Spline', title: 'Spline: click control points, Enter to finish (S)' },
+  { tool: 'region', key: 'g', label: 'Region', title: 'Region: a filled shape that moves as a whole (G)' },
+  { tool: 'cut', key: 'c', label: 'Cut', title: 'Cut: a line the picture tears along (C)' },
+];
+
+export const SHORTCUTS: [string, string][] = [
+  ['V / P / L / S / G / C', 'Select, point, polyline, spline, region, cut tool'],
+  ['R / E', 'Rest mode (trace) / pose mode (animate)'],
+  ['Tab', 'Switch between rest and pose mode'],
+  ['Click', 'Add a control point (drawing tools, rest mode)'],
+  ['Enter or double-click', 'Finish the feature being drawn'],
+  ['Click the first point', 'Close a polyline or spline'],
+  ['Esc', 'Cancel the drawing / clear the selection'],
+  ['Drag', 'Move a control point, or a whole feature by its line'],
+  ['Delete / Backspace', 'Delete the selected point (rest mode) or feature'],
+  ['K / Shift+K', 'Add / delete the selected feature’s key at this time'],
+  ['Space', 'Play / pause'],
+  ['← / →', 'Previous / next frame'],
+  ['Shift+← / Shift+→', 'Previous / next key'],
+  ['Home / End', 'First / last frame'],
+  ['Ctrl+Z / Ctrl+Shift+Z (Ctrl+Y)', 'Undo / redo'],
+  ['Ctrl+S / Ctrl+O', 'Save the scene / open a scene or image'],
+  ['D / H / M / T', 'Drawing / heat map (ΔX, ΔY, off) / mesh / matte overlay'],
+  ['?', 'This help'],
+];
+
+function download(blob: Blob, name: string): void {
+  const a = h('a', { href: URL.createObjectURL(blob), download: name });
+  document.body.append(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(a.href), 10_000);
+}
+
+export class Ui {
+  readonly overlay: Overlay;
+  readonly stage: HTMLElement;
+  readonly glCanvas: HTMLCanvasElement;
+  readonly overlayCanvas: HTMLCanvasElement;
+  private els: Record<string, HTMLElement> = {};
+  private examples: ExampleEntry[] = [BUILTIN];
+  private drag: {
+    id: string;
+    point: number | null;
+    start: Pt;
+    base: Pt[];
+    moved: boolean;
+  } | null = null;
+  private messageTimer: number | null = null;
+  fileName = 'scene.json';
+  /** Set when the scene came from `inkwarp edit`: Save also writes it back there. */
+  saveUrl: string | null = null;
+  private playStart: { wall: number; time: number } | null = null;
+  private lastShownFrame = -1;
+
+  constructor(
+    readonly app: App,
+    root: HTMLElement,
+  ) {
+    this.glCanvas = app.gl.canvas as HTMLCanvasElement;
+    this.overlayCanvas = h('canvas.overlay', { 'aria-label': 'drawing' });
+    this.overlay = new Overlay(this.overlayCanvas, app.engine);
+    this.stage = h('div.stage', {}, h('div.frame', {}, this.glCanvas, this.overlayCanvas));
+    this.build(root);
+    app.onMessage = (t, k) => this.message(t, k);
+    app.onFrame = () => this.drawOverlay();
+    app.onSolved = () => this.updateStatus();
+    app.store.subscribe((_, docChanged) => this.refresh(docChanged));
+    new ResizeObserver(() => this.layout()).observe(this.stage);
+    window.addEventListener('keydown', (e) => this.onKey(e));
+    this.bindPointer();
+    this.bindDrop();
+    void listExamples().then((list) => {
+      this.examples = list;
+      this.refresh(true);
+    });
+  }
+
+  get store() {
+    return this.app.store;
+  }
+
+  // -- Building --------------------------------------------------------------------------
+
+  private build(root: HTMLElement): void {
+    const fileInput = h('input', { type: 'file', accept: '.json,application/json,image/png,image/jpeg', hidden: true, onchange: () => {
+      const f = fileInput.files?.[0];
+      if (f) void this.openFile(f);
+      fileInput.value = '';
+    } }) as HTMLInputElement;
+    this.els.fileInput = fileInput;
+    const layerInput = h('input', { type: 'file', accept: 'image/png,image/jpeg', hidden: true, onchange: () => {
+      const f = layerInput.files?.[0];
+      if (f) void this.addLayerFile(f);
+      layerInput.value = '';
+    } }) as HTMLInputElement;
+    this.els.layerInput = layerInput;
+    const matteInput = h('input', { type: 'file', accept: 'image/png,image/jpeg', hidden: true, onchange: () => {
+      const f = matteInput.files?.[0];
+      if (f) void this.setMatteFile(f);
+      matteInput.value = '';
+    } }) as HTMLInputElement;
+    this.els.matteInput = matteInput;
+
+    const toolbar = h('header.toolbar', {},
+      h('div.group', {},
+        h('button#open', { title: 'Open a scene (.json) or an image (Ctrl+O)', onclick: () => fileInput.click() }, 'Open…'),
+        (this.els.examples = h('select#examples', { title: 'Open a bundled example', onchange: (e: Event) => {
+          const sel = e.target as HTMLSelectElement;
+          if (sel.value) void this.openExample(sel.value);
+          sel.value = '';
+        } })),
+        h('button#save', { title: 'Save the scene as one JSON file (Ctrl+S)', onclick: () => void this.save() }, 'Save'),
+        h('button#export-png', { title: 'Export the current frame as PNG', onclick: () => void this.exportPng() }, 'PNG'),
+        h('button#export-webm', { title: 'Export the animation as WebM video', onclick: () => void this.exportWebm() }, 'WebM'),
+      ),
+      h('div.group.modes', { role: 'radiogroup' },
+        h('button#mode-rest', { title: 'Rest mode: trace features over the original picture (R)', onclick: () => this.setMode('rest') }, 'Rest'),
+        h('button#mode-pose', { title: 'Pose mode: move the drawing, the picture follows (E)', onclick: () => this.setMode('pose') }, 'Pose'),
+      ),
+      h('div.group.tools', {}, ...TOOLS.map((t) => h('button', { id: `tool-${t.tool}`, title: t.title, onclick: () => this.setTool(t.tool) }, t.label))),
+      h('div.group', {},
+        h('label', { title: 'The interpolant that turns the drawing into a field' }, 'Method ',
+          (this.els.method = h('select#method', { onchange: (e: Event) => this.tryEdit((d) => setMethod(d, (e.target as HTMLSelectElement).value as Method)) },
+            ...METHODS.map((m) => {
+              const available = this.app.engine.methods().find((x) => x.name === m)?.available ?? false;
+              return h('option', { value: m, disabled: !available, title: available ? '' : 'not in this build yet' }, available ? m : `${m} (not yet)`);
+            })))),
+      ),
+      h('div.group.overlays', {},
+        h('label', { title: 'Show the drawing (D)' }, (this.els.ovDrawing = h('input#ov-drawing', { type: 'checkbox', onchange: (e: Event) => this.setOverlay({ drawing: (e.target as HTMLInputElement).checked }) })), 'Drawing'),
+        h('label', { title: 'Heat map of the displacement (H)' }, 'Heat ',
+          (this.els.ovHeat = h('select#ov-heat', { onchange: (e: Event) => this.setOverlay({ heat: (e.target as HTMLSelectElement).value as 'off' }) },
+            h('option', { value: 'off' }, 'off'), h('option', { value: 'dx' }, 'ΔX'), h('option', { value: 'dy' }, 'ΔY')))),
+        h('label', { title: 'Mesh wireframe (M)' }, (this.els.ovMesh = h('input#ov-mesh', { type: 'checkbox', onchange: (e: Event) => this.setOverlay({ mesh: (e.target as HTMLInputElement).checked }) })), 'Mesh'),
+        h('label', { title: 'Continuity matte: holes in magenta (T)' }, (this.els.ovMatte = h('input#ov-matte', { type: 'checkbox', onchange: (e: Event) => this.setOverlay({ matte: (e.target as HTMLInputElement).checked }) })), 'Matte'),
+        h('label', { title: 'Snap control points to pixel centres' }, (this.els.snap = h('input#snap', { type: 'checkbox', onchange: (e: Event) => this.store.setView({ snap: (e.target as HTMLInputElement).checked }) })), 'Snap'),
+      ),
+      h('div.group', {},
+        (this.els.undo = h('button#undo', { title: 'Undo (Ctrl+Z)', onclick: () => this.store.undo() }, '↶ Undo')),
+        (this.els.redo = h('button#redo', { title: 'Redo (Ctrl+Shift+Z)', onclick: () => this.store.redo() }, '↷ Redo')),
+        h('button#help-button', { title: 'Keyboard shortcuts (?)', onclick: () => this.toggleHelp() }, '?'),
+      ),
+      fileInput, layerInput, matteInput,
+    );
+
+    const layers = h('aside.panel.left', {},
+      h('h2', {}, 'Layers'),
+      (this.els.layers = h('ul#layers.layers')),
+      h('button#add-layer', { title: 'Add a layer from an image of the scene’s size', onclick: () => layerInput.click() }, '+ Layer…'),
+      (this.els.layerDetail = h('div#layer-detail')),
+    );
+    const inspector = h('aside.panel.right', {},
+      h('h2', {}, 'Feature'),
+      (this.els.feature = h('div#feature')),
+      h('h2', {}, 'Engine'),
+      (this.els.status = h('div#status.status')),
+    );
+    const timeline = h('footer.timeline', {},
+      h('div.transport', {},
+        (this.els.play = h('button#play', { title: 'Play / pause (Space)', onclick: () => this.togglePlay() }, '▶')),
+        (this.els.scrub = h('input#scrub', { type: 'range', min: 0, step: 'any', oninput: (e: Event) => this.setTime(Number((e.target as HTMLInputElement).value), true) })),
+        (this.els.timeText = h('span#time.time')),
+        h('label', {}, 'fps ', (this.els.fps = h('input#fps', { type: 'number', min: 1, max: 120, step: 1, onchange: (e: Event) => this.setFps(Number((e.target as HTMLInputElement).value)) }))),
+        h('label', {}, 'duration ', (this.els.duration = h('input#duration', { type: 'number', min: 0.05, step: 0.05, onchange: (e: Event) => this.setDuration(Number((e.target as HTMLInputElement).value)) })), ' s'),
+        h('button#key-add', { title: 'Key the selected feature here (K)', onclick: () => this.keyHere() }, '◆ Key'),
+        h('button#key-delete', { title: 'Delete the selected feature’s key here (Shift+K)', onclick: () => this.unkeyHere() }, '◇ Unkey'),
+      ),
+      (this.els.tracks = h('div#tracks.tracks')),
+    );
+    const help = (this.els.help = h('div#help.help', { hidden: true, onclick: (e: Event) => { if (e.target === help) this.toggleHelp(); } },
+      h('div.help-box', {},
+        h('h2', {}, 'Keyboard shortcuts'),
+        h('table', {}, ...SHORTCUTS.map(([k, d]) => h('tr', {}, h('td', {}, h('kbd', {}, k)), h('td', {}, d)))),
+        h('p', {}, 'Trace in rest mode; switch to pose mode and drag the drawing — every drag sets a key at the current time. Save writes the scene that ', h('code', {}, 'inkwarp render'), ' reads.'),
+        h('button', { onclick: () => this.toggleHelp() }, 'Close'),
+      )));
+    this.els.message = h('div#message.message', { role: 'alert', hidden: true, onclick: () => (this.els.message.hidden = true) });
+    this.els.dropHint = h('div.drop-hint', { hidden: true }, 'Drop a scene (.json) or a picture (PNG, JPEG)');
+    root.append(toolbar, h('main', {}, layers, this.stage, inspector), timeline, help, this.els.message, this.els.dropHint);
+  }
+
+  // -- Refreshing views ------------------------------------------------------------------
+
+  refresh(docChanged: boolean): void {
+    const { doc, view } = this.store;
+    document.querySelectorAll<HTMLButtonElement>('.tools button').forEach((b) => {
+      b.classList.toggle('active', b.id === `tool-${view.tool}`);
+      b.disabled = view.mode === 'pose' && b.id !== 'tool-select';
+    });
+    document.getElementById('mode-rest')!.classList.toggle('active', view.mode === 'rest');
+    document.getElementById('mode-pose')!.classList.toggle('active', view.mode === 'pose');
+    document.body.dataset.mode = view.mode;
+    (this.els.method as HTMLSelectElement).value = doc.solver?.method ?? 'tps';
+    (this.els.ovDrawing as HTMLInputElement).checked = view.overlays.drawing;
+    (this.els.ovHeat as HTMLSelectElement).value = view.overlays.heat;
+    (this.els.ovMesh as HTMLInputElement).checked = view.overlays.mesh;
+    (this.els.ovMatte as HTMLInputElement).checked = view.overlays.matte;
+    (this.els.snap as HTMLInputElement).checked = view.snap;
+    (this.els.undo as HTMLButtonElement).disabled = !this.store.canUndo();
+    (this.els.redo as HTMLButtonElement).disabled = !this.store.canRedo();
+    this.els.play.textContent = view.playing ? '❚❚' : '▶';
+    const scrub = this.els.scrub as HTMLInputElement;
+    scrub.max = String(doc.duration);
+    scrub.value = String(view.time);
+    const n = frameCount(doc);
+    const frame = Math.min(n - 1, Math.round(view.time * doc.fps));
+    this.els.timeText.textContent = `${view.time.toFixed(2)} s · frame ${frame + 1}/${n}`;
+    if (document.activeElement !== this.els.fps) (this.els.fps as HTMLInputElement).value = String(doc.fps);
+    if (document.activeElement !== this.els.duration) (this.els.duration as HTMLInputElement).value = String(doc.duration);
+    const ex = this.els.examples as HTMLSelectElement;
+    if (ex.options.length !== this.examples.length + 1) {
+      clear(ex);
+      ex.append(h('option', { value: '' }, 'Examples…'), ...this.examples.map((e) => h('option', { value: e.name }, e.title)));
+    }
+    this.renderLayers();
+    this.renderFeature();
+    this.renderTracks();
+    if (docChanged) this.layout();
+    this.drawOverlay();
+    this.updateStatus();
+  }
+
+  private renderLayers(): void {
+    const { doc, view } = this.store;
+    clear(this.els.layers);
+    // Listed front to back (the top of the list is drawn last, on top).
+    for (let i = doc.layers.length - 1; i >= 0; i--) {
+      const l = doc.layers[i];
+      const rt = this.app.runtimes.get(l.name);
+      const li = h('li', { class: i === view.activeLayer ? 'active' : '', onclick: () => this.store.setView({ activeLayer: i }) },
+        h('input', { type: 'checkbox', title: 'Visible', checked: l.visible !== false, onclick: (e: Event) => e.stopPropagation(),
+          onchange: (e: Event) => this.tryEdit((d) => updateLayer(d, i, { visible: (e.target as HTMLInputElement).checked ? undefined : false })) }),
+        h('span.name', {}, l.name),
+        rt?.error ? h('span.warn', { title: rt.error }, '⚠') : null,
+        h('button.small', { title: 'Move up (drawn later)', disabled: i === doc.layers.length - 1, onclick: (e: Event) => { e.stopPropagation(); this.tryEdit((d) => reorderLayer(d, i, i + 1)); this.store.setView({ activeLayer: i + 1 }); } }, '▲'),
+        h('button.small', { title: 'Move down (drawn earlier)', disabled: i === 0, onclick: (e: Event) => { e.stopPropagation(); this.tryEdit((d) => reorderLayer(d, i, i - 1)); this.store.setView({ activeLayer: i - 1 }); } }, '▼'),
+        h('button.small', { title: 'Delete the layer', onclick: (e: Event) => { e.stopPropagation(); this.tryEdit((d) => deleteLayer(d, i)); } }, '✕'),
+      );
+      this.els.layers.append(li);
+    }
+    clear(this.els.layerDetail);
+    const layer = doc.layers[view.activeLayer];
+    if (!layer) {
+      this.els.layerDetail.append(h('p.hint', {}, 'Open a picture (or drop one here) to start.'));
+      return;
+    }
+    const i = view.activeLayer;
+    const contSel = h('select#continuity', { onchange: (e: Event) => {
+      const v = (e.target as HTMLSelectElement).value;
+      if (v === 'alpha') this.tryEdit((d) => updateLayer(d, i, { continuity: undefined }));
+      else this.els.matteInput.click();
+    } }, h('option', { value: 'alpha' }, 'from alpha'), h('option', { value: 'image' }, layer.continuity ? 'from image' : 'from image…'));
+    (contSel as HTMLSelectElement).value = layer.continuity ? 'image' : 'alpha';
+    const all = layer.features === undefined;
+    const feats = h('div.driving', {},
+      h('label', {}, h('input#drive-all', { type: 'checkbox', checked: all, onchange: (e: Event) => this.tryEdit((d) => setLayerFeatures(d, i, (e.target as HTMLInputElement).checked ? undefined : d.features.map((f) => f.id))) }), 'all features'),
+      ...(all ? [] : doc.features.map((f) => h('label', {}, h('input', { type: 'checkbox', checked: layer.features!.includes(f.id), onchange: (e: Event) => {
+        const on = (e.target as HTMLInputElement).checked;
+        this.tryEdit((d) => setLayerFeatures(d, i, on ? [...(d.layers[i].features ?? []), f.id] : (d.layers[i].features ?? []).filter((x) => x !== f.id)));
+      } }), f.id))),
+    );
+    this.els.layerDetail.append(
+      h('h3', {}, `Layer “${layer.name}”`),
+      h('label.row', {}, 'Continuity ', contSel),
+      h('p.hint', {}, 'Cut features tear the surface too; show the matte overlay (T) to see the holes.'),
+      h('div.row', {}, 'Driven by'), feats,
+    );
+  }
+
+  private renderFeature(): void {
+    const { doc, view } = this.store;
+    clear(this.els.feature);
+    const f = getFeature(doc, view.selection.feature);
+    if (!f) {
+      this.els.feature.append(h('p.hint', {}, view.mode === 'rest' ? 'Pick a tool and click on the picture to trace a feature.' : 'Drag a feature: the picture follows, and a key is set at this time.'));
+      return;
+    }
+    const keys = sortedKeys(f);
+    this.els.feature.append(
+      h('div.row', {}, h('b', {}, f.id), ` · ${f.kind}${f.kind === 'region' && f.curve === 'spline' ? ' (spline outline)' : ''} · ${f.rest.length} point${f.rest.length > 1 ? 's' : ''}`),
+      view.selection.point !== null ? h('div.row.hint', {}, `control point ${view.selection.point + 1}`) : '',
+      keys.length === 0 ? '' : h('table.keys', {},
+        h('tr', {}, h('th', {}, 'key'), h('th', {}, 'time (s)'), h('th', {}, 'to next'), h('th', {})),
+        ...keys.map((k, n) => h('tr', { class: Math.abs(k.t - view.time) < KEY_EPS ? 'current' : '' },
+          h('td', {}, h('button.small', { title: 'Go to this key', onclick: () => this.setTime(k.t) }, `◆${n + 1}`)),
+          h('td', {}, h('input.key-time', { type: 'number', step: 1 / doc.fps, min: 0, value: k.t.toFixed(3), onchange: (e: Event) => this.tryEdit((d) => moveKey(d, f.id, k.t, Number((e.target as HTMLInputElement).value))) })),
+          h('td', {}, (() => {
+            const sel = h('select.key-interp', { onchange: (e: Event) => this.tryEdit((d) => setInterpolation(d, f.id, k.t, (e.target as HTMLSelectElement).value as Interpolation)) },
+              ...INTERPOLATIONS.map((m) => h('option', { value: m }, m))) as HTMLSelectElement;
+            sel.value = k.interpolation ?? 'smooth';
+            return sel;
+          })()),
+          h('td', {}, h('button.small', { title: 'Delete this key', onclick: () => this.tryEdit((d) => deleteKey(d, f.id, k.t)) }, '✕')),
+        )),
+      ),
+      keys.length === 0 ? h('p.hint', {}, 'No keys: the feature stays at rest. Drag it in pose mode to key it.') : '',
+    );
+  }
+
+  private renderTracks(): void {
+    const { doc, view } = this.store;
+    clear(this.els.tracks);
+    const dur = Math.max(doc.duration, 1e-6);
+    const pct = (t: number) => `${(100 * t) / dur}%`;
+    const ruler = h('div.track.ruler', { onpointerdown: (e: PointerEvent) => this.scrubTrack(e) });
+    const n = frameCount(doc);
+    const every = Math.max(1, Math.round(n / 24));
+    for (let i = 0; i < n; i += every) ruler.append(h('span.tick', { style: { left: pct(i / doc.fps) } }, i % (every * 4) === 0 ? String(i + 1) : ''));
+    ruler.append(h('span.playhead', { style: { left: pct(view.time) } }));
+    this.els.tracks.append(h('div.track-row.ruler-row', {}, h('span.track-name', { title: 'Frame numbers; click or drag to set the time' }, 'frames'), ruler));
+    for (const f of doc.features) {
+      if (f.kind === 'cut') continue;
+      const track = h('div.track', { onpointerdown: (e: PointerEvent) => this.scrubTrack(e) });
+      for (const k of sortedKeys(f)) {
+        const diamond = h('span.key', {
+          class: `key ${f.id === view.selection.feature ? 'selected' : ''}`,
+          title: `${f.id} at ${k.t.toFixed(3)} s (${k.interpolation ?? 'smooth'}); drag to move`,
+          style: { left: pct(k.t) },
+          dataset: { feature: f.id, t: String(k.t) },
+          onpointerdown: (e: PointerEvent) => this.dragKey(e, f.id, k.t, track),
+        });
+        track.append(diamond);
+      }
+      track.append(h('span.playhead', { style: { left: pct(view.time) } }));
+      this.els.tracks.append(h('div.track-row', { class: f.id === view.selection.feature ? 'selected' : '' },
+        h('span.track-name', { onclick: () => this.store.setView({ selection: { feature: f.id, point: null } }) }, f.id), track));
+    }
+  }
+
+  private scrubTrack(e: PointerEvent): void {
+    const track = e.currentTarget as HTMLElement;
+    const move = (ev: PointerEvent) => {
+      const r = track.getBoundingClientRect();
+      const t = Math.max(0, Math.min(1, (ev.clientX - r.left) / r.width)) * this.store.doc.duration;
+      this.setTime(this.snapTime(t), true);
+    };
+    move(e);
+    const up = () => {
+      window.removeEventListener('pointermove', move);
+      window.removeEventListener('pointerup', up);
+      this.app.settle();
+    };
+    window.addEventListener('pointermove', move);
+    window.addEventListener('pointerup', up);
+  }
+
+  private dragKey(e: PointerEvent, id: string, t0: number, track: HTMLElement): void {
+    e.stopPropagation();
+    this.store.setView({ selection: { feature: id, point: null } });
+    this.setTime(t0);
+    let cur = t0;
+    this.store.begin();
+    const move = (ev: PointerEvent) => {
+      const r = track.getBoundingClientRect();
+      const t = this.snapTime(Math.max(0, Math.min(1, (ev.clientX - r.left) / r.width)) * this.store.doc.duration);
+      if (Math.abs(t - cur) < KEY_EPS) return;
+      try {
+        this.store.edit((d) => moveKey(d, id, cur, t));
+        cur = t;
+        this.setTime(t);
+      } catch {
+        // Another key is there: stay put.
+      }
+    };
+    const up = () => {
+      window.removeEventListener('pointermove', move);
+      window.removeEventListener('pointerup', up);
+      this.store.commit();
+    };
+    window.addEventListener('pointermove', move);
+    window.addEventListener('pointerup', up);
+  }
+
+  private snapTime(t: number): number {
+    const fps = this.store.doc.fps;
+    return Math.round(t * fps) / fps;
+  }
+
+  updateStatus(): void {
+    const ev = this.app.lastReport;
+    const s = this.app.stats;
+    const med = (a: number[]) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : NaN);
+    const lines = [
+      this.app.posed ? 'pose: the picture follows the drawing' : 'rest: the original picture',
+      ev ? `last solve ${ev.ms.toFixed(1)} ms · grid step ${ev.gridStep} · ${ev.report.cycles} cycles · ${ev.report.samples} samples${ev.report.dropped_samples ? ` · ${ev.report.dropped_samples} dropped` : ''}` : 'no solve yet',
+      s.dragLatency.length ? `drag → frame median ${med(s.dragLatency).toFixed(0)} ms` : '',
+    ];
+    this.els.status.textContent = lines.filter(Boolean).join('\n');
+  }
+
+  // -- Stage -------------------------------------------------------------------------------
+
+  layout(): void {
+    const { width, height } = this.store.doc;
+    const r = this.stage.getBoundingClientRect();
+    const pad = 16;
+    const z = Math.max(0.05, Math.min((r.width - pad) / width, (r.height - pad) / height, 4));
+    const frame = this.stage.firstElementChild as HTMLElement;
+    frame.style.width = `${width * z}px`;
+    frame.style.height = `${height * z}px`;
+    const dpr = window.devicePixelRatio || 1;
+    this.overlayCanvas.width = Math.round(width * z * dpr);
+    this.overlayCanvas.height = Math.round(height * z * dpr);
+    this.drawOverlay();
+  }
+
+  drawOverlay(): void {
+    const doc = this.store.doc;
+    const layer = doc.layers[this.store.view.activeLayer];
+    this.overlay.draw(this.store, layer ? this.app.runtimes.get(layer.name) : undefined, doc.width, doc.height);
+  }
+
+  /** Client (CSS px) → scene coordinates (pixel centres at integers). */
+  toScene(clientX: number, clientY: number): Pt {
+    const r = this.overlayCanvas.getBoundingClientRect();
+    const { width, height } = this.store.doc;
+    let p: Pt = [((clientX - r.left) / r.width) * width - 0.5, ((clientY - r.top) / r.height) * height - 0.5];
+    if (this.store.view.snap) p = [Math.round(p[0]), Math.round(p[1])];
+    return p;
+  }
+
+  /** Scene coordinates → client (CSS px); the tests drive the pointer with this. */
+  toClient(p: Pt): Pt {
+    const r = this.overlayCanvas.getBoundingClientRect();
+    const { width, height } = this.store.doc;
+    return [r.left + ((p[0] + 0.5) / width) * r.width, r.top + ((p[1] + 0.5) / height) * r.height];
+  }
+
+  private cssPerScenePx(): number {
+    return this.overlayCanvas.getBoundingClientRect().width / this.store.doc.width;
+  }
+
+  /** The control point or feature under the pointer. */
+  hit(p: Pt): { id: string; point: number | null } | null {
+    const { doc, view } = this.store;
+    const tol = 9 / this.cssPerScenePx();
+    let best: { id: string; point: number | null; d: number } | null = null;
+    const features = [...doc.features].reverse();
+    for (const f of features) {
+      const pts = shownPoints(f, view.mode, view.time);
+      pts.forEach((q, i) => {
+        const d = Math.hypot(q[0] - p[0], q[1] - p[1]);
+        if (d < tol && (!best || d < best.d)) best = { id: f.id, point: f.kind === 'point' ? 0 : i, d };
+      });
+    }
+    if (best) return best;
+    const lineTol = 6 / this.cssPerScenePx();
+    for (const f of features) {
+      if (f.kind === 'point') continue;
+      const line = this.overlay.curve(f, shownPoints(f, view.mode, view.time));
+      for (let i = 0; i + 1 < line.length; i++) {
+        if (segDist(p, line[i], line[i + 1]) < lineTol) return { id: f.id, point: null };
+      }
+    }
+    return null;
+  }
+
+  private bindPointer(): void {
+    const c = this.overlayCanvas;
+    c.addEventListener('pointerdown', (e) => {
+      if (e.button !== 0) return;
+      c.setPointerCapture(e.pointerId);
+      const p = this.toScene(e.clientX, e.clientY);
+      const { view } = this.store;
+      if (view.playing) this.togglePlay();
+      const drawing = view.tool !== 'select' && view.mode === 'rest';
+      if (drawing) {
+        // A click on the draft's first point closes it.
+        const first = view.draft[0];
+        if (first && view.draft.length >= 2 && Math.hypot(first[0] - p[0], first[1] - p[1]) < 9 / this.cssPerScenePx()) {
+          this.finishDraft(view.tool === 'region' ? false : true);
+          return;
+        }
+        try {
+          this.store.placePoint(p);
+        } catch (err) {
+          this.message((err as Error).message, 'error');
+        }
+        return;
+      }
+      const hit = this.hit(p);
+      if (!hit) {
+        this.store.setView({ selection: { feature: null, point: null } });
+        return;
+      }
+      const f = getFeature(this.store.doc, hit.id)!;
+      this.store.setView({ selection: { feature: hit.id, point: hit.point } });
+      this.drag = { id: hit.id, point: hit.point, start: p, base: shownPoints(f, view.mode, view.time).map((q) => [q[0], q[1]] as Pt), moved: false };
+      this.store.begin();
+      this.app.dragging = view.mode === 'pose';
+    });
+    c.addEventListener('pointermove', (e) => {
+      const p = this.toScene(e.clientX, e.clientY);
+      if (!this.drag) {
+        if (this.store.view.draft.length) {
+          this.overlay.hover = p;
+          this.drawOverlay();
+        }
+        return;
+      }
+      const { mode, time } = this.store.view;
+      const d = this.drag;
+      d.moved = true;
+      this.app.lastPointerAt = e.timeStamp || performance.now();
+      try {
+        if (d.point !== null) {
+          const base = d.base[d.point];
+          const q: Pt = [base[0] + p[0] - d.start[0], base[1] + p[1] - d.start[1]];
+          this.store.edit((doc) => movePoint(doc, mode, time, d.id, d.point!, this.store.view.snap ? [Math.round(q[0]), Math.round(q[1])] : q));
+        } else {
+          this.store.edit((doc) => moveFeature(doc, mode, time, d.id, d.base, [p[0] - d.start[0], p[1] - d.start[1]]));
+        }
+      } catch (err) {
+        this.message((err as Error).message, 'error');
+      }
+    });
+    const end = () => {
+      if (!this.drag) return;
+      this.drag = null;
+      this.store.commit();
+      this.app.dragging = false;
+      this.app.settle();
+    };
+    c.addEventListener('pointerup', end);
+    c.addEventListener('pointercancel', end);
+    c.addEventListener('dblclick', () => {
+      if (this.store.view.draft.length) this.finishDraft(false);
+    });
+    c.addEventListener('pointerleave', () => {
+      this.overlay.hover = null;
+      this.drawOverlay();
+    });
+  }
+
+  private finishDraft(closed: boolean): void {
+    // A double-click also placed its point twice: drop exact repeats.
+    const pts = this.store.view.draft.filter((p, i, a) => i === 0 || Math.hypot(p[0] - a[i - 1][0], p[1] - a[i - 1][1]) > 1e-6);
+    try {
+      this.store.finishDraft(pts, closed);
+    } catch (err) {
+      this.message((err as Error).message, 'error');
+    }
+  }
+
+  private bindDrop(): void {
+    const hint = this.els.dropHint;
+    window.addEventListener('dragover', (e) => {
+      e.preventDefault();
+      hint.hidden = false;
+    });
+    window.addEventListener('dragleave', (e) => {
+      if (e.relatedTarget === null) hint.hidden = true;
+    });
+    window.addEventListener('drop', (e) => {
+      e.preventDefault();
+      hint.hidden = true;
+      const f = e.dataTransfer?.files?.[0];
+      if (f) void this.openFile(f, true);
+    });
+  }
+
+  // -- Commands ----------------------------------------------------------------------------
+
+  tryEdit(fn: (d: SceneDoc) => SceneDoc): void {
+    try {
+      this.store.edit(fn);
+    } catch (err) {
+      this.message((err as Error).message, 'error');
+      this.refresh(false);
+    }
+  }
+
+  setMode(mode: 'rest' | 'pose'): void {
+    if (this.store.view.draft.length) this.finishDraft(false);
+    this.store.setView({ mode, tool: mode === 'pose' ? 'select' : this.store.view.tool });
+  }
+
+  setTool(tool: Tool): void {
+    if (tool !== 'select' && this.store.view.mode === 'pose') this.setMode('rest');
+    this.store.setView({ tool });
+  }
+
+  setOverlay(patch: Partial<typeof this.store.view.overlays>): void {
+    this.store.setView({ overlays: { ...this.store.view.overlays, ...patch } });
+  }
+
+  setTime(t: number, scrubbing = false): void {
+    const doc = this.store.doc;
+    const time = Math.max(0, Math.min(doc.duration, t));
+    this.app.dragging = scrubbing;
+    this.store.setView({ time });
+    this.app.dragging = false;
+  }
+
+  private setFps(fps: number): void {
+    if (!(fps > 0 && fps <= 240)) return this.message('Frames per second must be between 1 and 240.', 'error');
+    this.tryEdit((d) => ({ ...d, fps }));
+  }
+
+  private setDuration(duration: number): void {
+    if (!(duration > 0)) return this.message('The duration must be more than 0 seconds.', 'error');
+    this.tryEdit((d) => ({ ...d, duration }));
+    if (this.store.view.time > duration) this.setTime(duration);
+  }
+
+  keyHere(): void {
+    const id = this.store.view.selection.feature;
+    if (!id) return this.message('Select a feature first, then key it.', 'info');
+    this.tryEdit((d) => addKeyHere(d, id, this.store.view.time));
+  }
+
+  unkeyHere(): void {
+    const id = this.store.view.selection.feature;
+    if (!id) return;
+    this.tryEdit((d) => deleteKey(d, id, this.store.view.time));
+  }
+
+  private stepKey(dir: 1 | -1): void {
+    const { doc, view } = this.store;
+    const f = getFeature(doc, view.selection.feature);
+    const times = (f ? sortedKeys(f).map((k) => k.t) : doc.features.flatMap((g) => (g.keys ?? []).map((k) => k.t))).sort((a, b) => a - b);
+    const next = dir > 0 ? times.find((t) => t > view.time + KEY_EPS) : [...times].reverse().find((t) => t < view.time - KEY_EPS);
+    if (next !== undefined) this.setTime(next);
+  }
+
+  togglePlay(): void {
+    const playing = !this.store.view.playing;
+    if (playing && this.store.view.draft.length) this.store.cancelDraft();
+    this.store.setView({ playing });
+    if (playing) {
+      const doc = this.store.doc;
+      const start = this.store.view.time >= doc.duration - 1e-6 ? 0 : this.store.view.time;
+      this.playStart = { wall: performance.now(), time: start };
+      this.lastShownFrame = -1;
+      this.app.stats.playback = { expected: 0, shown: 0, dropped: 0 };
+      requestAnimationFrame((t) => this.playTick(t));
+    } else {
+      this.playStart = null;
+      this.app.settle();
+    }
+  }
+
+  private playTick(now: number): void {
+    if (!this.store.view.playing || !this.playStart) return;
+    const doc = this.store.doc;
+    const n = frameCount(doc);
+    // Frames since play was pressed (absolute, so skipped frames count as dropped), looped.
+    const absolute = Math.floor((this.playStart.time + (now - this.playStart.wall) / 1000) * doc.fps + 1e-9);
+    if (absolute !== this.lastShownFrame) {
+      const pb = this.app.stats.playback!;
+      if (this.lastShownFrame >= 0) {
+        pb.expected += absolute - this.lastShownFrame;
+        pb.dropped += Math.max(0, absolute - this.lastShownFrame - 1);
+      } else {
+        pb.expected += 1;
+      }
+      this.lastShownFrame = absolute;
+      this.store.setView({ time: (absolute % n) / doc.fps });
+    }
+    this.app.prefetch();
+    requestAnimationFrame((tt) => this.playTick(tt));
+  }
+
+  toggleHelp(): void {
+    this.els.help.hidden = !this.els.help.hidden;
+  }
+
+  message(text: string, kind: 'error' | 'info' = 'info'): void {
+    const m = this.els.message;
+    m.textContent = text;
+    m.className = `message ${kind}`;
+    m.hidden = false;
+    if (this.messageTimer !== null) clearTimeout(this.messageTimer);
+    this.messageTimer = window.setTimeout(() => (m.hidden = true), kind === 'error' ? 12000 : 4000);
+  }
+
+  private onKey(e: KeyboardEvent): void {
+    const target = e.target as HTMLElement;
+    if (target && (target.tagName === 'INPUT' || target.tagName === 'SELECT' || target.tagName === 'TEXTAREA') && (target as HTMLInputElement).type !== 'checkbox' && (target as HTMLInputElement).type !== 'range') return;
+    const ctrl = e.ctrlKey || e.metaKey;
+    const k = e.key;
+    const handled = () => e.preventDefault();
+    if (ctrl && (k === 'z' || k === 'Z')) {
+      handled();
+      if (e.shiftKey) this.store.redo();
+      else this.store.undo();
+      return;
+    }
+    if (ctrl && k === 'y') return handled(), this.store.redo();
+    if (ctrl && k === 's') return handled(), void this.save();
+    if (ctrl && k === 'o') return handled(), this.els.fileInput.click();
+    if (ctrl || e.altKey) return;
+    const tool = TOOLS.find((t) => t.key === k.toLowerCase());
+    if (tool && !e.shiftKey) return handled(), this.setTool(tool.tool);
+    switch (k) {
+      case 'r': case 'R': return handled(), this.setMode('rest');
+      case 'e': case 'E': return handled(), this.setMode('pose');
+      case 'Tab': return handled(), this.setMode(this.store.view.mode === 'rest' ? 'pose' : 'rest');
+      case 'Enter': return handled(), this.finishDraft(false);
+      case 'Escape':
+        handled();
+        if (!this.els.help.hidden) return this.toggleHelp();
+        if (this.store.view.draft.length) return this.store.cancelDraft();
+        return this.store.setView({ selection: { feature: null, point: null } });
+      case 'Delete': case 'Backspace':
+        handled();
+        try {
+          this.store.deleteSelection();
+        } catch (err) {
+          this.message((err as Error).message, 'error');
+        }
+        return;
+      case 'k': return handled(), this.keyHere();
+      case 'K': return handled(), this.unkeyHere();
+      case ' ': return handled(), this.togglePlay();
+      case 'ArrowLeft': return handled(), e.shiftKey ? this.stepKey(-1) : this.setTime(this.store.view.time - 1 / this.store.doc.fps);
+      case 'ArrowRight': return handled(), e.shiftKey ? this.stepKey(1) : this.setTime(this.store.view.time + 1 / this.store.doc.fps);
+      case 'Home': return handled(), this.setTime(0);
+      case 'End': return handled(), this.setTime(this.store.doc.duration);
+      case 'd': return handled(), this.setOverlay({ drawing: !this.store.view.overlays.drawing });
+      case 'h': {
+        handled();
+        const order = ['off', 'dx', 'dy'] as const;
+        return this.setOverlay({ heat: order[(order.indexOf(this.store.view.overlays.heat) + 1) % 3] });
+      }
+      case 'm': return handled(), this.setOverlay({ mesh: !this.store.view.overlays.mesh });
+      case 't': return handled(), this.setOverlay({ matte: !this.store.view.overlays.matte });
+      case '?': return handled(), this.toggleHelp();
+    }
+  }
+
+  // -- Files -------------------------------------------------------------------------------
+
+  /** Opens a scene document: checks it, loads it, reports problems with their JSON path. */
+  async openScene(doc: SceneDoc, name: string, validate = true): Promise<void> {
+    if (validate) this.throwProblems(doc);
+    this.fileName = name;
+    this.store.load(doc);
+    this.store.setView({ activeLayer: Math.max(0, doc.layers.length - 1) });
+    await this.app.idle();
+  }
+
+  /**
+   * Opens scene JSON text: the engine validates it (every message with its JSON path, as
+   * `inkwarp validate` prints them), then the editor fills in the defaults it shows.
+   */
+  async openSceneText(text: string, name: string): Promise<void> {
+    let raw: unknown;
+    try {
+      raw = JSON.parse(text);
+    } catch (err) {
+      throw new SceneFileError(`This is not a JSON file (${(err as Error).message}).`);
+    }
+    this.throwProblems(raw);
+    const doc = parseScene(text);
+    if (!doc.width || !doc.height) {
+      const first = doc.layers.find((l) => l.image);
+      const img = first?.image ? await decodeImage(first.image) : null;
+      doc.width ||= img?.width ?? 1;
+      doc.height ||= img?.height ?? 1;
+    }
+    await this.openScene(doc, name, false);
+  }
+
+  private throwProblems(doc: unknown): void {
+    const problems = this.app.engine.validate(doc);
+    if (problems.length) {
+      const [first] = problems;
+      const more = problems.length > 1 ? ` (and ${problems.length - 1} more problem${problems.length > 2 ? 's' : ''})` : '';
+      // A browser cannot read files next to the scene: say how to open such a scene.
+      const hint = problems.some((p) => /only use data: URIs/.test(p.message))
+        ? ' — its images are files next to it: open it with `inkwarp edit SCENE`, which reads them.'
+        : '';
+      throw new SceneFileError(`${first.message}${more}${hint}`, first.path);
+    }
+  }
+
+  async openFile(file: File, dropped = false): Promise<void> {
+    try {
+      if (file.name.toLowerCase().endsWith('.json') || file.type === 'application/json') {
+        await this.openSceneText(await file.text(), file.name);
+        this.saveUrl = null;
+        this.message(`Opened ${file.name}.`, 'info');
+        return;
+      }
+      const uri = await fileToDataUri(file);
+      const img = await decodeBlob(file, file.name);
+      if (dropped && this.store.doc.layers.length && img.width === this.store.doc.width && img.height === this.store.doc.height) {
+        this.addLayerImage(uri, file.name);
+        return;
+      }
+      await this.openScene(this.sceneFromImage(uri, img, file.name), file.name.replace(/\.[^.]*$/, '') + '.json');
+      this.saveUrl = null;
+      this.message(`Opened ${file.name} (${img.width}×${img.height}). Pick a tool and trace.`, 'info');
+    } catch (err) {
+      this.fileError(file.name, err);
+    }
+  }
+
+  fileError(name: string, err: unknown): void {
+    if (err instanceof SceneFileError) {
+      this.message(`${name}: ${err.path ? `at ${err.path}: ` : ''}${err.message.slice(err.path ? err.path.length + 2 : 0)}`, 'error');
+    } else if (err instanceof EngineError || err instanceof Error) {
+      this.message(`${name}: ${err.message}`, 'error');
+    } else {
+      this.message(`${name}: ${String(err)}`, 'error');
+    }
+  }
+
+  sceneFromImage(uri: string, img: Rgba, name: string): SceneDoc {
+    const doc = emptyScene(img.width, img.height);
+    doc.layers.push({ name: name.replace(/\.[^.]*$/, '') || 'picture', image: uri });
+    return doc;
+  }
+
+  private async addLayerFile(file: File): Promise<void> {
+    try {
+      const img = await decodeBlob(file, file.name);
+      const uri = await fileToDataUri(file);
+      if (this.store.doc.layers.length === 0) {
+        await this.openScene(this.sceneFromImage(uri, img, file.name), 'scene.json');
+        return;
+      }
+      const { width, height } = this.store.doc;
+      if (img.width !== width || img.height !== height) {
+        throw new Error(`${file.name} is ${img.width}×${img.height}; every layer of this scene is ${width}×${height}.`);
+      }
+      this.addLayerImage(uri, file.name);
+    } catch (err) {
+      this.fileError(file.name, err);
+    }
+  }
+
+  private addLayerImage(uri: string, fileName: string): void {
+    const base = fileName.replace(/\.[^.]*$/, '') || 'layer';
+    const names = new Set(this.store.doc.layers.map((l) => l.name));
+    let name = base;
+    for (let n = 2; names.has(name); n++) name = `${base}${n}`;
+    this.tryEdit((d) => ({ ...d, layers: [...d.layers, { name, image: uri }] }));
+    this.store.setView({ activeLayer: this.store.doc.layers.length - 1 });
+  }
+
+  private async setMatteFile(file: File): Promise<void> {
+    try {
+      const img = await decodeBlob(file, file.name);
+      const { width, height } = this.store.doc;
+      if (img.width !== width || img.height !== height) {
+        throw new Error(`The matte ${file.name} is ${img.width}×${img.height}; it must be ${width}×${height} like the scene.`);
+      }
+      const uri = await fileToDataUri(file);
+      const i = this.store.view.activeLayer;
+      this.tryEdit((d) => updateLayer(d, i, { continuity: uri }));
+      this.setOverlay({ matte: true });
+    } catch (err) {
+      this.fileError(file.name, err);
+      this.refresh(false);
+    }
+  }
+
+  async openExample(name: string): Promise<void> {
+    const entry = this.examples.find((e) => e.name === name) ?? BUILTIN;
+    try {
+      let doc: SceneDoc;
+      if (entry.url === null) doc = await builtinScene();
+      else {
+        await this.openSceneText(await (await fetch(entry.url)).text(), `${entry.name}.json`);
+        this.saveUrl = null;
+        return;
+      }
+      await this.openScene(doc, `${entry.name}.json`);
+      this.saveUrl = null;
+    } catch (err) {
+      this.fileError(entry.title, err);
+    }
+  }
+
+  async save(): Promise<void> {
+    const text = serializeScene(this.store.doc);
+    if (this.saveUrl) {
+      try {
+        const resp = await fetch(this.saveUrl, { method: 'PUT', body: text, headers: { 'Content-Type': 'application/json' } });
+        if (!resp.ok) throw new Error(await resp.text());
+        this.message(`Saved to ${resp.headers.get('X-Inkwarp-Path') ?? this.fileName}.`, 'info');
+        return;
+      } catch (err) {
+        this.message(`Could not save to the server (${(err as Error).message}); downloading instead.`, 'error');
+      }
+    }
+    download(new Blob([text], { type: 'application/json' }), this.fileName);
+  }
+
+  private baseName(): string {
+    return this.fileName.replace(/\.json$/, '');
+  }
+
+  async exportPng(): Promise<void> {
+    await this.app.idle();
+    this.app.renderNow();
+    const { width, height } = this.store.doc;
+    const blob = await rgbaToPngBlob({ width, height, data: this.app.gl.readPixels() });
+    download(blob, `${this.baseName()}-${Math.round(this.store.view.time * this.store.doc.fps)}.png`);
+  }
+
+  /** Records every frame, each solved at full resolution, as WebM through MediaRecorder. */
+  async exportWebm(): Promise<void> {
+    const canvas = this.glCanvas;
+    if (typeof MediaRecorder === 'undefined' || !canvas.captureStream) return this.message('This browser cannot record video (no MediaRecorder).', 'error');
+    const doc = this.store.doc;
+    const stream = canvas.captureStream(0);
+    const track = stream.getVideoTracks()[0] as MediaStreamTrack & { requestFrame?: () => void };
+    const mime = ['video/webm;codecs=vp9', 'video/webm;codecs=vp8', 'video/webm'].find((m) => MediaRecorder.isTypeSupported(m)) ?? 'video/webm';
+    const rec = new MediaRecorder(stream, { mimeType: mime, videoBitsPerSecond: 8_000_000 });
+    const chunks: Blob[] = [];
+    rec.ondataavailable = (e) => chunks.push(e.data);
+    const done = new Promise<void>((resolve) => (rec.onstop = () => resolve()));
+    const wasMode = this.store.view.mode;
+    const wasTime = this.store.view.time;
+    this.store.setView({ mode: 'pose' });
+    rec.start();
+    const n = frameCount(doc);
+    this.message(`Recording ${n} frames…`, 'info');
+    for (let i = 0; i < n; i++) {
+      this.store.setView({ time: i / doc.fps });
+      await this.app.idle();
+      this.app.renderNow();
+      track.requestFrame?.();
+      await new Promise((r) => setTimeout(r, 1000 / doc.fps));
+    }
+    rec.stop();
+    await done;
+    this.store.setView({ mode: wasMode, time: wasTime });
+    download(new Blob(chunks, { type: 'video/webm' }), `${this.baseName()}.webm`);
+    this.message(`Exported ${n} frames as WebM.`, 'info');
+  }
+
+  /** Names of the layers' features (for tests). */
+  layerFeatureIds(i: number): string[] {
+    const l = this.store.doc.layers[i];
+    return l ? layerFeatures(this.store.doc, l).map((f) => f.id) : [];
+  }
+}
+
+function segDist(p: Pt, a: Pt, b: Pt): number {
+  const dx = b[0] - a[0];
+  const dy = b[1] - a[1];
+  const len2 = dx * dx + dy * dy;
+  const s = len2 === 0 ? 0 : Math.max(0, Math.min(1, ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2));
+  return Math.hypot(p[0] - a[0] - s * dx, p[1] - a[1] - s * dy);
+}

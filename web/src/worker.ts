@@ -1,0 +1,62 @@
+// The solver worker: owns the engine's grids and the last field of every layer, so the page
+// never blocks on a solve and every solve can start warm from the one before.
+
+import { Engine, type FieldData, type GridHandle } from './engine';
+import type { FromWorker, ToWorker } from './protocol';
+
+let engine: Engine | null = null;
+let wasmUrl = '';
+const grids = new Map<string, GridHandle>();
+const last = new Map<string, FieldData>();
+
+const post = (msg: FromWorker, transfer: Transferable[] = []) => (self as unknown as Worker).postMessage(msg, transfer);
+
+self.onmessage = async (ev: MessageEvent<ToWorker>) => {
+  const msg = ev.data;
+  try {
+    if (msg.type === 'init') {
+      wasmUrl = msg.wasmUrl;
+      engine = await Engine.fromUrl(msg.wasmUrl);
+      post({ type: 'ready' });
+      return;
+    }
+    if (!engine) throw new Error('The engine is not loaded yet.');
+    if (msg.type === 'grid') {
+      grids.get(msg.key)?.free();
+      const grid = engine.grid(msg.width, msg.height, msg.matte, msg.cuts);
+      grids.set(msg.key, grid);
+      const prev = last.get(msg.key);
+      if (prev && (prev.width !== msg.width || prev.height !== msg.height)) last.delete(msg.key);
+      const links = grid.links();
+      post({ type: 'links', key: msg.key, links }, [links.buffer]);
+    } else if (msg.type === 'drop') {
+      grids.get(msg.key)?.free();
+      grids.delete(msg.key);
+      last.delete(msg.key);
+    } else if (msg.type === 'solve') {
+      const grid = grids.get(msg.key);
+      if (!grid) throw new Error(`No grid for layer ${msg.key}.`);
+      const t0 = performance.now();
+      const { field, report } = grid.solve(msg.features, msg.options, msg.warm ? (last.get(msg.key) ?? null) : null);
+      const ms = performance.now() - t0;
+      last.set(msg.key, field);
+      // Send copies: the worker keeps its own field as the next warm start.
+      const out: FieldData = { width: field.width, height: field.height, dx: field.dx.slice(), dy: field.dy.slice() };
+      post({ type: 'field', id: msg.id, key: msg.key, field: out, report, ms, gridStep: msg.options.grid_step ?? 1 }, [
+        out.dx.buffer,
+        out.dy.buffer,
+      ]);
+    }
+  } catch (err) {
+    if (err instanceof WebAssembly.RuntimeError && wasmUrl) {
+      // A trap leaves the module's state unusable: start a fresh instance.
+      engine = await Engine.fromUrl(wasmUrl);
+      grids.clear();
+      last.clear();
+      post({ type: 'reset', message: `The engine stopped (${err.message}) and was restarted.` });
+    }
+    const id = msg.type === 'solve' ? msg.id : null;
+    const key = 'key' in msg ? msg.key : null;
+    post({ type: 'error', id, key, message: (err as Error).message ?? String(err) });
+  }
+};

@@ -1,0 +1,218 @@
+import { describe, expect, it } from 'vitest';
+import { emptyScene, pointsAt, parseScene, serializeScene, type Pt, type SceneDoc } from '../src/scene';
+import {
+  Store,
+  addFeature,
+  addKeyHere,
+  deleteKey,
+  keyIndexAt,
+  moveKey,
+  movePoint,
+  setInterpolation,
+  setKey,
+} from '../src/state';
+
+function scene(): SceneDoc {
+  const doc = emptyScene(64, 48);
+  doc.layers.push({ name: 'art', image: 'data:image/png;base64,AAAA' });
+  return doc;
+}
+
+describe('drawing tools', () => {
+  it('a spline is drawn point by point and finished', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'spline' });
+    s.placePoint([1, 2]);
+    s.placePoint([10, 12]);
+    s.placePoint([20, 5]);
+    expect(s.view.draft).toHaveLength(3);
+    const id = s.finishDraft();
+    expect(id).toBe('spline1');
+    expect(s.doc.features).toEqual([{ id: 'spline1', kind: 'spline', rest: [[1, 2], [10, 12], [20, 5]] }]);
+    expect(s.view.draft).toEqual([]);
+    expect(s.view.selection).toEqual({ feature: 'spline1', point: null });
+  });
+
+  it('a point tool finishes at once; regions are spline outlines', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'point' });
+    s.placePoint([3, 4]);
+    expect(s.doc.features[0]).toEqual({ id: 'point1', kind: 'point', rest: [[3, 4]] });
+    s.setView({ tool: 'region' });
+    for (const p of [[0, 0], [10, 0], [5, 8]] as Pt[]) s.placePoint(p);
+    s.finishDraft();
+    expect(s.doc.features[1]).toMatchObject({ id: 'region1', kind: 'region', curve: 'spline' });
+  });
+
+  it('too few points keep the draft and say why', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'region' });
+    s.placePoint([0, 0]);
+    s.placePoint([1, 0]);
+    expect(() => s.finishDraft()).toThrow(/at least 3/);
+    expect(s.view.draft).toHaveLength(2);
+    expect(s.doc.features).toHaveLength(0);
+  });
+
+  it('new features join a layer that lists its features', () => {
+    const doc = scene();
+    doc.layers[0].features = [];
+    const { doc: d2, id } = addFeature(doc, 'cut', [[0, 0], [5, 5]], { layer: 0 });
+    expect(d2.layers[0].features).toEqual([id]);
+    expect(doc.layers[0].features).toEqual([]); // immutable
+  });
+
+  it('tracing is refused in pose mode', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'polyline', mode: 'pose' });
+    expect(() => s.placePoint([1, 1])).toThrow(/rest mode/);
+  });
+
+  it('delete removes a control point in rest mode, else the feature', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'polyline' });
+    for (const p of [[0, 0], [5, 0], [9, 9]] as Pt[]) s.placePoint(p);
+    const id = s.finishDraft()!;
+    s.setView({ tool: 'select', selection: { feature: id, point: 1 } });
+    s.deleteSelection();
+    expect(s.doc.features[0].rest).toEqual([[0, 0], [9, 9]]);
+    s.setView({ selection: { feature: id, point: 0 } });
+    expect(() => s.deleteSelection()).toThrow(/at least 2/);
+    s.setView({ selection: { feature: id, point: null } });
+    s.deleteSelection();
+    expect(s.doc.features).toHaveLength(0);
+  });
+});
+
+describe('keys', () => {
+  const base = () => addFeature(scene(), 'polyline', [[0, 0], [10, 0]]).doc;
+
+  it('dragging in pose mode auto-keys the current time', () => {
+    let doc = movePoint(base(), 'pose', 0.5, 'polyline1', 1, [10, 5]);
+    expect(doc.features[0].keys).toEqual([{ t: 0.5, points: [[0, 0], [10, 5]] }]);
+    doc = movePoint(doc, 'pose', 0.5, 'polyline1', 0, [1, 1]);
+    expect(doc.features[0].keys).toEqual([{ t: 0.5, points: [[1, 1], [10, 5]] }]);
+    expect(doc.features[0].rest).toEqual([[0, 0], [10, 0]]);
+  });
+
+  it('rest mode moves the rest drawing only', () => {
+    let doc = setKey(base(), 'polyline1', 1, [[0, 3], [10, 3]]);
+    doc = movePoint(doc, 'rest', 1, 'polyline1', 0, [2, 2]);
+    expect(doc.features[0].rest).toEqual([[2, 2], [10, 0]]);
+    expect(doc.features[0].keys![0].points).toEqual([[0, 3], [10, 3]]);
+  });
+
+  it('keys stay sorted; move refuses to land on another key; delete removes', () => {
+    let doc = setKey(base(), 'polyline1', 1, [[0, 1], [10, 1]]);
+    doc = setKey(doc, 'polyline1', 0.25, [[0, 2], [10, 2]]);
+    expect(doc.features[0].keys!.map((k) => k.t)).toEqual([0.25, 1]);
+    doc = moveKey(doc, 'polyline1', 0.25, 1.5);
+    expect(doc.features[0].keys!.map((k) => k.t)).toEqual([1, 1.5]);
+    expect(() => moveKey(doc, 'polyline1', 1.5, 1)).toThrow(/already has a key/);
+    doc = deleteKey(doc, 'polyline1', 1);
+    expect(doc.features[0].keys!.map((k) => k.t)).toEqual([1.5]);
+    doc = deleteKey(doc, 'polyline1', 1.5);
+    expect(doc.features[0].keys).toBeUndefined();
+  });
+
+  it('add key here holds the current pose', () => {
+    let doc = setKey(base(), 'polyline1', 0, [[0, 0], [10, 0]]);
+    doc = setKey(doc, 'polyline1', 1, [[0, 10], [10, 10]]);
+    doc = setInterpolation(doc, 'polyline1', 0, 'linear');
+    doc = addKeyHere(doc, 'polyline1', 0.5);
+    const f = doc.features[0];
+    expect(f.keys![keyIndexAt(f, 0.5)].points).toEqual([[0, 5], [10, 5]]);
+  });
+
+  it('interpolation: hold, linear, smooth; before first and after last key', () => {
+    let doc = setKey(base(), 'polyline1', 1, [[0, 0], [10, 0]]);
+    doc = setKey(doc, 'polyline1', 2, [[0, 8], [10, 8]]);
+    const f = () => doc.features[0];
+    expect(pointsAt(f(), 0)).toEqual([[0, 0], [10, 0]]);
+    expect(pointsAt(f(), 3)).toEqual([[0, 8], [10, 8]]);
+    // Two keys, smooth: eases out of the first and into the second, halfway at the middle.
+    expect(pointsAt(f(), 1.5)[0][1]).toBeCloseTo(4, 9);
+    expect(pointsAt(f(), 1.25)[0][1]).toBeLessThan(2);
+    doc = setInterpolation(doc, 'polyline1', 1, 'hold');
+    expect(pointsAt(f(), 1.99)[0][1]).toBe(0);
+    expect(f().keys![0].interpolation).toBe('hold');
+    doc = setInterpolation(doc, 'polyline1', 1, 'smooth');
+    expect(f().keys![0].interpolation).toBeUndefined();
+  });
+
+  it('smooth motion passes through every key and is C1 at inner keys', () => {
+    let doc = base();
+    const ys = [0, 10, 4, 12];
+    ys.forEach((y, i) => {
+      doc = setKey(doc, 'polyline1', i * 0.5, [[0, y], [10, y]]);
+    });
+    const f = doc.features[0];
+    ys.forEach((y, i) => expect(pointsAt(f, i * 0.5)[0][1]).toBeCloseTo(y, 9));
+    const h = 1e-5;
+    for (const t of [0.5, 1.0]) {
+      const left = (pointsAt(f, t)[0][1] - pointsAt(f, t - h)[0][1]) / h;
+      const right = (pointsAt(f, t + h)[0][1] - pointsAt(f, t)[0][1]) / h;
+      expect(Math.abs(left - right)).toBeLessThan(1e-2);
+    }
+  });
+});
+
+describe('undo', () => {
+  it('undo and redo walk the history; a drag is one step', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'point' });
+    s.placePoint([1, 1]);
+    s.placePoint([2, 2]);
+    expect(s.doc.features).toHaveLength(2);
+    s.begin();
+    for (let i = 0; i < 10; i++) s.edit((d) => movePoint(d, 'rest', 0, 'point1', 0, [1 + i, 1]));
+    s.commit();
+    expect(s.doc.features[0].rest).toEqual([[10, 1]]);
+    s.undo();
+    expect(s.doc.features[0].rest).toEqual([[1, 1]]);
+    s.undo();
+    expect(s.doc.features).toHaveLength(1);
+    s.redo();
+    s.redo();
+    expect(s.doc.features[0].rest).toEqual([[10, 1]]);
+    expect(s.canRedo()).toBe(false);
+  });
+
+  it('a new edit clears redo; cancel restores the gesture start', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'point' });
+    s.placePoint([1, 1]);
+    s.undo();
+    s.placePoint([5, 5]);
+    expect(s.canRedo()).toBe(false);
+    s.begin();
+    s.edit((d) => movePoint(d, 'rest', 0, 'point1', 0, [9, 9]));
+    s.cancel();
+    expect(s.doc.features[0].rest).toEqual([[5, 5]]);
+  });
+
+  it('undo of a deletion brings the selection back to a valid state', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'point' });
+    s.placePoint([1, 1]);
+    s.undo();
+    expect(s.view.selection.feature).toBeNull();
+  });
+});
+
+describe('files', () => {
+  it('round-trips and keeps unknown fields', () => {
+    const doc = { ...scene(), custom: { a: 1 } };
+    const back = parseScene(serializeScene(doc as SceneDoc));
+    expect(back).toEqual(doc);
+  });
+
+  it('bad files name the JSON path', () => {
+    expect(() => parseScene('nope')).toThrow(/not a JSON file/);
+    const doc = scene();
+    doc.features.push({ id: 'a', kind: 'spline', rest: [[0, 0], [1, 1]], keys: [{ t: 1, points: [[0, 0]] }] });
+    expect(() => parseScene(JSON.stringify(doc))).toThrow(/features\[0\]\.keys\[0\]\.points: has 1 points/);
+    (doc.features[0] as { kind: string }).kind = 'blob';
+    expect(() => parseScene(JSON.stringify(doc))).toThrow(/features\[0\]\.kind: unknown kind "blob"/);
+  });
+});
