@@ -95,6 +95,9 @@ class ThinPlateMap:
     def field(self, height: int, width: int) -> npt.NDArray[np.float32]: ...
     def __len__(self) -> int: ...
 
+def posed_drawing(
+    doc_json: str, time: float, spacing: float = 1.0
+) -> list[tuple[str, str, npt.NDArray[np.float64]]]: ...
 def transfer_keys(
     source: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
     target: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],

@@ -109,11 +109,14 @@ def compare(
 
 
 def _drawing(scene: Any, time: float) -> list[np.ndarray]:
-    """The posed drawing at ``time`` as polylines, from the scene's API when it has one."""
-    polylines = getattr(scene, "drawing_polylines", None)
-    if callable(polylines):
-        return [np.asarray(p, dtype=float).reshape(-1, 2) for p in polylines(time=time)]
-    return []
+    """The posed drawing at ``time`` as polylines (every curve, each point as one row)."""
+    import json
+
+    from inkwarp import _inkwarp
+
+    doc = json.dumps(scene.to_dict())
+    return [np.asarray(line, dtype=float).reshape(-1, 2)
+            for _id, kind, line in _inkwarp.posed_drawing(doc, float(time)) if kind != "cut"]
 
 
 def _hillshade(dx: np.ndarray, limit: float) -> np.ndarray:

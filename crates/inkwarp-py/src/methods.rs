@@ -173,7 +173,30 @@ fn transfer_keys(
     transfer::transfer_keys(&s, &t).map_err(value_error)
 }
 
+/// posed_drawing(doc_json, time, spacing=1.0) -> list of (id, kind, (K, 2) float64 array)
+///
+/// The scene document's drawing at `time`, every curve as a dense polyline (overlays).
+#[pyfunction]
+#[pyo3(signature = (doc_json, time, spacing=1.0))]
+fn posed_drawing<'py>(
+    py: Python<'py>,
+    doc_json: &str,
+    time: f64,
+    spacing: f64,
+) -> PyResult<Vec<(String, &'static str, Bound<'py, PyArray2<f64>>)>> {
+    let doc = inkwarp_core::scene::parse_doc(doc_json).map_err(value_error)?;
+    methods::scene::posed_drawing(&doc, time, spacing)
+        .into_iter()
+        .map(|(id, kind, line)| {
+            let n = line.len();
+            let arr = Array2::from_shape_vec((n, 2), line.into_iter().flatten().collect()).map_err(value_error)?;
+            Ok((id, kind.name(), PyArray2::from_owned_array(py, arr)))
+        })
+        .collect()
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(posed_drawing, m)?)?;
     m.add_function(wrap_pyfunction!(interpolate_field, m)?)?;
     m.add_function(wrap_pyfunction!(transfer_keys, m)?)?;
     m.add_class::<PyThinPlateMap>()?;

@@ -30,6 +30,7 @@
 
 mod beier_neely;
 mod linalg;
+pub mod scene;
 mod thin_plate;
 mod triangulation;
 

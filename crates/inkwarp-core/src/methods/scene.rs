@@ -87,3 +87,62 @@ pub fn features_field(
     let controls = feature_controls(scene, features, time_s, interpolant)?;
     field_on_grid(interpolant, &controls, grid, &MethodParams::default()).map_err(|e| e.to_string())
 }
+
+/// The drawing of `doc` posed at `time_s`, for overlays: per feature its id, kind and its
+/// curve as a polyline every `spacing_px` (a point feature as its one position; a cut at
+/// its rest geometry, which never moves).
+pub fn posed_drawing(
+    doc: &crate::scene::SceneDoc,
+    time_s: f64,
+    spacing_px: f64,
+) -> Vec<(String, Kind, Vec<crate::geometry::Point>)> {
+    use crate::anim::{points_at, Interpolation, Key};
+    use crate::scene::{Curve, Interpolation as DocInterpolation};
+    doc.features
+        .iter()
+        .map(|f| {
+            let kind = f.kind.to_kind();
+            let keys: Vec<Key> = f
+                .keys
+                .iter()
+                .map(|k| Key {
+                    time_s: k.t,
+                    points: k.points.clone(),
+                    interpolation: match k.interpolation {
+                        DocInterpolation::Smooth => Interpolation::Smooth,
+                        DocInterpolation::Linear => Interpolation::Linear,
+                        DocInterpolation::Hold => Interpolation::Hold,
+                    },
+                })
+                .collect();
+            let pose = if kind == Kind::Cut { f.rest.clone() } else { points_at(&f.rest, &keys, time_s) };
+            let spline_outline = f.curve == Some(Curve::Spline);
+            let line = if kind == Kind::Point {
+                pose
+            } else {
+                crate::geometry::curve_polyline(kind, &pose, f.closed, spline_outline, spacing_px)
+            };
+            (f.id.clone(), kind, line)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn posed_drawing_follows_the_keys() {
+        let doc = crate::scene::parse_doc(
+            r#"{"inkwarp": 1, "width": 20, "height": 20, "layers": [{"name": "a"}],
+                "features": [
+                  {"id": "p", "kind": "point", "rest": [[2, 2]], "keys": [{"t": 1, "points": [[4, 6]], "interpolation": "linear"}]},
+                  {"id": "l", "kind": "polyline", "rest": [[0, 0], [10, 0]]}]}"#,
+        )
+        .unwrap();
+        let drawing = posed_drawing(&doc, 1.0, 1.0);
+        assert_eq!(drawing[0], ("p".to_string(), Kind::Point, vec![[4.0, 6.0]]));
+        assert_eq!(drawing[1].2.first(), Some(&[0.0, 0.0]));
+        assert_eq!(drawing[1].2.last(), Some(&[10.0, 0.0]));
+    }
+}
