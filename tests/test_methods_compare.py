@@ -14,10 +14,6 @@ from PIL import Image
 
 import inkwarp
 
-# Scenes come from the scene engine; until it is part of the package there is nothing to
-# compare.
-pytestmark = pytest.mark.skipif(not hasattr(inkwarp, "Scene"), reason="needs inkwarp.Scene")
-
 SIZE = 96
 SQUARE = (16, 79)  # first and last pixel of the square, both axes
 GAP_X = (44, 51)  # the slot's columns
