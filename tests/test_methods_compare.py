@@ -7,6 +7,7 @@ without it (and with Beier–Neely, which knows no holes) the left edge is dragg
 """
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -129,3 +130,26 @@ def test_cli_compare(tmp_path, capsys):
     assert out.exists()
     assert main(["compare", str(scene), "--methods", "bicubic", "-o", str(out)]) == 2
     assert 'unknown method "bicubic"' in capsys.readouterr().err
+
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "checkerboard-hole"
+EXAMPLE_GAP = (slice(80, 176), 115)  # rows of the gap, the column just left of it
+
+
+def example_left_edge(name, method):
+    field = inkwarp.Scene.load(EXAMPLES / name).field(time=2.0, method=method)
+    return float(np.abs(field[EXAMPLE_GAP[0], EXAMPLE_GAP[1], 0]).mean())
+
+
+def test_the_example_plates_as_numbers():
+    with_hole = example_left_edge("with-hole.json", "tps")
+    without = example_left_edge("without-hole.json", "tps")
+    beier_neely = example_left_edge("with-hole.json", "beier-neely")
+    assert with_hole < 0.2 * without, (with_hole, without)
+    assert without > 5.0 and beier_neely > 5.0, (without, beier_neely)
+
+
+def test_the_committed_plates_exist_and_the_page_shows_them():
+    assert (EXAMPLES / "checkerboard-plates.png").is_file()
+    page = (EXAMPLES.parents[1] / "docs" / "concepts" / "comparison.md").read_text()
+    assert "examples/checkerboard-hole/checkerboard-plates.png" in page

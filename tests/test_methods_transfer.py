@@ -2,6 +2,7 @@
 thin-plate map."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -147,3 +148,28 @@ def test_cli_missing_file_exits_2(tmp_path, capsys):
                  "-o", str(tmp_path / "o.json")])
     assert code == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_transfer_example_is_up_to_date_and_renders(tmp_path):
+    committed = json.loads((ROOT / "examples" / "transfer" / "cat-animated.json").read_text())
+    fresh = inkwarp.transfer_dict(ROOT / "examples" / "face" / "scene.json",
+                                  ROOT / "examples" / "transfer" / "cat-target.json",
+                                  relative_to=ROOT / "examples" / "transfer")
+    assert fresh == committed, "run: inkwarp transfer (see examples/transfer/README.md)"
+    from inkwarp.transfer import transfer_example
+
+    scene = inkwarp.Scene.load(transfer_example(ROOT / "examples", tmp_path))
+    assert scene.render(time=1.0).shape == (300, 451, 4)
+    # Every face feature is animated on the cat; the cat's own border holds still.
+    keys = {f["id"]: f.get("keys", []) for f in committed["features"]}
+    assert keys["lid_l_upper"] and keys["pupil_r"] and not keys["frame"]
+
+
+def test_transfer_returns_a_scene(tmp_path):
+    scene = inkwarp.transfer(ROOT / "examples" / "face" / "scene.json",
+                             ROOT / "examples" / "transfer" / "cat-target.json")
+    assert isinstance(scene, inkwarp.Scene)
+    assert (scene.width, scene.height) == (451, 300)

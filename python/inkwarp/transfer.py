@@ -28,7 +28,7 @@ from typing import Any
 
 from inkwarp import _inkwarp
 
-__all__ = ["transfer", "transfer_dict"]
+__all__ = ["transfer", "transfer_dict", "transfer_example"]
 
 # Layer fields that name an image file (relative to the scene file) or hold a data: URI.
 _IMAGE_FIELDS = ("image", "alpha", "continuity")
@@ -157,3 +157,22 @@ def transfer(source: Any, target: Any) -> Any:
     from inkwarp import Scene
 
     return Scene.from_dict(transfer_dict(source, target))
+
+
+def transfer_example(examples_dir: str | os.PathLike, out_dir: str | os.PathLike) -> Path:
+    """``make demo``'s transfer: the face example's animation on the cat photograph.
+
+    Maps ``face/scene.json``'s keys onto ``transfer/cat-target.json`` (the face's drawing
+    traced over the cat) and writes the result as ``transfer.json`` in ``out_dir``, its
+    image paths relative to there. Returns that path.
+    """
+    root = Path(examples_dir)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = transfer_dict(root / "face" / "scene.json", root / "transfer" / "cat-target.json",
+                        relative_to=out.resolve())
+    path = out / "transfer.json"
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
+    return path
