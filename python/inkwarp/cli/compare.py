@@ -8,8 +8,8 @@ import tempfile
 from pathlib import Path
 
 EXAMPLE = """\
-example:
-  inkwarp compare examples/checkerboard-hole/with_hole.json --time 1 -o sheet.png
+examples:
+  inkwarp compare examples/checkerboard-hole/with-hole.json --time 2 -o sheet.png
   inkwarp compare scene.json --methods tps,beier-neely -o sheet.png
 """
 

@@ -199,7 +199,7 @@ def add_parser(subparsers: Any) -> None:
         help="open the browser editor: trace, animate and preview live",
         description="Serve the inkwarp editor on 127.0.0.1 and open it in the browser. "
         "Given SCENE, the editor opens it and Save writes it back.",
-        epilog="example: inkwarp edit examples/cat/scene.json",
+        epilog="examples:\n  inkwarp edit examples/cat/scene.json",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("scene", nargs="?", metavar="SCENE", help="a scene file to open (optional)")

@@ -9,8 +9,8 @@ import tempfile
 from pathlib import Path
 
 EXAMPLE = """\
-example:
-  inkwarp transfer --source face.json --target cat.json -o cat_animated.json
+examples:
+  inkwarp transfer --source examples/face/scene.json --target examples/transfer/cat-target.json -o cat.json
 
 The target's features are matched to the source's by id (same kind, same number of
 control points); its keys become the source's keys mapped through the thin-plate map
