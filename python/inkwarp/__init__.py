@@ -7,22 +7,34 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 from inkwarp._inkwarp import __version__
 from inkwarp.drawing import sample
 from inkwarp.errors import InkwarpError, SceneError
+from inkwarp.compare import Comparison, compare, comparison_sheet
+from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
 from inkwarp.imaging import warp_image
+from inkwarp.transfer import transfer, transfer_dict
 from inkwarp.plate import SolveReport, thin_plate, thin_plate_report
 from inkwarp.scene import Frames, Scene, image_data_uri, scene_schema, validate_scene
 
 __all__ = [
+    "Comparison",
     "Frames",
     "InkwarpError",
+    "METHODS",
     "Scene",
     "SceneError",
     "SolveReport",
+    "ThinPlateMap",
     "__version__",
+    "compare",
+    "comparison_sheet",
     "image_data_uri",
+    "interpolate",
+    "interpolate_report",
     "sample",
     "scene_schema",
     "thin_plate",
     "thin_plate_report",
+    "transfer",
+    "transfer_dict",
     "validate_scene",
     "warp_image",
 ]

@@ -69,12 +69,40 @@ def warp_image(
     """Forward-map C-contiguous uint8 RGBA (H, W, 4) by float32 (H, W, 2) over uint8 matte
     (H, W); see `inkwarp.warp_image` for the checked, documented entry point."""
 
+# --- methods (comparison interpolants, thin-plate map, transfer) ---
+from typing import Any
+
+def interpolate_field(
+    method: str,
+
 # --- thin plate (inkwarp.plate) -------------------------------------------------------
 def thin_plate_solve(
     points: npt.NDArray[np.float64],
     displacements: npt.NDArray[np.float64],
     height: int,
     width: int,
+    lines_rest: npt.NDArray[np.float64] | None = None,
+    lines_pose: npt.NDArray[np.float64] | None = None,
+    max_samples: int = 1000,
+    a: float = 1.0,
+    b: float = 2.0,
+    p: float = 0.0,
+) -> tuple[npt.NDArray[np.float32], dict[str, Any]]: ...
+
+class ThinPlateMap:
+    def __init__(self, source: npt.ArrayLike, target: npt.ArrayLike) -> None: ...
+    def __call__(self, points: npt.ArrayLike) -> npt.NDArray[np.float64]: ...
+    def field(self, height: int, width: int) -> npt.NDArray[np.float32]: ...
+    def __len__(self) -> int: ...
+
+def posed_drawing(
+    doc_json: str, time: float, spacing: float = 1.0
+) -> list[tuple[str, str, npt.NDArray[np.float64]]]: ...
+def transfer_keys(
+    source: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
+    target: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
+) -> list[list[list[tuple[float, float]]] | None]: ...
+
     mask: npt.NDArray[np.uint8] | None,
     cuts: list[npt.NDArray[np.float64]],
     tension: float,

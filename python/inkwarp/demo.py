@@ -24,6 +24,10 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "checkerboard-hole": ("with-hole.json", "without-hole.json"),
 }
 
+#: Demo parts beyond the examples: the paper's comparison plates and its animation
+#: transfer (the face's motion on the cat).
+EXTRA_PARTS: tuple[str, ...] = ("compare", "transfer")
+
 #: The formats an animation can be rendered to by the demo.
 FORMATS = ("gif", "mp4")
 
@@ -74,11 +78,11 @@ def run(out_dir: str | os.PathLike[str] = "out", *, only: Sequence[str] | None =
                              + " or ".join(FORMATS))
     if not formats:
         raise ValueError("--formats: give at least one of " + ", ".join(FORMATS))
-    parts = list(only) if only else ["stills", *EXAMPLES]
+    parts = list(only) if only else ["stills", *EXAMPLES, *EXTRA_PARTS]
     for part in parts:
-        if part != "stills" and part not in EXAMPLES:
+        if part != "stills" and part not in EXAMPLES and part not in EXTRA_PARTS:
             raise ValueError(f"unknown demo part '{part}'; use stills or "
-                             + ", ".join(EXAMPLES))
+                             + ", ".join([*EXAMPLES, *EXTRA_PARTS]))
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"{out}: is a file; name a directory for the demo's output")
@@ -98,6 +102,14 @@ def run(out_dir: str | os.PathLike[str] = "out", *, only: Sequence[str] | None =
             written += paths
             continue
         assert root is not None
+        if part in EXTRA_PARTS:
+            started = time.perf_counter()
+            paths = _extra_part(part, root, out, formats, quiet)
+            for p in paths:
+                log(f"{p}")
+            log(f"  ({part} in {time.perf_counter() - started:.2f} s)")
+            written += paths
+            continue
         for scene_name in EXAMPLES[part]:
             scene_path = root / part / scene_name
             stem = part if scene_name == "scene.json" else f"{part}-{Path(scene_name).stem}"
@@ -108,6 +120,19 @@ def run(out_dir: str | os.PathLike[str] = "out", *, only: Sequence[str] | None =
             log(f"  ({info})")
             written += paths
     return written
+
+
+def _extra_part(part: str, root: Path, out: Path, formats: Sequence[str], quiet: bool) -> list[Path]:
+    """The comparison plates, or the transferred animation (built, then rendered)."""
+    if part == "compare":
+        from inkwarp.compare import checkerboard_plates
+
+        return checkerboard_plates(root, out)
+    from inkwarp.transfer import transfer_example
+
+    scene_path = transfer_example(root, out)
+    paths, _info = render_example(scene_path, [out / f"transfer.{fmt}" for fmt in formats], quiet=quiet)
+    return [scene_path, *paths]
 
 
 def render_example(scene_path: str | os.PathLike[str], targets: Sequence[Path], *,

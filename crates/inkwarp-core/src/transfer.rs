@@ -1,1 +1,318 @@
-//! (under construction)
+//! Animation transfer, the paper's cross-synthesis (DESIGN §7).
+//!
+//! A source drawing `S₀` with keys `Sₖ` and a target drawing `T₀` traced with the same
+//! feature ids, kinds and control-point counts: the target's keys become `Tₖ = W(Sₖ)`,
+//! where `W` is the continuous thin-plate map ([`ThinPlateMap`]) fitted from the
+//! source's rest control points to the target's. The target then performs the source's
+//! motion in its own proportions; where the two drawings differ by an affine map, the
+//! keys differ by exactly that map.
+//!
+//! Matching rules: every source feature except `cut`s (which never move) must exist in
+//! the target under the same id, with the same kind and the same number of rest control
+//! points; the map is fitted to all of those features' rest control points (a source
+//! position given twice is merged, its target positions averaged). Target features the
+//! source lacks keep their own keys. Source features without keys still shape the map
+//! and give their target counterpart no keys.
+//!
+//! [`transfer_keys`] works on plain features; [`transfer_scene`] on scene documents.
+
+use crate::geometry::{Kind, Point};
+use crate::methods::{MethodError, ThinPlateMap};
+
+/// One feature of a drawing as transfer sees it: id, kind, rest control points and the
+/// control points of each key (times and interpolation stay with the caller).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TransferFeature {
+    pub id: String,
+    pub kind: Kind,
+    pub rest: Vec<Point>,
+    pub keys: Vec<Vec<Point>>,
+}
+
+/// Why two drawings cannot be matched.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TransferError {
+    #[error("Feature \"{id}\" (source features[{source_index}]) is not in the target drawing: transfer matches features by id, so trace it in the target under the same id, or remove it from the source.")]
+    MissingFeature { id: String, source_index: usize },
+    #[error("Feature \"{id}\" is a {source_kind} in the source (features[{source_index}]) but a {target_kind} in the target (features[{target_index}]): matched features must have the same kind.")]
+    KindMismatch {
+        id: String,
+        source_index: usize,
+        target_index: usize,
+        source_kind: &'static str,
+        target_kind: &'static str,
+    },
+    #[error("Feature \"{id}\" has {source_count} rest control points in the source (features[{source_index}].rest) but {target_count} in the target (features[{target_index}].rest): matched features must have the same number of control points.")]
+    CountMismatch {
+        id: String,
+        source_index: usize,
+        target_index: usize,
+        source_count: usize,
+        target_count: usize,
+    },
+    #[error("Feature \"{id}\" (source features[{source_index}]) key {key} has {got} control points, its rest has {want}.")]
+    KeyCount { id: String, source_index: usize, key: usize, got: usize, want: usize },
+    #[error("The source and target drawings share no feature to fit the transfer map to.")]
+    NothingShared,
+    #[error("The transfer map from the source's rest drawing to the target's could not be fitted: {0}")]
+    Map(#[from] MethodError),
+}
+
+/// The pairs `(source index, target index)` of matched features, checked.
+fn match_features(
+    source: &[TransferFeature],
+    target: &[TransferFeature],
+) -> Result<Vec<(usize, usize)>, TransferError> {
+    let mut pairs = Vec::new();
+    for (si, s) in source.iter().enumerate() {
+        if s.kind == Kind::Cut {
+            continue;
+        }
+        let Some(ti) = target.iter().position(|t| t.id == s.id) else {
+            return Err(TransferError::MissingFeature { id: s.id.clone(), source_index: si });
+        };
+        let t = &target[ti];
+        if t.kind != s.kind {
+            return Err(TransferError::KindMismatch {
+                id: s.id.clone(),
+                source_index: si,
+                target_index: ti,
+                source_kind: s.kind.name(),
+                target_kind: t.kind.name(),
+            });
+        }
+        if t.rest.len() != s.rest.len() {
+            return Err(TransferError::CountMismatch {
+                id: s.id.clone(),
+                source_index: si,
+                target_index: ti,
+                source_count: s.rest.len(),
+                target_count: t.rest.len(),
+            });
+        }
+        if let Some((key, k)) = s.keys.iter().enumerate().find(|(_, k)| k.len() != s.rest.len()) {
+            return Err(TransferError::KeyCount {
+                id: s.id.clone(),
+                source_index: si,
+                key,
+                got: k.len(),
+                want: s.rest.len(),
+            });
+        }
+        pairs.push((si, ti));
+    }
+    if pairs.is_empty() {
+        return Err(TransferError::NothingShared);
+    }
+    Ok(pairs)
+}
+
+/// The map `W` from the source's rest drawing to the target's, fitted to the rest
+/// control points of every matched feature.
+pub fn rest_map(source: &[TransferFeature], target: &[TransferFeature]) -> Result<ThinPlateMap, TransferError> {
+    let pairs = match_features(source, target)?;
+    let (src, dst): (Vec<Point>, Vec<Point>) = pairs
+        .iter()
+        .flat_map(|&(si, ti)| source[si].rest.iter().copied().zip(target[ti].rest.iter().copied()))
+        .unzip();
+    Ok(ThinPlateMap::fit(&src, &dst)?)
+}
+
+/// The target's new keys: for each target feature (in order), `Some(keys)` with every
+/// source key mapped through [`rest_map`] when the source has the feature, `None` (keep
+/// your own) when it does not.
+///
+/// ```
+/// use inkwarp_core::transfer::{transfer_keys, TransferFeature};
+/// use inkwarp_core::Kind;
+/// let f = |id: &str, rest: Vec<[f64; 2]>, keys: Vec<Vec<[f64; 2]>>| TransferFeature { id: id.into(), kind: Kind::Point, rest, keys };
+/// // The target is the source drawn twice as large: the keys come out twice as large.
+/// let source = vec![f("a", vec![[0.0, 0.0]], vec![]), f("b", vec![[10.0, 0.0]], vec![]),
+///                   f("c", vec![[0.0, 10.0]], vec![vec![[1.0, 12.0]]])];
+/// let target = vec![f("a", vec![[0.0, 0.0]], vec![]), f("b", vec![[20.0, 0.0]], vec![]),
+///                   f("c", vec![[0.0, 20.0]], vec![]), f("own", vec![[5.0, 5.0]], vec![vec![[6.0, 6.0]]])];
+/// let keys = transfer_keys(&source, &target).unwrap();
+/// let c = &keys[2].as_ref().unwrap()[0][0];
+/// assert!((c[0] - 2.0).abs() < 1e-9 && (c[1] - 24.0).abs() < 1e-9);
+/// assert!(keys[3].is_none());
+/// ```
+pub fn transfer_keys(
+    source: &[TransferFeature],
+    target: &[TransferFeature],
+) -> Result<Vec<Option<Vec<Vec<Point>>>>, TransferError> {
+    let map = rest_map(source, target)?;
+    let pairs = match_features(source, target)?;
+    let mut out: Vec<Option<Vec<Vec<Point>>>> = vec![None; target.len()];
+    for (si, ti) in pairs {
+        out[ti] = Some(
+            source[si].keys.iter().map(|k| k.iter().map(|&p| map.apply(p)).collect()).collect(),
+        );
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn feat(id: &str, kind: Kind, rest: Vec<Point>, keys: Vec<Vec<Point>>) -> TransferFeature {
+        TransferFeature { id: id.into(), kind, rest, keys }
+    }
+
+    fn drawing() -> Vec<TransferFeature> {
+        vec![
+            feat("nose", Kind::Point, vec![[50.0, 60.0]], vec![vec![[52.0, 61.0]], vec![[49.0, 58.0]]]),
+            feat(
+                "mouth",
+                Kind::Spline,
+                vec![[30.0, 80.0], [50.0, 90.0], [70.0, 80.0]],
+                vec![vec![[30.0, 82.0], [50.0, 97.0], [70.0, 82.0]]],
+            ),
+            feat(
+                "brow",
+                Kind::Polyline,
+                vec![[25.0, 30.0], [45.0, 25.0], [40.0, 40.0]],
+                vec![vec![[25.0, 26.0], [45.0, 20.0], [40.0, 37.0]]],
+            ),
+            feat("gap", Kind::Cut, vec![[0.0, 0.0], [5.0, 5.0]], vec![]),
+        ]
+    }
+
+    #[test]
+    fn identical_rest_drawings_give_identical_keys() {
+        let source = drawing();
+        let target: Vec<TransferFeature> =
+            source.iter().map(|f| TransferFeature { keys: vec![], ..f.clone() }).collect();
+        let keys = transfer_keys(&source, &target).unwrap();
+        for (f, k) in source.iter().zip(&keys) {
+            if f.kind == Kind::Cut {
+                assert!(k.is_none());
+                continue;
+            }
+            let k = k.as_ref().unwrap();
+            assert_eq!(k.len(), f.keys.len());
+            for (got, want) in k.iter().flatten().zip(f.keys.iter().flatten()) {
+                assert!((got[0] - want[0]).abs() < 1e-9 && (got[1] - want[1]).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn an_affine_target_gets_the_affine_image_of_the_keys() {
+        let affine = |p: Point| [12.0 + 1.3 * p[0] + 0.2 * p[1], -4.0 - 0.1 * p[0] + 0.8 * p[1]];
+        let source = drawing();
+        let target: Vec<TransferFeature> = source
+            .iter()
+            .map(|f| TransferFeature { rest: f.rest.iter().map(|&p| affine(p)).collect(), keys: vec![], ..f.clone() })
+            .collect();
+        let keys = transfer_keys(&source, &target).unwrap();
+        for (f, k) in source.iter().zip(&keys).filter(|(f, _)| f.kind != Kind::Cut) {
+            for (got, want) in k.as_ref().unwrap().iter().flatten().zip(f.keys.iter().flatten()) {
+                let want = affine(*want);
+                assert!((got[0] - want[0]).abs() < 1e-8 && (got[1] - want[1]).abs() < 1e-8, "{got:?} vs {want:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn mismatches_name_the_feature() {
+        let source = drawing();
+        let mut target = drawing();
+        target.remove(1);
+        assert_eq!(
+            transfer_keys(&source, &target).unwrap_err().to_string(),
+            "Feature \"mouth\" (source features[1]) is not in the target drawing: transfer matches features by id, so trace it in the target under the same id, or remove it from the source."
+        );
+        let mut target = drawing();
+        target[2].kind = Kind::Spline;
+        assert_eq!(
+            transfer_keys(&source, &target).unwrap_err().to_string(),
+            "Feature \"brow\" is a polyline in the source (features[2]) but a spline in the target (features[2]): matched features must have the same kind."
+        );
+        let mut target = drawing();
+        target[1].rest.push([80.0, 70.0]);
+        assert!(transfer_keys(&source, &target)
+            .unwrap_err()
+            .to_string()
+            .starts_with("Feature \"mouth\" has 3 rest control points in the source (features[1].rest) but 4 in the target"));
+    }
+
+    #[test]
+    fn target_only_features_keep_their_keys() {
+        let source = drawing();
+        let mut target = drawing();
+        target.push(feat("tail", Kind::Point, vec![[90.0, 90.0]], vec![vec![[91.0, 95.0]]]));
+        let keys = transfer_keys(&source, &target).unwrap();
+        assert!(keys[4].is_none());
+    }
+}
+
+/// [`transfer_keys`] on scene documents: the target document with the source's keys
+/// mapped onto its matched features (key times and interpolation kept), and a `duration`
+/// that covers both scenes' (`None` when both have none). Everything else is the target's.
+pub fn transfer_scene(
+    source: &crate::scene::SceneDoc,
+    target: &crate::scene::SceneDoc,
+) -> Result<crate::scene::SceneDoc, TransferError> {
+    let plain = |doc: &crate::scene::SceneDoc| -> Vec<TransferFeature> {
+        doc.features
+            .iter()
+            .map(|f| TransferFeature {
+                id: f.id.clone(),
+                kind: f.kind.to_kind(),
+                rest: f.rest.clone(),
+                keys: f.keys.iter().map(|k| k.points.clone()).collect(),
+            })
+            .collect()
+    };
+    let new_keys = transfer_keys(&plain(source), &plain(target))?;
+    let mut out = target.clone();
+    for (feature, keys) in out.features.iter_mut().zip(new_keys) {
+        let Some(keys) = keys else { continue };
+        let source_keys = &source.features.iter().find(|f| f.id == feature.id).expect("matched by id").keys;
+        feature.keys = source_keys
+            .iter()
+            .zip(keys)
+            .map(|(k, points)| crate::scene::KeyDoc { points, ..k.clone() })
+            .collect();
+    }
+    out.duration = match (source.duration, target.duration) {
+        (Some(a), Some(b)) => Some(a.max(b)),
+        (a, b) => a.or(b),
+    };
+    Ok(out)
+}
+
+#[cfg(test)]
+mod scene_tests {
+    use super::*;
+
+    #[test]
+    fn scene_documents_transfer_with_times_and_interpolation() {
+        let source = crate::scene::parse_doc(
+            r#"{"inkwarp": 1, "width": 40, "height": 40, "duration": 2, "layers": [{"name": "a"}],
+                "features": [
+                  {"id": "a", "kind": "point", "rest": [[0, 0]]},
+                  {"id": "b", "kind": "point", "rest": [[10, 0]]},
+                  {"id": "c", "kind": "polyline", "rest": [[0, 10], [5, 10]],
+                   "keys": [{"t": 0.5, "points": [[1, 12], [6, 12]], "interpolation": "hold"}]}]}"#,
+        )
+        .unwrap();
+        let target = crate::scene::parse_doc(
+            r#"{"inkwarp": 1, "width": 80, "height": 80, "duration": 1, "layers": [{"name": "b"}],
+                "features": [
+                  {"id": "c", "kind": "polyline", "rest": [[0, 20], [10, 20]]},
+                  {"id": "b", "kind": "point", "rest": [[20, 0]]},
+                  {"id": "a", "kind": "point", "rest": [[0, 0]]}]}"#,
+        )
+        .unwrap();
+        let out = transfer_scene(&source, &target).unwrap();
+        assert_eq!(out.duration, Some(2.0));
+        assert_eq!(out.width, Some(80));
+        let key = &out.features[0].keys[0];
+        assert_eq!((key.t, key.interpolation), (0.5, crate::scene::Interpolation::Hold));
+        for (got, want) in key.points.iter().zip([[2.0, 24.0], [12.0, 24.0]]) {
+            assert!((got[0] - want[0]).abs() < 1e-9 && (got[1] - want[1]).abs() < 1e-9, "{got:?}");
+        }
+    }
+}

@@ -5,6 +5,7 @@ use pyo3::prelude::*;
 
 mod errors;
 mod geometry;
+mod methods;
 mod scene;
 mod render;
 mod solve;
@@ -15,6 +16,7 @@ fn _inkwarp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     errors::register(m)?;
     geometry::register(m)?;
+    methods::register(m)?;
     scene::register(m)?;
     render::register(m)?;
     solve::register(m)?;

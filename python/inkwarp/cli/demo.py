@@ -29,9 +29,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("-o", "--output", default="out", metavar="DIR",
                         help="the directory to write into, created if missing (default: out)")
     parser.add_argument("--only", action="append", metavar="NAME",
-                        choices=["stills", *demo.EXAMPLES],
+                        choices=["stills", *demo.EXAMPLES, *demo.EXTRA_PARTS],
                         help="render only this part (repeatable): stills, "
-                             + ", ".join(demo.EXAMPLES))
+                             + ", ".join([*demo.EXAMPLES, *demo.EXTRA_PARTS]))
     parser.add_argument("--formats", default="gif,mp4", metavar="LIST",
                         help="the animation formats, comma-separated: gif, mp4 "
                              "(default: gif,mp4)")

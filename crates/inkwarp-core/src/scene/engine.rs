@@ -17,10 +17,10 @@ use crate::field::Field;
 use crate::geometry::{Kind, Point, Sample};
 use crate::grid::Grid;
 
-/// Whether `method` can compute fields in this build. `tps` always can; the other
-/// interpolants (DESIGN §6) come from the `methods` module through [`compute_field`].
+/// Whether `method` can compute fields in this build: every method can (`tps` here, the
+/// other interpolants of DESIGN §6 from the `methods` module through [`compute_field`]).
 pub fn method_available(method: Method) -> bool {
-    matches!(method, Method::Tps)
+    Method::ALL.contains(&method)
 }
 
 /// The one place where a layer's field is computed by its method: the grid thin plate
@@ -28,6 +28,8 @@ pub fn method_available(method: Method) -> bool {
 /// samples grouped by feature, because Beier–Neely needs each curve's samples in order
 /// (its line pairs) apart from the points.
 fn compute_field(
+    scene: &Scene,
+    time_s: f64,
     method: Method,
     grid: &Grid,
     features: &[FeatureSamples],
@@ -44,7 +46,13 @@ fn compute_field(
                 .map(|(field, report)| (field, Some(report)))
                 .map_err(|e| e.to_string())
         }
-        other => Err(not_available(other)),
+        other => match crate::methods::scene::interpolant_for(other) {
+            Some(interpolant) => {
+                crate::methods::scene::features_field(scene, grid, features, time_s, interpolant)
+                    .map(|(field, _report)| (field, None))
+            }
+            None => Err(not_available(other)),
+        },
     }
 }
 
@@ -186,7 +194,7 @@ impl Scene {
         let features = self.layer_feature_samples(layer, time_s)?;
         let options = solve_options(&layer_ref.solver);
         let initial = initial.filter(|f| f.width == self.width() && f.height == self.height());
-        let (field, report) = compute_field(method, &layer_ref.grid, &features, &options, initial)
+        let (field, report) = compute_field(self, time_s, method, &layer_ref.grid, &features, &options, initial)
             .map_err(|e| {
                 SceneError::one(
                     format!("layers[{layer}]"),

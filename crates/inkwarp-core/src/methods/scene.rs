@@ -1,0 +1,148 @@
+//! The interpolants driven by a scene's drawing: what each one is handed from a layer's
+//! features at a time, and the layer's field (the scene engine's dispatch calls
+//! [`features_field`] for every method but `tps`).
+
+use super::{field_on_grid, line_pairs_from_chain, Controls, Interpolant, MethodParams, MethodReport};
+use crate::field::Field;
+use crate::geometry::{sample_feature, Kind, Sample, SampleOptions};
+use crate::grid::Grid;
+use crate::scene::{FeatureSamples, Scene};
+
+/// Beier–Neely segments along a spline (or a spline region outline) are about this long:
+/// short enough to follow the curve, long enough to act as lines rather than points.
+pub const BEIER_NEELY_SEGMENT_PX: f64 = 8.0;
+
+/// The interpolant of this module that computes `method`, or `None` for the grid thin
+/// plate (`tps`, which `solve` computes).
+pub fn interpolant_for(method: crate::scene::Method) -> Option<Interpolant> {
+    use crate::scene::Method as M;
+    match method {
+        M::Tps => None,
+        M::TpsExact => Some(Interpolant::TpsExact),
+        M::Triangulation => Some(Interpolant::Triangulation),
+        M::BeierNeely => Some(Interpolant::BeierNeely),
+    }
+}
+
+/// The controls a layer's drawing gives `interpolant`, from the layer's samples grouped by
+/// feature (as the scene engine makes them at `time_s`).
+///
+/// * `tps-exact` and `triangulation`: every sample the grid thin plate gets (curves
+///   sampled at the layer's grid spacing, region interiors on the layer's grid).
+/// * `beier-neely`: point features as Shepard points; each polyline, and each region with
+///   a polyline outline, as line pairs between consecutive control points (closed ones
+///   joined back to the first; the paper's "four lines along the edges" of a square); each
+///   spline, and each region with a spline outline, as its curve cut into segments of
+///   about [`BEIER_NEELY_SEGMENT_PX`]. Region interiors are not used.
+pub fn feature_controls(
+    scene: &Scene,
+    features: &[FeatureSamples],
+    time_s: f64,
+    interpolant: Interpolant,
+) -> Result<Controls, String> {
+    if interpolant != Interpolant::BeierNeely {
+        return Ok(Controls::from_samples(features.iter().flat_map(|f| f.samples.iter().copied()).collect()));
+    }
+    let mut controls = Controls::default();
+    for f in features {
+        let track = &scene.tracks()[f.feature];
+        let closed = track.closed || track.kind == Kind::Region;
+        match track.kind {
+            Kind::Cut => {}
+            Kind::Point => controls.samples.extend(f.samples.iter().copied()),
+            Kind::Spline => {
+                controls.line_pairs.extend(line_pairs_from_chain(&f.samples, closed, BEIER_NEELY_SEGMENT_PX));
+            }
+            Kind::Region if track.spline_outline => {
+                let pose = scene.pose_at(f.feature, time_s);
+                let options = SampleOptions { closed: true, spline_outline: false, spacing_px: 1.0 };
+                let chain = sample_feature(Kind::Spline, &track.rest, &pose, &options, None)
+                    .map_err(|e| format!("features[{}]: {e}", f.feature))?;
+                controls.line_pairs.extend(line_pairs_from_chain(&chain, true, BEIER_NEELY_SEGMENT_PX));
+            }
+            Kind::Polyline | Kind::Region => {
+                let pose = scene.pose_at(f.feature, time_s);
+                let vertices: Vec<Sample> = track
+                    .rest
+                    .iter()
+                    .zip(&pose)
+                    .map(|(r, p)| Sample { rest: *r, displacement: [p[0] - r[0], p[1] - r[1]] })
+                    .collect();
+                controls.line_pairs.extend(line_pairs_from_chain(&vertices, closed && vertices.len() > 2, 0.0));
+            }
+        }
+    }
+    Ok(controls)
+}
+
+/// A layer's field by `interpolant`, from its samples grouped by feature: the scene
+/// engine's dispatch for every method but `tps`. Uses the default [`MethodParams`].
+pub fn features_field(
+    scene: &Scene,
+    grid: &Grid,
+    features: &[FeatureSamples],
+    time_s: f64,
+    interpolant: Interpolant,
+) -> Result<(Field, MethodReport), String> {
+    let controls = feature_controls(scene, features, time_s, interpolant)?;
+    field_on_grid(interpolant, &controls, grid, &MethodParams::default()).map_err(|e| e.to_string())
+}
+
+/// The drawing of `doc` posed at `time_s`, for overlays: per feature its id, kind and its
+/// curve as a polyline every `spacing_px` (a point feature as its one position; a cut at
+/// its rest geometry, which never moves).
+pub fn posed_drawing(
+    doc: &crate::scene::SceneDoc,
+    time_s: f64,
+    spacing_px: f64,
+) -> Vec<(String, Kind, Vec<crate::geometry::Point>)> {
+    use crate::anim::{points_at, Interpolation, Key};
+    use crate::scene::{Curve, Interpolation as DocInterpolation};
+    doc.features
+        .iter()
+        .map(|f| {
+            let kind = f.kind.to_kind();
+            let keys: Vec<Key> = f
+                .keys
+                .iter()
+                .map(|k| Key {
+                    time_s: k.t,
+                    points: k.points.clone(),
+                    interpolation: match k.interpolation {
+                        DocInterpolation::Smooth => Interpolation::Smooth,
+                        DocInterpolation::Linear => Interpolation::Linear,
+                        DocInterpolation::Hold => Interpolation::Hold,
+                    },
+                })
+                .collect();
+            let pose = if kind == Kind::Cut { f.rest.clone() } else { points_at(&f.rest, &keys, time_s) };
+            let spline_outline = f.curve == Some(Curve::Spline);
+            let line = if kind == Kind::Point {
+                pose
+            } else {
+                crate::geometry::curve_polyline(kind, &pose, f.closed, spline_outline, spacing_px)
+            };
+            (f.id.clone(), kind, line)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn posed_drawing_follows_the_keys() {
+        let doc = crate::scene::parse_doc(
+            r#"{"inkwarp": 1, "width": 20, "height": 20, "layers": [{"name": "a"}],
+                "features": [
+                  {"id": "p", "kind": "point", "rest": [[2, 2]], "keys": [{"t": 1, "points": [[4, 6]], "interpolation": "linear"}]},
+                  {"id": "l", "kind": "polyline", "rest": [[0, 0], [10, 0]]}]}"#,
+        )
+        .unwrap();
+        let drawing = posed_drawing(&doc, 1.0, 1.0);
+        assert_eq!(drawing[0], ("p".to_string(), Kind::Point, vec![[4.0, 6.0]]));
+        assert_eq!(drawing[1].2.first(), Some(&[0.0, 0.0]));
+        assert_eq!(drawing[1].2.last(), Some(&[10.0, 0.0]));
+    }
+}

@@ -1,0 +1,178 @@
+"""Animation transfer (the paper's cross-synthesis, DESIGN §7).
+
+A source scene animates a drawing ``S0`` with keys ``Sk``; a target scene traces the same
+features (same ids, kinds and control-point counts) over another picture, ``T0``. The
+target's keys become ``Tk = W(Sk)``, where ``W`` is the continuous thin-plate map
+(:class:`inkwarp.ThinPlateMap`) fitted from the source's rest control points to the
+target's: the target performs the source's motion in its own proportions.
+
+Rules
+-----
+* Every source feature except ``cut``\\ s must be in the target under the same id, with
+  the same kind and the same number of rest control points; otherwise
+  :class:`ValueError` names the feature.
+* The map is fitted to the rest control points of all matched features.
+* A matched target feature's keys are replaced by the source's, mapped (times and
+  interpolation kept); target features the source lacks keep their own keys.
+* The result's ``duration`` is the longer of the two scenes'; everything else (size,
+  fps, layers, images, solver) is the target's.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from inkwarp import _inkwarp
+
+__all__ = ["transfer", "transfer_dict", "transfer_example"]
+
+# Layer fields that name an image file (relative to the scene file) or hold a data: URI.
+_IMAGE_FIELDS = ("image", "alpha", "continuity")
+
+
+def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
+    """A scene document as a dict, and the directory its relative paths start from."""
+    if isinstance(scene, (str, os.PathLike)):
+        path = Path(scene)
+        try:
+            with open(path, encoding="utf-8") as fh:
+                doc = json.load(fh)
+        except FileNotFoundError:
+            raise FileNotFoundError(f"the {role} scene {path} does not exist.") from None
+        except json.JSONDecodeError as err:
+            raise ValueError(f"the {role} scene {path} is not valid JSON: {err}.") from None
+        return doc, path.resolve().parent
+    if isinstance(scene, dict):
+        return copy.deepcopy(scene), None
+    to_dict = getattr(scene, "to_dict", None)
+    if callable(to_dict):
+        base = getattr(scene, "base_dir", None) or getattr(scene, "path", None)
+        if base is not None:
+            base = Path(base)
+            base = base.parent if base.suffix == ".json" else base
+        return to_dict(), base
+    raise TypeError(f"the {role} scene must be a path, a dict or an inkwarp.Scene; got {type(scene).__name__}.")
+
+
+def _features(doc: dict[str, Any], role: str) -> list[tuple[str, str, list, list]]:
+    features = doc.get("features")
+    if not isinstance(features, list):
+        raise ValueError(f"the {role} scene has no features list.")
+    out = []
+    for i, f in enumerate(features):
+        try:
+            keys = [k["points"] for k in f.get("keys", [])]
+            out.append((str(f["id"]), str(f["kind"]), f["rest"], keys))
+        except (KeyError, TypeError, AttributeError):
+            raise ValueError(
+                f"{role} features[{i}] needs an id, a kind, rest points and keys with points."
+            ) from None
+    return out
+
+
+def _rebase_images(doc: dict[str, Any], old: Path | None, new: Path | None) -> None:
+    """Rewrite relative image paths of ``doc`` from directory ``old`` to ``new`` (absolute
+    when ``new`` is None)."""
+    if old is None:
+        return
+    for layer in doc.get("layers", []) or []:
+        if not isinstance(layer, dict):
+            continue
+        for field in _IMAGE_FIELDS:
+            value = layer.get(field)
+            if not isinstance(value, str) or value.startswith("data:") or os.path.isabs(value):
+                continue
+            absolute = (old / value).resolve()
+            layer[field] = str(absolute) if new is None else os.path.relpath(absolute, new)
+
+
+def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | None = None) -> dict[str, Any]:
+    """The target scene document with the source's animation transferred onto it.
+
+    Parameters
+    ----------
+    source, target : path, dict or inkwarp.Scene
+        The scene whose keys are transferred, and the scene that receives them.
+    relative_to : path, optional
+        Directory that the result's relative image paths should start from (where it
+        will be saved). Default: they become absolute, so the result works anywhere. A
+        target given as a dict keeps its paths as they are.
+
+    Examples
+    --------
+    >>> import inkwarp
+    >>> feature = lambda id, rest, keys=(): {"id": id, "kind": "point", "rest": rest,
+    ...     "keys": [{"t": t, "points": p} for t, p in keys]}
+    >>> source = {"features": [feature("a", [[0, 0]]), feature("b", [[10, 0]]),
+    ...                        feature("c", [[0, 10]], [(1.0, [[2, 10]])])]}
+    >>> target = {"features": [feature("a", [[0, 0]]), feature("b", [[30, 0]]),
+    ...                        feature("c", [[0, 30]])]}
+    >>> out = inkwarp.transfer_dict(source, target)
+    >>> [round(v, 6) for v in out["features"][2]["keys"][0]["points"][0]]
+    [6.0, 30.0]
+    """
+    src_doc, _ = _load(source, "source")
+    tgt_doc, tgt_base = _load(target, "target")
+    new_keys = _inkwarp.transfer_keys(_features(src_doc, "source"), _features(tgt_doc, "target"))
+    by_id = {str(f["id"]): f for f in src_doc["features"]}
+    for feature, keys in zip(tgt_doc["features"], new_keys):
+        if keys is None:
+            continue
+        src_keys = by_id[str(feature["id"])].get("keys", [])
+        feature["keys"] = [
+            {**copy.deepcopy(k), "points": [[float(x), float(y)] for x, y in pts]}
+            for k, pts in zip(src_keys, keys)
+        ]
+    durations = [d.get("duration") for d in (src_doc, tgt_doc)]
+    if all(isinstance(d, (int, float)) for d in durations):
+        tgt_doc["duration"] = max(durations)
+    _rebase_images(tgt_doc, tgt_base, Path(relative_to).resolve() if relative_to is not None else None)
+    return tgt_doc
+
+
+def transfer(source: Any, target: Any) -> Any:
+    """Transfer the source scene's animation onto the target scene's drawing.
+
+    Parameters
+    ----------
+    source, target : path, dict or inkwarp.Scene
+        The animated scene and the scene whose drawing receives the motion (the same
+        feature ids, kinds and control-point counts; see the module notes).
+
+    Returns
+    -------
+    inkwarp.Scene
+        The target with the transferred keys (its own picture, layers and settings).
+
+    Raises
+    ------
+    ValueError
+        A source feature missing from the target, of another kind, or with another
+        number of control points (the message names it).
+    """
+    from inkwarp import Scene
+
+    return Scene.from_dict(transfer_dict(source, target))
+
+
+def transfer_example(examples_dir: str | os.PathLike, out_dir: str | os.PathLike) -> Path:
+    """``make demo``'s transfer: the face example's animation on the cat photograph.
+
+    Maps ``face/scene.json``'s keys onto ``transfer/cat-target.json`` (the face's drawing
+    traced over the cat) and writes the result as ``transfer.json`` in ``out_dir``, its
+    image paths relative to there. Returns that path.
+    """
+    root = Path(examples_dir)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = transfer_dict(root / "face" / "scene.json", root / "transfer" / "cat-target.json",
+                        relative_to=out.resolve())
+    path = out / "transfer.json"
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
+    return path

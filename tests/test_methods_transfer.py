@@ -1,0 +1,175 @@
+"""Animation transfer: the target's keys are the source's keys through the rest-to-rest
+thin-plate map."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import inkwarp
+from inkwarp.cli import main
+
+
+def face_scene():
+    """A small source drawing with keys of every curve kind."""
+    return {
+        "inkwarp": 1,
+        "width": 120,
+        "height": 100,
+        "fps": 12,
+        "duration": 2.0,
+        "layers": [{"name": "face", "image": "face.png"}],
+        "features": [
+            {"id": "nose", "kind": "point", "rest": [[60, 50]],
+             "keys": [{"t": 0.5, "points": [[62, 52]]}, {"t": 1.5, "points": [[58, 47]]}]},
+            {"id": "mouth", "kind": "spline", "rest": [[40, 75], [60, 82], [80, 75]],
+             "keys": [{"t": 1.0, "points": [[40, 77], [60, 90], [80, 77]], "interpolation": "linear"}]},
+            {"id": "brow", "kind": "polyline", "rest": [[30, 30], [50, 24], [55, 36]],
+             "keys": [{"t": 1.0, "points": [[30, 26], [50, 18], [55, 33]]}]},
+            {"id": "cheek", "kind": "region", "rest": [[80, 40], [95, 45], [90, 60], [78, 55]], "closed": True,
+             "keys": [{"t": 2.0, "points": [[81, 41], [97, 44], [92, 61], [79, 57]]}]},
+            {"id": "gap", "kind": "cut", "rest": [[10, 10], [20, 20]]},
+        ],
+    }
+
+
+def retraced(scene, f):
+    """The same features traced at f(rest), without keys."""
+    out = json.loads(json.dumps(scene))
+    for feature in out["features"]:
+        feature["rest"] = [list(map(float, f(np.array(p, float)))) for p in feature["rest"]]
+        feature["keys"] = []
+    return out
+
+
+def all_keys(scene):
+    return {f["id"]: [(k["t"], np.array(k["points"], float)) for k in f.get("keys", [])] for f in scene["features"]}
+
+
+def test_identical_rest_drawings_give_identical_keys():
+    source = face_scene()
+    out = inkwarp.transfer_dict(source, retraced(source, lambda p: p))
+    got, want = all_keys(out), all_keys(source)
+    for fid, keys in want.items():
+        if fid == "gap":
+            continue
+        assert [t for t, _ in got[fid]] == [t for t, _ in keys]
+        for (_, g), (_, w) in zip(got[fid], keys):
+            np.testing.assert_allclose(g, w, atol=1e-9)
+    # Interpolation modes travel with the keys.
+    assert out["features"][1]["keys"][0]["interpolation"] == "linear"
+
+
+def test_affine_target_gets_the_affine_image_of_the_keys():
+    m, t = np.array([[1.4, 0.25], [-0.1, 0.8]]), np.array([15.0, -6.0])
+    affine = lambda p: m @ p + t  # noqa: E731
+    source = face_scene()
+    out = inkwarp.transfer_dict(source, retraced(source, affine))
+    got = all_keys(out)
+    for fid, keys in all_keys(source).items():
+        if fid == "gap":
+            continue
+        for (_, g), (_, w) in zip(got[fid], keys):
+            np.testing.assert_allclose(g, w @ m.T + t, atol=1e-8)
+
+
+def test_a_non_affine_target_moves_keys_with_it():
+    # The target bulges: keys still land near the target's own rest, displaced by about
+    # the source's displacement scaled locally.
+    source = face_scene()
+    bulge = lambda p: p + 0.15 * (p - [60, 50]) * np.exp(-np.sum((p - [60, 50]) ** 2) / 2000)  # noqa: E731
+    out = inkwarp.transfer_dict(source, retraced(source, bulge))
+    nose_key = np.array(out["features"][0]["keys"][0]["points"][0])
+    assert np.linalg.norm(nose_key - np.array([62, 52])) < 1.5
+
+
+def test_features_only_in_the_target_keep_their_keys():
+    source = face_scene()
+    target = retraced(source, lambda p: p + 3)
+    target["features"].append({"id": "tail", "kind": "point", "rest": [[5, 90]],
+                               "keys": [{"t": 0.3, "points": [[6, 92]]}]})
+    out = inkwarp.transfer_dict(source, target)
+    assert out["features"][-1]["keys"] == [{"t": 0.3, "points": [[6, 92]]}]
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda s: s["features"].pop(1), r'Feature "mouth" \(source features\[1\]\) is not in the target'),
+        (lambda s: s["features"][2].update(kind="spline"),
+         r'Feature "brow" is a polyline in the source \(features\[2\]\) but a spline in the target'),
+        (lambda s: s["features"][3]["rest"].pop(),
+         r'Feature "cheek" has 4 rest control points in the source .* but 3 in the target'),
+    ],
+)
+def test_mismatches_are_errors_naming_the_feature(change, message):
+    source = face_scene()
+    target = retraced(source, lambda p: p)
+    change(target)
+    with pytest.raises(ValueError, match=message):
+        inkwarp.transfer_dict(source, target)
+
+
+def test_cli_writes_the_transferred_scene_with_image_paths_that_still_resolve(tmp_path):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    source = face_scene()
+    target = retraced(source, lambda p: 1.2 * p)
+    target["layers"][0]["image"] = "cat.png"
+    (tmp_path / "a" / "face.json").write_text(json.dumps(source))
+    (tmp_path / "b" / "cat.json").write_text(json.dumps(target))
+    out = tmp_path / "out" / "cat_animated.json"
+    code = main(["transfer", "--source", str(tmp_path / "a" / "face.json"),
+                 "--target", str(tmp_path / "b" / "cat.json"), "-o", str(out), "--quiet"])
+    assert code == 0
+    doc = json.loads(out.read_text())
+    assert doc["layers"][0]["image"] == "../b/cat.png"
+    np.testing.assert_allclose(doc["features"][0]["keys"][0]["points"], [[1.2 * 62, 1.2 * 52]], atol=1e-8)
+
+
+def test_cli_bad_input_exits_2_with_one_line_and_no_output(tmp_path, capsys):
+    source = face_scene()
+    target = retraced(source, lambda p: p)
+    target["features"].pop(0)
+    (tmp_path / "s.json").write_text(json.dumps(source))
+    (tmp_path / "t.json").write_text(json.dumps(target))
+    out = tmp_path / "o.json"
+    code = main(["transfer", "--source", str(tmp_path / "s.json"), "--target", str(tmp_path / "t.json"),
+                 "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and 'Feature "nose"' in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json", "t.json"]
+
+
+def test_cli_missing_file_exits_2(tmp_path, capsys):
+    code = main(["transfer", "--source", str(tmp_path / "nope.json"), "--target", str(tmp_path / "nope.json"),
+                 "-o", str(tmp_path / "o.json")])
+    assert code == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_transfer_example_is_up_to_date_and_renders(tmp_path):
+    committed = json.loads((ROOT / "examples" / "transfer" / "cat-animated.json").read_text())
+    fresh = inkwarp.transfer_dict(ROOT / "examples" / "face" / "scene.json",
+                                  ROOT / "examples" / "transfer" / "cat-target.json",
+                                  relative_to=ROOT / "examples" / "transfer")
+    assert fresh == committed, "run: inkwarp transfer (see examples/transfer/README.md)"
+    from inkwarp.transfer import transfer_example
+
+    scene = inkwarp.Scene.load(transfer_example(ROOT / "examples", tmp_path))
+    assert scene.render(time=1.0).shape == (300, 451, 4)
+    # Every face feature is animated on the cat; the cat's own border holds still.
+    keys = {f["id"]: f.get("keys", []) for f in committed["features"]}
+    assert keys["lid_l_upper"] and keys["pupil_r"] and not keys["frame"]
+
+
+def test_transfer_returns_a_scene(tmp_path):
+    scene = inkwarp.transfer(ROOT / "examples" / "face" / "scene.json",
+                             ROOT / "examples" / "transfer" / "cat-target.json")
+    assert isinstance(scene, inkwarp.Scene)
+    assert (scene.width, scene.height) == (451, 300)
