@@ -33,9 +33,17 @@ def ellipse(cx: float, cy: float, rx: float, ry: float, n: int, start_deg: float
     return out
 
 
+def thin(points: list[list[float]], n: int) -> list[list[float]]:
+    """``n`` of ``points``, evenly spread, the first and the last kept."""
+    step = (len(points) - 1) / (n - 1)
+    return [points[round(i * step)] for i in range(n)]
+
+
 def drawing() -> list[dict]:
     cat = {f["id"]: f for f in json.loads((CAT / "scene.json").read_text())["features"]}
-    lids = {k: cat[k]["rest"] for k in ("lid_l_upper", "lid_l_lower", "lid_r_upper", "lid_r_lower")}
+    # The cat's lids (traced along each eye's rim with 9 points), thinned to the face's 5:
+    # matched features have the same number of control points.
+    lids = {k: thin(cat[k]["rest"], 5) for k in ("lid_l_upper", "lid_l_lower", "lid_r_upper", "lid_r_lower")}
     spline = lambda id, rest, **kw: {"id": id, "kind": "spline", "rest": rest, **kw}  # noqa: E731
     return [
         # The face's features, traced on the cat (the face's left eye is the picture's left).
