@@ -22,7 +22,6 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 CAT = HERE.parent / "cat"
-FACE = HERE.parent / "face"
 
 
 def ellipse(cx: float, cy: float, rx: float, ry: float, n: int, start_deg: float = -90.0) -> list[list[float]]:
@@ -34,15 +33,17 @@ def ellipse(cx: float, cy: float, rx: float, ry: float, n: int, start_deg: float
     return out
 
 
+def thin(points: list[list[float]], n: int) -> list[list[float]]:
+    """``n`` of ``points``, evenly spread, the first and the last kept."""
+    step = (len(points) - 1) / (n - 1)
+    return [points[round(i * step)] for i in range(n)]
+
+
 def drawing() -> list[dict]:
     cat = {f["id"]: f for f in json.loads((CAT / "scene.json").read_text())["features"]}
-    face = {f["id"]: f for f in json.loads((FACE / "scene.json").read_text())["features"]}
-    # The cat's traced lids, thinned to the face's control-point count (transfer matches
-    # features point for point), keeping both ends.
-    lids = {}
-    for k in ("lid_l_upper", "lid_l_lower", "lid_r_upper", "lid_r_lower"):
-        rest, n = cat[k]["rest"], len(face[k]["rest"])
-        lids[k] = [rest[round(i * (len(rest) - 1) / (n - 1))] for i in range(n)]
+    # The cat's lids (traced along each eye's rim with 9 points), thinned to the face's 5:
+    # matched features have the same number of control points.
+    lids = {k: thin(cat[k]["rest"], 5) for k in ("lid_l_upper", "lid_l_lower", "lid_r_upper", "lid_r_lower")}
     spline = lambda id, rest, **kw: {"id": id, "kind": "spline", "rest": rest, **kw}  # noqa: E731
     return [
         # The face's features, traced on the cat (the face's left eye is the picture's left).
