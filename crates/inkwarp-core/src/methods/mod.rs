@@ -38,6 +38,7 @@ use std::fmt;
 use std::str::FromStr;
 use std::time::Instant;
 
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::field::Field;
@@ -48,22 +49,20 @@ pub use beier_neely::{beier_neely_field, BeierNeelyParams};
 pub use thin_plate::{thin_plate_field, ThinPlateMap, DEFAULT_MAX_SAMPLES};
 pub use triangulation::triangulation_field;
 
-/// Every way inkwarp can turn a drawing into a displacement field: the grid thin plate
-/// (`tps`, solved in `solve`) and the three interpolants of this module.
-///
-/// Spelled in files, on the command line and in Python as `"tps"`, `"tps-exact"`,
-/// `"triangulation"` and `"beier-neely"`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+// Spelled in files, on the command line and in Python as "tps", "tps-exact",
+// "triangulation" and "beier-neely" (see `Method::name`).
+/// The interpolant that turns the drawing into a displacement field.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
-    /// The grid thin plate of DESIGN §4 (mattes and cuts honoured).
+    /// The grid thin plate of the paper: respects holes in the continuity matte and cuts.
     #[default]
     Tps,
-    /// The continuous thin-plate spline.
+    /// The continuous thin-plate spline fitted to the samples (no mattes, no cuts).
     TpsExact,
-    /// Piecewise-linear interpolation over a Delaunay triangulation.
+    /// Piecewise linear over a Delaunay triangulation of the samples and image corners.
     Triangulation,
-    /// Beier–Neely line pairs and Shepard points.
+    /// Beier–Neely line pairs for segments and Shepard weights for points.
     BeierNeely,
 }
 
@@ -80,6 +79,11 @@ impl Method {
             Method::Triangulation => "triangulation",
             Method::BeierNeely => "beier-neely",
         }
+    }
+
+    /// The method called `name`, if there is one.
+    pub fn from_name(name: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == name)
     }
 
     /// The interpolant of this module that implements the method, or `None` for `tps`
@@ -104,10 +108,7 @@ impl FromStr for Method {
     type Err = MethodError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Method::ALL
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| MethodError::UnknownMethod(s.to_string()))
+        Method::from_name(s).ok_or_else(|| MethodError::UnknownMethod(s.to_string()))
     }
 }
 

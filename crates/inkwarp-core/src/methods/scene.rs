@@ -12,18 +12,6 @@ use crate::scene::{FeatureSamples, Scene};
 /// short enough to follow the curve, long enough to act as lines rather than points.
 pub const BEIER_NEELY_SEGMENT_PX: f64 = 8.0;
 
-/// The interpolant of this module that computes `method`, or `None` for the grid thin
-/// plate (`tps`, which `solve` computes).
-pub fn interpolant_for(method: crate::scene::Method) -> Option<Interpolant> {
-    use crate::scene::Method as M;
-    match method {
-        M::Tps => None,
-        M::TpsExact => Some(Interpolant::TpsExact),
-        M::Triangulation => Some(Interpolant::Triangulation),
-        M::BeierNeely => Some(Interpolant::BeierNeely),
-    }
-}
-
 /// The controls a layer's drawing gives `interpolant`, from the layer's samples grouped by
 /// feature (as the scene engine makes them at `time_s`).
 ///

@@ -50,45 +50,7 @@ pub struct SceneDoc {
     pub features: Vec<FeatureDoc>,
 }
 
-/// The interpolant that turns the drawing into a displacement field.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "kebab-case")]
-pub enum Method {
-    /// The grid thin plate of the paper: respects holes in the continuity matte and cuts.
-    #[default]
-    Tps,
-    /// The continuous thin-plate spline fitted to the samples (no mattes, no cuts).
-    TpsExact,
-    /// Piecewise linear over a Delaunay triangulation of the samples and image corners.
-    Triangulation,
-    /// Beier–Neely line pairs for segments and Shepard weights for points.
-    BeierNeely,
-}
-
-impl Method {
-    /// Every method, in the order the docs list them.
-    pub const ALL: [Method; 4] = [
-        Method::Tps,
-        Method::TpsExact,
-        Method::Triangulation,
-        Method::BeierNeely,
-    ];
-
-    /// The name used in scene files and on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Tps => "tps",
-            Method::TpsExact => "tps-exact",
-            Method::Triangulation => "triangulation",
-            Method::BeierNeely => "beier-neely",
-        }
-    }
-
-    /// The method called `name`, if there is one.
-    pub fn from_name(name: &str) -> Option<Method> {
-        Method::ALL.into_iter().find(|m| m.name() == name)
-    }
-}
+pub use crate::methods::Method;
 
 /// How the grid thin plate is relaxed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]

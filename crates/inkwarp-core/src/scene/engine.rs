@@ -8,10 +8,10 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use super::doc::{Method, Scheme, SolverDoc};
-use super::uses::{
-    points_at, solve, Canvas, FeatureSampler, RgbaImage, SampleOptions, SolveMethod, SolveOptions,
-    SolveReport,
-};
+use crate::anim::points_at;
+use crate::geometry::{FeatureSampler, SampleOptions};
+use crate::render::{Canvas, RgbaImage};
+use crate::solve::{solve, SolveMethod, SolveOptions, SolveReport};
 use super::{Scene, SceneError};
 use crate::field::Field;
 use crate::geometry::{Kind, Point, Sample};
@@ -46,7 +46,7 @@ fn compute_field(
                 .map(|(field, report)| (field, Some(report)))
                 .map_err(|e| e.to_string())
         }
-        other => match crate::methods::scene::interpolant_for(other) {
+        other => match other.interpolant() {
             Some(interpolant) => {
                 crate::methods::scene::features_field(scene, grid, features, time_s, interpolant)
                     .map(|(field, _report)| (field, None))

@@ -3,7 +3,7 @@
 
 use base64::Engine as _;
 
-use super::uses::RgbaImage;
+use crate::render::RgbaImage;
 
 /// Whether `reference` is a `data:` URI rather than a path.
 pub fn is_data_uri(reference: &str) -> bool {

@@ -26,7 +26,6 @@ pub mod doc;
 mod engine;
 pub mod images;
 mod shape;
-mod uses;
 mod validate;
 
 use std::collections::HashMap;
@@ -40,7 +39,7 @@ pub use doc::*;
 pub use engine::{
     method_available, Animator, FeatureSamples, FrameStream, LayerSolve, WARM_CHAIN_FRAMES,
 };
-pub use uses::RgbaImage;
+pub use crate::render::RgbaImage;
 pub use validate::validate_doc;
 
 use crate::geometry::{Kind, Point};
@@ -376,7 +375,7 @@ pub struct Scene {
 pub(crate) struct Track {
     pub kind: Kind,
     pub rest: Vec<Point>,
-    pub keys: Vec<uses::Key>,
+    pub keys: Vec<crate::anim::Key>,
     pub closed: bool,
     pub spline_outline: bool,
 }
@@ -401,7 +400,7 @@ pub struct Layer {
     pub visible: bool,
     /// Per driver (same order as `drivers`): its rest geometry prepared for sampling on
     /// this layer's grid, built on first use.
-    pub(crate) samplers: Vec<OnceLock<Result<uses::FeatureSampler, String>>>,
+    pub(crate) samplers: Vec<OnceLock<Result<crate::geometry::FeatureSampler, String>>>,
 }
 
 /// Reads the bytes behind an image reference that is not a `data:` URI (a path relative to
@@ -535,13 +534,13 @@ impl Scene {
                 keys: f
                     .keys
                     .iter()
-                    .map(|k| uses::Key {
+                    .map(|k| crate::anim::Key {
                         time_s: k.t,
                         points: k.points.clone(),
                         interpolation: match k.interpolation {
-                            Interpolation::Smooth => uses::Interpolation::Smooth,
-                            Interpolation::Linear => uses::Interpolation::Linear,
-                            Interpolation::Hold => uses::Interpolation::Hold,
+                            Interpolation::Smooth => crate::anim::Interpolation::Smooth,
+                            Interpolation::Linear => crate::anim::Interpolation::Linear,
+                            Interpolation::Hold => crate::anim::Interpolation::Hold,
                         },
                     })
                     .collect(),
@@ -589,8 +588,8 @@ impl Scene {
                 let track = &tracks[i];
                 if track.kind == Kind::Cut {
                     let line =
-                        uses::curve_polyline(Kind::Cut, &track.rest, track.closed, false, 0.5);
-                    uses::add_cut(&mut grid, &line);
+                        crate::geometry::curve_polyline(Kind::Cut, &track.rest, track.closed, false, 0.5);
+                    grid.add_cut(&line);
                 } else {
                     drivers.push(i);
                 }
