@@ -183,11 +183,32 @@ impl Grid {
     }
 
     /// Connected pieces: `labels[i]` is the piece of node `i` (`u32::MAX` for inactive
-    /// nodes), pieces numbered `0..count` in order of their first node.
+    /// nodes), pieces numbered `0..count` in order of their first node. Links are taken to
+    /// join active nodes (as [`Grid::is_consistent`] checks).
     pub fn pieces(&self) -> (Vec<u32>, usize) {
+        // Union-find over runs (maximal row segments joined by right links) rather than
+        // nodes: a row of a connected picture is one run, so there are few elements and
+        // each vertical link between the same two runs is looked at once.
+        let (w, h) = (self.width, self.height);
         let n = self.len();
-        let w = self.width;
-        let mut parent: Vec<u32> = (0..n as u32).collect();
+        let mut run = vec![u32::MAX; n];
+        let mut parent: Vec<u32> = Vec::new();
+        for y in 0..h {
+            let row = y * w;
+            let mut x = 0;
+            while x < w {
+                if self.active[row + x] {
+                    let id = parent.len() as u32;
+                    parent.push(id);
+                    run[row + x] = id;
+                    while x + 1 < w && self.link_right[row + x] && self.active[row + x + 1] {
+                        x += 1;
+                        run[row + x] = id;
+                    }
+                }
+                x += 1;
+            }
+        }
         fn find(parent: &mut [u32], mut i: u32) -> u32 {
             while parent[i as usize] != i {
                 let p = parent[parent[i as usize] as usize];
@@ -196,35 +217,34 @@ impl Grid {
             }
             i
         }
-        fn union(parent: &mut [u32], a: u32, b: u32) {
-            let (ra, rb) = (find(parent, a), find(parent, b));
-            if ra != rb {
-                let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
-                parent[hi as usize] = lo;
+        for y in 0..h.saturating_sub(1) {
+            let mut last = (u32::MAX, u32::MAX);
+            for i in y * w..(y + 1) * w {
+                let pair = (run[i], run[i + w]);
+                if !self.link_down[i] || pair == last || pair.0 == u32::MAX || pair.1 == u32::MAX {
+                    continue;
+                }
+                last = pair;
+                let (ra, rb) = (find(&mut parent, pair.0), find(&mut parent, pair.1));
+                if ra != rb {
+                    let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+                    parent[hi as usize] = lo;
+                }
             }
         }
-        for i in 0..n {
-            if self.link_right[i] {
-                union(&mut parent, i as u32, i as u32 + 1);
-            }
-            if self.link_down[i] {
-                union(&mut parent, i as u32, (i + w) as u32);
-            }
-        }
-        let mut labels = vec![u32::MAX; n];
+        // Runs are numbered in the order of their first node, so the first run of a piece
+        // holds its first node.
+        let mut run_label = vec![u32::MAX; parent.len()];
         let mut count = 0usize;
-        let mut root_label = vec![u32::MAX; n];
-        for i in 0..n {
-            if !self.active[i] {
-                continue;
-            }
-            let r = find(&mut parent, i as u32) as usize;
-            if root_label[r] == u32::MAX {
-                root_label[r] = count as u32;
+        for r in 0..parent.len() {
+            let root = find(&mut parent, r as u32) as usize;
+            if run_label[root] == u32::MAX {
+                run_label[root] = count as u32;
                 count += 1;
             }
-            labels[i] = root_label[r];
+            run_label[r] = run_label[root];
         }
+        let labels = run.iter().map(|&r| if r == u32::MAX { u32::MAX } else { run_label[r as usize] }).collect();
         (labels, count)
     }
 }
@@ -486,5 +506,66 @@ mod tests {
         let g = Grid::from_matte(3, 1, &[1, 0, 1]);
         let (labels, count) = g.pieces();
         assert_eq!((labels, count), (vec![0, u32::MAX, 1], 2));
+    }
+
+    /// Pieces by union-find over every node, numbered by their first node.
+    fn pieces_node_by_node(g: &Grid) -> (Vec<u32>, usize) {
+        let n = g.len();
+        let mut parent: Vec<usize> = (0..n).collect();
+        fn find(parent: &mut [usize], mut i: usize) -> usize {
+            while parent[i] != i {
+                parent[i] = parent[parent[i]];
+                i = parent[i];
+            }
+            i
+        }
+        for i in 0..n {
+            for (linked, j) in [(g.link_right[i], i + 1), (g.link_down[i], i + g.width)] {
+                if linked {
+                    let (a, b) = (find(&mut parent, i), find(&mut parent, j));
+                    parent[a.max(b)] = a.min(b);
+                }
+            }
+        }
+        let mut label_of_root = vec![u32::MAX; n];
+        let mut labels = vec![u32::MAX; n];
+        let mut count = 0;
+        for i in (0..n).filter(|&i| g.active[i]) {
+            let r = find(&mut parent, i);
+            if label_of_root[r] == u32::MAX {
+                label_of_root[r] = count;
+                count += 1;
+            }
+            labels[i] = label_of_root[r];
+        }
+        (labels, count as usize)
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(200))]
+
+        #[test]
+        fn pieces_by_runs_match_pieces_node_by_node(
+            w in 1usize..24, h in 1usize..24, seed: u64, holes in 0.0..0.6f64, breaks in 0.0..0.5f64,
+        ) {
+            let mut state = seed | 1;
+            let mut rnd = move || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 11) as f64 / (1u64 << 53) as f64
+            };
+            let matte: Vec<u8> = (0..w * h).map(|_| u8::from(rnd() >= holes)).collect();
+            let mut g = Grid::from_matte(w, h, &matte);
+            for i in 0..w * h {
+                if rnd() < breaks {
+                    g.link_right[i] = false;
+                }
+                if rnd() < breaks {
+                    g.link_down[i] = false;
+                }
+            }
+            proptest::prop_assert_eq!(g.pieces(), pieces_node_by_node(&g));
+        }
     }
 }

@@ -11,14 +11,30 @@
 //! and the rest renormalised (falling back to bilinear, then to the nearest value along the
 //! links). A piece that holds no coarse node takes the mean displacement of its samples, or
 //! stays at zero without any.
+//!
+//! This is the path the editor takes while a point is dragged, so the upsampling is built
+//! for speed without changing a bit of its result: the cubic weights are separable and
+//! computed once per column and once per row; a pixel whose whole 4 × 4 coarse window lies
+//! in its own piece skips the piece test; the bilinear fallback is only computed where the
+//! cubic weights fail; rows are upsampled in parallel on large grids; and the fill along
+//! the links starts only from the resolved pixels next to unresolved ones. A test holds it
+//! to the straightforward per-pixel loop it replaces.
 
 use std::collections::VecDeque;
+
+use rayon::prelude::*;
 
 use crate::field::Field;
 use crate::geometry::Sample;
 use crate::grid::{constrain, nearest_node, Grid};
 
 use super::{solve_constrained, SolveOptions, SolveReport};
+
+/// Grids with at least this many pixels are upsampled with rows in parallel.
+const PARALLEL_PIXELS: usize = 1 << 15;
+
+/// Pixels of a row summed side by side.
+const LANES: usize = 8;
 
 pub(crate) fn solve_coarse(
     grid: &Grid,
@@ -31,27 +47,9 @@ pub(crate) fn solve_coarse(
     if w == 0 || h == 0 {
         return (Field::zeros(w, h), SolveReport { converged: true, ..Default::default() });
     }
-    let wc = (w - 1).div_ceil(s) + 1;
-    let hc = (h - 1).div_ceil(s) + 1;
-    let px = |x: usize| (x * s).min(w - 1);
-    let py = |y: usize| (y * s).min(h - 1);
-    let mut active = vec![false; wc * hc];
-    let mut right = vec![false; wc * hc];
-    let mut down = vec![false; wc * hc];
-    for yc in 0..hc {
-        for xc in 0..wc {
-            let c = yc * wc + xc;
-            let (fx, fy) = (px(xc), py(yc));
-            active[c] = grid.active[grid.index(fx, fy)];
-            if xc + 1 < wc {
-                right[c] = (fx..px(xc + 1)).all(|x| grid.link_right[grid.index(x, fy)]);
-            }
-            if yc + 1 < hc {
-                down[c] = (fy..py(yc + 1)).all(|y| grid.link_down[grid.index(fx, y)]);
-            }
-        }
-    }
-    let coarse = Grid { width: wc, height: hc, active, link_right: right, link_down: down };
+    let layout = Layout::new(w, h, s);
+    let coarse = layout.coarse_grid(grid);
+    let (wc, hc) = (layout.wc, layout.hc);
     let sf = s as f64;
     let mut outside = 0usize;
     let coarse_samples: Vec<Sample> = samples
@@ -73,7 +71,7 @@ pub(crate) fn solve_coarse(
         let mut c = Field::zeros(wc, hc);
         for yc in 0..hc {
             for xc in 0..wc {
-                let v = f.at(px(xc), py(yc));
+                let v = f.at(layout.px(xc), layout.py(yc));
                 c.dx[yc * wc + xc] = v[0];
                 c.dy[yc * wc + xc] = v[1];
             }
@@ -82,84 +80,282 @@ pub(crate) fn solve_coarse(
     });
     let opts = SolveOptions { tension: options.tension * sf * sf, grid_step: 1, ..options.clone() };
     let (fc, report) = solve_constrained(&coarse, &constraints, &opts, init_c.as_ref());
+    (upsample(grid, &layout, &fc, samples), report)
+}
 
-    // Upsample within pieces.
-    let (labels, count) = grid.pieces();
-    let clabel: Vec<u32> = (0..wc * hc)
-        .map(|c| if coarse.active[c] { labels[grid.index(px(c % wc), py(c / wc))] } else { u32::MAX })
-        .collect();
-    let taps = |x: usize, n: usize, pos: &dyn Fn(usize) -> usize| -> (isize, [f64; 4]) {
-        if n == 1 {
-            return (0, [0.0, 1.0, 0.0, 0.0]);
+/// Where the coarse nodes of a `w × h` grid with step `s` sit.
+#[derive(Clone, Copy, Debug)]
+struct Layout {
+    s: usize,
+    w: usize,
+    h: usize,
+    wc: usize,
+    hc: usize,
+}
+
+impl Layout {
+    fn new(w: usize, h: usize, s: usize) -> Self {
+        Layout { s, w, h, wc: (w - 1).div_ceil(s) + 1, hc: (h - 1).div_ceil(s) + 1 }
+    }
+
+    /// The pixel column of coarse column `xc`.
+    fn px(&self, xc: usize) -> usize {
+        (xc * self.s).min(self.w - 1)
+    }
+
+    /// The pixel row of coarse row `yc`.
+    fn py(&self, yc: usize) -> usize {
+        (yc * self.s).min(self.h - 1)
+    }
+
+    /// The coarse grid: a node per coarse position, active where its pixel is, linked
+    /// where every fine link between the two pixels is.
+    fn coarse_grid(&self, grid: &Grid) -> Grid {
+        let (wc, hc) = (self.wc, self.hc);
+        let mut active = vec![false; wc * hc];
+        let mut right = vec![false; wc * hc];
+        let mut down = vec![false; wc * hc];
+        for yc in 0..hc {
+            for xc in 0..wc {
+                let c = yc * wc + xc;
+                let (fx, fy) = (self.px(xc), self.py(yc));
+                active[c] = grid.active[grid.index(fx, fy)];
+                if xc + 1 < wc {
+                    right[c] = (fx..self.px(xc + 1)).all(|x| grid.link_right[grid.index(x, fy)]);
+                }
+                if yc + 1 < hc {
+                    down[c] = (fy..self.py(yc + 1)).all(|y| grid.link_down[grid.index(fx, y)]);
+                }
+            }
         }
-        let x0 = (x / s).min(n - 2);
-        let (a, b) = (pos(x0) as f64, pos(x0 + 1) as f64);
-        let t = ((x as f64 - a) / (b - a)).clamp(0.0, 1.0);
-        let (t2, t3) = (t * t, t * t * t);
-        (
-            x0 as isize - 1,
-            [
-                0.5 * (-t3 + 2.0 * t2 - t),
-                0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
-                0.5 * (-3.0 * t3 + 4.0 * t2 + t),
-                0.5 * (t3 - t2),
-            ],
-        )
-    };
-    let mut field = Field::zeros(w, h);
-    let mut resolved = vec![false; w * h];
-    for y in 0..h {
-        let (ys, wy) = taps(y, hc, &py);
-        for x in 0..w {
-            let i = y * w + x;
-            if !grid.active[i] {
-                continue;
-            }
-            let (xs, wx) = taps(x, wc, &px);
-            let mut acc = [0.0f64; 2];
-            let mut wsum = 0.0;
-            let mut inner = [0.0f64; 3];
-            for (b, &wyb) in wy.iter().enumerate() {
-                let cy = ys + b as isize;
-                if cy < 0 || cy >= hc as isize || wyb == 0.0 {
-                    continue;
+        Grid { width: wc, height: hc, active, link_right: right, link_down: down }
+    }
+}
+
+/// The Catmull-Rom taps of one pixel along one axis: the coarse cell it lies in (`cell`,
+/// its window spans coarse positions `cell − 1 ..= cell + 2`) and, of the window's four
+/// positions, those inside the grid with a nonzero weight, in order.
+#[derive(Clone, Copy, Debug)]
+struct Taps {
+    cell: usize,
+    /// The cubic weights of the window's four positions (outside ones included).
+    weights: [f64; 4],
+    len: usize,
+    /// Position in the window (0..4) of each used tap.
+    slot: [u8; 4],
+    /// Coarse index of each used tap.
+    at: [usize; 4],
+}
+
+impl Taps {
+    /// The taps of every pixel `0..n` along an axis with `nc` coarse positions at
+    /// `pos(0..nc)`, `s` pixels apart.
+    fn along(n: usize, nc: usize, s: usize, pos: impl Fn(usize) -> usize) -> Vec<Taps> {
+        (0..n)
+            .map(|x| {
+                let (cell, weights) = if nc == 1 {
+                    // One coarse position: it is the value everywhere.
+                    (0, [0.0, 1.0, 0.0, 0.0])
+                } else {
+                    let x0 = (x / s).min(nc - 2);
+                    let (a, b) = (pos(x0) as f64, pos(x0 + 1) as f64);
+                    let t = ((x as f64 - a) / (b - a)).clamp(0.0, 1.0);
+                    let (t2, t3) = (t * t, t * t * t);
+                    (
+                        x0,
+                        [
+                            0.5 * (-t3 + 2.0 * t2 - t),
+                            0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+                            0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+                            0.5 * (t3 - t2),
+                        ],
+                    )
+                };
+                let mut taps = Taps { cell, weights, len: 0, slot: [0; 4], at: [0; 4] };
+                for (k, &wk) in weights.iter().enumerate() {
+                    let c = cell as isize - 1 + k as isize;
+                    if c >= 0 && (c as usize) < nc && wk != 0.0 {
+                        taps.slot[taps.len] = k as u8;
+                        taps.at[taps.len] = c as usize;
+                        taps.len += 1;
+                    }
                 }
-                for (a, &wxa) in wx.iter().enumerate() {
-                    let cx = xs + a as isize;
-                    if cx < 0 || cx >= wc as isize || wxa == 0.0 {
-                        continue;
-                    }
-                    let c = cy as usize * wc + cx as usize;
-                    if clabel[c] != labels[i] {
-                        continue;
-                    }
-                    let wv = wxa * wyb;
-                    acc[0] += wv * fc.dx[c] as f64;
-                    acc[1] += wv * fc.dy[c] as f64;
-                    wsum += wv;
-                    if (1..3).contains(&a) && (1..3).contains(&b) {
-                        // bilinear fallback weights from the inner 2 × 2
-                        let lw = lin(&wx, a) * lin(&wy, b);
-                        inner[0] += lw * fc.dx[c] as f64;
-                        inner[1] += lw * fc.dy[c] as f64;
-                        inner[2] += lw;
-                    }
-                }
-            }
-            if wsum >= 0.5 {
-                field.dx[i] = (acc[0] / wsum) as f32;
-                field.dy[i] = (acc[1] / wsum) as f32;
-                resolved[i] = true;
-            } else if inner[2] > 1e-9 {
-                field.dx[i] = (inner[0] / inner[2]) as f32;
-                field.dy[i] = (inner[1] / inner[2]) as f32;
-                resolved[i] = true;
-            }
+                taps
+            })
+            .collect()
+    }
+
+    /// The bilinear weight of window position `k` (1 or 2), recovered from the two inner
+    /// cubic weights (exact at t = 0 and t = 1).
+    fn linear(&self, k: usize) -> f64 {
+        let s = self.weights[1] + self.weights[2];
+        if s.abs() < 1e-12 {
+            0.5
+        } else {
+            self.weights[k] / s
         }
     }
-    // Pixels left over: nearest resolved value along the links.
-    let mut queue: VecDeque<usize> = (0..w * h).filter(|&i| resolved[i]).collect();
-    while let Some(i) = queue.pop_front() {
+}
+
+/// The fine field from the coarse one (see the module docs).
+fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Field {
+    let (w, h, wc, hc) = (layout.w, layout.h, layout.wc, layout.hc);
+    let (labels, count) = grid.pieces();
+    let clabel: Vec<u32> = (0..wc * hc)
+        .map(|c| labels[grid.index(layout.px(c % wc), layout.py(c / wc))])
+        .collect();
+    let cols = Taps::along(w, wc, layout.s, |x| layout.px(x));
+    let rows = Taps::along(h, hc, layout.s, |y| layout.py(y));
+    // The piece that every coarse node of a cell's 4 × 4 window (those inside the grid)
+    // belongs to, or u32::MAX where they are not all in one piece.
+    let (cw, ch) = (wc.saturating_sub(1).max(1), hc.saturating_sub(1).max(1));
+    let uniform: Vec<u32> = (0..cw * ch)
+        .map(|k| {
+            let (x0, y0) = (k % cw, k / cw);
+            let mut label = None;
+            for cy in y0.saturating_sub(1)..(y0 + 3).min(hc) {
+                for cx in x0.saturating_sub(1)..(x0 + 3).min(wc) {
+                    let l = clabel[cy * wc + cx];
+                    if l == u32::MAX || label.is_some_and(|m| m != l) {
+                        return u32::MAX;
+                    }
+                    label = Some(l);
+                }
+            }
+            label.unwrap_or(u32::MAX)
+        })
+        .collect();
+
+    // One pixel, any window: the taps in the pixel's piece, renormalised; the bilinear
+    // fallback from the window's inner 2 × 2 where their weights fall short.
+    let pixel = |ty: &Taps, tx: &Taps, label: u32, whole: bool| -> Option<[f32; 2]> {
+        let mut acc = [0.0f64; 2];
+        let mut wsum = 0.0;
+        for b in 0..ty.len {
+            let (wyb, row) = (ty.weights[ty.slot[b] as usize], ty.at[b] * wc);
+            for a in 0..tx.len {
+                let c = row + tx.at[a];
+                if !whole && clabel[c] != label {
+                    continue;
+                }
+                let wv = tx.weights[tx.slot[a] as usize] * wyb;
+                acc[0] += wv * fc.dx[c] as f64;
+                acc[1] += wv * fc.dy[c] as f64;
+                wsum += wv;
+            }
+        }
+        if wsum >= 0.5 {
+            return Some([(acc[0] / wsum) as f32, (acc[1] / wsum) as f32]);
+        }
+        let mut inner = [0.0f64; 3];
+        for b in 0..ty.len {
+            let kb = ty.slot[b] as usize;
+            if !(1..3).contains(&kb) {
+                continue;
+            }
+            for a in 0..tx.len {
+                let ka = tx.slot[a] as usize;
+                let c = ty.at[b] * wc + tx.at[a];
+                if !(1..3).contains(&ka) || clabel[c] != label {
+                    continue;
+                }
+                let lw = tx.linear(ka) * ty.linear(kb);
+                inner[0] += lw * fc.dx[c] as f64;
+                inner[1] += lw * fc.dy[c] as f64;
+                inner[2] += lw;
+            }
+        }
+        (inner[2] > 1e-9).then(|| [(inner[0] / inner[2]) as f32, (inner[1] / inner[2]) as f32])
+    };
+
+    let upsample_row = |y: usize, dx: &mut [f32], dy: &mut [f32], resolved: &mut [bool]| -> usize {
+        let ty = &rows[y];
+        let labels = &labels[y * w..(y + 1) * w];
+        let mut unresolved = 0;
+        let mut x = 0;
+        while x < w {
+            let (tx, label) = (&cols[x], labels[x]);
+            if label == u32::MAX {
+                x += 1;
+                continue;
+            }
+            let whole = uniform[ty.cell * cw + tx.cell] == label;
+            if whole && tx.len == 4 {
+                // A run of pixels in the same window with all four column taps, summed side
+                // by side (each pixel's sum in the same order as alone), so that the
+                // additions of neighbouring pixels overlap instead of waiting on each other.
+                let mut end = x + 1;
+                while end < w && end - x < LANES && cols[end].cell == tx.cell && cols[end].len == 4 && labels[end] == label {
+                    end += 1;
+                }
+                // Unused lanes get zero weights and are not read back.
+                let mut wxs = [[0.0f64; LANES]; 4];
+                for (l, t) in cols[x..end].iter().enumerate() {
+                    for a in 0..4 {
+                        wxs[a][l] = t.weights[a];
+                    }
+                }
+                let mut acc = [[0.0f64; LANES]; 2];
+                let mut wsum = [0.0f64; LANES];
+                for b in 0..ty.len {
+                    let (wyb, row) = (ty.weights[ty.slot[b] as usize], ty.at[b] * wc + tx.at[0]);
+                    for (a, wxa) in wxs.iter().enumerate() {
+                        let (vx, vy) = (fc.dx[row + a] as f64, fc.dy[row + a] as f64);
+                        for l in 0..LANES {
+                            let wv = wxa[l] * wyb;
+                            acc[0][l] += wv * vx;
+                            acc[1][l] += wv * vy;
+                            wsum[l] += wv;
+                        }
+                    }
+                }
+                for l in 0..end - x {
+                    let value = if wsum[l] >= 0.5 {
+                        Some([(acc[0][l] / wsum[l]) as f32, (acc[1][l] / wsum[l]) as f32])
+                    } else {
+                        pixel(ty, &cols[x + l], label, true)
+                    };
+                    match value {
+                        Some([vx, vy]) => (dx[x + l], dy[x + l], resolved[x + l]) = (vx, vy, true),
+                        None => unresolved += 1,
+                    }
+                }
+                x = end;
+                continue;
+            }
+            match pixel(ty, tx, label, whole) {
+                Some([vx, vy]) => (dx[x], dy[x], resolved[x]) = (vx, vy, true),
+                None => unresolved += 1,
+            }
+            x += 1;
+        }
+        unresolved
+    };
+
+    let mut field = Field::zeros(w, h);
+    let mut resolved = vec![false; w * h];
+    let rows_of = |field: &mut Field, resolved: &mut [bool]| {
+        let (fdx, fdy) = (&mut field.dx, &mut field.dy);
+        if w * h >= PARALLEL_PIXELS {
+            fdx.par_chunks_mut(w)
+                .zip(fdy.par_chunks_mut(w))
+                .zip(resolved.par_chunks_mut(w))
+                .enumerate()
+                .map(|(y, ((dx, dy), r))| upsample_row(y, dx, dy, r))
+                .sum::<usize>()
+        } else {
+            fdx.chunks_mut(w)
+                .zip(fdy.chunks_mut(w))
+                .zip(resolved.chunks_mut(w))
+                .enumerate()
+                .map(|(y, ((dx, dy), r))| upsample_row(y, dx, dy, r))
+                .sum::<usize>()
+        }
+    };
+    if rows_of(&mut field, &mut resolved) == 0 {
+        return field;
+    }
+    let linked = |i: usize| -> [usize; 4] {
         let (x, y) = (i % w, i / w);
         let mut nbrs = [usize::MAX; 4];
         if grid.link_right[i] {
@@ -174,7 +370,20 @@ pub(crate) fn solve_coarse(
         if y > 0 && grid.link_down[i - w] {
             nbrs[3] = i - w;
         }
-        for j in nbrs {
+        nbrs
+    };
+    // Pixels left over: nearest resolved value along the links, breadth first from the
+    // resolved pixels in index order. Only those next to an unresolved pixel can pass a
+    // value on (the others would leave the queue without effect), so only they start it.
+    let mut seeds: Vec<usize> = (0..w * h)
+        .filter(|&i| labels[i] != u32::MAX && !resolved[i])
+        .flat_map(|i| linked(i).into_iter().filter(|&j| j != usize::MAX && resolved[j]))
+        .collect();
+    seeds.sort_unstable();
+    seeds.dedup();
+    let mut queue = VecDeque::from(seeds);
+    while let Some(i) = queue.pop_front() {
+        for j in linked(i) {
             if j != usize::MAX && !resolved[j] {
                 resolved[j] = true;
                 field.dx[j] = field.dx[i];
@@ -206,16 +415,271 @@ pub(crate) fn solve_coarse(
             }
         }
     }
-    (field, report)
+    field
 }
 
-/// Linear weight of inner tap `k` (1 or 2) from the cubic weights' parameter: recovered as
-/// the share of the two inner cubic weights (exact at t = 0 and t = 1).
-fn lin(wts: &[f64; 4], k: usize) -> f64 {
-    let s = wts[1] + wts[2];
-    if s.abs() < 1e-12 {
-        0.5
-    } else {
-        wts[k] / s
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solve::solve;
+
+    /// How often each way of filling a pixel was taken by [`upsample_per_pixel`].
+    #[derive(Debug, Default)]
+    struct Paths {
+        cubic: usize,
+        bilinear: usize,
+        along_links: usize,
+        piece_mean: usize,
+    }
+
+    /// The straightforward upsampling, pixel by pixel, that [`upsample`] must reproduce to
+    /// the bit: the taps computed for every pixel, every tap tested for its piece, the
+    /// bilinear fallback accumulated alongside, the fill along links started from every
+    /// resolved pixel.
+    fn upsample_per_pixel(grid: &Grid, s: usize, fc: &Field, samples: &[Sample]) -> (Field, Paths) {
+        let (w, h) = (grid.width, grid.height);
+        let layout = Layout::new(w, h, s);
+        let (wc, hc) = (layout.wc, layout.hc);
+        let (px, py) = (|x| layout.px(x), |y| layout.py(y));
+        let coarse = layout.coarse_grid(grid);
+        let mut paths = Paths::default();
+        let (labels, count) = grid.pieces();
+        let clabel: Vec<u32> = (0..wc * hc)
+            .map(|c| if coarse.active[c] { labels[grid.index(px(c % wc), py(c / wc))] } else { u32::MAX })
+            .collect();
+        let taps = |x: usize, n: usize, pos: &dyn Fn(usize) -> usize| -> (isize, [f64; 4]) {
+            if n == 1 {
+                return (-1, [0.0, 1.0, 0.0, 0.0]);
+            }
+            let x0 = (x / s).min(n - 2);
+            let (a, b) = (pos(x0) as f64, pos(x0 + 1) as f64);
+            let t = ((x as f64 - a) / (b - a)).clamp(0.0, 1.0);
+            let (t2, t3) = (t * t, t * t * t);
+            (
+                x0 as isize - 1,
+                [
+                    0.5 * (-t3 + 2.0 * t2 - t),
+                    0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+                    0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+                    0.5 * (t3 - t2),
+                ],
+            )
+        };
+        let lin = |wts: &[f64; 4], k: usize| {
+            let s = wts[1] + wts[2];
+            if s.abs() < 1e-12 {
+                0.5
+            } else {
+                wts[k] / s
+            }
+        };
+        let mut field = Field::zeros(w, h);
+        let mut resolved = vec![false; w * h];
+        for y in 0..h {
+            let (ys, wy) = taps(y, hc, &py);
+            for x in 0..w {
+                let i = y * w + x;
+                if !grid.active[i] {
+                    continue;
+                }
+                let (xs, wx) = taps(x, wc, &px);
+                let mut acc = [0.0f64; 2];
+                let mut wsum = 0.0;
+                let mut inner = [0.0f64; 3];
+                for (b, &wyb) in wy.iter().enumerate() {
+                    let cy = ys + b as isize;
+                    if cy < 0 || cy >= hc as isize || wyb == 0.0 {
+                        continue;
+                    }
+                    for (a, &wxa) in wx.iter().enumerate() {
+                        let cx = xs + a as isize;
+                        if cx < 0 || cx >= wc as isize || wxa == 0.0 {
+                            continue;
+                        }
+                        let c = cy as usize * wc + cx as usize;
+                        if clabel[c] != labels[i] {
+                            continue;
+                        }
+                        let wv = wxa * wyb;
+                        acc[0] += wv * fc.dx[c] as f64;
+                        acc[1] += wv * fc.dy[c] as f64;
+                        wsum += wv;
+                        if (1..3).contains(&a) && (1..3).contains(&b) {
+                            let lw = lin(&wx, a) * lin(&wy, b);
+                            inner[0] += lw * fc.dx[c] as f64;
+                            inner[1] += lw * fc.dy[c] as f64;
+                            inner[2] += lw;
+                        }
+                    }
+                }
+                if wsum >= 0.5 {
+                    field.dx[i] = (acc[0] / wsum) as f32;
+                    field.dy[i] = (acc[1] / wsum) as f32;
+                    resolved[i] = true;
+                    paths.cubic += 1;
+                } else if inner[2] > 1e-9 {
+                    field.dx[i] = (inner[0] / inner[2]) as f32;
+                    field.dy[i] = (inner[1] / inner[2]) as f32;
+                    resolved[i] = true;
+                    paths.bilinear += 1;
+                }
+            }
+        }
+        let mut queue: VecDeque<usize> = (0..w * h).filter(|&i| resolved[i]).collect();
+        while let Some(i) = queue.pop_front() {
+            let (x, y) = (i % w, i / w);
+            let mut nbrs = [usize::MAX; 4];
+            if grid.link_right[i] {
+                nbrs[0] = i + 1;
+            }
+            if x > 0 && grid.link_right[i - 1] {
+                nbrs[1] = i - 1;
+            }
+            if grid.link_down[i] {
+                nbrs[2] = i + w;
+            }
+            if y > 0 && grid.link_down[i - w] {
+                nbrs[3] = i - w;
+            }
+            for j in nbrs {
+                if j != usize::MAX && !resolved[j] {
+                    resolved[j] = true;
+                    field.dx[j] = field.dx[i];
+                    field.dy[j] = field.dy[i];
+                    queue.push_back(j);
+                    paths.along_links += 1;
+                }
+            }
+        }
+        let mut mean = vec![[0.0f64; 3]; count];
+        for smp in samples {
+            if let Some((x, y)) = nearest_node(grid, smp.rest) {
+                let l = labels[grid.index(x, y)];
+                if l != u32::MAX {
+                    mean[l as usize][0] += smp.displacement[0];
+                    mean[l as usize][1] += smp.displacement[1];
+                    mean[l as usize][2] += 1.0;
+                }
+            }
+        }
+        for i in 0..w * h {
+            if grid.active[i] && !resolved[i] {
+                let m = mean[labels[i] as usize];
+                if m[2] > 0.0 {
+                    field.dx[i] = (m[0] / m[2]) as f32;
+                    field.dy[i] = (m[1] / m[2]) as f32;
+                    paths.piece_mean += 1;
+                }
+            }
+        }
+        (field, paths)
+    }
+
+    /// A deterministic pseudo-random sequence in [0, 1).
+    fn sequence(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed | 1;
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// A `w × h` grid with random holes (a share `holes` of the nodes) and broken links,
+    /// a coarse field of random values for step `s`, and a few samples.
+    fn case(w: usize, h: usize, s: usize, holes: f64, breaks: f64, seed: u64) -> (Grid, Field, Vec<Sample>) {
+        let mut rnd = sequence(seed);
+        let matte: Vec<u8> = (0..w * h).map(|_| u8::from(rnd() >= holes)).collect();
+        let mut grid = Grid::from_matte(w, h, &matte);
+        for i in 0..w * h {
+            if rnd() < breaks {
+                grid.link_right[i] = false;
+            }
+            if rnd() < breaks {
+                grid.link_down[i] = false;
+            }
+        }
+        let layout = Layout::new(w, h, s);
+        let n = layout.wc * layout.hc;
+        let fc = Field {
+            width: layout.wc,
+            height: layout.hc,
+            dx: (0..n).map(|_| (rnd() * 20.0 - 10.0) as f32).collect(),
+            dy: (0..n).map(|_| (rnd() * 20.0 - 10.0) as f32).collect(),
+        };
+        let samples = (0..6)
+            .map(|_| Sample {
+                rest: [rnd() * w as f64 - 0.5, rnd() * h as f64 - 0.5],
+                displacement: [rnd() * 4.0 - 2.0, rnd() * 4.0 - 2.0],
+            })
+            .collect();
+        (grid, fc, samples)
+    }
+
+    fn assert_same_bits(a: &Field, b: &Field, what: &str) {
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert!(bits(&a.dx) == bits(&b.dx) && bits(&a.dy) == bits(&b.dy), "{what}: the fields differ");
+    }
+
+    #[test]
+    fn upsampling_reproduces_the_per_pixel_loop_bit_for_bit() {
+        let mut total = Paths::default();
+        let mut seed = 1;
+        for s in 2..7 {
+            for (w, h) in [(1, 9), (9, 1), (5, 5), (17, 13), (24, 31), (40, 7)] {
+                for (holes, breaks) in [(0.0, 0.0), (0.0, 0.08), (0.15, 0.0), (0.35, 0.1), (0.6, 0.3)] {
+                    seed += 1;
+                    let (grid, fc, samples) = case(w, h, s, holes, breaks, seed);
+                    let layout = Layout::new(w, h, s);
+                    let (expected, paths) = upsample_per_pixel(&grid, s, &fc, &samples);
+                    let got = upsample(&grid, &layout, &fc, &samples);
+                    assert_same_bits(&got, &expected, &format!("{w}×{h}, s = {s}, holes {holes}, breaks {breaks}"));
+                    total.cubic += paths.cubic;
+                    total.bilinear += paths.bilinear;
+                    total.along_links += paths.along_links;
+                    total.piece_mean += paths.piece_mean;
+                }
+            }
+        }
+        // Every way of filling a pixel was exercised.
+        assert!(
+            total.cubic > 0 && total.bilinear > 0 && total.along_links > 0 && total.piece_mean > 0,
+            "{total:?}"
+        );
+    }
+
+    #[test]
+    fn rows_in_parallel_give_the_same_field() {
+        // Large enough for the parallel path, with holes, a cut and a slot thinner than a
+        // coarse cell.
+        let (w, h, s) = (301, 187, 8);
+        assert!(w * h >= PARALLEL_PIXELS);
+        let (mut grid, fc, samples) = case(w, h, s, 0.02, 0.01, 99);
+        grid.add_cut(&[[150.5, 10.0], [150.5, 170.0]]);
+        for x in 40..200 {
+            let i = 90 * w + x;
+            grid.active[i] = false;
+            grid.link_down[i - w] = false;
+            grid.link_down[i] = false;
+            grid.link_right[i] = false;
+            grid.link_right[i - 1] = false;
+        }
+        assert!(grid.is_consistent());
+        let (expected, _) = upsample_per_pixel(&grid, s, &fc, &samples);
+        assert_same_bits(&upsample(&grid, &Layout::new(w, h, s), &fc, &samples), &expected, "301×187");
+    }
+
+    #[test]
+    fn a_one_pixel_wide_strip_interpolates_along_its_length() {
+        // One coarse column: its values hold across the strip (they used to be replaced by
+        // the mean of the samples).
+        let grid = Grid::new(1, 33);
+        let s = |y: f64, d: f64| Sample { rest: [0.0, y], displacement: [d, 0.0] };
+        let options = SolveOptions { grid_step: 4, ..Default::default() };
+        let (field, _) = solve(&grid, &[s(0.0, 0.0), s(32.0, 8.0)], &options, None).unwrap();
+        assert_eq!(field.dx[0], 0.0);
+        assert_eq!(field.dx[32], 8.0);
+        assert!((field.dx[16] - 4.0).abs() < 0.05, "middle: {}", field.dx[16]);
     }
 }
