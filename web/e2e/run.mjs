@@ -228,7 +228,7 @@ async function screenshot(page, name) {
 }
 
 /** The screenshots docs/guides/editor.md shows. */
-const DOC_SCREENS = ['start', 'rest-mode', 'pose-mode', 'timeline', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
+const DOC_SCREENS = ['start', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
 
 const median = (a) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
 const pct = (a, q) => (a.length ? [...a].sort((x, y) => x - y)[Math.min(a.length - 1, Math.floor(q * a.length))] : null);
@@ -356,6 +356,47 @@ test('save the scene and render it with `inkwarp render`: same frame', async () 
   const { ok, stats } = await compareImages(page, editor, cli, 'editor-vs-cli', { meanTol: 1.0, p99Tol: 12 });
   perf.editorVsCli = stats;
   assert(ok, `the editor's frame and inkwarp render's differ: mean ${stats.mean.toFixed(3)}, p99 ${stats.p99} (see test-results/editor-vs-cli-diff.png)`);
+});
+
+test('the method switch: each method draws its own frame, the one the CPU renderer and `inkwarp render` draw', async () => {
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-methods-'));
+  const time = await page.evaluate(() => window.inkwarp.store.view.time);
+  const tps = await frame(page);
+  const { width, height } = tps;
+  perf.methods = {};
+  for (const m of ['tps-exact', 'triangulation', 'beier-neely', 'tps']) {
+    await page.selectOption('#method', m);
+    await idle(page);
+    const shown = await frame(page);
+    const info = await page.evaluate(() => ({
+      method: window.inkwarp.store.doc.solver?.method,
+      note: document.querySelector('#method-note')?.textContent ?? '',
+      status: document.querySelector('#status')?.textContent ?? '',
+      report: window.inkwarp.app.lastReport && { method: window.inkwarp.app.lastReport.report.method, ms: window.inkwarp.app.lastReport.ms },
+    }));
+    assert(info.method === m && info.report?.method === m, `after switching to ${m} the scene says ${info.method} and the last field is ${info.report?.method}`);
+    assert(info.note.startsWith(`${m}:`), `the method note shows ${m}: ${info.note}`);
+    // The methods that know nothing of cuts say so (the built-in example has one).
+    assert(/ignores the continuity matte and cuts/.test(info.status) === (m !== 'tps'), `the engine's notes for ${m}: ${info.status}`);
+    const changed = meanDiff(tps, shown, 0, 0, width, height);
+    if (m === 'tps') assert(changed < 0.5, `back to tps the frame is the first one again (mean difference ${changed.toFixed(3)})`);
+    else assert(changed > 1, `${m} draws the same frame as tps (mean difference ${changed.toFixed(3)})`);
+    const gpu = await compareImages(page, shown, await cpuFrame(page), `gpu-vs-cpu-${m}`, { meanTol: 1.0, p99Tol: 12 });
+    assert(gpu.ok, `${m}: GPU and CPU frames differ: mean ${gpu.stats.mean.toFixed(3)}, p99 ${gpu.stats.p99} (see test-results/gpu-vs-cpu-${m}-diff.png)`);
+    // Saved, the scene keeps the method: `inkwarp render` (no --method) draws the same frame.
+    const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
+    const scenePath = join(dir, `${m}.json`);
+    await download.saveAs(scenePath);
+    const saved = JSON.parse(readFileSync(scenePath, 'utf8'));
+    assert(saved.solver?.method === m, `the saved scene has solver.method ${saved.solver?.method}, not ${m}`);
+    const out = join(dir, `${m}.png`);
+    const run = spawnSync(inkwarp, ['render', scenePath, '--time', String(time), '-o', out], { encoding: 'utf8' });
+    assert(run.status === 0, `inkwarp render (${m}) failed (${run.status}): ${run.stderr}`);
+    const cli = await compareImages(page, shown, await loadPng(page, out), `editor-vs-cli-${m}`, { meanTol: 1.0, p99Tol: 12 });
+    assert(cli.ok, `${m}: the editor's frame and inkwarp render's differ: mean ${cli.stats.mean.toFixed(3)}, p99 ${cli.stats.p99} (see test-results/editor-vs-cli-${m}-diff.png)`);
+    perf.methods[m] = { fullSolveMs: info.report.ms, changedFromTps: changed, gpuVsCpu: gpu.stats, editorVsCli: cli.stats };
+    await screenshot(page, `method-${m}`);
+  }
 });
 
 test('overlays: heat map, mesh, matte; help panel', async () => {
@@ -528,6 +569,30 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   await screenshot(page, 'measured');
 });
 
+test('measure: dragging under each method on the same scene', async () => {
+  perf.dragByMethod = {};
+  await page.evaluate(() => window.inkwarp.ui.setTime(0.125));
+  for (const m of ['tps-exact', 'triangulation', 'beier-neely', 'tps']) {
+    await page.selectOption('#method', m);
+    await idle(page);
+    await page.evaluate(() => {
+      const s = window.inkwarp.app.stats;
+      for (const k of ['dragLatency', 'settle', 'draftSolveMs', 'finalSolveMs']) s[k].length = 0;
+    });
+    await drag(page, [256, 256], [276, 236], 15);
+    await idle(page);
+    const s = await page.evaluate(() => window.inkwarp.app.stats);
+    perf.dragByMethod[m] = {
+      dragLatencyMs: { median: median(s.dragLatency), n: s.dragLatency.length },
+      settleMs: median(s.settle),
+      draftSolveMs: median(s.draftSolveMs),
+      finalSolveMs: median(s.finalSolveMs),
+    };
+    await page.keyboard.press('Control+z');
+    await idle(page);
+  }
+});
+
 test('every bundled example opens', async () => {
   const names = await page.evaluate(async () => (await window.inkwarp.examples.listExamples()).map((e) => e.name));
   perf.examples = names;
@@ -660,6 +725,12 @@ async function main() {
     if (st) console.log(`  GPU vs CPU, ${ex} example posed half way: mean ${st.mean.toFixed(3)}, p99 ${st.p99}, max ${st.max}`);
   }
   if (perf.editorVsCli) console.log(`  editor vs inkwarp render: mean ${perf.editorVsCli.mean.toFixed(3)}, p99 ${perf.editorVsCli.p99}, max ${perf.editorVsCli.max}`);
+  for (const [m, r] of Object.entries(perf.dragByMethod ?? {})) {
+    console.log(`  drag under ${m}: pointer move → frame median ${r.dragLatencyMs.median?.toFixed(1)} ms (n=${r.dragLatencyMs.n}), settle ${r.settleMs?.toFixed(0)} ms; draft field ${r.draftSolveMs?.toFixed(1)} ms, full ${r.finalSolveMs?.toFixed(0)} ms`);
+  }
+  for (const [m, r] of Object.entries(perf.methods ?? {})) {
+    console.log(`  method ${m}: full-resolution field ${r.fullSolveMs.toFixed(0)} ms; frame vs tps mean ${r.changedFromTps.toFixed(2)}; GPU vs CPU mean ${r.gpuVsCpu.mean.toFixed(3)}, p99 ${r.gpuVsCpu.p99}; editor vs inkwarp render mean ${r.editorVsCli.mean.toFixed(3)}, p99 ${r.editorVsCli.p99}`);
+  }
   console.log(`\n${passed} passed, ${failed} failed  (${((Date.now() - t0) / 1000).toFixed(0)} s)`);
   process.exit(failed ? 1 : 0);
 }

@@ -4,6 +4,8 @@
 import type { Engine, FieldData, SolveFeature, SolveOptions } from './engine';
 import { GlRenderer, type GlLayer } from './gl';
 import { decodeImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } from './images';
+import { type Quality, solverOptions } from './options';
+export type { Quality } from './options';
 import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './scene';
 import type { FieldEvent, SolverClient } from './solver';
 import { Store } from './state';
@@ -24,6 +26,8 @@ export interface LayerRuntime {
   /** The last request sent for this layer (to skip identical ones). */
   lastRequest: string;
   error: string | null;
+  /** The engine's remarks on the layer's last field (e.g. a matte its method ignores). */
+  notes: string[];
 }
 
 export interface Stats {
@@ -36,9 +40,6 @@ export interface Stats {
   playback: { expected: number; shown: number; dropped: number } | null;
 }
 
-export type Quality = 'draft' | 'final';
-
-const DRAFT_TARGET_PX = 64;
 /** Fields kept for playback (a 512×512 layer's field is 2 MiB). */
 const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
 const SETTLE_MS = 120;
@@ -129,6 +130,7 @@ export class App {
           field: null,
           lastRequest: '',
           error: null,
+          notes: [],
         };
         this.runtimes.set(layer.name, rt);
       }
@@ -235,19 +237,7 @@ export class App {
   }
 
   solverOptions(layer: Layer, quality: Quality): SolveOptions {
-    const s = { ...(this.doc.solver ?? {}), ...(layer.solver ?? {}) };
-    const base = Math.max(1, s.grid_step ?? 1);
-    const draft = Math.max(base, Math.ceil(Math.max(this.doc.width, this.doc.height) / DRAFT_TARGET_PX));
-    const step = quality === 'draft' ? draft : base;
-    // As the scene engine does: samples at the grid spacing, the layer's relaxation scheme.
-    return {
-      tension: s.tension ?? 0,
-      tolerance: quality === 'draft' ? Math.max(s.tolerance ?? 0.01, 0.05) : (s.tolerance ?? 0.01),
-      grid_step: step,
-      max_cycles: (s.max_cycles as number | undefined) ?? null,
-      method: (s.scheme as string | undefined) ?? 'multigrid',
-      spacing_px: step,
-    };
+    return solverOptions(this.doc, layer, quality);
   }
 
   solveFeatures(layer: Layer, time: number): SolveFeature[] {
@@ -393,6 +383,8 @@ export class App {
     }
     if (rt && ev.tag.gen === rt.gridGen && this.posed && rt.gl) {
       rt.field = ev.field;
+      rt.notes = ev.report.notes ?? [];
+      rt.error = null;
       rt.gl.setField(ev.field);
       if (typeof ev.tag.pointerAt === 'number' && ev.tag.pointerAt > 0) this.pendingLatency.push(ev.tag.pointerAt);
       const pb = this.stats.playback;

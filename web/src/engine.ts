@@ -3,7 +3,7 @@
 // The module exports a plain C ABI: we copy arguments into its linear memory, call, and
 // copy results out. JSON results come back through a result buffer.
 
-import type { Kind, Pt } from './scene';
+import type { Kind, Method, Pt } from './scene';
 
 interface Exports {
   memory: WebAssembly.Memory;
@@ -26,6 +26,9 @@ interface Exports {
   iw_decode(ptr: number, len: number): number;
   iw_decoded_take(out: number, len: number): number;
   iw_matte_values(rgba: number, w: number, h: number, out: number): number;
+  iw_init(): void;
+  iw_panic_ptr(): number;
+  iw_panic_len(): number;
 }
 
 export class EngineError extends Error {
@@ -45,25 +48,42 @@ export interface SolveFeature {
   spline_outline?: boolean;
 }
 
+/** A request's solver settings, named as in the scene format's `solver`. */
 export interface SolveOptions {
+  /** The interpolant (default `tps`, the grid thin plate). */
+  method?: Method;
   tension?: number;
   tolerance?: number;
   grid_step?: number;
   max_cycles?: number | null;
-  method?: string;
+  /** How the grid thin plate is relaxed (default `multigrid`). */
+  scheme?: 'multigrid' | 'southwell';
+  /** A draft while dragging: `tps-exact` is then previewed on every `grid_step`-th pixel. */
+  preview?: boolean;
   /** Arc-length spacing of the samples (the scene engine uses the grid step). */
   spacing_px?: number;
 }
 
+/** What a solve did. */
 export interface SolveReport {
-  cycles: number;
-  final_change_px: number;
-  residual: number;
-  constrained_nodes: number;
-  constrained_samples: number;
-  dropped_samples: number;
-  converged: boolean;
+  method: Method;
+  /** Samples of the drawing (region interiors included). */
   samples: number;
+  /** Full sentences worth showing (e.g. a continuity matte the method ignores). */
+  notes: string[];
+  // The grid thin plate (`tps`):
+  cycles?: number;
+  final_change_px?: number;
+  residual?: number;
+  constrained_nodes?: number;
+  constrained_samples?: number;
+  dropped_samples?: number;
+  converged?: boolean;
+  // The other methods:
+  samples_used?: number;
+  line_pairs_used?: number;
+  dropped?: number;
+  ignored_matte?: boolean;
 }
 
 /** A displacement field, planar: `dx[y * width + x]`, `dy[...]`. */
@@ -95,7 +115,7 @@ export class GridHandle {
     });
   }
 
-  /** Solves the drawing; `initial` warm-starts (planar dx then dy). */
+  /** The drawing's field by `options.method`; `initial` warm-starts `tps` (planar dx then dy). */
   solve(features: SolveFeature[], options: SolveOptions, initial: FieldData | null): { field: FieldData; report: SolveReport } {
     const n = this.width * this.height;
     const e = this.engine;
@@ -133,7 +153,15 @@ export class Engine {
 
   static async fromBytes(bytes: BufferSource): Promise<Engine> {
     const { instance } = await WebAssembly.instantiate(bytes, {});
-    return new Engine(instance.exports as unknown as Exports);
+    const engine = new Engine(instance.exports as unknown as Exports);
+    engine.x.iw_init();
+    return engine;
+  }
+
+  /** The message of the engine's last panic (after a trap), or ''. */
+  panicMessage(): string {
+    const len = this.x.iw_panic_len();
+    return len ? dec.decode(this.u8(this.x.iw_panic_ptr(), len)) : '';
   }
 
   static async fromUrl(url: string): Promise<Engine> {
@@ -219,8 +247,8 @@ export class Engine {
   }
 
   /** The field methods and whether this build computes them. */
-  methods(): { name: string; available: boolean }[] {
-    return this.check(this.x.iw_methods()) as { name: string; available: boolean }[];
+  methods(): { name: Method; available: boolean }[] {
+    return this.check(this.x.iw_methods()) as { name: Method; available: boolean }[];
   }
 
   /** A feature's control points at time `t` by the engine's keyframe interpolation. */

@@ -13,6 +13,17 @@ export const INTERPOLATIONS: readonly Interpolation[] = ['smooth', 'linear', 'ho
 export const METHODS = ['tps', 'tps-exact', 'triangulation', 'beier-neely'] as const;
 export type Method = (typeof METHODS)[number];
 
+/** What each method is and what it makes of holes and cuts (DESIGN §6), for the UI. */
+export const METHOD_NOTES: Record<Method, string> = {
+  tps: 'tps: the grid thin plate of the paper. Holes in the continuity matte and cuts tear the surface.',
+  'tps-exact':
+    'tps-exact: the continuous thin-plate spline fitted to the samples. It ignores the continuity matte and cuts: the surface stays whole across holes.',
+  triangulation:
+    'triangulation: piecewise linear over a Delaunay triangulation of the samples and the image corners (held still). It ignores the continuity matte and cuts.',
+  'beier-neely':
+    'beier-neely: Beier–Neely line pairs along polylines, splines and region outlines, Shepard weights for points. It ignores the continuity matte and cuts, and needs at least one feature.',
+};
+
 export interface Key {
   t: number;
   points: Pt[];
@@ -37,6 +48,8 @@ export interface Solver {
   tension?: number;
   tolerance?: number;
   grid_step?: number;
+  max_cycles?: number;
+  scheme?: 'multigrid' | 'southwell';
   [extra: string]: unknown;
 }
 
@@ -64,6 +77,16 @@ export interface SceneDoc {
   layers: Layer[];
   features: Feature[];
   [extra: string]: unknown;
+}
+
+/** The solver settings of a layer: the scene's, with the layer's overrides. */
+export function layerSolver(doc: SceneDoc, layer: Layer): Solver {
+  return { ...(doc.solver ?? {}), ...(layer.solver ?? {}) };
+}
+
+/** The method that computes a layer's field (the layer's override, else the scene's). */
+export function layerMethod(doc: SceneDoc, layer: Layer): Method {
+  return layerSolver(doc, layer).method ?? 'tps';
 }
 
 /** Minimum number of control points for a kind (the engine's own rule). */

@@ -9,6 +9,8 @@ import { Overlay } from './overlay';
 import {
   INTERPOLATIONS,
   METHODS,
+  METHOD_NOTES,
+  layerMethod,
   SceneFileError,
   emptyScene,
   frameCount,
@@ -165,11 +167,11 @@ export class Ui {
       ),
       h('div.group.tools', {}, ...TOOLS.map((t) => h('button', { id: `tool-${t.tool}`, title: t.title, onclick: () => this.setTool(t.tool) }, t.label))),
       h('div.group', {},
-        h('label', { title: 'The interpolant that turns the drawing into a field' }, 'Method ',
+        h('label', { title: 'The interpolant that turns the drawing into a field (saved in the scene as solver.method)' }, 'Method ',
           (this.els.method = h('select#method', { onchange: (e: Event) => this.tryEdit((d) => setMethod(d, (e.target as HTMLSelectElement).value as Method)) },
             ...METHODS.map((m) => {
               const available = this.app.engine.methods().find((x) => x.name === m)?.available ?? false;
-              return h('option', { value: m, disabled: !available, title: available ? '' : 'not in this build yet' }, available ? m : `${m} (not yet)`);
+              return h('option', { value: m, disabled: !available, title: available ? METHOD_NOTES[m] : 'not in this build' }, available ? m : `${m} (not available)`);
             })))),
       ),
       h('div.group.overlays', {},
@@ -199,6 +201,7 @@ export class Ui {
       h('h2', {}, 'Feature'),
       (this.els.feature = h('div#feature')),
       h('h2', {}, 'Engine'),
+      (this.els.methodNote = h('p#method-note.hint')),
       (this.els.status = h('div#status.status')),
     );
     const timeline = h('footer.timeline', {},
@@ -426,10 +429,28 @@ export class Ui {
     const ev = this.app.lastReport;
     const s = this.app.stats;
     const med = (a: number[]) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : NaN);
+    const { doc, view } = this.store;
+    const layer = doc.layers[view.activeLayer] ?? doc.layers[0];
+    const method = layer ? layerMethod(doc, layer) : (doc.solver?.method ?? 'tps');
+    this.els.methodNote.textContent = METHOD_NOTES[method] ?? '';
+    const r = ev?.report;
+    const solved = !ev || !r
+      ? 'no solve yet'
+      : r.method === 'tps'
+        ? `last solve (tps) ${ev.ms.toFixed(1)} ms · grid step ${ev.gridStep} · ${r.cycles} cycles · ${r.samples} samples${r.dropped_samples ? ` · ${r.dropped_samples} dropped` : ''}`
+        : `last solve (${r.method}) ${ev.ms.toFixed(1)} ms · ${r.samples} samples${r.samples_used !== undefined && r.samples_used !== r.samples ? `, ${r.samples_used} used` : ''}${r.line_pairs_used ? ` · ${r.line_pairs_used} line pairs` : ''}`;
+    // The engine's remarks on the fields shown (each once, with the layers they concern).
+    const notes = new Map<string, string[]>();
+    if (this.app.posed) {
+      for (const l of doc.layers) {
+        for (const n of this.app.runtimes.get(l.name)?.notes ?? []) notes.set(n, [...(notes.get(n) ?? []), l.name]);
+      }
+    }
     const lines = [
       this.app.posed ? 'pose: the picture follows the drawing' : 'rest: the original picture',
-      ev ? `last solve ${ev.ms.toFixed(1)} ms · grid step ${ev.gridStep} · ${ev.report.cycles} cycles · ${ev.report.samples} samples${ev.report.dropped_samples ? ` · ${ev.report.dropped_samples} dropped` : ''}` : 'no solve yet',
+      solved,
       s.dragLatency.length ? `drag → frame median ${med(s.dragLatency).toFixed(0)} ms` : '',
+      ...[...notes].map(([n, layers]) => `⚠ ${doc.layers.length > 1 ? `${layers.join(', ')}: ` : ''}${n}`),
     ];
     this.els.status.textContent = lines.filter(Boolean).join('\n');
   }

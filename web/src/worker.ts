@@ -50,10 +50,11 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
   } catch (err) {
     if (err instanceof WebAssembly.RuntimeError && wasmUrl) {
       // A trap leaves the module's state unusable: start a fresh instance.
+      const why = engine?.panicMessage() || err.message;
       engine = await Engine.fromUrl(wasmUrl);
       grids.clear();
       last.clear();
-      post({ type: 'reset', message: `The engine stopped (${err.message}) and was restarted.` });
+      post({ type: 'reset', message: `The engine stopped (${why}) and was restarted.` });
     }
     const id = msg.type === 'solve' ? msg.id : null;
     const key = 'key' in msg ? msg.key : null;

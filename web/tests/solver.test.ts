@@ -25,7 +25,7 @@ class FakeWorker {
 }
 
 const field = { width: 1, height: 1, dx: new Float32Array(1), dy: new Float32Array(1) };
-const report = { cycles: 1, final_change_px: 0, residual: 0, constrained_nodes: 1, constrained_samples: 1, dropped_samples: 0, converged: true, samples: 1 };
+const report = { method: 'tps' as const, notes: [], cycles: 1, final_change_px: 0, residual: 0, constrained_nodes: 1, constrained_samples: 1, dropped_samples: 0, converged: true, samples: 1 };
 
 async function client() {
   const w = new FakeWorker();

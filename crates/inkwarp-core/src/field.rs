@@ -43,4 +43,94 @@ impl Field {
             dy: data.iter().skip(1).step_by(2).copied().collect(),
         }
     }
+
+    /// The field at every pixel of a `width × height` image, interpolated bilinearly from
+    /// `coarse`, its values on every `step`-th pixel: coarse node `(X, Y)` sits on pixel
+    /// `(min(step·X, width − 1), min(step·Y, height − 1))`, the layout of the solver's
+    /// `grid_step`. For surfaces without holes (a quick preview of a smooth interpolant);
+    /// the solver's own upsampling respects the grid's pieces.
+    ///
+    /// ```
+    /// use inkwarp_core::Field;
+    /// // 2 × 2 coarse nodes over a 5 × 3 image: a ramp in x is kept exactly.
+    /// let coarse = Field { width: 2, height: 2, dx: vec![0.0, 4.0, 0.0, 4.0], dy: vec![1.0; 4] };
+    /// let f = Field::from_coarse(&coarse, 4, 5, 3);
+    /// assert_eq!(f.at(1, 1), [1.0, 1.0]);
+    /// assert_eq!(f.at(4, 2), [4.0, 1.0]);
+    /// ```
+    ///
+    /// # Panics
+    /// If `coarse` is not `((width − 1) / step + 1) × ((height − 1) / step + 1)` (rounding
+    /// up) or `step == 0`.
+    pub fn from_coarse(coarse: &Field, step: usize, width: usize, height: usize) -> Field {
+        let nodes = |n: usize| if n == 0 { 0 } else { (n - 1).div_ceil(step) + 1 };
+        assert!(
+            step > 0 && coarse.width == nodes(width) && coarse.height == nodes(height),
+            "a {}×{} coarse field does not cover {width}×{height} pixels every {step}",
+            coarse.width,
+            coarse.height
+        );
+        // Per pixel along an axis: the coarse node before it and the weight of the next.
+        let taps = |n: usize, nc: usize| -> Vec<(usize, f32)> {
+            (0..n)
+                .map(|x| {
+                    if nc < 2 {
+                        return (0, 0.0);
+                    }
+                    let x0 = (x / step).min(nc - 2);
+                    let (a, b) = (x0 * step, ((x0 + 1) * step).min(n - 1));
+                    (x0, (x - a) as f32 / (b - a) as f32)
+                })
+                .collect()
+        };
+        let (cols, rows) = (taps(width, coarse.width), taps(height, coarse.height));
+        let mut f = Field::zeros(width, height);
+        let wc = coarse.width;
+        for (y, &(y0, ty)) in rows.iter().enumerate() {
+            let y1 = (y0 + 1).min(coarse.height - 1);
+            for (x, &(x0, tx)) in cols.iter().enumerate() {
+                let x1 = (x0 + 1).min(wc - 1);
+                let mix = |v: &[f32]| {
+                    let top = v[y0 * wc + x0] * (1.0 - tx) + v[y0 * wc + x1] * tx;
+                    let bottom = v[y1 * wc + x0] * (1.0 - tx) + v[y1 * wc + x1] * tx;
+                    top * (1.0 - ty) + bottom * ty
+                };
+                f.dx[y * width + x] = mix(&coarse.dx);
+                f.dy[y * width + x] = mix(&coarse.dy);
+            }
+        }
+        f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn from_coarse_keeps_the_nodes_and_affine_fields() {
+        // 11 × 7 pixels every 4: nodes at x = 0, 4, 8, 10 and y = 0, 4, 6.
+        let (w, h, s) = (11, 7, 4);
+        let pos = |i: usize, n: usize| (i * s).min(n - 1) as f32;
+        let coarse = Field {
+            width: 4,
+            height: 3,
+            dx: (0..12).map(|k| 0.5 * pos(k % 4, w) - 2.0 * pos(k / 4, h) + 3.0).collect(),
+            dy: (0..12).map(|k| (k * k) as f32).collect(),
+        };
+        let f = Field::from_coarse(&coarse, s, w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let exact = 0.5 * x as f32 - 2.0 * y as f32 + 3.0;
+                assert!((f.at(x, y)[0] - exact).abs() < 1e-5, "({x}, {y})");
+            }
+        }
+        for k in 0..12 {
+            let (x, y) = (pos(k % 4, w) as usize, pos(k / 4, h) as usize);
+            assert_eq!(f.at(x, y)[1], (k * k) as f32);
+        }
+        // One coarse node: a constant field.
+        let one = Field { width: 1, height: 1, dx: vec![2.0], dy: vec![-1.0] };
+        assert!(Field::from_coarse(&one, 8, 1, 1).dx == vec![2.0]);
+    }
 }

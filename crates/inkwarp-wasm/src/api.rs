@@ -4,7 +4,12 @@ use std::cell::RefCell;
 use std::collections::HashMap;
 
 use inkwarp_core::anim::{points_at, Interpolation, Key};
-use inkwarp_core::geometry::{curve_polyline, FeatureSampler, SampleOptions};
+use inkwarp_core::geometry::{curve_polyline, sample_feature, FeatureSampler, SampleOptions};
+use inkwarp_core::methods::scene::BEIER_NEELY_SEGMENT_PX;
+use inkwarp_core::methods::{
+    beier_neely_field, grid_has_discontinuities, line_pairs_from_chain, thin_plate_field,
+    triangulation_field, Controls, Interpolant, Method, MethodParams, MethodReport, ThinPlateMap,
+};
 use inkwarp_core::render::{Canvas, RgbaImage};
 use inkwarp_core::scene::images;
 use inkwarp_core::solve::{solve, SolveMethod, SolveOptions};
@@ -179,24 +184,33 @@ struct FeatureIn {
     id: Option<String>,
 }
 
+/// The solver settings of a request, named as in the scene format's `solver`.
 #[derive(Debug, Deserialize)]
 #[serde(default)]
 struct OptionsIn {
+    /// The interpolant: `tps` (the grid thin plate) or another method of DESIGN §6.
+    method: String,
     tension: f64,
     tolerance: f64,
     grid_step: usize,
     max_cycles: Option<usize>,
-    method: String,
+    /// How the grid thin plate is relaxed: `multigrid` or `southwell`.
+    scheme: String,
+    /// A draft while a point is dragged: `tps-exact` may then be previewed on every
+    /// `grid_step`-th pixel (the other methods are fast enough as they are).
+    preview: bool,
 }
 
 impl Default for OptionsIn {
     fn default() -> Self {
         OptionsIn {
+            method: "tps".into(),
             tension: 0.0,
             tolerance: 0.01,
             grid_step: 1,
             max_cycles: None,
-            method: "multigrid".into(),
+            scheme: "multigrid".into(),
+            preview: false,
         }
     }
 }
@@ -211,18 +225,19 @@ struct SolveIn {
     spacing_px: Option<f64>,
 }
 
+/// Every feature's samples (for the grid thin plate, all of them together), prepared once
+/// per rest geometry.
 fn samples_of(
     features: &[FeatureIn],
     domain: &Domain,
     spacing_px: f64,
-) -> Result<Vec<Sample>, String> {
-    let mut samples = Vec::new();
+) -> Result<Vec<Vec<Sample>>, String> {
     let mut cache = domain.samplers.borrow_mut();
     if cache.len() > MAX_SAMPLERS {
         cache.clear();
     }
+    let mut out = Vec::with_capacity(features.len());
     for (i, f) in features.iter().enumerate() {
-        let name = || f.id.clone().unwrap_or_else(|| format!("#{i}"));
         let key =
             serde_json::json!([f.kind, f.rest, f.closed, f.spline_outline, spacing_px]).to_string();
         if !cache.contains_key(&key) {
@@ -233,24 +248,100 @@ fn samples_of(
             };
             let on = (f.kind == Kind::Region).then_some(&domain.grid);
             let sampler = FeatureSampler::new(f.kind, &f.rest, &opts, on)
-                .map_err(|e| format!("Feature {}: {e}", name()))?;
+                .map_err(|e| format!("Feature {}: {e}", f.name(i)))?;
             cache.insert(key.clone(), sampler);
         }
         let posed = cache[&key]
             .sample(&f.pose)
-            .map_err(|e| format!("Feature {}: {e}", name()))?;
-        samples.extend(posed);
+            .map_err(|e| format!("Feature {}: {e}", f.name(i)))?;
+        out.push(posed);
     }
-    Ok(samples)
+    Ok(out)
 }
 
-/// Solves the thin plate for a drawing on a grid.
+impl FeatureIn {
+    fn name(&self, index: usize) -> String {
+        self.id.clone().unwrap_or_else(|| format!("#{index}"))
+    }
+}
+
+/// What the drawing hands `interpolant`, feature by feature, exactly as the scene engine
+/// hands it (`inkwarp_core::methods::scene::feature_controls`, which works on a scene's
+/// tracks rather than on posed features; a test holds the two together): every sample for
+/// `tps-exact` and `triangulation`; for `beier-neely` points as Shepard points, polylines
+/// and polyline regions as line pairs between control points, splines and spline regions
+/// as their curve in segments of about `BEIER_NEELY_SEGMENT_PX`.
+fn controls_of(
+    features: &[FeatureIn],
+    samples: Vec<Vec<Sample>>,
+    interpolant: Interpolant,
+) -> Result<Controls, String> {
+    if interpolant != Interpolant::BeierNeely {
+        return Ok(Controls::from_samples(samples.into_iter().flatten().collect()));
+    }
+    let mut controls = Controls::default();
+    for (i, (f, samples)) in features.iter().zip(samples).enumerate() {
+        let closed = f.closed || f.kind == Kind::Region;
+        match f.kind {
+            Kind::Cut => {}
+            Kind::Point => controls.samples.extend(samples),
+            Kind::Spline => controls.line_pairs.extend(line_pairs_from_chain(
+                &samples,
+                closed,
+                BEIER_NEELY_SEGMENT_PX,
+            )),
+            Kind::Region if f.spline_outline => {
+                let options = SampleOptions {
+                    closed: true,
+                    spline_outline: false,
+                    spacing_px: 1.0,
+                };
+                let chain = sample_feature(Kind::Spline, &f.rest, &f.pose, &options, None)
+                    .map_err(|e| format!("Feature {}: {e}", f.name(i)))?;
+                controls.line_pairs.extend(line_pairs_from_chain(
+                    &chain,
+                    true,
+                    BEIER_NEELY_SEGMENT_PX,
+                ));
+            }
+            Kind::Polyline | Kind::Region => {
+                let vertices: Vec<Sample> = f
+                    .rest
+                    .iter()
+                    .zip(&f.pose)
+                    .map(|(r, p)| Sample {
+                        rest: *r,
+                        displacement: [p[0] - r[0], p[1] - r[1]],
+                    })
+                    .collect();
+                controls.line_pairs.extend(line_pairs_from_chain(
+                    &vertices,
+                    closed && vertices.len() > 2,
+                    0.0,
+                ));
+            }
+        }
+    }
+    Ok(controls)
+}
+
+/// Computes the displacement field of a drawing on a grid by the request's method.
 ///
-/// `req_json`: `{"features": [{"kind", "rest", "pose", "closed", "spline_outline"}],
-/// "options": {"tension", "tolerance", "grid_step", "max_cycles", "method"}, "spacing_px"}`.
+/// `req_json`: `{"features": [{"kind", "rest", "pose", "closed", "spline_outline", "id"}],
+/// "options": {"method", "tension", "tolerance", "grid_step", "max_cycles", "scheme",
+/// "preview"}, "spacing_px"}` (options as in the scene format's `solver`, `grid_step` only
+/// for `tps`, plus `preview` for a quick draft, see [`tps_exact_preview`]; the curves are
+/// sampled every `spacing_px`, default 1, as the scene engine samples them every
+/// `grid_step`).
 /// `initial` (`2 * width * height` floats, Δx plane then Δy plane, or null) warm-starts the
-/// solve; the field is written to `out` in the same planar layout (the two may be the same
-/// buffer). The result holds the solve report as JSON. Status 0/1.
+/// grid thin plate (the other methods have nothing to start from); the field is written to
+/// `out` in the same planar layout (the two may be the same buffer).
+///
+/// The result is a report as JSON: `method`, `samples`, `notes` (full sentences worth
+/// showing, such as a matte that the method ignores) and, for `tps`, the solver's report
+/// (`cycles`, `final_change_px`, `residual`, `constrained_nodes`, `constrained_samples`,
+/// `dropped_samples`, `converged`); for the other methods `samples_used`,
+/// `line_pairs_used`, `dropped` and `ignored_matte`. Status 0/1.
 #[no_mangle]
 pub extern "C" fn iw_solve(
     handle: u32,
@@ -266,53 +357,191 @@ pub extern "C" fn iw_solve(
     let res = with_domain(handle, |domain| -> Result<serde_json::Value, String> {
         let grid = &domain.grid;
         let n = grid.width * grid.height;
-        let samples = samples_of(&req.features, domain, req.spacing_px.unwrap_or(1.0))?;
-        let method = match req.options.method.as_str() {
-            "multigrid" => SolveMethod::Multigrid,
-            "southwell" => SolveMethod::Southwell,
-            other => {
-                return Err(format!(
-                    "Unknown solver method {other:?}; use \"multigrid\" or \"southwell\"."
-                ))
+        let method = Method::from_name(&req.options.method).ok_or_else(|| {
+            format!(
+                "Unknown method {:?}; use \"tps\", \"tps-exact\", \"triangulation\" or \"beier-neely\".",
+                req.options.method
+            )
+        })?;
+        let per_feature = samples_of(&req.features, domain, req.spacing_px.unwrap_or(1.0))?;
+        let sample_count: usize = per_feature.iter().map(Vec::len).sum();
+        let (field, report) = match method.interpolant() {
+            None => solve_tps(grid, per_feature, &req.options, initial_ptr)?,
+            Some(interpolant) => {
+                let controls = controls_of(&req.features, per_feature, interpolant)?;
+                let step = req.options.grid_step;
+                let preview = req.options.preview && step > 1;
+                let (field, report) = if interpolant == Interpolant::TpsExact && preview {
+                    tps_exact_preview(&controls, grid, step)?
+                } else {
+                    method_field(interpolant, &controls, grid)?
+                };
+                let json = serde_json::json!({
+                    "samples_used": report.samples_used,
+                    "line_pairs_used": report.line_pairs_used,
+                    "dropped": report.dropped,
+                    "ignored_matte": report.ignored_matte,
+                    "notes": report.notes,
+                });
+                (field, json)
             }
         };
-        let options = SolveOptions {
-            tension: req.options.tension,
-            tolerance_px: req.options.tolerance,
-            grid_step: req.options.grid_step.max(1),
-            max_cycles: req.options.max_cycles,
-            method,
-            ..SolveOptions::default()
-        };
-        let initial = (!initial_ptr.is_null()).then(|| {
-            let data = floats(initial_ptr, 2 * n);
-            Field {
-                width: grid.width,
-                height: grid.height,
-                dx: data[..n].to_vec(),
-                dy: data[n..].to_vec(),
-            }
-        });
-        let (field, report) =
-            solve(grid, &samples, &options, initial.as_ref()).map_err(|e| e.to_string())?;
         let out = floats_mut(out_ptr, 2 * n);
         out[..n].copy_from_slice(&field.dx);
         out[n..].copy_from_slice(&field.dy);
-        Ok(serde_json::json!({
-            "cycles": report.cycles,
-            "final_change_px": report.final_change_px,
-            "residual": report.residual,
-            "constrained_nodes": report.constrained_nodes,
-            "constrained_samples": report.constrained_samples,
-            "dropped_samples": report.dropped_samples,
-            "converged": report.converged,
-            "samples": samples.len(),
-        }))
+        let mut report = report;
+        report["method"] = method.name().into();
+        report["samples"] = sample_count.into();
+        Ok(report)
     });
     match res {
         Ok(Ok(v)) => ok_json(&v),
         Ok(Err(e)) | Err(e) => fail(e),
     }
+}
+
+/// `inkwarp_core::methods::field_on_grid` with the default parameters, as the scene engine
+/// calls it, minus its wall-clock timing: `std::time::Instant::now` panics on
+/// `wasm32-unknown-unknown`, where there is no clock. Same fields, same report otherwise
+/// (a test holds the fields to the scene engine's).
+fn method_field(
+    interpolant: Interpolant,
+    controls: &Controls,
+    grid: &Grid,
+) -> Result<(Field, MethodReport), String> {
+    let (width, height) = (grid.width, grid.height);
+    let params = MethodParams::default();
+    let mut report = MethodReport {
+        method: Some(interpolant.into()),
+        ..MethodReport::default()
+    };
+    let field = match interpolant {
+        Interpolant::TpsExact => thin_plate_field(
+            &controls.all_samples(),
+            width,
+            height,
+            params.max_samples,
+            &mut report,
+        ),
+        Interpolant::Triangulation => {
+            triangulation_field(&controls.all_samples(), width, height, &mut report)
+        }
+        Interpolant::BeierNeely => beier_neely_field(
+            &controls.samples,
+            &controls.line_pairs,
+            width,
+            height,
+            &params.beier_neely,
+            &mut report,
+        ),
+    }
+    .map_err(|e| e.to_string())?;
+    note_ignored_matte(&mut report, grid);
+    Ok((field, report))
+}
+
+/// Sets `ignored_matte` and its note when `grid` has holes or cuts, as
+/// `methods::field_on_grid` does.
+fn note_ignored_matte(report: &mut MethodReport, grid: &Grid) {
+    if grid_has_discontinuities(grid) {
+        report.ignored_matte = true;
+        let method = report.method.map_or("the method", Method::name);
+        report.notes.push(format!(
+            "{method} ignores the continuity matte and cuts: its surface is continuous across holes."
+        ));
+    }
+}
+
+/// At most this many samples are fitted by a `tps-exact` preview (the final field fits up to
+/// `MethodParams::default().max_samples`): the fit costs their cube.
+const PREVIEW_MAX_SAMPLES: usize = 250;
+
+/// A quick `tps-exact` field for the editor's drafts while a point is dragged (a request
+/// with `preview` and a `grid_step` above 1): the spline fitted to at most [`PREVIEW_MAX_SAMPLES`]
+/// samples (thinned as the method thins them), evaluated on every `step`-th pixel and
+/// interpolated bilinearly between. The full fit on every pixel takes seconds at
+/// 512 × 512 in the browser; the final field (no `preview`) is [`method_field`]'s.
+fn tps_exact_preview(
+    controls: &Controls,
+    grid: &Grid,
+    step: usize,
+) -> Result<(Field, MethodReport), String> {
+    let (width, height) = (grid.width, grid.height);
+    let samples = controls.all_samples();
+    let (map, info) =
+        ThinPlateMap::fit_samples(&samples, PREVIEW_MAX_SAMPLES).map_err(|e| e.to_string())?;
+    let (wc, hc) = ((width - 1).div_ceil(step) + 1, (height - 1).div_ceil(step) + 1);
+    let mut coarse = Field::zeros(wc, hc);
+    for yc in 0..hc {
+        for xc in 0..wc {
+            let p = [
+                (xc * step).min(width - 1) as f64,
+                (yc * step).min(height - 1) as f64,
+            ];
+            let d = map.displacement(p);
+            coarse.dx[yc * wc + xc] = d[0] as f32;
+            coarse.dy[yc * wc + xc] = d[1] as f32;
+        }
+    }
+    let mut report = MethodReport {
+        method: Some(Method::TpsExact),
+        samples_given: info.given,
+        samples_used: info.used,
+        dropped: info.dropped,
+        ..MethodReport::default()
+    };
+    note_ignored_matte(&mut report, grid);
+    Ok((Field::from_coarse(&coarse, step, width, height), report))
+}
+
+/// The grid thin plate of `iw_solve`, with its report as JSON.
+fn solve_tps(
+    grid: &Grid,
+    per_feature: Vec<Vec<Sample>>,
+    options: &OptionsIn,
+    initial_ptr: *const f32,
+) -> Result<(Field, serde_json::Value), String> {
+    let n = grid.width * grid.height;
+    let samples: Vec<Sample> = per_feature.into_iter().flatten().collect();
+    let scheme = match options.scheme.as_str() {
+        "multigrid" => SolveMethod::Multigrid,
+        "southwell" => SolveMethod::Southwell,
+        other => {
+            return Err(format!(
+                "Unknown solver scheme {other:?}; use \"multigrid\" or \"southwell\"."
+            ))
+        }
+    };
+    let options = SolveOptions {
+        tension: options.tension,
+        tolerance_px: options.tolerance,
+        grid_step: options.grid_step.max(1),
+        max_cycles: options.max_cycles,
+        method: scheme,
+        ..SolveOptions::default()
+    };
+    let initial = (!initial_ptr.is_null()).then(|| {
+        let data = floats(initial_ptr, 2 * n);
+        Field {
+            width: grid.width,
+            height: grid.height,
+            dx: data[..n].to_vec(),
+            dy: data[n..].to_vec(),
+        }
+    });
+    let (field, report) =
+        solve(grid, &samples, &options, initial.as_ref()).map_err(|e| e.to_string())?;
+    let json = serde_json::json!({
+        "cycles": report.cycles,
+        "final_change_px": report.final_change_px,
+        "residual": report.residual,
+        "constrained_nodes": report.constrained_nodes,
+        "constrained_samples": report.constrained_samples,
+        "dropped_samples": report.dropped_samples,
+        "converged": report.converged,
+        "notes": Vec::<String>::new(),
+    });
+    Ok((field, json))
 }
 
 #[derive(Debug, Deserialize)]
@@ -578,20 +807,15 @@ pub extern "C" fn iw_scene_check(json_ptr: *const u8, json_len: usize) -> i32 {
     ok_json(&problems)
 }
 
-/// The field methods of DESIGN §6 and whether the editor can preview them, as
-/// `[{"name", "available"}]` in the scene format's names: the engine must compute the
-/// method and this adapter must drive it (only the grid thin plate, `tps`, so far; the
-/// others need the scene engine's controls from features, see `iw_solve`). Status 0.
+/// The field methods of DESIGN §6 and whether this build computes them, as
+/// `[{"name", "available"}]` in the scene format's names and in the order comparisons show
+/// them. Status 0.
 #[no_mangle]
 pub extern "C" fn iw_methods() -> i32 {
-    use inkwarp_core::scene::{method_available, Method};
-    let list: Vec<serde_json::Value> = ["tps", "tps-exact", "triangulation", "beier-neely"]
+    use inkwarp_core::scene::method_available;
+    let list: Vec<serde_json::Value> = Method::ALL
         .iter()
-        .map(|&name| {
-            let available =
-                Method::from_name(name).is_some_and(|m| m == Method::Tps && method_available(m));
-            serde_json::json!({ "name": name, "available": available })
-        })
+        .map(|&m| serde_json::json!({ "name": m.name(), "available": method_available(m) }))
         .collect();
     ok_json(&list)
 }

@@ -45,6 +45,33 @@ pub(crate) fn ok_json(value: &impl serde::Serialize) -> i32 {
     }
 }
 
+/// The message of the last panic (a bug in the engine), kept apart from the result buffer:
+/// a trap leaves the module's own borrows behind, so the page reads it with
+/// [`iw_panic_ptr`] / [`iw_panic_len`] and then starts a fresh instance.
+static PANIC: std::sync::Mutex<Vec<u8>> = std::sync::Mutex::new(Vec::new());
+
+/// Installs the hook that records panic messages (call once after instantiating).
+#[no_mangle]
+pub extern "C" fn iw_init() {
+    std::panic::set_hook(Box::new(|info| {
+        if let Ok(mut last) = PANIC.lock() {
+            *last = info.to_string().into_bytes();
+        }
+    }));
+}
+
+/// Pointer to the message of the last panic (UTF-8; empty when there was none).
+#[no_mangle]
+pub extern "C" fn iw_panic_ptr() -> *const u8 {
+    PANIC.lock().map_or(std::ptr::null(), |m| m.as_ptr())
+}
+
+/// Length in bytes of the message of the last panic.
+#[no_mangle]
+pub extern "C" fn iw_panic_len() -> usize {
+    PANIC.lock().map_or(0, |m| m.len())
+}
+
 /// Pointer to the result of the last call (JSON, UTF-8).
 #[no_mangle]
 pub extern "C" fn iw_result_ptr() -> *const u8 {
@@ -209,6 +236,131 @@ mod tests {
             .as_str()
             .unwrap()
             .contains("no grid with handle 999"));
+        let h = iw_grid_new(4, 4, std::ptr::null(), 0, std::ptr::null(), 0);
+        let (req, req_len) = put(br#"{"features": [], "options": {"method": "bicubic"}}"#);
+        assert_eq!(iw_solve(h, req, req_len, std::ptr::null(), std::ptr::null_mut()), 1);
+        assert!(result()["error"].as_str().unwrap().contains("Unknown method \"bicubic\""));
+        let (req, req_len) = put(br#"{"features": [], "options": {"scheme": "jacobi"}}"#);
+        assert_eq!(iw_solve(h, req, req_len, std::ptr::null(), std::ptr::null_mut()), 1);
+        assert!(result()["error"].as_str().unwrap().contains("Unknown solver scheme \"jacobi\""));
+        iw_grid_free(h);
+        let (req, req_len) = put(br#"{"features": []}"#);
+        assert_eq!(
+            iw_solve(999, req, req_len, std::ptr::null(), std::ptr::null_mut()),
+            1
+        );
+        assert!(result()["error"]
+            .as_str()
+            .unwrap()
+            .contains("no grid with handle 999"));
+    }
+
+    /// A drawing with every kind of feature, as a scene and as `iw_solve`'s features at
+    /// time `t` (posed by the scene itself).
+    fn every_kind(t: f64) -> (inkwarp_core::scene::Scene, serde_json::Value, serde_json::Value) {
+        let features = serde_json::json!([
+            {"id": "pin", "kind": "point", "rest": [[3, 3]]},
+            {"id": "pull", "kind": "point", "rest": [[40, 30]], "keys": [{"t": 1, "points": [[43, 27]]}]},
+            {"id": "bone", "kind": "polyline", "rest": [[6, 20], [14, 24], [22, 20]],
+             "keys": [{"t": 1, "points": [[6, 22], [15, 28], [23, 21]]}]},
+            {"id": "loop", "kind": "polyline", "closed": true, "rest": [[30, 5], [38, 6], [34, 12]],
+             "keys": [{"t": 1, "points": [[31, 6], [39, 8], [34, 14]]}]},
+            {"id": "brow", "kind": "spline", "rest": [[8, 8], [16, 5], [24, 8]],
+             "keys": [{"t": 1, "points": [[8, 6], [16, 2], [24, 7]]}]},
+            {"id": "patch", "kind": "region", "rest": [[8, 28], [16, 28], [16, 36], [8, 36]],
+             "keys": [{"t": 1, "points": [[9, 29], [17, 29], [17, 37], [9, 36]]}]},
+            {"id": "blob", "kind": "region", "curve": "spline", "rest": [[28, 22], [36, 24], [32, 32]],
+             "keys": [{"t": 1, "points": [[27, 21], [37, 24], [31, 33]]}]},
+            {"id": "tear", "kind": "cut", "rest": [[25.5, 14], [25.5, 38]]}
+        ]);
+        let doc = serde_json::json!({"inkwarp": 1, "width": 48, "height": 40, "layers": [{"name": "a"}],
+                                     "features": features});
+        let scene = inkwarp_core::scene::Scene::from_json(&doc.to_string(), &mut inkwarp_core::scene::no_files)
+            .unwrap();
+        let posed: Vec<serde_json::Value> = features
+            .as_array()
+            .unwrap()
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f["kind"] != "cut")
+            .map(|(i, f)| {
+                serde_json::json!({
+                    "id": f["id"], "kind": f["kind"], "rest": f["rest"], "pose": scene.pose_at(i, t),
+                    "closed": f["kind"] == "region" || f["closed"] == true,
+                    "spline_outline": f["curve"] == "spline",
+                })
+            })
+            .collect();
+        let cuts = serde_json::json!([features[7]["rest"]]);
+        (scene, serde_json::Value::from(posed), cuts)
+    }
+
+    #[test]
+    fn every_method_gives_the_scene_engines_field() {
+        use inkwarp_core::methods::Method;
+        let (scene, features, cuts) = every_kind(0.6);
+        let (w, h) = (48, 40);
+        let (cuts, cuts_len) = put(cuts.to_string().as_bytes());
+        let grid = iw_grid_new(w, h, std::ptr::null(), 0, cuts, cuts_len);
+        let out = iw_alloc(8 * w * h) as *mut f32;
+        let mut fields = Vec::new();
+        for method in Method::ALL {
+            let expected = scene.layer_field_with(0, 0.6, None, Some(method)).unwrap().field;
+            let req = serde_json::json!({"features": features, "options": {"method": method.name()}});
+            let (req, req_len) = put(req.to_string().as_bytes());
+            assert_eq!(iw_solve(grid, req, req_len, std::ptr::null(), out), 0, "{method}: {}", result());
+            let report = result();
+            assert_eq!(report["method"], method.name());
+            let got = floats(out, 2 * w * h);
+            let same = got[..w * h] == expected.dx[..] && got[w * h..] == expected.dy[..];
+            assert!(same, "{method}: the adapter's field differs from the scene engine's");
+            // The methods that know nothing of cuts say so.
+            let notes = report["notes"].as_array().unwrap();
+            assert_eq!(
+                notes.iter().any(|n| n.as_str().unwrap().contains("ignores the continuity matte")),
+                method != Method::Tps,
+                "{method}: {notes:?}"
+            );
+            fields.push(got.to_vec());
+        }
+        // Four different surfaces.
+        for i in 0..fields.len() {
+            for j in 0..i {
+                assert_ne!(fields[i], fields[j], "methods {i} and {j} give the same field");
+            }
+        }
+        iw_grid_free(grid);
+    }
+
+    #[test]
+    fn a_tps_exact_draft_is_close_to_the_final_field() {
+        let (_, features, cuts) = every_kind(0.6);
+        let (w, h) = (48, 40);
+        let (cuts, cuts_len) = put(cuts.to_string().as_bytes());
+        let grid = iw_grid_new(w, h, std::ptr::null(), 0, cuts, cuts_len);
+        let field = |step: usize, preview: bool| {
+            let out = iw_alloc(8 * w * h) as *mut f32;
+            let req = serde_json::json!({"features": features, "spacing_px": 1,
+                                         "options": {"method": "tps-exact", "grid_step": step, "preview": preview}});
+            let (req, req_len) = put(req.to_string().as_bytes());
+            assert_eq!(iw_solve(grid, req, req_len, std::ptr::null(), out), 0, "{}", result());
+            (floats(out, 2 * w * h).to_vec(), result())
+        };
+        let (exact, _) = field(1, false);
+        // grid_step means nothing to tps-exact but in a preview.
+        assert_eq!(field(4, false).0, exact);
+        let (draft, report) = field(4, true);
+        // At most 250 samples fitted, evaluated on every 4th pixel and bilinear between.
+        // The drawing moves by up to 4 px; the draft is a preview within a pixel of the
+        // final field, and much closer on average.
+        assert!(report["samples_used"].as_u64().unwrap() <= 250, "{report}");
+        assert!(report["notes"][0].as_str().unwrap().contains("tps-exact ignores the continuity matte"));
+        let diff: Vec<f32> = exact.iter().zip(&draft).map(|(a, b)| (a - b).abs()).collect();
+        let worst = diff.iter().copied().fold(0.0f32, f32::max);
+        let mean = diff.iter().sum::<f32>() / diff.len() as f32;
+        assert!(worst < 1.0 && mean < 0.1, "the draft is {worst} px off at worst, {mean} px on average");
+        assert!(worst > 0.0, "the draft is a different computation");
+        iw_grid_free(grid);
     }
 
     #[test]
@@ -218,8 +370,13 @@ mod tests {
         assert_eq!(result(), serde_json::json!([[2.0, 1.0]]));
         assert_eq!(iw_methods(), 0);
         assert_eq!(
-            result()[0],
-            serde_json::json!({"name": "tps", "available": true})
+            result(),
+            serde_json::json!([
+                {"name": "tps", "available": true},
+                {"name": "tps-exact", "available": true},
+                {"name": "triangulation", "available": true},
+                {"name": "beier-neely", "available": true}
+            ])
         );
     }
 }
