@@ -173,6 +173,9 @@ fn transfer_keys(
     transfer::transfer_keys(&s, &t).map_err(value_error)
 }
 
+/// One posed feature for overlays: id, kind and its polyline.
+type DrawingLine<'py> = (String, &'static str, Bound<'py, PyArray2<f64>>);
+
 /// posed_drawing(doc_json, time, spacing=1.0) -> list of (id, kind, (K, 2) float64 array)
 ///
 /// The scene document's drawing at `time`, every curve as a dense polyline (overlays).
@@ -183,7 +186,7 @@ fn posed_drawing<'py>(
     doc_json: &str,
     time: f64,
     spacing: f64,
-) -> PyResult<Vec<(String, &'static str, Bound<'py, PyArray2<f64>>)>> {
+) -> PyResult<Vec<DrawingLine<'py>>> {
     let doc = inkwarp_core::scene::parse_doc(doc_json).map_err(value_error)?;
     methods::scene::posed_drawing(&doc, time, spacing)
         .into_iter()
