@@ -124,7 +124,7 @@ def compare(
     ...                  {"id": "line", "kind": "polyline", "rest": [[2, 2], [20, 3]]}]})
     >>> c = inkwarp.compare(scene, 1.0, "tps-exact,beier-neely", a=4.0, max_samples=3)
     >>> c.fields["beier-neely"].shape, c.notes["tps-exact"][0][:21]
-    ((16, 24, 2), 'tps-exact thinned 20 ')
+    ((16, 24, 2), 'tps-exact thinned 21 ')
     """
     from inkwarp import Scene
 

@@ -204,8 +204,8 @@ impl SceneCore {
 
     /// The frame at `time` with `overrides` (solver settings as JSON, applied over every
     /// layer's own, e.g. `{"method": "beier-neely", "beier_neely": {"a": 2}}`), the field
-    /// of layer `layer` (an index) and the notes of every layer's interpolant: what
-    /// `inkwarp.compare` shows. Bad overrides raise `inkwarp.SceneError` with their paths.
+    /// of layer `layer` (an index) and the notes of every drawn layer's interpolant (and
+    /// of layer `layer`'s): what `inkwarp.compare` shows. Bad overrides raise `inkwarp.SceneError` with their paths.
     #[pyo3(signature = (time, layer, overrides=None))]
     fn render_detailed<'py>(
         &self,
@@ -226,10 +226,15 @@ impl SceneCore {
         let scene = Arc::clone(&self.scene);
         let result = py.detach(move || -> Result<_, SceneError> {
             let rendered = scene.render_overridden(time, &overrides)?;
-            let notes = rendered.notes(&scene);
+            let mut notes = rendered.notes(&scene);
             let field = match rendered.layers[layer].as_ref() {
                 Some(solved) => solved.field.clone(),
-                None => scene.layer_field_overridden(layer, time, None, &overrides)?.field,
+                None => {
+                    // A layer that is not drawn (no image, or hidden) is solved here alone.
+                    let solved = scene.layer_field_overridden(layer, time, None, &overrides)?;
+                    notes.extend(scene.layer_notes(layer, &solved));
+                    solved.field
+                }
             };
             Ok((rendered.image, field, notes))
         });

@@ -129,14 +129,12 @@ impl RenderedFrame {
     /// Every layer's notes, in layer order; each is prefixed with its layer's name when
     /// `scene` has more than one layer.
     pub fn notes(&self, scene: &Scene) -> Vec<String> {
-        let named = scene.layers().len() > 1;
-        let mut out = Vec::new();
-        for (layer, solved) in scene.layers().iter().zip(&self.layers) {
-            for note in solved.iter().flat_map(|s| s.notes()) {
-                out.push(if named { format!("layer \"{}\": {note}", layer.name) } else { note.clone() });
-            }
-        }
-        out
+        self.layers
+            .iter()
+            .enumerate()
+            .filter_map(|(j, solved)| solved.as_ref().map(|s| scene.layer_notes(j, s)))
+            .flatten()
+            .collect()
     }
 }
 
@@ -250,6 +248,18 @@ impl Scene {
                 format!("at t = {time_s} s: {e}"),
             )
         })
+    }
+
+    /// The notes of `solved`, a field of layer `layer`, each prefixed with the layer's name
+    /// when the scene has more than one layer.
+    pub fn layer_notes(&self, layer: usize, solved: &LayerSolve) -> Vec<String> {
+        let named = self.layers().len() > 1;
+        let name = &self.layers()[layer].name;
+        solved
+            .notes()
+            .iter()
+            .map(|note| if named { format!("layer \"{name}\": {note}") } else { note.clone() })
+            .collect()
     }
 
     /// The frame at `time_s`, every drawn layer's field solved cold with `overrides`
