@@ -249,3 +249,35 @@ def test_the_transferred_cat_shuts_its_eyes_at_the_blink():
     left, right = open_pixels(0.0)
     assert left > 2000 and right > 1000
     assert open_pixels(1.05) == (0, 0)
+
+
+def test_a_feature_traced_the_other_way_round_is_a_warning_naming_it():
+    source = face_scene()
+    target = retraced(source, lambda p: 1.1 * p)
+    target["features"][2]["rest"].reverse()  # the brow, end to start
+    with pytest.warns(inkwarp.InkwarpWarning, match=r'folds over near .* by feature "brow"'):
+        inkwarp.transfer_dict(source, target)
+
+
+def test_the_example_drawing_once_folded_the_map(tmp_path):
+    # The cat's left brow as it was first traced (outer end first, the face's inner end
+    # first) is caught.
+    face, cat = _example_docs()
+    for f in cat["features"]:
+        if f["id"] == "brow_l":
+            f["rest"].reverse()
+    with pytest.warns(inkwarp.InkwarpWarning, match='by feature "brow_l"'):
+        inkwarp.transfer_dict(face, cat)
+
+
+def test_cli_prints_the_fold_warning_on_one_line_and_writes_the_scene(tmp_path, capsys):
+    source = face_scene()
+    target = retraced(source, lambda p: p)
+    target["features"][2]["rest"].reverse()
+    (tmp_path / "s.json").write_text(json.dumps(source))
+    (tmp_path / "t.json").write_text(json.dumps(target))
+    code = main(["transfer", "--source", str(tmp_path / "s.json"), "--target", str(tmp_path / "t.json"),
+                 "-o", str(tmp_path / "o.json"), "--quiet"])
+    assert code == 0 and (tmp_path / "o.json").exists()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith('inkwarp transfer: warning: ') and '"brow"' in err

@@ -107,6 +107,10 @@ def transfer_keys(
     source: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
     target: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
 ) -> list[list[list[tuple[float, float]]] | None]: ...
+def transfer_fold(
+    source: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
+    target: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
+) -> tuple[float, float, str, str] | None: ...
 
     mask: npt.NDArray[np.uint8] | None,
     cuts: list[npt.NDArray[np.float64]],

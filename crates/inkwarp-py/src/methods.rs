@@ -173,6 +173,19 @@ fn transfer_keys(
     transfer::transfer_keys(&s, &t).map_err(value_error)
 }
 
+/// transfer_fold(source, target) -> (x, y, feature_id, message) or None
+///
+/// Where the transfer map folds the source's drawing over (see `transfer::find_fold`).
+#[pyfunction]
+fn transfer_fold(
+    source: Vec<FeatureTuple>,
+    target: Vec<FeatureTuple>,
+) -> PyResult<Option<(f64, f64, String, String)>> {
+    let (s, t) = (features_of(source)?, features_of(target)?);
+    let fold = transfer::find_fold(&s, &t).map_err(value_error)?;
+    Ok(fold.map(|f| (f.at[0], f.at[1], f.feature.clone(), f.to_string())))
+}
+
 /// One posed feature for overlays: id, kind and its polyline.
 type DrawingLine<'py> = (String, &'static str, Bound<'py, PyArray2<f64>>);
 
@@ -202,6 +215,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(posed_drawing, m)?)?;
     m.add_function(wrap_pyfunction!(interpolate_field, m)?)?;
     m.add_function(wrap_pyfunction!(transfer_keys, m)?)?;
+    m.add_function(wrap_pyfunction!(transfer_fold, m)?)?;
     m.add_class::<PyThinPlateMap>()?;
     Ok(())
 }
