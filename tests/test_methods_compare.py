@@ -153,3 +153,116 @@ def test_the_committed_plates_exist_and_the_page_shows_them():
     assert (EXAMPLES / "checkerboard-plates.png").is_file()
     page = (EXAMPLES.parents[1] / "docs" / "concepts" / "comparison.md").read_text()
     assert "examples/checkerboard-hole/checkerboard-plates.png" in page
+
+
+# ---- method settings and notes through scenes ----------------------------------------------
+
+
+def test_the_notes_of_each_method_reach_the_comparison(comparisons):
+    notes = comparisons[True].notes
+    assert notes["tps"] == []
+    for method in ("tps-exact", "triangulation", "beier-neely"):
+        assert notes[method] == [
+            f"{method} ignores the continuity matte and cuts: its surface is continuous across holes."
+        ]
+    # Without the hole there is nothing to ignore.
+    assert all(n == [] for n in comparisons[False].notes.values())
+
+
+def test_the_sheet_prints_the_notes_under_the_frames(comparisons):
+    fig = inkwarp.comparison_sheet(comparisons[True])
+    labels = [ax.get_xlabel() for ax in fig.axes]
+    assert sum("ignores the continuity matte" in label.replace("\n", " ") for label in labels) == 3
+
+
+def test_a_thinning_note_and_the_cap_from_the_scene_file(tmp_path):
+    path = checkerboard_scene(tmp_path, hole=False)
+    doc = json.loads(path.read_text())
+    doc["solver"]["tps_exact"] = {"max_samples": 40}
+    path.write_text(json.dumps(doc))
+    capped = inkwarp.compare(path, 1.0, "tps-exact")  # 4 × 63 edge samples and 9 points
+    assert capped.notes["tps-exact"] == [
+        "tps-exact thinned 261 distinct sample positions to 40 by farthest-point sampling (max_samples)."
+    ]
+    # compare's keyword replaces the scene's cap.
+    assert "to 25 " in inkwarp.compare(path, 1.0, "tps-exact", max_samples=25).notes["tps-exact"][0]
+    assert inkwarp.compare(path, 1.0, "tps-exact", max_samples=5000).notes["tps-exact"] == []
+
+
+def test_beier_neely_weights_from_the_scene_file_and_from_compare(tmp_path):
+    path = checkerboard_scene(tmp_path, hole=True, method="beier-neely")
+    default = inkwarp.Scene.load(path).field(time=1.0)
+    doc = json.loads(path.read_text())
+    doc["solver"]["beier_neely"] = {"a": 6.0, "b": 1.0, "p": 0.5}
+    path.write_text(json.dumps(doc))
+    weighted = inkwarp.Scene.load(path).field(time=1.0)
+    assert np.abs(weighted - default).max() > 0.5
+    # The scene's weights are the field inkwarp.interpolate gives with them; compare uses
+    # them, and its keywords replace them (the others kept).
+    compared = inkwarp.compare(path, 1.0, "beier-neely")
+    np.testing.assert_array_equal(compared.fields["beier-neely"], weighted)
+    back = inkwarp.compare(path, 1.0, "beier-neely", a=1.0, b=2.0, p=0.0)
+    np.testing.assert_array_equal(back.fields["beier-neely"], default)
+    only_a = inkwarp.compare(path, 1.0, "beier-neely", a=1.0)
+    doc["solver"]["beier_neely"] = {"a": 1.0, "b": 1.0, "p": 0.5}
+    path.write_text(json.dumps(doc))
+    np.testing.assert_array_equal(only_a.fields["beier-neely"], inkwarp.Scene.load(path).field(time=1.0))
+
+
+@pytest.mark.parametrize(
+    "settings, path",
+    [
+        ({"beier_neely": {"a": 0}}, "solver.beier_neely.a"),
+        ({"beier_neely": {"p": -1}}, "solver.beier_neely.p"),
+        ({"beier_neely": {"alpha": 1}}, "solver.beier_neely.alpha"),
+        ({"tps_exact": {"max_samples": 0}}, "solver.tps_exact.max_samples"),
+    ],
+)
+def test_bad_method_settings_name_their_place(tmp_path, settings, path):
+    scene = json.loads(checkerboard_scene(tmp_path, hole=True).read_text())
+    scene["solver"].update(settings)
+    problems = inkwarp.validate_scene(scene, base_dir=tmp_path)
+    assert [p for p, _ in problems] == [path]
+    with pytest.raises(inkwarp.SceneError) as err:
+        inkwarp.Scene.from_dict(scene, base_dir=tmp_path)
+    assert err.value.path == path
+
+
+def test_bad_settings_for_compare_are_scene_errors(tmp_path):
+    path = checkerboard_scene(tmp_path, hole=True)
+    with pytest.raises(inkwarp.SceneError, match=r"solver\.beier_neely\.b: .*≥ 0") as err:
+        inkwarp.compare(path, 1.0, "beier-neely", b=-2)
+    assert err.value.path == "solver.beier_neely.b"
+    with pytest.raises(inkwarp.SceneError, match="max_samples"):
+        inkwarp.compare(path, 1.0, "tps-exact", max_samples=9000)
+    with pytest.raises(ValueError, match="finite"):
+        inkwarp.compare(path, 1.0, "beier-neely", a=float("nan"))
+
+
+def test_the_schema_has_the_method_settings():
+    solver = inkwarp.scene_schema()["$defs"]["SolverDoc"]["properties"]
+    assert solver["beier_neely"]["default"] == {"a": 1.0, "b": 2.0, "p": 0.0}
+    assert solver["tps_exact"]["default"] == {"max_samples": 1000}
+
+
+def test_cli_compare_takes_method_settings_and_prints_notes(tmp_path, capsys):
+    from inkwarp.cli import main
+
+    scene = checkerboard_scene(tmp_path, hole=True)
+    out = tmp_path / "sheet.png"
+    args = ["compare", str(scene), "--time", "1", "--methods", "tps-exact,beier-neely", "-o", str(out)]
+    assert main(args + ["--beier-neely", "a=3,p=0.25", "--max-samples", "30"]) == 0
+    printed = capsys.readouterr().out
+    assert "tps-exact: tps-exact thinned" in printed and "to 30 by" in printed
+    assert "beier-neely: beier-neely ignores the continuity matte" in printed
+    assert main(args + ["--beier-neely", "a=0"]) == 2
+    assert "solver.beier_neely.a" in capsys.readouterr().err
+    assert main(args + ["--beier-neely", "c=1"]) == 2
+    assert "a=A,b=B,p=P" in capsys.readouterr().err
+
+
+def test_compare_draws_the_top_layer_of_a_layered_scene():
+    cat = inkwarp.Scene.load(Path(__file__).resolve().parents[1] / "examples" / "cat" / "scene.json")
+    c = inkwarp.compare(cat, 0.95, "tps-exact")
+    np.testing.assert_array_equal(c.fields["tps-exact"], cat.field(time=0.95, layer="face", method="tps-exact"))
+    assert c.notes["tps-exact"][0].startswith('layer "face": tps-exact thinned')

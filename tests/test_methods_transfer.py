@@ -173,3 +173,111 @@ def test_transfer_returns_a_scene(tmp_path):
                              ROOT / "examples" / "transfer" / "cat-target.json")
     assert isinstance(scene, inkwarp.Scene)
     assert (scene.width, scene.height) == (451, 300)
+
+
+EXAMPLE = ROOT / "examples" / "transfer"
+
+
+def _example_docs():
+    face = json.loads((ROOT / "examples" / "face" / "scene.json").read_text())
+    cat = json.loads((EXAMPLE / "cat-target.json").read_text())
+    return face, cat
+
+
+def test_the_transfer_example_target_is_what_its_script_draws():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("make_target", EXAMPLE / "make_target.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    committed = json.loads((EXAMPLE / "cat-target.json").read_text())
+    assert module.scene() == committed, "run: python examples/transfer/make_target.py"
+
+
+def test_the_transfer_example_map_keeps_its_orientation_over_the_face():
+    # A matched curve traced the other way round (the cat's left brow once ran outer to
+    # inner, the face's inner to outer) folds the map over on itself, and every key with
+    # it: the determinant of W's Jacobian goes negative near the feature.
+    face, cat = _example_docs()
+    by_id = {f["id"]: f for f in cat["features"]}
+    shared = [f for f in face["features"] if f["kind"] != "cut"]
+    w = inkwarp.ThinPlateMap([p for f in shared for p in f["rest"]],
+                             [p for f in shared for p in by_id[f["id"]]["rest"]])
+    head = np.array(next(f for f in face["features"] if f["id"] == "head")["rest"])
+    lo, hi = head.min(axis=0), head.max(axis=0)
+    ys, xs = np.mgrid[lo[1]:hi[1]:2.0, lo[0]:hi[0]:2.0]
+    p = np.stack([xs.ravel(), ys.ravel()], axis=1)
+    h = 0.5
+    d_dx = (w(p + [h, 0]) - w(p - [h, 0])) / (2 * h)
+    d_dy = (w(p + [0, h]) - w(p - [0, h])) / (2 * h)
+    det = d_dx[:, 0] * d_dy[:, 1] - d_dx[:, 1] * d_dy[:, 0]
+    assert det.min() > 0.1, f"W folds near {p[det.argmin()].tolist()} (det {det.min():.2f})"
+
+
+def test_the_transfer_example_lids_follow_the_cats_traced_lids():
+    # The 5-point lids must lie on the fur just outside the eye holes, as the cat's own
+    # 9-point lids (which the holes were cut inside) do.
+    from inkwarp import _inkwarp
+
+    def curve(points):
+        doc = {"inkwarp": 1, "width": 8, "height": 8, "layers": [{"name": "a"}],
+               "features": [{"id": "c", "kind": "spline", "rest": points}]}
+        return np.asarray(_inkwarp.posed_drawing(json.dumps(doc), 0.0, 0.5)[0][2])
+
+    _, cat = _example_docs()
+    traced = {f["id"]: f["rest"] for f in json.loads((ROOT / "examples" / "cat" / "scene.json").read_text())["features"]}
+    for f in cat["features"]:
+        if f["id"].startswith("lid_"):
+            a, b = curve(f["rest"]), curve(traced[f["id"]])
+            d = np.hypot(*(a[:, None, :] - b[None, :, :]).transpose(2, 0, 1))
+            assert max(d.min(axis=0).max(), d.min(axis=1).max()) < 0.8, f["id"]
+
+
+def test_the_transferred_cat_shuts_its_eyes_at_the_blink():
+    # The fur layer alone over magenta: the eye holes show as magenta when open, and the
+    # closed lids cover them completely at the face's blink (t = 1.05 s).
+    doc = json.loads((EXAMPLE / "cat-animated.json").read_text())
+    doc["background"] = [255, 0, 255, 255]
+    doc["layers"] = [layer for layer in doc["layers"] if layer["name"] == "face"]
+    scene = inkwarp.Scene.from_dict(doc, base_dir=EXAMPLE)
+
+    def open_pixels(time):
+        frame = scene.render(time=time)[:200]  # above the mouth, which opens in a smile
+        hole = np.all(frame[..., :3] == [255, 0, 255], axis=-1)
+        return int(hole[:, :240].sum()), int(hole[:, 240:].sum())
+
+    left, right = open_pixels(0.0)
+    assert left > 2000 and right > 1000
+    assert open_pixels(1.05) == (0, 0)
+
+
+def test_a_feature_traced_the_other_way_round_is_a_warning_naming_it():
+    source = face_scene()
+    target = retraced(source, lambda p: 1.1 * p)
+    target["features"][2]["rest"].reverse()  # the brow, end to start
+    with pytest.warns(inkwarp.InkwarpWarning, match=r'folds over near .* by feature "brow"'):
+        inkwarp.transfer_dict(source, target)
+
+
+def test_the_example_drawing_once_folded_the_map(tmp_path):
+    # The cat's left brow as it was first traced (outer end first, the face's inner end
+    # first) is caught.
+    face, cat = _example_docs()
+    for f in cat["features"]:
+        if f["id"] == "brow_l":
+            f["rest"].reverse()
+    with pytest.warns(inkwarp.InkwarpWarning, match='by feature "brow_l"'):
+        inkwarp.transfer_dict(face, cat)
+
+
+def test_cli_prints_the_fold_warning_on_one_line_and_writes_the_scene(tmp_path, capsys):
+    source = face_scene()
+    target = retraced(source, lambda p: p)
+    target["features"][2]["rest"].reverse()
+    (tmp_path / "s.json").write_text(json.dumps(source))
+    (tmp_path / "t.json").write_text(json.dumps(target))
+    code = main(["transfer", "--source", str(tmp_path / "s.json"), "--target", str(tmp_path / "t.json"),
+                 "-o", str(tmp_path / "o.json"), "--quiet"])
+    assert code == 0 and (tmp_path / "o.json").exists()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith('inkwarp transfer: warning: ') and '"brow"' in err

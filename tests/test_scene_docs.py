@@ -21,6 +21,8 @@ BEGIN, END = "<!-- BEGIN GENERATED FROM THE SCHEMA -->", "<!-- END GENERATED FRO
 OBJECTS = [  # (schema definition, heading)
     (None, "Scene (the top level)"),
     ("SolverDoc", "solver"),
+    ("BeierNeelyDoc", "solver.beier_neely"),
+    ("TpsExactDoc", "solver.tps_exact"),
     ("SolverOverrides", "layers[].solver"),
     ("LayerDoc", "layers[]"),
     ("FeatureDoc", "features[]"),

@@ -50,6 +50,11 @@ class SceneCore:
     def render(self, time: float, method: str | None = None) -> npt.NDArray[np.uint8]: ...
     def field(self, layer: int, time: float, method: str | None = None) -> npt.NDArray[np.float32]: ...
     def frames(self, start: int, stop: int, threads: int = 0, method: str | None = None) -> FrameIter: ...
+    def render_detailed(
+        self, time: float, layer: int, overrides: str | None = None
+    ) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.float32], list[str]]:
+        """The frame with solver `overrides` (JSON) over every layer's own, layer `layer`'s
+        field, and every layer's interpolant notes."""
 
 class FrameIter:
     """Frames `(index, RGBA uint8 (H, W, 4))` in order, rendered on worker threads."""
@@ -102,6 +107,10 @@ def transfer_keys(
     source: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
     target: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
 ) -> list[list[list[tuple[float, float]]] | None]: ...
+def transfer_fold(
+    source: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
+    target: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
+) -> tuple[float, float, str, str] | None: ...
 
     mask: npt.NDArray[np.uint8] | None,
     cuts: list[npt.NDArray[np.float64]],

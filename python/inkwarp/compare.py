@@ -9,7 +9,10 @@ a hill-shaded height map with contours, as the paper draws its ΔX surfaces).
 
 from __future__ import annotations
 
+import json
+import math
 import os
+import textwrap
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Sequence
 
@@ -71,7 +74,11 @@ def compare(
     time: float = 0.0,
     methods: Iterable[str] | str | None = None,
     *,
-    layer: str | None = None,
+    layer: str | int | None = None,
+    a: float | None = None,
+    b: float | None = None,
+    p: float | None = None,
+    max_samples: int | None = None,
 ) -> Comparison:
     """Render ``scene`` at ``time`` with each method.
 
@@ -84,34 +91,88 @@ def compare(
     methods : sequence of str or str, optional
         Methods to compare (a comma-separated string is accepted). Default: all of
         ``"tps"``, ``"tps-exact"``, ``"triangulation"``, ``"beier-neely"``.
-    layer : str, optional
-        The layer whose field is returned (default: the scene's first layer).
+    layer : str or int, optional
+        The layer whose field is returned (default: the top layer that is drawn).
+    a, b, p : float, optional
+        Beier–Neely's weights for every layer, instead of the scene's
+        ``solver.beier_neely`` (each one left out keeps the scene's value; see
+        :func:`inkwarp.interpolate`).
+    max_samples : int, optional
+        ``tps-exact``'s sample cap for every layer, instead of the scene's
+        ``solver.tps_exact.max_samples``.
 
     Returns
     -------
     Comparison
-        Frames, fields and the posed drawing.
+        Frames, fields, the posed drawing, and per method the notes of its interpolant
+        (``"tps-exact ignores the continuity matte and cuts: ..."``, a thinning), each
+        prefixed with its layer's name when the scene has several layers.
+
+    Raises
+    ------
+    inkwarp.SceneError
+        When a weight or the sample cap is out of range (its path, such as
+        ``solver.beier_neely.a``, says which).
+
+    Examples
+    --------
+    >>> import inkwarp
+    >>> scene = inkwarp.Scene.from_dict({
+    ...     "inkwarp": 1, "width": 24, "height": 16, "layers": [{"name": "main"}],
+    ...     "features": [{"id": "p", "kind": "point", "rest": [[8, 8]],
+    ...                   "keys": [{"t": 1, "points": [[10, 8]]}]},
+    ...                  {"id": "line", "kind": "polyline", "rest": [[2, 2], [20, 3]]}]})
+    >>> c = inkwarp.compare(scene, 1.0, "tps-exact,beier-neely", a=4.0, max_samples=3)
+    >>> c.fields["beier-neely"].shape, c.notes["tps-exact"][0][:21]
+    ((16, 24, 2), 'tps-exact thinned 21 ')
     """
     from inkwarp import Scene
 
     if isinstance(scene, (str, os.PathLike)):
         scene = Scene.load(scene)
     chosen = _methods(methods)
+    index = _compared_layer(scene, layer)
+    settings = _settings(scene, a=a, b=b, p=p, max_samples=max_samples)
     frames: dict[str, np.ndarray] = {}
     fields: dict[str, np.ndarray] = {}
     notes: dict[str, list[str]] = {}
     for method in chosen:
-        frames[method] = np.asarray(scene.render(time=time, method=method))
-        fields[method] = np.asarray(scene.field(time=time, layer=layer, method=method))
-        notes[method] = list(getattr(scene, "last_notes", []) or [])
+        overrides = json.dumps({"method": method, **settings})
+        frame, field, said = scene._core.render_detailed(float(time), index, overrides)
+        frames[method], fields[method], notes[method] = np.asarray(frame), np.asarray(field), list(said)
     return Comparison(time=float(time), methods=chosen, frames=frames, fields=fields,
                       drawing=_drawing(scene, time), notes=notes)
 
 
+def _compared_layer(scene: Any, layer: str | int | None) -> int:
+    """The index of ``layer``, or of the top layer that is drawn (visible, with an image)."""
+    if layer is not None:
+        return int(scene._layer_index(layer))
+    drawn = [j for j, d in enumerate(scene.to_dict()["layers"]) if d.get("visible", True) and d.get("image")]
+    return drawn[-1] if drawn else len(scene.layers) - 1
+
+
+def _settings(scene: Any, *, a: float | None, b: float | None, p: float | None,
+              max_samples: int | None) -> dict[str, Any]:
+    """Solver overrides for the method settings given (the scene's values for the rest)."""
+    solver = scene.to_dict().get("solver", {})
+    out: dict[str, Any] = {}
+    weights = {k: v for k, v in (("a", a), ("b", b), ("p", p)) if v is not None}
+    for name, value in weights.items():
+        if not math.isfinite(float(value)):
+            raise ValueError(f"Beier–Neely's {name} must be a finite number; got {value}.")
+    if weights:
+        out["beier_neely"] = {**{"a": 1.0, "b": 2.0, "p": 0.0}, **solver.get("beier_neely", {}),
+                              **{k: float(v) for k, v in weights.items()}}
+    if max_samples is not None:
+        if isinstance(max_samples, bool) or int(max_samples) != max_samples:
+            raise ValueError(f"max_samples must be a whole number; got {max_samples!r}.")
+        out["tps_exact"] = {"max_samples": int(max_samples)}
+    return out
+
+
 def _drawing(scene: Any, time: float) -> list[np.ndarray]:
     """The posed drawing at ``time`` as polylines (every curve, each point as one row)."""
-    import json
-
     from inkwarp import _inkwarp
 
     doc = json.dumps(scene.to_dict())
@@ -142,7 +203,8 @@ def comparison_sheet(
 
     Each row is one method: the warped frame with the posed drawing over it (red), and
     ΔX as a hill-shaded height map (red: moved right, blue: moved left; the same colour
-    scale in every row) with contour lines every ``limit / 8`` px.
+    scale in every row) with contour lines every ``limit / 8`` px. The method's notes
+    (:attr:`Comparison.notes`) are printed under its frame.
 
     Returns
     -------
@@ -173,6 +235,11 @@ def comparison_sheet(
         ax_img.set_xlim(-0.5, frame.shape[1] - 0.5)
         ax_img.set_ylim(frame.shape[0] - 0.5, -0.5)
         ax_img.set_ylabel(TITLES.get(method, method), fontsize=8)
+        said = comparison.notes.get(method, [])
+        if said:
+            # The interpolant's remarks (an ignored matte, a thinning) under its frame.
+            ax_img.set_xlabel("\n".join(textwrap.fill(n, 52) for n in said), fontsize=6.5,
+                              color="#7f3f00", loc="left")
         ax_dx.imshow(_hillshade(dx, limit), interpolation="nearest")
         ax_dx.contour(dx, levels=levels, colors="k", linewidths=0.4, alpha=0.6)
         for ax in (ax_img, ax_dx):
@@ -234,10 +301,13 @@ def checkerboard_plates(examples_dir: str | os.PathLike, out_dir: str | os.PathL
         ("thin plate, without the hole", without, "tps"),
         ("thin plate, with the hole", with_hole, "tps"),
     ]
-    frames = {label: np.asarray(scene.render(time=time, method=m)) for label, scene, m in rows}
-    fields = {label: np.asarray(scene.field(time=time, method=m)) for label, scene, m in rows}
+    frames, fields, notes = {}, {}, {}
+    for label, scene, method in rows:
+        single = compare(scene, time, [method])
+        frames[label], fields[label] = single.frames[method], single.fields[method]
+        notes[label] = single.notes[method]
     comparison = Comparison(time=time, methods=[r[0] for r in rows], frames=frames, fields=fields,
-                            drawing=_drawing(with_hole, time))
+                            drawing=_drawing(with_hole, time), notes=notes)
     out = Path(out_dir) / "checkerboard-plates.png"
     out.parent.mkdir(parents=True, exist_ok=True)
     comparison_sheet(comparison, out, title=f"closing a gap in a checkerboard, t = {time:g} s", dpi=dpi)

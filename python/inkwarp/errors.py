@@ -27,3 +27,8 @@ class SceneError(InkwarpError, ValueError):
         self.file = file
         self.path = path
         self.problems = problems if problems is not None else [(path, message)]
+
+
+class InkwarpWarning(UserWarning):
+    """Something inkwarp did works but is probably not what was meant (for example a
+    transfer map that folds the drawing over)."""

@@ -16,6 +16,10 @@ Rules
   interpolation kept); target features the source lacks keep their own keys.
 * The result's ``duration`` is the longer of the two scenes'; everything else (size,
   fps, layers, images, solver) is the target's.
+* When ``W`` folds the source's drawing over somewhere (its Jacobian turns the plane
+  over, which a matched curve traced the other way round in one of the drawings does),
+  an :class:`inkwarp.InkwarpWarning` says where and names the nearest feature: the keys
+  there come out mirrored.
 """
 
 from __future__ import annotations
@@ -23,10 +27,12 @@ from __future__ import annotations
 import copy
 import json
 import os
+import warnings
 from pathlib import Path
 from typing import Any
 
 from inkwarp import _inkwarp
+from inkwarp.errors import InkwarpWarning
 
 __all__ = ["transfer", "transfer_dict", "transfer_example"]
 
@@ -117,7 +123,11 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
     """
     src_doc, _ = _load(source, "source")
     tgt_doc, tgt_base = _load(target, "target")
-    new_keys = _inkwarp.transfer_keys(_features(src_doc, "source"), _features(tgt_doc, "target"))
+    src_features, tgt_features = _features(src_doc, "source"), _features(tgt_doc, "target")
+    new_keys = _inkwarp.transfer_keys(src_features, tgt_features)
+    fold = _inkwarp.transfer_fold(src_features, tgt_features)
+    if fold is not None:
+        warnings.warn(fold[3], InkwarpWarning, stacklevel=2)
     by_id = {str(f["id"]): f for f in src_doc["features"]}
     for feature, keys in zip(tgt_doc["features"], new_keys):
         if keys is None:

@@ -118,6 +118,108 @@ pub fn rest_map(source: &[TransferFeature], target: &[TransferFeature]) -> Resul
     Ok(ThinPlateMap::fit(&src, &dst)?)
 }
 
+/// A place where the transfer map turns the source's drawing over: keys there come out
+/// mirrored, and features that were apart cross each other. The usual cause is a matched
+/// curve whose control points run the other way in the target (a brow traced outer end
+/// first in one drawing and inner end first in the other).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fold {
+    /// Where, in the source's coordinates: the point of the most negative Jacobian
+    /// determinant (relative to the map's affine part) found.
+    pub at: Point,
+    /// The Jacobian determinant of the map there, signed so that < 0 is a fold.
+    pub det: f64,
+    /// The matched feature to check first: one that runs against the map (its first and
+    /// last control points, or a closed one's turning direction, the other way round in
+    /// the target), else the one with the control point nearest to `at`.
+    pub feature: String,
+}
+
+impl std::fmt::Display for Fold {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "The map from the source's rest drawing to the target's folds over near ({:.0}, {:.0}) in the \
+             source, by feature \"{}\": the keys there will be mirrored. Check that matched features run the \
+             same way in both drawings (their control points in the same order).",
+            self.at[0], self.at[1], self.feature
+        )
+    }
+}
+
+/// How finely [`find_fold`] looks: a grid of this many points along each side of the
+/// bounding box of the matched rest control points.
+pub const FOLD_GRID: usize = 64;
+
+/// Where the map fitted by [`rest_map`] folds over within the source's drawing, if it
+/// does: its Jacobian determinant on a [`FOLD_GRID`]² grid over the bounding box of the
+/// matched rest control points, compared in sign with the determinant of the map's
+/// affine part (so a target that is a mirror image of the source is no fold). `None` when
+/// the map keeps its orientation everywhere there, or when the drawing has no area.
+///
+/// # Errors
+/// As [`transfer_keys`].
+pub fn find_fold(source: &[TransferFeature], target: &[TransferFeature]) -> Result<Option<Fold>, TransferError> {
+    let map = rest_map(source, target)?;
+    let pairs = match_features(source, target)?;
+    let points: Vec<(Point, usize)> =
+        pairs.iter().flat_map(|&(si, _)| source[si].rest.iter().map(move |&p| (p, si))).collect();
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for (p, _) in &points {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let det = |j: [[f64; 2]; 2]| j[0][0] * j[1][1] - j[0][1] * j[1][0];
+    let sign = det(map.affine_jacobian()).signum();
+    if !(hi[0] > lo[0] && hi[1] > lo[1]) || sign == 0.0 {
+        return Ok(None);
+    }
+    let mut worst: Option<(Point, f64)> = None;
+    for iy in 0..FOLD_GRID {
+        for ix in 0..FOLD_GRID {
+            let t = |i: usize| i as f64 / (FOLD_GRID - 1) as f64;
+            let p = [lo[0] + t(ix) * (hi[0] - lo[0]), lo[1] + t(iy) * (hi[1] - lo[1])];
+            let d = sign * det(map.jacobian(p));
+            if d < 0.0 && worst.map_or(true, |(_, w)| d < w) {
+                worst = Some((p, d));
+            }
+        }
+    }
+    let linear = map.affine_jacobian();
+    Ok(worst.map(|(at, det)| {
+        let against = pairs.iter().find(|&&(si, ti)| runs_against(&source[si], &target[ti], linear));
+        let nearest = || {
+            points
+                .iter()
+                .min_by(|a, b| {
+                    let da = (a.0[0] - at[0]).hypot(a.0[1] - at[1]);
+                    let db = (b.0[0] - at[0]).hypot(b.0[1] - at[1]);
+                    da.total_cmp(&db)
+                })
+                .map(|&(_, si)| source[si].id.clone())
+                .unwrap_or_default()
+        };
+        let feature = against.map_or_else(nearest, |&(si, _)| source[si].id.clone());
+        Fold { at, det, feature }
+    }))
+}
+
+/// Whether the target's feature runs the other way from the source's, carried by the
+/// linear map `linear`: its first-to-last direction turned by more than a right angle
+/// (which is what listing the control points in reverse order does).
+fn runs_against(source: &TransferFeature, target: &TransferFeature, linear: [[f64; 2]; 2]) -> bool {
+    let (s, t) = (&source.rest, &target.rest);
+    if s.len() < 2 || t.len() != s.len() {
+        return false;
+    }
+    let v = [s[s.len() - 1][0] - s[0][0], s[s.len() - 1][1] - s[0][1]];
+    let ds = [linear[0][0] * v[0] + linear[0][1] * v[1], linear[1][0] * v[0] + linear[1][1] * v[1]];
+    let dt = [t[t.len() - 1][0] - t[0][0], t[t.len() - 1][1] - t[0][1]];
+    ds[0] * dt[0] + ds[1] * dt[1] < 0.0
+}
+
 /// The target's new keys: for each target feature (in order), `Some(keys)` with every
 /// source key mapped through [`rest_map`] when the source has the feature, `None` (keep
 /// your own) when it does not.
@@ -235,6 +337,35 @@ mod tests {
             .unwrap_err()
             .to_string()
             .starts_with("Feature \"mouth\" has 3 rest control points in the source (features[1].rest) but 4 in the target"));
+    }
+
+    #[test]
+    fn a_reversed_feature_folds_the_map_and_is_named() {
+        let source = vec![
+            feat("left", Kind::Polyline, vec![[10.0, 10.0], [30.0, 10.0], [50.0, 12.0]], vec![]),
+            feat("right", Kind::Polyline, vec![[70.0, 12.0], [90.0, 10.0], [110.0, 10.0]], vec![]),
+            feat("nose", Kind::Point, vec![[60.0, 40.0]], vec![]),
+            feat("mouth", Kind::Spline, vec![[40.0, 70.0], [60.0, 75.0], [80.0, 70.0]], vec![]),
+        ];
+        // The same drawing, moved: no fold.
+        let moved: Vec<TransferFeature> = source
+            .iter()
+            .map(|f| TransferFeature { rest: f.rest.iter().map(|p| [p[0] + 5.0, 1.2 * p[1]]).collect(), ..f.clone() })
+            .collect();
+        assert_eq!(find_fold(&source, &moved).unwrap(), None);
+        // A mirror image is an affine map that turns everything over: no fold either.
+        let mirrored: Vec<TransferFeature> = source
+            .iter()
+            .map(|f| TransferFeature { rest: f.rest.iter().map(|p| [200.0 - p[0], p[1]]).collect(), ..f.clone() })
+            .collect();
+        assert_eq!(find_fold(&source, &mirrored).unwrap(), None);
+        // The left brow traced the other way round in the target.
+        let mut reversed = moved.clone();
+        reversed[0].rest.reverse();
+        let fold = find_fold(&source, &reversed).unwrap().expect("a fold");
+        assert_eq!(fold.feature, "left");
+        assert!(fold.det < 0.0 && fold.at[0] < 60.0, "{fold:?}");
+        assert!(fold.to_string().contains("by feature \"left\""), "{fold}");
     }
 
     #[test]

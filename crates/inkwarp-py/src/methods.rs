@@ -173,6 +173,22 @@ fn transfer_keys(
     transfer::transfer_keys(&s, &t).map_err(value_error)
 }
 
+/// transfer_fold(source, target) -> (x, y, feature_id, message) or None
+///
+/// Where the transfer map folds the source's drawing over (see `transfer::find_fold`).
+#[pyfunction]
+fn transfer_fold(
+    source: Vec<FeatureTuple>,
+    target: Vec<FeatureTuple>,
+) -> PyResult<Option<(f64, f64, String, String)>> {
+    let (s, t) = (features_of(source)?, features_of(target)?);
+    let fold = transfer::find_fold(&s, &t).map_err(value_error)?;
+    Ok(fold.map(|f| (f.at[0], f.at[1], f.feature.clone(), f.to_string())))
+}
+
+/// One posed feature for overlays: id, kind and its polyline.
+type DrawingLine<'py> = (String, &'static str, Bound<'py, PyArray2<f64>>);
+
 /// posed_drawing(doc_json, time, spacing=1.0) -> list of (id, kind, (K, 2) float64 array)
 ///
 /// The scene document's drawing at `time`, every curve as a dense polyline (overlays).
@@ -183,7 +199,7 @@ fn posed_drawing<'py>(
     doc_json: &str,
     time: f64,
     spacing: f64,
-) -> PyResult<Vec<(String, &'static str, Bound<'py, PyArray2<f64>>)>> {
+) -> PyResult<Vec<DrawingLine<'py>>> {
     let doc = inkwarp_core::scene::parse_doc(doc_json).map_err(value_error)?;
     methods::scene::posed_drawing(&doc, time, spacing)
         .into_iter()
@@ -199,6 +215,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(posed_drawing, m)?)?;
     m.add_function(wrap_pyfunction!(interpolate_field, m)?)?;
     m.add_function(wrap_pyfunction!(transfer_keys, m)?)?;
+    m.add_function(wrap_pyfunction!(transfer_fold, m)?)?;
     m.add_class::<PyThinPlateMap>()?;
     Ok(())
 }

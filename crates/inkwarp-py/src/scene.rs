@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
-use inkwarp_core::scene::{self, FrameStream, Method, Scene, SceneError};
+use inkwarp_core::scene::{self, FrameStream, Method, Scene, SceneError, SolverOverrides};
 use inkwarp_core::Field;
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyIndexError, PyValueError};
@@ -198,6 +198,48 @@ impl SceneCore {
         let scene = Arc::clone(&self.scene);
         match py.detach(move || scene.layer_field_with(layer, time, None, method)) {
             Ok(solved) => field_to_numpy(py, &solved.field),
+            Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
+        }
+    }
+
+    /// The frame at `time` with `overrides` (solver settings as JSON, applied over every
+    /// layer's own, e.g. `{"method": "beier-neely", "beier_neely": {"a": 2}}`), the field
+    /// of layer `layer` (an index) and the notes of every drawn layer's interpolant (and
+    /// of layer `layer`'s): what `inkwarp.compare` shows. Bad overrides raise `inkwarp.SceneError` with their paths.
+    #[pyo3(signature = (time, layer, overrides=None))]
+    fn render_detailed<'py>(
+        &self,
+        py: Python<'py>,
+        time: f64,
+        layer: usize,
+        overrides: Option<&str>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Vec<String>)> {
+        if layer >= self.scene.layers().len() {
+            return Err(PyIndexError::new_err(format!(
+                "layer index {layer} is out of range"
+            )));
+        }
+        let overrides: SolverOverrides = match overrides {
+            None => SolverOverrides::default(),
+            Some(text) => scene::parse_overrides(text, "solver").map_err(|e| scene_error(py, &e, None))?,
+        };
+        let scene = Arc::clone(&self.scene);
+        let result = py.detach(move || -> Result<_, SceneError> {
+            let rendered = scene.render_overridden(time, &overrides)?;
+            let mut notes = rendered.notes(&scene);
+            let field = match rendered.layers[layer].as_ref() {
+                Some(solved) => solved.field.clone(),
+                None => {
+                    // A layer that is not drawn (no image, or hidden) is solved here alone.
+                    let solved = scene.layer_field_overridden(layer, time, None, &overrides)?;
+                    notes.extend(scene.layer_notes(layer, &solved));
+                    solved.field
+                }
+            };
+            Ok((rendered.image, field, notes))
+        });
+        match result {
+            Ok((image, field, notes)) => Ok((image_to_numpy(py, image)?, field_to_numpy(py, &field)?, notes)),
             Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
         }
     }

@@ -11,6 +11,7 @@ EXAMPLE = """\
 examples:
   inkwarp compare examples/checkerboard-hole/with-hole.json --time 2 -o sheet.png
   inkwarp compare scene.json --methods tps,beier-neely -o sheet.png
+  inkwarp compare scene.json --beier-neely a=4,p=0.5 --max-samples 300 -o sheet.png
 """
 
 
@@ -29,11 +30,35 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="the time in seconds (default: the scene's end)")
     parser.add_argument("--methods", default="tps,tps-exact,triangulation,beier-neely",
                         help="comma-separated methods, in row order (default: all four)")
-    parser.add_argument("--layer", default=None, help="the layer whose ΔX is drawn (default: the first)")
+    parser.add_argument("--layer", default=None,
+                        help="the layer whose ΔX is drawn (default: the top layer that is drawn)")
+    parser.add_argument("--beier-neely", default=None, metavar="a=A,b=B,p=P",
+                        help="Beier–Neely's weights for every layer, any of a (px, > 0), b (≥ 0), p (≥ 0); "
+                        "the others keep the scene's solver.beier_neely (default a=1,b=2,p=0)")
+    parser.add_argument("--max-samples", default=None, type=int, metavar="N",
+                        help="tps-exact fits at most N samples (1–5000), instead of the scene's "
+                        "solver.tps_exact.max_samples (default 1000)")
     parser.add_argument("-o", "--output", required=True, metavar="SHEET.png", help="the sheet to write")
     parser.add_argument("--dpi", type=int, default=100, help="resolution of the sheet (default 100)")
     parser.add_argument("--quiet", action="store_true", help="print nothing on success")
     parser.set_defaults(func=run)
+
+
+def _weights(text: str) -> dict[str, float]:
+    """``a=4,p=0.5`` as ``{"a": 4.0, "p": 0.5}``."""
+    out: dict[str, float] = {}
+    for part in (p.strip() for p in text.split(",") if p.strip()):
+        key, sep, value = part.partition("=")
+        key = key.strip()
+        if not sep or key not in ("a", "b", "p"):
+            raise ValueError(f"--beier-neely takes a=A,b=B,p=P (any of them), not {part!r}.")
+        try:
+            out[key] = float(value)
+        except ValueError:
+            raise ValueError(f"--beier-neely: {key} must be a number, not {value.strip()!r}.") from None
+    if not out:
+        raise ValueError("--beier-neely takes at least one of a=A, b=B, p=P.")
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -45,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"the sheet {out} must be a .png file.")
     scene = Scene.load(args.scene)
     time = args.time if args.time is not None else float(getattr(scene, "duration", 0.0) or 0.0)
-    comparison = compare(scene, time, args.methods, layer=args.layer)
+    comparison = compare(scene, time, args.methods, layer=args.layer, max_samples=args.max_samples,
+                         **(_weights(args.beier_neely) if args.beier_neely is not None else {}))
     out.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{out.stem}.", suffix=".png", dir=out.parent)
     os.close(fd)

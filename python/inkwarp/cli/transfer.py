@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 EXAMPLE = """\
@@ -35,12 +37,20 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from inkwarp.errors import InkwarpWarning
     from inkwarp.transfer import transfer_dict
 
     out = Path(args.output)
     if out.suffix.lower() != ".json":
         raise ValueError(f"the output {out} must be a .json scene file.")
-    doc = transfer_dict(args.source, args.target, relative_to=out.resolve().parent)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", InkwarpWarning)
+        doc = transfer_dict(args.source, args.target, relative_to=out.resolve().parent)
+    for warning in caught:
+        if issubclass(warning.category, InkwarpWarning):
+            print(f"inkwarp transfer: warning: {warning.message}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
     out.parent.mkdir(parents=True, exist_ok=True)
     # Write to a temporary file beside the output, then rename: no half-written scene.
     fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)

@@ -38,11 +38,14 @@ pub struct BeierNeelyParams {
 
 impl Default for BeierNeelyParams {
     fn default() -> Self {
-        BeierNeelyParams { a: 1.0, b: 2.0, p: 0.0 }
+        Self::DEFAULT
     }
 }
 
 impl BeierNeelyParams {
+    /// `a` 1 px, `b` 2, `p` 0 (see the type's documentation).
+    pub const DEFAULT: BeierNeelyParams = BeierNeelyParams { a: 1.0, b: 2.0, p: 0.0 };
+
     /// Checks the ranges documented on the type.
     pub fn validate(&self) -> Result<(), MethodError> {
         if !(self.a > 0.0 && self.a.is_finite()) {

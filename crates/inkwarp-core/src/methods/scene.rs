@@ -2,11 +2,13 @@
 //! features at a time, and the layer's field (the scene engine's dispatch calls
 //! [`features_field`] for every method but `tps`).
 
-use super::{field_on_grid, line_pairs_from_chain, Controls, Interpolant, MethodParams, MethodReport};
+use super::{
+    field_on_grid, line_pairs_from_chain, BeierNeelyParams, Controls, Interpolant, MethodParams, MethodReport,
+};
 use crate::field::Field;
 use crate::geometry::{sample_feature, Kind, Sample, SampleOptions};
 use crate::grid::Grid;
-use crate::scene::{FeatureSamples, Scene};
+use crate::scene::{BeierNeelyDoc, FeatureSamples, Scene, SolverDoc};
 
 /// Beier–Neely segments along a spline (or a spline region outline) are about this long:
 /// short enough to follow the curve, long enough to act as lines rather than points.
@@ -64,16 +66,34 @@ pub fn feature_controls(
 }
 
 /// A layer's field by `interpolant`, from its samples grouped by feature: the scene
-/// engine's dispatch for every method but `tps`. Uses the default [`MethodParams`].
+/// engine's dispatch for every method but `tps`, with the layer's settings
+/// ([`method_params`]).
 pub fn features_field(
     scene: &Scene,
     grid: &Grid,
     features: &[FeatureSamples],
     time_s: f64,
     interpolant: Interpolant,
+    params: &MethodParams,
 ) -> Result<(Field, MethodReport), String> {
     let controls = feature_controls(scene, features, time_s, interpolant)?;
-    field_on_grid(interpolant, &controls, grid, &MethodParams::default()).map_err(|e| e.to_string())
+    if controls.samples.is_empty() && controls.line_pairs.is_empty() {
+        // A layer that nothing drives stays where it is, whatever the method (Beier–Neely
+        // on its own has no field without a primitive).
+        let report = MethodReport { method: Some(interpolant.into()), ..MethodReport::default() };
+        return Ok((Field::zeros(grid.width, grid.height), report));
+    }
+    field_on_grid(interpolant, &controls, grid, params).map_err(|e| e.to_string())
+}
+
+/// The interpolants' settings of a layer's solver settings (`solver.beier_neely`,
+/// `solver.tps_exact`).
+pub fn method_params(solver: &SolverDoc) -> MethodParams {
+    let BeierNeelyDoc { a, b, p } = solver.beier_neely;
+    MethodParams {
+        max_samples: solver.tps_exact.max_samples as usize,
+        beier_neely: BeierNeelyParams { a, b, p },
+    }
 }
 
 /// The drawing of `doc` posed at `time_s`, for overlays: per feature its id, kind and its

@@ -227,6 +227,40 @@ impl ThinPlateMap {
         [p[0] + d[0], p[1] + d[1]]
     }
 
+    /// The Jacobian of the map `p ↦ p + f(p)` at `p`, `[[∂x'/∂x, ∂x'/∂y], [∂y'/∂x, ∂y'/∂y]]`.
+    /// Its determinant is negative where the map turns the plane over (a fold).
+    pub fn jacobian(&self, p: Point) -> [[f64; 2]; 2] {
+        let qx = (p[0] - self.origin[0]) / self.scale;
+        let qy = (p[1] - self.origin[1]) / self.scale;
+        let [ax, ay] = self.affine;
+        // d/dq of φ(r²) = r² ln r² is 2 (ln r² + 1) (q − c), which tends to 0 at r = 0.
+        let mut g = [[ax[1], ax[2]], [ay[1], ay[2]]];
+        for i in 0..self.cx.len() {
+            let (ux, uy) = (qx - self.cx[i], qy - self.cy[i]);
+            let r2 = ux * ux + uy * uy;
+            if r2 > 0.0 {
+                let k = 2.0 * (r2.ln() + 1.0);
+                g[0][0] += self.wx[i] * k * ux;
+                g[0][1] += self.wx[i] * k * uy;
+                g[1][0] += self.wy[i] * k * ux;
+                g[1][1] += self.wy[i] * k * uy;
+            }
+        }
+        self.identity_plus(g)
+    }
+
+    /// The Jacobian of the map's affine part alone (the same everywhere).
+    pub fn affine_jacobian(&self) -> [[f64; 2]; 2] {
+        let [ax, ay] = self.affine;
+        self.identity_plus([[ax[1], ax[2]], [ay[1], ay[2]]])
+    }
+
+    /// `I + g / scale`: a gradient in normalised coordinates as a Jacobian in pixels.
+    fn identity_plus(&self, g: [[f64; 2]; 2]) -> [[f64; 2]; 2] {
+        let s = self.scale;
+        [[1.0 + g[0][0] / s, g[0][1] / s], [g[1][0] / s, 1.0 + g[1][1] / s]]
+    }
+
     #[inline]
     fn kernel_sums(&self, qx: f64, qy: f64) -> (f64, f64) {
         let (mut sx, mut sy) = (0.0, 0.0);
@@ -415,6 +449,36 @@ mod tests {
             (state >> 11) as f64 / (1u64 << 53) as f64
         };
         (0..n).map(|_| [rnd() * extent, rnd() * extent]).collect()
+    }
+
+    #[test]
+    fn the_jacobian_is_the_derivative_of_the_map() {
+        let src = pseudo_random_points(30, 3, 100.0);
+        let dst: Vec<Point> =
+            src.iter().enumerate().map(|(i, p)| [p[0] + (i as f64).cos() * 6.0, p[1] + (i % 5) as f64]).collect();
+        let map = ThinPlateMap::fit(&src, &dst).unwrap();
+        let h = 1e-4;
+        for p in pseudo_random_points(20, 11, 100.0).into_iter().chain([src[4]]) {
+            let j = map.jacobian(p);
+            let (px, mx) = (map.apply([p[0] + h, p[1]]), map.apply([p[0] - h, p[1]]));
+            let (py, my) = (map.apply([p[0], p[1] + h]), map.apply([p[0], p[1] - h]));
+            let fd = [
+                [(px[0] - mx[0]) / (2.0 * h), (py[0] - my[0]) / (2.0 * h)],
+                [(px[1] - mx[1]) / (2.0 * h), (py[1] - my[1]) / (2.0 * h)],
+            ];
+            for r in 0..2 {
+                for c in 0..2 {
+                    assert!((j[r][c] - fd[r][c]).abs() < 1e-5, "{p:?}: {j:?} vs {fd:?}");
+                }
+            }
+        }
+        // An affine map's Jacobian is its linear part, everywhere.
+        let a: Vec<Point> = src.iter().map(|&p| affine(p)).collect();
+        let map = ThinPlateMap::fit(&src, &a).unwrap();
+        for j in [map.jacobian([12.0, 80.0]), map.affine_jacobian()] {
+            let want = [[1.1, -0.4], [0.2, 0.9]];
+            assert!((0..4).all(|k| (j[k / 2][k % 2] - want[k / 2][k % 2]).abs() < 1e-9), "{j:?}");
+        }
     }
 
     #[test]

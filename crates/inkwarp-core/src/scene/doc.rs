@@ -90,6 +90,16 @@ pub struct SolverDoc {
     /// `multigrid` (default) or `southwell`.
     #[serde(default)]
     pub scheme: Scheme,
+    /// The weights of `beier-neely` (used when a layer's method is `beier-neely`, and by
+    /// `inkwarp compare`). Default: `a` 1, `b` 2, `p` 0.
+    #[serde(default, skip_serializing_if = "BeierNeelyDoc::is_default")]
+    #[schemars(extend("default" = {"a": 1.0, "b": 2.0, "p": 0.0}))]
+    pub beier_neely: BeierNeelyDoc,
+    /// The settings of `tps-exact` (used when a layer's method is `tps-exact`, and by
+    /// `inkwarp compare`). Default: `max_samples` 1000.
+    #[serde(default, skip_serializing_if = "TpsExactDoc::is_default")]
+    #[schemars(extend("default" = {"max_samples": 1000}))]
+    pub tps_exact: TpsExactDoc,
 }
 
 impl Default for SolverDoc {
@@ -101,7 +111,73 @@ impl Default for SolverDoc {
             grid_step: default_grid_step(),
             max_cycles: None,
             scheme: Scheme::Multigrid,
+            beier_neely: BeierNeelyDoc::default(),
+            tps_exact: TpsExactDoc::default(),
         }
+    }
+}
+
+/// Beier & Neely's weights: a line or point at distance `d` from a pixel weighs
+/// `(length^p / (a + d))^b` there (a point has `length^p` = 1).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BeierNeelyDoc {
+    /// Pixels (> 0): how tightly a line or point holds what lies on it. Smaller values
+    /// follow the drawing more exactly, with cusps on it; larger ones are smoother and
+    /// looser.
+    #[serde(default = "default_bn_a")]
+    pub a: f64,
+    /// How fast a primitive's influence falls off with distance (≥ 0; Beier & Neely
+    /// suggest 0.5–2). 0 weights every primitive the same everywhere.
+    #[serde(default = "default_bn_b")]
+    #[schemars(range(min = 0.0))]
+    pub b: f64,
+    /// How much longer lines outweigh shorter ones (≥ 0; Beier & Neely use 0–1). 0 weighs
+    /// every line the same as every other, and as a point.
+    #[serde(default)]
+    #[schemars(range(min = 0.0))]
+    pub p: f64,
+}
+
+impl Default for BeierNeelyDoc {
+    fn default() -> Self {
+        BeierNeelyDoc { a: default_bn_a(), b: default_bn_b(), p: 0.0 }
+    }
+}
+
+impl BeierNeelyDoc {
+    /// Whether every weight has its default value.
+    pub fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// Settings of the continuous thin-plate spline.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TpsExactDoc {
+    /// At most this many distinct sample positions are fitted (1–5000); more are thinned
+    /// by farthest-point sampling, deterministically. The fit costs `O(n³)` time and
+    /// `O(n²)` memory.
+    #[serde(default = "default_max_samples")]
+    #[schemars(range(min = 1, max = 5000))]
+    pub max_samples: u32,
+}
+
+impl Default for TpsExactDoc {
+    fn default() -> Self {
+        TpsExactDoc { max_samples: default_max_samples() }
+    }
+}
+
+impl TpsExactDoc {
+    /// The most `max_samples` a scene may ask for: the fit holds an `(n + 3)²` matrix of
+    /// f64 (200 MB at 5000).
+    pub const MAX_SAMPLES_LIMIT: u32 = 5000;
+
+    /// Whether every setting has its default value.
+    pub fn is_default(&self) -> bool {
+        *self == Self::default()
     }
 }
 
@@ -130,6 +206,12 @@ pub struct SolverOverrides {
     /// Overrides `solver.scheme`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scheme: Option<Scheme>,
+    /// Overrides `solver.beier_neely` as a whole (keys left out take their defaults).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beier_neely: Option<BeierNeelyDoc>,
+    /// Overrides `solver.tps_exact` as a whole (keys left out take their defaults).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tps_exact: Option<TpsExactDoc>,
 }
 
 impl SolverOverrides {
@@ -142,6 +224,8 @@ impl SolverOverrides {
             grid_step: self.grid_step.unwrap_or(base.grid_step),
             max_cycles: self.max_cycles.or(base.max_cycles),
             scheme: self.scheme.unwrap_or(base.scheme),
+            beier_neely: self.beier_neely.unwrap_or(base.beier_neely),
+            tps_exact: self.tps_exact.unwrap_or(base.tps_exact),
         }
     }
 }
@@ -326,6 +410,15 @@ fn default_tolerance() -> f64 {
 }
 fn default_grid_step() -> u32 {
     1
+}
+fn default_bn_a() -> f64 {
+    crate::methods::BeierNeelyParams::DEFAULT.a
+}
+fn default_bn_b() -> f64 {
+    crate::methods::BeierNeelyParams::DEFAULT.b
+}
+fn default_max_samples() -> u32 {
+    crate::methods::DEFAULT_MAX_SAMPLES as u32
 }
 fn default_true() -> bool {
     true

@@ -7,7 +7,7 @@ use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
-use super::doc::{Method, Scheme, SolverDoc};
+use super::doc::{Method, Scheme, SolverDoc, SolverOverrides};
 use crate::anim::points_at;
 use crate::geometry::{FeatureSampler, SampleOptions};
 use crate::render::{Canvas, RgbaImage};
@@ -16,6 +16,7 @@ use super::{Scene, SceneError};
 use crate::field::Field;
 use crate::geometry::{Kind, Point, Sample};
 use crate::grid::Grid;
+use crate::methods::MethodReport;
 
 /// Whether `method` can compute fields in this build: every method can (`tps` here, the
 /// other interpolants of DESIGN §6 from the `methods` module through [`compute_field`]).
@@ -30,30 +31,35 @@ pub fn method_available(method: Method) -> bool {
 fn compute_field(
     scene: &Scene,
     time_s: f64,
-    method: Method,
+    solver: &SolverDoc,
     grid: &Grid,
     features: &[FeatureSamples],
-    options: &SolveOptions,
     initial: Option<&Field>,
-) -> Result<(Field, Option<SolveReport>), String> {
-    match method {
+) -> Result<LayerSolve, String> {
+    match solver.method {
         Method::Tps => {
             let samples: Vec<Sample> = features
                 .iter()
                 .flat_map(|f| f.samples.iter().copied())
                 .collect();
-            solve(grid, &samples, options, initial)
-                .map(|(field, report)| (field, Some(report)))
+            solve(grid, &samples, &solve_options(solver), initial)
+                .map(|(field, report)| LayerSolve { field, report: Some(report), method_report: None })
                 .map_err(|e| e.to_string())
         }
         other => match other.interpolant() {
             Some(interpolant) => {
-                crate::methods::scene::features_field(scene, grid, features, time_s, interpolant)
-                    .map(|(field, _report)| (field, None))
+                let params = crate::methods::scene::method_params(solver);
+                crate::methods::scene::features_field(scene, grid, features, time_s, interpolant, &params)
+                    .map(|(field, report)| LayerSolve { field, report: None, method_report: Some(report) })
             }
             None => Err(not_available(other)),
         },
     }
+}
+
+/// The overrides that only change the method (none for `None`).
+fn method_override(method: Option<Method>) -> SolverOverrides {
+    SolverOverrides { method, ..SolverOverrides::default() }
 }
 
 fn not_available(method: Method) -> String {
@@ -93,12 +99,43 @@ pub(crate) fn solve_options(solver: &SolverDoc) -> SolveOptions {
     }
 }
 
-/// A layer's field at one time, with the solver's report (`None` for methods that have no
-/// iterations to report).
+/// A layer's field at one time, with the report of what computed it: the grid solver's
+/// (`tps`) or the interpolant's (every other method).
 #[derive(Clone, Debug)]
 pub struct LayerSolve {
     pub field: Field,
+    /// The grid thin plate's report (`tps` only).
     pub report: Option<SolveReport>,
+    /// The interpolant's report (`tps-exact`, `triangulation`, `beier-neely`), with its
+    /// notes (an ignored matte, a thinning).
+    pub method_report: Option<MethodReport>,
+}
+
+impl LayerSolve {
+    /// The remarks worth showing a user about this field (empty for `tps`).
+    pub fn notes(&self) -> &[String] {
+        self.method_report.as_ref().map_or(&[], |r| r.notes.as_slice())
+    }
+}
+
+/// A frame and, per layer, the solve that drew it (`None` for layers that are not drawn).
+#[derive(Clone, Debug)]
+pub struct RenderedFrame {
+    pub image: RgbaImage,
+    pub layers: Vec<Option<LayerSolve>>,
+}
+
+impl RenderedFrame {
+    /// Every layer's notes, in layer order; each is prefixed with its layer's name when
+    /// `scene` has more than one layer.
+    pub fn notes(&self, scene: &Scene) -> Vec<String> {
+        self.layers
+            .iter()
+            .enumerate()
+            .filter_map(|(j, solved)| solved.as_ref().map(|s| scene.layer_notes(j, s)))
+            .flatten()
+            .collect()
+    }
 }
 
 /// Consecutive frames are solved in chains of this many, each chain starting cold at a
@@ -186,22 +223,63 @@ impl Scene {
         initial: Option<&Field>,
         method: Option<Method>,
     ) -> Result<LayerSolve, SceneError> {
+        self.layer_field_overridden(layer, time_s, initial, &method_override(method))
+    }
+
+    /// [`Scene::layer_field`] with `overrides` applied over the layer's own settings (a
+    /// method, Beier–Neely's weights, ...: what `inkwarp compare` varies).
+    pub fn layer_field_overridden(
+        &self,
+        layer: usize,
+        time_s: f64,
+        initial: Option<&Field>,
+        overrides: &SolverOverrides,
+    ) -> Result<LayerSolve, SceneError> {
         let layer_ref = &self.layers()[layer];
-        let method = method.unwrap_or(layer_ref.solver.method);
-        if !method_available(method) {
-            return Err(SceneError::one("", not_available(method)));
+        let solver = overrides.apply(&layer_ref.solver);
+        if !method_available(solver.method) {
+            return Err(SceneError::one("", not_available(solver.method)));
         }
         let features = self.layer_feature_samples(layer, time_s)?;
-        let options = solve_options(&layer_ref.solver);
         let initial = initial.filter(|f| f.width == self.width() && f.height == self.height());
-        let (field, report) = compute_field(self, time_s, method, &layer_ref.grid, &features, &options, initial)
-            .map_err(|e| {
-                SceneError::one(
-                    format!("layers[{layer}]"),
-                    format!("at t = {time_s} s: {e}"),
-                )
-            })?;
-        Ok(LayerSolve { field, report })
+        compute_field(self, time_s, &solver, &layer_ref.grid, &features, initial).map_err(|e| {
+            SceneError::one(
+                format!("layers[{layer}]"),
+                format!("at t = {time_s} s: {e}"),
+            )
+        })
+    }
+
+    /// The notes of `solved`, a field of layer `layer`, each prefixed with the layer's name
+    /// when the scene has more than one layer.
+    pub fn layer_notes(&self, layer: usize, solved: &LayerSolve) -> Vec<String> {
+        let named = self.layers().len() > 1;
+        let name = &self.layers()[layer].name;
+        solved
+            .notes()
+            .iter()
+            .map(|note| if named { format!("layer \"{name}\": {note}") } else { note.clone() })
+            .collect()
+    }
+
+    /// The frame at `time_s`, every drawn layer's field solved cold with `overrides`
+    /// applied, together with those solves (their fields and reports).
+    pub fn render_overridden(
+        &self,
+        time_s: f64,
+        overrides: &SolverOverrides,
+    ) -> Result<RenderedFrame, SceneError> {
+        let mut layers = Vec::with_capacity(self.layers().len());
+        for j in 0..self.layers().len() {
+            layers.push(if self.layer_is_drawn(j) {
+                Some(self.layer_field_overridden(j, time_s, None, overrides)?)
+            } else {
+                None
+            });
+        }
+        let fields: Vec<Option<Field>> =
+            layers.iter().map(|l| l.as_ref().map(|s| s.field.clone())).collect();
+        Ok(RenderedFrame { image: self.composite(&fields), layers })
     }
 
     /// Whether layer `layer` shows in frames (visible, with an image).
@@ -252,7 +330,7 @@ impl Scene {
 pub struct Animator<'a> {
     scene: &'a Scene,
     warm: Vec<Option<Field>>,
-    method: Option<Method>,
+    overrides: SolverOverrides,
 }
 
 impl<'a> Animator<'a> {
@@ -264,10 +342,15 @@ impl<'a> Animator<'a> {
     /// An animator that computes every field with `method` (when given) instead of each
     /// layer's own.
     pub fn with_method(scene: &'a Scene, method: Option<Method>) -> Self {
+        Self::with_overrides(scene, method_override(method))
+    }
+
+    /// An animator that applies `overrides` over every layer's own settings.
+    pub fn with_overrides(scene: &'a Scene, overrides: SolverOverrides) -> Self {
         Animator {
             scene,
             warm: vec![None; scene.layers().len()],
-            method,
+            overrides,
         }
     }
 
@@ -278,9 +361,12 @@ impl<'a> Animator<'a> {
 
     /// The field of layer `layer` at `time_s`, warm-started from its previous one.
     pub fn layer_field(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
-        let solved =
-            self.scene
-                .layer_field_with(layer, time_s, self.warm[layer].as_ref(), self.method)?;
+        let solved = self.scene.layer_field_overridden(
+            layer,
+            time_s,
+            self.warm[layer].as_ref(),
+            &self.overrides,
+        )?;
         self.warm[layer] = Some(solved.field.clone());
         Ok(solved)
     }
@@ -289,11 +375,11 @@ impl<'a> Animator<'a> {
     pub fn render(&mut self, time_s: f64) -> Result<RgbaImage, SceneError> {
         for layer in 0..self.scene.layers().len() {
             if self.scene.layer_is_drawn(layer) {
-                let solved = self.scene.layer_field_with(
+                let solved = self.scene.layer_field_overridden(
                     layer,
                     time_s,
                     self.warm[layer].as_ref(),
-                    self.method,
+                    &self.overrides,
                 )?;
                 self.warm[layer] = Some(solved.field);
             }
@@ -325,7 +411,7 @@ pub struct FrameStream {
     next_chain: usize,
     /// Sequential mode: the chain being rendered here and its animator state.
     sequential: Option<(Range<usize>, Vec<Option<Field>>)>,
-    method: Option<Method>,
+    overrides: SolverOverrides,
     receivers: Vec<Receiver<FrameResult>>,
     workers: Vec<JoinHandle<()>>,
     failed: bool,
@@ -346,6 +432,16 @@ impl FrameStream {
         threads: usize,
         method: Option<Method>,
     ) -> Self {
+        Self::with_overrides(scene, frames, threads, method_override(method))
+    }
+
+    /// [`FrameStream::new`], `overrides` applied over every layer's own settings.
+    pub fn with_overrides(
+        scene: Arc<Scene>,
+        frames: Range<usize>,
+        threads: usize,
+        overrides: SolverOverrides,
+    ) -> Self {
         let end = frames.end.min(scene.frame_count());
         let mut chains = Vec::new();
         let mut start = frames.start;
@@ -360,7 +456,7 @@ impl FrameStream {
             chains,
             next_chain: 0,
             sequential: None,
-            method,
+            overrides,
             receivers: Vec::new(),
             workers: Vec::new(),
             failed: false,
@@ -393,16 +489,16 @@ impl FrameStream {
             Arc::new(Mutex::new(senders));
         let next = Arc::new(AtomicUsize::new(0));
         let chains = Arc::new(self.chains.clone());
-        let method = self.method;
         for _ in 0..threads {
-            let (scene, senders, next, chains) = (
+            let (scene, senders, next, chains, overrides) = (
                 Arc::clone(&self.scene),
                 Arc::clone(&senders),
                 Arc::clone(&next),
                 Arc::clone(&chains),
+                self.overrides.clone(),
             );
             self.workers.push(std::thread::spawn(move || {
-                let mut animator = Animator::with_method(&scene, method);
+                let mut animator = Animator::with_overrides(&scene, overrides);
                 loop {
                     let c = next.fetch_add(1, Ordering::Relaxed);
                     if c >= chains.len() {
@@ -444,7 +540,7 @@ impl FrameStream {
         let mut animator = Animator {
             scene: &scene,
             warm: std::mem::take(warm),
-            method: self.method,
+            overrides: self.overrides.clone(),
         };
         let frame = animator
             .render(scene.frame_time_s(i))

@@ -37,10 +37,11 @@ use serde_json::Value;
 
 pub use doc::*;
 pub use engine::{
-    method_available, Animator, FeatureSamples, FrameStream, LayerSolve, WARM_CHAIN_FRAMES,
+    method_available, Animator, FeatureSamples, FrameStream, LayerSolve, RenderedFrame,
+    WARM_CHAIN_FRAMES,
 };
 pub use crate::render::RgbaImage;
-pub use validate::validate_doc;
+pub use validate::{validate_doc, validate_overrides};
 
 use crate::geometry::{Kind, Point};
 use crate::grid::Grid;
@@ -121,6 +122,24 @@ pub fn parse_doc(text: &str) -> Result<SceneDoc, SceneError> {
     match doc {
         Some(doc) if problems.is_empty() => Ok(doc),
         _ => Err(SceneError { problems }),
+    }
+}
+
+/// Solver settings given as JSON outside a scene file (by a caller that applies them over
+/// every layer's own, as `inkwarp compare` does), checked as a scene's `solver` is; the
+/// problems' paths start with `path`.
+pub fn parse_overrides(text: &str, path: &str) -> Result<SolverOverrides, SceneError> {
+    let mut de = serde_json::Deserializer::from_str(text);
+    let overrides: SolverOverrides = serde_path_to_error::deserialize(&mut de).map_err(|err| {
+        let inner = err.path().to_string();
+        let at = if inner == "." { path.to_string() } else { format!("{path}.{inner}") };
+        SceneError::one(at, err.into_inner().to_string())
+    })?;
+    let problems = validate_overrides(&overrides, path);
+    if problems.is_empty() {
+        Ok(overrides)
+    } else {
+        Err(SceneError { problems })
     }
 }
 
@@ -266,7 +285,25 @@ fn parse_value(value: &Value) -> Parsed {
         *layers = kept;
     }
     if let Some(Value::Object(solver)) = map.get_mut("solver") {
-        solver.retain(|key, _| !broken(&format!("solver.{key}")));
+        // The method settings are objects of their own: drop only their broken keys (the
+        // others keep their values for the meaning check), unless the object as a whole
+        // is broken.
+        for (key, value) in solver.iter_mut() {
+            let path = format!("solver.{key}");
+            if let Value::Object(settings) = value {
+                if !parsed.problems.iter().any(|p| p.path == path) {
+                    settings.retain(|inner, _| !broken(&format!("{path}.{inner}")));
+                }
+            }
+        }
+        solver.retain(|key, value| {
+            let path = format!("solver.{key}");
+            if value.is_object() {
+                !parsed.problems.iter().any(|p| p.path == path)
+            } else {
+                !broken(&path)
+            }
+        });
     }
     // Arrays and the solver were repaired element by element above; they are broken as a
     // whole only when the value itself has the wrong type.

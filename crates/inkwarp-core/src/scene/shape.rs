@@ -330,6 +330,8 @@ fn object_noun(def_name: &str) -> &'static str {
         "LayerDoc" => "a layer",
         "FeatureDoc" => "a feature",
         "KeyDoc" => "a key",
+        "BeierNeelyDoc" => "Beier–Neely's weights",
+        "TpsExactDoc" => "tps-exact's settings",
         _ => "this object",
     }
 }

@@ -235,6 +235,36 @@ fn every_kind_of_mistake_is_reported_with_its_path() {
             "solver.method",
         ),
         (
+            "Beier–Neely a of 0",
+            with(valid_scene(), "/solver", json!({"beier_neely": {"a": 0}})),
+            "solver.beier_neely.a",
+        ),
+        (
+            "negative Beier–Neely b",
+            with(valid_scene(), "/solver", json!({"beier_neely": {"b": -1}})),
+            "solver.beier_neely.b",
+        ),
+        (
+            "unknown Beier–Neely key",
+            with(valid_scene(), "/solver", json!({"beier_neely": {"q": 1}})),
+            "solver.beier_neely.q",
+        ),
+        (
+            "zero max_samples",
+            with(valid_scene(), "/solver", json!({"tps_exact": {"max_samples": 0}})),
+            "solver.tps_exact.max_samples",
+        ),
+        (
+            "max_samples over the limit",
+            with(valid_scene(), "/solver", json!({"tps_exact": {"max_samples": 100000}})),
+            "solver.tps_exact.max_samples",
+        ),
+        (
+            "layer override of Beier–Neely",
+            with(valid_scene(), "/layers/1/solver", json!({"beier_neely": {"p": -0.5}})),
+            "layers[1].solver.beier_neely.p",
+        ),
+        (
             "unknown key",
             with(valid_scene(), "/layers/0/colour", json!("red")),
             "layers[0].colour",
@@ -323,6 +353,10 @@ fn messages_say_how_to_fix() {
         with(valid_scene(), "/solver", json!({"tension": -1})),
         with(valid_scene(), "/fps", json!(0)),
         with(valid_scene(), "/solver", json!({"grid_step": 0})),
+        with(valid_scene(), "/solver", json!({"beier_neely": {"a": 0, "b": -1}})),
+        with(valid_scene(), "/solver", json!({"beier_neely": {"weight": 2}})),
+        with(valid_scene(), "/solver", json!({"tps_exact": {"max_samples": 0}})),
+        with(valid_scene(), "/solver", json!({"tps_exact": {"max_samples": 9000}})),
         with(valid_scene(), "/layers/0/visibel", json!(false)),
         with(valid_scene(), "/inkwarp", json!(2)),
         with(valid_scene(), "/features/0/rest/0/0", json!("4")),
@@ -388,6 +422,8 @@ fn non_finite_numbers_are_reported() {
     doc.features[0].rest[0][0] = f64::INFINITY;
     doc.layers[1].offset[0] = f64::NAN;
     doc.solver.tension = f64::NAN;
+    doc.solver.beier_neely.p = f64::NAN;
+    doc.solver.tps_exact.max_samples = 0;
     doc.fps = f64::INFINITY;
     let paths: Vec<String> = validate_doc(&doc).into_iter().map(|p| p.path).collect();
     assert_eq!(
@@ -395,6 +431,8 @@ fn non_finite_numbers_are_reported() {
         [
             "fps",
             "solver.tension",
+            "solver.beier_neely.p",
+            "solver.tps_exact.max_samples",
             "features[0].rest[0][0]",
             "features[1].keys[0].points[2][1]",
             "layers[1].offset[0]"
@@ -612,6 +650,97 @@ fn the_method_can_be_chosen_per_call() {
     let stream =
         FrameStream::with_method(Arc::clone(&scene), 0..3, 2, Some(Method::Triangulation));
     assert_eq!(stream.filter(|f| f.is_ok()).count(), 3);
+}
+
+#[test]
+fn method_settings_in_the_scene_reach_the_interpolants() {
+    use crate::methods::scene::{features_field, method_params};
+    use crate::methods::{BeierNeelyParams, Interpolant, MethodParams, DEFAULT_MAX_SAMPLES};
+
+    let mut loader = files(&valid_files());
+    let mut doc = valid_scene();
+    doc["solver"] = json!({"method": "beier-neely", "beier_neely": {"a": 4, "b": 1.5, "p": 0.5},
+                           "tps_exact": {"max_samples": 3}});
+    let scene = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
+    let plain = small_scene();
+    let solver = &scene.layers()[0].solver;
+    let params = method_params(solver);
+    assert_eq!(
+        params,
+        MethodParams { max_samples: 3, beier_neely: BeierNeelyParams { a: 4.0, b: 1.5, p: 0.5 } }
+    );
+    assert_eq!(
+        method_params(&plain.layers()[0].solver),
+        MethodParams { max_samples: DEFAULT_MAX_SAMPLES, beier_neely: BeierNeelyParams::DEFAULT }
+    );
+    // Beier–Neely with the scene's weights: the field the methods module gives for them,
+    // and not the default weights' field.
+    let features = scene.layer_feature_samples(0, 1.0).unwrap();
+    let (want, _) =
+        features_field(&scene, &scene.layers()[0].grid, &features, 1.0, Interpolant::BeierNeely, &params)
+            .unwrap();
+    let got = scene.layer_field(0, 1.0, None).unwrap();
+    assert_eq!(got.field, want);
+    assert_ne!(got.field, plain.layer_field_with(0, 1.0, None, Some(Method::BeierNeely)).unwrap().field);
+    // tps-exact thins to the scene's max_samples, and says so.
+    let exact = scene.layer_field_with(0, 1.0, None, Some(Method::TpsExact)).unwrap();
+    let report = exact.method_report.as_ref().unwrap();
+    assert_eq!(report.samples_used, 3);
+    assert!(exact.notes().iter().any(|n| n.contains("thinned") && n.contains("to 3")), "{:?}", exact.notes());
+    // A layer's own settings replace the scene's, as a whole.
+    let mut doc = valid_scene();
+    doc["solver"] = json!({"beier_neely": {"a": 4, "b": 1.5}});
+    doc["layers"][1]["solver"] = json!({"beier_neely": {"p": 1}});
+    let scene = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
+    assert_eq!(scene.layers()[0].solver.beier_neely.a, 4.0);
+    assert_eq!(
+        method_params(&scene.layers()[1].solver).beier_neely,
+        BeierNeelyParams { a: 1.0, b: 2.0, p: 1.0 }
+    );
+}
+
+#[test]
+fn rendering_passes_the_interpolants_notes_up() {
+    let scene = small_scene();
+    // Both layers have a discontinuity (the back one a cut, the front one a hole), which
+    // tps-exact ignores and says so, per layer.
+    let overrides = SolverOverrides { method: Some(Method::TpsExact), ..SolverOverrides::default() };
+    let rendered = scene.render_overridden(0.5, &overrides).unwrap();
+    assert_eq!(rendered.image, scene.render_with(0.5, Some(Method::TpsExact)).unwrap());
+    assert_eq!(
+        rendered.notes(&scene),
+        [
+            "layer \"back\": tps-exact ignores the continuity matte and cuts: its surface is continuous across holes.",
+            "layer \"front\": tps-exact ignores the continuity matte and cuts: its surface is continuous across holes.",
+        ]
+    );
+    // The grid thin plate has nothing to say; its solver reports instead.
+    let rendered = scene.render_overridden(0.5, &SolverOverrides::default()).unwrap();
+    assert!(rendered.notes(&scene).is_empty());
+    assert!(rendered.layers.iter().all(|l| l.as_ref().unwrap().report.is_some()));
+    // A layer that nothing drives stays put under every method.
+    let mut loader = files(&valid_files());
+    let mut doc = valid_scene();
+    doc["layers"][0]["features"] = json!([]);
+    let still = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
+    for method in Method::ALL {
+        let solved = still.layer_field_with(0, 1.0, None, Some(method)).unwrap();
+        assert!(solved.field.dx.iter().chain(&solved.field.dy).all(|&v| v == 0.0), "{method}");
+    }
+    // Overrides are checked like a scene's solver settings.
+    let bad = SolverOverrides {
+        beier_neely: Some(BeierNeelyDoc { a: -1.0, b: 2.0, p: 0.0 }),
+        ..SolverOverrides::default()
+    };
+    let problems = validate_overrides(&bad, "solver");
+    assert_eq!(problems.len(), 1);
+    assert_eq!(problems[0].path, "solver.beier_neely.a");
+    let parsed = parse_overrides(r#"{"method": "beier-neely", "beier_neely": {"b": 1}}"#, "solver").unwrap();
+    assert_eq!(parsed.beier_neely, Some(BeierNeelyDoc { a: 1.0, b: 1.0, p: 0.0 }));
+    let err = parse_overrides(r#"{"beier_neely": {"b": "x"}}"#, "solver").unwrap_err();
+    assert_eq!(err.path(), "solver.beier_neely.b");
+    let err = parse_overrides(r#"{"tps_exact": {"max_samples": 0}}"#, "solver").unwrap_err();
+    assert_eq!(err.path(), "solver.tps_exact.max_samples");
 }
 
 #[test]

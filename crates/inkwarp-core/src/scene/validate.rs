@@ -3,7 +3,9 @@
 
 use std::collections::HashMap;
 
-use super::doc::{FeatureKind, SceneDoc, SolverDoc, SolverOverrides, FORMAT_VERSION};
+use super::doc::{
+    BeierNeelyDoc, FeatureKind, SceneDoc, SolverDoc, SolverOverrides, TpsExactDoc, FORMAT_VERSION,
+};
 use super::engine::method_available;
 use super::shape::did_you_mean;
 use super::Problem;
@@ -267,6 +269,14 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
     p
 }
 
+/// Every problem of solver settings given outside a scene (by a caller that overrides
+/// every layer's settings, as `inkwarp compare` does), with paths under `path`.
+pub fn validate_overrides(overrides: &SolverOverrides, path: &str) -> Vec<Problem> {
+    let mut p = Vec::new();
+    check_overrides(overrides, path, &mut p);
+    p
+}
+
 fn check_points(points: &[Point], path: &str, p: &mut Vec<Problem>) {
     for (i, point) in points.iter().enumerate() {
         for (c, v) in point.iter().enumerate() {
@@ -289,6 +299,8 @@ fn check_solver(solver: &SolverDoc, path: &str, p: &mut Vec<Problem>) {
             grid_step: Some(solver.grid_step),
             max_cycles: solver.max_cycles,
             scheme: Some(solver.scheme),
+            beier_neely: Some(solver.beier_neely),
+            tps_exact: Some(solver.tps_exact),
         },
         path,
         p,
@@ -338,5 +350,44 @@ fn check_overrides(solver: &SolverOverrides, path: &str, p: &mut Vec<Problem>) {
             format!("{path}.max_cycles"),
             "max_cycles must be at least 1; leave it out to run until the tolerance is met",
         ));
+    }
+    if let Some(weights) = &solver.beier_neely {
+        check_beier_neely(weights, &format!("{path}.beier_neely"), p);
+    }
+    if let Some(settings) = &solver.tps_exact {
+        let limit = TpsExactDoc::MAX_SAMPLES_LIMIT;
+        if !(1..=limit).contains(&settings.max_samples) {
+            p.push(Problem::new(
+                format!("{path}.tps_exact.max_samples"),
+                format!(
+                    "max_samples must be a whole number from 1 to {limit}, found {}; the default is 1000 \
+                     (the fit takes O(n³) time and O(n²) memory)",
+                    settings.max_samples
+                ),
+            ));
+        }
+    }
+}
+
+/// Beier–Neely's weights: the ranges of `methods::BeierNeelyParams::validate`, reported
+/// the scene's way.
+fn check_beier_neely(weights: &BeierNeelyDoc, path: &str, p: &mut Vec<Problem>) {
+    if !(weights.a.is_finite() && weights.a > 0.0) {
+        p.push(Problem::new(
+            format!("{path}.a"),
+            format!(
+                "Beier–Neely's a must be a number of pixels > 0, found {}; the default is 1 (smaller values \
+                 follow the drawing more tightly)",
+                weights.a
+            ),
+        ));
+    }
+    for (key, value, default) in [("b", weights.b, 2), ("p", weights.p, 0)] {
+        if !(value.is_finite() && value >= 0.0) {
+            p.push(Problem::new(
+                format!("{path}.{key}"),
+                format!("Beier–Neely's {key} must be a number ≥ 0, found {value}; the default is {default}"),
+            ));
+        }
     }
 }
