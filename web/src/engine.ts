@@ -60,6 +60,9 @@ export interface SolveOptions {
   scheme?: 'multigrid' | 'southwell';
   /** A draft while dragging: `tps-exact` is then previewed on every `grid_step`-th pixel. */
   preview?: boolean;
+  /** The interpolants' settings, as in the scene format's `solver`. */
+  beier_neely?: { a?: number; b?: number; p?: number };
+  tps_exact?: { max_samples?: number };
   /** Arc-length spacing of the samples (the scene engine uses the grid step). */
   spacing_px?: number;
 }

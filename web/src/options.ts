@@ -10,8 +10,8 @@ export const DRAFT_TARGET_PX = 64;
 
 /**
  * The solve request for a layer, as the scene engine would compute its field (so that
- * `inkwarp render` draws what the editor shows): the layer's method, tension, tolerance,
- * scheme and grid step, the drawing sampled every grid step. A draft uses a coarser grid
+ * `inkwarp render` draws what the editor shows): the layer's method and its settings,
+ * tension, tolerance, scheme and grid step, the drawing sampled every grid step. A draft uses a coarser grid
  * step (and sampling) and a looser tolerance, and lets `tps-exact` preview its field on
  * that coarser grid; the final solve uses the scene's own settings.
  */
@@ -29,5 +29,7 @@ export function solverOptions(doc: SceneDoc, layer: Layer, quality: Quality): So
     scheme: s.scheme ?? 'multigrid',
     preview: quality === 'draft',
     spacing_px: step,
+    ...(s.beier_neely ? { beier_neely: s.beier_neely } : {}),
+    ...(s.tps_exact ? { tps_exact: s.tps_exact } : {}),
   };
 }

@@ -21,7 +21,7 @@ export const METHOD_NOTES: Record<Method, string> = {
   triangulation:
     'triangulation: piecewise linear over a Delaunay triangulation of the samples and the image corners (held still). It ignores the continuity matte and cuts.',
   'beier-neely':
-    'beier-neely: Beier–Neely line pairs along polylines, splines and region outlines, Shepard weights for points. It ignores the continuity matte and cuts, and needs at least one feature.',
+    'beier-neely: Beier–Neely line pairs along polylines, splines and region outlines, Shepard weights for points (weights a, b, p in the scene’s solver.beier_neely). It ignores the continuity matte and cuts.',
 };
 
 export interface Key {
@@ -50,6 +50,10 @@ export interface Solver {
   grid_step?: number;
   max_cycles?: number;
   scheme?: 'multigrid' | 'southwell';
+  /** Beier–Neely's weights (`beier-neely`). */
+  beier_neely?: { a?: number; b?: number; p?: number };
+  /** At most this many samples fitted (`tps-exact`). */
+  tps_exact?: { max_samples?: number };
   [extra: string]: unknown;
 }
 

@@ -118,18 +118,34 @@ describe('the method switch', () => {
     }
   });
 
-  it('a method the engine cannot run on a drawing says why', () => {
+  it('a layer that nothing drives stays put under every method', () => {
     const doc = emptyScene(W, H);
     doc.layers.push({ name: 'art' });
     const grid = engine.grid(W, H, null, []);
     try {
-      expect(() => grid.solve([], solverOptions(setMethod(doc, 'beier-neely'), doc.layers[0], 'final'), null)).toThrow(/beier-neely needs at least one/i);
-      // The others give the still picture, as the grid thin plate does.
-      const { field } = grid.solve([], solverOptions(setMethod(doc, 'triangulation'), doc.layers[0], 'final'), null);
-      expect(field.dx.every((v) => v === 0)).toBe(true);
+      for (const m of METHODS) {
+        const { field } = grid.solve([], solverOptions(setMethod(doc, m), doc.layers[0], 'final'), null);
+        expect(field.dx.every((v) => v === 0) && field.dy.every((v) => v === 0)).toBe(true);
+      }
+    } finally {
+      grid.free();
+    }
+  });
+
+  it("the methods' settings in the scene reach the engine", () => {
+    const doc = setMethod(scene(), 'beier-neely');
+    const loose = { ...doc, solver: { ...doc.solver, beier_neely: { a: 20, b: 2 } } };
+    expect(solverOptions(loose, doc.layers[0], 'final').beier_neely).toEqual({ a: 20, b: 2 });
+    const grid = engine.grid(W, H, null, []);
+    try {
+      const f = features(doc);
+      const tight = grid.solve(f, solverOptions(doc, doc.layers[0], 'final'), null).field;
+      const looser = grid.solve(f, solverOptions(loose, doc.layers[0], 'final'), null).field;
+      expect(Array.from(looser.dx)).not.toEqual(Array.from(tight.dx));
+      const thinned = setMethod({ ...doc, solver: { ...doc.solver, tps_exact: { max_samples: 3 } } }, 'tps-exact');
+      expect(grid.solve(f, solverOptions(thinned, doc.layers[0], 'final'), null).report.samples_used).toBe(3);
     } finally {
       grid.free();
     }
   });
 });
-

@@ -5,13 +5,13 @@ use std::collections::HashMap;
 
 use inkwarp_core::anim::{points_at, Interpolation, Key};
 use inkwarp_core::geometry::{curve_polyline, sample_feature, FeatureSampler, SampleOptions};
-use inkwarp_core::methods::scene::BEIER_NEELY_SEGMENT_PX;
+use inkwarp_core::methods::scene::{method_params, BEIER_NEELY_SEGMENT_PX};
 use inkwarp_core::methods::{
     beier_neely_field, grid_has_discontinuities, line_pairs_from_chain, thin_plate_field,
     triangulation_field, Controls, Interpolant, Method, MethodParams, MethodReport, ThinPlateMap,
 };
 use inkwarp_core::render::{Canvas, RgbaImage};
-use inkwarp_core::scene::images;
+use inkwarp_core::scene::{images, BeierNeelyDoc, SolverDoc, TpsExactDoc};
 use inkwarp_core::solve::{solve, SolveMethod, SolveOptions};
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
 use serde::Deserialize;
@@ -199,6 +199,21 @@ struct OptionsIn {
     /// A draft while a point is dragged: `tps-exact` may then be previewed on every
     /// `grid_step`-th pixel (the other methods are fast enough as they are).
     preview: bool,
+    /// Beier–Neely's weights `a`, `b`, `p` (`beier-neely` only).
+    beier_neely: BeierNeelyDoc,
+    /// `max_samples` of `tps-exact`.
+    tps_exact: TpsExactDoc,
+}
+
+impl OptionsIn {
+    /// The interpolants' settings, read as the scene engine reads a layer's `solver`.
+    fn method_params(&self) -> MethodParams {
+        method_params(&SolverDoc {
+            beier_neely: self.beier_neely,
+            tps_exact: self.tps_exact,
+            ..SolverDoc::default()
+        })
+    }
 }
 
 impl Default for OptionsIn {
@@ -211,6 +226,8 @@ impl Default for OptionsIn {
             max_cycles: None,
             scheme: "multigrid".into(),
             preview: false,
+            beier_neely: BeierNeelyDoc::default(),
+            tps_exact: TpsExactDoc::default(),
         }
     }
 }
@@ -329,8 +346,9 @@ fn controls_of(
 ///
 /// `req_json`: `{"features": [{"kind", "rest", "pose", "closed", "spline_outline", "id"}],
 /// "options": {"method", "tension", "tolerance", "grid_step", "max_cycles", "scheme",
-/// "preview"}, "spacing_px"}` (options as in the scene format's `solver`, `grid_step` only
-/// for `tps`, plus `preview` for a quick draft, see [`tps_exact_preview`]; the curves are
+/// "beier_neely", "tps_exact", "preview"}, "spacing_px"}` (options as in the scene
+/// format's `solver`, `grid_step` only for `tps`, plus `preview` for a quick draft, see
+/// [`tps_exact_preview`]; the curves are
 /// sampled every `spacing_px`, default 1, as the scene engine samples them every
 /// `grid_step`).
 /// `initial` (`2 * width * height` floats, Δx plane then Δy plane, or null) warm-starts the
@@ -371,10 +389,11 @@ pub extern "C" fn iw_solve(
                 let controls = controls_of(&req.features, per_feature, interpolant)?;
                 let step = req.options.grid_step;
                 let preview = req.options.preview && step > 1;
+                let params = req.options.method_params();
                 let (field, report) = if interpolant == Interpolant::TpsExact && preview {
-                    tps_exact_preview(&controls, grid, step)?
+                    tps_exact_preview(&controls, grid, step, &params)?
                 } else {
-                    method_field(interpolant, &controls, grid)?
+                    method_field(interpolant, &controls, grid, &params)?
                 };
                 let json = serde_json::json!({
                     "samples_used": report.samples_used,
@@ -400,21 +419,26 @@ pub extern "C" fn iw_solve(
     }
 }
 
-/// `inkwarp_core::methods::field_on_grid` with the default parameters, as the scene engine
-/// calls it, minus its wall-clock timing: `std::time::Instant::now` panics on
-/// `wasm32-unknown-unknown`, where there is no clock. Same fields, same report otherwise
-/// (a test holds the fields to the scene engine's).
+/// The field of `interpolant` as the scene engine computes a layer's
+/// (`inkwarp_core::methods::scene::features_field`): a layer that nothing drives stays
+/// put; otherwise `methods::field_on_grid`, minus its wall-clock timing
+/// (`std::time::Instant::now` panics on `wasm32-unknown-unknown`, where there is no
+/// clock). Same fields, same report otherwise (a test holds the fields to the scene
+/// engine's).
 fn method_field(
     interpolant: Interpolant,
     controls: &Controls,
     grid: &Grid,
+    params: &MethodParams,
 ) -> Result<(Field, MethodReport), String> {
     let (width, height) = (grid.width, grid.height);
-    let params = MethodParams::default();
     let mut report = MethodReport {
         method: Some(interpolant.into()),
         ..MethodReport::default()
     };
+    if controls.samples.is_empty() && controls.line_pairs.is_empty() {
+        return Ok((Field::zeros(width, height), report));
+    }
     let field = match interpolant {
         Interpolant::TpsExact => thin_plate_field(
             &controls.all_samples(),
@@ -453,7 +477,7 @@ fn note_ignored_matte(report: &mut MethodReport, grid: &Grid) {
 }
 
 /// At most this many samples are fitted by a `tps-exact` preview (the final field fits up to
-/// `MethodParams::default().max_samples`): the fit costs their cube.
+/// the scene's `solver.tps_exact.max_samples`): the fit costs their cube.
 const PREVIEW_MAX_SAMPLES: usize = 250;
 
 /// A quick `tps-exact` field for the editor's drafts while a point is dragged (a request
@@ -465,11 +489,13 @@ fn tps_exact_preview(
     controls: &Controls,
     grid: &Grid,
     step: usize,
+    params: &MethodParams,
 ) -> Result<(Field, MethodReport), String> {
     let (width, height) = (grid.width, grid.height);
     let samples = controls.all_samples();
+    let max_samples = params.max_samples.min(PREVIEW_MAX_SAMPLES);
     let (map, info) =
-        ThinPlateMap::fit_samples(&samples, PREVIEW_MAX_SAMPLES).map_err(|e| e.to_string())?;
+        ThinPlateMap::fit_samples(&samples, max_samples).map_err(|e| e.to_string())?;
     let (wc, hc) = ((width - 1).div_ceil(step) + 1, (height - 1).div_ceil(step) + 1);
     let mut coarse = Field::zeros(wc, hc);
     for yc in 0..hc {

@@ -255,8 +255,12 @@ mod tests {
             .contains("no grid with handle 999"));
     }
 
-    /// A drawing with every kind of feature, as a scene and as `iw_solve`'s features at
-    /// time `t` (posed by the scene itself).
+    /// Settings of the interpolants other than their defaults (`max_samples` low enough
+    /// to thin the drawing's samples).
+    const SOLVER: &str = r#"{"beier_neely": {"a": 2.5, "b": 1.5, "p": 0.5}, "tps_exact": {"max_samples": 60}}"#;
+
+    /// A drawing with every kind of feature, as a scene (its second layer driven by
+    /// nothing) and as `iw_solve`'s features at time `t` (posed by the scene itself).
     fn every_kind(t: f64) -> (inkwarp_core::scene::Scene, serde_json::Value, serde_json::Value) {
         let features = serde_json::json!([
             {"id": "pin", "kind": "point", "rest": [[3, 3]]},
@@ -273,7 +277,9 @@ mod tests {
              "keys": [{"t": 1, "points": [[27, 21], [37, 24], [31, 33]]}]},
             {"id": "tear", "kind": "cut", "rest": [[25.5, 14], [25.5, 38]]}
         ]);
-        let doc = serde_json::json!({"inkwarp": 1, "width": 48, "height": 40, "layers": [{"name": "a"}],
+        let solver: serde_json::Value = serde_json::from_str(SOLVER).unwrap();
+        let doc = serde_json::json!({"inkwarp": 1, "width": 48, "height": 40, "solver": solver,
+                                     "layers": [{"name": "a"}, {"name": "still", "features": []}],
                                      "features": features});
         let scene = inkwarp_core::scene::Scene::from_json(&doc.to_string(), &mut inkwarp_core::scene::no_files)
             .unwrap();
@@ -304,12 +310,27 @@ mod tests {
         let grid = iw_grid_new(w, h, std::ptr::null(), 0, cuts, cuts_len);
         let out = iw_alloc(8 * w * h) as *mut f32;
         let mut fields = Vec::new();
+        let mut options: serde_json::Value = serde_json::from_str(SOLVER).unwrap();
         for method in Method::ALL {
             let expected = scene.layer_field_with(0, 0.6, None, Some(method)).unwrap().field;
-            let req = serde_json::json!({"features": features, "options": {"method": method.name()}});
+            options["method"] = method.name().into();
+            let req = serde_json::json!({"features": features, "options": options});
             let (req, req_len) = put(req.to_string().as_bytes());
             assert_eq!(iw_solve(grid, req, req_len, std::ptr::null(), out), 0, "{method}: {}", result());
             let report = result();
+            if method == Method::TpsExact {
+                assert_eq!(report["samples_used"], 60, "{report}");
+            }
+            // A layer that nothing drives stays put under every method.
+            let req = serde_json::json!({"features": [], "options": options});
+            let (req, req_len) = put(req.to_string().as_bytes());
+            assert_eq!(iw_solve(grid, req, req_len, std::ptr::null(), out), 0, "{method}: {}", result());
+            assert!(floats(out, 2 * w * h).iter().all(|&v| v == 0.0));
+            let still = scene.layer_field_with(1, 0.6, None, Some(method)).unwrap().field;
+            assert!(still.dx.iter().chain(&still.dy).all(|&v| v == 0.0));
+            let req = serde_json::json!({"features": features, "options": options});
+            let (req, req_len) = put(req.to_string().as_bytes());
+            assert_eq!(iw_solve(grid, req, req_len, std::ptr::null(), out), 0, "{method}: {}", result());
             assert_eq!(report["method"], method.name());
             let got = floats(out, 2 * w * h);
             let same = got[..w * h] == expected.dx[..] && got[w * h..] == expected.dy[..];
