@@ -11,7 +11,7 @@ use super::doc::{Method, Scheme, SolverDoc, SolverOverrides};
 use crate::anim::points_at;
 use crate::geometry::{FeatureSampler, SampleOptions};
 use crate::render::{Canvas, RgbaImage};
-use crate::solve::{solve, SolveMethod, SolveOptions, SolveReport};
+use crate::solve::{solve, solve_warm, SolveMethod, SolveOptions, SolveReport, WarmHistory};
 use super::{Scene, SceneError};
 use crate::field::Field;
 use crate::geometry::{Kind, Point, Sample};
@@ -35,6 +35,7 @@ fn compute_field(
     grid: &Grid,
     features: &[FeatureSamples],
     initial: Option<&Field>,
+    history: Option<&mut WarmHistory>,
 ) -> Result<LayerSolve, String> {
     match solver.method {
         Method::Tps => {
@@ -42,8 +43,11 @@ fn compute_field(
                 .iter()
                 .flat_map(|f| f.samples.iter().copied())
                 .collect();
-            solve(grid, &samples, &solve_options(solver), initial)
-                .map(|(field, report)| LayerSolve { field, report: Some(report), method_report: None })
+            match history {
+                Some(h) => solve_warm(grid, &samples, &solve_options(solver), h),
+                None => solve(grid, &samples, &solve_options(solver), initial),
+            }
+            .map(|(field, report)| LayerSolve { field, report: Some(report), method_report: None })
                 .map_err(|e| e.to_string())
         }
         other => match other.interpolant() {
@@ -242,7 +246,31 @@ impl Scene {
         }
         let features = self.layer_feature_samples(layer, time_s)?;
         let initial = initial.filter(|f| f.width == self.width() && f.height == self.height());
-        compute_field(self, time_s, &solver, &layer_ref.grid, &features, initial).map_err(|e| {
+        compute_field(self, time_s, &solver, &layer_ref.grid, &features, initial, None).map_err(|e| {
+            SceneError::one(
+                format!("layers[{layer}]"),
+                format!("at t = {time_s} s: {e}"),
+            )
+        })
+    }
+
+    /// [`Scene::layer_field_overridden`] started from the layer's earlier frames in
+    /// `history` (see [`WarmHistory`]), which then keeps this one.
+    pub fn layer_field_warm(
+        &self,
+        layer: usize,
+        time_s: f64,
+        history: &mut WarmHistory,
+        overrides: &SolverOverrides,
+    ) -> Result<LayerSolve, SceneError> {
+        let layer_ref = &self.layers()[layer];
+        let solver = overrides.apply(&layer_ref.solver);
+        if !method_available(solver.method) {
+            return Err(SceneError::one("", not_available(solver.method)));
+        }
+        let features = self.layer_feature_samples(layer, time_s)?;
+        let initial = history.last().cloned();
+        compute_field(self, time_s, &solver, &layer_ref.grid, &features, initial.as_ref(), Some(history)).map_err(|e| {
             SceneError::one(
                 format!("layers[{layer}]"),
                 format!("at t = {time_s} s: {e}"),
@@ -330,6 +358,8 @@ impl Scene {
 pub struct Animator<'a> {
     scene: &'a Scene,
     warm: Vec<Option<Field>>,
+    /// Each layer's earlier frames, the start of its next solve.
+    history: Vec<WarmHistory>,
     overrides: SolverOverrides,
 }
 
@@ -350,6 +380,7 @@ impl<'a> Animator<'a> {
         Animator {
             scene,
             warm: vec![None; scene.layers().len()],
+            history: vec![WarmHistory::new(); scene.layers().len()],
             overrides,
         }
     }
@@ -357,16 +388,12 @@ impl<'a> Animator<'a> {
     /// Forgets the previous fields, so that the next solves are cold.
     pub fn reset(&mut self) {
         self.warm.iter_mut().for_each(|f| *f = None);
+        self.history.iter_mut().for_each(WarmHistory::clear);
     }
 
     /// The field of layer `layer` at `time_s`, warm-started from its previous one.
     pub fn layer_field(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
-        let solved = self.scene.layer_field_overridden(
-            layer,
-            time_s,
-            self.warm[layer].as_ref(),
-            &self.overrides,
-        )?;
+        let solved = self.solve_layer(layer, time_s)?;
         self.warm[layer] = Some(solved.field.clone());
         Ok(solved)
     }
@@ -375,16 +402,22 @@ impl<'a> Animator<'a> {
     pub fn render(&mut self, time_s: f64) -> Result<RgbaImage, SceneError> {
         for layer in 0..self.scene.layers().len() {
             if self.scene.layer_is_drawn(layer) {
-                let solved = self.scene.layer_field_overridden(
-                    layer,
-                    time_s,
-                    self.warm[layer].as_ref(),
-                    &self.overrides,
-                )?;
+                let solved = self.solve_layer(layer, time_s)?;
                 self.warm[layer] = Some(solved.field);
             }
         }
         Ok(self.scene.composite(&self.warm))
+    }
+
+    /// One layer's solve: from its earlier frames (the thin plate), or from its previous
+    /// field (the other methods ignore it).
+    fn solve_layer(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
+        let method = self.overrides.apply(&self.scene.layers()[layer].solver).method;
+        if method == Method::Tps {
+            self.scene.layer_field_warm(layer, time_s, &mut self.history[layer], &self.overrides)
+        } else {
+            self.scene.layer_field_overridden(layer, time_s, self.warm[layer].as_ref(), &self.overrides)
+        }
     }
 }
 
@@ -410,7 +443,7 @@ pub struct FrameStream {
     chains: Vec<Range<usize>>,
     next_chain: usize,
     /// Sequential mode: the chain being rendered here and its animator state.
-    sequential: Option<(Range<usize>, Vec<Option<Field>>)>,
+    sequential: Option<(Range<usize>, Vec<Option<Field>>, Vec<WarmHistory>)>,
     overrides: SolverOverrides,
     receivers: Vec<Receiver<FrameResult>>,
     workers: Vec<JoinHandle<()>>,
@@ -528,24 +561,27 @@ impl FrameStream {
         if self
             .sequential
             .as_ref()
-            .map_or(true, |(range, _)| range.is_empty())
+            .map_or(true, |(range, _, _)| range.is_empty())
         {
             let chain = self.chains.get(self.next_chain)?.clone();
             self.next_chain += 1;
-            self.sequential = Some((chain, vec![None; self.scene.layers().len()]));
+            let n = self.scene.layers().len();
+            self.sequential = Some((chain, vec![None; n], vec![WarmHistory::new(); n]));
         }
         let scene = Arc::clone(&self.scene);
-        let (range, warm) = self.sequential.as_mut()?;
+        let (range, warm, history) = self.sequential.as_mut()?;
         let i = range.next()?;
         let mut animator = Animator {
             scene: &scene,
             warm: std::mem::take(warm),
+            history: std::mem::take(history),
             overrides: self.overrides.clone(),
         };
         let frame = animator
             .render(scene.frame_time_s(i))
             .map(|image| (i, image));
         *warm = animator.warm;
+        *history = animator.history;
         Some(frame)
     }
 }

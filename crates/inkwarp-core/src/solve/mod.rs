@@ -42,9 +42,12 @@
 //! choices and lists the measured figures.
 
 mod cycle;
+mod history;
 mod level;
 mod southwell;
 mod upsample;
+
+pub use history::{solve_warm, WarmHistory, HISTORY_FRAMES};
 
 #[cfg(not(all(target_arch = "wasm32", target_os = "unknown")))]
 use std::time::Instant;

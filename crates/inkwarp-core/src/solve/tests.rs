@@ -329,3 +329,52 @@ fn grid_step_is_close_on_a_smooth_problem() {
     let d = full.dx.iter().zip(&coarse.dx).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
     assert!(d < 0.3, "grid_step 4 differs by {d}");
 }
+
+#[test]
+fn starts_from_earlier_frames_keep_the_accuracy_and_save_cycles() {
+    // A grid with a hole and a cut, a dozen constraints moving smoothly over 12 frames.
+    let (w, h) = (64usize, 48usize);
+    let mut grid = Grid::new(w, h);
+    for y in 18..24 {
+        for x in 20..30 {
+            grid.active[y * w + x] = false;
+        }
+    }
+    for i in 0..w * h {
+        let (x, y) = (i % w, i / w);
+        if !grid.active[i] || x + 1 == w || !grid.active[i + 1] {
+            grid.link_right[i] = false;
+        }
+        if !grid.active[i] || y + 1 == h || !grid.active[i + w] {
+            grid.link_down[i] = false;
+        }
+    }
+    grid.add_cut(&[[40.5, 5.0], [44.5, 30.0]]);
+    let mut rng = Rng(11);
+    let base: Vec<([f64; 2], [f64; 2], f64)> =
+        (0..12).map(|_| ([rng.next() * 63.0, rng.next() * 47.0], [rng.next() * 8.0 - 4.0, rng.next() * 8.0 - 4.0], rng.next() * 3.0)).collect();
+    let pose = |t: f64| -> Vec<Sample> {
+        base.iter()
+            .map(|&(rest, amp, phase)| Sample { rest, displacement: [amp[0] * (t + phase).sin(), amp[1] * (0.7 * t + phase).cos()] })
+            .collect()
+    };
+    let opts = SolveOptions::default();
+    let tight = SolveOptions { tolerance_px: 1e-6, max_cycles: Some(500), ..Default::default() };
+    let mut history = WarmHistory::new();
+    let (mut with_history, mut from_previous) = (0, 0);
+    let mut previous: Option<Field> = None;
+    for frame in 0..12 {
+        let samples = pose(0.15 * frame as f64);
+        let (field, report) = solve_warm(&grid, &samples, &opts, &mut history).unwrap();
+        let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
+        let err = field.dx.iter().zip(&exact.dx).chain(field.dy.iter().zip(&exact.dy)).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(err < 0.05, "frame {frame}: {err} px from the exact minimiser ({report:?})");
+        let (_, plain) = solve(&grid, &samples, &opts, previous.as_ref()).unwrap();
+        previous = Some(field);
+        if frame >= 3 {
+            with_history += report.cycles;
+            from_previous += plain.cycles;
+        }
+    }
+    assert!(with_history < from_previous, "{with_history} cycles from earlier frames, {from_previous} from the previous one");
+}

@@ -1,0 +1,219 @@
+//! Warm starts from several earlier frames.
+//!
+//! On a fixed grid with fixed constrained nodes (an animation: the drawing's rest pose, and
+//! so the nodes its samples pin, does not change between frames) the solution is linear in
+//! the constraint values. So if the new values are close to a combination `Σ αᵢ vᵢ` of
+//! earlier frames' values, the same combination of their fields `Σ αᵢ uᵢ` is as close to
+//! the new solution (up to the earlier solves' own tolerance). [`WarmHistory`] keeps the
+//! last few frames and starts each solve from the least-squares combination; for smooth
+//! motion that is a polynomial extrapolation in time, far closer than the last field
+//! alone (DESIGN §4's warm start, generalised from one earlier frame to a few).
+
+use std::collections::VecDeque;
+
+use crate::field::Field;
+use crate::geometry::Sample;
+use crate::grid::{constrain, Grid};
+
+use super::{solve, SolveError, SolveOptions, SolveReport};
+
+/// How many earlier frames a [`WarmHistory`] keeps.
+pub const HISTORY_FRAMES: usize = 3;
+
+/// The last few solves of one animated surface: their constraint values and fields.
+#[derive(Clone, Debug, Default)]
+pub struct WarmHistory {
+    /// Grid size and constrained nodes the entries share.
+    shape: (usize, usize),
+    nodes: Vec<usize>,
+    /// Oldest first: (constraint values, field).
+    entries: VecDeque<(Vec<[f64; 2]>, Field)>,
+}
+
+impl WarmHistory {
+    /// An empty history (the next solve is cold).
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Forgets every earlier frame.
+    pub fn clear(&mut self) {
+        self.entries.clear();
+        self.nodes.clear();
+    }
+
+    /// The latest field, if any.
+    pub fn last(&self) -> Option<&Field> {
+        self.entries.back().map(|e| &e.1)
+    }
+
+    /// Number of earlier frames kept.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// Whether no frame is kept.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// The start for a solve of `samples` on `grid`: the combination of the kept fields
+    /// whose constraint values best match the new ones (per component), or the latest
+    /// field when the earlier frames pin other nodes or do not help; `None` when empty.
+    pub fn start(&self, grid: &Grid, samples: &[Sample]) -> Option<Field> {
+        let last = self.last()?;
+        if last.width != grid.width || last.height != grid.height {
+            return None;
+        }
+        if self.entries.len() < 2 {
+            return Some(last.clone());
+        }
+        let c = constrain(grid, samples);
+        if (grid.width, grid.height) != self.shape || c.nodes != self.nodes {
+            return Some(last.clone());
+        }
+        let k = self.entries.len();
+        let mut alpha = [[0.0f64; HISTORY_FRAMES]; 2];
+        for (q, a) in alpha.iter_mut().enumerate() {
+            *a = self.fit(&c.values, q).unwrap_or_else(|| {
+                let mut e = [0.0; HISTORY_FRAMES];
+                e[k - 1] = 1.0;
+                e
+            });
+        }
+        let mut out = Field::zeros(grid.width, grid.height);
+        for (i, (_, f)) in self.entries.iter().enumerate() {
+            let (ax, ay) = (alpha[0][i] as f32, alpha[1][i] as f32);
+            if ax != 0.0 {
+                out.dx.iter_mut().zip(&f.dx).for_each(|(o, v)| *o += ax * v);
+            }
+            if ay != 0.0 {
+                out.dy.iter_mut().zip(&f.dy).for_each(|(o, v)| *o += ay * v);
+            }
+        }
+        Some(out)
+    }
+
+    /// Least-squares weights of the kept frames' component `q` for `target`, when they
+    /// match it better than the latest frame alone and stay moderate (no wild
+    /// extrapolation that would amplify the earlier solves' own errors).
+    fn fit(&self, target: &[[f64; 2]], q: usize) -> Option<[f64; HISTORY_FRAMES]> {
+        let k = self.entries.len();
+        let mut g = [[0.0f64; HISTORY_FRAMES]; HISTORY_FRAMES];
+        let mut b = [0.0f64; HISTORY_FRAMES];
+        for i in 0..k {
+            let vi = &self.entries[i].0;
+            for j in 0..=i {
+                let vj = &self.entries[j].0;
+                let s: f64 = vi.iter().zip(vj).map(|(a, c)| a[q] * c[q]).sum();
+                g[i][j] = s;
+                g[j][i] = s;
+            }
+            b[i] = vi.iter().zip(target).map(|(a, t)| a[q] * t[q]).sum();
+        }
+        let trace: f64 = (0..k).map(|i| g[i][i]).sum();
+        if trace <= 0.0 {
+            return None;
+        }
+        for (i, row) in g.iter_mut().enumerate().take(k) {
+            row[i] += 1e-10 * trace;
+        }
+        let alpha = solve_small(g, b, k)?;
+        if alpha[..k].iter().map(|a| a.abs()).sum::<f64>() > 16.0 {
+            return None;
+        }
+        let miss = |w: &[f64]| -> f64 {
+            target
+                .iter()
+                .enumerate()
+                .map(|(n, t)| {
+                    let v: f64 = (0..k).map(|i| w[i] * self.entries[i].0[n][q]).sum();
+                    (t[q] - v) * (t[q] - v)
+                })
+                .sum()
+        };
+        let mut latest = [0.0; HISTORY_FRAMES];
+        latest[k - 1] = 1.0;
+        (miss(&alpha) < miss(&latest)).then_some(alpha)
+    }
+
+    /// Keeps the solve of `samples` on `grid` that gave `field`.
+    pub fn record(&mut self, grid: &Grid, samples: &[Sample], field: &Field) {
+        let c = constrain(grid, samples);
+        if (grid.width, grid.height) != self.shape || c.nodes != self.nodes {
+            self.entries.clear();
+            self.shape = (grid.width, grid.height);
+            self.nodes = c.nodes;
+        }
+        if self.entries.len() == HISTORY_FRAMES {
+            self.entries.pop_front();
+        }
+        self.entries.push_back((c.values, field.clone()));
+    }
+}
+
+/// Gaussian elimination with partial pivoting on the leading `k × k` block.
+fn solve_small(
+    mut a: [[f64; HISTORY_FRAMES]; HISTORY_FRAMES],
+    mut b: [f64; HISTORY_FRAMES],
+    k: usize,
+) -> Option<[f64; HISTORY_FRAMES]> {
+    for col in 0..k {
+        let piv = (col..k).max_by(|&p, &r| a[p][col].abs().total_cmp(&a[r][col].abs()))?;
+        if a[piv][col].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(col, piv);
+        b.swap(col, piv);
+        for r in col + 1..k {
+            let f = a[r][col] / a[col][col];
+            for c in col..k {
+                a[r][c] -= f * a[col][c];
+            }
+            b[r] -= f * b[col];
+        }
+    }
+    let mut x = [0.0; HISTORY_FRAMES];
+    for r in (0..k).rev() {
+        let s: f64 = (r + 1..k).map(|c| a[r][c] * x[c]).sum();
+        x[r] = (b[r] - s) / a[r][r];
+        if !x[r].is_finite() {
+            return None;
+        }
+    }
+    Some(x)
+}
+
+/// [`solve`] started from `history` ([`WarmHistory::start`]), which then keeps the result.
+///
+/// ```
+/// use inkwarp_core::solve::{solve_warm, SolveOptions, WarmHistory};
+/// use inkwarp_core::{Grid, Sample};
+/// let grid = Grid::new(48, 48);
+/// let mut history = WarmHistory::new();
+/// let opts = SolveOptions::default();
+/// // A point swinging smoothly while two corners hold: each frame starts from the
+/// // extrapolation of the ones before.
+/// let pose = |t: f64| {
+///     let s = |x, y, dx, dy| Sample { rest: [x, y], displacement: [dx, dy] };
+///     vec![s(0.0, 0.0, 0.0, 0.0), s(47.0, 47.0, 0.0, 0.0), s(10.0, 40.0, 0.0, 0.0),
+///          s(24.0, 24.0, 6.0 * t.sin(), 6.0 * t.cos())]
+/// };
+/// let mut cycles = Vec::new();
+/// for frame in 0..8 {
+///     let (_, report) = solve_warm(&grid, &pose(0.2 * frame as f64), &opts, &mut history).unwrap();
+///     cycles.push(report.cycles);
+/// }
+/// assert!(cycles[7] <= cycles[0]);
+/// ```
+pub fn solve_warm(
+    grid: &Grid,
+    samples: &[Sample],
+    options: &SolveOptions,
+    history: &mut WarmHistory,
+) -> Result<(Field, SolveReport), SolveError> {
+    let initial = history.start(grid, samples);
+    let (field, report) = solve(grid, samples, options, initial.as_ref())?;
+    history.record(grid, samples, &field);
+    Ok((field, report))
+}
