@@ -12,7 +12,7 @@ use inkwarp_core::methods::{
 };
 use inkwarp_core::render::{Canvas, RgbaImage};
 use inkwarp_core::scene::{images, BeierNeelyDoc, SolverDoc, TpsExactDoc};
-use inkwarp_core::solve::{solve, SolveMethod, SolveOptions};
+use inkwarp_core::solve::{solve, SolveMethod, SolveOptions, WarmHistory};
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
 use serde::Deserialize;
 
@@ -34,6 +34,10 @@ thread_local! {
 struct Domain {
     grid: Grid,
     samplers: RefCell<HashMap<String, FeatureSampler>>,
+    /// The thin plate's earlier solves per `grid_step` (drafts and full solves apart): a
+    /// warm-started solve starts from their best combination ([`WarmHistory`]), which
+    /// during a drag is an extrapolation of the pointer's path.
+    history: RefCell<HashMap<usize, WarmHistory>>,
 }
 
 /// Prepared samplers kept per grid; more than this and the cache starts over.
@@ -127,6 +131,7 @@ pub extern "C" fn iw_grid_new(
             Domain {
                 grid,
                 samplers: RefCell::new(HashMap::new()),
+                history: RefCell::new(HashMap::new()),
             },
         )
     })
@@ -384,7 +389,7 @@ pub extern "C" fn iw_solve(
         let per_feature = samples_of(&req.features, domain, req.spacing_px.unwrap_or(1.0))?;
         let sample_count: usize = per_feature.iter().map(Vec::len).sum();
         let (field, report) = match method.interpolant() {
-            None => solve_tps(grid, per_feature, &req.options, initial_ptr)?,
+            None => solve_tps(domain, per_feature, &req.options, initial_ptr)?,
             Some(interpolant) => {
                 let controls = controls_of(&req.features, per_feature, interpolant)?;
                 let step = req.options.grid_step;
@@ -522,11 +527,12 @@ fn tps_exact_preview(
 
 /// The grid thin plate of `iw_solve`, with its report as JSON.
 fn solve_tps(
-    grid: &Grid,
+    domain: &Domain,
     per_feature: Vec<Vec<Sample>>,
     options: &OptionsIn,
     initial_ptr: *const f32,
 ) -> Result<(Field, serde_json::Value), String> {
+    let grid = &domain.grid;
     let n = grid.width * grid.height;
     let samples: Vec<Sample> = per_feature.into_iter().flatten().collect();
     let scheme = match options.scheme.as_str() {
@@ -555,8 +561,21 @@ fn solve_tps(
             dy: data[n..].to_vec(),
         }
     });
+    // A warm start from the earlier solves when they pin the same nodes; a cold request
+    // (no initial field) starts the series over.
+    let mut histories = domain.history.borrow_mut();
+    let history = histories.entry(options.grid_step).or_default();
+    let start = match initial {
+        Some(given) if history.len() >= 2 => Some(history.start(grid, &samples).unwrap_or(given)),
+        Some(given) => Some(given),
+        None => {
+            history.clear();
+            None
+        }
+    };
     let (field, report) =
-        solve(grid, &samples, &options, initial.as_ref()).map_err(|e| e.to_string())?;
+        solve(grid, &samples, &options, start.as_ref()).map_err(|e| e.to_string())?;
+    history.record(grid, &samples, &field);
     let json = serde_json::json!({
         "cycles": report.cycles,
         "final_change_px": report.final_change_px,
