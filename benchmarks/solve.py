@@ -5,7 +5,10 @@ OpenCV's ThinPlateSplineShapeTransformer), on the same points, in the same run.
 Every tool produces the full (H, W, 2) displacement field on every pixel centre from N
 scattered constraints. Times are medians of repeated runs (wall clock, one process);
 ratios are peer / inkwarp (> 1 means inkwarp is faster). Peak memory of the big grids is
-the resident-set high-water mark of a fresh child process.
+the resident-set high-water mark of a fresh child process. "Warm" starts from the
+answer of a slightly different frame (one earlier frame); "animated" is the per-frame
+solve of a smooth motion with `inkwarp.WarmStart` (the earlier frames, extrapolated), which
+is how `inkwarp render` and `Scene.frames()` solve animations.
 
 Usage: python benchmarks/solve.py [--quick] [--sizes 257,513] [--counts 10,100,1000,4000]
 """
@@ -99,6 +102,22 @@ def available(name: str) -> bool:
         return False
 
 
+def animated(pts, disp, shape, frames: int = 12) -> float:
+    """Median solve time per frame of a smooth motion of the same points (each
+    displacement swinging by ±10 % on its own phase), every solve started from the earlier
+    frames by an `inkwarp.WarmStart`, as an animation's frames are; the first three frames,
+    which fill the history, are not counted."""
+    warm = inkwarp.WarmStart()
+    phase = np.random.default_rng(7).uniform(0, 2 * np.pi, len(pts))[:, None]
+    times = []
+    for f in range(frames):
+        frame_disp = disp * (1 + 0.1 * np.sin(0.3 * f + phase))
+        t0 = time.perf_counter()
+        inkwarp.thin_plate(pts, frame_disp, shape, warm=warm)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times[3:])
+
+
 def bench_grid(size: int, counts: list[int], repeats: int, peer_budget_s: float) -> list[dict]:
     shape = (size, size)
     rows = []
@@ -112,6 +131,7 @@ def bench_grid(size: int, counts: list[int], repeats: int, peer_budget_s: float)
         row["cold"] = median_time(lambda: inkwarp.thin_plate(pts, disp, shape), repeats)
         row["warm"] = median_time(
             lambda: inkwarp.thin_plate(pts, nudged, shape, initial=field), repeats)
+        row["anim"] = animated(pts, disp, shape)
         _, report = inkwarp.thin_plate_report(pts, disp, shape)
         row["cycles"] = report.cycles
         for peer in peers:
@@ -140,11 +160,11 @@ def print_row(row: dict, peers: list[str], flush: bool = False) -> None:
     key = tuple(peers)
     if key not in HEADER_DONE:
         HEADER_DONE.add(key)
-        cols = ["grid", "N", "cold ms", "warm ms", "cycles"] + [f"{p} ms (×)" for p in peers]
+        cols = ["grid", "N", "cold ms", "warm ms", "animated ms", "cycles"] + [f"{p} ms (×)" for p in peers]
         print("| " + " | ".join(cols) + " |")
         print("|" + "|".join("---" for _ in cols) + "|")
     cells = [f"{row['size']}×{row['size']}", str(row["n"]), f"{row['cold'] * 1e3:.1f}",
-             f"{row['warm'] * 1e3:.1f}", str(row["cycles"])]
+             f"{row['warm'] * 1e3:.1f}", f"{row['anim'] * 1e3:.1f}", str(row["cycles"])]
     for p in peers:
         cells.append(f"{row[p] * 1e3:.0f} ({ratio(row[p] / row['cold'])})")
     print("| " + " | ".join(cells) + " |", flush=flush)

@@ -114,3 +114,42 @@ def test_southwell_stops_once_nothing_is_left_to_relax():
     field, report = inkwarp.thin_plate_report(PTS, DISP, SHAPE, method="southwell", southwell_sweeps=1e5)
     exact = inkwarp.thin_plate(PTS, DISP, SHAPE, tolerance=1e-6)
     assert report.converged and np.abs(field - exact).max() < 1e-3
+
+
+def test_warm_start_follows_an_animation_with_fewer_cycles_and_the_same_accuracy():
+    pts = [[4, 4], [60, 6], [6, 44], [58, 42], [20, 20], [44, 30], [32, 10]]
+
+    def disp(t):
+        return [[0, 0]] * 4 + [[5 * np.sin(t), 3 * np.cos(t)], [-4 * np.cos(1.3 * t), 2 * np.sin(t)], [3 * t, -t]]
+
+    warm = inkwarp.WarmStart()
+    previous = None
+    with_history, from_previous = 0, 0
+    for frame in range(10):
+        t = 0.2 * frame
+        field, report = inkwarp.thin_plate_report(pts, disp(t), (48, 64), warm=warm)
+        exact = inkwarp.thin_plate(pts, disp(t), (48, 64), tolerance=1e-6, max_cycles=500)
+        assert np.abs(field - exact).max() < 0.05
+        _, plain = inkwarp.thin_plate_report(pts, disp(t), (48, 64), initial=previous)
+        previous = field
+        if frame >= 3:
+            with_history += report.cycles
+            from_previous += plain.cycles
+    assert len(warm) == 3
+    assert with_history < from_previous
+    warm.clear()
+    assert len(warm) == 0 and "0 earlier" in repr(warm)
+
+
+def test_warm_start_mistakes_say_what_to_do():
+    with pytest.raises(ValueError, match="inkwarp.WarmStart"):
+        inkwarp.thin_plate(PTS, DISP, SHAPE, warm="yes")
+    with pytest.raises(ValueError, match="initial or warm, not both"):
+        inkwarp.thin_plate(PTS, DISP, SHAPE, warm=inkwarp.WarmStart(), initial=np.zeros((*SHAPE, 2), np.float32))
+
+
+def test_the_extension_stubs_are_valid_python():
+    import ast
+    from pathlib import Path
+
+    ast.parse((Path(inkwarp.__file__).parent / "_inkwarp.pyi").read_text(encoding="utf-8"))

@@ -11,7 +11,7 @@ from inkwarp.compare import Comparison, compare, comparison_sheet
 from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
 from inkwarp.imaging import warp_image
 from inkwarp.transfer import transfer, transfer_dict
-from inkwarp.plate import SolveReport, thin_plate, thin_plate_report
+from inkwarp.plate import SolveReport, WarmStart, thin_plate, thin_plate_report
 from inkwarp.scene import Frames, Scene, image_data_uri, scene_schema, validate_scene
 
 __all__ = [
@@ -33,6 +33,7 @@ __all__ = [
     "sample",
     "scene_schema",
     "thin_plate",
+    "WarmStart",
     "thin_plate_report",
     "transfer",
     "transfer_dict",

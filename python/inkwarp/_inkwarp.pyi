@@ -79,9 +79,6 @@ from typing import Any
 
 def interpolate_field(
     method: str,
-
-# --- thin plate (inkwarp.plate) -------------------------------------------------------
-def thin_plate_solve(
     points: npt.NDArray[np.float64],
     displacements: npt.NDArray[np.float64],
     height: int,
@@ -92,6 +89,31 @@ def thin_plate_solve(
     a: float = 1.0,
     b: float = 2.0,
     p: float = 0.0,
+) -> tuple[npt.NDArray[np.float32], dict[str, Any]]: ...
+
+# --- thin plate (inkwarp.plate) -------------------------------------------------------
+class WarmStart:
+    """Earlier solves of one animated surface; see `inkwarp.WarmStart`."""
+
+    def __init__(self) -> None: ...
+    def clear(self) -> None: ...
+    def __len__(self) -> int: ...
+
+def thin_plate_solve(
+    points: npt.NDArray[np.float64],
+    displacements: npt.NDArray[np.float64],
+    height: int,
+    width: int,
+    mask: npt.NDArray[np.uint8] | None,
+    cuts: list[npt.NDArray[np.float64]],
+    tension: float,
+    tolerance: float,
+    grid_step: int,
+    initial: npt.NDArray[np.float32] | None,
+    max_cycles: int | None,
+    method: str,
+    southwell_sweeps: float,
+    warm: WarmStart | None = None,
 ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]: ...
 
 class ThinPlateMap:
@@ -111,15 +133,3 @@ def transfer_fold(
     source: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
     target: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
 ) -> tuple[float, float, str, str] | None: ...
-
-    mask: npt.NDArray[np.uint8] | None,
-    cuts: list[npt.NDArray[np.float64]],
-    tension: float,
-    tolerance: float,
-    grid_step: int,
-    initial: npt.NDArray[np.float32] | None,
-    max_cycles: int | None,
-    method: str,
-    southwell_sweeps: float,
-) -> tuple[npt.NDArray[np.float32], dict[str, int | float | bool]]:
-    """Solve the grid thin plate; the field (H, W, 2) and the report as a dict."""

@@ -6,13 +6,50 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use inkwarp_core::solve::{solve, SolveMethod, SolveOptions};
+use std::sync::Mutex;
+
+use inkwarp_core::solve::{solve, solve_warm, SolveMethod, SolveOptions, WarmHistory};
 use inkwarp_core::{Field, Grid, Sample};
+
+/// Earlier solves of one animated surface (`inkwarp.WarmStart`): the next solve starts
+/// from the combination of their fields that best matches its displacements.
+#[pyclass(name = "WarmStart", module = "inkwarp")]
+#[derive(Default)]
+pub struct PyWarmStart {
+    history: Mutex<WarmHistory>,
+}
+
+#[pymethods]
+impl PyWarmStart {
+    #[new]
+    fn new() -> Self {
+        Self::default()
+    }
+
+    /// Forgets every earlier solve (the next one is cold).
+    fn clear(&self) {
+        self.lock().clear();
+    }
+
+    fn __len__(&self) -> usize {
+        self.lock().len()
+    }
+
+    fn __repr__(&self) -> String {
+        format!("WarmStart({} earlier solves)", self.lock().len())
+    }
+}
+
+impl PyWarmStart {
+    fn lock(&self) -> std::sync::MutexGuard<'_, WarmHistory> {
+        self.history.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
 
 /// Solves the thin plate; returns the float32 (H, W, 2) field and the report as a dict.
 #[pyfunction]
 #[pyo3(signature = (points, displacements, height, width, mask, cuts, tension, tolerance,
-                    grid_step, initial, max_cycles, method, southwell_sweeps))]
+                    grid_step, initial, max_cycles, method, southwell_sweeps, warm=None))]
 #[allow(clippy::too_many_arguments)]
 fn thin_plate_solve<'py>(
     py: Python<'py>,
@@ -29,6 +66,7 @@ fn thin_plate_solve<'py>(
     max_cycles: Option<usize>,
     method: &str,
     southwell_sweeps: f64,
+    warm: Option<PyRef<'py, PyWarmStart>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
     let method = match method {
         "multigrid" => SolveMethod::Multigrid,
@@ -84,7 +122,16 @@ fn thin_plate_solve<'py>(
         None => None,
     };
     let options = SolveOptions { tension, tolerance_px: tolerance, grid_step, max_cycles, method, southwell_sweeps };
-    let result = py.detach(|| solve(&grid, &samples, &options, initial.as_ref()));
+    let result = match &warm {
+        Some(w) => {
+            // Out of its lock while the solve runs without the interpreter.
+            let mut history = std::mem::take(&mut *w.lock());
+            let result = py.detach(|| solve_warm(&grid, &samples, &options, &mut history));
+            *w.lock() = history;
+            result
+        }
+        None => py.detach(|| solve(&grid, &samples, &options, initial.as_ref())),
+    };
     let (field, report) = result.map_err(|e| PyValueError::new_err(e.to_string()))?;
     let array = PyArray1::from_vec(py, field.to_interleaved()).reshape([height, width, 2])?;
     let d = PyDict::new(py);
@@ -102,5 +149,6 @@ fn thin_plate_solve<'py>(
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(thin_plate_solve, m)?)?;
+    m.add_class::<PyWarmStart>()?;
     Ok(())
 }
