@@ -156,7 +156,7 @@ def main() -> None:
     print("| per frame (solve + render) | ms | vs cold |")
     print("|---|---|---|")
     print(f"| cold (each frame solved from zero) | {cold * 1e3:.1f} | 1.00 |")
-    print(f"| warm (previous frame's field, 1 thread) | {warm * 1e3:.1f} | {warm / cold:.2f} |")
+    print(f"| warm (started from the earlier frames, 1 thread) | {warm * 1e3:.1f} | {warm / cold:.2f} |")
     print(f"| warm, frames in parallel (all cores), wall / frame | {parallel * 1e3:.1f} | {parallel / cold:.2f} |")
     print(f"| render alone ({size}×{size} layer) | {render_alone * 1e3:.1f} | |")
     print(f"| scikit-image TPS fit + warp (peer) | {peer * 1e3:.1f} | {peer / warm:.0f}× inkwarp warm |")
