@@ -1,5 +1,5 @@
 //! The scene engine: the drawing at time t, its samples per layer, the layer's field (warm
-//! started from the previous frame), and the frame composited back to front.
+//! started from the layer's earlier frames), and the frame composited back to front.
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
