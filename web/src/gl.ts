@@ -120,6 +120,23 @@ void main() {
 }
 `;
 
+// Drafts: one filtered fetch from the premultiplied copy of the image, the same bilinear
+// mix of premultiplied pixels as FRAG up to the texture unit's 8-bit weights (the draft
+// mesh has no skirt quarters to clamp to: its quads are whole).
+const DRAFT_FRAG = `#version 300 es
+precision highp float;
+precision highp int;
+uniform highp sampler2D uPremultiplied;
+uniform ivec2 uSize;
+uniform float uOpacity;
+in vec2 vRest;
+out vec4 outColor;
+
+void main() {
+  outColor = texture(uPremultiplied, (vRest + 0.5) / vec2(uSize)) * uOpacity;
+}
+`;
+
 const BLIT_VERT = `#version 300 es
 out vec2 vPos;
 void main() {
@@ -240,6 +257,8 @@ export function draftQuads(w: number, h: number, links: Uint8Array, block = DRAF
 /** One layer's GPU resources. */
 export class GlLayer {
   image: WebGLTexture;
+  /** The image premultiplied, bilinearly filtered: drafts sample it once a fragment. */
+  premultiplied: WebGLTexture;
   field: WebGLTexture;
   /** Indices of the triangles of every quad whose four links exist. */
   indices: WebGLBuffer;
@@ -259,6 +278,7 @@ export class GlLayer {
   ) {
     const gl = r.gl;
     this.image = r.texture();
+    this.premultiplied = r.texture(true);
     this.field = r.texture();
     this.indices = gl.createBuffer()!;
     this.coarse = gl.createBuffer()!;
@@ -284,6 +304,16 @@ export class GlLayer {
     gl.bindTexture(gl.TEXTURE_2D, this.image);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.width, this.height, 0, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(rgba.buffer, rgba.byteOffset, rgba.byteLength));
+    const premultiplied = new Uint8Array(rgba.length);
+    for (let i = 0; i < rgba.length; i += 4) {
+      const a = rgba[i + 3];
+      premultiplied[i] = Math.round((rgba[i] * a) / 255);
+      premultiplied[i + 1] = Math.round((rgba[i + 1] * a) / 255);
+      premultiplied[i + 2] = Math.round((rgba[i + 2] * a) / 255);
+      premultiplied[i + 3] = a;
+    }
+    gl.bindTexture(gl.TEXTURE_2D, this.premultiplied);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.width, this.height, 0, gl.RGBA, gl.UNSIGNED_BYTE, premultiplied);
   }
 
   /**
@@ -331,6 +361,7 @@ export class GlLayer {
   dispose(): void {
     const gl = this.r.gl;
     gl.deleteTexture(this.image);
+    gl.deleteTexture(this.premultiplied);
     gl.deleteTexture(this.field);
     gl.deleteBuffer(this.indices);
     gl.deleteBuffer(this.coarse);
@@ -349,6 +380,7 @@ export interface DrawLayer {
 export class GlRenderer {
   readonly gl: WebGL2RenderingContext;
   private mesh: WebGLProgram;
+  private draftMesh: WebGLProgram;
   private skirt: WebGLProgram;
   private blit: WebGLProgram;
   private vao: WebGLVertexArrayObject;
@@ -367,6 +399,7 @@ export class GlRenderer {
     if (!gl) throw new Error('This browser has no WebGL2; the editor needs it to draw the warped picture.');
     this.gl = gl;
     this.mesh = program(gl, VERT, FRAG);
+    this.draftMesh = program(gl, VERT, DRAFT_FRAG);
     this.skirt = program(gl, SKIRT_VERT, FRAG, ['aQuarter', 'aCorner']);
     this.blit = program(gl, BLIT_VERT, `#version 300 es
 precision highp float;
@@ -378,12 +411,14 @@ void main() { o = texture(uTex, vPos); }`);
     this.samples = Math.min(4, gl.getParameter(gl.MAX_SAMPLES) as number);
   }
 
-  texture(): WebGLTexture {
+  /** A texture clamped at its edges, sampled at the nearest texel or (`linear`) bilinearly. */
+  texture(linear = false): WebGLTexture {
     const gl = this.gl;
     const t = gl.createTexture()!;
+    const filter = linear ? gl.LINEAR : gl.NEAREST;
     gl.bindTexture(gl.TEXTURE_2D, t);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, filter);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, filter);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
     return t;
@@ -453,18 +488,21 @@ void main() { o = texture(uTex, vPos); }`);
       gl.bindTexture(gl.TEXTURE_2D, layer.links);
       gl.activeTexture(gl.TEXTURE2);
       gl.bindTexture(gl.TEXTURE_2D, layer.image);
-      for (const prog of [this.mesh, this.skirt]) {
+      gl.activeTexture(gl.TEXTURE3);
+      gl.bindTexture(gl.TEXTURE_2D, layer.premultiplied);
+      for (const prog of [draft ? this.draftMesh : this.mesh, this.skirt]) {
         gl.useProgram(prog);
         const u = (n: string) => gl.getUniformLocation(prog, n);
         gl.uniform1i(u('uField'), 0);
         gl.uniform1i(u('uLinks'), 1);
         gl.uniform1i(u('uImage'), 2);
+        gl.uniform1i(u('uPremultiplied'), 3);
         gl.uniform2f(u('uCanvas'), width, height);
         gl.uniform2i(u('uSize'), layer.width, layer.height);
         gl.uniform2f(u('uOffset'), offset[0], offset[1]);
         gl.uniform1f(u('uOpacity'), opacity ?? 1);
         gl.uniform1f(u('uBlock'), draft ? DRAFT_BLOCK : 1);
-        if (prog === this.mesh) {
+        if (prog !== this.skirt) {
           gl.bindVertexArray(this.vao);
           gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, draft ? layer.coarse : layer.indices);
           gl.drawElements(gl.TRIANGLES, draft ? layer.coarseCount : layer.count, gl.UNSIGNED_INT, 0);
