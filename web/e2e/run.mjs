@@ -593,6 +593,62 @@ test('measure: dragging under each method on the same scene', async () => {
   }
 });
 
+test('a draft frame drawn during a drag looks like the full frame of the same field', async () => {
+  // On the measured scene (12 features): hold a point and move it; the first frame drawn
+  // from a draft field while the pointer is down is read back, then the same field is
+  // drawn as a full frame, each draw timed (read back included, which waits for the GPU).
+  await page.evaluate(() => {
+    const { app } = window.inkwarp;
+    window.draftProbe = null;
+    const shown = app.onFrame;
+    app.onFrame = () => {
+      shown();
+      if (window.draftProbe || !app.dragging || app.lastReport?.tag.quality !== 'draft' || app.solver.busy) return;
+      const timed = (draft) => {
+        const t0 = performance.now();
+        app.draw(draft);
+        const px = app.gl.readPixels();
+        return { ms: performance.now() - t0, px };
+      };
+      const draft = timed(true);
+      const full = timed(false);
+      const again = timed(true); // the canvas shows the draft again
+      const b64 = (px) => {
+        let s = '';
+        for (let i = 0; i < px.length; i += 0x8000) s += String.fromCharCode(...px.subarray(i, i + 0x8000));
+        return btoa(s);
+      };
+      window.draftProbe = { w: app.store.doc.width, h: app.store.doc.height, draft: b64(draft.px), full: b64(full.px), draftMs: Math.min(draft.ms, again.ms), fullMs: full.ms };
+    };
+  });
+  const [x0, y0] = await toClient(page, [256, 256]);
+  const [x1, y1] = await toClient(page, [290, 226]);
+  await page.mouse.move(x0, y0);
+  await page.mouse.down();
+  for (let i = 1; i <= 6; i++) {
+    await page.mouse.move(x0 + ((x1 - x0) * i) / 6, y0 + ((y1 - y0) * i) / 6);
+    await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => r())));
+  }
+  await page.waitForFunction(() => window.draftProbe !== null, null, { timeout: 60000, polling: 20 });
+  await page.screenshot({ path: join(screens, 'editor-drag-draft.png') });
+  await page.mouse.up();
+  const probe = await page.evaluate(() => window.draftProbe);
+  await page.evaluate(() => (window.inkwarp.app.onFrame = () => {}));
+  const img = (b64) => ({ width: probe.w, height: probe.h, data: new Uint8Array(Buffer.from(b64, 'base64')) });
+  const draft = img(probe.draft);
+  const full = img(probe.full);
+  await savePng(page, draft, join(screens, 'frame-draft.png'));
+  await savePng(page, full, join(screens, 'frame-draft-field-full.png'));
+  // Loose: the draft bends the picture piecewise affinely over 8-pixel blocks and samples
+  // once a pixel; the full frame follows the field at every pixel and is antialiased.
+  const { ok, stats } = await compareImages(page, draft, full, 'draft-vs-full', { meanTol: 6, p99Tol: 255 });
+  perf.draftVsFull = { ...stats, draftMs: probe.draftMs, fullMs: probe.fullMs };
+  assert(ok, `a draft frame differs from the full frame of the same field: mean ${stats.mean.toFixed(2)} levels (tolerance: mean ≤ 6); see test-results/draft-vs-full-diff.png`);
+  await screenshot(page, 'drag-settled');
+  await page.keyboard.press('Control+z');
+  await idle(page);
+});
+
 test('every bundled example opens', async () => {
   const names = await page.evaluate(async () => (await window.inkwarp.examples.listExamples()).map((e) => e.name));
   perf.examples = names;
@@ -717,7 +773,8 @@ async function main() {
     console.log(`  solve: draft median ${perf.draftSolveMs.median?.toFixed(1)} ms, full median ${perf.finalSolveMs.median?.toFixed(1)} ms`);
     console.log(`  playback at 24 fps, 6 frames: first pass (solving) ${JSON.stringify(perf.playbackFirstPass)}; then 2 s from solved fields ${JSON.stringify(perf.playback)}`);
   }
-  if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without, ${perf.glFrameMs.draft.toFixed(1)} ms draft (2×2 mesh blocks)`);
+  if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without, ${perf.glFrameMs.draft.toFixed(1)} ms draft (a vertex every 8 px where whole)`);
+  if (perf.draftVsFull) console.log(`  during a drag: draft frame ${perf.draftVsFull.draftMs.toFixed(1)} ms, full frame of the same field ${perf.draftVsFull.fullMs.toFixed(1)} ms (draw + read back); draft vs full mean ${perf.draftVsFull.mean.toFixed(2)}, p99 ${perf.draftVsFull.p99}, max ${perf.draftVsFull.max}`);
   if (perf.gpuVsCpu) console.log(`  GPU vs CPU: mean ${perf.gpuVsCpu.mean.toFixed(3)}, p99 ${perf.gpuVsCpu.p99}, max ${perf.gpuVsCpu.max}`);
   if (perf.gpuVsCpuHole) console.log(`  GPU vs CPU around an opening hole (128×128): mean ${perf.gpuVsCpuHole.mean.toFixed(3)}, p99 ${perf.gpuVsCpuHole.p99}, max ${perf.gpuVsCpuHole.max}`);
   for (const ex of ['face', 'cat']) {

@@ -2,7 +2,7 @@
 // with the store.
 
 import type { Engine, FieldData, SolveFeature, SolveOptions } from './engine';
-import { GlRenderer, type GlLayer } from './gl';
+import { type DrawLayer, GlRenderer, type GlLayer } from './gl';
 import { decodeImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
@@ -416,17 +416,30 @@ export class App {
     });
   }
 
-  renderNow(): void {
-    const doc = this.doc;
-    const layers = [];
-    for (const layer of doc.layers) {
+  /** The visible layers, back to front, as the renderer draws them. */
+  private drawList(): DrawLayer[] {
+    const layers: DrawLayer[] = [];
+    for (const layer of this.doc.layers) {
       const rt = this.runtimes.get(layer.name);
       if (!rt?.gl || layer.visible === false || this.store.view.hidden.includes(layer.name)) continue;
       layers.push({ layer: rt.gl, offset: layer.offset ?? ([0, 0] as Pt) });
     }
-    // Frames during a drag are drafts: no multisampling and a coarser mesh (a software GPU
-    // pays per triangle and per sample; the full frame follows when the pointer rests).
-    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], layers, !this.dragging, this.dragging);
+    return layers;
+  }
+
+  /**
+   * Draws the current fields: the full frame (the pixel mesh, 4× multisampled, what the
+   * CPU renderer draws) or a draft (the coarse mesh of `draftQuads`, one sample a pixel).
+   */
+  draw(draft: boolean): void {
+    const doc = this.doc;
+    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], this.drawList(), !draft, draft);
+  }
+
+  renderNow(): void {
+    // Frames during a drag are drafts: a software GPU pays per vertex, per triangle and
+    // per sample, and the full frame follows when the pointer rests.
+    this.draw(this.dragging);
     this.onFrame();
     const now = performance.now();
     for (const t of this.pendingLatency.splice(0)) this.stats.dragLatency.push(now - t);

@@ -28,6 +28,9 @@ uniform highp sampler2D uField;
 uniform ivec2 uSize;
 uniform vec2 uCanvas;
 uniform vec2 uOffset;
+// The side of the quads drawn (1; the draft's largest block, a loose clamp for its
+// smaller ones, which is enough as drafts are not multisampled: every fragment centre lies
+// inside its triangle).
 uniform float uBlock;
 out vec2 vRest;
 flat out vec4 vClamp;
@@ -117,6 +120,23 @@ void main() {
 }
 `;
 
+// Drafts: one filtered fetch from the premultiplied copy of the image, the same bilinear
+// mix of premultiplied pixels as FRAG up to the texture unit's 8-bit weights (the draft
+// mesh has no skirt quarters to clamp to: its quads are whole).
+const DRAFT_FRAG = `#version 300 es
+precision highp float;
+precision highp int;
+uniform highp sampler2D uPremultiplied;
+uniform ivec2 uSize;
+uniform float uOpacity;
+in vec2 vRest;
+out vec4 outColor;
+
+void main() {
+  outColor = texture(uPremultiplied, (vRest + 0.5) / vec2(uSize)) * uOpacity;
+}
+`;
+
 const BLIT_VERT = `#version 300 es
 out vec2 vPos;
 void main() {
@@ -147,8 +167,9 @@ function program(gl: WebGL2RenderingContext, vs: string, fs: string, attributes:
 /**
  * The mesh of a `w × h` layer from its grid's links (per node: bit 0 active, bit 1 linked
  * right, bit 2 linked down; null: everything linked) and its RGBA (a pixel is drawn when
- * it is active or visible): triangle indices of the whole quads, of the draft mesh, the
- * skirt quarters' vertices (x, y, sx, sy, u, v), and the links as given (or all).
+ * it is active or visible): triangle indices of the whole quads, of the draft mesh (see
+ * `draftQuads`), the skirt quarters' vertices (x, y, sx, sy, u, v), and the links as given
+ * (or all).
  */
 export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; links: Uint8Array } {
   const at = (i: number, j: number) => (links ? links[j * w + i] : i + 1 < w ? (j + 1 < h ? 7 : 3) : j + 1 < h ? 5 : 1);
@@ -172,34 +193,77 @@ export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: 
       }
     }
   }
-  // The draft mesh: the same vertices, a 2×2 block of whole quads drawn as one quad
-  // (the picture keeps every pixel: colours are still looked up per pixel).
-  const whole = (i: number, j: number) => i + 1 < w && j + 1 < h && (at(i, j) & 6) === 6 && (at(i, j + 1) & 2) !== 0 && (at(i + 1, j) & 4) !== 0;
-  const coarse = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
-  let m = 0;
-  const quad = (k: number, sx: number, sy: number) => {
-    coarse.set([k + sx, k + sy * w + sx, k, k + sy * w + sx, k + sy * w, k], m);
-    m += 6;
-  };
-  for (let j = 0; j + 1 < h; j += 2) {
-    for (let i = 0; i + 1 < w; i += 2) {
-      if (whole(i, j) && whole(i + 1, j) && whole(i, j + 1) && whole(i + 1, j + 1)) quad(j * w + i, 2, 2);
-      else for (const [a, b] of [[i, j], [i + 1, j], [i, j + 1], [i + 1, j + 1]]) if (whole(a, b)) quad(b * w + a, 1, 1);
-    }
-  }
   const all = new Uint8Array(w * h);
   for (let j = 0; j < h; j++) for (let i = 0; i < w; i++) all[j * w + i] = at(i, j);
-  return { quads: quads.slice(0, n), coarse: coarse.slice(0, m), skirts: new Float32Array(skirts), links: all };
+  return { quads: quads.slice(0, n), coarse: draftQuads(w, h, all), skirts: new Float32Array(skirts), links: all };
+}
+
+/**
+ * Largest block side (pixels, a power of two) of the draft mesh: where the surface is
+ * whole, one vertex every `DRAFT_BLOCK` pixels. The draft field is solved on a grid about
+ * 64 nodes across and interpolated, so at 512 × 512 this places a vertex on every draft node.
+ */
+export const DRAFT_BLOCK = 8;
+
+/**
+ * The draft mesh of a `w × h` layer from its links (as `buildMesh` returns them): triangle
+ * indices of a quadtree of quads over the pixel vertices. A `block × block` block of pixel
+ * quads whose every quad is whole (all four links) is one quad through its four corner
+ * pixels; a block with any quad missing (a cut, a hole) is split in four, down to single
+ * pixel quads, and a missing pixel quad is dropped as in the full mesh. So the draft covers
+ * exactly what the full mesh's whole quads cover (the skirts are drawn as in the full
+ * mesh), with far fewer vertices where nothing tears, and cuts and holes open at full
+ * resolution. Blocks at the right and bottom edges are clipped to the layer. As in the
+ * full mesh, each triangle's last (provoking) vertex is its quad's top-left pixel.
+ */
+export function draftQuads(w: number, h: number, links: Uint8Array, block = DRAFT_BLOCK): Uint32Array {
+  const qw = Math.max(0, w - 1);
+  const qh = Math.max(0, h - 1);
+  // Summed-area table of the whole pixel quads: any block's count in four lookups.
+  const sums = new Uint32Array((qw + 1) * (qh + 1));
+  for (let j = 0; j < qh; j++) {
+    let row = 0;
+    for (let i = 0; i < qw; i++) {
+      const k = j * w + i;
+      if ((links[k] & 6) === 6 && (links[k + w] & 2) !== 0 && (links[k + 1] & 4) !== 0) row++;
+      sums[(j + 1) * (qw + 1) + i + 1] = sums[j * (qw + 1) + i + 1] + row;
+    }
+  }
+  const whole = (i0: number, j0: number, i1: number, j1: number) =>
+    sums[j1 * (qw + 1) + i1] - sums[j0 * (qw + 1) + i1] - sums[j1 * (qw + 1) + i0] + sums[j0 * (qw + 1) + i0] === (i1 - i0) * (j1 - j0);
+  const out: number[] = [];
+  const emit = (i0: number, j0: number, size: number): void => {
+    const i1 = Math.min(i0 + size, qw);
+    const j1 = Math.min(j0 + size, qh);
+    if (i0 >= i1 || j0 >= j1) return;
+    if (whole(i0, j0, i1, j1)) {
+      const k = j0 * w + i0;
+      const right = j0 * w + i1;
+      const down = j1 * w + i0;
+      const across = j1 * w + i1;
+      out.push(right, across, k, across, down, k);
+    } else if (size > 1) {
+      const half = size / 2;
+      emit(i0, j0, half);
+      emit(i0 + half, j0, half);
+      emit(i0, j0 + half, half);
+      emit(i0 + half, j0 + half, half);
+    }
+  };
+  for (let j = 0; j < qh; j += block) for (let i = 0; i < qw; i += block) emit(i, j, block);
+  return new Uint32Array(out);
 }
 
 /** One layer's GPU resources. */
 export class GlLayer {
   image: WebGLTexture;
+  /** The image premultiplied, bilinearly filtered: drafts sample it once a fragment. */
+  premultiplied: WebGLTexture;
   field: WebGLTexture;
   /** Indices of the triangles of every quad whose four links exist. */
   indices: WebGLBuffer;
   count = 0;
-  /** Drafts: 2×2 blocks of whole quads as one quad (a quarter of the triangles). */
+  /** Drafts: the quadtree of `draftQuads` (whole blocks of up to `DRAFT_BLOCK`² quads as one). */
   coarse: WebGLBuffer;
   coarseCount = 0;
   links: WebGLTexture;
@@ -214,6 +278,7 @@ export class GlLayer {
   ) {
     const gl = r.gl;
     this.image = r.texture();
+    this.premultiplied = r.texture(true);
     this.field = r.texture();
     this.indices = gl.createBuffer()!;
     this.coarse = gl.createBuffer()!;
@@ -239,6 +304,16 @@ export class GlLayer {
     gl.bindTexture(gl.TEXTURE_2D, this.image);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.width, this.height, 0, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(rgba.buffer, rgba.byteOffset, rgba.byteLength));
+    const premultiplied = new Uint8Array(rgba.length);
+    for (let i = 0; i < rgba.length; i += 4) {
+      const a = rgba[i + 3];
+      premultiplied[i] = Math.round((rgba[i] * a) / 255);
+      premultiplied[i + 1] = Math.round((rgba[i + 1] * a) / 255);
+      premultiplied[i + 2] = Math.round((rgba[i + 2] * a) / 255);
+      premultiplied[i + 3] = a;
+    }
+    gl.bindTexture(gl.TEXTURE_2D, this.premultiplied);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.width, this.height, 0, gl.RGBA, gl.UNSIGNED_BYTE, premultiplied);
   }
 
   /**
@@ -286,6 +361,7 @@ export class GlLayer {
   dispose(): void {
     const gl = this.r.gl;
     gl.deleteTexture(this.image);
+    gl.deleteTexture(this.premultiplied);
     gl.deleteTexture(this.field);
     gl.deleteBuffer(this.indices);
     gl.deleteBuffer(this.coarse);
@@ -304,6 +380,7 @@ export interface DrawLayer {
 export class GlRenderer {
   readonly gl: WebGL2RenderingContext;
   private mesh: WebGLProgram;
+  private draftMesh: WebGLProgram;
   private skirt: WebGLProgram;
   private blit: WebGLProgram;
   private vao: WebGLVertexArrayObject;
@@ -322,6 +399,7 @@ export class GlRenderer {
     if (!gl) throw new Error('This browser has no WebGL2; the editor needs it to draw the warped picture.');
     this.gl = gl;
     this.mesh = program(gl, VERT, FRAG);
+    this.draftMesh = program(gl, VERT, DRAFT_FRAG);
     this.skirt = program(gl, SKIRT_VERT, FRAG, ['aQuarter', 'aCorner']);
     this.blit = program(gl, BLIT_VERT, `#version 300 es
 precision highp float;
@@ -333,12 +411,14 @@ void main() { o = texture(uTex, vPos); }`);
     this.samples = Math.min(4, gl.getParameter(gl.MAX_SAMPLES) as number);
   }
 
-  texture(): WebGLTexture {
+  /** A texture clamped at its edges, sampled at the nearest texel or (`linear`) bilinearly. */
+  texture(linear = false): WebGLTexture {
     const gl = this.gl;
     const t = gl.createTexture()!;
+    const filter = linear ? gl.LINEAR : gl.NEAREST;
     gl.bindTexture(gl.TEXTURE_2D, t);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
-    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, filter);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, filter);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
     return t;
@@ -382,8 +462,12 @@ void main() { o = texture(uTex, vPos); }`);
 
   /**
    * Renders a frame: the background (straight RGBA8) then each layer, back to front;
-   * `antialias: false` samples once per pixel; `draft` draws 2×2 blocks of whole quads as
-   * one quad (both for fast frames during a drag on a software GPU).
+   * `antialias: false` samples once per pixel; `draft` draws the draft mesh (`draftQuads`:
+   * a vertex every `DRAFT_BLOCK` pixels where the surface is whole) in place of one vertex
+   * per pixel (both for fast frames during a drag on a software GPU, which pays per vertex,
+   * per triangle and per sample). Colours are still the bilinear mix of the layer's
+   * pixels at each fragment's rest position, so a draft differs from the full frame only
+   * where the field bends inside a block.
    * The result stays in the resolve target (for `readPixels`) and is shown on the canvas.
    */
   render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): void {
@@ -404,18 +488,21 @@ void main() { o = texture(uTex, vPos); }`);
       gl.bindTexture(gl.TEXTURE_2D, layer.links);
       gl.activeTexture(gl.TEXTURE2);
       gl.bindTexture(gl.TEXTURE_2D, layer.image);
-      for (const prog of [this.mesh, this.skirt]) {
+      gl.activeTexture(gl.TEXTURE3);
+      gl.bindTexture(gl.TEXTURE_2D, layer.premultiplied);
+      for (const prog of [draft ? this.draftMesh : this.mesh, this.skirt]) {
         gl.useProgram(prog);
         const u = (n: string) => gl.getUniformLocation(prog, n);
         gl.uniform1i(u('uField'), 0);
         gl.uniform1i(u('uLinks'), 1);
         gl.uniform1i(u('uImage'), 2);
+        gl.uniform1i(u('uPremultiplied'), 3);
         gl.uniform2f(u('uCanvas'), width, height);
         gl.uniform2i(u('uSize'), layer.width, layer.height);
         gl.uniform2f(u('uOffset'), offset[0], offset[1]);
         gl.uniform1f(u('uOpacity'), opacity ?? 1);
-        gl.uniform1f(u('uBlock'), draft ? 2 : 1);
-        if (prog === this.mesh) {
+        gl.uniform1f(u('uBlock'), draft ? DRAFT_BLOCK : 1);
+        if (prog !== this.skirt) {
           gl.bindVertexArray(this.vao);
           gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, draft ? layer.coarse : layer.indices);
           gl.drawElements(gl.TRIANGLES, draft ? layer.coarseCount : layer.count, gl.UNSIGNED_INT, 0);

@@ -1,7 +1,7 @@
 // The GPU mesh tiles the layer as the CPU renderer's does: whole quads where all four
 // links exist, skirt quarters elsewhere, so every drawn pixel's unit square is covered once.
 import { describe, expect, it } from 'vitest';
-import { buildMesh } from '../src/gl';
+import { buildMesh, draftQuads } from '../src/gl';
 
 /** Rest-space area covered by a mesh: quads from their index rectangles, quarters ¼ each. */
 function area(w: number, quads: Uint32Array, skirts: Float32Array): number {
@@ -66,5 +66,85 @@ describe('the GPU mesh', () => {
     const m = buildMesh(w, h, l, null);
     expect(area(w, m.coarse, new Float32Array())).toBe(area(w, m.quads, new Float32Array()));
     expect(m.coarse.length).toBeLessThan(0.6 * m.quads.length);
+  });
+
+  it('the draft mesh of an open grid is one quad per block, clipped at the edges', () => {
+    const w = 21, h = 17; // 20 × 16 pixel quads: blocks of 8, 8 and 4 across, 8 and 8 down
+    const q = draftQuads(w, h, buildMesh(w, h, null, null).links, 8);
+    expect(q.length / 6).toBe(3 * 2);
+    expect(cover(w, h, q)).toEqual(wholeQuads(w, h, buildMesh(w, h, null, null).links));
+  });
+});
+
+/** How many times the quads of `indices` cover each pixel quad (their rest rectangles). */
+function cover(w: number, h: number, indices: Uint32Array): Uint8Array {
+  const c = new Uint8Array((w - 1) * (h - 1));
+  for (let q = 0; q < indices.length; q += 6) {
+    const ks = Array.from(indices.subarray(q, q + 6));
+    const xs = ks.map((k) => k % w);
+    const ys = ks.map((k) => Math.floor(k / w));
+    // The last index of each triangle is the quad's top-left pixel (the provoking vertex).
+    expect([ks[2], ks[5]]).toEqual([Math.min(...ys) * w + Math.min(...xs), Math.min(...ys) * w + Math.min(...xs)]);
+    for (let y = Math.min(...ys); y < Math.max(...ys); y++) for (let x = Math.min(...xs); x < Math.max(...xs); x++) c[y * (w - 1) + x]++;
+  }
+  return c;
+}
+
+/** 1 for each pixel quad whose four links exist. */
+function wholeQuads(w: number, h: number, l: Uint8Array): Uint8Array {
+  const c = new Uint8Array((w - 1) * (h - 1));
+  for (let y = 0; y + 1 < h; y++) {
+    for (let x = 0; x + 1 < w; x++) {
+      const k = y * w + x;
+      c[y * (w - 1) + x] = (l[k] & 6) === 6 && (l[k + w] & 2) !== 0 && (l[k + 1] & 4) !== 0 ? 1 : 0;
+    }
+  }
+  return c;
+}
+
+describe('the draft mesh (a vertex every few pixels where the surface is whole)', () => {
+  it('a cut removes exactly the pixel quads across it; blocks away from it stay whole', () => {
+    const w = 25, h = 17;
+    // A vertical cut between columns 10 and 11, rows 0..11.
+    const l = links(w, h, () => true, (x, y, d) => d === 'r' && x === 10 && y < 12);
+    const q = draftQuads(w, h, l, 8);
+    expect(cover(w, h, q)).toEqual(wholeQuads(w, h, l));
+    for (let k = 0; k < q.length; k += 6) {
+      const xs = Array.from(q.subarray(k, k + 6)).map((v) => v % w);
+      const ys = Array.from(q.subarray(k, k + 6)).map((v) => Math.floor(v / w));
+      // Nothing spans the cut where it runs…
+      if (Math.min(...ys) < 12) expect(Math.min(...xs) <= 10 && Math.max(...xs) >= 11).toBe(false);
+    }
+    const blocks = (x: number, y: number) =>
+      Array.from({ length: q.length / 6 }, (_, k) => q.subarray(6 * k, 6 * k + 6)).filter((t) => t[2] === y * w + x && t[0] === y * w + x + 8 && t[1] === (y + 8) * w + x + 8).length;
+    // …the blocks it does not touch are one quad each, the blocks it crosses are split.
+    expect(blocks(0, 0) + blocks(16, 0) + blocks(0, 8) + blocks(16, 8)).toBe(4);
+    expect(blocks(8, 0) + blocks(8, 8)).toBe(0);
+    // Below the cut's end the block is split too (its top rows touch the cut), and the
+    // pixel quads below the cut's last broken link are drawn.
+    expect(cover(w, h, q)[13 * (w - 1) + 10]).toBe(1);
+    expect(q.length).toBeLessThan(0.25 * buildMesh(w, h, l, null).quads.length);
+  });
+
+  it('a hole removes the pixel quads around it and nothing else', () => {
+    const w = 17, h = 17;
+    const l = links(w, h, (x, y) => !(x === 10 && y === 5));
+    const q = draftQuads(w, h, l, 8);
+    const c = cover(w, h, q);
+    expect(c).toEqual(wholeQuads(w, h, l));
+    for (const [x, y] of [[9, 4], [10, 4], [9, 5], [10, 5]]) expect(c[y * (w - 1) + x]).toBe(0);
+    expect(c.reduce((a, b) => a + b, 0)).toBe(16 * 16 - 4);
+  });
+
+  it('random cuts and holes: every whole pixel quad covered once, every other never', () => {
+    let seed = 7;
+    const rand = () => ((seed = (seed * 1103515245 + 12345) % 2 ** 31) / 2 ** 31);
+    for (let trial = 0; trial < 20; trial++) {
+      const w = 5 + Math.floor(rand() * 40), h = 5 + Math.floor(rand() * 40);
+      const holes = new Set(Array.from({ length: 1 + Math.floor(rand() * 6) }, () => `${Math.floor(rand() * w)},${Math.floor(rand() * h)}`));
+      const cutX = Math.floor(rand() * w);
+      const l = links(w, h, (x, y) => !holes.has(`${x},${y}`), (x, y, d) => d === 'r' && x === cutX && y < h / 2);
+      for (const block of [1, 2, 4, 8, 16]) expect(cover(w, h, draftQuads(w, h, l, block))).toEqual(wholeQuads(w, h, l));
+    }
   });
 });
