@@ -437,9 +437,10 @@ export class App {
   }
 
   renderNow(): void {
-    // Frames during a drag are drafts: a software GPU pays per vertex, per triangle and
-    // per sample, and the full frame follows when the pointer rests.
-    this.draw(this.dragging);
+    // Frames during a drag or playback are drafts: a software GPU pays per vertex, per
+    // triangle and per sample. The full frame follows when the pointer rests or playback
+    // stops, and exports (PNG, WebM) always draw full frames.
+    this.draw(this.dragging || this.store.view.playing);
     this.onFrame();
     const now = performance.now();
     for (const t of this.pendingLatency.splice(0)) this.stats.dragLatency.push(now - t);
