@@ -207,8 +207,8 @@ impl Taps {
 const ALL_TAPS: u16 = u16::MAX;
 
 /// Whether a missing link or an inactive pixel lies inside each coarse cell (the closed
-/// block of pixels between its four corner nodes), cells in rows of `cw`. Rows without any
-/// are skipped whole.
+/// block of pixels between its four corner nodes), cells in rows of `cw`. Stretches of a row
+/// without any are skipped whole.
 fn touched_cells(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps], cw: usize, ch: usize) -> Vec<bool> {
     let (w, h) = (layout.w, layout.h);
     let mut touched = vec![false; cw * ch];
@@ -223,24 +223,23 @@ fn touched_cells(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps], cw:
             }
         }
     };
+    // Whether all of `flags` are set, branch-free over chunks so that it vectorises.
+    let all = |flags: &[bool]| flags.chunks(64).all(|c| c.iter().fold(true, |a, &b| a & b));
+    const CHUNK: usize = 64;
     for y in 0..h {
-        let row = y * w..(y + 1) * w;
-        let down_ok = y + 1 == h || grid.link_down[row.clone()].iter().all(|&l| l);
-        if down_ok && grid.active[row.clone()].iter().all(|&a| a) && grid.link_right[y * w..(y + 1) * w - 1].iter().all(|&l| l) {
-            continue;
-        }
-        for x in 0..w {
-            let i = y * w + x;
-            if !grid.active[i] {
-                mark(x, y);
+        let row = y * w;
+        for x0 in (0..w).step_by(CHUNK) {
+            let x1 = (x0 + CHUNK).min(w);
+            let down_ok = y + 1 == h || all(&grid.link_down[row + x0..row + x1]);
+            if down_ok && all(&grid.active[row + x0..row + x1]) && all(&grid.link_right[row + x0..row + x1.min(w - 1)]) {
+                continue;
             }
-            if x + 1 < w && !grid.link_right[i] {
-                mark(x, y);
-                mark(x + 1, y);
-            }
-            if y + 1 < h && !grid.link_down[i] {
-                mark(x, y);
-                mark(x, y + 1);
+            // The cell of a missing link to the right of (or below) a pixel holds the pixel.
+            for x in x0..x1 {
+                let i = row + x;
+                if !grid.active[i] || (x + 1 < w && !grid.link_right[i]) || (y + 1 < h && !grid.link_down[i]) {
+                    mark(x, y);
+                }
             }
         }
     }
@@ -251,8 +250,8 @@ fn touched_cells(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps], cw:
 /// 4 × 4 window that lie in the pixel's connected component of the links inside the
 /// window's block of pixels (from the pixel of window node (0, 0) to that of (3, 3), clipped
 /// to the grid), as bits of [`ALL_TAPS`]. One mask per pixel of the cell's closed block, row
-/// by row; zero for inactive pixels.
-fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Vec<u32>, stack: &mut Vec<usize>) -> Vec<u16> {
+/// by row; zero for inactive pixels, [`ALL_TAPS`] for those reaching every node.
+fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Vec<u32>, stack: &mut Vec<usize>) -> CellMasks {
     let (w, wc, hc) = (grid.width, layout.wc, layout.hc);
     let (bx0, bx1) = (layout.px(cx.saturating_sub(1)), layout.px((cx + 2).min(wc - 1)));
     let (by0, by1) = (layout.py(cy.saturating_sub(1)), layout.py((cy + 2).min(hc - 1)));
@@ -298,6 +297,7 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
         }
     }
     let mut reach = vec![0u16; count as usize];
+    let mut full = 0u16;
     for kb in 0..4 {
         for ka in 0..4 {
             let (nx, ny) = ((cx + ka).checked_sub(1), (cy + kb).checked_sub(1));
@@ -305,6 +305,7 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
             if nx >= wc || ny >= hc {
                 continue;
             }
+            full |= 1 << (4 * kb + ka);
             let l = label[(layout.py(ny) - by0) * bw + (layout.px(nx) - bx0)];
             if l != u32::MAX {
                 reach[l as usize] |= 1 << (4 * kb + ka);
@@ -315,10 +316,18 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
     for y in iy0..=iy1 {
         for x in ix0..=ix1 {
             let l = label[(y - by0) * bw + (x - bx0)];
-            masks.push(if l == u32::MAX { 0 } else { reach[l as usize] });
+            let m = if l == u32::MAX { 0 } else { reach[l as usize] };
+            masks.push(if m == full { ALL_TAPS } else { m });
         }
     }
-    masks
+    CellMasks { masks }
+}
+
+/// The usable taps of every pixel of a coarse cell (see [`cell_masks`]); empty where the
+/// window is whole, [`ALL_TAPS`] for a pixel that reaches every coarse node of its window.
+#[derive(Clone, Debug, Default)]
+struct CellMasks {
+    masks: Vec<u16>,
 }
 
 /// The fine field from the coarse one (see the module docs).
@@ -336,8 +345,8 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
         (y0.saturating_sub(1)..(y0 + 2).min(ch)).any(|y| (x0.saturating_sub(1)..(x0 + 2).min(cw)).any(|x| touched[y * cw + x]))
     };
     let broken: Vec<usize> = (0..cw * ch).filter(|&k| near_touched(k)).collect();
-    let mut masks: Vec<Vec<u16>> = vec![Vec::new(); cw * ch];
-    let computed: Vec<Vec<u16>> = if w * h >= PARALLEL_PIXELS {
+    let mut masks: Vec<CellMasks> = vec![CellMasks::default(); cw * ch];
+    let computed: Vec<CellMasks> = if w * h >= PARALLEL_PIXELS {
         broken
             .par_iter()
             .map_init(|| (Vec::new(), Vec::new()), |(label, stack), &k| cell_masks(grid, layout, k % cw, k / cw, label, stack))
@@ -403,12 +412,14 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
                 x += 1;
                 continue;
             }
-            let cell = &masks[ty.cell * cw + tx.cell];
-            if !cell.is_empty() {
-                // A window with a missing link: the taps this pixel reaches inside it.
-                let (ix0, iy0) = (layout.px(tx.cell), layout.py(ty.cell));
-                let iw = layout.px((tx.cell + 1).min(wc - 1)) - ix0 + 1;
-                match pixel(ty, tx, cell[(y - iy0) * iw + (x - ix0)]) {
+            // A window with a missing link: the taps this pixel reaches inside it.
+            let cell = &masks[ty.cell * cw + tx.cell].masks;
+            let (ix0, iy0) = (layout.px(tx.cell), layout.py(ty.cell));
+            let iw = layout.px((tx.cell + 1).min(wc - 1)) - ix0 + 1;
+            let mask_of = |x: usize| if cell.is_empty() { ALL_TAPS } else { cell[(y - iy0) * iw + (x - ix0)] };
+            let mask = mask_of(x);
+            if mask != ALL_TAPS {
+                match pixel(ty, tx, mask) {
                     Some([vx, vy]) => (dx[x], dy[x], resolved[x]) = (vx, vy, true),
                     None => unresolved += 1,
                 }
@@ -420,7 +431,7 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
                 // by side (each pixel's sum in the same order as alone), so that the
                 // additions of neighbouring pixels overlap instead of waiting on each other.
                 let mut end = x + 1;
-                while end < w && end - x < LANES && cols[end].cell == tx.cell && cols[end].len == 4 {
+                while end < w && end - x < LANES && cols[end].cell == tx.cell && cols[end].len == 4 && mask_of(end) == ALL_TAPS {
                     end += 1;
                 }
                 // Unused lanes get zero weights and are not read back.
