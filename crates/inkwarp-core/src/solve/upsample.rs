@@ -6,19 +6,24 @@
 //! straight path between them is. A sample constrains the nearest coarse node. The tension
 //! is scaled by s² so that the coarse energy approximates the same continuous energy.
 //!
-//! Upsampling is Catmull-Rom (interpolating, so coarse values are kept) in x and y, using
-//! only coarse nodes in the pixel's own connected piece; weights of the others are dropped
-//! and the rest renormalised (falling back to bilinear, then to the nearest value along the
-//! links). A piece that holds no coarse node takes the mean displacement of its samples, or
-//! stays at zero without any.
+//! Upsampling is Catmull-Rom (interpolating, so coarse values are kept) in x and y. A pixel
+//! uses only the coarse nodes of its 4 × 4 window that it reaches through links without
+//! leaving the window's block of pixels: a cut or a hole between a pixel and a node drops
+//! that node even where the two are joined far around (the two sides of a cut with free
+//! ends, a tear, are one piece; only this keeps the tear open). Weights of the dropped nodes
+//! are dropped and the rest renormalised (falling back to bilinear from the inner 2 × 2,
+//! then to the nearest value along the links). A piece that holds no coarse node takes the
+//! mean displacement of its samples, or stays at zero without any.
 //!
 //! This is the path the editor takes while a point is dragged, so the upsampling is built
-//! for speed without changing a bit of its result: the cubic weights are separable and
-//! computed once per column and once per row; a pixel whose whole 4 × 4 coarse window lies
-//! in its own piece skips the piece test; the bilinear fallback is only computed where the
-//! cubic weights fail; rows are upsampled in parallel on large grids; and the fill along
-//! the links starts only from the resolved pixels next to unresolved ones. A test holds it
-//! to the straightforward per-pixel loop it replaces.
+//! for speed: the cubic weights are separable and computed once per column and once per
+//! row; the components inside a window are found once per coarse cell (a mask of usable
+//! taps per pixel), and only for cells whose window a missing link or an inactive pixel
+//! touches, so the other pixels (all of an open grid) take every tap as before; the
+//! bilinear fallback is only computed where the cubic weights fail; rows and the touched
+//! cells are done in parallel on large grids; and the fill along the links starts only from
+//! the resolved pixels next to unresolved ones. A test holds it to the straightforward
+//! per-pixel loop.
 
 use std::collections::VecDeque;
 
@@ -197,47 +202,175 @@ impl Taps {
     }
 }
 
+/// Every coarse node of a window's taps: the bit `4 kb + ka` stands for window position
+/// (`ka`, `kb`), as in [`Taps::slot`].
+const ALL_TAPS: u16 = u16::MAX;
+
+/// Whether a missing link or an inactive pixel lies inside each coarse cell (the closed
+/// block of pixels between its four corner nodes), cells in rows of `cw`. Stretches of a row
+/// without any are skipped whole.
+fn touched_cells(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps], cw: usize, ch: usize) -> Vec<bool> {
+    let (w, h) = (layout.w, layout.h);
+    let mut touched = vec![false; cw * ch];
+    // The cells whose closed block holds pixel (x, y): one or two along each axis.
+    let mut mark = |x: usize, y: usize| {
+        let (cx, cy) = (cols[x].cell, rows[y].cell);
+        let xs = if cx > 0 && x == layout.px(cx) { cx - 1..cx + 1 } else { cx..cx + 1 };
+        let ys = if cy > 0 && y == layout.py(cy) { cy - 1..cy + 1 } else { cy..cy + 1 };
+        for yy in ys {
+            for xx in xs.clone() {
+                touched[yy * cw + xx] = true;
+            }
+        }
+    };
+    // Whether all of `flags` are set, branch-free over chunks so that it vectorises.
+    let all = |flags: &[bool]| flags.chunks(64).all(|c| c.iter().fold(true, |a, &b| a & b));
+    const CHUNK: usize = 64;
+    for y in 0..h {
+        let row = y * w;
+        for x0 in (0..w).step_by(CHUNK) {
+            let x1 = (x0 + CHUNK).min(w);
+            let down_ok = y + 1 == h || all(&grid.link_down[row + x0..row + x1]);
+            if down_ok && all(&grid.active[row + x0..row + x1]) && all(&grid.link_right[row + x0..row + x1.min(w - 1)]) {
+                continue;
+            }
+            // The cell of a missing link to the right of (or below) a pixel holds the pixel.
+            for x in x0..x1 {
+                let i = row + x;
+                if !grid.active[i] || (x + 1 < w && !grid.link_right[i]) || (y + 1 < h && !grid.link_down[i]) {
+                    mark(x, y);
+                }
+            }
+        }
+    }
+    touched
+}
+
+/// The taps that each pixel of coarse cell (`cx`, `cy`) may use: the coarse nodes of its
+/// 4 × 4 window that lie in the pixel's connected component of the links inside the
+/// window's block of pixels (from the pixel of window node (0, 0) to that of (3, 3), clipped
+/// to the grid), as bits of [`ALL_TAPS`]. One mask per pixel of the cell's closed block, row
+/// by row; zero for inactive pixels, [`ALL_TAPS`] for those reaching every node.
+fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Vec<u32>, stack: &mut Vec<usize>) -> CellMasks {
+    let (w, wc, hc) = (grid.width, layout.wc, layout.hc);
+    let (bx0, bx1) = (layout.px(cx.saturating_sub(1)), layout.px((cx + 2).min(wc - 1)));
+    let (by0, by1) = (layout.py(cy.saturating_sub(1)), layout.py((cy + 2).min(hc - 1)));
+    let (ix0, ix1) = (layout.px(cx), layout.px((cx + 1).min(wc - 1)));
+    let (iy0, iy1) = (layout.py(cy), layout.py((cy + 1).min(hc - 1)));
+    let (bw, bh) = (bx1 - bx0 + 1, by1 - by0 + 1);
+    label.clear();
+    label.resize(bw * bh, u32::MAX);
+    // Components of the block reached from the cell's pixels, depth first through links.
+    let mut count = 0u32;
+    for y in iy0..=iy1 {
+        for x in ix0..=ix1 {
+            let b = (y - by0) * bw + (x - bx0);
+            if !grid.active[grid.index(x, y)] || label[b] != u32::MAX {
+                continue;
+            }
+            label[b] = count;
+            stack.clear();
+            stack.push(b);
+            while let Some(b) = stack.pop() {
+                let (lx, ly) = (b % bw, b / bw);
+                let i = grid.index(bx0 + lx, by0 + ly);
+                let mut visit = |nb: usize| {
+                    if label[nb] == u32::MAX {
+                        label[nb] = count;
+                        stack.push(nb);
+                    }
+                };
+                if lx + 1 < bw && grid.link_right[i] {
+                    visit(b + 1);
+                }
+                if lx > 0 && grid.link_right[i - 1] {
+                    visit(b - 1);
+                }
+                if ly + 1 < bh && grid.link_down[i] {
+                    visit(b + bw);
+                }
+                if ly > 0 && grid.link_down[i - w] {
+                    visit(b - bw);
+                }
+            }
+            count += 1;
+        }
+    }
+    let mut reach = vec![0u16; count as usize];
+    let mut full = 0u16;
+    for kb in 0..4 {
+        for ka in 0..4 {
+            let (nx, ny) = ((cx + ka).checked_sub(1), (cy + kb).checked_sub(1));
+            let (Some(nx), Some(ny)) = (nx, ny) else { continue };
+            if nx >= wc || ny >= hc {
+                continue;
+            }
+            full |= 1 << (4 * kb + ka);
+            let l = label[(layout.py(ny) - by0) * bw + (layout.px(nx) - bx0)];
+            if l != u32::MAX {
+                reach[l as usize] |= 1 << (4 * kb + ka);
+            }
+        }
+    }
+    let mut masks = Vec::with_capacity((ix1 - ix0 + 1) * (iy1 - iy0 + 1));
+    for y in iy0..=iy1 {
+        for x in ix0..=ix1 {
+            let l = label[(y - by0) * bw + (x - bx0)];
+            let m = if l == u32::MAX { 0 } else { reach[l as usize] };
+            masks.push(if m == full { ALL_TAPS } else { m });
+        }
+    }
+    CellMasks { masks }
+}
+
+/// The usable taps of every pixel of a coarse cell (see [`cell_masks`]); empty where the
+/// window is whole, [`ALL_TAPS`] for a pixel that reaches every coarse node of its window.
+#[derive(Clone, Debug, Default)]
+struct CellMasks {
+    masks: Vec<u16>,
+}
+
 /// The fine field from the coarse one (see the module docs).
 fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Field {
     let (w, h, wc, hc) = (layout.w, layout.h, layout.wc, layout.hc);
     let (labels, count) = grid.pieces();
-    let clabel: Vec<u32> = (0..wc * hc)
-        .map(|c| labels[grid.index(layout.px(c % wc), layout.py(c / wc))])
-        .collect();
     let cols = Taps::along(w, wc, layout.s, |x| layout.px(x));
     let rows = Taps::along(h, hc, layout.s, |y| layout.py(y));
-    // The piece that every coarse node of a cell's 4 × 4 window (those inside the grid)
-    // belongs to, or u32::MAX where they are not all in one piece.
+    // Cells whose window's block of pixels a missing link or an inactive pixel touches get
+    // a mask of usable taps per pixel; the others (empty) use every tap.
     let (cw, ch) = (wc.saturating_sub(1).max(1), hc.saturating_sub(1).max(1));
-    let uniform: Vec<u32> = (0..cw * ch)
-        .map(|k| {
-            let (x0, y0) = (k % cw, k / cw);
-            let mut label = None;
-            for cy in y0.saturating_sub(1)..(y0 + 3).min(hc) {
-                for cx in x0.saturating_sub(1)..(x0 + 3).min(wc) {
-                    let l = clabel[cy * wc + cx];
-                    if l == u32::MAX || label.is_some_and(|m| m != l) {
-                        return u32::MAX;
-                    }
-                    label = Some(l);
-                }
-            }
-            label.unwrap_or(u32::MAX)
-        })
-        .collect();
+    let touched = touched_cells(grid, layout, &cols, &rows, cw, ch);
+    let near_touched = |k: usize| {
+        let (x0, y0) = (k % cw, k / cw);
+        (y0.saturating_sub(1)..(y0 + 2).min(ch)).any(|y| (x0.saturating_sub(1)..(x0 + 2).min(cw)).any(|x| touched[y * cw + x]))
+    };
+    let broken: Vec<usize> = (0..cw * ch).filter(|&k| near_touched(k)).collect();
+    let mut masks: Vec<CellMasks> = vec![CellMasks::default(); cw * ch];
+    let computed: Vec<CellMasks> = if w * h >= PARALLEL_PIXELS {
+        broken
+            .par_iter()
+            .map_init(|| (Vec::new(), Vec::new()), |(label, stack), &k| cell_masks(grid, layout, k % cw, k / cw, label, stack))
+            .collect()
+    } else {
+        let (mut label, mut stack) = (Vec::new(), Vec::new());
+        broken.iter().map(|&k| cell_masks(grid, layout, k % cw, k / cw, &mut label, &mut stack)).collect()
+    };
+    for (&k, m) in broken.iter().zip(computed) {
+        masks[k] = m;
+    }
 
-    // One pixel, any window: the taps in the pixel's piece, renormalised; the bilinear
+    // One pixel, any window: the taps allowed by `mask`, renormalised; the bilinear
     // fallback from the window's inner 2 × 2 where their weights fall short.
-    let pixel = |ty: &Taps, tx: &Taps, label: u32, whole: bool| -> Option<[f32; 2]> {
+    let pixel = |ty: &Taps, tx: &Taps, mask: u16| -> Option<[f32; 2]> {
         let mut acc = [0.0f64; 2];
         let mut wsum = 0.0;
         for b in 0..ty.len {
-            let (wyb, row) = (ty.weights[ty.slot[b] as usize], ty.at[b] * wc);
+            let (wyb, row, kb) = (ty.weights[ty.slot[b] as usize], ty.at[b] * wc, 4 * ty.slot[b]);
             for a in 0..tx.len {
-                let c = row + tx.at[a];
-                if !whole && clabel[c] != label {
+                if mask & (1 << (kb + tx.slot[a])) == 0 {
                     continue;
                 }
+                let c = row + tx.at[a];
                 let wv = tx.weights[tx.slot[a] as usize] * wyb;
                 acc[0] += wv * fc.dx[c] as f64;
                 acc[1] += wv * fc.dy[c] as f64;
@@ -255,10 +388,10 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
             }
             for a in 0..tx.len {
                 let ka = tx.slot[a] as usize;
-                let c = ty.at[b] * wc + tx.at[a];
-                if !(1..3).contains(&ka) || clabel[c] != label {
+                if !(1..3).contains(&ka) || mask & (1 << (4 * kb + ka)) == 0 {
                     continue;
                 }
+                let c = ty.at[b] * wc + tx.at[a];
                 let lw = tx.linear(ka) * ty.linear(kb);
                 inner[0] += lw * fc.dx[c] as f64;
                 inner[1] += lw * fc.dy[c] as f64;
@@ -274,18 +407,31 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
         let mut unresolved = 0;
         let mut x = 0;
         while x < w {
-            let (tx, label) = (&cols[x], labels[x]);
-            if label == u32::MAX {
+            let tx = &cols[x];
+            if labels[x] == u32::MAX {
                 x += 1;
                 continue;
             }
-            let whole = uniform[ty.cell * cw + tx.cell] == label;
-            if whole && tx.len == 4 {
+            // A window with a missing link: the taps this pixel reaches inside it.
+            let cell = &masks[ty.cell * cw + tx.cell].masks;
+            let (ix0, iy0) = (layout.px(tx.cell), layout.py(ty.cell));
+            let iw = layout.px((tx.cell + 1).min(wc - 1)) - ix0 + 1;
+            let mask_of = |x: usize| if cell.is_empty() { ALL_TAPS } else { cell[(y - iy0) * iw + (x - ix0)] };
+            let mask = mask_of(x);
+            if mask != ALL_TAPS {
+                match pixel(ty, tx, mask) {
+                    Some([vx, vy]) => (dx[x], dy[x], resolved[x]) = (vx, vy, true),
+                    None => unresolved += 1,
+                }
+                x += 1;
+                continue;
+            }
+            if tx.len == 4 {
                 // A run of pixels in the same window with all four column taps, summed side
                 // by side (each pixel's sum in the same order as alone), so that the
                 // additions of neighbouring pixels overlap instead of waiting on each other.
                 let mut end = x + 1;
-                while end < w && end - x < LANES && cols[end].cell == tx.cell && cols[end].len == 4 && labels[end] == label {
+                while end < w && end - x < LANES && cols[end].cell == tx.cell && cols[end].len == 4 && mask_of(end) == ALL_TAPS {
                     end += 1;
                 }
                 // Unused lanes get zero weights and are not read back.
@@ -313,7 +459,7 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
                     let value = if wsum[l] >= 0.5 {
                         Some([(acc[0][l] / wsum[l]) as f32, (acc[1][l] / wsum[l]) as f32])
                     } else {
-                        pixel(ty, &cols[x + l], label, true)
+                        pixel(ty, &cols[x + l], ALL_TAPS)
                     };
                     match value {
                         Some([vx, vy]) => (dx[x + l], dy[x + l], resolved[x + l]) = (vx, vy, true),
@@ -323,7 +469,7 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
                 x = end;
                 continue;
             }
-            match pixel(ty, tx, label, whole) {
+            match pixel(ty, tx, ALL_TAPS) {
                 Some([vx, vy]) => (dx[x], dy[x], resolved[x]) = (vx, vy, true),
                 None => unresolved += 1,
             }
@@ -432,11 +578,55 @@ mod tests {
         piece_mean: usize,
     }
 
+    /// Which coarse nodes of its window a pixel may use.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    enum Rule {
+        /// Those it reaches through links inside the window's block of pixels (the rule).
+        Local,
+        /// Those in its connected piece (the earlier rule, which lets a pixel take values
+        /// from across a cut with free ends).
+        Piece,
+    }
+
+    /// The pixels that `from` reaches through links without leaving the block
+    /// `x0..=x1 × y0..=y1` (a breadth-first search of its own), as flags over the block.
+    fn reached(grid: &Grid, from: (usize, usize), block: [usize; 4]) -> impl Fn(usize, usize) -> bool {
+        let [x0, x1, y0, y1] = block;
+        let (w, bw) = (grid.width, x1 - x0 + 1);
+        let mut seen = vec![false; bw * (y1 - y0 + 1)];
+        let at = move |(x, y): (usize, usize)| (y - y0) * bw + (x - x0);
+        seen[at(from)] = true;
+        let mut queue = VecDeque::from([from]);
+        while let Some((x, y)) = queue.pop_front() {
+            let i = y * w + x;
+            let mut next = Vec::new();
+            if x < x1 && grid.link_right[i] {
+                next.push((x + 1, y));
+            }
+            if x > x0 && grid.link_right[i - 1] {
+                next.push((x - 1, y));
+            }
+            if y < y1 && grid.link_down[i] {
+                next.push((x, y + 1));
+            }
+            if y > y0 && grid.link_down[i - w] {
+                next.push((x, y - 1));
+            }
+            for p in next {
+                if !seen[at(p)] {
+                    seen[at(p)] = true;
+                    queue.push_back(p);
+                }
+            }
+        }
+        move |x, y| seen[at((x, y))]
+    }
+
     /// The straightforward upsampling, pixel by pixel, that [`upsample`] must reproduce to
-    /// the bit: the taps computed for every pixel, every tap tested for its piece, the
-    /// bilinear fallback accumulated alongside, the fill along links started from every
-    /// resolved pixel.
-    fn upsample_per_pixel(grid: &Grid, s: usize, fc: &Field, samples: &[Sample]) -> (Field, Paths) {
+    /// the bit (with [`Rule::Local`]): the taps computed for every pixel, every tap tested
+    /// by the rule, the bilinear fallback accumulated alongside, the fill along links
+    /// started from every resolved pixel.
+    fn upsample_per_pixel(grid: &Grid, s: usize, fc: &Field, samples: &[Sample], rule: Rule) -> (Field, Paths) {
         let (w, h) = (grid.width, grid.height);
         let layout = Layout::new(w, h, s);
         let (wc, hc) = (layout.wc, layout.hc);
@@ -483,6 +673,13 @@ mod tests {
                     continue;
                 }
                 let (xs, wx) = taps(x, wc, &px);
+                let local = (rule == Rule::Local).then(|| {
+                    let clip = |lo: isize, n: usize, pos: &dyn Fn(usize) -> usize| {
+                        (pos(lo.max(0) as usize), pos(((lo + 3) as usize).min(n - 1)))
+                    };
+                    let ((x0, x1), (y0, y1)) = (clip(xs, wc, &px), clip(ys, hc, &py));
+                    reached(grid, (x, y), [x0, x1, y0, y1])
+                });
                 let mut acc = [0.0f64; 2];
                 let mut wsum = 0.0;
                 let mut inner = [0.0f64; 3];
@@ -497,7 +694,13 @@ mod tests {
                             continue;
                         }
                         let c = cy as usize * wc + cx as usize;
-                        if clabel[c] != labels[i] {
+                        let usable = match rule {
+                            Rule::Piece => clabel[c] == labels[i],
+                            Rule::Local => {
+                                coarse.active[c] && local.as_ref().is_some_and(|r| r(px(cx as usize), py(cy as usize)))
+                            }
+                        };
+                        if !usable {
                             continue;
                         }
                         let wv = wxa * wyb;
@@ -632,7 +835,7 @@ mod tests {
                     seed += 1;
                     let (grid, fc, samples) = case(w, h, s, holes, breaks, seed);
                     let layout = Layout::new(w, h, s);
-                    let (expected, paths) = upsample_per_pixel(&grid, s, &fc, &samples);
+                    let (expected, paths) = upsample_per_pixel(&grid, s, &fc, &samples, Rule::Local);
                     let got = upsample(&grid, &layout, &fc, &samples);
                     assert_same_bits(&got, &expected, &format!("{w}×{h}, s = {s}, holes {holes}, breaks {breaks}"));
                     total.cubic += paths.cubic;
@@ -666,7 +869,7 @@ mod tests {
             grid.link_right[i - 1] = false;
         }
         assert!(grid.is_consistent());
-        let (expected, _) = upsample_per_pixel(&grid, s, &fc, &samples);
+        let (expected, _) = upsample_per_pixel(&grid, s, &fc, &samples, Rule::Local);
         assert_same_bits(&upsample(&grid, &Layout::new(w, h, s), &fc, &samples), &expected, "301×187");
     }
 
@@ -681,5 +884,58 @@ mod tests {
         assert_eq!(field.dx[0], 0.0);
         assert_eq!(field.dx[32], 8.0);
         assert!((field.dx[16] - 4.0).abs() < 0.05, "middle: {}", field.dx[16]);
+    }
+
+    #[test]
+    fn open_grids_upsample_as_before() {
+        // Without a missing link every pixel may use its whole window, as under the earlier
+        // piece rule: the same bits (the earlier code was held to that loop bit for bit),
+        // from the lanes of the row loop and from the parallel rows alike.
+        let mut seed = 500;
+        for s in [2, 3, 4, 5, 8, 13] {
+            for (w, h) in [(1, 9), (9, 1), (2, 2), (5, 5), (17, 13), (24, 31), (40, 7), (97, 65), (257, 131)] {
+                seed += 1;
+                let (grid, fc, samples) = case(w, h, s, 0.0, 0.0, seed);
+                let (expected, paths) = upsample_per_pixel(&grid, s, &fc, &samples, Rule::Piece);
+                assert_eq!(paths.along_links + paths.piece_mean, 0);
+                let got = upsample(&grid, &Layout::new(w, h, s), &fc, &samples);
+                assert_same_bits(&got, &expected, &format!("open {w}×{h}, s = {s}"));
+            }
+        }
+    }
+
+    #[test]
+    fn a_cut_with_free_ends_opens_at_a_coarse_step() {
+        // A vertical cut through the middle that ends inside the grid (one piece), the
+        // right side pulled down 10 px next to it, the left side held. Along the cut the
+        // two sides move apart as in the full-resolution solve; the earlier piece rule
+        // blended them (at step 4 the right side moved 2.4 px of the 10 it does at step 1).
+        let n = 97;
+        let mut grid = Grid::new(n, n);
+        grid.add_cut(&[[48.5, 16.0], [48.5, 80.0]]);
+        assert_eq!(grid.pieces().1, 1);
+        let mut samples = Vec::new();
+        for y in 36..=60 {
+            samples.push(Sample { rest: [54.0, y as f64], displacement: [0.0, 10.0] });
+            samples.push(Sample { rest: [42.0, y as f64], displacement: [0.0, 0.0] });
+        }
+        for (x, y) in [(4.0, 4.0), (92.0, 4.0), (4.0, 92.0), (92.0, 92.0)] {
+            samples.push(Sample { rest: [x, y], displacement: [0.0, 0.0] });
+        }
+        // Mean vertical displacement just left (x = 48) and just right (x = 49) of the cut.
+        let sides = |field: &Field| {
+            let mean = |x: usize| (30..=66).map(|y| field.dy[y * n + x] as f64).sum::<f64>() / 37.0;
+            (mean(48), mean(49))
+        };
+        let solve_at = |s: usize| solve(&grid, &samples, &SolveOptions { grid_step: s, ..Default::default() }, None).unwrap().0;
+        let (left1, right1) = sides(&solve_at(1));
+        assert!(left1.abs() < 1.5 && right1 > 9.0, "grid_step 1: left {left1}, right {right1}");
+        for s in [4, 8] {
+            let (left, right) = sides(&solve_at(s));
+            eprintln!("grid_step {s}: left {left:.3}, right {right:.3} (grid_step 1: {left1:.3}, {right1:.3})");
+            // Each side within 1 px (a tenth of the pull) of the full-resolution solve.
+            assert!((left - left1).abs() < 1.0, "grid_step {s}: left of the cut {left}, full resolution {left1}");
+            assert!((right - right1).abs() < 1.0, "grid_step {s}: right of the cut {right}, full resolution {right1}");
+        }
     }
 }
