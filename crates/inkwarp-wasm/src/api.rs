@@ -12,6 +12,7 @@ use inkwarp_core::methods::{
 };
 use inkwarp_core::render::{Canvas, RgbaImage};
 use inkwarp_core::scene::{images, BeierNeelyDoc, SolverDoc, TpsExactDoc};
+use inkwarp_core::grid::constrain;
 use inkwarp_core::solve::{solve, SolveMethod, SolveOptions, WarmHistory};
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
 use serde::Deserialize;
@@ -566,7 +567,20 @@ fn solve_tps(
     let mut histories = domain.history.borrow_mut();
     let history = histories.entry(options.grid_step).or_default();
     let start = match initial {
-        Some(given) if history.len() >= 2 => Some(history.start(grid, &samples).unwrap_or(given)),
+        // The field the page holds (often a draft of this very pose) or the earlier solves'
+        // extrapolation: whichever misses the new constraint values by less.
+        Some(given) if history.len() >= 2 => match history.start(grid, &samples) {
+            Some(predicted) => {
+                let c = constrain(grid, &samples);
+                let miss = |f: &Field| {
+                    c.nodes.iter().zip(&c.values).fold(0.0f64, |m, (&i, v)| {
+                        m.max((f.dx[i] as f64 - v[0]).abs()).max((f.dy[i] as f64 - v[1]).abs())
+                    })
+                };
+                Some(if miss(&predicted) < miss(&given) { predicted } else { given })
+            }
+            None => Some(given),
+        },
         Some(given) => Some(given),
         None => {
             history.clear();
