@@ -436,11 +436,13 @@ export class App {
     this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], this.drawList(), !draft, draft);
   }
 
-  renderNow(): void {
-    // Frames during a drag or playback are drafts: a software GPU pays per vertex, per
-    // triangle and per sample. The full frame follows when the pointer rests or playback
-    // stops, and exports (PNG, WebM) always draw full frames.
-    this.draw(this.dragging || this.store.view.playing);
+  /**
+   * Draws the frame now. Frames during a drag or playback are drafts by default: a
+   * software GPU pays per vertex, per triangle and per sample. The full frame follows
+   * when the pointer rests or playback stops; exports ask for it (`draft = false`).
+   */
+  renderNow(draft: boolean = this.dragging || this.store.view.playing): void {
+    this.draw(draft);
     this.onFrame();
     const now = performance.now();
     for (const t of this.pendingLatency.splice(0)) this.stats.dragLatency.push(now - t);

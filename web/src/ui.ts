@@ -962,7 +962,7 @@ export class Ui {
 
   async exportPng(): Promise<void> {
     await this.app.idle();
-    this.app.renderNow();
+    this.app.renderNow(false);
     const { width, height } = this.store.doc;
     const blob = await rgbaToPngBlob({ width, height, data: this.app.gl.readPixels() });
     download(blob, `${this.baseName()}-${Math.round(this.store.view.time * this.store.doc.fps)}.png`);
@@ -989,7 +989,7 @@ export class Ui {
     for (let i = 0; i < n; i++) {
       this.store.setView({ time: i / doc.fps });
       await this.app.idle();
-      this.app.renderNow();
+      this.app.renderNow(false);
       track.requestFrame?.();
       await new Promise((r) => setTimeout(r, 1000 / doc.fps));
     }

@@ -43,7 +43,7 @@ fn main() {
             })
             .collect();
         let t = Instant::now();
-        let (_, report) = solve_warm(&grid, &samples, &opts, &mut history).unwrap();
+        let (_, report) = solve_warm(&grid, &samples, &opts, &mut history, None).unwrap();
         times.push(t.elapsed().as_secs_f64());
         cycles.push(report.cycles);
     }

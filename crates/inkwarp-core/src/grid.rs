@@ -79,6 +79,12 @@ impl Grid {
         y * self.width + x
     }
 
+    /// The nodes linked to node `i`: right, left, below, above (`usize::MAX` where there
+    /// is no link).
+    pub fn linked(&self, i: usize) -> [usize; 4] {
+        linked_neighbours(self.width, &self.link_right, &self.link_down, i)
+    }
+
     /// Number of nodes (`width × height`).
     #[inline]
     pub fn len(&self) -> usize {
@@ -331,6 +337,26 @@ pub fn constrain(grid: &Grid, samples: &[Sample]) -> Constraints {
         out.values.push([sum[0] / count as f64, sum[1] / count as f64]);
     }
     out
+}
+
+/// The nodes linked to node `i` of a `w`-wide grid with links `right` and `down` (as in
+/// [`Grid`]): right, left, below, above, `usize::MAX` where there is no link.
+pub(crate) fn linked_neighbours(w: usize, right: &[bool], down: &[bool], i: usize) -> [usize; 4] {
+    let (x, y) = (i % w, i / w);
+    let mut nbrs = [usize::MAX; 4];
+    if right[i] {
+        nbrs[0] = i + 1;
+    }
+    if x > 0 && right[i - 1] {
+        nbrs[1] = i - 1;
+    }
+    if down[i] {
+        nbrs[2] = i + w;
+    }
+    if y > 0 && down[i - w] {
+        nbrs[3] = i - w;
+    }
+    nbrs
 }
 
 #[cfg(test)]

@@ -14,7 +14,7 @@ use inkwarp_core::{Field, Grid, Sample};
 /// Earlier solves of one animated surface (`inkwarp.WarmStart`): the next solve starts
 /// from the combination of their fields that best matches its displacements.
 #[pyclass(name = "WarmStart", module = "inkwarp")]
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub struct PyWarmStart {
     history: Mutex<WarmHistory>,
 }
@@ -126,7 +126,7 @@ fn thin_plate_solve<'py>(
         Some(w) => {
             // Out of its lock while the solve runs without the interpreter.
             let mut history = std::mem::take(&mut *w.lock());
-            let result = py.detach(|| solve_warm(&grid, &samples, &options, &mut history));
+            let result = py.detach(|| solve_warm(&grid, &samples, &options, &mut history, None));
             *w.lock() = history;
             result
         }

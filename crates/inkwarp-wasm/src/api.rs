@@ -12,8 +12,7 @@ use inkwarp_core::methods::{
 };
 use inkwarp_core::render::{Canvas, RgbaImage};
 use inkwarp_core::scene::{images, BeierNeelyDoc, SolverDoc, TpsExactDoc};
-use inkwarp_core::grid::constrain;
-use inkwarp_core::solve::{solve, SolveMethod, SolveOptions, WarmHistory};
+use inkwarp_core::solve::{solve_warm, SolveMethod, SolveOptions, WarmHistory};
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
 use serde::Deserialize;
 
@@ -562,34 +561,16 @@ fn solve_tps(
             dy: data[n..].to_vec(),
         }
     });
-    // A warm start from the earlier solves when they pin the same nodes; a cold request
-    // (no initial field) starts the series over.
+    // A warm request starts from the page's field (often a draft of this very pose) or
+    // the earlier solves' extrapolation, whichever is closer; a cold request (no initial
+    // field) starts the series over.
     let mut histories = domain.history.borrow_mut();
     let history = histories.entry(options.grid_step).or_default();
-    let start = match initial {
-        // The field the page holds (often a draft of this very pose) or the earlier solves'
-        // extrapolation: whichever misses the new constraint values by less.
-        Some(given) if history.len() >= 2 => match history.start(grid, &samples) {
-            Some(predicted) => {
-                let c = constrain(grid, &samples);
-                let miss = |f: &Field| {
-                    c.nodes.iter().zip(&c.values).fold(0.0f64, |m, (&i, v)| {
-                        m.max((f.dx[i] as f64 - v[0]).abs()).max((f.dy[i] as f64 - v[1]).abs())
-                    })
-                };
-                Some(if miss(&predicted) < miss(&given) { predicted } else { given })
-            }
-            None => Some(given),
-        },
-        Some(given) => Some(given),
-        None => {
-            history.clear();
-            None
-        }
-    };
+    if initial.is_none() {
+        history.clear();
+    }
     let (field, report) =
-        solve(grid, &samples, &options, start.as_ref()).map_err(|e| e.to_string())?;
-    history.record(grid, &samples, &field);
+        solve_warm(grid, &samples, &options, history, initial).map_err(|e| e.to_string())?;
     let json = serde_json::json!({
         "cycles": report.cycles,
         "final_change_px": report.final_change_px,

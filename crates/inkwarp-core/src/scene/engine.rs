@@ -24,6 +24,14 @@ pub fn method_available(method: Method) -> bool {
     Method::ALL.contains(&method)
 }
 
+/// Where a layer's thin-plate solve starts (the other methods start from nothing).
+enum Start<'a> {
+    /// From this field (a warm start), or from zero.
+    Field(Option<&'a Field>),
+    /// From the layer's earlier frames, which then keep this one.
+    History(&'a mut WarmHistory),
+}
+
 /// The one place where a layer's field is computed by its method: the grid thin plate
 /// here, the other interpolants (DESIGN §6) through the `methods` module. They get the
 /// samples grouped by feature, because Beier–Neely needs each curve's samples in order
@@ -34,8 +42,7 @@ fn compute_field(
     solver: &SolverDoc,
     grid: &Grid,
     features: &[FeatureSamples],
-    initial: Option<&Field>,
-    history: Option<&mut WarmHistory>,
+    start: Start<'_>,
 ) -> Result<LayerSolve, String> {
     match solver.method {
         Method::Tps => {
@@ -43,9 +50,9 @@ fn compute_field(
                 .iter()
                 .flat_map(|f| f.samples.iter().copied())
                 .collect();
-            match history {
-                Some(h) => solve_warm(grid, &samples, &solve_options(solver), h),
-                None => solve(grid, &samples, &solve_options(solver), initial),
+            match start {
+                Start::History(h) => solve_warm(grid, &samples, &solve_options(solver), h, None),
+                Start::Field(initial) => solve(grid, &samples, &solve_options(solver), initial),
             }
             .map(|(field, report)| LayerSolve { field, report: Some(report), method_report: None })
                 .map_err(|e| e.to_string())
@@ -239,19 +246,8 @@ impl Scene {
         initial: Option<&Field>,
         overrides: &SolverOverrides,
     ) -> Result<LayerSolve, SceneError> {
-        let layer_ref = &self.layers()[layer];
-        let solver = overrides.apply(&layer_ref.solver);
-        if !method_available(solver.method) {
-            return Err(SceneError::one("", not_available(solver.method)));
-        }
-        let features = self.layer_feature_samples(layer, time_s)?;
         let initial = initial.filter(|f| f.width == self.width() && f.height == self.height());
-        compute_field(self, time_s, &solver, &layer_ref.grid, &features, initial, None).map_err(|e| {
-            SceneError::one(
-                format!("layers[{layer}]"),
-                format!("at t = {time_s} s: {e}"),
-            )
-        })
+        self.solve_layer(layer, time_s, Start::Field(initial), overrides)
     }
 
     /// [`Scene::layer_field_overridden`] started from the layer's earlier frames in
@@ -263,14 +259,23 @@ impl Scene {
         history: &mut WarmHistory,
         overrides: &SolverOverrides,
     ) -> Result<LayerSolve, SceneError> {
+        self.solve_layer(layer, time_s, Start::History(history), overrides)
+    }
+
+    fn solve_layer(
+        &self,
+        layer: usize,
+        time_s: f64,
+        start: Start<'_>,
+        overrides: &SolverOverrides,
+    ) -> Result<LayerSolve, SceneError> {
         let layer_ref = &self.layers()[layer];
         let solver = overrides.apply(&layer_ref.solver);
         if !method_available(solver.method) {
             return Err(SceneError::one("", not_available(solver.method)));
         }
         let features = self.layer_feature_samples(layer, time_s)?;
-        let initial = history.last().cloned();
-        compute_field(self, time_s, &solver, &layer_ref.grid, &features, initial.as_ref(), Some(history)).map_err(|e| {
+        compute_field(self, time_s, &solver, &layer_ref.grid, &features, start).map_err(|e| {
             SceneError::one(
                 format!("layers[{layer}]"),
                 format!("at t = {time_s} s: {e}"),
@@ -352,12 +357,13 @@ impl Scene {
     }
 }
 
-/// Renders frames one after another, warm-starting each layer's solve from that layer's
-/// previous field.
+/// Renders frames one after another, starting each layer's solve from that layer's
+/// earlier frames.
 #[derive(Debug)]
 pub struct Animator<'a> {
     scene: &'a Scene,
-    warm: Vec<Option<Field>>,
+    /// Each drawn layer's field of the latest frame, composited into it.
+    fields: Vec<Option<Field>>,
     /// Each layer's earlier frames, the start of its next solve.
     history: Vec<WarmHistory>,
     overrides: SolverOverrides,
@@ -379,7 +385,7 @@ impl<'a> Animator<'a> {
     pub fn with_overrides(scene: &'a Scene, overrides: SolverOverrides) -> Self {
         Animator {
             scene,
-            warm: vec![None; scene.layers().len()],
+            fields: vec![None; scene.layers().len()],
             history: vec![WarmHistory::new(); scene.layers().len()],
             overrides,
         }
@@ -387,15 +393,13 @@ impl<'a> Animator<'a> {
 
     /// Forgets the previous fields, so that the next solves are cold.
     pub fn reset(&mut self) {
-        self.warm.iter_mut().for_each(|f| *f = None);
+        self.fields.iter_mut().for_each(|f| *f = None);
         self.history.iter_mut().for_each(WarmHistory::clear);
     }
 
-    /// The field of layer `layer` at `time_s`, warm-started from its previous one.
+    /// The field of layer `layer` at `time_s`, started from the layer's earlier frames.
     pub fn layer_field(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
-        let solved = self.solve_layer(layer, time_s)?;
-        self.warm[layer] = Some(solved.field.clone());
-        Ok(solved)
+        self.solve_layer(layer, time_s)
     }
 
     /// The frame at `time_s`: every drawn layer solved (warm) and composited.
@@ -403,21 +407,16 @@ impl<'a> Animator<'a> {
         for layer in 0..self.scene.layers().len() {
             if self.scene.layer_is_drawn(layer) {
                 let solved = self.solve_layer(layer, time_s)?;
-                self.warm[layer] = Some(solved.field);
+                self.fields[layer] = Some(solved.field);
             }
         }
-        Ok(self.scene.composite(&self.warm))
+        Ok(self.scene.composite(&self.fields))
     }
 
-    /// One layer's solve: from its earlier frames (the thin plate), or from its previous
-    /// field (the other methods ignore it).
+    /// One layer's solve, from its earlier frames (the thin plate; the other methods start
+    /// from nothing).
     fn solve_layer(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
-        let method = self.overrides.apply(&self.scene.layers()[layer].solver).method;
-        if method == Method::Tps {
-            self.scene.layer_field_warm(layer, time_s, &mut self.history[layer], &self.overrides)
-        } else {
-            self.scene.layer_field_overridden(layer, time_s, self.warm[layer].as_ref(), &self.overrides)
-        }
+        self.scene.layer_field_warm(layer, time_s, &mut self.history[layer], &self.overrides)
     }
 }
 
@@ -569,18 +568,18 @@ impl FrameStream {
             self.sequential = Some((chain, vec![None; n], vec![WarmHistory::new(); n]));
         }
         let scene = Arc::clone(&self.scene);
-        let (range, warm, history) = self.sequential.as_mut()?;
+        let (range, fields, history) = self.sequential.as_mut()?;
         let i = range.next()?;
         let mut animator = Animator {
             scene: &scene,
-            warm: std::mem::take(warm),
+            fields: std::mem::take(fields),
             history: std::mem::take(history),
             overrides: self.overrides.clone(),
         };
         let frame = animator
             .render(scene.frame_time_s(i))
             .map(|image| (i, image));
-        *warm = animator.warm;
+        *fields = animator.fields;
         *history = animator.history;
         Some(frame)
     }

@@ -13,9 +13,9 @@ use std::collections::VecDeque;
 
 use crate::field::Field;
 use crate::geometry::Sample;
-use crate::grid::{constrain, Grid};
+use crate::grid::{constrain, Constraints, Grid};
 
-use super::{solve, SolveError, SolveOptions, SolveReport};
+use super::{dense_solve, solve_with, SolveError, SolveOptions, SolveReport};
 
 /// How many earlier frames a [`WarmHistory`] keeps.
 pub const HISTORY_FRAMES: usize = 3;
@@ -57,19 +57,30 @@ impl WarmHistory {
         self.entries.is_empty()
     }
 
-    /// The start for a solve of `samples` on `grid`: the combination of the kept fields
-    /// whose constraint values best match the new ones (per component), or the latest
-    /// field when the earlier frames pin other nodes or do not help; `None` when empty.
-    pub fn start(&self, grid: &Grid, samples: &[Sample]) -> Option<Field> {
+    /// The start for a solve whose constraints on `grid` are `c`: the history's prediction
+    /// ([`Self::predict`]) or `given`, whichever misses the constraint values by less (the
+    /// largest difference at a constrained node); `None` when there is neither.
+    pub fn start(&self, grid: &Grid, c: &Constraints, given: Option<Field>) -> Option<Field> {
+        let miss = |f: &Field| {
+            c.nodes.iter().zip(&c.values).fold(0.0f64, |m, (&i, v)| {
+                m.max((f.dx[i] as f64 - v[0]).abs()).max((f.dy[i] as f64 - v[1]).abs())
+            })
+        };
+        match (self.predict(grid, c), given) {
+            (Some(p), Some(g)) => Some(if miss(&p) < miss(&g) { p } else { g }),
+            (p, g) => p.or(g),
+        }
+    }
+
+    /// The combination of the kept fields whose constraint values best match `c`'s (per
+    /// component), or the latest field when the earlier frames pin other nodes or do not
+    /// help; `None` when empty or kept for another grid size.
+    pub fn predict(&self, grid: &Grid, c: &Constraints) -> Option<Field> {
         let last = self.last()?;
         if last.width != grid.width || last.height != grid.height {
             return None;
         }
-        if self.entries.len() < 2 {
-            return Some(last.clone());
-        }
-        let c = constrain(grid, samples);
-        if (grid.width, grid.height) != self.shape || c.nodes != self.nodes {
+        if self.entries.len() < 2 || (grid.width, grid.height) != self.shape || c.nodes != self.nodes {
             return Some(last.clone());
         }
         let k = self.entries.len();
@@ -118,7 +129,15 @@ impl WarmHistory {
         for (i, row) in g.iter_mut().enumerate().take(k) {
             row[i] += 1e-10 * trace;
         }
-        let alpha = solve_small(g, b, k)?;
+        let m: Vec<Vec<f64>> = g[..k].iter().map(|row| row[..k].to_vec()).collect();
+        let x = dense_solve(m, b[..k].iter().map(|&v| [v, 0.0]).collect())?;
+        if !x.iter().all(|v| v[0].is_finite()) {
+            return None;
+        }
+        let mut alpha = [0.0; HISTORY_FRAMES];
+        for (a, v) in alpha.iter_mut().zip(&x) {
+            *a = v[0];
+        }
         if alpha[..k].iter().map(|a| a.abs()).sum::<f64>() > 16.0 {
             return None;
         }
@@ -137,54 +156,22 @@ impl WarmHistory {
         (miss(&alpha) < miss(&latest)).then_some(alpha)
     }
 
-    /// Keeps the solve of `samples` on `grid` that gave `field`.
-    pub fn record(&mut self, grid: &Grid, samples: &[Sample], field: &Field) {
-        let c = constrain(grid, samples);
+    /// Keeps the solve on `grid` with constraints `c` that gave `field`.
+    pub fn record(&mut self, grid: &Grid, c: &Constraints, field: &Field) {
         if (grid.width, grid.height) != self.shape || c.nodes != self.nodes {
             self.entries.clear();
             self.shape = (grid.width, grid.height);
-            self.nodes = c.nodes;
+            self.nodes = c.nodes.clone();
         }
         if self.entries.len() == HISTORY_FRAMES {
             self.entries.pop_front();
         }
-        self.entries.push_back((c.values, field.clone()));
+        self.entries.push_back((c.values.clone(), field.clone()));
     }
 }
 
-/// Gaussian elimination with partial pivoting on the leading `k × k` block.
-fn solve_small(
-    mut a: [[f64; HISTORY_FRAMES]; HISTORY_FRAMES],
-    mut b: [f64; HISTORY_FRAMES],
-    k: usize,
-) -> Option<[f64; HISTORY_FRAMES]> {
-    for col in 0..k {
-        let piv = (col..k).max_by(|&p, &r| a[p][col].abs().total_cmp(&a[r][col].abs()))?;
-        if a[piv][col].abs() < 1e-300 {
-            return None;
-        }
-        a.swap(col, piv);
-        b.swap(col, piv);
-        for r in col + 1..k {
-            let f = a[r][col] / a[col][col];
-            for c in col..k {
-                a[r][c] -= f * a[col][c];
-            }
-            b[r] -= f * b[col];
-        }
-    }
-    let mut x = [0.0; HISTORY_FRAMES];
-    for r in (0..k).rev() {
-        let s: f64 = (r + 1..k).map(|c| a[r][c] * x[c]).sum();
-        x[r] = (b[r] - s) / a[r][r];
-        if !x[r].is_finite() {
-            return None;
-        }
-    }
-    Some(x)
-}
-
-/// [`solve`] started from `history` ([`WarmHistory::start`]), which then keeps the result.
+/// [`solve`] started from `history` and `initial` ([`WarmHistory::start`]: whichever is
+/// closer), which then keeps the result.
 ///
 /// ```
 /// use inkwarp_core::solve::{solve_warm, SolveOptions, WarmHistory};
@@ -201,7 +188,7 @@ fn solve_small(
 /// };
 /// let mut cycles = Vec::new();
 /// for frame in 0..8 {
-///     let (_, report) = solve_warm(&grid, &pose(0.2 * frame as f64), &opts, &mut history).unwrap();
+///     let (_, report) = solve_warm(&grid, &pose(0.2 * frame as f64), &opts, &mut history, None).unwrap();
 ///     cycles.push(report.cycles);
 /// }
 /// assert!(cycles[7] <= cycles[0]);
@@ -211,9 +198,11 @@ pub fn solve_warm(
     samples: &[Sample],
     options: &SolveOptions,
     history: &mut WarmHistory,
+    initial: Option<Field>,
 ) -> Result<(Field, SolveReport), SolveError> {
-    let initial = history.start(grid, samples);
-    let (field, report) = solve(grid, samples, options, initial.as_ref())?;
-    history.record(grid, samples, &field);
+    let c = constrain(grid, samples);
+    let start = history.start(grid, &c, initial);
+    let (field, report) = solve_with(grid, samples, Some(&c), options, start.as_ref())?;
+    history.record(grid, &c, &field);
     Ok((field, report))
 }

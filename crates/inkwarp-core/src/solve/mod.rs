@@ -73,7 +73,7 @@ use thiserror::Error;
 
 use crate::field::Field;
 use crate::geometry::Sample;
-use crate::grid::{constrain, Constraints, Grid};
+use crate::grid::{constrain, linked_neighbours, Constraints, Grid};
 
 use cycle::Hierarchy;
 use level::{Geometry, Level, V2};
@@ -183,13 +183,27 @@ pub fn solve(
     options: &SolveOptions,
     initial: Option<&Field>,
 ) -> Result<(Field, SolveReport), SolveError> {
+    solve_with(grid, samples, None, options, initial)
+}
+
+/// [`solve`], given the samples' constraints on `grid` when the caller has them already
+/// (they are only used at `grid_step` 1).
+pub(crate) fn solve_with(
+    grid: &Grid,
+    samples: &[Sample],
+    constraints: Option<&Constraints>,
+    options: &SolveOptions,
+    initial: Option<&Field>,
+) -> Result<(Field, SolveReport), SolveError> {
     let start = Instant::now();
     validate(grid, samples, options, initial)?;
     let (field, mut report) = if options.grid_step > 1 {
         upsample::solve_coarse(grid, samples, options, initial)
     } else {
-        let constraints = constrain(grid, samples);
-        solve_constrained(grid, &constraints, options, initial)
+        match constraints {
+            Some(c) => solve_constrained(grid, c, options, initial),
+            None => solve_constrained(grid, &constrain(grid, samples), options, initial),
+        }
     };
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
@@ -659,21 +673,7 @@ fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
         while k < group.len() {
             let i = group[k];
             k += 1;
-            let (x, y) = (i % w, i / w);
-            let mut nb = [usize::MAX; 4];
-            if geo.right[i] {
-                nb[0] = i + 1;
-            }
-            if x > 0 && geo.right[i - 1] {
-                nb[1] = i - 1;
-            }
-            if geo.down[i] {
-                nb[2] = i + w;
-            }
-            if y > 0 && geo.down[i - w] {
-                nb[3] = i - w;
-            }
-            for j in nb {
+            for j in linked_neighbours(w, &geo.right, &geo.down, i) {
                 if j != usize::MAX && loose(j) && group_of[j] == usize::MAX {
                     group_of[j] = start;
                     group.push(j);
@@ -773,7 +773,7 @@ fn settle_group(geo: &Geometry, group: &[usize], group_of: &[usize], id: usize, 
 }
 
 /// Gaussian elimination with partial pivoting for two right-hand sides.
-fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<V2>> {
+pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<V2>> {
     let k = m.len();
     for col in 0..k {
         let piv = (col..k).max_by(|&p, &q| m[p][col].abs().total_cmp(&m[q][col].abs()))?;

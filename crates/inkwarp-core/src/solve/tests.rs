@@ -365,7 +365,7 @@ fn starts_from_earlier_frames_keep_the_accuracy_and_save_cycles() {
     let mut previous: Option<Field> = None;
     for frame in 0..12 {
         let samples = pose(0.15 * frame as f64);
-        let (field, report) = solve_warm(&grid, &samples, &opts, &mut history).unwrap();
+        let (field, report) = solve_warm(&grid, &samples, &opts, &mut history, None).unwrap();
         let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
         let err = field.dx.iter().zip(&exact.dx).chain(field.dy.iter().zip(&exact.dy)).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
         assert!(err < 0.05, "frame {frame}: {err} px from the exact minimiser ({report:?})");

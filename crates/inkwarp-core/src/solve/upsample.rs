@@ -501,35 +501,18 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
     if rows_of(&mut field, &mut resolved) == 0 {
         return field;
     }
-    let linked = |i: usize| -> [usize; 4] {
-        let (x, y) = (i % w, i / w);
-        let mut nbrs = [usize::MAX; 4];
-        if grid.link_right[i] {
-            nbrs[0] = i + 1;
-        }
-        if x > 0 && grid.link_right[i - 1] {
-            nbrs[1] = i - 1;
-        }
-        if grid.link_down[i] {
-            nbrs[2] = i + w;
-        }
-        if y > 0 && grid.link_down[i - w] {
-            nbrs[3] = i - w;
-        }
-        nbrs
-    };
     // Pixels left over: nearest resolved value along the links, breadth first from the
     // resolved pixels in index order. Only those next to an unresolved pixel can pass a
     // value on (the others would leave the queue without effect), so only they start it.
     let mut seeds: Vec<usize> = (0..w * h)
         .filter(|&i| labels[i] != u32::MAX && !resolved[i])
-        .flat_map(|i| linked(i).into_iter().filter(|&j| j != usize::MAX && resolved[j]))
+        .flat_map(|i| grid.linked(i).into_iter().filter(|&j| j != usize::MAX && resolved[j]))
         .collect();
     seeds.sort_unstable();
     seeds.dedup();
     let mut queue = VecDeque::from(seeds);
     while let Some(i) = queue.pop_front() {
-        for j in linked(i) {
+        for j in grid.linked(i) {
             if j != usize::MAX && !resolved[j] {
                 resolved[j] = true;
                 field.dx[j] = field.dx[i];
@@ -730,21 +713,7 @@ mod tests {
         }
         let mut queue: VecDeque<usize> = (0..w * h).filter(|&i| resolved[i]).collect();
         while let Some(i) = queue.pop_front() {
-            let (x, y) = (i % w, i / w);
-            let mut nbrs = [usize::MAX; 4];
-            if grid.link_right[i] {
-                nbrs[0] = i + 1;
-            }
-            if x > 0 && grid.link_right[i - 1] {
-                nbrs[1] = i - 1;
-            }
-            if grid.link_down[i] {
-                nbrs[2] = i + w;
-            }
-            if y > 0 && grid.link_down[i - w] {
-                nbrs[3] = i - w;
-            }
-            for j in nbrs {
+            for j in grid.linked(i) {
                 if j != usize::MAX && !resolved[j] {
                     resolved[j] = true;
                     field.dx[j] = field.dx[i];
