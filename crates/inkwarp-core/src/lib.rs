@@ -11,6 +11,7 @@
 //! paper's animation transfer. Nothing here knows about Python, the browser or files.
 
 pub mod anim;
+mod clock;
 pub mod field;
 pub mod geometry;
 pub mod grid;

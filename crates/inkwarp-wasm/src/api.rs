@@ -7,8 +7,8 @@ use inkwarp_core::anim::{points_at, Interpolation, Key};
 use inkwarp_core::geometry::{curve_polyline, sample_feature, FeatureSampler, SampleOptions};
 use inkwarp_core::methods::scene::{method_params, BEIER_NEELY_SEGMENT_PX};
 use inkwarp_core::methods::{
-    beier_neely_field, grid_has_discontinuities, line_pairs_from_chain, thin_plate_field,
-    triangulation_field, Controls, Interpolant, Method, MethodParams, MethodReport, ThinPlateMap,
+    controls_field, line_pairs_from_chain, note_ignored_matte, Controls, Interpolant, Method,
+    MethodParams, MethodReport, ThinPlateMap,
 };
 use inkwarp_core::render::{Canvas, RgbaImage};
 use inkwarp_core::scene::{images, BeierNeelyDoc, SolverDoc, TpsExactDoc};
@@ -398,7 +398,7 @@ pub extern "C" fn iw_solve(
                 let (field, report) = if interpolant == Interpolant::TpsExact && preview {
                     tps_exact_preview(&controls, grid, step, &params)?
                 } else {
-                    method_field(interpolant, &controls, grid, &params)?
+                    controls_field(interpolant, &controls, grid, &params).map_err(|e| e.to_string())?
                 };
                 let json = serde_json::json!({
                     "samples_used": report.samples_used,
@@ -424,63 +424,6 @@ pub extern "C" fn iw_solve(
     }
 }
 
-/// The field of `interpolant` as the scene engine computes a layer's
-/// (`inkwarp_core::methods::scene::features_field`): a layer that nothing drives stays
-/// put; otherwise `methods::field_on_grid`, minus its wall-clock timing
-/// (`std::time::Instant::now` panics on `wasm32-unknown-unknown`, where there is no
-/// clock). Same fields, same report otherwise (a test holds the fields to the scene
-/// engine's).
-fn method_field(
-    interpolant: Interpolant,
-    controls: &Controls,
-    grid: &Grid,
-    params: &MethodParams,
-) -> Result<(Field, MethodReport), String> {
-    let (width, height) = (grid.width, grid.height);
-    let mut report = MethodReport {
-        method: Some(interpolant.into()),
-        ..MethodReport::default()
-    };
-    if controls.samples.is_empty() && controls.line_pairs.is_empty() {
-        return Ok((Field::zeros(width, height), report));
-    }
-    let field = match interpolant {
-        Interpolant::TpsExact => thin_plate_field(
-            &controls.all_samples(),
-            width,
-            height,
-            params.max_samples,
-            &mut report,
-        ),
-        Interpolant::Triangulation => {
-            triangulation_field(&controls.all_samples(), width, height, &mut report)
-        }
-        Interpolant::BeierNeely => beier_neely_field(
-            &controls.samples,
-            &controls.line_pairs,
-            width,
-            height,
-            &params.beier_neely,
-            &mut report,
-        ),
-    }
-    .map_err(|e| e.to_string())?;
-    note_ignored_matte(&mut report, grid);
-    Ok((field, report))
-}
-
-/// Sets `ignored_matte` and its note when `grid` has holes or cuts, as
-/// `methods::field_on_grid` does.
-fn note_ignored_matte(report: &mut MethodReport, grid: &Grid) {
-    if grid_has_discontinuities(grid) {
-        report.ignored_matte = true;
-        let method = report.method.map_or("the method", Method::name);
-        report.notes.push(format!(
-            "{method} ignores the continuity matte and cuts: its surface is continuous across holes."
-        ));
-    }
-}
-
 /// At most this many samples are fitted by a `tps-exact` preview (the final field fits up to
 /// the scene's `solver.tps_exact.max_samples`): the fit costs their cube.
 const PREVIEW_MAX_SAMPLES: usize = 250;
@@ -489,7 +432,7 @@ const PREVIEW_MAX_SAMPLES: usize = 250;
 /// with `preview` and a `grid_step` above 1): the spline fitted to at most [`PREVIEW_MAX_SAMPLES`]
 /// samples (thinned as the method thins them), evaluated on every `step`-th pixel and
 /// interpolated bilinearly between. The full fit on every pixel takes seconds at
-/// 512 × 512 in the browser; the final field (no `preview`) is [`method_field`]'s.
+/// 512 × 512 in the browser; the final field (no `preview`) is [`controls_field`]'s.
 fn tps_exact_preview(
     controls: &Controls,
     grid: &Grid,

@@ -36,7 +36,7 @@ mod triangulation;
 
 use std::fmt;
 use std::str::FromStr;
-use std::time::Instant;
+use crate::clock::Instant;
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -329,14 +329,35 @@ pub fn field_on_grid(
     params: &MethodParams,
 ) -> Result<(Field, MethodReport), MethodError> {
     let (f, mut report) = field(interpolant, controls, grid.width, grid.height, params)?;
+    note_ignored_matte(&mut report, grid);
+    Ok((f, report))
+}
+
+/// Sets [`MethodReport::ignored_matte`] and adds its note when `grid` has an inactive node
+/// or a broken link (the report's method names itself in the note).
+pub fn note_ignored_matte(report: &mut MethodReport, grid: &Grid) {
     if grid_has_discontinuities(grid) {
         report.ignored_matte = true;
+        let method = report.method.map_or("the method", Method::name);
         report.notes.push(format!(
-            "{} ignores the continuity matte and cuts: its surface is continuous across holes.",
-            Method::from(interpolant)
+            "{method} ignores the continuity matte and cuts: its surface is continuous across holes."
         ));
     }
-    Ok((f, report))
+}
+
+/// [`field_on_grid`] for a layer's controls, where a layer that nothing drives stays where
+/// it is, whatever the method (Beier–Neely on its own has no field without a primitive).
+pub fn controls_field(
+    interpolant: Interpolant,
+    controls: &Controls,
+    grid: &Grid,
+    params: &MethodParams,
+) -> Result<(Field, MethodReport), MethodError> {
+    if controls.samples.is_empty() && controls.line_pairs.is_empty() {
+        let report = MethodReport { method: Some(interpolant.into()), ..MethodReport::default() };
+        return Ok((Field::zeros(grid.width, grid.height), report));
+    }
+    field_on_grid(interpolant, controls, grid, params)
 }
 
 /// Whether `grid` has an inactive node or a missing link between two active neighbours.

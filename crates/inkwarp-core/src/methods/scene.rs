@@ -3,7 +3,7 @@
 //! [`features_field`] for every method but `tps`).
 
 use super::{
-    field_on_grid, line_pairs_from_chain, BeierNeelyParams, Controls, Interpolant, MethodParams, MethodReport,
+    controls_field, line_pairs_from_chain, BeierNeelyParams, Controls, Interpolant, MethodParams, MethodReport,
 };
 use crate::field::Field;
 use crate::geometry::{sample_feature, Kind, Sample, SampleOptions};
@@ -77,13 +77,7 @@ pub fn features_field(
     params: &MethodParams,
 ) -> Result<(Field, MethodReport), String> {
     let controls = feature_controls(scene, features, time_s, interpolant)?;
-    if controls.samples.is_empty() && controls.line_pairs.is_empty() {
-        // A layer that nothing drives stays where it is, whatever the method (Beier–Neely
-        // on its own has no field without a primitive).
-        let report = MethodReport { method: Some(interpolant.into()), ..MethodReport::default() };
-        return Ok((Field::zeros(grid.width, grid.height), report));
-    }
-    field_on_grid(interpolant, &controls, grid, params).map_err(|e| e.to_string())
+    controls_field(interpolant, &controls, grid, params).map_err(|e| e.to_string())
 }
 
 /// The interpolants' settings of a layer's solver settings (`solver.beier_neely`,

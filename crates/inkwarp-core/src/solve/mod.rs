@@ -49,25 +49,7 @@ mod upsample;
 
 pub use history::{solve_warm, WarmHistory, HISTORY_FRAMES};
 
-#[cfg(not(all(target_arch = "wasm32", target_os = "unknown")))]
-use std::time::Instant;
-
-/// `std::time::Instant::now` panics on `wasm32-unknown-unknown` (no clock there): the
-/// browser build reports every solve time as zero instead.
-#[cfg(all(target_arch = "wasm32", target_os = "unknown"))]
-#[derive(Clone, Copy)]
-struct Instant;
-
-#[cfg(all(target_arch = "wasm32", target_os = "unknown"))]
-impl Instant {
-    fn now() -> Self {
-        Instant
-    }
-    fn elapsed(&self) -> std::time::Duration {
-        std::time::Duration::ZERO
-    }
-}
-
+use crate::clock::Instant;
 use rayon::prelude::*;
 use thiserror::Error;
 
