@@ -22,6 +22,9 @@ pub(crate) struct Hierarchy {
     pub gamma: usize,
     /// Scale every coarse correction by its energy-minimising step.
     pub line_search: bool,
+    /// A second coarse space for the finest level (see [`Level::into_plain`]), visited
+    /// after the first on every cycle; its own levels are regular grids.
+    pub alt: Option<Box<Hierarchy>>,
 }
 
 #[derive(Debug)]
@@ -34,6 +37,19 @@ struct Work {
 
 impl Hierarchy {
     pub fn new(fine: Level, degree: usize) -> Hierarchy {
+        Hierarchy::build(fine, degree, true)
+    }
+
+    /// A second coarse space for `fine`'s unknowns: the levels below `fine` (visited by
+    /// V-cycles), with no work vectors or smoothing bound on `fine` itself, which the
+    /// hierarchy it serves already has.
+    pub fn coarse_space(fine: Level, degree: usize) -> Hierarchy {
+        let mut h = Hierarchy::build(fine, degree, false);
+        h.gamma = 1;
+        h
+    }
+
+    fn build(fine: Level, degree: usize, smooth_fine: bool) -> Hierarchy {
         let mut levels = vec![fine];
         loop {
             let last = levels.last().unwrap();
@@ -45,19 +61,20 @@ impl Hierarchy {
         }
         let work = levels
             .iter()
-            .map(|l| {
-                let n = l.len_padded();
+            .enumerate()
+            .map(|(k, l)| {
+                let n = if k == 0 && !smooth_fine { 0 } else { l.len_padded() };
                 Work { x: vec![[0.0; 2]; n], f: vec![[0.0; 2]; n], r: vec![[0.0; 2]; n], d: vec![[0.0; 2]; n] }
             })
             .collect();
         // Chebyshev needs the top of the spectrum of D⁻¹A: a few power steps from a
         // checkerboard, with a margin, capped by the (safe, loose) Gershgorin bound.
-        for l in levels.iter_mut() {
+        for l in levels.iter_mut().skip(if smooth_fine { 0 } else { 1 }) {
             let est = power_estimate(l, 6) * 1.1;
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, gamma: 2, line_search: true }
+        Hierarchy { levels, work, coarsest, degree, gamma: 2, line_search: true, alt: None }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
@@ -72,7 +89,11 @@ impl Hierarchy {
         let len = work[0].f.len();
         work[0].x.resize(len, [0.0; 2]);
         fill_zero(&mut work[0].x);
-        self.solve_level(0, &mut work, true);
+        let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
+        self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
+        if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
+            a.work = w;
+        }
         std::mem::swap(&mut work[0].f, r);
         std::mem::swap(&mut work[0].x, z);
         self.work = work;
@@ -93,7 +114,7 @@ impl Hierarchy {
 
     /// Approximately solves `A_k x = f` on level k ≥ 1 (x, f in `work[0]`, the slice starting
     /// at level k) by one V-cycle from `x` (zero when `x_zero`).
-    fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool) {
+    fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, alt_work: Option<&mut [Work]>) {
         let level = &self.levels[k];
         if k + 1 == self.levels.len() {
             let w = &mut work[0];
@@ -115,7 +136,7 @@ impl Hierarchy {
             }
             restrict(level, &self.levels[k + 1], &w.r, &mut tail[0].f);
             fill_zero(&mut tail[0].x);
-            self.solve_level(k + 1, tail, true);
+            self.solve_level(k + 1, tail, true, None);
             if self.line_search && k > 0 {
                 // The coarse correction c = P e, scaled by the step that minimises the
                 // energy along it: α = ⟨c, r⟩ / ⟨c, A c⟩ (per component).
@@ -144,6 +165,16 @@ impl Hierarchy {
             } else {
                 prolong_add(level, &self.levels[k + 1], &tail[0].x, &mut w.x);
             }
+        }
+        if let (Some(alt), Some(aw)) = (self.alt.as_deref().filter(|a| a.levels.len() > 1), alt_work) {
+            // The second coarse space, on the residual the first one left.
+            level.residual(&w.x, Some(&w.f), &mut w.r);
+            let atail = &mut aw[1..];
+            restrict(&alt.levels[0], &alt.levels[1], &w.r, &mut atail[0].f);
+            fill_zero(&mut atail[0].x);
+            alt.solve_level(1, atail, true, None);
+            // Unscaled: a line search here costs a finest-level product and gained nothing.
+            prolong_add(&alt.levels[0], &alt.levels[1], &atail[0].x, &mut w.x);
         }
         let Work { x, f, r, d } = w;
         smooth(level, x, Some(f), r, d, self.degree, false);
@@ -174,7 +205,7 @@ impl Hierarchy {
             let wk = &mut head[k];
             fill_zero(&mut wk.x);
             prolong_add(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut wk.x);
-            self.solve_level(k, &mut work[k..], false);
+            self.solve_level(k, &mut work[k..], false, None);
         }
         prolong_add(&self.levels[0], &self.levels[1], &work[1].x, u);
         self.work = work;

@@ -318,6 +318,32 @@ impl Level {
         Level { geo, wp, hp, op: Operator::Fine { flags, tau }, inv_diag, lam_max, clean }
     }
 
+    /// This finest level with the prolongation of the same grid without holes or cuts
+    /// (plain bilinear, every coarse level fully linked); rows of inactive and fixed nodes
+    /// stay zero. Its coarse space holds the functions that run smoothly across holes and
+    /// cuts, which the link-aware prolongation cannot: near a missing link it extrapolates a
+    /// constant.
+    pub fn into_plain(mut self) -> Level {
+        let (w, h) = (self.geo.w, self.geo.h);
+        let plain = Geometry {
+            w,
+            h,
+            active: vec![true; w * h],
+            right: (0..w * h).map(|i| i % w + 1 < w).collect(),
+            down: (0..w * h).map(|i| i + w < w * h).collect(),
+            fixed: None,
+            prow: Vec::new(),
+        }
+        .with_rows();
+        let real = std::mem::replace(&mut self.geo, plain);
+        for i in 0..w * h {
+            if !real.active[i] || real.fixed.as_ref().is_some_and(|f| f[i]) {
+                self.geo.prow[i] = [0; 4];
+            }
+        }
+        self
+    }
+
     /// The stencil row of padded node `p` as a 5 × 5 array (dy outer, dx inner).
     pub fn row(&self, p: usize) -> [f64; 25] {
         match &self.op {

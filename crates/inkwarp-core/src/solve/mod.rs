@@ -37,7 +37,12 @@
 //! holes and cuts), Chebyshev–Jacobi smoothing (symmetric, parallel), energy line searches on
 //! the coarse corrections, W-cycles below the finest level, a banded Cholesky solve on the
 //! coarsest level, a coarse-to-fine start, and the cycle as the preconditioner of a flexible
-//! conjugate gradient on the finest level. Loose nodes (no corner of a fully linked cell)
+//! conjugate gradient on the finest level. On grids with holes or cuts each cycle also visits
+//! a second coarse space, built with the plain bilinear prolongation of the same grid
+//! without them: the link-aware one extrapolates a constant at every missing link, so it
+//! lacks the functions that run linearly up to (and across) a hole or cut, and the plain
+//! one has exactly those. A warm start whose residuals exceed the tolerance also gets the
+//! coarse-to-fine correction; a closer one first gets one cycle as it is. Loose nodes (no corner of a fully linked cell)
 //! are settled to the τ → 0⁺ limit afterwards. `docs/concepts/thin-plate.md` explains the
 //! choices and lists the measured figures.
 
@@ -321,6 +326,7 @@ pub(crate) fn solve_constrained(
         down: (0..n).map(|i| grid.link_down[i] && active[i]).collect(),
         active,
         fixed,
+        second_space: second_space_enabled(),
     };
     let mut hier = cache_take(&key).unwrap_or_else(|| {
         let geo = Geometry {
@@ -333,7 +339,16 @@ pub(crate) fn solve_constrained(
             prow: Vec::new(),
         }
         .with_rows();
-        Hierarchy::new(Level::fine(geo, tau), SMOOTHING_STEPS)
+        let fine = Level::fine(geo, tau);
+        // Holes and cuts: a second coarse space that runs smoothly across them (visited by
+        // V-cycles), next to the link-aware one that tears with them.
+        let torn = (0..n).any(|i| {
+            key.active[i] && (!key.right[i] && i % w + 1 < w && key.active[i + 1] || !key.down[i] && i + w < n && key.active[i + w])
+        }) || key.active.iter().any(|&a| !a);
+        let alt = (torn && second_space_enabled()).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
+        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS);
+        hier.alt = alt;
+        hier
     });
     let fixed = &key.fixed;
     let mut u: Vec<V2> = vec![[0.0; 2]; hier.levels[0].len_padded()];
@@ -354,11 +369,20 @@ pub(crate) fn solve_constrained(
             u[fine.pidx(i % w, i / w)] = v;
         }
     }
-    if initial.is_none() {
-        hier.coarse_to_fine(&mut u);
-    }
     let len = u.len();
     let mut r = vec![[0.0; 2]; len];
+    // A cold solve starts coarse to fine, and so does a warm one whose start leaves
+    // residuals above the tolerance (a user's earlier answer). A closer start (the earlier
+    // frames' prediction) first gets one cycle as it is, and the coarse-to-fine correction
+    // only when that cycle did not finish: for it the correction costs more than it saves.
+    let mut started = true;
+    if initial.is_some() {
+        hier.levels[0].residual(&u, None, &mut r);
+        started = scaled_max(&hier.levels[0], &r) > options.tolerance_px;
+    }
+    if started {
+        hier.coarse_to_fine(&mut u);
+    }
     hier.levels[0].residual(&u, None, &mut r);
     report.initial_residual = scaled_max(&hier.levels[0], &r);
     let max_cycles = options.max_cycles.unwrap_or(100);
@@ -413,6 +437,15 @@ pub(crate) fn solve_constrained(
                     if stop(change, cycle, &mut report) {
                         report.converged = true;
                         break;
+                    }
+                    if !started {
+                        started = true;
+                        hier.coarse_to_fine(&mut u);
+                        hier.levels[0].residual(&u, None, &mut r);
+                        hier.precondition(&mut r, &mut z);
+                        p.copy_from_slice(&z);
+                        rz = dot2(&r, &z);
+                        continue;
                     }
                     hier.precondition(&mut r, &mut z);
                     // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
@@ -491,6 +524,21 @@ struct CacheKey {
     right: Vec<bool>,
     down: Vec<bool>,
     fixed: Vec<bool>,
+    /// Whether the hierarchy has the second coarse space (always, outside tests).
+    second_space: bool,
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Lets a test compare solves with and without the second coarse space.
+    pub(crate) static SECOND_SPACE: std::cell::Cell<bool> = const { std::cell::Cell::new(true) };
+}
+
+fn second_space_enabled() -> bool {
+    #[cfg(test)]
+    return SECOND_SPACE.with(|c| c.get());
+    #[cfg(not(test))]
+    true
 }
 
 /// Recently used hierarchies (taken out while in use, so concurrent solves never share
