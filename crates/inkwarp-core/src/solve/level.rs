@@ -863,6 +863,11 @@ pub(crate) fn restrict(fine: &Level, coarse: &Level, v: &[V2], out: &mut [V2]) {
 
 /// `fine_x += P e` (prolongation of a coarse correction onto the unknowns).
 pub(crate) fn prolong_add(fine: &Level, coarse: &Level, e: &[V2], x: &mut [V2]) {
+    prolong_add_scaled(fine, coarse, e, x, [1.0; 2]);
+}
+
+/// `fine_x += α P e`, α per component.
+pub(crate) fn prolong_add_scaled(fine: &Level, coarse: &Level, e: &[V2], x: &mut [V2], alpha: V2) {
     let (fw, fh) = (fine.geo.w, fine.geo.h);
     let wp = fine.wp;
     let run = |iy: usize, xrow: &mut [V2]| {
@@ -879,8 +884,8 @@ pub(crate) fn prolong_add(fine: &Level, coarse: &Level, e: &[V2], x: &mut [V2]) 
                 }
             }
             let o = &mut xrow[ix + PAD];
-            o[0] += acc[0];
-            o[1] += acc[1];
+            o[0] += alpha[0] * acc[0];
+            o[1] += alpha[1] * acc[1];
         }
     };
     let body = &mut x[PAD * wp..(PAD + fh) * wp];
