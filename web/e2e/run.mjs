@@ -511,6 +511,8 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
     a.stats.settle.length = 0;
     a.stats.draftSolveMs.length = 0;
     a.stats.finalSolveMs.length = 0;
+    a.stats.settleParts.length = 0;
+    a.stats.dragParts.length = 0;
   });
   const count = await page.evaluate(() => window.inkwarp.store.doc.features.length);
   await page.keyboard.press('e');
@@ -556,7 +558,7 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
       }
       return (performance.now() - t0) / 3;
     };
-    return { multisampled: time(true, false), single: time(false, false), draft: time(false, true) };
+    return { multisampled: time(true, false), single: time(false, false), draft: time(false, true), draftAa: time(true, true) };
   });
   const s = await page.evaluate(() => window.inkwarp.app.stats);
   perf.features = count;
@@ -565,6 +567,8 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   perf.draftSolveMs = { median: median(s.draftSolveMs), n: s.draftSolveMs.length };
   perf.finalSolveMs = { median: median(s.finalSolveMs), n: s.finalSolveMs.length };
   perf.playback = s.playback;
+  perf.settleParts = s.settleParts;
+  perf.dragParts = Object.fromEntries(['queued', 'toWorker', 'solve', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((p) => p[k]))]));
   assert(s.dragLatency.length > 0, 'frames were drawn during the drags');
   await screenshot(page, 'measured');
 });
@@ -770,10 +774,19 @@ async function main() {
   if (perf.dragLatencyMs) {
     console.log(`  ${perf.features} features, 512×512: pointer move → frame median ${perf.dragLatencyMs.median?.toFixed(1)} ms (p90 ${perf.dragLatencyMs.p90?.toFixed(1)}, n=${perf.dragLatencyMs.n})`);
     console.log(`  settle (pointer rest → full-resolution frame): median ${perf.settleMs.median?.toFixed(1)} ms, max ${perf.settleMs.max?.toFixed(1)} ms`);
+    for (const p of perf.settleParts ?? []) {
+      const f = (v) => (typeof v === 'number' ? v.toFixed(1) : v);
+      console.log(`    settle ${f(p.total)} ms = queued ${f(p.queued)} (behind ${p.behind ?? 'nothing'}) + to worker ${f(p.toWorker)} + solve ${f(p.solve)} (${p.cycles ?? '-'} cycles) + back ${f(p.back)} + upload ${f(p.upload)} + to frame ${f(p.toFrame)} + draw calls ${f(p.draw)} + GPU ${f(p.gpu)}; antialiased frame at ${f(p.antialiased)}`);
+    }
+    if (perf.dragParts) {
+      const d = perf.dragParts;
+      const f = (v) => (typeof v === 'number' ? v.toFixed(1) : v);
+      console.log(`    drag frame medians: pointer → request sent ${f(d.queued)} + to worker ${f(d.toWorker)} + solve ${f(d.solve)} + back ${f(d.back)} + upload ${f(d.upload)} + to frame ${f(d.toFrame)} + draw calls ${f(d.draw)} + GPU ${f(d.gpu)} (total ${f(d.total)})`);
+    }
     console.log(`  solve: draft median ${perf.draftSolveMs.median?.toFixed(1)} ms, full median ${perf.finalSolveMs.median?.toFixed(1)} ms`);
     console.log(`  playback at 24 fps, 6 frames: first pass (solving) ${JSON.stringify(perf.playbackFirstPass)}; then 2 s from solved fields ${JSON.stringify(perf.playback)}`);
   }
-  if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without, ${perf.glFrameMs.draft.toFixed(1)} ms draft (a vertex every 8 px where whole)`);
+  if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without, ${perf.glFrameMs.draft.toFixed(1)} ms draft (a vertex every 8 px where whole), ${perf.glFrameMs.draftAa.toFixed(1)} ms draft multisampled`);
   if (perf.draftVsFull) console.log(`  during a drag: draft frame ${perf.draftVsFull.draftMs.toFixed(1)} ms, full frame of the same field ${perf.draftVsFull.fullMs.toFixed(1)} ms (draw + read back); draft vs full mean ${perf.draftVsFull.mean.toFixed(2)}, p99 ${perf.draftVsFull.p99}, max ${perf.draftVsFull.max}`);
   if (perf.gpuVsCpu) console.log(`  GPU vs CPU: mean ${perf.gpuVsCpu.mean.toFixed(3)}, p99 ${perf.gpuVsCpu.p99}, max ${perf.gpuVsCpu.max}`);
   if (perf.gpuVsCpuHole) console.log(`  GPU vs CPU around an opening hole (128×128): mean ${perf.gpuVsCpuHole.mean.toFixed(3)}, p99 ${perf.gpuVsCpuHole.p99}, max ${perf.gpuVsCpuHole.max}`);

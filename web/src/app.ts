@@ -28,6 +28,8 @@ export interface LayerRuntime {
   error: string | null;
   /** The engine's remarks on the layer's last field (e.g. a matte its method ignores). */
   notes: string[];
+  /** The request number of the field shown: an older request's field never replaces it. */
+  shownSeq: number;
 }
 
 export interface Stats {
@@ -38,7 +40,42 @@ export interface Stats {
   draftSolveMs: number[];
   finalSolveMs: number[];
   playback: { expected: number; shown: number; dropped: number } | null;
+  /** Where each settle's time went (ms; see `SettleParts`). */
+  settleParts: SettleParts[];
+  /** Where each drag frame's time went (ms): the same parts, `queued` from the pointer event. */
+  dragParts: SettleParts[];
 }
+
+/**
+ * One settle, from the pointer's rest or release to the full-resolution frame on screen,
+ * split into its consecutive parts (ms).
+ */
+export interface SettleParts {
+  /** Waiting for the worker: the request queued behind the solve in flight (`behind`). */
+  queued: number;
+  behind: string | null;
+  /** Posting the request to the worker until it starts solving. */
+  toWorker: number;
+  /** The worker's solve (request in, field out), with the solver's cycle count. */
+  solve: number;
+  cycles: number | null;
+  /** The field's trip back to the page. */
+  back: number;
+  /** Uploading the field to the GPU (interleaving and texture upload). */
+  upload: number;
+  /** Waiting for the next animation frame. */
+  toFrame: number;
+  /** Issuing the full frame's draw calls. */
+  draw: number;
+  /** The GPU drawing it, until it is on screen. */
+  gpu: number;
+  total: number;
+  /** Until the antialiased (4× multisampled) frame that follows is on screen. */
+  antialiased?: number;
+}
+
+/** Called when a frame is on screen: when the GPU finished it, and when its draw calls began and ended. */
+type FrameFn = (gpuDone: number, drawn: { start: number; end: number }) => void;
 
 /** Fields kept for playback (a 512×512 layer's field is 2 MiB). */
 const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
@@ -48,7 +85,7 @@ export class App {
   readonly store: Store;
   readonly gl: GlRenderer;
   readonly runtimes = new Map<string, LayerRuntime>();
-  readonly stats: Stats = { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], playback: null };
+  readonly stats: Stats = { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], playback: null, settleParts: [], dragParts: [] };
   onMessage: (text: string, kind: 'error' | 'info') => void = () => {};
   onFrame: () => void = () => {};
   onSolved: (ev: FieldEvent) => void = () => {};
@@ -56,6 +93,8 @@ export class App {
   private settleTimer: number | null = null;
   private pendingLatency: number[] = [];
   private settleStart: number | null = null;
+  /** What the worker was solving when the settle began. */
+  private settleBehind: string | null = null;
   private waiters: (() => void)[] = [];
   /** A drag is live: solve drafts. */
   dragging = false;
@@ -64,28 +103,38 @@ export class App {
   /** Full-resolution fields by frame, for the document revision they were solved for. */
   private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, FieldData>>() };
 
+  /** Numbers every solve request: a layer shows the field of its newest request only. */
+  private seq = 0;
+
+  /**
+   * `solver` solves full-resolution fields; `drafts` (a second worker), when given, the
+   * drafts while dragging, so a draft never waits behind a full-resolution solve.
+   */
   constructor(
     readonly engine: Engine,
     readonly solver: SolverClient,
     glCanvas: HTMLCanvasElement,
     store: Store,
+    readonly drafts: SolverClient | null = null,
   ) {
     this.store = store;
     this.gl = new GlRenderer(glCanvas);
-    this.solver.onField = (ev) => this.receive(ev);
-    this.solver.onError = (key, message) => {
-      const rt = key ? this.runtimes.get(key) : undefined;
-      if (rt) rt.error = message;
-      this.onMessage(key ? `Layer ${key}: ${message}` : message, 'error');
-      this.checkIdle();
-    };
-    this.solver.onReset = (message) => {
-      this.onMessage(message, 'error');
-      for (const layer of this.doc.layers) {
-        const rt = this.runtimes.get(layer.name);
-        if (rt) this.rebuildGrid(rt, layer);
-      }
-    };
+    for (const client of this.clients) {
+      client.onField = (ev) => this.receive(ev);
+      client.onError = (key, message) => {
+        const rt = key ? this.runtimes.get(key) : undefined;
+        if (rt) rt.error = message;
+        this.onMessage(key ? `Layer ${key}: ${message}` : message, 'error');
+        this.checkIdle();
+      };
+      client.onReset = (message) => {
+        this.onMessage(message, 'error');
+        for (const layer of this.doc.layers) {
+          const rt = this.runtimes.get(layer.name);
+          if (rt) this.rebuildGrid(rt, layer);
+        }
+      };
+    }
     store.subscribe((_, docChanged) => {
       if (docChanged) this.syncLayers();
       this.requestSolve(this.dragging ? 'draft' : 'final');
@@ -95,6 +144,16 @@ export class App {
 
   get doc(): SceneDoc {
     return this.store.doc;
+  }
+
+  /** The solver workers (the draft worker, if any, second). */
+  get clients(): SolverClient[] {
+    return this.drafts ? [this.solver, this.drafts] : [this.solver];
+  }
+
+  /** The worker that solves requests of this quality. */
+  private solverFor(quality: Quality): SolverClient {
+    return quality === 'draft' && this.drafts ? this.drafts : this.solver;
   }
 
   // -- Layers ---------------------------------------------------------------------------
@@ -110,7 +169,7 @@ export class App {
     for (const [name, rt] of this.runtimes) {
       if (!names.has(name)) {
         rt.gl?.dispose();
-        this.solver.dropGrid(name);
+        for (const client of this.clients) client.dropGrid(name);
         this.runtimes.delete(name);
       }
     }
@@ -131,6 +190,7 @@ export class App {
           lastRequest: '',
           error: null,
           notes: [],
+          shownSeq: 0,
         };
         this.runtimes.set(layer.name, rt);
       }
@@ -209,9 +269,9 @@ export class App {
     rt.gridReady = false;
     rt.lastRequest = '';
     this.busyCount++;
-    this.solver
-      .setGrid(rt.name, this.doc.width, this.doc.height, rt.matte, this.cutsOf(layer))
-      .then((links) => {
+    const cuts = this.cutsOf(layer);
+    Promise.all(this.clients.map((c) => c.setGrid(rt.name, this.doc.width, this.doc.height, rt.matte, cuts)))
+      .then(([links]) => {
         if (gen !== rt.gridGen) return;
         rt.links = links;
         rt.gl?.setMesh(links, rt.rgba?.data ?? null);
@@ -297,7 +357,7 @@ export class App {
         const rt = this.runtimes.get(layer.name);
         if (!rt?.gridReady || this.cache.frames.get(frame)?.has(layer.name)) continue;
         this.solver.solve(layer.name, this.solveFeatures(layer, time), this.solverOptions(layer, 'final'), {
-          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.store.revision, frame, prefetch: true,
+          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.store.revision, frame, prefetch: true, seq: ++this.seq,
         });
       }
       return;
@@ -322,7 +382,7 @@ export class App {
       if (this.settleTimer !== null) clearTimeout(this.settleTimer);
       this.settleTimer = window.setTimeout(() => {
         this.settleTimer = null;
-        this.settleStart = performance.now();
+        this.beginSettle();
         this.requestSolve('final');
       }, SETTLE_MS);
     }
@@ -335,6 +395,7 @@ export class App {
         rt.field = field;
         rt.gl.setField(field);
         rt.lastRequest = '';
+        rt.shownSeq = ++this.seq;
       }
       if (this.stats.playback && this.store.view.playing) this.stats.playback.shown++;
       this.invalidate();
@@ -348,8 +409,9 @@ export class App {
       const sig = JSON.stringify([features, options]);
       if (sig === rt.lastRequest) continue;
       rt.lastRequest = sig;
-      this.solver.solve(layer.name, features, options, {
+      this.solverFor(quality).solve(layer.name, features, options, {
         madeAt: performance.now(),
+        seq: ++this.seq,
         quality,
         gen: rt.gridGen,
         pointerAt: quality === 'draft' ? this.lastPointerAt : null,
@@ -365,8 +427,14 @@ export class App {
   settle(): void {
     if (this.settleTimer !== null) clearTimeout(this.settleTimer);
     this.settleTimer = null;
-    this.settleStart = performance.now();
+    this.beginSettle();
     this.requestSolve('final');
+  }
+
+  private beginSettle(): void {
+    this.settleStart = performance.now();
+    const cur = this.solver.current;
+    this.settleBehind = cur ? String(cur.tag.quality ?? 'other') : null;
   }
 
   private receive(ev: FieldEvent): void {
@@ -381,17 +449,60 @@ export class App {
       this.checkIdle();
       return;
     }
-    if (rt && ev.tag.gen === rt.gridGen && this.posed && rt.gl) {
+    const seq = typeof ev.tag.seq === 'number' ? ev.tag.seq : 0;
+    if (rt && ev.tag.gen === rt.gridGen && this.posed && rt.gl && seq > rt.shownSeq) {
+      rt.shownSeq = seq;
       rt.field = ev.field;
       rt.notes = ev.report.notes ?? [];
       rt.error = null;
+      const up0 = performance.now();
       rt.gl.setField(ev.field);
-      if (typeof ev.tag.pointerAt === 'number' && ev.tag.pointerAt > 0) this.pendingLatency.push(ev.tag.pointerAt);
+      const upload = performance.now() - up0;
+      if (typeof ev.tag.pointerAt === 'number' && ev.tag.pointerAt > 0) {
+        const start = ev.tag.pointerAt;
+        const { times } = ev;
+        this.pendingLatency.push(start);
+        this.afterFrame((end, drawn) =>
+          this.stats.dragParts.push({
+            queued: times.sent - start,
+            behind: null,
+            toWorker: times.began - times.sent,
+            solve: times.ended - times.began,
+            cycles: ev.report.cycles ?? null,
+            back: times.received - times.ended,
+            upload,
+            toFrame: drawn.start - (times.received + upload),
+            draw: drawn.end - drawn.start,
+            gpu: end - drawn.end,
+            total: end - start,
+          }),
+        );
+      }
       const pb = this.stats.playback;
       if (pb && this.store.view.playing && ev.tag.time === this.store.view.time) pb.shown++;
       if (ev.tag.quality === 'final' && typeof ev.tag.settleStart === 'number') {
         const start = ev.tag.settleStart;
-        this.afterFrame(() => this.stats.settle.push(performance.now() - start));
+        const { times } = ev;
+        const behind = this.settleBehind;
+        const parts = {} as SettleParts;
+        this.afterFrame((end, drawn) => {
+          this.stats.settle.push(end - start);
+          Object.assign(parts, {
+            queued: times.sent - start,
+            behind,
+            toWorker: times.began - times.sent,
+            solve: times.ended - times.began,
+            cycles: ev.report.cycles ?? null,
+            back: times.received - times.ended,
+            upload,
+            toFrame: drawn.start - (times.received + upload),
+            draw: drawn.end - drawn.start,
+            gpu: end - drawn.end,
+            total: end - start,
+          });
+          this.stats.settleParts.push(parts);
+        });
+        this.afterFrame((aa) => (parts.antialiased = aa - start), true);
         this.settleStart = null;
       }
       this.invalidate();
@@ -402,18 +513,31 @@ export class App {
 
   // -- Drawing --------------------------------------------------------------------------
 
-  private afterFrameFns: (() => void)[] = [];
-  private afterFrame(fn: () => void): void {
-    this.afterFrameFns.push(fn);
+  private afterFrameFns: FrameFn[] = [];
+  private afterAntialiasedFns: FrameFn[] = [];
+  /** Calls `fn` with the time the GPU finished the next frame (`antialiased`: the next full multisampled frame) drawn. */
+  private afterFrame(fn: FrameFn, antialiased = false): void {
+    (antialiased ? this.afterAntialiasedFns : this.afterFrameFns).push(fn);
   }
+  /** Frames drawn whose GPU completion is still awaited (for `busy`). */
+  private gpuPending = 0;
 
   invalidate(): void {
     if (this.frameQueued) return;
     this.frameQueued = true;
     requestAnimationFrame(() => {
       this.frameQueued = false;
-      this.renderNow();
+      this.frameTick();
     });
+  }
+
+  /** The frame of the animation loop: a draft during a drag or playback, else the full frame. */
+  private frameTick(): void {
+    if (this.dragging || this.store.view.playing) {
+      this.renderNow(true);
+    } else {
+      this.renderNow(false);
+    }
   }
 
   /** The visible layers, back to front, as the renderer draws them. */
@@ -431,9 +555,9 @@ export class App {
    * Draws the current fields: the full frame (the pixel mesh, 4× multisampled, what the
    * CPU renderer draws) or a draft (the coarse mesh of `draftQuads`, one sample a pixel).
    */
-  draw(draft: boolean): void {
+  draw(draft: boolean, antialias = !draft): void {
     const doc = this.doc;
-    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], this.drawList(), !draft, draft);
+    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], this.drawList(), antialias, draft);
   }
 
   /**
@@ -441,19 +565,31 @@ export class App {
    * software GPU pays per vertex, per triangle and per sample. The full frame follows
    * when the pointer rests or playback stops; exports ask for it (`draft = false`).
    */
-  renderNow(draft: boolean = this.dragging || this.store.view.playing): void {
-    this.draw(draft);
+  renderNow(draft: boolean = this.dragging || this.store.view.playing, antialias = !draft): void {
+    const start = performance.now();
+    this.draw(draft, antialias);
+    const drawn = { start, end: performance.now() };
     this.onFrame();
-    const now = performance.now();
-    for (const t of this.pendingLatency.splice(0)) this.stats.dragLatency.push(now - t);
-    for (const fn of this.afterFrameFns.splice(0)) fn();
+    const latency = this.pendingLatency.splice(0);
+    const fns = this.afterFrameFns.splice(0);
+    if (!draft && antialias) fns.push(...this.afterAntialiasedFns.splice(0));
+    if (latency.length || fns.length) {
+      // Timed to when the frame is on screen: when the GPU has drawn it.
+      this.gpuPending++;
+      void this.gl.finished().then((done) => {
+        for (const t of latency) this.stats.dragLatency.push(done - t);
+        for (const fn of fns) fn(done, drawn);
+        this.gpuPending--;
+        this.checkIdle();
+      });
+    }
     this.checkIdle();
   }
 
   // -- Waiting (tests, export) -----------------------------------------------------------
 
   get busy(): boolean {
-    return this.busyCount > 0 || this.solver.busy || this.frameQueued || this.settleTimer !== null;
+    return this.busyCount > 0 || this.clients.some((c) => c.busy) || this.frameQueued || this.settleTimer !== null || this.gpuPending > 0;
   }
 
   private checkIdle(): void {

@@ -526,6 +526,27 @@ void main() { o = texture(uTex, vPos); }`);
     gl.drawArrays(gl.TRIANGLES, 0, 3);
   }
 
+  /**
+   * Resolves with the time (performance.now()) the GPU finished the commands issued so
+   * far: a fence polled between tasks, so nothing waits on the GPU (a software GPU draws
+   * a frame long after the calls return).
+   */
+  finished(): Promise<number> {
+    const gl = this.gl;
+    const sync = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);
+    gl.flush();
+    return new Promise((resolve) => {
+      const poll = () => {
+        if (!sync || gl.getSyncParameter(sync, gl.SYNC_STATUS) === gl.SIGNALED) {
+          const t = performance.now();
+          if (sync) gl.deleteSync(sync);
+          resolve(t);
+        } else setTimeout(poll, 1);
+      };
+      poll();
+    });
+  }
+
   /** The last frame as straight RGBA8, rows top to bottom (for tests and PNG export). */
   readPixels(): Uint8Array {
     const gl = this.gl;

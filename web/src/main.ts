@@ -19,15 +19,18 @@ async function start(): Promise<void> {
   const absWasm = new URL(wasmUrl, document.baseURI).href;
   const engine = await Engine.fromUrl(absWasm);
   images.useDecoder(engine);
-  const worker = new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' });
-  const solver = new SolverClient(worker, absWasm);
-  await solver.ready;
+  // Two workers: full-resolution fields, and drafts while dragging (never queued behind a
+  // full-resolution solve, which takes a second or more at 512 × 512).
+  const spawn = () => new SolverClient(new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
+  const solver = spawn();
+  const drafts = spawn();
+  await Promise.all([solver.ready, drafts.ready]);
   const params = new URLSearchParams(location.search);
   const sceneUrl = params.get('scene');
   const store = new Store(await builtinScene());
   const glCanvas = document.createElement('canvas');
   glCanvas.className = 'picture';
-  const app = new App(engine, solver, glCanvas, store);
+  const app = new App(engine, solver, glCanvas, store, drafts);
   const ui = new Ui(app, root);
   // Hooks for the end-to-end tests and for scripting the editor from the console.
   Object.assign(window, { inkwarp: { app, ui, store, engine, scene, state, images, examples } });

@@ -23,4 +23,15 @@ export type FromWorker =
   | { type: 'reset'; message: string }
   | { type: 'error'; id: number | null; key: string | null; message: string }
   | { type: 'links'; key: string; links: Uint8Array }
-  | { type: 'field'; id: number; key: string; field: FieldData; report: SolveReport; ms: number; gridStep: number };
+  | {
+      type: 'field';
+      id: number;
+      key: string;
+      field: FieldData;
+      report: SolveReport;
+      ms: number;
+      gridStep: number;
+      /** Wall-clock times (performance.timeOrigin + now) the worker began and finished. */
+      began: number;
+      ended: number;
+    };

@@ -20,6 +20,9 @@ export interface FieldEvent {
   ms: number;
   gridStep: number;
   tag: SolveTag;
+  /** When (page's performance.now()) the request went to the worker, the worker began and
+   * finished solving it, and its field arrived back. */
+  times: { sent: number; began: number; ended: number; received: number };
 }
 
 interface Request {
@@ -33,7 +36,7 @@ interface Request {
 export class SolverClient {
   private worker: Worker;
   readonly ready: Promise<void>;
-  private inFlight: { id: number; req: Request } | null = null;
+  private inFlight: { id: number; req: Request; sentAt: number } | null = null;
   private pending = new Map<string, Request>();
   private nextId = 1;
   private linkWaiters = new Map<string, { resolve: (l: Uint8Array) => void; reject: (e: Error) => void }[]>();
@@ -83,6 +86,11 @@ export class SolverClient {
     this.pump();
   }
 
+  /** The tag of the request being solved now, and when it was sent (null when idle). */
+  get current(): { tag: SolveTag; sentAt: number } | null {
+    return this.inFlight && { tag: this.inFlight.req.tag, sentAt: this.inFlight.sentAt };
+  }
+
   get busy(): boolean {
     return this.inFlight !== null || this.pending.size > 0;
   }
@@ -98,7 +106,7 @@ export class SolverClient {
     const [key, req] = this.pending.entries().next().value as [string, Request];
     this.pending.delete(key);
     const id = this.nextId++;
-    this.inFlight = { id, req };
+    this.inFlight = { id, req, sentAt: performance.now() };
     this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm });
   }
 
@@ -120,7 +128,9 @@ export class SolverClient {
       const done = this.inFlight;
       this.inFlight = null;
       if (msg.type === 'field' && done) {
-        this.onField({ key: msg.key, field: msg.field, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag });
+        const origin = performance.timeOrigin;
+        const times = { sent: done.sentAt, began: msg.began - origin, ended: msg.ended - origin, received: performance.now() };
+        this.onField({ key: msg.key, field: msg.field, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag, times });
       } else if (msg.type === 'error') {
         this.onError(msg.key, msg.message);
       }

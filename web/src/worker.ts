@@ -36,13 +36,15 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
     } else if (msg.type === 'solve') {
       const grid = grids.get(msg.key);
       if (!grid) throw new Error(`No grid for layer ${msg.key}.`);
+      const began = performance.timeOrigin + performance.now();
       const t0 = performance.now();
       const { field, report } = grid.solve(msg.features, msg.options, msg.warm ? (last.get(msg.key) ?? null) : null);
       const ms = performance.now() - t0;
       last.set(msg.key, field);
       // Send copies: the worker keeps its own field as the next warm start.
       const out: FieldData = { width: field.width, height: field.height, dx: field.dx.slice(), dy: field.dy.slice() };
-      post({ type: 'field', id: msg.id, key: msg.key, field: out, report, ms, gridStep: msg.options.grid_step ?? 1 }, [
+      const ended = performance.timeOrigin + performance.now();
+      post({ type: 'field', id: msg.id, key: msg.key, field: out, report, ms, gridStep: msg.options.grid_step ?? 1, began, ended }, [
         out.dx.buffer,
         out.dy.buffer,
       ]);

@@ -42,10 +42,10 @@ describe('solver scheduling', () => {
     c.onField = (ev) => got.push(ev);
     for (let i = 0; i < 5; i++) c.solve('a', [], { grid_step: 8 }, { madeAt: i, n: i });
     expect(w.solves().map((m) => m.id)).toEqual([1]); // the first went out at once
-    w.reply({ type: 'field', id: 1, key: 'a', field, report, ms: 1, gridStep: 8 });
+    w.reply({ type: 'field', id: 1, key: 'a', field, report, ms: 1, gridStep: 8, began: 0, ended: 0 });
     // Requests 1–3 were superseded by 4 while 0 was solving.
     expect(w.solves()).toHaveLength(2);
-    w.reply({ type: 'field', id: 2, key: 'a', field, report, ms: 1, gridStep: 8 });
+    w.reply({ type: 'field', id: 2, key: 'a', field, report, ms: 1, gridStep: 8, began: 0, ended: 0 });
     expect(got.map((e) => e.tag.n)).toEqual([0, 4]);
     expect(c.busy).toBe(false);
     await c.idle();
@@ -73,5 +73,23 @@ describe('solver scheduling', () => {
     w.reply({ type: 'reset', message: 'restarted' });
     await expect(lost).rejects.toThrow('restarted');
     expect(resets).toEqual(['restarted']);
+  });
+});
+
+describe('solve timing', () => {
+  it('a field event carries when it was sent, solved and received, on the page clock', async () => {
+    const { w, c } = await client();
+    const got: FieldEvent[] = [];
+    c.onField = (ev) => got.push(ev);
+    c.solve('a', [], {}, { madeAt: 0 });
+    expect(c.current?.tag.madeAt).toBe(0);
+    const origin = performance.timeOrigin;
+    const now = performance.now();
+    w.reply({ type: 'field', id: 1, key: 'a', field, report, ms: 5, gridStep: 1, began: origin + now, ended: origin + now + 5 });
+    expect(c.current).toBeNull();
+    const t = got[0].times;
+    expect(t.ended - t.began).toBeCloseTo(5, 3);
+    expect(t.began).toBeCloseTo(now, 3);
+    expect(t.sent).toBeLessThanOrEqual(t.received);
   });
 });
