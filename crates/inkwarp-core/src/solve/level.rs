@@ -344,6 +344,16 @@ impl Level {
         self
     }
 
+    /// Frees everything but the dimensions and the prolongation rows (for a level that is
+    /// only restricted from and prolonged to from now on).
+    pub fn keep_only_prolongation(&mut self) {
+        self.op = Operator::Fine { flags: Vec::new(), tau: 0.0 };
+        self.inv_diag = Vec::new();
+        self.clean = Vec::new();
+        let g = &mut self.geo;
+        (g.active, g.right, g.down, g.fixed) = (Vec::new(), Vec::new(), Vec::new(), None);
+    }
+
     /// The stencil row of padded node `p` as a 5 × 5 array (dy outer, dx inner).
     pub fn row(&self, p: usize) -> [f64; 25] {
         match &self.op {
