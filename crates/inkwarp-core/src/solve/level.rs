@@ -86,6 +86,16 @@ impl Geometry {
         Geometry { w, h, active, right, down, fixed: None, prow: Vec::new() }.with_rows()
     }
 
+    /// Whether the geometry has inactive nodes or missing links between active neighbours.
+    pub fn torn(&self) -> bool {
+        let (w, n) = (self.w, self.w * self.h);
+        (0..n).any(|i| {
+            !self.active[i]
+                || (i % w + 1 < w && self.active[i + 1] && !self.right[i])
+                || (i + w < n && self.active[i + w] && !self.down[i])
+        })
+    }
+
     /// Fills the table of prolongation rows. Every weight is a multiple of 1/24 (halves,
     /// and averages of up to four halves), so the table is exact.
     pub fn with_rows(mut self) -> Geometry {

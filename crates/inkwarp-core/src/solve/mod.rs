@@ -42,8 +42,8 @@
 //! without them: the link-aware one extrapolates a constant at every missing link, so it
 //! lacks the functions that run linearly up to (and across) a hole or cut, and the plain
 //! one has exactly those. A warm start whose residuals exceed the tolerance also gets the
-//! coarse-to-fine correction; a closer one first gets one cycle as it is. Loose nodes (no corner of a fully linked cell)
-//! are settled to the τ → 0⁺ limit afterwards. `docs/concepts/thin-plate.md` explains the
+//! coarse-to-fine correction; a closer one first gets one cycle as it is. Loose nodes (no
+//! corner of a fully linked cell) are settled to the τ → 0⁺ limit afterwards. `docs/concepts/thin-plate.md` explains the
 //! choices and lists the measured figures.
 
 mod cycle;
@@ -342,10 +342,7 @@ pub(crate) fn solve_constrained(
         let fine = Level::fine(geo, tau);
         // Holes and cuts: a second coarse space that runs smoothly across them (visited by
         // V-cycles), next to the link-aware one that tears with them.
-        let torn = (0..n).any(|i| {
-            key.active[i] && (!key.right[i] && i % w + 1 < w && key.active[i + 1] || !key.down[i] && i + w < n && key.active[i + w])
-        }) || key.active.iter().any(|&a| !a);
-        let alt = (torn && second_space_enabled()).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
+        let alt = (fine.geo.torn() && second_space_enabled()).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS);
         hier.alt = alt;
         hier
