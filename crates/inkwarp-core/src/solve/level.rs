@@ -733,16 +733,27 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     } else {
         (0..hc).map(build_row).collect()
     };
+    // Irregular stencils repeat (the same neighbourhood of a constraint, a border, a cut
+    // recurs all over a level): each distinct one is stored once, so the table of a level
+    // with thousands of constraints stays small enough to sit in cache.
     let mut ids = vec![0u32; wpc * hpc];
     let mut table = vec![shared];
+    let mut index: std::collections::HashMap<[u64; 25], u32> = std::collections::HashMap::new();
     for (yc, (row_ids, own)) in rows.into_iter().enumerate() {
-        let base = table.len() as u32 - 1;
+        let local: Vec<u32> = own
+            .into_iter()
+            .map(|s| {
+                *index.entry(s.map(f64::to_bits)).or_insert_with(|| {
+                    table.push(s);
+                    (table.len() - 1) as u32
+                })
+            })
+            .collect();
         for (c, &id) in row_ids.iter().enumerate() {
             if id != 0 {
-                ids[(yc + PAD) * wpc + c] = base + id;
+                ids[(yc + PAD) * wpc + c] = local[id as usize - 1];
             }
         }
-        table.extend(own);
     }
     let mut inv_diag = vec![0.0; wpc * hpc];
     let mut lam_max: f64 = 0.0;
