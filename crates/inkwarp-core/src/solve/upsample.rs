@@ -333,7 +333,6 @@ struct CellMasks {
 /// The fine field from the coarse one (see the module docs).
 fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Field {
     let (w, h, wc, hc) = (layout.w, layout.h, layout.wc, layout.hc);
-    let (labels, count) = grid.pieces();
     let cols = Taps::along(w, wc, layout.s, |x| layout.px(x));
     let rows = Taps::along(h, hc, layout.s, |y| layout.py(y));
     // Cells whose window's block of pixels a missing link or an inactive pixel touches get
@@ -403,12 +402,12 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
 
     let upsample_row = |y: usize, dx: &mut [f32], dy: &mut [f32], resolved: &mut [bool]| -> usize {
         let ty = &rows[y];
-        let labels = &labels[y * w..(y + 1) * w];
+        let active = &grid.active[y * w..(y + 1) * w];
         let mut unresolved = 0;
         let mut x = 0;
         while x < w {
             let tx = &cols[x];
-            if labels[x] == u32::MAX {
+            if !active[x] {
                 x += 1;
                 continue;
             }
@@ -505,7 +504,7 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
     // resolved pixels in index order. Only those next to an unresolved pixel can pass a
     // value on (the others would leave the queue without effect), so only they start it.
     let mut seeds: Vec<usize> = (0..w * h)
-        .filter(|&i| labels[i] != u32::MAX && !resolved[i])
+        .filter(|&i| grid.active[i] && !resolved[i])
         .flat_map(|i| grid.linked(i).into_iter().filter(|&j| j != usize::MAX && resolved[j]))
         .collect();
     seeds.sort_unstable();
@@ -523,6 +522,8 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
     }
     // Pieces without a coarse node: their samples' mean displacement, else zero.
     if (0..w * h).any(|i| grid.active[i] && !resolved[i]) {
+        // (The pieces are only labelled here: most grids never get this far.)
+        let (labels, count) = grid.pieces();
         let mut mean = vec![[0.0f64; 3]; count];
         for smp in samples {
             if let Some((x, y)) = nearest_node(grid, smp.rest) {
