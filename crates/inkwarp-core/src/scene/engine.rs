@@ -433,6 +433,10 @@ pub fn default_frame_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get() / 4).max(1)
 }
 
+/// A chain rendered on the calling thread: its frames still to come, and each layer's last
+/// field (for compositing) and solve history.
+type SequentialChain = (Range<usize>, Vec<Option<Field>>, Vec<WarmHistory>);
+
 /// An animation's frames, in order, as an iterator of `(index, image)`; rendered on
 /// worker threads (one warm-start chain per thread at a time) when more than one thread is
 /// allowed and there is more than one chain. Dropping it stops the workers.
@@ -442,7 +446,7 @@ pub struct FrameStream {
     chains: Vec<Range<usize>>,
     next_chain: usize,
     /// Sequential mode: the chain being rendered here and its animator state.
-    sequential: Option<(Range<usize>, Vec<Option<Field>>, Vec<WarmHistory>)>,
+    sequential: Option<SequentialChain>,
     overrides: SolverOverrides,
     receivers: Vec<Receiver<FrameResult>>,
     workers: Vec<JoinHandle<()>>,
