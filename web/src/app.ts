@@ -74,6 +74,35 @@ export interface SettleParts {
   antialiased?: number;
 }
 
+/**
+ * Where the time from `start` (a pointer event or a settle) to the frame that showed `ev`'s
+ * field went: `upload` is the field's upload, `end` when the GPU finished the frame and
+ * `drawn` when its draw calls began and ended.
+ */
+function frameParts(
+  ev: FieldEvent,
+  start: number,
+  behind: string | null,
+  upload: number,
+  end: number,
+  drawn: { start: number; end: number },
+): SettleParts {
+  const { times } = ev;
+  return {
+    queued: times.sent - start,
+    behind,
+    toWorker: times.began - times.sent,
+    solve: times.ended - times.began,
+    cycles: ev.report.cycles ?? null,
+    back: times.received - times.ended,
+    upload,
+    toFrame: drawn.start - (times.received + upload),
+    draw: drawn.end - drawn.start,
+    gpu: end - drawn.end,
+    total: end - start,
+  };
+}
+
 /** Called when a frame is on screen: when the GPU finished it, and when its draw calls began and ended. */
 type FrameFn = (gpuDone: number, drawn: { start: number; end: number }) => void;
 
@@ -460,46 +489,18 @@ export class App {
       const upload = performance.now() - up0;
       if (typeof ev.tag.pointerAt === 'number' && ev.tag.pointerAt > 0) {
         const start = ev.tag.pointerAt;
-        const { times } = ev;
         this.pendingLatency.push(start);
-        this.afterFrame((end, drawn) =>
-          this.stats.dragParts.push({
-            queued: times.sent - start,
-            behind: null,
-            toWorker: times.began - times.sent,
-            solve: times.ended - times.began,
-            cycles: ev.report.cycles ?? null,
-            back: times.received - times.ended,
-            upload,
-            toFrame: drawn.start - (times.received + upload),
-            draw: drawn.end - drawn.start,
-            gpu: end - drawn.end,
-            total: end - start,
-          }),
-        );
+        this.afterFrame((end, drawn) => this.stats.dragParts.push(frameParts(ev, start, null, upload, end, drawn)));
       }
       const pb = this.stats.playback;
       if (pb && this.store.view.playing && ev.tag.time === this.store.view.time) pb.shown++;
       if (ev.tag.quality === 'final' && typeof ev.tag.settleStart === 'number') {
         const start = ev.tag.settleStart;
-        const { times } = ev;
         const behind = this.settleBehind;
         const parts = {} as SettleParts;
         this.afterFrame((end, drawn) => {
           this.stats.settle.push(end - start);
-          Object.assign(parts, {
-            queued: times.sent - start,
-            behind,
-            toWorker: times.began - times.sent,
-            solve: times.ended - times.began,
-            cycles: ev.report.cycles ?? null,
-            back: times.received - times.ended,
-            upload,
-            toFrame: drawn.start - (times.received + upload),
-            draw: drawn.end - drawn.start,
-            gpu: end - drawn.end,
-            total: end - start,
-          });
+          Object.assign(parts, frameParts(ev, start, behind, upload, end, drawn));
           this.stats.settleParts.push(parts);
         });
         this.afterFrame((aa) => (parts.antialiased = aa - start), true);

@@ -360,8 +360,34 @@ pub(crate) fn linked_neighbours(w: usize, right: &[bool], down: &[bool], i: usiz
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// A deterministic pseudo-random sequence in [0, 1).
+    pub(crate) fn sequence(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed | 1;
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// A `w × h` grid with random holes (a share `holes` of the nodes) and broken links (a
+    /// share `breaks` of each direction), drawn from `rnd`.
+    pub(crate) fn torn_grid(w: usize, h: usize, holes: f64, breaks: f64, rnd: &mut impl FnMut() -> f64) -> Grid {
+        let mut g = Grid::from_active(w, h, (0..w * h).map(|_| rnd() >= holes).collect());
+        for i in 0..w * h {
+            if rnd() < breaks {
+                g.link_right[i] = false;
+            }
+            if rnd() < breaks {
+                g.link_down[i] = false;
+            }
+        }
+        g
+    }
 
     fn broken_right(g: &Grid) -> Vec<(usize, usize)> {
         let mut v = vec![];
@@ -574,23 +600,7 @@ mod tests {
         fn pieces_by_runs_match_pieces_node_by_node(
             w in 1usize..24, h in 1usize..24, seed: u64, holes in 0.0..0.6f64, breaks in 0.0..0.5f64,
         ) {
-            let mut state = seed | 1;
-            let mut rnd = move || {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                (state >> 11) as f64 / (1u64 << 53) as f64
-            };
-            let matte: Vec<u8> = (0..w * h).map(|_| u8::from(rnd() >= holes)).collect();
-            let mut g = Grid::from_matte(w, h, &matte);
-            for i in 0..w * h {
-                if rnd() < breaks {
-                    g.link_right[i] = false;
-                }
-                if rnd() < breaks {
-                    g.link_down[i] = false;
-                }
-            }
+            let g = torn_grid(w, h, holes, breaks, &mut sequence(seed));
             proptest::prop_assert_eq!(g.pieces(), pieces_node_by_node(&g));
         }
     }

@@ -88,6 +88,15 @@ pub struct SceneCore {
     file: Option<String>,
 }
 
+impl SceneCore {
+    fn check_layer(&self, layer: usize) -> PyResult<()> {
+        if layer >= self.scene.layers().len() {
+            return Err(PyIndexError::new_err(format!("layer index {layer} is out of range")));
+        }
+        Ok(())
+    }
+}
+
 #[pymethods]
 impl SceneCore {
     /// Parses, validates and resolves scene JSON; image paths are relative to `base_dir`.
@@ -190,11 +199,7 @@ impl SceneCore {
         method: Option<&str>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let method = method_named(method)?;
-        if layer >= self.scene.layers().len() {
-            return Err(PyIndexError::new_err(format!(
-                "layer index {layer} is out of range"
-            )));
-        }
+        self.check_layer(layer)?;
         let scene = Arc::clone(&self.scene);
         match py.detach(move || scene.layer_field_with(layer, time, None, method)) {
             Ok(solved) => field_to_numpy(py, &solved.field),
@@ -214,11 +219,7 @@ impl SceneCore {
         layer: usize,
         overrides: Option<&str>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Vec<String>)> {
-        if layer >= self.scene.layers().len() {
-            return Err(PyIndexError::new_err(format!(
-                "layer index {layer} is out of range"
-            )));
-        }
+        self.check_layer(layer)?;
         let overrides: SolverOverrides = match overrides {
             None => SolverOverrides::default(),
             Some(text) => scene::parse_overrides(text, "solver").map_err(|e| scene_error(py, &e, None))?,

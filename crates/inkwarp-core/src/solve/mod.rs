@@ -372,16 +372,17 @@ pub(crate) fn solve_constrained(
     // residuals above the tolerance (a user's earlier answer). A closer start (the earlier
     // frames' prediction) first gets one cycle as it is, and the coarse-to-fine correction
     // only when that cycle did not finish: for it the correction costs more than it saves.
-    let mut started = true;
-    if initial.is_some() {
+    let mut started = initial.is_none();
+    if !started {
         hier.levels[0].residual(&u, None, &mut r);
-        started = scaled_max(&hier.levels[0], &r) > options.tolerance_px;
+        report.initial_residual = scaled_max(&hier.levels[0], &r);
+        started = report.initial_residual > options.tolerance_px;
     }
     if started {
         hier.coarse_to_fine(&mut u);
+        hier.levels[0].residual(&u, None, &mut r);
+        report.initial_residual = scaled_max(&hier.levels[0], &r);
     }
-    hier.levels[0].residual(&u, None, &mut r);
-    report.initial_residual = scaled_max(&hier.levels[0], &r);
     let max_cycles = options.max_cycles.unwrap_or(100);
     match options.method {
         SolveMethod::Multigrid => {

@@ -123,6 +123,11 @@ fn max_err(grid: &Grid, field: &Field, ux: &[f64], uy: &[f64]) -> f64 {
     m
 }
 
+/// The largest difference between two fields, over both components (pixels).
+fn gap(a: &Field, b: &Field) -> f32 {
+    a.dx.iter().zip(&b.dx).chain(a.dy.iter().zip(&b.dy)).map(|(p, q)| (p - q).abs()).fold(0.0f32, f32::max)
+}
+
 fn check_against_dense(grid: &Grid, samples: &[Sample], tau: f64) -> SolveReport {
     let opts = SolveOptions { tension: tau, ..Default::default() };
     let (field, report) = solve(grid, samples, &opts, None).unwrap();
@@ -334,21 +339,8 @@ fn grid_step_is_close_on_a_smooth_problem() {
 fn starts_from_earlier_frames_keep_the_accuracy_and_save_cycles() {
     // A grid with a hole and a cut, a dozen constraints moving smoothly over 12 frames.
     let (w, h) = (64usize, 48usize);
-    let mut grid = Grid::new(w, h);
-    for y in 18..24 {
-        for x in 20..30 {
-            grid.active[y * w + x] = false;
-        }
-    }
-    for i in 0..w * h {
-        let (x, y) = (i % w, i / w);
-        if !grid.active[i] || x + 1 == w || !grid.active[i + 1] {
-            grid.link_right[i] = false;
-        }
-        if !grid.active[i] || y + 1 == h || !grid.active[i + w] {
-            grid.link_down[i] = false;
-        }
-    }
+    let hole = |i: usize| (18..24).contains(&(i / w)) && (20..30).contains(&(i % w));
+    let mut grid = Grid::from_active(w, h, (0..w * h).map(|i| !hole(i)).collect());
     grid.add_cut(&[[40.5, 5.0], [44.5, 30.0]]);
     let mut rng = Rng(11);
     let base: Vec<([f64; 2], [f64; 2], f64)> =
@@ -367,7 +359,7 @@ fn starts_from_earlier_frames_keep_the_accuracy_and_save_cycles() {
         let samples = pose(0.15 * frame as f64);
         let (field, report) = solve_warm(&grid, &samples, &opts, &mut history, None).unwrap();
         let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
-        let err = field.dx.iter().zip(&exact.dx).chain(field.dy.iter().zip(&exact.dy)).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        let err = gap(&field, &exact);
         assert!(err < 0.05, "frame {frame}: {err} px from the exact minimiser ({report:?})");
         let (_, plain) = solve(&grid, &samples, &opts, previous.as_ref()).unwrap();
         previous = Some(field);
@@ -384,25 +376,13 @@ fn the_second_coarse_space_saves_cycles_across_holes_and_cuts() {
     // A thin arc-shaped hole, open on one side, and a cut: the link-aware coarse space alone
     // extrapolates constants at their edges and converges slowly.
     let n = 129usize;
-    let mut grid = Grid::new(n, n);
     let c = n as f64 / 2.0;
-    for y in 0..n {
-        for x in 0..n {
-            let r = ((x as f64 - c).powi(2) + (y as f64 - c).powi(2)).sqrt();
-            if (r - 0.3 * n as f64).abs() < 1.5 && (x as f64) < c + 5.0 {
-                grid.active[y * n + x] = false;
-            }
-        }
-    }
-    for i in 0..n * n {
-        let (x, y) = (i % n, i / n);
-        if !grid.active[i] || x + 1 == n || !grid.active[i + 1] {
-            grid.link_right[i] = false;
-        }
-        if !grid.active[i] || y + 1 == n || !grid.active[i + n] {
-            grid.link_down[i] = false;
-        }
-    }
+    let arc = |i: usize| {
+        let (x, y) = ((i % n) as f64, (i / n) as f64);
+        let r = ((x - c).powi(2) + (y - c).powi(2)).sqrt();
+        (r - 0.3 * n as f64).abs() < 1.5 && x < c + 5.0
+    };
+    let mut grid = Grid::from_active(n, n, (0..n * n).map(|i| !arc(i)).collect());
     grid.add_cut(&[[0.1 * n as f64, 0.8 * n as f64], [0.5 * n as f64, 0.85 * n as f64]]);
     let mut rng = Rng(12345);
     let samples = random_samples(&mut rng, n, n, 10);
@@ -412,7 +392,7 @@ fn the_second_coarse_space_saves_cycles_across_holes_and_cuts() {
     for (k, on) in [true, false].into_iter().enumerate() {
         SECOND_SPACE.with(|s| s.set(on));
         let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
-        let err = field.dx.iter().zip(&exact.dx).chain(field.dy.iter().zip(&exact.dy)).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        let err = gap(&field, &exact);
         assert!(report.converged && err < 0.05, "second space {on}: {err} px off ({report:?})");
         cycles[k] = report.cycles;
     }
@@ -434,7 +414,7 @@ fn a_warm_start_from_a_changed_frame_takes_few_cycles() {
     let (warm, report) = solve(&grid, &moved, &SolveOptions::default(), Some(&field)).unwrap();
     let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
     let (exact, _) = solve(&grid, &moved, &tight, None).unwrap();
-    let err = warm.dx.iter().zip(&exact.dx).chain(warm.dy.iter().zip(&exact.dy)).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let err = gap(&warm, &exact);
     assert!(report.converged && err < 0.05, "{err} px off ({report:?})");
     // (5 against 11 when written; 8 without the coarse-to-fine correction.)
     assert!(2 * report.cycles <= cold.cycles + 1, "{} cycles warm, {} cold", report.cycles, cold.cycles);

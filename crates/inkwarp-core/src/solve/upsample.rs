@@ -524,17 +524,7 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
     if (0..w * h).any(|i| grid.active[i] && !resolved[i]) {
         // (The pieces are only labelled here: most grids never get this far.)
         let (labels, count) = grid.pieces();
-        let mut mean = vec![[0.0f64; 3]; count];
-        for smp in samples {
-            if let Some((x, y)) = nearest_node(grid, smp.rest) {
-                let l = labels[grid.index(x, y)];
-                if l != u32::MAX {
-                    mean[l as usize][0] += smp.displacement[0];
-                    mean[l as usize][1] += smp.displacement[1];
-                    mean[l as usize][2] += 1.0;
-                }
-            }
-        }
+        let mean = piece_means(grid, &labels, count, samples);
         for i in 0..w * h {
             if grid.active[i] && !resolved[i] {
                 let m = mean[labels[i] as usize];
@@ -548,9 +538,26 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
     field
 }
 
+/// Per piece: the sum of its samples' displacements and their count.
+fn piece_means(grid: &Grid, labels: &[u32], count: usize, samples: &[Sample]) -> Vec<[f64; 3]> {
+    let mut mean = vec![[0.0f64; 3]; count];
+    for smp in samples {
+        if let Some((x, y)) = nearest_node(grid, smp.rest) {
+            let l = labels[grid.index(x, y)];
+            if l != u32::MAX {
+                mean[l as usize][0] += smp.displacement[0];
+                mean[l as usize][1] += smp.displacement[1];
+                mean[l as usize][2] += 1.0;
+            }
+        }
+    }
+    mean
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::grid::tests::{sequence, torn_grid};
     use crate::solve::solve;
 
     /// How often each way of filling a pixel was taken by [`upsample_per_pixel`].
@@ -724,17 +731,7 @@ mod tests {
                 }
             }
         }
-        let mut mean = vec![[0.0f64; 3]; count];
-        for smp in samples {
-            if let Some((x, y)) = nearest_node(grid, smp.rest) {
-                let l = labels[grid.index(x, y)];
-                if l != u32::MAX {
-                    mean[l as usize][0] += smp.displacement[0];
-                    mean[l as usize][1] += smp.displacement[1];
-                    mean[l as usize][2] += 1.0;
-                }
-            }
-        }
+        let mean = piece_means(grid, &labels, count, samples);
         for i in 0..w * h {
             if grid.active[i] && !resolved[i] {
                 let m = mean[labels[i] as usize];
@@ -748,31 +745,11 @@ mod tests {
         (field, paths)
     }
 
-    /// A deterministic pseudo-random sequence in [0, 1).
-    fn sequence(seed: u64) -> impl FnMut() -> f64 {
-        let mut state = seed | 1;
-        move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
-
     /// A `w × h` grid with random holes (a share `holes` of the nodes) and broken links,
     /// a coarse field of random values for step `s`, and a few samples.
     fn case(w: usize, h: usize, s: usize, holes: f64, breaks: f64, seed: u64) -> (Grid, Field, Vec<Sample>) {
         let mut rnd = sequence(seed);
-        let matte: Vec<u8> = (0..w * h).map(|_| u8::from(rnd() >= holes)).collect();
-        let mut grid = Grid::from_matte(w, h, &matte);
-        for i in 0..w * h {
-            if rnd() < breaks {
-                grid.link_right[i] = false;
-            }
-            if rnd() < breaks {
-                grid.link_down[i] = false;
-            }
-        }
+        let grid = torn_grid(w, h, holes, breaks, &mut rnd);
         let layout = Layout::new(w, h, s);
         let n = layout.wc * layout.hc;
         let fc = Field {
