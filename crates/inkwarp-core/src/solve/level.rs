@@ -49,6 +49,10 @@ pub(crate) struct Geometry {
     pub fixed: Option<Vec<bool>>,
     /// Prolongation rows ([`Geometry::p_row`]) in 24ths, filled by [`Geometry::with_rows`].
     pub prow: Vec<[u8; 4]>,
+    /// `plain_rows[y]`: every node of row y is active and its geometric row is the plain
+    /// bilinear one (whether or not it is fixed), so transfers can run the plain formulas
+    /// (see [`restrict`] and [`prolong_add_scaled`]). Filled by [`Geometry::with_rows`].
+    pub plain_rows: Vec<bool>,
 }
 
 impl Geometry {
@@ -83,7 +87,7 @@ impl Geometry {
                 }
             }
         }
-        Geometry { w, h, active, right, down, fixed: None, prow: Vec::new() }.with_rows()
+        Geometry { w, h, active, right, down, fixed: None, prow: Vec::new(), plain_rows: Vec::new() }.with_rows()
     }
 
     /// Whether the geometry has inactive nodes or missing links between active neighbours.
@@ -100,13 +104,17 @@ impl Geometry {
     /// and averages of up to four halves), so the table is exact.
     pub fn with_rows(mut self) -> Geometry {
         let mut prow = vec![[0u8; 4]; self.w * self.h];
+        let mut plain_rows = vec![true; self.h];
         for y in 0..self.h {
             for x in 0..self.w {
                 let i = self.idx(x, y);
+                let r = self.geo_row(x, y);
+                if !self.active[i] || r != plain_row(x, y) {
+                    plain_rows[y] = false;
+                }
                 if self.fixed.as_ref().is_some_and(|f| f[i]) {
                     continue;
                 }
-                let r = self.geo_row(x, y);
                 let mut code = [0u8; 4];
                 for k in 0..4 {
                     let n = (r[k] * 24.0).round();
@@ -117,6 +125,7 @@ impl Geometry {
             }
         }
         self.prow = prow;
+        self.plain_rows = plain_rows;
         self
     }
 
@@ -207,6 +216,16 @@ impl Geometry {
     }
 }
 
+/// The plain bilinear prolongation row of node (x, y) (see [`Geometry::geo_row`]).
+fn plain_row(x: usize, y: usize) -> [f64; 4] {
+    match (x & 1, y & 1) {
+        (0, 0) => [1.0, 0.0, 0.0, 0.0],
+        (1, 0) => [0.5, 0.5, 0.0, 0.0],
+        (0, 1) => [0.5, 0.0, 0.5, 0.0],
+        _ => [0.25; 4],
+    }
+}
+
 #[inline]
 fn pair(a: bool, b: bool, sa: usize, sb: usize) -> [f64; 4] {
     let mut r = [0.0; 4];
@@ -230,7 +249,38 @@ pub(crate) enum Operator {
     /// A Galerkin level: a 5 × 5 stencil (row-major offsets, dy outer) per padded node,
     /// as an index into a table; entry 0 is the stencil shared by every regular node
     /// (all zeros when there is none).
-    Stored { ids: Vec<u32>, table: Vec<[f64; 25]> },
+    Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, sym: Option<Sym> },
+}
+
+/// The shared stencil of a Galerkin level when it has the symmetries of the square (it
+/// does whenever the finest operator is the same in x and y): five coefficients, for the
+/// centre and the rings of 4 edge, 4 diagonal, 4 far and 8 knight's-move neighbours, so
+/// runs of regular nodes sum neighbours first and multiply five times instead of 21.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Sym([f64; 5]);
+
+impl Sym {
+    /// The five coefficients of `s` (each the mean of its ring) if it has the symmetries
+    /// of the square up to rounding.
+    fn of(s: &[f64; 25]) -> Option<Sym> {
+        let at = |dy: isize, dx: isize| s[((dy + 2) * 5 + dx + 2) as usize];
+        let classes: [&[(isize, isize)]; 5] = [
+            &[(0, 0)],
+            &[(0, 1), (0, -1), (1, 0), (-1, 0)],
+            &[(1, 1), (1, -1), (-1, 1), (-1, -1)],
+            &[(0, 2), (0, -2), (2, 0), (-2, 0)],
+            &[(1, 2), (1, -2), (-1, 2), (-1, -2), (2, 1), (2, -1), (-2, 1), (-2, -1)],
+        ];
+        let scale = s.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+        let mut c = [0.0; 5];
+        for (k, class) in classes.iter().enumerate() {
+            c[k] = class.iter().map(|&(dy, dx)| at(dy, dx)).sum::<f64>() / class.len() as f64;
+            if class.iter().any(|&(dy, dx)| (at(dy, dx) - c[k]).abs() > 1e-13 * scale) {
+                return None;
+            }
+        }
+        Some(Sym(c))
+    }
 }
 
 /// One level of the hierarchy.
@@ -343,6 +393,7 @@ impl Level {
             down: (0..w * h).map(|i| i + w < w * h).collect(),
             fixed: None,
             prow: Vec::new(),
+            plain_rows: Vec::new(),
         }
         .with_rows();
         let real = std::mem::replace(&mut self.geo, plain);
@@ -368,7 +419,7 @@ impl Level {
     pub fn row(&self, p: usize) -> [f64; 25] {
         match &self.op {
             Operator::Fine { flags, tau } => fine_row(flags, p, self.wp, *tau),
-            Operator::Stored { ids, table } => table[ids[p] as usize],
+            Operator::Stored { ids, table, .. } => table[ids[p] as usize],
         }
     }
 
@@ -412,7 +463,7 @@ impl Level {
         let base = r * wp;
         match &self.op {
             Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
-            Operator::Stored { ids, table } => {
+            Operator::Stored { ids, table, sym } => {
                 // Corners of the 5 × 5 window are always zero (see `galerkin`).
                 const TAPS: [(usize, usize); 21] = [
                     (0, 1), (0, 2), (0, 3),
@@ -436,6 +487,11 @@ impl Level {
                         let mut e = c + 1;
                         while e < end && ids[base + e] == 0 && self.inv_diag[base + e] != 0.0 {
                             e += 1;
+                        }
+                        if let Some(sym) = sym {
+                            sym_run(x, f, sym, wp, base, c, e, out);
+                            c = e;
+                            continue;
                         }
                         let mut s0 = c;
                         while s0 < e {
@@ -516,6 +572,39 @@ fn fine_band(
                 c += 1;
             }
         }
+    }
+}
+
+/// The shared symmetric coarse stencil on columns `c0..c1` of padded row `base / wp`
+/// (`out` is that row).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn sym_run(x: &[V2], f: Option<&[V2]>, sym: &Sym, wp: usize, base: usize, c0: usize, c1: usize, out: &mut [V2]) {
+    let n = c1 - c0;
+    let at = |dr: isize, dc: isize| -> &[V2] {
+        let s = ((base + c0) as isize + dr * wp as isize + dc) as usize;
+        &x[s..s + n]
+    };
+    let x0 = at(0, 0);
+    let edge = [at(0, -1), at(0, 1), at(-1, 0), at(1, 0)];
+    let diag = [at(-1, -1), at(-1, 1), at(1, -1), at(1, 1)];
+    let far = [at(0, -2), at(0, 2), at(-2, 0), at(2, 0)];
+    let knight = [at(-2, -1), at(-2, 1), at(2, -1), at(2, 1), at(-1, -2), at(-1, 2), at(1, -2), at(1, 2)];
+    let [c_0, c_e, c_d, c_f, c_k] = sym.0;
+    let o = &mut out[c0..c1];
+    let fz = f.map(|f| &f[base + c0..base + c1]);
+    for i in 0..n {
+        let mut a = [0.0f64; 2];
+        for q in 0..2 {
+            let e = edge[0][i][q] + edge[1][i][q] + edge[2][i][q] + edge[3][i][q];
+            let d = diag[0][i][q] + diag[1][i][q] + diag[2][i][q] + diag[3][i][q];
+            let fa = far[0][i][q] + far[1][i][q] + far[2][i][q] + far[3][i][q];
+            let k = (knight[0][i][q] + knight[1][i][q] + knight[2][i][q] + knight[3][i][q])
+                + (knight[4][i][q] + knight[5][i][q] + knight[6][i][q] + knight[7][i][q]);
+            a[q] = c_0 * x0[i][q] + c_e * e + c_d * d + c_f * fa + c_k * k;
+        }
+        let fv = fz.map_or([0.0; 2], |f| f[i]);
+        o[i] = [fv[0] - a[0], fv[1] - a[1]];
     }
 }
 
@@ -776,7 +865,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
             clean[i] = ids[p] == 0 && geo.right[i] && geo.down[i];
         }
     }
-    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table }, inv_diag, lam_max, clean }
+    let sym = Sym::of(&table[0]);
+    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, sym }, inv_diag, lam_max, clean }
 }
 
 /// One coarse stencil `(Pᵀ A P)(C, ·)` for C = (xc, yc), straight from the definition.
@@ -858,7 +948,32 @@ pub(crate) fn restrict(fine: &Level, coarse: &Level, v: &[V2], out: &mut [V2]) {
         for o in orow.iter_mut() {
             *o = [0.0; 2];
         }
-        for iy in (2 * yc).saturating_sub(1)..=(2 * yc + 1).min(fh - 1) {
+        let rows = (2 * yc).saturating_sub(1)..=(2 * yc + 1).min(fh - 1);
+        if rows.clone().all(|iy| fine.geo.plain_rows[iy]) {
+            // Full weighting. Fixed nodes need no care: `v` vanishes on them.
+            for iy in rows {
+                let wy = if iy == 2 * yc { 1.0 } else { 0.5 };
+                let vr = &v[fine.pidx(0, iy)..fine.pidx(0, iy) + fw];
+                for (xc, o) in orow[PAD..PAD + wc].iter_mut().enumerate() {
+                    let ix = 2 * xc;
+                    let mut a = if ix < fw { vr[ix] } else { [0.0; 2] };
+                    let mut side = [0.0; 2];
+                    if ix >= 1 {
+                        side = vr[ix - 1];
+                    }
+                    if ix + 1 < fw {
+                        side[0] += vr[ix + 1][0];
+                        side[1] += vr[ix + 1][1];
+                    }
+                    a[0] += 0.5 * side[0];
+                    a[1] += 0.5 * side[1];
+                    o[0] += wy * a[0];
+                    o[1] += wy * a[1];
+                }
+            }
+            return;
+        }
+        for iy in rows {
             let sy = yc as isize - (iy / 2) as isize;
             if !(0..2).contains(&sy) {
                 continue;
@@ -903,6 +1018,43 @@ pub(crate) fn prolong_add_scaled(fine: &Level, coarse: &Level, e: &[V2], x: &mut
     let wp = fine.wp;
     let run = |iy: usize, xrow: &mut [V2]| {
         let cy = iy / 2;
+        if fine.geo.plain_rows[iy] {
+            // Bilinear interpolation; fixed nodes (rows of zeros) keep their values.
+            let wc = coarse.geo.w;
+            let c0 = &e[coarse.pidx(0, cy)..coarse.pidx(0, cy) + wc];
+            let odd = iy & 1 == 1;
+            let c1 = if odd { &e[coarse.pidx(0, cy + 1)..coarse.pidx(0, cy + 1) + wc] } else { c0 };
+            let col = |xc: usize| -> V2 {
+                if odd {
+                    [0.5 * (c0[xc][0] + c1[xc][0]), 0.5 * (c0[xc][1] + c1[xc][1])]
+                } else {
+                    c0[xc]
+                }
+            };
+            let prow = &fine.geo.prow[iy * fw..(iy + 1) * fw];
+            let mut left = col(0);
+            for xc in 0..wc {
+                let ix = 2 * xc;
+                if ix >= fw {
+                    break;
+                }
+                if prow[ix] != [0; 4] {
+                    let o = &mut xrow[ix + PAD];
+                    o[0] += alpha[0] * left[0];
+                    o[1] += alpha[1] * left[1];
+                }
+                if ix + 1 < fw {
+                    let right = col(xc + 1);
+                    if prow[ix + 1] != [0; 4] {
+                        let o = &mut xrow[ix + 1 + PAD];
+                        o[0] += alpha[0] * 0.5 * (left[0] + right[0]);
+                        o[1] += alpha[1] * 0.5 * (left[1] + right[1]);
+                    }
+                    left = right;
+                }
+            }
+            return;
+        }
         for ix in 0..fw {
             let pi = fine.geo.p_row(ix, iy);
             let cx = ix / 2;

@@ -337,6 +337,7 @@ pub(crate) fn solve_constrained(
             down: key.down.clone(),
             fixed: Some(key.fixed.clone()),
             prow: Vec::new(),
+            plain_rows: Vec::new(),
         }
         .with_rows();
         let fine = Level::fine(geo, tau);

@@ -269,6 +269,7 @@ fn coarse_levels_of_an_open_grid_reproduce_affine_functions() {
             down: grid.link_down.clone(),
             fixed: None,
             prow: Vec::new(),
+            plain_rows: Vec::new(),
         }
         .with_rows();
         let mut lv = Level::fine(geo, 0.0);
@@ -418,4 +419,66 @@ fn a_warm_start_from_a_changed_frame_takes_few_cycles() {
     assert!(report.converged && err < 0.05, "{err} px off ({report:?})");
     // (5 against 11 when written; 8 without the coarse-to-fine correction.)
     assert!(2 * report.cycles <= cold.cycles + 1, "{} cycles warm, {} cold", report.cycles, cold.cycles);
+}
+
+#[test]
+fn fast_transfers_and_the_symmetric_stencil_match_the_general_kernels() {
+    // Plain rows take the full-weighting and bilinear formulas, regular coarse nodes the
+    // five-coefficient stencil; both must agree with the per-node kernels everywhere,
+    // fixed nodes, holes, borders and even sizes (ghost coarse nodes) included.
+    use level::{prolong_add_scaled, restrict, Operator};
+    let mut rnd = crate::grid::tests::sequence(21);
+    for &(w, h) in &[(33usize, 33usize), (32, 30), (21, 18)] {
+        let mut grid = Grid::new(w, h);
+        grid.active[(h / 2) * w + w / 3] = false;
+        grid = Grid::from_active(w, h, grid.active.clone());
+        grid.add_cut(&[[1.0, h as f64 * 0.7], [w as f64 * 0.3, h as f64 * 0.75]]);
+        let geo = level::Geometry {
+            w,
+            h,
+            active: grid.active.clone(),
+            right: grid.link_right.clone(),
+            down: grid.link_down.clone(),
+            fixed: Some((0..w * h).map(|_| rnd() < 0.05).collect()),
+            prow: Vec::new(),
+            plain_rows: Vec::new(),
+        }
+        .with_rows();
+        let mut fine = Level::fine(geo, 0.3);
+        for _ in 0..3 {
+            let mut coarse = level::galerkin(&fine);
+            assert!(fine.geo.plain_rows.iter().any(|&p| p) && fine.geo.plain_rows.iter().any(|&p| !p));
+            let random = |n: usize, rnd: &mut dyn FnMut() -> f64| -> Vec<V2> { (0..n).map(|_| [rnd() - 0.5, rnd() - 0.5]).collect() };
+            // A residual: zero off the unknowns.
+            let mut v = random(fine.len_padded(), &mut rnd);
+            for (p, a) in v.iter_mut().enumerate() {
+                if fine.inv_diag[p] == 0.0 {
+                    *a = [0.0; 2];
+                }
+            }
+            let e = random(coarse.len_padded(), &mut rnd);
+            let x0 = random(fine.len_padded(), &mut rnd);
+            let run = |fine: &Level, coarse: &Level| {
+                let mut r = vec![[0.0; 2]; coarse.len_padded()];
+                restrict(fine, coarse, &v, &mut r);
+                let mut x = x0.clone();
+                prolong_add_scaled(fine, coarse, &e, &mut x, [0.7, 1.3]);
+                let mut a = vec![[0.0; 2]; coarse.len_padded()];
+                coarse.residual(&e, Some(&r), &mut a);
+                (r, x, a)
+            };
+            let fast = run(&fine, &coarse);
+            let plain = std::mem::replace(&mut fine.geo.plain_rows, vec![false; h]);
+            let Operator::Stored { sym, .. } = &mut coarse.op else { unreachable!() };
+            assert!(sym.is_some(), "{w}x{h}: level {}x{} has no symmetric stencil", coarse.geo.w, coarse.geo.h);
+            *sym = None;
+            let general = run(&fine, &coarse);
+            fine.geo.plain_rows = plain;
+            for (name, a, b) in [("restriction", &fast.0, &general.0), ("prolongation", &fast.1, &general.1), ("coarse residual", &fast.2, &general.2)] {
+                let d = a.iter().zip(b.iter()).map(|(p, q)| (p[0] - q[0]).abs().max((p[1] - q[1]).abs())).fold(0.0, f64::max);
+                assert!(d < 1e-12, "{w}x{h}, level {}x{}: {name} differs by {d}", coarse.geo.w, coarse.geo.h);
+            }
+            fine = coarse;
+        }
+    }
 }
