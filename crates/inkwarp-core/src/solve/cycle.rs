@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{galerkin, prolong_add, prolong_add_scaled, restrict, Level, V2};
+use super::level::{galerkin, prolong_add, prolong_add_scaled, restrict, Level, Real, V2, W2, WS};
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
 const CHEB_RATIO: f64 = 16.0;
@@ -27,12 +27,13 @@ pub(crate) struct Hierarchy {
     pub alt: Option<Box<Hierarchy>>,
 }
 
+/// Work vectors of one level (`f32`: see the `level` module).
 #[derive(Debug)]
 struct Work {
-    x: Vec<V2>,
-    f: Vec<V2>,
-    r: Vec<V2>,
-    d: Vec<V2>,
+    x: Vec<W2>,
+    f: Vec<W2>,
+    r: Vec<W2>,
+    d: Vec<W2>,
 }
 
 impl Hierarchy {
@@ -81,33 +82,28 @@ impl Hierarchy {
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
-    /// usable as a conjugate-gradient preconditioner).
-    ///
-    /// `r` and `z` are swapped with the finest level's work vectors for the duration (no
-    /// copies: this matters for 4K grids); `z` may come in empty and leaves full length.
-    pub fn precondition(&mut self, r: &mut Vec<V2>, z: &mut Vec<V2>) {
+    /// usable as a conjugate-gradient preconditioner), run in `f32`. `z` may come in empty
+    /// and leaves full length.
+    pub fn precondition(&mut self, r: &[V2], z: &mut Vec<V2>) {
         let mut work = std::mem::take(&mut self.work);
-        std::mem::swap(&mut work[0].f, r);
-        std::mem::swap(&mut work[0].x, z);
-        let len = work[0].f.len();
-        work[0].x.resize(len, [0.0; 2]);
+        map_into(&mut work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
         fill_zero(&mut work[0].x);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
         self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
         if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
             a.work = w;
         }
-        std::mem::swap(&mut work[0].f, r);
-        std::mem::swap(&mut work[0].x, z);
+        z.resize(r.len(), [0.0; 2]);
+        map_into(z, &work[0].x, |a| [a[0].get(), a[1].get()]);
         self.work = work;
     }
 
-    /// A one-level hierarchy: the exact solve of the finest level.
-    fn direct(&mut self, u: &mut [V2]) {
-        let w0 = &mut self.work[0];
-        self.levels[0].residual(u, None, &mut w0.r);
-        self.coarsest.solve(&w0.r, &mut w0.x);
-        for (p, e) in w0.x.iter().enumerate() {
+    /// A one-level hierarchy: the exact solve of the finest level (`r` is scratch).
+    fn direct(&mut self, u: &mut [V2], r: &mut [V2]) {
+        self.levels[0].residual(u, None, r);
+        let mut x = vec![[0.0; 2]; r.len()];
+        self.coarsest.solve(r, &mut x);
+        for (p, e) in x.iter().enumerate() {
             if self.levels[0].inv_diag[p] != 0.0 {
                 u[p][0] += e[0];
                 u[p][1] += e[1];
@@ -163,19 +159,19 @@ impl Hierarchy {
 
     /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on
     /// the coarsest, then interpolated and improved by one V-cycle per level on the way up;
-    /// `u` receives the interpolated correction on the unknowns.
-    pub fn coarse_to_fine(&mut self, u: &mut [V2]) {
+    /// `u` receives the interpolated correction on the unknowns. `r` is scratch.
+    pub fn coarse_to_fine(&mut self, u: &mut [V2], r: &mut [V2]) {
         let nl = self.levels.len();
         if nl < 2 {
-            self.direct(u);
+            self.direct(u, r);
             return;
         }
         let mut work = std::mem::take(&mut self.work);
-        self.levels[0].residual(u, None, &mut work[0].r);
-        for k in 0..nl - 1 {
+        self.levels[0].residual(u, None, r);
+        restrict(&self.levels[0], &self.levels[1], r, &mut work[1].f);
+        for k in 1..nl - 1 {
             let (head, tail) = work.split_at_mut(k + 1);
-            let src = if k == 0 { &head[0].r } else { &head[k].f };
-            restrict(&self.levels[k], &self.levels[k + 1], src, &mut tail[0].f);
+            restrict(&self.levels[k], &self.levels[k + 1], &head[k].f, &mut tail[0].f);
         }
         {
             let w = &mut work[nl - 1];
@@ -198,13 +194,13 @@ impl Hierarchy {
 /// evaluated on the coarse level, where ⟨P e, r⟩ = ⟨e, Pᵀ r⟩ = ⟨e, f_c⟩ and
 /// ⟨P e, A P e⟩ = ⟨e, A_c e⟩ (Galerkin): a coarse product instead of a fine one.
 /// `c.r` is scratch.
-fn add_line_searched(fine: &Level, coarse: &Level, c: &mut Work, x: &mut [V2]) {
+fn add_line_searched(fine: &Level, coarse: &Level, c: &mut Work, x: &mut [W2]) {
     coarse.residual(&c.x, None, &mut c.r); // −A_c e on the unknowns
     let (mut num, mut den) = ([0.0f64; 2], [0.0f64; 2]);
     for p in 0..c.x.len() {
         for q in 0..2 {
-            num[q] += c.x[p][q] * c.f[p][q];
-            den[q] -= c.x[p][q] * c.r[p][q];
+            num[q] += (c.x[p][q] * c.f[p][q]) as f64;
+            den[q] -= (c.x[p][q] * c.r[p][q]) as f64;
         }
     }
     let alpha = [
@@ -246,11 +242,20 @@ pub(crate) fn power_estimate(level: &Level, iters: usize) -> f64 {
     lam
 }
 
-fn fill_zero(v: &mut [V2]) {
+fn fill_zero<T: Real>(v: &mut [[T; 2]]) {
     if v.len() >= PAR_MIN {
-        v.par_iter_mut().for_each(|a| *a = [0.0; 2]);
+        v.par_iter_mut().for_each(|a| *a = [T::ZERO; 2]);
     } else {
-        v.iter_mut().for_each(|a| *a = [0.0; 2]);
+        v.iter_mut().for_each(|a| *a = [T::ZERO; 2]);
+    }
+}
+
+/// `out[i] = f(a[i])` (the vectors' lengths are equal).
+fn map_into<S: Real, T: Real>(out: &mut [[T; 2]], a: &[[S; 2]], f: impl Fn([S; 2]) -> [T; 2] + Sync + Send) {
+    if out.len() >= PAR_MIN {
+        out.par_chunks_mut(4096).zip(a.par_chunks(4096)).for_each(|(o, a)| o.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a)));
+    } else {
+        out.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a));
     }
 }
 
@@ -258,10 +263,10 @@ fn fill_zero(v: &mut [V2]) {
 /// the upper part `[λ/16, λ]` of the spectrum of D⁻¹A. `r` and `d` are scratch.
 pub(crate) fn smooth(
     level: &Level,
-    x: &mut [V2],
-    f: Option<&[V2]>,
-    r: &mut [V2],
-    d: &mut [V2],
+    x: &mut [W2],
+    f: Option<&[W2]>,
+    r: &mut [W2],
+    d: &mut [W2],
     degree: usize,
     x_zero: bool,
 ) {
@@ -276,12 +281,12 @@ pub(crate) fn smooth(
     let mut rho = 1.0 / sigma;
     if x_zero {
         let f = f.expect("a zero start needs a right-hand side");
-        zip_map(r, f, &level.inv_diag, |ri, fi, di| *ri = if di != 0.0 { fi } else { [0.0; 2] });
+        zip_map(r, f, &level.inv_diag_w, |ri, fi, di| *ri = if di != 0.0 { fi } else { [0.0; 2] });
     } else {
         level.residual(x, f, r);
     }
-    let inv_theta = 1.0 / theta;
-    zip_map(d, r, &level.inv_diag, |di, ri, dd| *di = [ri[0] * dd * inv_theta, ri[1] * dd * inv_theta]);
+    let inv_theta = WS::of(1.0 / theta);
+    zip_map(d, r, &level.inv_diag_w, |di, ri, dd| *di = [ri[0] * dd * inv_theta, ri[1] * dd * inv_theta]);
     for k in 0..degree {
         add_assign(x, d);
         if k + 1 == degree {
@@ -289,16 +294,16 @@ pub(crate) fn smooth(
         }
         level.residual(x, f, r);
         let rho_new = 1.0 / (2.0 * sigma - rho);
-        let c1 = rho_new * rho;
-        let c2 = 2.0 * rho_new / delta;
-        zip_map(d, r, &level.inv_diag, |di, ri, dd| {
+        let c1 = WS::of(rho_new * rho);
+        let c2 = WS::of(2.0 * rho_new / delta);
+        zip_map(d, r, &level.inv_diag_w, |di, ri, dd| {
             *di = [c1 * di[0] + c2 * dd * ri[0], c1 * di[1] + c2 * dd * ri[1]];
         });
         rho = rho_new;
     }
 }
 
-fn zip_map(out: &mut [V2], a: &[V2], dg: &[f64], f: impl Fn(&mut V2, V2, f64) + Sync + Send) {
+fn zip_map(out: &mut [W2], a: &[W2], dg: &[WS], f: impl Fn(&mut W2, W2, WS) + Sync + Send) {
     if out.len() >= PAR_MIN {
         out.par_chunks_mut(4096)
             .zip(a.par_chunks(4096))
@@ -315,7 +320,7 @@ fn zip_map(out: &mut [V2], a: &[V2], dg: &[f64], f: impl Fn(&mut V2, V2, f64) + 
     }
 }
 
-fn add_assign(x: &mut [V2], d: &[V2]) {
+fn add_assign(x: &mut [W2], d: &[W2]) {
     if x.len() >= PAR_MIN {
         x.par_chunks_mut(4096).zip(d.par_chunks(4096)).for_each(|(x, d)| {
             for i in 0..x.len() {
@@ -426,10 +431,10 @@ impl Banded {
         Banded { n, bw, l, map, dropped: vec![] }
     }
 
-    fn solve(&self, f: &[V2], x: &mut [V2]) {
+    fn solve<T: Real>(&self, f: &[[T; 2]], x: &mut [[T; 2]]) {
         let (n, bw) = (self.n, self.bw);
         let width = bw + 1;
-        let mut z: Vec<V2> = self.map.iter().map(|&p| f[p]).collect();
+        let mut z: Vec<V2> = self.map.iter().map(|&p| [f[p][0].get(), f[p][1].get()]).collect();
         for k in 0..n {
             if self.dropped[k] {
                 z[k] = [0.0; 2];
@@ -459,7 +464,7 @@ impl Banded {
             }
         }
         for (k, &p) in self.map.iter().enumerate() {
-            x[p] = z[k];
+            x[p] = [T::of(z[k][0]), T::of(z[k][1])];
         }
     }
 }

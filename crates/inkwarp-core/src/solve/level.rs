@@ -2,16 +2,72 @@
 //! Galerkin coarse operators stored per node, and the matrix-vector kernels.
 //!
 //! Every vector is stored padded: a margin of two inactive nodes around the grid, so the
-//! 5 × 5 stencils never leave the array. Values are `[f64; 2]` pairs (Δx, Δy): both
-//! components share every operator and travel together.
+//! 5 × 5 stencils never leave the array. Values are pairs (Δx, Δy): both components share
+//! every operator and travel together. The solution and its residual are kept in `f64`
+//! ([`V2`]); the cycles that precondition them run in `f32` ([`W2`]), which halves the
+//! memory they stream and doubles the lanes of every vector instruction. The operators are
+//! built in `f64` either way.
 
 use rayon::prelude::*;
 
 /// Padding around every level's vectors.
 pub(crate) const PAD: usize = 2;
 
-/// Vector entry: (Δx, Δy).
+/// Vector entry of the solution and residual: (Δx, Δy).
 pub(crate) type V2 = [f64; 2];
+/// Vector entry of the multigrid cycles' work vectors.
+pub(crate) type W2 = [WS; 2];
+/// The precision of the multigrid cycles.
+pub(crate) type WS = f32;
+
+/// The two precisions the kernels run in.
+pub(crate) trait Real:
+    Copy
+    + Send
+    + Sync
+    + PartialEq
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::AddAssign
+    + 'static
+{
+    const ZERO: Self;
+    fn of(v: f64) -> Self;
+    fn get(self) -> f64;
+    /// The table of a Galerkin level in this precision.
+    fn table<'a>(wide: &'a [[f64; 25]], narrow: &'a [[f32; 25]]) -> &'a [[Self; 25]];
+}
+
+impl Real for f64 {
+    const ZERO: f64 = 0.0;
+    #[inline(always)]
+    fn of(v: f64) -> f64 {
+        v
+    }
+    #[inline(always)]
+    fn get(self) -> f64 {
+        self
+    }
+    fn table<'a>(wide: &'a [[f64; 25]], _: &'a [[f32; 25]]) -> &'a [[f64; 25]] {
+        wide
+    }
+}
+
+impl Real for f32 {
+    const ZERO: f32 = 0.0;
+    #[inline(always)]
+    fn of(v: f64) -> f32 {
+        v as f32
+    }
+    #[inline(always)]
+    fn get(self) -> f64 {
+        self as f64
+    }
+    fn table<'a>(_: &'a [[f64; 25]], narrow: &'a [[f32; 25]]) -> &'a [[f32; 25]] {
+        narrow
+    }
+}
 
 /// Node flags of the finest level.
 pub(crate) mod bit {
@@ -166,10 +222,16 @@ impl Geometry {
                     }
                 }
                 if x + 1 == self.w {
-                    // the ghost column
-                    acc[1] += 0.5;
-                    acc[3] += 0.5;
-                    k += 1.0;
+                    // The ghost column: a node there would interpolate along this column's
+                    // links (see `coarsen`).
+                    let u = self.down[i - self.w];
+                    let d = y + 1 == self.h || self.down[i];
+                    let r = pair(u, d, 1, 3);
+                    if r[1] + r[3] > 0.0 {
+                        acc[1] += r[1];
+                        acc[3] += r[3];
+                        k += 1.0;
+                    }
                 } else if self.right[i] {
                     let r = self.geo_row(x + 1, y);
                     if r[0] + r[2] > 0.0 {
@@ -187,9 +249,15 @@ impl Geometry {
                     }
                 }
                 if y + 1 == self.h {
-                    acc[2] += 0.5;
-                    acc[3] += 0.5;
-                    k += 1.0;
+                    // The ghost row, likewise along this row's links.
+                    let l = self.right[i - 1];
+                    let r = x + 1 == self.w || self.right[i];
+                    let g = pair(l, r, 2, 3);
+                    if g[2] + g[3] > 0.0 {
+                        acc[2] += g[2];
+                        acc[3] += g[3];
+                        k += 1.0;
+                    }
                 } else if self.down[i] {
                     let r = self.geo_row(x, y + 1);
                     if r[0] + r[1] > 0.0 {
@@ -249,7 +317,7 @@ pub(crate) enum Operator {
     /// A Galerkin level: a 5 × 5 stencil (row-major offsets, dy outer) per padded node,
     /// as an index into a table; entry 0 is the stencil shared by every regular node
     /// (all zeros when there is none).
-    Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, sym: Option<Sym> },
+    Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, narrow: Vec<[f32; 25]>, sym: Option<Sym> },
 }
 
 /// The shared stencil of a Galerkin level when it has the symmetries of the square (it
@@ -292,6 +360,8 @@ pub(crate) struct Level {
     pub op: Operator,
     /// 1 / a_ii for unknowns, 0 elsewhere (padded).
     pub inv_diag: Vec<f64>,
+    /// The same in `f32`, for the smoother (0 where it would not be finite).
+    pub inv_diag_w: Vec<WS>,
     /// Upper bound of the spectrum of D⁻¹A (Gershgorin).
     pub lam_max: f64,
     /// `clean[y * w + x]`: active, linked right and down, not fixed, and (on Galerkin
@@ -375,7 +445,8 @@ impl Level {
         let clean = (0..w * h)
             .map(|i| geo.active[i] && geo.right[i] && geo.down[i] && !geo.fixed.as_ref().is_some_and(|f| f[i]))
             .collect();
-        Level { geo, wp, hp, op: Operator::Fine { flags, tau }, inv_diag, lam_max, clean }
+        let inv_diag_w = narrow_diag(&inv_diag);
+        Level { geo, wp, hp, op: Operator::Fine { flags, tau }, inv_diag, inv_diag_w, lam_max, clean }
     }
 
     /// This finest level with the prolongation of the same grid without holes or cuts
@@ -410,6 +481,7 @@ impl Level {
     pub fn keep_only_prolongation(&mut self) {
         self.op = Operator::Fine { flags: Vec::new(), tau: 0.0 };
         self.inv_diag = Vec::new();
+        self.inv_diag_w = Vec::new();
         self.clean = Vec::new();
         let g = &mut self.geo;
         (g.active, g.right, g.down, g.fixed) = (Vec::new(), Vec::new(), Vec::new(), None);
@@ -435,9 +507,9 @@ impl Level {
     }
 
     /// `y = f − A x` on unknowns (zero elsewhere), rows in parallel for large levels.
-    pub fn residual(&self, x: &[V2], f: Option<&[V2]>, out: &mut [V2]) {
+    pub fn residual<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]]) {
         let wp = self.wp;
-        let run = |(r, chunk): (usize, &mut [V2])| {
+        let run = |(r, chunk): (usize, &mut [[T; 2]])| {
             let r0 = r * PAR_ROWS + PAD;
             let r1 = r0 + chunk.len() / wp;
             match &self.op {
@@ -458,12 +530,13 @@ impl Level {
     }
 
     #[inline(never)]
-    fn residual_row(&self, x: &[V2], f: Option<&[V2]>, r: usize, out: &mut [V2]) {
+    fn residual_row<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) {
         let wp = self.wp;
         let base = r * wp;
         match &self.op {
             Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
-            Operator::Stored { ids, table, sym } => {
+            Operator::Stored { ids, table, narrow, sym } => {
+                let table = T::table(table, narrow);
                 // Corners of the 5 × 5 window are always zero (see `galerkin`).
                 const TAPS: [(usize, usize); 21] = [
                     (0, 1), (0, 2), (0, 3),
@@ -478,7 +551,7 @@ impl Level {
                 while c < end {
                     let p = base + c;
                     if self.inv_diag[p] == 0.0 {
-                        out[c] = [0.0; 2];
+                        out[c] = [T::ZERO; 2];
                         c += 1;
                         continue;
                     }
@@ -496,7 +569,7 @@ impl Level {
                         let mut s0 = c;
                         while s0 < e {
                             let m = (e - s0).min(64);
-                            let mut acc = [[0.0f64; 2]; 64];
+                            let mut acc = [[T::ZERO; 2]; 64];
                             for &(dy, dx) in &TAPS {
                                 let a = shared[dy * 5 + dx];
                                 let q = base + s0 + dy * wp + dx - 2 * wp - 2;
@@ -506,7 +579,7 @@ impl Level {
                                 }
                             }
                             for i in 0..m {
-                                let fv = f.map_or([0.0; 2], |f| f[base + s0 + i]);
+                                let fv = f.map_or([T::ZERO; 2], |f| f[base + s0 + i]);
                                 out[s0 + i] = [fv[0] - acc[i][0], fv[1] - acc[i][1]];
                             }
                             s0 += m;
@@ -515,14 +588,14 @@ impl Level {
                         continue;
                     }
                     let s = &table[ids[p] as usize];
-                    let mut acc = [0.0f64; 2];
+                    let mut acc = [T::ZERO; 2];
                     for &(dy, dx) in &TAPS {
                         let a = s[dy * 5 + dx];
                         let xv = x[p + dy * wp + dx - 2 * wp - 2];
                         acc[0] += a * xv[0];
                         acc[1] += a * xv[1];
                     }
-                    let fv = f.map_or([0.0; 2], |f| f[p]);
+                    let fv = f.map_or([T::ZERO; 2], |f| f[p]);
                     out[c] = [fv[0] - acc[0], fv[1] - acc[1]];
                     c += 1;
                 }
@@ -536,16 +609,16 @@ impl Level {
 /// times the Laplacian) in a tight loop; the others sum their energy terms one by one.
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
-fn fine_band(
+fn fine_band<T: Real>(
     flags: &[u8],
     tau: f64,
     wp: usize,
     w: usize,
-    x: &[V2],
-    f: Option<&[V2]>,
+    x: &[[T; 2]],
+    f: Option<&[[T; 2]]>,
     r0: usize,
     r1: usize,
-    out: &mut [V2],
+    out: &mut [[T; 2]],
 ) {
     for (k, r) in (r0..r1).enumerate() {
         let base = r * wp;
@@ -564,10 +637,10 @@ fn fine_band(
                 let p = base + c;
                 orow[c] = if fr[c] & bit::FREE != 0 {
                     let a = fine_apply(flags, x, p, wp, tau);
-                    let fv = f.map_or([0.0; 2], |f| f[p]);
+                    let fv = f.map_or([T::ZERO; 2], |f| f[p]);
                     [fv[0] - a[0], fv[1] - a[1]]
                 } else {
-                    [0.0; 2]
+                    [T::ZERO; 2]
                 };
                 c += 1;
             }
@@ -577,84 +650,113 @@ fn fine_band(
 
 /// The shared symmetric coarse stencil on columns `c0..c1` of padded row `base / wp`
 /// (`out` is that row).
+///
+/// Like [`regular_run`], it runs on the flattened components (Δx, Δy, Δx, …): every
+/// operation is the same for both, so the loop vectorises across nodes.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn sym_run(x: &[V2], f: Option<&[V2]>, sym: &Sym, wp: usize, base: usize, c0: usize, c1: usize, out: &mut [V2]) {
-    let n = c1 - c0;
-    let at = |dr: isize, dc: isize| -> &[V2] {
-        let s = ((base + c0) as isize + dr * wp as isize + dc) as usize;
-        &x[s..s + n]
+fn sym_run<T: Real>(x: &[[T; 2]], f: Option<&[[T; 2]]>, sym: &Sym, wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]]) {
+    let n = 2 * (c1 - c0);
+    let xf = x.as_flattened();
+    let at = |dr: isize, dc: isize| -> &[T] {
+        let s = 2 * ((base + c0) as isize + dr * wp as isize + dc) as usize;
+        &xf[s..s + n]
     };
     let x0 = at(0, 0);
-    let edge = [at(0, -1), at(0, 1), at(-1, 0), at(1, 0)];
-    let diag = [at(-1, -1), at(-1, 1), at(1, -1), at(1, 1)];
-    let far = [at(0, -2), at(0, 2), at(-2, 0), at(2, 0)];
-    let knight = [at(-2, -1), at(-2, 1), at(2, -1), at(2, 1), at(-1, -2), at(-1, 2), at(1, -2), at(1, 2)];
-    let [c_0, c_e, c_d, c_f, c_k] = sym.0;
-    let o = &mut out[c0..c1];
-    let fz = f.map(|f| &f[base + c0..base + c1]);
-    for i in 0..n {
-        let mut a = [0.0f64; 2];
-        for q in 0..2 {
-            let e = edge[0][i][q] + edge[1][i][q] + edge[2][i][q] + edge[3][i][q];
-            let d = diag[0][i][q] + diag[1][i][q] + diag[2][i][q] + diag[3][i][q];
-            let fa = far[0][i][q] + far[1][i][q] + far[2][i][q] + far[3][i][q];
-            let k = (knight[0][i][q] + knight[1][i][q] + knight[2][i][q] + knight[3][i][q])
-                + (knight[4][i][q] + knight[5][i][q] + knight[6][i][q] + knight[7][i][q]);
-            a[q] = c_0 * x0[i][q] + c_e * e + c_d * d + c_f * fa + c_k * k;
+    let (e0, e1, e2, e3) = (at(0, -1), at(0, 1), at(-1, 0), at(1, 0));
+    let (d0, d1, d2, d3) = (at(-1, -1), at(-1, 1), at(1, -1), at(1, 1));
+    let (f0, f1, f2, f3) = (at(0, -2), at(0, 2), at(-2, 0), at(2, 0));
+    let (k0, k1, k2, k3) = (at(-2, -1), at(-2, 1), at(2, -1), at(2, 1));
+    let (k4, k5, k6, k7) = (at(-1, -2), at(-1, 2), at(1, -2), at(1, 2));
+    let [c_0, c_e, c_d, c_f, c_k] = sym.0.map(T::of);
+    // A macro, not a closure: the loops must inline it to vectorise.
+    macro_rules! apply {
+        ($j:expr) => {{
+            let j = $j;
+            let e = e0[j] + e1[j] + e2[j] + e3[j];
+            let d = d0[j] + d1[j] + d2[j] + d3[j];
+            let fa = f0[j] + f1[j] + f2[j] + f3[j];
+            let k = (k0[j] + k1[j] + k2[j] + k3[j]) + (k4[j] + k5[j] + k6[j] + k7[j]);
+            c_0 * x0[j] + c_e * e + c_d * d + c_f * fa + c_k * k
+        }};
+    }
+    let o = &mut out[c0..c1].as_flattened_mut()[..n];
+    match f {
+        Some(f) => {
+            let fz = &f[base + c0..base + c1].as_flattened()[..n];
+            for j in 0..n {
+                o[j] = fz[j] - apply!(j);
+            }
         }
-        let fv = fz.map_or([0.0; 2], |f| f[i]);
-        o[i] = [fv[0] - a[0], fv[1] - a[1]];
+        None => {
+            for j in 0..n {
+                o[j] = T::ZERO - apply!(j);
+            }
+        }
     }
 }
 
-/// The interior molecule on columns `c0..c1` of one row (all regular).
+/// The interior molecule on columns `c0..c1` of one row (all regular), on the flattened
+/// components.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn regular_run(x: &[V2], f: Option<&[V2]>, tau: f64, wp: usize, base: usize, c0: usize, c1: usize, orow: &mut [V2]) {
-    let n = c1 - c0;
-    let at = |dr: isize, dc: isize| -> &[V2] {
-        let s = ((base + c0) as isize + dr * wp as isize + dc) as usize;
-        &x[s..s + n]
+fn regular_run<T: Real>(x: &[[T; 2]], f: Option<&[[T; 2]]>, tau: f64, wp: usize, base: usize, c0: usize, c1: usize, orow: &mut [[T; 2]]) {
+    let n = 2 * (c1 - c0);
+    let (tau, c20, c8, c2, c4) = (T::of(tau), T::of(20.0), T::of(8.0), T::of(2.0), T::of(4.0));
+    let xf = x.as_flattened();
+    let at = |dr: isize, dc: isize| -> &[T] {
+        let s = 2 * ((base + c0) as isize + dr * wp as isize + dc) as usize;
+        &xf[s..s + n]
     };
     let (x0, xl, xr, xu, xd) = (at(0, 0), at(0, -1), at(0, 1), at(-1, 0), at(1, 0));
     let (xul, xur, xdl, xdr) = (at(-1, -1), at(-1, 1), at(1, -1), at(1, 1));
     let (xll, xrr, xuu, xdd) = (at(0, -2), at(0, 2), at(-2, 0), at(2, 0));
-    let o = &mut orow[c0..c1];
-    let fz = f.map(|f| &f[base + c0..base + c1]);
-    for i in 0..n {
-        let mut a = [0.0f64; 2];
-        for q in 0..2 {
-            let edge = xl[i][q] + xr[i][q] + xu[i][q] + xd[i][q];
-            let diag = xul[i][q] + xur[i][q] + xdl[i][q] + xdr[i][q];
-            let far = xll[i][q] + xrr[i][q] + xuu[i][q] + xdd[i][q];
-            a[q] = 20.0 * x0[i][q] - 8.0 * edge + 2.0 * diag + far + tau * (4.0 * x0[i][q] - edge);
+    macro_rules! apply {
+        ($j:expr) => {{
+            let j = $j;
+            let edge = xl[j] + xr[j] + xu[j] + xd[j];
+            let diag = xul[j] + xur[j] + xdl[j] + xdr[j];
+            let far = xll[j] + xrr[j] + xuu[j] + xdd[j];
+            c20 * x0[j] - c8 * edge + c2 * diag + far + tau * (c4 * x0[j] - edge)
+        }};
+    }
+    let o = &mut orow[c0..c1].as_flattened_mut()[..n];
+    match f {
+        Some(f) => {
+            let fz = &f[base + c0..base + c1].as_flattened()[..n];
+            for j in 0..n {
+                o[j] = fz[j] - apply!(j);
+            }
         }
-        let fv = fz.map_or([0.0; 2], |f| f[i]);
-        o[i] = [fv[0] - a[0], fv[1] - a[1]];
+        None => {
+            for j in 0..n {
+                o[j] = T::ZERO - apply!(j);
+            }
+        }
     }
 }
 
 /// `(A x)_p` on the finest level from the energy terms that contain node p.
 #[inline(always)]
-fn fine_apply(flags: &[u8], x: &[V2], p: usize, wp: usize, tau: f64) -> V2 {
+fn fine_apply<T: Real>(flags: &[u8], x: &[[T; 2]], p: usize, wp: usize, tau: f64) -> [T; 2] {
     #[inline(always)]
-    fn m(flags: &[u8], q: usize, b: u8) -> f64 {
-        ((flags[q] & b) != 0) as u8 as f64
+    fn m<T: Real>(flags: &[u8], q: usize, b: u8) -> T {
+        if (flags[q] & b) != 0 { T::of(1.0) } else { T::ZERO }
     }
-    let mut acc = [0.0f64; 2];
+    let two = T::of(2.0);
+    let mut acc = [T::ZERO; 2];
     for k in 0..2 {
         let xv = |q: usize| x[q][k];
         // horizontal triples centred at p-1, p, p+1 (coefficient of p: 1, -2, 1)
-        let th = |q: usize| m(flags, q, bit::HTRI) * (xv(q - 1) - 2.0 * xv(q) + xv(q + 1));
-        let tv = |q: usize| m(flags, q, bit::VTRI) * (xv(q - wp) - 2.0 * xv(q) + xv(q + wp));
-        let tc = |q: usize| m(flags, q, bit::CELL) * (xv(q) - xv(q + 1) - xv(q + wp) + xv(q + wp + 1));
-        let mut a = th(p - 1) - 2.0 * th(p) + th(p + 1) + tv(p - wp) - 2.0 * tv(p) + tv(p + wp)
-            + 2.0 * (tc(p) - tc(p - 1) - tc(p - wp) + tc(p - wp - 1));
+        let th = |q: usize| m::<T>(flags, q, bit::HTRI) * (xv(q - 1) - two * xv(q) + xv(q + 1));
+        let tv = |q: usize| m::<T>(flags, q, bit::VTRI) * (xv(q - wp) - two * xv(q) + xv(q + wp));
+        let tc = |q: usize| m::<T>(flags, q, bit::CELL) * (xv(q) - xv(q + 1) - xv(q + wp) + xv(q + wp + 1));
+        let mut a = th(p - 1) - two * th(p) + th(p + 1) + tv(p - wp) - two * tv(p) + tv(p + wp)
+            + two * (tc(p) - tc(p - 1) - tc(p - wp) + tc(p - wp - 1));
         if tau != 0.0 {
-            let lr = |q: usize| m(flags, q, bit::RIGHT) * (xv(q) - xv(q + 1));
-            let ld = |q: usize| m(flags, q, bit::DOWN) * (xv(q) - xv(q + wp));
-            a += tau * (lr(p) - lr(p - 1) + ld(p) - ld(p - wp));
+            let lr = |q: usize| m::<T>(flags, q, bit::RIGHT) * (xv(q) - xv(q + 1));
+            let ld = |q: usize| m::<T>(flags, q, bit::DOWN) * (xv(q) - xv(q + wp));
+            a += T::of(tau) * (lr(p) - lr(p - 1) + ld(p) - ld(p - wp));
         }
         acc[k] = a;
     }
@@ -866,7 +968,13 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         }
     }
     let sym = Sym::of(&table[0]);
-    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, sym }, inv_diag, lam_max, clean }
+    let narrow = table.iter().map(|s| s.map(|a| a as f32)).collect();
+    let inv_diag_w = narrow_diag(&inv_diag);
+    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym }, inv_diag, inv_diag_w, lam_max, clean }
+}
+
+fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {
+    inv_diag.iter().map(|&d| if WS::of(d).get().is_finite() { WS::of(d) } else { 0.0 }).collect()
 }
 
 /// One coarse stencil `(Pᵀ A P)(C, ·)` for C = (xc, yc), straight from the definition.
@@ -939,31 +1047,31 @@ fn ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
     out
 }
 
-/// `coarse = Pᵀ fine_v` (restriction of a residual).
-pub(crate) fn restrict(fine: &Level, coarse: &Level, v: &[V2], out: &mut [V2]) {
+/// `coarse = Pᵀ fine_v` (restriction of a residual), in either precision.
+pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 2]], out: &mut [[T; 2]]) {
     let (fw, fh) = (fine.geo.w, fine.geo.h);
     let wc = coarse.geo.w;
     let wpc = coarse.wp;
-    let run = |yc: usize, orow: &mut [V2]| {
-        for o in orow.iter_mut() {
-            *o = [0.0; 2];
-        }
+    let get = |a: [S; 2]| [a[0].get(), a[1].get()];
+    let run = |yc: usize, orow: &mut [[T; 2]]| {
+        let mut acc = vec![[0.0f64; 2]; wc];
         let rows = (2 * yc).saturating_sub(1)..=(2 * yc + 1).min(fh - 1);
         if rows.clone().all(|iy| fine.geo.plain_rows[iy]) {
             // Full weighting. Fixed nodes need no care: `v` vanishes on them.
             for iy in rows {
                 let wy = if iy == 2 * yc { 1.0 } else { 0.5 };
                 let vr = &v[fine.pidx(0, iy)..fine.pidx(0, iy) + fw];
-                for (xc, o) in orow[PAD..PAD + wc].iter_mut().enumerate() {
+                for (xc, o) in acc.iter_mut().enumerate() {
                     let ix = 2 * xc;
-                    let mut a = if ix < fw { vr[ix] } else { [0.0; 2] };
+                    let mut a = if ix < fw { get(vr[ix]) } else { [0.0; 2] };
                     let mut side = [0.0; 2];
                     if ix >= 1 {
-                        side = vr[ix - 1];
+                        side = get(vr[ix - 1]);
                     }
                     if ix + 1 < fw {
-                        side[0] += vr[ix + 1][0];
-                        side[1] += vr[ix + 1][1];
+                        let b = get(vr[ix + 1]);
+                        side[0] += b[0];
+                        side[1] += b[1];
                     }
                     a[0] += 0.5 * side[0];
                     a[1] += 0.5 * side[1];
@@ -971,33 +1079,39 @@ pub(crate) fn restrict(fine: &Level, coarse: &Level, v: &[V2], out: &mut [V2]) {
                     o[1] += wy * a[1];
                 }
             }
-            return;
-        }
-        for iy in rows {
-            let sy = yc as isize - (iy / 2) as isize;
-            if !(0..2).contains(&sy) {
-                continue;
-            }
-            for ix in 0..fw {
-                let r = v[fine.pidx(ix, iy)];
-                if r[0] == 0.0 && r[1] == 0.0 {
+        } else {
+            for iy in rows {
+                let sy = yc as isize - (iy / 2) as isize;
+                if !(0..2).contains(&sy) {
                     continue;
                 }
-                let pi = fine.geo.p_row(ix, iy);
-                let cx = ix / 2;
-                for sx in 0..2 {
-                    let wv = pi[(sy as usize) * 2 + sx];
-                    if wv != 0.0 && cx + sx < wc {
-                        let o = &mut orow[cx + sx + PAD];
-                        o[0] += wv * r[0];
-                        o[1] += wv * r[1];
+                for ix in 0..fw {
+                    let r = get(v[fine.pidx(ix, iy)]);
+                    if r[0] == 0.0 && r[1] == 0.0 {
+                        continue;
+                    }
+                    let pi = fine.geo.p_row(ix, iy);
+                    let cx = ix / 2;
+                    for sx in 0..2 {
+                        let wv = pi[(sy as usize) * 2 + sx];
+                        if wv != 0.0 && cx + sx < wc {
+                            let o = &mut acc[cx + sx];
+                            o[0] += wv * r[0];
+                            o[1] += wv * r[1];
+                        }
                     }
                 }
             }
         }
+        for o in orow.iter_mut() {
+            *o = [T::ZERO; 2];
+        }
+        for (o, a) in orow[PAD..PAD + wc].iter_mut().zip(&acc) {
+            *o = [T::of(a[0]), T::of(a[1])];
+        }
     };
     for row in out[..PAD * wpc].iter_mut() {
-        *row = [0.0; 2];
+        *row = [T::ZERO; 2];
     }
     let body = &mut out[PAD * wpc..(PAD + coarse.geo.h) * wpc];
     if fw * fh >= PAR_MIN_NODES {
@@ -1008,15 +1122,20 @@ pub(crate) fn restrict(fine: &Level, coarse: &Level, v: &[V2], out: &mut [V2]) {
 }
 
 /// `fine_x += P e` (prolongation of a coarse correction onto the unknowns).
-pub(crate) fn prolong_add(fine: &Level, coarse: &Level, e: &[V2], x: &mut [V2]) {
+pub(crate) fn prolong_add<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]]) {
     prolong_add_scaled(fine, coarse, e, x, [1.0; 2]);
 }
 
-/// `fine_x += α P e`, α per component.
-pub(crate) fn prolong_add_scaled(fine: &Level, coarse: &Level, e: &[V2], x: &mut [V2], alpha: V2) {
+/// `fine_x += α P e`, α per component, in either precision.
+pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]], alpha: V2) {
     let (fw, fh) = (fine.geo.w, fine.geo.h);
     let wp = fine.wp;
-    let run = |iy: usize, xrow: &mut [V2]| {
+    let get = |a: [S; 2]| [a[0].get(), a[1].get()];
+    let add = |o: &mut [T; 2], a: V2| {
+        o[0] = T::of(o[0].get() + alpha[0] * a[0]);
+        o[1] = T::of(o[1].get() + alpha[1] * a[1]);
+    };
+    let run = |iy: usize, xrow: &mut [[T; 2]]| {
         let cy = iy / 2;
         if fine.geo.plain_rows[iy] {
             // Bilinear interpolation; fixed nodes (rows of zeros) keep their values.
@@ -1025,10 +1144,11 @@ pub(crate) fn prolong_add_scaled(fine: &Level, coarse: &Level, e: &[V2], x: &mut
             let odd = iy & 1 == 1;
             let c1 = if odd { &e[coarse.pidx(0, cy + 1)..coarse.pidx(0, cy + 1) + wc] } else { c0 };
             let col = |xc: usize| -> V2 {
+                let (a, b) = (get(c0[xc]), get(c1[xc]));
                 if odd {
-                    [0.5 * (c0[xc][0] + c1[xc][0]), 0.5 * (c0[xc][1] + c1[xc][1])]
+                    [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]
                 } else {
-                    c0[xc]
+                    a
                 }
             };
             let prow = &fine.geo.prow[iy * fw..(iy + 1) * fw];
@@ -1039,16 +1159,12 @@ pub(crate) fn prolong_add_scaled(fine: &Level, coarse: &Level, e: &[V2], x: &mut
                     break;
                 }
                 if prow[ix] != [0; 4] {
-                    let o = &mut xrow[ix + PAD];
-                    o[0] += alpha[0] * left[0];
-                    o[1] += alpha[1] * left[1];
+                    add(&mut xrow[ix + PAD], left);
                 }
                 if ix + 1 < fw {
                     let right = col(xc + 1);
                     if prow[ix + 1] != [0; 4] {
-                        let o = &mut xrow[ix + 1 + PAD];
-                        o[0] += alpha[0] * 0.5 * (left[0] + right[0]);
-                        o[1] += alpha[1] * 0.5 * (left[1] + right[1]);
+                        add(&mut xrow[ix + 1 + PAD], [0.5 * (left[0] + right[0]), 0.5 * (left[1] + right[1])]);
                     }
                     left = right;
                 }
@@ -1059,16 +1175,18 @@ pub(crate) fn prolong_add_scaled(fine: &Level, coarse: &Level, e: &[V2], x: &mut
             let pi = fine.geo.p_row(ix, iy);
             let cx = ix / 2;
             let mut acc = [0.0f64; 2];
+            let mut any = false;
             for (slot, &wv) in pi.iter().enumerate() {
                 if wv != 0.0 {
-                    let c = coarse.pidx(cx + (slot & 1), cy + (slot >> 1));
-                    acc[0] += wv * e[c][0];
-                    acc[1] += wv * e[c][1];
+                    let c = get(e[coarse.pidx(cx + (slot & 1), cy + (slot >> 1))]);
+                    acc[0] += wv * c[0];
+                    acc[1] += wv * c[1];
+                    any = true;
                 }
             }
-            let o = &mut xrow[ix + PAD];
-            o[0] += alpha[0] * acc[0];
-            o[1] += alpha[1] * acc[1];
+            if any {
+                add(&mut xrow[ix + PAD], acc);
+            }
         }
     };
     let body = &mut x[PAD * wp..(PAD + fh) * wp];

@@ -380,7 +380,7 @@ pub(crate) fn solve_constrained(
         started = report.initial_residual > options.tolerance_px;
     }
     if started {
-        hier.coarse_to_fine(&mut u);
+        hier.coarse_to_fine(&mut u, &mut r);
         hier.levels[0].residual(&u, None, &mut r);
         report.initial_residual = scaled_max(&hier.levels[0], &r);
     }
@@ -405,7 +405,7 @@ pub(crate) fn solve_constrained(
             };
             {
                 let (mut z, mut q) = (Vec::new(), vec![[0.0; 2]; len]);
-                hier.precondition(&mut r, &mut z);
+                hier.precondition(&r, &mut z);
                 let mut p = z.clone();
                 let mut rz = dot2(&r, &z);
                 for cycle in 1..=max_cycles {
@@ -439,14 +439,14 @@ pub(crate) fn solve_constrained(
                     }
                     if !started {
                         started = true;
-                        hier.coarse_to_fine(&mut u);
+                        hier.coarse_to_fine(&mut u, &mut r);
                         hier.levels[0].residual(&u, None, &mut r);
-                        hier.precondition(&mut r, &mut z);
+                        hier.precondition(&r, &mut z);
                         p.copy_from_slice(&z);
                         rz = dot2(&r, &z);
                         continue;
                     }
-                    hier.precondition(&mut r, &mut z);
+                    hier.precondition(&r, &mut z);
                     // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
                     // the preconditioner's line searches make it slightly nonlinear.
                     let rz_new = dot2(&r, &z);

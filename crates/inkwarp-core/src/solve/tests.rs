@@ -482,3 +482,52 @@ fn fast_transfers_and_the_symmetric_stencil_match_the_general_kernels() {
         }
     }
 }
+
+#[test]
+fn coarse_levels_never_couple_nodes_across_a_cut() {
+    // An even-sized grid interpolates its last row and column from ghost coarse nodes; they
+    // must follow the links of that row and column like any other node, or the coarse
+    // operators join the two sides of a cut that reaches the border.
+    for &(w, h) in &[(40usize, 32usize), (33, 33), (31, 30)] {
+        let mut grid = Grid::new(w, h);
+        grid.add_cut(&[[19.5, -1.0], [19.5, h as f64 + 1.0]]);
+        grid.add_cut(&[[-1.0, 12.5], [w as f64 + 1.0, 12.5]]);
+        let geo = level::Geometry {
+            w,
+            h,
+            active: grid.active.clone(),
+            right: grid.link_right.clone(),
+            down: grid.link_down.clone(),
+            fixed: None,
+            prow: Vec::new(),
+            plain_rows: Vec::new(),
+        }
+        .with_rows();
+        let mut lv = Level::fine(geo, 0.0);
+        for k in 0..3 {
+            // A field on the quadrant left of and above both cuts: A times it must vanish
+            // on the other three.
+            let s = 1usize << k;
+            let inside = |x: usize, y: usize| x * s <= 19 && y * s <= 12;
+            let mut v = vec![[0.0; 2]; lv.len_padded()];
+            for y in 0..lv.geo.h {
+                for x in 0..lv.geo.w {
+                    if inside(x, y) {
+                        v[lv.pidx(x, y)] = [1.0 + x as f64, 1.0 + y as f64 * x as f64];
+                    }
+                }
+            }
+            let mut out = vec![[0.0; 2]; lv.len_padded()];
+            lv.residual(&v, None, &mut out);
+            for y in 0..lv.geo.h {
+                for x in 0..lv.geo.w {
+                    if !inside(x, y) {
+                        let a = out[lv.pidx(x, y)];
+                        assert!(a == [0.0; 2], "{w}x{h}, level {k}: node ({x}, {y}) feels the other side: {a:?}");
+                    }
+                }
+            }
+            lv = level::galerkin(&lv);
+        }
+    }
+}
