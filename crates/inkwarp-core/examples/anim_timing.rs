@@ -5,6 +5,8 @@
 
 use std::time::Instant;
 
+mod common;
+
 use inkwarp_core::solve::{solve_warm, SolveOptions, WarmHistory};
 use inkwarp_core::{Grid, Sample};
 
@@ -13,13 +15,7 @@ fn main() {
     let size: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(513);
     let count: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(10);
     let frames: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(24);
-    let mut state = 12345u64;
-    let mut rnd = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rnd = common::rng(12345);
     let base: Vec<(Sample, f64)> = (0..count)
         .map(|_| {
             let s = Sample {

@@ -6,6 +6,8 @@ use std::time::Instant;
 use inkwarp_core::solve::{solve, SolveOptions};
 use inkwarp_core::{Grid, Sample};
 
+mod common;
+
 /// CPU time of all threads of this process (ns), from /proc: wall time on a shared machine
 /// says little.
 fn cpu_ns() -> u64 {
@@ -26,19 +28,7 @@ fn main() {
     let count: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(10);
     let height: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(size);
     let cycles: Option<usize> = args.get(4).and_then(|s| s.parse().ok());
-    let mut state = 12345u64;
-    let mut rnd = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let samples: Vec<Sample> = (0..count)
-        .map(|_| Sample {
-            rest: [rnd() * (size - 1) as f64, rnd() * (height - 1) as f64],
-            displacement: [rnd() * 40.0 - 20.0, rnd() * 40.0 - 20.0],
-        })
-        .collect();
+    let samples = common::random_samples(count, size, height, 12345);
     let grid = Grid::new(size, height);
     let opts = SolveOptions { max_cycles: cycles, tolerance_px: if cycles.is_some() { 0.0 } else { 0.01 }, ..Default::default() };
     let runs: usize = std::env::var("RUNS").ok().and_then(|v| v.parse().ok()).unwrap_or(3);

@@ -1,17 +1,9 @@
 //! Development probe of the stopping rule: per cycle, the largest change and the true
 //! largest error against a tight solve, for several grids.
 use inkwarp_core::solve::{solve, SolveOptions};
-use inkwarp_core::{Field, Grid, Sample};
+use inkwarp_core::{Field, Grid};
 
-fn rng(seed: u64) -> impl FnMut() -> f64 {
-    let mut state = seed;
-    move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+mod common;
 
 fn gap(a: &Field, b: &Field) -> f64 {
     let mut m: f64 = 0.0;
@@ -27,10 +19,7 @@ fn main() {
     let count: usize = args[2].parse().unwrap();
     let mode = args.get(3).cloned().unwrap_or_default();
     let seed: u64 = args.get(4).and_then(|s| s.parse().ok()).unwrap_or(12345);
-    let mut rnd = rng(seed);
-    let samples: Vec<Sample> = (0..count)
-        .map(|_| Sample { rest: [rnd() * (size - 1) as f64, rnd() * (size - 1) as f64], displacement: [rnd() * 40.0 - 20.0, rnd() * 40.0 - 20.0] })
-        .collect();
+    let samples = common::random_samples(count, size, size, seed);
     let mut grid = Grid::new(size, size);
     if mode == "ring" || mode == "both" {
         let c = size as f64 / 2.0;

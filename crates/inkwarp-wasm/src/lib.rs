@@ -167,6 +167,14 @@ mod tests {
         (ptr, data.len())
     }
 
+    /// Solves `req` on grid `handle` into `out`, asserting that it succeeds (`what` names
+    /// the case in the message); returns the report.
+    fn solve_ok(handle: u32, req: &serde_json::Value, out: *mut f32, what: &str) -> serde_json::Value {
+        let (req, req_len) = put(req.to_string().as_bytes());
+        assert_eq!(iw_solve(handle, req, req_len, std::ptr::null(), out), 0, "{what}: {}", result());
+        result()
+    }
+
     #[test]
     fn allocations_are_aligned_for_floats() {
         for len in [0, 1, 7, 8, 9, 1000] {
@@ -309,23 +317,17 @@ mod tests {
         for method in Method::ALL {
             let expected = scene.layer_field_with(0, 0.6, None, Some(method)).unwrap().field;
             options["method"] = method.name().into();
-            let req = serde_json::json!({"features": features, "options": options});
-            let (req, req_len) = put(req.to_string().as_bytes());
-            assert_eq!(iw_solve(grid, req, req_len, std::ptr::null(), out), 0, "{method}: {}", result());
-            let report = result();
+            let what = method.to_string();
+            let report = solve_ok(grid, &serde_json::json!({"features": features, "options": options}), out, &what);
             if method == Method::TpsExact {
                 assert_eq!(report["samples_used"], 60, "{report}");
             }
             // A layer that nothing drives stays put under every method.
-            let req = serde_json::json!({"features": [], "options": options});
-            let (req, req_len) = put(req.to_string().as_bytes());
-            assert_eq!(iw_solve(grid, req, req_len, std::ptr::null(), out), 0, "{method}: {}", result());
+            solve_ok(grid, &serde_json::json!({"features": [], "options": options}), out, &what);
             assert!(floats(out, 2 * w * h).iter().all(|&v| v == 0.0));
             let still = scene.layer_field_with(1, 0.6, None, Some(method)).unwrap().field;
             assert!(still.dx.iter().chain(&still.dy).all(|&v| v == 0.0));
-            let req = serde_json::json!({"features": features, "options": options});
-            let (req, req_len) = put(req.to_string().as_bytes());
-            assert_eq!(iw_solve(grid, req, req_len, std::ptr::null(), out), 0, "{method}: {}", result());
+            solve_ok(grid, &serde_json::json!({"features": features, "options": options}), out, &what);
             assert_eq!(report["method"], method.name());
             let got = floats(out, 2 * w * h);
             let same = got[..w * h] == expected.dx[..] && got[w * h..] == expected.dy[..];
@@ -358,9 +360,8 @@ mod tests {
             let out = iw_alloc(8 * w * h) as *mut f32;
             let req = serde_json::json!({"features": features, "spacing_px": 1,
                                          "options": {"method": "tps-exact", "grid_step": step, "preview": preview}});
-            let (req, req_len) = put(req.to_string().as_bytes());
-            assert_eq!(iw_solve(grid, req, req_len, std::ptr::null(), out), 0, "{}", result());
-            (floats(out, 2 * w * h).to_vec(), result())
+            let report = solve_ok(grid, &req, out, "tps-exact");
+            (floats(out, 2 * w * h).to_vec(), report)
         };
         let (exact, _) = field(1, false);
         // grid_step means nothing to tps-exact but in a preview.

@@ -117,6 +117,11 @@ impl Geometry {
         y * self.w + x
     }
 
+    /// A geometry with its prolongation rows filled in.
+    pub fn new(w: usize, h: usize, active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, fixed: Option<Vec<bool>>) -> Geometry {
+        Geometry { w, h, active, right, down, fixed, prow: Vec::new(), plain_rows: Vec::new() }.with_rows()
+    }
+
     /// The next coarser geometry: node (X, Y) sits on (2X, 2Y); two coarse neighbours are
     /// linked when the straight two-link path between them is linked here.
     pub fn coarsen(&self) -> Geometry {
@@ -143,7 +148,7 @@ impl Geometry {
                 }
             }
         }
-        Geometry { w, h, active, right, down, fixed: None, prow: Vec::new(), plain_rows: Vec::new() }.with_rows()
+        Geometry::new(w, h, active, right, down, None)
     }
 
     /// Whether the geometry has inactive nodes or missing links between active neighbours.
@@ -158,7 +163,7 @@ impl Geometry {
 
     /// Fills the table of prolongation rows. Every weight is a multiple of 1/24 (halves,
     /// and averages of up to four halves), so the table is exact.
-    pub fn with_rows(mut self) -> Geometry {
+    fn with_rows(mut self) -> Geometry {
         let mut prow = vec![[0u8; 4]; self.w * self.h];
         let mut plain_rows = vec![true; self.h];
         for y in 0..self.h {
@@ -328,6 +333,12 @@ pub(crate) enum Operator {
 pub(crate) struct Sym([f64; 5]);
 
 impl Sym {
+    /// The interior molecule of the finest level: the square of the 5-point Laplacian
+    /// (20, −8, 2, 1) plus τ times the Laplacian (4, −1).
+    fn fine(tau: f64) -> Sym {
+        Sym([20.0 + 4.0 * tau, -8.0 - tau, 2.0, 1.0, 0.0])
+    }
+
     /// The five coefficients of `s` (each the mean of its ring) if it has the symmetries
     /// of the square up to rounding.
     fn of(s: &[f64; 25]) -> Option<Sym> {
@@ -456,17 +467,9 @@ impl Level {
     /// constant.
     pub fn into_plain(mut self) -> Level {
         let (w, h) = (self.geo.w, self.geo.h);
-        let plain = Geometry {
-            w,
-            h,
-            active: vec![true; w * h],
-            right: (0..w * h).map(|i| i % w + 1 < w).collect(),
-            down: (0..w * h).map(|i| i + w < w * h).collect(),
-            fixed: None,
-            prow: Vec::new(),
-            plain_rows: Vec::new(),
-        }
-        .with_rows();
+        let right = (0..w * h).map(|i| i % w + 1 < w).collect();
+        let down = (0..w * h).map(|i| i + w < w * h).collect();
+        let plain = Geometry::new(w, h, vec![true; w * h], right, down, None);
         let real = std::mem::replace(&mut self.geo, plain);
         for i in 0..w * h {
             if !real.active[i] || real.fixed.as_ref().is_some_and(|f| f[i]) {
@@ -562,7 +565,7 @@ impl Level {
                             e += 1;
                         }
                         if let Some(sym) = sym {
-                            sym_run(x, f, sym, wp, base, c, e, out);
+                            sym_run::<T, true>(x, f, sym, wp, base, c, e, out);
                             c = e;
                             continue;
                         }
@@ -620,6 +623,7 @@ fn fine_band<T: Real>(
     r1: usize,
     out: &mut [[T; 2]],
 ) {
+    let molecule = Sym::fine(tau);
     for (k, r) in (r0..r1).enumerate() {
         let base = r * wp;
         let orow = &mut out[k * wp..(k + 1) * wp];
@@ -631,7 +635,7 @@ fn fine_band<T: Real>(
                 while e < PAD + w && fr[e] & bit::REGULAR != 0 {
                     e += 1;
                 }
-                regular_run(x, f, tau, wp, base, c, e, orow);
+                sym_run::<T, false>(x, f, &molecule, wp, base, c, e, orow);
                 c = e;
             } else {
                 let p = base + c;
@@ -648,14 +652,24 @@ fn fine_band<T: Real>(
     }
 }
 
-/// The shared symmetric coarse stencil on columns `c0..c1` of padded row `base / wp`
-/// (`out` is that row).
+/// A symmetric stencil ([`Sym`]) on columns `c0..c1` of padded row `base / wp` (`out` is
+/// that row): the shared stencil of a Galerkin level, or with `KNIGHT` false the interior
+/// molecule of the finest level, whose knight's-move ring is empty.
 ///
-/// Like [`regular_run`], it runs on the flattened components (Δx, Δy, Δx, …): every
-/// operation is the same for both, so the loop vectorises across nodes.
+/// It runs on the flattened components (Δx, Δy, Δx, …): every operation is the same for
+/// both, so the loop vectorises across nodes.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn sym_run<T: Real>(x: &[[T; 2]], f: Option<&[[T; 2]]>, sym: &Sym, wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]]) {
+fn sym_run<T: Real, const KNIGHT: bool>(
+    x: &[[T; 2]],
+    f: Option<&[[T; 2]]>,
+    sym: &Sym,
+    wp: usize,
+    base: usize,
+    c0: usize,
+    c1: usize,
+    out: &mut [[T; 2]],
+) {
     let n = 2 * (c1 - c0);
     let xf = x.as_flattened();
     let at = |dr: isize, dc: isize| -> &[T] {
@@ -676,51 +690,15 @@ fn sym_run<T: Real>(x: &[[T; 2]], f: Option<&[[T; 2]]>, sym: &Sym, wp: usize, ba
             let e = e0[j] + e1[j] + e2[j] + e3[j];
             let d = d0[j] + d1[j] + d2[j] + d3[j];
             let fa = f0[j] + f1[j] + f2[j] + f3[j];
-            let k = (k0[j] + k1[j] + k2[j] + k3[j]) + (k4[j] + k5[j] + k6[j] + k7[j]);
-            c_0 * x0[j] + c_e * e + c_d * d + c_f * fa + c_k * k
+            let a = c_0 * x0[j] + c_e * e + c_d * d + c_f * fa;
+            if KNIGHT {
+                a + c_k * ((k0[j] + k1[j] + k2[j] + k3[j]) + (k4[j] + k5[j] + k6[j] + k7[j]))
+            } else {
+                a
+            }
         }};
     }
     let o = &mut out[c0..c1].as_flattened_mut()[..n];
-    match f {
-        Some(f) => {
-            let fz = &f[base + c0..base + c1].as_flattened()[..n];
-            for j in 0..n {
-                o[j] = fz[j] - apply!(j);
-            }
-        }
-        None => {
-            for j in 0..n {
-                o[j] = T::ZERO - apply!(j);
-            }
-        }
-    }
-}
-
-/// The interior molecule on columns `c0..c1` of one row (all regular), on the flattened
-/// components.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn regular_run<T: Real>(x: &[[T; 2]], f: Option<&[[T; 2]]>, tau: f64, wp: usize, base: usize, c0: usize, c1: usize, orow: &mut [[T; 2]]) {
-    let n = 2 * (c1 - c0);
-    let (tau, c20, c8, c2, c4) = (T::of(tau), T::of(20.0), T::of(8.0), T::of(2.0), T::of(4.0));
-    let xf = x.as_flattened();
-    let at = |dr: isize, dc: isize| -> &[T] {
-        let s = 2 * ((base + c0) as isize + dr * wp as isize + dc) as usize;
-        &xf[s..s + n]
-    };
-    let (x0, xl, xr, xu, xd) = (at(0, 0), at(0, -1), at(0, 1), at(-1, 0), at(1, 0));
-    let (xul, xur, xdl, xdr) = (at(-1, -1), at(-1, 1), at(1, -1), at(1, 1));
-    let (xll, xrr, xuu, xdd) = (at(0, -2), at(0, 2), at(-2, 0), at(2, 0));
-    macro_rules! apply {
-        ($j:expr) => {{
-            let j = $j;
-            let edge = xl[j] + xr[j] + xu[j] + xd[j];
-            let diag = xul[j] + xur[j] + xdl[j] + xdr[j];
-            let far = xll[j] + xrr[j] + xuu[j] + xdd[j];
-            c20 * x0[j] - c8 * edge + c2 * diag + far + tau * (c4 * x0[j] - edge)
-        }};
-    }
-    let o = &mut orow[c0..c1].as_flattened_mut()[..n];
     match f {
         Some(f) => {
             let fz = &f[base + c0..base + c1].as_flattened()[..n];
@@ -1052,19 +1030,21 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
     let (fw, fh) = (fine.geo.w, fine.geo.h);
     let wc = coarse.geo.w;
     let wpc = coarse.wp;
-    let get = |a: [S; 2]| [a[0].get(), a[1].get()];
+    let get = |a: [S; 2]| [T::of(a[0].get()), T::of(a[1].get())];
+    let (half, zero) = (T::of(0.5), [T::ZERO; 2]);
     let run = |yc: usize, orow: &mut [[T; 2]]| {
-        let mut acc = vec![[0.0f64; 2]; wc];
+        orow.fill(zero);
+        let acc = &mut orow[PAD..PAD + wc];
         let rows = (2 * yc).saturating_sub(1)..=(2 * yc + 1).min(fh - 1);
         if rows.clone().all(|iy| fine.geo.plain_rows[iy]) {
             // Full weighting. Fixed nodes need no care: `v` vanishes on them.
             for iy in rows {
-                let wy = if iy == 2 * yc { 1.0 } else { 0.5 };
+                let wy = if iy == 2 * yc { T::of(1.0) } else { half };
                 let vr = &v[fine.pidx(0, iy)..fine.pidx(0, iy) + fw];
                 for (xc, o) in acc.iter_mut().enumerate() {
                     let ix = 2 * xc;
-                    let mut a = if ix < fw { get(vr[ix]) } else { [0.0; 2] };
-                    let mut side = [0.0; 2];
+                    let mut a = if ix < fw { get(vr[ix]) } else { zero };
+                    let mut side = zero;
                     if ix >= 1 {
                         side = get(vr[ix - 1]);
                     }
@@ -1073,8 +1053,8 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
                         side[0] += b[0];
                         side[1] += b[1];
                     }
-                    a[0] += 0.5 * side[0];
-                    a[1] += 0.5 * side[1];
+                    a[0] += half * side[0];
+                    a[1] += half * side[1];
                     o[0] += wy * a[0];
                     o[1] += wy * a[1];
                 }
@@ -1087,7 +1067,7 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
                 }
                 for ix in 0..fw {
                     let r = get(v[fine.pidx(ix, iy)]);
-                    if r[0] == 0.0 && r[1] == 0.0 {
+                    if r == zero {
                         continue;
                     }
                     let pi = fine.geo.p_row(ix, iy);
@@ -1095,7 +1075,7 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
                     for sx in 0..2 {
                         let wv = pi[(sy as usize) * 2 + sx];
                         if wv != 0.0 && cx + sx < wc {
-                            let o = &mut acc[cx + sx];
+                            let (o, wv) = (&mut acc[cx + sx], T::of(wv));
                             o[0] += wv * r[0];
                             o[1] += wv * r[1];
                         }
@@ -1103,16 +1083,8 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
                 }
             }
         }
-        for o in orow.iter_mut() {
-            *o = [T::ZERO; 2];
-        }
-        for (o, a) in orow[PAD..PAD + wc].iter_mut().zip(&acc) {
-            *o = [T::of(a[0]), T::of(a[1])];
-        }
     };
-    for row in out[..PAD * wpc].iter_mut() {
-        *row = [T::ZERO; 2];
-    }
+    out[..PAD * wpc].fill(zero);
     let body = &mut out[PAD * wpc..(PAD + coarse.geo.h) * wpc];
     if fw * fh >= PAR_MIN_NODES {
         body.par_chunks_mut(wpc).enumerate().for_each(|(yc, o)| run(yc, o));

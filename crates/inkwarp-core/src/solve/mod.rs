@@ -329,17 +329,7 @@ pub(crate) fn solve_constrained(
         second_space: second_space_enabled(),
     };
     let mut hier = cache_take(&key).unwrap_or_else(|| {
-        let geo = Geometry {
-            w,
-            h,
-            active: key.active.clone(),
-            right: key.right.clone(),
-            down: key.down.clone(),
-            fixed: Some(key.fixed.clone()),
-            prow: Vec::new(),
-            plain_rows: Vec::new(),
-        }
-        .with_rows();
+        let geo = Geometry::new(w, h, key.active.clone(), key.right.clone(), key.down.clone(), Some(key.fixed.clone()));
         let fine = Level::fine(geo, tau);
         // Holes and cuts: a second coarse space that runs smoothly across them (visited by
         // V-cycles), next to the link-aware one that tears with them.

@@ -14,6 +14,12 @@ impl Rng {
     }
 }
 
+/// The finest level of `grid` with the given fixed nodes and tension.
+fn fine_level(grid: &Grid, fixed: Option<Vec<bool>>, tau: f64) -> Level {
+    let geo = level::Geometry::new(grid.width, grid.height, grid.active.clone(), grid.link_right.clone(), grid.link_down.clone(), fixed);
+    Level::fine(geo, tau)
+}
+
 /// The energy's matrix assembled term by term from DESIGN §4 (dense, independent of the
 /// solver's kernels): E(u) = uᵀ A u.
 fn dense_matrix(grid: &Grid, tau: f64) -> Vec<Vec<f64>> {
@@ -261,18 +267,7 @@ fn coarse_levels_of_an_open_grid_reproduce_affine_functions() {
     // even sizes thanks to the ghost coarse node beyond the last column and row.
     for &(w, h) in &[(33usize, 33usize), (32, 32), (20, 17)] {
         let grid = Grid::new(w, h);
-        let geo = level::Geometry {
-            w,
-            h,
-            active: grid.active.clone(),
-            right: grid.link_right.clone(),
-            down: grid.link_down.clone(),
-            fixed: None,
-            prow: Vec::new(),
-            plain_rows: Vec::new(),
-        }
-        .with_rows();
-        let mut lv = Level::fine(geo, 0.0);
+        let mut lv = fine_level(&grid, None, 0.0);
         for _ in 0..3 {
             let coarse = level::galerkin(&lv);
             for yc in 0..coarse.geo.h {
@@ -433,18 +428,7 @@ fn fast_transfers_and_the_symmetric_stencil_match_the_general_kernels() {
         grid.active[(h / 2) * w + w / 3] = false;
         grid = Grid::from_active(w, h, grid.active.clone());
         grid.add_cut(&[[1.0, h as f64 * 0.7], [w as f64 * 0.3, h as f64 * 0.75]]);
-        let geo = level::Geometry {
-            w,
-            h,
-            active: grid.active.clone(),
-            right: grid.link_right.clone(),
-            down: grid.link_down.clone(),
-            fixed: Some((0..w * h).map(|_| rnd() < 0.05).collect()),
-            prow: Vec::new(),
-            plain_rows: Vec::new(),
-        }
-        .with_rows();
-        let mut fine = Level::fine(geo, 0.3);
+        let mut fine = fine_level(&grid, Some((0..w * h).map(|_| rnd() < 0.05).collect()), 0.3);
         for _ in 0..3 {
             let mut coarse = level::galerkin(&fine);
             assert!(fine.geo.plain_rows.iter().any(|&p| p) && fine.geo.plain_rows.iter().any(|&p| !p));
@@ -492,38 +476,29 @@ fn coarse_levels_never_couple_nodes_across_a_cut() {
         let mut grid = Grid::new(w, h);
         grid.add_cut(&[[19.5, -1.0], [19.5, h as f64 + 1.0]]);
         grid.add_cut(&[[-1.0, 12.5], [w as f64 + 1.0, 12.5]]);
-        let geo = level::Geometry {
-            w,
-            h,
-            active: grid.active.clone(),
-            right: grid.link_right.clone(),
-            down: grid.link_down.clone(),
-            fixed: None,
-            prow: Vec::new(),
-            plain_rows: Vec::new(),
-        }
-        .with_rows();
-        let mut lv = Level::fine(geo, 0.0);
+        let mut lv = fine_level(&grid, None, 0.0);
         for k in 0..3 {
-            // A field on the quadrant left of and above both cuts: A times it must vanish
-            // on the other three.
+            // A field on one quadrant between the cuts: A times it must vanish on the
+            // other three (the ghost row and column border the bottom and right ones).
             let s = 1usize << k;
-            let inside = |x: usize, y: usize| x * s <= 19 && y * s <= 12;
-            let mut v = vec![[0.0; 2]; lv.len_padded()];
-            for y in 0..lv.geo.h {
-                for x in 0..lv.geo.w {
-                    if inside(x, y) {
-                        v[lv.pidx(x, y)] = [1.0 + x as f64, 1.0 + y as f64 * x as f64];
+            for (left, top) in [(true, true), (true, false), (false, true), (false, false)] {
+                let inside = |x: usize, y: usize| (x * s <= 19) == left && (y * s <= 12) == top;
+                let mut v = vec![[0.0; 2]; lv.len_padded()];
+                for y in 0..lv.geo.h {
+                    for x in 0..lv.geo.w {
+                        if inside(x, y) {
+                            v[lv.pidx(x, y)] = [1.0 + x as f64, 1.0 + y as f64 * x as f64];
+                        }
                     }
                 }
-            }
-            let mut out = vec![[0.0; 2]; lv.len_padded()];
-            lv.residual(&v, None, &mut out);
-            for y in 0..lv.geo.h {
-                for x in 0..lv.geo.w {
-                    if !inside(x, y) {
-                        let a = out[lv.pidx(x, y)];
-                        assert!(a == [0.0; 2], "{w}x{h}, level {k}: node ({x}, {y}) feels the other side: {a:?}");
+                let mut out = vec![[0.0; 2]; lv.len_padded()];
+                lv.residual(&v, None, &mut out);
+                for y in 0..lv.geo.h {
+                    for x in 0..lv.geo.w {
+                        if !inside(x, y) {
+                            let a = out[lv.pidx(x, y)];
+                            assert!(a == [0.0; 2], "{w}x{h}, level {k}: node ({x}, {y}) feels another quadrant: {a:?}");
+                        }
                     }
                 }
             }
