@@ -67,6 +67,10 @@ def test_a_piece_cut_off_by_a_hole_or_a_cut_is_untouched():
     assert np.abs(both[:, :20] - only_left[:, :20]).max() < 0.02
     assert np.all(only_left[:, 20:] == 0)  # pieces without a constraint do not move
     assert np.all(only_right[:, :20] == 0)
+    # and every piece meets the tolerance, as when it is solved alone
+    tight = inkwarp.thin_plate(np.vstack([left_pts, right_pts]), np.vstack([left_disp, right_disp]), SHAPE,
+                               mask=mask, cuts=[cut], tolerance=1e-6)
+    assert np.abs(both - tight).max() < 0.01
 
 
 def test_one_constrained_node_translates_its_piece():

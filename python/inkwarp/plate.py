@@ -57,7 +57,9 @@ class SolveReport:
     ----------
     cycles : int
         Multigrid cycles run after the coarse-to-fine start (``"southwell"``: relaxation
-        passes).
+        passes). Pieces of the grid that holes or cuts separate are solved apart; this is
+        the most cycles any of them took, and the change and residuals below are the
+        largest over them.
     final_change : float
         Largest change of any node during the last cycle, in pixels.
     residual : float

@@ -9,6 +9,8 @@ use super::level::{galerkin, prolong_add, prolong_add_scaled, restrict, Level, R
 const CHEB_RATIO: f64 = 16.0;
 /// Stop coarsening when a level has at most this many nodes.
 const COARSEST_NODES: usize = 300;
+/// Lanczos steps of the estimate of the top of each level's spectrum.
+const LANCZOS_STEPS: usize = 12;
 const PAR_MIN: usize = 12_000;
 
 /// The grid hierarchy with its work vectors.
@@ -71,10 +73,13 @@ impl Hierarchy {
                 Work { x: vec![[0.0; 2]; n], f: vec![[0.0; 2]; n], r: vec![[0.0; 2]; n], d: vec![[0.0; 2]; n] }
             })
             .collect();
-        // Chebyshev needs the top of the spectrum of D⁻¹A: a few power steps from a
-        // checkerboard, with a margin, capped by the (safe, loose) Gershgorin bound.
+        // Chebyshev needs the top of the spectrum of D⁻¹A, and diverges on any mode above
+        // the bound it is given: a few Lanczos steps, with a margin, capped by the (safe,
+        // loose) Gershgorin bound. Power steps are not enough: levels over holes carry
+        // modes on a few nodes near the edge, up to twice the top of the rest, that six
+        // power steps from a checkerboard miss and eight Lanczos steps find.
         for l in levels.iter_mut().skip(if smooth_fine { 0 } else { 1 }) {
-            let est = power_estimate(l, 6) * 1.1;
+            let est = lanczos_estimate(l, LANCZOS_STEPS) * 1.1;
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
@@ -210,36 +215,85 @@ fn add_line_searched(fine: &Level, coarse: &Level, c: &mut Work, x: &mut [W2]) {
     prolong_add_scaled(fine, coarse, &c.x, x, alpha);
 }
 
-/// Largest eigenvalue of D⁻¹A estimated by power iteration.
-pub(crate) fn power_estimate(level: &Level, iters: usize) -> f64 {
+/// Largest eigenvalue of D⁻¹A estimated by Lanczos steps on D^-1/2 A D^-1/2 from a
+/// pseudo-random start (the largest Ritz value, a lower bound).
+pub(crate) fn lanczos_estimate(level: &Level, steps: usize) -> f64 {
     let n = level.len_padded();
-    let mut x: Vec<V2> = (0..n)
+    let s: Vec<f64> = level.inv_diag.iter().map(|&d| if d > 0.0 { d.sqrt() } else { 0.0 }).collect();
+    let mut v: Vec<V2> = (0..n)
         .map(|p| {
-            // A checkerboard (near the top eigenvector of a plate) plus a little noise.
-            let h = ((p as u64).wrapping_mul(0x9E3779B97F4A7C15) >> 40) as f64 / (1u64 << 24) as f64;
-            let (x, y) = (p % level.wp, p / level.wp);
-            let s = if (x + y) % 2 == 0 { 1.0 } else { -1.0 };
-            if level.inv_diag[p] != 0.0 { [s + 0.2 * (h - 0.5), s - 0.2 * (h - 0.5)] } else { [0.0; 2] }
+            let h = |k: u64| ((p as u64 * 2 + k).wrapping_mul(0x9E3779B97F4A7C15) >> 40) as f64 / (1u64 << 24) as f64 - 0.5;
+            if s[p] != 0.0 { [h(0), h(1)] } else { [0.0; 2] }
         })
         .collect();
-    let mut y = vec![[0.0; 2]; n];
-    let mut lam = 0.0;
-    for _ in 0..iters {
-        level.residual(&x, None, &mut y);
-        let (mut nx, mut ny) = (0.0, 0.0);
-        for p in 0..n {
-            let d = level.inv_diag[p];
-            y[p] = [-y[p][0] * d, -y[p][1] * d];
-            nx += x[p][0] * x[p][0] + x[p][1] * x[p][1];
-            ny += y[p][0] * y[p][0] + y[p][1] * y[p][1];
-        }
-        if nx == 0.0 || ny == 0.0 {
-            return 0.0;
-        }
-        lam = (ny / nx).sqrt();
-        std::mem::swap(&mut x, &mut y);
+    let norm = |a: &[V2]| a.iter().map(|x| x[0] * x[0] + x[1] * x[1]).sum::<f64>().sqrt();
+    let nv = norm(&v);
+    if nv == 0.0 {
+        return 0.0;
     }
-    lam
+    v.iter_mut().for_each(|x| *x = [x[0] / nv, x[1] / nv]);
+    let mut prev = vec![[0.0; 2]; n];
+    let mut t = vec![[0.0; 2]; n];
+    let mut w = vec![[0.0; 2]; n];
+    let (mut alpha, mut beta) = (Vec::new(), Vec::new());
+    for _ in 0..steps {
+        for p in 0..n {
+            t[p] = [v[p][0] * s[p], v[p][1] * s[p]];
+        }
+        level.residual(&t, None, &mut w); // −A D^-1/2 v
+        let mut a = 0.0;
+        for p in 0..n {
+            w[p] = [-w[p][0] * s[p], -w[p][1] * s[p]];
+            a += w[p][0] * v[p][0] + w[p][1] * v[p][1];
+        }
+        let b_prev = beta.last().copied().unwrap_or(0.0);
+        for p in 0..n {
+            w[p][0] -= a * v[p][0] + b_prev * prev[p][0];
+            w[p][1] -= a * v[p][1] + b_prev * prev[p][1];
+        }
+        alpha.push(a);
+        let b = norm(&w);
+        if b <= 1e-12 * a.abs() {
+            break;
+        }
+        beta.push(b);
+        std::mem::swap(&mut prev, &mut v);
+        for p in 0..n {
+            v[p] = [w[p][0] / b, w[p][1] / b];
+        }
+    }
+    tridiagonal_max(&alpha, &beta[..alpha.len() - 1])
+}
+
+/// Largest eigenvalue of the symmetric tridiagonal matrix with diagonal `a` and
+/// off-diagonal `b`, by bisection on Sturm counts.
+fn tridiagonal_max(a: &[f64], b: &[f64]) -> f64 {
+    // Eigenvalues above x: sign changes of the LDLᵀ pivots of T − x.
+    let above = |x: f64| {
+        let (mut count, mut d) = (0, 1.0);
+        for i in 0..a.len() {
+            let off = if i > 0 { b[i - 1] * b[i - 1] } else { 0.0 };
+            d = a[i] - x - if i > 0 { off / d } else { 0.0 };
+            if d == 0.0 {
+                d = -1e-300;
+            }
+            if d > 0.0 {
+                count += 1;
+            }
+        }
+        count
+    };
+    let mut hi = (0..a.len()).map(|i| a[i] + if i > 0 { b[i - 1].abs() } else { 0.0 } + b.get(i).map_or(0.0, |v| v.abs())).fold(0.0, f64::max);
+    let mut lo = 0.0;
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if above(mid) > 0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
 }
 
 fn fill_zero<T: Real>(v: &mut [[T; 2]]) {

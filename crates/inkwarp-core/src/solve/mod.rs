@@ -29,12 +29,14 @@
 //!
 //! # The multigrid
 //!
-//! Geometric hierarchy (node (X, Y) of level k+1 sits on (2X, 2Y) of level k, with a ghost
+//! Every piece left to the iteration is solved apart, on the box around it (its own
+//! hierarchy, steps and stopping rule). Geometric hierarchy (node (X, Y) of level k+1 sits on (2X, 2Y) of level k, with a ghost
 //! node past the last column and row of even-sized levels) with *link-aware* bilinear
 //! prolongation that never interpolates across a missing link or from an inactive node,
 //! *Galerkin* coarse operators `Pᵀ A P` stored as 5 × 5 stencils per node (so every coarse
 //! level sees the exact energy of its coarse functions on the fine domain, however thin the
-//! holes and cuts), Chebyshev–Jacobi smoothing (symmetric, parallel), energy line searches on
+//! holes and cuts), Chebyshev–Jacobi smoothing (symmetric, parallel, its range from a
+//! Lanczos estimate of each level's top eigenvalue), energy line searches on
 //! the coarse corrections, W-cycles below the finest level, a banded Cholesky solve on the
 //! coarsest level, a coarse-to-fine start, and the cycle as the preconditioner of a flexible
 //! conjugate gradient on the finest level. On grids with holes or cuts each cycle also visits
@@ -108,9 +110,10 @@ impl Default for SolveOptions {
 /// What a solve did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SolveReport {
-    /// V-cycles run after the coarse-to-fine start (Southwell: relaxation passes).
+    /// V-cycles run after the coarse-to-fine start (Southwell: relaxation passes); with
+    /// several pieces, which are solved apart, the most any piece took.
     pub cycles: usize,
-    /// Largest change of any node in the last cycle (pixels).
+    /// Largest change of any node in the last cycle (pixels; of any piece).
     pub final_change_px: f64,
     /// Largest residual of any unknown after the solve, scaled by its diagonal
     /// (`max |r_i| / a_ii`, pixels: how far one relaxation would still move it).
@@ -272,62 +275,111 @@ pub(crate) fn solve_constrained(
     let (labels, count) = grid.pieces();
     let pieces = classify(grid, &labels, count, constraints, tau);
 
-    // The nodes left to the multigrid, with the pinned ones.
-    let solved = |i: usize| {
-        labels[i] != u32::MAX && matches!(pieces[labels[i] as usize], Piece::Line { .. } | Piece::General)
-    };
-    let active: Vec<bool> = (0..n).map(solved).collect();
-    for i in 0..n {
-        if labels[i] == u32::MAX {
+    // Each piece is a problem of its own: translated pieces take their constraint, and
+    // the others are solved one by one, each on the box around it (its own hierarchy,
+    // conjugate-gradient steps and stopping rule: one iteration over several pieces
+    // shares its step lengths between them, and a piece whose start is far off holds
+    // back the others and fools the stopping rule).
+    let mut boxes = vec![[usize::MAX, usize::MAX, 0, 0]; count];
+    for (i, &l) in labels.iter().enumerate() {
+        if l == u32::MAX {
             continue;
         }
-        if let Piece::Translate(v) = pieces[labels[i] as usize] {
-            field.dx[i] = v[0] as f32;
-            field.dy[i] = v[1] as f32;
+        match pieces[l as usize] {
+            Piece::Zero => {}
+            Piece::Translate(v) => {
+                field.dx[i] = v[0] as f32;
+                field.dy[i] = v[1] as f32;
+            }
+            Piece::Line { .. } | Piece::General => {
+                let (x, y) = (i % w, i / w);
+                let b = &mut boxes[l as usize];
+                *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
+            }
         }
     }
-    if !active.iter().any(|&a| a) {
-        return (field, report);
-    }
-    let mut fixed = vec![false; n];
-    // (node, value) of every fixed node: the constrained ones, then the gauge pins.
-    let mut value: Vec<(usize, V2)> = Vec::with_capacity(constraints.len());
+    // Constraints by piece, and the mean constraint of each (the gauge pin's value of a
+    // one-line piece without a warm start).
+    let mut by_piece: Vec<Vec<usize>> = vec![Vec::new(); count];
     for (k, &i) in constraints.nodes.iter().enumerate() {
-        if active[i] {
-            fixed[i] = true;
-            value.push((i, constraints.values[k]));
+        by_piece[labels[i] as usize].push(k);
+    }
+    let mut out: Vec<V2> = vec![[0.0; 2]; n];
+    let mut solved_any = false;
+    for (l, piece) in pieces.iter().enumerate() {
+        let gauge = match *piece {
+            Piece::Line { gauge, .. } => Some(gauge),
+            Piece::General => None,
+            _ => continue,
+        };
+        let [x0, y0, x1, y1] = boxes[l];
+        let (bw, bh) = (x1 - x0, y1 - y0);
+        let global = |j: usize| (y0 + j / bw) * w + x0 + j % bw;
+        let active: Vec<bool> = (0..bw * bh).map(|j| labels[global(j)] == l as u32).collect();
+        let right = (0..bw * bh).map(|j| j % bw + 1 < bw && active[j] && grid.link_right[global(j)]).collect();
+        let down = (0..bw * bh).map(|j| j + bw < bw * bh && active[j] && grid.link_down[global(j)]).collect();
+        let local = |i: usize| (i / w - y0) * bw + i % w - x0;
+        let mut fixed = vec![false; bw * bh];
+        // (node, value) of every fixed node: the constrained ones, then the gauge pin.
+        let mut value: Vec<(usize, V2)> = Vec::with_capacity(by_piece[l].len() + 1);
+        for &k in &by_piece[l] {
+            let j = local(constraints.nodes[k]);
+            fixed[j] = true;
+            value.push((j, constraints.values[k]));
         }
-    }
-    // Gauge pins of the one-line pieces: the warm start's value, else the mean constraint.
-    let mut piece_mean = vec![[0.0f64; 3]; count];
-    for (k, &i) in constraints.nodes.iter().enumerate() {
-        let m = &mut piece_mean[labels[i] as usize];
-        m[0] += constraints.values[k][0];
-        m[1] += constraints.values[k][1];
-        m[2] += 1.0;
+        if let Some(g) = gauge {
+            let v = match initial {
+                Some(f) => [f.dx[g] as f64, f.dy[g] as f64],
+                None => {
+                    let m = by_piece[l].len() as f64;
+                    let sum = by_piece[l].iter().fold([0.0; 2], |s, &k| [s[0] + constraints.values[k][0], s[1] + constraints.values[k][1]]);
+                    [sum[0] / m, sum[1] / m]
+                }
+            };
+            fixed[local(g)] = true;
+            value.push((local(g), v));
+        }
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), active, right, down, fixed, second_space: second_space_enabled() };
+        let start = initial.map(|f| (0..bw * bh).map(|j| [f.dx[global(j)] as f64, f.dy[global(j)] as f64]).collect::<Vec<V2>>());
+        let (u, r) = solve_piece(key, &value, start.as_deref(), options);
+        for (j, v) in u.into_iter().enumerate() {
+            if labels[global(j)] == l as u32 {
+                out[global(j)] = v;
+            }
+        }
+        if solved_any {
+            report.cycles = report.cycles.max(r.cycles);
+            report.final_change_px = report.final_change_px.max(r.final_change_px);
+            report.residual = report.residual.max(r.residual);
+            report.initial_residual = report.initial_residual.max(r.initial_residual);
+            report.converged &= r.converged;
+        } else {
+            (report.cycles, report.final_change_px, report.residual, report.initial_residual, report.converged) =
+                (r.cycles, r.final_change_px, r.residual, r.initial_residual, r.converged);
+            solved_any = true;
+        }
     }
     for (l, p) in pieces.iter().enumerate() {
-        if let Piece::Line { gauge, .. } = *p {
-            fixed[gauge] = true;
-            value.push((
-                gauge,
-                match initial {
-                    Some(f) => [f.dx[gauge] as f64, f.dy[gauge] as f64],
-                    None => [piece_mean[l][0] / piece_mean[l][2], piece_mean[l][1] / piece_mean[l][2]],
-                },
-            ));
+        if let Piece::Line { a, d, .. } = *p {
+            line_correction(grid, &labels, l as u32, a, d, &mut out);
         }
     }
-    let key = CacheKey {
-        w,
-        h,
-        tau_bits: tau.to_bits(),
-        right: (0..n).map(|i| grid.link_right[i] && active[i]).collect(),
-        down: (0..n).map(|i| grid.link_down[i] && active[i]).collect(),
-        active,
-        fixed,
-        second_space: second_space_enabled(),
-    };
+    for i in 0..n {
+        if labels[i] != u32::MAX && matches!(pieces[labels[i] as usize], Piece::Line { .. } | Piece::General) {
+            field.dx[i] = out[i][0] as f32;
+            field.dy[i] = out[i][1] as f32;
+        }
+    }
+    (field, report)
+}
+
+/// Solves one piece on its box: `key` describes the box's grid (the piece active, its
+/// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start on the box.
+/// Returns the solution on the box's nodes (zero off the piece) and the report's solver
+/// fields.
+fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<&[V2]>, options: &SolveOptions) -> (Vec<V2>, SolveReport) {
+    let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
+    let mut report = SolveReport { converged: true, ..Default::default() };
     let mut hier = cache_take(&key).unwrap_or_else(|| {
         let geo = Geometry::new(w, h, key.active.clone(), key.right.clone(), key.down.clone(), Some(key.fixed.clone()));
         let fine = Level::fine(geo, tau);
@@ -345,15 +397,14 @@ pub(crate) fn solve_constrained(
         if let Some(f) = initial {
             for y in 0..h {
                 for x in 0..w {
-                    let i = y * w + x;
                     let p = fine.pidx(x, y);
                     if fine.inv_diag[p] != 0.0 {
-                        u[p] = [f.dx[i] as f64, f.dy[i] as f64];
+                        u[p] = f[y * w + x];
                     }
                 }
             }
         }
-        for &(i, v) in &value {
+        for &(i, v) in value {
             u[fine.pidx(i % w, i / w)] = v;
         }
     }
@@ -469,7 +520,7 @@ pub(crate) fn solve_constrained(
     report.residual = scaled_max(&hier.levels[0], &r);
     drop(r);
     let fine = &hier.levels[0];
-    let mut out: Vec<V2> = vec![[0.0; 2]; n];
+    let mut out: Vec<V2> = vec![[0.0; 2]; w * h];
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
@@ -481,19 +532,8 @@ pub(crate) fn solve_constrained(
     if tau == 0.0 {
         settle_loose_nodes(&fine.geo, fixed, &mut out);
     }
-    for (l, p) in pieces.iter().enumerate() {
-        if let Piece::Line { a, d, .. } = *p {
-            line_correction(grid, &labels, l as u32, a, d, &mut out);
-        }
-    }
-    for i in 0..n {
-        if fine.geo.active[i] {
-            field.dx[i] = out[i][0] as f32;
-            field.dy[i] = out[i][1] as f32;
-        }
-    }
     cache_put(key, hier);
-    (field, report)
+    (out, report)
 }
 
 /// Safety factor of the stopping rule (see the multigrid loop).
@@ -534,7 +574,7 @@ fn second_space_enabled() -> bool {
 /// one). At most `CACHE_ENTRIES` of them and `CACHE_MAX_NODES` finest nodes in all (about
 /// 150 bytes a node), so the cache stays within a few hundred megabytes.
 static CACHE: std::sync::Mutex<Vec<(CacheKey, Hierarchy)>> = std::sync::Mutex::new(Vec::new());
-const CACHE_ENTRIES: usize = 4;
+const CACHE_ENTRIES: usize = 8;
 const CACHE_MAX_NODES: usize = 1 << 22;
 
 fn cache_take(key: &CacheKey) -> Option<Hierarchy> {
