@@ -512,7 +512,7 @@ fn every_level_smooths_below_the_top_of_its_spectrum() {
     // A wedge-shaped hole whose slanted edge leaves slivers of the grid below it: the
     // second coarse space's levels over it carry modes on a few nodes along the edge, far
     // above the rest of their spectrum. A Chebyshev smoother given a bound below such a
-    // mode amplifies it on every cycle (the solve stalled).
+    // mode by more than 6.25 % amplifies it on every cycle (the solve stalled).
     let (w, h) = (64usize, 64usize);
     let wedge = |i: usize| {
         let (x, y) = ((i % w) as f64, (i / w) as f64);
@@ -545,6 +545,7 @@ fn every_level_smooths_below_the_top_of_its_spectrum() {
             let s = 1.0 / ny.sqrt();
             x = y.iter().map(|v| [v[0] * s, v[1] * s]).collect();
         }
-        assert!(level.lam_max >= top, "level {k} ({}×{}): smoothing bound {} below the spectrum's top {top}", level.geo.w, level.geo.h, level.lam_max);
+        // Two Chebyshev steps on [λ/16, λ] still damp every mode up to 6.25 % above λ.
+        assert!(1.06 * level.lam_max >= top, "level {k} ({}×{}): smoothing bound {} too far below the spectrum's top {top}", level.geo.w, level.geo.h, level.lam_max);
     }
 }
