@@ -359,6 +359,13 @@ pub(crate) fn linked_neighbours(w: usize, right: &[bool], down: &[bool], i: usiz
     nbrs
 }
 
+/// Whether a `w`-wide grid with activity `active` and links `right` and `down` (as in
+/// [`Grid`]) has an inactive node or a missing link between two active neighbours.
+pub(crate) fn torn(w: usize, active: &[bool], right: &[bool], down: &[bool]) -> bool {
+    let n = active.len();
+    (0..n).any(|i| !active[i] || (i % w + 1 < w && !right[i]) || (i + w < n && !down[i]))
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;

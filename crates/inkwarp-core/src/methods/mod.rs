@@ -362,15 +362,7 @@ pub fn controls_field(
 
 /// Whether `grid` has an inactive node or a missing link between two active neighbours.
 pub fn grid_has_discontinuities(grid: &Grid) -> bool {
-    let (w, h) = (grid.width, grid.height);
-    (0..h).any(|y| {
-        (0..w).any(|x| {
-            let i = y * w + x;
-            !grid.active[i]
-                || (x + 1 < w && !grid.link_right[i])
-                || (y + 1 < h && !grid.link_down[i])
-        })
-    })
+    crate::grid::torn(grid.width, &grid.active, &grid.link_right, &grid.link_down)
 }
 
 #[inline]

@@ -275,8 +275,7 @@ fn tridiagonal_max(a: &[f64], b: &[f64]) -> f64 {
     let above = |x: f64| {
         let (mut count, mut d) = (0, 1.0);
         for i in 0..a.len() {
-            let off = if i > 0 { b[i - 1] * b[i - 1] } else { 0.0 };
-            d = a[i] - x - if i > 0 { off / d } else { 0.0 };
+            d = a[i] - x - if i > 0 { b[i - 1] * b[i - 1] / d } else { 0.0 };
             if d == 0.0 {
                 d = -1e-300;
             }

@@ -153,12 +153,7 @@ impl Geometry {
 
     /// Whether the geometry has inactive nodes or missing links between active neighbours.
     pub fn torn(&self) -> bool {
-        let (w, n) = (self.w, self.w * self.h);
-        (0..n).any(|i| {
-            !self.active[i]
-                || (i % w + 1 < w && self.active[i + 1] && !self.right[i])
-                || (i + w < n && self.active[i + w] && !self.down[i])
-        })
+        crate::grid::torn(self.w, &self.active, &self.right, &self.down)
     }
 
     /// Fills the table of prolongation rows. Every weight is a multiple of 1/24 (halves,
@@ -202,83 +197,54 @@ impl Geometry {
         }
         match (x & 1, y & 1) {
             (0, 0) => [1.0, 0.0, 0.0, 0.0],
-            // The last node of an even-sized row or column has the ghost coarse node
-            // beyond it (see `coarsen`).
-            (1, 0) => {
-                let l = self.right[i - 1];
-                let r = x + 1 == self.w || self.right[i];
-                pair(l, r, 0, 1)
-            }
-            (0, 1) => {
-                let u = self.down[i - self.w];
-                let d = y + 1 == self.h || self.down[i];
-                pair(u, d, 0, 2)
-            }
+            (1, 0) => self.along_row(x, y, 0, 1),
+            (0, 1) => self.along_column(x, y, 0, 2),
             _ => {
+                // The rows of its linked edge neighbours, each read into the two corners it
+                // shares with this node. Past the last column (row) sits the ghost coarse
+                // node's column (row), whose nodes would interpolate along this node's
+                // column (row) links (see `coarsen`).
+                let left = self.right[i - 1].then(|| self.along_column(x - 1, y, 0, 2));
+                let right = if x + 1 == self.w {
+                    Some(self.along_column(x, y, 1, 3))
+                } else {
+                    self.right[i].then(|| self.along_column(x + 1, y, 1, 3))
+                };
+                let up = self.down[i - self.w].then(|| self.along_row(x, y - 1, 0, 1));
+                let down = if y + 1 == self.h {
+                    Some(self.along_row(x, y, 2, 3))
+                } else {
+                    self.down[i].then(|| self.along_row(x, y + 1, 2, 3))
+                };
                 let mut acc = [0.0; 4];
                 let mut k = 0.0;
-                // left neighbour (x-1, y): even-odd, corners (cx, cy), (cx, cy+1)
-                if self.right[i - 1] {
-                    let r = self.geo_row(x - 1, y);
-                    if r[0] + r[2] > 0.0 {
-                        acc[0] += r[0];
-                        acc[2] += r[2];
-                        k += 1.0;
-                    }
-                }
-                if x + 1 == self.w {
-                    // The ghost column: a node there would interpolate along this column's
-                    // links (see `coarsen`).
-                    let u = self.down[i - self.w];
-                    let d = y + 1 == self.h || self.down[i];
-                    let r = pair(u, d, 1, 3);
-                    if r[1] + r[3] > 0.0 {
-                        acc[1] += r[1];
-                        acc[3] += r[3];
-                        k += 1.0;
-                    }
-                } else if self.right[i] {
-                    let r = self.geo_row(x + 1, y);
-                    if r[0] + r[2] > 0.0 {
-                        acc[1] += r[0];
-                        acc[3] += r[2];
-                        k += 1.0;
-                    }
-                }
-                if self.down[i - self.w] {
-                    let r = self.geo_row(x, y - 1);
-                    if r[0] + r[1] > 0.0 {
-                        acc[0] += r[0];
-                        acc[1] += r[1];
-                        k += 1.0;
-                    }
-                }
-                if y + 1 == self.h {
-                    // The ghost row, likewise along this row's links.
-                    let l = self.right[i - 1];
-                    let r = x + 1 == self.w || self.right[i];
-                    let g = pair(l, r, 2, 3);
-                    if g[2] + g[3] > 0.0 {
-                        acc[2] += g[2];
-                        acc[3] += g[3];
-                        k += 1.0;
-                    }
-                } else if self.down[i] {
-                    let r = self.geo_row(x, y + 1);
-                    if r[0] + r[1] > 0.0 {
-                        acc[2] += r[0];
-                        acc[3] += r[1];
+                for r in [left, right, up, down].into_iter().flatten() {
+                    if r.iter().sum::<f64>() > 0.0 {
+                        acc.iter_mut().zip(r).for_each(|(a, v)| *a += v);
                         k += 1.0;
                     }
                 }
                 if k > 0.0 {
-                    for a in &mut acc {
-                        *a /= k;
-                    }
+                    acc.iter_mut().for_each(|a| *a /= k);
                 }
                 acc
             }
         }
+    }
+
+    /// The row of node (x, y) interpolating along row y between the coarse corners in
+    /// slots `sa` (left) and `sb` (right), dropping one across a missing link; the last
+    /// node of an even-sized row has the ghost coarse node beyond it (see `coarsen`).
+    fn along_row(&self, x: usize, y: usize, sa: usize, sb: usize) -> [f64; 4] {
+        let i = self.idx(x, y);
+        pair(self.right[i - 1], x + 1 == self.w || self.right[i], sa, sb)
+    }
+
+    /// The same along column x, between the corners in slots `sa` (above) and `sb`
+    /// (below).
+    fn along_column(&self, x: usize, y: usize, sa: usize, sb: usize) -> [f64; 4] {
+        let i = self.idx(x, y);
+        pair(self.down[i - self.w], y + 1 == self.h || self.down[i], sa, sb)
     }
 
     /// Prolongation row used by the solver: the geometric row, or nothing for a fixed node.

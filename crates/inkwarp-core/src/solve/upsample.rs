@@ -223,8 +223,9 @@ fn touched_cells(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps], cw:
             }
         }
     };
-    // Whether all of `flags` are set, branch-free over chunks so that it vectorises.
-    let all = |flags: &[bool]| flags.chunks(64).all(|c| c.iter().fold(true, |a, &b| a & b));
+    // Whether all of `flags` (one stretch of a row) are set, branch-free so that it
+    // vectorises.
+    let all = |flags: &[bool]| flags.iter().fold(true, |a, &b| a & b);
     const CHUNK: usize = 64;
     for y in 0..h {
         let row = y * w;
