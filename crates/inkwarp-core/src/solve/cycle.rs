@@ -20,9 +20,10 @@ pub(crate) struct Hierarchy {
     work: Vec<Work>,
     coarsest: Banded,
     pub degree: usize,
-    /// Coarse-grid visits per level (1: V-cycle, 2: W-cycle).
+    /// Coarse-grid visits per level below the finest (1: V-cycle; 2: K-cycle, two flexible
+    /// conjugate-gradient steps on each coarse problem, see [`Hierarchy::k_correction`]).
     pub gamma: usize,
-    /// Scale every coarse correction by its energy-minimising step.
+    /// Scale every single coarse correction by its energy-minimising step.
     pub line_search: bool,
     /// A second coarse space for the finest level (see [`Level::into_plain`]), visited
     /// after the first on every cycle; its own levels are regular grids.
@@ -36,6 +37,10 @@ struct Work {
     f: Vec<W2>,
     r: Vec<W2>,
     d: Vec<W2>,
+    /// The first search direction of a K-cycle's coarse problem, and `A` times it (empty
+    /// on levels that no K-cycle solves on).
+    z1: Vec<W2>,
+    q1: Vec<W2>,
 }
 
 impl Hierarchy {
@@ -70,7 +75,15 @@ impl Hierarchy {
             .enumerate()
             .map(|(k, l)| {
                 let n = if k == 0 && !smooth_fine { 0 } else { l.len_padded() };
-                Work { x: vec![[0.0; 2]; n], f: vec![[0.0; 2]; n], r: vec![[0.0; 2]; n], d: vec![[0.0; 2]; n] }
+                let k_solved = if k >= 2 { n } else { 0 };
+                Work {
+                    x: vec![[0.0; 2]; n],
+                    f: vec![[0.0; 2]; n],
+                    r: vec![[0.0; 2]; n],
+                    d: vec![[0.0; 2]; n],
+                    z1: vec![[0.0; 2]; k_solved],
+                    q1: vec![[0.0; 2]; k_solved],
+                }
             })
             .collect();
         // Chebyshev needs the top of the spectrum of D⁻¹A: its two steps aimed at [λ/16, λ]
@@ -130,17 +143,17 @@ impl Hierarchy {
         }
         {
             let w = &mut work[0];
-            let Work { x, f, r, d } = w;
+            let Work { x, f, r, d, .. } = w;
             smooth(level, x, Some(f), r, d, self.degree, x_zero);
             level.residual(x, Some(f), r);
         }
         let (head, tail) = work.split_at_mut(1);
         let w = &mut head[0];
-        let visits = if k == 0 || k + 2 == self.levels.len() { 1 } else { self.gamma };
-        for visit in 0..visits {
-            if visit > 0 {
-                level.residual(&w.x, Some(&w.f), &mut w.r);
-            }
+        // The finest level's own Krylov method is the conjugate gradient around the cycle;
+        // the level above the coarsest solves exactly, one visit is all it needs.
+        if k > 0 && k + 2 < self.levels.len() && self.gamma == 2 {
+            self.k_correction(k, w, tail);
+        } else {
             restrict(level, &self.levels[k + 1], &w.r, &mut tail[0].f);
             fill_zero(&mut tail[0].x);
             self.solve_level(k + 1, tail, true, None);
@@ -161,8 +174,70 @@ impl Hierarchy {
             // down by a few percent, to no gain.
             prolong_add(&alt.levels[0], &alt.levels[1], &atail[0].x, &mut w.x);
         }
-        let Work { x, f, r, d } = w;
+        let Work { x, f, r, d, .. } = w;
         smooth(level, x, Some(f), r, d, self.degree, false);
+    }
+
+    /// Level k's coarse correction from its residual `w.r`: two steps of flexible conjugate
+    /// gradients on the coarse problem `A_c e = Pᵀ r`, each preconditioned by one cycle of
+    /// level k + 1 (a K-cycle), then `P e` added to `w.x`. Per component, with `zᵢ` the
+    /// cycles' outputs:
+    ///
+    /// ```text
+    /// e = α₁ z₁ + α₂ d,   α₁ = z₁ᵀf / z₁ᵀA z₁,   d = z₂ − β z₁,   β = z₂ᵀA z₁ / z₁ᵀA z₁,
+    /// α₂ = dᵀ(f − α₁ A z₁) / dᵀA d
+    /// ```
+    ///
+    /// The second step is the energy minimiser over both directions, where a W-cycle's second
+    /// visit (and its line search) takes the second direction alone; it also needs no fine
+    /// residual between the visits, the coarse one being updated in place. Measured against
+    /// the W-cycle with line searches: 513 × 513 with 10 points 10 cycles instead of 11,
+    /// with a cut and a ring-shaped hole 24 and 26 instead of 27.
+    fn k_correction(&self, k: usize, w: &mut Work, tail: &mut [Work]) {
+        let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
+        restrict(level, coarse, &w.r, &mut tail[0].f);
+        fill_zero(&mut tail[0].x);
+        self.solve_level(k + 1, tail, true, None);
+        let c = &mut tail[0];
+        coarse.residual(&c.x, None, &mut c.r); // −A z₁ on the unknowns
+        let zaz = dot_w(&c.x, &c.r).map(|v| -v);
+        let zf = dot_w(&c.x, &c.f);
+        let a1 = [step(zf[0], zaz[0]), step(zf[1], zaz[1])];
+        {
+            // Keep z₁ and A z₁; the right-hand side becomes the residual f − α₁ A z₁.
+            let a1w = [WS::of(a1[0]), WS::of(a1[1])];
+            let Work { x, f, r, z1, q1, .. } = c;
+            for_nodes(&mut [z1, q1, f], &[x, r], |[z1, q1, f], [z, r]| {
+                *z1 = z;
+                *q1 = [WS::ZERO - r[0], WS::ZERO - r[1]];
+                *f = [f[0] + a1w[0] * r[0], f[1] + a1w[1] * r[1]];
+            });
+        }
+        fill_zero(&mut c.x);
+        self.solve_level(k + 1, tail, true, None);
+        let c = &mut tail[0];
+        coarse.residual(&c.x, None, &mut c.r); // −A z₂
+        let z2az1 = dot_w(&c.x, &c.q1);
+        let beta = [step(z2az1[0], zaz[0]), step(z2az1[1], zaz[1])];
+        let bw = [WS::of(beta[0]), WS::of(beta[1])];
+        {
+            // d = z₂ − β z₁ into x, A d = −r − β A z₁ into r.
+            let Work { x, r, z1, q1, .. } = c;
+            for_nodes(&mut [x, r], &[z1, q1], |[x, r], [z1, q1]| {
+                *x = [x[0] - bw[0] * z1[0], x[1] - bw[1] * z1[1]];
+                *r = [WS::ZERO - r[0] - bw[0] * q1[0], WS::ZERO - r[1] - bw[1] * q1[1]];
+            });
+        }
+        let (df, dad) = (dot_w(&c.x, &c.f), dot_w(&c.x, &c.r));
+        let a2 = [step(df[0], dad[0]), step(df[1], dad[1])];
+        let (a1w, a2w) = ([WS::of(a1[0]), WS::of(a1[1])], [WS::of(a2[0]), WS::of(a2[1])]);
+        {
+            let Work { x, z1, .. } = c;
+            for_nodes(&mut [x], &[z1], |[x], [z1]| {
+                *x = [a1w[0] * z1[0] + a2w[0] * x[0], a1w[1] * z1[1] + a2w[1] * x[1]];
+            });
+        }
+        prolong_add(level, coarse, &c.x, &mut w.x);
     }
 
     /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on
@@ -296,6 +371,61 @@ fn tridiagonal_max(a: &[f64], b: &[f64]) -> f64 {
         }
     }
     hi
+}
+
+/// `num / den`, or 0 where the direction has no energy (`den ≤ 0`).
+fn step(num: f64, den: f64) -> f64 {
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
+}
+
+/// `Σ a_i b_i` per component, in `f64`.
+fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
+    let dot = |a: &[W2], b: &[W2]| {
+        a.iter().zip(b).fold([0.0f64; 2], |s, (x, y)| [s[0] + (x[0] * y[0]).get(), s[1] + (x[1] * y[1]).get()])
+    };
+    if a.len() >= PAR_MIN {
+        a.par_chunks(4096).zip(b.par_chunks(4096)).map(|(a, b)| dot(a, b)).reduce(|| [0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
+    } else {
+        dot(a, b)
+    }
+}
+
+/// `f(outs[·][i], ins[·][i])` for every node `i` (the vectors' lengths are equal), in
+/// parallel chunks on large levels.
+fn for_nodes<const M: usize, const N: usize>(
+    outs: &mut [&mut Vec<W2>; M],
+    ins: &[&Vec<W2>; N],
+    f: impl Fn([&mut W2; M], [W2; N]) + Sync + Send,
+) {
+    let len = ins[0].len();
+    let run = |start: usize, end: usize, outs: &mut [&mut [W2]; M]| {
+        for i in start..end {
+            let o = outs.each_mut().map(|v| &mut v[i - start]);
+            f(o, ins.map(|v| v[i]));
+        }
+    };
+    if len >= PAR_MIN {
+        const CH: usize = 4096;
+        let mut chunks: Vec<[&mut [W2]; M]> = Vec::new();
+        let mut rest: [&mut [W2]; M] = outs.each_mut().map(|v| v.as_mut_slice());
+        let mut start = 0;
+        while start < len {
+            let take = CH.min(len - start);
+            let (head, tail): (Vec<&mut [W2]>, Vec<&mut [W2]>) =
+                rest.into_iter().map(|v| v.split_at_mut(take)).unzip();
+            chunks.push(head.try_into().unwrap_or_else(|_| unreachable!()));
+            rest = tail.try_into().unwrap_or_else(|_| unreachable!());
+            start += take;
+        }
+        chunks.into_par_iter().enumerate().for_each(|(c, mut o)| run(c * CH, c * CH + o[0].len(), &mut o));
+    } else {
+        let mut o = outs.each_mut().map(|v| v.as_mut_slice());
+        run(0, len, &mut o);
+    }
 }
 
 fn fill_zero<T: Real>(v: &mut [[T; 2]]) {
@@ -522,5 +652,70 @@ impl Banded {
         for (k, &p) in self.map.iter().enumerate() {
             x[p] = [T::of(z[k][0]), T::of(z[k][1])];
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::Grid;
+    use crate::solve::tests::fine_level;
+
+    /// Coarse energy `½ eᵀA e − eᵀf` of `e`, per component.
+    fn energy(level: &Level, e: &[W2], f: &[W2]) -> [f64; 2] {
+        let mut r = vec![[0.0; 2]; e.len()];
+        level.residual(e, None, &mut r); // −A e
+        let (ear, ef) = (dot_w(e, &r), dot_w(e, f));
+        [-0.5 * ear[0] - ef[0], -0.5 * ear[1] - ef[1]]
+    }
+
+    #[test]
+    fn a_k_cycle_minimises_the_coarse_energy_over_both_directions() {
+        // A grid with a hole and a cut, a few pinned nodes, a random fine residual: the
+        // K-cycle's coarse correction must leave a residual orthogonal to its first
+        // direction (the second direction is A-conjugate to it) and end at lower energy
+        // than the first direction's line search alone.
+        let (w, h) = (72usize, 66usize);
+        let mut grid = Grid::from_active(w, h, (0..w * h).map(|i| ((i % w) as f64 - 40.0).hypot((i / w) as f64 - 30.0) > 7.0).collect());
+        grid.add_cut(&[[10.5, 50.2], [45.3, 58.7]]);
+        let mut fixed = vec![false; w * h];
+        for i in [3 * w + 4, 20 * w + 60, 55 * w + 20, 64 * w + 70] {
+            fixed[i] = true;
+        }
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2);
+        assert!(hier.levels.len() >= 4, "the test needs a level with a K-cycle below it");
+        let mut rnd = crate::grid::tests::sequence(5);
+        let k = 1;
+        let level = &hier.levels[k];
+        let mut work = std::mem::take(&mut hier.work);
+        let (head, tail) = work.split_at_mut(k + 1);
+        let wk = &mut head[k];
+        for p in 0..wk.r.len() {
+            wk.r[p] = if level.inv_diag[p] != 0.0 { [WS::of(rnd() - 0.5), WS::of(rnd() - 0.5)] } else { [WS::ZERO; 2] };
+        }
+        fill_zero(&mut wk.x);
+        let coarse = &hier.levels[k + 1];
+        let mut f = vec![[WS::ZERO; 2]; coarse.len_padded()];
+        restrict(level, coarse, &wk.r, &mut f);
+
+        hier.k_correction(k, wk, tail);
+        let c = &tail[0];
+        let e = c.x.clone();
+        // The energy of α₁ z₁ alone: α₁ = z₁ᵀf / z₁ᵀA z₁ gives −½ (z₁ᵀf)² / z₁ᵀA z₁.
+        let (zf, mut az) = (dot_w(&c.z1, &f), vec![[WS::ZERO; 2]; f.len()]);
+        coarse.residual(&c.z1, None, &mut az);
+        let zaz = dot_w(&c.z1, &az);
+        let mut r = vec![[WS::ZERO; 2]; f.len()];
+        coarse.residual(&e, Some(&f), &mut r);
+        let (ek, rz, rr, ff) = (energy(coarse, &e, &f), dot_w(&r, &c.z1), dot_w(&r, &r), dot_w(&f, &f));
+        let zz = dot_w(&c.z1, &c.z1);
+        for q in 0..2 {
+            let first = -0.5 * zf[q] * zf[q] / -zaz[q];
+            assert!(ek[q] < first * 1.01, "component {q}: energy {} not 1 % below the first step's {first}", ek[q]);
+            assert!(rz[q].abs() <= 1e-3 * (rr[q] * zz[q]).sqrt().max(1e-12 * ff[q]), "component {q}: residual not orthogonal to z₁: {}", rz[q]);
+        }
+        // And the correction reached the fine level.
+        assert!(wk.x.iter().any(|v| v[0] != WS::ZERO));
+        hier.work = work;
     }
 }

@@ -37,10 +37,10 @@
 //! *Galerkin* coarse operators `Pᵀ A P` stored as 5 × 5 stencils per node (so every coarse
 //! level sees the exact energy of its coarse functions on the fine domain, however thin the
 //! holes and cuts), Chebyshev–Jacobi smoothing (symmetric, parallel, its range from a
-//! Lanczos estimate of each level's top eigenvalue), energy line searches on
-//! the coarse corrections, W-cycles below the finest level, a banded Cholesky solve on the
-//! coarsest level, a coarse-to-fine start, and the cycle as the preconditioner of a flexible
-//! conjugate gradient on the finest level. On grids with holes or cuts each cycle also visits
+//! Lanczos estimate of each level's top eigenvalue), K-cycles below the finest level (two
+//! flexible conjugate-gradient steps on each coarse problem, the first an energy line
+//! search), a banded Cholesky solve on the coarsest level, a coarse-to-fine start, and the
+//! cycle as the preconditioner of a flexible conjugate gradient on the finest level. On grids with holes or cuts each cycle also visits
 //! a second coarse space, built with the plain bilinear prolongation of the same grid
 //! without them: the link-aware one extrapolates a constant at every missing link, so it
 //! lacks the functions that run linearly up to (and across) a hole or cut, and the plain

@@ -15,7 +15,7 @@ impl Rng {
 }
 
 /// The finest level of `grid` with the given fixed nodes and tension.
-fn fine_level(grid: &Grid, fixed: Option<Vec<bool>>, tau: f64) -> Level {
+pub(super) fn fine_level(grid: &Grid, fixed: Option<Vec<bool>>, tau: f64) -> Level {
     let geo = level::Geometry::new(grid.width, grid.height, grid.active.clone(), grid.link_right.clone(), grid.link_down.clone(), fixed);
     Level::fine(geo, tau)
 }
