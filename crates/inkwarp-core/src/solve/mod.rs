@@ -303,20 +303,21 @@ pub(crate) fn solve_constrained(
     // shares its step lengths between them, and a piece whose start is far off holds
     // back the others and fools the stopping rule).
     let mut boxes = vec![[usize::MAX, usize::MAX, 0, 0]; count];
-    for (i, &l) in labels.iter().enumerate() {
-        if l == u32::MAX {
-            continue;
-        }
-        match pieces[l as usize] {
-            Piece::Zero => {}
-            Piece::Translate(v) => {
-                field.dx[i] = v[0] as f32;
-                field.dy[i] = v[1] as f32;
+    for (y, row) in labels.chunks_exact(w).enumerate() {
+        for (x, &l) in row.iter().enumerate() {
+            if l == u32::MAX {
+                continue;
             }
-            Piece::Line { .. } | Piece::General => {
-                let (x, y) = (i % w, i / w);
-                let b = &mut boxes[l as usize];
-                *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
+            match pieces[l as usize] {
+                Piece::Zero => {}
+                Piece::Translate(v) => {
+                    field.dx[y * w + x] = v[0] as f32;
+                    field.dy[y * w + x] = v[1] as f32;
+                }
+                Piece::Line { .. } | Piece::General => {
+                    let b = &mut boxes[l as usize];
+                    *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
+                }
             }
         }
     }
@@ -326,7 +327,10 @@ pub(crate) fn solve_constrained(
     for (k, &i) in constraints.nodes.iter().enumerate() {
         by_piece[labels[i] as usize].push(k);
     }
-    let mut out: Vec<V2> = vec![[0.0; 2]; n];
+    // The solved pieces' values; pieces on one line are corrected in it before they go to
+    // the field.
+    let lines = pieces.iter().any(|p| matches!(p, Piece::Line { .. }));
+    let mut out: Vec<V2> = if lines { spare_zeroed(n) } else { Vec::new() };
     for (l, piece) in pieces.iter().enumerate() {
         let gauge = match *piece {
             Piece::Line { gauge, .. } => Some(gauge),
@@ -335,10 +339,24 @@ pub(crate) fn solve_constrained(
         };
         let [x0, y0, x1, y1] = boxes[l];
         let (bw, bh) = (x1 - x0, y1 - y0);
-        let global = |j: usize| (y0 + j / bw) * w + x0 + j % bw;
-        let active: Vec<bool> = (0..bw * bh).map(|j| labels[global(j)] == l as u32).collect();
-        let right = (0..bw * bh).map(|j| j % bw + 1 < bw && active[j] && grid.link_right[global(j)]).collect();
-        let down = (0..bw * bh).map(|j| j + bw < bw * bh && active[j] && grid.link_down[global(j)]).collect();
+        // Row `by` of the box as a range of the grid's nodes.
+        let rows = |by: usize| (y0 + by) * w + x0..(y0 + by) * w + x1;
+        let (mut active, mut right, mut down) = (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh]);
+        for by in 0..bh {
+            let g = rows(by);
+            let b = by * bw..(by + 1) * bw;
+            for (a, &lab) in active[b.clone()].iter_mut().zip(&labels[g.clone()]) {
+                *a = lab == l as u32;
+            }
+            for (bx, (r, &link)) in right[b.clone()].iter_mut().zip(&grid.link_right[g.clone()]).enumerate() {
+                *r = bx + 1 < bw && link && active[by * bw + bx];
+            }
+            if by + 1 < bh {
+                for (bx, (d, &link)) in down[b].iter_mut().zip(&grid.link_down[g]).enumerate() {
+                    *d = link && active[by * bw + bx];
+                }
+            }
+        }
         let local = |i: usize| (i / w - y0) * bw + i % w - x0;
         let mut fixed = vec![false; bw * bh];
         // (node, value) of every fixed node: the constrained ones, then the gauge pin.
@@ -361,13 +379,23 @@ pub(crate) fn solve_constrained(
             value.push((local(g), v));
         }
         let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), active, right, down, fixed, second_space: second_space_enabled() };
-        let start = initial.map(|f| (0..bw * bh).map(|j| [f.dx[global(j)] as f64, f.dy[global(j)] as f64]).collect::<Vec<V2>>());
-        let (u, r) = solve_piece(key, &value, start.as_deref(), options);
-        for (j, v) in u.into_iter().enumerate() {
-            if labels[global(j)] == l as u32 {
-                out[global(j)] = v;
+        let start = initial.map(|f| Start { field: f, x0, y0 });
+        let (u, r) = solve_piece(key, &value, start, options);
+        // The piece's nodes of the box, to the field or (pieces on a line) to `out`.
+        for by in 0..bh {
+            let g = rows(by);
+            for (i, v) in g.zip(&u[by * bw..(by + 1) * bw]) {
+                if labels[i] == l as u32 {
+                    if lines {
+                        out[i] = *v;
+                    } else {
+                        field.dx[i] = v[0] as f32;
+                        field.dy[i] = v[1] as f32;
+                    }
+                }
             }
         }
+        give_back(u);
         // The report starts at zero and converged: the pieces' worst.
         report.cycles = report.cycles.max(r.cycles);
         report.final_change_px = report.final_change_px.max(r.final_change_px);
@@ -375,16 +403,19 @@ pub(crate) fn solve_constrained(
         report.initial_residual = report.initial_residual.max(r.initial_residual);
         report.converged &= r.converged;
     }
-    for (l, p) in pieces.iter().enumerate() {
-        if let Piece::Line { a, d, .. } = *p {
-            line_correction(grid, &labels, l as u32, a, d, &mut out);
+    if lines {
+        for (l, p) in pieces.iter().enumerate() {
+            if let Piece::Line { a, d, .. } = *p {
+                line_correction(grid, &labels, l as u32, a, d, &mut out);
+            }
         }
-    }
-    for i in 0..n {
-        if labels[i] != u32::MAX && matches!(pieces[labels[i] as usize], Piece::Line { .. } | Piece::General) {
-            field.dx[i] = out[i][0] as f32;
-            field.dy[i] = out[i][1] as f32;
+        for i in 0..n {
+            if labels[i] != u32::MAX && matches!(pieces[labels[i] as usize], Piece::Line { .. } | Piece::General) {
+                field.dx[i] = out[i][0] as f32;
+                field.dy[i] = out[i][1] as f32;
+            }
         }
+        give_back(out);
     }
     (field, report)
 }
@@ -393,7 +424,7 @@ pub(crate) fn solve_constrained(
 /// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start on the box.
 /// Returns the solution on the box's nodes (zero off the piece) and the report's solver
 /// fields.
-fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<&[V2]>, options: &SolveOptions) -> (Vec<V2>, SolveReport) {
+fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions) -> (Vec<V2>, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport { converged: true, ..Default::default() };
     let mut hier = cache_take(&key).unwrap_or_else(|| {
@@ -407,15 +438,16 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<&[V2]>, opt
         hier
     });
     let fixed = &key.fixed;
-    let mut u: Vec<V2> = vec![[0.0; 2]; hier.levels[0].len_padded()];
+    let mut u: Vec<V2> = spare_zeroed(hier.levels[0].len_padded());
     {
         let fine = &hier.levels[0];
-        if let Some(f) = initial {
+        if let Some(Start { field, x0, y0 }) = initial {
             for y in 0..h {
-                for x in 0..w {
-                    let p = fine.pidx(x, y);
-                    if fine.inv_diag[p] != 0.0 {
-                        u[p] = f[y * w + x];
+                let g = (y0 + y) * field.width + x0;
+                let p = fine.pidx(0, y);
+                for (x, (ux, d)) in u[p..p + w].iter_mut().zip(&fine.inv_diag[p..p + w]).enumerate() {
+                    if *d != 0.0 {
+                        *ux = [field.dx[g + x] as f64, field.dy[g + x] as f64];
                     }
                 }
             }
@@ -425,7 +457,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<&[V2]>, opt
         }
     }
     let len = u.len();
-    let mut r = vec![[0.0; 2]; len];
+    let mut r = spare_zeroed(len);
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves
     // residuals above the tolerance (a user's earlier answer). A closer start (the earlier
     // frames' prediction) first gets one cycle as it is, and the coarse-to-fine correction
@@ -461,9 +493,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<&[V2]>, opt
                 STOP_MARGIN * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
             };
             {
-                let (mut z, mut q) = (Vec::new(), vec![[0.0; 2]; len]);
+                let (mut z, mut q, mut p) = (spare_zeroed(len), spare_zeroed(len), spare_zeroed(len));
                 hier.precondition(&r, &mut z);
-                let mut p = z.clone();
+                p.copy_from_slice(&z);
                 let mut rz = dot2(&r, &z);
                 for cycle in 1..=max_cycles {
                     let fine = &hier.levels[0];
@@ -520,6 +552,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<&[V2]>, opt
                     });
                     rz = rz_new;
                 }
+                give_back(z);
+                give_back(q);
+                give_back(p);
             }
         }
         SolveMethod::Southwell => {
@@ -534,22 +569,67 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<&[V2]>, opt
     // The conjugate-gradient residual is updated, not recomputed: it is the residual of u
     // up to rounding.
     report.residual = scaled_max(&hier.levels[0], &r);
-    drop(r);
+    give_back(r);
     let fine = &hier.levels[0];
-    let mut out: Vec<V2> = vec![[0.0; 2]; w * h];
+    let mut out: Vec<V2> = spare_zeroed(w * h);
     for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            if fine.geo.active[i] {
-                out[i] = u[fine.pidx(x, y)];
+        let p = fine.pidx(0, y);
+        let row = y * w..(y + 1) * w;
+        for ((o, &a), v) in out[row.clone()].iter_mut().zip(&fine.geo.active[row]).zip(&u[p..p + w]) {
+            if a {
+                *o = *v;
             }
         }
     }
+    give_back(u);
     if tau == 0.0 {
         settle_loose_nodes(&fine.geo, fixed, &mut out);
     }
     cache_put(key, hier);
     (out, report)
+}
+
+/// A warm start of one piece: `field` is the whole grid's, the piece's box starts at
+/// (`x0`, `y0`).
+#[derive(Clone, Copy)]
+struct Start<'a> {
+    field: &'a Field,
+    x0: usize,
+    y0: usize,
+}
+
+/// Spare vectors of the solves (the largest few, kept between solves): a fresh vector of a
+/// few megabytes costs a page fault for every 4 KiB when first written, which on a
+/// 513 × 513 grid added up to about a tenth of a solve.
+static SPARE: std::sync::Mutex<Vec<Vec<V2>>> = std::sync::Mutex::new(Vec::new());
+/// At most this many spare vectors, and bytes in all.
+const SPARE_VECTORS: usize = 8;
+const SPARE_BYTES: usize = 48 << 20;
+
+/// A vector of `len` zeros, from the spares when one is large enough.
+fn spare_zeroed(len: usize) -> Vec<V2> {
+    let mut spare = SPARE.lock().unwrap_or_else(|e| e.into_inner());
+    // The smallest that fits, so small solves do not use up the large vectors.
+    let best = (0..spare.len()).filter(|&k| spare[k].capacity() >= len).min_by_key(|&k| spare[k].capacity());
+    let mut v = best.map(|k| spare.swap_remove(k)).unwrap_or_default();
+    drop(spare);
+    v.clear();
+    v.resize(len, [0.0; 2]);
+    v
+}
+
+/// Keeps `v` as a spare (dropping the smallest spares past the limits).
+fn give_back(v: Vec<V2>) {
+    let bytes = |v: &Vec<V2>| v.capacity() * std::mem::size_of::<V2>();
+    if bytes(&v) > SPARE_BYTES || v.capacity() < 4096 {
+        return;
+    }
+    let mut spare = SPARE.lock().unwrap_or_else(|e| e.into_inner());
+    spare.push(v);
+    spare.sort_by_key(|v| std::cmp::Reverse(v.capacity()));
+    while spare.len() > SPARE_VECTORS || spare.iter().map(bytes).sum::<usize>() > SPARE_BYTES {
+        spare.pop();
+    }
 }
 
 /// Safety factor of the stopping rule (see the multigrid loop).
@@ -736,9 +816,16 @@ fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
         }
     }
     let loose = |i: usize| geo.active[i] && !fixed[i] && !core[i];
-    let mut group_of = vec![usize::MAX; n];
+    // Allocated at the first loose node (most grids have none).
+    let mut group_of = Vec::new();
     for start in 0..n {
-        if !loose(start) || group_of[start] != usize::MAX {
+        if !loose(start) {
+            continue;
+        }
+        if group_of.is_empty() {
+            group_of = vec![usize::MAX; n];
+        }
+        if group_of[start] != usize::MAX {
             continue;
         }
         // the group by flood fill over links
