@@ -458,6 +458,25 @@ fn fast_transfers_and_the_symmetric_stencil_match_the_general_kernels() {
             *sym = None;
             let general = run(&fine, &coarse);
             fine.geo.plain_rows = plain;
+            // And the stored kernels (irregular nodes four side by side) match the
+            // coarse residual summed node by node from each node's stencil.
+            let wp = coarse.wp;
+            let by_node: Vec<V2> = (0..coarse.len_padded())
+                .map(|p| {
+                    if coarse.inv_diag[p] == 0.0 {
+                        return [0.0; 2];
+                    }
+                    let s = coarse.row(p);
+                    let mut a = general.0[p];
+                    for t in 0..25 {
+                        let q = p + (t / 5) * wp + t % 5 - 2 * wp - 2;
+                        a = [a[0] - s[t] * e[q][0], a[1] - s[t] * e[q][1]];
+                    }
+                    a
+                })
+                .collect();
+            let d = by_node.iter().zip(&general.2).map(|(p, q)| (p[0] - q[0]).abs().max((p[1] - q[1]).abs())).fold(0.0, f64::max);
+            assert!(d < 1e-12, "{w}x{h}, level {}x{}: the stored kernels differ from the node-by-node sum by {d}", coarse.geo.w, coarse.geo.h);
             for (name, a, b) in [("restriction", &fast.0, &general.0), ("prolongation", &fast.1, &general.1), ("coarse residual", &fast.2, &general.2)] {
                 let d = a.iter().zip(b.iter()).map(|(p, q)| (p[0] - q[0]).abs().max((p[1] - q[1]).abs())).fold(0.0, f64::max);
                 assert!(d < 1e-12, "{w}x{h}, level {}x{}: {name} differs by {d}", coarse.geo.w, coarse.geo.h);
