@@ -239,15 +239,18 @@ impl Hierarchy {
 
     /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on
     /// the coarsest, then interpolated and improved by one V-cycle per level on the way up;
-    /// `u` receives the interpolated correction on the unknowns. `r` is scratch.
-    pub fn coarse_to_fine(&mut self, u: &mut [V2], r: &mut [V2]) {
+    /// `u` receives the interpolated correction on the unknowns. `r` is scratch, or holds
+    /// the residual of `u` already when `r_ready` (it is left stale).
+    pub fn coarse_to_fine(&mut self, u: &mut [V2], r: &mut [V2], r_ready: bool) {
         let nl = self.levels.len();
         if nl < 2 {
             self.direct(u, r);
             return;
         }
         let mut work = std::mem::take(&mut self.work);
-        self.levels[0].residual(u, None, r);
+        if !r_ready {
+            self.levels[0].residual(u, None, r);
+        }
         restrict(&self.levels[0], &self.levels[1], r, &mut work[1].f);
         for k in 1..nl - 1 {
             let (head, tail) = work.split_at_mut(k + 1);

@@ -469,7 +469,8 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         started = report.initial_residual > options.tolerance_px;
     }
     if started {
-        hier.coarse_to_fine(&mut u, &mut r);
+        // A warm start's residual is in r already.
+        hier.coarse_to_fine(&mut u, &mut r, initial.is_some());
         hier.levels[0].residual(&u, None, &mut r);
         report.initial_residual = scaled_max(&hier.levels[0], &r);
     }
@@ -528,7 +529,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                     }
                     if !started {
                         started = true;
-                        hier.coarse_to_fine(&mut u, &mut r);
+                        hier.coarse_to_fine(&mut u, &mut r, true);
                         hier.levels[0].residual(&u, None, &mut r);
                         hier.precondition(&r, &mut z);
                         p.copy_from_slice(&z);
