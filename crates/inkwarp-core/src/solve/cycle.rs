@@ -20,6 +20,8 @@ pub(crate) struct Hierarchy {
     work: Vec<Work>,
     coarsest: Banded,
     pub degree: usize,
+    /// The same on the levels below the finest (by default `degree`).
+    pub coarse_degree: usize,
     /// Solve the coarse problems below the finest level by K-cycles (two flexible
     /// conjugate-gradient steps each, see [`Hierarchy::k_correction`]); else by one
     /// line-searched cycle each, a V-cycle.
@@ -97,7 +99,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, k_cycles: true, alt: None }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree: degree, k_cycles: true, alt: None }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
@@ -115,6 +117,10 @@ impl Hierarchy {
         z.resize(r.len(), [0.0; 2]);
         map_into(z, &work[0].x, |a| [a[0].get(), a[1].get()]);
         self.work = work;
+    }
+
+    fn degree_at(&self, k: usize) -> usize {
+        if k == 0 { self.degree } else { self.coarse_degree }
     }
 
     /// A one-level hierarchy: the exact solve of the finest level (`r` is scratch).
@@ -142,7 +148,7 @@ impl Hierarchy {
         {
             let w = &mut work[0];
             let Work { x, f, r, d, .. } = w;
-            smooth(level, x, Some(f), r, d, self.degree, x_zero);
+            smooth(level, x, Some(f), r, d, self.degree_at(k), x_zero);
             level.residual(x, Some(f), r);
         }
         let (head, tail) = work.split_at_mut(1);
@@ -173,7 +179,7 @@ impl Hierarchy {
             prolong_add(&alt.levels[0], &alt.levels[1], &atail[0].x, &mut w.x);
         }
         let Work { x, f, r, d, .. } = w;
-        smooth(level, x, Some(f), r, d, self.degree, false);
+        smooth(level, x, Some(f), r, d, self.degree_at(k), false);
     }
 
     /// Level k's coarse correction from its residual `w.r`: two steps of flexible conjugate

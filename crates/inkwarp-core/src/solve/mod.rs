@@ -433,8 +433,12 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         // Holes and cuts: a second coarse space that runs smoothly across them (visited by
         // V-cycles), next to the link-aware one that tears with them.
         let alt = (fine.geo.torn() && second_space_enabled()).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
+        let torn = fine.geo.torn();
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS);
         hier.alt = alt;
+        if !torn {
+            hier.coarse_degree = OPEN_COARSE_SMOOTHING;
+        }
         hier
     });
     let fixed = &key.fixed;
@@ -638,6 +642,13 @@ const STOP_MARGIN: f64 = 3.0;
 
 /// Smoothing steps before and after each coarse correction.
 const SMOOTHING_STEPS: usize = 2;
+
+/// The same below the finest level of a grid without holes or cuts. One step there made the
+/// cycles cheaper by more than it made them weaker (513 × 513, one thread: 10 points
+/// 133 → 104 ms in 9 cycles instead of 10, 4000 points 212 → 178 ms in 12 instead of 11,
+/// warm starts 4 → 3 cycles), where across a cut or a ring-shaped hole it took up to four
+/// more cycles and fooled the stopping rule once (0.012 px left at a 0.01 px tolerance).
+const OPEN_COARSE_SMOOTHING: usize = 1;
 
 /// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
 /// constraint values. Consecutive frames of an animation share it.
