@@ -19,9 +19,9 @@ pub(crate) struct Hierarchy {
     pub levels: Vec<Level>,
     work: Vec<Work>,
     coarsest: Banded,
-    pub degree: usize,
-    /// The same on the levels below the finest (by default `degree`).
-    pub coarse_degree: usize,
+    degree: usize,
+    /// The same on the levels below the finest.
+    coarse_degree: usize,
     /// Solve the coarse problems below the finest level by K-cycles (two flexible
     /// conjugate-gradient steps each, see [`Hierarchy::k_correction`]); else by one
     /// line-searched cycle each, a V-cycle.
@@ -45,15 +45,17 @@ struct Work {
 }
 
 impl Hierarchy {
-    pub fn new(fine: Level, degree: usize) -> Hierarchy {
-        Hierarchy::build(fine, degree, true)
+    /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and of
+    /// `coarse_degree` below it.
+    pub fn new(fine: Level, degree: usize, coarse_degree: usize) -> Hierarchy {
+        Hierarchy::build(fine, degree, coarse_degree, true)
     }
 
     /// A second coarse space for `fine`'s unknowns: the levels below `fine` (visited by
     /// V-cycles), with no work vectors or smoothing bound on `fine` itself, which the
     /// hierarchy it serves already has.
     pub fn coarse_space(fine: Level, degree: usize) -> Hierarchy {
-        let mut h = Hierarchy::build(fine, degree, false);
+        let mut h = Hierarchy::build(fine, degree, degree, false);
         h.k_cycles = false;
         // Past the setup, the finest level only lends its prolongation (restriction and
         // prolongation read nothing else): keep 4 bytes a node instead of about 18.
@@ -61,7 +63,7 @@ impl Hierarchy {
         h
     }
 
-    fn build(fine: Level, degree: usize, smooth_fine: bool) -> Hierarchy {
+    fn build(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool) -> Hierarchy {
         let mut levels = vec![fine];
         loop {
             let last = levels.last().unwrap();
@@ -99,7 +101,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree: degree, k_cycles: true, alt: None }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
@@ -648,7 +650,7 @@ mod tests {
         for i in [3 * w + 4, 20 * w + 60, 55 * w + 20, 64 * w + 70] {
             fixed[i] = true;
         }
-        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2);
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2);
         assert!(hier.levels.len() >= 4, "the test needs a level with a K-cycle below it");
         let mut rnd = crate::grid::tests::sequence(5);
         let k = 1;

@@ -567,10 +567,9 @@ impl Level {
                     while i < e {
                         let k = (e - i).min(4);
                         let q0 = base + i;
-                        let row = |j: usize| &table[ids[q0 + j.min(k - 1)] as usize];
-                        let (s0, s1, s2, s3) = (row(0), row(1), row(2), row(3));
                         // Past the run's end the last node stands in (its sums are dropped).
-                        let (o1, o2, o3) = (1.min(k - 1), 2.min(k - 1), 3.min(k - 1));
+                        let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
+                        let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
                         let (mut a0, mut a1, mut a2, mut a3) = ([T::ZERO; 2], [T::ZERO; 2], [T::ZERO; 2], [T::ZERO; 2]);
                         for &(dy, dx) in &TAPS {
                             let t = dy * 5 + dx;

@@ -111,7 +111,7 @@ impl Default for SolveOptions {
 /// What a solve did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SolveReport {
-    /// V-cycles run after the coarse-to-fine start (Southwell: relaxation passes); with
+    /// Cycles run after the coarse-to-fine start (Southwell: relaxation passes); with
     /// several pieces, which are solved apart, the most any piece took.
     pub cycles: usize,
     /// Largest change of any node in the last cycle (pixels; of any piece).
@@ -432,13 +432,11 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         let fine = Level::fine(geo, tau);
         // Holes and cuts: a second coarse space that runs smoothly across them (visited by
         // V-cycles), next to the link-aware one that tears with them.
-        let alt = (fine.geo.torn() && second_space_enabled()).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
         let torn = fine.geo.torn();
-        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS);
+        let alt = (torn && second_space_enabled()).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
+        let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
+        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
         hier.alt = alt;
-        if !torn {
-            hier.coarse_degree = OPEN_COARSE_SMOOTHING;
-        }
         hier
     });
     let fixed = &key.fixed;

@@ -542,7 +542,7 @@ fn every_level_smooths_below_the_top_of_its_spectrum() {
     for i in [5 * w + 7, 20 * w + 50, 40 * w + 12, 60 * w + 60, 33 * w + 33] {
         fixed[i] = true;
     }
-    let main = Hierarchy::new(fine_level(&grid, Some(fixed.clone()), 0.05), SMOOTHING_STEPS);
+    let main = Hierarchy::new(fine_level(&grid, Some(fixed.clone()), 0.05), SMOOTHING_STEPS, SMOOTHING_STEPS);
     let alt = Hierarchy::coarse_space(fine_level(&grid, Some(fixed), 0.05).into_plain(), SMOOTHING_STEPS);
     let levels = main.levels.iter().chain(alt.levels.iter().skip(1));
     for (k, level) in levels.enumerate() {
