@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{galerkin, prolong_add, prolong_add_scaled, restrict, Level, Real, V2, W2, WS};
+use super::level::{dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Real, V2, W2, WS};
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
 const CHEB_RATIO: f64 = 16.0;
@@ -29,6 +29,8 @@ pub(crate) struct Hierarchy {
     /// A second coarse space for the finest level (see [`Level::into_plain`]), visited
     /// after the first on every cycle; its own levels are regular grids.
     pub alt: Option<Box<Hierarchy>>,
+    /// Whether the finest level has holes or cuts (see [`super::level::Geometry::torn`]).
+    pub torn: bool,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -101,13 +103,14 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
-    /// usable as a conjugate-gradient preconditioner), run in `f32`. `z` may come in empty
-    /// and leaves full length.
-    pub fn precondition(&mut self, r: &[V2], z: &mut Vec<V2>) {
+    /// usable as a conjugate-gradient preconditioner), run in `f32`: the returned `z` is
+    /// the cycle's own output, valid until the next call (the conjugate gradient reads it
+    /// where it would otherwise copy it to `f64` first and read that).
+    pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
         let mut work = std::mem::take(&mut self.work);
         map_into(&mut work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
         fill_zero(&mut work[0].x);
@@ -116,9 +119,8 @@ impl Hierarchy {
         if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
             a.work = w;
         }
-        z.resize(r.len(), [0.0; 2]);
-        map_into(z, &work[0].x, |a| [a[0].get(), a[1].get()]);
         self.work = work;
+        &self.work[0].x[..r.len()]
     }
 
     fn degree_at(&self, k: usize) -> usize {
@@ -386,9 +388,7 @@ fn step(num: f64, den: f64) -> f64 {
 
 /// `Σ a_i b_i` per component, in `f64`.
 fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
-    let dot = |a: &[W2], b: &[W2]| {
-        a.iter().zip(b).fold([0.0f64; 2], |s, (x, y)| [s[0] + (x[0] * y[0]).get(), s[1] + (x[1] * y[1]).get()])
-    };
+    let dot = dot_pairs::<WS>;
     if a.len() >= PAR_MIN {
         a.par_chunks(4096).zip(b.par_chunks(4096)).map(|(a, b)| dot(a, b)).reduce(|| [0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
     } else {

@@ -66,7 +66,7 @@ use crate::geometry::Sample;
 use crate::grid::{constrain, linked_neighbours, Constraints, Grid};
 
 use cycle::Hierarchy;
-use level::{Geometry, Level, V2};
+use level::{Geometry, Level, Real, V2, W2};
 
 /// How the linear system is relaxed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -437,6 +437,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
         hier.alt = alt;
+        hier.torn = torn;
         hier
     });
     let fixed = &key.fixed;
@@ -481,29 +482,32 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         SolveMethod::Multigrid => {
             report.converged = false;
             let mut last_change = f64::INFINITY;
+            let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
             let mut stop = |change: f64, cycle: usize, report: &mut SolveReport| {
                 report.cycles = cycle;
                 report.final_change_px = change;
                 // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go; conjugate-
                 // gradient steps are not geometric, and the smoothest error (which moves
-                // least per cycle) is measured to be up to ~2.5× that estimate: hence the margin.
+                // least per cycle) is measured to be up to ~1.3× that estimate on open grids
+                // and ~2.5× across holes and cuts: hence the margins.
                 let rho = if last_change.is_finite() && last_change > 0.0 {
                     (change / last_change).min(0.99)
                 } else {
                     0.5
                 };
                 last_change = change;
-                STOP_MARGIN * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
+                margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
             };
             {
-                let (mut z, mut q, mut p) = (spare_zeroed(len), spare_zeroed(len), spare_zeroed(len));
-                hier.precondition(&r, &mut z);
-                p.copy_from_slice(&z);
-                let mut rz = dot2(&r, &z);
+                // The search direction p is not zeroed: the preconditioner's output is
+                // copied over all of it.
+                let (mut q, mut p) = (spare_zeroed(len), spare_any(len));
+                let z = hier.precondition(&r);
+                let (mut rz, _) = fcg_dots(&r, z, None);
+                widen_into(&mut p, z, None);
                 for cycle in 1..=max_cycles {
                     let fine = &hier.levels[0];
-                    fine.residual(&p, None, &mut q); // q = −A p
-                    let pq = dot2(&p, &q);
+                    let pq = fine.residual_dot(&p, &mut q); // q = −A p
                     let alpha = [
                         if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
                         if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
@@ -512,18 +516,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         .par_chunks_mut(CHUNK)
                         .zip(r.par_chunks_mut(CHUNK))
                         .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
-                        .map(|((u, r), (p, q))| {
-                            let mut change: f64 = 0.0;
-                            for i in 0..u.len() {
-                                let d = [alpha[0] * p[i][0], alpha[1] * p[i][1]];
-                                u[i][0] += d[0];
-                                u[i][1] += d[1];
-                                change = change.max(d[0].abs()).max(d[1].abs());
-                                r[i][0] += alpha[0] * q[i][0];
-                                r[i][1] += alpha[1] * q[i][1];
-                            }
-                            change
-                        })
+                        .map(|((u, r), (p, q))| step_update(u, r, p, q, alpha))
                         .reduce(|| 0.0, f64::max);
                     if stop(change, cycle, &mut report) {
                         report.converged = true;
@@ -533,29 +526,22 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         started = true;
                         hier.coarse_to_fine(&mut u, &mut r, true);
                         hier.levels[0].residual(&u, None, &mut r);
-                        hier.precondition(&r, &mut z);
-                        p.copy_from_slice(&z);
-                        rz = dot2(&r, &z);
+                        let z = hier.precondition(&r);
+                        rz = fcg_dots(&r, z, None).0;
+                        widen_into(&mut p, z, None);
                         continue;
                     }
-                    hier.precondition(&r, &mut z);
+                    let z = hier.precondition(&r);
                     // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
                     // the preconditioner's line searches make it slightly nonlinear.
-                    let rz_new = dot2(&r, &z);
-                    let zq = dot2(&z, &q);
+                    let (rz_new, zq) = fcg_dots(&r, z, Some(&q));
                     let beta = [
                         if rz[0] > 0.0 { ((alpha[0] * zq[0]) / rz[0]).max(0.0) } else { 0.0 },
                         if rz[1] > 0.0 { ((alpha[1] * zq[1]) / rz[1]).max(0.0) } else { 0.0 },
                     ];
-                    p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| {
-                        for i in 0..p.len() {
-                            p[i][0] = z[i][0] + beta[0] * p[i][0];
-                            p[i][1] = z[i][1] + beta[1] * p[i][1];
-                        }
-                    });
+                    widen_into(&mut p, z, Some(beta));
                     rz = rz_new;
                 }
-                give_back(z);
                 give_back(q);
                 give_back(p);
             }
@@ -611,14 +597,27 @@ const SPARE_BYTES: usize = 48 << 20;
 
 /// A vector of `len` zeros, from the spares when one is large enough.
 fn spare_zeroed(len: usize) -> Vec<V2> {
-    let mut spare = SPARE.lock().unwrap_or_else(|e| e.into_inner());
-    // The smallest that fits, so small solves do not use up the large vectors.
-    let best = (0..spare.len()).filter(|&k| spare[k].capacity() >= len).min_by_key(|&k| spare[k].capacity());
-    let mut v = best.map(|k| spare.swap_remove(k)).unwrap_or_default();
-    drop(spare);
+    let mut v = take_spare(len);
     v.clear();
     v.resize(len, [0.0; 2]);
     v
+}
+
+/// A vector of `len` entries whose values are left over (the caller overwrites them all),
+/// from the spares when one is large enough.
+fn spare_any(len: usize) -> Vec<V2> {
+    let mut v = take_spare(len);
+    v.truncate(len);
+    v.resize(len, [0.0; 2]);
+    v
+}
+
+/// The smallest spare of at least `len` entries' capacity (so small solves do not use up
+/// the large vectors), or an empty vector.
+fn take_spare(len: usize) -> Vec<V2> {
+    let mut spare = SPARE.lock().unwrap_or_else(|e| e.into_inner());
+    let best = (0..spare.len()).filter(|&k| spare[k].capacity() >= len).min_by_key(|&k| spare[k].capacity());
+    best.map(|k| spare.swap_remove(k)).unwrap_or_default()
 }
 
 /// Keeps `v` as a spare (dropping the smallest spares past the limits).
@@ -635,8 +634,14 @@ fn give_back(v: Vec<V2>) {
     }
 }
 
-/// Safety factor of the stopping rule (see the multigrid loop).
-const STOP_MARGIN: f64 = 3.0;
+/// Safety factor of the stopping rule (see the multigrid loop) on grids without holes or
+/// cuts. At 257 × 257 and 513 × 513 with 10 to 4000 random points (36 problems) the
+/// error where it stopped was at most 0.005 px at a 0.01 px tolerance, one cycle sooner
+/// than [`TORN_STOP_MARGIN`] in most of them.
+const STOP_MARGIN: f64 = 1.5;
+/// The same on grids with holes or cuts, where the slowest error moves least per cycle:
+/// with 1.5 a grid with a ring-shaped hole and a cut stopped at 0.012 px.
+const TORN_STOP_MARGIN: f64 = 3.0;
 
 /// Smoothing steps before and after each coarse correction.
 const SMOOTHING_STEPS: usize = 2;
@@ -980,36 +985,99 @@ pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<
 /// Vector chunk for parallel loops (large enough that small grids stay on one thread).
 const CHUNK: usize = 16_384;
 
-/// Per-component dot products; the chunked sum keeps the result independent of threads.
-fn dot2(a: &[V2], b: &[V2]) -> [f64; 2] {
-    let parts: Vec<[f64; 2]> = a
-        .par_chunks(CHUNK)
-        .zip(b.par_chunks(CHUNK))
-        .map(|(a, b)| {
-            let mut s = [0.0f64; 2];
-            for (x, y) in a.iter().zip(b) {
-                s[0] += x[0] * y[0];
-                s[1] += x[1] * y[1];
-            }
-            s
-        })
-        .collect();
-    parts.iter().fold([0.0; 2], |s, p| [s[0] + p[0], s[1] + p[1]])
-}
-
 fn count_unknowns(level: &Level) -> usize {
     level.inv_diag.iter().filter(|&&d| d != 0.0).count()
 }
 
+/// `[rᵀz, zᵀq]` per component (`zᵀq` zero without `q`), `z` the preconditioner's `f32`
+/// output, in one pass.
+fn fcg_dots(r: &[V2], z: &[W2], q: Option<&[V2]>) -> ([f64; 2], [f64; 2]) {
+    let chunk = |(k, (r, z)): (usize, (&[V2], &[W2]))| {
+        let mut s = [0.0f64; 8];
+        let (rf, zf) = (r.as_flattened(), z.as_flattened());
+        let qf = q.map(|q| q[k * CHUNK..k * CHUNK + r.len()].as_flattened());
+        let n8 = rf.len() / 8 * 8;
+        for j in (0..n8).step_by(8) {
+            for l in 0..8 {
+                s[l & 1] += rf[j + l] * zf[j + l].get();
+            }
+            if let Some(qf) = qf {
+                for l in 0..8 {
+                    s[2 + (l & 1)] += qf[j + l] * zf[j + l].get();
+                }
+            }
+        }
+        for l in n8..rf.len() {
+            s[l & 1] += rf[l] * zf[l].get();
+            if let Some(qf) = qf {
+                s[2 + (l & 1)] += qf[l] * zf[l].get();
+            }
+        }
+        [s[0], s[1], s[2], s[3]]
+    };
+    // The chunks' sums are added in order, so the result does not depend on the threads.
+    let parts: Vec<[f64; 4]> = r.par_chunks(CHUNK).zip(z.par_chunks(CHUNK)).enumerate().map(chunk).collect();
+    let t = parts.iter().fold([0.0; 4], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]);
+    ([t[0], t[1]], [t[2], t[3]])
+}
+
+/// `p = z + β p` (`p = z` without `β`), `z` the preconditioner's `f32` output.
+fn widen_into(p: &mut [V2], z: &[W2], beta: Option<[f64; 2]>) {
+    p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| match beta {
+        Some(b) => {
+            for (p, z) in p.iter_mut().zip(z) {
+                *p = [z[0].get() + b[0] * p[0], z[1].get() + b[1] * p[1]];
+            }
+        }
+        None => {
+            for (p, z) in p.iter_mut().zip(z) {
+                *p = [z[0].get(), z[1].get()];
+            }
+        }
+    });
+}
+
+/// The conjugate-gradient step on one chunk: `u += α p`, `r += α q` (α per component);
+/// returns the largest `|α p|`. On the flattened components, eight running maxima: one
+/// would wait on the last at every entry.
+fn step_update(u: &mut [V2], r: &mut [V2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 {
+    let (u, r) = (u.as_flattened_mut(), r.as_flattened_mut());
+    let (p, q) = (p.as_flattened(), q.as_flattened());
+    let mut m = [0.0f64; 8];
+    let lanes = |u: &mut [f64], r: &mut [f64], p: &[f64], q: &[f64], m: &mut [f64]| {
+        for l in 0..u.len() {
+            let a = alpha[l & 1];
+            let d = a * p[l];
+            u[l] += d;
+            m[l] = m[l].max(d.abs());
+            r[l] += a * q[l];
+        }
+    };
+    let n8 = u.len() / 8 * 8;
+    for j in (0..n8).step_by(8) {
+        lanes(&mut u[j..j + 8], &mut r[j..j + 8], &p[j..j + 8], &q[j..j + 8], &mut m);
+    }
+    // The remainder starts on an even index, as the lanes do.
+    lanes(&mut u[n8..], &mut r[n8..], &p[n8..], &q[n8..], &mut m);
+    m.iter().fold(0.0, |a, &b| a.max(b))
+}
+
+/// The largest residual of `r` scaled by the inverse diagonal (pixels of a Jacobi step).
 fn scaled_max(level: &Level, r: &[V2]) -> f64 {
-    let mut m: f64 = 0.0;
-    for (p, ri) in r.iter().enumerate() {
-        let d = level.inv_diag[p];
-        if d != 0.0 {
-            m = m.max(ri[0].abs() * d).max(ri[1].abs() * d);
+    let mut m = [0.0f64; 8];
+    let (dc, rc) = (level.inv_diag[..r.len()].chunks_exact(4), r.chunks_exact(4));
+    let (dt, rt) = (dc.remainder(), rc.remainder());
+    for (d, ri) in dc.zip(rc) {
+        for l in 0..4 {
+            // Inactive nodes have a zero inverse diagonal (and a zero residual).
+            m[2 * l] = m[2 * l].max(ri[l][0].abs() * d[l]);
+            m[2 * l + 1] = m[2 * l + 1].max(ri[l][1].abs() * d[l]);
         }
     }
-    m
+    for (d, ri) in dt.iter().zip(rt) {
+        m[0] = m[0].max(ri[0].abs() * d).max(ri[1].abs() * d);
+    }
+    m.iter().fold(0.0, |a, &b| a.max(b))
 }
 
 /// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.
