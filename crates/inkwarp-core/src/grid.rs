@@ -104,20 +104,30 @@ impl Grid {
         if self.active.len() != n || self.link_right.len() != n || self.link_down.len() != n {
             return false;
         }
-        for y in 0..self.height {
-            for x in 0..self.width {
-                let i = self.index(x, y);
-                if self.link_right[i] && (x + 1 >= self.width || !self.active[i] || !self.active[i + 1]) {
-                    return false;
+        // Row by row without early exits, so the comparisons run side by side (every solve
+        // checks its grid).
+        let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 {
+            return true;
+        }
+        let mut bad = false;
+        for y in 0..h {
+            let row = y * w..(y + 1) * w;
+            let (a, right, down) = (&self.active[row.clone()], &self.link_right[row.clone()], &self.link_down[row]);
+            bad |= right[w - 1];
+            for x in 0..w - 1 {
+                bad |= right[x] & !(a[x] & a[x + 1]);
+            }
+            if y + 1 < h {
+                let below = &self.active[(y + 1) * w..(y + 2) * w];
+                for x in 0..w {
+                    bad |= down[x] & !(a[x] & below[x]);
                 }
-                if self.link_down[i]
-                    && (y + 1 >= self.height || !self.active[i] || !self.active[i + self.width])
-                {
-                    return false;
-                }
+            } else {
+                bad |= down.iter().any(|&d| d);
             }
         }
-        true
+        !bad
     }
 
     /// Number of links (right plus down).
@@ -429,6 +439,28 @@ pub(crate) mod tests {
         assert!(g.link_right[g.index(0, 0)]);
         assert_eq!(g.link_count(), 8);
         assert!(g.is_consistent());
+    }
+
+    #[test]
+    fn a_link_off_the_grid_or_to_an_inactive_node_is_inconsistent() {
+        let matte = [1, 1, 1, 1, 0, 1, 1, 1, 1];
+        let base = Grid::from_matte(3, 3, &matte);
+        let mut bad = Vec::new();
+        for (x, y, right) in [(0, 1, true), (1, 0, false), (2, 0, true), (0, 2, false), (1, 1, true)] {
+            let mut g = base.clone();
+            let i = g.index(x, y);
+            if right {
+                g.link_right[i] = true;
+            } else {
+                g.link_down[i] = true;
+            }
+            bad.push(g.is_consistent());
+        }
+        assert_eq!(bad, [false; 5]);
+        let mut short = base.clone();
+        short.active.pop();
+        assert!(!short.is_consistent());
+        assert!(Grid::new(0, 3).is_consistent() && Grid::new(4, 1).is_consistent());
     }
 
     #[test]
