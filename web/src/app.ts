@@ -550,14 +550,10 @@ export class App {
       this.antialiasDue = false;
       this.renderNow(true);
     } else if (!this.antialiasDue && this.antialiasMs > SLOW_ANTIALIAS_MS) {
-      this.renderNow(false, false);
       this.antialiasDue = true;
       // Once the GPU has drawn it (so the two frames do not share the GPU).
-      this.gpuPending++;
-      void this.gl.finished().then(() => {
-        this.gpuPending--;
-        this.invalidate();
-      });
+      this.afterFrame(() => this.invalidate());
+      this.renderNow(false, false);
     } else {
       this.antialiasDue = false;
       this.renderNow(false);

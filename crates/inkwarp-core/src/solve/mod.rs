@@ -66,7 +66,7 @@ use crate::geometry::Sample;
 use crate::grid::{constrain, linked_neighbours, Constraints, Grid};
 
 use cycle::Hierarchy;
-use level::{Geometry, Level, Real, V2, W2};
+use level::{Geometry, Level, Real, V2, W2, WS};
 
 /// How the linear system is relaxed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -992,28 +992,12 @@ fn count_unknowns(level: &Level) -> usize {
 /// `[rᵀz, zᵀq]` per component (`zᵀq` zero without `q`), `z` the preconditioner's `f32`
 /// output, in one pass.
 fn fcg_dots(r: &[V2], z: &[W2], q: Option<&[V2]>) -> ([f64; 2], [f64; 2]) {
+    let wide = |x: f64, y: WS| x * y.get();
     let chunk = |(k, (r, z)): (usize, (&[V2], &[W2]))| {
-        let mut s = [0.0f64; 8];
-        let (rf, zf) = (r.as_flattened(), z.as_flattened());
-        let qf = q.map(|q| q[k * CHUNK..k * CHUNK + r.len()].as_flattened());
-        let n8 = rf.len() / 8 * 8;
-        for j in (0..n8).step_by(8) {
-            for l in 0..8 {
-                s[l & 1] += rf[j + l] * zf[j + l].get();
-            }
-            if let Some(qf) = qf {
-                for l in 0..8 {
-                    s[2 + (l & 1)] += qf[j + l] * zf[j + l].get();
-                }
-            }
-        }
-        for l in n8..rf.len() {
-            s[l & 1] += rf[l] * zf[l].get();
-            if let Some(qf) = qf {
-                s[2 + (l & 1)] += qf[l] * zf[l].get();
-            }
-        }
-        [s[0], s[1], s[2], s[3]]
+        let zf = z.as_flattened();
+        let rz = level::pair_sums(r.as_flattened(), zf, wide);
+        let zq = q.map_or([0.0; 2], |q| level::pair_sums(q[k * CHUNK..k * CHUNK + r.len()].as_flattened(), zf, wide));
+        [rz[0], rz[1], zq[0], zq[1]]
     };
     // The chunks' sums are added in order, so the result does not depend on the threads.
     let parts: Vec<[f64; 4]> = r.par_chunks(CHUNK).zip(z.par_chunks(CHUNK)).enumerate().map(chunk).collect();
@@ -1069,7 +1053,7 @@ fn scaled_max(level: &Level, r: &[V2]) -> f64 {
     let (dt, rt) = (dc.remainder(), rc.remainder());
     for (d, ri) in dc.zip(rc) {
         for l in 0..4 {
-            // Inactive nodes have a zero inverse diagonal (and a zero residual).
+            // Nodes that are not unknowns (inactive or fixed) have a zero inverse diagonal.
             m[2 * l] = m[2 * l].max(ri[l][0].abs() * d[l]);
             m[2 * l + 1] = m[2 * l + 1].max(ri[l][1].abs() * d[l]);
         }
