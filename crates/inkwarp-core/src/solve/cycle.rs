@@ -31,6 +31,8 @@ pub(crate) struct Hierarchy {
     pub alt: Option<Box<Hierarchy>>,
     /// Whether the finest level has holes or cuts (see [`super::level::Geometry::torn`]).
     pub torn: bool,
+    /// An extra coarse space along cuts, solved exactly before each cycle.
+    pub deflation: Option<super::deflate::Deflation>,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -103,7 +105,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
@@ -113,11 +115,19 @@ impl Hierarchy {
     pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
         let mut work = std::mem::take(&mut self.work);
         map_into(&mut work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
+        // With the extra space along tears: its exact part first, the cycle on the rest.
+        let c = self.deflation.as_ref().map(|d| d.coefficients(r));
+        if let (Some(d), Some(c)) = (&self.deflation, &c) {
+            d.remove(&mut work[0].f, c);
+        }
         fill_zero(&mut work[0].x);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
         self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
         if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
             a.work = w;
+        }
+        if let (Some(d), Some(c)) = (&self.deflation, &c) {
+            d.add(&mut work[0].x, c);
         }
         self.work = work;
         &self.work[0].x[..r.len()]

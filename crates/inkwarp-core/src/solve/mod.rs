@@ -50,6 +50,7 @@
 //! `docs/concepts/thin-plate.md` explains the choices and lists the measured figures.
 
 mod cycle;
+mod deflate;
 mod history;
 mod level;
 mod southwell;
@@ -210,13 +211,19 @@ pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     }
     #[cfg(test)]
     let second = SECOND_SPACE.with(|c| c.get());
+    #[cfg(test)]
+    let tear = TEAR_SPACE.with(|c| c.get());
     rayon::scope(|_| {
         // A test's switch travels with the solve to the pool's thread.
         #[cfg(test)]
         let before = SECOND_SPACE.with(|c| c.replace(second));
+        #[cfg(test)]
+        let tear_before = TEAR_SPACE.with(|c| c.replace(tear));
         let out = f();
         #[cfg(test)]
         SECOND_SPACE.with(|c| c.set(before));
+        #[cfg(test)]
+        TEAR_SPACE.with(|c| c.set(tear_before));
         out
     })
 }
@@ -378,7 +385,7 @@ pub(crate) fn solve_constrained(
             fixed[local(g)] = true;
             value.push((local(g), v));
         }
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), active, right, down, fixed, second_space: second_space_enabled() };
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), active, right, down, fixed, second_space: second_space_enabled(), tear_space: tear_space_enabled() };
         let start = initial.map(|f| Start { field: f, x0, y0 });
         let (u, r) = solve_piece(key, &value, start, options);
         // The piece's nodes of the box, to the field or (pieces on a line) to `out`.
@@ -438,6 +445,10 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
         hier.alt = alt;
         hier.torn = torn;
+        if torn && tear_space_enabled() {
+            // Cuts and thin holes: functions that run linearly up to each side of them.
+            hier.deflation = deflate::Deflation::new(&hier.levels[0]);
+        }
         hier
     });
     let fixed = &key.fixed;
@@ -666,17 +677,28 @@ struct CacheKey {
     fixed: Vec<bool>,
     /// Whether the hierarchy has the second coarse space (always, outside tests).
     second_space: bool,
+    /// Whether it has the space along tears (always, outside tests).
+    tear_space: bool,
 }
 
 #[cfg(test)]
 thread_local! {
     /// Lets a test compare solves with and without the second coarse space.
     pub(crate) static SECOND_SPACE: std::cell::Cell<bool> = const { std::cell::Cell::new(true) };
+    /// Lets a test compare solves with and without the space along tears.
+    pub(crate) static TEAR_SPACE: std::cell::Cell<bool> = const { std::cell::Cell::new(true) };
 }
 
 fn second_space_enabled() -> bool {
     #[cfg(test)]
     return SECOND_SPACE.with(|c| c.get());
+    #[cfg(not(test))]
+    true
+}
+
+fn tear_space_enabled() -> bool {
+    #[cfg(test)]
+    return TEAR_SPACE.with(|c| c.get());
     #[cfg(not(test))]
     true
 }

@@ -397,6 +397,40 @@ fn the_second_coarse_space_saves_cycles_across_holes_and_cuts() {
 }
 
 #[test]
+fn the_space_along_tears_saves_cycles_across_holes_and_cuts() {
+    // As above on a grid large enough for both lattices of the space along tears (half
+    // widths 32 and 96): a cut, a thin arc-shaped hole, and both.
+    let n = 257usize;
+    let c = n as f64 / 2.0;
+    let arc = |i: usize| {
+        let (x, y) = ((i % n) as f64, (i / n) as f64);
+        let r = ((x - c).powi(2) + (y - c).powi(2)).sqrt();
+        (r - 0.3 * n as f64).abs() < 1.5 && x < c + 10.0
+    };
+    let cut = [[0.1 * n as f64, 0.8 * n as f64], [0.5 * n as f64, 0.85 * n as f64]];
+    let mut rng = Rng(12345);
+    let samples = random_samples(&mut rng, n, n, 10);
+    let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
+    for (hole, torn) in [(false, true), (true, false), (true, true)] {
+        let mut grid = Grid::from_active(n, n, (0..n * n).map(|i| !(hole && arc(i))).collect());
+        if torn {
+            grid.add_cut(&cut);
+        }
+        let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
+        let mut cycles = [0; 2];
+        for (k, on) in [true, false].into_iter().enumerate() {
+            TEAR_SPACE.with(|s| s.set(on));
+            let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+            let err = gap(&field, &exact);
+            assert!(report.converged && err < 0.05, "hole {hole}, cut {torn}, tear space {on}: {err} px off ({report:?})");
+            cycles[k] = report.cycles;
+        }
+        TEAR_SPACE.with(|s| s.set(true));
+        assert!(3 * cycles[0] <= 2 * cycles[1], "hole {hole}, cut {torn}: {} cycles with the space along tears, {} without", cycles[0], cycles[1]);
+    }
+}
+
+#[test]
 fn a_warm_start_from_a_changed_frame_takes_few_cycles() {
     // The previous answer, with every constraint moved by 2 %: the start misses by more than
     // the tolerance, so it gets the coarse-to-fine correction before its cycles.
