@@ -108,18 +108,21 @@ impl Hierarchy {
         Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None }
     }
 
-    /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric:
-    /// usable as a conjugate-gradient preconditioner), run in `f32`: the returned `z` is
+    /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
+    /// as a conjugate-gradient preconditioner is; with the space along tears solved first
+    /// it is not quite, which the flexible conjugate gradient around it allows), run in
+    /// `f32`: the returned `z` is
     /// the cycle's own output, valid until the next call (the conjugate gradient reads it
     /// where it would otherwise copy it to `f64` first and read that).
     pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
         let mut work = std::mem::take(&mut self.work);
         map_into(&mut work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
         // With the extra space along tears: its exact part first, the cycle on the rest.
-        let c = self.deflation.as_ref().map(|d| d.coefficients(r));
-        if let (Some(d), Some(c)) = (&self.deflation, &c) {
-            d.remove(&mut work[0].f, c);
-        }
+        let c = self.deflation.as_ref().map(|d| {
+            let c = d.coefficients(r);
+            d.remove(&mut work[0].f, &c);
+            c
+        });
         fill_zero(&mut work[0].x);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
         self.solve_level(0, &mut work, true, alt_work.as_deref_mut());

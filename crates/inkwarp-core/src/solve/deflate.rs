@@ -7,7 +7,7 @@ use super::level::{Level, PAD, V2, W2, WS};
 
 /// Half widths of the hats, in nodes: one lattice for the tear's own scale and one for the
 /// parts of the grid it nearly encloses.
-pub(crate) const HALF_WIDTHS: [usize; 2] = [32, 96];
+const HALF_WIDTHS: [usize; 2] = [32, 96];
 /// At most this many groups of three functions; past it the solve goes without (the dense
 /// factorisation would cost more than the cycles it saves).
 const MAX_GROUPS: usize = 240;
@@ -68,23 +68,31 @@ impl ByNode {
 
     /// `v[p] += sign · Σ_groups values(p) · c[group]` at every node p.
     fn apply(&self, v: &mut [W2], c: &[V2], sign: WS) {
+        const CHUNK: usize = 4096;
         let cw: Vec<[[WS; 3]; 2]> = c.chunks_exact(3).map(|c| [0, 1].map(|k| [c[0][k] as WS, c[1][k] as WS, c[2][k] as WS])).collect();
-        let run = |(k, &p): (usize, &u32)| {
-            let mut s = [0.0 as WS; 2];
-            for &(g, a) in &self.entries[self.start[k] as usize..self.start[k + 1] as usize] {
-                let c = &cw[g as usize];
-                s[0] += a[0] * c[0][0] + a[1] * c[0][1] + a[2] * c[0][2];
-                s[1] += a[0] * c[1][0] + a[1] * c[1][1] + a[2] * c[1][2];
-            }
-            (p, [sign * s[0], sign * s[1]])
-        };
-        // The sums in parallel, the writes after (each node once).
-        let sums: Vec<(u32, [WS; 2])> = self.nodes.par_iter().enumerate().map(run).collect();
-        for (p, s) in sums {
-            let vp = &mut v[p as usize];
-            vp[0] += s[0];
-            vp[1] += s[1];
+        // The nodes ascend, so chunks of them own disjoint stretches of `v`: (first node's
+        // index in `nodes`, stretch, the stretch's offset in `v`).
+        let mut stretches = Vec::new();
+        let (mut rest, mut offset) = (v, 0);
+        for k0 in (0..self.nodes.len()).step_by(CHUNK) {
+            let end = self.nodes.get(k0 + CHUNK).map_or(rest.len() + offset, |&p| p as usize);
+            let (head, tail) = rest.split_at_mut(end - offset);
+            stretches.push((k0, head, offset));
+            (rest, offset) = (tail, end);
         }
+        stretches.into_par_iter().for_each(|(k0, out, offset)| {
+            for k in k0..(k0 + CHUNK).min(self.nodes.len()) {
+                let mut s = [0.0 as WS; 2];
+                for &(g, a) in &self.entries[self.start[k] as usize..self.start[k + 1] as usize] {
+                    let c = &cw[g as usize];
+                    s[0] += a[0] * c[0][0] + a[1] * c[0][1] + a[2] * c[0][2];
+                    s[1] += a[0] * c[1][0] + a[1] * c[1][1] + a[2] * c[1][2];
+                }
+                let o = &mut out[self.nodes[k] as usize - offset];
+                o[0] += sign * s[0];
+                o[1] += sign * s[1];
+            }
+        });
     }
 }
 
@@ -94,9 +102,6 @@ struct Group {
     /// Padded indices of the unknowns of the side, ascending, and the functions there.
     ids: Vec<u32>,
     phi: Vec<[WS; 3]>,
-    /// `A φ` on the unknowns it reaches, ascending.
-    aids: Vec<u32>,
-    aphi: Vec<[WS; 3]>,
 }
 
 impl Deflation {
@@ -229,7 +234,7 @@ impl Deflation {
                             }
                         }
                         if ids.len() >= MIN_NODES {
-                            groups.push(Group { ids, phi, aids: Vec::new(), aphi: Vec::new() });
+                            groups.push(Group { ids, phi });
                         }
                     }
                 }
@@ -238,41 +243,45 @@ impl Deflation {
         if groups.is_empty() || groups.len() > MAX_GROUPS {
             return None;
         }
-        // A φ on the unknowns within two nodes of each group's nodes.
+        // A φ of each group on the unknowns within two nodes of its own (ascending).
         let n = fine.len_padded();
-        groups.par_iter_mut().for_each_init(
-            || (vec![[0.0f64; 2]; n], vec![[0.0f64; 2]; n], vec![false; n]),
-            |(a, b, seen), g| {
-                for (&p, v) in g.ids.iter().zip(&g.phi) {
-                    a[p as usize] = [v[0] as f64, v[1] as f64];
-                    b[p as usize] = [v[2] as f64, 0.0];
-                }
-                let mut reach = Vec::new();
-                for &p in &g.ids {
-                    for dy in -2isize..=2 {
-                        for dx in -2isize..=2 {
-                            let q = (p as isize + dy * wp as isize + dx) as usize;
-                            if !seen[q] && unknown(q) {
-                                seen[q] = true;
-                                reach.push(q);
+        let aphi: Vec<(Vec<u32>, Vec<[WS; 3]>)> = groups
+            .par_iter()
+            .map_init(
+                || (vec![[0.0f64; 2]; n], vec![[0.0f64; 2]; n], vec![false; n]),
+                |(a, b, seen), g| {
+                    for (&p, v) in g.ids.iter().zip(&g.phi) {
+                        a[p as usize] = [v[0] as f64, v[1] as f64];
+                        b[p as usize] = [v[2] as f64, 0.0];
+                    }
+                    let mut reach = Vec::new();
+                    for &p in &g.ids {
+                        for dy in -2isize..=2 {
+                            for dx in -2isize..=2 {
+                                let q = (p as isize + dy * wp as isize + dx) as usize;
+                                if !seen[q] && unknown(q) {
+                                    seen[q] = true;
+                                    reach.push(q);
+                                }
                             }
                         }
                     }
-                }
-                reach.sort_unstable();
-                for q in reach {
-                    seen[q] = false;
-                    let (ra, rb) = (fine.fine_residual_at(a, q), fine.fine_residual_at(b, q));
-                    g.aids.push(q as u32);
-                    g.aphi.push([-ra[0] as WS, -ra[1] as WS, -rb[0] as WS]);
-                }
-                for &p in &g.ids {
-                    a[p as usize] = [0.0; 2];
-                    b[p as usize] = [0.0; 2];
-                }
-            },
-        );
-        // E = Φᵀ A Φ, dense, from the pairs of groups whose nodes meet.
+                    reach.sort_unstable();
+                    let mut vals = Vec::with_capacity(reach.len());
+                    for &q in &reach {
+                        seen[q] = false;
+                        let (ra, rb) = (fine.fine_residual_at(a, q), fine.fine_residual_at(b, q));
+                        vals.push([-ra[0] as WS, -ra[1] as WS, -rb[0] as WS]);
+                    }
+                    for &p in &g.ids {
+                        a[p as usize] = [0.0; 2];
+                        b[p as usize] = [0.0; 2];
+                    }
+                    (reach.into_iter().map(|q| q as u32).collect(), vals)
+                },
+            )
+            .collect();
+        // E = Φᵀ A Φ, dense, from the pairs of groups whose ranges of nodes overlap.
         let m = 3 * groups.len();
         let span = |ids: &[u32]| (ids[0], ids[ids.len() - 1]);
         let cols: Vec<Vec<f64>> = (0..groups.len())
@@ -280,11 +289,11 @@ impl Deflation {
             .map_init(
                 || vec![[0.0f64; 3]; n],
                 |dense, j| {
-                    let gj = &groups[j];
-                    for (&q, v) in gj.aids.iter().zip(&gj.aphi) {
+                    let (aids, avals) = &aphi[j];
+                    for (&q, v) in aids.iter().zip(avals) {
                         dense[q as usize] = [v[0] as f64, v[1] as f64, v[2] as f64];
                     }
-                    let (lo, hi) = span(&gj.aids);
+                    let (lo, hi) = span(aids);
                     let mut col = vec![0.0; 3 * m];
                     for (i, gi) in groups.iter().enumerate() {
                         let (a, b) = span(&gi.ids);
@@ -300,7 +309,7 @@ impl Deflation {
                             }
                         }
                     }
-                    for &q in &gj.aids {
+                    for &q in aids {
                         dense[q as usize] = [0.0; 3];
                     }
                     col
@@ -332,28 +341,32 @@ impl Deflation {
             }
         }
         let phi = ByNode::new(n, groups.iter().map(|g| (&g.ids[..], &g.phi[..])));
-        let aphi = ByNode::new(n, groups.iter().map(|g| (&g.aids[..], &g.aphi[..])));
+        let aphi = ByNode::new(n, aphi.iter().map(|(ids, vals)| (&ids[..], &vals[..])));
         Some(Deflation { groups, chol, keep, phi, aphi })
+    }
+
+    /// `Φᵀ v` per component, `v` read node by node through `at`.
+    fn project(&self, at: impl Fn(usize) -> V2 + Sync) -> Vec<V2> {
+        self.groups
+            .par_iter()
+            .flat_map_iter(|g| {
+                let mut s = [[0.0f64; 2]; 3];
+                for (&p, f) in g.ids.iter().zip(&g.phi) {
+                    let v = at(p as usize);
+                    for k in 0..3 {
+                        s[k][0] += f[k] as f64 * v[0];
+                        s[k][1] += f[k] as f64 * v[1];
+                    }
+                }
+                s
+            })
+            .collect()
     }
 
     /// `c = (ΦᵀAΦ)⁻¹ Φᵀ r` per component (zero for dropped functions).
     pub fn coefficients(&self, r: &[V2]) -> Vec<V2> {
         let m = self.keep.len();
-        let mut c: Vec<V2> = self
-            .groups
-            .par_iter()
-            .flat_map_iter(|g| {
-                let mut s = [[0.0f64; 2]; 3];
-                for (&p, f) in g.ids.iter().zip(&g.phi) {
-                    let rp = r[p as usize];
-                    for k in 0..3 {
-                        s[k][0] += f[k] as f64 * rp[0];
-                        s[k][1] += f[k] as f64 * rp[1];
-                    }
-                }
-                s
-            })
-            .collect();
+        let mut c = self.project(|p| r[p]);
         for a in 0..m {
             if !self.keep[a] {
                 c[a] = [0.0; 2];
@@ -399,17 +412,7 @@ mod tests {
 
     /// `Φᵀ v` per component.
     fn project(d: &Deflation, v: &[W2]) -> Vec<V2> {
-        d.groups
-            .iter()
-            .flat_map(|g| {
-                (0..3).map(move |k| {
-                    g.ids.iter().zip(&g.phi).fold([0.0; 2], |s, (&p, f)| {
-                        let vp = v[p as usize];
-                        [s[0] + f[k] as f64 * vp[0] as f64, s[1] + f[k] as f64 * vp[1] as f64]
-                    })
-                })
-            })
-            .collect()
+        d.project(|p| [v[p][0] as f64, v[p][1] as f64])
     }
 
     #[test]
@@ -422,7 +425,8 @@ mod tests {
         let fixed = (0..n * n).map(|i| [0, n - 1, n * n - 1].contains(&i)).collect();
         let level = fine_level(&grid, Some(fixed), 0.0);
         let d = Deflation::new(&level).expect("a cut gets the space");
-        assert!(d.keep.iter().filter(|&&k| k).count() >= 12, "{} functions", d.keep.len());
+        let kept = d.keep.iter().filter(|&&k| k).count();
+        assert!(kept >= 12, "{kept} functions kept of {}", d.keep.len());
         let r: Vec<V2> = (0..level.len_padded())
             .map(|p| if level.inv_diag[p] != 0.0 { [((p * 7919) % 101) as f64 - 50.0, ((p * 104729) % 97) as f64 - 48.0] } else { [0.0; 2] })
             .collect();

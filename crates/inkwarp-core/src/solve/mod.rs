@@ -210,20 +210,14 @@ pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
         return f();
     }
     #[cfg(test)]
-    let second = SECOND_SPACE.with(|c| c.get());
-    #[cfg(test)]
-    let tear = TEAR_SPACE.with(|c| c.get());
+    let spaces = SPACES.with(|c| c.get());
     rayon::scope(|_| {
-        // A test's switch travels with the solve to the pool's thread.
+        // A test's switches travel with the solve to the pool's thread.
         #[cfg(test)]
-        let before = SECOND_SPACE.with(|c| c.replace(second));
-        #[cfg(test)]
-        let tear_before = TEAR_SPACE.with(|c| c.replace(tear));
+        let before = SPACES.with(|c| c.replace(spaces));
         let out = f();
         #[cfg(test)]
-        SECOND_SPACE.with(|c| c.set(before));
-        #[cfg(test)]
-        TEAR_SPACE.with(|c| c.set(tear_before));
+        SPACES.with(|c| c.set(before));
         out
     })
 }
@@ -385,7 +379,7 @@ pub(crate) fn solve_constrained(
             fixed[local(g)] = true;
             value.push((local(g), v));
         }
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), active, right, down, fixed, second_space: second_space_enabled(), tear_space: tear_space_enabled() };
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), active, right, down, fixed, spaces: spaces() };
         let start = initial.map(|f| Start { field: f, x0, y0 });
         let (u, r) = solve_piece(key, &value, start, options);
         // The piece's nodes of the box, to the field or (pieces on a line) to `out`.
@@ -440,12 +434,12 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         // Holes and cuts: a second coarse space that runs smoothly across them (visited by
         // V-cycles), next to the link-aware one that tears with them.
         let torn = fine.geo.torn();
-        let alt = (torn && second_space_enabled()).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
+        let alt = (torn && key.spaces.second).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
         hier.alt = alt;
         hier.torn = torn;
-        if torn && tear_space_enabled() && w * h >= TEAR_SPACE_MIN_NODES {
+        if torn && key.spaces.tear && w * h >= TEAR_SPACE_MIN_NODES {
             // Cuts and thin holes: functions that run linearly up to each side of them.
             hier.deflation = deflate::Deflation::new(&hier.levels[0]);
         }
@@ -679,32 +673,30 @@ struct CacheKey {
     right: Vec<bool>,
     down: Vec<bool>,
     fixed: Vec<bool>,
-    /// Whether the hierarchy has the second coarse space (always, outside tests).
-    second_space: bool,
-    /// Whether it has the space along tears (always, outside tests).
-    tear_space: bool,
+    /// Which of the optional spaces the hierarchy has (all, outside tests).
+    spaces: Spaces,
+}
+
+/// The optional coarse spaces of a hierarchy on a grid with holes or cuts: the plain second
+/// space (see [`Level::into_plain`]) and the space along tears ([`deflate::Deflation`]).
+/// Always both outside tests; a test may switch either off to measure what it saves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Spaces {
+    pub second: bool,
+    pub tear: bool,
 }
 
 #[cfg(test)]
 thread_local! {
-    /// Lets a test compare solves with and without the second coarse space.
-    pub(crate) static SECOND_SPACE: std::cell::Cell<bool> = const { std::cell::Cell::new(true) };
-    /// Lets a test compare solves with and without the space along tears.
-    pub(crate) static TEAR_SPACE: std::cell::Cell<bool> = const { std::cell::Cell::new(true) };
+    /// The spaces of the solves a test runs on this thread (see [`in_pool`]).
+    pub(crate) static SPACES: std::cell::Cell<Spaces> = const { std::cell::Cell::new(Spaces { second: true, tear: true }) };
 }
 
-fn second_space_enabled() -> bool {
+fn spaces() -> Spaces {
     #[cfg(test)]
-    return SECOND_SPACE.with(|c| c.get());
+    return SPACES.with(|c| c.get());
     #[cfg(not(test))]
-    true
-}
-
-fn tear_space_enabled() -> bool {
-    #[cfg(test)]
-    return TEAR_SPACE.with(|c| c.get());
-    #[cfg(not(test))]
-    true
+    Spaces { second: true, tear: true }
 }
 
 /// Recently used hierarchies (taken out while in use, so concurrent solves never share
