@@ -32,6 +32,9 @@ uniform vec2 uOffset;
 // smaller ones, which is enough as drafts are not multisampled: every fragment centre lies
 // inside its triangle).
 uniform float uBlock;
+// Drafts (1) draw no skirt quarters along the layer's border: its vertices there move out
+// by half a pixel instead, so the draft still covers the border pixels' outer halves.
+uniform float uEdge;
 out vec2 vRest;
 flat out vec4 vClamp;
 
@@ -39,8 +42,9 @@ void main() {
   ivec2 p = ivec2(gl_VertexID % uSize.x, gl_VertexID / uSize.x);
   vec2 rest = vec2(p);
   vec2 d = texelFetch(uField, p, 0).rg;
-  vec2 q = rest + d + uOffset;
-  vRest = rest;
+  vec2 out_ = uEdge * 0.5 * vec2(p.x == 0 ? -1.0 : p.x == uSize.x - 1 ? 1.0 : 0.0, p.y == 0 ? -1.0 : p.y == uSize.y - 1 ? 1.0 : 0.0);
+  vec2 q = rest + out_ + d + uOffset;
+  vRest = rest + out_;
   vClamp = vec4(rest, rest + uBlock);
   gl_Position = vec4((q.x + 0.5) / uCanvas.x * 2.0 - 1.0, 1.0 - (q.y + 0.5) / uCanvas.y * 2.0, 0.0, 1.0);
 }
@@ -171,11 +175,13 @@ function program(gl: WebGL2RenderingContext, vs: string, fs: string, attributes:
  * `draftQuads`), the skirt quarters' vertices (x, y, sx, sy, u, v), and the links as given
  * (or all).
  */
-export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; links: Uint8Array } {
+export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; innerSkirts: number; links: Uint8Array } {
   const at = (i: number, j: number) => (links ? links[j * w + i] : i + 1 < w ? (j + 1 < h ? 7 : 3) : j + 1 < h ? 5 : 1);
   const drawn = (i: number, j: number) => i >= 0 && j >= 0 && i < w && j < h && ((at(i, j) & 1) !== 0 || (rgba !== null && rgba[4 * (j * w + i) + 3] > 0));
   const quads = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
+  // Skirts of blocks inside the layer (cuts, holes) first, then those along its border.
   const skirts: number[] = [];
+  const border: number[] = [];
   let n = 0;
   for (let j = -1; j < h; j++) {
     for (let i = -1; i < w; i++) {
@@ -187,15 +193,18 @@ export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: 
         n += 6;
         continue;
       }
+      const to = i < 0 || j < 0 || i + 1 >= w || j + 1 >= h ? border : skirts;
       for (const [ci, cj, sx, sy] of [[i, j, 1, 1], [i + 1, j, -1, 1], [i, j + 1, 1, -1], [i + 1, j + 1, -1, -1]]) {
         if (!drawn(ci, cj)) continue;
-        for (const [u, v] of [[0, 0], [1, 0], [0, 1], [0, 1], [1, 0], [1, 1]]) skirts.push(ci, cj, sx, sy, u, v);
+        for (const [u, v] of [[0, 0], [1, 0], [0, 1], [0, 1], [1, 0], [1, 1]]) to.push(ci, cj, sx, sy, u, v);
       }
     }
   }
   const all = new Uint8Array(w * h);
   for (let j = 0; j < h; j++) for (let i = 0; i < w; i++) all[j * w + i] = at(i, j);
-  return { quads: quads.slice(0, n), coarse: draftQuads(w, h, all), skirts: new Float32Array(skirts), links: all };
+  const innerSkirts = skirts.length / 6;
+  for (const v of border) skirts.push(v);
+  return { quads: quads.slice(0, n), coarse: draftQuads(w, h, all), skirts: new Float32Array(skirts), innerSkirts, links: all };
 }
 
 /**
@@ -271,6 +280,8 @@ export class GlLayer {
   skirts: WebGLBuffer;
   skirtVao: WebGLVertexArrayObject;
   skirtCount = 0;
+  /** The skirt vertices of blocks inside the layer (the rest run along its border). */
+  innerSkirtCount = 0;
   constructor(
     private r: GlRenderer,
     readonly width: number,
@@ -324,7 +335,7 @@ export class GlLayer {
    */
   setMesh(links: Uint8Array | null, rgba: Uint8Array | null): void {
     const { width: w, height: h } = this;
-    const { quads, coarse, skirts, links: l } = buildMesh(w, h, links, rgba);
+    const { quads, coarse, skirts, innerSkirts, links: l } = buildMesh(w, h, links, rgba);
     const n = quads.length;
     const m = coarse.length;
     const gl = this.r.gl;
@@ -339,6 +350,7 @@ export class GlLayer {
     gl.bufferData(gl.ARRAY_BUFFER, skirts, gl.STATIC_DRAW);
     gl.bindBuffer(gl.ARRAY_BUFFER, null);
     this.skirtCount = skirts.length / 6;
+    this.innerSkirtCount = innerSkirts;
     gl.bindTexture(gl.TEXTURE_2D, this.links);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.R8UI, w, h, 0, gl.RED_INTEGER, gl.UNSIGNED_BYTE, l);
@@ -390,6 +402,8 @@ export class GlRenderer {
   private plainRb: WebGLRenderbuffer | null = null;
   private resolveFbo: WebGLFramebuffer | null = null;
   private resolveTex: WebGLTexture | null = null;
+  /** Where the last frame can be read: the resolve target, or the canvas after a draft. */
+  private shown: WebGLFramebuffer | null = null;
   private width = 0;
   private height = 0;
   readonly samples: number;
@@ -467,13 +481,20 @@ void main() { o = texture(uTex, vPos); }`);
    * per pixel (both for fast frames during a drag on a software GPU, which pays per vertex,
    * per triangle and per sample). Colours are still the bilinear mix of the layer's
    * pixels at each fragment's rest position, so a draft differs from the full frame only
-   * where the field bends inside a block.
-   * The result stays in the resolve target (for `readPixels`) and is shown on the canvas.
+   * where the field bends inside a block, and along the layer's border (half a pixel
+   * pushed out where the full frame draws skirt quarters; those of cuts and holes stay).
+   * A full frame stays in the resolve target (for `readPixels`) and is shown on the
+   * canvas; a single-sampled draft is drawn on the canvas directly (a software GPU pays
+   * for every pass over the pixels) and read from there.
    */
   render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): void {
     const gl = this.gl;
     this.ensureTargets(width, height);
-    const target = antialias ? this.msaaFbo : this.plainFbo;
+    // A draft draws straight onto the canvas; a full frame into a target of its own,
+    // resolved into the texture that `readPixels` reads and then shown on the canvas.
+    const direct = draft && !antialias;
+    const target = direct ? null : antialias ? this.msaaFbo : this.plainFbo;
+    this.shown = direct ? null : this.resolveFbo;
     gl.bindFramebuffer(gl.FRAMEBUFFER, target);
     gl.viewport(0, 0, width, height);
     const a = background[3] / 255;
@@ -502,18 +523,20 @@ void main() { o = texture(uTex, vPos); }`);
         gl.uniform2f(u('uOffset'), offset[0], offset[1]);
         gl.uniform1f(u('uOpacity'), opacity ?? 1);
         gl.uniform1f(u('uBlock'), draft ? DRAFT_BLOCK : 1);
+        gl.uniform1f(u('uEdge'), draft ? 1 : 0);
         if (prog !== this.skirt) {
           gl.bindVertexArray(this.vao);
           gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, draft ? layer.coarse : layer.indices);
           gl.drawElements(gl.TRIANGLES, draft ? layer.coarseCount : layer.count, gl.UNSIGNED_INT, 0);
-        } else if (layer.skirtCount) {
+        } else if (draft ? layer.innerSkirtCount : layer.skirtCount) {
           gl.bindVertexArray(layer.skirtVao);
-          gl.drawArrays(gl.TRIANGLES, 0, layer.skirtCount);
+          gl.drawArrays(gl.TRIANGLES, 0, draft ? layer.innerSkirtCount : layer.skirtCount);
         }
       }
     }
     gl.bindVertexArray(null);
     gl.disable(gl.BLEND);
+    if (direct) return;
     // Resolve the samples, then show the frame on the canvas.
     gl.bindFramebuffer(gl.READ_FRAMEBUFFER, target);
     gl.bindFramebuffer(gl.DRAW_FRAMEBUFFER, this.resolveFbo);
@@ -552,7 +575,7 @@ void main() { o = texture(uTex, vPos); }`);
     const gl = this.gl;
     const { width, height } = this;
     const px = new Uint8Array(4 * width * height);
-    gl.bindFramebuffer(gl.FRAMEBUFFER, this.resolveFbo);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, this.shown);
     gl.readPixels(0, 0, width, height, gl.RGBA, gl.UNSIGNED_BYTE, px);
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     // Rows come bottom-up and premultiplied: flip and unpremultiply.

@@ -15,7 +15,10 @@ use crate::field::Field;
 use crate::geometry::Sample;
 use crate::grid::{constrain, Constraints, Grid};
 
-use super::{dense_solve, solve_with, SolveError, SolveOptions, SolveReport};
+use crate::clock::Instant;
+
+use super::upsample::Coarse;
+use super::{dense_solve, in_pool, solve_constrained, solve_with, validate, SolveError, SolveOptions, SolveReport};
 
 /// How many earlier frames a [`WarmHistory`] keeps.
 pub const HISTORY_FRAMES: usize = 3;
@@ -42,7 +45,8 @@ impl WarmHistory {
         self.nodes.clear();
     }
 
-    /// The latest field, if any.
+    /// The latest field, if any: the coarse one of a solve with `grid_step` above 1 (see
+    /// [`solve_warm`]).
     pub fn last(&self) -> Option<&Field> {
         self.entries.back().map(|e| &e.1)
     }
@@ -171,7 +175,9 @@ impl WarmHistory {
 }
 
 /// [`solve`] started from `history` and `initial` ([`WarmHistory::start`]: whichever is
-/// closer), which then keeps the result.
+/// closer), which then keeps the result. With `grid_step` above 1 the history keeps and
+/// combines the coarse solves' fields, and `initial` is read at the coarse nodes only: a
+/// draft's start costs a pass over its coarse grid, not over every pixel.
 ///
 /// ```
 /// use inkwarp_core::solve::{solve_warm, SolveOptions, WarmHistory};
@@ -200,6 +206,21 @@ pub fn solve_warm(
     history: &mut WarmHistory,
     initial: Option<Field>,
 ) -> Result<(Field, SolveReport), SolveError> {
+    if options.grid_step > 1 && grid.width > 0 && grid.height > 0 {
+        // Coarse solves keep and combine coarse fields: only the coarse nodes' values of a
+        // start are read, so the fine fields need not be combined or kept.
+        let clock = Instant::now();
+        validate(grid, samples, options, initial.as_ref())?;
+        let (field, mut report) = in_pool(|| {
+            let coarse = Coarse::new(grid, samples, options.grid_step);
+            let start = history.start(&coarse.grid, &coarse.constraints, initial.map(|f| coarse.restrict(&f)));
+            let (fc, report) = solve_constrained(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref());
+            history.record(&coarse.grid, &coarse.constraints, &fc);
+            (coarse.upsample(grid, &fc, samples), report)
+        });
+        report.seconds = clock.elapsed().as_secs_f64();
+        return Ok((field, report));
+    }
     let c = constrain(grid, samples);
     let start = history.start(grid, &c, initial);
     let (field, report) = solve_with(grid, samples, Some(&c), options, start.as_ref())?;

@@ -222,7 +222,7 @@ pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     })
 }
 
-fn validate(
+pub(crate) fn validate(
     grid: &Grid,
     samples: &[Sample],
     options: &SolveOptions,
@@ -257,7 +257,9 @@ fn validate(
                 want_h: grid.height,
             });
         }
-        if !f.dx.iter().chain(f.dy.iter()).all(|v| v.is_finite()) {
+        // Without early exits, so that the pass over every pixel vectorises.
+        let finite = |v: &[f32]| v.iter().fold(true, |all, x| all & x.is_finite());
+        if !(finite(&f.dx) & finite(&f.dy)) {
             return Err(SolveError::NonFiniteInitial);
         }
     }

@@ -367,6 +367,48 @@ fn starts_from_earlier_frames_keep_the_accuracy_and_save_cycles() {
     assert!(with_history < from_previous, "{with_history} cycles from earlier frames, {from_previous} from the previous one");
 }
 
+#[test]
+fn coarse_steps_start_from_earlier_coarse_frames() {
+    // A draft's solves (grid_step 4) along a smooth motion, with a cut: the history keeps
+    // the coarse fields, each solve lands as close to the coarse minimiser as a cold one
+    // does, and the starts save cycles over starting from the previous field.
+    let (w, h) = (97usize, 81usize);
+    let mut grid = Grid::new(w, h);
+    grid.add_cut(&[[50.5, 10.0], [50.5, 60.0]]);
+    let mut rng = Rng(5);
+    let base: Vec<([f64; 2], [f64; 2])> = (0..10).map(|_| ([rng.next() * 96.0, rng.next() * 80.0], [rng.next() * 8.0 - 4.0, rng.next() * 8.0 - 4.0])).collect();
+    let pose = |t: f64| -> Vec<Sample> {
+        base.iter().map(|&(rest, amp)| Sample { rest, displacement: [amp[0] * (1.0 + t), amp[1] * (1.0 - 0.5 * t * t)] }).collect()
+    };
+    let opts = SolveOptions { grid_step: 4, ..Default::default() };
+    let tight = SolveOptions { tolerance_px: 1e-6, max_cycles: Some(500), ..opts.clone() };
+    let mut history = WarmHistory::new();
+    let (mut with_history, mut from_previous) = (0, 0);
+    let mut previous: Option<Field> = None;
+    for frame in 0..10 {
+        let samples = pose(0.1 * frame as f64);
+        let (field, report) = solve_warm(&grid, &samples, &opts, &mut history, previous.clone()).unwrap();
+        assert_eq!((field.width, field.height), (w, h));
+        let kept = history.last().expect("the history keeps the solve");
+        assert_eq!((kept.width, kept.height), (25, 21), "the history keeps the coarse field");
+        let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
+        let err = gap(&field, &exact);
+        assert!(err < 0.05, "frame {frame}: {err} px from the coarse minimiser ({report:?})");
+        let (_, plain) = solve(&grid, &samples, &opts, previous.as_ref()).unwrap();
+        if frame >= 3 {
+            with_history += report.cycles;
+            from_previous += plain.cycles;
+        }
+        previous = Some(field);
+    }
+    assert!(with_history < from_previous, "{with_history} cycles from earlier frames, {from_previous} from the previous one");
+    // A full-resolution solve after drafts starts its own series (another history per
+    // step, as the editor keeps, or this one: the coarse fields do not fit the grid).
+    let (field, _) = solve_warm(&grid, &pose(1.0), &SolveOptions::default(), &mut history, None).unwrap();
+    let (exact, _) = solve(&grid, &pose(1.0), &SolveOptions { tolerance_px: 1e-6, max_cycles: Some(500), ..Default::default() }, None).unwrap();
+    assert!(gap(&field, &exact) < 0.05);
+}
+
 /// An `n × n` grid with a thin arc-shaped hole (open on its right, past `n/2 + open`)
 /// and a cut, each when asked for.
 fn torn_grid(n: usize, hole: bool, cut: bool, open: f64) -> Grid {
