@@ -1053,7 +1053,7 @@ fn step_update(u: &mut [V2], r: &mut [V2], p: &[V2], q: &[V2], alpha: [f64; 2]) 
             let a = alpha[l & 1];
             let d = a * p[l];
             u[l] += d;
-            m[l] = m[l].max(d.abs());
+            m[l] = larger(m[l], d.abs());
             r[l] += a * q[l];
         }
     };
@@ -1074,14 +1074,21 @@ fn scaled_max(level: &Level, r: &[V2]) -> f64 {
     for (d, ri) in dc.zip(rc) {
         for l in 0..4 {
             // Nodes that are not unknowns (inactive or fixed) have a zero inverse diagonal.
-            m[2 * l] = m[2 * l].max(ri[l][0].abs() * d[l]);
-            m[2 * l + 1] = m[2 * l + 1].max(ri[l][1].abs() * d[l]);
+            m[2 * l] = larger(m[2 * l], ri[l][0].abs() * d[l]);
+            m[2 * l + 1] = larger(m[2 * l + 1], ri[l][1].abs() * d[l]);
         }
     }
     for (d, ri) in dt.iter().zip(rt) {
         m[0] = m[0].max(ri[0].abs() * d).max(ri[1].abs() * d);
     }
     m.iter().fold(0.0, |a, &b| a.max(b))
+}
+
+/// The larger of two values, by a comparison: `f64::max` (which must skip a NaN either
+/// side) becomes a call into the C library on WebAssembly, once per node in the passes above.
+#[inline(always)]
+fn larger(a: f64, b: f64) -> f64 {
+    if b > a { b } else { a }
 }
 
 /// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.
