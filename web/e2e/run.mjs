@@ -518,10 +518,19 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   await page.keyboard.press('e');
   await idle(page);
   // Three drags with pauses (each pause lets the full-resolution solve land).
+  const framesBefore = await page.evaluate(() => ({ ...window.inkwarp.app.stats.frames }));
   for (const [from, to] of [[[135, 256], [175, 246]], [[256, 70], [256, 40]]]) {
     await drag(page, from, to, 15);
     await idle(page);
   }
+  // The picture is drawn again only for a new field (a pointer move alone redraws the
+  // overlay): at most a frame per field, plus the settles' multisampled frames.
+  const frames = await page.evaluate((b) => {
+    const { stats } = window.inkwarp.app;
+    return { drawn: stats.frames.drawn - b.drawn, overlayOnly: stats.frames.overlayOnly - b.overlayOnly, fields: stats.draftSolveMs.length + stats.finalSolveMs.length };
+  }, framesBefore);
+  perf.dragFrames = frames;
+  assert(frames.overlayOnly > 0 && frames.drawn <= frames.fields + 4, `pictures drawn during the drags: ${JSON.stringify(frames)}`);
   // Playback at 24 fps: two keys on one feature over a quarter second (6 frames). The first
   // pass solves frames as it plays (and ahead of the playhead); later passes play from
   // the solved fields.
@@ -787,6 +796,7 @@ async function main() {
     console.log(`  playback at 24 fps, 6 frames: first pass (solving) ${JSON.stringify(perf.playbackFirstPass)}; then 2 s from solved fields ${JSON.stringify(perf.playback)}`);
   }
   if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without, ${perf.glFrameMs.draft.toFixed(1)} ms draft (a vertex every 8 px where whole), ${perf.glFrameMs.draftAa.toFixed(1)} ms draft multisampled`);
+  if (perf.dragFrames) console.log(`  frames during the drags: ${perf.dragFrames.drawn} pictures drawn for ${perf.dragFrames.fields} fields, ${perf.dragFrames.overlayOnly} overlay-only frames`);
   if (perf.draftVsFull) console.log(`  during a drag: draft frame ${perf.draftVsFull.draftMs.toFixed(1)} ms, full frame of the same field ${perf.draftVsFull.fullMs.toFixed(1)} ms (draw + read back); draft vs full mean ${perf.draftVsFull.mean.toFixed(2)}, p99 ${perf.draftVsFull.p99}, max ${perf.draftVsFull.max}`);
   if (perf.gpuVsCpu) console.log(`  GPU vs CPU: mean ${perf.gpuVsCpu.mean.toFixed(3)}, p99 ${perf.gpuVsCpu.p99}, max ${perf.gpuVsCpu.max}`);
   if (perf.gpuVsCpuHole) console.log(`  GPU vs CPU around an opening hole (128×128): mean ${perf.gpuVsCpuHole.mean.toFixed(3)}, p99 ${perf.gpuVsCpuHole.p99}, max ${perf.gpuVsCpuHole.max}`);

@@ -44,6 +44,8 @@ export interface Stats {
   settleParts: SettleParts[];
   /** Where each drag frame's time went (ms): the same parts, `queued` from the pointer event. */
   dragParts: SettleParts[];
+  /** Frames the GPU drew, and frames that only redrew the overlay (the picture unchanged). */
+  frames: { drawn: number; overlayOnly: number };
 }
 
 /**
@@ -116,7 +118,7 @@ export class App {
   readonly store: Store;
   readonly gl: GlRenderer;
   readonly runtimes = new Map<string, LayerRuntime>();
-  readonly stats: Stats = { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], playback: null, settleParts: [], dragParts: [] };
+  readonly stats: Stats = { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 } };
   onMessage: (text: string, kind: 'error' | 'info') => void = () => {};
   onFrame: () => void = () => {};
   onSolved: (ev: FieldEvent) => void = () => {};
@@ -546,6 +548,18 @@ export class App {
    * multisampled one once the GPU has drawn it.
    */
   private frameTick(): void {
+    // A change that leaves the picture as drawn (the drawing moved, its field not yet
+    // solved: every pointer move of a drag) redraws only the overlay. A software GPU would
+    // otherwise draw the same frame again, and the page would wait for it.
+    const draft = this.dragging || this.store.view.playing;
+    const doc = this.doc;
+    const same = this.gl.drawn(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], this.drawList(), !draft, draft);
+    if (same && !this.antialiasDue && !this.pendingLatency.length && !this.afterFrameFns.length) {
+      this.stats.frames.overlayOnly++;
+      this.onFrame();
+      this.checkIdle();
+      return;
+    }
     if (this.dragging || this.store.view.playing) {
       this.antialiasDue = false;
       this.renderNow(true);
@@ -587,6 +601,7 @@ export class App {
    */
   renderNow(draft: boolean = this.dragging || this.store.view.playing, antialias = !draft): void {
     const start = performance.now();
+    this.stats.frames.drawn++;
     this.draw(draft, antialias);
     const drawn = { start, end: performance.now() };
     this.onFrame();

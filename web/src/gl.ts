@@ -263,8 +263,13 @@ export function draftQuads(w: number, h: number, links: Uint8Array, block = DRAF
   return new Uint32Array(out);
 }
 
+let layerSerial = 0;
+
 /** One layer's GPU resources. */
 export class GlLayer {
+  /** Tells layers apart, and (`version`) each state of one: the image, mesh or field set. */
+  readonly serial = ++layerSerial;
+  version = 0;
   image: WebGLTexture;
   /** The image premultiplied, bilinearly filtered: drafts sample it once a fragment. */
   premultiplied: WebGLTexture;
@@ -311,6 +316,7 @@ export class GlLayer {
 
   /** Straight RGBA8 pixels of the layer. */
   setImage(rgba: Uint8Array | Uint8ClampedArray): void {
+    this.version++;
     const gl = this.r.gl;
     gl.bindTexture(gl.TEXTURE_2D, this.image);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
@@ -334,6 +340,7 @@ export class GlLayer {
    * (at the border, along a cut, around a hole) each drawn pixel gets its skirt quarter.
    */
   setMesh(links: Uint8Array | null, rgba: Uint8Array | null): void {
+    this.version++;
     const { width: w, height: h } = this;
     const { quads, coarse, skirts, innerSkirts, links: l } = buildMesh(w, h, links, rgba);
     const n = quads.length;
@@ -357,6 +364,7 @@ export class GlLayer {
   }
 
   setField(field: FieldData | null): void {
+    this.version++;
     const gl = this.r.gl;
     const n = this.width * this.height;
     const rg = new Float32Array(2 * n);
@@ -383,6 +391,12 @@ export class GlLayer {
   }
 }
 
+/** Everything a frame depends on: its size, background and kind, and each layer's state. */
+function frameKey(width: number, height: number, background: number[], layers: DrawLayer[], antialias: boolean, draft: boolean): string {
+  const parts = layers.map(({ layer, offset, opacity }) => `${layer.serial}.${layer.version}@${offset[0]},${offset[1]}*${opacity ?? 1}`);
+  return `${width}x${height} ${background.join(',')} ${antialias ? 'aa' : '1'}${draft ? 'd' : 'f'} ${parts.join(' ')}`;
+}
+
 export interface DrawLayer {
   layer: GlLayer;
   offset: [number, number];
@@ -402,6 +416,14 @@ export class GlRenderer {
   private plainRb: WebGLRenderbuffer | null = null;
   private resolveFbo: WebGLFramebuffer | null = null;
   private resolveTex: WebGLTexture | null = null;
+  /** What the last frame drew (see `frameKey`). */
+  private lastFrame = '';
+
+  /** Whether `render` with these arguments would draw the frame already drawn. */
+  drawn(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): boolean {
+    return this.lastFrame === frameKey(width, height, background, layers, antialias, draft);
+  }
+
   /** Where the last frame can be read: the resolve target, or the canvas after a draft. */
   private shown: WebGLFramebuffer | null = null;
   private width = 0;
@@ -488,6 +510,7 @@ void main() { o = texture(uTex, vPos); }`);
    * for every pass over the pixels) and read from there.
    */
   render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): void {
+    this.lastFrame = frameKey(width, height, background, layers, antialias, draft);
     const gl = this.gl;
     this.ensureTargets(width, height);
     // A draft draws straight onto the canvas; a full frame into a target of its own,
