@@ -510,7 +510,10 @@ export class App {
         this.afterFrame((aa) => (parts.antialiased = aa - start), true);
         this.settleStart = null;
       }
-      this.invalidate();
+      // A draft during a drag is drawn at once, not at the next animation frame: the GPU
+      // starts on it sooner, and the page shows it at that frame all the same.
+      if (this.dragging && !this.store.view.playing && ev.tag.quality === 'draft') this.frameTick();
+      else this.invalidate();
     }
     this.onSolved(ev);
     this.checkIdle();
