@@ -662,6 +662,46 @@ test('a draft frame drawn during a drag looks like the full frame of the same fi
   await idle(page);
 });
 
+test('the fast full frame (fans where the field is smooth) matches the full frame of the same field', async () => {
+  // After a drag settles, a software GPU shows the full-resolution field first through the
+  // fans of `adaptiveTriangles`, single-sampled; here it is drawn beside the full mesh's
+  // single-sampled frame of the same field.
+  await drag(page, [135, 256], [185, 236], 6);
+  await idle(page);
+  const probe = await page.evaluate(() => {
+    const { app } = window.inkwarp;
+    const timed = (adaptive) => {
+      const t0 = performance.now();
+      app.draw(false, false, adaptive);
+      const px = app.gl.readPixels();
+      return { ms: performance.now() - t0, px };
+    };
+    timed(true); // builds nothing: the worker sent the triangles with the field
+    const fast = timed(true);
+    const full = timed(false);
+    const count = [...app.runtimes.values()].reduce((n, rt) => [n[0] + rt.gl.adaptiveCount / 3, n[1] + rt.gl.count / 3], [0, 0]);
+    const b64 = (px) => {
+      let s = '';
+      for (let i = 0; i < px.length; i += 0x8000) s += String.fromCharCode(...px.subarray(i, i + 0x8000));
+      return btoa(s);
+    };
+    app.renderNow();
+    return { w: app.store.doc.width, h: app.store.doc.height, fast: b64(fast.px), full: b64(full.px), fastMs: fast.ms, fullMs: full.ms, triangles: count[0], fullTriangles: count[1] };
+  });
+  const img = (b64) => ({ width: probe.w, height: probe.h, data: new Uint8Array(Buffer.from(b64, 'base64')) });
+  const fast = img(probe.fast);
+  const full = img(probe.full);
+  await savePng(page, fast, join(screens, 'frame-fast-full.png'));
+  // Every pixel is placed within 0.05 px of the full mesh's place: the differences are
+  // antialiasing-free edge pixels whose centre falls on the other side of an edge.
+  const { ok, stats } = await compareImages(page, fast, full, 'fast-vs-full', { meanTol: 0.5, p99Tol: 8 });
+  perf.fastVsFull = { ...stats, fastMs: probe.fastMs, fullMs: probe.fullMs, triangles: probe.triangles, fullTriangles: probe.fullTriangles };
+  assert(probe.triangles > 0 && probe.triangles < probe.fullTriangles, `the fast frame drew ${probe.triangles} triangles against ${probe.fullTriangles}`);
+  assert(ok, `the fast full frame differs from the full frame: mean ${stats.mean.toFixed(2)}, p99 ${stats.p99} (tolerance: mean ≤ 0.5, p99 ≤ 8); see test-results/fast-vs-full-diff.png`);
+  await page.keyboard.press('Control+z');
+  await idle(page);
+});
+
 test('every bundled example opens', async () => {
   const names = await page.evaluate(async () => (await window.inkwarp.examples.listExamples()).map((e) => e.name));
   perf.examples = names;
@@ -796,6 +836,7 @@ async function main() {
     console.log(`  playback at 24 fps, 6 frames: first pass (solving) ${JSON.stringify(perf.playbackFirstPass)}; then 2 s from solved fields ${JSON.stringify(perf.playback)}`);
   }
   if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without, ${perf.glFrameMs.draft.toFixed(1)} ms draft (a vertex every 8 px where whole), ${perf.glFrameMs.draftAa.toFixed(1)} ms draft multisampled`);
+  if (perf.fastVsFull) console.log(`  fast full frame: ${perf.fastVsFull.fastMs.toFixed(1)} ms (${perf.fastVsFull.triangles} triangles) against ${perf.fastVsFull.fullMs.toFixed(1)} ms (${perf.fastVsFull.fullTriangles}) single-sampled; mean ${perf.fastVsFull.mean.toFixed(3)}, p99 ${perf.fastVsFull.p99}, max ${perf.fastVsFull.max}`);
   if (perf.dragFrames) console.log(`  frames during the drags: ${perf.dragFrames.drawn} pictures drawn for ${perf.dragFrames.fields} fields, ${perf.dragFrames.overlayOnly} overlay-only frames`);
   if (perf.draftVsFull) console.log(`  during a drag: draft frame ${perf.draftVsFull.draftMs.toFixed(1)} ms, full frame of the same field ${perf.draftVsFull.fullMs.toFixed(1)} ms (draw + read back); draft vs full mean ${perf.draftVsFull.mean.toFixed(2)}, p99 ${perf.draftVsFull.p99}, max ${perf.draftVsFull.max}`);
   if (perf.gpuVsCpu) console.log(`  GPU vs CPU: mean ${perf.gpuVsCpu.mean.toFixed(3)}, p99 ${perf.gpuVsCpu.p99}, max ${perf.gpuVsCpu.max}`);

@@ -489,7 +489,7 @@ export class App {
       rt.notes = ev.report.notes ?? [];
       rt.error = null;
       const up0 = performance.now();
-      rt.gl.setField(ev.field);
+      rt.gl.setField(ev.field, ev.triangles ?? null);
       const upload = performance.now() - up0;
       if (typeof ev.tag.pointerAt === 'number' && ev.tag.pointerAt > 0) {
         const start = ev.tag.pointerAt;
@@ -570,7 +570,7 @@ export class App {
       this.antialiasDue = true;
       // Once the GPU has drawn it (so the two frames do not share the GPU).
       this.afterFrame(() => this.invalidate());
-      this.renderNow(false, false);
+      this.renderNow(false, false, true);
     } else {
       this.antialiasDue = false;
       this.renderNow(false);
@@ -592,9 +592,9 @@ export class App {
    * Draws the current fields: the full frame (the pixel mesh, 4× multisampled, what the
    * CPU renderer draws) or a draft (the coarse mesh of `draftQuads`, one sample a pixel).
    */
-  draw(draft: boolean, antialias = !draft): void {
+  draw(draft: boolean, antialias = !draft, adaptive = false): void {
     const doc = this.doc;
-    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], this.drawList(), antialias, draft);
+    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], this.drawList(), antialias, draft, adaptive);
   }
 
   /**
@@ -602,10 +602,10 @@ export class App {
    * software GPU pays per vertex, per triangle and per sample. The full frame follows
    * when the pointer rests or playback stops; exports ask for it (`draft = false`).
    */
-  renderNow(draft: boolean = this.dragging || this.store.view.playing, antialias = !draft): void {
+  renderNow(draft: boolean = this.dragging || this.store.view.playing, antialias = !draft, adaptive = false): void {
     const start = performance.now();
     this.stats.frames.drawn++;
-    this.draw(draft, antialias);
+    this.draw(draft, antialias, adaptive);
     const drawn = { start, end: performance.now() };
     this.onFrame();
     const latency = this.pendingLatency.splice(0);

@@ -35,6 +35,10 @@ uniform float uBlock;
 // Drafts (1) draw no skirt quarters along the layer's border: its vertices there move out
 // by half a pixel instead, so the draft still covers the border pixels' outer halves.
 uniform float uEdge;
+// Fast full frames (adaptiveTriangles) clamp nothing: their fans' last vertex is a
+// block's centre, and they are not multisampled (every fragment centre lies inside its
+// triangle).
+uniform float uLoose;
 out vec2 vRest;
 flat out vec4 vClamp;
 
@@ -45,7 +49,7 @@ void main() {
   vec2 out_ = uEdge * 0.5 * vec2(p.x == 0 ? -1.0 : p.x == uSize.x - 1 ? 1.0 : 0.0, p.y == 0 ? -1.0 : p.y == uSize.y - 1 ? 1.0 : 0.0);
   vec2 q = rest + out_ + d + uOffset;
   vRest = rest + out_;
-  vClamp = vec4(rest, rest + uBlock);
+  vClamp = vec4(rest - uLoose, rest + uBlock + uLoose);
   gl_Position = vec4((q.x + 0.5) / uCanvas.x * 2.0 - 1.0, 1.0 - (q.y + 0.5) / uCanvas.y * 2.0, 0.0, 1.0);
 }
 `;
@@ -228,18 +232,7 @@ export const DRAFT_BLOCK = 8;
 export function draftQuads(w: number, h: number, links: Uint8Array, block = DRAFT_BLOCK): Uint32Array {
   const qw = Math.max(0, w - 1);
   const qh = Math.max(0, h - 1);
-  // Summed-area table of the whole pixel quads: any block's count in four lookups.
-  const sums = new Uint32Array((qw + 1) * (qh + 1));
-  for (let j = 0; j < qh; j++) {
-    let row = 0;
-    for (let i = 0; i < qw; i++) {
-      const k = j * w + i;
-      if ((links[k] & 6) === 6 && (links[k + w] & 2) !== 0 && (links[k + 1] & 4) !== 0) row++;
-      sums[(j + 1) * (qw + 1) + i + 1] = sums[j * (qw + 1) + i + 1] + row;
-    }
-  }
-  const whole = (i0: number, j0: number, i1: number, j1: number) =>
-    sums[j1 * (qw + 1) + i1] - sums[j0 * (qw + 1) + i1] - sums[j1 * (qw + 1) + i0] + sums[j0 * (qw + 1) + i0] === (i1 - i0) * (j1 - j0);
+  const whole = wholeBlocks(w, h, links);
   const out: number[] = [];
   const emit = (i0: number, j0: number, size: number): void => {
     const i1 = Math.min(i0 + size, qw);
@@ -265,6 +258,127 @@ export function draftQuads(w: number, h: number, links: Uint8Array, block = DRAF
 
 let layerSerial = 0;
 
+/**
+ * Whether every pixel quad of a block (quads `i0..i1` × `j0..j1`) has its four links: a
+ * summed-area table of the whole pixel quads answers any block in four lookups.
+ */
+function wholeBlocks(w: number, h: number, links: Uint8Array): (i0: number, j0: number, i1: number, j1: number) => boolean {
+  const qw = Math.max(0, w - 1);
+  const qh = Math.max(0, h - 1);
+  const sums = new Uint32Array((qw + 1) * (qh + 1));
+  for (let j = 0; j < qh; j++) {
+    let row = 0;
+    for (let i = 0; i < qw; i++) {
+      const k = j * w + i;
+      if ((links[k] & 6) === 6 && (links[k + w] & 2) !== 0 && (links[k + 1] & 4) !== 0) row++;
+      sums[(j + 1) * (qw + 1) + i + 1] = sums[j * (qw + 1) + i + 1] + row;
+    }
+  }
+  return (i0, j0, i1, j1) =>
+    sums[j1 * (qw + 1) + i1] - sums[j0 * (qw + 1) + i1] - sums[j1 * (qw + 1) + i0] + sums[j0 * (qw + 1) + i0] === (i1 - i0) * (j1 - j0);
+}
+
+/** Side (pixel quads) of the fans of `adaptiveTriangles`. */
+export const FAN_BLOCK = 8;
+
+/**
+ * How far (pixels) the field may stray inside a fan of `adaptiveTriangles` from the fan's
+ * own (piecewise affine) interpolation.
+ */
+export const ADAPTIVE_TOLERANCE = 0.05;
+
+/** The pixels on the border of the block of `s` × `s` quads from pixel (i0, j0), once round. */
+function fanBorder(w: number, i0: number, j0: number, s: number): number[] {
+  const ring: number[] = [];
+  for (let t = 0; t < s; t++) ring.push(j0 * w + i0 + t);
+  for (let t = 0; t < s; t++) ring.push((j0 + t) * w + i0 + s);
+  for (let t = 0; t < s; t++) ring.push((j0 + s) * w + i0 + s - t);
+  for (let t = 0; t < s; t++) ring.push((j0 + s - t) * w + i0);
+  return ring;
+}
+
+/**
+ * The triangles of a fast full frame for `field` (single-sampled: the frame a software GPU
+ * shows first when the pointer rests). A whole block of `FAN_BLOCK` × `FAN_BLOCK` pixel
+ * quads where the field is within `tolerance` pixels of the block's fan (the triangles
+ * from its centre pixel to each pair of neighbouring pixels on its border, the field
+ * affine on each) is drawn as that fan; every other whole pixel quad as the full mesh
+ * draws it. Each fan uses every pixel of its border, so a fan and its neighbours, fans or
+ * pixel quads, share their edges' vertices: no T-junctions, no cracks. So every pixel lands
+ * within `tolerance` of where the full mesh puts it, and every fragment takes the colour
+ * of its rest position as in the full mesh (rest positions are affine on every triangle of
+ * both), from about a quarter of the triangles where the field is smooth.
+ */
+export function adaptiveTriangles(w: number, h: number, links: Uint8Array, field: FieldData, tolerance = ADAPTIVE_TOLERANCE): Uint32Array {
+  const qw = Math.max(0, w - 1);
+  const qh = Math.max(0, h - 1);
+  const whole = wholeBlocks(w, h, links);
+  const s = FAN_BLOCK;
+  const half = s / 2;
+  // Each pixel inside a fan, off its centre: where the ray from the centre through it
+  // leaves the block, between two border pixels (offsets from the block's top-left pixel,
+  // the second one's weight), and how far along the ray the pixel lies (the fan is affine
+  // along the ray). The same for every block.
+  const inside: { at: number; a: number; b: number; wb: number; r: number }[] = [];
+  for (let dy = -half + 1; dy < half; dy++) {
+    for (let dx = -half + 1; dx < half; dx++) {
+      const m = Math.max(Math.abs(dx), Math.abs(dy));
+      if (m === 0) continue;
+      const [qx, qy] = [half + (dx * half) / m, half + (dy * half) / m];
+      const [x0, y0] = [Math.floor(qx), Math.floor(qy)];
+      const [fx, fy] = [qx - x0, qy - y0];
+      // On a vertical edge the ray leaves between rows, on a horizontal one between columns.
+      const a = y0 * w + x0;
+      const [b, wb] = Math.abs(dx) === m ? [fy > 0 ? a + w : a, fy] : [fx > 0 ? a + 1 : a, fx];
+      inside.push({ at: (half + dy) * w + half + dx, a, b, wb, r: m / half });
+    }
+  }
+  const fits = (i0: number, j0: number): boolean => {
+    const o = j0 * w + i0;
+    const c = o + half * w + half;
+    for (const f of [field.dx, field.dy]) {
+      const fc = f[c];
+      for (const p of inside) {
+        const edge = f[o + p.a] + p.wb * (f[o + p.b] - f[o + p.a]);
+        if (Math.abs(f[o + p.at] - (fc + p.r * (edge - fc))) > tolerance) return false;
+      }
+    }
+    return true;
+  };
+  // At most two triangles a pixel quad (a fan has a quarter of that).
+  const out = new Uint32Array(6 * qw * qh);
+  let n = 0;
+  const ring = new Uint32Array(4 * s);
+  for (let j0 = 0; j0 < qh; j0 += s) {
+    for (let i0 = 0; i0 < qw; i0 += s) {
+      const [i1, j1] = [Math.min(i0 + s, qw), Math.min(j0 + s, qh)];
+      if (i1 - i0 === s && j1 - j0 === s && whole(i0, j0, i1, j1) && fits(i0, j0)) {
+        ring.set(fanBorder(w, i0, j0, s));
+        const c = (j0 + half) * w + i0 + half;
+        for (let t = 0; t < ring.length; t++) {
+          out[n++] = ring[t];
+          out[n++] = ring[(t + 1) % ring.length];
+          out[n++] = c;
+        }
+        continue;
+      }
+      for (let j = j0; j < j1; j++) {
+        for (let i = i0; i < i1; i++) {
+          if (!whole(i, j, i + 1, j + 1)) continue;
+          const k = j * w + i;
+          out[n++] = k + 1;
+          out[n++] = k + w + 1;
+          out[n++] = k;
+          out[n++] = k + w + 1;
+          out[n++] = k + w;
+          out[n++] = k;
+        }
+      }
+    }
+  }
+  return out.slice(0, n);
+}
+
 /** One layer's GPU resources. */
 export class GlLayer {
   /** Tells layers apart, and (`version`) each state of one: the image, mesh or field set. */
@@ -280,6 +394,13 @@ export class GlLayer {
   /** Drafts: the quadtree of `draftQuads` (whole blocks of up to `DRAFT_BLOCK`² quads as one). */
   coarse: WebGLBuffer;
   coarseCount = 0;
+  /** Fast full frames: the triangles of `adaptiveTriangles` for the field (built when first drawn). */
+  adaptive: WebGLBuffer;
+  adaptiveCount = 0;
+  private adaptiveFor = -1;
+  private fieldData: FieldData | null = null;
+  private givenTriangles: Uint32Array | null = null;
+  private allLinks: Uint8Array = new Uint8Array(0);
   links: WebGLTexture;
   /** The skirt quarters: 6 vertices each of (x, y, sx, sy, u, v). */
   skirts: WebGLBuffer;
@@ -298,6 +419,7 @@ export class GlLayer {
     this.field = r.texture();
     this.indices = gl.createBuffer()!;
     this.coarse = gl.createBuffer()!;
+    this.adaptive = gl.createBuffer()!;
     this.links = r.texture();
     this.skirts = gl.createBuffer()!;
     this.skirtVao = gl.createVertexArray()!;
@@ -358,13 +480,17 @@ export class GlLayer {
     gl.bindBuffer(gl.ARRAY_BUFFER, null);
     this.skirtCount = skirts.length / 6;
     this.innerSkirtCount = innerSkirts;
+    this.allLinks = l;
     gl.bindTexture(gl.TEXTURE_2D, this.links);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.R8UI, w, h, 0, gl.RED_INTEGER, gl.UNSIGNED_BYTE, l);
   }
 
-  setField(field: FieldData | null): void {
+  /** The field, and (`triangles`) its fast full frame's triangles when already built. */
+  setField(field: FieldData | null, triangles: Uint32Array | null = null): void {
     this.version++;
+    this.fieldData = field;
+    this.givenTriangles = triangles;
     const gl = this.r.gl;
     const n = this.width * this.height;
     const rg = new Float32Array(2 * n);
@@ -378,8 +504,23 @@ export class GlLayer {
     gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, this.width, this.height, gl.RG, gl.FLOAT, rg);
   }
 
+  /** Makes `adaptive` the triangles of the current field and mesh (once per version). */
+  useAdaptive(): void {
+    if (this.adaptiveFor === this.version) return;
+    const { width: w, height: h } = this;
+    const field = this.fieldData ?? { width: w, height: h, dx: new Float32Array(w * h), dy: new Float32Array(w * h) };
+    const triangles = this.givenTriangles ?? adaptiveTriangles(w, h, this.allLinks, field);
+    const gl = this.r.gl;
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.adaptive);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, triangles, gl.DYNAMIC_DRAW);
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, null);
+    this.adaptiveCount = triangles.length;
+    this.adaptiveFor = this.version;
+  }
+
   dispose(): void {
     const gl = this.r.gl;
+    gl.deleteBuffer(this.adaptive);
     gl.deleteTexture(this.image);
     gl.deleteTexture(this.premultiplied);
     gl.deleteTexture(this.field);
@@ -392,9 +533,9 @@ export class GlLayer {
 }
 
 /** Everything a frame depends on: its size, background and kind, and each layer's state. */
-function frameKey(width: number, height: number, background: number[], layers: DrawLayer[], antialias: boolean, draft: boolean): string {
+function frameKey(width: number, height: number, background: number[], layers: DrawLayer[], antialias: boolean, draft: boolean, fast: boolean): string {
   const parts = layers.map(({ layer, offset, opacity }) => `${layer.serial}.${layer.version}@${offset[0]},${offset[1]}*${opacity ?? 1}`);
-  return `${width}x${height} ${background.join(',')} ${antialias ? 'aa' : '1'}${draft ? 'd' : 'f'} ${parts.join(' ')}`;
+  return `${width}x${height} ${background.join(',')} ${antialias ? 'aa' : '1'}${draft ? 'd' : fast ? 'a' : 'f'} ${parts.join(' ')}`;
 }
 
 export interface DrawLayer {
@@ -420,8 +561,8 @@ export class GlRenderer {
   private lastFrame = '';
 
   /** Whether `render` with these arguments would draw the frame already drawn. */
-  drawn(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): boolean {
-    return this.lastFrame === frameKey(width, height, background, layers, antialias, draft);
+  drawn(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false, adaptive = false): boolean {
+    return this.lastFrame === frameKey(width, height, background, layers, antialias, draft, adaptive && !draft && !antialias);
   }
 
   /** Where the last frame can be read: the resolve target, or the canvas after a draft. */
@@ -505,12 +646,15 @@ void main() { o = texture(uTex, vPos); }`);
    * pixels at each fragment's rest position, so a draft differs from the full frame only
    * where the field bends inside a block, and along the layer's border (half a pixel
    * pushed out where the full frame draws skirt quarters; those of cuts and holes stay).
-   * A full frame stays in the resolve target (for `readPixels`) and is shown on the
+   * `adaptive` (single-sampled full frames only) draws the triangles of
+   * `adaptiveTriangles`, which put every pixel within `ADAPTIVE_TOLERANCE` of the full
+   * mesh, in place of two a pixel. A full frame stays in the resolve target (for `readPixels`) and is shown on the
    * canvas; a single-sampled draft is drawn on the canvas directly (a software GPU pays
    * for every pass over the pixels) and read from there.
    */
-  render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): void {
-    this.lastFrame = frameKey(width, height, background, layers, antialias, draft);
+  render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false, adaptive = false): void {
+    const fast = adaptive && !draft && !antialias;
+    this.lastFrame = frameKey(width, height, background, layers, antialias, draft, fast);
     const gl = this.gl;
     this.ensureTargets(width, height);
     // A draft draws straight onto the canvas; a full frame into a target of its own,
@@ -526,6 +670,7 @@ void main() { o = texture(uTex, vPos); }`);
     gl.enable(gl.BLEND);
     gl.blendFunc(gl.ONE, gl.ONE_MINUS_SRC_ALPHA);
     for (const { layer, offset, opacity } of layers) {
+      if (fast) layer.useAdaptive();
       gl.activeTexture(gl.TEXTURE0);
       gl.bindTexture(gl.TEXTURE_2D, layer.field);
       gl.activeTexture(gl.TEXTURE1);
@@ -547,10 +692,11 @@ void main() { o = texture(uTex, vPos); }`);
         gl.uniform1f(u('uOpacity'), opacity ?? 1);
         gl.uniform1f(u('uBlock'), draft ? DRAFT_BLOCK : 1);
         gl.uniform1f(u('uEdge'), draft ? 1 : 0);
+        gl.uniform1f(u('uLoose'), fast && prog !== this.skirt ? 2 * FAN_BLOCK : 0);
         if (prog !== this.skirt) {
           gl.bindVertexArray(this.vao);
-          gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, draft ? layer.coarse : layer.indices);
-          gl.drawElements(gl.TRIANGLES, draft ? layer.coarseCount : layer.count, gl.UNSIGNED_INT, 0);
+          gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, draft ? layer.coarse : fast ? layer.adaptive : layer.indices);
+          gl.drawElements(gl.TRIANGLES, draft ? layer.coarseCount : fast ? layer.adaptiveCount : layer.count, gl.UNSIGNED_INT, 0);
         } else if (draft ? layer.innerSkirtCount : layer.skirtCount) {
           gl.bindVertexArray(layer.skirtVao);
           gl.drawArrays(gl.TRIANGLES, 0, draft ? layer.innerSkirtCount : layer.skirtCount);

@@ -15,6 +15,8 @@ export type ToWorker =
       options: SolveOptions;
       /** Start from the last field solved for this layer. */
       warm: boolean;
+      /** Also send the triangles of the field's fast full frame (see `adaptiveTriangles`). */
+      mesh?: boolean;
     };
 
 export type FromWorker =
@@ -28,6 +30,8 @@ export type FromWorker =
       id: number;
       key: string;
       field: FieldData;
+      /** The triangles of the field's fast full frame, when asked for. */
+      triangles?: Uint32Array;
       report: SolveReport;
       ms: number;
       gridStep: number;

@@ -19,6 +19,8 @@ export interface FieldEvent {
   report: SolveReport;
   ms: number;
   gridStep: number;
+  /** The triangles of the field's fast full frame (full-resolution fields only). */
+  triangles?: Uint32Array;
   tag: SolveTag;
   /** When (page's performance.now()) the request went to the worker, the worker began and
    * finished solving it, and its field arrived back. */
@@ -107,7 +109,7 @@ export class SolverClient {
     this.pending.delete(key);
     const id = this.nextId++;
     this.inFlight = { id, req, sentAt: performance.now() };
-    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm });
+    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm, mesh: req.tag.quality === 'final' });
   }
 
   private receive(msg: FromWorker): void {
@@ -130,7 +132,7 @@ export class SolverClient {
       if (msg.type === 'field' && done) {
         const origin = performance.timeOrigin;
         const times = { sent: done.sentAt, began: msg.began - origin, ended: msg.ended - origin, received: performance.now() };
-        this.onField({ key: msg.key, field: msg.field, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag, times });
+        this.onField({ key: msg.key, field: msg.field, triangles: msg.triangles, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag, times });
       } else if (msg.type === 'error') {
         this.onError(msg.key, msg.message);
       }

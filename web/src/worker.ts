@@ -2,12 +2,15 @@
 // never blocks on a solve and every solve can start warm from the one before.
 
 import { Engine, type FieldData, type GridHandle } from './engine';
+import { adaptiveTriangles } from './gl';
 import type { FromWorker, ToWorker } from './protocol';
 
 let engine: Engine | null = null;
 let wasmUrl = '';
 const grids = new Map<string, GridHandle>();
 const last = new Map<string, FieldData>();
+/** Each grid's links (per node: bit 0 active, bit 1 linked right, bit 2 linked down). */
+const linksOf = new Map<string, Uint8Array>();
 
 const post = (msg: FromWorker, transfer: Transferable[] = []) => (self as unknown as Worker).postMessage(msg, transfer);
 
@@ -28,11 +31,13 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
       const prev = last.get(msg.key);
       if (prev && (prev.width !== msg.width || prev.height !== msg.height)) last.delete(msg.key);
       const links = grid.links();
+      linksOf.set(msg.key, links.slice());
       post({ type: 'links', key: msg.key, links }, [links.buffer]);
     } else if (msg.type === 'drop') {
       grids.get(msg.key)?.free();
       grids.delete(msg.key);
       last.delete(msg.key);
+      linksOf.delete(msg.key);
     } else if (msg.type === 'solve') {
       const grid = grids.get(msg.key);
       if (!grid) throw new Error(`No grid for layer ${msg.key}.`);
@@ -43,10 +48,15 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
       last.set(msg.key, field);
       // Send copies: the worker keeps its own field as the next warm start.
       const out: FieldData = { width: field.width, height: field.height, dx: field.dx.slice(), dy: field.dy.slice() };
+      // The page draws a full-resolution field first through these (on a software GPU),
+      // and they take a pass over every pixel: built here, the page never waits for them.
+      const links = msg.mesh ? linksOf.get(msg.key) : undefined;
+      const triangles = links ? adaptiveTriangles(field.width, field.height, links, field) : undefined;
       const ended = performance.timeOrigin + performance.now();
-      post({ type: 'field', id: msg.id, key: msg.key, field: out, report, ms, gridStep: msg.options.grid_step ?? 1, began, ended }, [
+      post({ type: 'field', id: msg.id, key: msg.key, field: out, triangles, report, ms, gridStep: msg.options.grid_step ?? 1, began, ended }, [
         out.dx.buffer,
         out.dy.buffer,
+        ...(triangles ? [triangles.buffer] : []),
       ]);
     }
   } catch (err) {

@@ -1,7 +1,7 @@
 // The GPU mesh tiles the layer as the CPU renderer's does: whole quads where all four
 // links exist, skirt quarters elsewhere, so every drawn pixel's unit square is covered once.
 import { describe, expect, it } from 'vitest';
-import { buildMesh, draftQuads } from '../src/gl';
+import { ADAPTIVE_TOLERANCE, adaptiveTriangles, buildMesh, draftQuads, FAN_BLOCK } from '../src/gl';
 
 /** Rest-space area covered by a mesh: quads from their index rectangles, quarters ¼ each. */
 function area(w: number, quads: Uint32Array, skirts: Float32Array): number {
@@ -146,5 +146,76 @@ describe('the draft mesh (a vertex every few pixels where the surface is whole)'
       const l = links(w, h, (x, y) => !holes.has(`${x},${y}`), (x, y, d) => d === 'r' && x === cutX && y < h / 2);
       for (const block of [1, 2, 4, 8, 16]) expect(cover(w, h, draftQuads(w, h, l, block))).toEqual(wholeQuads(w, h, l));
     }
+  });
+});
+
+describe('the fast full mesh (fans where the field is nearly affine)', () => {
+  /** A field that bends sharply around one point and gently elsewhere. */
+  function bent(w: number, h: number): { width: number; height: number; dx: Float32Array; dy: Float32Array } {
+    const dx = new Float32Array(w * h), dy = new Float32Array(w * h);
+    for (let k = 0; k < w * h; k++) {
+      const [x, y] = [k % w, Math.floor(k / w)];
+      const r2 = (x - 20) ** 2 + (y - 24) ** 2;
+      [dx[k], dy[k]] = [6 * Math.exp(-r2 / 30) + 0.0005 * x * x, -3 * Math.exp(-r2 / 50) + 0.01 * y];
+    }
+    return { width: w, height: h, dx, dy };
+  }
+  const at = (w: number, k: number) => [k % w, Math.floor(k / w)];
+
+  it('covers every whole pixel quad once, has no T-junction, and puts every pixel within the tolerance', () => {
+    const w = 65, h = 49;
+    const l = links(w, h, () => true, (x, y, d) => d === 'r' && x === 40 && y > 10 && y < 30);
+    const field = bent(w, h);
+    const t = adaptiveTriangles(w, h, l, field);
+    // Area in rest space: one per whole pixel quad.
+    let area = 0;
+    const used = new Set<number>();
+    for (let q = 0; q < t.length; q += 3) {
+      const [a, b, c] = [at(w, t[q]), at(w, t[q + 1]), at(w, t[q + 2])];
+      area += Math.abs((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])) / 2;
+      for (let k = 0; k < 3; k++) used.add(t[q + k]);
+    }
+    expect(area).toBe(wholeQuads(w, h, l).reduce((s, v) => s + v, 0));
+    // No vertex lies inside another triangle's edge.
+    for (let q = 0; q < t.length; q += 3) {
+      for (const [u, v] of [[t[q], t[q + 1]], [t[q + 1], t[q + 2]], [t[q + 2], t[q]]]) {
+        const [a, b] = [at(w, u), at(w, v)];
+        const n = Math.max(Math.abs(b[0] - a[0]), Math.abs(b[1] - a[1]));
+        for (let s = 1; s < n; s++) {
+          const [x, y] = [a[0] + ((b[0] - a[0]) * s) / n, a[1] + ((b[1] - a[1]) * s) / n];
+          if (Number.isInteger(x) && Number.isInteger(y)) expect(used.has(y * w + x)).toBe(false);
+        }
+      }
+    }
+    // Every pixel inside a triangle is placed within the tolerance of the field there.
+    let worst = 0;
+    for (let q = 0; q < t.length; q += 3) {
+      const [a, b, c] = [at(w, t[q]), at(w, t[q + 1]), at(w, t[q + 2])];
+      const det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+      for (let y = Math.min(a[1], b[1], c[1]); y <= Math.max(a[1], b[1], c[1]); y++) {
+        for (let x = Math.min(a[0], b[0], c[0]); x <= Math.max(a[0], b[0], c[0]); x++) {
+          const lb = ((x - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (y - a[1])) / det;
+          const lc = ((b[0] - a[0]) * (y - a[1]) - (x - a[0]) * (b[1] - a[1])) / det;
+          if (lb < -1e-9 || lc < -1e-9 || lb + lc > 1 + 1e-9) continue;
+          for (const f of [field.dx, field.dy]) {
+            const v = (1 - lb - lc) * f[t[q]] + lb * f[t[q + 1]] + lc * f[t[q + 2]];
+            worst = Math.max(worst, Math.abs(v - f[y * w + x]));
+          }
+        }
+      }
+    }
+    expect(worst).toBeLessThanOrEqual(ADAPTIVE_TOLERANCE + 1e-6);
+    // Fans where the field is smooth, pixel quads around the bend and the cut.
+    const full = buildMesh(w, h, l, null).quads.length / 3;
+    expect(t.length / 3).toBeLessThan(0.5 * full);
+    expect(t.length / 3).toBeGreaterThan((full * 32) / 128);
+  });
+
+  it('an affine field is all fans, and the blocks past the last whole fan are pixel quads', () => {
+    const w = 21, h = 17; // 20 × 16 quads: fans at (0, 0), (8, 0), (0, 8), (8, 8); 4 × 16 quads left over
+    const dx = new Float32Array(w * h), dy = new Float32Array(w * h);
+    for (let k = 0; k < w * h; k++) [dx[k], dy[k]] = [0.3 * (k % w) - 2, 0.1 * Math.floor(k / w) + 0.05 * (k % w)];
+    const t = adaptiveTriangles(w, h, buildMesh(w, h, null, null).links, { width: w, height: h, dx, dy });
+    expect(t.length / 3).toBe(4 * 4 * FAN_BLOCK + 2 * 4 * 16);
   });
 });
