@@ -219,44 +219,21 @@ export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: 
 export const DRAFT_BLOCK = 8;
 
 /**
- * The draft mesh of a `w × h` layer from its links (as `buildMesh` returns them): triangle
- * indices of a quadtree of quads over the pixel vertices. A `block × block` block of pixel
- * quads whose every quad is whole (all four links) is one quad through its four corner
- * pixels; a block with any quad missing (a cut, a hole) is split in four, down to single
- * pixel quads, and a missing pixel quad is dropped as in the full mesh. So the draft covers
- * exactly what the full mesh's whole quads cover (the skirts are drawn as in the full
- * mesh), with far fewer vertices where nothing tears, and cuts and holes open at full
- * resolution. Blocks at the right and bottom edges are clipped to the layer. As in the
- * full mesh, each triangle's last (provoking) vertex is its quad's top-left pixel.
+ * The draft mesh of a `w × h` layer from its links (as `buildMesh` returns them): triangles
+ * over the pixel vertices. Each block of `block` × `block` pixel quads whose every quad is
+ * whole (all four links) is one element through its corner pixels; every other pixel quad
+ * (a cut, a hole, or a quad beside one) is drawn as the full mesh draws it, and a missing
+ * pixel quad is dropped. So the draft covers exactly what the full mesh's whole quads
+ * cover (the skirts are drawn as in the full mesh), with far fewer vertices where nothing
+ * tears, and cuts and holes open at full resolution. An element is two triangles where
+ * its neighbours are elements too; an edge it shares with pixel quads takes every pixel
+ * along it (the element is then a fan from its centre pixel), so neighbours always share
+ * their edges' vertices: no T-junction, no crack. Blocks at the right and bottom edges
+ * are clipped to the layer (one element only where no edge needs every pixel).
  */
 export function draftQuads(w: number, h: number, links: Uint8Array, block = DRAFT_BLOCK): Uint32Array {
-  const qw = Math.max(0, w - 1);
-  const qh = Math.max(0, h - 1);
-  const whole = wholeBlocks(w, h, links);
-  const out: number[] = [];
-  const emit = (i0: number, j0: number, size: number): void => {
-    const i1 = Math.min(i0 + size, qw);
-    const j1 = Math.min(j0 + size, qh);
-    if (i0 >= i1 || j0 >= j1) return;
-    if (whole(i0, j0, i1, j1)) {
-      const k = j0 * w + i0;
-      const right = j0 * w + i1;
-      const down = j1 * w + i0;
-      const across = j1 * w + i1;
-      out.push(right, across, k, across, down, k);
-    } else if (size > 1) {
-      const half = size / 2;
-      emit(i0, j0, half);
-      emit(i0 + half, j0, half);
-      emit(i0, j0 + half, half);
-      emit(i0 + half, j0 + half, half);
-    }
-  };
-  for (let j = 0; j < qh; j += block) for (let i = 0; i < qw; i += block) emit(i, j, block);
-  return new Uint32Array(out);
+  return blockMesh(w, h, links, block, null);
 }
-
-let layerSerial = 0;
 
 /**
  * Whether every pixel quad of a block (quads `i0..i1` × `j0..j1`) has its four links: a
@@ -278,106 +255,172 @@ function wholeBlocks(w: number, h: number, links: Uint8Array): (i0: number, j0: 
     sums[j1 * (qw + 1) + i1] - sums[j0 * (qw + 1) + i1] - sums[j1 * (qw + 1) + i0] + sums[j0 * (qw + 1) + i0] === (i1 - i0) * (j1 - j0);
 }
 
-/** Side (pixel quads) of the fans of `adaptiveTriangles`. */
+/** Side (pixel quads) of the elements of `adaptiveTriangles`. */
 export const FAN_BLOCK = 8;
 
 /**
- * How far (pixels) the field may stray inside a fan of `adaptiveTriangles` from the fan's
- * own (piecewise affine) interpolation.
+ * How far (pixels) the field may stray inside an element of `adaptiveTriangles` from the
+ * element's own (piecewise affine) interpolation.
  */
 export const ADAPTIVE_TOLERANCE = 0.05;
 
-/** The pixels on the border of the block of `s` × `s` quads from pixel (i0, j0), once round. */
-function fanBorder(w: number, i0: number, j0: number, s: number): number[] {
-  const ring: number[] = [];
-  for (let t = 0; t < s; t++) ring.push(j0 * w + i0 + t);
-  for (let t = 0; t < s; t++) ring.push((j0 + t) * w + i0 + s);
-  for (let t = 0; t < s; t++) ring.push((j0 + s) * w + i0 + s - t);
-  for (let t = 0; t < s; t++) ring.push((j0 + s - t) * w + i0);
-  return ring;
+/**
+ * The triangles of a fast full frame for `field` (single-sampled: the frame a software GPU
+ * shows first when the pointer rests): the mesh of `draftQuads` with blocks of
+ * `FAN_BLOCK`, except that a block is one element only where, at every pixel of it, the
+ * field is within `tolerance` pixels of the element's interpolation (the field affine on
+ * each of its triangles). Elsewhere the pixel quads are drawn as the full mesh draws
+ * them. So every pixel lands within `tolerance` of where the full mesh puts it, and every
+ * fragment takes the colour of its rest position as in the full mesh (rest positions are
+ * affine on every triangle of both), from a fraction of the triangles where the field is
+ * smooth.
+ */
+export function adaptiveTriangles(w: number, h: number, links: Uint8Array, field: FieldData, tolerance = ADAPTIVE_TOLERANCE): Uint32Array {
+  return blockMesh(w, h, links, FAN_BLOCK, { field, tolerance });
 }
 
 /**
- * The triangles of a fast full frame for `field` (single-sampled: the frame a software GPU
- * shows first when the pointer rests). A whole block of `FAN_BLOCK` × `FAN_BLOCK` pixel
- * quads where the field is within `tolerance` pixels of the block's fan (the triangles
- * from its centre pixel to each pair of neighbouring pixels on its border, the field
- * affine on each) is drawn as that fan; every other whole pixel quad as the full mesh
- * draws it. Each fan uses every pixel of its border, so a fan and its neighbours, fans or
- * pixel quads, share their edges' vertices: no T-junctions, no cracks. So every pixel lands
- * within `tolerance` of where the full mesh puts it, and every fragment takes the colour
- * of its rest position as in the full mesh (rest positions are affine on every triangle of
- * both), from about a quarter of the triangles where the field is smooth.
+ * The elements of `draftQuads` and `adaptiveTriangles`: blocks of `s` × `s` pixel quads,
+ * each one element (two triangles, or a fan from its centre pixel where an edge faces
+ * pixel quads) or its whole pixel quads. With `fit`, an element must also hold the field
+ * within the tolerance, and blocks that do not are split, until every element does.
  */
-export function adaptiveTriangles(w: number, h: number, links: Uint8Array, field: FieldData, tolerance = ADAPTIVE_TOLERANCE): Uint32Array {
+function blockMesh(w: number, h: number, links: Uint8Array, s: number, fit: { field: FieldData; tolerance: number } | null): Uint32Array {
   const qw = Math.max(0, w - 1);
   const qh = Math.max(0, h - 1);
   const whole = wholeBlocks(w, h, links);
-  const s = FAN_BLOCK;
+  const bw = Math.ceil(qw / s);
+  const bh = Math.ceil(qh / s);
   const half = s / 2;
-  // Each pixel inside a fan, off its centre: where the ray from the centre through it
-  // leaves the block, between two border pixels (offsets from the block's top-left pixel,
-  // the second one's weight), and how far along the ray the pixel lies (the fan is affine
-  // along the ray). The same for every block.
-  const inside: { at: number; a: number; b: number; wb: number; r: number }[] = [];
-  for (let dy = -half + 1; dy < half; dy++) {
-    for (let dx = -half + 1; dx < half; dx++) {
-      const m = Math.max(Math.abs(dx), Math.abs(dy));
-      if (m === 0) continue;
-      const [qx, qy] = [half + (dx * half) / m, half + (dy * half) / m];
-      const [x0, y0] = [Math.floor(qx), Math.floor(qy)];
-      const [fx, fy] = [qx - x0, qy - y0];
-      // On a vertical edge the ray leaves between rows, on a horizontal one between columns.
-      const a = y0 * w + x0;
-      const [b, wb] = Math.abs(dx) === m ? [fy > 0 ? a + w : a, fy] : [fx > 0 ? a + 1 : a, fx];
-      inside.push({ at: (half + dy) * w + half + dx, a, b, wb, r: m / half });
+  // The quads of block (bi, bj), clipped to the layer.
+  const span = (bi: number, bj: number) => [bi * s, bj * s, Math.min(bi * s + s, qw), Math.min(bj * s + s, qh)];
+  const element = new Uint8Array(bw * bh);
+  for (let bj = 0; bj < bh; bj++) {
+    for (let bi = 0; bi < bw; bi++) {
+      const [i0, j0, i1, j1] = span(bi, bj);
+      element[bj * bw + bi] = whole(i0, j0, i1, j1) ? 1 : 0;
     }
   }
-  const fits = (i0: number, j0: number): boolean => {
-    const o = j0 * w + i0;
-    const c = o + half * w + half;
-    for (const f of [field.dx, field.dy]) {
-      const fc = f[c];
-      for (const p of inside) {
-        const edge = f[o + p.a] + p.wb * (f[o + p.b] - f[o + p.a]);
-        if (Math.abs(f[o + p.at] - (fc + p.r * (edge - fc))) > tolerance) return false;
+  // An element's edges that take every pixel: those facing a block inside the layer that
+  // is not an element (top, right, bottom, left).
+  const split = (bi: number, bj: number) => bi >= 0 && bj >= 0 && bi < bw && bj < bh && element[bj * bw + bi] === 0;
+  const edges = (bi: number, bj: number) => [split(bi, bj - 1), split(bi + 1, bj), split(bi, bj + 1), split(bi - 1, bj)];
+  const clipped = (bi: number, bj: number) => (bi + 1) * s > qw || (bj + 1) * s > qh;
+  // Whether the element of block (bi, bj) holds the field (every pixel of it placed within
+  // the tolerance by its triangles).
+  const holds = (bi: number, bj: number): boolean => {
+    if (!fit) return true;
+    const i0 = bi * s, j0 = bj * s;
+    const i1 = Math.min(i0 + s, qw), j1 = Math.min(j0 + s, qh);
+    const ft = split(bi, bj - 1), fr = split(bi + 1, bj), fb = split(bi, bj + 1), fl = split(bi - 1, bj);
+    const fan = ft || fr || fb || fl;
+    const tol = fit.tolerance;
+    for (let comp = 0; comp < 2; comp++) {
+      const f = comp === 0 ? fit.field.dx : fit.field.dy;
+      const a = f[j0 * w + i0], b = f[j0 * w + i1], c = f[j1 * w + i0], d = f[j1 * w + i1];
+      if (!fan) {
+        const iw = 1 / (i1 - i0), ih = 1 / (j1 - j0);
+        for (let y = j0; y <= j1; y++) {
+          const t = (y - j0) * ih;
+          for (let x = i0; x <= i1; x++) {
+            const u = (x - i0) * iw;
+            const v = u >= t ? a + u * (b - a) + t * (d - b) : a + t * (c - a) + u * (d - c);
+            if (Math.abs(f[y * w + x] - v) > tol) return false;
+          }
+        }
+        continue;
+      }
+      const fc = f[(j0 + half) * w + i0 + half];
+      // Along an edge from (x0, y0), `len` pixels of step `step` (index), at `u` of it: its
+      // pixels where it takes every one, else its two corners.
+      const onEdge = (full: boolean, p0: number, step: number, u: number): number => {
+        const x = u * s;
+        if (!full) return f[p0] + u * (f[p0 + s * step] - f[p0]);
+        const k = Math.floor(x);
+        const r = x - k;
+        return r > 0 ? (1 - r) * f[p0 + k * step] + r * f[p0 + (k + 1) * step] : f[p0 + k * step];
+      };
+      for (let dy = -half; dy <= half; dy++) {
+        for (let dx = -half; dx <= half; dx++) {
+          const m = Math.max(Math.abs(dx), Math.abs(dy));
+          if (m === 0) continue;
+          // Where the ray from the centre through the pixel leaves the block; the fan is
+          // affine along the ray.
+          const qx = (dx * half) / m, qy = (dy * half) / m;
+          const u = (qx + half) / s, t = (qy + half) / s;
+          const edge =
+            qy === -half ? onEdge(ft, j0 * w + i0, 1, u)
+            : qx === half ? onEdge(fr, j0 * w + i1, w, t)
+            : qy === half ? onEdge(fb, j1 * w + i0, 1, u)
+            : onEdge(fl, j0 * w + i0, w, t);
+          const v = fc + (m / half) * (edge - fc);
+          if (Math.abs(f[(j0 + half + dy) * w + i0 + half + dx] - v) > tol) return false;
+        }
       }
     }
     return true;
   };
-  // At most two triangles a pixel quad (a fan has a quarter of that).
+  // Split the elements that cannot be drawn as one (a clipped or odd-sized block with an
+  // edge that takes every pixel has no centre pixel to fan from) or do not hold the field, until none is
+  // left: each split can change its neighbours' edges.
+  for (let changed = true; changed; ) {
+    changed = false;
+    for (let bj = 0; bj < bh; bj++) {
+      for (let bi = 0; bi < bw; bi++) {
+        if (!element[bj * bw + bi]) continue;
+        if (((clipped(bi, bj) || s % 2 === 1) && edges(bi, bj).some(Boolean)) || !holds(bi, bj)) {
+          element[bj * bw + bi] = 0;
+          changed = true;
+        }
+      }
+    }
+  }
+  // At most two triangles a pixel quad.
   const out = new Uint32Array(6 * qw * qh);
   let n = 0;
-  const ring = new Uint32Array(4 * s);
-  for (let j0 = 0; j0 < qh; j0 += s) {
-    for (let i0 = 0; i0 < qw; i0 += s) {
-      const [i1, j1] = [Math.min(i0 + s, qw), Math.min(j0 + s, qh)];
-      if (i1 - i0 === s && j1 - j0 === s && whole(i0, j0, i1, j1) && fits(i0, j0)) {
-        ring.set(fanBorder(w, i0, j0, s));
-        const c = (j0 + half) * w + i0 + half;
-        for (let t = 0; t < ring.length; t++) {
-          out[n++] = ring[t];
-          out[n++] = ring[(t + 1) % ring.length];
-          out[n++] = c;
+  const tri = (p: number, q: number, r: number) => {
+    out[n++] = p;
+    out[n++] = q;
+    out[n++] = r;
+  };
+  for (let bj = 0; bj < bh; bj++) {
+    for (let bi = 0; bi < bw; bi++) {
+      const [i0, j0, i1, j1] = span(bi, bj);
+      if (element[bj * bw + bi]) {
+        const [ft, fr, fb, fl] = edges(bi, bj);
+        const [k, right, down, across] = [j0 * w + i0, j0 * w + i1, j1 * w + i0, j1 * w + i1];
+        if (!(ft || fr || fb || fl)) {
+          // Both triangles end on the block's top-left pixel (the provoking vertex).
+          tri(right, across, k);
+          tri(across, down, k);
+          continue;
         }
+        const ring: number[] = [k];
+        if (ft) for (let t = 1; t < s; t++) ring.push(k + t);
+        ring.push(right);
+        if (fr) for (let t = 1; t < s; t++) ring.push(right + t * w);
+        ring.push(across);
+        if (fb) for (let t = 1; t < s; t++) ring.push(across - t);
+        ring.push(down);
+        if (fl) for (let t = 1; t < s; t++) ring.push(down - t * w);
+        const c = (j0 + half) * w + i0 + half;
+        for (let t = 0; t < ring.length; t++) tri(ring[t], ring[(t + 1) % ring.length], c);
         continue;
       }
       for (let j = j0; j < j1; j++) {
         for (let i = i0; i < i1; i++) {
           if (!whole(i, j, i + 1, j + 1)) continue;
           const k = j * w + i;
-          out[n++] = k + 1;
-          out[n++] = k + w + 1;
-          out[n++] = k;
-          out[n++] = k + w + 1;
-          out[n++] = k + w;
-          out[n++] = k;
+          tri(k + 1, k + w + 1, k);
+          tri(k + w + 1, k + w, k);
         }
       }
     }
   }
   return out.slice(0, n);
 }
+
+let layerSerial = 0;
 
 /** One layer's GPU resources. */
 export class GlLayer {
@@ -391,7 +434,7 @@ export class GlLayer {
   /** Indices of the triangles of every quad whose four links exist. */
   indices: WebGLBuffer;
   count = 0;
-  /** Drafts: the quadtree of `draftQuads` (whole blocks of up to `DRAFT_BLOCK`² quads as one). */
+  /** Drafts: the triangles of `draftQuads` (whole blocks of `DRAFT_BLOCK`² quads as one element). */
   coarse: WebGLBuffer;
   coarseCount = 0;
   /** Fast full frames: the triangles of `adaptiveTriangles` for the field (built when first drawn). */

@@ -60,11 +60,12 @@ describe('the GPU mesh', () => {
     expect(area(w, m.quads, m.skirts)).toBe(w * h);
   });
 
-  it('the draft mesh covers exactly what the whole quads cover', () => {
-    const w = 9, h = 8;
+  it('the draft mesh covers exactly what the whole quads cover, without T-junctions', () => {
+    const w = 33, h = 25;
     const l = links(w, h, (x, y) => !(x === 5 && y === 2), (x, y, d) => d === 'd' && y === 4 && x < 3);
     const m = buildMesh(w, h, l, null);
-    expect(area(w, m.coarse, new Float32Array())).toBe(area(w, m.quads, new Float32Array()));
+    expect(coverTri(w, h, m.coarse)).toEqual(wholeQuads(w, h, l));
+    expect(tJunctions(w, m.coarse)).toBe(0);
     expect(m.coarse.length).toBeLessThan(0.6 * m.quads.length);
   });
 
@@ -104,39 +105,45 @@ function wholeQuads(w: number, h: number, l: Uint8Array): Uint8Array {
 
 describe('the draft mesh (a vertex every few pixels where the surface is whole)', () => {
   it('a cut removes exactly the pixel quads across it; blocks away from it stay whole', () => {
-    const w = 25, h = 17;
+    const w = 33, h = 17;
     // A vertical cut between columns 10 and 11, rows 0..11.
     const l = links(w, h, () => true, (x, y, d) => d === 'r' && x === 10 && y < 12);
     const q = draftQuads(w, h, l, 8);
-    expect(cover(w, h, q)).toEqual(wholeQuads(w, h, l));
-    for (let k = 0; k < q.length; k += 6) {
-      const xs = Array.from(q.subarray(k, k + 6)).map((v) => v % w);
-      const ys = Array.from(q.subarray(k, k + 6)).map((v) => Math.floor(v / w));
-      // Nothing spans the cut where it runs…
+    expect(coverTri(w, h, q)).toEqual(wholeQuads(w, h, l));
+    expect(tJunctions(w, q)).toBe(0);
+    const tris = Array.from({ length: q.length / 3 }, (_, k) => Array.from(q.subarray(3 * k, 3 * k + 3)));
+    // Nothing spans the cut where it runs…
+    for (const t of tris) {
+      const xs = t.map((v) => v % w), ys = t.map((v) => Math.floor(v / w));
       if (Math.min(...ys) < 12) expect(Math.min(...xs) <= 10 && Math.max(...xs) >= 11).toBe(false);
     }
-    const blocks = (x: number, y: number) =>
-      Array.from({ length: q.length / 6 }, (_, k) => q.subarray(6 * k, 6 * k + 6)).filter((t) => t[2] === y * w + x && t[0] === y * w + x + 8 && t[1] === (y + 8) * w + x + 8).length;
-    // …the blocks it does not touch are one quad each, the blocks it crosses are split.
-    expect(blocks(0, 0) + blocks(16, 0) + blocks(0, 8) + blocks(16, 8)).toBe(4);
-    expect(blocks(8, 0) + blocks(8, 8)).toBe(0);
-    // Below the cut's end the block is split too (its top rows touch the cut), and the
-    // pixel quads below the cut's last broken link are drawn.
-    expect(cover(w, h, q)[13 * (w - 1) + 10]).toBe(1);
-    expect(q.length).toBeLessThan(0.25 * buildMesh(w, h, l, null).quads.length);
+    // A fan of the block at (x, y): a triangle from two pixels of its border to its centre.
+    const fan = (x: number, y: number) =>
+      tris.some((t) => {
+        const [px, py] = [t[0] % w, Math.floor(t[0] / w)];
+        return t[2] === (y + 4) * w + x + 4 && (px === x || px === x + 8 || py === y || py === y + 8);
+      });
+    const plain = (x: number, y: number) => tris.some((t) => t[0] === y * w + x + 8 && t[1] === (y + 8) * w + x + 8 && t[2] === y * w + x);
+    // …the block it crosses is split into pixel quads, its neighbours fan out to meet them,
+    // and the blocks further away are two triangles each.
+    expect(fan(8, 0) || fan(8, 8) || plain(8, 0) || plain(8, 8)).toBe(false);
+    for (const [x, y] of [[0, 0], [16, 0], [0, 8], [16, 8]]) expect(fan(x, y)).toBe(true);
+    expect(plain(24, 0) && plain(24, 8)).toBe(true);
+    expect(q.length).toBeLessThan(0.4 * buildMesh(w, h, l, null).quads.length);
   });
 
   it('a hole removes the pixel quads around it and nothing else', () => {
     const w = 17, h = 17;
     const l = links(w, h, (x, y) => !(x === 10 && y === 5));
     const q = draftQuads(w, h, l, 8);
-    const c = cover(w, h, q);
+    const c = coverTri(w, h, q);
     expect(c).toEqual(wholeQuads(w, h, l));
+    expect(tJunctions(w, q)).toBe(0);
     for (const [x, y] of [[9, 4], [10, 4], [9, 5], [10, 5]]) expect(c[y * (w - 1) + x]).toBe(0);
     expect(c.reduce((a, b) => a + b, 0)).toBe(16 * 16 - 4);
   });
 
-  it('random cuts and holes: every whole pixel quad covered once, every other never', () => {
+  it('random cuts and holes: every whole pixel quad covered once, every other never, no T-junction', () => {
     let seed = 7;
     const rand = () => ((seed = (seed * 1103515245 + 12345) % 2 ** 31) / 2 ** 31);
     for (let trial = 0; trial < 20; trial++) {
@@ -144,10 +151,52 @@ describe('the draft mesh (a vertex every few pixels where the surface is whole)'
       const holes = new Set(Array.from({ length: 1 + Math.floor(rand() * 6) }, () => `${Math.floor(rand() * w)},${Math.floor(rand() * h)}`));
       const cutX = Math.floor(rand() * w);
       const l = links(w, h, (x, y) => !holes.has(`${x},${y}`), (x, y, d) => d === 'r' && x === cutX && y < h / 2);
-      for (const block of [1, 2, 4, 8, 16]) expect(cover(w, h, draftQuads(w, h, l, block))).toEqual(wholeQuads(w, h, l));
+      for (const block of [1, 2, 4, 8, 16]) {
+        const q = draftQuads(w, h, l, block);
+        expect(coverTri(w, h, q)).toEqual(wholeQuads(w, h, l));
+        expect(tJunctions(w, q)).toBe(0);
+      }
     }
   });
 });
+
+/**
+ * How many triangles of `t` hold a point inside each pixel quad (one off every line a
+ * triangle's edge can take: the quad's diagonals, a fan's spokes).
+ */
+function coverTri(w: number, h: number, t: Uint32Array): Uint8Array {
+  const c = new Uint8Array((w - 1) * (h - 1));
+  for (let q = 0; q < t.length; q += 3) {
+    const p = [t[q], t[q + 1], t[q + 2]].map((k) => [k % w, Math.floor(k / w)]);
+    const side = (a: number[], b: number[], x: number, y: number) => (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]);
+    const xs = p.map((v) => v[0]), ys = p.map((v) => v[1]);
+    for (let y = Math.min(...ys); y < Math.max(...ys); y++) {
+      for (let x = Math.min(...xs); x < Math.max(...xs); x++) {
+        const [sx, sy] = [x + 0.37, y + 0.61];
+        const s = [side(p[0], p[1], sx, sy), side(p[1], p[2], sx, sy), side(p[2], p[0], sx, sy)];
+        if (s.every((v) => v > 0) || s.every((v) => v < 0)) c[y * (w - 1) + x]++;
+      }
+    }
+  }
+  return c;
+}
+
+/** How many vertices of the mesh `t` lie inside an edge of one of its triangles. */
+function tJunctions(w: number, t: Uint32Array): number {
+  const used = new Set(t);
+  let n = 0;
+  for (let q = 0; q < t.length; q += 3) {
+    for (const [u, v] of [[t[q], t[q + 1]], [t[q + 1], t[q + 2]], [t[q + 2], t[q]]]) {
+      const [ax, ay, bx, by] = [u % w, Math.floor(u / w), v % w, Math.floor(v / w)];
+      const m = Math.max(Math.abs(bx - ax), Math.abs(by - ay));
+      for (let s = 1; s < m; s++) {
+        const [x, y] = [ax + ((bx - ax) * s) / m, ay + ((by - ay) * s) / m];
+        if (Number.isInteger(x) && Number.isInteger(y) && used.has(y * w + x)) n++;
+      }
+    }
+  }
+  return n;
+}
 
 describe('the fast full mesh (fans where the field is nearly affine)', () => {
   /** A field that bends sharply around one point and gently elsewhere. */
@@ -211,11 +260,11 @@ describe('the fast full mesh (fans where the field is nearly affine)', () => {
     expect(t.length / 3).toBeGreaterThan((full * 32) / 128);
   });
 
-  it('an affine field is all fans, and the blocks past the last whole fan are pixel quads', () => {
-    const w = 21, h = 17; // 20 × 16 quads: fans at (0, 0), (8, 0), (0, 8), (8, 8); 4 × 16 quads left over
+  it('an affine field is the draft mesh', () => {
+    const w = 21, h = 17;
     const dx = new Float32Array(w * h), dy = new Float32Array(w * h);
     for (let k = 0; k < w * h; k++) [dx[k], dy[k]] = [0.3 * (k % w) - 2, 0.1 * Math.floor(k / w) + 0.05 * (k % w)];
-    const t = adaptiveTriangles(w, h, buildMesh(w, h, null, null).links, { width: w, height: h, dx, dy });
-    expect(t.length / 3).toBe(4 * 4 * FAN_BLOCK + 2 * 4 * 16);
+    const l = buildMesh(w, h, null, null).links;
+    expect(adaptiveTriangles(w, h, l, { width: w, height: h, dx, dy })).toEqual(draftQuads(w, h, l, FAN_BLOCK));
   });
 });
