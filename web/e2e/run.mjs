@@ -676,7 +676,7 @@ test('the fast full frame (fans where the field is smooth) matches the full fram
       const px = app.gl.readPixels();
       return { ms: performance.now() - t0, px };
     };
-    timed(true); // builds nothing: the worker sent the triangles with the field
+    timed(true); // uploads the triangles (the worker sent them with the field)
     const fast = timed(true);
     const full = timed(false);
     const count = [...app.runtimes.values()].reduce((n, rt) => [n[0] + rt.gl.adaptiveCount / 3, n[1] + rt.gl.count / 3], [0, 0]);

@@ -452,8 +452,13 @@ export class App {
         rev: this.store.revision,
         frame,
         settleStart: quality === 'final' ? this.settleStart : null,
-      });
+      }, true, quality === 'final' && this.slowAntialias);
     }
+  }
+
+  /** Whether a settle draws the fast full frame first (see `frameTick`). */
+  private get slowAntialias(): boolean {
+    return this.antialiasMs > SLOW_ANTIALIAS_MS;
   }
 
   /** The pointer stopped or was released: ask for full resolution now. */
@@ -563,10 +568,10 @@ export class App {
       this.checkIdle();
       return;
     }
-    if (this.dragging || this.store.view.playing) {
+    if (draft) {
       this.antialiasDue = false;
       this.renderNow(true);
-    } else if (!this.antialiasDue && this.antialiasMs > SLOW_ANTIALIAS_MS) {
+    } else if (!this.antialiasDue && this.slowAntialias) {
       this.antialiasDue = true;
       // Once the GPU has drawn it (so the two frames do not share the GPU).
       this.afterFrame(() => this.invalidate());

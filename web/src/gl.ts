@@ -310,9 +310,8 @@ function blockMesh(w: number, h: number, links: Uint8Array, s: number, fit: { fi
   // the tolerance by its triangles).
   const holds = (bi: number, bj: number): boolean => {
     if (!fit) return true;
-    const i0 = bi * s, j0 = bj * s;
-    const i1 = Math.min(i0 + s, qw), j1 = Math.min(j0 + s, qh);
-    const ft = split(bi, bj - 1), fr = split(bi + 1, bj), fb = split(bi, bj + 1), fl = split(bi - 1, bj);
+    const [i0, j0, i1, j1] = span(bi, bj);
+    const [ft, fr, fb, fl] = edges(bi, bj);
     const fan = ft || fr || fb || fl;
     const tol = fit.tolerance;
     for (let comp = 0; comp < 2; comp++) {
@@ -331,8 +330,8 @@ function blockMesh(w: number, h: number, links: Uint8Array, s: number, fit: { fi
         continue;
       }
       const fc = f[(j0 + half) * w + i0 + half];
-      // Along an edge from (x0, y0), `len` pixels of step `step` (index), at `u` of it: its
-      // pixels where it takes every one, else its two corners.
+      // The edge from pixel index `p0`, `s` pixels of index step `step`, at `u` (0..1) of
+      // it: between its pixels where it takes every one, else between its two corners.
       const onEdge = (full: boolean, p0: number, step: number, u: number): number => {
         const x = u * s;
         if (!full) return f[p0] + u * (f[p0 + s * step] - f[p0]);
@@ -361,18 +360,18 @@ function blockMesh(w: number, h: number, links: Uint8Array, s: number, fit: { fi
     return true;
   };
   // Split the elements that cannot be drawn as one (a clipped or odd-sized block with an
-  // edge that takes every pixel has no centre pixel to fan from) or do not hold the field, until none is
-  // left: each split can change its neighbours' edges.
-  for (let changed = true; changed; ) {
-    changed = false;
-    for (let bj = 0; bj < bh; bj++) {
-      for (let bi = 0; bi < bw; bi++) {
-        if (!element[bj * bw + bi]) continue;
-        if (((clipped(bi, bj) || s % 2 === 1) && edges(bi, bj).some(Boolean)) || !holds(bi, bj)) {
-          element[bj * bw + bi] = 0;
-          changed = true;
-        }
-      }
+  // edge that takes every pixel has no centre pixel to fan from) or do not hold the field,
+  // until none is left. A split changes its neighbours' edges, so they are checked again.
+  const fails = (bi: number, bj: number) => ((clipped(bi, bj) || s % 2 === 1) && edges(bi, bj).some(Boolean)) || !holds(bi, bj);
+  const check: number[] = [];
+  for (let b = 0; b < bw * bh; b++) if (element[b]) check.push(b);
+  while (check.length) {
+    const b = check.pop()!;
+    const [bi, bj] = [b % bw, Math.floor(b / bw)];
+    if (!element[b] || !fails(bi, bj)) continue;
+    element[b] = 0;
+    for (const [ni, nj] of [[bi, bj - 1], [bi + 1, bj], [bi, bj + 1], [bi - 1, bj]]) {
+      if (ni >= 0 && nj >= 0 && ni < bw && nj < bh && element[nj * bw + ni]) check.push(nj * bw + ni);
     }
   }
   // At most two triangles a pixel quad.
@@ -603,9 +602,9 @@ export class GlRenderer {
   /** What the last frame drew (see `frameKey`). */
   private lastFrame = '';
 
-  /** Whether `render` with these arguments would draw the frame already drawn. */
-  drawn(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false, adaptive = false): boolean {
-    return this.lastFrame === frameKey(width, height, background, layers, antialias, draft, adaptive && !draft && !antialias);
+  /** Whether `render` with these arguments (no fast frame) would draw the frame already drawn. */
+  drawn(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): boolean {
+    return this.lastFrame === frameKey(width, height, background, layers, antialias, draft, false);
   }
 
   /** Where the last frame can be read: the resolve target, or the canvas after a draft. */

@@ -32,6 +32,7 @@ interface Request {
   features: SolveFeature[];
   options: SolveOptions;
   warm: boolean;
+  mesh: boolean;
   tag: SolveTag;
 }
 
@@ -82,9 +83,12 @@ export class SolverClient {
     this.send({ type: 'drop', key });
   }
 
-  /** Asks for a field; supersedes any request for the same layer still waiting. */
-  solve(key: string, features: SolveFeature[], options: SolveOptions, tag: SolveTag, warm = true): void {
-    this.pending.set(key, { key, features, options, warm, tag });
+  /**
+   * Asks for a field; supersedes any request for the same layer still waiting. `mesh`: also
+   * the triangles of its fast full frame (see `adaptiveTriangles`).
+   */
+  solve(key: string, features: SolveFeature[], options: SolveOptions, tag: SolveTag, warm = true, mesh = false): void {
+    this.pending.set(key, { key, features, options, warm, mesh, tag });
     this.pump();
   }
 
@@ -109,7 +113,7 @@ export class SolverClient {
     this.pending.delete(key);
     const id = this.nextId++;
     this.inFlight = { id, req, sentAt: performance.now() };
-    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm, mesh: req.tag.quality === 'final' });
+    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm, mesh: req.mesh });
   }
 
   private receive(msg: FromWorker): void {

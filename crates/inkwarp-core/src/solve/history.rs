@@ -13,12 +13,11 @@ use std::collections::VecDeque;
 
 use crate::field::Field;
 use crate::geometry::Sample;
-use crate::grid::{constrain, Constraints, Grid};
+use crate::grid::{Constraints, Grid};
 
-use crate::clock::Instant;
+use std::borrow::Cow;
 
-use super::upsample::Coarse;
-use super::{dense_solve, in_pool, solve_constrained, solve_with, validate, SolveError, SolveOptions, SolveReport};
+use super::{dense_solve, solve_constrained, solve_with, SolveError, SolveOptions, SolveReport};
 
 /// How many earlier frames a [`WarmHistory`] keeps.
 pub const HISTORY_FRAMES: usize = 3;
@@ -64,15 +63,15 @@ impl WarmHistory {
     /// The start for a solve whose constraints on `grid` are `c`: the history's prediction
     /// ([`Self::predict`]) or `given`, whichever misses the constraint values by less (the
     /// largest difference at a constrained node); `None` when there is neither.
-    pub fn start(&self, grid: &Grid, c: &Constraints, given: Option<Field>) -> Option<Field> {
+    pub fn start<'a>(&self, grid: &Grid, c: &Constraints, given: Option<&'a Field>) -> Option<Cow<'a, Field>> {
         let miss = |f: &Field| {
             c.nodes.iter().zip(&c.values).fold(0.0f64, |m, (&i, v)| {
                 m.max((f.dx[i] as f64 - v[0]).abs()).max((f.dy[i] as f64 - v[1]).abs())
             })
         };
         match (self.predict(grid, c), given) {
-            (Some(p), Some(g)) => Some(if miss(&p) < miss(&g) { p } else { g }),
-            (p, g) => p.or(g),
+            (Some(p), Some(g)) => Some(if miss(&p) < miss(g) { Cow::Owned(p) } else { Cow::Borrowed(g) }),
+            (p, g) => p.map(Cow::Owned).or(g.map(Cow::Borrowed)),
         }
     }
 
@@ -206,24 +205,24 @@ pub fn solve_warm(
     history: &mut WarmHistory,
     initial: Option<Field>,
 ) -> Result<(Field, SolveReport), SolveError> {
-    if options.grid_step > 1 && grid.width > 0 && grid.height > 0 {
-        // Coarse solves keep and combine coarse fields: only the coarse nodes' values of a
-        // start are read, so the fine fields need not be combined or kept.
-        let clock = Instant::now();
-        validate(grid, samples, options, initial.as_ref())?;
-        let (field, mut report) = in_pool(|| {
-            let coarse = Coarse::new(grid, samples, options.grid_step);
-            let start = history.start(&coarse.grid, &coarse.constraints, initial.map(|f| coarse.restrict(&f)));
-            let (fc, report) = solve_constrained(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref());
-            history.record(&coarse.grid, &coarse.constraints, &fc);
-            (coarse.upsample(grid, &fc, samples), report)
-        });
-        report.seconds = clock.elapsed().as_secs_f64();
-        return Ok((field, report));
-    }
-    let c = constrain(grid, samples);
-    let start = history.start(grid, &c, initial);
-    let (field, report) = solve_with(grid, samples, Some(&c), options, start.as_ref())?;
-    history.record(grid, &c, &field);
-    Ok((field, report))
+    solve_with(grid, samples, options, initial.as_ref(), Some(history))
+}
+
+/// The solve of constraints `c` on `grid` (the solve's own grid: the coarse one at
+/// `grid_step` above 1), from `history`'s start when given, which then keeps the result;
+/// from `initial` otherwise.
+pub(crate) fn solve_from(
+    grid: &Grid,
+    c: &Constraints,
+    options: &SolveOptions,
+    initial: Option<&Field>,
+    history: Option<&mut WarmHistory>,
+) -> (Field, SolveReport) {
+    let Some(history) = history else {
+        return solve_constrained(grid, c, options, initial);
+    };
+    let start = history.start(grid, c, initial);
+    let (field, report) = solve_constrained(grid, c, options, start.as_deref());
+    history.record(grid, c, &field);
+    (field, report)
 }

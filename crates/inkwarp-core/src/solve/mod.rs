@@ -175,27 +175,24 @@ pub fn solve(
     options: &SolveOptions,
     initial: Option<&Field>,
 ) -> Result<(Field, SolveReport), SolveError> {
-    solve_with(grid, samples, None, options, initial)
+    solve_with(grid, samples, options, initial, None)
 }
 
-/// [`solve`], given the samples' constraints on `grid` when the caller has them already
-/// (they are only used at `grid_step` 1).
+/// [`solve`], its start taken from `history` when given ([`WarmHistory::start`]), which
+/// then keeps the result (see [`solve_warm`]).
 pub(crate) fn solve_with(
     grid: &Grid,
     samples: &[Sample],
-    constraints: Option<&Constraints>,
     options: &SolveOptions,
     initial: Option<&Field>,
+    history: Option<&mut WarmHistory>,
 ) -> Result<(Field, SolveReport), SolveError> {
     let start = Instant::now();
     validate(grid, samples, options, initial)?;
     let (field, mut report) = in_pool(|| if options.grid_step > 1 {
-        upsample::solve_coarse(grid, samples, options, initial)
+        upsample::solve_coarse(grid, samples, options, initial, history)
     } else {
-        match constraints {
-            Some(c) => solve_constrained(grid, c, options, initial),
-            None => solve_constrained(grid, &constrain(grid, samples), options, initial),
-        }
+        history::solve_from(grid, &constrain(grid, samples), options, initial, history)
     });
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
@@ -222,7 +219,7 @@ pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     })
 }
 
-pub(crate) fn validate(
+fn validate(
     grid: &Grid,
     samples: &[Sample],
     options: &SolveOptions,

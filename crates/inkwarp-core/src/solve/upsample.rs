@@ -34,36 +34,41 @@ use crate::field::Field;
 use crate::geometry::Sample;
 use crate::grid::{constrain, nearest_node, Constraints, Grid};
 
-use super::{solve_constrained, SolveOptions, SolveReport};
+use super::history::{solve_from, WarmHistory};
+use super::{SolveOptions, SolveReport};
 
 /// Grids with at least this many pixels are upsampled with rows in parallel.
 const PARALLEL_PIXELS: usize = 1 << 15;
 
+/// The solve at `grid_step = s > 1`: on the coarse grid, from `initial` read at the coarse
+/// nodes, or from `history`, which keeps the coarse fields (only their coarse nodes' values
+/// would ever be read), then upsampled.
 pub(crate) fn solve_coarse(
     grid: &Grid,
     samples: &[Sample],
     options: &SolveOptions,
     initial: Option<&Field>,
+    history: Option<&mut WarmHistory>,
 ) -> (Field, SolveReport) {
     if grid.width == 0 || grid.height == 0 {
         return (Field::zeros(grid.width, grid.height), SolveReport { converged: true, ..Default::default() });
     }
     let coarse = Coarse::new(grid, samples, options.grid_step);
     let start = initial.map(|f| coarse.restrict(f));
-    let (fc, report) = solve_constrained(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref());
-    (coarse.upsample(grid, &fc, samples), report)
+    let (fc, report) = solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref(), history);
+    (upsample(grid, &coarse.layout, &fc, samples), report)
 }
 
 /// The problem of `grid_step = s` on a non-empty grid: the coarse grid, its constraints,
 /// and where its nodes sit on the fine one.
-pub(crate) struct Coarse {
+struct Coarse {
     layout: Layout,
-    pub grid: Grid,
-    pub constraints: Constraints,
+    grid: Grid,
+    constraints: Constraints,
 }
 
 impl Coarse {
-    pub fn new(grid: &Grid, samples: &[Sample], s: usize) -> Coarse {
+    fn new(grid: &Grid, samples: &[Sample], s: usize) -> Coarse {
         let layout = Layout::new(grid.width, grid.height, s);
         let coarse = layout.coarse_grid(grid);
         let (wc, hc) = (layout.wc, layout.hc);
@@ -89,13 +94,13 @@ impl Coarse {
 
     /// The options of the coarse solve: tension scaled by s², so that the coarse energy
     /// approximates the same continuous energy.
-    pub fn options(&self, options: &SolveOptions) -> SolveOptions {
+    fn options(&self, options: &SolveOptions) -> SolveOptions {
         let sf = self.layout.s as f64;
         SolveOptions { tension: options.tension * sf * sf, grid_step: 1, ..options.clone() }
     }
 
     /// A fine field's values at the coarse nodes.
-    pub fn restrict(&self, f: &Field) -> Field {
+    fn restrict(&self, f: &Field) -> Field {
         let (wc, hc) = (self.layout.wc, self.layout.hc);
         let mut c = Field::zeros(wc, hc);
         for yc in 0..hc {
@@ -108,10 +113,6 @@ impl Coarse {
         c
     }
 
-    /// The fine field from the coarse solution `fc` (see the module docs).
-    pub fn upsample(&self, grid: &Grid, fc: &Field, samples: &[Sample]) -> Field {
-        upsample(grid, &self.layout, fc, samples)
-    }
 }
 
 /// Where the coarse nodes of a `w × h` grid with step `s` sit.
