@@ -57,6 +57,7 @@ mod southwell;
 mod upsample;
 
 pub use history::{solve_warm, WarmHistory, HISTORY_FRAMES};
+pub use upsample::{solve_warm_at, Upsampling};
 
 use crate::clock::Instant;
 use rayon::prelude::*;
@@ -153,6 +154,10 @@ pub enum SolveError {
     InitialSize { got_w: usize, got_h: usize, want_w: usize, want_h: usize },
     #[error("The initial field has non-finite values; every displacement must be finite.")]
     NonFiniteInitial,
+    #[error("The upsampling plan was built for another grid or grid step; build one for this grid and step.")]
+    PlanMismatch,
+    #[error("The pixels must be indices into the grid, and the output two floats per pixel.")]
+    BadPixels,
 }
 
 /// Solves the thin plate on `grid` for the samples (see the module docs).
@@ -219,7 +224,7 @@ pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     })
 }
 
-fn validate(
+pub(crate) fn validate(
     grid: &Grid,
     samples: &[Sample],
     options: &SolveOptions,

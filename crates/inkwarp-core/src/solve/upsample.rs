@@ -35,7 +35,7 @@ use crate::geometry::Sample;
 use crate::grid::{constrain, nearest_node, Constraints, Grid};
 
 use super::history::{solve_from, WarmHistory};
-use super::{SolveOptions, SolveReport};
+use super::{in_pool, validate, SolveError, SolveOptions, SolveReport};
 
 /// Grids with at least this many pixels are upsampled with rows in parallel.
 const PARALLEL_PIXELS: usize = 1 << 15;
@@ -57,6 +57,124 @@ pub(crate) fn solve_coarse(
     let start = initial.map(|f| coarse.restrict(f));
     let (fc, report) = solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref(), history);
     (upsample(grid, &coarse.layout, &fc, samples), report)
+}
+
+/// What upsampling a `grid_step` solve on one grid needs besides the coarse field: the
+/// taps of every pixel column and row and the usable-tap masks of the cells along missing
+/// links. Built once per grid and step, it evaluates the upsampled field at chosen pixels
+/// only ([`solve_warm_at`]): the editor's drafts need it at their mesh's vertices, a few
+/// percent of the pixels.
+#[derive(Debug)]
+pub struct Upsampling {
+    layout: Layout,
+    cols: Vec<Taps>,
+    rows: Vec<Taps>,
+    masks: Vec<CellMasks>,
+    active: Vec<bool>,
+}
+
+impl Upsampling {
+    /// The plan of `grid` at step `s` (at least 2) on a non-empty grid.
+    pub fn new(grid: &Grid, s: usize) -> Upsampling {
+        assert!(s > 1 && grid.width > 0 && grid.height > 0, "an upsampling plan needs a step above 1 and a non-empty grid");
+        let layout = Layout::new(grid.width, grid.height, s);
+        let cols = Taps::along(layout.w, layout.wc, s, |x| layout.px(x));
+        let rows = Taps::along(layout.h, layout.hc, s, |y| layout.py(y));
+        let (masks, _) = mask_table(grid, &layout, &cols, &rows);
+        Upsampling { layout, cols, rows, masks, active: grid.active.clone() }
+    }
+
+    /// The step the plan was built for.
+    pub fn step(&self) -> usize {
+        self.layout.s
+    }
+
+    /// The upsampled value of pixel `i` (row-major) from the coarse field `fc`: zero for an
+    /// inactive pixel, `None` where its window has no usable node (the full upsampling
+    /// then fills it along the links).
+    fn at(&self, fc: &Field, i: usize) -> Option<[f32; 2]> {
+        if !self.active[i] {
+            return Some([0.0; 2]);
+        }
+        let l = &self.layout;
+        let (x, y) = (i % l.w, i / l.w);
+        let (tx, ty) = (&self.cols[x], &self.rows[y]);
+        let cw = l.wc.saturating_sub(1).max(1);
+        let cell = &self.masks[ty.cell * cw + tx.cell].masks;
+        let mask = if cell.is_empty() {
+            ALL_TAPS
+        } else {
+            let (ix0, iy0) = (l.px(tx.cell), l.py(ty.cell));
+            let iw = l.px((tx.cell + 1).min(l.wc - 1)) - ix0 + 1;
+            cell[(y - iy0) * iw + (x - ix0)]
+        };
+        window_value(fc, ty, tx, mask)
+    }
+}
+
+/// [`solve_warm`](super::solve_warm) at `grid_step` > 1 evaluated at `pixels` only (row-
+/// major indices into `grid`): the coarse solve, from and into `history`, then the
+/// upsampled field at those pixels, written to `out` as (Δx, Δy) pairs (`2 · pixels.len()`
+/// floats). The values are the full field's up to the rounding of the sums' order (a few
+/// units in the last place of `f32`). `plan` must have been built for `grid` and
+/// `options.grid_step`.
+///
+/// ```
+/// use inkwarp_core::solve::{solve_warm, solve_warm_at, SolveOptions, Upsampling, WarmHistory};
+/// use inkwarp_core::{Grid, Sample};
+/// let grid = Grid::new(64, 48);
+/// let samples = [Sample { rest: [10.0, 10.0], displacement: [2.0, 0.0] },
+///                Sample { rest: [50.0, 30.0], displacement: [0.0, -1.0] },
+///                Sample { rest: [20.0, 40.0], displacement: [1.0, 1.0] }];
+/// let options = SolveOptions { grid_step: 4, ..Default::default() };
+/// let plan = Upsampling::new(&grid, 4);
+/// let pixels = [0u32, 64 * 20 + 33, 64 * 48 - 1];
+/// let mut out = [0.0f32; 6];
+/// solve_warm_at(&grid, &samples, &options, &mut WarmHistory::new(), &plan, &pixels, &mut out).unwrap();
+/// let (field, _) = solve_warm(&grid, &samples, &options, &mut WarmHistory::new(), None).unwrap();
+/// for (k, &p) in pixels.iter().enumerate() {
+///     assert!((out[2 * k] - field.dx[p as usize]).abs() < 1e-5);
+///     assert!((out[2 * k + 1] - field.dy[p as usize]).abs() < 1e-5);
+/// }
+/// ```
+pub fn solve_warm_at(
+    grid: &Grid,
+    samples: &[Sample],
+    options: &SolveOptions,
+    history: &mut WarmHistory,
+    plan: &Upsampling,
+    pixels: &[u32],
+    out: &mut [f32],
+) -> Result<SolveReport, SolveError> {
+    let start = std::time::Instant::now();
+    if options.grid_step != plan.step() || plan.layout.w != grid.width || plan.layout.h != grid.height {
+        return Err(SolveError::PlanMismatch);
+    }
+    if out.len() != 2 * pixels.len() || pixels.iter().any(|&p| p as usize >= grid.len()) {
+        return Err(SolveError::BadPixels);
+    }
+    validate(grid, samples, options, None)?;
+    let (fc, mut report, coarse) = in_pool(|| {
+        let coarse = Coarse::new(grid, samples, options.grid_step);
+        let (fc, report) = solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), None, Some(history));
+        (fc, report, coarse)
+    });
+    let mut missing = false;
+    for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
+        match plan.at(&fc, p as usize) {
+            Some(v) => o.copy_from_slice(&v),
+            None => missing = true,
+        }
+    }
+    if missing {
+        // A pixel whose window reaches no coarse node takes the full upsampling's fill.
+        let field = upsample(grid, &coarse.layout, &fc, samples);
+        for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
+            o.copy_from_slice(&[field.dx[p as usize], field.dy[p as usize]]);
+        }
+    }
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(report)
 }
 
 /// The problem of `grid_step = s` on a non-empty grid: the coarse grid, its constraints,
@@ -365,22 +483,22 @@ struct Flat {
     inv: f64,
 }
 
-/// The fine field from the coarse one (see the module docs).
-fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Field {
-    let (w, h, wc, hc) = (layout.w, layout.h, layout.wc, layout.hc);
-    let cols = Taps::along(w, wc, layout.s, |x| layout.px(x));
-    let rows = Taps::along(h, hc, layout.s, |y| layout.py(y));
+/// The usable-tap masks of every coarse cell (`cw` × `ch` of them, see [`cell_masks`]):
+/// computed for the cells near one that a missing link or an inactive pixel touches (listed
+/// in the second vector), empty (every tap usable) for the others.
+fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> (Vec<CellMasks>, Vec<usize>) {
+    let (wc, hc) = (layout.wc, layout.hc);
+    let (cw, ch) = (wc.saturating_sub(1).max(1), hc.saturating_sub(1).max(1));
     // Cells whose window's block of pixels a missing link or an inactive pixel touches get
     // a mask of usable taps per pixel; the others (empty) use every tap.
-    let (cw, ch) = (wc.saturating_sub(1).max(1), hc.saturating_sub(1).max(1));
-    let touched = touched_cells(grid, layout, &cols, &rows, cw, ch);
+    let touched = touched_cells(grid, layout, cols, rows, cw, ch);
     let near_touched = |k: usize| {
         let (x0, y0) = (k % cw, k / cw);
         (y0.saturating_sub(1)..(y0 + 2).min(ch)).any(|y| (x0.saturating_sub(1)..(x0 + 2).min(cw)).any(|x| touched[y * cw + x]))
     };
     let broken: Vec<usize> = (0..cw * ch).filter(|&k| near_touched(k)).collect();
     let mut masks: Vec<CellMasks> = vec![CellMasks::default(); cw * ch];
-    let computed: Vec<CellMasks> = if w * h >= PARALLEL_PIXELS {
+    let computed: Vec<CellMasks> = if layout.w * layout.h >= PARALLEL_PIXELS {
         broken
             .par_iter()
             .map_init(|| (Vec::new(), Vec::new()), |(label, stack), &k| cell_masks(grid, layout, k % cw, k / cw, label, stack))
@@ -392,48 +510,61 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
     for (&k, m) in broken.iter().zip(computed) {
         masks[k] = m;
     }
+    (masks, broken)
+}
 
-    // One pixel, any window: the taps allowed by `mask`, renormalised; the bilinear
-    // fallback from the window's inner 2 × 2 where their weights fall short.
-    let pixel = |ty: &Taps, tx: &Taps, mask: u16| -> Option<[f32; 2]> {
-        let mut acc = [0.0f64; 2];
-        let mut wsum = 0.0;
-        for b in 0..ty.len {
-            let (wyb, row, kb) = (ty.weights[ty.slot[b] as usize], ty.at[b] * wc, 4 * ty.slot[b]);
-            for a in 0..tx.len {
-                if mask & (1 << (kb + tx.slot[a])) == 0 {
-                    continue;
-                }
-                let c = row + tx.at[a];
-                let wv = tx.weights[tx.slot[a] as usize] * wyb;
-                acc[0] += wv * fc.dx[c] as f64;
-                acc[1] += wv * fc.dy[c] as f64;
-                wsum += wv;
-            }
-        }
-        if wsum >= 0.5 {
-            return Some([(acc[0] / wsum) as f32, (acc[1] / wsum) as f32]);
-        }
-        let mut inner = [0.0f64; 3];
-        for b in 0..ty.len {
-            let kb = ty.slot[b] as usize;
-            if !(1..3).contains(&kb) {
+/// One pixel's value from the coarse field `fc`, any window (`ty`, `tx` its taps): the taps
+/// allowed by `mask`, renormalised; the bilinear fallback from the window's inner 2 × 2
+/// where their weights fall short; `None` where neither has a usable node.
+fn window_value(fc: &Field, ty: &Taps, tx: &Taps, mask: u16) -> Option<[f32; 2]> {
+    let wc = fc.width;
+    let mut acc = [0.0f64; 2];
+    let mut wsum = 0.0;
+    for b in 0..ty.len {
+        let (wyb, row, kb) = (ty.weights[ty.slot[b] as usize], ty.at[b] * wc, 4 * ty.slot[b]);
+        for a in 0..tx.len {
+            if mask & (1 << (kb + tx.slot[a])) == 0 {
                 continue;
             }
-            for a in 0..tx.len {
-                let ka = tx.slot[a] as usize;
-                if !(1..3).contains(&ka) || mask & (1 << (4 * kb + ka)) == 0 {
-                    continue;
-                }
-                let c = ty.at[b] * wc + tx.at[a];
-                let lw = tx.linear(ka) * ty.linear(kb);
-                inner[0] += lw * fc.dx[c] as f64;
-                inner[1] += lw * fc.dy[c] as f64;
-                inner[2] += lw;
-            }
+            let c = row + tx.at[a];
+            let wv = tx.weights[tx.slot[a] as usize] * wyb;
+            acc[0] += wv * fc.dx[c] as f64;
+            acc[1] += wv * fc.dy[c] as f64;
+            wsum += wv;
         }
-        (inner[2] > 1e-9).then(|| [(inner[0] / inner[2]) as f32, (inner[1] / inner[2]) as f32])
-    };
+    }
+    if wsum >= 0.5 {
+        return Some([(acc[0] / wsum) as f32, (acc[1] / wsum) as f32]);
+    }
+    let mut inner = [0.0f64; 3];
+    for b in 0..ty.len {
+        let kb = ty.slot[b] as usize;
+        if !(1..3).contains(&kb) {
+            continue;
+        }
+        for a in 0..tx.len {
+            let ka = tx.slot[a] as usize;
+            if !(1..3).contains(&ka) || mask & (1 << (4 * kb + ka)) == 0 {
+                continue;
+            }
+            let c = ty.at[b] * wc + tx.at[a];
+            let lw = tx.linear(ka) * ty.linear(kb);
+            inner[0] += lw * fc.dx[c] as f64;
+            inner[1] += lw * fc.dy[c] as f64;
+            inner[2] += lw;
+        }
+    }
+    (inner[2] > 1e-9).then(|| [(inner[0] / inner[2]) as f32, (inner[1] / inner[2]) as f32])
+}
+
+/// The fine field from the coarse one (see the module docs).
+fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Field {
+    let (w, h, wc, hc) = (layout.w, layout.h, layout.wc, layout.hc);
+    let cols = Taps::along(w, wc, layout.s, |x| layout.px(x));
+    let rows = Taps::along(h, hc, layout.s, |y| layout.py(y));
+    let (cw, ch) = (wc.saturating_sub(1).max(1), hc.saturating_sub(1).max(1));
+    let (masks, broken) = mask_table(grid, layout, &cols, &rows);
+    let pixel = |ty: &Taps, tx: &Taps, mask: u16| window_value(fc, ty, tx, mask);
 
     // Each column's used weights from its first tap on (zero past the last), their sum and
     // its inverse.
@@ -853,6 +984,78 @@ mod tests {
             total.cubic > 0 && total.bilinear > 0 && total.along_links > 0 && total.piece_mean > 0,
             "{total:?}"
         );
+    }
+
+    #[test]
+    fn the_plan_gives_the_field_at_any_pixel() {
+        // Every pixel of torn and open grids, serial and parallel sizes: the plan's value is
+        // the full upsampling's, or None exactly where the fill along links made it.
+        let mut seed = 900;
+        let mut unresolved = 0;
+        for s in [2, 3, 5, 8] {
+            for (w, h) in [(1, 9), (9, 1), (5, 5), (24, 31), (40, 7), (301, 187)] {
+                for (holes, breaks) in [(0.0, 0.0), (0.0, 0.08), (0.35, 0.1), (0.6, 0.3)] {
+                    seed += 1;
+                    let (grid, fc, samples) = case(w, h, s, holes, breaks, seed);
+                    let full = upsample(&grid, &Layout::new(w, h, s), &fc, &samples);
+                    let plan = Upsampling::new(&grid, s);
+                    let what = format!("{w}×{h}, s = {s}, holes {holes}, breaks {breaks}");
+                    let mut got = Field::zeros(w, h);
+                    for i in 0..w * h {
+                        match plan.at(&fc, i) {
+                            Some([x, y]) => (got.dx[i], got.dy[i]) = (x, y),
+                            None => {
+                                // Filled from a neighbour or a piece's mean: take the field's.
+                                unresolved += 1;
+                                (got.dx[i], got.dy[i]) = (full.dx[i], full.dy[i]);
+                            }
+                        }
+                    }
+                    assert_same_values(&got, &full, &what);
+                }
+            }
+        }
+        assert!(unresolved > 0, "no pixel took the fill");
+    }
+
+    #[test]
+    fn drafts_at_chosen_pixels_follow_the_full_drafts() {
+        // A few frames of a drag over a grid with a cut and a hole, at every fourth pixel:
+        // each the full draft's values, and the histories alike (same cycles).
+        let (w, h, s) = (97, 75, 4);
+        let active = (0..w * h).map(|i| (i % w) as i64 - 70).zip((0..w * h).map(|i| (i / w) as i64 - 40));
+        let mut grid = Grid::from_active(w, h, active.map(|(x, y)| x * x + y * y >= 36).collect());
+        grid.add_cut(&[[40.5, 10.0], [40.5, 60.0]]);
+        let plan = Upsampling::new(&grid, s);
+        let pixels: Vec<u32> = (0..grid.len() as u32).step_by(4).collect();
+        let options = SolveOptions { grid_step: s, ..Default::default() };
+        let (mut full_history, mut sparse_history) = (WarmHistory::new(), WarmHistory::new());
+        for frame in 0..5 {
+            let t = frame as f64;
+            let samples: Vec<Sample> = [(20.0, 30.0), (60.0, 30.0), (85.0, 10.0), (10.0, 70.0), (30.0, 50.0)]
+                .iter()
+                .enumerate()
+                .map(|(k, &(x, y))| Sample { rest: [x, y], displacement: [t * (k as f64 - 2.0), 0.5 * t] })
+                .collect();
+            let (field, full) = crate::solve::solve_warm(&grid, &samples, &options, &mut full_history, None).unwrap();
+            let mut out = vec![0.0f32; 2 * pixels.len()];
+            let sparse = solve_warm_at(&grid, &samples, &options, &mut sparse_history, &plan, &pixels, &mut out).unwrap();
+            assert_eq!(sparse.cycles, full.cycles, "frame {frame}");
+            let mut got = Field::zeros(w, h);
+            let mut want = Field::zeros(w, h);
+            for (k, &p) in pixels.iter().enumerate() {
+                (got.dx[p as usize], got.dy[p as usize]) = (out[2 * k], out[2 * k + 1]);
+                (want.dx[p as usize], want.dy[p as usize]) = (field.dx[p as usize], field.dy[p as usize]);
+            }
+            assert_same_values(&got, &want, &format!("frame {frame}"));
+        }
+        // A plan for another step is refused.
+        let other = SolveOptions { grid_step: 8, ..Default::default() };
+        let mut out = vec![0.0f32; 2 * pixels.len()];
+        let err = solve_warm_at(&grid, &[], &other, &mut WarmHistory::new(), &plan, &pixels, &mut out).unwrap_err();
+        assert_eq!(err, SolveError::PlanMismatch);
+        let err = solve_warm_at(&grid, &[], &options, &mut WarmHistory::new(), &plan, &[w as u32 * h as u32], &mut [0.0; 2]).unwrap_err();
+        assert_eq!(err, SolveError::BadPixels);
     }
 
     #[test]
