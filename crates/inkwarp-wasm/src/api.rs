@@ -12,11 +12,11 @@ use inkwarp_core::methods::{
 };
 use inkwarp_core::render::{Canvas, RgbaImage};
 use inkwarp_core::scene::{images, BeierNeelyDoc, SolverDoc, TpsExactDoc};
-use inkwarp_core::solve::{solve_warm, SolveMethod, SolveOptions, WarmHistory};
+use inkwarp_core::solve::{solve_warm, solve_warm_at, SolveMethod, SolveOptions, Upsampling, WarmHistory};
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
 use serde::Deserialize;
 
-use crate::{bytes, bytes_mut, fail, floats, floats_mut, json_arg, ok_json};
+use crate::{bytes, bytes_mut, fail, floats, floats_mut, json_arg, ok_json, words};
 
 /// The spacing at which the scene engine densifies a cut before breaking links.
 const CUT_SPACING_PX: f64 = 0.5;
@@ -38,6 +38,15 @@ struct Domain {
     /// warm-started solve starts from their best combination ([`WarmHistory`]), which
     /// during a drag is an extrapolation of the pointer's path.
     history: RefCell<HashMap<usize, WarmHistory>>,
+    /// The pixels `iw_solve_at` computes (`iw_grid_select`), and the upsampling plan of
+    /// each `grid_step` it was asked for.
+    selection: RefCell<Option<Selection>>,
+}
+
+#[derive(Debug)]
+struct Selection {
+    pixels: Vec<u32>,
+    plans: HashMap<usize, Upsampling>,
 }
 
 /// Prepared samplers kept per grid; more than this and the cache starts over.
@@ -132,6 +141,7 @@ pub extern "C" fn iw_grid_new(
                 grid,
                 samplers: RefCell::new(HashMap::new()),
                 history: RefCell::new(HashMap::new()),
+                selection: RefCell::new(None),
             },
         )
     })
@@ -174,6 +184,41 @@ pub extern "C" fn iw_grid_links(handle: u32, out_ptr: *mut u8, out_len: usize) -
 }
 
 /// One feature of a solve request: its kind, rest and posed control points.
+/// The core's solve options from a request's.
+fn solve_options(options: &OptionsIn) -> Result<SolveOptions, String> {
+    let scheme = match options.scheme.as_str() {
+        "multigrid" => SolveMethod::Multigrid,
+        "southwell" => SolveMethod::Southwell,
+        other => {
+            return Err(format!(
+                "Unknown solver scheme {other:?}; use \"multigrid\" or \"southwell\"."
+            ))
+        }
+    };
+    Ok(SolveOptions {
+        tension: options.tension,
+        tolerance_px: options.tolerance,
+        grid_step: options.grid_step.max(1),
+        max_cycles: options.max_cycles,
+        method: scheme,
+        ..SolveOptions::default()
+    })
+}
+
+/// The grid thin plate's report as JSON.
+fn tps_report(report: &inkwarp_core::solve::SolveReport) -> serde_json::Value {
+    serde_json::json!({
+        "cycles": report.cycles,
+        "final_change_px": report.final_change_px,
+        "residual": report.residual,
+        "constrained_nodes": report.constrained_nodes,
+        "constrained_samples": report.constrained_samples,
+        "dropped_samples": report.dropped_samples,
+        "converged": report.converged,
+        "notes": Vec::<String>::new(),
+    })
+}
+
 #[derive(Debug, Deserialize)]
 struct FeatureIn {
     kind: Kind,
@@ -378,45 +423,114 @@ pub extern "C" fn iw_solve(
         Err(e) => return fail(e),
     };
     let res = with_domain(handle, |domain| -> Result<serde_json::Value, String> {
-        let grid = &domain.grid;
-        let n = grid.width * grid.height;
-        let method = Method::from_name(&req.options.method).ok_or_else(|| {
-            format!(
-                "Unknown method {:?}; use \"tps\", \"tps-exact\", \"triangulation\" or \"beier-neely\".",
-                req.options.method
-            )
-        })?;
-        let per_feature = samples_of(&req.features, domain, req.spacing_px.unwrap_or(1.0))?;
-        let sample_count: usize = per_feature.iter().map(Vec::len).sum();
-        let (field, report) = match method.interpolant() {
-            None => solve_tps(domain, per_feature, &req.options, initial_ptr)?,
-            Some(interpolant) => {
-                let controls = controls_of(&req.features, per_feature, interpolant)?;
-                let step = req.options.grid_step;
-                let preview = req.options.preview && step > 1;
-                let params = req.options.method_params();
-                let (field, report) = if interpolant == Interpolant::TpsExact && preview {
-                    tps_exact_preview(&controls, grid, step, &params)?
-                } else {
-                    controls_field(interpolant, &controls, grid, &params).map_err(|e| e.to_string())?
-                };
-                let json = serde_json::json!({
-                    "samples_used": report.samples_used,
-                    "line_pairs_used": report.line_pairs_used,
-                    "dropped": report.dropped,
-                    "ignored_matte": report.ignored_matte,
-                    "notes": report.notes,
-                });
-                (field, json)
-            }
-        };
+        let n = domain.grid.width * domain.grid.height;
+        let (field, report) = solve_request(domain, &req, initial_ptr)?;
         let out = floats_mut(out_ptr, 2 * n);
         out[..n].copy_from_slice(&field.dx);
         out[n..].copy_from_slice(&field.dy);
-        let mut report = report;
-        report["method"] = method.name().into();
-        report["samples"] = sample_count.into();
         Ok(report)
+    });
+    match res {
+        Ok(Ok(v)) => ok_json(&v),
+        Ok(Err(e)) | Err(e) => fail(e),
+    }
+}
+
+/// The field and report of a request (see [`iw_solve`]).
+fn solve_request(domain: &Domain, req: &SolveIn, initial_ptr: *const f32) -> Result<(Field, serde_json::Value), String> {
+    let grid = &domain.grid;
+    let method = method_of(req)?;
+    let per_feature = samples_of(&req.features, domain, req.spacing_px.unwrap_or(1.0))?;
+    let sample_count: usize = per_feature.iter().map(Vec::len).sum();
+    let (field, mut report) = match method.interpolant() {
+        None => solve_tps(domain, per_feature, &req.options, initial_ptr)?,
+        Some(interpolant) => {
+            let controls = controls_of(&req.features, per_feature, interpolant)?;
+            let step = req.options.grid_step;
+            let preview = req.options.preview && step > 1;
+            let params = req.options.method_params();
+            let (field, report) = if interpolant == Interpolant::TpsExact && preview {
+                tps_exact_preview(&controls, grid, step, &params)?
+            } else {
+                controls_field(interpolant, &controls, grid, &params).map_err(|e| e.to_string())?
+            };
+            let json = serde_json::json!({
+                "samples_used": report.samples_used,
+                "line_pairs_used": report.line_pairs_used,
+                "dropped": report.dropped,
+                "ignored_matte": report.ignored_matte,
+                "notes": report.notes,
+            });
+            (field, json)
+        }
+    };
+    report["method"] = method.name().into();
+    report["samples"] = sample_count.into();
+    Ok((field, report))
+}
+
+fn method_of(req: &SolveIn) -> Result<Method, String> {
+    Method::from_name(&req.options.method).ok_or_else(|| {
+        format!(
+            "Unknown method {:?}; use \"tps\", \"tps-exact\", \"triangulation\" or \"beier-neely\".",
+            req.options.method
+        )
+    })
+}
+
+/// Selects the pixels that [`iw_solve_at`] computes: `len` row-major pixel indices at
+/// `pixels_ptr` (`y · width + x`), each below `width · height`. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_grid_select(handle: u32, pixels_ptr: *const u32, len: usize) -> i32 {
+    let pixels = words(pixels_ptr, len).to_vec();
+    let res = with_domain(handle, |domain| {
+        let n = domain.grid.width * domain.grid.height;
+        if let Some(&p) = pixels.iter().find(|&&p| p as usize >= n) {
+            return Err(format!("Pixel {p} is outside the {}×{} grid.", domain.grid.width, domain.grid.height));
+        }
+        *domain.selection.borrow_mut() = Some(Selection { pixels, plans: HashMap::new() });
+        Ok(())
+    });
+    match res {
+        Ok(Ok(())) => 0,
+        Ok(Err(e)) | Err(e) => fail(e),
+    }
+}
+
+/// [`iw_solve`] at the pixels of [`iw_grid_select`] only: their (Δx, Δy) pairs to `out`
+/// (`2 · len` floats for `len` selected pixels), the report as for `iw_solve`. A grid thin
+/// plate at a `grid_step` above 1 (the editor's drafts) is upsampled at those pixels alone,
+/// warm-started from the earlier solves at that step; any other request is solved in full
+/// and read at them. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_solve_at(handle: u32, req_ptr: *const u8, req_len: usize, out_ptr: *mut f32) -> i32 {
+    let req: SolveIn = match json_arg(req_ptr, req_len) {
+        Ok(r) => r,
+        Err(e) => return fail(e),
+    };
+    let res = with_domain(handle, |domain| -> Result<serde_json::Value, String> {
+        let mut selection = domain.selection.borrow_mut();
+        let selection = selection.as_mut().ok_or("No pixels are selected on this grid; call iw_grid_select first.")?;
+        let out = floats_mut(out_ptr, 2 * selection.pixels.len());
+        let step = req.options.grid_step;
+        if method_of(&req)?.interpolant().is_some() || step <= 1 {
+            let (field, report) = solve_request(domain, &req, std::ptr::null())?;
+            for (o, &p) in out.chunks_exact_mut(2).zip(&selection.pixels) {
+                o.copy_from_slice(&[field.dx[p as usize], field.dy[p as usize]]);
+            }
+            return Ok(report);
+        }
+        let grid = &domain.grid;
+        let samples: Vec<Sample> = samples_of(&req.features, domain, req.spacing_px.unwrap_or(1.0))?.into_iter().flatten().collect();
+        let options = solve_options(&req.options)?;
+        let plan = selection.plans.entry(step).or_insert_with(|| Upsampling::new(grid, step));
+        let mut histories = domain.history.borrow_mut();
+        let history = histories.entry(step).or_default();
+        let report = solve_warm_at(grid, &samples, &options, history, plan, &selection.pixels, out).map_err(|e| e.to_string())?;
+        let mut json = tps_report(&report);
+        json["method"] = Method::Tps.name().into();
+        json["samples"] = samples.len().into();
+        Ok(json)
     });
     match res {
         Ok(Ok(v)) => ok_json(&v),
@@ -478,23 +592,7 @@ fn solve_tps(
     let grid = &domain.grid;
     let n = grid.width * grid.height;
     let samples: Vec<Sample> = per_feature.into_iter().flatten().collect();
-    let scheme = match options.scheme.as_str() {
-        "multigrid" => SolveMethod::Multigrid,
-        "southwell" => SolveMethod::Southwell,
-        other => {
-            return Err(format!(
-                "Unknown solver scheme {other:?}; use \"multigrid\" or \"southwell\"."
-            ))
-        }
-    };
-    let options = SolveOptions {
-        tension: options.tension,
-        tolerance_px: options.tolerance,
-        grid_step: options.grid_step.max(1),
-        max_cycles: options.max_cycles,
-        method: scheme,
-        ..SolveOptions::default()
-    };
+    let options = solve_options(options)?;
     let initial = (!initial_ptr.is_null()).then(|| {
         let data = floats(initial_ptr, 2 * n);
         Field {
@@ -514,16 +612,7 @@ fn solve_tps(
     }
     let (field, report) =
         solve_warm(grid, &samples, &options, history, initial).map_err(|e| e.to_string())?;
-    let json = serde_json::json!({
-        "cycles": report.cycles,
-        "final_change_px": report.final_change_px,
-        "residual": report.residual,
-        "constrained_nodes": report.constrained_nodes,
-        "constrained_samples": report.constrained_samples,
-        "dropped_samples": report.dropped_samples,
-        "converged": report.converged,
-        "notes": Vec::<String>::new(),
-    });
+    let json = tps_report(&report);
     Ok((field, json))
 }
 

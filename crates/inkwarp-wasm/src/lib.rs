@@ -134,6 +134,15 @@ pub(crate) fn floats_mut<'a>(ptr: *mut f32, len: usize) -> &'a mut [f32] {
     unsafe { std::slice::from_raw_parts_mut(ptr, len) }
 }
 
+/// A `u32` slice view of caller memory.
+pub(crate) fn words<'a>(ptr: *const u32, len: usize) -> &'a [u32] {
+    if ptr.is_null() || len == 0 {
+        return &[];
+    }
+    // SAFETY: as for `floats`.
+    unsafe { std::slice::from_raw_parts(ptr, len) }
+}
+
 /// A mutable byte slice view of caller memory.
 pub(crate) fn bytes_mut<'a>(ptr: *mut u8, len: usize) -> &'a mut [u8] {
     if ptr.is_null() || len == 0 {
@@ -217,6 +226,55 @@ mod tests {
         }
         assert_eq!(result()["constrained_nodes"], 1);
         iw_grid_free(h);
+    }
+
+    #[test]
+    fn a_solve_at_selected_pixels_reads_the_full_solve() {
+        // A cut through the layer, a draft of the grid thin plate (sparse: its own
+        // upsampling at the pixels) and a triangulation (solved in full, then read): each
+        // the full solve's values at the selected pixels.
+        let (w, h) = (40, 30);
+        let (cuts, cuts_len) = put(b"[[[20.5, 3], [20.5, 26]]]");
+        let grid = iw_grid_new(w, h, std::ptr::null(), 0, cuts, cuts_len);
+        let n = w * h;
+        let pixels: Vec<u32> = (0..n as u32).filter(|p| p % 7 == 0 || (p % w as u32).abs_diff(20) <= 1).collect();
+        let (sel, _) = put(&pixels.iter().flat_map(|p| p.to_le_bytes()).collect::<Vec<u8>>());
+        assert_eq!(iw_grid_select(grid, sel as *const u32, pixels.len()), 0, "{}", result());
+        let features = serde_json::json!([
+            {"kind": "point", "rest": [[5, 5]], "pose": [[8, 4]]},
+            {"kind": "point", "rest": [[35, 25]], "pose": [[33, 27]]},
+            {"kind": "polyline", "rest": [[10, 20], [30, 10]], "pose": [[11, 22], [29, 12]]},
+        ]);
+        let field = iw_alloc(8 * n) as *mut f32;
+        let out = iw_alloc(8 * pixels.len()) as *mut f32;
+        for options in [
+            serde_json::json!({"method": "tps", "grid_step": 4}),
+            serde_json::json!({"method": "triangulation"}),
+        ] {
+            let req = serde_json::json!({"features": features, "options": options});
+            // Each from an empty history: the full solve first, on a fresh grid.
+            let full_grid = iw_grid_new(w, h, std::ptr::null(), 0, cuts, cuts_len);
+            solve_ok(full_grid, &req, field, "full");
+            let (r, r_len) = put(req.to_string().as_bytes());
+            assert_eq!(iw_solve_at(grid, r, r_len, out), 0, "{}", result());
+            assert_eq!(result()["method"], options["method"]);
+            let (f, o) = (floats(field, 2 * n), floats(out, 2 * pixels.len()));
+            for (k, &p) in pixels.iter().enumerate() {
+                let p = p as usize;
+                assert!((o[2 * k] - f[p]).abs() < 1e-4 && (o[2 * k + 1] - f[n + p]).abs() < 1e-4, "{options}: pixel {p}");
+            }
+            iw_grid_free(full_grid);
+        }
+        // Pixels outside the grid are refused, and a grid without a selection says so.
+        let (bad, _) = put(&(n as u32).to_le_bytes());
+        assert_eq!(iw_grid_select(grid, bad as *const u32, 1), 1);
+        assert!(result()["error"].as_str().unwrap().contains("outside"), "{}", result());
+        let other = iw_grid_new(w, h, std::ptr::null(), 0, std::ptr::null(), 0);
+        let (r, r_len) = put(br#"{"features": [], "options": {"grid_step": 4}}"#);
+        assert_eq!(iw_solve_at(other, r, r_len, out), 1);
+        assert!(result()["error"].as_str().unwrap().contains("iw_grid_select"), "{}", result());
+        iw_grid_free(other);
+        iw_grid_free(grid);
     }
 
     #[test]
