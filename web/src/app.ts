@@ -30,6 +30,8 @@ export interface LayerRuntime {
   notes: string[];
   /** The request number of the field shown: an older request's field never replaces it. */
   shownSeq: number;
+  /** The grid generation whose draft pixels the draft worker has (sparse drafts). */
+  selectedGen: number;
 }
 
 export interface Stats {
@@ -219,6 +221,7 @@ export class App {
           links: null,
           gridReady: false,
           gridGen: 0,
+          selectedGen: -1,
           field: null,
           lastRequest: '',
           error: null,
@@ -308,6 +311,11 @@ export class App {
         if (gen !== rt.gridGen) return;
         rt.links = links;
         rt.gl?.setMesh(links, rt.rgba?.data ?? null);
+        if (rt.gl && this.drafts) {
+          // Drafts are solved at the draft mesh's pixels only (see `sparseDraft`).
+          this.drafts.select(rt.name, rt.gl.draftPixels);
+          rt.selectedGen = gen;
+        }
         rt.gridReady = true;
         this.requestSolve('final');
         this.invalidate();
@@ -402,7 +410,7 @@ export class App {
     const time = this.store.view.time;
     if (!this.posed) {
       for (const rt of this.runtimes.values()) {
-        if (rt.field) {
+        if (rt.field || rt.gl?.sparse) {
           rt.field = null;
           rt.gl?.setField(null);
           rt.lastRequest = '';
@@ -452,8 +460,18 @@ export class App {
         rev: this.store.revision,
         frame,
         settleStart: quality === 'final' ? this.settleStart : null,
-      }, true, quality === 'final' && this.slowAntialias);
+      }, true, quality === 'final' && this.slowAntialias, quality === 'draft' && this.sparseDraft(rt));
     }
+  }
+
+  /**
+   * Whether a layer's drafts come at the draft mesh's pixels only: all a draft frame reads
+   * (a few percent of the pixels, so the worker upsamples, sends and the page uploads that
+   * much), unless an overlay draws the whole field (the heat map, the displaced wireframe).
+   */
+  private sparseDraft(rt: LayerRuntime): boolean {
+    const { heat, mesh } = this.store.view.overlays;
+    return rt.gl !== null && rt.selectedGen === rt.gridGen && heat === 'off' && !mesh;
   }
 
   /** Whether a settle draws the fast full frame first (see `frameTick`). */
@@ -480,7 +498,7 @@ export class App {
     this.lastReport = ev;
     if (ev.tag.quality === 'draft') this.stats.draftSolveMs.push(ev.ms);
     else this.stats.finalSolveMs.push(ev.ms);
-    if (ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.store.revision) {
+    if (ev.field && ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.store.revision) {
       this.remember(ev.tag.frame, ev.key, ev.field);
     }
     if (ev.tag.prefetch && ev.tag.time !== this.store.view.time) {
@@ -494,7 +512,8 @@ export class App {
       rt.notes = ev.report.notes ?? [];
       rt.error = null;
       const up0 = performance.now();
-      rt.gl.setField(ev.field, ev.triangles ?? null);
+      if (ev.sparse) rt.gl.setSparseField(ev.sparse);
+      else rt.gl.setField(ev.field, ev.triangles ?? null);
       const upload = performance.now() - up0;
       if (typeof ev.tag.pointerAt === 'number' && ev.tag.pointerAt > 0) {
         const start = ev.tag.pointerAt;
@@ -559,7 +578,8 @@ export class App {
     // A change that leaves the picture as drawn (the drawing moved, its field not yet
     // solved: every pointer move of a drag) redraws only the overlay. A software GPU would
     // otherwise draw the same frame again, and the page would wait for it.
-    const draft = this.dragging || this.store.view.playing;
+    // A sparse draft can only be drawn as a draft (its field is known at its pixels).
+    const draft = this.dragging || this.store.view.playing || this.drawList().some(({ layer }) => layer.sparse);
     const doc = this.doc;
     const same = this.gl.drawn(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], this.drawList(), !draft, draft);
     if (same && !this.antialiasDue && !this.pendingLatency.length && !this.afterFrameFns.length) {

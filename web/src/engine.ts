@@ -15,6 +15,8 @@ interface Exports {
   iw_grid_free(h: number): void;
   iw_grid_links(h: number, out: number, len: number): number;
   iw_solve(h: number, req: number, reqLen: number, initial: number, out: number): number;
+  iw_grid_select(h: number, pixels: number, len: number): number;
+  iw_solve_at(h: number, req: number, reqLen: number, out: number): number;
   iw_curve(req: number, len: number): number;
   iw_canvas_new(w: number, h: number, r: number, g: number, b: number, a: number): number;
   iw_canvas_free(h: number): void;
@@ -143,6 +145,43 @@ export class GridHandle {
     } finally {
       e.x.iw_free(reqPtr, req.length);
       e.x.iw_free(fieldPtr, 8 * n);
+    }
+  }
+
+  /** Chooses the pixels (row-major indices) that `solveAt` computes. */
+  select(pixels: Uint32Array): void {
+    const e = this.engine;
+    const ptr = e.x.iw_alloc(4 * pixels.length);
+    try {
+      new Uint32Array(e.x.memory.buffer, ptr, pixels.length).set(pixels);
+      e.check(e.x.iw_grid_select(this.handle, ptr, pixels.length));
+      this.selected = pixels.length;
+    } finally {
+      e.x.iw_free(ptr, 4 * pixels.length);
+    }
+  }
+
+  /** Pixels chosen by `select`. */
+  selected = 0;
+
+  /**
+   * `solve` at the pixels chosen by `select`: their (dx, dy) pairs. A grid thin plate at a
+   * `grid_step` above 1 (a draft) is upsampled at those pixels alone, warm-started from the
+   * earlier drafts; any other request is solved in full and read there.
+   */
+  solveAt(features: SolveFeature[], options: SolveOptions): { values: Float32Array; report: SolveReport } {
+    const e = this.engine;
+    const { spacing_px, ...rest } = options;
+    const req = enc.encode(JSON.stringify({ features, options: rest, spacing_px: spacing_px ?? rest.grid_step ?? 1 }));
+    const reqPtr = e.put(req);
+    const len = 2 * this.selected;
+    const outPtr = e.x.iw_alloc(4 * len);
+    try {
+      const report = e.check(e.x.iw_solve_at(this.handle, reqPtr, req.length, outPtr)) as SolveReport;
+      return { values: e.f32(outPtr, len).slice(), report };
+    } finally {
+      e.x.iw_free(reqPtr, req.length);
+      e.x.iw_free(outPtr, 4 * len);
     }
   }
 

@@ -21,10 +21,29 @@ import type { FieldData } from './engine';
 // Quads: vertex k is pixel (k % W, k / W); the index buffer lists the two triangles of
 // every block whose four links exist, each triangle's last (provoking) vertex being the
 // block's top-left pixel, so the fragment shader knows its block.
+/** Texels per row of a layer's sparse draft values. */
+const SPARSE_ROW = 1024;
+
+// A layer's field at pixel p: from the full-resolution texture, or (a sparse draft, see
+// \`draftPixels\`) from the values of the selected pixels, found through their index.
+const FIELD_AT = `
+uniform highp sampler2D uField;
+uniform highp usampler2D uSparseIndex;
+uniform highp sampler2D uSparseValues;
+uniform int uSparse;
+vec2 fieldAt(ivec2 p) {
+  if (uSparse == 1) {
+    uint k = texelFetch(uSparseIndex, p, 0).r;
+    return texelFetch(uSparseValues, ivec2(int(k % ${SPARSE_ROW}u), int(k / ${SPARSE_ROW}u)), 0).rg;
+  }
+  return texelFetch(uField, p, 0).rg;
+}
+`;
+
 const VERT = `#version 300 es
 precision highp float;
 precision highp int;
-uniform highp sampler2D uField;
+${FIELD_AT}
 uniform ivec2 uSize;
 uniform vec2 uCanvas;
 uniform vec2 uOffset;
@@ -45,7 +64,7 @@ flat out vec4 vClamp;
 void main() {
   ivec2 p = ivec2(gl_VertexID % uSize.x, gl_VertexID / uSize.x);
   vec2 rest = vec2(p);
-  vec2 d = texelFetch(uField, p, 0).rg;
+  vec2 d = fieldAt(p);
   vec2 out_ = uEdge * 0.5 * vec2(p.x == 0 ? -1.0 : p.x == uSize.x - 1 ? 1.0 : 0.0, p.y == 0 ? -1.0 : p.y == uSize.y - 1 ? 1.0 : 0.0);
   vec2 q = rest + out_ + d + uOffset;
   vRest = rest + out_;
@@ -62,7 +81,7 @@ const SKIRT_VERT = `#version 300 es
 precision highp float;
 precision highp int;
 precision highp usampler2D;
-uniform highp sampler2D uField;
+${FIELD_AT}
 uniform usampler2D uLinks;
 uniform ivec2 uSize;
 uniform vec2 uCanvas;
@@ -72,7 +91,7 @@ in vec2 aCorner;    // (0|1, 0|1) along x and y
 out vec2 vRest;
 flat out vec4 vClamp;
 
-vec2 pos(ivec2 p) { return vec2(p) + texelFetch(uField, p, 0).rg; }
+vec2 pos(ivec2 p) { return vec2(p) + fieldAt(p); }
 uint links(ivec2 p) { return texelFetch(uLinks, p, 0).r; }
 bool right(ivec2 p) { return p.x >= 0 && p.x < uSize.x - 1 && (links(p) & 2u) != 0u; }
 bool down(ivec2 p) { return p.y >= 0 && p.y < uSize.y - 1 && (links(p) & 4u) != 0u; }
@@ -233,6 +252,32 @@ export const DRAFT_BLOCK = 8;
  */
 export function draftQuads(w: number, h: number, links: Uint8Array, block = DRAFT_BLOCK): Uint32Array {
   return blockMesh(w, h, links, block, null);
+}
+
+/**
+ * The pixels a draft reads its field at (sorted): every vertex of the draft mesh
+ * (`draftQuads`), and the pixel of every inner skirt quarter (the first `innerSkirts`
+ * vertices of `skirts`, 6 floats each) with its four neighbours. At 512 × 512 with a cut,
+ * about 11 thousand of the 262 thousand, so a draft is solved, sent and uploaded for those
+ * alone (see `GlLayer.setSparseField`).
+ */
+export function draftPixels(w: number, h: number, coarse: Uint32Array, skirts: Float32Array, innerSkirts: number): Uint32Array {
+  const used = new Uint8Array(w * h);
+  for (const v of coarse) used[v] = 1;
+  for (let k = 0; k < innerSkirts; k++) {
+    const x = skirts[6 * k];
+    const y = skirts[6 * k + 1];
+    for (const [dx, dy] of [[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1]]) {
+      const i = x + dx;
+      const j = y + dy;
+      if (i >= 0 && j >= 0 && i < w && j < h) used[j * w + i] = 1;
+    }
+  }
+  let n = 0;
+  for (const u of used) n += u;
+  const out = new Uint32Array(n);
+  for (let i = 0, k = 0; i < used.length; i++) if (used[i]) out[k++] = i;
+  return out;
 }
 
 /**
@@ -450,6 +495,14 @@ export class GlLayer {
   skirtCount = 0;
   /** The skirt vertices of blocks inside the layer (the rest run along its border). */
   innerSkirtCount = 0;
+  /** The pixels a draft reads its field at (`draftPixels`), for sparse drafts. */
+  draftPixels: Uint32Array = new Uint32Array(0);
+  /** Per pixel, its place in `draftPixels` (R32UI). */
+  sparseIndex: WebGLTexture;
+  /** A sparse draft's (dx, dy) at `draftPixels`, `SPARSE_ROW` a row (RG32F). */
+  sparseValues: WebGLTexture;
+  /** Whether the field is a sparse draft (`setSparseField`): it can only be drawn as a draft. */
+  sparse = false;
   constructor(
     private r: GlRenderer,
     readonly width: number,
@@ -463,6 +516,8 @@ export class GlLayer {
     this.coarse = gl.createBuffer()!;
     this.adaptive = gl.createBuffer()!;
     this.links = r.texture();
+    this.sparseIndex = r.texture();
+    this.sparseValues = r.texture();
     this.skirts = gl.createBuffer()!;
     this.skirtVao = gl.createVertexArray()!;
     gl.bindVertexArray(this.skirtVao);
@@ -526,11 +581,42 @@ export class GlLayer {
     gl.bindTexture(gl.TEXTURE_2D, this.links);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.R8UI, w, h, 0, gl.RED_INTEGER, gl.UNSIGNED_BYTE, l);
+    // A sparse field read at pixels of another mesh would be wrong: drop it.
+    this.sparse = false;
+    const pixels = draftPixels(w, h, coarse, skirts, innerSkirts);
+    this.draftPixels = pixels;
+    const index = new Uint32Array(w * h);
+    for (let k = 0; k < pixels.length; k++) index[pixels[k]] = k;
+    gl.bindTexture(gl.TEXTURE_2D, this.sparseIndex);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.R32UI, w, h, 0, gl.RED_INTEGER, gl.UNSIGNED_INT, index);
+    gl.bindTexture(gl.TEXTURE_2D, this.sparseValues);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RG32F, SPARSE_ROW, Math.max(1, Math.ceil(pixels.length / SPARSE_ROW)), 0, gl.RG, gl.FLOAT, null);
+  }
+
+  /**
+   * A draft's field at `draftPixels` only ((dx, dy) pairs in their order): what the draft
+   * mesh reads, a few percent of the pixels to send and upload. Until the next `setField`
+   * the layer is drawn as a draft.
+   */
+  setSparseField(values: Float32Array): void {
+    const n = this.draftPixels.length;
+    if (values.length !== 2 * n) throw new Error(`A sparse field of ${values.length / 2} pixels for a mesh that reads ${n}.`);
+    this.version++;
+    this.sparse = true;
+    this.fieldData = null;
+    this.givenTriangles = null;
+    const gl = this.r.gl;
+    const rows = Math.floor(n / SPARSE_ROW);
+    const rest = n - rows * SPARSE_ROW;
+    gl.bindTexture(gl.TEXTURE_2D, this.sparseValues);
+    if (rows) gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, SPARSE_ROW, rows, gl.RG, gl.FLOAT, values.subarray(0, 2 * rows * SPARSE_ROW));
+    if (rest) gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, rows, rest, 1, gl.RG, gl.FLOAT, values.subarray(2 * rows * SPARSE_ROW));
   }
 
   /** The field, and (`triangles`) its fast full frame's triangles when already built. */
   setField(field: FieldData | null, triangles: Uint32Array | null = null): void {
     this.version++;
+    this.sparse = false;
     this.fieldData = field;
     this.givenTriangles = triangles;
     const gl = this.r.gl;
@@ -570,6 +656,8 @@ export class GlLayer {
     gl.deleteBuffer(this.coarse);
     gl.deleteBuffer(this.skirts);
     gl.deleteTexture(this.links);
+    gl.deleteTexture(this.sparseIndex);
+    gl.deleteTexture(this.sparseValues);
     gl.deleteVertexArray(this.skirtVao);
   }
 }
@@ -604,6 +692,7 @@ export class GlRenderer {
 
   /** Whether `render` with these arguments (no fast frame) would draw the frame already drawn. */
   drawn(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): boolean {
+    if (layers.some(({ layer }) => layer.sparse)) [draft, antialias] = [true, false];
     return this.lastFrame === frameKey(width, height, background, layers, antialias, draft, false);
   }
 
@@ -695,6 +784,8 @@ void main() { o = texture(uTex, vPos); }`);
    * for every pass over the pixels) and read from there.
    */
   render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false, adaptive = false): void {
+    // A sparse draft's field is only known at the draft mesh's pixels.
+    if (layers.some(({ layer }) => layer.sparse)) [draft, antialias] = [true, false];
     const fast = adaptive && !draft && !antialias;
     this.lastFrame = frameKey(width, height, background, layers, antialias, draft, fast);
     const gl = this.gl;
@@ -721,6 +812,10 @@ void main() { o = texture(uTex, vPos); }`);
       gl.bindTexture(gl.TEXTURE_2D, layer.image);
       gl.activeTexture(gl.TEXTURE3);
       gl.bindTexture(gl.TEXTURE_2D, layer.premultiplied);
+      gl.activeTexture(gl.TEXTURE4);
+      gl.bindTexture(gl.TEXTURE_2D, layer.sparseIndex);
+      gl.activeTexture(gl.TEXTURE5);
+      gl.bindTexture(gl.TEXTURE_2D, layer.sparseValues);
       for (const prog of [draft ? this.draftMesh : this.mesh, this.skirt]) {
         gl.useProgram(prog);
         const u = (n: string) => gl.getUniformLocation(prog, n);
@@ -728,6 +823,9 @@ void main() { o = texture(uTex, vPos); }`);
         gl.uniform1i(u('uLinks'), 1);
         gl.uniform1i(u('uImage'), 2);
         gl.uniform1i(u('uPremultiplied'), 3);
+        gl.uniform1i(u('uSparseIndex'), 4);
+        gl.uniform1i(u('uSparseValues'), 5);
+        gl.uniform1i(u('uSparse'), layer.sparse ? 1 : 0);
         gl.uniform2f(u('uCanvas'), width, height);
         gl.uniform2i(u('uSize'), layer.width, layer.height);
         gl.uniform2f(u('uOffset'), offset[0], offset[1]);

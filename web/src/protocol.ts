@@ -7,6 +7,8 @@ export type ToWorker =
   | { type: 'init'; wasmUrl: string }
   | { type: 'grid'; key: string; width: number; height: number; matte: Uint8Array | null; cuts: Pt[][] }
   | { type: 'drop'; key: string }
+  /** The pixels a sparse solve computes on this layer's grid (the draft mesh's, see `draftPixels`). */
+  | { type: 'select'; key: string; pixels: Uint32Array }
   | {
       type: 'solve';
       id: number;
@@ -17,6 +19,8 @@ export type ToWorker =
       warm: boolean;
       /** Also send the triangles of the field's fast full frame (see `adaptiveTriangles`). */
       mesh?: boolean;
+      /** Solve at the selected pixels only (a `sparse` field, not `field`). */
+      sparse?: boolean;
     };
 
 export type FromWorker =
@@ -29,7 +33,10 @@ export type FromWorker =
       type: 'field';
       id: number;
       key: string;
-      field: FieldData;
+      /** The field, or null for a sparse solve. */
+      field: FieldData | null;
+      /** A sparse solve's (dx, dy) pairs at the selected pixels, in their order. */
+      sparse?: Float32Array;
       /** The triangles of the field's fast full frame, when asked for. */
       triangles?: Uint32Array;
       report: SolveReport;

@@ -15,7 +15,10 @@ export interface SolveTag {
 
 export interface FieldEvent {
   key: string;
-  field: FieldData;
+  /** The field, or null for a sparse draft (`sparse`). */
+  field: FieldData | null;
+  /** A sparse draft's (dx, dy) pairs at the pixels `select` chose. */
+  sparse?: Float32Array;
   report: SolveReport;
   ms: number;
   gridStep: number;
@@ -33,6 +36,7 @@ interface Request {
   options: SolveOptions;
   warm: boolean;
   mesh: boolean;
+  sparse: boolean;
   tag: SolveTag;
 }
 
@@ -78,6 +82,11 @@ export class SolverClient {
     return p;
   }
 
+  /** Chooses the pixels that sparse solves on a layer's grid compute (after its `setGrid`). */
+  select(key: string, pixels: Uint32Array): void {
+    this.send({ type: 'select', key, pixels: pixels.slice() });
+  }
+
   dropGrid(key: string): void {
     this.pending.delete(key);
     this.send({ type: 'drop', key });
@@ -85,10 +94,11 @@ export class SolverClient {
 
   /**
    * Asks for a field; supersedes any request for the same layer still waiting. `mesh`: also
-   * the triangles of its fast full frame (see `adaptiveTriangles`).
+   * the triangles of its fast full frame (see `adaptiveTriangles`); `sparse`: the field at
+   * the pixels `select` chose only.
    */
-  solve(key: string, features: SolveFeature[], options: SolveOptions, tag: SolveTag, warm = true, mesh = false): void {
-    this.pending.set(key, { key, features, options, warm, mesh, tag });
+  solve(key: string, features: SolveFeature[], options: SolveOptions, tag: SolveTag, warm = true, mesh = false, sparse = false): void {
+    this.pending.set(key, { key, features, options, warm, mesh, sparse, tag });
     this.pump();
   }
 
@@ -113,7 +123,7 @@ export class SolverClient {
     this.pending.delete(key);
     const id = this.nextId++;
     this.inFlight = { id, req, sentAt: performance.now() };
-    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm, mesh: req.mesh });
+    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm, mesh: req.mesh, sparse: req.sparse });
   }
 
   private receive(msg: FromWorker): void {
@@ -136,7 +146,7 @@ export class SolverClient {
       if (msg.type === 'field' && done) {
         const origin = performance.timeOrigin;
         const times = { sent: done.sentAt, began: msg.began - origin, ended: msg.ended - origin, received: performance.now() };
-        this.onField({ key: msg.key, field: msg.field, triangles: msg.triangles, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag, times });
+        this.onField({ key: msg.key, field: msg.field, sparse: msg.sparse, triangles: msg.triangles, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag, times });
       } else if (msg.type === 'error') {
         this.onError(msg.key, msg.message);
       }

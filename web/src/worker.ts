@@ -38,6 +38,21 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
       grids.delete(msg.key);
       last.delete(msg.key);
       linksOf.delete(msg.key);
+    } else if (msg.type === 'select') {
+      const grid = grids.get(msg.key);
+      if (!grid) throw new Error(`No grid for layer ${msg.key}.`);
+      grid.select(msg.pixels);
+    } else if (msg.type === 'solve' && msg.sparse) {
+      // A draft at the draft mesh's pixels: nothing to keep, the drafts' own history (in
+      // the engine) is the next one's start.
+      const grid = grids.get(msg.key);
+      if (!grid) throw new Error(`No grid for layer ${msg.key}.`);
+      const began = performance.timeOrigin + performance.now();
+      const t0 = performance.now();
+      const { values, report } = grid.solveAt(msg.features, msg.options);
+      const ms = performance.now() - t0;
+      const ended = performance.timeOrigin + performance.now();
+      post({ type: 'field', id: msg.id, key: msg.key, field: null, sparse: values, report, ms, gridStep: msg.options.grid_step ?? 1, began, ended }, [values.buffer]);
     } else if (msg.type === 'solve') {
       const grid = grids.get(msg.key);
       if (!grid) throw new Error(`No grid for layer ${msg.key}.`);

@@ -49,6 +49,30 @@ describe('the engine in WebAssembly', () => {
     grid.free();
   });
 
+  it('a sparse draft is the full draft at the selected pixels', () => {
+    // A cut, a draft of the grid thin plate at grid_step 4: the values at the chosen pixels
+    // (the upsampling done there alone) are the full field's, from a fresh history each.
+    const cuts: Pt[][] = [[[20.5, 2], [20.5, 30]]];
+    const feats = [
+      { kind: 'spline' as const, rest: [[5, 5], [15, 12], [30, 5]] as Pt[], pose: [[5, 8], [16, 15], [30, 8]] as Pt[] },
+      { kind: 'point' as const, rest: [[30, 28]] as Pt[], pose: [[28, 30]] as Pt[] },
+    ];
+    const full = engine.grid(41, 33, null, cuts);
+    const { field } = full.solve(feats, { grid_step: 4 }, null);
+    const sparse = engine.grid(41, 33, null, cuts);
+    const pixels = Uint32Array.from({ length: 41 * 33 }, (_, i) => i).filter((i) => i % 5 === 0 || Math.abs((i % 41) - 20) <= 1);
+    sparse.select(pixels);
+    const { values, report } = sparse.solveAt(feats, { grid_step: 4 });
+    expect(values.length).toBe(2 * pixels.length);
+    expect(report.converged).toBe(true);
+    pixels.forEach((p, k) => {
+      expect(values[2 * k]).toBeCloseTo(field.dx[p], 4);
+      expect(values[2 * k + 1]).toBeCloseTo(field.dy[p], 4);
+    });
+    full.free();
+    sparse.free();
+  });
+
   it('errors come back as messages, not traps', () => {
     const grid = engine.grid(8, 8, null, []);
     expect(() => grid.solve([{ kind: 'polyline', rest: [[1, 1]], pose: [[1, 1]] }], {}, null)).toThrow(/polyline|points/i);

@@ -1,7 +1,7 @@
 // The GPU mesh tiles the layer as the CPU renderer's does: whole quads where all four
 // links exist, skirt quarters elsewhere, so every drawn pixel's unit square is covered once.
 import { describe, expect, it } from 'vitest';
-import { ADAPTIVE_TOLERANCE, adaptiveTriangles, buildMesh, draftQuads, FAN_BLOCK } from '../src/gl';
+import { ADAPTIVE_TOLERANCE, adaptiveTriangles, buildMesh, draftPixels, draftQuads, FAN_BLOCK } from '../src/gl';
 
 /** Rest-space area covered by a mesh: quads from their index rectangles, quarters ¼ each. */
 function area(w: number, quads: Uint32Array, skirts: Float32Array): number {
@@ -157,6 +157,38 @@ describe('the draft mesh (a vertex every few pixels where the surface is whole)'
         expect(tJunctions(w, q)).toBe(0);
       }
     }
+  });
+});
+
+describe('the pixels a draft reads (sparse drafts)', () => {
+  it('every draft vertex and every inner skirt pixel with its neighbours, sorted, once each', () => {
+    let seed = 11;
+    const rand = () => ((seed = (seed * 1103515245 + 12345) % 2 ** 31) / 2 ** 31);
+    for (let trial = 0; trial < 12; trial++) {
+      const w = 5 + Math.floor(rand() * 60), h = 5 + Math.floor(rand() * 60);
+      const holes = new Set(Array.from({ length: Math.floor(rand() * 6) }, () => `${Math.floor(rand() * w)},${Math.floor(rand() * h)}`));
+      const cutX = Math.floor(rand() * w);
+      const l = links(w, h, (x, y) => !holes.has(`${x},${y}`), (x, y, d) => d === 'r' && x === cutX && y < h / 2);
+      const { coarse, skirts, innerSkirts } = buildMesh(w, h, l, null);
+      const px = draftPixels(w, h, coarse, skirts, innerSkirts);
+      const set = new Set(px);
+      expect(set.size).toBe(px.length);
+      for (let k = 1; k < px.length; k++) expect(px[k]).toBeGreaterThan(px[k - 1]);
+      for (const v of coarse) expect(set.has(v)).toBe(true);
+      // The skirt shader reads its pixel and the neighbours it is linked to.
+      for (let k = 0; k < innerSkirts; k++) {
+        const [x, y] = [skirts[6 * k], skirts[6 * k + 1]];
+        for (const [dx, dy] of [[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1]]) {
+          const [i, j] = [x + dx, y + dy];
+          if (i >= 0 && j >= 0 && i < w && j < h) expect(set.has(j * w + i)).toBe(true);
+        }
+      }
+      // Where nothing tears, a draft reads a few percent of the pixels.
+      if (holes.size === 0 && cutX === 0 && w > 40 && h > 40) expect(px.length).toBeLessThan(0.2 * w * h);
+    }
+    // An open 512 × 512 layer: the corners of its 8 × 8 blocks.
+    const open = buildMesh(512, 512, null, null);
+    expect(draftPixels(512, 512, open.coarse, open.skirts, open.innerSkirts).length).toBe(65 * 65);
   });
 });
 

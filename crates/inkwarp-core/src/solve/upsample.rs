@@ -30,6 +30,7 @@ use std::collections::VecDeque;
 
 use rayon::prelude::*;
 
+use crate::clock::Instant;
 use crate::field::Field;
 use crate::geometry::Sample;
 use crate::grid::{constrain, nearest_node, Constraints, Grid};
@@ -146,7 +147,7 @@ pub fn solve_warm_at(
     pixels: &[u32],
     out: &mut [f32],
 ) -> Result<SolveReport, SolveError> {
-    let start = std::time::Instant::now();
+    let start = Instant::now();
     if options.grid_step != plan.step() || plan.layout.w != grid.width || plan.layout.h != grid.height {
         return Err(SolveError::PlanMismatch);
     }
