@@ -623,6 +623,20 @@ test('a draft frame drawn during a drag looks like the full frame of the same fi
         const px = app.gl.readPixels();
         return { ms: performance.now() - t0, px };
       };
+      // The draft as shown: solved at the draft mesh's pixels only (a sparse draft).
+      const doc = app.store.doc;
+      const layer = doc.layers[0];
+      const rt = app.runtimes.get(layer.name);
+      const wasSparse = rt.gl.sparse;
+      const sparse = timed(true);
+      // The same pose solved at every pixel by the page's own engine (the draft's options,
+      // from a cold start), drawn as a draft and as a full frame.
+      const { engine } = window.inkwarp;
+      const cuts = doc.features.filter((f) => f.kind === 'cut' && (!layer.features || layer.features.includes(f.id))).map((f) => f.rest);
+      const grid = engine.grid(doc.width, doc.height, rt.matte, cuts);
+      const { field } = grid.solve(app.solveFeatures(layer, app.store.view.time), app.solverOptions(layer, 'draft'), null);
+      grid.free();
+      rt.gl.setField(field);
       const draft = timed(true);
       const full = timed(false);
       const again = timed(true); // the canvas shows the draft again
@@ -631,7 +645,7 @@ test('a draft frame drawn during a drag looks like the full frame of the same fi
         for (let i = 0; i < px.length; i += 0x8000) s += String.fromCharCode(...px.subarray(i, i + 0x8000));
         return btoa(s);
       };
-      window.draftProbe = { w: app.store.doc.width, h: app.store.doc.height, draft: b64(draft.px), full: b64(full.px), draftMs: Math.min(draft.ms, again.ms), fullMs: full.ms };
+      window.draftProbe = { w: doc.width, h: doc.height, wasSparse, sparse: b64(sparse.px), draft: b64(draft.px), full: b64(full.px), draftMs: Math.min(sparse.ms, draft.ms, again.ms), fullMs: full.ms };
     };
   });
   const [x0, y0] = await toClient(page, [256, 256]);
@@ -650,6 +664,13 @@ test('a draft frame drawn during a drag looks like the full frame of the same fi
   const img = (b64) => ({ width: probe.w, height: probe.h, data: new Uint8Array(Buffer.from(b64, 'base64')) });
   const draft = img(probe.draft);
   const full = img(probe.full);
+  // The sparse draft shown is the draft of the field solved at every pixel (up to the
+  // solver's tolerance: one started warm from the earlier drafts, the other cold).
+  assert(probe.wasSparse, 'the draft shown during the drag was not a sparse draft');
+  const sparse = img(probe.sparse);
+  const same = await compareImages(page, sparse, draft, 'sparse-vs-draft', { meanTol: 0.2, p99Tol: 4 });
+  perf.sparseVsDraft = same.stats;
+  assert(same.ok, `the sparse draft differs from the draft of the full field: mean ${same.stats.mean.toFixed(3)}, p99 ${same.stats.p99} (tolerance: mean ≤ 0.2, p99 ≤ 4); see test-results/sparse-vs-draft-diff.png`);
   await savePng(page, draft, join(screens, 'frame-draft.png'));
   await savePng(page, full, join(screens, 'frame-draft-field-full.png'));
   // Loose: the draft bends the picture piecewise affinely over 8-pixel blocks and samples
@@ -838,6 +859,7 @@ async function main() {
   if (perf.glFrameMs) console.log(`  GPU frame (draw + read back): ${perf.glFrameMs.multisampled.toFixed(1)} ms with 4× multisampling, ${perf.glFrameMs.single.toFixed(1)} ms without, ${perf.glFrameMs.draft.toFixed(1)} ms draft (a vertex every 8 px where whole), ${perf.glFrameMs.draftAa.toFixed(1)} ms draft multisampled`);
   if (perf.fastVsFull) console.log(`  fast full frame: ${perf.fastVsFull.fastMs.toFixed(1)} ms (${perf.fastVsFull.triangles} triangles) against ${perf.fastVsFull.fullMs.toFixed(1)} ms (${perf.fastVsFull.fullTriangles}) single-sampled; mean ${perf.fastVsFull.mean.toFixed(3)}, p99 ${perf.fastVsFull.p99}, max ${perf.fastVsFull.max}`);
   if (perf.dragFrames) console.log(`  frames during the drags: ${perf.dragFrames.drawn} pictures drawn for ${perf.dragFrames.fields} fields, ${perf.dragFrames.overlayOnly} overlay-only frames`);
+  if (perf.sparseVsDraft) console.log(`  during a drag: sparse draft vs the draft of the same pose solved at every pixel: mean ${perf.sparseVsDraft.mean.toFixed(3)}, p99 ${perf.sparseVsDraft.p99}, max ${perf.sparseVsDraft.max}`);
   if (perf.draftVsFull) console.log(`  during a drag: draft frame ${perf.draftVsFull.draftMs.toFixed(1)} ms, full frame of the same field ${perf.draftVsFull.fullMs.toFixed(1)} ms (draw + read back); draft vs full mean ${perf.draftVsFull.mean.toFixed(2)}, p99 ${perf.draftVsFull.p99}, max ${perf.draftVsFull.max}`);
   if (perf.gpuVsCpu) console.log(`  GPU vs CPU: mean ${perf.gpuVsCpu.mean.toFixed(3)}, p99 ${perf.gpuVsCpu.p99}, max ${perf.gpuVsCpu.max}`);
   if (perf.gpuVsCpuHole) console.log(`  GPU vs CPU around an opening hole (128×128): mean ${perf.gpuVsCpuHole.mean.toFixed(3)}, p99 ${perf.gpuVsCpuHole.p99}, max ${perf.gpuVsCpuHole.max}`);
