@@ -2,7 +2,7 @@
 // with the store.
 
 import type { Engine, FieldData, SolveFeature, SolveOptions } from './engine';
-import { type DrawLayer, GlRenderer, type GlLayer } from './gl';
+import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse } from './gl';
 import { decodeImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
@@ -579,9 +579,10 @@ export class App {
     // solved: every pointer move of a drag) redraws only the overlay. A software GPU would
     // otherwise draw the same frame again, and the page would wait for it.
     // A sparse draft can only be drawn as a draft (its field is known at its pixels).
-    const draft = this.dragging || this.store.view.playing || this.drawList().some(({ layer }) => layer.sparse);
+    const layers = this.drawList();
+    const draft = this.dragging || this.store.view.playing || holdsSparse(layers);
     const doc = this.doc;
-    const same = this.gl.drawn(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], this.drawList(), !draft, draft);
+    const same = this.gl.drawn(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], layers, !draft, draft);
     if (same && !this.antialiasDue && !this.pendingLatency.length && !this.afterFrameFns.length) {
       this.stats.frames.overlayOnly++;
       this.onFrame();
@@ -628,6 +629,9 @@ export class App {
    * when the pointer rests or playback stops; exports ask for it (`draft = false`).
    */
   renderNow(draft: boolean = this.dragging || this.store.view.playing, antialias = !draft, adaptive = false): void {
+    // A layer holding a sparse draft is drawn as a draft whatever the caller asked (the
+    // renderer would): not a full frame, whose time and callbacks belong to a real one.
+    if (holdsSparse(this.drawList())) [draft, antialias] = [true, false];
     const start = performance.now();
     this.stats.frames.drawn++;
     this.draw(draft, antialias, adaptive);

@@ -102,6 +102,12 @@ export interface FieldData {
 const enc = new TextEncoder();
 const dec = new TextDecoder();
 
+/** A solve request as the module reads it (curves sampled every `grid_step` by default). */
+function request(features: SolveFeature[], options: SolveOptions): Uint8Array {
+  const { spacing_px, ...rest } = options;
+  return enc.encode(JSON.stringify({ features, options: rest, spacing_px: spacing_px ?? rest.grid_step ?? 1 }));
+}
+
 /** A grid (solve domain) living in the module; free it when the layer goes away. */
 export class GridHandle {
   constructor(
@@ -124,8 +130,7 @@ export class GridHandle {
   solve(features: SolveFeature[], options: SolveOptions, initial: FieldData | null): { field: FieldData; report: SolveReport } {
     const n = this.width * this.height;
     const e = this.engine;
-    const { spacing_px, ...rest } = options;
-    const req = enc.encode(JSON.stringify({ features, options: rest, spacing_px: spacing_px ?? rest.grid_step ?? 1 }));
+    const req = request(features, options);
     const reqPtr = e.put(req);
     const fieldPtr = e.x.iw_alloc(8 * n);
     try {
@@ -171,8 +176,7 @@ export class GridHandle {
    */
   solveAt(features: SolveFeature[], options: SolveOptions): { values: Float32Array; report: SolveReport } {
     const e = this.engine;
-    const { spacing_px, ...rest } = options;
-    const req = enc.encode(JSON.stringify({ features, options: rest, spacing_px: spacing_px ?? rest.grid_step ?? 1 }));
+    const req = request(features, options);
     const reqPtr = e.put(req);
     const len = 2 * this.selected;
     const outPtr = e.x.iw_alloc(4 * len);

@@ -257,8 +257,8 @@ export function draftQuads(w: number, h: number, links: Uint8Array, block = DRAF
 /**
  * The pixels a draft reads its field at (sorted): every vertex of the draft mesh
  * (`draftQuads`), and the pixel of every inner skirt quarter (the first `innerSkirts`
- * vertices of `skirts`, 6 floats each) with its four neighbours. At 512 × 512 with a cut,
- * about 11 thousand of the 262 thousand, so a draft is solved, sent and uploaded for those
+ * vertices of `skirts`, 6 floats each) with its four neighbours. On the built-in 512 × 512
+ * example with its cut, 7.1 thousand of the 262 thousand, so a draft is solved, sent and uploaded for those
  * alone (see `GlLayer.setSparseField`).
  */
 export function draftPixels(w: number, h: number, coarse: Uint32Array, skirts: Float32Array, innerSkirts: number): Uint32Array {
@@ -662,6 +662,14 @@ export class GlLayer {
   }
 }
 
+/**
+ * Whether a layer holds a sparse draft (`GlLayer.setSparseField`): its field is only known
+ * at the draft mesh's pixels, so the frame can only be a single-sampled draft.
+ */
+export function holdsSparse(layers: DrawLayer[]): boolean {
+  return layers.some(({ layer }) => layer.sparse);
+}
+
 /** Everything a frame depends on: its size, background and kind, and each layer's state. */
 function frameKey(width: number, height: number, background: number[], layers: DrawLayer[], antialias: boolean, draft: boolean, fast: boolean): string {
   const parts = layers.map(({ layer, offset, opacity }) => `${layer.serial}.${layer.version}@${offset[0]},${offset[1]}*${opacity ?? 1}`);
@@ -692,7 +700,7 @@ export class GlRenderer {
 
   /** Whether `render` with these arguments (no fast frame) would draw the frame already drawn. */
   drawn(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): boolean {
-    if (layers.some(({ layer }) => layer.sparse)) [draft, antialias] = [true, false];
+    if (holdsSparse(layers)) [draft, antialias] = [true, false];
     return this.lastFrame === frameKey(width, height, background, layers, antialias, draft, false);
   }
 
@@ -784,8 +792,7 @@ void main() { o = texture(uTex, vPos); }`);
    * for every pass over the pixels) and read from there.
    */
   render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false, adaptive = false): void {
-    // A sparse draft's field is only known at the draft mesh's pixels.
-    if (layers.some(({ layer }) => layer.sparse)) [draft, antialias] = [true, false];
+    if (holdsSparse(layers)) [draft, antialias] = [true, false];
     const fast = adaptive && !draft && !antialias;
     this.lastFrame = frameKey(width, height, background, layers, antialias, draft, fast);
     const gl = this.gl;

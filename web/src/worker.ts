@@ -42,22 +42,19 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
       const grid = grids.get(msg.key);
       if (!grid) throw new Error(`No grid for layer ${msg.key}.`);
       grid.select(msg.pixels);
-    } else if (msg.type === 'solve' && msg.sparse) {
-      // A draft at the draft mesh's pixels: nothing to keep, the drafts' own history (in
-      // the engine) is the next one's start.
-      const grid = grids.get(msg.key);
-      if (!grid) throw new Error(`No grid for layer ${msg.key}.`);
-      const began = performance.timeOrigin + performance.now();
-      const t0 = performance.now();
-      const { values, report } = grid.solveAt(msg.features, msg.options);
-      const ms = performance.now() - t0;
-      const ended = performance.timeOrigin + performance.now();
-      post({ type: 'field', id: msg.id, key: msg.key, field: null, sparse: values, report, ms, gridStep: msg.options.grid_step ?? 1, began, ended }, [values.buffer]);
     } else if (msg.type === 'solve') {
       const grid = grids.get(msg.key);
       if (!grid) throw new Error(`No grid for layer ${msg.key}.`);
-      const began = performance.timeOrigin + performance.now();
       const t0 = performance.now();
+      const head = { type: 'field' as const, id: msg.id, key: msg.key, gridStep: msg.options.grid_step ?? 1, began: performance.timeOrigin + t0 };
+      const ended = () => performance.timeOrigin + performance.now();
+      if (msg.sparse) {
+        // A draft at the draft mesh's pixels: nothing to keep, the drafts' own history (in
+        // the engine) is the next one's start.
+        const { values, report } = grid.solveAt(msg.features, msg.options);
+        post({ ...head, field: null, sparse: values, report, ms: performance.now() - t0, ended: ended() }, [values.buffer]);
+        return;
+      }
       const { field, report } = grid.solve(msg.features, msg.options, msg.warm ? (last.get(msg.key) ?? null) : null);
       const ms = performance.now() - t0;
       last.set(msg.key, field);
@@ -67,8 +64,7 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
       // and they take a pass over every pixel: built here, the page never waits for them.
       const links = msg.mesh ? linksOf.get(msg.key) : undefined;
       const triangles = links ? adaptiveTriangles(field.width, field.height, links, field) : undefined;
-      const ended = performance.timeOrigin + performance.now();
-      post({ type: 'field', id: msg.id, key: msg.key, field: out, triangles, report, ms, gridStep: msg.options.grid_step ?? 1, began, ended }, [
+      post({ ...head, field: out, triangles, report, ms, ended: ended() }, [
         out.dx.buffer,
         out.dy.buffer,
         ...(triangles ? [triangles.buffer] : []),

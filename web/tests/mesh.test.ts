@@ -183,10 +183,8 @@ describe('the pixels a draft reads (sparse drafts)', () => {
           if (i >= 0 && j >= 0 && i < w && j < h) expect(set.has(j * w + i)).toBe(true);
         }
       }
-      // Where nothing tears, a draft reads a few percent of the pixels.
-      if (holes.size === 0 && cutX === 0 && w > 40 && h > 40) expect(px.length).toBeLessThan(0.2 * w * h);
     }
-    // An open 512 × 512 layer: the corners of its 8 × 8 blocks.
+    // An open 512 × 512 layer: the corners of its 8 × 8 blocks, 1.6 % of the pixels.
     const open = buildMesh(512, 512, null, null);
     expect(draftPixels(512, 512, open.coarse, open.skirts, open.innerSkirts).length).toBe(65 * 65);
   });

@@ -57,21 +57,20 @@ pub(crate) fn solve_coarse(
     let coarse = Coarse::new(grid, samples, options.grid_step);
     let start = initial.map(|f| coarse.restrict(f));
     let (fc, report) = solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref(), history);
-    (upsample(grid, &coarse.layout, &fc, samples), report)
+    (upsample(grid, &Upsampling::new(grid, options.grid_step), &fc, samples), report)
 }
 
 /// What upsampling a `grid_step` solve on one grid needs besides the coarse field: the
 /// taps of every pixel column and row and the usable-tap masks of the cells along missing
-/// links. Built once per grid and step, it evaluates the upsampled field at chosen pixels
-/// only ([`solve_warm_at`]): the editor's drafts need it at their mesh's vertices, a few
-/// percent of the pixels.
+/// links. The full upsampling builds it for each solve; kept once per grid and step, it
+/// evaluates the upsampled field at chosen pixels only ([`solve_warm_at`]): the editor's
+/// drafts need it at their mesh's vertices, a few percent of the pixels.
 #[derive(Debug)]
 pub struct Upsampling {
     layout: Layout,
     cols: Vec<Taps>,
     rows: Vec<Taps>,
     masks: Vec<CellMasks>,
-    active: Vec<bool>,
 }
 
 impl Upsampling {
@@ -81,8 +80,8 @@ impl Upsampling {
         let layout = Layout::new(grid.width, grid.height, s);
         let cols = Taps::along(layout.w, layout.wc, s, |x| layout.px(x));
         let rows = Taps::along(layout.h, layout.hc, s, |y| layout.py(y));
-        let (masks, _) = mask_table(grid, &layout, &cols, &rows);
-        Upsampling { layout, cols, rows, masks, active: grid.active.clone() }
+        let masks = mask_table(grid, &layout, &cols, &rows);
+        Upsampling { layout, cols, rows, masks }
     }
 
     /// The step the plan was built for.
@@ -90,25 +89,17 @@ impl Upsampling {
         self.layout.s
     }
 
-    /// The upsampled value of pixel `i` (row-major) from the coarse field `fc`: zero for an
-    /// inactive pixel, `None` where its window has no usable node (the full upsampling
-    /// then fills it along the links).
-    fn at(&self, fc: &Field, i: usize) -> Option<[f32; 2]> {
-        if !self.active[i] {
+    /// The upsampled value of pixel `i` (row-major) of `grid` (the plan's) from the coarse
+    /// field `fc`: zero for an inactive pixel, `None` where its window has no usable node
+    /// (the full upsampling then fills it along the links).
+    fn at(&self, grid: &Grid, fc: &Field, i: usize) -> Option<[f32; 2]> {
+        if !grid.active[i] {
             return Some([0.0; 2]);
         }
         let l = &self.layout;
         let (x, y) = (i % l.w, i / l.w);
         let (tx, ty) = (&self.cols[x], &self.rows[y]);
-        let cw = l.wc.saturating_sub(1).max(1);
-        let cell = &self.masks[ty.cell * cw + tx.cell].masks;
-        let mask = if cell.is_empty() {
-            ALL_TAPS
-        } else {
-            let (ix0, iy0) = (l.px(tx.cell), l.py(ty.cell));
-            let iw = l.px((tx.cell + 1).min(l.wc - 1)) - ix0 + 1;
-            cell[(y - iy0) * iw + (x - ix0)]
-        };
+        let mask = self.masks[ty.cell * l.cells().0 + tx.cell].get(l, tx.cell, ty.cell, x, y);
         window_value(fc, ty, tx, mask)
     }
 }
@@ -155,21 +146,20 @@ pub fn solve_warm_at(
         return Err(SolveError::BadPixels);
     }
     validate(grid, samples, options, None)?;
-    let (fc, mut report, coarse) = in_pool(|| {
+    let (fc, mut report) = in_pool(|| {
         let coarse = Coarse::new(grid, samples, options.grid_step);
-        let (fc, report) = solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), None, Some(history));
-        (fc, report, coarse)
+        solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), None, Some(history))
     });
     let mut missing = false;
     for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
-        match plan.at(&fc, p as usize) {
+        match plan.at(grid, &fc, p as usize) {
             Some(v) => o.copy_from_slice(&v),
             None => missing = true,
         }
     }
     if missing {
         // A pixel whose window reaches no coarse node takes the full upsampling's fill.
-        let field = upsample(grid, &coarse.layout, &fc, samples);
+        let field = upsample(grid, plan, &fc, samples);
         for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
             o.copy_from_slice(&[field.dx[p as usize], field.dy[p as usize]]);
         }
@@ -257,6 +247,11 @@ impl Layout {
     /// The pixel row of coarse row `yc`.
     fn py(&self, yc: usize) -> usize {
         (yc * self.s).min(self.h - 1)
+    }
+
+    /// Coarse cells across and down (at least one each, even on a one-node axis).
+    fn cells(&self) -> (usize, usize) {
+        (self.wc.saturating_sub(1).max(1), self.hc.saturating_sub(1).max(1))
     }
 
     /// The coarse grid: a node per coarse position, active where its pixel is, linked
@@ -477,6 +472,18 @@ struct CellMasks {
     masks: Vec<u16>,
 }
 
+impl CellMasks {
+    /// The mask of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's pixels).
+    fn get(&self, layout: &Layout, cx: usize, cy: usize, x: usize, y: usize) -> u16 {
+        if self.masks.is_empty() {
+            return ALL_TAPS;
+        }
+        let ix0 = layout.px(cx);
+        let iw = layout.px((cx + 1).min(layout.wc - 1)) - ix0 + 1;
+        self.masks[(y - layout.py(cy)) * iw + (x - ix0)]
+    }
+}
+
 /// A column's cubic weights for the separable path of [`upsample`].
 struct Flat {
     w: [f64; 4],
@@ -485,11 +492,10 @@ struct Flat {
 }
 
 /// The usable-tap masks of every coarse cell (`cw` × `ch` of them, see [`cell_masks`]):
-/// computed for the cells near one that a missing link or an inactive pixel touches (listed
-/// in the second vector), empty (every tap usable) for the others.
-fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> (Vec<CellMasks>, Vec<usize>) {
-    let (wc, hc) = (layout.wc, layout.hc);
-    let (cw, ch) = (wc.saturating_sub(1).max(1), hc.saturating_sub(1).max(1));
+/// computed for the cells near one that a missing link or an inactive pixel touches, empty
+/// (every tap usable) for the others.
+fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec<CellMasks> {
+    let (cw, ch) = layout.cells();
     // Cells whose window's block of pixels a missing link or an inactive pixel touches get
     // a mask of usable taps per pixel; the others (empty) use every tap.
     let touched = touched_cells(grid, layout, cols, rows, cw, ch);
@@ -511,7 +517,7 @@ fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> (Ve
     for (&k, m) in broken.iter().zip(computed) {
         masks[k] = m;
     }
-    (masks, broken)
+    masks
 }
 
 /// One pixel's value from the coarse field `fc`, any window (`ty`, `tx` its taps): the taps
@@ -558,13 +564,11 @@ fn window_value(fc: &Field, ty: &Taps, tx: &Taps, mask: u16) -> Option<[f32; 2]>
     (inner[2] > 1e-9).then(|| [(inner[0] / inner[2]) as f32, (inner[1] / inner[2]) as f32])
 }
 
-/// The fine field from the coarse one (see the module docs).
-fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Field {
-    let (w, h, wc, hc) = (layout.w, layout.h, layout.wc, layout.hc);
-    let cols = Taps::along(w, wc, layout.s, |x| layout.px(x));
-    let rows = Taps::along(h, hc, layout.s, |y| layout.py(y));
-    let (cw, ch) = (wc.saturating_sub(1).max(1), hc.saturating_sub(1).max(1));
-    let (masks, broken) = mask_table(grid, layout, &cols, &rows);
+/// The fine field from the coarse one (see the module docs) by `plan`, built for `grid`.
+fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> Field {
+    let Upsampling { layout, cols, rows, masks } = plan;
+    let (w, h, wc) = (layout.w, layout.h, layout.wc);
+    let (cw, ch) = layout.cells();
     let pixel = |ty: &Taps, tx: &Taps, mask: u16| window_value(fc, ty, tx, mask);
 
     // Each column's used weights from its first tap on (zero past the last), their sum and
@@ -584,8 +588,8 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
         .collect();
     // The cells with masks in each row of cells, and each cell's pixels along x.
     let mut masked = vec![Vec::new(); ch];
-    for &k in &broken {
-        if !masks[k].masks.is_empty() {
+    for (k, m) in masks.iter().enumerate() {
+        if !m.masks.is_empty() {
             masked[k / cw].push(k % cw);
         }
     }
@@ -635,13 +639,10 @@ fn upsample(grid: &Grid, layout: &Layout, fc: &Field, samples: &[Sample]) -> Fie
         }
         // ... then the pixels of windows with a missing link: the taps each reaches inside
         // its window.
-        let iy0 = layout.py(ty.cell);
         for &cx in &masked[ty.cell] {
-            let cell = &masks[ty.cell * cw + cx].masks;
-            let ix0 = layout.px(cx);
-            let iw = layout.px((cx + 1).min(wc - 1)) - ix0 + 1;
+            let cell = &masks[ty.cell * cw + cx];
             for x in cell_x[cx].0..cell_x[cx].1 {
-                let mask = cell[(y - iy0) * iw + (x - ix0)];
+                let mask = cell.get(layout, cx, ty.cell, x, y);
                 if !active[x] || mask == ALL_TAPS {
                     continue;
                 }
@@ -969,9 +970,8 @@ mod tests {
                 for (holes, breaks) in [(0.0, 0.0), (0.0, 0.08), (0.15, 0.0), (0.35, 0.1), (0.6, 0.3)] {
                     seed += 1;
                     let (grid, fc, samples) = case(w, h, s, holes, breaks, seed);
-                    let layout = Layout::new(w, h, s);
                     let (expected, paths) = upsample_per_pixel(&grid, s, &fc, &samples, Rule::Local);
-                    let got = upsample(&grid, &layout, &fc, &samples);
+                    let got = upsample(&grid, &Upsampling::new(&grid, s), &fc, &samples);
                     assert_same_values(&got, &expected, &format!("{w}×{h}, s = {s}, holes {holes}, breaks {breaks}"));
                     total.cubic += paths.cubic;
                     total.bilinear += paths.bilinear;
@@ -990,7 +990,8 @@ mod tests {
     #[test]
     fn the_plan_gives_the_field_at_any_pixel() {
         // Every pixel of torn and open grids, serial and parallel sizes: the plan's value is
-        // the full upsampling's, or None exactly where the fill along links made it.
+        // the full upsampling's wherever its window has a usable node (None elsewhere: the
+        // full upsampling fills those along the links; some must occur).
         let mut seed = 900;
         let mut unresolved = 0;
         for s in [2, 3, 5, 8] {
@@ -998,12 +999,12 @@ mod tests {
                 for (holes, breaks) in [(0.0, 0.0), (0.0, 0.08), (0.35, 0.1), (0.6, 0.3)] {
                     seed += 1;
                     let (grid, fc, samples) = case(w, h, s, holes, breaks, seed);
-                    let full = upsample(&grid, &Layout::new(w, h, s), &fc, &samples);
                     let plan = Upsampling::new(&grid, s);
+                    let full = upsample(&grid, &plan, &fc, &samples);
                     let what = format!("{w}×{h}, s = {s}, holes {holes}, breaks {breaks}");
                     let mut got = Field::zeros(w, h);
                     for i in 0..w * h {
-                        match plan.at(&fc, i) {
+                        match plan.at(&grid, &fc, i) {
                             Some([x, y]) => (got.dx[i], got.dy[i]) = (x, y),
                             None => {
                                 // Filled from a neighbour or a piece's mean: take the field's.
@@ -1024,8 +1025,9 @@ mod tests {
         // A few frames of a drag over a grid with a cut and a hole, at every fourth pixel:
         // each the full draft's values, and the histories alike (same cycles).
         let (w, h, s) = (97, 75, 4);
-        let active = (0..w * h).map(|i| (i % w) as i64 - 70).zip((0..w * h).map(|i| (i / w) as i64 - 40));
-        let mut grid = Grid::from_active(w, h, active.map(|(x, y)| x * x + y * y >= 36).collect());
+        // A round hole of radius 6 around (70, 40).
+        let outside = |i: usize| ((i % w) as i64 - 70).pow(2) + ((i / w) as i64 - 40).pow(2) >= 36;
+        let mut grid = Grid::from_active(w, h, (0..w * h).map(outside).collect());
         grid.add_cut(&[[40.5, 10.0], [40.5, 60.0]]);
         let plan = Upsampling::new(&grid, s);
         let pixels: Vec<u32> = (0..grid.len() as u32).step_by(4).collect();
@@ -1077,7 +1079,7 @@ mod tests {
         }
         assert!(grid.is_consistent());
         let (expected, _) = upsample_per_pixel(&grid, s, &fc, &samples, Rule::Local);
-        assert_same_values(&upsample(&grid, &Layout::new(w, h, s), &fc, &samples), &expected, "301×187");
+        assert_same_values(&upsample(&grid, &Upsampling::new(&grid, s), &fc, &samples), &expected, "301×187");
     }
 
     #[test]
@@ -1105,7 +1107,7 @@ mod tests {
                 let (grid, fc, samples) = case(w, h, s, 0.0, 0.0, seed);
                 let (expected, paths) = upsample_per_pixel(&grid, s, &fc, &samples, Rule::Piece);
                 assert_eq!(paths.along_links + paths.piece_mean, 0);
-                let got = upsample(&grid, &Layout::new(w, h, s), &fc, &samples);
+                let got = upsample(&grid, &Upsampling::new(&grid, s), &fc, &samples);
                 assert_same_values(&got, &expected, &format!("open {w}×{h}, s = {s}"));
             }
         }
