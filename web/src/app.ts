@@ -25,6 +25,8 @@ export interface LayerRuntime {
   field: FieldData | null;
   /** The last request sent for this layer (to skip identical ones). */
   lastRequest: string;
+  /** The last pose the full-resolution solver was asked to follow (see `App.follow`). */
+  lastFollow: string;
   error: string | null;
   /** The engine's remarks on the layer's last field (e.g. a matte its method ignores). */
   notes: string[];
@@ -41,6 +43,8 @@ export interface Stats {
   settle: number[];
   draftSolveMs: number[];
   finalSolveMs: number[];
+  /** The full-resolution solves that followed drags (see `App.follow`). */
+  followSolveMs: number[];
   playback: { expected: number; shown: number; dropped: number } | null;
   /** Where each settle's time went (ms; see `SettleParts`). */
   settleParts: SettleParts[];
@@ -60,9 +64,13 @@ export interface SettleParts {
   behind: string | null;
   /** Posting the request to the worker until it starts solving. */
   toWorker: number;
-  /** The worker's solve (request in, field out), with the solver's cycle count. */
+  /**
+   * The worker's solve (request in, field out), with the solver's cycle count; `reused`: the
+   * worker had solved this very request already (following the drag) and sent that field.
+   */
   solve: number;
   cycles: number | null;
+  reused: boolean;
   /** The field's trip back to the page. */
   back: number;
   /** Uploading the field to the GPU (interleaving and texture upload). */
@@ -98,6 +106,7 @@ function frameParts(
     toWorker: times.began - times.sent,
     solve: times.ended - times.began,
     cycles: ev.report.cycles ?? null,
+    reused: ev.reused ?? false,
     back: times.received - times.ended,
     upload,
     toFrame: drawn.start - (times.received + upload),
@@ -120,7 +129,7 @@ export class App {
   readonly store: Store;
   readonly gl: GlRenderer;
   readonly runtimes = new Map<string, LayerRuntime>();
-  readonly stats: Stats = { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 } };
+  readonly stats: Stats = { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 } };
   onMessage: (text: string, kind: 'error' | 'info') => void = () => {};
   onFrame: () => void = () => {};
   onSolved: (ev: FieldEvent) => void = () => {};
@@ -224,6 +233,7 @@ export class App {
           selectedGen: -1,
           field: null,
           lastRequest: '',
+          lastFollow: '',
           error: null,
           notes: [],
           shownSeq: 0,
@@ -304,6 +314,7 @@ export class App {
     const gen = ++rt.gridGen;
     rt.gridReady = false;
     rt.lastRequest = '';
+    rt.lastFollow = '';
     this.busyCount++;
     const cuts = this.cutsOf(layer);
     Promise.all(this.clients.map((c) => c.setGrid(rt.name, this.doc.width, this.doc.height, rt.matte, cuts)))
@@ -461,7 +472,29 @@ export class App {
         frame,
         settleStart: quality === 'final' ? this.settleStart : null,
       }, true, quality === 'final' && this.slowAntialias, quality === 'draft' && this.sparseDraft(rt));
+      if (quality === 'draft') this.follow(rt, layer, time);
     }
+  }
+
+  /**
+   * While a drag's drafts are drawn, the full-resolution solver follows the pointer: it
+   * solves the newest pose each time it is free (only the newest waits), keeps the field as
+   * its next start, and sends back nothing to draw. The engine keeps these solves as its
+   * warm-start history, whose combination of the poses along the drag puts the settle's
+   * start within a cycle or two of its answer, where the pose before the drag was a dozen
+   * cycles away; a settle on the very pose it solved last is answered at once. Only the grid
+   * thin plate starts warm (the other methods solve from scratch), so only it follows.
+   */
+  private follow(rt: LayerRuntime, layer: Layer, time: number): void {
+    if (!this.drafts) return;
+    const options = this.solverOptions(layer, 'final');
+    if (options.method !== 'tps' || options.scheme !== 'multigrid') return;
+    const features = this.solveFeatures(layer, time);
+    const sig = JSON.stringify([features, options]);
+    if (sig === rt.lastFollow) return;
+    rt.lastFollow = sig;
+    const tag = { madeAt: performance.now(), seq: ++this.seq, quality: 'follow', gen: rt.gridGen, time, rev: this.store.revision };
+    this.solver.solve(layer.name, features, options, tag, true, false, false, true);
   }
 
   /**
@@ -495,6 +528,11 @@ export class App {
 
   private receive(ev: FieldEvent): void {
     const rt = this.runtimes.get(ev.key);
+    if (ev.tag.quality === 'follow') {
+      this.stats.followSolveMs.push(ev.ms);
+      this.checkIdle();
+      return;
+    }
     this.lastReport = ev;
     if (ev.tag.quality === 'draft') this.stats.draftSolveMs.push(ev.ms);
     else this.stats.finalSolveMs.push(ev.ms);

@@ -21,6 +21,11 @@ export type ToWorker =
       mesh?: boolean;
       /** Solve at the selected pixels only (a `sparse` field, not `field`). */
       sparse?: boolean;
+      /**
+       * Solve and keep the field as the next start, sending back only the report (`field`
+       * null): the full-resolution solver following a drag (see `App.follow`).
+       */
+      follow?: boolean;
     };
 
 export type FromWorker =
@@ -33,10 +38,12 @@ export type FromWorker =
       type: 'field';
       id: number;
       key: string;
-      /** The field, or null for a sparse solve. */
+      /** The field, or null for a sparse or a `follow` solve. */
       field: FieldData | null;
       /** A sparse solve's (dx, dy) pairs at the selected pixels, in their order. */
       sparse?: Float32Array;
+      /** The field was the worker's last one, which answered this very request (no solve). */
+      reused?: boolean;
       /** The triangles of the field's fast full frame, when asked for. */
       triangles?: Uint32Array;
       report: SolveReport;

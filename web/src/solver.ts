@@ -15,11 +15,13 @@ export interface SolveTag {
 
 export interface FieldEvent {
   key: string;
-  /** The field, or null for a sparse draft (`sparse`). */
+  /** The field, or null for a sparse draft (`sparse`) or a solve that only follows (`follow`). */
   field: FieldData | null;
   /** A sparse draft's (dx, dy) pairs at the pixels `select` chose. */
   sparse?: Float32Array;
   report: SolveReport;
+  /** The worker answered with its last field, solved for this very request (see `LastFields`). */
+  reused?: boolean;
   ms: number;
   gridStep: number;
   /** The triangles of the field's fast full frame (full-resolution fields only). */
@@ -37,6 +39,7 @@ interface Request {
   warm: boolean;
   mesh: boolean;
   sparse: boolean;
+  follow: boolean;
   tag: SolveTag;
 }
 
@@ -95,10 +98,11 @@ export class SolverClient {
   /**
    * Asks for a field; supersedes any request for the same layer still waiting. `mesh`: also
    * the triangles of its fast full frame (see `adaptiveTriangles`); `sparse`: the field at
-   * the pixels `select` chose only.
+   * the pixels `select` chose only; `follow`: keep the field in the worker as the next
+   * start and send back its report only.
    */
-  solve(key: string, features: SolveFeature[], options: SolveOptions, tag: SolveTag, warm = true, mesh = false, sparse = false): void {
-    this.pending.set(key, { key, features, options, warm, mesh, sparse, tag });
+  solve(key: string, features: SolveFeature[], options: SolveOptions, tag: SolveTag, warm = true, mesh = false, sparse = false, follow = false): void {
+    this.pending.set(key, { key, features, options, warm, mesh, sparse, follow, tag });
     this.pump();
   }
 
@@ -123,7 +127,7 @@ export class SolverClient {
     this.pending.delete(key);
     const id = this.nextId++;
     this.inFlight = { id, req, sentAt: performance.now() };
-    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm, mesh: req.mesh, sparse: req.sparse });
+    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm, mesh: req.mesh, sparse: req.sparse, follow: req.follow });
   }
 
   private receive(msg: FromWorker): void {
@@ -146,7 +150,7 @@ export class SolverClient {
       if (msg.type === 'field' && done) {
         const origin = performance.timeOrigin;
         const times = { sent: done.sentAt, began: msg.began - origin, ended: msg.ended - origin, received: performance.now() };
-        this.onField({ key: msg.key, field: msg.field, sparse: msg.sparse, triangles: msg.triangles, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag, times });
+        this.onField({ key: msg.key, field: msg.field, sparse: msg.sparse, reused: msg.reused, triangles: msg.triangles, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag, times });
       } else if (msg.type === 'error') {
         this.onError(msg.key, msg.message);
       }

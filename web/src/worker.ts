@@ -3,12 +3,13 @@
 
 import { Engine, type FieldData, type GridHandle } from './engine';
 import { adaptiveTriangles } from './gl';
+import { LastFields } from './lastfields';
 import type { FromWorker, ToWorker } from './protocol';
 
 let engine: Engine | null = null;
 let wasmUrl = '';
 const grids = new Map<string, GridHandle>();
-const last = new Map<string, FieldData>();
+const last = new LastFields();
 /** Each grid's links (per node: bit 0 active, bit 1 linked right, bit 2 linked down). */
 const linksOf = new Map<string, Uint8Array>();
 
@@ -28,15 +29,14 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
       grids.get(msg.key)?.free();
       const grid = engine.grid(msg.width, msg.height, msg.matte, msg.cuts);
       grids.set(msg.key, grid);
-      const prev = last.get(msg.key);
-      if (prev && (prev.width !== msg.width || prev.height !== msg.height)) last.delete(msg.key);
+      last.regrid(msg.key, msg.width, msg.height);
       const links = grid.links();
       linksOf.set(msg.key, links.slice());
       post({ type: 'links', key: msg.key, links }, [links.buffer]);
     } else if (msg.type === 'drop') {
       grids.get(msg.key)?.free();
       grids.delete(msg.key);
-      last.delete(msg.key);
+      last.forget(msg.key);
       linksOf.delete(msg.key);
     } else if (msg.type === 'select') {
       const grid = grids.get(msg.key);
@@ -55,16 +55,20 @@ self.onmessage = async (ev: MessageEvent<ToWorker>) => {
         post({ ...head, field: null, sparse: values, report, ms: performance.now() - t0, ended: ended() }, [values.buffer]);
         return;
       }
-      const { field, report } = grid.solve(msg.features, msg.options, msg.warm ? (last.get(msg.key) ?? null) : null);
+      const { field, report, reused } = last.solve(msg.key, grid, msg.features, msg.options, msg.warm);
       const ms = performance.now() - t0;
-      last.set(msg.key, field);
+      if (msg.follow) {
+        // Following a drag: the field stays here as the next start, the page draws drafts.
+        post({ ...head, field: null, report, ms, ended: ended() });
+        return;
+      }
       // Send copies: the worker keeps its own field as the next warm start.
       const out: FieldData = { width: field.width, height: field.height, dx: field.dx.slice(), dy: field.dy.slice() };
       // The page draws a full-resolution field first through these (on a software GPU),
       // and they take a pass over every pixel: built here, the page never waits for them.
       const links = msg.mesh ? linksOf.get(msg.key) : undefined;
       const triangles = links ? adaptiveTriangles(field.width, field.height, links, field) : undefined;
-      post({ ...head, field: out, triangles, report, ms, ended: ended() }, [
+      post({ ...head, field: out, reused, triangles, report, ms, ended: ended() }, [
         out.dx.buffer,
         out.dy.buffer,
         ...(triangles ? [triangles.buffer] : []),
