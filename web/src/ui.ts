@@ -107,7 +107,8 @@ export class Ui {
     this.glCanvas = app.gl.canvas as HTMLCanvasElement;
     this.overlayCanvas = h('canvas.overlay', { 'aria-label': 'drawing' });
     this.overlay = new Overlay(this.overlayCanvas, app.engine);
-    this.stage = h('div.stage', {}, h('div.frame', {}, this.glCanvas, this.overlayCanvas));
+    const pictures = app.gl.draftCanvas ? [this.glCanvas, app.gl.draftCanvas] : [this.glCanvas];
+    this.stage = h('div.stage', {}, h('div.frame', {}, ...pictures, this.overlayCanvas));
     this.build(root);
     app.onMessage = (t, k) => this.message(t, k);
     app.onFrame = () => this.drawOverlay();
@@ -522,6 +523,27 @@ export class Ui {
     return null;
   }
 
+  /** Moves the dragged point or feature to where the pointer is. */
+  private dragTo(e: PointerEvent): void {
+    const d = this.drag;
+    if (!d) return;
+    const p = this.toScene(e.clientX, e.clientY);
+    const { mode, time } = this.store.view;
+    d.moved = true;
+    this.app.lastPointerAt = e.timeStamp || performance.now();
+    try {
+      if (d.point !== null) {
+        const base = d.base[d.point];
+        const q: Pt = [base[0] + p[0] - d.start[0], base[1] + p[1] - d.start[1]];
+        this.store.edit((doc) => movePoint(doc, mode, time, d.id, d.point!, this.store.view.snap ? [Math.round(q[0]), Math.round(q[1])] : q));
+      } else {
+        this.store.edit((doc) => moveFeature(doc, mode, time, d.id, d.base, [p[0] - d.start[0], p[1] - d.start[1]]));
+      }
+    } catch (err) {
+      this.message((err as Error).message, 'error');
+    }
+  }
+
   private bindPointer(): void {
     const c = this.overlayCanvas;
     c.addEventListener('pointerdown', (e) => {
@@ -556,29 +578,19 @@ export class Ui {
       this.store.begin();
       this.app.dragging = view.mode === 'pose';
     });
+    // A drag follows the pointer's raw updates where the browser has them: those arrive as
+    // the input does, where pointer moves wait for the next animation frame (up to 17 ms
+    // more before the draft is even asked for).
+    const raw = 'onpointerrawupdate' in c;
+    if (raw) c.addEventListener('pointerrawupdate' as 'pointermove', (e) => this.drag && this.dragTo(e));
     c.addEventListener('pointermove', (e) => {
-      const p = this.toScene(e.clientX, e.clientY);
-      if (!this.drag) {
-        if (this.store.view.draft.length) {
-          this.overlay.hover = p;
-          this.drawOverlay();
-        }
+      if (this.drag) {
+        if (!raw) this.dragTo(e);
         return;
       }
-      const { mode, time } = this.store.view;
-      const d = this.drag;
-      d.moved = true;
-      this.app.lastPointerAt = e.timeStamp || performance.now();
-      try {
-        if (d.point !== null) {
-          const base = d.base[d.point];
-          const q: Pt = [base[0] + p[0] - d.start[0], base[1] + p[1] - d.start[1]];
-          this.store.edit((doc) => movePoint(doc, mode, time, d.id, d.point!, this.store.view.snap ? [Math.round(q[0]), Math.round(q[1])] : q));
-        } else {
-          this.store.edit((doc) => moveFeature(doc, mode, time, d.id, d.base, [p[0] - d.start[0], p[1] - d.start[1]]));
-        }
-      } catch (err) {
-        this.message((err as Error).message, 'error');
+      if (this.store.view.draft.length) {
+        this.overlay.hover = this.toScene(e.clientX, e.clientY);
+        this.drawOverlay();
       }
     });
     const end = () => {
