@@ -163,6 +163,7 @@ export class App {
   ) {
     this.store = store;
     this.gl = new GlRenderer(glCanvas);
+    this.gl.useEngine(engine);
     for (const client of this.clients) {
       client.onField = (ev) => this.receive(ev);
       client.onError = (key, message) => {

@@ -28,6 +28,9 @@ interface Exports {
   iw_decode(ptr: number, len: number): number;
   iw_decoded_take(out: number, len: number): number;
   iw_matte_values(rgba: number, w: number, h: number, out: number): number;
+  iw_draft_new(w: number, h: number, pixels: number, coarse: number, coarseLen: number, skirts: number, skirtsLen: number, links: number, index: number): number;
+  iw_draft_free(h: number): void;
+  iw_draft_draw(out: number, w: number, h: number, r: number, g: number, b: number, a: number, layers: number, count: number): number;
   iw_init(): void;
   iw_panic_ptr(): number;
   iw_panic_len(): number;
@@ -106,6 +109,34 @@ const dec = new TextDecoder();
 function request(features: SolveFeature[], options: SolveOptions): Uint8Array {
   const { spacing_px, ...rest } = options;
   return enc.encode(JSON.stringify({ features, options: rest, spacing_px: spacing_px ?? rest.grid_step ?? 1 }));
+}
+
+/**
+ * What a draft frame drawn by the CPU needs of a layer (`Engine.drawDraft`): its
+ * premultiplied RGBA8, the draft mesh's triangles (`draftQuads`), the inner skirt quarters'
+ * vertices (6 floats each, 6 vertices a quarter), its links, and per pixel its place in the
+ * sparse draft's values.
+ */
+export interface DraftGeometry {
+  width: number;
+  height: number;
+  premultiplied: Uint8Array;
+  coarse: Uint32Array;
+  skirts: Float32Array;
+  links: Uint8Array;
+  index: Uint32Array;
+}
+
+/** A layer's draft geometry living in the module; free it when the layer's mesh or image changes. */
+export class DraftHandle {
+  constructor(
+    readonly engine: Engine,
+    readonly handle: number,
+  ) {}
+
+  free(): void {
+    this.engine.x.iw_draft_free(this.handle);
+  }
 }
 
 /** A grid (solve domain) living in the module; free it when the layer goes away. */
@@ -341,6 +372,50 @@ export class Engine {
       return this.check(this.x.iw_curve(ptr, req.length)) as Pt[];
     } finally {
       this.x.iw_free(ptr, req.length);
+    }
+  }
+
+  /** A layer's draft geometry, copied into the module (see `drawDraft`). */
+  draftLayer(g: DraftGeometry): DraftHandle {
+    const n = g.width * g.height;
+    if (g.premultiplied.length !== 4 * n || g.links.length !== n || g.index.length !== n) throw new EngineError('A draft layer needs its pixels, links and index at every pixel.');
+    const parts = [g.premultiplied, g.coarse, g.skirts, g.links, g.index].map((a) => new Uint8Array(a.buffer, a.byteOffset, a.byteLength));
+    const ptrs = parts.map((p) => this.put(p));
+    try {
+      const h = this.x.iw_draft_new(g.width, g.height, ptrs[0], ptrs[1], g.coarse.length, ptrs[2], g.skirts.length, ptrs[3], ptrs[4]);
+      if (h === 0) this.check(1);
+      return new DraftHandle(this, h);
+    } finally {
+      parts.forEach((p, k) => this.x.iw_free(ptrs[k], p.length));
+    }
+  }
+
+  /**
+   * A draft frame drawn by the CPU into `out` (straight RGBA8, as an `ImageData` holds it):
+   * the WebGL2 draft's triangles and colours, layers composited back to front over the
+   * background (straight RGBA8), each from its sparse draft's (dx, dy) pairs.
+   */
+  drawDraft(
+    out: Uint8ClampedArray,
+    width: number,
+    height: number,
+    background: [number, number, number, number],
+    layers: { draft: DraftHandle; values: Float32Array; offset: Pt; opacity?: number }[],
+  ): void {
+    const len = 4 * width * height;
+    const valuePtrs = layers.map((l) => this.put(new Uint8Array(l.values.buffer, l.values.byteOffset, l.values.byteLength)));
+    const args = new Float64Array(6 * layers.length);
+    layers.forEach((l, k) => args.set([l.draft.handle, valuePtrs[k], l.values.length, l.offset[0], l.offset[1], l.opacity ?? 1], 6 * k));
+    const argPtr = this.put(new Uint8Array(args.buffer));
+    try {
+      this.withBuffer(len, (ptr) => {
+        const [r, g, b, a] = background;
+        this.check(this.x.iw_draft_draw(ptr, width, height, r, g, b, a, argPtr, layers.length));
+        out.set(this.u8(ptr, len));
+      });
+    } finally {
+      this.x.iw_free(argPtr, args.byteLength);
+      layers.forEach((l, k) => this.x.iw_free(valuePtrs[k], l.values.byteLength));
     }
   }
 

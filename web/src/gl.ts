@@ -16,7 +16,7 @@
 // four samples rather than exact area, and a skirt's centre point is the parallelogram
 // completion from its own pixel.
 
-import type { FieldData } from './engine';
+import type { DraftGeometry, DraftHandle, Engine, FieldData } from './engine';
 
 // Quads: vertex k is pixel (k % W, k / W); the index buffer lists the two triangles of
 // every block whose four links exist, each triangle's last (provoking) vertex being the
@@ -503,6 +503,12 @@ export class GlLayer {
   sparseValues: WebGLTexture;
   /** Whether the field is a sparse draft (`setSparseField`): it can only be drawn as a draft. */
   sparse = false;
+  /** What a draft drawn by the CPU reads (see `cpuDraft`): the premultiplied image, the draft mesh, the sparse draft. */
+  private premultipliedBytes: Uint8Array = new Uint8Array(0);
+  private draftGeometry: Omit<DraftGeometry, 'width' | 'height' | 'premultiplied'> = { coarse: new Uint32Array(0), skirts: new Float32Array(0), links: new Uint8Array(0), index: new Uint32Array(0) };
+  private sparseData: Float32Array = new Float32Array(0);
+  /** `draftGeometry` and the image in the engine, made by the first draft the CPU draws. */
+  private draftHandle: DraftHandle | null = null;
   constructor(
     private r: GlRenderer,
     readonly width: number,
@@ -550,6 +556,13 @@ export class GlLayer {
     }
     gl.bindTexture(gl.TEXTURE_2D, this.premultiplied);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.width, this.height, 0, gl.RGBA, gl.UNSIGNED_BYTE, premultiplied);
+    this.premultipliedBytes = premultiplied;
+    this.dropDraftHandle();
+  }
+
+  private dropDraftHandle(): void {
+    this.draftHandle?.free();
+    this.draftHandle = null;
   }
 
   /**
@@ -587,6 +600,8 @@ export class GlLayer {
     this.draftPixels = pixels;
     const index = new Uint32Array(w * h);
     for (let k = 0; k < pixels.length; k++) index[pixels[k]] = k;
+    this.draftGeometry = { coarse, skirts: skirts.slice(0, 6 * innerSkirts), links: l, index };
+    this.dropDraftHandle();
     gl.bindTexture(gl.TEXTURE_2D, this.sparseIndex);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.R32UI, w, h, 0, gl.RED_INTEGER, gl.UNSIGNED_INT, index);
     gl.bindTexture(gl.TEXTURE_2D, this.sparseValues);
@@ -603,6 +618,7 @@ export class GlLayer {
     if (values.length !== 2 * n) throw new Error(`A sparse field of ${values.length / 2} pixels for a mesh that reads ${n}.`);
     this.version++;
     this.sparse = true;
+    this.sparseData = values;
     this.fieldData = null;
     this.givenTriangles = null;
     const gl = this.r.gl;
@@ -611,6 +627,14 @@ export class GlLayer {
     gl.bindTexture(gl.TEXTURE_2D, this.sparseValues);
     if (rows) gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, SPARSE_ROW, rows, gl.RG, gl.FLOAT, values.subarray(0, 2 * rows * SPARSE_ROW));
     if (rest) gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, rows, rest, 1, gl.RG, gl.FLOAT, values.subarray(2 * rows * SPARSE_ROW));
+  }
+
+  /** The layer's sparse draft as `Engine.drawDraft` draws it, at `offset` with `opacity`. */
+  cpuDraft(engine: Engine, offset: [number, number], opacity = 1): { draft: DraftHandle; values: Float32Array; offset: [number, number]; opacity: number } {
+    if (!this.sparse) throw new Error('Only a sparse draft is drawn by the CPU.');
+    const { width, height } = this;
+    this.draftHandle ??= engine.draftLayer({ width, height, premultiplied: this.premultipliedBytes, ...this.draftGeometry });
+    return { draft: this.draftHandle, values: this.sparseData, offset, opacity };
   }
 
   /** The field, and (`triangles`) its fast full frame's triangles when already built. */
@@ -659,6 +683,7 @@ export class GlLayer {
     gl.deleteTexture(this.sparseIndex);
     gl.deleteTexture(this.sparseValues);
     gl.deleteVertexArray(this.skirtVao);
+    this.dropDraftHandle();
   }
 }
 
@@ -697,6 +722,19 @@ export class GlRenderer {
   private resolveTex: WebGLTexture | null = null;
   /** What the last frame drew (see `frameKey`). */
   private lastFrame = '';
+  /** Whether the GPU is a software one (SwiftShader, llvmpipe: the browser draws on the CPU). */
+  readonly softwareGpu: boolean;
+  /**
+   * A 2D canvas stacked over the WebGL one, where sparse drafts are drawn by the CPU
+   * (`Engine.drawDraft`) while `cpuDrafts` is on (see `useEngine`): the page then shows
+   * them without waiting for the GPU, which a software GPU makes it do for every WebGL
+   * frame it shows. Hidden while the WebGL canvas shows the frame. Null off the page.
+   */
+  readonly draftCanvas: HTMLCanvasElement | null = null;
+  cpuDrafts = false;
+  private engine: Engine | null = null;
+  private cpuFrame: ImageData | null = null;
+  private cpuShown = false;
 
   /** Whether `render` with these arguments (no fast frame) would draw the frame already drawn. */
   drawn(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): boolean {
@@ -725,6 +763,20 @@ out vec4 o;
 void main() { o = texture(uTex, vPos); }`);
     this.vao = gl.createVertexArray()!;
     this.samples = Math.min(4, gl.getParameter(gl.MAX_SAMPLES) as number);
+    const info = gl.getExtension('WEBGL_debug_renderer_info');
+    const name = String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER));
+    this.softwareGpu = /SwiftShader|llvmpipe|softpipe|Software Rasterizer|Basic Render/i.test(name);
+    if (typeof document !== 'undefined') {
+      this.draftCanvas = document.createElement('canvas');
+      this.draftCanvas.className = 'picture cpu-draft';
+      this.draftCanvas.style.visibility = 'hidden';
+    }
+  }
+
+  /** Draws sparse drafts with `engine` on the CPU where the GPU is a software one. */
+  useEngine(engine: Engine): void {
+    this.engine = engine;
+    this.cpuDrafts = this.softwareGpu && this.draftCanvas !== null;
   }
 
   /** A texture clamped at its edges, sampled at the nearest texel or (`linear`) bilinearly. */
@@ -795,6 +847,11 @@ void main() { o = texture(uTex, vPos); }`);
     if (holdsSparse(layers)) [draft, antialias] = [true, false];
     const fast = adaptive && !draft && !antialias;
     this.lastFrame = frameKey(width, height, background, layers, antialias, draft, fast);
+    if (this.cpuDrafts && this.engine && draft && layers.length > 0 && layers.every(({ layer }) => layer.sparse)) {
+      this.renderCpu(width, height, background, layers);
+      return;
+    }
+    this.showCpu(false);
     const gl = this.gl;
     this.ensureTargets(width, height);
     // A draft draws straight onto the canvas; a full frame into a target of its own,
@@ -865,12 +922,34 @@ void main() { o = texture(uTex, vPos); }`);
     gl.drawArrays(gl.TRIANGLES, 0, 3);
   }
 
+  /** A sparse draft drawn by the CPU onto `draftCanvas`, shown over the WebGL canvas. */
+  private renderCpu(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[]): void {
+    const canvas = this.draftCanvas!;
+    if (canvas.width !== width) canvas.width = width;
+    if (canvas.height !== height) canvas.height = height;
+    if (this.cpuFrame?.width !== width || this.cpuFrame.height !== height) this.cpuFrame = new ImageData(width, height);
+    const engine = this.engine!;
+    engine.drawDraft(this.cpuFrame.data, width, height, background, layers.map(({ layer, offset, opacity }) => layer.cpuDraft(engine, offset, opacity)));
+    canvas.getContext('2d')!.putImageData(this.cpuFrame, 0, 0);
+    this.width = width;
+    this.height = height;
+    this.showCpu(true);
+  }
+
+  private showCpu(on: boolean): void {
+    if (this.cpuShown === on || !this.draftCanvas) return;
+    this.cpuShown = on;
+    this.draftCanvas.style.visibility = on ? 'visible' : 'hidden';
+  }
+
   /**
    * Resolves with the time (performance.now()) the GPU finished the commands issued so
    * far: a fence polled between tasks, so nothing waits on the GPU (a software GPU draws
-   * a frame long after the calls return).
+   * a frame long after the calls return). After a draft drawn by the CPU: now.
    */
   finished(): Promise<number> {
+    // A draft drawn by the CPU is on its canvas already.
+    if (this.cpuShown) return Promise.resolve(performance.now());
     const gl = this.gl;
     const sync = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);
     gl.flush();
@@ -888,6 +967,7 @@ void main() { o = texture(uTex, vPos); }`);
 
   /** The last frame as straight RGBA8, rows top to bottom (for tests and PNG export). */
   readPixels(): Uint8Array {
+    if (this.cpuShown && this.cpuFrame) return new Uint8Array(this.cpuFrame.data);
     const gl = this.gl;
     const { width, height } = this;
     const px = new Uint8Array(4 * width * height);

@@ -13,10 +13,12 @@
 #![allow(unsafe_code)] // the C ABI needs raw pointers; every unsafe block is a slice view.
 
 mod api;
+mod draft;
 
 use std::cell::RefCell;
 
 pub use api::*;
+pub use draft::*;
 
 thread_local! {
     static RESULT: RefCell<Vec<u8>> = const { RefCell::new(Vec::new()) };
@@ -135,6 +137,13 @@ pub(crate) fn floats_mut<'a>(ptr: *mut f32, len: usize) -> &'a mut [f32] {
 }
 
 /// A `u32` slice view of caller memory.
+pub(crate) fn doubles<'a>(ptr: *const f64, len: usize) -> &'a [f64] {
+    if ptr.is_null() || len == 0 {
+        return &[];
+    }
+    unsafe { std::slice::from_raw_parts(ptr, len) }
+}
+
 pub(crate) fn words<'a>(ptr: *const u32, len: usize) -> &'a [u32] {
     if ptr.is_null() || len == 0 {
         return &[];

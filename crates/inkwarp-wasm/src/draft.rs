@@ -1,0 +1,500 @@
+//! Draft frames drawn on the CPU, for the editor on a software GPU: the WebGL2 draft's
+//! triangles, positions and colours (the editor's `web/src/gl.ts`), rasterised here.
+//!
+//! A draft layer is the layer's premultiplied pixels, its draft mesh (triangles over pixel
+//! vertices), the skirt quarters along its cuts and holes, its links, and the place of each
+//! pixel in its sparse draft's values. A frame composites layers over a background with
+//! premultiplied "over", rounding to 8 bits at each layer as a GPU's RGBA8 target does.
+
+use std::cell::RefCell;
+
+use crate::{bytes, bytes_mut, doubles, fail, floats, words};
+
+/// One layer's draft geometry and pixels (see the module docs).
+#[derive(Debug)]
+struct DraftLayer {
+    width: usize,
+    height: usize,
+    /// Premultiplied RGBA8, one little-endian word a pixel (R in the low byte).
+    pixels: Vec<u32>,
+    /// The draft mesh's triangles, as pixel indices.
+    coarse: Vec<u32>,
+    /// The inner skirt quarters' vertices: (x, y, sx, sy, u, v), six vertices a quarter.
+    skirts: Vec<f32>,
+    /// Per pixel: bit 0 active, bit 1 linked right, bit 2 linked down.
+    links: Vec<u8>,
+    /// Per pixel, its place in the sparse draft's values.
+    index: Vec<u32>,
+}
+
+thread_local! {
+    static DRAFTS: RefCell<Vec<Option<DraftLayer>>> = const { RefCell::new(Vec::new()) };
+}
+
+/// A draft layer of `width × height` from its premultiplied RGBA8 (`4·w·h` bytes), its
+/// draft mesh's triangles (`coarse_len` indices), its inner skirt quarters' vertices
+/// (`skirts_len` floats, 6 a vertex), its links and its sparse index (`w·h` each).
+/// Returns a handle ≥ 1, or 0 with the error in the result buffer.
+#[no_mangle]
+pub extern "C" fn iw_draft_new(
+    width: usize,
+    height: usize,
+    pixels_ptr: *const u8,
+    coarse_ptr: *const u32,
+    coarse_len: usize,
+    skirts_ptr: *const f32,
+    skirts_len: usize,
+    links_ptr: *const u8,
+    index_ptr: *const u32,
+) -> u32 {
+    let n = width * height;
+    if n == 0 || coarse_len % 3 != 0 || skirts_len % 36 != 0 {
+        fail(format!(
+            "A draft layer needs a size, whole triangles and whole skirt quarters (got {width}×{height}, {coarse_len} indices, {skirts_len} skirt floats)."
+        ));
+        return 0;
+    }
+    let coarse = words(coarse_ptr, coarse_len).to_vec();
+    if let Some(&bad) = coarse.iter().find(|&&v| v as usize >= n) {
+        fail(format!(
+            "A draft triangle refers to pixel {bad} of a {width}×{height} layer."
+        ));
+        return 0;
+    }
+    let pixels = bytes(pixels_ptr, 4 * n)
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    let layer = DraftLayer {
+        width,
+        height,
+        pixels,
+        coarse,
+        skirts: floats(skirts_ptr, skirts_len).to_vec(),
+        links: bytes(links_ptr, n).to_vec(),
+        index: words(index_ptr, n).to_vec(),
+    };
+    DRAFTS.with(|d| {
+        let mut store = d.borrow_mut();
+        match store.iter().position(Option::is_none) {
+            Some(i) => {
+                store[i] = Some(layer);
+                i as u32 + 1
+            }
+            None => {
+                store.push(Some(layer));
+                store.len() as u32
+            }
+        }
+    })
+}
+
+/// Frees a draft layer.
+#[no_mangle]
+pub extern "C" fn iw_draft_free(handle: u32) {
+    DRAFTS.with(|d| {
+        if let Some(slot) = d.borrow_mut().get_mut((handle as usize).wrapping_sub(1)) {
+            *slot = None;
+        }
+    });
+}
+
+/// Draws a draft frame of `width × height` into `out_ptr` (straight RGBA8, rows top to
+/// bottom): the background (straight RGBA8), then `count` layers back to front, each six
+/// numbers at `layers_ptr`: its handle, a pointer to its sparse draft's (dx, dy) pairs and
+/// their count of floats, its offset (x, y) and its opacity. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_draft_draw(
+    out_ptr: *mut u8,
+    width: usize,
+    height: usize,
+    r: u8,
+    g: u8,
+    b: u8,
+    a: u8,
+    layers_ptr: *const f64,
+    count: usize,
+) -> i32 {
+    let args = doubles(layers_ptr, 6 * count);
+    let out = bytes_mut(out_ptr, 4 * width * height);
+    if out.len() != 4 * width * height {
+        return fail("No room for the draft frame.");
+    }
+    let premultiply = |c: u8| ((c as u32 * a as u32 + 127) / 255) as u8;
+    let background = u32::from_le_bytes([premultiply(r), premultiply(g), premultiply(b), a]);
+    let mut frame = vec![background; width * height];
+    let drawn = DRAFTS.with(|d| {
+        let store = d.borrow();
+        for arg in args.chunks_exact(6) {
+            let Some(Some(layer)) = store.get((arg[0] as usize).wrapping_sub(1)) else {
+                return Err(format!("There is no draft layer with handle {}.", arg[0]));
+            };
+            let values = floats(arg[1] as usize as *const f32, arg[2] as usize);
+            let needed = layer
+                .index
+                .iter()
+                .copied()
+                .max()
+                .map_or(0, |k| 2 * (k as usize + 1));
+            if values.len() < needed {
+                return Err(format!(
+                    "A sparse draft of {} values for a layer that reads {needed}.",
+                    values.len()
+                ));
+            }
+            let target = Target {
+                frame: &mut frame,
+                width,
+                height,
+            };
+            draw_layer(target, layer, values, [arg[3], arg[4]], arg[5]);
+        }
+        Ok(())
+    });
+    if let Err(e) = drawn {
+        return fail(e);
+    }
+    for (px, o) in frame.iter().zip(out.chunks_exact_mut(4)) {
+        let [r, g, b, a] = px.to_le_bytes();
+        if a == 255 || a == 0 {
+            o.copy_from_slice(&[r, g, b, a]);
+        } else {
+            let s = 255.0 / a as f32;
+            let un = |c: u8| (c as f32 * s + 0.5).min(255.0) as u8;
+            o.copy_from_slice(&[un(r), un(g), un(b), a]);
+        }
+    }
+    0
+}
+
+/// The frame being drawn: premultiplied RGBA8 words.
+struct Target<'a> {
+    frame: &'a mut [u32],
+    width: usize,
+    height: usize,
+}
+
+/// A triangle's corners: screen and rest positions.
+#[derive(Clone, Copy, Default)]
+struct Corner {
+    x: f64,
+    y: f64,
+    rx: f64,
+    ry: f64,
+}
+
+/// How a triangle's fragments take their colour.
+struct Shade<'a> {
+    layer: &'a DraftLayer,
+    /// Opacity in 256ths.
+    opacity: u32,
+    /// A skirt quarter's rest box (min x, min y, max x, max y); none for draft elements.
+    clamp: Option<[f64; 4]>,
+}
+
+fn draw_layer(mut t: Target, layer: &DraftLayer, values: &[f32], offset: [f64; 2], opacity: f64) {
+    let (w, h) = (layer.width, layer.height);
+    let field = |p: usize| {
+        let k = 2 * layer.index[p] as usize;
+        (values[k] as f64, values[k + 1] as f64)
+    };
+    let opacity = (opacity.clamp(0.0, 1.0) * 256.0).round() as u32;
+    let element = Shade {
+        layer,
+        opacity,
+        clamp: None,
+    };
+    // The draft mesh: the border's vertices pushed out by half a pixel.
+    for tri in layer.coarse.chunks_exact(3) {
+        let mut c = [Corner::default(); 3];
+        for (corner, &p) in c.iter_mut().zip(tri) {
+            let p = p as usize;
+            let (i, j) = (p % w, p / w);
+            let out = |k: usize, n: usize| {
+                if k == 0 {
+                    -0.5
+                } else if k == n - 1 {
+                    0.5
+                } else {
+                    0.0
+                }
+            };
+            let (rx, ry) = (i as f64 + out(i, w), j as f64 + out(j, h));
+            let (dx, dy) = field(p);
+            *corner = Corner {
+                x: rx + dx + offset[0],
+                y: ry + dy + offset[1],
+                rx,
+                ry,
+            };
+        }
+        fill(&mut t, &c, &element);
+    }
+    // The skirt quarters along cuts and holes (see `SKIRT_VERT` in the editor's gl.ts).
+    let linked = |i: i64, j: i64, bit: u8| {
+        i >= 0
+            && j >= 0
+            && (i as usize) < w
+            && (j as usize) < h
+            && layer.links[j as usize * w + i as usize] & bit != 0
+    };
+    let right = |i: i64, j: i64| (i as usize) < w - 1 && linked(i, j, 2);
+    let down = |i: i64, j: i64| (j as usize) < h - 1 && linked(i, j, 4);
+    for quarter in layer.skirts.chunks_exact(36) {
+        let (i, j, sx, sy) = (
+            quarter[0] as i64,
+            quarter[1] as i64,
+            quarter[2] as f64,
+            quarter[3] as f64,
+        );
+        let p = j as usize * w + i as usize;
+        let (dx, dy) = field(p);
+        let (px, py) = (i as f64 + dx, j as f64 + dy);
+        let pos = |q: usize, qi: i64, qj: i64| {
+            let (dx, dy) = field(q);
+            (qi as f64 + dx, qj as f64 + dy)
+        };
+        let (rx, lx, dw, uy) = (right(i, j), right(i - 1, j), down(i, j), down(i, j - 1));
+        let mut ex = if rx {
+            let q = pos(p + 1, i + 1, j);
+            (q.0 - px, q.1 - py)
+        } else if lx {
+            let q = pos(p - 1, i - 1, j);
+            (px - q.0, py - q.1)
+        } else {
+            (0.0, 0.0)
+        };
+        let mut ey = if dw {
+            let q = pos(p + w, i, j + 1);
+            (q.0 - px, q.1 - py)
+        } else if uy {
+            let q = pos(p - w, i, j - 1);
+            (px - q.0, py - q.1)
+        } else {
+            (0.0, 0.0)
+        };
+        if ex == (0.0, 0.0) {
+            ex = if ey == (0.0, 0.0) {
+                (1.0, 0.0)
+            } else {
+                (ey.1, -ey.0)
+            };
+        }
+        if ey == (0.0, 0.0) {
+            ey = (-ex.1, ex.0);
+        }
+        let link_x = if sx > 0.0 { rx } else { lx };
+        let link_y = if sy > 0.0 { dw } else { uy };
+        let (kx, ky) = (if link_x { sx } else { 0.0 }, if link_y { sy } else { 0.0 });
+        let (far_x, far_y) = (i as f64 + 0.5 * kx, j as f64 + 0.5 * ky);
+        let shade = Shade {
+            layer,
+            opacity,
+            clamp: Some([
+                (i as f64).min(far_x),
+                (j as f64).min(far_y),
+                (i as f64).max(far_x),
+                (j as f64).max(far_y),
+            ]),
+        };
+        for half in quarter.chunks_exact(18) {
+            let mut c = [Corner::default(); 3];
+            for (corner, v) in c.iter_mut().zip(half.chunks_exact(6)) {
+                let (u, s) = (v[4] as f64, v[5] as f64);
+                *corner = Corner {
+                    x: px + 0.5 * (u * sx * ex.0 + s * sy * ey.0) + offset[0],
+                    y: py + 0.5 * (u * sx * ex.1 + s * sy * ey.1) + offset[1],
+                    rx: i as f64 + 0.5 * u * kx,
+                    ry: j as f64 + 0.5 * s * ky,
+                };
+            }
+            fill(&mut t, &c, &shade);
+        }
+    }
+}
+
+/// The edge function of a → b as `E(p) = A·x + B·y + C`, its coefficients computed from the
+/// lexicographically smaller end: the two triangles sharing an edge see exactly opposite
+/// values at every pixel centre, so a centre on it is drawn by exactly one of them.
+fn edge(a: (f64, f64), b: (f64, f64)) -> [f64; 3] {
+    let flip = !(a.0 < b.0 || (a.0 == b.0 && a.1 < b.1));
+    let (p, q, s) = if flip { (b, a, -1.0) } else { (a, b, 1.0) };
+    [
+        -(q.1 - p.1) * s,
+        (q.0 - p.0) * s,
+        ((q.1 - p.1) * p.0 - (q.0 - p.0) * p.1) * s,
+    ]
+}
+
+/// Whether a pixel centre exactly on edge a → b (of a triangle of positive area) is drawn.
+fn owns(a: (f64, f64), b: (f64, f64)) -> bool {
+    let dy = b.1 - a.1;
+    dy > 0.0 || (dy == 0.0 && b.0 < a.0)
+}
+
+/// Shades the pixel centres inside a triangle.
+fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
+    let cross = (c[1].x - c[0].x) * (c[2].y - c[0].y) - (c[1].y - c[0].y) * (c[2].x - c[0].x);
+    if cross == 0.0 || !cross.is_finite() {
+        return;
+    }
+    let (v0, v1, v2) = if cross > 0.0 {
+        (c[0], c[1], c[2])
+    } else {
+        (c[0], c[2], c[1])
+    };
+    let (p0, p1, p2) = ((v0.x, v0.y), (v1.x, v1.y), (v2.x, v2.y));
+    let (e0, e1, e2) = (edge(p1, p2), edge(p2, p0), edge(p0, p1));
+    let area = e0[0] * p0.0 + e0[1] * p0.1 + e0[2];
+    if area.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return;
+    }
+    let (o0, o1, o2) = (owns(p1, p2), owns(p2, p0), owns(p0, p1));
+    let min_x = p0.0.min(p1.0).min(p2.0).ceil().max(0.0);
+    let max_x = p0.0.max(p1.0).max(p2.0).floor().min(t.width as f64 - 1.0);
+    let min_y = p0.1.min(p1.1).min(p2.1).ceil().max(0.0);
+    let max_y = p0.1.max(p1.1).max(p2.1).floor().min(t.height as f64 - 1.0);
+    if min_x > max_x || min_y > max_y {
+        return;
+    }
+    // The rest position as an affine function of the pixel centre.
+    let inv = 1.0 / area;
+    let affine = |r0: f64, r1: f64, r2: f64| {
+        [
+            (e0[0] * r0 + e1[0] * r1 + e2[0] * r2) * inv,
+            (e0[1] * r0 + e1[1] * r1 + e2[1] * r2) * inv,
+            (e0[2] * r0 + e1[2] * r1 + e2[2] * r2) * inv,
+        ]
+    };
+    let rx = affine(v0.rx, v1.rx, v2.rx);
+    let ry = affine(v0.ry, v1.ry, v2.ry);
+    let owned = |e: f64, owns: bool| e > 0.0 || (e == 0.0 && owns);
+    let (w, h) = (shade.layer.width, shade.layer.height);
+    let pixels = &shade.layer.pixels;
+    for y in min_y as usize..=max_y as usize {
+        let yf = y as f64;
+        let (c0, c1, c2) = (e0[1] * yf + e0[2], e1[1] * yf + e1[2], e2[1] * yf + e2[2]);
+        let inside = |x: f64| {
+            owned(e0[0] * x + c0, o0) && owned(e1[0] * x + c1, o1) && owned(e2[0] * x + c2, o2)
+        };
+        // The row's span from the edges, widened by a pixel, then narrowed by the exact
+        // tests at its ends (the pixels inside a triangle form one run per row).
+        let (mut lo, mut hi) = (min_x, max_x);
+        for (a, c) in [(e0[0], c0), (e1[0], c1), (e2[0], c2)] {
+            if a > 0.0 {
+                lo = lo.max((-c / a).ceil() - 1.0);
+            } else if a < 0.0 {
+                hi = hi.min((-c / a).floor() + 1.0);
+            }
+        }
+        while lo <= hi && !inside(lo) {
+            lo += 1.0;
+        }
+        while hi >= lo && !inside(hi) {
+            hi -= 1.0;
+        }
+        if lo > hi {
+            continue;
+        }
+        let row = &mut t.frame[y * t.width..][..t.width];
+        let run = &mut row[lo as usize..=hi as usize];
+        let (sx, sy) = (
+            rx[0] * lo + rx[1] * yf + rx[2],
+            ry[0] * lo + ry[1] * yf + ry[2],
+        );
+        if let Some(b) = shade.clamp {
+            // A skirt quarter (a few pixels): its rest box clamps every sample.
+            for (k, dst) in run.iter_mut().enumerate() {
+                let x = (sx + rx[0] * k as f64).clamp(b[0], b[2]);
+                let y = (sy + ry[0] * k as f64).clamp(b[1], b[3]);
+                *dst = over(bilinear(pixels, w, h, x, y, shade.opacity), *dst);
+            }
+        } else {
+            // A draft element: its rest position steps in 16.16 fixed point along the run.
+            let fixed = |v: f64| (v * 65536.0).round() as i32;
+            let (mut fx, mut fy, dfx, dfy) = (fixed(sx), fixed(sy), fixed(rx[0]), fixed(ry[0]));
+            for dst in run.iter_mut() {
+                let src = bilinear_fixed(pixels, w, h, fx, fy, shade.opacity);
+                *dst = over(src, *dst);
+                fx += dfx;
+                fy += dfy;
+            }
+        }
+    }
+}
+
+/// [`bilinear`] at (x, y) in 16.16 fixed point.
+#[inline]
+fn bilinear_fixed(pixels: &[u32], w: usize, h: usize, x: i32, y: i32, opacity: u32) -> u32 {
+    let (i, j) = ((x >> 16) as i64, (y >> 16) as i64);
+    let (ux, uy) = (
+        (((x & 0xffff) + 128) >> 8) as u32,
+        (((y & 0xffff) + 128) >> 8) as u32,
+    );
+    mix(pixels, w, h, i, j, ux, uy, opacity)
+}
+
+/// The bilinear mix of premultiplied pixels at (x, y) (pixel centres at integers, the edge
+/// pixels repeated beyond), with 8-bit weights as a GPU's texture unit filters, times the
+/// opacity (in 256ths).
+#[inline]
+fn bilinear(pixels: &[u32], w: usize, h: usize, x: f64, y: f64, opacity: u32) -> u32 {
+    let (fx, fy) = (x.floor(), y.floor());
+    let (ux, uy) = (
+        ((x - fx) * 256.0 + 0.5) as u32,
+        ((y - fy) * 256.0 + 0.5) as u32,
+    );
+    mix(pixels, w, h, fx as i64, fy as i64, ux, uy, opacity)
+}
+
+/// The mix of pixels (i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1) with weights `ux`,
+/// `uy` in 256ths (the edge pixels repeated beyond the layer), times the opacity.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn mix(pixels: &[u32], w: usize, h: usize, i: i64, j: i64, ux: u32, uy: u32, opacity: u32) -> u32 {
+    let (a, b, c, d) = if i >= 0 && j >= 0 && (i as usize) + 1 < w && (j as usize) + 1 < h {
+        let p = j as usize * w + i as usize;
+        (pixels[p], pixels[p + 1], pixels[p + w], pixels[p + w + 1])
+    } else {
+        let at = |i: i64, j: i64| {
+            pixels[j.clamp(0, h as i64 - 1) as usize * w + i.clamp(0, w as i64 - 1) as usize]
+        };
+        (at(i, j), at(i + 1, j), at(i, j + 1), at(i + 1, j + 1))
+    };
+    let wd = (ux * uy + 128) >> 8;
+    let (wb, wc) = (ux - wd, uy - wd);
+    let wa = 256 + wd - ux - uy;
+    // Two channels to a multiply, rounded: red and blue, then green and alpha (each lane
+    // stays below 2¹⁶: 255 × 256 + 128).
+    const M: u32 = 0x00ff_00ff;
+    const HALF: u32 = 0x0080_0080;
+    let mut rb = (((a & M) * wa + (b & M) * wb + (c & M) * wc + (d & M) * wd + HALF) >> 8) & M;
+    let mut ga = ((((a >> 8) & M) * wa
+        + ((b >> 8) & M) * wb
+        + ((c >> 8) & M) * wc
+        + ((d >> 8) & M) * wd
+        + HALF)
+        >> 8)
+        & M;
+    if opacity < 256 {
+        rb = ((rb * opacity + 0x0080_0080) >> 8) & 0x00ff_00ff;
+        ga = ((ga * opacity + 0x0080_0080) >> 8) & 0x00ff_00ff;
+    }
+    rb | (ga << 8)
+}
+
+/// Premultiplied "over" in 8 bits: source + destination × (1 − source alpha), rounded.
+#[inline]
+fn over(src: u32, dst: u32) -> u32 {
+    let keep = 255 - (src >> 24);
+    if keep == 0 {
+        return src;
+    }
+    let mut out = 0;
+    for shift in [0, 8, 16, 24] {
+        let t = ((dst >> shift) & 255) * keep + 128;
+        let v = ((src >> shift) & 255) + ((t + (t >> 8)) >> 8);
+        out |= v.min(255) << shift;
+    }
+    out
+}

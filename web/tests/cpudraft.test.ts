@@ -1,0 +1,133 @@
+// Draft frames drawn by the CPU (the editor on a software GPU): the WebGL2 draft's
+// triangles, every pixel centre inside one of them shaded once.
+import { readFileSync } from 'node:fs';
+import { fileURLToPath } from 'node:url';
+import { beforeAll, describe, expect, it } from 'vitest';
+import { type DraftHandle, Engine } from '../src/engine';
+import { buildMesh, draftPixels } from '../src/gl';
+
+let engine: Engine;
+
+beforeAll(async () => {
+  const bytes = readFileSync(fileURLToPath(new URL('../src/generated/inkwarp.wasm', import.meta.url)));
+  engine = await Engine.fromBytes(bytes);
+});
+
+interface Layer {
+  draft: DraftHandle;
+  values: Float32Array;
+  offset: [number, number];
+  opacity?: number;
+}
+
+/** A `w × h` layer (a vertical cut at x = `cut` + ½ over rows 2..h−3, or none) of colours `rgba`, its sparse draft `field`. */
+function layer(w: number, h: number, rgba: (x: number, y: number) => number[], field: (x: number, y: number) => [number, number], cut: number | null = null): Layer {
+  const links = new Uint8Array(w * h);
+  for (let y = 0; y < h; y++) {
+    for (let x = 0; x < w; x++) {
+      const cutHere = cut !== null && x === cut && y >= 2 && y <= h - 3;
+      links[y * w + x] = 1 | (x + 1 < w && !cutHere ? 2 : 0) | (y + 1 < h ? 4 : 0);
+    }
+  }
+  const image = new Uint8Array(4 * w * h);
+  const premultiplied = new Uint8Array(4 * w * h);
+  for (let y = 0; y < h; y++) {
+    for (let x = 0; x < w; x++) {
+      const c = rgba(x, y);
+      const p = 4 * (y * w + x);
+      image.set(c, p);
+      premultiplied.set([Math.round((c[0] * c[3]) / 255), Math.round((c[1] * c[3]) / 255), Math.round((c[2] * c[3]) / 255), c[3]], p);
+    }
+  }
+  const mesh = buildMesh(w, h, links, image);
+  const pixels = draftPixels(w, h, mesh.coarse, mesh.skirts, mesh.innerSkirts);
+  const index = new Uint32Array(w * h);
+  const values = new Float32Array(2 * pixels.length);
+  pixels.forEach((p, k) => {
+    index[p] = k;
+    [values[2 * k], values[2 * k + 1]] = field(p % w, Math.floor(p / w));
+  });
+  const skirts = mesh.skirts.slice(0, 6 * mesh.innerSkirts);
+  const draft = engine.draftLayer({ width: w, height: h, premultiplied, coarse: mesh.coarse, skirts, links: mesh.links, index });
+  return { draft, values, offset: [0, 0] };
+}
+
+const WHITE: [number, number, number, number] = [255, 255, 255, 255];
+
+function draw(w: number, h: number, layers: Layer[], background = WHITE): Uint8ClampedArray {
+  const out = new Uint8ClampedArray(4 * w * h);
+  engine.drawDraft(out, w, h, background, layers);
+  return out;
+}
+
+const at = (out: Uint8ClampedArray, w: number, x: number, y: number) => Array.from(out.subarray(4 * (y * w + x), 4 * (y * w + x) + 4));
+
+describe('draft frames drawn by the CPU', () => {
+  it('reproduce an opaque layer under the identity field, pixel for pixel', () => {
+    const w = 37, h = 29;
+    const colour = (x: number, y: number) => [(x * 29) % 256, (y * 53) % 256, (x * y) % 256, 255];
+    const L = layer(w, h, colour, () => [0, 0]);
+    const out = draw(w, h, [L]);
+    for (let y = 0; y < h; y++) for (let x = 0; x < w; x++) expect(at(out, w, x, y)).toEqual(colour(x, y));
+    L.draft.free();
+  });
+
+  it('move the picture by a translation and by the layer offset', () => {
+    const w = 40, h = 24;
+    const colour = (x: number, y: number) => [(x * 29) % 256, (y * 53) % 256, 7, 255];
+    const L = layer(w, h, colour, () => [5, 3]);
+    const out = draw(50, 32, [{ ...L, offset: [2, 1] }]);
+    for (let y = 4; y < h + 4; y++) for (let x = 7; x < w + 7; x++) expect(at(out, 50, x, y)).toEqual(colour(x - 7, y - 4));
+    expect(at(out, 50, 0, 0)).toEqual(WHITE);
+    expect(at(out, 50, 49, 31)).toEqual(WHITE);
+    L.draft.free();
+  });
+
+  it('shade every pixel centre once, across a bent field and a cut that opens', () => {
+    // A half-transparent red layer over white: a pixel shaded twice would come out redder.
+    const w = 64, h = 48;
+    const bend = (x: number, y: number): [number, number] => [3 * Math.sin(x / 9) + (x > 30 ? 2.5 : 0), 2 * Math.cos(y / 7) + (0.3 * x) / 10];
+    const once = Math.round(255 - 128);
+    for (const cut of [null, 30]) {
+      const L = layer(w, h, () => [255, 0, 0, 128], bend, cut);
+      const out = draw(w + 8, h + 8, [L]);
+      let shaded = 0;
+      let gap = 0;
+      for (let y = 0; y < h + 8; y++) {
+        for (let x = 0; x < w + 8; x++) {
+          const g = out[4 * (y * (w + 8) + x) + 1];
+          expect(g === 255 || Math.abs(g - once) <= 1, `(${x}, ${y}): green ${g}`).toBe(true);
+          if (g !== 255) shaded++;
+          // Across the cut (between columns 30 and 31, which the field moves to about 29.4
+          // and 32.6, each side's skirt covering half a pixel) the background shows.
+          else if (y > 10 && y < h - 10 && x >= 30 && x <= 32) gap++;
+        }
+      }
+      expect(shaded).toBeGreaterThan(0.9 * w * h);
+      expect(gap > 0).toBe(cut !== null);
+      L.draft.free();
+    }
+  });
+
+  it('composite layers back to front with their opacity, in 8 bits as a GPU target does', () => {
+    const w = 16, h = 16;
+    const red = layer(w, h, () => [255, 0, 0, 255], () => [0, 0]);
+    const blue = layer(w, h, () => [0, 0, 255, 255], () => [0, 0]);
+    const [r, g, b, a] = at(draw(w, h, [red, { ...blue, opacity: 0.5 }]), w, 8, 8);
+    expect([Math.abs(r - 127.5) <= 1, g, Math.abs(b - 127.5) <= 1, a]).toEqual([true, 0, true, 255]);
+    // A transparent background stays transparent around the layer, and straight inside it.
+    const out = draw(w + 4, h, [{ ...red, offset: [4, 0] }], [0, 0, 0, 0]);
+    expect(at(out, w + 4, 1, 5)).toEqual([0, 0, 0, 0]);
+    expect(at(out, w + 4, 10, 5)).toEqual([255, 0, 0, 255]);
+    red.draft.free();
+    blue.draft.free();
+  });
+
+  it('refuse a sparse draft too short for the layer, and a mesh off the layer', () => {
+    const L = layer(8, 8, () => [0, 0, 0, 255], () => [0, 0]);
+    expect(() => engine.drawDraft(new Uint8ClampedArray(256), 8, 8, WHITE, [{ ...L, values: L.values.subarray(0, 4) }])).toThrow(/sparse draft of 4 values/);
+    const coarse = new Uint32Array([0, 1, 99]);
+    expect(() => engine.draftLayer({ width: 8, height: 8, premultiplied: new Uint8Array(256), coarse, skirts: new Float32Array(0), links: new Uint8Array(64), index: new Uint32Array(64) })).toThrow(/pixel 99 of a 8×8 layer/);
+    L.draft.free();
+  });
+});
