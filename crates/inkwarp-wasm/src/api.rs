@@ -16,7 +16,7 @@ use inkwarp_core::solve::{solve_warm, solve_warm_at, SolveMethod, SolveOptions, 
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
 use serde::Deserialize;
 
-use crate::{bytes, bytes_mut, fail, floats, floats_mut, json_arg, ok_json, words};
+use crate::{bytes, bytes_mut, fail, floats, floats_mut, insert, json_arg, ok_json, release, words};
 
 /// The spacing at which the scene engine densifies a cut before breaking links.
 const CUT_SPACING_PX: f64 = 0.5;
@@ -51,15 +51,6 @@ struct Selection {
 
 /// Prepared samplers kept per grid; more than this and the cache starts over.
 const MAX_SAMPLERS: usize = 256;
-
-fn insert<T>(store: &mut Vec<Option<T>>, value: T) -> u32 {
-    if let Some(i) = store.iter().position(Option::is_none) {
-        store[i] = Some(value);
-        return i as u32 + 1;
-    }
-    store.push(Some(value));
-    store.len() as u32
-}
 
 fn with_domain<R>(handle: u32, f: impl FnOnce(&Domain) -> R) -> Result<R, String> {
     GRIDS.with(|g| {
@@ -150,11 +141,7 @@ pub extern "C" fn iw_grid_new(
 /// Frees a grid.
 #[no_mangle]
 pub extern "C" fn iw_grid_free(handle: u32) {
-    GRIDS.with(|g| {
-        if let Some(slot) = g.borrow_mut().get_mut((handle as usize).wrapping_sub(1)) {
-            *slot = None;
-        }
-    });
+    GRIDS.with(|g| release(&mut g.borrow_mut(), handle));
 }
 
 /// Writes one byte per node into `out` (`width * height` bytes): bit 0 active, bit 1
@@ -675,11 +662,7 @@ pub extern "C" fn iw_canvas_new(width: usize, height: usize, r: u8, g: u8, b: u8
 /// Frees a canvas.
 #[no_mangle]
 pub extern "C" fn iw_canvas_free(handle: u32) {
-    CANVASES.with(|c| {
-        if let Some(slot) = c.borrow_mut().get_mut((handle as usize).wrapping_sub(1)) {
-            *slot = None;
-        }
-    });
+    CANVASES.with(|c| release(&mut c.borrow_mut(), handle));
 }
 
 /// Forward-maps a layer onto a canvas: `image` is straight RGBA8 of the grid's size,

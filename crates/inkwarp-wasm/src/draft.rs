@@ -8,7 +8,7 @@
 
 use std::cell::RefCell;
 
-use crate::{bytes, bytes_mut, doubles, fail, floats, words};
+use crate::{bytes, bytes_mut, doubles, fail, floats, insert, release, slot, words};
 
 /// One layer's draft geometry and pixels (see the module docs).
 #[derive(Debug)]
@@ -74,29 +74,13 @@ pub extern "C" fn iw_draft_new(
         links: bytes(links_ptr, n).to_vec(),
         index: words(index_ptr, n).to_vec(),
     };
-    DRAFTS.with(|d| {
-        let mut store = d.borrow_mut();
-        match store.iter().position(Option::is_none) {
-            Some(i) => {
-                store[i] = Some(layer);
-                i as u32 + 1
-            }
-            None => {
-                store.push(Some(layer));
-                store.len() as u32
-            }
-        }
-    })
+    DRAFTS.with(|d| insert(&mut d.borrow_mut(), layer))
 }
 
 /// Frees a draft layer.
 #[no_mangle]
 pub extern "C" fn iw_draft_free(handle: u32) {
-    DRAFTS.with(|d| {
-        if let Some(slot) = d.borrow_mut().get_mut((handle as usize).wrapping_sub(1)) {
-            *slot = None;
-        }
-    });
+    DRAFTS.with(|d| release(&mut d.borrow_mut(), handle));
 }
 
 /// Draws a draft frame of `width × height` into `out_ptr` (straight RGBA8, rows top to
@@ -126,7 +110,7 @@ pub extern "C" fn iw_draft_draw(
     let drawn = DRAFTS.with(|d| {
         let store = d.borrow();
         for arg in args.chunks_exact(6) {
-            let Some(Some(layer)) = store.get((arg[0] as usize).wrapping_sub(1)) else {
+            let Some(layer) = slot(&store, arg[0] as u32) else {
                 return Err(format!("There is no draft layer with handle {}.", arg[0]));
             };
             let values = floats(arg[1] as usize as *const f32, arg[2] as usize);

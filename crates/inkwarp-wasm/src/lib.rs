@@ -137,6 +137,28 @@ pub(crate) fn floats_mut<'a>(ptr: *mut f32, len: usize) -> &'a mut [f32] {
 }
 
 /// A `u32` slice view of caller memory.
+/// Stores `value` in the first free slot of `store`; its handle (≥ 1).
+pub(crate) fn insert<T>(store: &mut Vec<Option<T>>, value: T) -> u32 {
+    if let Some(i) = store.iter().position(Option::is_none) {
+        store[i] = Some(value);
+        return i as u32 + 1;
+    }
+    store.push(Some(value));
+    store.len() as u32
+}
+
+/// The value under `handle` in `store`, if there is one.
+pub(crate) fn slot<T>(store: &[Option<T>], handle: u32) -> Option<&T> {
+    store.get((handle as usize).wrapping_sub(1)).and_then(Option::as_ref)
+}
+
+/// Frees the slot of `handle` in `store` (nothing when there is none).
+pub(crate) fn release<T>(store: &mut [Option<T>], handle: u32) {
+    if let Some(slot) = store.get_mut((handle as usize).wrapping_sub(1)) {
+        *slot = None;
+    }
+}
+
 pub(crate) fn doubles<'a>(ptr: *const f64, len: usize) -> &'a [f64] {
     if ptr.is_null() || len == 0 {
         return &[];
