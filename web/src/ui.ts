@@ -79,6 +79,9 @@ function download(blob: Blob, name: string): void {
   setTimeout(() => URL.revokeObjectURL(a.href), 10_000);
 }
 
+/** A drag moves the drawing on at most one raw pointer update this often (ms). */
+const RAW_GAP_MS = 4;
+
 export class Ui {
   readonly overlay: Overlay;
   readonly stage: HTMLElement;
@@ -92,6 +95,8 @@ export class Ui {
     start: Pt;
     base: Pt[];
     moved: boolean;
+    /** Where the pointer last moved the drawing to (scene pixels). */
+    at: Pt | null;
   } | null = null;
   private messageTimer: number | null = null;
   fileName = 'scene.json';
@@ -523,11 +528,16 @@ export class Ui {
     return null;
   }
 
-  /** Moves the dragged point or feature to where the pointer is. */
+  /** When the last raw pointer update moved a drag (see `bindPointer`). */
+  private rawAt = -Infinity;
+
+  /** Moves the dragged point or feature to where the pointer is (nothing when it is there already). */
   private dragTo(e: PointerEvent): void {
     const d = this.drag;
     if (!d) return;
     const p = this.toScene(e.clientX, e.clientY);
+    if (d.at && d.at[0] === p[0] && d.at[1] === p[1]) return;
+    d.at = p;
     const { mode, time } = this.store.view;
     d.moved = true;
     this.app.lastPointerAt = e.timeStamp || performance.now();
@@ -574,18 +584,27 @@ export class Ui {
       }
       const f = getFeature(this.store.doc, hit.id)!;
       this.store.setView({ selection: { feature: hit.id, point: hit.point } });
-      this.drag = { id: hit.id, point: hit.point, start: p, base: shownPoints(f, view.mode, view.time).map((q) => [q[0], q[1]] as Pt), moved: false };
+      this.drag = { id: hit.id, point: hit.point, start: p, base: shownPoints(f, view.mode, view.time).map((q) => [q[0], q[1]] as Pt), moved: false, at: null };
       this.store.begin();
       this.app.dragging = view.mode === 'pose';
     });
     // A drag follows the pointer's raw updates where the browser has them: those arrive as
     // the input does, where pointer moves wait for the next animation frame (up to 17 ms
-    // more before the draft is even asked for).
+    // more before the draft is even asked for). A fast mouse reports up to a thousand a
+    // second: one every RAW_GAP_MS at most moves the drawing, and the pointer move of the
+    // next frame brings it to wherever the pointer is then.
     const raw = 'onpointerrawupdate' in c;
-    if (raw) c.addEventListener('pointerrawupdate' as 'pointermove', (e) => this.drag && this.dragTo(e));
+    if (raw) {
+      c.addEventListener('pointerrawupdate' as 'pointermove', (e) => {
+        if (this.drag && e.timeStamp - this.rawAt >= RAW_GAP_MS) {
+          this.rawAt = e.timeStamp;
+          this.dragTo(e);
+        }
+      });
+    }
     c.addEventListener('pointermove', (e) => {
       if (this.drag) {
-        if (!raw) this.dragTo(e);
+        this.dragTo(e);
         return;
       }
       if (this.store.view.draft.length) {
