@@ -25,6 +25,8 @@ struct DraftLayer {
     links: Vec<u8>,
     /// Per pixel, its place in the sparse draft's values.
     index: Vec<u32>,
+    /// How many pixels the sparse draft holds (one more than the largest place).
+    reads: usize,
 }
 
 thread_local! {
@@ -65,6 +67,8 @@ pub extern "C" fn iw_draft_new(
         .chunks_exact(4)
         .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect();
+    let index = words(index_ptr, n).to_vec();
+    let reads = index.iter().max().map_or(0, |&k| k as usize + 1);
     let layer = DraftLayer {
         width,
         height,
@@ -72,7 +76,8 @@ pub extern "C" fn iw_draft_new(
         coarse,
         skirts: floats(skirts_ptr, skirts_len).to_vec(),
         links: bytes(links_ptr, n).to_vec(),
-        index: words(index_ptr, n).to_vec(),
+        index,
+        reads,
     };
     DRAFTS.with(|d| insert(&mut d.borrow_mut(), layer))
 }
@@ -114,12 +119,7 @@ pub extern "C" fn iw_draft_draw(
                 return Err(format!("There is no draft layer with handle {}.", arg[0]));
             };
             let values = floats(arg[1] as usize as *const f32, arg[2] as usize);
-            let needed = layer
-                .index
-                .iter()
-                .copied()
-                .max()
-                .map_or(0, |k| 2 * (k as usize + 1));
+            let needed = 2 * layer.reads;
             if values.len() < needed {
                 return Err(format!(
                     "A sparse draft of {} values for a layer that reads {needed}.",
@@ -358,24 +358,36 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
     for y in min_y as usize..=max_y as usize {
         let yf = y as f64;
         let (c0, c1, c2) = (e0[1] * yf + e0[2], e1[1] * yf + e1[2], e2[1] * yf + e2[2]);
-        let inside = |x: f64| {
-            owned(e0[0] * x + c0, o0) && owned(e1[0] * x + c1, o1) && owned(e2[0] * x + c2, o2)
-        };
-        // The row's span from the edges, widened by a pixel, then narrowed by the exact
-        // tests at its ends (the pixels inside a triangle form one run per row).
+        // The row's span: each edge bounds it on one side at its crossing of the row
+        // (rounded to the pixel centres it keeps, the crossing's own centre decided by
+        // the exact edge value there and the tie rule); a horizontal edge keeps or drops
+        // the whole row. The pixels inside a triangle form one run per row.
         let (mut lo, mut hi) = (min_x, max_x);
-        for (a, c) in [(e0[0], c0), (e1[0], c1), (e2[0], c2)] {
+        let mut empty = false;
+        for (a, c, owns) in [(e0[0], c0, o0), (e1[0], c1, o1), (e2[0], c2, o2)] {
+            let keeps = |x: f64| owned(a * x + c, owns);
             if a > 0.0 {
-                lo = lo.max((-c / a).ceil() - 1.0);
+                let mut x = (-c / a).ceil();
+                if !keeps(x) {
+                    x += 1.0;
+                } else if keeps(x - 1.0) {
+                    x -= 1.0;
+                }
+                lo = lo.max(x);
             } else if a < 0.0 {
-                hi = hi.min((-c / a).floor() + 1.0);
+                let mut x = (-c / a).floor();
+                if !keeps(x) {
+                    x -= 1.0;
+                } else if keeps(x + 1.0) {
+                    x += 1.0;
+                }
+                hi = hi.min(x);
+            } else if !owned(c, owns) {
+                empty = true;
             }
         }
-        while lo <= hi && !inside(lo) {
-            lo += 1.0;
-        }
-        while hi >= lo && !inside(hi) {
-            hi -= 1.0;
+        if empty {
+            continue;
         }
         if lo > hi {
             continue;
@@ -395,7 +407,7 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
             }
         } else {
             // A draft element: its rest position steps in 16.16 fixed point along the run.
-            let fixed = |v: f64| (v * 65536.0).round() as i32;
+            let fixed = |v: f64| (v * 65536.0).round_ties_even() as i32;
             let (mut fx, mut fy, dfx, dfy) = (fixed(sx), fixed(sy), fixed(rx[0]), fixed(ry[0]));
             for dst in run.iter_mut() {
                 let src = bilinear_fixed(pixels, w, h, fx, fy, shade.opacity);
