@@ -784,6 +784,41 @@ test('every bundled example opens', async () => {
       perf[`gpuVsCpu_${name}`] = cmp.stats;
       assert(cmp.ok, `example ${name}: GPU and CPU frames differ (mean ${cmp.stats.mean.toFixed(3)}, p99 ${cmp.stats.p99}); see test-results/gpu-vs-cpu-${name}-diff.png`);
       await screenshot(page, `example-${name}`);
+      // Every layer's sparse draft of the same pose (solved by the page's engine at the
+      // draft mesh's pixels), drawn by the CPU and by WebGL2: layers, offsets and holes.
+      const drafts = await page.evaluate(() => {
+        const { app, engine } = window.inkwarp;
+        const doc = app.store.doc;
+        for (const layer of doc.layers) {
+          const rt = app.runtimes.get(layer.name);
+          const grid = engine.grid(rt.gl.width, rt.gl.height, rt.matte, app.cutsOf(layer));
+          grid.select(rt.gl.draftPixels);
+          const { values } = grid.solveAt(app.solveFeatures(layer, app.store.view.time), app.solverOptions(layer, 'draft'));
+          grid.free();
+          rt.gl.setSparseField(values);
+        }
+        const read = (cpu) => {
+          const was = app.gl.cpuDrafts;
+          app.gl.cpuDrafts = cpu;
+          app.draw(true);
+          const px = app.gl.readPixels();
+          app.gl.cpuDrafts = was;
+          let s = '';
+          for (let i = 0; i < px.length; i += 0x8000) s += String.fromCharCode(...px.subarray(i, i + 0x8000));
+          return btoa(s);
+        };
+        const out = { w: doc.width, h: doc.height, cpu: read(true), gl: read(false) };
+        for (const layer of doc.layers) {
+          const rt = app.runtimes.get(layer.name);
+          rt.gl.setField(rt.field);
+        }
+        app.draw(false);
+        return out;
+      });
+      const im = (b64) => ({ width: drafts.w, height: drafts.h, data: new Uint8Array(Buffer.from(b64, 'base64')) });
+      const dc = await compareImages(page, im(drafts.cpu), im(drafts.gl), `cpu-vs-gpu-draft-${name}`, { meanTol: 0.5, p99Tol: 4 });
+      perf[`cpuVsGpuDraft_${name}`] = dc.stats;
+      assert(dc.ok, `example ${name}: the CPU's draft differs from WebGL2's (mean ${dc.stats.mean.toFixed(3)}, p99 ${dc.stats.p99}); see test-results/cpu-vs-gpu-draft-${name}-diff.png`);
     }
   }
 });
@@ -907,6 +942,8 @@ async function main() {
   for (const ex of ['face', 'cat']) {
     const st = perf[`gpuVsCpu_${ex}`];
     if (st) console.log(`  GPU vs CPU, ${ex} example posed half way: mean ${st.mean.toFixed(3)}, p99 ${st.p99}, max ${st.max}`);
+    const dr = perf[`cpuVsGpuDraft_${ex}`];
+    if (dr) console.log(`  draft drawn by the CPU vs by WebGL2, ${ex} example: mean ${dr.mean.toFixed(3)}, p99 ${dr.p99}, max ${dr.max}`);
   }
   if (perf.editorVsCli) console.log(`  editor vs inkwarp render: mean ${perf.editorVsCli.mean.toFixed(3)}, p99 ${perf.editorVsCli.p99}, max ${perf.editorVsCli.max}`);
   for (const [m, r] of Object.entries(perf.dragByMethod ?? {})) {
