@@ -473,7 +473,7 @@ export class App {
         frame,
         settleStart: quality === 'final' ? this.settleStart : null,
       }, true, quality === 'final' && this.slowAntialias, quality === 'draft' && this.sparseDraft(rt));
-      if (quality === 'draft') this.follow(rt, layer, time);
+      if (quality === 'draft') this.follow(rt, layer, features, time);
     }
   }
 
@@ -486,11 +486,10 @@ export class App {
    * cycles away; a settle on the very pose it solved last is answered at once. Only the grid
    * thin plate starts warm (the other methods solve from scratch), so only it follows.
    */
-  private follow(rt: LayerRuntime, layer: Layer, time: number): void {
+  private follow(rt: LayerRuntime, layer: Layer, features: SolveFeature[], time: number): void {
     if (!this.drafts) return;
     const options = this.solverOptions(layer, 'final');
     if (options.method !== 'tps' || options.scheme !== 'multigrid') return;
-    const features = this.solveFeatures(layer, time);
     const sig = JSON.stringify([features, options]);
     if (sig === rt.lastFollow) return;
     rt.lastFollow = sig;

@@ -28,7 +28,7 @@ interface Exports {
   iw_decode(ptr: number, len: number): number;
   iw_decoded_take(out: number, len: number): number;
   iw_matte_values(rgba: number, w: number, h: number, out: number): number;
-  iw_draft_new(w: number, h: number, pixels: number, coarse: number, coarseLen: number, skirts: number, skirtsLen: number, links: number, index: number): number;
+  iw_draft_new(w: number, h: number, pixels: number, coarse: number, coarseLen: number, skirts: number, skirtsLen: number, links: number, index: number, reads: number): number;
   iw_draft_free(h: number): void;
   iw_draft_draw(out: number, w: number, h: number, r: number, g: number, b: number, a: number, layers: number, count: number): number;
   iw_init(): void;
@@ -114,8 +114,8 @@ function request(features: SolveFeature[], options: SolveOptions): Uint8Array {
 /**
  * What a draft frame drawn by the CPU needs of a layer (`Engine.drawDraft`): its
  * premultiplied RGBA8, the draft mesh's triangles (`draftQuads`), the inner skirt quarters'
- * vertices (6 floats each, 6 vertices a quarter), its links, and per pixel its place in the
- * sparse draft's values.
+ * vertices (6 floats each, 6 vertices a quarter), its links, and per pixel its place among
+ * the `reads` pixels of its sparse drafts (`draftPixels`).
  */
 export interface DraftGeometry {
   width: number;
@@ -125,6 +125,7 @@ export interface DraftGeometry {
   skirts: Float32Array;
   links: Uint8Array;
   index: Uint32Array;
+  reads: number;
 }
 
 /** A layer's draft geometry living in the module; free it when the layer's mesh or image changes. */
@@ -382,7 +383,7 @@ export class Engine {
     const parts = [g.premultiplied, g.coarse, g.skirts, g.links, g.index].map((a) => new Uint8Array(a.buffer, a.byteOffset, a.byteLength));
     const ptrs = parts.map((p) => this.put(p));
     try {
-      const h = this.x.iw_draft_new(g.width, g.height, ptrs[0], ptrs[1], g.coarse.length, ptrs[2], g.skirts.length, ptrs[3], ptrs[4]);
+      const h = this.x.iw_draft_new(g.width, g.height, ptrs[0], ptrs[1], g.coarse.length, ptrs[2], g.skirts.length, ptrs[3], ptrs[4], g.reads);
       if (h === 0) this.check(1);
       return new DraftHandle(this, h);
     } finally {
@@ -403,19 +404,26 @@ export class Engine {
     layers: { draft: DraftHandle; values: Float32Array; offset: Pt; opacity?: number }[],
   ): void {
     const len = 4 * width * height;
-    const valuePtrs = layers.map((l) => this.put(new Uint8Array(l.values.buffer, l.values.byteOffset, l.values.byteLength)));
     const args = new Float64Array(6 * layers.length);
-    layers.forEach((l, k) => args.set([l.draft.handle, valuePtrs[k], l.values.length, l.offset[0], l.offset[1], l.opacity ?? 1], 6 * k));
-    const argPtr = this.put(new Uint8Array(args.buffer));
+    const held: [number, number][] = [];
+    const hold = (bytes: Uint8Array) => {
+      const ptr = this.put(bytes);
+      held.push([ptr, bytes.length]);
+      return ptr;
+    };
     try {
+      layers.forEach((l, k) => {
+        const values = hold(new Uint8Array(l.values.buffer, l.values.byteOffset, l.values.byteLength));
+        args.set([l.draft.handle, values, l.values.length, l.offset[0], l.offset[1], l.opacity ?? 1], 6 * k);
+      });
+      const argPtr = hold(new Uint8Array(args.buffer));
       this.withBuffer(len, (ptr) => {
         const [r, g, b, a] = background;
         this.check(this.x.iw_draft_draw(ptr, width, height, r, g, b, a, argPtr, layers.length));
         out.set(this.u8(ptr, len));
       });
     } finally {
-      this.x.iw_free(argPtr, args.byteLength);
-      layers.forEach((l, k) => this.x.iw_free(valuePtrs[k], l.values.byteLength));
+      for (const [ptr, n] of held) this.x.iw_free(ptr, n);
     }
   }
 

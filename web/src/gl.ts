@@ -503,9 +503,12 @@ export class GlLayer {
   sparseValues: WebGLTexture;
   /** Whether the field is a sparse draft (`setSparseField`): it can only be drawn as a draft. */
   sparse = false;
-  /** What a draft drawn by the CPU reads (see `cpuDraft`): the premultiplied image, the draft mesh, the sparse draft. */
+  /**
+   * What a draft drawn by the CPU reads (see `cpuDraft`): the premultiplied image, the draft
+   * mesh, the sparse draft. Kept on a software GPU only (about 9 bytes a pixel).
+   */
   private premultipliedBytes: Uint8Array = new Uint8Array(0);
-  private draftGeometry: Omit<DraftGeometry, 'width' | 'height' | 'premultiplied'> = { coarse: new Uint32Array(0), skirts: new Float32Array(0), links: new Uint8Array(0), index: new Uint32Array(0) };
+  private draftGeometry: Omit<DraftGeometry, 'width' | 'height' | 'premultiplied'> | null = null;
   private sparseData: Float32Array = new Float32Array(0);
   /** `draftGeometry` and the image in the engine, made by the first draft the CPU draws. */
   private draftHandle: DraftHandle | null = null;
@@ -556,7 +559,7 @@ export class GlLayer {
     }
     gl.bindTexture(gl.TEXTURE_2D, this.premultiplied);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.width, this.height, 0, gl.RGBA, gl.UNSIGNED_BYTE, premultiplied);
-    this.premultipliedBytes = premultiplied;
+    if (this.r.softwareGpu) this.premultipliedBytes = premultiplied;
     this.dropDraftHandle();
   }
 
@@ -600,7 +603,7 @@ export class GlLayer {
     this.draftPixels = pixels;
     const index = new Uint32Array(w * h);
     for (let k = 0; k < pixels.length; k++) index[pixels[k]] = k;
-    this.draftGeometry = { coarse, skirts: skirts.slice(0, 6 * innerSkirts), links: l, index };
+    this.draftGeometry = this.r.softwareGpu ? { coarse, skirts: skirts.slice(0, 6 * innerSkirts), links: l, index, reads: pixels.length } : null;
     this.dropDraftHandle();
     gl.bindTexture(gl.TEXTURE_2D, this.sparseIndex);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.R32UI, w, h, 0, gl.RED_INTEGER, gl.UNSIGNED_INT, index);
@@ -629,9 +632,14 @@ export class GlLayer {
     if (rest) gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, rows, rest, 1, gl.RG, gl.FLOAT, values.subarray(2 * rows * SPARSE_ROW));
   }
 
+  /** Whether the CPU can draw the layer's draft now (`cpuDraft`): a sparse draft, on a software GPU. */
+  get onCpu(): boolean {
+    return this.sparse && this.draftGeometry !== null;
+  }
+
   /** The layer's sparse draft as `Engine.drawDraft` draws it, at `offset` with `opacity`. */
   cpuDraft(engine: Engine, offset: [number, number], opacity = 1): { draft: DraftHandle; values: Float32Array; offset: [number, number]; opacity: number } {
-    if (!this.sparse) throw new Error('Only a sparse draft is drawn by the CPU.');
+    if (!this.sparse || !this.draftGeometry) throw new Error('Only a sparse draft on a software GPU is drawn by the CPU.');
     const { width, height } = this;
     this.draftHandle ??= engine.draftLayer({ width, height, premultiplied: this.premultipliedBytes, ...this.draftGeometry });
     return { draft: this.draftHandle, values: this.sparseData, offset, opacity };
@@ -846,11 +854,13 @@ void main() { o = texture(uTex, vPos); }`);
   render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false, adaptive = false): void {
     if (holdsSparse(layers)) [draft, antialias] = [true, false];
     const fast = adaptive && !draft && !antialias;
-    this.lastFrame = frameKey(width, height, background, layers, antialias, draft, fast);
-    if (this.cpuDrafts && this.engine && draft && layers.length > 0 && layers.every(({ layer }) => layer.sparse)) {
+    const key = frameKey(width, height, background, layers, antialias, draft, fast);
+    if (this.cpuDrafts && this.engine && draft && layers.length > 0 && layers.every(({ layer }) => layer.onCpu)) {
       this.renderCpu(width, height, background, layers);
+      this.lastFrame = key;
       return;
     }
+    this.lastFrame = key;
     this.showCpu(false);
     const gl = this.gl;
     this.ensureTargets(width, height);
@@ -931,15 +941,15 @@ void main() { o = texture(uTex, vPos); }`);
     const engine = this.engine!;
     engine.drawDraft(this.cpuFrame.data, width, height, background, layers.map(({ layer, offset, opacity }) => layer.cpuDraft(engine, offset, opacity)));
     canvas.getContext('2d')!.putImageData(this.cpuFrame, 0, 0);
-    this.width = width;
-    this.height = height;
     this.showCpu(true);
   }
 
+  /** Shows the CPU's draft canvas or the WebGL one (never both: the one below would show through where a frame is transparent). */
   private showCpu(on: boolean): void {
     if (this.cpuShown === on || !this.draftCanvas) return;
     this.cpuShown = on;
     this.draftCanvas.style.visibility = on ? 'visible' : 'hidden';
+    if ('style' in this.canvas) this.canvas.style.visibility = on ? 'hidden' : 'visible';
   }
 
   /**

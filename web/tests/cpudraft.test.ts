@@ -48,7 +48,7 @@ function layer(w: number, h: number, rgba: (x: number, y: number) => number[], f
     [values[2 * k], values[2 * k + 1]] = field(p % w, Math.floor(p / w));
   });
   const skirts = mesh.skirts.slice(0, 6 * mesh.innerSkirts);
-  const draft = engine.draftLayer({ width: w, height: h, premultiplied, coarse: mesh.coarse, skirts, links: mesh.links, index });
+  const draft = engine.draftLayer({ width: w, height: h, premultiplied, coarse: mesh.coarse, skirts, links: mesh.links, index, reads: pixels.length });
   return { draft, values, offset: [0, 0] };
 }
 
@@ -123,11 +123,27 @@ describe('draft frames drawn by the CPU', () => {
     blue.draft.free();
   });
 
-  it('refuse a sparse draft too short for the layer, and a mesh off the layer', () => {
+  it('draw nothing of a layer with no pixel drawn, and the other layers as ever', () => {
+    const w = 12, h = 10;
+    const empty = new Uint8Array(4 * w * h);
+    const mesh = buildMesh(w, h, new Uint8Array(w * h), empty);
+    const pixels = draftPixels(w, h, mesh.coarse, mesh.skirts, mesh.innerSkirts);
+    expect(pixels.length).toBe(0);
+    const none = engine.draftLayer({ width: w, height: h, premultiplied: empty, coarse: mesh.coarse, skirts: mesh.skirts.slice(0, 6 * mesh.innerSkirts), links: mesh.links, index: new Uint32Array(w * h), reads: 0 });
+    const red = layer(w, h, () => [255, 0, 0, 255], () => [0, 0]);
+    const out = draw(w, h, [{ draft: none, values: new Float32Array(0), offset: [0, 0] }, red]);
+    expect(at(out, w, 5, 5)).toEqual([255, 0, 0, 255]);
+    none.free();
+    red.draft.free();
+  });
+
+  it('refuse a sparse draft too short for the layer, and meshes off the layer or off its draft', () => {
     const L = layer(8, 8, () => [0, 0, 0, 255], () => [0, 0]);
     expect(() => engine.drawDraft(new Uint8ClampedArray(256), 8, 8, WHITE, [{ ...L, values: L.values.subarray(0, 4) }])).toThrow(/sparse draft of 4 values/);
-    const coarse = new Uint32Array([0, 1, 99]);
-    expect(() => engine.draftLayer({ width: 8, height: 8, premultiplied: new Uint8Array(256), coarse, skirts: new Float32Array(0), links: new Uint8Array(64), index: new Uint32Array(64) })).toThrow(/pixel 99 of a 8×8 layer/);
+    const geometry = { width: 8, height: 8, premultiplied: new Uint8Array(256), coarse: new Uint32Array(0), skirts: new Float32Array(0), links: new Uint8Array(64), index: new Uint32Array(64), reads: 1 };
+    expect(() => engine.draftLayer({ ...geometry, coarse: new Uint32Array([0, 1, 99]) })).toThrow(/pixel 99 of a 8×8 layer/);
+    expect(() => engine.draftLayer({ ...geometry, skirts: new Float32Array(36).fill(9) })).toThrow(/skirt quarter at \(9, 9\) is off the 8×8 layer/);
+    expect(() => engine.draftLayer({ ...geometry, coarse: new Uint32Array([0, 1, 8]), index: new Uint32Array(64).fill(3), reads: 2 })).toThrow(/Pixel 0 of the draft mesh has no place among the 2 pixels/);
     L.draft.free();
   });
 });

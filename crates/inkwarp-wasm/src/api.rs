@@ -16,7 +16,7 @@ use inkwarp_core::solve::{solve_warm, solve_warm_at, SolveMethod, SolveOptions, 
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
 use serde::Deserialize;
 
-use crate::{bytes, bytes_mut, fail, floats, floats_mut, insert, json_arg, ok_json, release, words};
+use crate::{bytes, bytes_mut, fail, floats, floats_mut, insert, json_arg, ok_json, release, slot, slot_mut, words};
 
 /// The spacing at which the scene engine densifies a cut before breaking links.
 const CUT_SPACING_PX: f64 = 0.5;
@@ -53,29 +53,14 @@ struct Selection {
 const MAX_SAMPLERS: usize = 256;
 
 fn with_domain<R>(handle: u32, f: impl FnOnce(&Domain) -> R) -> Result<R, String> {
-    GRIDS.with(|g| {
-        let store = g.borrow();
-        match store
-            .get((handle as usize).wrapping_sub(1))
-            .and_then(Option::as_ref)
-        {
-            Some(domain) => Ok(f(domain)),
-            None => Err(format!("There is no grid with handle {handle}.")),
-        }
+    GRIDS.with(|g| match slot(&g.borrow(), handle) {
+        Some(domain) => Ok(f(domain)),
+        None => Err(format!("There is no grid with handle {handle}.")),
     })
 }
 
 fn with_grid<R>(handle: u32, f: impl FnOnce(&Grid) -> R) -> Result<R, String> {
-    GRIDS.with(|g| {
-        let store = g.borrow();
-        match store
-            .get((handle as usize).wrapping_sub(1))
-            .and_then(Option::as_ref)
-        {
-            Some(domain) => Ok(f(&domain.grid)),
-            None => Err(format!("There is no grid with handle {handle}.")),
-        }
-    })
+    with_domain(handle, |domain| f(&domain.grid))
 }
 
 /// Builds the solve domain of a `width × height` layer: active nodes from the continuity
@@ -635,15 +620,9 @@ pub extern "C" fn iw_curve(req_ptr: *const u8, req_len: usize) -> i32 {
 }
 
 fn with_canvas<R>(handle: u32, f: impl FnOnce(&mut Canvas) -> R) -> Result<R, String> {
-    CANVASES.with(|c| {
-        let mut store = c.borrow_mut();
-        match store
-            .get_mut((handle as usize).wrapping_sub(1))
-            .and_then(Option::as_mut)
-        {
-            Some(canvas) => Ok(f(canvas)),
-            None => Err(format!("There is no canvas with handle {handle}.")),
-        }
+    CANVASES.with(|c| match slot_mut(&mut c.borrow_mut(), handle) {
+        Some(canvas) => Ok(f(canvas)),
+        None => Err(format!("There is no canvas with handle {handle}.")),
     })
 }
 

@@ -5,6 +5,9 @@
 //! vertices), the skirt quarters along its cuts and holes, its links, and the place of each
 //! pixel in its sparse draft's values. A frame composites layers over a background with
 //! premultiplied "over", rounding to 8 bits at each layer as a GPU's RGBA8 target does.
+//! Colours are the bilinear mix of the 8-bit premultiplied pixels with 8-bit weights, as
+//! the draft elements' texture unit filters; the skirt quarters' shader premultiplies and
+//! mixes in floating point, which this rounds differently by at most a level.
 
 use std::cell::RefCell;
 
@@ -25,7 +28,7 @@ struct DraftLayer {
     links: Vec<u8>,
     /// Per pixel, its place in the sparse draft's values.
     index: Vec<u32>,
-    /// How many pixels the sparse draft holds (one more than the largest place).
+    /// How many pixels the sparse draft holds.
     reads: usize,
 }
 
@@ -35,9 +38,12 @@ thread_local! {
 
 /// A draft layer of `width × height` from its premultiplied RGBA8 (`4·w·h` bytes), its
 /// draft mesh's triangles (`coarse_len` indices), its inner skirt quarters' vertices
-/// (`skirts_len` floats, 6 a vertex), its links and its sparse index (`w·h` each).
-/// Returns a handle ≥ 1, or 0 with the error in the result buffer.
+/// (`skirts_len` floats, 6 a vertex), its links and its sparse index (`w·h` each: the
+/// place of each pixel among the `reads` pixels its sparse drafts hold). Every pixel the
+/// triangles and quarters read must have a place. Returns a handle ≥ 1, or 0 with the
+/// error in the result buffer.
 #[no_mangle]
+#[allow(clippy::too_many_arguments)]
 pub extern "C" fn iw_draft_new(
     width: usize,
     height: usize,
@@ -48,6 +54,7 @@ pub extern "C" fn iw_draft_new(
     skirts_len: usize,
     links_ptr: *const u8,
     index_ptr: *const u32,
+    reads: usize,
 ) -> u32 {
     let n = width * height;
     if n == 0 || coarse_len % 3 != 0 || skirts_len % 36 != 0 {
@@ -68,13 +75,42 @@ pub extern "C" fn iw_draft_new(
         .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect();
     let index = words(index_ptr, n).to_vec();
-    let reads = index.iter().max().map_or(0, |&k| k as usize + 1);
+    let skirts = floats(skirts_ptr, skirts_len).to_vec();
+    // The pixels read: the triangles' corners, each quarter's pixel and its neighbours.
+    let mut read = coarse.iter().map(|&v| v as usize).collect::<Vec<_>>();
+    for quarter in skirts.chunks_exact(36) {
+        let (x, y) = (quarter[0], quarter[1]);
+        if !(x >= 0.0
+            && y >= 0.0
+            && (x as usize) < width
+            && (y as usize) < height
+            && x.fract() == 0.0
+            && y.fract() == 0.0)
+        {
+            fail(format!(
+                "A skirt quarter at ({x}, {y}) is off the {width}×{height} layer."
+            ));
+            return 0;
+        }
+        let (i, j) = (x as usize, y as usize);
+        read.push(j * width + i);
+        read.extend((i + 1 < width).then(|| j * width + i + 1));
+        read.extend((i > 0).then(|| j * width + i - 1));
+        read.extend((j + 1 < height).then(|| (j + 1) * width + i));
+        read.extend((j > 0).then(|| (j - 1) * width + i));
+    }
+    if let Some(&p) = read.iter().find(|&&p| index[p] as usize >= reads) {
+        fail(format!(
+            "Pixel {p} of the draft mesh has no place among the {reads} pixels of its sparse drafts."
+        ));
+        return 0;
+    }
     let layer = DraftLayer {
         width,
         height,
         pixels,
         coarse,
-        skirts: floats(skirts_ptr, skirts_len).to_vec(),
+        skirts,
         links: bytes(links_ptr, n).to_vec(),
         index,
         reads,
@@ -394,6 +430,7 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
         }
         let row = &mut t.frame[y * t.width..][..t.width];
         let run = &mut row[lo as usize..=hi as usize];
+        let n = run.len() as f64;
         let (sx, sy) = (
             rx[0] * lo + rx[1] * yf + rx[2],
             ry[0] * lo + ry[1] * yf + ry[2],
@@ -405,19 +442,38 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
                 let y = (sy + ry[0] * k as f64).clamp(b[1], b[3]);
                 *dst = over(bilinear(pixels, w, h, x, y, shade.opacity), *dst);
             }
-        } else {
+        } else if [sx, sy, sx + rx[0] * n, sy + ry[0] * n]
+            .iter()
+            .all(|v| v.abs() < FIXED_MAX)
+        {
             // A draft element: its rest position steps in 16.16 fixed point along the run.
             let fixed = |v: f64| (v * 65536.0).round_ties_even() as i32;
             let (mut fx, mut fy, dfx, dfy) = (fixed(sx), fixed(sy), fixed(rx[0]), fixed(ry[0]));
             for dst in run.iter_mut() {
                 let src = bilinear_fixed(pixels, w, h, fx, fy, shade.opacity);
                 *dst = over(src, *dst);
-                fx += dfx;
-                fy += dfy;
+                fx = fx.wrapping_add(dfx);
+                fy = fy.wrapping_add(dfy);
+            }
+        } else {
+            // A sliver folded over (its rest position races along the run) or a huge layer.
+            for (k, dst) in run.iter_mut().enumerate() {
+                let src = bilinear(
+                    pixels,
+                    w,
+                    h,
+                    sx + rx[0] * k as f64,
+                    sy + ry[0] * k as f64,
+                    shade.opacity,
+                );
+                *dst = over(src, *dst);
             }
         }
     }
 }
+
+/// Rest positions stepped in 16.16 fixed point stay below this (pixels) in magnitude.
+const FIXED_MAX: f64 = 30_000.0;
 
 /// [`bilinear`] at (x, y) in 16.16 fixed point.
 #[inline]
@@ -493,4 +549,64 @@ fn over(src: u32, dst: u32) -> u32 {
         out |= v.min(255) << shift;
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A one-pixel layer's draft pieces with `pixel` as its colour.
+    fn one_pixel(pixel: u32) -> DraftLayer {
+        DraftLayer {
+            width: 1,
+            height: 1,
+            pixels: vec![pixel],
+            coarse: vec![],
+            skirts: vec![],
+            links: vec![1],
+            index: vec![0],
+            reads: 1,
+        }
+    }
+
+    #[test]
+    fn a_sliver_whose_rest_positions_race_along_a_row_is_drawn_from_the_layer() {
+        // Thin in x across the pixel centre (0, 0): the rest position changes by millions
+        // of pixels per screen pixel along the row, past what 16.16 fixed point holds.
+        let layer = one_pixel(0xff00_ff00);
+        let shade = Shade {
+            layer: &layer,
+            opacity: 256,
+            clamp: None,
+        };
+        let corner = |x, y, rx, ry| Corner { x, y, rx, ry };
+        let c = [
+            corner(-1e-6, -5.0, 0.0, 0.0),
+            corner(1e-6, -5.0, 8.0, 0.0),
+            corner(0.0, 5.0, 4.0, 8.0),
+        ];
+        let mut frame = vec![0u32; 9];
+        fill(
+            &mut Target {
+                frame: &mut frame,
+                width: 3,
+                height: 3,
+            },
+            &c,
+            &shade,
+        );
+        assert_eq!(
+            frame,
+            [0xff00_ff00, 0, 0, 0xff00_ff00, 0, 0, 0xff00_ff00, 0, 0]
+        );
+    }
+
+    #[test]
+    fn over_blends_premultiplied_in_eight_bits() {
+        // Opaque replaces; half-transparent black over white halves it; nothing over
+        // anything keeps it.
+        assert_eq!(over(0xff11_2233, 0xffff_ffff), 0xff11_2233);
+        assert_eq!(over(0x8000_0000, 0xffff_ffff), 0xff7f_7f7f);
+        assert_eq!(over(0, 0x8040_2010), 0x8040_2010);
+    }
 }

@@ -136,7 +136,6 @@ pub(crate) fn floats_mut<'a>(ptr: *mut f32, len: usize) -> &'a mut [f32] {
     unsafe { std::slice::from_raw_parts_mut(ptr, len) }
 }
 
-/// A `u32` slice view of caller memory.
 /// Stores `value` in the first free slot of `store`; its handle (≥ 1).
 pub(crate) fn insert<T>(store: &mut Vec<Option<T>>, value: T) -> u32 {
     if let Some(i) = store.iter().position(Option::is_none) {
@@ -152,6 +151,11 @@ pub(crate) fn slot<T>(store: &[Option<T>], handle: u32) -> Option<&T> {
     store.get((handle as usize).wrapping_sub(1)).and_then(Option::as_ref)
 }
 
+/// The same, to change.
+pub(crate) fn slot_mut<T>(store: &mut [Option<T>], handle: u32) -> Option<&mut T> {
+    store.get_mut((handle as usize).wrapping_sub(1)).and_then(Option::as_mut)
+}
+
 /// Frees the slot of `handle` in `store` (nothing when there is none).
 pub(crate) fn release<T>(store: &mut [Option<T>], handle: u32) {
     if let Some(slot) = store.get_mut((handle as usize).wrapping_sub(1)) {
@@ -159,13 +163,16 @@ pub(crate) fn release<T>(store: &mut [Option<T>], handle: u32) {
     }
 }
 
+/// An `f64` slice view of caller memory.
 pub(crate) fn doubles<'a>(ptr: *const f64, len: usize) -> &'a [f64] {
     if ptr.is_null() || len == 0 {
         return &[];
     }
+    // SAFETY: as for `floats`.
     unsafe { std::slice::from_raw_parts(ptr, len) }
 }
 
+/// A `u32` slice view of caller memory.
 pub(crate) fn words<'a>(ptr: *const u32, len: usize) -> &'a [u32] {
     if ptr.is_null() || len == 0 {
         return &[];
