@@ -391,6 +391,9 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
     let owned = |e: f64, owns: bool| e > 0.0 || (e == 0.0 && owns);
     let (w, h) = (shade.layer.width, shade.layer.height);
     let pixels = &shade.layer.pixels;
+    // Each edge's crossing of a row is −c/a: its reciprocal once (the exact edge values at
+    // the crossing decide which centres it keeps).
+    let minus_inv = [e0[0], e1[0], e2[0]].map(|a| if a != 0.0 { -1.0 / a } else { 0.0 });
     for y in min_y as usize..=max_y as usize {
         let yf = y as f64;
         let (c0, c1, c2) = (e0[1] * yf + e0[2], e1[1] * yf + e1[2], e2[1] * yf + e2[2]);
@@ -400,10 +403,13 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
         // the whole row. The pixels inside a triangle form one run per row.
         let (mut lo, mut hi) = (min_x, max_x);
         let mut empty = false;
-        for (a, c, owns) in [(e0[0], c0, o0), (e1[0], c1, o1), (e2[0], c2, o2)] {
+        for ((a, c, owns), inv) in [(e0[0], c0, o0), (e1[0], c1, o1), (e2[0], c2, o2)]
+            .into_iter()
+            .zip(minus_inv)
+        {
             let keeps = |x: f64| owned(a * x + c, owns);
             if a > 0.0 {
-                let mut x = (-c / a).ceil();
+                let mut x = (c * inv).ceil();
                 if !keeps(x) {
                     x += 1.0;
                 } else if keeps(x - 1.0) {
@@ -411,7 +417,7 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
                 }
                 lo = lo.max(x);
             } else if a < 0.0 {
-                let mut x = (-c / a).floor();
+                let mut x = (c * inv).floor();
                 if !keeps(x) {
                     x -= 1.0;
                 } else if keeps(x + 1.0) {
