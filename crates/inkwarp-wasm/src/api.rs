@@ -16,7 +16,7 @@ use inkwarp_core::solve::{solve_warm, solve_warm_at, SolveMethod, SolveOptions, 
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
 use serde::Deserialize;
 
-use crate::{bytes, bytes_mut, fail, floats, floats_mut, insert, json_arg, ok_json, release, slot, slot_mut, words};
+use crate::{fail, insert, json_arg, ok_json, release, slot, slot_mut, view, view_mut};
 
 /// The spacing at which the scene engine densifies a cut before breaking links.
 const CUT_SPACING_PX: f64 = 0.5;
@@ -90,7 +90,7 @@ pub extern "C" fn iw_grid_new(
         ));
         return 0;
     } else {
-        Grid::from_matte(width, height, bytes(matte_ptr, matte_len))
+        Grid::from_matte(width, height, view(matte_ptr, matte_len))
     };
     if cuts_len > 0 {
         let cuts: Vec<Vec<Point>> = match json_arg(cuts_ptr, cuts_len) {
@@ -141,7 +141,7 @@ pub extern "C" fn iw_grid_links(handle: u32, out_ptr: *mut u8, out_len: usize) -
                 "The link buffer has {out_len} bytes; the grid needs {n}."
             ));
         }
-        let out = bytes_mut(out_ptr, out_len);
+        let out = view_mut(out_ptr, out_len);
         for i in 0..n {
             out[i] = grid.active[i] as u8
                 | (grid.link_right[i] as u8) << 1
@@ -397,7 +397,7 @@ pub extern "C" fn iw_solve(
     let res = with_domain(handle, |domain| -> Result<serde_json::Value, String> {
         let n = domain.grid.width * domain.grid.height;
         let (field, report) = solve_request(domain, &req, initial_ptr)?;
-        let out = floats_mut(out_ptr, 2 * n);
+        let out = view_mut(out_ptr, 2 * n);
         out[..n].copy_from_slice(&field.dx);
         out[n..].copy_from_slice(&field.dy);
         Ok(report)
@@ -454,7 +454,7 @@ fn method_of(req: &SolveIn) -> Result<Method, String> {
 /// `pixels_ptr` (`y · width + x`), each below `width · height`. Status 0/1.
 #[no_mangle]
 pub extern "C" fn iw_grid_select(handle: u32, pixels_ptr: *const u32, len: usize) -> i32 {
-    let pixels = words(pixels_ptr, len).to_vec();
+    let pixels = view(pixels_ptr, len).to_vec();
     let res = with_domain(handle, |domain| {
         let n = domain.grid.width * domain.grid.height;
         if let Some(&p) = pixels.iter().find(|&&p| p as usize >= n) {
@@ -483,7 +483,7 @@ pub extern "C" fn iw_solve_at(handle: u32, req_ptr: *const u8, req_len: usize, o
     let res = with_domain(handle, |domain| -> Result<serde_json::Value, String> {
         let mut selection = domain.selection.borrow_mut();
         let selection = selection.as_mut().ok_or("No pixels are selected on this grid; call iw_grid_select first.")?;
-        let out = floats_mut(out_ptr, 2 * selection.pixels.len());
+        let out = view_mut(out_ptr, 2 * selection.pixels.len());
         let step = req.options.grid_step;
         if method_of(&req)?.interpolant().is_some() || step <= 1 {
             let (field, report) = solve_request(domain, &req, std::ptr::null())?;
@@ -566,7 +566,7 @@ fn solve_tps(
     let samples: Vec<Sample> = per_feature.into_iter().flatten().collect();
     let options = solve_options(options)?;
     let initial = (!initial_ptr.is_null()).then(|| {
-        let data = floats(initial_ptr, 2 * n);
+        let data = view(initial_ptr, 2 * n);
         Field {
             width: grid.width,
             height: grid.height,
@@ -660,9 +660,9 @@ pub extern "C" fn iw_canvas_draw(
         let image = RgbaImage {
             width: grid.width,
             height: grid.height,
-            data: bytes(image_ptr, 4 * n).to_vec(),
+            data: view(image_ptr, 4 * n).to_vec(),
         };
-        let data = floats(field_ptr, 2 * n);
+        let data = view(field_ptr, 2 * n);
         let field = Field {
             width: grid.width,
             height: grid.height,
@@ -690,7 +690,7 @@ pub extern "C" fn iw_canvas_read(canvas: u32, out_ptr: *mut u8, out_len: usize) 
                 img.data.len()
             ));
         }
-        bytes_mut(out_ptr, out_len).copy_from_slice(&img.data);
+        view_mut(out_ptr, out_len).copy_from_slice(&img.data);
         Ok(())
     });
     match res {
@@ -751,7 +751,7 @@ pub extern "C" fn iw_points_at(req_ptr: *const u8, req_len: usize) -> i32 {
 /// [`iw_decoded_take`]. Status 0/1.
 #[no_mangle]
 pub extern "C" fn iw_decode(ptr: *const u8, len: usize) -> i32 {
-    let input = bytes(ptr, len);
+    let input = view(ptr, len);
     let raw = if input.starts_with(b"data:") {
         match std::str::from_utf8(input)
             .map_err(|e| e.to_string())
@@ -785,7 +785,7 @@ pub extern "C" fn iw_decode(ptr: *const u8, len: usize) -> i32 {
 pub extern "C" fn iw_decoded_take(out_ptr: *mut u8, out_len: usize) -> i32 {
     match DECODED.with(|d| d.borrow_mut().take()) {
         Some(img) if img.data.len() == out_len => {
-            bytes_mut(out_ptr, out_len).copy_from_slice(&img.data);
+            view_mut(out_ptr, out_len).copy_from_slice(&img.data);
             0
         }
         Some(img) => fail(format!(
@@ -809,10 +809,10 @@ pub extern "C" fn iw_matte_values(
     let image = RgbaImage {
         width,
         height,
-        data: bytes(rgba_ptr, 4 * n).to_vec(),
+        data: view(rgba_ptr, 4 * n).to_vec(),
     };
     let values = images::matte_values(&image);
-    bytes_mut(out_ptr, n).copy_from_slice(&values);
+    view_mut(out_ptr, n).copy_from_slice(&values);
     0
 }
 
@@ -821,7 +821,7 @@ pub extern "C" fn iw_matte_values(
 /// `data:` URIs (the editor inlines them). Status 0.
 #[no_mangle]
 pub extern "C" fn iw_scene_check(json_ptr: *const u8, json_len: usize) -> i32 {
-    let text = match std::str::from_utf8(bytes(json_ptr, json_len)) {
+    let text = match std::str::from_utf8(view(json_ptr, json_len)) {
         Ok(t) => t,
         Err(_) => {
             return ok_json(&[

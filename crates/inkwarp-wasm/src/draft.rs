@@ -11,7 +11,7 @@
 
 use std::cell::RefCell;
 
-use crate::{bytes, bytes_mut, doubles, fail, floats, insert, release, slot, words};
+use crate::{fail, insert, release, slot, view, view_mut};
 
 /// One layer's draft geometry and pixels (see the module docs).
 #[derive(Debug)]
@@ -63,19 +63,19 @@ pub extern "C" fn iw_draft_new(
         ));
         return 0;
     }
-    let coarse = words(coarse_ptr, coarse_len).to_vec();
+    let coarse = view(coarse_ptr, coarse_len).to_vec();
     if let Some(&bad) = coarse.iter().find(|&&v| v as usize >= n) {
         fail(format!(
             "A draft triangle refers to pixel {bad} of a {width}×{height} layer."
         ));
         return 0;
     }
-    let pixels = bytes(pixels_ptr, 4 * n)
+    let pixels = view(pixels_ptr, 4 * n)
         .chunks_exact(4)
         .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect();
-    let index = words(index_ptr, n).to_vec();
-    let skirts = floats(skirts_ptr, skirts_len).to_vec();
+    let index = view(index_ptr, n).to_vec();
+    let skirts = view(skirts_ptr, skirts_len).to_vec();
     // The pixels read: the triangles' corners, each quarter's pixel and its neighbours.
     let mut read = coarse.iter().map(|&v| v as usize).collect::<Vec<_>>();
     for quarter in skirts.chunks_exact(36) {
@@ -111,7 +111,7 @@ pub extern "C" fn iw_draft_new(
         pixels,
         coarse,
         skirts,
-        links: bytes(links_ptr, n).to_vec(),
+        links: view(links_ptr, n).to_vec(),
         index,
         reads,
     };
@@ -140,8 +140,8 @@ pub extern "C" fn iw_draft_draw(
     layers_ptr: *const f64,
     count: usize,
 ) -> i32 {
-    let args = doubles(layers_ptr, 6 * count);
-    let out = bytes_mut(out_ptr, 4 * width * height);
+    let args = view(layers_ptr, 6 * count);
+    let out = view_mut(out_ptr, 4 * width * height);
     if out.len() != 4 * width * height {
         return fail("No room for the draft frame.");
     }
@@ -154,7 +154,7 @@ pub extern "C" fn iw_draft_draw(
             let Some(layer) = slot(&store, arg[0] as u32) else {
                 return Err(format!("There is no draft layer with handle {}.", arg[0]));
             };
-            let values = floats(arg[1] as usize as *const f32, arg[2] as usize);
+            let values = view(arg[1] as usize as *const f32, arg[2] as usize);
             let needed = 2 * layer.reads;
             if values.len() < needed {
                 return Err(format!(

@@ -109,30 +109,22 @@ pub unsafe extern "C" fn iw_free(ptr: *mut u8, len: usize) {
     }
 }
 
-/// A byte slice view of caller memory (`len == 0` or null gives an empty slice).
-pub(crate) fn bytes<'a>(ptr: *const u8, len: usize) -> &'a [u8] {
+/// A slice view of caller memory (`len == 0` or null gives an empty slice).
+pub(crate) fn view<'a, T>(ptr: *const T, len: usize) -> &'a [T] {
     if ptr.is_null() || len == 0 {
         return &[];
     }
-    // SAFETY: the caller passes a region it allocated with `iw_alloc` and filled.
+    // SAFETY: the caller passes a region it allocated with `iw_alloc` (8-byte aligned) and
+    // filled with `len` values of `T`.
     unsafe { std::slice::from_raw_parts(ptr, len) }
 }
 
-/// An `f32` slice view of caller memory.
-pub(crate) fn floats<'a>(ptr: *const f32, len: usize) -> &'a [f32] {
-    if ptr.is_null() || len == 0 {
-        return &[];
-    }
-    // SAFETY: as for `bytes`; `iw_alloc` returns 8-byte aligned memory.
-    unsafe { std::slice::from_raw_parts(ptr, len) }
-}
-
-/// A mutable `f32` slice view of caller memory.
-pub(crate) fn floats_mut<'a>(ptr: *mut f32, len: usize) -> &'a mut [f32] {
+/// A mutable slice view of caller memory.
+pub(crate) fn view_mut<'a, T>(ptr: *mut T, len: usize) -> &'a mut [T] {
     if ptr.is_null() || len == 0 {
         return &mut [];
     }
-    // SAFETY: as for `floats`; the caller does not alias the region during the call.
+    // SAFETY: as for `view`; the caller does not alias the region during the call.
     unsafe { std::slice::from_raw_parts_mut(ptr, len) }
 }
 
@@ -163,39 +155,12 @@ pub(crate) fn release<T>(store: &mut [Option<T>], handle: u32) {
     }
 }
 
-/// An `f64` slice view of caller memory.
-pub(crate) fn doubles<'a>(ptr: *const f64, len: usize) -> &'a [f64] {
-    if ptr.is_null() || len == 0 {
-        return &[];
-    }
-    // SAFETY: as for `floats`.
-    unsafe { std::slice::from_raw_parts(ptr, len) }
-}
-
-/// A `u32` slice view of caller memory.
-pub(crate) fn words<'a>(ptr: *const u32, len: usize) -> &'a [u32] {
-    if ptr.is_null() || len == 0 {
-        return &[];
-    }
-    // SAFETY: as for `floats`.
-    unsafe { std::slice::from_raw_parts(ptr, len) }
-}
-
-/// A mutable byte slice view of caller memory.
-pub(crate) fn bytes_mut<'a>(ptr: *mut u8, len: usize) -> &'a mut [u8] {
-    if ptr.is_null() || len == 0 {
-        return &mut [];
-    }
-    // SAFETY: as for `bytes`.
-    unsafe { std::slice::from_raw_parts_mut(ptr, len) }
-}
-
 /// Parses a JSON argument.
 pub(crate) fn json_arg<T: serde::de::DeserializeOwned>(
     ptr: *const u8,
     len: usize,
 ) -> Result<T, String> {
-    serde_json::from_slice(bytes(ptr, len))
+    serde_json::from_slice(view(ptr, len))
         .map_err(|e| format!("The request is not valid JSON for this call: {e}."))
 }
 
@@ -204,13 +169,13 @@ mod tests {
     use super::*;
 
     fn result() -> serde_json::Value {
-        let bytes = bytes(iw_result_ptr(), iw_result_len());
+        let bytes = view(iw_result_ptr(), iw_result_len());
         serde_json::from_slice(bytes).unwrap()
     }
 
     fn put(data: &[u8]) -> (*mut u8, usize) {
         let ptr = iw_alloc(data.len());
-        bytes_mut(ptr, data.len()).copy_from_slice(data);
+        view_mut(ptr, data.len()).copy_from_slice(data);
         (ptr, data.len())
     }
 
@@ -239,7 +204,7 @@ mod tests {
         assert!(h > 0);
         let out = iw_alloc(12);
         assert_eq!(iw_grid_links(h, out, 12), 0);
-        let links = bytes(out, 12);
+        let links = view(out, 12);
         // (0,0): active, right, down; (1,0): active, down, the link to (2,0) is cut.
         assert_eq!(links[0], 0b111);
         assert_eq!(links[1], 0b101);
@@ -257,7 +222,7 @@ mod tests {
         let n = 16 * 12;
         let field = iw_alloc(8 * n) as *mut f32;
         assert_eq!(iw_solve(h, req, req_len, std::ptr::null(), field), 0);
-        let f = floats(field, 2 * n);
+        let f = view(field, 2 * n);
         for i in [0, 77, n - 1] {
             assert!((f[i] - 2.0).abs() < 0.05, "dx[{i}] = {}", f[i]);
             assert!((f[n + i] + 1.0).abs() < 0.05, "dy[{i}] = {}", f[n + i]);
@@ -296,7 +261,7 @@ mod tests {
             let (r, r_len) = put(req.to_string().as_bytes());
             assert_eq!(iw_solve_at(grid, r, r_len, out), 0, "{}", result());
             assert_eq!(result()["method"], options["method"]);
-            let (f, o) = (floats(field, 2 * n), floats(out, 2 * pixels.len()));
+            let (f, o) = (view(field, 2 * n), view(out, 2 * pixels.len()));
             for (k, &p) in pixels.iter().enumerate() {
                 let p = p as usize;
                 assert!((o[2 * k] - f[p]).abs() < 1e-4 && (o[2 * k + 1] - f[n + p]).abs() < 1e-4, "{options}: pixel {p}");
@@ -420,12 +385,12 @@ mod tests {
             }
             // A layer that nothing drives stays put under every method.
             solve_ok(grid, &serde_json::json!({"features": [], "options": options}), out, &what);
-            assert!(floats(out, 2 * w * h).iter().all(|&v| v == 0.0));
+            assert!(view(out, 2 * w * h).iter().all(|&v| v == 0.0));
             let still = scene.layer_field_with(1, 0.6, None, Some(method)).unwrap().field;
             assert!(still.dx.iter().chain(&still.dy).all(|&v| v == 0.0));
             solve_ok(grid, &serde_json::json!({"features": features, "options": options}), out, &what);
             assert_eq!(report["method"], method.name());
-            let got = floats(out, 2 * w * h);
+            let got = view(out, 2 * w * h);
             let same = got[..w * h] == expected.dx[..] && got[w * h..] == expected.dy[..];
             assert!(same, "{method}: the adapter's field differs from the scene engine's");
             // The methods that know nothing of cuts say so.
@@ -457,7 +422,7 @@ mod tests {
             let req = serde_json::json!({"features": features, "spacing_px": 1,
                                          "options": {"method": "tps-exact", "grid_step": step, "preview": preview}});
             let report = solve_ok(grid, &req, out, "tps-exact");
-            (floats(out, 2 * w * h).to_vec(), report)
+            (view(out, 2 * w * h).to_vec(), report)
         };
         let (exact, _) = field(1, false);
         // grid_step means nothing to tps-exact but in a preview.
