@@ -472,7 +472,7 @@ export class App {
         rev: this.store.revision,
         frame,
         settleStart: quality === 'final' ? this.settleStart : null,
-      }, true, quality === 'final' && this.slowAntialias, quality === 'draft' && this.sparseDraft(rt));
+      }, { mesh: quality === 'final' && this.slowAntialias, sparse: quality === 'draft' && this.sparseDraft(rt) });
       if (quality === 'draft') this.follow(rt, layer, features, time);
     }
   }
@@ -494,7 +494,7 @@ export class App {
     if (sig === rt.lastFollow) return;
     rt.lastFollow = sig;
     const tag = { madeAt: performance.now(), seq: ++this.seq, quality: 'follow', gen: rt.gridGen, time, rev: this.store.revision };
-    this.solver.solve(layer.name, features, options, tag, true, false, false, true);
+    this.solver.solve(layer.name, features, options, tag, { follow: true });
   }
 
   /**

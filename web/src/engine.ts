@@ -188,14 +188,8 @@ export class GridHandle {
   /** Chooses the pixels (row-major indices) that `solveAt` computes. */
   select(pixels: Uint32Array): void {
     const e = this.engine;
-    const ptr = e.x.iw_alloc(4 * pixels.length);
-    try {
-      new Uint32Array(e.x.memory.buffer, ptr, pixels.length).set(pixels);
-      e.check(e.x.iw_grid_select(this.handle, ptr, pixels.length));
-      this.selected = pixels.length;
-    } finally {
-      e.x.iw_free(ptr, 4 * pixels.length);
-    }
+    e.withCopies((copy) => e.check(e.x.iw_grid_select(this.handle, copy(pixels), pixels.length)));
+    this.selected = pixels.length;
   }
 
   /** Pixels chosen by `select`. */
@@ -261,6 +255,20 @@ export class Engine {
     const ptr = this.x.iw_alloc(bytes.length);
     this.u8(ptr, bytes.length).set(bytes);
     return ptr;
+  }
+
+  /** Calls `fn` with `copy`, which copies an array into the module and returns where; all are freed after. */
+  withCopies<T>(fn: (copy: (data: ArrayBufferView) => number) => T): T {
+    const held: [number, number][] = [];
+    try {
+      return fn((data) => {
+        const ptr = this.put(new Uint8Array(data.buffer, data.byteOffset, data.byteLength));
+        held.push([ptr, data.byteLength]);
+        return ptr;
+      });
+    } finally {
+      for (const [ptr, len] of held) this.x.iw_free(ptr, len);
+    }
   }
 
   withBuffer<T>(len: number, fn: (ptr: number) => T): T {
@@ -380,15 +388,11 @@ export class Engine {
   draftLayer(g: DraftGeometry): DraftHandle {
     const n = g.width * g.height;
     if (g.premultiplied.length !== 4 * n || g.links.length !== n || g.index.length !== n) throw new EngineError('A draft layer needs its pixels, links and index at every pixel.');
-    const parts = [g.premultiplied, g.coarse, g.skirts, g.links, g.index].map((a) => new Uint8Array(a.buffer, a.byteOffset, a.byteLength));
-    const ptrs = parts.map((p) => this.put(p));
-    try {
-      const h = this.x.iw_draft_new(g.width, g.height, ptrs[0], ptrs[1], g.coarse.length, ptrs[2], g.skirts.length, ptrs[3], ptrs[4], g.reads);
-      if (h === 0) this.check(1);
-      return new DraftHandle(this, h);
-    } finally {
-      parts.forEach((p, k) => this.x.iw_free(ptrs[k], p.length));
-    }
+    const h = this.withCopies((copy) =>
+      this.x.iw_draft_new(g.width, g.height, copy(g.premultiplied), copy(g.coarse), g.coarse.length, copy(g.skirts), g.skirts.length, copy(g.links), copy(g.index), g.reads),
+    );
+    if (h === 0) this.check(1);
+    return new DraftHandle(this, h);
   }
 
   /**
@@ -404,27 +408,15 @@ export class Engine {
     layers: { draft: DraftHandle; values: Float32Array; offset: Pt; opacity?: number }[],
   ): void {
     const len = 4 * width * height;
-    const args = new Float64Array(6 * layers.length);
-    const held: [number, number][] = [];
-    const hold = (bytes: Uint8Array) => {
-      const ptr = this.put(bytes);
-      held.push([ptr, bytes.length]);
-      return ptr;
-    };
-    try {
-      layers.forEach((l, k) => {
-        const values = hold(new Uint8Array(l.values.buffer, l.values.byteOffset, l.values.byteLength));
-        args.set([l.draft.handle, values, l.values.length, l.offset[0], l.offset[1], l.opacity ?? 1], 6 * k);
-      });
-      const argPtr = hold(new Uint8Array(args.buffer));
+    this.withCopies((copy) => {
+      const args = Float64Array.from(layers.flatMap((l) => [l.draft.handle, copy(l.values), l.values.length, l.offset[0], l.offset[1], l.opacity ?? 1]));
+      const argPtr = copy(args);
       this.withBuffer(len, (ptr) => {
         const [r, g, b, a] = background;
         this.check(this.x.iw_draft_draw(ptr, width, height, r, g, b, a, argPtr, layers.length));
         out.set(this.u8(ptr, len));
       });
-    } finally {
-      for (const [ptr, n] of held) this.x.iw_free(ptr, n);
-    }
+    });
   }
 
   /**

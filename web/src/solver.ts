@@ -32,14 +32,24 @@ export interface FieldEvent {
   times: { sent: number; began: number; ended: number; received: number };
 }
 
+/**
+ * How a field is asked for: `warm` (default) starts from the worker's last field; `mesh`
+ * also sends the triangles of its fast full frame (see `adaptiveTriangles`); `sparse`
+ * solves at the pixels `select` chose only; `follow` keeps the field in the worker as the
+ * next start and sends back its report only.
+ */
+export interface SolveHow {
+  warm?: boolean;
+  mesh?: boolean;
+  sparse?: boolean;
+  follow?: boolean;
+}
+
 interface Request {
   key: string;
   features: SolveFeature[];
   options: SolveOptions;
-  warm: boolean;
-  mesh: boolean;
-  sparse: boolean;
-  follow: boolean;
+  how: SolveHow;
   tag: SolveTag;
 }
 
@@ -95,14 +105,9 @@ export class SolverClient {
     this.send({ type: 'drop', key });
   }
 
-  /**
-   * Asks for a field; supersedes any request for the same layer still waiting. `mesh`: also
-   * the triangles of its fast full frame (see `adaptiveTriangles`); `sparse`: the field at
-   * the pixels `select` chose only; `follow`: keep the field in the worker as the next
-   * start and send back its report only.
-   */
-  solve(key: string, features: SolveFeature[], options: SolveOptions, tag: SolveTag, warm = true, mesh = false, sparse = false, follow = false): void {
-    this.pending.set(key, { key, features, options, warm, mesh, sparse, follow, tag });
+  /** Asks for a field (`how`: see `SolveHow`); supersedes any request for the same layer still waiting. */
+  solve(key: string, features: SolveFeature[], options: SolveOptions, tag: SolveTag, how: SolveHow = {}): void {
+    this.pending.set(key, { key, features, options, how, tag });
     this.pump();
   }
 
@@ -127,7 +132,8 @@ export class SolverClient {
     this.pending.delete(key);
     const id = this.nextId++;
     this.inFlight = { id, req, sentAt: performance.now() };
-    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm: req.warm, mesh: req.mesh, sparse: req.sparse, follow: req.follow });
+    const { warm = true, mesh, sparse, follow } = req.how;
+    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm, mesh, sparse, follow });
   }
 
   private receive(msg: FromWorker): void {
