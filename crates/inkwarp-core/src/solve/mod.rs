@@ -690,17 +690,22 @@ pub(crate) struct Spaces {
     pub tear: bool,
 }
 
+impl Spaces {
+    /// Both spaces, as every solve outside tests has them.
+    pub const ALL: Spaces = Spaces { second: true, tear: true };
+}
+
 #[cfg(test)]
 thread_local! {
     /// The spaces of the solves a test runs on this thread (see [`in_pool`]).
-    pub(crate) static SPACES: std::cell::Cell<Spaces> = const { std::cell::Cell::new(Spaces { second: true, tear: true }) };
+    pub(crate) static SPACES: std::cell::Cell<Spaces> = const { std::cell::Cell::new(Spaces::ALL) };
 }
 
 fn spaces() -> Spaces {
     #[cfg(test)]
     return SPACES.with(|c| c.get());
     #[cfg(not(test))]
-    Spaces { second: true, tear: true }
+    Spaces::ALL
 }
 
 /// Recently used hierarchies (taken out while in use, so concurrent solves never share
