@@ -109,16 +109,25 @@ async function toClient(page, p) {
   return page.evaluate((q) => window.inkwarp.ui.toClient(q), p);
 }
 
+/** How long (ms) the measure's aimed drags rest on their point before pressing. */
+const AIM_MS = 250;
+
 async function click(page, p) {
   const [x, y] = await toClient(page, p);
   await page.mouse.click(x, y);
 }
 
-/** Drags in `steps` moves, one per animation frame (as a hand would). */
-async function drag(page, from, to, steps = 8) {
+/**
+ * Drags in `steps` moves, one per animation frame (as a hand would); with `restMs`, the
+ * pointer first arrives on `from` and rests there that long before it presses, as a hand
+ * aims.
+ */
+async function drag(page, from, to, steps = 8, restMs = 0) {
   const [x0, y0] = await toClient(page, from);
   const [x1, y1] = await toClient(page, to);
+  if (restMs > 0) await page.mouse.move(x0 - 6, y0 - 6);
   await page.mouse.move(x0, y0);
+  if (restMs > 0) await page.waitForTimeout(restMs);
   await page.mouse.down();
   for (let i = 1; i <= steps; i++) {
     await page.mouse.move(x0 + ((x1 - x0) * i) / steps, y0 + ((y1 - y0) * i) / steps);
@@ -600,6 +609,21 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   }, settlesBefore);
   perf.slowDrag.seconds = dragSeconds;
   assert(perf.slowDrag.parts.length === 1, `the slower drag settled once: ${JSON.stringify(perf.slowDrag.settleMs)}`);
+  // The same quick drags as above (a quarter second), after the pointer has rested on the
+  // point for a third of a second as a hand aims: meanwhile the full-resolution solver
+  // probes the point (see `App.probe`).
+  const probesBefore = (await page.evaluate(() => window.inkwarp.app.stats.probeSolveMs.length));
+  const aimedBefore = await page.evaluate(() => window.inkwarp.app.stats.settle.length);
+  for (const [from, to] of [[[175, 246], [135, 256]], [[135, 256], [175, 246]]]) {
+    await drag(page, from, to, 15, AIM_MS);
+    await idle(page);
+  }
+  perf.aimedDrags = await page.evaluate(([k, p]) => {
+    const { stats } = window.inkwarp.app;
+    return { settleMs: stats.settle.slice(k), parts: stats.settleParts.slice(k), probes: stats.probeSolveMs.slice(p) };
+  }, [aimedBefore, probesBefore]);
+  assert(perf.aimedDrags.parts.length === 2, `each aimed drag settled once: ${JSON.stringify(perf.aimedDrags.settleMs)}`);
+  assert(perf.aimedDrags.probes.length >= 2, `the resting pointer's point was probed before each aimed drag: ${JSON.stringify(perf.aimedDrags.probes)}`);
   await screenshot(page, 'measured');
 });
 
@@ -919,6 +943,11 @@ async function main() {
     if (perf.slowDrag) {
       const f = (v) => (typeof v === 'number' ? v.toFixed(1) : v);
       for (const p of perf.slowDrag.parts) console.log(`  settle after a ${perf.slowDrag.seconds.toFixed(2)} s drag: ${f(p.total)} ms = queued ${f(p.queued)} (behind ${p.behind ?? 'nothing'}) + solve ${f(p.solve)} (${p.cycles ?? '-'} cycles${p.reused ? ', the followed field' : ''}) + GPU ${f(p.gpu)}`);
+    }
+    if (perf.aimedDrags) {
+      const f = (v) => (typeof v === 'number' ? v.toFixed(1) : v);
+      console.log(`  probes (pointer resting on a point): ${perf.aimedDrags.probes.map(f).join(', ')} ms`);
+      for (const p of perf.aimedDrags.parts) console.log(`  settle after a quick drag aimed for ${AIM_MS} ms: ${f(p.total)} ms = queued ${f(p.queued)} (behind ${p.behind ?? 'nothing'}) + solve ${f(p.solve)} (${p.cycles ?? '-'} cycles${p.reused ? ', the followed field' : ''}) + GPU ${f(p.gpu)}`);
     }
     if (perf.dragParts) {
       const d = perf.dragParts;

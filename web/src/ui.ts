@@ -6,6 +6,7 @@ import { EngineError } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
 import { decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
 import { Overlay } from './overlay';
+import { PROBE_DWELL_MS } from './probe';
 import {
   INTERPOLATIONS,
   METHODS,
@@ -530,6 +531,8 @@ export class Ui {
 
   /** When the last raw pointer update moved a drag (see `bindPointer`). */
   private rawAt = -Infinity;
+  /** What the pointer rests on in pose mode (feature/point), for probes (see `hover`). */
+  private hovered: string | null = null;
 
   /** Moves the dragged point or feature to where the pointer is (nothing when it is there already). */
   private dragTo(e: PointerEvent): void {
@@ -611,10 +614,13 @@ export class Ui {
         this.overlay.hover = this.toScene(e.clientX, e.clientY);
         this.drawOverlay();
       }
+      this.hover(this.toScene(e.clientX, e.clientY));
     });
     const end = () => {
       if (!this.drag) return;
       this.drag = null;
+      // The pose moved: the point under the pointer is probed again at its next move.
+      this.hovered = null;
       this.store.commit();
       this.app.dragging = false;
       this.app.settle();
@@ -625,9 +631,30 @@ export class Ui {
       if (this.store.view.draft.length) this.finishDraft(false);
     });
     c.addEventListener('pointerleave', () => {
+      this.hovered = null;
       this.overlay.hover = null;
       this.drawOverlay();
     });
+  }
+
+  /**
+   * The pointer moved without a button in pose mode: once it has rested on a control point
+   * (or a feature's line) for `PROBE_DWELL_MS`, the full-resolution solver probes it (see
+   * `App.probe`), so that a drag of it settles sooner.
+   */
+  private hover(p: Pt): void {
+    if (this.store.view.mode !== 'pose' || this.store.view.playing) {
+      this.hovered = null;
+      return;
+    }
+    const hit = this.hit(p);
+    const key = hit ? `${hit.id}/${hit.point}` : null;
+    if (key === this.hovered) return;
+    this.hovered = key;
+    if (!hit) return;
+    setTimeout(() => {
+      if (this.hovered === key && !this.drag) this.app.probe(hit.id, hit.point);
+    }, PROBE_DWELL_MS);
   }
 
   private finishDraft(closed: boolean): void {
