@@ -741,8 +741,8 @@ test('a draft frame drawn during a drag looks like the full frame of the same fi
 
 test('the fast full frame (fans where the field is smooth) matches the full frame of the same field', async () => {
   // After a drag settles, a software GPU shows the full-resolution field first through the
-  // fans of `adaptiveTriangles`, single-sampled; here it is drawn beside the full mesh's
-  // single-sampled frame of the same field.
+  // fans of `adaptiveTriangles`, single-sampled (drawn by the CPU there: `GlLayer.cpuFull`);
+  // here it is drawn beside the full mesh's single-sampled WebGL2 frame of the same field.
   await drag(page, [135, 256], [185, 236], 6);
   await idle(page);
   const probe = await page.evaluate(() => {

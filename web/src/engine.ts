@@ -28,7 +28,7 @@ interface Exports {
   iw_decode(ptr: number, len: number): number;
   iw_decoded_take(out: number, len: number): number;
   iw_matte_values(rgba: number, w: number, h: number, out: number): number;
-  iw_draft_new(w: number, h: number, pixels: number, coarse: number, coarseLen: number, skirts: number, skirtsLen: number, links: number, index: number, reads: number): number;
+  iw_draft_new(w: number, h: number, pixels: number, coarse: number, coarseLen: number, skirts: number, skirtsLen: number, links: number, index: number, reads: number, pushBorder: number): number;
   iw_draft_free(h: number): void;
   iw_draft_draw(out: number, w: number, h: number, r: number, g: number, b: number, a: number, layers: number, count: number): number;
   iw_init(): void;
@@ -126,6 +126,12 @@ export interface DraftGeometry {
   links: Uint8Array;
   index: Uint32Array;
   reads: number;
+  /**
+   * Whether the triangles' vertices on the layer's border move out by half a pixel (true,
+   * the default: a draft, which draws no skirts along the border), or stay (a fast full
+   * frame, which passes every skirt quarter).
+   */
+  pushBorder?: boolean;
 }
 
 /** A layer's draft geometry living in the module; free it when the layer's mesh or image changes. */
@@ -389,7 +395,7 @@ export class Engine {
     const n = g.width * g.height;
     if (g.premultiplied.length !== 4 * n || g.links.length !== n || g.index.length !== n) throw new EngineError('A draft layer needs its pixels, links and index at every pixel.');
     const h = this.withCopies((copy) =>
-      this.x.iw_draft_new(g.width, g.height, copy(g.premultiplied), copy(g.coarse), g.coarse.length, copy(g.skirts), g.skirts.length, copy(g.links), copy(g.index), g.reads),
+      this.x.iw_draft_new(g.width, g.height, copy(g.premultiplied), copy(g.coarse), g.coarse.length, copy(g.skirts), g.skirts.length, copy(g.links), copy(g.index), g.reads, g.pushBorder === false ? 0 : 1),
     );
     if (h === 0) this.check(1);
     return new DraftHandle(this, h);

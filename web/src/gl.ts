@@ -466,6 +466,11 @@ function blockMesh(w: number, h: number, links: Uint8Array, s: number, fit: { fi
 
 let layerSerial = 0;
 
+/** The identity field of a `w × h` layer. */
+function zeroField(w: number, h: number): FieldData {
+  return { width: w, height: h, dx: new Float32Array(w * h), dy: new Float32Array(w * h) };
+}
+
 /** One layer's GPU resources. */
 export class GlLayer {
   /** Tells layers apart, and (`version`) each state of one: the image, mesh or field set. */
@@ -512,6 +517,14 @@ export class GlLayer {
   private sparseData: Float32Array = new Float32Array(0);
   /** `draftGeometry` and the image in the engine, made by the first draft the CPU draws. */
   private draftHandle: DraftHandle | null = null;
+  /**
+   * What a fast full frame drawn by the CPU reads besides (see `cpuFull`): every skirt
+   * quarter, the field's (dx, dy) pairs, and the engine's copy of the layer with the
+   * field's `adaptiveTriangles` (made for one `version`). Software GPU only.
+   */
+  private allSkirts: Float32Array | null = null;
+  private fieldPairs: Float32Array | null = null;
+  private fullHandle: { handle: DraftHandle; version: number } | null = null;
   constructor(
     private r: GlRenderer,
     readonly width: number,
@@ -566,6 +579,8 @@ export class GlLayer {
   private dropDraftHandle(): void {
     this.draftHandle?.free();
     this.draftHandle = null;
+    this.fullHandle?.handle.free();
+    this.fullHandle = null;
   }
 
   /**
@@ -604,6 +619,7 @@ export class GlLayer {
     const index = new Uint32Array(w * h);
     for (let k = 0; k < pixels.length; k++) index[pixels[k]] = k;
     this.draftGeometry = this.r.softwareGpu ? { coarse, skirts: skirts.slice(0, 6 * innerSkirts), links: l, index, reads: pixels.length } : null;
+    this.allSkirts = this.r.softwareGpu ? skirts : null;
     this.dropDraftHandle();
     gl.bindTexture(gl.TEXTURE_2D, this.sparseIndex);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.R32UI, w, h, 0, gl.RED_INTEGER, gl.UNSIGNED_INT, index);
@@ -645,6 +661,31 @@ export class GlLayer {
     return { draft: this.draftHandle, values: this.sparseData, offset, opacity };
   }
 
+  /** Whether the CPU can draw the layer's fast full frame now (`cpuFull`): a full field, on a software GPU. */
+  get onCpuFull(): boolean {
+    return !this.sparse && this.fieldPairs !== null && this.allSkirts !== null && this.draftGeometry !== null;
+  }
+
+  /**
+   * The layer's fast full frame as `Engine.drawDraft` draws it, at `offset` with `opacity`:
+   * the triangles of `adaptiveTriangles` and every skirt quarter, read at every pixel, as
+   * the WebGL2 fast full frame draws them.
+   */
+  cpuFull(engine: Engine, offset: [number, number], opacity = 1): { draft: DraftHandle; values: Float32Array; offset: [number, number]; opacity: number } {
+    if (!this.onCpuFull) throw new Error('Only a full field on a software GPU is drawn by the CPU.');
+    if (this.fullHandle?.version !== this.version) {
+      this.fullHandle?.handle.free();
+      const { width: w, height: h } = this;
+      const index = new Uint32Array(w * h);
+      for (let i = 0; i < index.length; i++) index[i] = i;
+      const coarse = this.givenTriangles ?? adaptiveTriangles(w, h, this.allLinks, this.fieldData ?? zeroField(w, h));
+      const handle = engine.draftLayer({ width: w, height: h, premultiplied: this.premultipliedBytes, coarse, skirts: this.allSkirts!, links: this.allLinks, index, reads: w * h, pushBorder: false });
+      this.fullHandle = { handle, version: this.version };
+      this.adaptiveCount = coarse.length;
+    }
+    return { draft: this.fullHandle.handle, values: this.fieldPairs!, offset, opacity };
+  }
+
   /** The field, and (`triangles`) its fast full frame's triangles when already built. */
   setField(field: FieldData | null, triangles: Uint32Array | null = null): void {
     this.version++;
@@ -662,14 +703,14 @@ export class GlLayer {
     }
     gl.bindTexture(gl.TEXTURE_2D, this.field);
     gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, this.width, this.height, gl.RG, gl.FLOAT, rg);
+    this.fieldPairs = this.r.softwareGpu ? rg : null;
   }
 
   /** Makes `adaptive` the triangles of the current field and mesh (once per version). */
   useAdaptive(): void {
     if (this.adaptiveFor === this.version) return;
     const { width: w, height: h } = this;
-    const field = this.fieldData ?? { width: w, height: h, dx: new Float32Array(w * h), dy: new Float32Array(w * h) };
-    const triangles = this.givenTriangles ?? adaptiveTriangles(w, h, this.allLinks, field);
+    const triangles = this.givenTriangles ?? adaptiveTriangles(w, h, this.allLinks, this.fieldData ?? zeroField(w, h));
     const gl = this.r.gl;
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.adaptive);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, triangles, gl.DYNAMIC_DRAW);
@@ -855,10 +896,14 @@ void main() { o = texture(uTex, vPos); }`);
     if (holdsSparse(layers)) [draft, antialias] = [true, false];
     const fast = adaptive && !draft && !antialias;
     const key = frameKey(width, height, background, layers, antialias, draft, fast);
-    if (this.cpuDrafts && this.engine && draft && layers.length > 0 && layers.every(({ layer }) => layer.onCpu)) {
-      this.renderCpu(width, height, background, layers);
-      this.lastFrame = key;
-      return;
+    if (this.cpuDrafts && this.engine && layers.length > 0) {
+      // Drafts and fast full frames are drawn by the CPU where it can draw every layer's.
+      const cpu = draft ? layers.every(({ layer }) => layer.onCpu) : fast && layers.every(({ layer }) => layer.onCpuFull);
+      if (cpu) {
+        this.renderCpu(width, height, background, layers, !draft);
+        this.lastFrame = key;
+        return;
+      }
     }
     this.lastFrame = key;
     this.showCpu(false);
@@ -932,14 +977,18 @@ void main() { o = texture(uTex, vPos); }`);
     gl.drawArrays(gl.TRIANGLES, 0, 3);
   }
 
-  /** A sparse draft drawn by the CPU onto `draftCanvas`, shown over the WebGL canvas. */
-  private renderCpu(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[]): void {
+  /**
+   * A sparse draft (or with `full`, a fast full frame) drawn by the CPU onto `draftCanvas`,
+   * shown over the WebGL canvas.
+   */
+  private renderCpu(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], full = false): void {
     const canvas = this.draftCanvas!;
     if (canvas.width !== width) canvas.width = width;
     if (canvas.height !== height) canvas.height = height;
     if (this.cpuFrame?.width !== width || this.cpuFrame.height !== height) this.cpuFrame = new ImageData(width, height);
     const engine = this.engine!;
-    engine.drawDraft(this.cpuFrame.data, width, height, background, layers.map(({ layer, offset, opacity }) => layer.cpuDraft(engine, offset, opacity)));
+    const what = layers.map(({ layer, offset, opacity }) => (full ? layer.cpuFull(engine, offset, opacity) : layer.cpuDraft(engine, offset, opacity)));
+    engine.drawDraft(this.cpuFrame.data, width, height, background, what);
     canvas.getContext('2d')!.putImageData(this.cpuFrame, 0, 0);
     this.showCpu(true);
   }

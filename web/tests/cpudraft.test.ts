@@ -1,10 +1,11 @@
 // Draft frames drawn by the CPU (the editor on a software GPU): the WebGL2 draft's
-// triangles, every pixel centre inside one of them shaded once.
+// triangles, every pixel centre inside one of them shaded once; and fast full frames (the
+// triangles of `adaptiveTriangles`), held to the CPU reference renderer's full frame.
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
 import { beforeAll, describe, expect, it } from 'vitest';
 import { type DraftHandle, Engine } from '../src/engine';
-import { buildMesh, draftPixels } from '../src/gl';
+import { adaptiveTriangles, buildMesh, draftPixels } from '../src/gl';
 
 let engine: Engine;
 
@@ -145,5 +146,80 @@ describe('draft frames drawn by the CPU', () => {
     expect(() => engine.draftLayer({ ...geometry, skirts: new Float32Array(36).fill(9) })).toThrow(/skirt quarter at \(9, 9\) is off the 8×8 layer/);
     expect(() => engine.draftLayer({ ...geometry, coarse: new Uint32Array([0, 1, 8]), index: new Uint32Array(64).fill(3), reads: 2 })).toThrow(/Pixel 0 of the draft mesh has no place among the 2 pixels/);
     L.draft.free();
+  });
+});
+
+describe('fast full frames drawn by the CPU', () => {
+  /**
+   * A layer of `w × h` (a vertical cut between columns 30 and 31 over rows 2..h−3) under
+   * `field`, drawn as the editor draws a fast full frame on a software GPU, and by the
+   * core's reference renderer.
+   */
+  function both(w: number, h: number, colour: (x: number, y: number) => number[], field: (x: number, y: number) => [number, number]) {
+    const grid = engine.grid(w, h, null, [[[30.5, 1.5], [30.5, h - 2.5]]]);
+    const links = grid.links();
+    const image = new Uint8Array(4 * w * h);
+    const premultiplied = new Uint8Array(4 * w * h);
+    const dx = new Float32Array(w * h);
+    const dy = new Float32Array(w * h);
+    const pairs = new Float32Array(2 * w * h);
+    const index = new Uint32Array(w * h);
+    for (let y = 0; y < h; y++) {
+      for (let x = 0; x < w; x++) {
+        const k = y * w + x;
+        const c = colour(x, y);
+        image.set(c, 4 * k);
+        premultiplied.set([Math.round((c[0] * c[3]) / 255), Math.round((c[1] * c[3]) / 255), Math.round((c[2] * c[3]) / 255), c[3]], 4 * k);
+        [dx[k], dy[k]] = field(x, y);
+        [pairs[2 * k], pairs[2 * k + 1]] = [dx[k], dy[k]];
+        index[k] = k;
+      }
+    }
+    const f = { width: w, height: h, dx, dy };
+    const mesh = buildMesh(w, h, links, image);
+    const coarse = adaptiveTriangles(w, h, mesh.links, f);
+    const draft = engine.draftLayer({ width: w, height: h, premultiplied, coarse, skirts: mesh.skirts, links: mesh.links, index, reads: w * h, pushBorder: false });
+    const fast = draw(w, h, [{ draft, values: pairs, offset: [0, 0] }]);
+    const every = engine.draftLayer({ width: w, height: h, premultiplied, coarse: mesh.quads, skirts: mesh.skirts, links: mesh.links, index, reads: w * h, pushBorder: false });
+    const full = draw(w, h, [{ draft: every, values: pairs, offset: [0, 0] }]);
+    every.free();
+    const reference = engine.renderCpu(w, h, WHITE, [{ image, grid, field: f, offset: [0, 0] }]);
+    draft.free();
+    grid.free();
+    return { fast, full, reference, triangles: coarse.length / 3 };
+  }
+
+  it('reproduce the layer under the identity field, border pixels included', () => {
+    const w = 64, h = 48;
+    const colour = (x: number, y: number) => [(x * 29) % 256, (y * 53) % 256, (x * y) % 256, 255];
+    const { fast, triangles } = both(w, h, colour, () => [0, 0]);
+    for (let y = 0; y < h; y++) for (let x = 0; x < w; x++) expect(at(fast, w, x, y)).toEqual(colour(x, y));
+    // Whole blocks are single elements: far fewer triangles than two a pixel quad.
+    expect(triangles).toBeLessThan((w - 1) * (h - 1));
+  });
+
+  it('match the full mesh, and the reference renderer away from the edges, across a bent field and a cut', () => {
+    const w = 64, h = 48;
+    const colour = (x: number, y: number) => [128 + 100 * Math.sin(x / 5), 128 + 100 * Math.cos(y / 4), (x * 3) % 256, 255];
+    // Gentle enough that most blocks are single elements, steep enough that some are not.
+    const bend = (x: number, y: number): [number, number] => [0.8 * Math.sin(x / 12) + (x > 30 ? 2.5 : 0), 0.6 * Math.cos(y / 10) + 0.03 * x];
+    const { fast, full, reference, triangles } = both(w, h, colour, bend);
+    expect(triangles).toBeLessThan((w - 1) * (h - 1));
+    const stats = (a: Uint8ClampedArray | Uint8Array, b: Uint8ClampedArray | Uint8Array, keep: (x: number, y: number) => boolean) => {
+      const d: number[] = [];
+      for (let y = 0; y < h; y++) for (let x = 0; x < w; x++) if (keep(x, y)) for (let c = 0; c < 3; c++) d.push(Math.abs(a[4 * (y * w + x) + c] - b[4 * (y * w + x) + c]));
+      d.sort((p, q) => p - q);
+      return { mean: d.reduce((p, q) => p + q, 0) / d.length, p99: d[Math.floor(0.99 * d.length)] };
+    };
+    // The same rasteriser over every pixel quad: only the elements' approximation of the
+    // field (within ADAPTIVE_TOLERANCE) tells them apart.
+    const mesh = stats(fast, full, () => true);
+    expect(mesh.mean).toBeLessThan(0.5);
+    expect(mesh.p99).toBeLessThanOrEqual(4);
+    // The reference renderer covers pixels by area where these sample their centres, which
+    // differs along the border and the cut's sides (moved to about x = 33 by the field).
+    const inside = stats(fast, reference, (x, y) => x > 4 && y > 4 && x < w - 5 && y < h - 5 && Math.abs(x - 33) > 4);
+    expect(inside.mean).toBeLessThan(1);
+    expect(inside.p99).toBeLessThanOrEqual(4);
   });
 });

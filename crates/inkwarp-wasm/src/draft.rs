@@ -30,6 +30,10 @@ struct DraftLayer {
     index: Vec<u32>,
     /// How many pixels the sparse draft holds.
     reads: usize,
+    /// Whether the mesh's vertices on the layer's border move out by half a pixel (a draft:
+    /// its skirts along the border are not drawn), or stay (a fast full frame, whose skirt
+    /// quarters cover the border).
+    push_border: bool,
 }
 
 thread_local! {
@@ -40,8 +44,10 @@ thread_local! {
 /// draft mesh's triangles (`coarse_len` indices), its inner skirt quarters' vertices
 /// (`skirts_len` floats, 6 a vertex), its links and its sparse index (`w·h` each: the
 /// place of each pixel among the `reads` pixels its sparse drafts hold). Every pixel the
-/// triangles and quarters read must have a place. Returns a handle ≥ 1, or 0 with the
-/// error in the result buffer.
+/// triangles and quarters read must have a place. `push_border` (nonzero) moves the
+/// triangles' vertices on the layer's border out by half a pixel, as the WebGL2 draft does
+/// where it draws no skirts along the border; a fast full frame passes every skirt quarter
+/// and 0. Returns a handle ≥ 1, or 0 with the error in the result buffer.
 #[no_mangle]
 #[allow(clippy::too_many_arguments)]
 pub extern "C" fn iw_draft_new(
@@ -55,6 +61,7 @@ pub extern "C" fn iw_draft_new(
     links_ptr: *const u8,
     index_ptr: *const u32,
     reads: usize,
+    push_border: u32,
 ) -> u32 {
     let n = width * height;
     if n == 0 || coarse_len % 3 != 0 || skirts_len % 36 != 0 {
@@ -114,6 +121,7 @@ pub extern "C" fn iw_draft_new(
         links: view(links_ptr, n).to_vec(),
         index,
         reads,
+        push_border: push_border != 0,
     };
     DRAFTS.with(|d| insert(&mut d.borrow_mut(), layer))
 }
@@ -224,7 +232,8 @@ fn draw_layer(mut t: Target, layer: &DraftLayer, values: &[f32], offset: [f64; 2
         opacity,
         clamp: None,
     };
-    // The draft mesh: the border's vertices pushed out by half a pixel.
+    // The draft mesh: for a draft, the border's vertices pushed out by half a pixel.
+    let push = if layer.push_border { 0.5 } else { 0.0 };
     for tri in layer.coarse.chunks_exact(3) {
         let mut c = [Corner::default(); 3];
         for (corner, &p) in c.iter_mut().zip(tri) {
@@ -232,9 +241,9 @@ fn draw_layer(mut t: Target, layer: &DraftLayer, values: &[f32], offset: [f64; 2
             let (i, j) = (p % w, p / w);
             let out = |k: usize, n: usize| {
                 if k == 0 {
-                    -0.5
+                    -push
                 } else if k == n - 1 {
-                    0.5
+                    push
                 } else {
                     0.0
                 }
@@ -572,6 +581,7 @@ mod tests {
             links: vec![1],
             index: vec![0],
             reads: 1,
+            push_border: true,
         }
     }
 
