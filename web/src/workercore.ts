@@ -1,0 +1,109 @@
+// The solver worker's work, apart from the worker itself (see `worker.ts`): it owns the
+// engine's grids and the last field of every layer, answers each message from the page
+// with messages of its own, and can run (and be tested) anywhere an `Engine` loads.
+
+import { Engine, type FieldData, type GridHandle } from './engine';
+import { adaptiveTriangles } from './gl';
+import { LastFields } from './lastfields';
+import type { FromWorker, ToWorker } from './protocol';
+
+/** Sends a message to the page, handing over the buffers in `transfer`. */
+export type Post = (msg: FromWorker, transfer?: Transferable[]) => void;
+
+export class SolverWorker {
+  private engine: Engine | null = null;
+  private wasmUrl = '';
+  private grids = new Map<string, GridHandle>();
+  private last = new LastFields();
+  /** Each grid's links (per node: bit 0 active, bit 1 linked right, bit 2 linked down). */
+  private linksOf = new Map<string, Uint8Array>();
+
+  /** `load` makes an engine from the URL the page names in its `init` message. */
+  constructor(
+    private post: Post,
+    private load: (wasmUrl: string) => Promise<Engine> = (url) => Engine.fromUrl(url),
+  ) {}
+
+  async handle(msg: ToWorker): Promise<void> {
+    try {
+      if (msg.type === 'init') {
+        this.wasmUrl = msg.wasmUrl;
+        this.engine = await this.load(msg.wasmUrl);
+        this.post({ type: 'ready' });
+        return;
+      }
+      const engine = this.engine;
+      if (!engine) throw new Error('The engine is not loaded yet.');
+      if (msg.type === 'grid') {
+        this.grids.get(msg.key)?.free();
+        const grid = engine.grid(msg.width, msg.height, msg.matte, msg.cuts);
+        this.grids.set(msg.key, grid);
+        this.last.regrid(msg.key, msg.width, msg.height);
+        const links = grid.links();
+        this.linksOf.set(msg.key, links.slice());
+        this.post({ type: 'links', key: msg.key, links }, [links.buffer]);
+      } else if (msg.type === 'drop') {
+        this.grids.get(msg.key)?.free();
+        this.grids.delete(msg.key);
+        this.last.forget(msg.key);
+        this.linksOf.delete(msg.key);
+      } else if (msg.type === 'select') {
+        this.gridOf(msg.key).select(msg.pixels);
+      } else if (msg.type === 'solve') {
+        this.solve(msg);
+      }
+    } catch (err) {
+      if (err instanceof WebAssembly.RuntimeError && this.wasmUrl) {
+        // A trap leaves the module's state unusable: start a fresh instance.
+        const why = this.engine?.panicMessage() || err.message;
+        this.engine = await this.load(this.wasmUrl);
+        this.grids.clear();
+        this.last.clear();
+        this.linksOf.clear();
+        this.post({ type: 'reset', message: `The engine stopped (${why}) and was restarted.` });
+      }
+      const id = msg.type === 'solve' ? msg.id : null;
+      const key = 'key' in msg ? msg.key : null;
+      this.post({ type: 'error', id, key, message: (err as Error).message ?? String(err) });
+    }
+  }
+
+  private gridOf(key: string): GridHandle {
+    const grid = this.grids.get(key);
+    if (!grid) throw new Error(`No grid for layer ${key}.`);
+    return grid;
+  }
+
+  private solve(msg: Extract<ToWorker, { type: 'solve' }>): void {
+    const grid = this.gridOf(msg.key);
+    const t0 = performance.now();
+    const head = { type: 'field' as const, id: msg.id, key: msg.key, gridStep: msg.options.grid_step ?? 1, began: performance.timeOrigin + t0 };
+    const ended = () => performance.timeOrigin + performance.now();
+    if (msg.sparse) {
+      // A draft at the draft mesh's pixels: nothing to keep, the drafts' own history (in
+      // the engine) is the next one's start.
+      const { values, report } = grid.solveAt(msg.features, msg.options);
+      this.post({ ...head, field: null, sparse: values, report, ms: performance.now() - t0, ended: ended() }, [values.buffer]);
+      return;
+    }
+    const { field, report, reused } = this.last.solve(msg.key, grid, msg.features, msg.options, msg.warm);
+    const ms = performance.now() - t0;
+    if (msg.follow) {
+      // Following a drag (or probing, see `App.probe`): the field stays here as the next
+      // start, the page draws drafts.
+      this.post({ ...head, field: null, report, ms, ended: ended() });
+      return;
+    }
+    // Send copies: the worker keeps its own field as the next warm start.
+    const out: FieldData = { width: field.width, height: field.height, dx: field.dx.slice(), dy: field.dy.slice() };
+    // The page draws a full-resolution field first through these (on a software GPU),
+    // and they take a pass over every pixel: built here, the page never waits for them.
+    const links = msg.mesh ? this.linksOf.get(msg.key) : undefined;
+    const triangles = links ? adaptiveTriangles(field.width, field.height, links, field) : undefined;
+    this.post({ ...head, field: out, reused, triangles, report, ms, ended: ended() }, [
+      out.dx.buffer,
+      out.dy.buffer,
+      ...(triangles ? [triangles.buffer] : []),
+    ]);
+  }
+}

@@ -1,0 +1,121 @@
+// The solver worker's message path (`SolverWorker`, which `worker.ts` runs in a Web
+// Worker), with the real engine: what the page is sent back for each kind of request.
+import { readFileSync } from 'node:fs';
+import { fileURLToPath } from 'node:url';
+import { beforeEach, describe, expect, it } from 'vitest';
+import { Engine, type SolveFeature } from '../src/engine';
+import type { FromWorker, ToWorker } from '../src/protocol';
+import type { Pt } from '../src/scene';
+import { SolverWorker } from '../src/workercore';
+
+const bytes = readFileSync(fileURLToPath(new URL('../src/generated/inkwarp.wasm', import.meta.url)));
+
+type Field = Extract<FromWorker, { type: 'field' }>;
+
+let sent: FromWorker[];
+let worker: SolverWorker;
+let loads: number;
+
+/** Sends `msg`, and returns what the worker sent back for it. */
+async function send(msg: ToWorker): Promise<FromWorker[]> {
+  const before = sent.length;
+  await worker.handle(msg);
+  return sent.slice(before);
+}
+
+async function field(msg: ToWorker): Promise<Field> {
+  const out = await send(msg);
+  expect(out.length).toBe(1);
+  expect(out[0].type, JSON.stringify(out[0])).toBe('field');
+  return out[0] as Field;
+}
+
+const W = 40;
+const H = 32;
+const pose = (x: number): SolveFeature[] => [
+  { kind: 'spline', rest: [[5, 5], [20, 12], [35, 5]], pose: [[5, 5], [x, 14], [35, 5]] },
+  { kind: 'point', rest: [[20, 28]], pose: [[20, 28]] },
+];
+const solve = (id: number, features: SolveFeature[], extra: Partial<Extract<ToWorker, { type: 'solve' }>> = {}): ToWorker => ({
+  type: 'solve',
+  id,
+  key: 'L',
+  features,
+  options: { tolerance: 0.01 },
+  warm: true,
+  ...extra,
+});
+
+beforeEach(async () => {
+  sent = [];
+  loads = 0;
+  worker = new SolverWorker(
+    (msg) => sent.push(msg),
+    async () => {
+      loads++;
+      return Engine.fromBytes(bytes);
+    },
+  );
+  expect(await send({ type: 'init', wasmUrl: 'inkwarp.wasm' })).toEqual([{ type: 'ready' }]);
+  const cuts: Pt[][] = [[[25.5, 10], [25.5, 31]]];
+  const [links] = await send({ type: 'grid', key: 'L', width: W, height: H, matte: null, cuts });
+  expect(links.type).toBe('links');
+  if (links.type === 'links') {
+    expect(links.links.length).toBe(W * H);
+    expect(links.links[20 * W + 25] & 2).toBe(0); // the cut
+  }
+});
+
+describe('the solver worker', () => {
+  it('sends a full field, and the same field again without solving for the same request', async () => {
+    const first = await field(solve(1, pose(24)));
+    expect(first.id).toBe(1);
+    expect(first.field?.dx.length).toBe(W * H);
+    expect(first.report.converged).toBe(true);
+    expect(first.reused).toBe(false);
+    const again = await field(solve(2, pose(24)));
+    expect(again.reused).toBe(true);
+    expect(Array.from(again.field!.dx)).toEqual(Array.from(first.field!.dx));
+    // A copy each time: the worker keeps its own as the next start.
+    expect(again.field!.dx).not.toBe(first.field!.dx);
+  });
+
+  it('follows a pose without sending its field, then answers the settle on that pose with it', async () => {
+    await field(solve(1, pose(20)));
+    const follow = await field(solve(2, pose(26), { follow: true }));
+    expect(follow.field).toBeNull();
+    expect(follow.report.cycles).toBeGreaterThan(1);
+    const settle = await field(solve(3, pose(26), { mesh: true }));
+    expect(settle.reused).toBe(true);
+    expect(settle.field).not.toBeNull();
+    // The fast full frame's triangles come with it when asked for.
+    expect(settle.triangles!.length % 3).toBe(0);
+    expect(settle.triangles!.length).toBeGreaterThan(0);
+    // A later pose starts from the followed ones: fewer cycles than the follow took.
+    const next = await field(solve(4, pose(28)));
+    expect(next.reused).toBe(false);
+    expect(next.report.cycles).toBeLessThan(follow.report.cycles!);
+  });
+
+  it('solves a sparse draft at the selected pixels only', async () => {
+    const pixels = new Uint32Array([0, 5 * W + 5, 20 * W + 30, W * H - 1]);
+    expect(await send({ type: 'select', key: 'L', pixels })).toEqual([]);
+    const draft = await field(solve(1, pose(24), { sparse: true, options: { grid_step: 4 } }));
+    expect(draft.field).toBeNull();
+    expect(draft.sparse!.length).toBe(2 * pixels.length);
+    expect(draft.gridStep).toBe(4);
+  });
+
+  it('answers a request it cannot solve with an error naming it, and goes on', async () => {
+    const [bad] = await send(solve(7, [{ kind: 'polyline', rest: [[1, 1]], pose: [[1, 1]] }]));
+    expect(bad).toMatchObject({ type: 'error', id: 7, key: 'L' });
+    const [none] = await send({ ...solve(8, pose(24)), key: 'nobody' } as ToWorker);
+    expect(none).toMatchObject({ type: 'error', id: 8, key: 'nobody', message: 'No grid for layer nobody.' });
+    expect((await field(solve(9, pose(24)))).report.converged).toBe(true);
+    // A dropped grid is gone.
+    expect(await send({ type: 'drop', key: 'L' })).toEqual([]);
+    const [gone] = await send(solve(10, pose(24)));
+    expect(gone).toMatchObject({ type: 'error', id: 10, message: 'No grid for layer L.' });
+    expect(loads).toBe(1);
+  });
+});
