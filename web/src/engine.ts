@@ -440,16 +440,12 @@ export class Engine {
     try {
       for (const l of layers) {
         const n = l.grid.width * l.grid.height;
-        const imgPtr = this.put(l.image);
-        const fieldPtr = this.x.iw_alloc(8 * n);
-        try {
-          this.f32(fieldPtr, n).set(l.field.dx);
-          this.f32(fieldPtr + 4 * n, n).set(l.field.dy);
-          this.check(this.x.iw_canvas_draw(canvas, l.grid.handle, imgPtr, fieldPtr, l.offset[0], l.offset[1]));
-        } finally {
-          this.x.iw_free(imgPtr, l.image.length);
-          this.x.iw_free(fieldPtr, 8 * n);
-        }
+        if (l.field.dx.length !== n || l.field.dy.length !== n || l.image.length !== 4 * n) throw new EngineError('A layer to render needs its image and field at every pixel of its grid.');
+        // The field as the adapter reads it: the Δx plane, then the Δy plane.
+        const planes = new Float32Array(2 * n);
+        planes.set(l.field.dx);
+        planes.set(l.field.dy, n);
+        this.withCopies((copy) => this.check(this.x.iw_canvas_draw(canvas, l.grid.handle, copy(l.image), copy(planes), l.offset[0], l.offset[1])));
       }
       const len = 4 * width * height;
       return this.withBuffer(len, (ptr) => {
