@@ -443,7 +443,9 @@ export class Ui {
     const r = ev?.report;
     const solved = !ev || !r
       ? 'no solve yet'
-      : r.method === 'tps'
+      : ev.reused
+        ? `last field (tps) already solved for this pose, not solved again · grid step ${ev.gridStep} · ${r.cycles} cycles · ${r.samples} samples`
+        : r.method === 'tps'
         ? `last solve (tps) ${ev.ms.toFixed(1)} ms · grid step ${ev.gridStep} · ${r.cycles} cycles · ${r.samples} samples${r.dropped_samples ? ` · ${r.dropped_samples} dropped` : ''}`
         : `last solve (${r.method}) ${ev.ms.toFixed(1)} ms · ${r.samples} samples${r.samples_used !== undefined && r.samples_used !== r.samples ? `, ${r.samples_used} used` : ''}${r.line_pairs_used ? ` · ${r.line_pairs_used} line pairs` : ''}`;
     // The engine's remarks on the fields shown (each once, with the layers they concern).
