@@ -590,6 +590,8 @@ export class Ui {
       const f = getFeature(this.store.doc, hit.id)!;
       this.store.setView({ selection: { feature: hit.id, point: hit.point } });
       this.drag = { id: hit.id, point: hit.point, start: p, base: shownPoints(f, view.mode, view.time).map((q) => [q[0], q[1]] as Pt), moved: false, at: null };
+      // A press the pointer did not rest before: the probe starts now (see `hover`).
+      if (view.mode === 'pose' && !view.playing) this.app.probe(hit.id, hit.point);
       this.store.begin();
       this.app.dragging = view.mode === 'pose';
     });

@@ -91,4 +91,26 @@ describe('a probe ahead of a drag', () => {
     expect(withProbe).toBeLessThanOrEqual(2);
     expect(withProbe).toBeLessThan(without);
   });
+
+  it("keeps a spline point's settle close after the drag's first short step", () => {
+    // The probe and the drag's first pose (a short step) are nearly parallel: their exact
+    // least-squares combination for the settle's pose is wild, and falling back to the
+    // latest frame alone, as the warm-start history once did, started the settle far off.
+    const settle = (step: boolean): number => {
+      const grid = engine.grid(W, H, null, CUTS);
+      try {
+        const before = scene();
+        let last = grid.solve(before, {}, null).field;
+        last = grid.solve(probedFeatures(before, 'curve', 1)!, { tolerance: PROBE_TOLERANCE_PX }, last).field;
+        if (step) last = grid.solve(moved(before, 'curve', 1, [1.2, -0.3]), {}, last).field;
+        return grid.solve(moved(before, 'curve', 1, [20, -5]), {}, last).report.cycles ?? Infinity;
+      } finally {
+        grid.free();
+      }
+    };
+    const withStep = settle(true);
+    const probeOnly = settle(false);
+    expect(withStep).toBeLessThanOrEqual(probeOnly + 1);
+  });
 });
+
