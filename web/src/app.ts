@@ -503,15 +503,16 @@ export class App {
   }
 
   /**
-   * The pointer rests on control point `point` of feature `id` (the whole feature when null)
-   * in pose mode: while the full-resolution solver has nothing else to do, it solves the
+   * The pointer rests or presses on control point `point` of feature `id` (the whole feature
+   * when null) in pose mode: while the full-resolution solver has nothing else to do, it solves the
    * pose with that point moved by `PROBE_PX` in x and y, and keeps it, as it keeps the poses
    * a drag follows, in its warm-start history. The thin plate is linear in the pose, so a
    * drag of that point starts from the combination of the pose before and the probe:
    * exact where the samples move linearly with the control point (points, polylines,
    * regions, a whole feature moved), close for a spline's point (its knots move with its
-   * points). The drag's first full-resolution solve, which from the pose before takes about
-   * a dozen cycles, then takes a few, and a quick drag's settle waits less behind it.
+   * points). The drag's later solves and its settle then start a cycle or a few from their
+   * answers, where the follows alone (the drag's first short step beside the pose before)
+   * left a quick drag's settle waiting behind a dozen cycles.
    */
   probe(id: string, point: number | null): void {
     if (!this.drafts || !this.posed || this.dragging || this.store.view.playing || this.solver.busy) return;

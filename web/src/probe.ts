@@ -1,5 +1,5 @@
-// Probes: the full-resolution solve of a pose the pointer is about to make, while it rests
-// on a control point in pose mode (see `App.probe`).
+// Probes: the full-resolution solve of a pose the pointer is about to make, when it rests or
+// presses on a control point in pose mode (see `App.probe`).
 
 import type { SolveFeature } from './engine';
 import type { Pt } from './scene';
@@ -8,7 +8,7 @@ import type { Pt } from './scene';
  * How far (pixels, in x and in y) a probe moves what the pointer rests on. The thin plate
  * is linear in the pose, so any drag of that control point is a combination of the pose
  * before and the probe; a step of this size keeps the combination's weights moderate for
- * drags of a few dozen pixels (the warm-start history refuses wild extrapolations).
+ * drags of a few dozen pixels (the warm-start history distrusts wild extrapolations).
  */
 export const PROBE_PX = 24;
 

@@ -23,7 +23,8 @@ export type ToWorker =
       sparse?: boolean;
       /**
        * Solve and keep the field as the next start, sending back only the report (`field`
-       * null): the full-resolution solver following a drag (see `App.follow`).
+       * null): the full-resolution solver following a drag (see `App.follow`) or probing a
+       * point (see `App.probe`).
        */
       follow?: boolean;
     };

@@ -23,7 +23,7 @@ use super::{dense_solve, solve_constrained, solve_with, SolveError, SolveOptions
 pub const HISTORY_FRAMES: usize = 3;
 
 /// The error (pixels) taken for each kept frame when weighing combinations of them (see
-/// [`WarmHistory::predict`]): the largest tolerance the editor solves a kept frame to.
+/// [`WarmHistory::predict`]): the default tolerance, which frames are usually solved to.
 const FRAME_ERROR_PX: f64 = 0.01;
 
 /// The last few solves of one animated surface: their constraint values and fields.
