@@ -368,6 +368,39 @@ fn starts_from_earlier_frames_keep_the_accuracy_and_save_cycles() {
 }
 
 #[test]
+fn a_history_of_nearly_parallel_frames_still_starts_close() {
+    // The editor's probe of a spline point (moved by (12, 12)), then the drag's first short
+    // step (1, -0.25): for a pose further along the drag the fit through all three frames
+    // takes wild weights, which the history must not answer with the latest frame alone.
+    use crate::geometry::{sample_feature, Kind, SampleOptions};
+    let (w, h) = (64usize, 48usize);
+    let mut grid = Grid::new(w, h);
+    grid.add_cut(&[[40.5, 8.0], [40.5, 40.0]]);
+    let rest = [[10.0, 8.0], [17.0, 24.0], [10.0, 40.0]];
+    let pins = [([55.0, 10.0], [0.0, 0.0]), ([55.0, 40.0], [1.0, 0.0]), ([30.0, 45.0], [0.0, 0.0])];
+    let pose = |d: [f64; 2]| -> Vec<Sample> {
+        let mut p = rest;
+        p[1] = [p[1][0] + d[0], p[1][1] + d[1]];
+        let mut s = sample_feature(Kind::Spline, &rest, &p, &SampleOptions::default(), Some(&grid)).unwrap();
+        s.extend(pins.iter().map(|&(rest, displacement)| Sample { rest, displacement }));
+        s
+    };
+    let opts = SolveOptions::default();
+    let settle = |frames: &[[f64; 2]]| -> usize {
+        let mut history = WarmHistory::new();
+        for &d in frames {
+            solve_warm(&grid, &pose(d), &opts, &mut history, None).unwrap();
+        }
+        solve_warm(&grid, &pose([10.0, -2.5]), &opts, &mut history, None).unwrap().1.cycles
+    };
+    let (probe, step) = ([12.0, 12.0], [1.0, -0.25]);
+    let all = settle(&[[0.0, 0.0], probe, step]);
+    let latest = settle(&[step]);
+    // (3 against 8 when written; 8 too with the latest frame as the fallback.)
+    assert!(all + 2 <= latest, "{all} cycles from the three frames, {latest} from the step alone");
+}
+
+#[test]
 fn coarse_steps_start_from_earlier_coarse_frames() {
     // A draft's solves (grid_step 4) along a smooth motion, with a cut: the history keeps
     // the coarse fields, each solve lands as close to the coarse minimiser as a cold one
