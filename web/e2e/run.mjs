@@ -528,12 +528,17 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   const count = await page.evaluate(() => window.inkwarp.store.doc.features.length);
   await page.keyboard.press('e');
   await idle(page);
-  // Three drags with pauses (each pause lets the full-resolution solve land).
+  // Two quick drags, pressed as soon as the pointer is on the point, with pauses (each
+  // pause lets the full-resolution solve land).
   const framesBefore = await page.evaluate(() => ({ ...window.inkwarp.app.stats.frames }));
+  const askedBefore = await page.evaluate(() => ({ ...window.inkwarp.app.stats.probesAsked }));
   for (const [from, to] of [[[135, 256], [175, 246]], [[256, 70], [256, 40]]]) {
     await drag(page, from, to, 15);
     await idle(page);
   }
+  const askedQuick = await page.evaluate(() => ({ ...window.inkwarp.app.stats.probesAsked }));
+  // Each press probed its point at once (the pointer never rested on it).
+  assert(askedQuick.press - askedBefore.press === 2 && askedQuick.rest === askedBefore.rest, `probes asked by the quick drags: ${JSON.stringify([askedBefore, askedQuick])}`);
   // The picture is drawn again only for a new field (a pointer move alone redraws the
   // overlay): at most a frame per field, plus the settles' multisampled frames.
   const frames = await page.evaluate((b) => {
@@ -613,6 +618,7 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   // point for a third of a second as a hand aims: meanwhile the full-resolution solver
   // probes the point (see `App.probe`).
   const probesBefore = (await page.evaluate(() => window.inkwarp.app.stats.probeSolveMs.length));
+  const askedBeforeAim = await page.evaluate(() => ({ ...window.inkwarp.app.stats.probesAsked }));
   const aimedBefore = await page.evaluate(() => window.inkwarp.app.stats.settle.length);
   for (const [from, to] of [[[175, 246], [135, 256]], [[135, 256], [175, 246]]]) {
     await drag(page, from, to, 15, AIM_MS);
@@ -624,6 +630,9 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   }, [aimedBefore, probesBefore]);
   assert(perf.aimedDrags.parts.length === 2, `each aimed drag settled once: ${JSON.stringify(perf.aimedDrags.settleMs)}`);
   assert(perf.aimedDrags.probes.length >= 2, `the resting pointer's point was probed before each aimed drag: ${JSON.stringify(perf.aimedDrags.probes)}`);
+  // Asked while the pointer rested, not on the press (which found its point probed already).
+  const askedAim = await page.evaluate(() => ({ ...window.inkwarp.app.stats.probesAsked }));
+  assert(askedAim.rest - askedBeforeAim.rest === 2 && askedAim.press === askedBeforeAim.press, `probes asked by the aimed drags: ${JSON.stringify([askedBeforeAim, askedAim])}`);
   await screenshot(page, 'measured');
 });
 

@@ -11,6 +11,15 @@ import type { FieldEvent, SolverClient } from './solver';
 import { PROBE_TOLERANCE_PX, probedFeatures } from './probe';
 import { Store } from './state';
 
+/**
+ * Whether a layer's full-resolution solves start warm from the earlier ones (the grid thin
+ * plate by multigrid; the other methods solve from scratch): only theirs follow drags and
+ * probe points.
+ */
+function startsWarm(options: SolveOptions): boolean {
+  return options.method === 'tps' && options.scheme === 'multigrid';
+}
+
 export interface LayerRuntime {
   name: string;
   /** What the pictures were loaded from (image|alpha|continuity). */
@@ -48,6 +57,8 @@ export interface Stats {
   followSolveMs: number[];
   /** The full-resolution solves of probes (see `App.probe`). */
   probeSolveMs: number[];
+  /** Probes asked for after the pointer rested on a point, and on a press without a rest. */
+  probesAsked: { rest: number; press: number };
   playback: { expected: number; shown: number; dropped: number } | null;
   /** Where each settle's time went (ms; see `SettleParts`). */
   settleParts: SettleParts[];
@@ -132,7 +143,7 @@ export class App {
   readonly store: Store;
   readonly gl: GlRenderer;
   readonly runtimes = new Map<string, LayerRuntime>();
-  readonly stats: Stats = { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 } };
+  readonly stats: Stats = { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 } };
   onMessage: (text: string, kind: 'error' | 'info') => void = () => {};
   onFrame: () => void = () => {};
   onSolved: (ev: FieldEvent) => void = () => {};
@@ -494,11 +505,16 @@ export class App {
   private follow(rt: LayerRuntime, layer: Layer, features: SolveFeature[], time: number): void {
     if (!this.drafts) return;
     const options = this.solverOptions(layer, 'final');
-    if (options.method !== 'tps' || options.scheme !== 'multigrid') return;
+    if (!startsWarm(options)) return;
     const sig = JSON.stringify([features, options]);
     if (sig === rt.lastFollow) return;
     rt.lastFollow = sig;
-    const tag = { madeAt: performance.now(), seq: ++this.seq, quality: 'follow', gen: rt.gridGen, time, rev: this.store.revision };
+    this.keep(rt, layer, features, options, 'follow', time);
+  }
+
+  /** Asks the full-resolution solver for a pose it solves and keeps, sending back only its report. */
+  private keep(rt: LayerRuntime, layer: Layer, features: SolveFeature[], options: SolveOptions, quality: 'follow' | 'probe', time: number): void {
+    const tag = { madeAt: performance.now(), seq: ++this.seq, quality, gen: rt.gridGen, time, rev: this.store.revision };
     this.solver.solve(layer.name, features, options, tag, { follow: true });
   }
 
@@ -512,23 +528,24 @@ export class App {
    * regions, a whole feature moved), close for a spline's point (its knots move with its
    * points). The drag's later solves and its settle then start a cycle or a few from their
    * answers, where the follows alone (the drag's first short step beside the pose before)
-   * left a quick drag's settle waiting behind a dozen cycles.
+   * left a quick drag's settle waiting behind a dozen cycles. `on` says which (counted in
+   * `stats.probesAsked`).
    */
-  probe(id: string, point: number | null): void {
+  probe(id: string, point: number | null, on: 'rest' | 'press'): void {
     if (!this.drafts || !this.posed || this.dragging || this.store.view.playing || this.solver.busy) return;
     const time = this.store.view.time;
     const sig = JSON.stringify([id, point, time, this.store.revision]);
     if (sig === this.lastProbe) return;
     this.lastProbe = sig;
+    this.stats.probesAsked[on]++;
     for (const layer of this.doc.layers) {
       const rt = this.runtimes.get(layer.name);
       if (!rt?.gridReady) continue;
       const options = this.solverOptions(layer, 'final');
-      if (options.method !== 'tps' || options.scheme !== 'multigrid') continue;
+      if (!startsWarm(options)) continue;
       const features = probedFeatures(this.solveFeatures(layer, time), id, point);
       if (!features) continue;
-      const tag = { madeAt: performance.now(), seq: ++this.seq, quality: 'probe', gen: rt.gridGen, time, rev: this.store.revision };
-      this.solver.solve(layer.name, features, { ...options, tolerance: Math.max(options.tolerance ?? 0, PROBE_TOLERANCE_PX) }, tag, { follow: true });
+      this.keep(rt, layer, features, { ...options, tolerance: Math.max(options.tolerance ?? 0, PROBE_TOLERANCE_PX) }, 'probe', time);
     }
   }
 

@@ -466,11 +466,6 @@ function blockMesh(w: number, h: number, links: Uint8Array, s: number, fit: { fi
 
 let layerSerial = 0;
 
-/** The identity field of a `w × h` layer. */
-function zeroField(w: number, h: number): FieldData {
-  return { width: w, height: h, dx: new Float32Array(w * h), dy: new Float32Array(w * h) };
-}
-
 /** One layer's GPU resources. */
 export class GlLayer {
   /** Tells layers apart, and (`version`) each state of one: the image, mesh or field set. */
@@ -525,6 +520,8 @@ export class GlLayer {
   private allSkirts: Float32Array | null = null;
   private fieldPairs: Float32Array | null = null;
   private fullHandle: { handle: DraftHandle; version: number } | null = null;
+  /** Every pixel's place among a full field's values: itself (built once). */
+  private identity: Uint32Array | null = null;
   constructor(
     private r: GlRenderer,
     readonly width: number,
@@ -618,7 +615,7 @@ export class GlLayer {
     this.draftPixels = pixels;
     const index = new Uint32Array(w * h);
     for (let k = 0; k < pixels.length; k++) index[pixels[k]] = k;
-    this.draftGeometry = this.r.softwareGpu ? { coarse, skirts: skirts.slice(0, 6 * innerSkirts), links: l, index, reads: pixels.length } : null;
+    this.draftGeometry = this.r.softwareGpu ? { coarse, skirts: skirts.subarray(0, 6 * innerSkirts), links: l, index, reads: pixels.length } : null;
     this.allSkirts = this.r.softwareGpu ? skirts : null;
     this.dropDraftHandle();
     gl.bindTexture(gl.TEXTURE_2D, this.sparseIndex);
@@ -663,7 +660,7 @@ export class GlLayer {
 
   /** Whether the CPU can draw the layer's fast full frame now (`cpuFull`): a full field, on a software GPU. */
   get onCpuFull(): boolean {
-    return !this.sparse && this.fieldPairs !== null && this.allSkirts !== null && this.draftGeometry !== null;
+    return !this.sparse && this.fieldPairs !== null && this.allSkirts !== null;
   }
 
   /**
@@ -676,10 +673,9 @@ export class GlLayer {
     if (this.fullHandle?.version !== this.version) {
       this.fullHandle?.handle.free();
       const { width: w, height: h } = this;
-      const index = new Uint32Array(w * h);
-      for (let i = 0; i < index.length; i++) index[i] = i;
-      const coarse = this.givenTriangles ?? adaptiveTriangles(w, h, this.allLinks, this.fieldData ?? zeroField(w, h));
-      const handle = engine.draftLayer({ width: w, height: h, premultiplied: this.premultipliedBytes, coarse, skirts: this.allSkirts!, links: this.allLinks, index, reads: w * h, pushBorder: false });
+      this.identity ??= Uint32Array.from({ length: w * h }, (_, i) => i);
+      const coarse = this.fastTriangles();
+      const handle = engine.draftLayer({ width: w, height: h, premultiplied: this.premultipliedBytes, coarse, skirts: this.allSkirts!, links: this.allLinks, index: this.identity, reads: w * h, pushBorder: false });
       this.fullHandle = { handle, version: this.version };
       this.adaptiveCount = coarse.length;
     }
@@ -706,11 +702,16 @@ export class GlLayer {
     this.fieldPairs = this.r.softwareGpu ? rg : null;
   }
 
+  /** The triangles of the fast full frame of the current field and mesh: the worker's, or built here. */
+  private fastTriangles(): Uint32Array {
+    const { width: w, height: h } = this;
+    return this.givenTriangles ?? adaptiveTriangles(w, h, this.allLinks, this.fieldData ?? { width: w, height: h, dx: new Float32Array(w * h), dy: new Float32Array(w * h) });
+  }
+
   /** Makes `adaptive` the triangles of the current field and mesh (once per version). */
   useAdaptive(): void {
     if (this.adaptiveFor === this.version) return;
-    const { width: w, height: h } = this;
-    const triangles = this.givenTriangles ?? adaptiveTriangles(w, h, this.allLinks, this.fieldData ?? zeroField(w, h));
+    const triangles = this.fastTriangles();
     const gl = this.r.gl;
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.adaptive);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, triangles, gl.DYNAMIC_DRAW);
@@ -774,10 +775,11 @@ export class GlRenderer {
   /** Whether the GPU is a software one (SwiftShader, llvmpipe: the browser draws on the CPU). */
   readonly softwareGpu: boolean;
   /**
-   * A 2D canvas stacked over the WebGL one, where sparse drafts are drawn by the CPU
-   * (`Engine.drawDraft`) while `cpuDrafts` is on (see `useEngine`): the page then shows
-   * them without waiting for the GPU, which a software GPU makes it do for every WebGL
-   * frame it shows. Hidden while the WebGL canvas shows the frame. Null off the page.
+   * A 2D canvas stacked over the WebGL one, where sparse drafts and fast full frames are
+   * drawn by the CPU (`Engine.drawDraft`) while `cpuDrafts` is on (see `useEngine`): the
+   * page then shows them without waiting for the GPU, which a software GPU makes it do for
+   * every WebGL frame it shows. Hidden while the WebGL canvas shows the frame. Null off the
+   * page.
    */
   readonly draftCanvas: HTMLCanvasElement | null = null;
   cpuDrafts = false;
@@ -822,7 +824,7 @@ void main() { o = texture(uTex, vPos); }`);
     }
   }
 
-  /** Draws sparse drafts with `engine` on the CPU where the GPU is a software one. */
+  /** Draws sparse drafts and fast full frames with `engine` on the CPU where the GPU is a software one. */
   useEngine(engine: Engine): void {
     this.engine = engine;
     this.cpuDrafts = this.softwareGpu && this.draftCanvas !== null;
@@ -993,7 +995,7 @@ void main() { o = texture(uTex, vPos); }`);
     this.showCpu(true);
   }
 
-  /** Shows the CPU's draft canvas or the WebGL one (never both: the one below would show through where a frame is transparent). */
+  /** Shows the CPU's canvas or the WebGL one (never both: the one below would show through where a frame is transparent). */
   private showCpu(on: boolean): void {
     if (this.cpuShown === on || !this.draftCanvas) return;
     this.cpuShown = on;
@@ -1004,10 +1006,10 @@ void main() { o = texture(uTex, vPos); }`);
   /**
    * Resolves with the time (performance.now()) the GPU finished the commands issued so
    * far: a fence polled between tasks, so nothing waits on the GPU (a software GPU draws
-   * a frame long after the calls return). After a draft drawn by the CPU: now.
+   * a frame long after the calls return). After a frame drawn by the CPU: now.
    */
   finished(): Promise<number> {
-    // A draft drawn by the CPU is on its canvas already.
+    // A frame drawn by the CPU is on its canvas already.
     if (this.cpuShown) return Promise.resolve(performance.now());
     const gl = this.gl;
     const sync = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);

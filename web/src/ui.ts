@@ -591,7 +591,7 @@ export class Ui {
       this.store.setView({ selection: { feature: hit.id, point: hit.point } });
       this.drag = { id: hit.id, point: hit.point, start: p, base: shownPoints(f, view.mode, view.time).map((q) => [q[0], q[1]] as Pt), moved: false, at: null };
       // A press the pointer did not rest before: the probe starts now (see `hover`).
-      if (view.mode === 'pose' && !view.playing) this.app.probe(hit.id, hit.point);
+      if (view.mode === 'pose' && !view.playing) this.app.probe(hit.id, hit.point, 'press');
       this.store.begin();
       this.app.dragging = view.mode === 'pose';
     });
@@ -614,11 +614,12 @@ export class Ui {
         this.dragTo(e);
         return;
       }
+      const p = this.toScene(e.clientX, e.clientY);
       if (this.store.view.draft.length) {
-        this.overlay.hover = this.toScene(e.clientX, e.clientY);
+        this.overlay.hover = p;
         this.drawOverlay();
       }
-      this.hover(this.toScene(e.clientX, e.clientY));
+      this.hover(p);
     });
     const end = () => {
       if (!this.drag) return;
@@ -657,7 +658,7 @@ export class Ui {
     this.hovered = key;
     if (!hit) return;
     setTimeout(() => {
-      if (this.hovered === key && !this.drag) this.app.probe(hit.id, hit.point);
+      if (this.hovered === key && !this.drag) this.app.probe(hit.id, hit.point, 'rest');
     }, PROBE_DWELL_MS);
   }
 

@@ -1,17 +1,15 @@
 // Draft frames drawn by the CPU (the editor on a software GPU): the WebGL2 draft's
 // triangles, every pixel centre inside one of them shaded once; and fast full frames (the
 // triangles of `adaptiveTriangles`), held to the CPU reference renderer's full frame.
-import { readFileSync } from 'node:fs';
-import { fileURLToPath } from 'node:url';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { type DraftHandle, Engine } from '../src/engine';
+import type { DraftHandle, Engine } from '../src/engine';
 import { adaptiveTriangles, buildMesh, draftPixels } from '../src/gl';
+import { loadEngine } from './wasm';
 
 let engine: Engine;
 
 beforeAll(async () => {
-  const bytes = readFileSync(fileURLToPath(new URL('../src/generated/inkwarp.wasm', import.meta.url)));
-  engine = await Engine.fromBytes(bytes);
+  engine = await loadEngine();
 });
 
 interface Layer {

@@ -1,16 +1,14 @@
 // The WebAssembly build of the core, loaded in Node: the adapter's calls, and the editor's
 // TypeScript keyframe interpolation held to the engine's.
-import { readFileSync } from 'node:fs';
-import { fileURLToPath } from 'node:url';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { Engine } from '../src/engine';
+import type { Engine } from '../src/engine';
 import { pointsAt, type Feature, type Interpolation, type Pt } from '../src/scene';
+import { loadEngine } from './wasm';
 
 let engine: Engine;
 
 beforeAll(async () => {
-  const bytes = readFileSync(fileURLToPath(new URL('../src/generated/inkwarp.wasm', import.meta.url)));
-  engine = await Engine.fromBytes(bytes);
+  engine = await loadEngine();
 });
 
 describe('the engine in WebAssembly', () => {

@@ -1,17 +1,15 @@
 // The solver worker's last fields: warm starts, the same request answered without a solve,
 // and a drag followed at full resolution leaving its settle a cycle or two of work.
-import { readFileSync } from 'node:fs';
-import { fileURLToPath } from 'node:url';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { Engine, type FieldData, type GridHandle, type SolveFeature, type SolveOptions } from '../src/engine';
+import { type Engine, type FieldData, type GridHandle, type SolveFeature, type SolveOptions } from '../src/engine';
 import { LastFields } from '../src/lastfields';
 import type { Pt } from '../src/scene';
+import { loadEngine } from './wasm';
 
 let engine: Engine;
 
 beforeAll(async () => {
-  const bytes = readFileSync(fileURLToPath(new URL('../src/generated/inkwarp.wasm', import.meta.url)));
-  engine = await Engine.fromBytes(bytes);
+  engine = await loadEngine();
 });
 
 /** A grid whose solves are counted, with the start each one was given. */

@@ -1,19 +1,17 @@
 // The method switch: the editor's state and requests carry the method, and the engine in
 // WebAssembly computes every method's field, each a different surface, drawn by the CPU
 // reference renderer.
-import { readFileSync } from 'node:fs';
-import { fileURLToPath } from 'node:url';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { Engine, type FieldData, type SolveFeature, type SolveReport } from '../src/engine';
+import { type Engine, type FieldData, type SolveFeature, type SolveReport } from '../src/engine';
 import { solverOptions } from '../src/options';
 import { METHODS, emptyScene, layerMethod, parseScene, serializeScene, type Method, type Pt, type SceneDoc } from '../src/scene';
 import { Store, setMethod } from '../src/state';
+import { loadEngine } from './wasm';
 
 let engine: Engine;
 
 beforeAll(async () => {
-  const bytes = readFileSync(fileURLToPath(new URL('../src/generated/inkwarp.wasm', import.meta.url)));
-  engine = await Engine.fromBytes(bytes);
+  engine = await loadEngine();
 });
 
 const W = 40;

@@ -1,17 +1,15 @@
 // Probes (`App.probe`): the pose with the point under the resting pointer moved, solved
 // ahead of a drag so that the drag's first full-resolution solve starts close.
-import { readFileSync } from 'node:fs';
-import { fileURLToPath } from 'node:url';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { Engine, type SolveFeature } from '../src/engine';
+import { type Engine, type SolveFeature } from '../src/engine';
 import { PROBE_PX, PROBE_TOLERANCE_PX, probedFeatures } from '../src/probe';
 import type { Pt } from '../src/scene';
+import { loadEngine } from './wasm';
 
 let engine: Engine;
 
 beforeAll(async () => {
-  const bytes = readFileSync(fileURLToPath(new URL('../src/generated/inkwarp.wasm', import.meta.url)));
-  engine = await Engine.fromBytes(bytes);
+  engine = await loadEngine();
 });
 
 const W = 96;

@@ -1,14 +1,11 @@
 // The solver worker's message path (`SolverWorker`, which `worker.ts` runs in a Web
 // Worker), with the real engine: what the page is sent back for each kind of request.
-import { readFileSync } from 'node:fs';
-import { fileURLToPath } from 'node:url';
 import { beforeEach, describe, expect, it } from 'vitest';
-import { Engine, type SolveFeature } from '../src/engine';
+import type { SolveFeature } from '../src/engine';
 import type { FromWorker, ToWorker } from '../src/protocol';
 import type { Pt } from '../src/scene';
 import { SolverWorker } from '../src/workercore';
-
-const bytes = readFileSync(fileURLToPath(new URL('../src/generated/inkwarp.wasm', import.meta.url)));
+import { loadEngine } from './wasm';
 
 type Field = Extract<FromWorker, { type: 'field' }>;
 
@@ -53,7 +50,7 @@ beforeEach(async () => {
     (msg) => sent.push(msg),
     async () => {
       loads++;
-      return Engine.fromBytes(bytes);
+      return loadEngine();
     },
   );
   expect(await send({ type: 'init', wasmUrl: 'inkwarp.wasm' })).toEqual([{ type: 'ready' }]);

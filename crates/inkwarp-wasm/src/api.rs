@@ -155,7 +155,6 @@ pub extern "C" fn iw_grid_links(handle: u32, out_ptr: *mut u8, out_len: usize) -
     }
 }
 
-/// One feature of a solve request: its kind, rest and posed control points.
 /// The core's solve options from a request's.
 fn solve_options(options: &OptionsIn) -> Result<SolveOptions, String> {
     let scheme = match options.scheme.as_str() {
@@ -191,6 +190,7 @@ fn tps_report(report: &inkwarp_core::solve::SolveReport) -> serde_json::Value {
     })
 }
 
+/// One feature of a solve request: its kind, rest and posed control points.
 #[derive(Debug, Deserialize)]
 struct FeatureIn {
     kind: Kind,
@@ -414,7 +414,7 @@ fn solve_request(domain: &Domain, req: &SolveIn, initial_ptr: *const f32) -> Res
     let method = method_of(req)?;
     let per_feature = samples_of(&req.features, domain, req.spacing_px.unwrap_or(1.0))?;
     let sample_count: usize = per_feature.iter().map(Vec::len).sum();
-    let (field, mut report) = match method.interpolant() {
+    let (field, report) = match method.interpolant() {
         None => solve_tps(domain, per_feature, &req.options, initial_ptr)?,
         Some(interpolant) => {
             let controls = controls_of(&req.features, per_feature, interpolant)?;
@@ -436,9 +436,14 @@ fn solve_request(domain: &Domain, req: &SolveIn, initial_ptr: *const f32) -> Res
             (field, json)
         }
     };
+    Ok((field, named(report, method, sample_count)))
+}
+
+/// A report with the method that made it and the number of samples it was given.
+fn named(mut report: serde_json::Value, method: Method, samples: usize) -> serde_json::Value {
     report["method"] = method.name().into();
-    report["samples"] = sample_count.into();
-    Ok((field, report))
+    report["samples"] = samples.into();
+    report
 }
 
 fn method_of(req: &SolveIn) -> Result<Method, String> {
@@ -499,10 +504,7 @@ pub extern "C" fn iw_solve_at(handle: u32, req_ptr: *const u8, req_len: usize, o
         let mut histories = domain.history.borrow_mut();
         let history = histories.entry(step).or_default();
         let report = solve_warm_at(grid, &samples, &options, history, plan, &selection.pixels, out).map_err(|e| e.to_string())?;
-        let mut json = tps_report(&report);
-        json["method"] = Method::Tps.name().into();
-        json["samples"] = samples.len().into();
-        Ok(json)
+        Ok(named(tps_report(&report), Method::Tps, samples.len()))
     });
     match res {
         Ok(Ok(v)) => ok_json(&v),

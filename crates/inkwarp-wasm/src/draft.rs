@@ -1,9 +1,11 @@
 //! Draft frames drawn on the CPU, for the editor on a software GPU: the WebGL2 draft's
-//! triangles, positions and colours (the editor's `web/src/gl.ts`), rasterised here.
+//! triangles, positions and colours (the editor's `web/src/gl.ts`), rasterised here; and
+//! the same for the fast full frame after a settle (its adaptive triangles, every skirt
+//! quarter, every pixel's value).
 //!
-//! A draft layer is the layer's premultiplied pixels, its draft mesh (triangles over pixel
-//! vertices), the skirt quarters along its cuts and holes, its links, and the place of each
-//! pixel in its sparse draft's values. A frame composites layers over a background with
+//! A draft layer is the layer's premultiplied pixels, its mesh (triangles over pixel
+//! vertices), the skirt quarters it draws, its links, and the place of each pixel in the
+//! values of its field (a sparse draft's, or every pixel's). A frame composites layers over a background with
 //! premultiplied "over", rounding to 8 bits at each layer as a GPU's RGBA8 target does.
 //! Colours are the bilinear mix of the 8-bit premultiplied pixels with 8-bit weights, as
 //! the draft elements' texture unit filters; the skirt quarters' shader premultiplies and
@@ -20,9 +22,10 @@ struct DraftLayer {
     height: usize,
     /// Premultiplied RGBA8, one little-endian word a pixel (R in the low byte).
     pixels: Vec<u32>,
-    /// The draft mesh's triangles, as pixel indices.
+    /// The mesh's triangles, as pixel indices.
     coarse: Vec<u32>,
-    /// The inner skirt quarters' vertices: (x, y, sx, sy, u, v), six vertices a quarter.
+    /// The skirt quarters' vertices (a draft's: those along cuts and holes): (x, y, sx,
+    /// sy, u, v), six vertices a quarter.
     skirts: Vec<f32>,
     /// Per pixel: bit 0 active, bit 1 linked right, bit 2 linked down.
     links: Vec<u8>,
@@ -232,7 +235,7 @@ fn draw_layer(mut t: Target, layer: &DraftLayer, values: &[f32], offset: [f64; 2
         opacity,
         clamp: None,
     };
-    // The draft mesh: for a draft, the border's vertices pushed out by half a pixel.
+    // The mesh: for a draft, the border's vertices pushed out by half a pixel.
     let push = if layer.push_border { 0.5 } else { 0.0 };
     for tri in layer.coarse.chunks_exact(3) {
         let mut c = [Corner::default(); 3];
@@ -259,7 +262,7 @@ fn draw_layer(mut t: Target, layer: &DraftLayer, values: &[f32], offset: [f64; 2
         }
         fill(&mut t, &c, &element);
     }
-    // The skirt quarters along cuts and holes (see `SKIRT_VERT` in the editor's gl.ts).
+    // The skirt quarters (see `SKIRT_VERT` in the editor's gl.ts).
     let linked = |i: i64, j: i64, bit: u8| {
         i >= 0
             && j >= 0
@@ -437,10 +440,7 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
                 empty = true;
             }
         }
-        if empty {
-            continue;
-        }
-        if lo > hi {
+        if empty || lo > hi {
             continue;
         }
         let row = &mut t.frame[y * t.width..][..t.width];

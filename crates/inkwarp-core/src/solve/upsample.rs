@@ -221,7 +221,6 @@ impl Coarse {
         }
         c
     }
-
 }
 
 /// Where the coarse nodes of a `w × h` grid with step `s` sit.
