@@ -27,7 +27,14 @@ impl Field {
 
     /// Interleaved `(H, W, 2)` storage: `[Δx, Δy]` per pixel, row-major.
     pub fn to_interleaved(&self) -> Vec<f32> {
-        self.dx.iter().zip(&self.dy).flat_map(|(&x, &y)| [x, y]).collect()
+        // Written into a vector of the final size (`flat_map` cannot tell its length, so
+        // collecting it grows the vector by doubling, about twenty copies at 513 × 513).
+        let mut out = vec![0.0; 2 * self.dx.len()];
+        for (o, (&x, &y)) in out.chunks_exact_mut(2).zip(self.dx.iter().zip(&self.dy)) {
+            o[0] = x;
+            o[1] = y;
+        }
+        out
     }
 
     /// Builds a field from interleaved `(H, W, 2)` storage.
@@ -39,8 +46,8 @@ impl Field {
         Field {
             width,
             height,
-            dx: data.iter().step_by(2).copied().collect(),
-            dy: data.iter().skip(1).step_by(2).copied().collect(),
+            dx: data.chunks_exact(2).map(|c| c[0]).collect(),
+            dy: data.chunks_exact(2).map(|c| c[1]).collect(),
         }
     }
 

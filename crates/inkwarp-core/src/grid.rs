@@ -198,10 +198,23 @@ impl Grid {
         }
     }
 
+    /// Whether every node is active and linked to each of its neighbours (no matte, no
+    /// cut): one piece, the most common grid, which [`Grid::pieces`] answers at once.
+    pub fn is_open(&self) -> bool {
+        let (w, h) = (self.width, self.height);
+        // Without early exits, so that the passes vectorise.
+        let all = |v: &[bool]| v.iter().fold(true, |a, &b| a & b);
+        let rows = |v: &[bool], last: usize| v.chunks_exact(w).take(last).fold(true, |a, r| a & all(&r[..w - 1]));
+        w > 0 && all(&self.active) && rows(&self.link_right, h) && all(&self.link_down[..(h - 1) * w])
+    }
+
     /// Connected pieces: `labels[i]` is the piece of node `i` (`u32::MAX` for inactive
     /// nodes), pieces numbered `0..count` in order of their first node. Links are taken to
     /// join active nodes (as [`Grid::is_consistent`] checks).
     pub fn pieces(&self) -> (Vec<u32>, usize) {
+        if !self.is_empty() && self.is_open() {
+            return (vec![0; self.len()], 1);
+        }
         // Union-find over runs (maximal row segments joined by right links) rather than
         // nodes: a row of a connected picture is one run, so there are few elements and
         // each vertical link between the same two runs is looked at once.
@@ -597,6 +610,38 @@ pub(crate) mod tests {
         let g = Grid::from_matte(3, 1, &[1, 0, 1]);
         let (labels, count) = g.pieces();
         assert_eq!((labels, count), (vec![0, u32::MAX, 1], 2));
+    }
+
+    #[test]
+    fn an_open_grid_is_one_piece_and_any_tear_makes_it_not_open() {
+        for (w, h) in [(1, 1), (1, 5), (5, 1), (4, 3)] {
+            let g = Grid::new(w, h);
+            assert!(g.is_open());
+            assert_eq!(g.pieces(), pieces_node_by_node(&g));
+            for i in 0..w * h {
+                let mut hole = g.clone();
+                hole.active[i] = false;
+                hole.link_right[i] = false;
+                hole.link_down[i] = false;
+                if i % w > 0 {
+                    hole.link_right[i - 1] = false;
+                }
+                if i >= w {
+                    hole.link_down[i - w] = false;
+                }
+                assert!(!hole.is_open());
+                assert_eq!(hole.pieces(), pieces_node_by_node(&hole));
+                for (right, present) in [(true, g.link_right[i]), (false, g.link_down[i])] {
+                    if !present {
+                        continue;
+                    }
+                    let mut cut = g.clone();
+                    if right { cut.link_right[i] = false } else { cut.link_down[i] = false }
+                    assert!(!cut.is_open());
+                    assert_eq!(cut.pieces(), pieces_node_by_node(&cut));
+                }
+            }
+        }
     }
 
     /// Pieces by union-find over every node, numbered by their first node.

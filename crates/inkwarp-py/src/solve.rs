@@ -116,8 +116,11 @@ fn thin_plate_solve<'py>(
                     f.shape()
                 )));
             }
-            let data: Vec<f32> = f.as_array().iter().copied().collect();
-            Some(Field::from_interleaved(width, height, &data))
+            Some(match f.as_slice() {
+                Ok(data) => Field::from_interleaved(width, height, data),
+                // Not C-contiguous (a view, a transpose): one copy in C order first.
+                Err(_) => Field::from_interleaved(width, height, &f.as_array().iter().copied().collect::<Vec<f32>>()),
+            })
         }
         None => None,
     };

@@ -11,7 +11,7 @@ const CHEB_RATIO: f64 = 16.0;
 const COARSEST_NODES: usize = 300;
 /// Lanczos steps of the estimate of the top of each level's spectrum.
 const LANCZOS_STEPS: usize = 12;
-const PAR_MIN: usize = 12_000;
+const PAR_MIN: usize = 4_000;
 
 /// The grid hierarchy with its work vectors.
 #[derive(Debug)]
@@ -33,6 +33,9 @@ pub(crate) struct Hierarchy {
     pub torn: bool,
     /// An extra coarse space along cuts, solved exactly before each cycle.
     pub deflation: Option<super::deflate::Deflation>,
+    /// Whether the finest level has loose nodes (free nodes on no fully linked cell),
+    /// which the solve settles afterwards; set by the solve that builds the hierarchy.
+    pub loose: bool,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -105,7 +108,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None, loose: false }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,

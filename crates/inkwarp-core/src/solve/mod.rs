@@ -308,7 +308,17 @@ pub(crate) fn solve_constrained(
     // shares its step lengths between them, and a piece whose start is far off holds
     // back the others and fools the stopping rule).
     let mut boxes = vec![[usize::MAX, usize::MAX, 0, 0]; count];
-    for (y, row) in labels.chunks_exact(w).enumerate() {
+    let single = count == 1 && matches!(pieces[0], Piece::Line { .. } | Piece::General);
+    if single {
+        // One piece to solve (most grids): its box is that of the active nodes.
+        for (y, row) in grid.active.chunks_exact(w).enumerate() {
+            if let (Some(a), Some(b)) = (row.iter().position(|&a| a), row.iter().rposition(|&a| a)) {
+                let bx = &mut boxes[0];
+                *bx = [bx[0].min(a), bx[1].min(y), bx[2].max(b + 1), bx[3].max(y + 1)];
+            }
+        }
+    }
+    for (y, row) in labels.chunks_exact(w).enumerate().filter(|_| !single) {
         for (x, &l) in row.iter().enumerate() {
             if l == u32::MAX {
                 continue;
@@ -347,18 +357,20 @@ pub(crate) fn solve_constrained(
         // Row `by` of the box as a range of the grid's nodes.
         let rows = |by: usize| (y0 + by) * w + x0..(y0 + by) * w + x1;
         let (mut active, mut right, mut down) = (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh]);
+        // Without short-circuits, so that the passes vectorise (every solve builds its key).
         for by in 0..bh {
             let g = rows(by);
             let b = by * bw..(by + 1) * bw;
             for (a, &lab) in active[b.clone()].iter_mut().zip(&labels[g.clone()]) {
                 *a = lab == l as u32;
             }
-            for (bx, (r, &link)) in right[b.clone()].iter_mut().zip(&grid.link_right[g.clone()]).enumerate() {
-                *r = bx + 1 < bw && link && active[by * bw + bx];
+            let act = &active[b.clone()];
+            for ((r, &link), &a) in right[b.clone()].iter_mut().zip(&grid.link_right[g.clone()]).zip(act).take(bw - 1) {
+                *r = link & a;
             }
             if by + 1 < bh {
-                for (bx, (d, &link)) in down[b].iter_mut().zip(&grid.link_down[g]).enumerate() {
-                    *d = link && active[by * bw + bx];
+                for ((d, &link), &a) in down[b.clone()].iter_mut().zip(&grid.link_down[g]).zip(act) {
+                    *d = link & a;
                 }
             }
         }
@@ -387,18 +399,27 @@ pub(crate) fn solve_constrained(
         let start = initial.map(|f| Start { field: f, x0, y0 });
         let (u, r) = solve_piece(key, &value, start, options);
         // The piece's nodes of the box, to the field or (pieces on a line) to `out`.
-        for by in 0..bh {
-            let g = rows(by);
-            for (i, v) in g.zip(&u[by * bw..(by + 1) * bw]) {
-                if labels[i] == l as u32 {
-                    if lines {
+        if lines {
+            for by in 0..bh {
+                for (i, v) in rows(by).zip(&u[by * bw..(by + 1) * bw]) {
+                    if labels[i] == l as u32 {
                         out[i] = *v;
-                    } else {
-                        field.dx[i] = v[0] as f32;
-                        field.dy[i] = v[1] as f32;
                     }
                 }
             }
+        } else {
+            let span = y0 * w..(y0 + bh) * w;
+            let (dx, dy) = (&mut field.dx[span.clone()], &mut field.dy[span]);
+            dx.par_chunks_mut(w).zip(dy.par_chunks_mut(w)).enumerate().for_each(|(by, (dx, dy))| {
+                let g = rows(by);
+                let (lab, v) = (&labels[g.clone()], &u[by * bw..(by + 1) * bw]);
+                for (((dx, dy), &lab), v) in dx[x0..x1].iter_mut().zip(&mut dy[x0..x1]).zip(lab).zip(v) {
+                    if lab == l as u32 {
+                        *dx = v[0] as f32;
+                        *dy = v[1] as f32;
+                    }
+                }
+            });
         }
         give_back(u);
         // The report starts at zero and converged: the pieces' worst.
@@ -440,7 +461,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         let torn = fine.geo.torn();
         let alt = (torn && key.spaces.second).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
+        let loose = has_loose_nodes(&fine.geo, &key.fixed);
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
+        hier.loose = loose;
         hier.alt = alt;
         hier.torn = torn;
         if torn && key.spaces.tear && w * h >= TEAR_SPACE_MIN_NODES {
@@ -569,18 +592,16 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     report.residual = scaled_max(&hier.levels[0], &r);
     give_back(r);
     let fine = &hier.levels[0];
-    let mut out: Vec<V2> = spare_zeroed(w * h);
-    for y in 0..h {
+    // Every value written (zero off the piece), row by row in parallel.
+    let mut out: Vec<V2> = spare_any(w * h);
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         let p = fine.pidx(0, y);
-        let row = y * w..(y + 1) * w;
-        for ((o, &a), v) in out[row.clone()].iter_mut().zip(&fine.geo.active[row]).zip(&u[p..p + w]) {
-            if a {
-                *o = *v;
-            }
+        for ((o, &a), v) in row.iter_mut().zip(&fine.geo.active[y * w..(y + 1) * w]).zip(&u[p..p + w]) {
+            *o = if a { *v } else { [0.0; 2] };
         }
-    }
+    });
     give_back(u);
-    if tau == 0.0 {
+    if tau == 0.0 && hier.loose {
         settle_loose_nodes(&fine.geo, fixed, &mut out);
     }
     cache_put(key, hier);
@@ -843,20 +864,8 @@ fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64
 /// tensions and Richardson extrapolation.
 fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
     const MAX_GROUP: usize = 400;
-    let (w, h) = (geo.w, geo.h);
-    let n = w * h;
-    let mut core = vec![false; n];
-    for y in 0..h.saturating_sub(1) {
-        for x in 0..w.saturating_sub(1) {
-            let i = y * w + x;
-            if geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w] {
-                core[i] = true;
-                core[i + 1] = true;
-                core[i + w] = true;
-                core[i + w + 1] = true;
-            }
-        }
-    }
+    let (w, n) = (geo.w, geo.w * geo.h);
+    let core = cell_corners(geo);
     let loose = |i: usize| geo.active[i] && !fixed[i] && !core[i];
     // Allocated at the first loose node (most grids have none).
     let mut group_of = Vec::new();
@@ -888,6 +897,30 @@ fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
             settle_group(geo, &group, &group_of, start, u);
         }
     }
+}
+
+/// Whether [`settle_loose_nodes`] has anything to do.
+fn has_loose_nodes(geo: &Geometry, fixed: &[bool]) -> bool {
+    let core = cell_corners(geo);
+    (0..geo.w * geo.h).any(|i| geo.active[i] && !fixed[i] && !core[i])
+}
+
+/// The nodes that are a corner of a 2 × 2 cell with all four links.
+fn cell_corners(geo: &Geometry) -> Vec<bool> {
+    let (w, h) = (geo.w, geo.h);
+    let mut core = vec![false; w * h];
+    for y in 0..h.saturating_sub(1) {
+        for x in 0..w.saturating_sub(1) {
+            let i = y * w + x;
+            if geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w] {
+                core[i] = true;
+                core[i + 1] = true;
+                core[i + w] = true;
+                core[i + w + 1] = true;
+            }
+        }
+    }
+    core
 }
 
 /// The τ → 0⁺ minimiser over one group of loose nodes (all other values held).

@@ -296,6 +296,45 @@ fn coarse_levels_of_an_open_grid_reproduce_affine_functions() {
 }
 
 #[test]
+fn stored_coarse_stencils_match_their_definition() {
+    // Every coarse node's stencil, shared or its own, is (Pᵀ A P)(C, ·) summed straight
+    // from the definition, up to rounding: also the nodes whose window holds a constraint,
+    // a hole or a cut and whose stencil came out as the shared one.
+    let mut rnd = crate::grid::tests::sequence(5);
+    for &(w, h, fixed, tau) in &[(40usize, 36usize, 0.02, 0.0), (33, 33, 0.08, 0.3), (30, 41, 0.2, 0.0)] {
+        let mut grid = Grid::new(w, h);
+        grid.active[(h / 2) * w + w / 3] = false;
+        grid = Grid::from_active(w, h, grid.active.clone());
+        grid.add_cut(&[[1.0, h as f64 * 0.7], [w as f64 * 0.3, h as f64 * 0.75]]);
+        let mut fine = fine_level(&grid, Some((0..w * h).map(|_| rnd() < fixed).collect()), tau);
+        for _ in 0..3 {
+            let coarse = level::galerkin(&fine);
+            for yc in 0..coarse.geo.h {
+                for xc in 0..coarse.geo.w {
+                    if !coarse.geo.active[yc * coarse.geo.w + xc] {
+                        continue;
+                    }
+                    let stored = coarse.row(coarse.pidx(xc, yc));
+                    let defined = level::galerkin_node(&fine, xc, yc);
+                    let scale = defined.iter().fold(1.0f64, |m, a| m.max(a.abs()));
+                    for t in 0..25 {
+                        assert!(
+                            (stored[t] - defined[t]).abs() <= 1e-10 * scale,
+                            "{w}x{h} level {}x{} node ({xc},{yc}) tap {t}: stored {} defined {}",
+                            coarse.geo.w,
+                            coarse.geo.h,
+                            stored[t],
+                            defined[t]
+                        );
+                    }
+                }
+            }
+            fine = coarse;
+        }
+    }
+}
+
+#[test]
 fn warm_start_from_the_answer_takes_one_cycle() {
     let mut rng = Rng(3);
     let grid = Grid::new(40, 30);
