@@ -335,6 +335,42 @@ fn stored_coarse_stencils_match_their_definition() {
 }
 
 #[test]
+fn k_cycles_take_their_second_step_where_the_first_leaves_much() {
+    // With a constraint on every fourth node the coarse problems are well held: one cycle
+    // below leaves little of their residual and the second step is skipped. With a handful
+    // the first step leaves most of it, and every K-cycle takes its second step.
+    let (w, h) = (129, 129);
+    let grid = Grid::new(w, h);
+    let mut rnd = crate::grid::tests::sequence(8);
+    for (density, dense) in [(0.25, true), (0.001, false)] {
+        let fixed: Vec<bool> = (0..w * h).map(|_| rnd() < density).collect();
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), SMOOTHING_STEPS, OPEN_COARSE_SMOOTHING);
+        assert!(hier.levels.len() >= 4, "a K-cycle needs a level between the first coarse one and the coarsest");
+        let fine = &hier.levels[0];
+        let r: Vec<V2> = (0..fine.len_padded()).map(|p| if fine.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
+        for _ in 0..3 {
+            hier.precondition(&r);
+        }
+        let skipped = hier.second_steps_skipped.load(std::sync::atomic::Ordering::Relaxed);
+        if dense {
+            assert!(skipped > 0, "no second step skipped with a constraint on every fourth node");
+        } else {
+            assert_eq!(skipped, 0, "second steps skipped with {} constraints", (density * (w * h) as f64) as usize);
+        }
+    }
+    // And a solve with many constraints, which skips them, still meets its tolerance.
+    let samples: Vec<Sample> = (0..3000)
+        .map(|_| Sample { rest: [(rnd() * 256.0).round(), (rnd() * 256.0).round()], displacement: [rnd() * 8.0 - 4.0, rnd() * 8.0 - 4.0] })
+        .collect();
+    let grid = Grid::new(257, 257);
+    let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(200), ..Default::default() };
+    let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
+    let gap = gap(&field, &exact);
+    assert!(report.converged && gap < 0.01, "{} cycles, {gap} px from the tight solve", report.cycles);
+}
+
+#[test]
 fn warm_start_from_the_answer_takes_one_cycle() {
     let mut rng = Rng(3);
     let grid = Grid::new(40, 30);
