@@ -371,6 +371,35 @@ fn k_cycles_take_their_second_step_where_the_first_leaves_much() {
 }
 
 #[test]
+fn solves_from_several_threads_at_once_give_their_own_answers() {
+    // Each solve started from outside the pool keeps the pool's other threads looking for
+    // work while it runs; solves started at the same time from other threads, or from
+    // inside the pool, must still run (those threads run them) and answer as they do alone.
+    use rayon::prelude::*;
+    let problems: Vec<(Grid, Vec<Sample>)> = (0..4)
+        .map(|k| {
+            let mut rng = Rng(40 + k);
+            let n = 70 + 10 * k as usize;
+            let mut at = |scale: f64| rng.next() * scale;
+            let samples = (0..12).map(|_| Sample { rest: [at((n - 1) as f64), at((n - 1) as f64)], displacement: [at(10.0) - 5.0, at(10.0) - 5.0] }).collect();
+            (Grid::new(n, n), samples)
+        })
+        .collect();
+    let alone: Vec<Field> = problems.iter().map(|(g, s)| solve(g, s, &SolveOptions::default(), None).unwrap().0).collect();
+    for _ in 0..3 {
+        let together: Vec<Field> = std::thread::scope(|scope| {
+            let handles: Vec<_> = problems.iter().map(|(g, s)| scope.spawn(move || solve(g, s, &SolveOptions::default(), None).unwrap().0)).collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        let in_pool: Vec<Field> = problems.par_iter().map(|(g, s)| solve(g, s, &SolveOptions::default(), None).unwrap().0).collect();
+        for (k, a) in alone.iter().enumerate() {
+            assert_eq!(gap(a, &together[k]), 0.0, "problem {k} from a thread of its own");
+            assert_eq!(gap(a, &in_pool[k]), 0.0, "problem {k} from inside the pool");
+        }
+    }
+}
+
+#[test]
 fn warm_start_from_the_answer_takes_one_cycle() {
     let mut rng = Rng(3);
     let grid = Grid::new(40, 30);
