@@ -204,8 +204,9 @@ impl Grid {
         let (w, h) = (self.width, self.height);
         // Without early exits, so that the passes vectorise.
         let all = |v: &[bool]| v.iter().fold(true, |a, &b| a & b);
-        let rows = |v: &[bool], last: usize| v.chunks_exact(w).take(last).fold(true, |a, r| a & all(&r[..w - 1]));
-        w > 0 && all(&self.active) && rows(&self.link_right, h) && all(&self.link_down[..(h - 1) * w])
+        // Every right link but the last column's, every down link but the last row's.
+        let right = || self.link_right.chunks_exact(w).fold(true, |a, r| a & all(&r[..w - 1]));
+        w > 0 && h > 0 && all(&self.active) && right() && all(&self.link_down[..(h - 1) * w])
     }
 
     /// Connected pieces: `labels[i]` is the piece of node `i` (`u32::MAX` for inactive

@@ -39,12 +39,13 @@
 //! holes and cuts), Chebyshev–Jacobi smoothing (symmetric, parallel, its range from a
 //! Lanczos estimate of each level's top eigenvalue), K-cycles below the finest level (two
 //! flexible conjugate-gradient steps on each coarse problem, the first an energy line
-//! search, the second only when the first left much of the residual), a banded Cholesky solve on the coarsest level, a coarse-to-fine start, and the
-//! cycle as the preconditioner of a flexible conjugate gradient on the finest level. On grids with holes or cuts each cycle also visits
-//! a second coarse space, built with the plain bilinear prolongation of the same grid
-//! without them: the link-aware one extrapolates a constant at every missing link, so it
-//! lacks the functions that run linearly up to (and across) a hole or cut, and the plain
-//! one has exactly those. A warm start whose residuals exceed the tolerance also gets the
+//! search, the second only when the first left much of the residual), a banded Cholesky
+//! solve on the coarsest level, a coarse-to-fine start, and the cycle as the
+//! preconditioner of a flexible conjugate gradient on the finest level. On grids with
+//! holes or cuts each cycle also visits a second coarse space, built with the plain
+//! bilinear prolongation of the same grid without them: the link-aware one extrapolates
+//! a constant at every missing link, so it lacks the functions that run linearly up to
+//! (and across) a hole or cut, and the plain one has exactly those. A warm start whose residuals exceed the tolerance also gets the
 //! coarse-to-fine correction; a closer one first gets one cycle as it is. Loose nodes (no
 //! corner of a fully linked cell) are settled to the τ → 0⁺ limit afterwards.
 //! `docs/concepts/thin-plate.md` explains the choices and lists the measured figures.
