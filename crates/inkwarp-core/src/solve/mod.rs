@@ -233,35 +233,52 @@ pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
 /// sleeping thread wakes too late for the next parallel call to be shared; kept awake,
 /// they take their part at once (513 × 513 solves 4–5 % faster on two cores). They run
 /// any of the pool's work meanwhile, and stop when the guard is dropped, panic included.
-struct Keepers(std::sync::Arc<std::sync::atomic::AtomicBool>);
+///
+/// Only while a single solve runs from outside the pool: a thread that waits inside
+/// another solve's work may pick up a keeper, which would then hold that work (below it
+/// on the thread's stack) until its own solve ends, and that solve may be waiting for it.
+/// So the first solve to start is the only one that starts keepers, and they stop as soon
+/// as a second one starts.
+struct Keepers {
+    done: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+}
+
+/// Solves running from outside the pool (see [`Keepers`]).
+static SOLVES_OUTSIDE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 impl Keepers {
-    /// Starts them from a thread of the pool; none on a pool of one thread.
-    fn start() -> Option<Keepers> {
-        use std::sync::atomic::Ordering::Relaxed;
-        if cfg!(target_family = "wasm") || rayon::current_num_threads() < 2 {
-            return None;
-        }
-        let me = rayon::current_thread_index()?;
+    /// Counts the solve in, and starts the keepers if it is the only one (never on a pool
+    /// of one thread). Called on a thread of the pool.
+    fn start() -> Keepers {
+        use std::sync::atomic::Ordering::SeqCst;
+        let alone = SOLVES_OUTSIDE.fetch_add(1, SeqCst) == 0;
+        let me = rayon::current_thread_index();
+        let (Some(me), true, false) = (me, alone, cfg!(target_family = "wasm") || rayon::current_num_threads() < 2) else {
+            return Keepers { done: None };
+        };
         let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
         let flag = done.clone();
         rayon::spawn_broadcast(move |ctx| {
             if ctx.index() == me {
                 return;
             }
-            while !flag.load(Relaxed) {
+            while !flag.load(SeqCst) && SOLVES_OUTSIDE.load(SeqCst) == 1 {
                 if rayon::yield_now() != Some(rayon::Yield::Executed) {
                     std::hint::spin_loop();
                 }
             }
         });
-        Some(Keepers(done))
+        Keepers { done: Some(done) }
     }
 }
 
 impl Drop for Keepers {
     fn drop(&mut self) {
-        self.0.store(true, std::sync::atomic::Ordering::Relaxed);
+        use std::sync::atomic::Ordering::SeqCst;
+        if let Some(done) = &self.done {
+            done.store(true, SeqCst);
+        }
+        SOLVES_OUTSIDE.fetch_sub(1, SeqCst);
     }
 }
 
@@ -518,15 +535,18 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     {
         let fine = &hier.levels[0];
         if let Some(Start { field, x0, y0 }) = initial {
-            for y in 0..h {
+            // Row by row in parallel: each chunk starts at its row's first node.
+            let (first, wp) = (fine.pidx(0, 0), fine.wp);
+            u[first..first + (h - 1) * wp + w].par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
                 let g = (y0 + y) * field.width + x0;
                 let p = fine.pidx(0, y);
-                for (x, (ux, d)) in u[p..p + w].iter_mut().zip(&fine.inv_diag[p..p + w]).enumerate() {
+                let (dx, dy) = (&field.dx[g..g + w], &field.dy[g..g + w]);
+                for (((ux, d), &vx), &vy) in row[..w].iter_mut().zip(&fine.inv_diag[p..p + w]).zip(dx).zip(dy) {
                     if *d != 0.0 {
-                        *ux = [field.dx[g + x] as f64, field.dy[g + x] as f64];
+                        *ux = [vx as f64, vy as f64];
                     }
                 }
-            }
+            });
         }
         for &(i, v) in value {
             u[fine.pidx(i % w, i / w)] = v;
