@@ -477,16 +477,33 @@ pub(crate) fn smooth(
     let delta = 0.5 * (b - a);
     let sigma = theta / delta;
     let mut rho = 1.0 / sigma;
+    let inv_theta = WS::of(1.0 / theta);
     if x_zero {
+        // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass.
         let f = f.expect("a zero start needs a right-hand side");
-        zip_map(r, f, &level.inv_diag_w, |ri, fi, di| *ri = if di != 0.0 { fi } else { [0.0; 2] });
+        let first = |d: &mut [W2], x: &mut [W2], f: &[W2], g: &[WS]| {
+            for i in 0..d.len() {
+                let v = if g[i] != 0.0 { [f[i][0] * g[i] * inv_theta, f[i][1] * g[i] * inv_theta] } else { [0.0; 2] };
+                d[i] = v;
+                x[i] = [WS::ZERO + v[0], WS::ZERO + v[1]];
+            }
+        };
+        if d.len() >= PAR_MIN {
+            d.par_chunks_mut(4096)
+                .zip(x.par_chunks_mut(4096))
+                .zip(f.par_chunks(4096).zip(level.inv_diag_w.par_chunks(4096)))
+                .for_each(|((d, x), (f, g))| first(d, x, f, g));
+        } else {
+            first(d, x, f, &level.inv_diag_w);
+        }
     } else {
         level.residual(x, f, r);
+        zip_map(d, r, &level.inv_diag_w, |di, ri, dd| *di = [ri[0] * dd * inv_theta, ri[1] * dd * inv_theta]);
     }
-    let inv_theta = WS::of(1.0 / theta);
-    zip_map(d, r, &level.inv_diag_w, |di, ri, dd| *di = [ri[0] * dd * inv_theta, ri[1] * dd * inv_theta]);
     for k in 0..degree {
-        add_assign(x, d);
+        if k > 0 || !x_zero {
+            add_assign(x, d);
+        }
         if k + 1 == degree {
             break;
         }
