@@ -35,8 +35,6 @@ export interface LayerRuntime {
   field: FieldData | null;
   /** The last request sent for this layer (to skip identical ones). */
   lastRequest: string;
-  /** The last pose the full-resolution solver was asked to follow (see `App.follow`). */
-  lastFollow: string;
   error: string | null;
   /** The engine's remarks on the layer's last field (e.g. a matte its method ignores). */
   notes: string[];
@@ -250,7 +248,6 @@ export class App {
           selectedGen: -1,
           field: null,
           lastRequest: '',
-          lastFollow: '',
           error: null,
           notes: [],
           shownSeq: 0,
@@ -331,7 +328,6 @@ export class App {
     const gen = ++rt.gridGen;
     rt.gridReady = false;
     rt.lastRequest = '';
-    rt.lastFollow = '';
     this.busyCount++;
     const cuts = this.cutsOf(layer);
     Promise.all(this.clients.map((c) => c.setGrid(rt.name, this.doc.width, this.doc.height, rt.matte, cuts)))
@@ -506,9 +502,6 @@ export class App {
     if (!this.drafts) return;
     const options = this.solverOptions(layer, 'final');
     if (!startsWarm(options)) return;
-    const sig = JSON.stringify([features, options]);
-    if (sig === rt.lastFollow) return;
-    rt.lastFollow = sig;
     this.keep(rt, layer, features, options, 'follow', time);
   }
 

@@ -29,6 +29,7 @@ interface Exports {
   iw_decoded_take(out: number, len: number): number;
   iw_matte_values(rgba: number, w: number, h: number, out: number): number;
   iw_draft_new(w: number, h: number, pixels: number, coarse: number, coarseLen: number, skirts: number, skirtsLen: number, links: number, index: number, reads: number, pushBorder: number): number;
+  iw_draft_set_triangles(h: number, coarse: number, coarseLen: number): number;
   iw_draft_free(h: number): void;
   iw_draft_draw(out: number, w: number, h: number, r: number, g: number, b: number, a: number, layers: number, count: number): number;
   iw_init(): void;
@@ -112,10 +113,12 @@ function request(features: SolveFeature[], options: SolveOptions): Uint8Array {
 }
 
 /**
- * What a draft frame drawn by the CPU needs of a layer (`Engine.drawDraft`): its
- * premultiplied RGBA8, the draft mesh's triangles (`draftQuads`), the inner skirt quarters'
- * vertices (6 floats each, 6 vertices a quarter), its links, and per pixel its place among
- * the `reads` pixels of its sparse drafts (`draftPixels`).
+ * What a frame drawn by the CPU needs of a layer (`Engine.drawDraft`): its premultiplied
+ * RGBA8, the triangles it draws (a draft's `draftQuads`, a fast full frame's
+ * `adaptiveTriangles`), the skirt quarters it draws (a draft's inner ones, a fast full
+ * frame's all; 6 vertices of 6 floats each a quarter), its links, and per pixel its place
+ * among the `reads` pixels whose (dx, dy) pairs it is drawn from (`draftPixels`, or every
+ * pixel).
  */
 export interface DraftGeometry {
   width: number;
@@ -135,11 +138,25 @@ export interface DraftGeometry {
 }
 
 /** A layer's draft geometry living in the module; free it when the layer's mesh or image changes. */
+/** One layer of a frame drawn by the CPU (`Engine.drawDraft`): its handle, (dx, dy) pairs at the pixels it reads, offset and opacity. */
+export interface DraftLayer {
+  draft: DraftHandle;
+  values: Float32Array;
+  offset: Pt;
+  opacity?: number;
+}
+
 export class DraftHandle {
   constructor(
     readonly engine: Engine,
     readonly handle: number,
   ) {}
+
+  /** Replaces the layer's triangles (pixel indices), keeping the rest of it. */
+  setTriangles(coarse: Uint32Array): void {
+    const e = this.engine;
+    e.withCopies((copy) => e.check(e.x.iw_draft_set_triangles(this.handle, copy(coarse), coarse.length)));
+  }
 
   free(): void {
     this.engine.x.iw_draft_free(this.handle);
@@ -411,7 +428,7 @@ export class Engine {
     width: number,
     height: number,
     background: [number, number, number, number],
-    layers: { draft: DraftHandle; values: Float32Array; offset: Pt; opacity?: number }[],
+    layers: DraftLayer[],
   ): void {
     const len = 4 * width * height;
     this.withCopies((copy) => {
@@ -441,11 +458,13 @@ export class Engine {
       for (const l of layers) {
         const n = l.grid.width * l.grid.height;
         if (l.field.dx.length !== n || l.field.dy.length !== n || l.image.length !== 4 * n) throw new EngineError('A layer to render needs its image and field at every pixel of its grid.');
-        // The field as the adapter reads it: the Δx plane, then the Δy plane.
-        const planes = new Float32Array(2 * n);
-        planes.set(l.field.dx);
-        planes.set(l.field.dy, n);
-        this.withCopies((copy) => this.check(this.x.iw_canvas_draw(canvas, l.grid.handle, copy(l.image), copy(planes), l.offset[0], l.offset[1])));
+        // The field as the adapter reads it, written straight into the module: the Δx
+        // plane, then the Δy plane.
+        this.withBuffer(8 * n, (planes) => {
+          this.f32(planes, n).set(l.field.dx);
+          this.f32(planes + 4 * n, n).set(l.field.dy);
+          this.withCopies((copy) => this.check(this.x.iw_canvas_draw(canvas, l.grid.handle, copy(l.image), planes, l.offset[0], l.offset[1])));
+        });
       }
       const len = 4 * width * height;
       return this.withBuffer(len, (ptr) => {

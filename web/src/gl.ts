@@ -16,7 +16,7 @@
 // four samples rather than exact area, and a skirt's centre point is the parallelogram
 // completion from its own pixel.
 
-import type { DraftGeometry, DraftHandle, Engine, FieldData } from './engine';
+import type { DraftGeometry, DraftHandle, DraftLayer, Engine, FieldData } from './engine';
 
 // Quads: vertex k is pixel (k % W, k / W); the index buffer lists the two triangles of
 // every block whose four links exist, each triangle's last (provoking) vertex being the
@@ -198,6 +198,19 @@ function program(gl: WebGL2RenderingContext, vs: string, fs: string, attributes:
  * `draftQuads`), the skirt quarters' vertices (x, y, sx, sy, u, v), and the links as given
  * (or all).
  */
+/** Straight RGBA8 pixels premultiplied by their alpha (rounded), as drafts read them. */
+export function premultiply(rgba: Uint8Array | Uint8ClampedArray): Uint8Array {
+  const out = new Uint8Array(rgba.length);
+  for (let i = 0; i < rgba.length; i += 4) {
+    const a = rgba[i + 3];
+    out[i] = Math.round((rgba[i] * a) / 255);
+    out[i + 1] = Math.round((rgba[i + 1] * a) / 255);
+    out[i + 2] = Math.round((rgba[i + 2] * a) / 255);
+    out[i + 3] = a;
+  }
+  return out;
+}
+
 export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; innerSkirts: number; links: Uint8Array } {
   const at = (i: number, j: number) => (links ? links[j * w + i] : i + 1 < w ? (j + 1 < h ? 7 : 3) : j + 1 < h ? 5 : 1);
   const drawn = (i: number, j: number) => i >= 0 && j >= 0 && i < w && j < h && ((at(i, j) & 1) !== 0 || (rgba !== null && rgba[4 * (j * w + i) + 3] > 0));
@@ -559,14 +572,7 @@ export class GlLayer {
     gl.bindTexture(gl.TEXTURE_2D, this.image);
     gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.width, this.height, 0, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(rgba.buffer, rgba.byteOffset, rgba.byteLength));
-    const premultiplied = new Uint8Array(rgba.length);
-    for (let i = 0; i < rgba.length; i += 4) {
-      const a = rgba[i + 3];
-      premultiplied[i] = Math.round((rgba[i] * a) / 255);
-      premultiplied[i + 1] = Math.round((rgba[i + 1] * a) / 255);
-      premultiplied[i + 2] = Math.round((rgba[i + 2] * a) / 255);
-      premultiplied[i + 3] = a;
-    }
+    const premultiplied = premultiply(rgba);
     gl.bindTexture(gl.TEXTURE_2D, this.premultiplied);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.width, this.height, 0, gl.RGBA, gl.UNSIGNED_BYTE, premultiplied);
     if (this.r.softwareGpu) this.premultipliedBytes = premultiplied;
@@ -651,7 +657,7 @@ export class GlLayer {
   }
 
   /** The layer's sparse draft as `Engine.drawDraft` draws it, at `offset` with `opacity`. */
-  cpuDraft(engine: Engine, offset: [number, number], opacity = 1): { draft: DraftHandle; values: Float32Array; offset: [number, number]; opacity: number } {
+  cpuDraft(engine: Engine, offset: [number, number], opacity = 1): DraftLayer {
     if (!this.sparse || !this.draftGeometry) throw new Error('Only a sparse draft on a software GPU is drawn by the CPU.');
     const { width, height } = this;
     this.draftHandle ??= engine.draftLayer({ width, height, premultiplied: this.premultipliedBytes, ...this.draftGeometry });
@@ -668,15 +674,21 @@ export class GlLayer {
    * the triangles of `adaptiveTriangles` and every skirt quarter, read at every pixel, as
    * the WebGL2 fast full frame draws them.
    */
-  cpuFull(engine: Engine, offset: [number, number], opacity = 1): { draft: DraftHandle; values: Float32Array; offset: [number, number]; opacity: number } {
+  cpuFull(engine: Engine, offset: [number, number], opacity = 1): DraftLayer {
     if (!this.onCpuFull) throw new Error('Only a full field on a software GPU is drawn by the CPU.');
     if (this.fullHandle?.version !== this.version) {
-      this.fullHandle?.handle.free();
-      const { width: w, height: h } = this;
-      this.identity ??= Uint32Array.from({ length: w * h }, (_, i) => i);
       const coarse = this.fastTriangles();
-      const handle = engine.draftLayer({ width: w, height: h, premultiplied: this.premultipliedBytes, coarse, skirts: this.allSkirts!, links: this.allLinks, index: this.identity, reads: w * h, pushBorder: false });
-      this.fullHandle = { handle, version: this.version };
+      if (this.fullHandle) {
+        // Only the field changed (a new image or mesh drops the handle): only the
+        // triangles follow it.
+        this.fullHandle.handle.setTriangles(coarse);
+        this.fullHandle.version = this.version;
+      } else {
+        const { width: w, height: h } = this;
+        this.identity ??= Uint32Array.from({ length: w * h }, (_, i) => i);
+        const handle = engine.draftLayer({ width: w, height: h, premultiplied: this.premultipliedBytes, coarse, skirts: this.allSkirts!, links: this.allLinks, index: this.identity, reads: w * h, pushBorder: false });
+        this.fullHandle = { handle, version: this.version };
+      }
       this.adaptiveCount = coarse.length;
     }
     return { draft: this.fullHandle.handle, values: this.fieldPairs!, offset, opacity };

@@ -95,7 +95,6 @@ export class Ui {
     point: number | null;
     start: Pt;
     base: Pt[];
-    moved: boolean;
     /** Where the pointer last moved the drawing to (scene pixels). */
     at: Pt | null;
   } | null = null;
@@ -444,7 +443,7 @@ export class Ui {
     const solved = !ev || !r
       ? 'no solve yet'
       : ev.reused
-        ? `last field (tps) already solved for this pose, not solved again · grid step ${ev.gridStep} · ${r.cycles} cycles · ${r.samples} samples`
+        ? `last field (${r.method}) already solved for this pose, not solved again · grid step ${ev.gridStep} · ${r.cycles} cycles · ${r.samples} samples`
         : r.method === 'tps'
         ? `last solve (tps) ${ev.ms.toFixed(1)} ms · grid step ${ev.gridStep} · ${r.cycles} cycles · ${r.samples} samples${r.dropped_samples ? ` · ${r.dropped_samples} dropped` : ''}`
         : `last solve (${r.method}) ${ev.ms.toFixed(1)} ms · ${r.samples} samples${r.samples_used !== undefined && r.samples_used !== r.samples ? `, ${r.samples_used} used` : ''}${r.line_pairs_used ? ` · ${r.line_pairs_used} line pairs` : ''}`;
@@ -544,7 +543,6 @@ export class Ui {
     if (d.at && d.at[0] === p[0] && d.at[1] === p[1]) return;
     d.at = p;
     const { mode, time } = this.store.view;
-    d.moved = true;
     this.app.lastPointerAt = e.timeStamp || performance.now();
     try {
       if (d.point !== null) {
@@ -589,9 +587,10 @@ export class Ui {
       }
       const f = getFeature(this.store.doc, hit.id)!;
       this.store.setView({ selection: { feature: hit.id, point: hit.point } });
-      this.drag = { id: hit.id, point: hit.point, start: p, base: shownPoints(f, view.mode, view.time).map((q) => [q[0], q[1]] as Pt), moved: false, at: null };
-      // A press the pointer did not rest before: the probe starts now (see `hover`).
-      if (view.mode === 'pose' && !view.playing) this.app.probe(hit.id, hit.point, 'press');
+      this.drag = { id: hit.id, point: hit.point, start: p, base: shownPoints(f, view.mode, view.time).map((q) => [q[0], q[1]] as Pt), at: null };
+      // A press the pointer did not rest before: the probe starts now (see `hover`; the app
+      // probes in pose mode only).
+      this.app.probe(hit.id, hit.point, 'press');
       this.store.begin();
       this.app.dragging = view.mode === 'pose';
     });

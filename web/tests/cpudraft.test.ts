@@ -2,8 +2,8 @@
 // triangles, every pixel centre inside one of them shaded once; and fast full frames (the
 // triangles of `adaptiveTriangles`), held to the CPU reference renderer's full frame.
 import { beforeAll, describe, expect, it } from 'vitest';
-import type { DraftHandle, Engine } from '../src/engine';
-import { adaptiveTriangles, buildMesh, draftPixels } from '../src/gl';
+import type { DraftLayer, Engine } from '../src/engine';
+import { adaptiveTriangles, buildMesh, draftPixels, premultiply } from '../src/gl';
 import { loadEngine } from './wasm';
 
 let engine: Engine;
@@ -12,15 +12,8 @@ beforeAll(async () => {
   engine = await loadEngine();
 });
 
-interface Layer {
-  draft: DraftHandle;
-  values: Float32Array;
-  offset: [number, number];
-  opacity?: number;
-}
-
 /** A `w × h` layer (a vertical cut at x = `cut` + ½ over rows 2..h−3, or none) of colours `rgba`, its sparse draft `field`. */
-function layer(w: number, h: number, rgba: (x: number, y: number) => number[], field: (x: number, y: number) => [number, number], cut: number | null = null): Layer {
+function layer(w: number, h: number, rgba: (x: number, y: number) => number[], field: (x: number, y: number) => [number, number], cut: number | null = null): DraftLayer {
   const links = new Uint8Array(w * h);
   for (let y = 0; y < h; y++) {
     for (let x = 0; x < w; x++) {
@@ -29,15 +22,10 @@ function layer(w: number, h: number, rgba: (x: number, y: number) => number[], f
     }
   }
   const image = new Uint8Array(4 * w * h);
-  const premultiplied = new Uint8Array(4 * w * h);
   for (let y = 0; y < h; y++) {
-    for (let x = 0; x < w; x++) {
-      const c = rgba(x, y);
-      const p = 4 * (y * w + x);
-      image.set(c, p);
-      premultiplied.set([Math.round((c[0] * c[3]) / 255), Math.round((c[1] * c[3]) / 255), Math.round((c[2] * c[3]) / 255), c[3]], p);
-    }
+    for (let x = 0; x < w; x++) image.set(rgba(x, y), 4 * (y * w + x));
   }
+  const premultiplied = premultiply(image);
   const mesh = buildMesh(w, h, links, image);
   const pixels = draftPixels(w, h, mesh.coarse, mesh.skirts, mesh.innerSkirts);
   const index = new Uint32Array(w * h);
@@ -53,7 +41,7 @@ function layer(w: number, h: number, rgba: (x: number, y: number) => number[], f
 
 const WHITE: [number, number, number, number] = [255, 255, 255, 255];
 
-function draw(w: number, h: number, layers: Layer[], background = WHITE): Uint8ClampedArray {
+function draw(w: number, h: number, layers: DraftLayer[], background = WHITE): Uint8ClampedArray {
   const out = new Uint8ClampedArray(4 * w * h);
   engine.drawDraft(out, w, h, background, layers);
   return out;
@@ -122,6 +110,24 @@ describe('draft frames drawn by the CPU', () => {
     blue.draft.free();
   });
 
+  it('take new triangles for a layer and draw with them, keeping the rest of it', () => {
+    const w = 16, h = 12;
+    const colour = (x: number, y: number) => [(x * 29) % 256, (y * 53) % 256, 90, 255];
+    const L = layer(w, h, colour, () => [0, 0]);
+    const before = draw(w, h, [L]);
+    // The same layer's mesh (every pixel linked, as `layer` builds it without a cut).
+    const image = new Uint8Array(4 * w * h);
+    for (let y = 0; y < h; y++) for (let x = 0; x < w; x++) image.set(colour(x, y), 4 * (y * w + x));
+    const { coarse } = buildMesh(w, h, null, image);
+    L.draft.setTriangles(new Uint32Array(0));
+    expect(at(draw(w, h, [L]), w, 8, 6)).toEqual([255, 255, 255, 255]);
+    L.draft.setTriangles(coarse);
+    expect(draw(w, h, [L])).toEqual(before);
+    expect(() => L.draft.setTriangles(new Uint32Array([0, 1, w * h]))).toThrow(new RegExp(`pixel ${w * h} of a ${w}×${h} layer`));
+    expect(() => L.draft.setTriangles(new Uint32Array([0, 1]))).toThrow(/whole triangles/);
+    L.draft.free();
+  });
+
   it('draw nothing of a layer with no pixel drawn, and the other layers as ever', () => {
     const w = 12, h = 10;
     const empty = new Uint8Array(4 * w * h);
@@ -157,7 +163,6 @@ describe('fast full frames drawn by the CPU', () => {
     const grid = engine.grid(w, h, null, [[[30.5, 1.5], [30.5, h - 2.5]]]);
     const links = grid.links();
     const image = new Uint8Array(4 * w * h);
-    const premultiplied = new Uint8Array(4 * w * h);
     const dx = new Float32Array(w * h);
     const dy = new Float32Array(w * h);
     const pairs = new Float32Array(2 * w * h);
@@ -167,12 +172,12 @@ describe('fast full frames drawn by the CPU', () => {
         const k = y * w + x;
         const c = colour(x, y);
         image.set(c, 4 * k);
-        premultiplied.set([Math.round((c[0] * c[3]) / 255), Math.round((c[1] * c[3]) / 255), Math.round((c[2] * c[3]) / 255), c[3]], 4 * k);
         [dx[k], dy[k]] = field(x, y);
         [pairs[2 * k], pairs[2 * k + 1]] = [dx[k], dy[k]];
         index[k] = k;
       }
     }
+    const premultiplied = premultiply(image);
     const f = { width: w, height: h, dx, dy };
     const mesh = buildMesh(w, h, links, image);
     const coarse = adaptiveTriangles(w, h, mesh.links, f);

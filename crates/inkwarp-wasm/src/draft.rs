@@ -13,7 +13,7 @@
 
 use std::cell::RefCell;
 
-use crate::{fail, insert, release, slot, view, view_mut};
+use crate::{fail, insert, release, slot, slot_mut, view, view_mut};
 
 /// One layer's draft geometry and pixels (see the module docs).
 #[derive(Debug)]
@@ -67,54 +67,30 @@ pub extern "C" fn iw_draft_new(
     push_border: u32,
 ) -> u32 {
     let n = width * height;
-    if n == 0 || coarse_len % 3 != 0 || skirts_len % 36 != 0 {
+    if n == 0
+        || coarse_len % 3 != 0
+        || skirts_len % 36 != 0
+        || links_ptr.is_null()
+        || index_ptr.is_null()
+    {
         fail(format!(
-            "A draft layer needs a size, whole triangles and whole skirt quarters (got {width}×{height}, {coarse_len} indices, {skirts_len} skirt floats)."
+            "A draft layer needs a size, whole triangles, whole skirt quarters, its links and its index (got {width}×{height}, {coarse_len} indices, {skirts_len} skirt floats)."
         ));
         return 0;
     }
+    let index = view(index_ptr, n).to_vec();
     let coarse = view(coarse_ptr, coarse_len).to_vec();
-    if let Some(&bad) = coarse.iter().find(|&&v| v as usize >= n) {
-        fail(format!(
-            "A draft triangle refers to pixel {bad} of a {width}×{height} layer."
-        ));
+    let skirts = view(skirts_ptr, skirts_len).to_vec();
+    if let Err(e) = check_triangles(&coarse, width, height, &index, reads)
+        .and_then(|()| check_quarters(&skirts, width, height, &index, reads))
+    {
+        fail(e);
         return 0;
     }
     let pixels = view(pixels_ptr, 4 * n)
         .chunks_exact(4)
         .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect();
-    let index = view(index_ptr, n).to_vec();
-    let skirts = view(skirts_ptr, skirts_len).to_vec();
-    // The pixels read: the triangles' corners, each quarter's pixel and its neighbours.
-    let mut read = coarse.iter().map(|&v| v as usize).collect::<Vec<_>>();
-    for quarter in skirts.chunks_exact(36) {
-        let (x, y) = (quarter[0], quarter[1]);
-        if !(x >= 0.0
-            && y >= 0.0
-            && (x as usize) < width
-            && (y as usize) < height
-            && x.fract() == 0.0
-            && y.fract() == 0.0)
-        {
-            fail(format!(
-                "A skirt quarter at ({x}, {y}) is off the {width}×{height} layer."
-            ));
-            return 0;
-        }
-        let (i, j) = (x as usize, y as usize);
-        read.push(j * width + i);
-        read.extend((i + 1 < width).then(|| j * width + i + 1));
-        read.extend((i > 0).then(|| j * width + i - 1));
-        read.extend((j + 1 < height).then(|| (j + 1) * width + i));
-        read.extend((j > 0).then(|| (j - 1) * width + i));
-    }
-    if let Some(&p) = read.iter().find(|&&p| index[p] as usize >= reads) {
-        fail(format!(
-            "Pixel {p} of the draft mesh has no place among the {reads} pixels of its sparse drafts."
-        ));
-        return 0;
-    }
     let layer = DraftLayer {
         width,
         height,
@@ -127,6 +103,100 @@ pub extern "C" fn iw_draft_new(
         push_border: push_border != 0,
     };
     DRAFTS.with(|d| insert(&mut d.borrow_mut(), layer))
+}
+
+/// Replaces a draft layer's triangles (`coarse_len` pixel indices, checked as
+/// [`iw_draft_new`] checks them), keeping its pixels, skirts, links and index: a fast full
+/// frame's triangles follow its field, the rest of the layer does not. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_draft_set_triangles(
+    handle: u32,
+    coarse_ptr: *const u32,
+    coarse_len: usize,
+) -> i32 {
+    let coarse = view(coarse_ptr, coarse_len);
+    let set = DRAFTS.with(|d| {
+        let mut store = d.borrow_mut();
+        let Some(layer) = slot_mut(&mut store, handle) else {
+            return Err(format!("There is no draft layer with handle {handle}."));
+        };
+        if coarse_len % 3 != 0 {
+            return Err(format!(
+                "Draft triangles need whole triangles (got {coarse_len} indices)."
+            ));
+        }
+        check_triangles(coarse, layer.width, layer.height, &layer.index, layer.reads)?;
+        layer.coarse = coarse.to_vec();
+        Ok(())
+    });
+    match set {
+        Ok(()) => 0,
+        Err(e) => fail(e),
+    }
+}
+
+/// Every triangle corner is a pixel of the `width × height` layer with a place among the
+/// `reads` pixels of its values.
+fn check_triangles(
+    coarse: &[u32],
+    width: usize,
+    height: usize,
+    index: &[u32],
+    reads: usize,
+) -> Result<(), String> {
+    for &v in coarse {
+        let Some(&place) = index.get(v as usize) else {
+            return Err(format!(
+                "A draft triangle refers to pixel {v} of a {width}×{height} layer."
+            ));
+        };
+        if place as usize >= reads {
+            return Err(format!("Pixel {v} of the draft mesh has no place among the {reads} pixels of its sparse drafts."));
+        }
+    }
+    Ok(())
+}
+
+/// Every skirt quarter sits on a pixel of the layer, and it and its linked neighbours have
+/// a place among the `reads` pixels of its values.
+fn check_quarters(
+    skirts: &[f32],
+    width: usize,
+    height: usize,
+    index: &[u32],
+    reads: usize,
+) -> Result<(), String> {
+    for quarter in skirts.chunks_exact(36) {
+        let (x, y) = (quarter[0], quarter[1]);
+        if !(x >= 0.0
+            && y >= 0.0
+            && (x as usize) < width
+            && (y as usize) < height
+            && x.fract() == 0.0
+            && y.fract() == 0.0)
+        {
+            return Err(format!(
+                "A skirt quarter at ({x}, {y}) is off the {width}×{height} layer."
+            ));
+        }
+        let (i, j) = (x as usize, y as usize);
+        let p = j * width + i;
+        let around = [
+            Some(p),
+            (i + 1 < width).then(|| p + 1),
+            (i > 0).then(|| p - 1),
+            (j + 1 < height).then(|| p + width),
+            (j > 0).then(|| p - width),
+        ];
+        if let Some(q) = around
+            .into_iter()
+            .flatten()
+            .find(|&q| index[q] as usize >= reads)
+        {
+            return Err(format!("Pixel {q} of the draft mesh has no place among the {reads} pixels of its sparse drafts."));
+        }
+    }
+    Ok(())
 }
 
 /// Frees a draft layer.
@@ -570,37 +640,41 @@ fn over(src: u32, dst: u32) -> u32 {
 mod tests {
     use super::*;
 
-    /// A one-pixel layer's draft pieces with `pixel` as its colour.
-    fn one_pixel(pixel: u32) -> DraftLayer {
-        DraftLayer {
-            width: 1,
-            height: 1,
-            pixels: vec![pixel],
+    #[test]
+    fn a_triangle_whose_rest_positions_race_along_a_row_is_drawn_from_the_layer() {
+        // Its rest position races along each row, by 100004 pixels per screen pixel (past
+        // what 16.16 fixed point holds), from far off the layer at x = 0 back onto pixel
+        // (4, 4) at x = 1; the layer's colour changes from pixel to pixel, so a rest
+        // position gone wrong shows.
+        let (w, h) = (9, 9);
+        let pixels: Vec<u32> = (0..w * h)
+            .map(|p| 0xff00_0000 | (20 * (p % w) as u32) | (20 * (p / w) as u32) << 8)
+            .collect();
+        let layer = DraftLayer {
+            width: w,
+            height: h,
+            pixels: pixels.clone(),
             coarse: vec![],
             skirts: vec![],
-            links: vec![1],
-            index: vec![0],
-            reads: 1,
+            links: vec![7; w * h],
+            index: (0..(w * h) as u32).collect(),
+            reads: w * h,
             push_border: true,
-        }
-    }
-
-    #[test]
-    fn a_sliver_whose_rest_positions_race_along_a_row_is_drawn_from_the_layer() {
-        // Thin in x across the pixel centre (0, 0): the rest position changes by millions
-        // of pixels per screen pixel along the row, past what 16.16 fixed point holds.
-        let layer = one_pixel(0xff00_ff00);
+        };
         let shade = Shade {
             layer: &layer,
             opacity: 256,
             clamp: None,
         };
-        let corner = |x, y, rx, ry| Corner { x, y, rx, ry };
-        let c = [
-            corner(-1e-6, -5.0, 0.0, 0.0),
-            corner(1e-6, -5.0, 8.0, 0.0),
-            corner(0.0, 5.0, 4.0, 8.0),
-        ];
+        let rest = |x: f64| -100_000.0 + 100_004.0 * x;
+        let corner = |x, y| Corner {
+            x,
+            y,
+            rx: rest(x),
+            ry: 4.0,
+        };
+        // Over the pixel centres x = 0 and 1 of every row.
+        let c = [corner(-0.5, -5.0), corner(3.0, -5.0), corner(-0.5, 10.0)];
         let mut frame = vec![0u32; 9];
         fill(
             &mut Target {
@@ -611,10 +685,8 @@ mod tests {
             &c,
             &shade,
         );
-        assert_eq!(
-            frame,
-            [0xff00_ff00, 0, 0, 0xff00_ff00, 0, 0, 0xff00_ff00, 0, 0]
-        );
+        let (edge, inside) = (pixels[4 * w], pixels[4 * w + 4]);
+        assert_eq!(frame, [edge, inside, 0, edge, inside, 0, edge, inside, 0]);
     }
 
     #[test]

@@ -45,9 +45,10 @@
 //! holes or cuts each cycle also visits a second coarse space, built with the plain
 //! bilinear prolongation of the same grid without them: the link-aware one extrapolates
 //! a constant at every missing link, so it lacks the functions that run linearly up to
-//! (and across) a hole or cut, and the plain one has exactly those. A warm start whose residuals exceed the tolerance also gets the
-//! coarse-to-fine correction; a closer one first gets one cycle as it is. Loose nodes (no
-//! corner of a fully linked cell) are settled to the τ → 0⁺ limit afterwards.
+//! (and across) a hole or cut, and the plain one has exactly those. A warm start whose
+//! residuals exceed the tolerance also gets the coarse-to-fine correction; a closer one
+//! first gets one cycle as it is. Loose nodes (no corner of a fully linked cell) are
+//! settled to the τ → 0⁺ limit afterwards.
 //! `docs/concepts/thin-plate.md` explains the choices and lists the measured figures.
 
 mod cycle;
@@ -252,10 +253,11 @@ impl Keepers {
     fn start() -> Keepers {
         use std::sync::atomic::Ordering::SeqCst;
         let alone = SOLVES_OUTSIDE.fetch_add(1, SeqCst) == 0;
-        let me = rayon::current_thread_index();
-        let (Some(me), true, false) = (me, alone, cfg!(target_family = "wasm") || rayon::current_num_threads() < 2) else {
-            return Keepers { done: None };
-        };
+        let none = Keepers { done: None };
+        if !alone || cfg!(target_family = "wasm") || rayon::current_num_threads() < 2 {
+            return none;
+        }
+        let Some(me) = rayon::current_thread_index() else { return none };
         let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
         let flag = done.clone();
         rayon::spawn_broadcast(move |ctx| {
@@ -366,8 +368,7 @@ pub(crate) fn solve_constrained(
     // shares its step lengths between them, and a piece whose start is far off holds
     // back the others and fools the stopping rule).
     let mut boxes = vec![[usize::MAX, usize::MAX, 0, 0]; count];
-    let single = count == 1 && matches!(pieces[0], Piece::Line { .. } | Piece::General);
-    if single {
+    if count == 1 && matches!(pieces[0], Piece::Line { .. } | Piece::General) {
         // One piece to solve (most grids): its box is that of the active nodes.
         for (y, row) in grid.active.chunks_exact(w).enumerate() {
             if let (Some(a), Some(b)) = (row.iter().position(|&a| a), row.iter().rposition(|&a| a)) {
@@ -375,21 +376,22 @@ pub(crate) fn solve_constrained(
                 *bx = [bx[0].min(a), bx[1].min(y), bx[2].max(b + 1), bx[3].max(y + 1)];
             }
         }
-    }
-    for (y, row) in labels.chunks_exact(w).enumerate().filter(|_| !single) {
-        for (x, &l) in row.iter().enumerate() {
-            if l == u32::MAX {
-                continue;
-            }
-            match pieces[l as usize] {
-                Piece::Zero => {}
-                Piece::Translate(v) => {
-                    field.dx[y * w + x] = v[0] as f32;
-                    field.dy[y * w + x] = v[1] as f32;
+    } else {
+        for (y, row) in labels.chunks_exact(w).enumerate() {
+            for (x, &l) in row.iter().enumerate() {
+                if l == u32::MAX {
+                    continue;
                 }
-                Piece::Line { .. } | Piece::General => {
-                    let b = &mut boxes[l as usize];
-                    *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
+                match pieces[l as usize] {
+                    Piece::Zero => {}
+                    Piece::Translate(v) => {
+                        field.dx[y * w + x] = v[0] as f32;
+                        field.dy[y * w + x] = v[1] as f32;
+                    }
+                    Piece::Line { .. } | Piece::General => {
+                        let b = &mut boxes[l as usize];
+                        *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
+                    }
                 }
             }
         }
@@ -519,7 +521,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         let torn = fine.geo.torn();
         let alt = (torn && key.spaces.second).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
-        let loose = has_loose_nodes(&fine.geo, &key.fixed);
+        let loose = loose_nodes(&fine.geo, &key.fixed).contains(&true);
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
         hier.loose = loose;
         hier.alt = alt;
@@ -926,12 +928,11 @@ fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64
 fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
     const MAX_GROUP: usize = 400;
     let (w, n) = (geo.w, geo.w * geo.h);
-    let core = cell_corners(geo);
-    let loose = |i: usize| geo.active[i] && !fixed[i] && !core[i];
+    let loose = loose_nodes(geo, fixed);
     // Allocated at the first loose node (most grids have none).
     let mut group_of = Vec::new();
     for start in 0..n {
-        if !loose(start) {
+        if !loose[start] {
             continue;
         }
         if group_of.is_empty() {
@@ -948,7 +949,7 @@ fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
             let i = group[k];
             k += 1;
             for j in linked_neighbours(w, &geo.right, &geo.down, i) {
-                if j != usize::MAX && loose(j) && group_of[j] == usize::MAX {
+                if j != usize::MAX && loose[j] && group_of[j] == usize::MAX {
                     group_of[j] = start;
                     group.push(j);
                 }
@@ -960,14 +961,9 @@ fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
     }
 }
 
-/// Whether [`settle_loose_nodes`] has anything to do.
-fn has_loose_nodes(geo: &Geometry, fixed: &[bool]) -> bool {
-    let core = cell_corners(geo);
-    (0..geo.w * geo.h).any(|i| geo.active[i] && !fixed[i] && !core[i])
-}
-
-/// The nodes that are a corner of a 2 × 2 cell with all four links.
-fn cell_corners(geo: &Geometry) -> Vec<bool> {
+/// The loose nodes: free (active, not fixed) and no corner of a 2 × 2 cell with all
+/// four links.
+fn loose_nodes(geo: &Geometry, fixed: &[bool]) -> Vec<bool> {
     let (w, h) = (geo.w, geo.h);
     let mut core = vec![false; w * h];
     for y in 0..h.saturating_sub(1) {
@@ -981,7 +977,7 @@ fn cell_corners(geo: &Geometry) -> Vec<bool> {
             }
         }
     }
-    core
+    (0..w * h).map(|i| geo.active[i] && !fixed[i] && !core[i]).collect()
 }
 
 /// The τ → 0⁺ minimiser over one group of loose nodes (all other values held).
