@@ -214,17 +214,9 @@ pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     if rayon::current_thread_index().is_some() {
         return f();
     }
-    #[cfg(test)]
-    let spaces = SPACES.with(|c| c.get());
     rayon::scope(|_| {
-        // A test's switches travel with the solve to the pool's thread.
-        #[cfg(test)]
-        let before = SPACES.with(|c| c.replace(spaces));
         let _keepers = Keepers::start();
-        let out = f();
-        #[cfg(test)]
-        SPACES.with(|c| c.set(before));
-        out
+        f()
     })
 }
 
@@ -526,6 +518,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         hier.loose = loose;
         hier.alt = alt;
         hier.torn = torn;
+        hier.scaled_finest = key.spaces.scaled;
         if torn && key.spaces.tear && w * h >= TEAR_SPACE_MIN_NODES {
             // Cuts and thin holes: functions that run linearly up to each side of them.
             hier.deflation = deflate::Deflation::new(&hier.levels[0]);
@@ -766,22 +759,26 @@ struct CacheKey {
 }
 
 /// The optional coarse spaces of a hierarchy on a grid with holes or cuts: the plain second
-/// space (see [`Level::into_plain`]) and the space along tears ([`deflate::Deflation`]).
-/// Always both outside tests; a test may switch either off to measure what it saves.
+/// space (see [`Level::into_plain`]) and the space along tears ([`deflate::Deflation`]);
+/// and whether the finest level's coarse corrections are line searched (see
+/// [`Hierarchy::scaled_finest`]). Always all of them outside tests; a test may switch any
+/// off to measure what it saves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Spaces {
     pub second: bool,
     pub tear: bool,
+    pub scaled: bool,
 }
 
 impl Spaces {
-    /// Both spaces, as every solve outside tests has them.
-    pub const ALL: Spaces = Spaces { second: true, tear: true };
+    /// Everything, as every solve outside tests has it.
+    pub const ALL: Spaces = Spaces { second: true, tear: true, scaled: true };
 }
 
 #[cfg(test)]
 thread_local! {
-    /// The spaces of the solves a test runs on this thread (see [`in_pool`]).
+    /// The spaces of the solves started on this thread, set by a test on a pool of its own
+    /// (a thread of the shared pool also runs other tests' solves).
     pub(crate) static SPACES: std::cell::Cell<Spaces> = const { std::cell::Cell::new(Spaces::ALL) };
 }
 

@@ -570,15 +570,24 @@ fn cycles_with_and_without(grid: &Grid, without: Spaces) -> [usize; 2] {
     let samples = random_samples(&mut rng, grid.width, grid.height, 10);
     let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
     let (exact, _) = solve(grid, &samples, &tight, None).unwrap();
-    let cycles = [Spaces::ALL, without].map(|spaces| {
-        SPACES.with(|s| s.set(spaces));
-        let (field, report) = solve(grid, &samples, &SolveOptions::default(), None).unwrap();
+    [Spaces::ALL, without].map(|spaces| {
+        let (field, report) = with_spaces(spaces, || solve(grid, &samples, &SolveOptions::default(), None).unwrap());
         let err = gap(&field, &exact);
         assert!(report.converged && err < 0.05, "{spaces:?}: {err} px off ({report:?})");
         report.cycles
-    });
-    SPACES.with(|s| s.set(Spaces::ALL));
-    cycles
+    })
+}
+
+/// `f` with the solves it starts switched to `spaces`, on a pool of its own: the shared
+/// pool's threads also run other tests' solves, which must not see the switches.
+fn with_spaces<R: Send>(spaces: Spaces, f: impl FnOnce() -> R + Send) -> R {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    pool.install(|| {
+        SPACES.with(|s| s.set(spaces));
+        let out = f();
+        SPACES.with(|s| s.set(Spaces::ALL));
+        out
+    })
 }
 
 #[test]
@@ -603,6 +612,42 @@ fn the_space_along_tears_saves_cycles_across_holes_and_cuts() {
 }
 
 #[test]
+fn line_searched_finest_corrections_save_cycles() {
+    // Cold and warm solves (the warm ones from the answer before a 2 % + 0.05 px change) on
+    // open grids with few and many points and on grids with holes and cuts, with the finest
+    // level's coarse corrections scaled and unscaled: fewer cycles in all when scaled, each
+    // solve within its tolerance of a tight one (98 cycles against 110 when written).
+    let problems: Vec<(Grid, usize)> = vec![
+        (Grid::new(257, 257), 10),
+        (Grid::new(257, 257), 1000),
+        (Grid::new(200, 180), 60),
+        (torn_grid(129, true, true, 5.0), 30),
+        (torn_grid(257, false, true, 10.0), 10),
+        (torn_grid(257, true, false, 10.0), 100),
+    ];
+    let mut totals = [0usize; 2];
+    for (k, (grid, count)) in problems.iter().enumerate() {
+        let mut rng = Rng(300 + k as u64);
+        let samples = random_samples(&mut rng, grid.width, grid.height, *count);
+        let nudged: Vec<Sample> = samples.iter().map(|s| Sample { rest: s.rest, displacement: s.displacement.map(|d| 1.02 * d + 0.05) }).collect();
+        let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
+        let (exact, _) = solve(grid, &nudged, &tight, None).unwrap();
+        for (t, spaces) in [Spaces::ALL, Spaces { scaled: false, ..Spaces::ALL }].into_iter().enumerate() {
+            let (cold, warm, field) = with_spaces(spaces, || {
+                let (start, cold) = solve(grid, &samples, &SolveOptions::default(), None).unwrap();
+                let (field, warm) = solve(grid, &nudged, &SolveOptions::default(), Some(&start)).unwrap();
+                (cold, warm, field)
+            });
+            let err = gap(&field, &exact);
+            assert!(warm.converged && err < 0.01, "problem {k}, {spaces:?}: {err} px off");
+            totals[t] += cold.cycles + warm.cycles;
+        }
+    }
+    let [scaled, unscaled] = totals;
+    assert!(20 * scaled <= 19 * unscaled, "{scaled} cycles with the finest corrections scaled, {unscaled} without");
+}
+
+#[test]
 fn a_warm_start_from_a_changed_frame_takes_few_cycles() {
     // The previous answer, with every constraint moved by 2 %: the start misses by more than
     // the tolerance, so it gets the coarse-to-fine correction before its cycles.
@@ -618,8 +663,9 @@ fn a_warm_start_from_a_changed_frame_takes_few_cycles() {
     let (exact, _) = solve(&grid, &moved, &tight, None).unwrap();
     let err = gap(&warm, &exact);
     assert!(report.converged && err < 0.05, "{err} px off ({report:?})");
-    // (5 against 11 when written; 8 without the coarse-to-fine correction.)
-    assert!(2 * report.cycles <= cold.cycles + 1, "{} cycles warm, {} cold", report.cycles, cold.cycles);
+    // (5 against 11 cold when written, and 8 without the coarse-to-fine correction; 5
+    // against 8 cold since the finest level's corrections are line searched.)
+    assert!(report.cycles <= 5 && report.cycles < cold.cycles, "{} cycles warm, {} cold", report.cycles, cold.cycles);
 }
 
 #[test]
