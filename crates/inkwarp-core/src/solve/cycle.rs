@@ -94,7 +94,10 @@ impl Hierarchy {
             if last.geo.w * last.geo.h <= COARSEST_NODES || last.geo.w <= 2 || last.geo.h <= 2 {
                 break;
             }
-            let next = galerkin(last);
+            let mut next = galerkin(last);
+            if levels.len() == 1 {
+                next.pinned = super::pinned::Pinned::new(last, &next).map(Box::new);
+            }
             levels.push(next);
         }
         let work = levels

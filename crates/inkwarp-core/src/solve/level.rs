@@ -372,6 +372,10 @@ pub(crate) struct Level {
     /// levels) carrying the regular stencil. A coarse node whose whole 9 × 9 window here is
     /// clean gets the regular coarse stencil without computing it.
     pub clean: Vec<bool>,
+    /// The first coarse level's products through the operator of the grid without fixed
+    /// nodes and the fixed nodes' own terms (`op` is still its stencils, for the next
+    /// level's Galerkin product and the coarsest solve).
+    pub pinned: Option<Box<super::pinned::Pinned>>,
 }
 
 impl Level {
@@ -450,7 +454,7 @@ impl Level {
             .map(|i| geo.active[i] && geo.right[i] && geo.down[i] && !geo.fixed.as_ref().is_some_and(|f| f[i]))
             .collect();
         let inv_diag_w = narrow_diag(&inv_diag);
-        Level { geo, wp, hp, op: Operator::Fine { flags, tau }, inv_diag, inv_diag_w, lam_max, clean }
+        Level { geo, wp, hp, op: Operator::Fine { flags, tau }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
     }
 
     /// This finest level with the prolongation of the same grid without holes or cuts
@@ -515,14 +519,21 @@ impl Level {
 
     fn bands<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]], dot: bool) -> [f64; 2] {
         let wp = self.wp;
+        let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));
         let run = |(r, chunk): (usize, &mut [[T; 2]])| {
             let r0 = r * PAR_ROWS + PAD;
             let r1 = r0 + chunk.len() / wp;
-            match &self.op {
-                Operator::Fine { flags, tau } => fine_band(flags, *tau, wp, self.geo.w, x, f, r0, r1, chunk),
-                Operator::Stored { .. } => {
+            match (&self.op, &pinned) {
+                (Operator::Fine { flags, tau }, _) => fine_band(flags, *tau, wp, self.geo.w, x, f, r0, r1, chunk),
+                (Operator::Stored { .. }, None) => {
                     for (k, orow) in chunk.chunks_mut(wp).enumerate() {
-                        self.residual_row(x, f, r0 + k, orow);
+                        self.residual_row(&self.op, x, f, r0 + k, orow);
+                    }
+                }
+                (Operator::Stored { .. }, Some((p, coef))) => {
+                    for (k, orow) in chunk.chunks_mut(wp).enumerate() {
+                        self.residual_row(&p.open, x, f, r0 + k, orow);
+                        p.correct_row(coef, r0 + k, wp, self.geo.w, orow);
                     }
                 }
             }
@@ -540,10 +551,10 @@ impl Level {
     }
 
     #[inline(never)]
-    fn residual_row<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) {
+    fn residual_row<T: Real>(&self, op: &Operator, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) {
         let wp = self.wp;
         let base = r * wp;
-        match &self.op {
+        match op {
             Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
             Operator::Stored { ids, table, narrow, sym } => {
                 let table = T::table(table, narrow);
@@ -983,7 +994,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let sym = Sym::of(&table[0]);
     let narrow = table.iter().map(|s| s.map(|a| a as f32)).collect();
     let inv_diag_w = narrow_diag(&inv_diag);
-    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym }, inv_diag, inv_diag_w, lam_max, clean }
+    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
 }
 
 fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {

@@ -55,6 +55,7 @@ mod cycle;
 mod deflate;
 mod history;
 mod level;
+mod pinned;
 mod southwell;
 mod upsample;
 

@@ -779,6 +779,63 @@ fn coarse_levels_never_couple_nodes_across_a_cut() {
 }
 
 #[test]
+fn the_first_coarse_level_through_its_fixed_nodes_terms_matches_its_stencils() {
+    // The first coarse level applied as the operator of the grid without fixed nodes plus
+    // the fixed nodes' own terms (see `pinned`) against its stored Galerkin stencils: odd
+    // and even sizes (ghost coarse nodes), a hole and a cut, tension, fixed nodes at the
+    // border, in clusters and scattered, in both precisions.
+    let mut rnd = crate::grid::tests::sequence(33);
+    let grids = [(Grid::new(97, 97), 0.0), (Grid::new(100, 90), 0.3), (torn_grid(97, true, true, 5.0), 0.0), (torn_grid(96, true, true, 5.0), 0.2)];
+    for (g, (grid, tau)) in grids.iter().enumerate() {
+        let (w, h) = (grid.width, grid.height);
+        let mut fixed: Vec<bool> = (0..w * h).map(|_| rnd() < 0.04).collect();
+        for i in [0, w - 1, w * (h - 1), w * h - 1, w / 2, (h / 2) * w] {
+            fixed[i] = true;
+        }
+        for (x, y) in [(20, 20), (21, 20), (20, 21), (21, 21), (22, 22), (40, 41)] {
+            fixed[y * w + x] = true;
+        }
+        let fine = fine_level(grid, Some(fixed), *tau);
+        let mut coarse = level::galerkin(&fine);
+        let pinned = super::pinned::Pinned::new(&fine, &coarse).map(Box::new);
+        assert!(pinned.is_some(), "grid {g}: scattered fixed nodes should take the terms");
+        let n = coarse.len_padded();
+        let x: Vec<V2> = (0..n).map(|p| if coarse.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
+        let f: Vec<V2> = (0..n).map(|p| if coarse.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
+        let xw: Vec<W2> = x.iter().map(|v| [v[0] as f32, v[1] as f32]).collect();
+        let fw: Vec<W2> = f.iter().map(|v| [v[0] as f32, v[1] as f32]).collect();
+        let (mut stencils, mut stencils_w) = (vec![[0.0; 2]; n], vec![[0.0f32; 2]; n]);
+        coarse.residual(&x, Some(&f), &mut stencils);
+        coarse.residual(&xw, Some(&fw), &mut stencils_w);
+        let dot = coarse.residual_dot(&x, &mut vec![[0.0; 2]; n]);
+        coarse.pinned = pinned;
+        let (mut terms, mut terms_w) = (vec![[0.0; 2]; n], vec![[0.0f32; 2]; n]);
+        coarse.residual(&x, Some(&f), &mut terms);
+        coarse.residual(&xw, Some(&fw), &mut terms_w);
+        let dot_terms = coarse.residual_dot(&x, &mut vec![[0.0; 2]; n]);
+        let scale = stencils.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+        for p in 0..n {
+            for k in 0..2 {
+                assert!((stencils[p][k] - terms[p][k]).abs() <= 1e-12 * scale, "grid {g}, node {p}: {:?} against {:?}", stencils[p], terms[p]);
+                assert!((stencils_w[p][k] - terms_w[p][k]).abs() as f64 <= 2e-5 * scale, "grid {g}, node {p} in f32: {:?} against {:?}", stencils_w[p], terms_w[p]);
+            }
+        }
+        for k in 0..2 {
+            assert!((dot[k] - dot_terms[k]).abs() <= 1e-10 * dot[k].abs().max(1.0), "grid {g}: xᵀAx {dot:?} against {dot_terms:?}");
+        }
+    }
+    // Few fixed nodes, or fixed nodes so dense that their terms would cost more than the
+    // stencils: none.
+    let grid = Grid::new(97, 97);
+    for density in [0.001, 0.5] {
+        let fixed: Vec<bool> = (0..97 * 97).map(|_| rnd() < density).collect();
+        let fine = fine_level(&grid, Some(fixed), 0.0);
+        let coarse = level::galerkin(&fine);
+        assert!(super::pinned::Pinned::new(&fine, &coarse).is_none(), "density {density}");
+    }
+}
+
+#[test]
 fn every_level_smooths_below_the_top_of_its_spectrum() {
     // A wedge-shaped hole whose slanted edge leaves slivers of the grid below it: the
     // second coarse space's levels over it carry modes on a few nodes along the edge, far
@@ -820,3 +877,5 @@ fn every_level_smooths_below_the_top_of_its_spectrum() {
         assert!(1.06 * level.lam_max >= top, "level {k} ({}×{}): smoothing bound {} too far below the spectrum's top {top}", level.geo.w, level.geo.h, level.lam_max);
     }
 }
+
+
