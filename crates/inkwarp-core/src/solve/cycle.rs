@@ -39,11 +39,11 @@ pub(crate) struct Hierarchy {
     pub alt: Option<Box<Hierarchy>>,
     /// Whether the finest level has holes or cuts (see [`super::level::Geometry::torn`]).
     pub torn: bool,
-    /// Scale the finest level's coarse corrections (both spaces') by the step that
-    /// minimises the energy along them, as every coarser level's are. One cycle of the
-    /// first coarse level falls short where its space fits the error poorly, and the
-    /// conjugate gradient around the cycle can only scale the cycle's whole output, its
-    /// smoothing included. Off only in a test that measures what it saves.
+    /// Scale the finest level's coarse correction by the step that minimises the energy
+    /// along it, as every coarser level's is. One cycle of the first coarse level falls
+    /// short where its space fits the error poorly, and the conjugate gradient around the
+    /// cycle can only scale the cycle's whole output, its smoothing included. On grids
+    /// without holes or cuts (set by the solve; a test switches it off to measure it).
     pub scaled_finest: bool,
     /// An extra coarse space along cuts, solved exactly before each cycle.
     pub deflation: Option<super::deflate::Deflation>,
@@ -203,8 +203,8 @@ impl Hierarchy {
             self.solve_level(k + 1, tail, true, None);
             if k > 0 || (k + 2 < self.levels.len() && self.scaled_finest) {
                 // The finest level's too (see `scaled_finest`): 513 × 513 with 10 to 4000
-                // points took 6–10 cold cycles instead of 7–10, 12 problems with holes and
-                // cuts 144 cold cycles instead of 156 and 91 warm instead of 97.
+                // points took 6–10 cold cycles instead of 7–10, 24 random open problems
+                // 176 instead of 188 (warm 72 instead of 83).
                 add_line_searched(level, &self.levels[k + 1], &mut tail[0], &mut w.x);
             } else {
                 // (From the coarsest level of two the correction is exact: its step is 1.)
@@ -218,15 +218,11 @@ impl Hierarchy {
             restrict(&alt.levels[0], &alt.levels[1], &w.r, &mut atail[0].f);
             fill_zero(&mut atail[0].x);
             alt.solve_level(1, atail, true, None);
-            // Line searched as the first space's correction is (with that one unscaled,
-            // scaling this one alone moved the cycle counts up and down by a few percent;
-            // with both scaled, 12 problems with holes and cuts took 138 cold cycles
-            // instead of 144 and 86 warm instead of 91).
-            if alt.levels.len() > 2 && self.scaled_finest {
-                add_line_searched(&alt.levels[0], &alt.levels[1], &mut atail[0], &mut w.x);
-            } else {
-                prolong_add(&alt.levels[0], &alt.levels[1], &atail[0].x, &mut w.x);
-            }
+            // Unscaled: with the line search the cycle counts on holes and cuts went up and
+            // down by a few percent, to no gain; with the first space's correction scaled
+            // too, two random 96 × 96 problems with holes, cuts and hinges no longer
+            // converged in 100 cycles.
+            prolong_add(&alt.levels[0], &alt.levels[1], &atail[0].x, &mut w.x);
         }
         let Work { x, f, r, d, .. } = w;
         smooth(level, x, Some(f), r, d, self.degree_at(k), false);
