@@ -138,15 +138,26 @@ impl Hierarchy {
     /// the cycle's own output, valid until the next call (the conjugate gradient reads it
     /// where it would otherwise copy it to `f64` first and read that).
     pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
+        map_into(&mut self.work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
+        self.precondition_narrowed(r)
+    }
+
+    /// The cycle's right-hand side on the finest level: `r` in `f32`, for a caller that
+    /// writes it while it updates `r` (then [`Hierarchy::precondition_narrowed`]).
+    pub fn narrow_rhs(&mut self, len: usize) -> &mut [W2] {
+        &mut self.work[0].f[..len]
+    }
+
+    /// [`Hierarchy::precondition`] with `r` already written into [`Hierarchy::narrow_rhs`].
+    pub fn precondition_narrowed(&mut self, r: &[V2]) -> &[W2] {
         let mut work = std::mem::take(&mut self.work);
-        map_into(&mut work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
         // With the extra space along tears: its exact part first, the cycle on the rest.
         let c = self.deflation.as_ref().map(|d| {
             let c = d.coefficients(r);
             d.remove(&mut work[0].f, &c);
             c
         });
-        fill_zero(&mut work[0].x);
+        self.clear_start(0, &mut work[0].x);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
         self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
         if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
@@ -157,6 +168,14 @@ impl Hierarchy {
         }
         self.work = work;
         &self.work[0].x[..r.len()]
+    }
+
+    /// Zeroes `x` for a solve of level k from zero, unless that solve's first smoothing
+    /// step writes all of it anyway.
+    fn clear_start(&self, k: usize, x: &mut [W2]) {
+        if k + 1 == self.levels.len() || self.degree_at(k) == 0 || self.levels[k].lam_max <= 0.0 {
+            fill_zero(x);
+        }
     }
 
     fn degree_at(&self, k: usize) -> usize {
@@ -199,7 +218,7 @@ impl Hierarchy {
             self.k_correction(k, w, tail);
         } else {
             restrict(level, &self.levels[k + 1], &w.r, &mut tail[0].f);
-            fill_zero(&mut tail[0].x);
+            self.clear_start(k + 1, &mut tail[0].x);
             self.solve_level(k + 1, tail, true, None);
             if k > 0 || (k + 2 < self.levels.len() && self.scaled_finest) {
                 // The finest level's too (see `scaled_finest`): 513 × 513 with 10 to 4000
@@ -216,7 +235,7 @@ impl Hierarchy {
             level.residual(&w.x, Some(&w.f), &mut w.r);
             let atail = &mut aw[1..];
             restrict(&alt.levels[0], &alt.levels[1], &w.r, &mut atail[0].f);
-            fill_zero(&mut atail[0].x);
+            alt.clear_start(1, &mut atail[0].x);
             alt.solve_level(1, atail, true, None);
             // Unscaled: with the line search the cycle counts on holes and cuts went up and
             // down by a few percent, to no gain; with the first space's correction scaled
@@ -248,7 +267,7 @@ impl Hierarchy {
     fn k_correction(&self, k: usize, w: &mut Work, tail: &mut [Work]) {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
         restrict(level, coarse, &w.r, &mut tail[0].f);
-        fill_zero(&mut tail[0].x);
+        self.clear_start(k + 1, &mut tail[0].x);
         self.solve_level(k + 1, tail, true, None);
         let c = &mut tail[0];
         coarse.residual(&c.x, None, &mut c.r); // −A z₁ on the unknowns
@@ -282,7 +301,7 @@ impl Hierarchy {
                 return;
             }
         }
-        fill_zero(&mut c.x);
+        self.clear_start(k + 1, &mut c.x);
         self.solve_level(k + 1, tail, true, None);
         let c = &mut tail[0];
         coarse.residual(&c.x, None, &mut c.r); // −A z₂

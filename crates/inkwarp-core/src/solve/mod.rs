@@ -604,11 +604,12 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
                         if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
                     ];
+                    // The update also writes the residual in `f32` for the next cycle.
                     let change = u
                         .par_chunks_mut(CHUNK)
-                        .zip(r.par_chunks_mut(CHUNK))
+                        .zip(r.par_chunks_mut(CHUNK).zip(hier.narrow_rhs(len).par_chunks_mut(CHUNK)))
                         .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
-                        .map(|((u, r), (p, q))| step_update(u, r, p, q, alpha))
+                        .map(|((u, (r, rw)), (p, q))| step_update(u, r, rw, p, q, alpha))
                         .reduce(|| 0.0, f64::max);
                     if stop(change, cycle, &mut report) {
                         report.converged = true;
@@ -623,7 +624,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         widen_into(&mut p, z, None);
                         continue;
                     }
-                    let z = hier.precondition(&r);
+                    let z = hier.precondition_narrowed(&r);
                     // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
                     // the preconditioner's line searches make it slightly nonlinear.
                     let (rz_new, zq) = fcg_dots(&r, z, Some(&q));
@@ -1139,28 +1140,30 @@ fn widen_into(p: &mut [V2], z: &[W2], beta: Option<[f64; 2]>) {
     });
 }
 
-/// The conjugate-gradient step on one chunk: `u += α p`, `r += α q` (α per component);
+/// The conjugate-gradient step on one chunk: `u += α p`, `r += α q` (α per component), and
+/// `rw` the new `r` in `f32` (the next cycle's right-hand side, written while `r` is at hand);
 /// returns the largest `|α p|`. On the flattened components, eight running maxima: one
 /// would wait on the last at every entry.
-fn step_update(u: &mut [V2], r: &mut [V2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 {
-    let (u, r) = (u.as_flattened_mut(), r.as_flattened_mut());
+fn step_update(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 {
+    let (u, r, rw) = (u.as_flattened_mut(), r.as_flattened_mut(), rw.as_flattened_mut());
     let (p, q) = (p.as_flattened(), q.as_flattened());
     let mut m = [0.0f64; 8];
-    let lanes = |u: &mut [f64], r: &mut [f64], p: &[f64], q: &[f64], m: &mut [f64]| {
+    let lanes = |u: &mut [f64], r: &mut [f64], rw: &mut [WS], p: &[f64], q: &[f64], m: &mut [f64]| {
         for l in 0..u.len() {
             let a = alpha[l & 1];
             let d = a * p[l];
             u[l] += d;
             m[l] = larger(m[l], d.abs());
             r[l] += a * q[l];
+            rw[l] = WS::of(r[l]);
         }
     };
     let n8 = u.len() / 8 * 8;
     for j in (0..n8).step_by(8) {
-        lanes(&mut u[j..j + 8], &mut r[j..j + 8], &p[j..j + 8], &q[j..j + 8], &mut m);
+        lanes(&mut u[j..j + 8], &mut r[j..j + 8], &mut rw[j..j + 8], &p[j..j + 8], &q[j..j + 8], &mut m);
     }
     // The remainder starts on an even index, as the lanes do.
-    lanes(&mut u[n8..], &mut r[n8..], &p[n8..], &q[n8..], &mut m);
+    lanes(&mut u[n8..], &mut r[n8..], &mut rw[n8..], &p[n8..], &q[n8..], &mut m);
     m.iter().fold(0.0, |a, &b| a.max(b))
 }
 
