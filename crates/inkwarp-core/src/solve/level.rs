@@ -255,6 +255,40 @@ impl Geometry {
     }
 }
 
+/// What a product over the bands also gathers while each band is in cache.
+#[derive(Clone, Copy)]
+enum Fold {
+    Nothing,
+    Dot,
+    ScaledMax,
+}
+
+/// The largest `|r_i| / a_ii` of a residual (pixels: how far one Jacobi step would move a
+/// node), `inv_diag` the matching inverse diagonal (zero where a node is no unknown). Eight
+/// running maxima: one would wait on the last at every entry.
+pub(crate) fn scaled_max<T: Real>(r: &[[T; 2]], inv_diag: &[f64]) -> f64 {
+    let mut m = [0.0f64; 8];
+    let (dc, rc) = (inv_diag[..r.len()].chunks_exact(4), r.chunks_exact(4));
+    let (dt, rt) = (dc.remainder(), rc.remainder());
+    for (d, ri) in dc.zip(rc) {
+        for l in 0..4 {
+            m[2 * l] = larger(m[2 * l], ri[l][0].get().abs() * d[l]);
+            m[2 * l + 1] = larger(m[2 * l + 1], ri[l][1].get().abs() * d[l]);
+        }
+    }
+    for (d, ri) in dt.iter().zip(rt) {
+        m[0] = larger(larger(m[0], ri[0].get().abs() * d), ri[1].get().abs() * d);
+    }
+    m.iter().fold(0.0, |a, &b| larger(a, b))
+}
+
+/// The larger of two values, by a comparison: `f64::max` (which must skip a NaN either
+/// side) becomes a call into the C library on WebAssembly, once per node in the passes above.
+#[inline(always)]
+pub(crate) fn larger(a: f64, b: f64) -> f64 {
+    if b > a { b } else { a }
+}
+
 /// `[Σ a₀b₀, Σ a₁b₁]` of two vectors of pairs, in `f64`, the products taken in `T`.
 pub(crate) fn dot_pairs<T: Real>(a: &[[T; 2]], b: &[[T; 2]]) -> [f64; 2] {
     pair_sums(a.as_flattened(), b.as_flattened(), |x: T, y: T| (x * y).get())
@@ -508,16 +542,22 @@ impl Level {
 
     /// `y = f − A x` on unknowns (zero elsewhere), rows in parallel for large levels.
     pub fn residual<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]]) {
-        self.bands(x, f, out, false);
+        self.bands(x, f, out, Fold::Nothing);
     }
 
     /// `out = −A x` (as [`Level::residual`] without `f`) and `xᵀ out` per component, taken
     /// band by band while both are in cache.
     pub fn residual_dot<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> [f64; 2] {
-        self.bands(x, None, out, true)
+        self.bands(x, None, out, Fold::Dot)
     }
 
-    fn bands<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]], dot: bool) -> [f64; 2] {
+    /// `out = −A x` and its largest entry scaled by the inverse diagonal (see
+    /// [`scaled_max`]), taken band by band while `out` is in cache.
+    pub fn residual_scaled_max<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> f64 {
+        self.bands(x, None, out, Fold::ScaledMax)[0]
+    }
+
+    fn bands<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]], fold: Fold) -> [f64; 2] {
         let wp = self.wp;
         let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));
         let run = |(r, chunk): (usize, &mut [[T; 2]])| {
@@ -537,17 +577,23 @@ impl Level {
                     }
                 }
             }
-            if dot { dot_pairs(&x[r0 * wp..r1 * wp], chunk) } else { [0.0; 2] }
+            match fold {
+                Fold::Nothing => [0.0; 2],
+                Fold::Dot => dot_pairs(&x[r0 * wp..r1 * wp], chunk),
+                Fold::ScaledMax => [scaled_max(chunk, &self.inv_diag[r0 * wp..r1 * wp]), 0.0],
+            }
         };
         let body = &mut out[PAD * wp..(PAD + self.geo.h) * wp];
-        // The bands' sums are added in order, so the result does not depend on the threads.
-        let sum = |a: [f64; 2], b: &[f64; 2]| [a[0] + b[0], a[1] + b[1]];
         let parts: Vec<[f64; 2]> = if self.geo.w * self.geo.h >= PAR_MIN_NODES {
             body.par_chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect()
         } else {
             body.chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect()
         };
-        parts.iter().fold([0.0; 2], sum)
+        if let Fold::ScaledMax = fold {
+            return [parts.iter().fold(0.0, |m, p| larger(m, p[0])), 0.0];
+        }
+        // The bands' sums are added in order, so the result does not depend on the threads.
+        parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
     }
 
     #[inline(never)]

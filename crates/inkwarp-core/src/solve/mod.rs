@@ -71,7 +71,7 @@ use crate::geometry::Sample;
 use crate::grid::{constrain, linked_neighbours, Constraints, Grid};
 
 use cycle::Hierarchy;
-use level::{Geometry, Level, Real, V2, W2, WS};
+use level::{larger, scaled_max, Geometry, Level, Real, V2, W2, WS};
 
 /// How the linear system is relaxed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -559,15 +559,13 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     // only when that cycle did not finish: for it the correction costs more than it saves.
     let mut started = initial.is_none();
     if !started {
-        hier.levels[0].residual(&u, None, &mut r);
-        report.initial_residual = scaled_max(&hier.levels[0], &r);
+        report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
         started = report.initial_residual > options.tolerance_px;
     }
     if started {
         // A warm start's residual is in r already.
         hier.coarse_to_fine(&mut u, &mut r, initial.is_some());
-        hier.levels[0].residual(&u, None, &mut r);
-        report.initial_residual = scaled_max(&hier.levels[0], &r);
+        report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
     }
     let max_cycles = options.max_cycles.unwrap_or(100);
     match options.method {
@@ -650,7 +648,8 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     }
     // The conjugate-gradient residual is updated, not recomputed: it is the residual of u
     // up to rounding.
-    report.residual = scaled_max(&hier.levels[0], &r);
+    let inv_diag = &hier.levels[0].inv_diag;
+    report.residual = r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)).map(|(r, d)| scaled_max(r, d)).reduce(|| 0.0, larger);
     give_back(r);
     let fine = &hier.levels[0];
     // Every value written (zero off the piece), row by row in parallel.
@@ -1165,31 +1164,6 @@ fn step_update(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[V2], q: &[V2], al
     // The remainder starts on an even index, as the lanes do.
     lanes(&mut u[n8..], &mut r[n8..], &mut rw[n8..], &p[n8..], &q[n8..], &mut m);
     m.iter().fold(0.0, |a, &b| a.max(b))
-}
-
-/// The largest residual of `r` scaled by the inverse diagonal (pixels of a Jacobi step).
-fn scaled_max(level: &Level, r: &[V2]) -> f64 {
-    let mut m = [0.0f64; 8];
-    let (dc, rc) = (level.inv_diag[..r.len()].chunks_exact(4), r.chunks_exact(4));
-    let (dt, rt) = (dc.remainder(), rc.remainder());
-    for (d, ri) in dc.zip(rc) {
-        for l in 0..4 {
-            // Nodes that are not unknowns (inactive or fixed) have a zero inverse diagonal.
-            m[2 * l] = larger(m[2 * l], ri[l][0].abs() * d[l]);
-            m[2 * l + 1] = larger(m[2 * l + 1], ri[l][1].abs() * d[l]);
-        }
-    }
-    for (d, ri) in dt.iter().zip(rt) {
-        m[0] = m[0].max(ri[0].abs() * d).max(ri[1].abs() * d);
-    }
-    m.iter().fold(0.0, |a, &b| a.max(b))
-}
-
-/// The larger of two values, by a comparison: `f64::max` (which must skip a NaN either
-/// side) becomes a call into the C library on WebAssembly, once per node in the passes above.
-#[inline(always)]
-fn larger(a: f64, b: f64) -> f64 {
-    if b > a { b } else { a }
 }
 
 /// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.
