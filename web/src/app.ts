@@ -530,7 +530,7 @@ export class App {
     const sig = JSON.stringify([id, point, time, this.store.revision]);
     if (sig === this.lastProbe) return;
     this.lastProbe = sig;
-    this.stats.probesAsked[on]++;
+    let asked = false;
     for (const layer of this.doc.layers) {
       const rt = this.runtimes.get(layer.name);
       if (!rt?.gridReady) continue;
@@ -539,7 +539,9 @@ export class App {
       const features = probedFeatures(this.solveFeatures(layer, time), id, point);
       if (!features) continue;
       this.keep(rt, layer, features, { ...options, tolerance: Math.max(options.tolerance ?? 0, PROBE_TOLERANCE_PX) }, 'probe', time);
+      asked = true;
     }
+    if (asked) this.stats.probesAsked[on]++;
   }
 
   /**

@@ -137,7 +137,6 @@ export interface DraftGeometry {
   pushBorder?: boolean;
 }
 
-/** A layer's draft geometry living in the module; free it when the layer's mesh or image changes. */
 /** One layer of a frame drawn by the CPU (`Engine.drawDraft`): its handle, (dx, dy) pairs at the pixels it reads, offset and opacity. */
 export interface DraftLayer {
   draft: DraftHandle;
@@ -146,6 +145,7 @@ export interface DraftLayer {
   opacity?: number;
 }
 
+/** A layer's draft geometry living in the module; free it when the layer's mesh or image changes. */
 export class DraftHandle {
   constructor(
     readonly engine: Engine,

@@ -191,13 +191,6 @@ function program(gl: WebGL2RenderingContext, vs: string, fs: string, attributes:
   return p;
 }
 
-/**
- * The mesh of a `w × h` layer from its grid's links (per node: bit 0 active, bit 1 linked
- * right, bit 2 linked down; null: everything linked) and its RGBA (a pixel is drawn when
- * it is active or visible): triangle indices of the whole quads, of the draft mesh (see
- * `draftQuads`), the skirt quarters' vertices (x, y, sx, sy, u, v), and the links as given
- * (or all).
- */
 /** Straight RGBA8 pixels premultiplied by their alpha (rounded), as drafts read them. */
 export function premultiply(rgba: Uint8Array | Uint8ClampedArray): Uint8Array {
   const out = new Uint8Array(rgba.length);
@@ -211,6 +204,13 @@ export function premultiply(rgba: Uint8Array | Uint8ClampedArray): Uint8Array {
   return out;
 }
 
+/**
+ * The mesh of a `w × h` layer from its grid's links (per node: bit 0 active, bit 1 linked
+ * right, bit 2 linked down; null: everything linked) and its RGBA (a pixel is drawn when
+ * it is active or visible): triangle indices of the whole quads, of the draft mesh (see
+ * `draftQuads`), the skirt quarters' vertices (x, y, sx, sy, u, v), and the links as given
+ * (or all).
+ */
 export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; innerSkirts: number; links: Uint8Array } {
   const at = (i: number, j: number) => (links ? links[j * w + i] : i + 1 < w ? (j + 1 < h ? 7 : 3) : j + 1 < h ? 5 : 1);
   const drawn = (i: number, j: number) => i >= 0 && j >= 0 && i < w && j < h && ((at(i, j) & 1) !== 0 || (rgba !== null && rgba[4 * (j * w + i) + 3] > 0));

@@ -4,7 +4,7 @@ import { fileURLToPath } from 'node:url';
 import { Engine } from '../src/engine';
 
 /** The module's bytes. */
-export const wasmBytes = readFileSync(fileURLToPath(new URL('../src/generated/inkwarp.wasm', import.meta.url)));
+const wasmBytes = readFileSync(fileURLToPath(new URL('../src/generated/inkwarp.wasm', import.meta.url)));
 
 /** A fresh engine instance of the module. */
 export function loadEngine(): Promise<Engine> {

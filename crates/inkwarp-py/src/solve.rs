@@ -116,11 +116,10 @@ fn thin_plate_solve<'py>(
                     f.shape()
                 )));
             }
-            Some(match f.as_slice() {
-                Ok(data) => Field::from_interleaved(width, height, data),
-                // Not C-contiguous (a view, a transpose): one copy in C order first.
-                Err(_) => Field::from_interleaved(width, height, &f.as_array().iter().copied().collect::<Vec<f32>>()),
-            })
+            // Read in place when in C order; any other layout is copied into it first.
+            let a = f.as_array();
+            let c = a.as_standard_layout();
+            Some(Field::from_interleaved(width, height, c.as_slice().expect("standard layout is contiguous")))
         }
         None => None,
     };

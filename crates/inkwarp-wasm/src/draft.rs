@@ -70,11 +70,12 @@ pub extern "C" fn iw_draft_new(
     if n == 0
         || coarse_len % 3 != 0
         || skirts_len % 36 != 0
+        || pixels_ptr.is_null()
         || links_ptr.is_null()
         || index_ptr.is_null()
     {
         fail(format!(
-            "A draft layer needs a size, whole triangles, whole skirt quarters, its links and its index (got {width}×{height}, {coarse_len} indices, {skirts_len} skirt floats)."
+            "A draft layer needs a size, whole triangles, whole skirt quarters, its pixels, links and index (got {width}×{height}, {coarse_len} indices, {skirts_len} skirt floats)."
         ));
         return 0;
     }
@@ -151,7 +152,7 @@ fn check_triangles(
             ));
         };
         if place as usize >= reads {
-            return Err(format!("Pixel {v} of the draft mesh has no place among the {reads} pixels of its sparse drafts."));
+            return Err(format!("Pixel {v} of the draft mesh has no place among the {reads} pixels of its values."));
         }
     }
     Ok(())
@@ -193,7 +194,7 @@ fn check_quarters(
             .flatten()
             .find(|&q| index[q] as usize >= reads)
         {
-            return Err(format!("Pixel {q} of the draft mesh has no place among the {reads} pixels of its sparse drafts."));
+            return Err(format!("Pixel {q} of the draft mesh has no place among the {reads} pixels of its values."));
         }
     }
     Ok(())

@@ -275,10 +275,10 @@ impl Hierarchy {
         let zf = dot_w(&c.x, &c.f);
         let a1 = [step(zf[0], zaz[0]), step(zf[1], zaz[1])];
         {
-            // Keep z₁ and A z₁; the right-hand side becomes the residual f − α₁ A z₁.
+            // Keep A z₁ (and z₁ below, if a second step follows); the right-hand side becomes
+            // the residual f − α₁ A z₁.
             let a1w = [WS::of(a1[0]), WS::of(a1[1])];
             let Work { x, f, r, z1, q1, .. } = c;
-            z1.clone_from(x);
             q1.resize(r.len(), [WS::ZERO; 2]);
             let (mut before, mut after) = ([0.0f64; 2], [0.0f64; 2]);
             for p in 0..r.len() {
@@ -294,12 +294,10 @@ impl Hierarchy {
             let t2 = K_SECOND_STEP * K_SECOND_STEP;
             if after[0] <= t2 * before[0] && after[1] <= t2 * before[1] {
                 self.second_steps_skipped.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                for v in x.iter_mut() {
-                    *v = [a1w[0] * v[0], a1w[1] * v[1]];
-                }
-                prolong_add(level, coarse, x, &mut w.x);
+                prolong_add_scaled(level, coarse, x, &mut w.x, a1);
                 return;
             }
+            z1.clone_from(x);
         }
         self.clear_start(k + 1, &mut c.x);
         self.solve_level(k + 1, tail, true, None);

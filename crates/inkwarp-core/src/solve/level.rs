@@ -563,17 +563,16 @@ impl Level {
         let run = |(r, chunk): (usize, &mut [[T; 2]])| {
             let r0 = r * PAR_ROWS + PAD;
             let r1 = r0 + chunk.len() / wp;
-            match (&self.op, &pinned) {
-                (Operator::Fine { flags, tau }, _) => fine_band(flags, *tau, wp, self.geo.w, x, f, r0, r1, chunk),
-                (Operator::Stored { .. }, None) => {
+            match &self.op {
+                Operator::Fine { flags, tau } => fine_band(flags, *tau, wp, self.geo.w, x, f, r0, r1, chunk),
+                Operator::Stored { .. } => {
+                    // With fixed nodes' terms: the operator without them, then the terms.
+                    let op = pinned.as_ref().map_or(&self.op, |(p, _)| &p.open);
                     for (k, orow) in chunk.chunks_mut(wp).enumerate() {
-                        self.residual_row(&self.op, x, f, r0 + k, orow);
-                    }
-                }
-                (Operator::Stored { .. }, Some((p, coef))) => {
-                    for (k, orow) in chunk.chunks_mut(wp).enumerate() {
-                        self.residual_row(&p.open, x, f, r0 + k, orow);
-                        p.correct_row(coef, r0 + k, wp, self.geo.w, orow);
+                        self.residual_row(op, x, f, r0 + k, orow);
+                        if let Some((p, coef)) = &pinned {
+                            p.correct_row(coef, r0 + k, wp, self.geo.w, orow);
+                        }
                     }
                 }
             }
