@@ -548,7 +548,7 @@ fn coarse_steps_start_from_earlier_coarse_frames() {
 
 /// An `n × n` grid with a thin arc-shaped hole (open on its right, past `n/2 + open`)
 /// and a cut, each when asked for.
-fn torn_grid(n: usize, hole: bool, cut: bool, open: f64) -> Grid {
+pub(super) fn torn_grid(n: usize, hole: bool, cut: bool, open: f64) -> Grid {
     let c = n as f64 / 2.0;
     let arc = |i: usize| {
         let (x, y) = ((i % n) as f64, (i / n) as f64);
