@@ -10,6 +10,7 @@
 
 use rayon::prelude::*;
 
+#[cfg(target_arch = "x86_64")]
 use super::wide;
 
 /// Padding around every level's vectors.
