@@ -517,6 +517,7 @@ pub(crate) fn smooth(
             for i in 0..d.len() {
                 let v = if g[i] != 0.0 { [f[i][0] * g[i] * inv_theta, f[i][1] * g[i] * inv_theta] } else { [0.0; 2] };
                 d[i] = v;
+                // 0 + v, as `x += d` from zero gave (a −0 becomes +0).
                 x[i] = [WS::ZERO + v[0], WS::ZERO + v[1]];
             }
         };

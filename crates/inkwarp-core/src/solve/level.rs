@@ -10,8 +10,7 @@
 
 use rayon::prelude::*;
 
-#[cfg(target_arch = "x86_64")]
-use super::wide;
+use super::wide::widest;
 
 /// Padding around every level's vectors.
 pub(crate) const PAD: usize = 2;
@@ -572,7 +571,7 @@ impl Level {
                     // With fixed nodes' terms: the operator without them, then the terms.
                     let op = pinned.as_ref().map_or(&self.op, |(p, _)| &p.open);
                     for (k, orow) in chunk.chunks_mut(wp).enumerate() {
-                        self.residual_row(op, x, f, r0 + k, orow);
+                        residual_row(self, op, x, f, r0 + k, orow);
                         if let Some((p, coef)) = &pinned {
                             p.correct_row(coef, r0 + k, wp, self.geo.w, orow);
                         }
@@ -597,164 +596,126 @@ impl Level {
         // The bands' sums are added in order, so the result does not depend on the threads.
         parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
     }
+}
 
-    /// `out = f − A x` on the unknowns of padded row `r` of a Galerkin level, on the
-    /// processor's widest vectors (see [`super::wide`]).
+widest! {
+    /// `out = f − A x` on the unknowns of padded row `r` of Galerkin level `level` (its
+    /// operator `op`), on the processor's widest vectors (see [`super::wide`]).
     #[inline(never)]
-    fn residual_row<T: Real>(&self, op: &Operator, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) {
-        #[cfg(target_arch = "x86_64")]
-        if wide::avx2() {
-            // SAFETY: the processor has AVX2 and FMA.
-            #[allow(unsafe_code)]
-            return unsafe { self.residual_row_avx2(op, x, f, r, out) };
-        }
-        self.residual_row_body(op, x, f, r, out)
-    }
+    fn residual_row<T: Real>(level: &Level, op: &Operator, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) => residual_row_body;
+}
 
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    #[allow(unsafe_code)]
-    unsafe fn residual_row_avx2<T: Real>(&self, op: &Operator, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) {
-        self.residual_row_body(op, x, f, r, out)
-    }
-
-    #[inline(always)]
-    fn residual_row_body<T: Real>(&self, op: &Operator, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) {
-        let wp = self.wp;
-        let base = r * wp;
-        match op {
-            Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
-            Operator::Stored { ids, table, narrow, sym } => {
-                let table = T::table(table, narrow);
-                // Corners of the 5 × 5 window are always zero (see `galerkin`).
-                const TAPS: [(usize, usize); 21] = [
-                    (0, 1), (0, 2), (0, 3),
-                    (1, 0), (1, 1), (1, 2), (1, 3), (1, 4),
-                    (2, 0), (2, 1), (2, 2), (2, 3), (2, 4),
-                    (3, 0), (3, 1), (3, 2), (3, 3), (3, 4),
-                    (4, 1), (4, 2), (4, 3),
-                ];
-                let shared = &table[0];
-                let mut c = PAD;
-                let end = PAD + self.geo.w;
-                while c < end {
-                    let p = base + c;
-                    if self.inv_diag[p] == 0.0 {
-                        out[c] = [T::ZERO; 2];
-                        c += 1;
-                        continue;
+#[inline(always)]
+fn residual_row_body<T: Real>(level: &Level, op: &Operator, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) {
+    let wp = level.wp;
+    let base = r * wp;
+    match op {
+        Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
+        Operator::Stored { ids, table, narrow, sym } => {
+            let table = T::table(table, narrow);
+            // Corners of the 5 × 5 window are always zero (see `galerkin`).
+            const TAPS: [(usize, usize); 21] = [
+                (0, 1), (0, 2), (0, 3),
+                (1, 0), (1, 1), (1, 2), (1, 3), (1, 4),
+                (2, 0), (2, 1), (2, 2), (2, 3), (2, 4),
+                (3, 0), (3, 1), (3, 2), (3, 3), (3, 4),
+                (4, 1), (4, 2), (4, 3),
+            ];
+            let shared = &table[0];
+            let mut c = PAD;
+            let end = PAD + level.geo.w;
+            while c < end {
+                let p = base + c;
+                if level.inv_diag[p] == 0.0 {
+                    out[c] = [T::ZERO; 2];
+                    c += 1;
+                    continue;
+                }
+                if ids[p] == 0 {
+                    // A run of regular nodes: one stencil, applied tap by tap.
+                    let mut e = c + 1;
+                    while e < end && ids[base + e] == 0 && level.inv_diag[base + e] != 0.0 {
+                        e += 1;
                     }
-                    if ids[p] == 0 {
-                        // A run of regular nodes: one stencil, applied tap by tap.
-                        let mut e = c + 1;
-                        while e < end && ids[base + e] == 0 && self.inv_diag[base + e] != 0.0 {
-                            e += 1;
-                        }
-                        if let Some(sym) = sym {
-                            sym_run::<T, true>(x, f, sym, wp, base, c, e, out);
-                            c = e;
-                            continue;
-                        }
-                        let mut s0 = c;
-                        while s0 < e {
-                            let m = (e - s0).min(64);
-                            let mut acc = [[T::ZERO; 2]; 64];
-                            for &(dy, dx) in &TAPS {
-                                let a = shared[dy * 5 + dx];
-                                let q = base + s0 + dy * wp + dx - 2 * wp - 2;
-                                for (o, xv) in acc[..m].iter_mut().zip(&x[q..q + m]) {
-                                    o[0] += a * xv[0];
-                                    o[1] += a * xv[1];
-                                }
-                            }
-                            for i in 0..m {
-                                let fv = f.map_or([T::ZERO; 2], |f| f[base + s0 + i]);
-                                out[s0 + i] = [fv[0] - acc[i][0], fv[1] - acc[i][1]];
-                            }
-                            s0 += m;
-                        }
+                    if let Some(sym) = sym {
+                        sym_run::<T, true>(x, f, sym, wp, base, c, e, out);
                         c = e;
                         continue;
                     }
-                    // A run of irregular nodes, each with its own stencil, four side by side:
-                    // one node's 21 taps summed one after another wait on each other, four
-                    // nodes' do not (a twelfth off a 513 × 513 solve with 4000 points).
-                    let mut e = c + 1;
-                    while e < end && ids[base + e] != 0 && self.inv_diag[base + e] != 0.0 {
-                        e += 1;
-                    }
-                    let mut i = c;
-                    while i < e {
-                        let k = (e - i).min(4);
-                        let q0 = base + i;
-                        // Past the run's end the last node stands in (its sums are dropped).
-                        let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
-                        let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
-                        let (mut a0, mut a1, mut a2, mut a3) = ([T::ZERO; 2], [T::ZERO; 2], [T::ZERO; 2], [T::ZERO; 2]);
+                    let mut s0 = c;
+                    while s0 < e {
+                        let m = (e - s0).min(64);
+                        let mut acc = [[T::ZERO; 2]; 64];
                         for &(dy, dx) in &TAPS {
-                            let t = dy * 5 + dx;
-                            let q = q0 + dy * wp + dx - 2 * wp - 2;
-                            let (x0, x1, x2, x3) = (x[q], x[q + o1], x[q + o2], x[q + o3]);
-                            a0 = [a0[0] + s0[t] * x0[0], a0[1] + s0[t] * x0[1]];
-                            a1 = [a1[0] + s1[t] * x1[0], a1[1] + s1[t] * x1[1]];
-                            a2 = [a2[0] + s2[t] * x2[0], a2[1] + s2[t] * x2[1]];
-                            a3 = [a3[0] + s3[t] * x3[0], a3[1] + s3[t] * x3[1]];
+                            let a = shared[dy * 5 + dx];
+                            let q = base + s0 + dy * wp + dx - 2 * wp - 2;
+                            for (o, xv) in acc[..m].iter_mut().zip(&x[q..q + m]) {
+                                o[0] += a * xv[0];
+                                o[1] += a * xv[1];
+                            }
                         }
-                        for (j, a) in [a0, a1, a2, a3].into_iter().take(k).enumerate() {
-                            let fv = f.map_or([T::ZERO; 2], |f| f[q0 + j]);
-                            out[i + j] = [fv[0] - a[0], fv[1] - a[1]];
+                        for i in 0..m {
+                            let fv = f.map_or([T::ZERO; 2], |f| f[base + s0 + i]);
+                            out[s0 + i] = [fv[0] - acc[i][0], fv[1] - acc[i][1]];
                         }
-                        i += k;
+                        s0 += m;
                     }
                     c = e;
+                    continue;
                 }
+                // A run of irregular nodes, each with its own stencil, four side by side:
+                // one node's 21 taps summed one after another wait on each other, four
+                // nodes' do not (a twelfth off a 513 × 513 solve with 4000 points).
+                let mut e = c + 1;
+                while e < end && ids[base + e] != 0 && level.inv_diag[base + e] != 0.0 {
+                    e += 1;
+                }
+                let mut i = c;
+                while i < e {
+                    let k = (e - i).min(4);
+                    let q0 = base + i;
+                    // Past the run's end the last node stands in (its sums are dropped).
+                    let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
+                    let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
+                    let (mut a0, mut a1, mut a2, mut a3) = ([T::ZERO; 2], [T::ZERO; 2], [T::ZERO; 2], [T::ZERO; 2]);
+                    for &(dy, dx) in &TAPS {
+                        let t = dy * 5 + dx;
+                        let q = q0 + dy * wp + dx - 2 * wp - 2;
+                        let (x0, x1, x2, x3) = (x[q], x[q + o1], x[q + o2], x[q + o3]);
+                        a0 = [a0[0] + s0[t] * x0[0], a0[1] + s0[t] * x0[1]];
+                        a1 = [a1[0] + s1[t] * x1[0], a1[1] + s1[t] * x1[1]];
+                        a2 = [a2[0] + s2[t] * x2[0], a2[1] + s2[t] * x2[1]];
+                        a3 = [a3[0] + s3[t] * x3[0], a3[1] + s3[t] * x3[1]];
+                    }
+                    for (j, a) in [a0, a1, a2, a3].into_iter().take(k).enumerate() {
+                        let fv = f.map_or([T::ZERO; 2], |f| f[q0 + j]);
+                        out[i + j] = [fv[0] - a[0], fv[1] - a[1]];
+                    }
+                    i += k;
+                }
+                c = e;
             }
         }
     }
 }
 
-/// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level. Runs of
-/// regular nodes take the interior molecule (the square of the 5-point Laplacian, plus τ
-/// times the Laplacian) in a tight loop; the others sum their energy terms one by one.
-///
-/// On the processor's widest vectors (see [`super::wide`]).
-#[allow(clippy::too_many_arguments)]
-#[inline(never)]
-fn fine_band<T: Real>(
-    flags: &[u8],
-    tau: f64,
-    wp: usize,
-    w: usize,
-    x: &[[T; 2]],
-    f: Option<&[[T; 2]]>,
-    r0: usize,
-    r1: usize,
-    out: &mut [[T; 2]],
-) {
-    #[cfg(target_arch = "x86_64")]
-    if wide::avx2() {
-        // SAFETY: the processor has AVX2 and FMA.
-        #[allow(unsafe_code)]
-        return unsafe { fine_band_avx2(flags, tau, wp, w, x, f, r0, r1, out) };
-    }
-    fine_band_body(flags, tau, wp, w, x, f, r0, r1, out)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[allow(clippy::too_many_arguments, unsafe_code)]
-unsafe fn fine_band_avx2<T: Real>(
-    flags: &[u8],
-    tau: f64,
-    wp: usize,
-    w: usize,
-    x: &[[T; 2]],
-    f: Option<&[[T; 2]]>,
-    r0: usize,
-    r1: usize,
-    out: &mut [[T; 2]],
-) {
-    fine_band_body(flags, tau, wp, w, x, f, r0, r1, out)
+widest! {
+    /// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level. Runs of
+    /// regular nodes take the interior molecule (the square of the 5-point Laplacian, plus τ
+    /// times the Laplacian) in a tight loop; the others sum their energy terms one by one.
+    /// On the processor's widest vectors (see [`super::wide`]).
+    #[inline(never)]
+    fn fine_band<T: Real>(
+        flags: &[u8],
+        tau: f64,
+        wp: usize,
+        w: usize,
+        x: &[[T; 2]],
+        f: Option<&[[T; 2]]>,
+        r0: usize,
+        r1: usize,
+        out: &mut [[T; 2]],
+    ) => fine_band_body;
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -1366,8 +1327,8 @@ mod tests {
             }
             Operator::Stored { .. } => {
                 for r in r0..r1 {
-                    level.residual_row(&level.op, x, Some(f), r, &mut wide[r * wp..(r + 1) * wp]);
-                    level.residual_row_body(&level.op, x, Some(f), r, &mut plain[r * wp..(r + 1) * wp]);
+                    residual_row(level, &level.op, x, Some(f), r, &mut wide[r * wp..(r + 1) * wp]);
+                    residual_row_body(level, &level.op, x, Some(f), r, &mut plain[r * wp..(r + 1) * wp]);
                 }
             }
         }

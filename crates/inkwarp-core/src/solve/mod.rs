@@ -1140,27 +1140,15 @@ fn widen_into(p: &mut [V2], z: &[W2], beta: Option<[f64; 2]>) {
     });
 }
 
+wide::widest! {
+    /// [`step_update_body`] on the processor's widest vectors (see [`wide`]).
+    fn step_update(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 => step_update_body;
+}
+
 /// The conjugate-gradient step on one chunk: `u += α p`, `r += α q` (α per component), and
 /// `rw` the new `r` in `f32` (the next cycle's right-hand side, written while `r` is at hand);
 /// returns the largest `|α p|`. On the flattened components, eight running maxima: one
-/// would wait on the last at every entry. On the processor's widest vectors (see [`wide`]).
-fn step_update(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 {
-    #[cfg(target_arch = "x86_64")]
-    if wide::avx2() {
-        // SAFETY: the processor has AVX2 and FMA.
-        #[allow(unsafe_code)]
-        return unsafe { step_update_avx2(u, r, rw, p, q, alpha) };
-    }
-    step_update_body(u, r, rw, p, q, alpha)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[allow(unsafe_code)]
-unsafe fn step_update_avx2(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 {
-    step_update_body(u, r, rw, p, q, alpha)
-}
-
+/// would wait on the last at every entry.
 #[inline(always)]
 fn step_update_body(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 {
     let (u, r, rw) = (u.as_flattened_mut(), r.as_flattened_mut(), rw.as_flattened_mut());

@@ -878,3 +878,29 @@ fn every_level_smooths_below_the_top_of_its_spectrum() {
 }
 
 
+
+#[test]
+fn the_wide_conjugate_gradient_update_gives_the_plain_results_bit_for_bit() {
+    // Where the processor has AVX2 the update runs a copy compiled for it (see `wide`):
+    // every output must have the plain copy's bits, over a length that leaves a remainder
+    // past the eight lanes.
+    let mut rnd = crate::grid::tests::sequence(72);
+    let n = 1001;
+    let mut pairs = || -> Vec<V2> { (0..n).map(|_| [rnd() - 0.5, rnd() - 0.5]).collect() };
+    let (u, r, p, q) = (pairs(), pairs(), pairs(), pairs());
+    let alpha = [0.73, -1.9];
+    type Update = fn(&mut [V2], &mut [V2], &mut [W2], &[V2], &[V2], [f64; 2]) -> f64;
+    let run = |update: Update| {
+        let (mut u, mut r, mut rw) = (u.clone(), r.clone(), vec![[0.0f32; 2]; n]);
+        let change = update(&mut u, &mut r, &mut rw, &p, &q, alpha);
+        (change, u, r, rw)
+    };
+    let (wide, plain) = (run(step_update), run(step_update_body));
+    assert!(wide.0 > 0.0);
+    assert_eq!(wide.0.to_bits(), plain.0.to_bits());
+    let bits = |v: &[V2]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let bits_w = |v: &[W2]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&wide.1), bits(&plain.1), "u");
+    assert_eq!(bits(&wide.2), bits(&plain.2), "r");
+    assert_eq!(bits_w(&wide.3), bits_w(&plain.3), "the f32 residual");
+}

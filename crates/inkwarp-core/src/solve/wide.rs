@@ -1,12 +1,12 @@
 //! The solver's hottest loops on the processor's widest vectors.
 //!
-//! The build targets plain x86-64, whose vectors are 128 bits wide; nearly every x86-64
-//! processor since about 2015 has 256-bit ones (AVX2, with FMA). The stencil products of
-//! every level and the conjugate gradient's update vectorise across nodes, so each has a
+//! The build targets plain x86-64, whose vectors are 128 bits wide; most x86-64
+//! processors made since 2013–2015 (Intel Haswell, AMD Excavator and later, some low-end
+//! models excepted) have 256-bit ones (AVX2, with FMA). The stencil products of every level
+//! and the conjugate gradient's update vectorise across nodes, so [`widest!`] gives each a
 //! second copy compiled for AVX2, run where the processor has it (checked at run time),
-//! else the plain one. Their operations and their
-//! order are the same in both (no multiply is fused with its add unless written so), so
-//! the results are bit for bit the same.
+//! else the plain one. Their operations and their order are the same in both (no multiply
+//! is fused with its add unless written so), so the results are bit for bit the same.
 
 /// Whether the processor has AVX2 and FMA (the standard library caches the answer).
 #[cfg(target_arch = "x86_64")]
@@ -14,3 +14,29 @@
 pub(crate) fn avx2() -> bool {
     std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
 }
+
+/// `fn name<T: Bound>(args) -> R => body;` defines `name`, which calls `body` (an
+/// `#[inline(always)]` function of the same arguments) from a copy compiled for AVX2 and FMA
+/// where the processor has them (see [`avx2`]), else from a plain one. The body must be
+/// inlined into that copy to be compiled for it: a closure handed to a generic copy was
+/// not (its binary had no 256-bit instruction).
+macro_rules! widest {
+    ($(#[$attr:meta])* fn $name:ident $(<$t:ident: $bound:path>)? ($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? => $body:ident;) => {
+        $(#[$attr])*
+        fn $name $(<$t: $bound>)? ($($arg: $ty),*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            if $crate::solve::wide::avx2() {
+                #[target_feature(enable = "avx2,fma")]
+                #[allow(unsafe_code)]
+                unsafe fn avx2 $(<$t: $bound>)? ($($arg: $ty),*) $(-> $ret)? {
+                    $body($($arg),*)
+                }
+                // SAFETY: the processor has AVX2 and FMA, checked just above.
+                #[allow(unsafe_code)]
+                return unsafe { avx2($($arg),*) };
+            }
+            $body($($arg),*)
+        }
+    };
+}
+pub(crate) use widest;
