@@ -56,7 +56,8 @@ pub use crate::methods::Method;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "kebab-case")]
 pub enum Scheme {
-    /// Multigrid cycles until the field changes by less than `tolerance`.
+    /// Multigrid cycles until the estimated largest error left at any pixel is below
+    /// `tolerance`.
     #[default]
     Multigrid,
     /// Southwell (greedy residual) relaxation, as the paper describes.
@@ -75,7 +76,8 @@ pub struct SolverDoc {
     #[serde(default)]
     #[schemars(range(min = 0.0))]
     pub tension: f64,
-    /// Stop when a cycle changes the field by less than this many pixels (> 0).
+    /// Stop when the estimated largest error left at any pixel is below this many pixels
+    /// (> 0).
     #[serde(default = "default_tolerance")]
     pub tolerance: f64,
     /// Solve on every `grid_step`-th pixel and upsample (≥ 1; 1 solves on every pixel).
