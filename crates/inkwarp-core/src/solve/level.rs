@@ -602,98 +602,96 @@ widest! {
     /// `out = f − A x` on the unknowns of padded row `r` of Galerkin level `level` (its
     /// operator `op`), on the processor's widest vectors (see [`super::wide`]).
     #[inline(never)]
-    fn residual_row<T: Real>(level: &Level, op: &Operator, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) => residual_row_body;
-}
-
-#[inline(always)]
-fn residual_row_body<T: Real>(level: &Level, op: &Operator, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) {
-    let wp = level.wp;
-    let base = r * wp;
-    match op {
-        Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
-        Operator::Stored { ids, table, narrow, sym } => {
-            let table = T::table(table, narrow);
-            // Corners of the 5 × 5 window are always zero (see `galerkin`).
-            const TAPS: [(usize, usize); 21] = [
-                (0, 1), (0, 2), (0, 3),
-                (1, 0), (1, 1), (1, 2), (1, 3), (1, 4),
-                (2, 0), (2, 1), (2, 2), (2, 3), (2, 4),
-                (3, 0), (3, 1), (3, 2), (3, 3), (3, 4),
-                (4, 1), (4, 2), (4, 3),
-            ];
-            let shared = &table[0];
-            let mut c = PAD;
-            let end = PAD + level.geo.w;
-            while c < end {
-                let p = base + c;
-                if level.inv_diag[p] == 0.0 {
-                    out[c] = [T::ZERO; 2];
-                    c += 1;
-                    continue;
-                }
-                if ids[p] == 0 {
-                    // A run of regular nodes: one stencil, applied tap by tap.
-                    let mut e = c + 1;
-                    while e < end && ids[base + e] == 0 && level.inv_diag[base + e] != 0.0 {
-                        e += 1;
+    fn residual_row<T: Real>(level: &Level, op: &Operator, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) =>
+    residual_row_body {
+        let wp = level.wp;
+        let base = r * wp;
+        match op {
+            Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
+            Operator::Stored { ids, table, narrow, sym } => {
+                let table = T::table(table, narrow);
+                // Corners of the 5 × 5 window are always zero (see `galerkin`).
+                const TAPS: [(usize, usize); 21] = [
+                    (0, 1), (0, 2), (0, 3),
+                    (1, 0), (1, 1), (1, 2), (1, 3), (1, 4),
+                    (2, 0), (2, 1), (2, 2), (2, 3), (2, 4),
+                    (3, 0), (3, 1), (3, 2), (3, 3), (3, 4),
+                    (4, 1), (4, 2), (4, 3),
+                ];
+                let shared = &table[0];
+                let mut c = PAD;
+                let end = PAD + level.geo.w;
+                while c < end {
+                    let p = base + c;
+                    if level.inv_diag[p] == 0.0 {
+                        out[c] = [T::ZERO; 2];
+                        c += 1;
+                        continue;
                     }
-                    if let Some(sym) = sym {
-                        sym_run::<T, true>(x, f, sym, wp, base, c, e, out);
+                    if ids[p] == 0 {
+                        // A run of regular nodes: one stencil, applied tap by tap.
+                        let mut e = c + 1;
+                        while e < end && ids[base + e] == 0 && level.inv_diag[base + e] != 0.0 {
+                            e += 1;
+                        }
+                        if let Some(sym) = sym {
+                            sym_run::<T, true>(x, f, sym, wp, base, c, e, out);
+                            c = e;
+                            continue;
+                        }
+                        let mut s0 = c;
+                        while s0 < e {
+                            let m = (e - s0).min(64);
+                            let mut acc = [[T::ZERO; 2]; 64];
+                            for &(dy, dx) in &TAPS {
+                                let a = shared[dy * 5 + dx];
+                                let q = base + s0 + dy * wp + dx - 2 * wp - 2;
+                                for (o, xv) in acc[..m].iter_mut().zip(&x[q..q + m]) {
+                                    o[0] += a * xv[0];
+                                    o[1] += a * xv[1];
+                                }
+                            }
+                            for i in 0..m {
+                                let fv = f.map_or([T::ZERO; 2], |f| f[base + s0 + i]);
+                                out[s0 + i] = [fv[0] - acc[i][0], fv[1] - acc[i][1]];
+                            }
+                            s0 += m;
+                        }
                         c = e;
                         continue;
                     }
-                    let mut s0 = c;
-                    while s0 < e {
-                        let m = (e - s0).min(64);
-                        let mut acc = [[T::ZERO; 2]; 64];
+                    // A run of irregular nodes, each with its own stencil, four side by side:
+                    // one node's 21 taps summed one after another wait on each other, four
+                    // nodes' do not (a twelfth off a 513 × 513 solve with 4000 points).
+                    let mut e = c + 1;
+                    while e < end && ids[base + e] != 0 && level.inv_diag[base + e] != 0.0 {
+                        e += 1;
+                    }
+                    let mut i = c;
+                    while i < e {
+                        let k = (e - i).min(4);
+                        let q0 = base + i;
+                        // Past the run's end the last node stands in (its sums are dropped).
+                        let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
+                        let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
+                        let (mut a0, mut a1, mut a2, mut a3) = ([T::ZERO; 2], [T::ZERO; 2], [T::ZERO; 2], [T::ZERO; 2]);
                         for &(dy, dx) in &TAPS {
-                            let a = shared[dy * 5 + dx];
-                            let q = base + s0 + dy * wp + dx - 2 * wp - 2;
-                            for (o, xv) in acc[..m].iter_mut().zip(&x[q..q + m]) {
-                                o[0] += a * xv[0];
-                                o[1] += a * xv[1];
-                            }
+                            let t = dy * 5 + dx;
+                            let q = q0 + dy * wp + dx - 2 * wp - 2;
+                            let (x0, x1, x2, x3) = (x[q], x[q + o1], x[q + o2], x[q + o3]);
+                            a0 = [a0[0] + s0[t] * x0[0], a0[1] + s0[t] * x0[1]];
+                            a1 = [a1[0] + s1[t] * x1[0], a1[1] + s1[t] * x1[1]];
+                            a2 = [a2[0] + s2[t] * x2[0], a2[1] + s2[t] * x2[1]];
+                            a3 = [a3[0] + s3[t] * x3[0], a3[1] + s3[t] * x3[1]];
                         }
-                        for i in 0..m {
-                            let fv = f.map_or([T::ZERO; 2], |f| f[base + s0 + i]);
-                            out[s0 + i] = [fv[0] - acc[i][0], fv[1] - acc[i][1]];
+                        for (j, a) in [a0, a1, a2, a3].into_iter().take(k).enumerate() {
+                            let fv = f.map_or([T::ZERO; 2], |f| f[q0 + j]);
+                            out[i + j] = [fv[0] - a[0], fv[1] - a[1]];
                         }
-                        s0 += m;
+                        i += k;
                     }
                     c = e;
-                    continue;
                 }
-                // A run of irregular nodes, each with its own stencil, four side by side:
-                // one node's 21 taps summed one after another wait on each other, four
-                // nodes' do not (a twelfth off a 513 × 513 solve with 4000 points).
-                let mut e = c + 1;
-                while e < end && ids[base + e] != 0 && level.inv_diag[base + e] != 0.0 {
-                    e += 1;
-                }
-                let mut i = c;
-                while i < e {
-                    let k = (e - i).min(4);
-                    let q0 = base + i;
-                    // Past the run's end the last node stands in (its sums are dropped).
-                    let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
-                    let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
-                    let (mut a0, mut a1, mut a2, mut a3) = ([T::ZERO; 2], [T::ZERO; 2], [T::ZERO; 2], [T::ZERO; 2]);
-                    for &(dy, dx) in &TAPS {
-                        let t = dy * 5 + dx;
-                        let q = q0 + dy * wp + dx - 2 * wp - 2;
-                        let (x0, x1, x2, x3) = (x[q], x[q + o1], x[q + o2], x[q + o3]);
-                        a0 = [a0[0] + s0[t] * x0[0], a0[1] + s0[t] * x0[1]];
-                        a1 = [a1[0] + s1[t] * x1[0], a1[1] + s1[t] * x1[1]];
-                        a2 = [a2[0] + s2[t] * x2[0], a2[1] + s2[t] * x2[1]];
-                        a3 = [a3[0] + s3[t] * x3[0], a3[1] + s3[t] * x3[1]];
-                    }
-                    for (j, a) in [a0, a1, a2, a3].into_iter().take(k).enumerate() {
-                        let fv = f.map_or([T::ZERO; 2], |f| f[q0 + j]);
-                        out[i + j] = [fv[0] - a[0], fv[1] - a[1]];
-                    }
-                    i += k;
-                }
-                c = e;
             }
         }
     }
@@ -715,46 +713,34 @@ widest! {
         r0: usize,
         r1: usize,
         out: &mut [[T; 2]],
-    ) => fine_band_body;
-}
-
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn fine_band_body<T: Real>(
-    flags: &[u8],
-    tau: f64,
-    wp: usize,
-    w: usize,
-    x: &[[T; 2]],
-    f: Option<&[[T; 2]]>,
-    r0: usize,
-    r1: usize,
-    out: &mut [[T; 2]],
-) {
-    let molecule = Sym::fine(tau);
-    for (k, r) in (r0..r1).enumerate() {
-        let base = r * wp;
-        let orow = &mut out[k * wp..(k + 1) * wp];
-        let fr = &flags[base..base + wp];
-        let mut c = PAD;
-        while c < PAD + w {
-            if fr[c] & bit::REGULAR != 0 {
-                let mut e = c + 1;
-                while e < PAD + w && fr[e] & bit::REGULAR != 0 {
-                    e += 1;
-                }
-                sym_run::<T, false>(x, f, &molecule, wp, base, c, e, orow);
-                c = e;
-            } else {
-                let p = base + c;
-                orow[c] = if fr[c] & bit::FREE != 0 {
-                    let a = fine_apply(flags, x, p, wp, tau);
-                    let fv = f.map_or([T::ZERO; 2], |f| f[p]);
-                    [fv[0] - a[0], fv[1] - a[1]]
+    ) =>
+    #[allow(clippy::too_many_arguments)]
+    fine_band_body {
+        let molecule = Sym::fine(tau);
+        for (k, r) in (r0..r1).enumerate() {
+            let base = r * wp;
+            let orow = &mut out[k * wp..(k + 1) * wp];
+            let fr = &flags[base..base + wp];
+            let mut c = PAD;
+            while c < PAD + w {
+                if fr[c] & bit::REGULAR != 0 {
+                    let mut e = c + 1;
+                    while e < PAD + w && fr[e] & bit::REGULAR != 0 {
+                        e += 1;
+                    }
+                    sym_run::<T, false>(x, f, &molecule, wp, base, c, e, orow);
+                    c = e;
                 } else {
-                    [T::ZERO; 2]
-                };
-                c += 1;
+                    let p = base + c;
+                    orow[c] = if fr[c] & bit::FREE != 0 {
+                        let a = fine_apply(flags, x, p, wp, tau);
+                        let fv = f.map_or([T::ZERO; 2], |f| f[p]);
+                        [fv[0] - a[0], fv[1] - a[1]]
+                    } else {
+                        [T::ZERO; 2]
+                    };
+                    c += 1;
+                }
             }
         }
     }

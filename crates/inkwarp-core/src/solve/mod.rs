@@ -1142,35 +1142,33 @@ fn widen_into(p: &mut [V2], z: &[W2], beta: Option<[f64; 2]>) {
 
 wide::widest! {
     /// [`step_update_body`] on the processor's widest vectors (see [`wide`]).
-    fn step_update(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 => step_update_body;
-}
-
-/// The conjugate-gradient step on one chunk: `u += α p`, `r += α q` (α per component), and
-/// `rw` the new `r` in `f32` (the next cycle's right-hand side, written while `r` is at hand);
-/// returns the largest `|α p|`. On the flattened components, eight running maxima: one
-/// would wait on the last at every entry.
-#[inline(always)]
-fn step_update_body(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 {
-    let (u, r, rw) = (u.as_flattened_mut(), r.as_flattened_mut(), rw.as_flattened_mut());
-    let (p, q) = (p.as_flattened(), q.as_flattened());
-    let mut m = [0.0f64; 8];
-    let lanes = |u: &mut [f64], r: &mut [f64], rw: &mut [WS], p: &[f64], q: &[f64], m: &mut [f64]| {
-        for l in 0..u.len() {
-            let a = alpha[l & 1];
-            let d = a * p[l];
-            u[l] += d;
-            m[l] = larger(m[l], d.abs());
-            r[l] += a * q[l];
-            rw[l] = WS::of(r[l]);
+    fn step_update(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 =>
+    /// The conjugate-gradient step on one chunk: `u += α p`, `r += α q` (α per component), and
+    /// `rw` the new `r` in `f32` (the next cycle's right-hand side, written while `r` is at hand);
+    /// returns the largest `|α p|`. On the flattened components, eight running maxima: one
+    /// would wait on the last at every entry.
+    step_update_body {
+        let (u, r, rw) = (u.as_flattened_mut(), r.as_flattened_mut(), rw.as_flattened_mut());
+        let (p, q) = (p.as_flattened(), q.as_flattened());
+        let mut m = [0.0f64; 8];
+        let lanes = |u: &mut [f64], r: &mut [f64], rw: &mut [WS], p: &[f64], q: &[f64], m: &mut [f64]| {
+            for l in 0..u.len() {
+                let a = alpha[l & 1];
+                let d = a * p[l];
+                u[l] += d;
+                m[l] = larger(m[l], d.abs());
+                r[l] += a * q[l];
+                rw[l] = WS::of(r[l]);
+            }
+        };
+        let n8 = u.len() / 8 * 8;
+        for j in (0..n8).step_by(8) {
+            lanes(&mut u[j..j + 8], &mut r[j..j + 8], &mut rw[j..j + 8], &p[j..j + 8], &q[j..j + 8], &mut m);
         }
-    };
-    let n8 = u.len() / 8 * 8;
-    for j in (0..n8).step_by(8) {
-        lanes(&mut u[j..j + 8], &mut r[j..j + 8], &mut rw[j..j + 8], &p[j..j + 8], &q[j..j + 8], &mut m);
+        // The remainder starts on an even index, as the lanes do.
+        lanes(&mut u[n8..], &mut r[n8..], &mut rw[n8..], &p[n8..], &q[n8..], &mut m);
+        m.iter().fold(0.0, |a, &b| a.max(b))
     }
-    // The remainder starts on an even index, as the lanes do.
-    lanes(&mut u[n8..], &mut r[n8..], &mut rw[n8..], &p[n8..], &q[n8..], &mut m);
-    m.iter().fold(0.0, |a, &b| a.max(b))
 }
 
 /// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.

@@ -15,13 +15,17 @@ pub(crate) fn avx2() -> bool {
     std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
 }
 
-/// `fn name<T: Bound>(args) -> R => body;` defines `name`, which calls `body` (an
-/// `#[inline(always)]` function of the same arguments) from a copy compiled for AVX2 and FMA
-/// where the processor has them (see [`avx2`]), else from a plain one. The body must be
-/// inlined into that copy to be compiled for it: a closure handed to a generic copy was
-/// not (its binary had no 256-bit instruction).
+/// `fn name<T: Bound>(args) -> R => body { … }` defines `body`, an `#[inline(always)]`
+/// function of those arguments with that block (attributes written before `body` go on
+/// it), and `name`, which calls `body` from a copy compiled for AVX2 and FMA where the
+/// processor has them (see [`avx2`]), else from a plain one. The body must be inlined into
+/// that copy to be compiled for it: a closure handed to a generic copy was not (its binary
+/// had no 256-bit instruction). Tests call `body` to compare the two copies.
 macro_rules! widest {
-    ($(#[$attr:meta])* fn $name:ident $(<$t:ident: $bound:path>)? ($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? => $body:ident;) => {
+    (
+        $(#[$attr:meta])* fn $name:ident $(<$t:ident: $bound:path>)? ($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? =>
+        $(#[$body_attr:meta])* $body:ident $block:block
+    ) => {
         $(#[$attr])*
         fn $name $(<$t: $bound>)? ($($arg: $ty),*) $(-> $ret)? {
             #[cfg(target_arch = "x86_64")]
@@ -37,6 +41,10 @@ macro_rules! widest {
             }
             $body($($arg),*)
         }
+
+        $(#[$body_attr])*
+        #[inline(always)]
+        fn $body $(<$t: $bound>)? ($($arg: $ty),*) $(-> $ret)? $block
     };
 }
 pub(crate) use widest;
