@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Real, V2, W2, WS};
+use super::level::{dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Real, StepRule, V2, W2, WS};
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
 const CHEB_RATIO: f64 = 16.0;
@@ -490,12 +490,14 @@ fn map_into<S: Real, T: Real>(out: &mut [[T; 2]], a: &[[S; 2]], f: impl Fn([S; 2
 }
 
 /// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `degree` steps aimed at
-/// the upper part `[λ/16, λ]` of the spectrum of D⁻¹A. `r` and `d` are scratch.
+/// the upper part `[λ/16, λ]` of the spectrum of D⁻¹A, each one pass over the level
+/// ([`Level::smoothing_step`]). `r` and `d` are scratch; `x` and `r` may come back swapped
+/// (the steps write `x + d` into the other vector).
 pub(crate) fn smooth(
     level: &Level,
-    x: &mut [W2],
+    x: &mut Vec<W2>,
     f: Option<&[W2]>,
-    r: &mut [W2],
+    r: &mut Vec<W2>,
     d: &mut [W2],
     degree: usize,
     x_zero: bool,
@@ -510,6 +512,8 @@ pub(crate) fn smooth(
     let sigma = theta / delta;
     let mut rho = 1.0 / sigma;
     let inv_theta = WS::of(1.0 / theta);
+    let mut rule = StepRule::First { inv_theta };
+    let mut steps = degree;
     if x_zero {
         // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass.
         let f = f.expect("a zero start needs a right-hand side");
@@ -529,58 +533,17 @@ pub(crate) fn smooth(
         } else {
             first(d, x, f, &level.inv_diag_w);
         }
-    } else {
-        level.residual(x, f, r);
-        zip_map(d, r, &level.inv_diag_w, |di, ri, dd| *di = [ri[0] * dd * inv_theta, ri[1] * dd * inv_theta]);
+        steps -= 1;
     }
-    for k in 0..degree {
-        if k > 0 || !x_zero {
-            add_assign(x, d);
+    for k in 0..steps {
+        if k > 0 || x_zero {
+            let rho_new = 1.0 / (2.0 * sigma - rho);
+            rule = StepRule::Next { c1: WS::of(rho_new * rho), c2: WS::of(2.0 * rho_new / delta) };
+            rho = rho_new;
         }
-        if k + 1 == degree {
-            break;
-        }
-        level.residual(x, f, r);
-        let rho_new = 1.0 / (2.0 * sigma - rho);
-        let c1 = WS::of(rho_new * rho);
-        let c2 = WS::of(2.0 * rho_new / delta);
-        zip_map(d, r, &level.inv_diag_w, |di, ri, dd| {
-            *di = [c1 * di[0] + c2 * dd * ri[0], c1 * di[1] + c2 * dd * ri[1]];
-        });
-        rho = rho_new;
-    }
-}
-
-fn zip_map(out: &mut [W2], a: &[W2], dg: &[WS], f: impl Fn(&mut W2, W2, WS) + Sync + Send) {
-    if out.len() >= PAR_MIN {
-        out.par_chunks_mut(4096)
-            .zip(a.par_chunks(4096))
-            .zip(dg.par_chunks(4096))
-            .for_each(|((o, a), d)| {
-                for i in 0..o.len() {
-                    f(&mut o[i], a[i], d[i]);
-                }
-            });
-    } else {
-        for i in 0..out.len() {
-            f(&mut out[i], a[i], dg[i]);
-        }
-    }
-}
-
-fn add_assign(x: &mut [W2], d: &[W2]) {
-    if x.len() >= PAR_MIN {
-        x.par_chunks_mut(4096).zip(d.par_chunks(4096)).for_each(|(x, d)| {
-            for i in 0..x.len() {
-                x[i][0] += d[i][0];
-                x[i][1] += d[i][1];
-            }
-        });
-    } else {
-        for i in 0..x.len() {
-            x[i][0] += d[i][0];
-            x[i][1] += d[i][1];
-        }
+        // The step writes x + d into r's vector, which then becomes x's.
+        level.smoothing_step(x, f, d, r, rule);
+        std::mem::swap(x, r);
     }
 }
 

@@ -596,6 +596,87 @@ impl Level {
         // The bands' sums are added in order, so the result does not depend on the threads.
         parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
     }
+
+    /// One smoothing step in one pass over the level: band by band, the residual
+    /// `r = f − A x` (into `next`, as scratch), the update `d` from it (`rule`), and
+    /// `next = x + d`. The same operations in the same order as the residual, the update and
+    /// the addition one pass each, so the result is bit for bit theirs; but `x`, `d` and the
+    /// residual are read once instead of twice or three times (the finest level's
+    /// Chebyshev steps at 513 × 513 streamed 17 MB each, now 11). `next` must differ from
+    /// `x`: the bands read `x` two rows past their own.
+    pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule) {
+        let wp = self.wp;
+        let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));
+        let (w, g) = (self.geo.w, &self.inv_diag_w[..]);
+        let run = |(b, (chunk, dc)): (usize, (&mut [W2], &mut [W2]))| {
+            let r0 = b * PAR_ROWS + PAD;
+            let r1 = r0 + chunk.len() / wp;
+            match &self.op {
+                Operator::Fine { flags, tau } => fine_band(flags, *tau, wp, w, x, f, r0, r1, chunk),
+                Operator::Stored { .. } => {
+                    let op = pinned.as_ref().map_or(&self.op, |(p, _)| &p.open);
+                    for (k, orow) in chunk.chunks_mut(wp).enumerate() {
+                        residual_row(self, op, x, f, r0 + k, orow);
+                        if let Some((p, coef)) = &pinned {
+                            p.correct_row(coef, r0 + k, wp, w, orow);
+                        }
+                    }
+                }
+            }
+            for (k, (orow, drow)) in chunk.chunks_mut(wp).zip(dc.chunks_mut(wp)).enumerate() {
+                let base = (r0 + k) * wp;
+                let (xrow, grow) = (&x[base..base + wp], &g[base..base + wp]);
+                // Padding columns hold zeros and keep them.
+                orow[..PAD].copy_from_slice(&xrow[..PAD]);
+                orow[PAD + w..].copy_from_slice(&xrow[PAD + w..]);
+                let cols = PAD..PAD + w;
+                step_row(&mut orow[cols.clone()], &mut drow[cols.clone()], &xrow[cols.clone()], &grow[cols], rule);
+            }
+        };
+        let body = PAD * wp..(PAD + self.geo.h) * wp;
+        let (nb, db) = (&mut next[body.clone()], &mut d[body.clone()]);
+        if w * self.geo.h >= PAR_MIN_NODES {
+            nb.par_chunks_mut(PAR_ROWS * wp).zip(db.par_chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
+        } else {
+            nb.chunks_mut(PAR_ROWS * wp).zip(db.chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
+        }
+        // The padding rows, zeros too.
+        next[..body.start].copy_from_slice(&x[..body.start]);
+        next[body.end..].copy_from_slice(&x[body.end..]);
+    }
+}
+
+/// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal
+/// `g`: `d = g r / θ` for the first step, `d = c₁ d + c₂ g r` for later ones.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum StepRule {
+    First { inv_theta: WS },
+    Next { c1: WS, c2: WS },
+}
+
+/// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one row.
+#[inline(always)]
+fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule) {
+    let n = out.len();
+    let (d, x, g) = (&mut d[..n], &x[..n], &g[..n]);
+    match rule {
+        StepRule::First { inv_theta } => {
+            for i in 0..n {
+                let (r, dd) = (out[i], g[i]);
+                let v = [r[0] * dd * inv_theta, r[1] * dd * inv_theta];
+                d[i] = v;
+                out[i] = [x[i][0] + v[0], x[i][1] + v[1]];
+            }
+        }
+        StepRule::Next { c1, c2 } => {
+            for i in 0..n {
+                let (r, dd) = (out[i], g[i]);
+                let v = [c1 * d[i][0] + c2 * dd * r[0], c1 * d[i][1] + c2 * dd * r[1]];
+                d[i] = v;
+                out[i] = [x[i][0] + v[0], x[i][1] + v[1]];
+            }
+        }
+    }
 }
 
 widest! {

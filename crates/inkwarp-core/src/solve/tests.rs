@@ -904,3 +904,47 @@ fn the_wide_conjugate_gradient_update_gives_the_plain_results_bit_for_bit() {
     assert_eq!(bits(&wide.2), bits(&plain.2), "r");
     assert_eq!(bits_w(&wide.3), bits_w(&plain.3), "the f32 residual");
 }
+
+#[test]
+fn a_fused_smoothing_step_gives_the_separate_passes_results_bit_for_bit() {
+    // One pass per smoothing step (residual, update and addition band by band) against the
+    // three passes it replaces: on the finest level and a Galerkin level of a grid with a
+    // hole, a cut and scattered fixed nodes (the first coarse level through its fixed
+    // nodes' terms), for the first step's rule and a later one's, every bit the same.
+    use super::level::{StepRule, WS};
+    let mut rnd = crate::grid::tests::sequence(91);
+    let grid = torn_grid(97, true, true, 5.0);
+    let fixed: Vec<bool> = (0..97 * 97).map(|_| rnd() < 0.04).collect();
+    let fine = fine_level(&grid, Some(fixed), 0.1);
+    let mut coarse = level::galerkin(&fine);
+    coarse.pinned = super::pinned::Pinned::new(&fine, &coarse).map(Box::new);
+    assert!(coarse.pinned.is_some());
+    let rules = [StepRule::First { inv_theta: 0.37 }, StepRule::Next { c1: 0.81, c2: -1.3 }];
+    for (name, level) in [("finest", &fine), ("first coarse", &coarse)] {
+        let n = level.len_padded();
+        let mut field = |zero_pad: bool| -> Vec<W2> {
+            (0..n).map(|p| if !zero_pad || level.inv_diag[p] != 0.0 { [(rnd() - 0.5) as WS, (rnd() - 0.5) as WS] } else { [0.0; 2] }).collect()
+        };
+        let (x, f) = (field(true), field(true));
+        // d is zero off the unknowns (as the smoother leaves it); the output vector starts
+        // with leftover values.
+        let d0 = field(true);
+        for rule in rules {
+            let (mut r, mut d, mut x_sep) = (vec![[0.0 as WS; 2]; n], d0.clone(), x.clone());
+            level.residual(&x_sep, Some(&f), &mut r);
+            for p in 0..n {
+                let g = level.inv_diag_w[p];
+                d[p] = match rule {
+                    StepRule::First { inv_theta } => [r[p][0] * g * inv_theta, r[p][1] * g * inv_theta],
+                    StepRule::Next { c1, c2 } => [c1 * d[p][0] + c2 * g * r[p][0], c1 * d[p][1] + c2 * g * r[p][1]],
+                };
+                x_sep[p] = [x_sep[p][0] + d[p][0], x_sep[p][1] + d[p][1]];
+            }
+            let (mut d_fused, mut next) = (d0.clone(), field(false));
+            level.smoothing_step(&x, Some(&f), &mut d_fused, &mut next, rule);
+            let bits = |v: &[W2]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&next), bits(&x_sep), "{name}, {rule:?}: x + d");
+            assert_eq!(bits(&d_fused), bits(&d), "{name}, {rule:?}: d");
+        }
+    }
+}
