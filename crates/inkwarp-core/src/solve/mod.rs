@@ -53,6 +53,7 @@
 
 mod cycle;
 mod deflate;
+mod held;
 mod history;
 mod level;
 mod pinned;
@@ -524,6 +525,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         // 257 × 257 and 513 × 513: 156 cold cycles to 144) but not below it (six random
         // 96 × 96 problems with cuts, holes and hinges: 210 to 244).
         hier.scaled_finest = key.spaces.scaled && !torn;
+        if !torn && key.spaces.held {
+            hier.held_from = held::first_held(&hier.levels).unwrap_or(usize::MAX);
+        }
         if torn && key.spaces.tear && w * h >= TEAR_SPACE_MIN_NODES {
             // Cuts and thin holes: functions that run linearly up to each side of them.
             hier.deflation = deflate::Deflation::new(&hier.levels[0]);
@@ -765,19 +769,21 @@ struct CacheKey {
 
 /// The optional coarse spaces of a hierarchy on a grid with holes or cuts: the plain second
 /// space (see [`Level::into_plain`]) and the space along tears ([`deflate::Deflation`]);
-/// and whether the finest level's coarse corrections are line searched (see
-/// [`Hierarchy::scaled_finest`]). Always all of them outside tests; a test may switch any
-/// off to measure what it saves.
+/// whether the finest level's coarse corrections are line searched (see
+/// [`Hierarchy::scaled_finest`]); and whether levels held all around by constrained nodes
+/// are solved by smoothing alone ([`held`]). Always all of them outside tests; a test may
+/// switch any off to measure what it saves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Spaces {
     pub second: bool,
     pub tear: bool,
     pub scaled: bool,
+    pub held: bool,
 }
 
 impl Spaces {
     /// Everything, as every solve outside tests has it.
-    pub const ALL: Spaces = Spaces { second: true, tear: true, scaled: true };
+    pub const ALL: Spaces = Spaces { second: true, tear: true, scaled: true, held: true };
 }
 
 #[cfg(test)]

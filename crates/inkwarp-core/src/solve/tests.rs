@@ -948,3 +948,66 @@ fn a_fused_smoothing_step_gives_the_separate_passes_results_bit_for_bit() {
         }
     }
 }
+
+#[test]
+fn levels_held_by_constraints_all_around_are_smoothed_and_the_solve_still_converges() {
+    // Random constrained nodes, one in sixteen: from some coarse level down, every coarse
+    // node has constrained nodes on all sides, and smoothing alone solves those levels.
+    // Cold and warm solves must still come within the tolerance of a tight solve, in at
+    // most one more cycle than the full hierarchy takes.
+    let n = 257;
+    let mut rng = Rng(4242);
+    let samples = random_samples(&mut rng, n, n, n * n / 16);
+    let grid = Grid::new(n, n);
+    let constraints = constrain(&grid, &samples);
+    let mut fixed = vec![false; n * n];
+    for &i in &constraints.nodes {
+        fixed[i] = true;
+    }
+    let hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 1);
+    let held = held::first_held(&hier.levels).expect("dense random constraints hold a coarse level");
+    assert!(held >= 2 && held + 1 < hier.levels.len(), "held from level {held} of {}", hier.levels.len());
+
+    let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
+    let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
+    let nudged: Vec<Sample> = samples.iter().map(|s| Sample { rest: s.rest, displacement: [s.displacement[0] * 1.02 + 0.05, s.displacement[1] * 1.02 + 0.05] }).collect();
+    let (exact_nudged, _) = solve(&grid, &nudged, &tight, None).unwrap();
+    let options = SolveOptions::default();
+    let [with, without] = [Spaces::ALL, Spaces { held: false, ..Spaces::ALL }].map(|spaces| {
+        with_spaces(spaces, || {
+            let (cold, cold_report) = solve(&grid, &samples, &options, None).unwrap();
+            let (warm, warm_report) = solve(&grid, &nudged, &options, Some(&cold)).unwrap();
+            for (what, field, report, exact) in [("cold", &cold, &cold_report, &exact), ("warm", &warm, &warm_report, &exact_nudged)] {
+                let err = gap(field, exact);
+                assert!(report.converged && f64::from(err) <= options.tolerance_px, "{spaces:?}, {what}: {err} px off ({report:?})");
+            }
+            [cold_report.cycles, warm_report.cycles]
+        })
+    });
+    for k in 0..2 {
+        assert!(with[k] <= without[k] + 1, "cycles with held levels {with:?}, without {without:?}");
+    }
+}
+
+#[test]
+fn a_free_margin_around_constrained_nodes_keeps_its_coarse_levels() {
+    // Every node constrained but a border margin: functions that run linearly away from the
+    // constrained region bend along the margin, low modes that only the coarse levels hold.
+    // The margin's coarse nodes lack constrained nodes on their outer side and join up all
+    // along it, so the levels where it is wider than a node's box are not held. Scattered
+    // constraints hold none; a grid without constraints has nothing to hold it.
+    let n = 257;
+    let levels_of = |fixed: Option<Vec<bool>>| Hierarchy::new(fine_level(&Grid::new(n, n), fixed, 0.0), 2, 1).levels;
+    for margin in [8, 12, 20] {
+        let fixed: Vec<bool> = (0..n * n).map(|i| (margin..n - margin).contains(&(i % n)) && (margin..n - margin).contains(&(i / n))).collect();
+        let levels = levels_of(Some(fixed));
+        if let Some(k) = held::first_held(&levels) {
+            // Level k's box reaches 2^(k+1) nodes each way: across the margin.
+            assert!(2usize << k > margin, "margin {margin}: held from level {k}");
+        }
+    }
+    let mut rng = Rng(17);
+    let scattered: Vec<bool> = (0..n * n).map(|_| rng.next() < 0.002).collect();
+    assert_eq!(held::first_held(&levels_of(Some(scattered))), None);
+    assert_eq!(held::first_held(&levels_of(None)), None);
+}
