@@ -573,7 +573,7 @@ impl Level {
                     for (k, orow) in chunk.chunks_mut(wp).enumerate() {
                         residual_row(self, op, x, f, r0 + k, orow);
                         if let Some((p, coef)) = &pinned {
-                            p.correct_row(coef, r0 + k, wp, self.geo.w, orow);
+                            p.correct_row(coef, r0 + k, orow);
                         }
                     }
                 }
@@ -618,7 +618,7 @@ impl Level {
                     for (k, orow) in chunk.chunks_mut(wp).enumerate() {
                         residual_row(self, op, x, f, r0 + k, orow);
                         if let Some((p, coef)) = &pinned {
-                            p.correct_row(coef, r0 + k, wp, w, orow);
+                            p.correct_row(coef, r0 + k, orow);
                         }
                     }
                 }
