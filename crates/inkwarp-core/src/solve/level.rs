@@ -559,25 +559,33 @@ impl Level {
         self.bands(x, None, out, Fold::ScaledMax)[0]
     }
 
+    /// `out = f − A x` on the rows of the band from padded row `r0` (`out` holds those
+    /// rows); `pinned`: the level's fixed nodes' terms with their coefficients for `x`
+    /// ([`super::pinned::Pinned::coefficients`]), where it has them.
+    fn band_residual<T: Real>(&self, pinned: Option<&(&super::pinned::Pinned, Vec<[f64; 4]>)>, x: &[[T; 2]], f: Option<&[[T; 2]]>, r0: usize, out: &mut [[T; 2]]) {
+        let wp = self.wp;
+        match &self.op {
+            Operator::Fine { flags, tau } => fine_band(flags, *tau, wp, self.geo.w, x, f, r0, r0 + out.len() / wp, out),
+            Operator::Stored { .. } => {
+                // With fixed nodes' terms: the operator without them, then the terms.
+                let op = pinned.map_or(&self.op, |(p, _)| &p.open);
+                for (k, orow) in out.chunks_mut(wp).enumerate() {
+                    residual_row(self, op, x, f, r0 + k, orow);
+                    if let Some((p, coef)) = pinned {
+                        p.correct_row(coef, r0 + k, orow);
+                    }
+                }
+            }
+        }
+    }
+
     fn bands<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]], fold: Fold) -> [f64; 2] {
         let wp = self.wp;
         let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));
         let run = |(r, chunk): (usize, &mut [[T; 2]])| {
             let r0 = r * PAR_ROWS + PAD;
             let r1 = r0 + chunk.len() / wp;
-            match &self.op {
-                Operator::Fine { flags, tau } => fine_band(flags, *tau, wp, self.geo.w, x, f, r0, r1, chunk),
-                Operator::Stored { .. } => {
-                    // With fixed nodes' terms: the operator without them, then the terms.
-                    let op = pinned.as_ref().map_or(&self.op, |(p, _)| &p.open);
-                    for (k, orow) in chunk.chunks_mut(wp).enumerate() {
-                        residual_row(self, op, x, f, r0 + k, orow);
-                        if let Some((p, coef)) = &pinned {
-                            p.correct_row(coef, r0 + k, orow);
-                        }
-                    }
-                }
-            }
+            self.band_residual(pinned.as_ref(), x, f, r0, chunk);
             match fold {
                 Fold::Nothing => [0.0; 2],
                 Fold::Dot => dot_pairs(&x[r0 * wp..r1 * wp], chunk),
@@ -610,19 +618,7 @@ impl Level {
         let (w, g) = (self.geo.w, &self.inv_diag_w[..]);
         let run = |(b, (chunk, dc)): (usize, (&mut [W2], &mut [W2]))| {
             let r0 = b * PAR_ROWS + PAD;
-            let r1 = r0 + chunk.len() / wp;
-            match &self.op {
-                Operator::Fine { flags, tau } => fine_band(flags, *tau, wp, w, x, f, r0, r1, chunk),
-                Operator::Stored { .. } => {
-                    let op = pinned.as_ref().map_or(&self.op, |(p, _)| &p.open);
-                    for (k, orow) in chunk.chunks_mut(wp).enumerate() {
-                        residual_row(self, op, x, f, r0 + k, orow);
-                        if let Some((p, coef)) = &pinned {
-                            p.correct_row(coef, r0 + k, orow);
-                        }
-                    }
-                }
-            }
+            self.band_residual(pinned.as_ref(), x, f, r0, chunk);
             for (k, (orow, drow)) in chunk.chunks_mut(wp).zip(dc.chunks_mut(wp)).enumerate() {
                 let base = (r0 + k) * wp;
                 let (xrow, grow) = (&x[base..base + wp], &g[base..base + wp]);
