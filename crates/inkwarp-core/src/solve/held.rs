@@ -4,8 +4,8 @@
 //! constrained nodes (their prolongation rows are empty). Where constrained nodes lie on
 //! every side of a coarse node within a few of its cells, every function near it must bend
 //! sharply to vanish there, so the level's energy has no smooth, low modes left near it: a
-//! few smoothing steps solve the level as well as a cycle through the levels below it, at
-//! a fraction of the cost. At 513 × 513 with 1000 random constrained nodes this holds from
+//! few Chebyshev steps (aimed lower than a smoother's) solve the level as well as a cycle
+//! through the levels below it, at a fraction of the cost. At 513 × 513 with 1000 random constrained nodes this holds from
 //! the fourth coarse level (about four constrained nodes in each quadrant of a box of twice
 //! a coarse node's reach), with 4000 from the third.
 //!
