@@ -66,10 +66,9 @@ pub(crate) struct Hierarchy {
     /// K-cycle coarse corrections that took their first step alone (see
     /// [`K_SECOND_STEP`]), since the hierarchy was built.
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
-    /// The first level held all around by constrained nodes (see [`super::held`]): it and
-    /// those below are solved by [`HELD_SMOOTHING`] smoothing steps, never visited below.
-    /// `usize::MAX` when none is.
-    pub held_from: usize,
+    /// The first level held all around by constrained nodes (see [`super::held`]), if any:
+    /// it is solved by [`HELD_SMOOTHING`] alone, and the levels below it are never visited.
+    pub held_from: Option<usize>,
     /// Whether the finest level has loose nodes (free nodes on no fully linked cell),
     /// which the solve settles afterwards; set by the solve that builds the hierarchy.
     pub loose: bool,
@@ -148,7 +147,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, second_steps_skipped: Default::default(), held_from: usize::MAX }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, second_steps_skipped: Default::default(), held_from: None }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
@@ -193,13 +192,23 @@ impl Hierarchy {
     /// Zeroes `x` for a solve of level k from zero, unless that solve's first smoothing
     /// step writes all of it anyway.
     fn clear_start(&self, k: usize, x: &mut [W2]) {
-        if k + 1 == self.levels.len() || self.degree_at(k) == 0 || self.levels[k].lam_max <= 0.0 {
+        if k + 1 == self.levels.len() || self.aim_at(k).steps == 0 || self.levels[k].lam_max <= 0.0 {
             fill_zero(x);
         }
     }
 
-    fn degree_at(&self, k: usize) -> usize {
-        if k == 0 { self.degree } else { self.coarse_degree }
+    /// Whether level k is solved by smoothing alone (see [`Hierarchy::held_from`]).
+    fn held(&self, k: usize) -> bool {
+        self.held_from.is_some_and(|h| k >= h)
+    }
+
+    /// Level k's smoothing.
+    fn aim_at(&self, k: usize) -> Aim {
+        match k {
+            _ if self.held(k) => HELD_SMOOTHING,
+            0 => Aim { steps: self.degree, ratio: CHEB_RATIO },
+            _ => Aim { steps: self.coarse_degree, ratio: CHEB_RATIO },
+        }
     }
 
     /// A one-level hierarchy: the exact solve of the finest level (`r` is scratch).
@@ -224,15 +233,15 @@ impl Hierarchy {
             self.coarsest.solve(&w.f, &mut w.x);
             return;
         }
-        if k >= self.held_from {
+        if self.held(k) {
             let Work { x, f, r, d, .. } = &mut work[0];
-            smooth(level, x, Some(f), r, d, HELD_SMOOTHING, x_zero);
+            smooth(level, x, Some(f), r, d, self.aim_at(k), x_zero);
             return;
         }
         {
             let w = &mut work[0];
             let Work { x, f, r, d, .. } = w;
-            smooth(level, x, Some(f), r, d, Aim { steps: self.degree_at(k), ratio: CHEB_RATIO }, x_zero);
+            smooth(level, x, Some(f), r, d, self.aim_at(k), x_zero);
             level.residual(x, Some(f), r);
         }
         let (head, tail) = work.split_at_mut(1);
@@ -269,7 +278,7 @@ impl Hierarchy {
             prolong_add(&alt.levels[0], &alt.levels[1], &atail[0].x, &mut w.x);
         }
         let Work { x, f, r, d, .. } = w;
-        smooth(level, x, Some(f), r, d, Aim { steps: self.degree_at(k), ratio: CHEB_RATIO }, false);
+        smooth(level, x, Some(f), r, d, self.aim_at(k), false);
     }
 
     /// Level k's coarse correction from its residual `w.r`: two steps of flexible conjugate
@@ -528,8 +537,7 @@ pub(crate) fn smooth(
     aim: Aim,
     x_zero: bool,
 ) {
-    let degree = aim.steps;
-    if degree == 0 || level.lam_max <= 0.0 {
+    if aim.steps == 0 || level.lam_max <= 0.0 {
         return;
     }
     let b = level.lam_max;
@@ -540,7 +548,7 @@ pub(crate) fn smooth(
     let mut rho = 1.0 / sigma;
     let inv_theta = WS::of(1.0 / theta);
     let mut rule = StepRule::First { inv_theta };
-    let mut steps = degree;
+    let mut steps = aim.steps;
     if x_zero {
         // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass.
         let f = f.expect("a zero start needs a right-hand side");

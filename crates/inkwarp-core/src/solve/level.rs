@@ -609,9 +609,9 @@ impl Level {
     /// `r = f − A x` (into `next`, as scratch), the update `d` from it (`rule`), and
     /// `next = x + d`. The same operations in the same order as the residual, the update and
     /// the addition one pass each, so the result is bit for bit theirs; but `x`, `d` and the
-    /// residual are read once instead of twice or three times (the finest level's
-    /// Chebyshev steps at 513 × 513 streamed 17 MB each, now 11). `next` must differ from
-    /// `x`: the bands read `x` two rows past their own.
+    /// residual are read once instead of twice or three times (a step of the finest level
+    /// at 513 × 513 touches about 11 MB instead of 17, counted from its vectors). `next`
+    /// must differ from `x`: the bands read `x` two rows past their own.
     pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule) {
         let wp = self.wp;
         let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));

@@ -526,7 +526,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         // 96 × 96 problems with cuts, holes and hinges: 210 to 244).
         hier.scaled_finest = key.spaces.scaled && !torn;
         if !torn && key.spaces.held {
-            hier.held_from = held::first_held(&hier.levels).unwrap_or(usize::MAX);
+            hier.held_from = held::first_held(&hier.levels);
         }
         if torn && key.spaces.tear && w * h >= TEAR_SPACE_MIN_NODES {
             // Cuts and thin holes: functions that run linearly up to each side of them.
