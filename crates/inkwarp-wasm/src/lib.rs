@@ -7,7 +7,8 @@
 //! JSON, bulk data (mattes, images, fields) as raw byte / `f32` arrays. The caller
 //! allocates with [`iw_alloc`] and frees with [`iw_free`]. Functions that produce JSON (a
 //! report, an error, a polyline) leave it in a result buffer read through
-//! [`iw_result_ptr`] / [`iw_result_len`], valid until the next call. Status codes: `0` success, `1` error (the result holds `{"error": "..."}`).
+//! [`iw_result_ptr`] / [`iw_result_len`], valid until the next call. Status codes: `0`
+//! success, `1` error (the result holds `{"error": "..."}`).
 //!
 //! The plain ABI (rather than wasm-bindgen) keeps the build to `cargo` and the
 //! `wasm32-unknown-unknown` target: no code generator to install at the matching version.

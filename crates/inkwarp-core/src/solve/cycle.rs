@@ -233,15 +233,13 @@ impl Hierarchy {
             self.coarsest.solve(&w.f, &mut w.x);
             return;
         }
-        if self.held(k) {
+        {
             let Work { x, f, r, d, .. } = &mut work[0];
             smooth(level, x, Some(f), r, d, self.aim_at(k), x_zero);
-            return;
-        }
-        {
-            let w = &mut work[0];
-            let Work { x, f, r, d, .. } = w;
-            smooth(level, x, Some(f), r, d, self.aim_at(k), x_zero);
+            if self.held(k) {
+                // Its smoothing solves it (see `held_from`).
+                return;
+            }
             level.residual(x, Some(f), r);
         }
         let (head, tail) = work.split_at_mut(1);
