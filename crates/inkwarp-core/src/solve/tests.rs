@@ -1021,3 +1021,47 @@ fn a_free_margin_around_constrained_nodes_keeps_its_coarse_levels() {
     assert_eq!(held::first_held(&levels_of(Some(scattered))), None);
     assert_eq!(held::first_held(&levels_of(None)), None);
 }
+
+#[test]
+fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
+    // Where the processor has AVX2, runs of nodes with stencils of their own take four
+    // nodes to a vector (see `Real::four_stencils`): every node's residual must have the
+    // bits of its own 21 products summed in the stencil's order, in `f32`. The second
+    // Galerkin level of a grid with a hole, a cut and scattered fixed nodes has runs of
+    // every length.
+    use super::level::{Operator, WS};
+    let mut rnd = crate::grid::tests::sequence(57);
+    let grid = torn_grid(97, true, true, 5.0);
+    let fixed: Vec<bool> = (0..97 * 97).map(|_| rnd() < 0.05).collect();
+    let fine = fine_level(&grid, Some(fixed), 0.0);
+    let level = level::galerkin(&level::galerkin(&fine));
+    let Operator::Stored { ids, narrow, .. } = &level.op else { unreachable!("a Galerkin level") };
+    let n = level.len_padded();
+    let field = |rnd: &mut dyn FnMut() -> f64| -> Vec<W2> {
+        (0..n).map(|p| if level.inv_diag[p] != 0.0 { [(rnd() - 0.5) as WS, (rnd() - 0.5) as WS] } else { [0.0; 2] }).collect()
+    };
+    let (x, f) = (field(&mut rnd), field(&mut rnd));
+    let mut out = vec![[0.0 as WS; 2]; n];
+    level.residual(&x, Some(&f), &mut out);
+    let wp = level.wp;
+    let mut irregular = 0;
+    for p in 0..n {
+        if level.inv_diag[p] == 0.0 || ids[p] == 0 {
+            continue;
+        }
+        irregular += 1;
+        let s = &narrow[ids[p] as usize];
+        let mut a = [0.0 as WS; 2];
+        for t in 0..25 {
+            let (dy, dx) = (t / 5, t % 5);
+            if (dy == 0 || dy == 4) && (dx == 0 || dx == 4) {
+                continue; // the window's corners, always zero
+            }
+            let q = p + dy * wp + dx - 2 * wp - 2;
+            a = [a[0] + s[t] * x[q][0], a[1] + s[t] * x[q][1]];
+        }
+        let want = [f[p][0] - a[0], f[p][1] - a[1]];
+        assert_eq!(out[p].map(WS::to_bits), want.map(WS::to_bits), "node {p}");
+    }
+    assert!(irregular > 100, "only {irregular} nodes with their own stencils");
+}
