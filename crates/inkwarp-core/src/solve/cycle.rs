@@ -238,6 +238,8 @@ impl Hierarchy {
             smooth(level, x, Some(f), r, d, self.aim_at(k), x_zero);
             if self.held(k) {
                 // Its smoothing solves it (see `held_from`).
+                #[cfg(test)]
+                super::HELD_VISITS.with(|v| v.set(v.get() + 1));
                 return;
             }
             level.residual(x, Some(f), r);

@@ -793,6 +793,13 @@ thread_local! {
     pub(crate) static SPACES: std::cell::Cell<Spaces> = const { std::cell::Cell::new(Spaces::ALL) };
 }
 
+#[cfg(test)]
+thread_local! {
+    /// Visits to levels solved by smoothing alone (see [`Hierarchy::held_from`]) by the
+    /// solves on this thread, for tests to see that a solve used them.
+    pub(crate) static HELD_VISITS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
 fn spaces() -> Spaces {
     #[cfg(test)]
     return SPACES.with(|c| c.get());

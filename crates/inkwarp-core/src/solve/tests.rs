@@ -157,6 +157,14 @@ fn random_samples(rng: &mut Rng, w: usize, h: usize, k: usize) -> Vec<Sample> {
         .collect()
 }
 
+/// Random `f32` pairs in ±0.5 on `level`'s unknowns, zero elsewhere (`everywhere`: on
+/// every padded node).
+fn random_on_unknowns(level: &level::Level, rnd: &mut dyn FnMut() -> f64, everywhere: bool) -> Vec<W2> {
+    (0..level.len_padded())
+        .map(|p| if everywhere || level.inv_diag[p] != 0.0 { [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32] } else { [0.0; 2] })
+        .collect()
+}
+
 /// The next frame of an animation, as the bench's warm solves have it: every displacement
 /// changed by 2 % and 0.05 px.
 fn next_frame(samples: &[Sample]) -> Vec<Sample> {
@@ -928,13 +936,10 @@ fn a_fused_smoothing_step_gives_the_separate_passes_results_bit_for_bit() {
     let rules = [StepRule::First { inv_theta: 0.37 }, StepRule::Next { c1: 0.81, c2: -1.3 }];
     for (name, level) in [("finest", &fine), ("first coarse", &coarse)] {
         let n = level.len_padded();
-        let mut field = |zero_pad: bool| -> Vec<W2> {
-            (0..n).map(|p| if !zero_pad || level.inv_diag[p] != 0.0 { [(rnd() - 0.5) as WS, (rnd() - 0.5) as WS] } else { [0.0; 2] }).collect()
-        };
-        let (x, f) = (field(true), field(true));
+        let (x, f) = (random_on_unknowns(level, &mut rnd, false), random_on_unknowns(level, &mut rnd, false));
         // d is zero off the unknowns (as the smoother leaves it); the output vector starts
         // with leftover values.
-        let d0 = field(true);
+        let d0 = random_on_unknowns(level, &mut rnd, false);
         for rule in rules {
             let (mut r, mut d, mut x_sep) = (vec![[0.0 as WS; 2]; n], d0.clone(), x.clone());
             level.residual(&x_sep, Some(&f), &mut r);
@@ -946,7 +951,7 @@ fn a_fused_smoothing_step_gives_the_separate_passes_results_bit_for_bit() {
                 };
                 x_sep[p] = [x_sep[p][0] + d[p][0], x_sep[p][1] + d[p][1]];
             }
-            let (mut d_fused, mut next) = (d0.clone(), field(false));
+            let (mut d_fused, mut next) = (d0.clone(), random_on_unknowns(level, &mut rnd, true));
             level.smoothing_step(&x, Some(&f), &mut d_fused, &mut next, rule);
             let bits = |v: &[W2]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&next), bits(&x_sep), "{name}, {rule:?}: x + d");
@@ -981,12 +986,16 @@ fn levels_held_by_constraints_all_around_are_smoothed_and_the_solve_still_conver
     let options = SolveOptions::default();
     let [with, without] = [Spaces::ALL, Spaces { held: false, ..Spaces::ALL }].map(|spaces| {
         with_spaces(spaces, || {
+            HELD_VISITS.with(|v| v.set(0));
             let (cold, cold_report) = solve(&grid, &samples, &options, None).unwrap();
             let (warm, warm_report) = solve(&grid, &nudged, &options, Some(&cold)).unwrap();
             for (what, field, report, exact) in [("cold", &cold, &cold_report, &exact), ("warm", &warm, &warm_report, &exact_nudged)] {
                 let err = gap(field, exact);
                 assert!(report.converged && f64::from(err) <= options.tolerance_px, "{spaces:?}, {what}: {err} px off ({report:?})");
             }
+            // The solves ran on this thread: held levels were visited exactly when allowed.
+            let visits = HELD_VISITS.with(|v| v.get());
+            assert_eq!(visits > 0, spaces.held, "{spaces:?}: {visits} visits to held levels");
             [cold_report.cycles, warm_report.cycles]
         })
     });
@@ -1037,19 +1046,20 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
     let level = level::galerkin(&level::galerkin(&fine));
     let Operator::Stored { ids, narrow, .. } = &level.op else { unreachable!("a Galerkin level") };
     let n = level.len_padded();
-    let field = |rnd: &mut dyn FnMut() -> f64| -> Vec<W2> {
-        (0..n).map(|p| if level.inv_diag[p] != 0.0 { [(rnd() - 0.5) as WS, (rnd() - 0.5) as WS] } else { [0.0; 2] }).collect()
-    };
-    let (x, f) = (field(&mut rnd), field(&mut rnd));
+    let (x, f) = (random_on_unknowns(&level, &mut rnd, false), random_on_unknowns(&level, &mut rnd, false));
     let mut out = vec![[0.0 as WS; 2]; n];
     level.residual(&x, Some(&f), &mut out);
     let wp = level.wp;
-    let mut irregular = 0;
+    let own = |p: usize| level.inv_diag[p] != 0.0 && ids[p] != 0;
+    let (mut irregular, mut in_fours) = (0, 0);
     for p in 0..n {
-        if level.inv_diag[p] == 0.0 || ids[p] == 0 {
+        if !own(p) {
             continue;
         }
         irregular += 1;
+        // Runs of four along a row are what the vector takes (rows never run into each
+        // other: their padding columns are not unknowns).
+        in_fours += usize::from((0..4).all(|j| p >= j && own(p - j)));
         let s = &narrow[ids[p] as usize];
         let mut a = [0.0 as WS; 2];
         for t in 0..25 {
@@ -1063,5 +1073,5 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
         let want = [f[p][0] - a[0], f[p][1] - a[1]];
         assert_eq!(out[p].map(WS::to_bits), want.map(WS::to_bits), "node {p}");
     }
-    assert!(irregular > 100, "only {irregular} nodes with their own stencils");
+    assert!(irregular > 100 && in_fours > 100, "only {irregular} nodes with their own stencils, {in_fours} ending runs of four");
 }
