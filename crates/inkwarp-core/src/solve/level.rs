@@ -45,8 +45,9 @@ pub(crate) trait Real:
     }
     /// The stencil sums `Σₜ sⱼ[t] x[q₀ + j + offset(t)]` (in [`STORED_TAPS`] order, each
     /// product added to the sum in turn) of the four consecutive nodes `q₀ + j`, each
-    /// with its own stencil `sⱼ`; only where [`Real::has_four_stencils`].
-    fn four_stencils(_x: &[[Self; 2]], _q0: usize, _wp: usize, _s: [&[Self; 25]; 4]) -> [[Self; 2]; 4] {
+    /// with its own stencil `sⱼ`, whose coefficients `block` holds tap by tap (see
+    /// [`Fours`]); only where [`Real::has_four_stencils`].
+    fn four_stencils(_x: &[[Self; 2]], _q0: usize, _wp: usize, _block: &FourBlock) -> [[Self; 2]; 4] {
         unreachable!("only where has_four_stencils")
     }
 }
@@ -95,40 +96,97 @@ impl Real for f32 {
     }
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    fn four_stencils(x: &[[f32; 2]], q0: usize, wp: usize, s: [&[f32; 25]; 4]) -> [[f32; 2]; 4] {
+    fn four_stencils(x: &[[f32; 2]], q0: usize, wp: usize, block: &FourBlock) -> [[f32; 2]; 4] {
         // SAFETY: `has_four_stencils` (the only way here) found AVX2 on the processor.
         #[allow(unsafe_code)]
         unsafe {
-            four_stencils_avx2(x, q0, wp, s)
+            four_stencils_avx2(x, q0, wp, block)
         }
     }
 }
 
 /// [`Real::four_stencils`] in `f32` on one 256-bit vector: the four nodes' two components
 /// are its eight lanes, each tap one load of the four nodes' values (they are consecutive)
-/// times the four stencils' coefficients, each repeated for both components. A multiply
-/// then an add, as the plain sums take them, so the sums are bit for bit theirs. The
-/// compiler did not find this itself: it kept one node to a vector, and the four nodes'
-/// coefficients come from four places in the table.
+/// times the tap's four coefficients (one 128-bit load from the block, each repeated for
+/// both components by a permute). A multiply then an add, as the plain sums take them, so
+/// the sums are bit for bit theirs. The compiler did not find this itself: it kept one node
+/// to a vector.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[allow(unsafe_code)]
-unsafe fn four_stencils_avx2(x: &[[f32; 2]], q0: usize, wp: usize, s: [&[f32; 25]; 4]) -> [[f32; 2]; 4] {
-    use std::arch::x86_64::{_mm256_add_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_setr_ps, _mm256_setzero_ps, _mm256_storeu_ps};
+unsafe fn four_stencils_avx2(x: &[[f32; 2]], q0: usize, wp: usize, block: &FourBlock) -> [[f32; 2]; 4] {
+    use std::arch::x86_64::{
+        _mm256_add_ps, _mm256_castps128_ps256, _mm256_loadu_ps, _mm256_mul_ps, _mm256_permutevar8x32_ps, _mm256_setr_epi32, _mm256_setzero_ps,
+        _mm256_storeu_ps, _mm_loadu_ps,
+    };
+    let pairs = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
     let mut acc = _mm256_setzero_ps();
-    for &(dy, dx) in &STORED_TAPS {
-        let t = dy * 5 + dx;
+    for (&(dy, dx), c) in STORED_TAPS.iter().zip(block) {
         let q = q0 + dy * wp + dx - 2 * wp - 2;
         let xs = x[q..q + 4].as_flattened();
-        // SAFETY: `xs` holds the eight values the load reads.
-        let xv = unsafe { _mm256_loadu_ps(xs.as_ptr()) };
-        let c = _mm256_setr_ps(s[0][t], s[0][t], s[1][t], s[1][t], s[2][t], s[2][t], s[3][t], s[3][t]);
+        // SAFETY: `xs` holds the eight values the load reads, `c` the four.
+        let (xv, c) = unsafe { (_mm256_loadu_ps(xs.as_ptr()), _mm_loadu_ps(c.as_ptr())) };
+        // (The upper half of the widened `c` is never read: the permute takes lanes 0–3.)
+        let c = _mm256_permutevar8x32_ps(_mm256_castps128_ps256(c), pairs);
         acc = _mm256_add_ps(acc, _mm256_mul_ps(c, xv));
     }
     let mut out = [[0.0f32; 2]; 4];
     // SAFETY: `out` holds the eight values the store writes.
     unsafe { _mm256_storeu_ps(out.as_flattened_mut().as_mut_ptr(), acc) };
     out
+}
+
+/// The coefficients of four consecutive nodes with stencils of their own, tap by tap
+/// ([`STORED_TAPS`] order), the four nodes' side by side.
+pub(crate) type FourBlock = [[f32; 4]; 21];
+
+/// A Galerkin level's nodes with stencils of their own, in fours as [`residual_row`] takes
+/// them (rows top to bottom, each run of such nodes from its start, four at a time; a run's
+/// last one to three nodes are summed one by one): each four's coefficients as one
+/// [`FourBlock`], so the four-node vector reads a tap's coefficients with one load instead of
+/// gathering them from four stencils of the table (on the processors it runs on; elsewhere
+/// empty).
+#[derive(Debug, Default)]
+pub(crate) struct Fours {
+    blocks: Vec<FourBlock>,
+    /// The first block of each padded row.
+    row_first: Vec<u32>,
+}
+
+impl Fours {
+    /// The fours of the stencils `ids` (into `narrow`) on the unknowns of `inv_diag`, as
+    /// `residual_row` visits them.
+    pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], inv_diag: &[f64], wp: usize, w: usize, h: usize) -> Fours {
+        if !f32::has_four_stencils() {
+            return Fours::default();
+        }
+        let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD] };
+        let own = |p: usize| inv_diag[p] != 0.0 && ids[p] != 0;
+        for r in PAD..PAD + h {
+            fours.row_first[r] = fours.blocks.len() as u32;
+            let base = r * wp;
+            let mut c = PAD;
+            while c < PAD + w {
+                if !own(base + c) {
+                    c += 1;
+                    continue;
+                }
+                let mut e = c + 1;
+                while e < PAD + w && own(base + e) {
+                    e += 1;
+                }
+                for i in (c..e - 3).step_by(4) {
+                    let s: [&[f32; 25]; 4] = std::array::from_fn(|j| &narrow[ids[base + i + j] as usize]);
+                    fours.blocks.push(std::array::from_fn(|t| {
+                        let (dy, dx) = STORED_TAPS[t];
+                        s.map(|s| s[dy * 5 + dx])
+                    }));
+                }
+                c = e;
+            }
+        }
+        fours
+    }
 }
 
 /// Node flags of the finest level.
@@ -411,7 +469,7 @@ pub(crate) enum Operator {
     /// A Galerkin level: a 5 × 5 stencil (row-major offsets, dy outer) per padded node,
     /// as an index into a table; entry 0 is the stencil shared by every regular node
     /// (all zeros when there is none).
-    Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, narrow: Vec<[f32; 25]>, sym: Option<Sym> },
+    Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, narrow: Vec<[f32; 25]>, sym: Option<Sym>, fours: Fours },
 }
 
 /// The shared stencil of a Galerkin level when it has the symmetries of the square (it
@@ -745,9 +803,10 @@ widest! {
         let base = r * wp;
         match op {
             Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
-            Operator::Stored { ids, table, narrow, sym } => {
+            Operator::Stored { ids, table, narrow, sym, fours } => {
                 let table = T::table(table, narrow);
                 let four = T::has_four_stencils();
+                let mut block = if four { fours.row_first[r] as usize } else { 0 };
                 let shared = &table[0];
                 let mut c = PAD;
                 let end = PAD + level.geo.w;
@@ -793,7 +852,9 @@ widest! {
                     // A run of irregular nodes, each with its own stencil, four side by side:
                     // one node's 21 taps summed one after another wait on each other, four
                     // nodes' do not (a twelfth off a 513 × 513 solve with 4000 points); in
-                    // `f32` with AVX2, the four on one vector (another 2–5 %).
+                    // `f32` with AVX2, the four on one vector (another 2–5 %), their
+                    // coefficients read from the level's `fours` in the same order as
+                    // here (another 8 % off these rows).
                     let mut e = c + 1;
                     while e < end && ids[base + e] != 0 && level.inv_diag[base + e] != 0.0 {
                         e += 1;
@@ -806,7 +867,8 @@ widest! {
                         let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
                         let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
                         let sums = if four && k == 4 {
-                            T::four_stencils(x, q0, wp, [s0, s1, s2, s3])
+                            block += 1;
+                            T::four_stencils(x, q0, wp, &fours.blocks[block - 1])
                         } else {
                             let mut a = [[T::ZERO; 2]; 4];
                             for &(dy, dx) in &STORED_TAPS {
@@ -1184,9 +1246,10 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         }
     }
     let sym = Sym::of(&table[0]);
-    let narrow = table.iter().map(|s| s.map(|a| a as f32)).collect();
+    let narrow: Vec<[f32; 25]> = table.iter().map(|s| s.map(|a| a as f32)).collect();
     let inv_diag_w = narrow_diag(&inv_diag);
-    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
+    let fours = Fours::new(&ids, &narrow, &inv_diag, wpc, wc, hc);
+    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
 }
 
 fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {
