@@ -161,20 +161,16 @@ impl Fours {
             return Fours::default();
         }
         let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD] };
-        let own = |p: usize| inv_diag[p] != 0.0 && ids[p] != 0;
         for r in PAD..PAD + h {
             fours.row_first[r] = fours.blocks.len() as u32;
             let base = r * wp;
             let mut c = PAD;
             while c < PAD + w {
-                if !own(base + c) {
+                if inv_diag[base + c] == 0.0 || ids[base + c] == 0 {
                     c += 1;
                     continue;
                 }
-                let mut e = c + 1;
-                while e < PAD + w && own(base + e) {
-                    e += 1;
-                }
+                let e = own_run_end(ids, inv_diag, base, c, PAD + w);
                 for i in (c..e - 3).step_by(4) {
                     let s: [&[f32; 25]; 4] = std::array::from_fn(|j| &narrow[ids[base + i + j] as usize]);
                     fours.blocks.push(std::array::from_fn(|t| {
@@ -187,6 +183,18 @@ impl Fours {
         }
         fours
     }
+}
+
+/// The end (exclusive) of the run of unknowns with stencils of their own that starts at
+/// padded column `c` of the row from `base`, within columns before `end`: where
+/// [`residual_row`] and [`Fours::new`] agree on the runs, and so on the fours.
+#[inline(always)]
+fn own_run_end(ids: &[u32], inv_diag: &[f64], base: usize, c: usize, end: usize) -> usize {
+    let mut e = c + 1;
+    while e < end && ids[base + e] != 0 && inv_diag[base + e] != 0.0 {
+        e += 1;
+    }
+    e
 }
 
 /// Node flags of the finest level.
@@ -855,21 +863,19 @@ widest! {
                     // `f32` with AVX2, the four on one vector (another 2–5 %), their
                     // coefficients read from the level's `fours` in the same order as
                     // here (another 8 % off these rows).
-                    let mut e = c + 1;
-                    while e < end && ids[base + e] != 0 && level.inv_diag[base + e] != 0.0 {
-                        e += 1;
-                    }
+                    let e = own_run_end(ids, &level.inv_diag, base, c, end);
                     let mut i = c;
                     while i < e {
                         let k = (e - i).min(4);
                         let q0 = base + i;
-                        // Past the run's end the last node stands in (its sums are dropped).
-                        let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
-                        let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
                         let sums = if four && k == 4 {
+                            let b = &fours.blocks[block];
                             block += 1;
-                            T::four_stencils(x, q0, wp, &fours.blocks[block - 1])
+                            T::four_stencils(x, q0, wp, b)
                         } else {
+                            // Past the run's end the last node stands in (its sums are dropped).
+                            let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
+                            let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
                             let mut a = [[T::ZERO; 2]; 4];
                             for &(dy, dx) in &STORED_TAPS {
                                 let t = dy * 5 + dx;

@@ -165,6 +165,14 @@ fn random_on_unknowns(level: &level::Level, rnd: &mut dyn FnMut() -> f64, everyw
         .collect()
 }
 
+/// The finest level of a 97 × 97 grid with a hole and a cut (see [`torn_grid`]) and fixed
+/// nodes scattered over it at `density` (drawn from `rnd`).
+fn torn_scattered_level(rnd: &mut dyn FnMut() -> f64, density: f64, tau: f64) -> Level {
+    let grid = torn_grid(97, true, true, 5.0);
+    let fixed: Vec<bool> = (0..97 * 97).map(|_| rnd() < density).collect();
+    fine_level(&grid, Some(fixed), tau)
+}
+
 /// The next frame of an animation, as the bench's warm solves have it: every displacement
 /// changed by 2 % and 0.05 px.
 fn next_frame(samples: &[Sample]) -> Vec<Sample> {
@@ -927,9 +935,7 @@ fn a_fused_smoothing_step_gives_the_separate_passes_results_bit_for_bit() {
     // nodes' terms), for the first step's rule and a later one's, every bit the same.
     use super::level::{StepRule, WS};
     let mut rnd = crate::grid::tests::sequence(91);
-    let grid = torn_grid(97, true, true, 5.0);
-    let fixed: Vec<bool> = (0..97 * 97).map(|_| rnd() < 0.04).collect();
-    let fine = fine_level(&grid, Some(fixed), 0.1);
+    let fine = torn_scattered_level(&mut rnd, 0.04, 0.1);
     let mut coarse = level::galerkin(&fine);
     coarse.pinned = super::pinned::Pinned::new(&fine, &coarse).map(Box::new);
     assert!(coarse.pinned.is_some());
@@ -1040,9 +1046,7 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
     // every length.
     use super::level::{Operator, WS};
     let mut rnd = crate::grid::tests::sequence(57);
-    let grid = torn_grid(97, true, true, 5.0);
-    let fixed: Vec<bool> = (0..97 * 97).map(|_| rnd() < 0.05).collect();
-    let fine = fine_level(&grid, Some(fixed), 0.0);
+    let fine = torn_scattered_level(&mut rnd, 0.05, 0.0);
     let level = level::galerkin(&level::galerkin(&fine));
     let Operator::Stored { ids, narrow, .. } = &level.op else { unreachable!("a Galerkin level") };
     let n = level.len_padded();
