@@ -145,32 +145,63 @@ pub(crate) type FourBlock = [[f32; 4]; 21];
 /// last one to three nodes are summed one by one): each four's coefficients as one
 /// [`FourBlock`], so the four-node vector reads a tap's coefficients with one load instead of
 /// gathering them from four stencils of the table (on the processors it runs on; elsewhere
-/// empty).
+/// empty). On levels where most nodes have stencils of their own, every unknown (see
+/// [`DENSE_FOURS`]).
 #[derive(Debug, Default)]
 pub(crate) struct Fours {
     blocks: Vec<FourBlock>,
     /// The first block of each padded row.
     row_first: Vec<u32>,
+    /// Every unknown is in the fours, the regular ones with the shared stencil (see
+    /// [`DENSE_FOURS`]).
+    dense: bool,
 }
 
+/// From this share of a level's unknowns with stencils of their own, every unknown of the
+/// level goes into the fours: its regular nodes are then too few and too scattered for
+/// their runs' faster sums to make up for the short runs in between, summed one node at a
+/// time. At 513 × 513 with 1000 random points that is most of the second to fourth coarse
+/// levels (38, 76 and 100 % of their nodes have stencils of their own); the samples in
+/// those rows fell by a quarter (1000 and 4000 points), by 5 % with 100 points; from 10 %
+/// on they fell as much with 1000 and 4000 points, but the levels of 10 points, with
+/// borders alone, slowed down.
+const DENSE_FOURS: f64 = 0.3;
+/// Smaller levels stay as they are: their products cost next to nothing either way.
+const DENSE_MIN_UNKNOWNS: usize = 1000;
+
 impl Fours {
+    /// Whether a level with stencils `ids` on the unknowns of `inv_diag` takes every unknown
+    /// into its fours (see [`DENSE_FOURS`]).
+    pub(crate) fn dense_for(ids: &[u32], inv_diag: &[f64]) -> bool {
+        let (mut own, mut unknowns) = (0usize, 0usize);
+        for (&id, &d) in ids.iter().zip(inv_diag) {
+            if d != 0.0 {
+                unknowns += 1;
+                own += usize::from(id != 0);
+            }
+        }
+        unknowns >= DENSE_MIN_UNKNOWNS && own as f64 >= DENSE_FOURS * unknowns as f64
+    }
+
+
     /// The fours of the stencils `ids` (into `narrow`) on the unknowns of `inv_diag`, as
-    /// `residual_row` visits them.
-    pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], inv_diag: &[f64], wp: usize, w: usize, h: usize) -> Fours {
+    /// `residual_row` visits them; `dense`: of every unknown, else of those with stencils
+    /// of their own.
+    pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], inv_diag: &[f64], wp: usize, w: usize, h: usize, dense: bool) -> Fours {
         if !f32::has_four_stencils() {
             return Fours::default();
         }
-        let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD] };
+        let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD], dense };
         for r in PAD..PAD + h {
             fours.row_first[r] = fours.blocks.len() as u32;
             let base = r * wp;
             let mut c = PAD;
             while c < PAD + w {
-                if inv_diag[base + c] == 0.0 || ids[base + c] == 0 {
+                if inv_diag[base + c] == 0.0 || (ids[base + c] == 0 && !dense) {
                     c += 1;
                     continue;
                 }
-                let e = own_run_end(ids, inv_diag, base, c, PAD + w);
+                let e = own_run_end(ids, inv_diag, base, c, PAD + w, dense);
                 for i in (c..e - 3).step_by(4) {
                     let s: [&[f32; 25]; 4] = std::array::from_fn(|j| &narrow[ids[base + i + j] as usize]);
                     fours.blocks.push(std::array::from_fn(|t| {
@@ -185,13 +216,14 @@ impl Fours {
     }
 }
 
-/// The end (exclusive) of the run of unknowns with stencils of their own that starts at
-/// padded column `c` of the row from `base`, within columns before `end`: where
+/// The end (exclusive) of the run of unknowns with stencils of their own (`dense`: of
+/// unknowns) that starts at padded column `c` of the row from `base`, within columns before
+/// `end`: where
 /// [`residual_row`] and [`Fours::new`] agree on the runs, and so on the fours.
 #[inline(always)]
-fn own_run_end(ids: &[u32], inv_diag: &[f64], base: usize, c: usize, end: usize) -> usize {
+fn own_run_end(ids: &[u32], inv_diag: &[f64], base: usize, c: usize, end: usize, dense: bool) -> usize {
     let mut e = c + 1;
-    while e < end && ids[base + e] != 0 && inv_diag[base + e] != 0.0 {
+    while e < end && (dense || ids[base + e] != 0) && inv_diag[base + e] != 0.0 {
         e += 1;
     }
     e
@@ -814,6 +846,7 @@ widest! {
             Operator::Stored { ids, table, narrow, sym, fours } => {
                 let table = T::table(table, narrow);
                 let four = T::has_four_stencils();
+                let dense = four && fours.dense;
                 let mut block = if four { fours.row_first[r] as usize } else { 0 };
                 let shared = &table[0];
                 let mut c = PAD;
@@ -825,7 +858,7 @@ widest! {
                         c += 1;
                         continue;
                     }
-                    if ids[p] == 0 {
+                    if ids[p] == 0 && !dense {
                         // A run of regular nodes: one stencil, applied tap by tap.
                         let mut e = c + 1;
                         while e < end && ids[base + e] == 0 && level.inv_diag[base + e] != 0.0 {
@@ -862,8 +895,9 @@ widest! {
                     // nodes' do not (a twelfth off a 513 × 513 solve with 4000 points); in
                     // `f32` with AVX2, the four on one vector (another 2–5 %), their
                     // coefficients read from the level's `fours` in the same order as
-                    // here (another 8 % off these rows).
-                    let e = own_run_end(ids, &level.inv_diag, base, c, end);
+                    // here (another 8 % off these rows); on a dense level every run of
+                    // unknowns (see `DENSE_FOURS`).
+                    let e = own_run_end(ids, &level.inv_diag, base, c, end, dense);
                     let mut i = c;
                     while i < e {
                         let k = (e - i).min(4);
@@ -1254,7 +1288,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let sym = Sym::of(&table[0]);
     let narrow: Vec<[f32; 25]> = table.iter().map(|s| s.map(|a| a as f32)).collect();
     let inv_diag_w = narrow_diag(&inv_diag);
-    let fours = Fours::new(&ids, &narrow, &inv_diag, wpc, wc, hc);
+    let fours = Fours::new(&ids, &narrow, &inv_diag, wpc, wc, hc, Fours::dense_for(&ids, &inv_diag));
     Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
 }
 

@@ -77,7 +77,7 @@ impl Pinned {
         if let Operator::Stored { ids, narrow, fours, .. } = &mut open {
             // Its runs of nodes with stencils of their own are those among this level's
             // unknowns.
-            *fours = Fours::new(ids, narrow, &coarse.inv_diag, coarse.wp, coarse.geo.w, coarse.geo.h);
+            *fours = Fours::new(ids, narrow, &coarse.inv_diag, coarse.wp, coarse.geo.w, coarse.geo.h, Fours::dense_for(ids, &coarse.inv_diag));
         }
         let mut pin_of = vec![u32::MAX; w * h];
         for (k, &i) in pins.iter().enumerate() {

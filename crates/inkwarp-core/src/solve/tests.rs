@@ -1043,39 +1043,47 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
     // nodes to a vector (see `Real::four_stencils`): every node's residual must have the
     // bits of its own 21 products summed in the stencil's order, in `f32`. The second
     // Galerkin level of a grid with a hole, a cut and scattered fixed nodes has runs of
-    // every length.
-    use super::level::{Operator, WS};
+    // every length. Then the same level with every unknown in the fours (a dense level,
+    // see `DENSE_FOURS`): the regular nodes too, by the shared stencil's 21 products.
+    use super::level::{Fours, Operator, WS};
     let mut rnd = crate::grid::tests::sequence(57);
-    let fine = torn_scattered_level(&mut rnd, 0.05, 0.0);
-    let level = level::galerkin(&level::galerkin(&fine));
-    let Operator::Stored { ids, narrow, .. } = &level.op else { unreachable!("a Galerkin level") };
-    let n = level.len_padded();
-    let (x, f) = (random_on_unknowns(&level, &mut rnd, false), random_on_unknowns(&level, &mut rnd, false));
-    let mut out = vec![[0.0 as WS; 2]; n];
-    level.residual(&x, Some(&f), &mut out);
-    let wp = level.wp;
-    let own = |p: usize| level.inv_diag[p] != 0.0 && ids[p] != 0;
-    let (mut irregular, mut in_fours) = (0, 0);
-    for p in 0..n {
-        if !own(p) {
-            continue;
-        }
-        irregular += 1;
-        // Runs of four along a row are what the vector takes (rows never run into each
-        // other: their padding columns are not unknowns).
-        in_fours += usize::from((0..4).all(|j| p >= j && own(p - j)));
-        let s = &narrow[ids[p] as usize];
-        let mut a = [0.0 as WS; 2];
-        for t in 0..25 {
-            let (dy, dx) = (t / 5, t % 5);
-            if (dy == 0 || dy == 4) && (dx == 0 || dx == 4) {
-                continue; // the window's corners, always zero
+    // Fewer fixed nodes for the dense level, so it has regular nodes to check as well.
+    for (density, dense) in [(0.05, false), (0.01, true)] {
+        let fine = torn_scattered_level(&mut rnd, density, 0.0);
+        let mut level = level::galerkin(&level::galerkin(&fine));
+        let n = level.len_padded();
+        let (x, f) = (random_on_unknowns(&level, &mut rnd, false), random_on_unknowns(&level, &mut rnd, false));
+        let (w, h, wp) = (level.geo.w, level.geo.h, level.wp);
+        let Operator::Stored { ids, narrow, fours, .. } = &mut level.op else { unreachable!("a Galerkin level") };
+        *fours = Fours::new(ids, narrow, &level.inv_diag, wp, w, h, dense);
+        let mut out = vec![[0.0 as WS; 2]; n];
+        level.residual(&x, Some(&f), &mut out);
+        let Operator::Stored { ids, narrow, .. } = &level.op else { unreachable!() };
+        let summed = |p: usize| level.inv_diag[p] != 0.0 && (dense || ids[p] != 0);
+        let (mut checked, mut regular, mut in_fours) = (0, 0, 0);
+        for p in 0..n {
+            if !summed(p) {
+                continue;
             }
-            let q = p + dy * wp + dx - 2 * wp - 2;
-            a = [a[0] + s[t] * x[q][0], a[1] + s[t] * x[q][1]];
+            checked += 1;
+            regular += usize::from(ids[p] == 0);
+            // Runs of four along a row are what the vector takes (rows never run into each
+            // other: their padding columns are not unknowns).
+            in_fours += usize::from((0..4).all(|j| p >= j && summed(p - j)));
+            let s = &narrow[ids[p] as usize];
+            let mut a = [0.0 as WS; 2];
+            for t in 0..25 {
+                let (dy, dx) = (t / 5, t % 5);
+                if (dy == 0 || dy == 4) && (dx == 0 || dx == 4) {
+                    continue; // the window's corners, always zero
+                }
+                let q = p + dy * wp + dx - 2 * wp - 2;
+                a = [a[0] + s[t] * x[q][0], a[1] + s[t] * x[q][1]];
+            }
+            let want = [f[p][0] - a[0], f[p][1] - a[1]];
+            assert_eq!(out[p].map(WS::to_bits), want.map(WS::to_bits), "node {p}, dense {dense}");
         }
-        let want = [f[p][0] - a[0], f[p][1] - a[1]];
-        assert_eq!(out[p].map(WS::to_bits), want.map(WS::to_bits), "node {p}");
+        assert!(checked > 100 && in_fours > 100, "dense {dense}: only {checked} nodes checked, {in_fours} ending runs of four");
+        assert_eq!(regular > 100, dense, "{regular} regular nodes checked");
     }
-    assert!(irregular > 100 && in_fours > 100, "only {irregular} nodes with their own stencils, {in_fours} ending runs of four");
 }
