@@ -43,11 +43,12 @@ pub(crate) trait Real:
     fn has_four_stencils() -> bool {
         false
     }
-    /// The stencil sums `Σₜ sⱼ[t] x[q₀ + j + offset(t)]` (in [`STORED_TAPS`] order, each
-    /// product added to the sum in turn) of the four consecutive nodes `q₀ + j`, each
-    /// with its own stencil `sⱼ`, whose coefficients `block` holds tap by tap (see
-    /// [`Fours`]); only where [`Real::has_four_stencils`].
-    fn four_stencils(_x: &[[Self; 2]], _q0: usize, _wp: usize, _block: &FourBlock) -> [[Self; 2]; 4] {
+    /// `out[j] = f[q₀ + j] − Σₜ sⱼ[t] x[q₀ + j + offset(t)]` for the `4n` consecutive nodes
+    /// `q₀ + j`, each with its own stencil `sⱼ` (in [`STORED_TAPS`] order, each product added
+    /// to the sum in turn), whose coefficients `blocks` holds four nodes at a time, tap by
+    /// tap (see [`Fours`]); only where [`Real::has_four_stencils`].
+    #[allow(clippy::too_many_arguments)]
+    fn four_run(_x: &[[Self; 2]], _f: Option<&[[Self; 2]]>, _q0: usize, _n: usize, _wp: usize, _blocks: &[FourBlock], _out: &mut [[Self; 2]]) {
         unreachable!("only where has_four_stencils")
     }
 }
@@ -96,44 +97,75 @@ impl Real for f32 {
     }
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    fn four_stencils(x: &[[f32; 2]], q0: usize, wp: usize, block: &FourBlock) -> [[f32; 2]; 4] {
+    fn four_run(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: usize, wp: usize, blocks: &[FourBlock], out: &mut [[f32; 2]]) {
         // SAFETY: `has_four_stencils` (the only way here) found AVX2 on the processor.
         #[allow(unsafe_code)]
         unsafe {
-            four_stencils_avx2(x, q0, wp, block)
+            four_run_avx2(x, f, q0, n, wp, blocks, out)
         }
     }
 }
 
-/// [`Real::four_stencils`] in `f32` on one 256-bit vector: the four nodes' two components
-/// are its eight lanes, each tap one load of the four nodes' values (they are consecutive)
-/// times the tap's four coefficients (one 128-bit load from the block, each repeated for
-/// both components by a permute). A multiply then an add, as the plain sums take them, so
-/// the sums are bit for bit theirs. The compiler did not find this itself: it kept one node
-/// to a vector.
+/// [`Real::four_run`] in `f32`, four nodes to a 256-bit vector: the four nodes' two
+/// components are its eight lanes, each tap one load of the four nodes' values (they are
+/// consecutive) times the tap's four coefficients (one 128-bit load from the block, each
+/// repeated for both components by a permute). A multiply then an add, as the plain sums
+/// take them, so the sums are bit for bit theirs. Two fours at a time on two vectors, so
+/// their chains of additions overlap, and the run's bounds are checked once: 5–8 % off
+/// whole solves with 1000 and 4000 points (where the four nodes were one call each, a
+/// slice's bounds checked at every tap). The compiler did not find the four-node vector
+/// itself: it kept one node to a vector.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-#[allow(unsafe_code)]
-unsafe fn four_stencils_avx2(x: &[[f32; 2]], q0: usize, wp: usize, block: &FourBlock) -> [[f32; 2]; 4] {
+#[allow(unsafe_code, clippy::too_many_arguments)]
+unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: usize, wp: usize, blocks: &[FourBlock], out: &mut [[f32; 2]]) {
     use std::arch::x86_64::{
-        _mm256_add_ps, _mm256_castps128_ps256, _mm256_loadu_ps, _mm256_mul_ps, _mm256_permutevar8x32_ps, _mm256_setr_epi32, _mm256_setzero_ps,
-        _mm256_storeu_ps, _mm_loadu_ps,
+        __m256, _mm256_add_ps, _mm256_castps128_ps256, _mm256_loadu_ps, _mm256_mul_ps, _mm256_permutevar8x32_ps, _mm256_setr_epi32,
+        _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps, _mm_loadu_ps,
     };
+    // Every load and store below stays within these: the taps of node q reach from
+    // q − 2 wp − 2 to q + 2 wp + 2, those of the run's last node q₀ + 4n − 1.
+    assert!(q0 >= 2 * wp + 2 && q0 + 4 * n + 2 * wp + 2 <= x.len(), "a run's taps outside its level");
+    assert!(blocks.len() >= n && out.len() >= 4 * n && f.map_or(true, |f| q0 + 4 * n <= f.len()), "a run longer than its blocks");
+    let offs: [usize; 21] = STORED_TAPS.map(|(dy, dx)| 2 * (dy * wp + dx));
     let pairs = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
-    let mut acc = _mm256_setzero_ps();
-    for (&(dy, dx), c) in STORED_TAPS.iter().zip(block) {
-        let q = q0 + dy * wp + dx - 2 * wp - 2;
-        let xs = x[q..q + 4].as_flattened();
-        // SAFETY: `xs` holds the eight values the load reads, `c` the four.
-        let (xv, c) = unsafe { (_mm256_loadu_ps(xs.as_ptr()), _mm_loadu_ps(c.as_ptr())) };
-        // (The upper half of the widened `c` is never read: the permute takes lanes 0–3.)
-        let c = _mm256_permutevar8x32_ps(_mm256_castps128_ps256(c), pairs);
-        acc = _mm256_add_ps(acc, _mm256_mul_ps(c, xv));
+    let (xs, coefs, outs) = (x.as_flattened().as_ptr(), blocks.as_ptr() as *const f32, out.as_flattened_mut().as_mut_ptr());
+    // Four j's sums: `first` the flattened index of its first tap, `b` its block.
+    // SAFETY (both closures): j < n, so every tap is within `x` and the block within
+    // `blocks` (asserted above).
+    let tap = |first: usize, b: *const f32, t: usize| unsafe {
+        let c = _mm256_permutevar8x32_ps(_mm256_castps128_ps256(_mm_loadu_ps(b.add(4 * t))), pairs);
+        _mm256_mul_ps(c, _mm256_loadu_ps(xs.add(first + offs[t])))
+    };
+    // SAFETY: as above, for `out` and `f`.
+    let store = |j: usize, acc: __m256| unsafe {
+        let fv = f.map_or(_mm256_setzero_ps(), |f| _mm256_loadu_ps(f.as_flattened().as_ptr().add(2 * (q0 + 4 * j))));
+        _mm256_storeu_ps(outs.add(8 * j), _mm256_sub_ps(fv, acc));
+    };
+    let first = |j: usize| 2 * (q0 + 4 * j - 2 * wp - 2);
+    let mut j = 0;
+    while j + 2 <= n {
+        let (fa, fb) = (first(j), first(j + 1));
+        // SAFETY: j + 1 < n.
+        let (ba, bb) = unsafe { (coefs.add(84 * j), coefs.add(84 * (j + 1))) };
+        let (mut a, mut b) = (_mm256_setzero_ps(), _mm256_setzero_ps());
+        for t in 0..21 {
+            a = _mm256_add_ps(a, tap(fa, ba, t));
+            b = _mm256_add_ps(b, tap(fb, bb, t));
+        }
+        store(j, a);
+        store(j + 1, b);
+        j += 2;
     }
-    let mut out = [[0.0f32; 2]; 4];
-    // SAFETY: `out` holds the eight values the store writes.
-    unsafe { _mm256_storeu_ps(out.as_flattened_mut().as_mut_ptr(), acc) };
-    out
+    if j < n {
+        // SAFETY: j < n.
+        let ba = unsafe { coefs.add(84 * j) };
+        let mut a = _mm256_setzero_ps();
+        for t in 0..21 {
+            a = _mm256_add_ps(a, tap(first(j), ba, t));
+        }
+        store(j, a);
+    }
 }
 
 /// The coefficients of four consecutive nodes with stencils of their own, tap by tap
@@ -895,34 +927,35 @@ widest! {
                     // nodes' do not (a twelfth off a 513 × 513 solve with 4000 points); in
                     // `f32` with AVX2, the four on one vector (another 2–5 %), their
                     // coefficients read from the level's `fours` in the same order as
-                    // here (another 8 % off these rows); on a dense level every run of
-                    // unknowns (see `DENSE_FOURS`).
+                    // here (another 8 % off these rows), a run's fours in one call, two at
+                    // a time (see `four_run_avx2`); on a dense level every run of unknowns
+                    // (see `DENSE_FOURS`).
                     let e = own_run_end(ids, &level.inv_diag, base, c, end, dense);
                     let mut i = c;
+                    if four {
+                        let n = (e - c) / 4;
+                        T::four_run(x, f, base + c, n, wp, &fours.blocks[block..block + n], &mut out[c..c + 4 * n]);
+                        block += n;
+                        i += 4 * n;
+                    }
+                    // The run's last one to three nodes (or all of it, without the vector).
                     while i < e {
                         let k = (e - i).min(4);
                         let q0 = base + i;
-                        let sums = if four && k == 4 {
-                            let b = &fours.blocks[block];
-                            block += 1;
-                            T::four_stencils(x, q0, wp, b)
-                        } else {
-                            // Past the run's end the last node stands in (its sums are dropped).
-                            let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
-                            let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
-                            let mut a = [[T::ZERO; 2]; 4];
-                            for &(dy, dx) in &STORED_TAPS {
-                                let t = dy * 5 + dx;
-                                let q = q0 + dy * wp + dx - 2 * wp - 2;
-                                let (x0, x1, x2, x3) = (x[q], x[q + o1], x[q + o2], x[q + o3]);
-                                a[0] = [a[0][0] + s0[t] * x0[0], a[0][1] + s0[t] * x0[1]];
-                                a[1] = [a[1][0] + s1[t] * x1[0], a[1][1] + s1[t] * x1[1]];
-                                a[2] = [a[2][0] + s2[t] * x2[0], a[2][1] + s2[t] * x2[1]];
-                                a[3] = [a[3][0] + s3[t] * x3[0], a[3][1] + s3[t] * x3[1]];
-                            }
-                            a
-                        };
-                        for (j, a) in sums.into_iter().take(k).enumerate() {
+                        // Past the run's end the last node stands in (its sums are dropped).
+                        let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
+                        let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
+                        let mut a = [[T::ZERO; 2]; 4];
+                        for &(dy, dx) in &STORED_TAPS {
+                            let t = dy * 5 + dx;
+                            let q = q0 + dy * wp + dx - 2 * wp - 2;
+                            let (x0, x1, x2, x3) = (x[q], x[q + o1], x[q + o2], x[q + o3]);
+                            a[0] = [a[0][0] + s0[t] * x0[0], a[0][1] + s0[t] * x0[1]];
+                            a[1] = [a[1][0] + s1[t] * x1[0], a[1][1] + s1[t] * x1[1]];
+                            a[2] = [a[2][0] + s2[t] * x2[0], a[2][1] + s2[t] * x2[1]];
+                            a[3] = [a[3][0] + s3[t] * x3[0], a[3][1] + s3[t] * x3[1]];
+                        }
+                        for (j, a) in a.into_iter().take(k).enumerate() {
                             let fv = f.map_or([T::ZERO; 2], |f| f[q0 + j]);
                             out[i + j] = [fv[0] - a[0], fv[1] - a[1]];
                         }

@@ -8,7 +8,7 @@
 //! else the plain one. Their operations and their order are the same in both (no multiply
 //! is fused with its add unless written so), so the results are bit for bit the same.
 //! One loop the compiler did not vectorise is written out with AVX2 instructions instead:
-//! four coarse nodes with stencils of their own on one vector (`Real::four_stencils` in
+//! four coarse nodes with stencils of their own on one vector (`Real::four_run` in
 //! `level`, their coefficients laid out tap by tap in `level::Fours`). Both copies call it
 //! where the processor has AVX2, so a test holds it to the plain sums node by node rather
 //! than to the plain copy.
