@@ -130,14 +130,16 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
     let offs: [usize; 21] = STORED_TAPS.map(|(dy, dx)| 2 * (dy * wp + dx));
     let pairs = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
     let (xs, coefs, outs) = (x.as_flattened().as_ptr(), blocks.as_ptr() as *const f32, out.as_flattened_mut().as_mut_ptr());
-    // Four j's sums: `first` the flattened index of its first tap, `b` its block.
-    // SAFETY (both closures): j < n, so every tap is within `x` and the block within
-    // `blocks` (asserted above).
+    // Four j's product at tap t: `first` the flattened index of its first tap, `b` its
+    // block.
+    // SAFETY: j < n, so every tap is within `x` and the block within `blocks` (asserted
+    // above).
     let tap = |first: usize, b: *const f32, t: usize| unsafe {
         let c = _mm256_permutevar8x32_ps(_mm256_castps128_ps256(_mm_loadu_ps(b.add(4 * t))), pairs);
         _mm256_mul_ps(c, _mm256_loadu_ps(xs.add(first + offs[t])))
     };
-    // SAFETY: as above, for `out` and `f`.
+    // Four j's residual. SAFETY: j < n, so its eight values are within `out` and `f`
+    // (asserted above).
     let store = |j: usize, acc: __m256| unsafe {
         let fv = f.map_or(_mm256_setzero_ps(), |f| _mm256_loadu_ps(f.as_flattened().as_ptr().add(2 * (q0 + 4 * j))));
         _mm256_storeu_ps(outs.add(8 * j), _mm256_sub_ps(fv, acc));
@@ -194,9 +196,9 @@ pub(crate) struct Fours {
 /// their runs' faster sums to make up for the short runs in between, summed one node at a
 /// time. At 513 × 513 with 1000 random points that is most of the second to fourth coarse
 /// levels (38, 76 and 100 % of their nodes have stencils of their own); the samples in
-/// those rows fell by a quarter (1000 and 4000 points), by 5 % with 100 points; from 10 %
-/// on they fell as much with 1000 and 4000 points, but the levels of 10 points, with
-/// borders alone, slowed down.
+/// those rows fell by a quarter (1000 and 4000 points), by 5 % with 100 points. From 15 or
+/// 20 % the rows of 10 and 100 points were faster too, but their small levels' changed
+/// rounding took a 10-point warm solve from 2 cycles to 3; every level dense was slower.
 const DENSE_FOURS: f64 = 0.3;
 /// Smaller levels stay as they are: their products cost next to nothing either way.
 const DENSE_MIN_UNKNOWNS: usize = 1000;
@@ -214,7 +216,6 @@ impl Fours {
         }
         unknowns >= DENSE_MIN_UNKNOWNS && own as f64 >= DENSE_FOURS * unknowns as f64
     }
-
 
     /// The fours of the stencils `ids` (into `narrow`) on the unknowns of `inv_diag`, as
     /// `residual_row` visits them; `dense`: of every unknown, else of those with stencils
@@ -250,8 +251,7 @@ impl Fours {
 
 /// The end (exclusive) of the run of unknowns with stencils of their own (`dense`: of
 /// unknowns) that starts at padded column `c` of the row from `base`, within columns before
-/// `end`: where
-/// [`residual_row`] and [`Fours::new`] agree on the runs, and so on the fours.
+/// `end`: where [`residual_row`] and [`Fours::new`] agree on the runs, and so on the fours.
 #[inline(always)]
 fn own_run_end(ids: &[u32], inv_diag: &[f64], base: usize, c: usize, end: usize, dense: bool) -> usize {
     let mut e = c + 1;
