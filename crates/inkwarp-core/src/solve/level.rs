@@ -39,7 +39,7 @@ pub(crate) trait Real:
     fn get(self) -> f64;
     /// The table of a Galerkin level in this precision.
     fn table<'a>(wide: &'a [[f64; 25]], narrow: &'a [[f32; 25]]) -> &'a [[Self; 25]];
-    /// Whether [`Real::four_stencils`] takes four nodes to a vector here.
+    /// Whether [`Real::four_run`] takes four nodes to a vector here.
     fn has_four_stencils() -> bool {
         false
     }
@@ -932,7 +932,7 @@ widest! {
                     // (see `DENSE_FOURS`).
                     let e = own_run_end(ids, &level.inv_diag, base, c, end, dense);
                     let mut i = c;
-                    if four {
+                    if four && e - c >= 4 {
                         let n = (e - c) / 4;
                         T::four_run(x, f, base + c, n, wp, &fours.blocks[block..block + n], &mut out[c..c + 4 * n]);
                         block += n;
@@ -1181,6 +1181,14 @@ pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25]
 /// `fine.geo` (rows of fixed nodes zero). Coarse nodes whose fine window is clean share one
 /// stencil, computed once.
 pub(crate) fn galerkin(fine: &Level) -> Level {
+    galerkin_for(fine, None)
+}
+
+/// [`galerkin`], its fours (see [`Fours`]) laid out for the unknowns `applied_on` (the
+/// inverse diagonal of the level of the same size that applies the operator) instead of
+/// its own: the first coarse level applies the operator of its grid without fixed nodes
+/// (see `pinned`), whose runs are those among its own unknowns.
+pub(crate) fn galerkin_for(fine: &Level, applied_on: Option<&[f64]>) -> Level {
     let geo = fine.geo.coarsen();
     let (wc, hc) = (geo.w, geo.h);
     let (wpc, hpc) = (wc + 2 * PAD, hc + 2 * PAD);
@@ -1321,7 +1329,9 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let sym = Sym::of(&table[0]);
     let narrow: Vec<[f32; 25]> = table.iter().map(|s| s.map(|a| a as f32)).collect();
     let inv_diag_w = narrow_diag(&inv_diag);
-    let fours = Fours::new(&ids, &narrow, &inv_diag, wpc, wc, hc, Fours::dense_for(&ids, &inv_diag));
+    let unknowns = applied_on.unwrap_or(&inv_diag);
+    assert_eq!(unknowns.len(), inv_diag.len(), "the operator applied on a level of another size");
+    let fours = Fours::new(&ids, &narrow, unknowns, wpc, wc, hc, Fours::dense_for(&ids, unknowns));
     Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
 }
 

@@ -25,7 +25,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{fine_row, galerkin, Fours, Geometry, Level, Operator, Real};
+use super::level::{fine_row, galerkin_for, Geometry, Level, Operator, Real};
 
 /// Fewer fixed nodes make too few stencils irregular to pay for the second Galerkin
 /// operator's setup.
@@ -72,13 +72,9 @@ impl Pinned {
             return None;
         }
         let open_fine = Level::fine(Geometry::new(w, h, g.active.clone(), g.right.clone(), g.down.clone(), None), *tau);
-        let mut open = galerkin(&open_fine).op;
+        // Its runs of nodes with stencils of their own are those among this level's unknowns.
+        let open = galerkin_for(&open_fine, Some(&coarse.inv_diag)).op;
         drop(open_fine);
-        if let Operator::Stored { ids, narrow, fours, .. } = &mut open {
-            // Its runs of nodes with stencils of their own are those among this level's
-            // unknowns.
-            *fours = Fours::new(ids, narrow, &coarse.inv_diag, coarse.wp, coarse.geo.w, coarse.geo.h, Fours::dense_for(ids, &coarse.inv_diag));
-        }
         let mut pin_of = vec![u32::MAX; w * h];
         for (k, &i) in pins.iter().enumerate() {
             pin_of[i] = k as u32;

@@ -1084,6 +1084,10 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
             assert_eq!(out[p].map(WS::to_bits), want.map(WS::to_bits), "node {p}, dense {dense}");
         }
         assert!(checked > 100 && in_fours > 100, "dense {dense}: only {checked} nodes checked, {in_fours} ending runs of four");
-        assert_eq!(regular > 100, dense, "{regular} regular nodes checked");
+        if dense {
+            // The regular nodes were summed by the vector too, not by the shared stencil's
+            // rings (which round differently).
+            assert!(regular > 100, "only {regular} regular nodes checked");
+        }
     }
 }
