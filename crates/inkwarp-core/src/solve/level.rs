@@ -217,10 +217,10 @@ impl Fours {
         unknowns >= DENSE_MIN_UNKNOWNS && own as f64 >= DENSE_FOURS * unknowns as f64
     }
 
-    /// The fours of the stencils `ids` (into `narrow`) on the unknowns of `inv_diag`, as
+    /// The fours of the stencils `ids` (into `narrow`) on the level's `runs`, as
     /// `residual_row` visits them; `dense`: of every unknown, else of those with stencils
     /// of their own.
-    pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], inv_diag: &[f64], wp: usize, w: usize, h: usize, dense: bool) -> Fours {
+    pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], runs: &Runs, wp: usize, h: usize, dense: bool) -> Fours {
         if !f32::has_four_stencils() {
             return Fours::default();
         }
@@ -228,37 +228,113 @@ impl Fours {
         for r in PAD..PAD + h {
             fours.row_first[r] = fours.blocks.len() as u32;
             let base = r * wp;
-            let mut c = PAD;
-            while c < PAD + w {
-                if inv_diag[base + c] == 0.0 || (ids[base + c] == 0 && !dense) {
-                    c += 1;
-                    continue;
-                }
-                let e = own_run_end(ids, inv_diag, base, c, PAD + w, dense);
-                for i in (c..e - 3).step_by(4) {
+            for run in runs.row_as(r, dense).filter(|run| run.kind == RunKind::Own) {
+                let (c, e) = (run.start as usize, run.end as usize);
+                for i in (c..e.saturating_sub(3)).step_by(4) {
                     let s: [&[f32; 25]; 4] = std::array::from_fn(|j| &narrow[ids[base + i + j] as usize]);
                     fours.blocks.push(std::array::from_fn(|t| {
                         let (dy, dx) = STORED_TAPS[t];
                         s.map(|s| s[dy * 5 + dx])
                     }));
                 }
-                c = e;
             }
         }
         fours
     }
 }
 
-/// The end (exclusive) of the run of unknowns with stencils of their own (`dense`: of
-/// unknowns) that starts at padded column `c` of the row from `base`, within columns before
-/// `end`: where [`residual_row`] and [`Fours::new`] agree on the runs, and so on the fours.
-#[inline(always)]
-fn own_run_end(ids: &[u32], inv_diag: &[f64], base: usize, c: usize, end: usize, dense: bool) -> usize {
-    let mut e = c + 1;
-    while e < end && (dense || ids[base + e] != 0) && inv_diag[base + e] != 0.0 {
-        e += 1;
+/// How a level's product treats a run of nodes (see [`Runs`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum RunKind {
+    /// No unknowns: the product writes zeros.
+    Skip,
+    /// Unknowns that share the level's regular stencil (on the finest level, the interior
+    /// molecule).
+    Shared,
+    /// Unknowns with stencils of their own (on the finest level, the terms read off their
+    /// flags one node at a time).
+    Own,
+}
+
+/// One run of a row: padded columns `start..end`, all of one kind.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Run {
+    pub start: u32,
+    pub end: u32,
+    pub kind: RunKind,
+}
+
+/// Each row of a level split into runs of one [`RunKind`], found once when the level is
+/// built. The products used to find where each run ends while they ran, testing node after
+/// node (a byte, or an index and a diagonal, per node, each test waiting on the last):
+/// at 513 × 513 that was a quarter of the finest level's product.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Runs {
+    /// Row r's runs are `runs[first[r]..first[r + 1]]` (padded rows; padding rows have none).
+    first: Vec<u32>,
+    runs: Vec<Run>,
+}
+
+impl Runs {
+    /// The runs of the columns `PAD..PAD + w` of each of the `h` body rows of a level `wp`
+    /// wide, node p of kind `kind(p)`.
+    pub(crate) fn new(wp: usize, w: usize, h: usize, kind: impl Fn(usize) -> RunKind) -> Runs {
+        let mut runs = Runs { first: vec![0; h + 2 * PAD + 1], runs: Vec::new() };
+        for r in 0..h + 2 * PAD {
+            runs.first[r] = runs.runs.len() as u32;
+            if (PAD..PAD + h).contains(&r) {
+                let base = r * wp;
+                let mut c = PAD;
+                while c < PAD + w {
+                    let k = kind(base + c);
+                    let mut e = c + 1;
+                    while e < PAD + w && kind(base + e) == k {
+                        e += 1;
+                    }
+                    runs.runs.push(Run { start: c as u32, end: e as u32, kind: k });
+                    c = e;
+                }
+            }
+        }
+        runs.first[h + 2 * PAD] = runs.runs.len() as u32;
+        runs
     }
-    e
+
+    /// The runs of a Galerkin level's stencils `ids` on the unknowns of `inv_diag`.
+    pub(crate) fn stored(ids: &[u32], inv_diag: &[f64], wp: usize, w: usize, h: usize) -> Runs {
+        Runs::new(wp, w, h, |p| match (inv_diag[p] != 0.0, ids[p] != 0) {
+            (false, _) => RunKind::Skip,
+            (true, false) => RunKind::Shared,
+            (true, true) => RunKind::Own,
+        })
+    }
+
+    /// The runs of padded row r.
+    #[inline]
+    pub(crate) fn row(&self, r: usize) -> &[Run] {
+        &self.runs[self.first[r] as usize..self.first[r + 1] as usize]
+    }
+
+    /// The runs of row r as [`residual_row`] and [`Fours::new`] take them: with `dense`,
+    /// every stretch of unknowns as one run of its own stencils (see [`DENSE_FOURS`]).
+    #[inline]
+    pub(crate) fn row_as(&self, r: usize, dense: bool) -> impl Iterator<Item = Run> + '_ {
+        let row = self.row(r);
+        let mut i = 0;
+        std::iter::from_fn(move || {
+            let run = *row.get(i)?;
+            i += 1;
+            if !dense || run.kind == RunKind::Skip {
+                return Some(run);
+            }
+            let mut end = run.end;
+            while let Some(next) = row.get(i).filter(|n| n.kind != RunKind::Skip) {
+                end = next.end;
+                i += 1;
+            }
+            Some(Run { start: run.start, end, kind: RunKind::Own })
+        })
+    }
 }
 
 /// Node flags of the finest level.
@@ -537,11 +613,11 @@ fn pair(a: bool, b: bool, sa: usize, sb: usize) -> [f64; 4] {
 #[derive(Debug)]
 pub(crate) enum Operator {
     /// The finest level: the energy terms read off per-node flags.
-    Fine { flags: Vec<u8>, tau: f64 },
+    Fine { flags: Vec<u8>, tau: f64, runs: Runs },
     /// A Galerkin level: a 5 × 5 stencil (row-major offsets, dy outer) per padded node,
     /// as an index into a table; entry 0 is the stencil shared by every regular node
     /// (all zeros when there is none).
-    Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, narrow: Vec<[f32; 25]>, sym: Option<Sym>, fours: Fours },
+    Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, narrow: Vec<[f32; 25]>, sym: Option<Sym>, fours: Fours, runs: Runs },
 }
 
 /// The shared stencil of a Galerkin level when it has the symmetries of the square (it
@@ -680,7 +756,12 @@ impl Level {
             .map(|i| geo.active[i] && geo.right[i] && geo.down[i] && !geo.fixed.as_ref().is_some_and(|f| f[i]))
             .collect();
         let inv_diag_w = narrow_diag(&inv_diag);
-        Level { geo, wp, hp, op: Operator::Fine { flags, tau }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
+        let runs = Runs::new(wp, w, h, |p| match flags[p] {
+            f if f & bit::FREE == 0 => RunKind::Skip,
+            f if f & bit::REGULAR != 0 => RunKind::Shared,
+            _ => RunKind::Own,
+        });
+        Level { geo, wp, hp, op: Operator::Fine { flags, tau, runs }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
     }
 
     /// This finest level with the prolongation of the same grid without holes or cuts
@@ -705,7 +786,7 @@ impl Level {
     /// Frees everything but the dimensions and the prolongation rows (for a level that is
     /// only restricted from and prolonged to from now on).
     pub fn keep_only_prolongation(&mut self) {
-        self.op = Operator::Fine { flags: Vec::new(), tau: 0.0 };
+        self.op = Operator::Fine { flags: Vec::new(), tau: 0.0, runs: Runs::default() };
         self.inv_diag = Vec::new();
         self.inv_diag_w = Vec::new();
         self.clean = Vec::new();
@@ -716,7 +797,7 @@ impl Level {
     /// The stencil row of padded node `p` as a 5 × 5 array (dy outer, dx inner).
     pub fn row(&self, p: usize) -> [f64; 25] {
         match &self.op {
-            Operator::Fine { flags, tau } => fine_row(flags, p, self.wp, *tau),
+            Operator::Fine { flags, tau, .. } => fine_row(flags, p, self.wp, *tau),
             Operator::Stored { ids, table, .. } => table[ids[p] as usize],
         }
     }
@@ -724,7 +805,7 @@ impl Level {
     /// `−(A x)_p` at one node of the finest level (its residual, the right-hand side being 0).
     pub fn fine_residual_at(&self, x: &[V2], p: usize) -> V2 {
         match &self.op {
-            Operator::Fine { flags, tau } => {
+            Operator::Fine { flags, tau, .. } => {
                 let a = fine_apply(flags, x, p, self.wp, *tau);
                 [-a[0], -a[1]]
             }
@@ -755,7 +836,7 @@ impl Level {
     fn band_residual<T: Real>(&self, pinned: Option<&(&super::pinned::Pinned, Vec<[f64; 4]>)>, x: &[[T; 2]], f: Option<&[[T; 2]]>, r0: usize, out: &mut [[T; 2]]) {
         let wp = self.wp;
         match &self.op {
-            Operator::Fine { flags, tau } => fine_band(flags, *tau, wp, self.geo.w, x, f, r0, r0 + out.len() / wp, out),
+            Operator::Fine { flags, tau, runs } => fine_band(flags, runs, *tau, wp, x, f, r0, r0 + out.len() / wp, out),
             Operator::Stored { .. } => {
                 // With fixed nodes' terms: the operator without them, then the terms.
                 let op = pinned.map_or(&self.op, |(p, _)| &p.open);
@@ -875,30 +956,22 @@ widest! {
         let base = r * wp;
         match op {
             Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
-            Operator::Stored { ids, table, narrow, sym, fours } => {
+            Operator::Stored { ids, table, narrow, sym, fours, runs } => {
                 let table = T::table(table, narrow);
                 let four = T::has_four_stencils();
                 let dense = four && fours.dense;
                 let mut block = if four { fours.row_first[r] as usize } else { 0 };
                 let shared = &table[0];
-                let mut c = PAD;
-                let end = PAD + level.geo.w;
-                while c < end {
-                    let p = base + c;
-                    if level.inv_diag[p] == 0.0 {
-                        out[c] = [T::ZERO; 2];
-                        c += 1;
+                for run in runs.row_as(r, dense) {
+                    let (c, e) = (run.start as usize, run.end as usize);
+                    if run.kind == RunKind::Skip {
+                        out[c..e].fill([T::ZERO; 2]);
                         continue;
                     }
-                    if ids[p] == 0 && !dense {
+                    if run.kind == RunKind::Shared {
                         // A run of regular nodes: one stencil, applied tap by tap.
-                        let mut e = c + 1;
-                        while e < end && ids[base + e] == 0 && level.inv_diag[base + e] != 0.0 {
-                            e += 1;
-                        }
                         if let Some(sym) = sym {
                             sym_run::<T, true>(x, f, sym, wp, base, c, e, out);
-                            c = e;
                             continue;
                         }
                         let mut s0 = c;
@@ -919,7 +992,6 @@ widest! {
                             }
                             s0 += m;
                         }
-                        c = e;
                         continue;
                     }
                     // A run of irregular nodes, each with its own stencil, four side by side:
@@ -930,7 +1002,6 @@ widest! {
                     // here (another 8 % off these rows), a run's fours in one call, two at
                     // a time (see `four_run_avx2`); on a dense level every run of unknowns
                     // (see `DENSE_FOURS`).
-                    let e = own_run_end(ids, &level.inv_diag, base, c, end, dense);
                     let mut i = c;
                     if four && e - c >= 4 {
                         let n = (e - c) / 4;
@@ -961,7 +1032,6 @@ widest! {
                         }
                         i += k;
                     }
-                    c = e;
                 }
             }
         }
@@ -971,14 +1041,15 @@ widest! {
 widest! {
     /// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level. Runs of
     /// regular nodes take the interior molecule (the square of the 5-point Laplacian, plus τ
-    /// times the Laplacian) in a tight loop; the others sum their energy terms one by one.
+    /// times the Laplacian) in a tight loop; the others sum their energy terms one by one
+    /// (the runs: the level's [`Runs`]).
     /// On the processor's widest vectors (see [`super::wide`]).
     #[inline(never)]
     fn fine_band<T: Real>(
         flags: &[u8],
+        runs: &Runs,
         tau: f64,
         wp: usize,
-        w: usize,
         x: &[[T; 2]],
         f: Option<&[[T; 2]]>,
         r0: usize,
@@ -991,26 +1062,19 @@ widest! {
         for (k, r) in (r0..r1).enumerate() {
             let base = r * wp;
             let orow = &mut out[k * wp..(k + 1) * wp];
-            let fr = &flags[base..base + wp];
-            let mut c = PAD;
-            while c < PAD + w {
-                if fr[c] & bit::REGULAR != 0 {
-                    let mut e = c + 1;
-                    while e < PAD + w && fr[e] & bit::REGULAR != 0 {
-                        e += 1;
+            for run in runs.row(r) {
+                let (c, e) = (run.start as usize, run.end as usize);
+                match run.kind {
+                    RunKind::Shared => sym_run::<T, false>(x, f, &molecule, wp, base, c, e, orow),
+                    RunKind::Own => {
+                        for (c, o) in orow[c..e].iter_mut().enumerate().map(|(i, o)| (c + i, o)) {
+                            let p = base + c;
+                            let a = fine_apply(flags, x, p, wp, tau);
+                            let fv = f.map_or([T::ZERO; 2], |f| f[p]);
+                            *o = [fv[0] - a[0], fv[1] - a[1]];
+                        }
                     }
-                    sym_run::<T, false>(x, f, &molecule, wp, base, c, e, orow);
-                    c = e;
-                } else {
-                    let p = base + c;
-                    orow[c] = if fr[c] & bit::FREE != 0 {
-                        let a = fine_apply(flags, x, p, wp, tau);
-                        let fv = f.map_or([T::ZERO; 2], |f| f[p]);
-                        [fv[0] - a[0], fv[1] - a[1]]
-                    } else {
-                        [T::ZERO; 2]
-                    };
-                    c += 1;
+                    RunKind::Skip => orow[c..e].fill([T::ZERO; 2]),
                 }
             }
         }
@@ -1331,8 +1395,9 @@ pub(crate) fn galerkin_for(fine: &Level, applied_on: Option<&[f64]>) -> Level {
     let inv_diag_w = narrow_diag(&inv_diag);
     let unknowns = applied_on.unwrap_or(&inv_diag);
     assert_eq!(unknowns.len(), inv_diag.len(), "the operator applied on a level of another size");
-    let fours = Fours::new(&ids, &narrow, unknowns, wpc, wc, hc, Fours::dense_for(&ids, unknowns));
-    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
+    let runs = Runs::stored(&ids, unknowns, wpc, wc, hc);
+    let fours = Fours::new(&ids, &narrow, &runs, wpc, hc, Fours::dense_for(&ids, unknowns));
+    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours, runs }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
 }
 
 fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {
@@ -1588,10 +1653,9 @@ mod tests {
         let (mut wide, mut plain) = (vec![[T::ZERO; 2]; n], vec![[T::ZERO; 2]; n]);
         let (r0, r1) = (PAD, PAD + h);
         match &level.op {
-            Operator::Fine { flags, tau } => {
-                let w = level.geo.w;
-                fine_band(flags, *tau, wp, w, x, Some(f), r0, r1, &mut wide[r0 * wp..r1 * wp]);
-                fine_band_body(flags, *tau, wp, w, x, Some(f), r0, r1, &mut plain[r0 * wp..r1 * wp]);
+            Operator::Fine { flags, tau, runs } => {
+                fine_band(flags, runs, *tau, wp, x, Some(f), r0, r1, &mut wide[r0 * wp..r1 * wp]);
+                fine_band_body(flags, runs, *tau, wp, x, Some(f), r0, r1, &mut plain[r0 * wp..r1 * wp]);
             }
             Operator::Stored { .. } => {
                 for r in r0..r1 {

@@ -61,7 +61,7 @@ impl Pinned {
     /// fixed nodes far enough apart for them to cost less than the stencils they make
     /// irregular (each isolated fixed node makes about twenty coarse stencils its own).
     pub fn new(fine: &Level, coarse: &Level) -> Option<Pinned> {
-        let Operator::Fine { flags, tau } = &fine.op else { return None };
+        let Operator::Fine { flags, tau, .. } = &fine.op else { return None };
         let Operator::Stored { ids, .. } = &coarse.op else { return None };
         let g = &fine.geo;
         let fixed = g.fixed.as_ref()?;

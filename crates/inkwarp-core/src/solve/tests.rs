@@ -1053,9 +1053,9 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
         let mut level = level::galerkin(&level::galerkin(&fine));
         let n = level.len_padded();
         let (x, f) = (random_on_unknowns(&level, &mut rnd, false), random_on_unknowns(&level, &mut rnd, false));
-        let (w, h, wp) = (level.geo.w, level.geo.h, level.wp);
-        let Operator::Stored { ids, narrow, fours, .. } = &mut level.op else { unreachable!("a Galerkin level") };
-        *fours = Fours::new(ids, narrow, &level.inv_diag, wp, w, h, dense);
+        let (h, wp) = (level.geo.h, level.wp);
+        let Operator::Stored { ids, narrow, fours, runs, .. } = &mut level.op else { unreachable!("a Galerkin level") };
+        *fours = Fours::new(ids, narrow, runs, wp, h, dense);
         let mut out = vec![[0.0 as WS; 2]; n];
         level.residual(&x, Some(&f), &mut out);
         let Operator::Stored { ids, narrow, .. } = &level.op else { unreachable!() };
@@ -1089,5 +1089,59 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
             // rings (which round differently).
             assert!(regular > 100, "only {regular} regular nodes checked");
         }
+    }
+}
+
+#[test]
+fn runs_split_each_row_into_maximal_runs_of_one_kind() {
+    // The products take each row's runs from `level::Runs` instead of finding them node by
+    // node: the runs must cover every row's nodes in order, each run of one kind (the one
+    // the node's flags, or its stencil and unknown, give), no two neighbours of one kind;
+    // and a dense level's runs of unknowns must join every stretch of unknowns.
+    use super::level::{bit, Operator, RunKind, PAD};
+    let mut rnd = crate::grid::tests::sequence(91);
+    let fine = torn_scattered_level(&mut rnd, 0.01, 0.0);
+    let coarse = level::galerkin(&fine);
+    for level in [&fine, &coarse] {
+        let (w, h, wp) = (level.geo.w, level.geo.h, level.wp);
+        let (runs, kind): (_, Box<dyn Fn(usize) -> RunKind>) = match &level.op {
+            Operator::Fine { flags, runs, .. } => (runs, Box::new(|p: usize| match flags[p] {
+                f if f & bit::FREE == 0 => RunKind::Skip,
+                f if f & bit::REGULAR != 0 => RunKind::Shared,
+                _ => RunKind::Own,
+            })),
+            Operator::Stored { ids, runs, .. } => (runs, Box::new(|p: usize| match (level.inv_diag[p] != 0.0, ids[p] != 0) {
+                (false, _) => RunKind::Skip,
+                (true, false) => RunKind::Shared,
+                (true, true) => RunKind::Own,
+            })),
+        };
+        let mut seen = [0usize; 3];
+        for r in PAD..PAD + h {
+            let row = runs.row(r);
+            let mut c = PAD;
+            for (i, run) in row.iter().enumerate() {
+                assert_eq!(run.start as usize, c, "row {r}: runs leave a gap or overlap");
+                assert!(run.end > run.start, "row {r}: an empty run");
+                assert!(i == 0 || row[i - 1].kind != run.kind, "row {r}: two runs of one kind side by side");
+                for q in run.start as usize..run.end as usize {
+                    assert_eq!(kind(r * wp + q), run.kind, "row {r}, column {q}");
+                }
+                seen[run.kind as usize] += 1;
+                c = run.end as usize;
+            }
+            assert_eq!(c, PAD + w, "row {r}: runs stop short of the row's end");
+            let dense: Vec<_> = runs.row_as(r, true).collect();
+            let mut c = PAD;
+            for (i, run) in dense.iter().enumerate() {
+                assert_eq!(run.start as usize, c, "row {r}, dense: a gap or overlap");
+                assert!(run.kind != RunKind::Shared, "row {r}, dense: shared stencils are summed as own ones");
+                assert!(i == 0 || run.kind == RunKind::Skip || dense[i - 1].kind == RunKind::Skip, "row {r}, dense: two runs of unknowns side by side");
+                c = run.end as usize;
+            }
+            assert_eq!(c, PAD + w);
+            assert!(runs.row_as(r, false).map(|run| (run.start, run.end, run.kind)).eq(row.iter().map(|run| (run.start, run.end, run.kind))));
+        }
+        assert!(seen.iter().all(|&n| n > 10), "every kind of run must occur: {seen:?}");
     }
 }
