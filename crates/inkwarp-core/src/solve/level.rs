@@ -262,6 +262,49 @@ pub(crate) struct Run {
     pub start: u32,
     pub end: u32,
     pub kind: RunKind,
+    /// On the finest level, a run of [`RunKind::Own`]: its first node's entry in
+    /// [`OwnStencils::ids`] (the run's nodes follow it).
+    pub at: u32,
+}
+
+/// The stencils of the finest level's nodes that are not regular (at the borders, holes and
+/// cuts), as 5 × 5 rows ([`fine_row`]) in a table without repeats, summed as a Galerkin
+/// level's are: read off the flags term by term at every product instead, these few
+/// thousand nodes took about a third of the finest level's product at 513 × 513.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct OwnStencils {
+    table: Vec<[f64; 25]>,
+    narrow: Vec<[f32; 25]>,
+    /// Each such node's stencil, the runs' nodes in order (see [`Run::at`]).
+    ids: Vec<u32>,
+}
+
+impl OwnStencils {
+    /// Numbers the [`RunKind::Own`] runs of `runs` and takes their nodes' stencils.
+    fn new(runs: &mut Runs, row_of: impl Fn(usize) -> [f64; 25]) -> OwnStencils {
+        let mut own = OwnStencils::default();
+        let mut index: std::collections::HashMap<[u64; 25], u32> = std::collections::HashMap::new();
+        let wp = runs.wp;
+        for (r, first) in runs.first.iter().enumerate().take(runs.first.len() - 1) {
+            let (a, b) = (*first as usize, runs.first[r + 1] as usize);
+            for run in &mut runs.runs[a..b] {
+                if run.kind != RunKind::Own {
+                    continue;
+                }
+                run.at = own.ids.len() as u32;
+                for c in run.start as usize..run.end as usize {
+                    let row = row_of(r * wp + c);
+                    let id = *index.entry(row.map(f64::to_bits)).or_insert_with(|| {
+                        own.table.push(row);
+                        own.narrow.push(row.map(|a| a as f32));
+                        (own.table.len() - 1) as u32
+                    });
+                    own.ids.push(id);
+                }
+            }
+        }
+        own
+    }
 }
 
 /// Each row of a level split into runs of one [`RunKind`], found once when the level is
@@ -273,13 +316,14 @@ pub(crate) struct Runs {
     /// Row r's runs are `runs[first[r]..first[r + 1]]` (padded rows; padding rows have none).
     first: Vec<u32>,
     runs: Vec<Run>,
+    wp: usize,
 }
 
 impl Runs {
     /// The runs of the columns `PAD..PAD + w` of each of the `h` body rows of a level `wp`
     /// wide, node p of kind `kind(p)`.
     pub(crate) fn new(wp: usize, w: usize, h: usize, kind: impl Fn(usize) -> RunKind) -> Runs {
-        let mut runs = Runs { first: vec![0; h + 2 * PAD + 1], runs: Vec::new() };
+        let mut runs = Runs { first: vec![0; h + 2 * PAD + 1], runs: Vec::new(), wp };
         for r in 0..h + 2 * PAD {
             runs.first[r] = runs.runs.len() as u32;
             if (PAD..PAD + h).contains(&r) {
@@ -291,7 +335,7 @@ impl Runs {
                     while e < PAD + w && kind(base + e) == k {
                         e += 1;
                     }
-                    runs.runs.push(Run { start: c as u32, end: e as u32, kind: k });
+                    runs.runs.push(Run { start: c as u32, end: e as u32, kind: k, at: 0 });
                     c = e;
                 }
             }
@@ -332,7 +376,7 @@ impl Runs {
                 end = next.end;
                 i += 1;
             }
-            Some(Run { start: run.start, end, kind: RunKind::Own })
+            Some(Run { start: run.start, end, kind: RunKind::Own, at: 0 })
         })
     }
 }
@@ -613,7 +657,7 @@ fn pair(a: bool, b: bool, sa: usize, sb: usize) -> [f64; 4] {
 #[derive(Debug)]
 pub(crate) enum Operator {
     /// The finest level: the energy terms read off per-node flags.
-    Fine { flags: Vec<u8>, tau: f64, runs: Runs },
+    Fine { flags: Vec<u8>, tau: f64, runs: Runs, own: OwnStencils },
     /// A Galerkin level: a 5 × 5 stencil (row-major offsets, dy outer) per padded node,
     /// as an index into a table; entry 0 is the stencil shared by every regular node
     /// (all zeros when there is none).
@@ -756,12 +800,13 @@ impl Level {
             .map(|i| geo.active[i] && geo.right[i] && geo.down[i] && !geo.fixed.as_ref().is_some_and(|f| f[i]))
             .collect();
         let inv_diag_w = narrow_diag(&inv_diag);
-        let runs = Runs::new(wp, w, h, |p| match flags[p] {
+        let mut runs = Runs::new(wp, w, h, |p| match flags[p] {
             f if f & bit::FREE == 0 => RunKind::Skip,
             f if f & bit::REGULAR != 0 => RunKind::Shared,
             _ => RunKind::Own,
         });
-        Level { geo, wp, hp, op: Operator::Fine { flags, tau, runs }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
+        let own = OwnStencils::new(&mut runs, |p| fine_row(&flags, p, wp, tau));
+        Level { geo, wp, hp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
     }
 
     /// This finest level with the prolongation of the same grid without holes or cuts
@@ -786,7 +831,7 @@ impl Level {
     /// Frees everything but the dimensions and the prolongation rows (for a level that is
     /// only restricted from and prolonged to from now on).
     pub fn keep_only_prolongation(&mut self) {
-        self.op = Operator::Fine { flags: Vec::new(), tau: 0.0, runs: Runs::default() };
+        self.op = Operator::Fine { flags: Vec::new(), tau: 0.0, runs: Runs::default(), own: OwnStencils::default() };
         self.inv_diag = Vec::new();
         self.inv_diag_w = Vec::new();
         self.clean = Vec::new();
@@ -836,7 +881,7 @@ impl Level {
     fn band_residual<T: Real>(&self, pinned: Option<&(&super::pinned::Pinned, Vec<[f64; 4]>)>, x: &[[T; 2]], f: Option<&[[T; 2]]>, r0: usize, out: &mut [[T; 2]]) {
         let wp = self.wp;
         match &self.op {
-            Operator::Fine { flags, tau, runs } => fine_band(flags, runs, *tau, wp, x, f, r0, r0 + out.len() / wp, out),
+            Operator::Fine { tau, runs, own, .. } => fine_band(runs, own, *tau, wp, x, f, r0, r0 + out.len() / wp, out),
             Operator::Stored { .. } => {
                 // With fixed nodes' terms: the operator without them, then the terms.
                 let op = pinned.map_or(&self.op, |(p, _)| &p.open);
@@ -1010,44 +1055,64 @@ widest! {
                         i += 4 * n;
                     }
                     // The run's last one to three nodes (or all of it, without the vector).
-                    while i < e {
-                        let k = (e - i).min(4);
-                        let q0 = base + i;
-                        // Past the run's end the last node stands in (its sums are dropped).
-                        let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
-                        let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| &table[ids[q0 + j] as usize]);
-                        let mut a = [[T::ZERO; 2]; 4];
-                        for &(dy, dx) in &STORED_TAPS {
-                            let t = dy * 5 + dx;
-                            let q = q0 + dy * wp + dx - 2 * wp - 2;
-                            let (x0, x1, x2, x3) = (x[q], x[q + o1], x[q + o2], x[q + o3]);
-                            a[0] = [a[0][0] + s0[t] * x0[0], a[0][1] + s0[t] * x0[1]];
-                            a[1] = [a[1][0] + s1[t] * x1[0], a[1][1] + s1[t] * x1[1]];
-                            a[2] = [a[2][0] + s2[t] * x2[0], a[2][1] + s2[t] * x2[1]];
-                            a[3] = [a[3][0] + s3[t] * x3[0], a[3][1] + s3[t] * x3[1]];
-                        }
-                        for (j, a) in a.into_iter().take(k).enumerate() {
-                            let fv = f.map_or([T::ZERO; 2], |f| f[q0 + j]);
-                            out[i + j] = [fv[0] - a[0], fv[1] - a[1]];
-                        }
-                        i += k;
-                    }
+                    own_sums(x, f, wp, base, i, e, out, |q| &table[ids[q] as usize]);
                 }
             }
         }
     }
 }
 
+/// `out[c] = f[q] − Σₜ s_q[t] x[q + offset(t)]` for the nodes `q = base + c`, `c` in
+/// `c0..c1` of one row (`out` is that row), each with its own stencil `s_q = stencil(q)`
+/// (in [`STORED_TAPS`] order, each product added to the sum in turn), four nodes side by
+/// side: one node's 21 taps summed one after another wait on each other, four nodes' do not.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn own_sums<'a, T: Real>(
+    x: &[[T; 2]],
+    f: Option<&[[T; 2]]>,
+    wp: usize,
+    base: usize,
+    c0: usize,
+    c1: usize,
+    out: &mut [[T; 2]],
+    stencil: impl Fn(usize) -> &'a [T; 25],
+) {
+    let mut i = c0;
+    while i < c1 {
+        let k = (c1 - i).min(4);
+        let q0 = base + i;
+        // Past the run's end the last node stands in (its sums are dropped).
+        let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
+        let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| stencil(q0 + j));
+        let mut a = [[T::ZERO; 2]; 4];
+        for &(dy, dx) in &STORED_TAPS {
+            let t = dy * 5 + dx;
+            let q = q0 + dy * wp + dx - 2 * wp - 2;
+            let (x0, x1, x2, x3) = (x[q], x[q + o1], x[q + o2], x[q + o3]);
+            a[0] = [a[0][0] + s0[t] * x0[0], a[0][1] + s0[t] * x0[1]];
+            a[1] = [a[1][0] + s1[t] * x1[0], a[1][1] + s1[t] * x1[1]];
+            a[2] = [a[2][0] + s2[t] * x2[0], a[2][1] + s2[t] * x2[1]];
+            a[3] = [a[3][0] + s3[t] * x3[0], a[3][1] + s3[t] * x3[1]];
+        }
+        for (j, a) in a.into_iter().take(k).enumerate() {
+            let fv = f.map_or([T::ZERO; 2], |f| f[q0 + j]);
+            out[i + j] = [fv[0] - a[0], fv[1] - a[1]];
+        }
+        i += k;
+    }
+}
+
 widest! {
     /// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level. Runs of
     /// regular nodes take the interior molecule (the square of the 5-point Laplacian, plus τ
-    /// times the Laplacian) in a tight loop; the others sum their energy terms one by one
-    /// (the runs: the level's [`Runs`]).
+    /// times the Laplacian) in a tight loop; the others their own stencils (see
+    /// [`OwnStencils`]; the runs: the level's [`Runs`]).
     /// On the processor's widest vectors (see [`super::wide`]).
     #[inline(never)]
     fn fine_band<T: Real>(
-        flags: &[u8],
         runs: &Runs,
+        own: &OwnStencils,
         tau: f64,
         wp: usize,
         x: &[[T; 2]],
@@ -1059,6 +1124,7 @@ widest! {
     #[allow(clippy::too_many_arguments)]
     fine_band_body {
         let molecule = Sym::fine(tau);
+        let table = T::table(&own.table, &own.narrow);
         for (k, r) in (r0..r1).enumerate() {
             let base = r * wp;
             let orow = &mut out[k * wp..(k + 1) * wp];
@@ -1067,12 +1133,8 @@ widest! {
                 match run.kind {
                     RunKind::Shared => sym_run::<T, false>(x, f, &molecule, wp, base, c, e, orow),
                     RunKind::Own => {
-                        for (c, o) in orow[c..e].iter_mut().enumerate().map(|(i, o)| (c + i, o)) {
-                            let p = base + c;
-                            let a = fine_apply(flags, x, p, wp, tau);
-                            let fv = f.map_or([T::ZERO; 2], |f| f[p]);
-                            *o = [fv[0] - a[0], fv[1] - a[1]];
-                        }
+                        let ids = &own.ids[run.at as usize..run.at as usize + e - c];
+                        own_sums(x, f, wp, base, c, e, orow, |q| &table[ids[q - base - c] as usize]);
                     }
                     RunKind::Skip => orow[c..e].fill([T::ZERO; 2]),
                 }
@@ -1653,9 +1715,9 @@ mod tests {
         let (mut wide, mut plain) = (vec![[T::ZERO; 2]; n], vec![[T::ZERO; 2]; n]);
         let (r0, r1) = (PAD, PAD + h);
         match &level.op {
-            Operator::Fine { flags, tau, runs } => {
-                fine_band(flags, runs, *tau, wp, x, Some(f), r0, r1, &mut wide[r0 * wp..r1 * wp]);
-                fine_band_body(flags, runs, *tau, wp, x, Some(f), r0, r1, &mut plain[r0 * wp..r1 * wp]);
+            Operator::Fine { tau, runs, own, .. } => {
+                fine_band(runs, own, *tau, wp, x, Some(f), r0, r1, &mut wide[r0 * wp..r1 * wp]);
+                fine_band_body(runs, own, *tau, wp, x, Some(f), r0, r1, &mut plain[r0 * wp..r1 * wp]);
             }
             Operator::Stored { .. } => {
                 for r in r0..r1 {

@@ -1145,3 +1145,33 @@ fn runs_split_each_row_into_maximal_runs_of_one_kind() {
         assert!(seen.iter().all(|&n| n > 10), "every kind of run must occur: {seen:?}");
     }
 }
+
+#[test]
+fn the_finest_levels_own_stencils_sum_its_energy_terms() {
+    // The finest level's nodes that are not regular (borders, holes, cuts) are summed from
+    // their 5 × 5 stencils (`level::OwnStencils`): the product must be the energy terms'
+    // (`fine_residual_at`, read off the flags) to rounding, with and without tension.
+    use super::level::{Operator, RunKind, PAD};
+    let mut rnd = crate::grid::tests::sequence(93);
+    for tau in [0.0, 0.4] {
+        let fine = torn_scattered_level(&mut rnd, 0.02, tau);
+        let x: Vec<V2> = (0..fine.len_padded()).map(|p| if fine.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
+        let mut out = vec![[0.0; 2]; x.len()];
+        fine.residual(&x, None, &mut out);
+        let Operator::Fine { runs, .. } = &fine.op else { unreachable!("the finest level") };
+        let mut own = 0;
+        for r in PAD..PAD + fine.geo.h {
+            for run in runs.row(r).iter().filter(|run| run.kind == RunKind::Own) {
+                for c in run.start as usize..run.end as usize {
+                    let p = r * fine.wp + c;
+                    let want = fine.fine_residual_at(&x, p);
+                    for k in 0..2 {
+                        assert!((out[p][k] - want[k]).abs() < 1e-12, "node {p}: {:?} against {want:?}", out[p]);
+                    }
+                    own += 1;
+                }
+            }
+        }
+        assert!(own > 500, "only {own} nodes with stencils of their own");
+    }
+}
