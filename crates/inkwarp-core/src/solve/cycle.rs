@@ -69,6 +69,11 @@ pub(crate) struct Hierarchy {
     /// The first level held all around by constrained nodes (see [`super::held`]), if any:
     /// it is solved by [`HELD_SMOOTHING`] alone, and the levels below it are never visited.
     pub held_from: Option<usize>,
+    /// Chebyshev steps added to the finest level's pre-smoothing in the cycle that follows
+    /// the coarse-to-fine start (see [`Hierarchy::precondition`]); set by the solve.
+    pub start_smoothing: usize,
+    /// The same for the cycle under way (zero but in that one).
+    extra_pre: usize,
     /// Whether the finest level has loose nodes (free nodes on no fully linked cell),
     /// which the solve settles afterwards; set by the solve that builds the hierarchy.
     pub loose: bool,
@@ -147,7 +152,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, second_steps_skipped: Default::default(), held_from: None }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, second_steps_skipped: Default::default(), held_from: None, start_smoothing: 0, extra_pre: 0 }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
@@ -155,9 +160,12 @@ impl Hierarchy {
     /// it is not quite, which the flexible conjugate gradient around it allows), run in
     /// `f32`: the returned `z` is
     /// the cycle's own output, valid until the next call (the conjugate gradient reads it
-    /// where it would otherwise copy it to `f64` first and read that).
-    pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
+    /// where it would otherwise copy it to `f64` first and read that). `after_start`: the
+    /// first cycle after the coarse-to-fine start, whose pre-smoothing on the finest level
+    /// takes [`Hierarchy::start_smoothing`] more steps.
+    pub fn precondition(&mut self, r: &[V2], after_start: bool) -> &[W2] {
         map_into(&mut self.work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
+        self.extra_pre = if after_start { self.start_smoothing } else { 0 };
         self.precondition_narrowed(r)
     }
 
@@ -186,6 +194,7 @@ impl Hierarchy {
             d.add(&mut work[0].x, c);
         }
         self.work = work;
+        self.extra_pre = 0;
         &self.work[0].x[..r.len()]
     }
 
@@ -235,7 +244,11 @@ impl Hierarchy {
         }
         {
             let Work { x, f, r, d, .. } = &mut work[0];
-            smooth(level, x, Some(f), r, d, self.aim_at(k), x_zero);
+            let mut aim = self.aim_at(k);
+            if k == 0 {
+                aim.steps += self.extra_pre;
+            }
+            smooth(level, x, Some(f), r, d, aim, x_zero);
             if self.held(k) {
                 // Its smoothing solves it (see `held_from`).
                 #[cfg(test)]

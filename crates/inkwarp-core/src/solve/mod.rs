@@ -40,7 +40,8 @@
 //! Lanczos estimate of each level's top eigenvalue), K-cycles below the finest level (two
 //! flexible conjugate-gradient steps on each coarse problem, the first an energy line
 //! search, the second only when the first left much of the residual), a banded Cholesky
-//! solve on the coarsest level, a coarse-to-fine start, and the cycle as the
+//! solve on the coarsest level, a coarse-to-fine start (the cycle after a warm one
+//! smoothing the finest level longer where constraints are dense), and the cycle as the
 //! preconditioner of a flexible conjugate gradient on the finest level. On grids with
 //! holes or cuts each cycle also visits a second coarse space, built with the plain
 //! bilinear prolongation of the same grid without them: the link-aware one extrapolates
@@ -528,6 +529,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         if !torn && key.spaces.held {
             hier.held_from = held::first_held(&hier.levels);
         }
+        if !torn && key.spaces.start && key.fixed.iter().filter(|&&f| f).count() * START_SMOOTHING_SPACING >= w * h {
+            hier.start_smoothing = START_SMOOTHING;
+        }
         if torn && key.spaces.tear && w * h >= TEAR_SPACE_MIN_NODES {
             // Cuts and thin holes: functions that run linearly up to each side of them.
             hier.deflation = deflate::Deflation::new(&hier.levels[0]);
@@ -597,7 +601,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 // The search direction p is not zeroed: the preconditioner's output is
                 // copied over all of it.
                 let (mut q, mut p) = (spare_zeroed(len), spare_any(len));
-                let z = hier.precondition(&r);
+                // After a warm solve's coarse-to-fine start, a longer smoothing (see
+                // `START_SMOOTHING`).
+                let z = hier.precondition(&r, started && initial.is_some());
                 let (mut rz, _) = fcg_dots(&r, z, None);
                 widen_into(&mut p, z, None);
                 for cycle in 1..=max_cycles {
@@ -622,7 +628,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         started = true;
                         hier.coarse_to_fine(&mut u, &mut r, true);
                         hier.levels[0].residual(&u, None, &mut r);
-                        let z = hier.precondition(&r);
+                        let z = hier.precondition(&r, true);
                         rz = fcg_dots(&r, z, None).0;
                         widen_into(&mut p, z, None);
                         continue;
@@ -752,6 +758,25 @@ const SMOOTHING_STEPS: usize = 2;
 /// more cycles and fooled the stopping rule once (0.012 px left at a 0.01 px tolerance).
 const OPEN_COARSE_SMOOTHING: usize = 1;
 
+/// Chebyshev steps added to the finest level's pre-smoothing in the first cycle after the
+/// coarse-to-fine start of a warm solve, on grids without holes or cuts with at least one
+/// constrained node per [`START_SMOOTHING_SPACING`] nodes. A warm start's residual sits at
+/// the constrained nodes, whose values changed; the start's last step, the prolongation
+/// onto the finest level, is the only one not followed by smoothing on its level, and its
+/// bilinear functions kink at every constrained node, so where they are dense that error
+/// is much of what the first cycle is left with. 513 × 513, the bench's problems: 4000
+/// points warm 5 → 3 cycles, the others as many as before; 16 random warm problems (10 to
+/// 4000 points) 93 → 91 cycles, at 257 × 257 94 → 87. Two steps took the 1000-point warm
+/// solve from 3 cycles to 5 (applied from 256 constrained nodes), three left the
+/// 4000-point one at 5. Cold solves gained too at 257 × 257 (156 → 150 cycles) but not at
+/// 513 × 513, where the 4000-point one kept its 9 cycles and paid the steps (about a third
+/// of a cycle).
+const START_SMOOTHING: usize = 4;
+/// See [`START_SMOOTHING`]. From 256 constrained nodes instead, a 1000-point warm solve at
+/// 513 × 513 (one constrained node per 263) kept its 3 cycles and took 1.15 times as long
+/// (medians of eight alternating runs).
+const START_SMOOTHING_SPACING: usize = 128;
+
 /// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
 /// constraint values. Consecutive frames of an animation share it.
 #[derive(PartialEq)]
@@ -771,19 +796,21 @@ struct CacheKey {
 /// space (see [`Level::into_plain`]) and the space along tears ([`deflate::Deflation`]);
 /// whether the finest level's coarse corrections are line searched (see
 /// [`Hierarchy::scaled_finest`]); and whether levels held all around by constrained nodes
-/// are solved by smoothing alone ([`held`]). Always all of them outside tests; a test may
-/// switch any off to measure what it saves.
+/// are solved by smoothing alone ([`held`]); and whether a warm solve's first cycle
+/// smooths longer where constraints are dense ([`START_SMOOTHING`]). Always all of them
+/// outside tests; a test may switch any off to measure what it saves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Spaces {
     pub second: bool,
     pub tear: bool,
     pub scaled: bool,
     pub held: bool,
+    pub start: bool,
 }
 
 impl Spaces {
     /// Everything, as every solve outside tests has it.
-    pub const ALL: Spaces = Spaces { second: true, tear: true, scaled: true, held: true };
+    pub const ALL: Spaces = Spaces { second: true, tear: true, scaled: true, held: true, start: true };
 }
 
 #[cfg(test)]
