@@ -1551,24 +1551,7 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
             // Full weighting. Fixed nodes need no care: `v` vanishes on them.
             for iy in rows {
                 let wy = if iy == 2 * yc { T::of(1.0) } else { half };
-                let vr = &v[fine.pidx(0, iy)..fine.pidx(0, iy) + fw];
-                for (xc, o) in acc.iter_mut().enumerate() {
-                    let ix = 2 * xc;
-                    let mut a = if ix < fw { get(vr[ix]) } else { zero };
-                    let mut side = zero;
-                    if ix >= 1 {
-                        side = get(vr[ix - 1]);
-                    }
-                    if ix + 1 < fw {
-                        let b = get(vr[ix + 1]);
-                        side[0] += b[0];
-                        side[1] += b[1];
-                    }
-                    a[0] += half * side[0];
-                    a[1] += half * side[1];
-                    o[0] += wy * a[0];
-                    o[1] += wy * a[1];
-                }
+                restrict_row(&v[fine.pidx(0, iy)..fine.pidx(0, iy) + fw], acc, wy);
             }
         } else {
             for iy in rows {
@@ -1604,6 +1587,99 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
     }
 }
 
+widest! {
+    /// Full weighting of one fine row `vr` whose nodes all interpolate plainly, times `wy`,
+    /// added to the coarse row `acc`: `acc[X] += wy (v[2X] + ½ (v[2X − 1] + v[2X + 1]))`
+    /// (a missing neighbour past either end left out), on the processor's widest vectors.
+    fn restrict_row<S: Real, T: Real>(vr: &[[S; 2]], acc: &mut [[T; 2]], wy: T) =>
+    restrict_row_body {
+        let fw = vr.len();
+        let get = |a: [S; 2]| [T::of(a[0].get()), T::of(a[1].get())];
+        let (half, zero) = (T::of(0.5), [T::ZERO; 2]);
+        let general = |xc: usize, o: &mut [T; 2]| {
+            let ix = 2 * xc;
+            let mut a = if ix < fw { get(vr[ix]) } else { zero };
+            let mut side = zero;
+            if ix >= 1 {
+                side = get(vr[ix - 1]);
+            }
+            if ix + 1 < fw {
+                let b = get(vr[ix + 1]);
+                side[0] += b[0];
+                side[1] += b[1];
+            }
+            a[0] += half * side[0];
+            a[1] += half * side[1];
+            o[0] += wy * a[0];
+            o[1] += wy * a[1];
+        };
+        // Coarse nodes 1..inner have both fine neighbours (2X + 1 < fw): the same sums
+        // without the tests.
+        let inner = (fw / 2).min(acc.len());
+        if let Some(o) = acc.first_mut() {
+            general(0, o);
+        }
+        // Every index below is in bounds by the slices' lengths, so the loop has no tests.
+        let (head, v) = (&mut acc[..inner], &vr[..2 * inner]);
+        for xc in 1..inner {
+            let ix = 2 * xc;
+            let (l, c, r) = (get(v[ix - 1]), get(v[ix]), get(v[ix + 1]));
+            let o = &mut head[xc];
+            let mut side = l;
+            side[0] += r[0];
+            side[1] += r[1];
+            let mut a = c;
+            a[0] += half * side[0];
+            a[1] += half * side[1];
+            o[0] += wy * a[0];
+            o[1] += wy * a[1];
+        }
+        for (xc, o) in acc.iter_mut().enumerate().skip(inner.max(1)) {
+            general(xc, o);
+        }
+    }
+}
+
+widest! {
+    /// The bilinear prolongation onto one fine row `x` whose nodes all interpolate
+    /// plainly, from coarse rows `c0` and `c1` (`odd`: halfway between them, else on
+    /// `c0`): `x += α P
+    /// e` on the nodes whose prolongation row `prow` is not empty, for the coarse columns
+    /// whose right neighbour the row also reaches (2X + 1 < fw), on the processor's widest
+    /// vectors. Returns the first coarse column it left for the caller.
+    fn prolong_row<S: Real, T: Real>(c0: &[[S; 2]], c1: &[[S; 2]], odd: bool, prow: &[[u8; 4]], x: &mut [[T; 2]], alpha: V2) -> usize =>
+    prolong_row_body {
+        let fw = x.len();
+        let add = |o: [T; 2], keep: bool, a: V2| {
+            let new = [T::of(o[0].get() + alpha[0] * a[0]), T::of(o[1].get() + alpha[1] * a[1])];
+            if keep {
+                new
+            } else {
+                o
+            }
+        };
+        let done = (fw / 2).min(c0.len().saturating_sub(1)).min(c1.len().saturating_sub(1));
+        // Pairs of fine nodes (2X, 2X + 1) against pairs of coarse columns (X, X + 1), all
+        // of one length, so the loop has no tests.
+        let fine = x[..2 * done].chunks_exact_mut(2).zip(prow[..2 * done].chunks_exact(2));
+        let coarse = c0[..done + 1].windows(2).zip(c1[..done + 1].windows(2));
+        for ((xs, ps), (a, b)) in fine.zip(coarse) {
+            let col = |j: usize| -> V2 {
+                let (a, b) = ([a[j][0].get(), a[j][1].get()], [b[j][0].get(), b[j][1].get()]);
+                if odd {
+                    [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]
+                } else {
+                    a
+                }
+            };
+            let (left, right) = (col(0), col(1));
+            xs[0] = add(xs[0], ps[0] != [0; 4], left);
+            xs[1] = add(xs[1], ps[1] != [0; 4], [0.5 * (left[0] + right[0]), 0.5 * (left[1] + right[1])]);
+        }
+        done
+    }
+}
+
 /// `fine_x += P e` (prolongation of a coarse correction onto the unknowns).
 pub(crate) fn prolong_add<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]]) {
     prolong_add_scaled(fine, coarse, e, x, [1.0; 2]);
@@ -1635,8 +1711,10 @@ pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level,
                 }
             };
             let prow = &fine.geo.prow[iy * fw..(iy + 1) * fw];
-            let mut left = col(0);
-            for xc in 0..wc {
+            // The nodes with both coarse neighbours on vectors, the rest one by one.
+            let done = prolong_row(c0, c1, odd, prow, &mut xrow[PAD..PAD + fw], alpha);
+            let mut left = col(done);
+            for xc in done..wc {
                 let ix = 2 * xc;
                 if ix >= fw {
                     break;

@@ -28,16 +28,16 @@ pub(crate) fn avx2() -> bool {
 /// had no 256-bit instruction). Tests call `body` to compare the two copies.
 macro_rules! widest {
     (
-        $(#[$attr:meta])* fn $name:ident $(<$t:ident: $bound:path>)? ($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? =>
+        $(#[$attr:meta])* fn $name:ident $(<$($t:ident: $bound:path),+>)? ($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? =>
         $(#[$body_attr:meta])* $body:ident $block:block
     ) => {
         $(#[$attr])*
-        fn $name $(<$t: $bound>)? ($($arg: $ty),*) $(-> $ret)? {
+        fn $name $(<$($t: $bound),+>)? ($($arg: $ty),*) $(-> $ret)? {
             #[cfg(target_arch = "x86_64")]
             if $crate::solve::wide::avx2() {
                 #[target_feature(enable = "avx2,fma")]
                 #[allow(unsafe_code)]
-                unsafe fn avx2 $(<$t: $bound>)? ($($arg: $ty),*) $(-> $ret)? {
+                unsafe fn avx2 $(<$($t: $bound),+>)? ($($arg: $ty),*) $(-> $ret)? {
                     $body($($arg),*)
                 }
                 // SAFETY: the processor has AVX2 and FMA, checked just above.
@@ -49,7 +49,7 @@ macro_rules! widest {
 
         $(#[$body_attr])*
         #[inline(always)]
-        fn $body $(<$t: $bound>)? ($($arg: $ty),*) $(-> $ret)? $block
+        fn $body $(<$($t: $bound),+>)? ($($arg: $ty),*) $(-> $ret)? $block
     };
 }
 pub(crate) use widest;
