@@ -2,8 +2,9 @@
 //!
 //! The build targets plain x86-64, whose vectors are 128 bits wide; most x86-64
 //! processors made since 2013–2015 (Intel Haswell, AMD Excavator and later, some low-end
-//! models excepted) have 256-bit ones (AVX2, with FMA). The stencil products of every level
-//! and the conjugate gradient's update vectorise across nodes, so [`widest!`] gives each a
+//! models excepted) have 256-bit ones (AVX2, with FMA). The stencil products of every level,
+//! the transfers' plain rows and the conjugate gradient's update vectorise across nodes,
+//! so [`widest!`] gives each a
 //! second copy compiled for AVX2, run where the processor has it (checked at run time),
 //! else the plain one. Their operations and their order are the same in both (no multiply
 //! is fused with its add unless written so), so the results are bit for bit the same.
