@@ -734,6 +734,19 @@ impl Level {
         self.wp * self.hp
     }
 
+    /// Zeroes the padding of a vector of this level: the rows above and below its nodes and
+    /// the columns left and right of them.
+    pub fn clear_padding<T: Real>(&self, v: &mut [[T; 2]]) {
+        let (wp, w, h) = (self.wp, self.geo.w, self.geo.h);
+        let zero = [T::ZERO; 2];
+        v[..PAD * wp].fill(zero);
+        v[(PAD + h) * wp..].fill(zero);
+        for row in v[PAD * wp..(PAD + h) * wp].chunks_mut(wp) {
+            row[..PAD].fill(zero);
+            row[PAD + w..].fill(zero);
+        }
+    }
+
     /// The finest level from its geometry (with fixed nodes) and the tension.
     pub fn fine(geo: Geometry, tau: f64) -> Level {
         let (w, h) = (geo.w, geo.h);

@@ -74,7 +74,7 @@ use crate::geometry::Sample;
 use crate::grid::{constrain, linked_neighbours, Constraints, Grid};
 
 use cycle::Hierarchy;
-use level::{larger, scaled_max, Geometry, Level, Real, V2, W2, WS};
+use level::{larger, scaled_max, Geometry, Level, Real, PAD, V2, W2, WS};
 
 /// How the linear system is relaxed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -539,20 +539,26 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         hier
     });
     let fixed = &key.fixed;
-    let mut u: Vec<V2> = spare_zeroed(hier.levels[0].len_padded());
+    let len = hier.levels[0].len_padded();
+    let mut u: Vec<V2> = if initial.is_some() { spare_any(len) } else { spare_zeroed(len) };
     {
         let fine = &hier.levels[0];
         if let Some(Start { field, x0, y0 }) = initial {
-            // Row by row in parallel: each chunk starts at its row's first node.
-            let (first, wp) = (fine.pidx(0, 0), fine.wp);
-            u[first..first + (h - 1) * wp + w].par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
+            // Every entry written (zero off the unknowns and in the padding), row by row in
+            // parallel: no pass to clear the vector first.
+            let wp = fine.wp;
+            let (top, rest) = u.split_at_mut(PAD * wp);
+            let (body, bottom) = rest.split_at_mut(h * wp);
+            top.fill([0.0; 2]);
+            bottom.fill([0.0; 2]);
+            body.par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
                 let g = (y0 + y) * field.width + x0;
                 let p = fine.pidx(0, y);
                 let (dx, dy) = (&field.dx[g..g + w], &field.dy[g..g + w]);
-                for (((ux, d), &vx), &vy) in row[..w].iter_mut().zip(&fine.inv_diag[p..p + w]).zip(dx).zip(dy) {
-                    if *d != 0.0 {
-                        *ux = [vx as f64, vy as f64];
-                    }
+                row[..PAD].fill([0.0; 2]);
+                row[PAD + w..].fill([0.0; 2]);
+                for (((ux, d), &vx), &vy) in row[PAD..PAD + w].iter_mut().zip(&fine.inv_diag[p..p + w]).zip(dx).zip(dy) {
+                    *ux = if *d != 0.0 { [vx as f64, vy as f64] } else { [0.0; 2] };
                 }
             });
         }
@@ -560,8 +566,10 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
             u[fine.pidx(i % w, i / w)] = v;
         }
     }
-    let len = u.len();
-    let mut r = spare_zeroed(len);
+    // The residual's every use writes its body's unknowns first: only its padding needs
+    // clearing (products and dot products read it).
+    let mut r = spare_any(len);
+    hier.levels[0].clear_padding(&mut r);
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves
     // residuals above the tolerance (a user's earlier answer). A closer start (the earlier
     // frames' prediction) first gets one cycle as it is, and the coarse-to-fine correction
