@@ -72,8 +72,6 @@ pub(crate) struct Hierarchy {
     /// Chebyshev steps added to the finest level's pre-smoothing in the cycle that follows
     /// the coarse-to-fine start (see [`Hierarchy::precondition`]); set by the solve.
     pub start_smoothing: usize,
-    /// The same for the cycle under way (zero but in that one).
-    extra_pre: usize,
     /// Whether the finest level has loose nodes (free nodes on no fully linked cell),
     /// which the solve settles afterwards; set by the solve that builds the hierarchy.
     pub loose: bool,
@@ -152,7 +150,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, second_steps_skipped: Default::default(), held_from: None, start_smoothing: 0, extra_pre: 0 }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, second_steps_skipped: Default::default(), held_from: None, start_smoothing: 0 }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
@@ -165,8 +163,7 @@ impl Hierarchy {
     /// takes [`Hierarchy::start_smoothing`] more steps.
     pub fn precondition(&mut self, r: &[V2], after_start: bool) -> &[W2] {
         map_into(&mut self.work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
-        self.extra_pre = if after_start { self.start_smoothing } else { 0 };
-        self.precondition_narrowed(r)
+        self.cycle_from_zero(r, if after_start { self.start_smoothing } else { 0 })
     }
 
     /// The cycle's right-hand side on the finest level: `r` in `f32`, for a caller that
@@ -177,6 +174,12 @@ impl Hierarchy {
 
     /// [`Hierarchy::precondition`] with `r` already written into [`Hierarchy::narrow_rhs`].
     pub fn precondition_narrowed(&mut self, r: &[V2]) -> &[W2] {
+        self.cycle_from_zero(r, 0)
+    }
+
+    /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `narrow_rhs`,
+    /// its finest pre-smoothing `extra_pre` steps longer.
+    fn cycle_from_zero(&mut self, r: &[V2], extra_pre: usize) -> &[W2] {
         let mut work = std::mem::take(&mut self.work);
         // With the extra space along tears: its exact part first, the cycle on the rest.
         let c = self.deflation.as_ref().map(|d| {
@@ -186,7 +189,7 @@ impl Hierarchy {
         });
         self.clear_start(0, &mut work[0].x);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
-        self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
+        self.solve_level(0, &mut work, true, extra_pre, alt_work.as_deref_mut());
         if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
             a.work = w;
         }
@@ -194,7 +197,6 @@ impl Hierarchy {
             d.add(&mut work[0].x, c);
         }
         self.work = work;
-        self.extra_pre = 0;
         &self.work[0].x[..r.len()]
     }
 
@@ -234,8 +236,9 @@ impl Hierarchy {
     }
 
     /// Approximately solves `A_k x = f` on level k ≥ 1 (x, f in `work[0]`, the slice starting
-    /// at level k) by one V-cycle from `x` (zero when `x_zero`).
-    fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, alt_work: Option<&mut [Work]>) {
+    /// at level k) by one V-cycle from `x` (zero when `x_zero`), its pre-smoothing `extra_pre`
+    /// steps longer than the level's own.
+    fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, extra_pre: usize, alt_work: Option<&mut [Work]>) {
         let level = &self.levels[k];
         if k + 1 == self.levels.len() {
             let w = &mut work[0];
@@ -244,11 +247,8 @@ impl Hierarchy {
         }
         {
             let Work { x, f, r, d, .. } = &mut work[0];
-            let mut aim = self.aim_at(k);
-            if k == 0 {
-                aim.steps += self.extra_pre;
-            }
-            smooth(level, x, Some(f), r, d, aim, x_zero);
+            let aim = self.aim_at(k);
+            smooth(level, x, Some(f), r, d, Aim { steps: aim.steps + extra_pre, ..aim }, x_zero);
             if self.held(k) {
                 // Its smoothing solves it (see `held_from`).
                 #[cfg(test)]
@@ -266,7 +266,7 @@ impl Hierarchy {
         } else {
             restrict(level, &self.levels[k + 1], &w.r, &mut tail[0].f);
             self.clear_start(k + 1, &mut tail[0].x);
-            self.solve_level(k + 1, tail, true, None);
+            self.solve_level(k + 1, tail, true, 0, None);
             if k > 0 || (k + 2 < self.levels.len() && self.scaled_finest) {
                 // The finest level's too (see `scaled_finest`): 513 × 513 with 10 to 4000
                 // points took 6–10 cold cycles instead of 7–10, 24 random open problems
@@ -283,7 +283,7 @@ impl Hierarchy {
             let atail = &mut aw[1..];
             restrict(&alt.levels[0], &alt.levels[1], &w.r, &mut atail[0].f);
             alt.clear_start(1, &mut atail[0].x);
-            alt.solve_level(1, atail, true, None);
+            alt.solve_level(1, atail, true, 0, None);
             // Unscaled: with the line search the cycle counts on holes and cuts went up and
             // down by a few percent, to no gain; with the first space's correction scaled
             // too, two random 96 × 96 problems with holes, cuts and hinges no longer
@@ -315,7 +315,7 @@ impl Hierarchy {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
         restrict(level, coarse, &w.r, &mut tail[0].f);
         self.clear_start(k + 1, &mut tail[0].x);
-        self.solve_level(k + 1, tail, true, None);
+        self.solve_level(k + 1, tail, true, 0, None);
         let c = &mut tail[0];
         coarse.residual(&c.x, None, &mut c.r); // −A z₁ on the unknowns
         let zaz = dot_w(&c.x, &c.r).map(|v| -v);
@@ -347,7 +347,7 @@ impl Hierarchy {
             z1.clone_from(x);
         }
         self.clear_start(k + 1, &mut c.x);
-        self.solve_level(k + 1, tail, true, None);
+        self.solve_level(k + 1, tail, true, 0, None);
         let c = &mut tail[0];
         coarse.residual(&c.x, None, &mut c.r); // −A z₂
         let z2az1 = dot_w(&c.x, &c.q1);
@@ -398,7 +398,7 @@ impl Hierarchy {
             let wk = &mut head[k];
             fill_zero(&mut wk.x);
             prolong_add(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut wk.x);
-            self.solve_level(k, &mut work[k..], false, None);
+            self.solve_level(k, &mut work[k..], false, 0, None);
         }
         prolong_add(&self.levels[0], &self.levels[1], &work[1].x, u);
         self.work = work;

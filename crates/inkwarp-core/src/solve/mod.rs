@@ -529,7 +529,8 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         if !torn && key.spaces.held {
             hier.held_from = held::first_held(&hier.levels);
         }
-        if !torn && key.spaces.start && key.fixed.iter().filter(|&&f| f).count() * START_SMOOTHING_SPACING >= w * h {
+        // `value` holds every fixed node.
+        if !torn && key.spaces.start && value.len() * START_SMOOTHING_SPACING >= w * h {
             hier.start_smoothing = START_SMOOTHING;
         }
         if torn && key.spaces.tear && w * h >= TEAR_SPACE_MIN_NODES {
@@ -544,19 +545,14 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     {
         let fine = &hier.levels[0];
         if let Some(Start { field, x0, y0 }) = initial {
-            // Every entry written (zero off the unknowns and in the padding), row by row in
+            // Every entry written (the padding, then zero off the unknowns), row by row in
             // parallel: no pass to clear the vector first.
             let wp = fine.wp;
-            let (top, rest) = u.split_at_mut(PAD * wp);
-            let (body, bottom) = rest.split_at_mut(h * wp);
-            top.fill([0.0; 2]);
-            bottom.fill([0.0; 2]);
-            body.par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
+            fine.clear_padding(&mut u);
+            u[PAD * wp..(PAD + h) * wp].par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
                 let g = (y0 + y) * field.width + x0;
                 let p = fine.pidx(0, y);
                 let (dx, dy) = (&field.dx[g..g + w], &field.dy[g..g + w]);
-                row[..PAD].fill([0.0; 2]);
-                row[PAD + w..].fill([0.0; 2]);
                 for (((ux, d), &vx), &vy) in row[PAD..PAD + w].iter_mut().zip(&fine.inv_diag[p..p + w]).zip(dx).zip(dy) {
                     *ux = if *d != 0.0 { [vx as f64, vy as f64] } else { [0.0; 2] };
                 }
