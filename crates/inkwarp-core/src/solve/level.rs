@@ -1662,10 +1662,9 @@ widest! {
 widest! {
     /// The bilinear prolongation onto one fine row `x` whose nodes all interpolate
     /// plainly, from coarse rows `c0` and `c1` (`odd`: halfway between them, else on
-    /// `c0`): `x += α P
-    /// e` on the nodes whose prolongation row `prow` is not empty, for the coarse columns
-    /// whose right neighbour the row also reaches (2X + 1 < fw), on the processor's widest
-    /// vectors. Returns the first coarse column it left for the caller.
+    /// `c0`): `x += α P e` on the nodes whose prolongation row `prow` is not empty, for
+    /// the coarse columns whose right neighbour the row also reaches (2X + 1 < fw), on the
+    /// processor's widest vectors. Returns the first coarse column it left for the caller.
     fn prolong_row<S: Real, T: Real>(c0: &[[S; 2]], c1: &[[S; 2]], odd: bool, prow: &[[u8; 4]], x: &mut [[T; 2]], alpha: V2) -> usize =>
     prolong_row_body {
         let fw = x.len();
