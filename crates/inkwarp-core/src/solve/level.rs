@@ -585,6 +585,7 @@ impl Geometry {
 #[derive(Clone, Copy)]
 enum Fold {
     Nothing,
+    #[cfg(test)]
     Dot,
     ScaledMax,
 }
@@ -894,8 +895,32 @@ impl Level {
 
     /// `out = −A x` (as [`Level::residual`] without `f`) and `xᵀ out` per component, taken
     /// band by band while both are in cache.
+    #[cfg(test)]
     pub fn residual_dot<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> [f64; 2] {
         self.bands(x, None, out, Fold::Dot)
+    }
+
+    /// `out = −A x` in `f64` on the finest level for an `x` in `f32`, every entry of `x`
+    /// widened exactly, and `xᵀ out` per component: the product of the conjugate gradient's
+    /// search direction, kept in `f32` (see `solve_piece`), band by band as in
+    /// [`Level::residual_dot`].
+    pub fn fine_residual_dot_narrow(&self, x: &[W2], out: &mut [V2]) -> [f64; 2] {
+        let Operator::Fine { tau, runs, own, .. } = &self.op else { unreachable!("the finest level's operator") };
+        let wp = self.wp;
+        let run = |(r, chunk): (usize, &mut [V2])| {
+            let r0 = r * PAR_ROWS + PAD;
+            let r1 = r0 + chunk.len() / wp;
+            fine_band(runs, own, *tau, wp, x, None, r0, r1, chunk);
+            pair_sums(x[r0 * wp..r1 * wp].as_flattened(), chunk.as_flattened(), |a: WS, b: f64| a.get() * b)
+        };
+        let body = &mut out[PAD * wp..(PAD + self.geo.h) * wp];
+        let parts: Vec<[f64; 2]> = if self.geo.w * self.geo.h >= PAR_MIN_NODES {
+            body.par_chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect()
+        } else {
+            body.chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect()
+        };
+        // The bands' sums are added in order, so the result does not depend on the threads.
+        parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
     }
 
     /// `out = −A x` and its largest entry scaled by the inverse diagonal (see
@@ -933,6 +958,7 @@ impl Level {
             self.band_residual(pinned.as_ref(), x, f, r0, chunk);
             match fold {
                 Fold::Nothing => [0.0; 2],
+                #[cfg(test)]
                 Fold::Dot => dot_pairs(&x[r0 * wp..r1 * wp], chunk),
                 Fold::ScaledMax => [scaled_max(chunk, &self.inv_diag[r0 * wp..r1 * wp]), 0.0],
             }
@@ -1045,7 +1071,7 @@ widest! {
                     if run.kind == RunKind::Shared {
                         // A run of regular nodes: one stencil, applied tap by tap.
                         if let Some(sym) = sym {
-                            sym_run::<T, true>(x, f, sym, wp, base, c, e, out);
+                            sym_run::<T, T, true>(x, f, sym, wp, base, c, e, out);
                             continue;
                         }
                         let mut s0 = c;
@@ -1097,8 +1123,8 @@ widest! {
 /// side: one node's 21 taps summed one after another wait on each other, four nodes' do not.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn own_sums<'a, T: Real>(
-    x: &[[T; 2]],
+fn own_sums<'a, S: Real, T: Real>(
+    x: &[[S; 2]],
     f: Option<&[[T; 2]]>,
     wp: usize,
     base: usize,
@@ -1118,7 +1144,8 @@ fn own_sums<'a, T: Real>(
         for &(dy, dx) in &STORED_TAPS {
             let t = dy * 5 + dx;
             let q = q0 + dy * wp + dx - 2 * wp - 2;
-            let (x0, x1, x2, x3) = (x[q], x[q + o1], x[q + o2], x[q + o3]);
+            let v = |p: usize| x[p].map(widened::<S, T>);
+            let (x0, x1, x2, x3) = (v(q), v(q + o1), v(q + o2), v(q + o3));
             a[0] = [a[0][0] + s0[t] * x0[0], a[0][1] + s0[t] * x0[1]];
             a[1] = [a[1][0] + s1[t] * x1[0], a[1][1] + s1[t] * x1[1]];
             a[2] = [a[2][0] + s2[t] * x2[0], a[2][1] + s2[t] * x2[1]];
@@ -1139,12 +1166,12 @@ widest! {
     /// [`OwnStencils`]; the runs: the level's [`Runs`]).
     /// On the processor's widest vectors (see [`super::wide`]).
     #[inline(never)]
-    fn fine_band<T: Real>(
+    fn fine_band<S: Real, T: Real>(
         runs: &Runs,
         own: &OwnStencils,
         tau: f64,
         wp: usize,
-        x: &[[T; 2]],
+        x: &[[S; 2]],
         f: Option<&[[T; 2]]>,
         r0: usize,
         r1: usize,
@@ -1160,7 +1187,7 @@ widest! {
             for run in runs.row(r) {
                 let (c, e) = (run.start as usize, run.end as usize);
                 match run.kind {
-                    RunKind::Shared => sym_run::<T, false>(x, f, &molecule, wp, base, c, e, orow),
+                    RunKind::Shared => sym_run::<S, T, false>(x, f, &molecule, wp, base, c, e, orow),
                     RunKind::Own => {
                         let ids = &own.ids[run.at as usize..run.at as usize + e - c];
                         own_sums(x, f, wp, base, c, e, orow, |q| &table[ids[q - base - c] as usize]);
@@ -1177,11 +1204,12 @@ widest! {
 /// molecule of the finest level, whose knight's-move ring is empty.
 ///
 /// It runs on the flattened components (Δx, Δy, Δx, …): every operation is the same for
-/// both, so the loop vectorises across nodes.
+/// both, so the loop vectorises across nodes. `x` may be narrower than the sums (see
+/// [`widened`]).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn sym_run<T: Real, const KNIGHT: bool>(
-    x: &[[T; 2]],
+fn sym_run<S: Real, T: Real, const KNIGHT: bool>(
+    x: &[[S; 2]],
     f: Option<&[[T; 2]]>,
     sym: &Sym,
     wp: usize,
@@ -1192,7 +1220,7 @@ fn sym_run<T: Real, const KNIGHT: bool>(
 ) {
     let n = 2 * (c1 - c0);
     let xf = x.as_flattened();
-    let at = |dr: isize, dc: isize| -> &[T] {
+    let at = |dr: isize, dc: isize| -> &[S] {
         let s = 2 * ((base + c0) as isize + dr * wp as isize + dc) as usize;
         &xf[s..s + n]
     };
@@ -1207,12 +1235,13 @@ fn sym_run<T: Real, const KNIGHT: bool>(
     macro_rules! apply {
         ($j:expr) => {{
             let j = $j;
-            let e = e0[j] + e1[j] + e2[j] + e3[j];
-            let d = d0[j] + d1[j] + d2[j] + d3[j];
-            let fa = f0[j] + f1[j] + f2[j] + f3[j];
-            let a = c_0 * x0[j] + c_e * e + c_d * d + c_f * fa;
+            let v = |s: &[S]| widened::<S, T>(s[j]);
+            let e = v(e0) + v(e1) + v(e2) + v(e3);
+            let d = v(d0) + v(d1) + v(d2) + v(d3);
+            let fa = v(f0) + v(f1) + v(f2) + v(f3);
+            let a = c_0 * v(x0) + c_e * e + c_d * d + c_f * fa;
             if KNIGHT {
-                a + c_k * ((k0[j] + k1[j] + k2[j] + k3[j]) + (k4[j] + k5[j] + k6[j] + k7[j]))
+                a + c_k * ((v(k0) + v(k1) + v(k2) + v(k3)) + (v(k4) + v(k5) + v(k6) + v(k7)))
             } else {
                 a
             }
@@ -1232,6 +1261,13 @@ fn sym_run<T: Real, const KNIGHT: bool>(
             }
         }
     }
+}
+
+/// `s` in the precision `T` of a kernel's sums: `s` itself where `S` is `T`, else widened
+/// exactly (`f32` into `f64`; no kernel narrows its input).
+#[inline(always)]
+fn widened<S: Real, T: Real>(s: S) -> T {
+    T::of(s.get())
 }
 
 /// `(A x)_p` on the finest level from the energy terms that contain node p.
@@ -1802,6 +1838,35 @@ mod tests {
                 same_bits(level, &x, &f);
                 same_bits(level, &narrow(&x), &narrow(&f));
             }
+        }
+    }
+
+    #[test]
+    fn the_narrow_direction_product_is_the_wide_product_of_its_entries_widened() {
+        // The conjugate gradient keeps its search direction in `f32` and sums `A p` in `f64`
+        // from it: that must be bit for bit the `f64` product of the widened vector (and
+        // its dot product with it), so that `u += α p` and `r += α A p` move together; in
+        // the copy for the widest vectors and in the plain one.
+        let mut rnd = crate::grid::tests::sequence(73);
+        for (grid, tau) in [(Grid::new(67, 61), 0.0), (torn_grid(97, true, true, 5.0), 0.3)] {
+            let (w, h) = (grid.width, grid.height);
+            let fixed: Vec<bool> = (0..w * h).map(|_| rnd() < 0.02).collect();
+            let fine = fine_level(&grid, Some(fixed), tau);
+            let n = fine.len_padded();
+            let x: Vec<W2> = (0..n).map(|p| if fine.inv_diag[p] != 0.0 { [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32] } else { [0.0; 2] }).collect();
+            let wide: Vec<V2> = x.iter().map(|a| [a[0] as f64, a[1] as f64]).collect();
+            let (mut narrow_out, mut wide_out) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
+            let narrow_dot = fine.fine_residual_dot_narrow(&x, &mut narrow_out);
+            let wide_dot = fine.residual_dot(&wide, &mut wide_out);
+            assert!(narrow_out.iter().flatten().any(|&v| v != 0.0));
+            let bits = |v: &[V2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&narrow_out), bits(&wide_out), "{w}×{h}, τ = {tau}: A p");
+            assert_eq!(narrow_dot.map(f64::to_bits), wide_dot.map(f64::to_bits), "{w}×{h}, τ = {tau}: pᵀA p");
+            let Operator::Fine { tau: t, runs, own, .. } = &fine.op else { unreachable!("the finest level") };
+            let (wp, r0, r1) = (fine.wp, PAD, PAD + h);
+            let mut plain = vec![[0.0; 2]; n];
+            fine_band_body(runs, own, *t, wp, &x, None, r0, r1, &mut plain[r0 * wp..r1 * wp]);
+            assert_eq!(bits(&plain), bits(&narrow_out), "{w}×{h}, τ = {tau}: the plain copy");
         }
     }
 

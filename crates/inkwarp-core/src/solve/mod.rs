@@ -457,7 +457,7 @@ pub(crate) fn solve_constrained(
         // The piece's nodes of the box, to the field or (pieces on a line) to `out`.
         if lines {
             for by in 0..bh {
-                for (i, v) in rows(by).zip(&u[by * bw..(by + 1) * bw]) {
+                for (i, v) in rows(by).zip(u.row(by, bw)) {
                     if labels[i] == l as u32 {
                         out[i] = *v;
                     }
@@ -468,7 +468,7 @@ pub(crate) fn solve_constrained(
             let (dx, dy) = (&mut field.dx[span.clone()], &mut field.dy[span]);
             dx.par_chunks_mut(w).zip(dy.par_chunks_mut(w)).enumerate().for_each(|(by, (dx, dy))| {
                 let g = rows(by);
-                let (lab, v) = (&labels[g.clone()], &u[by * bw..(by + 1) * bw]);
+                let (lab, v) = (&labels[g.clone()], u.row(by, bw));
                 for (((dx, dy), &lab), v) in dx[x0..x1].iter_mut().zip(&mut dy[x0..x1]).zip(lab).zip(v) {
                     if lab == l as u32 {
                         *dx = v[0] as f32;
@@ -477,7 +477,7 @@ pub(crate) fn solve_constrained(
                 }
             });
         }
-        give_back(u);
+        give_back(u.values);
         // The report starts at zero and converged: the pieces' worst.
         report.cycles = report.cycles.max(r.cycles);
         report.final_change_px = report.final_change_px.max(r.final_change_px);
@@ -502,11 +502,27 @@ pub(crate) fn solve_constrained(
     (field, report)
 }
 
+/// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`
+/// (the solve's own padded vector, handed over without a copy; its nodes off the piece
+/// are not read).
+struct BoxValues {
+    values: Vec<V2>,
+    stride: usize,
+    first: usize,
+}
+
+impl BoxValues {
+    /// Row `y` of the box, `w` nodes wide.
+    fn row(&self, y: usize, w: usize) -> &[V2] {
+        let a = self.first + y * self.stride;
+        &self.values[a..a + w]
+    }
+}
+
 /// Solves one piece on its box: `key` describes the box's grid (the piece active, its
 /// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start on the box.
-/// Returns the solution on the box's nodes (zero off the piece) and the report's solver
-/// fields.
-fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions) -> (Vec<V2>, SolveReport) {
+/// Returns the solution on the box's nodes and the report's solver fields.
+fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport { converged: true, ..Default::default() };
     let mut hier = cache_take(&key).unwrap_or_else(|| {
@@ -602,9 +618,15 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
             };
             {
-                // The search direction p is not zeroed: the preconditioner's output is
-                // copied over all of it.
-                let (mut q, mut p) = (spare_zeroed(len), spare_any(len));
+                // The search direction p is kept in `f32` and its product `A p` summed in
+                // `f64` from it, each entry widened exactly: `u += α p` and `r += α A p`
+                // move by the same rounded direction, so `r` stays the residual of `u`, and
+                // the passes over p move half the bytes. (With `A p` in `f32` as well, the
+                // product of a smooth direction cancelled below `f32`'s resolution.) It is
+                // not cleared first: the preconditioner's output is copied over all of it.
+                let mut q = spare_zeroed(len);
+                let mut p = std::mem::take(&mut hier.search);
+                p.resize(len, [0.0; 2]);
                 // After a warm solve's coarse-to-fine start, a longer smoothing (see
                 // `START_SMOOTHING`).
                 let z = hier.precondition(&r, started && initial.is_some());
@@ -612,7 +634,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 widen_into(&mut p, z, None);
                 for cycle in 1..=max_cycles {
                     let fine = &hier.levels[0];
-                    let pq = fine.residual_dot(&p, &mut q); // q = −A p
+                    let pq = fine.fine_residual_dot_narrow(&p, &mut q); // q = −A p
                     let alpha = [
                         if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
                         if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
@@ -649,7 +671,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                     rz = rz_new;
                 }
                 give_back(q);
-                give_back(p);
+                hier.search = p;
             }
         }
         SolveMethod::Southwell => {
@@ -667,18 +689,22 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     report.residual = r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)).map(|(r, d)| scaled_max(r, d)).reduce(|| 0.0, larger);
     give_back(r);
     let fine = &hier.levels[0];
-    // Every value written (zero off the piece), row by row in parallel.
-    let mut out: Vec<V2> = spare_any(w * h);
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let p = fine.pidx(0, y);
-        for ((o, &a), v) in row.iter_mut().zip(&fine.geo.active[y * w..(y + 1) * w]).zip(&u[p..p + w]) {
-            *o = if a { *v } else { [0.0; 2] };
-        }
-    });
-    give_back(u);
-    if tau == 0.0 && hier.loose {
+    let out = if tau == 0.0 && hier.loose {
+        // Every value written (zero off the piece), row by row in parallel, then the loose
+        // nodes settled there.
+        let mut out: Vec<V2> = spare_any(w * h);
+        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let p = fine.pidx(0, y);
+            for ((o, &a), v) in row.iter_mut().zip(&fine.geo.active[y * w..(y + 1) * w]).zip(&u[p..p + w]) {
+                *o = if a { *v } else { [0.0; 2] };
+            }
+        });
+        give_back(u);
         settle_loose_nodes(&fine.geo, fixed, &mut out);
-    }
+        BoxValues { values: out, stride: w, first: 0 }
+    } else {
+        BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) }
+    };
     cache_put(key, hier);
     (out, report)
 }
@@ -1169,25 +1195,22 @@ fn fcg_dots(r: &[V2], z: &[W2], q: Option<&[V2]>) -> ([f64; 2], [f64; 2]) {
     ([t[0], t[1]], [t[2], t[3]])
 }
 
-/// `p = z + β p` (`p = z` without `β`), `z` the preconditioner's `f32` output.
-fn widen_into(p: &mut [V2], z: &[W2], beta: Option<[f64; 2]>) {
+/// `p = z + β p` (`p = z` without `β`), `z` the preconditioner's `f32` output and `p` the
+/// search direction in `f32`, summed in `f64` and rounded once.
+fn widen_into(p: &mut [W2], z: &[W2], beta: Option<[f64; 2]>) {
     p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| match beta {
         Some(b) => {
             for (p, z) in p.iter_mut().zip(z) {
-                *p = [z[0].get() + b[0] * p[0], z[1].get() + b[1] * p[1]];
+                *p = [WS::of(z[0].get() + b[0] * p[0].get()), WS::of(z[1].get() + b[1] * p[1].get())];
             }
         }
-        None => {
-            for (p, z) in p.iter_mut().zip(z) {
-                *p = [z[0].get(), z[1].get()];
-            }
-        }
+        None => p.copy_from_slice(z),
     });
 }
 
 wide::widest! {
     /// [`step_update_body`] on the processor's widest vectors (see [`wide`]).
-    fn step_update(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[V2], q: &[V2], alpha: [f64; 2]) -> f64 =>
+    fn step_update(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[W2], q: &[V2], alpha: [f64; 2]) -> f64 =>
     /// The conjugate-gradient step on one chunk: `u += α p`, `r += α q` (α per component), and
     /// `rw` the new `r` in `f32` (the next cycle's right-hand side, written while `r` is at hand);
     /// returns the largest `|α p|`. On the flattened components, eight running maxima: one
@@ -1196,10 +1219,10 @@ wide::widest! {
         let (u, r, rw) = (u.as_flattened_mut(), r.as_flattened_mut(), rw.as_flattened_mut());
         let (p, q) = (p.as_flattened(), q.as_flattened());
         let mut m = [0.0f64; 8];
-        let lanes = |u: &mut [f64], r: &mut [f64], rw: &mut [WS], p: &[f64], q: &[f64], m: &mut [f64]| {
+        let lanes = |u: &mut [f64], r: &mut [f64], rw: &mut [WS], p: &[WS], q: &[f64], m: &mut [f64]| {
             for l in 0..u.len() {
                 let a = alpha[l & 1];
-                let d = a * p[l];
+                let d = a * p[l].get();
                 u[l] += d;
                 m[l] = larger(m[l], d.abs());
                 r[l] += a * q[l];

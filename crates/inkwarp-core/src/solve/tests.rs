@@ -909,9 +909,11 @@ fn the_wide_conjugate_gradient_update_gives_the_plain_results_bit_for_bit() {
     let mut rnd = crate::grid::tests::sequence(72);
     let n = 1001;
     let mut pairs = || -> Vec<V2> { (0..n).map(|_| [rnd() - 0.5, rnd() - 0.5]).collect() };
-    let (u, r, p, q) = (pairs(), pairs(), pairs(), pairs());
+    let (u, r, q) = (pairs(), pairs(), pairs());
+    // The search direction is kept in `f32`.
+    let p: Vec<W2> = pairs().iter().map(|v| [v[0] as f32, v[1] as f32]).collect();
     let alpha = [0.73, -1.9];
-    type Update = fn(&mut [V2], &mut [V2], &mut [W2], &[V2], &[V2], [f64; 2]) -> f64;
+    type Update = fn(&mut [V2], &mut [V2], &mut [W2], &[W2], &[V2], [f64; 2]) -> f64;
     let run = |update: Update| {
         let (mut u, mut r, mut rw) = (u.clone(), r.clone(), vec![[0.0f32; 2]; n]);
         let change = update(&mut u, &mut r, &mut rw, &p, &q, alpha);
