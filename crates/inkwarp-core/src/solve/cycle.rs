@@ -532,16 +532,19 @@ fn first_step_residual(f: &mut [W2], r: &[W2], q1: &mut [W2], a: [WS; 2]) -> [[f
 /// The K-cycle's second direction `d = z₂ − β z₁` into `x` (holding `z₂`) and its product
 /// `A d = −r − β A z₁` into `r` (holding `−A z₂`), `q1 = A z₁`.
 fn second_direction(x: &mut [W2], r: &mut [W2], z1: &[W2], q1: &[W2], b: [WS; 2]) {
-    let body = |((x, r), (z1, q1)): ((&mut [W2], &mut [W2]), (&[W2], &[W2]))| {
+    let body = |x: &mut [W2], r: &mut [W2], z1: &[W2], q1: &[W2]| {
         for (((x, r), z1), q1) in x.iter_mut().zip(r.iter_mut()).zip(z1).zip(q1) {
             *x = [x[0] - b[0] * z1[0], x[1] - b[1] * z1[1]];
             *r = [WS::ZERO - r[0] - b[0] * q1[0], WS::ZERO - r[1] - b[1] * q1[1]];
         }
     };
     if x.len() >= PAR_MIN {
-        x.par_chunks_mut(K_CHUNK).zip(r.par_chunks_mut(K_CHUNK)).zip(z1.par_chunks(K_CHUNK).zip(q1.par_chunks(K_CHUNK))).for_each(body);
+        x.par_chunks_mut(K_CHUNK)
+            .zip(r.par_chunks_mut(K_CHUNK))
+            .zip(z1.par_chunks(K_CHUNK).zip(q1.par_chunks(K_CHUNK)))
+            .for_each(|((x, r), (z1, q1))| body(x, r, z1, q1));
     } else {
-        body(((x, r), (z1, q1)));
+        body(x, r, z1, q1);
     }
 }
 
