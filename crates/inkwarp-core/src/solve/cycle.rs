@@ -502,13 +502,14 @@ fn step(num: f64, den: f64) -> f64 {
 
 /// Entries per task of the K-cycle's vector passes below; levels under [`PAR_MIN`]
 /// entries take them in one piece on this thread. They were single loops on one thread,
-/// whose sums of squares each waited on its last addition: with 100 points at 513 × 513
-/// about 3 % of a warm solve's time went to them while the other thread waited.
+/// whose sums of squares each waited on its last addition, while the other thread
+/// waited (with 100 points at 513 × 513, warm, the profile samples of the function they
+/// were inlined into were about 3 % of the solving thread's).
 const K_CHUNK: usize = 4096;
 
 /// The K-cycle's first step on the coarse right-hand side: `q1 = A z₁` from `r = −A z₁`,
-/// and `f ← f − α₁ A z₁ = f + α₁ r`; returns `[Σ f², Σ f²]` per component before and after,
-/// in `f64` (chunk by chunk, eight running sums in each, added in order: the same sums
+/// and `f ← f − α₁ A z₁ = f + α₁ r`; returns `[before, after]`, each `[Σ f_x², Σ f_y²]` in
+/// `f64` (chunk by chunk, eight running sums in each, added in order: the same sums
 /// whatever the threads).
 fn first_step_residual(f: &mut [W2], r: &[W2], q1: &mut [W2], a: [WS; 2]) -> [[f64; 2]; 2] {
     let square = |x: WS, y: WS| x.get() * y.get();
@@ -562,11 +563,14 @@ fn both_steps(x: &mut [W2], z1: &[W2], a1: [WS; 2], a2: [WS; 2]) {
     }
 }
 
-/// `Σ a_i b_i` per component, in `f64`.
+/// `Σ a_i b_i` per component, in `f64`. The chunks' sums are added in order, so the result
+/// does not depend on how the pool's threads split the work (a parallel `reduce` adds
+/// them in a tree shaped by the work stealing).
 fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
     let dot = dot_pairs::<WS>;
     if a.len() >= PAR_MIN {
-        a.par_chunks(4096).zip(b.par_chunks(4096)).map(|(a, b)| dot(a, b)).reduce(|| [0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
+        let parts: Vec<[f64; 2]> = a.par_chunks(K_CHUNK).zip(b.par_chunks(K_CHUNK)).map(|(a, b)| dot(a, b)).collect();
+        parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
     } else {
         dot(a, b)
     }

@@ -902,8 +902,8 @@ impl Level {
 
     /// `out = −A x` in `f64` on the finest level for an `x` in `f32`, every entry of `x`
     /// widened exactly, and `xᵀ out` per component: the product of the conjugate gradient's
-    /// search direction, kept in `f32` (see `solve_piece`), band by band as in
-    /// [`Level::residual_dot`].
+    /// search direction, kept in `f32` (see `solve_piece`), band by band while both are
+    /// in cache; bit for bit the `f64` product of the widened vector (a test holds it so).
     pub fn fine_residual_dot_narrow(&self, x: &[W2], out: &mut [V2]) -> [f64; 2] {
         let Operator::Fine { tau, runs, own, .. } = &self.op else { unreachable!("the finest level's operator") };
         let wp = self.wp;

@@ -502,9 +502,10 @@ pub(crate) fn solve_constrained(
     (field, report)
 }
 
-/// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`
-/// (the solve's own padded vector, handed over without a copy; its nodes off the piece
-/// are not read).
+/// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`:
+/// the solve's own padded vector, handed over without a copy, or where loose nodes were
+/// settled an unpadded copy (stride the box's width). Its nodes off the piece are not
+/// read.
 struct BoxValues {
     values: Vec<V2>,
     stride: usize,
@@ -621,9 +622,11 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 // The search direction p is kept in `f32` and its product `A p` summed in
                 // `f64` from it, each entry widened exactly: `u += α p` and `r += α A p`
                 // move by the same rounded direction, so `r` stays the residual of `u`, and
-                // the passes over p move half the bytes. (With `A p` in `f32` as well, the
-                // product of a smooth direction cancelled below `f32`'s resolution.) It is
-                // not cleared first: the preconditioner's output is copied over all of it.
+                // a solve holds 8 bytes a node less. (`A p` must stay `f64`: summed in
+                // `f32`, the product of a smooth direction cancelled below `f32`'s
+                // resolution; stored in `f32`, it would leave `r` off the true residual,
+                // see the concept doc's Precision.) It is not cleared first: the
+                // preconditioner's output is copied over all of it.
                 let mut q = spare_zeroed(len);
                 let mut p = std::mem::take(&mut hier.search);
                 p.resize(len, [0.0; 2]);
@@ -867,7 +870,8 @@ fn spaces() -> Spaces {
 
 /// Recently used hierarchies (taken out while in use, so concurrent solves never share
 /// one). At most `CACHE_ENTRIES` of them and `CACHE_MAX_NODES` finest nodes in all (about
-/// 150 bytes a node), so the cache stays within a few hundred megabytes.
+/// 160 bytes a node, the conjugate gradient's search direction included), so the cache
+/// stays within a few hundred megabytes.
 static CACHE: std::sync::Mutex<Vec<(CacheKey, Hierarchy)>> = std::sync::Mutex::new(Vec::new());
 const CACHE_ENTRIES: usize = 8;
 const CACHE_MAX_NODES: usize = 1 << 22;
