@@ -75,10 +75,6 @@ pub(crate) struct Hierarchy {
     /// Whether the finest level has loose nodes (free nodes on no fully linked cell),
     /// which the solve settles afterwards; set by the solve that builds the hierarchy.
     pub loose: bool,
-    /// The conjugate gradient's search direction on the finest level, in `f32` (see
-    /// `solve_piece`), kept with the hierarchy between solves: a fresh vector costs a page
-    /// fault every 4 KiB when first written.
-    pub search: Vec<W2>,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -154,7 +150,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, second_steps_skipped: Default::default(), held_from: None, start_smoothing: 0, search: Vec::new() }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, second_steps_skipped: Default::default(), held_from: None, start_smoothing: 0 }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,

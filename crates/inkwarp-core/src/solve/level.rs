@@ -585,7 +585,6 @@ impl Geometry {
 #[derive(Clone, Copy)]
 enum Fold {
     Nothing,
-    #[cfg(test)]
     Dot,
     ScaledMax,
 }
@@ -907,20 +906,10 @@ impl Level {
     pub fn fine_residual_dot_narrow(&self, x: &[W2], out: &mut [V2]) -> [f64; 2] {
         let Operator::Fine { tau, runs, own, .. } = &self.op else { unreachable!("the finest level's operator") };
         let wp = self.wp;
-        let run = |(r, chunk): (usize, &mut [V2])| {
-            let r0 = r * PAR_ROWS + PAD;
-            let r1 = r0 + chunk.len() / wp;
+        self.over_bands(out, Fold::Dot, |r0, r1, chunk| {
             fine_band(runs, own, *tau, wp, x, None, r0, r1, chunk);
             pair_sums(x[r0 * wp..r1 * wp].as_flattened(), chunk.as_flattened(), |a: WS, b: f64| a.get() * b)
-        };
-        let body = &mut out[PAD * wp..(PAD + self.geo.h) * wp];
-        let parts: Vec<[f64; 2]> = if self.geo.w * self.geo.h >= PAR_MIN_NODES {
-            body.par_chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect()
-        } else {
-            body.chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect()
-        };
-        // The bands' sums are added in order, so the result does not depend on the threads.
-        parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
+        })
     }
 
     /// `out = −A x` and its largest entry scaled by the inverse diagonal (see
@@ -952,16 +941,25 @@ impl Level {
     fn bands<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]], fold: Fold) -> [f64; 2] {
         let wp = self.wp;
         let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));
-        let run = |(r, chunk): (usize, &mut [[T; 2]])| {
-            let r0 = r * PAR_ROWS + PAD;
-            let r1 = r0 + chunk.len() / wp;
+        self.over_bands(out, fold, |r0, r1, chunk| {
             self.band_residual(pinned.as_ref(), x, f, r0, chunk);
             match fold {
                 Fold::Nothing => [0.0; 2],
-                #[cfg(test)]
                 Fold::Dot => dot_pairs(&x[r0 * wp..r1 * wp], chunk),
                 Fold::ScaledMax => [scaled_max(chunk, &self.inv_diag[r0 * wp..r1 * wp]), 0.0],
             }
+        })
+    }
+
+    /// `band(r0, r1, rows)` on the level's body in bands of [`PAR_ROWS`] rows (`rows` the
+    /// band's padded rows `r0..r1` of `out`), on the pool's threads for large levels, and
+    /// the bands' results by `fold`: the largest first entry for [`Fold::ScaledMax`], else
+    /// the sums, added in order so that they do not depend on the threads.
+    fn over_bands<U: Send>(&self, out: &mut [U], fold: Fold, band: impl Fn(usize, usize, &mut [U]) -> [f64; 2] + Sync + Send) -> [f64; 2] {
+        let wp = self.wp;
+        let run = |(r, chunk): (usize, &mut [U])| {
+            let r0 = r * PAR_ROWS + PAD;
+            band(r0, r0 + chunk.len() / wp, chunk)
         };
         let body = &mut out[PAD * wp..(PAD + self.geo.h) * wp];
         let parts: Vec<[f64; 2]> = if self.geo.w * self.geo.h >= PAR_MIN_NODES {
@@ -972,7 +970,6 @@ impl Level {
         if let Fold::ScaledMax = fold {
             return [parts.iter().fold(0.0, |m, p| larger(m, p[0])), 0.0];
         }
-        // The bands' sums are added in order, so the result does not depend on the threads.
         parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
     }
 
@@ -1823,7 +1820,8 @@ mod tests {
         // Where the processor has AVX2 the stencil products run a copy compiled for it (see
         // `wide`): both copies must give the same bits, on the finest level and a Galerkin
         // level (regular runs, irregular stencils, fixed nodes), open and with a hole and a
-        // cut, without and with tension, in both precisions.
+        // cut, without and with tension, in both precisions; and the finest level's product
+        // of an `f32` vector summed in `f64` (see `narrow_product_bits`).
         let mut rnd = crate::grid::tests::sequence(71);
         for (grid, tau) in [(Grid::new(67, 61), 0.0), (torn_grid(97, true, true, 5.0), 0.3)] {
             let (w, h) = (grid.width, grid.height);
@@ -1838,36 +1836,30 @@ mod tests {
                 same_bits(level, &x, &f);
                 same_bits(level, &narrow(&x), &narrow(&f));
             }
+            let x: Vec<W2> = (0..fine.len_padded()).map(|p| if fine.inv_diag[p] != 0.0 { [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32] } else { [0.0; 2] }).collect();
+            narrow_product_bits(&fine, &x, tau);
         }
     }
 
-    #[test]
-    fn the_narrow_direction_product_is_the_wide_product_of_its_entries_widened() {
-        // The conjugate gradient keeps its search direction in `f32` and sums `A p` in `f64`
-        // from it: that must be bit for bit the `f64` product of the widened vector (and
-        // its dot product with it), so that `u += α p` and `r += α A p` move together; in
-        // the copy for the widest vectors and in the plain one.
-        let mut rnd = crate::grid::tests::sequence(73);
-        for (grid, tau) in [(Grid::new(67, 61), 0.0), (torn_grid(97, true, true, 5.0), 0.3)] {
-            let (w, h) = (grid.width, grid.height);
-            let fixed: Vec<bool> = (0..w * h).map(|_| rnd() < 0.02).collect();
-            let fine = fine_level(&grid, Some(fixed), tau);
-            let n = fine.len_padded();
-            let x: Vec<W2> = (0..n).map(|p| if fine.inv_diag[p] != 0.0 { [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32] } else { [0.0; 2] }).collect();
-            let wide: Vec<V2> = x.iter().map(|a| [a[0] as f64, a[1] as f64]).collect();
-            let (mut narrow_out, mut wide_out) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
-            let narrow_dot = fine.fine_residual_dot_narrow(&x, &mut narrow_out);
-            let wide_dot = fine.residual_dot(&wide, &mut wide_out);
-            assert!(narrow_out.iter().flatten().any(|&v| v != 0.0));
-            let bits = |v: &[V2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&narrow_out), bits(&wide_out), "{w}×{h}, τ = {tau}: A p");
-            assert_eq!(narrow_dot.map(f64::to_bits), wide_dot.map(f64::to_bits), "{w}×{h}, τ = {tau}: pᵀA p");
-            let Operator::Fine { tau: t, runs, own, .. } = &fine.op else { unreachable!("the finest level") };
-            let (wp, r0, r1) = (fine.wp, PAD, PAD + h);
-            let mut plain = vec![[0.0; 2]; n];
-            fine_band_body(runs, own, *t, wp, &x, None, r0, r1, &mut plain[r0 * wp..r1 * wp]);
-            assert_eq!(bits(&plain), bits(&narrow_out), "{w}×{h}, τ = {tau}: the plain copy");
-        }
+    /// The conjugate gradient keeps its search direction in `f32` and sums `A p` in `f64`
+    /// from it: that must be bit for bit the `f64` product of the widened vector (and its
+    /// dot product with it), so that `u += α p` and `r += α A p` move together; in the copy
+    /// for the widest vectors and in the plain one.
+    fn narrow_product_bits(fine: &Level, x: &[W2], tau: f64) {
+        let (n, w, h) = (fine.len_padded(), fine.geo.w, fine.geo.h);
+        let wide: Vec<V2> = x.iter().map(|a| [a[0] as f64, a[1] as f64]).collect();
+        let (mut narrow_out, mut wide_out) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
+        let narrow_dot = fine.fine_residual_dot_narrow(x, &mut narrow_out);
+        let wide_dot = fine.residual_dot(&wide, &mut wide_out);
+        assert!(narrow_out.iter().flatten().any(|&v| v != 0.0));
+        let bits = |v: &[V2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&narrow_out), bits(&wide_out), "{w}×{h}, τ = {tau}: A p");
+        assert_eq!(narrow_dot.map(f64::to_bits), wide_dot.map(f64::to_bits), "{w}×{h}, τ = {tau}: pᵀA p");
+        let Operator::Fine { tau: t, runs, own, .. } = &fine.op else { unreachable!("the finest level") };
+        let (wp, r0, r1) = (fine.wp, PAD, PAD + h);
+        let mut plain = vec![[0.0; 2]; n];
+        fine_band_body(runs, own, *t, wp, x, None, r0, r1, &mut plain[r0 * wp..r1 * wp]);
+        assert_eq!(bits(&plain), bits(&narrow_out), "{w}×{h}, τ = {tau}: the plain copy");
     }
 
     /// `f − A x` by the dispatching kernels and by their plain bodies, compared bit by bit.

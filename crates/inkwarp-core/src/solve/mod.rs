@@ -627,9 +627,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 // resolution; stored in `f32`, it would leave `r` off the true residual,
                 // see the concept doc's Precision.) It is not cleared first: the
                 // preconditioner's output is copied over all of it.
-                let mut q = spare_zeroed(len);
-                let mut p = std::mem::take(&mut hier.search);
-                p.resize(len, [0.0; 2]);
+                let (mut q, mut p) = (spare_zeroed(len), spare_any_narrow(len));
                 // After a warm solve's coarse-to-fine start, a longer smoothing (see
                 // `START_SMOOTHING`).
                 let z = hier.precondition(&r, started && initial.is_some());
@@ -674,7 +672,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                     rz = rz_new;
                 }
                 give_back(q);
-                hier.search = p;
+                give_back_narrow(p);
             }
         }
         SolveMethod::Southwell => {
@@ -725,13 +723,15 @@ struct Start<'a> {
 /// few megabytes costs a page fault for every 4 KiB when first written, which on a
 /// 513 × 513 grid added up to about a tenth of a solve.
 static SPARE: std::sync::Mutex<Vec<Vec<V2>>> = std::sync::Mutex::new(Vec::new());
-/// At most this many spare vectors, and bytes in all.
+/// The same for the conjugate gradient's search direction, in `f32`.
+static SPARE_NARROW: std::sync::Mutex<Vec<Vec<W2>>> = std::sync::Mutex::new(Vec::new());
+/// At most this many spare vectors, and bytes in all (each kind).
 const SPARE_VECTORS: usize = 8;
 const SPARE_BYTES: usize = 48 << 20;
 
 /// A vector of `len` zeros, from the spares when one is large enough.
 fn spare_zeroed(len: usize) -> Vec<V2> {
-    let mut v = take_spare(len);
+    let mut v = take_spare(&SPARE, len);
     v.clear();
     v.resize(len, [0.0; 2]);
     v
@@ -740,27 +740,45 @@ fn spare_zeroed(len: usize) -> Vec<V2> {
 /// A vector of `len` entries whose values are left over (the caller overwrites them all),
 /// from the spares when one is large enough.
 fn spare_any(len: usize) -> Vec<V2> {
-    let mut v = take_spare(len);
+    any_from(&SPARE, len)
+}
+
+/// [`spare_any`] in `f32`.
+fn spare_any_narrow(len: usize) -> Vec<W2> {
+    any_from(&SPARE_NARROW, len)
+}
+
+fn any_from<T: Copy + Default>(pool: &std::sync::Mutex<Vec<Vec<T>>>, len: usize) -> Vec<T> {
+    let mut v = take_spare(pool, len);
     v.truncate(len);
-    v.resize(len, [0.0; 2]);
+    v.resize(len, T::default());
     v
 }
 
 /// The smallest spare of at least `len` entries' capacity (so small solves do not use up
 /// the large vectors), or an empty vector.
-fn take_spare(len: usize) -> Vec<V2> {
-    let mut spare = SPARE.lock().unwrap_or_else(|e| e.into_inner());
+fn take_spare<T>(pool: &std::sync::Mutex<Vec<Vec<T>>>, len: usize) -> Vec<T> {
+    let mut spare = pool.lock().unwrap_or_else(|e| e.into_inner());
     let best = (0..spare.len()).filter(|&k| spare[k].capacity() >= len).min_by_key(|&k| spare[k].capacity());
     best.map(|k| spare.swap_remove(k)).unwrap_or_default()
 }
 
 /// Keeps `v` as a spare (dropping the smallest spares past the limits).
 fn give_back(v: Vec<V2>) {
-    let bytes = |v: &Vec<V2>| v.capacity() * std::mem::size_of::<V2>();
+    give_back_to(&SPARE, v);
+}
+
+/// [`give_back`] in `f32`.
+fn give_back_narrow(v: Vec<W2>) {
+    give_back_to(&SPARE_NARROW, v);
+}
+
+fn give_back_to<T>(pool: &std::sync::Mutex<Vec<Vec<T>>>, v: Vec<T>) {
+    let bytes = |v: &Vec<T>| v.capacity() * std::mem::size_of::<T>();
     if bytes(&v) > SPARE_BYTES || v.capacity() < 4096 {
         return;
     }
-    let mut spare = SPARE.lock().unwrap_or_else(|e| e.into_inner());
+    let mut spare = pool.lock().unwrap_or_else(|e| e.into_inner());
     spare.push(v);
     spare.sort_by_key(|v| std::cmp::Reverse(v.capacity()));
     while spare.len() > SPARE_VECTORS || spare.iter().map(bytes).sum::<usize>() > SPARE_BYTES {
@@ -870,8 +888,7 @@ fn spaces() -> Spaces {
 
 /// Recently used hierarchies (taken out while in use, so concurrent solves never share
 /// one). At most `CACHE_ENTRIES` of them and `CACHE_MAX_NODES` finest nodes in all (about
-/// 160 bytes a node, the conjugate gradient's search direction included), so the cache
-/// stays within a few hundred megabytes.
+/// 150 bytes a node), so the cache stays within a few hundred megabytes.
 static CACHE: std::sync::Mutex<Vec<(CacheKey, Hierarchy)>> = std::sync::Mutex::new(Vec::new());
 const CACHE_ENTRIES: usize = 8;
 const CACHE_MAX_NODES: usize = 1 << 22;
