@@ -235,9 +235,11 @@ impl Hierarchy {
         }
     }
 
-    /// Approximately solves `A_k x = f` on level k ≥ 1 (x, f in `work[0]`, the slice starting
-    /// at level k) by one V-cycle from `x` (zero when `x_zero`), its pre-smoothing `extra_pre`
-    /// steps longer than the level's own.
+    /// Approximately solves `A_k x = f` on level k (x, f in `work[0]`, the slice starting at
+    /// level k) by one cycle from `x` (zero when `x_zero`): a V-cycle, with K-cycle
+    /// corrections from the levels between the finest and the one above the coarsest. Its
+    /// pre-smoothing takes `extra_pre` steps more than the level's own (nonzero only on the
+    /// finest level, from [`Hierarchy::precondition`]).
     fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, extra_pre: usize, alt_work: Option<&mut [Work]>) {
         let level = &self.levels[k];
         if k + 1 == self.levels.len() {

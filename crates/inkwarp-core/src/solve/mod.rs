@@ -626,8 +626,10 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 // `f32`, the product of a smooth direction cancelled below `f32`'s
                 // resolution; stored in `f32`, it would leave `r` off the true residual,
                 // see the concept doc's Precision.) It is not cleared first: the
-                // preconditioner's output is copied over all of it.
-                let (mut q, mut p) = (spare_zeroed(len), spare_any_narrow(len));
+                // preconditioner's output is copied over all of it. Nor is `q`, but for
+                // its padding: like the residual's, each product writes its body first.
+                let (mut q, mut p) = (spare_any(len), spare_any_narrow(len));
+                hier.levels[0].clear_padding(&mut q);
                 // After a warm solve's coarse-to-fine start, a longer smoothing (see
                 // `START_SMOOTHING`).
                 let z = hier.precondition(&r, started && initial.is_some());
