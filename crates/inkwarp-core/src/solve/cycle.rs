@@ -498,12 +498,13 @@ fn step(num: f64, den: f64) -> f64 {
     }
 }
 
-/// Entries per task of the K-cycle's vector passes below; levels under [`PAR_MIN`]
-/// entries take them in one piece on this thread. They were single loops on one thread,
+/// Entries per task of this module's vector passes (the K-cycle's below, [`dot_w`],
+/// [`map_into`], a smoothing's first step from zero); levels under [`PAR_MIN`] entries
+/// take them in one piece on this thread. The K-cycle's were single loops on one thread,
 /// whose sums of squares each waited on its last addition, while the other thread
 /// waited (with 100 points at 513 × 513, warm, the profile samples of the function they
 /// were inlined into were about 3 % of the solving thread's).
-const K_CHUNK: usize = 4096;
+const PASS_CHUNK: usize = 4096;
 
 /// The K-cycle's first step on the coarse right-hand side: `q1 = A z₁` from `r = −A z₁`,
 /// and `f ← f − α₁ A z₁ = f + α₁ r`; returns `[before, after]`, each `[Σ f_x², Σ f_y²]` in
@@ -521,7 +522,7 @@ fn first_step_residual(f: &mut [W2], r: &[W2], q1: &mut [W2], a: [WS; 2]) -> [[f
         [before, after]
     };
     let parts: Vec<[[f64; 2]; 2]> = if f.len() >= PAR_MIN {
-        f.par_chunks_mut(K_CHUNK).zip(r.par_chunks(K_CHUNK).zip(q1.par_chunks_mut(K_CHUNK))).map(body).collect()
+        f.par_chunks_mut(PASS_CHUNK).zip(r.par_chunks(PASS_CHUNK).zip(q1.par_chunks_mut(PASS_CHUNK))).map(body).collect()
     } else {
         vec![body((f, (r, q1)))]
     };
@@ -538,9 +539,9 @@ fn second_direction(x: &mut [W2], r: &mut [W2], z1: &[W2], q1: &[W2], b: [WS; 2]
         }
     };
     if x.len() >= PAR_MIN {
-        x.par_chunks_mut(K_CHUNK)
-            .zip(r.par_chunks_mut(K_CHUNK))
-            .zip(z1.par_chunks(K_CHUNK).zip(q1.par_chunks(K_CHUNK)))
+        x.par_chunks_mut(PASS_CHUNK)
+            .zip(r.par_chunks_mut(PASS_CHUNK))
+            .zip(z1.par_chunks(PASS_CHUNK).zip(q1.par_chunks(PASS_CHUNK)))
             .for_each(|((x, r), (z1, q1))| body(x, r, z1, q1));
     } else {
         body(x, r, z1, q1);
@@ -555,7 +556,7 @@ fn both_steps(x: &mut [W2], z1: &[W2], a1: [WS; 2], a2: [WS; 2]) {
         }
     };
     if x.len() >= PAR_MIN {
-        x.par_chunks_mut(K_CHUNK).zip(z1.par_chunks(K_CHUNK)).for_each(body);
+        x.par_chunks_mut(PASS_CHUNK).zip(z1.par_chunks(PASS_CHUNK)).for_each(body);
     } else {
         body((x, z1));
     }
@@ -567,7 +568,7 @@ fn both_steps(x: &mut [W2], z1: &[W2], a1: [WS; 2], a2: [WS; 2]) {
 fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
     let dot = dot_pairs::<WS>;
     if a.len() >= PAR_MIN {
-        let parts: Vec<[f64; 2]> = a.par_chunks(K_CHUNK).zip(b.par_chunks(K_CHUNK)).map(|(a, b)| dot(a, b)).collect();
+        let parts: Vec<[f64; 2]> = a.par_chunks(PASS_CHUNK).zip(b.par_chunks(PASS_CHUNK)).map(|(a, b)| dot(a, b)).collect();
         parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
     } else {
         dot(a, b)
@@ -585,7 +586,7 @@ fn fill_zero<T: Real>(v: &mut [[T; 2]]) {
 /// `out[i] = f(a[i])` (the vectors' lengths are equal).
 fn map_into<S: Real, T: Real>(out: &mut [[T; 2]], a: &[[S; 2]], f: impl Fn([S; 2]) -> [T; 2] + Sync + Send) {
     if out.len() >= PAR_MIN {
-        out.par_chunks_mut(4096).zip(a.par_chunks(4096)).for_each(|(o, a)| o.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a)));
+        out.par_chunks_mut(PASS_CHUNK).zip(a.par_chunks(PASS_CHUNK)).for_each(|(o, a)| o.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a)));
     } else {
         out.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a));
     }
@@ -629,9 +630,9 @@ pub(crate) fn smooth(
             }
         };
         if d.len() >= PAR_MIN {
-            d.par_chunks_mut(4096)
-                .zip(x.par_chunks_mut(4096))
-                .zip(f.par_chunks(4096).zip(level.inv_diag_w.par_chunks(4096)))
+            d.par_chunks_mut(PASS_CHUNK)
+                .zip(x.par_chunks_mut(PASS_CHUNK))
+                .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
                 .for_each(|((d, x), (f, g))| first(d, x, f, g));
         } else {
             first(d, x, f, &level.inv_diag_w);
