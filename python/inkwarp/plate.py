@@ -185,8 +185,7 @@ def _check_args(
             raise ValueError(
                 f"initial has shape {init.shape} but must be {(height, width, 2)}: a previous field of this grid."
             )
-        if not np.all(np.isfinite(init)):
-            raise ValueError("initial has NaN or infinite values; pass a finite field (or None).")
+        # Its finiteness is checked by the core, in the pass that reads it (the same message).
         init = np.ascontiguousarray(init)
     return {
         "points": pts,

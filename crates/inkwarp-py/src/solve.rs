@@ -1,5 +1,6 @@
 //! `thin_plate_solve`: the grid thin plate for `inkwarp.thin_plate` (argument checking with
-//! friendly messages happens in `inkwarp/plate.py`; this adapter converts and calls the core).
+//! friendly messages happens in `inkwarp/plate.py`, but for the initial field's finiteness,
+//! which the core checks in its own pass; this adapter converts and calls the core).
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
@@ -8,7 +9,7 @@ use pyo3::types::PyDict;
 
 use std::sync::Mutex;
 
-use inkwarp_core::solve::{solve, solve_warm, SolveMethod, SolveOptions, WarmHistory};
+use inkwarp_core::solve::{in_pool, solve, solve_warm, SolveError, SolveMethod, SolveOptions, WarmHistory};
 use inkwarp_core::{Field, Grid, Sample};
 
 /// Earlier solves of one animated surface (`inkwarp.WarmStart`): the next solve starts
@@ -108,34 +109,44 @@ fn thin_plate_solve<'py>(
         let polyline: Vec<[f64; 2]> = (0..c.nrows()).map(|k| [c[[k, 0]], c[[k, 1]]]).collect();
         grid.add_cut(&polyline);
     }
-    let initial = match &initial {
-        Some(f) => {
-            if f.shape() != [height, width, 2] {
-                return Err(PyValueError::new_err(format!(
-                    "initial has shape {:?} but must be ({height}, {width}, 2).",
-                    f.shape()
-                )));
-            }
-            // Read in place when in C order; any other layout is copied into it first.
-            let a = f.as_array();
-            let c = a.as_standard_layout();
-            Some(Field::from_interleaved(width, height, c.as_slice().expect("standard layout is contiguous")))
+    if let Some(f) = &initial {
+        if f.shape() != [height, width, 2] {
+            return Err(PyValueError::new_err(format!(
+                "initial has shape {:?} but must be ({height}, {width}, 2).",
+                f.shape()
+            )));
         }
-        None => None,
-    };
+    }
+    // Read in place when in C order; any other layout is copied into it first.
+    let initial = initial.as_ref().map(|f| f.as_array());
+    let initial = initial.as_ref().map(|a| a.as_standard_layout());
+    let initial = initial.as_ref().map(|c| c.as_slice().expect("standard layout is contiguous"));
     let options = SolveOptions { tension, tolerance_px: tolerance, grid_step, max_cycles, method, southwell_sweeps };
-    let result = match &warm {
-        Some(w) => {
-            // Out of its lock while the solve runs without the interpreter.
-            let mut history = std::mem::take(&mut *w.lock());
-            let result = py.detach(|| solve_warm(&grid, &samples, &options, &mut history, None));
-            *w.lock() = history;
-            result
+    let mut history = warm.as_ref().map(|w| std::mem::take(&mut *w.lock()));
+    // Without the interpreter, and on the solver's pool with the conversions of the start
+    // and the answer (their parallel passes would otherwise each wake it from outside).
+    let result = py.detach(|| {
+        in_pool(|| {
+            let initial = initial.map(|c| Field::from_interleaved(width, height, c));
+            let result = match history.as_mut() {
+                Some(h) => solve_warm(&grid, &samples, &options, h, None),
+                None => solve(&grid, &samples, &options, initial.as_ref()),
+            };
+            result.map(|(field, report)| (field.to_interleaved(), report))
+        })
+    });
+    if let (Some(w), Some(h)) = (&warm, history) {
+        // Out of its lock while the solve ran.
+        *w.lock() = h;
+    }
+    let (field, report) = result.map_err(|e| match e {
+        // `inkwarp.thin_plate` leaves this check to the core (one pass over the field fewer).
+        SolveError::NonFiniteInitial => {
+            PyValueError::new_err("initial has NaN or infinite values; pass a finite field (or None).")
         }
-        None => py.detach(|| solve(&grid, &samples, &options, initial.as_ref())),
-    };
-    let (field, report) = result.map_err(|e| PyValueError::new_err(e.to_string()))?;
-    let array = PyArray1::from_vec(py, field.to_interleaved()).reshape([height, width, 2])?;
+        e => PyValueError::new_err(e.to_string()),
+    })?;
+    let array = PyArray1::from_vec(py, field).reshape([height, width, 2])?;
     let d = PyDict::new(py);
     d.set_item("cycles", report.cycles)?;
     d.set_item("final_change", report.final_change_px)?;
