@@ -223,23 +223,26 @@ def main() -> None:
         bench_big([(2048, 2048), (2160, 3840)])
 
 
-# scipy's 10-point fit + evaluation at 513×513 in the quiet table of
-# docs/concepts/thin-plate.md (ms): the yardstick for how fast the machine ran.
-QUIET_SCIPY_10_MS = 34.0
+# scipy's fit + evaluation at 513×513 in the quiet table of docs/concepts/thin-plate.md
+# (ms, by N): the yardstick for how fast the machine ran.
+QUIET_SCIPY_MS = {10: 34.0, 100: 248.0, 1000: 2340.0, 4000: 10166.0}
 
 
 def machine_speed(rows: list[dict]) -> None:
-    """How slow the machine ran, read from the peer run beside inkwarp's: this machine's
-    speed swings by up to 2× within minutes, and the targets are for its quiet speed."""
-    ref = next((r for r in rows if r["size"] == 513 and r["n"] == 10 and "scipy RBF" in r), None)
-    if ref is None:
+    """How slow the machine ran, read from each 513×513 row's scipy run against the quiet
+    table's: this machine's speed swings by up to 2× within minutes, and the targets are
+    for its quiet speed. Each row's factor comes from the peer run right after inkwarp's,
+    so it tells how busy the machine was around that row's times."""
+    rows = [r for r in rows if r["size"] == 513 and r["n"] in QUIET_SCIPY_MS and "scipy RBF" in r]
+    if not rows:
         return
-    factor = ref["scipy RBF"] * 1e3 / QUIET_SCIPY_10_MS
-    scaled = [r for r in rows if r["size"] == 513]
-    cells = ", ".join(f"N={r['n']} cold {r['cold'] * 1e3 / factor:.0f} warm {r['warm'] * 1e3 / factor:.0f}" for r in scaled)
-    print(f"\nMachine speed: scipy's 10-point fit at 513×513 took {ref['scipy RBF'] * 1e3:.0f} ms against "
-          f"{QUIET_SCIPY_10_MS:.0f} ms in the quiet table ({factor:.2f}×). inkwarp's 513×513 times divided by "
-          f"that (an estimate: the two codes need not slow alike): {cells} ms.")
+    print("\nMachine speed by row: scipy's 513×513 time in this run against the quiet table's "
+          "(inkwarp's times are not scaled by it: the two codes need not slow alike).\n")
+    print("| N | scipy ms, this run | quiet table | factor |")
+    print("|---|---|---|---|")
+    for r in rows:
+        factor = r["scipy RBF"] * 1e3 / QUIET_SCIPY_MS[r["n"]]
+        print(f"| {r['n']} | {r['scipy RBF'] * 1e3:.0f} | {QUIET_SCIPY_MS[r['n']]:.0f} | {factor:.2f}× |")
 
 
 if __name__ == "__main__":
