@@ -18,6 +18,72 @@ pub struct Field {
     pub dy: Vec<f32>,
 }
 
+/// A field read in place: the core's planar [`Field`], or interleaved `(H, W, 2)` storage
+/// (`[Δx, Δy]` per pixel, row-major: a numpy array's), so that a solve's start given
+/// either way is read without a copy ([`crate::solve::solve_from_view`]).
+#[derive(Clone, Copy, Debug)]
+pub enum FieldView<'a> {
+    Planar(&'a Field),
+    Interleaved { width: usize, height: usize, data: &'a [f32] },
+}
+
+impl<'a> From<&'a Field> for FieldView<'a> {
+    fn from(field: &'a Field) -> Self {
+        FieldView::Planar(field)
+    }
+}
+
+impl<'a> FieldView<'a> {
+    pub fn width(&self) -> usize {
+        match *self {
+            FieldView::Planar(f) => f.width,
+            FieldView::Interleaved { width, .. } => width,
+        }
+    }
+
+    pub fn height(&self) -> usize {
+        match *self {
+            FieldView::Planar(f) => f.height,
+            FieldView::Interleaved { height, .. } => height,
+        }
+    }
+
+    /// Whether it holds two values for each of its `width × height` pixels.
+    pub fn is_consistent(&self) -> bool {
+        let n = self.width() * self.height();
+        match *self {
+            FieldView::Planar(f) => f.dx.len() == n && f.dy.len() == n,
+            FieldView::Interleaved { data, .. } => data.len() == 2 * n,
+        }
+    }
+
+    /// The displacement of pixel `i` (row-major index).
+    pub fn at_index(&self, i: usize) -> [f32; 2] {
+        match *self {
+            FieldView::Planar(f) => [f.dx[i], f.dy[i]],
+            FieldView::Interleaved { data, .. } => [data[2 * i], data[2 * i + 1]],
+        }
+    }
+
+    /// Whether every value is finite (blocks in parallel).
+    pub fn all_finite(&self) -> bool {
+        // Without early exits within a block, so that the pass vectorises.
+        let finite = |v: &[f32]| v.iter().fold(true, |all, x| all & x.is_finite());
+        match *self {
+            FieldView::Planar(f) => f.dx.par_chunks(BLOCK).zip(f.dy.par_chunks(BLOCK)).all(|(a, b)| finite(a) & finite(b)),
+            FieldView::Interleaved { data, .. } => data.par_chunks(2 * BLOCK).all(finite),
+        }
+    }
+
+    /// As a planar field: borrowed, or copied from interleaved storage.
+    pub fn to_field(&self) -> std::borrow::Cow<'a, Field> {
+        match *self {
+            FieldView::Planar(f) => std::borrow::Cow::Borrowed(f),
+            FieldView::Interleaved { width, height, data } => std::borrow::Cow::Owned(Field::from_interleaved(width, height, data)),
+        }
+    }
+}
+
 impl Field {
     /// The identity field (no pixel moves).
     pub fn zeros(width: usize, height: usize) -> Self {

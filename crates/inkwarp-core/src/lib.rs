@@ -21,6 +21,6 @@ pub mod scene;
 pub mod solve;
 pub mod transfer;
 
-pub use field::Field;
+pub use field::{Field, FieldView};
 pub use geometry::{Kind, Point, Sample};
 pub use grid::Grid;

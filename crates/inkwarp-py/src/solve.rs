@@ -9,8 +9,8 @@ use pyo3::types::PyDict;
 
 use std::sync::Mutex;
 
-use inkwarp_core::solve::{in_pool, solve, solve_warm, SolveError, SolveMethod, SolveOptions, WarmHistory};
-use inkwarp_core::{Field, Grid, Sample};
+use inkwarp_core::solve::{in_pool, solve_from_view, solve_warm, SolveError, SolveMethod, SolveOptions, WarmHistory};
+use inkwarp_core::{FieldView, Grid, Sample};
 
 /// Earlier solves of one animated surface (`inkwarp.WarmStart`): the next solve starts
 /// from the combination of their fields that best matches its displacements.
@@ -123,14 +123,15 @@ fn thin_plate_solve<'py>(
     let initial = initial.as_ref().map(|c| c.as_slice().expect("standard layout is contiguous"));
     let options = SolveOptions { tension, tolerance_px: tolerance, grid_step, max_cycles, method, southwell_sweeps };
     let mut history = warm.as_ref().map(|w| std::mem::take(&mut *w.lock()));
-    // Without the interpreter, and on the solver's pool with the conversions of the start
-    // and the answer (their parallel passes would otherwise each wake it from outside).
+    // Without the interpreter, and on the solver's pool with the answer's conversion (its
+    // parallel pass would otherwise wake the pool from outside).
     let result = py.detach(|| {
         in_pool(|| {
-            let initial = initial.map(|c| Field::from_interleaved(width, height, c));
+            // Read in place by the solve (no planar copy first).
+            let initial = initial.map(|data| FieldView::Interleaved { width, height, data });
             let result = match history.as_mut() {
                 Some(h) => solve_warm(&grid, &samples, &options, h, None),
-                None => solve(&grid, &samples, &options, initial.as_ref()),
+                None => solve_from_view(&grid, &samples, &options, initial),
             };
             result.map(|(field, report)| (field.to_interleaved(), report))
         })

@@ -11,7 +11,7 @@
 
 use std::collections::VecDeque;
 
-use crate::field::Field;
+use crate::field::{Field, FieldView};
 use crate::geometry::Sample;
 use crate::grid::{Constraints, Grid};
 
@@ -234,7 +234,7 @@ pub fn solve_warm(
     history: &mut WarmHistory,
     initial: Option<Field>,
 ) -> Result<(Field, SolveReport), SolveError> {
-    solve_with(grid, samples, options, initial.as_ref(), Some(history))
+    solve_with(grid, samples, options, initial.as_ref().map(FieldView::from), Some(history))
 }
 
 /// The solve of constraints `c` on `grid` (the solve's own grid: the coarse one at
@@ -244,14 +244,15 @@ pub(crate) fn solve_from(
     grid: &Grid,
     c: &Constraints,
     options: &SolveOptions,
-    initial: Option<&Field>,
+    initial: Option<FieldView<'_>>,
     history: Option<&mut WarmHistory>,
 ) -> (Field, SolveReport) {
     let Some(history) = history else {
         return solve_constrained(grid, c, options, initial);
     };
-    let start = history.start(grid, c, initial);
-    let (field, report) = solve_constrained(grid, c, options, start.as_deref());
+    let given = initial.map(|f| f.to_field());
+    let start = history.start(grid, c, given.as_deref());
+    let (field, report) = solve_constrained(grid, c, options, start.as_deref().map(FieldView::from));
     history.record(grid, c, &field);
     (field, report)
 }

@@ -69,7 +69,7 @@ use crate::clock::Instant;
 use rayon::prelude::*;
 use thiserror::Error;
 
-use crate::field::Field;
+use crate::field::{Field, FieldView};
 use crate::geometry::Sample;
 use crate::grid::{constrain, linked_neighbours, Constraints, Grid};
 
@@ -186,6 +186,18 @@ pub fn solve(
     options: &SolveOptions,
     initial: Option<&Field>,
 ) -> Result<(Field, SolveReport), SolveError> {
+    solve_with(grid, samples, options, initial.map(FieldView::from), None)
+}
+
+/// [`solve`] from a start read in place, planar or interleaved (the Python binding's
+/// numpy start: converting it to a [`Field`] first cost a quarter of a millisecond at
+/// 513 × 513).
+pub fn solve_from_view(
+    grid: &Grid,
+    samples: &[Sample],
+    options: &SolveOptions,
+    initial: Option<FieldView<'_>>,
+) -> Result<(Field, SolveReport), SolveError> {
     solve_with(grid, samples, options, initial, None)
 }
 
@@ -195,7 +207,7 @@ pub(crate) fn solve_with(
     grid: &Grid,
     samples: &[Sample],
     options: &SolveOptions,
-    initial: Option<&Field>,
+    initial: Option<FieldView<'_>>,
     history: Option<&mut WarmHistory>,
 ) -> Result<(Field, SolveReport), SolveError> {
     let start = Instant::now();
@@ -203,7 +215,7 @@ pub(crate) fn solve_with(
         // On the pool, where its pass over the initial field runs in parallel.
         validate(grid, samples, options, initial)?;
         Ok(if options.grid_step > 1 {
-            upsample::solve_coarse(grid, samples, options, initial, history)
+            upsample::solve_coarse(grid, samples, options, initial.map(|f| f.to_field()).as_deref(), history)
         } else {
             history::solve_from(grid, &constrain(grid, samples), options, initial, history)
         })
@@ -219,9 +231,10 @@ pub(crate) fn solve_with(
 /// the pool's other threads keep looking for work until it is done ([`Keepers`]).
 ///
 /// Public for callers that move large arrays around a solve (the Python binding converts
-/// the start and the answer): run there too, their parallel passes share the awake pool
-/// instead of each handing off from outside it (at 513 × 513, timed in the binding, the
-/// two conversions took about 0.5 ms from outside against 0.35–0.4 ms inside).
+/// the answer to numpy's layout): run there too, their parallel passes share the awake
+/// pool instead of each handing off from outside it (at 513 × 513, timed in the binding,
+/// the start's and the answer's conversions took about 0.5 ms from outside against
+/// 0.35–0.4 ms inside; the start is now read in place, see [`solve_from_view`]).
 pub fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     if rayon::current_thread_index().is_some() {
         return f();
@@ -292,7 +305,7 @@ pub(crate) fn validate(
     grid: &Grid,
     samples: &[Sample],
     options: &SolveOptions,
-    initial: Option<&Field>,
+    initial: Option<FieldView<'_>>,
 ) -> Result<(), SolveError> {
     if !grid.is_consistent() {
         return Err(SolveError::InconsistentGrid);
@@ -315,18 +328,16 @@ pub(crate) fn validate(
         }
     }
     if let Some(f) = initial {
-        if f.width != grid.width || f.height != grid.height || f.dx.len() != grid.len() || f.dy.len() != grid.len() {
+        if f.width() != grid.width || f.height() != grid.height || !f.is_consistent() {
             return Err(SolveError::InitialSize {
-                got_w: f.width,
-                got_h: f.height,
+                got_w: f.width(),
+                got_h: f.height(),
                 want_w: grid.width,
                 want_h: grid.height,
             });
         }
-        // Without early exits within a block, so that the pass vectorises; blocks in
-        // parallel (every warm solve from Python reads its start here first).
-        let finite = |v: &[f32]| v.iter().fold(true, |all, x| all & x.is_finite());
-        if !f.dx.par_chunks(1 << 15).zip(f.dy.par_chunks(1 << 15)).all(|(a, b)| finite(a) & finite(b)) {
+        // In parallel: every warm solve from Python reads its start here first.
+        if !f.all_finite() {
             return Err(SolveError::NonFiniteInitial);
         }
     }
@@ -348,7 +359,7 @@ pub(crate) fn solve_constrained(
     grid: &Grid,
     constraints: &Constraints,
     options: &SolveOptions,
-    initial: Option<&Field>,
+    initial: Option<FieldView<'_>>,
 ) -> (Field, SolveReport) {
     let (w, h) = (grid.width, grid.height);
     let n = w * h;
@@ -450,7 +461,7 @@ pub(crate) fn solve_constrained(
         }
         if let Some(g) = gauge {
             let v = match initial {
-                Some(f) => [f.dx[g] as f64, f.dy[g] as f64],
+                Some(f) => f.at_index(g).map(f64::from),
                 None => {
                     let m = by_piece[l].len() as f64;
                     let sum = by_piece[l].iter().fold([0.0; 2], |s, &k| [s[0] + constraints.values[k][0], s[1] + constraints.values[k][1]]);
@@ -576,11 +587,21 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
             let wp = fine.wp;
             fine.clear_padding(&mut u);
             u[PAD * wp..(PAD + h) * wp].par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
-                let g = (y0 + y) * field.width + x0;
+                let g = (y0 + y) * field.width() + x0;
                 let p = fine.pidx(0, y);
-                let (dx, dy) = (&field.dx[g..g + w], &field.dy[g..g + w]);
-                for (((ux, d), &vx), &vy) in row[PAD..PAD + w].iter_mut().zip(&fine.inv_diag[p..p + w]).zip(dx).zip(dy) {
-                    *ux = if *d != 0.0 { [vx as f64, vy as f64] } else { [0.0; 2] };
+                let row = row[PAD..PAD + w].iter_mut().zip(&fine.inv_diag[p..p + w]);
+                let take = |d: f64, vx: f32, vy: f32| if d != 0.0 { [vx as f64, vy as f64] } else { [0.0; 2] };
+                match field {
+                    FieldView::Planar(f) => {
+                        for (((ux, &d), &vx), &vy) in row.zip(&f.dx[g..g + w]).zip(&f.dy[g..g + w]) {
+                            *ux = take(d, vx, vy);
+                        }
+                    }
+                    FieldView::Interleaved { data, .. } => {
+                        for ((ux, &d), v) in row.zip(data[2 * g..2 * (g + w)].chunks_exact(2)) {
+                            *ux = take(d, v[0], v[1]);
+                        }
+                    }
                 }
             });
         }
@@ -725,7 +746,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
 /// (`x0`, `y0`).
 #[derive(Clone, Copy)]
 struct Start<'a> {
-    field: &'a Field,
+    field: FieldView<'a>,
     x0: usize,
     y0: usize,
 }

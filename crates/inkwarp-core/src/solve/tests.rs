@@ -434,6 +434,33 @@ fn warm_start_from_the_answer_takes_one_cycle() {
 }
 
 #[test]
+fn an_interleaved_start_read_in_place_solves_as_the_planar_one() {
+    let mut rng = Rng(11);
+    let (w, h) = (45, 33);
+    let mut grid = Grid::new(w, h);
+    grid.add_cut(&[[10.5, -1.0], [20.5, 18.0]]);
+    let samples = random_samples(&mut rng, w, h, 14);
+    let (field, _) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    let moved = next_frame(&samples);
+    let interleaved = field.to_interleaved();
+    let view = FieldView::Interleaved { width: w, height: h, data: &interleaved };
+    for step in [1, 3] {
+        let opts = SolveOptions { grid_step: step, ..Default::default() };
+        let (a, ra) = solve(&grid, &moved, &opts, Some(&field)).unwrap();
+        let (b, rb) = solve_from_view(&grid, &moved, &opts, Some(view)).unwrap();
+        assert_eq!(a, b, "grid_step {step}");
+        assert_eq!(ra.cycles, rb.cycles);
+    }
+    // Bad starts are refused as the planar ones are.
+    let short = FieldView::Interleaved { width: w, height: h, data: &interleaved[2..] };
+    assert!(matches!(solve_from_view(&grid, &moved, &SolveOptions::default(), Some(short)), Err(SolveError::InitialSize { .. })));
+    let mut nan = interleaved.clone();
+    nan[2 * (w * h) - 1] = f32::NAN;
+    let view = FieldView::Interleaved { width: w, height: h, data: &nan };
+    assert!(matches!(solve_from_view(&grid, &moved, &SolveOptions::default(), Some(view)), Err(SolveError::NonFiniteInitial)));
+}
+
+#[test]
 fn southwell_lowers_the_energy() {
     let mut rng = Rng(5);
     let grid = Grid::new(30, 30);

@@ -31,7 +31,7 @@ use std::collections::VecDeque;
 use rayon::prelude::*;
 
 use crate::clock::Instant;
-use crate::field::Field;
+use crate::field::{Field, FieldView};
 use crate::geometry::Sample;
 use crate::grid::{constrain, nearest_node, Constraints, Grid};
 
@@ -56,7 +56,7 @@ pub(crate) fn solve_coarse(
     }
     let coarse = Coarse::new(grid, samples, options.grid_step);
     let start = initial.map(|f| coarse.restrict(f));
-    let (fc, report) = solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref(), history);
+    let (fc, report) = solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref().map(FieldView::from), history);
     (upsample(grid, &Upsampling::new(grid, options.grid_step), &fc, samples), report)
 }
 
