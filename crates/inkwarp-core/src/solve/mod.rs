@@ -375,7 +375,10 @@ pub(crate) fn solve_constrained(
     if n == 0 {
         return (field, report);
     }
-    let (labels, count) = grid.pieces();
+    // An open grid (every node active, every link there: most grids) is one piece whose
+    // key is the grid's own links and whose answer is written without reading labels.
+    let open = grid.is_open();
+    let (labels, count) = if open { (vec![0; n], 1) } else { grid.pieces() };
     let pieces = classify(grid, &labels, count, constraints, tau);
 
     // Each piece is a problem of its own: translated pieces take their constraint, and
@@ -432,9 +435,15 @@ pub(crate) fn solve_constrained(
         let (bw, bh) = (x1 - x0, y1 - y0);
         // Row `by` of the box as a range of the grid's nodes.
         let rows = |by: usize| (y0 + by) * w + x0..(y0 + by) * w + x1;
-        let (mut active, mut right, mut down) = (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh]);
+        let (mut active, mut right, mut down) = if open {
+            // The box is the grid, and a consistent grid has no link off its last column or
+            // row: the loops below would copy the links as they are.
+            (vec![true; n], grid.link_right.clone(), grid.link_down.clone())
+        } else {
+            (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh])
+        };
         // Without short-circuits, so that the passes vectorise (every solve builds its key).
-        for by in 0..bh {
+        for by in (0..bh).filter(|_| !open) {
             let g = rows(by);
             let b = by * bw..(by + 1) * bw;
             for (a, &lab) in active[b.clone()].iter_mut().zip(&labels[g.clone()]) {
@@ -486,7 +495,17 @@ pub(crate) fn solve_constrained(
         } else {
             let span = y0 * w..(y0 + bh) * w;
             let (dx, dy) = (&mut field.dx[span.clone()], &mut field.dy[span]);
-            dx.par_chunks_mut(w).zip(dy.par_chunks_mut(w)).enumerate().for_each(|(by, (dx, dy))| {
+            // Four rows a task at least, and on an open grid no labels read (every node of
+            // the box is the piece's): at 513 × 513 this write took 0.24–0.28 ms against
+            // 0.31–0.40 ms with a task a row and the labels (a busy machine).
+            dx.par_chunks_mut(w).zip(dy.par_chunks_mut(w)).enumerate().with_min_len(4).for_each(|(by, (dx, dy))| {
+                if open {
+                    for ((dx, dy), v) in dx.iter_mut().zip(dy.iter_mut()).zip(u.row(by, bw)) {
+                        *dx = v[0] as f32;
+                        *dy = v[1] as f32;
+                    }
+                    return;
+                }
                 let g = rows(by);
                 let (lab, v) = (&labels[g.clone()], u.row(by, bw));
                 for (((dx, dy), &lab), v) in dx[x0..x1].iter_mut().zip(&mut dy[x0..x1]).zip(lab).zip(v) {
