@@ -185,7 +185,8 @@ def _check_args(
             raise ValueError(
                 f"initial has shape {init.shape} but must be {(height, width, 2)}: a previous field of this grid."
             )
-        # Its finiteness is checked by the core, in the pass that reads it (the same message).
+        # Its finiteness is checked by the core, in parallel, before the solve reads it (the
+        # binding raises the same message as this module's other checks would).
         init = np.ascontiguousarray(init)
     return {
         "points": pts,

@@ -34,6 +34,7 @@ impl<'a> From<&'a Field> for FieldView<'a> {
 }
 
 impl<'a> FieldView<'a> {
+    /// Pixels per row.
     pub fn width(&self) -> usize {
         match *self {
             FieldView::Planar(f) => f.width,
@@ -41,6 +42,7 @@ impl<'a> FieldView<'a> {
         }
     }
 
+    /// Rows.
     pub fn height(&self) -> usize {
         match *self {
             FieldView::Planar(f) => f.height,
@@ -48,7 +50,17 @@ impl<'a> FieldView<'a> {
         }
     }
 
-    /// Whether it holds two values for each of its `width × height` pixels.
+    /// How many values it holds: two for each of its `width × height` pixels when
+    /// consistent.
+    pub fn values(&self) -> usize {
+        match *self {
+            FieldView::Planar(f) => f.dx.len() + f.dy.len(),
+            FieldView::Interleaved { data, .. } => data.len(),
+        }
+    }
+
+    /// Whether it holds two values for each of its `width × height` pixels (for planar
+    /// storage, one in each plane).
     pub fn is_consistent(&self) -> bool {
         let n = self.width() * self.height();
         match *self {

@@ -158,6 +158,8 @@ pub enum SolveError {
     BadBudget(f64),
     #[error("The initial field is {got_w}×{got_h} but the grid is {want_w}×{want_h}; pass a field of the grid's size.")]
     InitialSize { got_w: usize, got_h: usize, want_w: usize, want_h: usize },
+    #[error("The initial field holds {got} values, but a {w}×{h} field holds {want} (two a pixel).")]
+    InitialLength { got: usize, want: usize, w: usize, h: usize },
     #[error("The initial field has non-finite values; every displacement must be finite.")]
     NonFiniteInitial,
     #[error("The upsampling plan was built for another grid or grid step; build one for this grid and step.")]
@@ -328,13 +330,17 @@ pub(crate) fn validate(
         }
     }
     if let Some(f) = initial {
-        if f.width() != grid.width || f.height() != grid.height || !f.is_consistent() {
+        if f.width() != grid.width || f.height() != grid.height {
             return Err(SolveError::InitialSize {
                 got_w: f.width(),
                 got_h: f.height(),
                 want_w: grid.width,
                 want_h: grid.height,
             });
+        }
+        if !f.is_consistent() {
+            let (w, h) = (grid.width, grid.height);
+            return Err(SolveError::InitialLength { got: f.values(), want: 2 * w * h, w, h });
         }
         // In parallel: every warm solve from Python reads its start here first.
         if !f.all_finite() {

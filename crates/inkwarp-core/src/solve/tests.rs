@@ -453,7 +453,10 @@ fn an_interleaved_start_read_in_place_solves_as_the_planar_one() {
     }
     // Bad starts are refused as the planar ones are.
     let short = FieldView::Interleaved { width: w, height: h, data: &interleaved[2..] };
-    assert!(matches!(solve_from_view(&grid, &moved, &SolveOptions::default(), Some(short)), Err(SolveError::InitialSize { .. })));
+    let err = solve_from_view(&grid, &moved, &SolveOptions::default(), Some(short)).unwrap_err();
+    assert!(matches!(err, SolveError::InitialLength { got, want, .. } if got == 2 * w * h - 2 && want == 2 * w * h), "{err}");
+    let other = FieldView::Interleaved { width: w - 1, height: h, data: &interleaved[2 * h..] };
+    assert!(matches!(solve_from_view(&grid, &moved, &SolveOptions::default(), Some(other)), Err(SolveError::InitialSize { .. })));
     let mut nan = interleaved.clone();
     nan[2 * (w * h) - 1] = f32::NAN;
     let view = FieldView::Interleaved { width: w, height: h, data: &nan };
