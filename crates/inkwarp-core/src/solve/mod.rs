@@ -888,7 +888,6 @@ const START_SMOOTHING_SPACING: usize = 128;
 
 /// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
 /// constraint values. Consecutive frames of an animation share it.
-#[derive(PartialEq)]
 struct CacheKey {
     w: usize,
     h: usize,
@@ -950,9 +949,24 @@ static CACHE: std::sync::Mutex<Vec<(CacheKey, Hierarchy)>> = std::sync::Mutex::n
 const CACHE_ENTRIES: usize = 8;
 const CACHE_MAX_NODES: usize = 1 << 22;
 
+impl PartialEq for CacheKey {
+    /// The fixed nodes before the grid: hierarchies kept for other problems on the same
+    /// grid differ there, and the grid's three vectors (a quarter of a megabyte each at
+    /// 513 × 513) need not be compared for them.
+    fn eq(&self, o: &Self) -> bool {
+        (self.w, self.h, self.tau_bits, self.spaces) == (o.w, o.h, o.tau_bits, o.spaces)
+            && self.fixed == o.fixed
+            && self.active == o.active
+            && self.right == o.right
+            && self.down == o.down
+    }
+}
+
 fn cache_take(key: &CacheKey) -> Option<Hierarchy> {
     let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
-    let pos = cache.iter().position(|(k, _)| k == key)?;
+    // Newest first: the hierarchy a solve takes goes back last (an animation's frames,
+    // the editor's drags).
+    let pos = cache.iter().rposition(|(k, _)| k == key)?;
     Some(cache.remove(pos).1)
 }
 
