@@ -218,8 +218,16 @@ impl Grid {
     /// nodes), pieces numbered `0..count` in order of their first node. Links are taken to
     /// join active nodes (as [`Grid::is_consistent`] checks).
     pub fn pieces(&self) -> (Vec<u32>, usize) {
+        let (labels, count, _) = self.pieces_and_open();
+        (labels, count)
+    }
+
+    /// [`Grid::pieces`], and whether the grid is open ([`Grid::is_open`]): the check that
+    /// answers an open grid at once, told to the caller (the solver keys and writes an open
+    /// grid's piece without reading labels).
+    pub(crate) fn pieces_and_open(&self) -> (Vec<u32>, usize, bool) {
         if !self.is_empty() && self.is_open() {
-            return (vec![0; self.len()], 1);
+            return (vec![0; self.len()], 1, true);
         }
         // Union-find over runs (maximal row segments joined by right links) rather than
         // nodes: a row of a connected picture is one run, so there are few elements and
@@ -280,7 +288,7 @@ impl Grid {
             run_label[r] = run_label[root];
         }
         let labels = run.iter().map(|&r| if r == u32::MAX { u32::MAX } else { run_label[r as usize] }).collect();
-        (labels, count)
+        (labels, count, false)
     }
 }
 

@@ -217,7 +217,7 @@ pub(crate) fn solve_with(
         // On the pool, where its pass over the initial field runs in parallel.
         validate(grid, samples, options, initial)?;
         Ok(if options.grid_step > 1 {
-            upsample::solve_coarse(grid, samples, options, initial.map(|f| f.to_field()).as_deref(), history)
+            upsample::solve_coarse(grid, samples, options, initial, history)
         } else {
             history::solve_from(grid, &constrain(grid, samples), options, initial, history)
         })
@@ -383,8 +383,7 @@ pub(crate) fn solve_constrained(
     }
     // An open grid (every node active, every link there: most grids) is one piece whose
     // key is the grid's own links and whose answer is written without reading labels.
-    let open = grid.is_open();
-    let (labels, count) = if open { (vec![0; n], 1) } else { grid.pieces() };
+    let (labels, count, open) = grid.pieces_and_open();
     let pieces = classify(grid, &labels, count, constraints, tau);
 
     // Each piece is a problem of its own: translated pieces take their constraint, and
@@ -441,30 +440,7 @@ pub(crate) fn solve_constrained(
         let (bw, bh) = (x1 - x0, y1 - y0);
         // Row `by` of the box as a range of the grid's nodes.
         let rows = |by: usize| (y0 + by) * w + x0..(y0 + by) * w + x1;
-        let (mut active, mut right, mut down) = if open {
-            // The box is the grid, and a consistent grid has no link off its last column or
-            // row: the loops below would copy the links as they are.
-            (vec![true; n], grid.link_right.clone(), grid.link_down.clone())
-        } else {
-            (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh])
-        };
-        // Without short-circuits, so that the passes vectorise (every solve builds its key).
-        for by in (0..bh).filter(|_| !open) {
-            let g = rows(by);
-            let b = by * bw..(by + 1) * bw;
-            for (a, &lab) in active[b.clone()].iter_mut().zip(&labels[g.clone()]) {
-                *a = lab == l as u32;
-            }
-            let act = &active[b.clone()];
-            for ((r, &link), &a) in right[b.clone()].iter_mut().zip(&grid.link_right[g.clone()]).zip(act).take(bw - 1) {
-                *r = link & a;
-            }
-            if by + 1 < bh {
-                for ((d, &link), &a) in down[b.clone()].iter_mut().zip(&grid.link_down[g]).zip(act) {
-                    *d = link & a;
-                }
-            }
-        }
+        let [active, right, down] = piece_links(grid, &labels, l as u32, boxes[l], open);
         let local = |i: usize| (i / w - y0) * bw + i % w - x0;
         let mut fixed = vec![false; bw * bh];
         // (node, value) of every fixed node: the constrained ones, then the gauge pin.
@@ -545,6 +521,36 @@ pub(crate) fn solve_constrained(
         give_back(out);
     }
     (field, report)
+}
+
+/// Piece `l`'s nodes on its box `[x0, y0, x1, y1]` (row-major, the box's width) and its
+/// right and down links within the box: the grid its hierarchy is built on. On an open
+/// grid the box is the grid and these are the grid's own (a consistent grid has no link
+/// off its last column or row), copied without reading labels.
+fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4], open: bool) -> [Vec<bool>; 3] {
+    if open {
+        return [vec![true; grid.len()], grid.link_right.clone(), grid.link_down.clone()];
+    }
+    let (w, bw, bh) = (grid.width, x1 - x0, y1 - y0);
+    let (mut active, mut right, mut down) = (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh]);
+    // Without short-circuits, so that the passes vectorise (every solve builds its key).
+    for by in 0..bh {
+        let g = (y0 + by) * w + x0..(y0 + by) * w + x1;
+        let b = by * bw..(by + 1) * bw;
+        for (a, &lab) in active[b.clone()].iter_mut().zip(&labels[g.clone()]) {
+            *a = lab == l;
+        }
+        let act = &active[b.clone()];
+        for ((r, &link), &a) in right[b.clone()].iter_mut().zip(&grid.link_right[g.clone()]).zip(act).take(bw - 1) {
+            *r = link & a;
+        }
+        if by + 1 < bh {
+            for ((d, &link), &a) in down[b].iter_mut().zip(&grid.link_down[g]).zip(act) {
+                *d = link & a;
+            }
+        }
+    }
+    [active, right, down]
 }
 
 /// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`:
@@ -954,11 +960,13 @@ impl PartialEq for CacheKey {
     /// grid differ there, and the grid's three vectors (a quarter of a megabyte each at
     /// 513 × 513) need not be compared for them.
     fn eq(&self, o: &Self) -> bool {
-        (self.w, self.h, self.tau_bits, self.spaces) == (o.w, o.h, o.tau_bits, o.spaces)
-            && self.fixed == o.fixed
-            && self.active == o.active
-            && self.right == o.right
-            && self.down == o.down
+        // Every field named, so that a new one cannot be left out of the comparison.
+        let CacheKey { w, h, tau_bits, active, right, down, fixed, spaces } = self;
+        (*w, *h, *tau_bits, *spaces) == (o.w, o.h, o.tau_bits, o.spaces)
+            && *fixed == o.fixed
+            && *active == o.active
+            && *right == o.right
+            && *down == o.down
     }
 }
 

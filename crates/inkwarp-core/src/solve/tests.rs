@@ -464,6 +464,21 @@ fn an_interleaved_start_read_in_place_solves_as_the_planar_one() {
 }
 
 #[test]
+fn an_open_grids_piece_links_are_the_grids_own() {
+    // The shortcut for open grids must give the key the general loops give.
+    for (w, h) in [(1, 1), (7, 1), (1, 5), (23, 17)] {
+        let grid = Grid::new(w, h);
+        let (labels, count, open) = grid.pieces_and_open();
+        assert!(open && count == 1, "{w}×{h}");
+        let bx = [0, 0, w, h];
+        assert_eq!(piece_links(&grid, &labels, 0, bx, true), piece_links(&grid, &labels, 0, bx, false), "{w}×{h}");
+    }
+    let mut cut = Grid::new(23, 17);
+    cut.add_cut(&[[5.5, -1.0], [5.5, 8.0]]);
+    assert!(!cut.pieces_and_open().2);
+}
+
+#[test]
 fn southwell_lowers_the_energy() {
     let mut rng = Rng(5);
     let grid = Grid::new(30, 30);

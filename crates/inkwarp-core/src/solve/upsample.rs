@@ -48,7 +48,7 @@ pub(crate) fn solve_coarse(
     grid: &Grid,
     samples: &[Sample],
     options: &SolveOptions,
-    initial: Option<&Field>,
+    initial: Option<FieldView<'_>>,
     history: Option<&mut WarmHistory>,
 ) -> (Field, SolveReport) {
     if grid.width == 0 || grid.height == 0 {
@@ -208,13 +208,14 @@ impl Coarse {
         SolveOptions { tension: options.tension * sf * sf, grid_step: 1, ..options.clone() }
     }
 
-    /// A fine field's values at the coarse nodes.
-    fn restrict(&self, f: &Field) -> Field {
+    /// A fine field's values at the coarse nodes (read in place: a pass over the coarse
+    /// grid, not over every pixel).
+    fn restrict(&self, f: FieldView<'_>) -> Field {
         let (wc, hc) = (self.layout.wc, self.layout.hc);
         let mut c = Field::zeros(wc, hc);
         for yc in 0..hc {
             for xc in 0..wc {
-                let v = f.at(self.layout.px(xc), self.layout.py(yc));
+                let v = f.at_index(self.layout.py(yc) * f.width() + self.layout.px(xc));
                 c.dx[yc * wc + xc] = v[0];
                 c.dy[yc * wc + xc] = v[1];
             }
