@@ -619,34 +619,35 @@ pub(crate) fn smooth(
     let mut rule = StepRule::First { inv_theta };
     let mut steps = aim.steps;
     if x_zero {
-        // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass.
+        // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass,
+        // which writes x alone (the second step reads the update there, `StepRule::Second`).
         let f = f.expect("a zero start needs a right-hand side");
-        let first = |d: &mut [W2], x: &mut [W2], f: &[W2], g: &[WS]| {
-            for i in 0..d.len() {
-                let v = if g[i] != 0.0 { [f[i][0] * g[i] * inv_theta, f[i][1] * g[i] * inv_theta] } else { [0.0; 2] };
-                d[i] = v;
+        let first = |x: &mut [W2], f: &[W2], g: &[WS]| {
+            for ((x, f), &g) in x.iter_mut().zip(f).zip(g) {
+                let v = if g != 0.0 { [f[0] * g * inv_theta, f[1] * g * inv_theta] } else { [0.0; 2] };
                 // 0 + v, as `x += d` from zero gave (a −0 becomes +0).
-                x[i] = [WS::ZERO + v[0], WS::ZERO + v[1]];
+                *x = [WS::ZERO + v[0], WS::ZERO + v[1]];
             }
         };
-        if d.len() >= PAR_MIN {
-            d.par_chunks_mut(PASS_CHUNK)
-                .zip(x.par_chunks_mut(PASS_CHUNK))
+        if x.len() >= PAR_MIN {
+            x.par_chunks_mut(PASS_CHUNK)
                 .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
-                .for_each(|((d, x), (f, g))| first(d, x, f, g));
+                .for_each(|(x, (f, g))| first(x, f, g));
         } else {
-            first(d, x, f, &level.inv_diag_w);
+            first(x, f, &level.inv_diag_w);
         }
         steps -= 1;
     }
     for k in 0..steps {
         if k > 0 || x_zero {
             let rho_new = 1.0 / (2.0 * sigma - rho);
-            rule = StepRule::Next { c1: WS::of(rho_new * rho), c2: WS::of(2.0 * rho_new / delta) };
+            let (c1, c2) = (WS::of(rho_new * rho), WS::of(2.0 * rho_new / delta));
+            rule = if k == 0 { StepRule::Second { c1, c2 } } else { StepRule::Next { c1, c2 } };
             rho = rho_new;
         }
-        // The step writes x + d into r's vector, which then becomes x's.
-        level.smoothing_step(x, f, d, r, rule);
+        // The step writes x + d into r's vector, which then becomes x's; the last one's
+        // update is not kept.
+        level.smoothing_step(x, f, d, r, rule, k + 1 < steps);
         std::mem::swap(x, r);
     }
 }

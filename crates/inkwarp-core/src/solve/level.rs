@@ -979,8 +979,10 @@ impl Level {
     /// the addition one pass each, so the result is bit for bit theirs; but `x`, `d` and the
     /// residual are read once instead of twice or three times (a step of the finest level
     /// at 513 × 513 touches about 11 MB instead of 17, counted from its vectors). `next`
-    /// must differ from `x`: the bands read `x` two rows past their own.
-    pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule) {
+    /// must differ from `x`: the bands read `x` two rows past their own. `d` is written only
+    /// when `keep` (a later step of the same smoothing reads it), and read only by
+    /// [`StepRule::Next`].
+    pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
         let wp = self.wp;
         let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));
         let (w, g) = (self.geo.w, &self.inv_diag_w[..]);
@@ -994,7 +996,7 @@ impl Level {
                 orow[..PAD].copy_from_slice(&xrow[..PAD]);
                 orow[PAD + w..].copy_from_slice(&xrow[PAD + w..]);
                 let cols = PAD..PAD + w;
-                step_row(&mut orow[cols.clone()], &mut drow[cols.clone()], &xrow[cols.clone()], &grow[cols], rule);
+                step_row(&mut orow[cols.clone()], &mut drow[cols.clone()], &xrow[cols.clone()], &grow[cols], rule, keep);
             }
         };
         let body = PAD * wp..(PAD + self.geo.h) * wp;
@@ -1011,35 +1013,46 @@ impl Level {
 }
 
 /// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal
-/// `g`: `d = g r / θ` for the first step, `d = c₁ d + c₂ g r` for later ones.
+/// `g`: `d = g r / θ` for the first step, `d = c₁ d + c₂ g r` for later ones. After a first
+/// step from zero the last update is the iterate itself, and the second step reads it there
+/// (`Second`: `d = c₁ x + c₂ g r`), so that first step writes one vector instead of two and
+/// the second reads one less.
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum StepRule {
     First { inv_theta: WS },
     Next { c1: WS, c2: WS },
+    Second { c1: WS, c2: WS },
 }
 
-/// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one row.
+/// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one row;
+/// `d` is written only when `keep`.
 #[inline(always)]
-fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule) {
+fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule, keep: bool) {
     let n = out.len();
     let (d, x, g) = (&mut d[..n], &x[..n], &g[..n]);
+    // A plain loop for each case, which the compiler vectorises.
+    macro_rules! each {
+        (|$i:ident, $r:ident, $g:ident| $v:expr) => {
+            if keep {
+                for $i in 0..n {
+                    let ($r, $g) = (out[$i], g[$i]);
+                    let v = $v;
+                    d[$i] = v;
+                    out[$i] = [x[$i][0] + v[0], x[$i][1] + v[1]];
+                }
+            } else {
+                for $i in 0..n {
+                    let ($r, $g) = (out[$i], g[$i]);
+                    let v = $v;
+                    out[$i] = [x[$i][0] + v[0], x[$i][1] + v[1]];
+                }
+            }
+        };
+    }
     match rule {
-        StepRule::First { inv_theta } => {
-            for i in 0..n {
-                let (r, dd) = (out[i], g[i]);
-                let v = [r[0] * dd * inv_theta, r[1] * dd * inv_theta];
-                d[i] = v;
-                out[i] = [x[i][0] + v[0], x[i][1] + v[1]];
-            }
-        }
-        StepRule::Next { c1, c2 } => {
-            for i in 0..n {
-                let (r, dd) = (out[i], g[i]);
-                let v = [c1 * d[i][0] + c2 * dd * r[0], c1 * d[i][1] + c2 * dd * r[1]];
-                d[i] = v;
-                out[i] = [x[i][0] + v[0], x[i][1] + v[1]];
-            }
-        }
+        StepRule::First { inv_theta } => each!(|i, r, dd| [r[0] * dd * inv_theta, r[1] * dd * inv_theta]),
+        StepRule::Next { c1, c2 } => each!(|i, r, dd| [c1 * d[i][0] + c2 * dd * r[0], c1 * d[i][1] + c2 * dd * r[1]]),
+        StepRule::Second { c1, c2 } => each!(|i, r, dd| [c1 * x[i][0] + c2 * dd * r[0], c1 * x[i][1] + c2 * dd * r[1]]),
     }
 }
 

@@ -979,14 +979,20 @@ fn a_fused_smoothing_step_gives_the_separate_passes_results_bit_for_bit() {
     // One pass per smoothing step (residual, update and addition band by band) against the
     // three passes it replaces: on the finest level and a Galerkin level of a grid with a
     // hole, a cut and scattered fixed nodes (the first coarse level through its fixed
-    // nodes' terms), for the first step's rule and a later one's, every bit the same.
+    // nodes' terms), for the first step's rule, a later one's and the second one's (which
+    // reads the last update from the iterate), each with its update kept and not (then `d`
+    // is left as it was), every bit the same.
     use super::level::{StepRule, WS};
     let mut rnd = crate::grid::tests::sequence(91);
     let fine = torn_scattered_level(&mut rnd, 0.04, 0.1);
     let mut coarse = level::galerkin(&fine);
     coarse.pinned = super::pinned::Pinned::new(&fine, &coarse).map(Box::new);
     assert!(coarse.pinned.is_some());
-    let rules = [StepRule::First { inv_theta: 0.37 }, StepRule::Next { c1: 0.81, c2: -1.3 }];
+    let rules = [
+        StepRule::First { inv_theta: 0.37 },
+        StepRule::Next { c1: 0.81, c2: -1.3 },
+        StepRule::Second { c1: 0.81, c2: -1.3 },
+    ];
     for (name, level) in [("finest", &fine), ("first coarse", &coarse)] {
         let n = level.len_padded();
         let (x, f) = (random_on_unknowns(level, &mut rnd, false), random_on_unknowns(level, &mut rnd, false));
@@ -1001,14 +1007,18 @@ fn a_fused_smoothing_step_gives_the_separate_passes_results_bit_for_bit() {
                 d[p] = match rule {
                     StepRule::First { inv_theta } => [r[p][0] * g * inv_theta, r[p][1] * g * inv_theta],
                     StepRule::Next { c1, c2 } => [c1 * d[p][0] + c2 * g * r[p][0], c1 * d[p][1] + c2 * g * r[p][1]],
+                    StepRule::Second { c1, c2 } => [c1 * x[p][0] + c2 * g * r[p][0], c1 * x[p][1] + c2 * g * r[p][1]],
                 };
                 x_sep[p] = [x_sep[p][0] + d[p][0], x_sep[p][1] + d[p][1]];
             }
-            let (mut d_fused, mut next) = (d0.clone(), random_on_unknowns(level, &mut rnd, true));
-            level.smoothing_step(&x, Some(&f), &mut d_fused, &mut next, rule);
             let bits = |v: &[W2]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&next), bits(&x_sep), "{name}, {rule:?}: x + d");
-            assert_eq!(bits(&d_fused), bits(&d), "{name}, {rule:?}: d");
+            for keep in [true, false] {
+                let (mut d_fused, mut next) = (d0.clone(), random_on_unknowns(level, &mut rnd, true));
+                level.smoothing_step(&x, Some(&f), &mut d_fused, &mut next, rule, keep);
+                assert_eq!(bits(&next), bits(&x_sep), "{name}, {rule:?}, keep {keep}: x + d");
+                let want = if keep { &d } else { &d0 };
+                assert_eq!(bits(&d_fused), bits(want), "{name}, {rule:?}, keep {keep}: d");
+            }
         }
     }
 }
