@@ -656,9 +656,23 @@ pub(crate) fn smooth(
 /// that vanish (a singular, consistent coarsest system) pin their unknown to zero.
 #[derive(Debug)]
 struct Banded {
-    n: usize,
-    bw: usize,
-    l: Vec<f64>,
+    /// Terms in the longer part of a row of either triangular solve: the bandwidth less
+    /// one, rounded up to a multiple of four (so that the part is whole vectors of the sums
+    /// in [`band_solves`]).
+    reach: usize,
+    /// The factor's rows for the forward solve: row `k` holds `l_km` for
+    /// `m = k − 1 − reach .. k − 1`, zero off the band and before the first unknown, each
+    /// entry twice (once a component, as the right-hand side's pairs lie). The nearest term,
+    /// `l_k,k−1`, is in `near_lower`: the sum of the others does not wait on the unknown just
+    /// solved.
+    lower: Vec<f64>,
+    near_lower: Vec<f64>,
+    /// Its columns for the backward solve: row `k` holds `l_mk` for
+    /// `m = k + 2 .. k + 2 + reach`, the same way, and `near_upper` `l_k+1,k`.
+    upper: Vec<f64>,
+    near_upper: Vec<f64>,
+    /// `1 / l_kk`.
+    inv_diag: Vec<f64>,
     /// Padded index of each unknown.
     map: Vec<usize>,
     dropped: Vec<bool>,
@@ -683,6 +697,7 @@ impl Banded {
         let mut bw = 0;
         let wp = level.wp;
         let mut l = Vec::new();
+        let mut dropped = vec![false; n];
         if n > 0 {
             for (k, &p) in map.iter().enumerate() {
                 let row = level.row(p);
@@ -714,7 +729,6 @@ impl Banded {
                 }
                 diag0[k] = row[12];
             }
-            let mut dropped = vec![false; n];
             for k in 0..n {
                 let j0 = k.saturating_sub(bw);
                 for j in j0..k {
@@ -742,45 +756,73 @@ impl Banded {
                     l[k * width + bw] = s.sqrt();
                 }
             }
-            return Banded { n, bw, l, map, dropped };
         }
-        Banded { n, bw, l, map, dropped: vec![] }
+        // The factor's rows and columns laid out for the solves' sums.
+        let reach = bw.saturating_sub(1).div_ceil(4) * 4;
+        let row = 2 * reach;
+        let (mut lower, mut upper) = (vec![0.0; n * row], vec![0.0; n * row]);
+        let (mut near_lower, mut near_upper) = (vec![0.0; n], vec![0.0; n]);
+        let width = bw + 1;
+        for k in 0..n {
+            for m in k.saturating_sub(bw)..k {
+                let v = l[k * width + (m + bw - k)];
+                if m + 1 == k {
+                    near_lower[k] = v;
+                    near_upper[m] = v;
+                } else {
+                    let (j, i) = (k * row + 2 * (m + 1 + reach - k), m * row + 2 * (k - m - 2));
+                    lower[j..j + 2].fill(v);
+                    upper[i..i + 2].fill(v);
+                }
+            }
+        }
+        let inv_diag = (0..n).map(|k| 1.0 / l[k * width + bw]).collect();
+        Banded { reach, lower, near_lower, upper, near_upper, inv_diag, map, dropped }
     }
 
+    /// `x = A⁻¹ f` on the unknowns (the forward and backward solves of the factor, in `f64`).
     fn solve<T: Real>(&self, f: &[[T; 2]], x: &mut [[T; 2]]) {
-        let (n, bw) = (self.n, self.bw);
-        let width = bw + 1;
-        let mut z: Vec<V2> = self.map.iter().map(|&p| [f[p][0].get(), f[p][1].get()]).collect();
-        for k in 0..n {
-            if self.dropped[k] {
-                z[k] = [0.0; 2];
-                continue;
-            }
-            let mut s = z[k];
-            for m in k.saturating_sub(bw)..k {
-                let v = self.l[k * width + (m + bw - k)];
-                s[0] -= v * z[m][0];
-                s[1] -= v * z[m][1];
-            }
-            let d = self.l[k * width + bw];
-            z[k] = [s[0] / d, s[1] / d];
-        }
-        for k in (0..n).rev() {
-            if self.dropped[k] {
-                z[k] = [0.0; 2];
-                continue;
-            }
-            let d = self.l[k * width + bw];
-            let s = [z[k][0] / d, z[k][1] / d];
-            z[k] = s;
-            for m in k.saturating_sub(bw)..k {
-                let v = self.l[k * width + (m + bw - k)];
-                z[m][0] -= v * s[0];
-                z[m][1] -= v * s[1];
-            }
-        }
+        // The unknowns' pairs flattened, with zeros around them (`reach` + 1 pairs a side):
+        // every row's window lies inside.
+        let pad = self.reach + 1;
+        let mut z = vec![0.0; 2 * (self.map.len() + 2 * pad)];
         for (k, &p) in self.map.iter().enumerate() {
-            x[p] = [T::of(z[k][0]), T::of(z[k][1])];
+            z[2 * (pad + k)..2 * (pad + k) + 2].copy_from_slice(&[f[p][0].get(), f[p][1].get()]);
+        }
+        band_solves(self, &mut z);
+        for (k, &p) in self.map.iter().enumerate() {
+            x[p] = [T::of(z[2 * (pad + k)]), T::of(z[2 * (pad + k) + 1])];
+        }
+    }
+}
+
+super::wide::widest! {
+    /// [`band_solves_body`] on the processor's widest vectors (see [`super::wide`]).
+    fn band_solves(b: &Banded, z: &mut [f64]) =>
+    /// `L y = z`, then `Lᵀ x = y`, in place on `z` (laid out as [`Banded::solve`] does), each
+    /// entry `(z_k − Σ l z) / l_kk`: the band's terms but the nearest on eight running sums
+    /// (`level::pair_sums`), which do not wait on the entry just solved, then the nearest.
+    /// One sum a component, over the whole band (2 w + 2 terms), waited on its last addition
+    /// at every term. Dropped unknowns are zero (their rows and columns in the factor are).
+    band_solves_body {
+        let (row, pad) = (2 * b.reach, b.reach + 1);
+        let finish = |z: &mut [f64], at: usize, k: usize, s: [f64; 2]| {
+            let g = b.inv_diag[k];
+            let v = if b.dropped[k] { [0.0; 2] } else { [(z[at] - s[0]) * g, (z[at + 1] - s[1]) * g] };
+            z[at..at + 2].copy_from_slice(&v);
+        };
+        let prod = |a: f64, b: f64| a * b;
+        for k in 0..b.inv_diag.len() {
+            let at = 2 * (pad + k);
+            let s = level::pair_sums(&b.lower[k * row..(k + 1) * row], &z[at - 2 - row..at - 2], prod);
+            let c = b.near_lower[k];
+            finish(z, at, k, [s[0] + c * z[at - 2], s[1] + c * z[at - 1]]);
+        }
+        for k in (0..b.inv_diag.len()).rev() {
+            let at = 2 * (pad + k);
+            let s = level::pair_sums(&b.upper[k * row..(k + 1) * row], &z[at + 4..at + 4 + row], prod);
+            let c = b.near_upper[k];
+            finish(z, at, k, [s[0] + c * z[at + 2], s[1] + c * z[at + 3]]);
         }
     }
 }
@@ -797,6 +839,39 @@ mod tests {
         level.residual(e, None, &mut r); // −A e
         let (ear, ef) = (dot_w(e, &r), dot_w(e, f));
         [-0.5 * ear[0] - ef[0], -0.5 * ear[1] - ef[1]]
+    }
+
+    #[test]
+    fn the_banded_factor_solves_the_coarsest_system() {
+        // A grid with a hole, a cut and scattered fixed nodes, and an open one with none
+        // and no tension, whose affine functions cost nothing (singular: their pivots
+        // vanish and pin an unknown each). For a consistent right-hand side f = A y, the
+        // solve leaves a residual at rounding level, and the pinned unknowns zero.
+        let mut rnd = crate::grid::tests::sequence(17);
+        let fixed: Vec<bool> = (0..23 * 23).map(|_| rnd() < 0.05).collect();
+        let torn = fine_level(&crate::solve::tests::torn_grid(23, true, true, 3.0), Some(fixed), 0.1);
+        let open = fine_level(&Grid::new(13, 11), None, 0.0);
+        for (name, level) in [("torn", &torn), ("open", &open)] {
+            let banded = Banded::new(level);
+            assert_eq!(banded.dropped.iter().filter(|&&d| d).count(), if name == "open" { 3 } else { 0 }, "{name}");
+            let n = level.len_padded();
+            let y: Vec<V2> = (0..n).map(|p| if level.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
+            let mut f = vec![[0.0; 2]; n];
+            level.residual(&y, None, &mut f); // −A y
+            f.iter_mut().for_each(|v| *v = [-v[0], -v[1]]);
+            let mut x = vec![[0.0; 2]; n];
+            banded.solve(&f, &mut x);
+            let mut r = vec![[0.0; 2]; n];
+            level.residual(&x, Some(&f), &mut r);
+            let size = f.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+            let off = r.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(off <= 1e-9 * size, "{name}: residual {off:e} of {size:e}");
+            for (k, &p) in banded.map.iter().enumerate() {
+                if banded.dropped[k] {
+                    assert_eq!(x[p], [0.0; 2], "{name}: pinned unknown {k}");
+                }
+            }
+        }
     }
 
     #[test]
