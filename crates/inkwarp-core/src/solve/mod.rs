@@ -440,7 +440,7 @@ pub(crate) fn solve_constrained(
         let (bw, bh) = (x1 - x0, y1 - y0);
         // Row `by` of the box as a range of the grid's nodes.
         let rows = |by: usize| (y0 + by) * w + x0..(y0 + by) * w + x1;
-        let [active, right, down] = piece_links(grid, &labels, l as u32, boxes[l], open);
+        let links = piece_links(grid, &labels, l as u32, boxes[l], open);
         let local = |i: usize| (i / w - y0) * bw + i % w - x0;
         let mut fixed = vec![false; bw * bh];
         // (node, value) of every fixed node: the constrained ones, then the gauge pin.
@@ -462,7 +462,7 @@ pub(crate) fn solve_constrained(
             fixed[local(g)] = true;
             value.push((local(g), v));
         }
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), active, right, down, fixed, spaces: spaces() };
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, spaces: spaces() };
         let start = initial.map(|f| Start { field: f, x0, y0 });
         let (u, r) = solve_piece(key, &value, start, options);
         // The piece's nodes of the box, to the field or (pieces on a line) to `out`.
@@ -523,13 +523,38 @@ pub(crate) fn solve_constrained(
     (field, report)
 }
 
-/// Piece `l`'s nodes on its box `[x0, y0, x1, y1]` (row-major, the box's width) and its
-/// right and down links within the box: the grid its hierarchy is built on. On an open
-/// grid the box is the grid and these are the grid's own (a consistent grid has no link
-/// off its last column or row), copied without reading labels.
-fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4], open: bool) -> [Vec<bool>; 3] {
+/// The grid a piece's hierarchy is built on: the piece's nodes on its box (row-major, the
+/// box's width) and its right and down links within the box, or [`BoxLinks::Open`] when
+/// the box is an open grid.
+#[derive(Debug, PartialEq)]
+enum BoxLinks {
+    /// Every node active and every link there (none off the last column or row, as on a
+    /// consistent grid): nothing to copy into a solve's key or to compare in the cache,
+    /// where at 513 × 513 the three vectors took about 0.1 ms to build and as long to
+    /// compare (a busy machine).
+    Open,
+    Given { active: Vec<bool>, right: Vec<bool>, down: Vec<bool> },
+}
+
+impl BoxLinks {
+    /// The nodes and links on a `w × h` box, as [`Geometry::new`] takes them.
+    fn vectors(&self, w: usize, h: usize) -> [Vec<bool>; 3] {
+        match self {
+            BoxLinks::Open => [
+                vec![true; w * h],
+                (0..w * h).map(|i| i % w + 1 < w).collect(),
+                (0..w * h).map(|i| i / w + 1 < h).collect(),
+            ],
+            BoxLinks::Given { active, right, down } => [active.clone(), right.clone(), down.clone()],
+        }
+    }
+}
+
+/// Piece `l`'s grid on its box `[x0, y0, x1, y1]` ([`BoxLinks`]); on an open grid the box is
+/// the grid, and its labels are not read.
+fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4], open: bool) -> BoxLinks {
     if open {
-        return [vec![true; grid.len()], grid.link_right.clone(), grid.link_down.clone()];
+        return BoxLinks::Open;
     }
     let (w, bw, bh) = (grid.width, x1 - x0, y1 - y0);
     let (mut active, mut right, mut down) = (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh]);
@@ -550,7 +575,7 @@ fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4]
             }
         }
     }
-    [active, right, down]
+    BoxLinks::Given { active, right, down }
 }
 
 /// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`:
@@ -578,7 +603,8 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport { converged: true, ..Default::default() };
     let mut hier = cache_take(&key).unwrap_or_else(|| {
-        let geo = Geometry::new(w, h, key.active.clone(), key.right.clone(), key.down.clone(), Some(key.fixed.clone()));
+        let [active, right, down] = key.links.vectors(w, h);
+        let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
         let fine = Level::fine(geo, tau);
         // Holes and cuts: a second coarse space that runs smoothly across them (visited by
         // V-cycles), next to the link-aware one that tears with them.
@@ -898,9 +924,7 @@ struct CacheKey {
     w: usize,
     h: usize,
     tau_bits: u64,
-    active: Vec<bool>,
-    right: Vec<bool>,
-    down: Vec<bool>,
+    links: BoxLinks,
     fixed: Vec<bool>,
     /// Which of the optional spaces the hierarchy has (all, outside tests).
     spaces: Spaces,
@@ -958,15 +982,11 @@ const CACHE_MAX_NODES: usize = 1 << 22;
 impl PartialEq for CacheKey {
     /// The fixed nodes before the grid: hierarchies kept for other problems on the same
     /// grid differ there, and the grid's three vectors (a quarter of a megabyte each at
-    /// 513 × 513) need not be compared for them.
+    /// 513 × 513, unless the grid is open) need not be compared for them.
     fn eq(&self, o: &Self) -> bool {
         // Every field named, so that a new one cannot be left out of the comparison.
-        let CacheKey { w, h, tau_bits, active, right, down, fixed, spaces } = self;
-        (*w, *h, *tau_bits, *spaces) == (o.w, o.h, o.tau_bits, o.spaces)
-            && *fixed == o.fixed
-            && *active == o.active
-            && *right == o.right
-            && *down == o.down
+        let CacheKey { w, h, tau_bits, links, fixed, spaces } = self;
+        (*w, *h, *tau_bits, *spaces) == (o.w, o.h, o.tau_bits, o.spaces) && *fixed == o.fixed && *links == o.links
     }
 }
 

@@ -465,13 +465,18 @@ fn an_interleaved_start_read_in_place_solves_as_the_planar_one() {
 
 #[test]
 fn an_open_grids_piece_links_are_the_grids_own() {
-    // The shortcut for open grids must give the key the general loops give.
+    // The shortcut for open grids must stand for the vectors the general loops give: the
+    // grid's own.
     for (w, h) in [(1, 1), (7, 1), (1, 5), (23, 17)] {
         let grid = Grid::new(w, h);
         let (labels, count, open) = grid.pieces_and_open();
         assert!(open && count == 1, "{w}×{h}");
         let bx = [0, 0, w, h];
-        assert_eq!(piece_links(&grid, &labels, 0, bx, true), piece_links(&grid, &labels, 0, bx, false), "{w}×{h}");
+        let (short, general) = (piece_links(&grid, &labels, 0, bx, true), piece_links(&grid, &labels, 0, bx, false));
+        assert_eq!(short, BoxLinks::Open, "{w}×{h}");
+        let own = [vec![true; w * h], grid.link_right.clone(), grid.link_down.clone()];
+        assert_eq!(short.vectors(w, h), own, "{w}×{h}");
+        assert_eq!(general.vectors(w, h), own, "{w}×{h}");
     }
     let mut cut = Grid::new(23, 17);
     cut.add_cut(&[[5.5, -1.0], [5.5, 8.0]]);
