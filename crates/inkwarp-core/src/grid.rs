@@ -320,12 +320,11 @@ impl Constraints {
 /// The node a sample at `point` constrains: `(⌊x + ½⌋, ⌊y + ½⌋)` (halves round towards +x
 /// and +y), or `None` outside the grid.
 pub fn nearest_node(grid: &Grid, point: Point) -> Option<(usize, usize)> {
-    if !(point[0].is_finite() && point[1].is_finite()) {
-        return None;
-    }
-    let x = (point[0] + 0.5).floor();
-    let y = (point[1] + 0.5).floor();
-    if x < 0.0 || y < 0.0 || x >= grid.width as f64 || y >= grid.height as f64 {
+    // Node (⌊x + ½⌋, ⌊y + ½⌋), from the truncation of a coordinate known to be ≥ 0 (where the
+    // two agree): the floor is a library call on plain x86-64, a fifth of the time of
+    // constraining 4000 samples. The comparisons also reject NaN and the infinities.
+    let (x, y) = (point[0] + 0.5, point[1] + 0.5);
+    if !(x >= 0.0 && y >= 0.0 && x < grid.width as f64 && y < grid.height as f64) {
         return None;
     }
     Some((x as usize, y as usize))
@@ -345,33 +344,31 @@ pub fn nearest_node(grid: &Grid, point: Point) -> Option<(usize, usize)> {
 /// assert_eq!((c.used_samples, c.dropped_samples), (2, 1));
 /// ```
 pub fn constrain(grid: &Grid, samples: &[Sample]) -> Constraints {
-    let mut keyed: Vec<(usize, [f64; 2])> = Vec::with_capacity(samples.len());
-    let mut dropped = 0usize;
-    for s in samples {
+    // Each kept sample as its node and its own index in one integer (both under 2³²: a grid
+    // or a sample list that large would not fit in memory), sorted: by node, and
+    // within a node in the samples' order (so their average is summed in that order). A
+    // sort of (node, displacement) pairs took twice as long with 4000 samples.
+    let mut keyed: Vec<u64> = Vec::with_capacity(samples.len());
+    for (k, s) in samples.iter().enumerate() {
         let finite = s.displacement[0].is_finite() && s.displacement[1].is_finite();
-        match nearest_node(grid, s.rest) {
-            Some((x, y)) if finite && grid.active[grid.index(x, y)] => {
-                keyed.push((grid.index(x, y), s.displacement));
+        if let Some((x, y)) = nearest_node(grid, s.rest) {
+            let i = grid.index(x, y);
+            if finite && grid.active[i] {
+                keyed.push(((i as u64) << 32) | k as u64);
             }
-            _ => dropped += 1,
         }
     }
     let used = keyed.len();
-    keyed.sort_by_key(|&(i, _)| i);
-    let mut out = Constraints { used_samples: used, dropped_samples: dropped, ..Default::default() };
-    let mut k = 0;
-    while k < keyed.len() {
-        let node = keyed[k].0;
-        let mut sum = [0.0f64; 2];
-        let mut count = 0usize;
-        while k < keyed.len() && keyed[k].0 == node {
-            sum[0] += keyed[k].1[0];
-            sum[1] += keyed[k].1[1];
-            count += 1;
-            k += 1;
-        }
-        out.nodes.push(node);
-        out.values.push([sum[0] / count as f64, sum[1] / count as f64]);
+    keyed.sort_unstable();
+    let mut out = Constraints { used_samples: used, dropped_samples: samples.len() - used, ..Default::default() };
+    for group in keyed.chunk_by(|a, b| a >> 32 == b >> 32) {
+        let sum = group.iter().fold([0.0f64; 2], |s, &key| {
+            let d = samples[(key & 0xffff_ffff) as usize].displacement;
+            [s[0] + d[0], s[1] + d[1]]
+        });
+        let count = group.len() as f64;
+        out.nodes.push((group[0] >> 32) as usize);
+        out.values.push([sum[0] / count, sum[1] / count]);
     }
     out
 }
@@ -617,6 +614,54 @@ pub(crate) mod tests {
         // (3.5,0)->(4,0) outside; (1,1) inactive; NaN dropped.
         assert_eq!(c.nodes, vec![g.index(0, 0), g.index(3, 3)]);
         assert_eq!((c.used_samples, c.dropped_samples), (2, 5));
+    }
+
+    #[test]
+    fn constraints_match_their_plain_definition() {
+        // The nearest node as ⌊p + ½⌋ with every check spelled out, and several samples on a
+        // node averaged in the order given, against `nearest_node` and `constrain`, bit for
+        // bit, on random points (many sharing nodes, some off the grid, some not finite)
+        // and on edge values.
+        let plain_nearest = |g: &Grid, p: [f64; 2]| {
+            if !(p[0].is_finite() && p[1].is_finite()) {
+                return None;
+            }
+            let (x, y) = ((p[0] + 0.5).floor(), (p[1] + 0.5).floor());
+            (x >= 0.0 && y >= 0.0 && x < g.width as f64 && y < g.height as f64).then_some((x as usize, y as usize))
+        };
+        let matte: Vec<u8> = (0..7 * 5).map(|i| u8::from(i % 11 != 3)).collect();
+        let g = Grid::from_matte(7, 5, &matte);
+        let edges = [-0.5, -0.5000001, -0.49, 0.0, 6.49, 6.5, 4.5, 4.4999999, -1e300, 1e300, f64::INFINITY, f64::NEG_INFINITY, f64::NAN];
+        for &a in &edges {
+            for &b in &edges {
+                assert_eq!(nearest_node(&g, [a, b]), plain_nearest(&g, [a, b]), "({a}, {b})");
+            }
+        }
+        let mut rnd = sequence(3);
+        let mut samples: Vec<Sample> = (0..400)
+            .map(|_| Sample { rest: [rnd() * 9.0 - 1.0, rnd() * 7.0 - 1.0], displacement: [rnd() * 10.0 - 5.0, rnd() - 0.5] })
+            .collect();
+        samples[7].displacement[1] = f64::NAN;
+        samples[9].rest[0] = f64::INFINITY;
+        let mut sums: std::collections::BTreeMap<usize, ([f64; 2], f64)> = Default::default();
+        let mut used = 0;
+        for s in &samples {
+            match plain_nearest(&g, s.rest) {
+                Some((x, y)) if s.displacement.iter().all(|d| d.is_finite()) && g.active[g.index(x, y)] => {
+                    let e = sums.entry(g.index(x, y)).or_insert(([0.0; 2], 0.0));
+                    e.0 = [e.0[0] + s.displacement[0], e.0[1] + s.displacement[1]];
+                    e.1 += 1.0;
+                    used += 1;
+                }
+                _ => {}
+            }
+        }
+        let c = constrain(&g, &samples);
+        assert_eq!(c.nodes, sums.keys().copied().collect::<Vec<_>>());
+        let bits = |v: &[[f64; 2]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&c.values), bits(&sums.values().map(|(s, n)| [s[0] / n, s[1] / n]).collect::<Vec<_>>()));
+        assert_eq!((c.used_samples, c.dropped_samples), (used, samples.len() - used));
+        assert!(sums.values().any(|&(_, n)| n >= 3.0) && used < samples.len() - 20);
     }
 
     #[test]
