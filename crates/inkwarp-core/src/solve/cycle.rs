@@ -622,13 +622,7 @@ pub(crate) fn smooth(
         // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass,
         // which writes x alone (the second step reads the update there, `StepRule::Second`).
         let f = f.expect("a zero start needs a right-hand side");
-        let first = |x: &mut [W2], f: &[W2], g: &[WS]| {
-            for ((x, f), &g) in x.iter_mut().zip(f).zip(g) {
-                let v = if g != 0.0 { [f[0] * g * inv_theta, f[1] * g * inv_theta] } else { [0.0; 2] };
-                // 0 + v, as `x += d` from zero gave (a −0 becomes +0).
-                *x = [WS::ZERO + v[0], WS::ZERO + v[1]];
-            }
-        };
+        let first = |x: &mut [W2], f: &[W2], g: &[WS]| first_from_zero(x, f, g, inv_theta);
         if x.len() >= PAR_MIN {
             x.par_chunks_mut(PASS_CHUNK)
                 .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
@@ -649,6 +643,20 @@ pub(crate) fn smooth(
         // update is not kept.
         level.smoothing_step(x, f, d, r, rule, k + 1 < steps);
         std::mem::swap(x, r);
+    }
+}
+
+super::wide::widest! {
+    /// [`first_from_zero_body`] on the processor's widest vectors (see [`super::wide`]).
+    fn first_from_zero(x: &mut [W2], f: &[W2], g: &[WS], inv_theta: WS) =>
+    /// A smoothing's first step from zero, `x = D⁻¹ f / θ` (`g` the inverse diagonal; zero
+    /// where it is).
+    first_from_zero_body {
+        for ((x, f), &g) in x.iter_mut().zip(f).zip(g) {
+            let v = if g != 0.0 { [f[0] * g * inv_theta, f[1] * g * inv_theta] } else { [0.0; 2] };
+            // 0 + v, as `x += d` from zero gave (a −0 becomes +0).
+            *x = [WS::ZERO + v[0], WS::ZERO + v[1]];
+        }
     }
 }
 
@@ -839,6 +847,34 @@ mod tests {
         level.residual(e, None, &mut r); // −A e
         let (ear, ef) = (dot_w(e, &r), dot_w(e, f));
         [-0.5 * ear[0] - ef[0], -0.5 * ear[1] - ef[1]]
+    }
+
+    #[test]
+    fn the_cycles_vector_copies_match_their_plain_bodies() {
+        // A smoothing's first step from zero and the coarsest level's triangular solves, by
+        // the dispatching functions (the AVX2 copy where the processor has it) and by their
+        // plain bodies, bit for bit.
+        let mut rnd = crate::grid::tests::sequence(31);
+        for n in [1, 9, 1001] {
+            let f: Vec<W2> = (0..n).map(|_| [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32]).collect();
+            let g: Vec<WS> = (0..n).map(|_| if rnd() < 0.2 { 0.0 } else { rnd() as f32 }).collect();
+            let (mut x1, mut x2) = (vec![[9.0f32; 2]; n], vec![[9.0f32; 2]; n]);
+            first_from_zero(&mut x1, &f, &g, 0.37);
+            first_from_zero_body(&mut x2, &f, &g, 0.37);
+            let bits = |v: &[W2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&x1), bits(&x2), "{n}");
+        }
+        let level = fine_level(&Grid::new(15, 13), Some((0..15 * 13).map(|i| i % 17 == 3).collect()), 0.0);
+        let banded = Banded::new(&level);
+        let pad = banded.reach + 1;
+        let mut z1: Vec<f64> = (0..2 * (banded.map.len() + 2 * pad)).map(|_| rnd() - 0.5).collect();
+        z1[..2 * pad].fill(0.0);
+        let end = z1.len() - 2 * pad;
+        z1[end..].fill(0.0);
+        let mut z2 = z1.clone();
+        band_solves(&banded, &mut z1);
+        band_solves_body(&banded, &mut z2);
+        assert_eq!(z1.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), z2.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
     }
 
     #[test]

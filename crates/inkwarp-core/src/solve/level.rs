@@ -589,23 +589,27 @@ enum Fold {
     ScaledMax,
 }
 
-/// The largest `|r_i| / a_ii` of a residual (pixels: how far one Jacobi step would move a
-/// node), `inv_diag` the matching inverse diagonal (zero where a node is no unknown). Eight
-/// running maxima: one would wait on the last at every entry.
-pub(crate) fn scaled_max<T: Real>(r: &[[T; 2]], inv_diag: &[f64]) -> f64 {
-    let mut m = [0.0f64; 8];
-    let (dc, rc) = (inv_diag[..r.len()].chunks_exact(4), r.chunks_exact(4));
-    let (dt, rt) = (dc.remainder(), rc.remainder());
-    for (d, ri) in dc.zip(rc) {
-        for l in 0..4 {
-            m[2 * l] = larger(m[2 * l], ri[l][0].get().abs() * d[l]);
-            m[2 * l + 1] = larger(m[2 * l + 1], ri[l][1].get().abs() * d[l]);
+widest! {
+    /// [`scaled_max_body`] on the processor's widest vectors (see [`super::wide`]).
+    pub(crate) fn scaled_max<T: Real>(r: &[[T; 2]], inv_diag: &[f64]) -> f64 =>
+    /// The largest `|r_i| / a_ii` of a residual (pixels: how far one Jacobi step would move a
+    /// node), `inv_diag` the matching inverse diagonal (zero where a node is no unknown). Eight
+    /// running maxima: one would wait on the last at every entry.
+    scaled_max_body {
+        let mut m = [0.0f64; 8];
+        let (dc, rc) = (inv_diag[..r.len()].chunks_exact(4), r.chunks_exact(4));
+        let (dt, rt) = (dc.remainder(), rc.remainder());
+        for (d, ri) in dc.zip(rc) {
+            for l in 0..4 {
+                m[2 * l] = larger(m[2 * l], ri[l][0].get().abs() * d[l]);
+                m[2 * l + 1] = larger(m[2 * l + 1], ri[l][1].get().abs() * d[l]);
+            }
         }
+        for (d, ri) in dt.iter().zip(rt) {
+            m[0] = larger(larger(m[0], ri[0].get().abs() * d), ri[1].get().abs() * d);
+        }
+        m.iter().fold(0.0, |a, &b| larger(a, b))
     }
-    for (d, ri) in dt.iter().zip(rt) {
-        m[0] = larger(larger(m[0], ri[0].get().abs() * d), ri[1].get().abs() * d);
-    }
-    m.iter().fold(0.0, |a, &b| larger(a, b))
 }
 
 /// The larger of two values, by a comparison: `f64::max` (which must skip a NaN either
@@ -615,9 +619,13 @@ pub(crate) fn larger(a: f64, b: f64) -> f64 {
     if b > a { b } else { a }
 }
 
-/// `[Σ a₀b₀, Σ a₁b₁]` of two vectors of pairs, in `f64`, the products taken in `T`.
-pub(crate) fn dot_pairs<T: Real>(a: &[[T; 2]], b: &[[T; 2]]) -> [f64; 2] {
-    pair_sums(a.as_flattened(), b.as_flattened(), |x: T, y: T| (x * y).get())
+widest! {
+    /// [`dot_pairs_body`] on the processor's widest vectors (see [`super::wide`]).
+    pub(crate) fn dot_pairs<T: Real>(a: &[[T; 2]], b: &[[T; 2]]) -> [f64; 2] =>
+    /// `[Σ a₀b₀, Σ a₁b₁]` of two vectors of pairs, in `f64`, the products taken in `T`.
+    dot_pairs_body {
+        pair_sums(a.as_flattened(), b.as_flattened(), |x: T, y: T| (x * y).get())
+    }
 }
 
 /// `[Σ prod(a_j, b_j) over even j, the same over odd j]`: the two components' sums of
@@ -1024,10 +1032,12 @@ pub(crate) enum StepRule {
     Second { c1: WS, c2: WS },
 }
 
-/// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one row;
-/// `d` is written only when `keep`.
-#[inline(always)]
-fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule, keep: bool) {
+widest! {
+    /// [`step_row_body`] on the processor's widest vectors (see [`super::wide`]).
+    fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule, keep: bool) =>
+    /// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one
+    /// row; `d` is written only when `keep`.
+    step_row_body {
     let n = out.len();
     let (d, x, g) = (&mut d[..n], &x[..n], &g[..n]);
     // A plain loop for each case, which the compiler vectorises.
@@ -1053,6 +1063,7 @@ fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule, ke
         StepRule::First { inv_theta } => each!(|i, r, dd| [r[0] * dd * inv_theta, r[1] * dd * inv_theta]),
         StepRule::Next { c1, c2 } => each!(|i, r, dd| [c1 * d[i][0] + c2 * dd * r[0], c1 * d[i][1] + c2 * dd * r[1]]),
         StepRule::Second { c1, c2 } => each!(|i, r, dd| [c1 * x[i][0] + c2 * dd * r[0], c1 * x[i][1] + c2 * dd * r[1]]),
+    }
     }
 }
 
@@ -1873,6 +1884,32 @@ mod tests {
         let mut plain = vec![[0.0; 2]; n];
         fine_band_body(runs, own, *t, wp, x, None, r0, r1, &mut plain[r0 * wp..r1 * wp]);
         assert_eq!(bits(&plain), bits(&narrow_out), "{w}×{h}, τ = {tau}: the plain copy");
+    }
+
+    #[test]
+    fn the_vector_passes_copies_match_their_plain_bodies() {
+        // The smoothing step's update, the scaled maximum and the pairs' dot product, by the
+        // dispatching functions (the AVX2 copy where the processor has it) and by their plain
+        // bodies, bit for bit, on lengths that leave remainders.
+        let mut rnd = crate::grid::tests::sequence(29);
+        let mut pairs = |n: usize| -> Vec<W2> { (0..n).map(|_| [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32]).collect() };
+        let bits = |v: &[W2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
+        for n in [1, 7, 64, 1003] {
+            let (r, x, d0) = (pairs(n), pairs(n), pairs(n));
+            let g: Vec<WS> = pairs(n).iter().map(|v| if v[0] > 0.3 { 0.0 } else { v[1] }).collect();
+            let rules = [StepRule::First { inv_theta: 0.37 }, StepRule::Next { c1: 0.81, c2: -1.3 }, StepRule::Second { c1: 0.6, c2: 1.7 }];
+            for rule in rules {
+                for keep in [true, false] {
+                    let (mut o1, mut d1, mut o2, mut d2) = (r.clone(), d0.clone(), r.clone(), d0.clone());
+                    step_row(&mut o1, &mut d1, &x, &g, rule, keep);
+                    step_row_body(&mut o2, &mut d2, &x, &g, rule, keep);
+                    assert_eq!((bits(&o1), bits(&d1)), (bits(&o2), bits(&d2)), "{n}, {rule:?}, keep {keep}");
+                }
+            }
+            let diag: Vec<f64> = g.iter().map(|&v| f64::from(v).abs()).collect();
+            assert_eq!(scaled_max(&r, &diag).to_bits(), scaled_max_body(&r, &diag).to_bits(), "{n}");
+            assert_eq!(dot_pairs(&r, &x).map(f64::to_bits), dot_pairs_body(&r, &x).map(f64::to_bits), "{n}");
+        }
     }
 
     /// `f − A x` by the dispatching kernels and by their plain bodies, compared bit by bit.

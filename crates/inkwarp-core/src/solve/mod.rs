@@ -1316,13 +1316,7 @@ fn count_unknowns(level: &Level) -> usize {
 /// `[rᵀz, zᵀq]` per component (`zᵀq` zero without `q`), `z` the preconditioner's `f32`
 /// output, in one pass.
 fn fcg_dots(r: &[V2], z: &[W2], q: Option<&[V2]>) -> ([f64; 2], [f64; 2]) {
-    let wide = |x: f64, y: WS| x * y.get();
-    let chunk = |(k, (r, z)): (usize, (&[V2], &[W2]))| {
-        let zf = z.as_flattened();
-        let rz = level::pair_sums(r.as_flattened(), zf, wide);
-        let zq = q.map_or([0.0; 2], |q| level::pair_sums(q[k * CHUNK..k * CHUNK + r.len()].as_flattened(), zf, wide));
-        [rz[0], rz[1], zq[0], zq[1]]
-    };
+    let chunk = |(k, (r, z)): (usize, (&[V2], &[W2]))| fcg_chunk(r, z, q.map(|q| &q[k * CHUNK..k * CHUNK + r.len()]));
     // The chunks' sums are added in order, so the result does not depend on the threads.
     let parts: Vec<[f64; 4]> = r.par_chunks(CHUNK).zip(z.par_chunks(CHUNK)).enumerate().map(chunk).collect();
     let t = parts.iter().fold([0.0; 4], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]);
@@ -1333,13 +1327,37 @@ fn fcg_dots(r: &[V2], z: &[W2], q: Option<&[V2]>) -> ([f64; 2], [f64; 2]) {
 /// search direction in `f32`, summed in `f64` and rounded once.
 fn widen_into(p: &mut [W2], z: &[W2], beta: Option<[f64; 2]>) {
     p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| match beta {
-        Some(b) => {
-            for (p, z) in p.iter_mut().zip(z) {
-                *p = [WS::of(z[0].get() + b[0] * p[0].get()), WS::of(z[1].get() + b[1] * p[1].get())];
-            }
-        }
+        Some(b) => widen_chunk(p, z, b),
         None => p.copy_from_slice(z),
     });
+}
+
+wide::widest! {
+    /// [`fcg_chunk_body`] on the processor's widest vectors (see [`wide`]).
+    fn fcg_chunk(r: &[V2], z: &[W2], q: Option<&[V2]>) -> [f64; 4] =>
+    /// [`fcg_dots`] on one chunk: `[rᵀz, zᵀq]`, each per component.
+    fcg_chunk_body {
+        let wide = |x: f64, y: WS| x * y.get();
+        let zf = z.as_flattened();
+        let rz = level::pair_sums(r.as_flattened(), zf, wide);
+        // A `match`, not `map_or`: its closure was compiled apart, outside the AVX2 copy.
+        let zq = match q {
+            Some(q) => level::pair_sums(q.as_flattened(), zf, wide),
+            None => [0.0; 2],
+        };
+        [rz[0], rz[1], zq[0], zq[1]]
+    }
+}
+
+wide::widest! {
+    /// [`widen_chunk_body`] on the processor's widest vectors (see [`wide`]).
+    fn widen_chunk(p: &mut [W2], z: &[W2], b: [f64; 2]) =>
+    /// [`widen_into`] with `β` on one chunk.
+    widen_chunk_body {
+        for (p, z) in p.iter_mut().zip(z) {
+            *p = [WS::of(z[0].get() + b[0] * p[0].get()), WS::of(z[1].get() + b[1] * p[1].get())];
+        }
+    }
 }
 
 wide::widest! {
@@ -1353,8 +1371,16 @@ wide::widest! {
         let (u, r, rw) = (u.as_flattened_mut(), r.as_flattened_mut(), rw.as_flattened_mut());
         let (p, q) = (p.as_flattened(), q.as_flattened());
         let mut m = [0.0f64; 8];
-        let lanes = |u: &mut [f64], r: &mut [f64], rw: &mut [WS], p: &[WS], q: &[f64], m: &mut [f64]| {
-            for l in 0..u.len() {
+        // Eight entries at a time as fixed-size arrays, so the compiler knows the lengths:
+        // written with a closure over slices, the loop stayed scalar, with a bounds check
+        // at every entry, and out of the AVX2 copy (a tenth of a warm solve's samples).
+        let n8 = u.len() / 8 * 8;
+        let (u8s, r8s, rw8s) = (u[..n8].chunks_exact_mut(8), r[..n8].chunks_exact_mut(8), rw[..n8].chunks_exact_mut(8));
+        for (((u, r), rw), (p, q)) in u8s.zip(r8s).zip(rw8s).zip(p[..n8].chunks_exact(8).zip(q[..n8].chunks_exact(8))) {
+            let (u, r, rw): (&mut [f64; 8], &mut [f64; 8], &mut [WS; 8]) =
+                (u.try_into().unwrap(), r.try_into().unwrap(), rw.try_into().unwrap());
+            let (p, q): (&[WS; 8], &[f64; 8]) = (p.try_into().unwrap(), q.try_into().unwrap());
+            for l in 0..8 {
                 let a = alpha[l & 1];
                 let d = a * p[l].get();
                 u[l] += d;
@@ -1362,13 +1388,16 @@ wide::widest! {
                 r[l] += a * q[l];
                 rw[l] = WS::of(r[l]);
             }
-        };
-        let n8 = u.len() / 8 * 8;
-        for j in (0..n8).step_by(8) {
-            lanes(&mut u[j..j + 8], &mut r[j..j + 8], &mut rw[j..j + 8], &p[j..j + 8], &q[j..j + 8], &mut m);
         }
         // The remainder starts on an even index, as the lanes do.
-        lanes(&mut u[n8..], &mut r[n8..], &mut rw[n8..], &p[n8..], &q[n8..], &mut m);
+        for l in n8..u.len() {
+            let a = alpha[l & 1];
+            let d = a * p[l].get();
+            u[l] += d;
+            m[l - n8] = larger(m[l - n8], d.abs());
+            r[l] += a * q[l];
+            rw[l] = WS::of(r[l]);
+        }
         m.iter().fold(0.0, |a, &b| a.max(b))
     }
 }

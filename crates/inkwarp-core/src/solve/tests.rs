@@ -1269,3 +1269,32 @@ fn a_longer_smoothing_after_a_warm_start_saves_cycles_where_constraints_are_dens
     let [with, without] = totals;
     assert!(with < without, "{with} warm cycles with the longer smoothing, {without} without");
 }
+
+#[test]
+fn the_conjugate_gradients_vector_copies_match_their_plain_bodies() {
+    // The update, the two dot products and the new direction, by the dispatching functions
+    // (the AVX2 copy where the processor has it) and by their plain bodies, bit for bit, on
+    // lengths that leave remainders.
+    let mut rnd = crate::grid::tests::sequence(37);
+    let mut wide = |n: usize| -> Vec<V2> { (0..n).map(|_| [rnd() - 0.5, rnd() - 0.5]).collect() };
+    for n in [1, 5, 4099] {
+        let (u0, r0, q) = (wide(n), wide(n), wide(n));
+        let narrow = |v: &[V2]| -> Vec<W2> { v.iter().map(|a| [a[0] as f32, a[1] as f32]).collect() };
+        let (p, z) = (narrow(&wide(n)), narrow(&wide(n)));
+        let alpha = [0.83, -1.21];
+        let (mut u1, mut r1, mut w1) = (u0.clone(), r0.clone(), vec![[0.0f32; 2]; n]);
+        let (mut u2, mut r2, mut w2) = (u0.clone(), r0.clone(), vec![[0.0f32; 2]; n]);
+        let m1 = step_update(&mut u1, &mut r1, &mut w1, &p, &q, alpha);
+        let m2 = step_update_body(&mut u2, &mut r2, &mut w2, &p, &q, alpha);
+        let b64 = |v: &[V2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
+        let b32 = |v: &[W2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
+        assert_eq!((b64(&u1), b64(&r1), b32(&w1), m1.to_bits()), (b64(&u2), b64(&r2), b32(&w2), m2.to_bits()), "{n}: update");
+        for q in [Some(&q[..]), None] {
+            assert_eq!(fcg_chunk(&r0, &z, q).map(f64::to_bits), fcg_chunk_body(&r0, &z, q).map(f64::to_bits), "{n}: dots");
+        }
+        let (mut p1, mut p2) = (p.clone(), p.clone());
+        widen_chunk(&mut p1, &z, [0.4, 1.9]);
+        widen_chunk_body(&mut p2, &z, [0.4, 1.9]);
+        assert_eq!(b32(&p1), b32(&p2), "{n}: direction");
+    }
+}
