@@ -653,7 +653,9 @@ super::wide::widest! {
     /// where it is).
     first_from_zero_body {
         for ((x, f), &g) in x.iter_mut().zip(f).zip(g) {
-            let v = if g != 0.0 { [f[0] * g * inv_theta, f[1] * g * inv_theta] } else { [0.0; 2] };
+            // Computed everywhere, then chosen: a branch kept the loop scalar.
+            let (keep, v) = (g != 0.0, [f[0] * g * inv_theta, f[1] * g * inv_theta]);
+            let v = [if keep { v[0] } else { 0.0 }, if keep { v[1] } else { 0.0 }];
             // 0 + v, as `x += d` from zero gave (a −0 becomes +0).
             *x = [WS::ZERO + v[0], WS::ZERO + v[1]];
         }
