@@ -44,6 +44,21 @@ def test_mask_zero_pixels_do_not_move_and_samples_there_are_dropped():
     assert report.dropped_samples == 1
 
 
+def test_a_grid_without_mask_or_cuts_is_the_same_whatever_came_before():
+    # The binding keeps the last open grid by shape: solves with a mask, a cut or another
+    # shape in between must leave it as it was.
+    first = inkwarp.thin_plate(PTS, DISP, SHAPE)
+    mask = np.ones(SHAPE, bool)
+    mask[:, 12] = False
+    torn = inkwarp.thin_plate(PTS, DISP, SHAPE, mask=mask, cuts=[[[5.5, -1], [5.5, 9]]])
+    assert not np.array_equal(torn, first)
+    inkwarp.thin_plate(PTS, DISP, (SHAPE[0] + 3, SHAPE[1]))
+    assert np.array_equal(inkwarp.thin_plate(PTS, DISP, SHAPE), first)
+    cut = inkwarp.thin_plate(PTS, DISP, SHAPE, cuts=[[[5.5, -1], [5.5, 9]]])
+    assert np.array_equal(inkwarp.thin_plate(PTS, DISP, SHAPE), first)
+    assert not np.array_equal(cut, first)
+
+
 def test_accepts_numpy_and_lists_and_integer_types():
     a = inkwarp.thin_plate(np.array(PTS, np.float32), np.array(DISP, np.int64), (np.int64(18), 24))
     b = inkwarp.thin_plate(PTS, DISP, SHAPE)

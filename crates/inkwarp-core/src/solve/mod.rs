@@ -381,7 +381,8 @@ pub(crate) fn solve_constrained(
         return (Field::zeros(w, h), report);
     }
     // An open grid (every node active, every link there: most grids) is one piece whose
-    // key is the grid's own links and whose answer is written without reading labels.
+    // key marks it open (`BoxLinks::Open`) and whose answer is written without reading
+    // labels.
     let (labels, count, open) = grid.pieces_and_open();
     let pieces = classify(grid, &labels, count, constraints, tau);
     // There, a solved piece's answer is every node's: the field is written whole below,
