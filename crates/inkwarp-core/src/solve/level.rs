@@ -1038,32 +1038,32 @@ widest! {
     /// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one
     /// row; `d` is written only when `keep`.
     step_row_body {
-    let n = out.len();
-    let (d, x, g) = (&mut d[..n], &x[..n], &g[..n]);
-    // A plain loop for each case, which the compiler vectorises.
-    macro_rules! each {
-        (|$i:ident, $r:ident, $g:ident| $v:expr) => {
-            if keep {
-                for $i in 0..n {
-                    let ($r, $g) = (out[$i], g[$i]);
-                    let v = $v;
-                    d[$i] = v;
-                    out[$i] = [x[$i][0] + v[0], x[$i][1] + v[1]];
+        let n = out.len();
+        let (d, x, g) = (&mut d[..n], &x[..n], &g[..n]);
+        // A plain loop for each case, which the compiler vectorises.
+        macro_rules! each {
+            (|$i:ident, $r:ident, $g:ident| $v:expr) => {
+                if keep {
+                    for $i in 0..n {
+                        let ($r, $g) = (out[$i], g[$i]);
+                        let v = $v;
+                        d[$i] = v;
+                        out[$i] = [x[$i][0] + v[0], x[$i][1] + v[1]];
+                    }
+                } else {
+                    for $i in 0..n {
+                        let ($r, $g) = (out[$i], g[$i]);
+                        let v = $v;
+                        out[$i] = [x[$i][0] + v[0], x[$i][1] + v[1]];
+                    }
                 }
-            } else {
-                for $i in 0..n {
-                    let ($r, $g) = (out[$i], g[$i]);
-                    let v = $v;
-                    out[$i] = [x[$i][0] + v[0], x[$i][1] + v[1]];
-                }
-            }
-        };
-    }
-    match rule {
-        StepRule::First { inv_theta } => each!(|i, r, dd| [r[0] * dd * inv_theta, r[1] * dd * inv_theta]),
-        StepRule::Next { c1, c2 } => each!(|i, r, dd| [c1 * d[i][0] + c2 * dd * r[0], c1 * d[i][1] + c2 * dd * r[1]]),
-        StepRule::Second { c1, c2 } => each!(|i, r, dd| [c1 * x[i][0] + c2 * dd * r[0], c1 * x[i][1] + c2 * dd * r[1]]),
-    }
+            };
+        }
+        match rule {
+            StepRule::First { inv_theta } => each!(|i, r, dd| [r[0] * dd * inv_theta, r[1] * dd * inv_theta]),
+            StepRule::Next { c1, c2 } => each!(|i, r, dd| [c1 * d[i][0] + c2 * dd * r[0], c1 * d[i][1] + c2 * dd * r[1]]),
+            StepRule::Second { c1, c2 } => each!(|i, r, dd| [c1 * x[i][0] + c2 * dd * r[0], c1 * x[i][1] + c2 * dd * r[1]]),
+        }
     }
 }
 

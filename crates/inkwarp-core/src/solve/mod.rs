@@ -555,11 +555,10 @@ impl BoxLinks {
     /// The nodes and links on a `w × h` box, as [`Geometry::new`] takes them.
     fn vectors(&self, w: usize, h: usize) -> [Vec<bool>; 3] {
         match self {
-            BoxLinks::Open => [
-                vec![true; w * h],
-                (0..w * h).map(|i| i % w + 1 < w).collect(),
-                (0..w * h).map(|i| i / w + 1 < h).collect(),
-            ],
+            BoxLinks::Open => {
+                let Grid { active, link_right, link_down, .. } = Grid::new(w, h);
+                [active, link_right, link_down]
+            }
             BoxLinks::Given { active, right, down } => [active.clone(), right.clone(), down.clone()],
         }
     }
@@ -1382,25 +1381,27 @@ wide::widest! {
                 (u.try_into().unwrap(), r.try_into().unwrap(), rw.try_into().unwrap());
             let (p, q): (&[WS; 8], &[f64; 8]) = (p.try_into().unwrap(), q.try_into().unwrap());
             for l in 0..8 {
-                let a = alpha[l & 1];
-                let d = a * p[l].get();
-                u[l] += d;
-                m[l] = larger(m[l], d.abs());
-                r[l] += a * q[l];
-                rw[l] = WS::of(r[l]);
+                update_entry(&mut u[l], &mut r[l], &mut rw[l], p[l], q[l], alpha[l & 1], &mut m[l]);
             }
         }
         // The remainder starts on an even index, as the lanes do.
         for l in n8..u.len() {
-            let a = alpha[l & 1];
-            let d = a * p[l].get();
-            u[l] += d;
-            m[l - n8] = larger(m[l - n8], d.abs());
-            r[l] += a * q[l];
-            rw[l] = WS::of(r[l]);
+            update_entry(&mut u[l], &mut r[l], &mut rw[l], p[l], q[l], alpha[l & 1], &mut m[l - n8]);
         }
         m.iter().fold(0.0, |a, &b| a.max(b))
     }
+}
+
+/// One entry of [`step_update_body`] (of the flattened components; `a` its component's α,
+/// `m` its lane's running maximum). A function, not a closure over slices: inlined into the
+/// AVX2 copy, on entries rather than slices, with no bounds to check.
+#[inline(always)]
+fn update_entry(u: &mut f64, r: &mut f64, rw: &mut WS, p: WS, q: f64, a: f64, m: &mut f64) {
+    let d = a * p.get();
+    *u += d;
+    *m = larger(*m, d.abs());
+    *r += a * q;
+    *rw = WS::of(*r);
 }
 
 /// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.

@@ -466,7 +466,8 @@ fn an_interleaved_start_read_in_place_solves_as_the_planar_one() {
 #[test]
 fn an_open_grids_piece_links_are_the_grids_own() {
     // The shortcut for open grids must stand for the vectors the general loops give: the
-    // grid's own.
+    // grid's own, written here from their definition (every node, every link but off the
+    // last column and row).
     for (w, h) in [(1, 1), (7, 1), (1, 5), (23, 17)] {
         let grid = Grid::new(w, h);
         let (labels, count, open) = grid.pieces_and_open();
@@ -474,7 +475,8 @@ fn an_open_grids_piece_links_are_the_grids_own() {
         let bx = [0, 0, w, h];
         let (short, general) = (piece_links(&grid, &labels, 0, bx, true), piece_links(&grid, &labels, 0, bx, false));
         assert_eq!(short, BoxLinks::Open, "{w}×{h}");
-        let own = [vec![true; w * h], grid.link_right.clone(), grid.link_down.clone()];
+        let own = [vec![true; w * h], (0..w * h).map(|i| i % w + 1 < w).collect(), (0..w * h).map(|i| i / w + 1 < h).collect()];
+        assert_eq!([&grid.active, &grid.link_right, &grid.link_down], [&own[0], &own[1], &own[2]], "{w}×{h}");
         assert_eq!(short.vectors(w, h), own, "{w}×{h}");
         assert_eq!(general.vectors(w, h), own, "{w}×{h}");
     }

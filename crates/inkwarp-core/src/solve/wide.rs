@@ -15,12 +15,15 @@
 //! where the processor has AVX2, so a test holds it to the plain sums node by node rather
 //! than to the plain copy.
 //!
-//! A loop belongs in the body itself, not in a closure it calls: a closure, or one passed
-//! to `Option::map_or`, is compiled apart as a plain function. The update of the conjugate
-//! gradient was written so, and its profile samples were a tenth of a warm solve's, in
-//! scalar code with a bounds check at every entry; with the smoothing steps' updates, the
-//! dot products and the first smoothing step from zero moved into copies of their own, warm
-//! 513 × 513 solves took 0.91–0.94 of their time (natively, twelve alternating rounds).
+//! Check the copy's code after writing a body: the compiler may build a closure the body
+//! calls (or one it hands to `Option::map_or`) apart, as a plain function. The update of
+//! the conjugate gradient had its loop in such a closure over slices, and its profile
+//! samples were a tenth of a warm solve's, in scalar code with a bounds check at every
+//! entry (it now calls an `#[inline(always)]` function on entries). With it, the smoothing
+//! steps' updates, the dot products and the first smoothing step from zero moved into
+//! copies of their own, warm 513 × 513 solves took 0.91–0.94 of their time (natively,
+//! twelve alternating rounds). A branch in a body's loop can keep it scalar too: the
+//! first step from zero computes its update everywhere and then chooses it.
 
 /// Whether the processor has AVX2 and FMA (the standard library caches the answer).
 #[cfg(target_arch = "x86_64")]
