@@ -1039,30 +1039,37 @@ widest! {
     /// row; `d` is written only when `keep`.
     step_row_body {
         let n = out.len();
-        let (d, x, g) = (&mut d[..n], &x[..n], &g[..n]);
-        // A plain loop for each case, which the compiler vectorises.
+        // On the flattened components, an inverse diagonal entry for each two: written on
+        // pairs, the compiler stored each pair as one 64-bit integer and kept the loops
+        // scalar.
+        let (o, d, x, g) = (out.as_flattened_mut(), d[..n].as_flattened_mut(), x[..n].as_flattened(), &g[..n]);
         macro_rules! each {
-            (|$i:ident, $r:ident, $g:ident| $v:expr) => {
+            (|$j:ident, $r:ident, $g:ident| $v:expr) => {
                 if keep {
-                    for $i in 0..n {
-                        let ($r, $g) = (out[$i], g[$i]);
-                        let v = $v;
-                        d[$i] = v;
-                        out[$i] = [x[$i][0] + v[0], x[$i][1] + v[1]];
+                    for i in 0..n {
+                        let $g = g[i];
+                        for $j in 2 * i..2 * i + 2 {
+                            let $r = o[$j];
+                            let v = $v;
+                            d[$j] = v;
+                            o[$j] = x[$j] + v;
+                        }
                     }
                 } else {
-                    for $i in 0..n {
-                        let ($r, $g) = (out[$i], g[$i]);
-                        let v = $v;
-                        out[$i] = [x[$i][0] + v[0], x[$i][1] + v[1]];
+                    for i in 0..n {
+                        let $g = g[i];
+                        for $j in 2 * i..2 * i + 2 {
+                            let $r = o[$j];
+                            o[$j] = x[$j] + $v;
+                        }
                     }
                 }
             };
         }
         match rule {
-            StepRule::First { inv_theta } => each!(|i, r, dd| [r[0] * dd * inv_theta, r[1] * dd * inv_theta]),
-            StepRule::Next { c1, c2 } => each!(|i, r, dd| [c1 * d[i][0] + c2 * dd * r[0], c1 * d[i][1] + c2 * dd * r[1]]),
-            StepRule::Second { c1, c2 } => each!(|i, r, dd| [c1 * x[i][0] + c2 * dd * r[0], c1 * x[i][1] + c2 * dd * r[1]]),
+            StepRule::First { inv_theta } => each!(|j, r, dd| r * dd * inv_theta),
+            StepRule::Next { c1, c2 } => each!(|j, r, dd| c1 * d[j] + c2 * dd * r),
+            StepRule::Second { c1, c2 } => each!(|j, r, dd| c1 * x[j] + c2 * dd * r),
         }
     }
 }
