@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{self, dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Real, StepRule, V2, W2, WS};
+use super::level::{self, dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, V2, W2, WS};
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
 const CHEB_RATIO: f64 = 16.0;
@@ -618,7 +618,10 @@ pub(crate) fn smooth(
     let inv_theta = WS::of(1.0 / theta);
     let mut rule = StepRule::First { inv_theta };
     let mut steps = aim.steps;
-    if x_zero {
+    // On the finest level the first two steps from zero are one pass (see
+    // `Level::second_step_from_zero`).
+    let fused = x_zero && steps >= 2 && matches!(level.op, Operator::Fine { .. });
+    if x_zero && !fused {
         // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass,
         // which writes x alone (the second step reads the update there, `StepRule::Second`).
         let f = f.expect("a zero start needs a right-hand side");
@@ -630,6 +633,8 @@ pub(crate) fn smooth(
         } else {
             first(x, f, &level.inv_diag_w);
         }
+    }
+    if x_zero {
         steps -= 1;
     }
     for k in 0..steps {
@@ -641,14 +646,18 @@ pub(crate) fn smooth(
         }
         // The step writes x + d into r's vector, which then becomes x's; the last one's
         // update is not kept.
-        level.smoothing_step(x, f, d, r, rule, k + 1 < steps);
+        if fused && k == 0 {
+            level.second_step_from_zero(f.expect("a zero start needs a right-hand side"), inv_theta, d, r, rule, k + 1 < steps);
+        } else {
+            level.smoothing_step(x, f, d, r, rule, k + 1 < steps);
+        }
         std::mem::swap(x, r);
     }
 }
 
 super::wide::widest! {
     /// [`first_from_zero_body`] on the processor's widest vectors (see [`super::wide`]).
-    fn first_from_zero(x: &mut [W2], f: &[W2], g: &[WS], inv_theta: WS) =>
+    pub(crate) fn first_from_zero(x: &mut [W2], f: &[W2], g: &[WS], inv_theta: WS) =>
     /// A smoothing's first step from zero, `x = D⁻¹ f / θ` (`g` the inverse diagonal; zero
     /// where it is).
     first_from_zero_body {

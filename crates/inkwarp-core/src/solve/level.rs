@@ -915,7 +915,7 @@ impl Level {
         let Operator::Fine { tau, runs, own, .. } = &self.op else { unreachable!("the finest level's operator") };
         let wp = self.wp;
         self.over_bands(out, Fold::Dot, |r0, r1, chunk| {
-            fine_band(runs, own, *tau, wp, x, None, r0, r1, chunk);
+            fine_band(runs, own, *tau, wp, x, None, r0, r1, 0, chunk);
             pair_sums(x[r0 * wp..r1 * wp].as_flattened(), chunk.as_flattened(), |a: WS, b: f64| a.get() * b)
         })
     }
@@ -932,7 +932,7 @@ impl Level {
     fn band_residual<T: Real>(&self, pinned: Option<&(&super::pinned::Pinned, Vec<[f64; 4]>)>, x: &[[T; 2]], f: Option<&[[T; 2]]>, r0: usize, out: &mut [[T; 2]]) {
         let wp = self.wp;
         match &self.op {
-            Operator::Fine { tau, runs, own, .. } => fine_band(runs, own, *tau, wp, x, f, r0, r0 + out.len() / wp, out),
+            Operator::Fine { tau, runs, own, .. } => fine_band(runs, own, *tau, wp, x, f, r0, r0 + out.len() / wp, 0, out),
             Operator::Stored { .. } => {
                 // With fixed nodes' terms: the operator without them, then the terms.
                 let op = pinned.map_or(&self.op, |(p, _)| &p.open);
@@ -1018,6 +1018,62 @@ impl Level {
         next[..body.start].copy_from_slice(&x[..body.start]);
         next[body.end..].copy_from_slice(&x[body.end..]);
     }
+}
+
+impl Level {
+    /// A smoothing's second step from zero on the finest level, its first step's iterate
+    /// `x = D⁻¹ f / θ` ([`super::cycle::first_from_zero`]) computed band by band where the
+    /// product reads it (the band's rows and two more each side, into a buffer of the
+    /// thread's own) instead of written over the level and read back: bit for bit the first
+    /// step's pass and then [`Level::smoothing_step`], with one pass fewer and no vector of
+    /// the first iterate (at 513 × 513 about 7 MB a smoothing less, counted from the
+    /// vectors). `rule` is the second step's.
+    pub(crate) fn second_step_from_zero(&self, f: &[W2], inv_theta: WS, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
+        let Operator::Fine { tau, runs, own, .. } = &self.op else { unreachable!("the finest level's operator") };
+        let (wp, w, h) = (self.wp, self.geo.w, self.geo.h);
+        let g = &self.inv_diag_w[..];
+        let run = |(b, (chunk, dc)): (usize, (&mut [W2], &mut [W2]))| {
+            let r0 = b * PAR_ROWS + PAD;
+            let r1 = r0 + chunk.len() / wp;
+            // Rows a..z: the band's and the two each side its stencils reach.
+            let (a, z) = (r0 - PAD, r1 + PAD);
+            let n = (z - a) * wp;
+            FIRST_ITERATE.with(|buf| {
+                let mut buf = buf.borrow_mut();
+                if buf.len() < n {
+                    buf.resize(n, [0.0; 2]);
+                }
+                let xs = &mut buf[..n];
+                // Every entry written (zero where the inverse diagonal is).
+                super::cycle::first_from_zero(xs, &f[a * wp..z * wp], &g[a * wp..z * wp], inv_theta);
+                let xs = &buf[..n];
+                fine_band(runs, own, *tau, wp, xs, Some(&f[a * wp..z * wp]), r0, r1, a, chunk);
+                for (k, (orow, drow)) in chunk.chunks_mut(wp).zip(dc.chunks_mut(wp)).enumerate() {
+                    let (xb, gb) = ((r0 - a + k) * wp, (r0 + k) * wp);
+                    // Padding columns hold zeros.
+                    orow[..PAD].fill([0.0; 2]);
+                    orow[PAD + w..].fill([0.0; 2]);
+                    let cols = PAD..PAD + w;
+                    step_row(&mut orow[cols.clone()], &mut drow[cols.clone()], &xs[xb + PAD..xb + PAD + w], &g[gb + PAD..gb + PAD + w], rule, keep);
+                }
+            });
+        };
+        let body = PAD * wp..(PAD + h) * wp;
+        let (nb, db) = (&mut next[body.clone()], &mut d[body.clone()]);
+        if w * h >= PAR_MIN_NODES {
+            nb.par_chunks_mut(PAR_ROWS * wp).zip(db.par_chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
+        } else {
+            nb.chunks_mut(PAR_ROWS * wp).zip(db.chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
+        }
+        // The padding rows, zeros too.
+        next[..body.start].fill([0.0; 2]);
+        next[body.end..].fill([0.0; 2]);
+    }
+}
+
+thread_local! {
+    /// The first iterate's rows of a band (see [`Level::second_step_from_zero`]).
+    static FIRST_ITERATE: std::cell::RefCell<Vec<W2>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal
@@ -1203,14 +1259,16 @@ widest! {
         f: Option<&[[T; 2]]>,
         r0: usize,
         r1: usize,
+        shift: usize,
         out: &mut [[T; 2]],
     ) =>
+    /// `x` and `f` hold the level's rows from padded row `shift` on (0: all of them).
     #[allow(clippy::too_many_arguments)]
     fine_band_body {
         let molecule = Sym::fine(tau);
         let table = T::table(&own.table, &own.narrow);
         for (k, r) in (r0..r1).enumerate() {
-            let base = r * wp;
+            let base = (r - shift) * wp;
             let orow = &mut out[k * wp..(k + 1) * wp];
             for run in runs.row(r) {
                 let (c, e) = (run.start as usize, run.end as usize);
@@ -1889,8 +1947,36 @@ mod tests {
         let Operator::Fine { tau: t, runs, own, .. } = &fine.op else { unreachable!("the finest level") };
         let (wp, r0, r1) = (fine.wp, PAD, PAD + h);
         let mut plain = vec![[0.0; 2]; n];
-        fine_band_body(runs, own, *t, wp, x, None, r0, r1, &mut plain[r0 * wp..r1 * wp]);
+        fine_band_body(runs, own, *t, wp, x, None, r0, r1, 0, &mut plain[r0 * wp..r1 * wp]);
         assert_eq!(bits(&plain), bits(&narrow_out), "{w}×{h}, τ = {tau}: the plain copy");
+    }
+
+    #[test]
+    fn a_second_step_from_zero_is_the_first_step_then_the_second() {
+        // The fused pass against the first step's pass over the whole level and then the
+        // second step, bit for bit: several bands, fixed nodes, a hole, with and without
+        // tension, keeping the update or not.
+        let mut rnd = crate::grid::tests::sequence(41);
+        let (w, h) = (37, 53);
+        let grid = Grid::from_active(w, h, (0..w * h).map(|i| !((20..24).contains(&(i / w)) && (10..15).contains(&(i % w)))).collect());
+        let bits = |v: &[W2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
+        for tau in [0.0, 0.7] {
+            let fixed: Vec<bool> = (0..w * h).map(|_| rnd() < 0.05).collect();
+            let level = fine_level(&grid, Some(fixed), tau);
+            let len = level.len_padded();
+            let mut f: Vec<W2> = (0..len).map(|_| [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32]).collect();
+            level.clear_padding(&mut f);
+            let (inv_theta, rule) = (0.21, StepRule::Second { c1: 0.6, c2: 0.37 });
+            for keep in [true, false] {
+                let mut x = vec![[5.0f32; 2]; len];
+                crate::solve::cycle::first_from_zero(&mut x, &f, &level.inv_diag_w, inv_theta);
+                let (mut d1, mut next1) = (vec![[3.0f32; 2]; len], vec![[4.0f32; 2]; len]);
+                level.smoothing_step(&x, Some(&f), &mut d1, &mut next1, rule, keep);
+                let (mut d2, mut next2) = (vec![[3.0f32; 2]; len], vec![[4.0f32; 2]; len]);
+                level.second_step_from_zero(&f, inv_theta, &mut d2, &mut next2, rule, keep);
+                assert_eq!((bits(&next2), bits(&d2)), (bits(&next1), bits(&d1)), "tau {tau}, keep {keep}");
+            }
+        }
     }
 
     #[test]
@@ -1911,6 +1997,15 @@ mod tests {
                     step_row(&mut o1, &mut d1, &x, &g, rule, keep);
                     step_row_body(&mut o2, &mut d2, &x, &g, rule, keep);
                     assert_eq!((bits(&o1), bits(&d1)), (bits(&o2), bits(&d2)), "{n}, {rule:?}, keep {keep}");
+                    // And the update's definition, pair by pair.
+                    let update = |i: usize, c: usize| match rule {
+                        StepRule::First { inv_theta } => r[i][c] * g[i] * inv_theta,
+                        StepRule::Next { c1, c2 } => c1 * d0[i][c] + c2 * g[i] * r[i][c],
+                        StepRule::Second { c1, c2 } => c1 * x[i][c] + c2 * g[i] * r[i][c],
+                    };
+                    let d_def: Vec<W2> = (0..n).map(|i| if keep { [update(i, 0), update(i, 1)] } else { d0[i] }).collect();
+                    let o_def: Vec<W2> = (0..n).map(|i| [x[i][0] + update(i, 0), x[i][1] + update(i, 1)]).collect();
+                    assert_eq!((bits(&o1), bits(&d1)), (bits(&o_def), bits(&d_def)), "{n}, {rule:?}, keep {keep}: the definition");
                 }
             }
             let diag: Vec<f64> = g.iter().map(|&v| f64::from(v).abs()).collect();
@@ -1926,8 +2021,8 @@ mod tests {
         let (r0, r1) = (PAD, PAD + h);
         match &level.op {
             Operator::Fine { tau, runs, own, .. } => {
-                fine_band(runs, own, *tau, wp, x, Some(f), r0, r1, &mut wide[r0 * wp..r1 * wp]);
-                fine_band_body(runs, own, *tau, wp, x, Some(f), r0, r1, &mut plain[r0 * wp..r1 * wp]);
+                fine_band(runs, own, *tau, wp, x, Some(f), r0, r1, 0, &mut wide[r0 * wp..r1 * wp]);
+                fine_band_body(runs, own, *tau, wp, x, Some(f), r0, r1, 0, &mut plain[r0 * wp..r1 * wp]);
             }
             Operator::Stored { .. } => {
                 for r in r0..r1 {
