@@ -928,12 +928,15 @@ impl Level {
 
     /// `out = f − A x` on the rows of the band from padded row `r0` (`out` holds those
     /// rows); `pinned`: the level's fixed nodes' terms with their coefficients for `x`
-    /// ([`super::pinned::Pinned::coefficients`]), where it has them.
-    fn band_residual<T: Real>(&self, pinned: Option<&(&super::pinned::Pinned, Vec<[f64; 4]>)>, x: &[[T; 2]], f: Option<&[[T; 2]]>, r0: usize, out: &mut [[T; 2]]) {
+    /// ([`super::pinned::Pinned::coefficients`]), where it has them. `x` and `f` hold the
+    /// level's rows from padded row `shift` on (on the finest level; 0 on the others).
+    #[allow(clippy::too_many_arguments)]
+    fn band_residual<T: Real>(&self, pinned: Option<&(&super::pinned::Pinned, Vec<[f64; 4]>)>, x: &[[T; 2]], f: Option<&[[T; 2]]>, r0: usize, shift: usize, out: &mut [[T; 2]]) {
         let wp = self.wp;
         match &self.op {
-            Operator::Fine { tau, runs, own, .. } => fine_band(runs, own, *tau, wp, x, f, r0, r0 + out.len() / wp, 0, out),
+            Operator::Fine { tau, runs, own, .. } => fine_band(runs, own, *tau, wp, x, f, r0, r0 + out.len() / wp, shift, out),
             Operator::Stored { .. } => {
+                assert_eq!(shift, 0, "a Galerkin level's vectors whole");
                 // With fixed nodes' terms: the operator without them, then the terms.
                 let op = pinned.map_or(&self.op, |(p, _)| &p.open);
                 for (k, orow) in out.chunks_mut(wp).enumerate() {
@@ -950,7 +953,7 @@ impl Level {
         let wp = self.wp;
         let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));
         self.over_bands(out, fold, |r0, r1, chunk| {
-            self.band_residual(pinned.as_ref(), x, f, r0, chunk);
+            self.band_residual(pinned.as_ref(), x, f, r0, 0, chunk);
             match fold {
                 Fold::Nothing => [0.0; 2],
                 Fold::Dot => dot_pairs(&x[r0 * wp..r1 * wp], chunk),
@@ -991,36 +994,10 @@ impl Level {
     /// when `keep` (a later step of the same smoothing reads it), and read only by
     /// [`StepRule::Next`].
     pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
-        let wp = self.wp;
         let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));
-        let (w, g) = (self.geo.w, &self.inv_diag_w[..]);
-        let run = |(b, (chunk, dc)): (usize, (&mut [W2], &mut [W2]))| {
-            let r0 = b * PAR_ROWS + PAD;
-            self.band_residual(pinned.as_ref(), x, f, r0, chunk);
-            for (k, (orow, drow)) in chunk.chunks_mut(wp).zip(dc.chunks_mut(wp)).enumerate() {
-                let base = (r0 + k) * wp;
-                let (xrow, grow) = (&x[base..base + wp], &g[base..base + wp]);
-                // Padding columns hold zeros and keep them.
-                orow[..PAD].copy_from_slice(&xrow[..PAD]);
-                orow[PAD + w..].copy_from_slice(&xrow[PAD + w..]);
-                let cols = PAD..PAD + w;
-                step_row(&mut orow[cols.clone()], &mut drow[cols.clone()], &xrow[cols.clone()], &grow[cols], rule, keep);
-            }
-        };
-        let body = PAD * wp..(PAD + self.geo.h) * wp;
-        let (nb, db) = (&mut next[body.clone()], &mut d[body.clone()]);
-        if w * self.geo.h >= PAR_MIN_NODES {
-            nb.par_chunks_mut(PAR_ROWS * wp).zip(db.par_chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
-        } else {
-            nb.chunks_mut(PAR_ROWS * wp).zip(db.chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
-        }
-        // The padding rows, zeros too.
-        next[..body.start].copy_from_slice(&x[..body.start]);
-        next[body.end..].copy_from_slice(&x[body.end..]);
+        self.step_bands(d, next, Some(x), |r0, _, chunk, dc| self.step_band(pinned.as_ref(), x, 0, f, r0, chunk, dc, rule, keep));
     }
-}
 
-impl Level {
     /// A smoothing's second step from zero on the finest level, its first step's iterate
     /// `x = D⁻¹ f / θ` ([`super::cycle::first_from_zero`]) computed band by band where the
     /// product reads it (the band's rows and two more each side, into a buffer of the
@@ -1029,12 +1006,9 @@ impl Level {
     /// the first iterate (at 513 × 513 about 7 MB a smoothing less, counted from the
     /// vectors). `rule` is the second step's.
     pub(crate) fn second_step_from_zero(&self, f: &[W2], inv_theta: WS, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
-        let Operator::Fine { tau, runs, own, .. } = &self.op else { unreachable!("the finest level's operator") };
-        let (wp, w, h) = (self.wp, self.geo.w, self.geo.h);
-        let g = &self.inv_diag_w[..];
-        let run = |(b, (chunk, dc)): (usize, (&mut [W2], &mut [W2]))| {
-            let r0 = b * PAR_ROWS + PAD;
-            let r1 = r0 + chunk.len() / wp;
+        assert!(matches!(self.op, Operator::Fine { .. }), "the finest level");
+        let (wp, g) = (self.wp, &self.inv_diag_w[..]);
+        self.step_bands(d, next, None, |r0, r1, chunk, dc| {
             // Rows a..z: the band's and the two each side its stencils reach.
             let (a, z) = (r0 - PAD, r1 + PAD);
             let n = (z - a) * wp;
@@ -1043,20 +1017,22 @@ impl Level {
                 if buf.len() < n {
                     buf.resize(n, [0.0; 2]);
                 }
-                let xs = &mut buf[..n];
-                // Every entry written (zero where the inverse diagonal is).
-                super::cycle::first_from_zero(xs, &f[a * wp..z * wp], &g[a * wp..z * wp], inv_theta);
-                let xs = &buf[..n];
-                fine_band(runs, own, *tau, wp, xs, Some(&f[a * wp..z * wp]), r0, r1, a, chunk);
-                for (k, (orow, drow)) in chunk.chunks_mut(wp).zip(dc.chunks_mut(wp)).enumerate() {
-                    let (xb, gb) = ((r0 - a + k) * wp, (r0 + k) * wp);
-                    // Padding columns hold zeros.
-                    orow[..PAD].fill([0.0; 2]);
-                    orow[PAD + w..].fill([0.0; 2]);
-                    let cols = PAD..PAD + w;
-                    step_row(&mut orow[cols.clone()], &mut drow[cols.clone()], &xs[xb + PAD..xb + PAD + w], &g[gb + PAD..gb + PAD + w], rule, keep);
-                }
+                // Every entry written (zero where the inverse diagonal is, the padding too).
+                super::cycle::first_from_zero(&mut buf[..n], &f[a * wp..z * wp], &g[a * wp..z * wp], inv_theta);
+                self.step_band(None, &buf[..n], a, Some(&f[a * wp..z * wp]), r0, chunk, dc, rule, keep);
             });
+        });
+    }
+
+    /// The bands of a smoothing step: `band(r0, r1, rows, d_rows)` for the bands of
+    /// [`PAR_ROWS`] padded rows `r0..r1` of the level's body (`rows` and `d_rows` those
+    /// rows of `next` and `d`), on the pool's threads for large levels; then `next`'s
+    /// padding rows, copied from `x`'s or zero.
+    fn step_bands(&self, d: &mut [W2], next: &mut [W2], x: Option<&[W2]>, band: impl Fn(usize, usize, &mut [W2], &mut [W2]) + Sync + Send) {
+        let (wp, w, h) = (self.wp, self.geo.w, self.geo.h);
+        let run = |(b, (chunk, dc)): (usize, (&mut [W2], &mut [W2]))| {
+            let r0 = b * PAR_ROWS + PAD;
+            band(r0, r0 + chunk.len() / wp, chunk, dc);
         };
         let body = PAD * wp..(PAD + h) * wp;
         let (nb, db) = (&mut next[body.clone()], &mut d[body.clone()]);
@@ -1066,8 +1042,34 @@ impl Level {
             nb.chunks_mut(PAR_ROWS * wp).zip(db.chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
         }
         // The padding rows, zeros too.
-        next[..body.start].fill([0.0; 2]);
-        next[body.end..].fill([0.0; 2]);
+        match x {
+            Some(x) => {
+                next[..body.start].copy_from_slice(&x[..body.start]);
+                next[body.end..].copy_from_slice(&x[body.end..]);
+            }
+            None => {
+                next[..body.start].fill([0.0; 2]);
+                next[body.end..].fill([0.0; 2]);
+            }
+        }
+    }
+
+    /// One band of a smoothing step, from padded row `r0` (`chunk` and `dc` its rows of
+    /// `next` and `d`): the residual, the update from it and `next = x + d`. `x` and `f`
+    /// hold the level's rows from padded row `shift` on.
+    #[allow(clippy::too_many_arguments)]
+    fn step_band(&self, pinned: Option<&(&super::pinned::Pinned, Vec<[f64; 4]>)>, x: &[W2], shift: usize, f: Option<&[W2]>, r0: usize, chunk: &mut [W2], dc: &mut [W2], rule: StepRule, keep: bool) {
+        let (wp, w, g) = (self.wp, self.geo.w, &self.inv_diag_w[..]);
+        self.band_residual(pinned, x, f, r0, shift, chunk);
+        for (k, (orow, drow)) in chunk.chunks_mut(wp).zip(dc.chunks_mut(wp)).enumerate() {
+            let (xb, gb) = ((r0 - shift + k) * wp, (r0 + k) * wp);
+            let (xrow, grow) = (&x[xb..xb + wp], &g[gb..gb + wp]);
+            // Padding columns hold zeros and keep them.
+            orow[..PAD].copy_from_slice(&xrow[..PAD]);
+            orow[PAD + w..].copy_from_slice(&xrow[PAD + w..]);
+            let cols = PAD..PAD + w;
+            step_row(&mut orow[cols.clone()], &mut drow[cols.clone()], &xrow[cols.clone()], &grow[cols], rule, keep);
+        }
     }
 }
 
