@@ -344,10 +344,11 @@ pub fn nearest_node(grid: &Grid, point: Point) -> Option<(usize, usize)> {
 /// assert_eq!((c.used_samples, c.dropped_samples), (2, 1));
 /// ```
 pub fn constrain(grid: &Grid, samples: &[Sample]) -> Constraints {
-    // Each kept sample as its node and its own index in one integer (both under 2³²: a grid
-    // or a sample list that large would not fit in memory), sorted: by node, and
+    // Each kept sample as its node and its own index in one integer (both under 2³², as any
+    // grid or sample list that fits in memory is; checked), sorted: by node, and
     // within a node in the samples' order (so their average is summed in that order). A
     // sort of (node, displacement) pairs took twice as long with 4000 samples.
+    assert!(grid.len() as u64 <= 1 << 32 && samples.len() as u64 <= 1 << 32, "a node or sample index past 2³²");
     let mut keyed: Vec<u64> = Vec::with_capacity(samples.len());
     for (k, s) in samples.iter().enumerate() {
         let finite = s.displacement[0].is_finite() && s.displacement[1].is_finite();

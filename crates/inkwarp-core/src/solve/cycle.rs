@@ -201,7 +201,8 @@ impl Hierarchy {
     }
 
     /// Zeroes `x` for a solve of level k from zero, unless that solve's first smoothing
-    /// step writes all of it anyway.
+    /// step writes all of it anyway (or, fused with the second on the finest level, does
+    /// not read it: see `Level::second_step_from_zero`).
     fn clear_start(&self, k: usize, x: &mut [W2]) {
         if k + 1 == self.levels.len() || self.aim_at(k).steps == 0 || self.levels[k].lam_max <= 0.0 {
             fill_zero(x);
