@@ -43,12 +43,13 @@ pub(crate) trait Real:
     fn has_four_stencils() -> bool {
         false
     }
-    /// `out[j] = f[q₀ + j] − Σₜ sⱼ[t] x[q₀ + j + offset(t)]` for the `4n` consecutive nodes
-    /// `q₀ + j`, each with its own stencil `sⱼ` (in [`STORED_TAPS`] order, each product added
-    /// to the sum in turn), whose coefficients `blocks` holds four nodes at a time, tap by
-    /// tap (see [`Fours`]); only where [`Real::has_four_stencils`].
+    /// `out[j] = f[q₀ + j] − Σₜ sⱼ[t] x[q₀ + j + offset(t)]` for the `4n + tail` consecutive
+    /// nodes `q₀ + j` (`tail` < 4), each with its own stencil `sⱼ` (in [`STORED_TAPS`] order,
+    /// each product added to the sum in turn), whose coefficients `blocks` holds four nodes
+    /// at a time, tap by tap, the tail's block padded with zeros (see [`Fours`]); only where
+    /// [`Real::has_four_stencils`].
     #[allow(clippy::too_many_arguments)]
-    fn four_run(_x: &[[Self; 2]], _f: Option<&[[Self; 2]]>, _q0: usize, _n: usize, _wp: usize, _blocks: &[FourBlock], _out: &mut [[Self; 2]]) {
+    fn four_run(_x: &[[Self; 2]], _f: Option<&[[Self; 2]]>, _q0: usize, _n: usize, _tail: usize, _wp: usize, _blocks: &[FourBlock], _out: &mut [[Self; 2]]) {
         unreachable!("only where has_four_stencils")
     }
 }
@@ -97,11 +98,11 @@ impl Real for f32 {
     }
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    fn four_run(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: usize, wp: usize, blocks: &[FourBlock], out: &mut [[f32; 2]]) {
+    fn four_run(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: usize, tail: usize, wp: usize, blocks: &[FourBlock], out: &mut [[f32; 2]]) {
         // SAFETY: `has_four_stencils` (the only way here) found AVX2 on the processor.
         #[allow(unsafe_code)]
         unsafe {
-            four_run_avx2(x, f, q0, n, wp, blocks, out)
+            four_run_avx2(x, f, q0, n, tail, wp, blocks, out)
         }
     }
 }
@@ -114,29 +115,33 @@ impl Real for f32 {
 /// their chains of additions overlap, and the run's bounds are checked once: 5–8 % off
 /// whole solves with 1000 and 4000 points (where the four nodes were one call each, a
 /// slice's bounds checked at every tap). The compiler did not find the four-node vector
-/// itself: it kept one node to a vector.
+/// itself: it kept one node to a vector. A run's last one to three nodes (`tail`) take one
+/// vector more, whose other lanes read the nodes past the run by the block's zero
+/// coefficients and are dropped.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[allow(unsafe_code, clippy::too_many_arguments)]
-unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: usize, wp: usize, blocks: &[FourBlock], out: &mut [[f32; 2]]) {
+unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: usize, tail: usize, wp: usize, blocks: &[FourBlock], out: &mut [[f32; 2]]) {
     use std::arch::x86_64::{
         __m256, _mm256_add_ps, _mm256_castps128_ps256, _mm256_loadu_ps, _mm256_mul_ps, _mm256_permutevar8x32_ps, _mm256_setr_epi32,
         _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps, _mm_loadu_ps,
     };
     // Every load and store below stays within these: the taps of node q reach from
-    // q − 2 wp − 2 to q + 2 wp + 2, those of the run's last node q₀ + 4n − 1.
-    assert!(q0 >= 2 * wp + 2 && q0 + 4 * n + 2 * wp + 2 <= x.len(), "a run's taps outside its level");
-    assert!(blocks.len() >= n && out.len() >= 4 * n && f.map_or(true, |f| q0 + 4 * n <= f.len()), "a run longer than its blocks");
-    let offs: [usize; 21] = STORED_TAPS.map(|(dy, dx)| 2 * (dy * wp + dx));
+    // q − 2 wp − 2 to q + 2 wp + 2, those of the last four's last node q₀ + 4m − 1.
+    let m = n + usize::from(tail > 0);
+    assert!(tail < 4, "a tail of four nodes or more");
+    assert!(q0 >= 2 * wp + 2 && q0 + 4 * m + 2 * wp + 2 <= x.len(), "a run's taps outside its level");
+    assert!(blocks.len() >= m && out.len() >= 4 * n + tail && f.map_or(true, |f| q0 + 4 * n + tail <= f.len()), "a run longer than its blocks");
     let pairs = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
     let (xs, coefs, outs) = (x.as_flattened().as_ptr(), blocks.as_ptr() as *const f32, out.as_flattened_mut().as_mut_ptr());
     // Four j's product at tap t: `first` the flattened index of its first tap, `b` its
     // block.
-    // SAFETY: j < n, so every tap is within `x` and the block within `blocks` (asserted
+    // SAFETY: j < m, so every tap is within `x` and the block within `blocks` (asserted
     // above).
     let tap = |first: usize, b: *const f32, t: usize| unsafe {
         let c = _mm256_permutevar8x32_ps(_mm256_castps128_ps256(_mm_loadu_ps(b.add(4 * t))), pairs);
-        _mm256_mul_ps(c, _mm256_loadu_ps(xs.add(first + offs[t])))
+        let (dy, dx) = STORED_TAPS[t];
+        _mm256_mul_ps(c, _mm256_loadu_ps(xs.add(first + 2 * (dy * wp + dx))))
     };
     // Four j's residual. SAFETY: j < n, so its eight values are within `out` and `f`
     // (asserted above).
@@ -145,28 +150,43 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
         _mm256_storeu_ps(outs.add(8 * j), _mm256_sub_ps(fv, acc));
     };
     let first = |j: usize| 2 * (q0 + 4 * j - 2 * wp - 2);
+    // Four j's residual, of its first `tail` nodes only for the tail's four (j = n).
+    let put = |j: usize, acc: __m256| {
+        if j < n {
+            store(j, acc);
+            return;
+        }
+        let mut sums = [0.0f32; 8];
+        // SAFETY: `sums` holds eight values.
+        unsafe { _mm256_storeu_ps(sums.as_mut_ptr(), acc) };
+        for k in 0..2 * tail {
+            let fv = f.map_or(0.0, |f| f[q0 + 4 * n + k / 2][k % 2]);
+            // SAFETY: k < 2 tail, so the value is within `out` (asserted above).
+            unsafe { *outs.add(8 * n + k) = fv - sums[k] };
+        }
+    };
     let mut j = 0;
-    while j + 2 <= n {
+    while j + 2 <= m {
         let (fa, fb) = (first(j), first(j + 1));
-        // SAFETY: j + 1 < n.
+        // SAFETY: j + 1 < m.
         let (ba, bb) = unsafe { (coefs.add(84 * j), coefs.add(84 * (j + 1))) };
         let (mut a, mut b) = (_mm256_setzero_ps(), _mm256_setzero_ps());
         for t in 0..21 {
             a = _mm256_add_ps(a, tap(fa, ba, t));
             b = _mm256_add_ps(b, tap(fb, bb, t));
         }
-        store(j, a);
-        store(j + 1, b);
+        put(j, a);
+        put(j + 1, b);
         j += 2;
     }
-    if j < n {
-        // SAFETY: j < n.
+    if j < m {
+        // SAFETY: j < m.
         let ba = unsafe { coefs.add(84 * j) };
         let mut a = _mm256_setzero_ps();
         for t in 0..21 {
             a = _mm256_add_ps(a, tap(first(j), ba, t));
         }
-        store(j, a);
+        put(j, a);
     }
 }
 
@@ -176,7 +196,8 @@ pub(crate) type FourBlock = [[f32; 4]; 21];
 
 /// A Galerkin level's nodes with stencils of their own, in fours as [`residual_row`] takes
 /// them (rows top to bottom, each run of such nodes from its start, four at a time; a run's
-/// last one to three nodes are summed one by one): each four's coefficients as one
+/// last one to three nodes in a four of their own, padded with zero coefficients): each
+/// four's coefficients as one
 /// [`FourBlock`], so the four-node vector reads a tap's coefficients with one load instead of
 /// gathering them from four stencils of the table (on the processors it runs on; elsewhere
 /// empty). On levels where most nodes have stencils of their own, every unknown (see
@@ -193,8 +214,8 @@ pub(crate) struct Fours {
 
 /// From this share of a level's unknowns with stencils of their own, every unknown of the
 /// level goes into the fours: its regular nodes are then too few and too scattered for
-/// their runs' faster sums to make up for the short runs in between, summed one node at a
-/// time. At 513 × 513 with 1000 random points that is most of the second to fourth coarse
+/// their runs' faster sums to make up for the short runs in between, then summed one node
+/// at a time (a run's last nodes now take a vector too). At 513 × 513 with 1000 random points that is most of the second to fourth coarse
 /// levels (38, 76 and 100 % of their nodes have stencils of their own); the samples in
 /// those rows fell by a quarter (1000 and 4000 points), by 5 % with 100 points. From 15 or
 /// 20 % the rows of 10 and 100 points were faster too, but their small levels' changed
@@ -230,11 +251,12 @@ impl Fours {
             let base = r * wp;
             for run in runs.row_as(r, dense).filter(|run| run.kind == RunKind::Own) {
                 let (c, e) = (run.start as usize, run.end as usize);
-                for i in (c..e.saturating_sub(3)).step_by(4) {
-                    let s: [&[f32; 25]; 4] = std::array::from_fn(|j| &narrow[ids[base + i + j] as usize]);
+                for i in (c..e).step_by(4) {
+                    // Past the run's end, zeros.
+                    let s: [Option<&[f32; 25]>; 4] = std::array::from_fn(|j| (i + j < e).then(|| &narrow[ids[base + i + j] as usize]));
                     fours.blocks.push(std::array::from_fn(|t| {
                         let (dy, dx) = STORED_TAPS[t];
-                        s.map(|s| s[dy * 5 + dx])
+                        s.map(|s| s.map_or(0.0, |s| s[dy * 5 + dx]))
                     }));
                 }
             }
@@ -1177,16 +1199,24 @@ widest! {
                     // `f32` with AVX2, the four on one vector (another 2–5 %), their
                     // coefficients read from the level's `fours` in the same order as
                     // here (another 8 % off these rows), a run's fours in one call, two at
-                    // a time (see `four_run_avx2`); on a dense level every run of unknowns
-                    // (see `DENSE_FOURS`).
+                    // a time (see `four_run_avx2`), its last one to three nodes in a four
+                    // of their own (about 30 % off these rows with 100 points, where most runs
+                    // are short); on a dense level every run of unknowns (see
+                    // `DENSE_FOURS`).
                     let mut i = c;
-                    if four && e - c >= 4 {
-                        let n = (e - c) / 4;
-                        T::four_run(x, f, base + c, n, wp, &fours.blocks[block..block + n], &mut out[c..c + 4 * n]);
-                        block += n;
-                        i += 4 * n;
+                    if four {
+                        let (n, tail) = ((e - c) / 4, (e - c) % 4);
+                        let m = n + usize::from(tail > 0);
+                        // The last four's taps reach two rows and two nodes past it, which on
+                        // a level's last rows may be past its vectors: there the tail is
+                        // summed below, node by node.
+                        let tail = if base + c + 4 * m + 2 * wp + 2 <= x.len() { tail } else { 0 };
+                        T::four_run(x, f, base + c, n, tail, wp, &fours.blocks[block..block + m], &mut out[c..c + 4 * n + tail]);
+                        block += m;
+                        i += 4 * n + tail;
                     }
-                    // The run's last one to three nodes (or all of it, without the vector).
+                    // The rest of the run: all of it without the vector, its last one to three
+                    // nodes on a level's last rows.
                     own_sums(x, f, wp, base, i, e, out, |q| &table[ids[q] as usize]);
                 }
             }

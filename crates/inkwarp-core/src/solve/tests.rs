@@ -1104,7 +1104,8 @@ fn a_free_margin_around_constrained_nodes_keeps_its_coarse_levels() {
 #[test]
 fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
     // Where the processor has AVX2, runs of nodes with stencils of their own take four
-    // nodes to a vector (see `Real::four_run`): every node's residual must have the
+    // nodes to a vector (see `Real::four_run`), a run's last one to three nodes a vector
+    // of their own whose other lanes are dropped: every node's residual must have the
     // bits of its own 21 products summed in the stencil's order, in `f32`. The second
     // Galerkin level of a grid with a hole, a cut and scattered fixed nodes has runs of
     // every length. Then the same level with every unknown in the fours (a dense level,
