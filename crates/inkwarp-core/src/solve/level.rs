@@ -215,7 +215,8 @@ pub(crate) struct Fours {
 /// From this share of a level's unknowns with stencils of their own, every unknown of the
 /// level goes into the fours: its regular nodes are then too few and too scattered for
 /// their runs' faster sums to make up for the short runs in between, then summed one node
-/// at a time (a run's last nodes now take a vector too). At 513 × 513 with 1000 random points that is most of the second to fourth coarse
+/// at a time (a run's last nodes now take a vector too). At 513 × 513 with 1000 random
+/// points that is most of the second to fourth coarse
 /// levels (38, 76 and 100 % of their nodes have stencils of their own); the samples in
 /// those rows fell by a quarter (1000 and 4000 points), by 5 % with 100 points. From 15 or
 /// 20 % the rows of 10 and 100 points were faster too, but their small levels' changed
@@ -1200,8 +1201,8 @@ widest! {
                     // coefficients read from the level's `fours` in the same order as
                     // here (another 8 % off these rows), a run's fours in one call, two at
                     // a time (see `four_run_avx2`), its last one to three nodes in a four
-                    // of their own (about 30 % off these rows with 100 points, where most runs
-                    // are short); on a dense level every run of unknowns (see
+                    // of their own (about 30 % off these rows with 100 points, where most
+                    // runs are short); on a dense level every run of unknowns (see
                     // `DENSE_FOURS`).
                     let mut i = c;
                     if four {

@@ -1149,6 +1149,21 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
             assert_eq!(out[p].map(WS::to_bits), want.map(WS::to_bits), "node {p}, dense {dense}");
         }
         assert!(checked > 100 && in_fours > 100, "dense {dense}: only {checked} nodes checked, {in_fours} ending runs of four");
+        // Runs whose last one to three nodes make a four of their own (its other lanes
+        // dropped): the rows' maximal runs of summed nodes, by their length.
+        let mut tails = 0;
+        for r in 0..n / wp {
+            let mut len = 0;
+            for c in 0..=wp {
+                if c < wp && summed(r * wp + c) {
+                    len += 1;
+                } else {
+                    tails += usize::from(len % 4 != 0);
+                    len = 0;
+                }
+            }
+        }
+        assert!(tails > 20, "dense {dense}: only {tails} runs with a tail");
         if dense {
             // The regular nodes were summed by the vector too, not by the shared stencil's
             // rings (which round differently).
