@@ -214,13 +214,15 @@ pub(crate) struct Fours {
 
 /// From this share of a level's unknowns with stencils of their own, every unknown of the
 /// level goes into the fours: its regular nodes are then too few and too scattered for
-/// their runs' faster sums to make up for the short runs in between, then summed one node
-/// at a time (a run's last nodes now take a vector too). At 513 × 513 with 1000 random
-/// points that is most of the second to fourth coarse
-/// levels (38, 76 and 100 % of their nodes have stencils of their own); the samples in
-/// those rows fell by a quarter (1000 and 4000 points), by 5 % with 100 points. From 15 or
-/// 20 % the rows of 10 and 100 points were faster too, but their small levels' changed
-/// rounding took a 10-point warm solve from 2 cycles to 3; every level dense was slower.
+/// their runs' faster sums to make up for the runs between them being cut short. At
+/// 513 × 513 with 1000 random points that is most of the second to fourth coarse levels
+/// (38, 76 and 100 % of their nodes have stencils of their own); the samples in those rows
+/// fell by a quarter (1000 and 4000 points), by 5 % with 100 points, when a run's last one
+/// to three nodes were still summed one at a time. Once those took the vector too, with no
+/// level made dense the 1000-point warm solve still took 1.09 times as long at its fastest
+/// round (the other solves 0.99–1.03). From 15 or 20 % the rows of 10 and 100 points were faster too, but their
+/// small levels' changed rounding took a 10-point warm solve from 2 cycles to 3; every
+/// level dense was slower.
 const DENSE_FOURS: f64 = 0.3;
 /// Smaller levels stay as they are: their products cost next to nothing either way.
 const DENSE_MIN_UNKNOWNS: usize = 1000;
@@ -1208,16 +1210,16 @@ widest! {
                     if four {
                         let (n, tail) = ((e - c) / 4, (e - c) % 4);
                         let m = n + usize::from(tail > 0);
-                        // The last four's taps reach two rows and two nodes past it, which on
-                        // a level's last rows may be past its vectors: there the tail is
-                        // summed below, node by node.
+                        // The last four's taps reach two rows and two nodes past it, which
+                        // near the right end of a level's last row may be past its vectors:
+                        // there the tail is summed below, node by node (its block skipped).
                         let tail = if base + c + 4 * m + 2 * wp + 2 <= x.len() { tail } else { 0 };
                         T::four_run(x, f, base + c, n, tail, wp, &fours.blocks[block..block + m], &mut out[c..c + 4 * n + tail]);
                         block += m;
                         i += 4 * n + tail;
                     }
                     // The rest of the run: all of it without the vector, its last one to three
-                    // nodes on a level's last rows.
+                    // nodes at the end of a level's last row.
                     own_sums(x, f, wp, base, i, e, out, |q| &table[ids[q] as usize]);
                 }
             }
