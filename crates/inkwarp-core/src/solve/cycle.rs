@@ -622,10 +622,11 @@ pub(crate) fn smooth(
     // On the finest level the first two steps from zero are one pass (see
     // `Level::second_step_from_zero`).
     let fused = x_zero && steps >= 2 && matches!(level.op, Operator::Fine { .. });
+    let zero_start_f = || f.expect("a zero start needs a right-hand side");
     if x_zero && !fused {
         // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass,
         // which writes x alone (the second step reads the update there, `StepRule::Second`).
-        let f = f.expect("a zero start needs a right-hand side");
+        let f = zero_start_f();
         let first = |x: &mut [W2], f: &[W2], g: &[WS]| first_from_zero(x, f, g, inv_theta);
         if x.len() >= PAR_MIN {
             x.par_chunks_mut(PASS_CHUNK)
@@ -648,7 +649,7 @@ pub(crate) fn smooth(
         // The step writes x + d into r's vector, which then becomes x's; the last one's
         // update is not kept.
         if fused && k == 0 {
-            level.second_step_from_zero(f.expect("a zero start needs a right-hand side"), inv_theta, d, r, rule, k + 1 < steps);
+            level.second_step_from_zero(zero_start_f(), inv_theta, d, r, rule, k + 1 < steps);
         } else {
             level.smoothing_step(x, f, d, r, rule, k + 1 < steps);
         }

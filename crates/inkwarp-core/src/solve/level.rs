@@ -197,11 +197,10 @@ pub(crate) type FourBlock = [[f32; 4]; 21];
 /// A Galerkin level's nodes with stencils of their own, in fours as [`residual_row`] takes
 /// them (rows top to bottom, each run of such nodes from its start, four at a time; a run's
 /// last one to three nodes in a four of their own, padded with zero coefficients): each
-/// four's coefficients as one
-/// [`FourBlock`], so the four-node vector reads a tap's coefficients with one load instead of
-/// gathering them from four stencils of the table (on the processors it runs on; elsewhere
-/// empty). On levels where most nodes have stencils of their own, every unknown (see
-/// [`DENSE_FOURS`]).
+/// four's coefficients as one [`FourBlock`], so the four-node vector reads a tap's
+/// coefficients with one load instead of gathering them from four stencils of the table (on
+/// the processors it runs on; elsewhere empty). On levels where most nodes have stencils of
+/// their own, every unknown (see [`DENSE_FOURS`]).
 #[derive(Debug, Default)]
 pub(crate) struct Fours {
     blocks: Vec<FourBlock>,
@@ -220,9 +219,9 @@ pub(crate) struct Fours {
 /// fell by a quarter (1000 and 4000 points), by 5 % with 100 points, when a run's last one
 /// to three nodes were still summed one at a time. Once those took the vector too, with no
 /// level made dense the 1000-point warm solve still took 1.09 times as long at its fastest
-/// round (the other solves 0.99–1.03). From 15 or 20 % the rows of 10 and 100 points were faster too, but their
-/// small levels' changed rounding took a 10-point warm solve from 2 cycles to 3; every
-/// level dense was slower.
+/// round (the other solves 0.99–1.03). From 15 or 20 % the rows of 10 and 100 points were
+/// faster too, but their small levels' changed rounding took a 10-point warm solve from 2
+/// cycles to 3; every level dense was slower.
 const DENSE_FOURS: f64 = 0.3;
 /// Smaller levels stay as they are: their products cost next to nothing either way.
 const DENSE_MIN_UNKNOWNS: usize = 1000;
