@@ -623,20 +623,21 @@ pub(crate) fn smooth(
     // `Level::second_step_from_zero`).
     let fused = x_zero && steps >= 2 && matches!(level.op, Operator::Fine { .. });
     let zero_start_f = || f.expect("a zero start needs a right-hand side");
-    if x_zero && !fused {
-        // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass,
-        // which writes x alone (the second step reads the update there, `StepRule::Second`).
-        let f = zero_start_f();
-        let first = |x: &mut [W2], f: &[W2], g: &[WS]| first_from_zero(x, f, g, inv_theta);
-        if x.len() >= PAR_MIN {
-            x.par_chunks_mut(PASS_CHUNK)
-                .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
-                .for_each(|(x, (f, g))| first(x, f, g));
-        } else {
-            first(x, f, &level.inv_diag_w);
-        }
-    }
     if x_zero {
+        // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass,
+        // which writes x alone (the second step reads the update there, `StepRule::Second`);
+        // fused, the second step's pass computes it itself.
+        if !fused {
+            let f = zero_start_f();
+            let first = |x: &mut [W2], f: &[W2], g: &[WS]| first_from_zero(x, f, g, inv_theta);
+            if x.len() >= PAR_MIN {
+                x.par_chunks_mut(PASS_CHUNK)
+                    .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
+                    .for_each(|(x, (f, g))| first(x, f, g));
+            } else {
+                first(x, f, &level.inv_diag_w);
+            }
+        }
         steps -= 1;
     }
     for k in 0..steps {
