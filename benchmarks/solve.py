@@ -10,7 +10,15 @@ answer of a slightly different frame (one earlier frame); "animated" is the per-
 solve of a smooth motion with `inkwarp.WarmStart` (the earlier frames, extrapolated), which
 is how `inkwarp render` and `Scene.frames()` solve animations.
 
+The table's rows run minutes apart (the peers take seconds to minutes), and this machine's
+speed swings within minutes, so the rows need not see the same machine. The engine's speed
+goals at 513×513 (cold ≤ 60 ms, warm ≤ 20 ms, N = 4000 cold no more than 1.5× N = 10) are
+read from a section of their own: rounds in which every N's cold and warm solves run back to
+back, with a short scipy run as the machine's yardstick, so that every N sees the same
+spells; medians over all the rounds, and the N = 4000 / N = 10 ratio paired round by round.
+
 Usage: python benchmarks/solve.py [--quick] [--sizes 257,513] [--counts 10,100,1000,4000]
+                                  [--goal-rounds 15] [--no-big]
 """
 
 from __future__ import annotations
@@ -147,6 +155,96 @@ def bench_grid(size: int, counts: list[int], repeats: int, peer_budget_s: float)
     return rows
 
 
+# The engine's speed goals at 513×513, one process (ms; the ratio is N = 4000 cold over N = 10).
+GOAL_SIZE = 513
+GOALS = {"cold": 60.0, "warm": 20.0, "ratio": 1.5}
+
+
+def spread(values: list[float]) -> str:
+    """Median and middle half (25th to 75th percentile) of times in seconds, as ms."""
+    q = statistics.quantiles(values, n=4, method="inclusive")
+    return f"{statistics.median(values) * 1e3:.1f} ({q[0] * 1e3:.1f}–{q[2] * 1e3:.1f})"
+
+
+def bench_goals(counts: list[int], rounds: int, per_round: int = 5, size: int = GOAL_SIZE) -> None:
+    """The speed goals at 513×513, every N measured in the same spells of the machine.
+
+    Each round runs, for every N (in turn, the order reversed every other round),
+    `per_round` cold solves and `per_round` warm ones (the table's problems), then scipy's
+    10-point fit and evaluation as the yardstick of the machine's speed. Times are the
+    medians of all the rounds' solves; the largest N's cold time over the smallest's is the
+    median of the rounds' ratios of their cold medians (a round's two run seconds apart at
+    most). `size` other than 513 (a smoke run) prints the same tables without the goals."""
+    shape = (size, size)
+    problems = {}
+    for n in counts:
+        pts, disp = constraints(n, *shape)
+        field = inkwarp.thin_plate(pts, disp, shape)
+        problems[n] = (pts, disp, disp * 1.02 + 0.05, field)
+    times = {(n, kind): [] for n in counts for kind in ("cold", "warm")}
+    round_cold = []
+    yardstick = []
+    have_scipy = available("scipy RBF")
+    p10, d10 = constraints(10, *shape)
+
+    def timed(fn: Callable[[], object]) -> list[float]:
+        out = []
+        for _ in range(per_round):
+            t0 = time.perf_counter()
+            fn()
+            out.append(time.perf_counter() - t0)
+        return out
+
+    for r in range(rounds):
+        cold_medians = {}
+        for n in counts if r % 2 == 0 else counts[::-1]:
+            pts, disp, nudged, field = problems[n]
+            cold = timed(lambda: inkwarp.thin_plate(pts, disp, shape))
+            warm = timed(lambda: inkwarp.thin_plate(pts, nudged, shape, initial=field))
+            times[(n, "cold")] += cold
+            times[(n, "warm")] += warm
+            cold_medians[n] = statistics.median(cold)
+        round_cold.append(cold_medians)
+        if have_scipy:
+            yardstick.append(min(timed(lambda: peer_scipy(p10, d10, shape))))
+
+    goals = size == GOAL_SIZE
+    verdict = {True: "met", False: "not met"}
+    print(f"\n### {'Goals at ' if goals else ''}{size}×{size}: {rounds} rounds, {per_round} cold "
+          f"and {per_round} warm solves per N in each\n")
+    print("Median (middle half) of all the rounds' solves, ms; every N ran in every round.\n")
+    cols = ["N", "cold ms"] + ([f"cold ≤ {GOALS['cold']:.0f} ms"] if goals else []) + ["warm ms"] + (
+        [f"warm ≤ {GOALS['warm']:.0f} ms"] if goals else [])
+    print("| " + " | ".join(cols) + " |")
+    print("|" + "|".join("---" for _ in cols) + "|")
+    for n in counts:
+        cells = [str(n)]
+        for kind in ("cold", "warm"):
+            t = times[(n, kind)]
+            cells.append(spread(t))
+            if goals:
+                cells.append(verdict[statistics.median(t) * 1e3 <= GOALS[kind]])
+        print("| " + " | ".join(cells) + " |")
+    lo, hi = min(counts), max(counts)
+    if lo != hi:
+        ratios = [c[hi] / c[lo] for c in round_cold]
+        q = statistics.quantiles(ratios, n=4, method="inclusive")
+        ratio = statistics.median(ratios)
+        line = (f"\nN={hi} cold / N={lo} cold: {ratio:.2f}× (median of the rounds' ratios; middle "
+                f"half {q[0]:.2f}–{q[2]:.2f}×)")
+        if goals and (lo, hi) == (10, 4000):
+            line += f", goal ≤ {GOALS['ratio']}×: {verdict[ratio <= GOALS['ratio']]}"
+        print(line)
+    if yardstick:
+        ms = [t * 1e3 for t in yardstick]
+        line = (f"\nscipy's 10-point fit and evaluation, fastest of {per_round} per round: median "
+                f"{statistics.median(ms):.0f} ms, {min(ms):.0f}–{max(ms):.0f} ms over the rounds")
+        if goals:
+            quiet = QUIET_SCIPY_MS[10]
+            line += f" ({statistics.median(ms) / quiet:.2f}× the quiet table's {quiet:.0f} ms)"
+        print(line)
+
+
 HEADER_DONE = set()
 
 
@@ -200,6 +298,8 @@ def main() -> None:
     ap.add_argument("--counts", default="10,100,1000,4000")
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--no-big", action="store_true", help="skip the 2048² and 3840×2160 runs")
+    ap.add_argument("--goal-rounds", type=int, default=15,
+                    help="rounds of the 513×513 goals section (0 skips it)")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -219,6 +319,11 @@ def main() -> None:
             ratio = rows[max(counts)]["cold"] / rows[min(counts)]["cold"]
             print(f"\n{size}×{size}: cold solve at N={max(counts)} is {ratio:.2f}× N={min(counts)}")
     machine_speed(all_rows)
+    if args.goal_rounds > 0:
+        if args.quick:
+            bench_goals(counts, 2, per_round=2, size=max(sizes))
+        else:
+            bench_goals(counts, args.goal_rounds)
     if not (args.quick or args.no_big):
         bench_big([(2048, 2048), (2160, 3840)])
 

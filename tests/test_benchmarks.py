@@ -1,0 +1,35 @@
+"""The field benchmark's smoke run: `benchmarks/solve.py --quick` prints its tables, the
+goals section included, with a row for every N. Structure only: no time is asserted
+(benchmarks are never timed tests)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_quick_field_benchmark_prints_every_table():
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "solve.py"), "--quick"],
+        check=True, capture_output=True, text=True, timeout=300).stdout
+    assert "| grid | N | cold ms | warm ms | animated ms | cycles |" in out
+    for size in (65, 129):
+        for n in (10, 100):
+            assert f"| {size}×{size} | {n} |" in out
+    # The interleaved section (at 513×513 in a full run, where it also judges the goals).
+    section = out.split("### 129×129: 2 rounds")[1]
+    assert "| N | cold ms | warm ms |" in section
+    rows = [line for line in section.splitlines() if line.startswith(("| 10 |", "| 100 |"))]
+    assert len(rows) == 2
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        # "median (25th–75th percentile)" for the cold and the warm solves.
+        for cell in cells[1:]:
+            median, rest = cell.split(" (")
+            low, high = rest.rstrip(")").split("–")
+            assert float(low) <= float(median) <= float(high)
+    assert "N=100 cold / N=10 cold:" in section
+    assert "goal" not in section  # the goals are judged at 513×513 only
