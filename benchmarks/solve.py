@@ -160,10 +160,18 @@ GOAL_SIZE = 513
 GOALS = {"cold": 60.0, "warm": 20.0, "ratio": 1.5}
 
 
+def quartiles(values: list[float]) -> tuple[float, float]:
+    """The 25th and 75th percentiles (the one value twice, for a single one)."""
+    if len(values) < 2:
+        return values[0], values[0]
+    q = statistics.quantiles(values, n=4, method="inclusive")
+    return q[0], q[2]
+
+
 def spread(values: list[float]) -> str:
     """Median and middle half (25th to 75th percentile) of times in seconds, as ms."""
-    q = statistics.quantiles(values, n=4, method="inclusive")
-    return f"{statistics.median(values) * 1e3:.1f} ({q[0] * 1e3:.1f}–{q[2] * 1e3:.1f})"
+    lo, hi = quartiles(values)
+    return f"{statistics.median(values) * 1e3:.1f} ({lo * 1e3:.1f}–{hi * 1e3:.1f})"
 
 
 def bench_goals(counts: list[int], rounds: int, per_round: int = 5, size: int = GOAL_SIZE) -> None:
@@ -210,7 +218,7 @@ def bench_goals(counts: list[int], rounds: int, per_round: int = 5, size: int = 
 
     goals = size == GOAL_SIZE
     verdict = {True: "met", False: "not met"}
-    print(f"\n### {'Goals at ' if goals else ''}{size}×{size}: {rounds} rounds, {per_round} cold "
+    print(f"\n### {'Goals at ' if goals else ''}{size}×{size}: {rounds} round{'s' * (rounds != 1)}, {per_round} cold "
           f"and {per_round} warm solves per N in each\n")
     print("Median (middle half) of all the rounds' solves, ms; every N ran in every round.\n")
     cols = ["N", "cold ms"] + ([f"cold ≤ {GOALS['cold']:.0f} ms"] if goals else []) + ["warm ms"] + (
@@ -228,10 +236,10 @@ def bench_goals(counts: list[int], rounds: int, per_round: int = 5, size: int = 
     lo, hi = min(counts), max(counts)
     if lo != hi:
         ratios = [c[hi] / c[lo] for c in round_cold]
-        q = statistics.quantiles(ratios, n=4, method="inclusive")
+        q = quartiles(ratios)
         ratio = statistics.median(ratios)
         line = (f"\nN={hi} cold / N={lo} cold: {ratio:.2f}× (median of the rounds' ratios; middle "
-                f"half {q[0]:.2f}–{q[2]:.2f}×)")
+                f"half {q[0]:.2f}–{q[1]:.2f}×)")
         if goals and (lo, hi) == (10, 4000):
             line += f", goal ≤ {GOALS['ratio']}×: {verdict[ratio <= GOALS['ratio']]}"
         print(line)
