@@ -48,14 +48,24 @@ def constraints(n: int, height: int, width: int, seed: int = 0) -> tuple[np.ndar
     return pts, disp
 
 
-def median_time(fn: Callable[[], object], repeats: int) -> float:
-    fn()  # warm-up: first-call costs (thread pools, page faults) are not the steady state
+def next_frame(disp: np.ndarray) -> np.ndarray:
+    """The warm solves' displacements: the next frame of an animation, a small change."""
+    return disp * 1.02 + 0.05
+
+
+def run_times(fn: Callable[[], object], repeats: int) -> list[float]:
+    """Wall time of each of `repeats` calls, seconds."""
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    return times
+
+
+def median_time(fn: Callable[[], object], repeats: int) -> float:
+    fn()  # warm-up: first-call costs (thread pools, page faults) are not the steady state
+    return statistics.median(run_times(fn, repeats))
 
 
 def nodes(height: int, width: int) -> np.ndarray:
@@ -133,7 +143,7 @@ def bench_grid(size: int, counts: list[int], repeats: int, peer_budget_s: float)
     for n in counts:
         pts, disp = constraints(n, *shape)
         field = inkwarp.thin_plate(pts, disp, shape)
-        nudged = disp * 1.02 + 0.05  # the next frame of an animation: a small change
+        nudged = next_frame(disp)
 
         row = {"size": size, "n": n}
         row["cold"] = median_time(lambda: inkwarp.thin_plate(pts, disp, shape), repeats)
@@ -188,33 +198,25 @@ def bench_goals(counts: list[int], rounds: int, per_round: int = 5, size: int = 
     for n in counts:
         pts, disp = constraints(n, *shape)
         field = inkwarp.thin_plate(pts, disp, shape)
-        problems[n] = (pts, disp, disp * 1.02 + 0.05, field)
+        problems[n] = (pts, disp, next_frame(disp), field)
     times = {(n, kind): [] for n in counts for kind in ("cold", "warm")}
     round_cold = []
     yardstick = []
     have_scipy = available("scipy RBF")
     p10, d10 = constraints(10, *shape)
 
-    def timed(fn: Callable[[], object]) -> list[float]:
-        out = []
-        for _ in range(per_round):
-            t0 = time.perf_counter()
-            fn()
-            out.append(time.perf_counter() - t0)
-        return out
-
     for r in range(rounds):
         cold_medians = {}
         for n in counts if r % 2 == 0 else counts[::-1]:
             pts, disp, nudged, field = problems[n]
-            cold = timed(lambda: inkwarp.thin_plate(pts, disp, shape))
-            warm = timed(lambda: inkwarp.thin_plate(pts, nudged, shape, initial=field))
+            cold = run_times(lambda: inkwarp.thin_plate(pts, disp, shape), per_round)
+            warm = run_times(lambda: inkwarp.thin_plate(pts, nudged, shape, initial=field), per_round)
             times[(n, "cold")] += cold
             times[(n, "warm")] += warm
             cold_medians[n] = statistics.median(cold)
         round_cold.append(cold_medians)
         if have_scipy:
-            yardstick.append(min(timed(lambda: peer_scipy(p10, d10, shape))))
+            yardstick.append(min(run_times(lambda: peer_scipy(p10, d10, shape), per_round)))
 
     goals = size == GOAL_SIZE
     verdict = {True: "met", False: "not met"}
