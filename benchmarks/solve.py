@@ -210,7 +210,8 @@ def bench_goals(counts: list[int], rounds: int, per_round: int = 5, size: int = 
         for n in counts if r % 2 == 0 else counts[::-1]:
             pts, disp, nudged, field = problems[n]
             cold = run_times(lambda: inkwarp.thin_plate(pts, disp, shape), per_round)
-            warm = run_times(lambda: inkwarp.thin_plate(pts, nudged, shape, initial=field), per_round)
+            warm = run_times(
+                lambda: inkwarp.thin_plate(pts, nudged, shape, initial=field), per_round)
             times[(n, "cold")] += cold
             times[(n, "warm")] += warm
             cold_medians[n] = statistics.median(cold)
@@ -220,11 +221,13 @@ def bench_goals(counts: list[int], rounds: int, per_round: int = 5, size: int = 
 
     goals = size == GOAL_SIZE
     verdict = {True: "met", False: "not met"}
-    print(f"\n### {'Goals at ' if goals else ''}{size}×{size}: {rounds} round{'s' * (rounds != 1)}, {per_round} cold "
-          f"and {per_round} warm solves per N in each\n")
+    title = f"{'Goals at ' if goals else ''}{size}×{size}"
+    print(f"\n### {title}: {rounds} round{'s' * (rounds != 1)}, {per_round} cold and "
+          f"{per_round} warm solves per N in each\n")
     print("Median (middle half) of all the rounds' solves, ms; every N ran in every round.\n")
-    cols = ["N", "cold ms"] + ([f"cold ≤ {GOALS['cold']:.0f} ms"] if goals else []) + ["warm ms"] + (
-        [f"warm ≤ {GOALS['warm']:.0f} ms"] if goals else [])
+    cols = ["N"]
+    for kind in ("cold", "warm"):
+        cols += [f"{kind} ms"] + ([f"{kind} ≤ {GOALS[kind]:.0f} ms"] if goals else [])
     print("| " + " | ".join(cols) + " |")
     print("|" + "|".join("---" for _ in cols) + "|")
     for n in counts:
