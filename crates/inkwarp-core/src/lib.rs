@@ -15,6 +15,7 @@ mod clock;
 pub mod field;
 pub mod geometry;
 pub mod grid;
+pub mod interrupt;
 pub mod methods;
 pub mod render;
 pub mod scene;
