@@ -305,6 +305,22 @@ class Scene:
         return cls(core, base_dir=base)
 
     @classmethod
+    def new(cls, picture: str | os.PathLike[str], *, drawing: str | os.PathLike[str] | None = None,
+            fps: float = 24.0, duration: float = 2.0) -> Scene:
+        """A new scene started from a picture: one layer for a PNG, JPEG or WebP, one layer
+        per pixel layer for a layered PSD (see :mod:`inkwarp.importing`), and the features
+        of an SVG ``drawing`` traced over it (see :mod:`inkwarp.svg`).
+
+        The layers' images are held as ``data:`` URIs; :meth:`save` writes the scene as
+        one file (``inkwarp new`` writes the images beside it instead). The background is
+        transparent. Notes about the picture (flattened groups, blend modes other than
+        Normal) are issued as :class:`inkwarp.InkwarpWarning`.
+        """
+        from inkwarp.importing import new_scene
+
+        return cls.from_dict(new_scene(picture, drawing=drawing, fps=fps, duration=duration))
+
+    @classmethod
     def from_json(cls, text: str, base_dir: str | os.PathLike[str] | None = None) -> Scene:
         """Builds a scene from JSON text (see :meth:`from_dict`)."""
         base = os.fspath(base_dir) if base_dir is not None else None

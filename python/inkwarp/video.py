@@ -34,10 +34,12 @@ from typing import Literal
 
 import numpy as np
 
-OutputKind = Literal["png", "dir", "gif", "mp4"]
+OutputKind = Literal["png", "dir", "gif", "mp4", "webm", "mov", "apng"]
 
 #: Output suffixes that name a file; anything else names a directory of PNG frames.
-FILE_SUFFIXES = {".png": "png", ".gif": "gif", ".mp4": "mp4"}
+FILE_SUFFIXES = {".png": "png", ".gif": "gif", ".mp4": "mp4",
+                 # with alpha, written by inkwarp.outputs
+                 ".webm": "webm", ".mov": "mov", ".apng": "apng"}
 
 #: The names of the frames in a PNG sequence: ``frame_0000.png``, ``frame_0001.png``, ...
 FRAME_PATTERN = "frame_{:04d}.png"
@@ -66,7 +68,7 @@ def output_kind(path: str | os.PathLike[str]) -> OutputKind:
         return "dir"
     raise ValueError(
         f"{text}: cannot write '{suffix}' files; name the output .png (one frame), "
-        ".gif, .mp4, or a directory (a PNG sequence)"
+        ".gif, .mp4, .webm, .mov, .apng, or a directory (a PNG sequence)"
     )
 
 
@@ -433,6 +435,10 @@ def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
         return GifWriter(target, fps)
     if kind == "mp4":
         return Mp4Writer(target, fps)
+    if kind in ("webm", "mov", "apng"):
+        from inkwarp.outputs import open_writer as open_alpha_writer
+
+        return open_alpha_writer(target, fps=fps, kind=kind)
     raise ValueError(f"unknown output kind {kind!r}")
 
 

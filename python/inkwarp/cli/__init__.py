@@ -19,10 +19,11 @@ from inkwarp.cli._common import prefixed, problem_parts
 from inkwarp.errors import InkwarpError, SceneError
 
 # The command modules, in the order `inkwarp --help` lists them.
-COMMANDS: list[str] = ["render", "field", "validate", "schema", "demo", "edit", "compare", "transfer"]
+COMMANDS: list[str] = ["new", "render", "field", "validate", "schema", "demo", "edit", "compare", "transfer"]
 
 EPILOG = """\
 examples:
+  inkwarp new character.psd -o character.json --drawing tracing.svg
   inkwarp render examples/face/scene.json -o face.mp4
   inkwarp render examples/face/scene.json --time 1.0 -o frame.png
   inkwarp validate examples/face/scene.json

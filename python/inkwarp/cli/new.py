@@ -1,0 +1,65 @@
+"""``inkwarp new``: a scene started from a picture (PNG, JPEG, WebP or layered PSD), with an
+optional SVG drawing traced over it."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from inkwarp.cli import _common
+
+EPILOG = """\
+examples:
+  inkwarp new character.psd -o character.json
+  inkwarp new character.psd -o character.json --drawing tracing.svg
+  inkwarp new photo.jpg -o photo.json --embed --fps 12 --duration 3
+
+A PNG, JPEG or WebP picture gives one layer; a PSD gives one layer per pixel layer, in the
+PSD's order, with its name and visibility, each a canvas-sized image (groups are flattened
+into their layers; layers whose blend mode is not Normal are reported). The layers'
+images are written beside the scene as SCENE-LAYER.png (a PNG or JPEG picture is used
+where it is), or into the scene as data: URIs with --embed. An SVG drawing's shapes
+become features: closed filled shapes regions, open paths splines or polylines, ids or
+classes with "cut" cuts, small circles points (docs/guides/psd-and-svg.md). The scene's
+background is transparent, so frame 0 is the picture as it is.
+"""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "new", help="start a scene from a picture or a layered PSD (and an SVG drawing)",
+        description="Start a scene from a picture: one layer for a PNG, JPEG or WebP, one\n"
+                    "layer per pixel layer for a PSD; an SVG traced over it gives the drawing.",
+        epilog=EPILOG, formatter_class=_common.formatter)
+    parser.add_argument("picture", metavar="PICTURE", help="a .png, .jpg, .webp or .psd file")
+    parser.add_argument("-o", "--output", required=True, metavar="SCENE",
+                        help="the scene file to write (.json)")
+    parser.add_argument("--drawing", metavar="SVG",
+                        help="an SVG drawing traced over the picture: its shapes become features")
+    parser.add_argument("--embed", action="store_true",
+                        help="put the layers' images into the scene as data: URIs")
+    parser.add_argument("--fps", type=float, default=24.0, metavar="FPS",
+                        help="frames per second (default: 24)")
+    parser.add_argument("--duration", type=float, default=2.0, metavar="S",
+                        help="length in seconds (default: 2)")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="print no notes and no summary")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from inkwarp.importing import write_new_scene
+
+    if not args.fps > 0:
+        raise ValueError(f"--fps {args.fps}: give a number of frames per second > 0, such as 24")
+    if not args.duration > 0:
+        raise ValueError(f"--duration {args.duration}: give a length in seconds > 0, such as 2")
+    paths, notes = write_new_scene(args.picture, args.output, drawing=args.drawing,
+                                   embed=args.embed, fps=args.fps, duration=args.duration)
+    if not args.quiet:
+        for note in notes:
+            print(f"inkwarp new: note: {note}", file=sys.stderr)
+        images = len(paths) - 1
+        print(f"wrote {paths[-1]}" + (f" and {images} layer image{'s' if images != 1 else ''}"
+                                      if images else ""))
+    return 0

@@ -1,0 +1,366 @@
+"""Starting a scene from a picture: a PNG, JPEG or WebP gives one layer, a layered PSD one
+layer per pixel layer.
+
+A PSD's layers keep their order (the bottom layer first, as scene layers go back to front),
+their names, their visibility and their position: every layer becomes a canvas-sized image
+with the layer's pixels where the PSD puts them (a scene's images all have the frame's size,
+so the drawing traced over the composite lines up with every layer, and each layer's
+``offset`` stays ``[0, 0]`` for the animator to use). A layer's opacity is multiplied into
+its alpha. Groups are flattened into their layers (a group's opacity and visibility pass on
+to the layers in it); a layer or group whose blend mode is not Normal (or Pass Through, for
+a group) is kept but reported, because inkwarp composites every layer with "over".
+
+Examples
+--------
+>>> import numpy as np, os, tempfile
+>>> from PIL import Image
+>>> folder = tempfile.mkdtemp()
+>>> art = np.zeros((24, 32, 4), np.uint8); art[4:20, 8:24] = (200, 40, 40, 255)
+>>> Image.fromarray(art).save(os.path.join(folder, "square.png"))
+>>> picture = read_picture(os.path.join(folder, "square.png"))
+>>> (picture.width, picture.height), [layer.name for layer in picture.layers]
+((32, 24), ['square'])
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import secrets
+import warnings
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from inkwarp.errors import InkwarpWarning
+
+__all__ = ["Picture", "PictureLayer", "read_picture", "scene_dict", "write_new_scene"]
+
+#: Suffixes of flat pictures (read with Pillow; one layer).
+FLAT_SUFFIXES = (".png", ".jpg", ".jpeg", ".webp")
+#: Flat pictures the engine decodes itself, so a scene can point at them where they are.
+ENGINE_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+
+@dataclass
+class PictureLayer:
+    """One layer of a picture: a canvas-sized RGBA image (straight alpha)."""
+
+    name: str
+    image: np.ndarray
+    visible: bool = True
+    #: The file the layer's pixels can be read from unchanged (a flat PNG or JPEG), if any.
+    source: Path | None = None
+
+
+@dataclass
+class Picture:
+    """A picture read for a new scene: its canvas size, its layers (back to front) and
+    the notes made while reading it (flattened groups, unusual blend modes)."""
+
+    width: int
+    height: int
+    layers: list[PictureLayer]
+    notes: list[str] = field(default_factory=list)
+
+
+def read_picture(path: str | os.PathLike[str]) -> Picture:
+    """Reads a PNG, JPEG, WebP or PSD file as the layers of a new scene.
+
+    Parameters
+    ----------
+    path : path
+        The picture. ``.psd`` files are read with psd-tools (``pip install psd-tools``);
+        they must be in RGB colour mode with 8 bits per channel.
+
+    Returns
+    -------
+    Picture
+
+    Raises
+    ------
+    FileNotFoundError
+        When there is no such file.
+    ValueError
+        When the file cannot be read, naming the file and what to do.
+    """
+    source = Path(os.fspath(path))
+    if not source.exists():
+        raise FileNotFoundError(2, "No such file or directory", str(source))
+    if source.is_dir():
+        raise IsADirectoryError(21, "is a directory, not a picture", str(source))
+    suffix = source.suffix.lower()
+    if suffix == ".psd":
+        return _read_psd(source)
+    if suffix in FLAT_SUFFIXES:
+        return _read_flat(source)
+    raise ValueError(f"{source}: cannot start a scene from '{suffix or 'no suffix'}' files; "
+                     "give a PNG, JPEG, WebP or layered PSD picture")
+
+
+def _read_flat(source: Path) -> Picture:
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(source) as image:
+            image.load()
+            rgba = np.asarray(image.convert("RGBA")).copy()
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
+        raise ValueError(f"{source}: not a readable {source.suffix.lstrip('.').upper()} "
+                         f"picture ({err}); export it again from the painting app") from None
+    height, width = rgba.shape[:2]
+    keep = source if source.suffix.lower() in ENGINE_SUFFIXES else None
+    return Picture(width, height, [PictureLayer(source.stem, rgba, True, keep)])
+
+
+def _read_psd(source: Path) -> Picture:
+    try:
+        from psd_tools import PSDImage
+        from psd_tools.constants import BlendMode, ColorMode
+    except ImportError:  # pragma: no cover - psd-tools is a dependency
+        raise ValueError(f"{source}: reading PSD files needs psd-tools; "
+                         "install it with 'pip install psd-tools'") from None
+    try:
+        psd = PSDImage.open(source)
+    except Exception as err:  # noqa: BLE001 - psd-tools raises many kinds on a broken file
+        reason = " ".join(str(err).split()) or type(err).__name__
+        raise ValueError(f"{source}: not a readable PSD file ({reason}); save it again from "
+                         "the painting app as a Photoshop document (RGB, 8 bits)") from None
+    if psd.color_mode != ColorMode.RGB:
+        mode = getattr(psd.color_mode, "name", str(psd.color_mode))
+        raise ValueError(f"{source}: the PSD is in {mode} colour mode; inkwarp reads RGB "
+                         "documents: convert it (Photoshop: Image > Mode > RGB Color) and "
+                         "save it again")
+    if psd.depth != 8:
+        raise ValueError(f"{source}: the PSD has {psd.depth} bits per channel; inkwarp reads "
+                         "8-bit documents: convert it (Photoshop: Image > Mode > 8 Bits/Channel)"
+                         " and save it again")
+    width, height = int(psd.width), int(psd.height)
+    notes: list[str] = []
+    layers: list[PictureLayer] = []
+    normal = {BlendMode.NORMAL, BlendMode.PASS_THROUGH}
+
+    def walk(group: Iterable[Any], path: list[str], opacity: float, visible: bool) -> None:
+        for layer in group:
+            name = str(layer.name)
+            here = [*path, name]
+            shown = visible and bool(layer.visible)
+            alpha = opacity * int(layer.opacity) / 255.0
+            if layer.blend_mode not in normal and shown:
+                mode = getattr(layer.blend_mode, "name", str(layer.blend_mode))
+                kind = "group" if layer.is_group() else "layer"
+                notes.append(f"{source}: {kind} '{' / '.join(here)}' uses the blend mode "
+                             f"{mode.replace('_', ' ').title()}; inkwarp composites it as "
+                             "Normal, so it will look different: merge it into the layer "
+                             "below or set it to Normal")
+            if layer.is_group():
+                notes.append(f"{source}: group '{' / '.join(here)}' is flattened into its "
+                             "layers (names kept, its opacity and visibility applied to them)")
+                walk(layer, here, alpha, shown)
+                continue
+            try:
+                image = layer.topil()
+            except Exception as err:  # noqa: BLE001 - a damaged layer record
+                raise ValueError(f"{source}: layer '{' / '.join(here)}' cannot be read ({err}); "
+                                 "save the PSD again from the painting app") from None
+            if image is None:  # an empty layer, or an adjustment or fill layer without pixels
+                if layer.kind not in ("pixel", "type", "shape", "smartobject"):
+                    notes.append(f"{source}: layer '{' / '.join(here)}' ({layer.kind}) has no "
+                                 "pixels and is left out; rasterise it to keep it")
+                    continue
+                image = None
+            if layer.kind != "pixel" and image is not None:
+                notes.append(f"{source}: layer '{' / '.join(here)}' ({layer.kind}) is taken as "
+                             "the pixels the PSD stores for it")
+            canvas = np.zeros((height, width, 4), np.uint8)
+            if image is not None:
+                rgba = np.asarray(image.convert("RGBA"))
+                _paste(canvas, rgba, int(layer.left), int(layer.top))
+            mask = layer.mask if layer.has_mask() else None
+            if mask is not None and not mask.disabled:
+                # A layer mask (psd-tools keeps a layer's transparency in one too) scales
+                # the alpha; outside its box it is its background colour.
+                matte = np.full((height, width), int(mask.background_color), np.uint8)
+                pixels = mask.topil()
+                if pixels is not None:
+                    grey = np.asarray(pixels.convert("L"))[..., None]
+                    holder = np.repeat(matte[..., None], 4, axis=2)
+                    _paste(holder, np.repeat(grey, 4, axis=2), int(mask.left), int(mask.top))
+                    matte = holder[..., 0]
+                canvas[..., 3] = (canvas[..., 3].astype(np.uint16) * matte // 255).astype(np.uint8)
+            if alpha < 1.0:
+                canvas[..., 3] = np.round(canvas[..., 3] * alpha).astype(np.uint8)
+            layers.append(PictureLayer(name, canvas, shown))
+
+    walk(psd, [], 1.0, True)
+    if not layers:
+        raise ValueError(f"{source}: the PSD has no pixel layers; add a layer with the picture "
+                         "and save it again")
+    return Picture(width, height, layers, notes)
+
+
+def _paste(canvas: np.ndarray, image: np.ndarray, left: int, top: int) -> None:
+    """``image`` placed with its top-left pixel at ``(left, top)`` of ``canvas``, clipped."""
+    height, width = canvas.shape[:2]
+    h, w = image.shape[:2]
+    x0, y0 = max(left, 0), max(top, 0)
+    x1, y1 = min(left + w, width), min(top + h, height)
+    if x0 < x1 and y0 < y1:
+        canvas[y0:y1, x0:x1] = image[y0 - top:y1 - top, x0 - left:x1 - left]
+
+
+def _unique_names(names: list[str]) -> list[str]:
+    seen: dict[str, int] = {}
+    out = []
+    for name in names:
+        base = name.strip() or "layer"
+        candidate = base
+        while candidate in seen:
+            seen[base] += 1
+            candidate = f"{base} ({seen[base]})"
+        seen.setdefault(candidate, 1)
+        out.append(candidate)
+    return out
+
+
+def _slug(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "-", name).strip("-.") or "layer"
+
+
+def scene_dict(picture: Picture, images: list[str], *, fps: float = 24.0,
+               duration: float = 2.0, features: list[dict[str, Any]] | None = None
+               ) -> dict[str, Any]:
+    """The scene of a picture whose layers' images are at ``images`` (paths or data URIs).
+
+    The background is transparent (alpha 0), so frame 0 of the scene is the picture's
+    composite, transparency included.
+    """
+    names = _unique_names([layer.name for layer in picture.layers])
+    layers: list[dict[str, Any]] = []
+    for name, layer, image in zip(names, picture.layers, images):
+        entry: dict[str, Any] = {"name": name, "image": image}
+        if not layer.visible:
+            entry["visible"] = False
+        layers.append(entry)
+    return {
+        "inkwarp": 1,
+        "width": picture.width,
+        "height": picture.height,
+        "fps": fps,
+        "duration": duration,
+        "background": [255, 255, 255, 0],
+        "layers": layers,
+        "features": list(features or []),
+    }
+
+
+def _encode_png(image: np.ndarray) -> bytes:
+    import io
+
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(image), "RGBA").save(buffer, format="PNG")
+    return buffer.getvalue()
+
+
+def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathLike[str], *,
+                    drawing: str | os.PathLike[str] | None = None, embed: bool = False,
+                    fps: float = 24.0, duration: float = 2.0) -> tuple[list[Path], list[str]]:
+    """Writes a new scene for a picture (and optionally an SVG drawing traced over it).
+
+    The layers' images go beside the scene as ``SCENE-LAYER.png`` (a flat PNG or JPEG is
+    referred to where it is instead), or into the scene as ``data:`` URIs with ``embed``.
+    Everything is checked (the scene is built by the engine) before anything is written,
+    and every file is written under a temporary name and renamed at the end, so a failure
+    leaves nothing behind.
+
+    Returns
+    -------
+    (paths, notes)
+        The files written (the scene last) and the notes about the picture and drawing.
+    """
+    from inkwarp.scene import Scene
+    from inkwarp.svg import read_drawing
+
+    target = Path(os.fspath(output))
+    if target.suffix.lower() != ".json":
+        raise ValueError(f"{target}: name the scene file .json, such as {target.with_suffix('.json').name}")
+    folder = target.absolute().parent
+    if not folder.is_dir():
+        raise ValueError(f"{target}: the directory {folder} does not exist; create it first")
+    if target.is_dir():
+        raise ValueError(f"{target}: is a directory; name a .json file")
+    picture = read_picture(picture_path)
+    notes = list(picture.notes)
+    features: list[dict[str, Any]] = []
+    if drawing is not None:
+        features, drawing_notes = read_drawing(drawing, picture.width, picture.height)
+        notes += drawing_notes
+
+    encoded = [_encode_png(layer.image) for layer in picture.layers]
+    import base64
+
+    uris = ["data:image/png;base64," + base64.b64encode(data).decode("ascii") for data in encoded]
+    data = scene_dict(picture, uris, fps=fps, duration=duration, features=features)
+    Scene.from_dict(data)  # every problem, raised as a SceneError, before anything is written
+
+    files: list[tuple[Path, bytes]] = []
+    if not embed:
+        names = [layer["name"] for layer in data["layers"]]
+        used: set[str] = set()
+        for index, (name, layer, png) in enumerate(zip(names, picture.layers, encoded)):
+            if layer.source is not None:
+                reference = Path(os.path.relpath(layer.source.absolute(), folder)).as_posix()
+            else:
+                file_name = f"{target.stem}-{_slug(name)}.png"
+                while file_name in used:
+                    file_name = f"{target.stem}-{_slug(name)}-{index}.png"
+                used.add(file_name)
+                files.append((folder / file_name, png))
+                reference = file_name
+            data["layers"][index]["image"] = reference
+    files.append((target, (json.dumps(data, indent=2) + "\n").encode("utf-8")))
+    _write_all(files)
+    return [path for path, _ in files], notes
+
+
+def _write_all(files: list[tuple[Path, bytes]]) -> None:
+    """Every file under a temporary name first, then all renamed; on any failure the
+    temporary files are removed and no target is touched."""
+    temps: list[Path] = []
+    try:
+        for path, content in files:
+            temp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.part")
+            temps.append(temp)
+            temp.write_bytes(content)
+        for temp, (path, _) in zip(temps, files):
+            os.replace(temp, path)
+    except BaseException:
+        for temp in temps:
+            temp.unlink(missing_ok=True)
+        raise
+
+
+def new_scene(picture_path: str | os.PathLike[str], *, drawing: str | os.PathLike[str] | None = None,
+              fps: float = 24.0, duration: float = 2.0) -> dict[str, Any]:
+    """The scene dict of a picture, its images as ``data:`` URIs; notes become warnings."""
+    picture = read_picture(picture_path)
+    notes = list(picture.notes)
+    features: list[dict[str, Any]] = []
+    if drawing is not None:
+        from inkwarp.svg import read_drawing
+
+        features, drawing_notes = read_drawing(drawing, picture.width, picture.height)
+        notes += drawing_notes
+    for note in notes:
+        warnings.warn(note, InkwarpWarning, stacklevel=3)
+    import base64
+
+    uris = ["data:image/png;base64," + base64.b64encode(_encode_png(layer.image)).decode("ascii")
+            for layer in picture.layers]
+    return scene_dict(picture, uris, fps=fps, duration=duration, features=features)

@@ -1,0 +1,325 @@
+"""Outputs for pipelines: video with alpha (WebM VP9, ProRes 4444 MOV, APNG), GIF with 1-bit
+transparency, sprite sheets with a TexturePacker JSON, and background overrides.
+
+These writers follow :mod:`inkwarp.video`'s rules: frames are RGBA ``uint8`` arrays with
+straight alpha, everything is written under a temporary name beside the target and renamed
+at the end, and a failure (ffmpeg's included: its exit status is checked) leaves nothing
+behind. Video goes through the ffmpeg that the ``imageio-ffmpeg`` wheel ships.
+
+- ``.webm``: VP9 in ``yuva420p`` (alpha kept; plays in browsers, imports into DaVinci
+  Resolve, Premiere, After Effects and Blender);
+- ``.mov``: Apple ProRes 4444 (``yuva444p10le``; alpha kept, the editing codec);
+- ``.apng``: animated PNG, lossless RGBA, looping;
+- ``.gif`` of a transparent scene: 1-bit transparency (a pixel is transparent where its
+  alpha is below 128, otherwise opaque, its colour unblended), 255 colours a frame.
+
+Examples
+--------
+>>> parse_background("transparent"), parse_background("#ff8000"), parse_background("0,0,0,128")
+([0, 0, 0, 0], [255, 128, 0, 255], [0, 0, 0, 128])
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from inkwarp import video
+from inkwarp.video import FrameWriter, _temp_name
+
+__all__ = ["ALPHA_KINDS", "SpriteSheetWriter", "open_writer", "parse_background",
+           "sheet_layout", "with_background"]
+
+#: Output kinds that keep alpha, by suffix.
+ALPHA_KINDS = {".webm": "webm", ".mov": "mov", ".apng": "apng"}
+
+_NAMED = {"white": [255, 255, 255, 255], "black": [0, 0, 0, 255],
+          "transparent": [0, 0, 0, 0], "none": [0, 0, 0, 0]}
+
+
+def parse_background(text: str) -> list[int]:
+    """An RGBA background from ``transparent``, ``white``, ``black``, ``#RRGGBB``,
+    ``#RRGGBBAA`` or ``R,G,B[,A]`` (0-255)."""
+    spec = text.strip().lower()
+    if spec in _NAMED:
+        return list(_NAMED[spec])
+    if spec.startswith("#") and len(spec) in (7, 9):
+        try:
+            values = [int(spec[i:i + 2], 16) for i in range(1, len(spec), 2)]
+        except ValueError:
+            values = []
+        if values:
+            return values + [255] * (4 - len(values))
+    parts = [p.strip() for p in spec.split(",")]
+    if len(parts) in (3, 4) and all(p.isdigit() and int(p) <= 255 for p in parts):
+        return [int(p) for p in parts] + [255] * (4 - len(parts))
+    raise ValueError(f"--background {text}: give transparent, white, black, #RRGGBB, "
+                     "#RRGGBBAA or R,G,B[,A] with numbers 0-255")
+
+
+def with_background(scene: Any, background: list[int]) -> Any:
+    """The same scene with another background colour (images are not read again from a
+    different place: paths stay relative to the scene's folder)."""
+    from inkwarp.scene import Scene
+
+    data = scene.to_dict()
+    data["background"] = list(background)
+    out = Scene.from_dict(data, base_dir=scene.base_dir)
+    out.file = scene.file
+    return out
+
+
+def _ffmpeg() -> str:
+    import imageio_ffmpeg
+
+    return imageio_ffmpeg.get_ffmpeg_exe()
+
+
+def _rate(fps: float) -> str:
+    from fractions import Fraction
+
+    fraction = Fraction(fps).limit_denominator(1001)
+    return f"{fraction.numerator}/{fraction.denominator}"
+
+
+class FfmpegAlphaWriter(FrameWriter):
+    """RGBA frames streamed to ffmpeg, encoded with alpha (see the module's list)."""
+
+    CODECS = {
+        "webm": ["-c:v", "libvpx-vp9", "-pix_fmt", "yuva420p", "-crf", "18", "-b:v", "0",
+                 "-row-mt", "1", "-auto-alt-ref", "0", "-f", "webm"],
+        "mov": ["-c:v", "prores_ks", "-profile:v", "4444", "-pix_fmt", "yuva444p10le",
+                "-alpha_bits", "16", "-vendor", "apl0", "-f", "mov"],
+        "apng": ["-c:v", "apng", "-pix_fmt", "rgba", "-plays", "0", "-f", "apng"],
+    }
+
+    def __init__(self, target: Path, fps: float, kind: str) -> None:
+        super().__init__(target, fps)
+        self.kind = kind
+        self._temp: Path | None = None
+        self._process: subprocess.Popen[bytes] | None = None
+        self._log: Any = None
+
+    def _start(self, width: int, height: int) -> None:
+        self._temp = _temp_name(self.target, self.target.suffix)
+        self._log = tempfile.TemporaryFile()
+        command = [_ffmpeg(), "-hide_banner", "-loglevel", "error", "-y",
+                   "-f", "rawvideo", "-pix_fmt", "rgba", "-s", f"{width}x{height}",
+                   "-r", _rate(self.fps), "-i", "-", *self.CODECS[self.kind], str(self._temp)]
+        self._process = subprocess.Popen(command, stdin=subprocess.PIPE,
+                                         stdout=subprocess.DEVNULL, stderr=self._log)
+
+    def _write(self, frame: np.ndarray) -> None:
+        rgba = frame if frame.shape[2] == 4 else np.dstack(
+            [frame, np.full(frame.shape[:2], 255, np.uint8)])
+        if self._process is None:
+            self._start(rgba.shape[1], rgba.shape[0])
+        assert self._process is not None and self._process.stdin is not None
+        try:
+            self._process.stdin.write(np.ascontiguousarray(rgba).tobytes())
+        except BrokenPipeError:
+            self._process.wait()
+            raise OSError(f"{self.target}: ffmpeg stopped while encoding: {self._errors()}"
+                          ) from None
+
+    def _errors(self) -> str:
+        if self._log is None:
+            return ""
+        self._log.seek(0)
+        text = self._log.read().decode("utf-8", "replace").strip()
+        return " ".join(text.split())[-400:] or "no message"
+
+    def _commit(self) -> list[Path]:
+        assert self._process is not None and self._process.stdin is not None
+        self._process.stdin.close()
+        code = self._process.wait()
+        if code != 0:
+            raise OSError(f"{self.target}: ffmpeg failed (exit status {code}): {self._errors()}")
+        self._process = None
+        assert self._temp is not None
+        os.replace(self._temp, self.target)
+        self._log.close()
+        return [self.target]
+
+    def _discard(self) -> None:
+        if self._process is not None:
+            if self._process.stdin is not None:
+                try:
+                    self._process.stdin.close()
+                except OSError:
+                    pass
+            self._process.kill()
+            self._process.wait()
+            self._process = None
+        if self._log is not None:
+            self._log.close()
+        if self._temp is not None:
+            self._temp.unlink(missing_ok=True)
+
+
+class TransparentGifWriter(FrameWriter):
+    """An animated GIF with 1-bit transparency: pixels with alpha < 128 are transparent,
+    the others opaque; each frame has its own 255-colour palette plus the transparent
+    index, and is drawn on a cleared canvas (disposal 2), so moving parts leave no trail."""
+
+    def __init__(self, target: Path, fps: float) -> None:
+        super().__init__(target, fps)
+        self._frames: list[Any] = []
+        self._temp: Path | None = None
+
+    def _write(self, frame: np.ndarray) -> None:
+        from PIL import Image
+
+        rgba = frame if frame.shape[2] == 4 else np.dstack(
+            [frame, np.full(frame.shape[:2], 255, np.uint8)])
+        opaque = rgba[..., 3] >= 128
+        rgb = Image.fromarray(np.ascontiguousarray(rgba[..., :3]), "RGB")
+        indexed = np.array(rgb.quantize(colors=255, method=Image.Quantize.FASTOCTREE),
+                           copy=True)
+        palette = rgb.quantize(colors=255, method=Image.Quantize.FASTOCTREE).getpalette() or []
+        indexed[~opaque] = 255
+        image = Image.fromarray(indexed, "P")
+        palette = (palette + [0] * 768)[:765] + [0, 0, 0]
+        image.putpalette(palette)
+        image.info["transparency"] = 255
+        self._frames.append(image)
+
+    def _commit(self) -> list[Path]:
+        n = len(self._frames)
+        ends = [round((i + 1) * 100 / self.fps) for i in range(n)]
+        starts = [0] + ends[:-1]
+        durations = [max(1, e - s) * 10 for s, e in zip(starts, ends)]
+        first, *rest = self._frames
+        self._temp = _temp_name(self.target, ".gif")
+        first.save(self._temp, format="GIF", save_all=True, append_images=rest,
+                   duration=durations, loop=0, optimize=False, disposal=2, transparency=255)
+        self._frames.clear()
+        os.replace(self._temp, self.target)
+        return [self.target]
+
+    def _discard(self) -> None:
+        self._frames.clear()
+        if self._temp is not None:
+            self._temp.unlink(missing_ok=True)
+
+
+def sheet_layout(count: int, spec: str | None) -> tuple[int, int]:
+    """``(columns, rows)`` of a sprite sheet for ``count`` frames: ``COLSxROWS``, ``COLS``
+    (rows as needed), or None for the squarest grid.
+
+    Examples
+    --------
+    >>> sheet_layout(10, None), sheet_layout(10, "5"), sheet_layout(10, "2x5")
+    ((4, 3), (5, 2), (2, 5))
+    """
+    if spec is None or spec == "auto":
+        columns = max(1, math.ceil(math.sqrt(count)))
+        return columns, max(1, math.ceil(count / columns))
+    text = spec.lower().strip()
+    try:
+        if "x" in text:
+            c, r = (int(v) for v in text.split("x", 1))
+        else:
+            c = int(text)
+            r = math.ceil(count / c) if c > 0 else 0
+    except ValueError:
+        raise ValueError(f"--sprite-sheet {spec}: give COLSxROWS (such as 8x4) or COLS"
+                         ) from None
+    if c < 1 or r < 1:
+        raise ValueError(f"--sprite-sheet {spec}: columns and rows must be at least 1")
+    if c * r < count:
+        raise ValueError(f"--sprite-sheet {spec}: {c}x{r} holds {c * r} frames, the render "
+                         f"has {count}; give more rows or columns, or pick fewer with --frames")
+    return c, r
+
+
+class SpriteSheetWriter(FrameWriter):
+    """Frames on one PNG atlas, left to right then top to bottom, with a JSON beside it in
+    TexturePacker's "hash" layout (``frames`` by name, each with ``frame``, ``rotated``,
+    ``trimmed``, ``spriteSourceSize``, ``sourceSize`` and ``duration`` in milliseconds;
+    ``meta`` with ``image``, ``size``, ``scale``, ``format``), which Phaser, PixiJS, Godot
+    and Unity importers read. Frame names are ``frame_NNNN.png``, numbered from
+    ``first_frame``."""
+
+    def __init__(self, target: Path, fps: float, count: int, layout: str | None = None,
+                 first_frame: int = 0) -> None:
+        super().__init__(target, fps)
+        self.count = count
+        self.columns, self.rows = sheet_layout(count, layout)
+        self.first_frame = first_frame
+        self.json_path = target.with_suffix(".json")
+        self._sheet: np.ndarray | None = None
+        self._temps: list[Path] = []
+
+    def _write(self, frame: np.ndarray) -> None:
+        if self.frames_written >= self.columns * self.rows:
+            raise ValueError(f"{self.target}: the sheet holds {self.columns * self.rows} frames")
+        h, w = frame.shape[:2]
+        if self._sheet is None:
+            self._sheet = np.zeros((h * self.rows, w * self.columns, 4), np.uint8)
+        rgba = frame if frame.shape[2] == 4 else np.dstack([frame, np.full((h, w), 255, np.uint8)])
+        row, column = divmod(self.frames_written, self.columns)
+        self._sheet[row * h:(row + 1) * h, column * w:(column + 1) * w] = rgba
+
+    def frame_json(self) -> dict[str, Any]:
+        from inkwarp import __version__
+
+        assert self.size is not None
+        w, h = self.size
+        n = self.frames_written
+        ends = [round((i + 1) * 1000 / self.fps) for i in range(n)]
+        starts = [0] + ends[:-1]
+        frames = {}
+        for i in range(n):
+            row, column = divmod(i, self.columns)
+            frames[video.FRAME_PATTERN.format(self.first_frame + i)] = {
+                "frame": {"x": column * w, "y": row * h, "w": w, "h": h},
+                "rotated": False, "trimmed": False,
+                "spriteSourceSize": {"x": 0, "y": 0, "w": w, "h": h},
+                "sourceSize": {"w": w, "h": h},
+                "duration": ends[i] - starts[i],
+            }
+        return {"frames": frames,
+                "meta": {"app": "inkwarp", "version": __version__, "image": self.target.name,
+                         "format": "RGBA8888",
+                         "size": {"w": w * self.columns, "h": h * self.rows}, "scale": "1",
+                         "fps": self.fps}}
+
+    def _commit(self) -> list[Path]:
+        from PIL import Image
+
+        assert self._sheet is not None
+        image_temp = _temp_name(self.target, ".png")
+        json_temp = _temp_name(self.json_path, ".json")
+        self._temps = [image_temp, json_temp]
+        Image.fromarray(self._sheet, "RGBA").save(image_temp, format="PNG", compress_level=6)
+        json_temp.write_text(json.dumps(self.frame_json(), indent=2) + "\n", encoding="utf-8")
+        os.replace(image_temp, self.target)
+        os.replace(json_temp, self.json_path)
+        self._sheet = None
+        return [self.target, self.json_path]
+
+    def _discard(self) -> None:
+        self._sheet = None
+        for temp in self._temps:
+            temp.unlink(missing_ok=True)
+
+
+def open_writer(path: str | os.PathLike[str], *, fps: float, kind: str | None = None,
+                first_frame: int = 0, transparent: bool = False) -> FrameWriter:
+    """The writer for ``path``: the alpha formats here, a 1-bit transparent GIF when
+    ``transparent``, otherwise :func:`inkwarp.video.open_writer`."""
+    target = video.check_target(path)
+    kind = kind or video.output_kind(target)
+    if kind in ALPHA_KINDS.values():
+        return FfmpegAlphaWriter(target, fps, kind)
+    if kind == "gif" and transparent:
+        return TransparentGifWriter(target, fps)
+    return video.open_writer(target, fps=fps, kind=kind, first_frame=first_frame)  # type: ignore[arg-type]

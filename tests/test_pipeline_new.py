@@ -1,0 +1,246 @@
+"""`inkwarp new` and `inkwarp.Scene.new`: scenes started from pictures, layered PSDs (written
+here with psd-tools) and SVG drawings traced over them."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import inkwarp
+from inkwarp.cli import main
+from inkwarp.svg import TOLERANCE_PX, read_drawing
+
+W, H = 64, 48
+
+
+def run(capsys, *args):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def files(folder):
+    return sorted(p.name for p in folder.iterdir())
+
+
+def write_psd(path, *, mode="RGB"):
+    """Three layers: an opaque backdrop, a half-transparent square placed at (30, 20) and
+    smaller than the canvas, and a hidden layer."""
+    from psd_tools import PSDImage
+    from psd_tools.api.layers import PixelLayer
+
+    psd = PSDImage.new(mode, (W, H))
+    back = np.zeros((H, W, 4), np.uint8)
+    back[..., :3] = np.linspace(20, 220, W, dtype=np.uint8)[None, :, None]
+    back[..., 3] = 255
+    square = np.zeros((10, 12, 4), np.uint8)
+    square[...] = (250, 200, 10, 255)
+    square[2:6, 3:9, 3] = 128
+    hidden = np.full((8, 8, 4), 255, np.uint8)
+    psd.append(PixelLayer.frompil(Image.fromarray(back, "RGBA"), psd, "backdrop", 0, 0))
+    psd.append(PixelLayer.frompil(Image.fromarray(square, "RGBA"), psd, "square", 20, 30))
+    layer = PixelLayer.frompil(Image.fromarray(hidden, "RGBA"), psd, "ghost", 4, 4)
+    layer.visible = False
+    psd.append(layer)
+    psd.save(path)
+    return path
+
+
+def psd_composite(path):
+    from psd_tools import PSDImage
+
+    return np.asarray(PSDImage.open(path).composite().convert("RGBA")).astype(int)
+
+
+def test_a_psd_becomes_one_layer_per_pixel_layer_and_frame_0_is_its_composite(capsys, tmp_path):
+    psd = write_psd(tmp_path / "character.psd")
+    code, out, err = run(capsys, "new", psd, "-o", tmp_path / "character.json")
+    assert code == 0, err
+    assert files(tmp_path) == ["character-backdrop.png", "character-ghost.png",
+                               "character-square.png", "character.json", "character.psd"]
+    doc = json.loads((tmp_path / "character.json").read_text())
+    assert [layer["name"] for layer in doc["layers"]] == ["backdrop", "square", "ghost"]
+    assert [layer.get("visible", True) for layer in doc["layers"]] == [True, True, False]
+    assert (doc["width"], doc["height"]) == (W, H)
+    # The square sits where the PSD puts it, on a canvas-sized image.
+    square = np.asarray(Image.open(tmp_path / "character-square.png"))
+    assert square.shape == (H, W, 4)
+    assert (square[20:30, 30:42, 3] > 0).all() and square[..., 3].sum() == square[20:30, 30:42, 3].sum()
+    frame = inkwarp.Scene.load(tmp_path / "character.json").render(frame=0).astype(int)
+    assert np.abs(frame - psd_composite(psd)).max() <= 2
+
+
+def test_embed_puts_the_images_into_the_scene(capsys, tmp_path):
+    psd = write_psd(tmp_path / "character.psd")
+    code, _, err = run(capsys, "new", psd, "-o", tmp_path / "c.json", "--embed", "-q")
+    assert code == 0, err
+    assert files(tmp_path) == ["c.json", "character.psd"]
+    doc = json.loads((tmp_path / "c.json").read_text())
+    assert all(layer["image"].startswith("data:image/png;base64,") for layer in doc["layers"])
+    frame = inkwarp.Scene.load(tmp_path / "c.json").render().astype(int)
+    assert np.abs(frame - psd_composite(psd)).max() <= 2
+
+
+def test_a_flat_picture_is_one_layer_used_where_it_is(capsys, tmp_path):
+    art = np.zeros((H, W, 3), np.uint8)
+    art[10:30, 10:40] = (200, 30, 60)
+    Image.fromarray(art).save(tmp_path / "photo.png")
+    (tmp_path / "scenes").mkdir()
+    code, _, err = run(capsys, "new", tmp_path / "photo.png", "-o", tmp_path / "scenes" / "p.json")
+    assert code == 0, err
+    assert files(tmp_path / "scenes") == ["p.json"]
+    doc = json.loads((tmp_path / "scenes" / "p.json").read_text())
+    assert doc["layers"] == [{"name": "photo", "image": "../photo.png"}]
+    frame = inkwarp.Scene.load(tmp_path / "scenes" / "p.json").render()
+    assert (frame[..., :3] == art).all() and (frame[..., 3] == 255).all()
+    # WebP, which scenes do not read, is converted to a PNG beside the scene.
+    Image.fromarray(art).save(tmp_path / "photo.webp", lossless=True)
+    scene = inkwarp.Scene.new(tmp_path / "photo.webp")
+    assert (scene.render()[..., :3] == art).all()
+
+
+def test_scene_new_warns_about_blend_modes_naming_the_layer(tmp_path):
+    from psd_tools import PSDImage
+    from psd_tools.constants import BlendMode
+
+    path = write_psd(tmp_path / "blend.psd")
+    psd = PSDImage.open(path)
+    psd[1].blend_mode = BlendMode.MULTIPLY
+    psd.save(path)
+    with pytest.warns(inkwarp.InkwarpWarning, match="layer 'square' uses the blend mode Multiply"):
+        scene = inkwarp.Scene.new(path, fps=12, duration=1)
+    assert scene.layers == ["backdrop", "square", "ghost"] and scene.frame_count == 12
+
+
+@pytest.mark.parametrize("case", ["corrupt", "cmyk", "svg-without-paths", "bad-suffix"])
+def test_bad_pictures_and_drawings_get_one_clear_error_and_leave_nothing(capsys, tmp_path, case):
+    picture = tmp_path / "in.psd"
+    args = []
+    if case == "corrupt":
+        data = write_psd(picture).read_bytes()
+        picture.write_bytes(data[: len(data) // 3])
+        expect = "not a readable PSD file"
+    elif case == "cmyk":
+        write_psd(picture, mode="CMYK")
+        expect = "CMYK colour mode; inkwarp reads RGB documents: convert it"
+    elif case == "svg-without-paths":
+        write_psd(picture)
+        (tmp_path / "d.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" '
+                                        'viewBox="0 0 64 48"><text x="1" y="9">hi</text></svg>')
+        args = ["--drawing", tmp_path / "d.svg"]
+        expect = "d.svg: the SVG has no paths, lines, polylines, polygons"
+    else:
+        picture = tmp_path / "in.tga"
+        picture.write_bytes(b"x")
+        expect = "cannot start a scene from '.tga' files"
+    before = files(tmp_path)
+    code, out, err = run(capsys, "new", picture, "-o", tmp_path / "s.json", *args)
+    assert code == 2
+    named = "d.svg" if case == "svg-without-paths" else picture.name
+    assert err.startswith("inkwarp new: error: ") and expect in err and named in err
+    assert "Traceback" not in err and err.count("\n") == 1
+    assert files(tmp_path) == before
+
+
+# --- SVG drawings ----------------------------------------------------------------------------
+
+SVG = """<svg xmlns="http://www.w3.org/2000/svg" xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape"
+     width="128" height="96" viewBox="0 0 128 96">
+  <g transform="translate(0.5 0.5)">
+    <path id="brow" d="M 20 20 C 30 6, 50 6, 60 20 S 90 34, 100 20" fill="none"/>
+    <path id="jaw" d="M10,60 L40,80 l30,0" style="fill:none;stroke:black"/>
+    <polyline id="arm" points="70,40 90,50 110,40" fill="none"/>
+    <polygon id="plate" points="10,10 30,10 30,30" fill="red"/>
+    <line id="shoulder-cut" x1="40" y1="40" x2="60" y2="44"/>
+    <path class="knife cut" d="M 70 70 Q 90 90 110 70" fill="none"/>
+    <circle id="eye" cx="80" cy="12" r="2"/>
+    <circle id="head" cx="100" cy="70" r="12" fill="#fc0"/>
+    <ellipse id="ring" cx="30" cy="45" rx="8" ry="5" fill="none" transform="rotate(30 30 45)"/>
+    <path id="nose" d="M 64 40"/>
+  </g>
+</svg>
+"""
+
+
+def dense_bezier(p0, c1, c2, p3, n=400):
+    t = np.linspace(0, 1, n)[:, None]
+    return ((1 - t) ** 3 * p0 + 3 * (1 - t) ** 2 * t * c1 + 3 * (1 - t) * t * t * c2
+            + t ** 3 * p3)
+
+
+def distance_to(points, curve):
+    d = np.sqrt(((points[:, None, :] - curve[None]) ** 2).sum(2))
+    return d.min(1)
+
+
+def test_an_svg_with_every_element_kind_becomes_the_expected_features(tmp_path):
+    svg = tmp_path / "drawing.svg"
+    svg.write_text(SVG)
+    features, notes = read_drawing(svg, W, H)  # the 128x96 viewBox over a 64x48 picture
+    by_id = {f["id"]: f for f in features}
+    kinds = {f["id"]: f["kind"] for f in features}
+    assert kinds == {"brow": "spline", "jaw": "polyline", "arm": "polyline", "plate": "region",
+                     "shoulder-cut": "cut", "cut-1": "cut", "eye": "point", "head": "region",
+                     "ring": "spline", "nose": "point"}
+
+    def px(x, y):  # SVG user units (with the group's half-unit shift) to scene pixels
+        return [(x + 0.5) / 2 - 0.5, (y + 0.5) / 2 - 0.5]
+
+    assert by_id["jaw"]["rest"] == [px(10, 60), px(40, 80), px(70, 80)]
+    assert by_id["plate"]["rest"] == [px(10, 10), px(30, 10), px(30, 30)]
+    assert by_id["shoulder-cut"]["rest"] == [px(40, 40), px(60, 44)]
+    assert by_id["eye"]["rest"] == [px(80, 12)]
+    assert by_id["nose"]["rest"] == [px(64, 40)]
+    assert by_id["head"]["curve"] == "spline" and by_id["ring"].get("closed") is True
+    # The brow's spline (as the engine samples it) stays within 0.25 px of the two Béziers.
+    to_px = lambda pts: (np.asarray(pts, float) + 0.5) / 2 - 0.5  # noqa: E731
+    truth = np.vstack([dense_bezier(*to_px([[20, 20], [30, 6], [50, 6], [60, 20]])),
+                       dense_bezier(*to_px([[60, 20], [70, 34], [90, 34], [100, 20]]))])
+    rest = np.asarray(by_id["brow"]["rest"])
+    samples, _ = inkwarp.sample("spline", rest, rest, spacing=0.05)
+    assert distance_to(samples, truth).max() <= TOLERANCE_PX
+    assert distance_to(truth, samples).max() <= TOLERANCE_PX
+    # The circle's region outline is a circle of radius 6 px about its centre.
+    head = np.asarray(by_id["head"]["rest"])
+    outline, _ = inkwarp.sample("spline", head, head, closed=True, spacing=0.05)
+    centre = np.array(px(100, 70))
+    radius = np.hypot(*(outline - centre).T)
+    assert np.abs(radius - 6).max() <= TOLERANCE_PX
+    # The quadratic cut is flattened to a polyline within the tolerance.
+    cut = np.asarray(by_id["cut-1"]["rest"])
+    quad = dense_bezier(*to_px([[70, 70], [70 + 2 / 3 * 20, 70 + 2 / 3 * 20],
+                                [110 - 2 / 3 * 20, 70 + 2 / 3 * 20], [110, 70]]))
+    assert distance_to(quad, np.vstack([np.linspace(a, b, 50) for a, b in zip(cut, cut[1:])])
+                       ).max() <= TOLERANCE_PX
+    # The rotated ellipse: its points lie on the ellipse rotated by 30 degrees.
+    ring = np.asarray(by_id["ring"]["rest"]) - np.array(px(30, 45))
+    angle = np.radians(-30)
+    u = ring @ np.array([[np.cos(angle), np.sin(angle)], [-np.sin(angle), np.cos(angle)]])
+    assert np.allclose((u[:, 0] / 4) ** 2 + (u[:, 1] / 2.5) ** 2, 1, atol=2e-3)
+    assert notes == []
+
+
+def test_new_with_a_drawing_makes_a_scene_that_renders(capsys, tmp_path):
+    psd = write_psd(tmp_path / "character.psd")
+    (tmp_path / "drawing.svg").write_text(SVG)
+    code, _, err = run(capsys, "new", psd, "-o", tmp_path / "c.json", "--drawing",
+                       tmp_path / "drawing.svg")
+    assert code == 0, err
+    scene = inkwarp.Scene.load(tmp_path / "c.json")
+    assert "brow" in scene.features and len(scene.features) == 10
+    assert np.abs(scene.render().astype(int) - psd_composite(psd)).max() <= 2
+
+
+def test_bad_path_data_names_the_element(capsys, tmp_path):
+    Image.fromarray(np.zeros((H, W, 4), np.uint8)).save(tmp_path / "p.png")
+    (tmp_path / "d.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg">'
+                                    '<path id="lip" d="M 1 2 C 3 4"/></svg>')
+    code, _, err = run(capsys, "new", tmp_path / "p.png", "-o", tmp_path / "s.json",
+                       "--drawing", tmp_path / "d.svg")
+    assert code == 2 and "d.svg: <path> id='lip'" in err and "C needs 6 numbers" in err
+    assert not (tmp_path / "s.json").exists()
+    assert not [p for p in os.listdir(tmp_path) if ".part" in p]
