@@ -13,6 +13,7 @@ from inkwarp.imaging import warp_image
 from inkwarp.transfer import transfer, transfer_dict
 from inkwarp.plate import SolveReport, WarmStart, thin_plate, thin_plate_report
 from inkwarp.scene import Frames, Scene, image_data_uri, scene_schema, validate_scene
+from inkwarp.rendering import render
 
 __all__ = [
     "Comparison",
@@ -30,6 +31,7 @@ __all__ = [
     "image_data_uri",
     "interpolate",
     "interpolate_report",
+    "render",
     "sample",
     "scene_schema",
     "thin_plate",

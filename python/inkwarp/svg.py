@@ -23,9 +23,10 @@ pixel up and left. Each feature takes its element's ``id`` (a path of several pi
 
 Examples
 --------
->>> import os, tempfile
->>> svg = os.path.join(tempfile.mkdtemp(), "drawing.svg")
->>> _ = open(svg, "w").write('''<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 48">
+>>> import tempfile
+>>> from pathlib import Path
+>>> svg = Path(tempfile.mkdtemp()) / "drawing.svg"
+>>> _ = svg.write_text('''<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 48">
 ...   <polyline id="arm" points="10.5,10.5 30.5,20.5 50.5,10.5" fill="none"/>
 ...   <circle id="eye" cx="20.5" cy="30.5" r="2"/>
 ... </svg>''')

@@ -1,4 +1,5 @@
-"""``inkwarp render``: a scene to a PNG, a PNG sequence, a GIF or an MP4."""
+"""``inkwarp render``: a scene to a PNG, a PNG sequence, a GIF, an MP4, video with alpha
+(WebM, MOV, APNG) or a sprite sheet, in one process or on a Ray cluster."""
 
 from __future__ import annotations
 
@@ -15,23 +16,35 @@ examples:
   inkwarp render scene.json -o frames/ --frames 24:48   frame_0024.png to frame_0047.png
   inkwarp render scene.json -o still.png --time 1.25
   inkwarp render scene.json -o still.png --frame 30 --method triangulation
+  inkwarp render scene.json -o anim.webm --background transparent   VP9 with alpha
+  inkwarp render scene.json -o anim.mov                 ProRes 4444 (alpha kept)
+  inkwarp render scene.json -o sheet.png --sprite-sheet 8x4   atlas + sheet.json
+  inkwarp render scene.json -o frames/ --frames 0:100 --skip-existing   a farm chunk
+  inkwarp render scene.json -o anim.mp4 --ray           on a local Ray cluster
+  inkwarp render scene.json -o anim.mp4 --ray 10.0.0.5:6379   on a running cluster
 
 The output's suffix picks the format: .png (one frame: --time or --frame, default frame
-0), .gif, .mp4, or a directory (a path ending in / or without a suffix). Frame i is the
-drawing at time i / fps. The output is written under a temporary name and renamed at the
-end, so a failed or interrupted render leaves nothing behind.
+0), .gif, .mp4, .webm (VP9, alpha), .mov (ProRes 4444, alpha), .apng (alpha), or a
+directory (a path ending in / or without a suffix). A scene whose background has alpha 0
+(or --background transparent) keeps its alpha in PNGs, .webm, .mov and .apng, and gets
+1-bit transparency in a .gif; .mp4 is flattened over white. Frame i is the drawing at time
+i / fps; frames are the same however a render is split into --frames ranges or Ray
+chunks. The output is written under a temporary name and renamed at the end, so a failed
+or interrupted render leaves nothing behind.
 """
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "render", help="render a scene to a PNG, a PNG sequence, a GIF or an MP4",
+        "render", help="render a scene to a PNG, PNG frames, GIF, MP4, WebM, MOV, APNG or sprite sheet",
         description="Render a scene: one frame to a PNG, or its frames to a directory of PNGs,\n"
-                    "an animated GIF or an H.264 MP4.",
+                    "an animated GIF, an H.264 MP4, video with alpha (WebM, MOV, APNG) or a\n"
+                    "sprite sheet; on this machine or on a Ray cluster.",
         epilog=EPILOG, formatter_class=_common.formatter)
     _common.add_scene_argument(parser)
     parser.add_argument("-o", "--output", required=True, metavar="OUT",
-                        help="where to write: FILE.png, FILE.gif, FILE.mp4 or a DIRECTORY/")
+                        help="where to write: FILE.png, .gif, .mp4, .webm, .mov, .apng or a "
+                             "DIRECTORY/")
     one = parser.add_mutually_exclusive_group()
     one.add_argument("--time", type=float, metavar="T",
                      help="for a .png: the time in seconds of the frame to render")
@@ -40,6 +53,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--frames", metavar="A:B",
                         help="for an animation: render frames A to B-1 only (default: all)")
     _common.add_method_argument(parser)
+    parser.add_argument("--background", metavar="COLOR",
+                        help="the background instead of the scene's: transparent, white, "
+                             "#RRGGBB, #RRGGBBAA or R,G,B[,A]")
+    parser.add_argument("--sprite-sheet", nargs="?", const="auto", metavar="COLSxROWS",
+                        help="with -o SHEET.png: every frame on one atlas, and SHEET.json "
+                             "(TexturePacker hash) beside it (default: a square grid)")
+    parser.add_argument("--skip-existing", action="store_true",
+                        help="with -o DIR/: leave frames already there alone, write each new "
+                             "frame as soon as it is done (for render farms)")
+    parser.add_argument("--ray", nargs="?", const="local", metavar="ADDRESS",
+                        help="render on a Ray cluster, in contiguous chunks; without ADDRESS "
+                             "on a local one started for the render (needs inkwarp[ray])")
     parser.add_argument("-q", "--quiet", action="store_true",
                         help="print nothing on success (no progress bar, no summary)")
     parser.set_defaults(func=run)
@@ -48,8 +73,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from inkwarp import video
 
+    from inkwarp import outputs, rendering
+
     target = video.check_target(args.output)
     kind = video.output_kind(args.output)
+    if args.sprite_sheet is not None:
+        if kind != "png":
+            raise ValueError(f"--sprite-sheet writes a .png atlas (and a .json beside it); "
+                             f"name the output sheet.png, not {target.name}")
+        kind = "sheet"
     if kind == "png" and args.frames is not None:
         raise ValueError(f"--frames {args.frames}: a .png holds one frame; pick it with "
                          "--frame N or --time T, or write a .gif, an .mp4 or a directory")
@@ -59,8 +91,16 @@ def run(args: argparse.Namespace) -> int:
                          f"for part of an animation use --frames A:B")
     if args.time is not None:
         _common.check_time(args.time)
+    if args.skip_existing and kind != "dir":
+        raise ValueError("--skip-existing works with a directory of PNG frames (-o DIR/), "
+                         "whose frames are separate files")
+    if args.ray is not None and kind == "png":
+        raise ValueError("--ray renders animations; a single .png frame renders here")
+    background = outputs.parse_background(args.background) if args.background else None
 
     scene = _common.load_scene(args.scene)
+    if background is not None:
+        scene = outputs.with_background(scene, background)
     started = time.perf_counter()
     if kind == "png":
         if args.time is not None:
@@ -79,19 +119,20 @@ def run(args: argparse.Namespace) -> int:
 
     start, stop = (_common.parse_frames(args.frames, scene.frame_count)
                    if args.frames is not None else (0, scene.frame_count))
+    paths = rendering.render(scene, target, frames=(start, stop), method=args.method,
+                             sprite_sheet=args.sprite_sheet, skip_existing=args.skip_existing,
+                             ray=args.ray, progress=not args.quiet)
     count = stop - start
-    frames = _common.progress(scene.frames(start=start, stop=stop, method=args.method), count,
-                              quiet=args.quiet,
-                              desc=f"render {target.name or target}")
-    with video.open_writer(target, fps=scene.fps, kind=kind, first_frame=start) as writer:
-        for frame in frames:
-            writer.write(frame)
-        if writer.frames_written != count:  # never half a clip under the full clip's name
-            raise RuntimeError(f"the scene gave {writer.frames_written} frames for "
-                               f"{start}:{stop}")
     if not args.quiet:
         seconds = time.perf_counter() - started
-        print(f"wrote {target} ({count} frame{'s' if count != 1 else ''} {start}:{stop}, "
-              f"{_common.scene_size(scene)}, {scene.fps:g} fps) in {seconds:.2f} s "
-              f"({count / max(seconds, 1e-9):.1f} frames/s)")
+        where = " on Ray" if args.ray is not None else ""
+        if args.skip_existing:
+            done = len(paths)
+            print(f"wrote {done} new frame{'s' if done != 1 else ''} of {start}:{stop} into "
+                  f"{target} ({count - done} already there){where} in {seconds:.2f} s")
+        else:
+            also = f" and {paths[1]}" if kind == "sheet" else ""
+            print(f"wrote {target}{also} ({count} frame{'s' if count != 1 else ''} "
+                  f"{start}:{stop}, {_common.scene_size(scene)}, {scene.fps:g} fps){where} in "
+                  f"{seconds:.2f} s ({count / max(seconds, 1e-9):.1f} frames/s)")
     return 0

@@ -1,0 +1,369 @@
+"""Rendering a scene's frames to any output: in one process, as farm chunks that skip the
+frames already written, or spread over a Ray cluster.
+
+Chunks and warm starts. The engine solves frames in warm-start chains of
+:data:`WARM_CHAIN_FRAMES` (frames 0, 16, 32, ... start cold, every other frame starts from
+the ones before). A range that begins inside a chain first solves that chain's earlier
+frames (a pre-roll of at most 15 frames, rendered and dropped), so every frame of a chunk
+is the frame a sequential render gives, pixel for pixel, however a shot is split. Ray
+chunks are cut at chain boundaries and need no pre-roll.
+
+Examples
+--------
+>>> chunk_ranges(0, 100, 3)
+[(0, 48), (48, 96), (96, 100)]
+>>> preroll_start(37)
+32
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+import mimetypes
+import os
+import secrets
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "portable_scene", "preroll_start", "render",
+           "render_range"]
+
+#: The engine's warm-start chain length (``WARM_CHAIN_FRAMES`` in the core's scene engine).
+WARM_CHAIN_FRAMES = 16
+
+
+def preroll_start(start: int) -> int:
+    """The frame a range starting at ``start`` must be solved from to match a sequential
+    render: the start of its warm-start chain."""
+    return (start // WARM_CHAIN_FRAMES) * WARM_CHAIN_FRAMES
+
+
+def render_range(scene: Any, start: int, stop: int, *, method: str | None = None,
+                 threads: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
+    """``(index, frame)`` for frames ``start`` to ``stop - 1``, each exactly as a sequential
+    render of the whole scene gives it (the pre-roll frames are solved and dropped)."""
+    first = preroll_start(start)
+    frames = scene.frames(start=first, stop=stop, threads=threads, method=method)
+    try:
+        for index, frame in enumerate(frames, first):
+            if index >= start:
+                yield index, frame
+    finally:
+        frames.close()  # stops the engine's workers when the caller stops early
+
+
+def chunk_ranges(start: int, stop: int, chunks: int) -> list[tuple[int, int]]:
+    """``[start, stop)`` cut into at most ``chunks`` contiguous ranges at warm-start chain
+    boundaries (so no chunk needs a pre-roll beyond the one ``start`` itself needs)."""
+    count = stop - start
+    if count <= 0:
+        return []
+    per = max(1, math.ceil(count / max(1, chunks)))
+    per = math.ceil(per / WARM_CHAIN_FRAMES) * WARM_CHAIN_FRAMES
+    cuts = [start]
+    edge = (start // WARM_CHAIN_FRAMES) * WARM_CHAIN_FRAMES + per
+    while edge < stop:
+        cuts.append(edge)
+        edge += per
+    cuts.append(stop)
+    return list(zip(cuts[:-1], cuts[1:]))
+
+
+def portable_scene(scene: Any) -> dict[str, Any]:
+    """The scene as a dict whose images are ``data:`` URIs, so that it renders anywhere
+    (a Ray worker on another machine) without its files."""
+    data = scene.to_dict()
+    base = Path(scene.base_dir) if scene.base_dir else Path.cwd()
+    for layer in data.get("layers", []):
+        for key in ("image", "alpha", "continuity"):
+            reference = layer.get(key)
+            if reference and not reference.lower().startswith("data:"):
+                path = Path(reference) if os.path.isabs(reference) else base / reference
+                mime = mimetypes.guess_type(path.name)[0] or "image/png"
+                layer[key] = f"data:{mime};base64," + base64.b64encode(path.read_bytes()).decode()
+    return data
+
+
+def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[int, int]:
+    from inkwarp.cli._common import parse_frames
+
+    if frames is None:
+        return 0, scene.frame_count
+    if isinstance(frames, str):
+        return parse_frames(frames, scene.frame_count)
+    start, stop = int(frames[0]), int(frames[1])
+    if not 0 <= start < stop <= scene.frame_count:
+        raise ValueError(f"frames {start}:{stop}: the scene has frames 0 to "
+                         f"{scene.frame_count - 1}; give 0 <= A < B <= {scene.frame_count}")
+    return start, stop
+
+
+def _write_png_atomic(path: Path, frame: np.ndarray) -> None:
+    from PIL import Image
+
+    temp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.part.png")
+    try:
+        Image.fromarray(frame, "RGBA").save(temp, format="PNG", compress_level=6)
+        os.replace(temp, path)
+    except BaseException:
+        temp.unlink(missing_ok=True)
+        raise
+
+
+def _runs(indices: list[int]) -> list[tuple[int, int]]:
+    """Contiguous runs ``[a, b)`` of sorted frame numbers."""
+    runs: list[tuple[int, int]] = []
+    for i in indices:
+        if runs and runs[-1][1] == i:
+            runs[-1] = (runs[-1][0], i + 1)
+        else:
+            runs.append((i, i + 1))
+    return runs
+
+
+def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int] | str | None = None,
+           method: str | None = None, background: str | list[int] | None = None,
+           sprite_sheet: str | bool | None = None, skip_existing: bool = False,
+           ray: str | bool | None = None, progress: bool = False) -> list[Path]:
+    """Renders a scene's frames to ``output``; the paths written.
+
+    Parameters
+    ----------
+    scene : inkwarp.Scene or path
+        The scene (a path is loaded).
+    output : path
+        ``.gif``, ``.mp4``, ``.webm``, ``.mov``, ``.apng``, a directory of PNGs, or with
+        ``sprite_sheet`` a ``.png`` atlas (and a ``.json`` beside it).
+    frames : (start, stop) or "A:B", optional
+        Frames ``start`` to ``stop - 1`` (default: all).
+    method : str, optional
+        The interpolant instead of every layer's ``solver.method``.
+    background : str or RGBA list, optional
+        ``"transparent"``, a colour (see :func:`inkwarp.outputs.parse_background`), or
+        ``[r, g, b, a]``, instead of the scene's.
+    sprite_sheet : True or "COLSxROWS", optional
+        Write one atlas PNG with a TexturePacker JSON.
+    skip_existing : bool
+        For a directory: leave frames whose ``frame_NNNN.png`` exists alone and write each
+        new frame atomically as soon as it is rendered.
+    ray : True or address, optional
+        Render on a Ray cluster (``True``: start a local one; or an address such as
+        ``"auto"``, ``"HOST:6379"`` or ``"ray://HOST:10001"``), in contiguous chunks, one
+        actor per chunk.
+    progress : bool
+        Show a progress bar on stderr.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, os, inkwarp
+    >>> art = np.zeros((16, 16, 4), np.uint8); art[4:12, 4:12] = (0, 0, 255, 255)
+    >>> scene = inkwarp.Scene.from_dict({"inkwarp": 1, "fps": 4, "duration": 1,
+    ...     "layers": [{"name": "a", "image": inkwarp.image_data_uri(art)}]})
+    >>> out = os.path.join(tempfile.mkdtemp(), "frames")
+    >>> [p.name for p in inkwarp.render(scene, out, frames=(1, 3))]
+    ['frame_0001.png', 'frame_0002.png']
+    """
+    from inkwarp import outputs, video
+    from inkwarp.cli import _common
+
+    if not hasattr(scene, "frames"):
+        scene = _common.load_scene(os.fspath(scene))
+    if background is not None:
+        colour = (outputs.parse_background(background) if isinstance(background, str)
+                  else [int(v) for v in background])
+        scene = outputs.with_background(scene, colour)
+    transparent = scene.to_dict().get("background", [255, 255, 255, 255])[3] == 0
+    start, stop = _frame_indices(scene, frames)
+    target = video.check_target(output)
+    kind = video.output_kind(target)
+    if sprite_sheet:
+        if target.suffix.lower() != ".png":
+            raise ValueError(f"{target}: a sprite sheet is a .png (with a .json beside it); "
+                             "name the output sheet.png")
+        layout = None if sprite_sheet is True else str(sprite_sheet)
+        outputs.sheet_layout(stop - start, layout)  # a bad layout fails before rendering
+        writer: Any = outputs.SpriteSheetWriter(target, scene.fps, stop - start, layout, start)
+    elif kind == "png":
+        raise ValueError(f"{target}: a .png holds one frame; render an animation to a .gif, "
+                         ".mp4, .webm, .mov, .apng, a directory, or a sprite sheet "
+                         "(--sprite-sheet)")
+    elif skip_existing:
+        if kind != "dir":
+            raise ValueError(f"{target}: --skip-existing works with a directory of PNG frames "
+                             "(-o DIR/), whose frames are separate files")
+        return _render_missing(scene, target, start, stop, method=method, ray=ray,
+                               progress=progress)
+    else:
+        writer = outputs.open_writer(target, fps=scene.fps, kind=kind, first_frame=start,
+                                     transparent=transparent)
+    count = stop - start
+    source = (_ray_frames(scene, start, stop, method=method, address=ray, progress=progress)
+              if ray else _common.progress((f for _, f in render_range(scene, start, stop,
+                                                                       method=method)),
+                                           count, quiet=not progress,
+                                           desc=f"render {target.name or target}"))
+    with writer:
+        for frame in source:
+            writer.write(frame)
+        if writer.frames_written != count:
+            raise RuntimeError(f"the scene gave {writer.frames_written} frames for {start}:{stop}")
+    return writer.paths
+
+
+def _render_missing(scene: Any, target: Path, start: int, stop: int, *, method: str | None,
+                    ray: str | bool | None, progress: bool) -> list[Path]:
+    from inkwarp import video
+    from inkwarp.cli import _common
+
+    target.mkdir(exist_ok=True)
+    names = {i: target / video.FRAME_PATTERN.format(i) for i in range(start, stop)}
+    missing = [i for i in range(start, stop) if not names[i].exists()]
+    written: list[Path] = []
+    if not missing:
+        return written
+
+    def frames() -> Iterator[tuple[int, np.ndarray]]:
+        for a, b in _runs(missing):
+            if ray:
+                yield from zip(range(a, b), _ray_frames(scene, a, b, method=method,
+                                                         address=ray, progress=False))
+            else:
+                yield from render_range(scene, a, b, method=method)
+
+    for index, frame in _common.progress(frames(), len(missing), quiet=not progress,
+                                         desc=f"render {target.name}"):
+        _write_png_atomic(names[index], frame)
+        written.append(names[index])
+    return written
+
+
+# ---- Ray ---------------------------------------------------------------------------------
+
+#: How many frames an actor sends at a time, and how far one may run ahead of the writer.
+RAY_BATCH_FRAMES = 4
+RAY_AHEAD_FRAMES = 32
+
+
+def _check_address(address: str) -> None:
+    """A quick connection test, so that an address nobody answers at fails in seconds
+    with a clear message instead of Ray's long retries."""
+    import socket
+
+    if address in ("auto", "local"):
+        return
+    text = address.split("://", 1)[-1]
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"--ray {address}: give the cluster's address as HOST:PORT (such as "
+                         "10.0.0.5:6379), ray://HOST:PORT, or auto")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=5):
+            pass
+    except OSError as err:
+        raise ValueError(f"--ray {address}: no Ray cluster answers there ({err.strerror or err}); "
+                         "start one with 'ray start --head' (or 'ray up cluster.yaml') and give "
+                         "its address, or leave the address out to start a local one") from None
+
+
+def _ray_init(address: str | bool | None) -> Any:
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("--ray needs Ray: install it with 'pip install \"inkwarp[ray]\"'"
+                         ) from None
+    if ray.is_initialized():
+        return ray
+    if address is True or address in (None, "", "local"):
+        ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False)
+    else:
+        _check_address(str(address))
+        try:
+            ray.init(address=str(address), log_to_driver=False, configure_logging=False)
+        except (ConnectionError, RuntimeError, TimeoutError) as err:
+            raise ValueError(f"--ray {address}: cannot join the Ray cluster there ({err}); "
+                             "check the address 'ray status' prints on the head node") from None
+    return ray
+
+
+class _ChunkRenderer:
+    """One Ray actor: renders its contiguous chunk in order, keeping its warm start."""
+
+    def __init__(self, doc: dict[str, Any], start: int, stop: int, method: str | None) -> None:
+        from inkwarp.scene import Scene
+
+        self._frames = render_range(Scene.from_dict(doc), start, stop, method=method)
+
+    def next_batch(self, count: int) -> list[np.ndarray]:
+        batch = []
+        for _ in range(count):
+            item = next(self._frames, None)
+            if item is None:
+                break
+            batch.append(item[1])
+        return batch
+
+
+def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
+                address: str | bool | None, progress: bool) -> Iterator[np.ndarray]:
+    """Frames ``start`` to ``stop - 1`` rendered by Ray actors, one per contiguous chunk,
+    yielded in order; one progress bar counts the frames of every actor."""
+    ray = _ray_init(address)
+    cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
+    chunks = chunk_ranges(start, stop, cpus)
+    doc = ray.put(portable_scene(scene))
+    # Each actor gets one CPU; its solver uses that many threads.
+    Actor = ray.remote(num_cpus=1, runtime_env={"env_vars": {"RAYON_NUM_THREADS": "1"}})(
+        _ChunkRenderer)
+    actors = [Actor.remote(doc, a, b, method) for a, b in chunks]
+    remaining = [b - a for a, b in chunks]
+    buffers: list[list[np.ndarray]] = [[] for _ in chunks]
+    pending: dict[Any, int] = {}
+
+    def ask(i: int) -> None:
+        if remaining[i] > 0 and i not in pending.values():
+            pending[actors[i].next_batch.remote(RAY_BATCH_FRAMES)] = i
+
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=stop - start, unit="frame", desc=f"render on Ray ({len(chunks)} "
+                   "chunks)", file=sys.stderr, dynamic_ncols=True)
+    try:
+        for i in range(len(chunks)):
+            ask(i)
+        current = 0
+        while current < len(chunks):
+            if buffers[current]:
+                yield buffers[current].pop(0)
+                if remaining[current] == 0 and not buffers[current]:
+                    current += 1
+                for i in range(current, len(chunks)):
+                    if i == current or len(buffers[i]) < RAY_AHEAD_FRAMES:
+                        ask(i)
+                continue
+            if remaining[current] == 0:
+                current += 1
+                continue
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            i = pending.pop(ready[0])
+            batch = ray.get(ready[0])
+            if not batch:
+                raise RuntimeError(f"the Ray actor of frames {chunks[i][0]}:{chunks[i][1]} "
+                                   f"stopped with {remaining[i]} frames to go")
+            buffers[i].extend(batch)
+            remaining[i] -= len(batch)
+            if bar is not None:
+                bar.update(len(batch))
+            if i == current or len(buffers[i]) < RAY_AHEAD_FRAMES:
+                ask(i)
+    finally:
+        if bar is not None:
+            bar.close()
+        for actor in actors:
+            ray.kill(actor)

@@ -1,0 +1,177 @@
+"""Outputs for pipelines: transparent video (WebM VP9, ProRes 4444 MOV, APNG), 1-bit GIF,
+sprite sheets with TexturePacker JSON, background overrides, and farm chunks that equal a
+sequential render. Videos are decoded with the ffmpeg that imageio-ffmpeg ships."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+
+import imageio_ffmpeg
+import numpy as np
+import pytest
+from PIL import Image
+
+from _cli_scenes import HEIGHT, WIDTH, leftovers, mutated, write_scene
+from inkwarp.cli import main
+
+FRAMES = 4
+
+
+def run(capsys, *args):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def decode_rgba(path, width=WIDTH, height=HEIGHT):
+    """RGBA frames of a video or animation, decoded by the bundled ffmpeg (libvpx's VP9
+    decoder for WebM: ffmpeg's own drops the alpha plane)."""
+    command = [imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-loglevel", "error"]
+    if str(path).endswith(".webm"):
+        command += ["-c:v", "libvpx-vp9"]
+    command += ["-i", str(path), "-f", "rawvideo", "-pix_fmt", "rgba", "-"]
+    data = subprocess.run(command, capture_output=True, check=True).stdout
+    size = width * height * 4
+    return [np.frombuffer(data[i:i + size], np.uint8).reshape(height, width, 4)
+            for i in range(0, len(data), size)]
+
+
+def png_frames(folder, count=FRAMES, first=0):
+    return [np.asarray(Image.open(folder / f"frame_{i:04d}.png").convert("RGBA"))
+            for i in range(first, first + count)]
+
+
+@pytest.fixture(scope="module")
+def transparent(tmp_path_factory):
+    """The square scene on a transparent background, and its PNG frames (the reference)."""
+    folder = tmp_path_factory.mktemp("transparent")
+    scene = write_scene(folder, mutated(lambda d: d.update(background=[255, 255, 255, 0])))
+    assert main(["render", str(scene), "-o", str(folder / "png"), "-q"]) == 0
+    reference = png_frames(folder / "png")
+    assert reference[0][..., 3].min() == 0 and reference[0][..., 3].max() == 255
+    return scene, reference
+
+
+@pytest.mark.parametrize("suffix, alpha_tolerance, colour_tolerance",
+                         [(".webm", 3, 8), (".mov", 1, 2), (".apng", 0, 0)])
+def test_transparent_video_keeps_the_alpha_of_the_png_render(capsys, tmp_path, transparent,
+                                                              suffix, alpha_tolerance,
+                                                              colour_tolerance):
+    scene, reference = transparent
+    out = tmp_path / f"anim{suffix}"
+    code, stdout, err = run(capsys, "render", scene, "-o", out)
+    assert code == 0, err
+    frames = decode_rgba(out)
+    assert len(frames) == FRAMES
+    for got, want in zip(frames, reference):
+        assert np.abs(got[..., 3].astype(int) - want[..., 3]).max() <= alpha_tolerance
+        opaque = want[..., 3] == 255
+        # colour where it shows (VP9's 4:2:0 chroma blurs the small square's edges)
+        assert np.abs(got[opaque][:, :3].astype(int) - want[opaque][:, :3]).mean() <= colour_tolerance
+    assert leftovers(tmp_path) == []
+
+
+def test_transparent_gif_has_1_bit_alpha(capsys, tmp_path, transparent):
+    scene, reference = transparent
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "anim.gif")
+    assert code == 0, err
+    frames = decode_rgba(tmp_path / "anim.gif")
+    assert len(frames) == FRAMES
+    for got, want in zip(frames, reference):
+        assert set(np.unique(got[..., 3])) <= {0, 255}
+        assert (got[..., 3] == np.where(want[..., 3] >= 128, 255, 0)).all()
+
+
+def test_background_option_overrides_the_scene(capsys, tmp_path, transparent):
+    scene, reference = transparent
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "f.png", "--background", "#ff0000")
+    assert code == 0, err
+    frame = np.asarray(Image.open(tmp_path / "f.png").convert("RGBA"))
+    assert (frame[..., 3] == 255).all() and (frame[0, 0] == (255, 0, 0, 255)).all()
+    opaque = write_scene(tmp_path / "opaque")  # its background is white
+    code, _, err = run(capsys, "render", opaque, "-o", tmp_path / "t/", "--background",
+                       "transparent", "-q")
+    assert code == 0, err
+    assert (png_frames(tmp_path / "t")[1][..., 3] == reference[1][..., 3]).all()
+    code, _, err = run(capsys, "render", opaque, "-o", tmp_path / "x.webm", "--background", "blue-ish")
+    assert code == 2 and "--background blue-ish: give transparent" in err
+    assert not (tmp_path / "x.webm").exists() and leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("layout, grid", [(None, (2, 2)), ("3x2", (3, 2)), ("4", (4, 1))])
+def test_sprite_sheet_json_points_at_each_frame(capsys, tmp_path, transparent, layout, grid):
+    scene, reference = transparent
+    args = ["--sprite-sheet"] + ([layout] if layout else [])
+    code, stdout, err = run(capsys, "render", scene, "-o", tmp_path / "sheet.png", *args)
+    assert code == 0, err
+    sheet = np.asarray(Image.open(tmp_path / "sheet.png").convert("RGBA"))
+    meta = json.loads((tmp_path / "sheet.json").read_text())
+    assert meta["meta"]["image"] == "sheet.png"
+    assert meta["meta"]["size"] == {"w": WIDTH * grid[0], "h": HEIGHT * grid[1]}
+    assert sheet.shape == (HEIGHT * grid[1], WIDTH * grid[0], 4)
+    assert list(meta["frames"]) == [f"frame_{i:04d}.png" for i in range(FRAMES)]
+    for i, (name, entry) in enumerate(meta["frames"].items()):
+        r = entry["frame"]
+        assert (r["w"], r["h"]) == (WIDTH, HEIGHT) and entry["duration"] == 250
+        assert entry["rotated"] is False and entry["trimmed"] is False
+        assert entry["sourceSize"] == {"w": WIDTH, "h": HEIGHT}
+        assert (sheet[r["y"]:r["y"] + r["h"], r["x"]:r["x"] + r["w"]] == reference[i]).all()
+
+
+def test_sprite_sheet_too_small_is_refused_before_rendering(capsys, tmp_path, transparent):
+    scene, _ = transparent
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "sheet.png", "--sprite-sheet", "1x2")
+    assert code == 2 and "1x2 holds 2 frames, the render has 4" in err
+    assert os.listdir(tmp_path) == []
+
+
+# --- farm chunks ------------------------------------------------------------------------------
+
+def wavy_doc():
+    """40 frames of a bending spline and a moving region: warm starts matter."""
+    def change(doc):
+        doc.update(fps=20, duration=2.0)
+        doc["features"] = [
+            {"id": "bend", "kind": "spline", "rest": [[8, 20], [20, 16], [30, 20], [40, 18]],
+             "keys": [{"t": 0, "points": [[8, 20], [20, 16], [30, 20], [40, 18]]},
+                      {"t": 1, "points": [[8, 24], [21, 10], [31, 26], [40, 14]]},
+                      {"t": 2, "points": [[8, 16], [19, 22], [29, 14], [40, 22]]}]},
+            {"id": "pin", "kind": "point", "rest": [[14, 30]],
+             "keys": [{"t": 0, "points": [[14, 30]]}, {"t": 2, "points": [[17, 33]]}]}]
+    return mutated(change)
+
+
+def test_chunked_and_skip_existing_renders_equal_a_sequential_one(capsys, tmp_path):
+    scene = write_scene(tmp_path / "s", wavy_doc())
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "seq/", "-q")
+    assert code == 0, err
+    sequential = png_frames(tmp_path / "seq", 40)
+    for chunk in ("0:13", "13:29", "29:40"):  # chunks that start inside warm-start chains
+        code, _, err = run(capsys, "render", scene, "-o", tmp_path / "chunks/", "--frames",
+                           chunk, "--skip-existing", "-q")
+        assert code == 0, err
+    for got, want in zip(png_frames(tmp_path / "chunks", 40), sequential):
+        assert np.abs(got.astype(int) - want).max() <= 1
+    # A second pass over a part already there renders nothing and touches nothing.
+    stamp = os.stat(tmp_path / "chunks" / "frame_0020.png").st_mtime_ns
+    code, stdout, _ = run(capsys, "render", scene, "-o", tmp_path / "chunks/", "--frames",
+                          "0:40", "--skip-existing")
+    assert code == 0 and "wrote 0 new frames of 0:40" in stdout and "40 already there" in stdout
+    assert os.stat(tmp_path / "chunks" / "frame_0020.png").st_mtime_ns == stamp
+    # Holes are filled: delete two frames and render the whole range again.
+    for i in (7, 33):
+        (tmp_path / "chunks" / f"frame_{i:04d}.png").unlink()
+    code, stdout, _ = run(capsys, "render", scene, "-o", tmp_path / "chunks/", "--skip-existing")
+    assert code == 0 and "wrote 2 new frames" in stdout
+    for i in (7, 33):
+        got = np.asarray(Image.open(tmp_path / "chunks" / f"frame_{i:04d}.png").convert("RGBA"))
+        assert np.abs(got.astype(int) - sequential[i]).max() <= 1
+    assert leftovers(tmp_path / "chunks") == []
+
+
+def test_skip_existing_needs_a_directory(capsys, tmp_path):
+    scene = write_scene(tmp_path / "s")
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.mp4", "--skip-existing")
+    assert code == 2 and "--skip-existing works with a directory" in err
