@@ -276,12 +276,14 @@ def _ray_init(address: str | bool | None) -> Any:
     except ImportError:
         raise ValueError("--ray needs Ray: install it with 'pip install \"inkwarp[ray]\"'"
                          ) from None
+    local = address is True or address in (None, "", "local")
+    if not local:
+        _check_address(str(address))
     if ray.is_initialized():
         return ray
-    if address is True or address in (None, "", "local"):
+    if local:
         ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False)
     else:
-        _check_address(str(address))
         try:
             ray.init(address=str(address), log_to_driver=False, configure_logging=False)
         except (ConnectionError, RuntimeError, TimeoutError) as err:

@@ -1,0 +1,55 @@
+"""Renders on a real local Ray cluster (two CPUs): chunks gathered in order equal a
+sequential render; an address where no cluster answers is a clear error."""
+
+from __future__ import annotations
+
+import socket
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import inkwarp
+from _cli_scenes import leftovers, write_scene
+from inkwarp.cli import main
+from test_pipeline_outputs import decode_rgba, png_frames, run, wavy_doc
+
+ray = pytest.importorskip("ray", reason="make test installs ray (inkwarp[ray])")
+
+
+def test_an_address_nobody_answers_at_is_a_clear_error(capsys, tmp_path):
+    scene = write_scene(tmp_path / "s")
+    with socket.socket() as probe:  # a port that was free a moment ago
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif", "--ray",
+                       f"127.0.0.1:{port}")
+    assert code == 2 and f"--ray 127.0.0.1:{port}: no Ray cluster answers there" in err
+    assert "Traceback" not in err and not (tmp_path / "a.gif").exists()
+    assert leftovers(tmp_path) == []
+
+
+def test_ray_chunks_gathered_in_order_equal_a_sequential_render(capsys, tmp_path):
+    scene_path = write_scene(tmp_path / "s", wavy_doc())
+    code, _, err = run(capsys, "render", scene_path, "-o", tmp_path / "seq/", "-q")
+    assert code == 0, err
+    sequential = png_frames(tmp_path / "seq", 40)
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        # Frames 5 to 39 in two chunks (5:16 with its pre-roll, 16:40), gathered in order.
+        code, stdout, err = run(capsys, "render", scene_path, "-o", tmp_path / "ray/",
+                                "--frames", "5:40", "--ray")
+        assert code == 0, err
+        assert "on Ray" in stdout and "render on Ray (2 chunks)" in err
+        for got, want in zip(png_frames(tmp_path / "ray", 35, first=5), sequential[5:]):
+            assert np.abs(got.astype(int) - want).max() <= 1
+        # The Python API, into a single-file format.
+        scene = inkwarp.Scene.load(scene_path)
+        paths = inkwarp.render(scene, tmp_path / "anim.apng", ray=True)
+        frames = decode_rgba(paths[0], scene.width, scene.height)
+        assert len(frames) == 40
+        for got, want in zip(frames, sequential):
+            assert np.abs(got.astype(int) - want).max() <= 1
+    finally:
+        ray.shutdown()
+    assert leftovers(tmp_path) == []
