@@ -70,7 +70,8 @@ def test_cli_reference_matches_the_help(monkeypatch):
 #: keep the suite fast; `make demo` renders the examples in full.
 SHORT = 3
 
-RUNNABLE_DOCS = [ROOT / "README.md", ROOT / "docs" / "guides" / "first-animation.md"]
+RUNNABLE_DOCS = [ROOT / "README.md", ROOT / "docs" / "guides" / "first-animation.md",
+                 ROOT / "docs" / "guides" / "psd-and-svg.md"]
 FENCE = re.compile(r"(?:<!-- file: (?P<file>\S+) -->\n)?```(?P<lang>\w*)\n(?P<body>.*?)```",
                    re.S)
 
@@ -88,8 +89,8 @@ def run_shell_line(line: str, cwd: Path) -> None:
     if words[0] == "make":  # `make demo` and `make test` are what CI runs itself
         return
     if words[0] == "inkwarp":
-        if words[1] == "render" and not any(w.endswith(".png") for w in words) \
-                and "--frames" not in words:
+        if words[1] == "render" and "--frames" not in words and (
+                "--sprite-sheet" in words or not any(w.endswith(".png") for w in words)):
             words += ["--frames", f":{SHORT}"]  # the first frames show the command works
         code = main(words[1:])
         assert code == 0, line
