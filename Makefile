@@ -15,7 +15,7 @@ export PATH := $(abspath $(VENV))/bin:$(HOME)/.cargo/bin:$(PATH)
 
 RUST_SOURCES := $(shell find crates -name '*.rs' -o -name Cargo.toml 2>/dev/null) Cargo.toml
 
-.PHONY: help demo test test-rust test-python test-web bench build clean editor edit wasm-target chromium
+.PHONY: help demo test test-rust test-python test-web test-wheel bench build clean editor edit wasm-target chromium wheel
 
 help: ## Show this help.
 	@grep -E '^[a-zA-Z_-]+:.*?## ' $(MAKEFILE_LIST) | awk 'BEGIN {FS = ":.*?## "}; {printf "  make %-12s %s\n", $$1, $$2}'
@@ -28,7 +28,7 @@ $(DEPS_STAMP): requirements-dev.txt pyproject.toml | $(VPY)
 	$(VPY) -m pip install --disable-pip-version-check -q -r requirements-dev.txt
 	touch $@
 
-$(BUILD_STAMP): $(DEPS_STAMP) $(RUST_SOURCES) $(shell find python -type f -not -name '*.so' -not -path 'python/inkwarp/editor/*' 2>/dev/null)
+$(BUILD_STAMP): $(DEPS_STAMP) $(RUST_SOURCES) $(shell find python -type f -not -name '*.so' -not -path 'python/inkwarp/editor/*' -not -path 'python/inkwarp/examples/*' 2>/dev/null)
 	$(VENV)/bin/maturin develop --release --quiet
 	touch $@
 
@@ -37,7 +37,7 @@ build: $(BUILD_STAMP) ## Build the engine and install the Python package into .v
 demo: build ## Render the still demo and the three examples (GIF, MP4) into out/ and print every path.
 	$(VENV)/bin/inkwarp demo -o out
 
-test: test-rust test-python test-web ## Run every test suite (what CI runs).
+test: test-rust test-python test-web test-wheel ## Run every test suite (what CI runs).
 
 test-rust: ## Rust unit and property tests of the core.
 	$(CARGO) test --workspace --exclude inkwarp-py --release
@@ -82,9 +82,21 @@ test-web: build editor chromium ## Editor unit tests (Vitest) and end-to-end tes
 	cd web && npx vitest run
 	cd web && node e2e/run.mjs
 
+# --- The wheel ----------------------------------------------------------------------------
+WHEEL_DIR := target/wheels
+EXAMPLES_COPY := python/inkwarp/examples
+
+wheel: $(DEPS_STAMP) editor ## Build a wheel (engine, built editor, examples' scenes and art) into target/wheels/.
+	rm -rf $(EXAMPLES_COPY) $(WHEEL_DIR)/inkwarp-*.whl
+	$(VPY) -c "import shutil; shutil.copytree('examples', '$(EXAMPLES_COPY)', ignore=shutil.ignore_patterns('*.gif', '*.mp4', '*.py', '*.md', '__pycache__'))"
+	$(VENV)/bin/maturin build --release --quiet --out $(WHEEL_DIR)
+
+test-wheel: wheel ## Install the wheel in a fresh virtualenv without Rust or Node, run demo, render and edit.
+	$(VPY) -m pytest -p no:cacheprovider tests/wheel/check_wheel.py
+
 bench: build ## Benchmarks against the tools users would pick instead.
 	$(VPY) -m pip install --disable-pip-version-check -q -r requirements-bench.txt
 	$(VPY) benchmarks/run.py
 
 clean: ## Remove build outputs (keeps .venv).
-	rm -rf target out $(BUILD_STAMP) python/inkwarp/editor web/src/generated
+	rm -rf target out $(BUILD_STAMP) python/inkwarp/editor python/inkwarp/examples web/src/generated

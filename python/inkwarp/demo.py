@@ -39,11 +39,14 @@ def find_examples(path: str | os.PathLike[str] | None = None) -> Path:
     """The directory holding the example scenes.
 
     ``path`` if given, else ``$INKWARP_EXAMPLES``, else ``examples/`` of the source
-    checkout this package runs from (the examples are not part of the wheel).
+    checkout this package runs from, else the copy a wheel ships (``inkwarp/examples/``,
+    put there by ``make wheel``).
     """
     if path is None:
+        checkout = Path(__file__).resolve().parents[2] / "examples"
+        shipped = Path(__file__).resolve().parent / "examples"
         path = os.environ.get("INKWARP_EXAMPLES") or (
-            Path(__file__).resolve().parents[2] / "examples")
+            checkout if (checkout / "face" / "scene.json").is_file() else shipped)
     found = Path(path)
     if not (found / "face" / "scene.json").is_file():
         raise ValueError(f"{found}: no example scenes there (examples/face/scene.json is "
