@@ -244,3 +244,20 @@ def test_bad_path_data_names_the_element(capsys, tmp_path):
     assert code == 2 and "d.svg: <path> id='lip'" in err and "C needs 6 numbers" in err
     assert not (tmp_path / "s.json").exists()
     assert not [p for p in os.listdir(tmp_path) if ".part" in p]
+
+
+def test_groups_are_flattened_with_their_opacity_and_a_note(tmp_path):
+    from psd_tools import PSDImage
+    from psd_tools.api.layers import Group, PixelLayer
+
+    psd = PSDImage.new("RGB", (32, 24))
+    psd.append(PixelLayer.frompil(Image.new("RGBA", (32, 24), (200, 0, 0, 255)), psd, "back", 0, 0))
+    eye = PixelLayer.frompil(Image.new("RGBA", (8, 8), (0, 0, 200, 255)), psd, "eye", 4, 4)
+    psd.append(eye)
+    group = Group.group_layers(psd, [eye], name="face")
+    group.opacity = 128
+    psd.save(tmp_path / "g.psd")
+    with pytest.warns(inkwarp.InkwarpWarning, match="group 'face' is flattened into its layers"):
+        scene = inkwarp.Scene.new(tmp_path / "g.psd")
+    assert scene.layers == ["back", "eye"]
+    assert np.abs(scene.render().astype(int) - psd_composite(tmp_path / "g.psd")).max() <= 2
