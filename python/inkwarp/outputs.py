@@ -181,9 +181,9 @@ class TransparentGifWriter(FrameWriter):
             [frame, np.full(frame.shape[:2], 255, np.uint8)])
         opaque = rgba[..., 3] >= 128
         rgb = Image.fromarray(np.ascontiguousarray(rgba[..., :3]), "RGB")
-        indexed = np.array(rgb.quantize(colors=255, method=Image.Quantize.FASTOCTREE),
-                           copy=True)
-        palette = rgb.quantize(colors=255, method=Image.Quantize.FASTOCTREE).getpalette() or []
+        quantized = rgb.quantize(colors=255, method=Image.Quantize.FASTOCTREE)
+        indexed = np.array(quantized, copy=True)
+        palette = quantized.getpalette() or []
         indexed[~opaque] = 255
         image = Image.fromarray(indexed, "P")
         palette = (palette + [0] * 768)[:765] + [0, 0, 0]
