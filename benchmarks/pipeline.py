@@ -10,9 +10,10 @@ and their median reported). Per frame:
 - solve: frame − render (the warm solve, constraints and compositing);
 - encode: the PNG (Pillow, level 6) and the H.264 MP4 (bundled ffmpeg) of the frames.
 
-Ray: ``inkwarp.render(scene, DIR, ray=True)`` on ``ray.init(num_cpus=2)``, startup not
-counted; chunks are cut at the engine's 16-frame warm-start chains, so a render of at most
-16 frames is one chunk.
+Ray: ``inkwarp.render(scene, DIR, ray=True)`` on ``ray.init(num_cpus=2)`` against
+``inkwarp.render(scene, DIR)`` in the same child, startup not counted; chunks are cut at
+the engine's 16-frame warm-start chains, so a 2-worker render needs more than 16 frames
+(timed at 512² with 32 frames; ``--ray-all`` times every size with 32 frames).
 
 Usage: python benchmarks/pipeline.py [--quick] [--rounds N] [--no-ray]
 """
@@ -32,8 +33,11 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 SIZES = {"512²": (512, 512), "1920×1080": (1920, 1080), "3840×2160": (3840, 2160)}
-FRAMES = {"512²": 32, "1920×1080": 32, "3840×2160": 8}
+FRAMES = {"512²": 32, "1920×1080": 8, "3840×2160": 4}
 QUICK = {"512²": (128, 128, 8), "1920×1080": (480, 270, 8), "3840×2160": (960, 540, 4)}
+#: Where the Ray render is timed: Ray chunks follow the 16-frame warm-start chains, so a
+#: 2-worker render needs at least 17 frames; at the big sizes that is minutes of frames.
+RAY_SIZES = ("512²",)
 
 
 def child(width: int, height: int, frames: int, use_ray: bool) -> dict:
@@ -96,6 +100,7 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true", help="small frames, for the smoke test")
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--no-ray", action="store_true")
+    ap.add_argument("--ray-all", action="store_true", help="time Ray at every size (32 frames)")
     ap.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -113,13 +118,15 @@ def main() -> int:
             if args.quick:
                 w, h, n = QUICK[name]
             else:
-                n = FRAMES[name]
+                n = 32 if args.ray_all and use_ray else FRAMES[name]
+            ray_here = use_ray and (args.quick or args.ray_all or name in RAY_SIZES)
             done = subprocess.run([sys.executable, __file__, "--child", str(w), str(h), str(n),
-                                   str(int(use_ray))], capture_output=True, text=True)
+                                   str(int(ray_here))], capture_output=True, text=True)
             if done.returncode != 0:
                 print(done.stderr, file=sys.stderr)
                 return 1
             results[name].append(json.loads(done.stdout.strip().splitlines()[-1]))
+            print(f"<!-- {name}: {done.stdout.strip().splitlines()[-1]} -->", flush=True)
     print(f"## Big frames: per-frame ms (median of {args.rounds} rounds), {os.cpu_count()} cores"
           + (" (--quick: small sizes)" if args.quick else "") + "\n")
     cols = ["frame", "solve", "render", "png", "mp4"] + (["ray 2 workers", "local"] if use_ray else [])
@@ -129,7 +136,8 @@ def main() -> int:
         ["ray_frame_ms", "local_png_frame_ms"] if use_ray else [])
     for name, runs in results.items():
         w, h = runs[0]["width"], runs[0]["height"]
-        cells = [f"{statistics.median(r[k] for r in runs):.0f}" for k in keys]
+        cells = [f"{statistics.median(r[k] for r in runs):.0f}" if k in runs[0] else "–"
+                 for k in keys]
         peak = max(r["peak_mib"] for r in runs)
         print(f"| {w}×{h} | {runs[0]['frames']} | " + " | ".join(cells) + f" | {peak:.0f} |")
     small, large = results["512²"], results["1920×1080"]
@@ -141,6 +149,8 @@ def main() -> int:
               f"{small[0]['width']}×{small[0]['height']} = {ratio:.1f}× (pixels {pixels:.1f}×)")
     if use_ray:
         for name, runs in results.items():
+            if "ray_frame_ms" not in runs[0]:
+                continue
             speed = statistics.median(r["local_png_frame_ms"] / r["ray_frame_ms"] for r in runs)
             print(f"- Ray speed-up at {runs[0]['width']}×{runs[0]['height']} "
                   f"({runs[0]['frames']} frames, one machine): {speed:.2f}× "

@@ -6,6 +6,7 @@ not in `tests/`'s default collection because it needs the wheel)."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -51,8 +52,7 @@ def test_a_fresh_virtualenv_with_only_the_wheel_runs_demo_render_and_edit(tmp_pa
     subprocess.run([bin_dir / "python", "-m", "pip", "install", "-q", str(wheel())],
                    check=True, env=env, cwd=tmp_path, timeout=600)
     for tool in ("cargo", "rustc", "node", "npm"):
-        assert subprocess.run(["sh", "-c", f"command -v {tool}"], env=env,
-                              capture_output=True).returncode != 0
+        assert shutil.which(tool, path=env["PATH"]) is None
 
     inkwarp = str(bin_dir / "inkwarp")
     demo = subprocess.run([inkwarp, "demo", "-o", "out", "--only", "face", "--formats", "gif"],
@@ -89,7 +89,7 @@ def test_a_fresh_virtualenv_with_only_the_wheel_runs_demo_render_and_edit(tmp_pa
         assert "<script" in page and "inkwarp" in page.lower()
     finally:
         edit.terminate()
-        edit.wait(timeout=30)
+        edit.communicate(timeout=30)  # waits, and closes the pipes
 
 
 if __name__ == "__main__":
