@@ -104,7 +104,8 @@ def _unreadable(path: str, reason: str) -> ValueError:
                       "ffmpeg decodes, such as an .mp4")
 
 
-def _frames(path: str | os.PathLike[str], pix_fmt: str) -> tuple[dict[str, Any], Any]:
+def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int]:
+    """``(path, fps, width, height)`` of a video, or a ValueError naming it."""
     import imageio_ffmpeg
 
     name = os.fspath(path)
@@ -112,18 +113,41 @@ def _frames(path: str | os.PathLike[str], pix_fmt: str) -> tuple[dict[str, Any],
         raise FileNotFoundError(2, "No such file or directory", name)
     if os.path.isdir(name):
         raise IsADirectoryError(21, "is a directory, not a video", name)
-    reader = imageio_ffmpeg.read_frames(name, pix_fmt=pix_fmt, bpp=1 if pix_fmt == "gray" else 3)
-    try:
-        meta = reader.__next__()
-    except (OSError, RuntimeError, StopIteration) as err:
-        reader.close()
-        raise _unreadable(name, str(err).strip().splitlines()[-1] if str(err).strip()
-                          else "ffmpeg found no video stream") from None
-    fps = meta.get("fps")
-    if not isinstance(fps, (int, float)) or not math.isfinite(fps) or fps <= 0:
-        reader.close()
-        raise _unreadable(name, "it has no frame rate")
-    return meta, reader
+    import re
+    import subprocess
+
+    done = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-nostdin", "-hide_banner", "-i", name],
+                          capture_output=True, stdin=subprocess.DEVNULL)
+    log = done.stderr.decode(errors="replace")
+    stream = next((line for line in log.splitlines()
+                   if re.search(r"Stream #.*: Video:", line)), None)
+    if stream is None:
+        lines = [line.strip() for line in log.splitlines() if line.strip()
+                 and "At least one output file" not in line]
+        raise _unreadable(name, lines[-1] if lines else "ffmpeg found no video stream")
+    size = re.search(r", (\d+)x(\d+)[ ,]", stream)
+    rate = re.search(r", ([\d.]+) fps", stream) or re.search(r", ([\d.]+)k? tbr", stream)
+    if size is None or rate is None or not float(rate.group(1)) > 0:
+        raise _unreadable(name, "ffmpeg finds no frame size or frame rate in it")
+    width, height, fps = int(size.group(1)), int(size.group(2)), float(rate.group(1))
+    return name, float(fps), width, height
+
+
+def _decode(name: str, pix_fmt: str, *, frames: int | None = None) -> bytes:
+    """Raw frames from ffmpeg (the first ``frames`` of them, or all)."""
+    import subprocess
+
+    import imageio_ffmpeg
+
+    cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-nostdin", "-v", "error", "-i", name]
+    if frames is not None:
+        cmd += ["-frames:v", str(frames)]
+    cmd += ["-f", "rawvideo", "-pix_fmt", pix_fmt, "-"]
+    done = subprocess.run(cmd, capture_output=True, stdin=subprocess.DEVNULL)
+    if done.returncode != 0:
+        lines = done.stderr.decode(errors="replace").strip().splitlines()
+        raise _unreadable(name, lines[-1] if lines else f"ffmpeg exited with {done.returncode}")
+    return done.stdout
 
 
 def read_video(path: str | os.PathLike[str]) -> Video:
@@ -136,19 +160,13 @@ def read_video(path: str | os.PathLike[str]) -> Video:
     ValueError
         ffmpeg cannot decode it, or it has no frames (the message names the file).
     """
-    meta, reader = _frames(path, "gray")
-    width, height = (int(v) for v in meta["size"])
-    frames: list[np.ndarray] = []
-    try:
-        for raw in reader:
-            frames.append(np.frombuffer(raw, np.uint8).reshape(height, width).copy())
-    except (OSError, RuntimeError) as err:
-        raise _unreadable(os.fspath(path), str(err)) from None
-    finally:
-        reader.close()
-    if not frames:
-        raise _unreadable(os.fspath(path), "it has no frames")
-    return Video(os.fspath(path), float(meta["fps"]), width, height, frames)
+    name, fps, width, height = _probe(path)
+    raw = _decode(name, "gray")
+    count = len(raw) // (width * height)
+    if count == 0:
+        raise _unreadable(name, "it has no frames")
+    data = np.frombuffer(raw, np.uint8)[:count * width * height].reshape(count, height, width)
+    return Video(name, fps, width, height, list(data))
 
 
 def read_frame(path: str | os.PathLike[str], frame: int = 0) -> np.ndarray:
@@ -161,20 +179,15 @@ def read_frame(path: str | os.PathLike[str], frame: int = 0) -> np.ndarray:
     """
     if frame < 0:
         raise ValueError(f"--frame {frame}: frames are numbered from 0")
-    meta, reader = _frames(path, "rgb24")
-    width, height = (int(v) for v in meta["size"])
-    count = 0
-    try:
-        for raw in reader:
-            if count == frame:
-                return np.frombuffer(raw, np.uint8).reshape(height, width, 3).copy()
-            count += 1
-    except (OSError, RuntimeError) as err:
-        raise _unreadable(os.fspath(path), str(err)) from None
-    finally:
-        reader.close()
-    raise ValueError(f"--frame {frame}: {os.fspath(path)} has frames 0 to {count - 1}; give a "
-                     f"frame number below {count}")
+    name, _, width, height = _probe(path)
+    size = width * height * 3
+    raw = _decode(name, "rgb24", frames=frame + 1)
+    if len(raw) < size * (frame + 1):
+        count = len(_decode(name, "gray")) // (width * height)
+        raise ValueError(f"--frame {frame}: {name} has frames 0 to {count - 1}; give a frame "
+                         f"number below {count}")
+    start = size * frame
+    return np.frombuffer(raw, np.uint8)[start:start + size].reshape(height, width, 3).copy()
 
 
 # ---- the drawing as tracked points -------------------------------------------------------
@@ -258,6 +271,34 @@ class _Tracker:
         fb[~(ok1 & ok2) | ~np.isfinite(fb)] = np.inf
         return fwd, fb
 
+    def predicted(self, template: np.ndarray, rest: np.ndarray, now: np.ndarray,
+                  good: np.ndarray) -> tuple[np.ndarray, Any] | None:
+        """The anchor frame warped by the thin plate taking ``rest[good]`` to ``now[good]``
+        (evaluated every 8 px and interpolated) and that map's inverse, or None with too
+        few points."""
+        from inkwarp.methods import ThinPlateMap
+
+        idx = _spread(np.flatnonzero(good), rest)
+        if len(idx) < 3:
+            return None
+        try:
+            inverse = ThinPlateMap(now[idx], rest[idx])
+        except ValueError:
+            return None
+        h, w = template.shape
+        step = 8
+        gx = np.append(np.arange(0, w - 1, step, dtype=np.float64), w - 1)
+        gy = np.append(np.arange(0, h - 1, step, dtype=np.float64), h - 1)
+        xx, yy = np.meshgrid(gx, gy)
+        src = inverse(np.stack([xx.ravel(), yy.ravel()], axis=1)).reshape(len(gy), len(gx), 2)
+        # Bilinear upsampling of the coarse map: cv2.resize with the corners aligned.
+        full = np.empty((h, w, 2), np.float32)
+        for c in range(2):
+            full[..., c] = _upsample(src[..., c], gx, gy, w, h)
+        picture = self.cv2.remap(template, full[..., 0], full[..., 1], self.cv2.INTER_CUBIC,
+                                 borderMode=self.cv2.BORDER_REPLICATE)
+        return picture, inverse
+
     def run(self, anchor: int, start_points: np.ndarray, stop: int,
             tick: Callable[[], None]) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
         """Track from frame ``anchor`` (points ``start_points``) to frame ``stop`` (either
@@ -270,6 +311,7 @@ class _Tracker:
         eig0 = _bilinear(self.min_eig(anchor)[..., None], start_points)[:, 0]
         textured = eig0 > TRUST_MIN_EIG
         current = start_points.copy()
+        lost = np.zeros(len(current), bool)
         for k in range(anchor + step, stop + step, step):
             a, b = self.frames[k - step], self.frames[k]
             flow = self.dis.calc(a, b, None)
@@ -277,10 +319,29 @@ class _Tracker:
             dense = current + _bilinear(flow, current)
             dense_fb = np.linalg.norm(dense + _bilinear(back_flow, dense) - current, axis=1)
             local, local_fb = self._lk_checked(a, b, current, dense)
-            anchored, anchored_fb = self._lk_checked(template, b, start_points, local)
-            best = np.where((local_fb < TRUST_FB_PX)[:, None], local, dense)
-            use_anchor = (anchored_fb < TRUST_FB_PX) & (np.linalg.norm(anchored - best, axis=1) < 2.0)
-            best = np.where(use_anchor[:, None], anchored, best)
+            estimate = np.where((local_fb < TRUST_FB_PX)[:, None], local, dense)
+            # Drift-free: the anchor's picture warped onto the estimate (the thin plate of
+            # the points Lucas-Kanade follows), registered to this frame.
+            good = textured & (local_fb < TRUST_FB_PX)
+            # Where the anchor's picture is only shifted under a Lucas-Kanade window, it is
+            # registered as it is (sharper); where it is turned or stretched, warped first.
+            refined, refined_fb = self._lk_checked(template, b, start_points, estimate)
+            warped = self.predicted(template, start_points, estimate, good)
+            if warped is not None:
+                picture, inverse = warped
+                half = LK_WINDOW_PX / 2
+                here = inverse(estimate)
+                bent = np.zeros(len(estimate))
+                for axis in (np.array([half, 0.0]), np.array([0.0, half])):
+                    bent = np.maximum(bent, np.linalg.norm(
+                        inverse(estimate + axis) - here - axis, axis=1))
+                turned = bent > 0.2
+                if turned.any():
+                    again, again_fb = self._lk_checked(picture, b, estimate[turned],
+                                                       estimate[turned])
+                    refined[turned], refined_fb[turned] = again, again_fb
+            use_anchor = (refined_fb < TRUST_FB_PX) & (np.linalg.norm(refined - estimate, axis=1) < 2.0)
+            best = np.where(use_anchor[:, None], refined, estimate)
             trusted = textured & ((local_fb < TRUST_FB_PX) | use_anchor)
             inside = ((best[:, 0] >= 0) & (best[:, 0] <= w - 1) & (best[:, 1] >= 0)
                       & (best[:, 1] <= h - 1))
@@ -290,7 +351,14 @@ class _Tracker:
                 best[untrusted] = _thin_plate_fill(start_points, best, trusted, untrusted)
             current = best
             positions[k] = best.copy()
-            errors[k] = np.minimum(local_fb, dense_fb)
+            # Lost: a textured point neither Lucas-Kanade check confirms (an untextured one
+            # is placed by the thin plate; only the dense flow's own check speaks for it).
+            # Once lost, a point stays lost until it is registered to the anchor again
+            # (noise can pass a frame-to-frame check by chance).
+            lost_px = self.options.lost_px
+            checked = np.where(lost, refined_fb, np.minimum(local_fb, refined_fb))
+            lost = textured & (checked > lost_px)
+            errors[k] = np.where(lost, np.inf, np.where(textured, checked, dense_fb))
             tick()
         return positions, errors
 
@@ -300,18 +368,34 @@ def _thin_plate_fill(rest: np.ndarray, now: np.ndarray, trusted: np.ndarray,
     """Where the untrusted points go under the thin plate fitted to the trusted ones."""
     from inkwarp.methods import ThinPlateMap
 
-    idx = np.flatnonzero(trusted)
-    src = rest[idx]
-    # One centre per 2 px cell (ThinPlateMap merges repeats), then an even subset.
-    _, first = np.unique(np.round(src / 2.0), axis=0, return_index=True)
-    idx = idx[np.sort(first)]
-    if len(idx) > TPS_POINTS:
-        idx = idx[np.linspace(0, len(idx) - 1, TPS_POINTS).round().astype(int)]
+    idx = _spread(np.flatnonzero(trusted), rest)
     try:
         w = ThinPlateMap(rest[idx], now[idx])
     except ValueError:
         return now[untrusted]
     return w(rest[untrusted])
+
+
+def _spread(idx: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """At most :data:`TPS_POINTS` of the points ``idx``, one per 2 px cell, evenly spread."""
+    _, first = np.unique(np.round(rest[idx] / 2.0), axis=0, return_index=True)
+    idx = idx[np.sort(first)]
+    if len(idx) > TPS_POINTS:
+        idx = idx[np.linspace(0, len(idx) - 1, TPS_POINTS).round().astype(int)]
+    return idx
+
+
+def _upsample(coarse: np.ndarray, gx: np.ndarray, gy: np.ndarray, w: int, h: int) -> np.ndarray:
+    """Values on the grid ``gx`` x ``gy`` interpolated bilinearly at every pixel."""
+    ix = np.interp(np.arange(w), gx, np.arange(len(gx)))
+    iy = np.interp(np.arange(h), gy, np.arange(len(gy)))
+    x0 = np.minimum(ix.astype(int), len(gx) - 2) if len(gx) > 1 else np.zeros(w, int)
+    y0 = np.minimum(iy.astype(int), len(gy) - 2) if len(gy) > 1 else np.zeros(h, int)
+    fx, fy = (ix - x0)[None, :], (iy - y0)[:, None]
+    x1, y1 = np.minimum(x0 + 1, len(gx) - 1), np.minimum(y0 + 1, len(gy) - 1)
+    top = coarse[y0][:, x0] * (1 - fx) + coarse[y0][:, x1] * fx
+    bottom = coarse[y1][:, x0] * (1 - fx) + coarse[y1][:, x1] * fx
+    return (top * (1 - fy) + bottom * fy).astype(np.float32)
 
 
 def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:
