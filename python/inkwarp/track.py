@@ -67,6 +67,10 @@ TRUST_FB_PX = 0.5
 #: the grey frame scaled to 0..1, block 7) is over this.
 TRUST_MIN_EIG = 2e-4
 
+#: A registration to the anchor frame may move a point this far from the frame-to-frame
+#: estimate (pixels): how much drift it can take back.
+REGAIN_PX = 10.0
+
 #: At most this many trusted points fit the regularising thin plate (evenly spread).
 TPS_POINTS = 160
 
@@ -309,7 +313,7 @@ class _Tracker:
         h, w = self.frames[anchor].shape
         template = self.frames[anchor]
         eig0 = _bilinear(self.min_eig(anchor)[..., None], start_points)[:, 0]
-        textured = eig0 > TRUST_MIN_EIG
+        textured_at_anchor = eig0 > TRUST_MIN_EIG
         current = start_points.copy()
         lost = np.zeros(len(current), bool)
         for k in range(anchor + step, stop + step, step):
@@ -320,6 +324,10 @@ class _Tracker:
             dense_fb = np.linalg.norm(dense + _bilinear(back_flow, dense) - current, axis=1)
             local, local_fb = self._lk_checked(a, b, current, dense)
             estimate = np.where((local_fb < TRUST_FB_PX)[:, None], local, dense)
+            # Texture where the point was traced and where it is now: a point that slid
+            # onto flat skin passes any forward-backward check.
+            textured = textured_at_anchor & (
+                _bilinear(self.min_eig(k)[..., None], estimate)[:, 0] > TRUST_MIN_EIG)
             # Drift-free: the anchor's picture warped onto the estimate (the thin plate of
             # the points Lucas-Kanade follows), registered to this frame.
             good = textured & (local_fb < TRUST_FB_PX)
@@ -340,7 +348,7 @@ class _Tracker:
                     again, again_fb = self._lk_checked(picture, b, estimate[turned],
                                                        estimate[turned])
                     refined[turned], refined_fb[turned] = again, again_fb
-            use_anchor = (refined_fb < TRUST_FB_PX) & (np.linalg.norm(refined - estimate, axis=1) < 2.0)
+            use_anchor = (refined_fb < TRUST_FB_PX) & (np.linalg.norm(refined - estimate, axis=1) < REGAIN_PX)
             best = np.where(use_anchor[:, None], refined, estimate)
             trusted = textured & ((local_fb < TRUST_FB_PX) | use_anchor)
             inside = ((best[:, 0] >= 0) & (best[:, 0] <= w - 1) & (best[:, 1] >= 0)
@@ -351,6 +359,7 @@ class _Tracker:
                 best[untrusted] = _thin_plate_fill(start_points, best, trusted, untrusted)
             current = best
             positions[k] = best.copy()
+            self._eig.pop(k - step, None)
             # Lost: a textured point neither Lucas-Kanade check confirms (an untextured one
             # is placed by the thin plate; only the dense flow's own check speaks for it).
             # Once lost, a point stays lost until it is registered to the anchor again
