@@ -26,11 +26,11 @@ FPS = 24
 DURATION_S = 2.5
 
 # Traced over the picture (x right, y down, pixels); ids and directions as examples/face.
-HEAD = [[160 + 86 * math.sin(2 * math.pi * i / 12), 172 - 104 * math.cos(2 * math.pi * i / 12)]
+HEAD = [[160 + 90 * math.sin(2 * math.pi * i / 12), 160 - 122 * math.cos(2 * math.pi * i / 12)]
         for i in range(12)]
 REST = {
     "head": ("spline", HEAD, True),
-    "nose": ("spline", [[160, 136], [152, 192], [172, 198]], False),
+    "nose": ("spline", [[158, 165], [152, 192], [172, 198]], False),
     "brow_l": ("spline", [[132, 117], [114, 113], [97, 119]], False),
     "brow_r": ("spline", [[190, 122], [210, 119], [232, 127]], False),
     "lid_l_upper": ("spline", [[99, 135.5], [107, 130], [116, 128.5], [126, 131], [134, 139]], False),
@@ -44,8 +44,8 @@ REST = {
 BORDER = [[0, 0], [SIZE - 1, 0], [SIZE - 1, SIZE - 1], [0, SIZE - 1]]
 
 # The performance: (time s, head turn px, blink 0..1, smile 0..1), linear in between.
-BEATS = [(0.0, 0, 0, 0), (0.3, 0, 0, 0), (1.0, 12, 0, 0), (1.15, 12, 0, 0), (1.27, 12, 0.9, 0),
-         (1.4, 12, 0, 0), (1.55, 12, 0, 0.1), (2.0, 4, 0, 1), (2.5, 0, 0, 1)]
+BEATS = [(0.0, 0, 0, 0), (0.3, 0, 0, 0), (1.0, 7, 0, 0), (1.15, 7, 0, 0), (1.27, 7, 0.9, 0),
+         (1.4, 7, 0, 0), (1.55, 7, 0, 0.1), (2.0, 2, 0, 1), (2.5, 0, 0, 1)]
 
 
 def pose(turn_px: float, blink: float, smile: float) -> dict[str, np.ndarray]:

@@ -41,6 +41,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -669,6 +670,38 @@ def track(video: str | os.PathLike[str], scene: Any, frame: int = 0, **options: 
 
     doc = track_dict(video, scene, frame, **options)
     return Scene.from_dict(doc)
+
+
+def rotoscope_example(examples_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
+                      quiet: bool = True) -> tuple[Path, Path]:
+    """``make demo``'s actor-to-cat pipeline: ``rotoscope/actor.mp4`` tracked from the
+    drawing ``rotoscope/actor.json`` (``actor-tracked.json`` in ``out_dir``), then
+    transferred onto ``transfer/cat-target.json`` (``rotoscope.json``). Returns both paths.
+    """
+    from inkwarp.transfer import transfer_dict
+
+    root, out = Path(examples_dir), Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+
+    def bar(total: int) -> Callable[[], None] | None:
+        if quiet:
+            return None
+        from tqdm import tqdm
+
+        bars.append(tqdm(total=total, unit="frame", desc="rotoscope (track)", file=sys.stderr))
+        return lambda: bars[-1].update(1)
+
+    bars: list[Any] = []
+    try:
+        tracked = track_dict(root / "rotoscope" / "actor.mp4", root / "rotoscope" / "actor.json",
+                             progress=bar, relative_to=out.resolve())
+    finally:
+        for b in bars:
+            b.close()
+    tracked_path = save_json(tracked, out / "actor-tracked.json")
+    cat = transfer_dict(tracked_path, root / "transfer" / "cat-target.json",
+                        relative_to=out.resolve())
+    return tracked_path, save_json(cat, out / "rotoscope.json")
 
 
 def save_json(doc: dict[str, Any], path: str | os.PathLike[str]) -> Path:
