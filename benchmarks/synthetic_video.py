@@ -72,11 +72,13 @@ def rotate(width: int, height: int, deg_per_frame: float = 0.6) -> Motion:
     return Motion("rotate", lambda p, k: turn(p, rad * k), lambda p, k: turn(p, -rad * k))
 
 
-def warp(width: int, height: int, frames: int, amplitude_px: float = 7.0) -> Motion:
-    """A local bulge: a Gaussian bump of displacement (radius a quarter of the picture)
-    that grows and shrinks over the clip, plus a slow drift."""
-    c = np.array([width * 0.45, height * 0.5])
-    sigma = min(width, height) * 0.25
+def warp(width: int, height: int, frames: int, amplitude_px: float = 7.0,
+         centre: tuple[float, float] = (0.45, 0.5), radius: float = 0.25) -> Motion:
+    """A local bulge: a Gaussian bump of displacement (standard deviation ``radius`` of the
+    picture's smaller side, centred at ``centre`` in fractions of the picture) that grows
+    and shrinks over the clip, plus a slow drift."""
+    c = np.array([width * centre[0], height * centre[1]])
+    sigma = min(width, height) * radius
     direction = np.array([1.0, 0.6]) / np.hypot(1.0, 0.6)
 
     def disp(p: np.ndarray, k: int) -> np.ndarray:
@@ -96,8 +98,10 @@ def warp(width: int, height: int, frames: int, amplitude_px: float = 7.0) -> Mot
     return Motion("warp", forward, inverse)
 
 
-def render(image: np.ndarray, motion: Motion, frames: int) -> list[np.ndarray]:
-    """The picture moved by ``motion``, one RGB frame per k."""
+def render(image: np.ndarray, motion: Motion, frames: int, noise: float = 0.0,
+           seed: int = 0) -> list[np.ndarray]:
+    """The picture moved by ``motion``, one RGB frame per k, with Gaussian sensor noise of
+    standard deviation ``noise`` (grey levels), new in every frame."""
     import cv2
 
     h, w = image.shape[:2]
@@ -106,8 +110,12 @@ def render(image: np.ndarray, motion: Motion, frames: int) -> list[np.ndarray]:
     out = []
     for k in range(frames):
         src = motion.inverse(grid, k).astype(np.float32)
-        out.append(cv2.remap(image, src[:, 0].reshape(h, w), src[:, 1].reshape(h, w),
-                             cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT101))
+        frame = cv2.remap(image, src[:, 0].reshape(h, w), src[:, 1].reshape(h, w),
+                          cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT101)
+        if noise:
+            grain = np.random.default_rng(seed + k).normal(0, noise, frame.shape)
+            frame = np.clip(frame + grain, 0, 255).astype(np.uint8)
+        out.append(frame)
     return out
 
 

@@ -72,6 +72,10 @@ TRUST_MIN_EIG = 2e-4
 #: estimate (pixels): how much drift it can take back.
 REGAIN_PX = 10.0
 
+#: The largest correction of the thin plate's placement of an untrusted point that the
+#: dense flow from the warped anchor picture may make (pixels).
+RESIDUAL_PX = 2.0
+
 #: At most this many trusted points fit the regularising thin plate (evenly spread).
 TPS_POINTS = 160
 
@@ -357,7 +361,16 @@ class _Tracker:
             trusted &= inside
             untrusted = ~trusted
             if untrusted.any() and trusted.sum() >= 3:
-                best[untrusted] = _thin_plate_fill(start_points, best, trusted, untrusted)
+                fill = _thin_plate_fill(start_points, best, trusted, untrusted)
+                if warped is not None:
+                    # What the thin plate misses, dense flow from the anchor's picture warped
+                    # by it sees (faint gradients): a correction that does not accumulate.
+                    # Only small ones: a large one is the picture changing (a lid closing
+                    # over an eye), not the thin plate's error.
+                    residual = _bilinear(self.dis.calc(warped[0], b, None), fill)
+                    small = np.linalg.norm(residual, axis=1) < RESIDUAL_PX
+                    fill[small] += residual[small]
+                best[untrusted] = fill
             current = best
             positions[k] = best.copy()
             self._eig.pop(k - step, None)
