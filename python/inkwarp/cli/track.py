@@ -11,12 +11,11 @@ from inkwarp.cli._common import formatter
 
 EXAMPLE = """\
 examples:
-  inkwarp frame actor.mp4 --frame 0 -o frame.png     # the picture to trace on
   inkwarp track actor.mp4 --scene actor.json -o actor-tracked.json
   inkwarp track actor.mp4 --scene actor.json --simplify 0.5 -o actor-tracked.json
 
 SCENE's drawing (its features' rest geometry) is traced over frame K of the video, in a
-scene of the video's size. OUT is SCENE with the video's fps and duration and, for every
+scene of the video's size ('inkwarp frame VIDEO --frame K -o frame.png' gives the picture). OUT is SCENE with the video's fps and duration and, for every
 feature, a key at every video frame (t = k / fps). Keys SCENE already has at other frames
 are corrections: the track passes through them. See docs/guides/rotoscoping.md.
 """
