@@ -66,7 +66,7 @@ LK_LEVELS = 3
 TRUST_FB_PX = 0.5
 #: ... and the smaller structure-tensor eigenvalue under it (``cv2.cornerMinEigenVal`` of
 #: the grey frame scaled to 0..1, block 7) is over this.
-TRUST_MIN_EIG = 2e-4
+TRUST_MIN_EIG = 5e-5
 
 #: A registration to the anchor frame may move a point this far from the frame-to-frame
 #: estimate (pixels): how much drift it can take back.
@@ -76,8 +76,10 @@ REGAIN_PX = 10.0
 #: dense flow from the warped anchor picture may make (pixels).
 RESIDUAL_PX = 2.0
 
-#: At most this many trusted points fit the regularising thin plate (evenly spread).
+#: At most this many trusted points fit the regularising thin plate (evenly spread), at
+#: most one in each square of this side (pixels).
 TPS_POINTS = 160
+TPS_CELL_PX = 12.0
 
 
 def _cv2() -> Any:
@@ -400,8 +402,9 @@ def _thin_plate_fill(rest: np.ndarray, now: np.ndarray, trusted: np.ndarray,
 
 
 def _spread(idx: np.ndarray, rest: np.ndarray) -> np.ndarray:
-    """At most :data:`TPS_POINTS` of the points ``idx``, one per 2 px cell, evenly spread."""
-    _, first = np.unique(np.round(rest[idx] / 2.0), axis=0, return_index=True)
+    """At most :data:`TPS_POINTS` of the points ``idx``, one per :data:`TPS_CELL_PX` cell
+    (close centres with noisy targets make the thin plate swing far from them)."""
+    _, first = np.unique(np.floor(rest[idx] / TPS_CELL_PX), axis=0, return_index=True)
     idx = idx[np.sort(first)]
     if len(idx) > TPS_POINTS:
         idx = idx[np.linspace(0, len(idx) - 1, TPS_POINTS).round().astype(int)]
