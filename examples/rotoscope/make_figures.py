@@ -20,16 +20,27 @@ DOCS = HERE.parents[1] / "docs" / "guides" / "images"
 FRAMES = (0, 24, 31, 52)
 
 
+def curve(feature: dict, points: np.ndarray) -> np.ndarray:
+    """The feature's curve through ``points``, sampled every pixel (closed ones closed)."""
+    import inkwarp
+
+    closed = bool(feature.get("closed"))
+    samples, moves = inkwarp.sample(feature["kind"], points, points, closed=closed)
+    out = samples + moves
+    return np.vstack([out, out[:1]]) if closed else out
+
+
 def overlay(picture: np.ndarray, doc: dict, k: int | None, truth: dict | None = None) -> Image.Image:
     """The picture with the drawing at frame k (rest when None), 2x for legibility."""
     im = Image.fromarray(picture[..., :3]).resize((picture.shape[1] * 2, picture.shape[0] * 2))
     draw = ImageDraw.Draw(im)
     for f in doc["features"]:
         if truth is not None:
-            q = np.asarray(truth[f["id"]][k]) * 2
+            q = curve(f, np.asarray(truth[f["id"]][k])) * 2
             draw.line([tuple(p) for p in q], fill=(60, 220, 60), width=3)
-        pts = np.asarray(f["rest"] if k is None else f["keys"][k]["points"]) * 2
-        draw.line([tuple(p) for p in pts], fill=(235, 40, 40), width=2)
+        pts = np.asarray(f["rest"] if k is None else f["keys"][k]["points"])
+        draw.line([tuple(p) for p in curve(f, pts) * 2], fill=(235, 40, 40), width=2)
+        pts = pts * 2
         for x, y in pts:
             draw.ellipse([x - 3, y - 3, x + 3, y + 3], fill=(235, 40, 40))
     draw.text((8, 8), "rest" if k is None else f"frame {k}", fill=(255, 255, 0))
@@ -39,15 +50,14 @@ def overlay(picture: np.ndarray, doc: dict, k: int | None, truth: dict | None = 
 def main(out_dir: str) -> None:
     import inkwarp
 
-    from inkwarp.track import read_video
-
     out = Path(out_dir)
     DOCS.mkdir(parents=True, exist_ok=True)
     actor = json.loads((HERE / "actor.json").read_text())
     tracked = json.loads((out / "actor-tracked.json").read_text())
     truth = json.loads((HERE / "truth.json").read_text())["features"]
-    clip = read_video(HERE / "actor.mp4")
-    frames = [np.repeat(clip.frames[k][..., None], 3, axis=2) for k in range(len(clip))]
+    from inkwarp.track import read_frame
+
+    frames = {k: read_frame(HERE / "actor.mp4", k) for k in FRAMES}
     overlay(frames[0], actor, None).save(DOCS / "rotoscope-drawing.png")
     row = [overlay(frames[k], tracked, k, truth).resize((320, 320)) for k in FRAMES[1:]]
     sheet = Image.new("RGB", (320 * len(row), 320))
