@@ -29,9 +29,11 @@ Keys the scene already has are **corrections**: the drawing is tracked from each
 them, forward and backward, as from frame ``K``, and between two anchors of a feature
 the two tracks are blended linearly in time, so the result passes through every key.
 
-A feature is **lost** at a frame when the median forward–backward error of its points,
-for both Lucas–Kanade and the dense flow, is over ``lost_px``; a
-:class:`~inkwarp.InkwarpWarning` names the features and the frames.
+A feature is **lost** at a frame when the median forward–backward error of its points is
+over ``lost_px``: a textured point's error is the smaller of its two Lucas–Kanade checks
+(once over ``lost_px`` it stays lost until the anchor registration confirms it again), an
+untextured point's that of the dense flow. A :class:`~inkwarp.InkwarpWarning` names the
+features and the frames.
 
 The video's grey frames are held in memory (1 byte per pixel per frame).
 """
