@@ -1,4 +1,4 @@
-"""The field benchmark's smoke run: `benchmarks/solve.py --quick` prints its tables, the
+"""The benchmarks' smoke runs: `benchmarks/solve.py --quick` prints its tables, the
 goals section included, with a row for every N. Structure only: no time is asserted
 (benchmarks are never timed tests)."""
 
@@ -33,3 +33,20 @@ def test_quick_field_benchmark_prints_every_table():
             assert float(low) <= float(median) <= float(high)
     assert "N=100 cold / N=10 cold:" in section
     assert "goal" not in section  # the goals are judged at 513×513 only
+
+
+def test_quick_track_benchmark_prints_its_table():
+    """`benchmarks/track.py --quick`: a row per tracker and kind of feature, every accuracy
+    column a number (no time or accuracy asserted: benchmarks are not tests)."""
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "track.py"), "--quick", "--rounds", "1"],
+        check=True, capture_output=True, text=True, timeout=300).stdout
+    assert "| video | motion | features | tracker | median | p90 |" in out
+    rows = [line for line in out.splitlines() if line.startswith("| 256×192×16 |")]
+    assert len(rows) == 6
+    for tracker in ("inkwarp", "LK", "DIS"):
+        for kind in ("textured", "low-texture"):
+            row = next(r for r in rows if f"| {kind} | {tracker} |" in r)
+            cells = [c.strip() for c in row.strip("|").split("|")]
+            assert float(cells[4]) <= float(cells[5])  # median <= 90th percentile
+    assert "low-texture: LK median" in out and "low-texture: DIS median" in out

@@ -11,6 +11,7 @@ from inkwarp.compare import Comparison, compare, comparison_sheet
 from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
 from inkwarp.imaging import warp_image
 from inkwarp.transfer import transfer, transfer_dict
+from inkwarp.track import track, track_dict
 from inkwarp.plate import SolveReport, WarmStart, thin_plate, thin_plate_report
 from inkwarp.scene import Frames, Scene, image_data_uri, scene_schema, validate_scene
 from inkwarp.rendering import render
@@ -37,6 +38,8 @@ __all__ = [
     "thin_plate",
     "WarmStart",
     "thin_plate_report",
+    "track",
+    "track_dict",
     "transfer",
     "transfer_dict",
     "validate_scene",

@@ -24,9 +24,10 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "checkerboard-hole": ("with-hole.json", "without-hole.json"),
 }
 
-#: Demo parts beyond the examples: the paper's comparison plates and its animation
-#: transfer (the face's motion on the cat).
-EXTRA_PARTS: tuple[str, ...] = ("compare", "transfer")
+#: Demo parts beyond the examples: the paper's comparison plates, its animation
+#: transfer (the face's motion on the cat) and its actor-to-cat pipeline (the actor video
+#: tracked, then transferred onto the cat).
+EXTRA_PARTS: tuple[str, ...] = ("compare", "transfer", "rotoscope")
 
 #: The formats an animation can be rendered to by the demo.
 FORMATS = ("gif", "mp4")
@@ -131,6 +132,13 @@ def _extra_part(part: str, root: Path, out: Path, formats: Sequence[str], quiet:
         from inkwarp.compare import checkerboard_plates
 
         return checkerboard_plates(root, out)
+    if part == "rotoscope":
+        from inkwarp.track import rotoscope_example
+
+        tracked, scene_path = rotoscope_example(root, out, quiet=quiet)
+        paths, _info = render_example(scene_path, [out / f"rotoscope.{fmt}" for fmt in formats],
+                                      quiet=quiet)
+        return [tracked, scene_path, *paths]
     from inkwarp.transfer import transfer_example
 
     scene_path = transfer_example(root, out)

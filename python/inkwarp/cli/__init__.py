@@ -19,7 +19,8 @@ from inkwarp.cli._common import prefixed, problem_parts
 from inkwarp.errors import InkwarpError, SceneError
 
 # The command modules, in the order `inkwarp --help` lists them.
-COMMANDS: list[str] = ["new", "render", "field", "validate", "schema", "demo", "edit", "compare", "transfer"]
+COMMANDS: list[str] = ["new", "render", "field", "validate", "schema", "demo", "edit", "compare", "transfer",
+                       "frame", "track"]
 
 EPILOG = """\
 examples:
@@ -31,6 +32,7 @@ examples:
   inkwarp edit examples/cat/scene.json
   inkwarp compare examples/checkerboard-hole/with-hole.json -o sheet.png
   inkwarp transfer --source examples/face/scene.json --target cat.json -o cat_animated.json
+  inkwarp track actor.mp4 --scene actor.json -o actor-tracked.json
 
 Run 'inkwarp COMMAND --help' for a command's options. Exit status: 0 success, 2 bad input
 (the message names the file, the place in it and the fix), 1 internal error.

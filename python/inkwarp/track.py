@@ -1,0 +1,741 @@
+"""Tracking a drawing through a video (DESIGN §11): the first half of the paper's
+actor-to-cat pipeline.
+
+A scene's drawing is traced over one frame ``K`` of a video (its features' ``rest``
+geometry). :func:`track_dict` follows every feature through the footage and gives the
+scene a key at every video frame (``t = k / fps``); :func:`inkwarp.transfer` then carries
+the performance onto another picture.
+
+How a feature is followed
+-------------------------
+Each feature is tracked through its control points and through samples along its curve
+(every :data:`SAMPLE_SPACING_PX` pixels of arc length, from :func:`inkwarp.sample`). From
+one frame to the next, every such point is
+
+1. moved by OpenCV's dense DIS optical flow (``cv2.DISOpticalFlow``), which gives every
+   pixel a motion, textured or not;
+2. refined by pyramidal Lucas–Kanade started from the DIS estimate, and checked forward
+   and backward (the point tracked back must land where it started);
+3. re-registered against the anchor frame it started from (Lucas–Kanade from the anchor's
+   picture straight to the new frame, started at the estimate and checked both ways), so
+   that where the picture still looks as it did, the track does not drift;
+4. kept where the texture under it (the smaller eigenvalue of the structure tensor) and
+   its forward–backward check say Lucas–Kanade can see it; elsewhere — flat skin, a
+   smooth gradient, an occluded spot — it is placed by the continuous thin plate
+   (:class:`inkwarp.ThinPlateMap`) fitted from the anchor positions of the trusted points
+   to where they are now: the drawing's own smoothness prior regularises the rest of it.
+
+Keys the scene already has are **corrections**: the drawing is tracked from each of
+them, forward and backward, as from frame ``K``, and between two anchors of a feature
+the two tracks are blended linearly in time, so the result passes through every key.
+
+A feature is **lost** at a frame when the median forward–backward error of its points is
+over ``lost_px``: a textured point's error is the smaller of its two Lucas–Kanade checks
+(once over ``lost_px`` it stays lost until the anchor registration confirms it again), an
+untextured point's that of the dense flow. A :class:`~inkwarp.InkwarpWarning` names the
+features and the frames.
+
+The video's grey frames are held in memory (1 byte per pixel per frame).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from inkwarp.errors import InkwarpWarning
+
+__all__ = ["Video", "read_video", "read_frame", "track", "track_dict", "simplify_keys",
+           "SAMPLE_SPACING_PX"]
+
+#: Arc length between the samples tracked along a curve, in pixels.
+SAMPLE_SPACING_PX = 4.0
+
+#: Lucas–Kanade window (pixels, square) and pyramid levels.
+LK_WINDOW_PX = 21
+LK_LEVELS = 3
+
+#: A point is trusted when its forward–backward error is under this (pixels) ...
+TRUST_FB_PX = 0.5
+#: ... and the smaller structure-tensor eigenvalue under it (``cv2.cornerMinEigenVal`` of
+#: the grey frame scaled to 0..1, block 7) is over this.
+TRUST_MIN_EIG = 5e-5
+
+#: A registration to the anchor frame may move a point this far from the frame-to-frame
+#: estimate (pixels): how much drift it can take back.
+REGAIN_PX = 10.0
+
+#: The largest correction of the thin plate's placement of an untrusted point that the
+#: dense flow from the warped anchor picture may make (pixels).
+RESIDUAL_PX = 2.0
+
+#: At most this many trusted points fit the regularising thin plate (evenly spread), at
+#: most one in each square of this side (pixels).
+TPS_POINTS = 160
+TPS_CELL_PX = 12.0
+
+
+def _cv2() -> Any:
+    try:
+        import cv2
+    except ImportError:  # pragma: no cover - the [track] extra is missing
+        raise ValueError("inkwarp track needs OpenCV: pip install 'inkwarp[track]' "
+                         "(opencv-contrib-python-headless)") from None
+    return cv2
+
+
+# ---- video input ------------------------------------------------------------------------
+
+@dataclass
+class Video:
+    """A decoded video: grey frames (``uint8``, ``(H, W)`` each) and its frame rate."""
+
+    path: str
+    fps: float
+    width: int
+    height: int
+    frames: list[np.ndarray] = field(repr=False)
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+
+def _unreadable(path: str, reason: str) -> ValueError:
+    reason = " ".join(str(reason).split())
+    if len(reason) > 160:
+        reason = reason[:157] + "..."
+    return ValueError(f"{path}: cannot be read as a video ({reason}); give a video file that "
+                      "ffmpeg decodes, such as an .mp4")
+
+
+def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int]:
+    """``(path, fps, width, height)`` of a video, or a ValueError naming it."""
+    import imageio_ffmpeg
+
+    name = os.fspath(path)
+    if not os.path.exists(name):
+        raise FileNotFoundError(2, "No such file or directory", name)
+    if os.path.isdir(name):
+        raise IsADirectoryError(21, "is a directory, not a video", name)
+    import re
+    import subprocess
+
+    done = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-nostdin", "-hide_banner", "-i", name],
+                          capture_output=True, stdin=subprocess.DEVNULL)
+    log = done.stderr.decode(errors="replace")
+    stream = next((line for line in log.splitlines()
+                   if re.search(r"Stream #.*: Video:", line)), None)
+    if stream is None:
+        lines = [line.strip() for line in log.splitlines() if line.strip()
+                 and "At least one output file" not in line]
+        raise _unreadable(name, lines[-1] if lines else "ffmpeg found no video stream")
+    size = re.search(r", (\d+)x(\d+)[ ,]", stream)
+    rate = re.search(r", ([\d.]+) fps", stream) or re.search(r", ([\d.]+)k? tbr", stream)
+    if size is None or rate is None or not float(rate.group(1)) > 0:
+        raise _unreadable(name, "ffmpeg finds no frame size or frame rate in it")
+    width, height, fps = int(size.group(1)), int(size.group(2)), float(rate.group(1))
+    return name, float(fps), width, height
+
+
+def _decode(name: str, pix_fmt: str, *, frames: int | None = None) -> bytes:
+    """Raw frames from ffmpeg (the first ``frames`` of them, or all)."""
+    import subprocess
+
+    import imageio_ffmpeg
+
+    cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-nostdin", "-v", "error", "-i", name]
+    if frames is not None:
+        cmd += ["-frames:v", str(frames)]
+    cmd += ["-f", "rawvideo", "-pix_fmt", pix_fmt, "-"]
+    done = subprocess.run(cmd, capture_output=True, stdin=subprocess.DEVNULL)
+    if done.returncode != 0:
+        lines = done.stderr.decode(errors="replace").strip().splitlines()
+        raise _unreadable(name, lines[-1] if lines else f"ffmpeg exited with {done.returncode}")
+    return done.stdout
+
+
+def read_video(path: str | os.PathLike[str]) -> Video:
+    """Decode a video into grey frames (through the ffmpeg of ``imageio-ffmpeg``).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        ffmpeg cannot decode it, or it has no frames (the message names the file).
+    """
+    name, fps, width, height = _probe(path)
+    raw = _decode(name, "gray")
+    count = len(raw) // (width * height)
+    if count == 0:
+        raise _unreadable(name, "it has no frames")
+    data = np.frombuffer(raw, np.uint8)[:count * width * height].reshape(count, height, width)
+    return Video(name, fps, width, height, list(data))
+
+
+def read_frame(path: str | os.PathLike[str], frame: int = 0) -> np.ndarray:
+    """Frame ``frame`` of a video as RGB ``uint8`` ``(H, W, 3)`` (the picture to trace on).
+
+    Raises
+    ------
+    ValueError
+        The video cannot be decoded, or has no such frame (the message says how many it has).
+    """
+    if frame < 0:
+        raise ValueError(f"--frame {frame}: frames are numbered from 0")
+    name, _, width, height = _probe(path)
+    size = width * height * 3
+    raw = _decode(name, "rgb24", frames=frame + 1)
+    if len(raw) < size * (frame + 1):
+        count = len(_decode(name, "gray")) // (width * height)
+        raise ValueError(f"--frame {frame}: {name} has frames 0 to {count - 1}; give a frame "
+                         f"number below {count}")
+    start = size * frame
+    return np.frombuffer(raw, np.uint8)[start:start + size].reshape(height, width, 3).copy()
+
+
+# ---- the drawing as tracked points -------------------------------------------------------
+
+@dataclass
+class _Feature:
+    id: str
+    kind: str
+    closed: bool
+    rest: np.ndarray                       # (N, 2) control points at frame K
+    keys: dict[int, np.ndarray]            # frame -> (N, 2): corrections
+    rows: slice = field(default_factory=lambda: slice(0, 0))  # this feature's rows in the tracked point array
+
+
+def _curve_samples(f: _Feature, pose: np.ndarray) -> np.ndarray:
+    """Points along the feature's curve for ``pose`` (the same parameters as at rest)."""
+    from inkwarp.drawing import sample
+
+    if f.kind == "point" or len(f.rest) < 2:
+        return np.empty((0, 2))
+    kind = "polyline" if f.kind in ("polyline", "cut", "region") else "spline"
+    closed = f.closed or f.kind == "region"
+    pts, moves = sample(kind, f.rest, pose, closed=closed, spacing=SAMPLE_SPACING_PX)
+    return pts + moves
+
+
+def _all_points(features: list[_Feature], poses: Sequence[np.ndarray]) -> np.ndarray:
+    """Control points then curve samples of every feature, stacked."""
+    blocks = []
+    for f, pose in zip(features, poses):
+        blocks.append(pose)
+        blocks.append(_curve_samples(f, pose))
+    return np.concatenate(blocks).astype(np.float64) if blocks else np.empty((0, 2))
+
+
+def _layout(features: list[_Feature]) -> int:
+    start = 0
+    for f in features:
+        n = len(f.rest) + len(_curve_samples(f, f.rest))
+        f.rows = slice(start, start + n)
+        start += n
+    return start
+
+
+# ---- one track from an anchor -----------------------------------------------------------
+
+class _Tracker:
+    """Follows a set of points from an anchor frame through consecutive frames."""
+
+    def __init__(self, frames: list[np.ndarray], options: TrackOptions) -> None:
+        cv2 = _cv2()
+        self.cv2 = cv2
+        self.frames = frames
+        self.options = options
+        self.dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+        self.lk = dict(winSize=(LK_WINDOW_PX, LK_WINDOW_PX), maxLevel=LK_LEVELS,
+                       criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 0.005))
+        self._eig: dict[int, np.ndarray] = {}
+
+    def min_eig(self, k: int) -> np.ndarray:
+        if k not in self._eig:
+            grey = self.frames[k].astype(np.float32) / 255.0
+            self._eig[k] = self.cv2.cornerMinEigenVal(grey, 7, ksize=3)
+        return self._eig[k]
+
+    def _lk(self, a: np.ndarray, b: np.ndarray, pts: np.ndarray, guess: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray]:
+        p0 = pts.astype(np.float32).reshape(-1, 1, 2)
+        p1 = guess.astype(np.float32).reshape(-1, 1, 2).copy()
+        out, status, _ = self.cv2.calcOpticalFlowPyrLK(
+            a, b, p0, p1, flags=self.cv2.OPTFLOW_USE_INITIAL_FLOW, **self.lk)
+        return out.reshape(-1, 2).astype(np.float64), status.reshape(-1).astype(bool)
+
+    def _lk_checked(self, a: np.ndarray, b: np.ndarray, pts: np.ndarray, guess: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """LK from ``a`` to ``b`` and back: the positions in ``b`` and the forward-backward
+        error (inf where LK failed)."""
+        fwd, ok1 = self._lk(a, b, pts, guess)
+        back, ok2 = self._lk(b, a, fwd, pts)
+        fb = np.linalg.norm(back - pts, axis=1)
+        fb[~(ok1 & ok2) | ~np.isfinite(fb)] = np.inf
+        return fwd, fb
+
+    def predicted(self, template: np.ndarray, rest: np.ndarray, now: np.ndarray,
+                  good: np.ndarray) -> tuple[np.ndarray, Any] | None:
+        """The anchor frame warped by the thin plate taking ``rest[good]`` to ``now[good]``
+        (evaluated every 8 px and interpolated) and that map's inverse, or None with too
+        few points."""
+        from inkwarp.methods import ThinPlateMap
+
+        idx = _spread(np.flatnonzero(good), rest)
+        if len(idx) < 3:
+            return None
+        try:
+            inverse = ThinPlateMap(now[idx], rest[idx])
+        except ValueError:
+            return None
+        h, w = template.shape
+        step = 8
+        gx = np.append(np.arange(0, w - 1, step, dtype=np.float64), w - 1)
+        gy = np.append(np.arange(0, h - 1, step, dtype=np.float64), h - 1)
+        xx, yy = np.meshgrid(gx, gy)
+        src = inverse(np.stack([xx.ravel(), yy.ravel()], axis=1)).reshape(len(gy), len(gx), 2)
+        # Bilinear upsampling of the coarse map: cv2.resize with the corners aligned.
+        full = np.empty((h, w, 2), np.float32)
+        for c in range(2):
+            full[..., c] = _upsample(src[..., c], gx, gy, w, h)
+        picture = self.cv2.remap(template, full[..., 0], full[..., 1], self.cv2.INTER_CUBIC,
+                                 borderMode=self.cv2.BORDER_REPLICATE)
+        return picture, inverse
+
+    def run(self, anchor: int, start_points: np.ndarray, stop: int,
+            tick: Callable[[], None]) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+        """Track from frame ``anchor`` (points ``start_points``) to frame ``stop`` (either
+        way). Returns, per frame, the positions and each point's forward-backward error."""
+        positions = {anchor: start_points.copy()}
+        errors = {anchor: np.zeros(len(start_points))}
+        step = 1 if stop >= anchor else -1
+        h, w = self.frames[anchor].shape
+        template = self.frames[anchor]
+        eig0 = _bilinear(self.min_eig(anchor)[..., None], start_points)[:, 0]
+        textured_at_anchor = eig0 > TRUST_MIN_EIG
+        current = start_points.copy()
+        lost = np.zeros(len(current), bool)
+        for k in range(anchor + step, stop + step, step):
+            a, b = self.frames[k - step], self.frames[k]
+            flow = self.dis.calc(a, b, None)
+            back_flow = self.dis.calc(b, a, None)
+            dense = current + _bilinear(flow, current)
+            dense_fb = np.linalg.norm(dense + _bilinear(back_flow, dense) - current, axis=1)
+            local, local_fb = self._lk_checked(a, b, current, dense)
+            estimate = np.where((local_fb < TRUST_FB_PX)[:, None], local, dense)
+            # Texture where the point was traced and where it is now: a point that slid
+            # onto flat skin passes any forward-backward check.
+            textured = textured_at_anchor & (
+                _bilinear(self.min_eig(k)[..., None], estimate)[:, 0] > TRUST_MIN_EIG)
+            # Drift-free: the anchor's picture warped onto the estimate (the thin plate of
+            # the points Lucas-Kanade follows), registered to this frame.
+            good = textured & (local_fb < TRUST_FB_PX)
+            # Where the anchor's picture is only shifted under a Lucas-Kanade window, it is
+            # registered as it is (sharper); where it is turned or stretched, warped first.
+            refined, refined_fb = self._lk_checked(template, b, start_points, estimate)
+            warped = self.predicted(template, start_points, estimate, good)
+            if warped is not None:
+                picture, inverse = warped
+                half = LK_WINDOW_PX / 2
+                here = inverse(estimate)
+                bent = np.zeros(len(estimate))
+                for axis in (np.array([half, 0.0]), np.array([0.0, half])):
+                    bent = np.maximum(bent, np.linalg.norm(
+                        inverse(estimate + axis) - here - axis, axis=1))
+                turned = bent > 0.2
+                if turned.any():
+                    again, again_fb = self._lk_checked(picture, b, estimate[turned],
+                                                       estimate[turned])
+                    refined[turned], refined_fb[turned] = again, again_fb
+            use_anchor = (refined_fb < TRUST_FB_PX) & (np.linalg.norm(refined - estimate, axis=1) < REGAIN_PX)
+            best = np.where(use_anchor[:, None], refined, estimate)
+            trusted = textured & ((local_fb < TRUST_FB_PX) | use_anchor)
+            inside = ((best[:, 0] >= 0) & (best[:, 0] <= w - 1) & (best[:, 1] >= 0)
+                      & (best[:, 1] <= h - 1))
+            trusted &= inside
+            untrusted = ~trusted
+            if untrusted.any() and trusted.sum() >= 3:
+                fill = _thin_plate_fill(start_points, best, trusted, untrusted)
+                if warped is not None:
+                    # What the thin plate misses, dense flow from the anchor's picture warped
+                    # by it sees (faint gradients): a correction that does not accumulate.
+                    # Only small ones: a large one is the picture changing (a lid closing
+                    # over an eye), not the thin plate's error.
+                    residual = _bilinear(self.dis.calc(warped[0], b, None), fill)
+                    small = np.linalg.norm(residual, axis=1) < RESIDUAL_PX
+                    fill[small] += residual[small]
+                best[untrusted] = fill
+            current = best
+            positions[k] = best.copy()
+            self._eig.pop(k - step, None)
+            # Lost: a textured point neither Lucas-Kanade check confirms (an untextured one
+            # is placed by the thin plate; only the dense flow's own check speaks for it).
+            # Once lost, a point stays lost until it is registered to the anchor again
+            # (noise can pass a frame-to-frame check by chance).
+            lost_px = self.options.lost_px
+            checked = np.where(lost, refined_fb, np.minimum(local_fb, refined_fb))
+            lost = textured & (checked > lost_px)
+            errors[k] = np.where(lost, np.inf, np.where(textured, checked, dense_fb))
+            tick()
+        return positions, errors
+
+
+def _thin_plate_fill(rest: np.ndarray, now: np.ndarray, trusted: np.ndarray,
+                     untrusted: np.ndarray) -> np.ndarray:
+    """Where the untrusted points go under the thin plate fitted to the trusted ones."""
+    from inkwarp.methods import ThinPlateMap
+
+    idx = _spread(np.flatnonzero(trusted), rest)
+    try:
+        w = ThinPlateMap(rest[idx], now[idx])
+    except ValueError:
+        return now[untrusted]
+    return w(rest[untrusted])
+
+
+def _spread(idx: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """At most :data:`TPS_POINTS` of the points ``idx``, one per :data:`TPS_CELL_PX` cell
+    (close centres with noisy targets make the thin plate swing far from them)."""
+    _, first = np.unique(np.floor(rest[idx] / TPS_CELL_PX), axis=0, return_index=True)
+    idx = idx[np.sort(first)]
+    if len(idx) > TPS_POINTS:
+        idx = idx[np.linspace(0, len(idx) - 1, TPS_POINTS).round().astype(int)]
+    return idx
+
+
+def _upsample(coarse: np.ndarray, gx: np.ndarray, gy: np.ndarray, w: int, h: int) -> np.ndarray:
+    """Values on the grid ``gx`` x ``gy`` interpolated bilinearly at every pixel."""
+    ix = np.interp(np.arange(w), gx, np.arange(len(gx)))
+    iy = np.interp(np.arange(h), gy, np.arange(len(gy)))
+    x0 = np.minimum(ix.astype(int), len(gx) - 2) if len(gx) > 1 else np.zeros(w, int)
+    y0 = np.minimum(iy.astype(int), len(gy) - 2) if len(gy) > 1 else np.zeros(h, int)
+    fx, fy = (ix - x0)[None, :], (iy - y0)[:, None]
+    x1, y1 = np.minimum(x0 + 1, len(gx) - 1), np.minimum(y0 + 1, len(gy) - 1)
+    top = coarse[y0][:, x0] * (1 - fx) + coarse[y0][:, x1] * fx
+    bottom = coarse[y1][:, x0] * (1 - fx) + coarse[y1][:, x1] * fx
+    return (top * (1 - fy) + bottom * fy).astype(np.float32)
+
+
+def _bilinear(img: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """``img`` (H, W, C) at real positions ``pts`` (N, 2), clamped to the edges."""
+    h, w = img.shape[:2]
+    x = np.clip(pts[:, 0], 0, w - 1)
+    y = np.clip(pts[:, 1], 0, h - 1)
+    x0 = np.minimum(np.floor(x).astype(int), w - 2) if w > 1 else np.zeros(len(x), int)
+    y0 = np.minimum(np.floor(y).astype(int), h - 2) if h > 1 else np.zeros(len(y), int)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    return ((img[y0, x0] * (1 - fx) + img[y0, x1] * fx) * (1 - fy)
+            + (img[y1, x0] * (1 - fx) + img[y1, x1] * fx) * fy).astype(np.float64)
+
+
+# ---- the whole track ---------------------------------------------------------------------
+
+@dataclass
+class TrackOptions:
+    """Settings of :func:`track_dict`."""
+
+    #: A feature is lost at a frame where its points' median forward-backward error is over this.
+    lost_px: float = 2.0
+
+
+def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: str
+              ) -> list[_Feature]:
+    out = []
+    for i, f in enumerate(doc.get("features") or []):
+        rest = np.asarray(f["rest"], dtype=np.float64).reshape(-1, 2)
+        keys: dict[int, np.ndarray] = {}
+        for j, key in enumerate(f.get("keys") or []):
+            k = int(round(float(key["t"]) * fps))
+            if not 0 <= k < count:
+                raise ValueError(
+                    f"{where}: features[{i}].keys[{j}]: t = {key['t']} s is frame {k}, outside "
+                    f"the video's frames 0 to {count - 1}; remove the key or move it inside")
+            if k == frame:
+                continue  # the rest drawing is the anchor at frame K
+            keys[k] = np.asarray(key["points"], dtype=np.float64).reshape(-1, 2)
+        out.append(_Feature(str(f["id"]), str(f["kind"]), bool(f.get("closed", False)), rest, keys))
+    return out
+
+
+def _range_of(anchor: int, anchors: Sequence[int], count: int) -> tuple[int, int]:
+    """Frames a feature's anchor influences: up to its neighbouring anchors (or the ends)."""
+    i = list(anchors).index(anchor)
+    lo = anchors[i - 1] if i > 0 else 0
+    hi = anchors[i + 1] if i + 1 < len(anchors) else count - 1
+    return lo, hi
+
+
+def _frames_text(frames: Sequence[int]) -> str:
+    runs: list[str] = []
+    start = prev = None
+    for k in list(frames) + [None]:
+        if start is not None and (k is None or k != prev + 1):
+            runs.append(f"{start}" if start == prev else f"{start}-{prev}")
+            start = None
+        if k is not None and start is None:
+            start = k
+        prev = k
+    return ", ".join(runs)
+
+
+def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0, *,
+               simplify_px: float | None = None, lost_px: float = 2.0,
+               progress: Callable[[int], Any] | None = None,
+               relative_to: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+    """The scene document with its drawing tracked through the video.
+
+    Parameters
+    ----------
+    video : path or Video
+        The footage (anything ffmpeg decodes).
+    scene : path, dict or inkwarp.Scene
+        Its features' ``rest`` geometry is traced over frame ``frame`` of the video; its
+        size must be the video's. Keys it has at other frames are corrections the track
+        passes through.
+    frame : int
+        The frame the drawing is traced on (``K``).
+    simplify_px : float, optional
+        Thin each feature's keys where linear interpolation between the kept ones stays
+        within this many pixels of every dropped key (corrections are always kept).
+    lost_px : float
+        The forward–backward error (pixels, median over a feature's points) over which a
+        feature counts as lost at a frame; lost features are named in an
+        :class:`~inkwarp.InkwarpWarning`.
+    progress : callable, optional
+        Called with the total number of frame steps, it returns a callable called once
+        per step (a progress bar).
+    relative_to : path, optional
+        The folder the result will be saved in: its relative image paths are rewritten
+        for it (default: made absolute). A scene given as a dict keeps its paths.
+
+    Returns
+    -------
+    dict
+        The scene with ``fps`` and ``duration`` of the video and, for every feature, a
+        ``linear`` key at every video frame ``k`` (``t = k / fps``) or, with
+        ``simplify_px``, at the frames kept.
+    """
+    from inkwarp.transfer import _load, _rebase_images
+
+    where = os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else "the scene"
+    if isinstance(scene, (str, os.PathLike)):
+        from inkwarp.cli._common import load_scene
+
+        load_scene(os.fspath(scene))  # every problem of the file, with its JSON path
+    doc, base = _load(scene, "input")
+    clip = video if isinstance(video, Video) else read_video(video)
+    count = len(clip)
+    size = (doc.get("width"), doc.get("height"))
+    if size != (clip.width, clip.height):
+        raise ValueError(
+            f"{where}: the scene is {size[0]}x{size[1]} but the video {clip.path} is "
+            f"{clip.width}x{clip.height}; trace the drawing on a frame of this video "
+            f"(inkwarp frame {clip.path} -o frame.png) in a scene of its size")
+    if not 0 <= frame < count:
+        raise ValueError(f"--frame {frame}: {clip.path} has frames 0 to {count - 1}")
+    if simplify_px is not None and not (math.isfinite(simplify_px) and simplify_px >= 0):
+        raise ValueError(f"--simplify {simplify_px}: give a distance in pixels, 0 or more")
+    features = _features(doc, clip.fps, count, frame, where)
+    total = _layout(features)
+
+    anchors_of = {f.id: sorted({frame, *f.keys}) for f in features}
+    union = sorted({k for a in anchors_of.values() for k in a})
+    ranges: dict[int, tuple[int, int]] = {}
+    for f in features:
+        for a in anchors_of[f.id]:
+            lo, hi = _range_of(a, anchors_of[f.id], count)
+            old = ranges.get(a, (lo, hi))
+            ranges[a] = (min(old[0], lo), max(old[1], hi))
+    steps = sum(hi - lo for lo, hi in ranges.values())
+    tick = progress(steps) if progress is not None else (lambda: None)
+    tick = tick or (lambda: None)
+
+    tracker = _Tracker(clip.frames, TrackOptions(lost_px))
+    tracks: dict[int, tuple[dict[int, np.ndarray], dict[int, np.ndarray]]] = {}
+    # Frame K first: the anchors at corrections start features without a key there
+    # from its track.
+    for a in sorted(union, key=lambda a: (a != frame, abs(a - frame))):
+        poses = []
+        for f in features:
+            if a == frame:
+                poses.append(f.rest)
+            elif a in f.keys:
+                poses.append(f.keys[a])
+            else:
+                poses.append(_track_at(tracks, anchors_of[f.id], f, a))
+        start = _all_points(features, poses)
+        lo, hi = ranges[a]
+        fwd_pos, fwd_err = tracker.run(a, start, hi, tick)
+        back_pos, back_err = tracker.run(a, start, lo, tick)
+        tracks[a] = ({**back_pos, **fwd_pos}, {**back_err, **fwd_err})
+
+    lost: dict[str, list[int]] = {}
+    out_features = []
+    for i, f in enumerate(features):
+        series = np.empty((count, len(f.rest), 2))
+        for k in range(count):
+            series[k], err = _blend(tracks, anchors_of[f.id], f, k)
+            if err is not None and np.median(err) > lost_px:
+                lost.setdefault(f.id, []).append(k)
+        kept = range(count)
+        if simplify_px is not None:
+            kept = simplify_keys(series, simplify_px, keep=anchors_of[f.id])
+        feature = doc["features"][i]
+        feature["keys"] = [{"t": k / clip.fps,
+                            "points": [[round(float(x), 3), round(float(y), 3)] for x, y in series[k]],
+                            "interpolation": "linear"} for k in kept]
+        out_features.append(feature)
+    doc["features"] = out_features
+    doc["fps"] = clip.fps if clip.fps != int(clip.fps) else int(clip.fps)
+    doc["duration"] = count / clip.fps
+    if lost:
+        names = "; ".join(f"'{fid}' at frames {_frames_text(ks)}" for fid, ks in lost.items())
+        warnings.warn(f"{clip.path}: lost track (forward-backward error over {lost_px:g} px) of "
+                      f"{names}; check those frames and add a correction key there",
+                      InkwarpWarning, stacklevel=2)
+    _rebase_images(doc, base, Path(relative_to).resolve() if relative_to is not None else None)
+    return doc
+
+
+def _track_at(tracks: dict, anchors: Sequence[int], f: _Feature, k: int) -> np.ndarray:
+    return _blend(tracks, anchors, f, k)[0]
+
+
+def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int
+           ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Feature ``f``'s control points at frame ``k``: its anchors' tracks blended linearly
+    between the anchors around ``k``; and the forward-backward errors of its points."""
+    n = len(f.rest)
+    before = [a for a in anchors if a <= k and a in tracks]
+    after = [a for a in anchors if a >= k and a in tracks]
+    parts: list[tuple[float, int]] = []
+    if before and after:
+        a, b = before[-1], after[0]
+        parts = [(1.0, a)] if a == b else [((b - k) / (b - a), a), ((k - a) / (b - a), b)]
+    elif before or after:
+        parts = [(1.0, (before or after)[-1 if before else 0])]
+    pose = np.zeros((n, 2))
+    err = np.zeros(f.rows.stop - f.rows.start)
+    for weight, a in parts:
+        positions, errors = tracks[a]
+        pose += weight * positions[k][f.rows][:n]
+        err = np.maximum(err, errors[k][f.rows])
+    return pose, (err if parts else None)
+
+
+def simplify_keys(series: np.ndarray, tolerance_px: float, keep: Sequence[int] = ()) -> list[int]:
+    """The frames to keep so that linear interpolation between them stays within
+    ``tolerance_px`` of every frame (Douglas–Peucker in time).
+
+    Parameters
+    ----------
+    series : ndarray, shape (F, N, 2)
+        A feature's control points at every frame.
+    tolerance_px : float
+        The largest distance, in pixels, of any control point at any frame from the
+        interpolation of the kept frames.
+    keep : frames always kept (the first and last always are).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> line = np.array([[[t, 0.0]] for t in range(10)])  # uniform motion
+    >>> simplify_keys(line, 0.1)
+    [0, 9]
+    >>> bend = np.array([[[t, 0.0 if t < 5 else t - 5.0]] for t in range(10)])
+    >>> simplify_keys(bend, 0.1)
+    [0, 5, 9]
+    """
+    count = len(series)
+    kept = sorted({0, count - 1, *(k for k in keep if 0 <= k < count)})
+    out: set[int] = set(kept)
+    stack = list(zip(kept[:-1], kept[1:]))
+    while stack:
+        a, b = stack.pop()
+        if b - a < 2:
+            continue
+        w = ((np.arange(a + 1, b) - a) / (b - a))[:, None, None]
+        line = series[a] * (1 - w) + series[b] * w
+        dist = np.linalg.norm(series[a + 1:b] - line, axis=2).max(axis=1)
+        worst = int(np.argmax(dist))
+        if dist[worst] > tolerance_px:
+            m = a + 1 + worst
+            out.add(m)
+            stack += [(a, m), (m, b)]
+    return sorted(out)
+
+
+def track(video: str | os.PathLike[str], scene: Any, frame: int = 0, **options: Any) -> Any:
+    """Track the scene's drawing through the video; see :func:`track_dict` for the options.
+
+    Returns
+    -------
+    inkwarp.Scene
+        The scene with a key at every video frame for every feature.
+    """
+    from inkwarp import Scene
+
+    doc = track_dict(video, scene, frame, **options)
+    return Scene.from_dict(doc)
+
+
+def rotoscope_example(examples_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
+                      quiet: bool = True) -> tuple[Path, Path]:
+    """``make demo``'s actor-to-cat pipeline: ``rotoscope/actor.mp4`` tracked from the
+    drawing ``rotoscope/actor.json`` (``actor-tracked.json`` in ``out_dir``), then
+    transferred onto ``transfer/cat-target.json`` (``rotoscope.json``). Returns both paths.
+    """
+    from inkwarp.transfer import transfer_dict
+
+    root, out = Path(examples_dir), Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+
+    def bar(total: int) -> Callable[[], None] | None:
+        if quiet:
+            return None
+        from tqdm import tqdm
+
+        bars.append(tqdm(total=total, unit="frame", desc="rotoscope (track)", file=sys.stderr))
+        return lambda: bars[-1].update(1)
+
+    bars: list[Any] = []
+    try:
+        tracked = track_dict(root / "rotoscope" / "actor.mp4", root / "rotoscope" / "actor.json",
+                             progress=bar, relative_to=out.resolve())
+    finally:
+        for b in bars:
+            b.close()
+    tracked_path = save_json(tracked, out / "actor-tracked.json")
+    cat = transfer_dict(tracked_path, root / "transfer" / "cat-target.json",
+                        relative_to=out.resolve())
+    return tracked_path, save_json(cat, out / "rotoscope.json")
+
+
+def save_json(doc: dict[str, Any], path: str | os.PathLike[str]) -> Path:
+    """Write a scene document: under a temporary name beside ``path``, then renamed."""
+    import tempfile
+
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(doc, fh, indent=1)
+            fh.write("\n")
+        os.replace(tmp, out)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+    return out
+

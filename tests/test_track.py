@@ -1,0 +1,214 @@
+"""`inkwarp track` and `inkwarp frame` on small videos made here with known motion
+(benchmarks/synthetic_video.py): the tracked control points against the truth, corrections,
+--simplify, lost features and bad input."""
+
+from __future__ import annotations
+
+import json
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cv2", reason="inkwarp track needs the [track] extra (OpenCV)")
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import synthetic_video as sv  # noqa: E402
+
+from inkwarp.cli import main  # noqa: E402
+from inkwarp.errors import InkwarpWarning  # noqa: E402
+from inkwarp.track import simplify_keys, track_dict  # noqa: E402
+
+W, H, FRAMES = 160, 120, 24
+
+
+def run(capsys, *args):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def videos(tmp_path_factory):
+    """{motion name: (video path, motion)} for a textured picture."""
+    root = tmp_path_factory.mktemp("videos")
+    image = sv.picture(W, H, seed=5)
+    out = {}
+    for motion in (sv.translate(), sv.rotate(W, H, 0.7), sv.warp(W, H, FRAMES, 6.0)):
+        path = sv.write_mp4(root / f"{motion.name}.mp4", sv.render(image, motion, FRAMES))
+        out[motion.name] = (path, motion)
+    return out
+
+
+def _errors(doc, features, motion):
+    return np.linalg.norm(sv.tracked(doc, FRAMES) - sv.truth(features, motion, FRAMES), axis=2)
+
+
+@pytest.mark.parametrize("name", ["translate", "rotate", "warp"])
+def test_textured_motion_is_tracked_within_a_pixel(videos, name):
+    path, motion = videos[name]
+    features = sv.drawing(W, H, seed=7)
+    doc = track_dict(path, sv.scene(W, H, features))
+    assert doc["fps"] == 24 and doc["duration"] == pytest.approx(FRAMES / 24)
+    for f in doc["features"]:
+        assert [k["t"] for k in f["keys"]] == pytest.approx([k / 24 for k in range(FRAMES)])
+    errors = _errors(doc, features, motion)
+    assert errors[0].max() < 1e-6  # frame 0 is the drawing as traced
+    assert np.median(errors) <= 1.0, np.median(errors)
+    assert np.percentile(errors, 90) <= 2.0
+    # The same scene renders: the output is a valid scene.
+    import inkwarp
+
+    assert inkwarp.Scene.from_dict(doc).frame_count == FRAMES
+
+
+def test_tracking_from_a_later_frame_runs_both_ways(videos):
+    path, motion = videos["translate"]
+    features = sv.drawing(W, H, seed=7)
+    at_10 = [{**f, "rest": motion.forward(np.asarray(f["rest"], float), 10).tolist()}
+             for f in features]
+    doc = track_dict(path, sv.scene(W, H, at_10), frame=10)
+    assert np.median(_errors(doc, features, motion)) <= 1.0
+
+
+def test_a_correction_key_pulls_the_track_through_it(videos):
+    path, motion = videos["translate"]
+    features = sv.drawing(W, H, seed=7)
+    target = features[0]
+    rest = np.asarray(target["rest"], float)
+    nudged = motion.forward(rest, 12) + [5.0, 0.0]  # the animator moves it 5 px right
+    target["keys"] = [{"t": 12 / 24, "points": nudged.tolist()}]
+    doc = track_dict(path, sv.scene(W, H, features))
+    keys = doc["features"][0]["keys"]
+    offset = np.array([np.mean(np.asarray(keys[k]["points"]) - motion.forward(rest, k), axis=0)
+                       for k in range(FRAMES)])
+    assert np.asarray(keys[12]["points"]) == pytest.approx(nudged, abs=1e-3)
+    assert offset[6, 0] == pytest.approx(2.5, abs=0.6)    # blended halfway in
+    assert offset[20, 0] == pytest.approx(5.0, abs=0.6)   # tracked on from the key
+    assert abs(offset[20, 1]) < 0.6
+    # The other features are untouched by it.
+    others = np.linalg.norm(sv.tracked(doc, FRAMES)[:, len(rest):]
+                            - sv.truth(features[1:], motion, FRAMES), axis=2)
+    assert np.median(others) <= 1.0
+
+
+def test_simplify_keeps_every_frame_within_tolerance(videos):
+    path, motion = videos["warp"]
+    features = sv.drawing(W, H, seed=7)
+    full = track_dict(path, sv.scene(W, H, features))
+    for px in (0.25, 1.0):
+        thin = track_dict(path, sv.scene(W, H, features), simplify_px=px)
+        for f_full, f_thin in zip(full["features"], thin["features"]):
+            times = [k["t"] for k in f_thin["keys"]]
+            assert len(times) < FRAMES and times[0] == 0 and times[-1] == pytest.approx(23 / 24)
+            assert all(k["interpolation"] == "linear" for k in f_thin["keys"])
+            pts = np.array([k["points"] for k in f_thin["keys"]])
+            for k, key in enumerate(f_full["keys"]):
+                t = k / 24
+                i = min(np.searchsorted(times, t, side="right") - 1, len(times) - 2)
+                w = (t - times[i]) / (times[i + 1] - times[i])
+                between = pts[i] * (1 - w) + pts[i + 1] * w
+                dev = np.linalg.norm(between - np.asarray(key["points"]), axis=1).max()
+                assert dev <= px + 2e-3, (f_full["id"], k, dev)
+
+
+def test_simplify_keys_keeps_corrections():
+    still = np.zeros((10, 2, 2))
+    assert simplify_keys(still, 0.5) == [0, 9]
+    assert simplify_keys(still, 0.5, keep=[4]) == [0, 4, 9]
+
+
+def test_lost_features_are_named_with_their_frames(tmp_path, capsys):
+    image = sv.picture(W, H, seed=5)
+    motion = sv.translate()
+    frames = sv.render(image, motion, FRAMES)
+    rng = np.random.default_rng(0)
+    for k in range(12, FRAMES):  # a box of fresh noise from frame 12: nothing to follow
+        frames[k][40:90, 30:80] = rng.integers(0, 256, (50, 50, 3), dtype=np.uint8)
+    video = sv.write_mp4(tmp_path / "occluded.mp4", frames)
+    features = [{"id": "hidden", "kind": "point", "rest": [[55.0, 65.0]]},
+                {"id": "seen", "kind": "spline", "rest": [[110.0, 30.0], [130.0, 50.0], [125.0, 90.0]]}]
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(sv.scene(W, H, features)))
+    code, out, err = run(capsys, "track", video, "--scene", scene, "-o", tmp_path / "out.json",
+                         "--quiet")
+    assert code == 0, err
+    assert "warning" in err and "'hidden' at frames 12" in err and "-23" in err
+    assert "'seen'" not in err
+    with pytest.warns(InkwarpWarning, match="hidden"):
+        track_dict(video, sv.scene(W, H, features))
+
+
+def test_cli_writes_the_tracked_scene_and_a_frame(videos, tmp_path, capsys):
+    path, motion = videos["translate"]
+    scene = tmp_path / "drawing.json"
+    doc = sv.scene(W, H, sv.drawing(W, H, seed=7))
+    doc["layers"] = [{"name": "footage", "image": "frame.png"}]
+    code, out, err = run(capsys, "frame", path, "--frame", 3, "-o", tmp_path / "frame.png")
+    assert code == 0, err
+    from PIL import Image
+
+    picture = np.asarray(Image.open(tmp_path / "frame.png"))[..., :3]
+    expected = sv.render(sv.picture(W, H, seed=5), motion, 4)[3]
+    assert picture.shape == (H, W, 3)
+    assert np.abs(picture.astype(int) - expected).mean() < 4  # H.264 at CRF 12
+    scene.write_text(json.dumps(doc))
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    code, out, err = run(capsys, "track", path, "--scene", scene, "-o", out_dir / "t.json",
+                         "--simplify", "0.5")
+    assert code == 0, err
+    assert "wrote" in out and f"{FRAMES} frames at 24 fps" in out
+    result = json.loads((out_dir / "t.json").read_text())
+    assert result["layers"][0]["image"] == "../frame.png"  # rebased for the output's folder
+    assert [p.name for p in out_dir.iterdir()] == ["t.json"]  # no temporary left
+
+
+@pytest.mark.parametrize("case", ["unreadable", "missing", "frame past end", "size", "simplify",
+                                  "frame cmd past end", "key past end"])
+def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
+    path, _ = videos["translate"]
+    doc = sv.scene(W, H, sv.drawing(W, H, seed=7))
+    args = ["track", path, "--scene", tmp_path / "s.json", "-o", tmp_path / "o.json"]
+    expect = ""
+    if case == "unreadable":
+        bad = tmp_path / "notes.mp4"
+        bad.write_text("not a video")
+        args[1] = bad
+        expect = f"{bad}: cannot be read as a video"
+    elif case == "missing":
+        args[1] = tmp_path / "nothing.mp4"
+        expect = "nothing.mp4: no such file"
+    elif case == "frame past end":
+        args += ["--frame", "24"]
+        expect = "--frame 24: " + str(path) + " has frames 0 to 23"
+    elif case == "size":
+        doc["width"] = W + 2
+        expect = f"the scene is {W + 2}x{H} but the video {path} is {W}x{H}"
+    elif case == "simplify":
+        args += ["--simplify", "-1"]
+        expect = "--simplify -1.0: give a distance in pixels"
+    elif case == "frame cmd past end":
+        args = ["frame", path, "--frame", "99", "-o", tmp_path / "f.png"]
+        expect = "--frame 99: " + str(path) + " has frames 0 to 23"
+    elif case == "key past end":
+        doc["features"][0]["keys"] = [{"t": 5.0, "points": doc["features"][0]["rest"]}]
+        expect = "features[0].keys[0]: t = 5.0 s is frame 120, outside the video's frames 0 to 23"
+    (tmp_path / "s.json").write_text(json.dumps(doc))
+    code, out, err = run(capsys, *args)
+    assert code == 2, err
+    assert expect in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o.json").exists() and not (tmp_path / "f.png").exists()
+
+
+def test_python_api_returns_a_scene(videos):
+    import inkwarp
+
+    path, _ = videos["translate"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scene = inkwarp.track(path, sv.scene(W, H, sv.drawing(W, H, seed=7)), simplify_px=0.5)
+    assert isinstance(scene, inkwarp.Scene) and scene.frame_count == FRAMES
