@@ -69,6 +69,8 @@ async function openEditor(browser, url, viewport = { width: 1400, height: 900 })
   const context = await browser.newContext({ viewport, acceptDownloads: true, deviceScaleFactor: 1 });
   const page = await context.newPage();
   const errors = [];
+  // "Open over unsaved work?" and "Leave the page?": the tests answer yes.
+  page.on('dialog', (d) => void d.accept());
   page.on('pageerror', (e) => errors.push(e.message));
   page.on('console', (m) => {
     if (m.type() === 'error' && !/GPU stall|Failed to load resource/.test(m.text())) errors.push(m.text());

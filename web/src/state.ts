@@ -171,6 +171,9 @@ export function moveKey(doc: SceneDoc, id: string, from: number, to: number): Sc
     const i = keyIndexAt(f, from);
     if (i < 0) throw new Error(`${id} has no key at ${from.toFixed(3)} s.`);
     const t = Math.max(0, to);
+    if (t > doc.duration + KEY_EPS) {
+      throw new Error(`${t.toFixed(3)} s is past the end of the animation (${doc.duration} s); lengthen the duration first.`);
+    }
     const j = keyIndexAt(f, t);
     if (j >= 0 && j !== i) throw new Error(`${id} already has a key at ${t.toFixed(3)} s.`);
     const keys = (f.keys ?? []).map((k, n) => (n === i ? { ...k, t } : k));
@@ -282,6 +285,8 @@ export class Store {
   private listeners: Listener[] = [];
   /** Bumps on every document change (views compare it to know what to redo). */
   revision = 0;
+  /** The revision last saved to a file (or opened from one). */
+  private savedRevision = 0;
 
   constructor(doc: SceneDoc, view: View = initialView()) {
     this.doc = doc;
@@ -328,8 +333,28 @@ export class Store {
     this.txBase = null;
     if (base !== null && base !== this.doc) {
       this.undoStack.push(base);
+      if (this.undoStack.length > 500) this.undoStack.shift();
       this.redoStack = [];
+      // the gesture is now one undo step: the views show Undo as available
+      this.emit(false);
     }
+  }
+
+  /** Whether the document has changed since it was last opened or saved. */
+  get unsaved(): boolean {
+    return this.revision !== this.savedRevision;
+  }
+
+  /** The document as it is now has been written to a file. */
+  markSaved(): void {
+    this.savedRevision = this.revision;
+    this.emit(false);
+  }
+
+  /** The document as it is now is not in any file (a restored autosave). */
+  markUnsaved(): void {
+    this.savedRevision = -1;
+    this.emit(false);
   }
 
   /** Abandons a gesture, restoring the document from before it. */
@@ -376,14 +401,19 @@ export class Store {
     this.emit(true);
   }
 
-  /** Replaces the whole document (opening a file): a fresh history. */
+  /**
+   * Replaces the whole document (opening a file). Undo brings back the document that was
+   * open before; the new one counts as saved.
+   */
   load(doc: SceneDoc): void {
-    this.doc = doc;
-    this.undoStack = [];
+    this.commit();
+    this.undoStack.push(this.doc);
+    if (this.undoStack.length > 500) this.undoStack.shift();
     this.redoStack = [];
-    this.txBase = null;
+    this.doc = doc;
     this.view = { ...initialView(), overlays: this.view.overlays };
     this.revision++;
+    this.savedRevision = this.revision;
     this.emit(true);
   }
 

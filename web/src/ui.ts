@@ -213,7 +213,7 @@ export class Ui {
     const timeline = h('footer.timeline', {},
       h('div.transport', {},
         (this.els.play = h('button#play', { title: 'Play / pause (Space)', onclick: () => this.togglePlay() }, '▶')),
-        (this.els.scrub = h('input#scrub', { type: 'range', min: 0, step: 'any', oninput: (e: Event) => this.setTime(Number((e.target as HTMLInputElement).value), true) })),
+        (this.els.scrub = h('input#scrub', { type: 'range', min: 0, step: 'any', oninput: (e: Event) => this.setTime(this.snapTime(Number((e.target as HTMLInputElement).value)), true) })),
         (this.els.timeText = h('span#time.time')),
         h('label', {}, 'fps ', (this.els.fps = h('input#fps', { type: 'number', min: 1, max: 120, step: 1, onchange: (e: Event) => this.setFps(Number((e.target as HTMLInputElement).value)) }))),
         h('label', {}, 'duration ', (this.els.duration = h('input#duration', { type: 'number', min: 0.05, step: 0.05, onchange: (e: Event) => this.setDuration(Number((e.target as HTMLInputElement).value)) })), ' s'),
@@ -256,6 +256,7 @@ export class Ui {
     this.els.play.textContent = view.playing ? '❚❚' : '▶';
     const scrub = this.els.scrub as HTMLInputElement;
     scrub.max = String(doc.duration);
+    scrub.step = String(1 / doc.fps);
     scrub.value = String(view.time);
     const n = frameCount(doc);
     const frame = Math.min(n - 1, Math.round(view.time * doc.fps));
@@ -319,6 +320,10 @@ export class Ui {
       h('label.row', {}, 'Continuity ', contSel),
       h('p.hint', {}, 'Cut features tear the surface too; show the matte overlay (T) to see the holes.'),
       h('div.row', {}, 'Driven by'), feats,
+      h('label.row', { title: 'Keep the layer’s outer edge still, so the picture never pulls away from the frame (the scene’s "border": "hold")' },
+        h('input#border-hold', { type: 'checkbox', checked: layer.border === 'hold',
+          onchange: (e: Event) => this.tryEdit((d) => updateLayer(d, i, { border: (e.target as HTMLInputElement).checked ? 'hold' : undefined })) }),
+        'Hold the border'),
     );
   }
 
@@ -383,11 +388,11 @@ export class Ui {
   }
 
   private scrubTrack(e: PointerEvent): void {
-    const track = e.currentTarget as HTMLElement;
+    // Measured once: the row is redrawn (a new element) at every change of time.
+    const r = (e.currentTarget as HTMLElement).getBoundingClientRect();
     const move = (ev: PointerEvent) => {
-      const r = track.getBoundingClientRect();
       const t = Math.max(0, Math.min(1, (ev.clientX - r.left) / r.width)) * this.store.doc.duration;
-      this.setTime(this.snapTime(t), true);
+      this.setTime(ev.altKey ? t : this.snapTime(t), true);
     };
     move(e);
     const up = () => {
@@ -405,9 +410,15 @@ export class Ui {
     this.setTime(t0);
     let cur = t0;
     this.store.begin();
+    // The key follows the pointer from where it was pressed, measured against the row as
+    // it was then (the row is redrawn, a new element, at every change); frames snap
+    // unless Alt is held, and the key stays within the animation.
+    const r = track.getBoundingClientRect();
+    const x0 = e.clientX;
     const move = (ev: PointerEvent) => {
-      const r = track.getBoundingClientRect();
-      const t = this.snapTime(Math.max(0, Math.min(1, (ev.clientX - r.left) / r.width)) * this.store.doc.duration);
+      const { duration } = this.store.doc;
+      const free = Math.max(0, Math.min(duration, t0 + ((ev.clientX - x0) / Math.max(1, r.width)) * duration));
+      const t = ev.altKey ? free : Math.min(this.snapTime(free), duration);
       if (Math.abs(t - cur) < KEY_EPS) return;
       try {
         this.store.edit((d) => moveKey(d, id, cur, t));
@@ -904,9 +915,20 @@ export class Ui {
     }
   }
 
+  /**
+   * Whether opening `what` over the scene may go ahead: asks first when the scene has
+   * changes that are not in a file (Undo also brings the scene back after opening).
+   */
+  confirmReplace(what: string): boolean {
+    if (!this.store.unsaved) return true;
+    return window.confirm(`Open ${what} instead of the scene you are editing? Its changes are not saved to a file (Undo, Ctrl+Z, brings it back).`);
+  }
+
   async openFile(file: File, dropped = false): Promise<void> {
     try {
-      if (file.name.toLowerCase().endsWith('.json') || file.type === 'application/json') {
+      const json = file.name.toLowerCase().endsWith('.json') || file.type === 'application/json';
+      if (json && !this.confirmReplace(file.name)) return;
+      if (json) {
         await this.openSceneText(await file.text(), file.name);
         this.saveUrl = null;
         this.message(`Opened ${file.name}.`, 'info');
@@ -918,6 +940,7 @@ export class Ui {
         this.addLayerImage(uri, file.name);
         return;
       }
+      if (!this.confirmReplace(file.name)) return;
       await this.openScene(this.sceneFromImage(uri, img, file.name), file.name.replace(/\.[^.]*$/, '') + '.json');
       this.saveUrl = null;
       this.message(`Opened ${file.name} (${img.width}×${img.height}). Pick a tool and trace.`, 'info');
@@ -938,7 +961,8 @@ export class Ui {
 
   sceneFromImage(uri: string, img: Rgba, name: string): SceneDoc {
     const doc = emptyScene(img.width, img.height);
-    doc.layers.push({ name: name.replace(/\.[^.]*$/, '') || 'picture', image: uri });
+    // A photograph's edge stays put: the drawing never pulls the background into view.
+    doc.layers.push({ name: name.replace(/\.[^.]*$/, '') || 'picture', image: uri, border: 'hold' });
     return doc;
   }
 
@@ -988,6 +1012,7 @@ export class Ui {
 
   async openExample(name: string): Promise<void> {
     const entry = this.examples.find((e) => e.name === name) ?? BUILTIN;
+    if (!this.confirmReplace(`the example “${entry.title}”`)) return;
     try {
       let doc: SceneDoc;
       if (entry.url === null) doc = await builtinScene();
@@ -1009,6 +1034,7 @@ export class Ui {
       try {
         const resp = await fetch(this.saveUrl, { method: 'PUT', body: text, headers: { 'Content-Type': 'application/json' } });
         if (!resp.ok) throw new Error(await resp.text());
+        this.store.markSaved();
         this.message(`Saved to ${resp.headers.get('X-Inkwarp-Path') ?? this.fileName}.`, 'info');
         return;
       } catch (err) {
@@ -1016,6 +1042,26 @@ export class Ui {
       }
     }
     download(new Blob([text], { type: 'application/json' }), this.fileName);
+    this.store.markSaved();
+  }
+
+  /**
+   * Offers the scene kept from an earlier visit ("Restore the scene you were editing at
+   * 14:32?"); resolves true when the user restores it.
+   */
+  offerRestore(question: string): Promise<boolean> {
+    return new Promise((resolve) => {
+      const close = (answer: boolean) => {
+        box.remove();
+        resolve(answer);
+      };
+      const box = h('div#restore.restore', { role: 'dialog' },
+        h('span', {}, question),
+        h('button#restore-yes', { onclick: () => close(true) }, 'Restore'),
+        h('button#restore-no', { onclick: () => close(false) }, 'Discard'),
+      );
+      document.body.append(box);
+    });
   }
 
   private baseName(): string {
