@@ -6,6 +6,7 @@ import { EngineError } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
 import { decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
 import { Overlay } from './overlay';
+import { canEncodeWebm, encodeWebm } from './webm';
 import { PROBE_DWELL_MS } from './probe';
 import {
   INTERPOLATIONS,
@@ -1076,36 +1077,40 @@ export class Ui {
     download(blob, `${this.baseName()}-${Math.round(this.store.view.time * this.store.doc.fps)}.png`);
   }
 
-  /** Records every frame, each solved at full resolution, as WebM through MediaRecorder. */
-  async exportWebm(): Promise<void> {
-    const canvas = this.glCanvas;
-    if (typeof MediaRecorder === 'undefined' || !canvas.captureStream) return this.message('This browser cannot record video (no MediaRecorder).', 'error');
+  /**
+   * Exports the animation as WebM: every frame solved at full resolution and encoded with
+   * the timestamp `i / fps`, so the video plays at the scene's speed however long each
+   * frame took to solve. Resolves to the file (also downloaded).
+   */
+  async exportWebm(): Promise<Blob | null> {
+    if (!canEncodeWebm()) {
+      this.message('This browser cannot encode video (no WebCodecs VideoEncoder); render with `inkwarp render scene.json -o out.mp4` instead.', 'error');
+      return null;
+    }
     const doc = this.store.doc;
-    const stream = canvas.captureStream(0);
-    const track = stream.getVideoTracks()[0] as MediaStreamTrack & { requestFrame?: () => void };
-    const mime = ['video/webm;codecs=vp9', 'video/webm;codecs=vp8', 'video/webm'].find((m) => MediaRecorder.isTypeSupported(m)) ?? 'video/webm';
-    const rec = new MediaRecorder(stream, { mimeType: mime, videoBitsPerSecond: 8_000_000 });
-    const chunks: Blob[] = [];
-    rec.ondataavailable = (e) => chunks.push(e.data);
-    const done = new Promise<void>((resolve) => (rec.onstop = () => resolve()));
     const wasMode = this.store.view.mode;
     const wasTime = this.store.view.time;
-    this.store.setView({ mode: 'pose' });
-    rec.start();
     const n = frameCount(doc);
-    this.message(`Recording ${n} frames…`, 'info');
-    for (let i = 0; i < n; i++) {
-      this.store.setView({ time: i / doc.fps });
-      await this.app.idle();
-      this.app.renderNow(false);
-      track.requestFrame?.();
-      await new Promise((r) => setTimeout(r, 1000 / doc.fps));
+    this.store.setView({ mode: 'pose', playing: false });
+    this.message(`Exporting ${n} frames…`, 'info');
+    try {
+      const blob = await encodeWebm(doc.width, doc.height, doc.fps, n, async (i) => {
+        this.store.setView({ time: i / doc.fps });
+        await this.app.idle();
+        this.app.renderNow(false);
+        return this.app.gl.readPixels();
+      }, (i) => {
+        if (i % 12 === 11) this.message(`Exported ${i + 1} of ${n} frames…`, 'info');
+      });
+      download(blob, `${this.baseName()}.webm`);
+      this.message(`Exported ${n} frames as WebM (${(n / doc.fps).toFixed(2)} s at ${doc.fps} fps).`, 'info');
+      return blob;
+    } catch (err) {
+      this.message(`The WebM export failed: ${(err as Error).message}`, 'error');
+      return null;
+    } finally {
+      this.store.setView({ mode: wasMode, time: wasTime });
     }
-    rec.stop();
-    await done;
-    this.store.setView({ mode: wasMode, time: wasTime });
-    download(new Blob(chunks, { type: 'video/webm' }), `${this.baseName()}.webm`);
-    this.message(`Exported ${n} frames as WebM.`, 'info');
   }
 
   /** Names of the layers' features (for tests). */
