@@ -1103,6 +1103,52 @@ test('WebM export: a 2.5 s, 24 fps scene lasts 2.5 s ± one frame and has 60 fra
   assert(Math.abs(duration - 2.5) <= 1 / 24 + 1e-6, `the WebM lasts ${duration} s; expected 2.5 s ± one frame`);
 });
 
+
+test('zoom keeps the point under the pointer fixed; pan, Fit and 100 %; the stage keeps its size when rows are added', async () => {
+  await page.evaluate(async () => {
+    const { ui, examples, app } = window.inkwarp;
+    await ui.openScene(await examples.builtinScene(), 'zoom.json');
+    await app.idle();
+  });
+  const stage0 = await page.evaluate(() => JSON.stringify(document.querySelector('.stage').getBoundingClientRect()));
+  const scenePt = (x, y) => page.evaluate(([cx, cy]) => {
+    const r = document.querySelector('canvas.overlay').getBoundingClientRect();
+    const { width, height } = window.inkwarp.store.doc;
+    return [((cx - r.left) / r.width) * width, ((cy - r.top) / r.height) * height];
+  }, [x, y]);
+  const [cx, cy] = await toClient(page, [150, 320]);
+  const before = await scenePt(cx, cy);
+  await page.mouse.move(cx, cy);
+  for (let i = 0; i < 4; i++) await page.mouse.wheel(0, -120);
+  const z = await page.evaluate(() => window.inkwarp.ui.scale);
+  const fit = await page.evaluate(() => window.inkwarp.ui.fitZoom());
+  const after = await scenePt(cx, cy);
+  perf.zoom = { from: fit, to: z, drift: Math.hypot(after[0] - before[0], after[1] - before[1]) };
+  assert(z > fit * 1.5, `the wheel zoomed in: ${fit} → ${z}`);
+  assert(perf.zoom.drift < 0.5, `the point under the pointer moved ${perf.zoom.drift.toFixed(3)} scene px: ${before} → ${after}`);
+  // Space-drag pans by the pointer's motion.
+  await page.keyboard.down('Space');
+  await page.mouse.down();
+  await page.mouse.move(cx + 40, cy + 25, { steps: 4 });
+  await page.mouse.up();
+  await page.keyboard.up('Space');
+  const panned = await scenePt(cx + 40, cy + 25);
+  assert(Math.hypot(panned[0] - before[0], panned[1] - before[1]) < 0.5, `Space-drag moved the picture with the pointer: ${panned} vs ${before}`);
+  assert(!(await page.evaluate(() => window.inkwarp.store.view.playing)), 'Space held to pan does not play');
+  await screenshot(page, 'zoomed');
+  await page.click('#zoom-100');
+  assert(Math.abs((await page.evaluate(() => window.inkwarp.ui.scale)) - 1) < 1e-9, '100 % is one scene pixel per CSS pixel');
+  await page.click('#zoom-fit');
+  assert((await page.evaluate(() => window.inkwarp.ui.zoom)) === null, 'Fit fits');
+  // More timeline rows do not move or shrink the stage.
+  await page.evaluate(() => {
+    const { store, state } = window.inkwarp;
+    for (let i = 0; i < 8; i++) store.edit((d) => state.addFeature(d, 'point', [[20 + 10 * i, 200]]).doc);
+  });
+  const stage1 = await page.evaluate(() => JSON.stringify(document.querySelector('.stage').getBoundingClientRect()));
+  assert(stage0 === stage1, `the stage moved or changed size: ${stage0} → ${stage1}`);
+});
+
 async function main() {
   server = await startServer();
   browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: CHROMIUM_ARGS });
@@ -1133,6 +1179,7 @@ async function main() {
   console.log(`  renderer: ${perf.renderer}`);
   if (perf.keyDrag) console.log(`  key drags: ${perf.keyDrag.map((k) => `${k.dx} px from ${k.from} s → ${k.to.toFixed(4)} s`).join('; ')}`);
   if (perf.border) console.log(`  border under a hard pull: free ${perf.border.freePx.toFixed(2)} px, held ${perf.border.heldPx.toFixed(3)} px`);
+  if (perf.zoom) console.log(`  wheel zoom ${perf.zoom.from.toFixed(3)} → ${perf.zoom.to.toFixed(3)}: the point under the pointer moved ${perf.zoom.drift.toFixed(4)} scene px`);
   if (perf.webm) console.log(`  WebM export: ${perf.webm.frames} frames, ${perf.webm.duration} s`);
   if (perf.dragLatencyMs) {
     console.log(`  ${perf.features} features, 512×512: pointer move → frame median ${perf.dragLatencyMs.median?.toFixed(1)} ms (p90 ${perf.dragLatencyMs.p90?.toFixed(1)}, n=${perf.dragLatencyMs.n})`);

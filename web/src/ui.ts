@@ -63,7 +63,10 @@ export const SHORTCUTS: [string, string][] = [
   ['Drag', 'Move a control point, or a whole feature by its line'],
   ['Delete / Backspace', 'Delete the selected point (rest mode) or feature'],
   ['K / Shift+K', 'Add / delete the selected feature’s key at this time'],
-  ['Space', 'Play / pause'],
+  ['Space', 'Play / pause (hold and drag: pan)'],
+  ['Wheel', 'Zoom about the pointer'],
+  ['Middle-drag', 'Pan'],
+  ['0 / 1', 'Fit the picture / 100 %'],
   ['← / →', 'Previous / next frame'],
   ['Shift+← / Shift+→', 'Previous / next key'],
   ['Home / End', 'First / last frame'],
@@ -123,6 +126,7 @@ export class Ui {
     new ResizeObserver(() => this.layout()).observe(this.stage);
     window.addEventListener('keydown', (e) => this.onKey(e));
     this.bindPointer();
+    this.bindZoomPan();
     this.bindDrop();
     void listExamples().then((list) => {
       this.examples = list;
@@ -194,6 +198,11 @@ export class Ui {
         (this.els.undo = h('button#undo', { title: 'Undo (Ctrl+Z)', onclick: () => this.store.undo() }, '↶ Undo')),
         (this.els.redo = h('button#redo', { title: 'Redo (Ctrl+Shift+Z)', onclick: () => this.store.redo() }, '↷ Redo')),
         h('button#help-button', { title: 'Keyboard shortcuts (?)', onclick: () => this.toggleHelp() }, '?'),
+      ),
+      h('div.group.zoom', {},
+        h('button#zoom-fit', { title: 'Fit the picture in the window (0)', onclick: () => this.zoomFit() }, 'Fit'),
+        h('button#zoom-100', { title: 'One picture pixel per screen pixel (1)', onclick: () => this.zoom100() }, '100 %'),
+        (this.els.zoomText = h('span#zoom.time', { title: 'Wheel: zoom about the pointer; Space-drag or middle-drag: pan' }, '')),
       ),
       fileInput, layerInput, matteInput,
     );
@@ -477,19 +486,112 @@ export class Ui {
 
   // -- Stage -------------------------------------------------------------------------------
 
-  layout(): void {
+  /** The view's zoom (CSS px per scene px), or null to fit the picture in the stage. */
+  zoom: number | null = null;
+  /** How far the picture is moved from the stage's centre (CSS px). */
+  pan: Pt = [0, 0];
+
+  /** The zoom that fits the whole picture in the stage. */
+  fitZoom(): number {
     const { width, height } = this.store.doc;
     const r = this.stage.getBoundingClientRect();
     const pad = 16;
-    const z = Math.max(0.05, Math.min((r.width - pad) / width, (r.height - pad) / height, 4));
+    return Math.max(0.02, Math.min((r.width - pad) / width, (r.height - pad) / height, 4));
+  }
+
+  /** The zoom in use (CSS px per scene px). */
+  get scale(): number {
+    return this.zoom ?? this.fitZoom();
+  }
+
+  layout(): void {
+    const { width, height } = this.store.doc;
+    const z = this.scale;
     const frame = this.stage.firstElementChild as HTMLElement;
     frame.style.width = `${width * z}px`;
     frame.style.height = `${height * z}px`;
+    frame.style.flex = 'none';
+    frame.style.transform = `translate(${this.pan[0]}px, ${this.pan[1]}px)`;
+    // The overlay is drawn at screen resolution, but never larger than a canvas may be.
     const dpr = window.devicePixelRatio || 1;
-    this.overlayCanvas.width = Math.round(width * z * dpr);
-    this.overlayCanvas.height = Math.round(height * z * dpr);
+    const px = Math.min(width * z * dpr, 8192) / (width * z * dpr);
+    const dens = Math.min(px, Math.min(height * z * dpr, 8192) / (height * z * dpr));
+    this.overlayCanvas.width = Math.max(1, Math.round(width * z * dpr * dens));
+    this.overlayCanvas.height = Math.max(1, Math.round(height * z * dpr * dens));
+    if (this.els.zoomText) this.els.zoomText.textContent = `${Math.round(z * 100)} %${this.zoom === null ? ' (fit)' : ''}`;
     this.drawOverlay();
   }
+
+  /** Zooms to `z` keeping the scene point under client point (cx, cy) where it is. */
+  zoomAbout(z: number, cx: number, cy: number): void {
+    const r = this.overlayCanvas.getBoundingClientRect();
+    const { width, height } = this.store.doc;
+    // the scene point under the pointer, unsnapped
+    const p: Pt = [((cx - r.left) / r.width) * width, ((cy - r.top) / r.height) * height];
+    this.zoom = Math.max(0.02, Math.min(32, z));
+    this.layout();
+    const r2 = this.overlayCanvas.getBoundingClientRect();
+    const nx = r2.left + (p[0] / width) * r2.width;
+    const ny = r2.top + (p[1] / height) * r2.height;
+    this.pan = [this.pan[0] + cx - nx, this.pan[1] + cy - ny];
+    this.layout();
+  }
+
+  /** Fits the whole picture in the stage. */
+  zoomFit(): void {
+    this.zoom = null;
+    this.pan = [0, 0];
+    this.layout();
+  }
+
+  /** One scene pixel per screen pixel, about the stage's centre. */
+  zoom100(): void {
+    const r = this.stage.getBoundingClientRect();
+    this.zoomAbout(1 / (window.devicePixelRatio || 1), r.left + r.width / 2, r.top + r.height / 2);
+  }
+
+  /** Wheel (and pinch, which arrives as a wheel with Ctrl) zooms about the pointer; Space-drag or middle-drag pans. */
+  private bindZoomPan(): void {
+    this.stage.addEventListener('wheel', (e) => {
+      e.preventDefault();
+      const unit = e.deltaMode === 1 ? 16 : e.deltaMode === 2 ? 400 : 1;
+      this.zoomAbout(this.scale * Math.exp(-e.deltaY * unit * (e.ctrlKey ? 0.01 : 0.0015)), e.clientX, e.clientY);
+    }, { passive: false });
+    let space = false;
+    window.addEventListener('keydown', (e) => {
+      if (e.code === 'Space' && !(e.target instanceof HTMLInputElement && e.target.type !== 'checkbox' && e.target.type !== 'range')) space = true;
+    });
+    window.addEventListener('keyup', (e) => {
+      if (e.code !== 'Space') return;
+      space = false;
+      if (this.spaceDown && !this.spacePanned) this.togglePlay();
+      this.spaceDown = false;
+      this.spacePanned = false;
+    });
+    this.stage.addEventListener('pointerdown', (e) => {
+      if (!(e.button === 1 || (e.button === 0 && space))) return;
+      e.preventDefault();
+      e.stopPropagation();
+      this.spacePanned = true;
+      const start: Pt = [e.clientX, e.clientY];
+      const base: Pt = [this.pan[0], this.pan[1]];
+      const move = (ev: PointerEvent) => {
+        this.pan = [base[0] + ev.clientX - start[0], base[1] + ev.clientY - start[1]];
+        this.layout();
+      };
+      const up = () => {
+        window.removeEventListener('pointermove', move);
+        window.removeEventListener('pointerup', up);
+      };
+      window.addEventListener('pointermove', move);
+      window.addEventListener('pointerup', up);
+    }, { capture: true });
+  }
+
+  /** Set when Space was used to pan (so its key-up does not also play). */
+  private spacePanned = false;
+  /** Space went down as a shortcut (it plays when it comes up). */
+  private spaceDown = false;
 
   drawOverlay(): void {
     const doc = this.store.doc;
@@ -853,7 +955,10 @@ export class Ui {
         return;
       case 'k': return handled(), this.keyHere();
       case 'K': return handled(), this.unkeyHere();
-      case ' ': return handled(), this.togglePlay();
+      // Space plays on release, unless it was held to pan (Space-drag).
+      case ' ': handled(); this.spaceDown = true; return;
+      case '0': return handled(), this.zoomFit();
+      case '1': return handled(), this.zoom100();
       case 'ArrowLeft': return handled(), e.shiftKey ? this.stepKey(-1) : this.setTime(this.store.view.time - 1 / this.store.doc.fps);
       case 'ArrowRight': return handled(), e.shiftKey ? this.stepKey(1) : this.setTime(this.store.view.time + 1 / this.store.doc.fps);
       case 'Home': return handled(), this.setTime(0);
