@@ -741,6 +741,9 @@ export class Ui {
       this.hovered = null;
       this.store.commit();
       this.app.dragging = false;
+      // Draft frames after this (scrubbing, playing) were not asked for by a pointer move
+      // of a drag: they must not count as drag latency.
+      this.app.lastPointerAt = 0;
       this.app.settle();
     };
     c.addEventListener('pointerup', end);
@@ -981,6 +984,7 @@ export class Ui {
   async openScene(doc: SceneDoc, name: string, validate = true): Promise<void> {
     if (validate) this.throwProblems(doc);
     this.fileName = name;
+    this.app.resetStats();
     this.store.load(doc);
     this.store.setView({ activeLayer: Math.max(0, doc.layers.length - 1) });
     await this.app.idle();
@@ -1012,7 +1016,8 @@ export class Ui {
     const problems = this.app.engine.validate(doc);
     if (problems.length) {
       const [first] = problems;
-      const more = problems.length > 1 ? ` (and ${problems.length - 1} more problem${problems.length > 2 ? 's' : ''})` : '';
+      // Every problem, one a line, so that one round of fixes is enough.
+      const more = problems.length > 1 ? `\n${problems.slice(1).map((p) => `${p.path ? `at ${p.path}: ` : ''}${p.message}`).join('\n')}` : '';
       // A browser cannot read files next to the scene: say how to open such a scene.
       const hint = problems.some((p) => /only use data: URIs/.test(p.message))
         ? ' — its images are files next to it: open it with `inkwarp edit SCENE`, which reads them.'
