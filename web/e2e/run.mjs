@@ -990,7 +990,8 @@ async function dragDiamond(p, feature, t, dx, opts = {}) {
   if (opts.alt) await p.keyboard.down('Alt');
   await p.mouse.move(box[0], box[1]);
   await p.mouse.down();
-  for (let i = 1; i <= Math.abs(dx); i++) await p.mouse.move(box[0] + Math.sign(dx) * i, box[1]);
+  const step = opts.step ?? 1;
+  for (let i = step; i < Math.abs(dx) + step; i += step) await p.mouse.move(box[0] + Math.sign(dx) * Math.min(i, Math.abs(dx)), box[1]);
   await p.mouse.up();
   if (opts.alt) await p.keyboard.up('Alt');
   return p.evaluate((f) => window.inkwarp.store.doc.features.find((g) => g.id === f).keys.map((k) => k.t), feature);
@@ -1019,7 +1020,11 @@ test('a 3 px key drag moves the key by at most one frame, onto a frame; keys sta
   assert(!(await page.evaluate(() => document.querySelector('#undo').disabled)), 'Undo is enabled after a key drag');
   // A long drag to the right stops at the last frame.
   const wide = await page.evaluate(() => document.querySelector('.tracks .track').getBoundingClientRect().width);
-  const far = await dragDiamond(page, 'pin1', 0.75, Math.round(wide));
+  // A drag of 2.4 frames' width moves the key two frames, following the pointer.
+  const two = await dragDiamond(page, 'pin1', 0.75, Math.round((2.4 / 48) * wide), { step: 4 });
+  assert(two.some((t) => Math.abs(t - (0.75 + 2 / 24)) < 1e-9), `a drag of 2.4 frames moved the key to ${two}`);
+  await page.evaluate(() => window.inkwarp.store.edit((d) => window.inkwarp.state.moveKey(d, 'pin1', 0.75 + 2 / 24, 0.75)));
+  const far = await dragDiamond(page, 'pin1', 0.75, Math.round(wide), { step: 25 });
   assert(Math.max(...far) <= 2 + 1e-9, `a key dragged past the end stayed within the animation: ${far}`);
   // Typing a time past the end is refused with a message.
   const refused = await page.evaluate(() => {
@@ -1116,7 +1121,8 @@ test('zoom keeps the point under the pointer fixed; pan, Fit and 100 %; the stag
     const { width, height } = window.inkwarp.store.doc;
     return [((cx - r.left) / r.width) * width, ((cy - r.top) / r.height) * height];
   }, [x, y]);
-  const [cx, cy] = await toClient(page, [150, 320]);
+  // whole CSS pixels: pointer events carry whole client coordinates
+  const [cx, cy] = (await toClient(page, [150, 320])).map(Math.round);
   const before = await scenePt(cx, cy);
   await page.mouse.move(cx, cy);
   for (let i = 0; i < 4; i++) await page.mouse.wheel(0, -120);

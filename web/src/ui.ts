@@ -416,6 +416,8 @@ export class Ui {
 
   private dragKey(e: PointerEvent, id: string, t0: number, track: HTMLElement): void {
     e.stopPropagation();
+    // Measured first: selecting and setting the time below redraw the row (a new element).
+    const r = track.getBoundingClientRect();
     this.store.setView({ selection: { feature: id, point: null } });
     this.setTime(t0);
     let cur = t0;
@@ -423,7 +425,6 @@ export class Ui {
     // The key follows the pointer from where it was pressed, measured against the row as
     // it was then (the row is redrawn, a new element, at every change); frames snap
     // unless Alt is held, and the key stays within the animation.
-    const r = track.getBoundingClientRect();
     const x0 = e.clientX;
     const move = (ev: PointerEvent) => {
       const { duration } = this.store.doc;
