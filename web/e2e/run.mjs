@@ -247,7 +247,7 @@ async function screenshot(page, name) {
 }
 
 /** The screenshots docs/guides/editor.md shows. */
-const DOC_SCREENS = ['start', 'restore', 'timeline-keys', 'border-hold', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
+const DOC_SCREENS = ['start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
 
 const median = (a) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
 const pct = (a, q) => (a.length ? [...a].sort((x, y) => x - y)[Math.min(a.length - 1, Math.floor(q * a.length))] : null);
@@ -1153,6 +1153,58 @@ test('zoom keeps the point under the pointer fixed; pan, Fit and 100 %; the stag
   });
   const stage1 = await page.evaluate(() => JSON.stringify(document.querySelector('.stage').getBoundingClientRect()));
   assert(stage0 === stage1, `the stage moved or changed size: ${stage0} → ${stage1}`);
+});
+
+
+test('keys: Shift-click picks several, they drag together, copy and paste; easing chooser; onion skin', async () => {
+  await page.evaluate(async () => {
+    const { ui, store, examples, state } = window.inkwarp;
+    await ui.openScene(await examples.builtinScene(), 'multi.json');
+    store.edit((d) => ({ ...d, fps: 24, duration: 2 }));
+    store.edit((d) => state.setKey(d, 'pin1', 0.25, [[40, 40]]));
+    store.edit((d) => state.setKey(d, 'pin1', 1, [[120, 60]]));
+    store.edit((d) => state.setKey(d, 'pin2', 0.5, [[470, 40]]));
+    ui.setMode('pose');
+    await window.inkwarp.app.idle();
+  });
+  const diamond = (f, t) => page.evaluate(([id, time]) => {
+    const el = [...document.querySelectorAll('.tracks .key')].find((k) => k.dataset.feature === id && Math.abs(Number(k.dataset.t) - time) < 1e-6);
+    const r = el.getBoundingClientRect();
+    return [r.left + r.width / 2, r.top + r.height / 2];
+  }, [f, t]);
+  const [ax, ay] = await diamond('pin1', 0.25);
+  await page.mouse.click(ax, ay);
+  const [bx, by] = await diamond('pin2', 0.5);
+  await page.keyboard.down('Shift');
+  await page.mouse.click(bx, by);
+  await page.keyboard.up('Shift');
+  const picked = await page.evaluate(() => window.inkwarp.store.view.keySelection);
+  assert(picked.length === 2, `Shift-click picked two keys: ${JSON.stringify(picked)}`);
+  const wide = await page.evaluate(() => document.querySelector('.tracks .track').getBoundingClientRect().width);
+  await dragDiamond(page, 'pin2', 0.5, Math.round((3 / 48) * wide), { step: 4 });
+  const times = await page.evaluate(() => Object.fromEntries(window.inkwarp.store.doc.features.filter((f) => f.keys).map((f) => [f.id, f.keys.map((k) => k.t)])));
+  assert(Math.abs(times.pin1[0] - (0.25 + 3 / 24)) < 1e-9 && Math.abs(times.pin2[0] - (0.5 + 3 / 24)) < 1e-9 && times.pin1[1] === 1,
+    `both picked keys moved three frames together, the other stayed: ${JSON.stringify(times)}`);
+  // copy, paste at 1.5 s
+  await page.keyboard.press('Control+c');
+  await page.evaluate(() => window.inkwarp.ui.setTime(1.5));
+  await page.keyboard.press('Control+v');
+  const pasted = await page.evaluate(() => Object.fromEntries(window.inkwarp.store.doc.features.filter((f) => f.keys).map((f) => [f.id, f.keys.map((k) => [k.t, k.points])])));
+  assert(pasted.pin1.some(([t, p]) => Math.abs(t - 1.5) < 1e-9 && p[0][0] === 40) && pasted.pin2.some(([t]) => Math.abs(t - 1.75) < 1e-9),
+    `the keys were pasted at 1.5 s, keeping their spacing: ${JSON.stringify(pasted)}`);
+  // the easing chooser of the feature panel
+  await page.evaluate(() => window.inkwarp.store.setView({ selection: { feature: 'pin1', point: null } }));
+  const options = await page.evaluate(() => [...document.querySelector('.key-interp').options].map((o) => o.value));
+  assert(['ease-in', 'ease-out', 'ease-in-out'].every((m) => options.includes(m)), `the easing chooser offers ${options}`);
+  await page.selectOption('.key-interp >> nth=0', 'ease-in-out');
+  const interp = await page.evaluate(() => window.inkwarp.store.doc.features.find((f) => f.id === 'pin1').keys[0].interpolation);
+  assert(interp === 'ease-in-out', `the first key eases in and out: ${interp}`);
+  await page.evaluate(async () => {
+    window.inkwarp.ui.setTime(0.7);
+    await window.inkwarp.app.idle();
+  });
+  assert(await page.evaluate(() => window.inkwarp.store.view.onion), 'the onion skin is on by default');
+  await screenshot(page, 'keys-onion');
 });
 
 async function main() {

@@ -32,6 +32,13 @@ import {
   getFeature,
   moveFeature,
   moveKey,
+  moveKeys,
+  copyKeys,
+  pasteKeys,
+  hasKeyRef,
+  toggleKeyRef,
+  type ClipKey,
+  type KeyRef,
   movePoint,
   reorderLayer,
   setInterpolation,
@@ -67,6 +74,9 @@ export const SHORTCUTS: [string, string][] = [
   ['Wheel', 'Zoom about the pointer'],
   ['Middle-drag', 'Pan'],
   ['0 / 1', 'Fit the picture / 100 %'],
+  ['Shift-click a key', 'Pick several keys (drag one: they move together)'],
+  ['Ctrl+C / Ctrl+V', 'Copy the picked keys / paste them at the current time'],
+  ['O', 'Onion skin: the selected feature at its previous and next keys'],
   ['← / →', 'Previous / next frame'],
   ['Shift+← / Shift+→', 'Previous / next key'],
   ['Home / End', 'First / last frame'],
@@ -382,9 +392,10 @@ export class Ui {
       if (f.kind === 'cut') continue;
       const track = h('div.track', { onpointerdown: (e: PointerEvent) => this.scrubTrack(e) });
       for (const k of sortedKeys(f)) {
+        const picked = hasKeyRef(view.keySelection, { feature: f.id, t: k.t });
         const diamond = h('span.key', {
-          class: `key ${f.id === view.selection.feature ? 'selected' : ''}`,
-          title: `${f.id} at ${k.t.toFixed(3)} s (${k.interpolation ?? 'smooth'}); drag to move`,
+          class: `key ${f.id === view.selection.feature ? 'selected' : ''} ${picked ? 'picked' : ''}`,
+          title: `${f.id} at ${k.t.toFixed(3)} s (${k.interpolation ?? 'smooth'}); drag to move (Alt: off the frames), Shift-click to pick several, Ctrl+C / Ctrl+V to copy and paste`,
           style: { left: pct(k.t) },
           dataset: { feature: f.id, t: String(k.t) },
           onpointerdown: (e: PointerEvent) => this.dragKey(e, f.id, k.t, track),
@@ -418,8 +429,16 @@ export class Ui {
     e.stopPropagation();
     // Measured first: selecting and setting the time below redraw the row (a new element).
     const r = track.getBoundingClientRect();
-    this.store.setView({ selection: { feature: id, point: null } });
+    const ref = { feature: id, t: t0 };
+    if (e.shiftKey) {
+      this.store.setView({ keySelection: toggleKeyRef(this.store.view.keySelection, ref) });
+      return;
+    }
+    // A picked key drags every picked key with it; another key is picked alone.
+    const group = hasKeyRef(this.store.view.keySelection, ref) ? this.store.view.keySelection : [ref];
+    this.store.setView({ selection: { feature: id, point: null }, keySelection: group });
     this.setTime(t0);
+    if (group.length > 1) return this.dragKeys(e, group, t0, r);
     let cur = t0;
     this.store.begin();
     // The key follows the pointer from where it was pressed, measured against the row as
@@ -434,6 +453,7 @@ export class Ui {
       try {
         this.store.edit((d) => moveKey(d, id, cur, t));
         cur = t;
+        this.store.setView({ keySelection: [{ feature: id, t }] });
         this.setTime(t);
       } catch {
         // Another key is there: stay put.
@@ -446,6 +466,61 @@ export class Ui {
     };
     window.addEventListener('pointermove', move);
     window.addEventListener('pointerup', up);
+  }
+
+  /** Drags several picked keys together by the same whole number of frames (Alt: any time). */
+  private dragKeys(e: PointerEvent, group: KeyRef[], t0: number, r: DOMRect): void {
+    const base = this.store.doc;
+    const x0 = e.clientX;
+    let dt = 0;
+    this.store.begin();
+    const move = (ev: PointerEvent) => {
+      const { duration } = this.store.doc;
+      const raw = ((ev.clientX - x0) / Math.max(1, r.width)) * duration;
+      const next = ev.altKey ? raw : this.snapTime(t0 + raw) - t0;
+      if (Math.abs(next - dt) < KEY_EPS) return;
+      try {
+        this.store.apply(moveKeys(base, group, next));
+        dt = next;
+        this.store.setView({ keySelection: group.map((k) => ({ feature: k.feature, t: k.t + dt })) });
+        this.setTime(t0 + dt);
+      } catch {
+        // A key would leave the animation or land on another: stay put.
+      }
+    };
+    const up = () => {
+      window.removeEventListener('pointermove', move);
+      window.removeEventListener('pointerup', up);
+      this.store.commit();
+    };
+    window.addEventListener('pointermove', move);
+    window.addEventListener('pointerup', up);
+  }
+
+  /** Copied keys (Ctrl+C), pasted at the current time by Ctrl+V. */
+  clipboard: ClipKey[] = [];
+
+  /** Copies the picked keys, or the selected feature's key at the current time. */
+  copyKeys(): void {
+    const { view, doc } = this.store;
+    let refs = view.keySelection;
+    if (refs.length === 0 && view.selection.feature) refs = [{ feature: view.selection.feature, t: view.time }];
+    const clip = copyKeys(doc, refs);
+    if (clip.length === 0) return this.message('Pick keys on the timeline (Shift-click for several) to copy them.', 'error');
+    this.clipboard = clip;
+    this.message(`Copied ${clip.length} key${clip.length > 1 ? 's' : ''}.`, 'info');
+  }
+
+  /** Pastes the copied keys, the earliest at the current time. */
+  pasteKeys(): void {
+    if (this.clipboard.length === 0) return this.message('Nothing copied: pick keys and press Ctrl+C first.', 'error');
+    try {
+      const { doc, pasted } = pasteKeys(this.store.doc, this.clipboard, this.store.view.time);
+      this.store.apply(doc);
+      this.store.setView({ keySelection: pasted });
+    } catch (err) {
+      this.message((err as Error).message, 'error');
+    }
   }
 
   private snapTime(t: number): number {
@@ -936,6 +1011,8 @@ export class Ui {
     if (ctrl && k === 'y') return handled(), this.store.redo();
     if (ctrl && k === 's') return handled(), void this.save();
     if (ctrl && k === 'o') return handled(), this.els.fileInput.click();
+    if (ctrl && k === 'c') return handled(), this.copyKeys();
+    if (ctrl && k === 'v') return handled(), this.pasteKeys();
     if (ctrl || e.altKey) return;
     const tool = TOOLS.find((t) => t.key === k.toLowerCase());
     if (tool && !e.shiftKey) return handled(), this.setTool(tool.tool);
@@ -974,6 +1051,7 @@ export class Ui {
         return this.setOverlay({ heat: order[(order.indexOf(this.store.view.overlays.heat) + 1) % 3] });
       }
       case 'm': return handled(), this.setOverlay({ mesh: !this.store.view.overlays.mesh });
+      case 'o': return handled(), this.store.setView({ onion: !this.store.view.onion });
       case 't': return handled(), this.setOverlay({ matte: !this.store.view.overlays.matte });
       case '?': return handled(), this.toggleHelp();
     }

@@ -1,7 +1,7 @@
 import { describe, expect, it, vi } from 'vitest';
 import { Autosaver, MemoryStore, clockTime, inlineImages, restoreQuestion } from '../src/autosave';
 import { emptyScene, type SceneDoc } from '../src/scene';
-import { Store, moveKey, setKey } from '../src/state';
+import { Store, copyKeys, moveKey, moveKeys, neighbourKeys, pasteKeys, setKey, toggleKeyRef } from '../src/state';
 
 function scene(): SceneDoc {
   const doc = emptyScene(20, 10);
@@ -114,5 +114,58 @@ describe('unsaved changes and undo', () => {
     doc = setKey(doc, 'p', 1, [[2, 2]]);
     expect(() => moveKey(doc, 'p', 1, 2.5)).toThrow(/past the end of the animation \(2 s\)/);
     expect(moveKey(doc, 'p', 1, 2).features[0].keys![0].t).toBe(2);
+  });
+});
+
+describe('keys: selection, moving together, copy and paste, onion skin', () => {
+  function doc2(): SceneDoc {
+    let doc: SceneDoc = { ...emptyScene(10, 10), fps: 10, duration: 2, features: [{ id: 'a', kind: 'point', rest: [[1, 1]] }, { id: 'b', kind: 'polyline', rest: [[0, 0], [5, 5]] }] };
+    doc = setKey(doc, 'a', 0.2, [[2, 2]]);
+    doc = setKey(doc, 'a', 1, [[3, 3]]);
+    doc = setKey(doc, 'b', 0.5, [[1, 0], [6, 5]]);
+    return doc;
+  }
+
+  it('Shift-click toggles keys in and out of the selection', () => {
+    let refs = toggleKeyRef([], { feature: 'a', t: 0.2 });
+    refs = toggleKeyRef(refs, { feature: 'b', t: 0.5 });
+    expect(refs).toHaveLength(2);
+    refs = toggleKeyRef(refs, { feature: 'a', t: 0.2 + 1e-6 });
+    expect(refs).toEqual([{ feature: 'b', t: 0.5 }]);
+  });
+
+  it('moves selected keys together, all or none', () => {
+    const doc = doc2();
+    const moved = moveKeys(doc, [{ feature: 'a', t: 0.2 }, { feature: 'b', t: 0.5 }], 0.3);
+    expect(moved.features[0].keys!.map((k) => k.t)).toEqual([0.5, 1]);
+    expect(moved.features[1].keys![0].t).toBeCloseTo(0.8, 12);
+    // a's key at 0.2 would land on its key at 1.0: refused, nothing moves
+    expect(() => moveKeys(doc, [{ feature: 'a', t: 0.2 }, { feature: 'b', t: 0.5 }], 0.8)).toThrow(/already has a key/);
+    expect(() => moveKeys(doc, [{ feature: 'a', t: 1 }], 1.5)).toThrow(/leave the animation/);
+    // both of a's keys moving past each other's old times is fine
+    expect(moveKeys(doc, [{ feature: 'a', t: 0.2 }, { feature: 'a', t: 1 }], 0.8).features[0].keys!.map((k) => k.t)).toEqual([1, 1.8]);
+  });
+
+  it('copies keys relative to the earliest and pastes them at the time', () => {
+    let doc = doc2();
+    doc = { ...doc, features: doc.features.map((f) => (f.id === 'a' ? { ...f, keys: f.keys!.map((k) => ({ ...k, interpolation: 'ease-in' as const })) } : f)) };
+    const clip = copyKeys(doc, [{ feature: 'b', t: 0.5 }, { feature: 'a', t: 0.2 }]);
+    expect(clip.map((c) => [c.feature, c.dt])).toEqual([['a', 0], ['b', expect.closeTo(0.3, 12)]]);
+    expect(clip[0].interpolation).toBe('ease-in');
+    const { doc: out, pasted } = pasteKeys(doc, clip, 1.5);
+    expect(pasted.map((p) => p.feature)).toEqual(['a', 'b']);
+    const a = out.features[0].keys!;
+    expect(a.map((k) => k.t)).toEqual([0.2, 1, 1.5]);
+    expect(a[2]).toEqual({ t: 1.5, points: [[2, 2]], interpolation: 'ease-in' });
+    expect(out.features[1].keys!.map((k) => k.t)).toEqual([0.5, expect.closeTo(1.8, 12)]);
+    expect(() => pasteKeys(doc, clip, 1.9)).toThrow(/past the end/);
+    expect(copyKeys(doc, [{ feature: 'zz', t: 0 }])).toEqual([]);
+  });
+
+  it('finds the keys before and after a time for the onion skin', () => {
+    const a = doc2().features[0];
+    expect(neighbourKeys(a, 0.6)).toMatchObject({ prev: { t: 0.2 }, next: { t: 1 } });
+    expect(neighbourKeys(a, 0.2)).toMatchObject({ prev: null, next: { t: 1 } });
+    expect(neighbourKeys(a, 1.5)).toMatchObject({ prev: { t: 1 }, next: null });
   });
 });
