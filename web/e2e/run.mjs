@@ -1207,6 +1207,32 @@ test('keys: Shift-click picks several, they drag together, copy and paste; easin
   await screenshot(page, 'keys-onion');
 });
 
+
+test('playback solves ahead and the ready bar shows the frames it can play at once', async () => {
+  await page.evaluate(async () => {
+    const { ui, examples, app } = window.inkwarp;
+    const doc = await examples.builtinScene(96);
+    doc.fps = 12;
+    doc.duration = 1;
+    doc.features = [{ id: 'dot', kind: 'point', rest: [[40, 40]], keys: [{ t: 0, points: [[40, 40]] }, { t: 1, points: [[60, 50]] }] }];
+    await ui.openScene(doc, 'ready.json');
+    ui.setMode('pose');
+    await app.idle();
+  });
+  const before = Number(await page.getAttribute('#ready', 'data-count'));
+  await page.keyboard.press('Space');
+  await page.waitForFunction(() => document.querySelector('#ready')?.dataset.count === '12', null, { timeout: 120000 });
+  // A second pass plays from the solved frames.
+  await page.evaluate(() => { window.inkwarp.app.stats.playback = { expected: 0, shown: 0, dropped: 0 }; });
+  await page.waitForTimeout(2000);
+  const pb = await page.evaluate(() => ({ ...window.inkwarp.app.stats.playback }));
+  await page.keyboard.press('Space');
+  perf.readyPlayback = { readyBefore: before, ...pb };
+  assert(before < 12, `frames were not all ready before playing (${before})`);
+  assert(pb.expected >= 12, `it played: ${JSON.stringify(pb)}`);
+  await screenshot(page, 'ready-bar');
+});
+
 async function main() {
   server = await startServer();
   browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: CHROMIUM_ARGS });
@@ -1238,6 +1264,7 @@ async function main() {
   if (perf.keyDrag) console.log(`  key drags: ${perf.keyDrag.map((k) => `${k.dx} px from ${k.from} s → ${k.to.toFixed(4)} s`).join('; ')}`);
   if (perf.border) console.log(`  border under a hard pull: free ${perf.border.freePx.toFixed(2)} px, held ${perf.border.heldPx.toFixed(3)} px`);
   if (perf.zoom) console.log(`  wheel zoom ${perf.zoom.from.toFixed(3)} → ${perf.zoom.to.toFixed(3)}: the point under the pointer moved ${perf.zoom.drift.toFixed(4)} scene px`);
+  if (perf.readyPlayback) console.log(`  ready bar: ${perf.readyPlayback.readyBefore}/12 frames before playing; 2 s of play from solved frames: ${perf.readyPlayback.shown} shown, ${perf.readyPlayback.dropped} dropped of ${perf.readyPlayback.expected}`);
   if (perf.webm) console.log(`  WebM export: ${perf.webm.frames} frames, ${perf.webm.duration} s`);
   if (perf.dragLatencyMs) {
     console.log(`  ${perf.features} features, 512×512: pointer move → frame median ${perf.dragLatencyMs.median?.toFixed(1)} ms (p90 ${perf.dragLatencyMs.p90?.toFixed(1)}, n=${perf.dragLatencyMs.n})`);

@@ -409,6 +409,12 @@ export class App {
     fields.set(key, field);
   }
 
+  /** Which frames have every layer's field cached, so they play at once (the timeline's ready bar). */
+  readyFrames(): boolean[] {
+    const n = Math.max(1, Math.ceil(this.doc.duration * this.doc.fps - 1e-9));
+    return Array.from({ length: n }, (_, i) => this.cached(i) !== undefined);
+  }
+
   /** How many frames have every layer's field cached for playback. */
   cachedFrames(): number {
     let n = 0;

@@ -131,7 +131,10 @@ export class Ui {
     this.build(root);
     app.onMessage = (t, k) => this.message(t, k);
     app.onFrame = () => this.drawOverlay();
-    app.onSolved = () => this.updateStatus();
+    app.onSolved = () => {
+      this.updateStatus();
+      this.renderReady();
+    };
     app.store.subscribe((_, docChanged) => this.refresh(docChanged));
     new ResizeObserver(() => this.layout()).observe(this.stage);
     window.addEventListener('keydown', (e) => this.onKey(e));
@@ -387,6 +390,9 @@ export class Ui {
     const every = Math.max(1, Math.round(n / 24));
     for (let i = 0; i < n; i += every) ruler.append(h('span.tick', { style: { left: pct(i / doc.fps) } }, i % (every * 4) === 0 ? String(i + 1) : ''));
     ruler.append(h('span.playhead', { style: { left: pct(view.time) } }));
+    this.els.ready = h('div#ready.ready', { title: 'Frames solved and ready to play (solved ahead while playing)' });
+    ruler.append(this.els.ready);
+    this.renderReady();
     this.els.tracks.append(h('div.track-row.ruler-row', {}, h('span.track-name', { title: 'Frame numbers; click or drag to set the time' }, 'frames'), ruler));
     for (const f of doc.features) {
       if (f.kind === 'cut') continue;
@@ -405,6 +411,26 @@ export class Ui {
       track.append(h('span.playhead', { style: { left: pct(view.time) } }));
       this.els.tracks.append(h('div.track-row', { class: f.id === view.selection.feature ? 'selected' : '' },
         h('span.track-name', { onclick: () => this.store.setView({ selection: { feature: f.id, point: null } }) }, f.id), track));
+    }
+  }
+
+  /** The ready bar: a mark under every frame whose fields are solved (playback needs no solve there). */
+  renderReady(): void {
+    const bar = this.els.ready;
+    if (!bar) return;
+    const ready = this.app.readyFrames();
+    const key = ready.map((r) => (r ? '1' : '0')).join('');
+    if (bar.dataset.frames === key) return;
+    bar.dataset.frames = key;
+    bar.dataset.count = String(ready.filter(Boolean).length);
+    clear(bar);
+    const n = ready.length;
+    for (let i = 0; i < n; i++) {
+      if (!ready[i]) continue;
+      let j = i;
+      while (j + 1 < n && ready[j + 1]) j++;
+      bar.append(h('span', { style: { left: `${(100 * i) / n}%`, width: `${(100 * (j - i + 1)) / n}%` } }));
+      i = j;
     }
   }
 
