@@ -1233,6 +1233,82 @@ test('playback solves ahead and the ready bar shows the frames it can play at on
   await screenshot(page, 'ready-bar');
 });
 
+
+// Run on demand (MEASURE_PHOTO=1 node e2e/run.mjs photograph): a 4000×3000 photograph-like
+// picture opened, dragged and settled; times and memory reported, never asserted.
+if (process.env.MEASURE_PHOTO) test('measure: a 4000×3000 photograph opens, drags and settles', async () => {
+  const { page: p, context } = await openEditor(browser, server.url);
+  try {
+    const t0 = Date.now();
+    await p.evaluate(async () => {
+      const c = new OffscreenCanvas(4000, 3000);
+      const g = c.getContext('2d');
+      const grad = g.createLinearGradient(0, 0, 4000, 3000);
+      grad.addColorStop(0, '#8ab'); grad.addColorStop(0.5, '#db7'); grad.addColorStop(1, '#374');
+      g.fillStyle = grad;
+      g.fillRect(0, 0, 4000, 3000);
+      for (let i = 0; i < 400; i++) {
+        g.fillStyle = `hsl(${(i * 47) % 360} 60% ${30 + (i % 5) * 10}%)`;
+        g.beginPath();
+        g.arc((i * 7919) % 4000, (i * 104729) % 3000, 20 + (i % 13) * 9, 0, Math.PI * 2);
+        g.fill();
+      }
+      const blob = await c.convertToBlob({ type: 'image/jpeg', quality: 0.9 });
+      window.__photo = new File([blob], 'photo.jpg', { type: 'image/jpeg' });
+    });
+    const made = Date.now();
+    await p.evaluate(async () => {
+      await window.inkwarp.ui.openFile(window.__photo);
+      await window.inkwarp.app.idle();
+    });
+    const opened = Date.now();
+    await p.evaluate(async () => {
+      const { store, state, ui, app } = window.inkwarp;
+      store.edit((d) => state.addFeature(d, 'spline', [[1200, 900], [2000, 1500], [2800, 2100]]).doc);
+      store.edit((d) => state.addFeature(d, 'point', [[600, 2400]]).doc);
+      ui.setMode('pose');
+      ui.setTool('select');
+      await app.idle();
+      app.resetStats();
+    });
+    await drag(p, [2000, 1500], [2200, 1400], 12);
+    const released = Date.now();
+    await idle(p);
+    const settled = Date.now();
+    const s = await p.evaluate(() => {
+      const { stats } = window.inkwarp.app;
+      const mem = performance.memory ? performance.memory.usedJSHeapSize : null;
+      return { drag: [...stats.dragLatency], draft: [...stats.draftSolveMs], final: [...stats.finalSolveMs], heap: mem };
+    });
+    perf.photo = {
+      openS: (opened - made) / 1000,
+      dragMedianMs: median(s.drag), dragMaxMs: s.drag.length ? Math.max(...s.drag) : null, dragFrames: s.drag.length,
+      draftSolveMedianMs: median(s.draft), finalSolveMs: s.final, settleS: (settled - released) / 1000,
+      heapMB: s.heap === null ? null : s.heap / 2 ** 20,
+      encodeS: (made - t0) / 1000,
+    };
+    console.log(`  photo: ${JSON.stringify(perf.photo)}`);
+  } finally {
+    await context.close();
+  }
+});
+
+
+test('a region is dragged by its fill: the whole region moves', async () => {
+  await page.evaluate(async () => {
+    const { ui, store, examples, state, app } = window.inkwarp;
+    await ui.openScene(await examples.builtinScene(), 'region.json');
+    store.edit((d) => state.addFeature(d, 'region', [[180, 180], [300, 180], [300, 300], [180, 300]], { id: 'blob' }).doc);
+    ui.setMode('pose');
+    ui.setTool('select');
+    await app.idle();
+  });
+  await drag(page, [240, 240], [260, 250]);
+  const key = await page.evaluate(() => window.inkwarp.store.doc.features.find((f) => f.id === 'blob').keys?.[0]?.points);
+  const rest = [[180, 180], [300, 180], [300, 300], [180, 300]];
+  assert(key && key.every((q, i) => Math.abs(q[0] - rest[i][0] - 20) < 1.01 && Math.abs(q[1] - rest[i][1] - 10) < 1.01), `every point of the region moved by (20, 10): ${JSON.stringify(key)}`);
+});
+
 async function main() {
   server = await startServer();
   browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: CHROMIUM_ARGS });

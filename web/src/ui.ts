@@ -743,6 +743,11 @@ export class Ui {
         if (segDist(p, line[i], line[i + 1]) < lineTol) return { id: f.id, point: null };
       }
     }
+    // A region is also picked up by its fill: the whole region moves.
+    for (const f of features) {
+      if (f.kind !== 'region') continue;
+      if (insidePolygon(p, this.overlay.curve(f, shownPoints(f, view.mode, view.time)))) return { id: f.id, point: null };
+    }
     return null;
   }
 
@@ -1333,6 +1338,17 @@ export class Ui {
     const l = this.store.doc.layers[i];
     return l ? layerFeatures(this.store.doc, l).map((f) => f.id) : [];
   }
+}
+
+/** Whether `p` is inside the closed polygon `poly` (even-odd rule). */
+export function insidePolygon(p: Pt, poly: Pt[]): boolean {
+  let inside = false;
+  for (let i = 0, j = poly.length - 1; i < poly.length; j = i++) {
+    const [xi, yi] = poly[i];
+    const [xj, yj] = poly[j];
+    if (yi > p[1] !== yj > p[1] && p[0] < ((xj - xi) * (p[1] - yi)) / (yj - yi) + xi) inside = !inside;
+  }
+  return inside;
 }
 
 function segDist(p: Pt, a: Pt, b: Pt): number {
