@@ -28,7 +28,7 @@ OBJECTS = [  # (schema definition, heading)
     ("FeatureDoc", "features[]"),
     ("KeyDoc", "features[].keys[]"),
 ]
-ENUMS = ["FeatureKind", "Interpolation", "Curve", "Method", "Scheme"]
+ENUMS = ["FeatureKind", "Interpolation", "Curve", "Border", "Method", "Scheme"]
 
 
 def _anchor(heading: str) -> str:

@@ -131,6 +131,10 @@ function frameParts(
 /** Called when a frame is on screen: when the GPU finished it, and when its draw calls began and ended. */
 type FrameFn = (gpuDone: number, drawn: { start: number; end: number }) => void;
 
+function emptyStats(): Stats {
+  return { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 } };
+}
+
 /** Fields kept for playback (a 512×512 layer's field is 2 MiB). */
 const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
 const SETTLE_MS = 120;
@@ -141,7 +145,13 @@ export class App {
   readonly store: Store;
   readonly gl: GlRenderer;
   readonly runtimes = new Map<string, LayerRuntime>();
-  readonly stats: Stats = { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 } };
+  readonly stats: Stats = emptyStats();
+
+  /** Forgets the engine panel's figures (a new scene: the old one's say nothing of it). */
+  resetStats(): void {
+    Object.assign(this.stats, emptyStats());
+    this.lastReport = null;
+  }
   onMessage: (text: string, kind: 'error' | 'info') => void = () => {};
   onFrame: () => void = () => {};
   onSolved: (ev: FieldEvent) => void = () => {};
@@ -397,6 +407,12 @@ export class App {
     if (!fields) this.cache.frames.set(frame, (fields = new Map()));
     if (!fields.has(key)) this.cache.bytes += size;
     fields.set(key, field);
+  }
+
+  /** Which frames have every layer's field cached, so they play at once (the timeline's ready bar). */
+  readyFrames(): boolean[] {
+    const n = Math.max(1, Math.ceil(this.doc.duration * this.doc.fps - 1e-9));
+    return Array.from({ length: n }, (_, i) => this.cached(i) !== undefined);
   }
 
   /** How many frames have every layer's field cached for playback. */

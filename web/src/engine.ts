@@ -71,6 +71,8 @@ export interface SolveOptions {
   tps_exact?: { max_samples?: number };
   /** Arc-length spacing of the samples (the scene engine uses the grid step). */
   spacing_px?: number;
+  /** `hold`: the layer's outer edge stays put (the layer's `"border"`; default `free`). */
+  border?: 'free' | 'hold';
 }
 
 /** What a solve did. */
@@ -108,8 +110,8 @@ const dec = new TextDecoder();
 
 /** A solve request as the module reads it (curves sampled every `grid_step` by default). */
 function request(features: SolveFeature[], options: SolveOptions): Uint8Array {
-  const { spacing_px, ...rest } = options;
-  return enc.encode(JSON.stringify({ features, options: rest, spacing_px: spacing_px ?? rest.grid_step ?? 1 }));
+  const { spacing_px, border, ...rest } = options;
+  return enc.encode(JSON.stringify({ features, options: rest, spacing_px: spacing_px ?? rest.grid_step ?? 1, border: border ?? 'free' }));
 }
 
 /**

@@ -2,6 +2,7 @@
 // solving), builds the page, and opens the scene named in the URL or the built-in example.
 
 import { App } from './app';
+import { Autosaver, IndexedDbStore, MemoryStore, type SnapshotStore, clockTime, fetchDataUri, restoreQuestion } from './autosave';
 import { Engine } from './engine';
 import { builtinScene } from './examples';
 import * as examples from './examples';
@@ -49,6 +50,58 @@ async function start(): Promise<void> {
     ui.refresh(true);
   }
   document.body.dataset.ready = 'true';
+  // After "ready": the restore offer waits for the user, the editor works meanwhile.
+  await keepWork(store, ui, sceneUrl === null);
+}
+
+/**
+ * Never lose work: the scene is kept in IndexedDB a moment after each change (images
+ * inlined), offered back on the next load when it held unsaved changes, and leaving the
+ * page with unsaved changes asks first.
+ */
+async function keepWork(store: Store, ui: Ui, offer: boolean): Promise<void> {
+  let kept: SnapshotStore;
+  try {
+    kept = new IndexedDbStore();
+    await kept.get();
+  } catch {
+    kept = new MemoryStore();
+    ui.message('This browser keeps no copy of your work (IndexedDB is off): save often.', 'error');
+  }
+  const saver = new Autosaver(
+    kept,
+    () => ({ doc: store.doc, fileName: ui.fileName, unsaved: store.unsaved }),
+    fetchDataUri,
+    800,
+    (err) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error'),
+  );
+  const previous = offer ? await kept.get().catch(() => null) : null;
+  if (previous?.unsaved && (await ui.offerRestore(restoreQuestion(previous)))) {
+    try {
+      await ui.openScene(previous.doc, previous.fileName);
+      store.markUnsaved();
+      ui.message(`Restored the scene from ${clockTime(previous.savedAt)}.`, 'info');
+    } catch (err) {
+      ui.fileError('The kept scene', err);
+    }
+  }
+  let revision = store.revision;
+  let unsaved = store.unsaved;
+  store.subscribe(() => {
+    if (store.revision === revision && store.unsaved === unsaved) return;
+    revision = store.revision;
+    unsaved = store.unsaved;
+    saver.changed();
+  });
+  if (store.unsaved) saver.changed();
+  window.addEventListener('beforeunload', (e) => {
+    if (!store.unsaved) return;
+    void saver.flush();
+    e.preventDefault();
+    e.returnValue = '';
+  });
+  window.addEventListener('pagehide', () => void saver.flush());
+  Object.assign((window as unknown as { inkwarp: object }).inkwarp, { autosave: saver });
 }
 
 start().catch((err) => {

@@ -29,6 +29,7 @@ export function solverOptions(doc: SceneDoc, layer: Layer, quality: Quality): So
     scheme: s.scheme ?? 'multigrid',
     preview: quality === 'draft',
     spacing_px: step,
+    border: layer.border === 'hold' ? 'hold' : 'free',
     ...(s.beier_neely ? { beier_neely: s.beier_neely } : {}),
     ...(s.tps_exact ? { tps_exact: s.tps_exact } : {}),
   };

@@ -5,7 +5,7 @@ import type { Engine } from './engine';
 import type { LayerRuntime } from './app';
 import { type Feature, type Pt, isClosed } from './scene';
 import type { Store } from './state';
-import { shownPoints } from './state';
+import { neighbourKeys, shownPoints } from './state';
 
 const KIND_COLOURS: Record<string, string> = {
   point: '#ff3d7f',
@@ -74,6 +74,12 @@ export class Overlay {
     for (const f of store.doc.features) {
       const selected = f.id === view.selection.feature;
       if (posed && f.kind !== 'cut') this.drawFeature(f, f.rest, s, false, true);
+      if (posed && selected && view.onion && f.kind !== 'cut') {
+        // Onion skin: where the feature was at its previous key (red) and will be at its next (green).
+        const { prev, next } = neighbourKeys(f, view.time);
+        if (prev) this.drawFeature(f, prev.points, s, false, true, '#ff5a5a');
+        if (next) this.drawFeature(f, next.points, s, false, true, '#5aff7a');
+      }
       const pts = shownPoints(f, view.mode, view.time);
       this.drawFeature(f, pts, s, selected, false);
       if (posed && f.keys?.some((k) => Math.abs(k.t - view.time) < 1e-4)) {
@@ -118,9 +124,9 @@ export class Overlay {
     ctx.strokeRect(x - r, y - r, 2 * r, 2 * r);
   }
 
-  private drawFeature(f: Feature, pts: Pt[], _s: number, selected: boolean, ghost: boolean): void {
+  private drawFeature(f: Feature, pts: Pt[], _s: number, selected: boolean, ghost: boolean, tint?: string): void {
     const { ctx } = this;
-    const colour = KIND_COLOURS[f.kind];
+    const colour = tint ?? KIND_COLOURS[f.kind];
     ctx.save();
     if (ghost) {
       ctx.globalAlpha = 0.35;

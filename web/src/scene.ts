@@ -6,10 +6,44 @@
 
 export type Pt = [number, number];
 export type Kind = 'point' | 'polyline' | 'spline' | 'region' | 'cut';
-export type Interpolation = 'smooth' | 'linear' | 'hold';
+export type Interpolation = 'smooth' | 'linear' | 'hold' | 'ease-in' | 'ease-out' | 'ease-in-out';
 
 export const KINDS: readonly Kind[] = ['point', 'polyline', 'spline', 'region', 'cut'];
-export const INTERPOLATIONS: readonly Interpolation[] = ['smooth', 'linear', 'hold'];
+export const INTERPOLATIONS: readonly Interpolation[] = ['smooth', 'linear', 'hold', 'ease-in', 'ease-out', 'ease-in-out'];
+
+/**
+ * The fraction of the way from a key to the next at the fraction `u` of the time between
+ * them, for the spans that move along the straight line (the engine's
+ * `Interpolation::progress`); null for smooth and hold.
+ */
+export function easedProgress(mode: Interpolation, u: number): number | null {
+  switch (mode) {
+    case 'linear':
+      return u;
+    case 'ease-in':
+      return u * u;
+    case 'ease-out':
+      return 1 - (1 - u) * (1 - u);
+    case 'ease-in-out':
+      return u * u * (3 - 2 * u);
+    default:
+      return null;
+  }
+}
+
+/** A straight span's speed at its start and end as multiples of its average speed. */
+function endSpeeds(mode: Interpolation): [number, number] {
+  switch (mode) {
+    case 'linear':
+      return [1, 1];
+    case 'ease-in':
+      return [0, 2];
+    case 'ease-out':
+      return [2, 0];
+    default:
+      return [0, 0];
+  }
+}
 export const METHODS = ['tps', 'tps-exact', 'triangulation', 'beier-neely'] as const;
 export type Method = (typeof METHODS)[number];
 
@@ -64,6 +98,8 @@ export interface Layer {
   alpha?: string;
   continuity?: string;
   offset?: Pt;
+  /** `hold` keeps the layer's outer edge still (default `free`). */
+  border?: 'free' | 'hold';
   /** The features that drive this layer (default: all). */
   features?: string[];
   solver?: Solver;
@@ -152,10 +188,12 @@ const lerp = (a: Pt, b: Pt, s: number): Pt => [a[0] + (b[0] - a[0]) * s, a[1] + 
  * The control points of a feature at time `t`, exactly as the engine's `anim::points_at`
  * computes them (a test holds the two together): rest without keys; the first key at or
  * before its time, the last at or after its time; between two keys the interpolation of
- * the earlier key — `hold`, `linear`, or `smooth`: a cubic Hermite span whose velocity at
- * each end key comes from the span on that key's other side (zero beside a hold or at the
- * first/last key, that span's slope beside a linear one, and beside a smooth one the
- * derivative of the parabola through the key and its two neighbours).
+ * the earlier key — `hold`; `linear`, `ease-in`, `ease-out`, `ease-in-out` along the
+ * straight line with the timing of `easedProgress`; or `smooth`: a cubic Hermite span
+ * whose velocity at each end key comes from the span on that key's other side (zero beside
+ * a hold or at the first/last key, that span's own velocity there beside a straight one,
+ * and beside a smooth one the derivative of the parabola through the key and its two
+ * neighbours).
  */
 export function pointsAt(f: Feature, t: number): Pt[] {
   const keys = sortedKeys(f);
@@ -175,7 +213,8 @@ export function pointsAt(f: Feature, t: number): Pt[] {
   const n = Math.min(a.points.length, b.points.length);
   const mode = a.interpolation ?? 'smooth';
   if (mode === 'hold') return copy(a.points);
-  if (mode === 'linear') return a.points.slice(0, n).map((p, j) => lerp(p, b.points[j], u));
+  const w = easedProgress(mode, u);
+  if (w !== null) return a.points.slice(0, n).map((p, j) => lerp(p, b.points[j], w));
   const u2 = u * u;
   const u3 = u2 * u;
   const h00 = 2 * u3 - 3 * u2 + 1;
@@ -208,7 +247,12 @@ function velocity(keys: Key[], k: number, j: number, side: 'before' | 'after'): 
   if (s < 0) return [0, 0];
   const mode = keys[s].interpolation ?? 'smooth';
   if (mode === 'hold') return [0, 0];
-  if (mode === 'linear') return slope(keys[s], keys[s + 1], j);
+  if (mode !== 'smooth') {
+    const [start, end] = endSpeeds(mode);
+    const factor = side === 'before' ? end : start;
+    const v = slope(keys[s], keys[s + 1], j);
+    return [factor * v[0], factor * v[1]];
+  }
   const prev = keys[k - 1];
   const key = keys[k];
   const next = keys[k + 1];

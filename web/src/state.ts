@@ -31,7 +31,25 @@ export interface Selection {
   point: number | null;
 }
 
+/** A key of a feature, by time. */
+export interface KeyRef {
+  feature: string;
+  t: number;
+}
+
+/** Copied keys: each at `dt` seconds after the earliest one copied. */
+export interface ClipKey {
+  feature: string;
+  dt: number;
+  points: Pt[];
+  interpolation?: Interpolation;
+}
+
 export interface View {
+  /** The keys picked on the timeline (Shift-click adds and removes). */
+  keySelection: KeyRef[];
+  /** Show the selected feature's drawing at its previous and next keys (pose mode). */
+  onion: boolean;
   mode: Mode;
   tool: Tool;
   time: number;
@@ -48,6 +66,8 @@ export interface View {
 
 export function initialView(): View {
   return {
+    keySelection: [],
+    onion: true,
     mode: 'rest',
     tool: 'select',
     time: 0,
@@ -171,11 +191,112 @@ export function moveKey(doc: SceneDoc, id: string, from: number, to: number): Sc
     const i = keyIndexAt(f, from);
     if (i < 0) throw new Error(`${id} has no key at ${from.toFixed(3)} s.`);
     const t = Math.max(0, to);
+    if (t > doc.duration + KEY_EPS) {
+      throw new Error(`${t.toFixed(3)} s is past the end of the animation (${doc.duration} s); lengthen the duration first.`);
+    }
     const j = keyIndexAt(f, t);
     if (j >= 0 && j !== i) throw new Error(`${id} already has a key at ${t.toFixed(3)} s.`);
     const keys = (f.keys ?? []).map((k, n) => (n === i ? { ...k, t } : k));
     return withKeys(f, keys);
   });
+}
+
+/** Whether `refs` holds the key `ref`. */
+export function hasKeyRef(refs: KeyRef[], ref: KeyRef): boolean {
+  return refs.some((r) => r.feature === ref.feature && Math.abs(r.t - ref.t) < KEY_EPS);
+}
+
+/** `refs` with `ref` added, or removed when it is there (Shift-click). */
+export function toggleKeyRef(refs: KeyRef[], ref: KeyRef): KeyRef[] {
+  return hasKeyRef(refs, ref) ? refs.filter((r) => !(r.feature === ref.feature && Math.abs(r.t - ref.t) < KEY_EPS)) : [...refs, ref];
+}
+
+/**
+ * Moves every key of `refs` by `dt` seconds together: all or none. Refused (an error that
+ * says why) when a key would leave the animation (`0 … duration`) or land on a key that
+ * is not moving.
+ */
+export function moveKeys(doc: SceneDoc, refs: KeyRef[], dt: number): SceneDoc {
+  if (dt === 0 || refs.length === 0) return doc;
+  let out = doc;
+  const byFeature = new Map<string, number[]>();
+  for (const r of refs) byFeature.set(r.feature, [...(byFeature.get(r.feature) ?? []), r.t]);
+  for (const [id, times] of byFeature) {
+    out = mapFeature(out, id, (f) => {
+      const moving = new Set<number>();
+      for (const t of times) {
+        const i = keyIndexAt(f, t);
+        if (i < 0) throw new Error(`${id} has no key at ${t.toFixed(3)} s.`);
+        moving.add(i);
+      }
+      const keys = (f.keys ?? []).map((k, i) => {
+        if (!moving.has(i)) return k;
+        const t = k.t + dt;
+        if (t < -KEY_EPS || t > doc.duration + KEY_EPS) {
+          throw new Error(`The keys would leave the animation (0 – ${doc.duration} s); ${id}'s key would be at ${t.toFixed(3)} s.`);
+        }
+        return { ...k, t: Math.min(doc.duration, Math.max(0, t)) };
+      });
+      keys.forEach((k, i) => {
+        if (!moving.has(i)) return;
+        if (keys.some((o, j) => j !== i && Math.abs(o.t - k.t) < KEY_EPS)) throw new Error(`${id} already has a key at ${k.t.toFixed(3)} s.`);
+      });
+      return withKeys(f, keys);
+    });
+  }
+  return out;
+}
+
+/** The keys of `refs`, each timed from the earliest of them (for pasting elsewhere). */
+export function copyKeys(doc: SceneDoc, refs: KeyRef[]): ClipKey[] {
+  const found: { feature: string; key: Key }[] = [];
+  for (const r of refs) {
+    const f = getFeature(doc, r.feature);
+    const i = f ? keyIndexAt(f, r.t) : -1;
+    if (f && i >= 0) found.push({ feature: f.id, key: f.keys![i] });
+  }
+  if (found.length === 0) return [];
+  const t0 = Math.min(...found.map((k) => k.key.t));
+  return found
+    .map(({ feature, key }) => {
+      const clip: ClipKey = { feature, dt: key.t - t0, points: key.points.map((p) => [p[0], p[1]] as Pt) };
+      if (key.interpolation) clip.interpolation = key.interpolation;
+      return clip;
+    })
+    .sort((a, b) => a.dt - b.dt);
+}
+
+/**
+ * Pastes copied keys with the earliest at time `t` (replacing keys already at those
+ * times). Refused when a feature is gone or has another number of points, or when a key
+ * would land past the end of the animation. Returns the document and the pasted keys.
+ */
+export function pasteKeys(doc: SceneDoc, clip: ClipKey[], t: number): { doc: SceneDoc; pasted: KeyRef[] } {
+  let out = doc;
+  const pasted: KeyRef[] = [];
+  for (const c of clip) {
+    const at = t + c.dt;
+    if (at > doc.duration + KEY_EPS) throw new Error(`A pasted key of ${c.feature} would be at ${at.toFixed(3)} s, past the end (${doc.duration} s).`);
+    const f = getFeature(out, c.feature);
+    if (!f) throw new Error(`There is no feature ${c.feature} to paste its keys on.`);
+    if (f.rest.length !== c.points.length) throw new Error(`${c.feature} has ${f.rest.length} points; the copied key has ${c.points.length}.`);
+    out = setKey(out, c.feature, at, c.points);
+    out = setInterpolation(out, c.feature, at, c.interpolation ?? 'smooth');
+    pasted.push({ feature: c.feature, t: at });
+  }
+  return { doc: out, pasted };
+}
+
+/** The times of a feature's keys just before and just after `t` (not at it), for onion skins. */
+export function neighbourKeys(f: Feature, t: number): { prev: Key | null; next: Key | null } {
+  const keys = sortedKeys(f);
+  let prev: Key | null = null;
+  let next: Key | null = null;
+  for (const k of keys) {
+    if (k.t < t - KEY_EPS) prev = k;
+    else if (k.t > t + KEY_EPS && !next) next = k;
+  }
+  return { prev, next };
 }
 
 /** Sets how the feature moves from its key at `t` to the next one. */
@@ -282,6 +403,8 @@ export class Store {
   private listeners: Listener[] = [];
   /** Bumps on every document change (views compare it to know what to redo). */
   revision = 0;
+  /** The revision last saved to a file (or opened from one). */
+  private savedRevision = 0;
 
   constructor(doc: SceneDoc, view: View = initialView()) {
     this.doc = doc;
@@ -328,8 +451,28 @@ export class Store {
     this.txBase = null;
     if (base !== null && base !== this.doc) {
       this.undoStack.push(base);
+      if (this.undoStack.length > 500) this.undoStack.shift();
       this.redoStack = [];
+      // the gesture is now one undo step: the views show Undo as available
+      this.emit(false);
     }
+  }
+
+  /** Whether the document has changed since it was last opened or saved. */
+  get unsaved(): boolean {
+    return this.revision !== this.savedRevision;
+  }
+
+  /** The document as it is now has been written to a file. */
+  markSaved(): void {
+    this.savedRevision = this.revision;
+    this.emit(false);
+  }
+
+  /** The document as it is now is not in any file (a restored autosave). */
+  markUnsaved(): void {
+    this.savedRevision = -1;
+    this.emit(false);
   }
 
   /** Abandons a gesture, restoring the document from before it. */
@@ -376,14 +519,19 @@ export class Store {
     this.emit(true);
   }
 
-  /** Replaces the whole document (opening a file): a fresh history. */
+  /**
+   * Replaces the whole document (opening a file). Undo brings back the document that was
+   * open before; the new one counts as saved.
+   */
   load(doc: SceneDoc): void {
-    this.doc = doc;
-    this.undoStack = [];
+    this.commit();
+    this.undoStack.push(this.doc);
+    if (this.undoStack.length > 500) this.undoStack.shift();
     this.redoStack = [];
-    this.txBase = null;
+    this.doc = doc;
     this.view = { ...initialView(), overlays: this.view.overlays };
     this.revision++;
+    this.savedRevision = this.revision;
     this.emit(true);
   }
 

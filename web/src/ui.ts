@@ -6,6 +6,7 @@ import { EngineError } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
 import { decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
 import { Overlay } from './overlay';
+import { canEncodeWebm, encodeWebm } from './webm';
 import { PROBE_DWELL_MS } from './probe';
 import {
   INTERPOLATIONS,
@@ -31,6 +32,13 @@ import {
   getFeature,
   moveFeature,
   moveKey,
+  moveKeys,
+  copyKeys,
+  pasteKeys,
+  hasKeyRef,
+  toggleKeyRef,
+  type ClipKey,
+  type KeyRef,
   movePoint,
   reorderLayer,
   setInterpolation,
@@ -62,7 +70,13 @@ export const SHORTCUTS: [string, string][] = [
   ['Drag', 'Move a control point, or a whole feature by its line'],
   ['Delete / Backspace', 'Delete the selected point (rest mode) or feature'],
   ['K / Shift+K', 'Add / delete the selected feature’s key at this time'],
-  ['Space', 'Play / pause'],
+  ['Space', 'Play / pause (hold and drag: pan)'],
+  ['Wheel', 'Zoom about the pointer'],
+  ['Middle-drag', 'Pan'],
+  ['0 / 1', 'Fit the picture / 100 %'],
+  ['Shift-click a key', 'Pick several keys (drag one: they move together)'],
+  ['Ctrl+C / Ctrl+V', 'Copy the picked keys / paste them at the current time'],
+  ['O', 'Onion skin: the selected feature at its previous and next keys'],
   ['← / →', 'Previous / next frame'],
   ['Shift+← / Shift+→', 'Previous / next key'],
   ['Home / End', 'First / last frame'],
@@ -117,11 +131,15 @@ export class Ui {
     this.build(root);
     app.onMessage = (t, k) => this.message(t, k);
     app.onFrame = () => this.drawOverlay();
-    app.onSolved = () => this.updateStatus();
+    app.onSolved = () => {
+      this.updateStatus();
+      this.renderReady();
+    };
     app.store.subscribe((_, docChanged) => this.refresh(docChanged));
     new ResizeObserver(() => this.layout()).observe(this.stage);
     window.addEventListener('keydown', (e) => this.onKey(e));
     this.bindPointer();
+    this.bindZoomPan();
     this.bindDrop();
     void listExamples().then((list) => {
       this.examples = list;
@@ -194,6 +212,11 @@ export class Ui {
         (this.els.redo = h('button#redo', { title: 'Redo (Ctrl+Shift+Z)', onclick: () => this.store.redo() }, '↷ Redo')),
         h('button#help-button', { title: 'Keyboard shortcuts (?)', onclick: () => this.toggleHelp() }, '?'),
       ),
+      h('div.group.zoom', {},
+        h('button#zoom-fit', { title: 'Fit the picture in the window (0)', onclick: () => this.zoomFit() }, 'Fit'),
+        h('button#zoom-100', { title: 'One picture pixel per screen pixel (1)', onclick: () => this.zoom100() }, '100 %'),
+        (this.els.zoomText = h('span#zoom.time', { title: 'Wheel: zoom about the pointer; Space-drag or middle-drag: pan' }, '')),
+      ),
       fileInput, layerInput, matteInput,
     );
 
@@ -213,7 +236,7 @@ export class Ui {
     const timeline = h('footer.timeline', {},
       h('div.transport', {},
         (this.els.play = h('button#play', { title: 'Play / pause (Space)', onclick: () => this.togglePlay() }, '▶')),
-        (this.els.scrub = h('input#scrub', { type: 'range', min: 0, step: 'any', oninput: (e: Event) => this.setTime(Number((e.target as HTMLInputElement).value), true) })),
+        (this.els.scrub = h('input#scrub', { type: 'range', min: 0, step: 'any', oninput: (e: Event) => this.setTime(this.snapTime(Number((e.target as HTMLInputElement).value)), true) })),
         (this.els.timeText = h('span#time.time')),
         h('label', {}, 'fps ', (this.els.fps = h('input#fps', { type: 'number', min: 1, max: 120, step: 1, onchange: (e: Event) => this.setFps(Number((e.target as HTMLInputElement).value)) }))),
         h('label', {}, 'duration ', (this.els.duration = h('input#duration', { type: 'number', min: 0.05, step: 0.05, onchange: (e: Event) => this.setDuration(Number((e.target as HTMLInputElement).value)) })), ' s'),
@@ -256,6 +279,7 @@ export class Ui {
     this.els.play.textContent = view.playing ? '❚❚' : '▶';
     const scrub = this.els.scrub as HTMLInputElement;
     scrub.max = String(doc.duration);
+    scrub.step = String(1 / doc.fps);
     scrub.value = String(view.time);
     const n = frameCount(doc);
     const frame = Math.min(n - 1, Math.round(view.time * doc.fps));
@@ -319,6 +343,10 @@ export class Ui {
       h('label.row', {}, 'Continuity ', contSel),
       h('p.hint', {}, 'Cut features tear the surface too; show the matte overlay (T) to see the holes.'),
       h('div.row', {}, 'Driven by'), feats,
+      h('label.row', { title: 'Keep the layer’s outer edge still, so the picture never pulls away from the frame (the scene’s "border": "hold")' },
+        h('input#border-hold', { type: 'checkbox', checked: layer.border === 'hold',
+          onchange: (e: Event) => this.tryEdit((d) => updateLayer(d, i, { border: (e.target as HTMLInputElement).checked ? 'hold' : undefined })) }),
+        'Hold the border'),
     );
   }
 
@@ -362,14 +390,18 @@ export class Ui {
     const every = Math.max(1, Math.round(n / 24));
     for (let i = 0; i < n; i += every) ruler.append(h('span.tick', { style: { left: pct(i / doc.fps) } }, i % (every * 4) === 0 ? String(i + 1) : ''));
     ruler.append(h('span.playhead', { style: { left: pct(view.time) } }));
+    this.els.ready = h('div#ready.ready', { title: 'Frames solved and ready to play (solved ahead while playing)' });
+    ruler.append(this.els.ready);
+    this.renderReady();
     this.els.tracks.append(h('div.track-row.ruler-row', {}, h('span.track-name', { title: 'Frame numbers; click or drag to set the time' }, 'frames'), ruler));
     for (const f of doc.features) {
       if (f.kind === 'cut') continue;
       const track = h('div.track', { onpointerdown: (e: PointerEvent) => this.scrubTrack(e) });
       for (const k of sortedKeys(f)) {
+        const picked = hasKeyRef(view.keySelection, { feature: f.id, t: k.t });
         const diamond = h('span.key', {
-          class: `key ${f.id === view.selection.feature ? 'selected' : ''}`,
-          title: `${f.id} at ${k.t.toFixed(3)} s (${k.interpolation ?? 'smooth'}); drag to move`,
+          class: `key ${f.id === view.selection.feature ? 'selected' : ''} ${picked ? 'picked' : ''}`,
+          title: `${f.id} at ${k.t.toFixed(3)} s (${k.interpolation ?? 'smooth'}); drag to move (Alt: off the frames), Shift-click to pick several, Ctrl+C / Ctrl+V to copy and paste`,
           style: { left: pct(k.t) },
           dataset: { feature: f.id, t: String(k.t) },
           onpointerdown: (e: PointerEvent) => this.dragKey(e, f.id, k.t, track),
@@ -382,12 +414,32 @@ export class Ui {
     }
   }
 
+  /** The ready bar: a mark under every frame whose fields are solved (playback needs no solve there). */
+  renderReady(): void {
+    const bar = this.els.ready;
+    if (!bar) return;
+    const ready = this.app.readyFrames();
+    const key = ready.map((r) => (r ? '1' : '0')).join('');
+    if (bar.dataset.frames === key) return;
+    bar.dataset.frames = key;
+    bar.dataset.count = String(ready.filter(Boolean).length);
+    clear(bar);
+    const n = ready.length;
+    for (let i = 0; i < n; i++) {
+      if (!ready[i]) continue;
+      let j = i;
+      while (j + 1 < n && ready[j + 1]) j++;
+      bar.append(h('span', { style: { left: `${(100 * i) / n}%`, width: `${(100 * (j - i + 1)) / n}%` } }));
+      i = j;
+    }
+  }
+
   private scrubTrack(e: PointerEvent): void {
-    const track = e.currentTarget as HTMLElement;
+    // Measured once: the row is redrawn (a new element) at every change of time.
+    const r = (e.currentTarget as HTMLElement).getBoundingClientRect();
     const move = (ev: PointerEvent) => {
-      const r = track.getBoundingClientRect();
       const t = Math.max(0, Math.min(1, (ev.clientX - r.left) / r.width)) * this.store.doc.duration;
-      this.setTime(this.snapTime(t), true);
+      this.setTime(ev.altKey ? t : this.snapTime(t), true);
     };
     move(e);
     const up = () => {
@@ -401,17 +453,33 @@ export class Ui {
 
   private dragKey(e: PointerEvent, id: string, t0: number, track: HTMLElement): void {
     e.stopPropagation();
-    this.store.setView({ selection: { feature: id, point: null } });
+    // Measured first: selecting and setting the time below redraw the row (a new element).
+    const r = track.getBoundingClientRect();
+    const ref = { feature: id, t: t0 };
+    if (e.shiftKey) {
+      this.store.setView({ keySelection: toggleKeyRef(this.store.view.keySelection, ref) });
+      return;
+    }
+    // A picked key drags every picked key with it; another key is picked alone.
+    const group = hasKeyRef(this.store.view.keySelection, ref) ? this.store.view.keySelection : [ref];
+    this.store.setView({ selection: { feature: id, point: null }, keySelection: group });
     this.setTime(t0);
+    if (group.length > 1) return this.dragKeys(e, group, t0, r);
     let cur = t0;
     this.store.begin();
+    // The key follows the pointer from where it was pressed, measured against the row as
+    // it was then (the row is redrawn, a new element, at every change); frames snap
+    // unless Alt is held, and the key stays within the animation.
+    const x0 = e.clientX;
     const move = (ev: PointerEvent) => {
-      const r = track.getBoundingClientRect();
-      const t = this.snapTime(Math.max(0, Math.min(1, (ev.clientX - r.left) / r.width)) * this.store.doc.duration);
+      const { duration } = this.store.doc;
+      const free = Math.max(0, Math.min(duration, t0 + ((ev.clientX - x0) / Math.max(1, r.width)) * duration));
+      const t = ev.altKey ? free : Math.min(this.snapTime(free), duration);
       if (Math.abs(t - cur) < KEY_EPS) return;
       try {
         this.store.edit((d) => moveKey(d, id, cur, t));
         cur = t;
+        this.store.setView({ keySelection: [{ feature: id, t }] });
         this.setTime(t);
       } catch {
         // Another key is there: stay put.
@@ -424,6 +492,61 @@ export class Ui {
     };
     window.addEventListener('pointermove', move);
     window.addEventListener('pointerup', up);
+  }
+
+  /** Drags several picked keys together by the same whole number of frames (Alt: any time). */
+  private dragKeys(e: PointerEvent, group: KeyRef[], t0: number, r: DOMRect): void {
+    const base = this.store.doc;
+    const x0 = e.clientX;
+    let dt = 0;
+    this.store.begin();
+    const move = (ev: PointerEvent) => {
+      const { duration } = this.store.doc;
+      const raw = ((ev.clientX - x0) / Math.max(1, r.width)) * duration;
+      const next = ev.altKey ? raw : this.snapTime(t0 + raw) - t0;
+      if (Math.abs(next - dt) < KEY_EPS) return;
+      try {
+        this.store.apply(moveKeys(base, group, next));
+        dt = next;
+        this.store.setView({ keySelection: group.map((k) => ({ feature: k.feature, t: k.t + dt })) });
+        this.setTime(t0 + dt);
+      } catch {
+        // A key would leave the animation or land on another: stay put.
+      }
+    };
+    const up = () => {
+      window.removeEventListener('pointermove', move);
+      window.removeEventListener('pointerup', up);
+      this.store.commit();
+    };
+    window.addEventListener('pointermove', move);
+    window.addEventListener('pointerup', up);
+  }
+
+  /** Copied keys (Ctrl+C), pasted at the current time by Ctrl+V. */
+  clipboard: ClipKey[] = [];
+
+  /** Copies the picked keys, or the selected feature's key at the current time. */
+  copyKeys(): void {
+    const { view, doc } = this.store;
+    let refs = view.keySelection;
+    if (refs.length === 0 && view.selection.feature) refs = [{ feature: view.selection.feature, t: view.time }];
+    const clip = copyKeys(doc, refs);
+    if (clip.length === 0) return this.message('Pick keys on the timeline (Shift-click for several) to copy them.', 'error');
+    this.clipboard = clip;
+    this.message(`Copied ${clip.length} key${clip.length > 1 ? 's' : ''}.`, 'info');
+  }
+
+  /** Pastes the copied keys, the earliest at the current time. */
+  pasteKeys(): void {
+    if (this.clipboard.length === 0) return this.message('Nothing copied: pick keys and press Ctrl+C first.', 'error');
+    try {
+      const { doc, pasted } = pasteKeys(this.store.doc, this.clipboard, this.store.view.time);
+      this.store.apply(doc);
+      this.store.setView({ keySelection: pasted });
+    } catch (err) {
+      this.message((err as Error).message, 'error');
+    }
   }
 
   private snapTime(t: number): number {
@@ -465,19 +588,112 @@ export class Ui {
 
   // -- Stage -------------------------------------------------------------------------------
 
-  layout(): void {
+  /** The view's zoom (CSS px per scene px), or null to fit the picture in the stage. */
+  zoom: number | null = null;
+  /** How far the picture is moved from the stage's centre (CSS px). */
+  pan: Pt = [0, 0];
+
+  /** The zoom that fits the whole picture in the stage. */
+  fitZoom(): number {
     const { width, height } = this.store.doc;
     const r = this.stage.getBoundingClientRect();
     const pad = 16;
-    const z = Math.max(0.05, Math.min((r.width - pad) / width, (r.height - pad) / height, 4));
+    return Math.max(0.02, Math.min((r.width - pad) / width, (r.height - pad) / height, 4));
+  }
+
+  /** The zoom in use (CSS px per scene px). */
+  get scale(): number {
+    return this.zoom ?? this.fitZoom();
+  }
+
+  layout(): void {
+    const { width, height } = this.store.doc;
+    const z = this.scale;
     const frame = this.stage.firstElementChild as HTMLElement;
     frame.style.width = `${width * z}px`;
     frame.style.height = `${height * z}px`;
+    frame.style.flex = 'none';
+    frame.style.transform = `translate(${this.pan[0]}px, ${this.pan[1]}px)`;
+    // The overlay is drawn at screen resolution, but never larger than a canvas may be.
     const dpr = window.devicePixelRatio || 1;
-    this.overlayCanvas.width = Math.round(width * z * dpr);
-    this.overlayCanvas.height = Math.round(height * z * dpr);
+    const px = Math.min(width * z * dpr, 8192) / (width * z * dpr);
+    const dens = Math.min(px, Math.min(height * z * dpr, 8192) / (height * z * dpr));
+    this.overlayCanvas.width = Math.max(1, Math.round(width * z * dpr * dens));
+    this.overlayCanvas.height = Math.max(1, Math.round(height * z * dpr * dens));
+    if (this.els.zoomText) this.els.zoomText.textContent = `${Math.round(z * 100)} %${this.zoom === null ? ' (fit)' : ''}`;
     this.drawOverlay();
   }
+
+  /** Zooms to `z` keeping the scene point under client point (cx, cy) where it is. */
+  zoomAbout(z: number, cx: number, cy: number): void {
+    const r = this.overlayCanvas.getBoundingClientRect();
+    const { width, height } = this.store.doc;
+    // the scene point under the pointer, unsnapped
+    const p: Pt = [((cx - r.left) / r.width) * width, ((cy - r.top) / r.height) * height];
+    this.zoom = Math.max(0.02, Math.min(32, z));
+    this.layout();
+    const r2 = this.overlayCanvas.getBoundingClientRect();
+    const nx = r2.left + (p[0] / width) * r2.width;
+    const ny = r2.top + (p[1] / height) * r2.height;
+    this.pan = [this.pan[0] + cx - nx, this.pan[1] + cy - ny];
+    this.layout();
+  }
+
+  /** Fits the whole picture in the stage. */
+  zoomFit(): void {
+    this.zoom = null;
+    this.pan = [0, 0];
+    this.layout();
+  }
+
+  /** One scene pixel per screen pixel, about the stage's centre. */
+  zoom100(): void {
+    const r = this.stage.getBoundingClientRect();
+    this.zoomAbout(1 / (window.devicePixelRatio || 1), r.left + r.width / 2, r.top + r.height / 2);
+  }
+
+  /** Wheel (and pinch, which arrives as a wheel with Ctrl) zooms about the pointer; Space-drag or middle-drag pans. */
+  private bindZoomPan(): void {
+    this.stage.addEventListener('wheel', (e) => {
+      e.preventDefault();
+      const unit = e.deltaMode === 1 ? 16 : e.deltaMode === 2 ? 400 : 1;
+      this.zoomAbout(this.scale * Math.exp(-e.deltaY * unit * (e.ctrlKey ? 0.01 : 0.0015)), e.clientX, e.clientY);
+    }, { passive: false });
+    let space = false;
+    window.addEventListener('keydown', (e) => {
+      if (e.code === 'Space' && !(e.target instanceof HTMLInputElement && e.target.type !== 'checkbox' && e.target.type !== 'range')) space = true;
+    });
+    window.addEventListener('keyup', (e) => {
+      if (e.code !== 'Space') return;
+      space = false;
+      if (this.spaceDown && !this.spacePanned) this.togglePlay();
+      this.spaceDown = false;
+      this.spacePanned = false;
+    });
+    this.stage.addEventListener('pointerdown', (e) => {
+      if (!(e.button === 1 || (e.button === 0 && space))) return;
+      e.preventDefault();
+      e.stopPropagation();
+      this.spacePanned = true;
+      const start: Pt = [e.clientX, e.clientY];
+      const base: Pt = [this.pan[0], this.pan[1]];
+      const move = (ev: PointerEvent) => {
+        this.pan = [base[0] + ev.clientX - start[0], base[1] + ev.clientY - start[1]];
+        this.layout();
+      };
+      const up = () => {
+        window.removeEventListener('pointermove', move);
+        window.removeEventListener('pointerup', up);
+      };
+      window.addEventListener('pointermove', move);
+      window.addEventListener('pointerup', up);
+    }, { capture: true });
+  }
+
+  /** Set when Space was used to pan (so its key-up does not also play). */
+  private spacePanned = false;
+  /** Space went down as a shortcut (it plays when it comes up). */
+  private spaceDown = false;
 
   drawOverlay(): void {
     const doc = this.store.doc;
@@ -526,6 +742,11 @@ export class Ui {
       for (let i = 0; i + 1 < line.length; i++) {
         if (segDist(p, line[i], line[i + 1]) < lineTol) return { id: f.id, point: null };
       }
+    }
+    // A region is also picked up by its fill: the whole region moves.
+    for (const f of features) {
+      if (f.kind !== 'region') continue;
+      if (insidePolygon(p, this.overlay.curve(f, shownPoints(f, view.mode, view.time)))) return { id: f.id, point: null };
     }
     return null;
   }
@@ -627,6 +848,9 @@ export class Ui {
       this.hovered = null;
       this.store.commit();
       this.app.dragging = false;
+      // Draft frames after this (scrubbing, playing) were not asked for by a pointer move
+      // of a drag: they must not count as drag latency.
+      this.app.lastPointerAt = 0;
       this.app.settle();
     };
     c.addEventListener('pointerup', end);
@@ -818,6 +1042,8 @@ export class Ui {
     if (ctrl && k === 'y') return handled(), this.store.redo();
     if (ctrl && k === 's') return handled(), void this.save();
     if (ctrl && k === 'o') return handled(), this.els.fileInput.click();
+    if (ctrl && k === 'c') return handled(), this.copyKeys();
+    if (ctrl && k === 'v') return handled(), this.pasteKeys();
     if (ctrl || e.altKey) return;
     const tool = TOOLS.find((t) => t.key === k.toLowerCase());
     if (tool && !e.shiftKey) return handled(), this.setTool(tool.tool);
@@ -841,7 +1067,10 @@ export class Ui {
         return;
       case 'k': return handled(), this.keyHere();
       case 'K': return handled(), this.unkeyHere();
-      case ' ': return handled(), this.togglePlay();
+      // Space plays on release, unless it was held to pan (Space-drag).
+      case ' ': handled(); this.spaceDown = true; return;
+      case '0': return handled(), this.zoomFit();
+      case '1': return handled(), this.zoom100();
       case 'ArrowLeft': return handled(), e.shiftKey ? this.stepKey(-1) : this.setTime(this.store.view.time - 1 / this.store.doc.fps);
       case 'ArrowRight': return handled(), e.shiftKey ? this.stepKey(1) : this.setTime(this.store.view.time + 1 / this.store.doc.fps);
       case 'Home': return handled(), this.setTime(0);
@@ -853,6 +1082,7 @@ export class Ui {
         return this.setOverlay({ heat: order[(order.indexOf(this.store.view.overlays.heat) + 1) % 3] });
       }
       case 'm': return handled(), this.setOverlay({ mesh: !this.store.view.overlays.mesh });
+      case 'o': return handled(), this.store.setView({ onion: !this.store.view.onion });
       case 't': return handled(), this.setOverlay({ matte: !this.store.view.overlays.matte });
       case '?': return handled(), this.toggleHelp();
     }
@@ -864,6 +1094,7 @@ export class Ui {
   async openScene(doc: SceneDoc, name: string, validate = true): Promise<void> {
     if (validate) this.throwProblems(doc);
     this.fileName = name;
+    this.app.resetStats();
     this.store.load(doc);
     this.store.setView({ activeLayer: Math.max(0, doc.layers.length - 1) });
     await this.app.idle();
@@ -895,7 +1126,8 @@ export class Ui {
     const problems = this.app.engine.validate(doc);
     if (problems.length) {
       const [first] = problems;
-      const more = problems.length > 1 ? ` (and ${problems.length - 1} more problem${problems.length > 2 ? 's' : ''})` : '';
+      // Every problem, one a line, so that one round of fixes is enough.
+      const more = problems.length > 1 ? `\n${problems.slice(1).map((p) => `${p.path ? `at ${p.path}: ` : ''}${p.message}`).join('\n')}` : '';
       // A browser cannot read files next to the scene: say how to open such a scene.
       const hint = problems.some((p) => /only use data: URIs/.test(p.message))
         ? ' — its images are files next to it: open it with `inkwarp edit SCENE`, which reads them.'
@@ -904,9 +1136,20 @@ export class Ui {
     }
   }
 
+  /**
+   * Whether opening `what` over the scene may go ahead: asks first when the scene has
+   * changes that are not in a file (Undo also brings the scene back after opening).
+   */
+  confirmReplace(what: string): boolean {
+    if (!this.store.unsaved) return true;
+    return window.confirm(`Open ${what} instead of the scene you are editing? Its changes are not saved to a file (Undo, Ctrl+Z, brings it back).`);
+  }
+
   async openFile(file: File, dropped = false): Promise<void> {
     try {
-      if (file.name.toLowerCase().endsWith('.json') || file.type === 'application/json') {
+      const json = file.name.toLowerCase().endsWith('.json') || file.type === 'application/json';
+      if (json && !this.confirmReplace(file.name)) return;
+      if (json) {
         await this.openSceneText(await file.text(), file.name);
         this.saveUrl = null;
         this.message(`Opened ${file.name}.`, 'info');
@@ -918,6 +1161,7 @@ export class Ui {
         this.addLayerImage(uri, file.name);
         return;
       }
+      if (!this.confirmReplace(file.name)) return;
       await this.openScene(this.sceneFromImage(uri, img, file.name), file.name.replace(/\.[^.]*$/, '') + '.json');
       this.saveUrl = null;
       this.message(`Opened ${file.name} (${img.width}×${img.height}). Pick a tool and trace.`, 'info');
@@ -938,7 +1182,8 @@ export class Ui {
 
   sceneFromImage(uri: string, img: Rgba, name: string): SceneDoc {
     const doc = emptyScene(img.width, img.height);
-    doc.layers.push({ name: name.replace(/\.[^.]*$/, '') || 'picture', image: uri });
+    // A photograph's edge stays put: the drawing never pulls the background into view.
+    doc.layers.push({ name: name.replace(/\.[^.]*$/, '') || 'picture', image: uri, border: 'hold' });
     return doc;
   }
 
@@ -988,6 +1233,7 @@ export class Ui {
 
   async openExample(name: string): Promise<void> {
     const entry = this.examples.find((e) => e.name === name) ?? BUILTIN;
+    if (!this.confirmReplace(`the example “${entry.title}”`)) return;
     try {
       let doc: SceneDoc;
       if (entry.url === null) doc = await builtinScene();
@@ -1009,6 +1255,7 @@ export class Ui {
       try {
         const resp = await fetch(this.saveUrl, { method: 'PUT', body: text, headers: { 'Content-Type': 'application/json' } });
         if (!resp.ok) throw new Error(await resp.text());
+        this.store.markSaved();
         this.message(`Saved to ${resp.headers.get('X-Inkwarp-Path') ?? this.fileName}.`, 'info');
         return;
       } catch (err) {
@@ -1016,6 +1263,26 @@ export class Ui {
       }
     }
     download(new Blob([text], { type: 'application/json' }), this.fileName);
+    this.store.markSaved();
+  }
+
+  /**
+   * Offers the scene kept from an earlier visit ("Restore the scene you were editing at
+   * 14:32?"); resolves true when the user restores it.
+   */
+  offerRestore(question: string): Promise<boolean> {
+    return new Promise((resolve) => {
+      const close = (answer: boolean) => {
+        box.remove();
+        resolve(answer);
+      };
+      const box = h('div#restore.restore', { role: 'dialog' },
+        h('span', {}, question),
+        h('button#restore-yes', { onclick: () => close(true) }, 'Restore'),
+        h('button#restore-no', { onclick: () => close(false) }, 'Discard'),
+      );
+      document.body.append(box);
+    });
   }
 
   private baseName(): string {
@@ -1030,36 +1297,40 @@ export class Ui {
     download(blob, `${this.baseName()}-${Math.round(this.store.view.time * this.store.doc.fps)}.png`);
   }
 
-  /** Records every frame, each solved at full resolution, as WebM through MediaRecorder. */
-  async exportWebm(): Promise<void> {
-    const canvas = this.glCanvas;
-    if (typeof MediaRecorder === 'undefined' || !canvas.captureStream) return this.message('This browser cannot record video (no MediaRecorder).', 'error');
+  /**
+   * Exports the animation as WebM: every frame solved at full resolution and encoded with
+   * the timestamp `i / fps`, so the video plays at the scene's speed however long each
+   * frame took to solve. Resolves to the file (also downloaded).
+   */
+  async exportWebm(): Promise<Blob | null> {
+    if (!canEncodeWebm()) {
+      this.message('This browser cannot encode video (no WebCodecs VideoEncoder); render with `inkwarp render scene.json -o out.mp4` instead.', 'error');
+      return null;
+    }
     const doc = this.store.doc;
-    const stream = canvas.captureStream(0);
-    const track = stream.getVideoTracks()[0] as MediaStreamTrack & { requestFrame?: () => void };
-    const mime = ['video/webm;codecs=vp9', 'video/webm;codecs=vp8', 'video/webm'].find((m) => MediaRecorder.isTypeSupported(m)) ?? 'video/webm';
-    const rec = new MediaRecorder(stream, { mimeType: mime, videoBitsPerSecond: 8_000_000 });
-    const chunks: Blob[] = [];
-    rec.ondataavailable = (e) => chunks.push(e.data);
-    const done = new Promise<void>((resolve) => (rec.onstop = () => resolve()));
     const wasMode = this.store.view.mode;
     const wasTime = this.store.view.time;
-    this.store.setView({ mode: 'pose' });
-    rec.start();
     const n = frameCount(doc);
-    this.message(`Recording ${n} frames…`, 'info');
-    for (let i = 0; i < n; i++) {
-      this.store.setView({ time: i / doc.fps });
-      await this.app.idle();
-      this.app.renderNow(false);
-      track.requestFrame?.();
-      await new Promise((r) => setTimeout(r, 1000 / doc.fps));
+    this.store.setView({ mode: 'pose', playing: false });
+    this.message(`Exporting ${n} frames…`, 'info');
+    try {
+      const blob = await encodeWebm(doc.width, doc.height, doc.fps, n, async (i) => {
+        this.store.setView({ time: i / doc.fps });
+        await this.app.idle();
+        this.app.renderNow(false);
+        return this.app.gl.readPixels();
+      }, (i) => {
+        if (i % 12 === 11) this.message(`Exported ${i + 1} of ${n} frames…`, 'info');
+      });
+      download(blob, `${this.baseName()}.webm`);
+      this.message(`Exported ${n} frames as WebM (${(n / doc.fps).toFixed(2)} s at ${doc.fps} fps).`, 'info');
+      return blob;
+    } catch (err) {
+      this.message(`The WebM export failed: ${(err as Error).message}`, 'error');
+      return null;
+    } finally {
+      this.store.setView({ mode: wasMode, time: wasTime });
     }
-    rec.stop();
-    await done;
-    this.store.setView({ mode: wasMode, time: wasTime });
-    download(new Blob(chunks, { type: 'video/webm' }), `${this.baseName()}.webm`);
-    this.message(`Exported ${n} frames as WebM.`, 'info');
   }
 
   /** Names of the layers' features (for tests). */
@@ -1067,6 +1338,17 @@ export class Ui {
     const l = this.store.doc.layers[i];
     return l ? layerFeatures(this.store.doc, l).map((f) => f.id) : [];
   }
+}
+
+/** Whether `p` is inside the closed polygon `poly` (even-odd rule). */
+export function insidePolygon(p: Pt, poly: Pt[]): boolean {
+  let inside = false;
+  for (let i = 0, j = poly.length - 1; i < poly.length; j = i++) {
+    const [xi, yi] = poly[i];
+    const [xj, yj] = poly[j];
+    if (yi > p[1] !== yj > p[1] && p[0] < ((xj - xi) * (p[1] - yi)) / (yj - yi) + xi) inside = !inside;
+  }
+  return inside;
 }
 
 function segDist(p: Pt, a: Pt, b: Pt): number {

@@ -97,7 +97,7 @@ describe('the engine in WebAssembly', () => {
 });
 
 describe('keyframe interpolation agrees with the engine', () => {
-  const modes: Interpolation[] = ['smooth', 'linear', 'hold'];
+  const modes: Interpolation[] = ['smooth', 'linear', 'hold', 'ease-in', 'ease-out', 'ease-in-out'];
   // A deterministic pseudo-random sequence.
   let seed = 12345;
   const rand = () => ((seed = (seed * 1103515245 + 12345) % 2 ** 31) / 2 ** 31);
@@ -110,7 +110,7 @@ describe('keyframe interpolation agrees with the engine', () => {
       let t = rand();
       const keys = Array.from({ length: nk }, () => {
         t += 0.1 + rand();
-        return { t, points: rest.map(() => [rand() * 100, rand() * 100] as Pt), interpolation: modes[Math.floor(rand() * 3)] };
+        return { t, points: rest.map(() => [rand() * 100, rand() * 100] as Pt), interpolation: modes[Math.floor(rand() * modes.length)] };
       });
       const f: Feature = { id: 'f', kind: 'polyline', rest, keys };
       for (let s = 0; s < 12; s++) {

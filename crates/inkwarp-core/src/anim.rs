@@ -19,6 +19,12 @@
 //! first and after the last key (a smooth move therefore eases in and out of its ends).
 //! Only a hold, which jumps at its end, breaks continuity. Like every interpolating cubic,
 //! smooth motion may overshoot a key between keys that reverse direction.
+//!
+//! The eased spans move along the straight line between their keys with a set timing,
+//! `u` being the fraction of the span's time gone by: `EaseIn` as `u²` (starts at rest,
+//! arrives at twice the average speed), `EaseOut` as `1 − (1 − u)²` (the reverse) and
+//! `EaseInOut` as `3u² − 2u³` (at rest at both ends). A smooth span next to an eased one
+//! takes the eased span's velocity at the key they share, so motion stays C¹ there too.
 
 use crate::geometry::Point;
 
@@ -32,6 +38,45 @@ pub enum Interpolation {
     Linear,
     /// The key's drawing until the next key's time, then a jump.
     Hold,
+    /// Along the straight line, starting at rest and speeding up (`u²`).
+    EaseIn,
+    /// Along the straight line, slowing down to rest at the next key (`1 − (1 − u)²`).
+    EaseOut,
+    /// Along the straight line, at rest at both keys (`3u² − 2u³`).
+    EaseInOut,
+}
+
+impl Interpolation {
+    /// The fraction of the way from a key to the next one at the fraction `u` of the
+    /// time between them, for the spans that move along the straight line (`None` for
+    /// `Smooth` and `Hold`, which do not).
+    ///
+    /// ```
+    /// use inkwarp_core::anim::Interpolation;
+    /// assert_eq!(Interpolation::EaseIn.progress(0.5), Some(0.25));
+    /// assert_eq!(Interpolation::EaseOut.progress(0.5), Some(0.75));
+    /// assert_eq!(Interpolation::EaseInOut.progress(0.5), Some(0.5));
+    /// ```
+    pub fn progress(self, u: f64) -> Option<f64> {
+        match self {
+            Interpolation::Linear => Some(u),
+            Interpolation::EaseIn => Some(u * u),
+            Interpolation::EaseOut => Some(1.0 - (1.0 - u) * (1.0 - u)),
+            Interpolation::EaseInOut => Some(u * u * (3.0 - 2.0 * u)),
+            Interpolation::Smooth | Interpolation::Hold => None,
+        }
+    }
+
+    /// The span's speed at its start and at its end as multiples of its average speed
+    /// (the derivative of [`Interpolation::progress`] at 0 and at 1).
+    fn end_speeds(self) -> (f64, f64) {
+        match self {
+            Interpolation::Linear => (1.0, 1.0),
+            Interpolation::EaseIn => (0.0, 2.0),
+            Interpolation::EaseOut => (2.0, 0.0),
+            Interpolation::EaseInOut | Interpolation::Hold | Interpolation::Smooth => (0.0, 0.0),
+        }
+    }
 }
 
 /// A feature's control points at one time.
@@ -85,7 +130,13 @@ pub fn points_at(rest: &[Point], keys: &[Key], time_s: f64) -> Vec<Point> {
     let n = a.points.len().min(b.points.len());
     match a.interpolation {
         Interpolation::Hold => a.points.clone(),
-        Interpolation::Linear => (0..n).map(|j| lerp(a.points[j], b.points[j], u)).collect(),
+        Interpolation::Linear
+        | Interpolation::EaseIn
+        | Interpolation::EaseOut
+        | Interpolation::EaseInOut => {
+            let w = a.interpolation.progress(u).unwrap_or(u);
+            (0..n).map(|j| lerp(a.points[j], b.points[j], w)).collect()
+        }
         Interpolation::Smooth => {
             let u2 = u * u;
             let u3 = u2 * u;
@@ -126,7 +177,16 @@ fn velocity(keys: &[Key], k: usize, j: usize, side: Side) -> Point {
     };
     match other {
         None | Some((_, Interpolation::Hold)) => [0.0, 0.0],
-        Some((s, Interpolation::Linear)) => slope(&keys[s], &keys[s + 1], j),
+        Some((s, eased @ (Interpolation::Linear
+        | Interpolation::EaseIn
+        | Interpolation::EaseOut
+        | Interpolation::EaseInOut))) => {
+            // the straight span's own velocity at key k: its end (Before) or start (After)
+            let (start, end) = eased.end_speeds();
+            let factor = if side == Side::Before { end } else { start };
+            let v = slope(&keys[s], &keys[s + 1], j);
+            [factor * v[0], factor * v[1]]
+        }
         Some((_, Interpolation::Smooth)) => {
             // both neighbours exist: the parabola through keys k − 1, k, k + 1
             let (prev, key, next) = (&keys[k - 1], &keys[k], &keys[k + 1]);
@@ -276,11 +336,46 @@ mod tests {
         );
     }
 
+    #[test]
+    fn eased_spans_follow_their_curves() {
+        for (kind, curve) in [
+            (Interpolation::EaseIn, (|u: f64| u * u) as fn(f64) -> f64),
+            (Interpolation::EaseOut, |u: f64| 1.0 - (1.0 - u) * (1.0 - u)),
+            (Interpolation::EaseInOut, |u: f64| 3.0 * u * u - 2.0 * u * u * u),
+        ] {
+            let keys = [key(1.0, 2.0, kind), key(3.0, 10.0, Interpolation::Smooth)];
+            for u in [0.1, 0.25, 0.5, 0.9] {
+                let expect = 2.0 + 8.0 * curve(u);
+                assert!((x_at(&keys, 1.0 + 2.0 * u) - expect).abs() < 1e-12, "{kind:?} at {u}");
+            }
+        }
+    }
+
+    #[test]
+    fn smooth_spans_join_eased_ones_with_their_velocity() {
+        // ease-in ends at twice its average speed (8 / 2 · 2 = 8), ease-out starts at it
+        let keys = [
+            key(0.0, 0.0, Interpolation::EaseIn),
+            key(2.0, 8.0, Interpolation::Smooth),
+            key(3.0, 9.0, Interpolation::EaseOut),
+            key(5.0, 13.0, Interpolation::Smooth),
+        ];
+        for t in [2.0, 3.0] {
+            let (l, r) = (dx_left(&keys, t), dx_right(&keys, t));
+            assert!((l - r).abs() < 1e-4, "velocity {l} then {r} at {t}");
+        }
+        assert!((dx_left(&keys, 2.0) - 8.0).abs() < 1e-4);
+        assert!(dx_right(&keys, 0.0).abs() < 1e-5);
+    }
+
     fn interpolation() -> impl Strategy<Value = Interpolation> {
         prop_oneof![
             Just(Interpolation::Smooth),
             Just(Interpolation::Linear),
-            Just(Interpolation::Hold)
+            Just(Interpolation::Hold),
+            Just(Interpolation::EaseIn),
+            Just(Interpolation::EaseOut),
+            Just(Interpolation::EaseInOut)
         ]
     }
 

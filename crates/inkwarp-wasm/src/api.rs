@@ -262,6 +262,10 @@ struct SolveIn {
     /// Arc-length sampling spacing in pixels (default 1).
     #[serde(default)]
     spacing_px: Option<f64>,
+    /// `"hold"`: the grid's outer edge stays put (a layer's `"border": "hold"`); default
+    /// `"free"`.
+    #[serde(default)]
+    border: inkwarp_core::scene::Border,
 }
 
 /// Every feature's samples (for the grid thin plate, all of them together), prepared once
@@ -412,12 +416,22 @@ pub extern "C" fn iw_solve(
 fn solve_request(domain: &Domain, req: &SolveIn, initial_ptr: *const f32) -> Result<(Field, serde_json::Value), String> {
     let grid = &domain.grid;
     let method = method_of(req)?;
-    let per_feature = samples_of(&req.features, domain, req.spacing_px.unwrap_or(1.0))?;
+    let spacing_px = req.spacing_px.unwrap_or(1.0);
+    let mut per_feature = samples_of(&req.features, domain, spacing_px)?;
+    let held = req.border == inkwarp_core::scene::Border::Hold;
     let sample_count: usize = per_feature.iter().map(Vec::len).sum();
     let (field, report) = match method.interpolant() {
-        None => solve_tps(domain, per_feature, &req.options, initial_ptr)?,
+        None => {
+            if held {
+                per_feature.push(inkwarp_core::geometry::border_samples(grid.width, grid.height, spacing_px));
+            }
+            solve_tps(domain, per_feature, &req.options, initial_ptr)?
+        }
         Some(interpolant) => {
-            let controls = controls_of(&req.features, per_feature, interpolant)?;
+            let mut controls = controls_of(&req.features, per_feature, interpolant)?;
+            if held {
+                inkwarp_core::methods::scene::hold_border(&mut controls, interpolant, grid.width, grid.height, spacing_px);
+            }
             let step = req.options.grid_step;
             let preview = req.options.preview && step > 1;
             let params = req.options.method_params();
@@ -732,9 +746,12 @@ pub extern "C" fn iw_points_at(req_ptr: *const u8, req_len: usize) -> i32 {
             None | Some("smooth") => Interpolation::Smooth,
             Some("linear") => Interpolation::Linear,
             Some("hold") => Interpolation::Hold,
+            Some("ease-in") => Interpolation::EaseIn,
+            Some("ease-out") => Interpolation::EaseOut,
+            Some("ease-in-out") => Interpolation::EaseInOut,
             Some(other) => {
                 return fail(format!(
-                    "Unknown interpolation {other:?}; use smooth, linear or hold."
+                    "Unknown interpolation {other:?}; use smooth, linear, hold, ease-in, ease-out or ease-in-out."
                 ))
             }
         };

@@ -7,6 +7,7 @@
 //! span, the same parameter within it). A region also samples the grid nodes inside its
 //! rest outline, moved by mean value coordinates of the outline's displacements.
 
+mod border;
 mod curve;
 mod region;
 mod sampler;
@@ -19,6 +20,7 @@ use thiserror::Error;
 
 use crate::grid::Grid;
 
+pub use border::border_samples;
 pub use curve::{hermite_basis, Curve, CurveParameter};
 pub use region::{mean_value_interpolate, nodes_inside, MeanValueInterpolator, MvcScratch};
 pub use sampler::FeatureSampler;

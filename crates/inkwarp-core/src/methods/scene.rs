@@ -65,6 +65,27 @@ pub fn feature_controls(
     Ok(controls)
 }
 
+/// Adds a held border (a layer's `"border": "hold"`) to `controls`: for `beier-neely` the
+/// four edges of the `width × height` grid as line pairs that stay put, for the others
+/// [`border_samples`](crate::geometry::border_samples) every `spacing_px`.
+pub fn hold_border(controls: &mut Controls, interpolant: Interpolant, width: usize, height: usize, spacing_px: f64) {
+    if width == 0 || height == 0 {
+        return;
+    }
+    if interpolant == Interpolant::BeierNeely {
+        let (r, b) = ((width - 1) as f64, (height - 1) as f64);
+        let corners = [[0.0, 0.0], [r, 0.0], [r, b], [0.0, b]];
+        for k in 0..4 {
+            let edge = [corners[k], corners[(k + 1) % 4]];
+            if edge[0] != edge[1] {
+                controls.line_pairs.push(super::LinePair { rest: edge, pose: edge });
+            }
+        }
+    } else {
+        controls.samples.extend(crate::geometry::border_samples(width, height, spacing_px));
+    }
+}
+
 /// A layer's field by `interpolant`, from its samples grouped by feature: the scene
 /// engine's dispatch for every method but `tps`, with the layer's settings
 /// ([`method_params`]).
@@ -98,8 +119,8 @@ pub fn posed_drawing(
     time_s: f64,
     spacing_px: f64,
 ) -> Vec<(String, Kind, Vec<crate::geometry::Point>)> {
-    use crate::anim::{points_at, Interpolation, Key};
-    use crate::scene::{Curve, Interpolation as DocInterpolation};
+    use crate::anim::{points_at, Key};
+    use crate::scene::Curve;
     doc.features
         .iter()
         .map(|f| {
@@ -110,11 +131,7 @@ pub fn posed_drawing(
                 .map(|k| Key {
                     time_s: k.t,
                     points: k.points.clone(),
-                    interpolation: match k.interpolation {
-                        DocInterpolation::Smooth => Interpolation::Smooth,
-                        DocInterpolation::Linear => Interpolation::Linear,
-                        DocInterpolation::Hold => Interpolation::Hold,
-                    },
+                    interpolation: k.interpolation.to_anim(),
                 })
                 .collect();
             let pose = if kind == Kind::Cut { f.rest.clone() } else { points_at(&f.rest, &keys, time_s) };

@@ -266,6 +266,11 @@ pub struct LayerDoc {
     #[serde(default = "default_true", skip_serializing_if = "is_true")]
     #[schemars(extend("default" = true))]
     pub visible: bool,
+    /// `free` (default): the layer's outer edge moves with the surface; `hold`: it stays
+    /// put, so the picture never pulls away from the frame's edge.
+    #[serde(default, skip_serializing_if = "is_free")]
+    #[schemars(extend("default" = "free"))]
+    pub border: Border,
 }
 
 /// What a feature is.
@@ -375,7 +380,7 @@ pub struct FeatureDoc {
 
 /// How control points move from a key to the next one.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum Interpolation {
     /// Catmull-Rom through the neighbouring keys (smooth in time).
     #[default]
@@ -383,6 +388,40 @@ pub enum Interpolation {
     /// Straight lines at constant speed.
     Linear,
     /// Stay at this key until the next one.
+    Hold,
+    /// Straight lines, starting at rest and speeding up: `u²` of the way at the fraction
+    /// `u` of the time to the next key.
+    EaseIn,
+    /// Straight lines, slowing down to rest at the next key: `1 − (1 − u)²` of the way.
+    EaseOut,
+    /// Straight lines, at rest at both keys: `3u² − 2u³` of the way.
+    EaseInOut,
+}
+
+impl Interpolation {
+    /// The engine's interpolation.
+    pub fn to_anim(self) -> crate::anim::Interpolation {
+        use crate::anim::Interpolation as A;
+        match self {
+            Interpolation::Smooth => A::Smooth,
+            Interpolation::Linear => A::Linear,
+            Interpolation::Hold => A::Hold,
+            Interpolation::EaseIn => A::EaseIn,
+            Interpolation::EaseOut => A::EaseOut,
+            Interpolation::EaseInOut => A::EaseInOut,
+        }
+    }
+}
+
+/// What holds a layer's outer edge.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Border {
+    /// Nothing: the edge moves with the surface like any other part of it.
+    #[default]
+    Free,
+    /// The edge stays where it is: every node on the layer's outer edge is held at zero
+    /// displacement (the paper's "four stationary lines along the edges").
     Hold,
 }
 
@@ -394,8 +433,8 @@ pub struct KeyDoc {
     pub t: f64,
     /// The control points at time `t`: as many as `rest` has, in the same order.
     pub points: Vec<Point>,
-    /// How the points move from this key to the next: `smooth` (default), `linear` or
-    /// `hold`.
+    /// How the points move from this key to the next: `smooth` (default), `linear`,
+    /// `hold`, `ease-in`, `ease-out` or `ease-in-out`.
     #[serde(default, skip_serializing_if = "is_smooth")]
     #[schemars(extend("default" = "smooth"))]
     pub interpolation: Interpolation,
@@ -433,6 +472,9 @@ fn is_false(v: &bool) -> bool {
 }
 fn is_zero_offset(v: &[f64; 2]) -> bool {
     *v == [0.0, 0.0]
+}
+fn is_free(v: &Border) -> bool {
+    *v == Border::Free
 }
 fn is_smooth(v: &Interpolation) -> bool {
     *v == Interpolation::Smooth

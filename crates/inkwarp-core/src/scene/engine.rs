@@ -7,7 +7,7 @@ use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
-use super::doc::{Method, Scheme, SolverDoc, SolverOverrides};
+use super::doc::{Border, Method, Scheme, SolverDoc, SolverOverrides};
 use crate::anim::points_at;
 use crate::geometry::{FeatureSampler, SampleOptions};
 use crate::render::{Canvas, RgbaImage};
@@ -43,13 +43,19 @@ fn compute_field(
     grid: &Grid,
     features: &[FeatureSamples],
     start: Start<'_>,
+    border: Border,
 ) -> Result<LayerSolve, String> {
+    let held = border == Border::Hold;
+    let spacing_px = solver.grid_step as f64;
     match solver.method {
         Method::Tps => {
-            let samples: Vec<Sample> = features
+            let mut samples: Vec<Sample> = features
                 .iter()
                 .flat_map(|f| f.samples.iter().copied())
                 .collect();
+            if held {
+                samples.extend(crate::geometry::border_samples(grid.width, grid.height, spacing_px));
+            }
             match start {
                 Start::History(h) => solve_warm(grid, &samples, &solve_options(solver), h, None),
                 Start::Field(initial) => solve(grid, &samples, &solve_options(solver), initial),
@@ -59,8 +65,14 @@ fn compute_field(
         }
         other => match other.interpolant() {
             Some(interpolant) => {
-                let params = crate::methods::scene::method_params(solver);
-                crate::methods::scene::features_field(scene, grid, features, time_s, interpolant, &params)
+                use crate::methods::scene::{feature_controls, hold_border, method_params};
+                let params = method_params(solver);
+                let mut controls = feature_controls(scene, features, time_s, interpolant)?;
+                if held {
+                    hold_border(&mut controls, interpolant, grid.width, grid.height, spacing_px);
+                }
+                crate::methods::controls_field(interpolant, &controls, grid, &params)
+                    .map_err(|e| e.to_string())
                     .map(|(field, report)| LayerSolve { field, report: None, method_report: Some(report) })
             }
             None => Err(not_available(other)),
@@ -275,7 +287,7 @@ impl Scene {
             return Err(SceneError::one("", not_available(solver.method)));
         }
         let features = self.layer_feature_samples(layer, time_s)?;
-        compute_field(self, time_s, &solver, &layer_ref.grid, &features, start).map_err(|e| {
+        compute_field(self, time_s, &solver, &layer_ref.grid, &features, start, layer_ref.border).map_err(|e| {
             SceneError::one(
                 format!("layers[{layer}]"),
                 format!("at t = {time_s} s: {e}"),

@@ -435,6 +435,8 @@ pub struct Layer {
     pub solver: SolverDoc,
     /// Whether the layer is drawn.
     pub visible: bool,
+    /// Whether the layer's outer edge is held still.
+    pub border: Border,
     /// Per driver (same order as `drivers`): its rest geometry prepared for sampling on
     /// this layer's grid, built on first use.
     pub(crate) samplers: Vec<OnceLock<Result<crate::geometry::FeatureSampler, String>>>,
@@ -574,11 +576,7 @@ impl Scene {
                     .map(|k| crate::anim::Key {
                         time_s: k.t,
                         points: k.points.clone(),
-                        interpolation: match k.interpolation {
-                            Interpolation::Smooth => crate::anim::Interpolation::Smooth,
-                            Interpolation::Linear => crate::anim::Interpolation::Linear,
-                            Interpolation::Hold => crate::anim::Interpolation::Hold,
-                        },
+                        interpolation: k.interpolation.to_anim(),
                     })
                     .collect(),
                 closed: f.closed || f.kind == FeatureKind::Region,
@@ -644,6 +642,7 @@ impl Scene {
                     .as_ref()
                     .map_or_else(|| doc.solver.clone(), |o| o.apply(&doc.solver)),
                 visible: layer.visible,
+                border: layer.border,
             });
         }
 

@@ -1,0 +1,178 @@
+// Never lose work: the scene being edited is kept in the browser (IndexedDB) a moment
+// after every change, with its images inlined, and offered back on the next load.
+//
+// The storage is behind a small interface so the logic is tested without a browser; the
+// page uses IndexedDB, where a scene with photographs (tens of megabytes) fits.
+
+import type { SceneDoc } from './scene';
+
+/** What is kept: the document, what it was called, and when and whether it was saved. */
+export interface Snapshot {
+  doc: SceneDoc;
+  fileName: string;
+  /** Milliseconds since the epoch when the snapshot was taken. */
+  savedAt: number;
+  /** Whether it holds changes that were not saved to a file. */
+  unsaved: boolean;
+}
+
+/** A place that holds one snapshot. */
+export interface SnapshotStore {
+  get(): Promise<Snapshot | null>;
+  put(s: Snapshot): Promise<void>;
+  clear(): Promise<void>;
+}
+
+/** A snapshot store in memory (tests, and browsers without IndexedDB). */
+export class MemoryStore implements SnapshotStore {
+  value: Snapshot | null = null;
+  async get(): Promise<Snapshot | null> {
+    return this.value;
+  }
+  async put(s: Snapshot): Promise<void> {
+    this.value = s;
+  }
+  async clear(): Promise<void> {
+    this.value = null;
+  }
+}
+
+const DB = 'inkwarp-editor';
+const STORE = 'autosave';
+const KEY = 'current';
+
+/** The snapshot store of the page: one record in an IndexedDB object store. */
+export class IndexedDbStore implements SnapshotStore {
+  private db: Promise<IDBDatabase>;
+
+  constructor(factory: IDBFactory = indexedDB) {
+    this.db = new Promise((resolve, reject) => {
+      const req = factory.open(DB, 1);
+      req.onupgradeneeded = () => req.result.createObjectStore(STORE);
+      req.onsuccess = () => resolve(req.result);
+      req.onerror = () => reject(req.error ?? new Error('IndexedDB could not be opened.'));
+    });
+  }
+
+  private async run<T>(mode: IDBTransactionMode, fn: (s: IDBObjectStore) => IDBRequest<T>): Promise<T> {
+    const db = await this.db;
+    return new Promise((resolve, reject) => {
+      const tx = db.transaction(STORE, mode);
+      const req = fn(tx.objectStore(STORE));
+      tx.oncomplete = () => resolve(req.result);
+      tx.onerror = () => reject(tx.error ?? new Error('IndexedDB failed.'));
+      tx.onabort = () => reject(tx.error ?? new Error('IndexedDB was aborted (is the disk full?).'));
+    });
+  }
+
+  async get(): Promise<Snapshot | null> {
+    return ((await this.run('readonly', (s) => s.get(KEY))) as Snapshot | undefined) ?? null;
+  }
+  async put(snap: Snapshot): Promise<void> {
+    await this.run('readwrite', (s) => s.put(snap, KEY));
+  }
+  async clear(): Promise<void> {
+    await this.run('readwrite', (s) => s.delete(KEY));
+  }
+}
+
+/** Reads an image reference that is not a data: URI (a file the server hands out). */
+export type Inliner = (reference: string) => Promise<string>;
+
+/** The document with every image reference a `data:` URI, so it restores without a server. */
+export async function inlineImages(doc: SceneDoc, inline: Inliner): Promise<SceneDoc> {
+  const layers = await Promise.all(
+    doc.layers.map(async (l) => {
+      const out = { ...l };
+      for (const k of ['image', 'alpha', 'continuity'] as const) {
+        const ref = l[k];
+        if (typeof ref === 'string' && !ref.startsWith('data:')) out[k] = await inline(ref);
+      }
+      return out;
+    }),
+  );
+  return { ...doc, layers };
+}
+
+/** Fetches a URL into a data: URI. */
+export async function fetchDataUri(url: string): Promise<string> {
+  const resp = await fetch(url);
+  if (!resp.ok) throw new Error(`HTTP ${resp.status} for ${url}`);
+  const blob = await resp.blob();
+  return new Promise((resolve, reject) => {
+    const r = new FileReader();
+    r.onload = () => resolve(r.result as string);
+    r.onerror = () => reject(r.error);
+    r.readAsDataURL(blob);
+  });
+}
+
+/** "14:32": the time of day of a snapshot, in the user's clock. */
+export function clockTime(ms: number): string {
+  const d = new Date(ms);
+  return `${String(d.getHours()).padStart(2, '0')}:${String(d.getMinutes()).padStart(2, '0')}`;
+}
+
+/** The question the page asks on load when an unsaved snapshot is waiting. */
+export function restoreQuestion(s: Snapshot, now = Date.now()): string {
+  const day = new Date(s.savedAt).toDateString() === new Date(now).toDateString() ? '' : ` on ${new Date(s.savedAt).toDateString()}`;
+  return `Restore the scene you were editing at ${clockTime(s.savedAt)}${day}?`;
+}
+
+/**
+ * Keeps the snapshot up to date: `changed()` after each edit schedules a write
+ * `delayMs` later (edits in between are written together); `flush()` writes now.
+ * Writes never overlap, and a failed write is reported once through `onError`.
+ */
+export class Autosaver {
+  private timer: ReturnType<typeof setTimeout> | null = null;
+  private writing: Promise<void> = Promise.resolve();
+  private reported = false;
+  /** When the last snapshot was written (ms since the epoch), or null. */
+  lastSavedAt: number | null = null;
+
+  constructor(
+    private store: SnapshotStore,
+    private current: () => { doc: SceneDoc; fileName: string; unsaved: boolean },
+    private inline: Inliner,
+    private delayMs = 800,
+    private onError: (err: Error) => void = () => {},
+    private now: () => number = Date.now,
+  ) {}
+
+  /** The document changed: write it soon. */
+  changed(): void {
+    if (this.timer !== null) clearTimeout(this.timer);
+    this.timer = setTimeout(() => {
+      this.timer = null;
+      void this.flush();
+    }, this.delayMs);
+  }
+
+  /** Whether a write is scheduled but not yet started. */
+  get pending(): boolean {
+    return this.timer !== null;
+  }
+
+  /** Writes the current document now (after any write in progress). */
+  flush(): Promise<void> {
+    if (this.timer !== null) {
+      clearTimeout(this.timer);
+      this.timer = null;
+    }
+    this.writing = this.writing.then(async () => {
+      const { doc, fileName, unsaved } = this.current();
+      try {
+        const inlined = await inlineImages(doc, this.inline);
+        const savedAt = this.now();
+        await this.store.put({ doc: inlined, fileName, savedAt, unsaved });
+        this.lastSavedAt = savedAt;
+        this.reported = false;
+      } catch (err) {
+        if (!this.reported) this.onError(err as Error);
+        this.reported = true;
+      }
+    });
+    return this.writing;
+  }
+}

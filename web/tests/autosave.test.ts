@@ -1,0 +1,171 @@
+import { describe, expect, it, vi } from 'vitest';
+import { Autosaver, MemoryStore, clockTime, inlineImages, restoreQuestion } from '../src/autosave';
+import { emptyScene, type SceneDoc } from '../src/scene';
+import { Store, copyKeys, moveKey, moveKeys, neighbourKeys, pasteKeys, setKey, toggleKeyRef } from '../src/state';
+
+function scene(): SceneDoc {
+  const doc = emptyScene(20, 10);
+  doc.layers.push({ name: 'a', image: 'data:image/png;base64,AAAA' }, { name: 'b', image: 'pictures/b.png', continuity: 'm.png' });
+  return doc;
+}
+
+describe('autosave', () => {
+  it('inlines every image that is not a data: URI', async () => {
+    const seen: string[] = [];
+    const out = await inlineImages(scene(), async (ref) => {
+      seen.push(ref);
+      return `data:image/png;base64,${ref.length}`;
+    });
+    expect(seen).toEqual(['pictures/b.png', 'm.png']);
+    expect(out.layers[0].image).toBe('data:image/png;base64,AAAA');
+    expect(out.layers[1].image).toBe('data:image/png;base64,14');
+    expect(out.layers[1].continuity).toBe('data:image/png;base64,5');
+  });
+
+  it('writes once, a moment after a burst of changes, with the images and the time', async () => {
+    vi.useFakeTimers();
+    try {
+      const kept = new MemoryStore();
+      const store = new Store(scene());
+      const saver = new Autosaver(kept, () => ({ doc: store.doc, fileName: 'x.json', unsaved: store.unsaved }), async () => 'data:,', 500, undefined, () => 1234);
+      const put = vi.spyOn(kept, 'put');
+      store.subscribe((_, changed) => changed && saver.changed());
+      store.edit((d) => ({ ...d, fps: 12 }));
+      store.edit((d) => ({ ...d, fps: 30 }));
+      expect(saver.pending).toBe(true);
+      await vi.advanceTimersByTimeAsync(499);
+      expect(put).not.toHaveBeenCalled();
+      await vi.advanceTimersByTimeAsync(10);
+      expect(put).toHaveBeenCalledTimes(1);
+      expect(kept.value?.doc.fps).toBe(30);
+      expect(kept.value?.doc.layers[1].image).toBe('data:,');
+      expect(kept.value?.unsaved).toBe(true);
+      expect(kept.value?.savedAt).toBe(1234);
+      expect(saver.lastSavedAt).toBe(1234);
+    } finally {
+      vi.useRealTimers();
+    }
+  });
+
+  it('reports a failed write once and keeps trying', async () => {
+    const errors: string[] = [];
+    const kept = new MemoryStore();
+    kept.put = async () => {
+      throw new Error('quota');
+    };
+    const saver = new Autosaver(kept, () => ({ doc: scene(), fileName: 'x', unsaved: true }), async () => 'data:,', 0, (e) => errors.push(e.message));
+    await saver.flush();
+    await saver.flush();
+    expect(errors).toEqual(['quota']);
+  });
+
+  it('asks to restore with the time of day', () => {
+    const at = new Date(2026, 10, 27, 14, 32, 5).getTime();
+    expect(clockTime(at)).toBe('14:32');
+    const snap = { doc: scene(), fileName: 'x', savedAt: at, unsaved: true };
+    expect(restoreQuestion(snap, at + 60_000)).toBe('Restore the scene you were editing at 14:32?');
+    expect(restoreQuestion(snap, at + 3 * 86_400_000)).toMatch(/^Restore the scene you were editing at 14:32 on .+\?$/);
+  });
+});
+
+describe('unsaved changes and undo', () => {
+  it('tracks whether the document is saved', () => {
+    const store = new Store(scene());
+    expect(store.unsaved).toBe(false);
+    store.edit((d) => ({ ...d, fps: 12 }));
+    expect(store.unsaved).toBe(true);
+    store.markSaved();
+    expect(store.unsaved).toBe(false);
+    store.undo();
+    expect(store.unsaved).toBe(true);
+    store.markUnsaved();
+    expect(store.unsaved).toBe(true);
+  });
+
+  it('opening a scene is undoable and counts as saved', () => {
+    const first = scene();
+    const store = new Store(first);
+    store.edit((d) => ({ ...d, fps: 12 }));
+    const edited = store.doc;
+    const other = emptyScene(5, 5);
+    store.load(other);
+    expect(store.doc).toBe(other);
+    expect(store.unsaved).toBe(false);
+    expect(store.canUndo()).toBe(true);
+    store.undo();
+    expect(store.doc).toBe(edited);
+    store.undo();
+    expect(store.doc).toBe(first);
+  });
+
+  it('a gesture tells the views that Undo is available', () => {
+    const store = new Store(scene());
+    const seen: boolean[] = [];
+    store.begin();
+    store.edit((d) => ({ ...d, fps: 12 }));
+    store.subscribe((s) => seen.push(s.canUndo()));
+    store.commit();
+    expect(seen).toEqual([true]);
+  });
+
+  it('refuses to move a key past the end of the animation', () => {
+    let doc = emptyScene(10, 10);
+    doc = { ...doc, duration: 2, features: [{ id: 'p', kind: 'point', rest: [[1, 1]] }] };
+    doc = setKey(doc, 'p', 1, [[2, 2]]);
+    expect(() => moveKey(doc, 'p', 1, 2.5)).toThrow(/past the end of the animation \(2 s\)/);
+    expect(moveKey(doc, 'p', 1, 2).features[0].keys![0].t).toBe(2);
+  });
+});
+
+describe('keys: selection, moving together, copy and paste, onion skin', () => {
+  function doc2(): SceneDoc {
+    let doc: SceneDoc = { ...emptyScene(10, 10), fps: 10, duration: 2, features: [{ id: 'a', kind: 'point', rest: [[1, 1]] }, { id: 'b', kind: 'polyline', rest: [[0, 0], [5, 5]] }] };
+    doc = setKey(doc, 'a', 0.2, [[2, 2]]);
+    doc = setKey(doc, 'a', 1, [[3, 3]]);
+    doc = setKey(doc, 'b', 0.5, [[1, 0], [6, 5]]);
+    return doc;
+  }
+
+  it('Shift-click toggles keys in and out of the selection', () => {
+    let refs = toggleKeyRef([], { feature: 'a', t: 0.2 });
+    refs = toggleKeyRef(refs, { feature: 'b', t: 0.5 });
+    expect(refs).toHaveLength(2);
+    refs = toggleKeyRef(refs, { feature: 'a', t: 0.2 + 1e-6 });
+    expect(refs).toEqual([{ feature: 'b', t: 0.5 }]);
+  });
+
+  it('moves selected keys together, all or none', () => {
+    const doc = doc2();
+    const moved = moveKeys(doc, [{ feature: 'a', t: 0.2 }, { feature: 'b', t: 0.5 }], 0.3);
+    expect(moved.features[0].keys!.map((k) => k.t)).toEqual([0.5, 1]);
+    expect(moved.features[1].keys![0].t).toBeCloseTo(0.8, 12);
+    // a's key at 0.2 would land on its key at 1.0: refused, nothing moves
+    expect(() => moveKeys(doc, [{ feature: 'a', t: 0.2 }, { feature: 'b', t: 0.5 }], 0.8)).toThrow(/already has a key/);
+    expect(() => moveKeys(doc, [{ feature: 'a', t: 1 }], 1.5)).toThrow(/leave the animation/);
+    // both of a's keys moving past each other's old times is fine
+    expect(moveKeys(doc, [{ feature: 'a', t: 0.2 }, { feature: 'a', t: 1 }], 0.8).features[0].keys!.map((k) => k.t)).toEqual([1, 1.8]);
+  });
+
+  it('copies keys relative to the earliest and pastes them at the time', () => {
+    let doc = doc2();
+    doc = { ...doc, features: doc.features.map((f) => (f.id === 'a' ? { ...f, keys: f.keys!.map((k) => ({ ...k, interpolation: 'ease-in' as const })) } : f)) };
+    const clip = copyKeys(doc, [{ feature: 'b', t: 0.5 }, { feature: 'a', t: 0.2 }]);
+    expect(clip.map((c) => [c.feature, c.dt])).toEqual([['a', 0], ['b', expect.closeTo(0.3, 12)]]);
+    expect(clip[0].interpolation).toBe('ease-in');
+    const { doc: out, pasted } = pasteKeys(doc, clip, 1.5);
+    expect(pasted.map((p) => p.feature)).toEqual(['a', 'b']);
+    const a = out.features[0].keys!;
+    expect(a.map((k) => k.t)).toEqual([0.2, 1, 1.5]);
+    expect(a[2]).toEqual({ t: 1.5, points: [[2, 2]], interpolation: 'ease-in' });
+    expect(out.features[1].keys!.map((k) => k.t)).toEqual([0.5, expect.closeTo(1.8, 12)]);
+    expect(() => pasteKeys(doc, clip, 1.9)).toThrow(/past the end/);
+    expect(copyKeys(doc, [{ feature: 'zz', t: 0 }])).toEqual([]);
+  });
+
+  it('finds the keys before and after a time for the onion skin', () => {
+    const a = doc2().features[0];
+    expect(neighbourKeys(a, 0.6)).toMatchObject({ prev: { t: 0.2 }, next: { t: 1 } });
+    expect(neighbourKeys(a, 0.2)).toMatchObject({ prev: null, next: { t: 1 } });
+    expect(neighbourKeys(a, 1.5)).toMatchObject({ prev: { t: 1 }, next: null });
+  });
+});
