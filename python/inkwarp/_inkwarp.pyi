@@ -1,6 +1,11 @@
 """Type stubs for the compiled core. The public API is the `inkwarp` package."""
 
 __version__: str
+#: The limits every input is held to (see docs/reference/limits.md).
+MAX_SIDE_PX: int
+MAX_PIXELS: int
+MAX_COORD_PX: float
+MAX_TIME_S: float
 
 # --- geometry (feature sampling) ---
 import numpy as np
