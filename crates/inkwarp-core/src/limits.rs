@@ -76,6 +76,31 @@ pub fn show(v: f64) -> String {
     }
 }
 
+/// The most samples one feature's curve may be cut into.
+pub const MAX_CURVE_SAMPLES: f64 = 1e7;
+
+/// Checks that the curve through `points`, sampled every `spacing_px`, stays under
+/// [`MAX_CURVE_SAMPLES`] (a spline's length is taken as twice its control polygon's, a
+/// bound for the centripetal Catmull-Rom curves inkwarp draws).
+pub fn check_curve_samples(points: &[[f64; 2]], closed: bool, spacing_px: f64) -> Result<(), String> {
+    let mut length: f64 = points
+        .windows(2)
+        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+        .sum();
+    if closed && points.len() > 2 {
+        let (a, b) = (points[0], points[points.len() - 1]);
+        length += (a[0] - b[0]).hypot(a[1] - b[1]);
+    }
+    let samples = 2.0 * length / spacing_px;
+    if samples.is_nan() || samples > MAX_CURVE_SAMPLES {
+        return Err(format!(
+            "sampling this curve every {spacing_px} px would make about {samples:.0e} samples (at \
+             most {MAX_CURVE_SAMPLES:e}); use a larger spacing or a shorter curve"
+        ));
+    }
+    Ok(())
+}
+
 /// Whether `v` is a coordinate inkwarp accepts (finite, |v| ≤ [`MAX_COORD_PX`]).
 pub fn coordinate_ok(v: f64) -> bool {
     v.is_finite() && v.abs() <= MAX_COORD_PX

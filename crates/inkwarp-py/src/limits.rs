@@ -66,26 +66,11 @@ pub fn check_memory(width: usize, height: usize, bytes_per_pixel: u64) -> PyResu
     }
 }
 
-/// The most samples one feature's curve may be cut into.
-pub const MAX_CURVE_SAMPLES: f64 = 1e7;
-
-/// ValueError unless the curve through `points` at `spacing` pixels stays under
-/// [`MAX_CURVE_SAMPLES`] (a spline's length is within twice its control polygon's).
+/// ValueError unless the curve through `points` at `spacing` pixels stays under the
+/// core's sample limit (`inkwarp_core::limits::MAX_CURVE_SAMPLES`).
 pub fn check_sampling(points: &[[f64; 2]], closed: bool, spacing: f64) -> PyResult<()> {
     if !(spacing.is_finite() && spacing > 0.0) {
         return Ok(()); // the core says what is wrong with it
     }
-    let mut length: f64 = points.windows(2).map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1])).sum();
-    if closed && points.len() > 2 {
-        let (a, b) = (points[0], points[points.len() - 1]);
-        length += (a[0] - b[0]).hypot(a[1] - b[1]);
-    }
-    let samples = 2.0 * length / spacing;
-    if samples > MAX_CURVE_SAMPLES {
-        return Err(PyValueError::new_err(format!(
-            "sampling this curve every {spacing} px would make about {samples:.0e} samples (at most \
-             {MAX_CURVE_SAMPLES:e}); use a larger spacing"
-        )));
-    }
-    Ok(())
+    limits::check_curve_samples(points, closed, spacing).map_err(PyValueError::new_err)
 }

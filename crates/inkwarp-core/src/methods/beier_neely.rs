@@ -165,6 +165,9 @@ pub fn beier_neely_field(
     // Row by row in parallel; within a row, one primitive at a time over all pixels,
     // so that the inner loops are branch-free and vectorise.
     f.dx.par_chunks_mut(width).zip(f.dy.par_chunks_mut(width)).enumerate().for_each(|(y, (row_x, row_y))| {
+        if crate::interrupt::requested() {
+            return; // `field` reports the stop
+        }
         let yf = y as f64;
         let mut sx = vec![0.0f64; width];
         let mut sy = vec![0.0f64; width];
@@ -294,7 +297,7 @@ mod tests {
         let err = beier_neely_field(&[], &[], 4, 4, &params, &mut MethodReport::default()).unwrap_err();
         assert_eq!(
             err.to_string(),
-            "Beier–Neely parameter a = 0 is out of range: it must be a finite number of pixels greater than 0 (default 1)."
+            "Beier–Neely parameter a = 0 is out of range: it must be a number of pixels greater than 0 and at most 1e6 (default 1)."
         );
         let err = beier_neely_field(&[], &[], 4, 4, &BeierNeelyParams::default(), &mut MethodReport::default()).unwrap_err();
         assert_eq!(err.to_string(), "beier-neely needs at least one point or line pair; got none.");

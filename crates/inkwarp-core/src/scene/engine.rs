@@ -44,7 +44,11 @@ fn compute_field(
     features: &[FeatureSamples],
     start: Start<'_>,
 ) -> Result<LayerSolve, String> {
-    match solver.method {
+    const STOPPED: &str = "stopped: interrupted (Ctrl-C or SIGTERM)";
+    if crate::interrupt::requested() {
+        return Err(STOPPED.to_string());
+    }
+    let solved = match solver.method {
         Method::Tps => {
             let samples: Vec<Sample> = features
                 .iter()
@@ -65,7 +69,12 @@ fn compute_field(
             }
             None => Err(not_available(other)),
         },
+    };
+    // A stop requested mid-solve may leave a partial field: never return it.
+    if crate::interrupt::requested() {
+        return Err(STOPPED.to_string());
     }
+    solved
 }
 
 /// The overrides that only change the method (none for `None`).
