@@ -30,7 +30,7 @@ import secrets
 import shutil
 from pathlib import Path
 from types import TracebackType
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -354,7 +354,9 @@ class GifWriter(FrameWriter):
 
 class Mp4Writer(FrameWriter):
     """An H.264 MP4 (yuv420p, playable everywhere) through the ffmpeg that imageio-ffmpeg
-    ships. Frames are streamed to ffmpeg, not kept in memory. H.264 in yuv420p needs even
+    ships. Frames are streamed to ffmpeg, not kept in memory; ffmpeg's exit status is
+    checked, so a full disk or a failed encode is an ``OSError`` with ffmpeg's reason and
+    no file under the target's name. H.264 in yuv420p needs even
     sizes, so an odd width or height gets one more column or row, copied from the edge.
 
     ``quality`` is imageio-ffmpeg's 0-10 scale (10 is best); the default 8 keeps line art
@@ -365,7 +367,8 @@ class Mp4Writer(FrameWriter):
         super().__init__(target, fps)
         self.quality = quality
         self._temp: Path | None = None
-        self._pipe = None  # imageio_ffmpeg.write_frames generator, opened on the first frame
+        self._pipe: Any = None  # the ffmpeg process, started on the first frame
+        self._log: Any = None
 
     def _write(self, frame: np.ndarray) -> None:
         rgb = flatten(frame)
@@ -373,30 +376,68 @@ class Mp4Writer(FrameWriter):
         if h % 2 or w % 2:
             rgb = np.pad(rgb, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
         if self._pipe is None:
-            import imageio_ffmpeg
+            self._start(rgb.shape[1], rgb.shape[0])
+        assert self._pipe is not None and self._pipe.stdin is not None
+        try:
+            self._pipe.stdin.write(np.ascontiguousarray(rgb).tobytes())
+        except (BrokenPipeError, OSError):
+            # ffmpeg stopped reading: its exit status and stderr say why.
+            self._finish()
+            raise OSError(f"{self.target}: ffmpeg stopped after {self.frames_written} "
+                          "frames") from None
 
-            self._temp = _temp_name(self.target, ".mp4")
-            self._pipe = imageio_ffmpeg.write_frames(
-                str(self._temp), (rgb.shape[1], rgb.shape[0]), pix_fmt_in="rgb24",
-                pix_fmt_out="yuv420p", fps=self.fps, codec="libx264", quality=self.quality,
-                macro_block_size=1, ffmpeg_log_level="error",
-                output_params=["-movflags", "+faststart"],
-            )
-            self._pipe.send(None)  # start ffmpeg
-        self._pipe.send(np.ascontiguousarray(rgb))
+    def _start(self, width: int, height: int) -> None:
+        import subprocess
+        import tempfile
+
+        import imageio_ffmpeg
+
+        self._temp = _temp_name(self.target, ".mp4")
+        # ffmpeg's messages go to a file, not a pipe nobody reads (a full pipe would stall it).
+        self._log = tempfile.TemporaryFile()
+        crf = int((1 - self.quality / 10.0) * 51)  # imageio-ffmpeg's scale
+        command = [
+            imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-hide_banner", "-loglevel", "error",
+            "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}",
+            "-pix_fmt", "rgb24", "-r", f"{self.fps:.12g}", "-i", "-", "-an",
+            "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf),
+            "-movflags", "+faststart", "-f", "mp4", str(self._temp),
+        ]
+        self._pipe = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                      stderr=self._log)
+
+    def _finish(self) -> None:
+        """Waits for ffmpeg; OSError naming the target and ffmpeg's own words unless it
+        exited 0."""
+        pipe, self._pipe = self._pipe, None
+        if pipe is None:
+            return
+        try:
+            if pipe.stdin is not None:
+                pipe.stdin.close()
+        except OSError:
+            pass
+        code = pipe.wait()
+        if code != 0:
+            self._log.seek(0)
+            said = self._log.read().decode("utf-8", "replace").strip().splitlines()
+            reason = "; ".join(line.strip() for line in said[-3:]) or "no message"
+            raise OSError(f"{self.target}: ffmpeg failed (exit status {code}): {reason}")
 
     def _commit(self) -> list[Path]:
-        assert self._pipe is not None and self._temp is not None
-        self._pipe.close()  # waits for ffmpeg to finish the file
-        self._pipe = None
+        assert self._temp is not None
+        self._finish()  # waits for ffmpeg to finish the file, and checks that it did
+        if self._temp.stat().st_size == 0:
+            raise OSError(f"{self.target}: ffmpeg wrote an empty file")
         os.replace(self._temp, self.target)
         return [self.target]
 
     def _discard(self) -> None:
         if self._pipe is not None:
             try:
-                self._pipe.close()
-            except Exception:  # noqa: BLE001 - the file is deleted either way
+                self._pipe.kill()
+                self._pipe.wait()
+            except OSError:
                 pass
             self._pipe = None
         if self._temp is not None:

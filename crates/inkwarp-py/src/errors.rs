@@ -23,7 +23,15 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_PIXELS", limits::MAX_PIXELS)?;
     m.add("MAX_COORD_PX", limits::MAX_COORD_PX)?;
     m.add("MAX_TIME_S", limits::MAX_TIME_S)?;
+    m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
     Ok(())
+}
+
+/// Panics inside the engine's worker thread, so that tests can check the net that turns a
+/// panic into `InternalError`.
+#[pyfunction]
+fn _panic_for_tests(py: Python<'_>) -> PyResult<()> {
+    run_engine(py, || -> () { panic!("a panic raised on purpose by _panic_for_tests") })
 }
 
 /// `inkwarp.errors.InternalError` for a panic's payload.
