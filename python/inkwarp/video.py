@@ -421,8 +421,14 @@ class Mp4Writer(FrameWriter):
         if code != 0:
             self._log.seek(0)
             said = self._log.read().decode("utf-8", "replace").strip().splitlines()
-            reason = "; ".join(line.strip() for line in said[-3:]) or "no message"
-            raise OSError(f"{self.target}: ffmpeg failed (exit status {code}): {reason}")
+            reason = "; ".join(line.strip() for line in said[-3:])
+            if code < 0:
+                import signal
+
+                how = f"killed by {signal.Signals(-code).name} ({signal.strsignal(-code)})"
+            else:
+                how = f"exit status {code}"
+            raise OSError(f"{self.target}: ffmpeg failed ({how})" + (f": {reason}" if reason else ""))
 
     def _commit(self) -> list[Path]:
         assert self._temp is not None
