@@ -192,3 +192,10 @@ def test_ctrl_c_stops_a_long_dense_solve_within_a_second() -> None:
     stopped_s = time.monotonic() - sent
     assert out.strip() == "interrupted" and proc.returncode == 130
     assert stopped_s < 5  # generous for a loaded machine; the flag is polled every 50 ms
+
+
+def test_compare_refuses_an_absurd_dpi(capsys) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(["compare", "examples/face/scene.json", "--dpi", "100000", "-o", "x.png"])
+    assert exit_.value.code == 2
+    assert "100000: give a whole number of dots per inch from 10 to 600" in capsys.readouterr().err
