@@ -418,9 +418,11 @@ class Mp4Writer(FrameWriter):
         except OSError:
             pass
         code = pipe.wait()
+        log, self._log = self._log, None
+        with log:
+            log.seek(0)
+            said = log.read().decode("utf-8", "replace").strip().splitlines()
         if code != 0:
-            self._log.seek(0)
-            said = self._log.read().decode("utf-8", "replace").strip().splitlines()
             reason = "; ".join(line.strip() for line in said[-3:])
             if code < 0:
                 import signal
@@ -442,10 +444,15 @@ class Mp4Writer(FrameWriter):
         if self._pipe is not None:
             try:
                 self._pipe.kill()
-                self._pipe.wait()
+                if self._pipe.stdin is not None:
+                    self._pipe.stdin.close()
             except OSError:
                 pass
+            self._pipe.wait()
             self._pipe = None
+        if self._log is not None:
+            self._log.close()
+            self._log = None
         if self._temp is not None:
             self._temp.unlink(missing_ok=True)
 
