@@ -199,3 +199,33 @@ def test_compare_refuses_an_absurd_dpi(capsys) -> None:
         main(["compare", "examples/face/scene.json", "--dpi", "100000", "-o", "x.png"])
     assert exit_.value.code == 2
     assert "100000: give a whole number of dots per inch from 10 to 600" in capsys.readouterr().err
+
+
+def test_the_gif_writer_streams_frames_to_disk(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from inkwarp.video import open_writer
+
+    rng = np.random.default_rng(0)
+    frames = []
+    sizes = []
+    out = tmp_path / "clip.gif"
+    with open_writer(out, fps=24) as writer:
+        for k in range(6):
+            frame = rng.integers(0, 255, (20, 33, 4), np.uint8)
+            frame[..., 3] = 255
+            frames.append(frame)
+            writer.write(frame)
+            sizes.append(sum(p.stat().st_size for p in tmp_path.iterdir()))
+    # Each frame is on disk as soon as it is written (nothing is held for the end).
+    assert all(b > a for a, b in zip(sizes, sizes[1:]))
+    with Image.open(out) as gif:
+        assert gif.n_frames == 6 and gif.info["loop"] == 0 and gif.size == (33, 20)
+        for i, frame in enumerate(frames):
+            gif.seek(i)
+            assert gif.info["duration"] in (40, 50)
+            # Exactly the frame as quantised to its own palette.
+            quantised = Image.fromarray(frame[..., :3]).quantize(
+                colors=256, method=Image.Quantize.FASTOCTREE).convert("RGB")
+            assert np.array_equal(np.asarray(gif.convert("RGB")), np.asarray(quantised))
+    assert [p.name for p in tmp_path.iterdir()] == ["clip.gif"]

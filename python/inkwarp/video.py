@@ -310,46 +310,108 @@ class PngSequenceWriter(FrameWriter):
 
 
 class GifWriter(FrameWriter):
-    """An animated GIF (Pillow), looping forever, each frame with its own palette.
+    """An animated GIF, looping forever, each frame with its own palette, streamed to the
+    file frame by frame (memory holds one frame, not the clip).
 
-    GIF stores frame delays in hundredths of a second, so the delays are spread to keep
-    the clip's total length right (24 fps plays as 4, 4, 5, 4, 4, 5, ... hundredths).
+    Pillow encodes each frame alone; its image block is copied into the file with the
+    frame's palette as a local colour table. GIF stores frame delays in hundredths of a
+    second, so the delays are spread to keep the clip's total length right (24 fps plays
+    as 4, 4, 5, 4, 4, 5, ... hundredths).
     """
 
     def __init__(self, target: Path, fps: float) -> None:
         super().__init__(target, fps)
-        self._frames: list[object] = []
         self._temp: Path | None = None
+        self._file: Any = None
+
+    def _delay_cs(self, i: int) -> int:
+        start, end = round(i * 100 / self.fps), round((i + 1) * 100 / self.fps)
+        return max(1, end - start)
 
     def _write(self, frame: np.ndarray) -> None:
+        import io
+        import struct
+
         from PIL import Image
 
         rgb = Image.fromarray(flatten(frame), "RGB")
-        # Quantised right away: a palette image is a quarter of the RGBA frame in memory.
         # The octree keeps saturated colours (eyes, lips) and gives files about half the
         # size of a median cut's, at a mean error of about 3 levels on a photograph.
-        self._frames.append(rgb.quantize(colors=256, method=Image.Quantize.FASTOCTREE))
-
-    def _durations_ms(self) -> list[int]:
-        n = len(self._frames)
-        ends = [round((i + 1) * 100 / self.fps) for i in range(n)]
-        starts = [0] + ends[:-1]
-        return [max(1, e - s) * 10 for s, e in zip(starts, ends)]
+        one = io.BytesIO()
+        rgb.quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(one, format="GIF")
+        palette, block = _gif_image_block(one.getvalue())
+        if self._file is None:
+            self._temp = _temp_name(self.target, ".gif")
+            self._file = open(self._temp, "wb")  # noqa: SIM115 - closed by _commit/_discard
+            w, h = rgb.size
+            # Header, a screen without a global palette, and the loop-forever extension.
+            self._file.write(b"GIF89a" + struct.pack("<HHBBB", w, h, 0, 0, 0)
+                             + b"\x21\xff\x0bNETSCAPE2.0\x03\x01\x00\x00\x00")
+        delay = self._delay_cs(self.frames_written)
+        # Graphic control: disposal 1 (leave the frame in place), the delay, no transparency.
+        self._file.write(b"\x21\xf9\x04" + struct.pack("<BHB", 1 << 2, delay, 0) + b"\x00")
+        self._file.write(block[:9] + bytes([block[9] | 0x80 | _palette_bits(palette)]))
+        self._file.write(palette + block[10:])
+        self._file.flush()
 
     def _commit(self) -> list[Path]:
-        first, *rest = self._frames
-        self._temp = _temp_name(self.target, ".gif")
-        first.save(self._temp, format="GIF", save_all=True,  # type: ignore[attr-defined]
-                   append_images=rest, duration=self._durations_ms(), loop=0, optimize=False,
-                   disposal=1)
-        self._frames.clear()
+        assert self._file is not None and self._temp is not None
+        self._file.write(b"\x3b")
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        self._file.close()
+        self._file = None
         os.replace(self._temp, self.target)
         return [self.target]
 
     def _discard(self) -> None:
-        self._frames.clear()
+        if self._file is not None:
+            self._file.close()
+            self._file = None
         if self._temp is not None:
             self._temp.unlink(missing_ok=True)
+
+
+def _palette_bits(palette: bytes) -> int:
+    """The size field of a colour table of ``len(palette) // 3`` entries (2 ** (n + 1))."""
+    entries = len(palette) // 3
+    return max(0, entries.bit_length() - 2)
+
+
+def _gif_image_block(data: bytes) -> tuple[bytes, bytes]:
+    """``(palette, image block)`` of a one-frame GIF: the palette padded to a power of two,
+    and the block from its image descriptor (0x2C) through its data's terminator, with the
+    descriptor's colour-table bits cleared."""
+    flags = data[10]
+    pos = 13
+    palette = b""
+    if flags & 0x80:
+        size = 3 * (2 ** ((flags & 7) + 1))
+        palette = data[pos:pos + size]
+        pos += size
+    while data[pos] == 0x21:  # extensions Pillow may add: skip label and sub-blocks
+        pos += 2
+        while data[pos]:
+            pos += data[pos] + 1
+        pos += 1
+    if data[pos] != 0x2C:
+        raise ValueError("Pillow wrote a GIF without an image block")
+    descriptor = bytearray(data[pos:pos + 10])
+    local = descriptor[9]
+    pos += 10
+    if local & 0x80:
+        size = 3 * (2 ** ((local & 7) + 1))
+        palette = data[pos:pos + size]
+        pos += size
+    descriptor[9] = local & 0x40  # keep the interlace bit only
+    start = pos
+    pos += 1  # LZW minimum code size
+    while data[pos]:
+        pos += data[pos] + 1
+    pos += 1
+    entries = max(2, 1 << max(1, (len(palette) // 3 - 1).bit_length()))
+    palette = palette.ljust(3 * entries, b"\0")
+    return palette, bytes(descriptor) + data[start:pos]
 
 
 class Mp4Writer(FrameWriter):
