@@ -3,20 +3,30 @@
 from __future__ import annotations
 
 import base64
+import http.client
 import json
+import os
+import socket
+import stat
 import threading
+import time
 import urllib.error
 import urllib.request
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from inkwarp import image_data_uri
 from inkwarp.cli import main
 from inkwarp.cli.edit import editor_url, make_server
 
 PNG_1x1 = base64.b64decode(
     "iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg=="
 )
+
+DOT_URI = "data:image/png;base64," + base64.b64encode(PNG_1x1).decode()
+WHITE_URI = image_data_uri(np.full((1, 1, 4), 255, np.uint8))
 
 
 @pytest.fixture
@@ -39,15 +49,29 @@ def scene(tmp_path: Path) -> Path:
     return path
 
 
+TOKEN = [""]
+
+
 def serve(scene: Path | None, root: Path):
     server = make_server(scene, root)
+    TOKEN[0] = server.token
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
     return server
 
 
-def fetch(url: str, method: str = "GET", body: bytes | None = None):
-    req = urllib.request.Request(url, data=body, method=method)
+def api_url(server) -> str:
+    return "http://127.0.0.1:%d/api/scene" % server.server_address[1]
+
+
+def fetch(url: str, method: str = "GET", body: bytes | None = None, headers: dict | None = None,
+          token: object = True):
+    """One request; the server's token goes in ``X-Inkwarp-Token`` unless ``token`` is
+    False (or is the string to send instead)."""
+    headers = dict(headers or {})
+    if token is not False and "token=" not in url:
+        headers.setdefault("X-Inkwarp-Token", token if isinstance(token, str) else TOKEN[0])
+    req = urllib.request.Request(url, data=body, method=method, headers=headers)
     try:
         with urllib.request.urlopen(req, timeout=10) as resp:
             return resp.status, resp.headers, resp.read()
@@ -59,12 +83,13 @@ def test_serves_the_editor_on_loopback_with_module_types(editor: Path) -> None:
     server = serve(None, editor)
     try:
         url = editor_url(server, with_scene=False)
-        assert url.startswith("http://127.0.0.1:")
+        assert url.startswith("http://127.0.0.1:") and f"?token={server.token}" in url
         status, headers, body = fetch(url)
         assert status == 200 and b"inkwarp editor" in body
-        assert fetch(url + "engine.wasm")[1]["Content-Type"] == "application/wasm"
-        assert fetch(url + "main.js")[1]["Content-Type"].startswith("text/javascript")
-        assert fetch(url + "api/scene")[0] == 404
+        base = url.split("?")[0]
+        assert fetch(base + "engine.wasm")[1]["Content-Type"] == "application/wasm"
+        assert fetch(base + "main.js")[1]["Content-Type"].startswith("text/javascript")
+        assert fetch(base + "api/scene")[0] == 404
     finally:
         server.shutdown()
         server.server_close()
@@ -74,7 +99,7 @@ def test_scene_images_are_inlined_and_paths_restored_on_save(editor: Path, scene
     server = serve(scene, editor)
     try:
         url = editor_url(server, with_scene=True)
-        assert url.endswith("?scene=/api/scene")
+        assert url.endswith("&scene=/api/scene")
         api = url.split("?")[0] + "api/scene"
         status, headers, body = fetch(api)
         assert status == 200
@@ -84,12 +109,12 @@ def test_scene_images_are_inlined_and_paths_restored_on_save(editor: Path, scene
         assert uri == "data:image/png;base64," + base64.b64encode(PNG_1x1).decode()
         # The editor saves: the known image goes back to its path, a new matte stays inline.
         doc["features"].append({"id": "p", "kind": "point", "rest": [[0, 0]]})
-        doc["layers"][0]["continuity"] = "data:image/png;base64,AAAA"
+        doc["layers"][0]["continuity"] = WHITE_URI
         status, _, _ = fetch(api, "PUT", json.dumps(doc).encode())
         assert status == 200
         saved = json.loads(scene.read_text())
         assert saved["layers"][0]["image"] == "art/dot.png"
-        assert saved["layers"][0]["continuity"] == "data:image/png;base64,AAAA"
+        assert saved["layers"][0]["continuity"] == WHITE_URI
         assert saved["features"] == [{"id": "p", "kind": "point", "rest": [[0, 0]]}]
         assert [p.name for p in scene.parent.iterdir() if p.name.startswith(".scene")] == []
         # A body that is not a scene is refused and leaves the file alone.
@@ -105,7 +130,7 @@ def test_missing_image_is_reported_with_its_json_path(editor: Path, scene: Path)
     (scene.parent / "art" / "dot.png").unlink()
     server = serve(scene, editor)
     try:
-        status, _, body = fetch(editor_url(server, False) + "api/scene")
+        status, _, body = fetch(api_url(server))
         assert status == 422
         assert b"layers[0].image" in body and b"art/dot.png" in body
     finally:
@@ -131,3 +156,221 @@ def test_edit_is_listed_in_help(capsys) -> None:
         main(["edit", "--help"])
     out = capsys.readouterr().out
     assert "inkwarp edit examples/cat/scene.json" in out
+
+
+# --- Who may ask, and what may be read --------------------------------------------------
+
+
+def raw(server, request: bytes, timeout: float = 10) -> bytes:
+    """Sends ``request`` as is and returns everything the server answers."""
+    with socket.create_connection(server.server_address[:2], timeout=timeout) as sock:
+        sock.sendall(request)
+        chunks = []
+        while chunk := sock.recv(65536):
+            chunks.append(chunk)
+    return b"".join(chunks)
+
+
+@pytest.fixture
+def served(editor: Path, scene: Path):
+    server = serve(scene, editor)
+    yield server
+    server.shutdown()
+    server.server_close()
+
+
+def test_the_api_needs_the_token(served, scene: Path) -> None:
+    api = api_url(served)
+    assert fetch(api, token=False)[0] == 403
+    assert fetch(api, token="x" * 43)[0] == 403
+    assert fetch(api, "PUT", b"{}", token=False)[0] == 403
+    assert fetch(api)[0] == 200
+    # The page opened with ?token= gets an HttpOnly, SameSite=Strict cookie that then works.
+    status, headers, _ = fetch(editor_url(served, True))
+    cookie = headers["Set-Cookie"]
+    assert status == 200 and "HttpOnly" in cookie and "SameSite=Strict" in cookie
+    name_value = cookie.split(";")[0]
+    assert name_value == f"inkwarp-token-{served.server_address[1]}={served.token}"
+    assert fetch(api, headers={"Cookie": name_value}, token=False)[0] == 200
+    assert fetch(api, headers={"Cookie": "inkwarp-token-1=" + served.token}, token=False)[0] == 403
+    # A wrong token sets no cookie.
+    assert "Set-Cookie" not in fetch(api.replace("api/scene", "?token=nope"))[1]
+
+
+@pytest.mark.parametrize("host", ["evil.example", "evil.example:%d", "127.0.0.1:1", "localhost"])
+def test_other_hosts_are_refused(served, host: str) -> None:
+    port = served.server_address[1]
+    host = host % port if "%d" in host else host
+    answer = raw(served, f"GET /api/scene HTTP/1.1\r\nHost: {host}\r\nX-Inkwarp-Token: "
+                         f"{served.token}\r\nConnection: close\r\n\r\n".encode())
+    assert answer.startswith(b"HTTP/1.0 403"), answer[:80]
+    for good in (f"127.0.0.1:{port}", f"localhost:{port}"):
+        answer = raw(served, f"GET /api/scene HTTP/1.1\r\nHost: {good}\r\nX-Inkwarp-Token: "
+                             f"{served.token}\r\n\r\n".encode())
+        assert answer.startswith(b"HTTP/1.0 200")
+
+
+def test_other_origins_are_refused(served) -> None:
+    api = api_url(served)
+    port = served.server_address[1]
+    for origin in ("http://evil.example", "null", f"http://127.0.0.1:{port + 1}", "https://127.0.0.1"):
+        assert fetch(api, headers={"Origin": origin})[0] == 403, origin
+        assert fetch(api, "PUT", b"{}", headers={"Origin": origin})[0] == 403, origin
+    assert fetch(api, headers={"Origin": f"http://127.0.0.1:{port}"})[0] == 200
+    assert fetch(api, headers={"Origin": f"http://localhost:{port}"})[0] == 200
+
+
+@pytest.mark.parametrize("target", ["/etc/passwd", "/proc/self/environ", "../outside.png",
+                                    "art/../../outside.png", "art/link.png", "art/fake.png",
+                                    "art/fifo.png", "art"])
+def test_images_outside_the_scene_folder_are_never_read(served, scene: Path, target: str) -> None:
+    outside = scene.parent.parent / "outside.png"
+    outside.write_bytes(PNG_1x1)
+    (scene.parent / "art" / "link.png").unlink(missing_ok=True)
+    (scene.parent / "art" / "link.png").symlink_to("/etc/passwd")
+    (scene.parent / "art" / "fake.png").write_text("SECRET=1")
+    if not (scene.parent / "art" / "fifo.png").exists():
+        os.mkfifo(scene.parent / "art" / "fifo.png")
+    before = scene.read_bytes()
+    mode = stat.S_IMODE(scene.stat().st_mode)
+    api = api_url(served)
+    doc = json.loads(fetch(api)[2])
+    doc["layers"][0]["image"] = target
+    status, _, body = fetch(api, "PUT", json.dumps(doc).encode())
+    assert status == 422, body
+    assert scene.read_bytes() == before and stat.S_IMODE(scene.stat().st_mode) == mode
+    # Even when the file itself is edited to name it, the server inlines nothing of it.
+    scene.write_text(json.dumps({**json.loads(before), "layers": [{"name": "x", "image": target}]}))
+    status, _, body = fetch(api)
+    assert status == 422 and b"root:" not in body and b"SECRET" not in body and b"PATH=" not in body
+    assert b"layers[0].image" in body
+
+
+def test_images_the_scene_file_named_at_start_stay_readable(editor: Path, tmp_path: Path) -> None:
+    (tmp_path / "shared").mkdir()
+    (tmp_path / "shared" / "dot.png").write_bytes(PNG_1x1)
+    (tmp_path / "scene").mkdir()
+    path = tmp_path / "scene" / "s.json"
+    path.write_text(json.dumps({"inkwarp": 1, "width": 1, "height": 1,
+                                "layers": [{"name": "d", "image": "../shared/dot.png"}]}))
+    server = serve(path, editor)
+    try:
+        status, _, body = fetch(api_url(server))
+        assert status == 200 and json.loads(body)["layers"][0]["image"] == DOT_URI
+        assert fetch(api_url(server), "PUT", body)[0] == 200
+        assert json.loads(path.read_text())["layers"][0]["image"] == "../shared/dot.png"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def test_saves_are_validated_size_limited_and_keep_the_mode(served, scene: Path) -> None:
+    api = api_url(served)
+    os.chmod(scene, 0o644)
+    doc = json.loads(fetch(api)[2])
+    bad = {**doc, "fps": -1}
+    status, _, body = fetch(api, "PUT", json.dumps(bad).encode())
+    assert status == 422 and b"fps" in body
+    assert fetch(api, "PUT", b"\xff\xfe not json")[0] == 422
+    status, _, body = fetch(api, "PUT", json.dumps(doc).encode())
+    assert status == 200
+    assert stat.S_IMODE(scene.stat().st_mode) == 0o644
+    os.chmod(scene, 0o664)
+    assert fetch(api, "PUT", json.dumps(doc).encode())[0] == 200
+    assert stat.S_IMODE(scene.stat().st_mode) == 0o664
+    # A UTF-8 byte-order mark, as some editors write, is fine.
+    scene.write_bytes(b"\xef\xbb\xbf" + scene.read_bytes())
+    assert fetch(api)[0] == 200
+    port = served.server_address[1]
+    head = f"PUT /api/scene HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nX-Inkwarp-Token: {served.token}\r\n"
+    assert raw(served, (head + "Content-Length: -1\r\n\r\n").encode()).startswith(b"HTTP/1.0 400")
+    assert raw(served, (head + "Content-Length: abc\r\n\r\n").encode()).startswith(b"HTTP/1.0 400")
+    assert raw(served, (head + "\r\n").encode()).startswith(b"HTTP/1.0 411")
+    huge = raw(served, (head + f"Content-Length: {10**15}\r\n\r\n").encode())
+    assert huge.startswith(b"HTTP/1.0 413") and b"MiB" in huge
+    assert [p.name for p in scene.parent.iterdir() if p.name.startswith(".")] == []
+
+
+def test_security_headers_and_no_listings(served, editor: Path) -> None:
+    (editor / "assets").mkdir()
+    (editor / "assets" / "a.js").write_text("1")
+    base = api_url(served).replace("api/scene", "")
+    status, headers, _ = fetch(base)
+    assert headers["X-Content-Type-Options"] == "nosniff"
+    csp = headers["Content-Security-Policy"]
+    assert "'wasm-unsafe-eval'" in csp and "worker-src 'self' blob:" in csp
+    assert "frame-ancestors 'none'" in csp and headers["Referrer-Policy"] == "no-referrer"
+    assert fetch(base + "assets/")[0] == 404
+    assert fetch(base + "assets")[0] in (301, 404)
+    assert fetch(base + "../../../../etc/passwd")[0] == 404
+    assert fetch(base + "api/scene", "POST", b"{}")[0] == 405
+
+
+def test_stalled_clients_time_out_and_do_not_starve_others(served, monkeypatch) -> None:
+    import inkwarp.cli.edit as edit
+
+    port = served.server_address[1]
+    stalled = [socket.create_connection(("127.0.0.1", port)) for _ in range(40)]
+    try:
+        for s in stalled[:5]:
+            s.sendall(b"PUT /api/scene HTTP/1.1\r\n")
+        time.sleep(0.3)
+        # The pool is bounded: past MAX_WORKERS the server answers 503 at once ...
+        answers = []
+        for s in stalled[edit.MAX_WORKERS:]:
+            s.settimeout(5)
+            answers.append(s.recv(100))
+        assert all(a.startswith(b"HTTP/1.1 503") for a in answers), answers[:3]
+        assert threading.active_count() < 80
+    finally:
+        for s in stalled:
+            s.close()
+    # ... and once they hang up, it serves again.
+    deadline = time.monotonic() + 10
+    while fetch(api_url(served))[0] != 200:
+        assert time.monotonic() < deadline
+        time.sleep(0.1)
+
+
+def test_a_silent_client_is_dropped_after_the_socket_timeout(editor: Path, scene: Path,
+                                                              monkeypatch) -> None:
+    import inkwarp.cli.edit as edit
+
+    monkeypatch.setattr(edit, "SOCKET_TIMEOUT_S", 0.5)
+    server = serve(scene, editor)
+    try:
+        with socket.create_connection(server.server_address[:2], timeout=20) as s:
+            s.sendall(b"GET / HTTP/1.1\r\n")
+            t0 = time.monotonic()
+            s.recv(100)  # the server hangs up
+            assert time.monotonic() - t0 < 10
+        with socket.create_connection(server.server_address[:2], timeout=20) as s:
+            port = server.server_address[1]
+            s.sendall(f"PUT /api/scene HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nX-Inkwarp-Token: "
+                      f"{server.token}\r\nContent-Length: 1000\r\n\r\n{{".encode())
+            t0 = time.monotonic()
+            s.recv(100)
+            assert time.monotonic() - t0 < 10
+        assert json.loads(scene.read_text())["width"] == 1
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--port", "99999"], "99999 is not a port"),
+    (["--port", "-5"], "is not a port"),
+])
+def test_bad_port_is_a_clean_usage_error(editor: Path, monkeypatch, capsys, argv, needle) -> None:
+    monkeypatch.setenv("INKWARP_EDITOR_DIR", str(editor))
+    with pytest.raises(SystemExit) as exit_:
+        main(["edit", "--no-browser", *argv])
+    assert exit_.value.code == 2
+    assert needle in capsys.readouterr().err
+
+
+def test_unknown_host_is_a_clean_error(editor: Path, monkeypatch, capsys) -> None:
+    monkeypatch.setenv("INKWARP_EDITOR_DIR", str(editor))
+    assert main(["edit", "--no-browser", "--host", "nonexistent.invalid"]) == 2
+    err = capsys.readouterr().err
+    assert "--host nonexistent.invalid" in err and "Traceback" not in err

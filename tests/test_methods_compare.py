@@ -230,7 +230,7 @@ def test_bad_method_settings_name_their_place(tmp_path, settings, path):
 
 def test_bad_settings_for_compare_are_scene_errors(tmp_path):
     path = checkerboard_scene(tmp_path, hole=True)
-    with pytest.raises(inkwarp.SceneError, match=r"solver\.beier_neely\.b: .*≥ 0") as err:
+    with pytest.raises(inkwarp.SceneError, match=r"solver\.beier_neely\.b: .*from 0 to 16") as err:
         inkwarp.compare(path, 1.0, "beier-neely", b=-2)
     assert err.value.path == "solver.beier_neely.b"
     with pytest.raises(inkwarp.SceneError, match="max_samples"):

@@ -1,6 +1,11 @@
 """Type stubs for the compiled core. The public API is the `inkwarp` package."""
 
 __version__: str
+#: The limits every input is held to (see docs/reference/limits.md).
+MAX_SIDE_PX: int
+MAX_PIXELS: int
+MAX_COORD_PX: float
+MAX_TIME_S: float
 
 # --- geometry (feature sampling) ---
 import numpy as np
@@ -133,3 +138,4 @@ def transfer_fold(
     source: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
     target: list[tuple[str, str, list[tuple[float, float]], list[list[tuple[float, float]]]]],
 ) -> tuple[float, float, str, str] | None: ...
+def _panic_for_tests() -> None: ...

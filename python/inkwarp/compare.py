@@ -216,6 +216,8 @@ def comparison_sheet(
     except ImportError:  # pragma: no cover - matplotlib is an optional dependency
         raise ImportError("comparison sheets need matplotlib: pip install 'inkwarp[compare]'") from None
 
+    if isinstance(dpi, bool) or not isinstance(dpi, (int, np.integer)) or not 10 <= dpi <= 600:
+        raise ValueError(f"dpi must be a whole number from 10 to 600, got {dpi!r}; the default is 100")
     rows = len(comparison.methods)
     limit = max((float(np.abs(comparison.fields[m][..., 0]).max()) for m in comparison.methods), default=1.0)
     limit = limit if limit > 0 else 1.0

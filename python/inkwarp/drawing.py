@@ -160,6 +160,9 @@ def sample(
             raise ValueError(f"shape must be (H, W), two positive integers; got {shape!r}.") from None
         if h <= 0 or w <= 0:
             raise ValueError(f"shape must be (H, W), two positive integers; got {shape!r}.")
+        if max(h, w) > _inkwarp.MAX_SIDE_PX:
+            raise ValueError(f"shape {shape!r}: each side may be at most {_inkwarp.MAX_SIDE_PX} "
+                             "pixels; use a smaller grid.")
         grid_shape = (h, w)
     if kind == "region" and grid_shape is None:
         raise ValueError(

@@ -29,6 +29,11 @@ class SceneError(InkwarpError, ValueError):
         self.problems = problems if problems is not None else [(path, message)]
 
 
+class InternalError(InkwarpError):
+    """A bug in inkwarp (such as a panic in the engine), caught before it could crash the
+    program. The message asks for a report; the command line exits with status 1."""
+
+
 class InkwarpWarning(UserWarning):
     """Something inkwarp did works but is probably not what was meant (for example a
     transfer map that folds the drawing over)."""

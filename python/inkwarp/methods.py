@@ -114,6 +114,9 @@ def _shape(shape: Sequence[int]) -> tuple[int, int]:
         raise ValueError(f"shape must be (H, W); got {shape!r}.") from None
     if height < 1 or width < 1:
         raise ValueError(f"shape must be at least (1, 1); got ({height}, {width}).")
+    if max(height, width) > _inkwarp.MAX_SIDE_PX:
+        raise ValueError(f"shape ({height}, {width}): each side may be at most "
+                         f"{_inkwarp.MAX_SIDE_PX} pixels; use a smaller grid.")
     return height, width
 
 

@@ -133,6 +133,9 @@ def _check_args(
         raise ValueError(f"shape must be (height, width), two positive integers, got {shape!r}.") from None
     if height < 1 or width < 1:
         raise ValueError(f"shape must be (height, width), two positive integers, got {shape!r}.")
+    if max(height, width) > _inkwarp.MAX_SIDE_PX:
+        raise ValueError(f"shape {shape!r}: each side may be at most {_inkwarp.MAX_SIDE_PX} "
+                         "pixels; use a smaller grid.")
     pts = _points("points", points)
     disp = _points("displacements", displacements)
     if len(pts) == 0:

@@ -35,6 +35,7 @@ import io
 import json
 import math
 import os
+import stat
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -186,14 +187,49 @@ def validate_scene(source: str | os.PathLike[str] | Mapping[str, Any], base_dir:
     else:
         path = Path(source)
         try:
-            text = path.read_text(encoding="utf-8-sig")
+            text = read_scene_text(path)
         except FileNotFoundError:
             return [("", f"no such scene file: {path}")]
-        except (OSError, UnicodeDecodeError) as err:
-            return [("", f"cannot read the scene file {path}: {err}")]
+        except SceneError as err:
+            return [("", str(err).removeprefix(f"{path}: "))]
+        except OSError as err:
+            return [("", f"cannot read the scene file {path}: {err.strerror or err}")]
         problems = []
         base = os.fspath(base_dir) if base_dir is not None else os.fspath(path.resolve().parent)
     return problems + [p for p in _inkwarp.scene_problems(text, base) if p[0] not in {q[0] for q in problems}]
+
+
+#: The largest scene file read (images inline as data: URIs count).
+MAX_SCENE_FILE_BYTES = 1 << 30
+
+
+def read_scene_text(file: str | os.PathLike[str]) -> str:
+    """A scene file's text: UTF-8, with or without a byte-order mark.
+
+    Raises
+    ------
+    FileNotFoundError
+        When there is no such file.
+    inkwarp.SceneError
+        When it is not a regular file (a FIFO or a device such as /dev/zero would block or
+        never end), is too large, or is not UTF-8 text.
+    """
+    name = os.fspath(file)
+    info = os.stat(name)
+    if not stat.S_ISREG(info.st_mode):
+        raise SceneError(f"{name}: not a regular file (a folder, FIFO or device); give a scene's "
+                         "JSON file", file=name)
+    if info.st_size > MAX_SCENE_FILE_BYTES:
+        raise SceneError(f"{name}: {info.st_size >> 20} MiB is more than the "
+                         f"{MAX_SCENE_FILE_BYTES >> 20} MiB a scene file may have; keep pictures "
+                         "as files beside it", file=name)
+    data = Path(name).read_bytes()
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        line = data[: err.start].count(b"\n") + 1
+        raise SceneError(f"{name}: not UTF-8 text (byte {err.start}, line {line}); save the "
+                         "scene as UTF-8", file=name) from None
 
 
 class Frames(Iterator[np.ndarray]):
@@ -269,7 +305,7 @@ class Scene:
             When the scene has problems (all of them are listed).
         """
         file = os.fspath(path)
-        text = Path(file).read_text(encoding="utf-8-sig")
+        text = read_scene_text(file)
         base_dir = os.fspath(Path(file).resolve().parent)
         core = _inkwarp.SceneCore.from_json(text, base_dir, file)
         return cls(core, file=file, base_dir=base_dir)

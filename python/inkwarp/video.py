@@ -30,7 +30,7 @@ import secrets
 import shutil
 from pathlib import Path
 from types import TracebackType
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -312,51 +312,115 @@ class PngSequenceWriter(FrameWriter):
 
 
 class GifWriter(FrameWriter):
-    """An animated GIF (Pillow), looping forever, each frame with its own palette.
+    """An animated GIF, looping forever, each frame with its own palette, streamed to the
+    file frame by frame (memory holds one frame, not the clip).
 
-    GIF stores frame delays in hundredths of a second, so the delays are spread to keep
-    the clip's total length right (24 fps plays as 4, 4, 5, 4, 4, 5, ... hundredths).
+    Pillow encodes each frame alone; its image block is copied into the file with the
+    frame's palette as a local colour table. GIF stores frame delays in hundredths of a
+    second, so the delays are spread to keep the clip's total length right (24 fps plays
+    as 4, 4, 5, 4, 4, 5, ... hundredths).
     """
 
     def __init__(self, target: Path, fps: float) -> None:
         super().__init__(target, fps)
-        self._frames: list[object] = []
         self._temp: Path | None = None
+        self._file: Any = None
+
+    def _delay_cs(self, i: int) -> int:
+        start, end = round(i * 100 / self.fps), round((i + 1) * 100 / self.fps)
+        return max(1, end - start)
 
     def _write(self, frame: np.ndarray) -> None:
+        import io
+        import struct
+
         from PIL import Image
 
         rgb = Image.fromarray(flatten(frame), "RGB")
-        # Quantised right away: a palette image is a quarter of the RGBA frame in memory.
         # The octree keeps saturated colours (eyes, lips) and gives files about half the
         # size of a median cut's, at a mean error of about 3 levels on a photograph.
-        self._frames.append(rgb.quantize(colors=256, method=Image.Quantize.FASTOCTREE))
-
-    def _durations_ms(self) -> list[int]:
-        n = len(self._frames)
-        ends = [round((i + 1) * 100 / self.fps) for i in range(n)]
-        starts = [0] + ends[:-1]
-        return [max(1, e - s) * 10 for s, e in zip(starts, ends)]
+        one = io.BytesIO()
+        rgb.quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(one, format="GIF")
+        palette, block = _gif_image_block(one.getvalue())
+        if self._file is None:
+            self._temp = _temp_name(self.target, ".gif")
+            self._file = open(self._temp, "wb")  # noqa: SIM115 - closed by _commit/_discard
+            w, h = rgb.size
+            # Header, a screen without a global palette, and the loop-forever extension.
+            self._file.write(b"GIF89a" + struct.pack("<HHBBB", w, h, 0, 0, 0)
+                             + b"\x21\xff\x0bNETSCAPE2.0\x03\x01\x00\x00\x00")
+        delay = self._delay_cs(self.frames_written)
+        # Graphic control: disposal 1 (leave the frame in place), the delay, no transparency.
+        self._file.write(b"\x21\xf9\x04" + struct.pack("<BHB", 1 << 2, delay, 0) + b"\x00")
+        self._file.write(block[:9] + bytes([block[9] | 0x80 | _palette_bits(palette)]))
+        self._file.write(palette + block[10:])
+        self._file.flush()
 
     def _commit(self) -> list[Path]:
-        first, *rest = self._frames
-        self._temp = _temp_name(self.target, ".gif")
-        first.save(self._temp, format="GIF", save_all=True,  # type: ignore[attr-defined]
-                   append_images=rest, duration=self._durations_ms(), loop=0, optimize=False,
-                   disposal=1)
-        self._frames.clear()
+        assert self._file is not None and self._temp is not None
+        self._file.write(b"\x3b")
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        self._file.close()
+        self._file = None
         os.replace(self._temp, self.target)
         return [self.target]
 
     def _discard(self) -> None:
-        self._frames.clear()
+        if self._file is not None:
+            self._file.close()
+            self._file = None
         if self._temp is not None:
             self._temp.unlink(missing_ok=True)
 
 
+def _palette_bits(palette: bytes) -> int:
+    """The size field of a colour table of ``len(palette) // 3`` entries (2 ** (n + 1))."""
+    entries = len(palette) // 3
+    return max(0, entries.bit_length() - 2)
+
+
+def _gif_image_block(data: bytes) -> tuple[bytes, bytes]:
+    """``(palette, image block)`` of a one-frame GIF: the palette padded to a power of two,
+    and the block from its image descriptor (0x2C) through its data's terminator, with the
+    descriptor's colour-table bits cleared."""
+    flags = data[10]
+    pos = 13
+    palette = b""
+    if flags & 0x80:
+        size = 3 * (2 ** ((flags & 7) + 1))
+        palette = data[pos:pos + size]
+        pos += size
+    while data[pos] == 0x21:  # extensions Pillow may add: skip label and sub-blocks
+        pos += 2
+        while data[pos]:
+            pos += data[pos] + 1
+        pos += 1
+    if data[pos] != 0x2C:
+        raise ValueError("Pillow wrote a GIF without an image block")
+    descriptor = bytearray(data[pos:pos + 10])
+    local = descriptor[9]
+    pos += 10
+    if local & 0x80:
+        size = 3 * (2 ** ((local & 7) + 1))
+        palette = data[pos:pos + size]
+        pos += size
+    descriptor[9] = local & 0x40  # keep the interlace bit only
+    start = pos
+    pos += 1  # LZW minimum code size
+    while data[pos]:
+        pos += data[pos] + 1
+    pos += 1
+    entries = max(2, 1 << max(1, (len(palette) // 3 - 1).bit_length()))
+    palette = palette.ljust(3 * entries, b"\0")
+    return palette, bytes(descriptor) + data[start:pos]
+
+
 class Mp4Writer(FrameWriter):
     """An H.264 MP4 (yuv420p, playable everywhere) through the ffmpeg that imageio-ffmpeg
-    ships. Frames are streamed to ffmpeg, not kept in memory. H.264 in yuv420p needs even
+    ships. Frames are streamed to ffmpeg, not kept in memory; ffmpeg's exit status is
+    checked, so a full disk or a failed encode is an ``OSError`` with ffmpeg's reason and
+    no file under the target's name. H.264 in yuv420p needs even
     sizes, so an odd width or height gets one more column or row, copied from the edge.
 
     ``quality`` is imageio-ffmpeg's 0-10 scale (10 is best); the default 8 keeps line art
@@ -367,7 +431,8 @@ class Mp4Writer(FrameWriter):
         super().__init__(target, fps)
         self.quality = quality
         self._temp: Path | None = None
-        self._pipe = None  # imageio_ffmpeg.write_frames generator, opened on the first frame
+        self._pipe: Any = None  # the ffmpeg process, started on the first frame
+        self._log: Any = None
 
     def _write(self, frame: np.ndarray) -> None:
         rgb = flatten(frame)
@@ -375,32 +440,83 @@ class Mp4Writer(FrameWriter):
         if h % 2 or w % 2:
             rgb = np.pad(rgb, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
         if self._pipe is None:
-            import imageio_ffmpeg
+            self._start(rgb.shape[1], rgb.shape[0])
+        assert self._pipe is not None and self._pipe.stdin is not None
+        try:
+            self._pipe.stdin.write(np.ascontiguousarray(rgb).tobytes())
+        except (BrokenPipeError, OSError):
+            # ffmpeg stopped reading: its exit status and stderr say why.
+            self._finish()
+            raise OSError(f"{self.target}: ffmpeg stopped after {self.frames_written} "
+                          "frames") from None
 
-            self._temp = _temp_name(self.target, ".mp4")
-            self._pipe = imageio_ffmpeg.write_frames(
-                str(self._temp), (rgb.shape[1], rgb.shape[0]), pix_fmt_in="rgb24",
-                pix_fmt_out="yuv420p", fps=self.fps, codec="libx264", quality=self.quality,
-                macro_block_size=1, ffmpeg_log_level="error",
-                output_params=["-movflags", "+faststart"],
-            )
-            self._pipe.send(None)  # start ffmpeg
-        self._pipe.send(np.ascontiguousarray(rgb))
+    def _start(self, width: int, height: int) -> None:
+        import subprocess
+        import tempfile
+
+        import imageio_ffmpeg
+
+        self._temp = _temp_name(self.target, ".mp4")
+        # ffmpeg's messages go to a file, not a pipe nobody reads (a full pipe would stall it).
+        self._log = tempfile.TemporaryFile()
+        crf = int((1 - self.quality / 10.0) * 51)  # imageio-ffmpeg's scale
+        command = [
+            imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-hide_banner", "-loglevel", "error",
+            "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}",
+            "-pix_fmt", "rgb24", "-r", f"{self.fps:.12g}", "-i", "-", "-an",
+            "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf),
+            "-movflags", "+faststart", "-f", "mp4", str(self._temp),
+        ]
+        self._pipe = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                      stderr=self._log)
+
+    def _finish(self) -> None:
+        """Waits for ffmpeg; OSError naming the target and ffmpeg's own words unless it
+        exited 0."""
+        pipe, self._pipe = self._pipe, None
+        if pipe is None:
+            return
+        try:
+            if pipe.stdin is not None:
+                pipe.stdin.close()
+        except OSError:
+            pass
+        code = pipe.wait()
+        log, self._log = self._log, None
+        with log:
+            log.seek(0)
+            said = log.read().decode("utf-8", "replace").strip().splitlines()
+        if code != 0:
+            reason = "; ".join(line.strip() for line in said[-3:])
+            if code < 0:
+                import signal
+
+                how = f"killed by {signal.Signals(-code).name} ({signal.strsignal(-code)})"
+            else:
+                how = f"exit status {code}"
+            raise OSError(f"{self.target}: ffmpeg failed ({how})" + (f": {reason}" if reason else ""))
 
     def _commit(self) -> list[Path]:
-        assert self._pipe is not None and self._temp is not None
-        self._pipe.close()  # waits for ffmpeg to finish the file
-        self._pipe = None
+        assert self._temp is not None
+        self._finish()  # waits for ffmpeg to finish the file, and checks that it did
+        if self._temp.stat().st_size == 0:
+            raise OSError(f"{self.target}: ffmpeg wrote an empty file")
         os.replace(self._temp, self.target)
         return [self.target]
 
     def _discard(self) -> None:
         if self._pipe is not None:
             try:
-                self._pipe.close()
-            except Exception:  # noqa: BLE001 - the file is deleted either way
+                self._pipe.kill()
+                if self._pipe.stdin is not None:
+                    self._pipe.stdin.close()
+            except OSError:
                 pass
+            self._pipe.wait()
             self._pipe = None
+        if self._log is not None:
+            self._log.close()
+            self._log = None
         if self._temp is not None:
             self._temp.unlink(missing_ok=True)
 

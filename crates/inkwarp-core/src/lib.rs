@@ -16,6 +16,7 @@ pub mod field;
 pub mod geometry;
 pub mod grid;
 pub mod interrupt;
+pub mod limits;
 pub mod methods;
 pub mod render;
 pub mod scene;

@@ -24,6 +24,7 @@ fn points_of(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> 
         )));
     }
     let v = a.as_array();
+    crate::limits::check_coordinates(name, v.iter())?;
     Ok((0..shape[0]).map(|i| [v[[i, 0]], v[[i, 1]]]).collect())
 }
 
@@ -58,6 +59,11 @@ fn sample_feature<'py>(
     let kind: Kind = kind.parse().map_err(value_error)?;
     let rest = points_of("rest", &rest)?;
     let pose = points_of("pose", &pose)?;
+    crate::limits::check_sampling(&rest, closed, spacing)?;
+    crate::limits::check_sampling(&pose, closed, spacing)?;
+    if let Some((height, width)) = shape {
+        crate::limits::check_grid(width, height)?;
+    }
     let grid = match (shape, mask) {
         (Some((height, width)), Some(mask)) => {
             let s = mask.shape();
@@ -87,9 +93,10 @@ fn sample_feature<'py>(
         spline_outline,
         spacing_px: spacing,
     };
-    let samples = py
-        .detach(|| geometry::sample_feature(kind, &rest, &pose, &opts, grid.as_ref()))
-        .map_err(value_error)?;
+    let samples = crate::errors::run_engine(py, || {
+        geometry::sample_feature(kind, &rest, &pose, &opts, grid.as_ref())
+    })?
+    .map_err(value_error)?;
     Ok((
         array_of(py, samples.iter().map(|s| s.rest)),
         array_of(py, samples.iter().map(|s| s.displacement)),
@@ -112,6 +119,7 @@ fn curve_polyline<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let kind: Kind = kind.parse().map_err(value_error)?;
     let points = points_of("points", &points)?;
+    crate::limits::check_sampling(&points, closed, spacing)?;
     let line = geometry::curve_polyline(kind, &points, closed, spline_outline, spacing);
     Ok(array_of(py, line.into_iter()))
 }

@@ -4,6 +4,7 @@
 use pyo3::prelude::*;
 
 mod errors;
+mod limits;
 mod geometry;
 mod methods;
 mod scene;

@@ -23,6 +23,7 @@ fn points_of(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> 
         )));
     }
     let v = a.as_array();
+    crate::limits::check_coordinates(name, v.iter())?;
     Ok((0..shape[0]).map(|i| [v[[i, 0]], v[[i, 1]]]).collect())
 }
 
@@ -69,6 +70,8 @@ fn interpolate_field<'py>(
     b: f64,
     p: f64,
 ) -> PyResult<(Bound<'py, PyArray3<f32>>, Bound<'py, PyDict>)> {
+    crate::limits::check_grid(width, height)?;
+    crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL)?;
     let method: methods::Method = method.parse().map_err(value_error)?;
     let Some(interpolant) = method.interpolant() else {
         return Err(PyValueError::new_err(
@@ -106,9 +109,10 @@ fn interpolate_field<'py>(
     };
     let controls = Controls { samples, line_pairs };
     let params = MethodParams { max_samples, beier_neely: BeierNeelyParams { a, b, p } };
-    let (field, report) = py
-        .detach(|| methods::field(interpolant, &controls, width, height, &params))
-        .map_err(value_error)?;
+    let (field, report) = crate::errors::run_engine(py, || {
+        methods::field(interpolant, &controls, width, height, &params)
+    })?
+    .map_err(value_error)?;
     let arr = Array3::from_shape_vec((height, width, 2), field.to_interleaved()).map_err(value_error)?;
     Ok((PyArray3::from_owned_array(py, arr), report_dict(py, &report)?))
 }
@@ -139,7 +143,8 @@ impl PyThinPlateMap {
 
     /// The displacement at every pixel of a (height, width) image, float32 (H, W, 2).
     fn field<'py>(&self, py: Python<'py>, height: usize, width: usize) -> PyResult<Bound<'py, PyArray3<f32>>> {
-        let f = py.detach(|| self.map.field(width, height));
+        crate::limits::check_grid(width, height)?;
+        let f = crate::errors::run_engine(py, || self.map.field(width, height))?;
         let arr = Array3::from_shape_vec((height, width, 2), f.to_interleaved()).map_err(value_error)?;
         Ok(PyArray3::from_owned_array(py, arr))
     }

@@ -49,12 +49,12 @@ fn warp_image<'py>(
     let pixels = image.as_slice().map_err(|_| contiguous("image"))?;
     let displacement = field.as_slice().map_err(|_| contiguous("field"))?;
     let matte = matte.as_slice().map_err(|_| contiguous("matte"))?;
-    let out = py.detach(|| {
+    let out = crate::errors::run_engine(py, || {
         let image = RgbaImage::from_raw(w, h, pixels.to_vec())?;
         let field = Field::from_interleaved(w, h, displacement);
         let grid = Grid::from_matte(w, h, matte);
         try_warp_image(&image, &field, &grid)
-    });
+    })?;
     let out = out.map_err(|e| PyValueError::new_err(e.to_string()))?;
     let array = Array3::from_shape_vec((h, w, 4), out.data)
         .expect("the renderer returns an image of the input's size");

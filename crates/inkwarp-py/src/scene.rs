@@ -12,6 +12,9 @@ use pyo3::exceptions::{PyIndexError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
 
+use crate::errors::run_engine;
+use crate::limits::{memory_problem, MAX_IMAGE_FILE_BYTES};
+
 /// Raises `inkwarp.SceneError` for `err`, naming `file` when there is one.
 fn scene_error(py: Python<'_>, err: &SceneError, file: Option<&str>) -> PyErr {
     let message = match file {
@@ -43,10 +46,39 @@ fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>,
             (Some(base), false) => base.join(path),
             _ => path.to_path_buf(),
         };
-        std::fs::read(&full).map_err(|e| match e.kind() {
+        let describe = |e: std::io::Error| match e.kind() {
             std::io::ErrorKind::NotFound => format!("no such file (looked for {})", full.display()),
             _ => format!("cannot read {} ({e})", full.display()),
-        })
+        };
+        // Regular files only: reading a FIFO or a device could block forever or never end.
+        let meta = std::fs::metadata(&full).map_err(describe)?;
+        if !meta.is_file() {
+            return Err(format!(
+                "{} is not a regular file (a folder, FIFO or device); give a PNG or JPEG file",
+                full.display()
+            ));
+        }
+        if meta.len() > MAX_IMAGE_FILE_BYTES {
+            return Err(format!(
+                "{} is {} MiB, more than the {} MiB inkwarp reads; use a smaller picture",
+                full.display(),
+                meta.len() >> 20,
+                MAX_IMAGE_FILE_BYTES >> 20
+            ));
+        }
+        std::fs::read(&full).map_err(describe)
+    }
+}
+
+/// The scene from JSON text, refused when rendering it would not fit in free memory (so
+/// that validating and loading say so before a render aborts).
+fn resolve_checked(text: &str, base_dir: Option<PathBuf>) -> Result<Scene, SceneError> {
+    let mut load = file_loader(base_dir);
+    let scene = Scene::from_json(text, &mut load)?;
+    let needed = inkwarp_core::limits::render_bytes(scene.width(), scene.height(), scene.layers().len());
+    match memory_problem(needed) {
+        Some(why) => Err(SceneError::one("width", why)),
+        None => Ok(scene),
     }
 }
 
@@ -109,10 +141,7 @@ impl SceneCore {
         base_dir: Option<PathBuf>,
         file: Option<String>,
     ) -> PyResult<Self> {
-        let result = py.detach(move || {
-            let mut load = file_loader(base_dir);
-            Scene::from_json(&text, &mut load)
-        });
+        let result = run_engine(py, move || resolve_checked(&text, base_dir))?;
         match result {
             Ok(scene) => Ok(SceneCore {
                 scene: Arc::new(scene),
@@ -183,7 +212,7 @@ impl SceneCore {
     ) -> PyResult<Bound<'py, PyAny>> {
         let method = method_named(method)?;
         let scene = Arc::clone(&self.scene);
-        match py.detach(move || scene.render_with(time, method)) {
+        match run_engine(py, move || scene.render_with(time, method))? {
             Ok(image) => image_to_numpy(py, image),
             Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
         }
@@ -201,7 +230,7 @@ impl SceneCore {
         let method = method_named(method)?;
         self.check_layer(layer)?;
         let scene = Arc::clone(&self.scene);
-        match py.detach(move || scene.layer_field_with(layer, time, None, method)) {
+        match run_engine(py, move || scene.layer_field_with(layer, time, None, method))? {
             Ok(solved) => field_to_numpy(py, &solved.field),
             Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
         }
@@ -225,7 +254,7 @@ impl SceneCore {
             Some(text) => scene::parse_overrides(text, "solver").map_err(|e| scene_error(py, &e, None))?,
         };
         let scene = Arc::clone(&self.scene);
-        let result = py.detach(move || -> Result<_, SceneError> {
+        let result = run_engine(py, move || -> Result<_, SceneError> {
             let rendered = scene.render_overridden(time, &overrides)?;
             let mut notes = rendered.notes(&scene);
             let field = match rendered.layers[layer].as_ref() {
@@ -238,7 +267,7 @@ impl SceneCore {
                 }
             };
             Ok((rendered.image, field, notes))
-        });
+        })?;
         match result {
             Ok((image, field, notes)) => Ok((image_to_numpy(py, image)?, field_to_numpy(py, &field)?, notes)),
             Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
@@ -287,10 +316,18 @@ impl FrameIter {
 
     /// The next `(index, frame)`; renders with the GIL released.
     fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<(usize, Bound<'py, PyAny>)>> {
-        let next = py.detach(|| {
+        let next = run_engine(py, || {
             let mut guard = self.stream.lock().expect("frame stream");
             guard.as_mut().and_then(|stream| stream.next())
         });
+        let next = match next {
+            Ok(next) => next,
+            Err(err) => {
+                // Interrupted (or a panic): the stream stops here.
+                self.close();
+                return Err(err);
+            }
+        };
         match next {
             None => {
                 self.close();
@@ -329,10 +366,9 @@ fn scene_problems(
     py: Python<'_>,
     text: String,
     base_dir: Option<PathBuf>,
-) -> Vec<(String, String)> {
-    py.detach(move || {
-        let mut load = file_loader(base_dir);
-        match Scene::from_json(&text, &mut load) {
+) -> PyResult<Vec<(String, String)>> {
+    run_engine(py, move || {
+        match resolve_checked(&text, base_dir) {
             Ok(_) => Vec::new(),
             Err(err) => err
                 .problems

@@ -93,6 +93,8 @@ fn thin_plate_solve<'py>(
             )))
         }
     };
+    crate::limits::check_grid(width, height)?;
+    crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL)?;
     let pts = points.as_array();
     let disp = displacements.as_array();
     if pts.ncols() != 2 || disp.ncols() != 2 || pts.nrows() != disp.nrows() {
@@ -100,6 +102,8 @@ fn thin_plate_solve<'py>(
             "points and displacements must both be (N, 2) arrays of the same length.",
         ));
     }
+    crate::limits::check_coordinates("points", pts.iter())?;
+    crate::limits::check_coordinates("displacements", disp.iter())?;
     let samples: Vec<Sample> = (0..pts.nrows())
         .map(|k| Sample { rest: [pts[[k, 0]], pts[[k, 1]]], displacement: [disp[[k, 0]], disp[[k, 1]]] })
         .collect();
@@ -145,7 +149,7 @@ fn thin_plate_solve<'py>(
     let mut history = warm.as_ref().map(|w| std::mem::take(&mut *w.lock()));
     // Without the interpreter, and on the solver's pool with the answer's conversion (its
     // parallel pass would otherwise wake the pool from outside).
-    let result = py.detach(|| {
+    let result = crate::errors::run_engine(py, || {
         in_pool(|| {
             // Read in place by the solve (no planar copy first).
             let initial = initial.map(|data| FieldView::Interleaved { width, height, data });
@@ -160,7 +164,7 @@ fn thin_plate_solve<'py>(
         // Out of its lock while the solve ran.
         *w.lock() = h;
     }
-    let (field, report) = result.map_err(|e| match e {
+    let (field, report) = result?.map_err(|e| match e {
         // `inkwarp.thin_plate` leaves this check to the core (one pass over the field fewer).
         SolveError::NonFiniteInitial => {
             PyValueError::new_err("initial has NaN or infinite values; pass a finite field (or None).")

@@ -39,7 +39,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="tps-exact fits at most N samples (1–5000), instead of the scene's "
                         "solver.tps_exact.max_samples (default 1000)")
     parser.add_argument("-o", "--output", required=True, metavar="SHEET.png", help="the sheet to write")
-    parser.add_argument("--dpi", type=int, default=100, help="resolution of the sheet (default 100)")
+    parser.add_argument("--dpi", type=_dpi, default=100,
+                        help="resolution of the sheet, 10 to 600 (default 100)")
     parser.add_argument("--quiet", action="store_true", help="print nothing on success")
     parser.set_defaults(func=run)
 
@@ -87,3 +88,14 @@ def run(args: argparse.Namespace) -> int:
                 print(f"{method}: {note}")
         print(f"wrote {out}")
     return 0
+
+
+def _dpi(text: str) -> int:
+    try:
+        dpi = int(text)
+    except ValueError:
+        dpi = 0
+    if not 10 <= dpi <= 600:
+        raise argparse.ArgumentTypeError(f"{text}: give a whole number of dots per inch from 10 "
+                                         "to 600, such as 100")
+    return dpi

@@ -11,9 +11,13 @@ from __future__ import annotations
 
 import argparse
 import base64
+import hmac
 import json
 import mimetypes
 import os
+import secrets
+import socket
+import stat
 import sys
 import tempfile
 import threading
@@ -22,9 +26,26 @@ from http import HTTPStatus
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
+from urllib.parse import parse_qs, urlsplit
 
 IMAGE_KEYS = ("image", "alpha", "continuity")
 MIME = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
+#: The magic numbers of the pictures the server inlines; nothing else is ever read.
+IMAGE_MAGIC = (b"\x89PNG\r\n\x1a\n", b"\xff\xd8\xff")
+
+#: The largest scene a save may send (images inline as data: URIs count).
+MAX_BODY_BYTES = 64 * 1024 * 1024
+#: Seconds a connection may sit idle mid-request before the server drops it.
+SOCKET_TIMEOUT_S = 10.0
+#: Requests handled at once; more are answered 503 at once instead of tying up a thread.
+MAX_WORKERS = 16
+#: The page's Content-Security-Policy: its own scripts, WebAssembly and workers, pictures
+#: from data: and blob: URIs, nothing from elsewhere and no framing.
+CSP = ("default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; worker-src 'self' blob:; "
+       "img-src 'self' data: blob:; media-src 'self' data: blob:; connect-src 'self' data: blob:; "
+       "style-src 'self' 'unsafe-inline'; font-src 'self' data:; object-src 'none'; "
+       "base-uri 'none'; form-action 'none'; frame-ancestors 'none'")
+LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
 
 
 def editor_dir() -> Path:
@@ -35,8 +56,19 @@ def editor_dir() -> Path:
     return Path(__file__).resolve().parent.parent / "editor"
 
 
+def _inside(path: Path, folder: Path) -> bool:
+    try:
+        path.relative_to(folder)
+    except ValueError:
+        return False
+    return True
+
+
 class SceneFile:
     """A scene on disk as the editor sees it: images inlined, and written back with paths.
+
+    Only pictures in the scene's folder (or below it), or named by the scene file as it was
+    when the server started, are ever read; a path a request names outside them is refused.
 
     Parameters
     ----------
@@ -46,68 +78,181 @@ class SceneFile:
 
     def __init__(self, path: Path) -> None:
         self.path = path
+        self.folder = path.resolve().parent
         self.inlined: dict[str, str] = {}
-
-    def read(self) -> bytes:
-        """The scene as JSON with every relative image path replaced by a data: URI."""
+        # The images the user's own file names (such as ../cat/cat.png) stay readable.
+        self.trusted: set[Path] = set()
         try:
-            doc = json.loads(self.path.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as err:
-            raise ValueError(
-                f"{self.path}: not valid JSON (line {err.lineno}, column {err.colno}: {err.msg})."
-            ) from None
-        for i, layer in enumerate(doc.get("layers", []) if isinstance(doc, dict) else []):
+            doc = json.loads(path.read_text(encoding="utf-8-sig"))
+        except (OSError, ValueError):
+            doc = None
+        for _, _, ref in self._image_refs(doc):
+            self.trusted.add((self.folder / ref).resolve())
+
+    @staticmethod
+    def _image_refs(doc: Any):
+        layers = doc.get("layers", []) if isinstance(doc, dict) else []
+        for i, layer in enumerate(layers if isinstance(layers, list) else []):
             if not isinstance(layer, dict):
                 continue
             for key in IMAGE_KEYS:
                 ref = layer.get(key)
-                if not isinstance(ref, str) or ref.startswith("data:"):
-                    continue
-                file = (self.path.parent / ref).resolve()
-                if not file.is_file():
-                    raise ValueError(f"{self.path}: layers[{i}].{key}: the image {ref!r} does not exist.")
-                mime = MIME.get(file.suffix.lower()) or mimetypes.guess_type(file.name)[0] or "image/png"
-                uri = f"data:{mime};base64," + base64.b64encode(file.read_bytes()).decode("ascii")
-                self.inlined[uri] = ref
-                layer[key] = uri
+                if isinstance(ref, str) and not ref.startswith("data:"):
+                    yield i, key, ref
+
+    def image_file(self, i: int, key: str, ref: str) -> Path:
+        """The file an image path names, if the server may read it (else ``ValueError``)."""
+        where = f"{self.path}: layers[{i}].{key}"
+        if "\0" in ref:
+            raise ValueError(f"{where}: the image path {ref!r} holds a NUL character.")
+        file = (self.folder / ref).resolve()
+        if not (_inside(file, self.folder) or file in self.trusted):
+            raise ValueError(f"{where}: the image {ref!r} is outside the scene's folder "
+                             f"{self.folder}; copy it there, or embed it as a data: URI.")
+        if file.suffix.lower() not in MIME:
+            raise ValueError(f"{where}: the image {ref!r} is not a .png, .jpg or .jpeg file.")
+        try:
+            st = file.stat()
+        except OSError:
+            raise ValueError(f"{where}: the image {ref!r} does not exist.") from None
+        if not stat.S_ISREG(st.st_mode):
+            raise ValueError(f"{where}: the image {ref!r} is not a regular file.")
+        return file
+
+    def read(self) -> bytes:
+        """The scene as JSON with every relative image path replaced by a data: URI."""
+        try:
+            doc = json.loads(self.path.read_text(encoding="utf-8-sig"))
+        except json.JSONDecodeError as err:
+            raise ValueError(
+                f"{self.path}: not valid JSON (line {err.lineno}, column {err.colno}: {err.msg})."
+            ) from None
+        except UnicodeDecodeError as err:
+            raise ValueError(f"{self.path}: not UTF-8 text (byte {err.start}); save the scene "
+                             "as UTF-8.") from None
+        for i, key, ref in list(self._image_refs(doc)):
+            file = self.image_file(i, key, ref)
+            data = file.read_bytes()
+            if not data.startswith(IMAGE_MAGIC):
+                raise ValueError(f"{self.path}: layers[{i}].{key}: {ref!r} is not a PNG or JPEG "
+                                 "picture.")
+            mime = MIME.get(file.suffix.lower()) or mimetypes.guess_type(file.name)[0] or "image/png"
+            uri = f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
+            self.inlined[uri] = ref
+            doc["layers"][i][key] = uri
         return json.dumps(doc).encode("utf-8")
 
     def write(self, body: bytes) -> None:
-        """Writes the editor's scene back (atomically), restoring the original image paths."""
-        doc: Any = json.loads(body)
+        """Writes the editor's scene back, restoring the original image paths.
+
+        The scene is validated first (as ``inkwarp validate`` would); the file is replaced
+        atomically and keeps its permissions.
+        """
+        from inkwarp.scene import validate_scene
+
+        try:
+            doc: Any = json.loads(body.decode("utf-8-sig"))
+        except (UnicodeDecodeError, ValueError) as err:
+            raise ValueError(f"The saved scene is not JSON text ({err}).") from None
         if not isinstance(doc, dict):
             raise ValueError("A scene is a JSON object.")
-        for layer in doc.get("layers", []):
+        layers = doc.get("layers", [])
+        for layer in layers if isinstance(layers, list) else []:
             if isinstance(layer, dict):
                 for key in IMAGE_KEYS:
                     ref = layer.get(key)
                     if isinstance(ref, str) and ref in self.inlined:
                         layer[key] = self.inlined[ref]
+        for i, key, ref in self._image_refs(doc):
+            self.image_file(i, key, ref)
+        problems = validate_scene(doc, base_dir=self.folder)
+        if problems:
+            lines = "; ".join(f"{p}: {m}" if p else m for p, m in problems[:5])
+            more = f" (and {len(problems) - 5} more)" if len(problems) > 5 else ""
+            raise ValueError(f"Not saved: the scene is not valid: {lines}{more}.")
         text = json.dumps(doc, indent=1) + "\n"
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", dir=self.path.parent)
+        try:
+            mode = stat.S_IMODE(self.path.stat().st_mode)
+        except FileNotFoundError:
+            mode = 0o666 & ~_umask()
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".part", dir=self.path.parent)
         try:
             with os.fdopen(fd, "w", encoding="utf-8") as f:
                 f.write(text)
+                f.flush()
+                os.fsync(f.fileno())
+            os.chmod(tmp, mode)
             os.replace(tmp, self.path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
             raise
 
 
-def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: int = 0) -> ThreadingHTTPServer:
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+class EditorServer(ThreadingHTTPServer):
+    """A threading HTTP server with a bounded number of handler threads."""
+
+    daemon_threads = True
+    request_queue_size = 64
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.slots = threading.BoundedSemaphore(MAX_WORKERS)
+        self.token = secrets.token_urlsafe(32)
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        if not self.slots.acquire(blocking=False):
+            try:
+                request.sendall(b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\n"
+                                b"Connection: close\r\n\r\n")
+            except OSError:
+                pass
+            self.shutdown_request(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self.slots.release()
+            raise
+
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        # A client that stalls or hangs up mid-request is dropped without a traceback.
+        pass
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self.slots.release()
+
+
+def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: int = 0) -> EditorServer:
     """The editor's HTTP server (not yet serving); ``port=0`` picks a free port.
+
+    Every ``/api/`` request must carry the server's token (``server.token``), as the header
+    ``X-Inkwarp-Token`` or the cookie the page gets when opened with ``?token=``; every
+    request must name this server in ``Host`` (and ``Origin``, when sent).
 
     Examples
     --------
     >>> import tempfile, pathlib
     >>> server = make_server(None, pathlib.Path(tempfile.mkdtemp()))
-    >>> server.server_address[0], server.server_address[1] > 0
-    ('127.0.0.1', True)
+    >>> server.server_address[0], server.server_address[1] > 0, len(server.token) > 30
+    ('127.0.0.1', True, True)
     >>> server.server_close()
     """
     scene_file = SceneFile(scene) if scene is not None else None
 
+    timeout_s = SOCKET_TIMEOUT_S
+
     class Handler(SimpleHTTPRequestHandler):
+        timeout = timeout_s
+        protocol_version = "HTTP/1.0"
         extensions_map = {
             **SimpleHTTPRequestHandler.extensions_map,
             ".js": "text/javascript",
@@ -122,9 +267,22 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
         def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - stdlib name
             pass
 
+        @property
+        def cookie_name(self) -> str:
+            return f"inkwarp-token-{self.server.server_address[1]}"
+
         def end_headers(self) -> None:
             self.send_header("Cache-Control", "no-store")
+            self.send_header("X-Content-Type-Options", "nosniff")
+            self.send_header("Content-Security-Policy", CSP)
+            self.send_header("Referrer-Policy", "no-referrer")
+            self.send_header("X-Frame-Options", "DENY")
+            self.send_header("Cross-Origin-Resource-Policy", "same-origin")
             super().end_headers()
+
+        def list_directory(self, path: Any) -> None:
+            self.send_error(HTTPStatus.NOT_FOUND, "No directory listings here.")
+            return None
 
         def _reply(self, status: int, body: bytes, ctype: str = "text/plain; charset=utf-8",
                    headers: dict[str, str] | None = None) -> None:
@@ -134,10 +292,73 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
             for k, v in (headers or {}).items():
                 self.send_header(k, v)
             self.end_headers()
-            self.wfile.write(body)
+            if self.command != "HEAD":
+                self.wfile.write(body)
+
+        # --- who may ask ---------------------------------------------------------------
+
+        def _allowed_hosts(self) -> set[str]:
+            port = self.server.server_address[1]
+            bound = self.server.server_address[0]
+            names = set(LOOPBACK_NAMES) | {bound, f"[{bound}]"}
+            return {f"{n}:{port}" for n in names}
+
+        def _refused(self) -> bool:
+            """Answers 403 (and returns True) unless Host, Origin and, for the API, the
+            token are this server's."""
+            host = (self.headers.get("Host") or "").strip().lower()
+            if host not in self._allowed_hosts():
+                self._reply(HTTPStatus.FORBIDDEN, b"Forbidden: the Host header does not name this "
+                            b"server (open the URL inkwarp edit printed).")
+                return True
+            origin = self.headers.get("Origin")
+            if origin is not None and origin.strip().lower() not in {
+                    f"http://{h}" for h in self._allowed_hosts()}:
+                self._reply(HTTPStatus.FORBIDDEN, b"Forbidden: requests from other sites are refused.")
+                return True
+            if urlsplit(self.path).path.startswith("/api/") and not self._has_token():
+                self._reply(HTTPStatus.FORBIDDEN, b"Forbidden: no valid token (open the URL "
+                            b"inkwarp edit printed, with its ?token=).")
+                return True
+            return False
+
+        def _has_token(self) -> bool:
+            want = self.server.token.encode()
+            given = self.headers.get("X-Inkwarp-Token")
+            if given is not None and hmac.compare_digest(given.strip().encode(), want):
+                return True
+            for part in (self.headers.get("Cookie") or "").split(";"):
+                name, _, value = part.strip().partition("=")
+                if name == self.cookie_name and hmac.compare_digest(value.encode(), want):
+                    return True
+            return False
+
+        def _token_cookie(self) -> str | None:
+            """The Set-Cookie header for a page opened with the right ``?token=``."""
+            query = parse_qs(urlsplit(self.path).query)
+            given = (query.get("token") or [""])[0]
+            if given and hmac.compare_digest(given.encode(), self.server.token.encode()):
+                return (f"{self.cookie_name}={self.server.token}; Path=/; HttpOnly; "
+                        "SameSite=Strict")
+            return None
+
+        def send_response(self, code: int, message: str | None = None) -> None:
+            super().send_response(code, message)
+            cookie = self._token_cookie() if code == HTTPStatus.OK else None
+            if cookie:
+                self.send_header("Set-Cookie", cookie)
+
+        # --- methods -------------------------------------------------------------------
+
+        def do_HEAD(self) -> None:
+            if self._refused():
+                return
+            super().do_HEAD()
 
         def do_GET(self) -> None:
-            if self.path.split("?")[0] == "/api/scene":
+            if self._refused():
+                return
+            if urlsplit(self.path).path == "/api/scene":
                 if scene_file is None:
                     return self._reply(HTTPStatus.NOT_FOUND, b"No scene was given to inkwarp edit.")
                 try:
@@ -145,25 +366,68 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                 except (OSError, ValueError) as err:
                     return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode())
                 return self._reply(HTTPStatus.OK, body, "application/json",
-                                   {"X-Inkwarp-Name": scene_file.path.name, "X-Inkwarp-Path": str(scene_file.path)})
+                                   {"X-Inkwarp-Name": scene_file.path.name,
+                                    "X-Inkwarp-Path": str(scene_file.path)})
+            if urlsplit(self.path).path.startswith("/api/"):
+                return self._reply(HTTPStatus.NOT_FOUND, b"No such API.")
             return super().do_GET()
 
-        def do_PUT(self) -> None:
-            if self.path.split("?")[0] != "/api/scene" or scene_file is None:
-                return self._reply(HTTPStatus.NOT_FOUND, b"Nothing to save to here.")
-            length = int(self.headers.get("Content-Length", "0"))
+        def _body(self) -> bytes | None:
+            """The request's body, or None after answering why it is refused."""
+            length_text = self.headers.get("Content-Length")
+            if length_text is None:
+                self._reply(HTTPStatus.LENGTH_REQUIRED, b"A save needs a Content-Length.")
+                return None
             try:
-                scene_file.write(self.rfile.read(length))
+                length = int(length_text.strip())
+            except ValueError:
+                length = -1
+            if length < 0:
+                self._reply(HTTPStatus.BAD_REQUEST, b"Content-Length must be a whole number >= 0.")
+                return None
+            if length > MAX_BODY_BYTES:
+                self._reply(HTTPStatus.REQUEST_ENTITY_TOO_LARGE,
+                            f"A saved scene may be at most {MAX_BODY_BYTES // 2**20} MiB; "
+                            "keep large pictures as files beside the scene.".encode())
+                return None
+            chunks, left = [], length
+            while left:
+                chunk = self.rfile.read(min(left, 1 << 20))
+                if not chunk:
+                    self._reply(HTTPStatus.BAD_REQUEST, b"The request body ended early.")
+                    return None
+                chunks.append(chunk)
+                left -= len(chunk)
+            return b"".join(chunks)
+
+        def do_PUT(self) -> None:
+            if self._refused():
+                return
+            if urlsplit(self.path).path != "/api/scene" or scene_file is None:
+                return self._reply(HTTPStatus.NOT_FOUND, b"Nothing to save to here.")
+            body = self._body()
+            if body is None:
+                return
+            try:
+                scene_file.write(body)
             except (OSError, ValueError) as err:
                 return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode())
             return self._reply(HTTPStatus.OK, b"saved", headers={"X-Inkwarp-Path": str(scene_file.path)})
 
-    return ThreadingHTTPServer((host, port), Handler)
+        def _not_allowed(self) -> None:
+            self._reply(HTTPStatus.METHOD_NOT_ALLOWED, b"Method not allowed.")
+
+        do_POST = do_DELETE = do_PATCH = do_OPTIONS = _not_allowed
+
+    return EditorServer((host, port), Handler)
 
 
-def editor_url(server: ThreadingHTTPServer, with_scene: bool) -> str:
+def editor_url(server: EditorServer, with_scene: bool) -> str:
+    """The URL to open: it carries the server's token, which the page keeps as a cookie."""
     host, port = server.server_address[:2]
-    return f"http://{host}:{port}/" + ("?scene=/api/scene" if with_scene else "")
+    if ":" in host:
+        host = f"[{host}]"
+    return f"http://{host}:{port}/?token={server.token}" + ("&scene=/api/scene" if with_scene else "")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -178,7 +442,14 @@ def run(args: argparse.Namespace) -> int:
         if not scene.is_file():
             raise ValueError(f"{args.scene}: no such scene file.")
         SceneFile(scene).read()  # bad JSON or missing images: say so now, exit 2
-    server = make_server(scene, root, args.host, args.port)
+    try:
+        server = make_server(scene, root, args.host, args.port)
+    except socket.gaierror as err:
+        raise ValueError(f"--host {args.host}: no such address ({err.strerror}); use 127.0.0.1 "
+                         "or localhost.") from None
+    except OSError as err:
+        raise ValueError(f"--host {args.host} --port {args.port}: cannot serve there "
+                         f"({err.strerror or err}); leave --port out to pick a free one.") from None
     url = editor_url(server, scene is not None)
     print(f"inkwarp editor at {url}" + (f" (editing {scene})" if scene else ""), flush=True)
     print("Press Ctrl+C to stop.", flush=True)
@@ -193,6 +464,16 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _port(text: str) -> int:
+    try:
+        port = int(text)
+    except ValueError:
+        port = -1
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"{text} is not a port; give 1 to 65535, or 0 for a free one")
+    return port
+
+
 def add_parser(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "edit",
@@ -203,7 +484,7 @@ def add_parser(subparsers: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("scene", nargs="?", metavar="SCENE", help="a scene file to open (optional)")
-    p.add_argument("--port", type=int, default=0, help="port to serve on (default: a free one)")
+    p.add_argument("--port", type=_port, default=0, help="port to serve on (default: a free one)")
     p.add_argument("--host", default="127.0.0.1", help="address to serve on (default: 127.0.0.1)")
     p.add_argument("--no-browser", action="store_true", help="print the URL without opening a browser")
     p.set_defaults(func=run)

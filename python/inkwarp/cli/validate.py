@@ -71,6 +71,7 @@ def summary(scene: Any, doc: dict[str, Any]) -> str:
 
 
 def _read_json(path: str) -> dict[str, Any]:
-    with open(path, encoding="utf-8") as fh:
-        doc = json.load(fh)
+    from inkwarp.scene import read_scene_text
+
+    doc = json.loads(read_scene_text(path))
     return doc if isinstance(doc, dict) else {}

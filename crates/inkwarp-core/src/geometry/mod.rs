@@ -165,6 +165,9 @@ pub enum GeometryError {
     /// A spacing that is zero, negative or not finite.
     #[error("The sample spacing is {0} px; it must be a positive, finite number of pixels.")]
     BadSpacing(f64),
+    /// A curve so long for its spacing that its samples would not fit in memory.
+    #[error("{0}.")]
+    TooManySamples(String),
     /// A region sampled without the grid its interior nodes live on.
     #[error("A region needs the grid (the image's width and height, and its matte) to find the nodes inside its outline, but none was given.")]
     RegionWithoutDomain,
@@ -227,6 +230,11 @@ pub fn sample_feature(
     let spacing = opts.spacing_px;
     if !(spacing > 0.0 && spacing.is_finite()) {
         return Err(GeometryError::BadSpacing(spacing));
+    }
+    for points in [rest, pose] {
+        let closed = opts.closed || kind == Kind::Region;
+        crate::limits::check_curve_samples(points, closed, spacing)
+            .map_err(|why| GeometryError::TooManySamples(why.replacen("sampling", "Sampling", 1)))?;
     }
     Ok(match kind {
         Kind::Point => vec![Sample {

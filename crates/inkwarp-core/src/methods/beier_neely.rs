@@ -48,14 +48,15 @@ impl BeierNeelyParams {
 
     /// Checks the ranges documented on the type.
     pub fn validate(&self) -> Result<(), MethodError> {
-        if !(self.a > 0.0 && self.a.is_finite()) {
-            return Err(MethodError::BadParameter { name: "a", value: self.a, hint: "it must be a finite number of pixels greater than 0 (default 1)" });
+        use crate::limits::{MAX_BEIER_NEELY_A, MAX_BEIER_NEELY_EXPONENT};
+        if !(self.a > 0.0 && self.a <= MAX_BEIER_NEELY_A) {
+            return Err(MethodError::BadParameter { name: "a", value: self.a, hint: "it must be a number of pixels greater than 0 and at most 1e6 (default 1)" });
         }
-        if !(self.b >= 0.0 && self.b.is_finite()) {
-            return Err(MethodError::BadParameter { name: "b", value: self.b, hint: "it must be finite and at least 0 (default 2)" });
+        if !(0.0..=MAX_BEIER_NEELY_EXPONENT).contains(&self.b) {
+            return Err(MethodError::BadParameter { name: "b", value: self.b, hint: "it must be from 0 to 16 (default 2)" });
         }
-        if !(self.p >= 0.0 && self.p.is_finite()) {
-            return Err(MethodError::BadParameter { name: "p", value: self.p, hint: "it must be finite and at least 0 (default 0)" });
+        if !(0.0..=MAX_BEIER_NEELY_EXPONENT).contains(&self.p) {
+            return Err(MethodError::BadParameter { name: "p", value: self.p, hint: "it must be from 0 to 16 (default 0)" });
         }
         Ok(())
     }
@@ -164,6 +165,9 @@ pub fn beier_neely_field(
     // Row by row in parallel; within a row, one primitive at a time over all pixels,
     // so that the inner loops are branch-free and vectorise.
     f.dx.par_chunks_mut(width).zip(f.dy.par_chunks_mut(width)).enumerate().for_each(|(y, (row_x, row_y))| {
+        if crate::interrupt::requested() {
+            return; // `field` reports the stop
+        }
         let yf = y as f64;
         let mut sx = vec![0.0f64; width];
         let mut sy = vec![0.0f64; width];
@@ -293,7 +297,7 @@ mod tests {
         let err = beier_neely_field(&[], &[], 4, 4, &params, &mut MethodReport::default()).unwrap_err();
         assert_eq!(
             err.to_string(),
-            "Beier–Neely parameter a = 0 is out of range: it must be a finite number of pixels greater than 0 (default 1)."
+            "Beier–Neely parameter a = 0 is out of range: it must be a number of pixels greater than 0 and at most 1e6 (default 1)."
         );
         let err = beier_neely_field(&[], &[], 4, 4, &BeierNeelyParams::default(), &mut MethodReport::default()).unwrap_err();
         assert_eq!(err.to_string(), "beier-neely needs at least one point or line pair; got none.");

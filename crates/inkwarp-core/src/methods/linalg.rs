@@ -40,6 +40,10 @@ pub(crate) fn solve_dense(
     let tiny = 1e-13 * scale.max(f64::MIN_POSITIVE);
 
     for k in 0..n {
+        if crate::interrupt::requested() {
+            // The caller sees the flag and reports the stop, not this pivot.
+            return Err(SingularPivot { row: k, pivot: f64::NAN });
+        }
         // Partial pivoting: the largest entry of column k at or below the diagonal.
         let (p, pv) = (k..n)
             .map(|i| (i, m[i * cols + k].abs()))

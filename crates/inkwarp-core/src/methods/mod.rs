@@ -276,8 +276,10 @@ pub enum MethodError {
     ZeroMaxSamples,
     #[error("Beier–Neely parameter {name} = {value} is out of range: {hint}.")]
     BadParameter { name: &'static str, value: f64, hint: &'static str },
-    #[error("Triangulation failed: {0}.")]
+    #[error("The drawing could not be triangulated: {0}.")]
     Triangulation(String),
+    #[error("Stopped: interrupted (Ctrl-C or SIGTERM) before the field was finished.")]
+    Interrupted,
 }
 
 /// The displacement field of `interpolant` for `controls` on a `width × height` image
@@ -299,7 +301,8 @@ pub fn field(
         return Err(MethodError::EmptyField { width, height });
     }
     let mut report = MethodReport { method: Some(interpolant.into()), ..Default::default() };
-    let f = match interpolant {
+    let f = (|| -> Result<Field, MethodError> {
+        Ok(match interpolant {
         Interpolant::TpsExact => {
             thin_plate_field(&controls.all_samples(), width, height, params.max_samples, &mut report)?
         }
@@ -314,7 +317,14 @@ pub fn field(
             &params.beier_neely,
             &mut report,
         )?,
-    };
+        })
+    })();
+    // The dense loops skip their remaining rows (and the elimination its remaining pivots)
+    // once a stop is requested.
+    if crate::interrupt::requested() {
+        return Err(MethodError::Interrupted);
+    }
+    let f = f?;
     report.seconds = start.elapsed().as_secs_f64();
     Ok((f, report))
 }

@@ -284,6 +284,9 @@ impl ThinPlateMap {
         let qx: Vec<f64> = (0..width).map(|x| (x as f64 - self.origin[0]) / self.scale).collect();
         f.dx.par_chunks_mut(width).zip(f.dy.par_chunks_mut(width)).enumerate().for_each(
             |(y, (row_x, row_y))| {
+                if crate::interrupt::requested() {
+                    return; // the caller checks the flag and discards the field
+                }
                 let qy = (y as f64 - self.origin[1]) / self.scale;
                 let mut acc_x: Vec<f64> = qx.iter().map(|&q| ax[0] + ax[1] * q + ax[2] * qy).collect();
                 let mut acc_y: Vec<f64> = qx.iter().map(|&q| ay[0] + ay[1] * q + ay[2] * qy).collect();

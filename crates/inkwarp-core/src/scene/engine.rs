@@ -47,7 +47,11 @@ fn compute_field(
 ) -> Result<LayerSolve, String> {
     let held = border == Border::Hold;
     let spacing_px = solver.grid_step as f64;
-    match solver.method {
+    const STOPPED: &str = "stopped: interrupted (Ctrl-C or SIGTERM)";
+    if crate::interrupt::requested() {
+        return Err(STOPPED.to_string());
+    }
+    let solved = match solver.method {
         Method::Tps => {
             let mut samples: Vec<Sample> = features
                 .iter()
@@ -77,7 +81,12 @@ fn compute_field(
             }
             None => Err(not_available(other)),
         },
+    };
+    // A stop requested mid-solve may leave a partial field: never return it.
+    if crate::interrupt::requested() {
+        return Err(STOPPED.to_string());
     }
+    solved
 }
 
 /// The overrides that only change the method (none for `None`).

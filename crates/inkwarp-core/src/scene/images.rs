@@ -7,7 +7,11 @@ use crate::render::RgbaImage;
 
 /// Whether `reference` is a `data:` URI rather than a path.
 pub fn is_data_uri(reference: &str) -> bool {
-    reference.len() >= 5 && reference[..5].eq_ignore_ascii_case("data:")
+    // Bytes, not a str slice: a name such as `日本.png` has no char boundary at 5.
+    reference
+        .as_bytes()
+        .get(..5)
+        .is_some_and(|head| head.eq_ignore_ascii_case(b"data:"))
 }
 
 /// The bytes of a base64 `data:` URI (`data:image/png;base64,...`).
@@ -48,6 +52,11 @@ pub fn decode_image(bytes: &[u8]) -> Result<RgbaImage, String> {
             "a {format:?} image; inkwarp reads PNG and JPEG, save it as one of those"
         ));
     }
+    // The header's size first: a few kilobytes can declare a picture that needs gigabytes.
+    let (width, height) = image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
+        .into_dimensions()
+        .map_err(|e| format!("the {format:?} image could not be decoded ({e})"))?;
+    crate::limits::check_size("the picture", width as usize, height as usize)?;
     let decoded = image::load_from_memory_with_format(bytes, format)
         .map_err(|e| format!("the {format:?} image could not be decoded ({e})"))?;
     let rgba = decoded.to_rgba8();
@@ -111,6 +120,36 @@ mod tests {
         assert!(data_uri_bytes("data:image/png;base64,@@@")
             .unwrap_err()
             .contains("not valid base64"));
+    }
+
+    #[test]
+    fn non_ascii_names_are_paths_not_uris() {
+        for name in ["日本.png", "фото.png", "größe.png", "d", "data", "DATA:x", "é"] {
+            assert_eq!(is_data_uri(name), name.eq_ignore_ascii_case("DATA:x"), "{name}");
+        }
+    }
+
+    #[test]
+    fn a_huge_declared_size_is_refused_before_decoding() {
+        // A valid PNG header declaring 40000×40000, with almost no data behind it.
+        let mut bytes = png(1, 1, &[0, 0, 0, 255]);
+        bytes[16..20].copy_from_slice(&40_000u32.to_be_bytes());
+        bytes[20..24].copy_from_slice(&40_000u32.to_be_bytes());
+        let crc = crc32(&bytes[12..29]);
+        bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+        let err = decode_image(&bytes).unwrap_err();
+        assert!(err.contains("40000×40000") && err.contains("at most"), "{err}");
+    }
+
+    fn crc32(data: &[u8]) -> u32 {
+        let mut crc = 0xffff_ffffu32;
+        for &b in data {
+            crc ^= b as u32;
+            for _ in 0..8 {
+                crc = if crc & 1 != 0 { (crc >> 1) ^ 0xedb8_8320 } else { crc >> 1 };
+            }
+        }
+        !crc
     }
 
     #[test]

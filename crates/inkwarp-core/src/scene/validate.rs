@@ -10,6 +10,10 @@ use super::engine::method_available;
 use super::shape::did_you_mean;
 use super::Problem;
 use crate::geometry::Point;
+use crate::limits::{
+    self, MAX_BEIER_NEELY_A, MAX_BEIER_NEELY_EXPONENT, MAX_COORD_PX, MAX_FPS, MAX_FRAMES,
+    MAX_TENSION, MAX_TIME_S, MIN_KEY_SPACING_S,
+};
 
 /// Every problem of `doc` that does not need its images. Empty when the document is valid.
 pub fn validate_doc(doc: &SceneDoc) -> Vec<Problem> {
@@ -38,6 +42,13 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
             ));
         }
     }
+    if let (Some(w), Some(h)) = (doc.width, doc.height) {
+        if w > 0 && h > 0 {
+            if let Err(why) = limits::check_size("the canvas", w as usize, h as usize) {
+                p.push(Problem::new("width", why));
+            }
+        }
+    }
     if !(doc.fps.is_finite() && doc.fps > 0.0) {
         p.push(Problem::new(
             "fps",
@@ -45,6 +56,11 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                 "frames per second must be a number > 0, found {}; use e.g. 24",
                 doc.fps
             ),
+        ));
+    } else if doc.fps > MAX_FPS {
+        p.push(Problem::new(
+            "fps",
+            format!("frames per second may be at most {MAX_FPS}, found {}; use e.g. 24", doc.fps),
         ));
     }
     if let Some(duration) = doc.duration {
@@ -55,6 +71,18 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                     "the duration must be a number of seconds > 0, found {duration}; \
                      leave it out to end at the last key"
                 ),
+            ));
+        } else if duration > MAX_TIME_S {
+            p.push(Problem::new(
+                "duration",
+                format!("the duration may be at most {MAX_TIME_S} s, found {}; split a \
+                         longer animation into several scenes", limits::show(duration)),
+            ));
+        } else if doc.fps.is_finite() && doc.fps > 0.0 && duration * doc.fps > MAX_FRAMES as f64 {
+            p.push(Problem::new(
+                "duration",
+                format!("{duration} s at {} frames per second is more than {MAX_FRAMES} frames; \
+                         shorten it or lower fps", doc.fps),
             ));
         }
     }
@@ -137,6 +165,25 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                         key.t
                     ),
                 ));
+            } else if key.t.abs() > MAX_TIME_S {
+                p.push(Problem::new(
+                    format!("{key_path}.t"),
+                    format!(
+                        "key times may be at most {MAX_TIME_S} s (either side of 0), found {}; \
+                         split a longer animation into several scenes",
+                        limits::show(key.t)
+                    ),
+                ));
+            } else if let Some(before) = previous_t.filter(|b| key.t > *b && key.t - *b < MIN_KEY_SPACING_S) {
+                p.push(Problem::new(
+                    format!("{key_path}.t"),
+                    format!(
+                        "keys[{}] and keys[{k}] are {:e} s apart, closer than {MIN_KEY_SPACING_S:e} s; \
+                         move them apart or remove one",
+                        k - 1,
+                        key.t - before
+                    ),
+                ));
             } else if let Some(before) = previous_t {
                 if key.t == before {
                     p.push(Problem::new(
@@ -204,10 +251,10 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
             first_with_name.insert(&layer.name, j);
         }
         for (c, v) in layer.offset.iter().enumerate() {
-            if !v.is_finite() {
+            if !limits::coordinate_ok(*v) {
                 p.push(Problem::new(
                     format!("{path}.offset[{c}]"),
-                    format!("the offset must be finite, found {v}"),
+                    format!("the offset must be a finite number of pixels within ±{MAX_COORD_PX:e}, found {}", limits::show(*v)),
                 ));
             }
         }
@@ -285,6 +332,15 @@ fn check_points(points: &[Point], path: &str, p: &mut Vec<Problem>) {
                     format!("{path}[{i}][{c}]"),
                     format!("coordinates must be finite numbers of pixels, found {v}"),
                 ));
+            } else if !limits::coordinate_ok(*v) {
+                p.push(Problem::new(
+                    format!("{path}[{i}][{c}]"),
+                    format!(
+                        "coordinates may be at most {MAX_COORD_PX:e} pixels from the origin, found {}; \
+                         is the point in pixels?",
+                        limits::show(*v)
+                    ),
+                ));
             }
         }
     }
@@ -320,11 +376,13 @@ fn check_overrides(solver: &SolverOverrides, path: &str, p: &mut Vec<Problem>) {
         }
     }
     if let Some(tension) = solver.tension {
-        if !(tension.is_finite() && tension >= 0.0) {
+        if !(tension.is_finite() && (0.0..=MAX_TENSION).contains(&tension)) {
             p.push(Problem::new(
                 format!("{path}.tension"),
                 format!(
-                    "the tension must be a number ≥ 0, found {tension}; 0 is a pure thin plate"
+                    "the tension must be a number from 0 to {MAX_TENSION:e}, found {}; 0 is a \
+                     pure thin plate",
+                    limits::show(tension)
                 ),
             ));
         }
@@ -372,21 +430,21 @@ fn check_overrides(solver: &SolverOverrides, path: &str, p: &mut Vec<Problem>) {
 /// Beier–Neely's weights: the ranges of `methods::BeierNeelyParams::validate`, reported
 /// the scene's way.
 fn check_beier_neely(weights: &BeierNeelyDoc, path: &str, p: &mut Vec<Problem>) {
-    if !(weights.a.is_finite() && weights.a > 0.0) {
+    if !(weights.a.is_finite() && weights.a > 0.0 && weights.a <= MAX_BEIER_NEELY_A) {
         p.push(Problem::new(
             format!("{path}.a"),
             format!(
-                "Beier–Neely's a must be a number of pixels > 0, found {}; the default is 1 (smaller values \
+                "Beier–Neely's a must be a number of pixels > 0 and at most {MAX_BEIER_NEELY_A:e}, found {}; the default is 1 (smaller values \
                  follow the drawing more tightly)",
-                weights.a
+                limits::show(weights.a)
             ),
         ));
     }
     for (key, value, default) in [("b", weights.b, 2), ("p", weights.p, 0)] {
-        if !(value.is_finite() && value >= 0.0) {
+        if !(value.is_finite() && (0.0..=MAX_BEIER_NEELY_EXPONENT).contains(&value)) {
             p.push(Problem::new(
                 format!("{path}.{key}"),
-                format!("Beier–Neely's {key} must be a number ≥ 0, found {value}; the default is {default}"),
+                format!("Beier–Neely's {key} must be a number from 0 to {MAX_BEIER_NEELY_EXPONENT}, found {}; the default is {default}", limits::show(value)),
             ));
         }
     }

@@ -1,0 +1,146 @@
+//! The ranges inkwarp accepts, checked before any work starts.
+//!
+//! Every number a scene or a call gives is held to these before anything is allocated or
+//! solved, so that bad input becomes a clear error instead of an abort (out of memory), a
+//! panic (an overflowing size) or a silently wrong frame (NaN from keys too close in time).
+//! `inkwarp validate` and rendering apply the same checks: a scene that validates renders.
+//! docs/reference/limits.md lists them for users.
+
+/// The largest |x| or |y| of a control point, a cut or an offset, in pixels.
+pub const MAX_COORD_PX: f64 = 1e6;
+/// The latest key time and the longest duration, in seconds (a little over 27 hours).
+pub const MAX_TIME_S: f64 = 1e5;
+/// The least time between two keys of one feature, in seconds.
+pub const MIN_KEY_SPACING_S: f64 = 1e-6;
+/// The most frames per second.
+pub const MAX_FPS: f64 = 1000.0;
+/// The most frames a scene may have (duration × fps).
+pub const MAX_FRAMES: usize = 100_000_000;
+/// The widest or tallest picture, canvas or grid, in pixels.
+pub const MAX_SIDE_PX: usize = 32_768;
+/// The most pixels in a picture, canvas or grid (64 megapixels, such as 8192 × 8192).
+pub const MAX_PIXELS: usize = 1 << 26;
+/// The largest thin-plate tension (the membrane's weight against the plate's).
+pub const MAX_TENSION: f64 = 1e6;
+/// The largest Beier–Neely `a`, in pixels.
+pub const MAX_BEIER_NEELY_A: f64 = 1e6;
+/// The largest Beier–Neely `b` and `p` (exponents; the paper uses 0.5–2 and 0–1).
+pub const MAX_BEIER_NEELY_EXPONENT: f64 = 16.0;
+/// Rough peak memory of rendering one pixel: the frame, the field and the solver's levels
+/// (measured on the examples; `grid_step` divides the solver's part by its square).
+pub const RENDER_BYTES_PER_PIXEL: u64 = 34;
+/// And per layer and pixel: its picture, its matte, its field and its solver grid.
+pub const LAYER_BYTES_PER_PIXEL: u64 = 32;
+
+/// Checks a `width × height` size against [`MAX_SIDE_PX`] and [`MAX_PIXELS`]; the message
+/// says what was found and what to do (it starts with `what`, such as "the canvas").
+///
+/// ```
+/// use inkwarp_core::limits::check_size;
+/// assert!(check_size("the canvas", 640, 480).is_ok());
+/// assert!(check_size("the canvas", 100_000, 100_000).unwrap_err().contains("at most 32768"));
+/// assert!(check_size("the canvas", 0, 10).is_err());
+/// ```
+pub fn check_size(what: &str, width: usize, height: usize) -> Result<(), String> {
+    if width == 0 || height == 0 {
+        return Err(format!("{what} is {width}×{height} pixels; both sides must be at least 1"));
+    }
+    if width > MAX_SIDE_PX || height > MAX_SIDE_PX {
+        return Err(format!(
+            "{what} is {width}×{height} pixels; each side may be at most {MAX_SIDE_PX}; use a \
+             smaller picture"
+        ));
+    }
+    if width.saturating_mul(height) > MAX_PIXELS {
+        return Err(format!(
+            "{what} is {width}×{height} pixels, more than the {} megapixels inkwarp handles; \
+             use a smaller picture",
+            MAX_PIXELS >> 20
+        ));
+    }
+    Ok(())
+}
+
+/// `v` for a message: as written when short, in scientific notation when huge (1e308
+/// would otherwise print as 309 digits).
+///
+/// ```
+/// use inkwarp_core::limits::show;
+/// assert_eq!((show(0.5), show(1e308), show(-2e9)), ("0.5".into(), "1e308".into(), "-2e9".into()));
+/// ```
+pub fn show(v: f64) -> String {
+    if v.is_finite() && v.abs() >= 1e7 {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// The most samples one feature's curve may be cut into.
+pub const MAX_CURVE_SAMPLES: f64 = 1e7;
+
+/// Checks that the curve through `points`, sampled every `spacing_px`, stays under
+/// [`MAX_CURVE_SAMPLES`] (a spline's length is taken as twice its control polygon's, a
+/// bound for the centripetal Catmull-Rom curves inkwarp draws).
+pub fn check_curve_samples(points: &[[f64; 2]], closed: bool, spacing_px: f64) -> Result<(), String> {
+    let mut length: f64 = points
+        .windows(2)
+        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+        .sum();
+    if closed && points.len() > 2 {
+        let (a, b) = (points[0], points[points.len() - 1]);
+        length += (a[0] - b[0]).hypot(a[1] - b[1]);
+    }
+    let samples = 2.0 * length / spacing_px;
+    if samples.is_nan() || samples > MAX_CURVE_SAMPLES {
+        return Err(format!(
+            "sampling this curve every {spacing_px} px would make about {samples:.0e} samples (at \
+             most {MAX_CURVE_SAMPLES:e}); use a larger spacing or a shorter curve"
+        ));
+    }
+    Ok(())
+}
+
+/// Whether `v` is a coordinate inkwarp accepts (finite, |v| ≤ [`MAX_COORD_PX`]).
+pub fn coordinate_ok(v: f64) -> bool {
+    v.is_finite() && v.abs() <= MAX_COORD_PX
+}
+
+/// The rough peak memory, in bytes, of rendering a `width × height` frame with `layers`
+/// layers (see [`RENDER_BYTES_PER_PIXEL`]).
+pub fn render_bytes(width: usize, height: usize, layers: usize) -> u64 {
+    let pixels = (width as u64).saturating_mul(height as u64);
+    pixels.saturating_mul(RENDER_BYTES_PER_PIXEL + LAYER_BYTES_PER_PIXEL * layers.max(1) as u64)
+}
+
+/// `bytes` as a short figure in GiB, such as "9.4".
+pub fn gib(bytes: u64) -> String {
+    format!("{:.1}", bytes as f64 / (1u64 << 30) as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_in_range_pass_and_others_say_why() {
+        assert!(check_size("x", MAX_SIDE_PX, 1).is_ok());
+        assert!(check_size("x", 8192, 8192).is_ok());
+        assert!(check_size("x", 12_000, 12_000).unwrap_err().contains("megapixels"));
+        assert!(check_size("x", 10_000, 10_000).unwrap_err().contains("megapixels"));
+        assert!(check_size("x", usize::MAX, usize::MAX).is_err());
+        assert!(check_size("x", 1 << 62, 4).unwrap_err().contains("at most"));
+    }
+
+    #[test]
+    fn coordinates() {
+        assert!(coordinate_ok(-MAX_COORD_PX) && coordinate_ok(0.5));
+        assert!(!coordinate_ok(1e308) && !coordinate_ok(f64::NAN) && !coordinate_ok(2f64.powi(64)));
+    }
+
+    #[test]
+    fn memory_estimate_saturates() {
+        assert_eq!(render_bytes(1, 1, 1), RENDER_BYTES_PER_PIXEL + LAYER_BYTES_PER_PIXEL);
+        assert_eq!(render_bytes(usize::MAX, usize::MAX, 3), u64::MAX);
+    }
+}

@@ -1,0 +1,76 @@
+//! The core's limits (`inkwarp_core::limits`) as Python errors, and the memory check that
+//! needs the machine (how much memory is free), which the pure core cannot ask.
+
+use inkwarp_core::limits;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+/// Rough peak memory of a grid solve per pixel (the field, its levels and the matte).
+pub const SOLVE_BYTES_PER_PIXEL: u64 = 48;
+
+/// ValueError unless every value is finite and within `inkwarp_core::limits::MAX_COORD_PX`.
+pub fn check_coordinates<'a>(name: &str, values: impl Iterator<Item = &'a f64>) -> PyResult<()> {
+    for &v in values {
+        if !limits::coordinate_ok(v) {
+            return Err(PyValueError::new_err(format!(
+                "{name} must be finite numbers of pixels within ±{:e}, found {}.",
+                limits::MAX_COORD_PX,
+                limits::show(v)
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The largest image file read (bigger files are refused before reading).
+pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 30;
+
+/// ValueError unless a `width × height` grid or picture is within the core's limits.
+pub fn check_grid(width: usize, height: usize) -> PyResult<()> {
+    limits::check_size("the grid", width, height).map_err(PyValueError::new_err)
+}
+
+/// The memory this machine has free for new work, in bytes (None when unknown).
+pub fn available_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib.saturating_mul(1024))
+}
+
+/// Why work needing about `needed` bytes cannot run here, if it cannot.
+pub fn memory_problem(needed: u64) -> Option<String> {
+    let free = available_bytes()?;
+    (needed > free).then(|| {
+        format!(
+            "rendering this scene needs about {} GiB of memory but {} GiB is free; use a \
+             larger solver.grid_step, fewer layers or a smaller picture",
+            limits::gib(needed),
+            limits::gib(free)
+        )
+    })
+}
+
+/// ValueError unless a solve or field of `width × height` fits in free memory
+/// (`bytes_per_pixel` of it per pixel).
+pub fn check_memory(width: usize, height: usize, bytes_per_pixel: u64) -> PyResult<()> {
+    let needed = (width as u64).saturating_mul(height as u64).saturating_mul(bytes_per_pixel);
+    match available_bytes() {
+        Some(free) if needed > free => Err(PyValueError::new_err(format!(
+            "a {width}×{height} grid needs about {} GiB of memory but {} GiB is free; use \
+             grid_step or a smaller grid",
+            limits::gib(needed),
+            limits::gib(free)
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// ValueError unless the curve through `points` at `spacing` pixels stays under the
+/// core's sample limit (`inkwarp_core::limits::MAX_CURVE_SAMPLES`).
+pub fn check_sampling(points: &[[f64; 2]], closed: bool, spacing: f64) -> PyResult<()> {
+    if !(spacing.is_finite() && spacing > 0.0) {
+        return Ok(()); // the core says what is wrong with it
+    }
+    limits::check_curve_samples(points, closed, spacing).map_err(PyValueError::new_err)
+}

@@ -1,0 +1,231 @@
+"""Nothing crashes, nothing is lost: each case found by probing inkwarp as an attacker and
+as a careless user would (issue 45) ends in a clear error, and a failed output leaves no
+file under its name."""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import inkwarp
+from inkwarp.cli import main
+from inkwarp.errors import InternalError
+
+SCENE = {"inkwarp": 1, "width": 64, "height": 48, "layers": [{"name": "m"}],
+         "features": [{"id": "a", "kind": "point", "rest": [[10, 10]],
+                       "keys": [{"t": 0, "points": [[10, 10]]}, {"t": 1, "points": [[14, 12]]}]}]}
+
+
+def scene_with(tmp_path: Path, name: str, change) -> Path:
+    doc = json.loads(json.dumps(SCENE))
+    change(doc)
+    path = tmp_path / name
+    path.write_text(json.dumps(doc))
+    return path
+
+
+CASES = {
+    "cut at 1e308": (lambda d: d["features"].append(
+        {"id": "c", "kind": "cut", "rest": [[1e308, 0], [-1e308, 5]]}), "features[1].rest[0][0]"),
+    "tension 1e300": (lambda d: d.update(solver={"tension": 1e300}), "solver.tension"),
+    "point at 2**64": (lambda d: d["features"][0].update(rest=[[2.0 ** 64, 1]]), "features[0].rest[0][0]"),
+    "polyline at 1e8": (lambda d: d["features"].append(
+        {"id": "p", "kind": "polyline", "rest": [[0, 0], [1e8, 1e8]]}), "features[1].rest[1][0]"),
+    "spline at 1e8": (lambda d: d["features"].append(
+        {"id": "p", "kind": "spline", "rest": [[0, 0], [1e8, 1], [3, 3]]}), "features[1].rest[1][0]"),
+    "key at 1e308": (lambda d: d["features"][0]["keys"].append({"t": 1e308, "points": [[1, 1]]}),
+                     "features[0].keys[2].t"),
+    "keys 1e-300 apart": (lambda d: d["features"][0]["keys"][1].update(t=1e-300), "features[0].keys[1].t"),
+    "beier-neely b 1e308": (lambda d: d.update(solver={"method": "beier-neely",
+                                                       "beier_neely": {"b": 1e308}}),
+                            "solver.beier_neely.b"),
+    "canvas 100000 square": (lambda d: d.update(width=100000, height=100000), "width"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_probed_scenes_fail_cleanly_in_validate_and_render(tmp_path: Path, capsys, case: str) -> None:
+    change, where = CASES[case]
+    path = scene_with(tmp_path, "s.json", change)
+    assert main(["validate", str(path)]) == 2
+    out = capsys.readouterr()
+    assert where in out.out + out.err and "Traceback" not in out.err
+    assert main(["render", str(path), "--time", "0.5", "-o", str(tmp_path / "f.png")]) == 2
+    err = capsys.readouterr().err
+    assert where in err and "Traceback" not in err and len(err) < 600
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json"]
+
+
+@pytest.mark.parametrize("name", ["日本.png", "фото.png", "größe.png"])
+def test_non_ascii_image_names(tmp_path: Path, name: str) -> None:
+    inkwarp.imaging.write_png(tmp_path / name, np.full((48, 64, 4), 200, np.uint8))
+    path = scene_with(tmp_path, "s.json", lambda d: d["layers"][0].update(image=name))
+    frame = inkwarp.Scene.load(path).render(0.5)
+    assert frame.shape == (48, 64, 4)
+
+
+def test_a_picture_declaring_a_huge_size_is_refused_before_decoding(tmp_path: Path) -> None:
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 12000, 12000, 8, 2, 0, 0, 0))
+           + chunk(b"IDAT", zlib.compress(b"\0" * 1000)) + chunk(b"IEND", b""))
+    (tmp_path / "big.png").write_bytes(png)
+    path = scene_with(tmp_path, "s.json", lambda d: (d.pop("width"), d.pop("height"),
+                                                     d["layers"][0].update(image="big.png")))
+    problems = inkwarp.validate_scene(path)
+    assert problems and "12000×12000" in problems[0][1] and "megapixels" in problems[0][1]
+    with pytest.raises(inkwarp.SceneError, match="12000×12000"):
+        inkwarp.Scene.load(path)
+
+
+def test_fifos_and_devices_are_refused_not_read(tmp_path: Path, capsys) -> None:
+    os.mkfifo(tmp_path / "pipe.png")
+    path = scene_with(tmp_path, "s.json", lambda d: d["layers"][0].update(image="pipe.png"))
+    assert main(["validate", str(path)]) == 2
+    assert "not a regular file" in capsys.readouterr().out
+    assert main(["render", "/dev/zero", "-o", str(tmp_path / "z.png")]) == 2
+    assert "/dev/zero: not a regular file" in capsys.readouterr().err
+
+
+def test_byte_order_mark_and_non_utf8(tmp_path: Path, capsys) -> None:
+    bom = tmp_path / "bom.json"
+    bom.write_text(json.dumps(SCENE), encoding="utf-8-sig")
+    assert main(["validate", str(bom)]) == 0
+    assert main(["render", str(bom), "--time", "0", "-o", str(tmp_path / "b.png")]) == 0
+    latin = tmp_path / "latin.json"
+    latin.write_bytes(json.dumps({**SCENE, "layers": [{"name": "X"}]}).replace("X", "\xe9").encode("latin-1"))
+    capsys.readouterr()
+    assert main(["validate", str(latin)]) == 2
+    assert main(["render", str(latin), "-o", str(tmp_path / "l.png")]) == 2
+    err = capsys.readouterr()
+    assert f"{latin}: not UTF-8 text" in err.out and f"{latin}: not UTF-8 text" in err.err
+
+
+@pytest.mark.parametrize("shape", [(2 ** 62, 4), (20000, 20000), (10000, 10000), (2 ** 64, 4)])
+def test_thin_plate_refuses_grids_beyond_the_limits(shape) -> None:
+    with pytest.raises(ValueError, match="at most|megapixels"):
+        inkwarp.thin_plate(np.array([[1.0, 1.0]]), np.array([[1.0, 0.0]]), shape=shape)
+
+
+def test_huge_displacements_are_refused_not_turned_into_nan() -> None:
+    with pytest.raises(ValueError, match="within"):
+        inkwarp.thin_plate(np.array([[1.0, 1.0]]), np.array([[1e300, 0.0]]), shape=(8, 8))
+
+
+def test_a_panic_in_the_engine_is_an_internal_error(monkeypatch, tmp_path: Path, capsys) -> None:
+    from inkwarp import _inkwarp
+
+    with pytest.raises(InternalError, match="on purpose.*please report"):
+        _inkwarp._panic_for_tests()
+    assert issubclass(InternalError, inkwarp.InkwarpError)
+
+    def load(path):
+        _inkwarp._panic_for_tests()
+
+    monkeypatch.setattr(inkwarp.Scene, "load", staticmethod(load))
+    path = scene_with(tmp_path, "s.json", lambda d: None)
+    assert main(["render", str(path), "-o", str(tmp_path / "x.png")]) == 1
+    err = capsys.readouterr().err
+    assert "please report" in err and "Traceback" not in err
+
+
+FULL_DISK = """
+import resource, sys
+import numpy as np
+from inkwarp.cli import main
+resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000))
+sys.exit(main(["render", sys.argv[1], "-o", sys.argv[2]]))
+"""
+
+
+def test_a_full_disk_during_mp4_is_exit_1_with_no_file(tmp_path: Path) -> None:
+    path = scene_with(tmp_path, "s.json", lambda d: d.update(width=320, height=240, duration=2))
+    inkwarp.imaging.write_png(tmp_path / "noise.png",
+                              np.random.default_rng(0).integers(0, 255, (240, 320, 4), np.uint8))
+    path.write_text(json.dumps({**json.loads(path.read_text()),
+                                "layers": [{"name": "m", "image": "noise.png"}]}))
+    out = tmp_path / "clip.mp4"
+    run = subprocess.run([sys.executable, "-c", FULL_DISK, str(path), str(out)],
+                         capture_output=True, text=True, timeout=120,
+                         preexec_fn=lambda: signal.signal(signal.SIGXFSZ, signal.SIG_IGN))
+    assert run.returncode == 1, run.stderr
+    assert "ffmpeg" in run.stderr and str(out) in run.stderr and "Traceback" not in run.stderr
+    assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+INTERRUPT = """
+import sys, time, numpy as np, inkwarp
+print("ready", flush=True)
+rng = np.random.default_rng(1)
+pts = rng.uniform(0, 1500, (4000, 2))
+try:
+    inkwarp.interpolate(pts, rng.normal(0, 3, (4000, 2)), (1500, 1500), method="tps-exact",
+                        max_samples=4000)
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+    sys.exit(130)
+print("finished", flush=True)
+"""
+
+
+def test_ctrl_c_stops_a_long_dense_solve_within_a_second() -> None:
+    proc = subprocess.Popen([sys.executable, "-c", INTERRUPT], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "ready"
+    time.sleep(1.5)
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    stopped_s = time.monotonic() - sent
+    assert out.strip() == "interrupted" and proc.returncode == 130
+    assert stopped_s < 5  # generous for a loaded machine; the flag is polled every 50 ms
+
+
+def test_compare_refuses_an_absurd_dpi(capsys) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(["compare", "examples/face/scene.json", "--dpi", "100000", "-o", "x.png"])
+    assert exit_.value.code == 2
+    assert "100000: give a whole number of dots per inch from 10 to 600" in capsys.readouterr().err
+
+
+def test_the_gif_writer_streams_frames_to_disk(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from inkwarp.video import open_writer
+
+    rng = np.random.default_rng(0)
+    frames = []
+    sizes = []
+    out = tmp_path / "clip.gif"
+    with open_writer(out, fps=24) as writer:
+        for k in range(6):
+            frame = rng.integers(0, 255, (20, 33, 4), np.uint8)
+            frame[..., 3] = 255
+            frames.append(frame)
+            writer.write(frame)
+            sizes.append(sum(p.stat().st_size for p in tmp_path.iterdir()))
+    # Each frame is on disk as soon as it is written (nothing is held for the end).
+    assert all(b > a for a, b in zip(sizes, sizes[1:]))
+    with Image.open(out) as gif:
+        assert gif.n_frames == 6 and gif.info["loop"] == 0 and gif.size == (33, 20)
+        for i, frame in enumerate(frames):
+            gif.seek(i)
+            assert gif.info["duration"] in (40, 50)
+            # Exactly the frame as quantised to its own palette.
+            quantised = Image.fromarray(frame[..., :3]).quantize(
+                colors=256, method=Image.Quantize.FASTOCTREE).convert("RGB")
+            assert np.array_equal(np.asarray(gif.convert("RGB")), np.asarray(quantised))
+    assert [p.name for p in tmp_path.iterdir()] == ["clip.gif"]
