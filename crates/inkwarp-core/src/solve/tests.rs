@@ -681,7 +681,9 @@ fn the_space_along_tears_saves_cycles_across_holes_and_cuts() {
     for (hole, cut) in [(false, true), (true, false), (true, true)] {
         let grid = torn_grid(257, hole, cut, 10.0);
         let [with, without] = cycles_with_and_without(&grid, Spaces { tear: false, ..Spaces::ALL });
-        assert!(3 * with <= 2 * without, "hole {hole}, cut {cut}: {with} cycles with the space along tears, {without} without");
+        // At least the 10 % a mechanism must earn to stay (a third when written; 15 against
+        // 18 on the cut since the stopping rule needs two ratios).
+        assert!(10 * with <= 9 * without, "hole {hole}, cut {cut}: {with} cycles with the space along tears, {without} without");
     }
 }
 
