@@ -234,79 +234,18 @@ pub(crate) fn solve_with(
 
 /// Runs `f` on a thread of the pool. The solve makes hundreds of parallel calls a cycle;
 /// made from outside the pool, each hands its work to the pool's threads and puts the
-/// caller to sleep until they finish, two context switches a call (about a seventh of
-/// the CPU time of a 513×513 solve). Inside the pool the caller takes part instead, and
-/// the pool's other threads keep looking for work until it is done ([`Keepers`]).
+/// caller to sleep until they finish, two context switches a call. Inside the pool the
+/// caller takes part instead. (The pool's other threads are not kept spinning between
+/// the solve's parallel calls: that bought 4–5 % on two cores, below the 10 % a mechanism
+/// must earn, and spun threads in other callers' work.)
 ///
 /// Public for callers that move large arrays around a solve (the Python binding converts
-/// the answer to numpy's layout): run there too, their parallel passes share the awake
-/// pool instead of each handing off from outside it (at 513 × 513, timed in the binding,
-/// the start's and the answer's conversions took about 0.5 ms from outside against
-/// 0.35–0.4 ms inside; the start is now read in place, see [`solve_from_view`]).
+/// the answer to numpy's layout): run there too, their parallel passes share the pool.
 pub fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     if rayon::current_thread_index().is_some() {
         return f();
     }
-    rayon::scope(|_| {
-        let _keepers = Keepers::start();
-        f()
-    })
-}
-
-/// The pool's other threads, kept looking for work while one solve runs on it. Between
-/// its parallel calls a solve has serial stretches (the small coarse levels, the
-/// coarsest solve, the scalar steps), long enough for idle threads to go to sleep, and a
-/// sleeping thread wakes too late for the next parallel call to be shared; kept awake,
-/// they take their part at once (513 × 513 solves 4–5 % faster on two cores). They run
-/// any of the pool's work meanwhile, and stop when the guard is dropped, panic included.
-///
-/// Only while a single solve runs from outside the pool: a thread that waits inside
-/// another solve's work may pick up a keeper, which would then hold that work (below it
-/// on the thread's stack) until its own solve ends, and that solve may be waiting for it.
-/// So the first solve to start is the only one that starts keepers, and they stop as soon
-/// as a second one starts.
-struct Keepers {
-    done: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
-}
-
-/// Solves running from outside the pool (see [`Keepers`]).
-static SOLVES_OUTSIDE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-
-impl Keepers {
-    /// Counts the solve in, and starts the keepers if it is the only one (never on a pool
-    /// of one thread). Called on a thread of the pool.
-    fn start() -> Keepers {
-        use std::sync::atomic::Ordering::SeqCst;
-        let alone = SOLVES_OUTSIDE.fetch_add(1, SeqCst) == 0;
-        let none = Keepers { done: None };
-        if !alone || cfg!(target_family = "wasm") || rayon::current_num_threads() < 2 {
-            return none;
-        }
-        let Some(me) = rayon::current_thread_index() else { return none };
-        let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-        let flag = done.clone();
-        rayon::spawn_broadcast(move |ctx| {
-            if ctx.index() == me {
-                return;
-            }
-            while !flag.load(SeqCst) && SOLVES_OUTSIDE.load(SeqCst) == 1 {
-                if rayon::yield_now() != Some(rayon::Yield::Executed) {
-                    std::hint::spin_loop();
-                }
-            }
-        });
-        Keepers { done: Some(done) }
-    }
-}
-
-impl Drop for Keepers {
-    fn drop(&mut self) {
-        use std::sync::atomic::Ordering::SeqCst;
-        if let Some(done) = &self.done {
-            done.store(true, SeqCst);
-        }
-        SOLVES_OUTSIDE.fetch_sub(1, SeqCst);
-    }
+    rayon::scope(|_| f())
 }
 
 pub(crate) fn validate(
