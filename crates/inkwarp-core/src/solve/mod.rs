@@ -57,6 +57,7 @@ mod deflate;
 mod held;
 mod history;
 mod level;
+mod nullspace;
 mod pinned;
 mod southwell;
 mod upsample;
@@ -166,6 +167,8 @@ pub enum SolveError {
     PlanMismatch,
     #[error("The pixels must be indices into the grid, and the output two floats per pixel.")]
     BadPixels,
+    #[error("The solve was interrupted (Ctrl-C or a stop request) before it finished.")]
+    Interrupted,
 }
 
 /// Solves the thin plate on `grid` for the samples (see the module docs).
@@ -222,6 +225,9 @@ pub(crate) fn solve_with(
             history::solve_from(grid, &constrain(grid, samples), options, initial, history)
         })
     })?;
+    if crate::interrupt::requested() {
+        return Err(SolveError::Interrupted);
+    }
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
 }
@@ -466,9 +472,30 @@ pub(crate) fn solve_constrained(
             fixed[local(g)] = true;
             value.push((local(g), v));
         }
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, spaces: spaces() };
+        // The functions of zero plate energy that the constraints leave free (hinges,
+        // strands, thin rings, the line's tilt): where there are any beyond the tilt, the
+        // iteration alone does not give the contract's answer (see `nullspace`).
+        let constrained_only: Vec<bool> = {
+            let mut f = fixed.clone();
+            if let Some(g) = gauge {
+                f[local(g)] = false;
+            }
+            f
+        };
+        let null = if open { Some(Vec::new()) } else { piece_null_space(&links, bw, bh, &constrained_only) };
+        let links_again = (!open).then(|| piece_links(grid, &labels, l as u32, boxes[l], open));
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), spaces: spaces() };
         let start = initial.map(|f| Start { field: f, x0, y0 });
-        let (u, r) = solve_piece(key, &value, start, options);
+        let (mut u, mut r) = solve_piece(key, &value, start, options);
+        if let (Some(basis), Some(links)) = (&null, links_again) {
+            if !basis.is_empty() && !(gauge.is_some() && basis.len() == 1) {
+                let (uu, rr) = settle_null_space(links, bw, bh, tau, fixed, &constrained_only, &value, basis, u, r, options);
+                (u, r) = (uu, rr);
+            }
+        } else if null.is_none() {
+            // Too many free functions to settle: no claim of convergence.
+            r.converged = false;
+        }
         // The piece's nodes of the box, to the field or (pieces on a line) to `out`.
         if lines {
             for by in 0..bh {
@@ -536,6 +563,76 @@ pub(crate) fn solve_constrained(
         give_back(out);
     }
     (field, report)
+}
+
+/// The null space of a piece's constrained plate operator on its box ([`nullspace`]), or
+/// `None` when it is too large to settle.
+fn piece_null_space(links: &BoxLinks, w: usize, h: usize, fixed: &[bool]) -> Option<Vec<nullspace::Sparse>> {
+    let [active, right, down] = links.vectors(w, h);
+    nullspace::plate_null_space(&nullspace::BoxGeo { w, h, active: &active, right: &right, down: &down }, fixed)
+}
+
+/// Brings a piece's iterated answer `u` to the contract where its plate operator has free
+/// functions `basis` (zero on the constrained nodes): at τ = 0 the least-membrane plate
+/// minimiser; at τ > 0 exact Galerkin corrections in their span, each followed by more
+/// cycles, until a correction moves no node by more than the tolerance.
+#[allow(clippy::too_many_arguments)]
+fn settle_null_space(
+    links: BoxLinks,
+    w: usize,
+    h: usize,
+    tau: f64,
+    fixed: Vec<bool>,
+    constrained: &[bool],
+    value: &[(usize, V2)],
+    basis: &[nullspace::Sparse],
+    u: BoxValues,
+    mut report: SolveReport,
+    options: &SolveOptions,
+) -> (BoxValues, SolveReport) {
+    let [active, right, down] = links.vectors(w, h);
+    let geo = nullspace::BoxGeo { w, h, active: &active, right: &right, down: &down };
+    let mut dense: Vec<V2> = (0..h).flat_map(|y| u.row(y, w).to_vec()).collect();
+    for (d, &a) in dense.iter_mut().zip(&active) {
+        if !a {
+            *d = [0.0; 2];
+        }
+    }
+    if tau == 0.0 {
+        nullspace::least_membrane(&geo, basis, &mut dense);
+        return (BoxValues { values: dense, stride: w, first: 0 }, report);
+    }
+    const ROUNDS: usize = 8;
+    let mut settled = false;
+    for _ in 0..ROUNDS {
+        let moved = nullspace::galerkin(&geo, tau, constrained, basis, &mut dense);
+        if moved <= options.tolerance_px * 0.25 {
+            settled = report.converged;
+            break;
+        }
+        let field = Field {
+            width: w,
+            height: h,
+            dx: dense.iter().map(|v| v[0] as f32).collect(),
+            dy: dense.iter().map(|v| v[1] as f32).collect(),
+        };
+        let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links_clone(&links), fixed: fixed.clone(), spaces: spaces() };
+        let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options);
+        report.cycles += r2.cycles;
+        report.final_change_px = r2.final_change_px;
+        report.residual = r2.residual;
+        report.converged = r2.converged;
+        dense = (0..h).flat_map(|y| u2.row(y, w).to_vec()).collect();
+    }
+    report.converged = settled;
+    (BoxValues { values: dense, stride: w, first: 0 }, report)
+}
+
+fn links_clone(links: &BoxLinks) -> BoxLinks {
+    match links {
+        BoxLinks::Open => BoxLinks::Open,
+        BoxLinks::Given { active, right, down } => BoxLinks::Given { active: active.clone(), right: right.clone(), down: down.clone() },
+    }
 }
 
 /// The grid a piece's hierarchy is built on: the piece's nodes on its box (row-major, the
@@ -688,14 +785,31 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     // residuals above the tolerance (a user's earlier answer). A closer start (the earlier
     // frames' prediction) first gets one cycle as it is, and the coarse-to-fine correction
     // only when that cycle did not finish: for it the correction costs more than it saves.
-    let mut started = initial.is_none();
-    if !started {
+    let mut warm = initial.is_some();
+    let mut started = !warm;
+    if warm {
         report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
-        started = report.initial_residual > options.tolerance_px;
+        started = !(report.initial_residual <= options.tolerance_px);
+        if started {
+            // A start worse than none (huge or unrelated values: a field of 1e20 once
+            // ended 2,800 px off) is dropped for the cold start.
+            let mut cold = spare_zeroed(len);
+            for &(i, v) in value {
+                cold[hier.levels[0].pidx(i % w, i / w)] = v;
+            }
+            let cold_residual = hier.levels[0].residual_scaled_max(&cold, &mut r);
+            if report.initial_residual <= cold_residual {
+                give_back(cold);
+                hier.levels[0].residual_scaled_max(&u, &mut r);
+            } else {
+                give_back(std::mem::replace(&mut u, cold));
+                warm = false;
+            }
+        }
     }
     if started {
         // A warm start's residual is in r already.
-        hier.coarse_to_fine(&mut u, &mut r, initial.is_some());
+        hier.coarse_to_fine(&mut u, &mut r, warm);
         report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
     }
     let max_cycles = options.max_cycles.unwrap_or(100);
@@ -703,21 +817,22 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         SolveMethod::Multigrid => {
             report.converged = false;
             let mut last_change = f64::INFINITY;
+            // The last two cycles' ratios of successive changes.
+            let mut ratios = [0.0f64; 2];
             let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
             let mut stop = |change: f64, cycle: usize, report: &mut SolveReport| {
                 report.cycles = cycle;
                 report.final_change_px = change;
-                // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go; conjugate-
-                // gradient steps are not geometric, and the smoothest error (which moves
-                // least per cycle) is measured to be up to ~1.3× that estimate on open grids
-                // and ~2.5× across holes and cuts: hence the margins.
-                let rho = if last_change.is_finite() && last_change > 0.0 {
-                    (change / last_change).min(0.99)
-                } else {
-                    0.5
-                };
+                // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-
+                // gradient steps are not geometric, so ρ is the larger of the last two
+                // ratios (0.5 before there is one), and the bound carries a safety margin
+                // (the smoothest error moves least per cycle). A ratio of 0.99 or more
+                // (stagnation) never stops.
+                let ratio = if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 };
+                ratios = [ratios[1], ratio];
+                let rho = ratios.iter().fold(0.0f64, |a, &b| a.max(b));
                 last_change = change;
-                margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
+                change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
             };
             {
                 // The search direction p is kept in `f32` and its product `A p` summed in
@@ -733,10 +848,13 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 hier.levels[0].clear_padding(&mut q);
                 // After a warm solve's coarse-to-fine start, a longer smoothing (see
                 // `START_SMOOTHING`).
-                let z = hier.precondition(&r, started && initial.is_some());
+                let z = hier.precondition(&r, started && warm);
                 let (mut rz, _) = fcg_dots(&r, z, None);
                 widen_into(&mut p, z, None);
                 for cycle in 1..=max_cycles {
+                    if crate::interrupt::requested() {
+                        break;
+                    }
                     let fine = &hier.levels[0];
                     let pq = fine.fine_residual_dot_narrow(&p, &mut q); // q = −A p
                     let alpha = [
@@ -780,10 +898,12 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         }
         SolveMethod::Southwell => {
             let budget = (options.southwell_sweeps * count_unknowns(&hier.levels[0]) as f64).round() as usize;
-            let (passes, change) = southwell::relax(&hier.levels[0], &mut u, budget);
+            let (passes, change, finished) = southwell::relax(&hier.levels[0], &mut u, budget);
             report.cycles = passes;
             report.final_change_px = change;
-            report.converged = true;
+            // Converged only when nothing was left to relax (rounding) before the budget
+            // ran out: a spent budget proves nothing about the error left.
+            report.converged = finished;
             hier.levels[0].residual(&u, None, &mut r);
         }
     }

@@ -8,9 +8,10 @@
 
 use super::level::{Level, V2, PAD};
 
-/// Spends at most `budget` relaxations on the finest level; returns the number of passes
-/// and the largest single change made in the last pass.
-pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (usize, f64) {
+/// Spends at most `budget` relaxations on the finest level; returns the number of passes,
+/// the largest single change made in the last pass, and whether it stopped because nothing
+/// was left to relax (the residual at rounding) rather than because the budget ran out.
+pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (usize, f64, bool) {
     let (w, h) = (level.geo.w, level.geo.h);
     let mut r = vec![[0.0; 2]; u.len()];
     let mut left = budget;
@@ -24,7 +25,7 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (usize, f64) 
             e_max = e_max.max((ri[0] * ri[0] + ri[1] * ri[1]) * d);
         }
         if e_max <= 0.0 {
-            break;
+            return (passes, last_change, true);
         }
         let threshold = e_max / 4.0;
         passes += 1;
@@ -52,8 +53,8 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (usize, f64) 
         // The largest drop can vanish before its node is reached (its neighbours were
         // relaxed first, or it is rounding noise): a pass that relaxes nothing is the end.
         if left == left_before {
-            break;
+            return (passes, last_change, true);
         }
     }
-    (passes, last_change)
+    (passes, last_change, false)
 }

@@ -1316,3 +1316,187 @@ fn the_conjugate_gradients_vector_copies_match_their_plain_bodies() {
         assert_eq!(b32(&p1), b32(&p2), "{n}: direction");
     }
 }
+
+/// The exact answer of DESIGN §4 on a small grid, independent of the solver: a dense solve
+/// over the active free nodes at tension `tau`, or at τ = 0 the limit τ → 0⁺ by Richardson
+/// extrapolation of two tiny tensions (`2·u(t) − u(2t)`, error O(t²)). Returns (dx, dy).
+fn oracle(grid: &Grid, samples: &[Sample], tau: f64) -> [Vec<f64>; 2] {
+    let c = constrain(grid, samples);
+    let n = grid.len();
+    let mut value = vec![None; n];
+    for (&i, v) in c.nodes.iter().zip(&c.values) {
+        value[i] = Some(*v);
+    }
+    let free: Vec<usize> = (0..n).filter(|&i| grid.active[i] && value[i].is_none()).collect();
+    let mut index = vec![usize::MAX; n];
+    for (k, &i) in free.iter().enumerate() {
+        index[i] = k;
+    }
+    let m = free.len();
+    let at = |t: f64| -> [Vec<f64>; 2] {
+        let mut a = vec![vec![0.0; m]; m];
+        let mut b = vec![[0.0f64; 2]; m];
+        let (w, h) = (grid.width, grid.height);
+        let mut add = |terms: &[(usize, f64)], weight: f64| {
+            let mut fixed_part = [0.0f64; 2];
+            for &(j, cj) in terms {
+                if let Some(v) = value[j] {
+                    fixed_part[0] += cj * v[0];
+                    fixed_part[1] += cj * v[1];
+                }
+            }
+            for &(i, ci) in terms {
+                if index[i] == usize::MAX {
+                    continue;
+                }
+                b[index[i]][0] -= weight * ci * fixed_part[0];
+                b[index[i]][1] -= weight * ci * fixed_part[1];
+                for &(j, cj) in terms {
+                    if index[j] != usize::MAX {
+                        a[index[i]][index[j]] += weight * ci * cj;
+                    }
+                }
+            }
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                if x > 0 && x + 1 < w && grid.link_right[i - 1] && grid.link_right[i] {
+                    add(&[(i - 1, 1.0), (i, -2.0), (i + 1, 1.0)], 1.0);
+                }
+                if y > 0 && y + 1 < h && grid.link_down[i - w] && grid.link_down[i] {
+                    add(&[(i - w, 1.0), (i, -2.0), (i + w, 1.0)], 1.0);
+                }
+                if x + 1 < w && y + 1 < h && grid.link_right[i] && grid.link_down[i] && grid.link_down[i + 1] && grid.link_right[i + w] {
+                    add(&[(i, 1.0), (i + 1, -1.0), (i + w, -1.0), (i + w + 1, 1.0)], 2.0);
+                }
+                if grid.link_right[i] {
+                    add(&[(i, 1.0), (i + 1, -1.0)], t);
+                }
+                if grid.link_down[i] {
+                    add(&[(i, 1.0), (i + w, -1.0)], t);
+                }
+            }
+        }
+        let x = super::dense_solve(a, b).expect("the oracle's system is singular");
+        let mut u = [vec![0.0; n], vec![0.0; n]];
+        for i in 0..n {
+            if let Some(v) = value[i] {
+                u[0][i] = v[0];
+                u[1][i] = v[1];
+            }
+        }
+        for (k, &i) in free.iter().enumerate() {
+            u[0][i] = x[k][0];
+            u[1][i] = x[k][1];
+        }
+        u
+    };
+    if tau > 0.0 {
+        return at(tau);
+    }
+    let (a, b) = (at(1e-7), at(2e-7));
+    [0, 1].map(|k| a[k].iter().zip(&b[k]).map(|(p, q)| 2.0 * p - q).collect())
+}
+
+/// The largest distance of any active node from the oracle's answer.
+fn oracle_gap(grid: &Grid, field: &Field, exact: &[Vec<f64>; 2]) -> f64 {
+    max_err(grid, field, &exact[0], &exact[1])
+}
+
+/// A grid from a matte given as rows of '#' (active) and '.'.
+fn matte_grid(w: usize, h: usize, on: impl Fn(usize, usize) -> bool) -> Grid {
+    let m: Vec<u8> = (0..w * h).map(|i| on(i % w, i / w) as u8).collect();
+    Grid::from_matte(w, h, &m)
+}
+
+#[test]
+fn two_squares_joined_by_one_node_follow_the_least_membrane_rule() {
+    // m[1:13, 1:13] = m[1:13, 14:26] = m[6, 13] = 1 on 14 × 30 (rows, columns).
+    let grid = matte_grid(30, 14, |x, y| ((1..13).contains(&y) && ((1..13).contains(&x) || (14..26).contains(&x))) || (y == 6 && x == 13));
+    let samples = samples_at(&[(2, 2, 1.0, 0.0), (11, 3, 2.0, 1.5), (4, 11, -1.0, 2.0)]);
+    let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    let exact = oracle(&grid, &samples, 0.0);
+    let err = oracle_gap(&grid, &field, &exact);
+    assert!(err < 0.05, "{err} px from the τ → 0⁺ answer ({report:?})");
+    assert!(report.converged);
+}
+
+#[test]
+fn a_ring_a_pixel_and_a_half_wide_is_solved_at_zero_and_tiny_tension() {
+    let grid = matte_grid(64, 64, |x, y| {
+        let r = ((x as f64 - 32.0).powi(2) + (y as f64 - 32.0).powi(2)).sqrt();
+        (20.0..=21.5).contains(&r)
+    });
+    let on_ring: Vec<usize> = (0..grid.len()).filter(|&i| grid.active[i]).collect();
+    let picks = [0, on_ring.len() / 5, 2 * on_ring.len() / 5, 3 * on_ring.len() / 5, 4 * on_ring.len() / 5, on_ring.len() - 1];
+    let pts: Vec<(usize, usize, f64, f64)> =
+        picks.iter().enumerate().map(|(k, &p)| (on_ring[p] % 64, on_ring[p] / 64, 3.0 * (k as f64).sin(), 2.0 - k as f64 * 0.7)).collect();
+    let samples = samples_at(&pts);
+    for tau in [0.0, 1e-6] {
+        let opts = SolveOptions { tension: tau, ..Default::default() };
+        let (field, report) = solve(&grid, &samples, &opts, None).unwrap();
+        let exact = oracle(&grid, &samples, tau);
+        let err = oracle_gap(&grid, &field, &exact);
+        assert!(!report.converged || err < 0.05, "τ = {tau}: {err} px off, reported converged ({report:?})");
+        assert!(err < 0.05, "τ = {tau}: {err} px from the exact answer ({report:?})");
+    }
+}
+
+#[test]
+fn strands_and_staircases_take_the_least_membrane_answer() {
+    // A block with a one-pixel strand out of its side that turns a corner, and a staircase
+    // of single links (no straight triple) off its bottom.
+    let grid = matte_grid(40, 30, |x, y| {
+        let block = (5..20).contains(&x) && (5..20).contains(&y);
+        let strand = (y == 10 && (20..32).contains(&x)) || (x == 31 && (10..25).contains(&y));
+        let stairs = (0..6).any(|k| (x == 10 + k && y == 20 + k) || (x == 11 + k && y == 20 + k));
+        block || strand || stairs
+    });
+    let samples = samples_at(&[(6, 6, 1.0, 0.0), (18, 6, 0.0, 2.0), (6, 18, -1.5, 1.0), (12, 12, 0.5, 0.5)]);
+    let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    let exact = oracle(&grid, &samples, 0.0);
+    let err = oracle_gap(&grid, &field, &exact);
+    assert!(err < 0.05, "{err} px from the τ → 0⁺ answer ({report:?})");
+    assert!(report.converged);
+}
+
+#[test]
+fn a_garbage_warm_start_is_dropped_for_a_cold_one() {
+    let grid = Grid::new(65, 65);
+    let mut rng = Rng(11);
+    let samples = random_samples(&mut rng, 65, 65, 10);
+    let (cold, _) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    let garbage = Field { width: 65, height: 65, dx: vec![1e20; 65 * 65], dy: vec![-1e20; 65 * 65] };
+    let (field, report) = solve(&grid, &samples, &SolveOptions::default(), Some(&garbage)).unwrap();
+    assert!(report.converged);
+    assert!(gap(&field, &cold) < 0.05, "{} px from the cold solve", gap(&field, &cold));
+    let nan = Field { width: 65, height: 65, dx: vec![f32::NAN; 65 * 65], dy: vec![0.0; 65 * 65] };
+    assert_eq!(solve(&grid, &samples, &SolveOptions::default(), Some(&nan)).unwrap_err(), SolveError::NonFiniteInitial);
+}
+
+#[test]
+fn a_solve_stopped_by_max_cycles_does_not_claim_convergence() {
+    let grid = matte_grid(96, 96, |x, y| ((x as f64 - 60.0).powi(2) + (y as f64 - 40.0).powi(2)) > 100.0);
+    let mut rng = Rng(5);
+    let samples = random_samples(&mut rng, 96, 96, 10);
+    let opts = SolveOptions { max_cycles: Some(1), ..Default::default() };
+    let (field, report) = solve(&grid, &samples, &opts, None).unwrap();
+    let exact = oracle(&grid, &samples, 0.0);
+    let err = oracle_gap(&grid, &field, &exact);
+    assert!(!report.converged || err < 0.05, "one cycle, {err} px off, reported converged");
+    let opts = SolveOptions { max_cycles: Some(1), tolerance_px: 0.0, ..Default::default() };
+    assert!(!solve(&grid, &samples, &opts, None).unwrap().1.converged);
+}
+
+#[test]
+fn southwell_claims_convergence_only_when_nothing_is_left_to_relax() {
+    let grid = Grid::new(64, 64);
+    let mut rng = Rng(3);
+    let samples = random_samples(&mut rng, 64, 64, 10);
+    let opts = SolveOptions { method: SolveMethod::Southwell, ..Default::default() };
+    let (field, report) = solve(&grid, &samples, &opts, None).unwrap();
+    let exact = oracle(&grid, &samples, 0.0);
+    let err = oracle_gap(&grid, &field, &exact);
+    assert!(!report.converged || err < 0.05, "{err} px off, reported converged");
+}

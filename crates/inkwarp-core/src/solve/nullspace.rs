@@ -1,0 +1,469 @@
+//! The null space of a piece's constrained plate operator, and the τ → 0⁺ rule on it.
+//!
+//! A field has zero plate energy when every straight triple with both links has a zero
+//! second difference and every fully linked 2 × 2 cell a zero mixed difference. Fully
+//! linked cells that share an edge are then one affine function (the two rows or columns
+//! through both are straight triples), so the fields of zero plate energy are described by
+//! a few unknowns: three affine coefficients per *cluster* of edge-connected full cells and
+//! one value per node in no full cell. They must agree where clusters share a node, give a
+//! zero second difference on every triple not inside one cluster, and vanish on the fixed
+//! nodes. The solutions of that small sparse system span the null space `N`: the hinge's
+//! turn of one square about the other, a strand's free bend, a ring's shear.
+//!
+//! At τ = 0 the contract's answer is the plate minimiser of least membrane energy: the
+//! iteration's minimiser `u` plus the `n ∈ N` that minimises `E_membrane(u + n)`, a dense
+//! `k × k` solve for the `k` basis functions. At τ > 0 the same functions are the operator's
+//! smallest eigenvectors (eigenvalues of order τ), which an iteration barely moves: an
+//! exact Galerkin correction in their span removes that error.
+
+use super::level::V2;
+
+/// Above this many null-space functions the rule is not applied (and the solve does not
+/// claim convergence): the dense solve would cost more than the solve itself.
+pub(crate) const MAX_NULL: usize = 1500;
+
+/// A piece's geometry on its box: node `(x, y)` at `y · w + x`.
+pub(crate) struct BoxGeo<'a> {
+    pub w: usize,
+    pub h: usize,
+    pub active: &'a [bool],
+    pub right: &'a [bool],
+    pub down: &'a [bool],
+}
+
+impl BoxGeo<'_> {
+    fn full_cell(&self, i: usize) -> bool {
+        let (x, y) = (i % self.w, i / self.w);
+        x + 1 < self.w && y + 1 < self.h && self.right[i] && self.down[i] && self.down[i + 1] && self.right[i + self.w]
+    }
+
+    /// The linked neighbours right and down of `i`.
+    fn links(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
+        let r = (self.right[i]).then_some(i + 1);
+        let d = (self.down[i]).then_some(i + self.w);
+        r.into_iter().chain(d)
+    }
+}
+
+/// A basis function: (node, value) pairs.
+pub(crate) type Sparse = Vec<(usize, f64)>;
+
+fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        let p = parent[parent[i as usize] as usize];
+        parent[i as usize] = p;
+        i = p;
+    }
+    i
+}
+
+/// A basis of the fields on the box's active nodes with zero plate energy that vanish on
+/// `fixed`, or `None` when it has more than [`MAX_NULL`] functions.
+pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool]) -> Option<Vec<Sparse>> {
+    let (w, n) = (g.w, g.w * g.h);
+    // Clusters: union-find over full cells joined through shared edges.
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    let full: Vec<bool> = (0..n).map(|i| g.full_cell(i)).collect();
+    for i in 0..n {
+        if !full[i] {
+            continue;
+        }
+        let (x, y) = (i % w, i / w);
+        for j in [(x > 0).then(|| i - 1), (y > 0).then(|| i - w)].into_iter().flatten() {
+            if full[j] {
+                let (a, b) = (find(&mut parent, i as u32), find(&mut parent, j as u32));
+                if a != b {
+                    parent[a.max(b) as usize] = a.min(b);
+                }
+            }
+        }
+    }
+    // Cluster index per root, and the clusters of each node (the full cells it is a
+    // corner of).
+    let mut cluster_of_root = vec![u32::MAX; n];
+    let mut origin: Vec<[f64; 3]> = Vec::new(); // x0, y0, scale
+    let mut member: Vec<[u32; 4]> = vec![[u32::MAX; 4]; n];
+    for i in 0..n {
+        if !full[i] {
+            continue;
+        }
+        let r = find(&mut parent, i as u32) as usize;
+        if cluster_of_root[r] == u32::MAX {
+            cluster_of_root[r] = origin.len() as u32;
+            origin.push([(r % w) as f64, (r / w) as f64, (g.w.max(g.h)) as f64]);
+        }
+        let c = cluster_of_root[r];
+        for j in [i, i + 1, i + w, i + w + 1] {
+            let m = &mut member[j];
+            if !m.contains(&c) {
+                if let Some(slot) = m.iter_mut().find(|s| **s == u32::MAX) {
+                    *slot = c;
+                }
+            }
+        }
+    }
+    let clusters = origin.len();
+    // Unknowns: three a cluster, then one per active node in no full cell.
+    let mut lone = vec![u32::MAX; n];
+    let mut vars = 3 * clusters;
+    for i in 0..n {
+        if g.active[i] && member[i][0] == u32::MAX {
+            lone[i] = vars as u32;
+            vars += 1;
+        }
+    }
+    let in_cluster = |i: usize, c: u32| -> [(usize, f64); 3] {
+        let o = origin[c as usize];
+        let (x, y) = (((i % w) as f64 - o[0]) / o[2], ((i / w) as f64 - o[1]) / o[2]);
+        let b = 3 * c as usize;
+        [(b, 1.0), (b + 1, x), (b + 2, y)]
+    };
+    let expr = |i: usize, out: &mut Vec<(usize, f64)>, f: f64| {
+        if lone[i] != u32::MAX {
+            out.push((lone[i] as usize, f));
+        } else {
+            for (v, a) in in_cluster(i, member[i][0]) {
+                out.push((v, f * a));
+            }
+        }
+    };
+    let mut elim = Echelon::new(vars);
+    let mut row: Vec<(usize, f64)> = Vec::new();
+    for i in 0..n {
+        if !g.active[i] {
+            continue;
+        }
+        // Clusters sharing the node agree there.
+        for &c in member[i].iter().skip(1).take_while(|&&c| c != u32::MAX) {
+            row.clear();
+            expr(i, &mut row, 1.0);
+            for (v, a) in in_cluster(i, c) {
+                row.push((v, -a));
+            }
+            elim.add(&row);
+        }
+        if fixed[i] {
+            row.clear();
+            expr(i, &mut row, 1.0);
+            elim.add(&row);
+        }
+        let (x, y) = (i % w, i / w);
+        let triples = [
+            (x > 0 && g.right[i - 1] && g.right[i]).then(|| (i - 1, i + 1)),
+            (y > 0 && g.down[i - w] && g.down[i]).then(|| (i - w, i + w)),
+        ];
+        for (a, b) in triples.into_iter().flatten() {
+            let shared = member[i].iter().any(|&c| c != u32::MAX && member[a].contains(&c) && member[b].contains(&c));
+            if shared {
+                continue;
+            }
+            row.clear();
+            expr(a, &mut row, 1.0);
+            expr(i, &mut row, -2.0);
+            expr(b, &mut row, 1.0);
+            elim.add(&row);
+        }
+    }
+    let basis = elim.null_space(MAX_NULL)?;
+    // Expand to nodes: each cluster's nodes (those whose first cluster it is) and lone nodes.
+    let mut nodes_of: Vec<Vec<usize>> = vec![Vec::new(); clusters];
+    for i in 0..n {
+        if g.active[i] && member[i][0] != u32::MAX {
+            nodes_of[member[i][0] as usize].push(i);
+        }
+    }
+    let mut var_node = vec![usize::MAX; vars];
+    for i in 0..n {
+        if lone[i] != u32::MAX {
+            var_node[lone[i] as usize] = i;
+        }
+    }
+    let out = basis
+        .into_iter()
+        .map(|q| {
+            let mut z: Sparse = Vec::new();
+            for c in 0..clusters {
+                if q[3 * c..3 * c + 3].iter().any(|&v| v != 0.0) {
+                    for &i in &nodes_of[c] {
+                        let v: f64 = in_cluster(i, c as u32).iter().map(|&(k, a)| a * q[k]).sum();
+                        z.push((i, v));
+                    }
+                }
+            }
+            for (k, &v) in q.iter().enumerate().skip(3 * clusters) {
+                if v != 0.0 {
+                    z.push((var_node[k], v));
+                }
+            }
+            z.retain(|&(_, v)| v.abs() > 1e-13);
+            z
+        })
+        .filter(|z| !z.is_empty())
+        .collect();
+    Some(out)
+}
+
+/// Incremental sparse Gaussian elimination: pivot rows normalised on their pivot, each
+/// free of the columns of earlier pivots.
+struct Echelon {
+    pivot_of: Vec<u32>,
+    rows: Vec<(usize, Vec<(usize, f64)>)>,
+    acc: Vec<f64>,
+    touched: Vec<usize>,
+    seen: Vec<bool>,
+}
+
+impl Echelon {
+    fn new(vars: usize) -> Self {
+        Echelon { pivot_of: vec![u32::MAX; vars], rows: Vec::new(), acc: vec![0.0; vars], touched: Vec::new(), seen: vec![false; vars] }
+    }
+
+    fn add(&mut self, row: &[(usize, f64)]) {
+        use std::cmp::Reverse;
+        use std::collections::BinaryHeap;
+        let mut heap = BinaryHeap::new();
+        let mut scale = 0.0f64;
+        for &(c, v) in row {
+            if !self.seen[c] {
+                self.seen[c] = true;
+                self.touched.push(c);
+                if self.pivot_of[c] != u32::MAX {
+                    heap.push(Reverse(self.pivot_of[c]));
+                }
+            }
+            self.acc[c] += v;
+            scale = scale.max(v.abs());
+        }
+        while let Some(Reverse(p)) = heap.pop() {
+            let (pc, ref prow) = self.rows[p as usize];
+            let f = self.acc[pc];
+            if f == 0.0 {
+                continue;
+            }
+            for &(c, v) in prow {
+                if !self.seen[c] {
+                    self.seen[c] = true;
+                    self.touched.push(c);
+                    if self.pivot_of[c] != u32::MAX {
+                        heap.push(Reverse(self.pivot_of[c]));
+                    }
+                }
+                self.acc[c] -= f * v;
+            }
+            self.acc[pc] = 0.0;
+        }
+        let big = self.touched.iter().map(|&c| self.acc[c].abs()).fold(0.0, f64::max);
+        let mut new: Vec<(usize, f64)> = Vec::new();
+        if big > 1e-9 * scale {
+            let piv = *self.touched.iter().max_by(|&&a, &&b| self.acc[a].abs().total_cmp(&self.acc[b].abs())).unwrap();
+            let d = self.acc[piv];
+            for &c in &self.touched {
+                let v = self.acc[c] / d;
+                if v.abs() > 1e-12 {
+                    new.push((c, v));
+                }
+            }
+            self.pivot_of[piv] = self.rows.len() as u32;
+            self.rows.push((piv, new));
+        }
+        for &c in &self.touched {
+            self.acc[c] = 0.0;
+            self.seen[c] = false;
+        }
+        self.touched.clear();
+    }
+
+    /// One basis vector per free column (dense over the unknowns), or `None` past `max`.
+    fn null_space(&self, max: usize) -> Option<Vec<Vec<f64>>> {
+        let vars = self.pivot_of.len();
+        let free: Vec<usize> = (0..vars).filter(|&c| self.pivot_of[c] == u32::MAX).collect();
+        if free.len() > max {
+            return None;
+        }
+        Some(
+            free.iter()
+                .map(|&f| {
+                    let mut q = vec![0.0; vars];
+                    q[f] = 1.0;
+                    for (pc, prow) in self.rows.iter().rev() {
+                        let s: f64 = prow.iter().filter(|&&(c, _)| c != *pc).map(|&(c, v)| v * q[c]).sum();
+                        q[*pc] = -s;
+                    }
+                    q
+                })
+                .collect(),
+        )
+    }
+}
+
+/// The operator's product `y = A z` on the box (`E_plate + τ·E_membrane`, its gradient / 2),
+/// `z` dense over the box's nodes.
+pub(crate) fn apply(g: &BoxGeo, tau: f64, z: &[f64], y: &mut [f64]) {
+    let (w, n) = (g.w, g.w * g.h);
+    y.iter_mut().for_each(|v| *v = 0.0);
+    for i in 0..n {
+        if !g.active[i] {
+            continue;
+        }
+        let (x, yy) = (i % w, i / w);
+        if x > 0 && g.right[i - 1] && g.right[i] {
+            let d = z[i - 1] - 2.0 * z[i] + z[i + 1];
+            y[i - 1] += d;
+            y[i] -= 2.0 * d;
+            y[i + 1] += d;
+        }
+        if yy > 0 && g.down[i - w] && g.down[i] {
+            let d = z[i - w] - 2.0 * z[i] + z[i + w];
+            y[i - w] += d;
+            y[i] -= 2.0 * d;
+            y[i + w] += d;
+        }
+        if g.full_cell(i) {
+            let d = 2.0 * (z[i] - z[i + 1] - z[i + w] + z[i + w + 1]);
+            y[i] += d;
+            y[i + 1] -= d;
+            y[i + w] -= d;
+            y[i + w + 1] += d;
+        }
+        if tau != 0.0 {
+            for j in g.links(i) {
+                let d = tau * (z[i] - z[j]);
+                y[i] += d;
+                y[j] -= d;
+            }
+        }
+    }
+}
+
+/// The membrane product `y = M z` for a sparse `z`, into the dense scratch `y` (zero on
+/// entry); returns the nodes it touched. `dense` is a zero scratch, left zero.
+fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> Vec<usize> {
+    let w = g.w;
+    let mut links: Vec<(usize, usize)> = Vec::new();
+    for &(i, v) in z {
+        dense[i] = v;
+    }
+    for &(i, _) in z {
+        let (x, yy) = (i % w, i / w);
+        links.extend(g.links(i).map(|j| (i, j)));
+        // Links from the left and above, where the other end is outside the support (inside
+        // it, that end lists the link itself).
+        for j in [(x > 0 && g.right[i - 1]).then(|| i - 1), (yy > 0 && g.down[i - w]).then(|| i - w)].into_iter().flatten() {
+            if dense[j] == 0.0 {
+                links.push((j, i));
+            }
+        }
+    }
+    let mut touched = Vec::with_capacity(2 * links.len());
+    for (i, j) in links {
+        let d = dense[i] - dense[j];
+        y[i] += d;
+        y[j] -= d;
+        touched.push(i);
+        touched.push(j);
+    }
+    for &(i, _) in z {
+        dense[i] = 0.0;
+    }
+    touched.sort_unstable();
+    touched.dedup();
+    touched
+}
+
+/// Adds to `u` (both components, dense over the box) the `n ∈ span(basis)` that minimises
+/// the membrane energy of `u + n`: the τ → 0⁺ choice among the plate minimisers.
+pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) {
+    let (k, n) = (basis.len(), g.w * g.h);
+    if k == 0 {
+        return;
+    }
+    // Rows of the basis by node: (function, value).
+    let mut at: std::collections::HashMap<usize, Vec<(usize, f64)>> = std::collections::HashMap::new();
+    for (j, z) in basis.iter().enumerate() {
+        for &(i, v) in z {
+            at.entry(i).or_default().push((j, v));
+        }
+    }
+    let mut gram = vec![vec![0.0; k]; k];
+    let mut rhs = vec![[0.0; 2]; k];
+    let (mut dense, mut y) = (vec![0.0; n], vec![0.0; n]);
+    for (j, z) in basis.iter().enumerate() {
+        let touched = membrane_sparse(g, z, &mut dense, &mut y);
+        for &p in &touched {
+            if let Some(list) = at.get(&p) {
+                for &(i, v) in list {
+                    gram[i][j] += v * y[p];
+                }
+            }
+            rhs[j][0] -= y[p] * u[p][0];
+            rhs[j][1] -= y[p] * u[p][1];
+        }
+        for &p in &touched {
+            y[p] = 0.0;
+        }
+    }
+    if let Some(c) = super::dense_solve(gram, rhs) {
+        for (z, c) in basis.iter().zip(c) {
+            for &(i, v) in z {
+                u[i][0] += c[0] * v;
+                u[i][1] += c[1] * v;
+            }
+        }
+    }
+}
+
+/// The Galerkin correction of `u` (dense over the box, fixed nodes holding their values)
+/// in the span of `basis` for the operator at tension `tau`: `u += Z (ZᵀAZ)⁻¹ Zᵀ r` with
+/// `r = −A u` on the free nodes. Returns the largest change it made.
+pub(crate) fn galerkin(g: &BoxGeo, tau: f64, fixed: &[bool], basis: &[Sparse], u: &mut [V2]) -> f64 {
+    let (k, n) = (basis.len(), g.w * g.h);
+    if k == 0 {
+        return 0.0;
+    }
+    let mut au = [vec![0.0; n], vec![0.0; n]];
+    for c in 0..2 {
+        let comp: Vec<f64> = u.iter().map(|v| v[c]).collect();
+        apply(g, tau, &comp, &mut au[c]);
+    }
+    let (mut dense, mut y) = (vec![0.0; n], vec![0.0; n]);
+    let mut az: Vec<Vec<f64>> = Vec::with_capacity(k);
+    for z in basis {
+        for &(i, v) in z {
+            dense[i] = v;
+        }
+        apply(g, tau, &dense, &mut y);
+        for &(i, _) in z {
+            dense[i] = 0.0;
+        }
+        az.push(y.clone());
+    }
+    let mut gram = vec![vec![0.0; k]; k];
+    let mut rhs = vec![[0.0; 2]; k];
+    for (i, zi) in basis.iter().enumerate() {
+        for &(p, v) in zi {
+            if fixed[p] {
+                continue;
+            }
+            for (j, azj) in az.iter().enumerate() {
+                gram[i][j] += v * azj[p];
+            }
+            rhs[i][0] -= v * au[0][p];
+            rhs[i][1] -= v * au[1][p];
+        }
+    }
+    let Some(c) = super::dense_solve(gram, rhs) else { return 0.0 };
+    let mut step = vec![[0.0f64; 2]; n];
+    for (z, c) in basis.iter().zip(c) {
+        for &(i, v) in z {
+            step[i][0] += c[0] * v;
+            step[i][1] += c[1] * v;
+        }
+    }
+    let mut moved = 0.0f64;
+    for (u, s) in u.iter_mut().zip(&step) {
+        u[0] += s[0];
+        u[1] += s[1];
+        moved = moved.max(s[0].abs()).max(s[1].abs());
+    }
+    moved
+}
