@@ -15,7 +15,7 @@ its middle half.
    problem): converged or not, cycles, the cold solve's time and the peak memory of a
    fresh process (goal ≤ 2 GiB), one child process per grid.
 
-Usage: python benchmarks/ratios.py [--quick] [--rounds 9]
+Usage: python benchmarks/ratios.py [--quick] [--rounds 9] [--no-big]
 (`--quick`: small grids and two rounds, a smoke run of every section.)
 """
 
@@ -192,6 +192,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="small grids, two rounds: a smoke run")
     ap.add_argument("--rounds", type=int, default=9)
+    ap.add_argument("--no-big", action="store_true", help="skip the 2049² and 3840×2160 hole-and-cut runs")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -205,7 +206,8 @@ def main() -> None:
     else:
         against_opencv(513, args.rounds, 3)
         grid_growth(513, 2049, max(3, args.rounds // 3))
-        big_grids([(2049, 2049), (2160, 3840)])
+        if not args.no_big:
+            big_grids([(2049, 2049), (2160, 3840)])
 
 
 if __name__ == "__main__":
