@@ -335,7 +335,9 @@ def test_cycles_do_not_grow_with_the_grid():
     for name, hole, cut in [("open", False, False), ("hole", True, False), ("cut", False, True), ("hole+cut", True, True)]:
         for n in (257, 513, 1025):
             pts, disp, mask, cuts = grid_problem(n, hole, cut)
-            _, report = inkwarp.thin_plate_report(pts, disp, (n, n), mask=mask, cuts=cuts)
+            # Capped at twice the bound, which any passing solve stays under, so that a
+            # failing solver does not make the suite slow (a capped solve reports the cap).
+            _, report = inkwarp.thin_plate_report(pts, disp, (n, n), mask=mask, cuts=cuts, max_cycles=24)
             table[name, n] = (report.cycles, report.converged)
     text = "; ".join(f"{k[0]} {k[1]}: {v[0]}{'' if v[1] else ' (not converged)'}" for k, v in table.items())
     for name in ("open", "hole", "cut", "hole+cut"):
