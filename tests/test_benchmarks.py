@@ -50,3 +50,20 @@ def test_quick_track_benchmark_prints_its_table():
             cells = [c.strip() for c in row.strip("|").split("|")]
             assert float(cells[4]) <= float(cells[5])  # median <= 90th percentile
     assert "low-texture: LK median" in out and "low-texture: DIS median" in out
+
+
+def test_quick_ratio_benchmark_prints_every_section():
+    # `benchmarks/ratios.py --quick`: the OpenCV comparison (without OpenCV installed it
+    # says so), the grid-growth ratio and the big-grid table, on small grids.
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "ratios.py"), "--quick"],
+        check=True, capture_output=True, text=True, timeout=300).stdout
+    assert "### 129×129, 10 random points: 2 alternating rounds" in out
+    assert "| cold N=4000 / cold N=10 |" in out
+    assert ("| cold / OpenCV |" in out and "| warm / OpenCV |" in out) or "OpenCV's thin-plate transformer is not installed" in out
+    assert "### Open grid, 100 points: 129×129 over 65×65" in out
+    rows = [line for line in out.splitlines() if line.startswith(("| 129×129 |", "| 160×90 |"))]
+    assert len(rows) == 2
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert cells[1] in ("True", "False") and int(cells[2]) >= 0 and float(cells[4]) > 0

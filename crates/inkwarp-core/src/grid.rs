@@ -4,22 +4,33 @@
 //! # Cuts
 //!
 //! A link joins two 4-neighbour nodes; [`Grid::add_cut`] breaks every link whose straight
-//! segment between the two node centres is crossed by a segment of the cut polyline.
+//! segment between the two node centres is crossed by a segment of the cut polyline. Every
+//! decision is an exact orientation predicate (Shewchuk's adaptive `orient2d`, from the
+//! `robust` crate) on the cut's own `f64` coordinates and the integer node centres, so the
+//! decisions for all links agree with one picture of the plane: a cut cannot slip between
+//! two links through rounding.
+//!
 //! Touching and collinear cases are decided by one fixed rule, as if every node centre were
 //! nudged by an infinitesimal `(+ε, +ε²)` (right, and a far smaller amount down) while the
-//! cut stays put. Consequences, all exact for cut coordinates that are multiples of a power
-//! of two (e.g. `10.5`, `3.25`, integers):
+//! cut stays put. In the nudged picture no node lies on a cut line and no cut end lies on a
+//! link, so "crosses" has one meaning. Consequences:
 //!
 //! - a cut running exactly along a row of node centres (`y = k`) separates the rows above
 //!   it from row `k` and the rows below (it breaks the vertical links between rows `k − 1`
 //!   and `k`); one running along a column `x = k` separates column `k − 1` from column `k`;
+//!   so a cut along the grid's top row or left column breaks nothing, and one along the
+//!   bottom row or right column cuts that row or column off;
 //! - a cut lying on a link's own segment (collinear) never breaks that link;
+//! - a cut through a node centre passes just left of the node (just above it when the cut
+//!   runs along the node's row), whichever way the cut is drawn;
 //! - a cut that ends exactly on a link, or passes exactly through a node, breaks a link
 //!   only where the nudged picture says it crosses, so a polyline whose vertices sit on
 //!   node centres still separates its two sides with no gap and no double cut.
 //!
 //! A cut is a line of zero width: it never deactivates a node. Non-finite vertices end the
-//! segments that touch them (those segments are skipped).
+//! segments that touch them (those segments are skipped). Coordinates beyond about 1e150 in
+//! magnitude overflow the predicates' products; such a cut breaks links as if its
+//! undecidable tests were ties.
 
 use crate::geometry::{Point, Sample};
 
@@ -162,43 +173,24 @@ impl Grid {
     }
 
     fn cut_segment(&mut self, a: Point, b: Point) {
-        let (w, h) = (self.width as i64, self.height as i64);
-        if w == 0 || h == 0 {
+        let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 || a == b {
             return;
         }
-        // Horizontal links lie on the lines Y = y (+ε²). The segment crosses that line iff
-        // exactly one end has coordinate ≤ y, i.e. y ∈ [min, max) over the integers. The
-        // crossing abscissa X0 at Y = y (the ε² shift only matters when X0 is an integer,
-        // and then the crossing lies left of the nudged node): it breaks the link
-        // (x, y)–(x+1, y) with X0 ∈ (x, x + 1].
-        let (lo, hi) = (a[1].min(b[1]), a[1].max(b[1]));
-        let y0 = (lo.ceil() as i64).max(0);
-        let y1 = (hi.ceil() as i64 - 1).min(h - 1);
-        for y in y0..=y1 {
-            let yf = y as f64;
-            let x_cross = a[0] + (yf - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
-            let x = x_cross.ceil() as i64 - 1;
-            if x >= 0 && x + 1 < w {
-                let i = (y * w + x) as usize;
-                self.link_right[i] = false;
+        // Horizontal links of row y lie on the line Y = y + ε²: the segment crosses it iff
+        // exactly one end has a coordinate ≤ y (exact comparisons of a float with an
+        // integer). Along the row the nudged nodes change side of the cut's line at most
+        // once; the link where they do is the one crossed.
+        for y in crossed_lines(a[1], b[1], h) {
+            if let Some(x) = side_change(w, |x| node_side(a, b, x, y)) {
+                self.link_right[y * w + x] = false;
             }
         }
-        // Vertical links lie on the lines X = x (+ε). The segment crosses iff x ∈ [min, max).
-        // The crossing ordinate at X = x + ε is Y0 + ε·slope; compared with the nudged
-        // link span (y + ε², y + 1 + ε²) an integer Y0 = k belongs to the link below k when
-        // the slope is positive and to the link above k otherwise.
-        let (lo, hi) = (a[0].min(b[0]), a[0].max(b[0]));
-        let x0 = (lo.ceil() as i64).max(0);
-        let x1 = (hi.ceil() as i64 - 1).min(w - 1);
-        let slope_positive = (b[1] - a[1]) * (b[0] - a[0]) > 0.0;
-        for x in x0..=x1 {
-            let xf = x as f64;
-            let y_cross = a[1] + (xf - a[0]) * (b[1] - a[1]) / (b[0] - a[0]);
-            let fl = y_cross.floor();
-            let y = if y_cross == fl && !slope_positive { fl as i64 - 1 } else { fl as i64 };
-            if y >= 0 && y + 1 < h {
-                let i = (y * w + x) as usize;
-                self.link_down[i] = false;
+        // Vertical links of column x lie on X = x + ε: crossed iff exactly one end has a
+        // coordinate ≤ x.
+        for x in crossed_lines(a[0], b[0], w) {
+            if let Some(y) = side_change(h, |y| node_side(a, b, x, y)) {
+                self.link_down[y * w + x] = false;
             }
         }
     }
@@ -290,6 +282,59 @@ impl Grid {
         let labels = run.iter().map(|&r| if r == u32::MAX { u32::MAX } else { run_label[r as usize] }).collect();
         (labels, count, false)
     }
+}
+
+/// The side of the cut line through `a` and `b` on which node `(x, y)` lies, nudged by
+/// `(+ε, +ε²)` (the module's tie rule): `true` for the positive side of the exact
+/// orientation `orient(a, b, node)`. Never a tie for `a ≠ b`: a node exactly on the line is
+/// decided by the nudge, `(b − a) × (ε, ε²) = (bx − ax)·ε² − (by − ay)·ε`, whose sign is that
+/// of `ay − by`, or of `bx − ax` for a horizontal line.
+fn node_side(a: Point, b: Point, x: usize, y: usize) -> bool {
+    let c = |p: Point| robust::Coord { x: p[0], y: p[1] };
+    let exact = robust::orient2d(c(a), c(b), c([x as f64, y as f64]));
+    if exact != 0.0 && !exact.is_nan() {
+        exact > 0.0
+    } else if a[1] != b[1] {
+        a[1] > b[1]
+    } else {
+        b[0] > a[0]
+    }
+}
+
+/// The grid lines `k` in `0..count` (rows for `lo, hi` = the segment's y values, columns for
+/// its x values) that a segment with these end coordinates crosses once the nodes are
+/// nudged: exactly one end ≤ `k`.
+fn crossed_lines(u: f64, v: f64, count: usize) -> std::ops::Range<usize> {
+    let (lo, hi) = (u.min(v), u.max(v));
+    // lo ≤ k < hi over the integers: k from ⌈lo⌉ to ⌈hi⌉ − 1, clamped to the grid (the
+    // casts saturate, and the clamps keep far-off segments cheap).
+    let first = lo.ceil().clamp(0.0, count as f64) as usize;
+    let end = hi.ceil().clamp(0.0, count as f64) as usize;
+    first..end.max(first)
+}
+
+/// The `k` such that `side(k) != side(k + 1)` for a side that changes at most once along
+/// `0..count` (nodes of one grid line against one straight cut), found by bisection with
+/// exact predicates; `None` when all nodes are on one side.
+fn side_change(count: usize, side: impl Fn(usize) -> bool) -> Option<usize> {
+    if count < 2 {
+        return None;
+    }
+    let first = side(0);
+    if side(count - 1) == first {
+        return None;
+    }
+    // Invariant: side(lo) == first, side(hi) != first.
+    let (mut lo, mut hi) = (0, count - 1);
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if side(mid) == first {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some(lo)
 }
 
 /// Samples attached to their nearest nodes (DESIGN §4).
@@ -735,6 +780,210 @@ pub(crate) mod tests {
             labels[i] = label_of_root[r];
         }
         (labels, count as usize)
+    }
+
+    /// Checks that a straight cut through the whole grid splits it into exactly the two
+    /// link-components of its sides. `side(x, y)` is `Some(true/false)` for a node clearly on
+    /// one side and `None` where the test cannot tell independently (left unchecked).
+    fn assert_splits_in_two(g: &Grid, side: impl Fn(usize, usize) -> Option<bool>, what: &str) {
+        let (labels, count) = g.pieces();
+        let mut label_of = [None, None];
+        for y in 0..g.height {
+            for x in 0..g.width {
+                if let Some(s) = side(x, y) {
+                    let l = labels[g.index(x, y)];
+                    let want = label_of[usize::from(s)].get_or_insert(l);
+                    assert_eq!(*want, l, "{what}: node ({x},{y}) cut off from its side");
+                }
+            }
+        }
+        let sides = label_of.iter().filter(|l| l.is_some()).count();
+        assert_eq!(count, sides.max(1), "{what}: {count} pieces for {sides} sides");
+        if let [Some(p), Some(q)] = label_of {
+            assert_ne!(p, q, "{what}: the cut leaks");
+        }
+    }
+
+    /// The side of node (x, y) of the line through integer points a, b, nudged by
+    /// (+ε, +ε²), in exact integer arithmetic (the module's tie rule, written out).
+    fn integer_side(a: [i64; 2], b: [i64; 2], x: i64, y: i64) -> bool {
+        let o = (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]);
+        let nudge = if b[1] != a[1] { a[1] - b[1] } else { b[0] - a[0] };
+        if o != 0 { o > 0 } else { nudge > 0 }
+    }
+
+    #[test]
+    fn the_cut_that_leaked_through_node_centres_separates() {
+        // Its line passes through node centres up to rounding; the old crossing
+        // abscissae, rounded differently for rows and columns, let the pieces touch.
+        let mut g = Grid::new(64, 64);
+        let (a, b) = ([-5.0, 40.7], [70.0, 33.2]);
+        g.add_cut(&[a, b]);
+        let side = |x: usize, y: usize| {
+            let o = (b[0] - a[0]) * (y as f64 - a[1]) - (b[1] - a[1]) * (x as f64 - a[0]);
+            (o.abs() > 1e-9).then_some(o > 0.0)
+        };
+        assert_splits_in_two(&g, side, "(-5, 40.7)-(70, 33.2)");
+        assert_eq!(g.pieces().1, 2);
+    }
+
+    #[test]
+    fn cuts_along_links_and_through_nodes_follow_the_one_rule() {
+        // A horizontal cut along row 3, between nodes (1,3) and (4,3), both ends on nodes:
+        // it lies on the links (1,3)-(2,3)-(3,3)-(4,3), breaks none of them, and breaks the
+        // vertical links above nodes 1..=3 (the nodes are nudged right, so node 1, at the
+        // cut's left end, moves under it and node 4, at its right end, past it).
+        let mut g = Grid::new(6, 6);
+        g.add_cut(&[[1.0, 3.0], [4.0, 3.0]]);
+        assert!(broken_right(&g).is_empty());
+        assert_eq!(broken_down(&g), vec![(1, 2), (2, 2), (3, 2)]);
+        // A vertical cut along column 2 from node (2,1) to node (2,4) breaks the right links
+        // left of nodes (2,1), (2,2), (2,3): nudged down, node (2,1) moves beside the cut
+        // and node (2,4) below its end.
+        let mut g = Grid::new(6, 6);
+        g.add_cut(&[[2.0, 1.0], [2.0, 4.0]]);
+        assert!(broken_down(&g).is_empty());
+        assert_eq!(broken_right(&g), vec![(1, 1), (1, 2), (1, 3)]);
+        // Through a node diagonally: the cut passes just left of node (2,2).
+        let mut g = Grid::new(5, 5);
+        g.add_cut(&[[0.5, 0.5], [3.5, 3.5]]);
+        let i = g.index(2, 2);
+        assert!(g.link_down[g.index(2, 1)] && !g.link_right[g.index(1, 2)] && g.link_right[i]);
+        // A cut ending exactly on a vertical link's midpoint from the left does not reach
+        // it (nodes nudged right); from the right it crosses it.
+        let mut g = Grid::new(5, 5);
+        g.add_cut(&[[-1.0, 2.5], [2.0, 2.5]]);
+        assert_eq!(broken_down(&g), vec![(0, 2), (1, 2)]);
+        let mut g = Grid::new(5, 5);
+        g.add_cut(&[[6.0, 2.5], [2.0, 2.5]]);
+        assert_eq!(broken_down(&g), vec![(2, 2), (3, 2), (4, 2)]);
+        // A cut ending exactly on a node breaks the same links whichever way it is drawn.
+        for (p, q) in [([0.3, -1.0], [2.0, 2.0]), ([4.7, 6.0], [2.0, 2.0]), ([-1.0, 2.0], [2.0, 2.0])] {
+            let (mut g, mut h) = (Grid::new(5, 5), Grid::new(5, 5));
+            g.add_cut(&[p, q]);
+            h.add_cut(&[q, p]);
+            assert_eq!(g, h, "{p:?}-{q:?}");
+        }
+    }
+
+    #[test]
+    fn cuts_along_the_border() {
+        let (w, h) = (7, 5);
+        // Along the top row and the left column: the nodes are nudged down and right,
+        // inside the grid, so nothing is cut.
+        let mut g = Grid::new(w, h);
+        g.add_cut(&[[-1.0, 0.0], [8.0, 0.0]]);
+        g.add_cut(&[[0.0, -1.0], [0.0, 6.0]]);
+        assert_eq!(g, Grid::new(w, h));
+        // Along the bottom row and the right column: that row and that column are cut off.
+        let mut g = Grid::new(w, h);
+        g.add_cut(&[[-1.0, 4.0], [8.0, 4.0]]);
+        assert_eq!(broken_down(&g), (0..w).map(|x| (x, 3)).collect::<Vec<_>>());
+        let mut g = Grid::new(w, h);
+        g.add_cut(&[[6.0, 6.0], [6.0, -1.0]]);
+        assert_eq!(broken_right(&g), (0..h).map(|y| (5, y)).collect::<Vec<_>>());
+        // Around the whole border through the corner nodes: the bottom row and the right
+        // column are one piece, the rest another.
+        let mut g = Grid::new(w, h);
+        g.add_cut(&[[0.0, 0.0], [6.0, 0.0], [6.0, 4.0], [0.0, 4.0], [0.0, 0.0]]);
+        let (labels, count) = g.pieces();
+        assert_eq!(count, 2);
+        assert_eq!(labels[g.index(6, 0)], labels[g.index(0, 4)]);
+        assert_ne!(labels[g.index(0, 0)], labels[g.index(6, 0)]);
+    }
+
+    #[test]
+    fn cuts_far_outside_or_huge_break_nothing_and_never_panic() {
+        let mut g = Grid::new(6, 6);
+        g.add_cut(&[[-1e300, 2.5], [-1e299, 3.5]]);
+        g.add_cut(&[[1e300, 1e300], [2e300, -1e300]]);
+        g.add_cut(&[[f64::MAX, 0.0], [f64::MIN_POSITIVE, 1e-300]]);
+        assert!(g.is_consistent());
+        let mut open = Grid::new(6, 6);
+        open.add_cut(&[[-1e300, 2.5], [-1e299, 3.5]]);
+        assert_eq!(open, Grid::new(6, 6));
+    }
+
+    /// A point on the border of a `w × h` grid's box widened by `margin`, at parameter
+    /// `t ∈ [0, 1)` around it, snapped to a multiple of `step`.
+    fn border_point(w: usize, h: usize, margin: f64, t: f64, step: f64) -> [f64; 2] {
+        let (x0, y0, x1, y1) = (-margin, -margin, (w - 1) as f64 + margin, (h - 1) as f64 + margin);
+        let (bw, bh) = (x1 - x0, y1 - y0);
+        let mut d = t * 2.0 * (bw + bh);
+        let p = if d < bw {
+            [x0 + d, y0]
+        } else {
+            d -= bw;
+            if d < bh {
+                [x1, y0 + d]
+            } else {
+                d -= bh;
+                if d < bw { [x1 - d, y1] } else { [x0, y1 - (d - bw)] }
+            }
+        };
+        p.map(|v| (v / step).round() * step)
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(600))]
+
+        #[test]
+        fn a_border_to_border_cut_splits_the_grid_in_two(
+            w in 2usize..70, h in 2usize..70, s in 0.0..1.0f64, t in 0.0..1.0f64, margin in 0.2..6.0f64,
+        ) {
+            // Endpoints at 0.1 px precision outside the grid: about 7 % of these leaked
+            // with rounded crossing abscissae.
+            let (a, b) = (border_point(w, h, margin, s, 0.1), border_point(w, h, margin, t, 0.1));
+            let mut g = Grid::new(w, h);
+            g.add_cut(&[a, b]);
+            let side = |x: usize, y: usize| {
+                let o = (b[0] - a[0]) * (y as f64 - a[1]) - (b[1] - a[1]) * (x as f64 - a[0]);
+                (o.abs() > 1e-9).then_some(o > 0.0)
+            };
+            assert_splits_in_two(&g, side, &format!("{a:?}-{b:?} on {w}x{h}"));
+        }
+
+        #[test]
+        fn a_cut_through_node_centres_splits_the_grid_exactly(
+            w in 2usize..40, h in 2usize..40, s in 0.0..1.0f64, t in 0.0..1.0f64, margin in 1usize..4,
+        ) {
+            // Integer endpoints: the line runs through node centres wherever its slope
+            // allows; every node is placed by the nudge, checked in exact integer arithmetic.
+            let (a, b) = (border_point(w, h, margin as f64, s, 1.0), border_point(w, h, margin as f64, t, 1.0));
+            let (ai, bi) = (a.map(|v| v as i64), b.map(|v| v as i64));
+            let mut g = Grid::new(w, h);
+            g.add_cut(&[a, b]);
+            if ai != bi {
+                assert_splits_in_two(&g, |x, y| Some(integer_side(ai, bi, x as i64, y as i64)), &format!("{a:?}-{b:?}"));
+            }
+        }
+
+        #[test]
+        fn a_cut_breaks_exactly_the_links_whose_nudged_nodes_it_separates(
+            w in 2usize..20, h in 2usize..20, ax in -3i64..23, ay in -3i64..23, bx in -3i64..23, by in -3i64..23,
+        ) {
+            // Integer endpoints anywhere (inside the grid too): a link is broken iff its two
+            // nudged nodes are on opposite sides of the line and the cut's ends are on
+            // opposite sides of the link's nudged line.
+            let (a, b) = ([ax, ay], [bx, by]);
+            proptest::prop_assume!(a != b);
+            let mut g = Grid::new(w, h);
+            g.add_cut(&[[ax as f64, ay as f64], [bx as f64, by as f64]]);
+            for y in 0..h as i64 {
+                for x in 0..w as i64 {
+                    let i = g.index(x as usize, y as usize);
+                    let here = integer_side(a, b, x, y);
+                    if x + 1 < w as i64 {
+                        let crossed = here != integer_side(a, b, x + 1, y) && ((ay <= y) != (by <= y));
+                        proptest::prop_assert_eq!(g.link_right[i], !crossed, "right link at ({},{})", x, y);
+                    }
+                    if y + 1 < h as i64 {
+                        let crossed = here != integer_side(a, b, x, y + 1) && ((ax <= x) != (bx <= x));
+                        proptest::prop_assert_eq!(g.link_down[i], !crossed, "down link at ({},{})", x, y);
+                    }
+                }
+            }
+        }
     }
 
     proptest::proptest! {
