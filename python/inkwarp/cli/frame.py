@@ -35,11 +35,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from inkwarp.imaging import write_png
-    from inkwarp.track import read_frame
+    from inkwarp.track import check_output, read_frame
 
     out = Path(args.output)
     if out.suffix.lower() != ".png":
         raise ValueError(f"the output {out} must be a .png file.")
+    check_output(out)
     rgb = read_frame(args.video, args.frame)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_png(out, rgb)

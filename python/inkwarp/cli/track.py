@@ -50,13 +50,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from inkwarp.errors import InkwarpWarning
-    from inkwarp.track import read_video, save_json, track_dict
+    from inkwarp.track import check_output, read_video, save_json, track_dict
 
     out = Path(args.output)
     if out.suffix.lower() != ".json":
         raise ValueError(f"the output {out} must be a .json scene file.")
     if args.lost <= 0:
         raise ValueError(f"--lost {args.lost}: give a distance in pixels above 0")
+    check_output(out)
     clip = read_video(args.video)
 
     def progress(total: int):
