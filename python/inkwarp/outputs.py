@@ -210,6 +210,17 @@ class TransparentGifWriter(FrameWriter):
             self._temp.unlink(missing_ok=True)
 
 
+def check_sheet_json(target: str | os.PathLike[str], scene_path: str | os.PathLike[str]) -> None:
+    """Refuse a sprite sheet whose ``.json`` beside the atlas would replace the scene being
+    rendered (``-o character.png`` for ``character.json``), before any rendering."""
+    sheet_json = Path(os.fspath(target)).with_suffix(".json")
+    scene = Path(os.fspath(scene_path))
+    if sheet_json.exists() and scene.exists() and os.path.samefile(sheet_json, scene):
+        raise ValueError(f"{target}: the sprite sheet's {sheet_json.name} would replace the "
+                         f"scene {scene}; name the sheet otherwise, such as "
+                         f"{sheet_json.stem}-sheet.png")
+
+
 def sheet_layout(count: int, spec: str | None) -> tuple[int, int]:
     """``(columns, rows)`` of a sprite sheet for ``count`` frames: ``COLSxROWS``, ``COLS``
     (rows as needed), or None for the squarest grid.

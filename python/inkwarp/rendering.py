@@ -172,6 +172,8 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     from inkwarp.cli import _common
 
     if not hasattr(scene, "frames"):
+        if sprite_sheet:
+            outputs.check_sheet_json(output, scene)
         scene = _common.load_scene(os.fspath(scene))
     if background is not None:
         colour = (outputs.parse_background(background) if isinstance(background, str)
