@@ -244,3 +244,16 @@ def test_python_api_returns_a_scene(videos):
         warnings.simplefilter("error")
         scene = inkwarp.track(path, sv.scene(W, H, sv.drawing(W, H, seed=7)), simplify_px=0.5)
     assert isinstance(scene, inkwarp.Scene) and scene.frame_count == FRAMES
+
+
+def test_frame_and_track_take_q_like_render_and_new(videos, tmp_path, capsys):
+    """`-q` is `--quiet` in render and new; frame and track refused it as unrecognised."""
+    path, _ = videos["translate"]
+    code, out, err = run(capsys, "frame", path, "-o", tmp_path / "f.png", "-q")
+    assert code == 0, err
+    assert out == "" and (tmp_path / "f.png").exists()
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(sv.scene(W, H, sv.drawing(W, H, seed=7))))
+    code, out, err = run(capsys, "track", path, "--scene", scene, "-o", tmp_path / "t.json", "-q")
+    assert code == 0, err
+    assert out == "" and "%" not in err and (tmp_path / "t.json").exists()

@@ -29,7 +29,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--frame", type=int, default=0, metavar="K",
                         help="the frame number, from 0 (default 0)")
     parser.add_argument("-o", "--output", required=True, metavar="PNG", help="the picture to write")
-    parser.add_argument("--quiet", action="store_true", help="print nothing on success")
+    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     parser.set_defaults(func=run)
 
 

@@ -44,7 +44,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--lost", type=float, default=2.0, metavar="PX",
                         help="warn about a feature at the frames where its points' median "
                         "forward-backward error is over PX pixels (default 2)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     parser.set_defaults(func=run)
 
 
