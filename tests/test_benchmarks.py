@@ -67,3 +67,29 @@ def test_quick_ratio_benchmark_prints_every_section():
     for row in rows:
         cells = [c.strip() for c in row.strip("|").split("|")]
         assert cells[1] in ("True", "False") and int(cells[2]) >= 0 and float(cells[4]) > 0
+
+
+def test_quick_pipeline_benchmark_prints_its_table():
+    """`benchmarks/pipeline.py --quick --no-ray`: a row per size with a number in every column
+    and the per-pixel ratios below (no time asserted: benchmarks are not tests)."""
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "pipeline.py"), "--quick", "--rounds", "1",
+         "--no-ray"],
+        check=True, capture_output=True, text=True, timeout=300).stdout
+    assert "## Big frames: per-frame ms (median of 1 rounds)" in out
+    header = "| size | frames | cold | frame | solve | render | png | mp4 | peak MiB |"
+    assert header in out
+    rows = [line for line in out.splitlines()
+            if line.startswith(("| 128×128 |", "| 480×270 |", "| 960×540 |"))]
+    assert len(rows) == 3
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert len(cells) == len(header.strip("|").split("|"))
+        assert int(cells[1]) >= 1  # frames
+        for cell in cells[2:]:
+            float(cell)  # every column measured, none left as "–"
+        assert float(cells[-1]) > 0  # peak memory
+    for key in ("cold", "frame", "solve", "render", "png"):
+        assert f"- {key}: 480×270 / 128×128 = " in out
+    assert "pixels 7.9×" in out
+    assert "Ray speed-up" not in out  # --no-ray

@@ -261,3 +261,32 @@ def test_groups_are_flattened_with_their_opacity_and_a_note(tmp_path):
         scene = inkwarp.Scene.new(tmp_path / "g.psd")
     assert scene.layers == ["back", "eye"]
     assert np.abs(scene.render().astype(int) - psd_composite(tmp_path / "g.psd")).max() <= 2
+
+
+def test_layer_names_that_share_a_file_name_or_are_long_each_get_an_image(capsys, tmp_path):
+    """Layer names are free text: "a b" and "a-b" share a slug (this once looped forever
+    when a third layer's fallback name was taken too), case-insensitive file systems take
+    "Arm" for "arm", and a PSD name of 250 characters made a file name too long (exit 1)."""
+    from psd_tools import PSDImage
+    from psd_tools.api.layers import PixelLayer
+
+    names = ["a-b", "a-b-2", "a b", "arm", "Arm", "x" * 250, "../../up"]
+    psd = PSDImage.new("RGB", (16, 12))
+    for i, name in enumerate(names):
+        picture = Image.new("RGBA", (16, 12), (0, 0, 0, 0))
+        picture.putpixel((i, i), (10 + 30 * i, 0, 0, 255))
+        psd.append(PixelLayer.frompil(picture, psd, name, 0, 0))
+    psd.save(tmp_path / "n.psd")
+    out = tmp_path / "scene"
+    out.mkdir()
+    code, _, err = run(capsys, "new", tmp_path / "n.psd", "-o", out / "n.json", "--quiet")
+    assert code == 0, err
+    doc = json.loads((out / "n.json").read_text())
+    images = [layer["image"] for layer in doc["layers"]]
+    assert len({image.casefold() for image in images}) == len(names)
+    assert sorted(images + ["n.json"]) == files(out)  # all inside the scene's folder
+    assert all(len(image) <= 80 for image in images)
+    for i, image in enumerate(images):  # each layer's own pixels under its own file
+        pixels = np.asarray(Image.open(out / image))
+        assert pixels[i, i, 3] == 255 and pixels[i, i, 0] == 10 + 30 * i
+        assert pixels[..., 3].sum() == 255

@@ -127,6 +127,53 @@ def test_sprite_sheet_too_small_is_refused_before_rendering(capsys, tmp_path, tr
     assert os.listdir(tmp_path) == []
 
 
+def test_sprite_sheet_bigger_than_engines_load_is_refused_before_rendering(capsys, tmp_path,
+                                                                         transparent):
+    """A sheet over 16384 px a side (no engine loads it as a texture, and it is held whole in
+    memory: 240 frames of 4K were 8 GB) is refused with the fix before any frame renders."""
+    import inkwarp
+    from inkwarp.outputs import MAX_SHEET_SIDE_PX
+
+    scene, _ = transparent
+    columns = MAX_SHEET_SIDE_PX // WIDTH + 1
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "sheet.png",
+                       "--sprite-sheet", columns)
+    assert code == 2, err
+    assert (f"--sprite-sheet {columns}: {columns}x1 frames of {WIDTH}x{HEIGHT} make a "
+            f"{columns * WIDTH}x{HEIGHT} sheet, over the 16384 px") in err
+    assert "Traceback" not in err and "%" not in err and len(err.strip().splitlines()) == 1
+    with pytest.raises(ValueError, match="over the 16384 px"):
+        inkwarp.render(scene, tmp_path / "sheet.png", sprite_sheet=f"1x{MAX_SHEET_SIDE_PX}")
+    assert os.listdir(tmp_path) == []
+
+
+def test_sprite_sheet_json_that_would_replace_the_scene_is_refused(capsys, tmp_path, transparent):
+    """`-o character.png --sprite-sheet` for `character.json` wrote the sheet's JSON over the
+    scene itself; now it is refused before rendering, from the CLI and from Python."""
+    import shutil
+
+    import inkwarp
+
+    scene, _ = transparent
+    for name in os.listdir(scene.parent):
+        if os.path.isfile(scene.parent / name):
+            shutil.copy(scene.parent / name, tmp_path / name)
+    own = tmp_path / scene.name
+    before = own.read_bytes()
+    listing = sorted(os.listdir(tmp_path))
+    code, _, err = run(capsys, "render", own, "-o", own.with_suffix(".png"), "--sprite-sheet")
+    assert code == 2, err
+    assert f"the sprite sheet's {own.name} would replace the scene" in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    with pytest.raises(ValueError, match="would replace the scene"):
+        inkwarp.render(own, own.with_suffix(".png"), sprite_sheet=True)
+    assert own.read_bytes() == before and sorted(os.listdir(tmp_path)) == listing
+    # Another name beside it is fine.
+    code, _, err = run(capsys, "render", own, "-o", tmp_path / "sheet.png", "--sprite-sheet", "-q")
+    assert code == 0, err
+    assert own.read_bytes() == before and (tmp_path / "sheet.json").exists()
+
+
 # --- farm chunks ------------------------------------------------------------------------------
 
 def wavy_doc():

@@ -204,6 +204,38 @@ def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
     assert not (tmp_path / "o.json").exists() and not (tmp_path / "f.png").exists()
 
 
+@pytest.mark.parametrize("command", ["frame", "track"])
+@pytest.mark.parametrize("case", ["under a file", "a directory"])
+def test_an_output_that_cannot_be_written_exits_2_before_any_work(videos, tmp_path, capsys,
+                                                                  command, case):
+    """An output inside a file, or naming a directory, is refused up front with one line
+    (it was an OSError with exit 1, or for track one after the whole clip was tracked)."""
+    path, _ = videos["translate"]
+    suffix = ".png" if command == "frame" else ".json"
+    blocker = tmp_path / "character.psd"
+    blocker.write_bytes(b"8BPS")
+    if case == "under a file":
+        out = blocker / "sub" / f"out{suffix}"
+        expect = f"{blocker} is a file, not a directory"
+    else:
+        out = tmp_path / f"taken{suffix}"
+        out.mkdir()
+        expect = f"{out}: is a directory; name a file"
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(sv.scene(W, H, sv.drawing(W, H, seed=7))))
+    args = [command, path, "-o", out] + (["--scene", scene] if command == "track" else [])
+    code, _, err = run(capsys, *args)
+    assert code == 2, err
+    assert expect in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert "%" not in err  # refused before the progress bar of any tracking
+    assert blocker.read_bytes() == b"8BPS"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["character.psd", "s.json"] + (["taken" + suffix] if case == "a directory" else []))
+    if case == "a directory":
+        assert not any(out.iterdir())
+
+
 def test_python_api_returns_a_scene(videos):
     import inkwarp
 
@@ -212,3 +244,16 @@ def test_python_api_returns_a_scene(videos):
         warnings.simplefilter("error")
         scene = inkwarp.track(path, sv.scene(W, H, sv.drawing(W, H, seed=7)), simplify_px=0.5)
     assert isinstance(scene, inkwarp.Scene) and scene.frame_count == FRAMES
+
+
+def test_frame_and_track_take_q_like_render_and_new(videos, tmp_path, capsys):
+    """`-q` is `--quiet` in render and new; frame and track refused it as unrecognised."""
+    path, _ = videos["translate"]
+    code, out, err = run(capsys, "frame", path, "-o", tmp_path / "f.png", "-q")
+    assert code == 0, err
+    assert out == "" and (tmp_path / "f.png").exists()
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(sv.scene(W, H, sv.drawing(W, H, seed=7))))
+    code, out, err = run(capsys, "track", path, "--scene", scene, "-o", tmp_path / "t.json", "-q")
+    assert code == 0, err
+    assert out == "" and "%" not in err and (tmp_path / "t.json").exists()

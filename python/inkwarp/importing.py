@@ -228,7 +228,9 @@ def _unique_names(names: list[str]) -> list[str]:
 
 
 def _slug(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "-", name).strip("-.") or "layer"
+    """A layer's name as part of a file name: safe characters only, and short (a PSD layer
+    name may be 255 characters, more than a file name may hold with the scene's name)."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "-", name).strip("-.")[:64].strip("-.") or "layer"
 
 
 def scene_dict(picture: Picture, images: list[str], *, fps: float = 24.0,
@@ -317,10 +319,14 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
             if layer.source is not None:
                 reference = Path(os.path.relpath(layer.source.absolute(), folder)).as_posix()
             else:
+                # Different names can share a slug ("a b", "a-b"); a case-insensitive
+                # file system also takes "Arm" for "arm".
                 file_name = f"{target.stem}-{_slug(name)}.png"
-                while file_name in used:
-                    file_name = f"{target.stem}-{_slug(name)}-{index}.png"
-                used.add(file_name)
+                suffix = index
+                while file_name.casefold() in used:
+                    file_name = f"{target.stem}-{_slug(name)}-{suffix}.png"
+                    suffix += 1
+                used.add(file_name.casefold())
                 files.append((folder / file_name, png))
                 reference = file_name
             data["layers"][index]["image"] = reference

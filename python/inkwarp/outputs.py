@@ -210,6 +210,34 @@ class TransparentGifWriter(FrameWriter):
             self._temp.unlink(missing_ok=True)
 
 
+#: The widest side of a sprite sheet: the largest texture Unity, Godot and WebGL engines load
+#: (and TexturePacker makes); a bigger atlas would also have to be held whole in memory.
+MAX_SHEET_SIDE_PX = 16384
+
+
+def check_sheet_size(columns: int, rows: int, width: int, height: int, spec: str | None) -> None:
+    """Refuse, before any rendering, a sprite sheet wider or taller than
+    :data:`MAX_SHEET_SIDE_PX`."""
+    w, h = columns * width, rows * height
+    if max(w, h) > MAX_SHEET_SIDE_PX:
+        given = f"--sprite-sheet {spec}" if spec and spec != "auto" else "--sprite-sheet"
+        raise ValueError(f"{given}: {columns}x{rows} frames of {width}x{height} make a "
+                         f"{w}x{h} sheet, over the {MAX_SHEET_SIDE_PX} px a side that game "
+                         "engines load; pick fewer frames with --frames, another COLSxROWS, "
+                         "or render a smaller scene")
+
+
+def check_sheet_json(target: str | os.PathLike[str], scene_path: str | os.PathLike[str]) -> None:
+    """Refuse a sprite sheet whose ``.json`` beside the atlas would replace the scene being
+    rendered (``-o character.png`` for ``character.json``), before any rendering."""
+    sheet_json = Path(os.fspath(target)).with_suffix(".json")
+    scene = Path(os.fspath(scene_path))
+    if sheet_json.exists() and scene.exists() and os.path.samefile(sheet_json, scene):
+        raise ValueError(f"{target}: the sprite sheet's {sheet_json.name} would replace the "
+                         f"scene {scene}; name the sheet otherwise, such as "
+                         f"{sheet_json.stem}-sheet.png")
+
+
 def sheet_layout(count: int, spec: str | None) -> tuple[int, int]:
     """``(columns, rows)`` of a sprite sheet for ``count`` frames: ``COLSxROWS``, ``COLS``
     (rows as needed), or None for the squarest grid.

@@ -172,6 +172,8 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     from inkwarp.cli import _common
 
     if not hasattr(scene, "frames"):
+        if sprite_sheet:
+            outputs.check_sheet_json(output, scene)
         scene = _common.load_scene(os.fspath(scene))
     if background is not None:
         colour = (outputs.parse_background(background) if isinstance(background, str)
@@ -186,7 +188,9 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
             raise ValueError(f"{target}: a sprite sheet is a .png (with a .json beside it); "
                              "name the output sheet.png")
         layout = None if sprite_sheet is True else str(sprite_sheet)
-        outputs.sheet_layout(stop - start, layout)  # a bad layout fails before rendering
+        # A bad layout, or a sheet too big to load, fails before rendering.
+        outputs.check_sheet_size(*outputs.sheet_layout(stop - start, layout), scene.width,
+                                 scene.height, layout)
         writer: Any = outputs.SpriteSheetWriter(target, scene.fps, stop - start, layout, start)
     elif kind == "png":
         raise ValueError(f"{target}: a .png holds one frame; render an animation to a .gif, "

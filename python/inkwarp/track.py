@@ -722,6 +722,23 @@ def rotoscope_example(examples_dir: str | os.PathLike[str], out_dir: str | os.Pa
     return tracked_path, save_json(cat, out / "rotoscope.json")
 
 
+def check_output(path: str | os.PathLike[str]) -> Path:
+    """Check before any work that the file ``path`` can be written (its missing folders are
+    made when it is saved). Raises ``ValueError`` with the fix when ``path`` is a directory,
+    when a folder on the way is a file, or when the folder cannot be written."""
+    out = Path(path)
+    if out.is_dir():
+        raise ValueError(f"{out}: is a directory; name a file, such as {out / ('out' + out.suffix)}")
+    folder = out.absolute().parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise ValueError(f"{out}: {folder} is a file, not a directory; choose another output path")
+    if not os.access(folder, os.W_OK):
+        raise ValueError(f"{out}: the directory {folder} is not writable")
+    return out
+
+
 def save_json(doc: dict[str, Any], path: str | os.PathLike[str]) -> Path:
     """Write a scene document: under a temporary name beside ``path``, then renamed."""
     import tempfile

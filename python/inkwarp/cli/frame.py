@@ -29,17 +29,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--frame", type=int, default=0, metavar="K",
                         help="the frame number, from 0 (default 0)")
     parser.add_argument("-o", "--output", required=True, metavar="PNG", help="the picture to write")
-    parser.add_argument("--quiet", action="store_true", help="print nothing on success")
+    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from inkwarp.imaging import write_png
-    from inkwarp.track import read_frame
+    from inkwarp.track import check_output, read_frame
 
     out = Path(args.output)
     if out.suffix.lower() != ".png":
         raise ValueError(f"the output {out} must be a .png file.")
+    check_output(out)
     rgb = read_frame(args.video, args.frame)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_png(out, rgb)

@@ -81,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
         if kind != "png":
             raise ValueError(f"--sprite-sheet writes a .png atlas (and a .json beside it); "
                              f"name the output sheet.png, not {target.name}")
+        outputs.check_sheet_json(target, args.scene)
         kind = "sheet"
     if kind == "png" and args.frames is not None:
         raise ValueError(f"--frames {args.frames}: a .png holds one frame; pick it with "

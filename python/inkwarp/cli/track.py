@@ -44,19 +44,20 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--lost", type=float, default=2.0, metavar="PX",
                         help="warn about a feature at the frames where its points' median "
                         "forward-backward error is over PX pixels (default 2)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from inkwarp.errors import InkwarpWarning
-    from inkwarp.track import read_video, save_json, track_dict
+    from inkwarp.track import check_output, read_video, save_json, track_dict
 
     out = Path(args.output)
     if out.suffix.lower() != ".json":
         raise ValueError(f"the output {out} must be a .json scene file.")
     if args.lost <= 0:
         raise ValueError(f"--lost {args.lost}: give a distance in pixels above 0")
+    check_output(out)
     clip = read_video(args.video)
 
     def progress(total: int):
