@@ -1309,6 +1309,41 @@ test('a region is dragged by its fill: the whole region moves', async () => {
   assert(key && key.every((q, i) => Math.abs(q[0] - rest[i][0] - 20) < 1.01 && Math.abs(q[1] - rest[i][1] - 10) < 1.01), `every point of the region moved by (20, 10): ${JSON.stringify(key)}`);
 });
 
+test('a layered PSD opens as `inkwarp new` reads it: a layer each, PSD order, names, visibility, opacity in alpha, blend modes noted', async () => {
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-psd-'));
+  const file = join(dir, 'figure.psd');
+  const made = spawnSync(join(repo, '.venv/bin/python'), [join(here, 'make_psd.py'), file], { encoding: 'utf8' });
+  assert(made.status === 0, `psd-tools wrote the PSD: ${made.stderr}`);
+  await page.setInputFiles('input[type=file][accept^=".json"]', file);
+  await page.waitForFunction(() => window.inkwarp.store.doc.layers.some((l) => l.name === 'arm'));
+  await idle(page);
+  const got = await page.evaluate(async () => {
+    const { store, images, ui } = window.inkwarp;
+    const doc = store.doc;
+    const layers = [];
+    for (const l of doc.layers) {
+      const img = await images.decodeImage(l.image);
+      const px = (x, y) => Array.from(img.data.subarray(4 * (y * img.width + x), 4 * (y * img.width + x) + 4));
+      layers.push({ name: l.name, visible: l.visible !== false, offset: l.offset ?? [0, 0], size: [img.width, img.height], inside: px(12, 7), outside: px(1, 1) });
+    }
+    return { size: [doc.width, doc.height], background: doc.background, layers, notes: ui.psdNotes, message: document.querySelector('#message').textContent };
+  });
+  assert(JSON.stringify(got.size) === '[32,24]', `the scene is the PSD's size: ${got.size}`);
+  assert(got.background[3] === 0, `the background is transparent: ${got.background}`);
+  assert(JSON.stringify(got.layers.map((l) => l.name)) === '["sky","arm","notes"]', `a layer per pixel layer, bottom first, group flattened: ${got.layers.map((l) => l.name)}`);
+  assert(JSON.stringify(got.layers.map((l) => l.visible)) === '[true,true,false]', `visibility kept: ${got.layers.map((l) => l.visible)}`);
+  assert(got.layers.every((l) => l.size[0] === 32 && l.size[1] === 24 && l.offset[0] === 0 && l.offset[1] === 0), 'every layer is canvas-sized at [0, 0]');
+  const [sky, arm, notes] = got.layers;
+  assert(JSON.stringify(sky.inside) === '[20,40,200,255]' && JSON.stringify(sky.outside) === '[20,40,200,255]', `sky: ${sky.inside} ${sky.outside}`);
+  assert(arm.inside[0] > 210 && arm.inside[1] < 40 && Math.abs(arm.inside[3] - 128) <= 1, `the arm is red at the group's 50 % opacity: ${arm.inside}`);
+  assert(arm.outside[3] === 0, `the arm is transparent outside its box: ${arm.outside}`);
+  assert(notes.inside[1] === 200 && notes.inside[3] === 255, `the hidden layer keeps its pixels: ${notes.inside}`);
+  assert(got.notes.some((n) => /figure\.psd/.test(n) && /'figure \/ arm'/.test(n) && /Multiply/.test(n)), `the Multiply layer is named in a warning: ${got.notes}`);
+  assert(/figure \/ arm/.test(got.message) && /Multiply/.test(got.message), `the page says so: ${got.message}`);
+  await screenshot(page, 'psd-open');
+  await page.click('#message');
+});
+
 async function main() {
   server = await startServer();
   browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: CHROMIUM_ARGS });

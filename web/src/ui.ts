@@ -4,7 +4,8 @@ import { App } from './app';
 import { clear, h } from './dom';
 import { EngineError } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
-import { decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
+import { blobToDataUri, decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
+import { isPsdName, readLayeredPsd, uniqueNames } from './psd';
 import { Overlay } from './overlay';
 import { canEncodeWebm, encodeWebm } from './webm';
 import { PROBE_DWELL_MS } from './probe';
@@ -154,7 +155,7 @@ export class Ui {
   // -- Building --------------------------------------------------------------------------
 
   private build(root: HTMLElement): void {
-    const fileInput = h('input', { type: 'file', accept: '.json,application/json,image/png,image/jpeg', hidden: true, onchange: () => {
+    const fileInput = h('input', { type: 'file', accept: '.json,application/json,image/png,image/jpeg,.psd,image/vnd.adobe.photoshop', hidden: true, onchange: () => {
       const f = fileInput.files?.[0];
       if (f) void this.openFile(f);
       fileInput.value = '';
@@ -175,7 +176,7 @@ export class Ui {
 
     const toolbar = h('header.toolbar', {},
       h('div.group', {},
-        h('button#open', { title: 'Open a scene (.json) or an image (Ctrl+O)', onclick: () => fileInput.click() }, 'Open…'),
+        h('button#open', { title: 'Open a scene (.json), an image or a layered PSD (Ctrl+O)', onclick: () => fileInput.click() }, 'Open…'),
         (this.els.examples = h('select#examples', { title: 'Open a bundled example', onchange: (e: Event) => {
           const sel = e.target as HTMLSelectElement;
           if (sel.value) void this.openExample(sel.value);
@@ -253,7 +254,7 @@ export class Ui {
         h('button', { onclick: () => this.toggleHelp() }, 'Close'),
       )));
     this.els.message = h('div#message.message', { role: 'alert', hidden: true, onclick: () => (this.els.message.hidden = true) });
-    this.els.dropHint = h('div.drop-hint', { hidden: true }, 'Drop a scene (.json) or a picture (PNG, JPEG)');
+    this.els.dropHint = h('div.drop-hint', { hidden: true }, 'Drop a scene (.json) or a picture (PNG, JPEG, layered PSD)');
     root.append(toolbar, h('main', {}, layers, this.stage, inspector), timeline, help, this.els.message, this.els.dropHint);
   }
 
@@ -1155,6 +1156,10 @@ export class Ui {
         this.message(`Opened ${file.name}.`, 'info');
         return;
       }
+      if (isPsdName(file.name)) {
+        await this.openPsd(file);
+        return;
+      }
       const uri = await fileToDataUri(file);
       const img = await decodeBlob(file, file.name);
       if (dropped && this.store.doc.layers.length && img.width === this.store.doc.width && img.height === this.store.doc.height) {
@@ -1168,6 +1173,32 @@ export class Ui {
     } catch (err) {
       this.fileError(file.name, err);
     }
+  }
+
+  /** What opening the last PSD noted (flattened groups, blend modes), for the page and its tests. */
+  psdNotes: string[] = [];
+
+  /**
+   * Opens a layered PSD as `inkwarp new` does: a layer per pixel layer, bottom first, each a
+   * canvas-sized PNG at offset [0, 0]; groups flattened; opacity and masks in alpha.
+   */
+  async openPsd(file: File): Promise<void> {
+    const picture = readLayeredPsd(await file.arrayBuffer(), file.name);
+    if (!this.confirmReplace(file.name)) return;
+    const doc = emptyScene(picture.width, picture.height);
+    doc.background = [255, 255, 255, 0];
+    const names = uniqueNames(picture.layers.map((l) => l.name));
+    for (const [i, layer] of picture.layers.entries()) {
+      const image = await blobToDataUri(await rgbaToPngBlob(layer.image));
+      doc.layers.push(layer.visible ? { name: names[i], image } : { name: names[i], image, visible: false });
+    }
+    await this.openScene(doc, file.name.replace(/\.[^.]*$/, '') + '.json');
+    this.saveUrl = null;
+    this.psdNotes = picture.notes;
+    for (const note of picture.notes) console.warn(note);
+    const warned = picture.notes.filter((n) => /blend mode/.test(n));
+    const summary = `Opened ${file.name} (${picture.width}×${picture.height}, ${picture.layers.length} layer${picture.layers.length === 1 ? '' : 's'}).`;
+    this.message(warned.length ? `${summary} ${warned.join(' ')}` : `${summary} Pick a tool and trace.`, 'info');
   }
 
   fileError(name: string, err: unknown): void {
