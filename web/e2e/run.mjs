@@ -1344,6 +1344,28 @@ test('a layered PSD opens as `inkwarp new` reads it: a layer each, PSD order, na
   await page.click('#message');
 });
 
+test('transparent pixels show as a checkerboard inside the frame, apart from the stage around it', async () => {
+  // The PSD's scene is open: hide its opaque sky so only the half-transparent arm is drawn.
+  await page.evaluate(() => window.inkwarp.store.setView({ hidden: ['sky'] }));
+  await idle(page);
+  await screenshot(page, 'transparent');
+  const box = await page.locator('.frame').boundingBox();
+  const shot = join(results, 'transparent-frame.png');
+  await page.screenshot({ path: shot, clip: { x: box.x, y: box.y, width: Math.min(96, box.width), height: Math.min(64, box.height) } });
+  const img = await loadPng(page, shot);
+  const tones = new Map();
+  for (let i = 0; i < img.width * img.height; i++) {
+    const [r, g, b] = img.data.subarray(4 * i, 4 * i + 3);
+    const k = `${r},${g},${b}`;
+    tones.set(k, (tones.get(k) ?? 0) + 1);
+  }
+  const common = [...tones.entries()].sort((a, b) => b[1] - a[1]).slice(0, 2).map(([k]) => k.split(',').map(Number));
+  assert(common.length === 2 && common.every((c) => c[0] === c[1] && c[1] === c[2] && c[0] >= 180), `two light greys: ${JSON.stringify(common)}`);
+  assert(Math.abs(common[0][0] - common[1][0]) >= 20, `they differ, a checkerboard: ${JSON.stringify(common)}`);
+  assert(!common.some((c) => c[0] === 255), 'not white');
+  await page.evaluate(() => window.inkwarp.store.setView({ hidden: [] }));
+});
+
 async function main() {
   server = await startServer();
   browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: CHROMIUM_ARGS });
