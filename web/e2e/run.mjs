@@ -1366,6 +1366,49 @@ test('transparent pixels show as a checkerboard inside the frame, apart from the
   await page.evaluate(() => window.inkwarp.store.setView({ hidden: [] }));
 });
 
+test('the matte overlay follows the picture in pose mode (at rest in rest mode)', async () => {
+  // The PSD's scene: the arm layer's matte is its alpha, a hole around an 8×6 box at (10, 5).
+  await page.evaluate(async () => {
+    const { ui, store, state } = window.inkwarp;
+    store.setView({ activeLayer: store.doc.layers.findIndex((l) => l.name === 'arm') });
+    store.edit((d) => state.addFeature(d, 'point', [[14, 8]], { id: 'grip' }).doc);
+    ui.setMode('pose');
+    ui.setTool('select');
+  });
+  await idle(page);
+  await drag(page, [14, 8], [20, 8]);
+  const sample = () => page.evaluate(async () => {
+    const { ui, app, store } = window.inkwarp;
+    ui.setOverlay({ matte: true, drawing: false });
+    await app.idle();
+    app.renderNow();
+    const c = document.querySelector('canvas.overlay');
+    const ctx = c.getContext('2d');
+    const s = c.width / store.doc.width;
+    const magenta = (x, y) => {
+      const [r, g, b, a] = ctx.getImageData(Math.floor((x + 0.5) * s), Math.floor((y + 0.5) * s), 1, 1).data;
+      return a > 40 && r > 200 && g < 60 && b > 100;
+    };
+    const out = {};
+    for (const x of [3, 10, 12, 14, 17, 20, 23, 27, 30]) out[x] = magenta(x, 8);
+    return { out, mode: store.view.mode };
+  });
+  const posed = await sample();
+  const d = await page.evaluate(() => {
+    const k = window.inkwarp.store.doc.features.find((f) => f.id === 'grip').keys?.[0]?.points?.[0];
+    return k ? k[0] - 14 : null;
+  });
+  assert(d !== null && Math.abs(d - 6) < 1.01, `the drag set a key 6 px right: ${d}`);
+  await screenshot(page, 'matte-posed');
+  await page.evaluate(() => window.inkwarp.ui.setMode('rest'));
+  const rest = await sample();
+  // At rest the arm's box (x 10–17) is no hole; posed, the field carries it 6 px right, and
+  // where it was is a hole (the field is solved on connected pixels only).
+  assert(!rest.out[10] && !rest.out[14] && !rest.out[17] && rest.out[20] && rest.out[3], `rest: ${JSON.stringify(rest.out)}`);
+  assert(posed.out[10] && posed.out[12] && !posed.out[17] && !posed.out[20] && !posed.out[23] && posed.out[27] && posed.out[3], `posed: ${JSON.stringify(posed.out)}`);
+  await page.evaluate(() => window.inkwarp.ui.setOverlay({ matte: false, drawing: true }));
+});
+
 async function main() {
   server = await startServer();
   browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: CHROMIUM_ARGS });
