@@ -1409,6 +1409,41 @@ test('the matte overlay follows the picture in pose mode (at rest in rest mode)'
   await page.evaluate(() => window.inkwarp.ui.setOverlay({ matte: false, drawing: true }));
 });
 
+test('a marquee on empty stage picks the control points inside (Shift adds); picked points move together, at rest and posed', async () => {
+  await page.evaluate(async () => {
+    const { ui, store, examples, state, app } = window.inkwarp;
+    await ui.openScene(await examples.builtinScene(), 'marquee.json');
+    store.edit((d) => ({ ...d, features: [] }));
+    store.edit((d) => state.addFeature(d, 'polyline', [[100, 100], [150, 100], [200, 100]], { id: 'bar' }).doc);
+    store.edit((d) => state.addFeature(d, 'point', [[300, 300]], { id: 'pin' }).doc);
+    ui.setMode('rest');
+    ui.setTool('select');
+    await app.idle();
+  });
+  const picked = () => page.evaluate(() => window.inkwarp.store.view.pointSelection.map((r) => `${r.feature}/${r.point}`).sort().join(' '));
+  await drag(page, [80, 70], [170, 130]);
+  assert((await picked()) === 'bar/0 bar/1', `the marquee picked the two points inside: ${await picked()}`);
+  await page.keyboard.down('Shift');
+  await drag(page, [280, 280], [320, 320]);
+  await page.keyboard.up('Shift');
+  assert((await picked()) === 'bar/0 bar/1 pin/0', `Shift added the pin: ${await picked()}`);
+  await screenshot(page, 'marquee');
+  await drag(page, [150, 100], [160, 105]);
+  const rest = await page.evaluate(() => Object.fromEntries(window.inkwarp.store.doc.features.map((f) => [f.id, f.rest])));
+  const near = (a, b) => a.every((q, i) => Math.abs(q[0] - b[i][0]) < 1.01 && Math.abs(q[1] - b[i][1]) < 1.01);
+  assert(near(rest.bar, [[110, 105], [160, 105], [200, 100]]) && near(rest.pin, [[310, 305]]), `the picked points moved together, the third stayed: ${JSON.stringify(rest)}`);
+  // A marquee over nothing picks nothing; in pose mode the drag sets a key on each feature.
+  await drag(page, [400, 40], [440, 60]);
+  assert((await picked()) === '', `an empty marquee: ${await picked()}`);
+  await page.evaluate(() => window.inkwarp.ui.setMode('pose'));
+  await drag(page, [90, 60], [220, 140]);
+  assert((await picked()) === 'bar/0 bar/1 bar/2', `posed marquee: ${await picked()}`);
+  await drag(page, [200, 100], [200, 120]);
+  const keys = await page.evaluate(() => Object.fromEntries(window.inkwarp.store.doc.features.map((f) => [f.id, f.keys?.map((k) => k.points) ?? null])));
+  assert(keys.bar && near(keys.bar[0], [[110, 125], [160, 125], [200, 120]]) && keys.pin === null, `a key on the bar only, every point 20 px down: ${JSON.stringify(keys)}`);
+  await page.evaluate(() => window.inkwarp.ui.setMode('rest'));
+});
+
 async function main() {
   server = await startServer();
   browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: CHROMIUM_ARGS });

@@ -34,6 +34,8 @@ export class Overlay {
     return this.canvas.width / this.sceneWidth;
   }
   sceneWidth = 1;
+  /** The marquee being dragged (scene pixels, two corners), drawn over the drawing. */
+  marquee: [Pt, Pt] | null = null;
 
   toCanvas(p: Pt): Pt {
     const s = this.scale;
@@ -96,6 +98,31 @@ export class Overlay {
         ctx.fill();
         ctx.stroke();
       }
+    }
+    // The picked control points (a marquee, Shift-click): a white ring each.
+    for (const r of view.pointSelection) {
+      const f = store.doc.features.find((g) => g.id === r.feature);
+      const q = f && shownPoints(f, view.mode, view.time)[r.point];
+      if (!q) continue;
+      const [x, y] = this.toCanvas(q);
+      ctx.lineWidth = 3;
+      ctx.strokeStyle = '#000';
+      ctx.beginPath();
+      ctx.arc(x, y, 8, 0, Math.PI * 2);
+      ctx.stroke();
+      ctx.lineWidth = 1.5;
+      ctx.strokeStyle = '#fff';
+      ctx.stroke();
+    }
+    if (this.marquee) {
+      const [a, b] = this.marquee.map((q) => this.toCanvas(q));
+      ctx.fillStyle = 'rgba(255, 200, 60, 0.12)';
+      ctx.fillRect(Math.min(a[0], b[0]), Math.min(a[1], b[1]), Math.abs(a[0] - b[0]), Math.abs(a[1] - b[1]));
+      ctx.strokeStyle = '#ffc83c';
+      ctx.lineWidth = 1;
+      ctx.setLineDash([5, 3]);
+      ctx.strokeRect(Math.min(a[0], b[0]) + 0.5, Math.min(a[1], b[1]) + 0.5, Math.abs(a[0] - b[0]), Math.abs(a[1] - b[1]));
+      ctx.setLineDash([]);
     }
     if (view.draft.length) {
       ctx.strokeStyle = KIND_COLOURS[view.tool] ?? '#fff';

@@ -41,6 +41,10 @@ import {
   type ClipKey,
   type KeyRef,
   movePoint,
+  movePoints,
+  pointsInRect,
+  hasPointRef,
+  type PointRef,
   reorderLayer,
   setInterpolation,
   setLayerFeatures,
@@ -112,7 +116,11 @@ export class Ui {
     base: Pt[];
     /** Where the pointer last moved the drawing to (scene pixels). */
     at: Pt | null;
+    /** A drag of the picked points together: each feature's points when it began. */
+    group?: Map<string, Pt[]>;
   } | null = null;
+  /** A marquee being dragged on empty stage (scene pixels), and whether it adds (Shift). */
+  private marquee: { start: Pt; add: boolean; base: PointRef[] } | null = null;
   private messageTimer: number | null = null;
   fileName = 'scene.json';
   /** Set when the scene came from `inkwarp edit`: Save also writes it back there. */
@@ -767,7 +775,16 @@ export class Ui {
     const { mode, time } = this.store.view;
     this.app.lastPointerAt = e.timeStamp || performance.now();
     try {
-      if (d.point !== null) {
+      if (d.group) {
+        const delta: Pt = [p[0] - d.start[0], p[1] - d.start[1]];
+        if (this.store.view.snap && d.point !== null) {
+          const base = d.base[d.point];
+          delta[0] = Math.round(base[0] + delta[0]) - base[0];
+          delta[1] = Math.round(base[1] + delta[1]) - base[1];
+        }
+        const picked = this.store.view.pointSelection;
+        this.store.edit((doc) => movePoints(doc, mode, time, d.group!, picked, delta));
+      } else if (d.point !== null) {
         const base = d.base[d.point];
         const q: Pt = [base[0] + p[0] - d.start[0], base[1] + p[1] - d.start[1]];
         this.store.edit((doc) => movePoint(doc, mode, time, d.id, d.point!, this.store.view.snap ? [Math.round(q[0]), Math.round(q[1])] : q));
@@ -804,12 +821,33 @@ export class Ui {
       }
       const hit = this.hit(p);
       if (!hit) {
-        this.store.setView({ selection: { feature: null, point: null } });
+        // Empty stage: a marquee picks the control points inside it (Shift adds to them).
+        this.marquee = { start: p, add: e.shiftKey, base: e.shiftKey ? view.pointSelection : [] };
+        this.store.setView({ selection: { feature: null, point: null }, pointSelection: this.marquee.base });
         return;
       }
       const f = getFeature(this.store.doc, hit.id)!;
-      this.store.setView({ selection: { feature: hit.id, point: hit.point } });
+      const ref = hit.point !== null ? { feature: hit.id, point: hit.point } : null;
+      let picked = view.pointSelection;
+      if (ref && e.shiftKey) {
+        // Shift-click adds a control point to the picked ones, or takes it out.
+        const had = hasPointRef(picked, ref);
+        picked = had ? picked.filter((r) => r.feature !== ref.feature || r.point !== ref.point) : [...picked, ref];
+        this.store.setView({ selection: { feature: hit.id, point: hit.point }, pointSelection: picked });
+        if (had) return;
+      } else if (!ref || !hasPointRef(picked, ref)) {
+        picked = [];
+        this.store.setView({ selection: { feature: hit.id, point: hit.point }, pointSelection: [] });
+      } else this.store.setView({ selection: { feature: hit.id, point: hit.point } });
       this.drag = { id: hit.id, point: hit.point, start: p, base: shownPoints(f, view.mode, view.time).map((q) => [q[0], q[1]] as Pt), at: null };
+      if (ref && picked.length > 1) {
+        const group = new Map<string, Pt[]>();
+        for (const r of picked) {
+          const g = getFeature(this.store.doc, r.feature);
+          if (g && !group.has(r.feature)) group.set(r.feature, shownPoints(g, view.mode, view.time).map((q) => [q[0], q[1]] as Pt));
+        }
+        this.drag.group = group;
+      }
       // A press the pointer did not rest before: the probe starts now (see `hover`; the app
       // probes in pose mode only).
       this.app.probe(hit.id, hit.point, 'press');
@@ -835,6 +873,15 @@ export class Ui {
         this.dragTo(e);
         return;
       }
+      if (this.marquee) {
+        const m = this.marquee;
+        const q = this.toScene(e.clientX, e.clientY);
+        const { doc, view } = this.store;
+        const inside = pointsInRect(doc, view.mode, view.time, m.start, q);
+        this.overlay.marquee = [m.start, q];
+        this.store.setView({ pointSelection: [...m.base, ...inside.filter((r) => !hasPointRef(m.base, r))] });
+        return;
+      }
       const p = this.toScene(e.clientX, e.clientY);
       if (this.store.view.draft.length) {
         this.overlay.hover = p;
@@ -843,6 +890,11 @@ export class Ui {
       this.hover(p);
     });
     const end = () => {
+      if (this.marquee) {
+        this.marquee = null;
+        this.overlay.marquee = null;
+        this.drawOverlay();
+      }
       if (!this.drag) return;
       this.drag = null;
       // The pose moved: the point under the pointer is probed again at its next move.
