@@ -1444,6 +1444,46 @@ test('a marquee on empty stage picks the control points inside (Shift adds); pic
   await page.evaluate(() => window.inkwarp.ui.setMode('rest'));
 });
 
+test('a marquee on the timeline picks the keys inside it, on every row it crosses (Shift adds)', async () => {
+  // The scene of the test before: the bar has a key at 0; give both features more.
+  await page.evaluate(async () => {
+    const { store, ui, app } = window.inkwarp;
+    const keysAt = (f, ts) => ts.map((t, i) => ({ t, points: f.rest.map((q) => [q[0] + 5 * (i + 1), q[1]]) }));
+    store.edit((d) => ({ ...d, features: d.features.map((f) => ({ ...f, keys: keysAt(f, f.id === 'bar' ? [0.5, 1.0] : [0.5, 1.5]) })) }));
+    store.setView({ keySelection: [] });
+    ui.setTime(0.25);
+    await app.idle();
+  });
+  const picked = () => page.evaluate(() => window.inkwarp.store.view.keySelection.map((r) => `${r.feature}@${r.t}`).sort().join(' '));
+  const rows = await page.evaluate(() => [...document.querySelectorAll('.tracks .track-row:not(.ruler-row) .track')].map((t) => {
+    const b = t.getBoundingClientRect();
+    return { left: b.left, width: b.width, top: b.top, bottom: b.bottom };
+  }));
+  assert(rows.length === 2, `two feature rows: ${rows.length}`);
+  const x = (t) => rows[0].left + (t / 2) * rows[0].width;
+  const press = async (a, b, shift = false) => {
+    if (shift) await page.keyboard.down('Shift');
+    await page.mouse.move(a[0], a[1]);
+    await page.mouse.down();
+    for (let i = 1; i <= 6; i++) await page.mouse.move(a[0] + ((b[0] - a[0]) * i) / 6, a[1] + ((b[1] - a[1]) * i) / 6);
+    await page.mouse.up();
+    if (shift) await page.keyboard.up('Shift');
+  };
+  await press([x(0.3), rows[0].top + 1], [x(1.2), rows[1].bottom - 1]);
+  assert((await picked()) === 'bar@0.5 bar@1 pin@0.5', `the marquee picked the keys between 0.3 s and 1.2 s on both rows: ${await picked()}`);
+  const t = await page.evaluate(() => window.inkwarp.store.view.time);
+  assert(Math.abs(t - 0.25) < 1e-9, `a marquee leaves the time as it was: ${t}`);
+  await press([x(1.3), rows[1].top + 1], [x(1.7), rows[1].bottom - 1], true);
+  assert((await picked()) === 'bar@0.5 bar@1 pin@0.5 pin@1.5', `Shift added the pin's key at 1.5 s: ${await picked()}`);
+  await screenshot(page, 'keys-marquee');
+  await press([x(1.3), rows[0].top + 1], [x(1.45), rows[0].bottom - 1]);
+  assert((await picked()) === '', `a marquee over no key picks none: ${await picked()}`);
+  // A click on a track still sets the time.
+  await page.mouse.click(x(0.75), (rows[0].top + rows[0].bottom) / 2);
+  const t2 = await page.evaluate(() => window.inkwarp.store.view.time);
+  assert(Math.abs(t2 - 0.75) < 0.03, `a click sets the time: ${t2}`);
+});
+
 async function main() {
   server = await startServer();
   browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: CHROMIUM_ARGS });

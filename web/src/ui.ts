@@ -405,7 +405,7 @@ export class Ui {
     this.els.tracks.append(h('div.track-row.ruler-row', {}, h('span.track-name', { title: 'Frame numbers; click or drag to set the time' }, 'frames'), ruler));
     for (const f of doc.features) {
       if (f.kind === 'cut') continue;
-      const track = h('div.track', { onpointerdown: (e: PointerEvent) => this.scrubTrack(e) });
+      const track = h('div.track', { onpointerdown: (e: PointerEvent) => this.scrubTrack(e, true) });
       for (const k of sortedKeys(f)) {
         const picked = hasKeyRef(view.keySelection, { feature: f.id, t: k.t });
         const diamond = h('span.key', {
@@ -443,10 +443,37 @@ export class Ui {
     }
   }
 
-  private scrubTrack(e: PointerEvent): void {
+  /**
+   * A press on the ruler or a feature's track sets the time (dragging scrubs). On a feature's
+   * track, a drag of more than a few pixels draws a marquee instead: it picks the keys inside
+   * it, on every row it crosses (Shift adds them to the picked keys).
+   */
+  private scrubTrack(e: PointerEvent, marquee = false): void {
     // Measured once: the row is redrawn (a new element) at every change of time.
     const r = (e.currentTarget as HTMLElement).getBoundingClientRect();
+    const time0 = this.store.view.time;
+    const base = e.shiftKey ? this.store.view.keySelection : [];
+    let box: HTMLElement | null = null;
     const move = (ev: PointerEvent) => {
+      if (marquee && (box || Math.hypot(ev.clientX - e.clientX, ev.clientY - e.clientY) > 4)) {
+        if (!box) {
+          box = h('div.key-marquee', {});
+          document.body.append(box);
+          this.setTime(time0, true);
+        }
+        const [x0, x1] = [Math.min(e.clientX, ev.clientX), Math.max(e.clientX, ev.clientX)];
+        const [y0, y1] = [Math.min(e.clientY, ev.clientY), Math.max(e.clientY, ev.clientY)];
+        Object.assign(box.style, { left: `${x0}px`, top: `${y0}px`, width: `${x1 - x0}px`, height: `${y1 - y0}px` });
+        const picked: KeyRef[] = [...base];
+        for (const k of this.els.tracks.querySelectorAll<HTMLElement>('.key')) {
+          const b = k.getBoundingClientRect();
+          const cx = (b.left + b.right) / 2, cy = (b.top + b.bottom) / 2;
+          const ref = { feature: k.dataset.feature!, t: Number(k.dataset.t) };
+          if (cx >= x0 && cx <= x1 && cy >= y0 && cy <= y1 && !hasKeyRef(picked, ref)) picked.push(ref);
+        }
+        this.store.setView({ keySelection: picked });
+        return;
+      }
       const t = Math.max(0, Math.min(1, (ev.clientX - r.left) / r.width)) * this.store.doc.duration;
       this.setTime(ev.altKey ? t : this.snapTime(t), true);
     };
@@ -454,6 +481,7 @@ export class Ui {
     const up = () => {
       window.removeEventListener('pointermove', move);
       window.removeEventListener('pointerup', up);
+      box?.remove();
       this.app.settle();
     };
     window.addEventListener('pointermove', move);
