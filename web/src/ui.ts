@@ -73,6 +73,8 @@ export const SHORTCUTS: [string, string][] = [
   ['Click the first point', 'Close a polyline or spline'],
   ['Esc', 'Cancel the drawing / clear the selection'],
   ['Drag', 'Move a control point, or a whole feature by its line'],
+  ['Drag on empty stage (Shift: add)', 'Marquee: pick the control points inside; drag one to move them all'],
+  ['Shift-click a point', 'Add a control point to the picked ones, or take it out'],
   ['Delete / Backspace', 'Delete the selected point (rest mode) or feature'],
   ['K / Shift+K', 'Add / delete the selected feature’s key at this time'],
   ['Space', 'Play / pause (hold and drag: pan)'],
@@ -80,13 +82,14 @@ export const SHORTCUTS: [string, string][] = [
   ['Middle-drag', 'Pan'],
   ['0 / 1', 'Fit the picture / 100 %'],
   ['Shift-click a key', 'Pick several keys (drag one: they move together)'],
+  ['Drag on a feature row (Shift: add)', 'Marquee: pick the keys inside'],
   ['Ctrl+C / Ctrl+V', 'Copy the picked keys / paste them at the current time'],
   ['O', 'Onion skin: the selected feature at its previous and next keys'],
   ['← / →', 'Previous / next frame'],
   ['Shift+← / Shift+→', 'Previous / next key'],
   ['Home / End', 'First / last frame'],
   ['Ctrl+Z / Ctrl+Shift+Z (Ctrl+Y)', 'Undo / redo'],
-  ['Ctrl+S / Ctrl+O', 'Save the scene / open a scene or image'],
+  ['Ctrl+S / Ctrl+O', 'Save the scene / open a scene, an image or a layered PSD'],
   ['D / H / M / T', 'Drawing / heat map (ΔX, ΔY, off) / mesh / matte overlay'],
   ['?', 'This help'],
 ];
@@ -1137,7 +1140,7 @@ export class Ui {
         handled();
         if (!this.els.help.hidden) return this.toggleHelp();
         if (this.store.view.draft.length) return this.store.cancelDraft();
-        return this.store.setView({ selection: { feature: null, point: null } });
+        return this.store.setView({ selection: { feature: null, point: null }, pointSelection: [] });
       case 'Delete': case 'Backspace':
         handled();
         try {
