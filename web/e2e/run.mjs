@@ -247,7 +247,7 @@ async function screenshot(page, name) {
 }
 
 /** The screenshots docs/guides/editor.md shows. */
-const DOC_SCREENS = ['start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
+const DOC_SCREENS = ['marquee', 'keys-marquee', 'matte-posed', 'start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
 
 const median = (a) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
 const pct = (a, q) => (a.length ? [...a].sort((x, y) => x - y)[Math.min(a.length - 1, Math.floor(q * a.length))] : null);
@@ -1307,6 +1307,181 @@ test('a region is dragged by its fill: the whole region moves', async () => {
   const key = await page.evaluate(() => window.inkwarp.store.doc.features.find((f) => f.id === 'blob').keys?.[0]?.points);
   const rest = [[180, 180], [300, 180], [300, 300], [180, 300]];
   assert(key && key.every((q, i) => Math.abs(q[0] - rest[i][0] - 20) < 1.01 && Math.abs(q[1] - rest[i][1] - 10) < 1.01), `every point of the region moved by (20, 10): ${JSON.stringify(key)}`);
+});
+
+test('a layered PSD opens as `inkwarp new` reads it: a layer each, PSD order, names, visibility, opacity in alpha, blend modes noted', async () => {
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-psd-'));
+  const file = join(dir, 'figure.psd');
+  const made = spawnSync(join(repo, '.venv/bin/python'), [join(here, 'make_psd.py'), file], { encoding: 'utf8' });
+  assert(made.status === 0, `psd-tools wrote the PSD: ${made.stderr}`);
+  await page.setInputFiles('input[type=file][accept^=".json"]', file);
+  await page.waitForFunction(() => window.inkwarp.store.doc.layers.some((l) => l.name === 'arm'));
+  await idle(page);
+  const got = await page.evaluate(async () => {
+    const { store, images, ui } = window.inkwarp;
+    const doc = store.doc;
+    const layers = [];
+    for (const l of doc.layers) {
+      const img = await images.decodeImage(l.image);
+      const px = (x, y) => Array.from(img.data.subarray(4 * (y * img.width + x), 4 * (y * img.width + x) + 4));
+      layers.push({ name: l.name, visible: l.visible !== false, offset: l.offset ?? [0, 0], size: [img.width, img.height], inside: px(12, 7), outside: px(1, 1) });
+    }
+    return { size: [doc.width, doc.height], background: doc.background, layers, notes: ui.psdNotes, message: document.querySelector('#message').textContent };
+  });
+  assert(JSON.stringify(got.size) === '[32,24]', `the scene is the PSD's size: ${got.size}`);
+  assert(got.background[3] === 0, `the background is transparent: ${got.background}`);
+  assert(JSON.stringify(got.layers.map((l) => l.name)) === '["sky","arm","notes"]', `a layer per pixel layer, bottom first, group flattened: ${got.layers.map((l) => l.name)}`);
+  assert(JSON.stringify(got.layers.map((l) => l.visible)) === '[true,true,false]', `visibility kept: ${got.layers.map((l) => l.visible)}`);
+  assert(got.layers.every((l) => l.size[0] === 32 && l.size[1] === 24 && l.offset[0] === 0 && l.offset[1] === 0), 'every layer is canvas-sized at [0, 0]');
+  const [sky, arm, notes] = got.layers;
+  assert(JSON.stringify(sky.inside) === '[20,40,200,255]' && JSON.stringify(sky.outside) === '[20,40,200,255]', `sky: ${sky.inside} ${sky.outside}`);
+  assert(arm.inside[0] > 210 && arm.inside[1] < 40 && Math.abs(arm.inside[3] - 128) <= 1, `the arm is red at the group's 50 % opacity: ${arm.inside}`);
+  assert(arm.outside[3] === 0, `the arm is transparent outside its box: ${arm.outside}`);
+  assert(notes.inside[1] === 200 && notes.inside[3] === 255, `the hidden layer keeps its pixels: ${notes.inside}`);
+  assert(got.notes.some((n) => /figure\.psd/.test(n) && /'figure \/ arm'/.test(n) && /Multiply/.test(n)), `the Multiply layer is named in a warning: ${got.notes}`);
+  assert(/figure \/ arm/.test(got.message) && /Multiply/.test(got.message), `the page says so: ${got.message}`);
+  await screenshot(page, 'psd-open');
+  await page.click('#message');
+});
+
+test('transparent pixels show as a checkerboard inside the frame, apart from the stage around it', async () => {
+  // The PSD's scene is open: hide its opaque sky so only the half-transparent arm is drawn.
+  await page.evaluate(() => window.inkwarp.store.setView({ hidden: ['sky'] }));
+  await idle(page);
+  await screenshot(page, 'transparent');
+  const box = await page.locator('.frame').boundingBox();
+  const shot = join(results, 'transparent-frame.png');
+  await page.screenshot({ path: shot, clip: { x: box.x, y: box.y, width: Math.min(96, box.width), height: Math.min(64, box.height) } });
+  const img = await loadPng(page, shot);
+  const tones = new Map();
+  for (let i = 0; i < img.width * img.height; i++) {
+    const [r, g, b] = img.data.subarray(4 * i, 4 * i + 3);
+    const k = `${r},${g},${b}`;
+    tones.set(k, (tones.get(k) ?? 0) + 1);
+  }
+  const common = [...tones.entries()].sort((a, b) => b[1] - a[1]).slice(0, 2).map(([k]) => k.split(',').map(Number));
+  assert(common.length === 2 && common.every((c) => c[0] === c[1] && c[1] === c[2] && c[0] >= 180), `two light greys: ${JSON.stringify(common)}`);
+  assert(Math.abs(common[0][0] - common[1][0]) >= 20, `they differ, a checkerboard: ${JSON.stringify(common)}`);
+  assert(!common.some((c) => c[0] === 255), 'not white');
+  await page.evaluate(() => window.inkwarp.store.setView({ hidden: [] }));
+});
+
+test('the matte overlay follows the picture in pose mode (at rest in rest mode)', async () => {
+  // The PSD's scene: the arm layer's matte is its alpha, a hole around an 8×6 box at (10, 5).
+  await page.evaluate(async () => {
+    const { ui, store, state } = window.inkwarp;
+    store.setView({ activeLayer: store.doc.layers.findIndex((l) => l.name === 'arm') });
+    store.edit((d) => state.addFeature(d, 'point', [[14, 8]], { id: 'grip' }).doc);
+    ui.setMode('pose');
+    ui.setTool('select');
+  });
+  await idle(page);
+  await drag(page, [14, 8], [20, 8]);
+  const sample = () => page.evaluate(async () => {
+    const { ui, app, store } = window.inkwarp;
+    ui.setOverlay({ matte: true, drawing: false });
+    await app.idle();
+    app.renderNow();
+    const c = document.querySelector('canvas.overlay');
+    const ctx = c.getContext('2d');
+    const s = c.width / store.doc.width;
+    const magenta = (x, y) => {
+      const [r, g, b, a] = ctx.getImageData(Math.floor((x + 0.5) * s), Math.floor((y + 0.5) * s), 1, 1).data;
+      return a > 40 && r > 200 && g < 60 && b > 100;
+    };
+    const out = {};
+    for (const x of [3, 10, 12, 14, 17, 20, 23, 27, 30]) out[x] = magenta(x, 8);
+    return { out, mode: store.view.mode };
+  });
+  const posed = await sample();
+  const d = await page.evaluate(() => {
+    const k = window.inkwarp.store.doc.features.find((f) => f.id === 'grip').keys?.[0]?.points?.[0];
+    return k ? k[0] - 14 : null;
+  });
+  assert(d !== null && Math.abs(d - 6) < 1.01, `the drag set a key 6 px right: ${d}`);
+  await screenshot(page, 'matte-posed');
+  await page.evaluate(() => window.inkwarp.ui.setMode('rest'));
+  const rest = await sample();
+  // At rest the arm's box (x 10–17) is no hole; posed, the field carries it 6 px right, and
+  // where it was is a hole (the field is solved on connected pixels only).
+  assert(!rest.out[10] && !rest.out[14] && !rest.out[17] && rest.out[20] && rest.out[3], `rest: ${JSON.stringify(rest.out)}`);
+  assert(posed.out[10] && posed.out[12] && !posed.out[17] && !posed.out[20] && !posed.out[23] && posed.out[27] && posed.out[3], `posed: ${JSON.stringify(posed.out)}`);
+  await page.evaluate(() => window.inkwarp.ui.setOverlay({ matte: false, drawing: true }));
+});
+
+test('a marquee on empty stage picks the control points inside (Shift adds); picked points move together, at rest and posed', async () => {
+  await page.evaluate(async () => {
+    const { ui, store, examples, state, app } = window.inkwarp;
+    await ui.openScene(await examples.builtinScene(), 'marquee.json');
+    store.edit((d) => ({ ...d, features: [] }));
+    store.edit((d) => state.addFeature(d, 'polyline', [[100, 100], [150, 100], [200, 100]], { id: 'bar' }).doc);
+    store.edit((d) => state.addFeature(d, 'point', [[300, 300]], { id: 'pin' }).doc);
+    ui.setMode('rest');
+    ui.setTool('select');
+    await app.idle();
+  });
+  const picked = () => page.evaluate(() => window.inkwarp.store.view.pointSelection.map((r) => `${r.feature}/${r.point}`).sort().join(' '));
+  await drag(page, [80, 70], [170, 130]);
+  assert((await picked()) === 'bar/0 bar/1', `the marquee picked the two points inside: ${await picked()}`);
+  await page.keyboard.down('Shift');
+  await drag(page, [280, 280], [320, 320]);
+  await page.keyboard.up('Shift');
+  assert((await picked()) === 'bar/0 bar/1 pin/0', `Shift added the pin: ${await picked()}`);
+  await screenshot(page, 'marquee');
+  await drag(page, [150, 100], [160, 105]);
+  const rest = await page.evaluate(() => Object.fromEntries(window.inkwarp.store.doc.features.map((f) => [f.id, f.rest])));
+  const near = (a, b) => a.every((q, i) => Math.abs(q[0] - b[i][0]) < 1.01 && Math.abs(q[1] - b[i][1]) < 1.01);
+  assert(near(rest.bar, [[110, 105], [160, 105], [200, 100]]) && near(rest.pin, [[310, 305]]), `the picked points moved together, the third stayed: ${JSON.stringify(rest)}`);
+  // A marquee over nothing picks nothing; in pose mode the drag sets a key on each feature.
+  await drag(page, [400, 40], [440, 60]);
+  assert((await picked()) === '', `an empty marquee: ${await picked()}`);
+  await page.evaluate(() => window.inkwarp.ui.setMode('pose'));
+  await drag(page, [90, 60], [220, 140]);
+  assert((await picked()) === 'bar/0 bar/1 bar/2', `posed marquee: ${await picked()}`);
+  await drag(page, [200, 100], [200, 120]);
+  const keys = await page.evaluate(() => Object.fromEntries(window.inkwarp.store.doc.features.map((f) => [f.id, f.keys?.map((k) => k.points) ?? null])));
+  assert(keys.bar && near(keys.bar[0], [[110, 125], [160, 125], [200, 120]]) && keys.pin === null, `a key on the bar only, every point 20 px down: ${JSON.stringify(keys)}`);
+  await page.evaluate(() => window.inkwarp.ui.setMode('rest'));
+});
+
+test('a marquee on the timeline picks the keys inside it, on every row it crosses (Shift adds)', async () => {
+  // The scene of the test before: the bar has a key at 0; give both features more.
+  await page.evaluate(async () => {
+    const { store, ui, app } = window.inkwarp;
+    const keysAt = (f, ts) => ts.map((t, i) => ({ t, points: f.rest.map((q) => [q[0] + 5 * (i + 1), q[1]]) }));
+    store.edit((d) => ({ ...d, features: d.features.map((f) => ({ ...f, keys: keysAt(f, f.id === 'bar' ? [0.5, 1.0] : [0.5, 1.5]) })) }));
+    store.setView({ keySelection: [] });
+    ui.setTime(0.25);
+    await app.idle();
+  });
+  const picked = () => page.evaluate(() => window.inkwarp.store.view.keySelection.map((r) => `${r.feature}@${r.t}`).sort().join(' '));
+  const rows = await page.evaluate(() => [...document.querySelectorAll('.tracks .track-row:not(.ruler-row) .track')].map((t) => {
+    const b = t.getBoundingClientRect();
+    return { left: b.left, width: b.width, top: b.top, bottom: b.bottom };
+  }));
+  assert(rows.length === 2, `two feature rows: ${rows.length}`);
+  const x = (t) => rows[0].left + (t / 2) * rows[0].width;
+  const press = async (a, b, shift = false) => {
+    if (shift) await page.keyboard.down('Shift');
+    await page.mouse.move(a[0], a[1]);
+    await page.mouse.down();
+    for (let i = 1; i <= 6; i++) await page.mouse.move(a[0] + ((b[0] - a[0]) * i) / 6, a[1] + ((b[1] - a[1]) * i) / 6);
+    await page.mouse.up();
+    if (shift) await page.keyboard.up('Shift');
+  };
+  await press([x(0.3), rows[0].top + 1], [x(1.2), rows[1].bottom - 1]);
+  assert((await picked()) === 'bar@0.5 bar@1 pin@0.5', `the marquee picked the keys between 0.3 s and 1.2 s on both rows: ${await picked()}`);
+  const t = await page.evaluate(() => window.inkwarp.store.view.time);
+  assert(Math.abs(t - 0.25) < 1e-9, `a marquee leaves the time as it was: ${t}`);
+  await press([x(1.3), rows[1].top + 1], [x(1.7), rows[1].bottom - 1], true);
+  assert((await picked()) === 'bar@0.5 bar@1 pin@0.5 pin@1.5', `Shift added the pin's key at 1.5 s: ${await picked()}`);
+  await screenshot(page, 'keys-marquee');
+  await press([x(1.3), rows[0].top + 1], [x(1.45), rows[0].bottom - 1]);
+  assert((await picked()) === '', `a marquee over no key picks none: ${await picked()}`);
+  // A click on a track still sets the time.
+  await page.mouse.click(x(0.75), (rows[0].top + rows[0].bottom) / 2);
+  const t2 = await page.evaluate(() => window.inkwarp.store.view.time);
+  assert(Math.abs(t2 - 0.75) < 0.03, `a click sets the time: ${t2}`);
 });
 
 async function main() {

@@ -34,6 +34,8 @@ export class Overlay {
     return this.canvas.width / this.sceneWidth;
   }
   sceneWidth = 1;
+  /** The marquee being dragged (scene pixels, two corners), drawn over the drawing. */
+  marquee: [Pt, Pt] | null = null;
 
   toCanvas(p: Pt): Pt {
     const s = this.scale;
@@ -66,7 +68,7 @@ export class Overlay {
     const view = store.view;
     ctx.clearRect(0, 0, canvas.width, canvas.height);
     const s = this.scale;
-    if (rt && view.overlays.matte && rt.matte) this.drawMatte(rt, sceneWidth, sceneHeight);
+    if (rt && view.overlays.matte && rt.matte) this.drawMatte(rt, sceneWidth, sceneHeight, view.mode === 'pose');
     if (rt && view.overlays.heat !== 'off' && rt.field) this.drawHeat(rt, view.overlays.heat, sceneWidth, sceneHeight);
     if (rt && view.overlays.mesh && rt.links) this.drawMesh(rt, sceneWidth, sceneHeight);
     if (!view.overlays.drawing) return;
@@ -96,6 +98,31 @@ export class Overlay {
         ctx.fill();
         ctx.stroke();
       }
+    }
+    // The picked control points (a marquee, Shift-click): a white ring each.
+    for (const r of view.pointSelection) {
+      const f = store.doc.features.find((g) => g.id === r.feature);
+      const q = f && shownPoints(f, view.mode, view.time)[r.point];
+      if (!q) continue;
+      const [x, y] = this.toCanvas(q);
+      ctx.lineWidth = 3;
+      ctx.strokeStyle = '#000';
+      ctx.beginPath();
+      ctx.arc(x, y, 8, 0, Math.PI * 2);
+      ctx.stroke();
+      ctx.lineWidth = 1.5;
+      ctx.strokeStyle = '#fff';
+      ctx.stroke();
+    }
+    if (this.marquee) {
+      const [a, b] = this.marquee.map((q) => this.toCanvas(q));
+      ctx.fillStyle = 'rgba(255, 200, 60, 0.12)';
+      ctx.fillRect(Math.min(a[0], b[0]), Math.min(a[1], b[1]), Math.abs(a[0] - b[0]), Math.abs(a[1] - b[1]));
+      ctx.strokeStyle = '#ffc83c';
+      ctx.lineWidth = 1;
+      ctx.setLineDash([5, 3]);
+      ctx.strokeRect(Math.min(a[0], b[0]) + 0.5, Math.min(a[1], b[1]) + 0.5, Math.abs(a[0] - b[0]), Math.abs(a[1] - b[1]));
+      ctx.setLineDash([]);
     }
     if (view.draft.length) {
       ctx.strokeStyle = KIND_COLOURS[view.tool] ?? '#fff';
@@ -195,18 +222,63 @@ export class Overlay {
     this.ctx.fillText(`${which === 'dx' ? 'ΔX' : 'ΔY'}: ±${max.toFixed(1)} px (blue − / red +)`, 9, y0 + 16);
   }
 
-  private drawMatte(rt: LayerRuntime, w: number, h: number): void {
-    const c = new OffscreenCanvas(w, h);
-    const img = new ImageData(w, h);
+  /** The last posed matte drawn, kept while its field and matte are the same. */
+  private posedMatte: { field: unknown; matte: Uint8Array; canvas: OffscreenCanvas } | null = null;
+
+  /**
+   * The continuity matte's holes in magenta: at rest, or in pose mode where the layer's field
+   * leaves them, as the picture is drawn (holes open and move with the surface around them).
+   */
+  private drawMatte(rt: LayerRuntime, w: number, h: number, posed: boolean): void {
     const m = rt.matte!;
-    for (let i = 0; i < m.length; i++) {
-      if (m[i]) continue;
-      img.data[4 * i] = 255;
-      img.data[4 * i + 1] = 0;
-      img.data[4 * i + 2] = 160;
-      img.data[4 * i + 3] = 110;
+    const f = posed && rt.field && rt.field.width === w && rt.field.height === h ? rt.field : null;
+    let c: OffscreenCanvas;
+    if (f && this.posedMatte?.field === f && this.posedMatte.matte === m) c = this.posedMatte.canvas;
+    else {
+      c = new OffscreenCanvas(w, h);
+      const img = new ImageData(w, h);
+      const mark = (i: number) => {
+        img.data[4 * i] = 255;
+        img.data[4 * i + 1] = 0;
+        img.data[4 * i + 2] = 160;
+        img.data[4 * i + 3] = 110;
+      };
+      if (!f) {
+        for (let i = 0; i < m.length; i++) if (!m[i]) mark(i);
+      } else {
+        // Posed, a hole is where no connected pixel lands: everything starts as a hole and
+        // each connected pixel's cell (reaching half-way to the neighbours it is linked to,
+        // half a pixel where it is not) clears the pixels whose centres fall inside it, at
+        // the place the field takes it. The field is only solved on connected pixels.
+        for (let i = 0; i < m.length; i++) mark(i);
+        const links = rt.links;
+        const linked = (i: number, j: number, bit: number): boolean => (links ? (links[i] & bit) !== 0 : m[j] !== 0);
+        for (let y = 0; y < h; y++) {
+          for (let x = 0; x < w; x++) {
+            const i = y * w + x;
+            if (!m[i]) continue;
+            const px = x + f.dx[i], py = y + f.dy[i];
+            let x0 = px - 0.5, x1 = px + 0.5, y0 = py - 0.5, y1 = py + 0.5;
+            const reach = (j: number) => {
+              const qx = (px + (j % w) + f.dx[j]) / 2, qy = (py + Math.floor(j / w) + f.dy[j]) / 2;
+              x0 = Math.min(x0, qx);
+              x1 = Math.max(x1, qx);
+              y0 = Math.min(y0, qy);
+              y1 = Math.max(y1, qy);
+            };
+            if (x + 1 < w && linked(i, i + 1, 2)) reach(i + 1);
+            if (x > 0 && linked(i - 1, i - 1, 2)) reach(i - 1);
+            if (y + 1 < h && linked(i, i + w, 4)) reach(i + w);
+            if (y > 0 && linked(i - w, i - w, 4)) reach(i - w);
+            for (let yy = Math.max(0, Math.ceil(y0 - 1e-6)); yy <= Math.min(h - 1, Math.floor(y1 + 1e-6)); yy++) {
+              for (let xx = Math.max(0, Math.ceil(x0 - 1e-6)); xx <= Math.min(w - 1, Math.floor(x1 + 1e-6)); xx++) img.data[4 * (yy * w + xx) + 3] = 0;
+            }
+          }
+        }
+      }
+      c.getContext('2d')!.putImageData(img, 0, 0);
+      if (f) this.posedMatte = { field: f, matte: m, canvas: c };
     }
-    c.getContext('2d')!.putImageData(img, 0, 0);
     this.ctx.imageSmoothingEnabled = false;
     this.ctx.drawImage(c, 0, 0, this.canvas.width, this.canvas.height);
   }

@@ -45,7 +45,15 @@ export interface ClipKey {
   interpolation?: Interpolation;
 }
 
+/** A control point: point `point` of feature `feature`. */
+export interface PointRef {
+  feature: string;
+  point: number;
+}
+
 export interface View {
+  /** The control points picked by a marquee or Shift-click: they move together. */
+  pointSelection: PointRef[];
   /** The keys picked on the timeline (Shift-click adds and removes). */
   keySelection: KeyRef[];
   /** Show the selected feature's drawing at its previous and next keys (pose mode). */
@@ -66,6 +74,7 @@ export interface View {
 
 export function initialView(): View {
   return {
+    pointSelection: [],
     keySelection: [],
     onion: true,
     mode: 'rest',
@@ -337,6 +346,39 @@ export function moveFeature(doc: SceneDoc, mode: Mode, time: number, id: string,
   return setKey(doc, id, time, pts);
 }
 
+/**
+ * Moves several control points by `delta` together: `bases` holds each feature's points as
+ * shown when the drag began, `picked` the indices moved. At rest the rest positions change;
+ * in pose mode each feature gets a key at `time`.
+ */
+export function movePoints(doc: SceneDoc, mode: Mode, time: number, bases: Map<string, Pt[]>, picked: PointRef[], delta: Pt): SceneDoc {
+  let out = doc;
+  for (const [id, base] of bases) {
+    const idx = new Set(picked.filter((r) => r.feature === id).map((r) => r.point));
+    const pts = base.map((q, i) => (idx.has(i) ? [q[0] + delta[0], q[1] + delta[1]] as Pt : [q[0], q[1]] as Pt));
+    out = mode === 'rest' ? mapFeature(out, id, (g) => ({ ...g, rest: pts })) : setKey(out, id, time, pts);
+  }
+  return out;
+}
+
+/** The control points inside the rectangle with corners `a` and `b` (cuts only at rest). */
+export function pointsInRect(doc: SceneDoc, mode: Mode, time: number, a: Pt, b: Pt): PointRef[] {
+  const [x0, x1] = [Math.min(a[0], b[0]), Math.max(a[0], b[0])];
+  const [y0, y1] = [Math.min(a[1], b[1]), Math.max(a[1], b[1])];
+  const out: PointRef[] = [];
+  for (const f of doc.features) {
+    if (mode === 'pose' && f.kind === 'cut') continue;
+    shownPoints(f, mode, time).forEach((q, i) => {
+      if (q[0] >= x0 && q[0] <= x1 && q[1] >= y0 && q[1] <= y1) out.push({ feature: f.id, point: i });
+    });
+  }
+  return out;
+}
+
+export function hasPointRef(refs: PointRef[], ref: PointRef): boolean {
+  return refs.some((r) => r.feature === ref.feature && r.point === ref.point);
+}
+
 /** The control points of a feature as shown in a mode at a time. */
 export function shownPoints(f: Feature, mode: Mode, time: number): Pt[] {
   return mode === 'rest' ? f.rest : pointsAt(f, time);
@@ -549,6 +591,8 @@ export class Store {
       this.view = { ...this.view, selection: { feature: f.id, point: null } };
     }
     if (this.view.activeLayer >= this.doc.layers.length) this.view = { ...this.view, activeLayer: Math.max(0, this.doc.layers.length - 1) };
+    const kept = this.view.pointSelection.filter((r) => r.point < (getFeature(this.doc, r.feature)?.rest.length ?? 0));
+    if (kept.length !== this.view.pointSelection.length) this.view = { ...this.view, pointSelection: kept };
   }
 
   // -- Tools ---------------------------------------------------------------------------

@@ -4,7 +4,8 @@ import { App } from './app';
 import { clear, h } from './dom';
 import { EngineError } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
-import { decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
+import { blobToDataUri, decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
+import { isPsdName, readLayeredPsd, uniqueNames } from './psd';
 import { Overlay } from './overlay';
 import { canEncodeWebm, encodeWebm } from './webm';
 import { PROBE_DWELL_MS } from './probe';
@@ -40,6 +41,10 @@ import {
   type ClipKey,
   type KeyRef,
   movePoint,
+  movePoints,
+  pointsInRect,
+  hasPointRef,
+  type PointRef,
   reorderLayer,
   setInterpolation,
   setLayerFeatures,
@@ -68,6 +73,8 @@ export const SHORTCUTS: [string, string][] = [
   ['Click the first point', 'Close a polyline or spline'],
   ['Esc', 'Cancel the drawing / clear the selection'],
   ['Drag', 'Move a control point, or a whole feature by its line'],
+  ['Drag on empty stage (Shift: add)', 'Marquee: pick the control points inside; drag one to move them all'],
+  ['Shift-click a point', 'Add a control point to the picked ones, or take it out'],
   ['Delete / Backspace', 'Delete the selected point (rest mode) or feature'],
   ['K / Shift+K', 'Add / delete the selected feature’s key at this time'],
   ['Space', 'Play / pause (hold and drag: pan)'],
@@ -75,13 +82,14 @@ export const SHORTCUTS: [string, string][] = [
   ['Middle-drag', 'Pan'],
   ['0 / 1', 'Fit the picture / 100 %'],
   ['Shift-click a key', 'Pick several keys (drag one: they move together)'],
+  ['Drag on a feature row (Shift: add)', 'Marquee: pick the keys inside'],
   ['Ctrl+C / Ctrl+V', 'Copy the picked keys / paste them at the current time'],
   ['O', 'Onion skin: the selected feature at its previous and next keys'],
   ['← / →', 'Previous / next frame'],
   ['Shift+← / Shift+→', 'Previous / next key'],
   ['Home / End', 'First / last frame'],
   ['Ctrl+Z / Ctrl+Shift+Z (Ctrl+Y)', 'Undo / redo'],
-  ['Ctrl+S / Ctrl+O', 'Save the scene / open a scene or image'],
+  ['Ctrl+S / Ctrl+O', 'Save the scene / open a scene, an image or a layered PSD'],
   ['D / H / M / T', 'Drawing / heat map (ΔX, ΔY, off) / mesh / matte overlay'],
   ['?', 'This help'],
 ];
@@ -111,7 +119,11 @@ export class Ui {
     base: Pt[];
     /** Where the pointer last moved the drawing to (scene pixels). */
     at: Pt | null;
+    /** A drag of the picked points together: each feature's points when it began. */
+    group?: Map<string, Pt[]>;
   } | null = null;
+  /** A marquee being dragged on empty stage (scene pixels), and whether it adds (Shift). */
+  private marquee: { start: Pt; add: boolean; base: PointRef[] } | null = null;
   private messageTimer: number | null = null;
   fileName = 'scene.json';
   /** Set when the scene came from `inkwarp edit`: Save also writes it back there. */
@@ -154,7 +166,7 @@ export class Ui {
   // -- Building --------------------------------------------------------------------------
 
   private build(root: HTMLElement): void {
-    const fileInput = h('input', { type: 'file', accept: '.json,application/json,image/png,image/jpeg', hidden: true, onchange: () => {
+    const fileInput = h('input', { type: 'file', accept: '.json,application/json,image/png,image/jpeg,.psd,image/vnd.adobe.photoshop', hidden: true, onchange: () => {
       const f = fileInput.files?.[0];
       if (f) void this.openFile(f);
       fileInput.value = '';
@@ -175,7 +187,7 @@ export class Ui {
 
     const toolbar = h('header.toolbar', {},
       h('div.group', {},
-        h('button#open', { title: 'Open a scene (.json) or an image (Ctrl+O)', onclick: () => fileInput.click() }, 'Open…'),
+        h('button#open', { title: 'Open a scene (.json), an image or a layered PSD (Ctrl+O)', onclick: () => fileInput.click() }, 'Open…'),
         (this.els.examples = h('select#examples', { title: 'Open a bundled example', onchange: (e: Event) => {
           const sel = e.target as HTMLSelectElement;
           if (sel.value) void this.openExample(sel.value);
@@ -253,7 +265,7 @@ export class Ui {
         h('button', { onclick: () => this.toggleHelp() }, 'Close'),
       )));
     this.els.message = h('div#message.message', { role: 'alert', hidden: true, onclick: () => (this.els.message.hidden = true) });
-    this.els.dropHint = h('div.drop-hint', { hidden: true }, 'Drop a scene (.json) or a picture (PNG, JPEG)');
+    this.els.dropHint = h('div.drop-hint', { hidden: true }, 'Drop a scene (.json) or a picture (PNG, JPEG, layered PSD)');
     root.append(toolbar, h('main', {}, layers, this.stage, inspector), timeline, help, this.els.message, this.els.dropHint);
   }
 
@@ -396,7 +408,7 @@ export class Ui {
     this.els.tracks.append(h('div.track-row.ruler-row', {}, h('span.track-name', { title: 'Frame numbers; click or drag to set the time' }, 'frames'), ruler));
     for (const f of doc.features) {
       if (f.kind === 'cut') continue;
-      const track = h('div.track', { onpointerdown: (e: PointerEvent) => this.scrubTrack(e) });
+      const track = h('div.track', { onpointerdown: (e: PointerEvent) => this.scrubTrack(e, true) });
       for (const k of sortedKeys(f)) {
         const picked = hasKeyRef(view.keySelection, { feature: f.id, t: k.t });
         const diamond = h('span.key', {
@@ -434,10 +446,37 @@ export class Ui {
     }
   }
 
-  private scrubTrack(e: PointerEvent): void {
+  /**
+   * A press on the ruler or a feature's track sets the time (dragging scrubs). On a feature's
+   * track, a drag of more than a few pixels draws a marquee instead: it picks the keys inside
+   * it, on every row it crosses (Shift adds them to the picked keys).
+   */
+  private scrubTrack(e: PointerEvent, marquee = false): void {
     // Measured once: the row is redrawn (a new element) at every change of time.
     const r = (e.currentTarget as HTMLElement).getBoundingClientRect();
+    const time0 = this.store.view.time;
+    const base = e.shiftKey ? this.store.view.keySelection : [];
+    let box: HTMLElement | null = null;
     const move = (ev: PointerEvent) => {
+      if (marquee && (box || Math.hypot(ev.clientX - e.clientX, ev.clientY - e.clientY) > 4)) {
+        if (!box) {
+          box = h('div.key-marquee', {});
+          document.body.append(box);
+          this.setTime(time0, true);
+        }
+        const [x0, x1] = [Math.min(e.clientX, ev.clientX), Math.max(e.clientX, ev.clientX)];
+        const [y0, y1] = [Math.min(e.clientY, ev.clientY), Math.max(e.clientY, ev.clientY)];
+        Object.assign(box.style, { left: `${x0}px`, top: `${y0}px`, width: `${x1 - x0}px`, height: `${y1 - y0}px` });
+        const picked: KeyRef[] = [...base];
+        for (const k of this.els.tracks.querySelectorAll<HTMLElement>('.key')) {
+          const b = k.getBoundingClientRect();
+          const cx = (b.left + b.right) / 2, cy = (b.top + b.bottom) / 2;
+          const ref = { feature: k.dataset.feature!, t: Number(k.dataset.t) };
+          if (cx >= x0 && cx <= x1 && cy >= y0 && cy <= y1 && !hasKeyRef(picked, ref)) picked.push(ref);
+        }
+        this.store.setView({ keySelection: picked });
+        return;
+      }
       const t = Math.max(0, Math.min(1, (ev.clientX - r.left) / r.width)) * this.store.doc.duration;
       this.setTime(ev.altKey ? t : this.snapTime(t), true);
     };
@@ -445,6 +484,7 @@ export class Ui {
     const up = () => {
       window.removeEventListener('pointermove', move);
       window.removeEventListener('pointerup', up);
+      box?.remove();
       this.app.settle();
     };
     window.addEventListener('pointermove', move);
@@ -766,7 +806,16 @@ export class Ui {
     const { mode, time } = this.store.view;
     this.app.lastPointerAt = e.timeStamp || performance.now();
     try {
-      if (d.point !== null) {
+      if (d.group) {
+        const delta: Pt = [p[0] - d.start[0], p[1] - d.start[1]];
+        if (this.store.view.snap && d.point !== null) {
+          const base = d.base[d.point];
+          delta[0] = Math.round(base[0] + delta[0]) - base[0];
+          delta[1] = Math.round(base[1] + delta[1]) - base[1];
+        }
+        const picked = this.store.view.pointSelection;
+        this.store.edit((doc) => movePoints(doc, mode, time, d.group!, picked, delta));
+      } else if (d.point !== null) {
         const base = d.base[d.point];
         const q: Pt = [base[0] + p[0] - d.start[0], base[1] + p[1] - d.start[1]];
         this.store.edit((doc) => movePoint(doc, mode, time, d.id, d.point!, this.store.view.snap ? [Math.round(q[0]), Math.round(q[1])] : q));
@@ -803,12 +852,33 @@ export class Ui {
       }
       const hit = this.hit(p);
       if (!hit) {
-        this.store.setView({ selection: { feature: null, point: null } });
+        // Empty stage: a marquee picks the control points inside it (Shift adds to them).
+        this.marquee = { start: p, add: e.shiftKey, base: e.shiftKey ? view.pointSelection : [] };
+        this.store.setView({ selection: { feature: null, point: null }, pointSelection: this.marquee.base });
         return;
       }
       const f = getFeature(this.store.doc, hit.id)!;
-      this.store.setView({ selection: { feature: hit.id, point: hit.point } });
+      const ref = hit.point !== null ? { feature: hit.id, point: hit.point } : null;
+      let picked = view.pointSelection;
+      if (ref && e.shiftKey) {
+        // Shift-click adds a control point to the picked ones, or takes it out.
+        const had = hasPointRef(picked, ref);
+        picked = had ? picked.filter((r) => r.feature !== ref.feature || r.point !== ref.point) : [...picked, ref];
+        this.store.setView({ selection: { feature: hit.id, point: hit.point }, pointSelection: picked });
+        if (had) return;
+      } else if (!ref || !hasPointRef(picked, ref)) {
+        picked = [];
+        this.store.setView({ selection: { feature: hit.id, point: hit.point }, pointSelection: [] });
+      } else this.store.setView({ selection: { feature: hit.id, point: hit.point } });
       this.drag = { id: hit.id, point: hit.point, start: p, base: shownPoints(f, view.mode, view.time).map((q) => [q[0], q[1]] as Pt), at: null };
+      if (ref && picked.length > 1) {
+        const group = new Map<string, Pt[]>();
+        for (const r of picked) {
+          const g = getFeature(this.store.doc, r.feature);
+          if (g && !group.has(r.feature)) group.set(r.feature, shownPoints(g, view.mode, view.time).map((q) => [q[0], q[1]] as Pt));
+        }
+        this.drag.group = group;
+      }
       // A press the pointer did not rest before: the probe starts now (see `hover`; the app
       // probes in pose mode only).
       this.app.probe(hit.id, hit.point, 'press');
@@ -834,6 +904,15 @@ export class Ui {
         this.dragTo(e);
         return;
       }
+      if (this.marquee) {
+        const m = this.marquee;
+        const q = this.toScene(e.clientX, e.clientY);
+        const { doc, view } = this.store;
+        const inside = pointsInRect(doc, view.mode, view.time, m.start, q);
+        this.overlay.marquee = [m.start, q];
+        this.store.setView({ pointSelection: [...m.base, ...inside.filter((r) => !hasPointRef(m.base, r))] });
+        return;
+      }
       const p = this.toScene(e.clientX, e.clientY);
       if (this.store.view.draft.length) {
         this.overlay.hover = p;
@@ -842,6 +921,11 @@ export class Ui {
       this.hover(p);
     });
     const end = () => {
+      if (this.marquee) {
+        this.marquee = null;
+        this.overlay.marquee = null;
+        this.drawOverlay();
+      }
       if (!this.drag) return;
       this.drag = null;
       // The pose moved: the point under the pointer is probed again at its next move.
@@ -1056,7 +1140,7 @@ export class Ui {
         handled();
         if (!this.els.help.hidden) return this.toggleHelp();
         if (this.store.view.draft.length) return this.store.cancelDraft();
-        return this.store.setView({ selection: { feature: null, point: null } });
+        return this.store.setView({ selection: { feature: null, point: null }, pointSelection: [] });
       case 'Delete': case 'Backspace':
         handled();
         try {
@@ -1155,6 +1239,10 @@ export class Ui {
         this.message(`Opened ${file.name}.`, 'info');
         return;
       }
+      if (isPsdName(file.name)) {
+        await this.openPsd(file);
+        return;
+      }
       const uri = await fileToDataUri(file);
       const img = await decodeBlob(file, file.name);
       if (dropped && this.store.doc.layers.length && img.width === this.store.doc.width && img.height === this.store.doc.height) {
@@ -1168,6 +1256,32 @@ export class Ui {
     } catch (err) {
       this.fileError(file.name, err);
     }
+  }
+
+  /** What opening the last PSD noted (flattened groups, blend modes), for the page and its tests. */
+  psdNotes: string[] = [];
+
+  /**
+   * Opens a layered PSD as `inkwarp new` does: a layer per pixel layer, bottom first, each a
+   * canvas-sized PNG at offset [0, 0]; groups flattened; opacity and masks in alpha.
+   */
+  async openPsd(file: File): Promise<void> {
+    const picture = readLayeredPsd(await file.arrayBuffer(), file.name);
+    if (!this.confirmReplace(file.name)) return;
+    const doc = emptyScene(picture.width, picture.height);
+    doc.background = [255, 255, 255, 0];
+    const names = uniqueNames(picture.layers.map((l) => l.name));
+    for (const [i, layer] of picture.layers.entries()) {
+      const image = await blobToDataUri(await rgbaToPngBlob(layer.image));
+      doc.layers.push(layer.visible ? { name: names[i], image } : { name: names[i], image, visible: false });
+    }
+    await this.openScene(doc, file.name.replace(/\.[^.]*$/, '') + '.json');
+    this.saveUrl = null;
+    this.psdNotes = picture.notes;
+    for (const note of picture.notes) console.warn(note);
+    const warned = picture.notes.filter((n) => /blend mode/.test(n));
+    const summary = `Opened ${file.name} (${picture.width}×${picture.height}, ${picture.layers.length} layer${picture.layers.length === 1 ? '' : 's'}).`;
+    this.message(warned.length ? `${summary} ${warned.join(' ')}` : `${summary} Pick a tool and trace.`, 'info');
   }
 
   fileError(name: string, err: unknown): void {
