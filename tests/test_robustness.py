@@ -194,6 +194,41 @@ def test_ctrl_c_stops_a_long_dense_solve_within_a_second() -> None:
     assert stopped_s < 5  # generous for a loaded machine; the flag is polled every 50 ms
 
 
+GRID_INTERRUPT = """
+import sys, numpy as np, inkwarp
+n = 1025
+rng = np.random.default_rng(2)
+mask = np.ones((n, n), np.uint8)
+yy, xx = np.mgrid[:n, :n]
+mask[(xx - 650) ** 2 + (yy - 400) ** 2 < 75 ** 2] = 0
+pts = rng.uniform(0, n - 1, (10, 2))
+args = dict(mask=mask, cuts=[[(100, 700.3), (450, 625.3), (800, 750.3)]], tolerance=1e-12)
+# One cycle first, so that the long solve below is in its cycles (not in the setup of its
+# hierarchy, which is not interruptible) when the signal comes.
+inkwarp.thin_plate_report(pts, rng.normal(0, 5, (10, 2)), (n, n), max_cycles=1, **args)
+print("ready", flush=True)
+try:
+    # A tolerance it cannot reach and no cycle limit worth the name: it runs until stopped.
+    inkwarp.thin_plate_report(pts, rng.normal(0, 5, (10, 2)), (n, n), max_cycles=100000, **args)
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+    sys.exit(130)
+print("finished", flush=True)
+"""
+
+
+def test_ctrl_c_stops_a_long_grid_solve_within_a_second() -> None:
+    proc = subprocess.Popen([sys.executable, "-c", GRID_INTERRUPT], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "ready"
+    time.sleep(2)  # cycles are running
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=60)
+    stopped_s = time.monotonic() - sent
+    assert out.strip() == "interrupted" and proc.returncode == 130
+    assert stopped_s < 5  # generous for a loaded machine; the solver checks between cycles
+
+
 def test_compare_refuses_an_absurd_dpi(capsys) -> None:
     with pytest.raises(SystemExit) as exit_:
         main(["compare", "examples/face/scene.json", "--dpi", "100000", "-o", "x.png"])

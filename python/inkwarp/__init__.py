@@ -6,7 +6,7 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 
 from inkwarp._inkwarp import __version__
 from inkwarp.drawing import sample
-from inkwarp.errors import InkwarpError, InkwarpWarning, SceneError
+from inkwarp.errors import ConvergenceWarning, InkwarpError, InkwarpWarning, SceneError
 from inkwarp.compare import Comparison, compare, comparison_sheet
 from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
 from inkwarp.imaging import warp_image
@@ -18,6 +18,7 @@ from inkwarp.rendering import render
 
 __all__ = [
     "Comparison",
+    "ConvergenceWarning",
     "Frames",
     "InkwarpError",
     "InkwarpWarning",

@@ -34,6 +34,14 @@ fn _panic_for_tests(py: Python<'_>) -> PyResult<()> {
     run_engine(py, || -> () { panic!("a panic raised on purpose by _panic_for_tests") })
 }
 
+/// `KeyboardInterrupt` for an engine call that stopped because a stop was requested (the
+/// engine's `Interrupted`): raised when the request came from elsewhere than this call's
+/// own signal check (which raises the signal's own exception), so that an interrupted
+/// solve never surfaces as a `ValueError`.
+pub fn interrupted(what: &str) -> PyErr {
+    pyo3::exceptions::PyKeyboardInterrupt::new_err(format!("{what} stopped: interrupted"))
+}
+
 /// `inkwarp.errors.InternalError` for a panic's payload.
 pub fn internal_error(py: Python<'_>, payload: &(dyn Any + Send)) -> PyErr {
     let what = payload

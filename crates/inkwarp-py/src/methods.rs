@@ -112,7 +112,10 @@ fn interpolate_field<'py>(
     let (field, report) = crate::errors::run_engine(py, || {
         methods::field(interpolant, &controls, width, height, &params)
     })?
-    .map_err(value_error)?;
+    .map_err(|e| match e {
+        methods::MethodError::Interrupted => crate::errors::interrupted("the interpolation"),
+        e => value_error(e),
+    })?;
     let arr = Array3::from_shape_vec((height, width, 2), field.to_interleaved()).map_err(value_error)?;
     Ok((PyArray3::from_owned_array(py, arr), report_dict(py, &report)?))
 }

@@ -15,6 +15,21 @@ use pyo3::types::PyList;
 use crate::errors::run_engine;
 use crate::limits::{memory_problem, MAX_IMAGE_FILE_BYTES};
 
+/// Issues each of `messages` as an `inkwarp.errors.ConvergenceWarning` (an error when
+/// the warnings filter turns warnings into errors).
+fn warn_convergence(py: Python<'_>, messages: &[String]) -> PyResult<()> {
+    if messages.is_empty() {
+        return Ok(());
+    }
+    let category = py.import("inkwarp.errors")?.getattr("ConvergenceWarning")?;
+    for message in messages {
+        let message = std::ffi::CString::new(message.replace('\0', " "))
+            .expect("NUL bytes were replaced");
+        PyErr::warn(py, &category, &message, 2)?;
+    }
+    Ok(())
+}
+
 /// Raises `inkwarp.SceneError` for `err`, naming `file` when there is one.
 fn scene_error(py: Python<'_>, err: &SceneError, file: Option<&str>) -> PyErr {
     let message = match file {
@@ -212,8 +227,11 @@ impl SceneCore {
     ) -> PyResult<Bound<'py, PyAny>> {
         let method = method_named(method)?;
         let scene = Arc::clone(&self.scene);
-        match run_engine(py, move || scene.render_with(time, method))? {
-            Ok(image) => image_to_numpy(py, image),
+        match run_engine(py, move || scene.render_warned(time, method))? {
+            Ok((image, warnings)) => {
+                warn_convergence(py, &warnings)?;
+                image_to_numpy(py, image)
+            }
             Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
         }
     }
@@ -230,8 +248,16 @@ impl SceneCore {
         let method = method_named(method)?;
         self.check_layer(layer)?;
         let scene = Arc::clone(&self.scene);
-        match run_engine(py, move || scene.layer_field_with(layer, time, None, method))? {
-            Ok(solved) => field_to_numpy(py, &solved.field),
+        let solved = run_engine(py, move || {
+            let solved = scene.layer_field_with(layer, time, None, method)?;
+            let warning = scene.convergence_warning(layer, time, &solved);
+            Ok::<_, SceneError>((solved, warning))
+        })?;
+        match solved {
+            Ok((solved, warning)) => {
+                warn_convergence(py, warning.as_slice())?;
+                field_to_numpy(py, &solved.field)
+            }
             Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
         }
     }
@@ -318,7 +344,7 @@ impl FrameIter {
     fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<(usize, Bound<'py, PyAny>)>> {
         let next = run_engine(py, || {
             let mut guard = self.stream.lock().expect("frame stream");
-            guard.as_mut().and_then(|stream| stream.next())
+            guard.as_mut().and_then(|stream| stream.next().map(|item| (item, stream.take_warnings())))
         });
         let next = match next {
             Ok(next) => next,
@@ -333,12 +359,15 @@ impl FrameIter {
                 self.close();
                 Ok(None)
             }
-            Some(Ok((index, image))) => {
-                let mut remaining = self.remaining.lock().expect("frame counter");
-                *remaining = remaining.saturating_sub(1);
+            Some((Ok((index, image)), warnings)) => {
+                {
+                    let mut remaining = self.remaining.lock().expect("frame counter");
+                    *remaining = remaining.saturating_sub(1);
+                }
+                warn_convergence(py, &warnings)?;
                 Ok(Some((index, image_to_numpy(py, image)?)))
             }
-            Some(Err(err)) => {
+            Some((Err(err), _)) => {
                 self.close();
                 Err(scene_error(py, &err, self.file.as_deref()))
             }

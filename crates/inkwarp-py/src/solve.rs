@@ -169,6 +169,7 @@ fn thin_plate_solve<'py>(
         SolveError::NonFiniteInitial => {
             PyValueError::new_err("initial has NaN or infinite values; pass a finite field (or None).")
         }
+        SolveError::Interrupted => crate::errors::interrupted("the thin-plate solve"),
         e => PyValueError::new_err(e.to_string()),
     })?;
     let array = PyArray1::from_vec(py, field).reshape([height, width, 2])?;

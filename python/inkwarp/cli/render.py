@@ -4,7 +4,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import sys
 import time
+import warnings
+from collections.abc import Iterator
 
 from inkwarp.cli import _common
 
@@ -70,7 +74,45 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
+@contextlib.contextmanager
+def _convergence_lines() -> Iterator[None]:
+    """Shows each solve that did not converge as one line on stderr (the first of each
+    layer as it happens, then how many more there were), not as a Python warning."""
+    from inkwarp.errors import ConvergenceWarning
+
+    seen: set[str] = set()
+    more = 0
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
+        nonlocal more
+        if not issubclass(category, ConvergenceWarning):
+            return shown(message, category, filename, lineno, file, line)
+        text = str(message)
+        layer = text.split(" at t = ")[0]
+        if layer in seen:
+            more += 1
+        else:
+            seen.add(layer)
+            print(f"inkwarp render: warning: {text}", file=sys.stderr, flush=True)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", ConvergenceWarning)
+        shown = warnings.showwarning
+        warnings.showwarning = show
+        try:
+            yield
+        finally:
+            if more:
+                print(f"inkwarp render: warning: {more} more solve{'s' if more != 1 else ''} "
+                      f"did not converge", file=sys.stderr, flush=True)
+
+
 def run(args: argparse.Namespace) -> int:
+    with _convergence_lines():
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     from inkwarp import video
 
     from inkwarp import outputs, rendering

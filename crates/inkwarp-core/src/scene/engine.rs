@@ -336,6 +336,26 @@ impl Scene {
         Ok(RenderedFrame { image: self.composite(&fields), layers })
     }
 
+    /// The warning a user should see about `solved`, layer `layer`'s field at `time_s`:
+    /// `Some` when its thin-plate solve stopped before it converged (the field may then be
+    /// off by more than the accuracy contract), naming the layer and the time (and frame).
+    pub fn convergence_warning(&self, layer: usize, time_s: f64, solved: &LayerSolve) -> Option<String> {
+        let report = solved.report.as_ref().filter(|r| !r.converged)?;
+        let name = &self.layers()[layer].name;
+        let frame = time_s * self.fps();
+        let when = if (frame - frame.round()).abs() < 1e-6 && frame >= 0.0 {
+            format!("at t = {time_s} s (frame {})", frame.round() as u64)
+        } else {
+            format!("at t = {time_s} s")
+        };
+        Some(format!(
+            "layer \"{name}\" {when}: the thin-plate solve did not converge ({} cycles, last \
+             change {:.3} px), so its field may be off by more than 0.05 px; raise the \
+             layer's solver.max_cycles, or use grid_step > 1 or another method",
+            report.cycles, report.final_change_px
+        ))
+    }
+
     /// Whether layer `layer` shows in frames (visible, with an image).
     pub fn layer_is_drawn(&self, layer: usize) -> bool {
         let l = &self.layers()[layer];
@@ -371,6 +391,18 @@ impl Scene {
         Animator::with_method(self, method).render(time_s)
     }
 
+    /// [`Scene::render_with`] and the warnings of its solves (see
+    /// [`Scene::convergence_warning`]).
+    pub fn render_warned(
+        &self,
+        time_s: f64,
+        method: Option<Method>,
+    ) -> Result<(RgbaImage, Vec<String>), SceneError> {
+        let mut animator = Animator::with_method(self, method);
+        let image = animator.render(time_s)?;
+        Ok((image, animator.take_warnings()))
+    }
+
     /// Frames `frames` rendered by up to `threads` threads (0: [`default_frame_threads`]),
     /// delivered in order. See [`WARM_CHAIN_FRAMES`] for how warm starts are chained.
     pub fn frames(self: &Arc<Self>, frames: Range<usize>, threads: usize) -> FrameStream {
@@ -388,6 +420,8 @@ pub struct Animator<'a> {
     /// Each layer's earlier frames, the start of its next solve.
     history: Vec<WarmHistory>,
     overrides: SolverOverrides,
+    /// Warnings of the solves since the last [`Animator::take_warnings`].
+    warnings: Vec<String>,
 }
 
 impl<'a> Animator<'a> {
@@ -409,6 +443,7 @@ impl<'a> Animator<'a> {
             fields: vec![None; scene.layers().len()],
             history: vec![WarmHistory::new(); scene.layers().len()],
             overrides,
+            warnings: Vec::new(),
         }
     }
 
@@ -434,14 +469,24 @@ impl<'a> Animator<'a> {
         Ok(self.scene.composite(&self.fields))
     }
 
+    /// The warnings of the solves since the last call (a solve that did not converge).
+    pub fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
+    }
+
     /// One layer's solve, from its earlier frames (the thin plate; the other methods start
     /// from nothing).
     fn solve_layer(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
-        self.scene.layer_field_warm(layer, time_s, &mut self.history[layer], &self.overrides)
+        let solved =
+            self.scene.layer_field_warm(layer, time_s, &mut self.history[layer], &self.overrides)?;
+        self.warnings.extend(self.scene.convergence_warning(layer, time_s, &solved));
+        Ok(solved)
     }
 }
 
 type FrameResult = Result<(usize, RgbaImage), SceneError>;
+/// A frame as a worker sends it: with the warnings of its solves.
+type WorkerResult = Result<(usize, RgbaImage, Vec<String>), SceneError>;
 
 /// How many frames [`FrameStream`] renders at once when not told: one per four cores.
 ///
@@ -469,7 +514,9 @@ pub struct FrameStream {
     /// Sequential mode: the chain being rendered here and its animator state.
     sequential: Option<SequentialChain>,
     overrides: SolverOverrides,
-    receivers: Vec<Receiver<FrameResult>>,
+    receivers: Vec<Receiver<WorkerResult>>,
+    /// Warnings of the frames delivered since the last [`FrameStream::take_warnings`].
+    warnings: Vec<String>,
     workers: Vec<JoinHandle<()>>,
     failed: bool,
 }
@@ -516,6 +563,7 @@ impl FrameStream {
             overrides,
             receivers: Vec::new(),
             workers: Vec::new(),
+            warnings: Vec::new(),
             failed: false,
         };
         if threads > 1 {
@@ -529,20 +577,26 @@ impl FrameStream {
         self.chains.iter().map(|c| c.len()).sum()
     }
 
+    /// The warnings of the frames delivered since the last call (each names its layer and
+    /// frame; see [`Scene::convergence_warning`]).
+    pub fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
+    }
+
     /// Whether the stream delivers no frame at all.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
     fn start_workers(&mut self, threads: usize) {
-        let mut senders = Vec::with_capacity(self.chains.len());
+        let mut senders: Vec<Option<SyncSender<WorkerResult>>> = Vec::with_capacity(self.chains.len());
         for _ in &self.chains {
             // Two frames of slack per chain bound the memory held by workers running ahead.
-            let (tx, rx) = sync_channel::<FrameResult>(2);
+            let (tx, rx) = sync_channel::<WorkerResult>(2);
             senders.push(Some(tx));
             self.receivers.push(rx);
         }
-        let senders: Arc<Mutex<Vec<Option<SyncSender<FrameResult>>>>> =
+        let senders: Arc<Mutex<Vec<Option<SyncSender<WorkerResult>>>>> =
             Arc::new(Mutex::new(senders));
         let next = Arc::new(AtomicUsize::new(0));
         let chains = Arc::new(self.chains.clone());
@@ -570,7 +624,7 @@ impl FrameStream {
                     for i in chains[c].clone() {
                         let frame = animator
                             .render(scene.frame_time_s(i))
-                            .map(|image| (i, image));
+                            .map(|image| (i, image, animator.take_warnings()));
                         let stop = frame.is_err();
                         if tx.send(frame).is_err() || stop {
                             return;
@@ -600,10 +654,12 @@ impl FrameStream {
             fields: std::mem::take(fields),
             history: std::mem::take(history),
             overrides: self.overrides.clone(),
+            warnings: Vec::new(),
         };
         let frame = animator
             .render(scene.frame_time_s(i))
             .map(|image| (i, image));
+        self.warnings.extend(animator.take_warnings());
         *fields = animator.fields;
         *history = animator.history;
         Some(frame)
@@ -625,10 +681,13 @@ impl Iterator for FrameStream {
             let chain_end = self.chains[c].end;
             match receiver.recv() {
                 Ok(item) => {
-                    if matches!(&item, Ok((i, _)) if i + 1 == chain_end) {
+                    if matches!(&item, Ok((i, _, _)) if i + 1 == chain_end) {
                         self.next_chain += 1;
                     }
-                    Some(item)
+                    Some(item.map(|(i, image, warnings)| {
+                        self.warnings.extend(warnings);
+                        (i, image)
+                    }))
                 }
                 Err(_) => Some(Err(SceneError::one(
                     "",

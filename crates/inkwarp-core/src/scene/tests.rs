@@ -825,3 +825,31 @@ proptest::proptest! {
         }
     }
 }
+
+#[test]
+fn a_solve_stopped_early_is_warned_about_with_its_layer_and_frame() {
+    // Big enough that one cycle does not finish the solve (small grids solve directly).
+    let mut loader = files(&[
+        ("back.png", picture(64, 48, |_, _| false)),
+        ("front.png", picture(64, 48, |x, y| x < 3 && y < 3)),
+    ]);
+    let mut doc = valid_scene();
+    doc["layers"][1]["solver"] = json!({"max_cycles": 1, "tolerance": 1e-9});
+    let scene = Arc::new(Scene::from_json(&doc.to_string(), &mut loader).unwrap());
+    let (_, warnings) = scene.render_warned(0.3, None).unwrap();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].starts_with("layer \"front\" at t = 0.3 s (frame 3): "), "{}", warnings[0]);
+    assert!(warnings[0].contains("did not converge (1 cycles"), "{}", warnings[0]);
+    // Frames carry theirs, in parallel as in sequence; a converged scene has none.
+    for threads in [1, 2] {
+        let mut stream = scene.frames(1..4, threads);
+        let mut seen = Vec::new();
+        while let Some(frame) = stream.next() {
+            frame.unwrap();
+            seen.extend(stream.take_warnings());
+        }
+        assert_eq!(seen.len(), 3, "{seen:?}");
+        assert!(seen[1].contains("(frame 2)"), "{}", seen[1]);
+    }
+    assert!(small_scene().render_warned(0.3, None).unwrap().1.is_empty());
+}

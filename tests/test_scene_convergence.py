@@ -1,0 +1,62 @@
+"""A solve that stops before it converges is not silent: ``Scene.render``, ``field`` and
+``frames`` warn with ``inkwarp.ConvergenceWarning`` naming the layer and the frame, and
+``inkwarp render`` prints one line on stderr (not a traceback)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scene_art import two_layer_scene, write_scene
+
+import inkwarp
+from inkwarp.cli import main
+
+
+def _stopped_early() -> dict:
+    data = two_layer_scene()
+    # One cycle at a tolerance it cannot reach: the front layer's solve stops unconverged.
+    data["layers"][1]["solver"] = {"max_cycles": 1, "tolerance": 1e-9}
+    return data
+
+
+def test_render_field_and_frames_warn_with_layer_and_frame(tmp_path):
+    scene = inkwarp.Scene.load(write_scene(tmp_path, _stopped_early()))
+    with pytest.warns(inkwarp.ConvergenceWarning, match=r'layer "front" at t = 1 s \(frame 20\): .*did not converge \(1 cycles'):
+        frame = scene.render(time=1.0)
+    assert frame.shape == (30, 40, 4)
+    with pytest.warns(inkwarp.ConvergenceWarning, match=r'layer "front" at t = 0.5 s \(frame 10\)'):
+        field = scene.field(time=0.5, layer="front")
+    assert np.isfinite(field).all()
+    with pytest.warns(inkwarp.ConvergenceWarning) as caught:
+        frames = list(scene.frames(3, 6, threads=2))
+    assert len(frames) == 3 and frames[0].shape == (30, 40, 4)
+    messages = [str(w.message) for w in caught if issubclass(w.category, inkwarp.ConvergenceWarning)]
+    assert any("(frame 4)" in m for m in messages) and all('layer "front"' in m for m in messages)
+
+
+def test_a_converged_scene_does_not_warn(tmp_path):
+    scene = inkwarp.Scene.load(write_scene(tmp_path))
+    # pytest turns every warning into an error: these would fail if one were issued.
+    scene.render(time=1.0)
+    scene.field(time=0.5, layer=1)
+    assert len(list(scene.frames(0, 3))) == 3
+
+
+def test_the_cli_prints_one_line_and_succeeds(tmp_path, capsys):
+    path = write_scene(tmp_path, _stopped_early())
+    assert main(["render", str(path), "-o", str(tmp_path / "f.png"), "--frame", "20", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith('inkwarp render: warning: layer "front" at t = 1 s (frame 20)')
+    assert (tmp_path / "f.png").exists()
+    assert main(["render", str(path), "-o", str(tmp_path / "frames") + "/", "--frames", "0:4", "--quiet"]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    # Frame 0 is at rest (nothing to solve); frames 1-3 stop early: the first is shown,
+    # the others counted.
+    assert len(lines) == 2
+    assert lines[0].startswith('inkwarp render: warning: layer "front" at t = 0.05 s (frame 1)')
+    assert lines[1] == "inkwarp render: warning: 2 more solves did not converge"
+    assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == [f"frame_{i:04d}.png" for i in range(4)]
+    json.loads(path.read_text())
