@@ -1393,7 +1393,13 @@ test('the matte overlay follows the picture in pose mode (at rest in rest mode)'
     for (const x of [3, 10, 12, 14, 17, 20, 23, 27, 30]) out[x] = magenta(x, 8);
     return { out, mode: store.view.mode };
   });
-  const posed = await sample();
+  // The posed overlay follows the layer's field, which the full-resolution worker may still
+  // be solving on a loaded machine: sample until it arrives (at most about 5 s).
+  let posed = await sample();
+  for (let i = 0; i < 20 && !posed.out[10]; i++) {
+    await new Promise((r) => setTimeout(r, 250));
+    posed = await sample();
+  }
   const d = await page.evaluate(() => {
     const k = window.inkwarp.store.doc.features.find((f) => f.id === 'grip').keys?.[0]?.points?.[0];
     return k ? k[0] - 14 : null;
