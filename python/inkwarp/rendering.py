@@ -22,7 +22,6 @@ import base64
 import math
 import mimetypes
 import os
-import secrets
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -106,7 +105,9 @@ def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[in
 def _write_png_atomic(path: Path, frame: np.ndarray) -> None:
     from PIL import Image
 
-    temp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.part.png")
+    from inkwarp._atomic import temp_path
+
+    temp = temp_path(path, ".png")
     try:
         Image.fromarray(frame, "RGBA").save(temp, format="PNG", compress_level=6)
         os.replace(temp, path)

@@ -741,13 +741,13 @@ def check_output(path: str | os.PathLike[str]) -> Path:
 
 def save_json(doc: dict[str, Any], path: str | os.PathLike[str]) -> Path:
     """Write a scene document: under a temporary name beside ``path``, then renamed."""
-    import tempfile
+    from inkwarp._atomic import temp_path
 
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+    tmp = temp_path(out, ".json")
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        with open(tmp, "w", encoding="utf-8") as fh:
             json.dump(doc, fh, indent=1)
             fh.write("\n")
         os.replace(tmp, out)

@@ -1,0 +1,78 @@
+"""Outputs are right or absent (issue 45): temporary files left by killed runs are
+cleaned, non-finite frames are never written, an unwritable output folder is named in
+the error, and the Python API raises ValueError where it promises."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from inkwarp._atomic import clean_stale, temp_path
+
+ROOT = Path(__file__).resolve().parents[1]
+FACE = ROOT / "examples" / "face" / "scene.json"
+
+
+def _parts(folder: Path, name: str) -> list[Path]:
+    return sorted(p for p in folder.iterdir() if p.name.startswith(f".{name}.") and ".part" in p.name)
+
+
+def _dead_pid() -> int:
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+def test_temporary_names_carry_the_pid_and_stale_ones_are_removed(tmp_path: Path) -> None:
+    target = tmp_path / "out.gif"
+    mine = temp_path(target, ".gif")
+    assert mine.name.startswith(f".out.gif.{os.getpid()}.") and mine.exists()
+    dead = tmp_path / f".out.gif.{_dead_pid()}.0123456789ab.part.gif"
+    dead.write_bytes(b"half")
+    dead_dir = tmp_path / f".out.gif.{_dead_pid()}.0123456789ac.part"
+    dead_dir.mkdir()
+    (dead_dir / "frame.png").write_bytes(b"x")
+    legacy_old = tmp_path / ".out.gif.0123456789ad.part.gif"
+    legacy_old.write_bytes(b"old")
+    os.utime(legacy_old, (time.time() - 3 * 86400,) * 2)
+    legacy_new = tmp_path / ".out.gif.0123456789ae.part.gif"
+    legacy_new.write_bytes(b"maybe someone's")
+    other = tmp_path / f".other.gif.{_dead_pid()}.0123456789af.part.gif"
+    other.write_bytes(b"not ours")
+    removed = clean_stale(target)
+    assert sorted(removed) == sorted([dead, dead_dir, legacy_old])
+    assert mine.exists() and legacy_new.exists() and other.exists()
+
+
+def test_a_render_killed_by_sigkill_leaves_a_part_file_the_next_run_removes(tmp_path: Path) -> None:
+    out = tmp_path / "face.gif"
+    command = [sys.executable, "-m", "inkwarp.cli", "render", str(FACE), "-o", str(out), "-q"]
+    log = tmp_path / "stderr.txt"
+    with open(log, "wb") as err:
+        child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=err)
+    try:
+        deadline = time.monotonic() + 60
+        while not _parts(tmp_path, out.name):
+            assert child.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, "the render never started writing"
+            time.sleep(0.05)
+    finally:
+        child.send_signal(signal.SIGKILL)
+        child.wait()
+    log.unlink()
+    stale = _parts(tmp_path, out.name)
+    assert stale, "SIGKILL should leave the temporary file in place"
+    assert f".{child.pid}." in stale[0].name
+    assert not out.exists()
+    done = subprocess.run([sys.executable, "-m", "inkwarp.cli", "render", str(FACE), "-o", str(out),
+                           "-q", "--frames", "0:2"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert out.stat().st_size > 0
+    assert _parts(tmp_path, out.name) == []
