@@ -76,3 +76,78 @@ def test_a_render_killed_by_sigkill_leaves_a_part_file_the_next_run_removes(tmp_
     assert done.returncode == 0, done.stderr
     assert out.stat().st_size > 0
     assert _parts(tmp_path, out.name) == []
+
+
+SETPRIV = "/usr/bin/setpriv"
+
+
+def _read_only_case(tmp_path: Path) -> tuple[Path, Path]:
+    """A copy of the face scene readable by anyone, and a folder nobody but root may write."""
+    import shutil
+
+    home = tmp_path / "case"
+    home.mkdir()
+    for item in (FACE.parent).iterdir():
+        if item.suffix in (".json", ".png"):
+            shutil.copy(item, home / item.name)
+    read_only = home / "ro"
+    read_only.mkdir()
+    for folder in (tmp_path, home):
+        folder.chmod(0o755)
+    read_only.chmod(0o555)
+    for parent in tmp_path.parents:  # pytest's folders are private to root
+        if parent == Path("/tmp") or parent == Path("/"):
+            break
+        parent.chmod(parent.stat().st_mode | 0o011)
+    return home, read_only
+
+
+READ_ONLY_COMMANDS = {
+    "render png": lambda h, r: ["render", str(h / "scene.json"), "-o", str(r / "a.png"), "-q"],
+    "render gif": lambda h, r: ["render", str(h / "scene.json"), "-o", str(r / "a.gif"), "-q"],
+    "render dir": lambda h, r: ["render", str(h / "scene.json"), "-o", str(r / "frames") + "/", "-q"],
+    "field": lambda h, r: ["field", str(h / "scene.json"), "-o", str(r / "f.npy"), "--time", "0.5",
+                           "--layer", "face", "-q"],
+    "compare": lambda h, r: ["compare", str(h / "scene.json"), "-o", str(r / "c.png"),
+                             "--max-samples", "50", "--quiet"],
+    "transfer": lambda h, r: ["transfer", "--source", str(h / "scene.json"), "--target",
+                              str(h / "scene.json"), "-o", str(r / "t.json"), "--quiet"],
+    "new": lambda h, r: ["new", str(h / "face.png"), "-o", str(r / "n.json"), "-q"],
+}
+
+
+@pytest.mark.skipif(not (os.path.exists(SETPRIV) and os.geteuid() == 0),
+                    reason="needs root and setpriv to run as an unprivileged user")
+@pytest.mark.parametrize("case", sorted(READ_ONLY_COMMANDS))
+def test_a_read_only_output_folder_is_named_in_the_error(tmp_path: Path, case: str) -> None:
+    home, read_only = _read_only_case(tmp_path)
+    argv = READ_ONLY_COMMANDS[case](home, read_only)
+    done = subprocess.run([SETPRIV, "--reuid=65534", "--regid=65534", "--clear-groups",
+                           sys.executable, "-m", "inkwarp.cli", *argv],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr
+    assert str(read_only) in done.stderr and "writ" in done.stderr, done.stderr
+    assert ".part" not in done.stderr
+    assert list(read_only.iterdir()) == []
+
+
+def test_an_unwritable_folder_names_the_folder_not_the_temporary_file(tmp_path: Path, monkeypatch,
+                                                                       capsys) -> None:
+    """The same without another user: creating the temporary file is refused."""
+    from inkwarp.cli import main
+
+    real_open = os.open
+
+    def refuse(path, flags, *args, **kwargs):
+        if ".part" in os.fspath(path):
+            raise PermissionError(13, "Permission denied", os.fspath(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", refuse)
+    out = tmp_path / "t.json"
+    assert main(["transfer", "--source", str(FACE), "--target", str(FACE), "-o", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"{tmp_path}: cannot write in this output folder (permission denied)" in err
+    assert ".part" not in err and "Traceback" not in err
+    assert not out.exists()
