@@ -151,3 +151,82 @@ def test_an_unwritable_folder_names_the_folder_not_the_temporary_file(tmp_path: 
     assert f"{tmp_path}: cannot write in this output folder (permission denied)" in err
     assert ".part" not in err and "Traceback" not in err
     assert not out.exists()
+
+
+def _deep(levels: int = 100_000):
+    value: object = 1
+    for _ in range(levels):
+        value = [value]
+    return value
+
+
+def _api_cases():
+    import numpy as np
+
+    import inkwarp
+    from inkwarp import Scene
+
+    scene = Scene.load(FACE)
+    face_gif = str(FACE.parent / "face.gif")
+    points = np.array([[10.0, 10], [50, 10], [30, 40]])
+    field = inkwarp.thin_plate(points, points + 1, shape=(16, 16))
+    picture = np.zeros((16, 16, 4), np.uint8)
+    base = {"inkwarp": 1, "width": 8, "height": 8, "layers": [{"name": "x"}]}
+    calls = {
+        "thin_plate src": lambda b: inkwarp.thin_plate(b, points, shape=(16, 16)),
+        "thin_plate shape": lambda b: inkwarp.thin_plate(points, points, shape=b),
+        "thin_plate height": lambda b: inkwarp.thin_plate(points, points, shape=(b, 4)),
+        "sample kind": lambda b: inkwarp.sample(b, [[0, 0], [5, 5]], [[0, 0], [5, 5]]),
+        "sample pose": lambda b: inkwarp.sample("polyline", [[0, 0], [5, 5]], b),
+        "warp_image image": lambda b: inkwarp.warp_image(b, field),
+        "warp_image field": lambda b: inkwarp.warp_image(picture, b),
+        "Scene.load": lambda b: Scene.load(b),
+        "Scene.from_dict": lambda b: Scene.from_dict(b),
+        "Scene.from_dict width": lambda b: Scene.from_dict({**base, "width": b}),
+        "Scene.render time": lambda b: scene.render(b),
+        "Scene.render frame": lambda b: scene.render(frame=b),
+        "Scene.field time": lambda b: scene.field(b, layer="face"),
+        "Scene.field layer": lambda b: scene.field(0.5, layer=b),
+        "Scene.frames start": lambda b: list(scene.frames(b, 1)),
+        "Scene.frames threads": lambda b: scene.frames(0, 1, threads=b),
+        "render scene": lambda b: inkwarp.render(b, "unused.png") if hasattr(inkwarp, "render")
+        else __import__("inkwarp.rendering").rendering.render(b, "unused.png"),
+        "transfer source": lambda b: inkwarp.transfer(b, scene),
+        "track video": lambda b: inkwarp.track(b, FACE),
+        "track frame": lambda b: inkwarp.track(face_gif, FACE, frame=b),
+    }
+    return calls
+
+
+WRONG = {"string": "x", "None": None, "nested list": [[["a"]]], "huge int": 2 ** 70,
+         "dict": {"a": 1}, "nan": float("nan"), "-huge float": -1e308}
+
+
+@pytest.mark.parametrize("call", sorted(_api_cases()))
+def test_the_api_raises_value_error_for_wrong_arguments(call: str) -> None:
+    function = _api_cases()[call]
+    for label, value in WRONG.items():
+        try:
+            function(value)
+        except (ValueError, FileNotFoundError):
+            continue  # ValueError (SceneError is one) as promised; a missing file as documented
+        except Exception as err:  # noqa: BLE001
+            pytest.fail(f"{call}({label}) raised {type(err).__name__}: {err}")
+
+
+def test_a_deeply_nested_dict_is_a_scene_error_not_a_recursion_error() -> None:
+    from inkwarp import Scene, SceneError
+
+    doc = {"inkwarp": 1, "width": 8, "height": 8, "layers": [{"name": "x"}],
+           "features": [{"id": "a", "kind": "point", "rest": _deep()}]}
+    with pytest.raises(SceneError, match="nested more than"):
+        Scene.from_dict(doc)
+
+
+def test_a_deeply_nested_scene_file_is_a_scene_error(tmp_path: Path) -> None:
+    from inkwarp import Scene, SceneError
+
+    path = tmp_path / "deep.json"
+    path.write_text('{"a":' * 100_000 + "1" + "}" * 100_000)
+    with pytest.raises(SceneError):
+        Scene.load(path)

@@ -173,6 +173,9 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     from inkwarp.cli import _common
 
     if not hasattr(scene, "frames"):
+        if not isinstance(scene, (str, os.PathLike)):
+            raise ValueError(f"the scene must be an inkwarp.Scene or the path of a scene file; "
+                             f"got {type(scene).__name__}")
         if sprite_sheet:
             outputs.check_sheet_json(output, scene)
         scene = _common.load_scene(os.fspath(scene))

@@ -528,6 +528,11 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     """
     from inkwarp.transfer import _load, _rebase_images
 
+    if not isinstance(video, (str, os.PathLike, Video)):
+        raise ValueError(f"the video must be a path or an inkwarp.track.Video; got {type(video).__name__}")
+    if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)):
+        raise ValueError(f"frame must be a whole number (the frame the drawing is traced on); got {frame!r:.40}")
+    frame = int(frame)
     where = os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else "the scene"
     if isinstance(scene, (str, os.PathLike)):
         from inkwarp.cli._common import load_scene

@@ -61,7 +61,7 @@ def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
             base = Path(base)
             base = base.parent if base.suffix == ".json" else base
         return to_dict(), base
-    raise TypeError(f"the {role} scene must be a path, a dict or an inkwarp.Scene; got {type(scene).__name__}.")
+    raise ValueError(f"the {role} scene must be a path, a dict or an inkwarp.Scene; got {type(scene).__name__}.")
 
 
 def _features(doc: dict[str, Any], role: str) -> list[tuple[str, str, list, list]]:
