@@ -230,3 +230,68 @@ def test_a_deeply_nested_scene_file_is_a_scene_error(tmp_path: Path) -> None:
     path.write_text('{"a":' * 100_000 + "1" + "}" * 100_000)
     with pytest.raises(SceneError):
         Scene.load(path)
+
+
+class _NanCore:
+    """The engine's scene with a field that overflowed (as keys 1e-300 s apart once did)."""
+
+    def __init__(self, core) -> None:
+        self._core = core
+
+    def __getattr__(self, name):
+        return getattr(self._core, name)
+
+    def field(self, layer, time, method):
+        import numpy as np
+
+        field = np.array(self._core.field(layer, time, method))
+        field[3, 5, 0] = np.nan
+        field[0, 0, 1] = np.inf
+        return field
+
+
+def _nan_scene(load=None):
+    from inkwarp import Scene
+
+    scene = (load or Scene.load)(FACE)
+    scene._core = _NanCore(scene._core)
+    return scene
+
+
+def test_a_non_finite_field_is_an_error_not_a_blank_result() -> None:
+    with pytest.raises(ValueError, match=r"not finite \(2 of .* values\)"):
+        _nan_scene().field(0.5, layer="face")
+
+
+def test_inkwarp_field_refuses_a_non_finite_field_and_writes_nothing(tmp_path: Path, monkeypatch,
+                                                                    capsys) -> None:
+    from inkwarp import Scene
+    from inkwarp.cli import main
+
+    original = Scene.load
+    monkeypatch.setattr(Scene, "load", classmethod(lambda cls, path: _nan_scene(original)))
+    for name in ("f.npy", "f.png"):
+        out = tmp_path / name
+        assert main(["field", str(FACE), "--time", "0.5", "--layer", "face", "-o", str(out), "-q"]) == 2
+        err = capsys.readouterr().err
+        assert "not finite" in err and "Traceback" not in err
+        assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir()] == []
+
+
+def test_frame_writers_refuse_frames_that_are_not_pixels(tmp_path: Path) -> None:
+    """A float frame (where a NaN could hide) or one of another size is refused before a
+    byte of it is written, and the output is not created."""
+    import numpy as np
+
+    from inkwarp.video import open_writer
+
+    good = np.zeros((8, 8, 4), np.uint8)
+    for bad in (np.full((8, 8, 4), np.nan), np.zeros((8, 9, 4), np.uint8), np.zeros((8, 8), np.uint8)):
+        out = tmp_path / "o.gif"
+        writer = open_writer(out, fps=10)
+        writer.write(good)
+        with pytest.raises(ValueError, match="frame"):
+            writer.write(bad)
+        writer.abort()
+        assert not out.exists() and list(tmp_path.iterdir()) == []

@@ -308,6 +308,17 @@ def _number_argument(value: Any, name: str) -> float:
         raise ValueError(f"{name} must be a finite number; got {value!r:.40}")
     return number
 
+def _check_finite_field(field: Any, where: str) -> None:
+    """A field with a NaN or an infinity would render as a blank frame: refuse it instead."""
+    values = np.asarray(field)
+    if values.dtype.kind == "f" and not np.isfinite(values).all():
+        bad = int(values.size - np.count_nonzero(np.isfinite(values)))
+        raise ValueError(
+            f"the displacement field of {where} is not finite ({bad} of {values.size} values): "
+            "the keys around this time or the solver settings overflow; move keys that are "
+            "almost at the same time apart, or lower solver.tension / beier_neely weights")
+
+
 class Scene:
     """A scene ready to render: its layers' images decoded, mattes and cuts applied.
 
@@ -524,7 +535,11 @@ class Scene:
             float32 ``(height, width, 2)``: pixel ``(x, y)`` of the layer's rest image moves
             to ``(x + f[y, x, 0], y + f[y, x, 1])``.
         """
-        return self._core.field(self._layer_index(layer), self._time(time, frame), method)
+        index = self._layer_index(layer)
+        at = self._time(time, frame)
+        field = self._core.field(index, at, method)
+        _check_finite_field(field, f"layer {self.layers[index]!r} at t = {at:g} s")
+        return field
 
     def frames(
         self, start: int = 0, stop: int | None = None, *, threads: int | None = None, method: str | None = None
