@@ -8,7 +8,6 @@ premultiplied) RGBA, row ``y``, column ``x``, with pixel centres at integer coor
 from __future__ import annotations
 
 import os
-import secrets
 from typing import Union
 
 import numpy as np
@@ -206,17 +205,12 @@ def write_png(path: PathLike, image: ArrayLike) -> None:
     target = os.fspath(path)
     directory = os.path.dirname(os.path.abspath(target))
     base = os.path.basename(target)
-    # O_EXCL with mode 0o666: a fresh private name, permissions from the umask as for
-    # any new file.
-    while True:
-        temporary = os.path.join(directory, f".{base}.{secrets.token_hex(6)}.tmp")
-        try:
-            fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-            break
-        except FileExistsError:
-            continue
+    # A fresh name carrying the process id, permissions from the umask as for any new file.
+    from inkwarp._atomic import temp_path
+
+    temporary = os.fspath(temp_path(os.path.join(directory, base), ".png"))
     try:
-        with os.fdopen(fd, "wb") as f:
+        with open(temporary, "wb") as f:
             Image.fromarray(rgba).save(f, format="PNG")
         os.replace(temporary, target)
     except BaseException:

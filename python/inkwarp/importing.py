@@ -27,7 +27,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import secrets
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -36,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from inkwarp._atomic import temp_path
 from inkwarp.errors import InkwarpWarning
 
 __all__ = ["Picture", "PictureLayer", "read_picture", "scene_dict", "write_new_scene"]
@@ -341,7 +341,7 @@ def _write_all(files: list[tuple[Path, bytes]]) -> None:
     temps: list[Path] = []
     try:
         for path, content in files:
-            temp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.part")
+            temp = temp_path(path)
             temps.append(temp)
             temp.write_bytes(content)
         for temp, (path, _) in zip(temps, files):

@@ -22,7 +22,6 @@ import base64
 import math
 import mimetypes
 import os
-import secrets
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -106,7 +105,9 @@ def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[in
 def _write_png_atomic(path: Path, frame: np.ndarray) -> None:
     from PIL import Image
 
-    temp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.part.png")
+    from inkwarp._atomic import temp_path
+
+    temp = temp_path(path, ".png")
     try:
         Image.fromarray(frame, "RGBA").save(temp, format="PNG", compress_level=6)
         os.replace(temp, path)
@@ -172,6 +173,9 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     from inkwarp.cli import _common
 
     if not hasattr(scene, "frames"):
+        if not isinstance(scene, (str, os.PathLike)):
+            raise ValueError(f"the scene must be an inkwarp.Scene or the path of a scene file; "
+                             f"got {type(scene).__name__}")
         if sprite_sheet:
             outputs.check_sheet_json(output, scene)
         scene = _common.load_scene(os.fspath(scene))

@@ -107,15 +107,23 @@ def _join(path: str, key: str) -> str:
     return f"{path}.{key}" if path else key
 
 
-def _plain(value: Any, path: str, problems: list[Problem]) -> Any:
+#: No scene nests deeper than a handful of levels; a dict deeper than this is refused
+#: (as a problem, not a RecursionError).
+MAX_DEPTH = 64
+
+
+def _plain(value: Any, path: str, problems: list[Problem], depth: int = 0) -> Any:
     """``value`` as plain JSON data (NumPy arrays and scalars converted); non-finite numbers
     and values JSON cannot hold become problems (and placeholders, so that checking goes on)."""
+    if depth > MAX_DEPTH and isinstance(value, (Mapping, np.ndarray, list, tuple)):
+        problems.append((path, f"nested more than {MAX_DEPTH} levels deep; a scene never is"))
+        return None
     if isinstance(value, Mapping):
-        return {str(k): _plain(v, _join(path, str(k)), problems) for k, v in value.items()}
+        return {str(k): _plain(v, _join(path, str(k)), problems, depth + 1) for k, v in value.items()}
     if isinstance(value, np.ndarray):
         value = value.tolist()
     if isinstance(value, (list, tuple)):
-        return [_plain(v, f"{path}[{i}]", problems) for i, v in enumerate(value)]
+        return [_plain(v, f"{path}[{i}]", problems, depth + 1) for i, v in enumerate(value)]
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     if isinstance(value, (int, np.integer)):
@@ -269,6 +277,48 @@ class Frames(Iterator[np.ndarray]):
         self.close()
 
 
+
+def _path_argument(path: Any, what: str) -> str:
+    """``path`` as a string, or a ValueError naming what was given instead."""
+    if isinstance(path, (str, os.PathLike)):
+        text = os.fspath(path)
+        if isinstance(text, str):
+            return text
+    raise ValueError(f"{what} must be a path (str or os.PathLike); got {type(path).__name__}")
+
+
+def _integer_argument(value: Any, name: str) -> int:
+    """``value`` as an int, or a ValueError naming the argument."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        if isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
+            return int(value)
+        raise ValueError(f"{name} must be a whole number; got {value!r:.40}")
+    return int(value)
+
+
+def _number_argument(value: Any, name: str) -> float:
+    """``value`` as a finite float, or a ValueError naming the argument."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a number; got {type(value).__name__} {value!r:.40}")
+    try:
+        number = float(value)
+    except OverflowError:
+        raise ValueError(f"{name} must be a finite number; got {value!r:.40}") from None
+    if not math.isfinite(number):
+        raise ValueError(f"{name} must be a finite number; got {value!r:.40}")
+    return number
+
+def _check_finite_field(field: Any, where: str) -> None:
+    """A field with a NaN or an infinity would render as a blank frame: refuse it instead."""
+    values = np.asarray(field)
+    if values.dtype.kind == "f" and not np.isfinite(values).all():
+        bad = int(values.size - np.count_nonzero(np.isfinite(values)))
+        raise ValueError(
+            f"the displacement field of {where} is not finite ({bad} of {values.size} values): "
+            "the keys around this time or the solver settings overflow; move keys that are "
+            "almost at the same time apart, or lower solver.tension / beier_neely weights")
+
+
 class Scene:
     """A scene ready to render: its layers' images decoded, mattes and cuts applied.
 
@@ -304,7 +354,7 @@ class Scene:
         inkwarp.SceneError
             When the scene has problems (all of them are listed).
         """
-        file = os.fspath(path)
+        file = _path_argument(path, "Scene.load's path")
         text = read_scene_text(file)
         base_dir = os.fspath(Path(file).resolve().parent)
         core = _inkwarp.SceneCore.from_json(text, base_dir, file)
@@ -417,16 +467,13 @@ class Scene:
         if time is not None and frame is not None:
             raise ValueError("give either time= or frame=, not both")
         if frame is not None:
-            index = int(frame)
+            index = _integer_argument(frame, "frame")
             if not 0 <= index < self.frame_count:
                 raise ValueError(f"frame {index} is out of range; the scene has frames 0 to {self.frame_count - 1}")
             return float(self._core.frame_time(index))
         if time is None:
             return 0.0
-        value = float(time)
-        if not math.isfinite(value):
-            raise ValueError(f"time must be a finite number of seconds, got {time}")
-        return value
+        return _number_argument(time, "time (seconds)")
 
     def _layer_index(self, layer: str | int | None) -> int:
         names = self.layers
@@ -488,7 +535,11 @@ class Scene:
             float32 ``(height, width, 2)``: pixel ``(x, y)`` of the layer's rest image moves
             to ``(x + f[y, x, 0], y + f[y, x, 1])``.
         """
-        return self._core.field(self._layer_index(layer), self._time(time, frame), method)
+        index = self._layer_index(layer)
+        at = self._time(time, frame)
+        field = self._core.field(index, at, method)
+        _check_finite_field(field, f"layer {self.layers[index]!r} at t = {at:g} s")
+        return field
 
     def frames(
         self, start: int = 0, stop: int | None = None, *, threads: int | None = None, method: str | None = None
@@ -514,12 +565,12 @@ class Scene:
         Frames
             An iterator of RGBA uint8 ``(height, width, 4)`` arrays with ``len()``.
         """
-        stop = self.frame_count if stop is None else min(int(stop), self.frame_count)
-        start = int(start)
+        stop = self.frame_count if stop is None else min(_integer_argument(stop, "stop"), self.frame_count)
+        start = _integer_argument(start, "start")
         if start < 0 or stop < start:
             raise ValueError(f"frames({start}, {stop}) is not a range of this scene's frames 0 to {self.frame_count}")
-        if threads is not None and int(threads) < 1:
-            raise ValueError(f"threads must be at least 1, got {threads}")
+        if threads is not None and not 1 <= _integer_argument(threads, "threads") <= 4096:
+            raise ValueError(f"threads must be from 1 to 4096, got {threads}")
         return Frames(self._core.frames(start, stop, 0 if threads is None else int(threads), method), start)
 
     # ---- the document -------------------------------------------------------------------
@@ -539,9 +590,15 @@ class Scene:
                     if reference and not reference.lower().startswith("data:") and not os.path.isabs(reference):
                         absolute = Path(self.base_dir) / reference
                         layer[key] = Path(os.path.relpath(absolute, target.resolve().parent)).as_posix()
-        tmp = target.with_name(target.name + ".tmp")
-        tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-        os.replace(tmp, target)
+        from inkwarp._atomic import temp_path
+
+        tmp = temp_path(target, ".json")
+        try:
+            tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+            os.replace(tmp, target)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
 
     def validate(self) -> list[Problem]:
         """Every problem of this scene's document now (images are read again).

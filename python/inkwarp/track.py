@@ -528,6 +528,11 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     """
     from inkwarp.transfer import _load, _rebase_images
 
+    if not isinstance(video, (str, os.PathLike, Video)):
+        raise ValueError(f"the video must be a path or an inkwarp.track.Video; got {type(video).__name__}")
+    if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)):
+        raise ValueError(f"frame must be a whole number (the frame the drawing is traced on); got {frame!r:.40}")
+    frame = int(frame)
     where = os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else "the scene"
     if isinstance(scene, (str, os.PathLike)):
         from inkwarp.cli._common import load_scene
@@ -741,13 +746,13 @@ def check_output(path: str | os.PathLike[str]) -> Path:
 
 def save_json(doc: dict[str, Any], path: str | os.PathLike[str]) -> Path:
     """Write a scene document: under a temporary name beside ``path``, then renamed."""
-    import tempfile
+    from inkwarp._atomic import temp_path
 
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+    tmp = temp_path(out, ".json")
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        with open(tmp, "w", encoding="utf-8") as fh:
             json.dump(doc, fh, indent=1)
             fh.write("\n")
         os.replace(tmp, out)

@@ -61,7 +61,7 @@ def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
             base = Path(base)
             base = base.parent if base.suffix == ".json" else base
         return to_dict(), base
-    raise TypeError(f"the {role} scene must be a path, a dict or an inkwarp.Scene; got {type(scene).__name__}.")
+    raise ValueError(f"the {role} scene must be a path, a dict or an inkwarp.Scene; got {type(scene).__name__}.")
 
 
 def _features(doc: dict[str, Any], role: str) -> list[tuple[str, str, list, list]]:
@@ -182,7 +182,13 @@ def transfer_example(examples_dir: str | os.PathLike, out_dir: str | os.PathLike
     doc = transfer_dict(root / "face" / "scene.json", root / "transfer" / "cat-target.json",
                         relative_to=out.resolve())
     path = out / "transfer.json"
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    os.replace(tmp, path)
+    from inkwarp._atomic import temp_path
+
+    tmp = temp_path(path, ".json")
+    try:
+        tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path

@@ -26,13 +26,14 @@ Examples
 from __future__ import annotations
 
 import os
-import secrets
 import shutil
 from pathlib import Path
 from types import TracebackType
 from typing import Any, Literal
 
 import numpy as np
+
+from inkwarp._atomic import temp_path
 
 OutputKind = Literal["png", "dir", "gif", "mp4", "webm", "mov", "apng"]
 
@@ -127,15 +128,9 @@ def _as_frame(frame: np.ndarray) -> np.ndarray:
 
 def _temp_name(target: Path, suffix: str) -> Path:
     """A new empty file beside ``target``, created with the permissions of any new file
-    (0o666 less the umask: mkstemp's 0o600 would survive the rename)."""
-    parent = target.absolute().parent
-    while True:
-        name = parent / f".{target.name}.{secrets.token_hex(6)}.part{suffix}"
-        try:
-            os.close(os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-            return name
-        except FileExistsError:
-            continue
+    (0o666 less the umask: mkstemp's 0o600 would survive the rename); its name carries
+    the process id so that a later run can remove it if this one is killed."""
+    return temp_path(target, suffix)
 
 
 def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
@@ -162,14 +157,7 @@ def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 
 def _temp_dir(target: Path) -> Path:
     """A new empty directory beside ``target`` (0o777 less the umask)."""
-    parent = target.absolute().parent
-    while True:
-        name = parent / f".{target.name}.{secrets.token_hex(6)}.part"
-        try:
-            os.mkdir(name, 0o777)
-            return name
-        except FileExistsError:
-            continue
+    return temp_path(target, directory=True)
 
 
 class FrameWriter:

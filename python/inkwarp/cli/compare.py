@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import tempfile
 from pathlib import Path
 
 EXAMPLE = """\
@@ -74,8 +73,9 @@ def run(args: argparse.Namespace) -> int:
     comparison = compare(scene, time, args.methods, layer=args.layer, max_samples=args.max_samples,
                          **(_weights(args.beier_neely) if args.beier_neely is not None else {}))
     out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.stem}.", suffix=".png", dir=out.parent)
-    os.close(fd)
+    from inkwarp._atomic import temp_path
+
+    tmp = temp_path(out, ".png")
     try:
         comparison_sheet(comparison, tmp, title=f"{Path(args.scene).name}, t = {time:g} s", dpi=args.dpi)
         os.replace(tmp, out)

@@ -175,9 +175,11 @@ class SceneFile:
             mode = stat.S_IMODE(self.path.stat().st_mode)
         except FileNotFoundError:
             mode = 0o666 & ~_umask()
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".part", dir=self.path.parent)
+        from inkwarp._atomic import temp_path
+
+        tmp = temp_path(self.path, ".json")
         try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
+            with open(tmp, "w", encoding="utf-8") as f:
                 f.write(text)
                 f.flush()
                 os.fsync(f.fileno())
