@@ -25,7 +25,7 @@ pub fn method_available(method: Method) -> bool {
 }
 
 /// Where a layer's thin-plate solve starts (the other methods start from nothing).
-enum Start<'a> {
+pub(super) enum Start<'a> {
     /// From this field (a warm start), or from zero.
     Field(Option<&'a Field>),
     /// From the layer's earlier frames, which then keep this one.
@@ -36,7 +36,7 @@ enum Start<'a> {
 /// here, the other interpolants (DESIGN §6) through the `methods` module. They get the
 /// samples grouped by feature, because Beier–Neely needs each curve's samples in order
 /// (its line pairs) apart from the points.
-fn compute_field(
+pub(super) fn compute_field(
     scene: &Scene,
     time_s: f64,
     solver: &SolverDoc,
@@ -85,6 +85,18 @@ fn compute_field(
     // A stop requested mid-solve may leave a partial field: never return it.
     if crate::interrupt::requested() {
         return Err(STOPPED.to_string());
+    }
+    // A frame is never drawn from a field with NaN or infinity in it (it would come out
+    // blank with no error): the limits refuse the inputs known to cause one, and this
+    // catches any other.
+    if let Ok(layer) = &solved {
+        if !layer.field.dx.iter().chain(&layer.field.dy).all(|v| v.is_finite()) {
+            return Err(format!(
+                "the {} field at t = {time_s} s is not finite (NaN or infinity); \
+                 check the keys and the solver settings near this time",
+                solver.method.name()
+            ));
+        }
     }
     solved
 }

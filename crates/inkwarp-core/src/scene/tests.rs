@@ -853,3 +853,26 @@ fn a_solve_stopped_early_is_warned_about_with_its_layer_and_frame() {
     }
     assert!(small_scene().render_warned(0.3, None).unwrap().1.is_empty());
 }
+
+#[test]
+fn a_field_that_is_not_finite_is_an_error_not_a_blank_frame() {
+    // A displacement past f32's range makes an infinite field; the engine refuses it
+    // (by the solver's own checks or by the field's) instead of drawing a blank frame.
+    use super::engine::{compute_field, FeatureSamples, Start};
+    let mut loader = files(&valid_files());
+    let scene = Scene::from_json(&valid_scene().to_string(), &mut loader).unwrap();
+    let grid = crate::grid::Grid::new(16, 12);
+    let samples = vec![crate::geometry::Sample { rest: [4.0, 4.0], displacement: [1e300, 0.0] }];
+    let features = [FeatureSamples { feature: 0, kind: crate::geometry::Kind::Point, closed: false, samples }];
+    for method in [super::doc::Method::Tps, super::doc::Method::BeierNeely] {
+        let solver = super::doc::SolverDoc { method, ..super::doc::SolverDoc::default() };
+        let result = compute_field(&scene, 0.0, &solver, &grid, &features, Start::Field(None), Default::default());
+        match result {
+            Err(message) => assert!(message.contains("is not finite"), "{method:?}: {message}"),
+            Ok(layer) => panic!(
+                "{method:?}: a field was returned: finite {}",
+                layer.field.dx.iter().all(|v| v.is_finite())
+            ),
+        }
+    }
+}
