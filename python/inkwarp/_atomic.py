@@ -108,3 +108,26 @@ def temp_path(target: str | os.PathLike[str], suffix: str = "", *, directory: bo
             continue
         except OSError as err:
             raise _unwritable(parent, err) from None
+
+
+def write_text(target: str | os.PathLike[str], text: str, *, suffix: str = "",
+               mode: int | None = None, sync: bool = False) -> Path:
+    """Write ``text`` to ``target`` atomically: into a :func:`temp_path` beside it, then
+    renamed over it, so a reader never sees half a file and a failure leaves none.
+    ``mode`` sets the file's permissions (default: those of any new file); ``sync``
+    flushes it to disk before the rename."""
+    target = Path(os.fspath(target))
+    tmp = temp_path(target, suffix)
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            if sync:
+                fh.flush()
+                os.fsync(fh.fileno())
+        if mode is not None:
+            os.chmod(tmp, mode)
+        os.replace(tmp, target)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return target

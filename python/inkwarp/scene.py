@@ -590,15 +590,9 @@ class Scene:
                     if reference and not reference.lower().startswith("data:") and not os.path.isabs(reference):
                         absolute = Path(self.base_dir) / reference
                         layer[key] = Path(os.path.relpath(absolute, target.resolve().parent)).as_posix()
-        from inkwarp._atomic import temp_path
+        from inkwarp._atomic import write_text
 
-        tmp = temp_path(target, ".json")
-        try:
-            tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-            os.replace(tmp, target)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        write_text(target, json.dumps(data, indent=2) + "\n", suffix=".json")
 
     def validate(self) -> list[Problem]:
         """Every problem of this scene's document now (images are read again).

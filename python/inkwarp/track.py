@@ -236,13 +236,14 @@ def _all_points(features: list[_Feature], poses: Sequence[np.ndarray]) -> np.nda
     return np.concatenate(blocks).astype(np.float64) if blocks else np.empty((0, 2))
 
 
-def _layout(features: list[_Feature]) -> int:
+def _layout(features: list[_Feature]) -> None:
+    """Give each feature its rows (its control points, then its curve samples) in the
+    stacked arrays of tracked positions."""
     start = 0
     for f in features:
         n = len(f.rest) + len(_curve_samples(f, f.rest))
         f.rows = slice(start, start + n)
         start += n
-    return start
 
 
 # ---- one track from an anchor -----------------------------------------------------------
@@ -552,7 +553,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     if simplify_px is not None and not (math.isfinite(simplify_px) and simplify_px >= 0):
         raise ValueError(f"--simplify {simplify_px}: give a distance in pixels, 0 or more")
     features = _features(doc, clip.fps, count, frame, where)
-    total = _layout(features)
+    _layout(features)
 
     anchors_of = {f.id: sorted({frame, *f.keys}) for f in features}
     union = sorted({k for a in anchors_of.values() for k in a})
@@ -746,18 +747,9 @@ def check_output(path: str | os.PathLike[str]) -> Path:
 
 def save_json(doc: dict[str, Any], path: str | os.PathLike[str]) -> Path:
     """Write a scene document: under a temporary name beside ``path``, then renamed."""
-    from inkwarp._atomic import temp_path
+    from inkwarp._atomic import write_text
 
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temp_path(out, ".json")
-    try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            json.dump(doc, fh, indent=1)
-            fh.write("\n")
-        os.replace(tmp, out)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-    return out
+    return write_text(out, json.dumps(doc, indent=1) + "\n", suffix=".json")
 

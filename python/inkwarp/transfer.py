@@ -182,13 +182,6 @@ def transfer_example(examples_dir: str | os.PathLike, out_dir: str | os.PathLike
     doc = transfer_dict(root / "face" / "scene.json", root / "transfer" / "cat-target.json",
                         relative_to=out.resolve())
     path = out / "transfer.json"
-    from inkwarp._atomic import temp_path
+    from inkwarp._atomic import write_text
 
-    tmp = temp_path(path, ".json")
-    try:
-        tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
+    return write_text(path, json.dumps(doc, indent=1) + "\n", suffix=".json")

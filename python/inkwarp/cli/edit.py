@@ -19,7 +19,6 @@ import secrets
 import socket
 import stat
 import sys
-import tempfile
 import threading
 import webbrowser
 from http import HTTPStatus
@@ -175,19 +174,9 @@ class SceneFile:
             mode = stat.S_IMODE(self.path.stat().st_mode)
         except FileNotFoundError:
             mode = 0o666 & ~_umask()
-        from inkwarp._atomic import temp_path
+        from inkwarp._atomic import write_text
 
-        tmp = temp_path(self.path, ".json")
-        try:
-            with open(tmp, "w", encoding="utf-8") as f:
-                f.write(text)
-                f.flush()
-                os.fsync(f.fileno())
-            os.chmod(tmp, mode)
-            os.replace(tmp, self.path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        write_text(self.path, text, suffix=".json", mode=mode, sync=True)
 
 
 def _umask() -> int:

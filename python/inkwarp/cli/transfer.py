@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import warnings
 from pathlib import Path
@@ -51,18 +50,9 @@ def run(args: argparse.Namespace) -> int:
         else:
             warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
     out.parent.mkdir(parents=True, exist_ok=True)
-    # Write to a temporary file beside the output, then rename: no half-written scene.
-    from inkwarp._atomic import temp_path
+    from inkwarp._atomic import write_text
 
-    tmp = temp_path(out, ".json")
-    try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            json.dump(doc, fh, indent=2)
-            fh.write("\n")
-        os.replace(tmp, out)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+    write_text(out, json.dumps(doc, indent=2) + "\n", suffix=".json")
     if not args.quiet:
         moved = sum(1 for f in doc.get("features", []) if f.get("keys"))
         print(f"wrote {out} ({moved} animated features)")
