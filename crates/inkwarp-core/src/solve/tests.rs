@@ -26,13 +26,21 @@ fn dense_matrix(grid: &Grid, tau: f64) -> Vec<Vec<f64>> {
     let (w, h) = (grid.width, grid.height);
     let n = w * h;
     let mut a = vec![vec![0.0; n]; n];
-    let mut add = |terms: &[(usize, f64)], weight: f64| {
+    let add = |terms: &[(usize, f64)], weight: f64| {
         for &(i, ci) in terms {
             for &(j, cj) in terms {
                 a[i][j] += weight * ci * cj;
             }
         }
     };
+    energy_terms(grid, tau, add);
+    a
+}
+
+/// Every term of DESIGN §4's energy as its (node, coefficient) list and weight: the
+/// horizontal and vertical triples, the 2×2 cells (weight 2) and the links (weight τ).
+fn energy_terms(grid: &Grid, tau: f64, mut add: impl FnMut(&[(usize, f64)], f64)) {
+    let (w, h) = (grid.width, grid.height);
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
@@ -53,7 +61,6 @@ fn dense_matrix(grid: &Grid, tau: f64) -> Vec<Vec<f64>> {
             }
         }
     }
-    a
 }
 
 /// Direct minimiser with the given nodes fixed (the system must be nonsingular on the rest).
@@ -1342,8 +1349,7 @@ fn oracle(grid: &Grid, samples: &[Sample], tau: f64) -> [Vec<f64>; 2] {
     let at = |t: f64| -> [Vec<f64>; 2] {
         let mut a = vec![vec![0.0; m]; m];
         let mut b = vec![[0.0f64; 2]; m];
-        let (w, h) = (grid.width, grid.height);
-        let mut add = |terms: &[(usize, f64)], weight: f64| {
+        let add = |terms: &[(usize, f64)], weight: f64| {
             let mut fixed_part = [0.0f64; 2];
             for &(j, cj) in terms {
                 if let Some(v) = value[j] {
@@ -1364,26 +1370,7 @@ fn oracle(grid: &Grid, samples: &[Sample], tau: f64) -> [Vec<f64>; 2] {
                 }
             }
         };
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                if x > 0 && x + 1 < w && grid.link_right[i - 1] && grid.link_right[i] {
-                    add(&[(i - 1, 1.0), (i, -2.0), (i + 1, 1.0)], 1.0);
-                }
-                if y > 0 && y + 1 < h && grid.link_down[i - w] && grid.link_down[i] {
-                    add(&[(i - w, 1.0), (i, -2.0), (i + w, 1.0)], 1.0);
-                }
-                if x + 1 < w && y + 1 < h && grid.link_right[i] && grid.link_down[i] && grid.link_down[i + 1] && grid.link_right[i + w] {
-                    add(&[(i, 1.0), (i + 1, -1.0), (i + w, -1.0), (i + w + 1, 1.0)], 2.0);
-                }
-                if grid.link_right[i] {
-                    add(&[(i, 1.0), (i + 1, -1.0)], t);
-                }
-                if grid.link_down[i] {
-                    add(&[(i, 1.0), (i + w, -1.0)], t);
-                }
-            }
-        }
+        energy_terms(grid, t, add);
         let x = super::dense_solve(a, b).expect("the oracle's system is singular");
         let mut u = [vec![0.0; n], vec![0.0; n]];
         for i in 0..n {
