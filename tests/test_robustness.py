@@ -182,15 +182,22 @@ print("finished", flush=True)
 """
 
 
-def test_ctrl_c_stops_a_long_dense_solve_within_a_second() -> None:
-    proc = subprocess.Popen([sys.executable, "-c", INTERRUPT], stdout=subprocess.PIPE, text=True)
+def seconds_to_stop_after_ctrl_c(script: str, running_s: float, timeout_s: float) -> float:
+    """Run ``script`` in a new Python, send it SIGINT ``running_s`` after it prints
+    "ready", check it stopped as interrupted (exit 130), and return how long that took."""
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
     assert proc.stdout.readline().strip() == "ready"
-    time.sleep(1.5)
+    time.sleep(running_s)
     sent = time.monotonic()
     proc.send_signal(signal.SIGINT)
-    out, _ = proc.communicate(timeout=30)
+    out, _ = proc.communicate(timeout=timeout_s)
     stopped_s = time.monotonic() - sent
     assert out.strip() == "interrupted" and proc.returncode == 130
+    return stopped_s
+
+
+def test_ctrl_c_stops_a_long_dense_solve_within_a_second() -> None:
+    stopped_s = seconds_to_stop_after_ctrl_c(INTERRUPT, running_s=1.5, timeout_s=30)
     assert stopped_s < 5  # generous for a loaded machine; the flag is polled every 50 ms
 
 
@@ -218,14 +225,7 @@ print("finished", flush=True)
 
 
 def test_ctrl_c_stops_a_long_grid_solve_within_a_second() -> None:
-    proc = subprocess.Popen([sys.executable, "-c", GRID_INTERRUPT], stdout=subprocess.PIPE, text=True)
-    assert proc.stdout.readline().strip() == "ready"
-    time.sleep(2)  # cycles are running
-    sent = time.monotonic()
-    proc.send_signal(signal.SIGINT)
-    out, _ = proc.communicate(timeout=60)
-    stopped_s = time.monotonic() - sent
-    assert out.strip() == "interrupted" and proc.returncode == 130
+    stopped_s = seconds_to_stop_after_ctrl_c(GRID_INTERRUPT, running_s=2, timeout_s=60)  # cycles running
     assert stopped_s < 5  # generous for a loaded machine; the solver checks between cycles
 
 
