@@ -230,3 +230,11 @@ def test_outputs_get_the_permissions_of_any_new_file(capsys, scene, tmp_path, ou
         os.umask(old)
     mode = stat.S_IMODE((tmp_path / output).stat().st_mode)
     assert mode == (0o755 if output == "frames" else 0o644), oct(mode)
+
+
+def test_an_output_that_is_a_layer_image_is_refused_and_the_artwork_kept(capsys, scene):
+    art = scene.parent / "square.png"
+    before = art.read_bytes()
+    code, _, err = run(capsys, "render", scene, "-o", art, "--frame", "1")
+    assert code == 2 and "square.png" in err and "would replace it" in err
+    assert art.read_bytes() == before and "Traceback" not in err

@@ -290,3 +290,16 @@ def test_layer_names_that_share_a_file_name_or_are_long_each_get_an_image(capsys
         pixels = np.asarray(Image.open(out / image))
         assert pixels[i, i, 3] == 255 and pixels[i, i, 0] == 10 + 30 * i
         assert pixels[..., 3].sum() == 255
+
+
+def test_new_refuses_to_replace_an_existing_scene_unless_forced(capsys, tmp_path):
+    psd = write_psd(tmp_path / "character.psd")
+    scene = tmp_path / "character.json"
+    scene.write_text('{"traced": "a day of work"}')
+    code, _, err = run(capsys, "new", psd, "-o", scene)
+    assert code == 2 and "character.json" in err and "already exists" in err and "--force" in err
+    assert scene.read_text() == '{"traced": "a day of work"}'
+    assert files(tmp_path) == ["character.json", "character.psd"]
+    code, _, err = run(capsys, "new", psd, "-o", scene, "--force", "-q")
+    assert code == 0, err
+    assert inkwarp.Scene.load(scene).width == W

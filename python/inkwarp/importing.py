@@ -272,14 +272,16 @@ def _encode_png(image: np.ndarray) -> bytes:
 
 def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathLike[str], *,
                     drawing: str | os.PathLike[str] | None = None, embed: bool = False,
-                    fps: float = 24.0, duration: float = 2.0) -> tuple[list[Path], list[str]]:
+                    fps: float = 24.0, duration: float = 2.0,
+                    force: bool = False) -> tuple[list[Path], list[str]]:
     """Writes a new scene for a picture (and optionally an SVG drawing traced over it).
 
     The layers' images go beside the scene as ``SCENE-LAYER.png`` (a flat PNG or JPEG is
     referred to where it is instead), or into the scene as ``data:`` URIs with ``embed``.
     Everything is checked (the scene is built by the engine) before anything is written,
     and every file is written under a temporary name and renamed at the end, so a failure
-    leaves nothing behind.
+    leaves nothing behind. A scene or layer image that already exists is an error (a day's
+    tracing is not replaced by a fresh scene by mistake) unless ``force`` is set.
 
     Returns
     -------
@@ -331,6 +333,11 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
                 reference = file_name
             data["layers"][index]["image"] = reference
     files.append((target, (json.dumps(data, indent=2) + "\n").encode("utf-8")))
+    existing = [path for path, _ in files if path.exists()]
+    if existing and not force:
+        names = ", ".join(str(path) for path in existing)
+        raise ValueError(f"{names}: already exists; choose another scene name, or pass --force "
+                         "(force=True) to replace it")
     _write_all(files)
     return [path for path, _ in files], notes
 

@@ -238,6 +238,34 @@ def check_sheet_json(target: str | os.PathLike[str], scene_path: str | os.PathLi
                          f"{sheet_json.stem}-sheet.png")
 
 
+def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.PathLike[str]) -> None:
+    """Refuse an output that is one of the scene's own files (the scene, or a layer's
+    ``image``, ``alpha`` or ``continuity`` picture), before any rendering: ``-o face.png``
+    beside a layer drawn from ``face.png`` would replace the artwork with a frame."""
+    import json
+
+    out = Path(os.fspath(target))
+    scene = Path(os.fspath(scene_path))
+    if not out.exists() or not scene.exists():
+        return
+    inputs = [scene]
+    try:
+        doc = json.loads(scene.read_text(encoding="utf-8"))
+        for layer in doc.get("layers", []):
+            for key in ("image", "alpha", "continuity"):
+                ref = layer.get(key) if isinstance(layer, dict) else None
+                if isinstance(ref, str) and not ref.startswith("data:"):
+                    inputs.append(scene.parent / ref)
+    except (OSError, ValueError, AttributeError):
+        pass  # the scene itself is checked, with a clear error, when it is loaded
+    for path in inputs:
+        if path.exists() and os.path.samefile(out, path):
+            what = "the scene" if path == scene else "an image of the scene"
+            raise ValueError(f"{target}: is {what} being rendered ({path}); writing the frame "
+                             f"there would replace it. Name the output otherwise, such as "
+                             f"{out.stem}-frame{out.suffix}")
+
+
 def sheet_layout(count: int, spec: str | None) -> tuple[int, int]:
     """``(columns, rows)`` of a sprite sheet for ``count`` frames: ``COLSxROWS``, ``COLS``
     (rows as needed), or None for the squarest grid.

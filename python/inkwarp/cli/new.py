@@ -42,6 +42,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="frames per second (default: 24)")
     parser.add_argument("--duration", type=float, default=2.0, metavar="S",
                         help="length in seconds (default: 2)")
+    parser.add_argument("--force", action="store_true",
+                        help="replace the scene (and its layer images) if they already exist")
     parser.add_argument("-q", "--quiet", action="store_true",
                         help="print no notes and no summary")
     parser.set_defaults(func=run)
@@ -55,7 +57,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.duration > 0:
         raise ValueError(f"--duration {args.duration}: give a length in seconds > 0, such as 2")
     paths, notes = write_new_scene(args.picture, args.output, drawing=args.drawing,
-                                   embed=args.embed, fps=args.fps, duration=args.duration)
+                                   embed=args.embed, fps=args.fps, duration=args.duration,
+                                   force=args.force)
     if not args.quiet:
         for note in notes:
             print(f"inkwarp new: note: {note}", file=sys.stderr)

@@ -119,6 +119,7 @@ def _run(args: argparse.Namespace) -> int:
 
     target = video.check_target(args.output)
     kind = video.output_kind(args.output)
+    outputs.check_not_an_input(target, args.scene)
     if args.sprite_sheet is not None:
         if kind != "png":
             raise ValueError(f"--sprite-sheet writes a .png atlas (and a .json beside it); "
