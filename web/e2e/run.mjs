@@ -1208,7 +1208,7 @@ test('keys: Shift-click picks several, they drag together, copy and paste; easin
 });
 
 
-test('playback solves ahead and the ready bar shows the frames it can play at once', async () => {
+test('frames are solved ahead while the editor is left alone: the ready bar fills without Play, then plays from them', async () => {
   await page.evaluate(async () => {
     const { ui, examples, app } = window.inkwarp;
     const doc = await examples.builtinScene(96);
@@ -1217,18 +1217,40 @@ test('playback solves ahead and the ready bar shows the frames it can play at on
     doc.features = [{ id: 'dot', kind: 'point', rest: [[40, 40]], keys: [{ t: 0, points: [[40, 40]] }, { t: 1, points: [[60, 50]] }] }];
     await ui.openScene(doc, 'ready.json');
     ui.setMode('pose');
+    ui.setTime(6 / 12);
     await app.idle();
   });
   const before = Number(await page.getAttribute('#ready', 'data-count'));
-  await page.keyboard.press('Space');
-  await page.waitForFunction(() => document.querySelector('#ready')?.dataset.count === '12', null, { timeout: 120000 });
-  // A second pass plays from the solved frames.
+  // An edit: every frame solved before it is stale, and solving ahead starts again.
+  await page.evaluate(async () => {
+    const { store, state, app } = window.inkwarp;
+    app.stats.ahead = [];
+    store.edit((d) => state.setKey(d, 'dot', 0.5, [[50, 60]]));
+    await app.idle();
+  });
+  const afterEdit = Number(await page.getAttribute('#ready', 'data-count'));
+  const order = [];
+  const t0 = Date.now();
+  while (Date.now() - t0 < 120000) {
+    const frames = await page.getAttribute('#ready', 'data-frames');
+    if (frames && !order.includes(frames)) order.push(frames);
+    if (frames === '1'.repeat(12)) break;
+    await page.waitForTimeout(50);
+  }
+  const ready = Number(await page.getAttribute('#ready', 'data-count'));
+  assert(!(await page.evaluate(() => window.inkwarp.store.view.playing)), 'nothing pressed Play');
+  assert(ready === 12, `every frame was solved ahead without Play: ${ready}/12 (${order.join(' → ')})`);
+  assert(afterEdit < 12, `the edit made the solved frames stale (${afterEdit} ready after it)`);
+  // Nearest the playhead first (frame 6; the settle's own solve caches frame 6 itself).
+  const solvedAhead = await page.evaluate(() => [...window.inkwarp.app.stats.ahead]);
+  const dist = solvedAhead.map((f) => Math.abs(f - 6));
+  assert(solvedAhead.length >= 10 && dist.every((d, i) => i === 0 || d >= dist[i - 1]), `the frames nearest the playhead came first: ${solvedAhead.join(', ')}`);
   await page.evaluate(() => { window.inkwarp.app.stats.playback = { expected: 0, shown: 0, dropped: 0 }; });
+  await page.keyboard.press('Space');
   await page.waitForTimeout(2000);
   const pb = await page.evaluate(() => ({ ...window.inkwarp.app.stats.playback }));
   await page.keyboard.press('Space');
-  perf.readyPlayback = { readyBefore: before, ...pb };
-  assert(before < 12, `frames were not all ready before playing (${before})`);
+  perf.readyPlayback = { readyBefore: before, afterEdit, ...pb };
   assert(pb.expected >= 12, `it played: ${JSON.stringify(pb)}`);
   await screenshot(page, 'ready-bar');
 });

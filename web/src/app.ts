@@ -64,6 +64,8 @@ export interface Stats {
   dragParts: SettleParts[];
   /** Frames the GPU drew, and frames that only redrew the overlay (the picture unchanged). */
   frames: { drawn: number; overlayOnly: number };
+  /** The frames solved ahead (see `App.scheduleAhead`), in the order they arrived. */
+  ahead: number[];
 }
 
 /**
@@ -132,12 +134,14 @@ function frameParts(
 type FrameFn = (gpuDone: number, drawn: { start: number; end: number }) => void;
 
 function emptyStats(): Stats {
-  return { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 } };
+  return { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 }, ahead: [] };
 }
 
 /** Fields kept for playback (a 512×512 layer's field is 2 MiB). */
 const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
 const SETTLE_MS = 120;
+/** How long the editor is left alone (ms) before frames are solved ahead (see `scheduleAhead`). */
+const AHEAD_IDLE_MS = 400;
 /** A multisampled full frame slower than this (ms) is preceded by a single-sampled one. */
 const SLOW_ANTIALIAS_MS = 50;
 
@@ -184,6 +188,7 @@ export class App {
     glCanvas: HTMLCanvasElement,
     store: Store,
     readonly drafts: SolverClient | null = null,
+    readonly ahead: SolverClient | null = null,
   ) {
     this.store = store;
     this.gl = new GlRenderer(glCanvas);
@@ -206,6 +211,7 @@ export class App {
     }
     store.subscribe((_, docChanged) => {
       if (docChanged) this.syncLayers();
+      this.scheduleAhead();
       this.requestSolve(this.dragging ? 'draft' : 'final');
       this.invalidate();
     });
@@ -217,7 +223,7 @@ export class App {
 
   /** The solver workers (the draft worker, if any, second). */
   get clients(): SolverClient[] {
-    return this.drafts ? [this.solver, this.drafts] : [this.solver];
+    return [this.solver, ...(this.drafts ? [this.drafts] : []), ...(this.ahead ? [this.ahead] : [])];
   }
 
   /** The worker that solves requests of this quality. */
@@ -445,6 +451,60 @@ export class App {
     }
   }
 
+  private aheadTimer: number | null = null;
+
+  /**
+   * Solving ahead: once the editor has been left alone for `AHEAD_IDLE_MS` (no change, no
+   * pointer on the drawing, nothing solving in the foreground), the ahead worker solves the
+   * frames not cached yet, nearest the playhead first, one at a time, each into the
+   * playback cache (the ready bar fills in). Any change starts the wait again; a field
+   * solved for an older revision of the scene is dropped. Playback then shows every ready
+   * frame without a solve.
+   */
+  scheduleAhead(): void {
+    if (!this.ahead) return;
+    if (this.aheadTimer !== null) clearTimeout(this.aheadTimer);
+    this.aheadTimer = window.setTimeout(() => {
+      this.aheadTimer = null;
+      this.solveAhead();
+    }, AHEAD_IDLE_MS);
+  }
+
+  /** The next frames, nearest the playhead first, that are not cached for every layer. */
+  private aheadFrames(): number[] {
+    const n = Math.max(1, Math.ceil(this.doc.duration * this.doc.fps - 1e-9));
+    const now = Math.min(n - 1, Math.max(0, Math.round(this.store.view.time * this.doc.fps)));
+    const order: number[] = [];
+    for (let d = 0; d < n; d++) {
+      if (now + d < n) order.push(now + d);
+      if (d > 0 && now - d >= 0) order.push(now - d);
+    }
+    return order.filter((f) => !this.cached(f));
+  }
+
+  private solveAhead(): void {
+    const ahead = this.ahead;
+    if (!ahead || ahead.busy || this.dragging || this.store.view.playing) return;
+    if (!this.doc.features.some((f) => (f.keys ?? []).length > 0)) return;
+    if (this.solver.busy || this.drafts?.busy || performance.now() - this.lastPointerAt < AHEAD_IDLE_MS) {
+      this.scheduleAhead();
+      return;
+    }
+    for (const frame of this.aheadFrames()) {
+      const time = frame / this.doc.fps;
+      let asked = false;
+      for (const layer of this.doc.layers) {
+        const rt = this.runtimes.get(layer.name);
+        if (!rt?.gridReady || !rt.gl || this.cache.rev === this.store.revision && this.cache.frames.get(frame)?.has(layer.name)) continue;
+        ahead.solve(layer.name, this.solveFeatures(layer, time), this.solverOptions(layer, 'final'), {
+          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.store.revision, frame, ahead: true, prefetch: true, seq: ++this.seq,
+        });
+        asked = true;
+      }
+      if (asked) return;
+    }
+  }
+
   /** Asks the worker for every layer's field at the current time. */
   requestSolve(quality: Quality): void {
     const time = this.store.view.time;
@@ -596,11 +656,21 @@ export class App {
       this.checkIdle();
       return;
     }
-    this.lastReport = ev;
-    if (ev.tag.quality === 'draft') this.stats.draftSolveMs.push(ev.ms);
-    else this.stats.finalSolveMs.push(ev.ms);
+    if (!ev.tag.ahead) {
+      this.lastReport = ev;
+      if (ev.tag.quality === 'draft') this.stats.draftSolveMs.push(ev.ms);
+      else this.stats.finalSolveMs.push(ev.ms);
+    }
     if (ev.field && ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.store.revision) {
       this.remember(ev.tag.frame, ev.key, ev.field);
+    }
+    if (ev.tag.ahead) {
+      // Solved ahead: into the cache (above) only, then the next frame.
+      if (ev.tag.rev === this.store.revision && typeof ev.tag.frame === 'number') this.stats.ahead.push(ev.tag.frame);
+      this.onSolved(ev);
+      if (!this.ahead?.busy) this.solveAhead();
+      this.checkIdle();
+      return;
     }
     if (ev.tag.prefetch && ev.tag.time !== this.store.view.time) {
       this.checkIdle();
@@ -759,7 +829,8 @@ export class App {
   // -- Waiting (tests, export) -----------------------------------------------------------
 
   get busy(): boolean {
-    return this.busyCount > 0 || this.clients.some((c) => c.busy) || this.frameQueued || this.settleTimer !== null || this.gpuPending > 0;
+    // Solving ahead (a worker of its own, see `scheduleAhead`) is background work: not busy.
+    return this.busyCount > 0 || this.clients.some((c) => c !== this.ahead && c.busy) || this.frameQueued || this.settleTimer !== null || this.gpuPending > 0;
   }
 
   private checkIdle(): void {

@@ -25,13 +25,15 @@ async function start(): Promise<void> {
   const spawn = () => new SolverClient(new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
   const solver = spawn();
   const drafts = spawn();
-  await Promise.all([solver.ready, drafts.ready]);
+  // A third solves the animation's frames ahead while the editor is left alone.
+  const ahead = spawn();
+  await Promise.all([solver.ready, drafts.ready, ahead.ready]);
   const params = new URLSearchParams(location.search);
   const sceneUrl = params.get('scene');
   const store = new Store(await builtinScene());
   const glCanvas = document.createElement('canvas');
   glCanvas.className = 'picture';
-  const app = new App(engine, solver, glCanvas, store, drafts);
+  const app = new App(engine, solver, glCanvas, store, drafts, ahead);
   const ui = new Ui(app, root);
   // Hooks for the end-to-end tests and for scripting the editor from the console.
   Object.assign(window, { inkwarp: { app, ui, store, engine, scene, state, images, examples } });

@@ -504,46 +504,29 @@ export class Ui {
     const group = hasKeyRef(this.store.view.keySelection, ref) ? this.store.view.keySelection : [ref];
     this.store.setView({ selection: { feature: id, point: null }, keySelection: group });
     this.setTime(t0);
-    if (group.length > 1) return this.dragKeys(e, group, t0, r);
-    let cur = t0;
-    this.store.begin();
-    // The key follows the pointer from where it was pressed, measured against the row as
-    // it was then (the row is redrawn, a new element, at every change); frames snap
-    // unless Alt is held, and the key stays within the animation.
-    const x0 = e.clientX;
-    const move = (ev: PointerEvent) => {
-      const { duration } = this.store.doc;
-      const free = Math.max(0, Math.min(duration, t0 + ((ev.clientX - x0) / Math.max(1, r.width)) * duration));
-      const t = ev.altKey ? free : Math.min(this.snapTime(free), duration);
-      if (Math.abs(t - cur) < KEY_EPS) return;
-      try {
-        this.store.edit((d) => moveKey(d, id, cur, t));
-        cur = t;
-        this.store.setView({ keySelection: [{ feature: id, t }] });
-        this.setTime(t);
-      } catch {
-        // Another key is there: stay put.
-      }
-    };
-    const up = () => {
-      window.removeEventListener('pointermove', move);
-      window.removeEventListener('pointerup', up);
-      this.store.commit();
-    };
-    window.addEventListener('pointermove', move);
-    window.addEventListener('pointerup', up);
+    this.dragKeys(e, group, t0, r);
   }
 
-  /** Drags several picked keys together by the same whole number of frames (Alt: any time). */
+  /**
+   * Drags the keys of `group` (one key, or every picked key) together, following the
+   * pointer from where it was pressed on the key at `t0`, measured against the row as it
+   * was then (the row is redrawn, a new element, at every change). The pressed key lands
+   * on frames unless Alt is held, and the move stops where the first or last key of the
+   * group reaches the start or the end of the animation; a move that would put a key on
+   * another key that is not moving is not made (the keys stay where they were).
+   */
   private dragKeys(e: PointerEvent, group: KeyRef[], t0: number, r: DOMRect): void {
     const base = this.store.doc;
     const x0 = e.clientX;
+    const first = Math.min(...group.map((k) => k.t));
+    const last = Math.max(...group.map((k) => k.t));
     let dt = 0;
     this.store.begin();
     const move = (ev: PointerEvent) => {
       const { duration } = this.store.doc;
       const raw = ((ev.clientX - x0) / Math.max(1, r.width)) * duration;
-      const next = ev.altKey ? raw : this.snapTime(t0 + raw) - t0;
+      const to = ev.altKey ? t0 + raw : this.snapTime(t0 + raw);
+      const next = Math.max(-first, Math.min(duration - last, to - t0));
       if (Math.abs(next - dt) < KEY_EPS) return;
       try {
         this.store.apply(moveKeys(base, group, next));
@@ -551,7 +534,7 @@ export class Ui {
         this.store.setView({ keySelection: group.map((k) => ({ feature: k.feature, t: k.t + dt })) });
         this.setTime(t0 + dt);
       } catch {
-        // A key would leave the animation or land on another: stay put.
+        // A key would land on another: stay put.
       }
     };
     const up = () => {
