@@ -238,8 +238,13 @@ async function loadPng(page, path) {
 async function screenshot(page, name) {
   await idle(page);
   await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(() => r()))));
+  await shot(page, name);
+}
+
+/** A screenshot of `pg` as it is now (no wait), copied into the docs with UPDATE_DOCS. */
+async function shot(pg, name) {
   const path = join(screens, `editor-${name}.png`);
-  await page.screenshot({ path });
+  await pg.screenshot({ path });
   if (process.env.UPDATE_DOCS && DOC_SCREENS.includes(name)) {
     mkdirSync(docsImages, { recursive: true });
     copyFileSync(path, join(docsImages, `editor-${name}.png`));
@@ -247,7 +252,7 @@ async function screenshot(page, name) {
 }
 
 /** The screenshots docs/guides/editor.md shows. */
-const DOC_SCREENS = ['marquee', 'keys-marquee', 'matte-posed', 'start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
+const DOC_SCREENS = ['photo-proxy', 'photo-settled', 'ready-bar', 'marquee', 'keys-marquee', 'matte-posed', 'start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
 
 const median = (a) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
 const pct = (a, q) => (a.length ? [...a].sort((x, y) => x - y)[Math.min(a.length - 1, Math.floor(q * a.length))] : null);
@@ -1256,9 +1261,15 @@ test('frames are solved ahead while the editor is left alone: the ready bar fill
 });
 
 
-// Run on demand (MEASURE_PHOTO=1 node e2e/run.mjs photograph): a 4000×3000 photograph-like
-// picture opened, dragged and settled; times and memory reported, never asserted.
-if (process.env.MEASURE_PHOTO) test('measure: a 4000×3000 photograph opens, drags and settles', async () => {
+/** Resident memory (MiB) of the browser's processes: every page, worker and the GPU process. */
+function browserRssMiB() {
+  const r = spawnSync('ps', ['-C', 'chromium', '-o', 'rss='], { encoding: 'utf8' });
+  return r.stdout.split('\n').filter(Boolean).reduce((s, v) => s + Number(v), 0) / 1024;
+}
+
+// A 4000×3000 photograph (made in the page: gradients, shapes, texture and noise, saved as
+// a JPEG) opened, dragged and settled; times and memory reported, never asserted.
+test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-resolution frame', async () => {
   const { page: p, context } = await openEditor(browser, server.url);
   try {
     const t0 = Date.now();
@@ -1275,6 +1286,16 @@ if (process.env.MEASURE_PHOTO) test('measure: a 4000×3000 photograph opens, dra
         g.arc((i * 7919) % 4000, (i * 104729) % 3000, 20 + (i % 13) * 9, 0, Math.PI * 2);
         g.fill();
       }
+      // Texture: fine stripes and per-pixel noise, as a photograph has.
+      const img = g.getImageData(0, 0, 4000, 3000);
+      let seed = 7;
+      for (let i = 0; i < img.data.length; i += 4) {
+        seed = (seed * 1103515245 + 12345) & 0x7fffffff;
+        const x = (i / 4) % 4000;
+        const n = ((seed >> 16) % 25) - 12 + 10 * Math.sin(x / 3);
+        img.data[i] += n; img.data[i + 1] += n; img.data[i + 2] += n;
+      }
+      g.putImageData(img, 0, 0);
       const blob = await c.convertToBlob({ type: 'image/jpeg', quality: 0.9 });
       window.__photo = new File([blob], 'photo.jpg', { type: 'image/jpeg' });
     });
@@ -1282,8 +1303,26 @@ if (process.env.MEASURE_PHOTO) test('measure: a 4000×3000 photograph opens, dra
     await p.evaluate(async () => {
       await window.inkwarp.ui.openFile(window.__photo);
       await window.inkwarp.app.idle();
+      window.__openSteps = { ...window.inkwarp.app.stats.open };
     });
     const opened = Date.now();
+    const atOpen = await p.evaluate(() => {
+      const { app, store } = window.inkwarp;
+      return { proxy: app.proxy, frame: app.frameSize, gridStep: store.doc.solver?.grid_step, full: !!app.fullShown, note: document.querySelector('#proxy-note').hidden };
+    });
+    assert(atOpen.proxy === 4 && atOpen.frame.width === 1000 && atOpen.frame.height === 750, `a 1/4 proxy: ${JSON.stringify(atOpen)}`);
+    assert(atOpen.gridStep === 4, `the scene's grid step is the proxy's factor, so inkwarp render solves the same: ${atOpen.gridStep}`);
+    assert(atOpen.full && atOpen.note, `at rest the full-resolution picture shows and no proxy notice: ${JSON.stringify(atOpen)}`);
+    const patch = (x0, y0, size) => p.evaluate(({ x0, y0, size }) => {
+      const f = window.inkwarp.app.fullShown;
+      const out = [];
+      for (let y = y0; y < y0 + size; y++) for (let x = x0; x < x0 + size; x++) {
+        const i = 4 * (y * f.width + x);
+        out.push(f.pixels[i], f.pixels[i + 1], f.pixels[i + 2]);
+      }
+      return out;
+    }, { x0, y0, size });
+    const restPatch = await patch(1950, 1350, 100);
     await p.evaluate(async () => {
       const { store, state, ui, app } = window.inkwarp;
       store.edit((d) => state.addFeature(d, 'spline', [[1200, 900], [2000, 1500], [2800, 2100]]).doc);
@@ -1293,23 +1332,48 @@ if (process.env.MEASURE_PHOTO) test('measure: a 4000×3000 photograph opens, dra
       await app.idle();
       app.resetStats();
     });
-    await drag(p, [2000, 1500], [2200, 1400], 12);
+    // The notice while dragging, sampled at each step of the drag.
+    const [x0, y0] = await toClient(p, [2000, 1500]);
+    const [x1, y1] = await toClient(p, [2200, 1300]);
+    await p.mouse.move(x0, y0);
+    await p.mouse.down();
+    const notes = [];
+    for (let i = 1; i <= 20; i++) {
+      await p.mouse.move(x0 + ((x1 - x0) * i) / 20, y0 + ((y1 - y0) * i) / 20);
+      await p.evaluate(() => new Promise((r) => requestAnimationFrame(() => r())));
+      notes.push(await p.evaluate(() => { const n = document.querySelector('#proxy-note'); return n.hidden ? '' : n.textContent; }));
+    }
+    const rssDrag = browserRssMiB();
+    await shot(p, 'photo-proxy');
+    await p.mouse.up();
     const released = Date.now();
+    const afterRelease = await p.evaluate(() => { const n = document.querySelector('#proxy-note'); return n.hidden ? '' : n.textContent; });
     await idle(p);
     const settled = Date.now();
+    await p.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(() => r()))));
+    await shot(p, 'photo-settled');
     const s = await p.evaluate(() => {
-      const { stats } = window.inkwarp.app;
-      const mem = performance.memory ? performance.memory.usedJSHeapSize : null;
-      return { drag: [...stats.dragLatency], draft: [...stats.draftSolveMs], final: [...stats.finalSolveMs], heap: mem };
+      const { stats, fullShown } = window.inkwarp.app;
+      const mem = performance.memory ? { used: performance.memory.usedJSHeapSize, total: performance.memory.totalJSHeapSize } : null;
+      const note = document.querySelector('#proxy-note');
+      return { drag: [...stats.dragLatency], draft: [...stats.draftSolveMs], final: [...stats.finalSolveMs], full: [...stats.fullMs], heap: mem, open: window.__openSteps, fullShown: !!fullShown, note: note.hidden ? '' : note.textContent };
     });
+    const posedPatch = await patch(1950, 1350, 100);
+    let diff = 0;
+    for (let i = 0; i < restPatch.length; i++) diff += Math.abs(restPatch[i] - posedPatch[i]);
+    diff /= restPatch.length;
     perf.photo = {
-      openS: (opened - made) / 1000,
-      dragMedianMs: median(s.drag), dragMaxMs: s.drag.length ? Math.max(...s.drag) : null, dragFrames: s.drag.length,
-      draftSolveMedianMs: median(s.draft), finalSolveMs: s.final, settleS: (settled - released) / 1000,
-      heapMB: s.heap === null ? null : s.heap / 2 ** 20,
-      encodeS: (made - t0) / 1000,
+      openS: (opened - made) / 1000, openSteps: s.open,
+      dragMedianMs: median(s.drag), dragP90Ms: pct(s.drag, 0.9), dragFrames: s.drag.length,
+      draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000,
+      heapMiB: s.heap && s.heap.used / 2 ** 20, browserRssMiB: rssDrag,
+      makeS: (made - t0) / 1000, patchDiff: diff,
     };
     console.log(`  photo: ${JSON.stringify(perf.photo)}`);
+    assert(notes.every((n) => n.startsWith('Preview (1/4')), `the proxy notice shows while dragging: ${JSON.stringify(notes.slice(0, 3))}`);
+    assert(afterRelease.startsWith('Preview (1/4'), `and while settling: ${afterRelease}`);
+    assert(s.fullShown && s.note === '', `after the settle the full-resolution frame shows, no notice: ${s.note}`);
+    assert(diff > 3, `the settled frame moved where the drag pulled (mean difference ${diff.toFixed(2)} from the rest picture)`);
   } finally {
     await context.close();
   }
@@ -1544,6 +1608,7 @@ async function main() {
   if (perf.border) console.log(`  border under a hard pull: free ${perf.border.freePx.toFixed(2)} px, held ${perf.border.heldPx.toFixed(3)} px`);
   if (perf.zoom) console.log(`  wheel zoom ${perf.zoom.from.toFixed(3)} → ${perf.zoom.to.toFixed(3)}: the point under the pointer moved ${perf.zoom.drift.toFixed(4)} scene px`);
   if (perf.readyPlayback) console.log(`  ready bar: ${perf.readyPlayback.readyBefore}/12 frames before playing; 2 s of play from solved frames: ${perf.readyPlayback.shown} shown, ${perf.readyPlayback.dropped} dropped of ${perf.readyPlayback.expected}`);
+  if (perf.photo) console.log(`  4000×3000 photograph: open ${perf.photo.openS} s; drag frame median ${perf.photo.dragMedianMs?.toFixed(1)} ms (p90 ${perf.photo.dragP90Ms?.toFixed(1)}, n=${perf.photo.dragFrames}); settle ${perf.photo.settleS} s; page heap ${perf.photo.heapMiB?.toFixed(0)} MiB, browser RSS ${perf.photo.browserRssMiB.toFixed(0)} MiB`);
   if (perf.webm) console.log(`  WebM export: ${perf.webm.frames} frames, ${perf.webm.duration} s`);
   if (perf.dragLatencyMs) {
     console.log(`  ${perf.features} features, 512×512: pointer move → frame median ${perf.dragLatencyMs.median?.toFixed(1)} ms (p90 ${perf.dragLatencyMs.p90?.toFixed(1)}, n=${perf.dragLatencyMs.n})`);

@@ -7,8 +7,10 @@ import { decodeImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } fro
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
 import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './scene';
-import type { FieldEvent, SolverClient } from './solver';
+import type { FieldEvent, FullClient, FullFrame } from './solver';
+import type { SolverClient } from './solver';
 import { PROBE_TOLERANCE_PX, probedFeatures } from './probe';
+import { downscaleMatte, downscaleRgba, proxyFactor, proxySize, toProxy } from './proxy';
 import { Store } from './state';
 
 /**
@@ -66,6 +68,10 @@ export interface Stats {
   frames: { drawn: number; overlayOnly: number };
   /** The frames solved ahead (see `App.scheduleAhead`), in the order they arrived. */
   ahead: number[];
+  /** Where opening the last layer's picture took its time (ms), by step. */
+  open: Record<string, number>;
+  /** The full-resolution frames of a proxied scene: solve and draw in the worker (ms). */
+  fullMs: number[];
 }
 
 /**
@@ -134,7 +140,7 @@ function frameParts(
 type FrameFn = (gpuDone: number, drawn: { start: number; end: number }) => void;
 
 function emptyStats(): Stats {
-  return { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 }, ahead: [] };
+  return { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 }, ahead: [], open: {}, fullMs: [] };
 }
 
 /** Fields kept for playback (a 512×512 layer's field is 2 MiB). */
@@ -189,10 +195,18 @@ export class App {
     store: Store,
     readonly drafts: SolverClient | null = null,
     readonly ahead: SolverClient | null = null,
+    readonly full: FullClient | null = null,
   ) {
     this.store = store;
     this.gl = new GlRenderer(glCanvas);
     this.gl.useEngine(engine);
+    if (full) {
+      full.onFrame = (frame) => this.receiveFull(frame);
+      full.onError = (message) => {
+        this.onMessage(`Full-resolution frame: ${message}`, 'error');
+        this.checkIdle();
+      };
+    }
     for (const client of this.clients) {
       client.onField = (ev) => this.receive(ev);
       client.onError = (key, message) => {
@@ -233,18 +247,41 @@ export class App {
 
   // -- Layers ---------------------------------------------------------------------------
 
-  private cutsOf(layer: Layer): Pt[][] {
+  /** The layer's cuts at rest, in scene pixels (`proxied`: in the proxy's pixels). */
+  private cutsOf(layer: Layer, proxied = true): Pt[][] {
+    const f = proxied ? this.proxy : 1;
     return layerFeatures(this.doc, layer)
-      .filter((f) => f.kind === 'cut')
-      .map((f) => f.rest);
+      .filter((c) => c.kind === 'cut')
+      .map((c) => c.rest.map((p) => toProxy(p, f)));
+  }
+
+  /**
+   * The factor the picture is scaled down by for editing (1: none; see `proxy.ts`). A
+   * large picture is edited through its proxy: grids, drafts, full-resolution solves of
+   * the proxy and playback all work on it, and the frame solved and rendered at the
+   * picture's own resolution (`full`) replaces it once the drawing rests.
+   */
+  proxy = 1;
+
+  /** The size the editor's grids and frames have: the scene's, or its proxy's. */
+  get frameSize(): { width: number; height: number } {
+    return proxySize(this.doc.width, this.doc.height, this.proxy);
   }
 
   syncLayers(): void {
+    const f = proxyFactor(this.doc.width, this.doc.height);
+    if (f !== this.proxy) {
+      // Every layer is loaded again at the new scale.
+      this.proxy = f;
+      for (const rt of this.runtimes.values()) rt.sig = '';
+    }
+    this.fullShown = null;
     const names = new Set(this.doc.layers.map((l) => l.name));
     for (const [name, rt] of this.runtimes) {
       if (!names.has(name)) {
         rt.gl?.dispose();
         for (const client of this.clients) client.dropGrid(name);
+        this.full?.dropLayer(name);
         this.runtimes.delete(name);
       }
     }
@@ -270,7 +307,7 @@ export class App {
         };
         this.runtimes.set(layer.name, rt);
       }
-      const sig = `${layer.image}|${layer.alpha ?? ''}|${layer.continuity ?? ''}`;
+      const sig = `${layer.image}|${layer.alpha ?? ''}|${layer.continuity ?? ''}|${this.doc.width}x${this.doc.height}`;
       const cutsSig = JSON.stringify(this.cutsOf(layer));
       if (sig !== rt.sig) {
         rt.sig = sig;
@@ -279,6 +316,7 @@ export class App {
       } else if (cutsSig !== rt.cutsSig) {
         rt.cutsSig = cutsSig;
         if (rt.matte) this.rebuildGrid(rt, layer);
+        if (this.full) this.full.setLayer(rt.name, null, null, this.cutsOf(layer, false));
       }
     }
   }
@@ -295,7 +333,15 @@ export class App {
         rt.rgba = null;
         return;
       }
+      let mark = performance.now();
+      const step = (name: string) => {
+        const now = performance.now();
+        this.stats.open[name] = (this.stats.open[name] ?? 0) + now - mark;
+        mark = now;
+      };
+      this.stats.open = {};
       let img = await decodeImage(layer.image);
+      step('decode');
       const { width, height } = this.doc;
       const check = (what: string, im: Rgba) => {
         if (im.width !== width || im.height !== height) {
@@ -316,17 +362,29 @@ export class App {
       } else {
         matte = matteFromAlpha(img);
       }
+      step('matte');
       if (rt.sig !== sig) return; // superseded while decoding
+      const f = this.proxy;
+      if (f > 1 && this.full) {
+        // The picture itself goes to the worker that draws full-resolution frames; the
+        // editor keeps its proxy.
+        this.full.setLayer(rt.name, img, matte, this.cutsOf(layer, false));
+        step('to full-resolution worker');
+        img = downscaleRgba(img, f);
+        matte = downscaleMatte(matte, width, height, f);
+        step('proxy');
+      }
       rt.rgba = img;
       rt.matte = matte;
       rt.error = null;
-      if (!rt.gl || rt.gl.width !== width || rt.gl.height !== height) {
+      if (!rt.gl || rt.gl.width !== img.width || rt.gl.height !== img.height) {
         rt.gl?.dispose();
-        rt.gl = this.gl.layer(width, height);
+        rt.gl = this.gl.layer(img.width, img.height);
       }
       rt.gl.setImage(img.data);
       rt.gl.setField(null);
       rt.field = null;
+      step('upload');
       this.rebuildGrid(rt, this.doc.layers.find((l) => l.name === rt.name) ?? layer);
     } catch (err) {
       rt.error = (err as Error).message;
@@ -346,11 +404,16 @@ export class App {
     rt.lastRequest = '';
     this.busyCount++;
     const cuts = this.cutsOf(layer);
-    Promise.all(this.clients.map((c) => c.setGrid(rt.name, this.doc.width, this.doc.height, rt.matte, cuts)))
+    const t0 = performance.now();
+    const { width, height } = this.frameSize;
+    Promise.all(this.clients.map((c) => c.setGrid(rt.name, width, height, rt.matte, cuts)))
       .then(([links]) => {
         if (gen !== rt.gridGen) return;
+        const t1 = performance.now();
+        this.stats.open.grid = t1 - t0;
         rt.links = links;
         rt.gl?.setMesh(links, rt.rgba?.data ?? null);
+        this.stats.open.mesh = performance.now() - t1;
         if (rt.gl && this.drafts) {
           // Drafts are solved at the draft mesh's pixels only (see `sparseDraft`).
           this.drafts.select(rt.name, rt.gl.draftPixels);
@@ -377,20 +440,34 @@ export class App {
     return this.store.view.mode === 'pose' || this.store.view.playing;
   }
 
-  solverOptions(layer: Layer, quality: Quality): SolveOptions {
-    return solverOptions(this.doc, layer, quality);
+  /**
+   * A layer's solve request settings (`proxied`: for the proxy, whose pixels are `proxy`
+   * scene pixels: its grid step and sampling are the scene's divided by the factor, at
+   * least 1, and its drafts' grid is as coarse as for a picture of the proxy's size).
+   */
+  solverOptions(layer: Layer, quality: Quality, proxied = true): SolveOptions {
+    const f = proxied ? this.proxy : 1;
+    if (f === 1) return solverOptions(this.doc, layer, quality);
+    const { width, height } = this.frameSize;
+    const scene = solverOptions(this.doc, layer, 'final');
+    const base = Math.max(1, Math.round((scene.grid_step ?? 1) / f));
+    const ps = solverOptions({ ...this.doc, width, height, solver: { ...this.doc.solver, grid_step: base } }, { ...layer, solver: layer.solver ? { ...layer.solver, grid_step: base } : undefined }, quality);
+    return ps;
   }
 
-  solveFeatures(layer: Layer, time: number): SolveFeature[] {
+  /** A layer's features at `time` as the solver reads them (`proxied`: in the proxy's pixels). */
+  solveFeatures(layer: Layer, time: number, proxied = true): SolveFeature[] {
+    const f = proxied ? this.proxy : 1;
+    const at = (pts: Pt[]) => (f === 1 ? pts : pts.map((p) => toProxy(p, f)));
     return layerFeatures(this.doc, layer)
-      .filter((f) => f.kind !== 'cut')
-      .map((f) => ({
-        id: f.id,
-        kind: f.kind,
-        rest: f.rest,
-        pose: pointsAt(f, time),
-        closed: f.kind === 'region' || !!f.closed,
-        spline_outline: f.kind === 'region' && f.curve === 'spline',
+      .filter((c) => c.kind !== 'cut')
+      .map((c) => ({
+        id: c.id,
+        kind: c.kind,
+        rest: at(c.rest),
+        pose: at(pointsAt(c, time)),
+        closed: c.kind === 'region' || !!c.closed,
+        spline_outline: c.kind === 'region' && c.curve === 'spline',
       }));
   }
 
@@ -505,8 +582,69 @@ export class App {
     }
   }
 
+  private fullAsked = '';
+  /** The full-resolution frame on screen (a proxied scene), or null while the proxy shows. */
+  fullShown: FullFrame | null = null;
+  /** Called when a full-resolution frame arrives for what is on screen (`fullShown`), or is taken away (null). */
+  onFull: (frame: FullFrame | null) => void = () => {};
+
+  /** What the frame on screen depends on: a full-resolution frame is shown for this only. */
+  private fullKey(): string {
+    const { view } = this.store;
+    return JSON.stringify([this.store.revision, view.time, this.posed, view.hidden, this.doc.background ?? null]);
+  }
+
+  /**
+   * A proxied scene at rest (no drag, no playback): asks the full-resolution worker for the
+   * frame at the current time, every layer solved at the picture's own resolution with the
+   * scene's settings and drawn by the engine's renderer, as \`inkwarp render\` draws it.
+   */
+  private requestFull(): void {
+    const full = this.full;
+    if (!full || this.proxy === 1 || this.dragging || this.store.view.playing) return;
+    const key = this.fullKey();
+    if (this.fullShown?.key === key || (key === this.fullAsked && full.busy)) return;
+    this.fullAsked = key;
+    const time = this.store.view.time;
+    const layers = [];
+    for (const layer of this.doc.layers) {
+      const rt = this.runtimes.get(layer.name);
+      if (!rt?.gl || layer.visible === false || this.store.view.hidden.includes(layer.name)) continue;
+      layers.push({
+        key: layer.name,
+        features: this.posed ? this.solveFeatures(layer, time, false) : null,
+        options: this.solverOptions(layer, 'final', false),
+        offset: layer.offset ?? ([0, 0] as Pt),
+      });
+    }
+    full.render({ key, width: this.doc.width, height: this.doc.height, background: this.doc.background ?? [255, 255, 255, 255], layers, madeAt: performance.now() });
+  }
+
+  private receiveFull(frame: FullFrame): void {
+    this.stats.fullMs.push(frame.ms);
+    if (frame.key !== this.fullKey() || this.dragging || this.store.view.playing) {
+      // Stale: ask again for what is on screen now.
+      this.requestFull();
+      this.checkIdle();
+      return;
+    }
+    this.fullShown = frame;
+    this.onFull(frame);
+    this.checkIdle();
+  }
+
+  /** Drops the full-resolution frame on screen (the scene, the time or the view changed). */
+  private dropFull(): void {
+    if (this.fullShown && this.fullShown.key !== this.fullKey()) {
+      this.fullShown = null;
+      this.onFull(null);
+    }
+  }
+
   /** Asks the worker for every layer's field at the current time. */
   requestSolve(quality: Quality): void {
+    this.dropFull();
+    if (quality === 'final') this.requestFull();
     const time = this.store.view.time;
     if (!this.posed) {
       for (const rt of this.runtimes.values()) {
@@ -753,7 +891,8 @@ export class App {
     const layers = this.drawList();
     const draft = this.dragging || this.store.view.playing || holdsSparse(layers);
     const doc = this.doc;
-    const same = this.gl.drawn(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], layers, !draft, draft);
+    const { width, height } = this.frameSize;
+    const same = this.gl.drawn(width, height, doc.background ?? [255, 255, 255, 255], layers, !draft, draft);
     if (same && !this.antialiasDue && !this.pendingLatency.length && !this.afterFrameFns.length) {
       this.stats.frames.overlayOnly++;
       this.onFrame();
@@ -780,7 +919,8 @@ export class App {
     for (const layer of this.doc.layers) {
       const rt = this.runtimes.get(layer.name);
       if (!rt?.gl || layer.visible === false || this.store.view.hidden.includes(layer.name)) continue;
-      layers.push({ layer: rt.gl, offset: layer.offset ?? ([0, 0] as Pt) });
+      const o = layer.offset ?? ([0, 0] as Pt);
+      layers.push({ layer: rt.gl, offset: this.proxy === 1 ? o : [o[0] / this.proxy, o[1] / this.proxy] });
     }
     return layers;
   }
@@ -791,7 +931,8 @@ export class App {
    */
   draw(draft: boolean, antialias = !draft, adaptive = false): void {
     const doc = this.doc;
-    this.gl.render(doc.width, doc.height, doc.background ?? [255, 255, 255, 255], this.drawList(), antialias, draft, adaptive);
+    const { width, height } = this.frameSize;
+    this.gl.render(width, height, doc.background ?? [255, 255, 255, 255], this.drawList(), antialias, draft, adaptive);
   }
 
   /**
@@ -830,7 +971,7 @@ export class App {
 
   get busy(): boolean {
     // Solving ahead (a worker of its own, see `scheduleAhead`) is background work: not busy.
-    return this.busyCount > 0 || this.clients.some((c) => c !== this.ahead && c.busy) || this.frameQueued || this.settleTimer !== null || this.gpuPending > 0;
+    return this.busyCount > 0 || this.clients.some((c) => c !== this.ahead && c.busy) || !!this.full?.busy || this.frameQueued || this.settleTimer !== null || this.gpuPending > 0;
   }
 
   private checkIdle(): void {

@@ -8,7 +8,7 @@ import { builtinScene } from './examples';
 import * as examples from './examples';
 import * as images from './images';
 import * as scene from './scene';
-import { SolverClient } from './solver';
+import { FullClient, SolverClient } from './solver';
 import * as state from './state';
 import { Store } from './state';
 import { Ui } from './ui';
@@ -27,13 +27,15 @@ async function start(): Promise<void> {
   const drafts = spawn();
   // A third solves the animation's frames ahead while the editor is left alone.
   const ahead = spawn();
-  await Promise.all([solver.ready, drafts.ready, ahead.ready]);
+  // A fourth draws a large picture's full-resolution frames (see `proxy.ts`).
+  const full = new FullClient(new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
+  await Promise.all([solver.ready, drafts.ready, ahead.ready, full.ready]);
   const params = new URLSearchParams(location.search);
   const sceneUrl = params.get('scene');
   const store = new Store(await builtinScene());
   const glCanvas = document.createElement('canvas');
   glCanvas.className = 'picture';
-  const app = new App(engine, solver, glCanvas, store, drafts, ahead);
+  const app = new App(engine, solver, glCanvas, store, drafts, ahead, full);
   const ui = new Ui(app, root);
   // Hooks for the end-to-end tests and for scripting the editor from the console.
   Object.assign(window, { inkwarp: { app, ui, store, engine, scene, state, images, examples } });

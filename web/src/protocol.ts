@@ -7,6 +7,14 @@ export type ToWorker =
   | { type: 'init'; wasmUrl: string }
   | { type: 'grid'; key: string; width: number; height: number; matte: Uint8Array | null; cuts: Pt[][] }
   | { type: 'drop'; key: string }
+  /**
+   * A layer at the picture's own resolution, for full-resolution frames (a proxied scene):
+   * its straight RGBA8 and continuity matte (null: keep the ones it has) and its cuts.
+   */
+  | { type: 'full-layer'; key: string; image: { width: number; height: number; data: Uint8Array } | null; matte: Uint8Array | null; cuts: Pt[][] }
+  | { type: 'full-drop'; key: string }
+  /** The frame of these layers (back to front; `features` null: at rest), solved and drawn at full resolution. */
+  | { type: 'full-render'; id: number; width: number; height: number; background: [number, number, number, number]; layers: FullLayerRequest[] }
   /** The pixels a sparse solve computes on this layer's grid (the draft mesh's, see `draftPixels`). */
   | { type: 'select'; key: string; pixels: Uint32Array }
   | {
@@ -29,12 +37,22 @@ export type ToWorker =
       follow?: boolean;
     };
 
+/** One layer of a full-resolution frame. */
+export interface FullLayerRequest {
+  key: string;
+  features: SolveFeature[] | null;
+  options: SolveOptions;
+  offset: Pt;
+}
+
 export type FromWorker =
   | { type: 'ready' }
   /** The engine trapped (a bug): it was reloaded and every grid must be sent again. */
   | { type: 'reset'; message: string }
   | { type: 'error'; id: number | null; key: string | null; message: string }
   | { type: 'links'; key: string; links: Uint8Array }
+  /** A full-resolution frame (straight RGBA8), with the time its solves and its drawing took (ms). */
+  | { type: 'full'; id: number; width: number; height: number; pixels: Uint8Array; solveMs: number; drawMs: number; cycles: number[] }
   | {
       type: 'field';
       id: number;

@@ -3,7 +3,7 @@
 // queue — the picture always catches up with the pointer.
 
 import type { FieldData, SolveFeature, SolveOptions, SolveReport } from './engine';
-import type { FromWorker, ToWorker } from './protocol';
+import type { FromWorker, FullLayerRequest, ToWorker } from './protocol';
 import type { Pt } from './scene';
 
 export interface SolveTag {
@@ -168,6 +168,101 @@ export class SolverClient {
       const waiter = msg.key !== null ? this.linkWaiters.get(msg.key)?.shift() : undefined;
       if (waiter) waiter.reject(new Error(msg.message));
       else this.onError(msg.key, msg.message);
+    }
+  }
+}
+
+/** A frame solved and drawn at the picture's own resolution (see `FullClient`). */
+export interface FullFrame {
+  /** What it was asked for (`App.fullKey`): it is shown while that is what is on screen. */
+  key: string;
+  width: number;
+  height: number;
+  /** Straight RGBA8. */
+  pixels: Uint8Array;
+  /** From the request to its arrival, and the worker's solves and drawing (ms). */
+  ms: number;
+  solveMs: number;
+  drawMs: number;
+  cycles: number[];
+}
+
+export interface FullRequest {
+  key: string;
+  width: number;
+  height: number;
+  background: [number, number, number, number];
+  layers: FullLayerRequest[];
+  madeAt: number;
+}
+
+/**
+ * The page's side of the worker that draws full-resolution frames of a proxied scene: it
+ * holds every layer's picture, matte and grid at the picture's own resolution; one frame
+ * in flight, and only the newest request waits.
+ */
+export class FullClient {
+  readonly ready: Promise<void>;
+  private inFlight: { id: number; req: FullRequest } | null = null;
+  private pending: FullRequest | null = null;
+  private nextId = 1;
+  onFrame: (frame: FullFrame) => void = () => {};
+  onError: (message: string) => void = () => {};
+
+  constructor(
+    private worker: Worker,
+    wasmUrl: string,
+  ) {
+    this.ready = new Promise((resolve, reject) => {
+      const first = (ev: MessageEvent<FromWorker>) => {
+        if (ev.data.type === 'ready') resolve();
+        else if (ev.data.type === 'error') reject(new Error(ev.data.message));
+        else return;
+        worker.removeEventListener('message', first);
+        worker.addEventListener('message', (e: MessageEvent<FromWorker>) => this.receive(e.data));
+      };
+      worker.addEventListener('message', first);
+    });
+    worker.postMessage({ type: 'init', wasmUrl } satisfies ToWorker);
+  }
+
+  /** Sends a layer's picture (copied: the page keeps its own), matte and cuts; null keeps what the worker has. */
+  setLayer(key: string, image: { width: number; height: number; data: Uint8Array } | null, matte: Uint8Array | null, cuts: Pt[][]): void {
+    this.worker.postMessage({ type: 'full-layer', key, image, matte, cuts } satisfies ToWorker);
+  }
+
+  dropLayer(key: string): void {
+    this.worker.postMessage({ type: 'full-drop', key } satisfies ToWorker);
+  }
+
+  render(req: FullRequest): void {
+    this.pending = req;
+    this.pump();
+  }
+
+  get busy(): boolean {
+    return this.inFlight !== null || this.pending !== null;
+  }
+
+  private pump(): void {
+    if (this.inFlight || !this.pending) return;
+    const req = this.pending;
+    this.pending = null;
+    const id = this.nextId++;
+    this.inFlight = { id, req };
+    this.worker.postMessage({ type: 'full-render', id, width: req.width, height: req.height, background: req.background, layers: req.layers } satisfies ToWorker);
+  }
+
+  private receive(msg: FromWorker): void {
+    const done = this.inFlight;
+    if (msg.type === 'full' && done && msg.id === done.id) {
+      this.inFlight = null;
+      this.onFrame({ key: done.req.key, width: msg.width, height: msg.height, pixels: msg.pixels, ms: performance.now() - done.req.madeAt, solveMs: msg.solveMs, drawMs: msg.drawMs, cycles: msg.cycles });
+      this.pump();
+    } else if (msg.type === 'error') {
+      if (done && msg.id === done.id) this.inFlight = null;
+      this.onError(msg.message);
+      this.pump();
     }
   }
 }

@@ -7,6 +7,8 @@ import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './exampl
 import { blobToDataUri, decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
 import { isPsdName, readLayeredPsd, uniqueNames } from './psd';
 import { Overlay } from './overlay';
+import type { FullFrame } from './solver';
+import { proxyFactor } from './proxy';
 import { canEncodeWebm, encodeWebm } from './webm';
 import { PROBE_DWELL_MS } from './probe';
 import {
@@ -139,10 +141,17 @@ export class Ui {
     this.overlayCanvas = h('canvas.overlay', { 'aria-label': 'drawing' });
     this.overlay = new Overlay(this.overlayCanvas, app.engine);
     const pictures = app.gl.draftCanvas ? [this.glCanvas, app.gl.draftCanvas] : [this.glCanvas];
-    this.stage = h('div.stage', {}, h('div.frame', {}, ...pictures, this.overlayCanvas));
+    // A large picture's full-resolution frame, over the proxy's (see \`App.requestFull\`).
+    this.fullCanvas = h('canvas.picture.full', { hidden: true }) as HTMLCanvasElement;
+    this.proxyNote = h('div#proxy-note.proxy-note', { hidden: true }, '');
+    this.stage = h('div.stage', {}, h('div.frame', {}, ...pictures, this.fullCanvas, this.overlayCanvas), this.proxyNote);
     this.build(root);
     app.onMessage = (t, k) => this.message(t, k);
-    app.onFrame = () => this.drawOverlay();
+    app.onFull = (frame) => this.showFull(frame);
+    app.onFrame = () => {
+      this.drawOverlay();
+      this.updateProxyNote();
+    };
     app.onSolved = () => {
       this.updateStatus();
       this.renderReady();
@@ -209,6 +218,8 @@ export class Ui {
               const available = this.app.engine.methods().find((x) => x.name === m)?.available ?? false;
               return h('option', { value: m, disabled: !available, title: available ? METHOD_NOTES[m] : 'not in this build' }, available ? m : `${m} (not available)`);
             })))),
+        h('label', { title: 'The grid thin plate is solved on every n-th pixel and interpolated between (saved in the scene as solver.grid_step, as inkwarp render reads it); a large picture starts with a step that keeps it quick' }, ' Grid step ',
+          (this.els.gridStep = h('input#grid-step', { type: 'number', min: 1, max: 64, step: 1, onchange: (e: Event) => this.setGridStep(Number((e.target as HTMLInputElement).value)) }))),
       ),
       h('div.group.overlays', {},
         h('label', { title: 'Show the drawing (D)' }, (this.els.ovDrawing = h('input#ov-drawing', { type: 'checkbox', onchange: (e: Event) => this.setOverlay({ drawing: (e.target as HTMLInputElement).checked }) })), 'Drawing'),
@@ -281,6 +292,7 @@ export class Ui {
     document.getElementById('mode-pose')!.classList.toggle('active', view.mode === 'pose');
     document.body.dataset.mode = view.mode;
     (this.els.method as HTMLSelectElement).value = doc.solver?.method ?? 'tps';
+    if (document.activeElement !== this.els.gridStep) (this.els.gridStep as HTMLInputElement).value = String(doc.solver?.grid_step ?? 1);
     (this.els.ovDrawing as HTMLInputElement).checked = view.overlays.drawing;
     (this.els.ovHeat as HTMLSelectElement).value = view.overlays.heat;
     (this.els.ovMesh as HTMLInputElement).checked = view.overlays.mesh;
@@ -309,6 +321,7 @@ export class Ui {
     if (docChanged) this.layout();
     this.drawOverlay();
     this.updateStatus();
+    this.updateProxyNote();
   }
 
   private renderLayers(): void {
@@ -544,6 +557,34 @@ export class Ui {
     };
     window.addEventListener('pointermove', move);
     window.addEventListener('pointerup', up);
+  }
+
+  private fullCanvas: HTMLCanvasElement;
+  private proxyNote: HTMLElement;
+
+  /** Shows a full-resolution frame over the proxy's, or (null) takes it away. */
+  private showFull(frame: FullFrame | null): void {
+    const c = this.fullCanvas;
+    if (frame) {
+      if (c.width !== frame.width) c.width = frame.width;
+      if (c.height !== frame.height) c.height = frame.height;
+      const px = new Uint8ClampedArray(frame.pixels.buffer as ArrayBuffer, frame.pixels.byteOffset, frame.pixels.byteLength);
+      c.getContext('2d')!.putImageData(new ImageData(px, frame.width, frame.height), 0, 0);
+    }
+    c.hidden = !frame;
+    this.updateProxyNote();
+  }
+
+  /** Says when the picture on screen is the proxy of a large picture. */
+  updateProxyNote(): void {
+    const f = this.app.proxy;
+    const note = this.proxyNote;
+    const proxied = f > 1 && !this.app.fullShown;
+    note.hidden = !proxied;
+    if (!proxied) return;
+    const { width, height } = this.app.frameSize;
+    const what = `Preview (1/${f} picture, ${width}×${height})`;
+    note.textContent = this.app.dragging || this.store.view.playing ? what : `${what} — settling…`;
   }
 
   /** Copied keys (Ctrl+C), pasted at the current time by Ctrl+V. */
@@ -1277,8 +1318,29 @@ export class Ui {
     }
   }
 
+  /** Sets the scene's `solver.grid_step` (a whole number of pixels, 1 or more). */
+  setGridStep(step: number): void {
+    if (!Number.isInteger(step) || step < 1 || step > 64) {
+      this.message(`The grid step is a whole number of pixels from 1 to 64, not ${step}.`, 'error');
+      this.refresh(false);
+      return;
+    }
+    this.tryEdit((d) => {
+      const solver = { ...(d.solver ?? {}) };
+      if (step === 1) delete solver.grid_step;
+      else solver.grid_step = step;
+      return { ...d, solver };
+    });
+  }
+
   sceneFromImage(uri: string, img: Rgba, name: string): SceneDoc {
     const doc = emptyScene(img.width, img.height);
+    // A large picture is edited through a proxy scaled down by a factor (see \`proxy.ts\`),
+    // and solved at full resolution on a grid of the same step, so that the frame that
+    // replaces the proxy takes about as long to solve as the proxy and \`inkwarp render\`
+    // draws the same frames (the step is saved in the scene).
+    const f = proxyFactor(img.width, img.height);
+    if (f > 1) doc.solver = { ...(doc.solver ?? {}), grid_step: f };
     // A photograph's edge stays put: the drawing never pulls the background into view.
     doc.layers.push({ name: name.replace(/\.[^.]*$/, '') || 'picture', image: uri, border: 'hold' });
     return doc;

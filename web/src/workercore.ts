@@ -6,6 +6,7 @@ import { Engine, type FieldData, type GridHandle } from './engine';
 import { adaptiveTriangles } from './gl';
 import { LastFields } from './lastfields';
 import type { FromWorker, ToWorker } from './protocol';
+import type { Pt } from './scene';
 
 /** Sends a message to the page, handing over the buffers in `transfer`. */
 export type Post = (msg: FromWorker, transfer?: Transferable[]) => void;
@@ -51,6 +52,13 @@ export class SolverWorker {
         this.gridOf(msg.key).select(msg.pixels);
       } else if (msg.type === 'solve') {
         this.solve(msg);
+      } else if (msg.type === 'full-layer') {
+        this.fullLayer(msg);
+      } else if (msg.type === 'full-drop') {
+        this.fulls.get(msg.key)?.grid?.free();
+        this.fulls.delete(msg.key);
+      } else if (msg.type === 'full-render') {
+        this.fullRender(msg);
       }
     } catch (err) {
       if (err instanceof WebAssembly.RuntimeError && this.wasmUrl) {
@@ -58,14 +66,62 @@ export class SolverWorker {
         const why = this.engine?.panicMessage() || err.message;
         this.engine = await this.load(this.wasmUrl);
         this.grids.clear();
+        this.fulls.clear();
         this.last.clear();
         this.linksOf.clear();
         this.post({ type: 'reset', message: `The engine stopped (${why}) and was restarted.` });
       }
-      const id = msg.type === 'solve' ? msg.id : null;
+      const id = msg.type === 'solve' || msg.type === 'full-render' ? msg.id : null;
       const key = 'key' in msg ? msg.key : null;
       this.post({ type: 'error', id, key, message: (err as Error).message ?? String(err) });
     }
+  }
+
+  /**
+   * Layers at the picture's own resolution (a proxied scene's full-resolution frames): the
+   * picture, the matte and cuts its grid is built from (when first drawn), and the last
+   * field solved on it (the next solve's start).
+   */
+  private fulls = new Map<string, { image: { width: number; height: number; data: Uint8Array } | null; matte: Uint8Array | null; cuts: Pt[][]; grid: GridHandle | null; field: FieldData | null; zero: FieldData | null }>();
+
+  private fullLayer(msg: Extract<ToWorker, { type: 'full-layer' }>): void {
+    const had = this.fulls.get(msg.key);
+    had?.grid?.free();
+    this.fulls.set(msg.key, { image: msg.image ?? had?.image ?? null, matte: msg.matte ?? had?.matte ?? null, cuts: msg.cuts, grid: null, field: null, zero: null });
+  }
+
+  /**
+   * A full-resolution frame: each layer solved on its own grid with the scene's settings
+   * (starting from its last field there), at rest the identity, then drawn by the engine's
+   * renderer over the background, as \`inkwarp render\` draws the frame.
+   */
+  private fullRender(msg: Extract<ToWorker, { type: 'full-render' }>): void {
+    const engine = this.engine!;
+    let solveMs = 0;
+    const cycles: number[] = [];
+    const layers = [];
+    for (const l of msg.layers) {
+      const full = this.fulls.get(l.key);
+      if (!full?.image || !full.matte) throw new Error(`The layer ${l.key} has no picture at full resolution.`);
+      const { width, height, data } = full.image;
+      const t0 = performance.now();
+      full.grid ??= engine.grid(width, height, full.matte, full.cuts);
+      const n = width * height;
+      let field: FieldData;
+      if (l.features) {
+        const solved = full.grid.solve(l.features, l.options, full.field);
+        field = full.field = solved.field;
+        cycles.push(solved.report.cycles ?? 0);
+      } else {
+        field = full.zero ??= { width, height, dx: new Float32Array(n), dy: new Float32Array(n) };
+      }
+      solveMs += performance.now() - t0;
+      layers.push({ image: data, grid: full.grid, field, offset: l.offset });
+    }
+    const t1 = performance.now();
+    const pixels = engine.renderCpu(msg.width, msg.height, msg.background, layers);
+    const drawMs = performance.now() - t1;
+    this.post({ type: 'full', id: msg.id, width: msg.width, height: msg.height, pixels, solveMs, drawMs, cycles }, [pixels.buffer]);
   }
 
   private gridOf(key: string): GridHandle {

@@ -1,0 +1,88 @@
+// Large pictures: the editor works on a proxy, the picture scaled down by a whole factor,
+// and draws the full-resolution frame (solved and rendered as `inkwarp render` does) once
+// the drawing rests.
+
+import type { Rgba } from './images';
+import type { Pt } from './scene';
+
+/** A picture with more pixels than this is edited through a proxy. */
+export const PROXY_ABOVE_PX = 2_100_000;
+/** A proxy has about this many pixels (at most). */
+export const PROXY_TARGET_PX = 800_000;
+
+/**
+ * The whole factor a picture of `width × height` is scaled down by to make its proxy (1:
+ * no proxy). A 4000 × 3000 photograph gets 4 (a 1000 × 750 proxy); 1920 × 1080 gets none.
+ */
+export function proxyFactor(width: number, height: number): number {
+  const n = width * height;
+  return n > PROXY_ABOVE_PX ? Math.ceil(Math.sqrt(n / PROXY_TARGET_PX)) : 1;
+}
+
+/** The proxy's size for a factor: every proxy pixel stands for an `f × f` block (the last ones clipped). */
+export function proxySize(width: number, height: number, f: number): { width: number; height: number } {
+  return { width: Math.ceil(width / f), height: Math.ceil(height / f) };
+}
+
+/**
+ * A scene point in proxy pixels: proxy pixel `j` covers scene pixels `f·j … f·j + f − 1`,
+ * so its centre is at scene coordinate `f·j + (f − 1)/2`.
+ */
+export function toProxy(p: Pt, f: number): Pt {
+  if (f === 1) return p;
+  const c = (f - 1) / 2;
+  return [(p[0] - c) / f, (p[1] - c) / f];
+}
+
+/** Straight RGBA8 scaled down by `f`: each block's premultiplied mean (a box filter). */
+export function downscaleRgba(img: Rgba, f: number): Rgba {
+  const { width: w, height: h, data } = img;
+  const { width: pw, height: ph } = proxySize(w, h, f);
+  const out = new Uint8Array(4 * pw * ph);
+  const acc = new Float64Array(4 * pw);
+  const count = new Uint32Array(pw);
+  for (let py = 0; py < ph; py++) {
+    acc.fill(0);
+    count.fill(0);
+    const y1 = Math.min(h, (py + 1) * f);
+    for (let y = py * f; y < y1; y++) {
+      let i = 4 * y * w;
+      for (let x = 0; x < w; x++, i += 4) {
+        const j = (x / f) | 0;
+        const a = data[i + 3];
+        acc[4 * j] += data[i] * a;
+        acc[4 * j + 1] += data[i + 1] * a;
+        acc[4 * j + 2] += data[i + 2] * a;
+        acc[4 * j + 3] += a;
+        count[j]++;
+      }
+    }
+    for (let j = 0; j < pw; j++) {
+      const o = 4 * (py * pw + j);
+      const a = acc[4 * j + 3];
+      if (a > 0) {
+        out[o] = Math.round(acc[4 * j] / a);
+        out[o + 1] = Math.round(acc[4 * j + 1] / a);
+        out[o + 2] = Math.round(acc[4 * j + 2] / a);
+        out[o + 3] = Math.round(a / count[j]);
+      }
+    }
+  }
+  return { width: pw, height: ph, data: out };
+}
+
+/**
+ * A continuity matte scaled down by `f`: a proxy pixel takes the value at its block's
+ * centre pixel (holes and connected strips keep their place; one narrower than `f` pixels
+ * may fall between centres: the full-resolution frame has it).
+ */
+export function downscaleMatte(matte: Uint8Array, width: number, height: number, f: number): Uint8Array {
+  const { width: pw, height: ph } = proxySize(width, height, f);
+  const out = new Uint8Array(pw * ph);
+  const half = f >> 1;
+  for (let py = 0; py < ph; py++) {
+    const y = Math.min(height - 1, py * f + half);
+    for (let px = 0; px < pw; px++) out[py * pw + px] = matte[y * width + Math.min(width - 1, px * f + half)];
+  }
+  return out;
+}
