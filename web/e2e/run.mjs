@@ -1270,6 +1270,7 @@ function browserRssMiB() {
 // A 4000×3000 photograph (made in the page: gradients, shapes, texture and noise, saved as
 // a JPEG) opened, dragged and settled; times and memory reported, never asserted.
 test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-resolution frame', async () => {
+  const rssBefore = browserRssMiB();
   const { page: p, context } = await openEditor(browser, server.url);
   try {
     const t0 = Date.now();
@@ -1300,10 +1301,17 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       window.__photo = new File([blob], 'photo.jpg', { type: 'image/jpeg' });
     });
     const made = Date.now();
-    await p.evaluate(async () => {
-      await window.inkwarp.ui.openFile(window.__photo);
-      await window.inkwarp.app.idle();
-      window.__openSteps = { ...window.inkwarp.app.stats.open };
+    const firstFrame = await p.evaluate(async () => {
+      const { app, ui } = window.inkwarp;
+      const t = performance.now();
+      let first = null;
+      const was = app.onFrame;
+      app.onFrame = () => { if (first === null && app.proxy > 1) first = performance.now() - t; was(); };
+      await ui.openFile(window.__photo);
+      await app.idle();
+      app.onFrame = was;
+      window.__openSteps = { ...app.stats.open, fullAtRest: app.stats.fullParts[0] };
+      return first;
     });
     const opened = Date.now();
     const atOpen = await p.evaluate(() => {
@@ -1344,6 +1352,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       notes.push(await p.evaluate(() => { const n = document.querySelector('#proxy-note'); return n.hidden ? '' : n.textContent; }));
     }
     const rssDrag = browserRssMiB();
+    if (process.env.SHOW_RSS) console.log(spawnSync('ps', ['-C', 'chromium', '-o', 'rss=,args='], { encoding: 'utf8' }).stdout.split('\n').map((l) => l.slice(0, 160).replace(/--[a-z-]+=\S{40,}/g, '')).join('\n'));
     await shot(p, 'photo-proxy');
     await p.mouse.up();
     const released = Date.now();
@@ -1354,19 +1363,19 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     await shot(p, 'photo-settled');
     const s = await p.evaluate(() => {
       const { stats, fullShown } = window.inkwarp.app;
-      const mem = performance.memory ? { used: performance.memory.usedJSHeapSize, total: performance.memory.totalJSHeapSize } : null;
+      const mem = performance.memory ? { used: performance.memory.usedJSHeapSize, total: performance.memory.totalJSHeapSize, wasm: window.inkwarp.engine.x.memory.buffer.byteLength / 2 ** 20 } : null;
       const note = document.querySelector('#proxy-note');
-      return { drag: [...stats.dragLatency], draft: [...stats.draftSolveMs], final: [...stats.finalSolveMs], full: [...stats.fullMs], heap: mem, open: window.__openSteps, fullShown: !!fullShown, note: note.hidden ? '' : note.textContent };
+      return { drag: [...stats.dragLatency], draft: [...stats.draftSolveMs], final: [...stats.finalSolveMs], full: [...stats.fullMs], fullParts: stats.fullParts, heap: mem, open: window.__openSteps, fullShown: !!fullShown, note: note.hidden ? '' : note.textContent };
     });
     const posedPatch = await patch(1950, 1350, 100);
     let diff = 0;
     for (let i = 0; i < restPatch.length; i++) diff += Math.abs(restPatch[i] - posedPatch[i]);
     diff /= restPatch.length;
     perf.photo = {
-      openS: (opened - made) / 1000, openSteps: s.open,
+      openS: (opened - made) / 1000, firstProxyFrameS: firstFrame / 1000, openSteps: s.open, fullParts: s.fullParts,
       dragMedianMs: median(s.drag), dragP90Ms: pct(s.drag, 0.9), dragFrames: s.drag.length,
       draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000,
-      heapMiB: s.heap && s.heap.used / 2 ** 20, browserRssMiB: rssDrag,
+      heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssBeforeMiB: rssBefore,
       makeS: (made - t0) / 1000, patchDiff: diff,
     };
     console.log(`  photo: ${JSON.stringify(perf.photo)}`);
@@ -1608,7 +1617,7 @@ async function main() {
   if (perf.border) console.log(`  border under a hard pull: free ${perf.border.freePx.toFixed(2)} px, held ${perf.border.heldPx.toFixed(3)} px`);
   if (perf.zoom) console.log(`  wheel zoom ${perf.zoom.from.toFixed(3)} → ${perf.zoom.to.toFixed(3)}: the point under the pointer moved ${perf.zoom.drift.toFixed(4)} scene px`);
   if (perf.readyPlayback) console.log(`  ready bar: ${perf.readyPlayback.readyBefore}/12 frames before playing; 2 s of play from solved frames: ${perf.readyPlayback.shown} shown, ${perf.readyPlayback.dropped} dropped of ${perf.readyPlayback.expected}`);
-  if (perf.photo) console.log(`  4000×3000 photograph: open ${perf.photo.openS} s; drag frame median ${perf.photo.dragMedianMs?.toFixed(1)} ms (p90 ${perf.photo.dragP90Ms?.toFixed(1)}, n=${perf.photo.dragFrames}); settle ${perf.photo.settleS} s; page heap ${perf.photo.heapMiB?.toFixed(0)} MiB, browser RSS ${perf.photo.browserRssMiB.toFixed(0)} MiB`);
+  if (perf.photo) console.log(`  4000×3000 photograph: open ${perf.photo.openS} s (proxy on screen at ${perf.photo.firstProxyFrameS?.toFixed(2)} s); drag frame median ${perf.photo.dragMedianMs?.toFixed(1)} ms (p90 ${perf.photo.dragP90Ms?.toFixed(1)}, n=${perf.photo.dragFrames}); settle ${perf.photo.settleS} s; page heap ${perf.photo.heapMiB?.toFixed(0)} MiB, browser RSS ${perf.photo.browserRssMiB.toFixed(0)} MiB (${perf.photo.browserRssBeforeMiB.toFixed(0)} before the photograph's page opened)`);
   if (perf.webm) console.log(`  WebM export: ${perf.webm.frames} frames, ${perf.webm.duration} s`);
   if (perf.dragLatencyMs) {
     console.log(`  ${perf.features} features, 512×512: pointer move → frame median ${perf.dragLatencyMs.median?.toFixed(1)} ms (p90 ${perf.dragLatencyMs.p90?.toFixed(1)}, n=${perf.dragLatencyMs.n})`);

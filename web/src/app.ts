@@ -3,7 +3,7 @@
 
 import type { Engine, FieldData, SolveFeature, SolveOptions } from './engine';
 import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse } from './gl';
-import { decodeImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } from './images';
+import { decodeImage, forgetImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
 import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './scene';
@@ -70,8 +70,10 @@ export interface Stats {
   ahead: number[];
   /** Where opening the last layer's picture took its time (ms), by step. */
   open: Record<string, number>;
-  /** The full-resolution frames of a proxied scene: solve and draw in the worker (ms). */
+  /** The full-resolution frames of a proxied scene: request to arrival (ms). */
   fullMs: number[];
+  /** Their solves and drawing in the worker (ms), and the solves' cycles. */
+  fullParts: { solveMs: number; drawMs: number; cycles: number[]; wasmMiB: number }[];
 }
 
 /**
@@ -140,7 +142,7 @@ function frameParts(
 type FrameFn = (gpuDone: number, drawn: { start: number; end: number }) => void;
 
 function emptyStats(): Stats {
-  return { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 }, ahead: [], open: {}, fullMs: [] };
+  return { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 }, ahead: [], open: {}, fullMs: [], fullParts: [] };
 }
 
 /** Fields kept for playback (a 512×512 layer's field is 2 MiB). */
@@ -372,6 +374,7 @@ export class App {
         step('to full-resolution worker');
         img = downscaleRgba(img, f);
         matte = downscaleMatte(matte, width, height, f);
+        forgetImage(layer.image);
         step('proxy');
       }
       rt.rgba = img;
@@ -622,6 +625,7 @@ export class App {
 
   private receiveFull(frame: FullFrame): void {
     this.stats.fullMs.push(frame.ms);
+    this.stats.fullParts.push({ solveMs: frame.solveMs, drawMs: frame.drawMs, cycles: frame.cycles, wasmMiB: frame.wasmBytes / 2 ** 20 });
     if (frame.key !== this.fullKey() || this.dragging || this.store.view.playing) {
       // Stale: ask again for what is on screen now.
       this.requestFull();
@@ -770,7 +774,7 @@ export class App {
 
   /** Whether a settle draws the fast full frame first (see `frameTick`). */
   private get slowAntialias(): boolean {
-    return this.antialiasMs > SLOW_ANTIALIAS_MS;
+    return this.proxy > 1 || this.antialiasMs > SLOW_ANTIALIAS_MS;
   }
 
   /** The pointer stopped or was released: ask for full resolution now. */
@@ -902,6 +906,12 @@ export class App {
     if (draft) {
       this.antialiasDue = false;
       this.renderNow(true);
+    } else if (this.proxy > 1) {
+      // A proxy's full frame is drawn fast (one sample a pixel) and never multisampled:
+      // the full-resolution frame replaces it, and the page must be free to show it.
+      this.antialiasDue = false;
+      this.afterAntialiasedFns.length = 0;
+      this.renderNow(false, false, true);
     } else if (!this.antialiasDue && this.slowAntialias) {
       this.antialiasDue = true;
       // Once the GPU has drawn it (so the two frames do not share the GPU).

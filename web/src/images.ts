@@ -40,6 +40,16 @@ export function decodeImage(src: string): Promise<Rgba> {
   return p;
 }
 
+/** Seeds the cache: `src` decodes to `img` (a picture just opened, decoded once). */
+export function rememberImage(src: string, img: Rgba): void {
+  cache.set(src, Promise.resolve(img));
+}
+
+/** Drops `src` from the cache (a large picture whose proxy is all the page keeps). */
+export function forgetImage(src: string): void {
+  cache.delete(src);
+}
+
 async function decodeUncached(src: string): Promise<Rgba> {
   if (src.startsWith('data:')) return decodeBytes(enc.encode(src), describe(src));
   let bytes: Uint8Array;

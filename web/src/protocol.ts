@@ -52,7 +52,7 @@ export type FromWorker =
   | { type: 'error'; id: number | null; key: string | null; message: string }
   | { type: 'links'; key: string; links: Uint8Array }
   /** A full-resolution frame (straight RGBA8), with the time its solves and its drawing took (ms). */
-  | { type: 'full'; id: number; width: number; height: number; pixels: Uint8Array; solveMs: number; drawMs: number; cycles: number[] }
+  | { type: 'full'; id: number; width: number; height: number; pixels: Uint8Array; solveMs: number; drawMs: number; cycles: number[]; wasmBytes: number }
   | {
       type: 'field';
       id: number;

@@ -185,6 +185,8 @@ export interface FullFrame {
   solveMs: number;
   drawMs: number;
   cycles: number[];
+  /** The worker's WebAssembly memory (bytes). */
+  wasmBytes: number;
 }
 
 export interface FullRequest {
@@ -257,7 +259,7 @@ export class FullClient {
     const done = this.inFlight;
     if (msg.type === 'full' && done && msg.id === done.id) {
       this.inFlight = null;
-      this.onFrame({ key: done.req.key, width: msg.width, height: msg.height, pixels: msg.pixels, ms: performance.now() - done.req.madeAt, solveMs: msg.solveMs, drawMs: msg.drawMs, cycles: msg.cycles });
+      this.onFrame({ key: done.req.key, width: msg.width, height: msg.height, pixels: msg.pixels, ms: performance.now() - done.req.madeAt, solveMs: msg.solveMs, drawMs: msg.drawMs, cycles: msg.cycles, wasmBytes: msg.wasmBytes });
       this.pump();
     } else if (msg.type === 'error') {
       if (done && msg.id === done.id) this.inFlight = null;

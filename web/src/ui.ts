@@ -4,7 +4,7 @@ import { App } from './app';
 import { clear, h } from './dom';
 import { EngineError } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
-import { blobToDataUri, decodeBlob, decodeImage, fileToDataUri, rgbaToPngBlob, type Rgba } from './images';
+import { blobToDataUri, decodeBlob, decodeImage, fileToDataUri, rememberImage, rgbaToPngBlob, type Rgba } from './images';
 import { isPsdName, readLayeredPsd, uniqueNames } from './psd';
 import { Overlay } from './overlay';
 import type { FullFrame } from './solver';
@@ -1269,6 +1269,7 @@ export class Ui {
       }
       const uri = await fileToDataUri(file);
       const img = await decodeBlob(file, file.name);
+      rememberImage(uri, img);
       if (dropped && this.store.doc.layers.length && img.width === this.store.doc.width && img.height === this.store.doc.height) {
         this.addLayerImage(uri, file.name);
         return;

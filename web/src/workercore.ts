@@ -79,20 +79,19 @@ export class SolverWorker {
 
   /**
    * Layers at the picture's own resolution (a proxied scene's full-resolution frames): the
-   * picture, the matte and cuts its grid is built from (when first drawn), and the last
-   * field solved on it (the next solve's start).
+   * picture, and the matte and cuts its grid is built from (when first drawn).
    */
-  private fulls = new Map<string, { image: { width: number; height: number; data: Uint8Array } | null; matte: Uint8Array | null; cuts: Pt[][]; grid: GridHandle | null; field: FieldData | null; zero: FieldData | null }>();
+  private fulls = new Map<string, { image: { width: number; height: number; data: Uint8Array } | null; matte: Uint8Array | null; cuts: Pt[][]; grid: GridHandle | null }>();
 
   private fullLayer(msg: Extract<ToWorker, { type: 'full-layer' }>): void {
     const had = this.fulls.get(msg.key);
     had?.grid?.free();
-    this.fulls.set(msg.key, { image: msg.image ?? had?.image ?? null, matte: msg.matte ?? had?.matte ?? null, cuts: msg.cuts, grid: null, field: null, zero: null });
+    this.fulls.set(msg.key, { image: msg.image ?? had?.image ?? null, matte: msg.matte ?? had?.matte ?? null, cuts: msg.cuts, grid: null });
   }
 
   /**
    * A full-resolution frame: each layer solved on its own grid with the scene's settings
-   * (starting from its last field there), at rest the identity, then drawn by the engine's
+   *, at rest the identity, then drawn by the engine's
    * renderer over the background, as \`inkwarp render\` draws the frame.
    */
   private fullRender(msg: Extract<ToWorker, { type: 'full-render' }>): void {
@@ -109,11 +108,14 @@ export class SolverWorker {
       const n = width * height;
       let field: FieldData;
       if (l.features) {
-        const solved = full.grid.solve(l.features, l.options, full.field);
-        field = full.field = solved.field;
+        // Solved cold: a warm start keeps the earlier solves' fields in the engine as its
+        // history, 96 MB each at 4000 × 3000, where the cold solve at the scene's grid
+        // step takes about a second.
+        const solved = full.grid.solve(l.features, l.options, null);
+        field = solved.field;
         cycles.push(solved.report.cycles ?? 0);
       } else {
-        field = full.zero ??= { width, height, dx: new Float32Array(n), dy: new Float32Array(n) };
+        field = { width, height, dx: new Float32Array(n), dy: new Float32Array(n) };
       }
       solveMs += performance.now() - t0;
       layers.push({ image: data, grid: full.grid, field, offset: l.offset });
@@ -121,7 +123,7 @@ export class SolverWorker {
     const t1 = performance.now();
     const pixels = engine.renderCpu(msg.width, msg.height, msg.background, layers);
     const drawMs = performance.now() - t1;
-    this.post({ type: 'full', id: msg.id, width: msg.width, height: msg.height, pixels, solveMs, drawMs, cycles }, [pixels.buffer]);
+    this.post({ type: 'full', id: msg.id, width: msg.width, height: msg.height, pixels, solveMs, drawMs, cycles, wasmBytes: engine.x.memory.buffer.byteLength }, [pixels.buffer]);
   }
 
   private gridOf(key: string): GridHandle {
