@@ -252,7 +252,7 @@ async function shot(pg, name) {
 }
 
 /** The screenshots docs/guides/editor.md shows. */
-const DOC_SCREENS = ['photo-proxy', 'photo-settled', 'ready-bar', 'marquee', 'keys-marquee', 'matte-posed', 'start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
+const DOC_SCREENS = ['layer-offset', 'photo-proxy', 'photo-settled', 'ready-bar', 'marquee', 'keys-marquee', 'matte-posed', 'start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
 
 const median = (a) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
 const pct = (a, q) => (a.length ? [...a].sort((x, y) => x - y)[Math.min(a.length - 1, Math.floor(q * a.length))] : null);
@@ -1386,6 +1386,71 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
   } finally {
     await context.close();
   }
+});
+
+
+test('a layer smaller than the scene is placed by its offset (numeric fields, Move drag) and drawn as `inkwarp render` draws it', async () => {
+  await page.evaluate(async () => {
+    const { ui, examples, app, store } = window.inkwarp;
+    const doc = await examples.builtinScene(96);
+    doc.duration = 1;
+    doc.features = [{ id: 'pull', kind: 'point', rest: [[20, 12]], keys: [{ t: 0, points: [[20, 12]] }, { t: 1, points: [[26, 16]] }] }];
+    await ui.openScene(doc, 'placed.json');
+    ui.saveUrl = null;
+    // A 40 × 24 sticker: red with a green square, opaque.
+    const w = 40, h = 24, data = new Uint8Array(4 * w * h);
+    for (let y = 0; y < h; y++) for (let x = 0; x < w; x++) {
+      const green = x >= 10 && x < 30 && y >= 6 && y < 18;
+      data.set(green ? [30, 200, 60, 255] : [220, 40, 40, 255], 4 * (y * w + x));
+    }
+    await ui.addPlacedLayer({ width: w, height: h, data }, 'sticker.png');
+    store.setView({ activeLayer: store.doc.layers.length - 1 });
+    await app.idle();
+  });
+  const placed = await page.evaluate(async () => {
+    const { store, images } = window.inkwarp;
+    const l = store.doc.layers.at(-1);
+    const img = await images.decodeImage(l.image);
+    return { name: l.name, offset: l.offset, w: img.width, h: img.height };
+  });
+  assert(placed.name === 'sticker' && placed.w === 96 && placed.h === 96, `the layer is stored at the scene's size: ${JSON.stringify(placed)}`);
+  assert(JSON.stringify(placed.offset) === '[28,36]', `a smaller picture starts centred: ${JSON.stringify(placed.offset)}`);
+  // The numeric fields.
+  await page.fill('#layer-offset-x', '10');
+  await page.press('#layer-offset-x', 'Enter');
+  await page.fill('#layer-offset-y', '60');
+  await page.press('#layer-offset-y', 'Enter');
+  const byField = await page.evaluate(() => window.inkwarp.store.doc.layers.at(-1).offset);
+  assert(JSON.stringify(byField) === '[10,60]', `the offset fields set the offset: ${JSON.stringify(byField)}`);
+  let img = await frame(page);
+  const at = (im, x, y) => Array.from(im.data.subarray(4 * (y * im.width + x), 4 * (y * im.width + x) + 3));
+  assert(at(img, 10 + 20, 60 + 12)[1] > 150 && at(img, 10 + 2, 60 + 2)[0] > 150, `the sticker is drawn at its offset: ${at(img, 30, 72)} ${at(img, 12, 62)}`);
+  // Move: a drag on the picture moves the layer by as much.
+  await page.click('#layer-move');
+  await drag(page, [40, 70], [52, 64], 6);
+  await page.click('#layer-move');
+  const byDrag = await page.evaluate(() => window.inkwarp.store.doc.layers.at(-1).offset);
+  assert(Math.abs(byDrag[0] - 22) <= 1 && Math.abs(byDrag[1] - 54) <= 1, `a Move drag of (12, −6) px moved the layer: ${JSON.stringify(byDrag)}`);
+  await page.evaluate(async () => {
+    const { ui, app } = window.inkwarp;
+    ui.setMode('pose');
+    ui.setTime(0.5);
+    await app.idle();
+  });
+  await screenshot(page, 'layer-offset');
+  // The same frame from the command line.
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-e2e-'));
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
+  const scenePath = join(dir, 'scene.json');
+  await download.saveAs(scenePath);
+  const out = join(dir, 'frame.png');
+  const run = spawnSync(inkwarp, ['render', scenePath, '--time', '0.5', '-o', out], { encoding: 'utf8' });
+  assert(run.status === 0, `inkwarp render failed (${run.status}): ${run.stderr}`);
+  const cli = await loadPng(page, out);
+  img = await frame(page);
+  const { ok, stats } = await compareImages(page, img, cli, 'placed-layer-vs-cli', { meanTol: 1.0, p99Tol: 12 });
+  perf.placedLayerVsCli = stats;
+  assert(ok, `the editor's frame with the placed layer and inkwarp render's differ: mean ${stats.mean.toFixed(3)}, p99 ${stats.p99}`);
 });
 
 

@@ -600,7 +600,7 @@ export class App {
   /**
    * A proxied scene at rest (no drag, no playback): asks the full-resolution worker for the
    * frame at the current time, every layer solved at the picture's own resolution with the
-   * scene's settings and drawn by the engine's renderer, as \`inkwarp render\` draws it.
+   * scene's settings and drawn by the engine's renderer, as `inkwarp render` draws it.
    */
   private requestFull(): void {
     const full = this.full;

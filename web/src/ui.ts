@@ -141,7 +141,7 @@ export class Ui {
     this.overlayCanvas = h('canvas.overlay', { 'aria-label': 'drawing' });
     this.overlay = new Overlay(this.overlayCanvas, app.engine);
     const pictures = app.gl.draftCanvas ? [this.glCanvas, app.gl.draftCanvas] : [this.glCanvas];
-    // A large picture's full-resolution frame, over the proxy's (see \`App.requestFull\`).
+    // A large picture's full-resolution frame, over the proxy's (see `App.requestFull`).
     this.fullCanvas = h('canvas.picture.full', { hidden: true }) as HTMLCanvasElement;
     this.proxyNote = h('div#proxy-note.proxy-note', { hidden: true }, '');
     this.stage = h('div.stage', {}, h('div.frame', {}, ...pictures, this.fullCanvas, this.overlayCanvas), this.proxyNote);
@@ -372,7 +372,47 @@ export class Ui {
         h('input#border-hold', { type: 'checkbox', checked: layer.border === 'hold',
           onchange: (e: Event) => this.tryEdit((d) => updateLayer(d, i, { border: (e.target as HTMLInputElement).checked ? 'hold' : undefined })) }),
         'Hold the border'),
+      h('div.row', { title: 'Where the layer’s top-left pixel is placed in the frame (the scene’s "offset", in pixels); Move: drag on the picture to move the layer' }, 'Offset ',
+        ...([0, 1] as const).map((c) => h(`input#layer-offset-${c ? 'y' : 'x'}.offset`, { type: 'number', step: 1, value: String((layer.offset ?? [0, 0])[c]),
+          onchange: (e: Event) => {
+            const v = Number((e.target as HTMLInputElement).value);
+            if (!Number.isFinite(v)) return this.message('The offset is a number of pixels.', 'error');
+            const o: Pt = [...(layer.offset ?? [0, 0])] as Pt;
+            o[c] = v;
+            this.tryEdit((d) => updateLayer(d, i, { offset: o[0] === 0 && o[1] === 0 ? undefined : o }));
+          } })),
+        ' px ',
+        h('button#layer-move.small', { class: this.layerMove ? 'on' : '', title: 'Move the layer: drag on the picture (Alt: off whole pixels); click again to stop', onclick: () => {
+          this.layerMove = !this.layerMove;
+          this.refresh(false);
+        } }, this.layerMove ? 'Moving…' : 'Move')),
     );
+  }
+
+  /** Layer-move mode (the layer panel's Move): a drag on the stage moves the active layer. */
+  layerMove = false;
+
+  /** Drags the active layer's offset with the pointer, from the press at `p` (one undo step). */
+  private moveLayer(e: PointerEvent, p: Pt): void {
+    const i = this.store.view.activeLayer;
+    const layer = this.store.doc.layers[i];
+    if (!layer) return;
+    const o0 = layer.offset ?? [0, 0];
+    this.store.begin();
+    const move = (ev: PointerEvent) => {
+      const q = this.toScene(ev.clientX, ev.clientY);
+      let o: Pt = [o0[0] + q[0] - p[0], o0[1] + q[1] - p[1]];
+      if (!ev.altKey) o = [Math.round(o[0]), Math.round(o[1])];
+      this.store.apply(updateLayer(this.store.doc, i, { offset: o[0] === 0 && o[1] === 0 ? undefined : o }));
+    };
+    const up = () => {
+      window.removeEventListener('pointermove', move);
+      window.removeEventListener('pointerup', up);
+      this.store.commit();
+    };
+    window.addEventListener('pointermove', move);
+    window.addEventListener('pointerup', up);
+    void e;
   }
 
   private renderFeature(): void {
@@ -859,6 +899,10 @@ export class Ui {
       const p = this.toScene(e.clientX, e.clientY);
       const { view } = this.store;
       if (view.playing) this.togglePlay();
+      if (this.layerMove) {
+        this.moveLayer(e, p);
+        return;
+      }
       const drawing = view.tool !== 'select' && view.mode === 'rest';
       if (drawing) {
         // A click on the draft's first point closes it.
@@ -1336,9 +1380,9 @@ export class Ui {
 
   sceneFromImage(uri: string, img: Rgba, name: string): SceneDoc {
     const doc = emptyScene(img.width, img.height);
-    // A large picture is edited through a proxy scaled down by a factor (see \`proxy.ts\`),
+    // A large picture is edited through a proxy scaled down by a factor (see `proxy.ts`),
     // and solved at full resolution on a grid of the same step, so that the frame that
-    // replaces the proxy takes about as long to solve as the proxy and \`inkwarp render\`
+    // replaces the proxy takes about as long to solve as the proxy and `inkwarp render`
     // draws the same frames (the step is saved in the scene).
     const f = proxyFactor(img.width, img.height);
     if (f > 1) doc.solver = { ...(doc.solver ?? {}), grid_step: f };
@@ -1357,7 +1401,8 @@ export class Ui {
       }
       const { width, height } = this.store.doc;
       if (img.width !== width || img.height !== height) {
-        throw new Error(`${file.name} is ${img.width}×${img.height}; every layer of this scene is ${width}×${height}.`);
+        await this.addPlacedLayer(img, file.name);
+        return;
       }
       this.addLayerImage(uri, file.name);
     } catch (err) {
@@ -1365,12 +1410,40 @@ export class Ui {
     }
   }
 
-  private addLayerImage(uri: string, fileName: string): void {
+  /**
+   * Adds a picture of another size than the scene's as a layer placed by its offset: the
+   * scene format's layer images have the scene's size (as `inkwarp render` reads them),
+   * so the picture is stored on a transparent canvas of that size, top-left, and the
+   * layer's offset puts it where it goes (centred to start with; a picture larger than the
+   * scene is cropped to it, with a message). Transparent pixels are holes in the layer's
+   * surface (continuity from alpha), so the padding neither draws nor bends.
+   */
+  async addPlacedLayer(img: Rgba, fileName: string, offset?: Pt): Promise<void> {
+    const { width, height } = this.store.doc;
+    const c = new OffscreenCanvas(width, height);
+    const w = Math.min(width, img.width);
+    const hgt = Math.min(height, img.height);
+    const crop = new Uint8ClampedArray(4 * w * hgt);
+    for (let y = 0; y < hgt; y++) crop.set(img.data.subarray(4 * y * img.width, 4 * (y * img.width + w)), 4 * y * w);
+    c.getContext('2d')!.putImageData(new ImageData(crop, w, hgt), 0, 0);
+    const uri = await blobToDataUri(await c.convertToBlob({ type: 'image/png' }));
+    const at: Pt = offset ?? [Math.round((width - w) / 2), Math.round((height - hgt) / 2)];
+    this.addLayerImage(uri, fileName, at[0] === 0 && at[1] === 0 ? undefined : at);
+    const cropped = img.width > width || img.height > height;
+    this.message(
+      cropped
+        ? `${fileName} (${img.width}×${img.height}) is larger than the scene (${width}×${height}): it was cropped to ${w}×${hgt}; scale it down first to keep all of it.`
+        : `Added ${fileName} (${img.width}×${img.height}) at offset [${at[0]}, ${at[1]}]: set the offset in the layer panel, or Move and drag it.`,
+      cropped ? 'error' : 'info',
+    );
+  }
+
+  private addLayerImage(uri: string, fileName: string, offset?: Pt): void {
     const base = fileName.replace(/\.[^.]*$/, '') || 'layer';
     const names = new Set(this.store.doc.layers.map((l) => l.name));
     let name = base;
     for (let n = 2; names.has(name); n++) name = `${base}${n}`;
-    this.tryEdit((d) => ({ ...d, layers: [...d.layers, { name, image: uri }] }));
+    this.tryEdit((d) => ({ ...d, layers: [...d.layers, offset ? { name, image: uri, offset } : { name, image: uri }] }));
     this.store.setView({ activeLayer: this.store.doc.layers.length - 1 });
   }
 

@@ -92,7 +92,7 @@ export class SolverWorker {
   /**
    * A full-resolution frame: each layer solved on its own grid with the scene's settings
    *, at rest the identity, then drawn by the engine's
-   * renderer over the background, as \`inkwarp render\` draws the frame.
+   * renderer over the background, as `inkwarp render` draws the frame.
    */
   private fullRender(msg: Extract<ToWorker, { type: 'full-render' }>): void {
     const engine = this.engine!;

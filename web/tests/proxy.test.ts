@@ -1,0 +1,50 @@
+import { describe, expect, it } from 'vitest';
+import { downscaleMatte, downscaleRgba, proxyFactor, proxySize, toProxy } from '../src/proxy';
+
+describe('large pictures: the proxy', () => {
+  it('scales a photograph down by a whole factor, and leaves pictures of screen size alone', () => {
+    expect(proxyFactor(4000, 3000)).toBe(4);
+    expect(proxySize(4000, 3000, 4)).toEqual({ width: 1000, height: 750 });
+    expect(proxyFactor(3000, 2000)).toBe(3);
+    expect(proxyFactor(1920, 1080)).toBe(1);
+    expect(proxyFactor(512, 512)).toBe(1);
+    // The last block is clipped.
+    expect(proxySize(4001, 3001, 4)).toEqual({ width: 1001, height: 751 });
+  });
+
+  it('maps a scene point to the proxy pixel whose block it is in (centres to centres)', () => {
+    // Proxy pixel 0 covers scene pixels 0…3: its centre is at scene coordinate 1.5.
+    expect(toProxy([1.5, 1.5], 4)).toEqual([0, 0]);
+    expect(toProxy([5.5, 9.5], 4)).toEqual([1, 2]);
+    expect(toProxy([7, 3], 1)).toEqual([7, 3]);
+  });
+
+  it('averages each block (premultiplied) and keeps transparent blocks transparent', () => {
+    const w = 4, h = 2;
+    const data = new Uint8Array(4 * w * h);
+    // Left block: two red opaque pixels and two transparent ones; right block: grey 100 and 200.
+    const set = (x: number, y: number, px: number[]) => data.set(px, 4 * (y * w + x));
+    set(0, 0, [255, 0, 0, 255]);
+    set(1, 1, [255, 0, 0, 255]);
+    set(0, 1, [0, 255, 0, 0]);
+    set(1, 0, [0, 255, 0, 0]);
+    set(2, 0, [100, 100, 100, 255]);
+    set(3, 0, [100, 100, 100, 255]);
+    set(2, 1, [200, 200, 200, 255]);
+    set(3, 1, [200, 200, 200, 255]);
+    const p = downscaleRgba({ width: w, height: h, data }, 2);
+    expect(p.width).toBe(2);
+    expect(p.height).toBe(1);
+    // Colour from the opaque pixels only (the transparent ones' green does not bleed), alpha the mean.
+    expect(Array.from(p.data.subarray(0, 4))).toEqual([255, 0, 0, 128]);
+    expect(Array.from(p.data.subarray(4, 8))).toEqual([150, 150, 150, 255]);
+  });
+
+  it('takes a matte value at each block centre', () => {
+    const w = 6, h = 3;
+    const m = new Uint8Array(w * h).fill(255);
+    m[1 * w + 4] = 0; // the centre pixel (4, 1) of the block x 3…5
+    const p = downscaleMatte(m, w, h, 3);
+    expect(Array.from(p)).toEqual([255, 0]);
+  });
+});
