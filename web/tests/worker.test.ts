@@ -116,3 +116,46 @@ describe('the solver worker', () => {
     expect(loads).toBe(1);
   });
 });
+
+describe('full-resolution frames (a proxied scene)', () => {
+  const image = () => {
+    const data = new Uint8Array(4 * W * H);
+    for (let i = 0; i < W * H; i++) data.set([(i * 37) % 256, (i * 11) % 256, 90, 255], 4 * i);
+    return { width: W, height: H, data };
+  };
+  const render = (id: number, features: SolveFeature[] | null): ToWorker => ({
+    type: 'full-render',
+    id,
+    width: W,
+    height: H,
+    background: [0, 0, 0, 255],
+    layers: [{ key: 'P', features, options: { tolerance: 0.01, grid_step: 2, spacing_px: 2 }, offset: [0, 0] }],
+  });
+
+  it('draws the picture itself at rest, and the solved frame posed, as the engine renders it', async () => {
+    const img = image();
+    const cuts: Pt[][] = [[[25.5, 10], [25.5, 31]]];
+    expect(await send({ type: 'full-layer', key: 'P', image: img, matte: new Uint8Array(W * H).fill(255), cuts })).toEqual([]);
+    const [rest] = await send(render(1, null));
+    expect(rest.type).toBe('full');
+    if (rest.type !== 'full') return;
+    expect(rest.id).toBe(1);
+    expect(Array.from(rest.pixels)).toEqual(Array.from(img.data));
+    const [posed] = await send(render(2, pose(26)));
+    if (posed.type !== 'full') throw new Error(JSON.stringify(posed));
+    expect(posed.cycles.length).toBe(1);
+    // The same frame from the engine directly: a grid with the cut, a cold solve, the CPU renderer.
+    const engine = await loadEngine();
+    const grid = engine.grid(W, H, new Uint8Array(W * H).fill(255), cuts);
+    const { field } = grid.solve(pose(26), { tolerance: 0.01, grid_step: 2, spacing_px: 2 }, null);
+    const ref = engine.renderCpu(W, H, [0, 0, 0, 255], [{ image: img.data, grid, field, offset: [0, 0] }]);
+    expect(Array.from(posed.pixels)).toEqual(Array.from(ref));
+    expect(Array.from(posed.pixels)).not.toEqual(Array.from(img.data));
+  });
+
+  it('says which layer has no picture', async () => {
+    const out = await send(render(3, null));
+    expect(out[0].type).toBe('error');
+    if (out[0].type === 'error') expect(out[0].message).toMatch(/layer P has no picture/);
+  });
+});
