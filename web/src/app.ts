@@ -586,6 +586,8 @@ export class App {
   }
 
   private fullAsked = '';
+  /** A video export is drawing frames: a large picture's are the proxy's (no full-resolution frames). */
+  exporting = false;
   /** The full-resolution frame on screen (a proxied scene), or null while the proxy shows. */
   fullShown: FullFrame | null = null;
   /** Called when a full-resolution frame arrives for what is on screen (`fullShown`), or is taken away (null). */
@@ -604,7 +606,7 @@ export class App {
    */
   private requestFull(): void {
     const full = this.full;
-    if (!full || this.proxy === 1 || this.dragging || this.store.view.playing) return;
+    if (!full || this.proxy === 1 || this.dragging || this.store.view.playing || this.exporting) return;
     const key = this.fullKey();
     if (this.fullShown?.key === key || (key === this.fullAsked && full.busy)) return;
     this.fullAsked = key;

@@ -62,15 +62,23 @@ export class Overlay {
     return c;
   }
 
-  draw(store: Store, rt: LayerRuntime | undefined, sceneWidth: number, sceneHeight: number): void {
+  private proxy = 1;
+
+  /**
+   * Draws the overlays; `proxy` is the factor a large picture's layers are scaled down by
+   * (their matte, links and field are the proxy's: see `proxy.ts`).
+   */
+  draw(store: Store, rt: LayerRuntime | undefined, sceneWidth: number, sceneHeight: number, proxy = 1): void {
     this.sceneWidth = sceneWidth;
+    this.proxy = proxy;
+    const pw = Math.ceil(sceneWidth / proxy), ph = Math.ceil(sceneHeight / proxy);
     const { ctx, canvas } = this;
     const view = store.view;
     ctx.clearRect(0, 0, canvas.width, canvas.height);
     const s = this.scale;
-    if (rt && view.overlays.matte && rt.matte) this.drawMatte(rt, sceneWidth, sceneHeight, view.mode === 'pose');
-    if (rt && view.overlays.heat !== 'off' && rt.field) this.drawHeat(rt, view.overlays.heat, sceneWidth, sceneHeight);
-    if (rt && view.overlays.mesh && rt.links) this.drawMesh(rt, sceneWidth, sceneHeight);
+    if (rt && view.overlays.matte && rt.matte) this.drawMatte(rt, pw, ph, view.mode === 'pose');
+    if (rt && view.overlays.heat !== 'off' && rt.field) this.drawHeat(rt, view.overlays.heat, pw, ph);
+    if (rt && view.overlays.mesh && rt.links) this.drawMesh(rt, pw, ph);
     if (!view.overlays.drawing) return;
     const posed = view.mode === 'pose';
     for (const f of store.doc.features) {
@@ -288,9 +296,12 @@ export class Overlay {
     const f = rt.field;
     const links = rt.links!;
     const step = Math.max(4, Math.round(Math.max(w, h) / 48));
+    // Proxy pixels to scene pixels (see `toProxy`).
+    const k = this.proxy, c = (k - 1) / 2;
     const pos = (x: number, y: number): Pt => {
       const i = y * w + x;
-      return this.toCanvas(f ? [x + f.dx[i], y + f.dy[i]] : [x, y]);
+      const [px, py] = f ? [x + f.dx[i], y + f.dy[i]] : [x, y];
+      return this.toCanvas([px * k + c, py * k + c]);
     };
     ctx.strokeStyle = 'rgba(20, 20, 20, 0.55)';
     ctx.lineWidth = 1;

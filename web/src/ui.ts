@@ -802,7 +802,7 @@ export class Ui {
   drawOverlay(): void {
     const doc = this.store.doc;
     const layer = doc.layers[this.store.view.activeLayer];
-    this.overlay.draw(this.store, layer ? this.app.runtimes.get(layer.name) : undefined, doc.width, doc.height);
+    this.overlay.draw(this.store, layer ? this.app.runtimes.get(layer.name) : undefined, doc.width, doc.height, this.app.proxy);
   }
 
   /** Client (CSS px) → scene coordinates (pixel centres at integers). */
@@ -1524,9 +1524,12 @@ export class Ui {
 
   async exportPng(): Promise<void> {
     await this.app.idle();
-    this.app.renderNow(false);
     const { width, height } = this.store.doc;
-    const blob = await rgbaToPngBlob({ width, height, data: this.app.gl.readPixels() });
+    // A large picture's frame is the full-resolution one (its proxy's is smaller).
+    const full = this.app.proxy > 1 ? this.app.fullShown : null;
+    if (this.app.proxy > 1 && !full) return this.message('The full-resolution frame is not ready: try again when the picture has settled.', 'error');
+    if (!full) this.app.renderNow(false);
+    const blob = await rgbaToPngBlob({ width, height, data: full ? full.pixels : this.app.gl.readPixels() });
     download(blob, `${this.baseName()}-${Math.round(this.store.view.time * this.store.doc.fps)}.png`);
   }
 
@@ -1544,10 +1547,13 @@ export class Ui {
     const wasMode = this.store.view.mode;
     const wasTime = this.store.view.time;
     const n = frameCount(doc);
+    this.app.exporting = true;
     this.store.setView({ mode: 'pose', playing: false });
     this.message(`Exporting ${n} frames…`, 'info');
     try {
-      const blob = await encodeWebm(doc.width, doc.height, doc.fps, n, async (i) => {
+      // A large picture's video is drawn at its proxy's size (see `proxy.ts`).
+      const { width, height } = this.app.frameSize;
+      const blob = await encodeWebm(width, height, doc.fps, n, async (i) => {
         this.store.setView({ time: i / doc.fps });
         await this.app.idle();
         this.app.renderNow(false);
@@ -1556,12 +1562,14 @@ export class Ui {
         if (i % 12 === 11) this.message(`Exported ${i + 1} of ${n} frames…`, 'info');
       });
       download(blob, `${this.baseName()}.webm`);
-      this.message(`Exported ${n} frames as WebM (${(n / doc.fps).toFixed(2)} s at ${doc.fps} fps).`, 'info');
+      const size = this.app.proxy > 1 ? ` at the preview's ${width}×${height}; \`inkwarp render scene.json -o out.mp4\` renders ${doc.width}×${doc.height}` : '';
+      this.message(`Exported ${n} frames as WebM (${(n / doc.fps).toFixed(2)} s at ${doc.fps} fps${size}).`, 'info');
       return blob;
     } catch (err) {
       this.message(`The WebM export failed: ${(err as Error).message}`, 'error');
       return null;
     } finally {
+      this.app.exporting = false;
       this.store.setView({ mode: wasMode, time: wasTime });
     }
   }
