@@ -1220,6 +1220,7 @@ test('frames are solved ahead while the editor is left alone: the ready bar fill
     doc.fps = 12;
     doc.duration = 1;
     doc.features = [{ id: 'dot', kind: 'point', rest: [[40, 40]], keys: [{ t: 0, points: [[40, 40]] }, { t: 1, points: [[60, 50]] }] }];
+    doc.layers[0].border = 'hold';
     await ui.openScene(doc, 'ready.json');
     ui.setMode('pose');
     ui.setTime(6 / 12);

@@ -150,6 +150,8 @@ const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
 const SETTLE_MS = 120;
 /** How long the editor is left alone (ms) before frames are solved ahead (see `scheduleAhead`). */
 const AHEAD_IDLE_MS = 400;
+/** The multigrid cycles of one request for a frame solved ahead (it is asked again until it converges). */
+const AHEAD_CYCLES = 2;
 /** A multisampled full frame slower than this (ms) is preceded by a single-sampled one. */
 const SLOW_ANTIALIAS_MS = 50;
 
@@ -179,6 +181,8 @@ export class App {
   /** The last probe asked for (see `probe`): feature, point, time and revision. */
   private lastProbe = '';
   lastPointerAt = 0;
+  /** When the pointer last moved or pressed on the picture (solving ahead waits after it). */
+  lastActivityAt = 0;
   lastReport: FieldEvent | null = null;
   /** Full-resolution fields by frame, for the document revision they were solved for. */
   private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, FieldData>>() };
@@ -566,7 +570,8 @@ export class App {
     const ahead = this.ahead;
     if (!ahead || ahead.busy || this.dragging || this.store.view.playing) return;
     if (!this.doc.features.some((f) => (f.keys ?? []).length > 0)) return;
-    if (this.solver.busy || this.drafts?.busy || performance.now() - this.lastPointerAt < AHEAD_IDLE_MS) {
+    const now = performance.now();
+    if (this.solver.busy || this.drafts?.busy || now - this.lastPointerAt < AHEAD_IDLE_MS || now - this.lastActivityAt < AHEAD_IDLE_MS) {
       this.scheduleAhead();
       return;
     }
@@ -576,8 +581,13 @@ export class App {
       for (const layer of this.doc.layers) {
         const rt = this.runtimes.get(layer.name);
         if (!rt?.gridReady || !rt.gl || this.cache.rev === this.store.revision && this.cache.frames.get(frame)?.has(layer.name)) continue;
-        ahead.solve(layer.name, this.solveFeatures(layer, time), this.solverOptions(layer, 'final'), {
-          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.store.revision, frame, ahead: true, prefetch: true, seq: ++this.seq,
+        // A few cycles a request, each continuing from the last (the worker keeps it), until
+        // the frame converges: a drag that starts meanwhile waits for a few cycles at most.
+        // A scene's own cycle limit is kept as it is.
+        const options = this.solverOptions(layer, 'final');
+        const chunked = options.method === 'tps' && (options.max_cycles ?? null) === null;
+        ahead.solve(layer.name, this.solveFeatures(layer, time), chunked ? { ...options, max_cycles: AHEAD_CYCLES } : options, {
+          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.store.revision, frame, ahead: true, chunked, prefetch: true, seq: ++this.seq,
         });
         asked = true;
       }
@@ -805,12 +815,13 @@ export class App {
       if (ev.tag.quality === 'draft') this.stats.draftSolveMs.push(ev.ms);
       else this.stats.finalSolveMs.push(ev.ms);
     }
-    if (ev.field && ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.store.revision) {
+    const unfinished = ev.tag.chunked && ev.report.converged === false;
+    if (ev.field && !unfinished && ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.store.revision) {
       this.remember(ev.tag.frame, ev.key, ev.field);
     }
     if (ev.tag.ahead) {
       // Solved ahead: into the cache (above) only, then the next frame.
-      if (ev.tag.rev === this.store.revision && typeof ev.tag.frame === 'number') this.stats.ahead.push(ev.tag.frame);
+      if (ev.tag.rev === this.store.revision && typeof ev.tag.frame === 'number' && !unfinished) this.stats.ahead.push(ev.tag.frame);
       this.onSolved(ev);
       if (!this.ahead?.busy) this.solveAhead();
       this.checkIdle();

@@ -147,7 +147,10 @@ export class Ui {
     this.stage = h('div.stage', {}, h('div.frame', {}, ...pictures, this.fullCanvas, this.overlayCanvas), this.proxyNote);
     this.build(root);
     app.onMessage = (t, k) => this.message(t, k);
-    app.onFull = (frame) => this.showFull(frame);
+    app.onFull = (frame) => {
+      this.showFull(frame);
+      this.updateStatus();
+    };
     app.onFrame = () => {
       this.drawOverlay();
       this.updateProxyNote();
@@ -681,9 +684,15 @@ export class Ui {
         for (const n of this.app.runtimes.get(l.name)?.notes ?? []) notes.set(n, [...(notes.get(n) ?? []), l.name]);
       }
     }
+    const f = this.app.proxy;
+    const parts = s.fullParts.at(-1);
+    const full = f > 1
+      ? `${this.app.fullShown ? 'full resolution shown' : `preview at 1/${f} (the proxy's solves above)`}${parts ? ` · last full-resolution frame: solve ${(parts.solveMs / 1000).toFixed(1)} s${parts.cycles.length ? ` (${parts.cycles.join(', ')} cycles)` : ''}, draw ${(parts.drawMs / 1000).toFixed(1)} s · grid step ${doc.solver?.grid_step ?? 1}` : ''}`
+      : '';
     const lines = [
       this.app.posed ? 'pose: the picture follows the drawing' : 'rest: the original picture',
       solved,
+      full,
       s.dragLatency.length ? `drag → frame median ${med(s.dragLatency).toFixed(0)} ms` : '',
       ...[...notes].map(([n, layers]) => `⚠ ${doc.layers.length > 1 ? `${layers.join(', ')}: ` : ''}${n}`),
     ];
@@ -894,6 +903,7 @@ export class Ui {
   private bindPointer(): void {
     const c = this.overlayCanvas;
     c.addEventListener('pointerdown', (e) => {
+      this.app.lastActivityAt = performance.now();
       if (e.button !== 0) return;
       c.setPointerCapture(e.pointerId);
       const p = this.toScene(e.clientX, e.clientY);
@@ -968,6 +978,8 @@ export class Ui {
       });
     }
     c.addEventListener('pointermove', (e) => {
+      // Solving ahead waits while the pointer moves over the picture (a drag may follow).
+      this.app.lastActivityAt = performance.now();
       if (this.drag) {
         this.dragTo(e);
         return;
