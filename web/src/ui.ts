@@ -623,11 +623,13 @@ export class Ui {
     const f = this.app.proxy;
     const note = this.proxyNote;
     const proxied = f > 1 && !this.app.fullShown;
-    note.hidden = !proxied;
+    // Written only when it changes: this runs at every frame.
+    if (note.hidden !== !proxied) note.hidden = !proxied;
     if (!proxied) return;
     const { width, height } = this.app.frameSize;
     const what = `Preview (1/${f} picture, ${width}×${height})`;
-    note.textContent = this.app.dragging || this.store.view.playing ? what : `${what} — settling…`;
+    const text = this.app.dragging || this.store.view.playing ? what : `${what} — settling…`;
+    if (note.textContent !== text) note.textContent = text;
   }
 
   /** Copied keys (Ctrl+C), pasted at the current time by Ctrl+V. */
