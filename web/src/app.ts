@@ -281,7 +281,6 @@ export class App {
       this.proxy = f;
       for (const rt of this.runtimes.values()) rt.sig = '';
     }
-    this.fullShown = null;
     const names = new Set(this.doc.layers.map((l) => l.name));
     for (const [name, rt] of this.runtimes) {
       if (!names.has(name)) {

@@ -71,6 +71,30 @@ describe('the engine in WebAssembly', () => {
     sparse.free();
   });
 
+  it('a sparse draft holds a held border as the full solve does', () => {
+    // One point pulled: free, the whole picture follows it; held, the edge stays put.
+    const feats = [{ kind: 'point' as const, rest: [[20, 16]] as Pt[], pose: [[26, 20]] as Pt[] }];
+    const pixels = Uint32Array.from({ length: 41 * 33 }, (_, i) => i);
+    for (const border of ['free', 'hold'] as const) {
+      const full = engine.grid(41, 33, null, []);
+      const { field } = full.solve(feats, { grid_step: 4, spacing_px: 4, border }, null);
+      const sparse = engine.grid(41, 33, null, []);
+      sparse.select(pixels);
+      const { values } = sparse.solveAt(feats, { grid_step: 4, spacing_px: 4, border });
+      let edge = 0;
+      pixels.forEach((p, k) => {
+        expect(values[2 * k]).toBeCloseTo(field.dx[p], 4);
+        expect(values[2 * k + 1]).toBeCloseTo(field.dy[p], 4);
+        const x = p % 41, y = Math.floor(p / 41);
+        if (x === 0 || y === 0 || x === 40 || y === 32) edge = Math.max(edge, Math.hypot(values[2 * k], values[2 * k + 1]));
+      });
+      if (border === 'hold') expect(edge).toBeLessThan(0.05);
+      else expect(edge).toBeGreaterThan(1);
+      full.free();
+      sparse.free();
+    }
+  });
+
   it('errors come back as messages, not traps', () => {
     const grid = engine.grid(8, 8, null, []);
     expect(() => grid.solve([{ kind: 'polyline', rest: [[1, 1]], pose: [[1, 1]] }], {}, null)).toThrow(/polyline|points/i);

@@ -512,7 +512,13 @@ pub extern "C" fn iw_solve_at(handle: u32, req_ptr: *const u8, req_len: usize, o
             return Ok(report);
         }
         let grid = &domain.grid;
-        let samples: Vec<Sample> = samples_of(&req.features, domain, req.spacing_px.unwrap_or(1.0))?.into_iter().flatten().collect();
+        let spacing_px = req.spacing_px.unwrap_or(1.0);
+        let mut per_feature = samples_of(&req.features, domain, spacing_px)?;
+        // A held border is held in drafts too, as in the full solve (`solve_request`).
+        if req.border == inkwarp_core::scene::Border::Hold {
+            per_feature.push(inkwarp_core::geometry::border_samples(grid.width, grid.height, spacing_px));
+        }
+        let samples: Vec<Sample> = per_feature.into_iter().flatten().collect();
         let options = solve_options(&req.options)?;
         let plan = selection.plans.entry(step).or_insert_with(|| Upsampling::new(grid, step));
         let mut histories = domain.history.borrow_mut();
