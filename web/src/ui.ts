@@ -327,8 +327,17 @@ export class Ui {
     this.updateProxyNote();
   }
 
+  /** What the layer panel was last built from (it is rebuilt only when that changes). */
+  private layersShown: { layers: unknown; key: string } | null = null;
+
   private renderLayers(): void {
     const { doc, view } = this.store;
+    // A drag changes the features at every pointer move, not the layers: the panel (its
+    // inputs too, which a rebuild would take the focus from) stays as it is.
+    const key = JSON.stringify([view.activeLayer, this.layerMove, doc.features.map((f) => f.id), doc.layers.map((l) => this.app.runtimes.get(l.name)?.error ?? '')]);
+    const shown = this.layersShown;
+    if (shown && shown.layers === doc.layers && shown.key === key) return;
+    this.layersShown = { layers: doc.layers, key };
     clear(this.els.layers);
     // Listed front to back (the top of the list is drawn last, on top).
     for (let i = doc.layers.length - 1; i >= 0; i--) {
