@@ -171,6 +171,10 @@ VARIANTS = {
     "geoC-1xy-P2": ("compressed", "1xy", "gs", JACOBI_P2),
     "geoC-1xy-P3": ("compressed", "1xy", "gs", ("jacobi", {"omega": 4.0 / 3.0, "degree": 3})),
     "geoC4-1xy-P2": ("compressed4", "1xy", "gs", JACOBI_P2),
+    # ... with each row's Jacobi weight from its Gershgorin bound (sum of |a_ij|) instead of a
+    # randomly started estimate of rho(D^-1 A)
+    "geoC-1xy-P2L": ("compressed", "1xy", "gs", ("jacobi", {"omega": 4.0 / 3.0, "degree": 2,
+                                                           "weighting": "local"})),
     "geo4-1xy-P3": ("geometric4", "1xy", "gs", ("jacobi", {"omega": 4.0 / 3.0, "degree": 3})),
     "std-1xy-energy": ("standard", "1xy", "gs", ("energy", {"krylov": "cg", "maxiter": 4, "degree": 1})),
 }
@@ -188,7 +192,8 @@ def hierarchy(system: System, variant: str):
     aggregation, b_kind, smoother, smooth = VARIANTS[variant]
     if aggregation.startswith("compressed"):
         return compressed_hierarchy(system, smooth[1]["degree"] if smooth else 0, smoother,
-                                    block=int(aggregation[10:] or 3))
+                                    block=int(aggregation[10:] or 3),
+                                    weighting=smooth[1].get("weighting", "diagonal") if smooth else "diagonal")
     kwargs = dict(B=system.near_null(b_kind), presmoother=SMOOTHERS[smoother],
                   postsmoother=SMOOTHERS[smoother], smooth=smooth, keep=False)
     if aggregation.startswith("geometric"):
@@ -200,7 +205,8 @@ def hierarchy(system: System, variant: str):
     return pyamg.smoothed_aggregation_solver(system.A, **kwargs)
 
 
-def compressed_hierarchy(system: System, smooth_degree: int, smoother: str, block: int = 3):
+def compressed_hierarchy(system: System, smooth_degree: int, smoother: str, block: int = 3,
+                         weighting: str = "diagonal"):
     """Smoothed aggregation built level by level (pyamg's pieces, not its driver): the same
     geometric aggregates and B = {1, x, y}, but the candidates an aggregate cannot carry
     (fewer than three nodes, or nodes on one line: zero columns of the tentative P) are
@@ -227,7 +233,8 @@ def compressed_hierarchy(system: System, smooth_degree: int, smoother: str, bloc
         bc = bc[keep]
         p = t
         if smooth_degree:
-            p = jacobi_prolongation_smoother(a, t, a, b, omega=4.0 / 3.0, degree=smooth_degree).tocsr()
+            p = jacobi_prolongation_smoother(a, t, a, b, omega=4.0 / 3.0, degree=smooth_degree,
+                                             weighting=weighting).tocsr()
         coarse = (p.T @ a @ p).tocsr()
         # Coarse functions in the plate's kernel (aggregates of loose nodes, strands) have a
         # diagonal at rounding level: dividing by it blows the cycle up (a V-cycle with
@@ -248,7 +255,10 @@ def compressed_hierarchy(system: System, smooth_degree: int, smoother: str, bloc
     level = MultilevelSolver.Level()
     level.A, level.B = a, b
     levels.append(level)
-    ml = MultilevelSolver(levels)
+    # The coarsest matrix keeps combinations of coarse functions in the plate's kernel, with
+    # eigenvalues at rounding level; scipy's default pinv cut-off (n eps) inverts some of
+    # them (a V-cycle with eigenvalues of 1e15). Cut at 1e-10 of the largest instead.
+    ml = MultilevelSolver(levels, coarse_solver=("pinv", {"rtol": 1e-10}))
     change_smoothers(ml, SMOOTHERS[smoother], SMOOTHERS[smoother])
     return ml
 
