@@ -171,6 +171,7 @@ VARIANTS = {
     "geoC-1xy-P2": ("compressed", "1xy", "gs", JACOBI_P2),
     "geoC-1xy-P3": ("compressed", "1xy", "gs", ("jacobi", {"omega": 4.0 / 3.0, "degree": 3})),
     "geoC4-1xy-P2": ("compressed4", "1xy", "gs", JACOBI_P2),
+    "geoC-1xy-P2-gs2": ("compressed", "1xy", "gs2", JACOBI_P2),
     # ... with each row's Jacobi weight from its Gershgorin bound (sum of |a_ij|) instead of a
     # randomly started estimate of rho(D^-1 A)
     "geoC-1xy-P2L": ("compressed", "1xy", "gs", ("jacobi", {"omega": 4.0 / 3.0, "degree": 2,
