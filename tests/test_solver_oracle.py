@@ -9,7 +9,10 @@ orientation signs made exact by rational arithmetic where floats could be wrong.
 
 - a piece without constraints is zero, one constrained node translates it;
 - a piece whose constrained nodes lie on one line (at tension 0) is solved as the limit
-  tension -> 0+: two direct solves at tiny tensions, Richardson-extrapolated;
+  tension -> 0+, exactly: among the plate minimisers the one of least membrane energy
+  (`tension_limit`: the kernel of the piece's free plate block by Lanczos, checked to be
+  separated from the rest of the spectrum, then a bordered solve and a small membrane
+  solve; no extrapolation in the tension, so slow modes of the plate are exact too);
 - any other piece: a sparse LU solve with the constrained nodes fixed.
 
 Pieces whose plate energy vanishes on more than the affine functions have no unique plate
@@ -203,6 +206,111 @@ def _fixed_solve(a: sp.csr_matrix, piece: np.ndarray, fixed: dict[int, np.ndarra
     return u
 
 
+# Eigenvalues of a plate block below this are its kernel (exactly zero, up to rounding of
+# order 1e-14); the slow modes that must not be mistaken for it lie far above (a wedge
+# bending against a distant arm: 3.5e-7). A spectrum with eigenvalues between the two
+# bounds is refused rather than guessed.
+KERNEL_BELOW = 1e-11
+SLOW_ABOVE = 1e-8
+_SHIFT = 1e-6  # shift-invert Lanczos factors A + _SHIFT I
+
+
+def plate_kernel(a: sp.csr_matrix) -> np.ndarray:
+    """Orthonormal basis (n, k) of the null space of a symmetric positive semidefinite
+    plate block, checked to be separated from the rest of its spectrum.
+
+    Small blocks: a dense eigendecomposition. Larger ones: shift-invert Lanczos, deflated by
+    the kernel found so far and repeated until a run finds no more (Lanczos can miss copies
+    of a multiple eigenvalue, never the whole cluster at the end of the spectrum)."""
+    n = a.shape[0]
+    if n <= 100:
+        vals, vecs = np.linalg.eigh(a.toarray())
+        unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE)
+        kernel = vecs[:, vals < KERNEL_BELOW]
+    else:
+        lu = spla.splu((a + _SHIFT * sp.identity(n, format="csr")).tocsc())
+        kernel = np.zeros((n, 0))
+        rng = np.random.default_rng(0)
+        while True:
+            def op(x, z=kernel):
+                x = x - z @ (z.T @ x)
+                y = lu.solve(x)
+                return y - z @ (z.T @ y)
+
+            k = min(24, n - kernel.shape[1] - 2)
+            vals, vecs = spla.eigsh(a, k=k, sigma=-_SHIFT, which="LM", tol=1e-13,
+                                    OPinv=spla.LinearOperator((n, n), matvec=op, dtype=float),
+                                    v0=op(rng.standard_normal(n)))
+            unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE)
+            new = vecs[:, vals < KERNEL_BELOW]
+            if unsure.any() or not new.shape[1]:
+                break
+            new = new - kernel @ (kernel.T @ new)
+            kernel = np.hstack([kernel, np.linalg.qr(new)[0]])
+    if unsure.any():
+        raise AssertionError(f"plate block ({n} nodes): eigenvalues {vals[unsure]} neither kernel "
+                             f"(< {KERNEL_BELOW}) nor clearly positive (>= {SLOW_ABOVE})")
+    return kernel
+
+
+def membrane_matrix(problem: Problem) -> sp.csr_matrix:
+    """M with E_membrane(u) = u^T M u."""
+    return (energy_matrix(problem, tension=1.0) - energy_matrix(problem, tension=0.0)).tocsr()
+
+
+def tension_limit(a: sp.csr_matrix, m: sp.csr_matrix, free: np.ndarray, fixed_idx: np.ndarray,
+                  uc: np.ndarray):
+    """The limit tension -> 0+ on the nodes `free`, with the nodes `fixed_idx` held at `uc`
+    (k, 2), exactly: among the minimisers of the plate energy, the one of least membrane
+    energy (DESIGN §4).
+
+    The plate minimisers are x_p + Z c with Z the kernel of the free plate block (found by
+    `plate_kernel`) and x_p the one orthogonal to it (a bordered solve [[A, Z], [Z^T, 0]]);
+    c minimises the membrane energy, a k x k solve. No extrapolation in the tension, so a
+    slow mode of the plate (small eigenvalue, but not zero) is solved as exactly as any.
+
+    Returns (u (len(free), 2), Z, step) with step(x, j) the same least-membrane choice of
+    the kernel part applied to any plate minimiser x of component j.
+    """
+    aff = a[free][:, free].tocsr()
+    mff = m[free][:, free].tocsr()
+    b = -(a[free][:, fixed_idx] @ uc)
+    bm = -(m[free][:, fixed_idx] @ uc)
+    z = plate_kernel(aff)
+    k = z.shape[1]
+    if k:
+        bordered = sp.bmat([[aff, sp.csr_matrix(z)], [sp.csr_matrix(z.T), None]]).tocsc()
+        sol = spla.splu(bordered).solve(np.vstack([b, np.zeros((k, b.shape[1]))]))
+        xp = sol[: len(free)]
+        gram = z.T @ (mff @ z)
+    else:
+        xp = spla.splu(aff.tocsc()).solve(b)
+        gram = None
+
+    def step(x, j):
+        if not k:
+            return x
+        return x - z @ np.linalg.solve(gram, z.T @ (mff @ x - bm[:, j]))
+
+    u = np.column_stack([step(xp[:, j], j) for j in range(b.shape[1])])
+    scale = np.abs(b).max() + np.abs(aff).max() * np.abs(u).max() + 1e-300
+    residual = np.abs(aff @ u - b).max()
+    assert residual <= 1e-9 * scale, f"tension limit: plate residual {residual:.2e} (scale {scale:.2e})"
+    step.kernel = k
+    return u, z, step
+
+
+def free_block_solution(problem: Problem, free: np.ndarray):
+    """The exact answer on the free nodes `free` (flat indices; every constraint of their
+    pieces held) and the least-membrane step (see `tension_limit`); tension 0."""
+    fixed, _ = constraints(problem)
+    fixed_idx = np.array(sorted(fixed), int)
+    uc = np.array([fixed[i] for i in fixed_idx])
+    u, _, step = tension_limit(energy_matrix(problem, tension=0.0), membrane_matrix(problem),
+                               free, fixed_idx, uc)
+    return u, step
+
+
 def piece_labels(problem: Problem) -> np.ndarray:
     """Connected-component label of every node (H * W,) over the links."""
     h, w = problem.shape
@@ -217,6 +325,19 @@ def piece_labels(problem: Problem) -> np.ndarray:
     return csgraph.connected_components(graph, directed=False)[1]
 
 
+def _piece_limit(a: sp.csr_matrix, piece: np.ndarray, cons: dict, membrane: sp.csr_matrix):
+    """tension_limit on one piece with its constraints `cons` (tension 0)."""
+    fixed_idx = np.array(sorted(cons), int)
+    free = np.setdiff1d(piece, fixed_idx)
+    out = np.zeros((len(piece), 2))
+    where = np.searchsorted(piece, fixed_idx)
+    out[where] = [cons[i] for i in fixed_idx]
+    if len(free):
+        u, _, _ = tension_limit(a, membrane, free, fixed_idx, out[where])
+        out[np.searchsorted(piece, free)] = u
+    return out
+
+
 def oracle(problem: Problem):
     """Exact minimiser (H, W, 2) and the number of pieces left out (degenerate)."""
     h, w = problem.shape
@@ -225,6 +346,7 @@ def oracle(problem: Problem):
     label = piece_labels(problem)
     fixed, _ = constraints(problem)
     a = energy_matrix(problem)
+    membrane = None if problem.tension else membrane_matrix(problem)
     u = np.zeros((n, 2))
     skipped = np.zeros(n, bool)
     degenerate = np.zeros(n, bool)
@@ -242,26 +364,15 @@ def oracle(problem: Problem):
         on_line = np.linalg.matrix_rank(centred, tol=1e-9) < 2
         piece_flat = np.linalg.matrix_rank(xy - xy[0], tol=1e-9) < 2
         if problem.tension == 0 and on_line and not piece_flat:
-            # the limit tension -> 0+: Richardson extrapolation of two tiny tensions
-            t = 1e-7
-            sols = []
-            for tau in (t, 2 * t):
-                at = energy_matrix(problem, tension=tau)
-                sols.append(_fixed_solve(at, piece, cons, check_pivots=False))
-            if any(s is None for s in sols):
-                skipped[piece] = True
-                continue
-            u[piece] = 2 * sols[0][piece] - sols[1][piece]
+            # the limit tension -> 0+ (the affine map vanishing on the line is free)
+            u[piece] = _piece_limit(a, piece, cons, membrane)
             continue
         sol = _fixed_solve(a, piece, cons)
         if sol is None and problem.tension == 0:
             # A plate kernel larger than the affine functions: the tension -> 0+ limit.
-            sols = [_fixed_solve(energy_matrix(problem, tension=t), piece, cons, check_pivots=False)
-                    for t in (1e-7, 2e-7)]
-            if all(s is not None for s in sols):
-                degenerate[piece] = True
-                u[piece] = 2 * sols[0][piece] - sols[1][piece]
-                continue
+            degenerate[piece] = True
+            u[piece] = _piece_limit(a, piece, cons, membrane)
+            continue
         if sol is None:
             skipped[piece] = True
             continue
