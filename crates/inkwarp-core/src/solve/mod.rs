@@ -52,12 +52,15 @@
 //! settled to the τ → 0⁺ limit afterwards.
 //! `docs/concepts/thin-plate.md` explains the choices and lists the measured figures.
 
+mod amg;
 mod cycle;
 mod deflate;
 mod held;
 mod history;
 mod level;
+mod matrix;
 mod nullspace;
+mod piece;
 mod pinned;
 mod southwell;
 mod upsample;
@@ -650,6 +653,9 @@ impl BoxValues {
 /// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start on the box.
 /// Returns the solution on the box's nodes and the report's solver fields.
 fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions) -> (BoxValues, SolveReport) {
+    if std::env::var_os("INKWARP_AMG").is_some_and(|v| v != "0") {
+        return solve_piece_amg(key, value, initial, options);
+    }
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport { converged: true, ..Default::default() };
     let mut hier = cache_take(&key).unwrap_or_else(|| {
@@ -837,7 +843,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         }
         SolveMethod::Southwell => {
             let budget = (options.southwell_sweeps * count_unknowns(&hier.levels[0]) as f64).round() as usize;
-            let (passes, change, finished) = southwell::relax(&hier.levels[0], &mut u, budget);
+            let (passes, change, finished) = southwell::relax_level(&hier.levels[0], &mut u, budget);
             report.cycles = passes;
             report.final_change_px = change;
             // Converged only when nothing was left to relax (rounding) before the budget
@@ -870,6 +876,21 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     };
     cache_put(key, hier);
     (out, report)
+}
+
+/// [`solve_piece`] by smoothed aggregation ([`piece::PieceSolver`]).
+fn solve_piece_amg(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions) -> (BoxValues, SolveReport) {
+    let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
+    let [active, right, down] = key.links.vectors(w, h);
+    let mut solver = piece::PieceSolver::new(w, h, active, right, down, key.fixed.clone(), tau);
+    let (mut out, report) = solver.solve(value, initial.map(|s| (s.field, s.x0, s.y0)), options);
+    if tau == 0.0 {
+        let geo = Geometry::new(w, h, solver.active.clone(), solver.right.clone(), solver.down.clone(), Some(key.fixed.clone()));
+        if loose_nodes(&geo, &key.fixed).contains(&true) {
+            settle_loose_nodes(&geo, &key.fixed, &mut out);
+        }
+    }
+    (BoxValues { values: out, stride: w, first: 0 }, report)
 }
 
 /// A warm start of one piece: `field` is the whole grid's, the piece's box starts at
