@@ -1,24 +1,29 @@
-//! Smoothed aggregation: the coarse space of the solver.
+//! Smoothed aggregation: an experimental coarse space for the solver, used only when the
+//! environment variable `INKWARP_AMG` is set (not the default; see
+//! `docs/dev/smoothed-aggregation.md` for what it measured and why it is not).
 //!
-//! Level 0 is the plate operator on a piece's free nodes ([`super::matrix`]). Its nodes are
-//! grouped into *aggregates*: the parts of each 3 × 3 block of nodes that links inside the
-//! block connect (so both sides of a cut, a strand, a tooth, a square hinged at one node
-//! fall into different aggregates). Each aggregate carries the restriction of the
-//! near-null space `B = {1, x, y}` (the affine functions, which have no plate energy),
-//! orthonormalised by a small QR (`B_agg = Q R`; rank 1–3 by the aggregate's shape): the
-//! columns of `Q` are the tentative prolongation's columns and the rows of `R` the coarse
-//! level's `B`, so every coarse level holds the affine motions of every part exactly. The
-//! tentative prolongation is smoothed once by damped Jacobi, `P = (I − ω D⁻¹ A) P_tent`,
-//! `ω = 4 / (3 ρ(D⁻¹A))`, so coarse functions bend into constraints, holes and cuts as
-//! the operator wants; coarse operators are Galerkin `Pᵀ A P`. Coarser levels group the
-//! aggregates of each 3 × 3 block of aggregate blocks that the coarse operator couples.
-//! Smoothing is symmetric Gauss–Seidel; the coarsest level (a few hundred unknowns) is
-//! solved by a dense Cholesky factorisation that skips zero pivots (the operator may be
-//! semidefinite). The V-cycle preconditions conjugate gradients on level 0.
+//! Level 0 is the plate operator on a piece's free nodes ([`super::matrix`]). The
+//! tentative prolongation is a partition of unity: bilinear hats of half width 3 on a
+//! lattice every 3 nodes; each link-connected part of a hat's box is an aggregate (so both
+//! sides of a cut, a strand, a tooth, a square hinged at one node fall into different
+//! ones), carrying `hat · B` with the near-null space `B = {1, x, y}` orthonormalised by a
+//! small QR (`hat · B_agg = Q R`, rank 1–3): `Q` gives the columns, the rows of `R` the
+//! coarse level's `B`, so every level holds the affine motions of every part exactly.
+//! (`AMG_PU=0` instead takes disjoint aggregates, the parts of each 3 × 3 block, the
+//! textbook choice.) It is smoothed by damped Jacobi, `P = (I − ω D⁻¹ A) P_tent`,
+//! `ω = 4 / (3 ρ(D⁻¹A))`; coarse operators are Galerkin `Pᵀ A P`, whose couplings join the
+//! next level's parts. Symmetric Gauss–Seidel smoothing, a dense Cholesky factorisation
+//! that skips zero pivots on the coarsest level (≤ 400 unknowns), and the V-cycle as the
+//! preconditioner of conjugate gradients.
 
 use super::matrix::{BoxGrid, Csr, V2};
 
 /// Nodes per side of a level's blocks.
+/// The measurement switches (read at each use; development only): `AMG_BLOCK` (lattice
+/// spacing, 3), `AMG_SWEEPS` and `AMG_COARSE_SWEEPS` (Gauss–Seidel sweeps, 1), `AMG_PU` (1:
+/// partition of unity, 0: disjoint blocks), `AMG_PSMOOTH` (Jacobi steps on `P`, 1) and
+/// `AMG_PSMOOTH_LEVELS` (on how many levels), `AMG_GAMMA` (2: W-cycle), `AMG_GERSH` and
+/// `AMG_RHO_PCT` (the `ρ` in `ω`).
 fn envn(k: &str, d: usize) -> usize { std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d) }
 fn block_size() -> u32 { envn("AMG_BLOCK", 3) as u32 }
 /// Stop coarsening at this many unknowns (solved densely).
@@ -27,6 +32,7 @@ const COARSEST: usize = 400;
 fn sweeps() -> usize { envn("AMG_SWEEPS", 1) }
 
 struct Level {
+    depth: usize,
     a: Csr,
     inv_diag: Vec<f64>,
     /// The prolongation from the next level and its transpose (empty on the coarsest).
@@ -73,14 +79,19 @@ impl Hierarchy {
                 levels.push(Level::new(a, inv_diag, Csr::default()));
                 break;
             }
-            let (agg_of_node, agg_pos) = aggregate(n_nodes, &pos, &edges);
-            let (p_tent, b_coarse, node_of_coarse) = tentative(&node_of_dof, &agg_of_node, agg_pos.len(), &b);
+            let (p_tent, b_coarse, node_of_coarse, agg_pos) = if envn("AMG_PU", 1) == 1 {
+                partition_of_unity(n_nodes, &pos, &edges, &node_of_dof, &b)
+            } else {
+                let (agg_of_node, agg_pos) = aggregate(n_nodes, &pos, &edges);
+                let (p, b, c) = tentative(&node_of_dof, &agg_of_node, agg_pos.len(), &b);
+                (p, b, c, agg_pos)
+            };
             if p_tent.cols as f64 > 0.9 * n as f64 {
                 levels.push(Level::new(a, inv_diag, Csr::default()));
                 break;
             }
             let mut p = p_tent;
-            for _ in 0..envn("AMG_PSMOOTH", 1) {
+            for _ in 0..if levels.len() < envn("AMG_PSMOOTH_LEVELS", 99) { envn("AMG_PSMOOTH", 1) } else { 0 } {
                 p = smooth(&a, &inv_diag, &p);
             }
             let coarse = p.transpose().mul(&a.mul(&p));
@@ -92,6 +103,9 @@ impl Hierarchy {
             node_of_dof = node_of_coarse;
             levels.push(Level::new(a, inv_diag, p));
             a = coarse;
+        }
+        for (d, l) in levels.iter_mut().enumerate() {
+            l.depth = d;
         }
         let coarse = Dense::factor(&levels.last().unwrap().a);
         if std::env::var_os("INKWARP_AMG_DEBUG").is_some() {
@@ -119,18 +133,19 @@ impl Level {
     fn new(a: Csr, inv_diag: Vec<f64>, p: Csr) -> Level {
         let n = a.rows;
         let pt = if p.rows > 0 { p.transpose() } else { Csr::default() };
-        Level { a, inv_diag, p, pt, x: vec![[0.0; 2]; n], b: vec![[0.0; 2]; n], r: vec![[0.0; 2]; n] }
+        Level { depth: 0, a, inv_diag, p, pt, x: vec![[0.0; 2]; n], b: vec![[0.0; 2]; n], r: vec![[0.0; 2]; n] }
     }
 }
 
 fn cycle(levels: &mut [Level], coarse: &Dense) {
     let (l, rest) = levels.split_first_mut().unwrap();
+    let sweeps = if l.depth == 0 { sweeps() } else { envn("AMG_COARSE_SWEEPS", sweeps()) };
     if rest.is_empty() {
         coarse.solve(&l.b, &mut l.x);
         return;
     }
     l.x.iter_mut().for_each(|x| *x = [0.0; 2]);
-    for _ in 0..sweeps() {
+    for _ in 0..sweeps {
         gauss_seidel(&l.a, &l.inv_diag, &l.b, &mut l.x);
     }
     l.a.residual(&l.b, &l.x, &mut l.r);
@@ -157,7 +172,7 @@ fn cycle(levels: &mut [Level], coarse: &Dense) {
         x[0] += c[0];
         x[1] += c[1];
     }
-    for _ in 0..sweeps() {
+    for _ in 0..sweeps {
         gauss_seidel(&l.a, &l.inv_diag, &l.b, &mut l.x);
     }
 }
@@ -165,7 +180,7 @@ fn cycle(levels: &mut [Level], coarse: &Dense) {
 /// One symmetric Gauss–Seidel sweep (forward, then backward).
 fn gauss_seidel(a: &Csr, inv_diag: &[f64], b: &[V2], x: &mut [V2]) {
     let n = a.rows;
-    let mut relax = |i: usize, x: &mut [V2]| {
+    let relax = |i: usize, x: &mut [V2]| {
         let d = inv_diag[i];
         if d == 0.0 {
             return;
@@ -302,6 +317,139 @@ fn tentative(node_of_dof: &[u32], agg_of_node: &[u32], aggs: usize, b: &[[f64; 3
     (p, b_coarse, coarse_agg)
 }
 
+/// The tentative prolongation as a partition of unity: lattice nodes every `H` positions,
+/// each with the bilinear hat `Φ` of half width `H`; each link-connected part of a hat's
+/// box (its nodes, joined by `edges` inside the box) is an aggregate, and its functions are
+/// `Φ · B` orthonormalised (`Φ B_agg = Q R`, rank 1–3). The hats sum to one at every node
+/// and each node lies in one part of each box, so `P_tent B_coarse = B` with `B_coarse` the
+/// rows of every `R`. Returns `P_tent`, `B_coarse`, each coarse unknown's aggregate and each
+/// aggregate's lattice position.
+fn partition_of_unity(n: usize, pos: &[(u32, u32)], edges: &[(u32, u32)], node_of_dof: &[u32], b: &[[f64; 3]]) -> (Csr, Vec<[f64; 3]>, Vec<u32>, Vec<(u32, u32)>) {
+    let hw = block_size();
+    let counting = |keys: &mut dyn Iterator<Item = (usize, u32)>, buckets: usize, len: usize| {
+        let items: Vec<(usize, u32)> = keys.collect();
+        let mut start = vec![0usize; buckets + 1];
+        for &(k, _) in &items {
+            start[k + 1] += 1;
+        }
+        for k in 0..buckets {
+            start[k + 1] += start[k];
+        }
+        let mut next = start.clone();
+        let mut out = vec![0u32; len.max(items.len())];
+        for &(k, v) in &items {
+            out[next[k]] = v;
+            next[k] += 1;
+        }
+        out.truncate(items.len());
+        (start, out)
+    };
+    // Unknowns of each node, neighbours of each node.
+    let (dof_start, dofs) = counting(&mut node_of_dof.iter().enumerate().map(|(i, &nd)| (nd as usize, i as u32)), n, node_of_dof.len());
+    let (adj_start, adj) = counting(&mut edges.iter().flat_map(|&(i, j)| [(i as usize, j), (j as usize, i)]), n, 2 * edges.len());
+    // The boxes each node lies in, with the hat's weight there.
+    let nx = pos.iter().map(|p| p.0).max().unwrap_or(0) / hw + 2;
+    let ny = pos.iter().map(|p| p.1).max().unwrap_or(0) / hw + 2;
+    let mut memberships: Vec<(usize, u32, f64)> = Vec::new();
+    for (i, &(x, y)) in pos.iter().enumerate() {
+        for bx in [x / hw, x / hw + 1] {
+            let wx = 1.0 - (x as f64 - (bx * hw) as f64).abs() / hw as f64;
+            for by in [y / hw, y / hw + 1] {
+                let wy = 1.0 - (y as f64 - (by * hw) as f64).abs() / hw as f64;
+                if wx > 0.0 && wy > 0.0 {
+                    memberships.push(((by * nx + bx) as usize, i as u32, wx * wy));
+                }
+            }
+        }
+    }
+    memberships.sort_by_key(|m| (m.0, m.1));
+    let mut local = vec![u32::MAX; n];
+    let mut triplets: Vec<(u32, u32, f64)> = Vec::new();
+    let mut b_coarse = Vec::new();
+    let mut coarse_agg = Vec::new();
+    let mut agg_pos = Vec::new();
+    let mut k = 0;
+    while k < memberships.len() {
+        let bid = memberships[k].0;
+        let end = k + memberships[k..].iter().take_while(|m| m.0 == bid).count();
+        let group = &memberships[k..end];
+        for (t, m) in group.iter().enumerate() {
+            local[m.1 as usize] = t as u32;
+        }
+        let mut uf = UnionFind((0..group.len() as u32).collect());
+        for (t, m) in group.iter().enumerate() {
+            let i = m.1 as usize;
+            for &j in &adj[adj_start[i]..adj_start[i + 1]] {
+                if local[j as usize] != u32::MAX {
+                    uf.union(t as u32, local[j as usize]);
+                }
+            }
+        }
+        let roots: Vec<u32> = (0..group.len() as u32).map(|t| uf.find(t)).collect();
+        let mut done = vec![false; group.len()];
+        for t0 in 0..group.len() {
+            if done[roots[t0] as usize] {
+                continue;
+            }
+            done[roots[t0] as usize] = true;
+            // The part's unknowns and their weights.
+            let part: Vec<(u32, f64)> = (t0..group.len())
+                .filter(|&t| roots[t] == roots[t0])
+                .flat_map(|t| dofs[dof_start[group[t].1 as usize]..dof_start[group[t].1 as usize + 1]].iter().map(move |&d| (d, group[t].2)))
+                .collect();
+            let agg = agg_pos.len() as u32;
+            agg_pos.push(((bid % nx as usize) as u32, (bid / nx as usize) as u32));
+            let mut q: Vec<Vec<f64>> = Vec::new();
+            for j in 0..3 {
+                let mut v: Vec<f64> = part.iter().map(|&(d, wt)| wt * b[d as usize][j]).collect();
+                let norm0 = v.iter().map(|v| v * v).sum::<f64>().sqrt();
+                if norm0 == 0.0 {
+                    continue;
+                }
+                for _ in 0..2 {
+                    for qc in &q {
+                        let d: f64 = qc.iter().zip(&v).map(|(a, b)| a * b).sum();
+                        v.iter_mut().zip(qc).for_each(|(v, q)| *v -= d * q);
+                    }
+                }
+                let norm = v.iter().map(|v| v * v).sum::<f64>().sqrt();
+                if norm > 1e-7 * norm0 {
+                    v.iter_mut().for_each(|v| *v /= norm);
+                    q.push(v);
+                }
+            }
+            for qc in &q {
+                let c = b_coarse.len() as u32;
+                let mut r = [0.0; 3];
+                for (t, &(d, wt)) in part.iter().enumerate() {
+                    triplets.push((d, c, qc[t]));
+                    for (j, r) in r.iter_mut().enumerate() {
+                        *r += qc[t] * wt * b[d as usize][j];
+                    }
+                }
+                b_coarse.push(r);
+                coarse_agg.push(agg);
+            }
+        }
+        for m in group {
+            local[m.1 as usize] = u32::MAX;
+        }
+        k = end;
+    }
+    triplets.sort_unstable_by_key(|t| (t.0, t.1));
+    let rows = node_of_dof.len();
+    let mut p = Csr { rows, cols: b_coarse.len(), start: vec![0; rows + 1], col: Vec::with_capacity(triplets.len()), val: Vec::with_capacity(triplets.len()) };
+    for &(r, c, v) in &triplets {
+        p.start[r as usize + 1] += 1;
+        p.col.push(c);
+        p.val.push(v);
+    }
+    for r in 0..rows {
+        p.start[r + 1] += p.start[r];
+    }
+    (p, b_coarse, coarse_agg, agg_pos)
+}
+
 /// `P = (I − ω D⁻¹ A) P_tent`, `ω = 4 / (3 ρ(D⁻¹A))`.
 fn smooth(a: &Csr, inv_diag: &[f64], p_tent: &Csr) -> Csr {
     let rho = spectral_radius(a, inv_diag);
@@ -311,18 +459,31 @@ fn smooth(a: &Csr, inv_diag: &[f64], p_tent: &Csr) -> Csr {
     }
     let rho = if envn("AMG_GERSH", 0) == 1 { gersh } else { rho * envn("AMG_RHO_PCT", 100) as f64 / 100.0 };
     let omega = 4.0 / (3.0 * rho);
-    let mut p = a.mul(p_tent);
-    for i in 0..p.rows {
+    let ap = a.mul(p_tent);
+    let mut p = Csr { rows: ap.rows, cols: ap.cols, start: vec![0], col: Vec::with_capacity(ap.nnz()), val: Vec::with_capacity(ap.nnz()) };
+    for i in 0..ap.rows {
         let f = -omega * inv_diag[i];
-        let r = p.start[i]..p.start[i + 1];
-        p.val[r.clone()].iter_mut().for_each(|v| *v *= f);
+        let (ac, av) = ap.row(i);
         let (tc, tv) = p_tent.row(i);
-        for (&c, &v) in tc.iter().zip(tv) {
-            match p.col[r.clone()].binary_search(&c) {
-                Ok(k) => p.val[r.start + k] += v,
-                Err(_) => unreachable!("A has every diagonal entry of a row with P_tent entries"),
+        // Both rows' columns ascend: merge them.
+        let (mut x, mut y) = (0, 0);
+        while x < ac.len() || y < tc.len() {
+            let take_a = y == tc.len() || (x < ac.len() && ac[x] <= tc[y]);
+            let take_t = x == ac.len() || (y < tc.len() && tc[y] <= ac[x]);
+            let c = if take_a { ac[x] } else { tc[y] };
+            let mut v = 0.0;
+            if take_a {
+                v += f * av[x];
+                x += 1;
             }
+            if take_t {
+                v += tv[y];
+                y += 1;
+            }
+            p.col.push(c);
+            p.val.push(v);
         }
+        p.start.push(p.col.len());
     }
     p
 }

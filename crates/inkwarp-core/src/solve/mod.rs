@@ -428,7 +428,7 @@ pub(crate) fn solve_constrained(
         let links_again = (!open).then(|| piece_links(grid, &labels, l as u32, boxes[l], open));
         let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), spaces: spaces() };
         let start = initial.map(|f| Start { field: f, x0, y0 });
-        let (mut u, mut r) = solve_piece(key, &value, start, options);
+        let (mut u, mut r) = solve_piece(key, &value, start, options, null.as_deref());
         if let (Some(basis), Some(links)) = (&null, links_again) {
             if !basis.is_empty() && !(gauge.is_some() && basis.len() == 1) {
                 let (uu, rr) = settle_null_space(links, bw, bh, tau, fixed, &constrained_only, &value, basis, u, r, options);
@@ -559,7 +559,7 @@ fn settle_null_space(
             dy: dense.iter().map(|v| v[1] as f32).collect(),
         };
         let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links_clone(&links), fixed: fixed.clone(), spaces: spaces() };
-        let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options);
+        let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options, Some(basis));
         report.cycles += r2.cycles;
         report.final_change_px = r2.final_change_px;
         report.residual = r2.residual;
@@ -652,9 +652,9 @@ impl BoxValues {
 /// Solves one piece on its box: `key` describes the box's grid (the piece active, its
 /// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start on the box.
 /// Returns the solution on the box's nodes and the report's solver fields.
-fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions) -> (BoxValues, SolveReport) {
+fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions, null: Option<&[nullspace::Sparse]>) -> (BoxValues, SolveReport) {
     if std::env::var_os("INKWARP_AMG").is_some_and(|v| v != "0") {
-        return solve_piece_amg(key, value, initial, options);
+        return solve_piece_amg(key, value, initial, options, null.unwrap_or(&[]));
     }
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport { converged: true, ..Default::default() };
@@ -879,10 +879,10 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
 }
 
 /// [`solve_piece`] by smoothed aggregation ([`piece::PieceSolver`]).
-fn solve_piece_amg(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions) -> (BoxValues, SolveReport) {
+fn solve_piece_amg(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions, null: &[nullspace::Sparse]) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let [active, right, down] = key.links.vectors(w, h);
-    let mut solver = piece::PieceSolver::new(w, h, active, right, down, key.fixed.clone(), tau);
+    let mut solver = piece::PieceSolver::new(w, h, active, right, down, key.fixed.clone(), tau, null);
     let (mut out, report) = solver.solve(value, initial.map(|s| (s.field, s.x0, s.y0)), options);
     if tau == 0.0 {
         let geo = Geometry::new(w, h, solver.active.clone(), solver.right.clone(), solver.down.clone(), Some(key.fixed.clone()));

@@ -24,10 +24,14 @@ pub(crate) struct PieceSolver {
     sys: System,
     hier: Hierarchy,
     torn: bool,
+    /// An orthonormal basis (over the unknowns) of the operator's null space: the
+    /// preconditioner's output is kept orthogonal to it, so that the iteration never moves
+    /// along the free functions (the τ → 0⁺ rule picks those afterwards).
+    null: Vec<Vec<(u32, f64)>>,
 }
 
 impl PieceSolver {
-    pub fn new(w: usize, h: usize, active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, fixed: Vec<bool>, tau: f64) -> PieceSolver {
+    pub fn new(w: usize, h: usize, active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, fixed: Vec<bool>, tau: f64, null: &[super::nullspace::Sparse]) -> PieceSolver {
         let g = BoxGrid { w, h, active: &active, right: &right, down: &down };
         let sys = System::new(&g, &fixed, tau);
         let t = std::time::Instant::now();
@@ -36,7 +40,9 @@ impl PieceSolver {
             eprintln!("setup {:.3}s", t.elapsed().as_secs_f64());
         }
         let torn = (0..w * h).any(|i| !active[i] || (i % w + 1 < w && !right[i]) || (i / w + 1 < h && !down[i]));
-        PieceSolver { w, h, active, right, down, fixed, tau, sys, hier, torn }
+        // Only at τ = 0 are the free functions exact null vectors.
+        let null = if tau == 0.0 { orthonormal(null, &sys.dof) } else { Vec::new() };
+        PieceSolver { w, h, active, right, down, fixed, tau, sys, hier, torn, null }
     }
 
     pub fn matches(&self, w: usize, h: usize, active: &[bool], right: &[bool], down: &[bool], fixed: &[bool], tau: f64) -> bool {
@@ -94,6 +100,7 @@ impl PieceSolver {
             report.converged = finished;
         } else {
             self.hier.precondition(&r, &mut z);
+            project(&self.null, &mut z);
             let mut p = z.clone();
             let mut rz = dot(&r, &z);
             let mut last_change = f64::INFINITY;
@@ -129,6 +136,7 @@ impl PieceSolver {
                     break;
                 }
                 self.hier.precondition(&r, &mut z);
+                project(&self.null, &mut z);
                 let rz_new = dot(&r, &z);
                 let beta = [0, 1].map(|k| if rz[k] > 0.0 { rz_new[k] / rz[k] } else { 0.0 });
                 for i in 0..n {
@@ -154,4 +162,81 @@ impl PieceSolver {
 
 fn dot(a: &[V2], b: &[V2]) -> [f64; 2] {
     a.iter().zip(b).fold([0.0; 2], |s, (a, b)| [s[0] + a[0] * b[0], s[1] + a[1] * b[1]])
+}
+
+/// The functions of `basis` (on box nodes) that vanish on the fixed nodes (`dof` is
+/// `u32::MAX` there and on inactive nodes, where every function is zero) as unknowns'
+/// vectors, orthonormalised. (The basis is taken without the gauge pin of a piece whose
+/// constraints lie on one line: combinations that move that node are eliminated.)
+fn orthonormal(basis: &[super::nullspace::Sparse], dof: &[u32]) -> Vec<Vec<(u32, f64)>> {
+    use std::collections::HashMap;
+    let mut funcs: Vec<(HashMap<u32, f64>, HashMap<usize, f64>)> = basis
+        .iter()
+        .map(|f| {
+            let (mut free, mut pinned) = (HashMap::new(), HashMap::new());
+            for &(i, v) in f {
+                if dof[i] != u32::MAX {
+                    *free.entry(dof[i]).or_default() += v;
+                } else if v != 0.0 {
+                    *pinned.entry(i).or_default() += v;
+                }
+            }
+            (free, pinned)
+        })
+        .collect();
+    // Eliminate the values at fixed nodes.
+    loop {
+        let Some(node) = funcs.iter().find_map(|f| f.1.iter().find(|e| e.1.abs() > 1e-12).map(|e| *e.0)) else { break };
+        let k = (0..funcs.len()).max_by(|&a, &b| funcs[a].1.get(&node).map_or(0.0, |v| v.abs()).total_cmp(&funcs[b].1.get(&node).map_or(0.0, |v| v.abs()))).unwrap();
+        let pivot = funcs.swap_remove(k);
+        let pv = pivot.1[&node];
+        for f in &mut funcs {
+            let c = f.1.get(&node).copied().unwrap_or(0.0) / pv;
+            if c != 0.0 {
+                for (&i, &v) in &pivot.0 {
+                    *f.0.entry(i).or_default() -= c * v;
+                }
+                for (&i, &v) in &pivot.1 {
+                    *f.1.entry(i).or_default() -= c * v;
+                }
+                f.1.remove(&node);
+            }
+        }
+    }
+    let mut out: Vec<Vec<(u32, f64)>> = Vec::new();
+    for (mut dense, _) in funcs {
+        let norm0 = dense.values().map(|v| v * v).sum::<f64>().sqrt();
+        for _ in 0..2 {
+            for q in &out {
+                let d: f64 = q.iter().map(|&(i, v)| v * dense.get(&i).copied().unwrap_or(0.0)).sum();
+                if d != 0.0 {
+                    for &(i, v) in q {
+                        *dense.entry(i).or_default() -= d * v;
+                    }
+                }
+            }
+        }
+        let norm = dense.values().map(|v| v * v).sum::<f64>().sqrt();
+        if norm > 1e-8 * norm0 {
+            let mut q: Vec<(u32, f64)> = dense.iter().filter(|e| *e.1 != 0.0).map(|(&i, &v)| (i, v / norm)).collect();
+            q.sort_unstable_by_key(|e| e.0);
+            out.push(q);
+        }
+    }
+    out
+}
+
+/// `z ← z − Q Qᵀ z` for the orthonormal sparse columns `q`.
+fn project(q: &[Vec<(u32, f64)>], z: &mut [V2]) {
+    for q in q {
+        let mut d = [0.0; 2];
+        for &(i, v) in q {
+            d[0] += v * z[i as usize][0];
+            d[1] += v * z[i as usize][1];
+        }
+        for &(i, v) in q {
+            z[i as usize][0] -= d[0] * v;
+            z[i as usize][1] -= d[1] * v;
+        }
+    }
 }
