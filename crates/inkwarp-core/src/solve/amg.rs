@@ -116,11 +116,6 @@ impl Hierarchy {
         Hierarchy { levels, coarse }
     }
 
-    /// Unknowns on each level.
-    pub fn sizes(&self) -> Vec<usize> {
-        self.levels.iter().map(|l| l.a.rows).collect()
-    }
-
     /// `z = M⁻¹ r`: one V-cycle from zero.
     pub fn precondition(&mut self, r: &[V2], z: &mut [V2]) {
         self.levels[0].b.copy_from_slice(r);
@@ -349,7 +344,6 @@ fn partition_of_unity(n: usize, pos: &[(u32, u32)], edges: &[(u32, u32)], node_o
     let (adj_start, adj) = counting(&mut edges.iter().flat_map(|&(i, j)| [(i as usize, j), (j as usize, i)]), n, 2 * edges.len());
     // The boxes each node lies in, with the hat's weight there.
     let nx = pos.iter().map(|p| p.0).max().unwrap_or(0) / hw + 2;
-    let ny = pos.iter().map(|p| p.1).max().unwrap_or(0) / hw + 2;
     let mut memberships: Vec<(usize, u32, f64)> = Vec::new();
     for (i, &(x, y)) in pos.iter().enumerate() {
         for bx in [x / hw, x / hw + 1] {

@@ -19,7 +19,6 @@ pub(crate) struct PieceSolver {
     pub active: Vec<bool>,
     pub right: Vec<bool>,
     pub down: Vec<bool>,
-    pub fixed: Vec<bool>,
     pub tau: f64,
     sys: System,
     hier: Hierarchy,
@@ -42,16 +41,7 @@ impl PieceSolver {
         let torn = (0..w * h).any(|i| !active[i] || (i % w + 1 < w && !right[i]) || (i / w + 1 < h && !down[i]));
         // Only at τ = 0 are the free functions exact null vectors.
         let null = if tau == 0.0 { orthonormal(null, &sys.dof) } else { Vec::new() };
-        PieceSolver { w, h, active, right, down, fixed, tau, sys, hier, torn, null }
-    }
-
-    pub fn matches(&self, w: usize, h: usize, active: &[bool], right: &[bool], down: &[bool], fixed: &[bool], tau: f64) -> bool {
-        self.w == w && self.h == h && self.tau.to_bits() == tau.to_bits() && self.active == active && self.right == right && self.down == down && self.fixed == fixed
-    }
-
-    /// Unknowns on each level of the hierarchy.
-    pub fn sizes(&self) -> Vec<usize> {
-        self.hier.sizes()
+        PieceSolver { w, h, active, right, down, tau, sys, hier, torn, null }
     }
 
     /// Solves for the fixed nodes' values `value` from `initial` (a start on the box, read
