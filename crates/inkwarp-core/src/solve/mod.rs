@@ -653,7 +653,7 @@ impl BoxValues {
 /// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start on the box.
 /// Returns the solution on the box's nodes and the report's solver fields.
 fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions, null: Option<&[nullspace::Sparse]>) -> (BoxValues, SolveReport) {
-    if std::env::var_os("INKWARP_AMG").is_some_and(|v| v != "0") {
+    if std::env::var_os("INKWARP_AMG").is_some_and(|v| !v.is_empty() && v != "0") {
         return solve_piece_amg(key, value, initial, options, null.unwrap_or(&[]));
     }
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
