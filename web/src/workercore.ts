@@ -2,7 +2,7 @@
 // engine's grids and the last field of every layer, answers each message from the page
 // with messages of its own, and can run (and be tested) anywhere an `Engine` loads.
 
-import { Engine, type FieldData, type GridHandle } from './engine';
+import { Engine, type FieldData, type GridHandle, type ImageHandle } from './engine';
 import { adaptiveTriangles } from './gl';
 import { LastFields } from './lastfields';
 import type { FromWorker, ToWorker } from './protocol';
@@ -11,8 +11,22 @@ import type { Pt } from './scene';
 /** Sends a message to the page, handing over the buffers in `transfer`. */
 export type Post = (msg: FromWorker, transfer?: Transferable[]) => void;
 
+/**
+ * A worker that only draws full-resolution frames starts a fresh module once it has been
+ * left alone this long (ms) with a module memory above `RENEW_BYTES`: a WebAssembly
+ * memory never shrinks, and a 4000 × 3000 frame's solve and drawing grow it to several
+ * hundred MB that the idle worker would otherwise hold.
+ */
+export const RENEW_IDLE_MS = 1500;
+export const RENEW_BYTES = 256 * 2 ** 20;
+
 export class SolverWorker {
   private engine: Engine | null = null;
+  /** A fresh module being made (see `renew`): messages wait for it. */
+  private renewing: Promise<void> | null = null;
+  private renewTimer: ReturnType<typeof setTimeout> | null = null;
+  /** How many times the module was renewed while idle (for tests and measures). */
+  renewals = 0;
   private wasmUrl = '';
   private grids = new Map<string, GridHandle>();
   private last = new LastFields();
@@ -26,6 +40,11 @@ export class SolverWorker {
   ) {}
 
   async handle(msg: ToWorker): Promise<void> {
+    if (this.renewTimer !== null) {
+      clearTimeout(this.renewTimer);
+      this.renewTimer = null;
+    }
+    if (this.renewing) await this.renewing;
     try {
       if (msg.type === 'init') {
         this.wasmUrl = msg.wasmUrl;
@@ -55,8 +74,7 @@ export class SolverWorker {
       } else if (msg.type === 'full-layer') {
         this.fullLayer(msg);
       } else if (msg.type === 'full-drop') {
-        this.fulls.get(msg.key)?.grid?.free();
-        this.fulls.delete(msg.key);
+        this.fullDrop(msg.key);
       } else if (msg.type === 'full-render') {
         this.fullRender(msg);
       }
@@ -79,51 +97,90 @@ export class SolverWorker {
 
   /**
    * Layers at the picture's own resolution (a proxied scene's full-resolution frames): the
-   * picture, and the matte and cuts its grid is built from (when first drawn).
+   * picture, kept in the module once (a 4000 × 3000 picture is 48 MB), and the matte and
+   * cuts its grid is built from (when first drawn).
    */
-  private fulls = new Map<string, { image: { width: number; height: number; data: Uint8Array } | null; matte: Uint8Array | null; cuts: Pt[][]; grid: GridHandle | null }>();
+  private fulls = new Map<string, { image: ImageHandle | null; matte: Uint8Array | null; cuts: Pt[][]; grid: GridHandle | null }>();
 
   private fullLayer(msg: Extract<ToWorker, { type: 'full-layer' }>): void {
+    const engine = this.engine!;
     const had = this.fulls.get(msg.key);
     had?.grid?.free();
-    this.fulls.set(msg.key, { image: msg.image ?? had?.image ?? null, matte: msg.matte ?? had?.matte ?? null, cuts: msg.cuts, grid: null });
+    let image = had?.image ?? null;
+    if (msg.image) {
+      image?.free();
+      image = engine.image(msg.image.width, msg.image.height, msg.image.data);
+    }
+    this.fulls.set(msg.key, { image, matte: msg.matte ?? had?.matte ?? null, cuts: msg.cuts, grid: null });
+  }
+
+  private fullDrop(key: string): void {
+    const full = this.fulls.get(key);
+    full?.grid?.free();
+    full?.image?.free();
+    this.fulls.delete(key);
   }
 
   /**
-   * A full-resolution frame: each layer solved on its own grid with the scene's settings
-   *, at rest the identity, then drawn by the engine's
-   * renderer over the background, as `inkwarp render` draws the frame.
+   * A full-resolution frame: each layer solved on its own grid with the scene's settings,
+   * at rest the identity, then drawn by the engine's renderer over the background, as
+   * `inkwarp render` draws the frame. The pictures and the fields stay in the module
+   * (solved cold: a warm start would keep the earlier solves' fields as its history, 96 MB
+   * each at 4000 × 3000, where the cold solve at the scene's grid step takes about a
+   * second).
    */
   private fullRender(msg: Extract<ToWorker, { type: 'full-render' }>): void {
     const engine = this.engine!;
-    let solveMs = 0;
-    const cycles: number[] = [];
+    let gridMs = 0;
     const layers = [];
     for (const l of msg.layers) {
       const full = this.fulls.get(l.key);
       if (!full?.image || !full.matte) throw new Error(`The layer ${l.key} has no picture at full resolution.`);
-      const { width, height, data } = full.image;
       const t0 = performance.now();
-      full.grid ??= engine.grid(width, height, full.matte, full.cuts);
-      const n = width * height;
-      let field: FieldData;
-      if (l.features) {
-        // Solved cold: a warm start keeps the earlier solves' fields in the engine as its
-        // history, 96 MB each at 4000 × 3000, where the cold solve at the scene's grid
-        // step takes about a second.
-        const solved = full.grid.solve(l.features, l.options, null);
-        field = solved.field;
-        cycles.push(solved.report.cycles ?? 0);
-      } else {
-        field = { width, height, dx: new Float32Array(n), dy: new Float32Array(n) };
-      }
-      solveMs += performance.now() - t0;
-      layers.push({ image: data, grid: full.grid, field, offset: l.offset });
+      full.grid ??= engine.grid(full.image.width, full.image.height, full.matte, full.cuts);
+      gridMs += performance.now() - t0;
+      layers.push({ image: full.image, grid: full.grid, features: l.features, options: l.options, offset: l.offset });
     }
-    const t1 = performance.now();
-    const pixels = engine.renderCpu(msg.width, msg.height, msg.background, layers);
-    const drawMs = performance.now() - t1;
-    this.post({ type: 'full', id: msg.id, width: msg.width, height: msg.height, pixels, solveMs, drawMs, cycles, wasmBytes: engine.x.memory.buffer.byteLength }, [pixels.buffer]);
+    const { pixels, reports, solveMs, drawMs } = engine.renderSolved(msg.width, msg.height, msg.background, layers);
+    const cycles = reports.filter((r) => r !== null).map((r) => r!.cycles ?? 0);
+    this.post({ type: 'full', id: msg.id, width: msg.width, height: msg.height, pixels, solveMs: solveMs + gridMs, drawMs, cycles, wasmBytes: engine.x.memory.buffer.byteLength }, [pixels.buffer]);
+    if (this.grids.size === 0 && engine.x.memory.buffer.byteLength > RENEW_BYTES) {
+      this.renewTimer = setTimeout(() => {
+        this.renewTimer = null;
+        void this.renew();
+      }, RENEW_IDLE_MS);
+    }
+  }
+
+  /**
+   * Starts a fresh module holding only what the full-resolution frames need (each layer's
+   * picture and grid, rebuilt now so the next frame does not wait for them), and lets the
+   * old one go with the memory its last frames grew. Messages that arrive meanwhile wait.
+   */
+  renew(): Promise<void> {
+    if (this.renewing || !this.engine || this.grids.size > 0) return this.renewing ?? Promise.resolve();
+    const pictures = [...this.fulls].map(([key, f]) => ({ key, f, image: f.image ? { width: f.image.width, height: f.image.height, data: f.image.read() } : null }));
+    const old = this.engine;
+    this.engine = null;
+    this.renewing = (async () => {
+      try {
+        const fresh = await this.load(this.wasmUrl);
+        for (const { key, f, image } of pictures) {
+          const img = image ? fresh.image(image.width, image.height, image.data) : null;
+          const grid = img && f.matte ? fresh.grid(img.width, img.height, f.matte, f.cuts) : null;
+          this.fulls.set(key, { image: img, matte: f.matte, cuts: f.cuts, grid });
+        }
+        this.engine = fresh;
+        this.renewals++;
+      } catch {
+        // No fresh module (the page went away?): keep the old one and what it holds.
+        this.engine = old;
+        for (const { key, f } of pictures) this.fulls.set(key, f);
+      } finally {
+        this.renewing = null;
+      }
+    })();
+    return this.renewing;
   }
 
   private gridOf(key: string): GridHandle {

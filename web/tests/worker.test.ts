@@ -153,6 +153,27 @@ describe('full-resolution frames (a proxied scene)', () => {
     expect(Array.from(posed.pixels)).not.toEqual(Array.from(img.data));
   });
 
+  it('renews its module when left alone, keeping the pictures: the same frames after, no renewal while it solves grids', async () => {
+    const img = image();
+    const cuts: Pt[][] = [[[25.5, 10], [25.5, 31]]];
+    await send({ type: 'full-layer', key: 'P', image: img, matte: new Uint8Array(W * H).fill(255), cuts });
+    const [before] = await send(render(1, pose(26)));
+    if (before.type !== 'full') throw new Error(JSON.stringify(before));
+    // A worker that also holds the drafts' grids keeps its module.
+    await worker.renew();
+    expect(worker.renewals).toBe(0);
+    expect(await send({ type: 'drop', key: 'L' })).toEqual([]);
+    // A message sent while the fresh module loads waits for it.
+    const renewing = worker.renew();
+    await Promise.all([send(render(2, pose(26))), send(render(3, null)), renewing]);
+    expect(worker.renewals).toBe(1);
+    expect(loads).toBe(2);
+    const frames = sent.filter((m) => m.type === 'full');
+    expect(frames.map((m) => m.id)).toEqual([1, 2, 3]);
+    expect(Array.from(frames[1].pixels)).toEqual(Array.from(before.pixels));
+    expect(Array.from(frames[2].pixels)).toEqual(Array.from(img.data));
+  });
+
   it('says which layer has no picture', async () => {
     const out = await send(render(3, null));
     expect(out[0].type).toBe('error');
