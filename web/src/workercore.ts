@@ -11,22 +11,8 @@ import type { Pt } from './scene';
 /** Sends a message to the page, handing over the buffers in `transfer`. */
 export type Post = (msg: FromWorker, transfer?: Transferable[]) => void;
 
-/**
- * A worker that only draws full-resolution frames starts a fresh module once it has been
- * left alone this long (ms) with a module memory above `RENEW_BYTES`: a WebAssembly
- * memory never shrinks, and a 4000 × 3000 frame's solve and drawing grow it to several
- * hundred MB that the idle worker would otherwise hold.
- */
-export const RENEW_IDLE_MS = 1500;
-export const RENEW_BYTES = 256 * 2 ** 20;
-
 export class SolverWorker {
   private engine: Engine | null = null;
-  /** A fresh module being made (see `renew`): messages wait for it. */
-  private renewing: Promise<void> | null = null;
-  private renewTimer: ReturnType<typeof setTimeout> | null = null;
-  /** How many times the module was renewed while idle (for tests and measures). */
-  renewals = 0;
   private wasmUrl = '';
   private grids = new Map<string, GridHandle>();
   private last = new LastFields();
@@ -40,11 +26,6 @@ export class SolverWorker {
   ) {}
 
   async handle(msg: ToWorker): Promise<void> {
-    if (this.renewTimer !== null) {
-      clearTimeout(this.renewTimer);
-      this.renewTimer = null;
-    }
-    if (this.renewing) await this.renewing;
     try {
       if (msg.type === 'init') {
         this.wasmUrl = msg.wasmUrl;
@@ -77,6 +58,8 @@ export class SolverWorker {
         this.fullDrop(msg.key);
       } else if (msg.type === 'full-render') {
         this.fullRender(msg);
+      } else if (msg.type === 'full-export') {
+        this.fullExport();
       }
     } catch (err) {
       if (err instanceof WebAssembly.RuntimeError && this.wasmUrl) {
@@ -111,7 +94,9 @@ export class SolverWorker {
       image?.free();
       image = engine.image(msg.image.width, msg.image.height, msg.image.data);
     }
-    this.fulls.set(msg.key, { image, matte: msg.matte ?? had?.matte ?? null, cuts: msg.cuts, grid: null });
+    const matte = msg.matte ?? had?.matte ?? null;
+    const grid = msg.grid && image && matte ? engine.grid(image.width, image.height, matte, msg.cuts) : null;
+    this.fulls.set(msg.key, { image, matte, cuts: msg.cuts, grid });
   }
 
   private fullDrop(key: string): void {
@@ -144,43 +129,16 @@ export class SolverWorker {
     const { pixels, reports, solveMs, drawMs } = engine.renderSolved(msg.width, msg.height, msg.background, layers);
     const cycles = reports.filter((r) => r !== null).map((r) => r!.cycles ?? 0);
     this.post({ type: 'full', id: msg.id, width: msg.width, height: msg.height, pixels, solveMs: solveMs + gridMs, drawMs, cycles, wasmBytes: engine.x.memory.buffer.byteLength }, [pixels.buffer]);
-    if (this.grids.size === 0 && engine.x.memory.buffer.byteLength > RENEW_BYTES) {
-      this.renewTimer = setTimeout(() => {
-        this.renewTimer = null;
-        void this.renew();
-      }, RENEW_IDLE_MS);
-    }
   }
 
-  /**
-   * Starts a fresh module holding only what the full-resolution frames need (each layer's
-   * picture and grid, rebuilt now so the next frame does not wait for them), and lets the
-   * old one go with the memory its last frames grew. Messages that arrive meanwhile wait.
-   */
-  renew(): Promise<void> {
-    if (this.renewing || !this.engine || this.grids.size > 0) return this.renewing ?? Promise.resolve();
-    const pictures = [...this.fulls].map(([key, f]) => ({ key, f, image: f.image ? { width: f.image.width, height: f.image.height, data: f.image.read() } : null }));
-    const old = this.engine;
-    this.engine = null;
-    this.renewing = (async () => {
-      try {
-        const fresh = await this.load(this.wasmUrl);
-        for (const { key, f, image } of pictures) {
-          const img = image ? fresh.image(image.width, image.height, image.data) : null;
-          const grid = img && f.matte ? fresh.grid(img.width, img.height, f.matte, f.cuts) : null;
-          this.fulls.set(key, { image: img, matte: f.matte, cuts: f.cuts, grid });
-        }
-        this.engine = fresh;
-        this.renewals++;
-      } catch {
-        // No fresh module (the page went away?): keep the old one and what it holds.
-        this.engine = old;
-        for (const { key, f } of pictures) this.fulls.set(key, f);
-      } finally {
-        this.renewing = null;
-      }
-    })();
-    return this.renewing;
+  /** Sends every full-resolution layer back (its picture copied out of the module), for a fresh worker. */
+  private fullExport(): void {
+    const layers = [];
+    for (const [key, f] of this.fulls) {
+      if (!f.image || !f.matte) continue;
+      layers.push({ key, image: { width: f.image.width, height: f.image.height, data: f.image.read() }, matte: f.matte.slice(), cuts: f.cuts });
+    }
+    this.post({ type: 'full-layers', layers }, layers.flatMap((l) => [l.image.data.buffer, l.matte.buffer]));
   }
 
   private gridOf(key: string): GridHandle {

@@ -153,25 +153,29 @@ describe('full-resolution frames (a proxied scene)', () => {
     expect(Array.from(posed.pixels)).not.toEqual(Array.from(img.data));
   });
 
-  it('renews its module when left alone, keeping the pictures: the same frames after, no renewal while it solves grids', async () => {
+  it('sends its layers back for a fresh worker, which draws the same frames from them', async () => {
     const img = image();
     const cuts: Pt[][] = [[[25.5, 10], [25.5, 31]]];
-    await send({ type: 'full-layer', key: 'P', image: img, matte: new Uint8Array(W * H).fill(255), cuts });
+    const matte = new Uint8Array(W * H).fill(255);
+    await send({ type: 'full-layer', key: 'P', image: img, matte, cuts });
     const [before] = await send(render(1, pose(26)));
     if (before.type !== 'full') throw new Error(JSON.stringify(before));
-    // A worker that also holds the drafts' grids keeps its module.
-    await worker.renew();
-    expect(worker.renewals).toBe(0);
-    expect(await send({ type: 'drop', key: 'L' })).toEqual([]);
-    // A message sent while the fresh module loads waits for it.
-    const renewing = worker.renew();
-    await Promise.all([send(render(2, pose(26))), send(render(3, null)), renewing]);
-    expect(worker.renewals).toBe(1);
-    expect(loads).toBe(2);
-    const frames = sent.filter((m) => m.type === 'full');
-    expect(frames.map((m) => m.id)).toEqual([1, 2, 3]);
-    expect(Array.from(frames[1].pixels)).toEqual(Array.from(before.pixels));
-    expect(Array.from(frames[2].pixels)).toEqual(Array.from(img.data));
+    const [out] = await send({ type: 'full-export' });
+    if (out.type !== 'full-layers') throw new Error(JSON.stringify(out));
+    expect(out.layers.map((l) => l.key)).toEqual(['P']);
+    expect(Array.from(out.layers[0].image.data)).toEqual(Array.from(img.data));
+    expect(out.layers[0].cuts).toEqual(cuts);
+    // A fresh worker given them (its grid built as they arrive) draws the same frames.
+    const got: FromWorker[] = [];
+    const fresh = new SolverWorker((msg) => got.push(msg), loadEngine);
+    await fresh.handle({ type: 'init', wasmUrl: 'inkwarp.wasm' });
+    await fresh.handle({ type: 'full-layer', key: 'P', image: out.layers[0].image, matte: out.layers[0].matte, cuts, grid: true });
+    await fresh.handle(render(2, pose(26)));
+    await fresh.handle(render(3, null));
+    const frames = got.filter((m) => m.type === 'full');
+    expect(frames.length).toBe(2);
+    expect(Array.from(frames[0].pixels)).toEqual(Array.from(before.pixels));
+    expect(Array.from(frames[1].pixels)).toEqual(Array.from(img.data));
   });
 
   it('says which layer has no picture', async () => {
