@@ -203,10 +203,12 @@ export interface FullRequest {
  * this (a 4000 × 3000 frame's solve and drawing take several hundred MB, and a
  * WebAssembly memory never shrinks) and is then left alone `RENEW_IDLE_MS`, it is replaced
  * by a fresh worker holding only the layers' pictures: ending a worker is the one way its
- * memory is given back at once.
+ * memory is given back at once. Not sooner: the fresh worker's first posed frame solves
+ * about a second slower (its memory is new to the system and faults in as the solve
+ * first touches it), so a pause between two drags keeps the worker as it is.
  */
 export const RENEW_BYTES = 320 * 2 ** 20;
-export const RENEW_IDLE_MS = 1500;
+export const RENEW_IDLE_MS = 8000;
 
 /**
  * The page's side of the worker that draws full-resolution frames of a proxied scene: it
