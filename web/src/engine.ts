@@ -22,6 +22,11 @@ interface Exports {
   iw_canvas_free(h: number): void;
   iw_canvas_draw(c: number, g: number, image: number, field: number, ox: number, oy: number): number;
   iw_canvas_read(c: number, out: number, len: number): number;
+  iw_image_new(ptr: number, w: number, h: number): number;
+  iw_image_free(h: number): void;
+  iw_image_read(h: number, out: number, len: number): number;
+  iw_grid_solve_kept(g: number, req: number, reqLen: number): number;
+  iw_canvas_draw_solved(c: number, g: number, image: number, ox: number, oy: number): number;
   iw_scene_check(json: number, len: number): number;
   iw_points_at(req: number, len: number): number;
   iw_methods(): number;
@@ -162,6 +167,29 @@ export class DraftHandle {
 
   free(): void {
     this.engine.x.iw_draft_free(this.handle);
+  }
+}
+
+/** A picture (straight RGBA8) kept in the module, for `Engine.renderSolved`; free it when the layer goes away. */
+export class ImageHandle {
+  constructor(
+    readonly engine: Engine,
+    readonly handle: number,
+    readonly width: number,
+    readonly height: number,
+  ) {}
+
+  /** Its pixels, copied out. */
+  read(): Uint8Array {
+    const len = 4 * this.width * this.height;
+    return this.engine.withBuffer(len, (ptr) => {
+      this.engine.check(this.engine.x.iw_image_read(this.handle, ptr, len));
+      return this.engine.u8(ptr, len).slice();
+    });
+  }
+
+  free(): void {
+    this.engine.x.iw_image_free(this.handle);
   }
 }
 
@@ -448,6 +476,70 @@ export class Engine {
    * The reference CPU renderer: composites layers (straight RGBA8 images with their grids
    * and fields) over a background, returns straight RGBA8.
    */
+  /** Keeps a picture (straight RGBA8) in the module, copied once. */
+  image(width: number, height: number, data: Uint8Array): ImageHandle {
+    if (data.length !== 4 * width * height) throw new EngineError(`A ${width} × ${height} picture needs ${4 * width * height} bytes of RGBA; it has ${data.length}.`);
+    const ptr = this.put(data);
+    try {
+      const h = this.x.iw_image_new(ptr, width, height);
+      if (h === 0) this.check(1);
+      return new ImageHandle(this, h, width, height);
+    } finally {
+      this.x.iw_free(ptr, data.length);
+    }
+  }
+
+  /**
+   * `renderCpu` of layers whose pictures are kept in the module (`image`), each solved
+   * cold in the module (`features` null: at rest) and drawn straight from its field,
+   * which never leaves the module: a large picture's frame without copies of its picture
+   * or its field. Returns straight RGBA8, each layer's report (null at rest) and the time
+   * the solves and the drawing took (ms).
+   */
+  renderSolved(
+    width: number,
+    height: number,
+    background: [number, number, number, number],
+    layers: { image: ImageHandle; grid: GridHandle; features: SolveFeature[] | null; options: SolveOptions; offset: Pt }[],
+  ): { pixels: Uint8Array; reports: (SolveReport | null)[]; solveMs: number; drawMs: number } {
+    const [r, g, b, a] = background;
+    let solveMs = 0;
+    let drawMs = 0;
+    const canvas = this.x.iw_canvas_new(width, height, r, g, b, a);
+    try {
+      const reports: (SolveReport | null)[] = [];
+      for (const l of layers) {
+        if (l.image.width !== l.grid.width || l.image.height !== l.grid.height) throw new EngineError("A layer to render needs its picture at its grid's size.");
+        const t0 = performance.now();
+        if (l.features) {
+          const req = request(l.features, l.options);
+          const reqPtr = this.put(req);
+          try {
+            reports.push(this.check(this.x.iw_grid_solve_kept(l.grid.handle, reqPtr, req.length)) as SolveReport);
+          } finally {
+            this.x.iw_free(reqPtr, req.length);
+          }
+        } else {
+          reports.push(null);
+        }
+        const t1 = performance.now();
+        this.check(this.x.iw_canvas_draw_solved(canvas, l.grid.handle, l.image.handle, l.offset[0], l.offset[1]));
+        solveMs += t1 - t0;
+        drawMs += performance.now() - t1;
+      }
+      const t2 = performance.now();
+      const len = 4 * width * height;
+      const pixels = this.withBuffer(len, (ptr) => {
+        this.check(this.x.iw_canvas_read(canvas, ptr, len));
+        return this.u8(ptr, len).slice();
+      });
+      drawMs += performance.now() - t2;
+      return { pixels, reports, solveMs, drawMs };
+    } finally {
+      this.x.iw_canvas_free(canvas);
+    }
+  }
+
   renderCpu(
     width: number,
     height: number,

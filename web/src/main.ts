@@ -28,7 +28,7 @@ async function start(): Promise<void> {
   // A third solves the animation's frames ahead while the editor is left alone.
   const ahead = spawn();
   // A fourth draws a large picture's full-resolution frames (see `proxy.ts`).
-  const full = new FullClient(new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
+  const full = new FullClient(() => new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
   await Promise.all([solver.ready, drafts.ready, ahead.ready, full.ready]);
   const params = new URLSearchParams(location.search);
   const sceneUrl = params.get('scene');

@@ -11,8 +11,10 @@ export type ToWorker =
    * A layer at the picture's own resolution, for full-resolution frames (a proxied scene):
    * its straight RGBA8 and continuity matte (null: keep the ones it has) and its cuts.
    */
-  | { type: 'full-layer'; key: string; image: { width: number; height: number; data: Uint8Array } | null; matte: Uint8Array | null; cuts: Pt[][] }
+  | { type: 'full-layer'; key: string; image: { width: number; height: number; data: Uint8Array } | null; matte: Uint8Array | null; cuts: Pt[][]; /** Build its grid now, not at its first frame. */ grid?: boolean }
   | { type: 'full-drop'; key: string }
+  /** Every full-resolution layer's picture, matte and cuts, sent back (`full-layers`) to move them to a fresh worker. */
+  | { type: 'full-export' }
   /** The frame of these layers (back to front; `features` null: at rest), solved and drawn at full resolution. */
   | { type: 'full-render'; id: number; width: number; height: number; background: [number, number, number, number]; layers: FullLayerRequest[] }
   /** The pixels a sparse solve computes on this layer's grid (the draft mesh's, see `draftPixels`). */
@@ -51,6 +53,8 @@ export type FromWorker =
   | { type: 'reset'; message: string }
   | { type: 'error'; id: number | null; key: string | null; message: string }
   | { type: 'links'; key: string; links: Uint8Array }
+  /** The answer to `full-export`. */
+  | { type: 'full-layers'; layers: { key: string; image: { width: number; height: number; data: Uint8Array }; matte: Uint8Array; cuts: Pt[][] }[] }
   /** A full-resolution frame (straight RGBA8), with the time its solves and its drawing took (ms). */
   | { type: 'full'; id: number; width: number; height: number; pixels: Uint8Array; solveMs: number; drawMs: number; cycles: number[]; wasmBytes: number }
   | {

@@ -199,23 +199,47 @@ export interface FullRequest {
 }
 
 /**
+ * When the worker that draws full-resolution frames has grown its WebAssembly memory above
+ * this (a 4000 × 3000 frame's solve and drawing take several hundred MB, and a
+ * WebAssembly memory never shrinks) and is then left alone `RENEW_IDLE_MS`, it is replaced
+ * by a fresh worker holding only the layers' pictures: ending a worker is the one way its
+ * memory is given back at once. Not sooner: the fresh worker's first posed frame solves
+ * about a second slower (its memory is new to the system and faults in as the solve
+ * first touches it), so a pause between two drags keeps the worker as it is.
+ */
+export const RENEW_BYTES = 320 * 2 ** 20;
+export const RENEW_IDLE_MS = 8000;
+
+/**
  * The page's side of the worker that draws full-resolution frames of a proxied scene: it
  * holds every layer's picture, matte and grid at the picture's own resolution; one frame
  * in flight, and only the newest request waits.
  */
 export class FullClient {
   readonly ready: Promise<void>;
+  private worker: Worker;
   private inFlight: { id: number; req: FullRequest } | null = null;
   private pending: FullRequest | null = null;
   private nextId = 1;
+  /** While the worker is being replaced (see `renew`): the messages for the fresh one. */
+  private queue: { msg: ToWorker; transfer: Transferable[] }[] | null = null;
+  private renewTimer: ReturnType<typeof setTimeout> | null = null;
+  /** Workers replaced so far (see `RENEW_BYTES`). */
+  renewals = 0;
   onFrame: (frame: FullFrame) => void = () => {};
   onError: (message: string) => void = () => {};
 
   constructor(
-    private worker: Worker,
-    wasmUrl: string,
+    private makeWorker: () => Worker,
+    private wasmUrl: string,
   ) {
-    this.ready = new Promise((resolve, reject) => {
+    this.worker = makeWorker();
+    this.ready = this.start(this.worker);
+  }
+
+  /** Loads the engine in `worker`; then its messages come to `receive`. */
+  private start(worker: Worker): Promise<void> {
+    const ready = new Promise<void>((resolve, reject) => {
       const first = (ev: MessageEvent<FromWorker>) => {
         if (ev.data.type === 'ready') resolve();
         else if (ev.data.type === 'error') reject(new Error(ev.data.message));
@@ -225,16 +249,22 @@ export class FullClient {
       };
       worker.addEventListener('message', first);
     });
-    worker.postMessage({ type: 'init', wasmUrl } satisfies ToWorker);
+    worker.postMessage({ type: 'init', wasmUrl: this.wasmUrl } satisfies ToWorker);
+    return ready;
+  }
+
+  private send(msg: ToWorker, transfer: Transferable[] = []): void {
+    if (this.queue) this.queue.push({ msg, transfer });
+    else this.worker.postMessage(msg, transfer);
   }
 
   /** Sends a layer's picture (copied: the page keeps its own), matte and cuts; null keeps what the worker has. */
   setLayer(key: string, image: { width: number; height: number; data: Uint8Array } | null, matte: Uint8Array | null, cuts: Pt[][]): void {
-    this.worker.postMessage({ type: 'full-layer', key, image, matte, cuts } satisfies ToWorker);
+    this.send({ type: 'full-layer', key, image, matte, cuts });
   }
 
   dropLayer(key: string): void {
-    this.worker.postMessage({ type: 'full-drop', key } satisfies ToWorker);
+    this.send({ type: 'full-drop', key });
   }
 
   render(req: FullRequest): void {
@@ -247,12 +277,49 @@ export class FullClient {
   }
 
   private pump(): void {
-    if (this.inFlight || !this.pending) return;
+    if (this.renewTimer !== null) {
+      clearTimeout(this.renewTimer);
+      this.renewTimer = null;
+    }
+    if (this.inFlight || !this.pending || this.queue) return;
     const req = this.pending;
     this.pending = null;
     const id = this.nextId++;
     this.inFlight = { id, req };
     this.worker.postMessage({ type: 'full-render', id, width: req.width, height: req.height, background: req.background, layers: req.layers } satisfies ToWorker);
+  }
+
+  /**
+   * Replaces the worker by a fresh one holding the same layers (their pictures sent back by
+   * the old one and moved over); frames asked for meanwhile wait for it.
+   */
+  renew(): Promise<void> {
+    if (this.queue || this.inFlight) return Promise.resolve();
+    const old = this.worker;
+    this.queue = [];
+    return new Promise<void>((resolve) => {
+      const exported = (ev: MessageEvent<FromWorker>) => {
+        if (ev.data.type !== 'full-layers') return;
+        old.removeEventListener('message', exported);
+        old.terminate();
+        const { layers } = ev.data;
+        const fresh = this.makeWorker();
+        this.worker = fresh;
+        const go = (ok: boolean) => {
+          if (ok) this.renewals++;
+          else this.onError('The worker that draws full-resolution frames could not be restarted.');
+          for (const l of layers) fresh.postMessage({ type: 'full-layer', key: l.key, image: l.image, matte: l.matte, cuts: l.cuts, grid: true } satisfies ToWorker, [l.image.data.buffer, l.matte.buffer]);
+          const queued = this.queue ?? [];
+          this.queue = null;
+          for (const q of queued) fresh.postMessage(q.msg, q.transfer);
+          this.pump();
+          resolve();
+        };
+        this.start(fresh).then(() => go(true), () => go(false));
+      };
+      old.addEventListener('message', exported);
+      old.postMessage({ type: 'full-export' } satisfies ToWorker);
+    });
   }
 
   private receive(msg: FromWorker): void {
@@ -261,6 +328,12 @@ export class FullClient {
       this.inFlight = null;
       this.onFrame({ key: done.req.key, width: msg.width, height: msg.height, pixels: msg.pixels, ms: performance.now() - done.req.madeAt, solveMs: msg.solveMs, drawMs: msg.drawMs, cycles: msg.cycles, wasmBytes: msg.wasmBytes });
       this.pump();
+      if (!this.busy && msg.wasmBytes > RENEW_BYTES) {
+        this.renewTimer = setTimeout(() => {
+          this.renewTimer = null;
+          if (!this.busy) void this.renew();
+        }, RENEW_IDLE_MS);
+      }
     } else if (msg.type === 'error') {
       if (done && msg.id === done.id) this.inFlight = null;
       this.onError(msg.message);

@@ -2,7 +2,7 @@
 // engine's grids and the last field of every layer, answers each message from the page
 // with messages of its own, and can run (and be tested) anywhere an `Engine` loads.
 
-import { Engine, type FieldData, type GridHandle } from './engine';
+import { Engine, type FieldData, type GridHandle, type ImageHandle } from './engine';
 import { adaptiveTriangles } from './gl';
 import { LastFields } from './lastfields';
 import type { FromWorker, ToWorker } from './protocol';
@@ -55,10 +55,11 @@ export class SolverWorker {
       } else if (msg.type === 'full-layer') {
         this.fullLayer(msg);
       } else if (msg.type === 'full-drop') {
-        this.fulls.get(msg.key)?.grid?.free();
-        this.fulls.delete(msg.key);
+        this.fullDrop(msg.key);
       } else if (msg.type === 'full-render') {
         this.fullRender(msg);
+      } else if (msg.type === 'full-export') {
+        this.fullExport();
       }
     } catch (err) {
       if (err instanceof WebAssembly.RuntimeError && this.wasmUrl) {
@@ -79,51 +80,65 @@ export class SolverWorker {
 
   /**
    * Layers at the picture's own resolution (a proxied scene's full-resolution frames): the
-   * picture, and the matte and cuts its grid is built from (when first drawn).
+   * picture, kept in the module once (a 4000 × 3000 picture is 48 MB), and the matte and
+   * cuts its grid is built from (when first drawn).
    */
-  private fulls = new Map<string, { image: { width: number; height: number; data: Uint8Array } | null; matte: Uint8Array | null; cuts: Pt[][]; grid: GridHandle | null }>();
+  private fulls = new Map<string, { image: ImageHandle | null; matte: Uint8Array | null; cuts: Pt[][]; grid: GridHandle | null }>();
 
   private fullLayer(msg: Extract<ToWorker, { type: 'full-layer' }>): void {
+    const engine = this.engine!;
     const had = this.fulls.get(msg.key);
     had?.grid?.free();
-    this.fulls.set(msg.key, { image: msg.image ?? had?.image ?? null, matte: msg.matte ?? had?.matte ?? null, cuts: msg.cuts, grid: null });
+    let image = had?.image ?? null;
+    if (msg.image) {
+      image?.free();
+      image = engine.image(msg.image.width, msg.image.height, msg.image.data);
+    }
+    const matte = msg.matte ?? had?.matte ?? null;
+    const grid = msg.grid && image && matte ? engine.grid(image.width, image.height, matte, msg.cuts) : null;
+    this.fulls.set(msg.key, { image, matte, cuts: msg.cuts, grid });
+  }
+
+  private fullDrop(key: string): void {
+    const full = this.fulls.get(key);
+    full?.grid?.free();
+    full?.image?.free();
+    this.fulls.delete(key);
   }
 
   /**
-   * A full-resolution frame: each layer solved on its own grid with the scene's settings
-   *, at rest the identity, then drawn by the engine's
-   * renderer over the background, as `inkwarp render` draws the frame.
+   * A full-resolution frame: each layer solved on its own grid with the scene's settings,
+   * at rest the identity, then drawn by the engine's renderer over the background, as
+   * `inkwarp render` draws the frame. The pictures and the fields stay in the module
+   * (solved cold: a warm start would keep the earlier solves' fields as its history, 96 MB
+   * each at 4000 × 3000, where the cold solve at the scene's grid step takes about a
+   * second).
    */
   private fullRender(msg: Extract<ToWorker, { type: 'full-render' }>): void {
     const engine = this.engine!;
-    let solveMs = 0;
-    const cycles: number[] = [];
+    let gridMs = 0;
     const layers = [];
     for (const l of msg.layers) {
       const full = this.fulls.get(l.key);
       if (!full?.image || !full.matte) throw new Error(`The layer ${l.key} has no picture at full resolution.`);
-      const { width, height, data } = full.image;
       const t0 = performance.now();
-      full.grid ??= engine.grid(width, height, full.matte, full.cuts);
-      const n = width * height;
-      let field: FieldData;
-      if (l.features) {
-        // Solved cold: a warm start keeps the earlier solves' fields in the engine as its
-        // history, 96 MB each at 4000 × 3000, where the cold solve at the scene's grid
-        // step takes about a second.
-        const solved = full.grid.solve(l.features, l.options, null);
-        field = solved.field;
-        cycles.push(solved.report.cycles ?? 0);
-      } else {
-        field = { width, height, dx: new Float32Array(n), dy: new Float32Array(n) };
-      }
-      solveMs += performance.now() - t0;
-      layers.push({ image: data, grid: full.grid, field, offset: l.offset });
+      full.grid ??= engine.grid(full.image.width, full.image.height, full.matte, full.cuts);
+      gridMs += performance.now() - t0;
+      layers.push({ image: full.image, grid: full.grid, features: l.features, options: l.options, offset: l.offset });
     }
-    const t1 = performance.now();
-    const pixels = engine.renderCpu(msg.width, msg.height, msg.background, layers);
-    const drawMs = performance.now() - t1;
-    this.post({ type: 'full', id: msg.id, width: msg.width, height: msg.height, pixels, solveMs, drawMs, cycles, wasmBytes: engine.x.memory.buffer.byteLength }, [pixels.buffer]);
+    const { pixels, reports, solveMs, drawMs } = engine.renderSolved(msg.width, msg.height, msg.background, layers);
+    const cycles = reports.filter((r) => r !== null).map((r) => r!.cycles ?? 0);
+    this.post({ type: 'full', id: msg.id, width: msg.width, height: msg.height, pixels, solveMs: solveMs + gridMs, drawMs, cycles, wasmBytes: engine.x.memory.buffer.byteLength }, [pixels.buffer]);
+  }
+
+  /** Sends every full-resolution layer back (its picture copied out of the module), for a fresh worker. */
+  private fullExport(): void {
+    const layers = [];
+    for (const [key, f] of this.fulls) {
+      if (!f.image || !f.matte) continue;
+      layers.push({ key, image: { width: f.image.width, height: f.image.height, data: f.image.read() }, matte: f.matte.slice(), cuts: f.cuts });
+    }
+    this.post({ type: 'full-layers', layers }, layers.flatMap((l) => [l.image.data.buffer, l.matte.buffer]));
   }
 
   private gridOf(key: string): GridHandle {

@@ -153,6 +153,31 @@ describe('full-resolution frames (a proxied scene)', () => {
     expect(Array.from(posed.pixels)).not.toEqual(Array.from(img.data));
   });
 
+  it('sends its layers back for a fresh worker, which draws the same frames from them', async () => {
+    const img = image();
+    const cuts: Pt[][] = [[[25.5, 10], [25.5, 31]]];
+    const matte = new Uint8Array(W * H).fill(255);
+    await send({ type: 'full-layer', key: 'P', image: img, matte, cuts });
+    const [before] = await send(render(1, pose(26)));
+    if (before.type !== 'full') throw new Error(JSON.stringify(before));
+    const [out] = await send({ type: 'full-export' });
+    if (out.type !== 'full-layers') throw new Error(JSON.stringify(out));
+    expect(out.layers.map((l) => l.key)).toEqual(['P']);
+    expect(Array.from(out.layers[0].image.data)).toEqual(Array.from(img.data));
+    expect(out.layers[0].cuts).toEqual(cuts);
+    // A fresh worker given them (its grid built as they arrive) draws the same frames.
+    const got: FromWorker[] = [];
+    const fresh = new SolverWorker((msg) => got.push(msg), loadEngine);
+    await fresh.handle({ type: 'init', wasmUrl: 'inkwarp.wasm' });
+    await fresh.handle({ type: 'full-layer', key: 'P', image: out.layers[0].image, matte: out.layers[0].matte, cuts, grid: true });
+    await fresh.handle(render(2, pose(26)));
+    await fresh.handle(render(3, null));
+    const frames = got.filter((m) => m.type === 'full');
+    expect(frames.length).toBe(2);
+    expect(Array.from(frames[0].pixels)).toEqual(Array.from(before.pixels));
+    expect(Array.from(frames[1].pixels)).toEqual(Array.from(img.data));
+  });
+
   it('says which layer has no picture', async () => {
     const out = await send(render(3, null));
     expect(out[0].type).toBe('error');

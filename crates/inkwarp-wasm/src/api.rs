@@ -25,6 +25,9 @@ thread_local! {
     static DECODED: RefCell<Option<RgbaImage>> = const { RefCell::new(None) };
     static GRIDS: RefCell<Vec<Option<Domain>>> = const { RefCell::new(Vec::new()) };
     static CANVASES: RefCell<Vec<Option<Canvas>>> = const { RefCell::new(Vec::new()) };
+    static IMAGES: RefCell<Vec<Option<RgbaImage>>> = const { RefCell::new(Vec::new()) };
+    /// Fields kept in the module by `iw_grid_solve_kept`, by grid handle, until drawn.
+    static SOLVED: RefCell<HashMap<u32, Field>> = RefCell::new(HashMap::new());
 }
 
 /// A grid and the features' rest geometry prepared on it (a region's interior nodes and
@@ -127,6 +130,7 @@ pub extern "C" fn iw_grid_new(
 #[no_mangle]
 pub extern "C" fn iw_grid_free(handle: u32) {
     GRIDS.with(|g| release(&mut g.borrow_mut(), handle));
+    SOLVED.with(|s| s.borrow_mut().remove(&handle));
 }
 
 /// Writes one byte per node into `out` (`width * height` bytes): bit 0 active, bit 1
@@ -701,19 +705,113 @@ pub extern "C" fn iw_canvas_draw(
     }
 }
 
-/// Copies a canvas as straight RGBA8 into `out` (`4 * width * height` bytes). Status 0/1.
+/// Copies a canvas as straight RGBA8 into `out` (`4 * width * height` bytes), pixel by
+/// pixel as [`Canvas::to_rgba8`] converts them (no second copy of the frame). Status 0/1.
 #[no_mangle]
 pub extern "C" fn iw_canvas_read(canvas: u32, out_ptr: *mut u8, out_len: usize) -> i32 {
     let res = with_canvas(canvas, |c| {
-        let img = c.to_rgba8();
-        if img.data.len() != out_len {
+        if 4 * c.data.len() != out_len {
             return Err(format!(
                 "The output buffer has {out_len} bytes; the canvas needs {}.",
-                img.data.len()
+                4 * c.data.len()
             ));
         }
-        view_mut(out_ptr, out_len).copy_from_slice(&img.data);
+        let out = view_mut(out_ptr, out_len);
+        for (o, &p) in out.chunks_exact_mut(4).zip(&c.data) {
+            o.copy_from_slice(&inkwarp_core::render::unpremultiply(p));
+        }
         Ok(())
+    });
+    match res {
+        Ok(Ok(())) => 0,
+        Ok(Err(e)) | Err(e) => fail(e),
+    }
+}
+
+/// Keeps a layer's picture (straight RGBA8, `4 * width * height` bytes, copied once) in
+/// the module for [`iw_canvas_draw_solved`], so a frame does not copy it in again.
+/// Returns a handle (≥ 1), or 0 with the error in the result.
+#[no_mangle]
+pub extern "C" fn iw_image_new(ptr: *const u8, width: usize, height: usize) -> u32 {
+    if width == 0 || height == 0 {
+        fail(format!("A picture needs at least 1 pixel; this one is {width} × {height}."));
+        return 0;
+    }
+    let data = view(ptr, 4 * width * height).to_vec();
+    IMAGES.with(|m| insert(&mut m.borrow_mut(), RgbaImage { width, height, data }))
+}
+
+/// Frees a picture kept by [`iw_image_new`].
+#[no_mangle]
+pub extern "C" fn iw_image_free(handle: u32) {
+    IMAGES.with(|m| release(&mut m.borrow_mut(), handle));
+}
+
+/// Copies a kept picture's pixels into `out` (`4 * width * height` bytes). Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_image_read(handle: u32, out_ptr: *mut u8, out_len: usize) -> i32 {
+    IMAGES.with(|m| match slot(&m.borrow(), handle) {
+        Some(img) if img.data.len() == out_len => {
+            view_mut(out_ptr, out_len).copy_from_slice(&img.data);
+            0
+        }
+        Some(img) => fail(format!("The output buffer has {out_len} bytes; the picture needs {}.", img.data.len())),
+        None => fail(format!("There is no picture with handle {handle}.")),
+    })
+}
+
+/// Solves a layer cold (the request as [`iw_solve`] takes it) and keeps the field in the
+/// module for the next [`iw_canvas_draw_solved`] on this grid, instead of copying it out:
+/// a full-resolution field is 8 bytes a pixel. The grid keeps no warm-start history of it.
+/// The result is the solve's report. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_grid_solve_kept(grid: u32, req_ptr: *const u8, req_len: usize) -> i32 {
+    let req: SolveIn = match json_arg(req_ptr, req_len) {
+        Ok(r) => r,
+        Err(e) => return fail(e),
+    };
+    // The earlier kept field goes first, so two never live at once.
+    SOLVED.with(|s| s.borrow_mut().remove(&grid));
+    let res = with_domain(grid, |domain| {
+        let solved = solve_request(domain, &req, std::ptr::null());
+        domain.history.borrow_mut().clear();
+        solved
+    });
+    match res {
+        Ok(Ok((field, report))) => {
+            SOLVED.with(|s| s.borrow_mut().insert(grid, field));
+            ok_json(&report)
+        }
+        Ok(Err(e)) | Err(e) => fail(e),
+    }
+}
+
+/// Forward-maps a kept picture ([`iw_image_new`]) onto the canvas by the field kept for
+/// this grid by [`iw_grid_solve_kept`] (taken: it is freed after), or at rest (the zero
+/// field) when none is kept: what `iw_solve` then [`iw_canvas_draw`] draw, with neither
+/// the picture nor the field copied. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_canvas_draw_solved(canvas: u32, grid: u32, image: u32, offset_x: f64, offset_y: f64) -> i32 {
+    let kept = SOLVED.with(|s| s.borrow_mut().remove(&grid));
+    let res = with_grid(grid, |g| -> Result<(), String> {
+        let field = match kept {
+            Some(f) if f.width == g.width && f.height == g.height => f,
+            Some(_) => return Err("The kept field is not of this grid's size.".into()),
+            None => {
+                let n = g.width * g.height;
+                Field { width: g.width, height: g.height, dx: vec![0.0; n], dy: vec![0.0; n] }
+            }
+        };
+        IMAGES.with(|m| match slot(&m.borrow(), image) {
+            Some(img) if img.width == g.width && img.height == g.height => with_canvas(canvas, |c| {
+                c.try_draw_layer(img, &field, g, [offset_x, offset_y]).map_err(|e| e.to_string())
+            })?,
+            Some(img) => Err(format!(
+                "The picture is {} × {}; its grid is {} × {}.",
+                img.width, img.height, g.width, g.height
+            )),
+            None => Err(format!("There is no picture with handle {image}.")),
+        })
     });
     match res {
         Ok(Ok(())) => 0,

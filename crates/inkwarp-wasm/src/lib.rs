@@ -191,6 +191,54 @@ mod tests {
     }
 
     #[test]
+    fn a_frame_drawn_from_a_kept_picture_is_the_solve_then_the_draw() {
+        // A cut, a posed point and a held corner at grid step 2: drawn in one call from a
+        // kept picture, the same pixels as the field solved out and drawn back in.
+        let (w, h) = (24, 18);
+        let n = w * h;
+        let (cuts, cuts_len) = put(b"[[[12.5, 2], [12.5, 15]]]");
+        let grid = iw_grid_new(w, h, std::ptr::null(), 0, cuts, cuts_len);
+        let rgba: Vec<u8> = (0..4 * n).map(|i| if i % 4 == 3 { 255 } else { (i * 37 % 251) as u8 }).collect();
+        let (img_ptr, _) = put(&rgba);
+        let image = iw_image_new(img_ptr, w, h);
+        assert!(image > 0);
+        let req = serde_json::json!({"features": [
+            {"kind": "point", "rest": [[6, 6]], "pose": [[9, 5]]},
+            {"kind": "point", "rest": [[20, 14]], "pose": [[20, 14]]}],
+            "options": {"grid_step": 2}});
+        let field = iw_alloc(8 * n) as *mut f32;
+        solve_ok(grid, &req, field, "solve");
+        let read = |canvas: u32| {
+            let out = iw_alloc(4 * n);
+            assert_eq!(iw_canvas_read(canvas, out, 4 * n), 0, "{}", result());
+            view(out, 4 * n).to_vec()
+        };
+        let a = iw_canvas_new(w, h, 10, 20, 30, 255);
+        assert_eq!(iw_canvas_draw(a, grid, img_ptr, field, 0.5, -1.0), 0, "{}", result());
+        let b = iw_canvas_new(w, h, 10, 20, 30, 255);
+        let (r, r_len) = put(req.to_string().as_bytes());
+        assert_eq!(iw_grid_solve_kept(grid, r, r_len), 0, "{}", result());
+        assert_eq!(result()["constrained_nodes"].as_u64().map(|c| c > 0), Some(true));
+        assert_eq!(iw_canvas_draw_solved(b, grid, image, 0.5, -1.0), 0, "{}", result());
+        assert_eq!(read(a), read(b));
+        // The kept field was taken by the draw: the next one is at rest, the picture itself.
+        let c = iw_canvas_new(w, h, 0, 0, 0, 0);
+        assert_eq!(iw_canvas_draw_solved(c, grid, image, 0.0, 0.0), 0, "{}", result());
+        assert_eq!(read(c), rgba);
+        // The kept picture reads back; a freed one is an error naming it.
+        let back = iw_alloc(4 * n);
+        assert_eq!(iw_image_read(image, back, 4 * n), 0);
+        assert_eq!(view(back, 4 * n), &rgba[..]);
+        iw_image_free(image);
+        assert_eq!(iw_canvas_draw_solved(c, grid, image, 0.0, 0.0), 1);
+        assert!(result()["error"].as_str().unwrap().contains(&format!("no picture with handle {image}")));
+        for canvas in [a, b, c] {
+            iw_canvas_free(canvas);
+        }
+        iw_grid_free(grid);
+    }
+
+    #[test]
     fn allocations_are_aligned_for_floats() {
         for len in [0, 1, 7, 8, 9, 1000] {
             let ptr = iw_alloc(len);

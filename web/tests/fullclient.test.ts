@@ -1,0 +1,87 @@
+// The page's side of the worker that draws a large picture's full-resolution frames
+// (`FullClient`), over in-process workers running the real engine: replacing the worker
+// keeps its layers and the frames asked for meanwhile.
+import { describe, expect, it } from 'vitest';
+import type { SolveFeature } from '../src/engine';
+import type { FromWorker, ToWorker } from '../src/protocol';
+import { FullClient, type FullFrame, type FullRequest } from '../src/solver';
+import { SolverWorker } from '../src/workercore';
+import { loadEngine } from './wasm';
+
+/** A `Worker` running a `SolverWorker` in this thread, its messages in order. */
+class LocalWorker {
+  private listeners: ((ev: MessageEvent<FromWorker>) => void)[] = [];
+  private chain: Promise<void> = Promise.resolve();
+  terminated = false;
+  private core = new SolverWorker((msg) => {
+    if (!this.terminated) for (const l of [...this.listeners]) l({ data: msg } as MessageEvent<FromWorker>);
+  }, loadEngine);
+  postMessage(msg: ToWorker): void {
+    this.chain = this.chain.then(() => (this.terminated ? undefined : this.core.handle(msg)));
+  }
+  addEventListener(_: 'message', fn: (ev: MessageEvent<FromWorker>) => void): void {
+    this.listeners.push(fn);
+  }
+  removeEventListener(_: 'message', fn: (ev: MessageEvent<FromWorker>) => void): void {
+    this.listeners = this.listeners.filter((l) => l !== fn);
+  }
+  terminate(): void {
+    this.terminated = true;
+  }
+}
+
+const W = 36;
+const H = 28;
+const pose = (x: number): SolveFeature[] => [
+  { kind: 'spline', rest: [[5, 5], [18, 12], [31, 5]], pose: [[5, 5], [x, 14], [31, 5]] },
+  { kind: 'point', rest: [[18, 24]], pose: [[18, 24]] },
+];
+const request = (key: string, features: SolveFeature[] | null): FullRequest => ({
+  key,
+  width: W,
+  height: H,
+  background: [0, 0, 0, 255],
+  layers: [{ key: 'P', features, options: { tolerance: 0.01, grid_step: 2 }, offset: [0, 0] }],
+  madeAt: 0,
+});
+
+describe('FullClient', () => {
+  it('replaces its worker by a fresh one with the same layers; a frame asked for meanwhile waits for it', async () => {
+    const workers: LocalWorker[] = [];
+    const client = new FullClient(() => {
+      const w = new LocalWorker();
+      workers.push(w);
+      return w as unknown as Worker;
+    }, 'inkwarp.wasm');
+    await client.ready;
+    const frames: FullFrame[] = [];
+    let arrived: () => void = () => {};
+    client.onFrame = (f) => {
+      frames.push(f);
+      arrived();
+    };
+    client.onError = (m) => {
+      throw new Error(m);
+    };
+    const next = () => new Promise<void>((r) => (arrived = r));
+    const data = new Uint8Array(4 * W * H);
+    for (let i = 0; i < W * H; i++) data.set([(i * 29) % 256, (i * 7) % 256, 120, 255], 4 * i);
+    client.setLayer('P', { width: W, height: H, data }, new Uint8Array(W * H).fill(255), [[[20.5, 8], [20.5, 27]]]);
+    let got = next();
+    client.render(request('a', pose(24)));
+    await got;
+    const renewing = client.renew();
+    got = next();
+    client.render(request('b', pose(24)));
+    await Promise.all([renewing, got]);
+    expect(client.renewals).toBe(1);
+    expect(workers.length).toBe(2);
+    expect(workers[0].terminated).toBe(true);
+    expect(frames.map((f) => f.key)).toEqual(['a', 'b']);
+    expect(Array.from(frames[1].pixels)).toEqual(Array.from(frames[0].pixels));
+    got = next();
+    client.render(request('c', null));
+    await got;
+    expect(Array.from(frames[2].pixels)).toEqual(Array.from(data));
+  });
+});
