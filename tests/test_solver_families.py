@@ -199,8 +199,8 @@ def test_comb_with_one_pixel_gaps(tooth):
 @pytest.mark.parametrize("seed, integer", [
     pytest.param(seed, integer, marks=pytest.mark.xfail(strict=True, reason=(
         "open (issue 42): a wedge bending against a distant arm (eigenvalue 3.5e-7) stalls the cycles at "
-        "max_cycles, and the oracle's tension extrapolation (1e-7, 2e-7) is too coarse for that mode; "
-        "docs/dev/solver-correctness.md"))) if (seed, integer) == (1, False) else (seed, integer)
+        "max_cycles (4.4 px off, reported not converged; the exact oracle takes the tension limit "
+        "without extrapolation); docs/dev/solver-correctness.md"))) if (seed, integer) == (1, False) else (seed, integer)
     for integer in (False, True) for seed in range(4)])
 def test_many_random_cuts(seed, integer):
     # 20-50 random straight and bent cuts on 64 x 64, float or integer end points (integer
@@ -370,3 +370,30 @@ def test_each_piece_of_a_cut_grid_matches_alone():
         piece = label == lab
         alone, rep = solve(dataclasses.replace(problem, mask=piece.astype(np.uint8)))
         assert np.abs(alone[piece] - field[piece]).max() < 2 * TOLERANCE_PX, f"piece {lab}: {rep}"
+
+
+@pytest.mark.parametrize("torn", [False, True])
+def test_southwell_default_budget_cuts_the_start_error_tenfold_and_claims_nothing(torn):
+    # The paper's fixed budget on the bench's model problem at 257 x 257 (a tight multigrid
+    # solve is the reference; its accuracy is the oracle tests' business): at its default
+    # 10 rounds the error of the coarse-to-fine start (a budget of 0) falls at least
+    # tenfold, and `converged` is claimed only where it holds. (At 65 x 65 with the hole and
+    # the cut the default budget cuts it 6.8-fold: docs/concepts/thin-plate.md.)
+    pts, disp, mask, cuts = grid_problem(257, hole=torn, cut=torn)
+    shape = (257, 257)
+    exact, tight = inkwarp.thin_plate_report(pts, disp, shape, mask=mask, cuts=cuts,
+                                             tolerance=1e-6, max_cycles=400)
+    assert tight.converged
+
+    def error(**kwargs):
+        field, report = inkwarp.thin_plate_report(pts, disp, shape, mask=mask, cuts=cuts,
+                                                  method="southwell", **kwargs)
+        return float(np.abs(field - exact).max()), report
+
+    start, report0 = error(southwell_sweeps=0)
+    assert not report0.converged and start > 1.0
+    spent, report = error()
+    assert spent <= start / 10, f"default budget: {start:.3f} -> {spent:.3f} px"
+    assert not report.converged or spent < TOLERANCE_PX
+    short, report1 = error(southwell_sweeps=1)
+    assert not report1.converged or short < TOLERANCE_PX

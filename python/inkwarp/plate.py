@@ -56,8 +56,8 @@ class SolveReport:
     Attributes
     ----------
     cycles : int
-        Multigrid cycles run after the coarse-to-fine start (``"southwell"``: relaxation
-        passes). Pieces of the grid that holes or cuts separate are solved apart; this is
+        Multigrid cycles run after the coarse-to-fine start (``"southwell"``: rounds of one
+        coarse correction and one sweep's worth of relaxations). Pieces of the grid that holes or cuts separate are solved apart; this is
         the most cycles any of them took, and the change and residuals below are the
         largest over them.
     final_change : float
@@ -76,8 +76,8 @@ class SolveReport:
     seconds : float
         Wall time of the solve.
     converged : bool
-        Whether the tolerance was met within ``max_cycles`` (``"southwell"``: whether the
-        budget was spent).
+        Whether the tolerance was met within ``max_cycles`` (``"southwell"``: the same error
+        bound; a spent budget is not convergence).
     """
 
     cycles: int

@@ -83,8 +83,9 @@ pub enum SolveMethod {
     /// Coarse-to-fine start plus V-cycles until the tolerance is met.
     #[default]
     Multigrid,
-    /// The coarse-to-fine start plus a fixed budget of greedy single-node relaxations
-    /// (Southwell), as the paper offers for a fixed amount of work.
+    /// The coarse-to-fine start plus a fixed budget of rounds, each one coarse correction
+    /// and one sweep's worth of greedy single-node relaxations (Southwell), as the paper
+    /// offers for a fixed amount of work.
     Southwell,
 }
 
@@ -120,7 +121,7 @@ impl Default for SolveOptions {
 /// What a solve did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SolveReport {
-    /// Cycles run after the coarse-to-fine start (Southwell: relaxation passes); with
+    /// Cycles run after the coarse-to-fine start (Southwell: rounds); with
     /// several pieces, which are solved apart, the most any piece took.
     pub cycles: usize,
     /// Largest change of any node in the last cycle (pixels; of any piece).
@@ -138,7 +139,8 @@ pub struct SolveReport {
     pub dropped_samples: usize,
     /// Wall time of the whole solve.
     pub seconds: f64,
-    /// Whether the tolerance was met (Southwell: whether the budget was spent).
+    /// Whether the tolerance was met (by the same error bound for Southwell; a spent
+    /// budget is not convergence).
     pub converged: bool,
 }
 
@@ -752,14 +754,12 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
     }
     let max_cycles = options.max_cycles.unwrap_or(100);
-    match options.method {
-        SolveMethod::Multigrid => {
-            report.converged = false;
-            let mut last_change = f64::INFINITY;
-            // The last two cycles' ratios of successive changes.
-            let mut ratios = [0.0f64; 2];
-            let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
-            let mut stop = |change: f64, cycle: usize, report: &mut SolveReport| {
+    report.converged = false;
+    let mut last_change = f64::INFINITY;
+    // The last two cycles' ratios of successive changes.
+    let mut ratios = [0.0f64; 2];
+    let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
+    let mut stop = |change: f64, cycle: usize, report: &mut SolveReport| {
                 report.cycles = cycle;
                 report.final_change_px = change;
                 // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-
@@ -772,7 +772,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 let rho = ratios.iter().fold(0.0f64, |a, &b| a.max(b));
                 last_change = change;
                 change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
-            };
+    };
+    match options.method {
+        SolveMethod::Multigrid => {
             {
                 // The search direction p is kept in `f32` and its product `A p` summed in
                 // `f64` from it, each entry widened exactly: `u += α p` and `r += α A p`
@@ -836,14 +838,46 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
             }
         }
         SolveMethod::Southwell => {
-            let budget = (options.southwell_sweeps * count_unknowns(&hier.levels[0]) as f64).round() as usize;
-            let (passes, change, finished) = southwell::relax(&hier.levels[0], &mut u, budget);
-            report.cycles = passes;
-            report.final_change_px = change;
-            // Converged only when nothing was left to relax (rounding) before the budget
-            // ran out: a spent budget proves nothing about the error left.
-            report.converged = finished;
-            hier.levels[0].residual(&u, None, &mut r);
+            // The paper's fixed budget of work: rounds of one coarse correction (the cycle
+            // on the residual, taken with its energy-minimising step length) followed by
+            // one sweep's worth of greedy single-node relaxations (Southwell), until the
+            // budget of relaxations is spent. Converged only by the multigrid's own bound
+            // (or nothing left to relax): a spent budget proves nothing.
+            let unknowns = count_unknowns(&hier.levels[0]).max(1);
+            let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
+            let (mut q, mut p) = (spare_any(len), spare_any_narrow(len));
+            hier.levels[0].clear_padding(&mut q);
+            let mut round = 0;
+            while left > 0 && !crate::interrupt::requested() {
+                let z = hier.precondition(&r, round == 0 && started && warm);
+                let (rz, _) = fcg_dots(&r, z, None);
+                widen_into(&mut p, z, None);
+                let pq = hier.levels[0].fine_residual_dot_narrow(&p, &mut q); // q = −A p
+                let alpha = [
+                    if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
+                    if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
+                ];
+                let step = u
+                    .par_chunks_mut(CHUNK)
+                    .zip(r.par_chunks_mut(CHUNK).zip(hier.narrow_rhs(len).par_chunks_mut(CHUNK)))
+                    .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
+                    .map(|((u, (r, rw)), (p, q))| step_update(u, r, rw, p, q, alpha))
+                    .reduce(|| 0.0, f64::max);
+                let take = unknowns.min(left);
+                let (_, relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take);
+                left -= take;
+                round += 1;
+                hier.levels[0].residual(&u, None, &mut r);
+                // No node moved by more than the two parts' largest moves together.
+                if stop(step + relaxed, round, &mut report) || finished {
+                    report.cycles = round;
+                    report.converged = true;
+                    break;
+                }
+            }
+            report.cycles = round;
+            give_back(q);
+            give_back_narrow(p);
         }
     }
     // The conjugate-gradient residual is updated, not recomputed: it is the residual of u
