@@ -270,6 +270,21 @@ def _encode_png(image: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
+def _picture_and_drawing(picture_path: str | os.PathLike[str], drawing: str | os.PathLike[str] | None
+                         ) -> tuple[Picture, list[dict[str, Any]], list[str]]:
+    """The picture, the features of the SVG drawing traced over it (none without one) and
+    the notes about both."""
+    from inkwarp.svg import read_drawing
+
+    picture = read_picture(picture_path)
+    notes = list(picture.notes)
+    features: list[dict[str, Any]] = []
+    if drawing is not None:
+        features, drawing_notes = read_drawing(drawing, picture.width, picture.height)
+        notes += drawing_notes
+    return picture, features, notes
+
+
 def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathLike[str], *,
                     drawing: str | os.PathLike[str] | None = None, embed: bool = False,
                     fps: float = 24.0, duration: float = 2.0,
@@ -289,7 +304,6 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
         The files written (the scene last) and the notes about the picture and drawing.
     """
     from inkwarp.scene import Scene
-    from inkwarp.svg import read_drawing
 
     target = Path(os.fspath(output))
     if target.suffix.lower() != ".json":
@@ -299,13 +313,7 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
         raise ValueError(f"{target}: the directory {folder} does not exist; create it first")
     if target.is_dir():
         raise ValueError(f"{target}: is a directory; name a .json file")
-    picture = read_picture(picture_path)
-    notes = list(picture.notes)
-    features: list[dict[str, Any]] = []
-    if drawing is not None:
-        features, drawing_notes = read_drawing(drawing, picture.width, picture.height)
-        notes += drawing_notes
-
+    picture, features, notes = _picture_and_drawing(picture_path, drawing)
     encoded = [_encode_png(layer.image) for layer in picture.layers]
     import base64
 
@@ -362,14 +370,7 @@ def _write_all(files: list[tuple[Path, bytes]]) -> None:
 def new_scene(picture_path: str | os.PathLike[str], *, drawing: str | os.PathLike[str] | None = None,
               fps: float = 24.0, duration: float = 2.0) -> dict[str, Any]:
     """The scene dict of a picture, its images as ``data:`` URIs; notes become warnings."""
-    picture = read_picture(picture_path)
-    notes = list(picture.notes)
-    features: list[dict[str, Any]] = []
-    if drawing is not None:
-        from inkwarp.svg import read_drawing
-
-        features, drawing_notes = read_drawing(drawing, picture.width, picture.height)
-        notes += drawing_notes
+    picture, features, notes = _picture_and_drawing(picture_path, drawing)
     for note in notes:
         warnings.warn(note, InkwarpWarning, stacklevel=3)
     import base64

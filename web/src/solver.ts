@@ -53,6 +53,21 @@ interface Request {
   tag: SolveTag;
 }
 
+/** Resolves when `worker` has loaded the engine (rejects on its error); every message after
+ *  that goes to `receive`. */
+function engineReady(worker: Worker, receive: (msg: FromWorker) => void): Promise<void> {
+  return new Promise<void>((resolve, reject) => {
+    const first = (ev: MessageEvent<FromWorker>) => {
+      if (ev.data.type === 'ready') resolve();
+      else if (ev.data.type === 'error') reject(new Error(ev.data.message));
+      else return;
+      worker.removeEventListener('message', first);
+      worker.addEventListener('message', (e: MessageEvent<FromWorker>) => receive(e.data));
+    };
+    worker.addEventListener('message', first);
+  });
+}
+
 export class SolverClient {
   private worker: Worker;
   readonly ready: Promise<void>;
@@ -67,16 +82,7 @@ export class SolverClient {
 
   constructor(worker: Worker, wasmUrl: string) {
     this.worker = worker;
-    this.ready = new Promise((resolve, reject) => {
-      const first = (ev: MessageEvent<FromWorker>) => {
-        if (ev.data.type === 'ready') resolve();
-        else if (ev.data.type === 'error') reject(new Error(ev.data.message));
-        else return;
-        worker.removeEventListener('message', first);
-        worker.addEventListener('message', (e: MessageEvent<FromWorker>) => this.receive(e.data));
-      };
-      worker.addEventListener('message', first);
-    });
+    this.ready = engineReady(worker, (msg) => this.receive(msg));
     this.send({ type: 'init', wasmUrl });
   }
 
@@ -239,16 +245,7 @@ export class FullClient {
 
   /** Loads the engine in `worker`; then its messages come to `receive`. */
   private start(worker: Worker): Promise<void> {
-    const ready = new Promise<void>((resolve, reject) => {
-      const first = (ev: MessageEvent<FromWorker>) => {
-        if (ev.data.type === 'ready') resolve();
-        else if (ev.data.type === 'error') reject(new Error(ev.data.message));
-        else return;
-        worker.removeEventListener('message', first);
-        worker.addEventListener('message', (e: MessageEvent<FromWorker>) => this.receive(e.data));
-      };
-      worker.addEventListener('message', first);
-    });
+    const ready = engineReady(worker, (msg) => this.receive(msg));
     worker.postMessage({ type: 'init', wasmUrl: this.wasmUrl } satisfies ToWorker);
     return ready;
   }

@@ -796,19 +796,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                     if crate::interrupt::requested() {
                         break;
                     }
-                    let fine = &hier.levels[0];
-                    let pq = fine.fine_residual_dot_narrow(&p, &mut q); // q = −A p
-                    let alpha = [
-                        if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
-                        if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
-                    ];
-                    // The update also writes the residual in `f32` for the next cycle.
-                    let change = u
-                        .par_chunks_mut(CHUNK)
-                        .zip(r.par_chunks_mut(CHUNK).zip(hier.narrow_rhs(len).par_chunks_mut(CHUNK)))
-                        .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
-                        .map(|((u, (r, rw)), (p, q))| step_update(u, r, rw, p, q, alpha))
-                        .reduce(|| 0.0, f64::max);
+                    let (change, alpha) = energy_step(&mut hier, &mut u, &mut r, &p, &mut q, rz);
                     if stop(change, cycle, &mut report) {
                         report.converged = true;
                         break;
@@ -852,19 +840,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 let z = hier.precondition(&r, round == 0 && started && warm);
                 let (rz, _) = fcg_dots(&r, z, None);
                 widen_into(&mut p, z, None);
-                let pq = hier.levels[0].fine_residual_dot_narrow(&p, &mut q); // q = −A p
-                let alpha = [
-                    if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
-                    if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
-                ];
-                let step = u
-                    .par_chunks_mut(CHUNK)
-                    .zip(r.par_chunks_mut(CHUNK).zip(hier.narrow_rhs(len).par_chunks_mut(CHUNK)))
-                    .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
-                    .map(|((u, (r, rw)), (p, q))| step_update(u, r, rw, p, q, alpha))
-                    .reduce(|| 0.0, f64::max);
+                let (step, _) = energy_step(&mut hier, &mut u, &mut r, &p, &mut q, rz);
                 let take = unknowns.min(left);
-                let (_, relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take);
+                let (relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take);
                 left -= take;
                 round += 1;
                 hier.levels[0].residual(&u, None, &mut r);
@@ -1404,6 +1382,25 @@ const CHUNK: usize = 16_384;
 
 fn count_unknowns(level: &Level) -> usize {
     level.inv_diag.iter().filter(|&&d| d != 0.0).count()
+}
+
+/// The energy-minimising step along `p` (`rz = rᵀz` of the preconditioned residual it came
+/// from): `q = −A p`, `u += α p`, `r += α q`, the new `r` also written in `f32` as the next
+/// cycle's right-hand side. Returns the largest `|α p|` and `α`.
+fn energy_step(hier: &mut Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [V2], rz: [f64; 2]) -> (f64, [f64; 2]) {
+    let pq = hier.levels[0].fine_residual_dot_narrow(p, q);
+    let alpha = [
+        if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
+        if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
+    ];
+    let len = u.len();
+    let change = u
+        .par_chunks_mut(CHUNK)
+        .zip(r.par_chunks_mut(CHUNK).zip(hier.narrow_rhs(len).par_chunks_mut(CHUNK)))
+        .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
+        .map(|((u, (r, rw)), (p, q))| step_update(u, r, rw, p, q, alpha))
+        .reduce(|| 0.0, f64::max);
+    (change, alpha)
 }
 
 /// `[rᵀz, zᵀq]` per component (`zᵀq` zero without `q`), `z` the preconditioner's `f32`

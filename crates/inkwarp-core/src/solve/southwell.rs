@@ -9,16 +9,15 @@
 
 use super::level::{Level, V2, PAD};
 
-/// Spends at most `budget` relaxations on the finest level; returns the number of passes,
-/// the largest single change made, and whether it stopped because nothing was left to
+/// Spends at most `budget` relaxations on the finest level; returns the largest single
+/// change made, and whether it stopped because nothing was left to
 /// relax (every residual exactly zero) rather than because the budget ran out.
-pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (usize, f64, bool) {
+pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (f64, bool) {
     let (w, h) = (level.geo.w, level.geo.h);
     let mut r = vec![[0.0; 2]; u.len()];
     let mut drops: Vec<f64> = Vec::new();
     let unknowns = level.inv_diag.iter().filter(|&&d| d != 0.0).count();
     let mut left = budget;
-    let mut passes = 0;
     let mut largest = 0.0f64;
     while left > 0 {
         level.residual(u, None, &mut r);
@@ -28,17 +27,16 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (usize, f64, 
         let quarter = (unknowns / 4).max(1);
         let k = (if left < 2 * quarter { left } else { quarter }).min(drops.len());
         if k == 0 {
-            return (passes, largest, true);
+            return (largest, true);
         }
         let (_, &mut kth, _) = drops.select_nth_unstable_by(k - 1, |a, b| b.total_cmp(a));
         if kth <= 0.0 {
             // Fewer than k nodes have any drop at all: relax those that do.
             if drops.iter().all(|&e| e <= 0.0) {
-                return (passes, largest, true);
+                return (largest, true);
             }
         }
         let threshold = kth.max(f64::MIN_POSITIVE);
-        passes += 1;
         left -= k;
         let mut relaxed = 0;
         'pass: for y in 0..h {
@@ -64,8 +62,8 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (usize, f64, 
         // were relaxed first, or they are rounding noise): a pass that relaxes nothing
         // ends the relaxation, without a claim about the error left.
         if relaxed == 0 {
-            return (passes, largest, false);
+            return (largest, false);
         }
     }
-    (passes, largest, false)
+    (largest, false)
 }
