@@ -162,6 +162,16 @@ pub enum GeometryError {
         x: f64,
         y: f64,
     },
+    /// A finite coordinate beyond the limit every coordinate shares
+    /// ([`crate::limits::MAX_COORD_PX`]): curves through such points overflow.
+    #[error("Control point {index} of the {which} geometry is ({x}, {y}); every coordinate must be within ±{limit:e} px.")]
+    OutOfRange {
+        which: &'static str,
+        index: usize,
+        x: f64,
+        y: f64,
+        limit: f64,
+    },
     /// A spacing that is zero, negative or not finite.
     #[error("The sample spacing is {0} px; it must be a positive, finite number of pixels.")]
     BadSpacing(f64),
@@ -313,6 +323,16 @@ fn check_points(kind: Kind, points: &[Point], which: &'static str) -> Result<(),
             index,
             x: p[0],
             y: p[1],
+        });
+    }
+    let ok = crate::limits::coordinate_ok;
+    if let Some((index, p)) = points.iter().enumerate().find(|(_, p)| !(ok(p[0]) && ok(p[1]))) {
+        return Err(GeometryError::OutOfRange {
+            which,
+            index,
+            x: p[0],
+            y: p[1],
+            limit: crate::limits::MAX_COORD_PX,
         });
     }
     Ok(())

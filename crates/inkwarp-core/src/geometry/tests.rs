@@ -513,3 +513,12 @@ fn feature_sampler_checks_its_poses() {
         GeometryError::RegionWithoutDomain
     );
 }
+
+#[test]
+fn control_points_beyond_the_coordinate_limit_are_refused() {
+    // A spline through (0, -1e308) overflowed to non-finite samples.
+    let pts = [[0.0, -1e308], [-94.0, -1e308]];
+    let err = sample_feature(Kind::Spline, &pts, &pts, &SampleOptions::default(), None).unwrap_err();
+    assert!(matches!(err, GeometryError::OutOfRange { index: 0, .. }), "{err:?}");
+    assert!(err.to_string().contains("within ±1e6 px"), "{err}");
+}
