@@ -65,7 +65,7 @@ fn open_grid(width: usize, height: usize) -> Arc<Grid> {
 /// Solves the thin plate; returns the float32 (H, W, 2) field and the report as a dict.
 #[pyfunction]
 #[pyo3(signature = (points, displacements, height, width, mask, cuts, tension, tolerance,
-                    grid_step, initial, max_cycles, method, southwell_sweeps, warm=None))]
+                    grid_step, initial, max_cycles, method, southwell_sweeps, warm=None, off=""))]
 #[allow(clippy::too_many_arguments)]
 fn thin_plate_solve<'py>(
     py: Python<'py>,
@@ -83,7 +83,9 @@ fn thin_plate_solve<'py>(
     method: &str,
     southwell_sweeps: f64,
     warm: Option<PyRef<'py, PyWarmStart>>,
+    off: &str,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
+    let off = inkwarp_core::solve::Ablation::parse(off).map_err(|e| PyValueError::new_err(format!("_off: {e}.")))?;
     let method = match method {
         "multigrid" => SolveMethod::Multigrid,
         "southwell" => SolveMethod::Southwell,
@@ -145,7 +147,7 @@ fn thin_plate_solve<'py>(
     let initial = initial.as_ref().map(|f| f.as_array());
     let initial = initial.as_ref().map(|a| a.as_standard_layout());
     let initial = initial.as_ref().map(|c| c.as_slice().expect("standard layout is contiguous"));
-    let options = SolveOptions { tension, tolerance_px: tolerance, grid_step, max_cycles, method, southwell_sweeps };
+    let options = SolveOptions { tension, tolerance_px: tolerance, grid_step, max_cycles, method, southwell_sweeps, off };
     let mut history = warm.as_ref().map(|w| std::mem::take(&mut *w.lock()));
     // Without the interpreter, and on the solver's pool with the answer's conversion (its
     // parallel pass would otherwise wake the pool from outside).

@@ -93,15 +93,15 @@ struct Work {
 impl Hierarchy {
     /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and of
     /// `coarse_degree` below it.
-    pub fn new(fine: Level, degree: usize, coarse_degree: usize) -> Hierarchy {
-        Hierarchy::build(fine, degree, coarse_degree, true)
+    pub fn new(fine: Level, degree: usize, coarse_degree: usize, pinned: bool) -> Hierarchy {
+        Hierarchy::build(fine, degree, coarse_degree, true, pinned)
     }
 
     /// A second coarse space for `fine`'s unknowns: the levels below `fine` (visited by
     /// V-cycles), with no work vectors or smoothing bound on `fine` itself, which the
     /// hierarchy it serves already has.
     pub fn coarse_space(fine: Level, degree: usize) -> Hierarchy {
-        let mut h = Hierarchy::build(fine, degree, degree, false);
+        let mut h = Hierarchy::build(fine, degree, degree, false, true);
         h.k_cycles = false;
         // Past the setup, the finest level only lends its prolongation (restriction and
         // prolongation read nothing else): keep 4 bytes a node instead of about 18.
@@ -109,7 +109,7 @@ impl Hierarchy {
         h
     }
 
-    fn build(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool) -> Hierarchy {
+    fn build(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool, pinned: bool) -> Hierarchy {
         let mut levels = vec![fine];
         loop {
             let last = levels.last().unwrap();
@@ -117,7 +117,7 @@ impl Hierarchy {
                 break;
             }
             let mut next = galerkin(last);
-            if levels.len() == 1 {
+            if levels.len() == 1 && pinned {
                 next.pinned = super::pinned::Pinned::new(last, &next).map(Box::new);
             }
             levels.push(next);
@@ -937,7 +937,7 @@ mod tests {
         for i in [3 * w + 4, 20 * w + 60, 55 * w + 20, 64 * w + 70] {
             fixed[i] = true;
         }
-        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2);
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2, true);
         assert!(hier.levels.len() >= 4, "the test needs a level with a K-cycle below it");
         let mut rnd = crate::grid::tests::sequence(5);
         let k = 1;

@@ -103,6 +103,37 @@ pub struct SolveOptions {
     pub method: SolveMethod,
     /// Southwell budget: single-node relaxations, in units of the number of unknowns.
     pub southwell_sweeps: f64,
+    /// Mechanisms switched off, for the ablation benchmark only (`benchmarks/ablation.py`).
+    #[doc(hidden)]
+    pub off: Ablation,
+}
+
+/// A set of the solver's optional mechanisms switched off (none by default), so that a
+/// paired benchmark can measure what each one buys. Not part of the stable API.
+#[doc(hidden)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Ablation(u32);
+
+impl Ablation {
+    /// The switches' names, in bit order.
+    pub const NAMES: [&'static str; 9] = ["second", "tear", "scaled", "held", "start", "kcycle", "pinned", "cache", "spare"];
+
+    /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
+    pub fn parse(text: &str) -> Result<Ablation, String> {
+        let mut bits = 0;
+        for name in text.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            let k = Self::NAMES.iter().position(|n| *n == name).ok_or_else(|| {
+                format!("unknown mechanism {name:?}; the switches are {}", Self::NAMES.join(", "))
+            })?;
+            bits |= 1 << k;
+        }
+        Ok(Ablation(bits))
+    }
+
+    /// Whether the mechanism `name` (one of [`Ablation::NAMES`]) is switched off.
+    pub fn has(self, name: &str) -> bool {
+        Self::NAMES.iter().position(|n| *n == name).is_some_and(|k| self.0 & (1 << k) != 0)
+    }
 }
 
 impl Default for SolveOptions {
@@ -114,6 +145,7 @@ impl Default for SolveOptions {
             max_cycles: None,
             method: SolveMethod::Multigrid,
             southwell_sweeps: 10.0,
+            off: Ablation::default(),
         }
     }
 }
@@ -425,7 +457,7 @@ pub(crate) fn solve_constrained(
         };
         let null = if open { Some(Vec::new()) } else { piece_null_space(&links, bw, bh, &constrained_only) };
         let links_again = (!open).then(|| piece_links(grid, &labels, l as u32, boxes[l], open));
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), spaces: spaces() };
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), spaces: spaces(options) };
         let start = initial.map(|f| Start { field: f, x0, y0 });
         let (mut u, mut r) = solve_piece(key, &value, start, options);
         if let (Some(basis), Some(links)) = (&null, links_again) {
@@ -557,7 +589,7 @@ fn settle_null_space(
             dx: dense.iter().map(|v| v[0] as f32).collect(),
             dy: dense.iter().map(|v| v[1] as f32).collect(),
         };
-        let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links_clone(&links), fixed: fixed.clone(), spaces: spaces() };
+        let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links_clone(&links), fixed: fixed.clone(), spaces: spaces(options) };
         let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options);
         report.cycles += r2.cycles;
         report.final_change_px = r2.final_change_px;
@@ -654,7 +686,12 @@ impl BoxValues {
 fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport { converged: true, ..Default::default() };
-    let mut hier = cache_take(&key).unwrap_or_else(|| {
+    if options.off.has("spare") {
+        SPARE.lock().unwrap_or_else(|e| e.into_inner()).clear();
+        SPARE_NARROW.lock().unwrap_or_else(|e| e.into_inner()).clear();
+    }
+    let cached = if options.off.has("cache") { None } else { cache_take(&key) };
+    let mut hier = cached.unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
         let fine = Level::fine(geo, tau);
@@ -664,7 +701,8 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         let alt = (torn && key.spaces.second).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
         let loose = loose_nodes(&fine.geo, &key.fixed).contains(&true);
-        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
+        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse, key.spaces.pinned);
+        hier.k_cycles = key.spaces.kcycle;
         hier.loose = loose;
         hier.alt = alt;
         hier.torn = torn;
@@ -1029,11 +1067,13 @@ pub(crate) struct Spaces {
     pub scaled: bool,
     pub held: bool,
     pub start: bool,
+    pub kcycle: bool,
+    pub pinned: bool,
 }
 
 impl Spaces {
     /// Everything, as every solve outside tests has it.
-    pub const ALL: Spaces = Spaces { second: true, tear: true, scaled: true, held: true, start: true };
+    pub const ALL: Spaces = Spaces { second: true, tear: true, scaled: true, held: true, start: true, kcycle: true, pinned: true };
 }
 
 #[cfg(test)]
@@ -1050,11 +1090,21 @@ thread_local! {
     pub(crate) static HELD_VISITS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
 }
 
-fn spaces() -> Spaces {
+fn spaces(options: &SolveOptions) -> Spaces {
     #[cfg(test)]
-    return SPACES.with(|c| c.get());
+    let all = SPACES.with(|c| c.get());
     #[cfg(not(test))]
-    Spaces::ALL
+    let all = Spaces::ALL;
+    let off = |name| options.off.has(name);
+    Spaces {
+        second: all.second && !off("second"),
+        tear: all.tear && !off("tear"),
+        scaled: all.scaled && !off("scaled"),
+        held: all.held && !off("held"),
+        start: all.start && !off("start"),
+        kcycle: all.kcycle && !off("kcycle"),
+        pinned: all.pinned && !off("pinned"),
+    }
 }
 
 /// Recently used hierarchies (taken out while in use, so concurrent solves never share

@@ -373,7 +373,7 @@ fn k_cycles_take_their_second_step_where_the_first_leaves_much() {
     let mut rnd = crate::grid::tests::sequence(8);
     for (density, dense) in [(0.25, true), (0.001, false)] {
         let fixed: Vec<bool> = (0..w * h).map(|_| rnd() < density).collect();
-        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), SMOOTHING_STEPS, OPEN_COARSE_SMOOTHING);
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), SMOOTHING_STEPS, OPEN_COARSE_SMOOTHING, true);
         assert!(hier.levels.len() >= 4, "a K-cycle needs a level between the first coarse one and the coarsest");
         let fine = &hier.levels[0];
         let r: Vec<V2> = (0..fine.len_padded()).map(|p| if fine.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
@@ -937,7 +937,7 @@ fn every_level_smooths_below_the_top_of_its_spectrum() {
     for i in [5 * w + 7, 20 * w + 50, 40 * w + 12, 60 * w + 60, 33 * w + 33] {
         fixed[i] = true;
     }
-    let main = Hierarchy::new(fine_level(&grid, Some(fixed.clone()), 0.05), SMOOTHING_STEPS, SMOOTHING_STEPS);
+    let main = Hierarchy::new(fine_level(&grid, Some(fixed.clone()), 0.05), SMOOTHING_STEPS, SMOOTHING_STEPS, true);
     let alt = Hierarchy::coarse_space(fine_level(&grid, Some(fixed), 0.05).into_plain(), SMOOTHING_STEPS);
     let levels = main.levels.iter().chain(alt.levels.iter().skip(1));
     for (k, level) in levels.enumerate() {
@@ -1058,7 +1058,7 @@ fn levels_held_by_constraints_all_around_are_smoothed_and_the_solve_still_conver
     for &i in &constraints.nodes {
         fixed[i] = true;
     }
-    let hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 1);
+    let hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 1, true);
     let held = held::first_held(&hier.levels).expect("dense random constraints hold a coarse level");
     assert!(held >= 2 && held + 1 < hier.levels.len(), "held from level {held} of {}", hier.levels.len());
 
@@ -1095,7 +1095,7 @@ fn a_free_margin_around_constrained_nodes_keeps_its_coarse_levels() {
     // along it, so the levels where it is wider than a node's box are not held. Scattered
     // constraints hold none; a grid without constraints has nothing to hold it.
     let n = 257;
-    let levels_of = |fixed: Option<Vec<bool>>| Hierarchy::new(fine_level(&Grid::new(n, n), fixed, 0.0), 2, 1).levels;
+    let levels_of = |fixed: Option<Vec<bool>>| Hierarchy::new(fine_level(&Grid::new(n, n), fixed, 0.0), 2, 1, true).levels;
     let mut held_any = false;
     for margin in [8, 12, 20] {
         let fixed: Vec<bool> = (0..n * n).map(|i| (margin..n - margin).contains(&(i % n)) && (margin..n - margin).contains(&(i / n))).collect();
