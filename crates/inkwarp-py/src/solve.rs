@@ -9,15 +9,16 @@ use pyo3::types::PyDict;
 
 use std::sync::{Arc, Mutex};
 
-use inkwarp_core::solve::{in_pool, solve_from_view, solve_warm, SolveError, SolveMethod, SolveOptions, WarmHistory};
+use inkwarp_core::solve::{in_pool, solve_from_view, SolveError, SolveMethod, SolveOptions, Solver};
 use inkwarp_core::{FieldView, Grid, Sample};
 
 /// Earlier solves of one animated surface (`inkwarp.WarmStart`): the next solve starts
-/// from the combination of their fields that best matches its displacements.
+/// from the combination of their fields that best matches its displacements, and reuses
+/// their hierarchy and work vectors (its [`Solver`]).
 #[pyclass(name = "WarmStart", module = "inkwarp")]
 #[derive(Debug, Default)]
 pub struct PyWarmStart {
-    history: Mutex<WarmHistory>,
+    solver: Mutex<Solver>,
 }
 
 #[pymethods]
@@ -33,17 +34,17 @@ impl PyWarmStart {
     }
 
     fn __len__(&self) -> usize {
-        self.lock().len()
+        self.lock().history().len()
     }
 
     fn __repr__(&self) -> String {
-        format!("WarmStart({} earlier solves)", self.lock().len())
+        format!("WarmStart({} earlier solves)", self.lock().history().len())
     }
 }
 
 impl PyWarmStart {
-    fn lock(&self) -> std::sync::MutexGuard<'_, WarmHistory> {
-        self.history.lock().unwrap_or_else(|e| e.into_inner())
+    fn lock(&self) -> std::sync::MutexGuard<'_, Solver> {
+        self.solver.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 
@@ -156,7 +157,7 @@ fn thin_plate_solve<'py>(
             // Read in place by the solve (no planar copy first).
             let initial = initial.map(|data| FieldView::Interleaved { width, height, data });
             let result = match history.as_mut() {
-                Some(h) => solve_warm(&grid, &samples, &options, h, None),
+                Some(s) => s.solve_warm(&grid, &samples, &options, None),
                 None => solve_from_view(&grid, &samples, &options, initial),
             };
             result.map(|(field, report)| (field.to_interleaved(), report))
