@@ -27,7 +27,7 @@ import numpy as np
 
 import inkwarp
 
-SWITCHES = ["second", "tear", "scaled", "held", "start", "kcycle", "pinned", "cache", "spare"]
+SWITCHES = ["second", "tear", "kcycle", "cache", "fours"]
 
 
 def random_problem(n: int, size: int, seed: int = 0):

@@ -871,6 +871,13 @@ impl Level {
     /// stay zero. Its coarse space holds the functions that run smoothly across holes and
     /// cuts, which the link-aware prolongation cannot: near a missing link it extrapolates a
     /// constant.
+    /// Drops the four-node layout of its own stencils (the ablation's switch `fours`).
+    pub fn drop_fours(&mut self) {
+        if let Operator::Stored { fours, .. } = &mut self.op {
+            *fours = Fours::default();
+        }
+    }
+
     pub fn into_plain(mut self) -> Level {
         let (w, h) = (self.geo.w, self.geo.h);
         let right = (0..w * h).map(|i| i % w + 1 < w).collect();
@@ -1147,7 +1154,7 @@ widest! {
             Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
             Operator::Stored { ids, table, narrow, sym, fours, runs } => {
                 let table = T::table(table, narrow);
-                let four = T::has_four_stencils();
+                let four = T::has_four_stencils() && !fours.row_first.is_empty();
                 let dense = four && fours.dense;
                 let mut block = if four { fours.row_first[r] as usize } else { 0 };
                 let shared = &table[0];

@@ -114,7 +114,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 4] = ["second", "tear", "kcycle", "cache"];
+    pub const NAMES: [&'static str; 5] = ["second", "tear", "kcycle", "cache", "fours"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -701,6 +701,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         hier.loose = loose;
         hier.alt = alt;
         hier.torn = torn;
+        if !key.spaces.fours {
+            hier.levels.iter_mut().chain(hier.alt.iter_mut().flat_map(|a| a.levels.iter_mut())).for_each(Level::drop_fours);
+        }
         if torn && key.spaces.tear && w * h >= TEAR_SPACE_MIN_NODES {
             // Cuts and thin holes: functions that run linearly up to each side of them.
             hier.deflation = deflate::Deflation::new(&hier.levels[0]);
@@ -1078,11 +1081,12 @@ pub(crate) struct Spaces {
     pub second: bool,
     pub tear: bool,
     pub kcycle: bool,
+    pub fours: bool,
 }
 
 impl Spaces {
     /// Everything, as every solve outside tests has it.
-    pub const ALL: Spaces = Spaces { second: true, tear: true, kcycle: true };
+    pub const ALL: Spaces = Spaces { second: true, tear: true, kcycle: true, fours: true };
 }
 
 #[cfg(test)]
@@ -1102,6 +1106,7 @@ fn spaces(options: &SolveOptions) -> Spaces {
         second: all.second && !off("second"),
         tear: all.tear && !off("tear"),
         kcycle: all.kcycle && !off("kcycle"),
+        fours: all.fours && !off("fours"),
     }
 }
 
