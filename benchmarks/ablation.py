@@ -10,7 +10,9 @@ least one problem to stay.
 
 Problems: 513×513 with 10, 100, 1000 and 4000 random points, cold (no start) and warm
 (the previous answer as the start, every displacement changed by 2 %, as in
-`ratios.py`), and the issue's 513×513 model problem with a disc hole and a two-segment cut
+`ratios.py`), frames of an animation through a `WarmStart` (10 and 1000 points, hole+cut:
+the only problems where a solver is kept between solves, so the only ones where `cache`
+can buy anything; the free function builds its hierarchy every time), and the issue's 513×513 model problem with a disc hole and a two-segment cut
 (`tests/test_solver_families.py::grid_problem`), cold and warm.
 
 Usage: python benchmarks/ablation.py [--rounds 9] [--quick] [--only held,tear]
@@ -67,7 +69,24 @@ def problems(size: int) -> dict:
 
         out[f"{name} cold"] = cold
         out[f"{name} warm"] = warm
+        if name in ("10 pts", "1000 pts", "hole+cut"):
+            out[f"{name} frames"] = frames(pts, disp, shape, mask, cuts)
     return out
+
+
+def frames(pts, disp, shape, mask, cuts):
+    """An animation's frames through a `WarmStart` (which keeps the solver: its hierarchy
+    and history), every displacement scaled by 1 + 0.2 sin(0.3 k) in frame k; each side of a pair has a
+    WarmStart of its own and walks the same frames."""
+    sides: dict[str, list] = {}
+
+    def solve(off):
+        ws, k = sides.setdefault(off, [inkwarp.WarmStart(), 0])
+        sides[off][1] = k + 1
+        d = disp * (1 + 0.2 * np.sin(0.3 * k))
+        return inkwarp.thin_plate_report(pts, d, shape, mask=mask, cuts=cuts, warm=ws, _off=off)[1]
+
+    return solve
 
 
 def paired(solve, switch: str, rounds: int):
