@@ -457,7 +457,7 @@ pub(crate) fn solve_constrained(
         };
         let null = if open { Some(Vec::new()) } else { piece_null_space(&links, bw, bh, &constrained_only) };
         let links_again = (!open).then(|| piece_links(grid, &labels, l as u32, boxes[l], open));
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), spaces: spaces(options) };
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), off: options.off };
         let start = initial.map(|f| Start { field: f, x0, y0 });
         let (mut u, mut r) = solve_piece(key, &value, start, options, store);
         if let (Some(basis), Some(links)) = (&null, links_again) {
@@ -588,7 +588,7 @@ fn settle_null_space(
             dx: dense.iter().map(|v| v[0] as f32).collect(),
             dy: dense.iter().map(|v| v[1] as f32).collect(),
         };
-        let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links_clone(&links), fixed: fixed.clone(), spaces: spaces(options) };
+        let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links_clone(&links), fixed: fixed.clone(), off: options.off };
         let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options, store);
         report.cycles += r2.cycles;
         report.final_change_px = r2.final_change_px;
@@ -693,18 +693,18 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         // Holes and cuts: a second coarse space that runs smoothly across them (visited by
         // V-cycles), next to the link-aware one that tears with them.
         let torn = fine.geo.torn();
-        let alt = (torn && key.spaces.second).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
+        let alt = (torn && !key.off.has("second")).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
         let loose = loose_nodes(&fine.geo, &key.fixed).contains(&true);
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
-        hier.k_cycles = key.spaces.kcycle;
+        hier.k_cycles = !key.off.has("kcycle");
         hier.loose = loose;
         hier.alt = alt;
         hier.torn = torn;
-        if !key.spaces.fours {
+        if key.off.has("fours") {
             hier.levels.iter_mut().chain(hier.alt.iter_mut().flat_map(|a| a.levels.iter_mut())).for_each(Level::drop_fours);
         }
-        if torn && key.spaces.tear && w * h >= TEAR_SPACE_MIN_NODES {
+        if torn && !key.off.has("tear") && w * h >= TEAR_SPACE_MIN_NODES {
             // Cuts and thin holes: functions that run linearly up to each side of them.
             hier.deflation = deflate::Deflation::new(&hier.levels[0]);
         }
@@ -1067,47 +1067,8 @@ struct CacheKey {
     tau_bits: u64,
     links: BoxLinks,
     fixed: Vec<bool>,
-    /// Which of the optional spaces the hierarchy has (all, outside tests).
-    spaces: Spaces,
-}
-
-/// The optional parts of a hierarchy: on a grid with holes or cuts the plain second
-/// space (see [`Level::into_plain`]) and the space along tears ([`deflate::Deflation`]);
-/// K-cycles on the coarse levels ([`Hierarchy::k_cycles`]). All of them unless
-/// [`SolveOptions::off`] or a test switches one off to measure what it saves
-/// (`docs/dev/ablation.md`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct Spaces {
-    pub second: bool,
-    pub tear: bool,
-    pub kcycle: bool,
-    pub fours: bool,
-}
-
-impl Spaces {
-    /// Everything, as every solve outside tests has it.
-    pub const ALL: Spaces = Spaces { second: true, tear: true, kcycle: true, fours: true };
-}
-
-#[cfg(test)]
-thread_local! {
-    /// The spaces of the solves started on this thread, set by a test on a pool of its own
-    /// (a thread of the shared pool also runs other tests' solves).
-    pub(crate) static SPACES: std::cell::Cell<Spaces> = const { std::cell::Cell::new(Spaces::ALL) };
-}
-
-fn spaces(options: &SolveOptions) -> Spaces {
-    #[cfg(test)]
-    let all = SPACES.with(|c| c.get());
-    #[cfg(not(test))]
-    let all = Spaces::ALL;
-    let off = |name| options.off.has(name);
-    Spaces {
-        second: all.second && !off("second"),
-        tear: all.tear && !off("tear"),
-        kcycle: all.kcycle && !off("kcycle"),
-        fours: all.fours && !off("fours"),
-    }
+    /// The mechanisms switched off (none outside the ablation benchmark and tests).
+    off: Ablation,
 }
 
 impl PartialEq for CacheKey {
@@ -1116,8 +1077,8 @@ impl PartialEq for CacheKey {
     /// 513 × 513, unless the grid is open) need not be compared for them.
     fn eq(&self, o: &Self) -> bool {
         // Every field named, so that a new one cannot be left out of the comparison.
-        let CacheKey { w, h, tau_bits, links, fixed, spaces } = self;
-        (*w, *h, *tau_bits, *spaces) == (o.w, o.h, o.tau_bits, o.spaces) && *fixed == o.fixed && *links == o.links
+        let CacheKey { w, h, tau_bits, links, fixed, off } = self;
+        (*w, *h, *tau_bits, *off) == (o.w, o.h, o.tau_bits, o.off) && *fixed == o.fixed && *links == o.links
     }
 }
 

@@ -646,28 +646,17 @@ pub(super) fn torn_grid(n: usize, hole: bool, cut: bool, open: f64) -> Grid {
 /// The cycles of the default solve of 10 random points on `grid` with both optional
 /// spaces and then with the spaces `without`, each solve checked to come within 0.05 px of
 /// a tight one.
-fn cycles_with_and_without(grid: &Grid, without: Spaces) -> [usize; 2] {
+fn cycles_with_and_without(grid: &Grid, without: &str) -> [usize; 2] {
     let mut rng = Rng(12345);
     let samples = random_samples(&mut rng, grid.width, grid.height, 10);
     let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
     let (exact, _) = solve(grid, &samples, &tight, None).unwrap();
-    [Spaces::ALL, without].map(|spaces| {
-        let (field, report) = with_spaces(spaces, || solve(grid, &samples, &SolveOptions::default(), None).unwrap());
+    ["", without].map(|off| {
+        let options = SolveOptions { off: Ablation::parse(off).unwrap(), ..Default::default() };
+        let (field, report) = solve(grid, &samples, &options, None).unwrap();
         let err = gap(&field, &exact);
-        assert!(report.converged && err < 0.05, "{spaces:?}: {err} px off ({report:?})");
+        assert!(report.converged && err < 0.05, "off {off:?}: {err} px off ({report:?})");
         report.cycles
-    })
-}
-
-/// `f` with the solves it starts switched to `spaces`, on a pool of its own: the shared
-/// pool's threads also run other tests' solves, which must not see the switches.
-fn with_spaces<R: Send>(spaces: Spaces, f: impl FnOnce() -> R + Send) -> R {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-    pool.install(|| {
-        SPACES.with(|s| s.set(spaces));
-        let out = f();
-        SPACES.with(|s| s.set(Spaces::ALL));
-        out
     })
 }
 
@@ -677,7 +666,7 @@ fn the_second_coarse_space_saves_cycles_across_holes_and_cuts() {
     // extrapolates constants at their edges and converges slowly. (129 × 129 is below the
     // size that gets the space along tears.)
     let grid = torn_grid(129, true, true, 5.0);
-    let [with, without] = cycles_with_and_without(&grid, Spaces { second: false, ..Spaces::ALL });
+    let [with, without] = cycles_with_and_without(&grid, "second");
     assert!(4 * with <= 3 * without, "{with} cycles with the second coarse space, {without} without");
 }
 
@@ -687,7 +676,7 @@ fn the_space_along_tears_saves_cycles_across_holes_and_cuts() {
     // widths 32 and 96): a cut, a thin arc-shaped hole, and both.
     for (hole, cut) in [(false, true), (true, false), (true, true)] {
         let grid = torn_grid(257, hole, cut, 10.0);
-        let [with, without] = cycles_with_and_without(&grid, Spaces { tear: false, ..Spaces::ALL });
+        let [with, without] = cycles_with_and_without(&grid, "tear");
         // At least the 10 % a mechanism must earn to stay (a third when written; 15 against
         // 18 on the cut since the stopping rule needs two ratios).
         assert!(10 * with <= 9 * without, "hole {hole}, cut {cut}: {with} cycles with the space along tears, {without} without");
