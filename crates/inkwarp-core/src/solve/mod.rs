@@ -40,8 +40,7 @@
 //! Lanczos estimate of each level's top eigenvalue), K-cycles below the finest level (two
 //! flexible conjugate-gradient steps on each coarse problem, the first an energy line
 //! search, the second only when the first left much of the residual), a banded Cholesky
-//! solve on the coarsest level, a coarse-to-fine start (the cycle after a warm one
-//! smoothing the finest level longer where constraints are dense), and the cycle as the
+//! solve on the coarsest level, a coarse-to-fine start, and the cycle as the
 //! preconditioner of a flexible conjugate gradient on the finest level. On grids with
 //! holes or cuts each cycle also visits a second coarse space, built with the plain
 //! bilinear prolongation of the same grid without them: the link-aware one extrapolates
@@ -50,7 +49,9 @@
 //! residuals exceed the tolerance also gets the coarse-to-fine correction; a closer one
 //! first gets one cycle as it is. Loose nodes (no corner of a fully linked cell) are
 //! settled to the τ → 0⁺ limit afterwards.
-//! `docs/concepts/thin-plate.md` explains the choices and lists the measured figures.
+//! `docs/concepts/thin-plate.md` explains the choices; `docs/dev/ablation.md` measures
+//! what each optional mechanism buys. The hierarchies a later solve can reuse are kept
+//! by the caller's [`Solver`], never by the process.
 
 mod cycle;
 mod deflate;
@@ -909,8 +910,10 @@ struct Start<'a> {
     y0: usize,
 }
 
-/// At most this many hierarchies, and finest nodes in all (about 150 bytes a node).
-const HIERARCHIES: usize = 8;
+/// At most this many hierarchies a solver keeps, and finest nodes in all (about 150 bytes
+/// a node). A solver serves one surface, whose frames share one hierarchy until its drawing
+/// changes; the one before that is kept for an undo.
+const HIERARCHIES: usize = 2;
 const HIERARCHY_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
