@@ -1283,3 +1283,37 @@ fn southwell_claims_convergence_only_when_nothing_is_left_to_relax() {
     let err = oracle_gap(&grid, &field, &exact);
     assert!(!report.converged || err < 0.05, "{err} px off, reported converged");
 }
+
+#[test]
+fn a_kept_solver_reuses_its_hierarchy_and_gives_a_fresh_solvers_answer() {
+    // The same problem three times through one solver (the hierarchy kept after the
+    // first) and once through a fresh one: the same field bit for bit; a second problem on
+    // the same grid (other fixed nodes) builds its own and keeps both.
+    let mut grid = Grid::new(97, 97);
+    grid.add_cut(&[[5.0, 60.3], [90.0, 40.7]]);
+    let mut rng = Rng(77);
+    let samples = random_samples(&mut rng, 97, 97, 12);
+    let other = random_samples(&mut rng, 97, 97, 9);
+    let options = SolveOptions::default();
+    let (fresh, _) = solve(&grid, &samples, &options, None).unwrap();
+    let mut solver = Solver::new();
+    for _ in 0..3 {
+        let (field, report) = solver.solve(&grid, &samples, &options, None).unwrap();
+        assert!(report.converged);
+        assert_eq!((field.dx.clone(), field.dy.clone()), (fresh.dx.clone(), fresh.dy.clone()));
+        assert_eq!(solver.store.hierarchies.len(), 1);
+    }
+    solver.solve(&grid, &other, &options, None).unwrap();
+    assert_eq!(solver.store.hierarchies.len(), 2);
+    solver.clear();
+    assert_eq!(solver.store.hierarchies.len(), 0);
+}
+
+#[test]
+fn ablation_switches_are_parsed_by_name_and_unknown_names_refused() {
+    let off = Ablation::parse("second, kcycle").unwrap();
+    assert!(off.has("second") && off.has("kcycle") && !off.has("tear"));
+    assert_eq!(Ablation::parse("").unwrap(), Ablation::default());
+    let err = Ablation::parse("held").unwrap_err();
+    assert!(err.contains("held") && err.contains("second"), "{err}");
+}
