@@ -988,9 +988,10 @@ impl Solver {
         &self.history
     }
 
-    /// Forgets the history and everything kept for reuse.
+    /// Forgets the history (the next warm solve starts cold). The hierarchies stay: they
+    /// never change an answer, only how soon it comes.
     pub fn clear(&mut self) {
-        *self = Solver::default();
+        self.history.clear();
     }
 
     /// A solver around `history`, which [`Solver::into_history`] gives back.

@@ -1305,8 +1305,10 @@ fn a_kept_solver_reuses_its_hierarchy_and_gives_a_fresh_solvers_answer() {
     }
     solver.solve(&grid, &other, &options, None).unwrap();
     assert_eq!(solver.store.hierarchies.len(), 2);
+    solver.solve_warm(&grid, &other, &options, None).unwrap();
+    assert_eq!(solver.history().len(), 1);
     solver.clear();
-    assert_eq!(solver.store.hierarchies.len(), 0);
+    assert_eq!((solver.history().len(), solver.store.hierarchies.len()), (0, 2));
 }
 
 #[test]
