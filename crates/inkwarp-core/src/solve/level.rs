@@ -892,12 +892,14 @@ impl Level {
     /// The same level with the prolongation of a geometry whose wide holes are filled: each
     /// component of inactive nodes that does not touch the border and is not thin (more
     /// than four nodes per link to an active node, as [`super::deflate`] counts them) made
-    /// active, linked to itself and to the active nodes around it. The operator stays the
-    /// level's own and the rows of the inactive and fixed nodes stay zero, so every coarser
-    /// level (built from this geometry) still holds the exact energy of its functions on the
-    /// real domain; but its functions now run smoothly up to a hole's rim, as the linear
+    /// active and linked to everything around it. The operator stays the level's own and
+    /// the rows of the inactive and fixed nodes stay zero, so every coarser level (built
+    /// from this geometry) still holds the exact energy of its functions on the real
+    /// domain; but its functions now run smoothly up to a hole's rim, as the linear
     /// extrapolation of a free boundary needs, where the link-aware rows extrapolate a
-    /// constant there, which the fourth-order energy punishes more on every finer grid.
+    /// constant, which the fourth-order energy punishes more on every finer grid
+    /// (docs/dev/coarse-space.md). Thin holes (strips, slits, gaps between teeth) stay:
+    /// filling them would tie their two sides together.
     pub fn with_holes_filled(mut self) -> Level {
         let g = &self.geo;
         let (w, h) = (g.w, g.h);

@@ -42,11 +42,13 @@
 //! search, the second only when the first left much of the residual), a banded Cholesky
 //! solve on the coarsest level, a coarse-to-fine start (the cycle after a warm one
 //! smoothing the finest level longer where constraints are dense), and the cycle as the
-//! preconditioner of a flexible conjugate gradient on the finest level. On grids with
-//! holes or cuts each cycle also visits a second coarse space, built with the plain
-//! bilinear prolongation of the same grid without them: the link-aware one extrapolates
-//! a constant at every missing link, so it lacks the functions that run linearly up to
-//! (and across) a hole or cut, and the plain one has exactly those. A warm start whose
+//! preconditioner of a flexible conjugate gradient on the finest level. Wide holes inside the grid are filled for the prolongation alone (the operator stays the
+//! real one), so the coarse functions run smoothly up to their rims. On grids with tears
+//! left after that (cuts, thin holes, holes open to the border) each cycle also visits a
+//! second coarse space, built with the plain bilinear prolongation of the same grid
+//! without them: the link-aware one extrapolates a constant at every missing link, so it
+//! lacks the functions that run linearly up to (and across) a hole or cut, and the plain
+//! one has exactly those. A warm start whose
 //! residuals exceed the tolerance also gets the coarse-to-fine correction; a closer one
 //! first gets one cycle as it is. Loose nodes (no corner of a fully linked cell) are
 //! settled to the τ → 0⁺ limit afterwards.
