@@ -72,6 +72,9 @@ pub(crate) struct Hierarchy {
     /// Chebyshev steps added to the finest level's pre-smoothing in the cycle that follows
     /// the coarse-to-fine start (see [`Hierarchy::precondition`]); set by the solve.
     pub start_smoothing: usize,
+    /// The finest level's real geometry where its own has wide holes filled for the
+    /// prolongation (see [`Level::with_holes_filled`]); set by the solve.
+    pub unfilled: Option<super::level::Geometry>,
     /// Whether the finest level has loose nodes (free nodes on no fully linked cell),
     /// which the solve settles afterwards; set by the solve that builds the hierarchy.
     pub loose: bool,
@@ -150,7 +153,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, second_steps_skipped: Default::default(), held_from: None, start_smoothing: 0 }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, unfilled: None, second_steps_skipped: Default::default(), held_from: None, start_smoothing: 0 }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,

@@ -66,6 +66,11 @@ impl Pinned {
         let g = &fine.geo;
         let fixed = g.fixed.as_ref()?;
         let (w, h) = (g.w, g.h);
+        // A geometry with holes filled for the prolongation (`Level::with_holes_filled`) is
+        // not the operator's: its filled nodes are free and have no diagonal.
+        if (0..w * h).any(|i| g.active[i] && !fixed[i] && fine.inv_diag[fine.pidx(i % w, i / w)] == 0.0) {
+            return None;
+        }
         let pins: Vec<usize> = (0..w * h).filter(|&i| fixed[i] && g.active[i]).collect();
         let irregular = ids.iter().zip(&coarse.inv_diag).filter(|&(&id, &d)| id != 0 && d != 0.0).count();
         if pins.len() < MIN_PINS || 4 * pins.len() > irregular {
