@@ -892,6 +892,72 @@ impl Level {
         self
     }
 
+    /// The same level with the prolongation of a geometry whose wide holes are filled: each
+    /// component of inactive nodes that does not touch the border and is not thin (more
+    /// than four nodes per link to an active node, as [`super::deflate`] counts them) made
+    /// active and linked to everything around it. The operator stays the level's own and
+    /// the rows of the inactive and fixed nodes stay zero, so every coarser level (built
+    /// from this geometry) still holds the exact energy of its functions on the real
+    /// domain; but its functions now run smoothly up to a hole's rim, as the linear
+    /// extrapolation of a free boundary needs, where the link-aware rows extrapolate a
+    /// constant, which the fourth-order energy punishes more on every finer grid
+    /// (docs/dev/coarse-space.md). Thin holes (strips, slits, gaps between teeth) stay:
+    /// filling them would tie their two sides together.
+    pub fn with_holes_filled(mut self) -> Level {
+        let g = &self.geo;
+        let (w, h) = (g.w, g.h);
+        let mut comp = vec![u32::MAX; w * h];
+        let mut fill = vec![false; w * h];
+        let mut any = false;
+        for start in 0..w * h {
+            if g.active[start] || comp[start] != u32::MAX {
+                continue;
+            }
+            comp[start] = start as u32;
+            let (mut stack, mut nodes, mut edges, mut border) = (vec![start], Vec::new(), 0usize, false);
+            while let Some(i) = stack.pop() {
+                nodes.push(i);
+                let (x, y) = (i % w, i / w);
+                border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+                let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
+                for j in around.into_iter().flatten() {
+                    if g.active[j] {
+                        edges += 1;
+                    } else if comp[j] == u32::MAX {
+                        comp[j] = start as u32;
+                        stack.push(j);
+                    }
+                }
+            }
+            if !border && nodes.len() > 4 * edges {
+                any = true;
+                for i in nodes {
+                    fill[i] = true;
+                }
+            }
+        }
+        if !any {
+            return self;
+        }
+        let active: Vec<bool> = (0..w * h).map(|i| g.active[i] || fill[i]).collect();
+        let right = (0..w * h).map(|i| g.right[i] || (i % w + 1 < w && (fill[i] || fill[i + 1]) && active[i] && active[i + 1])).collect();
+        let down = (0..w * h).map(|i| g.down[i] || (i + w < w * h && (fill[i] || fill[i + w]) && active[i] && active[i + w])).collect();
+        let filled = Geometry::new(w, h, active, right, down, g.fixed.clone());
+        let real = std::mem::replace(&mut self.geo, filled);
+        for i in 0..w * h {
+            if !real.active[i] {
+                self.geo.prow[i] = [0; 4];
+            }
+        }
+        // Rows through a filled node are not plain: the transfers take the general path.
+        for y in 0..h {
+            if (0..w).any(|x| fill[y * w + x]) {
+                self.geo.plain_rows[y] = false;
+            }
+        }
+        self
+    }
+
     /// Frees everything but the dimensions and the prolongation rows (for a level that is
     /// only restricted from and prolonged to from now on).
     pub fn keep_only_prolongation(&mut self) {

@@ -41,11 +41,13 @@
 //! flexible conjugate-gradient steps on each coarse problem, the first an energy line
 //! search, the second only when the first left much of the residual), a banded Cholesky
 //! solve on the coarsest level, a coarse-to-fine start, and the cycle as the
-//! preconditioner of a flexible conjugate gradient on the finest level. On grids with
-//! holes or cuts each cycle also visits a second coarse space, built with the plain
-//! bilinear prolongation of the same grid without them: the link-aware one extrapolates
-//! a constant at every missing link, so it lacks the functions that run linearly up to
-//! (and across) a hole or cut, and the plain one has exactly those. A warm start whose
+//! preconditioner of a flexible conjugate gradient on the finest level. Wide holes inside the grid are filled for the prolongation alone (the operator stays the
+//! real one), so the coarse functions run smoothly up to their rims. On grids with tears
+//! left after that (cuts, thin holes, holes open to the border) each cycle also visits a
+//! second coarse space, built with the plain bilinear prolongation of the same grid
+//! without them: the link-aware one extrapolates a constant at every missing link, so it
+//! lacks the functions that run linearly up to (and across) a hole or cut, and the plain
+//! one has exactly those. A warm start whose
 //! residuals exceed the tolerance also gets the coarse-to-fine correction; a closer one
 //! first gets one cycle as it is. Loose nodes (no corner of a fully linked cell) are
 //! settled to the τ → 0⁺ limit afterwards.
@@ -694,12 +696,19 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         // Holes and cuts: a second coarse space that runs smoothly across them (visited by
         // V-cycles), next to the link-aware one that tears with them.
         let torn = fine.geo.torn();
-        let alt = (torn && !key.off.has("second")).then(|| Box::new(Hierarchy::coarse_space(Level::fine(fine.geo.clone(), tau).into_plain(), SMOOTHING_STEPS)));
-        let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
+        // Wide holes filled for the prolongation (see `Level::with_holes_filled`): the
+        // second space below is then needed only where tears remain (cuts, thin holes,
+        // holes open to the border).
         let loose = loose_nodes(&fine.geo, &key.fixed).contains(&true);
+        let real = torn.then(|| fine.geo.clone());
+        let fine = fine.with_holes_filled();
+        let alt = (fine.geo.torn() && !key.off.has("second")).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.clone().unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
+        let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
+        let filled = real.filter(|r| r.active != fine.geo.active);
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
         hier.k_cycles = !key.off.has("kcycle");
         hier.loose = loose;
+        hier.unfilled = filled;
         hier.alt = alt;
         hier.torn = torn;
         if key.off.has("fours") {
@@ -882,17 +891,19 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     let inv_diag = &hier.levels[0].inv_diag;
     report.residual = r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)).map(|(r, d)| scaled_max(r, d)).reduce(|| 0.0, larger);
     let fine = &hier.levels[0];
+    // The real nodes and links (the finest level's geometry may have its holes filled).
+    let geo = hier.unfilled.as_ref().unwrap_or(&fine.geo);
     let out = if tau == 0.0 && hier.loose {
         // Every value written (zero off the piece), row by row in parallel, then the loose
         // nodes settled there.
         let mut out: Vec<V2> = vec![[0.0; 2]; w * h];
         out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             let p = fine.pidx(0, y);
-            for ((o, &a), v) in row.iter_mut().zip(&fine.geo.active[y * w..(y + 1) * w]).zip(&u[p..p + w]) {
+            for ((o, &a), v) in row.iter_mut().zip(&geo.active[y * w..(y + 1) * w]).zip(&u[p..p + w]) {
                 *o = if a { *v } else { [0.0; 2] };
             }
         });
-        settle_loose_nodes(&fine.geo, fixed, &mut out);
+        settle_loose_nodes(geo, fixed, &mut out);
         BoxValues { values: out, stride: w, first: 0 }
     } else {
         BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) }
