@@ -168,3 +168,15 @@ def test_the_extension_stubs_are_valid_python():
     from pathlib import Path
 
     ast.parse((Path(inkwarp.__file__).parent / "_inkwarp.pyi").read_text(encoding="utf-8"))
+
+
+def test_the_ablation_switches_leave_the_answer_within_tolerance_and_refuse_unknown_names():
+    # The benchmark's private keyword: a mechanism switched off changes the cycles, not the
+    # answer; a name that is no switch is a clear error naming the switches.
+    pts = np.array([[10.0, 10.0], [50.0, 12.0], [30.0, 40.0], [5.0, 44.0]])
+    disp = np.array([[2.0, 0.0], [0.0, 1.0], [-1.0, 0.5], [0.0, 0.0]])
+    base, _ = inkwarp.thin_plate_report(pts, disp, (48, 64))
+    field, report = inkwarp.thin_plate_report(pts, disp, (48, 64), _off="kcycle")
+    assert report.converged and np.abs(field - base).max() < 0.05
+    with pytest.raises(ValueError, match="unknown mechanism .*second"):
+        inkwarp.thin_plate_report(pts, disp, (48, 64), _off="held")

@@ -119,6 +119,7 @@ def thin_plate_solve(
     method: str,
     southwell_sweeps: float,
     warm: WarmStart | None = None,
+    off: str = "",
 ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]: ...
 
 class ThinPlateMap:

@@ -223,6 +223,7 @@ def thin_plate_report(
     method: str = "multigrid",
     southwell_sweeps: float = 10.0,
     warm: WarmStart | None = None,
+    _off: str = "",
 ) -> tuple[npt.NDArray[np.float32], SolveReport]:
     """:func:`thin_plate`, also returning the :class:`SolveReport`.
 
@@ -268,6 +269,7 @@ def thin_plate_report(
         args["method"],
         args["southwell_sweeps"],
         warm,
+        off=_off,
     )
     return field, SolveReport(**rep)
 

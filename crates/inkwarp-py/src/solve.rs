@@ -9,15 +9,16 @@ use pyo3::types::PyDict;
 
 use std::sync::{Arc, Mutex};
 
-use inkwarp_core::solve::{in_pool, solve_from_view, solve_warm, SolveError, SolveMethod, SolveOptions, WarmHistory};
+use inkwarp_core::solve::{in_pool, solve_from_view, SolveError, SolveMethod, SolveOptions, Solver};
 use inkwarp_core::{FieldView, Grid, Sample};
 
 /// Earlier solves of one animated surface (`inkwarp.WarmStart`): the next solve starts
-/// from the combination of their fields that best matches its displacements.
+/// from the combination of their fields that best matches its displacements, and reuses
+/// their hierarchy and work vectors (its [`Solver`]).
 #[pyclass(name = "WarmStart", module = "inkwarp")]
 #[derive(Debug, Default)]
 pub struct PyWarmStart {
-    history: Mutex<WarmHistory>,
+    solver: Mutex<Solver>,
 }
 
 #[pymethods]
@@ -33,17 +34,17 @@ impl PyWarmStart {
     }
 
     fn __len__(&self) -> usize {
-        self.lock().len()
+        self.lock().history().len()
     }
 
     fn __repr__(&self) -> String {
-        format!("WarmStart({} earlier solves)", self.lock().len())
+        format!("WarmStart({} earlier solves)", self.lock().history().len())
     }
 }
 
 impl PyWarmStart {
-    fn lock(&self) -> std::sync::MutexGuard<'_, WarmHistory> {
-        self.history.lock().unwrap_or_else(|e| e.into_inner())
+    fn lock(&self) -> std::sync::MutexGuard<'_, Solver> {
+        self.solver.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 
@@ -65,7 +66,7 @@ fn open_grid(width: usize, height: usize) -> Arc<Grid> {
 /// Solves the thin plate; returns the float32 (H, W, 2) field and the report as a dict.
 #[pyfunction]
 #[pyo3(signature = (points, displacements, height, width, mask, cuts, tension, tolerance,
-                    grid_step, initial, max_cycles, method, southwell_sweeps, warm=None))]
+                    grid_step, initial, max_cycles, method, southwell_sweeps, warm=None, off=""))]
 #[allow(clippy::too_many_arguments)]
 fn thin_plate_solve<'py>(
     py: Python<'py>,
@@ -83,7 +84,9 @@ fn thin_plate_solve<'py>(
     method: &str,
     southwell_sweeps: f64,
     warm: Option<PyRef<'py, PyWarmStart>>,
+    off: &str,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
+    let off = inkwarp_core::solve::Ablation::parse(off).map_err(|e| PyValueError::new_err(format!("_off: {e}.")))?;
     let method = match method {
         "multigrid" => SolveMethod::Multigrid,
         "southwell" => SolveMethod::Southwell,
@@ -145,7 +148,7 @@ fn thin_plate_solve<'py>(
     let initial = initial.as_ref().map(|f| f.as_array());
     let initial = initial.as_ref().map(|a| a.as_standard_layout());
     let initial = initial.as_ref().map(|c| c.as_slice().expect("standard layout is contiguous"));
-    let options = SolveOptions { tension, tolerance_px: tolerance, grid_step, max_cycles, method, southwell_sweeps };
+    let options = SolveOptions { tension, tolerance_px: tolerance, grid_step, max_cycles, method, southwell_sweeps, off };
     let mut history = warm.as_ref().map(|w| std::mem::take(&mut *w.lock()));
     // Without the interpreter, and on the solver's pool with the answer's conversion (its
     // parallel pass would otherwise wake the pool from outside).
@@ -154,7 +157,7 @@ fn thin_plate_solve<'py>(
             // Read in place by the solve (no planar copy first).
             let initial = initial.map(|data| FieldView::Interleaved { width, height, data });
             let result = match history.as_mut() {
-                Some(h) => solve_warm(&grid, &samples, &options, h, None),
+                Some(s) => s.solve_warm(&grid, &samples, &options, None),
                 None => solve_from_view(&grid, &samples, &options, initial),
             };
             result.map(|(field, report)| (field.to_interleaved(), report))

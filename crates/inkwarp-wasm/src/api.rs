@@ -12,7 +12,7 @@ use inkwarp_core::methods::{
 };
 use inkwarp_core::render::{Canvas, RgbaImage};
 use inkwarp_core::scene::{images, BeierNeelyDoc, SolverDoc, TpsExactDoc};
-use inkwarp_core::solve::{solve_warm, solve_warm_at, SolveMethod, SolveOptions, Upsampling, WarmHistory};
+use inkwarp_core::solve::{SolveMethod, SolveOptions, Solver, Upsampling};
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
 use serde::Deserialize;
 
@@ -38,9 +38,9 @@ struct Domain {
     grid: Grid,
     samplers: RefCell<HashMap<String, FeatureSampler>>,
     /// The thin plate's earlier solves per `grid_step` (drafts and full solves apart): a
-    /// warm-started solve starts from their best combination ([`WarmHistory`]), which
+    /// warm-started solve starts from their best combination (a [`Solver`]'s history), which
     /// during a drag is an extrapolation of the pointer's path.
-    history: RefCell<HashMap<usize, WarmHistory>>,
+    history: RefCell<HashMap<usize, Solver>>,
     /// The pixels `iw_solve_at` computes (`iw_grid_select`), and the upsampling plan of
     /// each `grid_step` it was asked for.
     selection: RefCell<Option<Selection>>,
@@ -527,7 +527,7 @@ pub extern "C" fn iw_solve_at(handle: u32, req_ptr: *const u8, req_len: usize, o
         let plan = selection.plans.entry(step).or_insert_with(|| Upsampling::new(grid, step));
         let mut histories = domain.history.borrow_mut();
         let history = histories.entry(step).or_default();
-        let report = solve_warm_at(grid, &samples, &options, history, plan, &selection.pixels, out).map_err(|e| e.to_string())?;
+        let report = history.solve_warm_at(grid, &samples, &options, plan, &selection.pixels, out).map_err(|e| e.to_string())?;
         Ok(named(tps_report(&report), Method::Tps, samples.len()))
     });
     match res {
@@ -609,7 +609,7 @@ fn solve_tps(
         history.clear();
     }
     let (field, report) =
-        solve_warm(grid, &samples, &options, history, initial).map_err(|e| e.to_string())?;
+        history.solve_warm(grid, &samples, &options, initial).map_err(|e| e.to_string())?;
     let json = tps_report(&report);
     Ok((field, json))
 }

@@ -11,7 +11,7 @@ use super::doc::{Border, Method, Scheme, SolverDoc, SolverOverrides};
 use crate::anim::points_at;
 use crate::geometry::{FeatureSampler, SampleOptions};
 use crate::render::{Canvas, RgbaImage};
-use crate::solve::{solve, solve_warm, SolveMethod, SolveOptions, SolveReport, WarmHistory};
+use crate::solve::{SolveMethod, SolveOptions, SolveReport, Solver};
 use super::{Scene, SceneError};
 use crate::field::Field;
 use crate::geometry::{Kind, Point, Sample};
@@ -28,8 +28,8 @@ pub fn method_available(method: Method) -> bool {
 pub(super) enum Start<'a> {
     /// From this field (a warm start), or from zero.
     Field(Option<&'a Field>),
-    /// From the layer's earlier frames, which then keep this one.
-    History(&'a mut WarmHistory),
+    /// From the layer's earlier frames in its solver, which then keeps this one.
+    History(&'a mut Solver),
 }
 
 /// The one place where a layer's field is computed by its method: the grid thin plate
@@ -61,8 +61,8 @@ pub(super) fn compute_field(
                 samples.extend(crate::geometry::border_samples(grid.width, grid.height, spacing_px));
             }
             match start {
-                Start::History(h) => solve_warm(grid, &samples, &solve_options(solver), h, None),
-                Start::Field(initial) => solve(grid, &samples, &solve_options(solver), initial),
+                Start::History(s) => s.solve_warm(grid, &samples, &solve_options(solver), None),
+                Start::Field(initial) => Solver::new().solve(grid, &samples, &solve_options(solver), initial.map(Into::into)),
             }
             .map(|(field, report)| LayerSolve { field, report: Some(report), method_report: None })
                 .map_err(|e| e.to_string())
@@ -284,15 +284,15 @@ impl Scene {
     }
 
     /// [`Scene::layer_field_overridden`] started from the layer's earlier frames in
-    /// `history` (see [`WarmHistory`]), which then keeps this one.
+    /// `solver`'s history (see [`Solver`]), which then keeps this one.
     pub fn layer_field_warm(
         &self,
         layer: usize,
         time_s: f64,
-        history: &mut WarmHistory,
+        solver: &mut Solver,
         overrides: &SolverOverrides,
     ) -> Result<LayerSolve, SceneError> {
-        self.solve_layer(layer, time_s, Start::History(history), overrides)
+        self.solve_layer(layer, time_s, Start::History(solver), overrides)
     }
 
     fn solve_layer(
@@ -429,8 +429,8 @@ pub struct Animator<'a> {
     scene: &'a Scene,
     /// Each drawn layer's field of the latest frame, composited into it.
     fields: Vec<Option<Field>>,
-    /// Each layer's earlier frames, the start of its next solve.
-    history: Vec<WarmHistory>,
+    /// Each layer's solver: its hierarchy and earlier frames, the start of its next solve.
+    history: Vec<Solver>,
     overrides: SolverOverrides,
     /// Warnings of the solves since the last [`Animator::take_warnings`].
     warnings: Vec<String>,
@@ -453,7 +453,7 @@ impl<'a> Animator<'a> {
         Animator {
             scene,
             fields: vec![None; scene.layers().len()],
-            history: vec![WarmHistory::new(); scene.layers().len()],
+            history: (0..scene.layers().len()).map(|_| Solver::new()).collect(),
             overrides,
             warnings: Vec::new(),
         }
@@ -462,7 +462,7 @@ impl<'a> Animator<'a> {
     /// Forgets the previous fields, so that the next solves are cold.
     pub fn reset(&mut self) {
         self.fields.iter_mut().for_each(|f| *f = None);
-        self.history.iter_mut().for_each(WarmHistory::clear);
+        self.history.iter_mut().for_each(Solver::clear);
     }
 
     /// The field of layer `layer` at `time_s`, started from the layer's earlier frames.
@@ -513,7 +513,7 @@ pub fn default_frame_threads() -> usize {
 
 /// A chain rendered on the calling thread: its frames still to come, and each layer's last
 /// field (for compositing) and solve history.
-type SequentialChain = (Range<usize>, Vec<Option<Field>>, Vec<WarmHistory>);
+type SequentialChain = (Range<usize>, Vec<Option<Field>>, Vec<Solver>);
 
 /// An animation's frames, in order, as an iterator of `(index, image)`; rendered on
 /// worker threads (one warm-start chain per thread at a time) when more than one thread is
@@ -656,7 +656,7 @@ impl FrameStream {
             let chain = self.chains.get(self.next_chain)?.clone();
             self.next_chain += 1;
             let n = self.scene.layers().len();
-            self.sequential = Some((chain, vec![None; n], vec![WarmHistory::new(); n]));
+            self.sequential = Some((chain, vec![None; n], (0..n).map(|_| Solver::new()).collect()));
         }
         let scene = Arc::clone(&self.scene);
         let (range, fields, history) = self.sequential.as_mut()?;

@@ -7,15 +7,6 @@ use super::level::{self, dot_pairs, galerkin, prolong_add, prolong_add_scaled, r
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
 const CHEB_RATIO: f64 = 16.0;
-/// The smoothing that solves a level held all around by constrained nodes (see
-/// [`super::held`]): such a level has no low modes, so its Chebyshev steps aim lower than
-/// a smoother's. 513 × 513, 1000 random points: two steps took 5 warm cycles instead of
-/// 3; four and six took 3. Aimed at `[λ/32, λ]` instead of `[λ/16, λ]`, twelve problems
-/// (10 to 4000 random points, curves, cuts, holes) took 128 cold and 74 warm cycles
-/// instead of 129 and 76 and stopped at most 0.0072 px from the answer instead of
-/// 0.0098; aimed at `[λ/64, λ]` the same, at `[λ/8, λ]` 130 and 77.
-const HELD_SMOOTHING: Aim = Aim { steps: 4, ratio: 32.0 };
-
 /// Chebyshev steps of a smoothing: how many, and the ratio between the top of the part of
 /// the spectrum of D⁻¹A they aim at and its bottom.
 #[derive(Clone, Copy, Debug)]
@@ -55,23 +46,11 @@ pub(crate) struct Hierarchy {
     pub alt: Option<Box<Hierarchy>>,
     /// Whether the finest level has holes or cuts (see [`super::level::Geometry::torn`]).
     pub torn: bool,
-    /// Scale the finest level's coarse correction by the step that minimises the energy
-    /// along it, as every coarser level's is. One cycle of the first coarse level falls
-    /// short where its space fits the error poorly, and the conjugate gradient around the
-    /// cycle can only scale the cycle's whole output, its smoothing included. On grids
-    /// without holes or cuts (set by the solve; a test switches it off to measure it).
-    pub scaled_finest: bool,
     /// An extra coarse space along cuts, solved exactly before each cycle.
     pub deflation: Option<super::deflate::Deflation>,
     /// K-cycle coarse corrections that took their first step alone (see
     /// [`K_SECOND_STEP`]), since the hierarchy was built.
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
-    /// The first level held all around by constrained nodes (see [`super::held`]), if any:
-    /// it is solved by [`HELD_SMOOTHING`] alone, and the levels below it are never visited.
-    pub held_from: Option<usize>,
-    /// Chebyshev steps added to the finest level's pre-smoothing in the cycle that follows
-    /// the coarse-to-fine start (see [`Hierarchy::precondition`]); set by the solve.
-    pub start_smoothing: usize,
     /// The finest level's real geometry where its own has wide holes filled for the
     /// prolongation (see [`Level::with_holes_filled`]); set by the solve.
     pub unfilled: Option<super::level::Geometry>,
@@ -119,11 +98,7 @@ impl Hierarchy {
             if last.geo.w * last.geo.h <= COARSEST_NODES || last.geo.w <= 2 || last.geo.h <= 2 {
                 break;
             }
-            let mut next = galerkin(last);
-            if levels.len() == 1 {
-                next.pinned = super::pinned::Pinned::new(last, &next).map(Box::new);
-            }
-            levels.push(next);
+            levels.push(galerkin(last));
         }
         let work = levels
             .iter()
@@ -153,7 +128,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, scaled_finest: true, deflation: None, loose: false, unfilled: None, second_steps_skipped: Default::default(), held_from: None, start_smoothing: 0 }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None, loose: false, unfilled: None, second_steps_skipped: Default::default() }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
@@ -161,12 +136,10 @@ impl Hierarchy {
     /// it is not quite, which the flexible conjugate gradient around it allows), run in
     /// `f32`: the returned `z` is
     /// the cycle's own output, valid until the next call (the conjugate gradient reads it
-    /// where it would otherwise copy it to `f64` first and read that). `after_start`: the
-    /// first cycle after the coarse-to-fine start, whose pre-smoothing on the finest level
-    /// takes [`Hierarchy::start_smoothing`] more steps.
-    pub fn precondition(&mut self, r: &[V2], after_start: bool) -> &[W2] {
+    /// where it would otherwise copy it to `f64` first and read that).
+    pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
         map_into(&mut self.work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
-        self.cycle_from_zero(r, if after_start { self.start_smoothing } else { 0 })
+        self.cycle_from_zero(r)
     }
 
     /// The cycle's right-hand side on the finest level: `r` in `f32`, for a caller that
@@ -177,12 +150,11 @@ impl Hierarchy {
 
     /// [`Hierarchy::precondition`] with `r` already written into [`Hierarchy::narrow_rhs`].
     pub fn precondition_narrowed(&mut self, r: &[V2]) -> &[W2] {
-        self.cycle_from_zero(r, 0)
+        self.cycle_from_zero(r)
     }
 
-    /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `narrow_rhs`,
-    /// its finest pre-smoothing `extra_pre` steps longer.
-    fn cycle_from_zero(&mut self, r: &[V2], extra_pre: usize) -> &[W2] {
+    /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `narrow_rhs`.
+    fn cycle_from_zero(&mut self, r: &[V2]) -> &[W2] {
         let mut work = std::mem::take(&mut self.work);
         // With the extra space along tears: its exact part first, the cycle on the rest.
         let c = self.deflation.as_ref().map(|d| {
@@ -192,7 +164,7 @@ impl Hierarchy {
         });
         self.clear_start(0, &mut work[0].x);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
-        self.solve_level(0, &mut work, true, extra_pre, alt_work.as_deref_mut());
+        self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
         if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
             a.work = w;
         }
@@ -212,15 +184,9 @@ impl Hierarchy {
         }
     }
 
-    /// Whether level k is solved by smoothing alone (see [`Hierarchy::held_from`]).
-    fn held(&self, k: usize) -> bool {
-        self.held_from.is_some_and(|h| k >= h)
-    }
-
     /// Level k's smoothing.
     fn aim_at(&self, k: usize) -> Aim {
         match k {
-            _ if self.held(k) => HELD_SMOOTHING,
             0 => Aim { steps: self.degree, ratio: CHEB_RATIO },
             _ => Aim { steps: self.coarse_degree, ratio: CHEB_RATIO },
         }
@@ -241,10 +207,8 @@ impl Hierarchy {
 
     /// Approximately solves `A_k x = f` on level k (x, f in `work[0]`, the slice starting at
     /// level k) by one cycle from `x` (zero when `x_zero`): a V-cycle, with K-cycle
-    /// corrections from the levels between the finest and the one above the coarsest. Its
-    /// pre-smoothing takes `extra_pre` steps more than the level's own (nonzero only on the
-    /// finest level, from [`Hierarchy::precondition`]).
-    fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, extra_pre: usize, alt_work: Option<&mut [Work]>) {
+    /// corrections from the levels between the finest and the one above the coarsest.
+    fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, alt_work: Option<&mut [Work]>) {
         let level = &self.levels[k];
         if k + 1 == self.levels.len() {
             let w = &mut work[0];
@@ -253,14 +217,7 @@ impl Hierarchy {
         }
         {
             let Work { x, f, r, d, .. } = &mut work[0];
-            let aim = self.aim_at(k);
-            smooth(level, x, Some(f), r, d, Aim { steps: aim.steps + extra_pre, ..aim }, x_zero);
-            if self.held(k) {
-                // Its smoothing solves it (see `held_from`).
-                #[cfg(test)]
-                super::HELD_VISITS.with(|v| v.set(v.get() + 1));
-                return;
-            }
+            smooth(level, x, Some(f), r, d, self.aim_at(k), x_zero);
             level.residual(x, Some(f), r);
         }
         let (head, tail) = work.split_at_mut(1);
@@ -272,11 +229,8 @@ impl Hierarchy {
         } else {
             restrict(level, &self.levels[k + 1], &w.r, &mut tail[0].f);
             self.clear_start(k + 1, &mut tail[0].x);
-            self.solve_level(k + 1, tail, true, 0, None);
-            if k > 0 || (k + 2 < self.levels.len() && self.scaled_finest) {
-                // The finest level's too (see `scaled_finest`): 513 × 513 with 10 to 4000
-                // points took 6–10 cold cycles instead of 7–10, 24 random open problems
-                // 176 instead of 188 (warm 72 instead of 83).
+            self.solve_level(k + 1, tail, true, None);
+            if k > 0 {
                 add_line_searched(level, &self.levels[k + 1], &mut tail[0], &mut w.x);
             } else {
                 // (From the coarsest level of two the correction is exact: its step is 1.)
@@ -289,7 +243,7 @@ impl Hierarchy {
             let atail = &mut aw[1..];
             restrict(&alt.levels[0], &alt.levels[1], &w.r, &mut atail[0].f);
             alt.clear_start(1, &mut atail[0].x);
-            alt.solve_level(1, atail, true, 0, None);
+            alt.solve_level(1, atail, true, None);
             // Unscaled: with the line search the cycle counts on holes and cuts went up and
             // down by a few percent, to no gain; with the first space's correction scaled
             // too, two random 96 × 96 problems with holes, cuts and hinges no longer
@@ -321,7 +275,7 @@ impl Hierarchy {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
         restrict(level, coarse, &w.r, &mut tail[0].f);
         self.clear_start(k + 1, &mut tail[0].x);
-        self.solve_level(k + 1, tail, true, 0, None);
+        self.solve_level(k + 1, tail, true, None);
         let c = &mut tail[0];
         coarse.residual(&c.x, None, &mut c.r); // −A z₁ on the unknowns
         let zaz = dot_w(&c.x, &c.r).map(|v| -v);
@@ -345,7 +299,7 @@ impl Hierarchy {
             z1.clone_from(x);
         }
         self.clear_start(k + 1, &mut c.x);
-        self.solve_level(k + 1, tail, true, 0, None);
+        self.solve_level(k + 1, tail, true, None);
         let c = &mut tail[0];
         coarse.residual(&c.x, None, &mut c.r); // −A z₂
         let z2az1 = dot_w(&c.x, &c.q1);
@@ -391,7 +345,7 @@ impl Hierarchy {
             let wk = &mut head[k];
             fill_zero(&mut wk.x);
             prolong_add(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut wk.x);
-            self.solve_level(k, &mut work[k..], false, 0, None);
+            self.solve_level(k, &mut work[k..], false, None);
         }
         prolong_add(&self.levels[0], &self.levels[1], &work[1].x, u);
         self.work = work;

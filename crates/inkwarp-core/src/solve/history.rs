@@ -17,7 +17,7 @@ use crate::grid::{Constraints, Grid};
 
 use std::borrow::Cow;
 
-use super::{dense_solve, solve_constrained, solve_with, SolveError, SolveOptions, SolveReport};
+use super::{dense_solve, solve_constrained, SolveError, SolveOptions, SolveReport, Solver};
 
 /// How many earlier frames a [`WarmHistory`] keeps.
 pub const HISTORY_FRAMES: usize = 3;
@@ -234,25 +234,30 @@ pub fn solve_warm(
     history: &mut WarmHistory,
     initial: Option<Field>,
 ) -> Result<(Field, SolveReport), SolveError> {
-    solve_with(grid, samples, options, initial.as_ref().map(FieldView::from), Some(history))
+    let mut solver = Solver::with_history(std::mem::take(history));
+    let result = solver.solve_warm(grid, samples, options, initial);
+    *history = solver.into_history();
+    result
 }
 
 /// The solve of constraints `c` on `grid` (the solve's own grid: the coarse one at
-/// `grid_step` above 1), from `history`'s start when given, which then keeps the result;
-/// from `initial` otherwise.
+/// `grid_step` above 1) with `solver`, from its history's start when `warm`, which then
+/// keeps the result; from `initial` otherwise.
 pub(crate) fn solve_from(
     grid: &Grid,
     c: &Constraints,
     options: &SolveOptions,
     initial: Option<FieldView<'_>>,
-    history: Option<&mut WarmHistory>,
+    solver: &mut Solver,
+    warm: bool,
 ) -> (Field, SolveReport) {
-    let Some(history) = history else {
-        return solve_constrained(grid, c, options, initial);
-    };
+    let (store, history) = solver.parts();
+    if !warm {
+        return solve_constrained(grid, c, options, initial, store);
+    }
     let given = initial.map(|f| f.to_field());
     let start = history.start(grid, c, given.as_deref());
-    let (field, report) = solve_constrained(grid, c, options, start.as_deref().map(FieldView::from));
+    let (field, report) = solve_constrained(grid, c, options, start.as_deref().map(FieldView::from), store);
     history.record(grid, c, &field);
     (field, report)
 }

@@ -766,10 +766,6 @@ pub(crate) struct Level {
     /// levels) carrying the regular stencil. A coarse node whose whole 9 × 9 window here is
     /// clean gets the regular coarse stencil without computing it.
     pub clean: Vec<bool>,
-    /// The first coarse level's products through the operator of the grid without fixed
-    /// nodes and the fixed nodes' own terms (`op` is still its stencils, for the next
-    /// level's Galerkin product and the coarsest solve).
-    pub pinned: Option<Box<super::pinned::Pinned>>,
 }
 
 impl Level {
@@ -867,7 +863,7 @@ impl Level {
             _ => RunKind::Own,
         });
         let own = OwnStencils::new(&mut runs, wp, |p| fine_row(&flags, p, wp, tau));
-        Level { geo, wp, hp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
+        Level { geo, wp, hp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, inv_diag_w, lam_max, clean }
     }
 
     /// This finest level with the prolongation of the same grid without holes or cuts
@@ -875,6 +871,13 @@ impl Level {
     /// stay zero. Its coarse space holds the functions that run smoothly across holes and
     /// cuts, which the link-aware prolongation cannot: near a missing link it extrapolates a
     /// constant.
+    /// Drops the four-node layout of its own stencils (the ablation's switch `fours`).
+    pub fn drop_fours(&mut self) {
+        if let Operator::Stored { fours, .. } = &mut self.op {
+            *fours = Fours::default();
+        }
+    }
+
     pub fn into_plain(mut self) -> Level {
         let (w, h) = (self.geo.w, self.geo.h);
         let right = (0..w * h).map(|i| i % w + 1 < w).collect();
@@ -1017,23 +1020,17 @@ impl Level {
     }
 
     /// `out = f − A x` on the rows of the band from padded row `r0` (`out` holds those
-    /// rows); `pinned`: the level's fixed nodes' terms with their coefficients for `x`
-    /// ([`super::pinned::Pinned::coefficients`]), where it has them. `x` and `f` hold the
-    /// level's rows from padded row `shift` on (on the finest level; 0 on the others).
+    /// rows). `x` and `f` hold the level's rows from padded row `shift` on (on the finest
+    /// level; 0 on the others).
     #[allow(clippy::too_many_arguments)]
-    fn band_residual<T: Real>(&self, pinned: Option<&(&super::pinned::Pinned, Vec<[f64; 4]>)>, x: &[[T; 2]], f: Option<&[[T; 2]]>, r0: usize, shift: usize, out: &mut [[T; 2]]) {
+    fn band_residual<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, r0: usize, shift: usize, out: &mut [[T; 2]]) {
         let wp = self.wp;
         match &self.op {
             Operator::Fine { tau, runs, own, .. } => fine_band(runs, own, *tau, wp, x, f, r0, r0 + out.len() / wp, shift, out),
             Operator::Stored { .. } => {
                 assert_eq!(shift, 0, "a Galerkin level's vectors whole");
-                // With fixed nodes' terms: the operator without them, then the terms.
-                let op = pinned.map_or(&self.op, |(p, _)| &p.open);
                 for (k, orow) in out.chunks_mut(wp).enumerate() {
-                    residual_row(self, op, x, f, r0 + k, orow);
-                    if let Some((p, coef)) = pinned {
-                        p.correct_row(coef, r0 + k, orow);
-                    }
+                    residual_row(self, &self.op, x, f, r0 + k, orow);
                 }
             }
         }
@@ -1041,9 +1038,8 @@ impl Level {
 
     fn bands<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]], fold: Fold) -> [f64; 2] {
         let wp = self.wp;
-        let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));
         self.over_bands(out, fold, |r0, r1, chunk| {
-            self.band_residual(pinned.as_ref(), x, f, r0, 0, chunk);
+            self.band_residual(x, f, r0, 0, chunk);
             match fold {
                 Fold::Nothing => [0.0; 2],
                 Fold::Dot => dot_pairs(&x[r0 * wp..r1 * wp], chunk),
@@ -1084,8 +1080,7 @@ impl Level {
     /// when `keep` (a later step of the same smoothing reads it), and read only by
     /// [`StepRule::Next`].
     pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
-        let pinned = self.pinned.as_deref().map(|p| (p, p.coefficients(x)));
-        self.step_bands(d, next, |r0, _, chunk, dc| self.step_band(pinned.as_ref(), x, 0, f, r0, chunk, dc, rule, keep));
+        self.step_bands(d, next, |r0, _, chunk, dc| self.step_band(x, 0, f, r0, chunk, dc, rule, keep));
     }
 
     /// A smoothing's second step from zero on the finest level, its first step's iterate
@@ -1109,7 +1104,7 @@ impl Level {
                 }
                 // Every entry written (zero where the inverse diagonal is, the padding too).
                 super::cycle::first_from_zero(&mut buf[..n], &f[a * wp..z * wp], &g[a * wp..z * wp], inv_theta);
-                self.step_band(None, &buf[..n], a, Some(&f[a * wp..z * wp]), r0, chunk, dc, rule, keep);
+                self.step_band(&buf[..n], a, Some(&f[a * wp..z * wp]), r0, chunk, dc, rule, keep);
             });
         });
     }
@@ -1139,9 +1134,9 @@ impl Level {
     /// `next` and `d`): the residual, the update from it and `next = x + d`. `x` and `f`
     /// hold the level's rows from padded row `shift` on.
     #[allow(clippy::too_many_arguments)]
-    fn step_band(&self, pinned: Option<&(&super::pinned::Pinned, Vec<[f64; 4]>)>, x: &[W2], shift: usize, f: Option<&[W2]>, r0: usize, chunk: &mut [W2], dc: &mut [W2], rule: StepRule, keep: bool) {
+    fn step_band(&self, x: &[W2], shift: usize, f: Option<&[W2]>, r0: usize, chunk: &mut [W2], dc: &mut [W2], rule: StepRule, keep: bool) {
         let (wp, w, g) = (self.wp, self.geo.w, &self.inv_diag_w[..]);
-        self.band_residual(pinned, x, f, r0, shift, chunk);
+        self.band_residual(x, f, r0, shift, chunk);
         for (k, (orow, drow)) in chunk.chunks_mut(wp).zip(dc.chunks_mut(wp)).enumerate() {
             let (xb, gb) = ((r0 - shift + k) * wp, (r0 + k) * wp);
             let (xrow, grow) = (&x[xb..xb + wp], &g[gb..gb + wp]);
@@ -1225,7 +1220,7 @@ widest! {
             Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
             Operator::Stored { ids, table, narrow, sym, fours, runs } => {
                 let table = T::table(table, narrow);
-                let four = T::has_four_stencils();
+                let four = T::has_four_stencils() && !fours.row_first.is_empty();
                 let dense = four && fours.dense;
                 let mut block = if four { fours.row_first[r] as usize } else { 0 };
                 let shared = &table[0];
@@ -1549,14 +1544,6 @@ pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25]
 /// `fine.geo` (rows of fixed nodes zero). Coarse nodes whose fine window is clean share one
 /// stencil, computed once.
 pub(crate) fn galerkin(fine: &Level) -> Level {
-    galerkin_for(fine, None)
-}
-
-/// [`galerkin`], its fours (see [`Fours`]) laid out for the unknowns `applied_on` (the
-/// inverse diagonal of the level of the same size that applies the operator) instead of
-/// its own: the first coarse level applies the operator of its grid without fixed nodes
-/// (see `pinned`), whose runs are those among its own unknowns.
-pub(crate) fn galerkin_for(fine: &Level, applied_on: Option<&[f64]>) -> Level {
     let geo = fine.geo.coarsen();
     let (wc, hc) = (geo.w, geo.h);
     let (wpc, hpc) = (wc + 2 * PAD, hc + 2 * PAD);
@@ -1687,11 +1674,9 @@ pub(crate) fn galerkin_for(fine: &Level, applied_on: Option<&[f64]>) -> Level {
     let sym = Sym::of(&table[0]);
     let narrow = narrowed(&table);
     let inv_diag_w = narrow_diag(&inv_diag);
-    let unknowns = applied_on.unwrap_or(&inv_diag);
-    assert_eq!(unknowns.len(), inv_diag.len(), "the operator applied on a level of another size");
-    let runs = Runs::stored(&ids, unknowns, wpc, wc, hc);
-    let fours = Fours::new(&ids, &narrow, &runs, wpc, hc, Fours::dense_for(&ids, unknowns));
-    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours, runs }, inv_diag, inv_diag_w, lam_max, clean, pinned: None }
+    let runs = Runs::stored(&ids, &inv_diag, wpc, wc, hc);
+    let fours = Fours::new(&ids, &narrow, &runs, wpc, hc, Fours::dense_for(&ids, &inv_diag));
+    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours, runs }, inv_diag, inv_diag_w, lam_max, clean }
 }
 
 fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {

@@ -40,8 +40,7 @@
 //! Lanczos estimate of each level's top eigenvalue), K-cycles below the finest level (two
 //! flexible conjugate-gradient steps on each coarse problem, the first an energy line
 //! search, the second only when the first left much of the residual), a banded Cholesky
-//! solve on the coarsest level, a coarse-to-fine start (the cycle after a warm one
-//! smoothing the finest level longer where constraints are dense), and the cycle as the
+//! solve on the coarsest level, a coarse-to-fine start, and the cycle as the
 //! preconditioner of a flexible conjugate gradient on the finest level. Wide holes inside the grid are filled for the prolongation alone (the operator stays the
 //! real one), so the coarse functions run smoothly up to their rims. On grids with tears
 //! left after that (cuts, thin holes, holes open to the border) each cycle also visits a
@@ -52,15 +51,15 @@
 //! residuals exceed the tolerance also gets the coarse-to-fine correction; a closer one
 //! first gets one cycle as it is. Loose nodes (no corner of a fully linked cell) are
 //! settled to the τ → 0⁺ limit afterwards.
-//! `docs/concepts/thin-plate.md` explains the choices and lists the measured figures.
+//! `docs/concepts/thin-plate.md` explains the choices; `docs/dev/ablation.md` measures
+//! what each optional mechanism buys. The hierarchies a later solve can reuse are kept
+//! by the caller's [`Solver`], never by the process.
 
 mod cycle;
 mod deflate;
-mod held;
 mod history;
 mod level;
 mod nullspace;
-mod pinned;
 mod southwell;
 mod upsample;
 mod wide;
@@ -105,6 +104,37 @@ pub struct SolveOptions {
     pub method: SolveMethod,
     /// Southwell budget: single-node relaxations, in units of the number of unknowns.
     pub southwell_sweeps: f64,
+    /// Mechanisms switched off, for the ablation benchmark only (`benchmarks/ablation.py`).
+    #[doc(hidden)]
+    pub off: Ablation,
+}
+
+/// A set of the solver's optional mechanisms switched off (none by default), so that a
+/// paired benchmark can measure what each one buys. Not part of the stable API.
+#[doc(hidden)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Ablation(u32);
+
+impl Ablation {
+    /// The switches' names, in bit order.
+    pub const NAMES: [&'static str; 5] = ["second", "tear", "kcycle", "cache", "fours"];
+
+    /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
+    pub fn parse(text: &str) -> Result<Ablation, String> {
+        let mut bits = 0;
+        for name in text.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            let k = Self::NAMES.iter().position(|n| *n == name).ok_or_else(|| {
+                format!("unknown mechanism {name:?}; the switches are {}", Self::NAMES.join(", "))
+            })?;
+            bits |= 1 << k;
+        }
+        Ok(Ablation(bits))
+    }
+
+    /// Whether the mechanism `name` (one of [`Ablation::NAMES`]) is switched off.
+    pub fn has(self, name: &str) -> bool {
+        Self::NAMES.iter().position(|n| *n == name).is_some_and(|k| self.0 & (1 << k) != 0)
+    }
 }
 
 impl Default for SolveOptions {
@@ -116,6 +146,7 @@ impl Default for SolveOptions {
             max_cycles: None,
             method: SolveMethod::Multigrid,
             southwell_sweeps: 10.0,
+            off: Ablation::default(),
         }
     }
 }
@@ -195,7 +226,7 @@ pub fn solve(
     options: &SolveOptions,
     initial: Option<&Field>,
 ) -> Result<(Field, SolveReport), SolveError> {
-    solve_with(grid, samples, options, initial.map(FieldView::from), None)
+    Solver::new().solve(grid, samples, options, initial.map(FieldView::from))
 }
 
 /// [`solve`] from a start read in place, planar or interleaved (the Python binding's
@@ -207,26 +238,27 @@ pub fn solve_from_view(
     options: &SolveOptions,
     initial: Option<FieldView<'_>>,
 ) -> Result<(Field, SolveReport), SolveError> {
-    solve_with(grid, samples, options, initial, None)
+    Solver::new().solve(grid, samples, options, initial)
 }
 
-/// [`solve`], its start taken from `history` when given ([`WarmHistory::start`]), which
-/// then keeps the result (see [`solve_warm`]).
+/// [`solve`] with `solver`, its start taken from the solver's history when `warm`
+/// ([`WarmHistory::start`]), which then keeps the result (see [`solve_warm`]).
 pub(crate) fn solve_with(
     grid: &Grid,
     samples: &[Sample],
     options: &SolveOptions,
     initial: Option<FieldView<'_>>,
-    history: Option<&mut WarmHistory>,
+    solver: &mut Solver,
+    warm: bool,
 ) -> Result<(Field, SolveReport), SolveError> {
     let start = Instant::now();
     let (field, mut report) = in_pool(|| {
         // On the pool, where its pass over the initial field runs in parallel.
         validate(grid, samples, options, initial)?;
         Ok(if options.grid_step > 1 {
-            upsample::solve_coarse(grid, samples, options, initial, history)
+            upsample::solve_coarse(grid, samples, options, initial, solver, warm)
         } else {
-            history::solve_from(grid, &constrain(grid, samples), options, initial, history)
+            history::solve_from(grid, &constrain(grid, samples), options, initial, solver, warm)
         })
     })?;
     if crate::interrupt::requested() {
@@ -315,6 +347,7 @@ pub(crate) fn solve_constrained(
     constraints: &Constraints,
     options: &SolveOptions,
     initial: Option<FieldView<'_>>,
+    store: &mut Store,
 ) -> (Field, SolveReport) {
     let (w, h) = (grid.width, grid.height);
     let n = w * h;
@@ -382,7 +415,7 @@ pub(crate) fn solve_constrained(
     // The solved pieces' values; pieces on one line are corrected in it before they go to
     // the field.
     let lines = pieces.iter().any(|p| matches!(p, Piece::Line { .. }));
-    let mut out: Vec<V2> = if lines { spare_zeroed(n) } else { Vec::new() };
+    let mut out: Vec<V2> = if lines { vec![[0.0; 2]; n] } else { Vec::new() };
     for (l, piece) in pieces.iter().enumerate() {
         let gauge = match *piece {
             Piece::Line { gauge, .. } => Some(gauge),
@@ -427,12 +460,12 @@ pub(crate) fn solve_constrained(
         };
         let null = if open { Some(Vec::new()) } else { piece_null_space(&links, bw, bh, &constrained_only) };
         let links_again = (!open).then(|| piece_links(grid, &labels, l as u32, boxes[l], open));
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), spaces: spaces() };
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), off: options.off };
         let start = initial.map(|f| Start { field: f, x0, y0 });
-        let (mut u, mut r) = solve_piece(key, &value, start, options);
+        let (mut u, mut r) = solve_piece(key, &value, start, options, store);
         if let (Some(basis), Some(links)) = (&null, links_again) {
             if !basis.is_empty() && !(gauge.is_some() && basis.len() == 1) {
-                let (uu, rr) = settle_null_space(links, bw, bh, tau, fixed, &constrained_only, &value, basis, u, r, options);
+                let (uu, rr) = settle_null_space(links, bw, bh, tau, fixed, &constrained_only, &value, basis, u, r, options, store);
                 (u, r) = (uu, rr);
             }
         } else if null.is_none() {
@@ -483,7 +516,6 @@ pub(crate) fn solve_constrained(
                 }
             });
         }
-        give_back(u.values);
         // The report starts at zero and converged: the pieces' worst.
         report.cycles = report.cycles.max(r.cycles);
         report.final_change_px = report.final_change_px.max(r.final_change_px);
@@ -503,7 +535,6 @@ pub(crate) fn solve_constrained(
                 field.dy[i] = out[i][1] as f32;
             }
         }
-        give_back(out);
     }
     (field, report)
 }
@@ -532,6 +563,7 @@ fn settle_null_space(
     u: BoxValues,
     mut report: SolveReport,
     options: &SolveOptions,
+    store: &mut Store,
 ) -> (BoxValues, SolveReport) {
     let [active, right, down] = links.vectors(w, h);
     let geo = nullspace::BoxGeo { w, h, active: &active, right: &right, down: &down };
@@ -559,8 +591,8 @@ fn settle_null_space(
             dx: dense.iter().map(|v| v[0] as f32).collect(),
             dy: dense.iter().map(|v| v[1] as f32).collect(),
         };
-        let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links_clone(&links), fixed: fixed.clone(), spaces: spaces() };
-        let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options);
+        let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links_clone(&links), fixed: fixed.clone(), off: options.off };
+        let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options, store);
         report.cycles += r2.cycles;
         report.final_change_px = r2.final_change_px;
         report.residual = r2.residual;
@@ -653,10 +685,11 @@ impl BoxValues {
 /// Solves one piece on its box: `key` describes the box's grid (the piece active, its
 /// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start on the box.
 /// Returns the solution on the box's nodes and the report's solver fields.
-fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions) -> (BoxValues, SolveReport) {
+fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions, store: &mut Store) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport { converged: true, ..Default::default() };
-    let mut hier = cache_take(&key).unwrap_or_else(|| {
+    let cached = if options.off.has("cache") { None } else { store.take_hierarchy(&key) };
+    let mut hier = cached.unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
         let fine = Level::fine(geo, tau);
@@ -669,26 +702,19 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         let loose = loose_nodes(&fine.geo, &key.fixed).contains(&true);
         let real = torn.then(|| fine.geo.clone());
         let fine = fine.with_holes_filled();
-        let alt = (fine.geo.torn() && key.spaces.second).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.clone().unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
+        let alt = (fine.geo.torn() && !key.off.has("second")).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.clone().unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
         let filled = real.filter(|r| r.active != fine.geo.active);
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
+        hier.k_cycles = !key.off.has("kcycle");
         hier.loose = loose;
         hier.unfilled = filled;
         hier.alt = alt;
         hier.torn = torn;
-        // Across holes and cuts it helped where the space along tears runs (12 problems at
-        // 257 × 257 and 513 × 513: 156 cold cycles to 144) but not below it (six random
-        // 96 × 96 problems with cuts, holes and hinges: 210 to 244).
-        hier.scaled_finest = key.spaces.scaled && !torn;
-        if !torn && key.spaces.held {
-            hier.held_from = held::first_held(&hier.levels);
+        if key.off.has("fours") {
+            hier.levels.iter_mut().chain(hier.alt.iter_mut().flat_map(|a| a.levels.iter_mut())).for_each(Level::drop_fours);
         }
-        // `value` holds every fixed node.
-        if !torn && key.spaces.start && value.len() * START_SMOOTHING_SPACING >= w * h {
-            hier.start_smoothing = START_SMOOTHING;
-        }
-        if torn && key.spaces.tear && w * h >= TEAR_SPACE_MIN_NODES {
+        if torn && !key.off.has("tear") && w * h >= TEAR_SPACE_MIN_NODES {
             // Cuts and thin holes: functions that run linearly up to each side of them.
             hier.deflation = deflate::Deflation::new(&hier.levels[0]);
         }
@@ -696,7 +722,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     });
     let fixed = &key.fixed;
     let len = hier.levels[0].len_padded();
-    let mut u: Vec<V2> = if initial.is_some() { spare_any(len) } else { spare_zeroed(len) };
+    let mut u: Vec<V2> = vec![[0.0; 2]; len];
     {
         let fine = &hier.levels[0];
         if let Some(Start { field, x0, y0 }) = initial {
@@ -729,7 +755,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     }
     // The residual's every use writes its body's unknowns first: only its padding needs
     // clearing (products and dot products read it).
-    let mut r = spare_any(len);
+    let mut r = vec![[0.0; 2]; len];
     hier.levels[0].clear_padding(&mut r);
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves
     // residuals above the tolerance (a user's earlier answer). A closer start (the earlier
@@ -743,16 +769,15 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         if started {
             // A start worse than none (huge or unrelated values: a field of 1e20 once
             // ended 2,800 px off) is dropped for the cold start.
-            let mut cold = spare_zeroed(len);
+            let mut cold = vec![[0.0; 2]; len];
             for &(i, v) in value {
                 cold[hier.levels[0].pidx(i % w, i / w)] = v;
             }
             let cold_residual = hier.levels[0].residual_scaled_max(&cold, &mut r);
             if report.initial_residual <= cold_residual {
-                give_back(cold);
                 hier.levels[0].residual_scaled_max(&u, &mut r);
             } else {
-                give_back(std::mem::replace(&mut u, cold));
+                u = cold;
                 warm = false;
             }
         }
@@ -794,11 +819,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 // see the concept doc's Precision.) It is not cleared first: the
                 // preconditioner's output is copied over all of it. Nor is `q`, but for
                 // its padding: like the residual's, each product writes its body first.
-                let (mut q, mut p) = (spare_any(len), spare_any_narrow(len));
+                let (mut q, mut p) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
                 hier.levels[0].clear_padding(&mut q);
-                // After a warm solve's coarse-to-fine start, a longer smoothing (see
-                // `START_SMOOTHING`).
-                let z = hier.precondition(&r, started && warm);
+                let z = hier.precondition(&r);
                 let (mut rz, _) = fcg_dots(&r, z, None);
                 widen_into(&mut p, z, None);
                 for cycle in 1..=max_cycles {
@@ -814,7 +837,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         started = true;
                         hier.coarse_to_fine(&mut u, &mut r, true);
                         hier.levels[0].residual(&u, None, &mut r);
-                        let z = hier.precondition(&r, true);
+                        let z = hier.precondition(&r);
                         rz = fcg_dots(&r, z, None).0;
                         widen_into(&mut p, z, None);
                         continue;
@@ -830,8 +853,6 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                     widen_into(&mut p, z, Some(beta));
                     rz = rz_new;
                 }
-                give_back(q);
-                give_back_narrow(p);
             }
         }
         SolveMethod::Southwell => {
@@ -842,11 +863,11 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
             // (or nothing left to relax): a spent budget proves nothing.
             let unknowns = count_unknowns(&hier.levels[0]).max(1);
             let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
-            let (mut q, mut p) = (spare_any(len), spare_any_narrow(len));
+            let (mut q, mut p) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
             hier.levels[0].clear_padding(&mut q);
             let mut round = 0;
             while left > 0 && !crate::interrupt::requested() {
-                let z = hier.precondition(&r, round == 0 && started && warm);
+                let z = hier.precondition(&r);
                 let (rz, _) = fcg_dots(&r, z, None);
                 widen_into(&mut p, z, None);
                 let (step, _) = energy_step(&mut hier, &mut u, &mut r, &p, &mut q, rz);
@@ -863,35 +884,31 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 }
             }
             report.cycles = round;
-            give_back(q);
-            give_back_narrow(p);
         }
     }
     // The conjugate-gradient residual is updated, not recomputed: it is the residual of u
     // up to rounding.
     let inv_diag = &hier.levels[0].inv_diag;
     report.residual = r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)).map(|(r, d)| scaled_max(r, d)).reduce(|| 0.0, larger);
-    give_back(r);
     let fine = &hier.levels[0];
     // The real nodes and links (the finest level's geometry may have its holes filled).
     let geo = hier.unfilled.as_ref().unwrap_or(&fine.geo);
     let out = if tau == 0.0 && hier.loose {
         // Every value written (zero off the piece), row by row in parallel, then the loose
         // nodes settled there.
-        let mut out: Vec<V2> = spare_any(w * h);
+        let mut out: Vec<V2> = vec![[0.0; 2]; w * h];
         out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
             let p = fine.pidx(0, y);
             for ((o, &a), v) in row.iter_mut().zip(&geo.active[y * w..(y + 1) * w]).zip(&u[p..p + w]) {
                 *o = if a { *v } else { [0.0; 2] };
             }
         });
-        give_back(u);
         settle_loose_nodes(geo, fixed, &mut out);
         BoxValues { values: out, stride: w, first: 0 }
     } else {
         BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) }
     };
-    cache_put(key, hier);
+    store.put_hierarchy(key, hier);
     (out, report)
 }
 
@@ -904,70 +921,133 @@ struct Start<'a> {
     y0: usize,
 }
 
-/// Spare vectors of the solves (the largest few, kept between solves): a fresh vector of a
-/// few megabytes costs a page fault for every 4 KiB when first written, which on a
-/// 513 × 513 grid added up to about a tenth of a solve.
-static SPARE: std::sync::Mutex<Vec<Vec<V2>>> = std::sync::Mutex::new(Vec::new());
-/// The same for the conjugate gradient's search direction, in `f32`.
-static SPARE_NARROW: std::sync::Mutex<Vec<Vec<W2>>> = std::sync::Mutex::new(Vec::new());
-/// At most this many spare vectors, and bytes in all (each kind).
-const SPARE_VECTORS: usize = 8;
-const SPARE_BYTES: usize = 48 << 20;
+/// At most this many hierarchies a solver keeps, and finest nodes in all (about 150 bytes
+/// a node). A solver serves one surface, whose frames share one hierarchy until its drawing
+/// changes; the one before that is kept for an undo.
+const HIERARCHIES: usize = 2;
+const HIERARCHY_MAX_NODES: usize = 1 << 22;
 
-/// A vector of `len` zeros, from the spares when one is large enough.
-fn spare_zeroed(len: usize) -> Vec<V2> {
-    let mut v = take_spare(&SPARE, len);
-    v.clear();
-    v.resize(len, [0.0; 2]);
-    v
+/// The solver a caller keeps between the solves of one surface (an animated layer, the
+/// editor's drags): the hierarchies of its recent problems (they depend on the grid, the
+/// fixed nodes and the tension, never on the values, so an animation's frames share one;
+/// rebuilding it took 1.9–3.4 times a 513 × 513 solve's time, `docs/dev/ablation.md`) and
+/// the warm-start history ([`WarmHistory`]). Nothing is kept
+/// between solves outside it: the free functions ([`solve`], [`solve_warm`]) use a
+/// temporary one.
+///
+/// ```
+/// use inkwarp_core::{solve::{Solver, SolveOptions}, Grid, Sample};
+/// let grid = Grid::new(33, 33);
+/// let s = |x, y, dx| Sample { rest: [x, y], displacement: [dx, 0.0] };
+/// let mut solver = Solver::new();
+/// for frame in 0..3 {
+///     let samples = [s(0.0, 0.0, 0.0), s(32.0, 32.0, 0.0), s(16.0, 8.0, frame as f64)];
+///     let (field, report) = solver.solve_warm(&grid, &samples, &SolveOptions::default(), None).unwrap();
+///     assert!(report.converged);
+///     assert_eq!(field.at(16, 8), [frame as f32, 0.0]);
+/// }
+/// assert_eq!(solver.history().len(), 3);
+/// ```
+#[derive(Default)]
+pub struct Solver {
+    store: Store,
+    history: WarmHistory,
 }
 
-/// A vector of `len` entries whose values are left over (the caller overwrites them all),
-/// from the spares when one is large enough.
-fn spare_any(len: usize) -> Vec<V2> {
-    any_from(&SPARE, len)
-}
-
-/// [`spare_any`] in `f32`.
-fn spare_any_narrow(len: usize) -> Vec<W2> {
-    any_from(&SPARE_NARROW, len)
-}
-
-fn any_from<T: Copy + Default>(pool: &std::sync::Mutex<Vec<Vec<T>>>, len: usize) -> Vec<T> {
-    let mut v = take_spare(pool, len);
-    v.truncate(len);
-    v.resize(len, T::default());
-    v
-}
-
-/// The smallest spare of at least `len` entries' capacity (so small solves do not use up
-/// the large vectors), or an empty vector.
-fn take_spare<T>(pool: &std::sync::Mutex<Vec<Vec<T>>>, len: usize) -> Vec<T> {
-    let mut spare = pool.lock().unwrap_or_else(|e| e.into_inner());
-    let best = (0..spare.len()).filter(|&k| spare[k].capacity() >= len).min_by_key(|&k| spare[k].capacity());
-    best.map(|k| spare.swap_remove(k)).unwrap_or_default()
-}
-
-/// Keeps `v` as a spare (dropping the smallest spares past the limits).
-fn give_back(v: Vec<V2>) {
-    give_back_to(&SPARE, v);
-}
-
-/// [`give_back`] in `f32`.
-fn give_back_narrow(v: Vec<W2>) {
-    give_back_to(&SPARE_NARROW, v);
-}
-
-fn give_back_to<T>(pool: &std::sync::Mutex<Vec<Vec<T>>>, v: Vec<T>) {
-    let bytes = |v: &Vec<T>| v.capacity() * std::mem::size_of::<T>();
-    if bytes(&v) > SPARE_BYTES || v.capacity() < 4096 {
-        return;
+impl Solver {
+    pub fn new() -> Solver {
+        Solver::default()
     }
-    let mut spare = pool.lock().unwrap_or_else(|e| e.into_inner());
-    spare.push(v);
-    spare.sort_by_key(|v| std::cmp::Reverse(v.capacity()));
-    while spare.len() > SPARE_VECTORS || spare.iter().map(bytes).sum::<usize>() > SPARE_BYTES {
-        spare.pop();
+
+    /// [`solve`] from `initial`, keeping what the next solve can reuse (not the history).
+    pub fn solve(
+        &mut self,
+        grid: &Grid,
+        samples: &[Sample],
+        options: &SolveOptions,
+        initial: Option<FieldView<'_>>,
+    ) -> Result<(Field, SolveReport), SolveError> {
+        solve_with(grid, samples, options, initial, self, false)
+    }
+
+    /// [`solve_warm`] with this solver's history.
+    pub fn solve_warm(
+        &mut self,
+        grid: &Grid,
+        samples: &[Sample],
+        options: &SolveOptions,
+        initial: Option<Field>,
+    ) -> Result<(Field, SolveReport), SolveError> {
+        solve_with(grid, samples, options, initial.as_ref().map(FieldView::from), self, true)
+    }
+
+    /// [`solve_warm_at`] with this solver's history.
+    pub fn solve_warm_at(
+        &mut self,
+        grid: &Grid,
+        samples: &[Sample],
+        options: &SolveOptions,
+        plan: &Upsampling,
+        pixels: &[u32],
+        out: &mut [f32],
+    ) -> Result<SolveReport, SolveError> {
+        upsample::solve_at(grid, samples, options, self, plan, pixels, out)
+    }
+
+    /// The earlier solves a warm solve starts from.
+    pub fn history(&self) -> &WarmHistory {
+        &self.history
+    }
+
+    /// Forgets the history (the next warm solve starts cold). The hierarchies stay: they
+    /// never change an answer, only how soon it comes.
+    pub fn clear(&mut self) {
+        self.history.clear();
+    }
+
+    /// A solver around `history`, which [`Solver::into_history`] gives back.
+    pub fn with_history(history: WarmHistory) -> Solver {
+        Solver { store: Store::default(), history }
+    }
+
+    pub fn into_history(self) -> WarmHistory {
+        self.history
+    }
+
+    pub(crate) fn parts(&mut self) -> (&mut Store, &mut WarmHistory) {
+        (&mut self.store, &mut self.history)
+    }
+}
+
+impl std::fmt::Debug for Solver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Solver").field("hierarchies", &self.store.hierarchies.len()).field("history", &self.history.len()).finish()
+    }
+}
+
+/// What a [`Solver`] keeps for reuse.
+#[derive(Default)]
+pub(crate) struct Store {
+    hierarchies: Vec<(CacheKey, Hierarchy)>,
+}
+
+impl Store {
+    /// The hierarchy kept for `key`, taken out.
+    fn take_hierarchy(&mut self, key: &CacheKey) -> Option<Hierarchy> {
+        let pos = self.hierarchies.iter().rposition(|(k, _)| k == key)?;
+        Some(self.hierarchies.remove(pos).1)
+    }
+
+    /// Keeps `hier`, dropping the oldest past the limits.
+    fn put_hierarchy(&mut self, key: CacheKey, hier: Hierarchy) {
+        if key.w * key.h > HIERARCHY_MAX_NODES {
+            return;
+        }
+        let kept = &mut self.hierarchies;
+        kept.push((key, hier));
+        while kept.len() > HIERARCHIES || kept.iter().map(|(k, _)| k.w * k.h).sum::<usize>() > HIERARCHY_MAX_NODES {
+            kept.remove(0);
+        }
     }
 }
 
@@ -994,26 +1074,6 @@ const SMOOTHING_STEPS: usize = 2;
 /// more cycles and fooled the stopping rule once (0.012 px left at a 0.01 px tolerance).
 const OPEN_COARSE_SMOOTHING: usize = 1;
 
-/// Chebyshev steps added to the finest level's pre-smoothing in the first cycle after the
-/// coarse-to-fine start of a warm solve, on grids without holes or cuts with at least one
-/// constrained node per [`START_SMOOTHING_SPACING`] nodes. A warm start's residual sits at
-/// the constrained nodes, whose values changed; the start's last step, the prolongation
-/// onto the finest level, is the only one not followed by smoothing on its level, and its
-/// bilinear functions kink at every constrained node, so where they are dense that error
-/// is much of what the first cycle is left with. 513 × 513, the bench's problems: 4000
-/// points warm 5 → 3 cycles, the others as many as before; 16 random warm problems (10 to
-/// 4000 points) 93 → 91 cycles, at 257 × 257 94 → 87. Two steps took the 1000-point warm
-/// solve from 3 cycles to 5 (applied from 256 constrained nodes), three left the
-/// 4000-point one at 5. Cold solves gained too at 257 × 257 (156 → 150 cycles) but not at
-/// 513 × 513, where the 4000-point one kept its 9 cycles and paid the steps (about a third
-/// of a cycle).
-const START_SMOOTHING: usize = 4;
-/// See [`START_SMOOTHING`]. From 256 constrained nodes instead, a 1000-point warm solve at
-/// 513 × 513 (one constrained node per 263) kept its 3 cycles and took about 1.18 times as
-/// long (eight alternating rounds, the medians of their ratios to the build before the
-/// round: 1.01 with it, 0.85 without).
-const START_SMOOTHING_SPACING: usize = 128;
-
 /// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
 /// constraint values. Consecutive frames of an animation share it.
 struct CacheKey {
@@ -1022,58 +1082,9 @@ struct CacheKey {
     tau_bits: u64,
     links: BoxLinks,
     fixed: Vec<bool>,
-    /// Which of the optional spaces the hierarchy has (all, outside tests).
-    spaces: Spaces,
+    /// The mechanisms switched off (none outside the ablation benchmark and tests).
+    off: Ablation,
 }
-
-/// The optional coarse spaces of a hierarchy on a grid with holes or cuts: the plain second
-/// space (see [`Level::into_plain`]) and the space along tears ([`deflate::Deflation`]);
-/// whether the finest level's coarse corrections are line searched (see
-/// [`Hierarchy::scaled_finest`]); and whether levels held all around by constrained nodes
-/// are solved by smoothing alone ([`held`]); and whether a warm solve's first cycle
-/// smooths longer where constraints are dense ([`START_SMOOTHING`]). Always all of them
-/// outside tests; a test may switch any off to measure what it saves.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct Spaces {
-    pub second: bool,
-    pub tear: bool,
-    pub scaled: bool,
-    pub held: bool,
-    pub start: bool,
-}
-
-impl Spaces {
-    /// Everything, as every solve outside tests has it.
-    pub const ALL: Spaces = Spaces { second: true, tear: true, scaled: true, held: true, start: true };
-}
-
-#[cfg(test)]
-thread_local! {
-    /// The spaces of the solves started on this thread, set by a test on a pool of its own
-    /// (a thread of the shared pool also runs other tests' solves).
-    pub(crate) static SPACES: std::cell::Cell<Spaces> = const { std::cell::Cell::new(Spaces::ALL) };
-}
-
-#[cfg(test)]
-thread_local! {
-    /// Visits to levels solved by smoothing alone (see [`Hierarchy::held_from`]) by the
-    /// solves on this thread, for tests to see that a solve used them.
-    pub(crate) static HELD_VISITS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
-}
-
-fn spaces() -> Spaces {
-    #[cfg(test)]
-    return SPACES.with(|c| c.get());
-    #[cfg(not(test))]
-    Spaces::ALL
-}
-
-/// Recently used hierarchies (taken out while in use, so concurrent solves never share
-/// one). At most `CACHE_ENTRIES` of them and `CACHE_MAX_NODES` finest nodes in all (about
-/// 150 bytes a node), so the cache stays within a few hundred megabytes.
-static CACHE: std::sync::Mutex<Vec<(CacheKey, Hierarchy)>> = std::sync::Mutex::new(Vec::new());
-const CACHE_ENTRIES: usize = 8;
-const CACHE_MAX_NODES: usize = 1 << 22;
 
 impl PartialEq for CacheKey {
     /// The fixed nodes before the grid: hierarchies kept for other problems on the same
@@ -1081,28 +1092,8 @@ impl PartialEq for CacheKey {
     /// 513 × 513, unless the grid is open) need not be compared for them.
     fn eq(&self, o: &Self) -> bool {
         // Every field named, so that a new one cannot be left out of the comparison.
-        let CacheKey { w, h, tau_bits, links, fixed, spaces } = self;
-        (*w, *h, *tau_bits, *spaces) == (o.w, o.h, o.tau_bits, o.spaces) && *fixed == o.fixed && *links == o.links
-    }
-}
-
-fn cache_take(key: &CacheKey) -> Option<Hierarchy> {
-    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
-    // Newest first: the hierarchy a solve takes goes back last (an animation's frames,
-    // the editor's drags).
-    let pos = cache.iter().rposition(|(k, _)| k == key)?;
-    Some(cache.remove(pos).1)
-}
-
-fn cache_put(key: CacheKey, hier: Hierarchy) {
-    if key.w * key.h > CACHE_MAX_NODES {
-        return;
-    }
-    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
-    cache.push((key, hier));
-    // Oldest first out, until both limits hold.
-    while cache.len() > CACHE_ENTRIES || cache.iter().map(|(k, _)| k.w * k.h).sum::<usize>() > CACHE_MAX_NODES {
-        cache.remove(0);
+        let CacheKey { w, h, tau_bits, links, fixed, off } = self;
+        (*w, *h, *tau_bits, *off) == (o.w, o.h, o.tau_bits, o.off) && *fixed == o.fixed && *links == o.links
     }
 }
 

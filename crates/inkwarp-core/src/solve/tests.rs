@@ -378,7 +378,7 @@ fn k_cycles_take_their_second_step_where_the_first_leaves_much() {
         let fine = &hier.levels[0];
         let r: Vec<V2> = (0..fine.len_padded()).map(|p| if fine.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
         for _ in 0..3 {
-            hier.precondition(&r, false);
+            hier.precondition(&r);
         }
         let skipped = hier.second_steps_skipped.load(std::sync::atomic::Ordering::Relaxed);
         if dense {
@@ -646,28 +646,17 @@ pub(super) fn torn_grid(n: usize, hole: bool, cut: bool, open: f64) -> Grid {
 /// The cycles of the default solve of 10 random points on `grid` with both optional
 /// spaces and then with the spaces `without`, each solve checked to come within 0.05 px of
 /// a tight one.
-fn cycles_with_and_without(grid: &Grid, without: Spaces) -> [usize; 2] {
+fn cycles_with_and_without(grid: &Grid, without: &str) -> [usize; 2] {
     let mut rng = Rng(12345);
     let samples = random_samples(&mut rng, grid.width, grid.height, 10);
     let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
     let (exact, _) = solve(grid, &samples, &tight, None).unwrap();
-    [Spaces::ALL, without].map(|spaces| {
-        let (field, report) = with_spaces(spaces, || solve(grid, &samples, &SolveOptions::default(), None).unwrap());
+    ["", without].map(|off| {
+        let options = SolveOptions { off: Ablation::parse(off).unwrap(), ..Default::default() };
+        let (field, report) = solve(grid, &samples, &options, None).unwrap();
         let err = gap(&field, &exact);
-        assert!(report.converged && err < 0.05, "{spaces:?}: {err} px off ({report:?})");
+        assert!(report.converged && err < 0.05, "off {off:?}: {err} px off ({report:?})");
         report.cycles
-    })
-}
-
-/// `f` with the solves it starts switched to `spaces`, on a pool of its own: the shared
-/// pool's threads also run other tests' solves, which must not see the switches.
-fn with_spaces<R: Send>(spaces: Spaces, f: impl FnOnce() -> R + Send) -> R {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-    pool.install(|| {
-        SPACES.with(|s| s.set(spaces));
-        let out = f();
-        SPACES.with(|s| s.set(Spaces::ALL));
-        out
     })
 }
 
@@ -677,7 +666,7 @@ fn the_second_coarse_space_saves_cycles_across_holes_and_cuts() {
     // extrapolates constants at their edges and converges slowly. (129 × 129 is below the
     // size that gets the space along tears.)
     let grid = torn_grid(129, true, true, 5.0);
-    let [with, without] = cycles_with_and_without(&grid, Spaces { second: false, ..Spaces::ALL });
+    let [with, without] = cycles_with_and_without(&grid, "second");
     assert!(4 * with <= 3 * without, "{with} cycles with the second coarse space, {without} without");
 }
 
@@ -687,49 +676,11 @@ fn the_space_along_tears_saves_cycles_across_holes_and_cuts() {
     // widths 32 and 96): a cut, a thin arc-shaped hole, and both.
     for (hole, cut) in [(false, true), (true, false), (true, true)] {
         let grid = torn_grid(257, hole, cut, 10.0);
-        let [with, without] = cycles_with_and_without(&grid, Spaces { tear: false, ..Spaces::ALL });
+        let [with, without] = cycles_with_and_without(&grid, "tear");
         // At least the 10 % a mechanism must earn to stay (a third when written; 15 against
         // 18 on the cut since the stopping rule needs two ratios).
         assert!(10 * with <= 9 * without, "hole {hole}, cut {cut}: {with} cycles with the space along tears, {without} without");
     }
-}
-
-#[test]
-fn line_searched_finest_corrections_cost_no_cycles() {
-    // Cold and warm solves (the warm ones from the answer before a 2 % + 0.05 px change) on
-    // open grids with few and many points, with the finest level's coarse corrections
-    // scaled and unscaled: fewer cycles in all when scaled, each solve within its tolerance
-    // of a tight one (67 cycles against 73 when written).
-    let problems: Vec<(Grid, usize)> = vec![
-        (Grid::new(257, 257), 10),
-        (Grid::new(257, 257), 1000),
-        (Grid::new(200, 180), 60),
-        (Grid::new(257, 257), 100),
-        (Grid::new(129, 129), 30),
-    ];
-    let mut totals = [0usize; 2];
-    for (k, (grid, count)) in problems.iter().enumerate() {
-        let mut rng = Rng(300 + k as u64);
-        let samples = random_samples(&mut rng, grid.width, grid.height, *count);
-        let nudged = next_frame(&samples);
-        let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
-        let (exact, _) = solve(grid, &nudged, &tight, None).unwrap();
-        for (t, spaces) in [Spaces::ALL, Spaces { scaled: false, ..Spaces::ALL }].into_iter().enumerate() {
-            let (cold, warm, field) = with_spaces(spaces, || {
-                let (start, cold) = solve(grid, &samples, &SolveOptions::default(), None).unwrap();
-                let (field, warm) = solve(grid, &nudged, &SolveOptions::default(), Some(&start)).unwrap();
-                (cold, warm, field)
-            });
-            let err = gap(&field, &exact);
-            assert!(warm.converged && err < 0.01, "problem {k}, {spaces:?}: {err} px off");
-            totals[t] += cold.cycles + warm.cycles;
-        }
-    }
-    // With the stopping rule that needs two ratios the saving is small (73 cycles against
-    // 75 when measured), below the 10 % a mechanism must earn to stay: it must at least
-    // not cost cycles.
-    let [scaled, unscaled] = totals;
-    assert!(scaled <= unscaled, "{scaled} cycles with the finest corrections scaled, {unscaled} without");
 }
 
 #[test]
@@ -865,63 +816,6 @@ fn coarse_levels_never_couple_nodes_across_a_cut() {
 }
 
 #[test]
-fn the_first_coarse_level_through_its_fixed_nodes_terms_matches_its_stencils() {
-    // The first coarse level applied as the operator of the grid without fixed nodes plus
-    // the fixed nodes' own terms (see `pinned`) against its stored Galerkin stencils: odd
-    // and even sizes (ghost coarse nodes), a hole and a cut, tension, fixed nodes at the
-    // border, in clusters and scattered, in both precisions.
-    let mut rnd = crate::grid::tests::sequence(33);
-    let grids = [(Grid::new(97, 97), 0.0), (Grid::new(100, 90), 0.3), (torn_grid(97, true, true, 5.0), 0.0), (torn_grid(96, true, true, 5.0), 0.2)];
-    for (g, (grid, tau)) in grids.iter().enumerate() {
-        let (w, h) = (grid.width, grid.height);
-        let mut fixed: Vec<bool> = (0..w * h).map(|_| rnd() < 0.04).collect();
-        for i in [0, w - 1, w * (h - 1), w * h - 1, w / 2, (h / 2) * w] {
-            fixed[i] = true;
-        }
-        for (x, y) in [(20, 20), (21, 20), (20, 21), (21, 21), (22, 22), (40, 41)] {
-            fixed[y * w + x] = true;
-        }
-        let fine = fine_level(grid, Some(fixed), *tau);
-        let mut coarse = level::galerkin(&fine);
-        let pinned = super::pinned::Pinned::new(&fine, &coarse).map(Box::new);
-        assert!(pinned.is_some(), "grid {g}: scattered fixed nodes should take the terms");
-        let n = coarse.len_padded();
-        let x: Vec<V2> = (0..n).map(|p| if coarse.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
-        let f: Vec<V2> = (0..n).map(|p| if coarse.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
-        let xw: Vec<W2> = x.iter().map(|v| [v[0] as f32, v[1] as f32]).collect();
-        let fw: Vec<W2> = f.iter().map(|v| [v[0] as f32, v[1] as f32]).collect();
-        let (mut stencils, mut stencils_w) = (vec![[0.0; 2]; n], vec![[0.0f32; 2]; n]);
-        coarse.residual(&x, Some(&f), &mut stencils);
-        coarse.residual(&xw, Some(&fw), &mut stencils_w);
-        let dot = coarse.residual_dot(&x, &mut vec![[0.0; 2]; n]);
-        coarse.pinned = pinned;
-        let (mut terms, mut terms_w) = (vec![[0.0; 2]; n], vec![[0.0f32; 2]; n]);
-        coarse.residual(&x, Some(&f), &mut terms);
-        coarse.residual(&xw, Some(&fw), &mut terms_w);
-        let dot_terms = coarse.residual_dot(&x, &mut vec![[0.0; 2]; n]);
-        let scale = stencils.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-        for p in 0..n {
-            for k in 0..2 {
-                assert!((stencils[p][k] - terms[p][k]).abs() <= 1e-12 * scale, "grid {g}, node {p}: {:?} against {:?}", stencils[p], terms[p]);
-                assert!((stencils_w[p][k] - terms_w[p][k]).abs() as f64 <= 2e-5 * scale, "grid {g}, node {p} in f32: {:?} against {:?}", stencils_w[p], terms_w[p]);
-            }
-        }
-        for k in 0..2 {
-            assert!((dot[k] - dot_terms[k]).abs() <= 1e-10 * dot[k].abs().max(1.0), "grid {g}: xᵀAx {dot:?} against {dot_terms:?}");
-        }
-    }
-    // Few fixed nodes, or fixed nodes so dense that their terms would cost more than the
-    // stencils: none.
-    let grid = Grid::new(97, 97);
-    for density in [0.001, 0.5] {
-        let fixed: Vec<bool> = (0..97 * 97).map(|_| rnd() < density).collect();
-        let fine = fine_level(&grid, Some(fixed), 0.0);
-        let coarse = level::galerkin(&fine);
-        assert!(super::pinned::Pinned::new(&fine, &coarse).is_none(), "density {density}");
-    }
-}
-
-#[test]
 fn every_level_smooths_below_the_top_of_its_spectrum() {
     // A wedge-shaped hole whose slanted edge leaves slivers of the grid below it: the
     // second coarse space's levels over it carry modes on a few nodes along the edge, far
@@ -998,16 +892,13 @@ fn the_wide_conjugate_gradient_update_gives_the_plain_results_bit_for_bit() {
 fn a_fused_smoothing_step_gives_the_separate_passes_results_bit_for_bit() {
     // One pass per smoothing step (residual, update and addition band by band) against the
     // three passes it replaces: on the finest level and a Galerkin level of a grid with a
-    // hole, a cut and scattered fixed nodes (the first coarse level through its fixed
-    // nodes' terms), for the first step's rule, a later one's and the second one's (which
+    // hole, a cut and scattered fixed nodes, for the first step's rule, a later one's and the second one's (which
     // reads the last update from the iterate), each with its update kept and not (then `d`
     // is left as it was), every bit the same.
     use super::level::{StepRule, WS};
     let mut rnd = crate::grid::tests::sequence(91);
     let fine = torn_scattered_level(&mut rnd, 0.04, 0.1);
-    let mut coarse = level::galerkin(&fine);
-    coarse.pinned = super::pinned::Pinned::new(&fine, &coarse).map(Box::new);
-    assert!(coarse.pinned.is_some());
+    let coarse = level::galerkin(&fine);
     let rules = [
         StepRule::First { inv_theta: 0.37 },
         StepRule::Next { c1: 0.81, c2: -1.3 },
@@ -1041,77 +932,6 @@ fn a_fused_smoothing_step_gives_the_separate_passes_results_bit_for_bit() {
             }
         }
     }
-}
-
-#[test]
-fn levels_held_by_constraints_all_around_are_smoothed_and_the_solve_still_converges() {
-    // Random constrained nodes, one in sixteen: from some coarse level down, every coarse
-    // node has constrained nodes on all sides, and smoothing alone solves those levels.
-    // Cold and warm solves must still come within the tolerance of a tight solve, in at
-    // most one more cycle than the full hierarchy takes.
-    let n = 257;
-    let mut rng = Rng(4242);
-    let samples = random_samples(&mut rng, n, n, n * n / 16);
-    let grid = Grid::new(n, n);
-    let constraints = constrain(&grid, &samples);
-    let mut fixed = vec![false; n * n];
-    for &i in &constraints.nodes {
-        fixed[i] = true;
-    }
-    let hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 1);
-    let held = held::first_held(&hier.levels).expect("dense random constraints hold a coarse level");
-    assert!(held >= 2 && held + 1 < hier.levels.len(), "held from level {held} of {}", hier.levels.len());
-
-    let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
-    let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
-    let nudged = next_frame(&samples);
-    let (exact_nudged, _) = solve(&grid, &nudged, &tight, None).unwrap();
-    let options = SolveOptions::default();
-    let [with, without] = [Spaces::ALL, Spaces { held: false, ..Spaces::ALL }].map(|spaces| {
-        with_spaces(spaces, || {
-            HELD_VISITS.with(|v| v.set(0));
-            let (cold, cold_report) = solve(&grid, &samples, &options, None).unwrap();
-            let (warm, warm_report) = solve(&grid, &nudged, &options, Some(&cold)).unwrap();
-            for (what, field, report, exact) in [("cold", &cold, &cold_report, &exact), ("warm", &warm, &warm_report, &exact_nudged)] {
-                let err = gap(field, exact);
-                assert!(report.converged && f64::from(err) <= options.tolerance_px, "{spaces:?}, {what}: {err} px off ({report:?})");
-            }
-            // The solves ran on this thread: held levels were visited exactly when allowed.
-            let visits = HELD_VISITS.with(|v| v.get());
-            assert_eq!(visits > 0, spaces.held, "{spaces:?}: {visits} visits to held levels");
-            [cold_report.cycles, warm_report.cycles]
-        })
-    });
-    for k in 0..2 {
-        assert!(with[k] <= without[k] + 1, "cycles with held levels {with:?}, without {without:?}");
-    }
-}
-
-#[test]
-fn a_free_margin_around_constrained_nodes_keeps_its_coarse_levels() {
-    // Every node constrained but a border margin: functions that run linearly away from the
-    // constrained region bend along the margin, low modes that only the coarse levels hold.
-    // The margin's coarse nodes lack constrained nodes on their outer side and join up all
-    // along it, so the levels where it is wider than a node's box are not held. Scattered
-    // constraints hold none; a grid without constraints has nothing to hold it.
-    let n = 257;
-    let levels_of = |fixed: Option<Vec<bool>>| Hierarchy::new(fine_level(&Grid::new(n, n), fixed, 0.0), 2, 1).levels;
-    let mut held_any = false;
-    for margin in [8, 12, 20] {
-        let fixed: Vec<bool> = (0..n * n).map(|i| (margin..n - margin).contains(&(i % n)) && (margin..n - margin).contains(&(i / n))).collect();
-        let levels = levels_of(Some(fixed));
-        if let Some(k) = held::first_held(&levels) {
-            // Level k's box reaches 2^(k+1) nodes each way: across the margin.
-            assert!(2usize << k > margin, "margin {margin}: held from level {k}");
-            held_any = true;
-        }
-    }
-    // The check above ran: the narrower margins are held where the boxes span them.
-    assert!(held_any, "no margin held any level");
-    let mut rng = Rng(17);
-    let scattered: Vec<bool> = (0..n * n).map(|_| rng.next() < 0.002).collect();
-    assert_eq!(held::first_held(&levels_of(Some(scattered))), None);
-    assert_eq!(held::first_held(&levels_of(None)), None);
 }
 
 #[test]
@@ -1267,38 +1087,6 @@ fn the_finest_levels_own_stencils_sum_its_energy_terms() {
         }
         assert!(own > 500, "only {own} nodes with stencils of their own");
     }
-}
-
-#[test]
-fn a_longer_smoothing_after_a_warm_start_saves_cycles_where_constraints_are_dense() {
-    // Warm solves (the answer before a 2 % + 0.05 px change) with one constrained node per
-    // 30 to 66 nodes: the first cycle after the coarse-to-fine start smooths the finest
-    // level longer (`START_SMOOTHING`). Fewer cycles in all with it (25 against 28 when
-    // written), each solve within the tolerance of a tight one; cold solves are not touched.
-    let mut totals = [0usize; 2];
-    for (k, (n, count)) in [(257usize, 1000usize), (257, 2000), (193, 600), (257, 600), (225, 1500)].into_iter().enumerate() {
-        let grid = Grid::new(n, n);
-        let mut rng = Rng(700 + k as u64);
-        let samples = random_samples(&mut rng, n, n, count);
-        let nudged = next_frame(&samples);
-        let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
-        let (exact, _) = solve(&grid, &nudged, &tight, None).unwrap();
-        let mut colds = [0usize; 2];
-        for (t, spaces) in [Spaces::ALL, Spaces { start: false, ..Spaces::ALL }].into_iter().enumerate() {
-            let (cold, warm, field) = with_spaces(spaces, || {
-                let (start, cold) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
-                let (field, warm) = solve(&grid, &nudged, &SolveOptions::default(), Some(&start)).unwrap();
-                (cold, warm, field)
-            });
-            let err = gap(&field, &exact);
-            assert!(warm.converged && err < 0.01, "problem {k}, {spaces:?}: {err} px off");
-            totals[t] += warm.cycles;
-            colds[t] = cold.cycles;
-        }
-        assert_eq!(colds[0], colds[1], "problem {k}: a cold solve changed");
-    }
-    let [with, without] = totals;
-    assert!(with < without, "{with} warm cycles with the longer smoothing, {without} without");
 }
 
 #[test]
@@ -1494,6 +1282,42 @@ fn southwell_claims_convergence_only_when_nothing_is_left_to_relax() {
     let exact = oracle(&grid, &samples, 0.0);
     let err = oracle_gap(&grid, &field, &exact);
     assert!(!report.converged || err < 0.05, "{err} px off, reported converged");
+}
+
+#[test]
+fn a_kept_solver_reuses_its_hierarchy_and_gives_a_fresh_solvers_answer() {
+    // The same problem three times through one solver (the hierarchy kept after the
+    // first) and once through a fresh one: the same field bit for bit; a second problem on
+    // the same grid (other fixed nodes) builds its own and keeps both.
+    let mut grid = Grid::new(97, 97);
+    grid.add_cut(&[[5.0, 60.3], [90.0, 40.7]]);
+    let mut rng = Rng(77);
+    let samples = random_samples(&mut rng, 97, 97, 12);
+    let other = random_samples(&mut rng, 97, 97, 9);
+    let options = SolveOptions::default();
+    let (fresh, _) = solve(&grid, &samples, &options, None).unwrap();
+    let mut solver = Solver::new();
+    for _ in 0..3 {
+        let (field, report) = solver.solve(&grid, &samples, &options, None).unwrap();
+        assert!(report.converged);
+        assert_eq!((field.dx.clone(), field.dy.clone()), (fresh.dx.clone(), fresh.dy.clone()));
+        assert_eq!(solver.store.hierarchies.len(), 1);
+    }
+    solver.solve(&grid, &other, &options, None).unwrap();
+    assert_eq!(solver.store.hierarchies.len(), 2);
+    solver.solve_warm(&grid, &other, &options, None).unwrap();
+    assert_eq!(solver.history().len(), 1);
+    solver.clear();
+    assert_eq!((solver.history().len(), solver.store.hierarchies.len()), (0, 2));
+}
+
+#[test]
+fn ablation_switches_are_parsed_by_name_and_unknown_names_refused() {
+    let off = Ablation::parse("second, kcycle").unwrap();
+    assert!(off.has("second") && off.has("kcycle") && !off.has("tear"));
+    assert_eq!(Ablation::parse("").unwrap(), Ablation::default());
+    let err = Ablation::parse("held").unwrap_err();
+    assert!(err.contains("held") && err.contains("second"), "{err}");
 }
 
 #[test]

@@ -36,7 +36,7 @@ use crate::geometry::Sample;
 use crate::grid::{constrain, nearest_node, Constraints, Grid};
 
 use super::history::{solve_from, WarmHistory};
-use super::{in_pool, validate, SolveError, SolveOptions, SolveReport};
+use super::{in_pool, validate, SolveError, SolveOptions, SolveReport, Solver};
 
 /// Grids with at least this many pixels are upsampled with rows in parallel.
 const PARALLEL_PIXELS: usize = 1 << 15;
@@ -49,14 +49,15 @@ pub(crate) fn solve_coarse(
     samples: &[Sample],
     options: &SolveOptions,
     initial: Option<FieldView<'_>>,
-    history: Option<&mut WarmHistory>,
+    solver: &mut Solver,
+    warm: bool,
 ) -> (Field, SolveReport) {
     if grid.width == 0 || grid.height == 0 {
         return (Field::zeros(grid.width, grid.height), SolveReport { converged: true, ..Default::default() });
     }
     let coarse = Coarse::new(grid, samples, options.grid_step);
     let start = initial.map(|f| coarse.restrict(f));
-    let (fc, report) = solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref().map(FieldView::from), history);
+    let (fc, report) = solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref().map(FieldView::from), solver, warm);
     (upsample(grid, &Upsampling::new(grid, options.grid_step), &fc, samples), report)
 }
 
@@ -138,6 +139,22 @@ pub fn solve_warm_at(
     pixels: &[u32],
     out: &mut [f32],
 ) -> Result<SolveReport, SolveError> {
+    let mut solver = Solver::with_history(std::mem::take(history));
+    let result = solve_at(grid, samples, options, &mut solver, plan, pixels, out);
+    *history = solver.into_history();
+    result
+}
+
+/// [`solve_warm_at`] with `solver` (see [`Solver::solve_warm_at`]).
+pub(crate) fn solve_at(
+    grid: &Grid,
+    samples: &[Sample],
+    options: &SolveOptions,
+    solver: &mut Solver,
+    plan: &Upsampling,
+    pixels: &[u32],
+    out: &mut [f32],
+) -> Result<SolveReport, SolveError> {
     let start = Instant::now();
     if options.grid_step != plan.step() || plan.layout.w != grid.width || plan.layout.h != grid.height {
         return Err(SolveError::PlanMismatch);
@@ -148,7 +165,7 @@ pub fn solve_warm_at(
     validate(grid, samples, options, None)?;
     let (fc, mut report) = in_pool(|| {
         let coarse = Coarse::new(grid, samples, options.grid_step);
-        solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), None, Some(history))
+        solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), None, solver, true)
     });
     let mut missing = false;
     for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {

@@ -1,0 +1,136 @@
+"""What each of the solver's optional mechanisms buys (issue 42 item 6), in paired rounds.
+
+For every switch (`inkwarp.thin_plate_report(..., _off="name")`, a private keyword for this
+benchmark only) and every problem, the solve runs with the mechanism on and off in
+alternating rounds of one process (the order reversed every other round, so that a
+drifting machine treats both sides alike). The table gives the median over the rounds of
+the time ratio off / on, with its middle half, and the cycles on / off. A ratio of 1.10
+means the mechanism saves a tenth of the solve's time; a mechanism must earn that on at
+least one problem to stay.
+
+Problems: 513×513 with 10, 100, 1000 and 4000 random points, cold (no start) and warm
+(the previous answer as the start, every displacement changed by 2 %, as in
+`ratios.py`), frames of an animation through a `WarmStart` (10 and 1000 points, hole+cut:
+the only problems where a solver is kept between solves, so the only ones where `cache`
+can buy anything; the free function builds its hierarchy every time), and the issue's 513×513 model problem with a disc hole and a two-segment cut
+(`tests/test_solver_families.py::grid_problem`), cold and warm.
+
+Usage: python benchmarks/ablation.py [--rounds 9] [--quick] [--only held,tear]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+
+import numpy as np
+
+import inkwarp
+
+SWITCHES = ["second", "tear", "kcycle", "cache", "fours"]
+
+
+def random_problem(n: int, size: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform(0, size - 1, (n, 2))
+    disp = rng.normal(0, 0.01 * size, (n, 2))
+    return pts, disp
+
+
+def hole_and_cut(n: int):
+    """tests/test_solver_families.py `grid_problem(n, hole=True, cut=True)`."""
+    s = n / 2049
+    rng = np.random.default_rng(2049)
+    pts = rng.uniform(0.05, 0.95, (10, 2)) * (n - 1)
+    disp = rng.normal(0, 0.01 * n, (10, 2))
+    ys, xs = np.mgrid[0:n, 0:n]
+    mask = (((xs - 1300 * s) ** 2 + (ys - 800 * s) ** 2) > (150 * s) ** 2).astype(np.uint8)
+    cuts = [np.array([[200, 1400.3], [900, 1250.3], [1600, 1500.3]]) * s]
+    return pts, disp, mask, cuts
+
+
+def problems(size: int) -> dict:
+    """Name → a function of the switch list that solves once and returns its report."""
+    out = {}
+    shape = (size, size)
+    cases = [(f"{n} pts", *random_problem(n, size, seed=n), None, None) for n in (10, 100, 1000, 4000)]
+    cases.append(("hole+cut", *hole_and_cut(size)))
+    for name, pts, disp, mask, cuts in cases:
+        field = inkwarp.thin_plate(pts, disp, shape, mask=mask, cuts=cuts)
+        changed = disp * 1.02
+
+        def cold(off, pts=pts, disp=disp, mask=mask, cuts=cuts):
+            return inkwarp.thin_plate_report(pts, disp, shape, mask=mask, cuts=cuts, _off=off)[1]
+
+        def warm(off, pts=pts, changed=changed, mask=mask, cuts=cuts, field=field):
+            return inkwarp.thin_plate_report(pts, changed, shape, mask=mask, cuts=cuts, initial=field, _off=off)[1]
+
+        out[f"{name} cold"] = cold
+        out[f"{name} warm"] = warm
+        if name in ("10 pts", "1000 pts", "hole+cut"):
+            out[f"{name} frames"] = frames(pts, disp, shape, mask, cuts)
+    return out
+
+
+def frames(pts, disp, shape, mask, cuts):
+    """An animation's frames through a `WarmStart` (which keeps the solver: its hierarchy
+    and history), every displacement scaled by 1 + 0.2 sin(0.3 k) in frame k; each side of a pair has a
+    WarmStart of its own and walks the same frames."""
+    sides: dict[str, list] = {}
+
+    def solve(off):
+        ws, k = sides.setdefault(off, [inkwarp.WarmStart(), 0])
+        sides[off][1] = k + 1
+        d = disp * (1 + 0.2 * np.sin(0.3 * k))
+        return inkwarp.thin_plate_report(pts, d, shape, mask=mask, cuts=cuts, warm=ws, _off=off)[1]
+
+    return solve
+
+
+def paired(solve, switch: str, rounds: int):
+    """Ratios off / on of alternating rounds, and the cycles on and off."""
+    solve(""), solve(switch)  # warm-up: first-call costs are not the steady state
+    ratios, cycles = [], {}
+    for r in range(rounds):
+        t = {}
+        for side in ("", switch) if r % 2 == 0 else (switch, ""):
+            t0 = time.perf_counter()
+            report = solve(side)
+            t[side] = time.perf_counter() - t0
+            cycles[side] = report.cycles
+        ratios.append(t[switch] / t[""])
+    return ratios, cycles[""], cycles[switch]
+
+
+def cell(ratios: list[float]) -> str:
+    q = statistics.quantiles(ratios, n=4, method="inclusive") if len(ratios) > 1 else [ratios[0]] * 3
+    return f"{statistics.median(ratios):.2f} ({q[0]:.2f}–{q[2]:.2f})"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rounds", type=int, default=9, help="alternating rounds per switch and problem")
+    ap.add_argument("--size", type=int, default=513)
+    ap.add_argument("--quick", action="store_true", help="129×129 and three rounds: a smoke run")
+    ap.add_argument("--only", default="", help="comma-separated switches (default: all)")
+    args, _ = ap.parse_known_args()  # `make bench` passes every suite the same arguments
+    size, rounds = (129, 3) if args.quick else (args.size, args.rounds)
+    switches = [s for s in args.only.split(",") if s] or SWITCHES
+    probs = problems(size)
+    print(f"### Time off / on, median of {rounds} alternating rounds (middle half); cycles on/off — {size}×{size}\n")
+    print("| mechanism | " + " | ".join(probs) + " | best |")
+    print("|---" * (len(probs) + 2) + "|")
+    for switch in switches:
+        cells, best = [], 0.0
+        for solve in probs.values():
+            ratios, on, off = paired(solve, switch, rounds)
+            best = max(best, statistics.median(ratios))
+            cells.append(f"{cell(ratios)} {on}/{off}")
+        print(f"| {switch} | " + " | ".join(cells) + f" | {best:.2f} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
