@@ -163,6 +163,33 @@ def test_warm_start_mistakes_say_what_to_do():
         inkwarp.thin_plate(PTS, DISP, SHAPE, warm=inkwarp.WarmStart(), initial=np.zeros((*SHAPE, 2), np.float32))
 
 
+def test_a_kept_solver_gives_a_fresh_solves_answer_on_torn_grids_and_other_grids():
+    # Its coarse levels are reused for the same grid and points and rebuilt for others;
+    # either way each answer is bit for bit the answer of a call without it.
+    rng = np.random.default_rng(3)
+    mask = np.ones((40, 48), np.uint8)
+    mask[15:22, 20:30] = 0
+    cuts = [np.array([[-1.0, 30.5], [30.0, 25.2]])]
+    pts = np.column_stack([rng.uniform(0, 47, 12), rng.uniform(0, 39, 12)])
+    solver = inkwarp.Solver()
+    for k, (shape, m, c) in enumerate([((40, 48), mask, cuts), ((40, 48), mask, cuts), ((40, 48), None, None),
+                                       ((33, 33), None, cuts), ((40, 48), mask, cuts)]):
+        p = pts if shape == (40, 48) else pts * 0.6
+        disp = rng.normal(0, 3, (12, 2))
+        kept, rep = inkwarp.thin_plate_report(p, disp, shape, mask=m, cuts=c, solver=solver)
+        fresh, fresh_rep = inkwarp.thin_plate_report(p, disp, shape, mask=m, cuts=c)
+        assert rep.converged and rep.cycles == fresh_rep.cycles, k
+        assert np.array_equal(kept, fresh), k
+    assert repr(solver) == "Solver()"
+
+
+def test_solver_mistakes_say_what_to_do():
+    with pytest.raises(ValueError, match="inkwarp.Solver"):
+        inkwarp.thin_plate(PTS, DISP, SHAPE, solver="yes")
+    with pytest.raises(ValueError, match="solver or warm, not both"):
+        inkwarp.thin_plate(PTS, DISP, SHAPE, solver=inkwarp.Solver(), warm=inkwarp.WarmStart())
+
+
 def test_the_extension_stubs_are_valid_python():
     import ast
     from pathlib import Path

@@ -12,7 +12,7 @@ from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_repo
 from inkwarp.imaging import warp_image
 from inkwarp.transfer import transfer, transfer_dict
 from inkwarp.track import track, track_dict
-from inkwarp.plate import SolveReport, WarmStart, thin_plate, thin_plate_report
+from inkwarp.plate import SolveReport, Solver, WarmStart, thin_plate, thin_plate_report
 from inkwarp.scene import Frames, Scene, image_data_uri, scene_schema, validate_scene
 from inkwarp.rendering import render
 
@@ -37,6 +37,7 @@ __all__ = [
     "sample",
     "scene_schema",
     "thin_plate",
+    "Solver",
     "WarmStart",
     "thin_plate_report",
     "track",

@@ -104,6 +104,11 @@ class WarmStart:
     def clear(self) -> None: ...
     def __len__(self) -> int: ...
 
+class Solver:
+    """A solver kept between calls; see `inkwarp.Solver`."""
+
+    def __init__(self) -> None: ...
+
 def thin_plate_solve(
     points: npt.NDArray[np.float64],
     displacements: npt.NDArray[np.float64],
@@ -120,6 +125,7 @@ def thin_plate_solve(
     southwell_sweeps: float,
     warm: WarmStart | None = None,
     off: str = "",
+    solver: Solver | None = None,
 ) -> tuple[npt.NDArray[np.float32], dict[str, Any]]: ...
 
 class ThinPlateMap:
