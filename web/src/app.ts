@@ -164,8 +164,8 @@ export class App {
   /** Forgets the engine panel's figures (a new scene: the old one's say nothing of it). */
   /**
    * Where the page's memory is, measured apart (MiB): the page's own module memory and
-   * JavaScript heap, the large arrays it keeps (the layers' pictures and mattes, the
-   * full-resolution frame shown), and each worker's module memory and heap.
+   * JavaScript heap, the large arrays it keeps (the layers' pictures and mattes, the fields
+   * solved ahead, the full-resolution frame shown), and each worker's module memory and heap.
    */
   async memoryReport(): Promise<Record<string, unknown>> {
     const mib = (b: number | null | undefined) => (b == null ? null : Math.round(b / 2 ** 20));
@@ -177,7 +177,7 @@ export class App {
       return m && { wasmMiB: mib(m.wasmBytes), heapMiB: mib(m.heapBytes) };
     };
     return {
-      page: { wasmMiB: mib(this.engine.x.memory.buffer.byteLength), heapMiB: mib(heap?.usedJSHeapSize), picturesMiB: mib(pictures), fullFrameMiB: mib(this.fullShown?.pixels.byteLength ?? 0) },
+      page: { wasmMiB: mib(this.engine.x.memory.buffer.byteLength), heapMiB: mib(heap?.usedJSHeapSize), picturesMiB: mib(pictures), fullFrameMiB: mib(this.fullShown?.pixels.byteLength ?? 0), fieldCacheMiB: mib(this.cache.bytes) },
       solver: await worker(this.solver),
       drafts: await worker(this.drafts),
       ahead: await worker(this.ahead),
