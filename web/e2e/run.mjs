@@ -1268,10 +1268,33 @@ function browserRssMiB() {
   return r.stdout.split('\n').filter(Boolean).reduce((s, v) => s + Number(v), 0) / 1024;
 }
 
+// The browser's memory apart by process kind (browser, renderer = the page and its workers,
+// gpu-process, utility, zygote): resident (RSS) and proportional (PSS: shared pages split
+// between the processes that map them, so the sum counts each page once), in MiB.
+function browserMemoryByKind() {
+  const r = spawnSync('ps', ['-C', 'chromium', '-o', 'pid=,args='], { encoding: 'utf8' });
+  const out = {};
+  for (const line of r.stdout.split('\n').filter(Boolean)) {
+    const [pid, ...args] = line.trim().split(/\s+/);
+    const type = (args.find((a) => a.startsWith('--type=')) ?? '--type=browser').slice(7);
+    let rss = 0, pss = 0;
+    try {
+      const t = readFileSync(`/proc/${pid}/smaps_rollup`, 'utf8');
+      rss = Number(/^Rss:\s+(\d+)/m.exec(t)?.[1] ?? 0) / 1024;
+      pss = Number(/^Pss:\s+(\d+)/m.exec(t)?.[1] ?? 0) / 1024;
+    } catch { continue; }
+    const o = (out[type] ??= { n: 0, rssMiB: 0, pssMiB: 0 });
+    o.n++; o.rssMiB += rss; o.pssMiB += pss;
+  }
+  for (const o of Object.values(out)) { o.rssMiB = Math.round(o.rssMiB); o.pssMiB = Math.round(o.pssMiB); }
+  return out;
+}
+
 // A 4000×3000 photograph (made in the page: gradients, shapes, texture and noise, saved as
 // a JPEG) opened, dragged and settled; times and memory reported, never asserted.
 test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-resolution frame', async () => {
   const rssBefore = browserRssMiB();
+  const kindsBefore = browserMemoryByKind();
   const { page: p, context } = await openEditor(browser, server.url);
   try {
     // For comparison: the built-in 512 × 512 example opened the same way, in the same page.
@@ -1367,6 +1390,8 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       }));
     }
     const rssDrag = browserRssMiB();
+    const kindsDrag = browserMemoryByKind();
+    const workersDrag = await p.evaluate(() => window.inkwarp.app.memoryReport?.());
     if (process.env.SHOW_RSS) console.log(spawnSync('ps', ['-C', 'chromium', '-o', 'rss=,args='], { encoding: 'utf8' }).stdout.split('\n').map((l) => l.slice(0, 160).replace(/--[a-z-]+=\S{40,}/g, '')).join('\n'));
     await shot(p, 'photo-proxy');
     await p.mouse.up();
@@ -1386,12 +1411,16 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     // enough for the full-resolution worker to be replaced by a fresh one (see
     // `RENEW_IDLE_MS`; waited for up to 15 s, and reported, never asserted).
     const rssSettled = browserRssMiB();
+    const kindsSettled = browserMemoryByKind();
+    const workersSettled = await p.evaluate(() => window.inkwarp.app.memoryReport?.());
     const renewedBefore = await p.evaluate(() => window.inkwarp.app.full?.renewals ?? 0);
     const idleFrom = Date.now();
     while (Date.now() - idleFrom < 15000 && (await p.evaluate(() => window.inkwarp.app.full?.renewals ?? 0)) === renewedBefore) await p.waitForTimeout(250);
     await p.waitForTimeout(500);
     const renewedAfterS = (Date.now() - idleFrom) / 1000;
     const rssIdle = browserRssMiB();
+    const kindsIdle = browserMemoryByKind();
+    const workersIdle = await p.evaluate(() => window.inkwarp.app.memoryReport?.());
     const renewals = await p.evaluate(() => window.inkwarp.app.full?.renewals ?? null);
     const posedPatch = await patch(1950, 1350, 100);
     let diff = 0;
@@ -1402,7 +1431,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       dragMedianMs: median(s.drag), dragP90Ms: pct(s.drag, 0.9), dragFrames: s.drag.length,
       draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000,
       heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, browserRssBeforeMiB: rssBefore,
-      makeS: (made - t0) / 1000, patchDiff: diff, small: { ...small, browserRssMiB: rssSmall },
+      makeS: (made - t0) / 1000, patchDiff: diff, byKind: { before: kindsBefore, drag: kindsDrag, settled: kindsSettled, idle: kindsIdle }, workers: { drag: workersDrag, settled: workersSettled, idle: workersIdle }, small: { ...small, browserRssMiB: rssSmall },
     };
     console.log(`  photo: ${JSON.stringify(perf.photo)}`);
     assert(notes.every((n) => n.startsWith('Preview (1/4')), `the proxy notice shows while dragging, and the proxy: ${JSON.stringify(notes.slice(0, 3))}`);

@@ -162,6 +162,29 @@ export class App {
   readonly stats: Stats = emptyStats();
 
   /** Forgets the engine panel's figures (a new scene: the old one's say nothing of it). */
+  /**
+   * Where the page's memory is, measured apart (MiB): the page's own module memory and
+   * JavaScript heap, the large arrays it keeps (the layers' pictures and mattes, the fields
+   * solved ahead, the full-resolution frame shown), and each worker's module memory and heap.
+   */
+  async memoryReport(): Promise<Record<string, unknown>> {
+    const mib = (b: number | null | undefined) => (b == null ? null : Math.round(b / 2 ** 20));
+    const heap = (performance as unknown as { memory?: { usedJSHeapSize: number } }).memory;
+    let pictures = 0;
+    for (const rt of this.runtimes.values()) pictures += (rt.rgba?.data.byteLength ?? 0) + (rt.matte?.byteLength ?? 0);
+    const worker = async (c: { memory(): Promise<{ wasmBytes: number; heapBytes: number | null } | null> } | null) => {
+      const m = c && (await c.memory());
+      return m && { wasmMiB: mib(m.wasmBytes), heapMiB: mib(m.heapBytes) };
+    };
+    return {
+      page: { wasmMiB: mib(this.engine.x.memory.buffer.byteLength), heapMiB: mib(heap?.usedJSHeapSize), picturesMiB: mib(pictures), fullFrameMiB: mib(this.fullShown?.pixels.byteLength ?? 0), fieldCacheMiB: mib(this.cache.bytes) },
+      solver: await worker(this.solver),
+      drafts: await worker(this.drafts),
+      ahead: await worker(this.ahead),
+      full: await worker(this.full),
+    };
+  }
+
   resetStats(): void {
     Object.assign(this.stats, emptyStats());
     this.lastReport = null;

@@ -15,6 +15,8 @@ export type ToWorker =
   | { type: 'full-drop'; key: string }
   /** Every full-resolution layer's picture, matte and cuts, sent back (`full-layers`) to move them to a fresh worker. */
   | { type: 'full-export' }
+  /** How much memory the worker holds (answered by `memory`). */
+  | { type: 'memory' }
   /** The frame of these layers (back to front; `features` null: at rest), solved and drawn at full resolution. */
   | { type: 'full-render'; id: number; width: number; height: number; background: [number, number, number, number]; layers: FullLayerRequest[] }
   /** The pixels a sparse solve computes on this layer's grid (the draft mesh's, see `draftPixels`). */
@@ -53,6 +55,8 @@ export type FromWorker =
   | { type: 'reset'; message: string }
   | { type: 'error'; id: number | null; key: string | null; message: string }
   | { type: 'links'; key: string; links: Uint8Array }
+  /** The worker's WebAssembly memory and JavaScript heap in use (bytes; heap null where the browser does not say). */
+  | { type: 'memory'; wasmBytes: number; heapBytes: number | null }
   /** The answer to `full-export`. */
   | { type: 'full-layers'; layers: { key: string; image: { width: number; height: number; data: Uint8Array }; matte: Uint8Array; cuts: Pt[][] }[] }
   /** A full-resolution frame (straight RGBA8), with the time its solves and its drawing took (ms). */

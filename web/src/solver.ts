@@ -68,6 +68,23 @@ function engineReady(worker: Worker, receive: (msg: FromWorker) => void): Promis
   });
 }
 
+/** A worker's memory (see the `memory` message); null if it does not answer within a second. */
+export function workerMemory(worker: Worker): Promise<{ wasmBytes: number; heapBytes: number | null } | null> {
+  return new Promise((resolve) => {
+    const done = (v: { wasmBytes: number; heapBytes: number | null } | null) => {
+      clearTimeout(timer);
+      worker.removeEventListener('message', on);
+      resolve(v);
+    };
+    const on = (ev: MessageEvent<FromWorker>) => {
+      if (ev.data.type === 'memory') done({ wasmBytes: ev.data.wasmBytes, heapBytes: ev.data.heapBytes });
+    };
+    const timer = setTimeout(() => done(null), 1000);
+    worker.addEventListener('message', on);
+    worker.postMessage({ type: 'memory' } satisfies ToWorker);
+  });
+}
+
 export class SolverClient {
   private worker: Worker;
   readonly ready: Promise<void>;
@@ -140,6 +157,11 @@ export class SolverClient {
     this.inFlight = { id, req, sentAt: performance.now() };
     const { warm = true, mesh, sparse, follow } = req.how;
     this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm, mesh, sparse, follow });
+  }
+
+  /** The worker's memory (see `workerMemory`). */
+  memory(): ReturnType<typeof workerMemory> {
+    return workerMemory(this.worker);
   }
 
   private receive(msg: FromWorker): void {
@@ -317,6 +339,11 @@ export class FullClient {
       old.addEventListener('message', exported);
       old.postMessage({ type: 'full-export' } satisfies ToWorker);
     });
+  }
+
+  /** The worker's memory (see `workerMemory`). */
+  memory(): ReturnType<typeof workerMemory> {
+    return workerMemory(this.worker);
   }
 
   private receive(msg: FromWorker): void {

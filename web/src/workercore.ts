@@ -33,6 +33,11 @@ export class SolverWorker {
         this.post({ type: 'ready' });
         return;
       }
+      if (msg.type === 'memory') {
+        const heap = (performance as unknown as { memory?: { usedJSHeapSize: number } }).memory;
+        this.post({ type: 'memory', wasmBytes: this.engine?.x.memory.buffer.byteLength ?? 0, heapBytes: heap ? heap.usedJSHeapSize : null });
+        return;
+      }
       const engine = this.engine;
       if (!engine) throw new Error('The engine is not loaded yet.');
       if (msg.type === 'grid') {
