@@ -44,8 +44,13 @@ impl PyWarmStart {
 
 impl PyWarmStart {
     fn lock(&self) -> std::sync::MutexGuard<'_, Solver> {
-        self.solver.lock().unwrap_or_else(|e| e.into_inner())
+        locked(&self.solver)
     }
+}
+
+/// The solver of a `WarmStart` or `Solver` (a panic in an earlier solve leaves it usable).
+fn locked(solver: &Mutex<Solver>) -> std::sync::MutexGuard<'_, Solver> {
+    solver.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// A solver kept between calls (`inkwarp.Solver`): its hierarchies (the coarse levels of the
@@ -71,7 +76,7 @@ impl PySolver {
 
 impl PySolver {
     fn lock(&self) -> std::sync::MutexGuard<'_, Solver> {
-        self.solver.lock().unwrap_or_else(|e| e.into_inner())
+        locked(&self.solver)
     }
 }
 

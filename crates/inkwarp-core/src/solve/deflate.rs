@@ -117,30 +117,7 @@ impl Deflation {
         // own edges, which the hierarchy handles.
         let (mut cut, mut rim) = (vec![false; w * h], vec![false; w * h]);
         let mut any = false;
-        let mut hole = vec![u32::MAX; w * h];
-        let mut thin = Vec::new();
-        for start in 0..w * h {
-            if geo.active[start] || hole[start] != u32::MAX {
-                continue;
-            }
-            let id = thin.len() as u32;
-            hole[start] = id;
-            let (mut stack, mut area, mut edges) = (vec![start], 0usize, 0usize);
-            while let Some(i) = stack.pop() {
-                area += 1;
-                let (x, y) = (i % w, i / w);
-                let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
-                for j in around.into_iter().flatten() {
-                    if geo.active[j] {
-                        edges += 1;
-                    } else if hole[j] == u32::MAX {
-                        hole[j] = id;
-                        stack.push(j);
-                    }
-                }
-            }
-            thin.push(area <= 4 * edges);
-        }
+        let (hole, holes) = geo.holes();
         for y in 0..h {
             for x in 0..w {
                 let i = idx(x, y);
@@ -154,7 +131,7 @@ impl Deflation {
                     (cut[i], cut[i + w], any) = (true, true, true);
                 }
                 let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
-                if around.into_iter().flatten().any(|j| !geo.active[j] && thin[hole[j] as usize]) {
+                if around.into_iter().flatten().any(|j| !geo.active[j] && holes[hole[j] as usize].thin) {
                     (rim[i], any) = (true, true);
                 }
             }

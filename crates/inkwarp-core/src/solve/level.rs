@@ -461,10 +461,50 @@ pub(crate) struct Geometry {
     pub plain_rows: Vec<bool>,
 }
 
+/// A 4-connected group of inactive nodes (see [`Geometry::holes`]).
+pub(crate) struct Hole {
+    /// At most four of its nodes per link to an active node: a strip up to about eight
+    /// nodes wide, whose two sides a hierarchy must not tie together.
+    pub thin: bool,
+    /// It touches the grid's border.
+    pub border: bool,
+}
+
 impl Geometry {
     #[inline]
     fn idx(&self, x: usize, y: usize) -> usize {
         y * self.w + x
+    }
+
+    /// The holes: each inactive node's hole (`u32::MAX` for active nodes) and the holes.
+    pub fn holes(&self) -> (Vec<u32>, Vec<Hole>) {
+        let (w, h) = (self.w, self.h);
+        let mut label = vec![u32::MAX; w * h];
+        let mut holes = Vec::new();
+        for start in 0..w * h {
+            if self.active[start] || label[start] != u32::MAX {
+                continue;
+            }
+            let id = holes.len() as u32;
+            label[start] = id;
+            let (mut stack, mut area, mut edges, mut border) = (vec![start], 0usize, 0usize, false);
+            while let Some(i) = stack.pop() {
+                area += 1;
+                let (x, y) = (i % w, i / w);
+                border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+                let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
+                for j in around.into_iter().flatten() {
+                    if self.active[j] {
+                        edges += 1;
+                    } else if label[j] == u32::MAX {
+                        label[j] = id;
+                        stack.push(j);
+                    }
+                }
+            }
+            holes.push(Hole { thin: area <= 4 * edges, border });
+        }
+        (label, holes)
     }
 
     /// A geometry with its prolongation rows filled in.
@@ -871,13 +911,6 @@ impl Level {
     /// stay zero. Its coarse space holds the functions that run smoothly across holes and
     /// cuts, which the link-aware prolongation cannot: near a missing link it extrapolates a
     /// constant.
-    /// Drops the four-node layout of its own stencils (the ablation's switch `fours`).
-    pub fn drop_fours(&mut self) {
-        if let Operator::Stored { fours, .. } = &mut self.op {
-            *fours = Fours::default();
-        }
-    }
-
     pub fn into_plain(mut self) -> Level {
         let (w, h) = (self.geo.w, self.geo.h);
         let right = (0..w * h).map(|i| i % w + 1 < w).collect();
@@ -890,6 +923,13 @@ impl Level {
             }
         }
         self
+    }
+
+    /// Drops the four-node layout of its own stencils (the ablation's switch `fours`).
+    pub fn drop_fours(&mut self) {
+        if let Operator::Stored { fours, .. } = &mut self.op {
+            *fours = Fours::default();
+        }
     }
 
     /// The same level with the prolongation of a geometry whose wide holes are filled: each
@@ -906,37 +946,9 @@ impl Level {
     pub fn with_holes_filled(mut self) -> Level {
         let g = &self.geo;
         let (w, h) = (g.w, g.h);
-        let mut comp = vec![u32::MAX; w * h];
-        let mut fill = vec![false; w * h];
-        let mut any = false;
-        for start in 0..w * h {
-            if g.active[start] || comp[start] != u32::MAX {
-                continue;
-            }
-            comp[start] = start as u32;
-            let (mut stack, mut nodes, mut edges, mut border) = (vec![start], Vec::new(), 0usize, false);
-            while let Some(i) = stack.pop() {
-                nodes.push(i);
-                let (x, y) = (i % w, i / w);
-                border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-                let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
-                for j in around.into_iter().flatten() {
-                    if g.active[j] {
-                        edges += 1;
-                    } else if comp[j] == u32::MAX {
-                        comp[j] = start as u32;
-                        stack.push(j);
-                    }
-                }
-            }
-            if !border && nodes.len() > 4 * edges {
-                any = true;
-                for i in nodes {
-                    fill[i] = true;
-                }
-            }
-        }
-        if !any {
+        let (label, holes) = g.holes();
+        let fill: Vec<bool> = label.iter().map(|&l| l != u32::MAX && !holes[l as usize].thin && !holes[l as usize].border).collect();
+        if !fill.contains(&true) {
             return self;
         }
         let active: Vec<bool> = (0..w * h).map(|i| g.active[i] || fill[i]).collect();
