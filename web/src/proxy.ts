@@ -95,7 +95,7 @@ export interface PackedField {
   packed: Int16Array;
 }
 
-/** Steps a proxy pixel is cut into by `packField` (a step is 1/64 of a 4000 × 3000 photograph's pixel at factor 4). */
+/** Steps a proxy pixel is cut into by `packField` (at factor 4 a step is a quarter of a picture pixel). */
 export const PACK_STEPS = 16;
 
 /**
