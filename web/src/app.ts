@@ -10,7 +10,7 @@ import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './s
 import type { FieldEvent, FullClient, FullFrame } from './solver';
 import type { SolverClient } from './solver';
 import { PROBE_TOLERANCE_PX, probedFeatures } from './probe';
-import { downscaleMatte, downscaleRgba, proxyFactor, proxySize, toProxy } from './proxy';
+import { downscaleMatte, downscaleRgba, packField, proxyFactor, proxySize, toProxy, unpackField, type PackedField } from './proxy';
 import { Store } from './state';
 
 /**
@@ -147,6 +147,11 @@ function emptyStats(): Stats {
 
 /** Fields kept for playback (a 512×512 layer's field is 2 MiB). */
 const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
+/**
+ * The same for a proxied scene, whose fields are kept packed (`packField`, 3 MB a frame
+ * of a 1000 × 750 proxy): 64 frames of one layer, 2.7 s at 24 fps.
+ */
+const PROXY_CACHE_BUDGET_BYTES = 192 * 2 ** 20;
 const SETTLE_MS = 120;
 /** How long the editor is left alone (ms) before frames are solved ahead (see `scheduleAhead`). */
 const AHEAD_IDLE_MS = 400;
@@ -208,7 +213,7 @@ export class App {
   lastActivityAt = 0;
   lastReport: FieldEvent | null = null;
   /** Full-resolution fields by frame, for the document revision they were solved for. */
-  private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, FieldData>>() };
+  private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, FieldData | PackedField>>() };
 
   /** Numbers every solve request: a layer shows the field of its newest request only. */
   private seq = 0;
@@ -505,19 +510,22 @@ export class App {
     return Math.abs(f - Math.round(f)) < 1e-6 ? Math.round(f) : null;
   }
 
-  private cached(frame: number | null): Map<string, FieldData> | undefined {
+  private cached(frame: number | null): Map<string, FieldData | PackedField> | undefined {
     if (frame === null || this.cache.rev !== this.store.revision) return undefined;
     const fields = this.cache.frames.get(frame);
     return fields && this.doc.layers.every((l) => !this.runtimes.get(l.name)?.gridReady || fields.has(l.name)) ? fields : undefined;
   }
 
-  private remember(frame: number, key: string, field: FieldData): void {
+  private remember(frame: number, key: string, solved: FieldData): void {
     if (this.cache.rev !== this.store.revision) this.cache = { rev: this.store.revision, bytes: 0, frames: new Map() };
-    const size = 8 * field.width * field.height;
-    if (this.cache.bytes + size > CACHE_BUDGET_BYTES) return;
+    // A proxied scene's fields are kept packed, in a smaller budget (see `packField`).
+    const field = this.proxy > 1 ? packField(solved) ?? solved : solved;
+    const size = 'packed' in field ? field.packed.byteLength : 8 * field.width * field.height;
+    if (this.cache.bytes + size > (this.proxy > 1 ? PROXY_CACHE_BUDGET_BYTES : CACHE_BUDGET_BYTES)) return;
     let fields = this.cache.frames.get(frame);
     if (!fields) this.cache.frames.set(frame, (fields = new Map()));
-    if (!fields.has(key)) this.cache.bytes += size;
+    const had = fields.get(key);
+    this.cache.bytes += size - (had ? ('packed' in had ? had.packed.byteLength : 8 * had.width * had.height) : 0);
     fields.set(key, field);
   }
 
@@ -706,9 +714,10 @@ export class App {
     const frame = this.frameOf(time);
     const hit = quality === 'final' ? this.cached(frame) : undefined;
     if (hit) {
-      for (const [key, field] of hit) {
+      for (const [key, kept] of hit) {
         const rt = this.runtimes.get(key);
         if (!rt?.gl) continue;
+        const field = 'packed' in kept ? unpackField(kept) : kept;
         rt.field = field;
         rt.gl.setField(field);
         rt.lastRequest = '';

@@ -27,6 +27,7 @@ interface Exports {
   iw_image_read(h: number, out: number, len: number): number;
   iw_grid_solve_kept(g: number, req: number, reqLen: number): number;
   iw_canvas_draw_solved(c: number, g: number, image: number, ox: number, oy: number): number;
+  iw_frame_draw(req: number, reqLen: number, out: number, outLen: number): number;
   iw_scene_check(json: number, len: number): number;
   iw_points_at(req: number, len: number): number;
   iw_methods(): number;
@@ -502,41 +503,41 @@ export class Engine {
     background: [number, number, number, number],
     layers: { image: ImageHandle; grid: GridHandle; features: SolveFeature[] | null; options: SolveOptions; offset: Pt }[],
   ): { pixels: Uint8Array; reports: (SolveReport | null)[]; solveMs: number; drawMs: number } {
-    const [r, g, b, a] = background;
     let solveMs = 0;
-    let drawMs = 0;
-    const canvas = this.x.iw_canvas_new(width, height, r, g, b, a);
-    try {
-      const reports: (SolveReport | null)[] = [];
-      for (const l of layers) {
-        if (l.image.width !== l.grid.width || l.image.height !== l.grid.height) throw new EngineError("A layer to render needs its picture at its grid's size.");
-        const t0 = performance.now();
-        if (l.features) {
-          const req = request(l.features, l.options);
-          const reqPtr = this.put(req);
-          try {
-            reports.push(this.check(this.x.iw_grid_solve_kept(l.grid.handle, reqPtr, req.length)) as SolveReport);
-          } finally {
-            this.x.iw_free(reqPtr, req.length);
-          }
-        } else {
-          reports.push(null);
+    const reports: (SolveReport | null)[] = [];
+    // Every layer solved first, its field kept in the module; then the frame is drawn band
+    // by band straight into RGBA8 (no canvas of the whole frame), each field taken as its
+    // layer's positions.
+    for (const l of layers) {
+      if (l.image.width !== l.grid.width || l.image.height !== l.grid.height) throw new EngineError("A layer to render needs its picture at its grid's size.");
+      const t0 = performance.now();
+      if (l.features) {
+        const req = request(l.features, l.options);
+        const reqPtr = this.put(req);
+        try {
+          reports.push(this.check(this.x.iw_grid_solve_kept(l.grid.handle, reqPtr, req.length)) as SolveReport);
+        } finally {
+          this.x.iw_free(reqPtr, req.length);
         }
-        const t1 = performance.now();
-        this.check(this.x.iw_canvas_draw_solved(canvas, l.grid.handle, l.image.handle, l.offset[0], l.offset[1]));
-        solveMs += t1 - t0;
-        drawMs += performance.now() - t1;
+      } else {
+        reports.push(null);
       }
-      const t2 = performance.now();
+      solveMs += performance.now() - t0;
+    }
+    const t1 = performance.now();
+    const frame = enc.encode(
+      JSON.stringify({ width, height, background, layers: layers.map((l) => ({ grid: l.grid.handle, image: l.image.handle, offset: l.offset })) }),
+    );
+    const framePtr = this.put(frame);
+    try {
       const len = 4 * width * height;
       const pixels = this.withBuffer(len, (ptr) => {
-        this.check(this.x.iw_canvas_read(canvas, ptr, len));
+        this.check(this.x.iw_frame_draw(framePtr, frame.length, ptr, len));
         return this.u8(ptr, len).slice();
       });
-      drawMs += performance.now() - t2;
-      return { pixels, reports, solveMs, drawMs };
+      return { pixels, reports, solveMs, drawMs: performance.now() - t1 };
     } finally {
-      this.x.iw_canvas_free(canvas);
+      this.x.iw_free(framePtr, frame.length);
     }
   }
 

@@ -86,3 +86,48 @@ export function downscaleMatte(matte: Uint8Array, width: number, height: number,
   }
   return out;
 }
+
+/** A field kept for playback of a proxied scene (see `packField`). */
+export interface PackedField {
+  width: number;
+  height: number;
+  /** Δx then Δy of every pixel, in 1/`PACK_STEPS` of a proxy pixel. */
+  packed: Int16Array;
+}
+
+/** Steps a proxy pixel is cut into by `packField` (at factor 4 a step is a quarter of a picture pixel). */
+export const PACK_STEPS = 16;
+
+/**
+ * A proxy's field packed to 16 bits a value, half the bytes of its floats: the fields
+ * solved ahead for playback of a proxied scene (6 MB a frame at 1000 × 750 as floats) are
+ * kept so. Each value moves by at most half a step (1/32 of a proxy pixel), far below what
+ * a frame can show; a field with a value beyond ±2047 pixels, or one not finite, is not
+ * packed (null: keep the floats).
+ */
+export function packField(f: { width: number; height: number; dx: Float32Array; dy: Float32Array }): PackedField | null {
+  const n = f.width * f.height;
+  const packed = new Int16Array(2 * n);
+  const limit = 32767 / PACK_STEPS;
+  for (const [plane, at] of [[f.dx, 0], [f.dy, n]] as const) {
+    for (let i = 0; i < n; i++) {
+      const v = plane[i];
+      if (!(Math.abs(v) < limit)) return null;
+      packed[at + i] = Math.round(v * PACK_STEPS);
+    }
+  }
+  return { width: f.width, height: f.height, packed };
+}
+
+/** The floats of a packed field (`packField`). */
+export function unpackField(p: PackedField): { width: number; height: number; dx: Float32Array; dy: Float32Array } {
+  const n = p.width * p.height;
+  const dx = new Float32Array(n);
+  const dy = new Float32Array(n);
+  const inv = 1 / PACK_STEPS;
+  for (let i = 0; i < n; i++) {
+    dx[i] = p.packed[i] * inv;
+    dy[i] = p.packed[n + i] * inv;
+  }
+  return { width: p.width, height: p.height, dx, dy };
+}

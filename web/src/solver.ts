@@ -228,14 +228,15 @@ export interface FullRequest {
 
 /**
  * When the worker that draws full-resolution frames has grown its WebAssembly memory above
- * this (a 4000 × 3000 frame's solve and drawing take several hundred MB, and a
- * WebAssembly memory never shrinks) and is then left alone `RENEW_IDLE_MS`, it is replaced
+ * this (a posed 4000 × 3000 frame's solve and drawing take it to about 313 MB, where a
+ * fresh worker holding the picture and its grid has about 100 MB, and a WebAssembly
+ * memory never shrinks) and is then left alone `RENEW_IDLE_MS`, it is replaced
  * by a fresh worker holding only the layers' pictures: ending a worker is the one way its
  * memory is given back at once. Not sooner: the fresh worker's first posed frame solves
  * about a second slower (its memory is new to the system and faults in as the solve
  * first touches it), so a pause between two drags keeps the worker as it is.
  */
-export const RENEW_BYTES = 320 * 2 ** 20;
+export const RENEW_BYTES = 256 * 2 ** 20;
 export const RENEW_IDLE_MS = 8000;
 
 /**

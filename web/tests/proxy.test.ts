@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { downscaleMatte, downscaleRgba, proxyFactor, proxySize, toProxy } from '../src/proxy';
+import { PACK_STEPS, downscaleMatte, downscaleRgba, packField, proxyFactor, proxySize, toProxy, unpackField } from '../src/proxy';
 
 describe('large pictures: the proxy', () => {
   it('scales a photograph down by a whole factor, and leaves pictures of screen size alone', () => {
@@ -46,5 +46,22 @@ describe('large pictures: the proxy', () => {
     m[1 * w + 4] = 0; // the centre pixel (4, 1) of the block x 3…5
     const p = downscaleMatte(m, w, h, 3);
     expect(Array.from(p)).toEqual([255, 0]);
+  });
+
+  it('packs a field solved ahead to 16 bits a value, within half a step, and keeps floats it cannot pack', () => {
+    const n = 6;
+    const dx = Float32Array.from([0, 0.3, -1.7, 2047.5, -2000.01, 1 / 3]);
+    const dy = Float32Array.from([5.03125, -0.0312, 12.5, -7, 0.99, -2047.9]);
+    const packed = packField({ width: 3, height: 2, dx, dy })!;
+    expect(packed.packed.byteLength).toBe(4 * n);
+    const back = unpackField(packed);
+    for (let i = 0; i < n; i++) {
+      expect(Math.abs(back.dx[i] - dx[i])).toBeLessThanOrEqual(0.5 / PACK_STEPS + 1e-6);
+      expect(Math.abs(back.dy[i] - dy[i])).toBeLessThanOrEqual(0.5 / PACK_STEPS + 1e-6);
+    }
+    expect(back.dy[0]).toBe(5.0625);
+    // Beyond ±2047 pixels, or not finite: left as floats.
+    expect(packField({ width: 1, height: 1, dx: Float32Array.of(2048), dy: Float32Array.of(0) })).toBeNull();
+    expect(packField({ width: 1, height: 1, dx: Float32Array.of(0), dy: Float32Array.of(NaN) })).toBeNull();
   });
 });

@@ -10,7 +10,7 @@ use inkwarp_core::methods::{
     controls_field, line_pairs_from_chain, note_ignored_matte, Controls, Interpolant, Method,
     MethodParams, MethodReport, ThinPlateMap,
 };
-use inkwarp_core::render::{Canvas, RgbaImage};
+use inkwarp_core::render::{draw_frame, Canvas, PreparedLayer, RgbaImage};
 use inkwarp_core::scene::{images, BeierNeelyDoc, SolverDoc, TpsExactDoc};
 use inkwarp_core::solve::{SolveMethod, SolveOptions, Solver, Upsampling};
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
@@ -816,6 +816,74 @@ pub extern "C" fn iw_canvas_draw_solved(canvas: u32, grid: u32, image: u32, offs
     match res {
         Ok(Ok(())) => 0,
         Ok(Err(e)) | Err(e) => fail(e),
+    }
+}
+
+#[derive(Debug, Deserialize)]
+struct FrameIn {
+    width: usize,
+    height: usize,
+    background: [u8; 4],
+    /// The rows to draw, `[first, end)`; all of them when absent.
+    #[serde(default)]
+    rows: Option<[usize; 2]>,
+    layers: Vec<FrameLayerIn>,
+}
+
+#[derive(Debug, Deserialize)]
+struct FrameLayerIn {
+    grid: u32,
+    image: u32,
+    offset: [f64; 2],
+}
+
+/// Draws a frame of kept pictures ([`iw_image_new`]) back to front over `background`,
+/// each by the field kept for its grid by [`iw_grid_solve_kept`] (taken: it becomes the
+/// layer's positions and is freed after), or at rest when none is kept, straight into
+/// `out` as straight RGBA8 (`4 × width × rows` bytes): what [`iw_canvas_new`],
+/// [`iw_canvas_draw_solved`] for each layer and [`iw_canvas_read`] give, byte for byte,
+/// without a canvas of the whole frame (16 bytes a pixel): the renderer composites band
+/// by band ([`inkwarp_core::render::draw_frame`]). `req_json`: `{"width", "height",
+/// "background": [r, g, b, a], "rows": [first, end] (optional), "layers": [{"grid",
+/// "image", "offset": [x, y]}]}`. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_frame_draw(req_ptr: *const u8, req_len: usize, out_ptr: *mut u8, out_len: usize) -> i32 {
+    let req: FrameIn = match json_arg(req_ptr, req_len) {
+        Ok(r) => r,
+        Err(e) => return fail(e),
+    };
+    let res = GRIDS.with(|grids| {
+        let grids = grids.borrow();
+        IMAGES.with(|images| -> Result<(), String> {
+            let images = images.borrow();
+            let mut layers = Vec::with_capacity(req.layers.len());
+            for (n, l) in req.layers.iter().enumerate() {
+                let g = &slot(&grids, l.grid)
+                    .ok_or_else(|| format!("Layer {n} of the frame: there is no grid with handle {}.", l.grid))?
+                    .grid;
+                let img = slot(&images, l.image)
+                    .ok_or_else(|| format!("Layer {n} of the frame: there is no picture with handle {}.", l.image))?;
+                if (img.width, img.height) != (g.width, g.height) {
+                    return Err(format!(
+                        "Layer {n} of the frame: the picture is {} × {}; its grid is {} × {}.",
+                        img.width, img.height, g.width, g.height
+                    ));
+                }
+                let field = match SOLVED.with(|s| s.borrow_mut().remove(&l.grid)) {
+                    Some(f) if (f.width, f.height) == (g.width, g.height) => f,
+                    Some(_) => return Err(format!("Layer {n} of the frame: the kept field is not of its grid's size.")),
+                    None => Field::zeros(g.width, g.height),
+                };
+                layers.push(PreparedLayer::new(img, field, g, l.offset).map_err(|e| e.to_string())?);
+            }
+            let rows = req.rows.map_or(0..req.height, |[a, b]| a..b);
+            draw_frame(req.width, req.height, req.background, &layers, rows, view_mut(out_ptr, out_len))
+                .map_err(|e| e.to_string())
+        })
+    });
+    match res {
+        Ok(()) => 0,
+        Err(e) => fail(e),
     }
 }
 

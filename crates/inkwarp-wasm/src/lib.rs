@@ -221,6 +221,26 @@ mod tests {
         assert_eq!(result()["constrained_nodes"].as_u64().map(|c| c > 0), Some(true));
         assert_eq!(iw_canvas_draw_solved(b, grid, image, 0.5, -1.0), 0, "{}", result());
         assert_eq!(read(a), read(b));
+        // The same frame drawn band by band straight into RGBA8 (`iw_frame_draw`), whole
+        // and in two parts cut at row 7, from the field kept again.
+        let frame = |rows: Option<[usize; 2]>| {
+            assert_eq!(iw_grid_solve_kept(grid, r, r_len), 0, "{}", result());
+            let [first, end] = rows.unwrap_or([0, h]);
+            let len = 4 * w * (end - first);
+            let fr = serde_json::json!({"width": w, "height": h, "background": [10, 20, 30, 255], "rows": rows,
+                "layers": [{"grid": grid, "image": image, "offset": [0.5, -1.0]}]});
+            let (f, f_len) = put(fr.to_string().as_bytes());
+            let out = iw_alloc(len);
+            assert_eq!(iw_frame_draw(f, f_len, out, len), 0, "{}", result());
+            view(out, len).to_vec()
+        };
+        assert_eq!(frame(None), read(a));
+        assert_eq!([frame(Some([0, 7])), frame(Some([7, h]))].concat(), read(a));
+        let bad = serde_json::json!({"width": w, "height": h, "background": [0, 0, 0, 0],
+            "layers": [{"grid": grid, "image": 999, "offset": [0, 0]}]});
+        let (f, f_len) = put(bad.to_string().as_bytes());
+        assert_eq!(iw_frame_draw(f, f_len, iw_alloc(4 * n), 4 * n), 1);
+        assert!(result()["error"].as_str().unwrap().contains("Layer 0 of the frame: there is no picture with handle 999"));
         // The kept field was taken by the draw: the next one is at rest, the picture itself.
         let c = iw_canvas_new(w, h, 0, 0, 0, 0);
         assert_eq!(iw_canvas_draw_solved(c, grid, image, 0.0, 0.0), 0, "{}", result());

@@ -2,7 +2,7 @@
 //! (quads and skirt quarters) of each block, with their orientation and extent.
 
 use super::{premultiply, RgbaImage};
-use crate::{Field, Grid};
+use crate::Grid;
 use rayon::prelude::*;
 
 pub(super) type V2 = [f32; 2];
@@ -29,14 +29,18 @@ pub(super) const SIMPLE: u8 = 0x20;
 /// Blocks per chunk of a block row in [`Plan::ranges`].
 pub(super) const CHUNK: usize = 32;
 
-/// A layer ready to be drawn: canvas positions, premultiplied colours, links.
-pub(super) struct Layer {
+/// A layer ready to be drawn: canvas positions, links, and the picture its premultiplied
+/// colours are read from (premultiplied as they are read: a 4000 × 3000 layer would
+/// otherwise hold 192 MB of them).
+pub(super) struct Layer<'a> {
     pub w: usize,
     pub h: usize,
-    /// Canvas position of each pixel; NaN where the pixel is not drawn.
-    pub pos: Vec<V2>,
-    /// Premultiplied colour of each pixel.
-    pub col: Vec<Rgba>,
+    /// Canvas position of each pixel (x plane, y plane: the field's own planes, moved in
+    /// and overwritten); NaN where the pixel is not drawn.
+    pub px: Vec<f32>,
+    pub py: Vec<f32>,
+    /// The straight RGBA8 picture.
+    pub rgba: &'a [u8],
     /// `LINK_RIGHT | LINK_DOWN` bits of the grid links whose two ends are drawn.
     pub links: Vec<u8>,
 }
@@ -203,51 +207,56 @@ pub(super) fn shade(col: &[Rgba; 4], mask: u8, own: usize, u: f32, v: f32) -> Rg
     }
 }
 
-impl Layer {
-    pub fn prepare(image: &RgbaImage, field: &Field, grid: &Grid, offset: [f64; 2]) -> Layer {
+impl<'a> Layer<'a> {
+    /// The layer of `image` displaced by the field `(dx, dy)` (planes, row-major), which
+    /// become its canvas positions in place.
+    pub fn prepare(
+        image: &'a RgbaImage,
+        mut px: Vec<f32>,
+        mut py: Vec<f32>,
+        grid: &Grid,
+        offset: [f64; 2],
+    ) -> Layer<'a> {
         let (w, h) = (image.width, image.height);
         let (ox, oy) = (offset[0] as f32, offset[1] as f32);
-        let mut pos = vec![[0.0f32; 2]; w * h];
-        let mut col = vec![[0.0f32; 4]; w * h];
-        pos.par_chunks_mut(w)
-            .zip(col.par_chunks_mut(w))
+        px.par_chunks_mut(w)
+            .zip(py.par_chunks_mut(w))
             .enumerate()
-            .for_each(|(y, (prow, crow))| {
+            .for_each(|(y, (xrow, yrow))| {
                 let r = y * w..(y + 1) * w;
-                let pixels = image.data[4 * r.start..4 * r.end].chunks_exact(4);
-                let inputs = field.dx[r.clone()]
-                    .iter()
-                    .zip(&field.dy[r.clone()])
-                    .zip(&grid.active[r])
-                    .zip(pixels);
-                for (x, ((p, c), (((&dx, &dy), &active), px))) in
-                    prow.iter_mut().zip(crow.iter_mut()).zip(inputs).enumerate()
+                let alphas = image.data[4 * r.start..4 * r.end].chunks_exact(4);
+                let inputs = grid.active[r].iter().zip(alphas);
+                for (x, ((px, py), (&active, pixel))) in
+                    xrow.iter_mut().zip(yrow.iter_mut()).zip(inputs).enumerate()
                 {
-                    *c = premultiply([px[0], px[1], px[2], px[3]]);
-                    let at = [x as f32 + dx + ox, y as f32 + dy + oy];
-                    let drawn = (active || px[3] > 0) && at[0].is_finite() && at[1].is_finite();
-                    *p = if drawn { at } else { [f32::NAN; 2] };
+                    let at = [x as f32 + *px + ox, y as f32 + *py + oy];
+                    let drawn = (active || pixel[3] > 0) && at[0].is_finite() && at[1].is_finite();
+                    (*px, *py) = if drawn {
+                        (at[0], at[1])
+                    } else {
+                        (f32::NAN, f32::NAN)
+                    };
                 }
             });
         let mut links = vec![0u8; w * h];
         links.par_chunks_mut(w).enumerate().for_each(|(y, lrow)| {
             let r = y * w..(y + 1) * w;
-            let here = &pos[r.clone()];
+            let here = &px[r.clone()];
             let below = if y + 1 < h {
-                &pos[r.end..r.end + w]
+                &px[r.end..r.end + w]
             } else {
                 here
             };
             let (right, down) = (&grid.link_right[r.clone()], &grid.link_down[r]);
             for x in 0..w {
-                if here[x][0].is_nan() {
+                if here[x].is_nan() {
                     continue;
                 }
                 let mut l = 0;
-                if x + 1 < w && right[x] && !here[x + 1][0].is_nan() {
+                if x + 1 < w && right[x] && !here[x + 1].is_nan() {
                     l |= LINK_RIGHT;
                 }
-                if y + 1 < h && down[x] && !below[x][0].is_nan() {
+                if y + 1 < h && down[x] && !below[x].is_nan() {
                     l |= LINK_DOWN;
                 }
                 lrow[x] = l;
@@ -256,10 +265,30 @@ impl Layer {
         Layer {
             w,
             h,
-            pos,
-            col,
+            px,
+            py,
+            rgba: &image.data,
             links,
         }
+    }
+
+    /// The canvas position of pixel `i` (NaN where it is not drawn).
+    #[inline(always)]
+    pub fn pos(&self, i: usize) -> V2 {
+        [self.px[i], self.py[i]]
+    }
+
+    /// Whether pixel `i` is drawn.
+    #[inline(always)]
+    pub fn drawn(&self, i: usize) -> bool {
+        !self.px[i].is_nan()
+    }
+
+    /// The premultiplied colour of pixel `i`.
+    #[inline(always)]
+    pub fn col(&self, i: usize) -> Rgba {
+        let p = &self.rgba[4 * i..4 * i + 4];
+        premultiply([p[0], p[1], p[2], p[3]])
     }
 
     /// Block `(bc, br)`, whose top-left pixel is `(bc - 1, br - 1)`; `bc ≤ w`, `br ≤ h`.
@@ -278,10 +307,10 @@ impl Layer {
             let y = (br + (k >> 1)).wrapping_sub(1);
             if x < self.w && y < self.h {
                 let i = y * self.w + x;
-                if !self.pos[i][0].is_nan() {
+                if self.drawn(i) {
                     b.present |= 1 << k;
-                    b.p[k] = self.pos[i];
-                    b.col[k] = self.col[i];
+                    b.p[k] = self.pos(i);
+                    b.col[k] = self.col(i);
                     b.xy[k] = (x, y);
                     idx[k] = i;
                 }
@@ -309,18 +338,18 @@ impl Layer {
     pub fn frame(&self, x: usize, y: usize) -> (V2, V2) {
         let w = self.w;
         let i = y * w + x;
-        let p = self.pos[i];
+        let p = self.pos(i);
         let ex = if self.links[i] & LINK_RIGHT != 0 {
-            Some(sub(self.pos[i + 1], p))
+            Some(sub(self.pos(i + 1), p))
         } else if x > 0 && self.links[i - 1] & LINK_RIGHT != 0 {
-            Some(sub(p, self.pos[i - 1]))
+            Some(sub(p, self.pos(i - 1)))
         } else {
             None
         };
         let ey = if self.links[i] & LINK_DOWN != 0 {
-            Some(sub(self.pos[i + w], p))
+            Some(sub(self.pos(i + w), p))
         } else if y > 0 && self.links[i - w] & LINK_DOWN != 0 {
-            Some(sub(p, self.pos[i - w]))
+            Some(sub(p, self.pos(i - w)))
         } else {
             None
         };
@@ -411,22 +440,22 @@ impl Layer {
                 // Rows above and below the block row, for the complete quads inside.
                 let rows = (br >= 1 && br < self.h).then(|| {
                     let (a, b) = ((br - 1) * w, br * w);
-                    (
-                        &self.pos[a..a + w],
-                        &self.pos[b..b + w],
-                        &self.links[a..a + w],
-                        &self.links[b..b + w],
-                    )
+                    (a, b, &self.links[a..a + w], &self.links[b..b + w])
                 });
                 for bc in 0..bw {
-                    if let Some((p0, p1, l0, l1)) = rows {
+                    if let Some((a, b, l0, l1)) = rows {
                         if bc >= 1 && bc < w {
                             let x = bc - 1;
                             if l0[x] & (LINK_RIGHT | LINK_DOWN) == LINK_RIGHT | LINK_DOWN
                                 && l0[x + 1] & LINK_DOWN != 0
                                 && l1[x] & LINK_RIGHT != 0
                             {
-                                let q = [p0[x], p0[x + 1], p1[x + 1], p1[x]];
+                                let q = [
+                                    self.pos(a + x),
+                                    self.pos(a + x + 1),
+                                    self.pos(b + x + 1),
+                                    self.pos(b + x),
+                                ];
                                 srow[bc] = COMPLETE | ANY | is_flipped(&q) as u8;
                                 extend(&mut rrow[bc / CHUNK], &q);
                                 continue;

@@ -84,6 +84,25 @@ pub enum RenderError {
         width: usize,
         height: usize,
     },
+    /// An output buffer whose length does not fit the rows asked for.
+    #[error(
+        "The output buffer holds {actual} bytes, but rows {first}..{end} of a {width}-pixel-wide \
+         frame need {expected} (4 bytes per pixel)."
+    )]
+    OutputLength {
+        width: usize,
+        first: usize,
+        end: usize,
+        expected: usize,
+        actual: usize,
+    },
+    /// Rows asked for outside the frame.
+    #[error("Rows {first}..{end} are not rows of a frame {height} pixels high.")]
+    Rows {
+        first: usize,
+        end: usize,
+        height: usize,
+    },
 }
 
 /// An image with straight (not premultiplied) 8-bit RGBA, row-major, 4 bytes per pixel.
@@ -267,6 +286,90 @@ impl Canvas {
         );
         self.data[y * self.width + x]
     }
+}
+
+/// A layer ready for [`draw_frame`]: its picture (borrowed), placed by its field, which it
+/// takes (the field's two planes become the pixels' canvas positions, in place), and its
+/// mesh's plan. It holds 10 bytes a pixel besides the picture (the field's 8 and two
+/// bytes of links and plan), where a [`Canvas`] of the frame holds 16 bytes a pixel.
+pub struct PreparedLayer<'a> {
+    layer: mesh::Layer<'a>,
+    plan: mesh::Plan,
+}
+
+impl std::fmt::Debug for PreparedLayer<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PreparedLayer")
+            .field("width", &self.layer.w)
+            .field("height", &self.layer.h)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> PreparedLayer<'a> {
+    /// `image` displaced by `field` over `grid`'s mesh, shifted by `offset` (canvas pixels).
+    pub fn new(
+        image: &'a RgbaImage,
+        field: Field,
+        grid: &Grid,
+        offset: [f64; 2],
+    ) -> Result<Self, RenderError> {
+        check_layer(image, &field, grid)?;
+        let layer = mesh::Layer::prepare(image, field.dx, field.dy, grid, offset);
+        let plan = layer.plan();
+        Ok(PreparedLayer { layer, plan })
+    }
+}
+
+/// Draws `layers` back to front over `background` (straight RGBA8) into rows `rows` of a
+/// frame `width` pixels wide and `height` high, as straight RGBA8 in `out`
+/// (`4 × width × rows.len()` bytes), without a [`Canvas`] of the frame: the rows are
+/// composited band by band in a small buffer and written out. The bytes are those of
+/// [`Canvas::new`], [`Canvas::draw_layer`] for each layer, then [`Canvas::to_rgba8`] (the
+/// rows of it), for any rows and any number of threads, so two workers can each draw
+/// a part of one frame.
+///
+/// ```
+/// use inkwarp_core::render::{draw_frame, Canvas, PreparedLayer, RgbaImage};
+/// use inkwarp_core::{Field, Grid};
+/// let image = RgbaImage::from_raw(2, 2, (0..16).map(|v| v as u8 * 15 + 5).collect()).unwrap();
+/// let (field, grid) = (Field::zeros(2, 2), Grid::new(2, 2));
+/// let mut canvas = Canvas::new(4, 3, [0, 0, 255, 255]);
+/// canvas.draw_layer(&image, &field, &grid, [1.5, 0.5]);
+/// let layer = PreparedLayer::new(&image, field, &grid, [1.5, 0.5]).unwrap();
+/// let mut out = vec![0; 4 * 4 * 2];
+/// draw_frame(4, 3, [0, 0, 255, 255], &[layer], 1..3, &mut out).unwrap();
+/// assert_eq!(out, canvas.to_rgba8().data[4 * 4..]);
+/// ```
+pub fn draw_frame(
+    width: usize,
+    height: usize,
+    background: [u8; 4],
+    layers: &[PreparedLayer<'_>],
+    rows: std::ops::Range<usize>,
+    out: &mut [u8],
+) -> Result<(), RenderError> {
+    if rows.start > rows.end || rows.end > height {
+        return Err(RenderError::Rows {
+            first: rows.start,
+            end: rows.end,
+            height,
+        });
+    }
+    let expected = 4 * width * rows.len();
+    if out.len() != expected {
+        return Err(RenderError::OutputLength {
+            width,
+            first: rows.start,
+            end: rows.end,
+            expected,
+            actual: out.len(),
+        });
+    }
+    let pairs: Vec<(&mesh::Layer<'_>, &mesh::Plan)> =
+        layers.iter().map(|l| (&l.layer, &l.plan)).collect();
+    raster::draw_frame(width, premultiply(background), &pairs, rows.start, out);
+    Ok(())
 }
 
 fn check_layer(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<(), RenderError> {

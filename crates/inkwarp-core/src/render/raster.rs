@@ -16,7 +16,7 @@ use super::mesh::{
     cross, mid, quarter_corners, shade, shading_mask, sub, Layer, Plan, Rgba, ANY, BOTTOM, CHUNK,
     COMPLETE, LEFT, RIGHT, SIMPLE, TOP, V2,
 };
-use super::{Canvas, RgbaImage};
+use super::{unpremultiply, Canvas, RgbaImage};
 use crate::{Field, Grid};
 use rayon::prelude::*;
 use std::cell::RefCell;
@@ -59,7 +59,7 @@ pub(super) fn draw_layer(
     if image.width == 0 || image.height == 0 || cw == 0 || canvas.height == 0 {
         return;
     }
-    let layer = Layer::prepare(image, field, grid, offset);
+    let layer = Layer::prepare(image, field.dx.clone(), field.dy.clone(), grid, offset);
     let plan = layer.plan();
     canvas
         .data
@@ -75,9 +75,52 @@ pub(super) fn draw_layer(
         });
 }
 
+/// Draws `layers` back to front over `background` (premultiplied) into the canvas rows
+/// from `y0` on that `out` holds (straight RGBA8, `width` pixels a row), band by band:
+/// each band is composited in a reused buffer of its own and written out as RGBA8, so no
+/// canvas of the whole frame is ever held. Each pixel goes through the same operations as
+/// [`draw_layer`] on a [`Canvas`] then [`Canvas::to_rgba8`], so the bytes are the same.
+pub(super) fn draw_frame(
+    width: usize,
+    background: Rgba,
+    layers: &[(&Layer<'_>, &Plan)],
+    y0: usize,
+    out: &mut [u8],
+) {
+    if width == 0 {
+        return;
+    }
+    out.par_chunks_mut(4 * BAND_ROWS * width)
+        .enumerate()
+        .for_each(|(band, out)| {
+            SCRATCH.with(|scratch| {
+                FRAME_BAND.with(|frame| {
+                    let rows = out.len() / (4 * width);
+                    let mut dst = frame.borrow_mut();
+                    dst.clear();
+                    dst.resize(rows * width, background);
+                    let mut b = scratch.borrow_mut();
+                    for (layer, plan) in layers {
+                        if layer.w == 0 || layer.h == 0 {
+                            continue;
+                        }
+                        b.reset(width, y0 + band * BAND_ROWS, rows);
+                        b.render(layer, plan);
+                        b.composite(&mut dst);
+                    }
+                    for (o, &p) in out.chunks_exact_mut(4).zip(dst.iter()) {
+                        o.copy_from_slice(&unpremultiply(p));
+                    }
+                })
+            })
+        });
+}
+
 thread_local! {
     /// Each worker thread reuses its band buffers from one layer to the next.
     static SCRATCH: RefCell<Band> = RefCell::new(Band::default());
+    /// Each worker thread's band of the frame being composited (see [`draw_frame`]).
+    static FRAME_BAND: RefCell<Vec<Rgba>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Bounding box of some points.
@@ -367,23 +410,27 @@ impl Band {
     fn simple_run(&mut self, layer: &Layer, br: usize, bc0: usize, bc1: usize) {
         let w = layer.w;
         let (above, below) = ((br - 1) * w, br * w);
-        let top = &layer.pos[above..above + w];
-        let bottom = &layer.pos[below..below + w];
         let (band_first, band_end) = (self.y0 as f32, (self.y0 + self.rows) as f32);
         let lo = |a: f32, b: f32| if b < a { b } else { a };
         let hi = |a: f32, b: f32| if b > a { b } else { a };
         // The crossing of the left edge of quad `x` on scanline `y`, when known.
         let mut shared: Option<(usize, f32, f32)> = None;
         for x in bc0 - 1..bc1 - 1 {
-            let (tl, tr, bl, br) = (top[x], top[x + 1], bottom[x], bottom[x + 1]);
+            let (tl, tr) = (layer.pos(above + x), layer.pos(above + x + 1));
+            let (bl, br) = (layer.pos(below + x), layer.pos(below + x + 1));
             let y_min = lo(lo(tl[1], tr[1]), lo(bl[1], br[1]));
             let y_max = hi(hi(tl[1], tr[1]), hi(bl[1], br[1]));
             if y_max < band_first - 1.0 || y_min > band_end {
                 continue;
             }
             let i = above + x;
-            let c = &layer.col;
-            let colour = |s, t| shade(&[c[i], c[i + 1], c[i + w], c[i + w + 1]], 0b1111, 0, s, t);
+            let corners = [
+                layer.col(i),
+                layer.col(i + 1),
+                layer.col(i + w),
+                layer.col(i + w + 1),
+            ];
+            let colour = |s, t| shade(&corners, 0b1111, 0, s, t);
             let (first, end) = (ceil_f(hi(tl[1], tr[1])), ceil_f(lo(bl[1], br[1])));
             if first != ceil_f(y_min) || end != ceil_f(y_max) {
                 let q = [tl, tr, br, bl];
@@ -417,8 +464,12 @@ impl Band {
     fn quad(&mut self, layer: &Layer, plan: &Plan, bc: usize, br: usize, byte: u8) {
         let w = layer.w;
         let i = (br - 1) * w + bc - 1;
-        let pos = &layer.pos;
-        let q = [pos[i], pos[i + 1], pos[i + w + 1], pos[i + w]];
+        let q = [
+            layer.pos(i),
+            layer.pos(i + 1),
+            layer.pos(i + w + 1),
+            layer.pos(i + w),
+        ];
         let bb = bbox(&q);
         if !self.reaches(bb) {
             return;
@@ -434,8 +485,12 @@ impl Band {
             (signs[bi + bw], 1, 0),
             (signs[bi - 1], 3, 1),
         ];
-        let c = &layer.col;
-        let col = [c[i], c[i + 1], c[i + w], c[i + w + 1]];
+        let col = [
+            layer.col(i),
+            layer.col(i + 1),
+            layer.col(i + w),
+            layer.col(i + w + 1),
+        ];
         let flipped = byte & 1 != 0;
         let mut outline = [[0.0f32; 2]; 8];
         let mut n = 0;

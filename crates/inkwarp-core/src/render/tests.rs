@@ -577,3 +577,86 @@ fn premultiply_round_trips_every_value() {
     }
     assert_eq!(unpremultiply(premultiply([10, 20, 30, 0])), [0, 0, 0, 0]);
 }
+
+/// The banded frame (`draw_frame`) against the whole-frame canvas, with a warp that carries
+/// pixels across band edges (a vertical swirl of ±20 px, a fold, holes, a second layer
+/// half transparent), whole and cut into parts at rows that are not band edges.
+#[test]
+fn banded_frame_equals_the_whole_canvas_across_band_edges() {
+    let (cw, ch) = (150, 130);
+    let (w1, h1) = (120, 100);
+    let back = opaque_noise(w1, h1, 7);
+    // A swirl: rows move up and down by up to 20 px, more in the middle; a fold where
+    // the columns 60..70 are pushed past their neighbours.
+    let swirl = field_from(w1, h1, |x, y| {
+        let fold = if (60.0..70.0).contains(&x) { 14.0 } else { 0.0 };
+        [
+            fold + 6.0 * (y / 13.0).sin(),
+            20.0 * (x / 19.0).sin() * (1.0 - (y - 50.0).abs() / 60.0),
+        ]
+    });
+    let mut front = RgbaImage::from_raw(70, 90, noise(11, 70 * 90 * 4)).unwrap();
+    for (i, p) in front.data.chunks_exact_mut(4).enumerate() {
+        // Holes (alpha 0) in a checker of 9-pixel squares, the rest half transparent.
+        let (x, y) = (i % 70, i / 70);
+        p[3] = if (x / 9 + y / 9) % 3 == 0 {
+            0
+        } else {
+            100 + p[3] / 3
+        };
+    }
+    let front_grid = alpha_matte(&front);
+    let shear = field_from(70, 90, |x, y| [0.1 * y, -25.0 + 0.6 * x]);
+    let background = [10, 20, 30, 200];
+    let (back_grid, offsets) = (Grid::new(w1, h1), [[12.5, 9.0], [40.0, 33.25]]);
+
+    let mut canvas = Canvas::new(cw, ch, background);
+    canvas.draw_layer(&back, &swirl, &back_grid, offsets[0]);
+    canvas.draw_layer(&front, &shear, &front_grid, offsets[1]);
+    let whole = canvas.to_rgba8().data;
+
+    let layers = [
+        PreparedLayer::new(&back, swirl.clone(), &back_grid, offsets[0]).unwrap(),
+        PreparedLayer::new(&front, shear.clone(), &front_grid, offsets[1]).unwrap(),
+    ];
+    for cuts in [
+        vec![0, ch],
+        vec![0, 45, ch],
+        vec![0, 1, 31, 33, 64, 97, 129, ch],
+    ] {
+        let mut out = Vec::new();
+        for part in cuts.windows(2) {
+            let mut rows = vec![0u8; 4 * cw * (part[1] - part[0])];
+            draw_frame(cw, ch, background, &layers, part[0]..part[1], &mut rows).unwrap();
+            out.extend_from_slice(&rows);
+        }
+        assert!(
+            out == whole,
+            "cut at {cuts:?}: the banded frame differs from the canvas"
+        );
+    }
+    // The warp does cross band edges: the frame differs from the picture left in place.
+    let still = [PreparedLayer::new(&back, Field::zeros(w1, h1), &back_grid, offsets[0]).unwrap()];
+    let mut rest = vec![0u8; 4 * cw * ch];
+    draw_frame(cw, ch, background, &still, 0..ch, &mut rest).unwrap();
+    assert_ne!(rest, whole);
+}
+
+#[test]
+fn draw_frame_names_the_rows_and_the_buffer_it_needs() {
+    let image = solid(2, 2, [1, 2, 3, 255]);
+    let grid = Grid::new(2, 2);
+    let layers = [PreparedLayer::new(&image, Field::zeros(2, 2), &grid, [0.0, 0.0]).unwrap()];
+    let e = draw_frame(2, 2, [0; 4], &layers, 1..3, &mut [0; 16]).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "Rows 1..3 are not rows of a frame 2 pixels high."
+    );
+    let e = draw_frame(2, 2, [0; 4], &layers, 0..2, &mut [0; 15]).unwrap_err();
+    assert!(
+        e.to_string().contains("holds 15 bytes") && e.to_string().contains("need 16"),
+        "{e}"
+    );
+    let wrong = PreparedLayer::new(&image, Field::zeros(3, 2), &grid, [0.0, 0.0]).unwrap_err();
+    assert!(matches!(wrong, RenderError::SizeMismatch { .. }));
+}
