@@ -1405,7 +1405,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       const { stats, fullShown } = window.inkwarp.app;
       const mem = performance.memory ? { used: performance.memory.usedJSHeapSize, total: performance.memory.totalJSHeapSize, wasm: window.inkwarp.engine.x.memory.buffer.byteLength / 2 ** 20 } : null;
       const note = document.querySelector('#proxy-note');
-      return { drag: [...stats.dragLatency], draft: [...stats.draftSolveMs], final: [...stats.finalSolveMs], full: [...stats.fullMs], fullParts: stats.fullParts, heap: mem, open: window.__openSteps, fullShown: !!fullShown, note: note.hidden ? '' : note.textContent };
+      return { drag: [...stats.dragLatency], dragParts: stats.dragParts, draft: [...stats.draftSolveMs], final: [...stats.finalSolveMs], full: [...stats.fullMs], fullParts: stats.fullParts, heap: mem, open: window.__openSteps, fullShown: !!fullShown, note: note.hidden ? '' : note.textContent };
     });
     // Memory once the posed frame is drawn, and once the editor has been left alone long
     // enough for the full-resolution worker to be replaced by a fresh one (see
@@ -1429,6 +1429,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     perf.photo = {
       openS: (opened - made) / 1000, firstProxyFrameS: firstFrame / 1000, openSteps: s.open, fullParts: s.fullParts,
       dragMedianMs: median(s.drag), dragP90Ms: pct(s.drag, 0.9), dragFrames: s.drag.length,
+      dragParts: Object.fromEntries(['queued', 'toWorker', 'solve', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((q) => q[k]))])),
       draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000,
       heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, browserRssBeforeMiB: rssBefore,
       makeS: (made - t0) / 1000, patchDiff: diff, byKind: { before: kindsBefore, drag: kindsDrag, settled: kindsSettled, idle: kindsIdle }, workers: { drag: workersDrag, settled: workersSettled, idle: workersIdle }, small: { ...small, browserRssMiB: rssSmall },

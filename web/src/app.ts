@@ -154,6 +154,14 @@ const AHEAD_IDLE_MS = 400;
 const AHEAD_CYCLES = 2;
 /** A multisampled full frame slower than this (ms) is preceded by a single-sampled one. */
 const SLOW_ANTIALIAS_MS = 50;
+/**
+ * While dragging, a draft drawn by the CPU of a frame with more pixels than this is drawn
+ * a whole number of times smaller (see `App.draftShrink`): 512 × 512 is not, a 4000 × 3000
+ * photograph's 1000 × 750 proxy is, at half its size.
+ */
+const DRAFT_PIXELS = 400_000;
+/** Nor is it drawn so small that one of its pixels covers more than this many screen pixels across. */
+const DRAFT_MAX_SCREEN_PX = 2;
 
 export class App {
   readonly store: Store;
@@ -291,6 +299,25 @@ export class App {
    * picture's own resolution (`full`) replaces it once the drawing rests.
    */
   proxy = 1;
+
+  /** Screen (device) pixels across one pixel of the scene as the stage shows it (set by the page's layout). */
+  screenPxPerScenePx = 1;
+
+  /**
+   * How many times smaller a draft is drawn while dragging (1: at the frame's size): a
+   * frame of more than `DRAFT_PIXELS` pixels (a large picture's proxy) is drawn by the
+   * least whole factor that brings it within them, unless its pixels would then cover more
+   * than `DRAFT_MAX_SCREEN_PX` screen pixels (zoomed in). The CPU's time for a draft, and
+   * the page's to show it, go with its pixels; the full frame at rest is drawn at full size.
+   */
+  get draftShrink(): number {
+    const { width, height } = this.frameSize;
+    const n = width * height;
+    if (n <= DRAFT_PIXELS) return 1;
+    const want = Math.ceil(Math.sqrt(n / DRAFT_PIXELS));
+    const most = Math.max(1, Math.floor(DRAFT_MAX_SCREEN_PX / Math.max(1e-6, this.screenPxPerScenePx * this.proxy)));
+    return Math.max(1, Math.min(want, most));
+  }
 
   /** The size the editor's grids and frames have: the scene's, or its proxy's. */
   get frameSize(): { width: number; height: number } {
@@ -929,6 +956,7 @@ export class App {
     // A sparse draft can only be drawn as a draft (its field is known at its pixels).
     const layers = this.drawList();
     const draft = this.dragging || this.store.view.playing || holdsSparse(layers);
+    this.gl.draftShrink = this.dragging && !this.store.view.playing ? this.draftShrink : 1;
     const doc = this.doc;
     const { width, height } = this.frameSize;
     const same = this.gl.drawn(width, height, doc.background ?? [255, 255, 255, 255], layers, !draft, draft);
@@ -977,6 +1005,7 @@ export class App {
   draw(draft: boolean, antialias = !draft, adaptive = false): void {
     const doc = this.doc;
     const { width, height } = this.frameSize;
+    this.gl.draftShrink = draft && this.dragging && !this.store.view.playing ? this.draftShrink : 1;
     this.gl.render(width, height, doc.background ?? [255, 255, 255, 255], this.drawList(), antialias, draft, adaptive);
   }
 

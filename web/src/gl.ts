@@ -795,14 +795,21 @@ export class GlRenderer {
    */
   readonly draftCanvas: HTMLCanvasElement | null = null;
   cpuDrafts = false;
+  /**
+   * How many times smaller the CPU draws a draft (1: at the frame's size), set by the page
+   * for a large frame while dragging (see `App.draftShrink`).
+   */
+  draftShrink = 1;
   private engine: Engine | null = null;
   private cpuFrame: ImageData | null = null;
   private cpuShown = false;
+  /** How many times smaller the frame on the CPU's canvas was drawn, and the frame's own size. */
+  private cpuDrawn = { shrink: 1, width: 0, height: 0 };
 
   /** Whether `render` with these arguments (no fast frame) would draw the frame already drawn. */
   drawn(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): boolean {
     if (holdsSparse(layers)) [draft, antialias] = [true, false];
-    return this.lastFrame === frameKey(width, height, background, layers, antialias, draft, false);
+    return this.lastFrame === this.keyOf(width, height, background, layers, antialias, draft, false);
   }
 
   /** Where the last frame can be read: the resolve target, or the canvas after a draft. */
@@ -909,7 +916,7 @@ void main() { o = texture(uTex, vPos); }`);
   render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false, adaptive = false): void {
     if (holdsSparse(layers)) [draft, antialias] = [true, false];
     const fast = adaptive && !draft && !antialias;
-    const key = frameKey(width, height, background, layers, antialias, draft, fast);
+    const key = this.keyOf(width, height, background, layers, antialias, draft, fast);
     if (this.cpuDrafts && this.engine && layers.length > 0) {
       // Drafts and fast full frames are drawn by the CPU where it can draw every layer's.
       const cpu = draft ? layers.every(({ layer }) => layer.onCpu) : fast && layers.every(({ layer }) => layer.onCpuFull);
@@ -997,14 +1004,34 @@ void main() { o = texture(uTex, vPos); }`);
    */
   private renderCpu(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], full = false): void {
     const canvas = this.draftCanvas!;
-    if (canvas.width !== width) canvas.width = width;
-    if (canvas.height !== height) canvas.height = height;
-    if (this.cpuFrame?.width !== width || this.cpuFrame.height !== height) this.cpuFrame = new ImageData(width, height);
+    // A large frame's draft is drawn smaller and stretched over the frame (smoothly: its
+    // pixels stand for blocks of the frame's), the full frame at its own size.
+    const shrink = full ? 1 : Math.max(1, Math.floor(this.draftShrink));
+    const w = Math.ceil(width / shrink);
+    const h = Math.ceil(height / shrink);
+    if (canvas.width !== w) canvas.width = w;
+    if (canvas.height !== h) canvas.height = h;
+    const was = this.cpuDrawn;
+    if (was.shrink !== shrink || was.width !== width || was.height !== height) {
+      // The last pixel column and row may stand for less than a block: the canvas reaches
+      // past the frame by that much, hidden by the frame's edge.
+      canvas.style.width = shrink > 1 ? `${(100 * w * shrink) / width}%` : '';
+      canvas.style.height = shrink > 1 ? `${(100 * h * shrink) / height}%` : '';
+      canvas.style.imageRendering = shrink > 1 ? 'auto' : '';
+      this.cpuDrawn = { shrink, width, height };
+    }
+    if (this.cpuFrame?.width !== w || this.cpuFrame.height !== h) this.cpuFrame = new ImageData(w, h);
     const engine = this.engine!;
     const what = layers.map(({ layer, offset, opacity }) => (full ? layer.cpuFull(engine, offset, opacity) : layer.cpuDraft(engine, offset, opacity)));
-    engine.drawDraft(this.cpuFrame.data, width, height, background, what);
+    engine.drawDraft(this.cpuFrame.data, width, height, background, what, shrink);
     canvas.getContext('2d')!.putImageData(this.cpuFrame, 0, 0);
     this.showCpu(true);
+  }
+
+  /** `frameKey`, and how many times smaller a draft on the CPU is drawn. */
+  private keyOf(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias: boolean, draft: boolean, fast: boolean): string {
+    const key = frameKey(width, height, background, layers, antialias, draft, fast);
+    return draft && this.draftShrink > 1 ? `${key}|shrink ${this.draftShrink}` : key;
   }
 
   /** Shows the CPU's canvas or the WebGL one (never both: the one below would show through where a frame is transparent). */
@@ -1040,7 +1067,20 @@ void main() { o = texture(uTex, vPos); }`);
 
   /** The last frame as straight RGBA8, rows top to bottom (for tests and PNG export). */
   readPixels(): Uint8Array {
-    if (this.cpuShown && this.cpuFrame) return new Uint8Array(this.cpuFrame.data);
+    if (this.cpuShown && this.cpuFrame) {
+      const { shrink, width, height } = this.cpuDrawn;
+      const src = this.cpuFrame;
+      if (shrink === 1) return new Uint8Array(src.data);
+      // A draft drawn smaller: each of its pixels over the block it stands for.
+      const out = new Uint8Array(4 * width * height);
+      const words = new Uint32Array(out.buffer);
+      const from = new Uint32Array(src.data.buffer, src.data.byteOffset, src.width * src.height);
+      for (let y = 0; y < height; y++) {
+        const row = Math.floor(y / shrink) * src.width;
+        for (let x = 0; x < width; x++) words[y * width + x] = from[row + Math.floor(x / shrink)];
+      }
+      return out;
+    }
     const gl = this.gl;
     const { width, height } = this;
     const px = new Uint8Array(4 * width * height);
