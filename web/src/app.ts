@@ -22,10 +22,23 @@ function startsWarm(options: SolveOptions): boolean {
   return options.method === 'tps' && options.scheme === 'multigrid';
 }
 
+/**
+ * Whether a layer's picture sources are the same (`LayerRuntime.sig`), compared part by
+ * part: an image is a data URI of up to several MB, kept as the same string from edit to
+ * edit, so comparing it is at once (a signature joining it into a new string would copy
+ * and compare its megabytes at every pointer move of a drag).
+ */
+function sameSources(a: unknown[], b: unknown[]): boolean {
+  return a.length === b.length && a.every((v, i) => v === b[i]);
+}
+
 export interface LayerRuntime {
   name: string;
-  /** What the pictures were loaded from (image|alpha|continuity). */
-  sig: string;
+  /**
+   * What the pictures were loaded from: image, alpha, continuity and the scene's size (see
+   * `sameSources`; empty: load again).
+   */
+  sig: unknown[];
   cutsSig: string;
   rgba: Rgba | null;
   matte: Uint8Array | null;
@@ -329,7 +342,7 @@ export class App {
     if (f !== this.proxy) {
       // Every layer is loaded again at the new scale.
       this.proxy = f;
-      for (const rt of this.runtimes.values()) rt.sig = '';
+      for (const rt of this.runtimes.values()) rt.sig = [];
     }
     const names = new Set(this.doc.layers.map((l) => l.name));
     for (const [name, rt] of this.runtimes) {
@@ -345,7 +358,7 @@ export class App {
       if (!rt) {
         rt = {
           name: layer.name,
-          sig: '',
+          sig: [],
           cutsSig: '',
           rgba: null,
           matte: null,
@@ -362,9 +375,9 @@ export class App {
         };
         this.runtimes.set(layer.name, rt);
       }
-      const sig = `${layer.image}|${layer.alpha ?? ''}|${layer.continuity ?? ''}|${this.doc.width}x${this.doc.height}`;
+      const sig = [layer.image, layer.alpha, layer.continuity, this.doc.width, this.doc.height];
       const cutsSig = JSON.stringify(this.cutsOf(layer));
-      if (sig !== rt.sig) {
+      if (!sameSources(sig, rt.sig)) {
         rt.sig = sig;
         rt.cutsSig = cutsSig;
         void this.loadLayer(rt, layer);

@@ -17,6 +17,7 @@
 // completion from its own pixel.
 
 import type { DraftGeometry, DraftHandle, DraftLayer, Engine, FieldData } from './engine';
+import { DRAFT_TARGET_PX } from './options';
 
 // Quads: vertex k is pixel (k % W, k / W); the index buffer lists the two triangles of
 // every block whose four links exist, each triangle's last (provoking) vertex being the
@@ -211,7 +212,7 @@ export function premultiply(rgba: Uint8Array | Uint8ClampedArray): Uint8Array {
  * `draftQuads`), the skirt quarters' vertices (x, y, sx, sy, u, v), and the links as given
  * (or all).
  */
-export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; innerSkirts: number; links: Uint8Array } {
+export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null, block = DRAFT_BLOCK): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; innerSkirts: number; links: Uint8Array } {
   const at = (i: number, j: number) => (links ? links[j * w + i] : i + 1 < w ? (j + 1 < h ? 7 : 3) : j + 1 < h ? 5 : 1);
   const drawn = (i: number, j: number) => i >= 0 && j >= 0 && i < w && j < h && ((at(i, j) & 1) !== 0 || (rgba !== null && rgba[4 * (j * w + i) + 3] > 0));
   const quads = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
@@ -240,7 +241,7 @@ export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: 
   for (let j = 0; j < h; j++) for (let i = 0; i < w; i++) all[j * w + i] = at(i, j);
   const innerSkirts = skirts.length / 6;
   for (const v of border) skirts.push(v);
-  return { quads: quads.slice(0, n), coarse: draftQuads(w, h, all), skirts: new Float32Array(skirts), innerSkirts, links: all };
+  return { quads: quads.slice(0, n), coarse: draftQuads(w, h, all, block), skirts: new Float32Array(skirts), innerSkirts, links: all };
 }
 
 /**
@@ -249,6 +250,18 @@ export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: 
  * 64 nodes across and interpolated, so at 512 × 512 this places a vertex on every draft node.
  */
 export const DRAFT_BLOCK = 8;
+
+/**
+ * The draft mesh's block side for a `w × h` layer: about the draft solve grid's spacing
+ * (the layer's larger side over `DRAFT_TARGET_PX`), a power of two from `DRAFT_BLOCK` to
+ * 16. A large picture's proxy (1000 × 750: a draft node every 16 pixels) takes blocks of
+ * 16, a quarter of the elements (and of the pixels a sparse draft is solved at) that
+ * blocks of 8 would have; 512 × 512 and smaller keep 8.
+ */
+export function draftBlock(w: number, h: number): number {
+  const spacing = Math.ceil(Math.max(w, h) / DRAFT_TARGET_PX);
+  return spacing >= 16 ? 16 : DRAFT_BLOCK;
+}
 
 /**
  * The draft mesh of a `w × h` layer from its links (as `buildMesh` returns them): triangles
@@ -508,6 +521,8 @@ export class GlLayer {
   skirtCount = 0;
   /** The skirt vertices of blocks inside the layer (the rest run along its border). */
   innerSkirtCount = 0;
+  /** The draft mesh's block side (see `draftBlock`). */
+  block = DRAFT_BLOCK;
   /** The pixels a draft reads its field at (`draftPixels`), for sparse drafts. */
   draftPixels: Uint32Array = new Uint32Array(0);
   /** Per pixel, its place in `draftPixels` (R32UI). */
@@ -595,7 +610,8 @@ export class GlLayer {
   setMesh(links: Uint8Array | null, rgba: Uint8Array | null): void {
     this.version++;
     const { width: w, height: h } = this;
-    const { quads, coarse, skirts, innerSkirts, links: l } = buildMesh(w, h, links, rgba);
+    this.block = draftBlock(w, h);
+    const { quads, coarse, skirts, innerSkirts, links: l } = buildMesh(w, h, links, rgba, this.block);
     const n = quads.length;
     const m = coarse.length;
     const gl = this.r.gl;
@@ -970,7 +986,7 @@ void main() { o = texture(uTex, vPos); }`);
         gl.uniform2i(u('uSize'), layer.width, layer.height);
         gl.uniform2f(u('uOffset'), offset[0], offset[1]);
         gl.uniform1f(u('uOpacity'), opacity ?? 1);
-        gl.uniform1f(u('uBlock'), draft ? DRAFT_BLOCK : 1);
+        gl.uniform1f(u('uBlock'), draft ? layer.block : 1);
         gl.uniform1f(u('uEdge'), draft ? 1 : 0);
         gl.uniform1f(u('uLoose'), fast && prog !== this.skirt ? 2 * FAN_BLOCK : 0);
         if (prog !== this.skirt) {
