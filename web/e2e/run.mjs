@@ -1380,9 +1380,15 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     await p.mouse.move(x0, y0);
     await p.mouse.down();
     const notes = [];
+    const drafts = [];
     for (let i = 1; i <= 20; i++) {
       await p.mouse.move(x0 + ((x1 - x0) * i) / 20, y0 + ((y1 - y0) * i) / 20);
       await p.evaluate(() => new Promise((r) => requestAnimationFrame(() => r())));
+      // The draft the CPU drew (a software GPU), at this step.
+      drafts.push(await p.evaluate(() => {
+        const c = document.querySelector('canvas.cpu-draft');
+        return c && c.style.visibility === 'visible' ? `${c.width}×${c.height}` : '';
+      }));
       notes.push(await p.evaluate(() => {
         const n = document.querySelector('#proxy-note');
         // The full-resolution frame of the rest pose must not cover the proxy's drafts.
@@ -1437,6 +1443,9 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     console.log(`  photo: ${JSON.stringify(perf.photo)}`);
     assert(notes.every((n) => n.startsWith('Preview (1/4')), `the proxy notice shows while dragging, and the proxy: ${JSON.stringify(notes.slice(0, 3))}`);
     assert(afterRelease.startsWith('Preview (1/4'), `and while settling: ${afterRelease}`);
+    // While dragging, the proxy's drafts are drawn at half its size (see `App.draftShrink`).
+    const renderer = await p.evaluate(() => window.inkwarp.app.gl.cpuDrafts);
+    assert(!renderer || drafts.includes('500×375'), `the drafts drawn while dragging are 500×375: ${JSON.stringify(drafts)}`);
     assert(s.fullShown && s.note === '' && !(await p.evaluate(() => document.querySelector('canvas.full').hidden)), `after the settle the full-resolution frame shows, no notice: ${s.note}`);
     assert(diff > 3, `the settled frame moved where the drag pulled (mean difference ${diff.toFixed(2)} from the rest picture)`);
   } finally {
