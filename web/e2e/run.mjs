@@ -1388,9 +1388,15 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     await p.mouse.move(x0, y0);
     await p.mouse.down();
     const notes = [];
+    const drafts = [];
     for (let i = 1; i <= 20; i++) {
       await p.mouse.move(x0 + ((x1 - x0) * i) / 20, y0 + ((y1 - y0) * i) / 20);
       await p.evaluate(() => new Promise((r) => requestAnimationFrame(() => r())));
+      // The draft the CPU drew (a software GPU), at this step.
+      drafts.push(await p.evaluate(() => {
+        const c = document.querySelector('canvas.cpu-draft');
+        return c && c.style.visibility === 'visible' ? `${c.width}×${c.height}` : '';
+      }));
       notes.push(await p.evaluate(() => {
         const n = document.querySelector('#proxy-note');
         // The full-resolution frame of the rest pose must not cover the proxy's drafts.
@@ -1413,7 +1419,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       const { stats, fullShown } = window.inkwarp.app;
       const mem = performance.memory ? { used: performance.memory.usedJSHeapSize, total: performance.memory.totalJSHeapSize, wasm: window.inkwarp.engine.x.memory.buffer.byteLength / 2 ** 20 } : null;
       const note = document.querySelector('#proxy-note');
-      return { drag: [...stats.dragLatency], draft: [...stats.draftSolveMs], final: [...stats.finalSolveMs], full: [...stats.fullMs], fullParts: stats.fullParts, heap: mem, open: window.__openSteps, fullShown: !!fullShown, note: note.hidden ? '' : note.textContent };
+      return { drag: [...stats.dragLatency], dragParts: stats.dragParts, draft: [...stats.draftSolveMs], final: [...stats.finalSolveMs], full: [...stats.fullMs], fullParts: stats.fullParts, heap: mem, open: window.__openSteps, fullShown: !!fullShown, note: note.hidden ? '' : note.textContent };
     });
     // Memory once the posed frame is drawn, and once the editor has been left alone long
     // enough for the full-resolution worker to be replaced by a fresh one (see
@@ -1437,6 +1443,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     perf.photo = {
       openS: (opened - made) / 1000, firstProxyFrameS: firstFrame / 1000, openSteps: s.open, fullParts: s.fullParts,
       dragMedianMs: median(s.drag), dragP90Ms: pct(s.drag, 0.9), dragFrames: s.drag.length,
+      dragParts: Object.fromEntries(['queued', 'toWorker', 'solve', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((q) => q[k]))])),
       draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000,
       heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, browserRssBeforeMiB: rssBefore,
       makeS: (made - t0) / 1000, patchDiff: diff, byKind: { before: kindsBefore, drag: kindsDrag, settled: kindsSettled, idle: kindsIdle }, workers: { drag: workersDrag, settled: workersSettled, idle: workersIdle }, small: { ...small, browserRssMiB: rssSmall },
@@ -1444,6 +1451,9 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     console.log(`  photo: ${JSON.stringify(perf.photo)}`);
     assert(notes.every((n) => n.startsWith('Preview (1/4')), `the proxy notice shows while dragging, and the proxy: ${JSON.stringify(notes.slice(0, 3))}`);
     assert(afterRelease.startsWith('Preview (1/4'), `and while settling: ${afterRelease}`);
+    // While dragging, the proxy's drafts are drawn at half its size (see `App.draftShrink`).
+    const renderer = await p.evaluate(() => window.inkwarp.app.gl.cpuDrafts);
+    assert(!renderer || drafts.includes('500×375'), `the drafts drawn while dragging are 500×375: ${JSON.stringify(drafts)}`);
     assert(s.fullShown && s.note === '' && !(await p.evaluate(() => document.querySelector('canvas.full').hidden)), `after the settle the full-resolution frame shows, no notice: ${s.note}`);
     assert(diff > 3, `the settled frame moved where the drag pulled (mean difference ${diff.toFixed(2)} from the rest picture)`);
     // Playback of the proxy from the fields solved ahead (a proxied scene keeps them

@@ -22,10 +22,23 @@ function startsWarm(options: SolveOptions): boolean {
   return options.method === 'tps' && options.scheme === 'multigrid';
 }
 
+/**
+ * Whether a layer's picture sources are the same (`LayerRuntime.sig`), compared part by
+ * part: an image is a data URI of up to several MB, kept as the same string from edit to
+ * edit, so comparing it is at once (a signature joining it into a new string would copy
+ * and compare its megabytes at every pointer move of a drag).
+ */
+function sameSources(a: unknown[], b: unknown[]): boolean {
+  return a.length === b.length && a.every((v, i) => v === b[i]);
+}
+
 export interface LayerRuntime {
   name: string;
-  /** What the pictures were loaded from (image|alpha|continuity). */
-  sig: string;
+  /**
+   * What the pictures were loaded from: image, alpha, continuity and the scene's size (see
+   * `sameSources`; empty: load again).
+   */
+  sig: unknown[];
   cutsSig: string;
   rgba: Rgba | null;
   matte: Uint8Array | null;
@@ -159,6 +172,14 @@ const AHEAD_IDLE_MS = 400;
 const AHEAD_CYCLES = 2;
 /** A multisampled full frame slower than this (ms) is preceded by a single-sampled one. */
 const SLOW_ANTIALIAS_MS = 50;
+/**
+ * While dragging, a draft drawn by the CPU of a frame with more pixels than this is drawn
+ * a whole number of times smaller (see `App.draftShrink`): 512 × 512 is not, a 4000 × 3000
+ * photograph's 1000 × 750 proxy is, at half its size.
+ */
+const DRAFT_PIXELS = 400_000;
+/** Nor is it drawn so small that one of its pixels covers more than this many screen pixels across. */
+const DRAFT_MAX_SCREEN_PX = 2;
 
 export class App {
   readonly store: Store;
@@ -297,6 +318,25 @@ export class App {
    */
   proxy = 1;
 
+  /** Screen (device) pixels across one pixel of the scene as the stage shows it (set by the page's layout). */
+  screenPxPerScenePx = 1;
+
+  /**
+   * How many times smaller a draft is drawn while dragging (1: at the frame's size): a
+   * frame of more than `DRAFT_PIXELS` pixels (a large picture's proxy) is drawn by the
+   * least whole factor that brings it within them, unless its pixels would then cover more
+   * than `DRAFT_MAX_SCREEN_PX` screen pixels (zoomed in). The CPU's time for a draft, and
+   * the page's to show it, go with its pixels; the full frame at rest is drawn at full size.
+   */
+  get draftShrink(): number {
+    const { width, height } = this.frameSize;
+    const n = width * height;
+    if (n <= DRAFT_PIXELS) return 1;
+    const want = Math.ceil(Math.sqrt(n / DRAFT_PIXELS));
+    const most = Math.max(1, Math.floor(DRAFT_MAX_SCREEN_PX / Math.max(1e-6, this.screenPxPerScenePx * this.proxy)));
+    return Math.max(1, Math.min(want, most));
+  }
+
   /** The size the editor's grids and frames have: the scene's, or its proxy's. */
   get frameSize(): { width: number; height: number } {
     return proxySize(this.doc.width, this.doc.height, this.proxy);
@@ -307,7 +347,7 @@ export class App {
     if (f !== this.proxy) {
       // Every layer is loaded again at the new scale.
       this.proxy = f;
-      for (const rt of this.runtimes.values()) rt.sig = '';
+      for (const rt of this.runtimes.values()) rt.sig = [];
     }
     const names = new Set(this.doc.layers.map((l) => l.name));
     for (const [name, rt] of this.runtimes) {
@@ -323,7 +363,7 @@ export class App {
       if (!rt) {
         rt = {
           name: layer.name,
-          sig: '',
+          sig: [],
           cutsSig: '',
           rgba: null,
           matte: null,
@@ -340,9 +380,9 @@ export class App {
         };
         this.runtimes.set(layer.name, rt);
       }
-      const sig = `${layer.image}|${layer.alpha ?? ''}|${layer.continuity ?? ''}|${this.doc.width}x${this.doc.height}`;
+      const sig = [layer.image, layer.alpha, layer.continuity, this.doc.width, this.doc.height];
       const cutsSig = JSON.stringify(this.cutsOf(layer));
-      if (sig !== rt.sig) {
+      if (!sameSources(sig, rt.sig)) {
         rt.sig = sig;
         rt.cutsSig = cutsSig;
         void this.loadLayer(rt, layer);
@@ -938,6 +978,7 @@ export class App {
     // A sparse draft can only be drawn as a draft (its field is known at its pixels).
     const layers = this.drawList();
     const draft = this.dragging || this.store.view.playing || holdsSparse(layers);
+    this.gl.draftShrink = this.dragging && !this.store.view.playing ? this.draftShrink : 1;
     const doc = this.doc;
     const { width, height } = this.frameSize;
     const same = this.gl.drawn(width, height, doc.background ?? [255, 255, 255, 255], layers, !draft, draft);
@@ -986,6 +1027,7 @@ export class App {
   draw(draft: boolean, antialias = !draft, adaptive = false): void {
     const doc = this.doc;
     const { width, height } = this.frameSize;
+    this.gl.draftShrink = draft && this.dragging && !this.store.view.playing ? this.draftShrink : 1;
     this.gl.render(width, height, doc.background ?? [255, 255, 255, 255], this.drawList(), antialias, draft, adaptive);
   }
 

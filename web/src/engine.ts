@@ -37,7 +37,7 @@ interface Exports {
   iw_draft_new(w: number, h: number, pixels: number, coarse: number, coarseLen: number, skirts: number, skirtsLen: number, links: number, index: number, reads: number, pushBorder: number): number;
   iw_draft_set_triangles(h: number, coarse: number, coarseLen: number): number;
   iw_draft_free(h: number): void;
-  iw_draft_draw(out: number, w: number, h: number, r: number, g: number, b: number, a: number, layers: number, count: number): number;
+  iw_draft_draw(out: number, w: number, h: number, shrink: number, r: number, g: number, b: number, a: number, layers: number, count: number): number;
   iw_init(): void;
   iw_panic_ptr(): number;
   iw_panic_len(): number;
@@ -452,7 +452,10 @@ export class Engine {
   /**
    * A draft frame drawn by the CPU into `out` (straight RGBA8, as an `ImageData` holds it):
    * the WebGL2 draft's triangles and colours, layers composited back to front over the
-   * background (straight RGBA8), each from its sparse draft's (dx, dy) pairs.
+   * background (straight RGBA8), each from its sparse draft's (dx, dy) pairs. With `shrink`
+   * above 1 the frame is drawn that many times smaller (`out` holds ⌈width / shrink⌉ ×
+   * ⌈height / shrink⌉ pixels): the same triangles, coloured from the layers' pixels
+   * box-filtered by that factor (see `iw_draft_draw`).
    */
   drawDraft(
     out: Uint8ClampedArray,
@@ -460,14 +463,15 @@ export class Engine {
     height: number,
     background: [number, number, number, number],
     layers: DraftLayer[],
+    shrink = 1,
   ): void {
-    const len = 4 * width * height;
+    const len = 4 * Math.ceil(width / shrink) * Math.ceil(height / shrink);
     this.withCopies((copy) => {
       const args = Float64Array.from(layers.flatMap((l) => [l.draft.handle, copy(l.values), l.values.length, l.offset[0], l.offset[1], l.opacity ?? 1]));
       const argPtr = copy(args);
       this.withBuffer(len, (ptr) => {
         const [r, g, b, a] = background;
-        this.check(this.x.iw_draft_draw(ptr, width, height, r, g, b, a, argPtr, layers.length));
+        this.check(this.x.iw_draft_draw(ptr, width, height, shrink, r, g, b, a, argPtr, layers.length));
         out.set(this.u8(ptr, len));
       });
     });

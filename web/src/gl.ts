@@ -17,6 +17,7 @@
 // completion from its own pixel.
 
 import type { DraftGeometry, DraftHandle, DraftLayer, Engine, FieldData } from './engine';
+import { DRAFT_TARGET_PX } from './options';
 
 // Quads: vertex k is pixel (k % W, k / W); the index buffer lists the two triangles of
 // every block whose four links exist, each triangle's last (provoking) vertex being the
@@ -211,7 +212,7 @@ export function premultiply(rgba: Uint8Array | Uint8ClampedArray): Uint8Array {
  * `draftQuads`), the skirt quarters' vertices (x, y, sx, sy, u, v), and the links as given
  * (or all).
  */
-export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; innerSkirts: number; links: Uint8Array } {
+export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: Uint8Array | null, block = DRAFT_BLOCK): { quads: Uint32Array; coarse: Uint32Array; skirts: Float32Array; innerSkirts: number; links: Uint8Array } {
   const at = (i: number, j: number) => (links ? links[j * w + i] : i + 1 < w ? (j + 1 < h ? 7 : 3) : j + 1 < h ? 5 : 1);
   const drawn = (i: number, j: number) => i >= 0 && j >= 0 && i < w && j < h && ((at(i, j) & 1) !== 0 || (rgba !== null && rgba[4 * (j * w + i) + 3] > 0));
   const quads = new Uint32Array(6 * Math.max(0, (w - 1) * (h - 1)));
@@ -240,7 +241,7 @@ export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: 
   for (let j = 0; j < h; j++) for (let i = 0; i < w; i++) all[j * w + i] = at(i, j);
   const innerSkirts = skirts.length / 6;
   for (const v of border) skirts.push(v);
-  return { quads: quads.slice(0, n), coarse: draftQuads(w, h, all), skirts: new Float32Array(skirts), innerSkirts, links: all };
+  return { quads: quads.slice(0, n), coarse: draftQuads(w, h, all, block), skirts: new Float32Array(skirts), innerSkirts, links: all };
 }
 
 /**
@@ -249,6 +250,18 @@ export function buildMesh(w: number, h: number, links: Uint8Array | null, rgba: 
  * 64 nodes across and interpolated, so at 512 × 512 this places a vertex on every draft node.
  */
 export const DRAFT_BLOCK = 8;
+
+/**
+ * The draft mesh's block side for a `w × h` layer: about the draft solve grid's spacing
+ * (the layer's larger side over `DRAFT_TARGET_PX`), a power of two from `DRAFT_BLOCK` to
+ * 16. A large picture's proxy (1000 × 750: a draft node every 16 pixels) takes blocks of
+ * 16, a quarter of the elements (and of the pixels a sparse draft is solved at) that
+ * blocks of 8 would have; 512 × 512 and smaller keep 8.
+ */
+export function draftBlock(w: number, h: number): number {
+  const spacing = Math.ceil(Math.max(w, h) / DRAFT_TARGET_PX);
+  return spacing >= 16 ? 16 : DRAFT_BLOCK;
+}
 
 /**
  * The draft mesh of a `w × h` layer from its links (as `buildMesh` returns them): triangles
@@ -508,6 +521,8 @@ export class GlLayer {
   skirtCount = 0;
   /** The skirt vertices of blocks inside the layer (the rest run along its border). */
   innerSkirtCount = 0;
+  /** The draft mesh's block side (see `draftBlock`). */
+  block = DRAFT_BLOCK;
   /** The pixels a draft reads its field at (`draftPixels`), for sparse drafts. */
   draftPixels: Uint32Array = new Uint32Array(0);
   /** Per pixel, its place in `draftPixels` (R32UI). */
@@ -595,7 +610,8 @@ export class GlLayer {
   setMesh(links: Uint8Array | null, rgba: Uint8Array | null): void {
     this.version++;
     const { width: w, height: h } = this;
-    const { quads, coarse, skirts, innerSkirts, links: l } = buildMesh(w, h, links, rgba);
+    this.block = draftBlock(w, h);
+    const { quads, coarse, skirts, innerSkirts, links: l } = buildMesh(w, h, links, rgba, this.block);
     const n = quads.length;
     const m = coarse.length;
     const gl = this.r.gl;
@@ -795,14 +811,21 @@ export class GlRenderer {
    */
   readonly draftCanvas: HTMLCanvasElement | null = null;
   cpuDrafts = false;
+  /**
+   * How many times smaller the CPU draws a draft (1: at the frame's size), set by the page
+   * for a large frame while dragging (see `App.draftShrink`).
+   */
+  draftShrink = 1;
   private engine: Engine | null = null;
   private cpuFrame: ImageData | null = null;
   private cpuShown = false;
+  /** How many times smaller the frame on the CPU's canvas was drawn, and the frame's own size. */
+  private cpuDrawn = { shrink: 1, width: 0, height: 0 };
 
   /** Whether `render` with these arguments (no fast frame) would draw the frame already drawn. */
   drawn(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false): boolean {
     if (holdsSparse(layers)) [draft, antialias] = [true, false];
-    return this.lastFrame === frameKey(width, height, background, layers, antialias, draft, false);
+    return this.lastFrame === this.keyOf(width, height, background, layers, antialias, draft, false);
   }
 
   /** Where the last frame can be read: the resolve target, or the canvas after a draft. */
@@ -909,7 +932,7 @@ void main() { o = texture(uTex, vPos); }`);
   render(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias = true, draft = false, adaptive = false): void {
     if (holdsSparse(layers)) [draft, antialias] = [true, false];
     const fast = adaptive && !draft && !antialias;
-    const key = frameKey(width, height, background, layers, antialias, draft, fast);
+    const key = this.keyOf(width, height, background, layers, antialias, draft, fast);
     if (this.cpuDrafts && this.engine && layers.length > 0) {
       // Drafts and fast full frames are drawn by the CPU where it can draw every layer's.
       const cpu = draft ? layers.every(({ layer }) => layer.onCpu) : fast && layers.every(({ layer }) => layer.onCpuFull);
@@ -963,7 +986,7 @@ void main() { o = texture(uTex, vPos); }`);
         gl.uniform2i(u('uSize'), layer.width, layer.height);
         gl.uniform2f(u('uOffset'), offset[0], offset[1]);
         gl.uniform1f(u('uOpacity'), opacity ?? 1);
-        gl.uniform1f(u('uBlock'), draft ? DRAFT_BLOCK : 1);
+        gl.uniform1f(u('uBlock'), draft ? layer.block : 1);
         gl.uniform1f(u('uEdge'), draft ? 1 : 0);
         gl.uniform1f(u('uLoose'), fast && prog !== this.skirt ? 2 * FAN_BLOCK : 0);
         if (prog !== this.skirt) {
@@ -997,14 +1020,34 @@ void main() { o = texture(uTex, vPos); }`);
    */
   private renderCpu(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], full = false): void {
     const canvas = this.draftCanvas!;
-    if (canvas.width !== width) canvas.width = width;
-    if (canvas.height !== height) canvas.height = height;
-    if (this.cpuFrame?.width !== width || this.cpuFrame.height !== height) this.cpuFrame = new ImageData(width, height);
+    // A large frame's draft is drawn smaller and stretched over the frame (smoothly: its
+    // pixels stand for blocks of the frame's), the full frame at its own size.
+    const shrink = full ? 1 : Math.max(1, Math.floor(this.draftShrink));
+    const w = Math.ceil(width / shrink);
+    const h = Math.ceil(height / shrink);
+    if (canvas.width !== w) canvas.width = w;
+    if (canvas.height !== h) canvas.height = h;
+    const was = this.cpuDrawn;
+    if (was.shrink !== shrink || was.width !== width || was.height !== height) {
+      // The last pixel column and row may stand for less than a block: the canvas reaches
+      // past the frame by that much, hidden by the frame's edge.
+      canvas.style.width = shrink > 1 ? `${(100 * w * shrink) / width}%` : '';
+      canvas.style.height = shrink > 1 ? `${(100 * h * shrink) / height}%` : '';
+      canvas.style.imageRendering = shrink > 1 ? 'auto' : '';
+      this.cpuDrawn = { shrink, width, height };
+    }
+    if (this.cpuFrame?.width !== w || this.cpuFrame.height !== h) this.cpuFrame = new ImageData(w, h);
     const engine = this.engine!;
     const what = layers.map(({ layer, offset, opacity }) => (full ? layer.cpuFull(engine, offset, opacity) : layer.cpuDraft(engine, offset, opacity)));
-    engine.drawDraft(this.cpuFrame.data, width, height, background, what);
+    engine.drawDraft(this.cpuFrame.data, width, height, background, what, shrink);
     canvas.getContext('2d')!.putImageData(this.cpuFrame, 0, 0);
     this.showCpu(true);
+  }
+
+  /** `frameKey`, and how many times smaller a draft on the CPU is drawn. */
+  private keyOf(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias: boolean, draft: boolean, fast: boolean): string {
+    const key = frameKey(width, height, background, layers, antialias, draft, fast);
+    return draft && this.draftShrink > 1 ? `${key}|shrink ${this.draftShrink}` : key;
   }
 
   /** Shows the CPU's canvas or the WebGL one (never both: the one below would show through where a frame is transparent). */
@@ -1040,7 +1083,20 @@ void main() { o = texture(uTex, vPos); }`);
 
   /** The last frame as straight RGBA8, rows top to bottom (for tests and PNG export). */
   readPixels(): Uint8Array {
-    if (this.cpuShown && this.cpuFrame) return new Uint8Array(this.cpuFrame.data);
+    if (this.cpuShown && this.cpuFrame) {
+      const { shrink, width, height } = this.cpuDrawn;
+      const src = this.cpuFrame;
+      if (shrink === 1) return new Uint8Array(src.data);
+      // A draft drawn smaller: each of its pixels over the block it stands for.
+      const out = new Uint8Array(4 * width * height);
+      const words = new Uint32Array(out.buffer);
+      const from = new Uint32Array(src.data.buffer, src.data.byteOffset, src.width * src.height);
+      for (let y = 0; y < height; y++) {
+        const row = Math.floor(y / shrink) * src.width;
+        for (let x = 0; x < width; x++) words[y * width + x] = from[row + Math.floor(x / shrink)];
+      }
+      return out;
+    }
     const gl = this.gl;
     const { width, height } = this;
     const px = new Uint8Array(4 * width * height);

@@ -321,7 +321,10 @@ export class Ui {
     this.renderLayers();
     this.renderFeature();
     this.renderTracks();
-    if (docChanged) this.layout();
+    // Laid out again only for a new size: a drag changes the scene at every pointer move,
+    // and a layout reads the stage's size (the browser lays the page out first) and
+    // clears the overlay canvas.
+    if (docChanged && (doc.width !== this.laidOut[0] || doc.height !== this.laidOut[1])) this.layout();
     this.drawOverlay();
     this.updateStatus();
     this.updateProxyNote();
@@ -457,8 +460,20 @@ export class Ui {
     );
   }
 
+  /** What the timeline's rows were last built from (they are rebuilt only when that changes). */
+  private tracksShown = '';
+
   private renderTracks(): void {
     const { doc, view } = this.store;
+    // A drag in pose mode changes the keyed points at every pointer move, not what the rows
+    // show (the keys' times and easing, the selection, the time): those stay as they are.
+    const key = JSON.stringify([doc.duration, doc.fps, view.time, view.selection.feature, view.keySelection,
+      doc.features.map((f) => [f.id, f.kind, (f.keys ?? []).map((k) => [k.t, k.interpolation ?? null])])]);
+    if (key === this.tracksShown && this.els.tracks.isConnected) {
+      this.renderReady();
+      return;
+    }
+    this.tracksShown = key;
     clear(this.els.tracks);
     const dur = Math.max(doc.duration, 1e-6);
     const pct = (t: number) => `${(100 * t) / dur}%`;
@@ -730,8 +745,15 @@ export class Ui {
     return this.zoom ?? this.fitZoom();
   }
 
+  /** The scene size the stage was last laid out for. */
+  private laidOut: [number, number] = [0, 0];
+  /** The overlay's place on the page during a drag (see `toScene`). */
+  private dragRect: DOMRect | null = null;
+
   layout(): void {
     const { width, height } = this.store.doc;
+    this.laidOut = [width, height];
+    this.dragRect = null;
     const z = this.scale;
     const frame = this.stage.firstElementChild as HTMLElement;
     frame.style.width = `${width * z}px`;
@@ -742,8 +764,11 @@ export class Ui {
     const dpr = window.devicePixelRatio || 1;
     const px = Math.min(width * z * dpr, 8192) / (width * z * dpr);
     const dens = Math.min(px, Math.min(height * z * dpr, 8192) / (height * z * dpr));
-    this.overlayCanvas.width = Math.max(1, Math.round(width * z * dpr * dens));
-    this.overlayCanvas.height = Math.max(1, Math.round(height * z * dpr * dens));
+    const ow = Math.max(1, Math.round(width * z * dpr * dens));
+    const oh = Math.max(1, Math.round(height * z * dpr * dens));
+    if (this.overlayCanvas.width !== ow) this.overlayCanvas.width = ow;
+    if (this.overlayCanvas.height !== oh) this.overlayCanvas.height = oh;
+    this.app.screenPxPerScenePx = z * dpr;
     if (this.els.zoomText) this.els.zoomText.textContent = `${Math.round(z * 100)} %${this.zoom === null ? ' (fit)' : ''}`;
     this.drawOverlay();
   }
@@ -827,7 +852,11 @@ export class Ui {
 
   /** Client (CSS px) → scene coordinates (pixel centres at integers). */
   toScene(clientX: number, clientY: number): Pt {
-    const r = this.overlayCanvas.getBoundingClientRect();
+    // During a drag the stage stays where it was at the press (a layout forgets it): its
+    // place is read once, not at every pointer move, which would make the browser lay the
+    // page out again after each move's changes to the panels.
+    const r = (this.drag && this.dragRect) || this.overlayCanvas.getBoundingClientRect();
+    if (this.drag && !this.dragRect) this.dragRect = r;
     const { width, height } = this.store.doc;
     let p: Pt = [((clientX - r.left) / r.width) * width - 0.5, ((clientY - r.top) / r.height) * height - 0.5];
     if (this.store.view.snap) p = [Math.round(p[0]), Math.round(p[1])];
@@ -959,6 +988,7 @@ export class Ui {
         picked = [];
         this.store.setView({ selection: { feature: hit.id, point: hit.point }, pointSelection: [] });
       } else this.store.setView({ selection: { feature: hit.id, point: hit.point } });
+      this.dragRect = null;
       this.drag = { id: hit.id, point: hit.point, start: p, base: shownPoints(f, view.mode, view.time).map((q) => [q[0], q[1]] as Pt), at: null };
       if (ref && picked.length > 1) {
         const group = new Map<string, Pt[]>();
@@ -1019,6 +1049,7 @@ export class Ui {
       }
       if (!this.drag) return;
       this.drag = null;
+      this.dragRect = null;
       // The pose moved: the point under the pointer is probed again at its next move.
       this.hovered = null;
       this.store.commit();

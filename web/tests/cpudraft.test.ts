@@ -59,6 +59,58 @@ describe('draft frames drawn by the CPU', () => {
     L.draft.free();
   });
 
+  it('drawn a whole number of times smaller: the mean of each block of the picture under the identity field, a translation moved by its share', () => {
+    // 37 × 29 by 2: 19 × 15 pixels, the last column and row standing for one pixel of it.
+    const w = 37, h = 29, k = 2;
+    const colour = (x: number, y: number) => [(x * 29) % 256, (y * 53) % 256, (x * y) % 256, 255];
+    const mean = (i: number, j: number) => {
+      const sum = [0, 0, 0, 0];
+      let n = 0;
+      for (let y = k * j; y < Math.min(h, k * j + k); y++) {
+        for (let x = k * i; x < Math.min(w, k * i + k); x++) {
+          colour(x, y).forEach((c, q) => (sum[q] += c));
+          n++;
+        }
+      }
+      return sum.map((v) => Math.floor((v + Math.floor(n / 2)) / n));
+    };
+    const sw = Math.ceil(w / k), sh = Math.ceil(h / k);
+    const still = layer(w, h, colour, () => [0, 0]);
+    const out = new Uint8ClampedArray(4 * sw * sh);
+    engine.drawDraft(out, w, h, WHITE, [still], k);
+    for (let j = 0; j < sh; j++) for (let i = 0; i < sw; i++) expect(at(out, sw, i, j)).toEqual(mean(i, j));
+    still.draft.free();
+    // Moved by (4, 6) picture pixels: (2, 3) of the smaller frame's.
+    const moved = layer(w, h, colour, () => [4, 6]);
+    const big = 4 * (sw + 4) * (sh + 4);
+    const out2 = new Uint8ClampedArray(big);
+    engine.drawDraft(out2, w + 8, h + 8, WHITE, [moved], k);
+    for (let j = 0; j < sh - 1; j++) for (let i = 0; i < sw - 1; i++) expect(at(out2, sw + 4, i + 2, j + 3)).toEqual(mean(i, j));
+    expect(at(out2, sw + 4, 0, 0)).toEqual(WHITE);
+    moved.draft.free();
+  });
+
+  it('drawn smaller, shade every pixel centre once across a bent field and a cut that opens', () => {
+    const w = 64, h = 48, k = 3;
+    const bend = (x: number, y: number): [number, number] => [3 * Math.sin(x / 9) + (x > 30 ? 6 : 0), 2 * Math.cos(y / 7) + (0.3 * x) / 10];
+    const once = Math.round(255 - 128);
+    const sw = Math.ceil((w + 8) / k), sh = Math.ceil((h + 8) / k);
+    const L = layer(w, h, () => [255, 0, 0, 128], bend, 30);
+    const out = new Uint8ClampedArray(4 * sw * sh);
+    engine.drawDraft(out, w + 8, h + 8, WHITE, [L], k);
+    let gap = 0;
+    for (let y = 0; y < sh; y++) {
+      for (let x = 0; x < sw; x++) {
+        const g = out[4 * (y * sw + x) + 1];
+        expect(g === 255 || Math.abs(g - once) <= 1, `(${x}, ${y}): green ${g}`).toBe(true);
+        // The cut opens by about 6 pixels of the picture: 2 of the smaller frame.
+        if (g === 255 && y > 4 && y < sh - 6 && x >= 10 && x <= 12) gap++;
+      }
+    }
+    expect(gap).toBeGreaterThan(0);
+    L.draft.free();
+  });
+
   it('move the picture by a translation and by the layer offset', () => {
     const w = 40, h = 24;
     const colour = (x: number, y: number) => [(x * 29) % 256, (y * 53) % 256, 7, 255];

@@ -13,7 +13,7 @@
 
 use std::cell::RefCell;
 
-use crate::{fail, insert, release, slot, slot_mut, view, view_mut};
+use crate::{fail, insert, release, slot_mut, view, view_mut};
 
 /// One layer's draft geometry and pixels (see the module docs).
 #[derive(Debug)]
@@ -37,6 +37,54 @@ struct DraftLayer {
     /// its skirts along the border are not drawn), or stay (a fast full frame, whose skirt
     /// quarters cover the border).
     push_border: bool,
+    /// The pixels box-filtered by a whole factor, for frames drawn smaller (see
+    /// [`iw_draft_draw`]): the factor, the level's size and its premultiplied words. Made
+    /// at the first such frame and kept.
+    level: Option<(usize, usize, usize, Vec<u32>)>,
+}
+
+impl DraftLayer {
+    /// Makes the pixels a frame drawn `shrink` times smaller samples ([`Self::sampled`]),
+    /// unless they are made already: the mean of each `shrink × shrink` block (the blocks
+    /// along the right and bottom edges as far as the layer goes).
+    fn make_level(&mut self, shrink: usize) {
+        if shrink > 1 && self.level.as_ref().map(|l| l.0) != Some(shrink) {
+            let (w, h) = (self.width.div_ceil(shrink), self.height.div_ceil(shrink));
+            let mut out = Vec::with_capacity(w * h);
+            for j in 0..h {
+                let rows = j * shrink..((j + 1) * shrink).min(self.height);
+                for i in 0..w {
+                    let cols = i * shrink..((i + 1) * shrink).min(self.width);
+                    let mut sum = [0u32; 4];
+                    for y in rows.clone() {
+                        for &px in
+                            &self.pixels[y * self.width + cols.start..y * self.width + cols.end]
+                        {
+                            for (c, s) in sum.iter_mut().enumerate() {
+                                *s += (px >> (8 * c)) & 255;
+                            }
+                        }
+                    }
+                    let n = (rows.len() * cols.len()) as u32;
+                    out.push(
+                        sum.iter()
+                            .enumerate()
+                            .fold(0u32, |acc, (c, &s)| acc | ((s + n / 2) / n) << (8 * c)),
+                    );
+                }
+            }
+            self.level = Some((shrink, w, h, out));
+        }
+    }
+
+    /// The pixels (and their size) a frame drawn `shrink` times smaller samples: the
+    /// layer's own for 1, else the level [`Self::make_level`] made.
+    fn sampled(&self, shrink: usize) -> (&[u32], usize, usize) {
+        match &self.level {
+            Some((s, w, h, px)) if shrink > 1 && *s == shrink => (px, *w, *h),
+            _ => (&self.pixels, self.width, self.height),
+        }
+    }
 }
 
 thread_local! {
@@ -102,6 +150,7 @@ pub extern "C" fn iw_draft_new(
         index,
         reads,
         push_border: push_border != 0,
+        level: None,
     };
     DRAFTS.with(|d| insert(&mut d.borrow_mut(), layer))
 }
@@ -152,7 +201,9 @@ fn check_triangles(
             ));
         };
         if place as usize >= reads {
-            return Err(format!("Pixel {v} of the draft mesh has no place among the {reads} pixels of its values."));
+            return Err(format!(
+                "Pixel {v} of the draft mesh has no place among the {reads} pixels of its values."
+            ));
         }
     }
     Ok(())
@@ -194,7 +245,9 @@ fn check_quarters(
             .flatten()
             .find(|&q| index[q] as usize >= reads)
         {
-            return Err(format!("Pixel {q} of the draft mesh has no place among the {reads} pixels of its values."));
+            return Err(format!(
+                "Pixel {q} of the draft mesh has no place among the {reads} pixels of its values."
+            ));
         }
     }
     Ok(())
@@ -210,11 +263,20 @@ pub extern "C" fn iw_draft_free(handle: u32) {
 /// bottom): the background (straight RGBA8), then `count` layers back to front, each six
 /// numbers at `layers_ptr`: its handle, a pointer to its sparse draft's (dx, dy) pairs and
 /// their count of floats, its offset (x, y) and its opacity. Status 0/1.
+///
+/// With `shrink` above 1 the frame is drawn that many times smaller, `⌈width / shrink⌉ ×
+/// ⌈height / shrink⌉` pixels, for a large picture while dragging: the same triangles with
+/// every position (x, y) at ((x + ½) / shrink − ½, (y + ½) / shrink − ½), the pixel
+/// centres of the smaller frame, coloured from the layer's pixels box-filtered by the same
+/// factor (made at the first such frame and kept), so each pixel is about the mean of the
+/// `shrink × shrink` pixels it stands for.
 #[no_mangle]
+#[allow(clippy::too_many_arguments)]
 pub extern "C" fn iw_draft_draw(
     out_ptr: *mut u8,
     width: usize,
     height: usize,
+    shrink: usize,
     r: u8,
     g: u8,
     b: u8,
@@ -222,6 +284,8 @@ pub extern "C" fn iw_draft_draw(
     layers_ptr: *const f64,
     count: usize,
 ) -> i32 {
+    let shrink = shrink.max(1);
+    let (width, height) = (width.div_ceil(shrink), height.div_ceil(shrink));
     let args = view(layers_ptr, 6 * count);
     let out = view_mut(out_ptr, 4 * width * height);
     if out.len() != 4 * width * height {
@@ -231,11 +295,13 @@ pub extern "C" fn iw_draft_draw(
     let background = u32::from_le_bytes([premultiply(r), premultiply(g), premultiply(b), a]);
     let mut frame = vec![background; width * height];
     let drawn = DRAFTS.with(|d| {
-        let store = d.borrow();
+        let mut store = d.borrow_mut();
         for arg in args.chunks_exact(6) {
-            let Some(layer) = slot(&store, arg[0] as u32) else {
+            let Some(layer) = slot_mut(&mut store, arg[0] as u32) else {
                 return Err(format!("There is no draft layer with handle {}.", arg[0]));
             };
+            layer.make_level(shrink);
+            let layer = &*layer;
             let values = view(arg[1] as usize as *const f32, arg[2] as usize);
             let needed = 2 * layer.reads;
             if values.len() < needed {
@@ -249,7 +315,7 @@ pub extern "C" fn iw_draft_draw(
                 width,
                 height,
             };
-            draw_layer(target, layer, values, [arg[3], arg[4]], arg[5]);
+            draw_layer(target, layer, values, [arg[3], arg[4]], arg[5], shrink);
         }
         Ok(())
     });
@@ -287,22 +353,44 @@ struct Corner {
 
 /// How a triangle's fragments take their colour.
 struct Shade<'a> {
-    layer: &'a DraftLayer,
+    /// The pixels sampled (the layer's, or its level for a smaller frame) and their size.
+    pixels: &'a [u32],
+    width: usize,
+    height: usize,
     /// Opacity in 256ths.
     opacity: u32,
     /// A skirt quarter's rest box (min x, min y, max x, max y); none for draft elements.
     clamp: Option<[f64; 4]>,
 }
 
-fn draw_layer(mut t: Target, layer: &DraftLayer, values: &[f32], offset: [f64; 2], opacity: f64) {
+fn draw_layer(
+    mut t: Target,
+    layer: &DraftLayer,
+    values: &[f32],
+    offset: [f64; 2],
+    opacity: f64,
+    shrink: usize,
+) {
     let (w, h) = (layer.width, layer.height);
+    let (pixels, lw, lh) = layer.sampled(shrink);
+    // A position on the layer or the frame, in the frame drawn (see `iw_draft_draw`).
+    let inv = 1.0 / shrink as f64;
+    let at = |v: f64| if shrink > 1 { (v + 0.5) * inv - 0.5 } else { v };
+    let place = |c: Corner| Corner {
+        x: at(c.x),
+        y: at(c.y),
+        rx: at(c.rx),
+        ry: at(c.ry),
+    };
     let field = |p: usize| {
         let k = 2 * layer.index[p] as usize;
         (values[k] as f64, values[k + 1] as f64)
     };
     let opacity = (opacity.clamp(0.0, 1.0) * 256.0).round() as u32;
     let element = Shade {
-        layer,
+        pixels,
+        width: lw,
+        height: lh,
         opacity,
         clamp: None,
     };
@@ -324,12 +412,12 @@ fn draw_layer(mut t: Target, layer: &DraftLayer, values: &[f32], offset: [f64; 2
             };
             let (rx, ry) = (i as f64 + out(i, w), j as f64 + out(j, h));
             let (dx, dy) = field(p);
-            *corner = Corner {
+            *corner = place(Corner {
                 x: rx + dx + offset[0],
                 y: ry + dy + offset[1],
                 rx,
                 ry,
-            };
+            });
         }
         fill(&mut t, &c, &element);
     }
@@ -391,25 +479,27 @@ fn draw_layer(mut t: Target, layer: &DraftLayer, values: &[f32], offset: [f64; 2
         let (kx, ky) = (if link_x { sx } else { 0.0 }, if link_y { sy } else { 0.0 });
         let (far_x, far_y) = (i as f64 + 0.5 * kx, j as f64 + 0.5 * ky);
         let shade = Shade {
-            layer,
+            pixels,
+            width: lw,
+            height: lh,
             opacity,
             clamp: Some([
-                (i as f64).min(far_x),
-                (j as f64).min(far_y),
-                (i as f64).max(far_x),
-                (j as f64).max(far_y),
+                at((i as f64).min(far_x)),
+                at((j as f64).min(far_y)),
+                at((i as f64).max(far_x)),
+                at((j as f64).max(far_y)),
             ]),
         };
         for half in quarter.chunks_exact(18) {
             let mut c = [Corner::default(); 3];
             for (corner, v) in c.iter_mut().zip(half.chunks_exact(6)) {
                 let (u, s) = (v[4] as f64, v[5] as f64);
-                *corner = Corner {
+                *corner = place(Corner {
                     x: px + 0.5 * (u * sx * ex.0 + s * sy * ey.0) + offset[0],
                     y: py + 0.5 * (u * sx * ex.1 + s * sy * ey.1) + offset[1],
                     rx: i as f64 + 0.5 * u * kx,
                     ry: j as f64 + 0.5 * s * ky,
-                };
+                });
             }
             fill(&mut t, &c, &shade);
         }
@@ -472,8 +562,7 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
     let rx = affine(v0.rx, v1.rx, v2.rx);
     let ry = affine(v0.ry, v1.ry, v2.ry);
     let owned = |e: f64, owns: bool| e > 0.0 || (e == 0.0 && owns);
-    let (w, h) = (shade.layer.width, shade.layer.height);
-    let pixels = &shade.layer.pixels;
+    let (w, h, pixels) = (shade.width, shade.height, shade.pixels);
     // Each edge's crossing of a row is −c/a: its reciprocal once (the exact edge values at
     // the crossing decide which centres it keeps).
     let minus_inv = [e0[0], e1[0], e2[0]].map(|a| if a != 0.0 { -1.0 / a } else { 0.0 });
@@ -661,9 +750,12 @@ mod tests {
             index: (0..(w * h) as u32).collect(),
             reads: w * h,
             push_border: true,
+            level: None,
         };
         let shade = Shade {
-            layer: &layer,
+            pixels: &pixels,
+            width: w,
+            height: h,
             opacity: 256,
             clamp: None,
         };
