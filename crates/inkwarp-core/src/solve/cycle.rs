@@ -142,18 +142,7 @@ impl Hierarchy {
         self.cycle_from_zero(r)
     }
 
-    /// The cycle's right-hand side on the finest level: `r` in `f32`, for a caller that
-    /// writes it while it updates `r` (then [`Hierarchy::precondition_narrowed`]).
-    pub fn narrow_rhs(&mut self, len: usize) -> &mut [W2] {
-        &mut self.work[0].f[..len]
-    }
-
-    /// [`Hierarchy::precondition`] with `r` already written into [`Hierarchy::narrow_rhs`].
-    pub fn precondition_narrowed(&mut self, r: &[V2]) -> &[W2] {
-        self.cycle_from_zero(r)
-    }
-
-    /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `narrow_rhs`.
+    /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `work[0].f`.
     fn cycle_from_zero(&mut self, r: &[V2]) -> &[W2] {
         let mut work = std::mem::take(&mut self.work);
         // With the extra space along tears: its exact part first, the cycle on the rest.
@@ -287,7 +276,10 @@ impl Hierarchy {
             let a1w = [WS::of(a1[0]), WS::of(a1[1])];
             let Work { x, f, r, z1, q1, .. } = c;
             q1.resize(r.len(), [WS::ZERO; 2]);
-            let [before, after] = first_step_residual(f, r, q1, a1w);
+            let before = dot_w(f, f);
+            map_into(q1, r, |r| [WS::ZERO - r[0], WS::ZERO - r[1]]);
+            update(f, r, |f, r| *f = [f[0] + a1w[0] * r[0], f[1] + a1w[1] * r[1]]);
+            let after = dot_w(f, f);
             // The first step alone when it left little of the residual (Notay's adaptive
             // K-cycle): the second cycle below would not be worth its cost.
             let t2 = K_SECOND_STEP * K_SECOND_STEP;
@@ -308,12 +300,13 @@ impl Hierarchy {
         {
             // d = z₂ − β z₁ into x, A d = −r − β A z₁ into r.
             let Work { x, r, z1, q1, .. } = c;
-            second_direction(x, r, z1, q1, bw);
+            update(x, z1, |x, z1| *x = [x[0] - bw[0] * z1[0], x[1] - bw[1] * z1[1]]);
+            update(r, q1, |r, q1| *r = [WS::ZERO - r[0] - bw[0] * q1[0], WS::ZERO - r[1] - bw[1] * q1[1]]);
         }
         let (df, dad) = (dot_w(&c.x, &c.f), dot_w(&c.x, &c.r));
         let a2 = [step(df[0], dad[0]), step(df[1], dad[1])];
         let (a1w, a2w) = ([WS::of(a1[0]), WS::of(a1[1])], [WS::of(a2[0]), WS::of(a2[1])]);
-        both_steps(&mut c.x, &c.z1, a1w, a2w);
+        update(&mut c.x, &c.z1, |x, z1| *x = [a1w[0] * z1[0] + a2w[0] * x[0], a1w[1] * z1[1] + a2w[1] * x[1]]);
         prolong_add(level, coarse, &c.x, &mut w.x);
     }
 
@@ -456,69 +449,9 @@ fn step(num: f64, den: f64) -> f64 {
     }
 }
 
-/// Entries per task of this module's vector passes (the K-cycle's below, [`dot_w`],
-/// [`map_into`], a smoothing's first step from zero); levels under [`PAR_MIN`] entries
-/// take them in one piece on this thread. The K-cycle's were single loops on one thread,
-/// whose sums of squares each waited on its last addition, while the other thread
-/// waited (with 100 points at 513 × 513, warm, the profile samples of the function they
-/// were inlined into were about 3 % of the solving thread's).
+/// Entries per task of this module's vector passes; levels under [`PAR_MIN`] entries take
+/// them in one piece on this thread.
 const PASS_CHUNK: usize = 4096;
-
-/// The K-cycle's first step on the coarse right-hand side: `q1 = A z₁` from `r = −A z₁`,
-/// and `f ← f − α₁ A z₁ = f + α₁ r`; returns `[before, after]`, each `[Σ f_x², Σ f_y²]` in
-/// `f64` (chunk by chunk, eight running sums in each, added in order: the same sums
-/// whatever the threads).
-fn first_step_residual(f: &mut [W2], r: &[W2], q1: &mut [W2], a: [WS; 2]) -> [[f64; 2]; 2] {
-    let square = |x: WS, y: WS| x.get() * y.get();
-    let body = |(f, (r, q1)): (&mut [W2], (&[W2], &mut [W2]))| {
-        let before = level::pair_sums(f.as_flattened(), f.as_flattened(), square);
-        for ((f, r), q1) in f.iter_mut().zip(r).zip(q1.iter_mut()) {
-            *q1 = [WS::ZERO - r[0], WS::ZERO - r[1]];
-            *f = [f[0] + a[0] * r[0], f[1] + a[1] * r[1]];
-        }
-        let after = level::pair_sums(f.as_flattened(), f.as_flattened(), square);
-        [before, after]
-    };
-    let parts: Vec<[[f64; 2]; 2]> = if f.len() >= PAR_MIN {
-        f.par_chunks_mut(PASS_CHUNK).zip(r.par_chunks(PASS_CHUNK).zip(q1.par_chunks_mut(PASS_CHUNK))).map(body).collect()
-    } else {
-        vec![body((f, (r, q1)))]
-    };
-    parts.iter().fold([[0.0; 2]; 2], |s, t| [[s[0][0] + t[0][0], s[0][1] + t[0][1]], [s[1][0] + t[1][0], s[1][1] + t[1][1]]])
-}
-
-/// The K-cycle's second direction `d = z₂ − β z₁` into `x` (holding `z₂`) and its product
-/// `A d = −r − β A z₁` into `r` (holding `−A z₂`), `q1 = A z₁`.
-fn second_direction(x: &mut [W2], r: &mut [W2], z1: &[W2], q1: &[W2], b: [WS; 2]) {
-    let body = |x: &mut [W2], r: &mut [W2], z1: &[W2], q1: &[W2]| {
-        for (((x, r), z1), q1) in x.iter_mut().zip(r.iter_mut()).zip(z1).zip(q1) {
-            *x = [x[0] - b[0] * z1[0], x[1] - b[1] * z1[1]];
-            *r = [WS::ZERO - r[0] - b[0] * q1[0], WS::ZERO - r[1] - b[1] * q1[1]];
-        }
-    };
-    if x.len() >= PAR_MIN {
-        x.par_chunks_mut(PASS_CHUNK)
-            .zip(r.par_chunks_mut(PASS_CHUNK))
-            .zip(z1.par_chunks(PASS_CHUNK).zip(q1.par_chunks(PASS_CHUNK)))
-            .for_each(|((x, r), (z1, q1))| body(x, r, z1, q1));
-    } else {
-        body(x, r, z1, q1);
-    }
-}
-
-/// The K-cycle's correction from its two steps, `α₁ z₁ + α₂ d`, into `x` (holding `d`).
-fn both_steps(x: &mut [W2], z1: &[W2], a1: [WS; 2], a2: [WS; 2]) {
-    let body = |(x, z1): (&mut [W2], &[W2])| {
-        for (x, z1) in x.iter_mut().zip(z1) {
-            *x = [a1[0] * z1[0] + a2[0] * x[0], a1[1] * z1[1] + a2[1] * x[1]];
-        }
-    };
-    if x.len() >= PAR_MIN {
-        x.par_chunks_mut(PASS_CHUNK).zip(z1.par_chunks(PASS_CHUNK)).for_each(body);
-    } else {
-        body((x, z1));
-    }
-}
 
 /// `Σ a_i b_i` per component, in `f64`. The chunks' sums are added in order, so the result
 /// does not depend on how the pool's threads split the work (a parallel `reduce` adds
@@ -547,6 +480,15 @@ fn map_into<S: Real, T: Real>(out: &mut [[T; 2]], a: &[[S; 2]], f: impl Fn([S; 2
         out.par_chunks_mut(PASS_CHUNK).zip(a.par_chunks(PASS_CHUNK)).for_each(|(o, a)| o.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a)));
     } else {
         out.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a));
+    }
+}
+
+/// `f(x_i, y_i)` on every entry of `x` (the vectors' lengths are equal).
+fn update<T: Real>(x: &mut [[T; 2]], y: &[[T; 2]], f: impl Fn(&mut [T; 2], [T; 2]) + Sync + Send) {
+    if x.len() >= PAR_MIN {
+        x.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).for_each(|(x, y)| x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y)));
+    } else {
+        x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y));
     }
 }
 

@@ -822,13 +822,13 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 let (mut q, mut p) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
                 hier.levels[0].clear_padding(&mut q);
                 let z = hier.precondition(&r);
-                let (mut rz, _) = fcg_dots(&r, z, None);
+                let mut rz = dot_z(&r, z);
                 widen_into(&mut p, z, None);
                 for cycle in 1..=max_cycles {
                     if crate::interrupt::requested() {
                         break;
                     }
-                    let (change, alpha) = energy_step(&mut hier, &mut u, &mut r, &p, &mut q, rz);
+                    let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
                     if stop(change, cycle, &mut report) {
                         report.converged = true;
                         break;
@@ -838,14 +838,14 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         hier.coarse_to_fine(&mut u, &mut r, true);
                         hier.levels[0].residual(&u, None, &mut r);
                         let z = hier.precondition(&r);
-                        rz = fcg_dots(&r, z, None).0;
+                        rz = dot_z(&r, z);
                         widen_into(&mut p, z, None);
                         continue;
                     }
-                    let z = hier.precondition_narrowed(&r);
+                    let z = hier.precondition(&r);
                     // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
                     // the preconditioner's line searches make it slightly nonlinear.
-                    let (rz_new, zq) = fcg_dots(&r, z, Some(&q));
+                    let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
                     let beta = [
                         if rz[0] > 0.0 { ((alpha[0] * zq[0]) / rz[0]).max(0.0) } else { 0.0 },
                         if rz[1] > 0.0 { ((alpha[1] * zq[1]) / rz[1]).max(0.0) } else { 0.0 },
@@ -868,9 +868,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
             let mut round = 0;
             while left > 0 && !crate::interrupt::requested() {
                 let z = hier.precondition(&r);
-                let (rz, _) = fcg_dots(&r, z, None);
+                let rz = dot_z(&r, z);
                 widen_into(&mut p, z, None);
-                let (step, _) = energy_step(&mut hier, &mut u, &mut r, &p, &mut q, rz);
+                let (step, _) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
                 let take = unknowns.min(left);
                 let (relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take);
                 left -= take;
@@ -1387,113 +1387,48 @@ fn count_unknowns(level: &Level) -> usize {
 }
 
 /// The energy-minimising step along `p` (`rz = rᵀz` of the preconditioned residual it came
-/// from): `q = −A p`, `u += α p`, `r += α q`, the new `r` also written in `f32` as the next
-/// cycle's right-hand side. Returns the largest `|α p|` and `α`.
-fn energy_step(hier: &mut Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [V2], rz: [f64; 2]) -> (f64, [f64; 2]) {
+/// from): `q = −A p`, `u += α p`, `r += α q`. Returns the largest `|α p|` and `α`.
+fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [V2], rz: [f64; 2]) -> (f64, [f64; 2]) {
     let pq = hier.levels[0].fine_residual_dot_narrow(p, q);
     let alpha = [
         if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
         if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
     ];
-    let len = u.len();
     let change = u
         .par_chunks_mut(CHUNK)
-        .zip(r.par_chunks_mut(CHUNK).zip(hier.narrow_rhs(len).par_chunks_mut(CHUNK)))
+        .zip(r.par_chunks_mut(CHUNK))
         .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
-        .map(|((u, (r, rw)), (p, q))| step_update(u, r, rw, p, q, alpha))
+        .map(|((u, r), (p, q))| {
+            let mut m = 0.0f64;
+            for (((u, r), p), q) in u.iter_mut().zip(r.iter_mut()).zip(p).zip(q) {
+                for k in 0..2 {
+                    let d = alpha[k] * p[k].get();
+                    u[k] += d;
+                    r[k] += alpha[k] * q[k];
+                    m = larger(m, d.abs());
+                }
+            }
+            m
+        })
         .reduce(|| 0.0, f64::max);
     (change, alpha)
 }
 
-/// `[rᵀz, zᵀq]` per component (`zᵀq` zero without `q`), `z` the preconditioner's `f32`
-/// output, in one pass.
-fn fcg_dots(r: &[V2], z: &[W2], q: Option<&[V2]>) -> ([f64; 2], [f64; 2]) {
-    let chunk = |(k, (r, z)): (usize, (&[V2], &[W2]))| fcg_chunk(r, z, q.map(|q| &q[k * CHUNK..k * CHUNK + r.len()]));
-    // The chunks' sums are added in order, so the result does not depend on the threads.
-    let parts: Vec<[f64; 4]> = r.par_chunks(CHUNK).zip(z.par_chunks(CHUNK)).enumerate().map(chunk).collect();
-    let t = parts.iter().fold([0.0; 4], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]);
-    ([t[0], t[1]], [t[2], t[3]])
+/// `Σ a_i z_i` per component, `z` the preconditioner's `f32` output. The chunks' sums are
+/// added in order, so the result does not depend on the threads.
+fn dot_z(a: &[V2], z: &[W2]) -> [f64; 2] {
+    let parts: Vec<[f64; 2]> =
+        a.par_chunks(CHUNK).zip(z.par_chunks(CHUNK)).map(|(a, z)| level::pair_sums(a.as_flattened(), z.as_flattened(), |x: f64, y: WS| x * y.get())).collect();
+    parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
 }
 
 /// `p = z + β p` (`p = z` without `β`), `z` the preconditioner's `f32` output and `p` the
 /// search direction in `f32`, summed in `f64` and rounded once.
 fn widen_into(p: &mut [W2], z: &[W2], beta: Option<[f64; 2]>) {
     p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| match beta {
-        Some(b) => widen_chunk(p, z, b),
+        Some(b) => p.iter_mut().zip(z).for_each(|(p, z)| *p = [WS::of(z[0].get() + b[0] * p[0].get()), WS::of(z[1].get() + b[1] * p[1].get())]),
         None => p.copy_from_slice(z),
     });
-}
-
-wide::widest! {
-    /// [`fcg_chunk_body`] on the processor's widest vectors (see [`wide`]).
-    fn fcg_chunk(r: &[V2], z: &[W2], q: Option<&[V2]>) -> [f64; 4] =>
-    /// [`fcg_dots`] on one chunk: `[rᵀz, zᵀq]`, each per component.
-    fcg_chunk_body {
-        let wide = |x: f64, y: WS| x * y.get();
-        let zf = z.as_flattened();
-        let rz = level::pair_sums(r.as_flattened(), zf, wide);
-        // A `match`, not `map_or`: its closure was compiled apart, outside the AVX2 copy.
-        let zq = match q {
-            Some(q) => level::pair_sums(q.as_flattened(), zf, wide),
-            None => [0.0; 2],
-        };
-        [rz[0], rz[1], zq[0], zq[1]]
-    }
-}
-
-wide::widest! {
-    /// [`widen_chunk_body`] on the processor's widest vectors (see [`wide`]).
-    fn widen_chunk(p: &mut [W2], z: &[W2], b: [f64; 2]) =>
-    /// [`widen_into`] with `β` on one chunk.
-    widen_chunk_body {
-        for (p, z) in p.iter_mut().zip(z) {
-            *p = [WS::of(z[0].get() + b[0] * p[0].get()), WS::of(z[1].get() + b[1] * p[1].get())];
-        }
-    }
-}
-
-wide::widest! {
-    /// [`step_update_body`] on the processor's widest vectors (see [`wide`]).
-    fn step_update(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[W2], q: &[V2], alpha: [f64; 2]) -> f64 =>
-    /// The conjugate-gradient step on one chunk: `u += α p`, `r += α q` (α per component), and
-    /// `rw` the new `r` in `f32` (the next cycle's right-hand side, written while `r` is at hand);
-    /// returns the largest `|α p|`. On the flattened components, eight running maxima: one
-    /// would wait on the last at every entry.
-    step_update_body {
-        let (u, r, rw) = (u.as_flattened_mut(), r.as_flattened_mut(), rw.as_flattened_mut());
-        let (p, q) = (p.as_flattened(), q.as_flattened());
-        let mut m = [0.0f64; 8];
-        // Eight entries at a time as fixed-size arrays, so the compiler knows the lengths:
-        // written with a closure over slices, the loop stayed scalar, with a bounds check
-        // at every entry, and out of the AVX2 copy (a tenth of a warm solve's samples).
-        let n8 = u.len() / 8 * 8;
-        let (u8s, r8s, rw8s) = (u[..n8].chunks_exact_mut(8), r[..n8].chunks_exact_mut(8), rw[..n8].chunks_exact_mut(8));
-        for (((u, r), rw), (p, q)) in u8s.zip(r8s).zip(rw8s).zip(p[..n8].chunks_exact(8).zip(q[..n8].chunks_exact(8))) {
-            let (u, r, rw): (&mut [f64; 8], &mut [f64; 8], &mut [WS; 8]) =
-                (u.try_into().unwrap(), r.try_into().unwrap(), rw.try_into().unwrap());
-            let (p, q): (&[WS; 8], &[f64; 8]) = (p.try_into().unwrap(), q.try_into().unwrap());
-            for l in 0..8 {
-                update_entry(&mut u[l], &mut r[l], &mut rw[l], p[l], q[l], alpha[l & 1], &mut m[l]);
-            }
-        }
-        // The remainder starts on an even index, as the lanes do.
-        for l in n8..u.len() {
-            update_entry(&mut u[l], &mut r[l], &mut rw[l], p[l], q[l], alpha[l & 1], &mut m[l - n8]);
-        }
-        m.iter().fold(0.0, |a, &b| a.max(b))
-    }
-}
-
-/// One entry of [`step_update_body`] (of the flattened components; `a` its component's α,
-/// `m` its lane's running maximum). A function, not a closure over slices: inlined into the
-/// AVX2 copy, on entries rather than slices, with no bounds to check.
-#[inline(always)]
-fn update_entry(u: &mut f64, r: &mut f64, rw: &mut WS, p: WS, q: f64, a: f64, m: &mut f64) {
-    let d = a * p.get();
-    *u += d;
-    *m = larger(*m, d.abs());
-    *r += a * q;
-    *rw = WS::of(*r);
 }
 
 /// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.
