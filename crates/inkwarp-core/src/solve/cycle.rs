@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{self, dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, V2, W2, WS};
+use super::level::{dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, V2, W2, WS};
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
 const CHEB_RATIO: f64 = 16.0;
@@ -577,23 +577,10 @@ super::wide::widest! {
 /// that vanish (a singular, consistent coarsest system) pin their unknown to zero.
 #[derive(Debug)]
 struct Banded {
-    /// Terms in the longer part of a row of either triangular solve: the bandwidth less
-    /// one, rounded up to a multiple of four (so that the part is whole vectors of the sums
-    /// in [`band_solves`]).
-    reach: usize,
-    /// The factor's rows for the forward solve: row `k` holds `l_km` for
-    /// `m = k − 1 − reach .. k − 1`, zero off the band and before the first unknown, each
-    /// entry twice (once a component, as the right-hand side's pairs lie). The nearest term,
-    /// `l_k,k−1`, is in `near_lower`: the sum of the others does not wait on the unknown just
-    /// solved.
-    lower: Vec<f64>,
-    near_lower: Vec<f64>,
-    /// Its columns for the backward solve: row `k` holds `l_mk` for
-    /// `m = k + 2 .. k + 2 + reach`, the same way, and `near_upper` `l_k+1,k`.
-    upper: Vec<f64>,
-    near_upper: Vec<f64>,
-    /// `1 / l_kk`.
-    inv_diag: Vec<f64>,
+    /// The bandwidth: `l_km` is zero for `k − m > bw`.
+    bw: usize,
+    /// Row `k` of the factor at `l[k (bw + 1) ..]`: `l_km` at `m + bw − k`, `l_kk` last.
+    l: Vec<f64>,
     /// Padded index of each unknown.
     map: Vec<usize>,
     dropped: Vec<bool>,
@@ -678,72 +665,35 @@ impl Banded {
                 }
             }
         }
-        // The factor's rows and columns laid out for the solves' sums.
-        let reach = bw.saturating_sub(1).div_ceil(4) * 4;
-        let row = 2 * reach;
-        let (mut lower, mut upper) = (vec![0.0; n * row], vec![0.0; n * row]);
-        let (mut near_lower, mut near_upper) = (vec![0.0; n], vec![0.0; n]);
-        let width = bw + 1;
-        for k in 0..n {
-            for m in k.saturating_sub(bw)..k {
-                let v = l[k * width + (m + bw - k)];
-                if m + 1 == k {
-                    near_lower[k] = v;
-                    near_upper[m] = v;
-                } else {
-                    let (j, i) = (k * row + 2 * (m + 1 + reach - k), m * row + 2 * (k - m - 2));
-                    lower[j..j + 2].fill(v);
-                    upper[i..i + 2].fill(v);
-                }
-            }
-        }
-        let inv_diag = (0..n).map(|k| 1.0 / l[k * width + bw]).collect();
-        Banded { reach, lower, near_lower, upper, near_upper, inv_diag, map, dropped }
+        Banded { bw, l, map, dropped }
     }
 
-    /// `x = A⁻¹ f` on the unknowns (the forward and backward solves of the factor, in `f64`).
+    /// `x = A⁻¹ f` on the unknowns: the forward and backward solves of the factor, in `f64`.
+    /// Dropped unknowns are zero (their rows and columns in the factor are).
     fn solve<T: Real>(&self, f: &[[T; 2]], x: &mut [[T; 2]]) {
-        // The unknowns' pairs flattened, with zeros around them (`reach` + 1 pairs a side):
-        // every row's window lies inside.
-        let pad = self.reach + 1;
-        let mut z = vec![0.0; 2 * (self.map.len() + 2 * pad)];
-        for (k, &p) in self.map.iter().enumerate() {
-            z[2 * (pad + k)..2 * (pad + k) + 2].copy_from_slice(&[f[p][0].get(), f[p][1].get()]);
+        let (n, bw, l) = (self.map.len(), self.bw, &self.l);
+        let width = bw + 1;
+        let mut z: Vec<V2> = self.map.iter().map(|&p| [f[p][0].get(), f[p][1].get()]).collect();
+        for k in 0..n {
+            let mut s = z[k];
+            for m in k.saturating_sub(bw)..k {
+                let v = l[k * width + m + bw - k];
+                s = [s[0] - v * z[m][0], s[1] - v * z[m][1]];
+            }
+            let d = l[k * width + bw];
+            z[k] = if self.dropped[k] { [0.0; 2] } else { [s[0] / d, s[1] / d] };
         }
-        band_solves(self, &mut z);
-        for (k, &p) in self.map.iter().enumerate() {
-            x[p] = [T::of(z[2 * (pad + k)]), T::of(z[2 * (pad + k) + 1])];
+        for k in (0..n).rev() {
+            let mut s = z[k];
+            for m in k + 1..(k + width).min(n) {
+                let v = l[m * width + k + bw - m];
+                s = [s[0] - v * z[m][0], s[1] - v * z[m][1]];
+            }
+            let d = l[k * width + bw];
+            z[k] = if self.dropped[k] { [0.0; 2] } else { [s[0] / d, s[1] / d] };
         }
-    }
-}
-
-super::wide::widest! {
-    /// [`band_solves_body`] on the processor's widest vectors (see [`super::wide`]).
-    fn band_solves(b: &Banded, z: &mut [f64]) =>
-    /// `L y = z`, then `Lᵀ x = y`, in place on `z` (laid out as [`Banded::solve`] does), each
-    /// entry `(z_k − Σ l z) / l_kk`: the band's terms but the nearest on eight running sums
-    /// (`level::pair_sums`), which do not wait on the entry just solved, then the nearest.
-    /// One sum a component, over the whole band (2 w + 2 terms), waited on its last addition
-    /// at every term. Dropped unknowns are zero (their rows and columns in the factor are).
-    band_solves_body {
-        let (row, pad) = (2 * b.reach, b.reach + 1);
-        let finish = |z: &mut [f64], at: usize, k: usize, s: [f64; 2]| {
-            let g = b.inv_diag[k];
-            let v = if b.dropped[k] { [0.0; 2] } else { [(z[at] - s[0]) * g, (z[at + 1] - s[1]) * g] };
-            z[at..at + 2].copy_from_slice(&v);
-        };
-        let prod = |a: f64, b: f64| a * b;
-        for k in 0..b.inv_diag.len() {
-            let at = 2 * (pad + k);
-            let s = level::pair_sums(&b.lower[k * row..(k + 1) * row], &z[at - 2 - row..at - 2], prod);
-            let c = b.near_lower[k];
-            finish(z, at, k, [s[0] + c * z[at - 2], s[1] + c * z[at - 1]]);
-        }
-        for k in (0..b.inv_diag.len()).rev() {
-            let at = 2 * (pad + k);
-            let s = level::pair_sums(&b.upper[k * row..(k + 1) * row], &z[at + 4..at + 4 + row], prod);
-            let c = b.near_upper[k];
-            finish(z, at, k, [s[0] + c * z[at + 2], s[1] + c * z[at + 3]]);
+        for (&p, v) in self.map.iter().zip(z) {
+            x[p] = [T::of(v[0]), T::of(v[1])];
         }
     }
 }
@@ -764,9 +714,8 @@ mod tests {
 
     #[test]
     fn the_cycles_vector_copies_match_their_plain_bodies() {
-        // A smoothing's first step from zero and the coarsest level's triangular solves, by
-        // the dispatching functions (the AVX2 copy where the processor has it) and by their
-        // plain bodies, bit for bit.
+        // A smoothing's first step from zero, by the dispatching function (the AVX2 copy
+        // where the processor has it) and by its plain body, bit for bit.
         let mut rnd = crate::grid::tests::sequence(31);
         for n in [1, 9, 1001] {
             let f: Vec<W2> = (0..n).map(|_| [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32]).collect();
@@ -777,17 +726,6 @@ mod tests {
             let bits = |v: &[W2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&x1), bits(&x2), "{n}");
         }
-        let level = fine_level(&Grid::new(15, 13), Some((0..15 * 13).map(|i| i % 17 == 3).collect()), 0.0);
-        let banded = Banded::new(&level);
-        let pad = banded.reach + 1;
-        let mut z1: Vec<f64> = (0..2 * (banded.map.len() + 2 * pad)).map(|_| rnd() - 0.5).collect();
-        z1[..2 * pad].fill(0.0);
-        let end = z1.len() - 2 * pad;
-        z1[end..].fill(0.0);
-        let mut z2 = z1.clone();
-        band_solves(&banded, &mut z1);
-        band_solves_body(&banded, &mut z2);
-        assert_eq!(z1.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), z2.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
     }
 
     #[test]
