@@ -17,16 +17,11 @@ pub(crate) struct Aim {
 /// Stop coarsening when a level has at most this many nodes.
 const COARSEST_NODES: usize = 300;
 /// A K-cycle takes its second step only when its first left more than this fraction of
-/// the coarse residual (Euclidean norm, each component). With many constraints the coarse
-/// problems are well held and one cycle below leaves about a quarter on the first coarse
-/// level (513 × 513, 4000 points: the second step then cost 13 % of a cold solve's time
-/// for no fewer cycles); with few, the first step leaves 60–100 % of it and the second is
-/// what makes the K-cycle. Notay and Vassilevski use 0.25, right at the many-constraint
-/// ratio; 0.3 keeps clear of it.
+/// the coarse residual (Euclidean norm, each component): Notay's adaptive K-cycle (see
+/// `docs/dev/ablation.md`, "Constants", for the choice of 0.3).
 const K_SECOND_STEP: f64 = 0.3;
 /// Lanczos steps of the estimate of the top of each level's spectrum.
 const LANCZOS_STEPS: usize = 12;
-const PAR_MIN: usize = 4_000;
 
 /// The grid hierarchy with its work vectors.
 #[derive(Debug)]
@@ -117,12 +112,9 @@ impl Hierarchy {
             .collect();
         // Chebyshev needs the top of the spectrum of D⁻¹A: its two steps aimed at [λ/16, λ]
         // amplify every mode more than 6.25 % above λ. The largest Ritz value of a few
-        // Lanczos steps, capped by the (safe, loose) Gershgorin bound: it comes from below,
-        // and was within 2.1 % of a 300-step power iteration on every level measured, so
-        // it takes no margin (a 10 % margin cost the editor's scene with a cut 5 of its 22
-        // cycles). Power steps are not enough: levels over holes carry modes on a few nodes
-        // near the edge, up to twice the top of the rest, that six power steps from a
-        // checkerboard missed and eight Lanczos steps find.
+        // Lanczos steps, capped by the (safe, loose) Gershgorin bound; it comes from below
+        // but close enough to take no margin. Power steps are not enough: levels over holes
+        // carry modes on a few nodes near the edge, up to twice the top of the rest.
         for l in levels.iter_mut().skip(if smooth_fine { 0 } else { 1 }) {
             let est = lanczos_estimate(l, LANCZOS_STEPS);
             l.lam_max = l.lam_max.min(est);
@@ -233,10 +225,7 @@ impl Hierarchy {
             restrict(&alt.levels[0], &alt.levels[1], &w.r, &mut atail[0].f);
             alt.clear_start(1, &mut atail[0].x);
             alt.solve_level(1, atail, true, None);
-            // Unscaled: with the line search the cycle counts on holes and cuts went up and
-            // down by a few percent, to no gain; with the first space's correction scaled
-            // too, two random 96 × 96 problems with holes, cuts and hinges no longer
-            // converged in 100 cycles.
+            // Unscaled (a line search here gained nothing: `docs/dev/ablation.md`).
             prolong_add(&alt.levels[0], &alt.levels[1], &atail[0].x, &mut w.x);
         }
         let Work { x, f, r, d, .. } = w;
@@ -256,10 +245,7 @@ impl Hierarchy {
     ///
     /// The second step is the energy minimiser over both directions, where a W-cycle's second
     /// visit (and its line search) takes the second direction alone; it also needs no fine
-    /// residual between the visits, the coarse one being updated in place. Measured against
-    /// the W-cycle with line searches: 513 × 513 with 10 points 10 cycles instead of 11;
-    /// 257 × 257 with a ring-shaped hole 24 instead of 27, a cut 21 instead of 22, both 26
-    /// instead of 27.
+    /// residual between the visits, the coarse one being updated in place.
     fn k_correction(&self, k: usize, w: &mut Work, tail: &mut [Work]) {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
         restrict(level, coarse, &w.r, &mut tail[0].f);
@@ -449,47 +435,29 @@ fn step(num: f64, den: f64) -> f64 {
     }
 }
 
-/// Entries per task of this module's vector passes; levels under [`PAR_MIN`] entries take
-/// them in one piece on this thread.
+/// Entries per task of this module's vector passes.
 const PASS_CHUNK: usize = 4096;
 
 /// `Σ a_i b_i` per component, in `f64`. The chunks' sums are added in order, so the result
 /// does not depend on how the pool's threads split the work (a parallel `reduce` adds
 /// them in a tree shaped by the work stealing).
 fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
-    let dot = dot_pairs::<WS>;
-    if a.len() >= PAR_MIN {
-        let parts: Vec<[f64; 2]> = a.par_chunks(PASS_CHUNK).zip(b.par_chunks(PASS_CHUNK)).map(|(a, b)| dot(a, b)).collect();
-        parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
-    } else {
-        dot(a, b)
-    }
+    let parts: Vec<[f64; 2]> = a.par_chunks(PASS_CHUNK).zip(b.par_chunks(PASS_CHUNK)).map(|(a, b)| dot_pairs::<WS>(a, b)).collect();
+    parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
 }
 
 fn fill_zero<T: Real>(v: &mut [[T; 2]]) {
-    if v.len() >= PAR_MIN {
-        v.par_iter_mut().for_each(|a| *a = [T::ZERO; 2]);
-    } else {
-        v.iter_mut().for_each(|a| *a = [T::ZERO; 2]);
-    }
+    v.par_chunks_mut(PASS_CHUNK).for_each(|v| v.fill([T::ZERO; 2]));
 }
 
 /// `out[i] = f(a[i])` (the vectors' lengths are equal).
 fn map_into<S: Real, T: Real>(out: &mut [[T; 2]], a: &[[S; 2]], f: impl Fn([S; 2]) -> [T; 2] + Sync + Send) {
-    if out.len() >= PAR_MIN {
-        out.par_chunks_mut(PASS_CHUNK).zip(a.par_chunks(PASS_CHUNK)).for_each(|(o, a)| o.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a)));
-    } else {
-        out.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a));
-    }
+    out.par_chunks_mut(PASS_CHUNK).zip(a.par_chunks(PASS_CHUNK)).for_each(|(o, a)| o.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a)));
 }
 
 /// `f(x_i, y_i)` on every entry of `x` (the vectors' lengths are equal).
 fn update<T: Real>(x: &mut [[T; 2]], y: &[[T; 2]], f: impl Fn(&mut [T; 2], [T; 2]) + Sync + Send) {
-    if x.len() >= PAR_MIN {
-        x.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).for_each(|(x, y)| x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y)));
-    } else {
-        x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y));
-    }
+    x.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).for_each(|(x, y)| x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y)));
 }
 
 /// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `aim.steps` steps aimed
@@ -528,14 +496,9 @@ pub(crate) fn smooth(
         // fused, the second step's pass computes it itself.
         if !fused {
             let f = zero_start_f();
-            let first = |x: &mut [W2], f: &[W2], g: &[WS]| first_from_zero(x, f, g, inv_theta);
-            if x.len() >= PAR_MIN {
-                x.par_chunks_mut(PASS_CHUNK)
-                    .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
-                    .for_each(|(x, (f, g))| first(x, f, g));
-            } else {
-                first(x, f, &level.inv_diag_w);
-            }
+            x.par_chunks_mut(PASS_CHUNK)
+                .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
+                .for_each(|(x, (f, g))| first_from_zero(x, f, g, inv_theta));
         }
         steps -= 1;
     }

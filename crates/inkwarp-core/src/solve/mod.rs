@@ -271,9 +271,7 @@ pub(crate) fn solve_with(
 /// Runs `f` on a thread of the pool. The solve makes hundreds of parallel calls a cycle;
 /// made from outside the pool, each hands its work to the pool's threads and puts the
 /// caller to sleep until they finish, two context switches a call. Inside the pool the
-/// caller takes part instead. (The pool's other threads are not kept spinning between
-/// the solve's parallel calls: that bought 4–5 % on two cores, below the 10 % a mechanism
-/// must earn, and spun threads in other callers' work.)
+/// caller takes part instead.
 ///
 /// Public for callers that move large arrays around a solve (the Python binding converts
 /// the answer to numpy's layout): run there too, their parallel passes share the pool.
@@ -482,9 +480,7 @@ pub(crate) fn solve_constrained(
                 }
             }
         } else if whole {
-            // Four rows a task at least, and no labels read (every node is the piece's): at
-            // 513 × 513 this write took 0.24–0.28 ms against 0.31–0.40 ms with a task a row
-            // and the labels (a busy machine).
+            // Four rows a task at least, and no labels read (every node is the piece's).
             let (mut dx, mut dy) = (Vec::with_capacity(n), Vec::with_capacity(n));
             let (sx, sy) = (&mut dx.spare_capacity_mut()[..n], &mut dy.spare_capacity_mut()[..n]);
             sx.par_chunks_mut(w).zip(sy.par_chunks_mut(w)).enumerate().with_min_len(4).for_each(|(y, (dx, dy))| {
@@ -616,9 +612,7 @@ fn links_clone(links: &BoxLinks) -> BoxLinks {
 #[derive(Debug, PartialEq)]
 enum BoxLinks {
     /// Every node active and every link there (none off the last column or row, as on a
-    /// consistent grid): nothing to copy into a solve's key or to compare in the cache,
-    /// where at 513 × 513 the three vectors took about 0.1 ms to build and as long to
-    /// compare (a busy machine).
+    /// consistent grid): nothing to copy into a solve's key or to compare in the cache.
     Open,
     Given { active: Vec<bool>, right: Vec<bool>, down: Vec<bool> },
 }
@@ -929,9 +923,8 @@ const HIERARCHY_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
 /// editor's drags): the hierarchies of its recent problems (they depend on the grid, the
-/// fixed nodes and the tension, never on the values, so an animation's frames share one;
-/// rebuilding it took 1.9–3.4 times a 513 × 513 solve's time, `docs/dev/ablation.md`) and
-/// the warm-start history ([`WarmHistory`]). Nothing is kept
+/// fixed nodes and the tension, never on the values, so an animation's frames share one)
+/// and the warm-start history ([`WarmHistory`]). Nothing is kept
 /// between solves outside it: the free functions ([`solve`], [`solve_warm`]) use a
 /// temporary one.
 ///
@@ -1052,26 +1045,19 @@ impl Store {
 }
 
 /// Safety factor of the stopping rule (see the multigrid loop) on grids without holes or
-/// cuts. At 257 × 257 and 513 × 513 with 10 to 4000 random points (36 problems) the
-/// error where it stopped was at most 0.005 px at a 0.01 px tolerance, one cycle sooner
-/// than [`TORN_STOP_MARGIN`] in most of them.
+/// cuts (`docs/dev/ablation.md`, "Constants").
 const STOP_MARGIN: f64 = 1.5;
 /// Pieces smaller than this (256 × 256) go without the space along tears: its lattices
-/// (half widths 32 and 96) would cover them whole, and on the editor's coarse drafts it
-/// cost more than it saved.
+/// (half widths 32 and 96) would cover them whole.
 const TEAR_SPACE_MIN_NODES: usize = 1 << 16;
-/// The same on grids with holes or cuts, where the slowest error moves least per cycle:
-/// with 1.5 a grid with a ring-shaped hole and a cut stopped at 0.012 px.
+/// The same on grids with holes or cuts, where the slowest error moves least per cycle.
 const TORN_STOP_MARGIN: f64 = 3.0;
 
 /// Smoothing steps before and after each coarse correction.
 const SMOOTHING_STEPS: usize = 2;
 
-/// The same below the finest level of a grid without holes or cuts. One step there made the
-/// cycles cheaper by more than it made them weaker (513 × 513, one thread: 10 points
-/// 133 → 104 ms in 9 cycles instead of 10, 4000 points 212 → 178 ms in 12 instead of 11,
-/// warm starts 4 → 3 cycles), where across a cut or a ring-shaped hole it took up to four
-/// more cycles and fooled the stopping rule once (0.012 px left at a 0.01 px tolerance).
+/// The same below the finest level of a grid without holes or cuts (across holes and cuts
+/// one step weakens the cycle too much: `docs/dev/ablation.md`, "Constants").
 const OPEN_COARSE_SMOOTHING: usize = 1;
 
 /// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
