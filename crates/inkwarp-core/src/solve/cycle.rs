@@ -46,12 +46,6 @@ pub(crate) struct Hierarchy {
     /// K-cycle coarse corrections that took their first step alone (see
     /// [`K_SECOND_STEP`]), since the hierarchy was built.
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
-    /// The finest level's real geometry where its own has wide holes filled for the
-    /// prolongation (see [`Level::with_holes_filled`]); set by the solve.
-    pub unfilled: Option<super::level::Geometry>,
-    /// Whether the finest level has loose nodes (free nodes on no fully linked cell),
-    /// which the solve settles afterwards; set by the solve that builds the hierarchy.
-    pub loose: bool,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -120,7 +114,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None, loose: false, unfilled: None, second_steps_skipped: Default::default() }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None, second_steps_skipped: Default::default() }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,

@@ -49,8 +49,8 @@
 //! lacks the functions that run linearly up to (and across) a hole or cut, and the plain
 //! one has exactly those. A warm start whose
 //! residuals exceed the tolerance also gets the coarse-to-fine correction; a closer one
-//! first gets one cycle as it is. Loose nodes (no corner of a fully linked cell) are
-//! settled to the τ → 0⁺ limit afterwards.
+//! first gets one cycle as it is. Free functions of the plate energy (hinges, strands,
+//! loose nodes) are settled to the τ → 0⁺ limit afterwards ([`nullspace`]).
 //! `docs/concepts/thin-plate.md` explains the choices; `docs/dev/ablation.md` measures
 //! what each optional mechanism buys. The hierarchies a later solve can reuse are kept
 //! by the caller's [`Solver`], never by the process.
@@ -73,7 +73,7 @@ use thiserror::Error;
 
 use crate::field::{Field, FieldView};
 use crate::geometry::Sample;
-use crate::grid::{constrain, linked_neighbours, Constraints, Grid};
+use crate::grid::{constrain, Constraints, Grid};
 
 use cycle::Hierarchy;
 use level::{larger, scaled_max, Geometry, Level, Real, PAD, V2, W2, WS};
@@ -659,8 +659,8 @@ fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4]
 }
 
 /// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`:
-/// the solve's own padded vector, handed over without a copy, or where loose nodes were
-/// settled an unpadded copy (stride the box's width). Its nodes off the piece are not
+/// the solve's own padded vector, handed over without a copy, or (where the null space was
+/// settled) an unpadded copy (stride the box's width). Its nodes off the piece are not
 /// read.
 struct BoxValues {
     values: Vec<V2>,
@@ -693,16 +693,12 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         // Wide holes filled for the prolongation (see `Level::with_holes_filled`): the
         // second space below is then needed only where tears remain (cuts, thin holes,
         // holes open to the border).
-        let loose = loose_nodes(&fine.geo, &key.fixed).contains(&true);
         let real = torn.then(|| fine.geo.clone());
         let fine = fine.with_holes_filled();
         let alt = (fine.geo.torn() && !key.off.has("second")).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.clone().unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
-        let filled = real.filter(|r| r.active != fine.geo.active);
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
         hier.k_cycles = !key.off.has("kcycle");
-        hier.loose = loose;
-        hier.unfilled = filled;
         hier.alt = alt;
         hier.torn = torn;
         if key.off.has("fours") {
@@ -714,7 +710,6 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         }
         hier
     });
-    let fixed = &key.fixed;
     let len = hier.levels[0].len_padded();
     let mut u: Vec<V2> = vec![[0.0; 2]; len];
     {
@@ -885,23 +880,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     let inv_diag = &hier.levels[0].inv_diag;
     report.residual = r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)).map(|(r, d)| scaled_max(r, d)).reduce(|| 0.0, larger);
     let fine = &hier.levels[0];
-    // The real nodes and links (the finest level's geometry may have its holes filled).
-    let geo = hier.unfilled.as_ref().unwrap_or(&fine.geo);
-    let out = if tau == 0.0 && hier.loose {
-        // Every value written (zero off the piece), row by row in parallel, then the loose
-        // nodes settled there.
-        let mut out: Vec<V2> = vec![[0.0; 2]; w * h];
-        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            let p = fine.pidx(0, y);
-            for ((o, &a), v) in row.iter_mut().zip(&geo.active[y * w..(y + 1) * w]).zip(&u[p..p + w]) {
-                *o = if a { *v } else { [0.0; 2] };
-            }
-        });
-        settle_loose_nodes(geo, fixed, &mut out);
-        BoxValues { values: out, stride: w, first: 0 }
-    } else {
-        BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) }
-    };
+    let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
     store.put_hierarchy(key, hier);
     (out, report)
 }
@@ -1181,153 +1160,6 @@ fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64
             let l = (d[0] * (y - a[1]) - d[1] * (x - a[0])) as f64;
             u[i][0] += c[0] * l;
             u[i][1] += c[1] * l;
-        }
-    }
-}
-
-/// Loose nodes: free nodes that are no corner of a 2 × 2 cell with all four links
-/// (strands, dangling nodes, one-node corridors). The plate energy may leave some of their
-/// values undetermined; the τ → 0⁺ limit picks, among the plate minimisers, the least
-/// membrane energy. Each connected group of loose nodes (up to `MAX_GROUP` nodes) is solved
-/// exactly for that limit with the rest of the field held, by two dense solves at tiny
-/// tensions and Richardson extrapolation.
-fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
-    const MAX_GROUP: usize = 400;
-    let (w, n) = (geo.w, geo.w * geo.h);
-    let loose = loose_nodes(geo, fixed);
-    // Allocated at the first loose node (most grids have none).
-    let mut group_of = Vec::new();
-    for start in 0..n {
-        if !loose[start] {
-            continue;
-        }
-        if group_of.is_empty() {
-            group_of = vec![usize::MAX; n];
-        }
-        if group_of[start] != usize::MAX {
-            continue;
-        }
-        // the group by flood fill over links
-        let mut group = vec![start];
-        group_of[start] = start;
-        let mut k = 0;
-        while k < group.len() {
-            let i = group[k];
-            k += 1;
-            for j in linked_neighbours(w, &geo.right, &geo.down, i) {
-                if j != usize::MAX && loose[j] && group_of[j] == usize::MAX {
-                    group_of[j] = start;
-                    group.push(j);
-                }
-            }
-        }
-        if group.len() <= MAX_GROUP {
-            settle_group(geo, &group, &group_of, start, u);
-        }
-    }
-}
-
-/// The loose nodes: free (active, not fixed) and no corner of a 2 × 2 cell with all
-/// four links.
-fn loose_nodes(geo: &Geometry, fixed: &[bool]) -> Vec<bool> {
-    let (w, h) = (geo.w, geo.h);
-    let mut core = vec![false; w * h];
-    for y in 0..h.saturating_sub(1) {
-        for x in 0..w.saturating_sub(1) {
-            let i = y * w + x;
-            if geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w] {
-                core[i] = true;
-                core[i + 1] = true;
-                core[i + w] = true;
-                core[i + w + 1] = true;
-            }
-        }
-    }
-    (0..w * h).map(|i| geo.active[i] && !fixed[i] && !core[i]).collect()
-}
-
-/// The τ → 0⁺ minimiser over one group of loose nodes (all other values held).
-fn settle_group(geo: &Geometry, group: &[usize], group_of: &[usize], id: usize, u: &mut [V2]) {
-    let w = geo.w;
-    let k = group.len();
-    let local = |i: usize| if group_of[i] == id { group.iter().position(|&g| g == i) } else { None };
-    // Terms touching the group: (nodes, coefficients, is_plate).
-    let mut terms: Vec<(Vec<usize>, Vec<f64>, bool)> = Vec::new();
-    let mut seen = std::collections::HashSet::new();
-    for &i in group {
-        let (x, y) = ((i % w) as isize, (i / w) as isize);
-        for d in -1isize..=1 {
-            // horizontal triple centred at (x + d, y), vertical at (x, y + d)
-            let c = (x + d, y);
-            if c.0 >= 1 && c.0 + 1 < w as isize {
-                let ci = (c.1 * w as isize + c.0) as usize;
-                if geo.right[ci - 1] && geo.right[ci] && seen.insert((0u8, ci)) {
-                    terms.push((vec![ci - 1, ci, ci + 1], vec![1.0, -2.0, 1.0], true));
-                }
-            }
-            let c = (x, y + d);
-            if c.1 >= 1 && c.1 + 1 < geo.h as isize {
-                let ci = (c.1 * w as isize + c.0) as usize;
-                if geo.down[ci - w] && geo.down[ci] && seen.insert((1u8, ci)) {
-                    terms.push((vec![ci - w, ci, ci + w], vec![1.0, -2.0, 1.0], true));
-                }
-            }
-        }
-        for (ox, oy) in [(0isize, 0isize), (1, 0), (0, 1), (1, 1)] {
-            let (cx, cy) = (x - ox, y - oy);
-            if cx >= 0 && cy >= 0 && cx + 1 < w as isize && cy + 1 < geo.h as isize {
-                let ci = (cy * w as isize + cx) as usize;
-                if geo.right[ci] && geo.down[ci] && geo.down[ci + 1] && geo.right[ci + w] && seen.insert((2u8, ci)) {
-                    terms.push((vec![ci, ci + 1, ci + w, ci + w + 1], vec![2f64.sqrt(), -(2f64.sqrt()), -(2f64.sqrt()), 2f64.sqrt()], true));
-                }
-            }
-        }
-    }
-    for &i in group {
-        let (x, y) = (i % w, i / w);
-        if geo.right[i] && seen.insert((3u8, i)) {
-            terms.push((vec![i, i + 1], vec![1.0, -1.0], false));
-        }
-        if x > 0 && geo.right[i - 1] && seen.insert((3u8, i - 1)) {
-            terms.push((vec![i - 1, i], vec![1.0, -1.0], false));
-        }
-        if geo.down[i] && seen.insert((4u8, i)) {
-            terms.push((vec![i, i + w], vec![1.0, -1.0], false));
-        }
-        if y > 0 && geo.down[i - w] && seen.insert((4u8, i - w)) {
-            terms.push((vec![i - w, i], vec![1.0, -1.0], false));
-        }
-    }
-    let index: Vec<Vec<Option<usize>>> = terms.iter().map(|t| t.0.iter().map(|&j| local(j)).collect()).collect();
-    let solve_at = |tau: f64| -> Option<Vec<V2>> {
-        let mut m = vec![vec![0.0f64; k]; k];
-        let mut rhs = vec![[0.0f64; 2]; k];
-        for (t, idx) in terms.iter().zip(&index) {
-            let wgt = if t.2 { 1.0 } else { tau };
-            let mut fixed_part = [0.0f64; 2];
-            for (j, (&node, &c)) in t.0.iter().zip(&t.1).enumerate() {
-                if idx[j].is_none() {
-                    fixed_part[0] += c * u[node][0];
-                    fixed_part[1] += c * u[node][1];
-                }
-            }
-            for (a, &ca) in idx.iter().zip(&t.1) {
-                let Some(a) = *a else { continue };
-                rhs[a][0] -= wgt * ca * fixed_part[0];
-                rhs[a][1] -= wgt * ca * fixed_part[1];
-                for (b, &cb) in idx.iter().zip(&t.1) {
-                    if let Some(b) = *b {
-                        m[a][b] += wgt * ca * cb;
-                    }
-                }
-            }
-        }
-        dense_solve(m, rhs)
-    };
-    let t = 1e-9;
-    if let (Some(a), Some(b)) = (solve_at(t), solve_at(2.0 * t)) {
-        for (g, &i) in group.iter().enumerate() {
-            u[i] = [2.0 * a[g][0] - b[g][0], 2.0 * a[g][1] - b[g][1]];
         }
     }
 }
