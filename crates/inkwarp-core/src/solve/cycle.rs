@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{self, dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, V2, W2, WS};
+use super::level::{dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, V2, W2, WS};
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
 const CHEB_RATIO: f64 = 16.0;
@@ -17,16 +17,11 @@ pub(crate) struct Aim {
 /// Stop coarsening when a level has at most this many nodes.
 const COARSEST_NODES: usize = 300;
 /// A K-cycle takes its second step only when its first left more than this fraction of
-/// the coarse residual (Euclidean norm, each component). With many constraints the coarse
-/// problems are well held and one cycle below leaves about a quarter on the first coarse
-/// level (513 × 513, 4000 points: the second step then cost 13 % of a cold solve's time
-/// for no fewer cycles); with few, the first step leaves 60–100 % of it and the second is
-/// what makes the K-cycle. Notay and Vassilevski use 0.25, right at the many-constraint
-/// ratio; 0.3 keeps clear of it.
+/// the coarse residual (Euclidean norm, each component): Notay's adaptive K-cycle (see
+/// `docs/dev/ablation.md`, "Constants", for the choice of 0.3).
 const K_SECOND_STEP: f64 = 0.3;
 /// Lanczos steps of the estimate of the top of each level's spectrum.
 const LANCZOS_STEPS: usize = 12;
-const PAR_MIN: usize = 4_000;
 
 /// The grid hierarchy with its work vectors.
 #[derive(Debug)]
@@ -51,12 +46,6 @@ pub(crate) struct Hierarchy {
     /// K-cycle coarse corrections that took their first step alone (see
     /// [`K_SECOND_STEP`]), since the hierarchy was built.
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
-    /// The finest level's real geometry where its own has wide holes filled for the
-    /// prolongation (see [`Level::with_holes_filled`]); set by the solve.
-    pub unfilled: Option<super::level::Geometry>,
-    /// Whether the finest level has loose nodes (free nodes on no fully linked cell),
-    /// which the solve settles afterwards; set by the solve that builds the hierarchy.
-    pub loose: bool,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -117,18 +106,15 @@ impl Hierarchy {
             .collect();
         // Chebyshev needs the top of the spectrum of D⁻¹A: its two steps aimed at [λ/16, λ]
         // amplify every mode more than 6.25 % above λ. The largest Ritz value of a few
-        // Lanczos steps, capped by the (safe, loose) Gershgorin bound: it comes from below,
-        // and was within 2.1 % of a 300-step power iteration on every level measured, so
-        // it takes no margin (a 10 % margin cost the editor's scene with a cut 5 of its 22
-        // cycles). Power steps are not enough: levels over holes carry modes on a few nodes
-        // near the edge, up to twice the top of the rest, that six power steps from a
-        // checkerboard missed and eight Lanczos steps find.
+        // Lanczos steps, capped by the (safe, loose) Gershgorin bound; it comes from below
+        // but close enough to take no margin. Power steps are not enough: levels over holes
+        // carry modes on a few nodes near the edge, up to twice the top of the rest.
         for l in levels.iter_mut().skip(if smooth_fine { 0 } else { 1 }) {
             let est = lanczos_estimate(l, LANCZOS_STEPS);
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None, loose: false, unfilled: None, second_steps_skipped: Default::default() }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None, second_steps_skipped: Default::default() }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
@@ -142,18 +128,7 @@ impl Hierarchy {
         self.cycle_from_zero(r)
     }
 
-    /// The cycle's right-hand side on the finest level: `r` in `f32`, for a caller that
-    /// writes it while it updates `r` (then [`Hierarchy::precondition_narrowed`]).
-    pub fn narrow_rhs(&mut self, len: usize) -> &mut [W2] {
-        &mut self.work[0].f[..len]
-    }
-
-    /// [`Hierarchy::precondition`] with `r` already written into [`Hierarchy::narrow_rhs`].
-    pub fn precondition_narrowed(&mut self, r: &[V2]) -> &[W2] {
-        self.cycle_from_zero(r)
-    }
-
-    /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `narrow_rhs`.
+    /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `work[0].f`.
     fn cycle_from_zero(&mut self, r: &[V2]) -> &[W2] {
         let mut work = std::mem::take(&mut self.work);
         // With the extra space along tears: its exact part first, the cycle on the rest.
@@ -244,10 +219,7 @@ impl Hierarchy {
             restrict(&alt.levels[0], &alt.levels[1], &w.r, &mut atail[0].f);
             alt.clear_start(1, &mut atail[0].x);
             alt.solve_level(1, atail, true, None);
-            // Unscaled: with the line search the cycle counts on holes and cuts went up and
-            // down by a few percent, to no gain; with the first space's correction scaled
-            // too, two random 96 × 96 problems with holes, cuts and hinges no longer
-            // converged in 100 cycles.
+            // Unscaled (a line search here gained nothing: `docs/dev/ablation.md`).
             prolong_add(&alt.levels[0], &alt.levels[1], &atail[0].x, &mut w.x);
         }
         let Work { x, f, r, d, .. } = w;
@@ -267,10 +239,7 @@ impl Hierarchy {
     ///
     /// The second step is the energy minimiser over both directions, where a W-cycle's second
     /// visit (and its line search) takes the second direction alone; it also needs no fine
-    /// residual between the visits, the coarse one being updated in place. Measured against
-    /// the W-cycle with line searches: 513 × 513 with 10 points 10 cycles instead of 11;
-    /// 257 × 257 with a ring-shaped hole 24 instead of 27, a cut 21 instead of 22, both 26
-    /// instead of 27.
+    /// residual between the visits, the coarse one being updated in place.
     fn k_correction(&self, k: usize, w: &mut Work, tail: &mut [Work]) {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
         restrict(level, coarse, &w.r, &mut tail[0].f);
@@ -287,7 +256,10 @@ impl Hierarchy {
             let a1w = [WS::of(a1[0]), WS::of(a1[1])];
             let Work { x, f, r, z1, q1, .. } = c;
             q1.resize(r.len(), [WS::ZERO; 2]);
-            let [before, after] = first_step_residual(f, r, q1, a1w);
+            let before = dot_w(f, f);
+            map_into(q1, r, |r| [WS::ZERO - r[0], WS::ZERO - r[1]]);
+            update(f, r, |f, r| *f = [f[0] + a1w[0] * r[0], f[1] + a1w[1] * r[1]]);
+            let after = dot_w(f, f);
             // The first step alone when it left little of the residual (Notay's adaptive
             // K-cycle): the second cycle below would not be worth its cost.
             let t2 = K_SECOND_STEP * K_SECOND_STEP;
@@ -308,12 +280,13 @@ impl Hierarchy {
         {
             // d = z₂ − β z₁ into x, A d = −r − β A z₁ into r.
             let Work { x, r, z1, q1, .. } = c;
-            second_direction(x, r, z1, q1, bw);
+            update(x, z1, |x, z1| *x = [x[0] - bw[0] * z1[0], x[1] - bw[1] * z1[1]]);
+            update(r, q1, |r, q1| *r = [WS::ZERO - r[0] - bw[0] * q1[0], WS::ZERO - r[1] - bw[1] * q1[1]]);
         }
         let (df, dad) = (dot_w(&c.x, &c.f), dot_w(&c.x, &c.r));
         let a2 = [step(df[0], dad[0]), step(df[1], dad[1])];
         let (a1w, a2w) = ([WS::of(a1[0]), WS::of(a1[1])], [WS::of(a2[0]), WS::of(a2[1])]);
-        both_steps(&mut c.x, &c.z1, a1w, a2w);
+        update(&mut c.x, &c.z1, |x, z1| *x = [a1w[0] * z1[0] + a2w[0] * x[0], a1w[1] * z1[1] + a2w[1] * x[1]]);
         prolong_add(level, coarse, &c.x, &mut w.x);
     }
 
@@ -456,98 +429,29 @@ fn step(num: f64, den: f64) -> f64 {
     }
 }
 
-/// Entries per task of this module's vector passes (the K-cycle's below, [`dot_w`],
-/// [`map_into`], a smoothing's first step from zero); levels under [`PAR_MIN`] entries
-/// take them in one piece on this thread. The K-cycle's were single loops on one thread,
-/// whose sums of squares each waited on its last addition, while the other thread
-/// waited (with 100 points at 513 × 513, warm, the profile samples of the function they
-/// were inlined into were about 3 % of the solving thread's).
+/// Entries per task of this module's vector passes.
 const PASS_CHUNK: usize = 4096;
-
-/// The K-cycle's first step on the coarse right-hand side: `q1 = A z₁` from `r = −A z₁`,
-/// and `f ← f − α₁ A z₁ = f + α₁ r`; returns `[before, after]`, each `[Σ f_x², Σ f_y²]` in
-/// `f64` (chunk by chunk, eight running sums in each, added in order: the same sums
-/// whatever the threads).
-fn first_step_residual(f: &mut [W2], r: &[W2], q1: &mut [W2], a: [WS; 2]) -> [[f64; 2]; 2] {
-    let square = |x: WS, y: WS| x.get() * y.get();
-    let body = |(f, (r, q1)): (&mut [W2], (&[W2], &mut [W2]))| {
-        let before = level::pair_sums(f.as_flattened(), f.as_flattened(), square);
-        for ((f, r), q1) in f.iter_mut().zip(r).zip(q1.iter_mut()) {
-            *q1 = [WS::ZERO - r[0], WS::ZERO - r[1]];
-            *f = [f[0] + a[0] * r[0], f[1] + a[1] * r[1]];
-        }
-        let after = level::pair_sums(f.as_flattened(), f.as_flattened(), square);
-        [before, after]
-    };
-    let parts: Vec<[[f64; 2]; 2]> = if f.len() >= PAR_MIN {
-        f.par_chunks_mut(PASS_CHUNK).zip(r.par_chunks(PASS_CHUNK).zip(q1.par_chunks_mut(PASS_CHUNK))).map(body).collect()
-    } else {
-        vec![body((f, (r, q1)))]
-    };
-    parts.iter().fold([[0.0; 2]; 2], |s, t| [[s[0][0] + t[0][0], s[0][1] + t[0][1]], [s[1][0] + t[1][0], s[1][1] + t[1][1]]])
-}
-
-/// The K-cycle's second direction `d = z₂ − β z₁` into `x` (holding `z₂`) and its product
-/// `A d = −r − β A z₁` into `r` (holding `−A z₂`), `q1 = A z₁`.
-fn second_direction(x: &mut [W2], r: &mut [W2], z1: &[W2], q1: &[W2], b: [WS; 2]) {
-    let body = |x: &mut [W2], r: &mut [W2], z1: &[W2], q1: &[W2]| {
-        for (((x, r), z1), q1) in x.iter_mut().zip(r.iter_mut()).zip(z1).zip(q1) {
-            *x = [x[0] - b[0] * z1[0], x[1] - b[1] * z1[1]];
-            *r = [WS::ZERO - r[0] - b[0] * q1[0], WS::ZERO - r[1] - b[1] * q1[1]];
-        }
-    };
-    if x.len() >= PAR_MIN {
-        x.par_chunks_mut(PASS_CHUNK)
-            .zip(r.par_chunks_mut(PASS_CHUNK))
-            .zip(z1.par_chunks(PASS_CHUNK).zip(q1.par_chunks(PASS_CHUNK)))
-            .for_each(|((x, r), (z1, q1))| body(x, r, z1, q1));
-    } else {
-        body(x, r, z1, q1);
-    }
-}
-
-/// The K-cycle's correction from its two steps, `α₁ z₁ + α₂ d`, into `x` (holding `d`).
-fn both_steps(x: &mut [W2], z1: &[W2], a1: [WS; 2], a2: [WS; 2]) {
-    let body = |(x, z1): (&mut [W2], &[W2])| {
-        for (x, z1) in x.iter_mut().zip(z1) {
-            *x = [a1[0] * z1[0] + a2[0] * x[0], a1[1] * z1[1] + a2[1] * x[1]];
-        }
-    };
-    if x.len() >= PAR_MIN {
-        x.par_chunks_mut(PASS_CHUNK).zip(z1.par_chunks(PASS_CHUNK)).for_each(body);
-    } else {
-        body((x, z1));
-    }
-}
 
 /// `Σ a_i b_i` per component, in `f64`. The chunks' sums are added in order, so the result
 /// does not depend on how the pool's threads split the work (a parallel `reduce` adds
 /// them in a tree shaped by the work stealing).
 fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
-    let dot = dot_pairs::<WS>;
-    if a.len() >= PAR_MIN {
-        let parts: Vec<[f64; 2]> = a.par_chunks(PASS_CHUNK).zip(b.par_chunks(PASS_CHUNK)).map(|(a, b)| dot(a, b)).collect();
-        parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
-    } else {
-        dot(a, b)
-    }
+    let parts: Vec<[f64; 2]> = a.par_chunks(PASS_CHUNK).zip(b.par_chunks(PASS_CHUNK)).map(|(a, b)| dot_pairs::<WS>(a, b)).collect();
+    parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
 }
 
 fn fill_zero<T: Real>(v: &mut [[T; 2]]) {
-    if v.len() >= PAR_MIN {
-        v.par_iter_mut().for_each(|a| *a = [T::ZERO; 2]);
-    } else {
-        v.iter_mut().for_each(|a| *a = [T::ZERO; 2]);
-    }
+    v.par_chunks_mut(PASS_CHUNK).for_each(|v| v.fill([T::ZERO; 2]));
 }
 
 /// `out[i] = f(a[i])` (the vectors' lengths are equal).
 fn map_into<S: Real, T: Real>(out: &mut [[T; 2]], a: &[[S; 2]], f: impl Fn([S; 2]) -> [T; 2] + Sync + Send) {
-    if out.len() >= PAR_MIN {
-        out.par_chunks_mut(PASS_CHUNK).zip(a.par_chunks(PASS_CHUNK)).for_each(|(o, a)| o.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a)));
-    } else {
-        out.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a));
-    }
+    out.par_chunks_mut(PASS_CHUNK).zip(a.par_chunks(PASS_CHUNK)).for_each(|(o, a)| o.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a)));
+}
+
+/// `f(x_i, y_i)` on every entry of `x` (the vectors' lengths are equal).
+fn update<T: Real>(x: &mut [[T; 2]], y: &[[T; 2]], f: impl Fn(&mut [T; 2], [T; 2]) + Sync + Send) {
+    x.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).for_each(|(x, y)| x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y)));
 }
 
 /// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `aim.steps` steps aimed
@@ -586,14 +490,9 @@ pub(crate) fn smooth(
         // fused, the second step's pass computes it itself.
         if !fused {
             let f = zero_start_f();
-            let first = |x: &mut [W2], f: &[W2], g: &[WS]| first_from_zero(x, f, g, inv_theta);
-            if x.len() >= PAR_MIN {
-                x.par_chunks_mut(PASS_CHUNK)
-                    .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
-                    .for_each(|(x, (f, g))| first(x, f, g));
-            } else {
-                first(x, f, &level.inv_diag_w);
-            }
+            x.par_chunks_mut(PASS_CHUNK)
+                .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
+                .for_each(|(x, (f, g))| first_from_zero(x, f, g, inv_theta));
         }
         steps -= 1;
     }
@@ -635,23 +534,10 @@ super::wide::widest! {
 /// that vanish (a singular, consistent coarsest system) pin their unknown to zero.
 #[derive(Debug)]
 struct Banded {
-    /// Terms in the longer part of a row of either triangular solve: the bandwidth less
-    /// one, rounded up to a multiple of four (so that the part is whole vectors of the sums
-    /// in [`band_solves`]).
-    reach: usize,
-    /// The factor's rows for the forward solve: row `k` holds `l_km` for
-    /// `m = k − 1 − reach .. k − 1`, zero off the band and before the first unknown, each
-    /// entry twice (once a component, as the right-hand side's pairs lie). The nearest term,
-    /// `l_k,k−1`, is in `near_lower`: the sum of the others does not wait on the unknown just
-    /// solved.
-    lower: Vec<f64>,
-    near_lower: Vec<f64>,
-    /// Its columns for the backward solve: row `k` holds `l_mk` for
-    /// `m = k + 2 .. k + 2 + reach`, the same way, and `near_upper` `l_k+1,k`.
-    upper: Vec<f64>,
-    near_upper: Vec<f64>,
-    /// `1 / l_kk`.
-    inv_diag: Vec<f64>,
+    /// The bandwidth: `l_km` is zero for `k − m > bw`.
+    bw: usize,
+    /// Row `k` of the factor at `l[k (bw + 1) ..]`: `l_km` at `m + bw − k`, `l_kk` last.
+    l: Vec<f64>,
     /// Padded index of each unknown.
     map: Vec<usize>,
     dropped: Vec<bool>,
@@ -736,72 +622,35 @@ impl Banded {
                 }
             }
         }
-        // The factor's rows and columns laid out for the solves' sums.
-        let reach = bw.saturating_sub(1).div_ceil(4) * 4;
-        let row = 2 * reach;
-        let (mut lower, mut upper) = (vec![0.0; n * row], vec![0.0; n * row]);
-        let (mut near_lower, mut near_upper) = (vec![0.0; n], vec![0.0; n]);
-        let width = bw + 1;
-        for k in 0..n {
-            for m in k.saturating_sub(bw)..k {
-                let v = l[k * width + (m + bw - k)];
-                if m + 1 == k {
-                    near_lower[k] = v;
-                    near_upper[m] = v;
-                } else {
-                    let (j, i) = (k * row + 2 * (m + 1 + reach - k), m * row + 2 * (k - m - 2));
-                    lower[j..j + 2].fill(v);
-                    upper[i..i + 2].fill(v);
-                }
-            }
-        }
-        let inv_diag = (0..n).map(|k| 1.0 / l[k * width + bw]).collect();
-        Banded { reach, lower, near_lower, upper, near_upper, inv_diag, map, dropped }
+        Banded { bw, l, map, dropped }
     }
 
-    /// `x = A⁻¹ f` on the unknowns (the forward and backward solves of the factor, in `f64`).
+    /// `x = A⁻¹ f` on the unknowns: the forward and backward solves of the factor, in `f64`.
+    /// Dropped unknowns are zero (their rows and columns in the factor are).
     fn solve<T: Real>(&self, f: &[[T; 2]], x: &mut [[T; 2]]) {
-        // The unknowns' pairs flattened, with zeros around them (`reach` + 1 pairs a side):
-        // every row's window lies inside.
-        let pad = self.reach + 1;
-        let mut z = vec![0.0; 2 * (self.map.len() + 2 * pad)];
-        for (k, &p) in self.map.iter().enumerate() {
-            z[2 * (pad + k)..2 * (pad + k) + 2].copy_from_slice(&[f[p][0].get(), f[p][1].get()]);
+        let (n, bw, l) = (self.map.len(), self.bw, &self.l);
+        let width = bw + 1;
+        let mut z: Vec<V2> = self.map.iter().map(|&p| [f[p][0].get(), f[p][1].get()]).collect();
+        for k in 0..n {
+            let mut s = z[k];
+            for m in k.saturating_sub(bw)..k {
+                let v = l[k * width + m + bw - k];
+                s = [s[0] - v * z[m][0], s[1] - v * z[m][1]];
+            }
+            let d = l[k * width + bw];
+            z[k] = if self.dropped[k] { [0.0; 2] } else { [s[0] / d, s[1] / d] };
         }
-        band_solves(self, &mut z);
-        for (k, &p) in self.map.iter().enumerate() {
-            x[p] = [T::of(z[2 * (pad + k)]), T::of(z[2 * (pad + k) + 1])];
+        for k in (0..n).rev() {
+            let mut s = z[k];
+            for m in k + 1..(k + width).min(n) {
+                let v = l[m * width + k + bw - m];
+                s = [s[0] - v * z[m][0], s[1] - v * z[m][1]];
+            }
+            let d = l[k * width + bw];
+            z[k] = if self.dropped[k] { [0.0; 2] } else { [s[0] / d, s[1] / d] };
         }
-    }
-}
-
-super::wide::widest! {
-    /// [`band_solves_body`] on the processor's widest vectors (see [`super::wide`]).
-    fn band_solves(b: &Banded, z: &mut [f64]) =>
-    /// `L y = z`, then `Lᵀ x = y`, in place on `z` (laid out as [`Banded::solve`] does), each
-    /// entry `(z_k − Σ l z) / l_kk`: the band's terms but the nearest on eight running sums
-    /// (`level::pair_sums`), which do not wait on the entry just solved, then the nearest.
-    /// One sum a component, over the whole band (2 w + 2 terms), waited on its last addition
-    /// at every term. Dropped unknowns are zero (their rows and columns in the factor are).
-    band_solves_body {
-        let (row, pad) = (2 * b.reach, b.reach + 1);
-        let finish = |z: &mut [f64], at: usize, k: usize, s: [f64; 2]| {
-            let g = b.inv_diag[k];
-            let v = if b.dropped[k] { [0.0; 2] } else { [(z[at] - s[0]) * g, (z[at + 1] - s[1]) * g] };
-            z[at..at + 2].copy_from_slice(&v);
-        };
-        let prod = |a: f64, b: f64| a * b;
-        for k in 0..b.inv_diag.len() {
-            let at = 2 * (pad + k);
-            let s = level::pair_sums(&b.lower[k * row..(k + 1) * row], &z[at - 2 - row..at - 2], prod);
-            let c = b.near_lower[k];
-            finish(z, at, k, [s[0] + c * z[at - 2], s[1] + c * z[at - 1]]);
-        }
-        for k in (0..b.inv_diag.len()).rev() {
-            let at = 2 * (pad + k);
-            let s = level::pair_sums(&b.upper[k * row..(k + 1) * row], &z[at + 4..at + 4 + row], prod);
-            let c = b.near_upper[k];
-            finish(z, at, k, [s[0] + c * z[at + 2], s[1] + c * z[at + 3]]);
+        for (&p, v) in self.map.iter().zip(z) {
+            x[p] = [T::of(v[0]), T::of(v[1])];
         }
     }
 }
@@ -822,9 +671,8 @@ mod tests {
 
     #[test]
     fn the_cycles_vector_copies_match_their_plain_bodies() {
-        // A smoothing's first step from zero and the coarsest level's triangular solves, by
-        // the dispatching functions (the AVX2 copy where the processor has it) and by their
-        // plain bodies, bit for bit.
+        // A smoothing's first step from zero, by the dispatching function (the AVX2 copy
+        // where the processor has it) and by its plain body, bit for bit.
         let mut rnd = crate::grid::tests::sequence(31);
         for n in [1, 9, 1001] {
             let f: Vec<W2> = (0..n).map(|_| [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32]).collect();
@@ -835,17 +683,6 @@ mod tests {
             let bits = |v: &[W2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&x1), bits(&x2), "{n}");
         }
-        let level = fine_level(&Grid::new(15, 13), Some((0..15 * 13).map(|i| i % 17 == 3).collect()), 0.0);
-        let banded = Banded::new(&level);
-        let pad = banded.reach + 1;
-        let mut z1: Vec<f64> = (0..2 * (banded.map.len() + 2 * pad)).map(|_| rnd() - 0.5).collect();
-        z1[..2 * pad].fill(0.0);
-        let end = z1.len() - 2 * pad;
-        z1[end..].fill(0.0);
-        let mut z2 = z1.clone();
-        band_solves(&banded, &mut z1);
-        band_solves_body(&banded, &mut z2);
-        assert_eq!(z1.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), z2.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
     }
 
     #[test]

@@ -112,10 +112,8 @@ impl Real for f32 {
 /// consecutive) times the tap's four coefficients (one 128-bit load from the block, each
 /// repeated for both components by a permute). A multiply then an add, as the plain sums
 /// take them, so the sums are bit for bit theirs. Two fours at a time on two vectors, so
-/// their chains of additions overlap, and the run's bounds are checked once: 5–8 % off
-/// whole solves with 1000 and 4000 points (where the four nodes were one call each, a
-/// slice's bounds checked at every tap). The compiler did not find the four-node vector
-/// itself: it kept one node to a vector. A run's last one to three nodes (`tail`) take one
+/// their chains of additions overlap, and the run's bounds are checked once. A run's last
+/// one to three nodes (`tail`) take one
 /// vector more, whose other lanes read the nodes past the run by the block's zero
 /// coefficients and are dropped.
 #[cfg(target_arch = "x86_64")]
@@ -293,9 +291,7 @@ pub(crate) struct Run {
 
 /// The stencils of the finest level's nodes that are not regular (at the borders, holes and
 /// cuts), as 5 × 5 rows ([`fine_row`]) in a table without repeats, summed as a Galerkin
-/// level's are. Read off the flags term by term at every product instead (about four
-/// thousand nodes at 513 × 513), the finest level's product took 1.08–1.11 times the
-/// profile samples it takes with them (100 and 4000 points warm).
+/// level's are.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct OwnStencils {
     table: Vec<[f64; 25]>,
@@ -347,9 +343,7 @@ fn narrowed(table: &[[f64; 25]]) -> Vec<[f32; 25]> {
 }
 
 /// Each row of a level split into runs of one [`RunKind`], found once when the level is
-/// built. The products used to find where each run ends while they ran, testing node after
-/// node (a byte, or an index and a diagonal, per node, each test waiting on the last):
-/// at 513 × 513 that was a quarter of the finest level's product.
+/// built, so that the products do not test node after node where each run ends.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Runs {
     /// Row r's runs are `runs[first[r]..first[r + 1]]` (padded rows; padding rows have none).
@@ -439,7 +433,8 @@ pub(crate) mod bit {
     pub const REGULAR: u8 = 128;
 }
 
-/// Rows per parallel task; levels smaller than `PAR_MIN_NODES` run on one thread.
+/// Rows per parallel task; the transfers and the Galerkin build of levels smaller than
+/// `PAR_MIN_NODES` run on one thread.
 const PAR_ROWS: usize = 16;
 const PAR_MIN_NODES: usize = 4_000;
 
@@ -1061,7 +1056,7 @@ impl Level {
     }
 
     /// `band(r0, r1, rows)` on the level's body in bands of [`PAR_ROWS`] rows (`rows` the
-    /// band's padded rows `r0..r1` of `out`), on the pool's threads for large levels, and
+    /// band's padded rows `r0..r1` of `out`), on the pool's threads, and
     /// the bands' results by `fold`: the largest first entry for [`Fold::ScaledMax`], else
     /// the sums, added in order so that they do not depend on the threads.
     fn over_bands<U: Send>(&self, out: &mut [U], fold: Fold, band: impl Fn(usize, usize, &mut [U]) -> [f64; 2] + Sync + Send) -> [f64; 2] {
@@ -1071,11 +1066,7 @@ impl Level {
             band(r0, r0 + chunk.len() / wp, chunk)
         };
         let body = &mut out[PAD * wp..(PAD + self.geo.h) * wp];
-        let parts: Vec<[f64; 2]> = if self.geo.w * self.geo.h >= PAR_MIN_NODES {
-            body.par_chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect()
-        } else {
-            body.chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect()
-        };
+        let parts: Vec<[f64; 2]> = body.par_chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect();
         if let Fold::ScaledMax = fold {
             return [parts.iter().fold(0.0, |m, p| larger(m, p[0])), 0.0];
         }
@@ -1123,21 +1114,17 @@ impl Level {
 
     /// The bands of a smoothing step: `band(r0, r1, rows, d_rows)` for the bands of
     /// [`PAR_ROWS`] padded rows `r0..r1` of the level's body (`rows` and `d_rows` those
-    /// rows of `next` and `d`), on the pool's threads for large levels; then `next`'s
+    /// rows of `next` and `d`), on the pool's threads; then `next`'s
     /// padding rows, zeros (as every vector's padding is).
     fn step_bands(&self, d: &mut [W2], next: &mut [W2], band: impl Fn(usize, usize, &mut [W2], &mut [W2]) + Sync + Send) {
-        let (wp, w, h) = (self.wp, self.geo.w, self.geo.h);
+        let (wp, h) = (self.wp, self.geo.h);
         let run = |(b, (chunk, dc)): (usize, (&mut [W2], &mut [W2]))| {
             let r0 = b * PAR_ROWS + PAD;
             band(r0, r0 + chunk.len() / wp, chunk, dc);
         };
         let body = PAD * wp..(PAD + h) * wp;
         let (nb, db) = (&mut next[body.clone()], &mut d[body.clone()]);
-        if w * h >= PAR_MIN_NODES {
-            nb.par_chunks_mut(PAR_ROWS * wp).zip(db.par_chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
-        } else {
-            nb.chunks_mut(PAR_ROWS * wp).zip(db.chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
-        }
+        nb.par_chunks_mut(PAR_ROWS * wp).zip(db.par_chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
         next[..body.start].fill([0.0; 2]);
         next[body.end..].fill([0.0; 2]);
     }
@@ -1270,14 +1257,11 @@ widest! {
                     }
                     // A run of irregular nodes, each with its own stencil, four side by side:
                     // one node's 21 taps summed one after another wait on each other, four
-                    // nodes' do not (a twelfth off a 513 × 513 solve with 4000 points); in
-                    // `f32` with AVX2, the four on one vector (another 2–5 %), their
+                    // nodes' do not; in `f32` with AVX2, the four on one vector, their
                     // coefficients read from the level's `fours` in the same order as
-                    // here (another 8 % off these rows), a run's fours in one call, two at
-                    // a time (see `four_run_avx2`), its last one to three nodes in a four
-                    // of their own (about 30 % off these rows with 100 points, where most
-                    // runs are short); on a dense level every run of unknowns (see
-                    // `DENSE_FOURS`).
+                    // here, a run's fours in one call (see `four_run_avx2`), its last one to
+                    // three nodes in a four of their own; on a dense level every run of
+                    // unknowns (see `DENSE_FOURS`).
                     let mut i = c;
                     if four {
                         let (n, tail) = ((e - c) / 4, (e - c) % 4);

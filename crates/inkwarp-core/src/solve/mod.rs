@@ -49,8 +49,8 @@
 //! lacks the functions that run linearly up to (and across) a hole or cut, and the plain
 //! one has exactly those. A warm start whose
 //! residuals exceed the tolerance also gets the coarse-to-fine correction; a closer one
-//! first gets one cycle as it is. Loose nodes (no corner of a fully linked cell) are
-//! settled to the τ → 0⁺ limit afterwards.
+//! first gets one cycle as it is. Free functions of the plate energy (hinges, strands,
+//! loose nodes) are settled to the τ → 0⁺ limit afterwards ([`nullspace`]).
 //! `docs/concepts/thin-plate.md` explains the choices; `docs/dev/ablation.md` measures
 //! what each optional mechanism buys. The hierarchies a later solve can reuse are kept
 //! by the caller's [`Solver`], never by the process.
@@ -73,7 +73,7 @@ use thiserror::Error;
 
 use crate::field::{Field, FieldView};
 use crate::geometry::Sample;
-use crate::grid::{constrain, linked_neighbours, Constraints, Grid};
+use crate::grid::{constrain, Constraints, Grid};
 
 use cycle::Hierarchy;
 use level::{larger, scaled_max, Geometry, Level, Real, PAD, V2, W2, WS};
@@ -271,9 +271,7 @@ pub(crate) fn solve_with(
 /// Runs `f` on a thread of the pool. The solve makes hundreds of parallel calls a cycle;
 /// made from outside the pool, each hands its work to the pool's threads and puts the
 /// caller to sleep until they finish, two context switches a call. Inside the pool the
-/// caller takes part instead. (The pool's other threads are not kept spinning between
-/// the solve's parallel calls: that bought 4–5 % on two cores, below the 10 % a mechanism
-/// must earn, and spun threads in other callers' work.)
+/// caller takes part instead.
 ///
 /// Public for callers that move large arrays around a solve (the Python binding converts
 /// the answer to numpy's layout): run there too, their parallel passes share the pool.
@@ -482,9 +480,7 @@ pub(crate) fn solve_constrained(
                 }
             }
         } else if whole {
-            // Four rows a task at least, and no labels read (every node is the piece's): at
-            // 513 × 513 this write took 0.24–0.28 ms against 0.31–0.40 ms with a task a row
-            // and the labels (a busy machine).
+            // Four rows a task at least, and no labels read (every node is the piece's).
             let (mut dx, mut dy) = (Vec::with_capacity(n), Vec::with_capacity(n));
             let (sx, sy) = (&mut dx.spare_capacity_mut()[..n], &mut dy.spare_capacity_mut()[..n]);
             sx.par_chunks_mut(w).zip(sy.par_chunks_mut(w)).enumerate().with_min_len(4).for_each(|(y, (dx, dy))| {
@@ -616,9 +612,7 @@ fn links_clone(links: &BoxLinks) -> BoxLinks {
 #[derive(Debug, PartialEq)]
 enum BoxLinks {
     /// Every node active and every link there (none off the last column or row, as on a
-    /// consistent grid): nothing to copy into a solve's key or to compare in the cache,
-    /// where at 513 × 513 the three vectors took about 0.1 ms to build and as long to
-    /// compare (a busy machine).
+    /// consistent grid): nothing to copy into a solve's key or to compare in the cache.
     Open,
     Given { active: Vec<bool>, right: Vec<bool>, down: Vec<bool> },
 }
@@ -665,8 +659,8 @@ fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4]
 }
 
 /// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`:
-/// the solve's own padded vector, handed over without a copy, or where loose nodes were
-/// settled an unpadded copy (stride the box's width). Its nodes off the piece are not
+/// the solve's own padded vector, handed over without a copy, or (where the null space was
+/// settled) an unpadded copy (stride the box's width). Its nodes off the piece are not
 /// read.
 struct BoxValues {
     values: Vec<V2>,
@@ -699,16 +693,12 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         // Wide holes filled for the prolongation (see `Level::with_holes_filled`): the
         // second space below is then needed only where tears remain (cuts, thin holes,
         // holes open to the border).
-        let loose = loose_nodes(&fine.geo, &key.fixed).contains(&true);
         let real = torn.then(|| fine.geo.clone());
         let fine = fine.with_holes_filled();
         let alt = (fine.geo.torn() && !key.off.has("second")).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.clone().unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
-        let filled = real.filter(|r| r.active != fine.geo.active);
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
         hier.k_cycles = !key.off.has("kcycle");
-        hier.loose = loose;
-        hier.unfilled = filled;
         hier.alt = alt;
         hier.torn = torn;
         if key.off.has("fours") {
@@ -720,7 +710,6 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         }
         hier
     });
-    let fixed = &key.fixed;
     let len = hier.levels[0].len_padded();
     let mut u: Vec<V2> = vec![[0.0; 2]; len];
     {
@@ -822,13 +811,13 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 let (mut q, mut p) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
                 hier.levels[0].clear_padding(&mut q);
                 let z = hier.precondition(&r);
-                let (mut rz, _) = fcg_dots(&r, z, None);
+                let mut rz = dot_z(&r, z);
                 widen_into(&mut p, z, None);
                 for cycle in 1..=max_cycles {
                     if crate::interrupt::requested() {
                         break;
                     }
-                    let (change, alpha) = energy_step(&mut hier, &mut u, &mut r, &p, &mut q, rz);
+                    let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
                     if stop(change, cycle, &mut report) {
                         report.converged = true;
                         break;
@@ -838,14 +827,14 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         hier.coarse_to_fine(&mut u, &mut r, true);
                         hier.levels[0].residual(&u, None, &mut r);
                         let z = hier.precondition(&r);
-                        rz = fcg_dots(&r, z, None).0;
+                        rz = dot_z(&r, z);
                         widen_into(&mut p, z, None);
                         continue;
                     }
-                    let z = hier.precondition_narrowed(&r);
+                    let z = hier.precondition(&r);
                     // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
                     // the preconditioner's line searches make it slightly nonlinear.
-                    let (rz_new, zq) = fcg_dots(&r, z, Some(&q));
+                    let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
                     let beta = [
                         if rz[0] > 0.0 { ((alpha[0] * zq[0]) / rz[0]).max(0.0) } else { 0.0 },
                         if rz[1] > 0.0 { ((alpha[1] * zq[1]) / rz[1]).max(0.0) } else { 0.0 },
@@ -868,9 +857,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
             let mut round = 0;
             while left > 0 && !crate::interrupt::requested() {
                 let z = hier.precondition(&r);
-                let (rz, _) = fcg_dots(&r, z, None);
+                let rz = dot_z(&r, z);
                 widen_into(&mut p, z, None);
-                let (step, _) = energy_step(&mut hier, &mut u, &mut r, &p, &mut q, rz);
+                let (step, _) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
                 let take = unknowns.min(left);
                 let (relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take);
                 left -= take;
@@ -891,23 +880,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     let inv_diag = &hier.levels[0].inv_diag;
     report.residual = r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)).map(|(r, d)| scaled_max(r, d)).reduce(|| 0.0, larger);
     let fine = &hier.levels[0];
-    // The real nodes and links (the finest level's geometry may have its holes filled).
-    let geo = hier.unfilled.as_ref().unwrap_or(&fine.geo);
-    let out = if tau == 0.0 && hier.loose {
-        // Every value written (zero off the piece), row by row in parallel, then the loose
-        // nodes settled there.
-        let mut out: Vec<V2> = vec![[0.0; 2]; w * h];
-        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-            let p = fine.pidx(0, y);
-            for ((o, &a), v) in row.iter_mut().zip(&geo.active[y * w..(y + 1) * w]).zip(&u[p..p + w]) {
-                *o = if a { *v } else { [0.0; 2] };
-            }
-        });
-        settle_loose_nodes(geo, fixed, &mut out);
-        BoxValues { values: out, stride: w, first: 0 }
-    } else {
-        BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) }
-    };
+    let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
     store.put_hierarchy(key, hier);
     (out, report)
 }
@@ -929,9 +902,8 @@ const HIERARCHY_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
 /// editor's drags): the hierarchies of its recent problems (they depend on the grid, the
-/// fixed nodes and the tension, never on the values, so an animation's frames share one;
-/// rebuilding it took 1.9–3.4 times a 513 × 513 solve's time, `docs/dev/ablation.md`) and
-/// the warm-start history ([`WarmHistory`]). Nothing is kept
+/// fixed nodes and the tension, never on the values, so an animation's frames share one)
+/// and the warm-start history ([`WarmHistory`]). Nothing is kept
 /// between solves outside it: the free functions ([`solve`], [`solve_warm`]) use a
 /// temporary one.
 ///
@@ -1052,26 +1024,19 @@ impl Store {
 }
 
 /// Safety factor of the stopping rule (see the multigrid loop) on grids without holes or
-/// cuts. At 257 × 257 and 513 × 513 with 10 to 4000 random points (36 problems) the
-/// error where it stopped was at most 0.005 px at a 0.01 px tolerance, one cycle sooner
-/// than [`TORN_STOP_MARGIN`] in most of them.
+/// cuts (`docs/dev/ablation.md`, "Constants").
 const STOP_MARGIN: f64 = 1.5;
 /// Pieces smaller than this (256 × 256) go without the space along tears: its lattices
-/// (half widths 32 and 96) would cover them whole, and on the editor's coarse drafts it
-/// cost more than it saved.
+/// (half widths 32 and 96) would cover them whole.
 const TEAR_SPACE_MIN_NODES: usize = 1 << 16;
-/// The same on grids with holes or cuts, where the slowest error moves least per cycle:
-/// with 1.5 a grid with a ring-shaped hole and a cut stopped at 0.012 px.
+/// The same on grids with holes or cuts, where the slowest error moves least per cycle.
 const TORN_STOP_MARGIN: f64 = 3.0;
 
 /// Smoothing steps before and after each coarse correction.
 const SMOOTHING_STEPS: usize = 2;
 
-/// The same below the finest level of a grid without holes or cuts. One step there made the
-/// cycles cheaper by more than it made them weaker (513 × 513, one thread: 10 points
-/// 133 → 104 ms in 9 cycles instead of 10, 4000 points 212 → 178 ms in 12 instead of 11,
-/// warm starts 4 → 3 cycles), where across a cut or a ring-shaped hole it took up to four
-/// more cycles and fooled the stopping rule once (0.012 px left at a 0.01 px tolerance).
+/// The same below the finest level of a grid without holes or cuts (across holes and cuts
+/// one step weakens the cycle too much: `docs/dev/ablation.md`, "Constants").
 const OPEN_COARSE_SMOOTHING: usize = 1;
 
 /// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
@@ -1199,153 +1164,6 @@ fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64
     }
 }
 
-/// Loose nodes: free nodes that are no corner of a 2 × 2 cell with all four links
-/// (strands, dangling nodes, one-node corridors). The plate energy may leave some of their
-/// values undetermined; the τ → 0⁺ limit picks, among the plate minimisers, the least
-/// membrane energy. Each connected group of loose nodes (up to `MAX_GROUP` nodes) is solved
-/// exactly for that limit with the rest of the field held, by two dense solves at tiny
-/// tensions and Richardson extrapolation.
-fn settle_loose_nodes(geo: &Geometry, fixed: &[bool], u: &mut [V2]) {
-    const MAX_GROUP: usize = 400;
-    let (w, n) = (geo.w, geo.w * geo.h);
-    let loose = loose_nodes(geo, fixed);
-    // Allocated at the first loose node (most grids have none).
-    let mut group_of = Vec::new();
-    for start in 0..n {
-        if !loose[start] {
-            continue;
-        }
-        if group_of.is_empty() {
-            group_of = vec![usize::MAX; n];
-        }
-        if group_of[start] != usize::MAX {
-            continue;
-        }
-        // the group by flood fill over links
-        let mut group = vec![start];
-        group_of[start] = start;
-        let mut k = 0;
-        while k < group.len() {
-            let i = group[k];
-            k += 1;
-            for j in linked_neighbours(w, &geo.right, &geo.down, i) {
-                if j != usize::MAX && loose[j] && group_of[j] == usize::MAX {
-                    group_of[j] = start;
-                    group.push(j);
-                }
-            }
-        }
-        if group.len() <= MAX_GROUP {
-            settle_group(geo, &group, &group_of, start, u);
-        }
-    }
-}
-
-/// The loose nodes: free (active, not fixed) and no corner of a 2 × 2 cell with all
-/// four links.
-fn loose_nodes(geo: &Geometry, fixed: &[bool]) -> Vec<bool> {
-    let (w, h) = (geo.w, geo.h);
-    let mut core = vec![false; w * h];
-    for y in 0..h.saturating_sub(1) {
-        for x in 0..w.saturating_sub(1) {
-            let i = y * w + x;
-            if geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w] {
-                core[i] = true;
-                core[i + 1] = true;
-                core[i + w] = true;
-                core[i + w + 1] = true;
-            }
-        }
-    }
-    (0..w * h).map(|i| geo.active[i] && !fixed[i] && !core[i]).collect()
-}
-
-/// The τ → 0⁺ minimiser over one group of loose nodes (all other values held).
-fn settle_group(geo: &Geometry, group: &[usize], group_of: &[usize], id: usize, u: &mut [V2]) {
-    let w = geo.w;
-    let k = group.len();
-    let local = |i: usize| if group_of[i] == id { group.iter().position(|&g| g == i) } else { None };
-    // Terms touching the group: (nodes, coefficients, is_plate).
-    let mut terms: Vec<(Vec<usize>, Vec<f64>, bool)> = Vec::new();
-    let mut seen = std::collections::HashSet::new();
-    for &i in group {
-        let (x, y) = ((i % w) as isize, (i / w) as isize);
-        for d in -1isize..=1 {
-            // horizontal triple centred at (x + d, y), vertical at (x, y + d)
-            let c = (x + d, y);
-            if c.0 >= 1 && c.0 + 1 < w as isize {
-                let ci = (c.1 * w as isize + c.0) as usize;
-                if geo.right[ci - 1] && geo.right[ci] && seen.insert((0u8, ci)) {
-                    terms.push((vec![ci - 1, ci, ci + 1], vec![1.0, -2.0, 1.0], true));
-                }
-            }
-            let c = (x, y + d);
-            if c.1 >= 1 && c.1 + 1 < geo.h as isize {
-                let ci = (c.1 * w as isize + c.0) as usize;
-                if geo.down[ci - w] && geo.down[ci] && seen.insert((1u8, ci)) {
-                    terms.push((vec![ci - w, ci, ci + w], vec![1.0, -2.0, 1.0], true));
-                }
-            }
-        }
-        for (ox, oy) in [(0isize, 0isize), (1, 0), (0, 1), (1, 1)] {
-            let (cx, cy) = (x - ox, y - oy);
-            if cx >= 0 && cy >= 0 && cx + 1 < w as isize && cy + 1 < geo.h as isize {
-                let ci = (cy * w as isize + cx) as usize;
-                if geo.right[ci] && geo.down[ci] && geo.down[ci + 1] && geo.right[ci + w] && seen.insert((2u8, ci)) {
-                    terms.push((vec![ci, ci + 1, ci + w, ci + w + 1], vec![2f64.sqrt(), -(2f64.sqrt()), -(2f64.sqrt()), 2f64.sqrt()], true));
-                }
-            }
-        }
-    }
-    for &i in group {
-        let (x, y) = (i % w, i / w);
-        if geo.right[i] && seen.insert((3u8, i)) {
-            terms.push((vec![i, i + 1], vec![1.0, -1.0], false));
-        }
-        if x > 0 && geo.right[i - 1] && seen.insert((3u8, i - 1)) {
-            terms.push((vec![i - 1, i], vec![1.0, -1.0], false));
-        }
-        if geo.down[i] && seen.insert((4u8, i)) {
-            terms.push((vec![i, i + w], vec![1.0, -1.0], false));
-        }
-        if y > 0 && geo.down[i - w] && seen.insert((4u8, i - w)) {
-            terms.push((vec![i - w, i], vec![1.0, -1.0], false));
-        }
-    }
-    let index: Vec<Vec<Option<usize>>> = terms.iter().map(|t| t.0.iter().map(|&j| local(j)).collect()).collect();
-    let solve_at = |tau: f64| -> Option<Vec<V2>> {
-        let mut m = vec![vec![0.0f64; k]; k];
-        let mut rhs = vec![[0.0f64; 2]; k];
-        for (t, idx) in terms.iter().zip(&index) {
-            let wgt = if t.2 { 1.0 } else { tau };
-            let mut fixed_part = [0.0f64; 2];
-            for (j, (&node, &c)) in t.0.iter().zip(&t.1).enumerate() {
-                if idx[j].is_none() {
-                    fixed_part[0] += c * u[node][0];
-                    fixed_part[1] += c * u[node][1];
-                }
-            }
-            for (a, &ca) in idx.iter().zip(&t.1) {
-                let Some(a) = *a else { continue };
-                rhs[a][0] -= wgt * ca * fixed_part[0];
-                rhs[a][1] -= wgt * ca * fixed_part[1];
-                for (b, &cb) in idx.iter().zip(&t.1) {
-                    if let Some(b) = *b {
-                        m[a][b] += wgt * ca * cb;
-                    }
-                }
-            }
-        }
-        dense_solve(m, rhs)
-    };
-    let t = 1e-9;
-    if let (Some(a), Some(b)) = (solve_at(t), solve_at(2.0 * t)) {
-        for (g, &i) in group.iter().enumerate() {
-            u[i] = [2.0 * a[g][0] - b[g][0], 2.0 * a[g][1] - b[g][1]];
-        }
-    }
-}
-
 /// Gaussian elimination with partial pivoting for two right-hand sides.
 pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<V2>> {
     let k = m.len();
@@ -1387,113 +1205,48 @@ fn count_unknowns(level: &Level) -> usize {
 }
 
 /// The energy-minimising step along `p` (`rz = rᵀz` of the preconditioned residual it came
-/// from): `q = −A p`, `u += α p`, `r += α q`, the new `r` also written in `f32` as the next
-/// cycle's right-hand side. Returns the largest `|α p|` and `α`.
-fn energy_step(hier: &mut Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [V2], rz: [f64; 2]) -> (f64, [f64; 2]) {
+/// from): `q = −A p`, `u += α p`, `r += α q`. Returns the largest `|α p|` and `α`.
+fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [V2], rz: [f64; 2]) -> (f64, [f64; 2]) {
     let pq = hier.levels[0].fine_residual_dot_narrow(p, q);
     let alpha = [
         if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
         if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
     ];
-    let len = u.len();
     let change = u
         .par_chunks_mut(CHUNK)
-        .zip(r.par_chunks_mut(CHUNK).zip(hier.narrow_rhs(len).par_chunks_mut(CHUNK)))
+        .zip(r.par_chunks_mut(CHUNK))
         .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
-        .map(|((u, (r, rw)), (p, q))| step_update(u, r, rw, p, q, alpha))
+        .map(|((u, r), (p, q))| {
+            let mut m = 0.0f64;
+            for (((u, r), p), q) in u.iter_mut().zip(r.iter_mut()).zip(p).zip(q) {
+                for k in 0..2 {
+                    let d = alpha[k] * p[k].get();
+                    u[k] += d;
+                    r[k] += alpha[k] * q[k];
+                    m = larger(m, d.abs());
+                }
+            }
+            m
+        })
         .reduce(|| 0.0, f64::max);
     (change, alpha)
 }
 
-/// `[rᵀz, zᵀq]` per component (`zᵀq` zero without `q`), `z` the preconditioner's `f32`
-/// output, in one pass.
-fn fcg_dots(r: &[V2], z: &[W2], q: Option<&[V2]>) -> ([f64; 2], [f64; 2]) {
-    let chunk = |(k, (r, z)): (usize, (&[V2], &[W2]))| fcg_chunk(r, z, q.map(|q| &q[k * CHUNK..k * CHUNK + r.len()]));
-    // The chunks' sums are added in order, so the result does not depend on the threads.
-    let parts: Vec<[f64; 4]> = r.par_chunks(CHUNK).zip(z.par_chunks(CHUNK)).enumerate().map(chunk).collect();
-    let t = parts.iter().fold([0.0; 4], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]);
-    ([t[0], t[1]], [t[2], t[3]])
+/// `Σ a_i z_i` per component, `z` the preconditioner's `f32` output. The chunks' sums are
+/// added in order, so the result does not depend on the threads.
+fn dot_z(a: &[V2], z: &[W2]) -> [f64; 2] {
+    let parts: Vec<[f64; 2]> =
+        a.par_chunks(CHUNK).zip(z.par_chunks(CHUNK)).map(|(a, z)| level::pair_sums(a.as_flattened(), z.as_flattened(), |x: f64, y: WS| x * y.get())).collect();
+    parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
 }
 
 /// `p = z + β p` (`p = z` without `β`), `z` the preconditioner's `f32` output and `p` the
 /// search direction in `f32`, summed in `f64` and rounded once.
 fn widen_into(p: &mut [W2], z: &[W2], beta: Option<[f64; 2]>) {
     p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| match beta {
-        Some(b) => widen_chunk(p, z, b),
+        Some(b) => p.iter_mut().zip(z).for_each(|(p, z)| *p = [WS::of(z[0].get() + b[0] * p[0].get()), WS::of(z[1].get() + b[1] * p[1].get())]),
         None => p.copy_from_slice(z),
     });
-}
-
-wide::widest! {
-    /// [`fcg_chunk_body`] on the processor's widest vectors (see [`wide`]).
-    fn fcg_chunk(r: &[V2], z: &[W2], q: Option<&[V2]>) -> [f64; 4] =>
-    /// [`fcg_dots`] on one chunk: `[rᵀz, zᵀq]`, each per component.
-    fcg_chunk_body {
-        let wide = |x: f64, y: WS| x * y.get();
-        let zf = z.as_flattened();
-        let rz = level::pair_sums(r.as_flattened(), zf, wide);
-        // A `match`, not `map_or`: its closure was compiled apart, outside the AVX2 copy.
-        let zq = match q {
-            Some(q) => level::pair_sums(q.as_flattened(), zf, wide),
-            None => [0.0; 2],
-        };
-        [rz[0], rz[1], zq[0], zq[1]]
-    }
-}
-
-wide::widest! {
-    /// [`widen_chunk_body`] on the processor's widest vectors (see [`wide`]).
-    fn widen_chunk(p: &mut [W2], z: &[W2], b: [f64; 2]) =>
-    /// [`widen_into`] with `β` on one chunk.
-    widen_chunk_body {
-        for (p, z) in p.iter_mut().zip(z) {
-            *p = [WS::of(z[0].get() + b[0] * p[0].get()), WS::of(z[1].get() + b[1] * p[1].get())];
-        }
-    }
-}
-
-wide::widest! {
-    /// [`step_update_body`] on the processor's widest vectors (see [`wide`]).
-    fn step_update(u: &mut [V2], r: &mut [V2], rw: &mut [W2], p: &[W2], q: &[V2], alpha: [f64; 2]) -> f64 =>
-    /// The conjugate-gradient step on one chunk: `u += α p`, `r += α q` (α per component), and
-    /// `rw` the new `r` in `f32` (the next cycle's right-hand side, written while `r` is at hand);
-    /// returns the largest `|α p|`. On the flattened components, eight running maxima: one
-    /// would wait on the last at every entry.
-    step_update_body {
-        let (u, r, rw) = (u.as_flattened_mut(), r.as_flattened_mut(), rw.as_flattened_mut());
-        let (p, q) = (p.as_flattened(), q.as_flattened());
-        let mut m = [0.0f64; 8];
-        // Eight entries at a time as fixed-size arrays, so the compiler knows the lengths:
-        // written with a closure over slices, the loop stayed scalar, with a bounds check
-        // at every entry, and out of the AVX2 copy (a tenth of a warm solve's samples).
-        let n8 = u.len() / 8 * 8;
-        let (u8s, r8s, rw8s) = (u[..n8].chunks_exact_mut(8), r[..n8].chunks_exact_mut(8), rw[..n8].chunks_exact_mut(8));
-        for (((u, r), rw), (p, q)) in u8s.zip(r8s).zip(rw8s).zip(p[..n8].chunks_exact(8).zip(q[..n8].chunks_exact(8))) {
-            let (u, r, rw): (&mut [f64; 8], &mut [f64; 8], &mut [WS; 8]) =
-                (u.try_into().unwrap(), r.try_into().unwrap(), rw.try_into().unwrap());
-            let (p, q): (&[WS; 8], &[f64; 8]) = (p.try_into().unwrap(), q.try_into().unwrap());
-            for l in 0..8 {
-                update_entry(&mut u[l], &mut r[l], &mut rw[l], p[l], q[l], alpha[l & 1], &mut m[l]);
-            }
-        }
-        // The remainder starts on an even index, as the lanes do.
-        for l in n8..u.len() {
-            update_entry(&mut u[l], &mut r[l], &mut rw[l], p[l], q[l], alpha[l & 1], &mut m[l - n8]);
-        }
-        m.iter().fold(0.0, |a, &b| a.max(b))
-    }
-}
-
-/// One entry of [`step_update_body`] (of the flattened components; `a` its component's α,
-/// `m` its lane's running maximum). A function, not a closure over slices: inlined into the
-/// AVX2 copy, on entries rather than slices, with no bounds to check.
-#[inline(always)]
-fn update_entry(u: &mut f64, r: &mut f64, rw: &mut WS, p: WS, q: f64, a: f64, m: &mut f64) {
-    let d = a * p.get();
-    *u += d;
-    *m = larger(*m, d.abs());
-    *r += a * q;
-    *rw = WS::of(*r);
 }
 
 /// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.

@@ -861,34 +861,6 @@ fn every_level_smooths_below_the_top_of_its_spectrum() {
 
 
 #[test]
-fn the_wide_conjugate_gradient_update_gives_the_plain_results_bit_for_bit() {
-    // Where the processor has AVX2 the update runs a copy compiled for it (see `wide`):
-    // every output must have the plain copy's bits, over a length that leaves a remainder
-    // past the eight lanes.
-    let mut rnd = crate::grid::tests::sequence(72);
-    let n = 1001;
-    let mut pairs = || -> Vec<V2> { (0..n).map(|_| [rnd() - 0.5, rnd() - 0.5]).collect() };
-    let (u, r, q) = (pairs(), pairs(), pairs());
-    // The search direction is kept in `f32`.
-    let p: Vec<W2> = pairs().iter().map(|v| [v[0] as f32, v[1] as f32]).collect();
-    let alpha = [0.73, -1.9];
-    type Update = fn(&mut [V2], &mut [V2], &mut [W2], &[W2], &[V2], [f64; 2]) -> f64;
-    let run = |update: Update| {
-        let (mut u, mut r, mut rw) = (u.clone(), r.clone(), vec![[0.0f32; 2]; n]);
-        let change = update(&mut u, &mut r, &mut rw, &p, &q, alpha);
-        (change, u, r, rw)
-    };
-    let (wide, plain) = (run(step_update), run(step_update_body));
-    assert!(wide.0 > 0.0);
-    assert_eq!(wide.0.to_bits(), plain.0.to_bits());
-    let bits = |v: &[V2]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
-    let bits_w = |v: &[W2]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&wide.1), bits(&plain.1), "u");
-    assert_eq!(bits(&wide.2), bits(&plain.2), "r");
-    assert_eq!(bits_w(&wide.3), bits_w(&plain.3), "the f32 residual");
-}
-
-#[test]
 fn a_fused_smoothing_step_gives_the_separate_passes_results_bit_for_bit() {
     // One pass per smoothing step (residual, update and addition band by band) against the
     // three passes it replaces: on the finest level and a Galerkin level of a grid with a
@@ -1086,35 +1058,6 @@ fn the_finest_levels_own_stencils_sum_its_energy_terms() {
             }
         }
         assert!(own > 500, "only {own} nodes with stencils of their own");
-    }
-}
-
-#[test]
-fn the_conjugate_gradients_vector_copies_match_their_plain_bodies() {
-    // The update, the two dot products and the new direction, by the dispatching functions
-    // (the AVX2 copy where the processor has it) and by their plain bodies, bit for bit, on
-    // lengths that leave remainders.
-    let mut rnd = crate::grid::tests::sequence(37);
-    let mut wide = |n: usize| -> Vec<V2> { (0..n).map(|_| [rnd() - 0.5, rnd() - 0.5]).collect() };
-    for n in [1, 5, 4099] {
-        let (u0, r0, q) = (wide(n), wide(n), wide(n));
-        let narrow = |v: &[V2]| -> Vec<W2> { v.iter().map(|a| [a[0] as f32, a[1] as f32]).collect() };
-        let (p, z) = (narrow(&wide(n)), narrow(&wide(n)));
-        let alpha = [0.83, -1.21];
-        let (mut u1, mut r1, mut w1) = (u0.clone(), r0.clone(), vec![[0.0f32; 2]; n]);
-        let (mut u2, mut r2, mut w2) = (u0.clone(), r0.clone(), vec![[0.0f32; 2]; n]);
-        let m1 = step_update(&mut u1, &mut r1, &mut w1, &p, &q, alpha);
-        let m2 = step_update_body(&mut u2, &mut r2, &mut w2, &p, &q, alpha);
-        let b64 = |v: &[V2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
-        let b32 = |v: &[W2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
-        assert_eq!((b64(&u1), b64(&r1), b32(&w1), m1.to_bits()), (b64(&u2), b64(&r2), b32(&w2), m2.to_bits()), "{n}: update");
-        for q in [Some(&q[..]), None] {
-            assert_eq!(fcg_chunk(&r0, &z, q).map(f64::to_bits), fcg_chunk_body(&r0, &z, q).map(f64::to_bits), "{n}: dots");
-        }
-        let (mut p1, mut p2) = (p.clone(), p.clone());
-        widen_chunk(&mut p1, &z, [0.4, 1.9]);
-        widen_chunk_body(&mut p2, &z, [0.4, 1.9]);
-        assert_eq!(b32(&p1), b32(&p2), "{n}: direction");
     }
 }
 

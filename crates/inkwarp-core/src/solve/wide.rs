@@ -3,9 +3,8 @@
 //! The build targets plain x86-64, whose vectors are 128 bits wide; most x86-64
 //! processors made since 2013–2015 (Intel Haswell, AMD Excavator and later, some low-end
 //! models excepted) have 256-bit ones (AVX2, with FMA). The stencil products of every level,
-//! the transfers' plain rows, the smoothing steps' updates, the conjugate gradient's passes
-//! (its update, dot products and new direction), the dot products and scaled maxima of the
-//! levels and the coarsest level's solves vectorise across nodes, so [`widest!`] gives each a
+//! the transfers' plain rows, the smoothing steps' updates, and the dot products and scaled
+//! maxima of the levels vectorise across nodes, so [`widest!`] gives each a
 //! second copy compiled for AVX2, run where the processor has it (checked at run time),
 //! else the plain one. Their operations and their order are the same in both (no multiply
 //! is fused with its add unless written so), so the results are bit for bit the same.
@@ -16,17 +15,9 @@
 //! than to the plain copy.
 //!
 //! Check the copy's code after writing a body: the compiler may build a closure the body
-//! calls (or one it hands to `Option::map_or`) apart, as a plain function. The update of
-//! the conjugate gradient had its loop in such a closure over slices, and its profile
-//! samples were a tenth of a warm solve's, in scalar code with a bounds check at every
-//! entry (it now calls an `#[inline(always)]` function on entries). With it, the smoothing
-//! steps' updates, the dot products and the first smoothing step from zero moved into
-//! copies of their own, warm 513 × 513 solves took 0.91–0.94 of their time (natively,
-//! twelve alternating rounds). A branch in a body's loop can keep it scalar too: the
-//! first step from zero computes its update everywhere and then chooses it. So can a loop
-//! over pairs that writes each pair whole: the compiler stored the smoothing steps' pairs
-//! as 64-bit integers, two scalar products each, until `step_row` was written on the
-//! flattened components (its samples went from a tenth of a warm solve's to a twentieth).
+//! calls (or one it hands to `Option::map_or`) apart, as a plain function outside the copy;
+//! a branch in a body's loop, or a loop over pairs that writes each pair whole, can keep
+//! it scalar (`docs/dev/ablation.md`, "Kernels").
 
 /// Whether the processor has AVX2 and FMA (the standard library caches the answer).
 #[cfg(target_arch = "x86_64")]
