@@ -197,59 +197,26 @@ pub(crate) type FourBlock = [[f32; 4]; 21];
 /// last one to three nodes in a four of their own, padded with zero coefficients): each
 /// four's coefficients as one [`FourBlock`], so the four-node vector reads a tap's
 /// coefficients with one load instead of gathering them from four stencils of the table (on
-/// the processors it runs on; elsewhere empty). On levels where most nodes have stencils of
-/// their own, every unknown (see [`DENSE_FOURS`]).
+/// the processors it runs on; elsewhere empty).
 #[derive(Debug, Default)]
 pub(crate) struct Fours {
     blocks: Vec<FourBlock>,
     /// The first block of each padded row.
     row_first: Vec<u32>,
-    /// Every unknown is in the fours, the regular ones with the shared stencil (see
-    /// [`DENSE_FOURS`]).
-    dense: bool,
 }
 
-/// From this share of a level's unknowns with stencils of their own, every unknown of the
-/// level goes into the fours: its regular nodes are then too few and too scattered for
-/// their runs' faster sums to make up for the runs between them being cut short. At
-/// 513 × 513 with 1000 random points that is most of the second to fourth coarse levels
-/// (38, 76 and 100 % of their nodes have stencils of their own); the samples in those rows
-/// fell by a quarter (1000 and 4000 points), by 5 % with 100 points, when a run's last one
-/// to three nodes were still summed one at a time. Once those took the vector too, with no
-/// level made dense the 1000-point warm solve still took 1.09 times as long at its fastest
-/// round (the other solves 0.99–1.03). From 15 or 20 % the rows of 10 and 100 points were
-/// faster too, but their small levels' changed rounding took a 10-point warm solve from 2
-/// cycles to 3; every level dense was slower.
-const DENSE_FOURS: f64 = 0.3;
-/// Smaller levels stay as they are: their products cost next to nothing either way.
-const DENSE_MIN_UNKNOWNS: usize = 1000;
-
 impl Fours {
-    /// Whether a level with stencils `ids` on the unknowns of `inv_diag` takes every unknown
-    /// into its fours (see [`DENSE_FOURS`]).
-    pub(crate) fn dense_for(ids: &[u32], inv_diag: &[f64]) -> bool {
-        let (mut own, mut unknowns) = (0usize, 0usize);
-        for (&id, &d) in ids.iter().zip(inv_diag) {
-            if d != 0.0 {
-                unknowns += 1;
-                own += usize::from(id != 0);
-            }
-        }
-        unknowns >= DENSE_MIN_UNKNOWNS && own as f64 >= DENSE_FOURS * unknowns as f64
-    }
-
-    /// The fours of the stencils `ids` (into `narrow`) on the level's `runs`, as
-    /// `residual_row` visits them; `dense`: of every unknown, else of those with stencils
-    /// of their own.
-    pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], runs: &Runs, wp: usize, h: usize, dense: bool) -> Fours {
+    /// The fours of the stencils `ids` (into `narrow`) of the nodes with stencils of their
+    /// own on the level's `runs`, as `residual_row` visits them.
+    pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], runs: &Runs, wp: usize, h: usize) -> Fours {
         if !f32::has_four_stencils() {
             return Fours::default();
         }
-        let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD], dense };
+        let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD] };
         for r in PAD..PAD + h {
             fours.row_first[r] = fours.blocks.len() as u32;
             let base = r * wp;
-            for run in runs.row_as(r, dense).filter(|run| run.kind == RunKind::Own) {
+            for run in runs.row(r).iter().filter(|run| run.kind == RunKind::Own) {
                 let (c, e) = (run.start as usize, run.end as usize);
                 for i in (c..e).step_by(4) {
                     // Past the run's end, zeros.
@@ -389,27 +356,6 @@ impl Runs {
     #[inline]
     pub(crate) fn row(&self, r: usize) -> &[Run] {
         &self.runs[self.first[r] as usize..self.first[r + 1] as usize]
-    }
-
-    /// The runs of row r as [`residual_row`] and [`Fours::new`] take them: with `dense`,
-    /// every stretch of unknowns as one run of its own stencils (see [`DENSE_FOURS`]).
-    #[inline]
-    pub(crate) fn row_as(&self, r: usize, dense: bool) -> impl Iterator<Item = Run> + '_ {
-        let row = self.row(r);
-        let mut i = 0;
-        std::iter::from_fn(move || {
-            let run = *row.get(i)?;
-            i += 1;
-            if !dense || run.kind == RunKind::Skip {
-                return Some(run);
-            }
-            let mut end = run.end;
-            while let Some(next) = row.get(i).filter(|n| n.kind != RunKind::Skip) {
-                end = next.end;
-                i += 1;
-            }
-            Some(Run { start: run.start, end, kind: RunKind::Own, at: 0 })
-        })
     }
 }
 
@@ -1220,10 +1166,9 @@ widest! {
             Operator::Stored { ids, table, narrow, sym, fours, runs } => {
                 let table = T::table(table, narrow);
                 let four = T::has_four_stencils() && !fours.row_first.is_empty();
-                let dense = four && fours.dense;
                 let mut block = if four { fours.row_first[r] as usize } else { 0 };
                 let shared = &table[0];
-                for run in runs.row_as(r, dense) {
+                for &run in runs.row(r) {
                     let (c, e) = (run.start as usize, run.end as usize);
                     if run.kind == RunKind::Skip {
                         out[c..e].fill([T::ZERO; 2]);
@@ -1260,8 +1205,7 @@ widest! {
                     // nodes' do not; in `f32` with AVX2, the four on one vector, their
                     // coefficients read from the level's `fours` in the same order as
                     // here, a run's fours in one call (see `four_run_avx2`), its last one to
-                    // three nodes in a four of their own; on a dense level every run of
-                    // unknowns (see `DENSE_FOURS`).
+                    // three nodes in a four of their own.
                     let mut i = c;
                     if four {
                         let (n, tail) = ((e - c) / 4, (e - c) % 4);
@@ -1671,7 +1615,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let narrow = narrowed(&table);
     let inv_diag_w = narrow_diag(&inv_diag);
     let runs = Runs::stored(&ids, &inv_diag, wpc, wc, hc);
-    let fours = Fours::new(&ids, &narrow, &runs, wpc, hc, Fours::dense_for(&ids, &inv_diag));
+    let fours = Fours::new(&ids, &narrow, &runs, wpc, hc);
     Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours, runs }, inv_diag, inv_diag_w, lam_max, clean }
 }
 

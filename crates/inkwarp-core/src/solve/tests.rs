@@ -913,30 +913,27 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
     // of their own whose other lanes are dropped: every node's residual must have the
     // bits of its own 21 products summed in the stencil's order, in `f32`. The second
     // Galerkin level of a grid with a hole, a cut and scattered fixed nodes has runs of
-    // every length. Then the same level with every unknown in the fours (a dense level,
-    // see `DENSE_FOURS`): the regular nodes too, by the shared stencil's 21 products.
+    // every length.
     use super::level::{Fours, Operator, WS};
     let mut rnd = crate::grid::tests::sequence(57);
-    // Fewer fixed nodes for the dense level, so it has regular nodes to check as well.
-    for (density, dense) in [(0.05, false), (0.01, true)] {
+    for density in [0.05, 0.01] {
         let fine = torn_scattered_level(&mut rnd, density, 0.0);
         let mut level = level::galerkin(&level::galerkin(&fine));
         let n = level.len_padded();
         let (x, f) = (random_on_unknowns(&level, &mut rnd, false), random_on_unknowns(&level, &mut rnd, false));
         let (h, wp) = (level.geo.h, level.wp);
         let Operator::Stored { ids, narrow, fours, runs, .. } = &mut level.op else { unreachable!("a Galerkin level") };
-        *fours = Fours::new(ids, narrow, runs, wp, h, dense);
+        *fours = Fours::new(ids, narrow, runs, wp, h);
         let mut out = vec![[0.0 as WS; 2]; n];
         level.residual(&x, Some(&f), &mut out);
         let Operator::Stored { ids, narrow, .. } = &level.op else { unreachable!() };
-        let summed = |p: usize| level.inv_diag[p] != 0.0 && (dense || ids[p] != 0);
-        let (mut checked, mut regular, mut in_fours) = (0, 0, 0);
+        let summed = |p: usize| level.inv_diag[p] != 0.0 && ids[p] != 0;
+        let (mut checked, mut in_fours) = (0, 0);
         for p in 0..n {
             if !summed(p) {
                 continue;
             }
             checked += 1;
-            regular += usize::from(ids[p] == 0);
             // Runs of four along a row are what the vector takes (rows never run into each
             // other: their padding columns are not unknowns).
             in_fours += usize::from((0..4).all(|j| p >= j && summed(p - j)));
@@ -951,9 +948,9 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
                 a = [a[0] + s[t] * x[q][0], a[1] + s[t] * x[q][1]];
             }
             let want = [f[p][0] - a[0], f[p][1] - a[1]];
-            assert_eq!(out[p].map(WS::to_bits), want.map(WS::to_bits), "node {p}, dense {dense}");
+            assert_eq!(out[p].map(WS::to_bits), want.map(WS::to_bits), "node {p}, density {density}");
         }
-        assert!(checked > 100 && in_fours > 100, "dense {dense}: only {checked} nodes checked, {in_fours} ending runs of four");
+        assert!(checked > 100 && in_fours > 100, "density {density}: only {checked} nodes checked, {in_fours} ending runs of four");
         // Runs whose last one to three nodes make a four of their own (its other lanes
         // dropped): the rows' maximal runs of summed nodes, by their length.
         let mut tails = 0;
@@ -968,12 +965,7 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
                 }
             }
         }
-        assert!(tails > 20, "dense {dense}: only {tails} runs with a tail");
-        if dense {
-            // The regular nodes were summed by the vector too, not by the shared stencil's
-            // rings (which round differently).
-            assert!(regular > 100, "only {regular} regular nodes checked");
-        }
+        assert!(tails > 20, "density {density}: only {tails} runs with a tail");
     }
 }
 
@@ -1016,16 +1008,6 @@ fn runs_split_each_row_into_maximal_runs_of_one_kind() {
                 c = run.end as usize;
             }
             assert_eq!(c, PAD + w, "row {r}: runs stop short of the row's end");
-            let dense: Vec<_> = runs.row_as(r, true).collect();
-            let mut c = PAD;
-            for (i, run) in dense.iter().enumerate() {
-                assert_eq!(run.start as usize, c, "row {r}, dense: a gap or overlap");
-                assert!(run.kind != RunKind::Shared, "row {r}, dense: shared stencils are summed as own ones");
-                assert!(i == 0 || run.kind == RunKind::Skip || dense[i - 1].kind == RunKind::Skip, "row {r}, dense: two runs of unknowns side by side");
-                c = run.end as usize;
-            }
-            assert_eq!(c, PAD + w);
-            assert!(runs.row_as(r, false).map(|run| (run.start, run.end, run.kind)).eq(row.iter().map(|run| (run.start, run.end, run.kind))));
         }
         assert!(seen.iter().all(|&n| n > 10), "every kind of run must occur: {seen:?}");
     }
