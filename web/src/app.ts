@@ -32,6 +32,11 @@ function sameSources(a: unknown[], b: unknown[]): boolean {
   return a.length === b.length && a.every((v, i) => v === b[i]);
 }
 
+/** The bytes a field kept for playback holds, packed or not. */
+function keptBytes(field: FieldData | PackedField): number {
+  return 'packed' in field ? field.packed.byteLength : 8 * field.width * field.height;
+}
+
 export interface LayerRuntime {
   name: string;
   /**
@@ -337,6 +342,11 @@ export class App {
     return Math.max(1, Math.min(want, most));
   }
 
+  /** The factor a frame is drawn smaller by: `draftShrink` for a draft while dragging, else 1. */
+  private shrinkFor(draft: boolean): number {
+    return draft && this.dragging && !this.store.view.playing ? this.draftShrink : 1;
+  }
+
   /** The size the editor's grids and frames have: the scene's, or its proxy's. */
   get frameSize(): { width: number; height: number } {
     return proxySize(this.doc.width, this.doc.height, this.proxy);
@@ -560,12 +570,12 @@ export class App {
     if (this.cache.rev !== this.store.revision) this.cache = { rev: this.store.revision, bytes: 0, frames: new Map() };
     // A proxied scene's fields are kept packed, in a smaller budget (see `packField`).
     const field = this.proxy > 1 ? packField(solved) ?? solved : solved;
-    const size = 'packed' in field ? field.packed.byteLength : 8 * field.width * field.height;
+    const size = keptBytes(field);
     if (this.cache.bytes + size > (this.proxy > 1 ? PROXY_CACHE_BUDGET_BYTES : CACHE_BUDGET_BYTES)) return;
     let fields = this.cache.frames.get(frame);
     if (!fields) this.cache.frames.set(frame, (fields = new Map()));
     const had = fields.get(key);
-    this.cache.bytes += size - (had ? ('packed' in had ? had.packed.byteLength : 8 * had.width * had.height) : 0);
+    this.cache.bytes += size - (had ? keptBytes(had) : 0);
     fields.set(key, field);
   }
 
@@ -978,7 +988,7 @@ export class App {
     // A sparse draft can only be drawn as a draft (its field is known at its pixels).
     const layers = this.drawList();
     const draft = this.dragging || this.store.view.playing || holdsSparse(layers);
-    this.gl.draftShrink = this.dragging && !this.store.view.playing ? this.draftShrink : 1;
+    this.gl.draftShrink = this.shrinkFor(draft);
     const doc = this.doc;
     const { width, height } = this.frameSize;
     const same = this.gl.drawn(width, height, doc.background ?? [255, 255, 255, 255], layers, !draft, draft);
@@ -1027,7 +1037,7 @@ export class App {
   draw(draft: boolean, antialias = !draft, adaptive = false): void {
     const doc = this.doc;
     const { width, height } = this.frameSize;
-    this.gl.draftShrink = draft && this.dragging && !this.store.view.playing ? this.draftShrink : 1;
+    this.gl.draftShrink = this.shrinkFor(draft);
     this.gl.render(width, height, doc.background ?? [255, 255, 255, 255], this.drawList(), antialias, draft, adaptive);
   }
 

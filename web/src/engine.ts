@@ -26,7 +26,6 @@ interface Exports {
   iw_image_free(h: number): void;
   iw_image_read(h: number, out: number, len: number): number;
   iw_grid_solve_kept(g: number, req: number, reqLen: number): number;
-  iw_canvas_draw_solved(c: number, g: number, image: number, ox: number, oy: number): number;
   iw_frame_draw(req: number, reqLen: number, out: number, outLen: number): number;
   iw_scene_check(json: number, len: number): number;
   iw_points_at(req: number, len: number): number;
