@@ -606,7 +606,7 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   perf.followSolveMs = { median: median(s.followSolveMs), n: s.followSolveMs.length };
   perf.playback = s.playback;
   perf.settleParts = s.settleParts;
-  perf.dragParts = Object.fromEntries(['queued', 'toWorker', 'solve', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((p) => p[k]))]));
+  perf.dragParts = Object.fromEntries(['queued', 'toWorker', 'solve', 'workerDraw', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((p) => p[k]))]));
   assert(s.dragLatency.length > 0, 'frames were drawn during the drags');
   // The full-resolution solver followed the drags (how far it got by the release depends
   // on the drag's length: see the slower drag below).
@@ -1443,7 +1443,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     perf.photo = {
       openS: (opened - made) / 1000, firstProxyFrameS: firstFrame / 1000, openSteps: s.open, fullParts: s.fullParts,
       dragMedianMs: median(s.drag), dragP90Ms: pct(s.drag, 0.9), dragFrames: s.drag.length,
-      dragParts: Object.fromEntries(['queued', 'toWorker', 'solve', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((q) => q[k]))])),
+      dragParts: Object.fromEntries(['queued', 'toWorker', 'solve', 'workerDraw', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((q) => q[k]))])),
       draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000,
       heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, browserRssBeforeMiB: rssBefore,
       makeS: (made - t0) / 1000, patchDiff: diff, byKind: { before: kindsBefore, drag: kindsDrag, settled: kindsSettled, idle: kindsIdle }, workers: { drag: workersDrag, settled: workersSettled, idle: workersIdle }, small: { ...small, browserRssMiB: rssSmall },
@@ -1792,7 +1792,7 @@ async function main() {
     if (perf.dragParts) {
       const d = perf.dragParts;
       const f = (v) => (typeof v === 'number' ? v.toFixed(1) : v);
-      console.log(`    drag frame medians: pointer → request sent ${f(d.queued)} + to worker ${f(d.toWorker)} + solve ${f(d.solve)} + back ${f(d.back)} + upload ${f(d.upload)} + to frame ${f(d.toFrame)} + draw calls ${f(d.draw)} + GPU ${f(d.gpu)} (total ${f(d.total)})`);
+      console.log(`    drag frame medians: pointer → request sent ${f(d.queued)} + to worker ${f(d.toWorker)} + solve ${f(d.solve)} + drawn in the worker ${f(d.workerDraw)} + back ${f(d.back)} + upload ${f(d.upload)} + to frame ${f(d.toFrame)} + draw calls ${f(d.draw)} + GPU ${f(d.gpu)} (total ${f(d.total)})`);
     }
     console.log(`  solve: draft median ${perf.draftSolveMs.median?.toFixed(1)} ms, full median ${perf.finalSolveMs.median?.toFixed(1)} ms`);
     console.log(`  playback at 24 fps, 6 frames: first pass (solving) ${JSON.stringify(perf.playbackFirstPass)}; then 2 s from solved fields ${JSON.stringify(perf.playback)}`);

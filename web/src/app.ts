@@ -2,12 +2,13 @@
 // with the store.
 
 import type { Engine, FieldData, SolveFeature, SolveOptions } from './engine';
-import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse } from './gl';
+import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse, sparseValuesAt } from './gl';
 import { decodeImage, forgetImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
 import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './scene';
 import type { FieldEvent, FullClient, FullFrame } from './solver';
+import type { DraftDraw } from './protocol';
 import type { SolverClient } from './solver';
 import { PROBE_TOLERANCE_PX, probedFeatures } from './probe';
 import { downscaleMatte, downscaleRgba, packField, proxyFactor, proxySize, toProxy, unpackField, type PackedField } from './proxy';
@@ -111,6 +112,8 @@ export interface SettleParts {
   solve: number;
   cycles: number | null;
   reused: boolean;
+  /** The draft worker drawing the draft frame after its solve (0: the page drew it, see `DraftDraw`). */
+  workerDraw: number;
   /** The field's trip back to the page. */
   back: number;
   /** Uploading the field to the GPU (interleaving and texture upload). */
@@ -140,13 +143,15 @@ function frameParts(
   drawn: { start: number; end: number },
 ): SettleParts {
   const { times } = ev;
+  const workerDraw = ev.frame?.drawMs ?? 0;
   return {
     queued: times.sent - start,
     behind,
     toWorker: times.began - times.sent,
-    solve: times.ended - times.began,
+    solve: times.ended - times.began - workerDraw,
     cycles: ev.report.cycles ?? null,
     reused: ev.reused ?? false,
+    workerDraw,
     back: times.received - times.ended,
     upload,
     toFrame: drawn.start - (times.received + upload),
@@ -342,9 +347,9 @@ export class App {
     return Math.max(1, Math.min(want, most));
   }
 
-  /** The factor a frame is drawn smaller by: `draftShrink` for a draft while dragging, else 1. */
+  /** The factor a frame is drawn smaller by: `draftShrink` for a draft while dragging or playing, else 1. */
   private shrinkFor(draft: boolean): number {
-    return draft && this.dragging && !this.store.view.playing ? this.draftShrink : 1;
+    return draft && (this.dragging || this.store.view.playing) ? this.draftShrink : 1;
   }
 
   /** The size the editor's grids and frames have: the scene's, or its proxy's. */
@@ -501,6 +506,8 @@ export class App {
         if (rt.gl && this.drafts) {
           // Drafts are solved at the draft mesh's pixels only (see `sparseDraft`).
           this.drafts.select(rt.name, rt.gl.draftPixels);
+          // Where the CPU draws drafts, the draft worker draws them (see `draftDraw`).
+          if (this.gl.cpuDrafts) this.drafts.draftLayer(rt.name, rt.gl.cpuDraftGeometry);
           rt.selectedGen = gen;
         }
         rt.gridReady = true;
@@ -767,9 +774,16 @@ export class App {
       for (const [key, kept] of hit) {
         const rt = this.runtimes.get(key);
         if (!rt?.gl) continue;
-        const field = 'packed' in kept ? unpackField(kept) : kept;
-        rt.field = field;
-        rt.gl.setField(field);
+        if (this.playsSparse(rt)) {
+          // Played as a draft drawn by the CPU: only the draft mesh's pixels of the field
+          // are read (see `playsSparse`).
+          rt.field = null;
+          rt.gl.setSparseField(sparseValuesAt(rt.gl.draftPixels, kept));
+        } else {
+          const field = 'packed' in kept ? unpackField(kept) : kept;
+          rt.field = field;
+          rt.gl.setField(field);
+        }
         rt.lastRequest = '';
         rt.shownSeq = ++this.seq;
       }
@@ -785,9 +799,11 @@ export class App {
       const sig = JSON.stringify([features, options]);
       if (sig === rt.lastRequest) continue;
       rt.lastRequest = sig;
+      const seq = ++this.seq;
+      const sparse = quality === 'draft' && this.sparseDraft(rt);
       this.solverFor(quality).solve(layer.name, features, options, {
         madeAt: performance.now(),
-        seq: ++this.seq,
+        seq,
         quality,
         gen: rt.gridGen,
         pointerAt: quality === 'draft' ? this.lastPointerAt : null,
@@ -795,7 +811,7 @@ export class App {
         rev: this.store.revision,
         frame,
         settleStart: quality === 'final' ? this.settleStart : null,
-      }, { mesh: quality === 'final' && this.slowAntialias, sparse: quality === 'draft' && this.sparseDraft(rt) });
+      }, { mesh: quality === 'final' && this.slowAntialias, sparse, draw: sparse ? this.draftDraw(seq) : undefined });
       if (quality === 'draft') this.follow(rt, layer, features, time);
     }
   }
@@ -865,6 +881,57 @@ export class App {
     return rt.gl !== null && rt.selectedGen === rt.gridGen && heat === 'off' && !mesh;
   }
 
+  /**
+   * What the draft worker is asked to draw after a sparse draft (request `seq`), where the
+   * CPU draws drafts: the frame of every visible layer, each from its last sparse draft in
+   * that worker, at the size the page would draw it, so the page's main thread only puts
+   * the pixels on its canvas (it drew them itself before: 7–15 ms a draft of the
+   * photograph's proxy, during which the next field and pointer move waited). Undefined
+   * where the page draws drafts on WebGL2.
+   */
+  private draftDraw(seq: number): DraftDraw | undefined {
+    if (!this.drafts || !this.gl.cpuDrafts) return undefined;
+    const { width, height } = this.frameSize;
+    const background = this.doc.background ?? [255, 255, 255, 255];
+    const shrink = this.shrinkFor(true);
+    const layers = this.drawList().map(({ layer, offset, opacity }) => ({ key: this.nameOf(layer), offset, opacity: opacity ?? 1 }));
+    return { width, height, background, shrink, layers, seq, spec: JSON.stringify([width, height, background, shrink, layers]) };
+  }
+
+  private nameOf(layer: GlLayer): string {
+    for (const rt of this.runtimes.values()) if (rt.gl === layer) return rt.name;
+    return '';
+  }
+
+  /**
+   * Shows the draft frame the draft worker drew (`ev.frame`) if it is the frame the page
+   * would draw now: drawn for the same layers, size, background and offsets, from each
+   * layer's sparse draft on screen (the request numbers match).
+   */
+  private offerDraft(ev: FieldEvent): void {
+    const frame = ev.frame;
+    if (!frame) return;
+    const now = this.draftDraw(0);
+    if (!now || now.spec !== frame.spec) return;
+    for (const l of now.layers) {
+      const rt = this.runtimes.get(l.key);
+      if (!rt?.gl?.sparse || frame.seqs[l.key] !== rt.shownSeq) return;
+    }
+    this.gl.draftShrink = now.shrink;
+    this.gl.offerDraft(frame.pixels, now.width, now.height, now.background, this.drawList());
+  }
+
+  /**
+   * Whether a frame played from the playback cache is shown as a sparse draft drawn by the
+   * CPU (the draft mesh's pixels of the kept field, at the draft's size): where the CPU
+   * draws drafts, the overlays need no whole field, and the layer's draft mesh is the
+   * grid's. WebGL2 on a software GPU took most of a frame's time for a proxy, and the page
+   * waited for it; the whole field's unpacking and upload went too.
+   */
+  private playsSparse(rt: LayerRuntime): boolean {
+    return this.store.view.playing && !this.exporting && this.gl.cpuDrafts && this.sparseDraft(rt) && !this.store.view.overlays.matte && rt.gl!.cpuDraftGeometry !== null;
+  }
+
   /** Whether a settle draws the fast full frame first (see `frameTick`). */
   private get slowAntialias(): boolean {
     return this.proxy > 1 || this.antialiasMs > SLOW_ANTIALIAS_MS;
@@ -920,7 +987,11 @@ export class App {
       rt.error = null;
       const up0 = performance.now();
       if (ev.sparse) rt.gl.setSparseField(ev.sparse);
-      else rt.gl.setField(ev.field, ev.triangles ?? null);
+      else if (ev.field && ev.tag.quality === 'final' && this.playsSparse(rt)) {
+        rt.field = null;
+        rt.gl.setSparseField(sparseValuesAt(rt.gl.draftPixels, ev.field));
+      } else rt.gl.setField(ev.field, ev.triangles ?? null);
+      if (ev.frame && this.dragging && !this.store.view.playing) this.offerDraft(ev);
       const upload = performance.now() - up0;
       if (typeof ev.tag.pointerAt === 'number' && ev.tag.pointerAt > 0) {
         const start = ev.tag.pointerAt;
