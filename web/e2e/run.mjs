@@ -1466,10 +1466,34 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       await p.waitForTimeout(1000);
     }
     const frameTotal = ((await p.getAttribute('#ready', 'data-frames')) ?? '').length;
+    // Where a played frame's time goes on the page's main thread: the time change (the
+    // store's views, the cache's fields to the layers) and the frame's drawing, each timed
+    // around its synchronous work, and the animation frames the page got in the 2 s.
+    await p.evaluate(() => {
+      const { app, store } = window.inkwarp;
+      const t = (window.__playTimes = { setView: [], frameTick: [], rafs: 0 });
+      const wrap = (obj, name, into) => {
+        const was = obj[name];
+        obj[name] = function (...args) { const t0 = performance.now(); try { return was.apply(this, args); } finally { into.push(performance.now() - t0); } };
+        return () => { obj[name] = was; };
+      };
+      const undo = [wrap(store, 'setView', t.setView), wrap(app, 'frameTick', t.frameTick)];
+      let on = true;
+      const raf = () => { if (!on) return; t.rafs++; requestAnimationFrame(raf); };
+      requestAnimationFrame(raf);
+      window.__playUndo = () => { on = false; for (const u of undo) u(); };
+    });
     await p.keyboard.press('Space');
     await p.waitForTimeout(2000);
     const played = await p.evaluate(() => ({ ...window.inkwarp.app.stats.playback, cacheMiB: Math.round((window.inkwarp.app.cache?.bytes ?? 0) / 2 ** 20) }));
     await p.keyboard.press('Space');
+    const playTimes = await p.evaluate(() => {
+      window.__playUndo();
+      const t = window.__playTimes;
+      const med = (a) => { const b = [...a].sort((x, y) => x - y); return b.length ? b[b.length >> 1] : null; };
+      return { setViewMs: med(t.setView), frameTickMs: med(t.frameTick), frameTickMaxMs: Math.max(0, ...t.frameTick), ticks: t.frameTick.length, animationFrames: t.rafs };
+    });
+    played.mainThread = playTimes;
     perf.photo.playback = { readyFrames, frameTotal, ...played };
     console.log(`  photo playback: ${JSON.stringify(perf.photo.playback)}`);
   } finally {

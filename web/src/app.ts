@@ -176,6 +176,8 @@ const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
  */
 const PROXY_CACHE_BUDGET_BYTES = 192 * 2 ** 20;
 const SETTLE_MS = 120;
+/** Draft frames of the playback cache drawn ahead (see `App.drawAhead`): 128 frames of the photograph's proxy at half size. */
+const DRAWN_BUDGET_BYTES = 96 * 2 ** 20;
 /** How long the editor is left alone (ms) before frames are solved ahead (see `scheduleAhead`). */
 const AHEAD_IDLE_MS = 400;
 /** The multigrid cycles of one request for a frame solved ahead (it is asked again until it converges). */
@@ -213,7 +215,7 @@ export class App {
       return m && { wasmMiB: mib(m.wasmBytes), heapMiB: mib(m.heapBytes) };
     };
     return {
-      page: { wasmMiB: mib(this.engine.x.memory.buffer.byteLength), heapMiB: mib(heap?.usedJSHeapSize), picturesMiB: mib(pictures), fullFrameMiB: mib(this.fullShown?.pixels.byteLength ?? 0), fieldCacheMiB: mib(this.cache.bytes) },
+      page: { wasmMiB: mib(this.engine.x.memory.buffer.byteLength), heapMiB: mib(heap?.usedJSHeapSize), picturesMiB: mib(pictures), fullFrameMiB: mib(this.fullShown?.pixels.byteLength ?? 0), fieldCacheMiB: mib(this.cache.bytes), drawnFramesMiB: mib(this.drawnFrames.bytes) },
       solver: await worker(this.solver),
       drafts: await worker(this.drafts),
       ahead: await worker(this.ahead),
@@ -246,6 +248,16 @@ export class App {
   /** Full-resolution fields by frame, for the document revision they were solved for. */
   private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, FieldData | PackedField>>() };
 
+  /**
+   * Draft frames of the playback cache drawn ahead by the draft worker (see `drawAhead`),
+   * straight RGBA8 at the draft's size, for the scene revision and frame spec (`DraftDraw`)
+   * they were drawn for.
+   */
+  private drawnFrames = { rev: -1, spec: '', bytes: 0, frames: new Map<number, Uint8ClampedArray>() };
+  /** The frame the draft worker is drawing ahead now. */
+  private drawingAhead: { id: number; frame: number; rev: number; spec: string } | null = null;
+  private drawId = 0;
+
   /** Numbers every solve request: a layer shows the field of its newest request only. */
   private seq = 0;
 
@@ -272,6 +284,7 @@ export class App {
         this.checkIdle();
       };
     }
+    if (drafts) drafts.onDrawn = (id, pixels) => this.receiveDrawn(id, pixels);
     for (const client of this.clients) {
       client.onField = (ev) => this.receive(ev);
       client.onError = (key, message) => {
@@ -787,6 +800,11 @@ export class App {
         rt.lastRequest = '';
         rt.shownSeq = ++this.seq;
       }
+      const drawn = this.store.view.playing ? this.drawnFrame(frame) : null;
+      if (drawn && drawn.draw.layers.every((l) => this.runtimes.get(l.key)?.gl?.sparse)) {
+        this.gl.draftShrink = drawn.draw.shrink;
+        this.gl.offerDraft(drawn.pixels, drawn.draw.width, drawn.draw.height, drawn.draw.background, this.drawList());
+      }
       if (this.stats.playback && this.store.view.playing) this.stats.playback.shown++;
       this.invalidate();
       return;
@@ -889,11 +907,10 @@ export class App {
    * photograph's proxy, during which the next field and pointer move waited). Undefined
    * where the page draws drafts on WebGL2.
    */
-  private draftDraw(seq: number): DraftDraw | undefined {
+  private draftDraw(seq: number, shrink = this.shrinkFor(true)): DraftDraw | undefined {
     if (!this.drafts || !this.gl.cpuDrafts) return undefined;
     const { width, height } = this.frameSize;
     const background = this.doc.background ?? [255, 255, 255, 255];
-    const shrink = this.shrinkFor(true);
     const layers = this.drawList().map(({ layer, offset, opacity }) => ({ key: this.nameOf(layer), offset, opacity: opacity ?? 1 }));
     return { width, height, background, shrink, layers, seq, spec: JSON.stringify([width, height, background, shrink, layers]) };
   }
@@ -919,6 +936,63 @@ export class App {
     }
     this.gl.draftShrink = now.shrink;
     this.gl.offerDraft(frame.pixels, now.width, now.height, now.background, this.drawList());
+  }
+
+  /**
+   * Drawing ahead: where the CPU draws drafts, each frame of the playback cache that has
+   * every layer's field is drawn as the draft playback shows (`playsSparse`, at the draft's
+   * size) by the draft worker, one at a time while nothing is dragged, and kept within
+   * `DRAWN_BUDGET_BYTES` (750 kB a frame of the photograph's proxy drawn at half size).
+   * Playback then puts each frame's pixels on the canvas and draws nothing: drawing it on
+   * the page took 10–40 ms a frame of the proxy on the loaded 2-core machine, most of a
+   * frame's 42 ms at 24 fps.
+   */
+  private drawAhead(): void {
+    const drafts = this.drafts;
+    if (!drafts || !this.gl.cpuDrafts || this.drawingAhead || this.dragging || this.exporting) return;
+    const spec = this.draftDraw(0, this.draftShrink);
+    if (!spec || spec.layers.length === 0) return;
+    const rev = this.store.revision;
+    const kept = this.drawnFrames;
+    if (kept.rev !== rev || kept.spec !== spec.spec) this.drawnFrames = { rev, spec: spec.spec, bytes: 0, frames: new Map() };
+    const size = 4 * Math.ceil(spec.width / spec.shrink) * Math.ceil(spec.height / spec.shrink);
+    if (this.drawnFrames.bytes + size > DRAWN_BUDGET_BYTES) return;
+    for (const frame of [...this.cache.frames.keys()].sort((a, b) => a - b)) {
+      if (this.drawnFrames.frames.has(frame)) continue;
+      const fields = this.cached(frame);
+      if (!fields) continue;
+      const values: Record<string, Float32Array> = {};
+      for (const l of spec.layers) {
+        const rt = this.runtimes.get(l.key);
+        const field = fields.get(l.key);
+        if (!rt?.gl || !field || !this.sparseDraft(rt) || !rt.gl.cpuDraftGeometry) return;
+        values[l.key] = sparseValuesAt(rt.gl.draftPixels, field);
+      }
+      const id = ++this.drawId;
+      this.drawingAhead = { id, frame, rev, spec: spec.spec };
+      drafts.draw(id, spec, values);
+      return;
+    }
+  }
+
+  private receiveDrawn(id: number, pixels: Uint8ClampedArray | null): void {
+    const asked = this.drawingAhead;
+    if (!asked || asked.id !== id) return;
+    this.drawingAhead = null;
+    const kept = this.drawnFrames;
+    if (!pixels || asked.rev !== kept.rev || asked.spec !== kept.spec || asked.rev !== this.store.revision) return;
+    kept.frames.set(asked.frame, pixels);
+    kept.bytes += pixels.byteLength;
+    this.drawAhead();
+  }
+
+  /** The draft frame drawn ahead for `frame` (see `drawAhead`), if it is what playback shows now. */
+  private drawnFrame(frame: number | null): { pixels: Uint8ClampedArray; draw: DraftDraw } | null {
+    const kept = this.drawnFrames;
+    const pixels = frame === null ? undefined : kept.frames.get(frame);
+    if (!pixels || kept.rev !== this.store.revision) return null;
+    const draw = this.draftDraw(0, this.draftShrink);
+    return draw && draw.spec === kept.spec ? { pixels, draw } : null;
   }
 
   /**
@@ -966,6 +1040,7 @@ export class App {
     const unfinished = ev.tag.chunked && ev.report.converged === false;
     if (ev.field && !unfinished && ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.store.revision) {
       this.remember(ev.tag.frame, ev.key, ev.field);
+      this.drawAhead();
     }
     if (ev.tag.ahead) {
       // Solved ahead: into the cache (above) only, then the next frame.

@@ -1075,10 +1075,13 @@ void main() { o = texture(uTex, vPos); }`);
       this.cpuDrawn = { shrink, width, height };
     }
     if (drawn && drawn.width === w && drawn.height === h) {
-      // Drawn already (by the draft worker): only put on the canvas.
+      // Drawn already (by the draft worker): only put on the canvas. Its pixels may be
+      // kept elsewhere (frames drawn ahead for playback): never drawn over.
       this.cpuFrame = drawn;
+      this.cpuFrameBorrowed = true;
     } else {
-      if (this.cpuFrame?.width !== w || this.cpuFrame.height !== h) this.cpuFrame = new ImageData(w, h);
+      if (this.cpuFrameBorrowed || this.cpuFrame?.width !== w || this.cpuFrame.height !== h) this.cpuFrame = new ImageData(w, h);
+      this.cpuFrameBorrowed = false;
       const engine = this.engine!;
       const what = layers.map(({ layer, offset, opacity }) => (full ? layer.cpuFull(engine, offset, opacity) : layer.cpuDraft(engine, offset, opacity)));
       engine.drawDraft(this.cpuFrame.data, width, height, background, what, shrink);
@@ -1102,6 +1105,8 @@ void main() { o = texture(uTex, vPos); }`);
   }
 
   private offered: { key: string; image: ImageData } | null = null;
+  /** `cpuFrame` holds pixels offered by `offerDraft`, which a frame drawn here must not overwrite. */
+  private cpuFrameBorrowed = false;
 
   /** `frameKey`, and how many times smaller a draft on the CPU is drawn. */
   private keyOf(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias: boolean, draft: boolean, fast: boolean): string {

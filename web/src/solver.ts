@@ -100,6 +100,8 @@ export class SolverClient {
   onField: (ev: FieldEvent) => void = () => {};
   onError: (key: string | null, message: string) => void = () => {};
   onReset: (message: string) => void = () => {};
+  /** The answers to `draw` (see `draw`). */
+  onDrawn: (id: number, pixels: Uint8ClampedArray | null, drawMs: number) => void = () => {};
 
   constructor(worker: Worker, wasmUrl: string) {
     this.worker = worker;
@@ -125,6 +127,11 @@ export class SolverClient {
   /** Sends a layer's draft geometry (null: none), so the worker draws its drafts itself (`SolveHow.draw`). */
   draftLayer(key: string, geometry: DraftGeometry | null): void {
     this.send({ type: 'draft-layer', key, geometry });
+  }
+
+  /** Asks the worker to draw a draft frame from these sparse fields (answered through `onDrawn`). */
+  draw(id: number, draw: DraftDraw, values: Record<string, Float32Array>): void {
+    this.send({ type: 'draw', id, draw, values }, Object.values(values).map((v) => v.buffer));
   }
 
   /** Chooses the pixels that sparse solves on a layer's grid compute (after its `setGrid`). */
@@ -178,6 +185,10 @@ export class SolverClient {
       for (const list of this.linkWaiters.values()) for (const w of list) w.reject(new Error(msg.message));
       this.linkWaiters.clear();
       this.onReset(msg.message);
+      return;
+    }
+    if (msg.type === 'drawn') {
+      this.onDrawn(msg.id, msg.pixels, msg.drawMs);
       return;
     }
     if (msg.type === 'links') {

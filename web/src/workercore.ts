@@ -61,6 +61,10 @@ export class SolverWorker {
         this.linksOf.delete(msg.key);
       } else if (msg.type === 'select') {
         this.gridOf(msg.key).select(msg.pixels);
+      } else if (msg.type === 'draw') {
+        const t0 = performance.now();
+        const pixels = this.drawFrom(msg.draw, (key) => msg.values[key]);
+        this.post({ type: 'drawn', id: msg.id, pixels, drawMs: performance.now() - t0 }, pixels ? [pixels.buffer] : []);
       } else if (msg.type === 'draft-layer') {
         this.forgetDraft(msg.key);
         if (msg.geometry) this.draftLayers.set(msg.key, engine.draftLayer(msg.geometry));
@@ -172,19 +176,25 @@ export class SolverWorker {
   private drawDraft(key: string, values: Float32Array, draw: DraftDraw): DraftFrame | undefined {
     // A copy: `values` goes to the page.
     this.drafted.set(key, { values: values.slice(), seq: draw.seq });
-    const layers = [];
     const seqs: Record<string, number> = {};
+    for (const l of draw.layers) seqs[l.key] = this.drafted.get(l.key)?.seq ?? -1;
+    const t0 = performance.now();
+    const pixels = this.drawFrom(draw, (k) => this.drafted.get(k)?.values);
+    return pixels ? { pixels, seqs, spec: draw.spec, drawMs: performance.now() - t0 } : undefined;
+  }
+
+  /** The draft frame of `draw`, each layer from `valuesOf` its sparse field; null when a layer has no draft geometry or field here. */
+  private drawFrom(draw: DraftDraw, valuesOf: (key: string) => Float32Array | undefined): Uint8ClampedArray | null {
+    const layers = [];
     for (const l of draw.layers) {
       const handle = this.draftLayers.get(l.key);
-      const got = this.drafted.get(l.key);
-      if (!handle || !got) return undefined;
-      layers.push({ draft: handle, values: got.values, offset: l.offset, opacity: l.opacity });
-      seqs[l.key] = got.seq;
+      const values = valuesOf(l.key);
+      if (!handle || !values) return null;
+      layers.push({ draft: handle, values, offset: l.offset, opacity: l.opacity });
     }
-    const t0 = performance.now();
     const pixels = new Uint8ClampedArray(4 * Math.ceil(draw.width / draw.shrink) * Math.ceil(draw.height / draw.shrink));
     this.engine!.drawDraft(pixels, draw.width, draw.height, draw.background, layers, draw.shrink);
-    return { pixels, seqs, spec: draw.spec, drawMs: performance.now() - t0 };
+    return pixels;
   }
 
   private gridOf(key: string): GridHandle {
