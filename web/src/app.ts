@@ -804,6 +804,9 @@ export class App {
       if (drawn && drawn.draw.layers.every((l) => this.runtimes.get(l.key)?.gl?.sparse)) {
         this.gl.draftShrink = drawn.draw.shrink;
         this.gl.offerDraft(drawn.pixels, drawn.draw.width, drawn.draw.height, drawn.draw.background, this.drawList());
+      } else if (this.store.view.playing) {
+        // Not drawn ahead for this view (zoomed since, say): drawn now for the next loop.
+        this.drawAhead();
       }
       if (this.stats.playback && this.store.view.playing) this.stats.playback.shown++;
       this.invalidate();
