@@ -832,7 +832,7 @@ export class App {
         rev: this.store.revision,
         frame,
         settleStart: quality === 'final' ? this.settleStart : null,
-      }, { mesh: quality === 'final' && this.slowAntialias, sparse, draw: sparse ? this.draftDraw(seq) : undefined });
+      }, { mesh: quality === 'final' && this.slowAntialias, sparse, draw: sparse && this.largeFrame ? this.draftDraw(seq) : undefined });
       if (quality === 'draft') this.follow(rt, layer, features, time);
     }
   }
@@ -903,12 +903,26 @@ export class App {
   }
 
   /**
+   * Whether a drag's drafts are drawn by the draft worker (`draftDraw`): a frame of more
+   * than `DRAFT_PIXELS` pixels (a large picture's proxy). Measured in paired rounds, the
+   * photograph's drag frame took 0.41–0.63 × the time of drafts drawn on the page, but
+   * 512 × 512 took 1.13–1.16 ×: its draft is drawn in 20–30 ms either way, and the worker,
+   * which shares the two cores with the full-resolution solves following the drag, drew it
+   * slower than the page did.
+   */
+  private get largeFrame(): boolean {
+    const { width, height } = this.frameSize;
+    return width * height > DRAFT_PIXELS;
+  }
+
+  /**
    * What the draft worker is asked to draw after a sparse draft (request `seq`), where the
    * CPU draws drafts: the frame of every visible layer, each from its last sparse draft in
    * that worker, at the size the page would draw it, so the page's main thread only puts
    * the pixels on its canvas (it drew them itself before: 7–15 ms a draft of the
-   * photograph's proxy, during which the next field and pointer move waited). Undefined
-   * where the page draws drafts on WebGL2.
+   * photograph's proxy at half size, during which the next field and pointer move waited).
+   * Also what a frame drawn ahead for playback is (see `drawAhead`). Undefined where the
+   * page draws drafts on WebGL2.
    */
   private draftDraw(seq: number, shrink = this.shrinkFor(true)): DraftDraw | undefined {
     if (!this.drafts || !this.gl.cpuDrafts) return undefined;
