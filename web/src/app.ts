@@ -176,7 +176,7 @@ const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
  */
 const PROXY_CACHE_BUDGET_BYTES = 192 * 2 ** 20;
 const SETTLE_MS = 120;
-/** Draft frames of the playback cache drawn ahead (see `App.drawAhead`): 128 frames of the photograph's proxy at half size. */
+/** Draft frames of the playback cache drawn ahead (see `App.drawAhead`): about 130 frames of the photograph's proxy at half size. */
 const DRAWN_BUDGET_BYTES = 96 * 2 ** 20;
 /** How long the editor is left alone (ms) before frames are solved ahead (see `scheduleAhead`). */
 const AHEAD_IDLE_MS = 400;
