@@ -606,7 +606,7 @@ test('measure: drag latency, settle time and playback on 512×512 with a dozen f
   perf.followSolveMs = { median: median(s.followSolveMs), n: s.followSolveMs.length };
   perf.playback = s.playback;
   perf.settleParts = s.settleParts;
-  perf.dragParts = Object.fromEntries(['queued', 'toWorker', 'solve', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((p) => p[k]))]));
+  perf.dragParts = Object.fromEntries(['queued', 'toWorker', 'solve', 'workerDraw', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((p) => p[k]))]));
   assert(s.dragLatency.length > 0, 'frames were drawn during the drags');
   // The full-resolution solver followed the drags (how far it got by the release depends
   // on the drag's length: see the slower drag below).
@@ -1382,6 +1382,19 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       await app.idle();
       app.resetStats();
     });
+    // The page's main thread during the drag: each scene change's synchronous work (the
+    // views following the drawing) and each field's arrival, timed around them.
+    await p.evaluate(() => {
+      const { app, store } = window.inkwarp;
+      const t = (window.__dragTimes = { apply: [], receive: [] });
+      const wrap = (obj, name, into) => {
+        const was = obj[name];
+        obj[name] = function (...args) { const t0 = performance.now(); try { return was.apply(this, args); } finally { into.push(performance.now() - t0); } };
+        return () => { obj[name] = was; };
+      };
+      const undo = [wrap(store, 'apply', t.apply), wrap(app, 'receive', t.receive)];
+      window.__dragUndo = () => { for (const u of undo) u(); };
+    });
     // The notice while dragging, sampled at each step of the drag.
     const [x0, y0] = await toClient(p, [2000, 1500]);
     const [x1, y1] = await toClient(p, [2200, 1300]);
@@ -1408,6 +1421,12 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     const workersDrag = await p.evaluate(() => window.inkwarp.app.memoryReport?.());
     if (process.env.SHOW_RSS) console.log(spawnSync('ps', ['-C', 'chromium', '-o', 'rss=,args='], { encoding: 'utf8' }).stdout.split('\n').map((l) => l.slice(0, 160).replace(/--[a-z-]+=\S{40,}/g, '')).join('\n'));
     await shot(p, 'photo-proxy');
+    const dragMain = await p.evaluate(() => {
+      window.__dragUndo();
+      const t = window.__dragTimes;
+      const med = (a) => { const b = [...a].sort((x, y) => x - y); return b.length ? b[b.length >> 1] : null; };
+      return { applyMs: med(t.apply), applyMaxMs: Math.max(0, ...t.apply), applies: t.apply.length, receiveMs: med(t.receive), receives: t.receive.length };
+    });
     await p.mouse.up();
     const released = Date.now();
     const afterRelease = await p.evaluate(() => { const n = document.querySelector('#proxy-note'); return n.hidden ? '' : n.textContent; });
@@ -1443,8 +1462,8 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     perf.photo = {
       openS: (opened - made) / 1000, firstProxyFrameS: firstFrame / 1000, openSteps: s.open, fullParts: s.fullParts,
       dragMedianMs: median(s.drag), dragP90Ms: pct(s.drag, 0.9), dragFrames: s.drag.length,
-      dragParts: Object.fromEntries(['queued', 'toWorker', 'solve', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((q) => q[k]))])),
-      draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000,
+      dragParts: Object.fromEntries(['queued', 'toWorker', 'solve', 'workerDraw', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((q) => q[k]))])),
+      dragMain, draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000,
       heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, browserRssBeforeMiB: rssBefore,
       makeS: (made - t0) / 1000, patchDiff: diff, byKind: { before: kindsBefore, drag: kindsDrag, settled: kindsSettled, idle: kindsIdle }, workers: { drag: workersDrag, settled: workersSettled, idle: workersIdle }, small: { ...small, browserRssMiB: rssSmall },
     };
@@ -1466,9 +1485,38 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       await p.waitForTimeout(1000);
     }
     const frameTotal = ((await p.getAttribute('#ready', 'data-frames')) ?? '').length;
+    // Where a played frame's time goes on the page's main thread: the time change (the
+    // store's views, the cache's fields to the layers) and the frame's drawing, each timed
+    // around its synchronous work, and the animation frames the page got in the 2 s.
+    await p.evaluate(() => {
+      const { app, store } = window.inkwarp;
+      const t = (window.__playTimes = { setView: [], frameTick: [], rafs: 0 });
+      const wrap = (obj, name, into) => {
+        const was = obj[name];
+        obj[name] = function (...args) { const t0 = performance.now(); try { return was.apply(this, args); } finally { into.push(performance.now() - t0); } };
+        return () => { obj[name] = was; };
+      };
+      const undo = [wrap(store, 'setView', t.setView), wrap(app, 'frameTick', t.frameTick)];
+      let on = true;
+      const raf = () => { if (!on) return; t.rafs++; requestAnimationFrame(raf); };
+      requestAnimationFrame(raf);
+      window.__playUndo = () => { on = false; for (const u of undo) u(); };
+    });
     await p.keyboard.press('Space');
     await p.waitForTimeout(2000);
     const played = await p.evaluate(() => ({ ...window.inkwarp.app.stats.playback, cacheMiB: Math.round((window.inkwarp.app.cache?.bytes ?? 0) / 2 ** 20) }));
+    await p.keyboard.press('Space');
+    const playTimes = await p.evaluate(() => {
+      window.__playUndo();
+      const t = window.__playTimes;
+      const med = (a) => { const b = [...a].sort((x, y) => x - y); return b.length ? b[b.length >> 1] : null; };
+      return { setViewMs: med(t.setView), frameTickMs: med(t.frameTick), frameTickMaxMs: Math.max(0, ...t.frameTick), ticks: t.frameTick.length, animationFrames: t.rafs };
+    });
+    played.mainThread = playTimes;
+    // What playback shows (a draft drawn ahead), for a look: half a second into a second play.
+    await p.keyboard.press('Space');
+    await p.waitForTimeout(500);
+    await shot(p, 'photo-playing');
     await p.keyboard.press('Space');
     perf.photo.playback = { readyFrames, frameTotal, ...played };
     console.log(`  photo playback: ${JSON.stringify(perf.photo.playback)}`);
@@ -1792,7 +1840,7 @@ async function main() {
     if (perf.dragParts) {
       const d = perf.dragParts;
       const f = (v) => (typeof v === 'number' ? v.toFixed(1) : v);
-      console.log(`    drag frame medians: pointer → request sent ${f(d.queued)} + to worker ${f(d.toWorker)} + solve ${f(d.solve)} + back ${f(d.back)} + upload ${f(d.upload)} + to frame ${f(d.toFrame)} + draw calls ${f(d.draw)} + GPU ${f(d.gpu)} (total ${f(d.total)})`);
+      console.log(`    drag frame medians: pointer → request sent ${f(d.queued)} + to worker ${f(d.toWorker)} + solve ${f(d.solve)} + drawn in the worker ${f(d.workerDraw)} + back ${f(d.back)} + upload ${f(d.upload)} + to frame ${f(d.toFrame)} + draw calls ${f(d.draw)} + GPU ${f(d.gpu)} (total ${f(d.total)})`);
     }
     console.log(`  solve: draft median ${perf.draftSolveMs.median?.toFixed(1)} ms, full median ${perf.finalSolveMs.median?.toFixed(1)} ms`);
     console.log(`  playback at 24 fps, 6 frames: first pass (solving) ${JSON.stringify(perf.playbackFirstPass)}; then 2 s from solved fields ${JSON.stringify(perf.playback)}`);

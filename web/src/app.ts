@@ -2,12 +2,13 @@
 // with the store.
 
 import type { Engine, FieldData, SolveFeature, SolveOptions } from './engine';
-import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse } from './gl';
+import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse, sparseValuesAt } from './gl';
 import { decodeImage, forgetImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
 import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './scene';
 import type { FieldEvent, FullClient, FullFrame } from './solver';
+import type { DraftDraw } from './protocol';
 import type { SolverClient } from './solver';
 import { PROBE_TOLERANCE_PX, probedFeatures } from './probe';
 import { downscaleMatte, downscaleRgba, packField, proxyFactor, proxySize, toProxy, unpackField, type PackedField } from './proxy';
@@ -111,6 +112,8 @@ export interface SettleParts {
   solve: number;
   cycles: number | null;
   reused: boolean;
+  /** The draft worker drawing the draft frame after its solve (0: the page drew it, see `DraftDraw`). */
+  workerDraw: number;
   /** The field's trip back to the page. */
   back: number;
   /** Uploading the field to the GPU (interleaving and texture upload). */
@@ -140,13 +143,15 @@ function frameParts(
   drawn: { start: number; end: number },
 ): SettleParts {
   const { times } = ev;
+  const workerDraw = ev.frame?.drawMs ?? 0;
   return {
     queued: times.sent - start,
     behind,
     toWorker: times.began - times.sent,
-    solve: times.ended - times.began,
+    solve: times.ended - times.began - workerDraw,
     cycles: ev.report.cycles ?? null,
     reused: ev.reused ?? false,
+    workerDraw,
     back: times.received - times.ended,
     upload,
     toFrame: drawn.start - (times.received + upload),
@@ -171,6 +176,8 @@ const CACHE_BUDGET_BYTES = 384 * 2 ** 20;
  */
 const PROXY_CACHE_BUDGET_BYTES = 192 * 2 ** 20;
 const SETTLE_MS = 120;
+/** Draft frames of the playback cache drawn ahead (see `App.drawAhead`): about 130 frames of the photograph's proxy at half size. */
+const DRAWN_BUDGET_BYTES = 96 * 2 ** 20;
 /** How long the editor is left alone (ms) before frames are solved ahead (see `scheduleAhead`). */
 const AHEAD_IDLE_MS = 400;
 /** The multigrid cycles of one request for a frame solved ahead (it is asked again until it converges). */
@@ -208,7 +215,7 @@ export class App {
       return m && { wasmMiB: mib(m.wasmBytes), heapMiB: mib(m.heapBytes) };
     };
     return {
-      page: { wasmMiB: mib(this.engine.x.memory.buffer.byteLength), heapMiB: mib(heap?.usedJSHeapSize), picturesMiB: mib(pictures), fullFrameMiB: mib(this.fullShown?.pixels.byteLength ?? 0), fieldCacheMiB: mib(this.cache.bytes) },
+      page: { wasmMiB: mib(this.engine.x.memory.buffer.byteLength), heapMiB: mib(heap?.usedJSHeapSize), picturesMiB: mib(pictures), fullFrameMiB: mib(this.fullShown?.pixels.byteLength ?? 0), fieldCacheMiB: mib(this.cache.bytes), drawnFramesMiB: mib(this.drawnFrames.bytes) },
       solver: await worker(this.solver),
       drafts: await worker(this.drafts),
       ahead: await worker(this.ahead),
@@ -241,6 +248,16 @@ export class App {
   /** Full-resolution fields by frame, for the document revision they were solved for. */
   private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, FieldData | PackedField>>() };
 
+  /**
+   * Draft frames of the playback cache drawn ahead by the draft worker (see `drawAhead`),
+   * straight RGBA8 at the draft's size, for the scene revision and frame spec (`DraftDraw`)
+   * they were drawn for.
+   */
+  private drawnFrames = { rev: -1, spec: '', bytes: 0, frames: new Map<number, Uint8ClampedArray>() };
+  /** The frame the draft worker is drawing ahead now. */
+  private drawingAhead: { id: number; frame: number; rev: number; spec: string } | null = null;
+  private drawId = 0;
+
   /** Numbers every solve request: a layer shows the field of its newest request only. */
   private seq = 0;
 
@@ -267,6 +284,7 @@ export class App {
         this.checkIdle();
       };
     }
+    if (drafts) drafts.onDrawn = (id, pixels) => this.receiveDrawn(id, pixels);
     for (const client of this.clients) {
       client.onField = (ev) => this.receive(ev);
       client.onError = (key, message) => {
@@ -342,9 +360,9 @@ export class App {
     return Math.max(1, Math.min(want, most));
   }
 
-  /** The factor a frame is drawn smaller by: `draftShrink` for a draft while dragging, else 1. */
+  /** The factor a frame is drawn smaller by: `draftShrink` for a draft while dragging or playing, else 1. */
   private shrinkFor(draft: boolean): number {
-    return draft && this.dragging && !this.store.view.playing ? this.draftShrink : 1;
+    return draft && (this.dragging || this.store.view.playing) ? this.draftShrink : 1;
   }
 
   /** The size the editor's grids and frames have: the scene's, or its proxy's. */
@@ -501,6 +519,8 @@ export class App {
         if (rt.gl && this.drafts) {
           // Drafts are solved at the draft mesh's pixels only (see `sparseDraft`).
           this.drafts.select(rt.name, rt.gl.draftPixels);
+          // Where the CPU draws drafts, the draft worker draws them (see `draftDraw`).
+          if (this.gl.cpuDrafts) this.drafts.draftLayer(rt.name, rt.gl.cpuDraftGeometry);
           rt.selectedGen = gen;
         }
         rt.gridReady = true;
@@ -767,11 +787,26 @@ export class App {
       for (const [key, kept] of hit) {
         const rt = this.runtimes.get(key);
         if (!rt?.gl) continue;
-        const field = 'packed' in kept ? unpackField(kept) : kept;
-        rt.field = field;
-        rt.gl.setField(field);
+        if (this.playsSparse(rt)) {
+          // Played as a draft drawn by the CPU: only the draft mesh's pixels of the field
+          // are read (see `playsSparse`).
+          rt.field = null;
+          rt.gl.setSparseField(sparseValuesAt(rt.gl.draftPixels, kept));
+        } else {
+          const field = 'packed' in kept ? unpackField(kept) : kept;
+          rt.field = field;
+          rt.gl.setField(field);
+        }
         rt.lastRequest = '';
         rt.shownSeq = ++this.seq;
+      }
+      const drawn = this.store.view.playing ? this.drawnFrame(frame) : null;
+      if (drawn && drawn.draw.layers.every((l) => this.runtimes.get(l.key)?.gl?.sparse)) {
+        this.gl.draftShrink = drawn.draw.shrink;
+        this.gl.offerDraft(drawn.pixels, drawn.draw.width, drawn.draw.height, drawn.draw.background, this.drawList());
+      } else if (this.store.view.playing) {
+        // Not drawn ahead for this view (zoomed since, say): drawn now for the next loop.
+        this.drawAhead();
       }
       if (this.stats.playback && this.store.view.playing) this.stats.playback.shown++;
       this.invalidate();
@@ -785,9 +820,11 @@ export class App {
       const sig = JSON.stringify([features, options]);
       if (sig === rt.lastRequest) continue;
       rt.lastRequest = sig;
+      const seq = ++this.seq;
+      const sparse = quality === 'draft' && this.sparseDraft(rt);
       this.solverFor(quality).solve(layer.name, features, options, {
         madeAt: performance.now(),
-        seq: ++this.seq,
+        seq,
         quality,
         gen: rt.gridGen,
         pointerAt: quality === 'draft' ? this.lastPointerAt : null,
@@ -795,7 +832,7 @@ export class App {
         rev: this.store.revision,
         frame,
         settleStart: quality === 'final' ? this.settleStart : null,
-      }, { mesh: quality === 'final' && this.slowAntialias, sparse: quality === 'draft' && this.sparseDraft(rt) });
+      }, { mesh: quality === 'final' && this.slowAntialias, sparse, draw: sparse && this.largeFrame ? this.draftDraw(seq) : undefined });
       if (quality === 'draft') this.follow(rt, layer, features, time);
     }
   }
@@ -865,6 +902,127 @@ export class App {
     return rt.gl !== null && rt.selectedGen === rt.gridGen && heat === 'off' && !mesh;
   }
 
+  /**
+   * Whether a drag's drafts are drawn by the draft worker (`draftDraw`): a frame of more
+   * than `DRAFT_PIXELS` pixels (a large picture's proxy). Measured in paired rounds, the
+   * photograph's drag frame took 0.41–0.63 × the time of drafts drawn on the page, but
+   * 512 × 512 took 1.13–1.16 ×: its draft is drawn in 20–30 ms either way, and the worker,
+   * which shares the two cores with the full-resolution solves following the drag, drew it
+   * slower than the page did.
+   */
+  private get largeFrame(): boolean {
+    const { width, height } = this.frameSize;
+    return width * height > DRAFT_PIXELS;
+  }
+
+  /**
+   * What the draft worker is asked to draw after a sparse draft (request `seq`), where the
+   * CPU draws drafts: the frame of every visible layer, each from its last sparse draft in
+   * that worker, at the size the page would draw it, so the page's main thread only puts
+   * the pixels on its canvas (it drew them itself before: 7–15 ms a draft of the
+   * photograph's proxy at half size, during which the next field and pointer move waited).
+   * Also what a frame drawn ahead for playback is (see `drawAhead`). Undefined where the
+   * page draws drafts on WebGL2.
+   */
+  private draftDraw(seq: number, shrink = this.shrinkFor(true)): DraftDraw | undefined {
+    if (!this.drafts || !this.gl.cpuDrafts) return undefined;
+    const { width, height } = this.frameSize;
+    const background = this.doc.background ?? [255, 255, 255, 255];
+    const layers = this.drawList().map(({ layer, offset, opacity }) => ({ key: this.nameOf(layer), offset, opacity: opacity ?? 1 }));
+    return { width, height, background, shrink, layers, seq, spec: JSON.stringify([width, height, background, shrink, layers]) };
+  }
+
+  private nameOf(layer: GlLayer): string {
+    for (const rt of this.runtimes.values()) if (rt.gl === layer) return rt.name;
+    return '';
+  }
+
+  /**
+   * Shows the draft frame the draft worker drew (`ev.frame`) if it is the frame the page
+   * would draw now: drawn for the same layers, size, background and offsets, from each
+   * layer's sparse draft on screen (the request numbers match).
+   */
+  private offerDraft(ev: FieldEvent): void {
+    const frame = ev.frame;
+    if (!frame) return;
+    const now = this.draftDraw(0);
+    if (!now || now.spec !== frame.spec) return;
+    for (const l of now.layers) {
+      const rt = this.runtimes.get(l.key);
+      if (!rt?.gl?.sparse || frame.seqs[l.key] !== rt.shownSeq) return;
+    }
+    this.gl.draftShrink = now.shrink;
+    this.gl.offerDraft(frame.pixels, now.width, now.height, now.background, this.drawList());
+  }
+
+  /**
+   * Drawing ahead: where the CPU draws drafts, each frame of the playback cache that has
+   * every layer's field is drawn as the draft playback shows (`playsSparse`, at the draft's
+   * size) by the draft worker, one at a time while nothing is dragged, and kept within
+   * `DRAWN_BUDGET_BYTES` (750 kB a frame of the photograph's proxy drawn at half size).
+   * Playback then puts each frame's pixels on the canvas and draws nothing: drawing it on
+   * the page took 10–40 ms a frame of the proxy on the loaded 2-core machine, most of a
+   * frame's 42 ms at 24 fps.
+   */
+  private drawAhead(): void {
+    const drafts = this.drafts;
+    if (!drafts || !this.gl.cpuDrafts || this.drawingAhead || this.dragging || this.exporting) return;
+    const spec = this.draftDraw(0, this.draftShrink);
+    if (!spec || spec.layers.length === 0) return;
+    const rev = this.store.revision;
+    const kept = this.drawnFrames;
+    if (kept.rev !== rev || kept.spec !== spec.spec) this.drawnFrames = { rev, spec: spec.spec, bytes: 0, frames: new Map() };
+    const size = 4 * Math.ceil(spec.width / spec.shrink) * Math.ceil(spec.height / spec.shrink);
+    if (this.drawnFrames.bytes + size > DRAWN_BUDGET_BYTES) return;
+    for (const frame of [...this.cache.frames.keys()].sort((a, b) => a - b)) {
+      if (this.drawnFrames.frames.has(frame)) continue;
+      const fields = this.cached(frame);
+      if (!fields) continue;
+      const values: Record<string, Float32Array> = {};
+      for (const l of spec.layers) {
+        const rt = this.runtimes.get(l.key);
+        const field = fields.get(l.key);
+        if (!rt?.gl || !field || !this.sparseDraft(rt) || !rt.gl.cpuDraftGeometry) return;
+        values[l.key] = sparseValuesAt(rt.gl.draftPixels, field);
+      }
+      const id = ++this.drawId;
+      this.drawingAhead = { id, frame, rev, spec: spec.spec };
+      drafts.draw(id, spec, values);
+      return;
+    }
+  }
+
+  private receiveDrawn(id: number, pixels: Uint8ClampedArray | null): void {
+    const asked = this.drawingAhead;
+    if (!asked || asked.id !== id) return;
+    this.drawingAhead = null;
+    const kept = this.drawnFrames;
+    if (!pixels || asked.rev !== kept.rev || asked.spec !== kept.spec || asked.rev !== this.store.revision) return;
+    kept.frames.set(asked.frame, pixels);
+    kept.bytes += pixels.byteLength;
+    this.drawAhead();
+  }
+
+  /** The draft frame drawn ahead for `frame` (see `drawAhead`), if it is what playback shows now. */
+  private drawnFrame(frame: number | null): { pixels: Uint8ClampedArray; draw: DraftDraw } | null {
+    const kept = this.drawnFrames;
+    const pixels = frame === null ? undefined : kept.frames.get(frame);
+    if (!pixels || kept.rev !== this.store.revision) return null;
+    const draw = this.draftDraw(0, this.draftShrink);
+    return draw && draw.spec === kept.spec ? { pixels, draw } : null;
+  }
+
+  /**
+   * Whether a frame played from the playback cache is shown as a sparse draft drawn by the
+   * CPU (the draft mesh's pixels of the kept field, at the draft's size): where the CPU
+   * draws drafts, the overlays need no whole field, and the layer's draft mesh is the
+   * grid's. WebGL2 on a software GPU took most of a frame's time for a proxy, and the page
+   * waited for it; the whole field's unpacking and upload went too.
+   */
+  private playsSparse(rt: LayerRuntime): boolean {
+    return this.store.view.playing && !this.exporting && this.gl.cpuDrafts && this.sparseDraft(rt) && !this.store.view.overlays.matte && rt.gl!.cpuDraftGeometry !== null;
+  }
+
   /** Whether a settle draws the fast full frame first (see `frameTick`). */
   private get slowAntialias(): boolean {
     return this.proxy > 1 || this.antialiasMs > SLOW_ANTIALIAS_MS;
@@ -899,6 +1057,7 @@ export class App {
     const unfinished = ev.tag.chunked && ev.report.converged === false;
     if (ev.field && !unfinished && ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.store.revision) {
       this.remember(ev.tag.frame, ev.key, ev.field);
+      this.drawAhead();
     }
     if (ev.tag.ahead) {
       // Solved ahead: into the cache (above) only, then the next frame.
@@ -920,7 +1079,11 @@ export class App {
       rt.error = null;
       const up0 = performance.now();
       if (ev.sparse) rt.gl.setSparseField(ev.sparse);
-      else rt.gl.setField(ev.field, ev.triangles ?? null);
+      else if (ev.field && ev.tag.quality === 'final' && this.playsSparse(rt)) {
+        rt.field = null;
+        rt.gl.setSparseField(sparseValuesAt(rt.gl.draftPixels, ev.field));
+      } else rt.gl.setField(ev.field, ev.triangles ?? null);
+      if (ev.frame && this.dragging && !this.store.view.playing) this.offerDraft(ev);
       const upload = performance.now() - up0;
       if (typeof ev.tag.pointerAt === 'number' && ev.tag.pointerAt > 0) {
         const start = ev.tag.pointerAt;

@@ -18,6 +18,7 @@
 
 import type { DraftGeometry, DraftHandle, DraftLayer, Engine, FieldData } from './engine';
 import { DRAFT_TARGET_PX } from './options';
+import { PACK_STEPS } from './proxy';
 
 // Quads: vertex k is pixel (k % W, k / W); the index buffer lists the two triangles of
 // every block whose four links exist, each triangle's last (provoking) vertex being the
@@ -667,6 +668,15 @@ export class GlLayer {
     if (rest) gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, rows, rest, 1, gl.RG, gl.FLOAT, values.subarray(2 * rows * SPARSE_ROW));
   }
 
+  /**
+   * What drawing this layer's drafts on the CPU needs (see `cpuDraft`), for a worker that
+   * draws them (`DraftDraw`): null off a software GPU.
+   */
+  get cpuDraftGeometry(): DraftGeometry | null {
+    if (!this.draftGeometry || this.premultipliedBytes.length !== 4 * this.width * this.height) return null;
+    return { width: this.width, height: this.height, premultiplied: this.premultipliedBytes, ...this.draftGeometry };
+  }
+
   /** Whether the CPU can draw the layer's draft now (`cpuDraft`): a sparse draft, on a software GPU. */
   get onCpu(): boolean {
     return this.sparse && this.draftGeometry !== null;
@@ -763,6 +773,32 @@ export class GlLayer {
     gl.deleteVertexArray(this.skirtVao);
     this.dropDraftHandle();
   }
+}
+
+/**
+ * A field's (dx, dy) pairs at `pixels` (a layer's `draftPixels`), as a sparse draft holds
+ * them (`GlLayer.setSparseField`): from its floats, or from a field kept packed for playback
+ * (`packField`: Δx then Δy of every pixel in 1/`PACK_STEPS` of a pixel).
+ */
+export function sparseValuesAt(pixels: Uint32Array, field: FieldData | { width: number; height: number; packed: Int16Array }): Float32Array {
+  const out = new Float32Array(2 * pixels.length);
+  if ('packed' in field) {
+    const n = field.width * field.height;
+    const p = field.packed;
+    const inv = 1 / PACK_STEPS;
+    for (let k = 0; k < pixels.length; k++) {
+      const i = pixels[k];
+      out[2 * k] = p[i] * inv;
+      out[2 * k + 1] = p[n + i] * inv;
+    }
+  } else {
+    for (let k = 0; k < pixels.length; k++) {
+      const i = pixels[k];
+      out[2 * k] = field.dx[i];
+      out[2 * k + 1] = field.dy[i];
+    }
+  }
+  return out;
 }
 
 /**
@@ -937,7 +973,9 @@ void main() { o = texture(uTex, vPos); }`);
       // Drafts and fast full frames are drawn by the CPU where it can draw every layer's.
       const cpu = draft ? layers.every(({ layer }) => layer.onCpu) : fast && layers.every(({ layer }) => layer.onCpuFull);
       if (cpu) {
-        this.renderCpu(width, height, background, layers, !draft);
+        const offered = this.offered;
+        this.offered = null;
+        this.renderCpu(width, height, background, layers, !draft, offered?.key === key ? offered.image : null);
         this.lastFrame = key;
         return;
       }
@@ -1018,7 +1056,7 @@ void main() { o = texture(uTex, vPos); }`);
    * A sparse draft (or with `full`, a fast full frame) drawn by the CPU onto `draftCanvas`,
    * shown over the WebGL canvas.
    */
-  private renderCpu(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], full = false): void {
+  private renderCpu(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], full = false, drawn: ImageData | null = null): void {
     const canvas = this.draftCanvas!;
     // A large frame's draft is drawn smaller and stretched over the frame (smoothly: its
     // pixels stand for blocks of the frame's), the full frame at its own size.
@@ -1036,13 +1074,39 @@ void main() { o = texture(uTex, vPos); }`);
       canvas.style.imageRendering = shrink > 1 ? 'auto' : '';
       this.cpuDrawn = { shrink, width, height };
     }
-    if (this.cpuFrame?.width !== w || this.cpuFrame.height !== h) this.cpuFrame = new ImageData(w, h);
-    const engine = this.engine!;
-    const what = layers.map(({ layer, offset, opacity }) => (full ? layer.cpuFull(engine, offset, opacity) : layer.cpuDraft(engine, offset, opacity)));
-    engine.drawDraft(this.cpuFrame.data, width, height, background, what, shrink);
+    if (drawn && drawn.width === w && drawn.height === h) {
+      // Drawn already (by the draft worker): only put on the canvas. Its pixels may be
+      // kept elsewhere (frames drawn ahead for playback): never drawn over.
+      this.cpuFrame = drawn;
+      this.cpuFrameBorrowed = true;
+    } else {
+      if (this.cpuFrameBorrowed || this.cpuFrame?.width !== w || this.cpuFrame.height !== h) this.cpuFrame = new ImageData(w, h);
+      this.cpuFrameBorrowed = false;
+      const engine = this.engine!;
+      const what = layers.map(({ layer, offset, opacity }) => (full ? layer.cpuFull(engine, offset, opacity) : layer.cpuDraft(engine, offset, opacity)));
+      engine.drawDraft(this.cpuFrame.data, width, height, background, what, shrink);
+    }
     canvas.getContext('2d')!.putImageData(this.cpuFrame, 0, 0);
     this.showCpu(true);
   }
+
+  /**
+   * A draft frame drawn elsewhere (the draft worker, see `DraftDraw`), straight RGBA8 at
+   * the size `draftShrink` gives: the next `render` of a draft of these layers, in the state
+   * they are in now, puts these pixels on the CPU's canvas instead of drawing them. The
+   * caller vouches that they are that draft.
+   */
+  offerDraft(pixels: Uint8ClampedArray, width: number, height: number, background: [number, number, number, number], layers: DrawLayer[]): void {
+    const shrink = Math.max(1, Math.floor(this.draftShrink));
+    const w = Math.ceil(width / shrink);
+    const h = Math.ceil(height / shrink);
+    if (pixels.length !== 4 * w * h) throw new Error(`A ${width} × ${height} draft at 1/${shrink} has ${4 * w * h} bytes, not ${pixels.length}.`);
+    this.offered = { key: this.keyOf(width, height, background, layers, false, true, false), image: new ImageData(pixels as Uint8ClampedArray<ArrayBuffer>, w, h) };
+  }
+
+  private offered: { key: string; image: ImageData } | null = null;
+  /** `cpuFrame` holds pixels offered by `offerDraft`, which a frame drawn here must not overwrite. */
+  private cpuFrameBorrowed = false;
 
   /** `frameKey`, and how many times smaller a draft on the CPU is drawn. */
   private keyOf(width: number, height: number, background: [number, number, number, number], layers: DrawLayer[], antialias: boolean, draft: boolean, fast: boolean): string {

@@ -1,6 +1,6 @@
 // Messages between the page and the solver worker.
 
-import type { FieldData, SolveFeature, SolveOptions, SolveReport } from './engine';
+import type { DraftGeometry, FieldData, SolveFeature, SolveOptions, SolveReport } from './engine';
 import type { Pt } from './scene';
 
 export type ToWorker =
@@ -21,6 +21,16 @@ export type ToWorker =
   | { type: 'full-render'; id: number; width: number; height: number; background: [number, number, number, number]; layers: FullLayerRequest[] }
   /** The pixels a sparse solve computes on this layer's grid (the draft mesh's, see `draftPixels`). */
   | { type: 'select'; key: string; pixels: Uint32Array }
+  /**
+   * What the draft worker needs to draw this layer's drafts itself (see `DraftDraw`): its
+   * draft geometry on the CPU (null: it draws none of this layer's).
+   */
+  | { type: 'draft-layer'; key: string; geometry: DraftGeometry | null }
+  /**
+   * A draft frame drawn from these sparse fields (each layer's at its `draftPixels`), for a
+   * frame of the playback cache drawn ahead (answered by `drawn`).
+   */
+  | { type: 'draw'; id: number; draw: DraftDraw; values: Record<string, Float32Array> }
   | {
       type: 'solve';
       id: number;
@@ -39,7 +49,37 @@ export type ToWorker =
        * point (see `App.probe`).
        */
       follow?: boolean;
+      /** With a sparse solve: draw the draft frame too, and send its pixels (see `DraftDraw`). */
+      draw?: DraftDraw;
     };
+
+/**
+ * A draft frame the draft worker draws itself after a sparse solve (on a software GPU, where
+ * the CPU draws drafts): every layer from the last sparse field it solved for it, composited
+ * as `Engine.drawDraft` does, so the page only puts the finished pixels on its canvas.
+ */
+export interface DraftDraw {
+  width: number;
+  height: number;
+  background: [number, number, number, number];
+  shrink: number;
+  /** The layers back to front. */
+  layers: { key: string; offset: Pt; opacity: number }[];
+  /** The request's number (the page's `seq`), echoed per layer in `DraftFrame.seqs`. */
+  seq: number;
+  /** What the page compares the frame against before showing it (size, background, offsets, shrink). */
+  spec: string;
+}
+
+/** A draft frame drawn by the draft worker (straight RGBA8, ⌈width / shrink⌉ × ⌈height / shrink⌉). */
+export interface DraftFrame {
+  pixels: Uint8ClampedArray;
+  /** The request number of each layer's sparse field it was drawn from. */
+  seqs: Record<string, number>;
+  spec: string;
+  /** The worker's time drawing it (ms). */
+  drawMs: number;
+}
 
 /** One layer of a full-resolution frame. */
 export interface FullLayerRequest {
@@ -57,6 +97,8 @@ export type FromWorker =
   | { type: 'links'; key: string; links: Uint8Array }
   /** The worker's WebAssembly memory and JavaScript heap in use (bytes; heap null where the browser does not say). */
   | { type: 'memory'; wasmBytes: number; heapBytes: number | null }
+  /** The answer to `draw`: the frame's pixels (null: a layer's draft geometry was missing). */
+  | { type: 'drawn'; id: number; pixels: Uint8ClampedArray | null; drawMs: number }
   /** The answer to `full-export`. */
   | { type: 'full-layers'; layers: { key: string; image: { width: number; height: number; data: Uint8Array }; matte: Uint8Array; cuts: Pt[][] }[] }
   /** A full-resolution frame (straight RGBA8), with the time its solves and its drawing took (ms). */
@@ -73,6 +115,8 @@ export type FromWorker =
       reused?: boolean;
       /** The triangles of the field's fast full frame, when asked for. */
       triangles?: Uint32Array;
+      /** The draft frame, when asked for (`draw`) and every layer's draft was at hand. */
+      frame?: DraftFrame;
       report: SolveReport;
       ms: number;
       gridStep: number;

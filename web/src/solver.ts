@@ -2,8 +2,8 @@
 // only the newest request waits (older ones are superseded), so a fast drag never builds a
 // queue — the picture always catches up with the pointer.
 
-import type { FieldData, SolveFeature, SolveOptions, SolveReport } from './engine';
-import type { FromWorker, FullLayerRequest, ToWorker } from './protocol';
+import type { DraftGeometry, FieldData, SolveFeature, SolveOptions, SolveReport } from './engine';
+import type { DraftDraw, DraftFrame, FromWorker, FullLayerRequest, ToWorker } from './protocol';
 import type { Pt } from './scene';
 
 export interface SolveTag {
@@ -26,6 +26,8 @@ export interface FieldEvent {
   gridStep: number;
   /** The triangles of the field's fast full frame (full-resolution fields only). */
   triangles?: Uint32Array;
+  /** The draft frame the worker drew (asked for by `SolveHow.draw`). */
+  frame?: DraftFrame;
   tag: SolveTag;
   /** When (page's performance.now()) the request went to the worker, the worker began and
    * finished solving it, and its field arrived back. */
@@ -43,6 +45,8 @@ export interface SolveHow {
   mesh?: boolean;
   sparse?: boolean;
   follow?: boolean;
+  /** With `sparse`: the worker draws the draft frame too (see `DraftDraw`). */
+  draw?: DraftDraw;
 }
 
 interface Request {
@@ -96,6 +100,8 @@ export class SolverClient {
   onField: (ev: FieldEvent) => void = () => {};
   onError: (key: string | null, message: string) => void = () => {};
   onReset: (message: string) => void = () => {};
+  /** The answers to `draw` (see `draw`). */
+  onDrawn: (id: number, pixels: Uint8ClampedArray | null, drawMs: number) => void = () => {};
 
   constructor(worker: Worker, wasmUrl: string) {
     this.worker = worker;
@@ -116,6 +122,16 @@ export class SolverClient {
     });
     this.send({ type: 'grid', key, width, height, matte: matte ? matte.slice() : null, cuts });
     return p;
+  }
+
+  /** Sends a layer's draft geometry (null: none), so the worker draws its drafts itself (`SolveHow.draw`). */
+  draftLayer(key: string, geometry: DraftGeometry | null): void {
+    this.send({ type: 'draft-layer', key, geometry });
+  }
+
+  /** Asks the worker to draw a draft frame from these sparse fields (answered through `onDrawn`). */
+  draw(id: number, draw: DraftDraw, values: Record<string, Float32Array>): void {
+    this.send({ type: 'draw', id, draw, values }, Object.values(values).map((v) => v.buffer));
   }
 
   /** Chooses the pixels that sparse solves on a layer's grid compute (after its `setGrid`). */
@@ -155,8 +171,8 @@ export class SolverClient {
     this.pending.delete(key);
     const id = this.nextId++;
     this.inFlight = { id, req, sentAt: performance.now() };
-    const { warm = true, mesh, sparse, follow } = req.how;
-    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm, mesh, sparse, follow });
+    const { warm = true, mesh, sparse, follow, draw } = req.how;
+    this.send({ type: 'solve', id, key, features: req.features, options: req.options, warm, mesh, sparse, follow, draw });
   }
 
   /** The worker's memory (see `workerMemory`). */
@@ -169,6 +185,10 @@ export class SolverClient {
       for (const list of this.linkWaiters.values()) for (const w of list) w.reject(new Error(msg.message));
       this.linkWaiters.clear();
       this.onReset(msg.message);
+      return;
+    }
+    if (msg.type === 'drawn') {
+      this.onDrawn(msg.id, msg.pixels, msg.drawMs);
       return;
     }
     if (msg.type === 'links') {
@@ -184,7 +204,7 @@ export class SolverClient {
       if (msg.type === 'field' && done) {
         const origin = performance.timeOrigin;
         const times = { sent: done.sentAt, began: msg.began - origin, ended: msg.ended - origin, received: performance.now() };
-        this.onField({ key: msg.key, field: msg.field, sparse: msg.sparse, reused: msg.reused, triangles: msg.triangles, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag, times });
+        this.onField({ key: msg.key, field: msg.field, sparse: msg.sparse, frame: msg.frame, reused: msg.reused, triangles: msg.triangles, report: msg.report, ms: msg.ms, gridStep: msg.gridStep, tag: done.req.tag, times });
       } else if (msg.type === 'error') {
         this.onError(msg.key, msg.message);
       }

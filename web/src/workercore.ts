@@ -2,10 +2,10 @@
 // engine's grids and the last field of every layer, answers each message from the page
 // with messages of its own, and can run (and be tested) anywhere an `Engine` loads.
 
-import { Engine, type FieldData, type GridHandle, type ImageHandle } from './engine';
+import { type DraftHandle, Engine, type FieldData, type GridHandle, type ImageHandle } from './engine';
 import { adaptiveTriangles } from './gl';
 import { LastFields } from './lastfields';
-import type { FromWorker, ToWorker } from './protocol';
+import type { DraftDraw, DraftFrame, FromWorker, ToWorker } from './protocol';
 import type { Pt } from './scene';
 
 /** Sends a message to the page, handing over the buffers in `transfer`. */
@@ -18,6 +18,10 @@ export class SolverWorker {
   private last = new LastFields();
   /** Each grid's links (per node: bit 0 active, bit 1 linked right, bit 2 linked down). */
   private linksOf = new Map<string, Uint8Array>();
+  /** Each layer's draft geometry in the engine (`draft-layer`), for the drafts this worker draws. */
+  private draftLayers = new Map<string, DraftHandle>();
+  /** Each layer's last sparse draft, and the request number it answered. */
+  private drafted = new Map<string, { values: Float32Array; seq: number }>();
 
   /** `load` makes an engine from the URL the page names in its `init` message. */
   constructor(
@@ -41,6 +45,7 @@ export class SolverWorker {
       const engine = this.engine;
       if (!engine) throw new Error('The engine is not loaded yet.');
       if (msg.type === 'grid') {
+        this.forgetDraft(msg.key);
         this.grids.get(msg.key)?.free();
         const grid = engine.grid(msg.width, msg.height, msg.matte, msg.cuts);
         this.grids.set(msg.key, grid);
@@ -49,12 +54,20 @@ export class SolverWorker {
         this.linksOf.set(msg.key, links.slice());
         this.post({ type: 'links', key: msg.key, links }, [links.buffer]);
       } else if (msg.type === 'drop') {
+        this.forgetDraft(msg.key);
         this.grids.get(msg.key)?.free();
         this.grids.delete(msg.key);
         this.last.forget(msg.key);
         this.linksOf.delete(msg.key);
       } else if (msg.type === 'select') {
         this.gridOf(msg.key).select(msg.pixels);
+      } else if (msg.type === 'draw') {
+        const t0 = performance.now();
+        const pixels = this.drawFrom(msg.draw, (key) => msg.values[key]);
+        this.post({ type: 'drawn', id: msg.id, pixels, drawMs: performance.now() - t0 }, pixels ? [pixels.buffer] : []);
+      } else if (msg.type === 'draft-layer') {
+        this.forgetDraft(msg.key);
+        if (msg.geometry) this.draftLayers.set(msg.key, engine.draftLayer(msg.geometry));
       } else if (msg.type === 'solve') {
         this.solve(msg);
       } else if (msg.type === 'full-layer') {
@@ -75,6 +88,8 @@ export class SolverWorker {
         this.fulls.clear();
         this.last.clear();
         this.linksOf.clear();
+        this.draftLayers.clear();
+        this.drafted.clear();
         this.post({ type: 'reset', message: `The engine stopped (${why}) and was restarted.` });
       }
       const id = msg.type === 'solve' || msg.type === 'full-render' ? msg.id : null;
@@ -146,6 +161,42 @@ export class SolverWorker {
     this.post({ type: 'full-layers', layers }, layers.flatMap((l) => [l.image.data.buffer, l.matte.buffer]));
   }
 
+  private forgetDraft(key: string): void {
+    this.draftLayers.get(key)?.free();
+    this.draftLayers.delete(key);
+    this.drafted.delete(key);
+  }
+
+  /**
+   * The draft frame after layer `key`'s sparse draft `values`: every layer of `draw` from
+   * its last sparse draft here, drawn as the page would draw it (`Engine.drawDraft`), so the
+   * page's main thread only puts the pixels on its canvas. Undefined when a layer has no
+   * draft geometry or no sparse draft yet (the page then draws the frame itself).
+   */
+  private drawDraft(key: string, values: Float32Array, draw: DraftDraw): DraftFrame | undefined {
+    // A copy: `values` goes to the page.
+    this.drafted.set(key, { values: values.slice(), seq: draw.seq });
+    const seqs: Record<string, number> = {};
+    for (const l of draw.layers) seqs[l.key] = this.drafted.get(l.key)?.seq ?? -1;
+    const t0 = performance.now();
+    const pixels = this.drawFrom(draw, (k) => this.drafted.get(k)?.values);
+    return pixels ? { pixels, seqs, spec: draw.spec, drawMs: performance.now() - t0 } : undefined;
+  }
+
+  /** The draft frame of `draw`, each layer from `valuesOf` its sparse field; null when a layer has no draft geometry or field here. */
+  private drawFrom(draw: DraftDraw, valuesOf: (key: string) => Float32Array | undefined): Uint8ClampedArray | null {
+    const layers = [];
+    for (const l of draw.layers) {
+      const handle = this.draftLayers.get(l.key);
+      const values = valuesOf(l.key);
+      if (!handle || !values) return null;
+      layers.push({ draft: handle, values, offset: l.offset, opacity: l.opacity });
+    }
+    const pixels = new Uint8ClampedArray(4 * Math.ceil(draw.width / draw.shrink) * Math.ceil(draw.height / draw.shrink));
+    this.engine!.drawDraft(pixels, draw.width, draw.height, draw.background, layers, draw.shrink);
+    return pixels;
+  }
+
   private gridOf(key: string): GridHandle {
     const grid = this.grids.get(key);
     if (!grid) throw new Error(`No grid for layer ${key}.`);
@@ -161,7 +212,9 @@ export class SolverWorker {
       // A draft at the draft mesh's pixels: nothing to keep, the drafts' own history (in
       // the engine) is the next one's start.
       const { values, report } = grid.solveAt(msg.features, msg.options);
-      this.post({ ...head, field: null, sparse: values, report, ms: performance.now() - t0, ended: ended() }, [values.buffer]);
+      const ms = performance.now() - t0;
+      const frame = msg.draw ? this.drawDraft(msg.key, values, msg.draw) : undefined;
+      this.post({ ...head, field: null, sparse: values, frame, report, ms, ended: ended() }, frame ? [values.buffer, frame.pixels.buffer] : [values.buffer]);
       return;
     }
     const { field, report, reused } = this.last.solve(msg.key, grid, msg.features, msg.options, msg.warm);

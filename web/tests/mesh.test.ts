@@ -1,7 +1,8 @@
 // The GPU mesh tiles the layer as the CPU renderer's does: whole quads where all four
 // links exist, skirt quarters elsewhere, so every drawn pixel's unit square is covered once.
 import { describe, expect, it } from 'vitest';
-import { ADAPTIVE_TOLERANCE, adaptiveTriangles, buildMesh, draftPixels, draftQuads, FAN_BLOCK } from '../src/gl';
+import { ADAPTIVE_TOLERANCE, adaptiveTriangles, buildMesh, draftPixels, draftQuads, FAN_BLOCK, sparseValuesAt } from '../src/gl';
+import { packField } from '../src/proxy';
 
 /** Rest-space area covered by a mesh: quads from their index rectangles, quarters ¼ each. */
 function area(w: number, quads: Uint32Array, skirts: Float32Array): number {
@@ -296,5 +297,18 @@ describe('the fast full mesh (fans where the field is nearly affine)', () => {
     for (let k = 0; k < w * h; k++) [dx[k], dy[k]] = [0.3 * (k % w) - 2, 0.1 * Math.floor(k / w) + 0.05 * (k % w)];
     const l = buildMesh(w, h, null, null).links;
     expect(adaptiveTriangles(w, h, l, { width: w, height: h, dx, dy })).toEqual(draftQuads(w, h, l, FAN_BLOCK));
+  });
+});
+
+describe('a played frame read at the draft mesh pixels', () => {
+  it('takes each pixel of a field, floats or packed for playback, in the draft pixels order', () => {
+    const w = 5, h = 3, n = w * h;
+    const dx = Float32Array.from({ length: n }, (_, i) => i / 4 - 1);
+    const dy = Float32Array.from({ length: n }, (_, i) => 0.5 - i / 8);
+    const pixels = new Uint32Array([7, 0, 14, 3]);
+    const want = Array.from(pixels).flatMap((i) => [dx[i], dy[i]]);
+    expect(Array.from(sparseValuesAt(pixels, { width: w, height: h, dx, dy }))).toEqual(want);
+    const packed = packField({ width: w, height: h, dx, dy })!;
+    expect(Array.from(sparseValuesAt(pixels, packed))).toEqual(want);
   });
 });

@@ -2,7 +2,8 @@
 // Worker), with the real engine: what the page is sent back for each kind of request.
 import { beforeEach, describe, expect, it } from 'vitest';
 import type { SolveFeature } from '../src/engine';
-import type { FromWorker, ToWorker } from '../src/protocol';
+import { buildMesh, draftPixels, premultiply } from '../src/gl';
+import type { DraftDraw, FromWorker, ToWorker } from '../src/protocol';
 import type { Pt } from '../src/scene';
 import { SolverWorker } from '../src/workercore';
 import { loadEngine } from './wasm';
@@ -101,6 +102,46 @@ describe('the solver worker', () => {
     expect(draft.field).toBeNull();
     expect(draft.sparse!.length).toBe(2 * pixels.length);
     expect(draft.gridStep).toBe(4);
+  });
+
+  it('draws the draft frame after a sparse draft, as the engine draws those values, and a frame from given values', async () => {
+    const [links] = (await send({ type: 'grid', key: 'L', width: W, height: H, matte: null, cuts: [[[25.5, 10], [25.5, 31]]] })) as Extract<FromWorker, { type: 'links' }>[];
+    const image = new Uint8Array(4 * W * H);
+    for (let i = 0; i < W * H; i++) image.set([(i * 37) % 256, (i * 11) % 256, 90, i % 3 ? 255 : 140], 4 * i);
+    const mesh = buildMesh(W, H, links.links, image);
+    const pixels = draftPixels(W, H, mesh.coarse, mesh.skirts, mesh.innerSkirts);
+    const index = new Uint32Array(W * H);
+    pixels.forEach((p, k) => (index[p] = k));
+    const geometry = { width: W, height: H, premultiplied: premultiply(image), coarse: mesh.coarse, skirts: mesh.skirts.slice(0, 6 * mesh.innerSkirts), links: mesh.links, index, reads: pixels.length };
+    await send({ type: 'select', key: 'L', pixels });
+    expect(await send({ type: 'draft-layer', key: 'L', geometry })).toEqual([]);
+    const background: [number, number, number, number] = [20, 40, 60, 255];
+    for (const shrink of [1, 2]) {
+      const draw: DraftDraw = { width: W, height: H, background, shrink, layers: [{ key: 'L', offset: [1.5, -2], opacity: 0.8 }], seq: 7 + shrink, spec: `s${shrink}` };
+      const draft = await field(solve(shrink, pose(24 + shrink), { sparse: true, options: { grid_step: 4 }, draw }));
+      expect(draft.frame?.seqs).toEqual({ L: 7 + shrink });
+      expect(draft.frame?.spec).toBe(`s${shrink}`);
+      // What the page would have drawn from the same sparse draft.
+      const engine = await loadEngine();
+      const handle = engine.draftLayer(geometry);
+      const out = new Uint8ClampedArray(4 * Math.ceil(W / shrink) * Math.ceil(H / shrink));
+      engine.drawDraft(out, W, H, background, [{ draft: handle, values: draft.sparse!, offset: [1.5, -2], opacity: 0.8 }], shrink);
+      expect(Array.from(draft.frame!.pixels)).toEqual(Array.from(out));
+      // The same values given (a frame of the playback cache drawn ahead): the same pixels.
+      const [drawn] = await send({ type: 'draw', id: 3, draw, values: { L: draft.sparse!.slice() } });
+      expect(drawn.type).toBe('drawn');
+      if (drawn.type === 'drawn') expect(Array.from(drawn.pixels!)).toEqual(Array.from(out));
+    }
+    // A layer the worker has no draft geometry for: no frame, the page draws it.
+    const two: DraftDraw = { width: W, height: H, background, shrink: 1, layers: [{ key: 'L', offset: [0, 0], opacity: 1 }, { key: 'M', offset: [0, 0], opacity: 1 }], seq: 20, spec: '' };
+    const lone = await field(solve(9, pose(22), { sparse: true, options: { grid_step: 4 }, draw: two }));
+    expect(lone.frame).toBeUndefined();
+    expect(lone.sparse!.length).toBe(2 * pixels.length);
+    // A new grid forgets the layer's draft geometry.
+    await send({ type: 'grid', key: 'L', width: W, height: H, matte: null, cuts: [] });
+    await send({ type: 'select', key: 'L', pixels });
+    const after = await field(solve(10, pose(23), { sparse: true, options: { grid_step: 4 }, draw: { ...two, layers: two.layers.slice(0, 1) } }));
+    expect(after.frame).toBeUndefined();
   });
 
   it('answers a request it cannot solve with an error naming it, and goes on', async () => {
