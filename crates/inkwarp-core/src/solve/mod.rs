@@ -457,7 +457,7 @@ pub(crate) fn solve_constrained(
             f
         };
         let null = if open { Some(Vec::new()) } else { piece_null_space(&links, bw, bh, &constrained_only) };
-        let links_again = (!open).then(|| piece_links(grid, &labels, l as u32, boxes[l], open));
+        let links_again = (!open).then(|| links.clone());
         let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), off: options.off };
         let start = initial.map(|f| Start { field: f, x0, y0 });
         let (mut u, mut r) = solve_piece(key, &value, start, options, store);
@@ -587,7 +587,7 @@ fn settle_null_space(
             dx: dense.iter().map(|v| v[0] as f32).collect(),
             dy: dense.iter().map(|v| v[1] as f32).collect(),
         };
-        let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links_clone(&links), fixed: fixed.clone(), off: options.off };
+        let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links.clone(), fixed: fixed.clone(), off: options.off };
         let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options, store);
         report.cycles += r2.cycles;
         report.final_change_px = r2.final_change_px;
@@ -599,17 +599,10 @@ fn settle_null_space(
     (BoxValues { values: dense, stride: w, first: 0 }, report)
 }
 
-fn links_clone(links: &BoxLinks) -> BoxLinks {
-    match links {
-        BoxLinks::Open => BoxLinks::Open,
-        BoxLinks::Given { active, right, down } => BoxLinks::Given { active: active.clone(), right: right.clone(), down: down.clone() },
-    }
-}
-
 /// The grid a piece's hierarchy is built on: the piece's nodes on its box (row-major, the
 /// box's width) and its right and down links within the box, or [`BoxLinks::Open`] when
 /// the box is an open grid.
-#[derive(Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 enum BoxLinks {
     /// Every node active and every link there (none off the last column or row, as on a
     /// consistent grid): nothing to copy into a solve's key or to compare in the cache.
