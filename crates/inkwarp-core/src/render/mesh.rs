@@ -80,6 +80,9 @@ pub(super) struct Plan {
     /// `br * nchunks + ch`; `[inf, -inf]` when the chunk draws nothing.
     pub ranges: Vec<[f32; 2]>,
     pub nchunks: usize,
+    /// `[ymin, ymax]` of every element point in block row `br` (the union of its chunks'
+    /// ranges), so that a band skips the rows that do not reach it at once.
+    pub row_ranges: Vec<[f32; 2]>,
 }
 
 #[inline]
@@ -501,10 +504,19 @@ impl<'a> Layer<'a> {
                 }
             }
         });
+        let row_ranges = ranges
+            .chunks(nchunks)
+            .map(|row| {
+                row.iter().fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], r| {
+                    [if r[0] < lo { r[0] } else { lo }, if r[1] > hi { r[1] } else { hi }]
+                })
+            })
+            .collect();
         Plan {
             signs,
             ranges,
             nchunks,
+            row_ranges,
         }
     }
 }
