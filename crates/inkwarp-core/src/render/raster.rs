@@ -464,17 +464,14 @@ impl Band {
         // The left corners of each quad are the right corners of the one before, and so
         // are their ⌈y⌉ (⌈⌉ commutes with min and max, so the scanlines below are those
         // of the corners' extremes).
-        let (mut tl, mut bl) = ([ax[0], ay[0]], [bx[0], by[0]]);
-        let (mut ctl, mut cbl) = (ceil_f(tl[1]), ceil_f(bl[1]));
+        let mut left = ([ax[0], ay[0]], [bx[0], by[0]], ceil_f(ay[0]), ceil_f(by[0]));
         // The crossing of the left edge of quad `x` on scanline `y`, when known.
         let mut shared: Option<(usize, f32, f32)> = None;
         for x in x0..x1 {
             let j = x - x0 + 1;
             let (tr, br) = ([ax[j], ay[j]], [bx[j], by[j]]);
             let (ctr, cbr) = (ceil_f(tr[1]), ceil_f(br[1]));
-            let (q_tl, q_bl, c_tl, c_bl) = (tl, bl, ctl, cbl);
-            (tl, bl, ctl, cbl) = (tr, br, ctr, cbr);
-            let (tl, bl, ctl, cbl) = (q_tl, q_bl, c_tl, c_bl);
+            let (tl, bl, ctl, cbl) = std::mem::replace(&mut left, (tr, br, ctr, cbr));
             let (c_min, c_max) = (lo(lo(ctl, ctr), lo(cbl, cbr)), hi(hi(ctl, ctr), hi(cbl, cbr)));
             // Scanlines c_min ≤ Y < c_max: none of them in the band.
             if c_max <= band_first || c_min >= band_end {
