@@ -30,7 +30,8 @@ pub(super) const SIMPLE: u8 = 0x20;
 pub(super) const CHUNK: usize = 32;
 
 /// A layer ready to be drawn: canvas positions, links, and the picture its premultiplied
-/// colours are read from (premultiplied as they are read: a 4000 × 3000 layer would
+/// colours are read from (premultiplied as they are read, the runs of quads inside a piece
+/// a picture row at a time into a small cache of each band: a 4000 × 3000 layer would
 /// otherwise hold 192 MB of them).
 pub(super) struct Layer<'a> {
     pub w: usize,
