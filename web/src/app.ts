@@ -639,7 +639,9 @@ export class App {
 
   /**
    * Solving ahead: once the editor has been left alone for `AHEAD_IDLE_MS` (no change, no
-   * pointer on the drawing, nothing solving in the foreground), the ahead worker solves the
+   * pointer on the drawing, nothing solving in the foreground, no full-resolution frame
+   * being made: on two cores the ahead worker's solves would slow the settle's solve and
+   * draw), the ahead worker solves the
    * frames not cached yet, nearest the playhead first, one at a time, each into the
    * playback cache (the ready bar fills in). Any change starts the wait again; a field
    * solved for an older revision of the scene is dropped. Playback then shows every ready
@@ -671,7 +673,7 @@ export class App {
     if (!ahead || ahead.busy || this.dragging || this.store.view.playing) return;
     if (!this.doc.features.some((f) => (f.keys ?? []).length > 0)) return;
     const now = performance.now();
-    if (this.solver.busy || this.drafts?.busy || now - this.lastPointerAt < AHEAD_IDLE_MS || now - this.lastActivityAt < AHEAD_IDLE_MS) {
+    if (this.solver.busy || this.drafts?.busy || this.full?.busy || now - this.lastPointerAt < AHEAD_IDLE_MS || now - this.lastActivityAt < AHEAD_IDLE_MS) {
       this.scheduleAhead();
       return;
     }

@@ -30,7 +30,8 @@ pub(super) const SIMPLE: u8 = 0x20;
 pub(super) const CHUNK: usize = 32;
 
 /// A layer ready to be drawn: canvas positions, links, and the picture its premultiplied
-/// colours are read from (premultiplied as they are read: a 4000 × 3000 layer would
+/// colours are read from (premultiplied as they are read, the runs of quads inside a piece
+/// a picture row at a time into a small cache of each band: a 4000 × 3000 layer would
 /// otherwise hold 192 MB of them).
 pub(super) struct Layer<'a> {
     pub w: usize,
@@ -80,6 +81,9 @@ pub(super) struct Plan {
     /// `br * nchunks + ch`; `[inf, -inf]` when the chunk draws nothing.
     pub ranges: Vec<[f32; 2]>,
     pub nchunks: usize,
+    /// `[ymin, ymax]` of every element point in block row `br` (the union of its chunks'
+    /// ranges), so that a band skips the rows that do not reach it at once.
+    pub row_ranges: Vec<[f32; 2]>,
 }
 
 #[inline]
@@ -501,10 +505,19 @@ impl<'a> Layer<'a> {
                 }
             }
         });
+        let row_ranges = ranges
+            .chunks(nchunks)
+            .map(|row| {
+                row.iter().fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], r| {
+                    [if r[0] < lo { r[0] } else { lo }, if r[1] > hi { r[1] } else { hi }]
+                })
+            })
+            .collect();
         Plan {
             signs,
             ranges,
             nchunks,
+            row_ranges,
         }
     }
 }

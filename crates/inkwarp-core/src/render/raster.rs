@@ -339,7 +339,16 @@ struct Band {
     /// Signed-area accumulator, `rows × stride`; the running row sum is the coverage.
     acc: Vec<f32>,
     stride: usize,
+    /// Premultiplied colours of two picture rows, one per parity of the row, filled
+    /// [`PIECE`] pixels at a time as the runs of quads need them, so that a pixel is
+    /// premultiplied once per band rather than once per quad it is a corner of.
+    pm: [Vec<Rgba>; 2],
+    /// Per piece of [`Band::pm`], the picture row it holds plus one (0: none).
+    pm_row: [Vec<u32>; 2],
 }
+
+/// Pixels per piece of [`Band::pm`].
+const PIECE: usize = 32;
 
 impl Band {
     fn reset(&mut self, cw: usize, y0: usize, rows: usize) {
@@ -352,6 +361,33 @@ impl Band {
         self.prio.resize(rows * cw, f32::INFINITY);
         self.acc.clear();
         self.acc.resize(rows * self.stride, 0.0);
+    }
+
+    /// Forgets the premultiplied rows of the layer drawn before, and sizes them for `layer`.
+    fn forget_rows(&mut self, layer: &Layer) {
+        let pieces = layer.w.div_ceil(PIECE);
+        for k in 0..2 {
+            self.pm[k].resize(layer.w, [0.0; 4]);
+            self.pm_row[k].clear();
+            self.pm_row[k].resize(pieces, 0);
+        }
+    }
+
+    /// Premultiplies pixels `x0 ..= x1` of picture row `y` into [`Band::pm`] where they
+    /// are not there yet.
+    #[inline]
+    fn premultiply_row(&mut self, layer: &Layer, y: usize, x0: usize, x1: usize) {
+        let slot = y & 1;
+        let tag = y as u32 + 1;
+        for piece in x0 / PIECE..=x1 / PIECE {
+            if self.pm_row[slot][piece] != tag {
+                self.pm_row[slot][piece] = tag;
+                let (a, b) = (piece * PIECE, ((piece + 1) * PIECE).min(layer.w));
+                for (x, c) in (a..b).zip(&mut self.pm[slot][a..b]) {
+                    *c = layer.col(y * layer.w + x);
+                }
+            }
+        }
     }
 
     /// Rows of element geometry that can touch this band: centres `y0 .. y0 + rows` and
@@ -371,7 +407,12 @@ impl Band {
     fn render(&mut self, layer: &Layer, plan: &Plan) {
         let (lo, hi) = self.y_window();
         let bw = layer.w + 1;
+        self.forget_rows(layer);
         for br in 0..=layer.h {
+            let [ymin, ymax] = plan.row_ranges[br];
+            if ymax < lo || ymin > hi {
+                continue;
+            }
             for ch in 0..plan.nchunks {
                 let [ymin, ymax] = plan.ranges[br * plan.nchunks + ch];
                 if ymax < lo || ymin > hi {
@@ -409,30 +450,42 @@ impl Band {
     #[inline(never)]
     fn simple_run(&mut self, layer: &Layer, br: usize, bc0: usize, bc1: usize) {
         let w = layer.w;
-        let (above, below) = ((br - 1) * w, br * w);
         let (band_first, band_end) = (self.y0 as f32, (self.y0 + self.rows) as f32);
         let lo = |a: f32, b: f32| if b < a { b } else { a };
         let hi = |a: f32, b: f32| if b > a { b } else { a };
+        // Pixels bc0 - 1 ..= bc1 - 1 of rows br - 1 and br are the quads' corners.
+        let (x0, x1) = (bc0 - 1, bc1 - 1);
+        self.premultiply_row(layer, br - 1, x0, x1);
+        self.premultiply_row(layer, br, x0, x1);
+        let (top, bottom) = ((br - 1) & 1, br & 1);
+        let (above, below) = ((br - 1) * w, br * w);
+        let (ax, ay) = (&layer.px[above + x0..=above + x1], &layer.py[above + x0..=above + x1]);
+        let (bx, by) = (&layer.px[below + x0..=below + x1], &layer.py[below + x0..=below + x1]);
+        // The left corners of each quad are the right corners of the one before, and so
+        // are their ⌈y⌉ (⌈⌉ commutes with min and max, so the scanlines below are those
+        // of the corners' extremes).
+        let mut left = ([ax[0], ay[0]], [bx[0], by[0]], ceil_f(ay[0]), ceil_f(by[0]));
         // The crossing of the left edge of quad `x` on scanline `y`, when known.
         let mut shared: Option<(usize, f32, f32)> = None;
-        for x in bc0 - 1..bc1 - 1 {
-            let (tl, tr) = (layer.pos(above + x), layer.pos(above + x + 1));
-            let (bl, br) = (layer.pos(below + x), layer.pos(below + x + 1));
-            let y_min = lo(lo(tl[1], tr[1]), lo(bl[1], br[1]));
-            let y_max = hi(hi(tl[1], tr[1]), hi(bl[1], br[1]));
-            if y_max < band_first - 1.0 || y_min > band_end {
+        for x in x0..x1 {
+            let j = x - x0 + 1;
+            let (tr, br) = ([ax[j], ay[j]], [bx[j], by[j]]);
+            let (ctr, cbr) = (ceil_f(tr[1]), ceil_f(br[1]));
+            let (tl, bl, ctl, cbl) = std::mem::replace(&mut left, (tr, br, ctr, cbr));
+            let (c_min, c_max) = (lo(lo(ctl, ctr), lo(cbl, cbr)), hi(hi(ctl, ctr), hi(cbl, cbr)));
+            // Scanlines c_min ≤ Y < c_max: none of them in the band.
+            if c_max <= band_first || c_min >= band_end {
                 continue;
             }
-            let i = above + x;
             let corners = [
-                layer.col(i),
-                layer.col(i + 1),
-                layer.col(i + w),
-                layer.col(i + w + 1),
+                self.pm[top][x],
+                self.pm[top][x + 1],
+                self.pm[bottom][x],
+                self.pm[bottom][x + 1],
             ];
             let colour = |s, t| shade(&corners, 0b1111, 0, s, t);
-            let (first, end) = (ceil_f(hi(tl[1], tr[1])), ceil_f(lo(bl[1], br[1])));
-            if first != ceil_f(y_min) || end != ceil_f(y_max) {
+            let (first, end) = (hi(ctl, ctr), lo(cbl, cbr));
+            if first != c_min || end != c_max {
                 let q = [tl, tr, br, bl];
                 self.fill(&q, &q, bbox(&q), colour);
                 continue;
