@@ -188,7 +188,7 @@ describe('the pixels a draft reads (sparse drafts)', () => {
     // An open 512 × 512 layer: the corners of its 8 × 8 blocks, 1.6 % of the pixels.
     const open = buildMesh(512, 512, null, null);
     expect(draftPixels(512, 512, open.coarse, open.skirts, open.innerSkirts).length).toBe(65 * 65);
-  });
+  }, 30_000); // thousands of expects: over the default 5 s on a busy 2-core machine
 });
 
 /**
