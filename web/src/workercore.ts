@@ -95,6 +95,8 @@ export class SolverWorker {
       const id = msg.type === 'solve' || msg.type === 'full-render' ? msg.id : null;
       const key = 'key' in msg ? msg.key : null;
       this.post({ type: 'error', id, key, message: (err as Error).message ?? String(err) });
+      // A frame asked to be drawn is always answered: the page draws ahead one at a time.
+      if (msg.type === 'draw') this.post({ type: 'drawn', id: msg.id, pixels: null, drawMs: 0 });
     }
   }
 
