@@ -820,7 +820,12 @@ export class App {
       const features = this.solveFeatures(layer, time);
       const options = this.solverOptions(layer, quality);
       const sig = JSON.stringify([features, options]);
-      if (sig === rt.lastRequest) continue;
+      if (sig === rt.lastRequest) {
+        // Solved already, and played as a sparse draft (`receive`): playback stopped (or an
+        // overlay wants the whole field), so the field is shown whole, as it is not asked again.
+        if (quality === 'final' && rt.field && rt.gl?.sparse && !this.playsSparse(rt)) rt.gl.setField(rt.field);
+        continue;
+      }
       rt.lastRequest = sig;
       const seq = ++this.seq;
       const sparse = quality === 'draft' && this.sparseDraft(rt);
@@ -1079,7 +1084,7 @@ export class App {
       const up0 = performance.now();
       if (ev.sparse) rt.gl.setSparseField(ev.sparse);
       else if (ev.field && ev.tag.quality === 'final' && this.playsSparse(rt)) {
-        rt.field = null;
+        // `rt.field` stays: the frame at rest shows it whole (see `requestSolve`).
         rt.gl.setSparseField(sparseValuesAt(rt.gl.draftPixels, ev.field));
       } else rt.gl.setField(ev.field, ev.triangles ?? null);
       if (ev.frame && this.dragging && !this.store.view.playing) this.offerDraft(ev);
