@@ -820,7 +820,12 @@ export class App {
       const features = this.solveFeatures(layer, time);
       const options = this.solverOptions(layer, quality);
       const sig = JSON.stringify([features, options]);
-      if (sig === rt.lastRequest) continue;
+      if (sig === rt.lastRequest) {
+        // Solved already, and played as a sparse draft (`receive`): playback stopped (or an
+        // overlay wants the whole field), so the field is shown whole, as it is not asked again.
+        if (quality === 'final' && rt.field && rt.gl?.sparse && !this.playsSparse(rt)) rt.gl.setField(rt.field);
+        continue;
+      }
       rt.lastRequest = sig;
       const seq = ++this.seq;
       const sparse = quality === 'draft' && this.sparseDraft(rt);
@@ -906,11 +911,10 @@ export class App {
 
   /**
    * Whether a drag's drafts are drawn by the draft worker (`draftDraw`): a frame of more
-   * than `DRAFT_PIXELS` pixels (a large picture's proxy). Measured in paired rounds, the
-   * photograph's drag frame took 0.41–0.63 × the time of drafts drawn on the page, but
-   * 512 × 512 took 1.13–1.16 ×: its draft is drawn in 20–30 ms either way, and the worker,
-   * which shares the two cores with the full-resolution solves following the drag, drew it
-   * slower than the page did.
+   * than `DRAFT_PIXELS` pixels (a large picture's proxy). A smaller frame's draft is quick
+   * to draw on the page, and the worker, which shares the cores with the full-resolution
+   * solves following the drag, drew it no sooner (measured in the editor guide, Large
+   * pictures).
    */
   private get largeFrame(): boolean {
     const { width, height } = this.frameSize;
@@ -921,10 +925,9 @@ export class App {
    * What the draft worker is asked to draw after a sparse draft (request `seq`), where the
    * CPU draws drafts: the frame of every visible layer, each from its last sparse draft in
    * that worker, at the size the page would draw it, so the page's main thread only puts
-   * the pixels on its canvas (it drew them itself before: 7–15 ms a draft of the
-   * photograph's proxy at half size, during which the next field and pointer move waited).
-   * Also what a frame drawn ahead for playback is (see `drawAhead`). Undefined where the
-   * page draws drafts on WebGL2.
+   * the pixels on its canvas, and the next field and pointer move do not wait for the
+   * drawing. Also what a frame drawn ahead for playback is (see `drawAhead`). Undefined
+   * where the page draws drafts on WebGL2.
    */
   private draftDraw(seq: number, shrink = this.shrinkFor(true)): DraftDraw | undefined {
     if (!this.drafts || !this.gl.cpuDrafts) return undefined;
@@ -961,10 +964,9 @@ export class App {
    * Drawing ahead: where the CPU draws drafts, each frame of the playback cache that has
    * every layer's field is drawn as the draft playback shows (`playsSparse`, at the draft's
    * size) by the draft worker, one at a time while nothing is dragged, and kept within
-   * `DRAWN_BUDGET_BYTES` (750 kB a frame of the photograph's proxy drawn at half size).
-   * Playback then puts each frame's pixels on the canvas and draws nothing: drawing it on
-   * the page took 10–40 ms a frame of the proxy on the loaded 2-core machine, most of a
-   * frame's 42 ms at 24 fps.
+   * `DRAWN_BUDGET_BYTES`. Playback then puts each frame's pixels on the canvas and draws
+   * nothing: drawing a proxy's frame on the page took most of a frame's time at 24 fps
+   * (see the editor guide, Large pictures).
    */
   private drawAhead(): void {
     const drafts = this.drafts;
@@ -1082,7 +1084,7 @@ export class App {
       const up0 = performance.now();
       if (ev.sparse) rt.gl.setSparseField(ev.sparse);
       else if (ev.field && ev.tag.quality === 'final' && this.playsSparse(rt)) {
-        rt.field = null;
+        // `rt.field` stays: the frame at rest shows it whole (see `requestSolve`).
         rt.gl.setSparseField(sparseValuesAt(rt.gl.draftPixels, ev.field));
       } else rt.gl.setField(ev.field, ev.triangles ?? null);
       if (ev.frame && this.dragging && !this.store.view.playing) this.offerDraft(ev);

@@ -18,7 +18,7 @@
 
 import type { DraftGeometry, DraftHandle, DraftLayer, Engine, FieldData } from './engine';
 import { DRAFT_TARGET_PX } from './options';
-import { PACK_STEPS } from './proxy';
+import { type PackedField, unpackAt } from './proxy';
 
 // Quads: vertex k is pixel (k % W, k / W); the index buffer lists the two triangles of
 // every block whose four links exist, each triangle's last (provoking) vertex being the
@@ -778,25 +778,15 @@ export class GlLayer {
 /**
  * A field's (dx, dy) pairs at `pixels` (a layer's `draftPixels`), as a sparse draft holds
  * them (`GlLayer.setSparseField`): from its floats, or from a field kept packed for playback
- * (`packField`: Δx then Δy of every pixel in 1/`PACK_STEPS` of a pixel).
+ * (`unpackAt`).
  */
-export function sparseValuesAt(pixels: Uint32Array, field: FieldData | { width: number; height: number; packed: Int16Array }): Float32Array {
+export function sparseValuesAt(pixels: Uint32Array, field: FieldData | PackedField): Float32Array {
+  if ('packed' in field) return unpackAt(field, pixels);
   const out = new Float32Array(2 * pixels.length);
-  if ('packed' in field) {
-    const n = field.width * field.height;
-    const p = field.packed;
-    const inv = 1 / PACK_STEPS;
-    for (let k = 0; k < pixels.length; k++) {
-      const i = pixels[k];
-      out[2 * k] = p[i] * inv;
-      out[2 * k + 1] = p[n + i] * inv;
-    }
-  } else {
-    for (let k = 0; k < pixels.length; k++) {
-      const i = pixels[k];
-      out[2 * k] = field.dx[i];
-      out[2 * k + 1] = field.dy[i];
-    }
+  for (let k = 0; k < pixels.length; k++) {
+    const i = pixels[k];
+    out[2 * k] = field.dx[i];
+    out[2 * k + 1] = field.dy[i];
   }
   return out;
 }

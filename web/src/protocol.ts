@@ -97,8 +97,8 @@ export type FromWorker =
   | { type: 'links'; key: string; links: Uint8Array }
   /** The worker's WebAssembly memory and JavaScript heap in use (bytes; heap null where the browser does not say). */
   | { type: 'memory'; wasmBytes: number; heapBytes: number | null }
-  /** The answer to `draw`: the frame's pixels (null: a layer's draft geometry was missing). */
-  | { type: 'drawn'; id: number; pixels: Uint8ClampedArray | null; drawMs: number }
+  /** The answer to `draw`, always sent: the frame's pixels (null: a layer's draft geometry was missing, or drawing failed, reported by an `error` first). */
+  | { type: 'drawn'; id: number; pixels: Uint8ClampedArray | null }
   /** The answer to `full-export`. */
   | { type: 'full-layers'; layers: { key: string; image: { width: number; height: number; data: Uint8Array }; matte: Uint8Array; cuts: Pt[][] }[] }
   /** A full-resolution frame (straight RGBA8), with the time its solves and its drawing took (ms). */

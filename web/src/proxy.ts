@@ -131,3 +131,16 @@ export function unpackField(p: PackedField): { width: number; height: number; dx
   }
   return { width: p.width, height: p.height, dx, dy };
 }
+
+/** The floats of a packed field (`packField`) at `pixels` only, as (Δx, Δy) pairs in their order. */
+export function unpackAt(p: PackedField, pixels: Uint32Array): Float32Array {
+  const n = p.width * p.height;
+  const out = new Float32Array(2 * pixels.length);
+  const inv = 1 / PACK_STEPS;
+  for (let k = 0; k < pixels.length; k++) {
+    const i = pixels[k];
+    out[2 * k] = p.packed[i] * inv;
+    out[2 * k + 1] = p.packed[n + i] * inv;
+  }
+  return out;
+}

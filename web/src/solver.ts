@@ -101,7 +101,7 @@ export class SolverClient {
   onError: (key: string | null, message: string) => void = () => {};
   onReset: (message: string) => void = () => {};
   /** The answers to `draw` (see `draw`). */
-  onDrawn: (id: number, pixels: Uint8ClampedArray | null, drawMs: number) => void = () => {};
+  onDrawn: (id: number, pixels: Uint8ClampedArray | null) => void = () => {};
 
   constructor(worker: Worker, wasmUrl: string) {
     this.worker = worker;
@@ -188,7 +188,7 @@ export class SolverClient {
       return;
     }
     if (msg.type === 'drawn') {
-      this.onDrawn(msg.id, msg.pixels, msg.drawMs);
+      this.onDrawn(msg.id, msg.pixels);
       return;
     }
     if (msg.type === 'links') {

@@ -62,9 +62,8 @@ export class SolverWorker {
       } else if (msg.type === 'select') {
         this.gridOf(msg.key).select(msg.pixels);
       } else if (msg.type === 'draw') {
-        const t0 = performance.now();
         const pixels = this.drawFrom(msg.draw, (key) => msg.values[key]);
-        this.post({ type: 'drawn', id: msg.id, pixels, drawMs: performance.now() - t0 }, pixels ? [pixels.buffer] : []);
+        this.post({ type: 'drawn', id: msg.id, pixels }, pixels ? [pixels.buffer] : []);
       } else if (msg.type === 'draft-layer') {
         this.forgetDraft(msg.key);
         if (msg.geometry) this.draftLayers.set(msg.key, engine.draftLayer(msg.geometry));
@@ -95,6 +94,8 @@ export class SolverWorker {
       const id = msg.type === 'solve' || msg.type === 'full-render' ? msg.id : null;
       const key = 'key' in msg ? msg.key : null;
       this.post({ type: 'error', id, key, message: (err as Error).message ?? String(err) });
+      // A frame asked to be drawn is always answered: the page draws ahead one at a time.
+      if (msg.type === 'draw') this.post({ type: 'drawn', id: msg.id, pixels: null });
     }
   }
 

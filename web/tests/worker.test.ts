@@ -132,6 +132,11 @@ describe('the solver worker', () => {
       expect(drawn.type).toBe('drawn');
       if (drawn.type === 'drawn') expect(Array.from(drawn.pixels!)).toEqual(Array.from(out));
     }
+    // Values it cannot draw from (too few): the error, and still the answer the page waits for.
+    const bad: DraftDraw = { width: W, height: H, background, shrink: 1, layers: [{ key: 'L', offset: [0, 0], opacity: 1 }], seq: 11, spec: '' };
+    const failed = await send({ type: 'draw', id: 4, draw: bad, values: { L: new Float32Array(2) } });
+    expect(failed.map((m) => m.type)).toEqual(['error', 'drawn']);
+    expect(failed[1]).toEqual({ type: 'drawn', id: 4, pixels: null });
     // A layer the worker has no draft geometry for: no frame, the page draws it.
     const two: DraftDraw = { width: W, height: H, background, shrink: 1, layers: [{ key: 'L', offset: [0, 0], opacity: 1 }, { key: 'M', offset: [0, 0], opacity: 1 }], seq: 20, spec: '' };
     const lone = await field(solve(9, pose(22), { sparse: true, options: { grid_step: 4 }, draw: two }));
