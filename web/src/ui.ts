@@ -1577,6 +1577,8 @@ export class Ui {
   }
 
   async exportPng(): Promise<void> {
+    // A frame played on a software GPU is drawn as a draft: stop, so the frame at rest is drawn in full.
+    if (this.store.view.playing) this.store.setView({ playing: false });
     await this.app.idle();
     const { width, height } = this.store.doc;
     // A large picture's frame is the full-resolution one (its proxy's is smaller).
