@@ -1384,14 +1384,20 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     });
     // The page's main thread during the drag: each scene change's synchronous work (the
     // views following the drawing) and each field's arrival, timed around them.
+    // Page helpers for the timings below: `__timeCalls(obj, name, into)` times each call of
+    // `obj[name]` into `into` (returns the undo), `__median(a)` the middle value.
     await p.evaluate(() => {
-      const { app, store } = window.inkwarp;
-      const t = (window.__dragTimes = { apply: [], receive: [] });
-      const wrap = (obj, name, into) => {
+      window.__timeCalls = (obj, name, into) => {
         const was = obj[name];
         obj[name] = function (...args) { const t0 = performance.now(); try { return was.apply(this, args); } finally { into.push(performance.now() - t0); } };
         return () => { obj[name] = was; };
       };
+      window.__median = (a) => { const b = [...a].sort((x, y) => x - y); return b.length ? b[b.length >> 1] : null; };
+    });
+    await p.evaluate(() => {
+      const { app, store } = window.inkwarp;
+      const t = (window.__dragTimes = { apply: [], receive: [] });
+      const wrap = window.__timeCalls;
       const undo = [wrap(store, 'apply', t.apply), wrap(app, 'receive', t.receive)];
       window.__dragUndo = () => { for (const u of undo) u(); };
     });
@@ -1424,7 +1430,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     const dragMain = await p.evaluate(() => {
       window.__dragUndo();
       const t = window.__dragTimes;
-      const med = (a) => { const b = [...a].sort((x, y) => x - y); return b.length ? b[b.length >> 1] : null; };
+      const med = window.__median;
       return { applyMs: med(t.apply), applyMaxMs: Math.max(0, ...t.apply), applies: t.apply.length, receiveMs: med(t.receive), receives: t.receive.length };
     });
     await p.mouse.up();
@@ -1491,11 +1497,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     await p.evaluate(() => {
       const { app, store } = window.inkwarp;
       const t = (window.__playTimes = { setView: [], frameTick: [], rafs: 0 });
-      const wrap = (obj, name, into) => {
-        const was = obj[name];
-        obj[name] = function (...args) { const t0 = performance.now(); try { return was.apply(this, args); } finally { into.push(performance.now() - t0); } };
-        return () => { obj[name] = was; };
-      };
+      const wrap = window.__timeCalls;
       const undo = [wrap(store, 'setView', t.setView), wrap(app, 'frameTick', t.frameTick)];
       let on = true;
       const raf = () => { if (!on) return; t.rafs++; requestAnimationFrame(raf); };
@@ -1509,7 +1511,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     const playTimes = await p.evaluate(() => {
       window.__playUndo();
       const t = window.__playTimes;
-      const med = (a) => { const b = [...a].sort((x, y) => x - y); return b.length ? b[b.length >> 1] : null; };
+      const med = window.__median;
       return { setViewMs: med(t.setView), frameTickMs: med(t.frameTick), frameTickMaxMs: Math.max(0, ...t.frameTick), ticks: t.frameTick.length, animationFrames: t.rafs };
     });
     played.mainThread = playTimes;

@@ -976,7 +976,8 @@ export class App {
     const rev = this.store.revision;
     const kept = this.drawnFrames;
     if (kept.rev !== rev || kept.spec !== spec.spec) this.drawnFrames = { rev, spec: spec.spec, bytes: 0, frames: new Map() };
-    const size = 4 * Math.ceil(spec.width / spec.shrink) * Math.ceil(spec.height / spec.shrink);
+    const drawn = proxySize(spec.width, spec.height, spec.shrink);
+    const size = 4 * drawn.width * drawn.height;
     if (this.drawnFrames.bytes + size > DRAWN_BUDGET_BYTES) return;
     for (const frame of [...this.cache.frames.keys()].sort((a, b) => a - b)) {
       if (this.drawnFrames.frames.has(frame)) continue;

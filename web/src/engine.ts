@@ -3,6 +3,7 @@
 // The module exports a plain C ABI: we copy arguments into its linear memory, call, and
 // copy results out. JSON results come back through a result buffer.
 
+import { proxySize } from './proxy';
 import type { Kind, Method, Pt } from './scene';
 
 interface Exports {
@@ -464,7 +465,8 @@ export class Engine {
     layers: DraftLayer[],
     shrink = 1,
   ): void {
-    const len = 4 * Math.ceil(width / shrink) * Math.ceil(height / shrink);
+    const drawn = proxySize(width, height, shrink);
+    const len = 4 * drawn.width * drawn.height;
     this.withCopies((copy) => {
       const args = Float64Array.from(layers.flatMap((l) => [l.draft.handle, copy(l.values), l.values.length, l.offset[0], l.offset[1], l.opacity ?? 1]));
       const argPtr = copy(args);

@@ -18,7 +18,7 @@
 
 import type { DraftGeometry, DraftHandle, DraftLayer, Engine, FieldData } from './engine';
 import { DRAFT_TARGET_PX } from './options';
-import { type PackedField, unpackAt } from './proxy';
+import { type PackedField, proxySize, unpackAt } from './proxy';
 
 // Quads: vertex k is pixel (k % W, k / W); the index buffer lists the two triangles of
 // every block whose four links exist, each triangle's last (provoking) vertex being the
@@ -1051,8 +1051,7 @@ void main() { o = texture(uTex, vPos); }`);
     // A large frame's draft is drawn smaller and stretched over the frame (smoothly: its
     // pixels stand for blocks of the frame's), the full frame at its own size.
     const shrink = full ? 1 : Math.max(1, Math.floor(this.draftShrink));
-    const w = Math.ceil(width / shrink);
-    const h = Math.ceil(height / shrink);
+    const { width: w, height: h } = proxySize(width, height, shrink);
     if (canvas.width !== w) canvas.width = w;
     if (canvas.height !== h) canvas.height = h;
     const was = this.cpuDrawn;
@@ -1088,8 +1087,7 @@ void main() { o = texture(uTex, vPos); }`);
    */
   offerDraft(pixels: Uint8ClampedArray, width: number, height: number, background: [number, number, number, number], layers: DrawLayer[]): void {
     const shrink = Math.max(1, Math.floor(this.draftShrink));
-    const w = Math.ceil(width / shrink);
-    const h = Math.ceil(height / shrink);
+    const { width: w, height: h } = proxySize(width, height, shrink);
     if (pixels.length !== 4 * w * h) throw new Error(`A ${width} × ${height} draft at 1/${shrink} has ${4 * w * h} bytes, not ${pixels.length}.`);
     this.offered = { key: this.keyOf(width, height, background, layers, false, true, false), image: new ImageData(pixels as Uint8ClampedArray<ArrayBuffer>, w, h) };
   }

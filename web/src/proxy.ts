@@ -19,7 +19,7 @@ export function proxyFactor(width: number, height: number): number {
   return n > PROXY_ABOVE_PX ? Math.ceil(Math.sqrt(n / PROXY_TARGET_PX)) : 1;
 }
 
-/** The proxy's size for a factor: every proxy pixel stands for an `f × f` block (the last ones clipped). */
+/** The size of a frame drawn `f` times smaller (a proxy, a shrunk draft): every pixel stands for an `f × f` block (the last ones clipped). */
 export function proxySize(width: number, height: number, f: number): { width: number; height: number } {
   return { width: Math.ceil(width / f), height: Math.ceil(height / f) };
 }

@@ -6,6 +6,7 @@ import { type DraftHandle, Engine, type FieldData, type GridHandle, type ImageHa
 import { adaptiveTriangles } from './gl';
 import { LastFields } from './lastfields';
 import type { DraftDraw, DraftFrame, FromWorker, ToWorker } from './protocol';
+import { proxySize } from './proxy';
 import type { Pt } from './scene';
 
 /** Sends a message to the page, handing over the buffers in `transfer`. */
@@ -193,7 +194,8 @@ export class SolverWorker {
       if (!handle || !values) return null;
       layers.push({ draft: handle, values, offset: l.offset, opacity: l.opacity });
     }
-    const pixels = new Uint8ClampedArray(4 * Math.ceil(draw.width / draw.shrink) * Math.ceil(draw.height / draw.shrink));
+    const size = proxySize(draw.width, draw.height, draw.shrink);
+    const pixels = new Uint8ClampedArray(4 * size.width * size.height);
     this.engine!.drawDraft(pixels, draw.width, draw.height, draw.background, layers, draw.shrink);
     return pixels;
   }
