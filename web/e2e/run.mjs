@@ -1452,6 +1452,20 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     const rssSettled = browserRssMiB();
     const kindsSettled = browserMemoryByKind();
     const workersSettled = await p.evaluate(() => window.inkwarp.app.memoryReport?.());
+    // A second drag of the same point a little further, soon after the first settle (the
+    // full-resolution worker keeps its solver from one frame to the next): its settle.
+    const [x2, y2] = await toClient(p, [2250, 1250]);
+    await p.mouse.move(x1, y1);
+    await p.mouse.down();
+    for (let i = 1; i <= 5; i++) {
+      await p.mouse.move(x1 + ((x2 - x1) * i) / 5, y1 + ((y2 - y1) * i) / 5);
+      await p.evaluate(() => new Promise((r) => requestAnimationFrame(() => r())));
+    }
+    await p.mouse.up();
+    const released2 = Date.now();
+    await idle(p);
+    const settle2S = (Date.now() - released2) / 1000;
+    const settle2Parts = await p.evaluate(() => window.inkwarp.app.stats.fullParts.at(-1) ?? null);
     const renewedBefore = await p.evaluate(() => window.inkwarp.app.full?.renewals ?? 0);
     const idleFrom = Date.now();
     while (Date.now() - idleFrom < 15000 && (await p.evaluate(() => window.inkwarp.app.full?.renewals ?? 0)) === renewedBefore) await p.waitForTimeout(250);
@@ -1469,7 +1483,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       openS: (opened - made) / 1000, firstProxyFrameS: firstFrame / 1000, openSteps: s.open, fullParts: s.fullParts,
       dragMedianMs: median(s.drag), dragP90Ms: pct(s.drag, 0.9), dragFrames: s.drag.length,
       dragParts: Object.fromEntries(['queued', 'toWorker', 'solve', 'workerDraw', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((q) => q[k]))])),
-      dragMain, draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000,
+      dragMain, draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000, settle2S, settle2Parts,
       heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, browserRssBeforeMiB: rssBefore,
       makeS: (made - t0) / 1000, patchDiff: diff, byKind: { before: kindsBefore, drag: kindsDrag, settled: kindsSettled, idle: kindsIdle }, workers: { drag: workersDrag, settled: workersSettled, idle: workersIdle }, small: { ...small, browserRssMiB: rssSmall },
     };
@@ -1821,7 +1835,7 @@ async function main() {
   if (perf.border) console.log(`  border under a hard pull: free ${perf.border.freePx.toFixed(2)} px, held ${perf.border.heldPx.toFixed(3)} px`);
   if (perf.zoom) console.log(`  wheel zoom ${perf.zoom.from.toFixed(3)} → ${perf.zoom.to.toFixed(3)}: the point under the pointer moved ${perf.zoom.drift.toFixed(4)} scene px`);
   if (perf.readyPlayback) console.log(`  ready bar: ${perf.readyPlayback.readyBefore}/12 frames before playing; 2 s of play from solved frames: ${perf.readyPlayback.shown} shown, ${perf.readyPlayback.dropped} dropped of ${perf.readyPlayback.expected}`);
-  if (perf.photo) console.log(`  4000×3000 photograph: open ${perf.photo.openS} s (proxy on screen at ${perf.photo.firstProxyFrameS?.toFixed(2)} s); drag frame median ${perf.photo.dragMedianMs?.toFixed(1)} ms (p90 ${perf.photo.dragP90Ms?.toFixed(1)}, n=${perf.photo.dragFrames}); settle ${perf.photo.settleS} s; page heap ${perf.photo.heapMiB?.toFixed(0)} MiB, browser RSS ${perf.photo.browserRssMiB.toFixed(0)} MiB dragging, ${perf.photo.browserRssSettledMiB.toFixed(0)} MiB settled, ${perf.photo.browserRssIdleMiB.toFixed(0)} MiB ${perf.photo.idleWaitS.toFixed(1)} s later (full-resolution worker replaced ${perf.photo.fullWorkerRenewals ?? 0} times) (${perf.photo.browserRssBeforeMiB.toFixed(0)} before the photograph's page opened); the ${perf.photo.small.size} example opened in ${perf.photo.small.openS.toFixed(2)} s, browser RSS then ${perf.photo.small.browserRssMiB.toFixed(0)} MiB`);
+  if (perf.photo) console.log(`  4000×3000 photograph: open ${perf.photo.openS} s (proxy on screen at ${perf.photo.firstProxyFrameS?.toFixed(2)} s); drag frame median ${perf.photo.dragMedianMs?.toFixed(1)} ms (p90 ${perf.photo.dragP90Ms?.toFixed(1)}, n=${perf.photo.dragFrames}); settle ${perf.photo.settleS} s (a second drag's ${perf.photo.settle2S} s); page heap ${perf.photo.heapMiB?.toFixed(0)} MiB, browser RSS ${perf.photo.browserRssMiB.toFixed(0)} MiB dragging, ${perf.photo.browserRssSettledMiB.toFixed(0)} MiB settled, ${perf.photo.browserRssIdleMiB.toFixed(0)} MiB ${perf.photo.idleWaitS.toFixed(1)} s later (full-resolution worker replaced ${perf.photo.fullWorkerRenewals ?? 0} times) (${perf.photo.browserRssBeforeMiB.toFixed(0)} before the photograph's page opened); the ${perf.photo.small.size} example opened in ${perf.photo.small.openS.toFixed(2)} s, browser RSS then ${perf.photo.small.browserRssMiB.toFixed(0)} MiB`);
   if (perf.webm) console.log(`  WebM export: ${perf.webm.frames} frames, ${perf.webm.duration} s`);
   if (perf.dragLatencyMs) {
     console.log(`  ${perf.features} features, 512×512: pointer move → frame median ${perf.dragLatencyMs.median?.toFixed(1)} ms (p90 ${perf.dragLatencyMs.p90?.toFixed(1)}, n=${perf.dragLatencyMs.n})`);

@@ -497,7 +497,8 @@ export class Engine {
 
   /**
    * `renderCpu` of layers whose pictures are kept in the module (`image`), each solved
-   * cold in the module (`features` null: at rest) and drawn straight from its field,
+   * in the module (`features` null: at rest; warm from the grid's earlier solves, see
+   * `iw_grid_solve_kept`) and drawn straight from its field,
    * which never leaves the module: a large picture's frame without copies of its picture
    * or its field. Returns straight RGBA8, each layer's report (null at rest) and the time
    * the solves and the drawing took (ms).

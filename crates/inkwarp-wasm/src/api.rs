@@ -404,7 +404,7 @@ pub extern "C" fn iw_solve(
     };
     let res = with_domain(handle, |domain| -> Result<serde_json::Value, String> {
         let n = domain.grid.width * domain.grid.height;
-        let (field, report) = solve_request(domain, &req, initial_ptr)?;
+        let (field, report) = solve_request(domain, &req, Start::Given(initial_ptr))?;
         let out = view_mut(out_ptr, 2 * n);
         out[..n].copy_from_slice(&field.dx);
         out[n..].copy_from_slice(&field.dy);
@@ -416,8 +416,19 @@ pub extern "C" fn iw_solve(
     }
 }
 
+/// Where a grid thin plate starts.
+#[derive(Clone, Copy)]
+enum Start {
+    /// From the caller's field (`iw_solve`'s `initial`) or the earlier solves, whichever is
+    /// closer; from scratch, the earlier solves forgotten, when the pointer is null.
+    Given(*const f32),
+    /// From the earlier solves of this grid and step ([`iw_grid_solve_kept`]), never
+    /// forgotten: the editor's full-resolution frames after one drag and the next.
+    Kept,
+}
+
 /// The field and report of a request (see [`iw_solve`]).
-fn solve_request(domain: &Domain, req: &SolveIn, initial_ptr: *const f32) -> Result<(Field, serde_json::Value), String> {
+fn solve_request(domain: &Domain, req: &SolveIn, start: Start) -> Result<(Field, serde_json::Value), String> {
     let grid = &domain.grid;
     let method = method_of(req)?;
     let spacing_px = req.spacing_px.unwrap_or(1.0);
@@ -429,7 +440,7 @@ fn solve_request(domain: &Domain, req: &SolveIn, initial_ptr: *const f32) -> Res
             if held {
                 per_feature.push(inkwarp_core::geometry::border_samples(grid.width, grid.height, spacing_px));
             }
-            solve_tps(domain, per_feature, &req.options, initial_ptr)?
+            solve_tps(domain, per_feature, &req.options, start)?
         }
         Some(interpolant) => {
             let mut controls = controls_of(&req.features, per_feature, interpolant)?;
@@ -509,7 +520,7 @@ pub extern "C" fn iw_solve_at(handle: u32, req_ptr: *const u8, req_len: usize, o
         let out = view_mut(out_ptr, 2 * selection.pixels.len());
         let step = req.options.grid_step;
         if method_of(&req)?.interpolant().is_some() || step <= 1 {
-            let (field, report) = solve_request(domain, &req, std::ptr::null())?;
+            let (field, report) = solve_request(domain, &req, Start::Given(std::ptr::null()))?;
             for (o, &p) in out.chunks_exact_mut(2).zip(&selection.pixels) {
                 o.copy_from_slice(&[field.dx[p as usize], field.dy[p as usize]]);
             }
@@ -585,12 +596,16 @@ fn solve_tps(
     domain: &Domain,
     per_feature: Vec<Vec<Sample>>,
     options: &OptionsIn,
-    initial_ptr: *const f32,
+    start: Start,
 ) -> Result<(Field, serde_json::Value), String> {
     let grid = &domain.grid;
     let n = grid.width * grid.height;
     let samples: Vec<Sample> = per_feature.into_iter().flatten().collect();
     let options = solve_options(options)?;
+    let initial_ptr = match start {
+        Start::Given(ptr) => ptr,
+        Start::Kept => std::ptr::null(),
+    };
     let initial = (!initial_ptr.is_null()).then(|| {
         let data = view(initial_ptr, 2 * n);
         Field {
@@ -602,10 +617,10 @@ fn solve_tps(
     });
     // A warm request starts from the page's field (often a draft of this very pose) or
     // the earlier solves' extrapolation, whichever is closer; a cold request (no initial
-    // field) starts the series over.
+    // field) starts the series over; a kept one continues it.
     let mut histories = domain.history.borrow_mut();
     let history = histories.entry(options.grid_step).or_default();
-    if initial.is_none() {
+    if initial.is_none() && matches!(start, Start::Given(_)) {
         history.clear();
     }
     let (field, report) =
@@ -760,10 +775,26 @@ pub extern "C" fn iw_image_read(handle: u32, out_ptr: *mut u8, out_len: usize) -
     })
 }
 
-/// Solves a layer cold (the request as [`iw_solve`] takes it) and keeps the field in the
-/// module for the next [`iw_canvas_draw_solved`] on this grid, instead of copying it out:
-/// a full-resolution field is 8 bytes a pixel. The grid keeps no warm-start history of it.
-/// The result is the solve's report. Status 0/1.
+/// The most nodes a grid thin plate of [`iw_grid_solve_kept`] may solve on (its grid's
+/// pixels over `grid_step` squared) for the grid to keep its solver between calls.
+const KEPT_SOLVER_MAX_NODES: usize = 1 << 20;
+
+/// Whether [`iw_grid_solve_kept`] keeps the solver of a `width × height` grid at `step`.
+fn keeps_solver(width: usize, height: usize, step: usize) -> bool {
+    width.div_ceil(step) * height.div_ceil(step) <= KEPT_SOLVER_MAX_NODES
+}
+
+/// Solves a layer (the request as [`iw_solve`] takes it) and keeps the field in the
+/// module for the next [`iw_canvas_draw_solved`] or [`iw_frame_draw`] on this grid,
+/// instead of copying it out: a full-resolution field is 8 bytes a pixel.
+///
+/// A grid thin plate whose own grid has at most [`KEPT_SOLVER_MAX_NODES`] nodes (a
+/// 4000 × 3000 picture at `grid_step` 4 has 750 000) keeps its solver on the grid: the
+/// multigrid hierarchy (built for the drawing's rest pose, so one drag's frame and the
+/// next share it) and the last few fields at its own nodes, from which the next call
+/// starts ([`Solver::solve_warm`]). A larger one (`grid_step` 1 on a photograph) is solved
+/// from scratch and keeps nothing: its fields are 8 bytes a pixel. The result is the
+/// solve's report. Status 0/1.
 #[no_mangle]
 pub extern "C" fn iw_grid_solve_kept(grid: u32, req_ptr: *const u8, req_len: usize) -> i32 {
     let req: SolveIn = match json_arg(req_ptr, req_len) {
@@ -773,8 +804,14 @@ pub extern "C" fn iw_grid_solve_kept(grid: u32, req_ptr: *const u8, req_len: usi
     // The earlier kept field goes first, so two never live at once.
     SOLVED.with(|s| s.borrow_mut().remove(&grid));
     let res = with_domain(grid, |domain| {
-        let solved = solve_request(domain, &req, std::ptr::null());
-        domain.history.borrow_mut().clear();
+        let step = req.options.grid_step.max(1);
+        let keep = keeps_solver(domain.grid.width, domain.grid.height, step);
+        // Only this step's solver stays: a changed grid step drops the other's.
+        domain.history.borrow_mut().retain(|&s, _| keep && s == step);
+        let solved = solve_request(domain, &req, if keep { Start::Kept } else { Start::Given(std::ptr::null()) });
+        if !keep || solved.is_err() {
+            domain.history.borrow_mut().clear();
+        }
         solved
     });
     match res {
@@ -1043,4 +1080,78 @@ pub extern "C" fn iw_methods() -> i32 {
         .map(|&m| serde_json::json!({ "name": m.name(), "available": method_available(m) }))
         .collect();
     ok_json(&list)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn put(data: &[u8]) -> (*mut u8, usize) {
+        let ptr = crate::iw_alloc(data.len());
+        view_mut(ptr, data.len()).copy_from_slice(data);
+        (ptr, data.len())
+    }
+
+    fn result() -> serde_json::Value {
+        serde_json::from_slice(view(crate::iw_result_ptr(), crate::iw_result_len())).unwrap()
+    }
+
+    /// A pulled point, a held one and a held border at grid step 4; `pull` moves the first.
+    fn request(pull: [f64; 2]) -> serde_json::Value {
+        serde_json::json!({"features": [
+            {"kind": "point", "rest": [[30, 20]], "pose": [[30.0 + pull[0], 20.0 + pull[1]]]},
+            {"kind": "spline", "rest": [[60, 50], [80, 40], [100, 55]], "pose": [[60, 50], [80, 40], [100, 55]]}],
+            "options": {"grid_step": 4}, "spacing_px": 4, "border": "hold"})
+    }
+
+    /// `iw_grid_solve_kept` of `req` on `grid`: the report, and the field it kept (taken).
+    fn solve_kept(grid: u32, req: &serde_json::Value) -> (serde_json::Value, Field) {
+        let (r, r_len) = put(req.to_string().as_bytes());
+        assert_eq!(iw_grid_solve_kept(grid, r, r_len), 0, "{}", result());
+        let report = result();
+        (report, SOLVED.with(|s| s.borrow_mut().remove(&grid)).expect("a kept field"))
+    }
+
+    fn max_difference(a: &Field, b: &Field) -> f32 {
+        a.dx.iter().zip(&b.dx).chain(a.dy.iter().zip(&b.dy)).map(|(p, q)| (p - q).abs()).fold(0.0, f32::max)
+    }
+
+    #[test]
+    fn a_kept_solve_after_a_drag_starts_from_the_last_and_gives_the_cold_field() {
+        let (w, h) = (121, 90);
+        let kept = iw_grid_new(w, h, std::ptr::null(), 0, std::ptr::null(), 0);
+        // The frame at rest builds the solver the drags' frames then reuse.
+        let (rest, field) = solve_kept(kept, &request([0.0, 0.0]));
+        assert!(field.dx.iter().chain(&field.dy).all(|&v| v.abs() < 1e-6), "{rest}");
+        let mut cold_cycles = Vec::new();
+        for (k, pull) in [[6.0, -4.0], [7.0, -5.0], [8.0, -6.0]].into_iter().enumerate() {
+            let req = request(pull);
+            let (report, warm) = solve_kept(kept, &req);
+            // The same pose solved from scratch on a fresh grid.
+            let fresh = iw_grid_new(w, h, std::ptr::null(), 0, std::ptr::null(), 0);
+            let (cold_report, cold) = solve_kept(fresh, &req);
+            iw_grid_free(fresh);
+            assert_eq!(report["converged"], true, "{report}");
+            let diff = max_difference(&warm, &cold);
+            // Within the solver's tolerance (the request's default, 0.01 px).
+            assert!(diff < 0.01, "frame {k}: the kept solve is {diff} px from the cold one");
+            cold_cycles.push(cold_report["cycles"].as_u64().unwrap());
+            if k > 0 {
+                // From the drags before: fewer cycles than from scratch.
+                assert!(report["cycles"].as_u64().unwrap() < cold_cycles[k], "frame {k}: {report} against {cold_report}");
+            }
+        }
+        // The same pose again starts at its answer: one cycle checks it.
+        let (again, _) = solve_kept(kept, &request([8.0, -6.0]));
+        assert!(again["cycles"].as_u64().unwrap() <= 1, "{again}");
+        iw_grid_free(kept);
+    }
+
+    #[test]
+    fn a_photograph_keeps_its_solver_at_grid_step_4_but_not_at_every_pixel() {
+        assert!(keeps_solver(4000, 3000, 4));
+        assert!(keeps_solver(6000, 4000, 6));
+        assert!(!keeps_solver(4000, 3000, 1));
+        assert!(!keeps_solver(4000, 3000, 2));
+    }
 }
