@@ -25,8 +25,10 @@ async function start(): Promise<void> {
   const spawn = () => new SolverClient(new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
   const solver = spawn();
   const drafts = spawn();
-  // A third solves the animation's frames ahead while the editor is left alone.
-  const ahead = spawn();
+  // A third solves the animation's frames ahead while the editor is left alone (replaced by
+  // a fresh one once they are all solved: see `App.renewAhead`).
+  const makeWorker = () => new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' });
+  const ahead = new SolverClient(makeWorker(), absWasm, makeWorker);
   // A fourth draws a large picture's full-resolution frames (see `proxy.ts`).
   const full = new FullClient(() => new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
   await Promise.all([solver.ready, drafts.ready, ahead.ready, full.ready]);

@@ -103,14 +103,75 @@ export class SolverClient {
   /** The answers to `draw` (see `draw`). */
   onDrawn: (id: number, pixels: Uint8ClampedArray | null) => void = () => {};
 
-  constructor(worker: Worker, wasmUrl: string) {
+  /**
+   * Each layer's setup in the worker (its grid, the pixels sparse solves compute, its draft
+   * geometry), kept where the worker can be replaced (`renew`) for the fresh one.
+   */
+  private setup = new Map<string, ToWorker[]>();
+  /** While the worker is being replaced (see `renew`): the messages for the fresh one. */
+  private queue: { msg: ToWorker; transfer: Transferable[] }[] | null = null;
+  /** Workers replaced so far (see `renew`). */
+  renewals = 0;
+
+  /** `makeWorker`, when given, makes the fresh worker `renew` replaces this one by. */
+  constructor(
+    worker: Worker,
+    private wasmUrl: string,
+    private makeWorker: (() => Worker) | null = null,
+  ) {
     this.worker = worker;
     this.ready = engineReady(worker, (msg) => this.receive(msg));
-    this.send({ type: 'init', wasmUrl });
+    this.worker.postMessage({ type: 'init', wasmUrl } satisfies ToWorker);
   }
 
   private send(msg: ToWorker, transfer: Transferable[] = []): void {
-    this.worker.postMessage(msg, transfer);
+    if (this.makeWorker) this.record(msg);
+    if (this.queue) this.queue.push({ msg, transfer });
+    else this.worker.postMessage(msg, transfer);
+  }
+
+  /** Keeps a layer's setup messages (see `setup`): a new grid starts it again. */
+  private record(msg: ToWorker): void {
+    if (msg.type === 'grid') this.setup.set(msg.key, [msg]);
+    else if (msg.type === 'drop') this.setup.delete(msg.key);
+    else if (msg.type === 'select' || msg.type === 'draft-layer') {
+      const list = (this.setup.get(msg.key) ?? []).filter((m) => m.type !== msg.type);
+      this.setup.set(msg.key, [...list, msg]);
+    }
+  }
+
+  /** Whether the worker can be replaced by a fresh one (`renew`). */
+  get renewable(): boolean {
+    return this.makeWorker !== null;
+  }
+
+  /**
+   * Replaces the worker by a fresh one holding the same layers' setup (their grids, solved
+   * from scratch by the next request): a WebAssembly memory never shrinks, and ending a
+   * worker is the one way to give it back. Only while nothing is solving; requests made
+   * meanwhile wait for the fresh worker.
+   */
+  renew(): Promise<void> {
+    const make = this.makeWorker;
+    if (!make || this.queue || this.busy) return Promise.resolve();
+    this.queue = [];
+    this.worker.terminate();
+    const fresh = make();
+    this.worker = fresh;
+    const go = (ok: boolean) => {
+      if (ok) this.renewals++;
+      else this.onError(null, 'A solver worker could not be restarted.');
+      // The layers' setup as it is now, then what was asked meanwhile (less the setup itself,
+      // sent already in its newest state).
+      for (const list of this.setup.values()) for (const msg of list) fresh.postMessage(msg);
+      const queued = this.queue ?? [];
+      this.queue = null;
+      for (const q of queued) if (!['grid', 'drop', 'select', 'draft-layer'].includes(q.msg.type)) fresh.postMessage(q.msg, q.transfer);
+      this.pump();
+    };
+    const ready = engineReady(fresh, (msg) => this.receive(msg));
+    fresh.postMessage({ type: 'init', wasmUrl: this.wasmUrl } satisfies ToWorker);
+    return ready.then(() => go(true), () => go(false));
   }
 
   /** (Re)builds a layer's solve domain; resolves with its links (for the renderer). */
@@ -166,7 +227,7 @@ export class SolverClient {
   }
 
   private pump(): void {
-    if (this.inFlight || this.pending.size === 0) return;
+    if (this.inFlight || this.pending.size === 0 || this.queue) return;
     const [key, req] = this.pending.entries().next().value as [string, Request];
     this.pending.delete(key);
     const id = this.nextId++;
