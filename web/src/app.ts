@@ -3,7 +3,7 @@
 
 import type { Engine, FieldData, SolveFeature, SolveOptions } from './engine';
 import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse, sparseValuesAt } from './gl';
-import { decodeImage, forgetImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } from './images';
+import { decodeImage, forgetImage, matteFromAlpha, matteFromImage, OFF_PAGE_DECODE_BYTES, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
 import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './scene';
@@ -176,7 +176,7 @@ const DRAWN_BUDGET_BYTES = 96 * 2 ** 20;
 /** How long the editor is left alone (ms) before frames are solved ahead (see `scheduleAhead`). */
 const AHEAD_IDLE_MS = 400;
 /** The ahead worker is replaced by a fresh one once every frame is solved ahead and its module holds more than this (see `App.renewAhead`). */
-const AHEAD_RENEW_BYTES = 64 * 2 ** 20;
+export const AHEAD_RENEW_BYTES = 64 * 2 ** 20;
 /** The multigrid cycles of one request for a frame solved ahead (it is asked again until it converges). */
 const AHEAD_CYCLES = 2;
 /** A multisampled full frame slower than this (ms) is preceded by a single-sampled one. */
@@ -738,12 +738,27 @@ export class App {
    * given back) is freed by replacing it with a fresh worker holding only the layers'
    * grids. The next change's frames are solved there, the first from scratch.
    */
-  private renewAhead(): void {
+  /**
+   * A scene document's problems (`Engine.validate`, which decodes its pictures). A large one
+   * (a photograph's data: URI) is checked by the ahead worker, then replaced by a fresh one,
+   * so the decoder's memory (about 140 MB for a 4000 × 3000 JPEG) is not kept in the
+   * page's module, whose memory never shrinks.
+   */
+  async checkScene(doc: unknown): Promise<{ path: string; message: string }[]> {
     const ahead = this.ahead;
-    if (!ahead?.renewable || ahead.busy) return;
-    void ahead.memory().then((m) => {
-      if (m && m.wasmBytes > AHEAD_RENEW_BYTES && !ahead.busy) void ahead.renew();
-    });
+    if (ahead?.renewable) {
+      const json = JSON.stringify(doc);
+      if (json.length >= OFF_PAGE_DECODE_BYTES) {
+        const problems = await ahead.check(json);
+        void ahead.renewAbove(AHEAD_RENEW_BYTES);
+        return problems;
+      }
+    }
+    return this.engine.validate(doc);
+  }
+
+  private renewAhead(): void {
+    void this.ahead?.renewAbove(AHEAD_RENEW_BYTES);
   }
 
   private fullAsked = '';

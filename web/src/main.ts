@@ -29,6 +29,10 @@ async function start(): Promise<void> {
   // a fresh one once they are all solved: see `App.renewAhead`).
   const makeWorker = () => new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' });
   const ahead = new SolverClient(makeWorker(), absWasm, makeWorker);
+  // Large pictures are decoded there too, not in the page's module, which would keep the
+  // decoder's memory (the worker is replaced by a fresh one once the scene is checked, see
+  // `App.checkScene`, or its frames are solved ahead, see `App.renewAhead`).
+  images.useOffPageDecoder((bytes) => ahead.decode(bytes));
   // A fourth draws a large picture's full-resolution frames (see `proxy.ts`).
   const full = new FullClient(() => new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
   await Promise.all([solver.ready, drafts.ready, ahead.ready, full.ready]);

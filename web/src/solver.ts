@@ -112,6 +112,10 @@ export class SolverClient {
   private queue: { msg: ToWorker; transfer: Transferable[] }[] | null = null;
   /** Workers replaced so far (see `renew`). */
   renewals = 0;
+  /** Pictures being decoded (see `decode`), by request. */
+  private decodes = new Map<number, { resolve: (img: { width: number; height: number; data: Uint8Array }) => void; reject: (e: Error) => void }>();
+  /** Scenes being checked (see `check`), by request. */
+  private checks = new Map<number, (problems: { path: string; message: string }[]) => void>();
 
   /** `makeWorker`, when given, makes the fresh worker `renew` replaces this one by. */
   constructor(
@@ -140,6 +144,38 @@ export class SolverClient {
     }
   }
 
+  /**
+   * Decodes a picture file's bytes (or a data: URI's) in the worker, as the engine decodes
+   * it (`Engine.decode`); the bytes are handed over. The decoder's memory (about 140 MB of
+   * module memory for a 4000 × 3000 JPEG) is then the worker's, not the page's.
+   */
+  decode(bytes: Uint8Array): Promise<{ width: number; height: number; data: Uint8Array }> {
+    const id = this.nextId++;
+    return new Promise((resolve, reject) => {
+      this.decodes.set(id, { resolve, reject });
+      this.send({ type: 'decode', id, bytes }, [bytes.buffer]);
+    });
+  }
+
+  /**
+   * Checks a scene document in the worker (`Engine.validate`, which decodes its pictures:
+   * a photograph's decoder memory is then the worker's, not the page's).
+   */
+  check(json: string): Promise<{ path: string; message: string }[]> {
+    const id = this.nextId++;
+    return new Promise((resolve) => {
+      this.checks.set(id, resolve);
+      this.send({ type: 'check', id, json });
+    });
+  }
+
+  /** Replaces the worker by a fresh one (`renew`) if its module memory is above `bytes` and it is idle. */
+  async renewAbove(bytes: number): Promise<void> {
+    if (!this.makeWorker || this.busy) return;
+    const m = await this.memory();
+    if (m && m.wasmBytes > bytes && !this.busy) await this.renew();
+  }
+
   /** Whether the worker can be replaced by a fresh one (`renew`). */
   get renewable(): boolean {
     return this.makeWorker !== null;
@@ -153,7 +189,7 @@ export class SolverClient {
    */
   renew(): Promise<void> {
     const make = this.makeWorker;
-    if (!make || this.queue || this.busy) return Promise.resolve();
+    if (!make || this.queue || this.busy || this.decodes.size > 0 || this.checks.size > 0) return Promise.resolve();
     this.queue = [];
     this.worker.terminate();
     const fresh = make();
@@ -250,6 +286,19 @@ export class SolverClient {
     }
     if (msg.type === 'drawn') {
       this.onDrawn(msg.id, msg.pixels);
+      return;
+    }
+    if (msg.type === 'checked') {
+      const waiter = this.checks.get(msg.id);
+      this.checks.delete(msg.id);
+      waiter?.(msg.problems);
+      return;
+    }
+    if (msg.type === 'decoded') {
+      const waiter = this.decodes.get(msg.id);
+      this.decodes.delete(msg.id);
+      if (msg.image) waiter?.resolve(msg.image);
+      else waiter?.reject(new Error(msg.message ?? 'The picture could not be decoded.'));
       return;
     }
     if (msg.type === 'links') {
