@@ -705,10 +705,15 @@ export class App {
   private solveAhead(): void {
     const ahead = this.ahead;
     if (!ahead || ahead.busy || this.dragging || this.store.view.playing) return;
-    if (!this.doc.features.some((f) => (f.keys ?? []).length > 0)) return;
     const now = performance.now();
     if (this.solver.busy || this.drafts?.busy || this.full?.busy || now - this.lastPointerAt < AHEAD_IDLE_MS || now - this.lastActivityAt < AHEAD_IDLE_MS) {
       this.scheduleAhead();
+      return;
+    }
+    if (!this.doc.features.some((f) => (f.keys ?? []).length > 0)) {
+      // Nothing to solve ahead (a picture just opened, say, whose decoding and checking
+      // the ahead worker did).
+      this.renewAhead();
       return;
     }
     for (const frame of this.aheadFrames()) {
@@ -733,30 +738,30 @@ export class App {
   }
 
   /**
-   * Every frame is solved ahead: the ahead worker's module memory (the proxy's grids and its
-   * solves' warm-start history, about 140 MB for a 4000 × 3000 photograph's proxy, never
-   * given back) is freed by replacing it with a fresh worker holding only the layers'
-   * grids. The next change's frames are solved there, the first from scratch.
-   */
-  /**
    * A scene document's problems (`Engine.validate`, which decodes its pictures). A large one
-   * (a photograph's data: URI) is checked by the ahead worker, then replaced by a fresh one,
-   * so the decoder's memory (about 140 MB for a 4000 × 3000 JPEG) is not kept in the
-   * page's module, whose memory never shrinks.
+   * (a photograph's data: URI) is checked by the ahead worker, so the decoder's memory
+   * (about 140 MB for a 4000 × 3000 JPEG) is not kept in the page's module, whose memory
+   * never shrinks; that worker is replaced by a fresh one once the editor is left alone
+   * (`renewAhead`), not now: the scene's grids being built wait for every worker.
    */
   async checkScene(doc: unknown): Promise<{ path: string; message: string }[]> {
     const ahead = this.ahead;
     if (ahead?.renewable) {
       const json = JSON.stringify(doc);
       if (json.length >= OFF_PAGE_DECODE_BYTES) {
-        const problems = await ahead.check(json);
-        void ahead.renewAbove(AHEAD_RENEW_BYTES);
-        return problems;
+        return ahead.check(json);
       }
     }
     return this.engine.validate(doc);
   }
 
+  /**
+   * Every frame is solved ahead, or there is none to solve: the ahead worker's module
+   * memory (the proxy's grids and its solves' warm-start history, about 140 MB for a
+   * 4000 × 3000 photograph's proxy, or a picture's decoding, never given back) is freed by
+   * replacing it with a fresh worker holding only the layers' grids. The next change's
+   * frames are solved there, the first from scratch.
+   */
   private renewAhead(): void {
     void this.ahead?.renewAbove(AHEAD_RENEW_BYTES);
   }
