@@ -763,6 +763,12 @@ export class App {
    * frames are solved there, the first from scratch.
    */
   private renewAhead(): void {
+    if (this.busy) {
+      // Not while a picture opens or a frame is made: the grids being built wait for every
+      // worker, the fresh one's loading included.
+      this.scheduleAhead();
+      return;
+    }
     void this.ahead?.renewAbove(AHEAD_RENEW_BYTES);
   }
 
