@@ -175,7 +175,7 @@ const SETTLE_MS = 120;
 const DRAWN_BUDGET_BYTES = 96 * 2 ** 20;
 /** How long the editor is left alone (ms) before frames are solved ahead (see `scheduleAhead`). */
 const AHEAD_IDLE_MS = 400;
-/** The ahead worker is replaced by a fresh one once every frame is solved ahead and its module holds more than this (see `App.renewAhead`). */
+/** The ahead worker is replaced by a fresh one once it has nothing to solve and its module holds more than this (see `App.renewAhead`). */
 export const AHEAD_RENEW_BYTES = 64 * 2 ** 20;
 /** The multigrid cycles of one request for a frame solved ahead (it is asked again until it converges). */
 const AHEAD_CYCLES = 2;

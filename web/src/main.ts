@@ -29,9 +29,9 @@ async function start(): Promise<void> {
   // a fresh one once they are all solved: see `App.renewAhead`).
   const makeWorker = () => new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' });
   const ahead = new SolverClient(makeWorker(), absWasm, makeWorker);
-  // Large pictures are decoded there too, not in the page's module, which would keep the
-  // decoder's memory (the worker is replaced by a fresh one once the scene is checked, see
-  // `App.checkScene`, or its frames are solved ahead, see `App.renewAhead`).
+  // Large pictures are decoded there too (and large scenes checked, see `App.checkScene`),
+  // not in the page's module, which would keep the decoder's memory; the worker gives it
+  // back when it is replaced (see `App.renewAhead`).
   images.useOffPageDecoder((bytes) => ahead.decode(bytes));
   // A fourth draws a large picture's full-resolution frames (see `proxy.ts`).
   const full = new FullClient(() => new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
