@@ -1494,6 +1494,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     const renderer = await p.evaluate(() => window.inkwarp.app.gl.cpuDrafts);
     assert(!renderer || drafts.includes('500×375'), `the drafts drawn while dragging are 500×375: ${JSON.stringify(drafts)}`);
     assert(s.fullShown && s.note === '' && !(await p.evaluate(() => document.querySelector('canvas.full').hidden)), `after the settle the full-resolution frame shows, no notice: ${s.note}`);
+    assert(!s.heap || s.heap.wasm < 64, `the photograph was decoded off the page (its decoder's memory is not kept in the page's module): the page's module holds ${s.heap?.wasm} MiB`);
     assert(diff > 3, `the settled frame moved where the drag pulled (mean difference ${diff.toFixed(2)} from the rest picture)`);
     // Playback of the proxy from the fields solved ahead (a proxied scene keeps them
     // packed, in a smaller budget): 2 s played once every frame that fits is solved.
@@ -1536,6 +1537,21 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     await p.keyboard.press('Space');
     perf.photo.playback = { readyFrames, frameTotal, ...played };
     console.log(`  photo playback: ${JSON.stringify(perf.photo.playback)}`);
+    // Memory given back: where the CPU plays the proxy's frames (a software GPU), the fields
+    // solved ahead are kept at the draft mesh's pixels only; once every frame is solved the
+    // ahead worker is replaced by a fresh one (its module memory freed); and a change frees
+    // the stale fields and frames drawn ahead at once.
+    const freed = await p.evaluate(async () => {
+      const { app, store, state } = window.inkwarp;
+      for (let i = 0; i < 40 && !(app.ahead?.renewals > 0); i++) await new Promise((r) => setTimeout(r, 250));
+      const before = { cpu: app.gl.cpuDrafts, renewals: app.ahead?.renewals ?? 0, cacheBytes: app.cache.bytes, frames: app.cache.frames.size, drawn: app.drawnFrames.frames.size };
+      store.edit((d) => state.addFeature(d, 'point', [[400, 400]]).doc);
+      return { ...before, afterEdit: { cacheBytes: app.cache.bytes, drawnBytes: app.drawnFrames.bytes } };
+    });
+    perf.photo.freed = freed;
+    assert(!freed.cpu || (freed.frames >= 40 && freed.cacheBytes < 4 * 2 ** 20), `the proxy's fields solved ahead are kept at the draft mesh's pixels only: ${JSON.stringify(freed)}`);
+    assert(freed.renewals >= 1, `every frame solved ahead, the ahead worker was replaced by a fresh one: ${JSON.stringify(freed)}`);
+    assert(freed.afterEdit.cacheBytes === 0 && freed.afterEdit.drawnBytes === 0, `a change frees the stale fields and frames drawn ahead at once: ${JSON.stringify(freed.afterEdit)}`);
   } finally {
     await context.close();
   }

@@ -3,7 +3,7 @@
 
 import type { Engine, FieldData, SolveFeature, SolveOptions } from './engine';
 import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse, sparseValuesAt } from './gl';
-import { decodeImage, forgetImage, matteFromAlpha, matteFromImage, withAlpha, type Rgba } from './images';
+import { decodeImage, forgetImage, matteFromAlpha, matteFromImage, OFF_PAGE_DECODE_BYTES, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
 import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './scene';
@@ -11,7 +11,7 @@ import type { FieldEvent, FullClient, FullFrame } from './solver';
 import type { DraftDraw } from './protocol';
 import type { SolverClient } from './solver';
 import { PROBE_TOLERANCE_PX, probedFeatures } from './probe';
-import { downscaleMatte, downscaleRgba, packField, proxyFactor, proxySize, toProxy, unpackField, type PackedField } from './proxy';
+import { downscaleMatte, downscaleRgba, type KeptField, keepForPlayback, keptBytes, proxyFactor, proxySize, toProxy, unpackField } from './proxy';
 import { Store } from './state';
 
 /**
@@ -31,11 +31,6 @@ function startsWarm(options: SolveOptions): boolean {
  */
 function sameSources(a: unknown[], b: unknown[]): boolean {
   return a.length === b.length && a.every((v, i) => v === b[i]);
-}
-
-/** The bytes a field kept for playback holds, packed or not. */
-function keptBytes(field: FieldData | PackedField): number {
-  return 'packed' in field ? field.packed.byteLength : 8 * field.width * field.height;
 }
 
 export interface LayerRuntime {
@@ -180,6 +175,8 @@ const SETTLE_MS = 120;
 const DRAWN_BUDGET_BYTES = 96 * 2 ** 20;
 /** How long the editor is left alone (ms) before frames are solved ahead (see `scheduleAhead`). */
 const AHEAD_IDLE_MS = 400;
+/** The ahead worker is replaced by a fresh one once it has nothing to solve and its module holds more than this (see `App.renewAhead`). */
+export const AHEAD_RENEW_BYTES = 64 * 2 ** 20;
 /** The multigrid cycles of one request for a frame solved ahead (it is asked again until it converges). */
 const AHEAD_CYCLES = 2;
 /** A multisampled full frame slower than this (ms) is preceded by a single-sampled one. */
@@ -246,7 +243,7 @@ export class App {
   lastActivityAt = 0;
   lastReport: FieldEvent | null = null;
   /** Full-resolution fields by frame, for the document revision they were solved for. */
-  private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, FieldData | PackedField>>() };
+  private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, KeptField>>() };
 
   /**
    * Draft frames of the playback cache drawn ahead by the draft worker (see `drawAhead`),
@@ -303,6 +300,7 @@ export class App {
     }
     store.subscribe((_, docChanged) => {
       if (docChanged) this.syncLayers();
+      this.dropStale();
       this.scheduleAhead();
       this.requestSolve(this.dragging ? 'draft' : 'final');
       this.invalidate();
@@ -580,16 +578,41 @@ export class App {
     return Math.abs(f - Math.round(f)) < 1e-6 ? Math.round(f) : null;
   }
 
-  private cached(frame: number | null): Map<string, FieldData | PackedField> | undefined {
+  private cached(frame: number | null): Map<string, KeptField> | undefined {
     if (frame === null || this.cache.rev !== this.store.revision) return undefined;
     const fields = this.cache.frames.get(frame);
-    return fields && this.doc.layers.every((l) => !this.runtimes.get(l.name)?.gridReady || fields.has(l.name)) ? fields : undefined;
+    return fields && this.doc.layers.every((l) => {
+      const rt = this.runtimes.get(l.name);
+      if (!rt?.gridReady) return true;
+      const kept = fields.get(l.name);
+      return kept !== undefined && (!('sparse' in kept) || this.showsSparse(rt, kept));
+    }) ? fields : undefined;
+  }
+
+  /**
+   * Whether a field kept at the draft mesh's pixels only (`SparseKept`) can show this
+   * layer's frame now: drawn as a draft by the CPU from the same draft mesh, with no overlay
+   * that needs the whole field and no export (which draws full frames). Else the frame is
+   * solved as if nothing were kept.
+   */
+  private showsSparse(rt: LayerRuntime, kept: { pixels: Uint32Array }): boolean {
+    return !this.exporting && this.gl.cpuDrafts && this.sparseDraft(rt) && !this.store.view.overlays.matte && rt.gl!.cpuDraftGeometry !== null && kept.pixels === rt.gl!.draftPixels;
+  }
+
+  /**
+   * The draft mesh's pixels a proxied scene's fields are kept at for playback (see
+   * `keepForPlayback`), where the CPU draws its played frames; null where the whole field
+   * is kept (a real GPU draws it).
+   */
+  private keptPixels(rt: LayerRuntime | undefined): Uint32Array | null {
+    return rt?.gl && this.gl.cpuDrafts && rt.gl.cpuDraftGeometry !== null && rt.gl.draftPixels.length > 0 ? rt.gl.draftPixels : null;
   }
 
   private remember(frame: number, key: string, solved: FieldData): void {
     if (this.cache.rev !== this.store.revision) this.cache = { rev: this.store.revision, bytes: 0, frames: new Map() };
-    // A proxied scene's fields are kept packed, in a smaller budget (see `packField`).
-    const field = this.proxy > 1 ? packField(solved) ?? solved : solved;
+    // A proxied scene's fields are kept at the draft mesh's pixels where the CPU plays them,
+    // else packed, in a smaller budget (see `keepForPlayback`).
+    const field = keepForPlayback(solved, this.proxy, this.keptPixels(this.runtimes.get(key)));
     const size = keptBytes(field);
     if (this.cache.bytes + size > (this.proxy > 1 ? PROXY_CACHE_BUDGET_BYTES : CACHE_BUDGET_BYTES)) return;
     let fields = this.cache.frames.get(frame);
@@ -597,6 +620,17 @@ export class App {
     const had = fields.get(key);
     this.cache.bytes += size - (had ? keptBytes(had) : 0);
     fields.set(key, field);
+  }
+
+  /**
+   * Frees the fields kept for playback and the frames drawn ahead as soon as a change of the
+   * scene makes them stale (else they stayed until the next field kept or frame drawn ahead,
+   * through a whole drag).
+   */
+  private dropStale(): void {
+    const rev = this.store.revision;
+    if (this.cache.rev !== rev && this.cache.frames.size > 0) this.cache = { rev, bytes: 0, frames: new Map() };
+    if (this.drawnFrames.rev !== rev && this.drawnFrames.frames.size > 0) this.drawnFrames = { rev, spec: '', bytes: 0, frames: new Map() };
   }
 
   /** Which frames have every layer's field cached, so they play at once (the timeline's ready bar). */
@@ -671,10 +705,15 @@ export class App {
   private solveAhead(): void {
     const ahead = this.ahead;
     if (!ahead || ahead.busy || this.dragging || this.store.view.playing) return;
-    if (!this.doc.features.some((f) => (f.keys ?? []).length > 0)) return;
     const now = performance.now();
     if (this.solver.busy || this.drafts?.busy || this.full?.busy || now - this.lastPointerAt < AHEAD_IDLE_MS || now - this.lastActivityAt < AHEAD_IDLE_MS) {
       this.scheduleAhead();
+      return;
+    }
+    if (!this.doc.features.some((f) => (f.keys ?? []).length > 0)) {
+      // Nothing to solve ahead (a picture just opened, say, whose decoding and checking
+      // the ahead worker did).
+      this.renewAhead();
       return;
     }
     for (const frame of this.aheadFrames()) {
@@ -695,6 +734,42 @@ export class App {
       }
       if (asked) return;
     }
+    this.renewAhead();
+  }
+
+  /**
+   * A scene document's problems (`Engine.validate`, which decodes its pictures). A large one
+   * (a photograph's data: URI) is checked by the ahead worker, so the decoder's memory
+   * (about 140 MB for a 4000 × 3000 JPEG) is not kept in the page's module, whose memory
+   * never shrinks; that worker is replaced by a fresh one once the editor is left alone
+   * (`renewAhead`), not now: the scene's grids being built wait for every worker.
+   */
+  async checkScene(doc: unknown): Promise<{ path: string; message: string }[]> {
+    const ahead = this.ahead;
+    if (ahead?.renewable) {
+      const json = JSON.stringify(doc);
+      if (json.length >= OFF_PAGE_DECODE_BYTES) {
+        return ahead.check(json);
+      }
+    }
+    return this.engine.validate(doc);
+  }
+
+  /**
+   * Every frame is solved ahead, or there is none to solve: the ahead worker's module
+   * memory (the proxy's grids and its solves' warm-start history, about 140 MB for a
+   * 4000 × 3000 photograph's proxy, or a picture's decoding, never given back) is freed by
+   * replacing it with a fresh worker holding only the layers' grids. The next change's
+   * frames are solved there, the first from scratch.
+   */
+  private renewAhead(): void {
+    if (this.busy) {
+      // Not while a picture opens or a frame is made: the grids being built wait for every
+      // worker, the fresh one's loading included.
+      this.scheduleAhead();
+      return;
+    }
+    void this.ahead?.renewAbove(AHEAD_RENEW_BYTES);
   }
 
   private fullAsked = '';
@@ -789,7 +864,12 @@ export class App {
       for (const [key, kept] of hit) {
         const rt = this.runtimes.get(key);
         if (!rt?.gl) continue;
-        if (this.playsSparse(rt)) {
+        if ('sparse' in kept) {
+          // Kept at the draft mesh's pixels only (`cached` checked it can be drawn so): a
+          // draft, until the full-resolution frame at rest arrives.
+          rt.field = null;
+          rt.gl.setSparseField(kept.sparse);
+        } else if (this.playsSparse(rt)) {
           // Played as a draft drawn by the CPU: only the draft mesh's pixels of the field
           // are read (see `playsSparse`).
           rt.field = null;
@@ -988,7 +1068,8 @@ export class App {
         const rt = this.runtimes.get(l.key);
         const field = fields.get(l.key);
         if (!rt?.gl || !field || !this.sparseDraft(rt) || !rt.gl.cpuDraftGeometry) return;
-        values[l.key] = sparseValuesAt(rt.gl.draftPixels, field);
+        // A copy: the values go to the worker.
+        values[l.key] = 'sparse' in field ? field.sparse.slice() : sparseValuesAt(rt.gl.draftPixels, field);
       }
       const id = ++this.drawId;
       this.drawingAhead = { id, frame, rev, spec: spec.spec };

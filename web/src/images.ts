@@ -21,9 +21,22 @@ export interface Decoder {
 }
 
 let decoder: Decoder | null = null;
+/** Decodes in a worker (see `useOffPageDecoder`). */
+let offPage: ((bytes: Uint8Array) => Promise<Rgba>) | null = null;
+/**
+ * Pictures of at least this many bytes (a photograph) are decoded off the page where it
+ * can: a 4000 × 3000 JPEG's decoding takes the engine's module memory to about 140 MB, and
+ * a WebAssembly memory never shrinks.
+ */
+export const OFF_PAGE_DECODE_BYTES = 1 << 20;
 
 export function useDecoder(d: Decoder): void {
   decoder = d;
+}
+
+/** Large pictures (`OFF_PAGE_DECODE_BYTES`) are decoded by `decode` (the same engine, in a worker); null: on the page. */
+export function useOffPageDecoder(decode: ((bytes: Uint8Array) => Promise<Rgba>) | null): void {
+  offPage = decode;
 }
 
 const cache = new Map<string, Promise<Rgba>>();
@@ -68,10 +81,10 @@ export async function decodeBlob(blob: Blob, name: string): Promise<Rgba> {
   return decodeBytes(new Uint8Array(await blob.arrayBuffer()), name);
 }
 
-function decodeBytes(bytes: Uint8Array, name: string): Rgba {
+async function decodeBytes(bytes: Uint8Array, name: string): Promise<Rgba> {
   if (!decoder) throw new ImageFileError('The engine is not loaded yet.');
   try {
-    return decoder.decode(bytes);
+    return offPage && bytes.length >= OFF_PAGE_DECODE_BYTES ? await offPage(bytes) : decoder.decode(bytes);
   } catch (err) {
     throw new ImageFileError(`${name} is not an image inkwarp can read (use PNG or JPEG): ${(err as Error).message}`);
   }

@@ -25,8 +25,14 @@ async function start(): Promise<void> {
   const spawn = () => new SolverClient(new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
   const solver = spawn();
   const drafts = spawn();
-  // A third solves the animation's frames ahead while the editor is left alone.
-  const ahead = spawn();
+  // A third solves the animation's frames ahead while the editor is left alone (replaced by
+  // a fresh one once they are all solved: see `App.renewAhead`).
+  const makeWorker = () => new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' });
+  const ahead = new SolverClient(makeWorker(), absWasm, makeWorker);
+  // Large pictures are decoded there too (and large scenes checked, see `App.checkScene`),
+  // not in the page's module, which would keep the decoder's memory; the worker gives it
+  // back when it is replaced (see `App.renewAhead`).
+  images.useOffPageDecoder((bytes) => ahead.decode(bytes));
   // A fourth draws a large picture's full-resolution frames (see `proxy.ts`).
   const full = new FullClient(() => new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' }), absWasm);
   await Promise.all([solver.ready, drafts.ready, ahead.ready, full.ready]);

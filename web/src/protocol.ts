@@ -17,6 +17,10 @@ export type ToWorker =
   | { type: 'full-export' }
   /** How much memory the worker holds (answered by `memory`). */
   | { type: 'memory' }
+  /** A picture file's bytes (or a data: URI's) decoded by the engine (answered by `decoded`). */
+  | { type: 'decode'; id: number; bytes: Uint8Array }
+  /** A scene document (JSON text) checked by the engine, its pictures decoded (answered by `checked`). */
+  | { type: 'check'; id: number; json: string }
   /** The frame of these layers (back to front; `features` null: at rest), solved and drawn at full resolution. */
   | { type: 'full-render'; id: number; width: number; height: number; background: [number, number, number, number]; layers: FullLayerRequest[] }
   /** The pixels a sparse solve computes on this layer's grid (the draft mesh's, see `draftPixels`). */
@@ -99,6 +103,10 @@ export type FromWorker =
   | { type: 'memory'; wasmBytes: number; heapBytes: number | null }
   /** The answer to `draw`, always sent: the frame's pixels (null: a layer's draft geometry was missing, or drawing failed, reported by an `error` first). */
   | { type: 'drawn'; id: number; pixels: Uint8ClampedArray | null }
+  /** The answer to `decode`: straight RGBA8, or null and why the engine could not read it. */
+  | { type: 'decoded'; id: number; image: { width: number; height: number; data: Uint8Array } | null; message?: string }
+  /** The answer to `check`: the scene's problems (none: it is sound). */
+  | { type: 'checked'; id: number; problems: { path: string; message: string }[] }
   /** The answer to `full-export`. */
   | { type: 'full-layers'; layers: { key: string; image: { width: number; height: number; data: Uint8Array }; matte: Uint8Array; cuts: Pt[][] }[] }
   /** A full-resolution frame (straight RGBA8), with the time its solves and its drawing took (ms). */

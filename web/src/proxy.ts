@@ -144,3 +144,51 @@ export function unpackAt(p: PackedField, pixels: Uint32Array): Float32Array {
   }
   return out;
 }
+
+/**
+ * A field kept for playback as its values at a draft mesh's pixels only: all a played
+ * frame of a proxied scene reads where the CPU draws drafts (a few thousand pixels of a
+ * 1000 × 750 proxy: tens of kB a frame where the packed field takes 3 MB).
+ */
+export interface SparseKept {
+  width: number;
+  height: number;
+  /** The draft mesh's pixels the values are at (the layer's `draftPixels` array itself: a new mesh makes it stale). */
+  pixels: Uint32Array;
+  /** (Δx, Δy) pairs at `pixels`, in their order. */
+  sparse: Float32Array;
+}
+
+/** A field kept for playback: whole as floats, packed (`packField`) or at a draft mesh's pixels only (`SparseKept`). */
+export type KeptField = { width: number; height: number; dx: Float32Array; dy: Float32Array } | PackedField | SparseKept;
+
+/**
+ * How a solved field is kept for playback. A proxied scene (`proxy` > 1) whose frames are
+ * played as drafts drawn by the CPU (`draftPixels` given: a software GPU) keeps the values
+ * at the draft mesh's pixels alone; one played on a real GPU, which draws the whole field,
+ * keeps it packed (floats where it cannot be packed); a scene at its own size keeps the floats.
+ */
+export function keepForPlayback(
+  field: { width: number; height: number; dx: Float32Array; dy: Float32Array },
+  proxy: number,
+  draftPixels: Uint32Array | null,
+): KeptField {
+  if (proxy <= 1) return field;
+  if (draftPixels && draftPixels.length > 0) {
+    const sparse = new Float32Array(2 * draftPixels.length);
+    for (let k = 0; k < draftPixels.length; k++) {
+      const i = draftPixels[k];
+      sparse[2 * k] = field.dx[i];
+      sparse[2 * k + 1] = field.dy[i];
+    }
+    return { width: field.width, height: field.height, pixels: draftPixels, sparse };
+  }
+  return packField(field) ?? field;
+}
+
+/** The bytes a kept field holds (the draft mesh's pixels of a `SparseKept` belong to its layer, not counted). */
+export function keptBytes(k: KeptField): number {
+  if ('sparse' in k) return k.sparse.byteLength;
+  if ('packed' in k) return k.packed.byteLength;
+  return k.dx.byteLength + k.dy.byteLength;
+}

@@ -103,14 +103,111 @@ export class SolverClient {
   /** The answers to `draw` (see `draw`). */
   onDrawn: (id: number, pixels: Uint8ClampedArray | null) => void = () => {};
 
-  constructor(worker: Worker, wasmUrl: string) {
+  /**
+   * Each layer's setup in the worker (its grid, the pixels sparse solves compute, its draft
+   * geometry), kept where the worker can be replaced (`renew`) for the fresh one.
+   */
+  private setup = new Map<string, ToWorker[]>();
+  /** While the worker is being replaced (see `renew`): the messages for the fresh one. */
+  private queue: { msg: ToWorker; transfer: Transferable[] }[] | null = null;
+  /** Workers replaced so far (see `renew`). */
+  renewals = 0;
+  /** Pictures being decoded (see `decode`), by request. */
+  private decodes = new Map<number, { resolve: (img: { width: number; height: number; data: Uint8Array }) => void; reject: (e: Error) => void }>();
+  /** Scenes being checked (see `check`), by request. */
+  private checks = new Map<number, (problems: { path: string; message: string }[]) => void>();
+
+  /** `makeWorker`, when given, makes the fresh worker `renew` replaces this one by. */
+  constructor(
+    worker: Worker,
+    private wasmUrl: string,
+    private makeWorker: (() => Worker) | null = null,
+  ) {
     this.worker = worker;
     this.ready = engineReady(worker, (msg) => this.receive(msg));
-    this.send({ type: 'init', wasmUrl });
+    this.worker.postMessage({ type: 'init', wasmUrl } satisfies ToWorker);
   }
 
   private send(msg: ToWorker, transfer: Transferable[] = []): void {
-    this.worker.postMessage(msg, transfer);
+    if (this.makeWorker) this.record(msg);
+    if (this.queue) this.queue.push({ msg, transfer });
+    else this.worker.postMessage(msg, transfer);
+  }
+
+  /** Keeps a layer's setup messages (see `setup`): a new grid starts it again. */
+  private record(msg: ToWorker): void {
+    if (msg.type === 'grid') this.setup.set(msg.key, [msg]);
+    else if (msg.type === 'drop') this.setup.delete(msg.key);
+    else if (msg.type === 'select' || msg.type === 'draft-layer') {
+      const list = (this.setup.get(msg.key) ?? []).filter((m) => m.type !== msg.type);
+      this.setup.set(msg.key, [...list, msg]);
+    }
+  }
+
+  /**
+   * Decodes a picture file's bytes (or a data: URI's) in the worker, as the engine decodes
+   * it (`Engine.decode`); the bytes are handed over. The decoder's memory (about 140 MB of
+   * module memory for a 4000 × 3000 JPEG) is then the worker's, not the page's.
+   */
+  decode(bytes: Uint8Array): Promise<{ width: number; height: number; data: Uint8Array }> {
+    const id = this.nextId++;
+    return new Promise((resolve, reject) => {
+      this.decodes.set(id, { resolve, reject });
+      this.send({ type: 'decode', id, bytes }, [bytes.buffer]);
+    });
+  }
+
+  /**
+   * Checks a scene document in the worker (`Engine.validate`, which decodes its pictures:
+   * a photograph's decoder memory is then the worker's, not the page's).
+   */
+  check(json: string): Promise<{ path: string; message: string }[]> {
+    const id = this.nextId++;
+    return new Promise((resolve) => {
+      this.checks.set(id, resolve);
+      this.send({ type: 'check', id, json });
+    });
+  }
+
+  /** Replaces the worker by a fresh one (`renew`) if its module memory is above `bytes` and it is idle. */
+  async renewAbove(bytes: number): Promise<void> {
+    if (!this.makeWorker || this.busy) return;
+    const m = await this.memory();
+    if (m && m.wasmBytes > bytes && !this.busy) await this.renew();
+  }
+
+  /** Whether the worker can be replaced by a fresh one (`renew`). */
+  get renewable(): boolean {
+    return this.makeWorker !== null;
+  }
+
+  /**
+   * Replaces the worker by a fresh one holding the same layers' setup (their grids, solved
+   * from scratch by the next request): a WebAssembly memory never shrinks, and ending a
+   * worker is the one way to give it back. Only while nothing is solving; requests made
+   * meanwhile wait for the fresh worker.
+   */
+  renew(): Promise<void> {
+    const make = this.makeWorker;
+    if (!make || this.queue || this.busy || this.decodes.size > 0 || this.checks.size > 0) return Promise.resolve();
+    this.queue = [];
+    this.worker.terminate();
+    const fresh = make();
+    this.worker = fresh;
+    const go = (ok: boolean) => {
+      if (ok) this.renewals++;
+      else this.onError(null, 'A solver worker could not be restarted.');
+      // The layers' setup as it is now, then what was asked meanwhile (less the setup itself,
+      // sent already in its newest state).
+      for (const list of this.setup.values()) for (const msg of list) fresh.postMessage(msg);
+      const queued = this.queue ?? [];
+      this.queue = null;
+      for (const q of queued) if (!['grid', 'drop', 'select', 'draft-layer'].includes(q.msg.type)) fresh.postMessage(q.msg, q.transfer);
+      this.pump();
+    };
+    const ready = engineReady(fresh, (msg) => this.receive(msg));
+    fresh.postMessage({ type: 'init', wasmUrl: this.wasmUrl } satisfies ToWorker);
+    return ready.then(() => go(true), () => go(false));
   }
 
   /** (Re)builds a layer's solve domain; resolves with its links (for the renderer). */
@@ -166,7 +263,7 @@ export class SolverClient {
   }
 
   private pump(): void {
-    if (this.inFlight || this.pending.size === 0) return;
+    if (this.inFlight || this.pending.size === 0 || this.queue) return;
     const [key, req] = this.pending.entries().next().value as [string, Request];
     this.pending.delete(key);
     const id = this.nextId++;
@@ -189,6 +286,19 @@ export class SolverClient {
     }
     if (msg.type === 'drawn') {
       this.onDrawn(msg.id, msg.pixels);
+      return;
+    }
+    if (msg.type === 'checked') {
+      const waiter = this.checks.get(msg.id);
+      this.checks.delete(msg.id);
+      waiter?.(msg.problems);
+      return;
+    }
+    if (msg.type === 'decoded') {
+      const waiter = this.decodes.get(msg.id);
+      this.decodes.delete(msg.id);
+      if (msg.image) waiter?.resolve(msg.image);
+      else waiter?.reject(new Error(msg.message ?? 'The picture could not be decoded.'));
       return;
     }
     if (msg.type === 'links') {

@@ -1298,7 +1298,7 @@ export class Ui {
 
   /** Opens a scene document: checks it, loads it, reports problems with their JSON path. */
   async openScene(doc: SceneDoc, name: string, validate = true): Promise<void> {
-    if (validate) this.throwProblems(doc);
+    if (validate) await this.throwProblems(doc);
     this.fileName = name;
     this.app.resetStats();
     this.store.load(doc);
@@ -1317,7 +1317,7 @@ export class Ui {
     } catch (err) {
       throw new SceneFileError(`This is not a JSON file (${(err as Error).message}).`);
     }
-    this.throwProblems(raw);
+    await this.throwProblems(raw);
     const doc = parseScene(text);
     if (!doc.width || !doc.height) {
       const first = doc.layers.find((l) => l.image);
@@ -1328,8 +1328,8 @@ export class Ui {
     await this.openScene(doc, name, false);
   }
 
-  private throwProblems(doc: unknown): void {
-    const problems = this.app.engine.validate(doc);
+  private async throwProblems(doc: unknown): Promise<void> {
+    const problems = await this.app.checkScene(doc);
     if (problems.length) {
       const [first] = problems;
       // Every problem, one a line, so that one round of fixes is enough.

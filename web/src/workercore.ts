@@ -45,7 +45,31 @@ export class SolverWorker {
       }
       const engine = this.engine;
       if (!engine) throw new Error('The engine is not loaded yet.');
-      if (msg.type === 'grid') {
+      if (msg.type === 'decode') {
+        // Always answered (the page waits for it); a trap then restarts the engine (below).
+        let image: { width: number; height: number; data: Uint8Array } | null = null;
+        let message: string | undefined;
+        let trap: unknown = null;
+        try {
+          image = engine.decode(msg.bytes);
+        } catch (err) {
+          message = (err as Error).message ?? String(err);
+          if (err instanceof WebAssembly.RuntimeError) trap = err;
+        }
+        this.post({ type: 'decoded', id: msg.id, image, message }, image ? [image.data.buffer] : []);
+        if (trap) throw trap;
+      } else if (msg.type === 'check') {
+        let problems: { path: string; message: string }[];
+        let trap: unknown = null;
+        try {
+          problems = engine.validate(JSON.parse(msg.json));
+        } catch (err) {
+          problems = [{ path: '', message: (err as Error).message ?? String(err) }];
+          if (err instanceof WebAssembly.RuntimeError) trap = err;
+        }
+        this.post({ type: 'checked', id: msg.id, problems });
+        if (trap) throw trap;
+      } else if (msg.type === 'grid') {
         this.forgetDraft(msg.key);
         this.grids.get(msg.key)?.free();
         const grid = engine.grid(msg.width, msg.height, msg.matte, msg.cuts);

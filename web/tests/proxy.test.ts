@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { PACK_STEPS, downscaleMatte, downscaleRgba, packField, proxyFactor, proxySize, toProxy, unpackField } from '../src/proxy';
+import { PACK_STEPS, downscaleMatte, downscaleRgba, keepForPlayback, keptBytes, packField, proxyFactor, proxySize, toProxy, unpackField } from '../src/proxy';
 
 describe('large pictures: the proxy', () => {
   it('scales a photograph down by a whole factor, and leaves pictures of screen size alone', () => {
@@ -63,5 +63,42 @@ describe('large pictures: the proxy', () => {
     // Beyond ±2047 pixels, or not finite: left as floats.
     expect(packField({ width: 1, height: 1, dx: Float32Array.of(2048), dy: Float32Array.of(0) })).toBeNull();
     expect(packField({ width: 1, height: 1, dx: Float32Array.of(0), dy: Float32Array.of(NaN) })).toBeNull();
+  });
+});
+
+describe('fields kept for playback', () => {
+  const w = 40, h = 30, n = w * h;
+  const dx = new Float32Array(n).map((_, i) => Math.sin(i / 7) * 12.3);
+  const dy = new Float32Array(n).map((_, i) => Math.cos(i / 5) * -4.56);
+  const solved = { width: w, height: h, dx, dy };
+
+  it('a proxied scene played by the CPU keeps the values at the draft mesh\'s pixels only, exactly', () => {
+    const pixels = new Uint32Array([0, 17, 41, n - 1]);
+    const kept = keepForPlayback(solved, 4, pixels);
+    expect('sparse' in kept).toBe(true);
+    if (!('sparse' in kept)) return;
+    expect(kept.pixels).toBe(pixels);
+    expect(Array.from(kept.sparse)).toEqual([...pixels].flatMap((i) => [dx[i], dy[i]]));
+    expect(keptBytes(kept)).toBe(8 * pixels.length);
+  });
+
+  it('a proxied scene on a real GPU (no draft pixels) keeps the whole field, packed', () => {
+    for (const pixels of [null, new Uint32Array(0)]) {
+      const kept = keepForPlayback(solved, 4, pixels);
+      expect('packed' in kept).toBe(true);
+      if (!('packed' in kept)) return;
+      expect(keptBytes(kept)).toBe(4 * n);
+      const back = unpackField(kept);
+      for (let i = 0; i < n; i++) {
+        expect(Math.abs(back.dx[i] - dx[i])).toBeLessThanOrEqual(0.5 / PACK_STEPS);
+        expect(Math.abs(back.dy[i] - dy[i])).toBeLessThanOrEqual(0.5 / PACK_STEPS);
+      }
+    }
+  });
+
+  it('a scene at its own size keeps its floats as they are', () => {
+    const kept = keepForPlayback(solved, 1, new Uint32Array([1, 2]));
+    expect(kept).toBe(solved);
+    expect(keptBytes(kept)).toBe(8 * n);
   });
 });

@@ -6,6 +6,10 @@ import { SolverClient, type FieldEvent } from '../src/solver';
 
 class FakeWorker {
   sent: ToWorker[] = [];
+  terminated = false;
+  terminate(): void {
+    this.terminated = true;
+  }
   private listeners: ((ev: MessageEvent<FromWorker>) => void)[] = [];
   postMessage(msg: ToWorker): void {
     this.sent.push(msg);
@@ -91,5 +95,85 @@ describe('solve timing', () => {
     expect(t.ended - t.began).toBeCloseTo(5, 3);
     expect(t.began).toBeCloseTo(now, 3);
     expect(t.sent).toBeLessThanOrEqual(t.received);
+  });
+});
+
+describe('replacing a solver worker by a fresh one (the ahead worker, once every frame is solved)', () => {
+  it('the fresh worker gets each layer\'s newest setup, then what was asked meanwhile', async () => {
+    const made: FakeWorker[] = [];
+    const make = () => {
+      const w = new FakeWorker();
+      made.push(w);
+      return w as unknown as Worker;
+    };
+    const first = new FakeWorker();
+    const c = new SolverClient(first as unknown as Worker, 'engine.wasm', make);
+    first.reply({ type: 'ready' });
+    await c.ready;
+    expect(c.renewable).toBe(true);
+    void c.setGrid('a', 2, 1, null, []);
+    c.select('a', new Uint32Array([0]));
+    void c.setGrid('a', 3, 1, null, []); // a new grid: the old one and its selection are gone
+    c.select('a', new Uint32Array([1, 2]));
+    void c.setGrid('b', 2, 1, null, []);
+    c.dropGrid('b');
+    // Not while a solve is in flight.
+    c.solve('a', [], {}, { madeAt: 0 });
+    await c.renew();
+    expect(made).toHaveLength(0);
+    first.reply({ type: 'field', id: 1, key: 'a', field, report, ms: 1, gridStep: 1, began: 0, ended: 0 });
+    const renewed = c.renew();
+    expect(first.terminated).toBe(true);
+    expect(made).toHaveLength(1);
+    const fresh = made[0];
+    // Asked while the fresh worker loads: waits for it.
+    c.solve('a', [], {}, { madeAt: 1, n: 1 });
+    expect(fresh.sent.map((m) => m.type)).toEqual(['init']);
+    fresh.reply({ type: 'ready' });
+    await renewed;
+    expect(c.renewals).toBe(1);
+    const setup = fresh.sent.slice(1, 3) as Extract<ToWorker, { type: 'grid' } | { type: 'select' }>[];
+    expect(setup.map((m) => m.type)).toEqual(['grid', 'select']);
+    expect((setup[0] as Extract<ToWorker, { type: 'grid' }>).width).toBe(3);
+    expect(Array.from((setup[1] as Extract<ToWorker, { type: 'select' }>).pixels)).toEqual([1, 2]);
+    expect(fresh.solves()).toHaveLength(1);
+    expect(fresh.sent.length).toBe(4);
+    const got: FieldEvent[] = [];
+    c.onField = (ev) => got.push(ev);
+    fresh.reply({ type: 'field', id: fresh.solves()[0].id, key: 'a', field, report, ms: 1, gridStep: 1, began: 0, ended: 0 });
+    expect(got.map((e) => e.tag.n)).toEqual([1]);
+    expect(c.busy).toBe(false);
+  });
+
+  it('a client without a way to make workers is never replaced', async () => {
+    const { w, c } = await client();
+    expect(c.renewable).toBe(false);
+    await c.renew();
+    expect((w as unknown as { terminated: boolean }).terminated).toBe(false);
+  });
+});
+
+describe('pictures decoded by a solver worker', () => {
+  it('resolves with the picture, rejects with the reason, and the worker is not replaced while one decodes', async () => {
+    const made: FakeWorker[] = [];
+    const first = new FakeWorker();
+    const c = new SolverClient(first as unknown as Worker, 'engine.wasm', () => {
+      const w = new FakeWorker();
+      made.push(w);
+      return w as unknown as Worker;
+    });
+    first.reply({ type: 'ready' });
+    await c.ready;
+    const p = c.decode(new Uint8Array([1, 2, 3]));
+    const asked = first.sent.at(-1) as Extract<ToWorker, { type: 'decode' }>;
+    expect(asked.type).toBe('decode');
+    await c.renew();
+    expect(made).toHaveLength(0);
+    first.reply({ type: 'decoded', id: asked.id, image: { width: 1, height: 1, data: new Uint8Array([9, 8, 7, 6]) } });
+    expect(Array.from((await p).data)).toEqual([9, 8, 7, 6]);
+    const q = c.decode(new Uint8Array([0]));
+    const again = first.sent.at(-1) as Extract<ToWorker, { type: 'decode' }>;
+    first.reply({ type: 'decoded', id: again.id, image: null, message: 'not a PNG or JPEG' });
+    await expect(q).rejects.toThrow('not a PNG or JPEG');
   });
 });

@@ -230,3 +230,21 @@ describe('full-resolution frames (a proxied scene)', () => {
     if (out[0].type === 'error') expect(out[0].message).toMatch(/layer P has no picture/);
   });
 });
+
+describe('pictures decoded in the worker (large ones, off the page)', () => {
+  it('answers with the engine\'s own decoding, and with why when it cannot read the bytes', async () => {
+    const { readFileSync } = await import('node:fs');
+    const bytes = new Uint8Array(readFileSync(new URL('../../examples/face/eyes.png', import.meta.url)));
+    const want = (await loadEngine()).decode(bytes);
+    const [ok] = await send({ type: 'decode', id: 7, bytes: bytes.slice() });
+    expect(ok.type).toBe('decoded');
+    const got = ok as Extract<FromWorker, { type: 'decoded' }>;
+    expect(got.id).toBe(7);
+    expect(got.image && [got.image.width, got.image.height]).toEqual([want.width, want.height]);
+    expect(got.image!.data).toEqual(want.data);
+    const [bad] = await send({ type: 'decode', id: 8, bytes: new Uint8Array([1, 2, 3, 4]) });
+    expect(bad.type).toBe('decoded');
+    expect((bad as Extract<FromWorker, { type: 'decoded' }>).image).toBeNull();
+    expect((bad as Extract<FromWorker, { type: 'decoded' }>).message).toBeTruthy();
+  });
+});
