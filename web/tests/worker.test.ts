@@ -246,5 +246,5 @@ describe('pictures decoded in the worker (large ones, off the page)', () => {
     expect(bad.type).toBe('decoded');
     expect((bad as Extract<FromWorker, { type: 'decoded' }>).image).toBeNull();
     expect((bad as Extract<FromWorker, { type: 'decoded' }>).message).toBeTruthy();
-  });
+  }, 30_000); // two engines compiled and a picture decoded: over the default 5 s on a busy 2-core machine
 });
