@@ -171,6 +171,12 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
         raise ValueError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
 
 
+#: zlib level of every PNG inkwarp writes. Level 1 writes a 12-megapixel photograph's frame
+#: about four times faster than Pillow's default 6, for a file about 15 % larger (the
+#: level OpenCV's ``imwrite`` uses by default too); any reader decodes either.
+PNG_COMPRESS_LEVEL = 1
+
+
 def write_png(path: PathLike, image: ArrayLike) -> None:
     """Write an image as PNG, atomically.
 
@@ -211,7 +217,7 @@ def write_png(path: PathLike, image: ArrayLike) -> None:
     temporary = os.fspath(temp_path(os.path.join(directory, base), ".png"))
     try:
         with open(temporary, "wb") as f:
-            Image.fromarray(rgba).save(f, format="PNG")
+            Image.fromarray(rgba).save(f, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
         os.replace(temporary, target)
     except BaseException:
         try:

@@ -351,11 +351,13 @@ class SpriteSheetWriter(FrameWriter):
     def _commit(self) -> list[Path]:
         from PIL import Image
 
+        from inkwarp.imaging import PNG_COMPRESS_LEVEL
+
         assert self._sheet is not None
         image_temp = _temp_name(self.target, ".png")
         json_temp = _temp_name(self.json_path, ".json")
         self._temps = [image_temp, json_temp]
-        Image.fromarray(self._sheet, "RGBA").save(image_temp, format="PNG", compress_level=6)
+        Image.fromarray(self._sheet, "RGBA").save(image_temp, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
         json_temp.write_text(json.dumps(self.frame_json(), indent=2) + "\n", encoding="utf-8")
         os.replace(image_temp, self.target)
         os.replace(json_temp, self.json_path)

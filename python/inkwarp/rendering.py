@@ -106,10 +106,11 @@ def _write_png_atomic(path: Path, frame: np.ndarray) -> None:
     from PIL import Image
 
     from inkwarp._atomic import temp_path
+    from inkwarp.imaging import PNG_COMPRESS_LEVEL
 
     temp = temp_path(path, ".png")
     try:
-        Image.fromarray(frame, "RGBA").save(temp, format="PNG", compress_level=6)
+        Image.fromarray(frame, "RGBA").save(temp, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
         os.replace(temp, path)
     except BaseException:
         temp.unlink(missing_ok=True)

@@ -234,8 +234,10 @@ class FrameWriter:
 def _save_png(frame: np.ndarray, path: Path | str) -> None:
     from PIL import Image
 
+    from inkwarp.imaging import PNG_COMPRESS_LEVEL
+
     mode = "RGBA" if frame.shape[2] == 4 else "RGB"
-    Image.fromarray(frame, mode).save(path, format="PNG", compress_level=6)
+    Image.fromarray(frame, mode).save(path, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
 
 
 class PngWriter(FrameWriter):
