@@ -947,6 +947,7 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
     await p.keyboard.press('v');
     await drag(p, [100, 300], [130, 290]);
     const before = await p.evaluate(() => JSON.stringify(window.inkwarp.store.doc.features));
+    const viewBefore = await p.evaluate(() => ({ mode: window.inkwarp.store.view.mode, time: window.inkwarp.store.view.time }));
     assert(await p.evaluate(() => window.inkwarp.store.unsaved), 'the edits are unsaved');
     assert(!(await p.evaluate(() => document.querySelector('#undo').disabled)), 'Undo is enabled right after the drag');
     await p.evaluate(() => window.inkwarp.autosave.flush());
@@ -961,6 +962,8 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
     await p.waitForFunction((f) => JSON.stringify(window.inkwarp.store.doc.features) === f, before, { timeout: 10000 });
     const shown = await p.evaluate(() => ({ unsaved: window.inkwarp.store.unsaved, images: window.inkwarp.store.doc.layers.every((l) => !l.image || l.image.startsWith('data:')) }));
     assert(shown.unsaved && shown.images, `restored unsaved, with its images: ${JSON.stringify(shown)}`);
+    const viewAfter = await p.evaluate(() => ({ mode: window.inkwarp.store.view.mode, time: window.inkwarp.store.view.time }));
+    assert(viewBefore.mode === 'pose' && JSON.stringify(viewAfter) === JSON.stringify(viewBefore), `restored in the mode and at the time it was left: ${JSON.stringify([viewBefore, viewAfter])}`);
     // Opening over unsaved work asks; declined, nothing changes.
     p.declineDialogs = true;
     p.dialogs.length = 0;

@@ -5,6 +5,7 @@
 // page uses IndexedDB, where a scene with photographs (tens of megabytes) fits.
 
 import type { SceneDoc } from './scene';
+import type { Mode } from './state';
 
 /** What is kept: the document, what it was called, and when and whether it was saved. */
 export interface Snapshot {
@@ -14,6 +15,14 @@ export interface Snapshot {
   savedAt: number;
   /** Whether it holds changes that were not saved to a file. */
   unsaved: boolean;
+  /** Where the editor was (rest or pose mode, the time), restored with the scene. */
+  view?: KeptView;
+}
+
+/** The part of the editor's view a snapshot keeps. */
+export interface KeptView {
+  mode: Mode;
+  time: number;
 }
 
 /** A place that holds one snapshot. */
@@ -133,7 +142,7 @@ export class Autosaver {
 
   constructor(
     private store: SnapshotStore,
-    private current: () => { doc: SceneDoc; fileName: string; unsaved: boolean },
+    private current: () => { doc: SceneDoc; fileName: string; unsaved: boolean; view?: KeptView },
     private inline: Inliner,
     private delayMs = 800,
     private onError: (err: Error) => void = () => {},
@@ -161,11 +170,11 @@ export class Autosaver {
       this.timer = null;
     }
     this.writing = this.writing.then(async () => {
-      const { doc, fileName, unsaved } = this.current();
+      const { doc, fileName, unsaved, view } = this.current();
       try {
         const inlined = await inlineImages(doc, this.inline);
         const savedAt = this.now();
-        await this.store.put({ doc: inlined, fileName, savedAt, unsaved });
+        await this.store.put({ doc: inlined, fileName, savedAt, unsaved, ...(view ? { view } : {}) });
         this.lastSavedAt = savedAt;
         this.reported = false;
       } catch (err) {

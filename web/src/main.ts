@@ -80,7 +80,7 @@ async function keepWork(store: Store, ui: Ui, offer: boolean): Promise<void> {
   }
   const saver = new Autosaver(
     kept,
-    () => ({ doc: store.doc, fileName: ui.fileName, unsaved: store.unsaved }),
+    () => ({ doc: store.doc, fileName: ui.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time } }),
     fetchDataUri,
     800,
     (err) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error'),
@@ -89,6 +89,8 @@ async function keepWork(store: Store, ui: Ui, offer: boolean): Promise<void> {
   if (previous?.unsaved && (await ui.offerRestore(restoreQuestion(previous)))) {
     try {
       await ui.openScene(previous.doc, previous.fileName);
+      // Back where the editor was: pose mode stays pose mode, at the same time.
+      if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
       store.markUnsaved();
       ui.message(`Restored the scene from ${clockTime(previous.savedAt)}.`, 'info');
     } catch (err) {

@@ -27,7 +27,8 @@ describe('autosave', () => {
     try {
       const kept = new MemoryStore();
       const store = new Store(scene());
-      const saver = new Autosaver(kept, () => ({ doc: store.doc, fileName: 'x.json', unsaved: store.unsaved }), async () => 'data:,', 500, undefined, () => 1234);
+      const saver = new Autosaver(kept, () => ({ doc: store.doc, fileName: 'x.json', unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time } }), async () => 'data:,', 500, undefined, () => 1234);
+      store.setView({ mode: 'pose', time: 0.5 });
       const put = vi.spyOn(kept, 'put');
       store.subscribe((_, changed) => changed && saver.changed());
       store.edit((d) => ({ ...d, fps: 12 }));
@@ -42,6 +43,7 @@ describe('autosave', () => {
       expect(kept.value?.unsaved).toBe(true);
       expect(kept.value?.savedAt).toBe(1234);
       expect(saver.lastSavedAt).toBe(1234);
+      expect(kept.value?.view).toEqual({ mode: 'pose', time: 0.5 });
     } finally {
       vi.useRealTimers();
     }
