@@ -376,30 +376,20 @@ pub(crate) fn solve_constrained(
     // shares its step lengths between them, and a piece whose start is far off holds
     // back the others and fools the stopping rule).
     let mut boxes = vec![[usize::MAX, usize::MAX, 0, 0]; count];
-    if count == 1 && matches!(pieces[0], Piece::Line { .. } | Piece::General) {
-        // One piece to solve (most grids): its box is that of the active nodes.
-        for (y, row) in grid.active.chunks_exact(w).enumerate() {
-            if let (Some(a), Some(b)) = (row.iter().position(|&a| a), row.iter().rposition(|&a| a)) {
-                let bx = &mut boxes[0];
-                *bx = [bx[0].min(a), bx[1].min(y), bx[2].max(b + 1), bx[3].max(y + 1)];
+    for (y, row) in labels.chunks_exact(w).enumerate() {
+        for (x, &l) in row.iter().enumerate() {
+            if l == u32::MAX {
+                continue;
             }
-        }
-    } else {
-        for (y, row) in labels.chunks_exact(w).enumerate() {
-            for (x, &l) in row.iter().enumerate() {
-                if l == u32::MAX {
-                    continue;
+            match pieces[l as usize] {
+                Piece::Zero => {}
+                Piece::Translate(v) => {
+                    field.dx[y * w + x] = v[0] as f32;
+                    field.dy[y * w + x] = v[1] as f32;
                 }
-                match pieces[l as usize] {
-                    Piece::Zero => {}
-                    Piece::Translate(v) => {
-                        field.dx[y * w + x] = v[0] as f32;
-                        field.dy[y * w + x] = v[1] as f32;
-                    }
-                    Piece::Line { .. } | Piece::General => {
-                        let b = &mut boxes[l as usize];
-                        *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
-                    }
+                Piece::Line { .. } | Piece::General => {
+                    let b = &mut boxes[l as usize];
+                    *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
                 }
             }
         }
