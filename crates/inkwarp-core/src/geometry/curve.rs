@@ -118,11 +118,6 @@ impl Curve {
         self.spans.len()
     }
 
-    /// Whether the curve closes back on its first control point.
-    pub fn is_closed(&self) -> bool {
-        self.closed
-    }
-
     /// The point at parameter `u ∈ [0, 1]` of span `span`.
     ///
     /// # Panics

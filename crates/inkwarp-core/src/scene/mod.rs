@@ -707,11 +707,6 @@ impl Scene {
         &self.layers
     }
 
-    /// The index of the layer called `name`.
-    pub fn layer_index(&self, name: &str) -> Option<usize> {
-        self.layers.iter().position(|l| l.name == name)
-    }
-
     pub(crate) fn tracks(&self) -> &[Track] {
         &self.tracks
     }

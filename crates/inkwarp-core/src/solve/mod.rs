@@ -376,30 +376,20 @@ pub(crate) fn solve_constrained(
     // shares its step lengths between them, and a piece whose start is far off holds
     // back the others and fools the stopping rule).
     let mut boxes = vec![[usize::MAX, usize::MAX, 0, 0]; count];
-    if count == 1 && matches!(pieces[0], Piece::Line { .. } | Piece::General) {
-        // One piece to solve (most grids): its box is that of the active nodes.
-        for (y, row) in grid.active.chunks_exact(w).enumerate() {
-            if let (Some(a), Some(b)) = (row.iter().position(|&a| a), row.iter().rposition(|&a| a)) {
-                let bx = &mut boxes[0];
-                *bx = [bx[0].min(a), bx[1].min(y), bx[2].max(b + 1), bx[3].max(y + 1)];
+    for (y, row) in labels.chunks_exact(w).enumerate() {
+        for (x, &l) in row.iter().enumerate() {
+            if l == u32::MAX {
+                continue;
             }
-        }
-    } else {
-        for (y, row) in labels.chunks_exact(w).enumerate() {
-            for (x, &l) in row.iter().enumerate() {
-                if l == u32::MAX {
-                    continue;
+            match pieces[l as usize] {
+                Piece::Zero => {}
+                Piece::Translate(v) => {
+                    field.dx[y * w + x] = v[0] as f32;
+                    field.dy[y * w + x] = v[1] as f32;
                 }
-                match pieces[l as usize] {
-                    Piece::Zero => {}
-                    Piece::Translate(v) => {
-                        field.dx[y * w + x] = v[0] as f32;
-                        field.dy[y * w + x] = v[1] as f32;
-                    }
-                    Piece::Line { .. } | Piece::General => {
-                        let b = &mut boxes[l as usize];
-                        *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
-                    }
+                Piece::Line { .. } | Piece::General => {
+                    let b = &mut boxes[l as usize];
+                    *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
                 }
             }
         }
@@ -456,14 +446,20 @@ pub(crate) fn solve_constrained(
             }
             f
         };
-        let null = if open { Some(Vec::new()) } else { piece_null_space(&links, bw, bh, &constrained_only) };
+        // (`None` when there are too many to settle.)
+        let geo = (!open).then(|| links.vectors(bw, bh));
+        let null = match &geo {
+            Some([active, right, down]) => nullspace::plate_null_space(&nullspace::BoxGeo { w: bw, h: bh, active, right, down }, &constrained_only),
+            None => Some(Vec::new()),
+        };
         let links_again = (!open).then(|| links.clone());
         let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), off: options.off };
         let start = initial.map(|f| Start { field: f, x0, y0 });
         let (mut u, mut r) = solve_piece(key, &value, start, options, store);
-        if let (Some(basis), Some(links)) = (&null, links_again) {
+        if let (Some(basis), Some(links), Some([active, right, down])) = (&null, links_again, &geo) {
             if !basis.is_empty() && !(gauge.is_some() && basis.len() == 1) {
-                let (uu, rr) = settle_null_space(links, bw, bh, tau, fixed, &constrained_only, &value, basis, u, r, options, store);
+                let geo = nullspace::BoxGeo { w: bw, h: bh, active, right, down };
+                let (uu, rr) = settle_null_space(links, &geo, tau, fixed, &constrained_only, &value, basis, u, r, options, store);
                 (u, r) = (uu, rr);
             }
         } else if null.is_none() {
@@ -535,13 +531,6 @@ pub(crate) fn solve_constrained(
     (field, report)
 }
 
-/// The null space of a piece's constrained plate operator on its box ([`nullspace`]), or
-/// `None` when it is too large to settle.
-fn piece_null_space(links: &BoxLinks, w: usize, h: usize, fixed: &[bool]) -> Option<Vec<nullspace::Sparse>> {
-    let [active, right, down] = links.vectors(w, h);
-    nullspace::plate_null_space(&nullspace::BoxGeo { w, h, active: &active, right: &right, down: &down }, fixed)
-}
-
 /// Brings a piece's iterated answer `u` to the contract where its plate operator has free
 /// functions `basis` (zero on the constrained nodes): at τ = 0 the least-membrane plate
 /// minimiser; at τ > 0 exact Galerkin corrections in their span, each followed by more
@@ -549,8 +538,7 @@ fn piece_null_space(links: &BoxLinks, w: usize, h: usize, fixed: &[bool]) -> Opt
 #[allow(clippy::too_many_arguments)]
 fn settle_null_space(
     links: BoxLinks,
-    w: usize,
-    h: usize,
+    geo: &nullspace::BoxGeo,
     tau: f64,
     fixed: Vec<bool>,
     constrained: &[bool],
@@ -561,22 +549,21 @@ fn settle_null_space(
     options: &SolveOptions,
     store: &mut Store,
 ) -> (BoxValues, SolveReport) {
-    let [active, right, down] = links.vectors(w, h);
-    let geo = nullspace::BoxGeo { w, h, active: &active, right: &right, down: &down };
+    let (w, h, active) = (geo.w, geo.h, geo.active);
     let mut dense: Vec<V2> = (0..h).flat_map(|y| u.row(y, w).to_vec()).collect();
-    for (d, &a) in dense.iter_mut().zip(&active) {
+    for (d, &a) in dense.iter_mut().zip(active) {
         if !a {
             *d = [0.0; 2];
         }
     }
     if tau == 0.0 {
-        nullspace::least_membrane(&geo, basis, &mut dense);
+        nullspace::least_membrane(geo, basis, &mut dense);
         return (BoxValues { values: dense, stride: w, first: 0 }, report);
     }
     const ROUNDS: usize = 8;
     let mut settled = false;
     for _ in 0..ROUNDS {
-        let moved = nullspace::galerkin(&geo, tau, constrained, basis, &mut dense);
+        let moved = nullspace::galerkin(geo, tau, constrained, basis, &mut dense);
         if moved <= options.tolerance_px * 0.25 {
             settled = report.converged;
             break;

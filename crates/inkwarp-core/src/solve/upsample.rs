@@ -22,7 +22,7 @@
 //! taps per pixel), and only for cells whose window a missing link or an inactive pixel
 //! touches, so the other pixels (all of an open grid) take every tap as before; the
 //! bilinear fallback is only computed where the cubic weights fail; rows and the touched
-//! cells are done in parallel on large grids; and the fill along the links starts only from
+//! cells are done in parallel; and the fill along the links starts only from
 //! the resolved pixels next to unresolved ones. A test holds it to the straightforward
 //! per-pixel loop (to within the rounding of the sums' order).
 
@@ -37,9 +37,6 @@ use crate::grid::{constrain, nearest_node, Constraints, Grid};
 
 use super::history::{solve_from, WarmHistory};
 use super::{in_pool, validate, SolveError, SolveOptions, SolveReport, Solver};
-
-/// Grids with at least this many pixels are upsampled with rows in parallel.
-const PARALLEL_PIXELS: usize = 1 << 15;
 
 /// The solve at `grid_step = s > 1`: on the coarse grid, from `initial` read at the coarse
 /// nodes, or from `history`, which keeps the coarse fields (only their coarse nodes' values
@@ -522,15 +519,8 @@ fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec
     };
     let broken: Vec<usize> = (0..cw * ch).filter(|&k| near_touched(k)).collect();
     let mut masks: Vec<CellMasks> = vec![CellMasks::default(); cw * ch];
-    let computed: Vec<CellMasks> = if layout.w * layout.h >= PARALLEL_PIXELS {
-        broken
-            .par_iter()
-            .map_init(|| (Vec::new(), Vec::new()), |(label, stack), &k| cell_masks(grid, layout, k % cw, k / cw, label, stack))
-            .collect()
-    } else {
-        let (mut label, mut stack) = (Vec::new(), Vec::new());
-        broken.iter().map(|&k| cell_masks(grid, layout, k % cw, k / cw, &mut label, &mut stack)).collect()
-    };
+    let computed: Vec<CellMasks> =
+        broken.par_iter().map_init(|| (Vec::new(), Vec::new()), |(label, stack), &k| cell_masks(grid, layout, k % cw, k / cw, label, stack)).collect();
     for (&k, m) in broken.iter().zip(computed) {
         masks[k] = m;
     }
@@ -679,26 +669,15 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
 
     let mut field = Field::zeros(w, h);
     let mut resolved = vec![false; w * h];
-    let rows_of = |field: &mut Field, resolved: &mut [bool]| {
-        let (fdx, fdy) = (&mut field.dx, &mut field.dy);
-        if w * h >= PARALLEL_PIXELS {
-            fdx.par_chunks_mut(w)
-                .zip(fdy.par_chunks_mut(w))
-                .zip(resolved.par_chunks_mut(w))
-                .enumerate()
-                .map_init(Vec::new, |along, (y, ((dx, dy), r))| upsample_row(y, dx, dy, r, along))
-                .sum::<usize>()
-        } else {
-            let mut along = Vec::new();
-            fdx.chunks_mut(w)
-                .zip(fdy.chunks_mut(w))
-                .zip(resolved.chunks_mut(w))
-                .enumerate()
-                .map(|(y, ((dx, dy), r))| upsample_row(y, dx, dy, r, &mut along))
-                .sum::<usize>()
-        }
-    };
-    if rows_of(&mut field, &mut resolved) == 0 {
+    let unresolved: usize = field
+        .dx
+        .par_chunks_mut(w)
+        .zip(field.dy.par_chunks_mut(w))
+        .zip(resolved.par_chunks_mut(w))
+        .enumerate()
+        .map_init(Vec::new, |along, (y, ((dx, dy), r))| upsample_row(y, dx, dy, r, along))
+        .sum();
+    if unresolved == 0 {
         return field;
     }
     // Pixels left over: nearest resolved value along the links, breadth first from the
@@ -1080,10 +1059,8 @@ mod tests {
 
     #[test]
     fn rows_in_parallel_give_the_same_field() {
-        // Large enough for the parallel path, with holes, a cut and a slot thinner than a
-        // coarse cell.
+        // Many rows over the threads, with holes, a cut and a slot thinner than a coarse cell.
         let (w, h, s) = (301, 187, 8);
-        assert!(w * h >= PARALLEL_PIXELS);
         let (mut grid, fc, samples) = case(w, h, s, 0.02, 0.01, 99);
         grid.add_cut(&[[150.5, 10.0], [150.5, 170.0]]);
         for x in 40..200 {
