@@ -365,10 +365,7 @@ pub(crate) fn solve_constrained(
     // labels.
     let (labels, count, open) = grid.pieces_and_open();
     let pieces = classify(grid, &labels, count, constraints, tau);
-    // There, a solved piece's answer is every node's: the field is written whole below,
-    // with no pass to zero it first (at 513 × 513 about a tenth of a millisecond).
-    let whole = open && matches!(pieces[0], Piece::General);
-    let mut field = if whole { Field { width: w, height: h, dx: Vec::new(), dy: Vec::new() } } else { Field::zeros(w, h) };
+    let mut field = Field::zeros(w, h);
 
     // Each piece is a problem of its own: translated pieces take their constraint, and
     // the others are solved one by one, each on the box around it (its own hierarchy,
@@ -475,25 +472,6 @@ pub(crate) fn solve_constrained(
                     }
                 }
             }
-        } else if whole {
-            // Four rows a task at least, and no labels read (every node is the piece's).
-            let (mut dx, mut dy) = (Vec::with_capacity(n), Vec::with_capacity(n));
-            let (sx, sy) = (&mut dx.spare_capacity_mut()[..n], &mut dy.spare_capacity_mut()[..n]);
-            sx.par_chunks_mut(w).zip(sy.par_chunks_mut(w)).enumerate().with_min_len(4).for_each(|(y, (dx, dy))| {
-                for ((dx, dy), v) in dx.iter_mut().zip(dy.iter_mut()).zip(u.row(y, w)) {
-                    dx.write(v[0] as f32);
-                    dy.write(v[1] as f32);
-                }
-            });
-            // SAFETY: both vectors have capacity for `n = w · h` values, and the loop above
-            // wrote every one of them: `h` rows of `w`, each zipped with a row of the box
-            // (which is the grid, `w` wide), whose `row` is `w` values long.
-            #[allow(unsafe_code)]
-            unsafe {
-                dx.set_len(n);
-                dy.set_len(n);
-            }
-            (field.dx, field.dy) = (dx, dy);
         } else {
             let span = y0 * w..(y0 + bh) * w;
             let (dx, dy) = (&mut field.dx[span.clone()], &mut field.dy[span]);
