@@ -120,9 +120,7 @@ impl WarmHistory {
     /// nearly parallel, as a drag's first short step beside a probe: see the editor), the
     /// least-squares fits through fewer frames are weighed instead, each by its miss at
     /// the constrained nodes (root mean square) plus the earlier solves' errors it
-    /// amplifies (`Σ|αᵢ|` times [`FRAME_ERROR_PX`]). Falling back to the latest frame
-    /// there, as before, started such a drag tens of pixels from its answer (14 cycles
-    /// on the editor's measured scene, 4 now).
+    /// amplifies (`Σ|αᵢ|` times [`FRAME_ERROR_PX`]).
     fn fit(&self, target: &[[f64; 2]], q: usize) -> Option<[f64; HISTORY_FRAMES]> {
         let k = self.entries.len();
         let mut g = [[0.0f64; HISTORY_FRAMES]; HISTORY_FRAMES];

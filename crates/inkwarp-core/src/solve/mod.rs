@@ -230,8 +230,7 @@ pub fn solve(
 }
 
 /// [`solve`] from a start read in place, planar or interleaved (the Python binding's
-/// numpy start: converting it to a [`Field`] first cost a quarter of a millisecond at
-/// 513 × 513).
+/// numpy start, not converted to a [`Field`] first).
 pub fn solve_from_view(
     grid: &Grid,
     samples: &[Sample],
