@@ -560,39 +560,27 @@ impl Banded {
         let n = map.len();
         // In row-major order a 5 × 5 stencil reaches at most 2 rows ahead: bandwidth ≤ 2w + 2.
         let mut bw = 0;
-        let wp = level.wp;
         let mut l = Vec::new();
         let mut dropped = vec![false; n];
         if n > 0 {
             for (k, &p) in map.iter().enumerate() {
-                let row = level.row(p);
-                for dy in 0..5 {
-                    for dx in 0..5 {
-                        if row[dy * 5 + dx] != 0.0 {
-                            let q = p + dy * wp + dx - 2 * wp - 2;
-                            if number[q] != usize::MAX && number[q] < k {
-                                bw = bw.max(k - number[q]);
-                            }
-                        }
+                level.taps(p, |q, _| {
+                    if number[q] != usize::MAX && number[q] < k {
+                        bw = bw.max(k - number[q]);
                     }
-                }
+                });
             }
             let width = bw + 1;
             l = vec![0.0; n * width];
             let mut diag0 = vec![0.0; n];
             for (k, &p) in map.iter().enumerate() {
-                let row = level.row(p);
-                for dy in 0..5 {
-                    for dx in 0..5 {
-                        let a = row[dy * 5 + dx];
-                        let q = p + dy * wp + dx - 2 * wp - 2;
-                        if a != 0.0 && number[q] != usize::MAX && number[q] <= k {
-                            let j = number[q];
-                            l[k * width + (j + bw - k)] = a;
-                        }
+                level.taps(p, |q, a| {
+                    if number[q] != usize::MAX && number[q] <= k {
+                        let j = number[q];
+                        l[k * width + (j + bw - k)] = a;
                     }
-                }
-                diag0[k] = row[12];
+                });
+                diag0[k] = level.row(p)[12];
             }
             for k in 0..n {
                 let j0 = k.saturating_sub(bw);
