@@ -41,8 +41,6 @@ pub(crate) struct Hierarchy {
     pub alt: Option<Box<Hierarchy>>,
     /// Whether the finest level has holes or cuts (see [`super::level::Geometry::torn`]).
     pub torn: bool,
-    /// An extra coarse space along cuts, solved exactly before each cycle.
-    pub deflation: Option<super::deflate::Deflation>,
     /// K-cycle coarse corrections that took their first step alone (see
     /// [`K_SECOND_STEP`]), since the hierarchy was built.
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
@@ -114,7 +112,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None, second_steps_skipped: Default::default() }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default() }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
@@ -131,20 +129,11 @@ impl Hierarchy {
     /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `work[0].f`.
     fn cycle_from_zero(&mut self, r: &[V2]) -> &[W2] {
         let mut work = std::mem::take(&mut self.work);
-        // With the extra space along tears: its exact part first, the cycle on the rest.
-        let c = self.deflation.as_ref().map(|d| {
-            let c = d.coefficients(r);
-            d.remove(&mut work[0].f, &c);
-            c
-        });
         self.clear_start(0, &mut work[0].x);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
         self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
         if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
             a.work = w;
-        }
-        if let (Some(d), Some(c)) = (&self.deflation, &c) {
-            d.add(&mut work[0].x, c);
         }
         self.work = work;
         &self.work[0].x[..r.len()]

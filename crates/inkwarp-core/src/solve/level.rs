@@ -400,9 +400,6 @@ pub(crate) struct Geometry {
     /// The rows that reach past the 2 × 2 corners (linear extrapolation at a missing link),
     /// by node index, sorted: weights on the 4 × 4 window of [`Geometry::geo_row`].
     pub ext: Vec<(u32, [f64; 16])>,
-    /// Nodes within [`TIP_REACH`] coarse nodes of a tip (see [`Geometry::tips`]): their rows
-    /// extrapolate a constant at a missing link.
-    pub near_tip: Vec<bool>,
     /// `plain_rows[y]`: every node of row y is active and its geometric row is the plain
     /// bilinear one (whether or not it is fixed), so transfers can run the plain formulas
     /// (see [`restrict`] and [`prolong_add_scaled`]). Filled by [`Geometry::with_rows`].
@@ -457,7 +454,7 @@ impl Geometry {
 
     /// A geometry with its prolongation rows filled in.
     pub fn new(w: usize, h: usize, active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, fixed: Option<Vec<bool>>) -> Geometry {
-        Geometry { w, h, active, right, down, fixed, prow: Vec::new(), ext: Vec::new(), plain_rows: Vec::new(), near_tip: Vec::new() }.with_rows()
+        Geometry { w, h, active, right, down, fixed, prow: Vec::new(), ext: Vec::new(), plain_rows: Vec::new() }.with_rows()
     }
 
     /// The next coarser geometry: node (X, Y) sits on (2X, 2Y); two coarse neighbours are
@@ -497,7 +494,6 @@ impl Geometry {
     /// Fills the table of prolongation rows. Every weight of a 2 × 2 row is a multiple of
     /// 1/24 (halves, and averages of up to four halves), so the table is exact.
     fn with_rows(mut self) -> Geometry {
-        self.near_tip = self.tips();
         let mut prow = vec![[0u8; 4]; self.w * self.h];
         let mut ext = Vec::new();
         let mut plain_rows = vec![true; self.h];
@@ -529,30 +525,6 @@ impl Geometry {
         self.ext = ext;
         self.plain_rows = plain_rows;
         self
-    }
-
-    /// The nodes within `2 k` nodes (k coarse nodes, k = [`TIP_REACH`]) of a tip: a cell
-    /// (the square between four nodes) with an odd number of missing links among its four
-    /// sides, where a chain of missing links (a cut, the rim of a gap) ends or branches.
-    fn tips(&self) -> Vec<bool> {
-        let (w, h) = (self.w, self.h);
-        let mut near = vec![false; w * h];
-        let r = 2 * tip_reach();
-        if r == 0 || w < 2 || h < 2 {
-            return near;
-        }
-        for cy in 0..h - 1 {
-            for cx in 0..w - 1 {
-                let i = self.idx(cx, cy);
-                let missing = [self.right[i], self.right[i + w], self.down[i], self.down[i + 1]].iter().filter(|&&l| !l).count();
-                if missing % 2 == 1 {
-                    for y in cy.saturating_sub(r)..=(cy + 1 + r).min(h - 1) {
-                        near[y * w + cx.saturating_sub(r)..=y * w + (cx + 1 + r).min(w - 1)].fill(true);
-                    }
-                }
-            }
-        }
-        near
     }
 
     /// Link-aware prolongation row of node (x, y), ignoring whether the node is fixed:
@@ -653,24 +625,20 @@ impl Geometry {
         let i = self.idx(x, y);
         let left = self.right[i - 1];
         let right = x + 1 == self.w || self.right[i];
-        // Linear where the node below misses its right link too (as measured in
-        // docs/dev/coarse-space.md) and two more links run away from the gap.
-        let w = self.w;
-        let straight = lin && !self.near_tip[i] && (no_straight_test() || y + 1 == self.h || !self.right[i + w]);
-        let far_left = straight && x >= 3 && self.right[i - 2] && self.right[i - 3];
-        let far_right = straight && x + 3 < self.w && self.right[i + 1] && self.right[i + 2];
+        // Linear across a cut (the node beyond the gap active) where two more links run
+        // away from it.
+        let far_left = lin && x >= 3 && x + 1 < self.w && self.active[i + 1] && self.right[i - 2] && self.right[i - 3];
+        let far_right = lin && x + 3 < self.w && self.active[i - 1] && self.right[i + 1] && self.right[i + 2];
         extend(&mut r[oy * 4 + 4..oy * 4 + 8], left, right, far_left, far_right);
     }
 
-    /// The same along column x, into the window column `ox` (linear where the node to the
-    /// right misses its down link too).
+    /// The same along column x, into the window column `ox`.
     fn along_column(&self, x: usize, y: usize, ox: usize, r: &mut [f64; 16], lin: bool) {
         let (i, w) = (self.idx(x, y), self.w);
         let up = self.down[i - w];
         let down = y + 1 == self.h || self.down[i];
-        let straight = lin && !self.near_tip[i] && (no_straight_test() || x + 1 == w || !self.down[i + 1]);
-        let far_up = straight && y >= 3 && self.down[i - 2 * w] && self.down[i - 3 * w];
-        let far_down = straight && y + 3 < self.h && self.down[i + w] && self.down[i + 2 * w];
+        let far_up = lin && y >= 3 && y + 1 < self.h && self.active[i + w] && self.down[i - 2 * w] && self.down[i - 3 * w];
+        let far_down = lin && y + 3 < self.h && self.active[i - w] && self.down[i + w] && self.down[i + 2 * w];
         let mut col = [0.0; 4];
         extend(&mut col, up, down, far_up, far_down);
         for (k, v) in col.into_iter().enumerate() {
@@ -734,19 +702,6 @@ impl Geometry {
 }
 
 
-
-/// How many coarse nodes from a tip a row keeps constant extrapolation.
-const TIP_REACH: usize = 2;
-
-fn tip_reach() -> usize {
-    static K: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-    *K.get_or_init(|| std::env::var("INKWARP_TIP_K").ok().and_then(|v| v.parse().ok()).unwrap_or(TIP_REACH))
-}
-
-fn no_straight_test() -> bool {
-    static K: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *K.get_or_init(|| std::env::var_os("INKWARP_TIP_A").is_some())
-}
 
 /// The code in [`Geometry::prow`] of a row stored in [`Geometry::ext`].
 const EXT: u8 = u8::MAX;
@@ -1059,7 +1014,7 @@ impl Level {
 
     /// The same level with the prolongation of a geometry whose wide holes are filled: each
     /// component of inactive nodes that does not touch the border and is not thin (more
-    /// than four nodes per link to an active node, as [`super::deflate`] counts them) made
+    /// than four nodes per link to an active node, see [`Geometry::holes`]) made
     /// active and linked to everything around it. The operator stays the level's own and
     /// the rows of the inactive and fixed nodes stay zero, so every coarser level (built
     /// from this geometry) still holds the exact energy of its functions on the real
