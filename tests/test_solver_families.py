@@ -336,11 +336,6 @@ def grid_problem(n: int, hole: bool, cut: bool):
     return pts, disp, mask, cuts
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "open (issue 42 item 1): cycles still grow on cuts (cut 14/16/54, hole+cut 14/15/42 at "
-    "257/513/1025; the hole alone 8/9/10); linear extrapolation at missing links alone was "
-    "measured not enough, nor with the tips' coarse taps past 5 x 5 kept exact (cut 45, hole+cut 37 "
-    "at 1025); docs/dev/coarse-space.md"))
 def test_cycles_do_not_grow_with_the_grid():
     table = {}
     for name, hole, cut in [("open", False, False), ("hole", True, False), ("cut", False, True), ("hole+cut", True, True)]:

@@ -41,8 +41,6 @@ pub(crate) struct Hierarchy {
     pub alt: Option<Box<Hierarchy>>,
     /// Whether the finest level has holes or cuts (see [`super::level::Geometry::torn`]).
     pub torn: bool,
-    /// An extra coarse space along cuts, solved exactly before each cycle.
-    pub deflation: Option<super::deflate::Deflation>,
     /// K-cycle coarse corrections that took their first step alone (see
     /// [`K_SECOND_STEP`]), since the hierarchy was built.
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
@@ -114,7 +112,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, deflation: None, second_steps_skipped: Default::default() }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default() }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
@@ -131,20 +129,11 @@ impl Hierarchy {
     /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `work[0].f`.
     fn cycle_from_zero(&mut self, r: &[V2]) -> &[W2] {
         let mut work = std::mem::take(&mut self.work);
-        // With the extra space along tears: its exact part first, the cycle on the rest.
-        let c = self.deflation.as_ref().map(|d| {
-            let c = d.coefficients(r);
-            d.remove(&mut work[0].f, &c);
-            c
-        });
         self.clear_start(0, &mut work[0].x);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
         self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
         if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
             a.work = w;
-        }
-        if let (Some(d), Some(c)) = (&self.deflation, &c) {
-            d.add(&mut work[0].x, c);
         }
         self.work = work;
         &self.work[0].x[..r.len()]
@@ -560,39 +549,27 @@ impl Banded {
         let n = map.len();
         // In row-major order a 5 × 5 stencil reaches at most 2 rows ahead: bandwidth ≤ 2w + 2.
         let mut bw = 0;
-        let wp = level.wp;
         let mut l = Vec::new();
         let mut dropped = vec![false; n];
         if n > 0 {
             for (k, &p) in map.iter().enumerate() {
-                let row = level.row(p);
-                for dy in 0..5 {
-                    for dx in 0..5 {
-                        if row[dy * 5 + dx] != 0.0 {
-                            let q = p + dy * wp + dx - 2 * wp - 2;
-                            if number[q] != usize::MAX && number[q] < k {
-                                bw = bw.max(k - number[q]);
-                            }
-                        }
+                level.taps(p, |q, _| {
+                    if number[q] != usize::MAX && number[q] < k {
+                        bw = bw.max(k - number[q]);
                     }
-                }
+                });
             }
             let width = bw + 1;
             l = vec![0.0; n * width];
             let mut diag0 = vec![0.0; n];
             for (k, &p) in map.iter().enumerate() {
-                let row = level.row(p);
-                for dy in 0..5 {
-                    for dx in 0..5 {
-                        let a = row[dy * 5 + dx];
-                        let q = p + dy * wp + dx - 2 * wp - 2;
-                        if a != 0.0 && number[q] != usize::MAX && number[q] <= k {
-                            let j = number[q];
-                            l[k * width + (j + bw - k)] = a;
-                        }
+                level.taps(p, |q, a| {
+                    if number[q] != usize::MAX && number[q] <= k {
+                        let j = number[q];
+                        l[k * width + (j + bw - k)] = a;
                     }
-                }
-                diag0[k] = row[12];
+                });
+                diag0[k] = level.row(p)[12];
             }
             for k in 0..n {
                 let j0 = k.saturating_sub(bw);

@@ -394,8 +394,12 @@ pub(crate) struct Geometry {
     pub down: Vec<bool>,
     /// Only on the finest level: fixed (Dirichlet) nodes, whose prolongation rows vanish.
     pub fixed: Option<Vec<bool>>,
-    /// Prolongation rows ([`Geometry::p_row`]) in 24ths, filled by [`Geometry::with_rows`].
+    /// Prolongation rows in 24ths on the 2 × 2 coarse corners of each node, or [`EXT`]
+    /// for a row in `ext`; filled by [`Geometry::with_rows`].
     pub prow: Vec<[u8; 4]>,
+    /// The rows that reach past the 2 × 2 corners (linear extrapolation at a missing link),
+    /// by node index, sorted: weights on the 4 × 4 window of [`Geometry::geo_row`].
+    pub ext: Vec<(u32, [f64; 16])>,
     /// `plain_rows[y]`: every node of row y is active and its geometric row is the plain
     /// bilinear one (whether or not it is fixed), so transfers can run the plain formulas
     /// (see [`restrict`] and [`prolong_add_scaled`]). Filled by [`Geometry::with_rows`].
@@ -450,7 +454,7 @@ impl Geometry {
 
     /// A geometry with its prolongation rows filled in.
     pub fn new(w: usize, h: usize, active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, fixed: Option<Vec<bool>>) -> Geometry {
-        Geometry { w, h, active, right, down, fixed, prow: Vec::new(), plain_rows: Vec::new() }.with_rows()
+        Geometry { w, h, active, right, down, fixed, prow: Vec::new(), ext: Vec::new(), plain_rows: Vec::new() }.with_rows()
     }
 
     /// The next coarser geometry: node (X, Y) sits on (2X, 2Y); two coarse neighbours are
@@ -487,10 +491,11 @@ impl Geometry {
         crate::grid::torn(self.w, &self.active, &self.right, &self.down)
     }
 
-    /// Fills the table of prolongation rows. Every weight is a multiple of 1/24 (halves,
-    /// and averages of up to four halves), so the table is exact.
+    /// Fills the table of prolongation rows. Every weight of a 2 × 2 row is a multiple of
+    /// 1/24 (halves, and averages of up to four halves), so the table is exact.
     fn with_rows(mut self) -> Geometry {
         let mut prow = vec![[0u8; 4]; self.w * self.h];
+        let mut ext = Vec::new();
         let mut plain_rows = vec![true; self.h];
         for y in 0..self.h {
             for x in 0..self.w {
@@ -502,87 +507,227 @@ impl Geometry {
                 if self.fixed.as_ref().is_some_and(|f| f[i]) {
                     continue;
                 }
+                if CORNERS.iter().map(|&k| r[k]).sum::<f64>() != r.iter().sum::<f64>() || r.iter().any(|&v| v < 0.0) {
+                    prow[i] = [EXT; 4];
+                    ext.push((i as u32, r));
+                    continue;
+                }
                 let mut code = [0u8; 4];
-                for k in 0..4 {
+                for (c, &k) in code.iter_mut().zip(&CORNERS) {
                     let n = (r[k] * 24.0).round();
                     debug_assert!((n / 24.0 - r[k]).abs() < 1e-12);
-                    code[k] = n as u8;
+                    *c = n as u8;
                 }
                 prow[i] = code;
             }
         }
         self.prow = prow;
+        self.ext = ext;
         self.plain_rows = plain_rows;
         self
     }
 
-    /// Link-aware bilinear prolongation row of node (x, y), ignoring whether the node is
-    /// fixed: weights of the coarse corners (cx, cy), (cx+1, cy), (cx, cy+1), (cx+1, cy+1)
-    /// with cx = x / 2, cy = y / 2. Natural boundaries: weights across missing links are
-    /// dropped and the rest renormalised; an odd–odd node averages the rows of its linked
+    /// Link-aware prolongation row of node (x, y), ignoring whether the node is fixed:
+    /// weights of the coarse nodes (cx + ox, cy + oy), ox, oy = −1..=2, slot
+    /// `(oy + 1) * 4 + ox + 1`, with cx = x / 2, cy = y / 2. Between two linked coarse
+    /// neighbours, the bilinear weights; at a missing link, the linear extrapolation from the
+    /// node's own side (a free edge's zero second difference), or the one linked neighbour's
+    /// value where that side is too short; an odd–odd node averages the rows of its linked
     /// edge neighbours.
-    pub fn geo_row(&self, x: usize, y: usize) -> [f64; 4] {
+    pub fn geo_row(&self, x: usize, y: usize) -> [f64; 16] {
+        self.geo_row_as(x, y, true)
+    }
+
+    /// [`Geometry::geo_row`], with the extrapolation at missing links linear (`lin`) or
+    /// constant.
+    fn geo_row_as(&self, x: usize, y: usize, lin: bool) -> [f64; 16] {
         let i = self.idx(x, y);
+        let mut r = [0.0; 16];
         if !self.active[i] {
-            return [0.0; 4];
+            return r;
         }
         match (x & 1, y & 1) {
-            (0, 0) => [1.0, 0.0, 0.0, 0.0],
-            (1, 0) => self.along_row(x, y, 0, 1),
-            (0, 1) => self.along_column(x, y, 0, 2),
+            (0, 0) => r[5] = 1.0,
+            (1, 0) => self.along_row(x, y, 0, &mut r, lin),
+            (0, 1) => self.along_column(x, y, 0, &mut r, lin),
             _ => {
-                // The rows of its linked edge neighbours, each read into the two corners it
-                // shares with this node. Past the last column (row) sits the ghost coarse
-                // node's column (row), whose nodes would interpolate along this node's
-                // column (row) links (see `coarsen`).
-                let left = self.right[i - 1].then(|| self.along_column(x - 1, y, 0, 2));
-                let right = if x + 1 == self.w {
-                    Some(self.along_column(x, y, 1, 3))
-                } else {
-                    self.right[i].then(|| self.along_column(x + 1, y, 1, 3))
-                };
-                let up = self.down[i - self.w].then(|| self.along_row(x, y - 1, 0, 1));
-                let down = if y + 1 == self.h {
-                    Some(self.along_row(x, y, 2, 3))
-                } else {
-                    self.down[i].then(|| self.along_row(x, y + 1, 2, 3))
-                };
-                let mut acc = [0.0; 4];
-                let mut k = 0.0;
-                for r in [left, right, up, down].into_iter().flatten() {
-                    if r.iter().sum::<f64>() > 0.0 {
-                        acc.iter_mut().zip(r).for_each(|(a, v)| *a += v);
-                        k += 1.0;
+                // The rows of its linked edge neighbours. Past the last column (row) sits
+                // the ghost coarse node's column (row), whose nodes would interpolate along
+                // this node's column (row) links (see `coarsen`).
+                let mut parts: [Option<(bool, usize, usize, usize)>; 4] = [None; 4];
+                parts[0] = self.right[i - 1].then_some((false, x - 1, y, 0));
+                parts[1] = if x + 1 == self.w { Some((false, x, y, 1)) } else { self.right[i].then_some((false, x + 1, y, 1)) };
+                parts[2] = self.down[i - self.w].then_some((true, x, y - 1, 0));
+                parts[3] = if y + 1 == self.h { Some((true, x, y, 1)) } else { self.down[i].then_some((true, x, y + 1, 1)) };
+                let mut rows = [[0.0; 16]; 4];
+                let mut has = [false; 4];
+                for ((part, row), h) in parts.iter().zip(rows.iter_mut()).zip(has.iter_mut()) {
+                    if let &Some((horizontal, px, py, o)) = part {
+                        if horizontal {
+                            self.along_row(px, py, o, row, lin);
+                        } else {
+                            self.along_column(px, py, o, row, lin);
+                        }
+                        *h = row.iter().sum::<f64>() > 0.0;
                     }
                 }
-                if k > 0.0 {
-                    acc.iter_mut().for_each(|a| *a /= k);
+                // Opposite neighbours: their mean. One in each direction: the bilinear
+                // completion through the coarse corner they share, when that corner is
+                // their neighbour. Else the mean of what there is (a constant).
+                let mean = |ks: &[usize], r: &mut [f64; 16]| {
+                    for &k in ks {
+                        r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v / ks.len() as f64);
+                    }
+                };
+                if has[0] && has[1] && has[2] && has[3] {
+                    mean(&[0, 1, 2, 3], &mut r);
+                } else if has[0] && has[1] {
+                    mean(&[0, 1], &mut r);
+                } else if has[2] && has[3] {
+                    mean(&[2, 3], &mut r);
+                } else {
+                    let h = (0..2).find(|&k| has[k]);
+                    let v = (2..4).find(|&k| has[k]);
+                    match (h, v) {
+                        (Some(hk), Some(vk)) if lin => {
+                            // The corner (ox, oy) shared by the edge neighbours hk and vk.
+                            let (ox, oy) = (hk, vk - 2);
+                            let (cx, cy) = (x - 1 + 2 * ox, y - 1 + 2 * oy);
+                            let ci = self.idx(cx.min(self.w - 1), cy.min(self.h - 1));
+                            let linked = cx < self.w && cy < self.h && self.active[ci] && {
+                                let (ex, ey) = (self.idx(cx, y), self.idx(x, cy));
+                                (if oy == 0 { self.down[ci] } else { self.down[ex] }) && (if ox == 0 { self.right[ci] } else { self.right[ey] })
+                            };
+                            if linked {
+                                for k in [hk, vk] {
+                                    r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v);
+                                }
+                                r[(oy + 1) * 4 + ox + 1] -= 1.0;
+                            } else {
+                                mean(&[hk, vk], &mut r);
+                            }
+                        }
+                        (Some(hk), Some(vk)) => mean(&[hk, vk], &mut r),
+                        (Some(k), None) | (None, Some(k)) => mean(&[k], &mut r),
+                        _ => {}
+                    }
                 }
-                acc
+            }
+        }
+        r
+    }
+
+    /// The row of odd node x along row y, into the window row `oy` of `r`:
+    /// halves on the coarse nodes left and right of it, or at a missing link the
+    /// extrapolation from the linked side (`extend`); the last node of an even-sized row
+    /// has the ghost coarse node beyond it (see `coarsen`).
+    fn along_row(&self, x: usize, y: usize, oy: usize, r: &mut [f64; 16], lin: bool) {
+        let i = self.idx(x, y);
+        let left = self.right[i - 1];
+        let right = x + 1 == self.w || self.right[i];
+        // Linear across a cut (the node beyond the gap active) where two more links run
+        // away from it.
+        let far_left = lin && x >= 3 && x + 1 < self.w && self.active[i + 1] && self.right[i - 2] && self.right[i - 3];
+        let far_right = lin && x + 3 < self.w && self.active[i - 1] && self.right[i + 1] && self.right[i + 2];
+        extend(&mut r[oy * 4 + 4..oy * 4 + 8], left, right, far_left, far_right);
+    }
+
+    /// The same along column x, into the window column `ox`.
+    fn along_column(&self, x: usize, y: usize, ox: usize, r: &mut [f64; 16], lin: bool) {
+        let (i, w) = (self.idx(x, y), self.w);
+        let up = self.down[i - w];
+        let down = y + 1 == self.h || self.down[i];
+        let far_up = lin && y >= 3 && y + 1 < self.h && self.active[i + w] && self.down[i - 2 * w] && self.down[i - 3 * w];
+        let far_down = lin && y + 3 < self.h && self.active[i - w] && self.down[i + w] && self.down[i + 2 * w];
+        let mut col = [0.0; 4];
+        extend(&mut col, up, down, far_up, far_down);
+        for (k, v) in col.into_iter().enumerate() {
+            r[k * 4 + ox + 1] = v;
+        }
+    }
+
+    /// Calls `f(ox, oy, weight)` for each nonzero weight of the prolongation row of node
+    /// (x, y) used by the solver (nothing for a fixed node), offsets from (x / 2, y / 2).
+    #[inline]
+    pub fn p_row(&self, x: usize, y: usize, mut f: impl FnMut(isize, isize, f64)) {
+        let i = self.idx(x, y);
+        let c = self.prow[i];
+        if c[0] == EXT {
+            let k = self.ext.partition_point(|e| (e.0 as usize) < i);
+            for (s, &v) in self.ext[k].1.iter().enumerate() {
+                if v != 0.0 {
+                    f((s % 4) as isize - 1, (s / 4) as isize - 1, v);
+                }
+            }
+            return;
+        }
+        for (s, &v) in c.iter().enumerate() {
+            if v != 0 {
+                f((s & 1) as isize, (s >> 1) as isize, v as f64 / 24.0);
             }
         }
     }
 
-    /// The row of node (x, y) interpolating along row y between the coarse corners in
-    /// slots `sa` (left) and `sb` (right), dropping one across a missing link; the last
-    /// node of an even-sized row has the ghost coarse node beyond it (see `coarsen`).
-    fn along_row(&self, x: usize, y: usize, sa: usize, sb: usize) -> [f64; 4] {
-        let i = self.idx(x, y);
-        pair(self.right[i - 1], x + 1 == self.w || self.right[i], sa, sb)
+    /// Whether some row reaches past its 2 × 2 corners.
+    pub fn extended(&self) -> bool {
+        !self.ext.is_empty()
     }
 
-    /// The same along column x, between the corners in slots `sa` (above) and `sb`
-    /// (below).
-    fn along_column(&self, x: usize, y: usize, sa: usize, sb: usize) -> [f64; 4] {
-        let i = self.idx(x, y);
-        pair(self.down[i - self.w], y + 1 == self.h || self.down[i], sa, sb)
+    /// The fine positions along one axis (`n` nodes) whose rows can reach coarse node `c`.
+    pub fn children(&self, c: usize, n: usize) -> std::ops::RangeInclusive<usize> {
+        let (below, above) = if self.extended() { (4, 3) } else { (1, 1) };
+        (2 * c).saturating_sub(below)..=(2 * c + above).min(n - 1)
     }
 
-    /// Prolongation row used by the solver: the geometric row, or nothing for a fixed node.
-    #[inline]
-    pub fn p_row(&self, x: usize, y: usize) -> [f64; 4] {
-        let c = self.prow[self.idx(x, y)];
-        [c[0] as f64 / 24.0, c[1] as f64 / 24.0, c[2] as f64 / 24.0, c[3] as f64 / 24.0]
+    /// The weight of coarse node (xc, yc) in the row of node (x, y).
+    pub fn weight(&self, x: usize, y: usize, xc: usize, yc: usize) -> f64 {
+        let (ox, oy) = (xc as isize - (x / 2) as isize, yc as isize - (y / 2) as isize);
+        if !(-1..3).contains(&ox) || !(-1..3).contains(&oy) {
+            return 0.0;
+        }
+        let mut w = 0.0;
+        self.p_row(x, y, |a, b, v| {
+            if (a, b) == (ox, oy) {
+                w = v;
+            }
+        });
+        w
+    }
+
+    /// The extended rows of rows `y0..=y1` (see `ext`).
+    pub fn ext_rows(&self, y0: usize, y1: usize) -> &[(u32, [f64; 16])] {
+        let at = |y: usize| self.ext.partition_point(|e| (e.0 as usize) < y * self.w);
+        &self.ext[at(y0)..at(y1 + 1)]
+    }
+}
+
+
+
+/// The code in [`Geometry::prow`] of a row stored in [`Geometry::ext`].
+const EXT: u8 = u8::MAX;
+/// The slots of the 2 × 2 corners in a 4 × 4 window row.
+const CORNERS: [usize; 4] = [5, 6, 9, 10];
+
+/// The row of a fine node between coarse nodes 1 and 2 of `r` (a line of the
+/// 4 × 4 window), linked to them as `a` and `b`; at a missing link the linked side's value
+/// is extrapolated linearly when its far link (`fa`, `fb`: coarse 0–1, 2–3) exists.
+#[inline]
+fn extend(r: &mut [f64], a: bool, b: bool, fa: bool, fb: bool) {
+    match (a, b) {
+        (true, true) => (r[1], r[2]) = (0.5, 0.5),
+        (true, false) if fa => (r[0], r[1]) = (-0.5, 1.5),
+        (true, false) => r[1] = 1.0,
+        (false, true) if fb => (r[2], r[3]) = (1.5, -0.5),
+        (false, true) => r[2] = 1.0,
+        _ => {}
+    }
+}
+
+/// The stencil row of padded node `p` of a level's operator (see [`Level::row`]).
+fn op_row(op: &Operator, wp: usize, p: usize) -> [f64; 25] {
+    match op {
+        Operator::Fine { flags, tau, .. } => fine_row(flags, p, wp, *tau),
+        Operator::Stored { ids, table, .. } => table[ids[p] as usize],
     }
 }
 
@@ -656,26 +801,16 @@ pub(crate) fn pair_sums<A: Copy, B: Copy>(a: &[A], b: &[B], prod: impl Fn(A, B) 
 }
 
 /// The plain bilinear prolongation row of node (x, y) (see [`Geometry::geo_row`]).
-fn plain_row(x: usize, y: usize) -> [f64; 4] {
-    match (x & 1, y & 1) {
+fn plain_row(x: usize, y: usize) -> [f64; 16] {
+    let mut r = [0.0; 16];
+    let c: [f64; 4] = match (x & 1, y & 1) {
         (0, 0) => [1.0, 0.0, 0.0, 0.0],
         (1, 0) => [0.5, 0.5, 0.0, 0.0],
         (0, 1) => [0.5, 0.0, 0.5, 0.0],
         _ => [0.25; 4],
-    }
-}
-
-#[inline]
-fn pair(a: bool, b: bool, sa: usize, sb: usize) -> [f64; 4] {
-    let mut r = [0.0; 4];
-    match (a, b) {
-        (true, true) => {
-            r[sa] = 0.5;
-            r[sb] = 0.5;
-        }
-        (true, false) => r[sa] = 1.0,
-        (false, true) => r[sb] = 1.0,
-        _ => {}
+    };
+    for (k, v) in CORNERS.into_iter().zip(c) {
+        r[k] = v;
     }
     r
 }
@@ -690,8 +825,12 @@ pub(crate) enum Operator {
     /// A Galerkin level: a 5 × 5 stencil (row-major offsets, dy outer) per padded node,
     /// as an index into a table; entry 0 is the stencil shared by every regular node
     /// (all zeros when there is none).
-    Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, narrow: Vec<[f32; 25]>, sym: Option<Sym>, fours: Fours, runs: Runs },
+    Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, narrow: Vec<[f32; 25]>, sym: Option<Sym>, fours: Fours, runs: Runs, far: Vec<Far> },
 }
+
+/// A tap of a Galerkin level past its stored 5 × 5 stencils: `(p, q, a_pq)`, padded
+/// indices, sorted by `p` (where extrapolating prolongation rows meet, at a cut's tips).
+pub(crate) type Far = (u32, u32, f64);
 
 /// The shared stencil of a Galerkin level when it has the symmetries of the square (it
 /// does whenever the finest operator is the same in x and y): five coefficients, for the
@@ -875,7 +1014,7 @@ impl Level {
 
     /// The same level with the prolongation of a geometry whose wide holes are filled: each
     /// component of inactive nodes that does not touch the border and is not thin (more
-    /// than four nodes per link to an active node, as [`super::deflate`] counts them) made
+    /// than four nodes per link to an active node, see [`Geometry::holes`]) made
     /// active and linked to everything around it. The operator stays the level's own and
     /// the rows of the inactive and fixed nodes stay zero, so every coarser level (built
     /// from this geometry) still holds the exact energy of its functions on the real
@@ -902,6 +1041,7 @@ impl Level {
                 self.geo.prow[i] = [0; 4];
             }
         }
+        self.geo.ext.retain(|e| real.active[e.0 as usize]);
         // Rows through a filled node are not plain: the transfers take the general path.
         for y in 0..h {
             if (0..w).any(|x| fill[y * w + x]) {
@@ -924,9 +1064,37 @@ impl Level {
 
     /// The stencil row of padded node `p` as a 5 × 5 array (dy outer, dx inner).
     pub fn row(&self, p: usize) -> [f64; 25] {
+        op_row(&self.op, self.wp, p)
+    }
+
+    /// The far taps of row `p` (see [`Far`]).
+    pub fn far(&self, p: usize) -> &[Far] {
         match &self.op {
-            Operator::Fine { flags, tau, .. } => fine_row(flags, p, self.wp, *tau),
-            Operator::Stored { ids, table, .. } => table[ids[p] as usize],
+            Operator::Stored { far, .. } if !far.is_empty() => {
+                let k0 = far.partition_point(|e| (e.0 as usize) < p);
+                let k1 = k0 + far[k0..].partition_point(|e| e.0 as usize == p);
+                &far[k0..k1]
+            }
+            _ => &[],
+        }
+    }
+
+    /// Whether the level has taps past its stored stencils.
+    #[cfg(test)]
+    pub fn has_far(&self) -> bool {
+        matches!(&self.op, Operator::Stored { far, .. } if !far.is_empty())
+    }
+
+    /// `f(q, a_pq)` for every nonzero tap of row `p`: the stored stencil's and the far ones.
+    pub fn taps(&self, p: usize, mut f: impl FnMut(usize, f64)) {
+        let (row, wp) = (self.row(p), self.wp);
+        for (t, &a) in row.iter().enumerate() {
+            if a != 0.0 {
+                f(p + (t / 5) * wp + t % 5 - 2 * wp - 2, a);
+            }
+        }
+        for &(_, q, a) in self.far(p) {
+            f(q as usize, a);
         }
     }
 
@@ -980,10 +1148,16 @@ impl Level {
         let wp = self.wp;
         match &self.op {
             Operator::Fine { tau, runs, own, .. } => fine_band(runs, own, *tau, wp, x, f, r0, r0 + out.len() / wp, shift, out),
-            Operator::Stored { .. } => {
+            Operator::Stored { far, .. } => {
                 assert_eq!(shift, 0, "a Galerkin level's vectors whole");
                 for (k, orow) in out.chunks_mut(wp).enumerate() {
                     residual_row(self, &self.op, x, f, r0 + k, orow);
+                }
+                let (a, b) = (r0 * wp, r0 * wp + out.len());
+                let k0 = far.partition_point(|e| (e.0 as usize) < a);
+                for &(p, q, v) in far[k0..].iter().take_while(|e| (e.0 as usize) < b) {
+                    let (o, xq, v) = (&mut out[p as usize - a], x[q as usize], T::of(v));
+                    *o = [o[0] - v * xq[0], o[1] - v * xq[1]];
                 }
             }
         }
@@ -1163,7 +1337,7 @@ widest! {
         let base = r * wp;
         match op {
             Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
-            Operator::Stored { ids, table, narrow, sym, fours, runs } => {
+            Operator::Stored { ids, table, narrow, sym, fours, runs, .. } => {
                 let table = T::table(table, narrow);
                 let four = T::has_four_stencils() && !fours.row_first.is_empty();
                 let mut block = if four { fours.row_first[r] as usize } else { 0 };
@@ -1497,9 +1671,11 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
             sat[(y + 1) * (fw + 1) + x + 1] = sat[y * (fw + 1) + x + 1] + run;
         }
     }
+    // Extrapolating rows read links three nodes away: a wider window.
+    let reach = if fine.geo.extended() { 10 } else { 4 };
     let regular = |xc: usize, yc: usize| -> bool {
-        let (x0, y0) = (2 * xc as isize - 4, 2 * yc as isize - 4);
-        let (x1, y1) = (2 * xc as isize + 5, 2 * yc as isize + 5);
+        let (x0, y0) = (2 * xc as isize - reach, 2 * yc as isize - reach);
+        let (x1, y1) = (2 * xc as isize + reach + 1, 2 * yc as isize + reach + 1);
         if x0 < 0 || y0 < 0 || x1 > fw as isize || y1 > fh as isize {
             return false;
         }
@@ -1517,63 +1693,56 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         }
     }
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
-    let build_row = |yc: usize| -> (Vec<u32>, Vec<[f64; 25]>) {
+    type RowOut = (Vec<u32>, Vec<[f64; 25]>, Vec<(usize, isize, isize, f64)>);
+    let build_row = |yc: usize| -> RowOut {
         let mut ids = vec![0u32; wpc];
-        let mut own = Vec::new();
+        let (mut own, mut far) = (Vec::new(), Vec::new());
         let irregular: Vec<usize> = (0..wc).filter(|&xc| geo.active[yc * wc + xc] && !regular(xc, yc)).collect();
         if irregular.is_empty() {
-            return (ids, own);
+            return (ids, own, far);
         }
         // A P for the fine rows of this coarse row's children, once per needed fine node.
-        let y_lo = (2 * yc).saturating_sub(1);
-        let y_hi = (2 * yc + 1).min(fh - 1);
-        let mut ap = vec![[0.0f64; 16]; (y_hi - y_lo + 1) * fw];
-        let mut done = vec![false; (y_hi - y_lo + 1) * fw];
+        let rows = fine.geo.children(yc, fh);
+        let y_lo = *rows.start();
+        let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
+        let mut ap: Vec<[f64; AP * AP]> = Vec::new();
         for &xc in &irregular {
-            let mut acc = [0.0f64; 25];
-            for iy in y_lo..=y_hi {
-                for ix in (2 * xc).saturating_sub(1)..=(2 * xc + 1).min(fw - 1) {
-                    let sx = xc as isize - (ix / 2) as isize;
-                    let sy = yc as isize - (iy / 2) as isize;
-                    if !(0..2).contains(&sx) || !(0..2).contains(&sy) {
-                        continue;
-                    }
-                    let wi = fine.geo.p_row(ix, iy)[(sy * 2 + sx) as usize];
+            let mut acc = [0.0f64; ACC * ACC];
+            for iy in rows.clone() {
+                for ix in fine.geo.children(xc, fw) {
+                    let wi = fine.geo.weight(ix, iy, xc, yc);
                     if wi == 0.0 {
                         continue;
                     }
                     let k = (iy - y_lo) * fw + ix;
-                    if !done[k] {
-                        ap[k] = ap_row(fine, ix, iy);
-                        done[k] = true;
+                    if slot[k] == u32::MAX {
+                        slot[k] = ap.len() as u32;
+                        ap.push(ap_row(fine, ix, iy));
                     }
-                    // ap[k] is indexed by coarse offsets (-1..=2) from (ix/2, iy/2)
                     let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
-                    for oy in 0..4isize {
-                        for ox in 0..4isize {
-                            let v = ap[k][(oy * 4 + ox) as usize];
-                            if v != 0.0 {
-                                let (cx, cy) = (bx + ox - 1, by + oy - 1);
-                                acc[((cy + 2) * 5 + cx + 2) as usize] += wi * v;
-                            }
+                    for (t, &v) in ap[slot[k] as usize].iter().enumerate() {
+                        if v != 0.0 {
+                            let (cx, cy) = (bx + (t % AP) as isize - AP0, by + (t / AP) as isize - AP0);
+                            acc[acc_at(cx, cy)] += wi * v;
                         }
                     }
                 }
             }
-            debug_assert!([0, 4, 20, 24].iter().all(|&k| acc[k] == 0.0), "coarse stencils never reach (±2, ±2)");
+            let (acc, far_taps) = split_taps(&acc);
             // The window test above is conservative: a constraint or border near the edge
             // of the window often leaves the stencil as it is (at 513 × 513 with 4000
             // points, 18 of the first coarse level's 48 thousand candidates). Those are
             // regular, up to the rounding of their sums.
-            if shared_scale > 0.0 && acc.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale) {
+            if far_taps.is_empty() && shared_scale > 0.0 && acc.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale) {
                 continue;
             }
+            far.extend(far_taps.into_iter().map(|(dx, dy, a)| (xc, dx, dy, a)));
             own.push(acc);
             ids[xc + PAD] = own.len() as u32; // local, 1-based
         }
-        (ids, own)
+        (ids, own, far)
     };
-    let rows: Vec<(Vec<u32>, Vec<[f64; 25]>)> = if fw * fh >= PAR_MIN_NODES {
+    let rows: Vec<RowOut> = if fw * fh >= PAR_MIN_NODES {
         (0..hc).into_par_iter().map(build_row).collect()
     } else {
         (0..hc).map(build_row).collect()
@@ -1581,11 +1750,20 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     // Irregular stencils each stored once (see `DistinctStencils`), after the shared one.
     let mut ids = vec![0u32; wpc * hpc];
     let mut distinct = DistinctStencils { table: vec![shared], ..Default::default() };
-    for (yc, (row_ids, own)) in rows.into_iter().enumerate() {
+    let mut far: Vec<Far> = Vec::new();
+    for (yc, (row_ids, own, row_far)) in rows.into_iter().enumerate() {
         let local: Vec<u32> = own.into_iter().map(|s| distinct.id(s)).collect();
         for (c, &id) in row_ids.iter().enumerate() {
             if id != 0 {
                 ids[(yc + PAD) * wpc + c] = local[id as usize - 1];
+            }
+        }
+        for (xc, dx, dy, a) in row_far {
+            let (qx, qy) = (xc as isize + dx, yc as isize + dy);
+            // Past the level's nodes a tap only ever meets the padding's zeros.
+            if (0..wc as isize).contains(&qx) && (0..hc as isize).contains(&qy) {
+                let q = (qy as usize + PAD) * wpc + qx as usize + PAD;
+                far.push((((yc + PAD) * wpc + xc + PAD) as u32, q as u32, a));
             }
         }
     }
@@ -1601,14 +1779,16 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
             }
             let s = &table[ids[p] as usize];
             let d = s[12];
+            let k0 = far.partition_point(|e| (e.0 as usize) < p);
+            let far_p = far[k0..].iter().take_while(|e| e.0 as usize == p);
             // A vanishing diagonal: the coarse node has no fine children left.
             if d > 1e-300 {
-                let sum: f64 = s.iter().map(|a| a.abs()).sum();
+                let sum: f64 = s.iter().map(|a| a.abs()).sum::<f64>() + far_p.clone().map(|e| e.2.abs()).sum::<f64>();
                 inv_diag[p] = 1.0 / d;
                 lam_max = lam_max.max(sum / d);
             }
             let i = yc * wc + xc;
-            clean[i] = ids[p] == 0 && geo.right[i] && geo.down[i];
+            clean[i] = ids[p] == 0 && far_p.count() == 0 && geo.right[i] && geo.down[i];
         }
     }
     let sym = Sym::of(&table[0]);
@@ -1616,80 +1796,86 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let inv_diag_w = narrow_diag(&inv_diag);
     let runs = Runs::stored(&ids, &inv_diag, wpc, wc, hc);
     let fours = Fours::new(&ids, &narrow, &runs, wpc, hc);
-    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours, runs }, inv_diag, inv_diag_w, lam_max, clean }
+    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours, runs, far }, inv_diag, inv_diag_w, lam_max, clean }
 }
 
 fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {
     inv_diag.iter().map(|&d| if WS::of(d).get().is_finite() { WS::of(d) } else { 0.0 }).collect()
 }
 
-/// One coarse stencil `(Pᵀ A P)(C, ·)` for C = (xc, yc), straight from the definition.
+/// One coarse stencil `(Pᵀ A P)(C, ·)` for C = (xc, yc), straight from the definition:
+/// its stored taps (see [`galerkin_node_far`] for the rest).
 pub(crate) fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
+    galerkin_node_far(fine, xc, yc).0
+}
+
+/// [`galerkin_node`] with the taps past the stored ones, as `(dx, dy, a)`.
+pub(crate) fn galerkin_node_far(fine: &Level, xc: usize, yc: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
     let (fw, fh) = (fine.geo.w, fine.geo.h);
-    let mut acc = [0.0f64; 25];
-    for iy in (2 * yc).saturating_sub(1)..=(2 * yc + 1).min(fh - 1) {
-        for ix in (2 * xc).saturating_sub(1)..=(2 * xc + 1).min(fw - 1) {
-            let sx = xc as isize - (ix / 2) as isize;
-            let sy = yc as isize - (iy / 2) as isize;
-            if !(0..2).contains(&sx) || !(0..2).contains(&sy) {
-                continue;
-            }
-            let wi = fine.geo.p_row(ix, iy)[(sy * 2 + sx) as usize];
+    let mut acc = [0.0f64; ACC * ACC];
+    for iy in fine.geo.children(yc, fh) {
+        for ix in fine.geo.children(xc, fw) {
+            let wi = fine.geo.weight(ix, iy, xc, yc);
             if wi == 0.0 {
                 continue;
             }
-            let arow = fine.row(fine.pidx(ix, iy));
-            for dy in -2isize..=2 {
-                for dx in -2isize..=2 {
-                    let a = arow[((dy + 2) * 5 + dx + 2) as usize];
-                    if a == 0.0 {
-                        continue;
-                    }
-                    let jx = (ix as isize + dx) as usize;
-                    let jy = (iy as isize + dy) as usize;
-                    let pj = fine.geo.p_row(jx, jy);
-                    let (cjx, cjy) = ((jx / 2) as isize, (jy / 2) as isize);
-                    for (slot, &wj) in pj.iter().enumerate() {
-                        if wj == 0.0 {
-                            continue;
-                        }
-                        let ox = cjx + (slot & 1) as isize - xc as isize;
-                        let oy = cjy + (slot >> 1) as isize - yc as isize;
-                        acc[((oy + 2) * 5 + ox + 2) as usize] += wi * a * wj;
-                    }
-                }
-            }
+            fine.taps(fine.pidx(ix, iy), |q, a| {
+                let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
+                let (cjx, cjy) = ((jx / 2) as isize - xc as isize, (jy / 2) as isize - yc as isize);
+                fine.geo.p_row(jx, jy, |ox, oy, wj| acc[acc_at(cjx + ox, cjy + oy)] += wi * a * wj);
+            });
         }
     }
-    debug_assert!([0, 4, 20, 24].iter().all(|&k| acc[k] == 0.0), "coarse stencils never reach (±2, ±2)");
-    acc
+    split_taps(&acc)
 }
 
-/// Row `i = (ix, iy)` of `A P`: `Σ_j A_ij P_j`, over the coarse nodes at offsets −1..=2 from
-/// `(ix / 2, iy / 2)` (a 4 × 4 window, row-major).
-fn ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
-    let mut out = [0.0f64; 16];
-    let arow = fine.row(fine.pidx(ix, iy));
-    let (bx, by) = ((ix / 2) as isize, (iy / 2) as isize);
-    for dy in -2isize..=2 {
-        for dx in -2isize..=2 {
-            let a = arow[((dy + 2) * 5 + dx + 2) as usize];
-            if a == 0.0 {
-                continue;
-            }
-            let jx = (ix as isize + dx) as usize;
-            let jy = (iy as isize + dy) as usize;
-            let pj = fine.geo.p_row(jx, jy);
-            let (cjx, cjy) = ((jx / 2) as isize - bx, (jy / 2) as isize - by);
-            for (slot, &wj) in pj.iter().enumerate() {
-                if wj != 0.0 {
-                    let ox = cjx + (slot & 1) as isize + 1;
-                    let oy = cjy + (slot >> 1) as isize + 1;
-                    out[(oy * 4 + ox) as usize] += a * wj;
-                }
-            }
+/// The window of a coarse stencil while it is summed: offsets −8..=8 (taps reach offset 3
+/// where extrapolating rows meet; a level's reach `D` gives the next about `D / 2 + 3`).
+const ACC: usize = 17;
+/// The window of a row of `A P`: coarse offsets −6..=7 from `(ix / 2, iy / 2)`.
+const AP: usize = 14;
+const AP0: isize = 6;
+
+#[inline]
+fn acc_at(dx: isize, dy: isize) -> usize {
+    let h = (ACC / 2) as isize;
+    assert!(dx.abs() <= h && dy.abs() <= h, "a coarse stencil reaching offset ({dx}, {dy})");
+    ((dy + h) * ACC as isize + dx + h) as usize
+}
+
+/// A summed stencil split into its stored taps and the others, `(dx, dy, a)`.
+fn split_taps(acc: &[f64; ACC * ACC]) -> ([f64; 25], Vec<(isize, isize, f64)>) {
+    let h = (ACC / 2) as isize;
+    let mut s = [0.0; 25];
+    let mut far = Vec::new();
+    for (k, &a) in acc.iter().enumerate() {
+        if a == 0.0 {
+            continue;
+        }
+        let (dx, dy) = ((k % ACC) as isize - h, (k / ACC) as isize - h);
+        if dx.abs() <= 2 && dy.abs() <= 2 && (dx.abs() < 2 || dy.abs() < 2) {
+            s[((dy + 2) * 5 + dx + 2) as usize] = a;
+        } else {
+            far.push((dx, dy, a));
         }
     }
+    (s, far)
+}
+
+/// Row `i = (ix, iy)` of `A P`: `Σ_j A_ij P_j`, over the coarse nodes at offsets
+/// −6..=7 from `(ix / 2, iy / 2)` (row-major).
+fn ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; AP * AP] {
+    let mut out = [0.0f64; AP * AP];
+    let (bx, by) = ((ix / 2) as isize, (iy / 2) as isize);
+    fine.taps(fine.pidx(ix, iy), |q, a| {
+        let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
+        let (cjx, cjy) = ((jx / 2) as isize - bx, (jy / 2) as isize - by);
+        fine.geo.p_row(jx, jy, |ox, oy, wj| {
+            let (ox, oy) = (cjx + ox + AP0, cjy + oy + AP0);
+            assert!((0..AP as isize).contains(&ox) && (0..AP as isize).contains(&oy), "a row of A P reaching past its window");
+            out[(oy * AP as isize + ox) as usize] += a * wj;
+        });
+    });
     out
 }
 
@@ -1716,21 +1902,38 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
                 if !(0..2).contains(&sy) {
                     continue;
                 }
+                let prow = &fine.geo.prow[iy * fw..(iy + 1) * fw];
                 for ix in 0..fw {
                     let r = get(v[fine.pidx(ix, iy)]);
-                    if r == zero {
+                    if r == zero || prow[ix][0] == EXT {
                         continue;
                     }
-                    let pi = fine.geo.p_row(ix, iy);
                     let cx = ix / 2;
                     for sx in 0..2 {
-                        let wv = pi[(sy as usize) * 2 + sx];
-                        if wv != 0.0 && cx + sx < wc {
-                            let (o, wv) = (&mut acc[cx + sx], T::of(wv));
+                        let wv = prow[ix][(sy as usize) * 2 + sx];
+                        if wv != 0 && cx + sx < wc {
+                            let (o, wv) = (&mut acc[cx + sx], T::of(wv as f64 / 24.0));
                             o[0] += wv * r[0];
                             o[1] += wv * r[1];
                         }
                     }
+                }
+            }
+        }
+        // The rows reaching past their corners, wherever they sit.
+        let rows = fine.geo.children(yc, fh);
+        for (i, row) in fine.geo.ext_rows(*rows.start(), *rows.end()) {
+            let (ix, iy) = (*i as usize % fw, *i as usize / fw);
+            let r = get(v[fine.pidx(ix, iy)]);
+            let oy = yc as isize - (iy / 2) as isize;
+            if r == zero || !(-1..3).contains(&oy) || fine.geo.prow[*i as usize][0] != EXT {
+                continue;
+            }
+            for (s, &wv) in row[((oy + 1) * 4) as usize..((oy + 2) * 4) as usize].iter().enumerate() {
+                if wv != 0.0 {
+                    let (o, wv) = (&mut acc[ix / 2 + s - 1], T::of(wv));
+                    o[0] += wv * r[0];
+                    o[1] += wv * r[1];
                 }
             }
         }
@@ -1889,18 +2092,15 @@ pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level,
             return;
         }
         for ix in 0..fw {
-            let pi = fine.geo.p_row(ix, iy);
             let cx = ix / 2;
             let mut acc = [0.0f64; 2];
             let mut any = false;
-            for (slot, &wv) in pi.iter().enumerate() {
-                if wv != 0.0 {
-                    let c = get(e[coarse.pidx(cx + (slot & 1), cy + (slot >> 1))]);
-                    acc[0] += wv * c[0];
-                    acc[1] += wv * c[1];
-                    any = true;
-                }
-            }
+            fine.geo.p_row(ix, iy, |ox, oy, wv| {
+                let c = get(e[coarse.pidx((cx as isize + ox) as usize, (cy as isize + oy) as usize)]);
+                acc[0] += wv * c[0];
+                acc[1] += wv * c[1];
+                any = true;
+            });
             if any {
                 add(&mut xrow[ix + PAD], acc);
             }

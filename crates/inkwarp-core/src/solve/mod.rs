@@ -43,11 +43,10 @@
 //! solve on the coarsest level, a coarse-to-fine start, and the cycle as the
 //! preconditioner of a flexible conjugate gradient on the finest level. Wide holes inside the grid are filled for the prolongation alone (the operator stays the
 //! real one), so the coarse functions run smoothly up to their rims. On grids with tears
-//! left after that (cuts, thin holes, holes open to the border) each cycle also visits a
+//! left after that (thin holes, holes open to the border) each cycle also visits a
 //! second coarse space, built with the plain bilinear prolongation of the same grid
-//! without them: the link-aware one extrapolates a constant at every missing link, so it
-//! lacks the functions that run linearly up to (and across) a hole or cut, and the plain
-//! one has exactly those. A warm start whose
+//! without them. At a cut the link-aware prolongation extrapolates linearly from each
+//! side. A warm start whose
 //! residuals exceed the tolerance also gets the coarse-to-fine correction; a closer one
 //! first gets one cycle as it is. Free functions of the plate energy (hinges, strands,
 //! loose nodes) are settled to the τ → 0⁺ limit afterwards ([`nullspace`]).
@@ -56,7 +55,6 @@
 //! by the caller's [`Solver`], never by the process.
 
 mod cycle;
-mod deflate;
 mod history;
 mod level;
 mod nullspace;
@@ -117,7 +115,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 5] = ["second", "tear", "kcycle", "cache", "fours"];
+    pub const NAMES: [&'static str; 4] = ["second", "kcycle", "cache", "fours"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -647,12 +645,13 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         // Holes and cuts: a second coarse space that runs smoothly across them (visited by
         // V-cycles), next to the link-aware one that tears with them.
         let torn = fine.geo.torn();
-        // Wide holes filled for the prolongation (see `Level::with_holes_filled`): the
-        // second space below is then needed only where tears remain (cuts, thin holes,
-        // holes open to the border).
+        // Wide holes filled for the prolongation (see `Level::with_holes_filled`); cuts are
+        // crossed by linear extrapolation (see `Geometry::geo_row`). The second space below
+        // is needed only where inactive nodes remain (thin holes, holes open to the border,
+        // other pieces in the box).
         let real = torn.then(|| fine.geo.clone());
         let fine = fine.with_holes_filled();
-        let alt = (fine.geo.torn() && !key.off.has("second")).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.clone().unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
+        let alt = (fine.geo.active.contains(&false) && !key.off.has("second")).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.clone().unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
         hier.k_cycles = !key.off.has("kcycle");
@@ -660,10 +659,6 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         hier.torn = torn;
         if key.off.has("fours") {
             hier.levels.iter_mut().chain(hier.alt.iter_mut().flat_map(|a| a.levels.iter_mut())).for_each(Level::drop_fours);
-        }
-        if torn && !key.off.has("tear") && w * h >= TEAR_SPACE_MIN_NODES {
-            // Cuts and thin holes: functions that run linearly up to each side of them.
-            hier.deflation = deflate::Deflation::new(&hier.levels[0]);
         }
         hier
     });
@@ -983,9 +978,6 @@ impl Store {
 /// Safety factor of the stopping rule (see the multigrid loop) on grids without holes or
 /// cuts (`docs/dev/ablation.md`, "Constants").
 const STOP_MARGIN: f64 = 1.5;
-/// Pieces smaller than this (256 × 256) go without the space along tears: its lattices
-/// (half widths 32 and 96) would cover them whole.
-const TEAR_SPACE_MIN_NODES: usize = 1 << 16;
 /// The same on grids with holes or cuts, where the slowest error moves least per cycle.
 const TORN_STOP_MARGIN: f64 = 3.0;
 

@@ -705,24 +705,10 @@ fn cycles_with_and_without(grid: &Grid, without: &str) -> [usize; 2] {
 #[test]
 fn the_second_coarse_space_saves_cycles_across_holes_and_cuts() {
     // A thin arc-shaped hole, open on one side, and a cut: the link-aware coarse space alone
-    // extrapolates constants at their edges and converges slowly. (129 × 129 is below the
-    // size that gets the space along tears.)
+    // extrapolates constants at the hole's edges and converges slowly.
     let grid = torn_grid(129, true, true, 5.0);
     let [with, without] = cycles_with_and_without(&grid, "second");
     assert!(4 * with <= 3 * without, "{with} cycles with the second coarse space, {without} without");
-}
-
-#[test]
-fn the_space_along_tears_saves_cycles_across_holes_and_cuts() {
-    // As above on a grid large enough for both lattices of the space along tears (half
-    // widths 32 and 96): a cut, a thin arc-shaped hole, and both.
-    for (hole, cut) in [(false, true), (true, false), (true, true)] {
-        let grid = torn_grid(257, hole, cut, 10.0);
-        let [with, without] = cycles_with_and_without(&grid, "tear");
-        // At least the 10 % a mechanism must earn to stay (a third when written; 15 against
-        // 18 on the cut since the stopping rule needs two ratios).
-        assert!(10 * with <= 9 * without, "hole {hole}, cut {cut}: {with} cycles with the space along tears, {without} without");
-    }
 }
 
 #[test]
@@ -760,9 +746,11 @@ fn fast_transfers_and_the_symmetric_stencil_match_the_general_kernels() {
         grid = Grid::from_active(w, h, grid.active.clone());
         grid.add_cut(&[[1.0, h as f64 * 0.7], [w as f64 * 0.3, h as f64 * 0.75]]);
         let mut fine = fine_level(&grid, Some((0..w * h).map(|_| rnd() < 0.05).collect()), 0.3);
+        // Both kinds of rows on some level (a coarse level can be all extrapolating rows).
+        let mut mixed = false;
         for _ in 0..3 {
             let mut coarse = level::galerkin(&fine);
-            assert!(fine.geo.plain_rows.iter().any(|&p| p) && fine.geo.plain_rows.iter().any(|&p| !p));
+            mixed |= fine.geo.plain_rows.iter().any(|&p| p) && fine.geo.plain_rows.iter().any(|&p| !p);
             let random = |n: usize, rnd: &mut dyn FnMut() -> f64| -> Vec<V2> { (0..n).map(|_| [rnd() - 0.5, rnd() - 0.5]).collect() };
             // A residual: zero off the unknowns.
             let mut v = random(fine.len_padded(), &mut rnd);
@@ -803,6 +791,9 @@ fn fast_transfers_and_the_symmetric_stencil_match_the_general_kernels() {
                         let q = p + (t / 5) * wp + t % 5 - 2 * wp - 2;
                         a = [a[0] - s[t] * e[q][0], a[1] - s[t] * e[q][1]];
                     }
+                    for &(_, q, t) in coarse.far(p) {
+                        a = [a[0] - t * e[q as usize][0], a[1] - t * e[q as usize][1]];
+                    }
                     a
                 })
                 .collect();
@@ -814,6 +805,7 @@ fn fast_transfers_and_the_symmetric_stencil_match_the_general_kernels() {
             }
             fine = coarse;
         }
+        assert!(mixed, "{w}x{h}: no level has both plain and extrapolating rows");
     }
 }
 
@@ -969,7 +961,8 @@ fn irregular_stencils_four_to_a_vector_give_each_nodes_plain_sum_bit_for_bit() {
         let mut out = vec![[0.0 as WS; 2]; n];
         level.residual(&x, Some(&f), &mut out);
         let Operator::Stored { ids, narrow, .. } = &level.op else { unreachable!() };
-        let summed = |p: usize| level.inv_diag[p] != 0.0 && ids[p] != 0;
+        // (Rows with far taps past the stencil add them after it: not the vectors' business.)
+        let summed = |p: usize| level.inv_diag[p] != 0.0 && ids[p] != 0 && level.far(p).is_empty();
         let (mut checked, mut in_fours) = (0, 0);
         for p in 0..n {
             if !summed(p) {
