@@ -116,8 +116,8 @@ impl Hierarchy {
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
-    /// as a conjugate-gradient preconditioner is; with the space along tears solved first
-    /// it is not quite, which the flexible conjugate gradient around it allows), run in
+    /// as a conjugate-gradient preconditioner is; the conjugate gradient around it is the
+    /// flexible one all the same), run in
     /// `f32`: the returned `z` is
     /// the cycle's own output, valid until the next call (the conjugate gradient reads it
     /// where it would otherwise copy it to `f64` first and read that).
