@@ -1705,7 +1705,10 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let rows = fine.geo.children(yc, fh);
         let y_lo = *rows.start();
         let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
-        let mut ap: Vec<[f64; AP * AP]> = Vec::new();
+        // Each row's nonzeros only, in window order (so the sums below add as over the
+        // whole window): most of a row's wide window is zero.
+        let mut ap: Vec<std::ops::Range<usize>> = Vec::new();
+        let mut nz: Vec<(isize, isize, f64)> = Vec::new();
         for &xc in &irregular {
             let mut acc = [0.0f64; ACC * ACC];
             for iy in rows.clone() {
@@ -1717,14 +1720,17 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
                     let k = (iy - y_lo) * fw + ix;
                     if slot[k] == u32::MAX {
                         slot[k] = ap.len() as u32;
-                        ap.push(ap_row(fine, ix, iy));
+                        let start = nz.len();
+                        for (t, &v) in ap_row(fine, ix, iy).iter().enumerate() {
+                            if v != 0.0 {
+                                nz.push(((t % AP) as isize - AP0, (t / AP) as isize - AP0, v));
+                            }
+                        }
+                        ap.push(start..nz.len());
                     }
                     let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
-                    for (t, &v) in ap[slot[k] as usize].iter().enumerate() {
-                        if v != 0.0 {
-                            let (cx, cy) = (bx + (t % AP) as isize - AP0, by + (t / AP) as isize - AP0);
-                            acc[acc_at(cx, cy)] += wi * v;
-                        }
+                    for &(ox, oy, v) in &nz[ap[slot[k] as usize].clone()] {
+                        acc[acc_at(bx + ox, by + oy)] += wi * v;
                     }
                 }
             }
