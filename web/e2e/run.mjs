@@ -1457,14 +1457,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     const workersSettled = await p.evaluate(() => window.inkwarp.app.memoryReport?.());
     // A second drag of the same point a little further, soon after the first settle (the
     // full-resolution worker keeps its solver from one frame to the next): its settle.
-    const [x2, y2] = await toClient(p, [2250, 1250]);
-    await p.mouse.move(x1, y1);
-    await p.mouse.down();
-    for (let i = 1; i <= 5; i++) {
-      await p.mouse.move(x1 + ((x2 - x1) * i) / 5, y1 + ((y2 - y1) * i) / 5);
-      await p.evaluate(() => new Promise((r) => requestAnimationFrame(() => r())));
-    }
-    await p.mouse.up();
+    await drag(p, [2200, 1300], [2250, 1250], 5);
     const released2 = Date.now();
     await idle(p);
     const settle2S = (Date.now() - released2) / 1000;

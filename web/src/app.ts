@@ -596,7 +596,7 @@ export class App {
    * solved as if nothing were kept.
    */
   private showsSparse(rt: LayerRuntime, kept: { pixels: Uint32Array }): boolean {
-    return !this.exporting && this.gl.cpuDrafts && this.sparseDraft(rt) && !this.store.view.overlays.matte && rt.gl!.cpuDraftGeometry !== null && kept.pixels === rt.gl!.draftPixels;
+    return this.drawsCpuDraft(rt) && kept.pixels === rt.gl!.draftPixels;
   }
 
   /**
@@ -1106,7 +1106,15 @@ export class App {
    * waited for it; the whole field's unpacking and upload went too.
    */
   private playsSparse(rt: LayerRuntime): boolean {
-    return this.store.view.playing && !this.exporting && this.gl.cpuDrafts && this.sparseDraft(rt) && !this.store.view.overlays.matte && rt.gl!.cpuDraftGeometry !== null;
+    return this.store.view.playing && this.drawsCpuDraft(rt);
+  }
+
+  /**
+   * Whether this layer's frame can be a draft drawn by the CPU from the draft mesh's pixels
+   * of its field: a software GPU, no overlay that needs the whole field, no export.
+   */
+  private drawsCpuDraft(rt: LayerRuntime): boolean {
+    return !this.exporting && this.gl.cpuDrafts && this.sparseDraft(rt) && !this.store.view.overlays.matte && rt.gl!.cpuDraftGeometry !== null;
   }
 
   /** Whether a settle draws the fast full frame first (see `frameTick`). */

@@ -89,6 +89,9 @@ export function workerMemory(worker: Worker): Promise<{ wasmBytes: number; heapB
   });
 }
 
+/** The messages that make up a layer's setup in a solver worker (see `SolverClient.record`). */
+const SETUP_TYPES: readonly ToWorker['type'][] = ['grid', 'drop', 'select', 'draft-layer'];
+
 export class SolverClient {
   private worker: Worker;
   readonly ready: Promise<void>;
@@ -134,7 +137,7 @@ export class SolverClient {
     else this.worker.postMessage(msg, transfer);
   }
 
-  /** Keeps a layer's setup messages (see `setup`): a new grid starts it again. */
+  /** Keeps a layer's setup messages (see `setup`, `SETUP_TYPES`): a new grid starts it again. */
   private record(msg: ToWorker): void {
     if (msg.type === 'grid') this.setup.set(msg.key, [msg]);
     else if (msg.type === 'drop') this.setup.delete(msg.key);
@@ -202,7 +205,7 @@ export class SolverClient {
       for (const list of this.setup.values()) for (const msg of list) fresh.postMessage(msg);
       const queued = this.queue ?? [];
       this.queue = null;
-      for (const q of queued) if (!['grid', 'drop', 'select', 'draft-layer'].includes(q.msg.type)) fresh.postMessage(q.msg, q.transfer);
+      for (const q of queued) if (!SETUP_TYPES.includes(q.msg.type)) fresh.postMessage(q.msg, q.transfer);
       this.pump();
     };
     const ready = engineReady(fresh, (msg) => this.receive(msg));

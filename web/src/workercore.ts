@@ -46,29 +46,11 @@ export class SolverWorker {
       const engine = this.engine;
       if (!engine) throw new Error('The engine is not loaded yet.');
       if (msg.type === 'decode') {
-        // Always answered (the page waits for it); a trap then restarts the engine (below).
-        let image: { width: number; height: number; data: Uint8Array } | null = null;
-        let message: string | undefined;
-        let trap: unknown = null;
-        try {
-          image = engine.decode(msg.bytes);
-        } catch (err) {
-          message = (err as Error).message ?? String(err);
-          if (err instanceof WebAssembly.RuntimeError) trap = err;
-        }
-        this.post({ type: 'decoded', id: msg.id, image, message }, image ? [image.data.buffer] : []);
-        if (trap) throw trap;
+        this.answer(() => engine.decode(msg.bytes), () => null, (image, message) =>
+          this.post({ type: 'decoded', id: msg.id, image, message }, image ? [image.data.buffer] : []));
       } else if (msg.type === 'check') {
-        let problems: { path: string; message: string }[];
-        let trap: unknown = null;
-        try {
-          problems = engine.validate(JSON.parse(msg.json));
-        } catch (err) {
-          problems = [{ path: '', message: (err as Error).message ?? String(err) }];
-          if (err instanceof WebAssembly.RuntimeError) trap = err;
-        }
-        this.post({ type: 'checked', id: msg.id, problems });
-        if (trap) throw trap;
+        this.answer(() => engine.validate(JSON.parse(msg.json)), (message) => [{ path: '', message }], (problems) =>
+          this.post({ type: 'checked', id: msg.id, problems }));
       } else if (msg.type === 'grid') {
         this.forgetDraft(msg.key);
         this.grids.get(msg.key)?.free();
@@ -150,6 +132,26 @@ export class SolverWorker {
     full?.grid?.free();
     full?.image?.free();
     this.fulls.delete(key);
+  }
+
+  /**
+   * Runs `f` and always answers the page (which waits for it) through `post`, with
+   * `failed(message)` and the message where `f` throws; a trap is rethrown after the answer,
+   * so the engine restarts (see `handle`).
+   */
+  private answer<T>(f: () => T, failed: (message: string) => T, post: (value: T, message?: string) => void): void {
+    let value: T;
+    let message: string | undefined;
+    let trap: unknown = null;
+    try {
+      value = f();
+    } catch (err) {
+      message = (err as Error).message ?? String(err);
+      value = failed(message);
+      if (err instanceof WebAssembly.RuntimeError) trap = err;
+    }
+    post(value, message);
+    if (trap) throw trap;
   }
 
   /**
