@@ -1079,12 +1079,6 @@ impl Level {
         }
     }
 
-    /// Whether the level has taps past its stored stencils.
-    #[cfg(test)]
-    pub fn has_far(&self) -> bool {
-        matches!(&self.op, Operator::Stored { far, .. } if !far.is_empty())
-    }
-
     /// `f(q, a_pq)` for every nonzero tap of row `p`: the stored stencil's and the far ones.
     pub fn taps(&self, p: usize, mut f: impl FnMut(usize, f64)) {
         let (row, wp) = (self.row(p), self.wp);
