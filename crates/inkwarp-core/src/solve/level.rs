@@ -496,7 +496,9 @@ impl Geometry {
     /// table is exact.
     fn with_rows(mut self) -> Geometry {
         let w = self.w;
-        let rows: Vec<(Vec<[u8; 4]>, Vec<(u32, [f64; 16])>, bool)> = (0..self.h)
+        // A row's codes, its rows past the corners, and whether it is plain.
+        type Row = (Vec<[u8; 4]>, Vec<(u32, [f64; 16])>, bool);
+        let rows: Vec<Row> = (0..self.h)
             .into_par_iter()
             .with_min_len(PAR_ROWS)
             .map(|y| {
