@@ -329,52 +329,64 @@ fn add_line_searched(fine: &Level, coarse: &Level, c: &mut Work, x: &mut [W2]) {
     prolong_add_scaled(fine, coarse, &c.x, x, alpha);
 }
 
-/// Largest eigenvalue of D⁻¹A estimated by Lanczos steps on D^-1/2 A D^-1/2 from a
-/// pseudo-random start (the largest Ritz value, a lower bound).
+/// Largest eigenvalue of D⁻¹A estimated by Lanczos steps from a pseudo-random start (the
+/// largest Ritz value, a lower bound). D⁻¹A is symmetric in the inner product `xᵀ D y`, so
+/// the Lanczos vectors are kept in that product: a step is one product (its dot product
+/// taken band by band) and one pass, each vector kept unnormalised with its norm.
 pub(crate) fn lanczos_estimate(level: &Level, steps: usize) -> f64 {
     let n = level.len_padded();
-    let s: Vec<f64> = level.inv_diag.iter().map(|&d| if d > 0.0 { d.sqrt() } else { 0.0 }).collect();
-    let mut v: Vec<V2> = (0..n)
+    let inv_d = &level.inv_diag;
+    // The start D^-1/2 v of a random v on the unknowns.
+    let mut cur: Vec<V2> = (0..n)
         .map(|p| {
             let h = |k: u64| ((p as u64 * 2 + k).wrapping_mul(0x9E3779B97F4A7C15) >> 40) as f64 / (1u64 << 24) as f64 - 0.5;
-            if s[p] != 0.0 { [h(0), h(1)] } else { [0.0; 2] }
+            let s = inv_d[p].sqrt();
+            if inv_d[p] > 0.0 { [h(0) * s, h(1) * s] } else { [0.0; 2] }
         })
         .collect();
-    let norm = |a: &[V2]| a.iter().map(|x| x[0] * x[0] + x[1] * x[1]).sum::<f64>().sqrt();
-    let nv = norm(&v);
-    if nv == 0.0 {
+    // The norm `√(xᵀ D x)` of the vectors: `cur` is the Lanczos vector times `c`, `prev`
+    // the one before it times `c_prev`.
+    let d_norm = |x: &[V2]| x.iter().zip(inv_d).map(|(x, &i)| if i > 0.0 { (x[0] * x[0] + x[1] * x[1]) / i } else { 0.0 }).sum::<f64>().sqrt();
+    let mut c = d_norm(&cur);
+    if c == 0.0 {
         return 0.0;
     }
-    v.iter_mut().for_each(|x| *x = [x[0] / nv, x[1] / nv]);
-    let mut prev = vec![[0.0; 2]; n];
-    let mut t = vec![[0.0; 2]; n];
-    let mut w = vec![[0.0; 2]; n];
+    let (mut prev, mut out) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
+    let (mut c_prev, mut b_prev) = (1.0, 0.0);
     let (mut alpha, mut beta) = (Vec::new(), Vec::new());
     for _ in 0..steps {
-        for p in 0..n {
-            t[p] = [v[p][0] * s[p], v[p][1] * s[p]];
-        }
-        level.residual(&t, None, &mut w); // −A D^-1/2 v
-        let mut a = 0.0;
-        for p in 0..n {
-            w[p] = [-w[p][0] * s[p], -w[p][1] * s[p]];
-            a += w[p][0] * v[p][0] + w[p][1] * v[p][1];
-        }
-        let b_prev = beta.last().copied().unwrap_or(0.0);
-        for p in 0..n {
-            w[p][0] -= a * v[p][0] + b_prev * prev[p][0];
-            w[p][1] -= a * v[p][1] + b_prev * prev[p][1];
-        }
+        let dot = level.residual_dot(&cur, &mut out); // −A cur and curᵀ(−A cur)
+        let a = -(dot[0] + dot[1]) / (c * c);
+        // The next vector, D⁻¹A v − a v − b v_prev, over `prev`, and its squared norm.
+        let (sc, sp) = (1.0 / c, b_prev / c_prev);
+        let norm2: f64 = prev
+            .par_chunks_mut(PASS_CHUNK)
+            .zip(cur.par_chunks(PASS_CHUNK))
+            .zip(out.par_chunks(PASS_CHUNK))
+            .zip(inv_d.par_chunks(PASS_CHUNK))
+            .map(|(((w, v), r), d)| {
+                let mut sum = 0.0;
+                for (((w, v), r), &i) in w.iter_mut().zip(v).zip(r).zip(d) {
+                    for k in 0..2 {
+                        w[k] = (-r[k] * i - a * v[k]) * sc - sp * w[k];
+                    }
+                    if i > 0.0 {
+                        sum += (w[0] * w[0] + w[1] * w[1]) / i;
+                    }
+                }
+                sum
+            })
+            .collect::<Vec<f64>>()
+            .iter()
+            .sum();
         alpha.push(a);
-        let b = norm(&w);
+        let b = norm2.sqrt();
         if b <= 1e-12 * a.abs() {
             break;
         }
         beta.push(b);
-        std::mem::swap(&mut prev, &mut v);
-        for p in 0..n {
-            v[p] = [w[p][0] / b, w[p][1] / b];
-        }
+        std::mem::swap(&mut prev, &mut cur);
+        (c_prev, c, b_prev) = (c, b, b);
     }
     tridiagonal_max(&alpha, &beta[..alpha.len() - 1])
 }

@@ -491,40 +491,72 @@ impl Geometry {
         crate::grid::torn(self.w, &self.active, &self.right, &self.down)
     }
 
-    /// Fills the table of prolongation rows. Every weight of a 2 × 2 row is a multiple of
-    /// 1/24 (halves, and averages of up to four halves), so the table is exact.
+    /// Fills the table of prolongation rows, rows of nodes in parallel. Every weight of a
+    /// 2 × 2 row is a multiple of 1/24 (halves, and averages of up to four halves), so the
+    /// table is exact.
     fn with_rows(mut self) -> Geometry {
-        let mut prow = vec![[0u8; 4]; self.w * self.h];
-        let mut ext = Vec::new();
-        let mut plain_rows = vec![true; self.h];
-        for y in 0..self.h {
-            for x in 0..self.w {
-                let i = self.idx(x, y);
-                let r = self.geo_row(x, y);
-                if !self.active[i] || r != plain_row(x, y) {
-                    plain_rows[y] = false;
+        let w = self.w;
+        // A row's codes, its rows past the corners, and whether it is plain.
+        type Row = (Vec<[u8; 4]>, Vec<(u32, [f64; 16])>, bool);
+        let rows: Vec<Row> = (0..self.h)
+            .into_par_iter()
+            .with_min_len(PAR_ROWS)
+            .map(|y| {
+                let (mut prow, mut ext, mut plain) = (vec![[0u8; 4]; w], Vec::new(), true);
+                for x in 0..w {
+                    let i = self.idx(x, y);
+                    let fixed = self.fixed.as_ref().is_some_and(|f| f[i]);
+                    if self.linked_around(x, y) {
+                        if !fixed {
+                            prow[x] = PLAIN_CODES[(y & 1) * 2 + (x & 1)];
+                        }
+                        continue;
+                    }
+                    let r = self.geo_row(x, y);
+                    plain &= self.active[i] && r == plain_row(x, y);
+                    if fixed {
+                        continue;
+                    }
+                    if CORNERS.iter().map(|&k| r[k]).sum::<f64>() != r.iter().sum::<f64>() || r.iter().any(|&v| v < 0.0) {
+                        prow[x] = [EXT; 4];
+                        ext.push((i as u32, r));
+                        continue;
+                    }
+                    for (c, &k) in prow[x].iter_mut().zip(&CORNERS) {
+                        let n = (r[k] * 24.0).round();
+                        debug_assert!((n / 24.0 - r[k]).abs() < 1e-12);
+                        *c = n as u8;
+                    }
                 }
-                if self.fixed.as_ref().is_some_and(|f| f[i]) {
-                    continue;
-                }
-                if CORNERS.iter().map(|&k| r[k]).sum::<f64>() != r.iter().sum::<f64>() || r.iter().any(|&v| v < 0.0) {
-                    prow[i] = [EXT; 4];
-                    ext.push((i as u32, r));
-                    continue;
-                }
-                let mut code = [0u8; 4];
-                for (c, &k) in code.iter_mut().zip(&CORNERS) {
-                    let n = (r[k] * 24.0).round();
-                    debug_assert!((n / 24.0 - r[k]).abs() < 1e-12);
-                    *c = n as u8;
-                }
-                prow[i] = code;
-            }
+                (prow, ext, plain)
+            })
+            .collect();
+        self.prow = Vec::with_capacity(w * self.h);
+        self.plain_rows = Vec::with_capacity(self.h);
+        for (prow, ext, plain) in rows {
+            self.prow.extend(prow);
+            self.ext.extend(ext);
+            self.plain_rows.push(plain);
         }
-        self.prow = prow;
-        self.ext = ext;
-        self.plain_rows = plain_rows;
         self
+    }
+
+    /// Whether node (x, y) is active and every link its row reads (see
+    /// [`Geometry::geo_row`]) is there: then its row is the plain bilinear one.
+    fn linked_around(&self, x: usize, y: usize) -> bool {
+        let r = |x: usize, y: usize| x + 1 == self.w || self.right[self.idx(x, y)];
+        let d = |x: usize, y: usize| y + 1 == self.h || self.down[self.idx(x, y)];
+        self.active[self.idx(x, y)]
+            && match (x & 1, y & 1) {
+                (0, 0) => true,
+                (1, 0) => r(x - 1, y) && r(x, y),
+                (0, 1) => d(x, y - 1) && d(x, y),
+                _ => {
+                    r(x - 1, y) && r(x, y) && d(x, y - 1) && d(x, y) && d(x - 1, y - 1) && d(x - 1, y) && r(x - 1, y - 1) && r(x, y - 1)
+                        && (x + 1 == self.w || d(x + 1, y - 1) && d(x + 1, y))
+                        && (y + 1 == self.h || r(x - 1, y + 1) && r(x, y + 1))
+                }
+            }
     }
 
     /// Link-aware prolongation row of node (x, y), ignoring whether the node is fixed:
@@ -707,6 +739,8 @@ impl Geometry {
 const EXT: u8 = u8::MAX;
 /// The slots of the 2 × 2 corners in a 4 × 4 window row.
 const CORNERS: [usize; 4] = [5, 6, 9, 10];
+/// The codes of the plain bilinear rows (see [`plain_row`]), by `(y & 1) * 2 + (x & 1)`.
+const PLAIN_CODES: [[u8; 4]; 4] = [[24, 0, 0, 0], [12, 12, 0, 0], [12, 0, 12, 0], [6, 6, 6, 6]];
 
 /// The row of a fine node between coarse nodes 1 and 2 of `r` (a line of the
 /// 4 × 4 window), linked to them as `a` and `b`; at a missing link the linked side's value
@@ -1110,7 +1144,6 @@ impl Level {
 
     /// `out = −A x` (as [`Level::residual`] without `f`) and `xᵀ out` per component, taken
     /// band by band while both are in cache.
-    #[cfg(test)]
     pub fn residual_dot<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> [f64; 2] {
         self.bands(x, None, out, Fold::Dot)
     }
@@ -1687,6 +1720,9 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         }
     }
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+    // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
+    let far_here = matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
+    let win = if fine.geo.extended() || far_here { Windows::WIDE } else { Windows::NARROW };
     type RowOut = (Vec<u32>, Vec<[f64; 25]>, Vec<(usize, isize, isize, f64)>);
     let build_row = |yc: usize| -> RowOut {
         let mut ids = vec![0u32; wpc];
@@ -1703,8 +1739,9 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         // whole window): most of a row's wide window is zero.
         let mut ap: Vec<std::ops::Range<usize>> = Vec::new();
         let mut nz: Vec<(isize, isize, f64)> = Vec::new();
+        let (mut acc, mut row) = (vec![0.0f64; win.acc * win.acc], vec![0.0f64; win.ap * win.ap]);
         for &xc in &irregular {
-            let mut acc = [0.0f64; ACC * ACC];
+            acc.fill(0.0);
             for iy in rows.clone() {
                 for ix in fine.geo.children(xc, fw) {
                     let wi = fine.geo.weight(ix, iy, xc, yc);
@@ -1715,20 +1752,21 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
                     if slot[k] == u32::MAX {
                         slot[k] = ap.len() as u32;
                         let start = nz.len();
-                        for (t, &v) in ap_row(fine, ix, iy).iter().enumerate() {
+                        ap_row(fine, ix, iy, win, &mut row);
+                        for (t, &v) in row.iter().enumerate() {
                             if v != 0.0 {
-                                nz.push(((t % AP) as isize - AP0, (t / AP) as isize - AP0, v));
+                                nz.push(((t % win.ap) as isize - win.ap0, (t / win.ap) as isize - win.ap0, v));
                             }
                         }
                         ap.push(start..nz.len());
                     }
                     let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
                     for &(ox, oy, v) in &nz[ap[slot[k] as usize].clone()] {
-                        acc[acc_at(bx + ox, by + oy)] += wi * v;
+                        acc[win.acc_at(bx + ox, by + oy)] += wi * v;
                     }
                 }
             }
-            let (acc, far_taps) = split_taps(&acc);
+            let (acc, far_taps) = split_taps(&acc, win.acc);
             // The window test above is conservative: a constraint or border near the edge
             // of the window often leaves the stencil as it is (at 513 × 513 with 4000
             // points, 18 of the first coarse level's 48 thousand candidates). Those are
@@ -1812,7 +1850,8 @@ pub(crate) fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
 /// [`galerkin_node`] with the taps past the stored ones, as `(dx, dy, a)`.
 pub(crate) fn galerkin_node_far(fine: &Level, xc: usize, yc: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
     let (fw, fh) = (fine.geo.w, fine.geo.h);
-    let mut acc = [0.0f64; ACC * ACC];
+    let win = Windows::WIDE;
+    let mut acc = vec![0.0f64; win.acc * win.acc];
     for iy in fine.geo.children(yc, fh) {
         for ix in fine.geo.children(xc, fw) {
             let wi = fine.geo.weight(ix, iy, xc, yc);
@@ -1822,37 +1861,48 @@ pub(crate) fn galerkin_node_far(fine: &Level, xc: usize, yc: usize) -> ([f64; 25
             fine.taps(fine.pidx(ix, iy), |q, a| {
                 let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
                 let (cjx, cjy) = ((jx / 2) as isize - xc as isize, (jy / 2) as isize - yc as isize);
-                fine.geo.p_row(jx, jy, |ox, oy, wj| acc[acc_at(cjx + ox, cjy + oy)] += wi * a * wj);
+                fine.geo.p_row(jx, jy, |ox, oy, wj| acc[win.acc_at(cjx + ox, cjy + oy)] += wi * a * wj);
             });
         }
     }
-    split_taps(&acc)
+    split_taps(&acc, win.acc)
 }
 
-/// The window of a coarse stencil while it is summed: offsets −8..=8 (taps reach offset 3
-/// where extrapolating rows meet; a level's reach `D` gives the next about `D / 2 + 3`).
-const ACC: usize = 17;
-/// The window of a row of `A P`: coarse offsets −6..=7 from `(ix / 2, iy / 2)`.
-const AP: usize = 14;
-const AP0: isize = 6;
-
-#[inline]
-fn acc_at(dx: isize, dy: isize) -> usize {
-    let h = (ACC / 2) as isize;
-    assert!(dx.abs() <= h && dy.abs() <= h, "a coarse stencil reaching offset ({dx}, {dy})");
-    ((dy + h) * ACC as isize + dx + h) as usize
+/// The windows of the Galerkin sums: a coarse stencil on offsets −`acc` / 2..=`acc` / 2, a
+/// row of `A P` on coarse offsets −`ap0`..`ap` − `ap0` from `(ix / 2, iy / 2)`.
+#[derive(Clone, Copy)]
+struct Windows {
+    acc: usize,
+    ap: usize,
+    ap0: isize,
 }
 
-/// A summed stencil split into its stored taps and the others, `(dx, dy, a)`.
-fn split_taps(acc: &[f64; ACC * ACC]) -> ([f64; 25], Vec<(isize, isize, f64)>) {
-    let h = (ACC / 2) as isize;
+impl Windows {
+    /// Where extrapolating rows meet, taps reach offset 3 (a level's reach `D` gives the
+    /// next about `D / 2 + 3`).
+    const WIDE: Windows = Windows { acc: 17, ap: 14, ap0: 6 };
+    /// Rows on their 2 × 2 corners and a fine operator within its 5 × 5 stencils.
+    const NARROW: Windows = Windows { acc: 5, ap: 4, ap0: 1 };
+
+    #[inline]
+    fn acc_at(self, dx: isize, dy: isize) -> usize {
+        let h = (self.acc / 2) as isize;
+        assert!(dx.abs() <= h && dy.abs() <= h, "a coarse stencil reaching offset ({dx}, {dy})");
+        ((dy + h) * self.acc as isize + dx + h) as usize
+    }
+}
+
+/// A summed stencil (on `n` × `n` offsets) split into its stored taps and the others,
+/// `(dx, dy, a)`.
+fn split_taps(acc: &[f64], n: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
+    let h = (n / 2) as isize;
     let mut s = [0.0; 25];
     let mut far = Vec::new();
     for (k, &a) in acc.iter().enumerate() {
         if a == 0.0 {
             continue;
         }
-        let (dx, dy) = ((k % ACC) as isize - h, (k / ACC) as isize - h);
+        let (dx, dy) = ((k % n) as isize - h, (k / n) as isize - h);
         if dx.abs() <= 2 && dy.abs() <= 2 && (dx.abs() < 2 || dy.abs() < 2) {
             s[((dy + 2) * 5 + dx + 2) as usize] = a;
         } else {
@@ -1862,21 +1912,21 @@ fn split_taps(acc: &[f64; ACC * ACC]) -> ([f64; 25], Vec<(isize, isize, f64)>) {
     (s, far)
 }
 
-/// Row `i = (ix, iy)` of `A P`: `Σ_j A_ij P_j`, over the coarse nodes at offsets
-/// −6..=7 from `(ix / 2, iy / 2)` (row-major).
-fn ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; AP * AP] {
-    let mut out = [0.0f64; AP * AP];
+/// Row `i = (ix, iy)` of `A P` into `out`: `Σ_j A_ij P_j`, over the coarse nodes of `win`
+/// (row-major).
+fn ap_row(fine: &Level, ix: usize, iy: usize, win: Windows, out: &mut [f64]) {
+    out.fill(0.0);
     let (bx, by) = ((ix / 2) as isize, (iy / 2) as isize);
+    let n = win.ap as isize;
     fine.taps(fine.pidx(ix, iy), |q, a| {
         let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
         let (cjx, cjy) = ((jx / 2) as isize - bx, (jy / 2) as isize - by);
         fine.geo.p_row(jx, jy, |ox, oy, wj| {
-            let (ox, oy) = (cjx + ox + AP0, cjy + oy + AP0);
-            assert!((0..AP as isize).contains(&ox) && (0..AP as isize).contains(&oy), "a row of A P reaching past its window");
-            out[(oy * AP as isize + ox) as usize] += a * wj;
+            let (ox, oy) = (cjx + ox + win.ap0, cjy + oy + win.ap0);
+            assert!((0..n).contains(&ox) && (0..n).contains(&oy), "a row of A P reaching past its window");
+            out[(oy * n + ox) as usize] += a * wj;
         });
     });
-    out
 }
 
 /// `coarse = Pᵀ fine_v` (restriction of a residual), in either precision.
