@@ -13,7 +13,7 @@
 //! on the rest of the spectrum.
 //!
 //! Memory: `WINDOW·2 + 2·KEEP` vectors of `f32` per node (a window, `W` and `A W`), that
-//! is 424 bytes a node, for pieces of at most [`BUDGET_BYTES`] of them; larger pieces run
+//! is 544 bytes a node, for pieces of at most [`BUDGET_BYTES`] of them; larger pieces run
 //! without (see `docs/dev/solver-correctness.md`).
 
 use rayon::prelude::*;
@@ -22,11 +22,11 @@ use super::level::{Level, Real, V2, W2, WS};
 
 /// Cycles before the iteration starts keeping directions: solves that end by then pay
 /// nothing.
-const START: usize = 12;
+const START: usize = 10;
 /// Cycles per window.
-const WINDOW: usize = 5;
+const WINDOW: usize = 4;
 /// Ritz vectors kept.
-const KEEP: usize = 48;
+const KEEP: usize = 64;
 /// Most bytes the kept vectors may take.
 const BUDGET_BYTES: usize = 256 << 20;
 /// Node chunk for the fused passes.
@@ -54,9 +54,10 @@ pub(super) struct Deflation {
     /// The extreme Ritz values of the preconditioned operator seen in this solve.
     low: f64,
     high: f64,
-    /// The smallest before the last deflating restart (the deflated operator's is larger,
-    /// but its first steps overestimate it).
+    /// The smallest of the sequence before the last deflating restart.
     before: f64,
+    /// The last changes (largest move of a node per cycle).
+    changes: Vec<f64>,
 }
 
 impl Deflation {
@@ -80,6 +81,7 @@ impl Deflation {
             low: f64::INFINITY,
             high: 0.0,
             before: f64::INFINITY,
+            changes: Vec::new(),
         }
     }
 
@@ -336,6 +338,20 @@ impl Deflation {
             .reduce(|| 0.0, f64::max)
     }
 
+    /// The change the stopping rule is to judge: once the iteration has deflated (a slow
+    /// problem, whose changes come in bursts), the largest of the last window's; else
+    /// `change`.
+    pub fn judged_change(&mut self, change: f64) -> f64 {
+        if self.restarts == 0 {
+            return change;
+        }
+        self.changes.push(change);
+        if self.changes.len() > WINDOW {
+            self.changes.remove(0);
+        }
+        self.changes.iter().fold(0.0, |a: f64, &b| a.max(b))
+    }
+
     /// A step of length `alpha` taken (per component).
     pub fn step(&mut self, alpha: [f64; 2]) {
         for (c, &a) in alpha.iter().enumerate() {
@@ -360,7 +376,9 @@ impl Deflation {
     /// The least ratio of successive changes the stopping rule may assume: the conjugate
     /// gradient's rate `(√κ − 1)/(√κ + 1)` for the condition `κ` of the preconditioned
     /// operator, from the extreme Ritz values of its Lanczos matrix (the smallest and
-    /// largest seen in this solve). A slow mode the changes do not show yet still shows in
+    /// largest seen since the deflating restart before the last: a sequence after one is
+    /// short, and its smallest Ritz value overestimates what is left; modes deflated two
+    /// windows ago no longer count). A slow mode the changes do not show yet still shows in
     /// the spectrum.
     pub fn rate_floor(&mut self) -> f64 {
         for c in 0..2 {
@@ -386,12 +404,7 @@ impl Deflation {
                 self.high = self.high.max(hi);
             }
         }
-        let fresh = self.steps.iter().map(Vec::len).min().unwrap_or(0) < WINDOW;
-        let low = if fresh {
-            self.low.min(self.before)
-        } else {
-            self.low
-        };
+        let low = self.low.min(self.before);
         if !(low > 0.0 && self.high > low) {
             return 0.0;
         }

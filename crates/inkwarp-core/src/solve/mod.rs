@@ -773,7 +773,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                     }
                     let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
                     slow.step(alpha);
-                    if stop(change, cycle, &mut report, slow.rate_floor()) {
+                    if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
                         report.converged = true;
                         break;
                     }
