@@ -12,6 +12,11 @@
 //! `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000): the iteration runs
 //! on the rest of the spectrum.
 //!
+//! The same object gives the stopping rule what a slow solve's changes hide: a floor on
+//! the rate from the Lanczos matrix of the conjugate gradient ([`Deflation::rate_floor`])
+//! and, once it has deflated, the largest change of the last window
+//! ([`Deflation::judged_change`]).
+//!
 //! Memory: `WINDOW·2 + 2·KEEP` vectors of `f32` per node (a window, `W` and `A W`), that
 //! is 544 bytes a node, for pieces of at most [`BUDGET_BYTES`] of them; larger pieces run
 //! without (see `docs/dev/solver-correctness.md`).
@@ -45,8 +50,6 @@ pub(super) struct Deflation {
     /// `Bᵀ A B` and `Bᵀ B` over the basis `B = [W, V]`.
     g: Vec<Vec<f64>>,
     m: Vec<Vec<f64>>,
-    /// Ritz values of the last restart, ascending (for the stopping rule).
-    pub ritz: Vec<f64>,
     pub restarts: usize,
     /// The conjugate gradient's step lengths and β per component since its directions last
     /// restarted: the Lanczos matrix of the preconditioned operator.
@@ -75,7 +78,6 @@ impl Deflation {
             e: Vec::new(),
             g: Vec::new(),
             m: Vec::new(),
-            ritz: Vec::new(),
             restarts: 0,
             steps: [Vec::new(), Vec::new()],
             low: f64::INFINITY,
@@ -294,7 +296,6 @@ impl Deflation {
         self.w = w;
         self.aw = aw;
         self.v.clear();
-        self.ritz = theta;
         // u += W c, r −= A W c with c = E⁻¹ Wᵀ r.
         let dots = chunked_sums(n, 2 * k, |a, b, out| {
             for (l, w) in self.w.iter().enumerate() {
