@@ -55,6 +55,7 @@
 //! by the caller's [`Solver`], never by the process.
 
 mod cycle;
+mod deflate;
 mod history;
 mod level;
 mod nullspace;
@@ -115,7 +116,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 4] = ["second", "kcycle", "cache", "fours"];
+    pub const NAMES: [&'static str; 5] = ["second", "kcycle", "cache", "fours", "deflate"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -734,7 +735,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     // The last two cycles' ratios of successive changes.
     let mut ratios = [0.0f64; 2];
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
-    let mut stop = |change: f64, cycle: usize, report: &mut SolveReport| {
+    let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, floor: f64| {
                 report.cycles = cycle;
                 report.final_change_px = change;
                 // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-
@@ -744,7 +745,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 // (stagnation) never stops.
                 let ratio = if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 };
                 ratios = [ratios[1], ratio];
-                let rho = ratios.iter().fold(0.0f64, |a, &b| a.max(b));
+                let rho = ratios.iter().fold(floor, |a, &b| a.max(b));
                 last_change = change;
                 change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
     };
@@ -765,14 +766,27 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 let z = hier.precondition(&r);
                 let mut rz = dot_z(&r, z);
                 widen_into(&mut p, z, None);
+                let mut slow = deflate::Deflation::new(len, options.off.has("deflate"));
                 for cycle in 1..=max_cycles {
                     if crate::interrupt::requested() {
                         break;
                     }
                     let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
-                    if stop(change, cycle, &mut report) {
+                    slow.step(alpha);
+                    if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
                         report.converged = true;
                         break;
+                    }
+                    if slow.record(cycle, &p, &q) {
+                        // A window of directions kept: correct on the slow modes found and
+                        // restart the directions, deflated.
+                        slow.restart(&hier.levels[0], &mut u, &mut r);
+                        let z = hier.precondition(&r);
+                        rz = dot_z(&r, z);
+                        widen_into(&mut p, z, None);
+                        slow.project(&mut p);
+                        slow.beta(None);
+                        continue;
                     }
                     if !started {
                         started = true;
@@ -781,6 +795,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         let z = hier.precondition(&r);
                         rz = dot_z(&r, z);
                         widen_into(&mut p, z, None);
+                        slow.beta(None);
                         continue;
                     }
                     let z = hier.precondition(&r);
@@ -792,6 +807,8 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         if rz[1] > 0.0 { ((alpha[1] * zq[1]) / rz[1]).max(0.0) } else { 0.0 },
                     ];
                     widen_into(&mut p, z, Some(beta));
+                    slow.project(&mut p);
+                    slow.beta(Some(beta));
                     rz = rz_new;
                 }
             }
@@ -818,7 +835,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 round += 1;
                 hier.levels[0].residual(&u, None, &mut r);
                 // No node moved by more than the two parts' largest moves together.
-                if stop(step + relaxed, round, &mut report) || finished {
+                if stop(step + relaxed, round, &mut report, 0.0) || finished {
                     report.cycles = round;
                     report.converged = true;
                     break;

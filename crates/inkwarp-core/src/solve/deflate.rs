@@ -1,0 +1,638 @@
+//! Deflation of the slow modes the outer conjugate gradient reveals.
+//!
+//! The multigrid cycle misses the near-rigid motions of weakly attached parts (the teeth of
+//! a comb, a wedge bending against a distant arm): each is a near-null mode of the plate
+//! that the preconditioned iteration finds only slowly. When a solve is still running after
+//! [`START`] cycles, the search directions of each window of [`WINDOW`] cycles (both
+//! components, which share the operator) are kept with their Gram matrices `Vᵀ A V` and
+//! `Vᵀ V`; at the window's end a Rayleigh–Ritz step over the window and the vectors already
+//! kept gives the Ritz vectors of the smallest eigenvalues of `A` (thick restart, as eigCG
+//! does), of which the [`KEEP`] smallest are kept as `W`. The iterate is then corrected on
+//! `span W` (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`), and every later search direction is made
+//! `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000): the iteration runs
+//! on the rest of the spectrum.
+//!
+//! The same object gives the stopping rule what a slow solve's changes hide: a floor on
+//! the rate from the Lanczos matrix of the conjugate gradient ([`Deflation::rate_floor`])
+//! and, once it has deflated, the largest change of the last window
+//! ([`Deflation::judged_change`]).
+//!
+//! Memory: `WINDOW·2 + 2·KEEP` vectors of `f32` per node (a window, `W` and `A W`), that
+//! is 544 bytes a node, for pieces of at most [`BUDGET_BYTES`] of them; larger pieces run
+//! without (see `docs/dev/solver-correctness.md`).
+
+use rayon::prelude::*;
+
+use super::level::{Level, Real, V2, W2, WS};
+
+/// Cycles before the iteration starts keeping directions: solves that end by then pay
+/// nothing.
+const START: usize = 10;
+/// Cycles per window.
+const WINDOW: usize = 4;
+/// Ritz vectors kept.
+const KEEP: usize = 64;
+/// Most bytes the kept vectors may take.
+const BUDGET_BYTES: usize = 256 << 20;
+/// Node chunk for the fused passes.
+const CHUNK: usize = 4096;
+
+pub(super) struct Deflation {
+    on: bool,
+    keep: usize,
+    /// The window's directions, one scalar vector per component and cycle.
+    v: Vec<Vec<f32>>,
+    /// The kept vectors and their products.
+    w: Vec<Vec<f32>>,
+    aw: Vec<Vec<f32>>,
+    /// `Wᵀ A W`.
+    e: Vec<Vec<f64>>,
+    /// `Bᵀ A B` and `Bᵀ B` over the basis `B = [W, V]`.
+    g: Vec<Vec<f64>>,
+    m: Vec<Vec<f64>>,
+    pub restarts: usize,
+    /// The conjugate gradient's step lengths and β per component since its directions last
+    /// restarted: the Lanczos matrix of the preconditioned operator.
+    steps: [Vec<(f64, f64)>; 2],
+    /// The extreme Ritz values of the preconditioned operator seen in this solve.
+    low: f64,
+    high: f64,
+    /// The smallest of the sequence before the last deflating restart.
+    before: f64,
+    /// The last changes (largest move of a node per cycle).
+    changes: Vec<f64>,
+}
+
+impl Deflation {
+    pub fn new(len: usize, off: bool) -> Deflation {
+        let per = 4 * len;
+        let fit = BUDGET_BYTES / per.max(1);
+        let keep = KEEP.min(fit.saturating_sub(2 * WINDOW) / 2);
+        let on = !off && keep >= 4;
+        Deflation {
+            on,
+            keep,
+            v: Vec::new(),
+            w: Vec::new(),
+            aw: Vec::new(),
+            e: Vec::new(),
+            g: Vec::new(),
+            m: Vec::new(),
+            restarts: 0,
+            steps: [Vec::new(), Vec::new()],
+            low: f64::INFINITY,
+            high: 0.0,
+            before: f64::INFINITY,
+            changes: Vec::new(),
+        }
+    }
+
+    /// Makes the search direction `p` `A`-orthogonal to the kept vectors.
+    pub fn project(&self, p: &mut [W2]) {
+        if self.w.is_empty() {
+            return;
+        }
+        let k = self.w.len();
+        let dots = chunked_sums(p.len(), 2 * k, |a, b, out| {
+            for (l, aw) in self.aw.iter().enumerate() {
+                let (mut s0, mut s1) = (0.0, 0.0);
+                for (x, &y) in p[a..b].iter().zip(&aw[a..b]) {
+                    s0 += x[0].get() * y as f64;
+                    s1 += x[1].get() * y as f64;
+                }
+                out[2 * l] += s0;
+                out[2 * l + 1] += s1;
+            }
+        });
+        let rhs: Vec<V2> = (0..k).map(|l| [dots[2 * l], dots[2 * l + 1]]).collect();
+        let Some(mu) = super::dense_solve(self.e.clone(), rhs) else {
+            return;
+        };
+        p.par_chunks_mut(CHUNK).enumerate().for_each(|(c, p)| {
+            let a = c * CHUNK;
+            for (j, x) in p.iter_mut().enumerate() {
+                let (mut d0, mut d1) = (0.0, 0.0);
+                for (l, w) in self.w.iter().enumerate() {
+                    let wv = w[a + j] as f64;
+                    d0 += mu[l][0] * wv;
+                    d1 += mu[l][1] * wv;
+                }
+                if d0 != 0.0 || d1 != 0.0 {
+                    *x = [WS::of(x[0].get() - d0), WS::of(x[1].get() - d1)];
+                }
+            }
+        });
+    }
+
+    /// Keeps the direction `p` of cycle `cycle` (its product `q = −A p`); true when a window
+    /// is full and [`Deflation::restart`] is due.
+    pub fn record(&mut self, cycle: usize, p: &[W2], q: &[V2]) -> bool {
+        if !self.on || cycle < START {
+            return false;
+        }
+        let n = p.len();
+        let nb = self.w.len() + self.v.len();
+        // Entries against the basis: (Ax_c)·b and x_c·b for both components c, then the
+        // new pair among themselves.
+        let basis: Vec<&[f32]> = self.w.iter().chain(&self.v).map(|b| b.as_slice()).collect();
+        let sums = chunked_sums(n, 4 * nb + 6, |a, b, out| {
+            for (j, bv) in basis.iter().enumerate() {
+                let mut s = [0.0f64; 4];
+                for ((x, y), &bv) in p[a..b].iter().zip(&q[a..b]).zip(&bv[a..b]) {
+                    let bv = bv as f64;
+                    s[0] -= y[0] * bv;
+                    s[1] -= y[1] * bv;
+                    s[2] += x[0].get() * bv;
+                    s[3] += x[1].get() * bv;
+                }
+                for t in 0..4 {
+                    out[4 * j + t] += s[t];
+                }
+            }
+            let o = 4 * basis.len();
+            for (x, y) in p[a..b].iter().zip(&q[a..b]) {
+                let (x0, x1) = (x[0].get(), x[1].get());
+                out[o] -= y[0] * x0;
+                out[o + 1] -= y[1] * x1;
+                out[o + 2] -= y[0] * x1;
+                out[o + 3] += x0 * x0;
+                out[o + 4] += x1 * x1;
+                out[o + 5] += x0 * x1;
+            }
+        });
+        if sums.iter().any(|s| !s.is_finite()) {
+            self.on = false;
+            return false;
+        }
+        for row in self.g.iter_mut().chain(self.m.iter_mut()) {
+            row.resize(nb + 2, 0.0);
+        }
+        let o = 4 * nb;
+        let mut g0 = vec![0.0; nb + 2];
+        let mut g1 = vec![0.0; nb + 2];
+        let mut m0 = vec![0.0; nb + 2];
+        let mut m1 = vec![0.0; nb + 2];
+        for j in 0..nb {
+            (g0[j], g1[j], m0[j], m1[j]) = (
+                sums[4 * j],
+                sums[4 * j + 1],
+                sums[4 * j + 2],
+                sums[4 * j + 3],
+            );
+            self.g[j][nb] = g0[j];
+            self.g[j][nb + 1] = g1[j];
+            self.m[j][nb] = m0[j];
+            self.m[j][nb + 1] = m1[j];
+        }
+        (g0[nb], g1[nb + 1], g0[nb + 1], g1[nb]) = (sums[o], sums[o + 1], sums[o + 2], sums[o + 2]);
+        (m0[nb], m1[nb + 1], m0[nb + 1], m1[nb]) =
+            (sums[o + 3], sums[o + 4], sums[o + 5], sums[o + 5]);
+        self.g.push(g0);
+        self.g.push(g1);
+        self.m.push(m0);
+        self.m.push(m1);
+        self.v.push(p.iter().map(|x| x[0]).collect());
+        self.v.push(p.iter().map(|x| x[1]).collect());
+        self.v.len() >= 2 * WINDOW
+    }
+
+    /// Rayleigh–Ritz over the kept vectors and the window, keeps the Ritz vectors of the
+    /// smallest Ritz values, and corrects `u` and its residual `r` on their span. Returns
+    /// the largest move of a node.
+    pub fn restart(&mut self, fine: &Level, u: &mut [V2], r: &mut [V2]) -> f64 {
+        let nb = self.w.len() + self.v.len();
+        let Some((theta, y)) = ritz(&self.g, &self.m) else {
+            self.clear();
+            return 0.0;
+        };
+        self.restarts += 1;
+        self.before = self.low;
+        self.low = f64::INFINITY;
+        let k = self.keep.min(theta.len());
+        let n = u.len();
+        let basis: Vec<&[f32]> = self.w.iter().chain(&self.v).map(|b| b.as_slice()).collect();
+        debug_assert_eq!(basis.len(), nb);
+        let mut w: Vec<Vec<f32>> = vec![vec![0.0; n]; k];
+        {
+            let mut cols: Vec<&mut [f32]> = w.iter_mut().map(|x| x.as_mut_slice()).collect();
+            let mut parts: Vec<Vec<&mut [f32]>> = Vec::new();
+            // Chunk every column alike, then fill chunk by chunk in parallel.
+            let mut rest: Vec<&mut [f32]> = std::mem::take(&mut cols);
+            while rest.first().is_some_and(|c| !c.is_empty()) {
+                let mut now = Vec::with_capacity(k);
+                let mut next = Vec::with_capacity(k);
+                for c in rest {
+                    let m = c.len().min(CHUNK);
+                    let (a, b) = c.split_at_mut(m);
+                    now.push(a);
+                    next.push(b);
+                }
+                parts.push(now);
+                rest = next;
+            }
+            parts.into_par_iter().enumerate().for_each(|(c, mut cols)| {
+                let a = c * CHUNK;
+                let mut acc = vec![0.0f64; CHUNK];
+                for (l, col) in cols.iter_mut().enumerate() {
+                    let m = col.len();
+                    acc[..m].fill(0.0);
+                    for (j, b) in basis.iter().enumerate() {
+                        let yj = y[j][l];
+                        if yj != 0.0 {
+                            for (o, &bv) in acc[..m].iter_mut().zip(&b[a..a + m]) {
+                                *o += yj * bv as f64;
+                            }
+                        }
+                    }
+                    for (o, &x) in col.iter_mut().zip(&acc[..m]) {
+                        *o = x as f32;
+                    }
+                }
+            });
+        }
+        // A W by the operator itself (a combination of the window's products would cancel
+        // below f32 for the near-null vectors), two at a time.
+        let mut aw: Vec<Vec<f32>> = Vec::with_capacity(k);
+        let mut x: Vec<W2> = vec![[WS::of(0.0); 2]; n];
+        let mut q: Vec<V2> = vec![[0.0; 2]; n];
+        fine.clear_padding(&mut q);
+        for pair in (0..k).step_by(2) {
+            let other = (pair + 1).min(k - 1);
+            for (i, xi) in x.iter_mut().enumerate() {
+                *xi = [w[pair][i], w[other][i]];
+            }
+            fine.fine_residual_dot_narrow(&x, &mut q);
+            aw.push(q.iter().map(|v| -v[0] as f32).collect());
+            if other != pair {
+                aw.push(q.iter().map(|v| -v[1] as f32).collect());
+            }
+        }
+        // E = Wᵀ A W and Wᵀ W, the new basis's Gram matrices.
+        let sums = chunked_sums(n, 2 * k * k, |a, b, out| {
+            for l in 0..k {
+                for j in 0..k {
+                    let (mut e, mut m) = (0.0, 0.0);
+                    for ((&wl, &awj), &wj) in w[l][a..b].iter().zip(&aw[j][a..b]).zip(&w[j][a..b]) {
+                        e += wl as f64 * awj as f64;
+                        m += wl as f64 * wj as f64;
+                    }
+                    out[2 * (l * k + j)] += e;
+                    out[2 * (l * k + j) + 1] += m;
+                }
+            }
+        });
+        let sym = |t: usize| -> Vec<Vec<f64>> {
+            (0..k)
+                .map(|l| {
+                    (0..k)
+                        .map(|j| 0.5 * (sums[2 * (l * k + j) + t] + sums[2 * (j * k + l) + t]))
+                        .collect()
+                })
+                .collect()
+        };
+        self.e = sym(0);
+        self.g = self.e.clone();
+        self.m = sym(1);
+        self.w = w;
+        self.aw = aw;
+        self.v.clear();
+        // u += W c, r −= A W c with c = E⁻¹ Wᵀ r.
+        let dots = chunked_sums(n, 2 * k, |a, b, out| {
+            for (l, w) in self.w.iter().enumerate() {
+                for (x, &y) in r[a..b].iter().zip(&w[a..b]) {
+                    out[2 * l] += x[0] * y as f64;
+                    out[2 * l + 1] += x[1] * y as f64;
+                }
+            }
+        });
+        let rhs: Vec<V2> = (0..k).map(|l| [dots[2 * l], dots[2 * l + 1]]).collect();
+        let Some(c) = super::dense_solve(self.e.clone(), rhs)
+            .filter(|c| c.iter().all(|v| v[0].is_finite() && v[1].is_finite()))
+        else {
+            self.clear();
+            return 0.0;
+        };
+        let (w, aw) = (&self.w, &self.aw);
+        u.par_chunks_mut(CHUNK)
+            .zip(r.par_chunks_mut(CHUNK))
+            .enumerate()
+            .map(|(ch, (u, r))| {
+                let a = ch * CHUNK;
+                let mut moved = 0.0f64;
+                for (j, (u, r)) in u.iter_mut().zip(r.iter_mut()).enumerate() {
+                    let (mut d, mut e) = ([0.0; 2], [0.0; 2]);
+                    for l in 0..k {
+                        let (wv, av) = (w[l][a + j] as f64, aw[l][a + j] as f64);
+                        d[0] += c[l][0] * wv;
+                        d[1] += c[l][1] * wv;
+                        e[0] += c[l][0] * av;
+                        e[1] += c[l][1] * av;
+                    }
+                    u[0] += d[0];
+                    u[1] += d[1];
+                    r[0] -= e[0];
+                    r[1] -= e[1];
+                    moved = moved.max(d[0].abs()).max(d[1].abs());
+                }
+                moved
+            })
+            .reduce(|| 0.0, f64::max)
+    }
+
+    /// The change the stopping rule is to judge: once the iteration has deflated (a slow
+    /// problem, whose changes come in bursts), the largest of the last window's; else
+    /// `change`.
+    pub fn judged_change(&mut self, change: f64) -> f64 {
+        if self.restarts == 0 {
+            return change;
+        }
+        self.changes.push(change);
+        if self.changes.len() > WINDOW {
+            self.changes.remove(0);
+        }
+        self.changes.iter().fold(0.0, |a: f64, &b| a.max(b))
+    }
+
+    /// A step of length `alpha` taken (per component).
+    pub fn step(&mut self, alpha: [f64; 2]) {
+        for (c, &a) in alpha.iter().enumerate() {
+            if a > 0.0 && a.is_finite() {
+                self.steps[c].push((a, 0.0));
+            } else {
+                self.steps[c].clear();
+            }
+        }
+    }
+
+    /// The next direction's `β` (per component); `None` when the directions restart.
+    pub fn beta(&mut self, beta: Option<[f64; 2]>) {
+        for c in 0..2 {
+            match (beta, self.steps[c].last_mut()) {
+                (Some(b), Some(last)) if b[c] > 0.0 => last.1 = b[c],
+                _ => self.steps[c].clear(),
+            }
+        }
+    }
+
+    /// The least ratio of successive changes the stopping rule may assume: the conjugate
+    /// gradient's rate `(√κ − 1)/(√κ + 1)` for the condition `κ` of the preconditioned
+    /// operator, from the extreme Ritz values of its Lanczos matrix (the smallest and
+    /// largest seen since the deflating restart before the last: a sequence after one is
+    /// short, and its smallest Ritz value overestimates what is left; modes deflated two
+    /// windows ago no longer count). A slow mode the changes do not show yet still shows in
+    /// the spectrum.
+    pub fn rate_floor(&mut self) -> f64 {
+        for c in 0..2 {
+            let st = &self.steps[c];
+            if st.len() < 2 {
+                continue;
+            }
+            // T_jj = 1/α_j + β_{j−1}/α_{j−1}, T_{j−1,j} = √β_{j−1}/α_{j−1}.
+            let n = st.len();
+            let diag: Vec<f64> = (0..n)
+                .map(|j| {
+                    1.0 / st[j].0
+                        + if j > 0 {
+                            st[j - 1].1 / st[j - 1].0
+                        } else {
+                            0.0
+                        }
+                })
+                .collect();
+            let off: Vec<f64> = (1..n).map(|j| st[j - 1].1.sqrt() / st[j - 1].0).collect();
+            if let Some((lo, hi)) = extremes(&diag, &off) {
+                self.low = self.low.min(lo);
+                self.high = self.high.max(hi);
+            }
+        }
+        let low = self.low.min(self.before);
+        if !(low > 0.0 && self.high > low) {
+            return 0.0;
+        }
+        let k = (self.high / low).sqrt();
+        (k - 1.0) / (k + 1.0)
+    }
+
+    fn clear(&mut self) {
+        self.v.clear();
+        self.w.clear();
+        self.aw.clear();
+        self.e.clear();
+        self.g.clear();
+        self.m.clear();
+    }
+}
+
+/// Sums of `len` nodes in chunks, each chunk adding into its own `width` sums, the chunks
+/// added in order (the result does not depend on the threads).
+fn chunked_sums(len: usize, width: usize, f: impl Fn(usize, usize, &mut [f64]) + Sync) -> Vec<f64> {
+    let parts: Vec<Vec<f64>> = (0..len.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let mut out = vec![0.0; width];
+            f(c * CHUNK, ((c + 1) * CHUNK).min(len), &mut out);
+            out
+        })
+        .collect();
+    parts.iter().fold(vec![0.0; width], |mut s, p| {
+        s.iter_mut().zip(p).for_each(|(s, p)| *s += p);
+        s
+    })
+}
+
+/// Ritz pairs of `G y = θ M y` (`M` the Gram matrix of a basis that may be dependent):
+/// ascending Ritz values and the coefficient columns `y[j][l]` of the `l`-th Ritz vector,
+/// `M`-orthonormal. Dependent basis vectors are dropped.
+fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
+    let n = g.len();
+    let d: Vec<f64> = (0..n)
+        .map(|i| {
+            if m[i][i] > 0.0 {
+                1.0 / m[i][i].sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    // Cholesky of the scaled M = L Lᵀ, dropping vectors whose part independent of the
+    // earlier ones is below f32's resolution.
+    let mut keep: Vec<usize> = Vec::new();
+    let mut l: Vec<Vec<f64>> = Vec::new(); // rows over `keep`
+    for i in 0..n {
+        if d[i] == 0.0 {
+            continue;
+        }
+        let mut row = vec![0.0; keep.len() + 1];
+        for (a, &ja) in keep.iter().enumerate() {
+            let mut s = m[i][ja] * d[i] * d[ja];
+            for b in 0..a {
+                s -= row[b] * l[a][b];
+            }
+            row[a] = s / l[a][a];
+        }
+        let diag = 1.0 - row[..keep.len()].iter().map(|x| x * x).sum::<f64>();
+        if diag < 1e-6 {
+            continue;
+        }
+        row[keep.len()] = diag.sqrt();
+        keep.push(i);
+        l.push(row);
+    }
+    let k = keep.len();
+    if k == 0 {
+        return None;
+    }
+    // C = L⁻¹ G_s L⁻ᵀ, G_s the scaled G over the kept vectors.
+    let gs: Vec<Vec<f64>> = keep
+        .iter()
+        .map(|&i| {
+            keep.iter()
+                .map(|&j| 0.5 * (g[i][j] + g[j][i]) * d[i] * d[j])
+                .collect()
+        })
+        .collect();
+    let solve_l = |b: &[f64]| -> Vec<f64> {
+        let mut x = vec![0.0; k];
+        for i in 0..k {
+            let mut s = b[i];
+            for j in 0..i {
+                s -= l[i][j] * x[j];
+            }
+            x[i] = s / l[i][i];
+        }
+        x
+    };
+    // X = L⁻¹ G_s (columns), then C = L⁻¹ Xᵀ.
+    let x: Vec<Vec<f64>> = (0..k)
+        .map(|j| solve_l(&(0..k).map(|i| gs[i][j]).collect::<Vec<_>>()))
+        .collect(); // x[j] = column j
+    let mut c: Vec<Vec<f64>> = (0..k)
+        .map(|i| solve_l(&(0..k).map(|j| x[j][i]).collect::<Vec<_>>()))
+        .collect();
+    for i in 0..k {
+        for j in 0..i {
+            let s = 0.5 * (c[i][j] + c[j][i]);
+            c[i][j] = s;
+            c[j][i] = s;
+        }
+    }
+    let (theta, vecs) = jacobi_eigen(c)?;
+    // y = D L⁻ᵀ v for each eigenvector v.
+    let mut order: Vec<usize> = (0..k).collect();
+    order.sort_by(|&a, &b| theta[a].total_cmp(&theta[b]));
+    let mut y = vec![vec![0.0; k]; n];
+    let mut sorted = Vec::with_capacity(k);
+    for (col, &e) in order.iter().enumerate() {
+        sorted.push(theta[e]);
+        // back substitution Lᵀ z = v
+        let v: Vec<f64> = (0..k).map(|i| vecs[i][e]).collect();
+        let mut z = vec![0.0; k];
+        for i in (0..k).rev() {
+            let mut s = v[i];
+            for j in i + 1..k {
+                s -= l[j][i] * z[j];
+            }
+            z[i] = s / l[i][i];
+        }
+        for (a, &i) in keep.iter().enumerate() {
+            y[i][col] = z[a] * d[i];
+        }
+    }
+    Some((sorted, y))
+}
+
+/// Eigen-decomposition of a small symmetric matrix by cyclic Jacobi rotations: the
+/// eigenvalues and the eigenvectors as columns.
+fn jacobi_eigen(mut a: Vec<Vec<f64>>) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
+    let n = a.len();
+    let mut v: Vec<Vec<f64>> = (0..n)
+        .map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
+        .collect();
+    for _ in 0..100 {
+        let off: f64 = (0..n)
+            .flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j)))
+            .map(|(i, j)| a[i][j] * a[i][j])
+            .sum();
+        let scale: f64 = (0..n).map(|i| a[i][i] * a[i][i]).sum::<f64>();
+        if off <= 1e-30 * scale.max(1e-300) {
+            break;
+        }
+        for p in 0..n {
+            for q in p + 1..n {
+                if a[p][q].abs() < 1e-300 {
+                    continue;
+                }
+                let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let cs = 1.0 / (t * t + 1.0).sqrt();
+                let sn = t * cs;
+                for k in 0..n {
+                    let (akp, akq) = (a[k][p], a[k][q]);
+                    a[k][p] = cs * akp - sn * akq;
+                    a[k][q] = sn * akp + cs * akq;
+                }
+                for k in 0..n {
+                    let (apk, aqk) = (a[p][k], a[q][k]);
+                    a[p][k] = cs * apk - sn * aqk;
+                    a[q][k] = sn * apk + cs * aqk;
+                }
+                for row in v.iter_mut() {
+                    let (vkp, vkq) = (row[p], row[q]);
+                    row[p] = cs * vkp - sn * vkq;
+                    row[q] = sn * vkp + cs * vkq;
+                }
+            }
+        }
+    }
+    let d: Vec<f64> = (0..n).map(|i| a[i][i]).collect();
+    d.iter().all(|x| x.is_finite()).then_some((d, v))
+}
+
+/// The smallest and largest eigenvalues of the symmetric tridiagonal matrix (`diag`, `off`)
+/// by bisection on Sturm counts.
+fn extremes(diag: &[f64], off: &[f64]) -> Option<(f64, f64)> {
+    let n = diag.len();
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..n {
+        let r =
+            if i > 0 { off[i - 1].abs() } else { 0.0 } + if i + 1 < n { off[i].abs() } else { 0.0 };
+        lo = lo.min(diag[i] - r);
+        hi = hi.max(diag[i] + r);
+    }
+    if !(lo.is_finite() && hi.is_finite()) {
+        return None;
+    }
+    // Eigenvalues below x.
+    let below = |x: f64| {
+        let mut count = 0;
+        let mut d = 1.0;
+        for i in 0..n {
+            let b2 = if i > 0 { off[i - 1] * off[i - 1] } else { 0.0 };
+            d = diag[i] - x - if i > 0 { b2 / d } else { 0.0 };
+            if d == 0.0 {
+                d = -1e-300;
+            }
+            if d < 0.0 {
+                count += 1;
+            }
+        }
+        count
+    };
+    let find = |k: usize| {
+        let (mut a, mut b) = (lo, hi);
+        for _ in 0..100 {
+            let m = 0.5 * (a + b);
+            if below(m) > k {
+                b = m;
+            } else {
+                a = m;
+            }
+            if b - a <= 1e-12 * b.abs().max(1e-300) {
+                break;
+            }
+        }
+        0.5 * (a + b)
+    };
+    Some((find(0), find(n - 1)))
+}
