@@ -386,7 +386,7 @@ export const RENEW_IDLE_MS = 8000;
 export class FullClient {
   readonly ready: Promise<void>;
   private worker: Worker;
-  private inFlight: { id: number; req: FullRequest } | null = null;
+  private inFlight: { id: number; req: FullRequest; viewOnly?: boolean } | null = null;
   private pending: FullRequest | null = null;
   private nextId = 1;
   /** While the worker is being replaced (see `renew`): the messages for the fresh one. */
@@ -437,6 +437,8 @@ export class FullClient {
    * or the worker was renewed since): `view` draws another view of it without a solve.
    */
   private kept: FullRequest | null = null;
+  /** The last frame asked for (`render`), solved again for a view when the worker has lost its fields. */
+  private last: FullRequest | null = null;
   /** The newest view asked for (`view`), waiting for the frame in flight. */
   private pendingView: { view: ViewSpec; madeAt: number } | null = null;
 
@@ -469,9 +471,17 @@ export class FullClient {
     if (!this.pending && this.pendingView) {
       const { view, madeAt } = this.pendingView;
       this.pendingView = null;
-      if (!this.kept) return;
+      if (!this.kept) {
+        // The fields are gone (the worker was replaced, or could not draw the view): the
+        // frame is solved again for the view.
+        if (this.last) {
+          this.pending = { ...this.last, view, madeAt, done: undefined };
+          this.pump();
+        }
+        return;
+      }
       const id = this.nextId++;
-      this.inFlight = { id, req: { ...this.kept, view, madeAt, done: undefined } };
+      this.inFlight = { id, req: { ...this.kept, view, madeAt, done: undefined }, viewOnly: true };
       this.worker.postMessage({ type: 'full-view', id, view } satisfies ToWorker);
       return;
     }
@@ -480,6 +490,7 @@ export class FullClient {
     this.pending = null;
     const id = this.nextId++;
     this.inFlight = { id, req };
+    this.last = req;
     // A whole frame takes the fields the worker kept.
     this.kept = null;
     this.worker.postMessage({ type: 'full-render', id, width: req.width, height: req.height, background: req.background, layers: req.layers, view: req.view } satisfies ToWorker);
@@ -544,8 +555,14 @@ export class FullClient {
     } else if (msg.type === 'error') {
       if (done && msg.id === done.id) {
         this.inFlight = null;
-        // A view that could not be drawn (no fields kept) is not drawn again from them.
-        if (done.req.view) this.kept = null;
+        if (done.viewOnly) {
+          // A view the worker could not draw from its fields (it has none): the frame is
+          // solved again for it, unless a newer request came meanwhile.
+          this.kept = null;
+          if (!this.pending && !this.pendingView) this.pendingView = { view: done.req.view!, madeAt: done.req.madeAt };
+          this.pump();
+          return;
+        }
         done.req.done?.(null);
       }
       this.onError(msg.message);
