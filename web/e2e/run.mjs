@@ -252,7 +252,7 @@ async function shot(pg, name) {
 }
 
 /** The screenshots docs/guides/editor.md shows. */
-const DOC_SCREENS = ['layer-offset', 'photo-proxy', 'photo-settled', 'ready-bar', 'marquee', 'keys-marquee', 'matte-posed', 'start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
+const DOC_SCREENS = ['layer-offset', 'photo-proxy', 'photo-settled', 'photo-settled-100', 'ready-bar', 'marquee', 'keys-marquee', 'matte-posed', 'start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
 
 const median = (a) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
 const pct = (a, q) => (a.length ? [...a].sort((x, y) => x - y)[Math.min(a.length - 1, Math.floor(q * a.length))] : null);
