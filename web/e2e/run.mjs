@@ -252,7 +252,7 @@ async function shot(pg, name) {
 }
 
 /** The screenshots docs/guides/editor.md shows. */
-const DOC_SCREENS = ['layer-offset', 'photo-proxy', 'photo-settled', 'ready-bar', 'marquee', 'keys-marquee', 'matte-posed', 'start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
+const DOC_SCREENS = ['layer-offset', 'photo-proxy', 'photo-settled', 'photo-settled-100', 'ready-bar', 'marquee', 'keys-marquee', 'matte-posed', 'start', 'restore', 'timeline-keys', 'border-hold', 'keys-onion', 'zoomed', 'rest-mode', 'pose-mode', 'timeline', 'method-tps-exact', 'heat-map', 'mesh', 'help', 'bad-file', 'example-face'];
 
 const median = (a) => (a.length ? [...a].sort((x, y) => x - y)[Math.floor(a.length / 2)] : null);
 const pct = (a, q) => (a.length ? [...a].sort((x, y) => x - y)[Math.min(a.length - 1, Math.floor(q * a.length))] : null);
@@ -1366,11 +1366,15 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     assert(atOpen.proxy === 4 && atOpen.frame.width === 1000 && atOpen.frame.height === 750, `a 1/4 proxy: ${JSON.stringify(atOpen)}`);
     assert(atOpen.gridStep === 4, `the scene's grid step is the proxy's factor, so inkwarp render solves the same: ${atOpen.gridStep}`);
     assert(atOpen.full && atOpen.note, `at rest the full-resolution picture shows and no proxy notice: ${JSON.stringify(atOpen)}`);
+    // A patch of the picture as the full-resolution frame on screen shows it (a view of
+    // it: its region of the frame drawn `shrink` times smaller, see `viewFor`).
     const patch = (x0, y0, size) => p.evaluate(({ x0, y0, size }) => {
       const f = window.inkwarp.app.fullShown;
+      const k = f.view?.shrink ?? 1;
+      const [rx0, ry0, rx1] = f.view?.region ?? [0, 0, f.width];
       const out = [];
       for (let y = y0; y < y0 + size; y++) for (let x = x0; x < x0 + size; x++) {
-        const i = 4 * (y * f.width + x);
+        const i = 4 * ((Math.floor(y / k) - ry0) * (rx1 - rx0) + Math.floor(x / k) - rx0);
         out.push(f.pixels[i], f.pixels[i + 1], f.pixels[i + 2]);
       }
       return out;
@@ -1455,6 +1459,59 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     const rssSettled = browserRssMiB();
     const kindsSettled = browserMemoryByKind();
     const workersSettled = await p.evaluate(() => window.inkwarp.app.memoryReport?.());
+    // The settled frame is drawn for the view: at Fit, the frame a whole factor smaller; it
+    // looks like the whole full-resolution frame scaled down by that factor (each block's
+    // premultiplied mean, as the canvas would show it), within a small difference.
+    const viewCheck = await p.evaluate(async () => {
+      const { app } = window.inkwarp;
+      const v = app.fullShown.view;
+      const whole = await app.wholeFrame();
+      const k = v.shrink;
+      const [x0, y0, x1, y1] = v.region;
+      const d = [];
+      for (let j = y0; j < y1; j++) for (let i = x0; i < x1; i++) {
+        const acc = [0, 0, 0, 0];
+        let n = 0;
+        for (let y = j * k; y < Math.min(whole.height, (j + 1) * k); y++) for (let x = i * k; x < Math.min(whole.width, (i + 1) * k); x++) {
+          const q = 4 * (y * whole.width + x);
+          const a = whole.pixels[q + 3] / 255;
+          acc[0] += whole.pixels[q] * a; acc[1] += whole.pixels[q + 1] * a; acc[2] += whole.pixels[q + 2] * a; acc[3] += a;
+          n++;
+        }
+        const o = 4 * ((j - y0) * (x1 - x0) + i - x0);
+        for (let c = 0; c < 3; c++) d.push(Math.abs(app.fullShown.pixels[o + c] - (acc[3] > 0 ? acc[c] / acc[3] : 0)));
+      }
+      d.sort((a, b) => a - b);
+      return { view: v, wholeSize: [whole.width, whole.height], mean: d.reduce((a, b) => a + b, 0) / d.length, p99: d[Math.floor(d.length * 0.99)], max: d.at(-1), fullMiB: app.fullShown.pixels.byteLength / 2 ** 20 };
+    });
+    console.log(`  settled view against the whole frame scaled: ${JSON.stringify(viewCheck)}`);
+    assert(viewCheck.view.shrink >= 2 && viewCheck.wholeSize[0] === 4000, `at Fit the settled frame is drawn smaller: ${JSON.stringify(viewCheck)}`);
+    assert(viewCheck.mean < 3 && viewCheck.p99 < 40, `the settled view looks like the whole frame scaled down: ${JSON.stringify(viewCheck)}`);
+    // Zoomed to 100 %: the view is drawn again (no solve) at the picture's own pixels, the
+    // visible part only; back at Fit, smaller again.
+    const zoomCheck = await p.evaluate(async () => {
+      const { app, ui } = window.inkwarp;
+      const wait = async (ok) => { for (let i = 0; i < 100 && !ok(); i++) await new Promise((r) => setTimeout(r, 100)); await app.idle(); };
+      const fulls = app.stats.fullParts.length;
+      ui.zoom100();
+      await wait(() => app.fullShown?.view?.shrink === 1);
+      const at100 = { view: app.fullShown?.view, solves: app.stats.fullParts.slice(fulls).map((q) => q.cycles.length), note: document.querySelector('#proxy-note').hidden ? '' : document.querySelector('#proxy-note').textContent };
+      return at100;
+    });
+    await p.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(() => r()))));
+    await shot(p, 'photo-settled-100');
+    const backToFit = await p.evaluate(async () => {
+      const { app, ui } = window.inkwarp;
+      ui.zoomFit();
+      for (let i = 0; i < 100 && !(app.fullShown?.view?.shrink > 1); i++) await new Promise((r) => setTimeout(r, 100));
+      await app.idle();
+      return app.fullShown?.view;
+    });
+    console.log(`  zoom: 100 % ${JSON.stringify(zoomCheck)}, back to Fit ${JSON.stringify(backToFit)}`);
+    const [zx0, zy0, zx1, zy1] = zoomCheck.view?.region ?? [0, 0, 0, 0];
+    assert(zoomCheck.view?.shrink === 1 && zx1 - zx0 < 4000 && zy1 - zy0 < 3000, `at 100 % the view is the visible part at the picture's pixels: ${JSON.stringify(zoomCheck)}`);
+    assert(zoomCheck.solves.every((n) => n === 0), `the zoomed view is drawn from the kept fields, no solve: ${JSON.stringify(zoomCheck)}`);
+    assert(backToFit?.shrink === viewCheck.view.shrink, `back at Fit the view is drawn smaller again: ${JSON.stringify(backToFit)}`);
     // A second drag of the same point a little further, soon after the first settle (the
     // full-resolution worker keeps its solver from one frame to the next): its settle.
     await drag(p, [2200, 1300], [2250, 1250], 5);
@@ -1481,7 +1538,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       dragParts: Object.fromEntries(['queued', 'toWorker', 'solve', 'workerDraw', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((q) => q[k]))])),
       dragMain, draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000, settle2S, settle2Parts,
       heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, browserRssBeforeMiB: rssBefore,
-      makeS: (made - t0) / 1000, patchDiff: diff, byKind: { before: kindsBefore, drag: kindsDrag, settled: kindsSettled, idle: kindsIdle }, workers: { drag: workersDrag, settled: workersSettled, idle: workersIdle }, small: { ...small, browserRssMiB: rssSmall },
+      makeS: (made - t0) / 1000, patchDiff: diff, viewCheck, zoomCheck, byKind: { before: kindsBefore, drag: kindsDrag, settled: kindsSettled, idle: kindsIdle }, workers: { drag: workersDrag, settled: workersSettled, idle: workersIdle }, small: { ...small, browserRssMiB: rssSmall },
     };
     console.log(`  photo: ${JSON.stringify(perf.photo)}`);
     assert(notes.every((n) => n.startsWith('Preview (1/4')), `the proxy notice shows while dragging, and the proxy: ${JSON.stringify(notes.slice(0, 3))}`);

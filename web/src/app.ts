@@ -8,6 +8,9 @@ import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
 import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './scene';
 import type { FieldEvent, FullClient, FullFrame } from './solver';
+import { viewCovers } from './proxy';
+import type { ViewSpec } from './engine';
+import type { FullLayerRequest } from './protocol';
 import type { DraftDraw } from './protocol';
 import type { SolverClient } from './solver';
 import { PROBE_TOLERANCE_PX, probedFeatures } from './probe';
@@ -809,7 +812,56 @@ export class App {
         offset: layer.offset ?? ([0, 0] as Pt),
       });
     }
-    full.render({ key, width: this.doc.width, height: this.doc.height, background: this.doc.background ?? [255, 255, 255, 255], layers, madeAt: performance.now() });
+    full.render({ key, width: this.doc.width, height: this.doc.height, background: this.doc.background ?? [255, 255, 255, 255], layers, madeAt: performance.now(), view: this.viewFor() ?? undefined });
+  }
+
+  /**
+   * The part of the frame the stage shows and the scale it shows it at (see `viewFor` in
+   * `proxy.ts`), set by the page's stage: a proxied scene's full-resolution frame is drawn
+   * for it only. Null: the whole frame.
+   */
+  viewFor: () => ViewSpec | null = () => null;
+
+  /**
+   * The stage was zoomed or panned: a full-resolution frame on screen that does not cover
+   * the new view at its scale is drawn again for it, from the fields the worker kept (no
+   * solve), or solved again when the worker has none.
+   */
+  requestView(): void {
+    const full = this.full;
+    const shown = this.fullShown;
+    if (!full || this.proxy === 1 || !shown || this.dragging || this.store.view.playing || this.exporting) return;
+    const want = this.viewFor();
+    if (!want || viewCovers(shown.view, want, this.doc.width, this.doc.height)) return;
+    this.viewWanted = true;
+    if (full.keptKey === shown.key && shown.key === this.fullKey()) full.view(want, performance.now());
+    else {
+      this.fullShown = null;
+      this.requestFull();
+    }
+  }
+
+  /** A view was asked for and has not come (the stage shows the one before, scaled). */
+  viewWanted = false;
+
+  /**
+   * The whole full-resolution frame at the current time, solved and drawn at the picture's
+   * resolution (a PNG's export): null when there is no full-resolution worker or it failed.
+   */
+  wholeFrame(): Promise<FullFrame | null> {
+    const full = this.full;
+    if (!full || this.proxy === 1) return Promise.resolve(null);
+    const time = this.store.view.time;
+    const layers: FullLayerRequest[] = [];
+    for (const layer of this.doc.layers) {
+      const rt = this.runtimes.get(layer.name);
+      if (!rt?.gl || layer.visible === false || this.store.view.hidden.includes(layer.name)) continue;
+      layers.push({ key: layer.name, features: this.posed ? this.solveFeatures(layer, time, false) : null, options: this.solverOptions(layer, 'final', false), offset: layer.offset ?? ([0, 0] as Pt) });
+    }
+    this.fullAsked = '';
+    // Drawn as a view of all of it at its own scale, so the worker keeps the fields for the stage's next view.
+    const view: ViewSpec = { shrink: 1, region: [0, 0, this.doc.width, this.doc.height] };
+    return new Promise((done) => full.render({ key: this.fullKey(), width: this.doc.width, height: this.doc.height, background: this.doc.background ?? [255, 255, 255, 255], layers, madeAt: performance.now(), view, done }));
   }
 
   private receiveFull(frame: FullFrame): void {
@@ -822,7 +874,10 @@ export class App {
       return;
     }
     this.fullShown = frame;
+    this.viewWanted = false;
     this.onFull(frame);
+    // Zoomed or panned while it was drawn: the view on screen now.
+    this.requestView();
     this.checkIdle();
   }
 

@@ -28,6 +28,7 @@ interface Exports {
   iw_image_read(h: number, out: number, len: number): number;
   iw_grid_solve_kept(g: number, req: number, reqLen: number): number;
   iw_frame_draw(req: number, reqLen: number, out: number, outLen: number): number;
+  iw_view_draw(req: number, reqLen: number, out: number, outLen: number): number;
   iw_scene_check(json: number, len: number): number;
   iw_points_at(req: number, len: number): number;
   iw_methods(): number;
@@ -169,6 +170,16 @@ export class DraftHandle {
   free(): void {
     this.engine.x.iw_draft_free(this.handle);
   }
+}
+
+/**
+ * A view of a frame (`Engine.drawView`): the frame drawn `shrink` times smaller (a whole
+ * factor, 1: at the picture's resolution) and the region of it drawn, `[x0, y0, x1, y1]` in
+ * the smaller frame's pixels (end exclusive).
+ */
+export interface ViewSpec {
+  shrink: number;
+  region: [number, number, number, number];
 }
 
 /** A picture (straight RGBA8) kept in the module, for `Engine.renderSolved`; free it when the layer goes away. */
@@ -508,6 +519,7 @@ export class Engine {
     height: number,
     background: [number, number, number, number],
     layers: { image: ImageHandle; grid: GridHandle; features: SolveFeature[] | null; options: SolveOptions; offset: Pt }[],
+    view: ViewSpec | null = null,
   ): { pixels: Uint8Array; reports: (SolveReport | null)[]; solveMs: number; drawMs: number } {
     let solveMs = 0;
     const reports: (SolveReport | null)[] = [];
@@ -531,6 +543,10 @@ export class Engine {
       solveMs += performance.now() - t0;
     }
     const t1 = performance.now();
+    if (view) {
+      const rests = layers.map((l) => l.features === null);
+      return { pixels: this.drawView(width, height, background, layers.map((l, i) => ({ ...l, rest: rests[i] })), view), reports, solveMs, drawMs: performance.now() - t1 };
+    }
     const frame = enc.encode(
       JSON.stringify({ width, height, background, layers: layers.map((l) => ({ grid: l.grid.handle, image: l.image.handle, offset: l.offset })) }),
     );
@@ -544,6 +560,35 @@ export class Engine {
       return { pixels, reports, solveMs, drawMs: performance.now() - t1 };
     } finally {
       this.x.iw_free(framePtr, frame.length);
+    }
+  }
+
+  /**
+   * A region of the frame drawn `view.shrink` times smaller (`iw_view_draw`), each layer by
+   * the field its grid keeps from its last `iw_grid_solve_kept` (left in the module, so the
+   * view can be drawn again as it is zoomed and panned), or at rest (`rest`). Straight
+   * RGBA8, `(x1 − x0) × (y1 − y0)` pixels of the smaller frame.
+   */
+  drawView(
+    width: number,
+    height: number,
+    background: [number, number, number, number],
+    layers: { image: ImageHandle; grid: GridHandle; offset: Pt; rest: boolean }[],
+    view: ViewSpec,
+  ): Uint8Array {
+    const [x0, y0, x1, y1] = view.region;
+    const req = enc.encode(
+      JSON.stringify({ width, height, background, shrink: view.shrink, region: view.region, layers: layers.map((l) => ({ grid: l.grid.handle, image: l.image.handle, offset: l.offset, rest: l.rest })) }),
+    );
+    const reqPtr = this.put(req);
+    try {
+      const len = 4 * (x1 - x0) * (y1 - y0);
+      return this.withBuffer(len, (ptr) => {
+        this.check(this.x.iw_view_draw(reqPtr, req.length, ptr, len));
+        return this.u8(ptr, len).slice();
+      });
+    } finally {
+      this.x.iw_free(reqPtr, req.length);
     }
   }
 

@@ -1,6 +1,6 @@
 // Messages between the page and the solver worker.
 
-import type { DraftGeometry, FieldData, SolveFeature, SolveOptions, SolveReport } from './engine';
+import type { DraftGeometry, FieldData, SolveFeature, SolveOptions, SolveReport, ViewSpec } from './engine';
 import type { Pt } from './scene';
 
 export type ToWorker =
@@ -22,7 +22,18 @@ export type ToWorker =
   /** A scene document (JSON text) checked by the engine, its pictures decoded (answered by `checked`). */
   | { type: 'check'; id: number; json: string }
   /** The frame of these layers (back to front; `features` null: at rest), solved and drawn at full resolution. */
-  | { type: 'full-render'; id: number; width: number; height: number; background: [number, number, number, number]; layers: FullLayerRequest[] }
+  | {
+      type: 'full-render';
+      id: number;
+      width: number;
+      height: number;
+      background: [number, number, number, number];
+      layers: FullLayerRequest[];
+      /** Draw only this view of the frame (`Engine.drawView`), keeping the fields for `full-view`; absent: the whole frame. */
+      view?: ViewSpec;
+    }
+  /** Another view of the last `full-render` that drew a view, from the fields it kept (no solve; answered by `full`). */
+  | { type: 'full-view'; id: number; view: ViewSpec }
   /** The pixels a sparse solve computes on this layer's grid (the draft mesh's, see `draftPixels`). */
   | { type: 'select'; key: string; pixels: Uint32Array }
   /**
@@ -110,7 +121,7 @@ export type FromWorker =
   /** The answer to `full-export`. */
   | { type: 'full-layers'; layers: { key: string; image: { width: number; height: number; data: Uint8Array }; matte: Uint8Array; cuts: Pt[][] }[] }
   /** A full-resolution frame (straight RGBA8), with the time its solves and its drawing took (ms). */
-  | { type: 'full'; id: number; width: number; height: number; pixels: Uint8Array; solveMs: number; drawMs: number; cycles: number[]; wasmBytes: number }
+  | { type: 'full'; id: number; width: number; height: number; pixels: Uint8Array; solveMs: number; drawMs: number; cycles: number[]; wasmBytes: number; /** The view drawn (`pixels` is its region); absent: the whole frame. */ view?: ViewSpec }
   | {
       type: 'field';
       id: number;

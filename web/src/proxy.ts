@@ -2,6 +2,7 @@
 // and draws the full-resolution frame (solved and rendered as `inkwarp render` does) once
 // the drawing rests.
 
+import type { ViewSpec } from './engine';
 import type { Rgba } from './images';
 import type { Pt } from './scene';
 
@@ -191,4 +192,50 @@ export function keptBytes(k: KeptField): number {
   if ('sparse' in k) return k.sparse.byteLength;
   if ('packed' in k) return k.packed.byteLength;
   return k.dx.byteLength + k.dy.byteLength;
+}
+
+/** How many view pixels (of the smaller frame) a view takes beyond the stage's edges, so a small pan needs no new view. */
+export const VIEW_MARGIN_PX = 32;
+
+/**
+ * The view of a `width × height` picture's full-resolution frame that a stage shows: the
+ * frame drawn `shrink` times smaller, `shrink` the whole number of picture pixels per
+ * device pixel (rounded down, at least 1: at 100 % or closer the picture's own pixels), so
+ * the frame drawn has at least the stage's resolution and the browser scales it down by
+ * less than 2; and its region the part of the picture on the stage (`visible`, scene
+ * pixels `[x0, y0, x1, y1]`), `VIEW_MARGIN_PX` more each side, clipped to the frame. Null
+ * when none of the picture is on the stage.
+ */
+export function viewFor(width: number, height: number, devicePxPerScenePx: number, visible: [number, number, number, number]): ViewSpec | null {
+  const shrink = Math.max(1, Math.floor(1 / devicePxPerScenePx + 1e-6));
+  const vw = Math.ceil(width / shrink);
+  const vh = Math.ceil(height / shrink);
+  const [x0, y0, x1, y1] = visible;
+  if (!(x1 > Math.max(0, x0) && y1 > Math.max(0, y0) && x0 < width && y0 < height)) return null;
+  const m = VIEW_MARGIN_PX;
+  const region: [number, number, number, number] = [
+    Math.max(0, Math.floor(x0 / shrink) - m),
+    Math.max(0, Math.floor(y0 / shrink) - m),
+    Math.min(vw, Math.ceil(x1 / shrink) + m),
+    Math.min(vh, Math.ceil(y1 / shrink) + m),
+  ];
+  return { shrink, region };
+}
+
+/**
+ * Whether a view drawn of a `width × height` frame (`have`; null: the whole frame, at the
+ * picture's resolution) serves the view wanted: the same scale and a region holding the
+ * wanted one's stage part (its region less the margin, where the frame's edge did not clip
+ * it), so a pan within the margin needs no new view.
+ */
+export function viewCovers(have: ViewSpec | null, want: ViewSpec, width: number, height: number): boolean {
+  if (!have) return true;
+  if (have.shrink !== want.shrink) return false;
+  const m = VIEW_MARGIN_PX;
+  const vw = Math.ceil(width / want.shrink);
+  const vh = Math.ceil(height / want.shrink);
+  const [a0, b0, a1, b1] = have.region;
+  const [x0, y0, x1, y1] = want.region;
+  const inner = [x0 === 0 ? 0 : x0 + m, y0 === 0 ? 0 : y0 + m, x1 === vw ? vw : x1 - m, y1 === vh ? vh : y1 - m];
+  return a0 <= inner[0] && b0 <= inner[1] && a1 >= inner[2] && b1 >= inner[3];
 }

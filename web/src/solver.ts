@@ -2,7 +2,7 @@
 // only the newest request waits (older ones are superseded), so a fast drag never builds a
 // queue — the picture always catches up with the pointer.
 
-import type { DraftGeometry, FieldData, SolveFeature, SolveOptions, SolveReport } from './engine';
+import type { DraftGeometry, FieldData, SolveFeature, SolveOptions, SolveReport, ViewSpec } from './engine';
 import type { DraftDraw, DraftFrame, FromWorker, FullLayerRequest, ToWorker } from './protocol';
 import type { Pt } from './scene';
 
@@ -348,6 +348,8 @@ export interface FullFrame {
   cycles: number[];
   /** The worker's WebAssembly memory (bytes). */
   wasmBytes: number;
+  /** The view drawn (`pixels` is its region of the frame drawn `view.shrink` times smaller); null: the whole frame. */
+  view: ViewSpec | null;
 }
 
 export interface FullRequest {
@@ -357,6 +359,10 @@ export interface FullRequest {
   background: [number, number, number, number];
   layers: FullLayerRequest[];
   madeAt: number;
+  /** Draw only this view of the frame (the fields stay in the worker for `FullClient.view`); absent: the whole frame. */
+  view?: ViewSpec;
+  /** Called with the frame instead of `onFrame` (null: it failed, reported to `onError`). */
+  done?: (frame: FullFrame | null) => void;
 }
 
 /**
@@ -380,7 +386,7 @@ export const RENEW_IDLE_MS = 8000;
 export class FullClient {
   readonly ready: Promise<void>;
   private worker: Worker;
-  private inFlight: { id: number; req: FullRequest } | null = null;
+  private inFlight: { id: number; req: FullRequest; viewOnly?: boolean } | null = null;
   private pending: FullRequest | null = null;
   private nextId = 1;
   /** While the worker is being replaced (see `renew`): the messages for the fresh one. */
@@ -422,11 +428,38 @@ export class FullClient {
 
   render(req: FullRequest): void {
     this.pending = req;
+    this.pendingView = null;
+    this.pump();
+  }
+
+  /**
+   * The request of the last frame drawn as a view whose fields the worker keeps (null: none,
+   * or the worker was renewed since): `view` draws another view of it without a solve.
+   */
+  private kept: FullRequest | null = null;
+  /** The last frame asked for (`render`), solved again for a view when the worker has lost its fields. */
+  private last: FullRequest | null = null;
+  /** The newest view asked for (`view`), waiting for the frame in flight. */
+  private pendingView: { view: ViewSpec; madeAt: number } | null = null;
+
+  /** The key of the frame a `view` would be drawn from (null: none kept, a view needs a `render`). */
+  get keptKey(): string | null {
+    return this.pending ? (this.pending.view ? this.pending.key : null) : this.inFlight ? (this.inFlight.req.view ? this.inFlight.req.key : null) : (this.kept?.key ?? null);
+  }
+
+  /** Another view of the frame `keptKey` names, drawn from the fields the worker keeps (no solve). */
+  view(view: ViewSpec, madeAt: number): void {
+    if (this.keptKey === null) return;
+    if (this.pending) {
+      this.pending = { ...this.pending, view };
+    } else {
+      this.pendingView = { view, madeAt };
+    }
     this.pump();
   }
 
   get busy(): boolean {
-    return this.inFlight !== null || this.pending !== null;
+    return this.inFlight !== null || this.pending !== null || this.pendingView !== null;
   }
 
   private pump(): void {
@@ -434,12 +467,33 @@ export class FullClient {
       clearTimeout(this.renewTimer);
       this.renewTimer = null;
     }
-    if (this.inFlight || !this.pending || this.queue) return;
+    if (this.inFlight || this.queue) return;
+    if (!this.pending && this.pendingView) {
+      const { view, madeAt } = this.pendingView;
+      this.pendingView = null;
+      if (!this.kept) {
+        // The fields are gone (the worker was replaced, or could not draw the view): the
+        // frame is solved again for the view.
+        if (this.last) {
+          this.pending = { ...this.last, view, madeAt, done: undefined };
+          this.pump();
+        }
+        return;
+      }
+      const id = this.nextId++;
+      this.inFlight = { id, req: { ...this.kept, view, madeAt, done: undefined }, viewOnly: true };
+      this.worker.postMessage({ type: 'full-view', id, view } satisfies ToWorker);
+      return;
+    }
+    if (!this.pending) return;
     const req = this.pending;
     this.pending = null;
     const id = this.nextId++;
     this.inFlight = { id, req };
-    this.worker.postMessage({ type: 'full-render', id, width: req.width, height: req.height, background: req.background, layers: req.layers } satisfies ToWorker);
+    this.last = req;
+    // A whole frame takes the fields the worker kept.
+    this.kept = null;
+    this.worker.postMessage({ type: 'full-render', id, width: req.width, height: req.height, background: req.background, layers: req.layers, view: req.view } satisfies ToWorker);
   }
 
   /**
@@ -450,6 +504,9 @@ export class FullClient {
     if (this.queue || this.inFlight) return Promise.resolve();
     const old = this.worker;
     this.queue = [];
+    // The fresh worker has no fields: the next view is solved again.
+    this.kept = null;
+    this.pendingView = null;
     return new Promise<void>((resolve) => {
       const exported = (ev: MessageEvent<FromWorker>) => {
         if (ev.data.type !== 'full-layers') return;
@@ -484,7 +541,10 @@ export class FullClient {
     const done = this.inFlight;
     if (msg.type === 'full' && done && msg.id === done.id) {
       this.inFlight = null;
-      this.onFrame({ key: done.req.key, width: msg.width, height: msg.height, pixels: msg.pixels, ms: performance.now() - done.req.madeAt, solveMs: msg.solveMs, drawMs: msg.drawMs, cycles: msg.cycles, wasmBytes: msg.wasmBytes });
+      if (msg.view) this.kept = done.req;
+      const frame: FullFrame = { key: done.req.key, width: msg.width, height: msg.height, pixels: msg.pixels, ms: performance.now() - done.req.madeAt, solveMs: msg.solveMs, drawMs: msg.drawMs, cycles: msg.cycles, wasmBytes: msg.wasmBytes, view: msg.view ?? null };
+      if (done.req.done) done.req.done(frame);
+      else this.onFrame(frame);
       this.pump();
       if (!this.busy && msg.wasmBytes > RENEW_BYTES) {
         this.renewTimer = setTimeout(() => {
@@ -493,7 +553,18 @@ export class FullClient {
         }, RENEW_IDLE_MS);
       }
     } else if (msg.type === 'error') {
-      if (done && msg.id === done.id) this.inFlight = null;
+      if (done && msg.id === done.id) {
+        this.inFlight = null;
+        if (done.viewOnly) {
+          // A view the worker could not draw from its fields (it has none): the frame is
+          // solved again for it, unless a newer request came meanwhile.
+          this.kept = null;
+          if (!this.pending && !this.pendingView) this.pendingView = { view: done.req.view!, madeAt: done.req.madeAt };
+          this.pump();
+          return;
+        }
+        done.req.done?.(null);
+      }
       this.onError(msg.message);
       this.pump();
     }

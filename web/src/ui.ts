@@ -2,13 +2,13 @@
 
 import { App } from './app';
 import { clear, h } from './dom';
-import { EngineError } from './engine';
+import { EngineError, type ViewSpec } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
 import { blobToDataUri, decodeBlob, decodeImage, fileToDataUri, rememberImage, rgbaToPngBlob, type Rgba } from './images';
 import { isPsdName, readLayeredPsd, uniqueNames } from './psd';
 import { Overlay } from './overlay';
 import type { FullFrame } from './solver';
-import { proxyFactor } from './proxy';
+import { proxyFactor, viewFor } from './proxy';
 import { canEncodeWebm, encodeWebm } from './webm';
 import { PROBE_DWELL_MS } from './probe';
 import {
@@ -147,6 +147,7 @@ export class Ui {
     this.stage = h('div.stage', {}, h('div.frame', {}, ...pictures, this.fullCanvas, this.overlayCanvas), this.proxyNote);
     this.build(root);
     app.onMessage = (t, k) => this.message(t, k);
+    app.viewFor = () => this.viewSpec();
     app.onFull = (frame) => {
       this.showFull(frame);
       this.updateStatus();
@@ -629,27 +630,79 @@ export class Ui {
   private fullCanvas: HTMLCanvasElement;
   private proxyNote: HTMLElement;
 
-  /** Shows a full-resolution frame over the proxy's, or (null) takes it away. */
+  /**
+   * Shows a full-resolution frame over the proxy's, or (null) takes it away: a view (the
+   * part of the frame on the stage, drawn at the stage's scale) is placed over the part of
+   * the picture it shows, and stays there, scaled by the browser, as the stage is zoomed
+   * and panned until the view for the new zoom arrives.
+   */
   private showFull(frame: FullFrame | null): void {
     const c = this.fullCanvas;
     if (frame) {
-      if (c.width !== frame.width) c.width = frame.width;
-      if (c.height !== frame.height) c.height = frame.height;
-      const px = new Uint8ClampedArray(frame.pixels.buffer as ArrayBuffer, frame.pixels.byteOffset, frame.pixels.byteLength);
-      c.getContext('2d')!.putImageData(new ImageData(px, frame.width, frame.height), 0, 0);
+      const { width: W, height: H } = frame;
+      const k = frame.view?.shrink ?? 1;
+      const [x0, y0, x1, y1] = frame.view?.region ?? [0, 0, W, H];
+      const cw = Math.max(1, x1 - x0);
+      const ch = Math.max(1, y1 - y0);
+      if (c.width !== cw) c.width = cw;
+      if (c.height !== ch) c.height = ch;
+      if (x1 > x0 && y1 > y0) {
+        const px = new Uint8ClampedArray(frame.pixels.buffer as ArrayBuffer, frame.pixels.byteOffset, frame.pixels.byteLength);
+        c.getContext('2d')!.putImageData(new ImageData(px, x1 - x0, y1 - y0), 0, 0);
+      }
+      // Its place in the picture, in scene pixels (the last view pixels clipped by the picture's edge).
+      const pct = (v: number, of: number) => `${(100 * v) / of}%`;
+      c.style.left = pct(x0 * k, W);
+      c.style.top = pct(y0 * k, H);
+      c.style.width = pct(Math.min(W, x1 * k) - x0 * k, W);
+      c.style.height = pct(Math.min(H, y1 * k) - y0 * k, H);
+      // Drawn at least at the stage's resolution: scaled down smoothly, or up (zoomed past 100 %) pixel by pixel.
+      c.style.imageRendering = k === 1 && this.scale * (window.devicePixelRatio || 1) > 1 ? 'pixelated' : 'auto';
     }
     c.hidden = !frame;
     this.updateProxyNote();
+  }
+
+  /** The view of the full-resolution frame the stage shows now (see `viewFor` in `proxy.ts`). */
+  viewSpec(): ViewSpec | null {
+    const { width, height } = this.store.doc;
+    const frame = (this.stage.firstElementChild as HTMLElement).getBoundingClientRect();
+    const st = this.stage.getBoundingClientRect();
+    const z = frame.width / width;
+    if (!(z > 0)) return null;
+    const visible: [number, number, number, number] = [(st.left - frame.left) / z, (st.top - frame.top) / z, (st.right - frame.left) / z, (st.bottom - frame.top) / z];
+    return viewFor(width, height, z * (window.devicePixelRatio || 1), visible);
+  }
+
+  private viewTimer: ReturnType<typeof setTimeout> | null = null;
+  /** After a zoom or a pan has rested this long (ms), the full-resolution view is drawn for it. */
+  static readonly VIEW_DEBOUNCE_MS = 150;
+
+  /** The stage was zoomed, panned or resized: the full-resolution view follows once it rests. */
+  private viewChanged(): void {
+    if (this.app.proxy === 1) return;
+    if (this.viewTimer !== null) clearTimeout(this.viewTimer);
+    this.viewTimer = setTimeout(() => {
+      this.viewTimer = null;
+      this.app.requestView();
+      this.updateProxyNote();
+    }, Ui.VIEW_DEBOUNCE_MS);
   }
 
   /** Says when the picture on screen is the proxy of a large picture. */
   updateProxyNote(): void {
     const f = this.app.proxy;
     const note = this.proxyNote;
-    const proxied = f > 1 && !this.app.fullShown;
+    const redrawing = f > 1 && this.app.fullShown !== null && this.app.viewWanted;
+    const proxied = (f > 1 && !this.app.fullShown) || redrawing;
     // Written only when it changes: this runs at every frame.
     if (note.hidden !== !proxied) note.hidden = !proxied;
     if (!proxied) return;
+    if (redrawing) {
+      const text = 'Full resolution — redrawing for this zoom…';
+      if (note.textContent !== text) note.textContent = text;
+      return;
+    }
     const { width, height } = this.app.frameSize;
     const what = `Preview (1/${f} picture, ${width}×${height})`;
     const text = this.app.dragging || this.store.view.playing ? what : `${what} — settling…`;
@@ -769,6 +822,7 @@ export class Ui {
     if (this.overlayCanvas.width !== ow) this.overlayCanvas.width = ow;
     if (this.overlayCanvas.height !== oh) this.overlayCanvas.height = oh;
     this.app.screenPxPerScenePx = z * dpr;
+    this.viewChanged();
     if (this.els.zoomText) this.els.zoomText.textContent = `${Math.round(z * 100)} %${this.zoom === null ? ' (fit)' : ''}`;
     this.drawOverlay();
   }
@@ -1582,7 +1636,9 @@ export class Ui {
     await this.app.idle();
     const { width, height } = this.store.doc;
     // A large picture's frame is the full-resolution one (its proxy's is smaller).
-    const full = this.app.proxy > 1 ? this.app.fullShown : null;
+    // (The frame on screen may be a view of it: the whole frame is drawn for the file.)
+    const shown = this.app.proxy > 1 ? this.app.fullShown : null;
+    const full = shown && shown.view ? await this.app.wholeFrame() : shown;
     if (this.app.proxy > 1 && !full) return this.message('The full-resolution frame is not ready: try again when the picture has settled.', 'error');
     if (!full) this.app.renderNow(false);
     const blob = await rgbaToPngBlob({ width, height, data: full ? full.pixels : this.app.gl.readPixels() });

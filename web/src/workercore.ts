@@ -82,6 +82,8 @@ export class SolverWorker {
         this.fullDrop(msg.key);
       } else if (msg.type === 'full-render') {
         this.fullRender(msg);
+      } else if (msg.type === 'full-view') {
+        this.fullView(msg);
       } else if (msg.type === 'full-export') {
         this.fullExport();
       }
@@ -92,13 +94,14 @@ export class SolverWorker {
         this.engine = await this.load(this.wasmUrl);
         this.grids.clear();
         this.fulls.clear();
+        this.viewed = null;
         this.last.clear();
         this.linksOf.clear();
         this.draftLayers.clear();
         this.drafted.clear();
         this.post({ type: 'reset', message: `The engine stopped (${why}) and was restarted.` });
       }
-      const id = msg.type === 'solve' || msg.type === 'full-render' ? msg.id : null;
+      const id = msg.type === 'solve' || msg.type === 'full-render' || msg.type === 'full-view' ? msg.id : null;
       const key = 'key' in msg ? msg.key : null;
       this.post({ type: 'error', id, key, message: (err as Error).message ?? String(err) });
       // A frame asked to be drawn is always answered: the page draws ahead one at a time.
@@ -115,6 +118,7 @@ export class SolverWorker {
 
   private fullLayer(msg: Extract<ToWorker, { type: 'full-layer' }>): void {
     const engine = this.engine!;
+    this.viewed = null;
     const had = this.fulls.get(msg.key);
     had?.grid?.free();
     let image = had?.image ?? null;
@@ -128,6 +132,7 @@ export class SolverWorker {
   }
 
   private fullDrop(key: string): void {
+    this.viewed = null;
     const full = this.fulls.get(key);
     full?.grid?.free();
     full?.image?.free();
@@ -175,9 +180,29 @@ export class SolverWorker {
       gridMs += performance.now() - t0;
       layers.push({ image: full.image, grid: full.grid, features: l.features, options: l.options, offset: l.offset });
     }
-    const { pixels, reports, solveMs, drawMs } = engine.renderSolved(msg.width, msg.height, msg.background, layers);
+    // A view leaves the fields in the module for the next view; a whole frame takes them.
+    this.viewed = null;
+    const { pixels, reports, solveMs, drawMs } = engine.renderSolved(msg.width, msg.height, msg.background, layers, msg.view ?? null);
+    if (msg.view) this.viewed = { width: msg.width, height: msg.height, background: msg.background, layers: msg.layers.map((l) => ({ key: l.key, offset: l.offset, rest: l.features === null })) };
     const cycles = reports.filter((r) => r !== null).map((r) => r!.cycles ?? 0);
-    this.post({ type: 'full', id: msg.id, width: msg.width, height: msg.height, pixels, solveMs: solveMs + gridMs, drawMs, cycles, wasmBytes: engine.x.memory.buffer.byteLength }, [pixels.buffer]);
+    this.post({ type: 'full', id: msg.id, width: msg.width, height: msg.height, pixels, solveMs: solveMs + gridMs, drawMs, cycles, wasmBytes: engine.x.memory.buffer.byteLength, view: msg.view }, [pixels.buffer]);
+  }
+
+  /** The last frame drawn as a view (its fields kept in the module), for `full-view`. */
+  private viewed: { width: number; height: number; background: [number, number, number, number]; layers: { key: string; offset: Pt; rest: boolean }[] } | null = null;
+
+  /** Another view of the last frame drawn as a view, from the fields its grids keep: no solve. */
+  private fullView(msg: Extract<ToWorker, { type: 'full-view' }>): void {
+    const v = this.viewed;
+    if (!v) throw new Error('There is no solved frame to draw a view of: ask for the frame (full-render with a view) first.');
+    const layers = v.layers.map((l) => {
+      const full = this.fulls.get(l.key);
+      if (!full?.image || !full.grid) throw new Error(`The layer ${l.key} has no picture or grid at full resolution.`);
+      return { image: full.image, grid: full.grid, offset: l.offset, rest: l.rest };
+    });
+    const t0 = performance.now();
+    const pixels = this.engine!.drawView(v.width, v.height, v.background, layers, msg.view);
+    this.post({ type: 'full', id: msg.id, width: v.width, height: v.height, pixels, solveMs: 0, drawMs: performance.now() - t0, cycles: [], wasmBytes: this.engine!.x.memory.buffer.byteLength, view: msg.view }, [pixels.buffer]);
   }
 
   /** Sends every full-resolution layer back (its picture copied out of the module), for a fresh worker. */

@@ -84,4 +84,65 @@ describe('FullClient', () => {
     await got;
     expect(Array.from(frames[2].pixels)).toEqual(Array.from(data));
   });
+
+  it('draws a view of the frame, then other views from the fields it kept without a solve', async () => {
+    const client = new FullClient(() => new LocalWorker() as unknown as Worker, 'inkwarp.wasm');
+    await client.ready;
+    const frames: FullFrame[] = [];
+    let arrived: () => void = () => {};
+    client.onFrame = (f) => {
+      frames.push(f);
+      arrived();
+    };
+    client.onError = (m) => {
+      throw new Error(m);
+    };
+    const next = () => new Promise<void>((r) => (arrived = r));
+    const data = new Uint8Array(4 * W * H);
+    for (let i = 0; i < W * H; i++) data.set([(i * 29) % 256, (i * 7) % 256, 120, 255], 4 * i);
+    client.setLayer('P', { width: W, height: H, data }, new Uint8Array(W * H).fill(255), [[[20.5, 8], [20.5, 27]]]);
+    expect(client.keptKey).toBe(null);
+    // The whole frame, for reference.
+    let got = next();
+    client.render(request('a', pose(24)));
+    await got;
+    const whole = frames[0].pixels;
+    expect(frames[0].view).toBe(null);
+    const region = (x0: number, y0: number, x1: number, y1: number) =>
+      Array.from({ length: y1 - y0 }, (_, r) => Array.from(whole.subarray(4 * ((y0 + r) * W + x0), 4 * ((y0 + r) * W + x1)))).flat();
+    // A view at the picture's scale: that region of the frame.
+    got = next();
+    client.render({ ...request('a', pose(24)), view: { shrink: 1, region: [3, 4, 20, 17] } });
+    await got;
+    expect(frames[1].view).toEqual({ shrink: 1, region: [3, 4, 20, 17] });
+    expect(frames[1].cycles.length).toBe(1);
+    expect(Array.from(frames[1].pixels)).toEqual(region(3, 4, 20, 17));
+    expect(client.keptKey).toBe('a');
+    // Panned: drawn from the kept field (no solve), the same frame's region.
+    got = next();
+    client.view({ shrink: 1, region: [10, 0, 36, 28] }, 0);
+    await got;
+    expect(frames[2].key).toBe('a');
+    expect(frames[2].cycles).toEqual([]);
+    expect(Array.from(frames[2].pixels)).toEqual(region(10, 0, 36, 28));
+    // Zoomed out: the frame drawn twice smaller, ⌈W/2⌉ × ⌈H/2⌉ at most.
+    got = next();
+    client.view({ shrink: 2, region: [0, 0, 18, 14] }, 0);
+    await got;
+    expect(frames[3].pixels.length).toBe(4 * 18 * 14);
+    // A fresh worker has no fields: no view is drawn from them, the next is solved again.
+    await client.renew();
+    expect(client.keptKey).toBe(null);
+    client.view({ shrink: 1, region: [0, 0, 5, 5] }, 0);
+    expect(client.busy).toBe(false);
+    // A whole frame takes the fields: no view after it either.
+    got = next();
+    client.render({ ...request('b', pose(24)), view: { shrink: 1, region: [0, 0, 4, 4] } });
+    await got;
+    expect(client.keptKey).toBe('b');
+    got = next();
+    client.render(request('b', pose(24)));
+    await got;
+    expect(client.keptKey).toBe(null);
+  });
 });

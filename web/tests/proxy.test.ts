@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { PACK_STEPS, downscaleMatte, downscaleRgba, keepForPlayback, keptBytes, packField, proxyFactor, proxySize, toProxy, unpackField } from '../src/proxy';
+import { PACK_STEPS, downscaleMatte, downscaleRgba, keepForPlayback, keptBytes, packField, proxyFactor, proxySize, toProxy, unpackField, viewCovers, viewFor, VIEW_MARGIN_PX } from '../src/proxy';
 
 describe('large pictures: the proxy', () => {
   it('scales a photograph down by a whole factor, and leaves pictures of screen size alone', () => {
@@ -100,5 +100,38 @@ describe('fields kept for playback', () => {
     const kept = keepForPlayback(solved, 1, new Uint32Array([1, 2]));
     expect(kept).toBe(solved);
     expect(keptBytes(kept)).toBe(8 * n);
+  });
+});
+
+describe('the settled frame drawn for the view', () => {
+  const M = VIEW_MARGIN_PX;
+  it('draws at Fit the picture a whole factor smaller, at or above the stage resolution', () => {
+    // 4000 × 3000 shown at 0.25 device px per picture px (a 1000 × 750 stage): 4 times smaller, all of it.
+    expect(viewFor(4000, 3000, 0.25, [0, 0, 4000, 3000])).toEqual({ shrink: 4, region: [0, 0, 1000, 750] });
+    // 0.3 device px a picture px: 3 times smaller (never fewer pixels than the stage shows).
+    expect(viewFor(4000, 3000, 0.3, [-50, -50, 4100, 3100])).toEqual({ shrink: 3, region: [0, 0, 1334, 1000] });
+    // A stage a hair off 1/4 (rounding in the layout) still draws 4 times smaller.
+    expect(viewFor(4000, 3000, 0.25000001, [0, 0, 4000, 3000])!.shrink).toBe(4);
+  });
+
+  it('draws at 100 % or closer the visible part at the picture resolution, with a margin', () => {
+    expect(viewFor(4000, 3000, 1, [1500, 1000, 2500, 1750])).toEqual({ shrink: 1, region: [1500 - M, 1000 - M, 2500 + M, 1750 + M] });
+    expect(viewFor(4000, 3000, 2.5, [100.5, 0.2, 500.7, 300])).toEqual({ shrink: 1, region: [100 - M, 0, 501 + M, 300 + M] });
+    // Nothing of the picture on the stage.
+    expect(viewFor(4000, 3000, 1, [5000, 0, 6000, 700])).toBe(null);
+  });
+
+  it('asks for a new view when the scale changes or a pan leaves the margin', () => {
+    const at100 = viewFor(4000, 3000, 1, [1500, 1000, 2500, 1750])!;
+    // The same view, and a pan within the margin: no new view.
+    expect(viewCovers(at100, at100, 4000, 3000)).toBe(true);
+    expect(viewCovers(at100, viewFor(4000, 3000, 1, [1500 + M - 1, 1000, 2500 + M - 1, 1750])!, 4000, 3000)).toBe(true);
+    // Past the margin, or another scale: a new one.
+    expect(viewCovers(at100, viewFor(4000, 3000, 1, [1500 + M + 1, 1000, 2500 + M + 1, 1750])!, 4000, 3000)).toBe(false);
+    expect(viewCovers(at100, viewFor(4000, 3000, 0.5, [1500, 1000, 2500, 1750])!, 4000, 3000)).toBe(false);
+    // The whole frame at Fit serves any pan at Fit; the whole frame at full resolution serves every view.
+    const fit = viewFor(4000, 3000, 0.25, [0, 0, 4000, 3000])!;
+    expect(viewCovers(fit, viewFor(4000, 3000, 0.25, [-300, 0, 3700, 3000])!, 4000, 3000)).toBe(true);
+    expect(viewCovers(null, at100, 4000, 3000)).toBe(true);
   });
 });

@@ -10,7 +10,7 @@ use inkwarp_core::methods::{
     controls_field, line_pairs_from_chain, note_ignored_matte, Controls, Interpolant, Method,
     MethodParams, MethodReport, ThinPlateMap,
 };
-use inkwarp_core::render::{draw_frame, Canvas, PreparedLayer, RgbaImage};
+use inkwarp_core::render::{draw_frame, draw_view, view_size, Canvas, PreparedLayer, RgbaImage, ViewLayer};
 use inkwarp_core::scene::{images, BeierNeelyDoc, SolverDoc, TpsExactDoc};
 use inkwarp_core::solve::{SolveMethod, SolveOptions, Solver, Upsampling};
 use inkwarp_core::{Field, Grid, Kind, Point, Sample};
@@ -916,6 +916,83 @@ pub extern "C" fn iw_frame_draw(req_ptr: *const u8, req_len: usize, out_ptr: *mu
             let rows = req.rows.map_or(0..req.height, |[a, b]| a..b);
             draw_frame(req.width, req.height, req.background, &layers, rows, view_mut(out_ptr, out_len))
                 .map_err(|e| e.to_string())
+        })
+    });
+    match res {
+        Ok(()) => 0,
+        Err(e) => fail(e),
+    }
+}
+
+#[derive(Debug, Deserialize)]
+struct ViewIn {
+    width: usize,
+    height: usize,
+    background: [u8; 4],
+    /// The frame is drawn this many times smaller (1: at the picture's resolution).
+    shrink: usize,
+    /// `[x0, y0, x1, y1]` in the smaller frame's pixels (end exclusive); all of it when absent.
+    #[serde(default)]
+    region: Option<[usize; 4]>,
+    layers: Vec<ViewLayerIn>,
+}
+
+#[derive(Debug, Deserialize)]
+struct ViewLayerIn {
+    grid: u32,
+    image: u32,
+    offset: [f64; 2],
+    /// Drawn at rest (the zero field), whatever field its grid keeps.
+    #[serde(default)]
+    rest: bool,
+}
+
+/// Draws a region of a frame of kept pictures ([`iw_image_new`]) `shrink` times smaller
+/// ([`draw_view`]), straight into `out` (straight RGBA8, `4 × (x1 − x0) × (y1 − y0)`
+/// bytes): each layer by the field kept for its grid by [`iw_grid_solve_kept`], which it
+/// reads and leaves in place (unlike [`iw_frame_draw`]), so the view can be drawn again as
+/// the editor's view is zoomed and panned without a new solve; at rest (`"rest": true`, or
+/// no field kept) by the zero field. At `shrink` 1 the bytes are those of
+/// [`iw_frame_draw`]'s frame in the region. `req_json`: `{"width", "height", "background",
+/// "shrink", "region": [x0, y0, x1, y1] (optional), "layers": [{"grid", "image", "offset",
+/// "rest"}]}`. Status 0/1.
+#[no_mangle]
+pub extern "C" fn iw_view_draw(req_ptr: *const u8, req_len: usize, out_ptr: *mut u8, out_len: usize) -> i32 {
+    let req: ViewIn = match json_arg(req_ptr, req_len) {
+        Ok(r) => r,
+        Err(e) => return fail(e),
+    };
+    let res = GRIDS.with(|grids| {
+        let grids = grids.borrow();
+        IMAGES.with(|images| {
+            SOLVED.with(|solved| -> Result<(), String> {
+                let images = images.borrow();
+                let solved = solved.borrow();
+                let mut zeros = Vec::new();
+                for (n, l) in req.layers.iter().enumerate() {
+                    let g = &slot(&grids, l.grid)
+                        .ok_or_else(|| format!("Layer {n} of the view: there is no grid with handle {}.", l.grid))?
+                        .grid;
+                    if l.rest || !solved.contains_key(&l.grid) {
+                        zeros.push((n, Field::zeros(g.width, g.height)));
+                    }
+                }
+                let mut layers = Vec::with_capacity(req.layers.len());
+                for (n, l) in req.layers.iter().enumerate() {
+                    let g = &slot(&grids, l.grid).expect("checked above").grid;
+                    let img = slot(&images, l.image)
+                        .ok_or_else(|| format!("Layer {n} of the view: there is no picture with handle {}.", l.image))?;
+                    let field = match zeros.iter().find(|(m, _)| *m == n) {
+                        Some((_, f)) => f,
+                        None => &solved[&l.grid],
+                    };
+                    layers.push(ViewLayer { image: img, field, grid: g, offset: l.offset });
+                }
+                let (vw, vh) = view_size(req.width, req.height, req.shrink);
+                let region = req.region.unwrap_or([0, 0, vw, vh]);
+                draw_view(req.width, req.height, req.background, &layers, req.shrink, region, view_mut(out_ptr, out_len))
+                    .map_err(|e| format!("The view: {e}"))
+            })
         })
     });
     match res {

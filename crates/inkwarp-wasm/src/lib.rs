@@ -236,6 +236,31 @@ mod tests {
         };
         assert_eq!(frame(None), read(a));
         assert_eq!([frame(Some([0, 7])), frame(Some([7, h]))].concat(), read(a));
+        // A view (`iw_view_draw`) reads the kept field and leaves it: at shrink 1 a region
+        // is the frame's, drawn twice from one solve; at shrink 2 it is the smaller frame.
+        assert_eq!(iw_grid_solve_kept(grid, r, r_len), 0, "{}", result());
+        let view_of = |shrink: usize, region: [usize; 4], rest: bool| {
+            let len = 4 * (region[2] - region[0]) * (region[3] - region[1]);
+            let vr = serde_json::json!({"width": w, "height": h, "background": [10, 20, 30, 255], "shrink": shrink, "region": region,
+                "layers": [{"grid": grid, "image": image, "offset": [0.5, -1.0], "rest": rest}]});
+            let (f, f_len) = put(vr.to_string().as_bytes());
+            let out = iw_alloc(len);
+            assert_eq!(iw_view_draw(f, f_len, out, len), 0, "{}", result());
+            view(out, len).to_vec()
+        };
+        let whole = read(a);
+        let want: Vec<u8> = (3..9).flat_map(|y| whole[4 * (y * w + 2)..4 * (y * w + 20)].to_vec()).collect();
+        assert_eq!(view_of(1, [2, 3, 20, 9], false), want);
+        assert_eq!(view_of(1, [2, 3, 20, 9], false), want);
+        assert_eq!(view_of(2, [0, 0, w.div_ceil(2), h.div_ceil(2)], false).len(), 4 * w.div_ceil(2) * h.div_ceil(2));
+        assert_ne!(view_of(1, [2, 3, 20, 9], true), want);
+        let vr = serde_json::json!({"width": w, "height": h, "background": [0, 0, 0, 0], "shrink": 2, "region": [0, 0, 99, 1],
+            "layers": [{"grid": grid, "image": image, "offset": [0, 0]}]});
+        let (f, f_len) = put(vr.to_string().as_bytes());
+        assert_eq!(iw_view_draw(f, f_len, iw_alloc(4 * 99), 4 * 99), 1);
+        assert!(result()["error"].as_str().unwrap().contains("is not inside"), "{}", result());
+        // A frame draw takes the kept field, as before.
+        assert_eq!(frame(None), whole);
         let bad = serde_json::json!({"width": w, "height": h, "background": [0, 0, 0, 0],
             "layers": [{"grid": grid, "image": 999, "offset": [0, 0]}]});
         let (f, f_len) = put(bad.to_string().as_bytes());

@@ -55,6 +55,9 @@
 
 mod mesh;
 mod raster;
+mod view;
+
+pub use view::{draw_view, view_size, ViewLayer};
 
 use crate::{Field, Grid};
 
@@ -95,6 +98,16 @@ pub enum RenderError {
         end: usize,
         expected: usize,
         actual: usize,
+    },
+    /// A view's region ([`draw_view`]) outside its frame.
+    #[error(
+        "The region {region:?} (x0, y0, x1, y1) is not inside the {width}×{height} frame of \
+         the view; ask for x0 ≤ x1 ≤ {width} and y0 ≤ y1 ≤ {height}."
+    )]
+    Region {
+        region: [usize; 4],
+        width: usize,
+        height: usize,
     },
     /// Rows asked for outside the frame.
     #[error("Rows {first}..{end} are not rows of a frame {height} pixels high.")]

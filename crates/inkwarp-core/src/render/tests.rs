@@ -660,3 +660,175 @@ fn draw_frame_names_the_rows_and_the_buffer_it_needs() {
     let wrong = PreparedLayer::new(&image, Field::zeros(3, 2), &grid, [0.0, 0.0]).unwrap_err();
     assert!(matches!(wrong, RenderError::SizeMismatch { .. }));
 }
+
+// ---------------------------------------------------------------- views
+
+/// Two layers (a warped picture with a cut, a half-transparent one with holes, offsets)
+/// for the view tests.
+fn view_scene() -> (
+    Vec<(RgbaImage, Field, Grid, [f64; 2])>,
+    usize,
+    usize,
+    [u8; 4],
+) {
+    let (cw, ch) = (170, 140);
+    let (w1, h1) = (160, 128);
+    // A picture with structure at every scale a view keeps (gradients, stripes of 12 px,
+    // rings) and a little fine texture.
+    let mut back = RgbaImage::new(w1, h1);
+    let fine = noise(5, w1 * h1);
+    for y in 0..h1 {
+        for x in 0..w1 {
+            let (xf, yf) = (x as f64, y as f64);
+            let r = ((xf - 70.0).hypot(yf - 60.0) / 5.0).sin();
+            let i = 4 * (y * w1 + x);
+            back.data[i] = (128.0 + 100.0 * (xf / 12.0).sin()) as u8;
+            back.data[i + 1] = (128.0 + 100.0 * r) as u8;
+            back.data[i + 2] = ((255 * y / h1) as u8).wrapping_add(fine[y * w1 + x] / 16);
+            back.data[i + 3] = 255;
+        }
+    }
+    let swirl = field_from(w1, h1, |x, y| {
+        [
+            6.0 * (y / 23.0).sin() + 3.0,
+            9.0 * (x / 31.0).sin() * (1.0 - (y - 64.0).abs() / 80.0),
+        ]
+    });
+    let mut back_grid = Grid::new(w1, h1);
+    back_grid.add_cut(&[[40.3, 30.2], [41.1, 90.7]]);
+    let mut front = RgbaImage::from_raw(60, 50, noise(11, 60 * 50 * 4)).unwrap();
+    for (i, p) in front.data.chunks_exact_mut(4).enumerate() {
+        let (x, y) = (i % 60, i / 60);
+        p[3] = if (x / 10 + y / 10) % 3 == 0 { 0 } else { 180 };
+    }
+    let front_grid = alpha_matte(&front);
+    let shear = field_from(60, 50, |x, y| [0.1 * y, -5.0 + 0.2 * x]);
+    let layers = vec![
+        (back, swirl, back_grid, [4.5, 6.0]),
+        (front, shear, front_grid, [90.0, 70.25]),
+    ];
+    (layers, cw, ch, [10, 20, 30, 255])
+}
+
+#[test]
+fn a_view_at_its_own_scale_is_the_region_of_the_frame_bit_for_bit() {
+    let (layers, cw, ch, background) = view_scene();
+    let prepared: Vec<_> = layers
+        .iter()
+        .map(|(i, f, g, o)| PreparedLayer::new(i, f.clone(), g, *o).unwrap())
+        .collect();
+    let mut whole = vec![0u8; 4 * cw * ch];
+    draw_frame(cw, ch, background, &prepared, 0..ch, &mut whole).unwrap();
+    let views: Vec<_> = layers
+        .iter()
+        .map(|(image, field, grid, offset)| ViewLayer {
+            image,
+            field,
+            grid,
+            offset: *offset,
+        })
+        .collect();
+    for region in [
+        [0, 0, cw, ch],
+        [17, 33, 101, 97],
+        [0, 64, cw, 65],
+        [169, 0, 170, 140],
+    ] {
+        let [x0, y0, x1, y1] = region;
+        let mut out = vec![0u8; 4 * (x1 - x0) * (y1 - y0)];
+        draw_view(cw, ch, background, &views, 1, region, &mut out).unwrap();
+        let mut want = Vec::new();
+        for y in y0..y1 {
+            want.extend_from_slice(&whole[4 * (y * cw + x0)..4 * (y * cw + x1)]);
+        }
+        assert!(out == want, "region {region:?} differs from the frame's");
+    }
+    let e = draw_view(
+        cw,
+        ch,
+        background,
+        &views,
+        4,
+        [0, 0, 44, 10],
+        &mut [0; 4 * 44 * 10],
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("43×35"), "{e}");
+}
+
+/// The frame box-filtered by `k` (each block's premultiplied mean), as the canvas shows a
+/// full frame scaled down.
+fn box_down(data: &[u8], w: usize, h: usize, k: usize) -> Vec<u8> {
+    let (lw, lh) = view_size(w, h, k);
+    let mut out = vec![0u8; 4 * lw * lh];
+    for j in 0..lh {
+        for i in 0..lw {
+            let mut acc = [0f32; 4];
+            let mut n = 0.0;
+            for y in j * k..((j + 1) * k).min(h) {
+                for x in i * k..((i + 1) * k).min(w) {
+                    let p = premultiply(
+                        data[4 * (y * w + x)..4 * (y * w + x) + 4]
+                            .try_into()
+                            .unwrap(),
+                    );
+                    for c in 0..4 {
+                        acc[c] += p[c];
+                    }
+                    n += 1.0;
+                }
+            }
+            let px = unpremultiply(acc.map(|v| v / n));
+            out[4 * (j * lw + i)..4 * (j * lw + i) + 4].copy_from_slice(&px);
+        }
+    }
+    out
+}
+
+/// A view drawn 2, 3 and 4 times smaller looks like the full frame box-filtered by the
+/// same factor: the mean and the 99th percentile of the channel differences stay small
+/// (what differs: the edges of the cut, the holes and the layer's border, within a pixel
+/// of the smaller frame).
+#[test]
+fn a_smaller_view_matches_the_full_frame_scaled_down() {
+    let (layers, cw, ch, background) = view_scene();
+    let prepared: Vec<_> = layers
+        .iter()
+        .map(|(i, f, g, o)| PreparedLayer::new(i, f.clone(), g, *o).unwrap())
+        .collect();
+    let mut whole = vec![0u8; 4 * cw * ch];
+    draw_frame(cw, ch, background, &prepared, 0..ch, &mut whole).unwrap();
+    let views: Vec<_> = layers
+        .iter()
+        .map(|(image, field, grid, offset)| ViewLayer {
+            image,
+            field,
+            grid,
+            offset: *offset,
+        })
+        .collect();
+    for k in [2, 3, 4] {
+        let (vw, vh) = view_size(cw, ch, k);
+        let mut out = vec![0u8; 4 * vw * vh];
+        draw_view(cw, ch, background, &views, k, [0, 0, vw, vh], &mut out).unwrap();
+        let want = box_down(&whole, cw, ch, k);
+        let mut d: Vec<u8> = out.iter().zip(&want).map(|(a, b)| a.abs_diff(*b)).collect();
+        d.sort_unstable();
+        let mean = d.iter().map(|&v| v as f64).sum::<f64>() / d.len() as f64;
+        let p99 = d[d.len() * 99 / 100];
+        eprintln!(
+            "view 1/{k}: mean difference {mean:.2}, 99th percentile {p99}, max {}",
+            d[d.len() - 1]
+        );
+        assert!(
+            mean < 4.0 && p99 < 40,
+            "view 1/{k}: mean {mean:.2}, 99th percentile {p99}"
+        );
+        // A region of it is the same region of the whole view.
+        let mut part = vec![0u8; 4 * 10 * 7];
+        draw_view(cw, ch, background, &views, k, [3, 5, 13, 12], &mut part).unwrap();
+        for (r, row) in part.chunks_exact(40).enumerate() {
+            assert_eq!(row, &out[4 * ((5 + r) * vw + 3)..4 * ((5 + r) * vw + 13)]);
+        }
+    }
+}
