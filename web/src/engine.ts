@@ -544,8 +544,7 @@ export class Engine {
     }
     const t1 = performance.now();
     if (view) {
-      const rests = layers.map((l) => l.features === null);
-      return { pixels: this.drawView(width, height, background, layers.map((l, i) => ({ ...l, rest: rests[i] })), view), reports, solveMs, drawMs: performance.now() - t1 };
+      return { pixels: this.drawView(width, height, background, layers.map((l) => ({ ...l, rest: l.features === null })), view), reports, solveMs, drawMs: performance.now() - t1 };
     }
     const frame = enc.encode(
       JSON.stringify({ width, height, background, layers: layers.map((l) => ({ grid: l.grid.handle, image: l.image.handle, offset: l.offset })) }),

@@ -45,6 +45,27 @@ const request = (key: string, features: SolveFeature[] | null): FullRequest => (
   madeAt: 0,
 });
 
+/**
+ * Collects `client`'s frames (`next()`: a promise of the next one) and gives it one layer
+ * `P` of W × H with a cut; returns its picture too.
+ */
+function withLayer(client: FullClient): { frames: FullFrame[]; next: () => Promise<void>; data: Uint8Array } {
+  const frames: FullFrame[] = [];
+  let arrived: () => void = () => {};
+  client.onFrame = (f) => {
+    frames.push(f);
+    arrived();
+  };
+  client.onError = (m) => {
+    throw new Error(m);
+  };
+  const next = () => new Promise<void>((r) => (arrived = r));
+  const data = new Uint8Array(4 * W * H);
+  for (let i = 0; i < W * H; i++) data.set([(i * 29) % 256, (i * 7) % 256, 120, 255], 4 * i);
+  client.setLayer('P', { width: W, height: H, data }, new Uint8Array(W * H).fill(255), [[[20.5, 8], [20.5, 27]]]);
+  return { frames, next, data };
+}
+
 describe('FullClient', () => {
   it('replaces its worker by a fresh one with the same layers; a frame asked for meanwhile waits for it', async () => {
     const workers: LocalWorker[] = [];
@@ -54,19 +75,7 @@ describe('FullClient', () => {
       return w as unknown as Worker;
     }, 'inkwarp.wasm');
     await client.ready;
-    const frames: FullFrame[] = [];
-    let arrived: () => void = () => {};
-    client.onFrame = (f) => {
-      frames.push(f);
-      arrived();
-    };
-    client.onError = (m) => {
-      throw new Error(m);
-    };
-    const next = () => new Promise<void>((r) => (arrived = r));
-    const data = new Uint8Array(4 * W * H);
-    for (let i = 0; i < W * H; i++) data.set([(i * 29) % 256, (i * 7) % 256, 120, 255], 4 * i);
-    client.setLayer('P', { width: W, height: H, data }, new Uint8Array(W * H).fill(255), [[[20.5, 8], [20.5, 27]]]);
+    const { frames, next, data } = withLayer(client);
     let got = next();
     client.render(request('a', pose(24)));
     await got;
@@ -88,19 +97,7 @@ describe('FullClient', () => {
   it('draws a view of the frame, then other views from the fields it kept without a solve', async () => {
     const client = new FullClient(() => new LocalWorker() as unknown as Worker, 'inkwarp.wasm');
     await client.ready;
-    const frames: FullFrame[] = [];
-    let arrived: () => void = () => {};
-    client.onFrame = (f) => {
-      frames.push(f);
-      arrived();
-    };
-    client.onError = (m) => {
-      throw new Error(m);
-    };
-    const next = () => new Promise<void>((r) => (arrived = r));
-    const data = new Uint8Array(4 * W * H);
-    for (let i = 0; i < W * H; i++) data.set([(i * 29) % 256, (i * 7) % 256, 120, 255], 4 * i);
-    client.setLayer('P', { width: W, height: H, data }, new Uint8Array(W * H).fill(255), [[[20.5, 8], [20.5, 27]]]);
+    const { frames, next } = withLayer(client);
     expect(client.keptKey).toBe(null);
     // The whole frame, for reference.
     let got = next();

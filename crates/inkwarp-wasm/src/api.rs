@@ -895,11 +895,7 @@ pub extern "C" fn iw_frame_draw(req_ptr: *const u8, req_len: usize, out_ptr: *mu
             let images = images.borrow();
             let mut layers = Vec::with_capacity(req.layers.len());
             for (n, l) in req.layers.iter().enumerate() {
-                let g = &slot(&grids, l.grid)
-                    .ok_or_else(|| format!("Layer {n} of the frame: there is no grid with handle {}.", l.grid))?
-                    .grid;
-                let img = slot(&images, l.image)
-                    .ok_or_else(|| format!("Layer {n} of the frame: there is no picture with handle {}.", l.image))?;
+                let (g, img) = frame_layer(&grids, &images, "frame", n, l.grid, l.image)?;
                 if (img.width, img.height) != (g.width, g.height) {
                     return Err(format!(
                         "Layer {n} of the frame: the picture is {} × {}; its grid is {} × {}.",
@@ -922,6 +918,20 @@ pub extern "C" fn iw_frame_draw(req_ptr: *const u8, req_len: usize, out_ptr: *mu
         Ok(()) => 0,
         Err(e) => fail(e),
     }
+}
+
+/// Layer `n` of a frame or a view (`what`): its grid and its picture, by their handles.
+fn frame_layer<'a>(
+    grids: &'a [Option<Domain>],
+    images: &'a [Option<RgbaImage>],
+    what: &str,
+    n: usize,
+    grid: u32,
+    image: u32,
+) -> Result<(&'a Grid, &'a RgbaImage), String> {
+    let g = &slot(grids, grid).ok_or_else(|| format!("Layer {n} of the {what}: there is no grid with handle {grid}."))?.grid;
+    let img = slot(images, image).ok_or_else(|| format!("Layer {n} of the {what}: there is no picture with handle {image}."))?;
+    Ok((g, img))
 }
 
 #[derive(Debug, Deserialize)]
@@ -968,26 +978,18 @@ pub extern "C" fn iw_view_draw(req_ptr: *const u8, req_len: usize, out_ptr: *mut
             SOLVED.with(|solved| -> Result<(), String> {
                 let images = images.borrow();
                 let solved = solved.borrow();
-                let mut zeros = Vec::new();
+                // Each layer's grid, picture and, drawn at rest, its zero field.
+                let mut found = Vec::with_capacity(req.layers.len());
                 for (n, l) in req.layers.iter().enumerate() {
-                    let g = &slot(&grids, l.grid)
-                        .ok_or_else(|| format!("Layer {n} of the view: there is no grid with handle {}.", l.grid))?
-                        .grid;
-                    if l.rest || !solved.contains_key(&l.grid) {
-                        zeros.push((n, Field::zeros(g.width, g.height)));
-                    }
+                    let (g, img) = frame_layer(&grids, &images, "view", n, l.grid, l.image)?;
+                    let rest = (l.rest || !solved.contains_key(&l.grid)).then(|| Field::zeros(g.width, g.height));
+                    found.push((g, img, rest));
                 }
-                let mut layers = Vec::with_capacity(req.layers.len());
-                for (n, l) in req.layers.iter().enumerate() {
-                    let g = &slot(&grids, l.grid).expect("checked above").grid;
-                    let img = slot(&images, l.image)
-                        .ok_or_else(|| format!("Layer {n} of the view: there is no picture with handle {}.", l.image))?;
-                    let field = match zeros.iter().find(|(m, _)| *m == n) {
-                        Some((_, f)) => f,
-                        None => &solved[&l.grid],
-                    };
-                    layers.push(ViewLayer { image: img, field, grid: g, offset: l.offset });
-                }
+                let layers: Vec<ViewLayer> = found
+                    .iter()
+                    .zip(&req.layers)
+                    .map(|((g, img, rest), l)| ViewLayer { image: img, field: rest.as_ref().unwrap_or_else(|| &solved[&l.grid]), grid: g, offset: l.offset })
+                    .collect();
                 let (vw, vh) = view_size(req.width, req.height, req.shrink);
                 let region = req.region.unwrap_or([0, 0, vw, vh]);
                 draw_view(req.width, req.height, req.background, &layers, req.shrink, region, view_mut(out_ptr, out_len))

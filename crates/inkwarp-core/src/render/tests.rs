@@ -663,10 +663,12 @@ fn draw_frame_names_the_rows_and_the_buffer_it_needs() {
 
 // ---------------------------------------------------------------- views
 
+type ViewScene = Vec<(RgbaImage, Field, Grid, [f64; 2])>;
+
 /// Two layers (a warped picture with a cut, a half-transparent one with holes, offsets)
 /// for the view tests.
 fn view_scene() -> (
-    Vec<(RgbaImage, Field, Grid, [f64; 2])>,
+    ViewScene,
     usize,
     usize,
     [u8; 4],
@@ -710,16 +712,20 @@ fn view_scene() -> (
     (layers, cw, ch, [10, 20, 30, 255])
 }
 
-#[test]
-fn a_view_at_its_own_scale_is_the_region_of_the_frame_bit_for_bit() {
-    let (layers, cw, ch, background) = view_scene();
+/// The whole frame of the view scene's layers, drawn by `draw_frame`.
+fn whole_frame(layers: &ViewScene, cw: usize, ch: usize, background: [u8; 4]) -> Vec<u8> {
     let prepared: Vec<_> = layers
         .iter()
         .map(|(i, f, g, o)| PreparedLayer::new(i, f.clone(), g, *o).unwrap())
         .collect();
     let mut whole = vec![0u8; 4 * cw * ch];
     draw_frame(cw, ch, background, &prepared, 0..ch, &mut whole).unwrap();
-    let views: Vec<_> = layers
+    whole
+}
+
+/// The view scene's layers as `draw_view` reads them.
+fn view_layers(layers: &ViewScene) -> Vec<ViewLayer<'_>> {
+    layers
         .iter()
         .map(|(image, field, grid, offset)| ViewLayer {
             image,
@@ -727,7 +733,14 @@ fn a_view_at_its_own_scale_is_the_region_of_the_frame_bit_for_bit() {
             grid,
             offset: *offset,
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn a_view_at_its_own_scale_is_the_region_of_the_frame_bit_for_bit() {
+    let (layers, cw, ch, background) = view_scene();
+    let whole = whole_frame(&layers, cw, ch, background);
+    let views = view_layers(&layers);
     for region in [
         [0, 0, cw, ch],
         [17, 33, 101, 97],
@@ -792,21 +805,8 @@ fn box_down(data: &[u8], w: usize, h: usize, k: usize) -> Vec<u8> {
 #[test]
 fn a_smaller_view_matches_the_full_frame_scaled_down() {
     let (layers, cw, ch, background) = view_scene();
-    let prepared: Vec<_> = layers
-        .iter()
-        .map(|(i, f, g, o)| PreparedLayer::new(i, f.clone(), g, *o).unwrap())
-        .collect();
-    let mut whole = vec![0u8; 4 * cw * ch];
-    draw_frame(cw, ch, background, &prepared, 0..ch, &mut whole).unwrap();
-    let views: Vec<_> = layers
-        .iter()
-        .map(|(image, field, grid, offset)| ViewLayer {
-            image,
-            field,
-            grid,
-            offset: *offset,
-        })
-        .collect();
+    let whole = whole_frame(&layers, cw, ch, background);
+    let views = view_layers(&layers);
     for k in [2, 3, 4] {
         let (vw, vh) = view_size(cw, ch, k);
         let mut out = vec![0u8; 4 * vw * vh];

@@ -190,30 +190,32 @@ pub fn draw_view(
     for l in layers {
         check_layer(l.image, l.field, l.grid)?;
     }
-    let (mut images, mut fields, mut grids) = (Vec::new(), Vec::new(), Vec::new());
+    // Above 1, each layer's level: its picture and grid (borrowed by the prepared layer)
+    // and its field (taken).
+    let (mut levels, mut fields) = (Vec::new(), Vec::new());
     if k > 1 {
         for l in layers {
             let (image, field, grid) = level(l.image, l.field, l.grid, k);
-            images.push(image);
-            fields.push(Some(field));
-            grids.push(grid);
+            levels.push((image, grid));
+            fields.push(field);
         }
     }
-    let mut prepared = Vec::with_capacity(layers.len());
-    for (n, l) in layers.iter().enumerate() {
-        prepared.push(if k == 1 {
-            PreparedLayer::new(l.image, l.field.clone(), l.grid, l.offset)?
-        } else {
-            let kf = k as f64;
-            let field = fields[n].take().expect("each level once");
-            PreparedLayer::new(
-                &images[n],
-                field,
-                &grids[n],
-                [l.offset[0] / kf, l.offset[1] / kf],
-            )?
-        });
-    }
+    let prepared = if k == 1 {
+        layers
+            .iter()
+            .map(|l| PreparedLayer::new(l.image, l.field.clone(), l.grid, l.offset))
+            .collect::<Result<Vec<_>, _>>()?
+    } else {
+        let kf = k as f64;
+        layers
+            .iter()
+            .zip(&levels)
+            .zip(fields)
+            .map(|((l, (image, grid)), field)| {
+                PreparedLayer::new(image, field, grid, l.offset.map(|o| o / kf))
+            })
+            .collect::<Result<Vec<_>, _>>()?
+    };
     if x0 == 0 && x1 == vw {
         return draw_frame(vw, vh, background, &prepared, y0..y1, out);
     }

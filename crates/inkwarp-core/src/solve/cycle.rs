@@ -394,20 +394,8 @@ pub(crate) fn lanczos_estimate(level: &Level, steps: usize) -> f64 {
 /// Largest eigenvalue of the symmetric tridiagonal matrix with diagonal `a` and
 /// off-diagonal `b`, by bisection on Sturm counts.
 fn tridiagonal_max(a: &[f64], b: &[f64]) -> f64 {
-    // Eigenvalues above x: sign changes of the LDLᵀ pivots of T − x.
-    let above = |x: f64| {
-        let (mut count, mut d) = (0, 1.0);
-        for i in 0..a.len() {
-            d = a[i] - x - if i > 0 { b[i - 1] * b[i - 1] / d } else { 0.0 };
-            if d == 0.0 {
-                d = -1e-300;
-            }
-            if d > 0.0 {
-                count += 1;
-            }
-        }
-        count
-    };
+    // Eigenvalues above x: those not below it.
+    let above = |x: f64| a.len() - eigenvalues_below(a, b, x);
     let mut hi = (0..a.len()).map(|i| a[i] + if i > 0 { b[i - 1].abs() } else { 0.0 } + b.get(i).map_or(0.0, |v| v.abs())).fold(0.0, f64::max);
     let mut lo = 0.0;
     for _ in 0..60 {
@@ -419,6 +407,22 @@ fn tridiagonal_max(a: &[f64], b: &[f64]) -> f64 {
         }
     }
     hi
+}
+
+/// How many eigenvalues of the symmetric tridiagonal matrix (diagonal `a`, off-diagonal
+/// `b`) lie below `x`: the negative pivots of the LDLᵀ factorisation of T − x (Sturm count).
+pub(super) fn eigenvalues_below(a: &[f64], b: &[f64], x: f64) -> usize {
+    let (mut count, mut d) = (0, 1.0);
+    for i in 0..a.len() {
+        d = a[i] - x - if i > 0 { b[i - 1] * b[i - 1] / d } else { 0.0 };
+        if d == 0.0 {
+            d = -1e-300;
+        }
+        if d < 0.0 {
+            count += 1;
+        }
+    }
+    count
 }
 
 /// `num / den`, or 0 where the direction has no energy (`den ≤ 0`).

@@ -50,7 +50,7 @@ pub(super) struct Deflation {
     /// `Bᵀ A B` and `Bᵀ B` over the basis `B = [W, V]`.
     g: Vec<Vec<f64>>,
     m: Vec<Vec<f64>>,
-    pub restarts: usize,
+    restarts: usize,
     /// The conjugate gradient's step lengths and β per component since its directions last
     /// restarted: the Lanczos matrix of the preconditioned operator.
     steps: [Vec<(f64, f64)>; 2],
@@ -197,13 +197,12 @@ impl Deflation {
     }
 
     /// Rayleigh–Ritz over the kept vectors and the window, keeps the Ritz vectors of the
-    /// smallest Ritz values, and corrects `u` and its residual `r` on their span. Returns
-    /// the largest move of a node.
-    pub fn restart(&mut self, fine: &Level, u: &mut [V2], r: &mut [V2]) -> f64 {
+    /// smallest Ritz values, and corrects `u` and its residual `r` on their span.
+    pub fn restart(&mut self, fine: &Level, u: &mut [V2], r: &mut [V2]) {
         let nb = self.w.len() + self.v.len();
         let Some((theta, y)) = ritz(&self.g, &self.m) else {
             self.clear();
-            return 0.0;
+            return;
         };
         self.restarts += 1;
         self.before = self.low;
@@ -310,33 +309,26 @@ impl Deflation {
             .filter(|c| c.iter().all(|v| v[0].is_finite() && v[1].is_finite()))
         else {
             self.clear();
-            return 0.0;
+            return;
         };
         let (w, aw) = (&self.w, &self.aw);
-        u.par_chunks_mut(CHUNK)
-            .zip(r.par_chunks_mut(CHUNK))
-            .enumerate()
-            .map(|(ch, (u, r))| {
-                let a = ch * CHUNK;
-                let mut moved = 0.0f64;
-                for (j, (u, r)) in u.iter_mut().zip(r.iter_mut()).enumerate() {
-                    let (mut d, mut e) = ([0.0; 2], [0.0; 2]);
-                    for l in 0..k {
-                        let (wv, av) = (w[l][a + j] as f64, aw[l][a + j] as f64);
-                        d[0] += c[l][0] * wv;
-                        d[1] += c[l][1] * wv;
-                        e[0] += c[l][0] * av;
-                        e[1] += c[l][1] * av;
+        u.par_chunks_mut(CHUNK).zip(r.par_chunks_mut(CHUNK)).enumerate().for_each(|(ch, (u, r))| {
+            let a = ch * CHUNK;
+            for (j, (u, r)) in u.iter_mut().zip(r.iter_mut()).enumerate() {
+                let (mut d, mut e) = ([0.0; 2], [0.0; 2]);
+                for l in 0..k {
+                    let (wv, av) = (w[l][a + j] as f64, aw[l][a + j] as f64);
+                    for t in 0..2 {
+                        d[t] += c[l][t] * wv;
+                        e[t] += c[l][t] * av;
                     }
-                    u[0] += d[0];
-                    u[1] += d[1];
-                    r[0] -= e[0];
-                    r[1] -= e[1];
-                    moved = moved.max(d[0].abs()).max(d[1].abs());
                 }
-                moved
-            })
-            .reduce(|| 0.0, f64::max)
+                for t in 0..2 {
+                    u[t] += d[t];
+                    r[t] -= e[t];
+                }
+            }
+        });
     }
 
     /// The change the stopping rule is to judge: once the iteration has deflated (a slow
@@ -603,22 +595,7 @@ fn extremes(diag: &[f64], off: &[f64]) -> Option<(f64, f64)> {
     if !(lo.is_finite() && hi.is_finite()) {
         return None;
     }
-    // Eigenvalues below x.
-    let below = |x: f64| {
-        let mut count = 0;
-        let mut d = 1.0;
-        for i in 0..n {
-            let b2 = if i > 0 { off[i - 1] * off[i - 1] } else { 0.0 };
-            d = diag[i] - x - if i > 0 { b2 / d } else { 0.0 };
-            if d == 0.0 {
-                d = -1e-300;
-            }
-            if d < 0.0 {
-                count += 1;
-            }
-        }
-        count
-    };
+    let below = |x: f64| super::cycle::eigenvalues_below(diag, off, x);
     let find = |k: usize| {
         let (mut a, mut b) = (lo, hi);
         for _ in 0..100 {
