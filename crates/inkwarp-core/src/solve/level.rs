@@ -1724,7 +1724,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let far_here = matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
     let win = if fine.geo.extended() || far_here { Windows::WIDE } else { Windows::NARROW };
     type RowOut = (Vec<u32>, Vec<[f64; 25]>, Vec<(usize, isize, isize, f64)>);
-    let build_row = |yc: usize| -> RowOut {
+    let build_row = |narrow: &mut NarrowRows, yc: usize| -> RowOut {
         let mut ids = vec![0u32; wpc];
         let (mut own, mut far) = (Vec::new(), Vec::new());
         let irregular: Vec<usize> = (0..wc).filter(|&xc| geo.active[yc * wc + xc] && !regular(xc, yc)).collect();
@@ -1740,29 +1740,36 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let mut ap: Vec<std::ops::Range<usize>> = Vec::new();
         let mut nz: Vec<(isize, isize, f64)> = Vec::new();
         let (mut acc, mut row) = (vec![0.0f64; win.acc * win.acc], vec![0.0f64; win.ap * win.ap]);
+        if !win.wide() {
+            narrow.start(yc, fw);
+        }
         for &xc in &irregular {
             acc.fill(0.0);
-            for iy in rows.clone() {
-                for ix in fine.geo.children(xc, fw) {
-                    let wi = fine.geo.weight(ix, iy, xc, yc);
-                    if wi == 0.0 {
-                        continue;
-                    }
-                    let k = (iy - y_lo) * fw + ix;
-                    if slot[k] == u32::MAX {
-                        slot[k] = ap.len() as u32;
-                        let start = nz.len();
-                        ap_row(fine, ix, iy, win, &mut row);
-                        for (t, &v) in row.iter().enumerate() {
-                            if v != 0.0 {
-                                nz.push(((t % win.ap) as isize - win.ap0, (t / win.ap) as isize - win.ap0, v));
-                            }
+            if !win.wide() {
+                narrow.sums(fine, xc, yc, &mut acc);
+            } else {
+                for iy in rows.clone() {
+                    for ix in fine.geo.children(xc, fw) {
+                        let wi = fine.geo.weight(ix, iy, xc, yc);
+                        if wi == 0.0 {
+                            continue;
                         }
-                        ap.push(start..nz.len());
-                    }
-                    let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
-                    for &(ox, oy, v) in &nz[ap[slot[k] as usize].clone()] {
-                        acc[win.acc_at(bx + ox, by + oy)] += wi * v;
+                        let k = (iy - y_lo) * fw + ix;
+                        if slot[k] == u32::MAX {
+                            slot[k] = ap.len() as u32;
+                            let start = nz.len();
+                            ap_row(fine, ix, iy, win, &mut row);
+                            for (t, &v) in row.iter().enumerate() {
+                                if v != 0.0 {
+                                    nz.push(((t % win.ap) as isize - win.ap0, (t / win.ap) as isize - win.ap0, v));
+                                }
+                            }
+                            ap.push(start..nz.len());
+                        }
+                        let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
+                        for &(ox, oy, v) in &nz[ap[slot[k] as usize].clone()] {
+                            acc[win.acc_at(bx + ox, by + oy)] += wi * v;
+                        }
                     }
                 }
             }
@@ -1781,9 +1788,10 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         (ids, own, far)
     };
     let rows: Vec<RowOut> = if fw * fh >= PAR_MIN_NODES {
-        (0..hc).into_par_iter().map(build_row).collect()
+        (0..hc).into_par_iter().with_min_len(PAR_ROWS).map_init(NarrowRows::default, build_row).collect()
     } else {
-        (0..hc).map(build_row).collect()
+        let mut narrow = NarrowRows::default();
+        (0..hc).map(|yc| build_row(&mut narrow, yc)).collect()
     };
     // Irregular stencils each stored once (see `DistinctStencils`), after the shared one.
     let mut ids = vec![0u32; wpc * hpc];
@@ -1884,6 +1892,10 @@ impl Windows {
     /// Rows on their 2 × 2 corners and a fine operator within its 5 × 5 stencils.
     const NARROW: Windows = Windows { acc: 5, ap: 4, ap0: 1 };
 
+    fn wide(self) -> bool {
+        self.acc > 5
+    }
+
     #[inline]
     fn acc_at(self, dx: isize, dy: isize) -> usize {
         let h = (self.acc / 2) as isize;
@@ -1891,6 +1903,101 @@ impl Windows {
         ((dy + h) * self.acc as isize + dx + h) as usize
     }
 }
+
+/// The dense rows of `A P` on the narrow windows ([`Windows::NARROW`]: every prolongation
+/// row on its 2 × 2 corners, every fine row within its stencil) of the children of one
+/// coarse row, each made once: a coarse row's last fine row is the next one's first, and
+/// is kept for it when the rows come in order.
+#[derive(Default)]
+struct NarrowRows {
+    /// The first fine row held.
+    y_lo: usize,
+    /// Per node of the three fine rows from `y_lo`, its row's index in `dense` or `u32::MAX`.
+    slot: Vec<u32>,
+    dense: Vec<[f64; 16]>,
+}
+
+impl NarrowRows {
+    /// Makes ready for coarse row `yc` of a level `fw` fine nodes wide.
+    fn start(&mut self, yc: usize, fw: usize) {
+        let y_lo = (2 * yc).saturating_sub(1);
+        let kept = self.slot.len() == 3 * fw && self.y_lo + 2 == y_lo;
+        self.slot.resize(3 * fw, u32::MAX);
+        if kept {
+            let mut dense = Vec::with_capacity(self.dense.len());
+            self.slot.copy_within(2 * fw.., 0);
+            for s in self.slot[..fw].iter_mut().filter(|s| **s != u32::MAX) {
+                dense.push(self.dense[*s as usize]);
+                *s = (dense.len() - 1) as u32;
+            }
+            self.dense = dense;
+            self.slot[fw..].fill(u32::MAX);
+        } else {
+            self.dense.clear();
+            self.slot.fill(u32::MAX);
+        }
+        self.y_lo = y_lo;
+    }
+
+    /// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc`, in the order of the
+    /// general path (adding only exact zeros besides): the same stencil bit for bit.
+    fn sums(&mut self, fine: &Level, xc: usize, yc: usize, acc: &mut [f64]) {
+        let (fw, fh, g) = (fine.geo.w, fine.geo.h, &fine.geo);
+        for iy in g.children(yc, fh) {
+            for ix in g.children(xc, fw) {
+                let (bx, by) = (xc - ix / 2, yc - iy / 2);
+                let wi = WEIGHTS[g.prow[iy * fw + ix][by * 2 + bx] as usize];
+                if wi == 0.0 {
+                    continue;
+                }
+                let k = (iy - self.y_lo) * fw + ix;
+                if self.slot[k] == u32::MAX {
+                    self.slot[k] = self.dense.len() as u32;
+                    self.dense.push(narrow_ap_row(fine, ix, iy));
+                }
+                // The row's window starts one coarse node left of and above (ix / 2, iy / 2).
+                let ap = &self.dense[self.slot[k] as usize];
+                for (ky, line) in ap.chunks_exact(4).enumerate() {
+                    let a = &mut acc[(ky + 1 - by) * 5 + 1 - bx..][..4];
+                    for (s, &v) in a.iter_mut().zip(line) {
+                        *s += wi * v;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Row `(ix, iy)` of `A P` on the narrow window ([`Windows::NARROW`]), dense: the
+/// products in the order of [`ap_row`].
+fn narrow_ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
+    let fw = fine.geo.w;
+    let row = fine.row(fine.pidx(ix, iy));
+    let mut out = [0.0f64; 16];
+    for (t, &a) in row.iter().enumerate() {
+        if a == 0.0 {
+            continue;
+        }
+        let (jx, jy) = (ix + t % 5 - 2, iy + t / 5 - 2);
+        let c = fine.geo.prow[jy * fw + jx];
+        let (cx, cy) = (jx / 2 + 1 - ix / 2, jy / 2 + 1 - iy / 2);
+        for (s, &v) in c.iter().enumerate() {
+            out[(cy + (s >> 1)) * 4 + cx + (s & 1)] += a * WEIGHTS[v as usize];
+        }
+    }
+    out
+}
+
+/// The prolongation weights of the codes of [`Geometry::prow`] (24ths).
+const WEIGHTS: [f64; 25] = {
+    let mut w = [0.0; 25];
+    let mut k = 0;
+    while k < 25 {
+        w[k] = k as f64 / 24.0;
+        k += 1;
+    }
+    w
+};
 
 /// A summed stencil (on `n` × `n` offsets) split into its stored taps and the others,
 /// `(dx, dy, a)`.
