@@ -1724,7 +1724,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let far_here = matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
     let win = if fine.geo.extended() || far_here { Windows::WIDE } else { Windows::NARROW };
     type RowOut = (Vec<u32>, Vec<[f64; 25]>, Vec<(usize, isize, isize, f64)>);
-    let build_row = |narrow: &mut NarrowRows, yc: usize| -> RowOut {
+    let build_row = |yc: usize| -> RowOut {
         let mut ids = vec![0u32; wpc];
         let (mut own, mut far) = (Vec::new(), Vec::new());
         let irregular: Vec<usize> = (0..wc).filter(|&xc| geo.active[yc * wc + xc] && !regular(xc, yc)).collect();
@@ -1740,13 +1740,11 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let mut ap: Vec<std::ops::Range<usize>> = Vec::new();
         let mut nz: Vec<(isize, isize, f64)> = Vec::new();
         let (mut acc, mut row) = (vec![0.0f64; win.acc * win.acc], vec![0.0f64; win.ap * win.ap]);
-        if !win.wide() {
-            narrow.start(yc, fw);
-        }
+        let mut dense: Vec<[f64; 16]> = Vec::new();
         for &xc in &irregular {
             acc.fill(0.0);
             if !win.wide() {
-                narrow.sums(fine, xc, yc, &mut acc);
+                narrow_sums(fine, xc, yc, &mut slot, &mut dense, &mut acc);
             } else {
                 for iy in rows.clone() {
                     for ix in fine.geo.children(xc, fw) {
@@ -1788,10 +1786,9 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         (ids, own, far)
     };
     let rows: Vec<RowOut> = if fw * fh >= PAR_MIN_NODES {
-        (0..hc).into_par_iter().with_min_len(PAR_ROWS).map_init(NarrowRows::default, build_row).collect()
+        (0..hc).into_par_iter().map(build_row).collect()
     } else {
-        let mut narrow = NarrowRows::default();
-        (0..hc).map(|yc| build_row(&mut narrow, yc)).collect()
+        (0..hc).map(build_row).collect()
     };
     // Irregular stencils each stored once (see `DistinctStencils`), after the shared one.
     let mut ids = vec![0u32; wpc * hpc];
@@ -1904,64 +1901,31 @@ impl Windows {
     }
 }
 
-/// The dense rows of `A P` on the narrow windows ([`Windows::NARROW`]: every prolongation
-/// row on its 2 × 2 corners, every fine row within its stencil) of the children of one
-/// coarse row, each made once: a coarse row's last fine row is the next one's first, and
-/// is kept for it when the rows come in order.
-#[derive(Default)]
-struct NarrowRows {
-    /// The first fine row held.
-    y_lo: usize,
-    /// Per node of the three fine rows from `y_lo`, its row's index in `dense` or `u32::MAX`.
-    slot: Vec<u32>,
-    dense: Vec<[f64; 16]>,
-}
-
-impl NarrowRows {
-    /// Makes ready for coarse row `yc` of a level `fw` fine nodes wide.
-    fn start(&mut self, yc: usize, fw: usize) {
-        let y_lo = (2 * yc).saturating_sub(1);
-        let kept = self.slot.len() == 3 * fw && self.y_lo + 2 == y_lo;
-        self.slot.resize(3 * fw, u32::MAX);
-        if kept {
-            let mut dense = Vec::with_capacity(self.dense.len());
-            self.slot.copy_within(2 * fw.., 0);
-            for s in self.slot[..fw].iter_mut().filter(|s| **s != u32::MAX) {
-                dense.push(self.dense[*s as usize]);
-                *s = (dense.len() - 1) as u32;
+/// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc` on the narrow windows
+/// ([`Windows::NARROW`]: every prolongation row on its 2 × 2 corners, every fine row within
+/// its stencil), from dense rows of `A P`, each made once per coarse row (`slot`, indexed
+/// as in [`galerkin`], into `dense`). The sums run in the order of the general path and add
+/// only exact zeros besides: the same stencil bit for bit.
+fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut Vec<[f64; 16]>, acc: &mut [f64]) {
+    let (fw, fh, g) = (fine.geo.w, fine.geo.h, &fine.geo);
+    let y_lo = (2 * yc).saturating_sub(1);
+    for iy in g.children(yc, fh) {
+        for ix in g.children(xc, fw) {
+            let (bx, by) = (xc - ix / 2, yc - iy / 2);
+            let wi = WEIGHTS[g.prow[iy * fw + ix][by * 2 + bx] as usize];
+            if wi == 0.0 {
+                continue;
             }
-            self.dense = dense;
-            self.slot[fw..].fill(u32::MAX);
-        } else {
-            self.dense.clear();
-            self.slot.fill(u32::MAX);
-        }
-        self.y_lo = y_lo;
-    }
-
-    /// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc`, in the order of the
-    /// general path (adding only exact zeros besides): the same stencil bit for bit.
-    fn sums(&mut self, fine: &Level, xc: usize, yc: usize, acc: &mut [f64]) {
-        let (fw, fh, g) = (fine.geo.w, fine.geo.h, &fine.geo);
-        for iy in g.children(yc, fh) {
-            for ix in g.children(xc, fw) {
-                let (bx, by) = (xc - ix / 2, yc - iy / 2);
-                let wi = WEIGHTS[g.prow[iy * fw + ix][by * 2 + bx] as usize];
-                if wi == 0.0 {
-                    continue;
-                }
-                let k = (iy - self.y_lo) * fw + ix;
-                if self.slot[k] == u32::MAX {
-                    self.slot[k] = self.dense.len() as u32;
-                    self.dense.push(narrow_ap_row(fine, ix, iy));
-                }
-                // The row's window starts one coarse node left of and above (ix / 2, iy / 2).
-                let ap = &self.dense[self.slot[k] as usize];
-                for (ky, line) in ap.chunks_exact(4).enumerate() {
-                    let a = &mut acc[(ky + 1 - by) * 5 + 1 - bx..][..4];
-                    for (s, &v) in a.iter_mut().zip(line) {
-                        *s += wi * v;
-                    }
+            let k = (iy - y_lo) * fw + ix;
+            if slot[k] == u32::MAX {
+                slot[k] = dense.len() as u32;
+                dense.push(narrow_ap_row(fine, ix, iy));
+            }
+            // The row's window starts one coarse node left of and above (ix / 2, iy / 2).
+            for (ky, line) in dense[slot[k] as usize].chunks_exact(4).enumerate() {
+                let a = &mut acc[(ky + 1 - by) * 5 + 1 - bx..][..4];
+                for (s, &v) in a.iter_mut().zip(line) {
+                    *s += wi * v;
                 }
             }
         }
