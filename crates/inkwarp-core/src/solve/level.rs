@@ -1889,6 +1889,7 @@ impl Windows {
     /// Rows on their 2 × 2 corners and a fine operator within its 5 × 5 stencils.
     const NARROW: Windows = Windows { acc: 5, ap: 4, ap0: 1 };
 
+    /// Whether these are the wide windows (the narrow ones take [`narrow_sums`]).
     fn wide(self) -> bool {
         self.acc > 5
     }
