@@ -1740,29 +1740,34 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let mut ap: Vec<std::ops::Range<usize>> = Vec::new();
         let mut nz: Vec<(isize, isize, f64)> = Vec::new();
         let (mut acc, mut row) = (vec![0.0f64; win.acc * win.acc], vec![0.0f64; win.ap * win.ap]);
+        let mut dense: Vec<[f64; 16]> = Vec::new();
         for &xc in &irregular {
             acc.fill(0.0);
-            for iy in rows.clone() {
-                for ix in fine.geo.children(xc, fw) {
-                    let wi = fine.geo.weight(ix, iy, xc, yc);
-                    if wi == 0.0 {
-                        continue;
-                    }
-                    let k = (iy - y_lo) * fw + ix;
-                    if slot[k] == u32::MAX {
-                        slot[k] = ap.len() as u32;
-                        let start = nz.len();
-                        ap_row(fine, ix, iy, win, &mut row);
-                        for (t, &v) in row.iter().enumerate() {
-                            if v != 0.0 {
-                                nz.push(((t % win.ap) as isize - win.ap0, (t / win.ap) as isize - win.ap0, v));
-                            }
+            if !win.wide() {
+                narrow_sums(fine, xc, yc, &mut slot, &mut dense, &mut acc);
+            } else {
+                for iy in rows.clone() {
+                    for ix in fine.geo.children(xc, fw) {
+                        let wi = fine.geo.weight(ix, iy, xc, yc);
+                        if wi == 0.0 {
+                            continue;
                         }
-                        ap.push(start..nz.len());
-                    }
-                    let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
-                    for &(ox, oy, v) in &nz[ap[slot[k] as usize].clone()] {
-                        acc[win.acc_at(bx + ox, by + oy)] += wi * v;
+                        let k = (iy - y_lo) * fw + ix;
+                        if slot[k] == u32::MAX {
+                            slot[k] = ap.len() as u32;
+                            let start = nz.len();
+                            ap_row(fine, ix, iy, win, &mut row);
+                            for (t, &v) in row.iter().enumerate() {
+                                if v != 0.0 {
+                                    nz.push(((t % win.ap) as isize - win.ap0, (t / win.ap) as isize - win.ap0, v));
+                                }
+                            }
+                            ap.push(start..nz.len());
+                        }
+                        let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
+                        for &(ox, oy, v) in &nz[ap[slot[k] as usize].clone()] {
+                            acc[win.acc_at(bx + ox, by + oy)] += wi * v;
+                        }
                     }
                 }
             }
@@ -1884,6 +1889,11 @@ impl Windows {
     /// Rows on their 2 × 2 corners and a fine operator within its 5 × 5 stencils.
     const NARROW: Windows = Windows { acc: 5, ap: 4, ap0: 1 };
 
+    /// Whether these are the wide windows (the narrow ones take [`narrow_sums`]).
+    fn wide(self) -> bool {
+        self.acc > 5
+    }
+
     #[inline]
     fn acc_at(self, dx: isize, dy: isize) -> usize {
         let h = (self.acc / 2) as isize;
@@ -1891,6 +1901,68 @@ impl Windows {
         ((dy + h) * self.acc as isize + dx + h) as usize
     }
 }
+
+/// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc` on the narrow windows
+/// ([`Windows::NARROW`]: every prolongation row on its 2 × 2 corners, every fine row within
+/// its stencil), from dense rows of `A P`, each made once per coarse row (`slot`, indexed
+/// as in [`galerkin`], into `dense`). The sums run in the order of the general path and add
+/// only exact zeros besides: the same stencil bit for bit.
+fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut Vec<[f64; 16]>, acc: &mut [f64]) {
+    let (fw, fh, g) = (fine.geo.w, fine.geo.h, &fine.geo);
+    let y_lo = (2 * yc).saturating_sub(1);
+    for iy in g.children(yc, fh) {
+        for ix in g.children(xc, fw) {
+            let (bx, by) = (xc - ix / 2, yc - iy / 2);
+            let wi = WEIGHTS[g.prow[iy * fw + ix][by * 2 + bx] as usize];
+            if wi == 0.0 {
+                continue;
+            }
+            let k = (iy - y_lo) * fw + ix;
+            if slot[k] == u32::MAX {
+                slot[k] = dense.len() as u32;
+                dense.push(narrow_ap_row(fine, ix, iy));
+            }
+            // The row's window starts one coarse node left of and above (ix / 2, iy / 2).
+            for (ky, line) in dense[slot[k] as usize].chunks_exact(4).enumerate() {
+                let a = &mut acc[(ky + 1 - by) * 5 + 1 - bx..][..4];
+                for (s, &v) in a.iter_mut().zip(line) {
+                    *s += wi * v;
+                }
+            }
+        }
+    }
+}
+
+/// Row `(ix, iy)` of `A P` on the narrow window ([`Windows::NARROW`]), dense: the
+/// products in the order of [`ap_row`].
+fn narrow_ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
+    let fw = fine.geo.w;
+    let row = fine.row(fine.pidx(ix, iy));
+    let mut out = [0.0f64; 16];
+    for (t, &a) in row.iter().enumerate() {
+        if a == 0.0 {
+            continue;
+        }
+        let (jx, jy) = (ix + t % 5 - 2, iy + t / 5 - 2);
+        let c = fine.geo.prow[jy * fw + jx];
+        let (cx, cy) = (jx / 2 + 1 - ix / 2, jy / 2 + 1 - iy / 2);
+        for (s, &v) in c.iter().enumerate() {
+            out[(cy + (s >> 1)) * 4 + cx + (s & 1)] += a * WEIGHTS[v as usize];
+        }
+    }
+    out
+}
+
+/// The prolongation weights of the codes of [`Geometry::prow`] (24ths).
+const WEIGHTS: [f64; 25] = {
+    let mut w = [0.0; 25];
+    let mut k = 0;
+    while k < 25 {
+        w[k] = k as f64 / 24.0;
+        k += 1;
+    }
+    w
+};
 
 /// A summed stencil (on `n` × `n` offsets) split into its stored taps and the others,
 /// `(dx, dy, a)`.
