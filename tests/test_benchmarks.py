@@ -110,3 +110,17 @@ def test_quick_ablation_benchmark_prints_a_row_per_switch():
         [sys.executable, str(ROOT / "benchmarks" / "line_counts.py")],
         check=True, capture_output=True, text=True, timeout=60).stdout
     assert "| solve/ |" in counts and "| core crate |" in counts
+
+
+def test_quick_strands_benchmark_prints_a_row_per_family_and_size():
+    # `benchmarks/strands.py --quick`: the comb and character families scaled; cycles and
+    # convergence are numbers the table reports, not asserted.
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "strands.py"), "--quick"],
+        check=True, capture_output=True, text=True, timeout=300).stdout
+    assert "| family | grid | cycles | converged | seconds |" in out
+    for row in ("| comb, 1 px teeth | 40×64 |", "| comb, 2 px teeth | 40×64 |",
+                "| character with hair | 72×64 |", "| character with hair | 144×128 |"):
+        line = next(r for r in out.splitlines() if r.startswith(row))
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        assert int(cells[2]) >= 1 and cells[3] in ("True", "False")
