@@ -185,7 +185,10 @@ print("finished", flush=True)
 def seconds_to_stop_after_ctrl_c(script: str, running_s: float, timeout_s: float) -> float:
     """Run ``script`` in a new Python, send it SIGINT ``running_s`` after it prints
     "ready", check it stopped as interrupted (exit 130), and return how long that took."""
-    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    # SIGINT back to its default in the child: a test run started in the background (where
+    # the shell ignores SIGINT, and children inherit that) still sees Ctrl-C as a user would.
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert proc.stdout.readline().strip() == "ready"
     time.sleep(running_s)
     sent = time.monotonic()
