@@ -382,10 +382,12 @@ export const RENEW_IDLE_MS = 8000;
  * screen (`keptKey`): its solver (the multigrid hierarchy and the last fields, about 180 MB
  * of a 4000 × 3000 photograph's 290) is what makes the next zoom's view a drawing without
  * a solve and the next drag's settle a few cycles from the last field. An animator who
- * looks at a settled frame for a while and then zooms or drags again keeps that speed;
- * only a worker grown past this (several settles' peaks) is replaced.
+ * looks at a settled frame for a while and then zooms or drags again keeps that speed.
+ * A worker grown past this is replaced all the same: a 4000 × 3000 photograph's holds 283
+ * MiB after one settle and 443 after two (a WebAssembly memory never shrinks), and
+ * keeping that much would take the page's memory left alone past 1 GB.
  */
-export const RENEW_KEPT_BYTES = 640 * 2 ** 20;
+export const RENEW_KEPT_BYTES = 384 * 2 ** 20;
 
 /**
  * The page's side of the worker that draws full-resolution frames of a proxied scene: it
