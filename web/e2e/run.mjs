@@ -1415,7 +1415,15 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     await p.mouse.down();
     const notes = [];
     const drafts = [];
+    // Background work while the pointer is down (it shares the cores with the drag's frames).
+    const background = [];
+    const sampleBackground = () => p.evaluate(() => {
+      const { app } = window.inkwarp;
+      return { full: !!app.full?.busy, ahead: !!app.ahead?.busy, renewals: (app.full?.renewals ?? 0) + (app.ahead?.renewals ?? 0) };
+    });
+    background.push(await sampleBackground());
     for (let i = 1; i <= 20; i++) {
+      background.push(await sampleBackground());
       await p.mouse.move(x0 + ((x1 - x0) * i) / 20, y0 + ((y1 - y0) * i) / 20);
       await p.evaluate(() => new Promise((r) => requestAnimationFrame(() => r())));
       // The draft the CPU drew (a software GPU), at this step.
@@ -1519,15 +1527,38 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     await idle(p);
     const settle2S = (Date.now() - released2) / 1000;
     const settle2Parts = await p.evaluate(() => window.inkwarp.app.stats.fullParts.at(-1) ?? null);
+    // Left alone past `RENEW_IDLE_MS` (8 s): the full-resolution worker keeps the fields of
+    // the frame on screen (its solver), so it is not replaced, and a zoom then is still drawn
+    // from them without a solve (see `RENEW_KEPT_BYTES`).
     const renewedBefore = await p.evaluate(() => window.inkwarp.app.full?.renewals ?? 0);
+    const fullBeforeIdleMiB = (await p.evaluate(() => window.inkwarp.app.memoryReport?.()))?.full?.wasmMiB ?? null;
+    const keptBoundMiB = 384; // RENEW_KEPT_BYTES
     const idleFrom = Date.now();
-    while (Date.now() - idleFrom < 15000 && (await p.evaluate(() => window.inkwarp.app.full?.renewals ?? 0)) === renewedBefore) await p.waitForTimeout(250);
-    await p.waitForTimeout(500);
+    await p.waitForTimeout(9500);
     const renewedAfterS = (Date.now() - idleFrom) / 1000;
     const rssIdle = browserRssMiB();
     const kindsIdle = browserMemoryByKind();
     const workersIdle = await p.evaluate(() => window.inkwarp.app.memoryReport?.());
     const renewals = await p.evaluate(() => window.inkwarp.app.full?.renewals ?? null);
+    const zoomAfterIdle = await p.evaluate(async () => {
+      const { app, ui } = window.inkwarp;
+      const fulls = app.stats.fullParts.length;
+      const t = performance.now();
+      ui.zoom100();
+      for (let i = 0; i < 100 && app.fullShown?.view?.shrink !== 1; i++) await new Promise((r) => setTimeout(r, 50));
+      await app.idle();
+      const ms = performance.now() - t;
+      ui.zoomFit();
+      for (let i = 0; i < 100 && !(app.fullShown?.view?.shrink > 1); i++) await new Promise((r) => setTimeout(r, 50));
+      await app.idle();
+      return { ms, solves: app.stats.fullParts.slice(fulls).map((q) => q.cycles.length) };
+    });
+    if (fullBeforeIdleMiB !== null && fullBeforeIdleMiB <= keptBoundMiB) {
+      assert(renewals === renewedBefore, `left alone, the full-resolution worker holding the settled frame's solver (${fullBeforeIdleMiB} MiB) is kept: ${renewedBefore} → ${renewals}`);
+      assert(zoomAfterIdle.solves.every((n) => n === 0), `a zoom after the pause is drawn from the kept fields, no solve: ${JSON.stringify(zoomAfterIdle)}`);
+    } else {
+      assert(renewals > renewedBefore, `left alone, a full-resolution worker grown past ${keptBoundMiB} MiB (${fullBeforeIdleMiB} MiB) is replaced: ${renewedBefore} → ${renewals}`);
+    }
     const posedPatch = await patch(1950, 1350, 100);
     let diff = 0;
     for (let i = 0; i < restPatch.length; i++) diff += Math.abs(restPatch[i] - posedPatch[i]);
@@ -1536,8 +1567,8 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       openS: (opened - made) / 1000, firstProxyFrameS: firstFrame / 1000, openSteps: s.open, fullParts: s.fullParts,
       dragMedianMs: median(s.drag), dragP90Ms: pct(s.drag, 0.9), dragFrames: s.drag.length,
       dragParts: Object.fromEntries(['queued', 'toWorker', 'solve', 'workerDraw', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((q) => q[k]))])),
-      dragMain, draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000, settle2S, settle2Parts,
-      heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, browserRssBeforeMiB: rssBefore,
+      dragMain, background, draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000, settle2S, settle2Parts,
+      heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, fullBeforeIdleMiB, zoomAfterIdle, browserRssBeforeMiB: rssBefore,
       makeS: (made - t0) / 1000, patchDiff: diff, viewCheck, zoomCheck, byKind: { before: kindsBefore, drag: kindsDrag, settled: kindsSettled, idle: kindsIdle }, workers: { drag: workersDrag, settled: workersSettled, idle: workersIdle }, small: { ...small, browserRssMiB: rssSmall },
     };
     console.log(`  photo: ${JSON.stringify(perf.photo)}`);
@@ -1904,7 +1935,7 @@ async function main() {
   if (perf.border) console.log(`  border under a hard pull: free ${perf.border.freePx.toFixed(2)} px, held ${perf.border.heldPx.toFixed(3)} px`);
   if (perf.zoom) console.log(`  wheel zoom ${perf.zoom.from.toFixed(3)} → ${perf.zoom.to.toFixed(3)}: the point under the pointer moved ${perf.zoom.drift.toFixed(4)} scene px`);
   if (perf.readyPlayback) console.log(`  ready bar: ${perf.readyPlayback.readyBefore}/12 frames before playing; 2 s of play from solved frames: ${perf.readyPlayback.shown} shown, ${perf.readyPlayback.dropped} dropped of ${perf.readyPlayback.expected}`);
-  if (perf.photo) console.log(`  4000×3000 photograph: open ${perf.photo.openS} s (proxy on screen at ${perf.photo.firstProxyFrameS?.toFixed(2)} s); drag frame median ${perf.photo.dragMedianMs?.toFixed(1)} ms (p90 ${perf.photo.dragP90Ms?.toFixed(1)}, n=${perf.photo.dragFrames}); settle ${perf.photo.settleS} s (a second drag's ${perf.photo.settle2S} s); page heap ${perf.photo.heapMiB?.toFixed(0)} MiB, browser RSS ${perf.photo.browserRssMiB.toFixed(0)} MiB dragging, ${perf.photo.browserRssSettledMiB.toFixed(0)} MiB settled, ${perf.photo.browserRssIdleMiB.toFixed(0)} MiB ${perf.photo.idleWaitS.toFixed(1)} s later (full-resolution worker replaced ${perf.photo.fullWorkerRenewals ?? 0} times) (${perf.photo.browserRssBeforeMiB.toFixed(0)} before the photograph's page opened); the ${perf.photo.small.size} example opened in ${perf.photo.small.openS.toFixed(2)} s, browser RSS then ${perf.photo.small.browserRssMiB.toFixed(0)} MiB`);
+  if (perf.photo) console.log(`  4000×3000 photograph: open ${perf.photo.openS} s (proxy on screen at ${perf.photo.firstProxyFrameS?.toFixed(2)} s); drag frame median ${perf.photo.dragMedianMs?.toFixed(1)} ms (p90 ${perf.photo.dragP90Ms?.toFixed(1)}, n=${perf.photo.dragFrames}); settle ${perf.photo.settleS} s (a second drag's ${perf.photo.settle2S} s); page heap ${perf.photo.heapMiB?.toFixed(0)} MiB, browser RSS ${perf.photo.browserRssMiB.toFixed(0)} MiB dragging, ${perf.photo.browserRssSettledMiB.toFixed(0)} MiB settled, ${perf.photo.browserRssIdleMiB.toFixed(0)} MiB ${perf.photo.idleWaitS.toFixed(1)} s later (full-resolution worker replaced ${perf.photo.fullWorkerRenewals ?? 0} times; a zoom to 100 % then ${perf.photo.zoomAfterIdle?.ms.toFixed(0)} ms, solves ${JSON.stringify(perf.photo.zoomAfterIdle?.solves)}) (${perf.photo.browserRssBeforeMiB.toFixed(0)} before the photograph's page opened); the ${perf.photo.small.size} example opened in ${perf.photo.small.openS.toFixed(2)} s, browser RSS then ${perf.photo.small.browserRssMiB.toFixed(0)} MiB`);
   if (perf.webm) console.log(`  WebM export: ${perf.webm.frames} frames, ${perf.webm.duration} s`);
   if (perf.dragLatencyMs) {
     console.log(`  ${perf.features} features, 512×512: pointer move → frame median ${perf.dragLatencyMs.median?.toFixed(1)} ms (p90 ${perf.dragLatencyMs.p90?.toFixed(1)}, n=${perf.dragLatencyMs.n})`);

@@ -283,6 +283,9 @@ export class App {
         this.onMessage(`Full-resolution frame: ${message}`, 'error');
         this.checkIdle();
       };
+      // Its replacement (loading a fresh worker, sending it the pictures) waits while the
+      // pointer is on the drawing or playback runs: it would take the cores from their frames.
+      full.mayRenew = () => !this.dragging && !this.store.view.playing && !this.exporting && performance.now() - this.lastPointerAt >= AHEAD_IDLE_MS;
     }
     if (drafts) drafts.onDrawn = (id, pixels) => this.receiveDrawn(id, pixels);
     for (const client of this.clients) {

@@ -367,7 +367,7 @@ export interface FullRequest {
 
 /**
  * When the worker that draws full-resolution frames has grown its WebAssembly memory above
- * this (a posed 4000 × 3000 frame's solve and drawing take it to about 313 MB, where a
+ * this (a posed 4000 × 3000 frame's solve and drawing take it to about 290 MB, where a
  * fresh worker holding the picture and its grid has about 100 MB, and a WebAssembly
  * memory never shrinks) and is then left alone `RENEW_IDLE_MS`, it is replaced
  * by a fresh worker holding only the layers' pictures: ending a worker is the one way its
@@ -377,6 +377,17 @@ export interface FullRequest {
  */
 export const RENEW_BYTES = 256 * 2 ** 20;
 export const RENEW_IDLE_MS = 8000;
+/**
+ * The bound instead of `RENEW_BYTES` while the worker keeps the fields of the frame on
+ * screen (`keptKey`): its solver (the multigrid hierarchy and the last fields, about 180 MB
+ * of a 4000 × 3000 photograph's 290) is what makes the next zoom's view a drawing without
+ * a solve and the next drag's settle a few cycles from the last field. An animator who
+ * looks at a settled frame for a while and then zooms or drags again keeps that speed.
+ * A worker grown past this is replaced all the same: a 4000 × 3000 photograph's holds 283
+ * MiB after one settle and 443 after two (a WebAssembly memory never shrinks), and
+ * keeping that much would take the page's memory left alone past 1 GB.
+ */
+export const RENEW_KEPT_BYTES = 384 * 2 ** 20;
 
 /**
  * The page's side of the worker that draws full-resolution frames of a proxied scene: it
@@ -396,10 +407,18 @@ export class FullClient {
   renewals = 0;
   onFrame: (frame: FullFrame) => void = () => {};
   onError: (message: string) => void = () => {};
+  /**
+   * Whether the worker may be replaced now (set by the page: not while the pointer is down
+   * or playback runs, whose frames share the cores with the fresh worker's loading and the
+   * pictures it is sent); when not, the renewal waits another `RENEW_IDLE_MS`.
+   */
+  mayRenew: () => boolean = () => true;
 
+  /** `renewal`: when the worker is replaced (the defaults `RENEW_BYTES`, `RENEW_KEPT_BYTES`, `RENEW_IDLE_MS`). */
   constructor(
     private makeWorker: () => Worker,
     private wasmUrl: string,
+    private renewal = { bytes: RENEW_BYTES, keptBytes: RENEW_KEPT_BYTES, idleMs: RENEW_IDLE_MS },
   ) {
     this.worker = makeWorker();
     this.ready = this.start(this.worker);
@@ -537,6 +556,16 @@ export class FullClient {
     return workerMemory(this.worker);
   }
 
+  /** Replaces the worker once it has been left alone `RENEW_IDLE_MS` and the page allows it (`mayRenew`). */
+  private renewLater(): void {
+    this.renewTimer = setTimeout(() => {
+      this.renewTimer = null;
+      if (this.busy) return;
+      if (this.mayRenew()) void this.renew();
+      else this.renewLater();
+    }, this.renewal.idleMs);
+  }
+
   private receive(msg: FromWorker): void {
     const done = this.inFlight;
     if (msg.type === 'full' && done && msg.id === done.id) {
@@ -546,12 +575,7 @@ export class FullClient {
       if (done.req.done) done.req.done(frame);
       else this.onFrame(frame);
       this.pump();
-      if (!this.busy && msg.wasmBytes > RENEW_BYTES) {
-        this.renewTimer = setTimeout(() => {
-          this.renewTimer = null;
-          if (!this.busy) void this.renew();
-        }, RENEW_IDLE_MS);
-      }
+      if (!this.busy && msg.wasmBytes > (this.kept ? this.renewal.keptBytes : this.renewal.bytes)) this.renewLater();
     } else if (msg.type === 'error') {
       if (done && msg.id === done.id) {
         this.inFlight = null;

@@ -142,4 +142,30 @@ describe('FullClient', () => {
     await got;
     expect(client.keptKey).toBe(null);
   });
+
+  it('is replaced once left alone, not while the page forbids it, and not while it keeps the fields of the frame on screen', async () => {
+    const sleep = (ms: number) => new Promise((r) => setTimeout(r, ms));
+    // Any memory is "too much" for a worker without kept fields, none for one with them.
+    const client = new FullClient(() => new LocalWorker() as unknown as Worker, 'inkwarp.wasm', { bytes: 0, keptBytes: Infinity, idleMs: 30 });
+    await client.ready;
+    const { next } = withLayer(client);
+    // A view: the worker keeps its fields (its solver), so it is kept as it is.
+    let got = next();
+    client.render({ ...request('a', pose(24)), view: { shrink: 1, region: [0, 0, W, H] } });
+    await got;
+    await sleep(120);
+    expect(client.renewals).toBe(0);
+    // A whole frame keeps nothing: replaced once left alone, but not while the page says no
+    // (the pointer down on the drawing, say).
+    let allowed = false;
+    client.mayRenew = () => allowed;
+    got = next();
+    client.render(request('b', pose(20)));
+    await got;
+    await sleep(120);
+    expect(client.renewals).toBe(0);
+    allowed = true;
+    for (let i = 0; i < 50 && client.renewals === 0; i++) await sleep(20);
+    expect(client.renewals).toBe(1);
+  });
 });
