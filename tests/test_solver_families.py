@@ -137,52 +137,70 @@ def test_closed_ring(tension):
 # --- character-like antialiased mattes ----------------------------------------------------
 
 
-def character_alpha(seed):
+def character_alpha(seed, scale=1):
     """An antialiased character: an elliptic body, a head on a thin neck, hair strands and a
-    thin arm, the alpha channel of a drawing (matte = alpha > 0)."""
+    thin arm, the alpha channel of a drawing (matte = alpha > 0); 72 x 64 at `scale` 1. At a
+    larger scale the body grows and the hair grows longer and more numerous, but its
+    strands keep their width (`benchmarks/strands.py`)."""
+    s = scale
     rng = np.random.default_rng(seed)
-    shape = (72, 64)
-    ys, xs = np.mgrid[0:72, 0:64].astype(float)
-    body = np.clip((1 - np.hypot((xs - 32) / 14, (ys - 48) / 18)) * 14 + 0.5, 0, 1)
-    head = np.clip(11 + 0.5 - np.hypot(xs - 32, ys - 16), 0, 1)
+    shape = (72 * s, 64 * s)
+    ys, xs = np.mgrid[0 : shape[0], 0 : shape[1]].astype(float)
+    body = np.clip((1 - np.hypot((xs - 32 * s) / (14 * s), (ys - 48 * s) / (18 * s))) * 14 * s + 0.5, 0, 1)
+    head = np.clip(11 * s + 0.5 - np.hypot(xs - 32 * s, ys - 16 * s), 0, 1)
     alpha = np.maximum(body, head)
-    alpha = np.maximum(alpha, antialiased_stroke(shape, (32, 26), (32, 31), 1.2 + 0.4 * rng.random()))  # neck
-    for k in range(int(rng.integers(4, 8))):  # hair
+    neck = antialiased_stroke(shape, (32 * s, 26 * s), (32 * s, 31 * s), (1.2 + 0.4 * rng.random()) * s)
+    alpha = np.maximum(alpha, neck)
+    for k in range(int(rng.integers(4, 8)) * s):  # hair
         a = np.pi * (1.1 + 0.8 * rng.random())
-        p = (32 + 10.5 * np.cos(a), 16 + 10.5 * np.sin(a))
-        q = (p[0] + rng.uniform(6, 14) * np.cos(a), p[1] + rng.uniform(6, 14) * np.sin(a))
+        p = (32 * s + 10.5 * s * np.cos(a), 16 * s + 10.5 * s * np.sin(a))
+        q = (p[0] + rng.uniform(6, 14) * s * np.cos(a), p[1] + rng.uniform(6, 14) * s * np.sin(a))
         alpha = np.maximum(alpha, antialiased_stroke(shape, p, q, rng.uniform(0.3, 1.6)))
-    alpha = np.maximum(alpha, antialiased_stroke(shape, (20, 44), (4, 30 + 8 * rng.random()), 1.5))  # arm
+    arm = antialiased_stroke(shape, (20 * s, 44 * s), (4 * s, (30 + 8 * rng.random()) * s), 1.5 * s)
+    alpha = np.maximum(alpha, arm)
     return (alpha * 255).round().astype(np.uint8)
+
+
+def character_problem(seed, scale=1):
+    """The matte of `character_alpha`, 4 points on the body and 2 on the head (the hair, the
+    arm and the head follow through their thin attachments) and their displacements."""
+    s = scale
+    m = (character_alpha(seed, scale) > 0).astype(np.uint8)
+    rng = np.random.default_rng(seed)
+    body = np.zeros_like(m)
+    body[36 * s : 64 * s, 22 * s : 42 * s] = 1
+    head = np.zeros_like(m)
+    head[10 * s : 22 * s, 27 * s : 37 * s] = 1
+    pts = np.vstack([random_points(rng, m & body, 4), random_points(rng, m & head, 2)])
+    return m, pts, rng.normal(0, 5, (6, 2))
 
 
 @pytest.mark.parametrize("seed", range(3))
 def test_antialiased_character_mattes(seed):
-    alpha = character_alpha(seed)
-    m = (alpha > 0).astype(np.uint8)
-    rng = np.random.default_rng(seed)
-    # Points on the body and the head (the hair, the arm and the head follow through their
-    # thin attachments).
-    body = np.zeros_like(m)
-    body[36:64, 22:42] = 1
-    head = np.zeros_like(m)
-    head[10:22, 27:37] = 1
-    pts = np.vstack([random_points(rng, m & body, 4), random_points(rng, m & head, 2)])
-    problem = Problem(m.shape, pts, rng.normal(0, 5, (6, 2)), mask=m)
+    m, pts, disp = character_problem(seed)
+    problem = Problem(m.shape, pts, disp, mask=m)
     check_against_oracle(problem, f"character {seed}")
 
 
 # --- combs --------------------------------------------------------------------------------
 
 
+def comb_mask(tooth, scale=1):
+    """A back bar and teeth `tooth` px wide separated by 1 px gaps, 40 x 64 at `scale` 1; at a
+    larger scale the teeth grow longer and more numerous but keep their width."""
+    h, w, bar = 40 * scale, 64 * scale, 6 * scale
+    m = np.zeros((h, w), np.uint8)
+    m[2 : 2 + bar, 2 : w - 2] = 1
+    for x in range(2, w - 2, tooth + 1):
+        m[2 + bar : h - 2, x : x + tooth] = 1
+    return m
+
+
 @pytest.mark.parametrize("tooth", [1, 2])
 def test_comb_with_one_pixel_gaps(tooth):
     # A back bar and teeth `tooth` px wide separated by 1 px gaps; points on the bar and on
     # a few tooth tips: each tooth bends on its own.
-    m = np.zeros((40, 64), np.uint8)
-    m[2:8, 2:62] = 1
-    for x in range(2, 62, tooth + 1):
-        m[8:38, x : x + tooth] = 1
+    m = comb_mask(tooth)
     rng = np.random.default_rng(tooth)
     pts = [[5.0, 4.0], [30.0, 5.0], [58.0, 3.0]]
     tips = [x for x in range(2, 62, tooth + 1)][::4]

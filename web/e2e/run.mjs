@@ -1532,7 +1532,8 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
     // from them without a solve (see `RENEW_KEPT_BYTES`).
     const renewedBefore = await p.evaluate(() => window.inkwarp.app.full?.renewals ?? 0);
     const fullBeforeIdleMiB = (await p.evaluate(() => window.inkwarp.app.memoryReport?.()))?.full?.wasmMiB ?? null;
-    const keptBoundMiB = 384; // RENEW_KEPT_BYTES
+    const keptBoundMiB = await p.evaluate(() => window.inkwarp.app.full.renewal.keptBytes / 2 ** 20); // RENEW_KEPT_BYTES
+    assert(keptBoundMiB > 0, `the full-resolution worker's kept-solver bound (RENEW_KEPT_BYTES) reads as ${keptBoundMiB} MiB`);
     const idleFrom = Date.now();
     await p.waitForTimeout(9500);
     const renewedAfterS = (Date.now() - idleFrom) / 1000;
@@ -1568,7 +1569,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       dragMedianMs: median(s.drag), dragP90Ms: pct(s.drag, 0.9), dragFrames: s.drag.length,
       dragParts: Object.fromEntries(['queued', 'toWorker', 'solve', 'workerDraw', 'back', 'upload', 'toFrame', 'draw', 'gpu', 'total'].map((k) => [k, median(s.dragParts.map((q) => q[k]))])),
       dragMain, background, draftSolveMedianMs: median(s.draft), proxySolveMs: s.final, fullFrameMs: s.full, settleS: (settled - released) / 1000, settle2S, settle2Parts,
-      heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, fullBeforeIdleMiB, zoomAfterIdle, browserRssBeforeMiB: rssBefore,
+      heapMiB: s.heap && s.heap.used / 2 ** 20, pageWasmMiB: s.heap?.wasm, browserRssMiB: rssDrag, browserRssSettledMiB: rssSettled, browserRssIdleMiB: rssIdle, idleWaitS: renewedAfterS, fullWorkerRenewals: renewals, fullBeforeIdleMiB, keptBoundMiB, zoomAfterIdle, browserRssBeforeMiB: rssBefore,
       makeS: (made - t0) / 1000, patchDiff: diff, viewCheck, zoomCheck, byKind: { before: kindsBefore, drag: kindsDrag, settled: kindsSettled, idle: kindsIdle }, workers: { drag: workersDrag, settled: workersSettled, idle: workersIdle }, small: { ...small, browserRssMiB: rssSmall },
     };
     console.log(`  photo: ${JSON.stringify(perf.photo)}`);
