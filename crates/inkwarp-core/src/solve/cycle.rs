@@ -4,6 +4,7 @@
 use rayon::prelude::*;
 
 use super::level::{dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, V2, W2, WS};
+use super::strands::Strands;
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
 const CHEB_RATIO: f64 = 16.0;
@@ -44,6 +45,8 @@ pub(crate) struct Hierarchy {
     /// K-cycle coarse corrections that took their first step alone (see
     /// [`K_SECOND_STEP`]), since the hierarchy was built.
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
+    /// Exact solves on the finest level's thin parts around each cycle (see [`Strands`]).
+    pub strands: Option<Strands>,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -112,7 +115,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default() }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
@@ -123,7 +126,12 @@ impl Hierarchy {
     /// where it would otherwise copy it to `f64` first and read that).
     pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
         map_into(&mut self.work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
-        self.cycle_from_zero(r)
+        let Some(mut strands) = self.strands.take() else { return self.cycle_from_zero(r) };
+        strands.before(&self.levels[0], r, &mut self.work[0].f);
+        self.cycle_from_zero(r);
+        strands.after(&self.levels[0], r, &mut self.work[0].x);
+        self.strands = Some(strands);
+        &self.work[0].x[..r.len()]
     }
 
     /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `work[0].f`.

@@ -60,6 +60,7 @@ mod history;
 mod level;
 mod nullspace;
 mod southwell;
+mod strands;
 mod upsample;
 mod wide;
 
@@ -116,7 +117,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 5] = ["second", "kcycle", "cache", "fours", "deflate"];
+    pub const NAMES: [&'static str; 6] = ["second", "kcycle", "cache", "fours", "deflate", "strands"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -658,6 +659,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         hier.k_cycles = !key.off.has("kcycle");
         hier.alt = alt;
         hier.torn = torn;
+        if !key.off.has("strands") {
+            hier.strands = strands::Strands::new(&hier.levels[0]);
+        }
         if key.off.has("fours") {
             hier.levels.iter_mut().chain(hier.alt.iter_mut().flat_map(|a| a.levels.iter_mut())).for_each(Level::drop_fours);
         }

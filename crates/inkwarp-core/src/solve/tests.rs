@@ -706,6 +706,20 @@ fn cycles_with_and_without(grid: &Grid, without: &str) -> [usize; 2] {
     })
 }
 
+/// A comb: a bar 5 px tall across the top and teeth 1 px wide and `len` long, 1 px apart.
+pub(super) fn comb_grid(w: usize, len: usize) -> Grid {
+    let h = len + 5;
+    Grid::from_active(w, h, (0..w * h).map(|i| i / w < 5 || i % w % 2 == 0).collect())
+}
+
+#[test]
+fn solving_the_thin_parts_whole_saves_cycles_on_a_comb() {
+    // Each tooth bends nearly freely: a slow mode of the cycle, slower the longer the tooth.
+    let grid = comb_grid(48, 60);
+    let [with, without] = cycles_with_and_without(&grid, "strands");
+    assert!(3 * with <= without, "{with} cycles with the thin parts solved whole, {without} without");
+}
+
 #[test]
 fn the_second_coarse_space_saves_cycles_across_holes_and_cuts() {
     // A thin arc-shaped hole, open on one side, and a cut: the link-aware coarse space alone
