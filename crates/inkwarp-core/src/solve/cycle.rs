@@ -47,6 +47,9 @@ pub(crate) struct Hierarchy {
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
     /// Exact solves on the finest level's thin parts around each cycle (see [`Strands`]).
     pub strands: Option<Strands>,
+    /// The same on the coarser levels (index k for level k; none on the finest), relaxed
+    /// within the cycle after its smoothing steps and before its second ones.
+    pub level_strands: Vec<Option<Strands>>,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -115,7 +118,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new() }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
@@ -129,7 +132,7 @@ impl Hierarchy {
         let Some(mut strands) = self.strands.take() else { return self.cycle_from_zero(r) };
         strands.before(&self.levels[0], r, &mut self.work[0].f);
         self.cycle_from_zero(r);
-        strands.after(&self.levels[0], r, &mut self.work[0].x);
+        strands.after(r, &mut self.work[0].x);
         self.strands = Some(strands);
         &self.work[0].x[..r.len()]
     }
@@ -190,6 +193,9 @@ impl Hierarchy {
         {
             let Work { x, f, r, d, .. } = &mut work[0];
             smooth(level, x, Some(f), r, d, self.aim_at(k), x_zero);
+            if let Some(Some(s)) = self.level_strands.get(k) {
+                s.relax(x, f);
+            }
             level.residual(x, Some(f), r);
         }
         let (head, tail) = work.split_at_mut(1);
@@ -220,6 +226,9 @@ impl Hierarchy {
             prolong_add(&alt.levels[0], &alt.levels[1], &atail[0].x, &mut w.x);
         }
         let Work { x, f, r, d, .. } = w;
+        if let Some(Some(s)) = self.level_strands.get(k) {
+            s.relax(x, f);
+        }
         smooth(level, x, Some(f), r, d, self.aim_at(k), false);
     }
 

@@ -117,7 +117,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 6] = ["second", "kcycle", "cache", "fours", "deflate", "strands"];
+    pub const NAMES: [&'static str; 7] = ["second", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -661,6 +661,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         hier.torn = torn;
         if !key.off.has("strands") {
             hier.strands = strands::Strands::new(&hier.levels[0]);
+            if !key.off.has("coarse_strands") {
+                hier.level_strands = hier.levels.iter().enumerate().map(|(k, l)| if k == 0 || k + 1 == hier.levels.len() { None } else { strands::Strands::new(l) }).collect();
+            }
         }
         if key.off.has("fours") {
             hier.levels.iter_mut().chain(hier.alt.iter_mut().flat_map(|a| a.levels.iter_mut())).for_each(Level::drop_fours);

@@ -38,32 +38,49 @@ struct Block {
     d_inv: Vec<f64>,
 }
 
-/// The thin nodes of a finest level, grouped in connected blocks with their factors.
+/// The thin nodes of a level, grouped in connected blocks with their factors.
 #[derive(Debug)]
 pub(crate) struct Strands {
     /// Padded indices, block by block, each in its elimination order.
     nodes: Vec<u32>,
-    /// The operator's 5 × 5 stencil row of each node.
-    rows: Vec<[f64; 25]>,
+    /// The operator's row of each node: `(q, a_pq)` from `at[i]` to `at[i + 1]`.
+    taps: Vec<(u32, f64)>,
+    at: Vec<usize>,
     blocks: Vec<Block>,
-    /// Work: the first solve's correction and a right-hand side, per node.
+    /// Work of the finest level's passes: the first solve's correction and a right-hand
+    /// side, per node.
     first_pass: Vec<V2>,
     rhs: Vec<V2>,
 }
 
 impl Strands {
-    /// The thin nodes of `level` (the finest), or `None` when it has none.
+    /// The thin nodes of `level`, or `None` when it has none.
     pub fn new(level: &Level) -> Option<Strands> {
-        let Operator::Fine { flags, .. } = &level.op else { return None };
-        let (w, h, wp) = (level.geo.w, level.geo.h, level.wp);
+        let (w, h) = (level.geo.w, level.geo.h);
         let pidx = |x: usize, y: usize| level.pidx(x, y);
-        // Run lengths along rows and columns (over active nodes joined by links).
-        let mut across = vec![usize::MAX; wp * level.hp];
+        let unknown = |p: usize| level.inv_diag[p] != 0.0;
+        // Links: the operator's own on the finest level, the geometry's between unknowns
+        // on coarser ones.
+        let (right, down): (Box<dyn Fn(usize, usize) -> bool>, Box<dyn Fn(usize, usize) -> bool>) = match &level.op {
+            Operator::Fine { flags, .. } => (
+                Box::new(move |x, y| flags[pidx(x, y)] & bit::RIGHT != 0),
+                Box::new(move |x, y| flags[pidx(x, y)] & bit::DOWN != 0),
+            ),
+            Operator::Stored { .. } => {
+                let g = &level.geo;
+                (
+                    Box::new(move |x, y| g.right[y * w + x] && unknown(pidx(x, y)) && unknown(pidx(x + 1, y))),
+                    Box::new(move |x, y| g.down[y * w + x] && unknown(pidx(x, y)) && unknown(pidx(x, y + 1))),
+                )
+            }
+        };
+        // Run lengths along rows and columns.
+        let mut across = vec![usize::MAX; level.len_padded()];
         for y in 0..h {
             let mut x = 0;
             while x < w {
                 let mut e = x;
-                while e + 1 < w && flags[pidx(e, y)] & bit::RIGHT != 0 {
+                while e + 1 < w && right(e, y) {
                     e += 1;
                 }
                 for i in x..=e {
@@ -76,7 +93,7 @@ impl Strands {
             let mut y = 0;
             while y < h {
                 let mut e = y;
-                while e + 1 < h && flags[pidx(x, e)] & bit::DOWN != 0 {
+                while e + 1 < h && down(x, e) {
                     e += 1;
                 }
                 for i in y..=e {
@@ -86,92 +103,84 @@ impl Strands {
                 y = e + 1;
             }
         }
-        let thin: Vec<bool> = (0..across.len()).map(|p| level.inv_diag.get(p).is_some_and(|&d| d != 0.0) && across[p] <= THIN).collect();
+        let thin: Vec<bool> = (0..across.len()).map(|p| unknown(p) && across[p] <= THIN).collect();
         if !thin.contains(&true) {
             return None;
         }
-        let taps = |p: usize| -> [f64; 25] { level.row(p) };
-        let off = |t: usize| -> isize { (t / 5) as isize * wp as isize + (t % 5) as isize - 2 * wp as isize - 2 };
-        let neighbours = |p: usize, row: &[f64; 25], out: &mut Vec<usize>| {
+        let neighbours = |p: usize, out: &mut Vec<usize>| {
             out.clear();
-            for (t, &a) in row.iter().enumerate() {
-                let q = (p as isize + off(t)) as usize;
-                if a != 0.0 && q != p && thin[q] {
+            level.taps(p, |q, _| {
+                if q != p && thin[q] {
                     out.push(q);
                 }
-            }
+            });
         };
         let mut seen = vec![false; thin.len()];
         let mut nodes = Vec::new();
-        let mut blocks = Vec::new();
+        let mut starts = Vec::new();
         for s in 0..thin.len() {
             if !thin[s] || seen[s] {
                 continue;
             }
             // The component, then a pseudo-peripheral start (the last node of a
             // breadth-first search from it) and the Cuthill–McKee order from there.
-            let comp = bfs(s, &mut seen, |p, out| neighbours(p, &taps(p), out));
+            let comp = bfs(s, &mut seen, neighbours);
             for &p in &comp {
                 seen[p] = false;
             }
-            let far = *bfs(s, &mut seen, |p, out| neighbours(p, &taps(p), out)).last().unwrap();
+            let far = *bfs(s, &mut seen, neighbours).last().unwrap();
             for &p in &comp {
                 seen[p] = false;
             }
-            let mut order = bfs(far, &mut seen, |p, out| neighbours(p, &taps(p), out));
+            let mut order = bfs(far, &mut seen, neighbours);
             order.reverse();
-            let start = nodes.len();
+            starts.push(nodes.len());
             nodes.extend(order.iter().map(|&p| p as u32));
-            blocks.push(Block { start, first: Vec::new(), at: Vec::new(), l: Vec::new(), d_inv: Vec::new() });
         }
-        let mut rows: Vec<[f64; 25]> = nodes.iter().map(|&p| taps(p as usize)).collect();
         let mut local = vec![u32::MAX; thin.len()];
         for (i, &p) in nodes.iter().enumerate() {
             local[p as usize] = i as u32;
         }
-        let ends: Vec<usize> = blocks.iter().skip(1).map(|b| b.start).chain([nodes.len()]).collect();
-        for (b, &end) in blocks.iter_mut().zip(&ends) {
-            b.factor(&nodes, &rows, &local, end, &off);
-        }
-        // A set whose order is not a narrow band is two-dimensional (a region riddled
-        // with pinholes, say), not a strand: the cycle serves it, and its factor would not
-        // be cheap. Its nodes leave the lists.
-        if blocks.iter().any(|b| b.l.is_empty() && !b.first.is_empty()) {
-            let (mut kept_nodes, mut kept_rows, mut kept) = (Vec::new(), Vec::new(), Vec::new());
-            for (mut b, &end) in blocks.into_iter().zip(&ends) {
-                if b.l.is_empty() && !b.first.is_empty() {
-                    continue;
-                }
-                let start = kept_nodes.len();
-                kept_nodes.extend_from_slice(&nodes[b.start..end]);
-                kept_rows.extend_from_slice(&rows[b.start..end]);
-                b.start = start;
-                kept.push(b);
-            }
-            (nodes, rows, blocks) = (kept_nodes, kept_rows, kept);
-            if nodes.is_empty() {
-                return None;
+        // Each block factored; a set whose order is not a narrow band is two-dimensional
+        // (a region riddled with pinholes, say), not a strand: the cycle serves it, and its
+        // factor would not be cheap. Its nodes leave the lists.
+        starts.push(nodes.len());
+        let (mut kept, mut taps, mut at, mut blocks) = (Vec::new(), Vec::new(), vec![0], Vec::new());
+        for pair in starts.windows(2) {
+            let ids = &nodes[pair[0]..pair[1]];
+            let Some(mut b) = Block::factor(level, ids, &local, pair[0]) else { continue };
+            b.start = kept.len();
+            blocks.push(b);
+            for &p in ids {
+                kept.push(p);
+                level.taps(p as usize, |q, a| taps.push((q as u32, a)));
+                at.push(taps.len());
             }
         }
-        let n = nodes.len();
-        Some(Strands { nodes, rows, blocks, first_pass: vec![[0.0; 2]; n], rhs: vec![[0.0; 2]; n] })
+        if kept.is_empty() {
+            return None;
+        }
+        let n = kept.len();
+        Some(Strands { nodes: kept, taps, at, blocks, first_pass: vec![[0.0; 2]; n], rhs: vec![[0.0; 2]; n] })
     }
 
-    /// Before the cycle: solves the thin blocks on `r` (the cycle's right-hand side `f`
-    /// holds `r` in `f32`) and takes the correction's product out of `f`.
+    /// Node `i`'s taps.
+    fn row(&self, i: usize) -> &[(u32, f64)] {
+        &self.taps[self.at[i]..self.at[i + 1]]
+    }
+
+    /// Before the finest level's cycle: solves the thin blocks on `r` (the cycle's
+    /// right-hand side `f` holds `r` in `f32`) and takes the correction's product out of
+    /// `f`.
     pub fn before(&mut self, level: &Level, r: &[V2], f: &mut [W2]) {
         for (i, &p) in self.nodes.iter().enumerate() {
             self.rhs[i] = r[p as usize];
         }
         self.solve_blocks();
-        let wp = level.wp;
-        for (i, &p) in self.nodes.iter().enumerate() {
+        for i in 0..self.nodes.len() {
             let z = self.first_pass[i];
-            for (t, &a) in self.rows[i].iter().enumerate() {
-                if a == 0.0 {
-                    continue;
-                }
-                let q = p as usize + (t / 5) * wp + t % 5 - 2 * wp - 2;
+            for &(q, a) in self.row(i) {
+                let q = q as usize;
                 if level.inv_diag[q] != 0.0 {
                     f[q][0] -= WS::of(a * z[0]);
                     f[q][1] -= WS::of(a * z[1]);
@@ -180,24 +189,19 @@ impl Strands {
         }
     }
 
-    /// After the cycle: adds the first correction to the cycle's `x` and solves the thin
-    /// blocks again on the residual left.
-    pub fn after(&mut self, level: &Level, r: &[V2], x: &mut [W2]) {
+    /// After the finest level's cycle: adds the first correction to the cycle's `x` and
+    /// solves the thin blocks again on the residual left.
+    pub fn after(&mut self, r: &[V2], x: &mut [W2]) {
         for (i, &p) in self.nodes.iter().enumerate() {
             let z = self.first_pass[i];
             let xp = &mut x[p as usize];
-            xp[0] = WS::of(xp[0].get() + z[0]);
-            xp[1] = WS::of(xp[1].get() + z[1]);
+            *xp = [WS::of(xp[0].get() + z[0]), WS::of(xp[1].get() + z[1])];
         }
-        let wp = level.wp;
         for (i, &p) in self.nodes.iter().enumerate() {
             let mut s = r[p as usize];
-            for (t, &a) in self.rows[i].iter().enumerate() {
-                if a != 0.0 {
-                    let q = p as usize + (t / 5) * wp + t % 5 - 2 * wp - 2;
-                    s[0] -= a * x[q][0].get();
-                    s[1] -= a * x[q][1].get();
-                }
+            for &(q, a) in self.row(i) {
+                s[0] -= a * x[q as usize][0].get();
+                s[1] -= a * x[q as usize][1].get();
             }
             self.rhs[i] = s;
         }
@@ -205,18 +209,43 @@ impl Strands {
         for (i, &p) in self.nodes.iter().enumerate() {
             let z = self.first_pass[i];
             let xp = &mut x[p as usize];
-            xp[0] = WS::of(xp[0].get() + z[0]);
-            xp[1] = WS::of(xp[1].get() + z[1]);
+            *xp = [WS::of(xp[0].get() + z[0]), WS::of(xp[1].get() + z[1])];
         }
     }
 
-    /// `first_pass = A_SS⁻¹ rhs`, block by block.
+    /// One block relaxation of `A x = f` on a coarser level: `x_S += A_SS⁻¹ (f − A x)_S`.
+    pub fn relax(&self, x: &mut [W2], f: &[W2]) {
+        let n = self.nodes.len();
+        let mut rhs = vec![[0.0; 2]; n];
+        for (i, &p) in self.nodes.iter().enumerate() {
+            let mut s = [f[p as usize][0].get(), f[p as usize][1].get()];
+            for &(q, a) in self.row(i) {
+                s[0] -= a * x[q as usize][0].get();
+                s[1] -= a * x[q as usize][1].get();
+            }
+            rhs[i] = s;
+        }
+        let mut z = vec![[0.0; 2]; n];
+        self.solve_into(&rhs, &mut z);
+        for (i, &p) in self.nodes.iter().enumerate() {
+            let xp = &mut x[p as usize];
+            *xp = [WS::of(xp[0].get() + z[i][0]), WS::of(xp[1].get() + z[i][1])];
+        }
+    }
+
+    /// `first_pass = A_SS⁻¹ rhs`.
     fn solve_blocks(&mut self) {
+        let mut out = std::mem::take(&mut self.first_pass);
+        self.solve_into(&self.rhs, &mut out);
+        self.first_pass = out;
+    }
+
+    /// `out = A_SS⁻¹ rhs`, block by block.
+    fn solve_into(&self, rhs: &[V2], out: &mut [V2]) {
         let n = self.nodes.len();
         for (k, b) in self.blocks.iter().enumerate() {
             let end = self.blocks.get(k + 1).map_or(n, |nb| nb.start);
-            let (rhs, out) = (&self.rhs[b.start..end], &mut self.first_pass[b.start..end]);
-            b.solve(rhs, out);
+            b.solve(&rhs[b.start..end], &mut out[b.start..end]);
         }
     }
 }
@@ -241,67 +270,63 @@ fn bfs(s: usize, seen: &mut [bool], mut next: impl FnMut(usize, &mut Vec<usize>)
 }
 
 impl Block {
-    fn factor(&mut self, nodes: &[u32], rows: &[[f64; 25]], local: &[u32], end: usize, off: &impl Fn(usize) -> isize) {
-        let n = end - self.start;
-        // Envelope: the first column of each row (in block order).
+    /// The factor of the block of `ids` (padded indices; `local` maps an index to its
+    /// place in the list that starts at `first_id`), or `None` when its envelope is wider
+    /// than [`BAND`] entries a node on average.
+    fn factor(level: &Level, ids: &[u32], local: &[u32], first_id: usize) -> Option<Block> {
+        let n = ids.len();
         let mut entries: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
-        for i in 0..n {
-            let p = nodes[self.start + i] as usize;
-            for (t, &a) in rows[self.start + i].iter().enumerate() {
-                let q = (p as isize + off(t)) as usize;
-                let j = local[q];
-                if a != 0.0 && j != u32::MAX && (j as usize) >= self.start && (j as usize) < end {
-                    entries[i].push((j as usize - self.start, a));
+        for (i, &p) in ids.iter().enumerate() {
+            level.taps(p as usize, |q, a| {
+                let j = local[q] as usize;
+                if local[q] != u32::MAX && j >= first_id && j < first_id + n {
+                    entries[i].push((j - first_id, a));
                 }
-            }
+            });
         }
-        self.first = entries.iter().enumerate().map(|(i, e)| e.iter().map(|&(j, _)| j).min().unwrap_or(i).min(i) as u32).collect();
-        self.at = Vec::with_capacity(n);
+        let first: Vec<u32> = entries.iter().enumerate().map(|(i, e)| e.iter().map(|&(j, _)| j).min().unwrap_or(i).min(i) as u32).collect();
+        let mut at = Vec::with_capacity(n);
         let mut total = 0;
         for i in 0..n {
-            self.at.push(total);
-            total += i + 1 - self.first[i] as usize;
+            at.push(total);
+            total += i + 1 - first[i] as usize;
         }
         if total > BAND * n {
-            self.l = Vec::new();
-            return;
+            return None;
         }
         let mut l = vec![0.0; total];
         let mut diag = vec![0.0; n];
         for i in 0..n {
             for &(j, a) in &entries[i] {
                 if j < i {
-                    l[self.at[i] + j - self.first[i] as usize] = a;
+                    l[at[i] + j - first[i] as usize] += a;
                 } else if j == i {
-                    diag[i] = a;
+                    diag[i] += a;
                 }
             }
         }
-        let mut d = vec![0.0; n];
-        self.d_inv = vec![0.0; n];
+        let mut d_inv = vec![0.0; n];
         for i in 0..n {
-            let fi = self.first[i] as usize;
+            let fi = first[i] as usize;
             // g_ij = l_ij d_j, row i in place: g_ij = a_ij − Σ_k g_ik l_jk.
             for j in fi..i {
-                let fj = self.first[j] as usize;
-                let k0 = fi.max(fj);
-                let mut s = l[self.at[i] + j - fi];
-                for k in k0..j {
-                    s -= l[self.at[i] + k - fi] * l[self.at[j] + k - fj];
+                let fj = first[j] as usize;
+                let mut s = l[at[i] + j - fi];
+                for k in fi.max(fj)..j {
+                    s -= l[at[i] + k - fi] * l[at[j] + k - fj];
                 }
-                l[self.at[i] + j - fi] = s;
+                l[at[i] + j - fi] = s;
             }
             let mut di = diag[i];
             for j in fi..i {
-                let g = l[self.at[i] + j - fi];
-                let lij = g * self.d_inv[j];
-                l[self.at[i] + j - fi] = lij;
+                let g = l[at[i] + j - fi];
+                let lij = g * d_inv[j];
+                l[at[i] + j - fi] = lij;
                 di -= g * lij;
             }
-            d[i] = di;
-            self.d_inv[i] = if di > PIVOT * diag[i] { 1.0 / di } else { 0.0 };
+            d_inv[i] = if di > PIVOT * diag[i] { 1.0 / di } else { 0.0 };
         }
-        self.l = l;
+        Some(Block { start: 0, first, at, l, d_inv })
     }
 
     fn solve(&self, b: &[V2], x: &mut [V2]) {
@@ -351,17 +376,15 @@ mod tests {
             *b = [(i % 7) as f64 - 3.0, (i % 5) as f64 * 0.5];
         }
         s.solve_blocks();
-        let wp = level.wp;
         let mut x = vec![[0.0; 2]; level.len_padded()];
         for (i, &p) in s.nodes.iter().enumerate() {
             x[p as usize] = s.first_pass[i];
         }
-        for (i, &p) in s.nodes.iter().enumerate() {
+        for i in 0..s.nodes.len() {
             let mut ax = [0.0; 2];
-            for (t, &a) in s.rows[i].iter().enumerate() {
-                let q = p as usize + (t / 5) * wp + t % 5 - 2 * wp - 2;
-                ax[0] += a * x[q][0];
-                ax[1] += a * x[q][1];
+            for &(q, a) in s.row(i) {
+                ax[0] += a * x[q as usize][0];
+                ax[1] += a * x[q as usize][1];
             }
             for k in 0..2 {
                 assert!((ax[k] - s.rhs[i][k]).abs() < 1e-9 * (1.0 + s.rhs[i][k].abs()), "row {i}: {ax:?} against {:?}", s.rhs[i]);
