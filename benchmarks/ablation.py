@@ -13,7 +13,9 @@ Problems: 513×513 with 10, 100, 1000 and 4000 random points, cold (no start) an
 `ratios.py`), frames of an animation through a `WarmStart` (10 and 1000 points, hole+cut:
 the only problems where a solver is kept between solves, so the only ones where `cache`
 can buy anything; the free function builds its hierarchy every time), and the issue's 513×513 model problem with a disc hole and a two-segment cut
-(`tests/test_solver_families.py::grid_problem`), cold and warm.
+(`tests/test_solver_families.py::grid_problem`), cold and warm; and two problems with thin
+parts, whatever the size: `strands.py`'s comb with 2 px teeth at twice its size
+(80×128) and `test_many_random_cuts`'s float cuts of seed 0 at four times theirs (256×256).
 
 Usage: python benchmarks/ablation.py [--rounds 9] [--quick] [--only second,kcycle]
 """
@@ -29,7 +31,7 @@ import numpy as np
 
 import inkwarp
 
-SWITCHES = ["second", "kcycle", "cache", "fours"]
+SWITCHES = ["second", "kcycle", "cache", "fours", "strands", "coarse_strands"]
 
 
 def random_problem(n: int, size: int, seed: int = 0):
@@ -51,20 +53,41 @@ def hole_and_cut(n: int):
     return pts, disp, mask, cuts
 
 
+def comb_problem(tooth: int, scale: int):
+    """`benchmarks/strands.py`'s comb: teeth `tooth` px wide, 1 px apart, at `scale`."""
+    from strands import comb
+
+    m, pts, disp = comb(tooth, scale)
+    return pts, disp, m, None
+
+
+def random_cuts(seed: int, scale: int):
+    """`test_many_random_cuts`'s float cuts (20–50 on 64×64) and 40 points, at `scale`."""
+    rng = np.random.default_rng(seed)
+    cuts = []
+    for _ in range(int(rng.integers(20, 51))):
+        k = int(rng.integers(2, 4))
+        cuts.append(np.column_stack([rng.uniform(-4, 68, k), rng.uniform(-4, 68, k)]) * scale)
+    pts = np.column_stack([rng.uniform(0, 63, 40), rng.uniform(0, 63, 40)]) * scale
+    return pts, rng.normal(0, 5, (40, 2)), np.ones((64 * scale, 64 * scale), np.uint8), cuts
+
+
 def problems(size: int) -> dict:
     """Name → a function of the switch list that solves once and returns its report."""
     out = {}
-    shape = (size, size)
     cases = [(f"{n} pts", *random_problem(n, size, seed=n), None, None) for n in (10, 100, 1000, 4000)]
     cases.append(("hole+cut", *hole_and_cut(size)))
+    cases.append(("comb", *comb_problem(2, 2)))
+    cases.append(("cuts", *random_cuts(0, 4)))
     for name, pts, disp, mask, cuts in cases:
+        shape = mask.shape if mask is not None else (size, size)
         field = inkwarp.thin_plate(pts, disp, shape, mask=mask, cuts=cuts)
         changed = disp * 1.02
 
-        def cold(off, pts=pts, disp=disp, mask=mask, cuts=cuts):
+        def cold(off, pts=pts, disp=disp, mask=mask, cuts=cuts, shape=shape):
             return inkwarp.thin_plate_report(pts, disp, shape, mask=mask, cuts=cuts, _off=off)[1]
 
-        def warm(off, pts=pts, changed=changed, mask=mask, cuts=cuts, field=field):
+        def warm(off, pts=pts, changed=changed, mask=mask, cuts=cuts, field=field, shape=shape):
             return inkwarp.thin_plate_report(pts, changed, shape, mask=mask, cuts=cuts, initial=field, _off=off)[1]
 
         out[f"{name} cold"] = cold

@@ -46,7 +46,9 @@
 //! left after that (thin holes, holes open to the border) each cycle also visits a
 //! second coarse space, built with the plain bilinear prolongation of the same grid
 //! without them. At a cut the link-aware prolongation extrapolates linearly from each
-//! side. A warm start whose
+//! side. The thin parts of every level (strands, teeth, slivers between cuts) are solved
+//! exactly, block by block, around the cycle and around each level's smoothing
+//! ([`strands`]). A warm start whose
 //! residuals exceed the tolerance also gets the coarse-to-fine correction; a closer one
 //! first gets one cycle as it is. Free functions of the plate energy (hinges, strands,
 //! loose nodes) are settled to the τ → 0⁺ limit afterwards ([`nullspace`]).

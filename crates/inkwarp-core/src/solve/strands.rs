@@ -56,54 +56,17 @@ pub(crate) struct Strands {
 impl Strands {
     /// The thin nodes of `level`, or `None` when it has none.
     pub fn new(level: &Level) -> Option<Strands> {
-        let (w, h) = (level.geo.w, level.geo.h);
-        let pidx = |x: usize, y: usize| level.pidx(x, y);
-        let unknown = |p: usize| level.inv_diag[p] != 0.0;
-        // Links: the operator's own on the finest level, the geometry's between unknowns
-        // on coarser ones.
-        let (right, down): (Box<dyn Fn(usize, usize) -> bool>, Box<dyn Fn(usize, usize) -> bool>) = match &level.op {
-            Operator::Fine { flags, .. } => (
-                Box::new(move |x, y| flags[pidx(x, y)] & bit::RIGHT != 0),
-                Box::new(move |x, y| flags[pidx(x, y)] & bit::DOWN != 0),
-            ),
+        let across = match &level.op {
+            // Links: the operator's own on the finest level, the geometry's between unknowns
+            // on coarser ones.
+            Operator::Fine { flags, .. } => runs(level, |p, _| flags[p] & bit::RIGHT != 0, |p, _| flags[p] & bit::DOWN != 0),
             Operator::Stored { .. } => {
-                let g = &level.geo;
-                (
-                    Box::new(move |x, y| g.right[y * w + x] && unknown(pidx(x, y)) && unknown(pidx(x + 1, y))),
-                    Box::new(move |x, y| g.down[y * w + x] && unknown(pidx(x, y)) && unknown(pidx(x, y + 1))),
-                )
+                let (g, d) = (&level.geo, &level.inv_diag);
+                let wp = level.wp;
+                runs(level, |p, i| g.right[i] && d[p] != 0.0 && d[p + 1] != 0.0, |p, i| g.down[i] && d[p] != 0.0 && d[p + wp] != 0.0)
             }
-        };
-        // Run lengths along rows and columns.
-        let mut across = vec![usize::MAX; level.len_padded()];
-        for y in 0..h {
-            let mut x = 0;
-            while x < w {
-                let mut e = x;
-                while e + 1 < w && right(e, y) {
-                    e += 1;
-                }
-                for i in x..=e {
-                    across[pidx(i, y)] = e - x + 1;
-                }
-                x = e + 1;
-            }
-        }
-        for x in 0..w {
-            let mut y = 0;
-            while y < h {
-                let mut e = y;
-                while e + 1 < h && down(x, e) {
-                    e += 1;
-                }
-                for i in y..=e {
-                    let p = pidx(x, i);
-                    across[p] = across[p].min(e - y + 1);
-                }
-                y = e + 1;
-            }
-        }
-        let thin: Vec<bool> = (0..across.len()).map(|p| unknown(p) && across[p] <= THIN).collect();
+        }?;
+        let thin: Vec<bool> = (0..across.len()).map(|p| level.inv_diag[p] != 0.0 && across[p] as usize <= THIN).collect();
         if !thin.contains(&true) {
             return None;
         }
@@ -248,6 +211,45 @@ impl Strands {
             b.solve(&rhs[b.start..end], &mut out[b.start..end]);
         }
     }
+}
+
+/// The length of each node's run of linked nodes along its row or its column, whichever
+/// is shorter (`u32::MAX` off the nodes), from `right(p, i)` and `down(p, i)` (padded and
+/// unpadded index: linked to the right, below); `None` when no run is [`THIN`] or shorter.
+fn runs(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Option<Vec<u32>> {
+    let (w, h) = (level.geo.w, level.geo.h);
+    let p = |x: usize, y: usize| level.pidx(x, y);
+    let mut across = vec![u32::MAX; level.len_padded()];
+    let mut any = false;
+    for y in 0..h {
+        let mut x = 0;
+        while x < w {
+            let mut e = x;
+            while e + 1 < w && right(p(e, y), y * w + e) {
+                e += 1;
+            }
+            across[p(x, y)..=p(e, y)].fill((e - x + 1) as u32);
+            any |= e - x < THIN && level.inv_diag[p(x, y)..=p(e, y)].iter().any(|&d| d != 0.0);
+            x = e + 1;
+        }
+    }
+    for x in 0..w {
+        let mut y = 0;
+        while y < h {
+            let mut e = y;
+            while e + 1 < h && down(p(x, e), e * w + x) {
+                e += 1;
+            }
+            if e - y < THIN {
+                for i in y..=e {
+                    any |= level.inv_diag[p(x, i)] != 0.0;
+                    across[p(x, i)] = across[p(x, i)].min((e - y + 1) as u32);
+                }
+            }
+            y = e + 1;
+        }
+    }
+    any.then_some(across)
 }
 
 /// Breadth-first order of the component of `s` (marking `seen`).
