@@ -228,6 +228,19 @@ def test_longer_strands_stay_in_few_cycles(family):
     assert report.cycles <= 40, report
 
 
+def test_a_hairy_matte_at_photograph_size_converges_to_the_tight_answer():
+    # The character at 12x (864 x 768, 48+ hairs up to 170 px long on a 1 px root): beyond
+    # the direct solve's reach, so the default solve is checked against a solve a thousand
+    # times tighter. Solved exactly, a hair's response swamped the search direction and the
+    # solve stalled at its cycle limit (see `solve/strands.rs`, SHIFT).
+    m, pts, disp = character_problem(2, 12)
+    field, report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m)
+    tight, tight_report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, tolerance=1e-5, max_cycles=400)
+    assert report.converged and tight_report.converged, (report, tight_report)
+    assert report.cycles <= 60, report
+    assert float(np.abs(field - tight)[m > 0].max()) < TOLERANCE_PX
+
+
 # --- many cuts ----------------------------------------------------------------------------
 
 

@@ -10,9 +10,9 @@
 //!
 //! A node is *thin* when its run of linked nodes along the row or along the column is at
 //! most [`THIN`] long. Each connected set is ordered by reverse Cuthill–McKee and factored
-//! as `L D Lᵀ` within its envelope; a pivot that vanishes (a set with a free function of
-//! its own, at τ = 0) is dropped, which leaves that function to the cycle and the kernel
-//! settlement.
+//! as `L D Lᵀ` within its envelope (its diagonal raised by [`SHIFT`]); a pivot that
+//! vanishes (a set with a free function of its own, at τ = 0) is dropped, which leaves
+//! that function to the cycle and the kernel settlement.
 
 use super::level::{bit, Level, Operator, Real, V2, W2, WS};
 
@@ -21,6 +21,13 @@ const THIN: usize = 16;
 
 /// The most entries a node's row of a block's factor may hold on average.
 const BAND: usize = 64;
+
+/// The finest level's blocks factored are `A_SS + SHIFT · diag(A_SS)`. A long hair hanging on a thin
+/// root is so compliant (`A_SS` as ill-conditioned as 1e-10 relative) that its exact
+/// response, tens of millions of times the residual, swamped the `f32` search direction:
+/// a hairy matte at 12× stalled. The shift bounds the response where the direction can
+/// hold it, at a few cycles' cost on the longest teeth (docs/dev/ablation.md).
+const SHIFT: f64 = 1e-8;
 
 /// A pivot below this fraction of its diagonal entry is dropped.
 const PIVOT: f64 = 1e-8;
@@ -108,10 +115,11 @@ impl Strands {
         // (a region riddled with pinholes, say), not a strand: the cycle serves it, and its
         // factor would not be cheap. Its nodes leave the lists.
         starts.push(nodes.len());
+        let shift = if matches!(level.op, Operator::Fine { .. }) { SHIFT } else { 0.0 };
         let (mut kept, mut taps, mut at, mut blocks) = (Vec::new(), Vec::new(), vec![0], Vec::new());
         for pair in starts.windows(2) {
             let ids = &nodes[pair[0]..pair[1]];
-            let Some(mut b) = Block::factor(level, ids, &local, pair[0]) else { continue };
+            let Some(mut b) = Block::factor(level, ids, &local, pair[0], shift) else { continue };
             b.start = kept.len();
             blocks.push(b);
             for &p in ids {
@@ -275,7 +283,7 @@ impl Block {
     /// The factor of the block of `ids` (padded indices; `local` maps an index to its
     /// place in the list that starts at `first_id`), or `None` when its envelope is wider
     /// than [`BAND`] entries a node on average.
-    fn factor(level: &Level, ids: &[u32], local: &[u32], first_id: usize) -> Option<Block> {
+    fn factor(level: &Level, ids: &[u32], local: &[u32], first_id: usize, shift: f64) -> Option<Block> {
         let n = ids.len();
         let mut entries: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
         for (i, &p) in ids.iter().enumerate() {
@@ -308,6 +316,9 @@ impl Block {
             }
         }
         let mut d_inv = vec![0.0; n];
+        for d in diag.iter_mut() {
+            *d *= 1.0 + shift;
+        }
         for i in 0..n {
             let fi = first[i] as usize;
             // g_ij = l_ij d_j, row i in place: g_ij = a_ij − Σ_k g_ik l_jk.
@@ -365,7 +376,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_blocks_solve_the_thin_nodes_own_system() {
+    fn the_blocks_solve_the_thin_nodes_own_shifted_system() {
         let grid = comb_grid(40, 30);
         let mut fixed = vec![false; grid.len()];
         for i in [grid.index(3, 1), grid.index(20, 3), grid.index(36, 0), grid.index(10, 34)] {
@@ -382,9 +393,11 @@ mod tests {
         for (i, &p) in s.nodes.iter().enumerate() {
             x[p as usize] = s.first_pass[i];
         }
-        for i in 0..s.nodes.len() {
+        for (i, &p) in s.nodes.iter().enumerate() {
             let mut ax = [0.0; 2];
             for &(q, a) in s.row(i) {
+                // The factor's matrix: the diagonal raised by SHIFT.
+                let a = if q == p { a * (1.0 + SHIFT) } else { a };
                 ax[0] += a * x[q as usize][0];
                 ax[1] += a * x[q as usize][1];
             }
