@@ -26,6 +26,7 @@ import argparse
 import statistics
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -63,13 +64,11 @@ def comb_problem(tooth: int, scale: int):
 
 def random_cuts(seed: int, scale: int):
     """`test_many_random_cuts`'s float cuts (20–50 on 64×64) and 40 points, at `scale`."""
-    rng = np.random.default_rng(seed)
-    cuts = []
-    for _ in range(int(rng.integers(20, 51))):
-        k = int(rng.integers(2, 4))
-        cuts.append(np.column_stack([rng.uniform(-4, 68, k), rng.uniform(-4, 68, k)]) * scale)
-    pts = np.column_stack([rng.uniform(0, 63, 40), rng.uniform(0, 63, 40)]) * scale
-    return pts, rng.normal(0, 5, (40, 2)), np.ones((64 * scale, 64 * scale), np.uint8), cuts
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    from test_solver_families import random_cuts as cuts_problem
+
+    pts, disp, cuts = cuts_problem(seed, False, scale)
+    return pts, disp, np.ones((64 * scale, 64 * scale), np.uint8), cuts
 
 
 def problems(size: int) -> dict:

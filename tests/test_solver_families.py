@@ -244,19 +244,26 @@ def test_a_hairy_matte_at_photograph_size_converges_to_the_tight_answer():
 # --- many cuts ----------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("seed, integer", [(seed, integer) for integer in (False, True) for seed in range(4)])
-def test_many_random_cuts(seed, integer):
-    # 20-50 random straight and bent cuts on 64 x 64, float or integer end points (integer
-    # ones run through node centres and along links).
+def random_cuts(seed, integer, scale=1):
+    """20-50 random straight and bent cuts on 64 x 64 (float end points, or integer ones
+    through node centres and along links), 40 points and their displacements; at `scale`
+    the same picture on a grid `scale` times larger (`benchmarks/ablation.py`)."""
     rng = np.random.default_rng(seed + 10 * integer)
     cuts = []
     for _ in range(int(rng.integers(20, 51))):
         k = int(rng.integers(2, 4))
         c = np.column_stack([rng.uniform(-4, 68, k), rng.uniform(-4, 68, k)])
-        cuts.append(np.round(c) if integer else c)
-    n = 40
-    pts = np.column_stack([rng.uniform(0, 63, n), rng.uniform(0, 63, n)])
-    problem = Problem((64, 64), pts, rng.normal(0, 5, (n, 2)), cuts=cuts)
+        cuts.append((np.round(c) if integer else c) * scale)
+    pts = np.column_stack([rng.uniform(0, 63, 40), rng.uniform(0, 63, 40)]) * scale
+    return pts, rng.normal(0, 5, (40, 2)), cuts
+
+
+@pytest.mark.parametrize("seed, integer", [(seed, integer) for integer in (False, True) for seed in range(4)])
+def test_many_random_cuts(seed, integer):
+    # 20-50 random straight and bent cuts on 64 x 64, float or integer end points (integer
+    # ones run through node centres and along links).
+    pts, disp, cuts = random_cuts(seed, integer)
+    problem = Problem((64, 64), pts, disp, cuts=cuts)
     check_against_oracle(problem, f"{len(cuts)} cuts")
 
 
@@ -264,13 +271,8 @@ def test_a_slow_mode_does_not_fool_the_stopping_rule():
     # The float cuts of seed 1 leave a wedge bending against a distant arm (a near-null
     # mode); with the cycle cap far away the report must still be true: converged means
     # every node within the contract.
-    rng = np.random.default_rng(1)
-    cuts = []
-    for _ in range(int(rng.integers(20, 51))):
-        k = int(rng.integers(2, 4))
-        cuts.append(np.column_stack([rng.uniform(-4, 68, k), rng.uniform(-4, 68, k)]))
-    pts = np.column_stack([rng.uniform(0, 63, 40), rng.uniform(0, 63, 40)])
-    problem = Problem((64, 64), pts, rng.normal(0, 5, (40, 2)), cuts=cuts)
+    pts, disp, cuts = random_cuts(1, False)
+    problem = Problem((64, 64), pts, disp, cuts=cuts)
     check_against_oracle(problem, "seed 1 cuts, 2000 cycles allowed", max_cycles=2000)
 
 

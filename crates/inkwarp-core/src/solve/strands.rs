@@ -54,10 +54,9 @@ pub(crate) struct Strands {
     taps: Vec<(u32, f64)>,
     at: Vec<usize>,
     blocks: Vec<Block>,
-    /// Work of the finest level's passes: the first solve's correction and a right-hand
-    /// side, per node.
+    /// The finest level's first solve's correction (from [`Strands::before`] to
+    /// [`Strands::after`]), per node.
     first_pass: Vec<V2>,
-    rhs: Vec<V2>,
 }
 
 impl Strands {
@@ -132,7 +131,7 @@ impl Strands {
             return None;
         }
         let n = kept.len();
-        Some(Strands { nodes: kept, taps, at, blocks, first_pass: vec![[0.0; 2]; n], rhs: vec![[0.0; 2]; n] })
+        Some(Strands { nodes: kept, taps, at, blocks, first_pass: vec![[0.0; 2]; n] })
     }
 
     /// Node `i`'s taps.
@@ -144,12 +143,11 @@ impl Strands {
     /// right-hand side `f` holds `r` in `f32`) and takes the correction's product out of
     /// `f`.
     pub fn before(&mut self, level: &Level, r: &[V2], f: &mut [W2]) {
-        for (i, &p) in self.nodes.iter().enumerate() {
-            self.rhs[i] = r[p as usize];
-        }
-        self.solve_blocks();
-        for i in 0..self.nodes.len() {
-            let z = self.first_pass[i];
+        let rhs: Vec<V2> = self.nodes.iter().map(|&p| r[p as usize]).collect();
+        let mut z = std::mem::take(&mut self.first_pass);
+        self.solve_into(&rhs, &mut z);
+        self.first_pass = z;
+        for (i, z) in self.first_pass.iter().enumerate() {
             for &(q, a) in self.row(i) {
                 let q = q as usize;
                 if level.inv_diag[q] != 0.0 {
@@ -161,54 +159,35 @@ impl Strands {
     }
 
     /// After the finest level's cycle: adds the first correction to the cycle's `x` and
-    /// solves the thin blocks again on the residual left.
-    pub fn after(&mut self, r: &[V2], x: &mut [W2]) {
-        for (i, &p) in self.nodes.iter().enumerate() {
-            let z = self.first_pass[i];
-            let xp = &mut x[p as usize];
-            *xp = [WS::of(xp[0].get() + z[0]), WS::of(xp[1].get() + z[1])];
-        }
-        for (i, &p) in self.nodes.iter().enumerate() {
-            let mut s = r[p as usize];
-            for &(q, a) in self.row(i) {
-                s[0] -= a * x[q as usize][0].get();
-                s[1] -= a * x[q as usize][1].get();
-            }
-            self.rhs[i] = s;
-        }
-        self.solve_blocks();
-        for (i, &p) in self.nodes.iter().enumerate() {
-            let z = self.first_pass[i];
-            let xp = &mut x[p as usize];
-            *xp = [WS::of(xp[0].get() + z[0]), WS::of(xp[1].get() + z[1])];
-        }
+    /// relaxes the thin blocks again on the residual left.
+    pub fn after(&self, r: &[V2], x: &mut [W2]) {
+        self.add(&self.first_pass, x);
+        self.relax_from(|p| r[p], x);
     }
 
     /// One block relaxation of `A x = f` on a coarser level: `x_S += A_SS⁻¹ (f − A x)_S`.
     pub fn relax(&self, x: &mut [W2], f: &[W2]) {
-        let n = self.nodes.len();
-        let mut rhs = vec![[0.0; 2]; n];
-        for (i, &p) in self.nodes.iter().enumerate() {
-            let mut s = [f[p as usize][0].get(), f[p as usize][1].get()];
-            for &(q, a) in self.row(i) {
-                s[0] -= a * x[q as usize][0].get();
-                s[1] -= a * x[q as usize][1].get();
-            }
-            rhs[i] = s;
-        }
-        let mut z = vec![[0.0; 2]; n];
-        self.solve_into(&rhs, &mut z);
-        for (i, &p) in self.nodes.iter().enumerate() {
-            let xp = &mut x[p as usize];
-            *xp = [WS::of(xp[0].get() + z[i][0]), WS::of(xp[1].get() + z[i][1])];
-        }
+        self.relax_from(|p| [f[p][0].get(), f[p][1].get()], x);
     }
 
-    /// `first_pass = A_SS⁻¹ rhs`.
-    fn solve_blocks(&mut self) {
-        let mut out = std::mem::take(&mut self.first_pass);
-        self.solve_into(&self.rhs, &mut out);
-        self.first_pass = out;
+    /// `x_S += A_SS⁻¹ (b − A x)_S`, `b(p)` the right-hand side at padded node `p`.
+    fn relax_from(&self, b: impl Fn(usize) -> V2, x: &mut [W2]) {
+        let rhs: Vec<V2> = (0..self.nodes.len())
+            .map(|i| {
+                self.row(i).iter().fold(b(self.nodes[i] as usize), |s, &(q, a)| [s[0] - a * x[q as usize][0].get(), s[1] - a * x[q as usize][1].get()])
+            })
+            .collect();
+        let mut z = vec![[0.0; 2]; rhs.len()];
+        self.solve_into(&rhs, &mut z);
+        self.add(&z, x);
+    }
+
+    /// `x_S += z`.
+    fn add(&self, z: &[V2], x: &mut [W2]) {
+        for (&p, z) in self.nodes.iter().zip(z) {
+            let xp = &mut x[p as usize];
+            *xp = [WS::of(xp[0].get() + z[0]), WS::of(xp[1].get() + z[1])];
+        }
     }
 
     /// `out = A_SS⁻¹ rhs`, block by block.
@@ -230,34 +209,36 @@ fn runs(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize
     let mut across = vec![u32::MAX; level.len_padded()];
     let mut any = false;
     for y in 0..h {
-        let mut x = 0;
-        while x < w {
-            let mut e = x;
-            while e + 1 < w && right(p(e, y), y * w + e) {
-                e += 1;
-            }
+        each_run(w, |x| right(p(x, y), y * w + x), |x, e| {
             across[p(x, y)..=p(e, y)].fill((e - x + 1) as u32);
             any |= e - x < THIN && level.inv_diag[p(x, y)..=p(e, y)].iter().any(|&d| d != 0.0);
-            x = e + 1;
-        }
+        });
     }
     for x in 0..w {
-        let mut y = 0;
-        while y < h {
-            let mut e = y;
-            while e + 1 < h && down(p(x, e), e * w + x) {
-                e += 1;
-            }
+        each_run(h, |y| down(p(x, y), y * w + x), |y, e| {
             if e - y < THIN {
                 for i in y..=e {
                     any |= level.inv_diag[p(x, i)] != 0.0;
                     across[p(x, i)] = across[p(x, i)].min((e - y + 1) as u32);
                 }
             }
-            y = e + 1;
-        }
+        });
     }
     any.then_some(across)
+}
+
+/// `f(start, end)` for each maximal run `start..=end` of `0..n` joined by `linked(i)` (`i`
+/// linked to `i + 1`).
+fn each_run(n: usize, linked: impl Fn(usize) -> bool, mut f: impl FnMut(usize, usize)) {
+    let mut s = 0;
+    while s < n {
+        let mut e = s;
+        while e + 1 < n && linked(e) {
+            e += 1;
+        }
+        f(s, e);
+        s = e + 1;
+    }
 }
 
 /// Breadth-first order of the component of `s` (marking `seen`).
@@ -383,15 +364,14 @@ mod tests {
             fixed[i] = true;
         }
         let level = fine_level(&grid, Some(fixed), 0.0);
-        let mut s = Strands::new(&level).expect("the teeth are thin");
+        let s = Strands::new(&level).expect("the teeth are thin");
         assert!(s.blocks.len() > 10 && s.blocks.iter().all(|b| b.d_inv.iter().all(|&d| d > 0.0)));
-        for (i, b) in s.rhs.iter_mut().enumerate() {
-            *b = [(i % 7) as f64 - 3.0, (i % 5) as f64 * 0.5];
-        }
-        s.solve_blocks();
+        let rhs: Vec<V2> = (0..s.nodes.len()).map(|i| [(i % 7) as f64 - 3.0, (i % 5) as f64 * 0.5]).collect();
+        let mut z = vec![[0.0; 2]; rhs.len()];
+        s.solve_into(&rhs, &mut z);
         let mut x = vec![[0.0; 2]; level.len_padded()];
         for (i, &p) in s.nodes.iter().enumerate() {
-            x[p as usize] = s.first_pass[i];
+            x[p as usize] = z[i];
         }
         for (i, &p) in s.nodes.iter().enumerate() {
             let mut ax = [0.0; 2];
@@ -402,7 +382,7 @@ mod tests {
                 ax[1] += a * x[q as usize][1];
             }
             for k in 0..2 {
-                assert!((ax[k] - s.rhs[i][k]).abs() < 1e-9 * (1.0 + s.rhs[i][k].abs()), "row {i}: {ax:?} against {:?}", s.rhs[i]);
+                assert!((ax[k] - rhs[i][k]).abs() < 1e-9 * (1.0 + rhs[i][k].abs()), "row {i}: {ax:?} against {:?}", rhs[i]);
             }
         }
     }
