@@ -18,7 +18,7 @@
 //! ([`Deflation::judged_change`]).
 //!
 //! Memory: `WINDOW·2 + 2·KEEP` vectors of `f32` per node (a window, `W` and `A W`), that
-//! is 544 bytes a node, for pieces of at most [`BUDGET_BYTES`] of them; larger pieces run
+//! is 96 bytes a node, for pieces of at most [`BUDGET_BYTES`] of them; larger pieces run
 //! without (see `docs/dev/solver-correctness.md`).
 
 use rayon::prelude::*;
@@ -30,8 +30,9 @@ use super::level::{Level, Real, V2, W2, WS};
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
-/// Ritz vectors kept.
-const KEEP: usize = 64;
+/// Ritz vectors kept (64 cost more than the cycles they saved: `docs/dev/ablation.md`,
+/// "Tenth change").
+const KEEP: usize = 8;
 /// Most bytes the kept vectors may take.
 const BUDGET_BYTES: usize = 256 << 20;
 /// Node chunk for the fused passes.
