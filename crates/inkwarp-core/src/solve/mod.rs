@@ -781,6 +781,11 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         break;
                     }
                     let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
+                    if change.is_nan() {
+                        // The directions broke down; the iterate stands, unconverged.
+                        (report.cycles, report.final_change_px) = (cycle, f64::INFINITY);
+                        break;
+                    }
                     slow.step(alpha);
                     if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
                         report.converged = true;
@@ -857,6 +862,8 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     // up to rounding.
     let inv_diag = &hier.levels[0].inv_diag;
     report.residual = r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)).map(|(r, d)| scaled_max(r, d)).reduce(|| 0.0, larger);
+    // (The maxima above pass over a NaN: a field that is not finite is never converged.)
+    report.converged &= u.par_iter().all(|v| v[0].is_finite() && v[1].is_finite());
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
     store.put_hierarchy(key, hier);
@@ -1180,9 +1187,14 @@ fn count_unknowns(level: &Level) -> usize {
 }
 
 /// The energy-minimising step along `p` (`rz = rᵀz` of the preconditioned residual it came
-/// from): `q = −A p`, `u += α p`, `r += α q`. Returns the largest `|α p|` and `α`.
+/// from): `q = −A p`, `u += α p`, `r += α q`. Returns the largest `|α p|` and `α`; NaN,
+/// and no step, when the direction or its product overflowed.
 fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [V2], rz: [f64; 2]) -> (f64, [f64; 2]) {
     let pq = hier.levels[0].fine_residual_dot_narrow(p, q);
+    if !pq.iter().chain(&rz).all(|v| v.is_finite()) {
+        // A direction that overflowed: no step (NaN tells the caller).
+        return (f64::NAN, [0.0; 2]);
+    }
     let alpha = [
         if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
         if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
