@@ -447,7 +447,10 @@ pub(crate) fn solve_constrained(
         // (`None` when there are too many to settle.)
         let geo = (!open).then(|| links.vectors(bw, bh));
         let null = match &geo {
-            Some([active, right, down]) => nullspace::plate_null_space(&nullspace::BoxGeo { w: bw, h: bh, active, right, down }, &constrained_only),
+            Some([active, right, down]) => {
+                let max = if tau == 0.0 { nullspace::MAX_NULL_AT_ZERO } else { nullspace::MAX_NULL };
+                nullspace::plate_null_space(&nullspace::BoxGeo { w: bw, h: bh, active, right, down }, &constrained_only, max)
+            }
             None => Some(Vec::new()),
         };
         let links_again = (!open).then(|| links.clone());
@@ -536,7 +539,8 @@ fn settle_null_space(
         }
     }
     if tau == 0.0 {
-        nullspace::least_membrane(geo, basis, &mut dense);
+        // A block of functions too large to settle: no claim of convergence.
+        report.converged &= nullspace::least_membrane(geo, basis, &mut dense);
         return (BoxValues { values: dense, stride: w, first: 0 }, report);
     }
     const ROUNDS: usize = 8;

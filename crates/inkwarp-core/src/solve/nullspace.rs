@@ -18,9 +18,19 @@
 
 use super::level::V2;
 
-/// Above this many null-space functions the rule is not applied (and the solve does not
-/// claim convergence): the dense solve would cost more than the solve itself.
+/// At τ > 0, above this many null-space functions the correction is not applied (and the
+/// solve does not claim convergence): its dense Galerkin system would cost more than the
+/// solve itself.
 pub(crate) const MAX_NULL: usize = 1500;
+
+/// At τ = 0 the functions couple only where their supports meet, so the least-membrane
+/// system falls apart in independent blocks (one hair's free bends, one sliver's): any
+/// number of functions, but no block larger than [`MAX_BLOCK`] (else the rule is not
+/// applied, and the solve does not claim convergence), and at most this many in all.
+pub(crate) const MAX_NULL_AT_ZERO: usize = 200_000;
+
+/// The largest block of coupled functions solved densely at τ = 0.
+const MAX_BLOCK: usize = 1500;
 
 /// A piece's geometry on its box: node `(x, y)` at `y · w + x`.
 pub(crate) struct BoxGeo<'a> {
@@ -58,8 +68,8 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
 }
 
 /// A basis of the fields on the box's active nodes with zero plate energy that vanish on
-/// `fixed`, or `None` when it has more than [`MAX_NULL`] functions.
-pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool]) -> Option<Vec<Sparse>> {
+/// `fixed`, or `None` when it has more than `max` functions.
+pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option<Vec<Sparse>> {
     let (w, n) = (g.w, g.w * g.h);
     // Clusters: union-find over full cells joined through shared edges.
     let mut parent: Vec<u32> = (0..n as u32).collect();
@@ -164,7 +174,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool]) -> Option<Vec<Sparse>
             elim.add(&row);
         }
     }
-    let basis = elim.null_space(MAX_NULL)?;
+    let basis = elim.null_space(max)?;
     // Expand to nodes: each cluster's nodes (those whose first cluster it is) and lone nodes.
     let mut nodes_of: Vec<Vec<usize>> = vec![Vec::new(); clusters];
     for i in 0..n {
@@ -178,22 +188,28 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool]) -> Option<Vec<Sparse>
             var_node[lone[i] as usize] = i;
         }
     }
+    let mut qd = vec![0.0; vars];
     let out = basis
         .into_iter()
-        .map(|q| {
+        .map(|mut q| {
+            q.sort_unstable_by_key(|&(k, _)| k);
+            for &(k, v) in &q {
+                qd[k] = v;
+            }
             let mut z: Sparse = Vec::new();
-            for c in 0..clusters {
-                if q[3 * c..3 * c + 3].iter().any(|&v| v != 0.0) {
-                    for &i in &nodes_of[c] {
-                        let v: f64 = in_cluster(i, c as u32).iter().map(|&(k, a)| a * q[k]).sum();
-                        z.push((i, v));
-                    }
+            let mut touched: Vec<usize> = q.iter().filter(|&&(k, _)| k < 3 * clusters).map(|&(k, _)| k / 3).collect();
+            touched.dedup();
+            for c in touched {
+                for &i in &nodes_of[c] {
+                    let v: f64 = in_cluster(i, c as u32).iter().map(|&(k, a)| a * qd[k]).sum();
+                    z.push((i, v));
                 }
             }
-            for (k, &v) in q.iter().enumerate().skip(3 * clusters) {
-                if v != 0.0 {
-                    z.push((var_node[k], v));
-                }
+            for &(k, v) in q.iter().filter(|&&(k, _)| k >= 3 * clusters) {
+                z.push((var_node[k], v));
+            }
+            for &(k, _) in &q {
+                qd[k] = 0.0;
             }
             z.retain(|&(_, v)| v.abs() > 1e-13);
             z
@@ -273,23 +289,57 @@ impl Echelon {
         self.touched.clear();
     }
 
-    /// One basis vector per free column (dense over the unknowns), or `None` past `max`.
-    fn null_space(&self, max: usize) -> Option<Vec<Vec<f64>>> {
+    /// One basis vector per free column (sparse over the unknowns: its nonzero entries), or
+    /// `None` past `max`. Back-substitution from the last row up visits only the rows that
+    /// read an entry already nonzero: a row reads free columns and later rows' pivots only.
+    fn null_space(&self, max: usize) -> Option<Vec<Vec<(usize, f64)>>> {
+        use std::collections::BinaryHeap;
         let vars = self.pivot_of.len();
         let free: Vec<usize> = (0..vars).filter(|&c| self.pivot_of[c] == u32::MAX).collect();
         if free.len() > max {
             return None;
         }
+        let mut readers: Vec<Vec<u32>> = vec![Vec::new(); vars];
+        for (r, (pc, prow)) in self.rows.iter().enumerate() {
+            for &(c, _) in prow.iter().filter(|&&(c, _)| c != *pc) {
+                readers[c].push(r as u32);
+            }
+        }
+        let mut q = vec![0.0; vars];
+        let mut queued = vec![false; self.rows.len()];
         Some(
             free.iter()
                 .map(|&f| {
-                    let mut q = vec![0.0; vars];
+                    let (mut heap, mut visited) = (BinaryHeap::new(), Vec::new());
+                    let mut wake = |c: usize, heap: &mut BinaryHeap<u32>| {
+                        for &r in &readers[c] {
+                            if !queued[r as usize] {
+                                queued[r as usize] = true;
+                                visited.push(r);
+                                heap.push(r);
+                            }
+                        }
+                    };
                     q[f] = 1.0;
-                    for (pc, prow) in self.rows.iter().rev() {
+                    let mut nonzero = vec![f];
+                    wake(f, &mut heap);
+                    while let Some(r) = heap.pop() {
+                        let (pc, prow) = &self.rows[r as usize];
                         let s: f64 = prow.iter().filter(|&&(c, _)| c != *pc).map(|&(c, v)| v * q[c]).sum();
-                        q[*pc] = -s;
+                        if s != 0.0 {
+                            q[*pc] = -s;
+                            nonzero.push(*pc);
+                            wake(*pc, &mut heap);
+                        }
                     }
-                    q
+                    for r in visited {
+                        queued[r as usize] = false;
+                    }
+                    let out: Vec<(usize, f64)> = nonzero.iter().map(|&c| (c, q[c])).collect();
+                    for &c in &nonzero {
+                        q[c] = 0.0;
+                    }
+                    out
                 })
                 .collect(),
         )
@@ -371,11 +421,13 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
 }
 
 /// Adds to `u` (both components, dense over the box) the `n ∈ span(basis)` that minimises
-/// the membrane energy of `u + n`: the τ → 0⁺ choice among the plate minimisers.
-pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) {
+/// the membrane energy of `u + n`: the τ → 0⁺ choice among the plate minimisers. The
+/// functions couple only where their supports meet, so their system is solved block by
+/// block; false when a block is larger than [`MAX_BLOCK`] (that block is left as it is).
+pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) -> bool {
     let (k, n) = (basis.len(), g.w * g.h);
     if k == 0 {
-        return;
+        return true;
     }
     // Rows of the basis by node: (function, value).
     let mut at: std::collections::HashMap<usize, Vec<(usize, f64)>> = std::collections::HashMap::new();
@@ -384,15 +436,22 @@ pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) {
             at.entry(i).or_default().push((j, v));
         }
     }
-    let mut gram = vec![vec![0.0; k]; k];
+    // The Gram matrix by columns, its entries where two functions meet.
+    let mut gram: Vec<Vec<(usize, f64)>> = vec![Vec::new(); k];
     let mut rhs = vec![[0.0; 2]; k];
     let (mut dense, mut y) = (vec![0.0; n], vec![0.0; n]);
+    let (mut acc, mut seen, mut hit) = (vec![0.0; k], vec![false; k], Vec::new());
+    let mut parent: Vec<u32> = (0..k as u32).collect();
     for (j, z) in basis.iter().enumerate() {
         let touched = membrane_sparse(g, z, &mut dense, &mut y);
         for &p in &touched {
             if let Some(list) = at.get(&p) {
                 for &(i, v) in list {
-                    gram[i][j] += v * y[p];
+                    if !seen[i] {
+                        seen[i] = true;
+                        hit.push(i);
+                    }
+                    acc[i] += v * y[p];
                 }
             }
             rhs[j][0] -= y[p] * u[p][0];
@@ -401,15 +460,47 @@ pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) {
         for &p in &touched {
             y[p] = 0.0;
         }
+        for &i in &hit {
+            gram[j].push((i, acc[i]));
+            (acc[i], seen[i]) = (0.0, false);
+            let (a, b) = (find(&mut parent, i as u32), find(&mut parent, j as u32));
+            if a != b {
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        }
+        hit.clear();
     }
-    if let Some(c) = super::dense_solve(gram, rhs) {
-        for (z, c) in basis.iter().zip(c) {
-            for &(i, v) in z {
-                u[i][0] += c[0] * v;
-                u[i][1] += c[1] * v;
+    let mut blocks: std::collections::BTreeMap<u32, Vec<usize>> = std::collections::BTreeMap::new();
+    for j in 0..k {
+        blocks.entry(find(&mut parent, j as u32)).or_default().push(j);
+    }
+    let mut all = true;
+    let mut local = vec![usize::MAX; k];
+    for members in blocks.values() {
+        if members.len() > MAX_BLOCK {
+            all = false;
+            continue;
+        }
+        for (l, &j) in members.iter().enumerate() {
+            local[j] = l;
+        }
+        let mut m = vec![vec![0.0; members.len()]; members.len()];
+        for (l, &j) in members.iter().enumerate() {
+            for &(i, v) in &gram[j] {
+                m[local[i]][l] += v;
+            }
+        }
+        let b: Vec<V2> = members.iter().map(|&j| rhs[j]).collect();
+        if let Some(c) = super::dense_solve(m, b) {
+            for (&j, c) in members.iter().zip(c) {
+                for &(i, v) in &basis[j] {
+                    u[i][0] += c[0] * v;
+                    u[i][1] += c[1] * v;
+                }
             }
         }
     }
+    all
 }
 
 /// The Galerkin correction of `u` (dense over the box, fixed nodes holding their values)

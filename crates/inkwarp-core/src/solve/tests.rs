@@ -1224,6 +1224,43 @@ fn strands_and_staircases_take_the_least_membrane_answer() {
 }
 
 #[test]
+fn many_hanging_staircases_take_the_least_membrane_answer() {
+    // 32 staircases of single links (no straight triple, no full cell) hang on two-node
+    // stems below a block: 59 free nodes each, 1,888 free functions in all, more than one
+    // dense system takes. Each must take its stem's end value (the least membrane energy),
+    // and the block must not feel them.
+    let (w, h, bottom, steps) = (160, 48, 11, 30);
+    let stem = |x: usize| x >= 2 && x <= 126 && (x - 2) % 4 == 0;
+    // The stem a staircase node hangs on: rows bottom + 2 + k hold (x0 + k, x0 + k + 1).
+    let hangs_on = |x: usize, y: usize| -> Option<usize> {
+        let k = y.checked_sub(bottom + 2).filter(|&k| k < steps)?;
+        [x.checked_sub(k), x.checked_sub(k + 1)].into_iter().flatten().find(|&x0| stem(x0))
+    };
+    let with = matte_grid(w, h, |x, y| y <= bottom || (y == bottom + 1 && stem(x)) || hangs_on(x, y).is_some());
+    let without = matte_grid(w, h, |x, y| y <= bottom || (y == bottom + 1 && stem(x)));
+    let samples = samples_at(&[(10, 2, 1.0, 0.5), (150, 3, -1.0, 0.0), (80, 10, 0.5, -1.0), (40, 8, 0.0, 1.5)]);
+    let (field, report) = solve(&with, &samples, &SolveOptions::default(), None).unwrap();
+    assert!(report.converged, "{report:?}");
+    let mut hanging = 0;
+    for y in 0..h {
+        for x in 0..w {
+            if let Some(x0) = hangs_on(x, y) {
+                let (i, end) = (y * w + x, (bottom + 2) * w + x0);
+                let off = (field.dx[i] - field.dx[end]).abs().max((field.dy[i] - field.dy[end]).abs());
+                assert!(off < 0.05, "({x}, {y}) is {off} px from its stem's end");
+                hanging += 1;
+            }
+        }
+    }
+    assert_eq!(hanging, 32 * 2 * steps);
+    let (alone, _) = solve(&without, &samples, &SolveOptions::default(), None).unwrap();
+    for i in (0..w * h).filter(|&i| without.active[i]) {
+        let off = (field.dx[i] - alone.dx[i]).abs().max((field.dy[i] - alone.dy[i]).abs());
+        assert!(off < 0.05, "block node {i} moved {off} px with the staircases");
+    }
+}
+
+#[test]
 fn a_garbage_warm_start_is_dropped_for_a_cold_one() {
     let grid = Grid::new(65, 65);
     let mut rng = Rng(11);
