@@ -244,14 +244,6 @@ impl Grid {
                 x += 1;
             }
         }
-        fn find(parent: &mut [u32], mut i: u32) -> u32 {
-            while parent[i as usize] != i {
-                let p = parent[parent[i as usize] as usize];
-                parent[i as usize] = p;
-                i = p;
-            }
-            i
-        }
         for y in 0..h.saturating_sub(1) {
             let mut last = (u32::MAX, u32::MAX);
             for i in y * w..(y + 1) * w {
@@ -260,11 +252,7 @@ impl Grid {
                     continue;
                 }
                 last = pair;
-                let (ra, rb) = (find(&mut parent, pair.0), find(&mut parent, pair.1));
-                if ra != rb {
-                    let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
-                    parent[hi as usize] = lo;
-                }
+                join(&mut parent, pair.0, pair.1);
             }
         }
         // Runs are numbered in the order of their first node, so the first run of a piece
@@ -444,6 +432,25 @@ pub(crate) fn linked_neighbours(w: usize, right: &[bool], down: &[bool], i: usiz
 pub(crate) fn torn(w: usize, active: &[bool], right: &[bool], down: &[bool]) -> bool {
     let n = active.len();
     (0..n).any(|i| !active[i] || (i % w + 1 < w && !right[i]) || (i + w < n && !down[i]))
+}
+
+/// The root of `i`'s set in a union-find forest (`parent[r] == r` at a root), halving the
+/// path on the way.
+pub(crate) fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        let p = parent[parent[i as usize] as usize];
+        parent[i as usize] = p;
+        i = p;
+    }
+    i
+}
+
+/// Joins the sets of `a` and `b` in a union-find forest under the smaller root.
+pub(crate) fn join(parent: &mut [u32], a: u32, b: u32) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra != rb {
+        parent[ra.max(rb) as usize] = ra.min(rb);
+    }
 }
 
 #[cfg(test)]

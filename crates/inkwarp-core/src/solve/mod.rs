@@ -865,9 +865,16 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     // The conjugate-gradient residual is updated, not recomputed: it is the residual of u
     // up to rounding.
     let inv_diag = &hier.levels[0].inv_diag;
-    report.residual = r.par_chunks(CHUNK).zip(inv_diag.par_chunks(CHUNK)).map(|(r, d)| scaled_max(r, d)).reduce(|| 0.0, larger);
-    // (The maxima above pass over a NaN: a field that is not finite is never converged.)
-    report.converged &= u.par_iter().all(|v| v[0].is_finite() && v[1].is_finite());
+    // The maxima pass over a NaN, so the same pass checks the field: one that is not finite
+    // is never converged.
+    let (residual, finite) = r
+        .par_chunks(CHUNK)
+        .zip(inv_diag.par_chunks(CHUNK))
+        .zip(u.par_chunks(CHUNK))
+        .map(|((r, d), u)| (scaled_max(r, d), u.iter().all(|v| v[0].is_finite() && v[1].is_finite())))
+        .reduce(|| (0.0, true), |a, b| (larger(a.0, b.0), a.1 && b.1));
+    report.residual = residual;
+    report.converged &= finite;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
     store.put_hierarchy(key, hier);

@@ -17,20 +17,18 @@
 //! exact Galerkin correction in their span removes that error.
 
 use super::level::V2;
+use crate::grid::{find, join};
 
-/// At τ > 0, above this many null-space functions the correction is not applied (and the
-/// solve does not claim convergence): its dense Galerkin system would cost more than the
-/// solve itself.
+/// The largest dense system of null-space functions solved: at τ > 0 a piece's whole
+/// Galerkin system, at τ = 0 one coupled block of its least-membrane system. Past it the
+/// rule is not applied and the solve does not claim convergence: the dense solve would
+/// cost more than the solve itself.
 pub(crate) const MAX_NULL: usize = 1500;
 
 /// At τ = 0 the functions couple only where their supports meet, so the least-membrane
 /// system falls apart in independent blocks (one hair's free bends, one sliver's): any
-/// number of functions, but no block larger than [`MAX_BLOCK`] (else the rule is not
-/// applied, and the solve does not claim convergence), and at most this many in all.
+/// number of functions, each block at most [`MAX_NULL`], and at most this many in all.
 pub(crate) const MAX_NULL_AT_ZERO: usize = 200_000;
-
-/// The largest block of coupled functions solved densely at τ = 0.
-const MAX_BLOCK: usize = 1500;
 
 /// A piece's geometry on its box: node `(x, y)` at `y · w + x`.
 pub(crate) struct BoxGeo<'a> {
@@ -58,15 +56,6 @@ impl BoxGeo<'_> {
 /// A basis function: (node, value) pairs.
 pub(crate) type Sparse = Vec<(usize, f64)>;
 
-fn find(parent: &mut [u32], mut i: u32) -> u32 {
-    while parent[i as usize] != i {
-        let p = parent[parent[i as usize] as usize];
-        parent[i as usize] = p;
-        i = p;
-    }
-    i
-}
-
 /// A basis of the fields on the box's active nodes with zero plate energy that vanish on
 /// `fixed`, or `None` when it has more than `max` functions.
 pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option<Vec<Sparse>> {
@@ -81,10 +70,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
         let (x, y) = (i % w, i / w);
         for j in [(x > 0).then(|| i - 1), (y > 0).then(|| i - w)].into_iter().flatten() {
             if full[j] {
-                let (a, b) = (find(&mut parent, i as u32), find(&mut parent, j as u32));
-                if a != b {
-                    parent[a.max(b) as usize] = a.min(b);
-                }
+                join(&mut parent, i as u32, j as u32);
             }
         }
     }
@@ -423,7 +409,7 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
 /// Adds to `u` (both components, dense over the box) the `n ∈ span(basis)` that minimises
 /// the membrane energy of `u + n`: the τ → 0⁺ choice among the plate minimisers. The
 /// functions couple only where their supports meet, so their system is solved block by
-/// block; false when a block is larger than [`MAX_BLOCK`] (that block is left as it is).
+/// block; false when a block is larger than [`MAX_NULL`] (that block is left as it is).
 pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) -> bool {
     let (k, n) = (basis.len(), g.w * g.h);
     if k == 0 {
@@ -463,10 +449,7 @@ pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) -> bool
         for &i in &hit {
             gram[j].push((i, acc[i]));
             (acc[i], seen[i]) = (0.0, false);
-            let (a, b) = (find(&mut parent, i as u32), find(&mut parent, j as u32));
-            if a != b {
-                parent[a.max(b) as usize] = a.min(b);
-            }
+            join(&mut parent, i as u32, j as u32);
         }
         hit.clear();
     }
@@ -477,7 +460,7 @@ pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) -> bool
     let mut all = true;
     let mut local = vec![usize::MAX; k];
     for members in blocks.values() {
-        if members.len() > MAX_BLOCK {
+        if members.len() > MAX_NULL {
             all = false;
             continue;
         }

@@ -29,11 +29,11 @@ const BAND: usize = 64;
 /// hold it, at a few cycles' cost on the longest teeth (docs/dev/ablation.md).
 const SHIFT: f64 = 1e-8;
 
-/// A pivot below this fraction of its diagonal entry is dropped. Well above [`SHIFT`]: a free
-/// function of a set (a sliver between cuts with no complete triple) keeps a pivot of about
-/// `SHIFT` times its diagonal after the shift, and kept, it amplified the residual 10⁸-fold
-/// along a direction of no energy, which a solve to a tight tolerance followed until its
-/// field overflowed (docs/dev/ablation.md, "Tenth change").
+/// A pivot below this fraction of its diagonal entry is dropped. Slivers between dense cuts
+/// have near-free functions whose pivots fall under it; kept (thresholds up to 10⁻⁷ kept
+/// them), they amplified the residual along a direction of almost no energy, which a solve
+/// to a tight tolerance followed until its field overflowed (docs/dev/ablation.md, "Tenth
+/// change").
 const PIVOT: f64 = 1e-6;
 
 #[derive(Debug)]
