@@ -1126,6 +1126,36 @@ impl Level {
         }
     }
 
+    /// `out_p = Σ_q |a_pq| g_q` on every unknown p of the finest level (`g` zero off the
+    /// unknowns; `out` zero there): the product with the operator's absolute values.
+    pub(crate) fn fine_abs_product(&self, g: &[f64], out: &mut [f64]) {
+        let Operator::Fine { flags, tau, runs, own } = &self.op else { unreachable!("a Galerkin level") };
+        let wp = self.wp;
+        let at = |p: usize, t: usize| p + (t / 5) * wp + t % 5 - 2 * wp - 2;
+        out.par_chunks_mut(wp).enumerate().for_each(|(r, row)| {
+            row.fill(0.0);
+            for run in runs.row(r) {
+                let (a, b, p) = (run.start as usize, run.end as usize, r * wp + run.start as usize);
+                match run.kind {
+                    RunKind::Skip => {}
+                    // Tap by tap along the run: the interior molecule's products vectorise.
+                    RunKind::Shared => {
+                        for (t, c) in fine_row(flags, p, wp, *tau).iter().enumerate().filter(|(_, c)| **c != 0.0) {
+                            for (o, g) in row[a..b].iter_mut().zip(&g[at(p, t)..at(p, t) + b - a]) {
+                                *o += c.abs() * g;
+                            }
+                        }
+                    }
+                    RunKind::Own => {
+                        for (c, id) in (a..b).zip(&own.ids[run.at as usize..]) {
+                            row[c] = own.table[*id as usize].iter().enumerate().map(|(t, s)| s.abs() * g[at(r * wp + c, t)]).sum();
+                        }
+                    }
+                }
+            }
+        });
+    }
+
     /// `−(A x)_p` at one node of the finest level (its residual, the right-hand side being 0).
     pub fn fine_residual_at(&self, x: &[V2], p: usize) -> V2 {
         match &self.op {

@@ -869,6 +869,24 @@ fn coarse_levels_never_couple_nodes_across_a_cut() {
 }
 
 #[test]
+fn the_finest_absolute_product_sums_every_tap() {
+    // The run-by-run product with |A| against the operator's taps node by node, on a grid
+    // with a hole, a cut and scattered fixed nodes.
+    let mut rnd = crate::grid::tests::sequence(17);
+    let level = torn_scattered_level(&mut rnd, 0.05, 0.2);
+    let g: Vec<f64> = level.inv_diag.iter().map(|&i| if i > 0.0 { 0.5 + rnd() } else { 0.0 }).collect();
+    let mut out = vec![f64::NAN; g.len()];
+    level.fine_abs_product(&g, &mut out);
+    for p in 0..g.len() {
+        let mut want = 0.0;
+        if level.inv_diag[p] > 0.0 {
+            level.taps(p, |q, a| want += a.abs() * g[q]);
+        }
+        assert!((out[p] - want).abs() <= 1e-12 * want.max(1.0), "node {p}: {} against {want}", out[p]);
+    }
+}
+
+#[test]
 fn every_level_smooths_below_the_top_of_its_spectrum() {
     // A wedge-shaped hole whose slanted edge leaves slivers of the grid below it: the
     // second coarse space's levels over it carry modes on a few nodes along the edge, far
@@ -905,6 +923,10 @@ fn every_level_smooths_below_the_top_of_its_spectrum() {
             top = (ny / nx).sqrt();
             let s = 1.0 / ny.sqrt();
             x = y.iter().map(|v| [v[0] * s, v[1] * s]).collect();
+        }
+        if k == 0 {
+            // The finest level's is a bound, and a close one.
+            assert!(level.lam_max >= top * (1.0 - 1e-9) && level.lam_max <= 1.05 * top, "finest level: bound {} for the top {top}", level.lam_max);
         }
         // Two Chebyshev steps on [λ/16, λ] still damp every mode up to 6.25 % above λ.
         assert!(1.06 * level.lam_max >= top, "level {k} ({}×{}): smoothing bound {} too far below the spectrum's top {top}", level.geo.w, level.geo.h, level.lam_max);
