@@ -13,6 +13,10 @@ import inkwarp
 PTS = [[2.0, 3.0], [20.0, 4.0], [10.0, 15.0]]
 DISP = [[1.0, 0.0], [0.0, 1.0], [-1.0, 2.0]]
 SHAPE = (18, 24)
+# Four points whose displacements no affine map fits: the solve iterates (three points,
+# or displacements an affine map fits, take that map with no cycle).
+PTS4 = PTS + [[16.0, 12.0]]
+DISP4 = DISP + [[2.0, -1.0]]
 
 
 def test_returns_float32_height_width_2():
@@ -24,11 +28,11 @@ def test_returns_float32_height_width_2():
 
 
 def test_report_is_a_frozen_dataclass_with_the_counts():
-    pts = PTS + [[-5.0, 1.0], [2.4, 3.3]]  # one outside, one on the same node as the first
-    disp = DISP + [[9.0, 9.0], [3.0, 0.0]]
+    pts = PTS4 + [[-5.0, 1.0], [2.4, 3.3]]  # one outside, one on the same node as the first
+    disp = DISP4 + [[9.0, 9.0], [3.0, 0.0]]
     field, report = inkwarp.thin_plate_report(pts, disp, SHAPE)
     assert isinstance(report, inkwarp.SolveReport)
-    assert (report.constrained_nodes, report.constrained_samples, report.dropped_samples) == (3, 4, 1)
+    assert (report.constrained_nodes, report.constrained_samples, report.dropped_samples) == (4, 5, 1)
     assert np.array_equal(field[3, 2], np.float32([2.0, 0.0]))  # averaged
     assert report.converged and report.cycles >= 1 and report.seconds > 0
     assert report.final_change <= 0.01 and report.residual >= 0
@@ -47,15 +51,15 @@ def test_mask_zero_pixels_do_not_move_and_samples_there_are_dropped():
 def test_a_grid_without_mask_or_cuts_is_the_same_whatever_came_before():
     # The binding keeps the last open grid by shape: solves with a mask, a cut or another
     # shape in between must leave it as it was.
-    first = inkwarp.thin_plate(PTS, DISP, SHAPE)
+    first = inkwarp.thin_plate(PTS4, DISP4, SHAPE)
     mask = np.ones(SHAPE, bool)
     mask[:, 12] = False
-    torn = inkwarp.thin_plate(PTS, DISP, SHAPE, mask=mask, cuts=[[[5.5, -1], [5.5, 9]]])
+    torn = inkwarp.thin_plate(PTS4, DISP4, SHAPE, mask=mask, cuts=[[[5.5, -1], [5.5, 9]]])
     assert not np.array_equal(torn, first)
-    inkwarp.thin_plate(PTS, DISP, (SHAPE[0] + 3, SHAPE[1]))
-    assert np.array_equal(inkwarp.thin_plate(PTS, DISP, SHAPE), first)
-    cut = inkwarp.thin_plate(PTS, DISP, SHAPE, cuts=[[[5.5, -1], [5.5, 9]]])
-    assert np.array_equal(inkwarp.thin_plate(PTS, DISP, SHAPE), first)
+    inkwarp.thin_plate(PTS4, DISP4, (SHAPE[0] + 3, SHAPE[1]))
+    assert np.array_equal(inkwarp.thin_plate(PTS4, DISP4, SHAPE), first)
+    cut = inkwarp.thin_plate(PTS4, DISP4, SHAPE, cuts=[[[5.5, -1], [5.5, 9]]])
+    assert np.array_equal(inkwarp.thin_plate(PTS4, DISP4, SHAPE), first)
     assert not np.array_equal(cut, first)
 
 
@@ -66,9 +70,9 @@ def test_accepts_numpy_and_lists_and_integer_types():
 
 
 def test_southwell_and_grid_step_and_max_cycles_run():
-    f1, r1 = inkwarp.thin_plate_report(PTS, DISP, SHAPE, method="southwell")
-    f2, r2 = inkwarp.thin_plate_report(PTS, DISP, SHAPE, grid_step=3)
-    f3, r3 = inkwarp.thin_plate_report(PTS, DISP, SHAPE, max_cycles=1, tolerance=0.0)
+    f1, r1 = inkwarp.thin_plate_report(PTS4, DISP4, SHAPE, method="southwell")
+    f2, r2 = inkwarp.thin_plate_report(PTS4, DISP4, SHAPE, grid_step=3)
+    f3, r3 = inkwarp.thin_plate_report(PTS4, DISP4, SHAPE, max_cycles=1, tolerance=0.0)
     assert r3.cycles == 1 and not r3.converged
     for f in (f1, f2, f3):
         assert f.shape == (18, 24, 2) and np.all(np.isfinite(f))
@@ -207,3 +211,25 @@ def test_the_ablation_switches_leave_the_answer_within_tolerance_and_refuse_unkn
     assert report.converged and np.abs(field - base).max() < 0.05
     with pytest.raises(ValueError, match="unknown mechanism .*second"):
         inkwarp.thin_plate_report(pts, disp, (48, 64), _off="held")
+
+
+def test_three_points_and_affine_motions_take_their_map_exactly():
+    # At tension 0 an affine map has no plate energy: three points, or any number whose
+    # nodes' displacements one affine map fits (points on nodes turned together, or any
+    # points translated together), are answered by it with no cycle.
+    ys, xs = np.mgrid[0 : SHAPE[0], 0 : SHAPE[1]].astype(np.float64)
+    grid_xy = np.stack([xs, ys], axis=-1)
+    field, report = inkwarp.thin_plate_report(PTS, DISP, SHAPE)
+    assert report.converged and report.cycles == 0
+    coef = np.linalg.solve(np.column_stack([PTS, np.ones(3)]), DISP)
+    assert np.abs(field - np.concatenate([grid_xy, np.ones_like(xs)[..., None]], axis=-1) @ coef).max() < 1e-5
+    rng = np.random.default_rng(5)
+    on_nodes = rng.integers(0, 17, (12, 2)).astype(float)
+    turn = np.array([[0.0, -0.05], [0.05, 0.0]])  # a small rotation and a translation
+    field, report = inkwarp.thin_plate_report(on_nodes, on_nodes @ turn.T + [1.5, -0.5], SHAPE)
+    assert report.converged and report.cycles == 0
+    assert np.abs(field - (grid_xy @ turn.T + [1.5, -0.5])).max() < 1e-5
+    anywhere = rng.uniform(0, 17, (12, 2))
+    field, report = inkwarp.thin_plate_report(anywhere, np.tile([0.7, -2.25], (12, 1)), SHAPE)
+    assert report.converged and report.cycles == 0
+    assert np.abs(field - [0.7, -2.25]).max() < 1e-6

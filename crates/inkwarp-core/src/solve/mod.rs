@@ -410,8 +410,6 @@ pub(crate) fn solve_constrained(
         };
         let [x0, y0, x1, y1] = boxes[l];
         let (bw, bh) = (x1 - x0, y1 - y0);
-        // Row `by` of the box as a range of the grid's nodes.
-        let rows = |by: usize| (y0 + by) * w + x0..(y0 + by) * w + x1;
         let links = piece_links(grid, &labels, l as u32, boxes[l], open);
         let local = |i: usize| (i / w - y0) * bw + i % w - x0;
         let mut fixed = vec![false; bw * bh];
@@ -453,6 +451,23 @@ pub(crate) fn solve_constrained(
             }
             None => Some(Vec::new()),
         };
+        // At τ = 0, on a piece whose only free functions are the affine ones (none is left
+        // once the constraints hold), constraints that one affine map fits are answered by
+        // it: its plate energy is zero, so it is the minimiser. Any three constraints off
+        // one line are such; close together they make a large map whose slow mode the
+        // cycles resolve late and the stopping rule does not see.
+        if tau == 0.0 && gauge.is_none() && null.as_ref().is_some_and(|b| b.is_empty()) {
+            if let Some(m) = affine_fit(&value, bw) {
+                let mut values: Vec<V2> = (0..bw * bh).map(|j| m(j % bw, j / bw)).collect();
+                // The constrained nodes hold their values exactly, not to the map's rounding.
+                for &(j, v) in &value {
+                    values[j] = v;
+                }
+                let u = BoxValues { values, stride: bw, first: 0 };
+                write_piece(&mut field, &mut out, lines, &labels, l as u32, boxes[l], &u);
+                continue;
+            }
+        }
         let links_again = (!open).then(|| links.clone());
         let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), off: options.off };
         let start = initial.map(|f| Start { field: f, x0, y0 });
@@ -467,29 +482,7 @@ pub(crate) fn solve_constrained(
             // Too many free functions to settle: no claim of convergence.
             r.converged = false;
         }
-        // The piece's nodes of the box, to the field or (pieces on a line) to `out`.
-        if lines {
-            for by in 0..bh {
-                for (i, v) in rows(by).zip(u.row(by, bw)) {
-                    if labels[i] == l as u32 {
-                        out[i] = *v;
-                    }
-                }
-            }
-        } else {
-            let span = y0 * w..(y0 + bh) * w;
-            let (dx, dy) = (&mut field.dx[span.clone()], &mut field.dy[span]);
-            dx.par_chunks_mut(w).zip(dy.par_chunks_mut(w)).enumerate().with_min_len(4).for_each(|(by, (dx, dy))| {
-                let g = rows(by);
-                let (lab, v) = (&labels[g.clone()], u.row(by, bw));
-                for (((dx, dy), &lab), v) in dx[x0..x1].iter_mut().zip(&mut dy[x0..x1]).zip(lab).zip(v) {
-                    if lab == l as u32 {
-                        *dx = v[0] as f32;
-                        *dy = v[1] as f32;
-                    }
-                }
-            });
-        }
+        write_piece(&mut field, &mut out, lines, &labels, l as u32, boxes[l], &u);
         // The report starts at zero and converged: the pieces' worst.
         report.cycles = report.cycles.max(r.cycles);
         report.final_change_px = report.final_change_px.max(r.final_change_px);
@@ -879,6 +872,64 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
     store.put_hierarchy(key, hier);
     (out, report)
+}
+
+/// Piece `l`'s nodes of its box `[x0, y0, x1, y1]` from `u`, to the field or (pieces on a
+/// line) to `out`.
+fn write_piece(field: &mut Field, out: &mut [V2], lines: bool, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4], u: &BoxValues) {
+    let (w, bw) = (field.width, x1 - x0);
+    let rows = |by: usize| (y0 + by) * w + x0..(y0 + by) * w + x1;
+    if lines {
+        for by in 0..y1 - y0 {
+            for (i, v) in rows(by).zip(u.row(by, bw)) {
+                if labels[i] == l {
+                    out[i] = *v;
+                }
+            }
+        }
+        return;
+    }
+    let span = y0 * w..y1 * w;
+    let (dx, dy) = (&mut field.dx[span.clone()], &mut field.dy[span]);
+    dx.par_chunks_mut(w).zip(dy.par_chunks_mut(w)).enumerate().with_min_len(4).for_each(|(by, (dx, dy))| {
+        let (lab, v) = (&labels[rows(by)], u.row(by, bw));
+        for (((dx, dy), &lab), v) in dx[x0..x1].iter_mut().zip(&mut dy[x0..x1]).zip(lab).zip(v) {
+            if lab == l {
+                *dx = v[0] as f32;
+                *dy = v[1] as f32;
+            }
+        }
+    });
+}
+
+/// The affine map `(x, y) ↦ value` that fits the constraints `value` (box nodes `bw` wide)
+/// to rounding, or `None` when none does.
+fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) -> V2> {
+    let at = |j: usize| [(j % bw) as f64, (j / bw) as f64];
+    // Coordinates about the first constraint, for conditioning.
+    let o = at(value.first()?.0);
+    let rel = |j: usize| [at(j)[0] - o[0], at(j)[1] - o[1]];
+    let mut m = vec![vec![0.0; 3]; 3];
+    let mut rhs = vec![[0.0; 2]; 3];
+    for &(j, v) in value {
+        let [x, y] = rel(j);
+        let b = [1.0, x, y];
+        for r in 0..3 {
+            for c in 0..3 {
+                m[r][c] += b[r] * b[c];
+            }
+            rhs[r] = [rhs[r][0] + b[r] * v[0], rhs[r][1] + b[r] * v[1]];
+        }
+    }
+    let a = dense_solve(m, rhs)?;
+    let map = move |x: f64, y: f64| [a[0][0] + a[1][0] * x + a[2][0] * y, a[0][1] + a[1][1] * x + a[2][1] * y];
+    let scale = value.iter().fold(1.0f64, |s, (_, v)| s.max(v[0].abs()).max(v[1].abs()));
+    let fits = value.iter().all(|&(j, v)| {
+        let [x, y] = rel(j);
+        let p = map(x, y);
+        (p[0] - v[0]).abs().max((p[1] - v[1]).abs()) <= 1e-9 * scale
+    });
+    fits.then(|| move |x: usize, y: usize| map(x as f64 - o[0], y as f64 - o[1]))
 }
 
 /// A warm start of one piece: `field` is the whole grid's, the piece's box starts at
