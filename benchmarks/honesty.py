@@ -1,0 +1,80 @@
+"""How often a converged report is wrong: the stopping rule's claims against tight solves.
+
+DESIGN §4: at the default tolerance (0.01 px) a solve that reports `converged=True` has
+every node within 0.05 px of the exact minimiser. The oracle tests check that on their
+families; this sweep looks for the rare problems that break it. Slow modes hide from the
+stopping rule where the answer is small next to what the cycles must still move (the
+rule judges the last cycles' changes, and a mode with a tiny eigenvalue barely moves the
+residual), so it scales the displacements down:
+
+- the oracle tests' random cuts (`tests/test_solver_families.py::random_cuts`: 20-50
+  straight and bent cuts, 40 points, float or integer end points) at 2x and 4x, seeds
+  `--seeds`, displacements times 0.02 and 0.2, each solved cold at the default settings;
+- the same at 4x with the displacements changed by 2 % and 0.05 px, warm from the
+  previous answer (an animation's next frame).
+
+Each converged claim is compared with a solve to 1e-8 px (2000 cycles). Prints the counts
+of claims beyond the tolerance and beyond the contract (5 times it) and the worst cases.
+
+Usage: python benchmarks/honesty.py [--seeds 60] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+
+import inkwarp  # noqa: E402
+from test_solver_families import random_cuts  # noqa: E402
+
+TOL = 0.01
+
+
+def claims(seeds: int):
+    """(what, error / tolerance or None when not converged, cycles) per solve."""
+    for scale in (2, 4):
+        for seed in range(seeds):
+            for integer in (False, True):
+                pts, disp, cuts = random_cuts(seed, integer, scale)
+                shape = (64 * scale, 64 * scale)
+                name = f"{scale}x seed {seed} {'integer' if integer else 'float'}"
+                for k in (0.02, 0.2):
+                    d = disp * k
+                    tight, _ = inkwarp.thin_plate_report(pts, d, shape, cuts=cuts, tolerance=1e-8, max_cycles=2000)
+                    field, report = inkwarp.thin_plate_report(pts, d, shape, cuts=cuts)
+                    err = float(np.abs(field - tight).max()) / TOL if report.converged else None
+                    yield f"{name}, displacements x{k}, cold", err, report.cycles
+                if scale == 4:
+                    moved = disp * 1.02 + 0.05
+                    tight, _ = inkwarp.thin_plate_report(pts, moved, shape, cuts=cuts, tolerance=1e-8, max_cycles=2000)
+                    start = inkwarp.thin_plate(pts, disp, shape, cuts=cuts)
+                    field, report = inkwarp.thin_plate_report(pts, moved, shape, cuts=cuts, initial=start)
+                    err = float(np.abs(field - tight).max()) / TOL if report.converged else None
+                    yield f"{name}, next frame, warm", err, report.cycles
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", type=int, default=60)
+    ap.add_argument("--quick", action="store_true", help="one seed: a smoke run")
+    args = ap.parse_args()
+    rows = list(claims(1 if args.quick else args.seeds))
+    judged = [(e, what, c) for what, e, c in rows if e is not None]
+    print(f"## Converged claims against tight solves ({len(rows)} solves, tolerance {TOL} px)\n")
+    print("| solves | not converged | claimed converged | beyond the tolerance | beyond the contract (5x) | cycles in all |")
+    print("|---|---|---|---|---|---|")
+    print(f"| {len(rows)} | {len(rows) - len(judged)} | {len(judged)} | {sum(e > 1 for e, _, _ in judged)} "
+          f"| {sum(e > 5 for e, _, _ in judged)} | {sum(c for _, _, c in rows)} |")
+    print("\nWorst claims (error / tolerance):\n")
+    for e, what, c in sorted(judged, reverse=True)[:8]:
+        print(f"- {e:.2f}: {what} ({c} cycles)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
