@@ -409,7 +409,8 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
 /// Adds to `u` (both components, dense over the box) the `n ∈ span(basis)` that minimises
 /// the membrane energy of `u + n`: the τ → 0⁺ choice among the plate minimisers. The
 /// functions couple only where their supports meet, so their system is solved block by
-/// block; false when a block is larger than [`MAX_NULL`] (that block is left as it is).
+/// block; false when a block is larger than [`MAX_NULL`] or singular (that block is left
+/// as it is).
 pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) -> bool {
     let (k, n) = (basis.len(), g.w * g.h);
     if k == 0 {
@@ -474,12 +475,15 @@ pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) -> bool
             }
         }
         let b: Vec<V2> = members.iter().map(|&j| rhs[j]).collect();
-        if let Some(c) = super::dense_solve(m, b) {
-            for (&j, c) in members.iter().zip(c) {
-                for &(i, v) in &basis[j] {
-                    u[i][0] += c[0] * v;
-                    u[i][1] += c[1] * v;
-                }
+        // A singular block is left as it is, and not settled.
+        let Some(c) = super::dense_solve(m, b) else {
+            all = false;
+            continue;
+        };
+        for (&j, c) in members.iter().zip(c) {
+            for &(i, v) in &basis[j] {
+                u[i][0] += c[0] * v;
+                u[i][1] += c[1] * v;
             }
         }
     }
