@@ -346,6 +346,14 @@ impl Deflation {
         self.changes.iter().fold(0.0, |a: f64, &b| a.max(b))
     }
 
+    /// Whether the solve is slow (it has kept directions) and has not yet looked at them.
+    /// On a torn piece a mode the residual hides (a part bounded by cuts, nearly rigid) can
+    /// stall the changes while its error stays, so a stop waits for the first Rayleigh–Ritz
+    /// step over the window, the first chance to find it.
+    pub fn looking(&self) -> bool {
+        self.on && self.restarts == 0 && !self.v.is_empty()
+    }
+
     /// A step of length `alpha` taken (per component).
     pub fn step(&mut self, alpha: [f64; 2]) {
         for (c, &a) in alpha.iter().enumerate() {

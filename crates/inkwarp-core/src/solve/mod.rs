@@ -784,7 +784,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         break;
                     }
                     slow.step(alpha);
-                    if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
+                    if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) && !(hier.torn && slow.looking()) {
                         report.converged = true;
                         break;
                     }
