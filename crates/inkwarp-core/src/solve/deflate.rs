@@ -40,6 +40,8 @@ const CHUNK: usize = 4096;
 
 pub(super) struct Deflation {
     on: bool,
+    /// Stops wait for the first look at the kept directions (see [`Deflation::rate_floor`]).
+    wait: bool,
     keep: usize,
     /// The window's directions, one scalar vector per component and cycle.
     v: Vec<Vec<f32>>,
@@ -65,13 +67,14 @@ pub(super) struct Deflation {
 }
 
 impl Deflation {
-    pub fn new(len: usize, off: bool) -> Deflation {
+    pub fn new(len: usize, off: bool, wait: bool) -> Deflation {
         let per = 4 * len;
         let fit = BUDGET_BYTES / per.max(1);
         let keep = KEEP.min(fit.saturating_sub(2 * WINDOW) / 2);
         let on = !off && keep >= 4;
         Deflation {
             on,
+            wait,
             keep,
             v: Vec::new(),
             w: Vec::new(),
@@ -346,14 +349,6 @@ impl Deflation {
         self.changes.iter().fold(0.0, |a: f64, &b| a.max(b))
     }
 
-    /// Whether the solve is slow (it has kept directions) and has not yet looked at them.
-    /// On a torn piece a mode the residual hides (a part bounded by cuts, nearly rigid) can
-    /// stall the changes while its error stays, so a stop waits for the first Rayleigh–Ritz
-    /// step over the window, the first chance to find it.
-    pub fn looking(&self) -> bool {
-        self.on && self.restarts == 0 && !self.v.is_empty()
-    }
-
     /// A step of length `alpha` taken (per component).
     pub fn step(&mut self, alpha: [f64; 2]) {
         for (c, &a) in alpha.iter().enumerate() {
@@ -381,7 +376,10 @@ impl Deflation {
     /// largest seen since the deflating restart before the last: a sequence after one is
     /// short, and its smallest Ritz value overestimates what is left; modes deflated two
     /// windows ago no longer count). A slow mode the changes do not show yet still shows in
-    /// the spectrum.
+    /// the spectrum. On a torn piece (`wait`), a solve slow enough to keep directions gets
+    /// 1 (no stop) until their first Rayleigh–Ritz step: there a mode the residual hides (a
+    /// part bounded by cuts, nearly rigid) can stall the changes while its error stays, and
+    /// that step is the first chance to find it.
     pub fn rate_floor(&mut self) -> f64 {
         for c in 0..2 {
             let st = &self.steps[c];
@@ -405,6 +403,9 @@ impl Deflation {
                 self.low = self.low.min(lo);
                 self.high = self.high.max(hi);
             }
+        }
+        if self.wait && self.on && self.restarts == 0 && !self.v.is_empty() {
+            return 1.0;
         }
         let low = self.low.min(self.before);
         if !(low > 0.0 && self.high > low) {

@@ -772,7 +772,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 let z = hier.precondition(&r);
                 let mut rz = dot_z(&r, z);
                 widen_into(&mut p, z, None);
-                let mut slow = deflate::Deflation::new(len, options.off.has("deflate"));
+                let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn);
                 for cycle in 1..=max_cycles {
                     if crate::interrupt::requested() {
                         break;
@@ -784,7 +784,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         break;
                     }
                     slow.step(alpha);
-                    if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) && !(hier.torn && slow.looking()) {
+                    if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
                         report.converged = true;
                         break;
                     }
