@@ -203,7 +203,15 @@ impl Hierarchy {
             if let Some(Some(s)) = self.level_strands.get(k) {
                 s.relax(x, f);
             }
-            level.residual(x, Some(f), r);
+            // From a given `x` (the coarse-to-fine start's, the whole answer on this level)
+            // below the finest level in `f64` sums (see `Level::residual_f64`); from zero,
+            // `x` is one smoothing of `f`, and the rounding of its product small next to
+            // the residual.
+            if k > 0 && !x_zero {
+                level.residual_f64(x, Some(f), r);
+            } else {
+                level.residual(x, Some(f), r);
+            }
         }
         let (head, tail) = work.split_at_mut(1);
         let w = &mut head[0];
@@ -259,7 +267,9 @@ impl Hierarchy {
         self.clear_start(k + 1, &mut tail[0].x);
         self.solve_level(k + 1, tail, true, None);
         let c = &mut tail[0];
-        coarse.residual(&c.x, None, &mut c.r); // −A z₁ on the unknowns
+        // z₁ is smooth and as large as the coarse error: its product, small next to its
+        // terms, in `f64` sums (see `Level::residual_f64`), and z₂'s below.
+        coarse.residual_f64(&c.x, None, &mut c.r); // −A z₁ on the unknowns
         let zaz = dot_w(&c.x, &c.r).map(|v| -v);
         let zf = dot_w(&c.x, &c.f);
         let a1 = [step(zf[0], zaz[0]), step(zf[1], zaz[1])];
@@ -286,7 +296,7 @@ impl Hierarchy {
         self.clear_start(k + 1, &mut c.x);
         self.solve_level(k + 1, tail, true, None);
         let c = &mut tail[0];
-        coarse.residual(&c.x, None, &mut c.r); // −A z₂
+        coarse.residual_f64(&c.x, None, &mut c.r); // −A z₂
         let z2az1 = dot_w(&c.x, &c.q1);
         let beta = [step(z2az1[0], zaz[0]), step(z2az1[1], zaz[1])];
         let bw = [WS::of(beta[0]), WS::of(beta[1])];

@@ -1172,6 +1172,28 @@ impl Level {
         self.bands(x, f, out, Fold::Nothing);
     }
 
+    /// `out = f − A x` on a Galerkin level with every product and sum in `f64` (the
+    /// vectors `f32`, each entry widened exactly), rounded once: for the products of smooth
+    /// vectors as large as the answer or its error (the coarse-to-fine start's iterates,
+    /// the K-cycles' directions). Summed in `f32`, the rounding of such a product is noise
+    /// of about 10⁻⁷ times its terms, and on grids past about a thousand nodes a side that
+    /// is more than the smooth residual it should carry; the levels below then answered the
+    /// noise with smooth errors of hundreds of pixels (`docs/dev/solver-correctness.md`,
+    /// "Coarse products in f64").
+    pub fn residual_f64(&self, x: &[W2], f: Option<&[W2]>, out: &mut [W2]) {
+        let wp = self.wp;
+        self.over_bands(out, Fold::Nothing, |r0, _, chunk| {
+            ROW_F64.with(|buf| {
+                let mut buf = buf.borrow_mut();
+                buf.resize(wp, [0.0; 2]);
+                for (k, orow) in chunk.chunks_mut(wp).enumerate() {
+                    residual_row_f64(self, x, f, r0 + k, &mut buf, orow);
+                }
+            });
+            [0.0; 2]
+        });
+    }
+
     /// `out = −A x` (as [`Level::residual`] without `f`) and `xᵀ out` per component, taken
     /// band by band while both are in cache.
     pub fn residual_dot<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> [f64; 2] {
@@ -1328,6 +1350,8 @@ impl Level {
 thread_local! {
     /// The first iterate's rows of a band (see [`Level::second_step_from_zero`]).
     static FIRST_ITERATE: std::cell::RefCell<Vec<W2>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// One row of `−A x` in `f64` (see [`Level::residual_f64`]).
+    static ROW_F64: std::cell::RefCell<Vec<V2>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal
@@ -1411,24 +1435,7 @@ widest! {
                             sym_run::<T, T, true>(x, f, sym, wp, base, c, e, out);
                             continue;
                         }
-                        let mut s0 = c;
-                        while s0 < e {
-                            let m = (e - s0).min(64);
-                            let mut acc = [[T::ZERO; 2]; 64];
-                            for &(dy, dx) in &STORED_TAPS {
-                                let a = shared[dy * 5 + dx];
-                                let q = base + s0 + dy * wp + dx - 2 * wp - 2;
-                                for (o, xv) in acc[..m].iter_mut().zip(&x[q..q + m]) {
-                                    o[0] += a * xv[0];
-                                    o[1] += a * xv[1];
-                                }
-                            }
-                            for i in 0..m {
-                                let fv = f.map_or([T::ZERO; 2], |f| f[base + s0 + i]);
-                                out[s0 + i] = [fv[0] - acc[i][0], fv[1] - acc[i][1]];
-                            }
-                            s0 += m;
-                        }
+                        shared_run(x, f, shared, wp, base, c, e, out);
                         continue;
                     }
                     // A run of irregular nodes, each with its own stencil, four side by side:
@@ -1455,6 +1462,68 @@ widest! {
                 }
             }
         }
+    }
+}
+
+widest! {
+    /// `out = f − A x` on padded row `r` of Galerkin level `level` in `f64` (see
+    /// [`Level::residual_f64`]; `buf` a row of scratch), on the processor's widest vectors.
+    #[inline(never)]
+    fn residual_row_f64(level: &Level, x: &[W2], f: Option<&[W2]>, r: usize, buf: &mut [V2], out: &mut [W2]) =>
+    residual_row_f64_body {
+        let Operator::Stored { ids, table, sym, runs, far, .. } = &level.op else { unreachable!("a Galerkin level") };
+        let (wp, base) = (level.wp, r * level.wp);
+        for &run in runs.row(r) {
+            let (c, e) = (run.start as usize, run.end as usize);
+            match (run.kind, sym) {
+                (RunKind::Skip, _) => {}
+                (RunKind::Shared, Some(sym)) => sym_run::<WS, f64, true>(x, None, sym, wp, base, c, e, buf),
+                (RunKind::Shared, None) => shared_run::<WS, f64>(x, None, &table[0], wp, base, c, e, buf),
+                (RunKind::Own, _) => own_sums::<WS, f64>(x, None, wp, base, c, e, buf, |q| &table[ids[q] as usize]),
+            }
+        }
+        let k0 = far.partition_point(|t| (t.0 as usize) < base);
+        for &(p, q, v) in far[k0..].iter().take_while(|t| (t.0 as usize) < base + wp) {
+            let (o, xq) = (&mut buf[p as usize - base], x[q as usize]);
+            *o = [o[0] - v * xq[0].get(), o[1] - v * xq[1].get()];
+        }
+        for &run in runs.row(r) {
+            let (c, e) = (run.start as usize, run.end as usize);
+            if run.kind == RunKind::Skip {
+                out[c..e].fill([0.0; 2]);
+                continue;
+            }
+            for (j, (o, b)) in out[c..e].iter_mut().zip(&buf[c..e]).enumerate() {
+                let fv = f.map_or([0.0; 2], |f| [f[base + c + j][0].get(), f[base + c + j][1].get()]);
+                *o = [WS::of(fv[0] + b[0]), WS::of(fv[1] + b[1])];
+            }
+        }
+    }
+}
+
+/// `out[c] = f[q] − Σₜ s[t] x[q + offset(t)]` for the nodes `q = base + c`, `c` in `c0..c1`
+/// of one row (`out` is that row), all with the one stencil `s` (in [`STORED_TAPS`] order),
+/// 64 nodes at a time, tap by tap. `x` may be narrower than the sums (see [`widened`]).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn shared_run<S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, s: &[T; 25], wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]]) {
+    let mut s0 = c0;
+    while s0 < c1 {
+        let m = (c1 - s0).min(64);
+        let mut acc = [[T::ZERO; 2]; 64];
+        for &(dy, dx) in &STORED_TAPS {
+            let a = s[dy * 5 + dx];
+            let q = base + s0 + dy * wp + dx - 2 * wp - 2;
+            for (o, xv) in acc[..m].iter_mut().zip(&x[q..q + m]) {
+                o[0] += a * widened::<S, T>(xv[0]);
+                o[1] += a * widened::<S, T>(xv[1]);
+            }
+        }
+        for i in 0..m {
+            let fv = f.map_or([T::ZERO; 2], |f| f[base + s0 + i]);
+            out[s0 + i] = [fv[0] - acc[i][0], fv[1] - acc[i][1]];
+        }
+        s0 += m;
     }
 }
 

@@ -1421,3 +1421,46 @@ fn a_wide_hole_costs_about_the_cycles_of_the_open_grid() {
         assert!(cycles[1] <= cycles[0] + 2, "{n} x {n}: {} cycles with the hole, {} without", cycles[1], cycles[0]);
     }
 }
+
+#[test]
+fn coarse_products_of_smooth_vectors_are_summed_in_f64() {
+    // `Level::residual_f64` (the coarse-to-fine start's residuals below the finest level,
+    // the K-cycles' products): for a smooth vector of a hundred pixels on the Galerkin
+    // levels of a torn grid with scattered fixed nodes (shared, own and far taps), the
+    // residual is the `f64` residual of the widened vectors, rounded once; the `f32` sums
+    // are off by far more, which is why it exists.
+    let mut rnd = crate::grid::tests::sequence(23);
+    let fine = torn_scattered_level(&mut rnd, 0.01, 0.0);
+    let first = level::galerkin(&fine);
+    let second = level::galerkin(&first);
+    for level in [&first, &second] {
+        let (wp, n) = (level.wp, level.len_padded());
+        let smooth: Vec<W2> = (0..n)
+            .map(|p| {
+                let (x, y) = ((p % wp) as f64, (p / wp) as f64);
+                let v = [100.0 * (x / 230.0).sin() * (y / 310.0).cos() + 40.0, 60.0 * (x / 170.0 + y / 290.0).cos()];
+                if level.inv_diag[p] != 0.0 { v.map(|a| a as f32) } else { [0.0; 2] }
+            })
+            .collect();
+        let f = random_on_unknowns(level, &mut rnd, false);
+        let mut got = vec![[0.0f32; 2]; n];
+        level.residual_f64(&smooth, Some(&f), &mut got);
+        let widen = |v: &[W2]| -> Vec<V2> { v.iter().map(|a| [a[0] as f64, a[1] as f64]).collect() };
+        let mut want = vec![[0.0f64; 2]; n];
+        level.residual(&widen(&smooth), Some(&widen(&f)), &mut want);
+        let mut narrow = vec![[0.0f32; 2]; n];
+        level.residual(&smooth, Some(&f), &mut narrow);
+        // The f32 sums' worst error in units of the f64 sums' bound.
+        let mut worst32 = 0.0f64;
+        for p in (0..n).filter(|&p| level.inv_diag[p] != 0.0) {
+            for c in 0..2 {
+                // One rounding to f32 (and the far taps' sums in another order).
+                let bound = 1.2e-7 * want[p][c].abs() + 1e-9;
+                let e = (got[p][c] as f64 - want[p][c]).abs();
+                assert!(e <= bound, "node {p}: {} against {}", got[p][c], want[p][c]);
+                worst32 = worst32.max((narrow[p][c] as f64 - want[p][c]).abs() / bound);
+            }
+        }
+        assert!(worst32 > 1000.0, "the f32 sums are within {worst32} times the bound");
+    }
+}
