@@ -1232,12 +1232,7 @@ impl Level {
                 for (k, orow) in out.chunks_mut(wp).enumerate() {
                     residual_row(self, &self.op, x, f, r0 + k, orow);
                 }
-                let (a, b) = (r0 * wp, r0 * wp + out.len());
-                let k0 = far.partition_point(|e| (e.0 as usize) < a);
-                for &(p, q, v) in far[k0..].iter().take_while(|e| (e.0 as usize) < b) {
-                    let (o, xq, v) = (&mut out[p as usize - a], x[q as usize], T::of(v));
-                    *o = [o[0] - v * xq[0], o[1] - v * xq[1]];
-                }
+                subtract_far(far, r0 * wp, x, out);
             }
         }
     }
@@ -1482,11 +1477,7 @@ widest! {
                 (RunKind::Own, _) => own_sums::<WS, f64>(x, None, wp, base, c, e, buf, |q| &table[ids[q] as usize]),
             }
         }
-        let k0 = far.partition_point(|t| (t.0 as usize) < base);
-        for &(p, q, v) in far[k0..].iter().take_while(|t| (t.0 as usize) < base + wp) {
-            let (o, xq) = (&mut buf[p as usize - base], x[q as usize]);
-            *o = [o[0] - v * xq[0].get(), o[1] - v * xq[1].get()];
-        }
+        subtract_far(far, base, x, buf);
         for &run in runs.row(r) {
             let (c, e) = (run.start as usize, run.end as usize);
             if run.kind == RunKind::Skip {
@@ -1498,6 +1489,16 @@ widest! {
                 *o = [WS::of(fv[0] + b[0]), WS::of(fv[1] + b[1])];
             }
         }
+    }
+}
+
+/// `out[j] −= a_pq x[q]` for the far taps `(p, q, a_pq)` of the nodes `p = a + j` that
+/// `out` covers, in the precision of `out` (`x` widened exactly).
+fn subtract_far<S: Real, T: Real>(far: &[Far], a: usize, x: &[[S; 2]], out: &mut [[T; 2]]) {
+    let (k0, b) = (far.partition_point(|e| (e.0 as usize) < a), a + out.len());
+    for &(p, q, v) in far[k0..].iter().take_while(|e| (e.0 as usize) < b) {
+        let (o, xq, v) = (&mut out[p as usize - a], x[q as usize], T::of(v));
+        *o = [o[0] - v * widened::<S, T>(xq[0]), o[1] - v * widened::<S, T>(xq[1])];
     }
 }
 

@@ -1433,6 +1433,8 @@ fn coarse_products_of_smooth_vectors_are_summed_in_f64() {
     let fine = torn_scattered_level(&mut rnd, 0.01, 0.0);
     let first = level::galerkin(&fine);
     let second = level::galerkin(&first);
+    // The far taps' branch is part of what is checked.
+    assert!([&first, &second].iter().any(|l| (0..l.len_padded()).any(|p| !l.far(p).is_empty())), "no far taps on these levels");
     for level in [&first, &second] {
         let (wp, n) = (level.wp, level.len_padded());
         let smooth: Vec<W2> = (0..n)
