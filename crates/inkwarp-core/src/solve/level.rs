@@ -571,8 +571,41 @@ impl Geometry {
     }
 
     /// [`Geometry::geo_row`], with the extrapolation at missing links linear (`lin`) or
-    /// constant.
+    /// constant. On the finest level (the one with fixed nodes), a node at a cut's vertex
+    /// whose only link runs to a neighbour in its coarse cell, the cut passing its other
+    /// sides, would get no row: every coarse function would hold it at zero, a pin that is
+    /// not in the problem, which the part below the vertex converges against slowly. It
+    /// takes that neighbour's row instead, when the neighbour continues the link along a
+    /// straight triple (the plate energy that ties the node to it). On coarse levels the
+    /// same rule made slow modes of cut slivers hide from the stopping rule longer.
     fn geo_row_as(&self, x: usize, y: usize, lin: bool) -> [f64; 16] {
+        let r = self.link_row(x, y, lin);
+        if r.iter().any(|&v| v != 0.0) || !self.active[self.idx(x, y)] || self.fixed.is_none() {
+            return r;
+        }
+        let (w, h, i) = (self.w, self.h, self.idx(x, y));
+        let degree = [self.right[i], x > 0 && self.right[i - 1], self.down[i], y > 0 && self.down[i - w]].iter().filter(|&&l| l).count();
+        if degree != 1 {
+            return r;
+        }
+        let linked = [
+            (y + 2 < h && self.down[i] && self.down[i + w]).then(|| (x, y + 1)),
+            (y > 1 && self.down[i - w] && self.down[i - 2 * w]).then(|| (x, y - 1)),
+            (x + 2 < w && self.right[i] && self.right[i + 1]).then(|| (x + 1, y)),
+            (x > 1 && self.right[i - 1] && self.right[i - 2]).then(|| (x - 1, y)),
+        ];
+        // A neighbour in the same coarse cell reads the same window.
+        linked
+            .into_iter()
+            .flatten()
+            .filter(|&(qx, qy)| qx / 2 == x / 2 && qy / 2 == y / 2)
+            .map(|(qx, qy)| self.link_row(qx, qy, lin))
+            .find(|q| q.iter().any(|&v| v != 0.0))
+            .unwrap_or(r)
+    }
+
+    /// [`Geometry::geo_row_as`] from the node's own links alone.
+    fn link_row(&self, x: usize, y: usize, lin: bool) -> [f64; 16] {
         let i = self.idx(x, y);
         let mut r = [0.0; 16];
         if !self.active[i] {

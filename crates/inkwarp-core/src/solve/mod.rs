@@ -471,11 +471,20 @@ pub(crate) fn solve_constrained(
         let links_again = (!open).then(|| links.clone());
         let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), off: options.off };
         let start = initial.map(|f| Start { field: f, x0, y0 });
-        let (mut u, mut r) = solve_piece(key, &value, start, options, store);
+        // (A one-line piece's single free function is its tilt, which the line fixes.)
+        let settles = null.as_ref().is_some_and(|b| b.len() > usize::from(gauge.is_some()));
+        // At τ = 0 the settling is a linear map, built once: it settles the answer, and the
+        // stopping rule judges each cycle's move of the settled answer (`SettledChange`).
+        let membrane = match (&null, &geo) {
+            (Some(basis), Some([active, right, down])) if settles && tau == 0.0 => Some(nullspace::Membrane::new(&nullspace::BoxGeo { w: bw, h: bh, active, right, down }, basis)),
+            _ => None,
+        };
+        let judged = membrane.as_ref().filter(|m| m.largest_block() <= SETTLED_CHANGE_BLOCK);
+        let (mut u, mut r) = solve_piece(key, &value, start, options, store, judged);
         if let (Some(basis), Some(links), Some([active, right, down])) = (&null, links_again, &geo) {
-            if !basis.is_empty() && !(gauge.is_some() && basis.len() == 1) {
+            if settles {
                 let geo = nullspace::BoxGeo { w: bw, h: bh, active, right, down };
-                let (uu, rr) = settle_null_space(links, &geo, tau, fixed, &constrained_only, &value, basis, u, r, options, store);
+                let (uu, rr) = settle_null_space(links, &geo, tau, fixed, &constrained_only, &value, basis, membrane.as_ref(), u, r, options, store);
                 (u, r) = (uu, rr);
             }
         } else if null.is_none() {
@@ -519,6 +528,7 @@ fn settle_null_space(
     constrained: &[bool],
     value: &[(usize, V2)],
     basis: &[nullspace::Sparse],
+    membrane: Option<&nullspace::Membrane>,
     u: BoxValues,
     mut report: SolveReport,
     options: &SolveOptions,
@@ -531,9 +541,9 @@ fn settle_null_space(
             *d = [0.0; 2];
         }
     }
-    if tau == 0.0 {
+    if let Some(m) = membrane {
         // A block of functions too large to settle: no claim of convergence.
-        report.converged &= nullspace::least_membrane(geo, basis, &mut dense);
+        report.converged &= m.apply(&mut dense);
         return (BoxValues { values: dense, stride: w, first: 0 }, report);
     }
     const ROUNDS: usize = 8;
@@ -551,7 +561,7 @@ fn settle_null_space(
             dy: dense.iter().map(|v| v[1] as f32).collect(),
         };
         let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links.clone(), fixed: fixed.clone(), off: options.off };
-        let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options, store);
+        let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options, store, None);
         report.cycles += r2.cycles;
         report.final_change_px = r2.final_change_px;
         report.residual = r2.residual;
@@ -635,7 +645,7 @@ impl BoxValues {
 /// Solves one piece on its box: `key` describes the box's grid (the piece active, its
 /// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start on the box.
 /// Returns the solution on the box's nodes and the report's solver fields.
-fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions, store: &mut Store) -> (BoxValues, SolveReport) {
+fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions, store: &mut Store, settled: Option<&nullspace::Membrane>) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport { converged: true, ..Default::default() };
     let cached = if options.off.has("cache") { None } else { store.take_hierarchy(&key) };
@@ -773,6 +783,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 let mut rz = dot_z(&r, z);
                 widen_into(&mut p, z, None);
                 let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn);
+                let settled = settled.map(|m| SettledChange::new(m, &hier.levels[0], w));
                 for cycle in 1..=max_cycles {
                     if crate::interrupt::requested() {
                         break;
@@ -784,6 +795,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         break;
                     }
                     slow.step(alpha);
+                    let change = settled.as_ref().and_then(|s| s.of(&hier.levels[0], &p, alpha)).unwrap_or(change);
                     if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
                         report.converged = true;
                         break;
@@ -1076,6 +1088,10 @@ const STOP_MARGIN: f64 = 1.5;
 /// The same on grids with holes or cuts, where the slowest error moves least per cycle.
 const TORN_STOP_MARGIN: f64 = 3.0;
 
+/// The largest block of free functions whose settling is applied to every cycle's change
+/// (a dense solve a cycle); past it the raw change is judged.
+const SETTLED_CHANGE_BLOCK: usize = 64;
+
 /// Smoothing steps before and after each coarse correction.
 const SMOOTHING_STEPS: usize = 2;
 
@@ -1279,6 +1295,59 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
         })
         .reduce(|| 0.0, f64::max);
     (change, alpha)
+}
+
+/// How far a cycle's step `α p` moved the answer that the τ → 0⁺ settling will give: the
+/// step with the settling's map applied to it. The plate energy does not see the free
+/// functions, so the iteration may drift along them (where the coarse space holds one,
+/// without bound) while the settled answer stands still; the raw change would then never
+/// fall to the tolerance.
+struct SettledChange<'a> {
+    membrane: &'a nullspace::Membrane,
+    w: usize,
+    /// The box nodes the free functions touch, and whether each padded node is one.
+    nodes: Vec<usize>,
+    touched: Vec<bool>,
+}
+
+impl<'a> SettledChange<'a> {
+    fn new(membrane: &'a nullspace::Membrane, level: &Level, w: usize) -> Self {
+        let mut nodes = membrane.support();
+        nodes.sort_unstable();
+        nodes.dedup();
+        let mut touched = vec![false; level.len_padded()];
+        for &i in &nodes {
+            touched[level.pidx(i % w, i / w)] = true;
+        }
+        SettledChange { membrane, w, nodes, touched }
+    }
+
+    /// The settled step's largest entry (`None` when a block could not be settled).
+    fn of(&self, level: &Level, p: &[W2], alpha: [f64; 2]) -> Option<f64> {
+        let w = self.w;
+        let step = |i: usize| {
+            let q = p[level.pidx(i % w, i / w)];
+            [alpha[0] * q[0].get(), alpha[1] * q[1].get()]
+        };
+        let mut moved: std::collections::HashMap<usize, V2> = self.nodes.iter().map(|&i| (i, step(i))).collect();
+        let all = self.membrane.settle(step, |i, v| {
+            let m = moved.get_mut(&i).expect("a free function's node");
+            m[0] += v[0];
+            m[1] += v[1];
+        });
+        if !all {
+            return None;
+        }
+        let on = moved.values().fold(0.0f64, |m, v| m.max(v[0].abs()).max(v[1].abs()));
+        let off = p
+            .par_chunks(CHUNK)
+            .zip(self.touched.par_chunks(CHUNK))
+            .map(|(p, t)| {
+                p.iter().zip(t).filter(|(_, &t)| !t).fold(0.0f64, |m, (q, _)| m.max((alpha[0] * q[0].get()).abs()).max((alpha[1] * q[1].get()).abs()))
+            })
+            .reduce(|| 0.0, f64::max);
+        Some(on.max(off))
+    }
 }
 
 /// `Σ a_i z_i` per component, `z` the preconditioner's `f32` output. The chunks' sums are

@@ -406,88 +406,139 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
     touched
 }
 
-/// Adds to `u` (both components, dense over the box) the `n ∈ span(basis)` that minimises
-/// the membrane energy of `u + n`: the τ → 0⁺ choice among the plate minimisers. The
-/// functions couple only where their supports meet, so their system is solved block by
-/// block; false when a block is larger than [`MAX_NULL`] or singular (that block is left
-/// as it is).
-pub(crate) fn least_membrane(g: &BoxGeo, basis: &[Sparse], u: &mut [V2]) -> bool {
-    let (k, n) = (basis.len(), g.w * g.h);
-    if k == 0 {
-        return true;
-    }
-    // Rows of the basis by node: (function, value).
-    let mut at: std::collections::HashMap<usize, Vec<(usize, f64)>> = std::collections::HashMap::new();
-    for (j, z) in basis.iter().enumerate() {
-        for &(i, v) in z {
-            at.entry(i).or_default().push((j, v));
+/// The τ → 0⁺ choice among the plate minimisers as a linear map: `u ↦ u + n`, with
+/// `n ∈ span(basis)` the function that minimises the membrane energy of `u + n`. The
+/// functions couple only where their supports meet, so their system falls apart in blocks
+/// (one hair's free bends, one sliver's), each solved on its own. Built once per solve: it
+/// settles the answer, and it tells the stopping rule how far each cycle moved the settled
+/// answer (the iteration may drift along the free functions, which the settling removes).
+pub(crate) struct Membrane {
+    basis: Vec<Sparse>,
+    /// `M z_j` for each basis function `z_j`, on the nodes it touches.
+    products: Vec<Sparse>,
+    /// Each block's functions and their membrane Gram matrix (`None`: larger than
+    /// [`MAX_NULL`], not settled).
+    blocks: Vec<Block>,
+}
+
+/// A block's functions and their Gram matrix (see [`Membrane`]).
+type Block = (Vec<usize>, Option<Vec<Vec<f64>>>);
+
+impl Membrane {
+    pub(crate) fn new(g: &BoxGeo, basis: &[Sparse]) -> Membrane {
+        let (k, n) = (basis.len(), g.w * g.h);
+        // Rows of the basis by node: (function, value).
+        let mut at: std::collections::HashMap<usize, Vec<(usize, f64)>> = std::collections::HashMap::new();
+        for (j, z) in basis.iter().enumerate() {
+            for &(i, v) in z {
+                at.entry(i).or_default().push((j, v));
+            }
         }
-    }
-    // The Gram matrix by columns, its entries where two functions meet.
-    let mut gram: Vec<Vec<(usize, f64)>> = vec![Vec::new(); k];
-    let mut rhs = vec![[0.0; 2]; k];
-    let (mut dense, mut y) = (vec![0.0; n], vec![0.0; n]);
-    let (mut acc, mut seen, mut hit) = (vec![0.0; k], vec![false; k], Vec::new());
-    let mut parent: Vec<u32> = (0..k as u32).collect();
-    for (j, z) in basis.iter().enumerate() {
-        let touched = membrane_sparse(g, z, &mut dense, &mut y);
-        for &p in &touched {
-            if let Some(list) = at.get(&p) {
-                for &(i, v) in list {
-                    if !seen[i] {
-                        seen[i] = true;
-                        hit.push(i);
+        // The Gram matrix by columns, its entries where two functions meet.
+        let mut gram: Vec<Vec<(usize, f64)>> = vec![Vec::new(); k];
+        let mut products = Vec::with_capacity(k);
+        let (mut dense, mut y) = (vec![0.0; n], vec![0.0; n]);
+        let (mut acc, mut seen, mut hit) = (vec![0.0; k], vec![false; k], Vec::new());
+        let mut parent: Vec<u32> = (0..k as u32).collect();
+        for (j, z) in basis.iter().enumerate() {
+            let touched = membrane_sparse(g, z, &mut dense, &mut y);
+            for &p in &touched {
+                if let Some(list) = at.get(&p) {
+                    for &(i, v) in list {
+                        if !seen[i] {
+                            seen[i] = true;
+                            hit.push(i);
+                        }
+                        acc[i] += v * y[p];
                     }
-                    acc[i] += v * y[p];
                 }
             }
-            rhs[j][0] -= y[p] * u[p][0];
-            rhs[j][1] -= y[p] * u[p][1];
+            products.push(touched.iter().map(|&p| (p, std::mem::take(&mut y[p]))).collect());
+            for &i in &hit {
+                gram[j].push((i, acc[i]));
+                (acc[i], seen[i]) = (0.0, false);
+                join(&mut parent, i as u32, j as u32);
+            }
+            hit.clear();
         }
-        for &p in &touched {
-            y[p] = 0.0;
+        let mut by_root: std::collections::BTreeMap<u32, Vec<usize>> = std::collections::BTreeMap::new();
+        for j in 0..k {
+            by_root.entry(find(&mut parent, j as u32)).or_default().push(j);
         }
-        for &i in &hit {
-            gram[j].push((i, acc[i]));
-            (acc[i], seen[i]) = (0.0, false);
-            join(&mut parent, i as u32, j as u32);
-        }
-        hit.clear();
+        let mut local = vec![usize::MAX; k];
+        let blocks = by_root
+            .into_values()
+            .map(|members| {
+                if members.len() > MAX_NULL {
+                    return (members, None);
+                }
+                for (l, &j) in members.iter().enumerate() {
+                    local[j] = l;
+                }
+                let mut m = vec![vec![0.0; members.len()]; members.len()];
+                for (l, &j) in members.iter().enumerate() {
+                    for &(i, v) in &gram[j] {
+                        m[local[i]][l] += v;
+                    }
+                }
+                (members, Some(m))
+            })
+            .collect();
+        Membrane { basis: basis.to_vec(), products, blocks }
     }
-    let mut blocks: std::collections::BTreeMap<u32, Vec<usize>> = std::collections::BTreeMap::new();
-    for j in 0..k {
-        blocks.entry(find(&mut parent, j as u32)).or_default().push(j);
+
+    /// The nodes the functions touch (with repeats).
+    pub(crate) fn support(&self) -> Vec<usize> {
+        self.basis.iter().flat_map(|z| z.iter().map(|e| e.0)).collect()
     }
-    let mut all = true;
-    let mut local = vec![usize::MAX; k];
-    for members in blocks.values() {
-        if members.len() > MAX_NULL {
-            all = false;
-            continue;
-        }
-        for (l, &j) in members.iter().enumerate() {
-            local[j] = l;
-        }
-        let mut m = vec![vec![0.0; members.len()]; members.len()];
-        for (l, &j) in members.iter().enumerate() {
-            for &(i, v) in &gram[j] {
-                m[local[i]][l] += v;
+
+    /// The largest block's number of functions.
+    pub(crate) fn largest_block(&self) -> usize {
+        self.blocks.iter().map(|b| b.0.len()).max().unwrap_or(0)
+    }
+
+    /// `n` for the field read by `read` (box node → value): added by `add(node, value)`.
+    /// False when a block was not settled (too large or singular).
+    pub(crate) fn settle(&self, read: impl Fn(usize) -> V2, mut add: impl FnMut(usize, V2)) -> bool {
+        let mut all = true;
+        for (members, m) in &self.blocks {
+            let Some(m) = m else {
+                all = false;
+                continue;
+            };
+            let b: Vec<V2> = members
+                .iter()
+                .map(|&j| {
+                    self.products[j].iter().fold([0.0; 2], |s, &(p, y)| {
+                        let v = read(p);
+                        [s[0] - y * v[0], s[1] - y * v[1]]
+                    })
+                })
+                .collect();
+            // A singular block is left as it is, and not settled.
+            let Some(c) = super::dense_solve(m.clone(), b) else {
+                all = false;
+                continue;
+            };
+            for (&j, c) in members.iter().zip(c) {
+                for &(i, v) in &self.basis[j] {
+                    add(i, [c[0] * v, c[1] * v]);
+                }
             }
         }
-        let b: Vec<V2> = members.iter().map(|&j| rhs[j]).collect();
-        // A singular block is left as it is, and not settled.
-        let Some(c) = super::dense_solve(m, b) else {
-            all = false;
-            continue;
-        };
-        for (&j, c) in members.iter().zip(c) {
-            for &(i, v) in &basis[j] {
-                u[i][0] += c[0] * v;
-                u[i][1] += c[1] * v;
-            }
-        }
+        all
     }
-    all
+
+    /// Settles `u` (dense over the box); false when a block was not settled.
+    pub(crate) fn apply(&self, u: &mut [V2]) -> bool {
+        let mut n: Vec<(usize, V2)> = Vec::new();
+        let all = self.settle(|i| u[i], |i, v| n.push((i, v)));
+        for (i, v) in n {
+            u[i][0] += v[0];
+            u[i][1] += v[1];
+        }
+        all
+    }
 }
 
 /// The Galerkin correction of `u` (dense over the box, fixed nodes holding their values)

@@ -1466,3 +1466,22 @@ fn coarse_products_of_smooth_vectors_are_summed_in_f64() {
         assert!(worst32 > 1000.0, "the f32 sums are within {worst32} times the bound");
     }
 }
+
+#[test]
+fn a_node_hanging_at_a_cut_vertex_takes_its_neighbours_row_on_the_finest_level_only() {
+    // Node (3, 4) (odd column, even row: its row reads its row links) keeps only its link
+    // down, as under a cut's vertex; (3, 5) below it sits in a solid part.
+    let mut grid = Grid::new(9, 9);
+    let (x, y) = (3, 4);
+    let i = grid.index(x, y);
+    grid.link_right[i] = false;
+    grid.link_right[i - 1] = false;
+    grid.link_down[i - 9] = false;
+    let geo = level::Geometry::new(9, 9, grid.active.clone(), grid.link_right.clone(), grid.link_down.clone(), Some(vec![false; 81]));
+    let own = geo.geo_row(x, y + 1);
+    assert!(own.iter().any(|&v| v != 0.0));
+    assert_eq!(geo.geo_row(x, y), own, "the hanging node moves with the node below it");
+    // On a coarse level (no fixed nodes) the row stays empty.
+    let coarse = level::Geometry::new(9, 9, grid.active.clone(), grid.link_right.clone(), grid.link_down.clone(), None);
+    assert!(coarse.geo_row(x, y).iter().all(|&v| v == 0.0));
+}
