@@ -1305,8 +1305,10 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
 struct SettledChange<'a> {
     membrane: &'a nullspace::Membrane,
     w: usize,
-    /// The box nodes the free functions touch, and whether each padded node is one.
+    /// The box nodes the free functions touch, each one's place among them (by box node),
+    /// and whether each padded node is one.
     nodes: Vec<usize>,
+    slot: Vec<u32>,
     touched: Vec<bool>,
 }
 
@@ -1316,10 +1318,12 @@ impl<'a> SettledChange<'a> {
         nodes.sort_unstable();
         nodes.dedup();
         let mut touched = vec![false; level.len_padded()];
-        for &i in &nodes {
+        let mut slot = vec![u32::MAX; level.geo.w * level.geo.h];
+        for (k, &i) in nodes.iter().enumerate() {
             touched[level.pidx(i % w, i / w)] = true;
+            slot[i] = k as u32;
         }
-        SettledChange { membrane, w, nodes, touched }
+        SettledChange { membrane, w, nodes, slot, touched }
     }
 
     /// The settled step's largest entry (`None` when a block could not be settled).
@@ -1329,16 +1333,16 @@ impl<'a> SettledChange<'a> {
             let q = p[level.pidx(i % w, i / w)];
             [alpha[0] * q[0].get(), alpha[1] * q[1].get()]
         };
-        let mut moved: std::collections::HashMap<usize, V2> = self.nodes.iter().map(|&i| (i, step(i))).collect();
+        let mut moved: Vec<V2> = self.nodes.iter().map(|&i| step(i)).collect();
         let all = self.membrane.settle(step, |i, v| {
-            let m = moved.get_mut(&i).expect("a free function's node");
+            let m = &mut moved[self.slot[i] as usize];
             m[0] += v[0];
             m[1] += v[1];
         });
         if !all {
             return None;
         }
-        let on = moved.values().fold(0.0f64, |m, v| m.max(v[0].abs()).max(v[1].abs()));
+        let on = moved.iter().fold(0.0f64, |m, v| m.max(v[0].abs()).max(v[1].abs()));
         let off = p
             .par_chunks(CHUNK)
             .zip(self.touched.par_chunks(CHUNK))
