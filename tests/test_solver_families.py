@@ -458,7 +458,9 @@ def test_a_cut_vertex_just_above_a_node_does_not_pin_it(n, vertex):
     # The vertex sits just above a node (odd column, even row) whose row neighbours the two
     # arms both cut off: hanging by its link down, it had an empty prolongation row, so
     # every coarse function held it at zero, and the part below the vertex converged
-    # against that pin in 19, 21 and 22 cycles. With its neighbour's row: 9-10.
+    # against that pin in 19, 21 and 22 cycles. With its neighbour's row: 9-10. (Flipped
+    # upside down, the node's neighbour lies in the coarse cell before: still 19-22, see
+    # docs/dev/solver-correctness.md.)
     s = n / 1537
     pts, disp, _, _ = grid_problem(n, False, True)
     cuts = [np.array([[150.02 * s, 1050.4 * s], vertex, [1200.2 * s, 1125.4 * s]])]

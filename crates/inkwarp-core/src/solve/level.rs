@@ -574,10 +574,12 @@ impl Geometry {
     /// constant. On the finest level (the one with fixed nodes), a node at a cut's vertex
     /// whose only link runs to a neighbour in its coarse cell, the cut passing its other
     /// sides, would get no row: every coarse function would hold it at zero, a pin that is
-    /// not in the problem, which the part below the vertex converges against slowly. It
-    /// takes that neighbour's row instead, when the neighbour continues the link along a
-    /// straight triple (the plate energy that ties the node to it). On coarse levels the
-    /// same rule made slow modes of cut slivers hide from the stopping rule longer.
+    /// not in the problem, which the part beside the vertex converges against slowly. It
+    /// takes that neighbour's row instead (the same window), when the neighbour continues
+    /// the link along a straight triple (the plate energy that ties the node to it). On
+    /// coarse levels, or with neighbours in the cell before (their rows moved into the
+    /// node's window), the same rule let slow modes of cut slivers hide from the stopping
+    /// rule (docs/dev/solver-correctness.md).
     fn geo_row_as(&self, x: usize, y: usize, lin: bool) -> [f64; 16] {
         let r = self.link_row(x, y, lin);
         if r.iter().any(|&v| v != 0.0) || !self.active[self.idx(x, y)] || self.fixed.is_none() {

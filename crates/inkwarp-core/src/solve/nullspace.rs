@@ -416,13 +416,11 @@ pub(crate) struct Membrane {
     basis: Vec<Sparse>,
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.
     products: Vec<Sparse>,
-    /// Each block's functions and their membrane Gram matrix (`None`: larger than
-    /// [`MAX_NULL`], not settled).
-    blocks: Vec<Block>,
+    /// The membrane Gram matrix by columns, its entries where two functions meet.
+    gram: Vec<Sparse>,
+    /// The functions of each block (coupled through their supports).
+    blocks: Vec<Vec<usize>>,
 }
-
-/// A block's functions and their Gram matrix (see [`Membrane`]).
-type Block = (Vec<usize>, Option<Vec<Vec<f64>>>);
 
 impl Membrane {
     pub(crate) fn new(g: &BoxGeo, basis: &[Sparse]) -> Membrane {
@@ -465,26 +463,7 @@ impl Membrane {
         for j in 0..k {
             by_root.entry(find(&mut parent, j as u32)).or_default().push(j);
         }
-        let mut local = vec![usize::MAX; k];
-        let blocks = by_root
-            .into_values()
-            .map(|members| {
-                if members.len() > MAX_NULL {
-                    return (members, None);
-                }
-                for (l, &j) in members.iter().enumerate() {
-                    local[j] = l;
-                }
-                let mut m = vec![vec![0.0; members.len()]; members.len()];
-                for (l, &j) in members.iter().enumerate() {
-                    for &(i, v) in &gram[j] {
-                        m[local[i]][l] += v;
-                    }
-                }
-                (members, Some(m))
-            })
-            .collect();
-        Membrane { basis: basis.to_vec(), products, blocks }
+        Membrane { basis: basis.to_vec(), products, gram, blocks: by_root.into_values().collect() }
     }
 
     /// The nodes the functions touch (with repeats).
@@ -494,18 +473,28 @@ impl Membrane {
 
     /// The largest block's number of functions.
     pub(crate) fn largest_block(&self) -> usize {
-        self.blocks.iter().map(|b| b.0.len()).max().unwrap_or(0)
+        self.blocks.iter().map(Vec::len).max().unwrap_or(0)
     }
 
     /// `n` for the field read by `read` (box node → value): added by `add(node, value)`.
     /// False when a block was not settled (too large or singular).
     pub(crate) fn settle(&self, read: impl Fn(usize) -> V2, mut add: impl FnMut(usize, V2)) -> bool {
         let mut all = true;
-        for (members, m) in &self.blocks {
-            let Some(m) = m else {
+        let mut local = vec![usize::MAX; self.basis.len()];
+        for members in &self.blocks {
+            if members.len() > MAX_NULL {
                 all = false;
                 continue;
-            };
+            }
+            for (l, &j) in members.iter().enumerate() {
+                local[j] = l;
+            }
+            let mut m = vec![vec![0.0; members.len()]; members.len()];
+            for (l, &j) in members.iter().enumerate() {
+                for &(i, v) in &self.gram[j] {
+                    m[local[i]][l] += v;
+                }
+            }
             let b: Vec<V2> = members
                 .iter()
                 .map(|&j| {
@@ -516,7 +505,7 @@ impl Membrane {
                 })
                 .collect();
             // A singular block is left as it is, and not settled.
-            let Some(c) = super::dense_solve(m.clone(), b) else {
+            let Some(c) = super::dense_solve(m, b) else {
                 all = false;
                 continue;
             };
