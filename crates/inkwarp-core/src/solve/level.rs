@@ -585,25 +585,23 @@ impl Geometry {
         if r.iter().any(|&v| v != 0.0) || !self.active[self.idx(x, y)] || self.fixed.is_none() {
             return r;
         }
-        let (w, h, i) = (self.w, self.h, self.idx(x, y));
-        let degree = [self.right[i], x > 0 && self.right[i - 1], self.down[i], y > 0 && self.down[i - w]].iter().filter(|&&l| l).count();
-        if degree != 1 {
-            return r;
-        }
-        let linked = [
-            (y + 2 < h && self.down[i] && self.down[i + w]).then(|| (x, y + 1)),
-            (y > 1 && self.down[i - w] && self.down[i - 2 * w]).then(|| (x, y - 1)),
-            (x + 2 < w && self.right[i] && self.right[i + 1]).then(|| (x + 1, y)),
-            (x > 1 && self.right[i - 1] && self.right[i - 2]).then(|| (x - 1, y)),
+        let (w, i) = (self.w, self.idx(x, y));
+        // The node's links (down, up, right, left), and whether each continues straight on.
+        let links = [
+            (self.down[i], y + 2 < self.h && self.down[i + w], (x, y + 1)),
+            (y > 0 && self.down[i - w], y > 1 && self.down[i.wrapping_sub(2 * w)], (x, y.wrapping_sub(1))),
+            (self.right[i], x + 2 < w && self.right[i + 1], (x + 1, y)),
+            (x > 0 && self.right[i - 1], x > 1 && self.right[i.wrapping_sub(2)], (x.wrapping_sub(1), y)),
         ];
-        // A neighbour in the same coarse cell reads the same window.
-        linked
-            .into_iter()
-            .flatten()
-            .filter(|&(qx, qy)| qx / 2 == x / 2 && qy / 2 == y / 2)
-            .map(|(qx, qy)| self.link_row(qx, qy, lin))
-            .find(|q| q.iter().any(|&v| v != 0.0))
-            .unwrap_or(r)
+        let mut linked = links.iter().filter(|l| l.0);
+        match (linked.next(), linked.next()) {
+            // One link, continued straight on, to a node in the same coarse cell (whose row
+            // reads the same window).
+            (Some(&(_, true, (qx, qy))), None) if qx / 2 == x / 2 && qy / 2 == y / 2 => {
+                Some(self.link_row(qx, qy, lin)).filter(|q| q.iter().any(|&v| v != 0.0)).unwrap_or(r)
+            }
+            _ => r,
+        }
     }
 
     /// [`Geometry::geo_row_as`] from the node's own links alone.

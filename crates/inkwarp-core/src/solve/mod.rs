@@ -479,8 +479,7 @@ pub(crate) fn solve_constrained(
             (Some(basis), Some([active, right, down])) if settles && tau == 0.0 => Some(nullspace::Membrane::new(&nullspace::BoxGeo { w: bw, h: bh, active, right, down }, basis)),
             _ => None,
         };
-        let judged = membrane.as_ref().filter(|m| m.largest_block() <= SETTLED_CHANGE_BLOCK);
-        let (mut u, mut r) = solve_piece(key, &value, start, options, store, judged);
+        let (mut u, mut r) = solve_piece(key, &value, start, options, store, membrane.as_ref());
         if let (Some(basis), Some(links), Some([active, right, down])) = (&null, links_again, &geo) {
             if settles {
                 let geo = nullspace::BoxGeo { w: bw, h: bh, active, right, down };
@@ -528,7 +527,7 @@ fn settle_null_space(
     constrained: &[bool],
     value: &[(usize, V2)],
     basis: &[nullspace::Sparse],
-    membrane: Option<&nullspace::Membrane>,
+    membrane: Option<&nullspace::Membrane<'_>>,
     u: BoxValues,
     mut report: SolveReport,
     options: &SolveOptions,
@@ -645,7 +644,7 @@ impl BoxValues {
 /// Solves one piece on its box: `key` describes the box's grid (the piece active, its
 /// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start on the box.
 /// Returns the solution on the box's nodes and the report's solver fields.
-fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions, store: &mut Store, settled: Option<&nullspace::Membrane>) -> (BoxValues, SolveReport) {
+fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions, store: &mut Store, settled: Option<&nullspace::Membrane<'_>>) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport { converged: true, ..Default::default() };
     let cached = if options.off.has("cache") { None } else { store.take_hierarchy(&key) };
@@ -783,7 +782,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 let mut rz = dot_z(&r, z);
                 widen_into(&mut p, z, None);
                 let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn);
-                let settled = settled.map(|m| SettledChange::new(m, &hier.levels[0], w));
+                let settled = settled.and_then(|m| SettledChange::new(m, &hier.levels[0]));
                 for cycle in 1..=max_cycles {
                     if crate::interrupt::requested() {
                         break;
@@ -795,7 +794,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                         break;
                     }
                     slow.step(alpha);
-                    let change = settled.as_ref().and_then(|s| s.of(&hier.levels[0], &p, alpha)).unwrap_or(change);
+                    let change = settled.as_ref().map_or(change, |s| s.of(&hier.levels[0], &p, alpha));
                     if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
                         report.converged = true;
                         break;
@@ -1302,9 +1301,8 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
 /// functions, so the iteration may drift along them (where the coarse space holds one,
 /// without bound) while the settled answer stands still; the raw change would then never
 /// fall to the tolerance.
-struct SettledChange<'a> {
-    membrane: &'a nullspace::Membrane,
-    w: usize,
+struct SettledChange<'m, 'a> {
+    membrane: &'m nullspace::Membrane<'a>,
     /// The box nodes the free functions touch, each one's place among them (by box node),
     /// and whether each padded node is one.
     nodes: Vec<usize>,
@@ -1312,36 +1310,40 @@ struct SettledChange<'a> {
     touched: Vec<bool>,
 }
 
-impl<'a> SettledChange<'a> {
-    fn new(membrane: &'a nullspace::Membrane, level: &Level, w: usize) -> Self {
+impl<'m, 'a> SettledChange<'m, 'a> {
+    /// `None` where the settling is not applied to every cycle: a block of more than
+    /// [`SETTLED_CHANGE_BLOCK`] functions (a dense solve a cycle), or one that cannot be
+    /// settled (singular); there the raw change is judged.
+    fn new(membrane: &'m nullspace::Membrane<'a>, level: &Level) -> Option<Self> {
+        if membrane.largest_block() > SETTLED_CHANGE_BLOCK || !membrane.settle(|_| [0.0; 2], |_, _| {}) {
+            return None;
+        }
+        let w = level.geo.w;
         let mut nodes = membrane.support();
         nodes.sort_unstable();
         nodes.dedup();
         let mut touched = vec![false; level.len_padded()];
-        let mut slot = vec![u32::MAX; level.geo.w * level.geo.h];
+        let mut slot = vec![u32::MAX; w * level.geo.h];
         for (k, &i) in nodes.iter().enumerate() {
             touched[level.pidx(i % w, i / w)] = true;
             slot[i] = k as u32;
         }
-        SettledChange { membrane, w, nodes, slot, touched }
+        Some(SettledChange { membrane, nodes, slot, touched })
     }
 
-    /// The settled step's largest entry (`None` when a block could not be settled).
-    fn of(&self, level: &Level, p: &[W2], alpha: [f64; 2]) -> Option<f64> {
-        let w = self.w;
+    /// The settled step's largest entry.
+    fn of(&self, level: &Level, p: &[W2], alpha: [f64; 2]) -> f64 {
+        let w = level.geo.w;
         let step = |i: usize| {
             let q = p[level.pidx(i % w, i / w)];
             [alpha[0] * q[0].get(), alpha[1] * q[1].get()]
         };
         let mut moved: Vec<V2> = self.nodes.iter().map(|&i| step(i)).collect();
-        let all = self.membrane.settle(step, |i, v| {
+        self.membrane.settle(step, |i, v| {
             let m = &mut moved[self.slot[i] as usize];
             m[0] += v[0];
             m[1] += v[1];
         });
-        if !all {
-            return None;
-        }
         let on = moved.iter().fold(0.0f64, |m, v| m.max(v[0].abs()).max(v[1].abs()));
         let off = p
             .par_chunks(CHUNK)
@@ -1350,7 +1352,7 @@ impl<'a> SettledChange<'a> {
                 p.iter().zip(t).filter(|(_, &t)| !t).fold(0.0f64, |m, (q, _)| m.max((alpha[0] * q[0].get()).abs()).max((alpha[1] * q[1].get()).abs()))
             })
             .reduce(|| 0.0, f64::max);
-        Some(on.max(off))
+        on.max(off)
     }
 }
 

@@ -412,8 +412,8 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
 /// (one hair's free bends, one sliver's), each solved on its own. Built once per solve: it
 /// settles the answer, and it tells the stopping rule how far each cycle moved the settled
 /// answer (the iteration may drift along the free functions, which the settling removes).
-pub(crate) struct Membrane {
-    basis: Vec<Sparse>,
+pub(crate) struct Membrane<'a> {
+    basis: &'a [Sparse],
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.
     products: Vec<Sparse>,
     /// The membrane Gram matrix by columns, its entries where two functions meet.
@@ -422,8 +422,8 @@ pub(crate) struct Membrane {
     blocks: Vec<Vec<usize>>,
 }
 
-impl Membrane {
-    pub(crate) fn new(g: &BoxGeo, basis: &[Sparse]) -> Membrane {
+impl<'a> Membrane<'a> {
+    pub(crate) fn new(g: &BoxGeo, basis: &'a [Sparse]) -> Self {
         let (k, n) = (basis.len(), g.w * g.h);
         // Rows of the basis by node: (function, value).
         let mut at: std::collections::HashMap<usize, Vec<(usize, f64)>> = std::collections::HashMap::new();
@@ -463,7 +463,7 @@ impl Membrane {
         for j in 0..k {
             by_root.entry(find(&mut parent, j as u32)).or_default().push(j);
         }
-        Membrane { basis: basis.to_vec(), products, gram, blocks: by_root.into_values().collect() }
+        Membrane { basis, products, gram, blocks: by_root.into_values().collect() }
     }
 
     /// The nodes the functions touch (with repeats).
