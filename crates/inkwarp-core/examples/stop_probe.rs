@@ -40,7 +40,7 @@ fn main() {
     let (_, rep) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
 
     print!("{size} N={count} {mode} seed={seed}: default {} cycles |", rep.cycles);
-    for k in 1..=rep.cycles + 4 {
+    for k in 0..=rep.cycles + 4 {
         let (f, r) = solve(&grid, &samples, &SolveOptions { tolerance_px: 0.0, max_cycles: Some(k), ..Default::default() }, None).unwrap();
         print!(" {k}:{:.4}/{:.4}", r.final_change_px, gap(&f, &exact));
     }
