@@ -96,19 +96,7 @@ impl Deflation {
         if self.w.is_empty() {
             return;
         }
-        let k = self.w.len();
-        let dots = chunked_sums(p.len(), 2 * k, |a, b, out| {
-            for (l, aw) in self.aw.iter().enumerate() {
-                let (mut s0, mut s1) = (0.0, 0.0);
-                for (x, &y) in p[a..b].iter().zip(&aw[a..b]) {
-                    s0 += x[0].get() * y as f64;
-                    s1 += x[1].get() * y as f64;
-                }
-                out[2 * l] += s0;
-                out[2 * l + 1] += s1;
-            }
-        });
-        let rhs: Vec<V2> = (0..k).map(|l| [dots[2 * l], dots[2 * l + 1]]).collect();
+        let rhs = dots(&self.aw, p.len(), |i| [p[i][0].get(), p[i][1].get()]);
         let Some(mu) = super::dense_solve(self.e.clone(), rhs) else {
             return;
         };
@@ -172,29 +160,15 @@ impl Deflation {
             row.resize(nb + 2, 0.0);
         }
         let o = 4 * nb;
-        let mut g0 = vec![0.0; nb + 2];
-        let mut g1 = vec![0.0; nb + 2];
-        let mut m0 = vec![0.0; nb + 2];
-        let mut m1 = vec![0.0; nb + 2];
+        // New rows and columns of G (t = 0, 1) and M (t = 2, 3) for the pair.
+        let col = |t: usize, diag: [f64; 2]| -> Vec<f64> { (0..nb).map(|j| sums[4 * j + t]).chain(diag).collect() };
+        let (g0, g1) = (col(0, [sums[o], sums[o + 2]]), col(1, [sums[o + 2], sums[o + 1]]));
+        let (m0, m1) = (col(2, [sums[o + 3], sums[o + 5]]), col(3, [sums[o + 5], sums[o + 4]]));
         for j in 0..nb {
-            (g0[j], g1[j], m0[j], m1[j]) = (
-                sums[4 * j],
-                sums[4 * j + 1],
-                sums[4 * j + 2],
-                sums[4 * j + 3],
-            );
-            self.g[j][nb] = g0[j];
-            self.g[j][nb + 1] = g1[j];
-            self.m[j][nb] = m0[j];
-            self.m[j][nb + 1] = m1[j];
+            (self.g[j][nb], self.g[j][nb + 1], self.m[j][nb], self.m[j][nb + 1]) = (g0[j], g1[j], m0[j], m1[j]);
         }
-        (g0[nb], g1[nb + 1], g0[nb + 1], g1[nb]) = (sums[o], sums[o + 1], sums[o + 2], sums[o + 2]);
-        (m0[nb], m1[nb + 1], m0[nb + 1], m1[nb]) =
-            (sums[o + 3], sums[o + 4], sums[o + 5], sums[o + 5]);
-        self.g.push(g0);
-        self.g.push(g1);
-        self.m.push(m0);
-        self.m.push(m1);
+        self.g.extend([g0, g1]);
+        self.m.extend([m0, m1]);
         self.v.push(p.iter().map(|x| x[0]).collect());
         self.v.push(p.iter().map(|x| x[1]).collect());
         self.v.len() >= 2 * WINDOW
@@ -203,7 +177,6 @@ impl Deflation {
     /// Rayleigh–Ritz over the kept vectors and the window, keeps the Ritz vectors of the
     /// smallest Ritz values, and corrects `u` and its residual `r` on their span.
     pub fn restart(&mut self, fine: &Level, u: &mut [V2], r: &mut [V2]) {
-        let nb = self.w.len() + self.v.len();
         let Some((theta, y)) = ritz(&self.g, &self.m) else {
             self.clear();
             return;
@@ -214,43 +187,16 @@ impl Deflation {
         let k = self.keep.min(theta.len());
         let n = u.len();
         let basis: Vec<&[f32]> = self.w.iter().chain(&self.v).map(|b| b.as_slice()).collect();
-        debug_assert_eq!(basis.len(), nb);
+        // W = B Y, column by column, chunk by chunk in parallel.
         let mut w: Vec<Vec<f32>> = vec![vec![0.0; n]; k];
-        {
-            let mut cols: Vec<&mut [f32]> = w.iter_mut().map(|x| x.as_mut_slice()).collect();
-            let mut parts: Vec<Vec<&mut [f32]>> = Vec::new();
-            // Chunk every column alike, then fill chunk by chunk in parallel.
-            let mut rest: Vec<&mut [f32]> = std::mem::take(&mut cols);
-            while rest.first().is_some_and(|c| !c.is_empty()) {
-                let mut now = Vec::with_capacity(k);
-                let mut next = Vec::with_capacity(k);
-                for c in rest {
-                    let m = c.len().min(CHUNK);
-                    let (a, b) = c.split_at_mut(m);
-                    now.push(a);
-                    next.push(b);
-                }
-                parts.push(now);
-                rest = next;
-            }
-            parts.into_par_iter().enumerate().for_each(|(c, mut cols)| {
+        for (l, col) in w.iter_mut().enumerate() {
+            col.par_chunks_mut(CHUNK).enumerate().for_each(|(c, col)| {
                 let a = c * CHUNK;
-                let mut acc = vec![0.0f64; CHUNK];
-                for (l, col) in cols.iter_mut().enumerate() {
-                    let m = col.len();
-                    acc[..m].fill(0.0);
-                    for (j, b) in basis.iter().enumerate() {
-                        let yj = y[j][l];
-                        if yj != 0.0 {
-                            for (o, &bv) in acc[..m].iter_mut().zip(&b[a..a + m]) {
-                                *o += yj * bv as f64;
-                            }
-                        }
-                    }
-                    for (o, &x) in col.iter_mut().zip(&acc[..m]) {
-                        *o = x as f32;
-                    }
+                let mut acc = vec![0.0f64; col.len()];
+                for (b, yj) in basis.iter().zip(&y).filter(|(_, yj)| yj[l] != 0.0) {
+                    acc.iter_mut().zip(&b[a..]).for_each(|(o, &bv)| *o += yj[l] * bv as f64);
                 }
+                col.iter_mut().zip(&acc).for_each(|(o, &x)| *o = x as f32);
             });
         }
         // A W by the operator itself (a combination of the window's products would cancel
@@ -284,15 +230,7 @@ impl Deflation {
                 }
             }
         });
-        let sym = |t: usize| -> Vec<Vec<f64>> {
-            (0..k)
-                .map(|l| {
-                    (0..k)
-                        .map(|j| 0.5 * (sums[2 * (l * k + j) + t] + sums[2 * (j * k + l) + t]))
-                        .collect()
-                })
-                .collect()
-        };
+        let sym = |t: usize| -> Vec<Vec<f64>> { (0..k).map(|l| (0..k).map(|j| 0.5 * (sums[2 * (l * k + j) + t] + sums[2 * (j * k + l) + t])).collect()).collect() };
         self.e = sym(0);
         self.g = self.e.clone();
         self.m = sym(1);
@@ -300,15 +238,7 @@ impl Deflation {
         self.aw = aw;
         self.v.clear();
         // u += W c, r −= A W c with c = E⁻¹ Wᵀ r.
-        let dots = chunked_sums(n, 2 * k, |a, b, out| {
-            for (l, w) in self.w.iter().enumerate() {
-                for (x, &y) in r[a..b].iter().zip(&w[a..b]) {
-                    out[2 * l] += x[0] * y as f64;
-                    out[2 * l + 1] += x[1] * y as f64;
-                }
-            }
-        });
-        let rhs: Vec<V2> = (0..k).map(|l| [dots[2 * l], dots[2 * l + 1]]).collect();
+        let rhs = dots(&self.w, n, |i| r[i]);
         let Some(c) = super::dense_solve(self.e.clone(), rhs)
             .filter(|c| c.iter().all(|v| v[0].is_finite() && v[1].is_finite()))
         else {
@@ -388,16 +318,7 @@ impl Deflation {
             }
             // T_jj = 1/α_j + β_{j−1}/α_{j−1}, T_{j−1,j} = √β_{j−1}/α_{j−1}.
             let n = st.len();
-            let diag: Vec<f64> = (0..n)
-                .map(|j| {
-                    1.0 / st[j].0
-                        + if j > 0 {
-                            st[j - 1].1 / st[j - 1].0
-                        } else {
-                            0.0
-                        }
-                })
-                .collect();
+            let diag: Vec<f64> = (0..n).map(|j| 1.0 / st[j].0 + if j > 0 { st[j - 1].1 / st[j - 1].0 } else { 0.0 }).collect();
             let off: Vec<f64> = (1..n).map(|j| st[j - 1].1.sqrt() / st[j - 1].0).collect();
             if let Some((lo, hi)) = extremes(&diag, &off) {
                 self.low = self.low.min(lo);
@@ -442,20 +363,26 @@ fn chunked_sums(len: usize, width: usize, f: impl Fn(usize, usize, &mut [f64]) +
     })
 }
 
+/// `Σ_i x(i) v_l(i)` per component for each of `vs`, `len` nodes (in [`chunked_sums`]' order).
+fn dots(vs: &[Vec<f32>], len: usize, x: impl Fn(usize) -> V2 + Sync) -> Vec<V2> {
+    let s = chunked_sums(len, 2 * vs.len(), |a, b, out| {
+        for (l, v) in vs.iter().enumerate() {
+            for (i, &y) in (a..b).zip(&v[a..b]) {
+                let xi = x(i);
+                out[2 * l] += xi[0] * y as f64;
+                out[2 * l + 1] += xi[1] * y as f64;
+            }
+        }
+    });
+    s.chunks_exact(2).map(|d| [d[0], d[1]]).collect()
+}
+
 /// Ritz pairs of `G y = θ M y` (`M` the Gram matrix of a basis that may be dependent):
 /// ascending Ritz values and the coefficient columns `y[j][l]` of the `l`-th Ritz vector,
 /// `M`-orthonormal. Dependent basis vectors are dropped.
 fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     let n = g.len();
-    let d: Vec<f64> = (0..n)
-        .map(|i| {
-            if m[i][i] > 0.0 {
-                1.0 / m[i][i].sqrt()
-            } else {
-                0.0
-            }
-        })
-        .collect();
+    let d: Vec<f64> = (0..n).map(|i| if m[i][i] > 0.0 { 1.0 / m[i][i].sqrt() } else { 0.0 }).collect();
     // Cholesky of the scaled M = L Lᵀ, dropping vectors whose part independent of the
     // earlier ones is below f32's resolution.
     let mut keep: Vec<usize> = Vec::new();
@@ -485,14 +412,7 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
         return None;
     }
     // C = L⁻¹ G_s L⁻ᵀ, G_s the scaled G over the kept vectors.
-    let gs: Vec<Vec<f64>> = keep
-        .iter()
-        .map(|&i| {
-            keep.iter()
-                .map(|&j| 0.5 * (g[i][j] + g[j][i]) * d[i] * d[j])
-                .collect()
-        })
-        .collect();
+    let gs: Vec<Vec<f64>> = keep.iter().map(|&i| keep.iter().map(|&j| 0.5 * (g[i][j] + g[j][i]) * d[i] * d[j]).collect()).collect();
     let solve_l = |b: &[f64]| -> Vec<f64> {
         let mut x = vec![0.0; k];
         for i in 0..k {
@@ -505,12 +425,8 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
         x
     };
     // X = L⁻¹ G_s (columns), then C = L⁻¹ Xᵀ.
-    let x: Vec<Vec<f64>> = (0..k)
-        .map(|j| solve_l(&(0..k).map(|i| gs[i][j]).collect::<Vec<_>>()))
-        .collect(); // x[j] = column j
-    let mut c: Vec<Vec<f64>> = (0..k)
-        .map(|i| solve_l(&(0..k).map(|j| x[j][i]).collect::<Vec<_>>()))
-        .collect();
+    let x: Vec<Vec<f64>> = (0..k).map(|j| solve_l(&(0..k).map(|i| gs[i][j]).collect::<Vec<_>>())).collect(); // x[j] = column j
+    let mut c: Vec<Vec<f64>> = (0..k).map(|i| solve_l(&(0..k).map(|j| x[j][i]).collect::<Vec<_>>())).collect();
     for i in 0..k {
         for j in 0..i {
             let s = 0.5 * (c[i][j] + c[j][i]);
@@ -547,9 +463,7 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
 /// eigenvalues and the eigenvectors as columns.
 fn jacobi_eigen(mut a: Vec<Vec<f64>>) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     let n = a.len();
-    let mut v: Vec<Vec<f64>> = (0..n)
-        .map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
-        .collect();
+    let mut v: Vec<Vec<f64>> = (0..n).map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect()).collect();
     for _ in 0..100 {
         let off: f64 = (0..n)
             .flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j)))
@@ -597,8 +511,7 @@ fn extremes(diag: &[f64], off: &[f64]) -> Option<(f64, f64)> {
     let n = diag.len();
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for i in 0..n {
-        let r =
-            if i > 0 { off[i - 1].abs() } else { 0.0 } + if i + 1 < n { off[i].abs() } else { 0.0 };
+        let r = if i > 0 { off[i - 1].abs() } else { 0.0 } + if i + 1 < n { off[i].abs() } else { 0.0 };
         lo = lo.min(diag[i] - r);
         hi = hi.max(diag[i] + r);
     }

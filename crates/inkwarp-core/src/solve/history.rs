@@ -91,15 +91,7 @@ impl WarmHistory {
         if self.entries.len() < 2 || (grid.width, grid.height) != self.shape || c.nodes != self.nodes {
             return Some(last.clone());
         }
-        let k = self.entries.len();
-        let mut alpha = [[0.0f64; HISTORY_FRAMES]; 2];
-        for (q, a) in alpha.iter_mut().enumerate() {
-            *a = self.fit(&c.values, q).unwrap_or_else(|| {
-                let mut e = [0.0; HISTORY_FRAMES];
-                e[k - 1] = 1.0;
-                e
-            });
-        }
+        let alpha = [self.fit(&c.values, 0), self.fit(&c.values, 1)];
         let mut out = Field::zeros(grid.width, grid.height);
         for (i, (_, f)) in self.entries.iter().enumerate() {
             let (ax, ay) = (alpha[0][i] as f32, alpha[1][i] as f32);
@@ -116,13 +108,15 @@ impl WarmHistory {
     /// Least-squares weights of the kept frames' component `q` for `target`, when they
     /// match it better than the latest frame alone and stay moderate (`Σ|αᵢ| ≤ 16`: no
     /// wild extrapolation that would amplify the earlier solves' own errors); `None` when
-    /// the latest frame alone is best. When the fit through every frame is wild (frames
+    /// the latest frame alone (`[0, …, 1]`) is best. When the fit through every frame is wild (frames
     /// nearly parallel, as a drag's first short step beside a probe: see the editor), the
     /// least-squares fits through fewer frames are weighed instead, each by its miss at
     /// the constrained nodes (root mean square) plus the earlier solves' errors it
     /// amplifies (`Σ|αᵢ|` times [`FRAME_ERROR_PX`]).
-    fn fit(&self, target: &[[f64; 2]], q: usize) -> Option<[f64; HISTORY_FRAMES]> {
+    fn fit(&self, target: &[[f64; 2]], q: usize) -> [f64; HISTORY_FRAMES] {
         let k = self.entries.len();
+        let mut latest = [0.0; HISTORY_FRAMES];
+        latest[k - 1] = 1.0;
         let mut g = [[0.0f64; HISTORY_FRAMES]; HISTORY_FRAMES];
         let mut b = [0.0f64; HISTORY_FRAMES];
         for i in 0..k {
@@ -138,7 +132,7 @@ impl WarmHistory {
         let tt: f64 = target.iter().map(|t| t[q] * t[q]).sum();
         let trace: f64 = (0..k).map(|i| g[i][i]).sum();
         if trace <= 0.0 || target.is_empty() {
-            return None;
+            return latest;
         }
         let nodes = target.len() as f64;
         // The root mean square miss of weights `w` at the constrained nodes, from
@@ -154,8 +148,6 @@ impl WarmHistory {
             (sq.max(0.0) / nodes).sqrt()
         };
         let gain = |w: &[f64; HISTORY_FRAMES]| w[..k].iter().map(|a| a.abs()).sum::<f64>();
-        let mut latest = [0.0; HISTORY_FRAMES];
-        latest[k - 1] = 1.0;
         let all = (1usize << k) - 1;
         let mut best = (miss(&latest) + FRAME_ERROR_PX, None);
         // Every frame first, then the subsets.
@@ -176,14 +168,14 @@ impl WarmHistory {
                 continue;
             }
             if subset == all && gain(&w) <= 16.0 {
-                return (miss(&w) < miss(&latest)).then_some(w);
+                return if miss(&w) < miss(&latest) { w } else { latest };
             }
             let score = miss(&w) + FRAME_ERROR_PX * gain(&w);
             if score < best.0 {
                 best = (score, Some(w));
             }
         }
-        best.1
+        best.1.unwrap_or(latest)
     }
 
     /// Keeps the solve on `grid` with constraints `c` that gave `field`.

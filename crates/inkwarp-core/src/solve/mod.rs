@@ -311,12 +311,7 @@ pub(crate) fn validate(
     }
     if let Some(f) = initial {
         if f.width() != grid.width || f.height() != grid.height {
-            return Err(SolveError::InitialSize {
-                got_w: f.width(),
-                got_h: f.height(),
-                want_w: grid.width,
-                want_h: grid.height,
-            });
+            return Err(SolveError::InitialSize { got_w: f.width(), got_h: f.height(), want_w: grid.width, want_h: grid.height });
         }
         if !f.is_consistent() {
             let (w, h) = (grid.width, grid.height);
@@ -435,22 +430,15 @@ pub(crate) fn solve_constrained(
         // The functions of zero plate energy that the constraints leave free (hinges,
         // strands, thin rings, the line's tilt): where there are any beyond the tilt, the
         // iteration alone does not give the contract's answer (see `nullspace`).
-        let constrained_only: Vec<bool> = {
-            let mut f = fixed.clone();
-            if let Some(g) = gauge {
-                f[local(g)] = false;
-            }
-            f
-        };
+        let mut constrained_only = fixed.clone();
+        if let Some(g) = gauge {
+            constrained_only[local(g)] = false;
+        }
         // (`None` when there are too many to settle.)
-        let geo = (!open).then(|| links.vectors(bw, bh));
-        let null = match &geo {
-            Some([active, right, down]) => {
-                let max = if tau == 0.0 { nullspace::MAX_NULL_AT_ZERO } else { nullspace::MAX_NULL };
-                nullspace::plate_null_space(&nullspace::BoxGeo { w: bw, h: bh, active, right, down }, &constrained_only, max)
-            }
-            None => Some(Vec::new()),
-        };
+        let vectors = (!open).then(|| links.vectors(bw, bh));
+        let geo = vectors.as_ref().map(|[active, right, down]| nullspace::BoxGeo { w: bw, h: bh, active, right, down });
+        let max = if tau == 0.0 { nullspace::MAX_NULL_AT_ZERO } else { nullspace::MAX_NULL };
+        let null = geo.as_ref().map_or(Some(Vec::new()), |g| nullspace::plate_null_space(g, &constrained_only, max));
         // At τ = 0, on a piece whose only free functions are the affine ones (none is left
         // once the constraints hold), constraints that one affine map fits are answered by
         // it: its plate energy is zero, so it is the minimiser. Any three constraints off
@@ -476,16 +464,12 @@ pub(crate) fn solve_constrained(
         // At τ = 0 the settling is a linear map, built once: it settles the answer, and the
         // stopping rule judges each cycle's move of the settled answer (`SettledChange`).
         let membrane = match (&null, &geo) {
-            (Some(basis), Some([active, right, down])) if settles && tau == 0.0 => Some(nullspace::Membrane::new(&nullspace::BoxGeo { w: bw, h: bh, active, right, down }, basis)),
+            (Some(basis), Some(g)) if settles && tau == 0.0 => Some(nullspace::Membrane::new(g, basis)),
             _ => None,
         };
         let (mut u, mut r) = solve_piece(key, &value, start, options, store, membrane.as_ref());
-        if let (Some(basis), Some(links), Some([active, right, down])) = (&null, links_again, &geo) {
-            if settles {
-                let geo = nullspace::BoxGeo { w: bw, h: bh, active, right, down };
-                let (uu, rr) = settle_null_space(links, &geo, tau, fixed, &constrained_only, &value, basis, membrane.as_ref(), u, r, options, store);
-                (u, r) = (uu, rr);
-            }
+        if let (Some(basis), Some(links), Some(geo), true) = (&null, links_again, &geo, settles) {
+            (u, r) = settle_null_space(links, geo, tau, fixed, &constrained_only, &value, basis, membrane.as_ref(), u, r, options, store);
         } else if null.is_none() {
             // Too many free functions to settle: no claim of convergence.
             r.converged = false;
@@ -764,75 +748,60 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 last_change = change;
                 change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
     };
+    // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
+    // concept doc's Precision); only q's padding is cleared, each product writes its body.
+    let (mut q, mut p) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
+    hier.levels[0].clear_padding(&mut q);
     match options.method {
         SolveMethod::Multigrid => {
-            {
-                // The search direction p is kept in `f32` and its product `A p` summed in
-                // `f64` from it, each entry widened exactly: `u += α p` and `r += α A p`
-                // move by the same rounded direction, so `r` stays the residual of `u`, and
-                // a solve holds 8 bytes a node less. (`A p` must stay `f64`: summed in
-                // `f32`, the product of a smooth direction cancelled below `f32`'s
-                // resolution; stored in `f32`, it would leave `r` off the true residual,
-                // see the concept doc's Precision.) It is not cleared first: the
-                // preconditioner's output is copied over all of it. Nor is `q`, but for
-                // its padding: like the residual's, each product writes its body first.
-                let (mut q, mut p) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
-                hier.levels[0].clear_padding(&mut q);
-                let z = hier.precondition(&r);
-                let mut rz = dot_z(&r, z);
-                widen_into(&mut p, z, None);
-                let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn);
-                let settled = settled.and_then(|m| SettledChange::new(m, &hier.levels[0]));
-                for cycle in 1..=max_cycles {
-                    if crate::interrupt::requested() {
-                        break;
-                    }
-                    let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
-                    if change.is_nan() {
-                        // The directions broke down; the iterate stands, unconverged.
-                        (report.cycles, report.final_change_px) = (cycle, f64::INFINITY);
-                        break;
-                    }
-                    slow.step(alpha);
-                    let change = settled.as_ref().map_or(change, |s| s.of(&hier.levels[0], &p, alpha));
-                    if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
-                        report.converged = true;
-                        break;
-                    }
-                    if slow.record(cycle, &p, &q) {
-                        // A window of directions kept: correct on the slow modes found and
-                        // restart the directions, deflated.
-                        slow.restart(&hier.levels[0], &mut u, &mut r);
-                        let z = hier.precondition(&r);
-                        rz = dot_z(&r, z);
-                        widen_into(&mut p, z, None);
-                        slow.project(&mut p);
-                        slow.beta(None);
-                        continue;
-                    }
-                    if !started {
-                        started = true;
-                        hier.coarse_to_fine(&mut u, &mut r, true);
-                        hier.levels[0].residual(&u, None, &mut r);
-                        let z = hier.precondition(&r);
-                        rz = dot_z(&r, z);
-                        widen_into(&mut p, z, None);
-                        slow.beta(None);
-                        continue;
-                    }
-                    let z = hier.precondition(&r);
-                    // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
-                    // the preconditioner's line searches make it slightly nonlinear.
-                    let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
-                    let beta = [
-                        if rz[0] > 0.0 { ((alpha[0] * zq[0]) / rz[0]).max(0.0) } else { 0.0 },
-                        if rz[1] > 0.0 { ((alpha[1] * zq[1]) / rz[1]).max(0.0) } else { 0.0 },
-                    ];
-                    widen_into(&mut p, z, Some(beta));
-                    slow.project(&mut p);
-                    slow.beta(Some(beta));
-                    rz = rz_new;
+            let mut rz = fresh_direction(&mut hier, &r, &mut p);
+            let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn);
+            let settled = settled.and_then(|m| SettledChange::new(m, &hier.levels[0]));
+            for cycle in 1..=max_cycles {
+                if crate::interrupt::requested() {
+                    break;
                 }
+                let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
+                if change.is_nan() {
+                    // The directions broke down; the iterate stands, unconverged.
+                    (report.cycles, report.final_change_px) = (cycle, f64::INFINITY);
+                    break;
+                }
+                slow.step(alpha);
+                let change = settled.as_ref().map_or(change, |s| s.of(&hier.levels[0], &p, alpha));
+                if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
+                    report.converged = true;
+                    break;
+                }
+                if slow.record(cycle, &p, &q) {
+                    // A window of directions kept: correct on the slow modes found and
+                    // restart the directions, deflated.
+                    slow.restart(&hier.levels[0], &mut u, &mut r);
+                    rz = fresh_direction(&mut hier, &r, &mut p);
+                    slow.project(&mut p);
+                    slow.beta(None);
+                    continue;
+                }
+                if !started {
+                    started = true;
+                    hier.coarse_to_fine(&mut u, &mut r, true);
+                    hier.levels[0].residual(&u, None, &mut r);
+                    rz = fresh_direction(&mut hier, &r, &mut p);
+                    slow.beta(None);
+                    continue;
+                }
+                let z = hier.precondition(&r);
+                // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
+                // the preconditioner's line searches make it slightly nonlinear.
+                let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
+                let beta = [
+                    if rz[0] > 0.0 { ((alpha[0] * zq[0]) / rz[0]).max(0.0) } else { 0.0 },
+                    if rz[1] > 0.0 { ((alpha[1] * zq[1]) / rz[1]).max(0.0) } else { 0.0 },
+                ];
+                widen_into(&mut p, z, beta);
+                slow.project(&mut p);
+                slow.beta(Some(beta));
+                rz = rz_new;
             }
         }
         SolveMethod::Southwell => {
@@ -841,24 +810,19 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
             // one sweep's worth of greedy single-node relaxations (Southwell), until the
             // budget of relaxations is spent. Converged only by the multigrid's own bound
             // (or nothing left to relax): a spent budget proves nothing.
-            let unknowns = count_unknowns(&hier.levels[0]).max(1);
+            let unknowns = hier.levels[0].inv_diag.iter().filter(|&&d| d != 0.0).count().max(1);
             let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
-            let (mut q, mut p) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
-            hier.levels[0].clear_padding(&mut q);
             let mut round = 0;
             while left > 0 && !crate::interrupt::requested() {
-                let z = hier.precondition(&r);
-                let rz = dot_z(&r, z);
-                widen_into(&mut p, z, None);
+                let rz = fresh_direction(&mut hier, &r, &mut p);
                 let (step, _) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
                 let take = unknowns.min(left);
-                let (relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take);
+                let (relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take, unknowns);
                 left -= take;
                 round += 1;
                 hier.levels[0].residual(&u, None, &mut r);
                 // No node moved by more than the two parts' largest moves together.
                 if stop(step + relaxed, round, &mut report, 0.0) || finished {
-                    report.cycles = round;
                     report.converged = true;
                     break;
                 }
@@ -1099,26 +1063,16 @@ const SMOOTHING_STEPS: usize = 2;
 const OPEN_COARSE_SMOOTHING: usize = 1;
 
 /// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
-/// constraint values. Consecutive frames of an animation share it.
+/// constraint values. Consecutive frames of an animation share it. Compared field by field
+/// in this order: the fixed nodes before the (larger) links.
+#[derive(PartialEq)]
 struct CacheKey {
     w: usize,
     h: usize,
     tau_bits: u64,
-    links: BoxLinks,
-    fixed: Vec<bool>,
-    /// The mechanisms switched off (none outside the ablation benchmark and tests).
     off: Ablation,
-}
-
-impl PartialEq for CacheKey {
-    /// The fixed nodes before the grid: hierarchies kept for other problems on the same
-    /// grid differ there, and the grid's three vectors (a quarter of a megabyte each at
-    /// 513 × 513, unless the grid is open) need not be compared for them.
-    fn eq(&self, o: &Self) -> bool {
-        // Every field named, so that a new one cannot be left out of the comparison.
-        let CacheKey { w, h, tau_bits, links, fixed, off } = self;
-        (*w, *h, *tau_bits, *off) == (o.w, o.h, o.tau_bits, o.off) && *fixed == o.fixed && *links == o.links
-    }
+    fixed: Vec<bool>,
+    links: BoxLinks,
 }
 
 fn classify(grid: &Grid, labels: &[u32], count: usize, c: &Constraints, tau: f64) -> Vec<Piece> {
@@ -1259,10 +1213,6 @@ pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<
 /// Vector chunk for parallel loops (large enough that small grids stay on one thread).
 const CHUNK: usize = 16_384;
 
-fn count_unknowns(level: &Level) -> usize {
-    level.inv_diag.iter().filter(|&&d| d != 0.0).count()
-}
-
 /// The energy-minimising step along `p` (`rz = rᵀz` of the preconditioned residual it came
 /// from): `q = −A p`, `u += α p`, `r += α q`. Returns the largest `|α p|` and `α`; NaN,
 /// and no step, when the direction or its product overflowed.
@@ -1364,57 +1314,19 @@ fn dot_z(a: &[V2], z: &[W2]) -> [f64; 2] {
     parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
 }
 
-/// `p = z + β p` (`p = z` without `β`), `z` the preconditioner's `f32` output and `p` the
-/// search direction in `f32`, summed in `f64` and rounded once.
-fn widen_into(p: &mut [W2], z: &[W2], beta: Option<[f64; 2]>) {
-    p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| match beta {
-        Some(b) => p.iter_mut().zip(z).for_each(|(p, z)| *p = [WS::of(z[0].get() + b[0] * p[0].get()), WS::of(z[1].get() + b[1] * p[1].get())]),
-        None => p.copy_from_slice(z),
+/// `p = z + β p`, `z` the preconditioner's `f32` output and `p` the search direction in
+/// `f32`, summed in `f64` and rounded once.
+fn widen_into(p: &mut [W2], z: &[W2], b: [f64; 2]) {
+    p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| {
+        p.iter_mut().zip(z).for_each(|(p, z)| *p = [WS::of(z[0].get() + b[0] * p[0].get()), WS::of(z[1].get() + b[1] * p[1].get())])
     });
 }
 
-/// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.
-///
-/// ```
-/// use inkwarp_core::{solve::energy, Field, Grid};
-/// let grid = Grid::new(4, 4);
-/// let mut field = Field::zeros(4, 4);
-/// field.dx[5] = 1.0; // node (1, 1)
-/// let [ex, ey] = energy(&grid, &field, 0.0);
-/// // triples: one horizontal and one vertical centred on it (4 each), one of each with it
-/// // at an end (1 each; the other ends fall off the grid); cells: 4, each weighing 2.
-/// assert_eq!((ex, ey), (2.0 * (4.0 + 1.0) + 4.0 * 2.0, 0.0));
-/// ```
-pub fn energy(grid: &Grid, field: &Field, tension: f64) -> [f64; 2] {
-    let (w, h) = (grid.width, grid.height);
-    let mut e = [0.0f64; 2];
-    let comps = [&field.dx, &field.dy];
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            for k in 0..2 {
-                let u = |j: usize| comps[k][j] as f64;
-                if x > 0 && grid.link_right[i - 1] && grid.link_right[i] {
-                    e[k] += (u(i - 1) - 2.0 * u(i) + u(i + 1)).powi(2);
-                }
-                if y > 0 && grid.link_down[i - w] && grid.link_down[i] {
-                    e[k] += (u(i - w) - 2.0 * u(i) + u(i + w)).powi(2);
-                }
-                if grid.link_right[i] && grid.link_down[i] && grid.link_down[i + 1] && grid.link_right[i + w] {
-                    e[k] += 2.0 * (u(i) - u(i + 1) - u(i + w) + u(i + w + 1)).powi(2);
-                }
-                if tension != 0.0 {
-                    if grid.link_right[i] {
-                        e[k] += tension * (u(i) - u(i + 1)).powi(2);
-                    }
-                    if grid.link_down[i] {
-                        e[k] += tension * (u(i) - u(i + w)).powi(2);
-                    }
-                }
-            }
-        }
-    }
-    e
+/// Restarts the directions: `p = z`, `z` the preconditioned `r`; returns `rᵀz`.
+fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2]) -> [f64; 2] {
+    let z = hier.precondition(r);
+    p.copy_from_slice(z);
+    dot_z(r, z)
 }
 
 #[cfg(test)]

@@ -162,15 +162,11 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
     }
     let basis = elim.null_space(max)?;
     // Expand to nodes: each cluster's nodes (those whose first cluster it is) and lone nodes.
-    let mut nodes_of: Vec<Vec<usize>> = vec![Vec::new(); clusters];
-    for i in 0..n {
-        if g.active[i] && member[i][0] != u32::MAX {
+    let (mut nodes_of, mut var_node) = (vec![Vec::new(); clusters], vec![usize::MAX; vars]);
+    for i in (0..n).filter(|&i| g.active[i]) {
+        if member[i][0] != u32::MAX {
             nodes_of[member[i][0] as usize].push(i);
-        }
-    }
-    let mut var_node = vec![usize::MAX; vars];
-    for i in 0..n {
-        if lone[i] != u32::MAX {
+        } else {
             var_node[lone[i] as usize] = i;
         }
     }
@@ -225,14 +221,17 @@ impl Echelon {
         use std::collections::BinaryHeap;
         let mut heap = BinaryHeap::new();
         let mut scale = 0.0f64;
-        for &(c, v) in row {
-            if !self.seen[c] {
-                self.seen[c] = true;
-                self.touched.push(c);
-                if self.pivot_of[c] != u32::MAX {
-                    heap.push(Reverse(self.pivot_of[c]));
+        let (seen, touched, pivot_of) = (&mut self.seen, &mut self.touched, &self.pivot_of);
+        let mut visit = |c: usize, heap: &mut BinaryHeap<Reverse<u32>>| {
+            if !std::mem::replace(&mut seen[c], true) {
+                touched.push(c);
+                if pivot_of[c] != u32::MAX {
+                    heap.push(Reverse(pivot_of[c]));
                 }
             }
+        };
+        for &(c, v) in row {
+            visit(c, &mut heap);
             self.acc[c] += v;
             scale = scale.max(v.abs());
         }
@@ -243,13 +242,7 @@ impl Echelon {
                 continue;
             }
             for &(c, v) in prow {
-                if !self.seen[c] {
-                    self.seen[c] = true;
-                    self.touched.push(c);
-                    if self.pivot_of[c] != u32::MAX {
-                        heap.push(Reverse(self.pivot_of[c]));
-                    }
-                }
+                visit(c, &mut heap);
                 self.acc[c] -= f * v;
             }
             self.acc[pc] = 0.0;
@@ -495,15 +488,7 @@ impl<'a> Membrane<'a> {
                     m[local[i]][l] += v;
                 }
             }
-            let b: Vec<V2> = members
-                .iter()
-                .map(|&j| {
-                    self.products[j].iter().fold([0.0; 2], |s, &(p, y)| {
-                        let v = read(p);
-                        [s[0] - y * v[0], s[1] - y * v[1]]
-                    })
-                })
-                .collect();
+            let b: Vec<V2> = members.iter().map(|&j| self.products[j].iter().fold([0.0; 2], |s, &(p, y)| [s[0] - y * read(p)[0], s[1] - y * read(p)[1]])).collect();
             // A singular block is left as it is, and not settled.
             let Some(c) = super::dense_solve(m, b) else {
                 all = false;

@@ -12,11 +12,10 @@ use super::level::{Level, V2, PAD};
 /// Spends at most `budget` relaxations on the finest level; returns the largest single
 /// change made, and whether it stopped because nothing was left to
 /// relax (every residual exactly zero) rather than because the budget ran out.
-pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (f64, bool) {
+pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize, unknowns: usize) -> (f64, bool) {
     let (w, h) = (level.geo.w, level.geo.h);
     let mut r = vec![[0.0; 2]; u.len()];
     let mut drops: Vec<f64> = Vec::new();
-    let unknowns = level.inv_diag.iter().filter(|&&d| d != 0.0).count();
     let mut left = budget;
     let mut largest = 0.0f64;
     while left > 0 {
@@ -30,11 +29,9 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize) -> (f64, bool) {
             return (largest, true);
         }
         let (_, &mut kth, _) = drops.select_nth_unstable_by(k - 1, |a, b| b.total_cmp(a));
-        if kth <= 0.0 {
-            // Fewer than k nodes have any drop at all: relax those that do.
-            if drops.iter().all(|&e| e <= 0.0) {
-                return (largest, true);
-            }
+        // Fewer than k nodes have any drop at all: relax those that do.
+        if kth <= 0.0 && drops.iter().all(|&e| e <= 0.0) {
+            return (largest, true);
         }
         let threshold = kth.max(f64::MIN_POSITIVE);
         left -= k;

@@ -22,18 +22,12 @@ const THIN: usize = 16;
 /// The most entries a node's row of a block's factor may hold on average.
 const BAND: usize = 64;
 
-/// The finest level's blocks factored are `A_SS + SHIFT · diag(A_SS)`. A long hair hanging on a thin
-/// root is so compliant (`A_SS` as ill-conditioned as 1e-10 relative) that its exact
-/// response, tens of millions of times the residual, swamped the `f32` search direction:
-/// a hairy matte at 12× stalled. The shift bounds the response where the direction can
-/// hold it, at a few cycles' cost on the longest teeth (docs/dev/ablation.md).
+/// The finest level's blocks factored are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant
+/// hair's exact response where the `f32` search direction can hold it (docs/dev/ablation.md).
 const SHIFT: f64 = 1e-8;
 
-/// A pivot below this fraction of its diagonal entry is dropped. Slivers between dense cuts
-/// have near-free functions whose pivots fall under it; kept (thresholds up to 10⁻⁷ kept
-/// them), they amplified the residual along a direction of almost no energy, which a solve
-/// to a tight tolerance followed until its field overflowed (docs/dev/ablation.md, "Tenth
-/// change").
+/// A pivot below this fraction of its diagonal entry is dropped (slivers' near-free
+/// functions; docs/dev/ablation.md, "Tenth change").
 const PIVOT: f64 = 1e-6;
 
 #[derive(Debug)]
@@ -98,13 +92,9 @@ impl Strands {
             // The component, then a pseudo-peripheral start (the last node of a
             // breadth-first search from it) and the Cuthill–McKee order from there.
             let comp = bfs(s, &mut seen, neighbours);
-            for &p in &comp {
-                seen[p] = false;
-            }
+            comp.iter().for_each(|&p| seen[p] = false);
             let far = *bfs(s, &mut seen, neighbours).last().unwrap();
-            for &p in &comp {
-                seen[p] = false;
-            }
+            comp.iter().for_each(|&p| seen[p] = false);
             let mut order = bfs(far, &mut seen, neighbours);
             order.reverse();
             starts.push(nodes.len());
@@ -301,9 +291,7 @@ impl Block {
             }
         }
         let mut d_inv = vec![0.0; n];
-        for d in diag.iter_mut() {
-            *d *= 1.0 + shift;
-        }
+        diag.iter_mut().for_each(|d| *d *= 1.0 + shift);
         for i in 0..n {
             let fi = first[i] as usize;
             // g_ij = l_ij d_j, row i in place: g_ij = a_ij − Σ_k g_ik l_jk.

@@ -1485,3 +1485,37 @@ fn a_node_hanging_at_a_cut_vertex_takes_its_neighbours_row_on_the_finest_level_o
     let coarse = level::Geometry::new(9, 9, grid.active.clone(), grid.link_right.clone(), grid.link_down.clone(), None);
     assert!(coarse.geo_row(x, y).iter().all(|&v| v == 0.0));
 }
+
+/// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.
+fn energy(grid: &Grid, field: &Field, tension: f64) -> [f64; 2] {
+    let (w, h) = (grid.width, grid.height);
+    let mut e = [0.0f64; 2];
+    let comps = [&field.dx, &field.dy];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            for k in 0..2 {
+                let u = |j: usize| comps[k][j] as f64;
+                if x > 0 && grid.link_right[i - 1] && grid.link_right[i] {
+                    e[k] += (u(i - 1) - 2.0 * u(i) + u(i + 1)).powi(2);
+                }
+                if y > 0 && grid.link_down[i - w] && grid.link_down[i] {
+                    e[k] += (u(i - w) - 2.0 * u(i) + u(i + w)).powi(2);
+                }
+                if grid.link_right[i] && grid.link_down[i] && grid.link_down[i + 1] && grid.link_right[i + w] {
+                    e[k] += 2.0 * (u(i) - u(i + 1) - u(i + w) + u(i + w + 1)).powi(2);
+                }
+                if tension != 0.0 {
+                    if grid.link_right[i] {
+                        e[k] += tension * (u(i) - u(i + 1)).powi(2);
+                    }
+                    if grid.link_down[i] {
+                        e[k] += tension * (u(i) - u(i + w)).powi(2);
+                    }
+                }
+            }
+        }
+    }
+    e
+}
+
