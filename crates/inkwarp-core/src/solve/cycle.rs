@@ -8,13 +8,6 @@ use super::strands::Strands;
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
 const CHEB_RATIO: f64 = 16.0;
-/// Chebyshev steps of a smoothing: how many, and the ratio between the top of the part of
-/// the spectrum of D⁻¹A they aim at and its bottom.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Aim {
-    pub steps: usize,
-    pub ratio: f64,
-}
 /// Stop coarsening when a level has at most this many nodes.
 const COARSEST_NODES: usize = 300;
 /// A K-cycle takes its second step only when its first left more than this fraction of
@@ -100,15 +93,8 @@ impl Hierarchy {
             .iter()
             .enumerate()
             .map(|(k, l)| {
-                let n = if k == 0 && !smooth_fine { 0 } else { l.len_padded() };
-                Work {
-                    x: vec![[0.0; 2]; n],
-                    f: vec![[0.0; 2]; n],
-                    r: vec![[0.0; 2]; n],
-                    d: vec![[0.0; 2]; n],
-                    z1: Vec::new(),
-                    q1: Vec::new(),
-                }
+                let v = || vec![[0.0; 2]; if k == 0 && !smooth_fine { 0 } else { l.len_padded() }];
+                Work { x: v(), f: v(), r: v(), d: v(), z1: Vec::new(), q1: Vec::new() }
             })
             .collect();
         // Chebyshev needs the top of the spectrum of D⁻¹A: its two steps aimed at [λ/16, λ]
@@ -161,17 +147,14 @@ impl Hierarchy {
     /// step writes all of it anyway (or, fused with the second on the finest level, does
     /// not read it: see `Level::second_step_from_zero`).
     fn clear_start(&self, k: usize, x: &mut [W2]) {
-        if k + 1 == self.levels.len() || self.aim_at(k).steps == 0 || self.levels[k].lam_max <= 0.0 {
+        if k + 1 == self.levels.len() || self.steps_at(k) == 0 || self.levels[k].lam_max <= 0.0 {
             fill_zero(x);
         }
     }
 
-    /// Level k's smoothing.
-    fn aim_at(&self, k: usize) -> Aim {
-        match k {
-            0 => Aim { steps: self.degree, ratio: CHEB_RATIO },
-            _ => Aim { steps: self.coarse_degree, ratio: CHEB_RATIO },
-        }
+    /// Level k's smoothing steps.
+    fn steps_at(&self, k: usize) -> usize {
+        if k == 0 { self.degree } else { self.coarse_degree }
     }
 
     /// A one-level hierarchy: the exact solve of the finest level (`r` is scratch).
@@ -199,7 +182,7 @@ impl Hierarchy {
         }
         {
             let Work { x, f, r, d, .. } = &mut work[0];
-            smooth(level, x, Some(f), r, d, self.aim_at(k), x_zero);
+            smooth(level, x, f, r, d, self.steps_at(k), x_zero);
             if let Some(Some(s)) = self.level_strands.get(k) {
                 s.relax(x, f);
             }
@@ -220,9 +203,7 @@ impl Hierarchy {
         if k > 0 && k + 2 < self.levels.len() && self.k_cycles {
             self.k_correction(k, w, tail);
         } else {
-            restrict(level, &self.levels[k + 1], &w.r, &mut tail[0].f);
-            self.clear_start(k + 1, &mut tail[0].x);
-            self.solve_level(k + 1, tail, true, None);
+            self.solve_below(k, &w.r, tail);
             if k > 0 {
                 add_line_searched(level, &self.levels[k + 1], &mut tail[0], &mut w.x);
             } else {
@@ -233,18 +214,23 @@ impl Hierarchy {
         if let (Some(alt), Some(aw)) = (self.alt.as_deref().filter(|a| a.levels.len() > 1), alt_work) {
             // The second coarse space, on the residual the first one left.
             level.residual(&w.x, Some(&w.f), &mut w.r);
-            let atail = &mut aw[1..];
-            restrict(&alt.levels[0], &alt.levels[1], &w.r, &mut atail[0].f);
-            alt.clear_start(1, &mut atail[0].x);
-            alt.solve_level(1, atail, true, None);
+            alt.solve_below(0, &w.r, &mut aw[1..]);
             // Unscaled (a line search here gained nothing: `docs/dev/ablation.md`).
-            prolong_add(&alt.levels[0], &alt.levels[1], &atail[0].x, &mut w.x);
+            prolong_add(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x);
         }
         let Work { x, f, r, d, .. } = w;
         if let Some(Some(s)) = self.level_strands.get(k) {
             s.relax(x, f);
         }
-        smooth(level, x, Some(f), r, d, self.aim_at(k), false);
+        smooth(level, x, f, r, d, self.steps_at(k), false);
+    }
+
+    /// Level k + 1's cycle from zero on the restriction of level k's residual `r` (into
+    /// `tail[0]`, the work from level k + 1 on).
+    fn solve_below(&self, k: usize, r: &[W2], tail: &mut [Work]) {
+        restrict(&self.levels[k], &self.levels[k + 1], r, &mut tail[0].f);
+        self.clear_start(k + 1, &mut tail[0].x);
+        self.solve_level(k + 1, tail, true, None);
     }
 
     /// Level k's coarse correction from its residual `w.r`: two steps of flexible conjugate
@@ -263,9 +249,7 @@ impl Hierarchy {
     /// residual between the visits, the coarse one being updated in place.
     fn k_correction(&self, k: usize, w: &mut Work, tail: &mut [Work]) {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
-        restrict(level, coarse, &w.r, &mut tail[0].f);
-        self.clear_start(k + 1, &mut tail[0].x);
-        self.solve_level(k + 1, tail, true, None);
+        self.solve_below(k, &w.r, tail);
         let c = &mut tail[0];
         // z₁ is smooth and as large as the coarse error: its product, small next to its
         // terms, in `f64` sums (see `Level::residual_f64`), and z₂'s below.
@@ -356,10 +340,7 @@ impl Hierarchy {
 fn add_line_searched(fine: &Level, coarse: &Level, c: &mut Work, x: &mut [W2]) {
     coarse.residual(&c.x, None, &mut c.r); // −A_c e on the unknowns
     let (num, den) = (dot_w(&c.x, &c.f), dot_w(&c.x, &c.r).map(|v| -v));
-    let alpha = [
-        if den[0] > 0.0 { num[0] / den[0] } else { 1.0 },
-        if den[1] > 0.0 { num[1] / den[1] } else { 1.0 },
-    ];
+    let alpha = [0, 1].map(|k| if den[k] > 0.0 { num[k] / den[k] } else { 1.0 });
     prolong_add_scaled(fine, coarse, &c.x, x, alpha);
 }
 
@@ -493,11 +474,7 @@ pub(super) fn eigenvalues_below(a: &[f64], b: &[f64], x: f64) -> usize {
 
 /// `num / den`, or 0 where the direction has no energy (`den ≤ 0`).
 fn step(num: f64, den: f64) -> f64 {
-    if den > 0.0 {
-        num / den
-    } else {
-        0.0
-    }
+    if den > 0.0 { num / den } else { 0.0 }
 }
 
 /// Entries per task of this module's vector passes.
@@ -525,42 +502,29 @@ fn update<T: Real>(x: &mut [[T; 2]], y: &[[T; 2]], f: impl Fn(&mut [T; 2], [T; 2
     x.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).for_each(|(x, y)| x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y)));
 }
 
-/// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `aim.steps` steps aimed
-/// at the part `[λ/aim.ratio, λ]` of the spectrum of D⁻¹A (the upper sixteenth for a
-/// smoother, [`CHEB_RATIO`]), each one pass over the level
-/// ([`Level::smoothing_step`]). `r` and `d` are scratch; `x` and `r` may come back swapped
-/// (the steps write `x + d` into the other vector).
-pub(crate) fn smooth(
-    level: &Level,
-    x: &mut Vec<W2>,
-    f: Option<&[W2]>,
-    r: &mut Vec<W2>,
-    d: &mut [W2],
-    aim: Aim,
-    x_zero: bool,
-) {
-    if aim.steps == 0 || level.lam_max <= 0.0 {
+/// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `steps` steps aimed at
+/// the part `[λ/CHEB_RATIO, λ]` of the spectrum of D⁻¹A, each one pass over the level
+/// ([`Level::smoothing_step`]). `r` and `d` are scratch; `x` and `r` may come back swapped.
+fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2], mut steps: usize, x_zero: bool) {
+    if steps == 0 || level.lam_max <= 0.0 {
         return;
     }
     let b = level.lam_max;
-    let a = b / aim.ratio;
+    let a = b / CHEB_RATIO;
     let theta = 0.5 * (b + a);
     let delta = 0.5 * (b - a);
     let sigma = theta / delta;
     let mut rho = 1.0 / sigma;
     let inv_theta = WS::of(1.0 / theta);
     let mut rule = StepRule::First { inv_theta };
-    let mut steps = aim.steps;
     // On the finest level the first two steps from zero are one pass (see
     // `Level::second_step_from_zero`).
     let fused = x_zero && steps >= 2 && matches!(level.op, Operator::Fine { .. });
-    let zero_start_f = || f.expect("a zero start needs a right-hand side");
     if x_zero {
         // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass,
         // which writes x alone (the second step reads the update there, `StepRule::Second`);
         // fused, the second step's pass computes it itself.
         if !fused {
-            let f = zero_start_f();
             x.par_chunks_mut(PASS_CHUNK)
                 .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
                 .for_each(|(x, (f, g))| first_from_zero(x, f, g, inv_theta));
@@ -577,9 +541,9 @@ pub(crate) fn smooth(
         // The step writes x + d into r's vector, which then becomes x's; the last one's
         // update is not kept.
         if fused && k == 0 {
-            level.second_step_from_zero(zero_start_f(), inv_theta, d, r, rule, k + 1 < steps);
+            level.second_step_from_zero(f, inv_theta, d, r, rule, k + 1 < steps);
         } else {
-            level.smoothing_step(x, f, d, r, rule, k + 1 < steps);
+            level.smoothing_step(x, Some(f), d, r, rule, k + 1 < steps);
         }
         std::mem::swap(x, r);
     }
@@ -630,55 +594,49 @@ impl Banded {
         }
         let n = map.len();
         // In row-major order a 5 × 5 stencil reaches at most 2 rows ahead: bandwidth ≤ 2w + 2.
-        let mut bw = 0;
-        let mut l = Vec::new();
-        let mut dropped = vec![false; n];
-        if n > 0 {
-            for (k, &p) in map.iter().enumerate() {
-                level.taps(p, |q, _| {
-                    if number[q] != usize::MAX && number[q] < k {
-                        bw = bw.max(k - number[q]);
-                    }
-                });
-            }
-            let width = bw + 1;
-            l = vec![0.0; n * width];
-            let mut diag0 = vec![0.0; n];
-            for (k, &p) in map.iter().enumerate() {
-                level.taps(p, |q, a| {
-                    if number[q] != usize::MAX && number[q] <= k {
-                        let j = number[q];
-                        l[k * width + (j + bw - k)] = a;
-                    }
-                });
-                diag0[k] = level.row(p)[12];
-            }
-            for k in 0..n {
-                let j0 = k.saturating_sub(bw);
-                for j in j0..k {
-                    // l_kj = (a_kj - Σ_{m<j} l_km l_jm) / l_jj
-                    let mut s = l[k * width + (j + bw - k)];
-                    let m0 = j0.max(j.saturating_sub(bw));
-                    for m in m0..j {
-                        s -= l[k * width + (m + bw - k)] * l[j * width + (m + bw - j)];
-                    }
-                    let ljj = l[j * width + bw];
-                    l[k * width + (j + bw - k)] = if dropped[j] { 0.0 } else { s / ljj };
+        let (mut bw, mut dropped) = (0, vec![false; n]);
+        for (k, &p) in map.iter().enumerate() {
+            level.taps(p, |q, _| {
+                if number[q] != usize::MAX && number[q] < k {
+                    bw = bw.max(k - number[q]);
                 }
-                let mut s = l[k * width + bw];
+            });
+        }
+        let width = bw + 1;
+        let mut l = vec![0.0; n * width];
+        for (k, &p) in map.iter().enumerate() {
+            level.taps(p, |q, a| {
+                if number[q] != usize::MAX && number[q] <= k {
+                    let j = number[q];
+                    l[k * width + (j + bw - k)] = a;
+                }
+            });
+        }
+        for k in 0..n {
+            let j0 = k.saturating_sub(bw);
+            for j in j0..k {
+                // l_kj = (a_kj - Σ_{m<j} l_km l_jm) / l_jj
+                let mut s = l[k * width + (j + bw - k)];
+                let m0 = j0.max(j.saturating_sub(bw));
+                for m in m0..j {
+                    s -= l[k * width + (m + bw - k)] * l[j * width + (m + bw - j)];
+                }
+                let ljj = l[j * width + bw];
+                l[k * width + (j + bw - k)] = if dropped[j] { 0.0 } else { s / ljj };
+            }
+            let mut s = l[k * width + bw];
+            for m in j0..k {
+                let v = l[k * width + (m + bw - k)];
+                s -= v * v;
+            }
+            if s <= 1e-10 * level.row(map[k])[12].abs() || s <= 0.0 {
+                dropped[k] = true;
+                l[k * width + bw] = 1.0;
                 for m in j0..k {
-                    let v = l[k * width + (m + bw - k)];
-                    s -= v * v;
+                    l[k * width + (m + bw - k)] = 0.0;
                 }
-                if s <= 1e-10 * diag0[k].abs() || s <= 0.0 {
-                    dropped[k] = true;
-                    l[k * width + bw] = 1.0;
-                    for m in j0..k {
-                        l[k * width + (m + bw - k)] = 0.0;
-                    }
-                } else {
-                    l[k * width + bw] = s.sqrt();
-                }
+            } else {
+                l[k * width + bw] = s.sqrt();
             }
         }
         Banded { bw, l, map, dropped }

@@ -48,7 +48,6 @@ pub(crate) trait Real:
     /// each product added to the sum in turn), whose coefficients `blocks` holds four nodes
     /// at a time, tap by tap, the tail's block padded with zeros (see [`Fours`]); only where
     /// [`Real::has_four_stencils`].
-    #[allow(clippy::too_many_arguments)]
     fn four_run(_x: &[[Self; 2]], _f: Option<&[[Self; 2]]>, _q0: usize, _n: usize, _tail: usize, _wp: usize, _blocks: &[FourBlock], _out: &mut [[Self; 2]]) {
         unreachable!("only where has_four_stencils")
     }
@@ -118,7 +117,7 @@ impl Real for f32 {
 /// coefficients and are dropped.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-#[allow(unsafe_code, clippy::too_many_arguments)]
+#[allow(unsafe_code)]
 unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: usize, tail: usize, wp: usize, blocks: &[FourBlock], out: &mut [[f32; 2]]) {
     use std::arch::x86_64::{
         __m256, _mm256_add_ps, _mm256_castps128_ps256, _mm256_loadu_ps, _mm256_mul_ps, _mm256_permutevar8x32_ps, _mm256_setr_epi32,
@@ -343,15 +342,6 @@ impl Runs {
         runs
     }
 
-    /// The runs of a Galerkin level's stencils `ids` on the unknowns of `inv_diag`.
-    pub(crate) fn stored(ids: &[u32], inv_diag: &[f64], wp: usize, w: usize, h: usize) -> Runs {
-        Runs::new(wp, w, h, |p| match (inv_diag[p] != 0.0, ids[p] != 0) {
-            (false, _) => RunKind::Skip,
-            (true, false) => RunKind::Shared,
-            (true, true) => RunKind::Own,
-        })
-    }
-
     /// The runs of padded row r.
     #[inline]
     pub(crate) fn row(&self, r: usize) -> &[Run] {
@@ -373,8 +363,6 @@ pub(crate) mod bit {
     pub const RIGHT: u8 = 16;
     /// Link to the neighbour below.
     pub const DOWN: u8 = 32;
-    /// Active (free or fixed).
-    pub const ACTIVE: u8 = 64;
     /// Free, with every term of the interior 13-point molecule present.
     pub const REGULAR: u8 = 128;
 }
@@ -406,23 +394,17 @@ pub(crate) struct Geometry {
     pub plain_rows: Vec<bool>,
 }
 
-/// A 4-connected group of inactive nodes (see [`Geometry::holes`]).
-pub(crate) struct Hole {
-    /// At most four of its nodes per link to an active node: a strip up to about eight
-    /// nodes wide, whose two sides a hierarchy must not tie together.
-    pub thin: bool,
-    /// It touches the grid's border.
-    pub border: bool,
-}
-
 impl Geometry {
     #[inline]
     fn idx(&self, x: usize, y: usize) -> usize {
         y * self.w + x
     }
 
-    /// The holes: each inactive node's hole (`u32::MAX` for active nodes) and the holes.
-    pub fn holes(&self) -> (Vec<u32>, Vec<Hole>) {
+    /// The holes (4-connected groups of inactive nodes): each inactive node's hole
+    /// (`u32::MAX` for active nodes), and for each hole whether it is wide: more than four of
+    /// its nodes per link to an active node (a thin strip's two sides a hierarchy must not tie
+    /// together) and clear of the grid's border.
+    pub fn holes(&self) -> (Vec<u32>, Vec<bool>) {
         let (w, h) = (self.w, self.h);
         let mut label = vec![u32::MAX; w * h];
         let mut holes = Vec::new();
@@ -447,7 +429,7 @@ impl Geometry {
                     }
                 }
             }
-            holes.push(Hole { thin: area <= 4 * edges, border });
+            holes.push(area > 4 * edges && !border);
         }
         (label, holes)
     }
@@ -565,23 +547,12 @@ impl Geometry {
     /// neighbours, the bilinear weights; at a missing link, the linear extrapolation from the
     /// node's own side (a free edge's zero second difference), or the one linked neighbour's
     /// value where that side is too short; an odd–odd node averages the rows of its linked
-    /// edge neighbours.
+    /// edge neighbours. On the finest level (the one with fixed nodes), a node at a cut's
+    /// vertex whose only link runs to a neighbour in its coarse cell, continued along a
+    /// straight triple, takes that neighbour's row (else no coarse function would move it;
+    /// docs/dev/solver-correctness.md).
     pub fn geo_row(&self, x: usize, y: usize) -> [f64; 16] {
-        self.geo_row_as(x, y, true)
-    }
-
-    /// [`Geometry::geo_row`], with the extrapolation at missing links linear (`lin`) or
-    /// constant. On the finest level (the one with fixed nodes), a node at a cut's vertex
-    /// whose only link runs to a neighbour in its coarse cell, the cut passing its other
-    /// sides, would get no row: every coarse function would hold it at zero, a pin that is
-    /// not in the problem, which the part beside the vertex converges against slowly. It
-    /// takes that neighbour's row instead (the same window), when the neighbour continues
-    /// the link along a straight triple (the plate energy that ties the node to it). On
-    /// coarse levels, or with neighbours in the cell before (their rows moved into the
-    /// node's window), the same rule let slow modes of cut slivers hide from the stopping
-    /// rule (docs/dev/solver-correctness.md).
-    fn geo_row_as(&self, x: usize, y: usize, lin: bool) -> [f64; 16] {
-        let r = self.link_row(x, y, lin);
+        let r = self.link_row(x, y);
         if r.iter().any(|&v| v != 0.0) || !self.active[self.idx(x, y)] || self.fixed.is_none() {
             return r;
         }
@@ -598,14 +569,14 @@ impl Geometry {
             // One link, continued straight on, to a node in the same coarse cell (whose row
             // reads the same window).
             (Some(&(_, true, (qx, qy))), None) if qx / 2 == x / 2 && qy / 2 == y / 2 => {
-                Some(self.link_row(qx, qy, lin)).filter(|q| q.iter().any(|&v| v != 0.0)).unwrap_or(r)
+                Some(self.link_row(qx, qy)).filter(|q| q.iter().any(|&v| v != 0.0)).unwrap_or(r)
             }
             _ => r,
         }
     }
 
-    /// [`Geometry::geo_row_as`] from the node's own links alone.
-    fn link_row(&self, x: usize, y: usize, lin: bool) -> [f64; 16] {
+    /// [`Geometry::geo_row`] from the node's own links alone.
+    fn link_row(&self, x: usize, y: usize) -> [f64; 16] {
         let i = self.idx(x, y);
         let mut r = [0.0; 16];
         if !self.active[i] {
@@ -613,8 +584,8 @@ impl Geometry {
         }
         match (x & 1, y & 1) {
             (0, 0) => r[5] = 1.0,
-            (1, 0) => self.along_row(x, y, 0, &mut r, lin),
-            (0, 1) => self.along_column(x, y, 0, &mut r, lin),
+            (1, 0) => self.along_row(x, y, 0, &mut r),
+            (0, 1) => self.along_column(x, y, 0, &mut r),
             _ => {
                 // The rows of its linked edge neighbours. Past the last column (row) sits
                 // the ghost coarse node's column (row), whose nodes would interpolate along
@@ -629,9 +600,9 @@ impl Geometry {
                 for ((part, row), h) in parts.iter().zip(rows.iter_mut()).zip(has.iter_mut()) {
                     if let &Some((horizontal, px, py, o)) = part {
                         if horizontal {
-                            self.along_row(px, py, o, row, lin);
+                            self.along_row(px, py, o, row);
                         } else {
-                            self.along_column(px, py, o, row, lin);
+                            self.along_column(px, py, o, row);
                         }
                         *h = row.iter().sum::<f64>() > 0.0;
                     }
@@ -654,7 +625,7 @@ impl Geometry {
                     let h = (0..2).find(|&k| has[k]);
                     let v = (2..4).find(|&k| has[k]);
                     match (h, v) {
-                        (Some(hk), Some(vk)) if lin => {
+                        (Some(hk), Some(vk)) => {
                             // The corner (ox, oy) shared by the edge neighbours hk and vk.
                             let (ox, oy) = (hk, vk - 2);
                             let (cx, cy) = (x - 1 + 2 * ox, y - 1 + 2 * oy);
@@ -672,7 +643,6 @@ impl Geometry {
                                 mean(&[hk, vk], &mut r);
                             }
                         }
-                        (Some(hk), Some(vk)) => mean(&[hk, vk], &mut r),
                         (Some(k), None) | (None, Some(k)) => mean(&[k], &mut r),
                         _ => {}
                     }
@@ -686,24 +656,24 @@ impl Geometry {
     /// halves on the coarse nodes left and right of it, or at a missing link the
     /// extrapolation from the linked side (`extend`); the last node of an even-sized row
     /// has the ghost coarse node beyond it (see `coarsen`).
-    fn along_row(&self, x: usize, y: usize, oy: usize, r: &mut [f64; 16], lin: bool) {
+    fn along_row(&self, x: usize, y: usize, oy: usize, r: &mut [f64; 16]) {
         let i = self.idx(x, y);
         let left = self.right[i - 1];
         let right = x + 1 == self.w || self.right[i];
         // Linear across a cut (the node beyond the gap active) where two more links run
         // away from it.
-        let far_left = lin && x >= 3 && x + 1 < self.w && self.active[i + 1] && self.right[i - 2] && self.right[i - 3];
-        let far_right = lin && x + 3 < self.w && self.active[i - 1] && self.right[i + 1] && self.right[i + 2];
+        let far_left = x >= 3 && x + 1 < self.w && self.active[i + 1] && self.right[i - 2] && self.right[i - 3];
+        let far_right = x + 3 < self.w && self.active[i - 1] && self.right[i + 1] && self.right[i + 2];
         extend(&mut r[oy * 4 + 4..oy * 4 + 8], left, right, far_left, far_right);
     }
 
     /// The same along column x, into the window column `ox`.
-    fn along_column(&self, x: usize, y: usize, ox: usize, r: &mut [f64; 16], lin: bool) {
+    fn along_column(&self, x: usize, y: usize, ox: usize, r: &mut [f64; 16]) {
         let (i, w) = (self.idx(x, y), self.w);
         let up = self.down[i - w];
         let down = y + 1 == self.h || self.down[i];
-        let far_up = lin && y >= 3 && y + 1 < self.h && self.active[i + w] && self.down[i - 2 * w] && self.down[i - 3 * w];
-        let far_down = lin && y + 3 < self.h && self.active[i - w] && self.down[i + w] && self.down[i + 2 * w];
+        let far_up = y >= 3 && y + 1 < self.h && self.active[i + w] && self.down[i - 2 * w] && self.down[i - 3 * w];
+        let far_down = y + 3 < self.h && self.active[i - w] && self.down[i + w] && self.down[i + 2 * w];
         let mut col = [0.0; 4];
         extend(&mut col, up, down, far_up, far_down);
         for (k, v) in col.into_iter().enumerate() {
@@ -766,8 +736,6 @@ impl Geometry {
     }
 }
 
-
-
 /// The code in [`Geometry::prow`] of a row stored in [`Geometry::ext`].
 const EXT: u8 = u8::MAX;
 /// The slots of the 2 × 2 corners in a 4 × 4 window row.
@@ -787,14 +755,6 @@ fn extend(r: &mut [f64], a: bool, b: bool, fa: bool, fb: bool) {
         (false, true) if fb => (r[2], r[3]) = (1.5, -0.5),
         (false, true) => r[2] = 1.0,
         _ => {}
-    }
-}
-
-/// The stencil row of padded node `p` of a level's operator (see [`Level::row`]).
-fn op_row(op: &Operator, wp: usize, p: usize) -> [f64; 25] {
-    match op {
-        Operator::Fine { flags, tau, .. } => fine_row(flags, p, wp, *tau),
-        Operator::Stored { ids, table, .. } => table[ids[p] as usize],
     }
 }
 
@@ -870,14 +830,8 @@ pub(crate) fn pair_sums<A: Copy, B: Copy>(a: &[A], b: &[B], prod: impl Fn(A, B) 
 /// The plain bilinear prolongation row of node (x, y) (see [`Geometry::geo_row`]).
 fn plain_row(x: usize, y: usize) -> [f64; 16] {
     let mut r = [0.0; 16];
-    let c: [f64; 4] = match (x & 1, y & 1) {
-        (0, 0) => [1.0, 0.0, 0.0, 0.0],
-        (1, 0) => [0.5, 0.5, 0.0, 0.0],
-        (0, 1) => [0.5, 0.0, 0.5, 0.0],
-        _ => [0.25; 4],
-    };
-    for (k, v) in CORNERS.into_iter().zip(c) {
-        r[k] = v;
+    for (k, c) in CORNERS.into_iter().zip(PLAIN_CODES[(y & 1) * 2 + (x & 1)]) {
+        r[k] = WEIGHTS[c as usize];
     }
     r
 }
@@ -987,51 +941,32 @@ impl Level {
         for y in 0..h {
             for x in 0..w {
                 let i = geo.idx(x, y);
-                if !geo.active[i] {
-                    continue;
+                let bits = [
+                    (!fixed.is_some_and(|fx| fx[i]), bit::FREE),
+                    (geo.right[i], bit::RIGHT),
+                    (geo.down[i], bit::DOWN),
+                    (x > 0 && geo.right[i - 1] && geo.right[i], bit::HTRI),
+                    (y > 0 && geo.down[i - w] && geo.down[i], bit::VTRI),
+                    (geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w], bit::CELL),
+                ];
+                if geo.active[i] {
+                    flags[(y + PAD) * wp + x + PAD] = bits.iter().filter(|b| b.0).fold(0, |f, b| f | b.1);
                 }
-                let mut f = bit::ACTIVE;
-                if !fixed.is_some_and(|fx| fx[i]) {
-                    f |= bit::FREE;
-                }
-                if geo.right[i] {
-                    f |= bit::RIGHT;
-                }
-                if geo.down[i] {
-                    f |= bit::DOWN;
-                }
-                if x > 0 && geo.right[i - 1] && geo.right[i] {
-                    f |= bit::HTRI;
-                }
-                if y > 0 && geo.down[i - w] && geo.down[i] {
-                    f |= bit::VTRI;
-                }
-                if geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w] {
-                    f |= bit::CELL;
-                }
-                flags[(y + PAD) * wp + x + PAD] = f;
             }
         }
+        let (mut inv_diag, mut lam_max) = (vec![0.0; wp * hp], 0.0f64);
         for y in 0..h {
             for x in 0..w {
                 let p = (y + PAD) * wp + x + PAD;
                 let has = |q: usize, b: u8| flags[q] & b != 0;
-                if has(p, bit::FREE)
-                    && [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
+                if !has(p, bit::FREE) {
+                    continue;
+                }
+                if [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
                     && [p - wp, p, p + wp].iter().all(|&q| has(q, bit::VTRI))
                     && [p, p - 1, p - wp, p - wp - 1].iter().all(|&q| has(q, bit::CELL))
                 {
                     flags[p] |= bit::REGULAR;
-                }
-            }
-        }
-        let mut inv_diag = vec![0.0; wp * hp];
-        let mut lam_max: f64 = 0.0;
-        for y in 0..h {
-            for x in 0..w {
-                let p = (y + PAD) * wp + x + PAD;
-                if flags[p] & bit::FREE == 0 {
-                    continue;
                 }
                 let (d, s) = fine_diag_and_abs(&flags, p, wp, tau);
                 if d > 0.0 {
@@ -1094,7 +1029,7 @@ impl Level {
         let g = &self.geo;
         let (w, h) = (g.w, g.h);
         let (label, holes) = g.holes();
-        let fill: Vec<bool> = label.iter().map(|&l| l != u32::MAX && !holes[l as usize].thin && !holes[l as usize].border).collect();
+        let fill: Vec<bool> = label.iter().map(|&l| l != u32::MAX && holes[l as usize]).collect();
         if !fill.contains(&true) {
             return self;
         }
@@ -1131,7 +1066,10 @@ impl Level {
 
     /// The stencil row of padded node `p` as a 5 × 5 array (dy outer, dx inner).
     pub fn row(&self, p: usize) -> [f64; 25] {
-        op_row(&self.op, self.wp, p)
+        match &self.op {
+            Operator::Fine { flags, tau, .. } => fine_row(flags, p, self.wp, *tau),
+            Operator::Stored { ids, table, .. } => table[ids[p] as usize],
+        }
     }
 
     /// The far taps of row `p` (see [`Far`]).
@@ -1255,7 +1193,6 @@ impl Level {
     /// `out = f − A x` on the rows of the band from padded row `r0` (`out` holds those
     /// rows). `x` and `f` hold the level's rows from padded row `shift` on (on the finest
     /// level; 0 on the others).
-    #[allow(clippy::too_many_arguments)]
     fn band_residual<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, r0: usize, shift: usize, out: &mut [[T; 2]]) {
         let wp = self.wp;
         match &self.op {
@@ -1263,7 +1200,7 @@ impl Level {
             Operator::Stored { far, .. } => {
                 assert_eq!(shift, 0, "a Galerkin level's vectors whole");
                 for (k, orow) in out.chunks_mut(wp).enumerate() {
-                    residual_row(self, &self.op, x, f, r0 + k, orow);
+                    residual_row(self, x, f, r0 + k, orow);
                 }
                 subtract_far(far, r0 * wp, x, out);
             }
@@ -1359,7 +1296,6 @@ impl Level {
     /// One band of a smoothing step, from padded row `r0` (`chunk` and `dc` its rows of
     /// `next` and `d`): the residual, the update from it and `next = x + d`. `x` and `f`
     /// hold the level's rows from padded row `shift` on.
-    #[allow(clippy::too_many_arguments)]
     fn step_band(&self, x: &[W2], shift: usize, f: Option<&[W2]>, r0: usize, chunk: &mut [W2], dc: &mut [W2], rule: StepRule, keep: bool) {
         let (wp, w, g) = (self.wp, self.geo.w, &self.inv_diag_w[..]);
         self.band_residual(x, f, r0, shift, chunk);
@@ -1437,55 +1373,34 @@ widest! {
 }
 
 widest! {
-    /// `out = f − A x` on the unknowns of padded row `r` of Galerkin level `level` (its
-    /// operator `op`), on the processor's widest vectors (see [`super::wide`]).
+    /// `out = f − A x` on the unknowns of padded row `r` of Galerkin level `level`, on the
+    /// processor's widest vectors (see [`super::wide`]).
     #[inline(never)]
-    fn residual_row<T: Real>(level: &Level, op: &Operator, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) =>
+    fn residual_row<T: Real>(level: &Level, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) =>
     residual_row_body {
-        let wp = level.wp;
-        let base = r * wp;
-        match op {
-            Operator::Fine { .. } => unreachable!("the finest level is applied by bands"),
-            Operator::Stored { ids, table, narrow, sym, fours, runs, .. } => {
-                let table = T::table(table, narrow);
-                let four = T::has_four_stencils() && !fours.row_first.is_empty();
-                let mut block = if four { fours.row_first[r] as usize } else { 0 };
-                let shared = &table[0];
-                for &run in runs.row(r) {
-                    let (c, e) = (run.start as usize, run.end as usize);
-                    if run.kind == RunKind::Skip {
-                        out[c..e].fill([T::ZERO; 2]);
-                        continue;
-                    }
-                    if run.kind == RunKind::Shared {
-                        // A run of regular nodes: one stencil, applied tap by tap.
-                        if let Some(sym) = sym {
-                            sym_run::<T, T, true>(x, f, sym, wp, base, c, e, out);
-                            continue;
-                        }
-                        shared_run(x, f, shared, wp, base, c, e, out);
-                        continue;
-                    }
-                    // A run of irregular nodes, each with its own stencil, four side by side:
-                    // one node's 21 taps summed one after another wait on each other, four
-                    // nodes' do not; in `f32` with AVX2, the four on one vector, their
-                    // coefficients read from the level's `fours` in the same order as
-                    // here, a run's fours in one call (see `four_run_avx2`), its last one to
-                    // three nodes in a four of their own.
+        let Operator::Stored { ids, table, narrow, sym, fours, runs, .. } = &level.op else { unreachable!("a Galerkin level") };
+        let (wp, base, table) = (level.wp, r * level.wp, T::table(table, narrow));
+        let four = T::has_four_stencils() && !fours.row_first.is_empty();
+        let mut block = if four { fours.row_first[r] as usize } else { 0 };
+        for &run in runs.row(r) {
+            let (c, e) = (run.start as usize, run.end as usize);
+            match (run.kind, sym) {
+                (RunKind::Skip, _) => out[c..e].fill([T::ZERO; 2]),
+                (RunKind::Shared, Some(sym)) => sym_run::<T, T, true>(x, f, sym, wp, base, c, e, out),
+                (RunKind::Shared, None) => shared_run(x, f, &table[0], wp, base, c, e, out),
+                (RunKind::Own, _) => {
+                    // In `f32` with AVX2, four nodes to a vector (see `four_run_avx2`).
                     let mut i = c;
                     if four {
                         let (n, tail) = ((e - c) / 4, (e - c) % 4);
                         let m = n + usize::from(tail > 0);
-                        // The last four's taps reach two rows and two nodes past it, which
-                        // near the right end of a level's last row may be past its vectors:
-                        // there the tail is summed below, node by node (its block skipped).
+                        // Near the end of a level's last row the tail's taps may pass the
+                        // vectors' end: there it is summed below, node by node.
                         let tail = if base + c + 4 * m + 2 * wp + 2 <= x.len() { tail } else { 0 };
                         T::four_run(x, f, base + c, n, tail, wp, &fours.blocks[block..block + m], &mut out[c..c + 4 * n + tail]);
                         block += m;
                         i += 4 * n + tail;
                     }
-                    // The rest of the run: all of it without the vector, its last one to three
-                    // nodes at the end of a level's last row.
                     own_sums(x, f, wp, base, i, e, out, |q| &table[ids[q] as usize]);
                 }
             }
@@ -1538,7 +1453,6 @@ fn subtract_far<S: Real, T: Real>(far: &[Far], a: usize, x: &[[S; 2]], out: &mut
 /// `out[c] = f[q] − Σₜ s[t] x[q + offset(t)]` for the nodes `q = base + c`, `c` in `c0..c1`
 /// of one row (`out` is that row), all with the one stencil `s` (in [`STORED_TAPS`] order),
 /// 64 nodes at a time, tap by tap. `x` may be narrower than the sums (see [`widened`]).
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn shared_run<S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, s: &[T; 25], wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]]) {
     let mut s0 = c0;
@@ -1565,7 +1479,6 @@ fn shared_run<S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, s: &[T; 25],
 /// `c0..c1` of one row (`out` is that row), each with its own stencil `s_q = stencil(q)`
 /// (in [`STORED_TAPS`] order, each product added to the sum in turn), four nodes side by
 /// side: one node's 21 taps summed one after another wait on each other, four nodes' do not.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn own_sums<'a, S: Real, T: Real>(
     x: &[[S; 2]],
@@ -1623,7 +1536,6 @@ widest! {
         out: &mut [[T; 2]],
     ) =>
     /// `x` and `f` hold the level's rows from padded row `shift` on (0: all of them).
-    #[allow(clippy::too_many_arguments)]
     fine_band_body {
         let molecule = Sym::fine(tau);
         let table = T::table(&own.table, &own.narrow);
@@ -1652,7 +1564,6 @@ widest! {
 /// It runs on the flattened components (Δx, Δy, Δx, …): every operation is the same for
 /// both, so the loop vectorises across nodes. `x` may be narrower than the sums (see
 /// [`widened`]).
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn sym_run<S: Real, T: Real, const KNIGHT: bool>(
     x: &[[S; 2]],
@@ -1855,7 +1766,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let far_here = matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
-    let win = if fine.geo.extended() || far_here { Windows::WIDE } else { Windows::NARROW };
+    let wide = fine.geo.extended() || far_here;
+    let win = if wide { Windows::WIDE } else { Windows::NARROW };
     type RowOut = (Vec<u32>, Vec<[f64; 25]>, Vec<(usize, isize, isize, f64)>);
     let build_row = |yc: usize| -> RowOut {
         let mut ids = vec![0u32; wpc];
@@ -1876,7 +1788,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let mut dense: Vec<[f64; 16]> = Vec::new();
         for &xc in &irregular {
             acc.fill(0.0);
-            if !win.wide() {
+            if !wide {
                 narrow_sums(fine, xc, yc, &mut slot, &mut dense, &mut acc);
             } else {
                 for iy in rows.clone() {
@@ -1970,7 +1882,11 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let sym = Sym::of(&table[0]);
     let narrow = narrowed(&table);
     let inv_diag_w = narrow_diag(&inv_diag);
-    let runs = Runs::stored(&ids, &inv_diag, wpc, wc, hc);
+    let runs = Runs::new(wpc, wc, hc, |p| match (inv_diag[p] != 0.0, ids[p] != 0) {
+        (false, _) => RunKind::Skip,
+        (true, false) => RunKind::Shared,
+        (true, true) => RunKind::Own,
+    });
     let fours = Fours::new(&ids, &narrow, &runs, wpc, hc);
     Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours, runs, far }, inv_diag, inv_diag_w, lam_max, clean }
 }
@@ -1980,13 +1896,8 @@ fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {
 }
 
 /// One coarse stencil `(Pᵀ A P)(C, ·)` for C = (xc, yc), straight from the definition:
-/// its stored taps (see [`galerkin_node_far`] for the rest).
+/// its stored taps.
 pub(crate) fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
-    galerkin_node_far(fine, xc, yc).0
-}
-
-/// [`galerkin_node`] with the taps past the stored ones, as `(dx, dy, a)`.
-pub(crate) fn galerkin_node_far(fine: &Level, xc: usize, yc: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
     let (fw, fh) = (fine.geo.w, fine.geo.h);
     let win = Windows::WIDE;
     let mut acc = vec![0.0f64; win.acc * win.acc];
@@ -2003,7 +1914,7 @@ pub(crate) fn galerkin_node_far(fine: &Level, xc: usize, yc: usize) -> ([f64; 25
             });
         }
     }
-    split_taps(&acc, win.acc)
+    split_taps(&acc, win.acc).0
 }
 
 /// The windows of the Galerkin sums: a coarse stencil on offsets −`acc` / 2..=`acc` / 2, a
@@ -2021,11 +1932,6 @@ impl Windows {
     const WIDE: Windows = Windows { acc: 17, ap: 14, ap0: 6 };
     /// Rows on their 2 × 2 corners and a fine operator within its 5 × 5 stencils.
     const NARROW: Windows = Windows { acc: 5, ap: 4, ap0: 1 };
-
-    /// Whether these are the wide windows (the narrow ones take [`narrow_sums`]).
-    fn wide(self) -> bool {
-        self.acc > 5
-    }
 
     #[inline]
     fn acc_at(self, dx: isize, dy: isize) -> usize {
@@ -2499,8 +2405,8 @@ mod tests {
             }
             Operator::Stored { .. } => {
                 for r in r0..r1 {
-                    residual_row(level, &level.op, x, Some(f), r, &mut wide[r * wp..(r + 1) * wp]);
-                    residual_row_body(level, &level.op, x, Some(f), r, &mut plain[r * wp..(r + 1) * wp]);
+                    residual_row(level, x, Some(f), r, &mut wide[r * wp..(r + 1) * wp]);
+                    residual_row_body(level, x, Some(f), r, &mut plain[r * wp..(r + 1) * wp]);
                 }
             }
         }
