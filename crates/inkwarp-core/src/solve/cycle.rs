@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{dot_pairs, galerkin, prolong_add, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, V2, W2, WS};
+use super::level::{dot_pairs, galerkin, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, V2, W2, WS};
 use super::strands::Strands;
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
@@ -16,8 +16,8 @@ const COARSEST_NODES: usize = 300;
 const K_SECOND_STEP: f64 = 0.3;
 /// Lanczos steps of the estimate of the top of each level's spectrum.
 const LANCZOS_STEPS: usize = 12;
-/// Power steps of the finest level's Collatz–Wielandt bound (3.49, 3.29, 3.26 after one,
-/// two, three on open and torn grids; the top is 3.20).
+/// Power steps of the finest level's Collatz–Wielandt bound (docs/dev/ablation.md,
+/// eleventh change).
 const COLLATZ_STEPS: usize = 3;
 
 /// The grid hierarchy with its work vectors.
@@ -62,17 +62,11 @@ struct Work {
 }
 
 impl Hierarchy {
-    /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and of
-    /// `coarse_degree` below it.
-    pub fn new(fine: Level, degree: usize, coarse_degree: usize) -> Hierarchy {
-        Hierarchy::build(fine, degree, coarse_degree, true)
-    }
-
     /// A second coarse space for `fine`'s unknowns: the levels below `fine` (visited by
     /// V-cycles), with no work vectors or smoothing bound on `fine` itself, which the
     /// hierarchy it serves already has.
     pub fn coarse_space(fine: Level, degree: usize) -> Hierarchy {
-        let mut h = Hierarchy::build(fine, degree, degree, false);
+        let mut h = Hierarchy::new(fine, degree, degree, false);
         h.k_cycles = false;
         // Past the setup, the finest level only lends its prolongation (restriction and
         // prolongation read nothing else): keep 4 bytes a node instead of about 18.
@@ -80,7 +74,9 @@ impl Hierarchy {
         h
     }
 
-    fn build(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool) -> Hierarchy {
+    /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and of
+    /// `coarse_degree` below it; unless `smooth_fine`, `fine` gets no work vectors or bound.
+    pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool) -> Hierarchy {
         let mut levels = vec![fine];
         loop {
             let last = levels.last().unwrap();
@@ -97,29 +93,21 @@ impl Hierarchy {
                 Work { x: v(), f: v(), r: v(), d: v(), z1: Vec::new(), q1: Vec::new() }
             })
             .collect();
-        // Chebyshev needs the top of the spectrum of D⁻¹A: its two steps aimed at [λ/16, λ]
-        // amplify every mode more than 6.25 % above λ. On the finest level, whose top mode
-        // alternates in sign as its interior molecule does, a Collatz–Wielandt bound on |A|
-        // is safe and within about 3 % of it, at a fraction of Lanczos's cost. On the
-        // Galerkin levels it is 10–35 % above (a cycle or more lost), so there the largest
-        // Ritz value of a few Lanczos steps, capped by the (safe, loose) Gershgorin bound; it
-        // comes from below but close enough to take no margin. Power steps are not enough:
-        // levels over holes carry modes on a few nodes near the edge, up to twice the top of
-        // the rest.
+        // Chebyshev needs the top of the spectrum of D⁻¹A (two steps aimed at [λ/16, λ]
+        // amplify every mode more than 6.25 % above λ). On the finest level, whose top mode
+        // alternates in sign as its molecule does, a Collatz–Wielandt bound on |A| is safe
+        // and close; on the Galerkin levels it is loose, so there Lanczos's largest Ritz
+        // value, capped by Gershgorin's (power steps miss the edge modes over holes).
         for (k, l) in levels.iter_mut().enumerate().skip(if smooth_fine { 0 } else { 1 }) {
-            let est = if k == 0 { collatz_bound(l, COLLATZ_STEPS) } else { lanczos_estimate(l, LANCZOS_STEPS) };
+            let est = if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) };
             l.lam_max = l.lam_max.min(est);
         }
         let coarsest = Banded::new(levels.last().unwrap());
         Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new() }
     }
 
-    /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one cycle from zero (symmetric,
-    /// as a conjugate-gradient preconditioner is; the conjugate gradient around it is the
-    /// flexible one all the same), run in
-    /// `f32`: the returned `z` is
-    /// the cycle's own output, valid until the next call (the conjugate gradient reads it
-    /// where it would otherwise copy it to `f64` first and read that).
+    /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one symmetric cycle from zero, in
+    /// `f32`: the returned `z` is the cycle's own output, valid until the next call.
     pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
         map_into(&mut self.work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
         let Some(mut strands) = self.strands.take() else { return self.cycle_from_zero(r) };
@@ -208,7 +196,7 @@ impl Hierarchy {
                 add_line_searched(level, &self.levels[k + 1], &mut tail[0], &mut w.x);
             } else {
                 // (From the coarsest level of two the correction is exact: its step is 1.)
-                prolong_add(level, &self.levels[k + 1], &tail[0].x, &mut w.x);
+                prolong_add_scaled(level, &self.levels[k + 1], &tail[0].x, &mut w.x, [1.0; 2]);
             }
         }
         if let (Some(alt), Some(aw)) = (self.alt.as_deref().filter(|a| a.levels.len() > 1), alt_work) {
@@ -216,7 +204,7 @@ impl Hierarchy {
             level.residual(&w.x, Some(&w.f), &mut w.r);
             alt.solve_below(0, &w.r, &mut aw[1..]);
             // Unscaled (a line search here gained nothing: `docs/dev/ablation.md`).
-            prolong_add(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x);
+            prolong_add_scaled(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x, [1.0; 2]);
         }
         let Work { x, f, r, d, .. } = w;
         if let Some(Some(s)) = self.level_strands.get(k) {
@@ -244,9 +232,8 @@ impl Hierarchy {
     /// α₂ = dᵀ(f − α₁ A z₁) / dᵀA d
     /// ```
     ///
-    /// The second step is the energy minimiser over both directions, where a W-cycle's second
-    /// visit (and its line search) takes the second direction alone; it also needs no fine
-    /// residual between the visits, the coarse one being updated in place.
+    /// The second step minimises the energy over both directions (a W-cycle's second visit
+    /// takes the second alone) and needs no fine residual, the coarse one updated in place.
     fn k_correction(&self, k: usize, w: &mut Work, tail: &mut [Work]) {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
         self.solve_below(k, &w.r, tail);
@@ -294,7 +281,7 @@ impl Hierarchy {
         let a2 = [step(df[0], dad[0]), step(df[1], dad[1])];
         let (a1w, a2w) = ([WS::of(a1[0]), WS::of(a1[1])], [WS::of(a2[0]), WS::of(a2[1])]);
         update(&mut c.x, &c.z1, |x, z1| *x = [a1w[0] * z1[0] + a2w[0] * x[0], a1w[1] * z1[1] + a2w[1] * x[1]]);
-        prolong_add(level, coarse, &c.x, &mut w.x);
+        prolong_add_scaled(level, coarse, &c.x, &mut w.x, [1.0; 2]);
     }
 
     /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on
@@ -316,18 +303,16 @@ impl Hierarchy {
             let (head, tail) = work.split_at_mut(k + 1);
             restrict(&self.levels[k], &self.levels[k + 1], &head[k].f, &mut tail[0].f);
         }
-        {
-            let w = &mut work[nl - 1];
-            self.coarsest.solve(&w.f, &mut w.x);
-        }
+        let w = &mut work[nl - 1];
+        self.coarsest.solve(&w.f, &mut w.x);
         for k in (1..nl - 1).rev() {
             let (head, tail) = work.split_at_mut(k + 1);
             let wk = &mut head[k];
             fill_zero(&mut wk.x);
-            prolong_add(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut wk.x);
+            prolong_add_scaled(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut wk.x, [1.0; 2]);
             self.solve_level(k, &mut work[k..], false, None);
         }
-        prolong_add(&self.levels[0], &self.levels[1], &work[1].x, u);
+        prolong_add_scaled(&self.levels[0], &self.levels[1], &work[1].x, u, [1.0; 2]);
         self.work = work;
     }
 }
@@ -346,14 +331,15 @@ fn add_line_searched(fine: &Level, coarse: &Level, c: &mut Work, x: &mut [W2]) {
 
 /// An upper bound of the largest eigenvalue of the finest level's D⁻¹A (Collatz–Wielandt):
 /// for any g > 0 on the unknowns, λ_max(D⁻¹A) ≤ ρ(D⁻¹|A|) ≤ max_p (D⁻¹|A| g)_p / g_p. The
-/// least of the bounds of `steps` power steps g ← D⁻¹|A| g from g = D^-1/2 𝟙. Where A's
-/// signs alternate as its top mode's do (the interior molecule's), |A| loses nothing.
-pub(crate) fn collatz_bound(level: &Level, steps: usize) -> f64 {
+/// least of the bounds of [`COLLATZ_STEPS`] power steps g ← D⁻¹|A| g from g = D^-1/2 𝟙.
+/// Where A's signs alternate as its top mode's do (the interior molecule's), |A| loses
+/// nothing.
+pub(crate) fn collatz_bound(level: &Level) -> f64 {
     let inv_d = &level.inv_diag;
     let mut g: Vec<f64> = inv_d.par_iter().map(|&i| i.sqrt()).collect();
     let mut y = vec![0.0; g.len()];
     let mut bound = f64::INFINITY;
-    for _ in 0..steps {
+    for _ in 0..COLLATZ_STEPS {
         level.fine_abs_product(&g, &mut y);
         let top = g
             .par_chunks_mut(PASS_CHUNK)
@@ -376,11 +362,11 @@ pub(crate) fn collatz_bound(level: &Level, steps: usize) -> f64 {
     bound
 }
 
-/// Largest eigenvalue of D⁻¹A estimated by Lanczos steps from a pseudo-random start (the
-/// largest Ritz value, a lower bound). D⁻¹A is symmetric in the inner product `xᵀ D y`, so
-/// the Lanczos vectors are kept in that product: a step is one product (its dot product
-/// taken band by band) and one pass, each vector kept unnormalised with its norm.
-pub(crate) fn lanczos_estimate(level: &Level, steps: usize) -> f64 {
+/// Largest eigenvalue of D⁻¹A estimated by [`LANCZOS_STEPS`] Lanczos steps from a
+/// pseudo-random start (the largest Ritz value, a lower bound). D⁻¹A is symmetric in the
+/// inner product `xᵀ D y`, so the Lanczos vectors are kept in that product: a step is one
+/// product (its dot product taken band by band) and one pass, each vector unnormalised.
+pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
     let n = level.len_padded();
     let inv_d = &level.inv_diag;
     // The start D^-1/2 v of a random v on the unknowns.
@@ -401,7 +387,7 @@ pub(crate) fn lanczos_estimate(level: &Level, steps: usize) -> f64 {
     let (mut prev, mut out) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
     let (mut c_prev, mut b_prev) = (1.0, 0.0);
     let (mut alpha, mut beta) = (Vec::new(), Vec::new());
-    for _ in 0..steps {
+    for _ in 0..LANCZOS_STEPS {
         let dot = level.residual_dot(&cur, &mut out); // −A cur and curᵀ(−A cur)
         let a = -(dot[0] + dot[1]) / (c * c);
         // The next vector, D⁻¹A v − a v − b v_prev, over `prev`, and its squared norm.
@@ -509,10 +495,8 @@ fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2
     if steps == 0 || level.lam_max <= 0.0 {
         return;
     }
-    let b = level.lam_max;
-    let a = b / CHEB_RATIO;
-    let theta = 0.5 * (b + a);
-    let delta = 0.5 * (b - a);
+    let (b, a) = (level.lam_max, level.lam_max / CHEB_RATIO);
+    let (theta, delta) = (0.5 * (b + a), 0.5 * (b - a));
     let sigma = theta / delta;
     let mut rho = 1.0 / sigma;
     let inv_theta = WS::of(1.0 / theta);
@@ -748,7 +732,7 @@ mod tests {
         for i in [3 * w + 4, 20 * w + 60, 55 * w + 20, 64 * w + 70] {
             fixed[i] = true;
         }
-        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2);
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2, true);
         assert!(hier.levels.len() >= 4, "the test needs a level with a K-cycle below it");
         let mut rnd = crate::grid::tests::sequence(5);
         let k = 1;

@@ -43,10 +43,9 @@ pub(crate) trait Real:
     fn has_four_stencils() -> bool {
         false
     }
-    /// `out[j] = f[q₀ + j] − Σₜ sⱼ[t] x[q₀ + j + offset(t)]` for the `4n + tail` consecutive
-    /// nodes `q₀ + j` (`tail` < 4), each with its own stencil `sⱼ` (in [`STORED_TAPS`] order,
-    /// each product added to the sum in turn), whose coefficients `blocks` holds four nodes
-    /// at a time, tap by tap, the tail's block padded with zeros (see [`Fours`]); only where
+    /// `out[j] = f[q₀ + j] − Σₜ sⱼ[t] x[q₀ + j + offset(t)]` for the `4n + tail` nodes from
+    /// `q₀` (`tail` < 4), each stencil's products summed in [`STORED_TAPS`] order, the
+    /// coefficients four nodes to a block of `blocks` (see [`Fours`]); only where
     /// [`Real::has_four_stencils`].
     fn four_run(_x: &[[Self; 2]], _f: Option<&[[Self; 2]]>, _q0: usize, _n: usize, _tail: usize, _wp: usize, _blocks: &[FourBlock], _out: &mut [[Self; 2]]) {
         unreachable!("only where has_four_stencils")
@@ -106,15 +105,10 @@ impl Real for f32 {
     }
 }
 
-/// [`Real::four_run`] in `f32`, four nodes to a 256-bit vector: the four nodes' two
-/// components are its eight lanes, each tap one load of the four nodes' values (they are
-/// consecutive) times the tap's four coefficients (one 128-bit load from the block, each
-/// repeated for both components by a permute). A multiply then an add, as the plain sums
-/// take them, so the sums are bit for bit theirs. Two fours at a time on two vectors, so
-/// their chains of additions overlap, and the run's bounds are checked once. A run's last
-/// one to three nodes (`tail`) take one
-/// vector more, whose other lanes read the nodes past the run by the block's zero
-/// coefficients and are dropped.
+/// [`Real::four_run`] in `f32`, a four's two components the eight lanes of a 256-bit vector:
+/// per tap, one load of the four nodes' values times the tap's four coefficients, multiplied
+/// then added as the plain sums are (so bit for bit theirs). Two fours at a time, so their
+/// chains of additions overlap; the tail's four reads past the run by zero coefficients.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[allow(unsafe_code)]
@@ -131,10 +125,8 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
     assert!(blocks.len() >= m && out.len() >= 4 * n + tail && f.map_or(true, |f| q0 + 4 * n + tail <= f.len()), "a run longer than its blocks");
     let pairs = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
     let (xs, coefs, outs) = (x.as_flattened().as_ptr(), blocks.as_ptr() as *const f32, out.as_flattened_mut().as_mut_ptr());
-    // Four j's product at tap t: `first` the flattened index of its first tap, `b` its
-    // block.
-    // SAFETY: j < m, so every tap is within `x` and the block within `blocks` (asserted
-    // above).
+    // Four j's product at tap t (`first` its first tap's flattened index, `b` its block).
+    // SAFETY: j < m, so every tap is within `x` and the block within `blocks` (asserted above).
     let tap = |first: usize, b: *const f32, t: usize| unsafe {
         let c = _mm256_permutevar8x32_ps(_mm256_castps128_ps256(_mm_loadu_ps(b.add(4 * t))), pairs);
         let (dy, dx) = STORED_TAPS[t];
@@ -191,12 +183,9 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
 /// ([`STORED_TAPS`] order), the four nodes' side by side.
 pub(crate) type FourBlock = [[f32; 4]; 21];
 
-/// A Galerkin level's nodes with stencils of their own, in fours as [`residual_row`] takes
-/// them (rows top to bottom, each run of such nodes from its start, four at a time; a run's
-/// last one to three nodes in a four of their own, padded with zero coefficients): each
-/// four's coefficients as one [`FourBlock`], so the four-node vector reads a tap's
-/// coefficients with one load instead of gathering them from four stencils of the table (on
-/// the processors it runs on; elsewhere empty).
+/// A Galerkin level's nodes with stencils of their own in fours, as [`residual_row`] takes
+/// them (each run from its start; its last one to three nodes padded with zero coefficients),
+/// each four's coefficients one [`FourBlock`], loaded a tap at a time (empty without AVX2).
 #[derive(Debug, Default)]
 pub(crate) struct Fours {
     blocks: Vec<FourBlock>,
@@ -218,7 +207,6 @@ impl Fours {
             for run in runs.row(r).iter().filter(|run| run.kind == RunKind::Own) {
                 let (c, e) = (run.start as usize, run.end as usize);
                 for i in (c..e).step_by(4) {
-                    // Past the run's end, zeros.
                     let s: [Option<&[f32; 25]>; 4] = std::array::from_fn(|j| (i + j < e).then(|| &narrow[ids[base + i + j] as usize]));
                     fours.blocks.push(std::array::from_fn(|t| {
                         let (dy, dx) = STORED_TAPS[t];
@@ -400,40 +388,6 @@ impl Geometry {
         y * self.w + x
     }
 
-    /// The holes (4-connected groups of inactive nodes): each inactive node's hole
-    /// (`u32::MAX` for active nodes), and for each hole whether it is wide: more than four of
-    /// its nodes per link to an active node (a thin strip's two sides a hierarchy must not tie
-    /// together) and clear of the grid's border.
-    pub fn holes(&self) -> (Vec<u32>, Vec<bool>) {
-        let (w, h) = (self.w, self.h);
-        let mut label = vec![u32::MAX; w * h];
-        let mut holes = Vec::new();
-        for start in 0..w * h {
-            if self.active[start] || label[start] != u32::MAX {
-                continue;
-            }
-            let id = holes.len() as u32;
-            label[start] = id;
-            let (mut stack, mut area, mut edges, mut border) = (vec![start], 0usize, 0usize, false);
-            while let Some(i) = stack.pop() {
-                area += 1;
-                let (x, y) = (i % w, i / w);
-                border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-                let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
-                for j in around.into_iter().flatten() {
-                    if self.active[j] {
-                        edges += 1;
-                    } else if label[j] == u32::MAX {
-                        label[j] = id;
-                        stack.push(j);
-                    }
-                }
-            }
-            holes.push(area > 4 * edges && !border);
-        }
-        (label, holes)
-    }
-
     /// A geometry with its prolongation rows filled in.
     pub fn new(w: usize, h: usize, active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, fixed: Option<Vec<bool>>) -> Geometry {
         Geometry { w, h, active, right, down, fixed, prow: Vec::new(), ext: Vec::new(), plain_rows: Vec::new() }.with_rows()
@@ -590,11 +544,12 @@ impl Geometry {
                 // The rows of its linked edge neighbours. Past the last column (row) sits
                 // the ghost coarse node's column (row), whose nodes would interpolate along
                 // this node's column (row) links (see `coarsen`).
-                let mut parts: [Option<(bool, usize, usize, usize)>; 4] = [None; 4];
-                parts[0] = self.right[i - 1].then_some((false, x - 1, y, 0));
-                parts[1] = if x + 1 == self.w { Some((false, x, y, 1)) } else { self.right[i].then_some((false, x + 1, y, 1)) };
-                parts[2] = self.down[i - self.w].then_some((true, x, y - 1, 0));
-                parts[3] = if y + 1 == self.h { Some((true, x, y, 1)) } else { self.down[i].then_some((true, x, y + 1, 1)) };
+                let parts = [
+                    self.right[i - 1].then_some((false, x - 1, y, 0)),
+                    if x + 1 == self.w { Some((false, x, y, 1)) } else { self.right[i].then_some((false, x + 1, y, 1)) },
+                    self.down[i - self.w].then_some((true, x, y - 1, 0)),
+                    if y + 1 == self.h { Some((true, x, y, 1)) } else { self.down[i].then_some((true, x, y + 1, 1)) },
+                ];
                 let mut rows = [[0.0; 16]; 4];
                 let mut has = [false; 4];
                 for ((part, row), h) in parts.iter().zip(rows.iter_mut()).zip(has.iter_mut()) {
@@ -703,14 +658,9 @@ impl Geometry {
         }
     }
 
-    /// Whether some row reaches past its 2 × 2 corners.
-    pub fn extended(&self) -> bool {
-        !self.ext.is_empty()
-    }
-
     /// The fine positions along one axis (`n` nodes) whose rows can reach coarse node `c`.
     pub fn children(&self, c: usize, n: usize) -> std::ops::RangeInclusive<usize> {
-        let (below, above) = if self.extended() { (4, 3) } else { (1, 1) };
+        let (below, above) = if !self.ext.is_empty() { (4, 3) } else { (1, 1) };
         (2 * c).saturating_sub(below)..=(2 * c + above).min(n - 1)
     }
 
@@ -805,10 +755,9 @@ widest! {
     }
 }
 
-/// `[Σ prod(a_j, b_j) over even j, the same over odd j]`: the two components' sums of
-/// two vectors of pairs given flattened (`b` at least as long as `a`). Eight running sums
-/// (four a component) instead of one: a single sum waits on its last addition at every
-/// entry (the single-sum dot products' loop was about 3 % of a one-thread solve's profile).
+/// `[Σ prod(a_j, b_j) over even j, the same over odd j]`: the two components' sums of two
+/// vectors of pairs given flattened (`b` at least as long as `a`), on eight running sums: a
+/// single sum waits on its last addition at every entry.
 #[inline(always)]
 pub(crate) fn pair_sums<A: Copy, B: Copy>(a: &[A], b: &[B], prod: impl Fn(A, B) -> f64) -> [f64; 2] {
     let b = &b[..a.len()];
@@ -895,7 +844,6 @@ impl Sym {
 pub(crate) struct Level {
     pub geo: Geometry,
     pub wp: usize,
-    pub hp: usize,
     pub op: Operator,
     /// 1 / a_ii for unknowns, 0 elsewhere (padded).
     pub inv_diag: Vec<f64>,
@@ -916,7 +864,7 @@ impl Level {
     }
 
     pub fn len_padded(&self) -> usize {
-        self.wp * self.hp
+        self.wp * (self.geo.h + 2 * PAD)
     }
 
     /// Zeroes the padding of a vector of this level: the rows above and below its nodes and
@@ -985,25 +933,29 @@ impl Level {
             _ => RunKind::Own,
         });
         let own = OwnStencils::new(&mut runs, wp, |p| fine_row(&flags, p, wp, tau));
-        Level { geo, wp, hp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, inv_diag_w, lam_max, clean }
+        Level { geo, wp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, inv_diag_w, lam_max, clean }
     }
 
     /// This finest level with the prolongation of the same grid without holes or cuts
-    /// (plain bilinear, every coarse level fully linked); rows of inactive and fixed nodes
-    /// stay zero. Its coarse space holds the functions that run smoothly across holes and
-    /// cuts, which the link-aware prolongation cannot: near a missing link it extrapolates a
-    /// constant.
-    pub fn into_plain(mut self) -> Level {
+    /// (plain bilinear, every coarse level fully linked): its coarse space holds the
+    /// functions that run smoothly across holes and cuts, where the link-aware prolongation
+    /// extrapolates a constant.
+    pub fn into_plain(self) -> Level {
         let (w, h) = (self.geo.w, self.geo.h);
         let right = (0..w * h).map(|i| i % w + 1 < w).collect();
         let down = (0..w * h).map(|i| i + w < w * h).collect();
-        let plain = Geometry::new(w, h, vec![true; w * h], right, down, None);
-        let real = std::mem::replace(&mut self.geo, plain);
-        for i in 0..w * h {
-            if !real.active[i] || real.fixed.as_ref().is_some_and(|f| f[i]) {
-                self.geo.prow[i] = [0; 4];
-            }
+        self.with_prolongation(Geometry::new(w, h, vec![true; w * h], right, down, None))
+    }
+
+    /// The level with the prolongation rows of `geo` (the same grid, more nodes or links);
+    /// the rows of its inactive and fixed nodes stay zero.
+    fn with_prolongation(mut self, geo: Geometry) -> Level {
+        let real = std::mem::replace(&mut self.geo, geo);
+        let zero = |i: usize| !real.active[i] || real.fixed.as_ref().is_some_and(|f| f[i]);
+        for i in (0..real.w * real.h).filter(|&i| zero(i)) {
+            self.geo.prow[i] = [0; 4];
         }
+        self.geo.ext.retain(|e| !zero(e.0 as usize));
         self
     }
 
@@ -1015,21 +967,39 @@ impl Level {
     }
 
     /// The same level with the prolongation of a geometry whose wide holes are filled: each
-    /// component of inactive nodes that does not touch the border and is not thin (more
-    /// than four nodes per link to an active node, see [`Geometry::holes`]) made
-    /// active and linked to everything around it. The operator stays the level's own and
-    /// the rows of the inactive and fixed nodes stay zero, so every coarser level (built
-    /// from this geometry) still holds the exact energy of its functions on the real
-    /// domain; but its functions now run smoothly up to a hole's rim, as the linear
-    /// extrapolation of a free boundary needs, where the link-aware rows extrapolate a
-    /// constant, which the fourth-order energy punishes more on every finer grid
-    /// (docs/dev/coarse-space.md). Thin holes (strips, slits, gaps between teeth) stay:
-    /// filling them would tie their two sides together.
-    pub fn with_holes_filled(mut self) -> Level {
+    /// hole (4-connected inactive nodes) clear of the border with more than four nodes per
+    /// link to an active node, made active and linked to everything around it. The operator
+    /// stays the level's own, so the coarser levels keep the exact energy on the real domain,
+    /// but their functions run smoothly up to a hole's rim (docs/dev/coarse-space.md). Thin
+    /// holes (strips, slits) stay: filling them would tie their two sides together.
+    pub fn with_holes_filled(self) -> Level {
         let g = &self.geo;
         let (w, h) = (g.w, g.h);
-        let (label, holes) = g.holes();
-        let fill: Vec<bool> = label.iter().map(|&l| l != u32::MAX && holes[l as usize]).collect();
+        let (mut seen, mut fill) = (vec![false; w * h], vec![false; w * h]);
+        for start in 0..w * h {
+            if g.active[start] || seen[start] {
+                continue;
+            }
+            seen[start] = true;
+            let (mut stack, mut hole, mut edges, mut border) = (vec![start], Vec::new(), 0usize, false);
+            while let Some(i) = stack.pop() {
+                hole.push(i);
+                let (x, y) = (i % w, i / w);
+                border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+                let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
+                for j in around.into_iter().flatten() {
+                    if g.active[j] {
+                        edges += 1;
+                    } else if !seen[j] {
+                        seen[j] = true;
+                        stack.push(j);
+                    }
+                }
+            }
+            if hole.len() > 4 * edges && !border {
+                hole.into_iter().for_each(|i| fill[i] = true);
+            }
+        }
         if !fill.contains(&true) {
             return self;
         }
@@ -1037,20 +1007,10 @@ impl Level {
         let right = (0..w * h).map(|i| g.right[i] || (i % w + 1 < w && (fill[i] || fill[i + 1]) && active[i] && active[i + 1])).collect();
         let down = (0..w * h).map(|i| g.down[i] || (i + w < w * h && (fill[i] || fill[i + w]) && active[i] && active[i + w])).collect();
         let filled = Geometry::new(w, h, active, right, down, g.fixed.clone());
-        let real = std::mem::replace(&mut self.geo, filled);
-        for i in 0..w * h {
-            if !real.active[i] {
-                self.geo.prow[i] = [0; 4];
-            }
-        }
-        self.geo.ext.retain(|e| real.active[e.0 as usize]);
+        let mut level = self.with_prolongation(filled);
         // Rows through a filled node are not plain: the transfers take the general path.
-        for y in 0..h {
-            if (0..w).any(|x| fill[y * w + x]) {
-                self.geo.plain_rows[y] = false;
-            }
-        }
-        self
+        level.geo.plain_rows.iter_mut().zip(fill.chunks(w)).for_each(|(plain, row)| *plain &= !row.contains(&true));
+        level
     }
 
     /// Frees everything but the dimensions and the prolongation rows (for a level that is
@@ -1129,13 +1089,8 @@ impl Level {
 
     /// `−(A x)_p` at one node of the finest level (its residual, the right-hand side being 0).
     pub fn fine_residual_at(&self, x: &[V2], p: usize) -> V2 {
-        match &self.op {
-            Operator::Fine { flags, tau, .. } => {
-                let a = fine_apply(flags, x, p, self.wp, *tau);
-                [-a[0], -a[1]]
-            }
-            Operator::Stored { .. } => unreachable!("only the finest level is relaxed node by node"),
-        }
+        let Operator::Fine { flags, tau, .. } = &self.op else { unreachable!("only the finest level is relaxed node by node") };
+        fine_apply(flags, x, p, self.wp, *tau).map(|a| -a)
     }
 
     /// `y = f − A x` on unknowns (zero elsewhere), rows in parallel for large levels.
@@ -1143,14 +1098,10 @@ impl Level {
         self.bands(x, f, out, Fold::Nothing);
     }
 
-    /// `out = f − A x` on a Galerkin level with every product and sum in `f64` (the
-    /// vectors `f32`, each entry widened exactly), rounded once: for the products of smooth
-    /// vectors as large as the answer or its error (the coarse-to-fine start's iterates,
-    /// the K-cycles' directions). Summed in `f32`, the rounding of such a product is noise
-    /// of about 10⁻⁷ times its terms, and on grids past about a thousand nodes a side that
-    /// is more than the smooth residual it should carry; the levels below then answered the
-    /// noise with smooth errors of hundreds of pixels (`docs/dev/solver-correctness.md`,
-    /// "Coarse products in f64").
+    /// `out = f − A x` on a Galerkin level with every product and sum in `f64` (entries
+    /// widened exactly), rounded once: for smooth vectors as large as the answer or its error,
+    /// whose product summed in `f32` is rounding noise above the residual it should carry
+    /// (`docs/dev/solver-correctness.md`, "Coarse products in f64").
     pub fn residual_f64(&self, x: &[W2], f: Option<&[W2]>, out: &mut [W2]) {
         let wp = self.wp;
         self.over_bands(out, Fold::Nothing, |r0, _, chunk| {
@@ -1237,26 +1188,18 @@ impl Level {
         parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
     }
 
-    /// One smoothing step in one pass over the level: band by band, the residual
-    /// `r = f − A x` (into `next`, as scratch), the update `d` from it (`rule`), and
-    /// `next = x + d`. The same operations in the same order as the residual, the update and
-    /// the addition one pass each, so the result is bit for bit theirs; but `x`, `d` and the
-    /// residual are read once instead of twice or three times (a step of the finest level
-    /// at 513 × 513 touches about 11 MB instead of 17, counted from its vectors). `next`
-    /// must differ from `x`: the bands read `x` two rows past their own. `d` is written only
-    /// when `keep` (a later step of the same smoothing reads it), and read only by
-    /// [`StepRule::Next`].
+    /// One smoothing step in one pass, band by band: the residual `r = f − A x` (into `next`,
+    /// as scratch), the update `d` from it (`rule`) and `next = x + d`, bit for bit the three
+    /// passes. `next` must differ from `x` (the bands read `x` two rows past their own); `d`
+    /// is written only when `keep` (a later step reads it), read only by [`StepRule::Next`].
     pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
         self.step_bands(d, next, |r0, _, chunk, dc| self.step_band(x, 0, f, r0, chunk, dc, rule, keep));
     }
 
-    /// A smoothing's second step from zero on the finest level, its first step's iterate
-    /// `x = D⁻¹ f / θ` ([`super::cycle::first_from_zero`]) computed band by band where the
-    /// product reads it (the band's rows and two more each side, into a buffer of the
-    /// thread's own) instead of written over the level and read back: bit for bit the first
-    /// step's pass and then [`Level::smoothing_step`], with one pass fewer and no vector of
-    /// the first iterate (at 513 × 513 about 7 MB a smoothing less, counted from the
-    /// vectors). `rule` is the second step's.
+    /// A smoothing's second step (`rule`) from zero on the finest level, the first iterate
+    /// `x = D⁻¹ f / θ` ([`super::cycle::first_from_zero`]) computed band by band into a buffer
+    /// of the thread's own where the product reads it: bit for bit the first step's pass and
+    /// then [`Level::smoothing_step`], one pass and one vector fewer.
     pub(crate) fn second_step_from_zero(&self, f: &[W2], inv_theta: WS, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
         assert!(matches!(self.op, Operator::Fine { .. }), "the finest level");
         let (wp, g) = (self.wp, &self.inv_diag_w[..]);
@@ -1302,7 +1245,6 @@ impl Level {
         for (k, (orow, drow)) in chunk.chunks_mut(wp).zip(dc.chunks_mut(wp)).enumerate() {
             let (xb, gb) = ((r0 - shift + k) * wp, (r0 + k) * wp);
             let (xrow, grow) = (&x[xb..xb + wp], &g[gb..gb + wp]);
-            // Padding columns hold zeros.
             orow[..PAD].fill([0.0; 2]);
             orow[PAD + w..].fill([0.0; 2]);
             let cols = PAD..PAD + w;
@@ -1319,10 +1261,8 @@ thread_local! {
 }
 
 /// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal
-/// `g`: `d = g r / θ` for the first step, `d = c₁ d + c₂ g r` for later ones. After a first
-/// step from zero the last update is the iterate itself, and the second step reads it there
-/// (`Second`: `d = c₁ x + c₂ g r`), so that first step writes one vector instead of two and
-/// the second reads one less.
+/// `g`: `d = g r / θ` for the first step, `d = c₁ d + c₂ g r` for later ones, and
+/// `d = c₁ x + c₂ g r` for the second after a first from zero (whose update is its iterate).
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum StepRule {
     First { inv_theta: WS },
@@ -1337,9 +1277,7 @@ widest! {
     /// row; `d` is written only when `keep`.
     step_row_body {
         let n = out.len();
-        // On the flattened components, an inverse diagonal entry for each two: written on
-        // pairs, the compiler stored each pair as one 64-bit integer and kept the loops
-        // scalar.
+        // On the flattened components (written on pairs, the loops stayed scalar).
         let (o, d, x, g) = (out.as_flattened_mut(), d[..n].as_flattened_mut(), x[..n].as_flattened(), &g[..n]);
         macro_rules! each {
             (|$j:ident, $r:ident, $g:ident| $v:expr) => {
@@ -1480,16 +1418,7 @@ fn shared_run<S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, s: &[T; 25],
 /// (in [`STORED_TAPS`] order, each product added to the sum in turn), four nodes side by
 /// side: one node's 21 taps summed one after another wait on each other, four nodes' do not.
 #[inline(always)]
-fn own_sums<'a, S: Real, T: Real>(
-    x: &[[S; 2]],
-    f: Option<&[[T; 2]]>,
-    wp: usize,
-    base: usize,
-    c0: usize,
-    c1: usize,
-    out: &mut [[T; 2]],
-    stencil: impl Fn(usize) -> &'a [T; 25],
-) {
+fn own_sums<'a, S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]], stencil: impl Fn(usize) -> &'a [T; 25]) {
     let mut i = c0;
     while i < c1 {
         let k = (c1 - i).min(4);
@@ -1517,24 +1446,11 @@ fn own_sums<'a, S: Real, T: Real>(
 }
 
 widest! {
-    /// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level. Runs of
-    /// regular nodes take the interior molecule (the square of the 5-point Laplacian, plus τ
-    /// times the Laplacian) in a tight loop; the others their own stencils (see
-    /// [`OwnStencils`]; the runs: the level's [`Runs`]).
-    /// On the processor's widest vectors (see [`super::wide`]).
+    /// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level: the
+    /// interior molecule on runs of regular nodes, the others' [`OwnStencils`], on the
+    /// processor's widest vectors (see [`super::wide`]).
     #[inline(never)]
-    fn fine_band<S: Real, T: Real>(
-        runs: &Runs,
-        own: &OwnStencils,
-        tau: f64,
-        wp: usize,
-        x: &[[S; 2]],
-        f: Option<&[[T; 2]]>,
-        r0: usize,
-        r1: usize,
-        shift: usize,
-        out: &mut [[T; 2]],
-    ) =>
+    fn fine_band<S: Real, T: Real>(runs: &Runs, own: &OwnStencils, tau: f64, wp: usize, x: &[[S; 2]], f: Option<&[[T; 2]]>, r0: usize, r1: usize, shift: usize, out: &mut [[T; 2]]) =>
     /// `x` and `f` hold the level's rows from padded row `shift` on (0: all of them).
     fine_band_body {
         let molecule = Sym::fine(tau);
@@ -1558,23 +1474,11 @@ widest! {
 }
 
 /// A symmetric stencil ([`Sym`]) on columns `c0..c1` of padded row `base / wp` (`out` is
-/// that row): the shared stencil of a Galerkin level, or with `KNIGHT` false the interior
-/// molecule of the finest level, whose knight's-move ring is empty.
-///
-/// It runs on the flattened components (Δx, Δy, Δx, …): every operation is the same for
-/// both, so the loop vectorises across nodes. `x` may be narrower than the sums (see
-/// [`widened`]).
+/// that row): a Galerkin level's shared stencil, or (`KNIGHT` false, no knight's-move ring)
+/// the finest level's interior molecule. On the flattened components, so the loop
+/// vectorises across nodes; `x` may be narrower than the sums (see [`widened`]).
 #[inline(always)]
-fn sym_run<S: Real, T: Real, const KNIGHT: bool>(
-    x: &[[S; 2]],
-    f: Option<&[[T; 2]]>,
-    sym: &Sym,
-    wp: usize,
-    base: usize,
-    c0: usize,
-    c1: usize,
-    out: &mut [[T; 2]],
-) {
+fn sym_run<S: Real, T: Real, const KNIGHT: bool>(x: &[[S; 2]], f: Option<&[[T; 2]]>, sym: &Sym, wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]]) {
     let n = 2 * (c1 - c0);
     let xf = x.as_flattened();
     let at = |dr: isize, dc: isize| -> &[S] {
@@ -1674,18 +1578,14 @@ pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25]
     let m = |q: usize, b: u8| flags[q] & b != 0;
     // offset of padded node q relative to p as a stencil index
     let at = |dx: isize, dy: isize| ((dy + 2) * 5 + dx + 2) as usize;
-    // horizontal triple centred at p + d (d in -1..=1): nodes p+d-1, p+d, p+d+1
+    // The horizontal and vertical triples centred at p + d (d in -1..=1).
     for d in -1isize..=1 {
-        if m((p as isize + d) as usize, bit::HTRI) {
-            let cp = if d == 0 { -2.0 } else { 1.0 };
-            for (o, c) in [(-1isize, 1.0), (0, -2.0), (1, 1.0)] {
-                s[at(d + o, 0)] += cp * c;
-            }
-        }
-        if m((p as isize + d * wp as isize) as usize, bit::VTRI) {
-            let cp = if d == 0 { -2.0 } else { 1.0 };
-            for (o, c) in [(-1isize, 1.0), (0, -2.0), (1, 1.0)] {
-                s[at(0, d + o)] += cp * c;
+        let cp = if d == 0 { -2.0 } else { 1.0 };
+        for (q, b, tap) in [(p as isize + d, bit::HTRI, (1, 0)), (p as isize + d * wp as isize, bit::VTRI, (0, 1))] {
+            if m(q as usize, b) {
+                for (o, c) in [(-1isize, 1.0), (0, -2.0), (1, 1.0)] {
+                    s[at(tap.0 * (d + o), tap.1 * (d + o))] += cp * c;
+                }
             }
         }
     }
@@ -1705,21 +1605,11 @@ pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25]
         }
     }
     if tau != 0.0 {
-        if m(p, bit::RIGHT) {
-            s[at(0, 0)] += tau;
-            s[at(1, 0)] -= tau;
-        }
-        if m(p - 1, bit::RIGHT) {
-            s[at(0, 0)] += tau;
-            s[at(-1, 0)] -= tau;
-        }
-        if m(p, bit::DOWN) {
-            s[at(0, 0)] += tau;
-            s[at(0, 1)] -= tau;
-        }
-        if m(p - wp, bit::DOWN) {
-            s[at(0, 0)] += tau;
-            s[at(0, -1)] -= tau;
+        for (q, b, dx, dy) in [(p, bit::RIGHT, 1, 0), (p - 1, bit::RIGHT, -1, 0), (p, bit::DOWN, 0, 1), (p - wp, bit::DOWN, 0, -1)] {
+            if m(q, b) {
+                s[at(0, 0)] += tau;
+                s[at(dx, dy)] -= tau;
+            }
         }
     }
     s
@@ -1743,7 +1633,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         }
     }
     // Extrapolating rows read links three nodes away: a wider window.
-    let reach = if fine.geo.extended() { 10 } else { 4 };
+    let reach = if !fine.geo.ext.is_empty() { 10 } else { 4 };
     let regular = |xc: usize, yc: usize| -> bool {
         let (x0, y0) = (2 * xc as isize - reach, 2 * yc as isize - reach);
         let (x1, y1) = (2 * xc as isize + reach + 1, 2 * yc as isize + reach + 1);
@@ -1766,7 +1656,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let far_here = matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
-    let wide = fine.geo.extended() || far_here;
+    let wide = !fine.geo.ext.is_empty() || far_here;
     let win = if wide { Windows::WIDE } else { Windows::NARROW };
     type RowOut = (Vec<u32>, Vec<[f64; 25]>, Vec<(usize, isize, isize, f64)>);
     let build_row = |yc: usize| -> RowOut {
@@ -1817,10 +1707,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
                 }
             }
             let (acc, far_taps) = split_taps(&acc, win.acc);
-            // The window test above is conservative: a constraint or border near the edge
-            // of the window often leaves the stencil as it is (at 513 × 513 with 4000
-            // points, 18 of the first coarse level's 48 thousand candidates). Those are
-            // regular, up to the rounding of their sums.
+            // The window test is conservative: a stencil equal to the shared one up to the
+            // rounding of its sums is regular.
             if far_taps.is_empty() && shared_scale > 0.0 && acc.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale) {
                 continue;
             }
@@ -1830,11 +1718,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         }
         (ids, own, far)
     };
-    let rows: Vec<RowOut> = if fw * fh >= PAR_MIN_NODES {
-        (0..hc).into_par_iter().map(build_row).collect()
-    } else {
-        (0..hc).map(build_row).collect()
-    };
+    let mut rows: Vec<RowOut> = vec![Default::default(); hc];
+    each_row(fw * fh, &mut rows, 1, |yc, row| row[0] = build_row(yc));
     // Irregular stencils each stored once (see `DistinctStencils`), after the shared one.
     let mut ids = vec![0u32; wpc * hpc];
     let mut distinct = DistinctStencils { table: vec![shared], ..Default::default() };
@@ -1888,7 +1773,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         (true, true) => RunKind::Own,
     });
     let fours = Fours::new(&ids, &narrow, &runs, wpc, hc);
-    Level { geo, wp: wpc, hp: hpc, op: Operator::Stored { ids, table, narrow, sym, fours, runs, far }, inv_diag, inv_diag_w, lam_max, clean }
+    Level { geo, wp: wpc, op: Operator::Stored { ids, table, narrow, sym, fours, runs, far }, inv_diag, inv_diag_w, lam_max, clean }
 }
 
 fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {
@@ -1994,8 +1879,7 @@ fn narrow_ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
 
 /// The prolongation weights of the codes of [`Geometry::prow`] (24ths).
 const WEIGHTS: [f64; 25] = {
-    let mut w = [0.0; 25];
-    let mut k = 0;
+    let (mut w, mut k) = ([0.0; 25], 0);
     while k < 25 {
         w[k] = k as f64 / 24.0;
         k += 1;
@@ -2100,12 +1984,7 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
         }
     };
     out[..PAD * wpc].fill(zero);
-    let body = &mut out[PAD * wpc..(PAD + coarse.geo.h) * wpc];
-    if fw * fh >= PAR_MIN_NODES {
-        body.par_chunks_mut(wpc).enumerate().for_each(|(yc, o)| run(yc, o));
-    } else {
-        body.chunks_mut(wpc).enumerate().for_each(|(yc, o)| run(yc, o));
-    }
+    each_row(fw * fh, &mut out[PAD * wpc..(PAD + coarse.geo.h) * wpc], wpc, run);
 }
 
 widest! {
@@ -2120,10 +1999,7 @@ widest! {
         let general = |xc: usize, o: &mut [T; 2]| {
             let ix = 2 * xc;
             let mut a = if ix < fw { get(vr[ix]) } else { zero };
-            let mut side = zero;
-            if ix >= 1 {
-                side = get(vr[ix - 1]);
-            }
+            let mut side = if ix >= 1 { get(vr[ix - 1]) } else { zero };
             if ix + 1 < fw {
                 let b = get(vr[ix + 1]);
                 side[0] += b[0];
@@ -2200,12 +2076,8 @@ widest! {
     }
 }
 
-/// `fine_x += P e` (prolongation of a coarse correction onto the unknowns).
-pub(crate) fn prolong_add<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]]) {
-    prolong_add_scaled(fine, coarse, e, x, [1.0; 2]);
-}
-
-/// `fine_x += α P e`, α per component, in either precision.
+/// `fine_x += α P e` (prolongation of a coarse correction onto the unknowns), α per
+/// component, in either precision.
 pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]], alpha: V2) {
     let (fw, fh) = (fine.geo.w, fine.geo.h);
     let wp = fine.wp;
@@ -2267,11 +2139,16 @@ pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level,
             }
         }
     };
-    let body = &mut x[PAD * wp..(PAD + fh) * wp];
-    if fw * fh >= PAR_MIN_NODES {
-        body.par_chunks_mut(wp).enumerate().for_each(|(iy, r)| run(iy, r));
+    each_row(fw * fh, &mut x[PAD * wp..(PAD + fh) * wp], wp, run);
+}
+
+/// `f(y, row)` on each row (`wp` long) of `body`, on the pool's threads when the fine level
+/// has [`PAR_MIN_NODES`] nodes or more.
+fn each_row<U: Send>(fine_nodes: usize, body: &mut [U], wp: usize, f: impl Fn(usize, &mut [U]) + Sync + Send) {
+    if fine_nodes >= PAR_MIN_NODES {
+        body.par_chunks_mut(wp).enumerate().for_each(|(y, r)| f(y, r));
     } else {
-        body.chunks_mut(wp).enumerate().for_each(|(iy, r)| run(iy, r));
+        body.chunks_mut(wp).enumerate().for_each(|(y, r)| f(y, r));
     }
 }
 

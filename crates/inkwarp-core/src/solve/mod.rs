@@ -647,7 +647,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         let fine = fine.with_holes_filled();
         let alt = (fine.geo.active.contains(&false) && !key.off.has("second")).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.clone().unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
-        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse);
+        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse, true);
         hier.k_cycles = !key.off.has("kcycle");
         hier.alt = alt;
         hier.torn = torn;

@@ -387,7 +387,7 @@ fn coarse_products_are_the_galerkin_products_on_cut_grids() {
             let mut direct = vec![[0.0f64; 2]; coarse.len_padded()];
             coarse.residual(&xc, None, &mut direct);
             let mut xf = vec![[0.0f64; 2]; fine.len_padded()];
-            level::prolong_add(&fine, &coarse, &xc, &mut xf);
+            level::prolong_add_scaled(&fine, &coarse, &xc, &mut xf, [1.0; 2]);
             let mut rf = vec![[0.0f64; 2]; fine.len_padded()];
             fine.residual(&xf, None, &mut rf);
             let mut via = vec![[0.0f64; 2]; coarse.len_padded()];
@@ -459,7 +459,7 @@ fn k_cycles_take_their_second_step_where_the_first_leaves_much() {
     let mut rnd = crate::grid::tests::sequence(8);
     for (density, dense) in [(0.25, true), (0.001, false)] {
         let fixed: Vec<bool> = (0..w * h).map(|_| rnd() < density).collect();
-        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), SMOOTHING_STEPS, OPEN_COARSE_SMOOTHING);
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), SMOOTHING_STEPS, OPEN_COARSE_SMOOTHING, true);
         assert!(hier.levels.len() >= 4, "a K-cycle needs a level between the first coarse one and the coarsest");
         let fine = &hier.levels[0];
         let r: Vec<V2> = (0..fine.len_padded()).map(|p| if fine.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
@@ -942,7 +942,7 @@ fn every_level_smooths_below_the_top_of_its_spectrum() {
     for i in [5 * w + 7, 20 * w + 50, 40 * w + 12, 60 * w + 60, 33 * w + 33] {
         fixed[i] = true;
     }
-    let main = Hierarchy::new(fine_level(&grid, Some(fixed.clone()), 0.05), SMOOTHING_STEPS, SMOOTHING_STEPS);
+    let main = Hierarchy::new(fine_level(&grid, Some(fixed.clone()), 0.05), SMOOTHING_STEPS, SMOOTHING_STEPS, true);
     let alt = Hierarchy::coarse_space(fine_level(&grid, Some(fixed), 0.05).into_plain(), SMOOTHING_STEPS);
     let levels = main.levels.iter().chain(alt.levels.iter().skip(1));
     for (k, level) in levels.enumerate() {
