@@ -7,7 +7,7 @@ use std::time::Instant;
 
 mod common;
 
-use inkwarp_core::solve::{solve_warm, SolveOptions, WarmHistory};
+use inkwarp_core::solve::{SolveOptions, Solver};
 use inkwarp_core::{Grid, Sample};
 
 fn main() {
@@ -27,7 +27,7 @@ fn main() {
         .collect();
     let grid = Grid::new(size, size);
     let opts = SolveOptions::default();
-    let mut history = WarmHistory::new();
+    let mut solver = Solver::new();
     let mut times = Vec::new();
     let mut cycles = Vec::new();
     for f in 0..frames {
@@ -39,7 +39,7 @@ fn main() {
             })
             .collect();
         let t = Instant::now();
-        let (_, report) = solve_warm(&grid, &samples, &opts, &mut history, None).unwrap();
+        let (_, report) = solver.solve_warm(&grid, &samples, &opts, None).unwrap();
         times.push(t.elapsed().as_secs_f64());
         cycles.push(report.cycles);
     }

@@ -20,7 +20,7 @@ pub struct Field {
 
 /// A field read in place: the core's planar [`Field`], or interleaved `(H, W, 2)` storage
 /// (`[Δx, Δy]` per pixel, row-major: a numpy array's), so that a solve's start given
-/// either way is read without a copy ([`crate::solve::solve_from_view`]).
+/// either way is read without a copy ([`crate::solve::Solver::solve`]).
 #[derive(Clone, Copy, Debug)]
 pub enum FieldView<'a> {
     Planar(&'a Field),

@@ -9,7 +9,7 @@ use pyo3::types::PyDict;
 
 use std::sync::{Arc, Mutex};
 
-use inkwarp_core::solve::{in_pool, solve_from_view, SolveError, SolveMethod, SolveOptions, Solver};
+use inkwarp_core::solve::{in_pool, SolveError, SolveMethod, SolveOptions, Solver};
 use inkwarp_core::{FieldView, Grid, Sample};
 
 /// Earlier solves of one animated surface (`inkwarp.WarmStart`): the next solve starts
@@ -193,7 +193,7 @@ fn thin_plate_solve<'py>(
             let result = match (history.as_mut(), kept.as_mut()) {
                 (Some(s), _) => s.solve_warm(&grid, &samples, &options, None),
                 (None, Some(s)) => s.solve(&grid, &samples, &options, initial),
-                (None, None) => solve_from_view(&grid, &samples, &options, initial),
+                (None, None) => Solver::new().solve(&grid, &samples, &options, initial),
             };
             result.map(|(field, report)| (field.to_interleaved(), report))
         })

@@ -30,14 +30,14 @@ use super::level::{Level, Real, V2, W2, WS};
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
-/// Ritz vectors kept (64 cost more than the cycles they saved: `docs/dev/ablation.md`,
-/// "Tenth change").
+/// Ritz vectors kept (`docs/dev/ablation.md`, "Tenth change").
 const KEEP: usize = 8;
 /// Most bytes the kept vectors may take.
 const BUDGET_BYTES: usize = 256 << 20;
 /// Node chunk for the fused passes.
 const CHUNK: usize = 4096;
 
+#[derive(Default)]
 pub(super) struct Deflation {
     on: bool,
     /// Stops wait for the first look at the kept directions (see [`Deflation::rate_floor`]).
@@ -68,27 +68,9 @@ pub(super) struct Deflation {
 
 impl Deflation {
     pub fn new(len: usize, off: bool, wait: bool) -> Deflation {
-        let per = 4 * len;
-        let fit = BUDGET_BYTES / per.max(1);
+        let fit = BUDGET_BYTES / (4 * len).max(1);
         let keep = KEEP.min(fit.saturating_sub(2 * WINDOW) / 2);
-        let on = !off && keep >= 4;
-        Deflation {
-            on,
-            wait,
-            keep,
-            v: Vec::new(),
-            w: Vec::new(),
-            aw: Vec::new(),
-            e: Vec::new(),
-            g: Vec::new(),
-            m: Vec::new(),
-            restarts: 0,
-            steps: [Vec::new(), Vec::new()],
-            low: f64::INFINITY,
-            high: 0.0,
-            before: f64::INFINITY,
-            changes: Vec::new(),
-        }
+        Deflation { on: !off && keep >= 4, wait, keep, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
     }
 
     /// Makes the search direction `p` `A`-orthogonal to the kept vectors.
@@ -239,9 +221,7 @@ impl Deflation {
         self.v.clear();
         // u += W c, r −= A W c with c = E⁻¹ Wᵀ r.
         let rhs = dots(&self.w, n, |i| r[i]);
-        let Some(c) = super::dense_solve(self.e.clone(), rhs)
-            .filter(|c| c.iter().all(|v| v[0].is_finite() && v[1].is_finite()))
-        else {
+        let Some(c) = super::dense_solve(self.e.clone(), rhs).filter(|c| c.iter().all(|v| v[0].is_finite() && v[1].is_finite())) else {
             self.clear();
             return;
         };
@@ -349,14 +329,11 @@ impl Deflation {
 /// Sums of `len` nodes in chunks, each chunk adding into its own `width` sums, the chunks
 /// added in order (the result does not depend on the threads).
 fn chunked_sums(len: usize, width: usize, f: impl Fn(usize, usize, &mut [f64]) + Sync) -> Vec<f64> {
-    let parts: Vec<Vec<f64>> = (0..len.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| {
-            let mut out = vec![0.0; width];
-            f(c * CHUNK, ((c + 1) * CHUNK).min(len), &mut out);
-            out
-        })
-        .collect();
+    let parts: Vec<Vec<f64>> = (0..len.div_ceil(CHUNK)).into_par_iter().map(|c| {
+        let mut out = vec![0.0; width];
+        f(c * CHUNK, ((c + 1) * CHUNK).min(len), &mut out);
+        out
+    }).collect();
     parts.iter().fold(vec![0.0; width], |mut s, p| {
         s.iter_mut().zip(p).for_each(|(s, p)| *s += p);
         s
@@ -465,10 +442,7 @@ fn jacobi_eigen(mut a: Vec<Vec<f64>>) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     let n = a.len();
     let mut v: Vec<Vec<f64>> = (0..n).map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect()).collect();
     for _ in 0..100 {
-        let off: f64 = (0..n)
-            .flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j)))
-            .map(|(i, j)| a[i][j] * a[i][j])
-            .sum();
+        let off: f64 = (0..n).flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j))).map(|(i, j)| a[i][j] * a[i][j]).sum();
         let scale: f64 = (0..n).map(|i| a[i][i] * a[i][i]).sum::<f64>();
         if off <= 1e-30 * scale.max(1e-300) {
             break;

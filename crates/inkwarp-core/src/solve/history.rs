@@ -9,15 +9,12 @@
 //! motion that is a polynomial extrapolation in time, far closer than the last field
 //! alone (DESIGN §4's warm start, generalised from one earlier frame to a few).
 
-use std::collections::VecDeque;
+use std::{borrow::Cow, collections::VecDeque};
 
 use crate::field::{Field, FieldView};
-use crate::geometry::Sample;
 use crate::grid::{Constraints, Grid};
 
-use std::borrow::Cow;
-
-use super::{dense_solve, solve_constrained, SolveError, SolveOptions, SolveReport, Solver};
+use super::{dense_solve, solve_constrained, SolveOptions, SolveReport, Solver};
 
 /// How many earlier frames a [`WarmHistory`] keeps.
 pub const HISTORY_FRAMES: usize = 3;
@@ -33,7 +30,7 @@ pub struct WarmHistory {
     shape: (usize, usize),
     nodes: Vec<usize>,
     /// Oldest first: (constraint values, field).
-    entries: VecDeque<(Vec<[f64; 2]>, Field)>,
+    pub(super) entries: VecDeque<(Vec<[f64; 2]>, Field)>,
 }
 
 impl WarmHistory {
@@ -46,12 +43,6 @@ impl WarmHistory {
     pub fn clear(&mut self) {
         self.entries.clear();
         self.nodes.clear();
-    }
-
-    /// The latest field, if any: the coarse one of a solve with `grid_step` above 1 (see
-    /// [`solve_warm`]).
-    pub fn last(&self) -> Option<&Field> {
-        self.entries.back().map(|e| &e.1)
     }
 
     /// Number of earlier frames kept.
@@ -84,7 +75,7 @@ impl WarmHistory {
     /// frames pin other nodes or do not help; `None` when empty or kept for another grid
     /// size.
     pub fn predict(&self, grid: &Grid, c: &Constraints) -> Option<Field> {
-        let last = self.last()?;
+        let last = &self.entries.back()?.1;
         if last.width != grid.width || last.height != grid.height {
             return None;
         }
@@ -153,10 +144,8 @@ impl WarmHistory {
         // Every frame first, then the subsets.
         for subset in (1..=all).rev() {
             let frames: Vec<usize> = (0..k).filter(|&i| subset & (1 << i) != 0).collect();
-            let m: Vec<Vec<f64>> = frames
-                .iter()
-                .map(|&i| frames.iter().map(|&j| g[i][j] + if i == j { 1e-10 * trace } else { 0.0 }).collect())
-                .collect();
+            let ridge = |i: usize, j: usize| g[i][j] + if i == j { 1e-10 * trace } else { 0.0 };
+            let m: Vec<Vec<f64>> = frames.iter().map(|&i| frames.iter().map(|&j| ridge(i, j)).collect()).collect();
             let Some(x) = dense_solve(m, frames.iter().map(|&i| [b[i], 0.0]).collect()) else {
                 continue;
             };
@@ -192,62 +181,18 @@ impl WarmHistory {
     }
 }
 
-/// [`solve`] started from `history` and `initial` ([`WarmHistory::start`]: whichever is
-/// closer), which then keeps the result. With `grid_step` above 1 the history keeps and
-/// combines the coarse solves' fields, and `initial` is read at the coarse nodes only: a
-/// draft's start costs a pass over its coarse grid, not over every pixel.
-///
-/// ```
-/// use inkwarp_core::solve::{solve_warm, SolveOptions, WarmHistory};
-/// use inkwarp_core::{Grid, Sample};
-/// let grid = Grid::new(48, 48);
-/// let mut history = WarmHistory::new();
-/// let opts = SolveOptions::default();
-/// // A point swinging smoothly while two corners hold: each frame starts from the
-/// // extrapolation of the ones before.
-/// let pose = |t: f64| {
-///     let s = |x, y, dx, dy| Sample { rest: [x, y], displacement: [dx, dy] };
-///     vec![s(0.0, 0.0, 0.0, 0.0), s(47.0, 47.0, 0.0, 0.0), s(10.0, 40.0, 0.0, 0.0),
-///          s(24.0, 24.0, 6.0 * t.sin(), 6.0 * t.cos())]
-/// };
-/// let mut cycles = Vec::new();
-/// for frame in 0..8 {
-///     let (_, report) = solve_warm(&grid, &pose(0.2 * frame as f64), &opts, &mut history, None).unwrap();
-///     cycles.push(report.cycles);
-/// }
-/// assert!(cycles[7] <= cycles[0]);
-/// ```
-pub fn solve_warm(
-    grid: &Grid,
-    samples: &[Sample],
-    options: &SolveOptions,
-    history: &mut WarmHistory,
-    initial: Option<Field>,
-) -> Result<(Field, SolveReport), SolveError> {
-    let mut solver = Solver::with_history(std::mem::take(history));
-    let result = solver.solve_warm(grid, samples, options, initial);
-    *history = solver.into_history();
-    result
-}
-
 /// The solve of constraints `c` on `grid` (the solve's own grid: the coarse one at
 /// `grid_step` above 1) with `solver`, from its history's start when `warm`, which then
 /// keeps the result; from `initial` otherwise.
 pub(crate) fn solve_from(
-    grid: &Grid,
-    c: &Constraints,
-    options: &SolveOptions,
-    initial: Option<FieldView<'_>>,
-    solver: &mut Solver,
-    warm: bool,
+    grid: &Grid, c: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
 ) -> (Field, SolveReport) {
-    let (store, history) = solver.parts();
     if !warm {
-        return solve_constrained(grid, c, options, initial, store);
+        return solve_constrained(grid, c, options, initial, &mut solver.store);
     }
     let given = initial.map(|f| f.to_field());
-    let start = history.start(grid, c, given.as_deref());
-    let (field, report) = solve_constrained(grid, c, options, start.as_deref().map(FieldView::from), store);
-    history.record(grid, c, &field);
+    let start = solver.history.start(grid, c, given.as_deref());
+    let (field, report) = solve_constrained(grid, c, options, start.as_deref().map(FieldView::from), &mut solver.store);
+    solver.history.record(grid, c, &field);
     (field, report)
 }

@@ -29,32 +29,14 @@
 //!
 //! # The multigrid
 //!
-//! Every piece left to the iteration is solved apart, on the box around it (its own
-//! hierarchy, steps and stopping rule). Geometric hierarchy (node (X, Y) of level k+1 sits
-//! on (2X, 2Y) of level k, with a ghost node past the last column and row of even-sized
-//! levels) with *link-aware* bilinear
-//! prolongation that never interpolates across a missing link or from an inactive node,
-//! *Galerkin* coarse operators `Pᵀ A P` stored as 5 × 5 stencils per node (so every coarse
-//! level sees the exact energy of its coarse functions on the fine domain, however thin the
-//! holes and cuts), Chebyshev–Jacobi smoothing (symmetric, parallel, its range from a
-//! Lanczos estimate of each level's top eigenvalue), K-cycles below the finest level (two
-//! flexible conjugate-gradient steps on each coarse problem, the first an energy line
-//! search, the second only when the first left much of the residual), a banded Cholesky
-//! solve on the coarsest level, a coarse-to-fine start, and the cycle as the
-//! preconditioner of a flexible conjugate gradient on the finest level. Wide holes inside the grid are filled for the prolongation alone (the operator stays the
-//! real one), so the coarse functions run smoothly up to their rims. On grids with tears
-//! left after that (thin holes, holes open to the border) each cycle also visits a
-//! second coarse space, built with the plain bilinear prolongation of the same grid
-//! without them. At a cut the link-aware prolongation extrapolates linearly from each
-//! side. The thin parts of every level (strands, teeth, slivers between cuts) are solved
-//! exactly, block by block, around the cycle and around each level's smoothing
-//! ([`strands`]). A warm start whose
-//! residuals exceed the tolerance also gets the coarse-to-fine correction; a closer one
-//! first gets one cycle as it is. Free functions of the plate energy (hinges, strands,
-//! loose nodes) are settled to the τ → 0⁺ limit afterwards ([`nullspace`]).
-//! `docs/concepts/thin-plate.md` explains the choices; `docs/dev/ablation.md` measures
-//! what each optional mechanism buys. The hierarchies a later solve can reuse are kept
-//! by the caller's [`Solver`], never by the process.
+//! Every piece left to the iteration is solved apart, on the box around it, by a flexible
+//! conjugate gradient on the finest level preconditioned by a geometric multigrid cycle
+//! (link-aware prolongation, Galerkin coarse operators, Chebyshev–Jacobi smoothing, K-cycles,
+//! a banded Cholesky coarsest solve, a second coarse space on torn grids, exact solves of the
+//! thin parts: [`strands`]) after a coarse-to-fine start. Free functions of the plate energy
+//! are settled to the τ → 0⁺ limit afterwards ([`nullspace`]). `docs/concepts/thin-plate.md`
+//! explains the choices; `docs/dev/ablation.md` measures each optional mechanism. The
+//! hierarchies a later solve can reuse are kept by the caller's [`Solver`], never by the process.
 
 mod cycle;
 mod deflate;
@@ -66,8 +48,8 @@ mod strands;
 mod upsample;
 mod wide;
 
-pub use history::{solve_warm, WarmHistory, HISTORY_FRAMES};
-pub use upsample::{solve_warm_at, Upsampling};
+pub use history::{WarmHistory, HISTORY_FRAMES};
+pub use upsample::Upsampling;
 
 use crate::clock::Instant;
 use rayon::prelude::*;
@@ -125,10 +107,8 @@ impl Ablation {
     pub fn parse(text: &str) -> Result<Ablation, String> {
         let mut bits = 0;
         for name in text.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-            let k = Self::NAMES.iter().position(|n| *n == name).ok_or_else(|| {
-                format!("unknown mechanism {name:?}; the switches are {}", Self::NAMES.join(", "))
-            })?;
-            bits |= 1 << k;
+            let k = Self::NAMES.iter().position(|n| *n == name);
+            bits |= 1 << k.ok_or_else(|| format!("unknown mechanism {name:?}; the switches are {}", Self::NAMES.join(", ")))?;
         }
         Ok(Ablation(bits))
     }
@@ -141,15 +121,8 @@ impl Ablation {
 
 impl Default for SolveOptions {
     fn default() -> Self {
-        SolveOptions {
-            tension: 0.0,
-            tolerance_px: 0.01,
-            grid_step: 1,
-            max_cycles: None,
-            method: SolveMethod::Multigrid,
-            southwell_sweeps: 10.0,
-            off: Ablation::default(),
-        }
+        let off = Ablation::default();
+        SolveOptions { tension: 0.0, tolerance_px: 0.01, grid_step: 1, max_cycles: None, method: SolveMethod::Multigrid, southwell_sweeps: 10.0, off }
     }
 }
 
@@ -222,35 +195,14 @@ pub enum SolveError {
 /// let [dx, dy] = field.at(16, 16);
 /// assert_eq!((dx, dy), (4.0, -2.0));
 /// ```
-pub fn solve(
-    grid: &Grid,
-    samples: &[Sample],
-    options: &SolveOptions,
-    initial: Option<&Field>,
-) -> Result<(Field, SolveReport), SolveError> {
+pub fn solve(grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<&Field>) -> Result<(Field, SolveReport), SolveError> {
     Solver::new().solve(grid, samples, options, initial.map(FieldView::from))
 }
 
-/// [`solve`] from a start read in place, planar or interleaved (the Python binding's
-/// numpy start, not converted to a [`Field`] first).
-pub fn solve_from_view(
-    grid: &Grid,
-    samples: &[Sample],
-    options: &SolveOptions,
-    initial: Option<FieldView<'_>>,
-) -> Result<(Field, SolveReport), SolveError> {
-    Solver::new().solve(grid, samples, options, initial)
-}
-
 /// [`solve`] with `solver`, its start taken from the solver's history when `warm`
-/// ([`WarmHistory::start`]), which then keeps the result (see [`solve_warm`]).
+/// ([`WarmHistory::start`]), which then keeps the result (see [`Solver::solve_warm`]).
 pub(crate) fn solve_with(
-    grid: &Grid,
-    samples: &[Sample],
-    options: &SolveOptions,
-    initial: Option<FieldView<'_>>,
-    solver: &mut Solver,
-    warm: bool,
+    grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
 ) -> Result<(Field, SolveReport), SolveError> {
     let start = Instant::now();
     let (field, mut report) = in_pool(|| {
@@ -283,12 +235,7 @@ pub fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     rayon::scope(|_| f())
 }
 
-pub(crate) fn validate(
-    grid: &Grid,
-    samples: &[Sample],
-    options: &SolveOptions,
-    initial: Option<FieldView<'_>>,
-) -> Result<(), SolveError> {
+pub(crate) fn validate(grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>) -> Result<(), SolveError> {
     if !grid.is_consistent() {
         return Err(SolveError::InconsistentGrid);
     }
@@ -304,10 +251,8 @@ pub(crate) fn validate(
     if !(options.southwell_sweeps.is_finite() && options.southwell_sweeps >= 0.0) {
         return Err(SolveError::BadBudget(options.southwell_sweeps));
     }
-    for (index, s) in samples.iter().enumerate() {
-        if !s.rest.iter().chain(s.displacement.iter()).all(|v| v.is_finite()) {
-            return Err(SolveError::NonFiniteSample { index });
-        }
+    if let Some(index) = samples.iter().position(|s| !s.rest.iter().chain(s.displacement.iter()).all(|v| v.is_finite())) {
+        return Err(SolveError::NonFiniteSample { index });
     }
     if let Some(f) = initial {
         if f.width() != grid.width || f.height() != grid.height {
@@ -337,11 +282,7 @@ enum Piece {
 
 /// The solve with constraints already attached to nodes.
 pub(crate) fn solve_constrained(
-    grid: &Grid,
-    constraints: &Constraints,
-    options: &SolveOptions,
-    initial: Option<FieldView<'_>>,
-    store: &mut Store,
+    grid: &Grid, constraints: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, store: &mut Store,
 ) -> (Field, SolveReport) {
     let (w, h) = (grid.width, grid.height);
     let n = w * h;
@@ -387,8 +328,7 @@ pub(crate) fn solve_constrained(
             }
         }
     }
-    // Constraints by piece, and the mean constraint of each (the gauge pin's value of a
-    // one-line piece without a warm start).
+    // Constraints by piece (their mean: a one-line piece's gauge value without a warm start).
     let mut by_piece: Vec<Vec<usize>> = vec![Vec::new(); count];
     for (k, &i) in constraints.nodes.iter().enumerate() {
         by_piece[labels[i] as usize].push(k);
@@ -458,7 +398,7 @@ pub(crate) fn solve_constrained(
         }
         let links_again = (!open).then(|| links.clone());
         let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), off: options.off };
-        let start = initial.map(|f| Start { field: f, x0, y0 });
+        let start = initial.map(|f| (f, x0, y0));
         // (A one-line piece's single free function is its tilt, which the line fixes.)
         let settles = null.as_ref().is_some_and(|b| b.len() > usize::from(gauge.is_some()));
         // At τ = 0 the settling is a linear map, built once: it settles the answer, and the
@@ -502,20 +442,9 @@ pub(crate) fn solve_constrained(
 /// functions `basis` (zero on the constrained nodes): at τ = 0 the least-membrane plate
 /// minimiser; at τ > 0 exact Galerkin corrections in their span, each followed by more
 /// cycles, until a correction moves no node by more than the tolerance.
-#[allow(clippy::too_many_arguments)]
 fn settle_null_space(
-    links: BoxLinks,
-    geo: &nullspace::BoxGeo,
-    tau: f64,
-    fixed: Vec<bool>,
-    constrained: &[bool],
-    value: &[(usize, V2)],
-    basis: &[nullspace::Sparse],
-    membrane: Option<&nullspace::Membrane<'_>>,
-    u: BoxValues,
-    mut report: SolveReport,
-    options: &SolveOptions,
-    store: &mut Store,
+    links: BoxLinks, geo: &nullspace::BoxGeo, tau: f64, fixed: Vec<bool>, constrained: &[bool], value: &[(usize, V2)], basis: &[nullspace::Sparse],
+    membrane: Option<&nullspace::Membrane<'_>>, u: BoxValues, mut report: SolveReport, options: &SolveOptions, store: &mut Store,
 ) -> (BoxValues, SolveReport) {
     let (w, h, active) = (geo.w, geo.h, geo.active);
     let mut dense: Vec<V2> = (0..h).flat_map(|y| u.row(y, w).to_vec()).collect();
@@ -537,14 +466,10 @@ fn settle_null_space(
             settled = report.converged;
             break;
         }
-        let field = Field {
-            width: w,
-            height: h,
-            dx: dense.iter().map(|v| v[0] as f32).collect(),
-            dy: dense.iter().map(|v| v[1] as f32).collect(),
-        };
+        let (dx, dy) = dense.iter().map(|v| (v[0] as f32, v[1] as f32)).unzip();
+        let field = Field { width: w, height: h, dx, dy };
         let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links.clone(), fixed: fixed.clone(), off: options.off };
-        let (u2, r2) = solve_piece(key, value, Some(Start { field: FieldView::from(&field), x0: 0, y0: 0 }), options, store, None);
+        let (u2, r2) = solve_piece(key, value, Some((FieldView::from(&field), 0, 0)), options, store, None);
         report.cycles += r2.cycles;
         report.final_change_px = r2.final_change_px;
         report.residual = r2.residual;
@@ -626,9 +551,13 @@ impl BoxValues {
 }
 
 /// Solves one piece on its box: `key` describes the box's grid (the piece active, its
-/// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start on the box.
-/// Returns the solution on the box's nodes and the report's solver fields.
-fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, options: &SolveOptions, store: &mut Store, settled: Option<&nullspace::Membrane<'_>>) -> (BoxValues, SolveReport) {
+/// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start: the whole
+/// grid's field and the box's first node (x0, y0). Returns the solution on the box's nodes
+/// and the report's solver fields.
+fn solve_piece(
+    key: CacheKey, value: &[(usize, V2)], initial: Option<(FieldView<'_>, usize, usize)>, options: &SolveOptions, store: &mut Store,
+    settled: Option<&nullspace::Membrane<'_>>,
+) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport { converged: true, ..Default::default() };
     let cached = if options.off.has("cache") { None } else { store.take_hierarchy(&key) };
@@ -666,7 +595,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     let mut u: Vec<V2> = vec![[0.0; 2]; len];
     {
         let fine = &hier.levels[0];
-        if let Some(Start { field, x0, y0 }) = initial {
+        if let Some((field, x0, y0)) = initial {
             // Every entry written (the padding, then zero off the unknowns), row by row in
             // parallel: no pass to clear the vector first.
             let wp = fine.wp;
@@ -708,8 +637,8 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
         started = !(report.initial_residual <= options.tolerance_px);
         if started {
-            // A start worse than none (huge or unrelated values: a field of 1e20 once
-            // ended 2,800 px off) is dropped for the cold start.
+            // A start worse than none (huge or unrelated values) is dropped for the cold start
+            // (`docs/dev/solver-correctness.md`).
             let mut cold = vec![[0.0; 2]; len];
             for &(i, v) in value {
                 cold[hier.levels[0].pidx(i % w, i / w)] = v;
@@ -728,25 +657,23 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
         hier.coarse_to_fine(&mut u, &mut r, warm);
         report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
     }
-    let max_cycles = options.max_cycles.unwrap_or(100);
     report.converged = false;
     let mut last_change = f64::INFINITY;
     // The last two cycles' ratios of successive changes.
     let mut ratios = [0.0f64; 2];
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
     let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, floor: f64| {
-                report.cycles = cycle;
-                report.final_change_px = change;
-                // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-
-                // gradient steps are not geometric, so ρ is the larger of the last two
-                // ratios (0.5 before there is one), and the bound carries a safety margin
-                // (the smoothest error moves least per cycle). A ratio of 0.99 or more
-                // (stagnation) never stops.
-                let ratio = if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 };
-                ratios = [ratios[1], ratio];
-                let rho = ratios.iter().fold(floor, |a, &b| a.max(b));
-                last_change = change;
-                change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
+        report.cycles = cycle;
+        report.final_change_px = change;
+        // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-gradient steps
+        // are not geometric, so ρ is the larger of the last two ratios (0.5 before there is
+        // one), and the bound carries a safety margin (the smoothest error moves least per
+        // cycle). A ratio of 0.99 or more (stagnation) never stops.
+        let ratio = if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 };
+        ratios = [ratios[1], ratio];
+        let rho = ratios.iter().fold(floor, |a, &b| a.max(b));
+        last_change = change;
+        change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
     };
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
     // concept doc's Precision); only q's padding is cleared, each product writes its body.
@@ -757,7 +684,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
             let mut rz = fresh_direction(&mut hier, &r, &mut p);
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn);
             let settled = settled.and_then(|m| SettledChange::new(m, &hier.levels[0]));
-            for cycle in 1..=max_cycles {
+            for cycle in 1..=options.max_cycles.unwrap_or(100) {
                 if crate::interrupt::requested() {
                     break;
                 }
@@ -794,10 +721,7 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
                 // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
                 // the preconditioner's line searches make it slightly nonlinear.
                 let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
-                let beta = [
-                    if rz[0] > 0.0 { ((alpha[0] * zq[0]) / rz[0]).max(0.0) } else { 0.0 },
-                    if rz[1] > 0.0 { ((alpha[1] * zq[1]) / rz[1]).max(0.0) } else { 0.0 },
-                ];
+                let beta = [0, 1].map(|k| if rz[k] > 0.0 { ((alpha[k] * zq[k]) / rz[k]).max(0.0) } else { 0.0 });
                 widen_into(&mut p, z, beta);
                 slow.project(&mut p);
                 slow.beta(Some(beta));
@@ -805,11 +729,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
             }
         }
         SolveMethod::Southwell => {
-            // The paper's fixed budget of work: rounds of one coarse correction (the cycle
-            // on the residual, taken with its energy-minimising step length) followed by
-            // one sweep's worth of greedy single-node relaxations (Southwell), until the
-            // budget of relaxations is spent. Converged only by the multigrid's own bound
-            // (or nothing left to relax): a spent budget proves nothing.
+            // Rounds of one coarse correction and one sweep's worth of Southwell relaxations
+            // until the budget is spent. Converged only by the multigrid's own bound (or
+            // nothing left to relax): a spent budget proves nothing.
             let unknowns = hier.levels[0].inv_diag.iter().filter(|&&d| d != 0.0).count().max(1);
             let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
             let mut round = 0;
@@ -832,13 +754,9 @@ fn solve_piece(key: CacheKey, value: &[(usize, V2)], initial: Option<Start>, opt
     }
     // The conjugate-gradient residual is updated, not recomputed: it is the residual of u
     // up to rounding.
-    let inv_diag = &hier.levels[0].inv_diag;
     // The maxima pass over a NaN, so the same pass checks the field: one that is not finite
     // is never converged.
-    let (residual, finite) = r
-        .par_chunks(CHUNK)
-        .zip(inv_diag.par_chunks(CHUNK))
-        .zip(u.par_chunks(CHUNK))
+    let (residual, finite) = r.par_chunks(CHUNK).zip(hier.levels[0].inv_diag.par_chunks(CHUNK)).zip(u.par_chunks(CHUNK))
         .map(|((r, d), u)| (scaled_max(r, d), u.iter().all(|v| v[0].is_finite() && v[1].is_finite())))
         .reduce(|| (0.0, true), |a, b| (larger(a.0, b.0), a.1 && b.1));
     report.residual = residual;
@@ -907,15 +825,6 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
     fits.then(|| move |x: usize, y: usize| map(x as f64 - o[0], y as f64 - o[1]))
 }
 
-/// A warm start of one piece: `field` is the whole grid's, the piece's box starts at
-/// (`x0`, `y0`).
-#[derive(Clone, Copy)]
-struct Start<'a> {
-    field: FieldView<'a>,
-    x0: usize,
-    y0: usize,
-}
-
 /// At most this many hierarchies a solver keeps, and finest nodes in all (about 150 bytes
 /// a node). A solver serves one surface, whose frames share one hierarchy until its drawing
 /// changes; the one before that is kept for an undo.
@@ -925,9 +834,8 @@ const HIERARCHY_MAX_NODES: usize = 1 << 22;
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
 /// editor's drags): the hierarchies of its recent problems (they depend on the grid, the
 /// fixed nodes and the tension, never on the values, so an animation's frames share one)
-/// and the warm-start history ([`WarmHistory`]). Nothing is kept
-/// between solves outside it: the free functions ([`solve`], [`solve_warm`]) use a
-/// temporary one.
+/// and the warm-start history ([`WarmHistory`]). Nothing is kept between solves outside
+/// it: [`solve`] uses a temporary one.
 ///
 /// ```
 /// use inkwarp_core::{solve::{Solver, SolveOptions}, Grid, Sample};
@@ -955,35 +863,66 @@ impl Solver {
 
     /// [`solve`] from `initial`, keeping what the next solve can reuse (not the history).
     pub fn solve(
-        &mut self,
-        grid: &Grid,
-        samples: &[Sample],
-        options: &SolveOptions,
-        initial: Option<FieldView<'_>>,
+        &mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>,
     ) -> Result<(Field, SolveReport), SolveError> {
         solve_with(grid, samples, options, initial, self, false)
     }
 
-    /// [`solve_warm`] with this solver's history.
-    pub fn solve_warm(
-        &mut self,
-        grid: &Grid,
-        samples: &[Sample],
-        options: &SolveOptions,
-        initial: Option<Field>,
-    ) -> Result<(Field, SolveReport), SolveError> {
+    /// [`solve`] started from the history and `initial` ([`WarmHistory::start`]: whichever
+    /// is closer), which then keeps the result. With `grid_step` above 1 the history keeps
+    /// and combines the coarse solves' fields, and `initial` is read at the coarse nodes
+    /// only: a draft's start costs a pass over its coarse grid, not over every pixel.
+    ///
+    /// ```
+    /// use inkwarp_core::solve::{SolveOptions, Solver};
+    /// use inkwarp_core::{Grid, Sample};
+    /// let grid = Grid::new(48, 48);
+    /// let mut solver = Solver::new();
+    /// // A point swinging smoothly while two corners hold: each frame starts from the
+    /// // extrapolation of the ones before.
+    /// let pose = |t: f64| {
+    ///     let s = |x, y, dx, dy| Sample { rest: [x, y], displacement: [dx, dy] };
+    ///     vec![s(0.0, 0.0, 0.0, 0.0), s(47.0, 47.0, 0.0, 0.0), s(10.0, 40.0, 0.0, 0.0),
+    ///          s(24.0, 24.0, 6.0 * t.sin(), 6.0 * t.cos())]
+    /// };
+    /// let mut cycles = Vec::new();
+    /// for frame in 0..8 {
+    ///     let (_, report) = solver.solve_warm(&grid, &pose(0.2 * frame as f64), &SolveOptions::default(), None).unwrap();
+    ///     cycles.push(report.cycles);
+    /// }
+    /// assert!(cycles[7] <= cycles[0]);
+    /// ```
+    pub fn solve_warm(&mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<Field>) -> Result<(Field, SolveReport), SolveError> {
         solve_with(grid, samples, options, initial.as_ref().map(FieldView::from), self, true)
     }
 
-    /// [`solve_warm_at`] with this solver's history.
+    /// [`Solver::solve_warm`] at `grid_step` > 1 evaluated at `pixels` only (row-major
+    /// indices into `grid`): the coarse solve, from and into the history, then the upsampled
+    /// field at those pixels, written to `out` as (Δx, Δy) pairs (`2 · pixels.len()`
+    /// floats). The values are the full field's up to the rounding of the sums' order (a few
+    /// units in the last place of `f32`). `plan` must have been built for `grid` and
+    /// `options.grid_step`.
+    ///
+    /// ```
+    /// use inkwarp_core::solve::{SolveOptions, Solver, Upsampling};
+    /// use inkwarp_core::{Grid, Sample};
+    /// let grid = Grid::new(64, 48);
+    /// let samples = [Sample { rest: [10.0, 10.0], displacement: [2.0, 0.0] },
+    ///                Sample { rest: [50.0, 30.0], displacement: [0.0, -1.0] },
+    ///                Sample { rest: [20.0, 40.0], displacement: [1.0, 1.0] }];
+    /// let options = SolveOptions { grid_step: 4, ..Default::default() };
+    /// let plan = Upsampling::new(&grid, 4);
+    /// let pixels = [0u32, 64 * 20 + 33, 64 * 48 - 1];
+    /// let mut out = [0.0f32; 6];
+    /// Solver::new().solve_warm_at(&grid, &samples, &options, &plan, &pixels, &mut out).unwrap();
+    /// let (field, _) = Solver::new().solve_warm(&grid, &samples, &options, None).unwrap();
+    /// for (k, &p) in pixels.iter().enumerate() {
+    ///     assert!((out[2 * k] - field.dx[p as usize]).abs() < 1e-5);
+    ///     assert!((out[2 * k + 1] - field.dy[p as usize]).abs() < 1e-5);
+    /// }
+    /// ```
     pub fn solve_warm_at(
-        &mut self,
-        grid: &Grid,
-        samples: &[Sample],
-        options: &SolveOptions,
-        plan: &Upsampling,
-        pixels: &[u32],
-        out: &mut [f32],
+        &mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions, plan: &Upsampling, pixels: &[u32], out: &mut [f32],
     ) -> Result<SolveReport, SolveError> {
         upsample::solve_at(grid, samples, options, self, plan, pixels, out)
     }
@@ -997,19 +936,6 @@ impl Solver {
     /// never change an answer, only how soon it comes.
     pub fn clear(&mut self) {
         self.history.clear();
-    }
-
-    /// A solver around `history`, which [`Solver::into_history`] gives back.
-    pub fn with_history(history: WarmHistory) -> Solver {
-        Solver { store: Store::default(), history }
-    }
-
-    pub fn into_history(self) -> WarmHistory {
-        self.history
-    }
-
-    pub(crate) fn parts(&mut self) -> (&mut Store, &mut WarmHistory) {
-        (&mut self.store, &mut self.history)
     }
 }
 
@@ -1090,11 +1016,7 @@ fn classify(grid: &Grid, labels: &[u32], count: usize, c: &Constraints, tau: f64
             1 => Piece::Translate(c.values[m[0]]),
             _ => {
                 let a = xy(c.nodes[m[0]]);
-                let far = m
-                    .iter()
-                    .map(|&k| xy(c.nodes[k]))
-                    .max_by_key(|p| (p[0] - a[0]).pow(2) + (p[1] - a[1]).pow(2))
-                    .unwrap();
+                let far = m.iter().map(|&k| xy(c.nodes[k])).max_by_key(|p| (p[0] - a[0]).pow(2) + (p[1] - a[1]).pow(2)).unwrap();
                 let d = [far[0] - a[0], far[1] - a[1]];
                 let collinear = m.iter().all(|&k| {
                     let p = xy(c.nodes[k]);
@@ -1222,28 +1144,21 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
         // A direction that overflowed: no step (NaN tells the caller).
         return (f64::NAN, [0.0; 2]);
     }
-    let alpha = [
-        if pq[0] < 0.0 { -rz[0] / pq[0] } else { 0.0 },
-        if pq[1] < 0.0 { -rz[1] / pq[1] } else { 0.0 },
-    ];
-    let change = u
-        .par_chunks_mut(CHUNK)
-        .zip(r.par_chunks_mut(CHUNK))
-        .zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)))
-        .map(|((u, r), (p, q))| {
-            let mut m = 0.0f64;
-            for (((u, r), p), q) in u.iter_mut().zip(r.iter_mut()).zip(p).zip(q) {
-                for k in 0..2 {
-                    let d = alpha[k] * p[k].get();
-                    u[k] += d;
-                    r[k] += alpha[k] * q[k];
-                    m = larger(m, d.abs());
-                }
+    let alpha = [0, 1].map(|k| if pq[k] < 0.0 { -rz[k] / pq[k] } else { 0.0 });
+    let chunks = u.par_chunks_mut(CHUNK).zip(r.par_chunks_mut(CHUNK)).zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)));
+    let change = chunks.map(|((u, r), (p, q))| {
+        let mut m = 0.0f64;
+        for (((u, r), p), q) in u.iter_mut().zip(r.iter_mut()).zip(p).zip(q) {
+            for k in 0..2 {
+                let d = alpha[k] * p[k].get();
+                u[k] += d;
+                r[k] += alpha[k] * q[k];
+                m = larger(m, d.abs());
             }
-            m
-        })
-        .reduce(|| 0.0, f64::max);
-    (change, alpha)
+        }
+        m
+    });
+    (change.reduce(|| 0.0, f64::max), alpha)
 }
 
 /// How far a cycle's step `α p` moved the answer that the τ → 0⁺ settling will give: the
@@ -1295,14 +1210,10 @@ impl<'m, 'a> SettledChange<'m, 'a> {
             m[1] += v[1];
         });
         let on = moved.iter().fold(0.0f64, |m, v| m.max(v[0].abs()).max(v[1].abs()));
-        let off = p
-            .par_chunks(CHUNK)
-            .zip(self.touched.par_chunks(CHUNK))
-            .map(|(p, t)| {
-                p.iter().zip(t).filter(|(_, &t)| !t).fold(0.0f64, |m, (q, _)| m.max((alpha[0] * q[0].get()).abs()).max((alpha[1] * q[1].get()).abs()))
-            })
-            .reduce(|| 0.0, f64::max);
-        on.max(off)
+        let off = p.par_chunks(CHUNK).zip(self.touched.par_chunks(CHUNK)).map(|(p, t)| {
+            p.iter().zip(t).filter(|(_, &t)| !t).fold(0.0f64, |m, (q, _)| m.max((alpha[0] * q[0].get()).abs()).max((alpha[1] * q[1].get()).abs()))
+        });
+        on.max(off.reduce(|| 0.0, f64::max))
     }
 }
 

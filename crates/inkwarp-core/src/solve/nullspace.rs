@@ -47,9 +47,7 @@ impl BoxGeo<'_> {
 
     /// The linked neighbours right and down of `i`.
     fn links(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
-        let r = (self.right[i]).then_some(i + 1);
-        let d = (self.down[i]).then_some(i + self.w);
-        r.into_iter().chain(d)
+        self.right[i].then_some(i + 1).into_iter().chain(self.down[i].then_some(i + self.w))
     }
 }
 
@@ -171,34 +169,30 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
         }
     }
     let mut qd = vec![0.0; vars];
-    let out = basis
-        .into_iter()
-        .map(|mut q| {
-            q.sort_unstable_by_key(|&(k, _)| k);
-            for &(k, v) in &q {
-                qd[k] = v;
+    let out = basis.into_iter().map(|mut q| {
+        q.sort_unstable_by_key(|&(k, _)| k);
+        for &(k, v) in &q {
+            qd[k] = v;
+        }
+        let mut z: Sparse = Vec::new();
+        let mut touched: Vec<usize> = q.iter().filter(|&&(k, _)| k < 3 * clusters).map(|&(k, _)| k / 3).collect();
+        touched.dedup();
+        for c in touched {
+            for &i in &nodes_of[c] {
+                let v: f64 = in_cluster(i, c as u32).iter().map(|&(k, a)| a * qd[k]).sum();
+                z.push((i, v));
             }
-            let mut z: Sparse = Vec::new();
-            let mut touched: Vec<usize> = q.iter().filter(|&&(k, _)| k < 3 * clusters).map(|&(k, _)| k / 3).collect();
-            touched.dedup();
-            for c in touched {
-                for &i in &nodes_of[c] {
-                    let v: f64 = in_cluster(i, c as u32).iter().map(|&(k, a)| a * qd[k]).sum();
-                    z.push((i, v));
-                }
-            }
-            for &(k, v) in q.iter().filter(|&&(k, _)| k >= 3 * clusters) {
-                z.push((var_node[k], v));
-            }
-            for &(k, _) in &q {
-                qd[k] = 0.0;
-            }
-            z.retain(|&(_, v)| v.abs() > 1e-13);
-            z
-        })
-        .filter(|z| !z.is_empty())
-        .collect();
-    Some(out)
+        }
+        for &(k, v) in q.iter().filter(|&&(k, _)| k >= 3 * clusters) {
+            z.push((var_node[k], v));
+        }
+        for &(k, _) in &q {
+            qd[k] = 0.0;
+        }
+        z.retain(|&(_, v)| v.abs() > 1e-13);
+        z
+    });
+    Some(out.filter(|z| !z.is_empty()).collect())
 }
 
 /// Incremental sparse Gaussian elimination: pivot rows normalised on their pivot, each
@@ -217,8 +211,7 @@ impl Echelon {
     }
 
     fn add(&mut self, row: &[(usize, f64)]) {
-        use std::cmp::Reverse;
-        use std::collections::BinaryHeap;
+        use std::{cmp::Reverse, collections::BinaryHeap};
         let mut heap = BinaryHeap::new();
         let mut scale = 0.0f64;
         let (seen, touched, pivot_of) = (&mut self.seen, &mut self.touched, &self.pivot_of);
@@ -284,44 +277,40 @@ impl Echelon {
                 readers[c].push(r as u32);
             }
         }
-        let mut q = vec![0.0; vars];
-        let mut queued = vec![false; self.rows.len()];
-        Some(
-            free.iter()
-                .map(|&f| {
-                    let (mut heap, mut visited) = (BinaryHeap::new(), Vec::new());
-                    let mut wake = |c: usize, heap: &mut BinaryHeap<u32>| {
-                        for &r in &readers[c] {
-                            if !queued[r as usize] {
-                                queued[r as usize] = true;
-                                visited.push(r);
-                                heap.push(r);
-                            }
-                        }
-                    };
-                    q[f] = 1.0;
-                    let mut nonzero = vec![f];
-                    wake(f, &mut heap);
-                    while let Some(r) = heap.pop() {
-                        let (pc, prow) = &self.rows[r as usize];
-                        let s: f64 = prow.iter().filter(|&&(c, _)| c != *pc).map(|&(c, v)| v * q[c]).sum();
-                        if s != 0.0 {
-                            q[*pc] = -s;
-                            nonzero.push(*pc);
-                            wake(*pc, &mut heap);
-                        }
+        let (mut q, mut queued) = (vec![0.0; vars], vec![false; self.rows.len()]);
+        let basis = free.iter().map(|&f| {
+            let (mut heap, mut visited) = (BinaryHeap::new(), Vec::new());
+            let mut wake = |c: usize, heap: &mut BinaryHeap<u32>| {
+                for &r in &readers[c] {
+                    if !queued[r as usize] {
+                        queued[r as usize] = true;
+                        visited.push(r);
+                        heap.push(r);
                     }
-                    for r in visited {
-                        queued[r as usize] = false;
-                    }
-                    let out: Vec<(usize, f64)> = nonzero.iter().map(|&c| (c, q[c])).collect();
-                    for &c in &nonzero {
-                        q[c] = 0.0;
-                    }
-                    out
-                })
-                .collect(),
-        )
+                }
+            };
+            q[f] = 1.0;
+            let mut nonzero = vec![f];
+            wake(f, &mut heap);
+            while let Some(r) = heap.pop() {
+                let (pc, prow) = &self.rows[r as usize];
+                let s: f64 = prow.iter().filter(|&&(c, _)| c != *pc).map(|&(c, v)| v * q[c]).sum();
+                if s != 0.0 {
+                    q[*pc] = -s;
+                    nonzero.push(*pc);
+                    wake(*pc, &mut heap);
+                }
+            }
+            for r in visited {
+                queued[r as usize] = false;
+            }
+            let out: Vec<(usize, f64)> = nonzero.iter().map(|&c| (c, q[c])).collect();
+            for &c in &nonzero {
+                q[c] = 0.0;
+            }
+            out
+        });
+        Some(basis.collect())
     }
 }
 
@@ -425,7 +414,6 @@ impl<'a> Membrane<'a> {
                 at.entry(i).or_default().push((j, v));
             }
         }
-        // The Gram matrix by columns, its entries where two functions meet.
         let mut gram: Vec<Vec<(usize, f64)>> = vec![Vec::new(); k];
         let mut products = Vec::with_capacity(k);
         let (mut dense, mut y) = (vec![0.0; n], vec![0.0; n]);

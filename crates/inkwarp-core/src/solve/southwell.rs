@@ -10,14 +10,12 @@
 use super::level::{Level, V2, PAD};
 
 /// Spends at most `budget` relaxations on the finest level; returns the largest single
-/// change made, and whether it stopped because nothing was left to
-/// relax (every residual exactly zero) rather than because the budget ran out.
+/// change made, and whether it stopped because nothing was left to relax (every residual
+/// exactly zero) rather than because the budget ran out.
 pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize, unknowns: usize) -> (f64, bool) {
     let (w, h) = (level.geo.w, level.geo.h);
     let mut r = vec![[0.0; 2]; u.len()];
-    let mut drops: Vec<f64> = Vec::new();
-    let mut left = budget;
-    let mut largest = 0.0f64;
+    let (mut drops, mut left, mut largest) = (Vec::<f64>::new(), budget, 0.0f64);
     while left > 0 {
         level.residual(u, None, &mut r);
         drops.clear();

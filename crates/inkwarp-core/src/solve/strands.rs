@@ -82,9 +82,7 @@ impl Strands {
                 }
             });
         };
-        let mut seen = vec![false; thin.len()];
-        let mut nodes = Vec::new();
-        let mut starts = Vec::new();
+        let (mut seen, mut nodes, mut starts) = (vec![false; thin.len()], Vec::new(), Vec::new());
         for s in 0..thin.len() {
             if !thin[s] || seen[s] {
                 continue;
@@ -166,11 +164,9 @@ impl Strands {
 
     /// `x_S += A_SS⁻¹ (b − A x)_S`, `b(p)` the right-hand side at padded node `p`.
     fn relax_from(&self, b: impl Fn(usize) -> V2, x: &mut [W2]) {
-        let rhs: Vec<V2> = (0..self.nodes.len())
-            .map(|i| {
-                self.row(i).iter().fold(b(self.nodes[i] as usize), |s, &(q, a)| [s[0] - a * x[q as usize][0].get(), s[1] - a * x[q as usize][1].get()])
-            })
-            .collect();
+        let rhs: Vec<V2> = (0..self.nodes.len()).map(|i| {
+            self.row(i).iter().fold(b(self.nodes[i] as usize), |s, &(q, a)| [s[0] - a * x[q as usize][0].get(), s[1] - a * x[q as usize][1].get()])
+        }).collect();
         let mut z = vec![[0.0; 2]; rhs.len()];
         self.solve_into(&rhs, &mut z);
         self.add(&z, x);
@@ -279,8 +275,7 @@ impl Block {
         if total > BAND * n {
             return None;
         }
-        let mut l = vec![0.0; total];
-        let mut diag = vec![0.0; n];
+        let (mut l, mut diag) = (vec![0.0; total], vec![0.0; n]);
         for i in 0..n {
             for &(j, a) in &entries[i] {
                 if j < i {

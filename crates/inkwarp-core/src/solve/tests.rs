@@ -540,20 +540,20 @@ fn an_interleaved_start_read_in_place_solves_as_the_planar_one() {
     for step in [1, 3] {
         let opts = SolveOptions { grid_step: step, ..Default::default() };
         let (a, ra) = solve(&grid, &moved, &opts, Some(&field)).unwrap();
-        let (b, rb) = solve_from_view(&grid, &moved, &opts, Some(view)).unwrap();
+        let (b, rb) = Solver::new().solve(&grid, &moved, &opts, Some(view)).unwrap();
         assert_eq!(a, b, "grid_step {step}");
         assert_eq!(ra.cycles, rb.cycles);
     }
     // Bad starts are refused as the planar ones are.
     let short = FieldView::Interleaved { width: w, height: h, data: &interleaved[2..] };
-    let err = solve_from_view(&grid, &moved, &SolveOptions::default(), Some(short)).unwrap_err();
+    let err = Solver::new().solve(&grid, &moved, &SolveOptions::default(), Some(short)).unwrap_err();
     assert!(matches!(err, SolveError::InitialLength { got, want, .. } if got == 2 * w * h - 2 && want == 2 * w * h), "{err}");
     let other = FieldView::Interleaved { width: w - 1, height: h, data: &interleaved[2 * h..] };
-    assert!(matches!(solve_from_view(&grid, &moved, &SolveOptions::default(), Some(other)), Err(SolveError::InitialSize { .. })));
+    assert!(matches!(Solver::new().solve(&grid, &moved, &SolveOptions::default(), Some(other)), Err(SolveError::InitialSize { .. })));
     let mut nan = interleaved.clone();
     nan[2 * (w * h) - 1] = f32::NAN;
     let view = FieldView::Interleaved { width: w, height: h, data: &nan };
-    assert!(matches!(solve_from_view(&grid, &moved, &SolveOptions::default(), Some(view)), Err(SolveError::NonFiniteInitial)));
+    assert!(matches!(Solver::new().solve(&grid, &moved, &SolveOptions::default(), Some(view)), Err(SolveError::NonFiniteInitial)));
 }
 
 #[test]
@@ -619,12 +619,12 @@ fn starts_from_earlier_frames_keep_the_accuracy_and_save_cycles() {
     };
     let opts = SolveOptions::default();
     let tight = SolveOptions { tolerance_px: 1e-6, max_cycles: Some(500), ..Default::default() };
-    let mut history = WarmHistory::new();
+    let mut solver = Solver::new();
     let (mut with_history, mut from_previous) = (0, 0);
     let mut previous: Option<Field> = None;
     for frame in 0..12 {
         let samples = pose(0.15 * frame as f64);
-        let (field, report) = solve_warm(&grid, &samples, &opts, &mut history, None).unwrap();
+        let (field, report) = solver.solve_warm(&grid, &samples, &opts, None).unwrap();
         let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
         let err = gap(&field, &exact);
         assert!(err < 0.05, "frame {frame}: {err} px from the exact minimiser ({report:?})");
@@ -658,11 +658,11 @@ fn a_history_of_nearly_parallel_frames_still_starts_close() {
     };
     let opts = SolveOptions::default();
     let settle = |frames: &[[f64; 2]]| -> usize {
-        let mut history = WarmHistory::new();
+        let mut solver = Solver::new();
         for &d in frames {
-            solve_warm(&grid, &pose(d), &opts, &mut history, None).unwrap();
+            solver.solve_warm(&grid, &pose(d), &opts, None).unwrap();
         }
-        solve_warm(&grid, &pose([10.0, -2.5]), &opts, &mut history, None).unwrap().1.cycles
+        solver.solve_warm(&grid, &pose([10.0, -2.5]), &opts, None).unwrap().1.cycles
     };
     let (probe, step) = ([12.0, 12.0], [1.0, -0.25]);
     let all = settle(&[[0.0, 0.0], probe, step]);
@@ -686,14 +686,14 @@ fn coarse_steps_start_from_earlier_coarse_frames() {
     };
     let opts = SolveOptions { grid_step: 4, ..Default::default() };
     let tight = SolveOptions { tolerance_px: 1e-6, max_cycles: Some(500), ..opts.clone() };
-    let mut history = WarmHistory::new();
+    let mut solver = Solver::new();
     let (mut with_history, mut from_previous) = (0, 0);
     let mut previous: Option<Field> = None;
     for frame in 0..10 {
         let samples = pose(0.1 * frame as f64);
-        let (field, report) = solve_warm(&grid, &samples, &opts, &mut history, previous.clone()).unwrap();
+        let (field, report) = solver.solve_warm(&grid, &samples, &opts, previous.clone()).unwrap();
         assert_eq!((field.width, field.height), (w, h));
-        let kept = history.last().expect("the history keeps the solve");
+        let kept = &solver.history().entries.back().expect("the history keeps the solve").1;
         assert_eq!((kept.width, kept.height), (25, 21), "the history keeps the coarse field");
         let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
         let err = gap(&field, &exact);
@@ -708,7 +708,7 @@ fn coarse_steps_start_from_earlier_coarse_frames() {
     assert!(with_history < from_previous, "{with_history} cycles from earlier frames, {from_previous} from the previous one");
     // A full-resolution solve after drafts starts its own series (another history per
     // step, as the editor keeps, or this one: the coarse fields do not fit the grid).
-    let (field, _) = solve_warm(&grid, &pose(1.0), &SolveOptions::default(), &mut history, None).unwrap();
+    let (field, _) = solver.solve_warm(&grid, &pose(1.0), &SolveOptions::default(), None).unwrap();
     let (exact, _) = solve(&grid, &pose(1.0), &SolveOptions { tolerance_px: 1e-6, max_cycles: Some(500), ..Default::default() }, None).unwrap();
     assert!(gap(&field, &exact) < 0.05);
 }

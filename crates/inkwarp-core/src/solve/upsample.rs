@@ -15,16 +15,10 @@
 //! then to the nearest value along the links). A piece that holds no coarse node takes the
 //! mean displacement of its samples, or stays at zero without any.
 //!
-//! This is the path the editor takes while a point is dragged, so the upsampling is built
-//! for speed: the cubic weights are separable and computed once per column and once per
-//! row, and a pixel that may use its whole window takes the cubic in y once per coarse
-//! column of its row, then in x (4 + 4 products instead of 16); the components inside a window are found once per coarse cell (a mask of usable
-//! taps per pixel), and only for cells whose window a missing link or an inactive pixel
-//! touches, so the other pixels (all of an open grid) take every tap as before; the
-//! bilinear fallback is only computed where the cubic weights fail; rows and the touched
-//! cells are done in parallel; and the fill along the links starts only from
-//! the resolved pixels next to unresolved ones. A test holds it to the straightforward
-//! per-pixel loop (to within the rounding of the sums' order).
+//! This is the path the editor takes while a point is dragged, so it is built for speed
+//! (separable weights; usable-tap masks only for cells near a missing link: see
+//! `docs/dev/multigrid.md`, "`grid_step` and Southwell"). A test holds it to the
+//! straightforward per-pixel loop (to within the rounding of the sums' order).
 
 use std::collections::VecDeque;
 
@@ -35,19 +29,14 @@ use crate::field::{Field, FieldView};
 use crate::geometry::Sample;
 use crate::grid::{constrain, nearest_node, Constraints, Grid};
 
-use super::history::{solve_from, WarmHistory};
+use super::history::solve_from;
 use super::{in_pool, validate, SolveError, SolveOptions, SolveReport, Solver};
 
 /// The solve at `grid_step = s > 1`: on the coarse grid, from `initial` read at the coarse
 /// nodes, or from `history`, which keeps the coarse fields (only their coarse nodes' values
 /// would ever be read), then upsampled.
 pub(crate) fn solve_coarse(
-    grid: &Grid,
-    samples: &[Sample],
-    options: &SolveOptions,
-    initial: Option<FieldView<'_>>,
-    solver: &mut Solver,
-    warm: bool,
+    grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
 ) -> (Field, SolveReport) {
     if grid.width == 0 || grid.height == 0 {
         return (Field::zeros(grid.width, grid.height), SolveReport { converged: true, ..Default::default() });
@@ -61,14 +50,14 @@ pub(crate) fn solve_coarse(
 /// What upsampling a `grid_step` solve on one grid needs besides the coarse field: the
 /// taps of every pixel column and row and the usable-tap masks of the cells along missing
 /// links. The full upsampling builds it for each solve; kept once per grid and step, it
-/// evaluates the upsampled field at chosen pixels only ([`solve_warm_at`]): the editor's
-/// drafts need it at their mesh's vertices, a few percent of the pixels.
+/// evaluates the upsampled field at chosen pixels only ([`Solver::solve_warm_at`]): the
+/// editor's drafts need it at their mesh's vertices, a few percent of the pixels.
 #[derive(Debug)]
 pub struct Upsampling {
     layout: Layout,
     cols: Vec<Taps>,
     rows: Vec<Taps>,
-    masks: Vec<CellMasks>,
+    masks: Vec<Vec<u16>>,
 }
 
 impl Upsampling {
@@ -82,11 +71,6 @@ impl Upsampling {
         Upsampling { layout, cols, rows, masks }
     }
 
-    /// The step the plan was built for.
-    pub fn step(&self) -> usize {
-        self.layout.s
-    }
-
     /// The upsampled value of pixel `i` (row-major) of `grid` (the plan's) from the coarse
     /// field `fc`: zero for an inactive pixel, `None` where its window has no usable node
     /// (the full upsampling then fills it along the links).
@@ -97,63 +81,17 @@ impl Upsampling {
         let l = &self.layout;
         let (x, y) = (i % l.w, i / l.w);
         let (tx, ty) = (&self.cols[x], &self.rows[y]);
-        let mask = self.masks[ty.cell * l.cells().0 + tx.cell].get(l, tx.cell, ty.cell, x, y);
+        let mask = l.mask(&self.masks[ty.cell * l.cells().0 + tx.cell], tx.cell, ty.cell, x, y);
         window_value(fc, ty, tx, mask)
     }
 }
 
-/// [`solve_warm`](super::solve_warm) at `grid_step` > 1 evaluated at `pixels` only (row-
-/// major indices into `grid`): the coarse solve, from and into `history`, then the
-/// upsampled field at those pixels, written to `out` as (Δx, Δy) pairs (`2 · pixels.len()`
-/// floats). The values are the full field's up to the rounding of the sums' order (a few
-/// units in the last place of `f32`). `plan` must have been built for `grid` and
-/// `options.grid_step`.
-///
-/// ```
-/// use inkwarp_core::solve::{solve_warm, solve_warm_at, SolveOptions, Upsampling, WarmHistory};
-/// use inkwarp_core::{Grid, Sample};
-/// let grid = Grid::new(64, 48);
-/// let samples = [Sample { rest: [10.0, 10.0], displacement: [2.0, 0.0] },
-///                Sample { rest: [50.0, 30.0], displacement: [0.0, -1.0] },
-///                Sample { rest: [20.0, 40.0], displacement: [1.0, 1.0] }];
-/// let options = SolveOptions { grid_step: 4, ..Default::default() };
-/// let plan = Upsampling::new(&grid, 4);
-/// let pixels = [0u32, 64 * 20 + 33, 64 * 48 - 1];
-/// let mut out = [0.0f32; 6];
-/// solve_warm_at(&grid, &samples, &options, &mut WarmHistory::new(), &plan, &pixels, &mut out).unwrap();
-/// let (field, _) = solve_warm(&grid, &samples, &options, &mut WarmHistory::new(), None).unwrap();
-/// for (k, &p) in pixels.iter().enumerate() {
-///     assert!((out[2 * k] - field.dx[p as usize]).abs() < 1e-5);
-///     assert!((out[2 * k + 1] - field.dy[p as usize]).abs() < 1e-5);
-/// }
-/// ```
-pub fn solve_warm_at(
-    grid: &Grid,
-    samples: &[Sample],
-    options: &SolveOptions,
-    history: &mut WarmHistory,
-    plan: &Upsampling,
-    pixels: &[u32],
-    out: &mut [f32],
-) -> Result<SolveReport, SolveError> {
-    let mut solver = Solver::with_history(std::mem::take(history));
-    let result = solve_at(grid, samples, options, &mut solver, plan, pixels, out);
-    *history = solver.into_history();
-    result
-}
-
-/// [`solve_warm_at`] with `solver` (see [`Solver::solve_warm_at`]).
+/// The body of [`Solver::solve_warm_at`].
 pub(crate) fn solve_at(
-    grid: &Grid,
-    samples: &[Sample],
-    options: &SolveOptions,
-    solver: &mut Solver,
-    plan: &Upsampling,
-    pixels: &[u32],
-    out: &mut [f32],
+    grid: &Grid, samples: &[Sample], options: &SolveOptions, solver: &mut Solver, plan: &Upsampling, pixels: &[u32], out: &mut [f32],
 ) -> Result<SolveReport, SolveError> {
     let start = Instant::now();
-    if options.grid_step != plan.step() || plan.layout.w != grid.width || plan.layout.h != grid.height {
+    if options.grid_step != plan.layout.s || plan.layout.w != grid.width || plan.layout.h != grid.height {
         return Err(SolveError::PlanMismatch);
     }
     if out.len() != 2 * pixels.len() || pixels.iter().any(|&p| p as usize >= grid.len()) {
@@ -251,6 +189,16 @@ impl Layout {
         (yc * self.s).min(self.h - 1)
     }
 
+    /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's
+    /// pixels) from the cell's `masks` ([`cell_masks`]; empty where the window is whole).
+    fn mask(&self, masks: &[u16], cx: usize, cy: usize, x: usize, y: usize) -> u16 {
+        if masks.is_empty() {
+            return ALL_TAPS;
+        }
+        let ix0 = self.px(cx);
+        masks[(y - self.py(cy)) * (self.px((cx + 1).min(self.wc - 1)) - ix0 + 1) + (x - ix0)]
+    }
+
     /// Coarse cells across and down (at least one each, even on a one-node axis).
     fn cells(&self) -> (usize, usize) {
         (self.wc.saturating_sub(1).max(1), self.hc.saturating_sub(1).max(1))
@@ -260,9 +208,7 @@ impl Layout {
     /// where every fine link between the two pixels is.
     fn coarse_grid(&self, grid: &Grid) -> Grid {
         let (wc, hc) = (self.wc, self.hc);
-        let mut active = vec![false; wc * hc];
-        let mut right = vec![false; wc * hc];
-        let mut down = vec![false; wc * hc];
+        let (mut active, mut right, mut down) = (vec![false; wc * hc], vec![false; wc * hc], vec![false; wc * hc]);
         for yc in 0..hc {
             for xc in 0..wc {
                 let c = yc * wc + xc;
@@ -299,49 +245,35 @@ impl Taps {
     /// The taps of every pixel `0..n` along an axis with `nc` coarse positions at
     /// `pos(0..nc)`, `s` pixels apart.
     fn along(n: usize, nc: usize, s: usize, pos: impl Fn(usize) -> usize) -> Vec<Taps> {
-        (0..n)
-            .map(|x| {
-                let (cell, weights) = if nc == 1 {
-                    // One coarse position: it is the value everywhere.
-                    (0, [0.0, 1.0, 0.0, 0.0])
-                } else {
-                    let x0 = (x / s).min(nc - 2);
-                    let (a, b) = (pos(x0) as f64, pos(x0 + 1) as f64);
-                    let t = ((x as f64 - a) / (b - a)).clamp(0.0, 1.0);
-                    let (t2, t3) = (t * t, t * t * t);
-                    (
-                        x0,
-                        [
-                            0.5 * (-t3 + 2.0 * t2 - t),
-                            0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
-                            0.5 * (-3.0 * t3 + 4.0 * t2 + t),
-                            0.5 * (t3 - t2),
-                        ],
-                    )
-                };
-                let mut taps = Taps { cell, weights, len: 0, slot: [0; 4], at: [0; 4] };
-                for (k, &wk) in weights.iter().enumerate() {
-                    let c = cell as isize - 1 + k as isize;
-                    if c >= 0 && (c as usize) < nc && wk != 0.0 {
-                        taps.slot[taps.len] = k as u8;
-                        taps.at[taps.len] = c as usize;
-                        taps.len += 1;
-                    }
+        (0..n).map(|x| {
+            let (cell, weights) = if nc == 1 {
+                // One coarse position: it is the value everywhere.
+                (0, [0.0, 1.0, 0.0, 0.0])
+            } else {
+                let x0 = (x / s).min(nc - 2);
+                let (a, b) = (pos(x0) as f64, pos(x0 + 1) as f64);
+                let t = ((x as f64 - a) / (b - a)).clamp(0.0, 1.0);
+                let (t2, t3) = (t * t, t * t * t);
+                (x0, [0.5 * (-t3 + 2.0 * t2 - t), 0.5 * (3.0 * t3 - 5.0 * t2 + 2.0), 0.5 * (-3.0 * t3 + 4.0 * t2 + t), 0.5 * (t3 - t2)])
+            };
+            let mut taps = Taps { cell, weights, len: 0, slot: [0; 4], at: [0; 4] };
+            for (k, &wk) in weights.iter().enumerate() {
+                let c = cell as isize - 1 + k as isize;
+                if c >= 0 && (c as usize) < nc && wk != 0.0 {
+                    taps.slot[taps.len] = k as u8;
+                    taps.at[taps.len] = c as usize;
+                    taps.len += 1;
                 }
-                taps
-            })
-            .collect()
+            }
+            taps
+        }).collect()
     }
 
     /// The bilinear weight of window position `k` (1 or 2), recovered from the two inner
     /// cubic weights (exact at t = 0 and t = 1).
     fn linear(&self, k: usize) -> f64 {
         let s = self.weights[1] + self.weights[2];
-        if s.abs() < 1e-12 {
-            0.5
-        } else {
-            self.weights[k] / s
-        }
+        if s.abs() < 1e-12 { 0.5 } else { self.weights[k] / s }
     }
 }
 
@@ -395,7 +327,7 @@ fn touched_cells(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps], cw:
 /// window's block of pixels (from the pixel of window node (0, 0) to that of (3, 3), clipped
 /// to the grid), as bits of [`ALL_TAPS`]. One mask per pixel of the cell's closed block, row
 /// by row; zero for inactive pixels, [`ALL_TAPS`] for those reaching every node.
-fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Vec<u32>, stack: &mut Vec<usize>) -> CellMasks {
+fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Vec<u32>, stack: &mut Vec<usize>) -> Vec<u16> {
     let (w, wc, hc) = (grid.width, layout.wc, layout.hc);
     let (bx0, bx1) = (layout.px(cx.saturating_sub(1)), layout.px((cx + 2).min(wc - 1)));
     let (by0, by1) = (layout.py(cy.saturating_sub(1)), layout.py((cy + 2).min(hc - 1)));
@@ -464,26 +396,7 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
             masks.push(if m == full { ALL_TAPS } else { m });
         }
     }
-    CellMasks { masks }
-}
-
-/// The usable taps of every pixel of a coarse cell (see [`cell_masks`]); empty where the
-/// window is whole, [`ALL_TAPS`] for a pixel that reaches every coarse node of its window.
-#[derive(Clone, Debug, Default)]
-struct CellMasks {
-    masks: Vec<u16>,
-}
-
-impl CellMasks {
-    /// The mask of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's pixels).
-    fn get(&self, layout: &Layout, cx: usize, cy: usize, x: usize, y: usize) -> u16 {
-        if self.masks.is_empty() {
-            return ALL_TAPS;
-        }
-        let ix0 = layout.px(cx);
-        let iw = layout.px((cx + 1).min(layout.wc - 1)) - ix0 + 1;
-        self.masks[(y - layout.py(cy)) * iw + (x - ix0)]
-    }
+    masks
 }
 
 /// A column's cubic weights for the separable path of [`upsample`].
@@ -496,18 +409,16 @@ struct Flat {
 /// The usable-tap masks of every coarse cell (`cw` × `ch` of them, see [`cell_masks`]):
 /// computed for the cells near one that a missing link or an inactive pixel touches, empty
 /// (every tap usable) for the others.
-fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec<CellMasks> {
+fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec<Vec<u16>> {
     let (cw, ch) = layout.cells();
-    // Cells whose window's block of pixels a missing link or an inactive pixel touches get
-    // a mask of usable taps per pixel; the others (empty) use every tap.
     let touched = touched_cells(grid, layout, cols, rows, cw, ch);
     let near_touched = |k: usize| {
         let (x0, y0) = (k % cw, k / cw);
         (y0.saturating_sub(1)..(y0 + 2).min(ch)).any(|y| (x0.saturating_sub(1)..(x0 + 2).min(cw)).any(|x| touched[y * cw + x]))
     };
     let broken: Vec<usize> = (0..cw * ch).filter(|&k| near_touched(k)).collect();
-    let mut masks: Vec<CellMasks> = vec![CellMasks::default(); cw * ch];
-    let computed: Vec<CellMasks> =
+    let mut masks = vec![Vec::new(); cw * ch];
+    let computed: Vec<Vec<u16>> =
         broken.par_iter().map_init(|| (Vec::new(), Vec::new()), |(label, stack), &k| cell_masks(grid, layout, k % cw, k / cw, label, stack)).collect();
     for (&k, m) in broken.iter().zip(computed) {
         masks[k] = m;
@@ -554,23 +465,20 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
 
     // Each column's used weights from its first tap on (zero past the last), their sum and
     // its inverse.
-    let flat: Vec<Flat> = cols
-        .iter()
-        .map(|t| {
-            let mut f = Flat { w: [0.0; 4], sum: 0.0, inv: 0.0 };
-            for a in 0..t.len {
-                let wa = t.weights[t.slot[a] as usize];
-                f.w[t.at[a] - t.at[0]] = wa;
-                f.sum += wa;
-            }
-            f.inv = 1.0 / f.sum;
-            f
-        })
-        .collect();
+    let flat: Vec<Flat> = cols.iter().map(|t| {
+        let mut f = Flat { w: [0.0; 4], sum: 0.0, inv: 0.0 };
+        for a in 0..t.len {
+            let wa = t.weights[t.slot[a] as usize];
+            f.w[t.at[a] - t.at[0]] = wa;
+            f.sum += wa;
+        }
+        f.inv = 1.0 / f.sum;
+        f
+    }).collect();
     // The cells with masks in each row of cells, and each cell's pixels along x.
     let mut masked = vec![Vec::new(); ch];
     for (k, m) in masks.iter().enumerate() {
-        if !m.masks.is_empty() {
+        if !m.is_empty() {
             masked[k / cw].push(k % cw);
         }
     }
@@ -623,7 +531,7 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
         for &cx in &masked[ty.cell] {
             let cell = &masks[ty.cell * cw + cx];
             for x in cell_x[cx].0..cell_x[cx].1 {
-                let mask = cell.get(layout, cx, ty.cell, x, y);
+                let mask = layout.mask(cell, cx, ty.cell, x, y);
                 if !active[x] || mask == ALL_TAPS {
                     continue;
                 }
@@ -643,24 +551,16 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
 
     let mut field = Field::zeros(w, h);
     let mut resolved = vec![false; w * h];
-    let unresolved: usize = field
-        .dx
-        .par_chunks_mut(w)
-        .zip(field.dy.par_chunks_mut(w))
-        .zip(resolved.par_chunks_mut(w))
-        .enumerate()
-        .map_init(Vec::new, |along, (y, ((dx, dy), r))| upsample_row(y, dx, dy, r, along))
-        .sum();
+    let chunks = field.dx.par_chunks_mut(w).zip(field.dy.par_chunks_mut(w)).zip(resolved.par_chunks_mut(w)).enumerate();
+    let unresolved: usize = chunks.map_init(Vec::new, |along, (y, ((dx, dy), r))| upsample_row(y, dx, dy, r, along)).sum();
     if unresolved == 0 {
         return field;
     }
     // Pixels left over: nearest resolved value along the links, breadth first from the
     // resolved pixels in index order. Only those next to an unresolved pixel can pass a
     // value on (the others would leave the queue without effect), so only they start it.
-    let mut seeds: Vec<usize> = (0..w * h)
-        .filter(|&i| grid.active[i] && !resolved[i])
-        .flat_map(|i| grid.linked(i).into_iter().filter(|&j| j != usize::MAX && resolved[j]))
-        .collect();
+    let pending = (0..w * h).filter(|&i| grid.active[i] && !resolved[i]);
+    let mut seeds: Vec<usize> = pending.flat_map(|i| grid.linked(i).into_iter().filter(|&j| j != usize::MAX && resolved[j])).collect();
     seeds.sort_unstable();
     seeds.dedup();
     let mut queue = VecDeque::from(seeds);
@@ -1002,7 +902,7 @@ mod tests {
         let plan = Upsampling::new(&grid, s);
         let pixels: Vec<u32> = (0..grid.len() as u32).step_by(4).collect();
         let options = SolveOptions { grid_step: s, ..Default::default() };
-        let (mut full_history, mut sparse_history) = (WarmHistory::new(), WarmHistory::new());
+        let (mut full_solver, mut sparse_solver) = (Solver::new(), Solver::new());
         for frame in 0..5 {
             let t = frame as f64;
             let samples: Vec<Sample> = [(20.0, 30.0), (60.0, 30.0), (85.0, 10.0), (10.0, 70.0), (30.0, 50.0)]
@@ -1010,9 +910,9 @@ mod tests {
                 .enumerate()
                 .map(|(k, &(x, y))| Sample { rest: [x, y], displacement: [t * (k as f64 - 2.0), 0.5 * t] })
                 .collect();
-            let (field, full) = crate::solve::solve_warm(&grid, &samples, &options, &mut full_history, None).unwrap();
+            let (field, full) = full_solver.solve_warm(&grid, &samples, &options, None).unwrap();
             let mut out = vec![0.0f32; 2 * pixels.len()];
-            let sparse = solve_warm_at(&grid, &samples, &options, &mut sparse_history, &plan, &pixels, &mut out).unwrap();
+            let sparse = sparse_solver.solve_warm_at(&grid, &samples, &options, &plan, &pixels, &mut out).unwrap();
             assert_eq!(sparse.cycles, full.cycles, "frame {frame}");
             let mut got = Field::zeros(w, h);
             let mut want = Field::zeros(w, h);
@@ -1025,9 +925,9 @@ mod tests {
         // A plan for another step is refused.
         let other = SolveOptions { grid_step: 8, ..Default::default() };
         let mut out = vec![0.0f32; 2 * pixels.len()];
-        let err = solve_warm_at(&grid, &[], &other, &mut WarmHistory::new(), &plan, &pixels, &mut out).unwrap_err();
+        let err = Solver::new().solve_warm_at(&grid, &[], &other, &plan, &pixels, &mut out).unwrap_err();
         assert_eq!(err, SolveError::PlanMismatch);
-        let err = solve_warm_at(&grid, &[], &options, &mut WarmHistory::new(), &plan, &[w as u32 * h as u32], &mut [0.0; 2]).unwrap_err();
+        let err = Solver::new().solve_warm_at(&grid, &[], &options, &plan, &[w as u32 * h as u32], &mut [0.0; 2]).unwrap_err();
         assert_eq!(err, SolveError::BadPixels);
     }
 

@@ -1,23 +1,16 @@
 //! The solver's hottest loops on the processor's widest vectors.
 //!
-//! The build targets plain x86-64, whose vectors are 128 bits wide; most x86-64
-//! processors made since 2013–2015 (Intel Haswell, AMD Excavator and later, some low-end
-//! models excepted) have 256-bit ones (AVX2, with FMA). The stencil products of every level,
-//! the transfers' plain rows, the smoothing steps' updates, and the dot products and scaled
-//! maxima of the levels vectorise across nodes, so [`widest!`] gives each a
-//! second copy compiled for AVX2, run where the processor has it (checked at run time),
-//! else the plain one. Their operations and their order are the same in both (no multiply
-//! is fused with its add unless written so), so the results are bit for bit the same.
-//! One loop the compiler did not vectorise is written out with AVX2 instructions instead:
-//! four coarse nodes with stencils of their own on one vector (`Real::four_run` in
-//! `level`, their coefficients laid out tap by tap in `level::Fours`). Both copies call it
-//! where the processor has AVX2, so a test holds it to the plain sums node by node rather
-//! than to the plain copy.
-//!
-//! Check the copy's code after writing a body: the compiler may build a closure the body
-//! calls (or one it hands to `Option::map_or`) apart, as a plain function outside the copy;
-//! a branch in a body's loop, or a loop over pairs that writes each pair whole, can keep
-//! it scalar (`docs/dev/ablation.md`, "Kernels").
+//! The build targets plain x86-64 (128-bit vectors); most x86-64 processors since 2013–2015
+//! have 256-bit ones (AVX2, with FMA). The stencil products of every level, the transfers'
+//! plain rows, the smoothing steps' updates, and the levels' dot products and scaled maxima
+//! vectorise across nodes, so [`widest!`] gives each a second copy compiled for AVX2, run
+//! where the processor has it (checked at run time). Both copies do the same operations in
+//! the same order (no multiply is fused with its add unless written so), so the results are
+//! bit for bit the same. One loop the compiler did not vectorise is written out with AVX2
+//! instructions (`Real::four_run` in `level`: four coarse nodes with stencils of their own
+//! on one vector, their coefficients laid out tap by tap in `level::Fours`); both copies
+//! call it where the processor has AVX2, so a test holds it to the plain sums node by node.
+//! What keeps a body scalar: `docs/dev/ablation.md`, "Kernels".
 
 /// Whether the processor has AVX2 and FMA (the standard library caches the answer).
 #[cfg(target_arch = "x86_64")]
@@ -30,8 +23,8 @@ pub(crate) fn avx2() -> bool {
 /// function of those arguments with that block (attributes written before `body` go on
 /// it), and `name`, which calls `body` from a copy compiled for AVX2 and FMA where the
 /// processor has them (see [`avx2`]), else from a plain one. The body must be inlined into
-/// that copy to be compiled for it: a closure handed to a generic copy was not (its binary
-/// had no 256-bit instruction). Tests call `body` to compare the two copies.
+/// that copy to be compiled for it (a closure handed to a generic copy was not). Tests call
+/// `body` to compare the two copies.
 macro_rules! widest {
     (
         $(#[$attr:meta])* $vis:vis fn $name:ident $(<$($t:ident: $bound:path),+>)? ($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)? =>
