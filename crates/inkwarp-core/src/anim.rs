@@ -26,7 +26,7 @@
 //! `EaseInOut` as `3u² − 2u³` (at rest at both ends). A smooth span next to an eased one
 //! takes the eased span's velocity at the key they share, so motion stays C¹ there too.
 
-use crate::geometry::Point;
+use crate::geometry::{hermite_basis, Point};
 
 /// How the control points move from a key to the next one.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -130,20 +130,12 @@ pub fn points_at(rest: &[Point], keys: &[Key], time_s: f64) -> Vec<Point> {
     let n = a.points.len().min(b.points.len());
     match a.interpolation {
         Interpolation::Hold => a.points.clone(),
-        Interpolation::Linear
-        | Interpolation::EaseIn
-        | Interpolation::EaseOut
-        | Interpolation::EaseInOut => {
+        Interpolation::Linear | Interpolation::EaseIn | Interpolation::EaseOut | Interpolation::EaseInOut => {
             let w = a.interpolation.progress(u).unwrap_or(u);
             (0..n).map(|j| lerp(a.points[j], b.points[j], w)).collect()
         }
         Interpolation::Smooth => {
-            let u2 = u * u;
-            let u3 = u2 * u;
-            let h00 = 2.0 * u3 - 3.0 * u2 + 1.0;
-            let h10 = u3 - 2.0 * u2 + u;
-            let h01 = -2.0 * u3 + 3.0 * u2;
-            let h11 = u3 - u2;
+            let [h00, h10, h11, h01] = hermite_basis(u);
             (0..n)
                 .map(|j| {
                     let m0 = velocity(keys, i, j, Side::Before);
@@ -194,10 +186,7 @@ fn velocity(keys: &[Key], k: usize, j: usize, side: Side) -> Point {
             let dp = next.time_s - key.time_s;
             let vm = slope(prev, key, j);
             let vp = slope(key, next, j);
-            [
-                (dp * vm[0] + dm * vp[0]) / (dm + dp),
-                (dp * vm[1] + dm * vp[1]) / (dm + dp),
-            ]
+            [(dp * vm[0] + dm * vp[0]) / (dm + dp), (dp * vm[1] + dm * vp[1]) / (dm + dp)]
         }
     }
 }
@@ -212,11 +201,7 @@ fn slope(a: &Key, b: &Key, j: usize) -> Point {
 /// Point `j` of a key, or the key's last point if it has fewer (invalid input that the
 /// scene rejects; this only keeps the arithmetic total).
 fn point(k: &Key, j: usize) -> Point {
-    k.points
-        .get(j)
-        .or(k.points.last())
-        .copied()
-        .unwrap_or([0.0, 0.0])
+    k.points.get(j).or(k.points.last()).copied().unwrap_or([0.0, 0.0])
 }
 
 fn lerp(a: Point, b: Point, u: f64) -> Point {

@@ -36,18 +36,12 @@ impl<'a> From<&'a Field> for FieldView<'a> {
 impl<'a> FieldView<'a> {
     /// Pixels per row.
     pub fn width(&self) -> usize {
-        match *self {
-            FieldView::Planar(f) => f.width,
-            FieldView::Interleaved { width, .. } => width,
-        }
+        match *self { FieldView::Planar(f) => f.width, FieldView::Interleaved { width, .. } => width }
     }
 
     /// Rows.
     pub fn height(&self) -> usize {
-        match *self {
-            FieldView::Planar(f) => f.height,
-            FieldView::Interleaved { height, .. } => height,
-        }
+        match *self { FieldView::Planar(f) => f.height, FieldView::Interleaved { height, .. } => height }
     }
 
     /// How many values it holds: two for each of its `width × height` pixels when
@@ -111,8 +105,7 @@ impl Field {
     /// Interleaved `(H, W, 2)` storage: `[Δx, Δy]` per pixel, row-major.
     pub fn to_interleaved(&self) -> Vec<f32> {
         // Collected in parallel straight into a vector of the final size, with no pass to
-        // zero it first (every solve from Python returns its field this way): at 513 × 513
-        // 0.045 ms against 0.115 for filling a zeroed vector by blocks.
+        // zero it first (every solve from Python returns its field this way).
         let pairs: Vec<[f32; 2]> = self.dx.par_iter().zip(&self.dy).with_min_len(BLOCK).map(|(&x, &y)| [x, y]).collect();
         pairs.into_flattened()
     }

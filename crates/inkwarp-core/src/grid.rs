@@ -146,6 +146,7 @@ impl Grid {
         !bad
     }
 
+    #[cfg(test)]
     /// Number of links (right plus down).
     pub fn link_count(&self) -> usize {
         self.link_right.iter().filter(|&&l| l).count() + self.link_down.iter().filter(|&&l| l).count()
@@ -354,8 +355,8 @@ impl Constraints {
 /// and +y), or `None` outside the grid.
 pub fn nearest_node(grid: &Grid, point: Point) -> Option<(usize, usize)> {
     // Node (⌊x + ½⌋, ⌊y + ½⌋), from the truncation of a coordinate known to be ≥ 0 (where the
-    // two agree): the floor is a library call on plain x86-64, a fifth of the time of
-    // constraining 4000 samples. The comparisons also reject NaN and the infinities.
+    // two agree): the floor is a library call on plain x86-64. The comparisons also reject
+    // NaN and the infinities.
     let (x, y) = (point[0] + 0.5, point[1] + 0.5);
     if !(x >= 0.0 && y >= 0.0 && x < grid.width as f64 && y < grid.height as f64) {
         return None;
@@ -378,9 +379,8 @@ pub fn nearest_node(grid: &Grid, point: Point) -> Option<(usize, usize)> {
 /// ```
 pub fn constrain(grid: &Grid, samples: &[Sample]) -> Constraints {
     // Each kept sample as its node and its own index in one integer (both under 2³², as any
-    // grid or sample list that fits in memory is; checked), sorted: by node, and
-    // within a node in the samples' order (so their average is summed in that order). A
-    // sort of (node, displacement) pairs took twice as long with 4000 samples.
+    // grid or sample list that fits in memory is; checked), sorted: by node, and within a
+    // node in the samples' order (so their average is summed in that order).
     assert!(grid.len() as u64 <= 1 << 32 && samples.len() as u64 <= 1 << 32, "a node or sample index past 2³²");
     let mut keyed: Vec<u64> = Vec::with_capacity(samples.len());
     for (k, s) in samples.iter().enumerate() {

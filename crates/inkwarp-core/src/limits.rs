@@ -83,10 +83,7 @@ pub const MAX_CURVE_SAMPLES: f64 = 1e7;
 /// [`MAX_CURVE_SAMPLES`] (a spline's length is taken as twice its control polygon's, a
 /// bound for the centripetal Catmull-Rom curves inkwarp draws).
 pub fn check_curve_samples(points: &[[f64; 2]], closed: bool, spacing_px: f64) -> Result<(), String> {
-    let mut length: f64 = points
-        .windows(2)
-        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-        .sum();
+    let mut length: f64 = points.windows(2).map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1])).sum();
     if closed && points.len() > 2 {
         let (a, b) = (points[0], points[points.len() - 1]);
         length += (a[0] - b[0]).hypot(a[1] - b[1]);

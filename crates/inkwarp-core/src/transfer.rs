@@ -14,7 +14,7 @@
 //! source lacks keep their own keys. Source features without keys still shape the map
 //! and give their target counterpart no keys.
 //!
-//! [`transfer_keys`] works on plain features; [`transfer_scene`] on scene documents.
+//! [`transfer_keys`] works on plain features (the Python package maps scene documents).
 
 use crate::geometry::{Kind, Point};
 use crate::methods::{MethodError, ThinPlateMap};
@@ -172,7 +172,8 @@ pub fn find_fold(source: &[TransferFeature], target: &[TransferFeature]) -> Resu
         }
     }
     let det = |j: [[f64; 2]; 2]| j[0][0] * j[1][1] - j[0][1] * j[1][0];
-    let sign = det(map.affine_jacobian()).signum();
+    let linear = map.affine_jacobian();
+    let sign = det(linear).signum();
     if !(hi[0] > lo[0] && hi[1] > lo[1]) || sign == 0.0 {
         return Ok(None);
     }
@@ -187,7 +188,6 @@ pub fn find_fold(source: &[TransferFeature], target: &[TransferFeature]) -> Resu
             }
         }
     }
-    let linear = map.affine_jacobian();
     Ok(worst.map(|(at, det)| {
         let against = pairs.iter().find(|&&(si, ti)| runs_against(&source[si], &target[ti], linear));
         let nearest = || {
@@ -375,75 +375,5 @@ mod tests {
         target.push(feat("tail", Kind::Point, vec![[90.0, 90.0]], vec![vec![[91.0, 95.0]]]));
         let keys = transfer_keys(&source, &target).unwrap();
         assert!(keys[4].is_none());
-    }
-}
-
-/// [`transfer_keys`] on scene documents: the target document with the source's keys
-/// mapped onto its matched features (key times and interpolation kept), and a `duration`
-/// that covers both scenes' (`None` when both have none). Everything else is the target's.
-pub fn transfer_scene(
-    source: &crate::scene::SceneDoc,
-    target: &crate::scene::SceneDoc,
-) -> Result<crate::scene::SceneDoc, TransferError> {
-    let plain = |doc: &crate::scene::SceneDoc| -> Vec<TransferFeature> {
-        doc.features
-            .iter()
-            .map(|f| TransferFeature {
-                id: f.id.clone(),
-                kind: f.kind.to_kind(),
-                rest: f.rest.clone(),
-                keys: f.keys.iter().map(|k| k.points.clone()).collect(),
-            })
-            .collect()
-    };
-    let new_keys = transfer_keys(&plain(source), &plain(target))?;
-    let mut out = target.clone();
-    for (feature, keys) in out.features.iter_mut().zip(new_keys) {
-        let Some(keys) = keys else { continue };
-        let source_keys = &source.features.iter().find(|f| f.id == feature.id).expect("matched by id").keys;
-        feature.keys = source_keys
-            .iter()
-            .zip(keys)
-            .map(|(k, points)| crate::scene::KeyDoc { points, ..k.clone() })
-            .collect();
-    }
-    out.duration = match (source.duration, target.duration) {
-        (Some(a), Some(b)) => Some(a.max(b)),
-        (a, b) => a.or(b),
-    };
-    Ok(out)
-}
-
-#[cfg(test)]
-mod scene_tests {
-    use super::*;
-
-    #[test]
-    fn scene_documents_transfer_with_times_and_interpolation() {
-        let source = crate::scene::parse_doc(
-            r#"{"inkwarp": 1, "width": 40, "height": 40, "duration": 2, "layers": [{"name": "a"}],
-                "features": [
-                  {"id": "a", "kind": "point", "rest": [[0, 0]]},
-                  {"id": "b", "kind": "point", "rest": [[10, 0]]},
-                  {"id": "c", "kind": "polyline", "rest": [[0, 10], [5, 10]],
-                   "keys": [{"t": 0.5, "points": [[1, 12], [6, 12]], "interpolation": "hold"}]}]}"#,
-        )
-        .unwrap();
-        let target = crate::scene::parse_doc(
-            r#"{"inkwarp": 1, "width": 80, "height": 80, "duration": 1, "layers": [{"name": "b"}],
-                "features": [
-                  {"id": "c", "kind": "polyline", "rest": [[0, 20], [10, 20]]},
-                  {"id": "b", "kind": "point", "rest": [[20, 0]]},
-                  {"id": "a", "kind": "point", "rest": [[0, 0]]}]}"#,
-        )
-        .unwrap();
-        let out = transfer_scene(&source, &target).unwrap();
-        assert_eq!(out.duration, Some(2.0));
-        assert_eq!(out.width, Some(80));
-        let key = &out.features[0].keys[0];
-        assert_eq!((key.t, key.interpolation), (0.5, crate::scene::Interpolation::Hold));
-        for (got, want) in key.points.iter().zip([[2.0, 24.0], [12.0, 24.0]]) {
-            assert!((got[0] - want[0]).abs() < 1e-9 && (got[1] - want[1]).abs() < 1e-9, "{got:?}");
-        }
     }
 }

@@ -49,19 +49,10 @@ impl Curve {
             .map(|(a, b)| {
                 let (p0, p1) = (points[a], points[b]);
                 let d = sub(p1, p0);
-                Span {
-                    p0,
-                    t0: d,
-                    t1: d,
-                    p1,
-                }
+                Span { p0, t0: d, t1: d, p1 }
             })
             .collect();
-        Curve {
-            spans,
-            linear: true,
-            closed,
-        }
+        Curve { spans, linear: true, closed }
     }
 
     /// The interpolating centripetal Catmull-Rom curve (α = ½) through `points`.
@@ -91,26 +82,15 @@ impl Curve {
             }
         };
         let spans = span_ends(n, closed)
-            .enumerate()
-            .map(|(i, _)| {
-                let i = i as isize;
-                catmull_rom_span(at(i - 1), at(i), at(i + 1), at(i + 2))
-            })
+            .map(|(i, _)| i as isize)
+            .map(|i| catmull_rom_span(at(i - 1), at(i), at(i + 1), at(i + 2)))
             .collect();
-        Curve {
-            spans,
-            linear: false,
-            closed,
-        }
+        Curve { spans, linear: false, closed }
     }
 
     /// The polyline or spline through `points`, as `spline` says.
     pub fn new(points: &[Point], closed: bool, spline: bool) -> Self {
-        if spline {
-            Self::spline(points, closed)
-        } else {
-            Self::polyline(points, closed)
-        }
+        if spline { Self::spline(points, closed) } else { Self::polyline(points, closed) }
     }
 
     /// How many spans the curve has (`n − 1` open, `n` closed).
@@ -129,10 +109,7 @@ impl Curve {
             if u == 1.0 {
                 return s.p1;
             }
-            return [
-                s.p0[0] + u * (s.p1[0] - s.p0[0]),
-                s.p0[1] + u * (s.p1[1] - s.p0[1]),
-            ];
+            return [s.p0[0] + u * (s.p1[0] - s.p0[0]), s.p0[1] + u * (s.p1[1] - s.p0[1])];
         }
         hermite(s, u)
     }
@@ -145,6 +122,7 @@ impl Curve {
         [s.p0, s.t0, s.t1, s.p1]
     }
 
+    #[cfg(test)]
     /// The length of span `span`, exact for line segments and to about 1e-12 relative
     /// for spline spans (composite Gauss–Legendre quadrature of the speed).
     pub fn span_length(&self, span: usize) -> f64 {
@@ -158,6 +136,7 @@ impl Curve {
             .sum()
     }
 
+    #[cfg(test)]
     /// The arc length of span `span` between parameters `u0 ≤ u1`.
     pub fn arc_length(&self, span: usize, u0: f64, u1: f64) -> f64 {
         let s = &self.spans[span];
@@ -166,10 +145,7 @@ impl Curve {
         }
         let k = subdivisions(s);
         // the same sub-intervals as the sampling, so that lengths add up consistently
-        let (j0, j1) = (
-            (u0 * k as f64).floor() as usize,
-            ((u1 * k as f64).ceil() as usize).min(k),
-        );
+        let (j0, j1) = ((u0 * k as f64).floor() as usize, ((u1 * k as f64).ceil() as usize).min(k));
         (j0..j1.max(j0 + 1))
             .map(|j| {
                 let a = (j as f64 / k as f64).max(u0);
@@ -197,19 +173,13 @@ impl Curve {
             if self.linear {
                 let len = norm(sub(s.p1, s.p0));
                 let pieces = pieces_for(len, spacing_px);
-                out.extend((0..pieces).map(|j| CurveParameter {
-                    span: i,
-                    u: j as f64 / pieces as f64,
-                }));
+                out.extend((0..pieces).map(|j| CurveParameter { span: i, u: j as f64 / pieces as f64 }));
             } else {
                 equal_arc_parameters(s, i, spacing_px, &mut out);
             }
         }
         if !self.closed && !self.spans.is_empty() {
-            out.push(CurveParameter {
-                span: self.spans.len() - 1,
-                u: 1.0,
-            });
+            out.push(CurveParameter { span: self.spans.len() - 1, u: 1.0 });
         }
         out
     }
@@ -217,11 +187,8 @@ impl Curve {
     /// The curve as a dense polyline: its points at [`Curve::sample_parameters`], and for a
     /// closed curve the first point repeated at the end so that the polyline closes.
     pub fn to_polyline(&self, spacing_px: f64) -> Vec<Point> {
-        let mut pts: Vec<Point> = self
-            .sample_parameters(spacing_px)
-            .iter()
-            .map(|p| self.point_at(p.span, p.u))
-            .collect();
+        let mut pts: Vec<Point> =
+            self.sample_parameters(spacing_px).iter().map(|p| self.point_at(p.span, p.u)).collect();
         if self.closed {
             if let Some(&first) = pts.first() {
                 pts.push(first);
@@ -233,13 +200,7 @@ impl Curve {
 
 /// The (start, end) control-point indices of each span.
 fn span_ends(n: usize, closed: bool) -> impl Iterator<Item = (usize, usize)> {
-    let count = if n < 2 {
-        0
-    } else if closed {
-        n
-    } else {
-        n - 1
-    };
+    let count = if n < 2 { 0 } else if closed { n } else { n - 1 };
     (0..count).map(move |i| (i, (i + 1) % n))
 }
 
@@ -268,12 +229,7 @@ fn catmull_rom_span(a: Point, b: Point, c: Point, d: Point) -> Span {
     let d1 = norm(sub(c, b)).sqrt();
     let d2 = norm(sub(d, c)).sqrt();
     if d1 == 0.0 {
-        return Span {
-            p0: b,
-            t0: [0.0; 2],
-            t1: [0.0; 2],
-            p1: c,
-        };
+        return Span { p0: b, t0: [0.0; 2], t1: [0.0; 2], p1: c };
     }
     let chord = sub(c, b);
     // t0 = (c − b) + d1·[(b − a)/d0 − (c − a)/(d0 + d1)]. As a → b the bracket tends to
@@ -292,12 +248,7 @@ fn catmull_rom_span(a: Point, b: Point, c: Point, d: Point) -> Span {
             t1[k] = chord[k] + d1 * ((d[k] - c[k]) / d2 - (d[k] - b[k]) / (d1 + d2));
         }
     }
-    Span {
-        p0: b,
-        t0,
-        t1,
-        p1: c,
-    }
+    Span { p0: b, t0, t1, p1: c }
 }
 
 /// The cubic Hermite basis at `u`: the weights of start, start tangent, end tangent and
@@ -316,12 +267,7 @@ pub fn hermite_basis(u: f64) -> [f64; 4] {
 
 #[inline]
 fn hermite(s: &Span, u: f64) -> Point {
-    let u2 = u * u;
-    let u3 = u2 * u;
-    let h00 = 2.0 * u3 - 3.0 * u2 + 1.0;
-    let h10 = u3 - 2.0 * u2 + u;
-    let h01 = -2.0 * u3 + 3.0 * u2;
-    let h11 = u3 - u2;
+    let [h00, h10, h11, h01] = hermite_basis(u);
     [
         h00 * s.p0[0] + h10 * s.t0[0] + h01 * s.p1[0] + h11 * s.t1[0],
         h00 * s.p0[1] + h10 * s.t0[1] + h01 * s.p1[1] + h11 * s.t1[1],
@@ -406,10 +352,7 @@ fn equal_arc_parameters(s: &Span, span: usize, spacing: f64, out: &mut Vec<Curve
         }
         let lo = j as f64 / k as f64;
         let hi = (j + 1) as f64 / k as f64;
-        out.push(CurveParameter {
-            span,
-            u: invert_length(s, lo, hi, target - cumulative[j]),
-        });
+        out.push(CurveParameter { span, u: invert_length(s, lo, hi, target - cumulative[j]) });
     }
 }
 
@@ -430,11 +373,7 @@ fn invert_length(s: &Span, lo: f64, hi: f64, want: f64) -> f64 {
         }
         let v = speed(s, u);
         let newton = u - f / v;
-        u = if v > 0.0 && newton > a && newton < b {
-            newton
-        } else {
-            0.5 * (a + b)
-        };
+        u = if v > 0.0 && newton > a && newton < b { newton } else { 0.5 * (a + b) };
         if b - a <= 1e-16 {
             break;
         }

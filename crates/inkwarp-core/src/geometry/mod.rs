@@ -21,6 +21,7 @@ use thiserror::Error;
 use crate::grid::Grid;
 
 pub use border::border_samples;
+pub(crate) use curve::sub;
 pub use curve::{hermite_basis, Curve, CurveParameter};
 pub use region::{mean_value_interpolate, nodes_inside, MeanValueInterpolator, MvcScratch};
 pub use sampler::FeatureSampler;
@@ -49,13 +50,7 @@ pub enum Kind {
 
 impl Kind {
     /// Every kind, in the order the documentation lists them.
-    pub const ALL: [Kind; 5] = [
-        Kind::Point,
-        Kind::Polyline,
-        Kind::Spline,
-        Kind::Region,
-        Kind::Cut,
-    ];
+    pub const ALL: [Kind; 5] = [Kind::Point, Kind::Polyline, Kind::Spline, Kind::Region, Kind::Cut];
 
     /// The kind's name as scene files spell it (`"point"`, `"polyline"`, …).
     pub fn name(self) -> &'static str {
@@ -95,10 +90,7 @@ impl FromStr for Kind {
     /// assert!("blob".parse::<Kind>().is_err());
     /// ```
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Kind::ALL
-            .into_iter()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| GeometryError::UnknownKind(s.to_string()))
+        Kind::ALL.into_iter().find(|k| k.name() == s).ok_or_else(|| GeometryError::UnknownKind(s.to_string()))
     }
 }
 
@@ -119,11 +111,7 @@ pub struct SampleOptions {
 impl Default for SampleOptions {
     /// Open, polyline outline, 1 px spacing.
     fn default() -> Self {
-        SampleOptions {
-            closed: false,
-            spline_outline: false,
-            spacing_px: 1.0,
-        }
+        SampleOptions { closed: false, spline_outline: false, spacing_px: 1.0 }
     }
 }
 
@@ -131,20 +119,11 @@ impl Default for SampleOptions {
 #[derive(Clone, Debug, PartialEq, Error)]
 pub enum GeometryError {
     /// A kind name that is not one of the five.
-    #[error(
-        "Unknown feature kind \"{0}\"; the kinds are point, polyline, spline, region and cut."
-    )]
+    #[error("Unknown feature kind \"{0}\"; the kinds are point, polyline, spline, region and cut.")]
     UnknownKind(String),
     /// Fewer control points than the kind needs.
-    #[error(
-        "A {kind} needs at least {needed} control points, but its {which} geometry has {got}."
-    )]
-    TooFewPoints {
-        kind: Kind,
-        which: &'static str,
-        needed: usize,
-        got: usize,
-    },
+    #[error("A {kind} needs at least {needed} control points, but its {which} geometry has {got}.")]
+    TooFewPoints { kind: Kind, which: &'static str, needed: usize, got: usize },
     /// A point feature with other than one position.
     #[error("A point feature has exactly one position, but its {which} geometry has {got}.")]
     NotOnePoint { which: &'static str, got: usize },
@@ -156,22 +135,11 @@ pub enum GeometryError {
     CountMismatch { rest: usize, pose: usize },
     /// A NaN or infinite coordinate.
     #[error("Control point {index} of the {which} geometry is ({x}, {y}); every coordinate must be a finite number.")]
-    NonFinite {
-        which: &'static str,
-        index: usize,
-        x: f64,
-        y: f64,
-    },
+    NonFinite { which: &'static str, index: usize, x: f64, y: f64 },
     /// A finite coordinate beyond the limit every coordinate shares
     /// ([`crate::limits::MAX_COORD_PX`]): curves through such points overflow.
     #[error("Control point {index} of the {which} geometry is ({x}, {y}); every coordinate must be within ±{limit:e} px.")]
-    OutOfRange {
-        which: &'static str,
-        index: usize,
-        x: f64,
-        y: f64,
-        limit: f64,
-    },
+    OutOfRange { which: &'static str, index: usize, x: f64, y: f64, limit: f64 },
     /// A spacing that is zero, negative or not finite.
     #[error("The sample spacing is {0} px; it must be a positive, finite number of pixels.")]
     BadSpacing(f64),
@@ -231,49 +199,29 @@ pub fn sample_feature(
 ) -> Result<Vec<Sample>, GeometryError> {
     check_points(kind, rest, "rest")?;
     if pose.len() != rest.len() {
-        return Err(GeometryError::CountMismatch {
-            rest: rest.len(),
-            pose: pose.len(),
-        });
+        return Err(GeometryError::CountMismatch { rest: rest.len(), pose: pose.len() });
     }
     check_points(kind, pose, "posed")?;
-    let spacing = opts.spacing_px;
-    if !(spacing > 0.0 && spacing.is_finite()) {
-        return Err(GeometryError::BadSpacing(spacing));
-    }
+    let spacing = check_spacing(opts)?;
     for points in [rest, pose] {
         let closed = opts.closed || kind == Kind::Region;
         crate::limits::check_curve_samples(points, closed, spacing)
             .map_err(|why| GeometryError::TooManySamples(why.replacen("sampling", "Sampling", 1)))?;
     }
     Ok(match kind {
-        Kind::Point => vec![Sample {
-            rest: rest[0],
-            displacement: curve::sub(pose[0], rest[0]),
-        }],
+        Kind::Point => vec![Sample { rest: rest[0], displacement: sub(pose[0], rest[0]) }],
         Kind::Polyline | Kind::Spline => {
             let spline = kind == Kind::Spline;
-            curve_samples(
-                &Curve::new(rest, opts.closed, spline),
-                &Curve::new(pose, opts.closed, spline),
-                spacing,
-            )
+            curve_samples(&Curve::new(rest, opts.closed, spline), &Curve::new(pose, opts.closed, spline), spacing)
         }
         Kind::Region => {
             let grid = domain.ok_or(GeometryError::RegionWithoutDomain)?;
             let spline = opts.spline_outline;
-            let mut samples = curve_samples(
-                &Curve::new(rest, true, spline),
-                &Curve::new(pose, true, spline),
-                spacing,
-            );
+            let mut samples = curve_samples(&Curve::new(rest, true, spline), &Curve::new(pose, true, spline), spacing);
             let (vertices, values): (Vec<Point>, Vec<Point>) = if spline {
                 samples.iter().map(|s| (s.rest, s.displacement)).unzip()
             } else {
-                rest.iter()
-                    .zip(pose)
-                    .map(|(&r, &p)| (r, curve::sub(p, r)))
-                    .unzip()
+                rest.iter().zip(pose).map(|(&r, &p)| (r, sub(p, r))).unzip()
             };
             samples.extend(region::interior_samples(vertices, values, grid));
             samples
@@ -289,51 +237,31 @@ fn curve_samples(rest: &Curve, pose: &Curve, spacing: f64) -> Vec<Sample> {
         .into_iter()
         .map(|p| {
             let r = rest.point_at(p.span, p.u);
-            Sample {
-                rest: r,
-                displacement: curve::sub(pose.point_at(p.span, p.u), r),
-            }
+            Sample { rest: r, displacement: sub(pose.point_at(p.span, p.u), r) }
         })
         .collect()
 }
 
+/// The spacing of `opts`, when it is positive and finite.
+fn check_spacing(opts: &SampleOptions) -> Result<f64, GeometryError> {
+    let spacing = opts.spacing_px;
+    if spacing > 0.0 && spacing.is_finite() { Ok(spacing) } else { Err(GeometryError::BadSpacing(spacing)) }
+}
+
 fn check_points(kind: Kind, points: &[Point], which: &'static str) -> Result<(), GeometryError> {
-    if kind == Kind::Point {
-        if points.len() != 1 {
-            return Err(GeometryError::NotOnePoint {
-                which,
-                got: points.len(),
-            });
-        }
-    } else if points.len() < kind.min_points() {
-        return Err(GeometryError::TooFewPoints {
-            kind,
-            which,
-            needed: kind.min_points(),
-            got: points.len(),
-        });
+    let got = points.len();
+    if kind == Kind::Point && got != 1 {
+        return Err(GeometryError::NotOnePoint { which, got });
+    } else if kind != Kind::Point && got < kind.min_points() {
+        return Err(GeometryError::TooFewPoints { kind, which, needed: kind.min_points(), got });
     }
-    if let Some((index, p)) = points
-        .iter()
-        .enumerate()
-        .find(|(_, p)| !(p[0].is_finite() && p[1].is_finite()))
-    {
-        return Err(GeometryError::NonFinite {
-            which,
-            index,
-            x: p[0],
-            y: p[1],
-        });
+    if let Some((index, p)) = points.iter().enumerate().find(|(_, p)| !(p[0].is_finite() && p[1].is_finite())) {
+        return Err(GeometryError::NonFinite { which, index, x: p[0], y: p[1] });
     }
     let ok = crate::limits::coordinate_ok;
     if let Some((index, p)) = points.iter().enumerate().find(|(_, p)| !(ok(p[0]) && ok(p[1]))) {
-        return Err(GeometryError::OutOfRange {
-            which,
-            index,
-            x: p[0],
-            y: p[1],
-            limit: crate::limits::MAX_COORD_PX,
-        });
+        let limit = crate::limits::MAX_COORD_PX;
+        return Err(GeometryError::OutOfRange { which, index, x: p[0], y: p[1], limit });
     }
     Ok(())
 }
@@ -355,18 +283,8 @@ fn check_points(kind: Kind, points: &[Point], which: &'static str) -> Result<(),
 /// assert_eq!(outline.len(), 5);
 /// assert_eq!(outline[4], outline[0]);
 /// ```
-pub fn curve_polyline(
-    kind: Kind,
-    points: &[Point],
-    closed: bool,
-    spline_outline: bool,
-    spacing_px: f64,
-) -> Vec<Point> {
-    let spacing = if spacing_px > 0.0 && spacing_px.is_finite() {
-        spacing_px
-    } else {
-        1.0
-    };
+pub fn curve_polyline(kind: Kind, points: &[Point], closed: bool, spline_outline: bool, spacing_px: f64) -> Vec<Point> {
+    let spacing = if spacing_px > 0.0 && spacing_px.is_finite() { spacing_px } else { 1.0 };
     let (closed, spline) = match kind {
         Kind::Point => return points.to_vec(),
         Kind::Polyline | Kind::Cut => (closed, false),

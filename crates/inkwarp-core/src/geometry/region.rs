@@ -46,66 +46,32 @@ const ON_OUTLINE_PX: f64 = 1e-9;
 pub fn mean_value_interpolate(polygon: &[Point], values: &[Point], x: Point) -> Point {
     assert_eq!(polygon.len(), values.len(), "one value per polygon vertex");
     let m = polygon.len();
-    let mut acc = Accumulator::default();
-    for i in 0..m {
-        if let Some(on) = acc.add_edge_checked(polygon, values, i, (i + 1) % m, x) {
-            return on;
-        }
-    }
-    acc.value()
-}
-
-/// Running sums `Σ w f` and `Σ w` of a mean-value evaluation.
-#[derive(Default)]
-struct Accumulator {
-    num: [f64; 2],
-    den: f64,
-}
-
-impl Accumulator {
-    /// Like `add_edge`, but returns the outline's value when `x` lies on the edge.
-    #[inline]
-    fn add_edge_checked(
-        &mut self,
-        poly: &[Point],
-        vals: &[Point],
-        a: usize,
-        b: usize,
-        x: Point,
-    ) -> Option<Point> {
-        let (va, vb) = (poly[a], poly[b]);
-        let sa = sub(va, x);
-        let sb = sub(vb, x);
-        let ra = norm(sa);
-        let rb = norm(sb);
+    // Running sums `Σ w f` and `Σ w` over the edges.
+    let (mut num, mut den) = ([0.0f64; 2], 0.0f64);
+    for a in 0..m {
+        let b = (a + 1) % m;
+        let (va, vb, fa, fb) = (polygon[a], polygon[b], values[a], values[b]);
+        let (sa, sb) = (sub(va, x), sub(vb, x));
+        let (ra, rb) = (norm(sa), norm(sb));
         if ra <= ON_OUTLINE_PX {
-            return Some(vals[a]);
+            return fa;
         }
         let det = sa[0] * sb[1] - sa[1] * sb[0];
         let dot = sa[0] * sb[0] + sa[1] * sb[1];
-        if dot < 0.0
-            && det.abs() <= ON_OUTLINE_PX * norm(sub(vb, va)) + 4.0 * f64::EPSILON * ra * rb
-        {
+        if dot < 0.0 && det.abs() <= ON_OUTLINE_PX * norm(sub(vb, va)) + 4.0 * f64::EPSILON * ra * rb {
             // on the open segment: the linear interpolation along it
-            let (fa, fb) = (vals[a], vals[b]);
             let s = ra / (ra + rb);
-            return Some([fa[0] + s * (fb[0] - fa[0]), fa[1] + s * (fb[1] - fa[1])]);
+            return [fa[0] + s * (fb[0] - fa[0]), fa[1] + s * (fb[1] - fa[1])];
         }
         let t = half_angle_tan(ra, rb, det, dot);
         if t != 0.0 {
-            let (fa, fb) = (vals[a], vals[b]);
-            let wa = t / ra;
-            let wb = t / rb;
-            self.num[0] += wa * fa[0] + wb * fb[0];
-            self.num[1] += wa * fa[1] + wb * fb[1];
-            self.den += wa + wb;
+            let (wa, wb) = (t / ra, t / rb);
+            num[0] += wa * fa[0] + wb * fb[0];
+            num[1] += wa * fa[1] + wb * fb[1];
+            den += wa + wb;
         }
-        None
     }
-
-    fn value(&self) -> Point {
-        [self.num[0] / self.den, self.num[1] / self.den]
-    }
+    [num[0] / den, num[1] / den]
 }
 
 /// `tan(α/2)` of the signed angle `α` between two vectors of lengths `ra`, `rb` with
@@ -159,24 +125,10 @@ impl MeanValueInterpolator {
     pub fn new(vertices: Vec<Point>, values: Vec<Point>) -> Self {
         assert_eq!(vertices.len(), values.len(), "one value per polygon vertex");
         let m = vertices.len();
-        let xs: Vec<f64> = (0..=m)
-            .map(|i| vertices[i % m.max(1)][0])
-            .take(if m == 0 { 0 } else { m + 1 })
-            .collect();
-        let ys: Vec<f64> = (0..=m)
-            .map(|i| vertices[i % m.max(1)][1])
-            .take(if m == 0 { 0 } else { m + 1 })
-            .collect();
-        let lengths = (0..m)
-            .map(|i| norm(sub(vertices[(i + 1) % m], vertices[i])))
-            .collect();
-        MeanValueInterpolator {
-            xs,
-            ys,
-            lengths,
-            vertices,
-            values,
-        }
+        let closed = || vertices.iter().chain(vertices.first());
+        let (xs, ys) = (closed().map(|v| v[0]).collect(), closed().map(|v| v[1]).collect());
+        let lengths = (0..m).map(|i| norm(sub(vertices[(i + 1) % m], vertices[i]))).collect();
+        MeanValueInterpolator { xs, ys, lengths, vertices, values }
     }
 
     /// How many vertices the outline has.
@@ -189,6 +141,7 @@ impl MeanValueInterpolator {
         self.vertices.is_empty()
     }
 
+    #[cfg(test)]
     /// The normalised mean value coordinates of `x` (one weight per vertex, summing to 1)
     /// written into `weights`, or `false` when `x` lies on the outline (within 1e-9 px) or
     /// the outline is empty.
@@ -258,11 +211,7 @@ impl MeanValueInterpolator {
         t.clear();
         sx.extend(self.xs.iter().map(|&v| v - x[0]));
         sy.extend(self.ys.iter().map(|&v| v - x[1]));
-        r.extend(
-            sx.iter()
-                .zip(sy.iter())
-                .map(|(&a, &b)| (a * a + b * b).sqrt()),
-        );
+        r.extend(sx.iter().zip(sy.iter()).map(|(&a, &b)| (a * a + b * b).sqrt()));
         let (sx0, sx1) = (&sx[..m], &sx[1..=m]);
         let (sy0, sy1) = (&sy[..m], &sy[1..=m]);
         let (r0, r1) = (&r[..m], &r[1..=m]);
@@ -296,11 +245,8 @@ pub fn nodes_inside(polygon: &[Point], grid: &Grid) -> Vec<[usize; 2]> {
     if m < 3 || grid.width == 0 || grid.height == 0 {
         return nodes;
     }
-    let (ymin, ymax) = polygon
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(p[1]), hi.max(p[1]))
-        });
+    let (ymin, ymax) =
+        polygon.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
     let first_row = ymin.ceil().max(0.0);
     let last_row = ymax.floor().min((grid.height - 1) as f64);
     if first_row > last_row || first_row.is_nan() || last_row.is_nan() {
@@ -339,9 +285,7 @@ pub fn nodes_inside(polygon: &[Point], grid: &Grid) -> Vec<[usize; 2]> {
                 continue;
             }
             for col in c0 as usize..=c1 as usize {
-                let on_flat_edge = flat
-                    .iter()
-                    .any(|&(lo, hi)| lo <= col as f64 && col as f64 <= hi);
+                let on_flat_edge = flat.iter().any(|&(lo, hi)| lo <= col as f64 && col as f64 <= hi);
                 if grid.active[grid.index(col, row)] && !on_flat_edge {
                     nodes.push([col, row]);
                 }
@@ -354,11 +298,7 @@ pub fn nodes_inside(polygon: &[Point], grid: &Grid) -> Vec<[usize; 2]> {
 /// The interior samples of a region: every active node strictly inside the outline
 /// polygon `vertices`, with the mean-value interpolation of `values` there. Evaluated in
 /// parallel; the order is row-major.
-pub(crate) fn interior_samples(
-    vertices: Vec<Point>,
-    values: Vec<Point>,
-    grid: &Grid,
-) -> Vec<super::Sample> {
+pub(crate) fn interior_samples(vertices: Vec<Point>, values: Vec<Point>, grid: &Grid) -> Vec<super::Sample> {
     let nodes = nodes_inside(&vertices, grid);
     let mvc = MeanValueInterpolator::new(vertices, values);
     let pieces: Vec<Vec<super::Sample>> = nodes

@@ -5,7 +5,7 @@ use rayon::prelude::*;
 
 use super::curve::{hermite_basis, sub, Curve, CurveParameter};
 use super::region::{nodes_inside, MeanValueInterpolator, MvcScratch};
-use super::{check_points, GeometryError, Kind, Point, Sample, SampleOptions};
+use super::{check_points, check_spacing, GeometryError, Kind, Point, Sample, SampleOptions};
 use crate::grid::Grid;
 
 /// Regions keep at most this many interpolation coefficients (128 MiB of `f32`); a bigger
@@ -73,12 +73,7 @@ impl FeatureSampler {
     ///
     /// # Errors
     /// As [`sample_feature`](super::sample_feature) for the rest geometry and options.
-    pub fn new(
-        kind: Kind,
-        rest: &[Point],
-        opts: &SampleOptions,
-        domain: Option<&Grid>,
-    ) -> Result<Self, GeometryError> {
+    pub fn new(kind: Kind, rest: &[Point], opts: &SampleOptions, domain: Option<&Grid>) -> Result<Self, GeometryError> {
         Self::with_limit(kind, rest, opts, domain, MAX_COEFFICIENTS)
     }
 
@@ -91,10 +86,7 @@ impl FeatureSampler {
         max_coefficients: usize,
     ) -> Result<Self, GeometryError> {
         check_points(kind, rest, "rest")?;
-        let spacing = opts.spacing_px;
-        if !(spacing > 0.0 && spacing.is_finite()) {
-            return Err(GeometryError::BadSpacing(spacing));
-        }
+        let spacing = check_spacing(opts)?;
         let (closed, spline) = match kind {
             Kind::Point | Kind::Cut => (false, false),
             Kind::Polyline => (opts.closed, false),
@@ -115,11 +107,7 @@ impl FeatureSampler {
         if matches!(kind, Kind::Polyline | Kind::Spline | Kind::Region) {
             let curve = Curve::new(rest, closed, spline);
             me.params = curve.sample_parameters(spacing);
-            me.rest_points = me
-                .params
-                .iter()
-                .map(|p| curve.point_at(p.span, p.u))
-                .collect();
+            me.rest_points = me.params.iter().map(|p| curve.point_at(p.span, p.u)).collect();
             me.hermite = me.params.iter().map(|p| hermite_basis(p.u)).collect();
             me.rest_curve = Some(curve);
         }
@@ -130,30 +118,14 @@ impl FeatureSampler {
         Ok(me)
     }
 
-    /// The outline polygon whose mean value coordinates move the interior: the control
-    /// polygon of a polyline outline (the same interpolation as its dense samples, the
-    /// displacement being linear along each edge), the dense samples of a spline outline.
-    fn outline_polygon(&self) -> Vec<Point> {
-        if self.spline {
-            self.rest_points.clone()
-        } else {
-            self.rest.clone()
-        }
-    }
-
-    /// How many pose-dependent basis vectors a region's interior is linear in.
-    fn basis_len(&self) -> usize {
-        if self.spline {
-            3 * self.rest.len()
-        } else {
-            self.rest.len()
-        }
-    }
-
     fn prepare_interior(&self, grid: &Grid, max_coefficients: usize) -> Interior {
-        let vertices = self.outline_polygon();
+        // The outline polygon whose mean value coordinates move the interior: the control
+        // polygon of a polyline outline (the same interpolation as its dense samples, the
+        // displacement being linear along each edge), the dense samples of a spline outline.
+        let vertices = if self.spline { self.rest_points.clone() } else { self.rest.clone() };
         let nodes = nodes_inside(&vertices, grid);
-        let width = self.basis_len();
+        // How many pose-dependent basis vectors the interior is linear in.
+        let width = if self.spline { 3 * self.rest.len() } else { self.rest.len() };
         let mvc = MeanValueInterpolator::new(vertices.clone(), vec![[0.0; 2]; vertices.len()]);
         if nodes.len().saturating_mul(width) > max_coefficients {
             // too big to keep: drop the nodes on the outline now, interpolate per pose
@@ -199,10 +171,7 @@ impl FeatureSampler {
                         row.iter_mut().for_each(|c| *c = 0.0);
                         for (i, range) in spans.iter().enumerate() {
                             let mut acc = [0.0; 4];
-                            for (&w, h) in weights[range.clone()]
-                                .iter()
-                                .zip(&self.hermite[range.clone()])
-                            {
+                            for (&w, h) in weights[range.clone()].iter().zip(&self.hermite[range.clone()]) {
                                 for k in 0..4 {
                                     acc[k] += w * h[k];
                                 }
@@ -222,11 +191,7 @@ impl FeatureSampler {
             })
             .collect();
         let (nodes, coefficients): (Vec<Vec<Point>>, Vec<Vec<f32>>) = pieces.into_iter().unzip();
-        Interior::Coefficients {
-            nodes: nodes.concat(),
-            coefficients: coefficients.concat(),
-            width,
-        }
+        Interior::Coefficients { nodes: nodes.concat(), coefficients: coefficients.concat(), width }
     }
 
     /// The feature's kind.
@@ -236,17 +201,11 @@ impl FeatureSampler {
 
     /// How many samples every pose gives.
     pub fn len(&self) -> usize {
-        let curve = if self.kind == Kind::Point {
-            1
-        } else {
-            self.params.len()
-        };
+        let curve = if self.kind == Kind::Point { 1 } else { self.params.len() };
         curve
             + match &self.interior {
                 Interior::None => 0,
-                Interior::Coefficients { nodes, .. } | Interior::Direct { nodes, .. } => {
-                    nodes.len()
-                }
+                Interior::Coefficients { nodes, .. } | Interior::Direct { nodes, .. } => nodes.len(),
             }
     }
 
@@ -263,41 +222,24 @@ impl FeatureSampler {
     /// non-finite coordinate.
     pub fn sample(&self, pose: &[Point]) -> Result<Vec<Sample>, GeometryError> {
         if pose.len() != self.rest.len() {
-            return Err(GeometryError::CountMismatch {
-                rest: self.rest.len(),
-                pose: pose.len(),
-            });
+            return Err(GeometryError::CountMismatch { rest: self.rest.len(), pose: pose.len() });
         }
         check_points(self.kind, pose, "posed")?;
         let mut out = Vec::with_capacity(self.len());
         match self.kind {
             Kind::Cut => return Ok(out),
             Kind::Point => {
-                out.push(Sample {
-                    rest: self.rest[0],
-                    displacement: sub(pose[0], self.rest[0]),
-                });
+                out.push(Sample { rest: self.rest[0], displacement: sub(pose[0], self.rest[0]) });
                 return Ok(out);
             }
             _ => {}
         }
         let posed = Curve::new(pose, self.closed, self.spline);
-        out.extend(
-            self.params
-                .iter()
-                .zip(&self.rest_points)
-                .map(|(p, &r)| Sample {
-                    rest: r,
-                    displacement: sub(posed.point_at(p.span, p.u), r),
-                }),
-        );
+        let curve = self.params.iter().zip(&self.rest_points);
+        out.extend(curve.map(|(p, &r)| Sample { rest: r, displacement: sub(posed.point_at(p.span, p.u), r) }));
         match &self.interior {
             Interior::None => {}
-            Interior::Coefficients {
-                nodes,
-                coefficients,
-                width,
-            } => {
+            Interior::Coefficients { nodes, coefficients, width } => {
                 let change = self.basis_change(pose, &posed);
                 debug_assert_eq!(change.len(), *width);
                 let pieces: Vec<Vec<Sample>> = nodes
@@ -312,27 +254,18 @@ impl FeatureSampler {
                                     dx += c as f64 * b[0];
                                     dy += c as f64 * b[1];
                                 }
-                                Sample {
-                                    rest,
-                                    displacement: [dx, dy],
-                                }
+                                Sample { rest, displacement: [dx, dy] }
                             })
                             .collect()
                     })
                     .collect();
-                for piece in pieces {
-                    out.extend(piece);
-                }
+                out.extend(pieces.into_iter().flatten());
             }
             Interior::Direct { nodes, vertices } => {
                 let values: Vec<Point> = if self.spline {
                     out.iter().map(|s| s.displacement).collect()
                 } else {
-                    self.rest
-                        .iter()
-                        .zip(pose)
-                        .map(|(&r, &p)| sub(p, r))
-                        .collect()
+                    self.rest.iter().zip(pose).map(|(&r, &p)| sub(p, r)).collect()
                 };
                 let mvc = MeanValueInterpolator::new(vertices.clone(), values);
                 let pieces: Vec<Vec<Sample>> = nodes
@@ -348,9 +281,7 @@ impl FeatureSampler {
                             .collect()
                     })
                     .collect();
-                for piece in pieces {
-                    out.extend(piece);
-                }
+                out.extend(pieces.into_iter().flatten());
             }
         }
         Ok(out)
@@ -360,12 +291,7 @@ impl FeatureSampler {
     /// points' displacements, and for a spline outline each span's tangent changes.
     fn basis_change(&self, pose: &[Point], posed: &Curve) -> Vec<Point> {
         let s = self.rest.len();
-        let mut change: Vec<Point> = self
-            .rest
-            .iter()
-            .zip(pose)
-            .map(|(&r, &p)| sub(p, r))
-            .collect();
+        let mut change: Vec<Point> = self.rest.iter().zip(pose).map(|(&r, &p)| sub(p, r)).collect();
         if self.spline {
             let rest = self.rest_curve.as_ref().expect("curves have a rest curve");
             let (mut t0, mut t1) = (Vec::with_capacity(s), Vec::with_capacity(s));

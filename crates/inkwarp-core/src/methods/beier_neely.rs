@@ -5,7 +5,7 @@ use rayon::prelude::*;
 
 use super::{is_finite_point, LinePair, MethodError, MethodReport};
 use crate::field::Field;
-use crate::geometry::{Point, Sample};
+use crate::geometry::{sub, Point, Sample};
 
 /// Beier & Neely's weight parameters. A primitive's weight at a pixel is
 ///
@@ -128,16 +128,8 @@ pub fn beier_neely_field(
         }
         let pose_d = sub(l.pose[1], l.pose[0]);
         let len = len2.sqrt();
-        lines.push(Line {
-            p: l.rest[0],
-            d,
-            len2,
-            len,
-            pose_p: l.pose[0],
-            pose_d,
-            pose_len: dot(pose_d, pose_d).sqrt(),
-            strength: len.powf(len_power),
-        });
+        let (pose_len, strength) = (dot(pose_d, pose_d).sqrt(), len.powf(len_power));
+        lines.push(Line { p: l.rest[0], d, len2, len, pose_p: l.pose[0], pose_d, pose_len, strength });
     }
     report.samples_given = points.len();
     report.samples_used = pts.len();
@@ -213,11 +205,6 @@ pub fn beier_neely_field(
         }
     });
     Ok(f)
-}
-
-#[inline]
-fn sub(a: Point, b: Point) -> Point {
-    [a[0] - b[0], a[1] - b[1]]
 }
 
 #[inline]

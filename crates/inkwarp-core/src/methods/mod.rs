@@ -301,24 +301,16 @@ pub fn field(
         return Err(MethodError::EmptyField { width, height });
     }
     let mut report = MethodReport { method: Some(interpolant.into()), ..Default::default() };
-    let f = (|| -> Result<Field, MethodError> {
-        Ok(match interpolant {
+    let f = match interpolant {
         Interpolant::TpsExact => {
-            thin_plate_field(&controls.all_samples(), width, height, params.max_samples, &mut report)?
+            thin_plate_field(&controls.all_samples(), width, height, params.max_samples, &mut report)
         }
-        Interpolant::Triangulation => {
-            triangulation_field(&controls.all_samples(), width, height, &mut report)?
+        Interpolant::Triangulation => triangulation_field(&controls.all_samples(), width, height, &mut report),
+        Interpolant::BeierNeely => {
+            let (samples, lines) = (&controls.samples, &controls.line_pairs);
+            beier_neely_field(samples, lines, width, height, &params.beier_neely, &mut report)
         }
-        Interpolant::BeierNeely => beier_neely_field(
-            &controls.samples,
-            &controls.line_pairs,
-            width,
-            height,
-            &params.beier_neely,
-            &mut report,
-        )?,
-        })
-    })();
+    };
     // The dense loops skip their remaining rows (and the elimination its remaining pivots)
     // once a stop is requested.
     if crate::interrupt::requested() {
@@ -390,27 +382,22 @@ pub(crate) fn is_finite_point(p: Point) -> bool {
 /// is sorted by position, so it does not depend on the input order. Returns the merged
 /// samples and the number dropped.
 pub(crate) fn merge_samples(samples: &[Sample]) -> (Vec<Sample>, usize) {
-    let mut finite: Vec<Sample> = samples
-        .iter()
-        .copied()
-        .filter(|s| is_finite_point(s.rest) && is_finite_point(s.displacement))
-        .collect();
+    let mut finite: Vec<Sample> =
+        samples.iter().copied().filter(|s| is_finite_point(s.rest) && is_finite_point(s.displacement)).collect();
     let dropped = samples.len() - finite.len();
     finite.sort_by(|a, b| a.rest[0].total_cmp(&b.rest[0]).then(a.rest[1].total_cmp(&b.rest[1])));
-    let mut merged: Vec<Sample> = Vec::with_capacity(finite.len());
-    let mut i = 0;
-    while i < finite.len() {
-        let mut j = i;
-        let (mut sx, mut sy) = (0.0, 0.0);
-        while j < finite.len() && finite[j].rest == finite[i].rest {
-            sx += finite[j].displacement[0];
-            sy += finite[j].displacement[1];
-            j += 1;
-        }
-        let n = (j - i) as f64;
-        merged.push(Sample { rest: finite[i].rest, displacement: [sx / n, sy / n] });
-        i = j;
-    }
+    let merged = finite
+        .chunk_by(|a, b| a.rest == b.rest)
+        .map(|group| {
+            let (mut sx, mut sy) = (0.0, 0.0);
+            for s in group {
+                sx += s.displacement[0];
+                sy += s.displacement[1];
+            }
+            let n = group.len() as f64;
+            Sample { rest: group[0].rest, displacement: [sx / n, sy / n] }
+        })
+        .collect();
     (merged, dropped)
 }
 

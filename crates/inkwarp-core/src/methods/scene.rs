@@ -1,13 +1,8 @@
 //! The interpolants driven by a scene's drawing: what each one is handed from a layer's
-//! features at a time, and the layer's field (the scene engine's dispatch calls
-//! [`features_field`] for every method but `tps`).
+//! features at a time (the scene engine's dispatch for every method but `tps`).
 
-use super::{
-    controls_field, line_pairs_from_chain, BeierNeelyParams, Controls, Interpolant, MethodParams, MethodReport,
-};
-use crate::field::Field;
+use super::{line_pairs_from_chain, BeierNeelyParams, Controls, Interpolant, MethodParams};
 use crate::geometry::{sample_feature, Kind, Sample, SampleOptions};
-use crate::grid::Grid;
 use crate::scene::{BeierNeelyDoc, FeatureSamples, Scene, SolverDoc};
 
 /// Beier–Neely segments along a spline (or a spline region outline) are about this long:
@@ -86,29 +81,11 @@ pub fn hold_border(controls: &mut Controls, interpolant: Interpolant, width: usi
     }
 }
 
-/// A layer's field by `interpolant`, from its samples grouped by feature: the scene
-/// engine's dispatch for every method but `tps`, with the layer's settings
-/// ([`method_params`]).
-pub fn features_field(
-    scene: &Scene,
-    grid: &Grid,
-    features: &[FeatureSamples],
-    time_s: f64,
-    interpolant: Interpolant,
-    params: &MethodParams,
-) -> Result<(Field, MethodReport), String> {
-    let controls = feature_controls(scene, features, time_s, interpolant)?;
-    controls_field(interpolant, &controls, grid, params).map_err(|e| e.to_string())
-}
-
 /// The interpolants' settings of a layer's solver settings (`solver.beier_neely`,
 /// `solver.tps_exact`).
 pub fn method_params(solver: &SolverDoc) -> MethodParams {
     let BeierNeelyDoc { a, b, p } = solver.beier_neely;
-    MethodParams {
-        max_samples: solver.tps_exact.max_samples as usize,
-        beier_neely: BeierNeelyParams { a, b, p },
-    }
+    MethodParams { max_samples: solver.tps_exact.max_samples as usize, beier_neely: BeierNeelyParams { a, b, p } }
 }
 
 /// The drawing of `doc` posed at `time_s`, for overlays: per feature its id, kind and its
@@ -119,31 +96,15 @@ pub fn posed_drawing(
     time_s: f64,
     spacing_px: f64,
 ) -> Vec<(String, Kind, Vec<crate::geometry::Point>)> {
-    use crate::anim::{points_at, Key};
-    use crate::scene::Curve;
-    doc.features
-        .iter()
-        .map(|f| {
-            let kind = f.kind.to_kind();
-            let keys: Vec<Key> = f
-                .keys
-                .iter()
-                .map(|k| Key {
-                    time_s: k.t,
-                    points: k.points.clone(),
-                    interpolation: k.interpolation.to_anim(),
-                })
-                .collect();
-            let pose = if kind == Kind::Cut { f.rest.clone() } else { points_at(&f.rest, &keys, time_s) };
-            let spline_outline = f.curve == Some(Curve::Spline);
-            let line = if kind == Kind::Point {
-                pose
-            } else {
-                crate::geometry::curve_polyline(kind, &pose, f.closed, spline_outline, spacing_px)
-            };
-            (f.id.clone(), kind, line)
-        })
-        .collect()
+    let posed = |f: &crate::scene::FeatureDoc| {
+        let kind = f.kind.to_kind();
+        let pose =
+            if kind == Kind::Cut { f.rest.clone() } else { crate::anim::points_at(&f.rest, &f.anim_keys(), time_s) };
+        let spline_outline = f.curve == Some(crate::scene::Curve::Spline);
+        // (A point's polyline is its one position.)
+        (f.id.clone(), kind, crate::geometry::curve_polyline(kind, &pose, f.closed, spline_outline, spacing_px))
+    };
+    doc.features.iter().map(posed).collect()
 }
 
 #[cfg(test)]

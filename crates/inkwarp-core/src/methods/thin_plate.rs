@@ -127,15 +127,8 @@ impl ThinPlateMap {
     fn fit_distinct(samples: &[Sample]) -> Result<Self, MethodError> {
         let n = samples.len();
         if n == 0 {
-            return Ok(ThinPlateMap {
-                origin: [0.0, 0.0],
-                scale: 1.0,
-                cx: vec![],
-                cy: vec![],
-                wx: vec![],
-                wy: vec![],
-                affine: [[0.0; 3]; 2],
-            });
+            let (cx, cy, wx, wy) = (vec![], vec![], vec![], vec![]);
+            return Ok(ThinPlateMap { origin: [0.0, 0.0], scale: 1.0, cx, cy, wx, wy, affine: [[0.0; 3]; 2] });
         }
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for s in samples {
@@ -177,11 +170,8 @@ impl ThinPlateMap {
             rhs[i * 2] = s.displacement[0];
             rhs[i * 2 + 1] = s.displacement[1];
         }
-        let x = solve_dense(a, size, rhs, 2).map_err(|e| MethodError::Singular {
-            points: n,
-            row: e.row,
-            pivot: e.pivot,
-        })?;
+        let x = solve_dense(a, size, rhs, 2)
+            .map_err(|e| MethodError::Singular { points: n, row: e.row, pivot: e.pivot })?;
         let mut affine = [[0.0; 3]; 2];
         for c in 0..2 {
             affine[c][0] = x[n * 2 + c];
@@ -214,8 +204,7 @@ impl ThinPlateMap {
 
     /// The displacement `f(p)` at `p`.
     pub fn displacement(&self, p: Point) -> Point {
-        let qx = (p[0] - self.origin[0]) / self.scale;
-        let qy = (p[1] - self.origin[1]) / self.scale;
+        let [qx, qy] = self.normalised(p);
         let (kx, ky) = self.kernel_sums(qx, qy);
         let [ax, ay] = self.affine;
         [ax[0] + ax[1] * qx + ax[2] * qy + kx, ay[0] + ay[1] * qx + ay[2] * qy + ky]
@@ -230,8 +219,7 @@ impl ThinPlateMap {
     /// The Jacobian of the map `p ↦ p + f(p)` at `p`, `[[∂x'/∂x, ∂x'/∂y], [∂y'/∂x, ∂y'/∂y]]`.
     /// Its determinant is negative where the map turns the plane over (a fold).
     pub fn jacobian(&self, p: Point) -> [[f64; 2]; 2] {
-        let qx = (p[0] - self.origin[0]) / self.scale;
-        let qy = (p[1] - self.origin[1]) / self.scale;
+        let [qx, qy] = self.normalised(p);
         let [ax, ay] = self.affine;
         // d/dq of φ(r²) = r² ln r² is 2 (ln r² + 1) (q − c), which tends to 0 at r = 0.
         let mut g = [[ax[1], ax[2]], [ay[1], ay[2]]];
@@ -253,6 +241,11 @@ impl ThinPlateMap {
     pub fn affine_jacobian(&self) -> [[f64; 2]; 2] {
         let [ax, ay] = self.affine;
         self.identity_plus([[ax[1], ax[2]], [ay[1], ay[2]]])
+    }
+
+    /// `p` in the normalised coordinates of the fit.
+    fn normalised(&self, p: Point) -> Point {
+        [(p[0] - self.origin[0]) / self.scale, (p[1] - self.origin[1]) / self.scale]
     }
 
     /// `I + g / scale`: a gradient in normalised coordinates as a Jacobian in pixels.

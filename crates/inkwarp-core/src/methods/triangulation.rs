@@ -134,13 +134,8 @@ fn rasterize(f: &mut Field, p: [[f64; 2]; 3], val: [[f64; 2]; 3]) {
 }
 
 fn fill_collinear(tri: &DelaunayTriangulation<Vertex>, f: &mut Field) {
-    let mut pts: Vec<(f64, [f64; 2])> = tri
-        .vertices()
-        .map(|v| {
-            let p = v.position();
-            (p.x + p.y, v.data().value)
-        })
-        .collect();
+    let mut pts: Vec<(f64, [f64; 2])> =
+        tri.vertices().map(|v| (v.position().x + v.position().y, v.data().value)).collect();
     pts.sort_by(|a, b| a.0.total_cmp(&b.0));
     for y in 0..f.height {
         for x in 0..f.width {

@@ -17,7 +17,6 @@ pub(super) const TOP: u8 = 1; // top-left – top-right
 pub(super) const BOTTOM: u8 = 2; // bottom-left – bottom-right
 pub(super) const LEFT: u8 = 4; // top-left – bottom-left
 pub(super) const RIGHT: u8 = 8; // top-right – bottom-right
-pub(super) const ALL_SIDES: u8 = 15;
 
 /// Bits of a block's byte in [`Plan::signs`].
 pub(super) const COMPLETE: u8 = 0x80; // the block is one quad; bit 0 = the quad is flipped
@@ -55,13 +54,6 @@ pub(super) struct Block {
     pub col: [Rgba; 4],
     /// Pixel coordinates of each corner (meaningful where present).
     pub xy: [(usize, usize); 4],
-}
-
-impl Block {
-    #[inline]
-    pub fn complete(&self) -> bool {
-        self.links == ALL_SIDES
-    }
 }
 
 /// The points of a partial block's skirt quarters: for each present corner the point on
@@ -117,12 +109,7 @@ pub(super) fn is_flipped(q: &[V2; 4]) -> bool {
 #[inline]
 pub(super) fn quarter_corners(b: &Block, s: &Skirts, k: usize) -> [V2; 4] {
     let (p, h, v, c) = (b.p[k], s.h[k], s.v[k], s.c[k]);
-    match k {
-        0 => [p, h, c, v],
-        1 => [h, p, v, c],
-        2 => [v, c, h, p],
-        _ => [c, v, p, h],
-    }
+    match k { 0 => [p, h, c, v], 1 => [h, p, v, c], 2 => [v, c, h, p], _ => [c, v, p, h] }
 }
 
 /// The pixels of the block connected to corner `k` through the block's own links.
@@ -214,13 +201,7 @@ pub(super) fn shade(col: &[Rgba; 4], mask: u8, own: usize, u: f32, v: f32) -> Rg
 impl<'a> Layer<'a> {
     /// The layer of `image` displaced by the field `(dx, dy)` (planes, row-major), which
     /// become its canvas positions in place.
-    pub fn prepare(
-        image: &'a RgbaImage,
-        mut px: Vec<f32>,
-        mut py: Vec<f32>,
-        grid: &Grid,
-        offset: [f64; 2],
-    ) -> Layer<'a> {
+    pub fn prepare(image: &'a RgbaImage, mut px: Vec<f32>, mut py: Vec<f32>, grid: &Grid, offset: [f64; 2]) -> Self {
         let (w, h) = (image.width, image.height);
         let (ox, oy) = (offset[0] as f32, offset[1] as f32);
         px.par_chunks_mut(w)
@@ -235,22 +216,14 @@ impl<'a> Layer<'a> {
                 {
                     let at = [x as f32 + *px + ox, y as f32 + *py + oy];
                     let drawn = (active || pixel[3] > 0) && at[0].is_finite() && at[1].is_finite();
-                    (*px, *py) = if drawn {
-                        (at[0], at[1])
-                    } else {
-                        (f32::NAN, f32::NAN)
-                    };
+                    (*px, *py) = if drawn { (at[0], at[1]) } else { (f32::NAN, f32::NAN) };
                 }
             });
         let mut links = vec![0u8; w * h];
         links.par_chunks_mut(w).enumerate().for_each(|(y, lrow)| {
             let r = y * w..(y + 1) * w;
             let here = &px[r.clone()];
-            let below = if y + 1 < h {
-                &px[r.end..r.end + w]
-            } else {
-                here
-            };
+            let below = if y + 1 < h { &px[r.end..r.end + w] } else { here };
             let (right, down) = (&grid.link_right[r.clone()], &grid.link_down[r]);
             for x in 0..w {
                 if here[x].is_nan() {
@@ -266,14 +239,7 @@ impl<'a> Layer<'a> {
                 lrow[x] = l;
             }
         });
-        Layer {
-            w,
-            h,
-            px,
-            py,
-            rgba: &image.data,
-            links,
-        }
+        Layer { w, h, px, py, rgba: &image.data, links }
     }
 
     /// The canvas position of pixel `i` (NaN where it is not drawn).
@@ -298,13 +264,7 @@ impl<'a> Layer<'a> {
     /// Block `(bc, br)`, whose top-left pixel is `(bc - 1, br - 1)`; `bc ≤ w`, `br ≤ h`.
     #[inline]
     pub fn block(&self, bc: usize, br: usize) -> Block {
-        let mut b = Block {
-            present: 0,
-            links: 0,
-            p: [[0.0; 2]; 4],
-            col: [[0.0; 4]; 4],
-            xy: [(0, 0); 4],
-        };
+        let mut b = Block { present: 0, links: 0, p: [[0.0; 2]; 4], col: [[0.0; 4]; 4], xy: [(0, 0); 4] };
         let mut idx = [0usize; 4];
         for k in 0..4 {
             let x = (bc + (k & 1)).wrapping_sub(1);
@@ -367,11 +327,7 @@ impl<'a> Layer<'a> {
 
     /// The skirt points of a block that is not a complete quad.
     pub fn skirts(&self, b: &Block) -> Skirts {
-        let mut s = Skirts {
-            h: [[0.0; 2]; 4],
-            v: [[0.0; 2]; 4],
-            c: [[0.0; 2]; 4],
-        };
+        let mut s = Skirts { h: [[0.0; 2]; 4], v: [[0.0; 2]; 4], c: [[0.0; 2]; 4] };
         // The parallelogram completion of each corner.
         let mut completion = [[0.0f32; 2]; 4];
         for k in 0..4 {
@@ -381,11 +337,7 @@ impl<'a> Layer<'a> {
             let p = b.p[k];
             let h_side = if k < 2 { TOP } else { BOTTOM };
             let v_side = if k & 1 == 0 { LEFT } else { RIGHT };
-            let frame = if b.links & h_side == 0 || b.links & v_side == 0 {
-                Some(self.frame(b.xy[k].0, b.xy[k].1))
-            } else {
-                None
-            };
+            let frame = (b.links & h_side == 0 || b.links & v_side == 0).then(|| self.frame(b.xy[k].0, b.xy[k].1));
             s.h[k] = if b.links & h_side != 0 {
                 mid(p, b.p[k ^ 1])
             } else {
@@ -433,12 +385,8 @@ impl<'a> Layer<'a> {
             .for_each(|(br, (srow, rrow))| {
                 let extend = |range: &mut [f32; 2], q: &[V2; 4]| {
                     for p in q {
-                        if p[1] < range[0] {
-                            range[0] = p[1];
-                        }
-                        if p[1] > range[1] {
-                            range[1] = p[1];
-                        }
+                        range[0] = if p[1] < range[0] { p[1] } else { range[0] };
+                        range[1] = if p[1] > range[1] { p[1] } else { range[1] };
                     }
                 };
                 // Rows above and below the block row, for the complete quads inside.
@@ -454,12 +402,7 @@ impl<'a> Layer<'a> {
                                 && l0[x + 1] & LINK_DOWN != 0
                                 && l1[x] & LINK_RIGHT != 0
                             {
-                                let q = [
-                                    self.pos(a + x),
-                                    self.pos(a + x + 1),
-                                    self.pos(b + x + 1),
-                                    self.pos(b + x),
-                                ];
+                                let q = [self.pos(a + x), self.pos(a + x + 1), self.pos(b + x + 1), self.pos(b + x)];
                                 srow[bc] = COMPLETE | ANY | is_flipped(&q) as u8;
                                 extend(&mut rrow[bc / CHUNK], &q);
                                 continue;
@@ -470,7 +413,7 @@ impl<'a> Layer<'a> {
                     if b.present == 0 {
                         continue;
                     }
-                    debug_assert!(!b.complete(), "complete blocks are found above");
+                    debug_assert!(b.links != TOP | BOTTOM | LEFT | RIGHT, "complete blocks are found above");
                     let s = self.skirts(&b);
                     let mut byte = ANY;
                     for k in 0..4 {
@@ -513,11 +456,6 @@ impl<'a> Layer<'a> {
                 })
             })
             .collect();
-        Plan {
-            signs,
-            ranges,
-            nchunks,
-            row_ranges,
-        }
+        Plan { signs, ranges, nchunks, row_ranges }
     }
 }

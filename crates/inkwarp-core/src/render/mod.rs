@@ -69,53 +69,28 @@ pub enum RenderError {
         "The RGBA data holds {actual} bytes, but a {width}×{height} RGBA image needs {expected} \
          (4 bytes per pixel, row-major)."
     )]
-    ImageDataLength {
-        width: usize,
-        height: usize,
-        expected: usize,
-        actual: usize,
-    },
+    ImageDataLength { width: usize, height: usize, expected: usize, actual: usize },
     /// A field or grid whose size differs from the layer image.
     #[error(
         "The {what} is {got_width}×{got_height}, but the layer image is {width}×{height}; \
          the image, its displacement field and its grid must be the same size."
     )]
-    SizeMismatch {
-        what: &'static str,
-        got_width: usize,
-        got_height: usize,
-        width: usize,
-        height: usize,
-    },
+    SizeMismatch { what: &'static str, got_width: usize, got_height: usize, width: usize, height: usize },
     /// An output buffer whose length does not fit the rows asked for.
     #[error(
         "The output buffer holds {actual} bytes, but rows {first}..{end} of a {width}-pixel-wide \
          frame need {expected} (4 bytes per pixel)."
     )]
-    OutputLength {
-        width: usize,
-        first: usize,
-        end: usize,
-        expected: usize,
-        actual: usize,
-    },
+    OutputLength { width: usize, first: usize, end: usize, expected: usize, actual: usize },
     /// A view's region ([`draw_view`]) outside its frame.
     #[error(
         "The region {region:?} (x0, y0, x1, y1) is not inside the {width}×{height} frame of \
          the view; ask for x0 ≤ x1 ≤ {width} and y0 ≤ y1 ≤ {height}."
     )]
-    Region {
-        region: [usize; 4],
-        width: usize,
-        height: usize,
-    },
+    Region { region: [usize; 4], width: usize, height: usize },
     /// Rows asked for outside the frame.
     #[error("Rows {first}..{end} are not rows of a frame {height} pixels high.")]
-    Rows {
-        first: usize,
-        end: usize,
-        height: usize,
-    },
+    Rows { first: usize, end: usize, height: usize },
 }
 
 /// An image with straight (not premultiplied) 8-bit RGBA, row-major, 4 bytes per pixel.
@@ -130,11 +105,7 @@ pub struct RgbaImage {
 impl RgbaImage {
     /// A fully transparent image.
     pub fn new(width: usize, height: usize) -> Self {
-        RgbaImage {
-            width,
-            height,
-            data: vec![0; width * height * 4],
-        }
+        RgbaImage { width, height, data: vec![0; width * height * 4] }
     }
 
     /// An image from raw RGBA bytes.
@@ -148,18 +119,9 @@ impl RgbaImage {
     pub fn from_raw(width: usize, height: usize, data: Vec<u8>) -> Result<Self, RenderError> {
         let expected = width * height * 4;
         if data.len() != expected {
-            return Err(RenderError::ImageDataLength {
-                width,
-                height,
-                expected,
-                actual: data.len(),
-            });
+            return Err(RenderError::ImageDataLength { width, height, expected, actual: data.len() });
         }
-        Ok(RgbaImage {
-            width,
-            height,
-            data,
-        })
+        Ok(RgbaImage { width, height, data })
     }
 
     /// The RGBA value of pixel `(x, y)`.
@@ -167,17 +129,9 @@ impl RgbaImage {
     /// # Panics
     /// If `(x, y)` is outside the image.
     pub fn pixel(&self, x: usize, y: usize) -> [u8; 4] {
-        assert!(
-            x < self.width && y < self.height,
-            "pixel ({x}, {y}) is outside the image"
-        );
+        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) is outside the image");
         let i = (y * self.width + x) * 4;
-        [
-            self.data[i],
-            self.data[i + 1],
-            self.data[i + 2],
-            self.data[i + 3],
-        ]
+        self.data[i..i + 4].try_into().expect("four channels")
     }
 }
 
@@ -225,11 +179,7 @@ pub struct Canvas {
 impl Canvas {
     /// A canvas filled with `background` (straight RGBA8).
     pub fn new(width: usize, height: usize, background: [u8; 4]) -> Self {
-        Canvas {
-            width,
-            height,
-            data: vec![premultiply(background); width * height],
-        }
+        Canvas { width, height, data: vec![premultiply(background); width * height] }
     }
 
     /// Forward-maps `image` by `field` over the mesh of `grid`'s links, shifted by `offset`
@@ -281,11 +231,7 @@ impl Canvas {
                     o.copy_from_slice(&unpremultiply(p));
                 }
             });
-        RgbaImage {
-            width: self.width,
-            height: self.height,
-            data,
-        }
+        RgbaImage { width: self.width, height: self.height, data }
     }
 
     /// The premultiplied value of pixel `(x, y)`.
@@ -293,10 +239,7 @@ impl Canvas {
     /// # Panics
     /// If `(x, y)` is outside the canvas.
     pub fn pixel(&self, x: usize, y: usize) -> [f32; 4] {
-        assert!(
-            x < self.width && y < self.height,
-            "pixel ({x}, {y}) is outside the canvas"
-        );
+        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) is outside the canvas");
         self.data[y * self.width + x]
     }
 }
@@ -321,12 +264,7 @@ impl std::fmt::Debug for PreparedLayer<'_> {
 
 impl<'a> PreparedLayer<'a> {
     /// `image` displaced by `field` over `grid`'s mesh, shifted by `offset` (canvas pixels).
-    pub fn new(
-        image: &'a RgbaImage,
-        field: Field,
-        grid: &Grid,
-        offset: [f64; 2],
-    ) -> Result<Self, RenderError> {
+    pub fn new(image: &'a RgbaImage, field: Field, grid: &Grid, offset: [f64; 2]) -> Result<Self, RenderError> {
         check_layer(image, &field, grid)?;
         let layer = mesh::Layer::prepare(image, field.dx, field.dy, grid, offset);
         let plan = layer.plan();
@@ -362,22 +300,13 @@ pub fn draw_frame(
     rows: std::ops::Range<usize>,
     out: &mut [u8],
 ) -> Result<(), RenderError> {
-    if rows.start > rows.end || rows.end > height {
-        return Err(RenderError::Rows {
-            first: rows.start,
-            end: rows.end,
-            height,
-        });
+    let (first, end) = (rows.start, rows.end);
+    if first > end || end > height {
+        return Err(RenderError::Rows { first, end, height });
     }
     let expected = 4 * width * rows.len();
     if out.len() != expected {
-        return Err(RenderError::OutputLength {
-            width,
-            first: rows.start,
-            end: rows.end,
-            expected,
-            actual: out.len(),
-        });
+        return Err(RenderError::OutputLength { width, first, end, expected, actual: out.len() });
     }
     let pairs: Vec<(&mesh::Layer<'_>, &mesh::Plan)> =
         layers.iter().map(|l| (&l.layer, &l.plan)).collect();
@@ -388,20 +317,11 @@ pub fn draw_frame(
 fn check_layer(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<(), RenderError> {
     let (width, height) = (image.width, image.height);
     if image.data.len() != width * height * 4 {
-        return Err(RenderError::ImageDataLength {
-            width,
-            height,
-            expected: width * height * 4,
-            actual: image.data.len(),
-        });
+        let (expected, actual) = (width * height * 4, image.data.len());
+        return Err(RenderError::ImageDataLength { width, height, expected, actual });
     }
-    let mismatch = |what, got_width, got_height| RenderError::SizeMismatch {
-        what,
-        got_width,
-        got_height,
-        width,
-        height,
-    };
+    let mismatch =
+        |what, got_width, got_height| RenderError::SizeMismatch { what, got_width, got_height, width, height };
     if (field.width, field.height) != (width, height)
         || field.dx.len() != width * height
         || field.dy.len() != width * height
@@ -432,18 +352,11 @@ fn check_layer(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<(), Rend
 /// # Panics
 /// If the field or the grid is not the size of the image (see [`try_warp_image`]).
 pub fn warp_image(image: &RgbaImage, field: &Field, grid: &Grid) -> RgbaImage {
-    match try_warp_image(image, field, grid) {
-        Ok(out) => out,
-        Err(e) => panic!("{e}"),
-    }
+    try_warp_image(image, field, grid).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// [`warp_image`], with an error instead of a panic when the sizes differ.
-pub fn try_warp_image(
-    image: &RgbaImage,
-    field: &Field,
-    grid: &Grid,
-) -> Result<RgbaImage, RenderError> {
+pub fn try_warp_image(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<RgbaImage, RenderError> {
     let mut canvas = Canvas::new(image.width, image.height, [0; 4]);
     canvas.try_draw_layer(image, field, grid, [0.0, 0.0])?;
     Ok(canvas.to_rgba8())

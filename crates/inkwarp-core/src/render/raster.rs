@@ -48,13 +48,7 @@ const QUARTER_EDGES: [[EdgeKind; 4]; 4] = [
     [VInner, VBlock, HBlock, HInner],
 ];
 
-pub(super) fn draw_layer(
-    canvas: &mut Canvas,
-    image: &RgbaImage,
-    field: &Field,
-    grid: &Grid,
-    offset: [f64; 2],
-) {
+pub(super) fn draw_layer(canvas: &mut Canvas, image: &RgbaImage, field: &Field, grid: &Grid, offset: [f64; 2]) {
     let cw = canvas.width;
     if image.width == 0 || image.height == 0 || cw == 0 || canvas.height == 0 {
         return;
@@ -80,13 +74,7 @@ pub(super) fn draw_layer(
 /// each band is composited in a reused buffer of its own and written out as RGBA8, so no
 /// canvas of the whole frame is ever held. Each pixel goes through the same operations as
 /// [`draw_layer`] on a [`Canvas`] then [`Canvas::to_rgba8`], so the bytes are the same.
-pub(super) fn draw_frame(
-    width: usize,
-    background: Rgba,
-    layers: &[(&Layer<'_>, &Plan)],
-    y0: usize,
-    out: &mut [u8],
-) {
+pub(super) fn draw_frame(width: usize, background: Rgba, layers: &[(&Layer<'_>, &Plan)], y0: usize, out: &mut [u8]) {
     if width == 0 {
         return;
     }
@@ -132,11 +120,15 @@ struct Bbox {
     y1: f32,
 }
 
-/// (Plain comparisons: the points are finite, and `f32::min` would pay for NaN.)
+/// The smaller and the larger of two finite values (plain comparisons: `f32::min` would
+/// pay for NaN).
+#[inline]
+fn lo(a: f32, b: f32) -> f32 { if b < a { b } else { a } }
+#[inline]
+fn hi(a: f32, b: f32) -> f32 { if b > a { b } else { a } }
+
 #[inline]
 fn bbox(points: &[V2; 4]) -> Bbox {
-    let lo = |a: f32, b: f32| if b < a { b } else { a };
-    let hi = |a: f32, b: f32| if b > a { b } else { a };
     let [a, b, c, d] = *points;
     Bbox {
         x0: lo(lo(a[0], b[0]), lo(c[0], d[0])),
@@ -198,25 +190,14 @@ impl Bilinear {
     fn new(q: &[V2; 4]) -> Bilinear {
         let e = sub(q[1], q[0]);
         let f = sub(q[3], q[0]);
-        let g = [
-            q[0][0] - q[1][0] + q[2][0] - q[3][0],
-            q[0][1] - q[1][1] + q[2][1] - q[3][1],
-        ];
+        let g = [q[0][0] - q[1][0] + q[2][0] - q[3][0], q[0][1] - q[1][1] + q[2][1] - q[3][1]];
         let kef = cross(e, f);
         // Dropping `s·t·g` moves the preimage by about |g| / 4 of the quad's size: below
         // 1e-4 here, far below a level of colour.
         let scale = e[0].abs() + e[1].abs() + f[0].abs() + f[1].abs();
         let parallelogram = g[0].abs() + g[1].abs() <= 2e-4 * scale && kef != 0.0;
         let affine_inv = if parallelogram { 1.0 / kef } else { 0.0 };
-        Bilinear {
-            q0: q[0],
-            e,
-            f,
-            g,
-            kef,
-            k2: cross(g, f),
-            affine_inv,
-        }
+        Bilinear { q0: q[0], e, f, g, kef, k2: cross(g, f), affine_inv }
     }
 
     /// The preimage of a point inside the quad, clamped to the unit square.
@@ -228,8 +209,7 @@ impl Bilinear {
             let t = cross(self.e, h) * self.affine_inv;
             return Some([s.clamp(0.0, 1.0), t.clamp(0.0, 1.0)]);
         }
-        self.preimage(p)
-            .map(|([s, t], _)| [s.clamp(0.0, 1.0), t.clamp(0.0, 1.0)])
+        self.preimage(p).map(|([s, t], _)| [s.clamp(0.0, 1.0), t.clamp(0.0, 1.0)])
     }
 
     /// The preimage `(s, t)` of `p` nearest to the unit square (within a small
@@ -318,12 +298,7 @@ fn floor_i(x: f32) -> i64 {
 #[inline]
 fn crossing(a: V2, b: V2, y: f32) -> Option<(f32, i32)> {
     let (lo, hi, dir) = if a[1] < b[1] { (a, b, 1) } else { (b, a, -1) };
-    (lo[1] <= y && y < hi[1]).then(|| {
-        (
-            lo[0] + (y - lo[1]) * ((hi[0] - lo[0]) / (hi[1] - lo[1])),
-            dir,
-        )
-    })
+    (lo[1] <= y && y < hi[1]).then(|| (lo[0] + (y - lo[1]) * ((hi[0] - lo[0]) / (hi[1] - lo[1])), dir))
 }
 
 #[derive(Default)]
@@ -408,14 +383,13 @@ impl Band {
         let (lo, hi) = self.y_window();
         let bw = layer.w + 1;
         self.forget_rows(layer);
+        let misses = |[ymin, ymax]: [f32; 2]| ymax < lo || ymin > hi;
         for br in 0..=layer.h {
-            let [ymin, ymax] = plan.row_ranges[br];
-            if ymax < lo || ymin > hi {
+            if misses(plan.row_ranges[br]) {
                 continue;
             }
             for ch in 0..plan.nchunks {
-                let [ymin, ymax] = plan.ranges[br * plan.nchunks + ch];
-                if ymax < lo || ymin > hi {
+                if misses(plan.ranges[br * plan.nchunks + ch]) {
                     continue;
                 }
                 let row = &plan.signs[br * bw..(br + 1) * bw];
@@ -451,8 +425,6 @@ impl Band {
     fn simple_run(&mut self, layer: &Layer, br: usize, bc0: usize, bc1: usize) {
         let w = layer.w;
         let (band_first, band_end) = (self.y0 as f32, (self.y0 + self.rows) as f32);
-        let lo = |a: f32, b: f32| if b < a { b } else { a };
-        let hi = |a: f32, b: f32| if b > a { b } else { a };
         // Pixels bc0 - 1 ..= bc1 - 1 of rows br - 1 and br are the quads' corners.
         let (x0, x1) = (bc0 - 1, bc1 - 1);
         self.premultiply_row(layer, br - 1, x0, x1);
@@ -477,12 +449,7 @@ impl Band {
             if c_max <= band_first || c_min >= band_end {
                 continue;
             }
-            let corners = [
-                self.pm[top][x],
-                self.pm[top][x + 1],
-                self.pm[bottom][x],
-                self.pm[bottom][x + 1],
-            ];
+            let corners = [self.pm[top][x], self.pm[top][x + 1], self.pm[bottom][x], self.pm[bottom][x + 1]];
             let colour = |s, t| shade(&corners, 0b1111, 0, s, t);
             let (first, end) = (hi(ctl, ctr), lo(cbl, cbr));
             if first != c_min || end != c_max {
@@ -517,12 +484,7 @@ impl Band {
     fn quad(&mut self, layer: &Layer, plan: &Plan, bc: usize, br: usize, byte: u8) {
         let w = layer.w;
         let i = (br - 1) * w + bc - 1;
-        let q = [
-            layer.pos(i),
-            layer.pos(i + 1),
-            layer.pos(i + w + 1),
-            layer.pos(i + w),
-        ];
+        let q = [layer.pos(i), layer.pos(i + 1), layer.pos(i + w + 1), layer.pos(i + w)];
         let bb = bbox(&q);
         if !self.reaches(bb) {
             return;
@@ -538,12 +500,7 @@ impl Band {
             (signs[bi + bw], 1, 0),
             (signs[bi - 1], 3, 1),
         ];
-        let col = [
-            layer.col(i),
-            layer.col(i + 1),
-            layer.col(i + w),
-            layer.col(i + w + 1),
-        ];
+        let col = [layer.col(i), layer.col(i + 1), layer.col(i + w), layer.col(i + w + 1)];
         let flipped = byte & 1 != 0;
         let mut outline = [[0.0f32; 2]; 8];
         let mut n = 0;
@@ -577,26 +534,8 @@ impl Band {
         for k in n..8 {
             outline[k] = outline[n - 1];
         }
-        let el = Element {
-            q,
-            u0: 0.0,
-            v0: 0.0,
-            size: 1.0,
-            col,
-            mask: 0b1111,
-            own: 0,
-        };
-        self.fill(&outline, &q, bb, |s, t| el.colour(s, t));
-        if ne > 0 {
-            for &(a, z) in &edges[..ne] {
-                if flipped {
-                    self.accumulate(z, a)
-                } else {
-                    self.accumulate(a, z)
-                }
-            }
-            self.offer(&el, bb);
-        }
+        let el = Element { q, u0: 0.0, v0: 0.0, size: 1.0, col, mask: 0b1111, own: 0 };
+        self.element(&outline, &el, bb, &edges[..ne], flipped);
     }
 
     /// A block that is not a complete quad: one skirt quarter per drawn pixel.
@@ -620,20 +559,8 @@ impl Band {
             let mut ne = 0;
             for (e, kind) in QUARTER_EDGES[k].iter().enumerate() {
                 let neighbour_flipped = match kind {
-                    HBlock => Some(flipped_at(
-                        plan,
-                        w,
-                        bc,
-                        if k < 2 { br - 1 } else { br + 1 },
-                        k ^ 2,
-                    )),
-                    VBlock => Some(flipped_at(
-                        plan,
-                        w,
-                        if k & 1 == 0 { bc - 1 } else { bc + 1 },
-                        br,
-                        k ^ 1,
-                    )),
+                    HBlock => Some(flipped_at(plan, w, bc, if k < 2 { br - 1 } else { br + 1 }, k ^ 2)),
+                    VBlock => Some(flipped_at(plan, w, if k & 1 == 0 { bc - 1 } else { bc + 1 }, br, k ^ 1)),
                     HInner => (b.links & if k < 2 { TOP } else { BOTTOM } != 0)
                         .then(|| byte >> (k ^ 1) & 1 != 0),
                     VInner => (b.links & if k & 1 == 0 { LEFT } else { RIGHT } != 0)
@@ -644,26 +571,23 @@ impl Band {
                     ne += 1;
                 }
             }
-            let el = Element {
-                q,
-                u0: (k & 1) as f32 * 0.5,
-                v0: (k >> 1) as f32 * 0.5,
-                size: 0.5,
-                col: b.col,
-                mask: shading_mask(b.present, b.links, k),
-                own: k,
-            };
-            self.fill(&q, &q, bb, |s, t| el.colour(s, t));
-            if ne > 0 {
-                for &(a, z) in &edges[..ne] {
-                    if flipped {
-                        self.accumulate(z, a)
-                    } else {
-                        self.accumulate(a, z)
-                    }
-                }
-                self.offer(&el, bb);
+            let (u0, v0) = ((k & 1) as f32 * 0.5, (k >> 1) as f32 * 0.5);
+            let el = Element { q, u0, v0, size: 0.5, col: b.col, mask: shading_mask(b.present, b.links, k), own: k };
+            self.element(&q, &el, bb, &edges[..ne], flipped);
+        }
+    }
+
+    /// Draws an element: colours the centres inside `outline` (see [`Band::fill`]) and,
+    /// when it has `edges` (outline or fold lines, in the order of its rest square's
+    /// corners), adds their coverage the element's way round and offers its colour to the
+    /// centres around it.
+    fn element<const N: usize>(&mut self, outline: &[V2; N], el: &Element, bb: Bbox, edges: &[(V2, V2)], flip: bool) {
+        self.fill(outline, &el.q, bb, |s, t| el.colour(s, t));
+        if !edges.is_empty() {
+            for &(a, z) in edges {
+                if flip { self.accumulate(z, a) } else { self.accumulate(a, z) }
             }
+            self.offer(el, bb);
         }
     }
 
@@ -672,13 +596,7 @@ impl Band {
     /// where the winding number of `outline` is not zero, counting the edges that cross
     /// the scanline at or left of the centre (see [`crossing`]). Every element beside an
     /// edge sees the same crossing, so every centre has exactly one owner.
-    fn fill<const N: usize>(
-        &mut self,
-        outline: &[V2; N],
-        q: &[V2; 4],
-        bb: Bbox,
-        colour: impl Fn(f32, f32) -> Rgba,
-    ) {
+    fn fill<const N: usize>(&mut self, outline: &[V2; N], q: &[V2; 4], bb: Bbox, colour: impl Fn(f32, f32) -> Rgba) {
         // Scanlines with y0 ≤ Y < y1.
         let ya = ceil_i(bb.y0).max(self.y0 as i64);
         let yb = (ceil_i(bb.y1) - 1).min((self.y0 + self.rows) as i64 - 1);
@@ -714,14 +632,7 @@ impl Band {
 
     /// Colours the centres `x_from ≤ X < x_to` of scanline `row`.
     #[inline(always)]
-    fn span(
-        &mut self,
-        row: i64,
-        x_from: f32,
-        x_to: f32,
-        map: &Bilinear,
-        colour: &impl Fn(f32, f32) -> Rgba,
-    ) {
+    fn span(&mut self, row: i64, x_from: f32, x_to: f32, map: &Bilinear, colour: &impl Fn(f32, f32) -> Rgba) {
         let start = ceil_i(x_from).max(0);
         let end = ceil_i(x_to).min(self.cw as i64);
         let line = (row as usize - self.y0) * self.cw;

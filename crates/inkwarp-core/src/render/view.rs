@@ -1,9 +1,7 @@
 //! A region of a frame drawn for a view: at the picture's own resolution, or a whole
 //! factor smaller from a box-filtered level of every layer (see [`draw_view`]).
 
-use super::{
-    check_layer, draw_frame, premultiply, unpremultiply, PreparedLayer, RenderError, RgbaImage,
-};
+use super::{check_layer, draw_frame, premultiply, unpremultiply, PreparedLayer, RenderError, RgbaImage};
 use crate::{Field, Grid};
 
 /// One layer of a view ([`draw_view`]): its picture, its field (read, not taken: a view
@@ -56,12 +54,7 @@ fn level(image: &RgbaImage, field: &Field, grid: &Grid, k: usize) -> (RgbaImage,
             for x in 0..w {
                 let i = (x / k, y * w + x);
                 let (li, p) = (j * lw + i.0, i.1);
-                let rgba = [
-                    image.data[4 * p],
-                    image.data[4 * p + 1],
-                    image.data[4 * p + 2],
-                    image.data[4 * p + 3],
-                ];
+                let rgba: [u8; 4] = image.data[4 * p..4 * p + 4].try_into().expect("four channels");
                 let pm = premultiply(rgba);
                 let c = &mut col[i.0];
                 for ch in 0..4 {
@@ -91,12 +84,7 @@ fn level(image: &RgbaImage, field: &Field, grid: &Grid, k: usize) -> (RgbaImage,
             let li = j * lw + i;
             let inv = 1.0 / count[i].max(1) as f64;
             let c = col[i];
-            let px = unpremultiply([
-                (c[0] * inv) as f32,
-                (c[1] * inv) as f32,
-                (c[2] * inv) as f32,
-                (c[3] * inv) as f32,
-            ]);
+            let px = unpremultiply(c.map(|v| (v * inv) as f32));
             data[4 * li..4 * li + 4].copy_from_slice(&px);
             let q = pos[i];
             if q[2] > 0.0 {
@@ -127,24 +115,9 @@ fn level(image: &RgbaImage, field: &Field, grid: &Grid, k: usize) -> (RgbaImage,
     // An undrawn level pixel (no drawn pixel in its block) has no position: the renderer
     // leaves a pixel with a non-finite position out.
     (
-        RgbaImage {
-            width: lw,
-            height: lh,
-            data,
-        },
-        Field {
-            width: lw,
-            height: lh,
-            dx,
-            dy,
-        },
-        Grid {
-            width: lw,
-            height: lh,
-            active,
-            link_right,
-            link_down,
-        },
+        RgbaImage { width: lw, height: lh, data },
+        Field { width: lw, height: lh, dx, dy },
+        Grid { width: lw, height: lh, active, link_right, link_down },
     )
 }
 
@@ -171,21 +144,11 @@ pub fn draw_view(
     let (vw, vh) = view_size(width, height, k);
     let [x0, y0, x1, y1] = region;
     if x0 > x1 || x1 > vw || y0 > y1 || y1 > vh {
-        return Err(RenderError::Region {
-            region,
-            width: vw,
-            height: vh,
-        });
+        return Err(RenderError::Region { region, width: vw, height: vh });
     }
     let expected = 4 * (x1 - x0) * (y1 - y0);
     if out.len() != expected {
-        return Err(RenderError::OutputLength {
-            width: x1 - x0,
-            first: y0,
-            end: y1,
-            expected,
-            actual: out.len(),
-        });
+        return Err(RenderError::OutputLength { width: x1 - x0, first: y0, end: y1, expected, actual: out.len() });
     }
     for l in layers {
         check_layer(l.image, l.field, l.grid)?;
@@ -211,9 +174,7 @@ pub fn draw_view(
             .iter()
             .zip(&levels)
             .zip(fields)
-            .map(|((l, (image, grid)), field)| {
-                PreparedLayer::new(image, field, grid, l.offset.map(|o| o / kf))
-            })
+            .map(|((l, (image, grid)), field)| PreparedLayer::new(image, field, grid, l.offset.map(|o| o / kf)))
             .collect::<Result<Vec<_>, _>>()?
     };
     if x0 == 0 && x1 == vw {

@@ -94,12 +94,12 @@ pub struct SolverDoc {
     pub scheme: Scheme,
     /// The weights of `beier-neely` (used when a layer's method is `beier-neely`, and by
     /// `inkwarp compare`). Default: `a` 1, `b` 2, `p` 0.
-    #[serde(default, skip_serializing_if = "BeierNeelyDoc::is_default")]
+    #[serde(default, skip_serializing_if = "is_default")]
     #[schemars(extend("default" = {"a": 1.0, "b": 2.0, "p": 0.0}))]
     pub beier_neely: BeierNeelyDoc,
     /// The settings of `tps-exact` (used when a layer's method is `tps-exact`, and by
     /// `inkwarp compare`). Default: `max_samples` 1000.
-    #[serde(default, skip_serializing_if = "TpsExactDoc::is_default")]
+    #[serde(default, skip_serializing_if = "is_default")]
     #[schemars(extend("default" = {"max_samples": 1000}))]
     pub tps_exact: TpsExactDoc,
 }
@@ -147,13 +147,6 @@ impl Default for BeierNeelyDoc {
     }
 }
 
-impl BeierNeelyDoc {
-    /// Whether every weight has its default value.
-    pub fn is_default(&self) -> bool {
-        *self == Self::default()
-    }
-}
-
 /// Settings of the continuous thin-plate spline.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
@@ -176,11 +169,6 @@ impl TpsExactDoc {
     /// The most `max_samples` a scene may ask for: the fit holds an `(n + 3)²` matrix of
     /// f64 (200 MB at 5000).
     pub const MAX_SAMPLES_LIMIT: u32 = 5000;
-
-    /// Whether every setting has its default value.
-    pub fn is_default(&self) -> bool {
-        *self == Self::default()
-    }
 }
 
 /// Per-layer solver overrides: each key given replaces the scene's `solver` value.
@@ -253,7 +241,7 @@ pub struct LayerDoc {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub continuity: Option<String>,
     /// Where the warped layer is placed in the frame, `[dx, dy]` pixels.
-    #[serde(default, skip_serializing_if = "is_zero_offset")]
+    #[serde(default, skip_serializing_if = "is_default")]
     #[schemars(extend("default" = [0.0, 0.0]))]
     pub offset: [f64; 2],
     /// Ids of the features that drive this layer. Default: every feature.
@@ -268,7 +256,7 @@ pub struct LayerDoc {
     pub visible: bool,
     /// `free` (default): the layer's outer edge moves with the surface; `hold`: it stays
     /// put, so the picture never pulls away from the frame's edge.
-    #[serde(default, skip_serializing_if = "is_free")]
+    #[serde(default, skip_serializing_if = "is_default")]
     #[schemars(extend("default" = "free"))]
     pub border: Border,
 }
@@ -291,44 +279,7 @@ pub enum FeatureKind {
 }
 
 impl FeatureKind {
-    /// Every kind, in the order the docs list them.
-    pub const ALL: [FeatureKind; 5] = [
-        FeatureKind::Point,
-        FeatureKind::Polyline,
-        FeatureKind::Spline,
-        FeatureKind::Region,
-        FeatureKind::Cut,
-    ];
-
-    /// The name used in scene files.
-    pub fn name(self) -> &'static str {
-        match self {
-            FeatureKind::Point => "point",
-            FeatureKind::Polyline => "polyline",
-            FeatureKind::Spline => "spline",
-            FeatureKind::Region => "region",
-            FeatureKind::Cut => "cut",
-        }
-    }
-
-    /// The fewest control points a feature of this kind can have.
-    pub fn min_points(self) -> usize {
-        match self {
-            FeatureKind::Point => 1,
-            FeatureKind::Polyline | FeatureKind::Spline | FeatureKind::Cut => 2,
-            FeatureKind::Region => 3,
-        }
-    }
-
-    /// The most control points a feature of this kind can have.
-    pub fn max_points(self) -> Option<usize> {
-        match self {
-            FeatureKind::Point => Some(1),
-            _ => None,
-        }
-    }
-
-    /// The engine's kind.
+    /// The engine's kind (its name and control-point counts).
     pub fn to_kind(self) -> crate::geometry::Kind {
         use crate::geometry::Kind;
         match self {
@@ -365,7 +316,7 @@ pub struct FeatureDoc {
     pub rest: Vec<Point>,
     /// Whether a polyline or spline joins its last point back to its first (regions are
     /// always closed).
-    #[serde(default, skip_serializing_if = "is_false")]
+    #[serde(default, skip_serializing_if = "is_default")]
     #[schemars(extend("default" = false))]
     pub closed: bool,
     /// Regions only: the outline through the points, `polyline` (default) or `spline`.
@@ -376,6 +327,18 @@ pub struct FeatureDoc {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(extend("default" = []))]
     pub keys: Vec<KeyDoc>,
+}
+
+impl FeatureDoc {
+    /// The keys in the engine's terms.
+    pub(crate) fn anim_keys(&self) -> Vec<crate::anim::Key> {
+        let key = |k: &KeyDoc| crate::anim::Key {
+            time_s: k.t,
+            points: k.points.clone(),
+            interpolation: k.interpolation.to_anim(),
+        };
+        self.keys.iter().map(key).collect()
+    }
 }
 
 /// How control points move from a key to the next one.
@@ -435,7 +398,7 @@ pub struct KeyDoc {
     pub points: Vec<Point>,
     /// How the points move from this key to the next: `smooth` (default), `linear`,
     /// `hold`, `ease-in`, `ease-out` or `ease-in-out`.
-    #[serde(default, skip_serializing_if = "is_smooth")]
+    #[serde(default, skip_serializing_if = "is_default")]
     #[schemars(extend("default" = "smooth"))]
     pub interpolation: Interpolation,
 }
@@ -467,17 +430,9 @@ fn default_true() -> bool {
 fn is_true(v: &bool) -> bool {
     *v
 }
-fn is_false(v: &bool) -> bool {
-    !*v
-}
-fn is_zero_offset(v: &[f64; 2]) -> bool {
-    *v == [0.0, 0.0]
-}
-fn is_free(v: &Border) -> bool {
-    *v == Border::Free
-}
-fn is_smooth(v: &Interpolation) -> bool {
-    *v == Interpolation::Smooth
+/// Whether a value is its type's default, which files leave out.
+fn is_default<T: Default + PartialEq>(v: &T) -> bool {
+    *v == T::default()
 }
 
 /// The JSON Schema (draft 2020-12) of the scene format, generated from [`SceneDoc`].

@@ -53,10 +53,7 @@ pub(super) fn compute_field(
     }
     let solved = match solver.method {
         Method::Tps => {
-            let mut samples: Vec<Sample> = features
-                .iter()
-                .flat_map(|f| f.samples.iter().copied())
-                .collect();
+            let mut samples: Vec<Sample> = features.iter().flat_map(|f| f.samples.iter().copied()).collect();
             if held {
                 samples.extend(crate::geometry::border_samples(grid.width, grid.height, spacing_px));
             }
@@ -65,7 +62,7 @@ pub(super) fn compute_field(
                 Start::Field(initial) => Solver::new().solve(grid, &samples, &solve_options(solver), initial.map(Into::into)),
             }
             .map(|(field, report)| LayerSolve { field, report: Some(report), method_report: None })
-                .map_err(|e| e.to_string())
+            .map_err(|e| e.to_string())
         }
         other => match other.interpolant() {
             Some(interpolant) => {
@@ -89,14 +86,12 @@ pub(super) fn compute_field(
     // A frame is never drawn from a field with NaN or infinity in it (it would come out
     // blank with no error): the limits refuse the inputs known to cause one, and this
     // catches any other.
-    if let Ok(layer) = &solved {
-        if !layer.field.dx.iter().chain(&layer.field.dy).all(|v| v.is_finite()) {
-            return Err(format!(
-                "the {} field at t = {time_s} s is not finite (NaN or infinity); \
-                 check the keys and the solver settings near this time",
-                solver.method.name()
-            ));
-        }
+    if solved.as_ref().is_ok_and(|layer| !layer.field.dx.iter().chain(&layer.field.dy).all(|v| v.is_finite())) {
+        return Err(format!(
+            "the {} field at t = {time_s} s is not finite (NaN or infinity); \
+             check the keys and the solver settings near this time",
+            solver.method.name()
+        ));
     }
     solved
 }
@@ -106,11 +101,8 @@ fn method_override(method: Option<Method>) -> SolverOverrides {
     SolverOverrides { method, ..SolverOverrides::default() }
 }
 
-fn not_available(method: Method) -> String {
-    format!(
-        "the method \"{}\" is not available in this version of inkwarp yet; use \"tps\"",
-        method.name()
-    )
+pub(super) fn not_available(method: Method) -> String {
+    format!("the method \"{}\" is not available in this version of inkwarp yet; use \"tps\"", method.name())
 }
 
 /// One driving feature's samples at one time.
@@ -173,12 +165,8 @@ impl RenderedFrame {
     /// Every layer's notes, in layer order; each is prefixed with its layer's name when
     /// `scene` has more than one layer.
     pub fn notes(&self, scene: &Scene) -> Vec<String> {
-        self.layers
-            .iter()
-            .enumerate()
-            .filter_map(|(j, solved)| solved.as_ref().map(|s| scene.layer_notes(j, s)))
-            .flatten()
-            .collect()
+        let notes = self.layers.iter().enumerate().filter_map(|(j, s)| s.as_ref().map(|s| scene.layer_notes(j, s)));
+        notes.flatten().collect()
     }
 }
 
@@ -198,64 +186,41 @@ impl Scene {
     /// The constraints that drive layer `layer` at time `time_s`, feature by feature:
     /// every driving feature sampled at the layer's grid spacing, region interiors on the
     /// layer's grid.
-    pub fn layer_feature_samples(
-        &self,
-        layer: usize,
-        time_s: f64,
-    ) -> Result<Vec<FeatureSamples>, SceneError> {
+    pub fn layer_feature_samples(&self, layer: usize, time_s: f64) -> Result<Vec<FeatureSamples>, SceneError> {
         let layer_ref = &self.layers()[layer];
         let spacing_px = layer_ref.solver.grid_step as f64;
         let mut out = Vec::with_capacity(layer_ref.drivers.len());
         for (&i, sampler) in layer_ref.drivers.iter().zip(&layer_ref.samplers) {
             let track = &self.tracks()[i];
-            let fail = |e: String| {
-                SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"))
-            };
+            let fail = |e: String| SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"));
             // The rest geometry is prepared once per layer (for a region: its interior
             // nodes and their mean value coordinates); each frame only poses it.
             let sampler = sampler
                 .get_or_init(|| {
-                    let options = SampleOptions {
-                        closed: track.closed,
-                        spline_outline: track.spline_outline,
-                        spacing_px,
-                    };
+                    let (closed, spline_outline) = (track.closed, track.spline_outline);
+                    let options = SampleOptions { closed, spline_outline, spacing_px };
                     let domain = (track.kind == Kind::Region).then_some(&layer_ref.grid);
-                    FeatureSampler::new(track.kind, &track.rest, &options, domain)
-                        .map_err(|e| e.to_string())
+                    FeatureSampler::new(track.kind, &track.rest, &options, domain).map_err(|e| e.to_string())
                 })
                 .as_ref()
                 .map_err(|e| fail(e.clone()))?;
             let pose = self.pose_at(i, time_s);
             let samples = sampler.sample(&pose).map_err(|e| fail(e.to_string()))?;
-            out.push(FeatureSamples {
-                feature: i,
-                kind: track.kind,
-                closed: track.closed,
-                samples,
-            });
+            out.push(FeatureSamples { feature: i, kind: track.kind, closed: track.closed, samples });
         }
         Ok(out)
     }
 
     /// All the constraints that drive layer `layer` at time `time_s` (see
     /// [`Scene::layer_feature_samples`]).
+    #[cfg(test)]
     pub fn layer_samples(&self, layer: usize, time_s: f64) -> Result<Vec<Sample>, SceneError> {
-        Ok(self
-            .layer_feature_samples(layer, time_s)?
-            .into_iter()
-            .flat_map(|f| f.samples)
-            .collect())
+        Ok(self.layer_feature_samples(layer, time_s)?.into_iter().flat_map(|f| f.samples).collect())
     }
 
     /// The field of layer `layer` at time `time_s`, starting from `initial` (warm start)
     /// or from zero.
-    pub fn layer_field(
-        &self,
-        layer: usize,
-        time_s: f64,
-        initial: Option<&Field>,
-    ) -> Result<LayerSolve, SceneError> {
+    pub fn layer_field(&self, layer: usize, time_s: f64, initial: Option<&Field>) -> Result<LayerSolve, SceneError> {
         self.layer_field_with(layer, time_s, initial, None)
     }
 
@@ -308,12 +273,8 @@ impl Scene {
             return Err(SceneError::one("", not_available(solver.method)));
         }
         let features = self.layer_feature_samples(layer, time_s)?;
-        compute_field(self, time_s, &solver, &layer_ref.grid, &features, start, layer_ref.border).map_err(|e| {
-            SceneError::one(
-                format!("layers[{layer}]"),
-                format!("at t = {time_s} s: {e}"),
-            )
-        })
+        compute_field(self, time_s, &solver, &layer_ref.grid, &features, start, layer_ref.border)
+            .map_err(|e| SceneError::one(format!("layers[{layer}]"), format!("at t = {time_s} s: {e}")))
     }
 
     /// The notes of `solved`, a field of layer `layer`, each prefixed with the layer's name
@@ -321,30 +282,18 @@ impl Scene {
     pub fn layer_notes(&self, layer: usize, solved: &LayerSolve) -> Vec<String> {
         let named = self.layers().len() > 1;
         let name = &self.layers()[layer].name;
-        solved
-            .notes()
-            .iter()
-            .map(|note| if named { format!("layer \"{name}\": {note}") } else { note.clone() })
-            .collect()
+        let note = |note: &String| if named { format!("layer \"{name}\": {note}") } else { note.clone() };
+        solved.notes().iter().map(note).collect()
     }
 
     /// The frame at `time_s`, every drawn layer's field solved cold with `overrides`
     /// applied, together with those solves (their fields and reports).
-    pub fn render_overridden(
-        &self,
-        time_s: f64,
-        overrides: &SolverOverrides,
-    ) -> Result<RenderedFrame, SceneError> {
-        let mut layers = Vec::with_capacity(self.layers().len());
-        for j in 0..self.layers().len() {
-            layers.push(if self.layer_is_drawn(j) {
-                Some(self.layer_field_overridden(j, time_s, None, overrides)?)
-            } else {
-                None
-            });
-        }
-        let fields: Vec<Option<Field>> =
-            layers.iter().map(|l| l.as_ref().map(|s| s.field.clone())).collect();
+    pub fn render_overridden(&self, time_s: f64, overrides: &SolverOverrides) -> Result<RenderedFrame, SceneError> {
+        let layers = (0..self.layers().len())
+            .map(|j| self.layer_is_drawn(j).then(|| self.layer_field_overridden(j, time_s, None, overrides)))
+            .map(Option::transpose)
+            .collect::<Result<Vec<_>, _>>()?;
+        let fields: Vec<Option<Field>> = layers.iter().map(|l| l.as_ref().map(|s| s.field.clone())).collect();
         Ok(RenderedFrame { image: self.composite(&fields), layers })
     }
 
@@ -379,9 +328,7 @@ impl Scene {
     pub fn composite(&self, fields: &[Option<Field>]) -> RgbaImage {
         let mut canvas = Canvas::new(self.width(), self.height(), self.doc().background);
         for (j, layer) in self.layers().iter().enumerate() {
-            if let (true, Some(image), Some(Some(field))) =
-                (layer.visible, &layer.image, fields.get(j))
-            {
+            if let (true, Some(image), Some(Some(field))) = (layer.visible, &layer.image, fields.get(j)) {
                 canvas.draw_layer(image, field, &layer.grid, layer.offset);
             }
         }
@@ -394,22 +341,9 @@ impl Scene {
     }
 
     /// [`Scene::render`] with every layer's field computed by `method` instead of the
-    /// layer's own, when given.
-    pub fn render_with(
-        &self,
-        time_s: f64,
-        method: Option<Method>,
-    ) -> Result<RgbaImage, SceneError> {
-        Animator::with_method(self, method).render(time_s)
-    }
-
-    /// [`Scene::render_with`] and the warnings of its solves (see
+    /// layer's own, when given, and the warnings of its solves (see
     /// [`Scene::convergence_warning`]).
-    pub fn render_warned(
-        &self,
-        time_s: f64,
-        method: Option<Method>,
-    ) -> Result<(RgbaImage, Vec<String>), SceneError> {
+    pub fn render_warned(&self, time_s: f64, method: Option<Method>) -> Result<(RgbaImage, Vec<String>), SceneError> {
         let mut animator = Animator::with_method(self, method);
         let image = animator.render(time_s)?;
         Ok((image, animator.take_warnings()))
@@ -465,16 +399,12 @@ impl<'a> Animator<'a> {
         self.history.iter_mut().for_each(Solver::clear);
     }
 
-    /// The field of layer `layer` at `time_s`, started from the layer's earlier frames.
-    pub fn layer_field(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
-        self.solve_layer(layer, time_s)
-    }
 
     /// The frame at `time_s`: every drawn layer solved (warm) and composited.
     pub fn render(&mut self, time_s: f64) -> Result<RgbaImage, SceneError> {
         for layer in 0..self.scene.layers().len() {
             if self.scene.layer_is_drawn(layer) {
-                let solved = self.solve_layer(layer, time_s)?;
+                let solved = self.layer_field(layer, time_s)?;
                 self.fields[layer] = Some(solved.field);
             }
         }
@@ -486,11 +416,10 @@ impl<'a> Animator<'a> {
         std::mem::take(&mut self.warnings)
     }
 
-    /// One layer's solve, from its earlier frames (the thin plate; the other methods start
-    /// from nothing).
-    fn solve_layer(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
-        let solved =
-            self.scene.layer_field_warm(layer, time_s, &mut self.history[layer], &self.overrides)?;
+    /// The field of layer `layer` at `time_s`, started from the layer's earlier frames (the
+    /// thin plate; the other methods start from nothing).
+    pub fn layer_field(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
+        let solved = self.scene.layer_field_warm(layer, time_s, &mut self.history[layer], &self.overrides)?;
         self.warnings.extend(self.scene.convergence_warning(layer, time_s, &solved));
         Ok(solved)
     }
@@ -504,9 +433,8 @@ type WorkerResult = Result<(usize, RgbaImage, Vec<String>), SceneError>;
 ///
 /// The solver and the renderer already spread each frame over every core (rayon), so
 /// frame-level parallelism only fills their serial parts (coarse grids, sampling,
-/// compositing). On two cores it measured slower than rendering frames one at a time
-/// (0.79 against 0.74 of the cold time per frame at 512×512), hence one worker per four
-/// cores: sequential on small machines, a few chains at once on big ones.
+/// compositing) and does not pay on small machines: sequential there, a few chains at once
+/// on big ones.
 pub fn default_frame_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get() / 4).max(1)
 }
@@ -542,22 +470,12 @@ impl FrameStream {
 
     /// [`FrameStream::new`], every field computed by `method` (when given) instead of each
     /// layer's own.
-    pub fn with_method(
-        scene: Arc<Scene>,
-        frames: Range<usize>,
-        threads: usize,
-        method: Option<Method>,
-    ) -> Self {
+    pub fn with_method(scene: Arc<Scene>, frames: Range<usize>, threads: usize, method: Option<Method>) -> Self {
         Self::with_overrides(scene, frames, threads, method_override(method))
     }
 
     /// [`FrameStream::new`], `overrides` applied over every layer's own settings.
-    pub fn with_overrides(
-        scene: Arc<Scene>,
-        frames: Range<usize>,
-        threads: usize,
-        overrides: SolverOverrides,
-    ) -> Self {
+    pub fn with_overrides(scene: Arc<Scene>, frames: Range<usize>, threads: usize, overrides: SolverOverrides) -> Self {
         let end = frames.end.min(scene.frame_count());
         let mut chains = Vec::new();
         let mut start = frames.start;
@@ -608,8 +526,7 @@ impl FrameStream {
             senders.push(Some(tx));
             self.receivers.push(rx);
         }
-        let senders: Arc<Mutex<Vec<Option<SyncSender<WorkerResult>>>>> =
-            Arc::new(Mutex::new(senders));
+        let senders = Arc::new(Mutex::new(senders));
         let next = Arc::new(AtomicUsize::new(0));
         let chains = Arc::new(self.chains.clone());
         for _ in 0..threads {
@@ -648,11 +565,7 @@ impl FrameStream {
     }
 
     fn next_sequential(&mut self) -> Option<FrameResult> {
-        if self
-            .sequential
-            .as_ref()
-            .map_or(true, |(range, _, _)| range.is_empty())
-        {
+        if self.sequential.as_ref().map_or(true, |(range, _, _)| range.is_empty()) {
             let chain = self.chains.get(self.next_chain)?.clone();
             self.next_chain += 1;
             let n = self.scene.layers().len();
@@ -668,9 +581,7 @@ impl FrameStream {
             overrides: self.overrides.clone(),
             warnings: Vec::new(),
         };
-        let frame = animator
-            .render(scene.frame_time_s(i))
-            .map(|image| (i, image));
+        let frame = animator.render(scene.frame_time_s(i)).map(|image| (i, image));
         self.warnings.extend(animator.take_warnings());
         *fields = animator.fields;
         *history = animator.history;

@@ -8,49 +8,32 @@ use crate::render::RgbaImage;
 /// Whether `reference` is a `data:` URI rather than a path.
 pub fn is_data_uri(reference: &str) -> bool {
     // Bytes, not a str slice: a name such as `日本.png` has no char boundary at 5.
-    reference
-        .as_bytes()
-        .get(..5)
-        .is_some_and(|head| head.eq_ignore_ascii_case(b"data:"))
+    reference.as_bytes().get(..5).is_some_and(|head| head.eq_ignore_ascii_case(b"data:"))
 }
 
 /// The bytes of a base64 `data:` URI (`data:image/png;base64,...`).
 pub fn data_uri_bytes(uri: &str) -> Result<Vec<u8>, String> {
     let rest = &uri[5..];
-    let comma = rest.find(',').ok_or_else(|| {
-        "this data: URI has no comma before its data; write data:image/png;base64,<data>"
-            .to_string()
-    })?;
+    let comma = rest
+        .find(',')
+        .ok_or("this data: URI has no comma before its data; write data:image/png;base64,<data>")?;
     let (header, payload) = (&rest[..comma], &rest[comma + 1..]);
-    if !header
-        .split(';')
-        .any(|part| part.eq_ignore_ascii_case("base64"))
-    {
-        return Err(
-            "only base64 data: URIs are supported; write data:image/png;base64,<data>".to_string(),
-        );
+    if !header.split(';').any(|part| part.eq_ignore_ascii_case("base64")) {
+        return Err("only base64 data: URIs are supported; write data:image/png;base64,<data>".to_string());
     }
-    let cleaned: String = payload
-        .chars()
-        .filter(|c| !c.is_ascii_whitespace())
-        .collect();
+    let cleaned: String = payload.chars().filter(|c| !c.is_ascii_whitespace()).collect();
     base64::engine::general_purpose::STANDARD
         .decode(cleaned.as_bytes())
-        .or_else(|_| {
-            base64::engine::general_purpose::STANDARD_NO_PAD.decode(cleaned.trim_end_matches('='))
-        })
+        .or_else(|_| base64::engine::general_purpose::STANDARD_NO_PAD.decode(cleaned.trim_end_matches('=')))
         .map_err(|e| format!("the data: URI is not valid base64 ({e})"))
 }
 
 /// Decodes a PNG or JPEG into straight-alpha RGBA8.
 pub fn decode_image(bytes: &[u8]) -> Result<RgbaImage, String> {
-    let format = image::guess_format(bytes).map_err(|_| {
-        "not a PNG or JPEG image (unrecognised file contents); save it as PNG or JPEG".to_string()
-    })?;
+    let format = image::guess_format(bytes)
+        .map_err(|_| "not a PNG or JPEG image (unrecognised file contents); save it as PNG or JPEG")?;
     if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
-        return Err(format!(
-            "a {format:?} image; inkwarp reads PNG and JPEG, save it as one of those"
-        ));
+        return Err(format!("a {format:?} image; inkwarp reads PNG and JPEG, save it as one of those"));
     }
     // The header's size first: a few kilobytes can declare a picture that needs gigabytes.
     let (width, height) = image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
@@ -60,25 +43,17 @@ pub fn decode_image(bytes: &[u8]) -> Result<RgbaImage, String> {
     let decoded = image::load_from_memory_with_format(bytes, format)
         .map_err(|e| format!("the {format:?} image could not be decoded ({e})"))?;
     let rgba = decoded.to_rgba8();
-    let (width, height) = (rgba.width() as usize, rgba.height() as usize);
-    Ok(RgbaImage {
-        width,
-        height,
-        data: rgba.into_raw(),
-    })
+    Ok(RgbaImage { width: rgba.width() as usize, height: rgba.height() as usize, data: rgba.into_raw() })
 }
 
 /// A matte from an image: grey level times alpha, so black or transparent pixels are 0.
 pub fn matte_values(image: &RgbaImage) -> Vec<u8> {
-    image
-        .data
-        .chunks_exact(4)
-        .map(|px| {
-            // Rec. 601 luma, then scaled by alpha; exact for pure black/white and grey.
-            let luma = (299 * px[0] as u32 + 587 * px[1] as u32 + 114 * px[2] as u32 + 500) / 1000;
-            ((luma * px[3] as u32 + 127) / 255) as u8
-        })
-        .collect()
+    let value = |px: &[u8]| {
+        // Rec. 601 luma, then scaled by alpha; exact for pure black/white and grey.
+        let luma = (299 * px[0] as u32 + 587 * px[1] as u32 + 114 * px[2] as u32 + 500) / 1000;
+        ((luma * px[3] as u32 + 127) / 255) as u8
+    };
+    image.data.chunks_exact(4).map(value).collect()
 }
 
 #[cfg(test)]

@@ -2,8 +2,8 @@
 //! scene into fields and frames.
 //!
 //! - [`doc`]: the format as serde types, and its JSON Schema.
-//! - [`parse_doc`] / [`check_json`]: JSON text to a validated [`SceneDoc`], every problem
-//!   reported as a [`Problem`] (a JSON path and a message that says how to fix it).
+//! - [`parse_doc`]: JSON text to a validated [`SceneDoc`], every problem reported as a
+//!   [`Problem`] (a JSON path and a message that says how to fix it).
 //! - [`Scene::from_json`] / [`Scene::resolve`]: a document plus its images (read by the
 //!   front end through a loader callback; `data:` URIs decoded here) to a renderable scene.
 //! - [`Scene::render`], [`Animator`], [`FrameStream`]: fields and frames, warm-started from
@@ -57,10 +57,7 @@ pub struct Problem {
 impl Problem {
     /// A problem at `path`.
     pub fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
-        Problem {
-            path: path.into(),
-            message: message.into(),
-        }
+        Problem { path: path.into(), message: message.into() }
     }
 }
 
@@ -83,9 +80,7 @@ pub struct SceneError {
 impl SceneError {
     /// An error with one problem.
     pub fn one(path: impl Into<String>, message: impl Into<String>) -> Self {
-        SceneError {
-            problems: vec![Problem::new(path, message)],
-        }
+        SceneError { problems: vec![Problem::new(path, message)] }
     }
 
     /// The first problem's path.
@@ -118,10 +113,10 @@ fn cached_schema() -> &'static Value {
 
 /// Parses and validates scene JSON text (everything but the images).
 pub fn parse_doc(text: &str) -> Result<SceneDoc, SceneError> {
-    let (doc, problems) = parse_collecting(text);
-    match doc {
-        Some(doc) if problems.is_empty() => Ok(doc),
-        _ => Err(SceneError { problems }),
+    let parsed = parse_json(text)?;
+    match parsed.doc {
+        Some(doc) if parsed.problems.is_empty() => Ok(doc),
+        _ => Err(SceneError { problems: parsed.problems }),
     }
 }
 
@@ -143,32 +138,11 @@ pub fn parse_overrides(text: &str, path: &str) -> Result<SolverOverrides, SceneE
     }
 }
 
-/// Every problem of scene JSON text that can be found without its images.
-pub fn check_json(text: &str) -> Vec<Problem> {
-    parse_collecting(text).1
-}
-
-/// The document (when it could be built at all) and every problem found on the way.
-fn parse_collecting(text: &str) -> (Option<SceneDoc>, Vec<Problem>) {
-    let value: Value = match serde_json::from_str(text) {
-        Ok(value) => value,
-        Err(err) => {
-            return (
-                None,
-                vec![Problem::new(
-                    "",
-                    format!("the scene is not valid JSON: {err}"),
-                )],
-            );
-        }
-    };
-    doc_from_value(&value)
-}
-
-/// Shape check, then typed deserialization, then the meaning check.
-fn doc_from_value(value: &Value) -> (Option<SceneDoc>, Vec<Problem>) {
-    let parsed = parse_value(value);
-    (parsed.doc, parsed.problems)
+/// JSON text read by [`parse_value`]; an error only when the text is not JSON.
+fn parse_json(text: &str) -> Result<Parsed, SceneError> {
+    let value: Value = serde_json::from_str(text)
+        .map_err(|err| SceneError::one("", format!("the scene is not valid JSON: {err}")))?;
+    Ok(parse_value(&value))
 }
 
 /// The outcome of reading a document: the document (when one could be built), every
@@ -184,14 +158,10 @@ struct Parsed {
 impl Parsed {
     /// `path` (of the rebuilt document) as a path of the original one.
     fn original_path(&self, path: &str) -> String {
-        for (prefix, origin) in [
-            ("features[", &self.feature_origin),
-            ("layers[", &self.layer_origin),
-        ] {
+        for (prefix, origin) in [("features[", &self.feature_origin), ("layers[", &self.layer_origin)] {
             if let Some(rest) = path.strip_prefix(prefix) {
                 if let Some((index, tail)) = rest.split_once(']') {
-                    if let Some(&original) = index.parse::<usize>().ok().and_then(|i| origin.get(i))
-                    {
+                    if let Some(&original) = index.parse::<usize>().ok().and_then(|i| origin.get(i)) {
                         return format!("{prefix}{original}]{tail}");
                     }
                 }
@@ -211,14 +181,10 @@ impl Parsed {
     }
 }
 
+/// Shape check, then typed deserialization, then the meaning check.
 fn parse_value(value: &Value) -> Parsed {
     let (problems, unknown_keys) = shape::check_detailed(value, cached_schema());
-    let mut parsed = Parsed {
-        doc: None,
-        problems,
-        feature_origin: Vec::new(),
-        layer_origin: Vec::new(),
-    };
+    let mut parsed = Parsed { doc: None, problems, feature_origin: Vec::new(), layer_origin: Vec::new() };
     if parsed.problems.is_empty() {
         match serde_path_to_error::deserialize::<_, SceneDoc>(value) {
             Ok(doc) => {
@@ -231,9 +197,7 @@ fn parse_value(value: &Value) -> Parsed {
             Err(err) => {
                 let path = err.path().to_string();
                 let path = if path == "." { String::new() } else { path };
-                parsed
-                    .problems
-                    .push(Problem::new(path, err.into_inner().to_string()));
+                parsed.problems.push(Problem::new(path, err.into_inner().to_string()));
             }
         }
         return parsed;
@@ -241,49 +205,37 @@ fn parse_value(value: &Value) -> Parsed {
     // With shape problems, rebuild the document without what is broken (unknown keys,
     // features and layers with problems, top-level values replaced by their defaults) so
     // that the meaning check and the images can report their problems too.
-    let Value::Object(mut map) = value.clone() else {
+    let mut value = value.clone();
+    let schema = cached_schema();
+    strip_unknown_keys(&mut value, schema, schema);
+    let Value::Object(mut map) = value else {
         return parsed;
     };
-    strip_unknown_keys_in_map(&mut map);
     // Unknown keys were set aside, so they break nothing.
     let broken = |prefix: &str| {
-        parsed
-            .problems
-            .iter()
-            .filter(|p| !unknown_keys.contains(&p.path))
-            .any(|p| {
-                p.path == prefix
-                    || p.path.starts_with(&format!("{prefix}."))
-                    || p.path.starts_with(&format!("{prefix}["))
-            })
+        parsed.problems.iter().filter(|p| !unknown_keys.contains(&p.path)).any(|p| {
+            p.path == prefix || p.path.starts_with(&format!("{prefix}.")) || p.path.starts_with(&format!("{prefix}["))
+        })
     };
+    // Keeps the items of the array `key` without problems and says where each kept one was;
+    // the meaning check still knows the ids of the features set aside.
     let mut set_aside_ids = Vec::new();
-    let mut feature_origin = Vec::new();
-    if let Some(Value::Array(features)) = map.get_mut("features") {
-        let mut kept = Vec::new();
-        for (i, feature) in std::mem::take(features).into_iter().enumerate() {
-            if broken(&format!("features[{i}]")) {
-                if let Some(id) = feature.get("id").and_then(Value::as_str) {
+    let mut keep = |map: &mut serde_json::Map<String, Value>, key: &str| {
+        let mut origin = Vec::new();
+        if let Some(Value::Array(items)) = map.get_mut(key) {
+            for (i, item) in std::mem::take(items).into_iter().enumerate() {
+                if !broken(&format!("{key}[{i}]")) {
+                    items.push(item);
+                    origin.push(i);
+                } else if let Some(id) = item.get("id").and_then(Value::as_str).filter(|_| key == "features") {
                     set_aside_ids.push(id.to_string());
                 }
-            } else {
-                kept.push(feature);
-                feature_origin.push(i);
             }
         }
-        *features = kept;
-    }
-    let mut layer_origin = Vec::new();
-    if let Some(Value::Array(layers)) = map.get_mut("layers") {
-        let mut kept = Vec::new();
-        for (j, layer) in std::mem::take(layers).into_iter().enumerate() {
-            if !broken(&format!("layers[{j}]")) {
-                kept.push(layer);
-                layer_origin.push(j);
-            }
-        }
-        *layers = kept;
-    }
+        origin
+    };
+    let feature_origin = keep(&mut map, "features");
+    let layer_origin = keep(&mut map, "layers");
     if let Some(Value::Object(solver)) = map.get_mut("solver") {
         // The method settings are objects of their own: drop only their broken keys (the
         // others keep their values for the meaning check), unless the object as a whole
@@ -317,26 +269,13 @@ fn parse_value(value: &Value) -> Parsed {
         .collect();
     for key in broken_top {
         match key.as_str() {
-            "inkwarp" => {
-                map.insert(key, Value::from(FORMAT_VERSION));
-            }
-            "layers" | "features" => {
-                map.insert(key, Value::Array(Vec::new()));
-            }
-            _ => {
-                map.remove(&key);
-            }
-        }
+            "inkwarp" => map.insert(key, Value::from(FORMAT_VERSION)),
+            "layers" | "features" => map.insert(key, Value::Array(Vec::new())),
+            _ => map.remove(&key),
+        };
     }
-    for key in ["inkwarp", "layers"] {
-        map.entry(key).or_insert_with(|| {
-            if key == "inkwarp" {
-                Value::from(FORMAT_VERSION)
-            } else {
-                Value::Array(Vec::new())
-            }
-        });
-    }
+    map.entry("inkwarp").or_insert(Value::from(FORMAT_VERSION));
+    map.entry("layers").or_insert(Value::Array(Vec::new()));
     parsed.feature_origin = feature_origin;
     parsed.layer_origin = layer_origin;
     if let Ok(doc) = serde_json::from_value::<SceneDoc>(Value::Object(map)) {
@@ -347,27 +286,9 @@ fn parse_value(value: &Value) -> Parsed {
     parsed
 }
 
-fn strip_unknown_keys_in_map(map: &mut serde_json::Map<String, Value>) {
-    let mut value = Value::Object(std::mem::take(map));
-    strip_unknown_keys(&mut value, cached_schema(), cached_schema());
-    if let Value::Object(stripped) = value {
-        *map = stripped;
-    }
-}
-
 /// Removes object keys that the schema does not know (they were reported already).
 fn strip_unknown_keys(value: &mut Value, schema: &Value, root: &Value) {
-    let schema = match schema
-        .get("$ref")
-        .and_then(Value::as_str)
-        .and_then(|r| r.strip_prefix("#/$defs/"))
-    {
-        Some(name) => root
-            .get("$defs")
-            .and_then(|d| d.get(name))
-            .unwrap_or(schema),
-        None => schema,
-    };
+    let schema = shape::resolve_ref(schema, root).0;
     if let Some(alternatives) = schema.get("anyOf").and_then(Value::as_array) {
         for alternative in alternatives {
             strip_unknown_keys(value, alternative, root);
@@ -448,23 +369,17 @@ pub type Loader<'a> = dyn FnMut(&str) -> Result<Vec<u8>, String> + 'a;
 
 /// A [`Loader`] for scenes whose images are all `data:` URIs (or that have none).
 pub fn no_files(reference: &str) -> Result<Vec<u8>, String> {
-    Err(format!(
-        "this scene can only use data: URIs, not the path \"{reference}\""
-    ))
+    Err(format!("this scene can only use data: URIs, not the path \"{reference}\""))
 }
 
 impl Scene {
     /// Parses, validates and resolves scene JSON text; `load` supplies the bytes of image
     /// paths (`data:` URIs are decoded here). Every problem is reported, images included.
     pub fn from_json(text: &str, load: &mut Loader<'_>) -> Result<Scene, SceneError> {
-        let value: Value = serde_json::from_str(text)
-            .map_err(|err| SceneError::one("", format!("the scene is not valid JSON: {err}")))?;
-        let mut parsed = parse_value(&value);
+        let mut parsed = parse_json(text)?;
         match parsed.doc.take() {
             Some(doc) => Self::resolve_with(doc, parsed, load),
-            None => Err(SceneError {
-                problems: parsed.problems,
-            }),
+            None => Err(SceneError { problems: parsed.problems }),
         }
     }
 
@@ -479,19 +394,13 @@ impl Scene {
         Self::resolve_with(doc, parsed, load)
     }
 
-    fn resolve_with(
-        doc: SceneDoc,
-        mut parsed: Parsed,
-        load: &mut Loader<'_>,
-    ) -> Result<Scene, SceneError> {
+    fn resolve_with(doc: SceneDoc, mut parsed: Parsed, load: &mut Loader<'_>) -> Result<Scene, SceneError> {
         let mut problems = Vec::new();
         // Decode every image once, keep the problems of each place that refers to it.
         let mut decoded: HashMap<String, Result<Arc<RgbaImage>, String>> = HashMap::new();
         let mut layer_images: Vec<[Option<Arc<RgbaImage>>; 3]> = Vec::new();
         let mut size: Option<(usize, usize, String)> = match (doc.width, doc.height) {
-            (Some(w), Some(h)) if w > 0 && h > 0 => {
-                Some((w as usize, h as usize, "width and height".to_string()))
-            }
+            (Some(w), Some(h)) if w > 0 && h > 0 => Some((w as usize, h as usize, "width and height".to_string())),
             _ => None,
         };
         for (j, layer) in doc.layers.iter().enumerate() {
@@ -511,42 +420,37 @@ impl Scene {
                 let result = decoded
                     .entry(reference.to_string())
                     .or_insert_with(|| {
-                        let bytes = if images::is_data_uri(reference) {
-                            images::data_uri_bytes(reference)
-                        } else {
-                            load(reference)
-                        };
+                        let uri = images::is_data_uri(reference);
+                        let bytes = if uri { images::data_uri_bytes(reference) } else { load(reference) };
                         bytes.and_then(|b| images::decode_image(&b)).map(Arc::new)
                     })
                     .clone();
-                match result {
-                    Ok(image) => {
-                        match &size {
-                            None => {
-                                size = Some((image.width, image.height, path.clone()));
-                            }
-                            Some((w, h, from)) if (image.width, image.height) != (*w, *h) => {
-                                problems.push(Problem::new(
-                                    &path,
-                                    format!(
-                                        "{} is {}×{} pixels but the scene is {w}×{h} (from {from}); every \
-                                         image and matte must be the scene's size",
-                                        describe_reference(reference),
-                                        image.width,
-                                        image.height
-                                    ),
-                                ));
-                                continue;
-                            }
-                            Some(_) => {}
-                        }
-                        slots[slot] = Some(image);
+                let image = match result {
+                    Ok(image) => image,
+                    Err(why) => {
+                        let why = format!("cannot use {}: {why}", describe_reference(reference));
+                        problems.push(Problem::new(&path, why));
+                        continue;
                     }
-                    Err(why) => problems.push(Problem::new(
-                        &path,
-                        format!("cannot use {}: {why}", describe_reference(reference)),
-                    )),
+                };
+                match &size {
+                    None => size = Some((image.width, image.height, path.clone())),
+                    Some((w, h, from)) if (image.width, image.height) != (*w, *h) => {
+                        problems.push(Problem::new(
+                            &path,
+                            format!(
+                                "{} is {}×{} pixels but the scene is {w}×{h} (from {from}); every \
+                                 image and matte must be the scene's size",
+                                describe_reference(reference),
+                                image.width,
+                                image.height
+                            ),
+                        ));
+                        continue;
+                    }
+                    Some(_) => {}
                 }
+                slots[slot] = Some(image);
             }
             layer_images.push(slots);
         }
@@ -558,9 +462,7 @@ impl Scene {
         }
         parsed.extend(problems);
         if !parsed.problems.is_empty() {
-            return Err(SceneError {
-                problems: parsed.problems,
-            });
+            return Err(SceneError { problems: parsed.problems });
         }
         let (width, height, _) = size.expect("checked above");
 
@@ -570,36 +472,19 @@ impl Scene {
             .map(|f| Track {
                 kind: f.kind.to_kind(),
                 rest: f.rest.clone(),
-                keys: f
-                    .keys
-                    .iter()
-                    .map(|k| crate::anim::Key {
-                        time_s: k.t,
-                        points: k.points.clone(),
-                        interpolation: k.interpolation.to_anim(),
-                    })
-                    .collect(),
+                keys: f.anim_keys(),
                 closed: f.closed || f.kind == FeatureKind::Region,
                 spline_outline: f.curve == Some(Curve::Spline),
             })
             .collect();
-        let index_of: HashMap<&str, usize> = doc
-            .features
-            .iter()
-            .enumerate()
-            .map(|(i, f)| (f.id.as_str(), i))
-            .collect();
+        let index_of: HashMap<&str, usize> = doc.features.iter().enumerate().map(|(i, f)| (f.id.as_str(), i)).collect();
 
         let mut layers = Vec::with_capacity(doc.layers.len());
         for (layer, [image, alpha, continuity]) in doc.layers.iter().zip(layer_images) {
             let image = match (image, alpha) {
                 (Some(image), Some(alpha)) => {
                     let mut with_alpha = (*image).clone();
-                    for (px, a) in with_alpha
-                        .data
-                        .chunks_exact_mut(4)
-                        .zip(images::matte_values(&alpha))
-                    {
+                    for (px, a) in with_alpha.data.chunks_exact_mut(4).zip(images::matte_values(&alpha)) {
                         px[3] = a;
                     }
                     Some(Arc::new(with_alpha))
@@ -622,9 +507,7 @@ impl Scene {
             for i in members {
                 let track = &tracks[i];
                 if track.kind == Kind::Cut {
-                    let line =
-                        crate::geometry::curve_polyline(Kind::Cut, &track.rest, track.closed, false, 0.5);
-                    grid.add_cut(&line);
+                    grid.add_cut(&crate::geometry::curve_polyline(Kind::Cut, &track.rest, track.closed, false, 0.5));
                 } else {
                     drivers.push(i);
                 }
@@ -637,10 +520,7 @@ impl Scene {
                 grid,
                 drivers,
                 offset: layer.offset,
-                solver: layer
-                    .solver
-                    .as_ref()
-                    .map_or_else(|| doc.solver.clone(), |o| o.apply(&doc.solver)),
+                solver: layer.solver.as_ref().map_or_else(|| doc.solver.clone(), |o| o.apply(&doc.solver)),
                 visible: layer.visible,
                 border: layer.border,
             });
@@ -648,23 +528,11 @@ impl Scene {
 
         let fps = doc.fps;
         let duration_s = doc.duration.unwrap_or_else(|| {
-            let last_key = doc
-                .features
-                .iter()
-                .flat_map(|f| f.keys.iter().map(|k| k.t))
-                .fold(0.0, f64::max);
+            let last_key = doc.features.iter().flat_map(|f| f.keys.iter().map(|k| k.t)).fold(0.0, f64::max);
             last_key + 1.0 / fps
         });
         let frame_count = ((duration_s * fps - 1e-9).ceil() as usize).max(1);
-        Ok(Scene {
-            doc,
-            width,
-            height,
-            duration_s,
-            frame_count,
-            tracks,
-            layers,
-        })
+        Ok(Scene { doc, width, height, duration_s, frame_count, tracks, layers })
     }
 
     /// The document this scene was built from (defaults filled in).
@@ -714,11 +582,7 @@ impl Scene {
 
 fn describe_reference(reference: &str) -> String {
     if images::is_data_uri(reference) {
-        let header: String = reference
-            .chars()
-            .take_while(|&c| c != ',')
-            .take(40)
-            .collect();
+        let header: String = reference.chars().take_while(|&c| c != ',').take(40).collect();
         format!("the image in the {header},... URI")
     } else {
         format!("\"{reference}\"")

@@ -14,11 +14,7 @@ use super::Problem;
 /// Every shape problem of `doc` against `schema` (the root schema with its `$defs`), and
 /// the paths of the unknown keys among them.
 pub(crate) fn check_detailed(doc: &Value, schema: &Value) -> (Vec<Problem>, Vec<String>) {
-    let mut walker = Walker {
-        root: schema,
-        problems: Vec::new(),
-        unknown_keys: Vec::new(),
-    };
+    let mut walker = Walker::new(schema);
     if !doc.is_object() {
         walker.problems.push(Problem::new(
             "",
@@ -39,16 +35,22 @@ struct Walker<'a> {
     unknown_keys: Vec<String>,
 }
 
+/// `schema` with a `$ref` into `root`'s `$defs` followed, and the definition's name.
+pub(crate) fn resolve_ref<'a>(schema: &'a Value, root: &'a Value) -> (&'a Value, Option<&'a str>) {
+    let name = schema.get("$ref").and_then(Value::as_str).and_then(|r| r.strip_prefix("#/$defs/"));
+    match name.and_then(|name| Some((root.get("$defs")?.get(name)?, name))) {
+        Some((def, name)) => (def, Some(name)),
+        None => (schema, None),
+    }
+}
+
 impl<'a> Walker<'a> {
+    fn new(root: &'a Value) -> Self {
+        Walker { root, problems: Vec::new(), unknown_keys: Vec::new() }
+    }
+
     fn resolve(&self, schema: &'a Value) -> (&'a Value, Option<&'a str>) {
-        if let Some(reference) = schema.get("$ref").and_then(Value::as_str) {
-            if let Some(name) = reference.strip_prefix("#/$defs/") {
-                if let Some(def) = self.root.get("$defs").and_then(|d| d.get(name)) {
-                    return (def, Some(name));
-                }
-            }
-        }
-        (schema, None)
+        resolve_ref(schema, self.root)
     }
 
     /// Checks `value` at `path`; returns whether it passed.
@@ -66,14 +68,7 @@ impl<'a> Walker<'a> {
         }
         if let Some(types) = schema.get("type") {
             if !type_matches(value, types) {
-                self.push(
-                    path,
-                    format!(
-                        "expected {}, found {}",
-                        expected_types(types),
-                        describe(value)
-                    ),
-                );
+                self.push(path, format!("expected {}, found {}", expected_types(types), describe(value)));
                 return false;
             }
         }
@@ -85,14 +80,7 @@ impl<'a> Walker<'a> {
         }
         if let Some(options) = schema.get("enum").and_then(Value::as_array) {
             if !options.contains(value) {
-                self.push(
-                    path,
-                    format!(
-                        "{} is not allowed here; use one of {}",
-                        describe(value),
-                        list(options)
-                    ),
-                );
+                self.push(path, format!("{} is not allowed here; use one of {}", describe(value), list(options)));
                 return false;
             }
         }
@@ -113,10 +101,7 @@ impl<'a> Walker<'a> {
         what: Option<&str>,
     ) -> bool {
         // All-constant alternatives are an enumeration of names (kinds, methods, ...).
-        let constants: Vec<&Value> = alternatives
-            .iter()
-            .filter_map(|a| self.resolve(a).0.get("const"))
-            .collect();
+        let constants: Vec<&Value> = alternatives.iter().filter_map(|a| self.resolve(a).0.get("const")).collect();
         if constants.len() == alternatives.len() {
             if constants.contains(&value) {
                 return true;
@@ -138,15 +123,8 @@ impl<'a> Walker<'a> {
         }
         // Otherwise: the first alternative that passes; failing that, the problems of the
         // alternative whose type fits the value (for `Option<T>`: T's problems).
-        for alternative in alternatives {
-            let mut probe = Walker {
-                root: self.root,
-                problems: Vec::new(),
-                unknown_keys: Vec::new(),
-            };
-            if probe.walk(value, alternative, path, what) {
-                return true;
-            }
+        if alternatives.iter().any(|a| Walker::new(self.root).walk(value, a, path, what)) {
+            return true;
         }
         let fitting = alternatives.iter().find(|a| {
             let (resolved, _) = self.resolve(a);
@@ -171,44 +149,26 @@ impl<'a> Walker<'a> {
                         }
                     })
                     .collect();
-                self.push(
-                    path,
-                    format!(
-                        "expected {}, found {}",
-                        expected.join(" or "),
-                        describe(value)
-                    ),
-                );
+                self.push(path, format!("expected {}, found {}", expected.join(" or "), describe(value)));
             }
         }
         false
     }
 
     fn constant_mismatch(&mut self, value: &Value, constant: &Value, path: &str) {
-        if path == "inkwarp" {
-            self.push(
-                path,
-                format!(
-                    "this inkwarp reads scene format {constant}, found {}; set \"inkwarp\": {constant} \
-                     (and convert the scene if it was written for another format)",
-                    describe(value)
-                ),
-            );
+        let message = if path == "inkwarp" {
+            format!(
+                "this inkwarp reads scene format {constant}, found {}; set \"inkwarp\": {constant} \
+                 (and convert the scene if it was written for another format)",
+                describe(value)
+            )
         } else {
-            self.push(
-                path,
-                format!("must be {constant}, found {}", describe(value)),
-            );
-        }
+            format!("must be {constant}, found {}", describe(value))
+        };
+        self.push(path, message);
     }
 
-    fn object(
-        &mut self,
-        map: &Map<String, Value>,
-        schema: &'a Value,
-        path: &str,
-        what: Option<&str>,
-    ) {
+    fn object(&mut self, map: &Map<String, Value>, schema: &'a Value, path: &str, what: Option<&str>) {
         let properties = schema.get("properties").and_then(Value::as_object);
         let what = what.unwrap_or("this object");
         if let Some(properties) = properties {
@@ -216,8 +176,7 @@ impl<'a> Walker<'a> {
             for (key, value) in map {
                 match properties.get(key) {
                     Some(property) => {
-                        let child = join_key(path, key);
-                        self.walk(value, property, &child, None);
+                        self.walk(value, property, &join_key(path, key), None);
                     }
                     None if closed => {
                         let names = properties.keys().map(String::as_str);
@@ -247,10 +206,7 @@ impl<'a> Walker<'a> {
                         .and_then(Value::as_str)
                         .map(|d| format!(" ({})", first_sentence(d)))
                         .unwrap_or_default();
-                    self.push(
-                        &join_key(path, key),
-                        format!("{what} needs \"{key}\"{about}; add it"),
-                    );
+                    self.push(&join_key(path, key), format!("{what} needs \"{key}\"{about}; add it"));
                 }
             }
         }
@@ -275,8 +231,7 @@ impl<'a> Walker<'a> {
         }
         if let Some(item_schema) = schema.get("items") {
             for (i, item) in items.iter().enumerate() {
-                let child = format!("{path}[{i}]");
-                self.walk(item, item_schema, &child, None);
+                self.walk(item, item_schema, &format!("{path}[{i}]"), None);
             }
         }
     }
@@ -297,22 +252,12 @@ impl<'a> Walker<'a> {
                 }
             }
         }
-        if let Some(min) = schema.get("minimum").and_then(Value::as_f64) {
-            if x < min {
-                self.push(
-                    path,
-                    format!("must be at least {}, found {value}", fmt_num(min)),
-                );
-                return;
-            }
+        if let Some(min) = schema.get("minimum").and_then(Value::as_f64).filter(|&min| x < min) {
+            self.push(path, format!("must be at least {}, found {value}", fmt_num(min)));
+            return;
         }
-        if let Some(max) = schema.get("maximum").and_then(Value::as_f64) {
-            if x > max {
-                self.push(
-                    path,
-                    format!("must be at most {}, found {value}", fmt_num(max)),
-                );
-            }
+        if let Some(max) = schema.get("maximum").and_then(Value::as_f64).filter(|&max| x > max) {
+            self.push(path, format!("must be at most {}, found {value}", fmt_num(max)));
         }
     }
 
@@ -377,12 +322,7 @@ fn expected_types(types: &Value) -> String {
         Value::String(t) => name(t).to_string(),
         Value::Array(ts) => {
             // `Option<T>` is "T or null": null means "absent", so name only T.
-            let names: Vec<&str> = ts
-                .iter()
-                .filter_map(Value::as_str)
-                .filter(|t| *t != "null")
-                .map(name)
-                .collect();
+            let names: Vec<&str> = ts.iter().filter_map(Value::as_str).filter(|t| *t != "null").map(name).collect();
             names.join(" or ")
         }
         _ => "a value".to_string(),
@@ -396,17 +336,10 @@ pub(crate) fn describe(value: &Value) -> String {
         Value::Bool(b) => b.to_string(),
         Value::Number(n) => format!("the number {n}"),
         Value::String(s) if s.chars().count() > 40 => {
-            format!(
-                "the string \"{}...\"",
-                s.chars().take(37).collect::<String>()
-            )
+            format!("the string \"{}...\"", s.chars().take(37).collect::<String>())
         }
         Value::String(s) => format!("the string \"{s}\""),
-        Value::Array(a) => format!(
-            "a list of {} item{}",
-            a.len(),
-            if a.len() == 1 { "" } else { "s" }
-        ),
+        Value::Array(a) => format!("a list of {} item{}", a.len(), if a.len() == 1 { "" } else { "s" }),
         Value::Object(_) => "an object".to_string(),
     }
 }
@@ -414,10 +347,7 @@ pub(crate) fn describe(value: &Value) -> String {
 fn list(values: &[Value]) -> String {
     let names: Vec<String> = values
         .iter()
-        .map(|v| match v {
-            Value::String(s) => format!("\"{s}\""),
-            other => other.to_string(),
-        })
+        .map(|v| if let Value::String(s) = v { format!("\"{s}\"") } else { v.to_string() })
         .collect();
     names.join(", ")
 }
@@ -439,10 +369,7 @@ fn first_sentence(text: &str) -> String {
 }
 
 /// The candidate closest to `word` by edit distance, when it is close enough to be a typo.
-pub(crate) fn did_you_mean<'b>(
-    word: &str,
-    candidates: impl Iterator<Item = &'b str>,
-) -> Option<&'b str> {
+pub(crate) fn did_you_mean<'b>(word: &str, candidates: impl Iterator<Item = &'b str>) -> Option<&'b str> {
     let word_l = word.to_lowercase();
     candidates
         .map(|c| (edit_distance(&word_l, &c.to_lowercase()), c))
@@ -460,9 +387,7 @@ fn edit_distance(a: &str, b: &str) -> usize {
         row[0] = i;
         for j in 1..=b.len() {
             let above = row[j];
-            row[j] = (row[j] + 1)
-                .min(row[j - 1] + 1)
-                .min(diagonal + usize::from(a[i - 1] != b[j - 1]));
+            row[j] = (row[j] + 1).min(row[j - 1] + 1).min(diagonal + usize::from(a[i - 1] != b[j - 1]));
             diagonal = above;
         }
     }

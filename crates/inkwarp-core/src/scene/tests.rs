@@ -638,12 +638,12 @@ fn alpha_and_continuity_mattes_apply() {
 fn the_method_can_be_chosen_per_call() {
     let scene = small_scene();
     assert_eq!(
-        scene.render_with(0.7, Some(Method::Tps)).unwrap(),
+        scene.render_warned(0.7, Some(Method::Tps)).unwrap().0,
         scene.render(0.7).unwrap()
     );
     // Every method draws: the comparison interpolants differ from the grid thin plate.
     for method in [Method::TpsExact, Method::Triangulation, Method::BeierNeely] {
-        let frame = scene.render_with(0.7, Some(method)).unwrap();
+        let frame = scene.render_warned(0.7, Some(method)).unwrap().0;
         assert_eq!((frame.width, frame.height), (16, 12));
         assert_ne!(frame, scene.render(0.7).unwrap(), "{}", method.name());
     }
@@ -654,8 +654,8 @@ fn the_method_can_be_chosen_per_call() {
 
 #[test]
 fn method_settings_in_the_scene_reach_the_interpolants() {
-    use crate::methods::scene::{features_field, method_params};
-    use crate::methods::{BeierNeelyParams, Interpolant, MethodParams, DEFAULT_MAX_SAMPLES};
+    use crate::methods::scene::{feature_controls, method_params};
+    use crate::methods::{controls_field, BeierNeelyParams, Interpolant, MethodParams, DEFAULT_MAX_SAMPLES};
 
     let mut loader = files(&valid_files());
     let mut doc = valid_scene();
@@ -676,9 +676,8 @@ fn method_settings_in_the_scene_reach_the_interpolants() {
     // Beier–Neely with the scene's weights: the field the methods module gives for them,
     // and not the default weights' field.
     let features = scene.layer_feature_samples(0, 1.0).unwrap();
-    let (want, _) =
-        features_field(&scene, &scene.layers()[0].grid, &features, 1.0, Interpolant::BeierNeely, &params)
-            .unwrap();
+    let controls = feature_controls(&scene, &features, 1.0, Interpolant::BeierNeely).unwrap();
+    let (want, _) = controls_field(Interpolant::BeierNeely, &controls, &scene.layers()[0].grid, &params).unwrap();
     let got = scene.layer_field(0, 1.0, None).unwrap();
     assert_eq!(got.field, want);
     assert_ne!(got.field, plain.layer_field_with(0, 1.0, None, Some(Method::BeierNeely)).unwrap().field);
@@ -706,7 +705,7 @@ fn rendering_passes_the_interpolants_notes_up() {
     // tps-exact ignores and says so, per layer.
     let overrides = SolverOverrides { method: Some(Method::TpsExact), ..SolverOverrides::default() };
     let rendered = scene.render_overridden(0.5, &overrides).unwrap();
-    assert_eq!(rendered.image, scene.render_with(0.5, Some(Method::TpsExact)).unwrap());
+    assert_eq!(rendered.image, scene.render_warned(0.5, Some(Method::TpsExact)).unwrap().0);
     assert_eq!(
         rendered.notes(&scene),
         [

@@ -3,13 +3,11 @@
 
 use std::collections::HashMap;
 
-use super::doc::{
-    BeierNeelyDoc, FeatureKind, SceneDoc, SolverDoc, SolverOverrides, TpsExactDoc, FORMAT_VERSION,
-};
-use super::engine::method_available;
+use super::doc::{BeierNeelyDoc, SceneDoc, SolverDoc, SolverOverrides, TpsExactDoc, FORMAT_VERSION};
+use super::engine::{method_available, not_available};
 use super::shape::did_you_mean;
 use super::Problem;
-use crate::geometry::Point;
+use crate::geometry::{Kind, Point};
 use crate::limits::{
     self, MAX_BEIER_NEELY_A, MAX_BEIER_NEELY_EXPONENT, MAX_COORD_PX, MAX_FPS, MAX_FRAMES,
     MAX_TENSION, MAX_TIME_S, MIN_KEY_SPACING_S,
@@ -36,27 +34,16 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
     }
     for (key, value) in [("width", doc.width), ("height", doc.height)] {
         if value == Some(0) {
-            p.push(Problem::new(
-                key,
-                format!("the frame {key} must be at least 1 pixel, found 0"),
-            ));
+            p.push(Problem::new(key, format!("the frame {key} must be at least 1 pixel, found 0")));
         }
     }
-    if let (Some(w), Some(h)) = (doc.width, doc.height) {
-        if w > 0 && h > 0 {
-            if let Err(why) = limits::check_size("the canvas", w as usize, h as usize) {
-                p.push(Problem::new("width", why));
-            }
+    if let (Some(w @ 1..), Some(h @ 1..)) = (doc.width, doc.height) {
+        if let Err(why) = limits::check_size("the canvas", w as usize, h as usize) {
+            p.push(Problem::new("width", why));
         }
     }
     if !(doc.fps.is_finite() && doc.fps > 0.0) {
-        p.push(Problem::new(
-            "fps",
-            format!(
-                "frames per second must be a number > 0, found {}; use e.g. 24",
-                doc.fps
-            ),
-        ));
+        p.push(Problem::new("fps", format!("frames per second must be a number > 0, found {}; use e.g. 24", doc.fps)));
     } else if doc.fps > MAX_FPS {
         p.push(Problem::new(
             "fps",
@@ -64,27 +51,21 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
         ));
     }
     if let Some(duration) = doc.duration {
-        if !(duration.is_finite() && duration > 0.0) {
-            p.push(Problem::new(
-                "duration",
-                format!(
-                    "the duration must be a number of seconds > 0, found {duration}; \
-                     leave it out to end at the last key"
-                ),
-            ));
+        let why = if !(duration.is_finite() && duration > 0.0) {
+            Some(format!(
+                "the duration must be a number of seconds > 0, found {duration}; \
+                 leave it out to end at the last key"
+            ))
         } else if duration > MAX_TIME_S {
-            p.push(Problem::new(
-                "duration",
-                format!("the duration may be at most {MAX_TIME_S} s, found {}; split a \
-                         longer animation into several scenes", limits::show(duration)),
-            ));
+            Some(format!("the duration may be at most {MAX_TIME_S} s, found {}; split a \
+                          longer animation into several scenes", limits::show(duration)))
         } else if doc.fps.is_finite() && doc.fps > 0.0 && duration * doc.fps > MAX_FRAMES as f64 {
-            p.push(Problem::new(
-                "duration",
-                format!("{duration} s at {} frames per second is more than {MAX_FRAMES} frames; \
-                         shorten it or lower fps", doc.fps),
-            ));
-        }
+            Some(format!("{duration} s at {} frames per second is more than {MAX_FRAMES} frames; \
+                          shorten it or lower fps", doc.fps))
+        } else {
+            None
+        };
+        p.extend(why.map(|why| Problem::new("duration", why)));
     }
     check_solver(&doc.solver, "solver", &mut p);
 
@@ -92,119 +73,66 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
     let mut first_with_id: HashMap<&str, usize> = HashMap::new();
     for (i, feature) in doc.features.iter().enumerate() {
         let path = format!("features[{i}]");
-        if feature.id.trim().is_empty() {
-            p.push(Problem::new(
-                format!("{path}.id"),
-                "a feature needs a non-empty id",
-            ));
-        } else if let Some(&first) = first_with_id.get(feature.id.as_str()) {
-            p.push(Problem::new(
-                format!("{path}.id"),
-                format!(
-                    "the id \"{}\" is already used by features[{first}]; give each feature its own id",
-                    feature.id
-                ),
-            ));
-        } else {
-            first_with_id.insert(&feature.id, i);
-        }
-        let kind = feature.kind;
-        let n = feature.rest.len();
-        if n < kind.min_points() || kind.max_points().is_some_and(|m| n > m) {
-            let wanted = match kind.max_points() {
-                Some(m) if m == kind.min_points() => format!("exactly {m}"),
-                _ => format!("at least {}", kind.min_points()),
-            };
+        check_unique(&feature.id, i, ("feature", "id", "features"), &mut first_with_id, &mut p);
+        let kind = feature.kind.to_kind();
+        let (n, point) = (feature.rest.len(), kind == Kind::Point);
+        // A point has exactly one control point; the other kinds have no most.
+        if n < kind.min_points() || (point && n > 1) {
+            let (wanted, s) =
+                if point { ("exactly 1".to_string(), "") } else { (format!("at least {}", kind.min_points()), "s") };
+            let hint = if point && n > 1 { "; use a polyline or a spline for several points" } else { "" };
             p.push(Problem::new(
                 format!("{path}.rest"),
-                format!(
-                    "a {} needs {wanted} control point{}, found {n}{}",
-                    kind.name(),
-                    if kind.min_points() == 1 && kind.max_points() == Some(1) {
-                        ""
-                    } else {
-                        "s"
-                    },
-                    if kind == FeatureKind::Point && n > 1 {
-                        "; use a polyline or a spline for several points"
-                    } else {
-                        ""
-                    }
-                ),
+                format!("a {} needs {wanted} control point{s}, found {n}{hint}", kind.name()),
             ));
         }
         check_points(&feature.rest, &format!("{path}.rest"), &mut p);
-        if feature.curve.is_some() && kind != FeatureKind::Region {
+        if feature.curve.is_some() && kind != Kind::Region {
+            let hint = if kind == Kind::Polyline { " (or use kind \"spline\" for a curve)" } else { "" };
             p.push(Problem::new(
                 format!("{path}.curve"),
-                format!(
-                    "\"curve\" applies to regions only, this feature is a {}; remove it{}",
-                    kind.name(),
-                    if kind == FeatureKind::Polyline {
-                        " (or use kind \"spline\" for a curve)"
-                    } else {
-                        ""
-                    }
-                ),
+                format!("\"curve\" applies to regions only, this feature is a {}; remove it{hint}", kind.name()),
             ));
         }
-        if feature.closed && kind == FeatureKind::Point {
-            p.push(Problem::new(
-                format!("{path}.closed"),
-                "a point cannot be closed; remove \"closed\"",
-            ));
+        if feature.closed && point {
+            p.push(Problem::new(format!("{path}.closed"), "a point cannot be closed; remove \"closed\""));
         }
         let mut previous_t: Option<f64> = None;
         for (k, key) in feature.keys.iter().enumerate() {
             let key_path = format!("{path}.keys[{k}]");
-            if !key.t.is_finite() {
-                p.push(Problem::new(
-                    format!("{key_path}.t"),
-                    format!(
-                        "the key time must be a finite number of seconds, found {}",
-                        key.t
-                    ),
-                ));
+            let time_problem = if !key.t.is_finite() {
+                Some(format!("the key time must be a finite number of seconds, found {}", key.t))
             } else if key.t.abs() > MAX_TIME_S {
-                p.push(Problem::new(
-                    format!("{key_path}.t"),
-                    format!(
-                        "key times may be at most {MAX_TIME_S} s (either side of 0), found {}; \
-                         split a longer animation into several scenes",
-                        limits::show(key.t)
-                    ),
-                ));
+                Some(format!(
+                    "key times may be at most {MAX_TIME_S} s (either side of 0), found {}; \
+                     split a longer animation into several scenes",
+                    limits::show(key.t)
+                ))
             } else if let Some(before) = previous_t.filter(|b| key.t > *b && key.t - *b < MIN_KEY_SPACING_S) {
-                p.push(Problem::new(
-                    format!("{key_path}.t"),
+                Some(format!(
+                    "keys[{}] and keys[{k}] are {:e} s apart, closer than {MIN_KEY_SPACING_S:e} s; \
+                     move them apart or remove one",
+                    k - 1,
+                    key.t - before
+                ))
+            } else if let Some(before) = previous_t.filter(|&b| key.t == b) {
+                Some(format!(
+                    "two keys at t = {before} s (keys[{}] and keys[{k}]); give each key its own time \
+                     or remove one",
+                    k - 1
+                ))
+            } else {
+                previous_t.filter(|&b| key.t < b).map(|before| {
                     format!(
-                        "keys[{}] and keys[{k}] are {:e} s apart, closer than {MIN_KEY_SPACING_S:e} s; \
-                         move them apart or remove one",
-                        k - 1,
-                        key.t - before
-                    ),
-                ));
-            } else if let Some(before) = previous_t {
-                if key.t == before {
-                    p.push(Problem::new(
-                        format!("{key_path}.t"),
-                        format!(
-                            "two keys at t = {before} s (keys[{}] and keys[{k}]); give each key its own time \
-                             or remove one",
-                            k - 1
-                        ),
-                    ));
-                } else if key.t < before {
-                    p.push(Problem::new(
-                        format!("{key_path}.t"),
-                        format!(
-                            "keys must be in increasing time order, but t = {} s follows t = {before} s \
-                             (keys[{}]); sort the keys by time",
-                            key.t,
-                            k - 1
-                        ),
-                    ));
-                }
+                        "keys must be in increasing time order, but t = {} s follows t = {before} s \
+                         (keys[{}]); sort the keys by time",
+                        key.t,
+                        k - 1
+                    )
+                })
+            };
+            if let Some(why) = time_problem {
+                p.push(Problem::new(format!("{key_path}.t"), why));
             }
             if key.t.is_finite() {
                 previous_t = Some(key.t);
@@ -234,22 +162,7 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
     let mut first_with_name: HashMap<&str, usize> = HashMap::new();
     for (j, layer) in doc.layers.iter().enumerate() {
         let path = format!("layers[{j}]");
-        if layer.name.trim().is_empty() {
-            p.push(Problem::new(
-                format!("{path}.name"),
-                "a layer needs a non-empty name",
-            ));
-        } else if let Some(&first) = first_with_name.get(layer.name.as_str()) {
-            p.push(Problem::new(
-                format!("{path}.name"),
-                format!(
-                    "the name \"{}\" is already used by layers[{first}]; give each layer its own name",
-                    layer.name
-                ),
-            ));
-        } else {
-            first_with_name.insert(&layer.name, j);
-        }
+        check_unique(&layer.name, j, ("layer", "name", "layers"), &mut first_with_name, &mut p);
         for (c, v) in layer.offset.iter().enumerate() {
             if !limits::coordinate_ok(*v) {
                 p.push(Problem::new(
@@ -258,18 +171,12 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                 ));
             }
         }
-        for (key, reference) in [
-            ("image", &layer.image),
-            ("alpha", &layer.alpha),
-            ("continuity", &layer.continuity),
-        ] {
-            if let Some(reference) = reference {
-                if reference.trim().is_empty() {
-                    p.push(Problem::new(
-                        format!("{path}.{key}"),
-                        "an empty image reference; give a path relative to the scene file or a data: URI",
-                    ));
-                }
+        for (key, reference) in [("image", &layer.image), ("alpha", &layer.alpha), ("continuity", &layer.continuity)] {
+            if reference.as_ref().is_some_and(|r| r.trim().is_empty()) {
+                p.push(Problem::new(
+                    format!("{path}.{key}"),
+                    "an empty image reference; give a path relative to the scene file or a data: URI",
+                ));
             }
         }
         if let Some(ids) = &layer.features {
@@ -282,28 +189,17 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                     let hint = did_you_mean(id, doc.features.iter().map(|f| f.id.as_str()))
                         .map(|s| format!("did you mean \"{s}\"? "))
                         .unwrap_or_default();
-                    let known: Vec<&str> = doc
-                        .features
-                        .iter()
-                        .map(|f| f.id.as_str())
-                        .chain(other_ids.iter().map(String::as_str))
-                        .collect();
+                    let ids = doc.features.iter().map(|f| f.id.as_str());
+                    let known: Vec<&str> = ids.chain(other_ids.iter().map(String::as_str)).collect();
                     let known = if known.is_empty() {
                         "the scene has no features".to_string()
                     } else {
                         format!("the feature ids are {}", known.join(", "))
                     };
-                    p.push(Problem::new(
-                        id_path,
-                        format!("no feature has the id \"{id}\"; {hint}{known}"),
-                    ));
+                    p.push(Problem::new(id_path, format!("no feature has the id \"{id}\"; {hint}{known}")));
                 } else if let Some(&first) = seen.get(id.as_str()) {
-                    p.push(Problem::new(
-                        id_path,
-                        format!(
-                            "\"{id}\" is listed twice (also at features[{first}]); list it once"
-                        ),
-                    ));
+                    let why = format!("\"{id}\" is listed twice (also at features[{first}]); list it once");
+                    p.push(Problem::new(id_path, why));
                 } else {
                     seen.insert(id, k);
                 }
@@ -314,6 +210,28 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
         }
     }
     p
+}
+
+/// A problem when `value`, the `key` of `list[index]` (a `noun`), is blank or already used
+/// by an earlier one (`first`: where each value was first seen).
+fn check_unique<'d>(
+    value: &'d str,
+    index: usize,
+    (noun, key, list): (&str, &str, &str),
+    first: &mut HashMap<&'d str, usize>,
+    p: &mut Vec<Problem>,
+) {
+    let path = format!("{list}[{index}].{key}");
+    if value.trim().is_empty() {
+        p.push(Problem::new(path, format!("a {noun} needs a non-empty {key}")));
+    } else if let Some(&earlier) = first.get(value) {
+        p.push(Problem::new(
+            path,
+            format!("the {key} \"{value}\" is already used by {list}[{earlier}]; give each {noun} its own {key}"),
+        ));
+    } else {
+        first.insert(value, index);
+    }
 }
 
 /// Every problem of solver settings given outside a scene (by a caller that overrides
@@ -328,10 +246,8 @@ fn check_points(points: &[Point], path: &str, p: &mut Vec<Problem>) {
     for (i, point) in points.iter().enumerate() {
         for (c, v) in point.iter().enumerate() {
             if !v.is_finite() {
-                p.push(Problem::new(
-                    format!("{path}[{i}][{c}]"),
-                    format!("coordinates must be finite numbers of pixels, found {v}"),
-                ));
+                let why = format!("coordinates must be finite numbers of pixels, found {v}");
+                p.push(Problem::new(format!("{path}[{i}][{c}]"), why));
             } else if !limits::coordinate_ok(*v) {
                 p.push(Problem::new(
                     format!("{path}[{i}][{c}]"),
@@ -347,61 +263,43 @@ fn check_points(points: &[Point], path: &str, p: &mut Vec<Problem>) {
 }
 
 fn check_solver(solver: &SolverDoc, path: &str, p: &mut Vec<Problem>) {
-    check_overrides(
-        &SolverOverrides {
-            method: Some(solver.method),
-            tension: Some(solver.tension),
-            tolerance: Some(solver.tolerance),
-            grid_step: Some(solver.grid_step),
-            max_cycles: solver.max_cycles,
-            scheme: Some(solver.scheme),
-            beier_neely: Some(solver.beier_neely),
-            tps_exact: Some(solver.tps_exact),
-        },
-        path,
-        p,
-    );
+    let overrides = SolverOverrides {
+        method: Some(solver.method),
+        tension: Some(solver.tension),
+        tolerance: Some(solver.tolerance),
+        grid_step: Some(solver.grid_step),
+        max_cycles: solver.max_cycles,
+        scheme: Some(solver.scheme),
+        beier_neely: Some(solver.beier_neely),
+        tps_exact: Some(solver.tps_exact),
+    };
+    check_overrides(&overrides, path, p);
 }
 
 fn check_overrides(solver: &SolverOverrides, path: &str, p: &mut Vec<Problem>) {
-    if let Some(method) = solver.method {
-        if !method_available(method) {
-            p.push(Problem::new(
-                format!("{path}.method"),
-                format!(
-                    "the method \"{}\" is not available in this version of inkwarp yet; use \"tps\"",
-                    method.name()
-                ),
-            ));
-        }
+    if let Some(method) = solver.method.filter(|&m| !method_available(m)) {
+        p.push(Problem::new(format!("{path}.method"), not_available(method)));
     }
-    if let Some(tension) = solver.tension {
-        if !(tension.is_finite() && (0.0..=MAX_TENSION).contains(&tension)) {
-            p.push(Problem::new(
-                format!("{path}.tension"),
-                format!(
-                    "the tension must be a number from 0 to {MAX_TENSION:e}, found {}; 0 is a \
-                     pure thin plate",
-                    limits::show(tension)
-                ),
-            ));
-        }
+    if let Some(tension) = solver.tension.filter(|t| !(t.is_finite() && (0.0..=MAX_TENSION).contains(t))) {
+        p.push(Problem::new(
+            format!("{path}.tension"),
+            format!(
+                "the tension must be a number from 0 to {MAX_TENSION:e}, found {}; 0 is a pure thin plate",
+                limits::show(tension)
+            ),
+        ));
     }
-    if let Some(tolerance) = solver.tolerance {
-        if !(tolerance.is_finite() && tolerance > 0.0) {
-            p.push(Problem::new(
-                format!("{path}.tolerance"),
-                format!("the tolerance must be a number of pixels > 0, found {tolerance}; the default is 0.01"),
-            ));
-        }
+    if let Some(tolerance) = solver.tolerance.filter(|t| !(t.is_finite() && *t > 0.0)) {
+        p.push(Problem::new(
+            format!("{path}.tolerance"),
+            format!("the tolerance must be a number of pixels > 0, found {tolerance}; the default is 0.01"),
+        ));
     }
-    if let Some(step) = solver.grid_step {
-        if !(1..=64).contains(&step) {
-            p.push(Problem::new(
-                format!("{path}.grid_step"),
-                format!("grid_step must be a whole number from 1 to 64, found {step}; 1 solves on every pixel"),
-            ));
-        }
+    if let Some(step) = solver.grid_step.filter(|s| !(1..=64).contains(s)) {
+        p.push(Problem::new(
+            format!("{path}.grid_step"),
+            format!("grid_step must be a whole number from 1 to 64, found {step}; 1 solves on every pixel"),
+        ));
     }
     if solver.max_cycles == Some(0) {
         p.push(Problem::new(
