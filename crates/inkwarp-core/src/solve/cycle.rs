@@ -110,22 +110,18 @@ impl Hierarchy {
     /// `f32`: the returned `z` is the cycle's own output, valid until the next call.
     pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
         map_into(&mut self.work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
-        let Some(mut strands) = self.strands.take() else { return self.cycle_from_zero(r) };
-        strands.before(&self.levels[0], r, &mut self.work[0].f);
-        self.cycle_from_zero(r);
-        strands.after(r, &mut self.work[0].x);
-        self.strands = Some(strands);
-        &self.work[0].x[..r.len()]
-    }
-
-    /// The cycle of [`Hierarchy::precondition`] on the right-hand side in `work[0].f`.
-    fn cycle_from_zero(&mut self, r: &[V2]) -> &[W2] {
+        if let Some(s) = &mut self.strands {
+            s.before(&self.levels[0], r, &mut self.work[0].f);
+        }
         let mut work = std::mem::take(&mut self.work);
         self.clear_start(0, &mut work[0].x);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
         self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
         if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
             a.work = w;
+        }
+        if let Some(s) = &self.strands {
+            s.after(r, &mut work[0].x);
         }
         self.work = work;
         &self.work[0].x[..r.len()]

@@ -39,6 +39,9 @@ pub(crate) trait Real:
     fn get(self) -> f64;
     /// The table of a Galerkin level in this precision.
     fn table<'a>(wide: &'a [[f64; 25]], narrow: &'a [[f32; 25]]) -> &'a [[Self; 25]];
+    /// The vector itself where `Self` is `f32` (the precision of [`Real::four_run`]).
+    fn as_f32(v: &[[Self; 2]]) -> Option<&[[f32; 2]]>;
+    fn as_f32_mut(v: &mut [[Self; 2]]) -> Option<&mut [[f32; 2]]>;
     /// Whether [`Real::four_run`] takes four nodes to a vector here.
     fn has_four_stencils() -> bool {
         false
@@ -75,6 +78,12 @@ impl Real for f64 {
     fn table<'a>(wide: &'a [[f64; 25]], _: &'a [[f32; 25]]) -> &'a [[f64; 25]] {
         wide
     }
+    fn as_f32(_: &[[f64; 2]]) -> Option<&[[f32; 2]]> {
+        None
+    }
+    fn as_f32_mut(_: &mut [[f64; 2]]) -> Option<&mut [[f32; 2]]> {
+        None
+    }
 }
 
 impl Real for f32 {
@@ -89,6 +98,12 @@ impl Real for f32 {
     }
     fn table<'a>(_: &'a [[f64; 25]], narrow: &'a [[f32; 25]]) -> &'a [[f32; 25]] {
         narrow
+    }
+    fn as_f32(v: &[[f32; 2]]) -> Option<&[[f32; 2]]> {
+        Some(v)
+    }
+    fn as_f32_mut(v: &mut [[f32; 2]]) -> Option<&mut [[f32; 2]]> {
+        Some(v)
     }
     #[cfg(target_arch = "x86_64")]
     fn has_four_stencils() -> bool {
@@ -393,32 +408,12 @@ impl Geometry {
         Geometry { w, h, active, right, down, fixed, prow: Vec::new(), ext: Vec::new(), plain_rows: Vec::new() }.with_rows()
     }
 
-    /// The next coarser geometry: node (X, Y) sits on (2X, 2Y); two coarse neighbours are
-    /// linked when the straight two-link path between them is linked here.
+    /// The next coarser geometry: node (X, Y) sits on (2X, 2Y) ([`coarse_links`] at step 2).
     pub fn coarsen(&self) -> Geometry {
         // ⌊n/2⌋ + 1 coarse nodes: for an even n the last one is a ghost just outside the
         // grid (at fine position n), so that the last fine node still sits between two
         // coarse nodes and interpolation keeps reproducing linear functions there.
-        let (fw, fh) = (self.w, self.h);
-        let (w, h) = (fw / 2 + 1, fh / 2 + 1);
-        let fx = |x: usize| (2 * x).min(fw - 1);
-        let fy = |y: usize| (2 * y).min(fh - 1);
-        let mut active = vec![false; w * h];
-        let mut right = vec![false; w * h];
-        let mut down = vec![false; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let c = y * w + x;
-                let f = self.idx(fx(x), fy(y));
-                active[c] = self.active[f];
-                if x + 1 < w {
-                    right[c] = self.right[f] && (2 * x + 2 == fw || self.right[f + 1]);
-                }
-                if y + 1 < h {
-                    down[c] = self.down[f] && (2 * y + 2 == fh || self.down[f + fw]);
-                }
-            }
-        }
+        let (w, h, [active, right, down]) = coarse_links(self.w, self.h, 2, &self.active, &self.right, &self.down);
         Geometry::new(w, h, active, right, down, None)
     }
 
@@ -538,30 +533,21 @@ impl Geometry {
         }
         match (x & 1, y & 1) {
             (0, 0) => r[5] = 1.0,
-            (1, 0) => self.along_row(x, y, 0, &mut r),
-            (0, 1) => self.along_column(x, y, 0, &mut r),
+            (1, 0) => r = self.along(x, y, false, 0),
+            (0, 1) => r = self.along(x, y, true, 0),
             _ => {
                 // The rows of its linked edge neighbours. Past the last column (row) sits
                 // the ghost coarse node's column (row), whose nodes would interpolate along
                 // this node's column (row) links (see `coarsen`).
+                // (The first two interpolate along their column, the others along their row.)
                 let parts = [
-                    self.right[i - 1].then_some((false, x - 1, y, 0)),
-                    if x + 1 == self.w { Some((false, x, y, 1)) } else { self.right[i].then_some((false, x + 1, y, 1)) },
-                    self.down[i - self.w].then_some((true, x, y - 1, 0)),
-                    if y + 1 == self.h { Some((true, x, y, 1)) } else { self.down[i].then_some((true, x, y + 1, 1)) },
+                    self.right[i - 1].then_some((x - 1, y, 0)),
+                    if x + 1 == self.w { Some((x, y, 1)) } else { self.right[i].then_some((x + 1, y, 1)) },
+                    self.down[i - self.w].then_some((x, y - 1, 0)),
+                    if y + 1 == self.h { Some((x, y, 1)) } else { self.down[i].then_some((x, y + 1, 1)) },
                 ];
-                let mut rows = [[0.0; 16]; 4];
-                let mut has = [false; 4];
-                for ((part, row), h) in parts.iter().zip(rows.iter_mut()).zip(has.iter_mut()) {
-                    if let &Some((horizontal, px, py, o)) = part {
-                        if horizontal {
-                            self.along_row(px, py, o, row);
-                        } else {
-                            self.along_column(px, py, o, row);
-                        }
-                        *h = row.iter().sum::<f64>() > 0.0;
-                    }
-                }
+                let rows: [[f64; 16]; 4] = std::array::from_fn(|k| parts[k].map_or([0.0; 16], |(px, py, o)| self.along(px, py, k < 2, o)));
+                let has = rows.map(|row| row.iter().sum::<f64>() > 0.0);
                 // Opposite neighbours: their mean. One in each direction: the bilinear
                 // completion through the coarse corner they share, when that corner is
                 // their neighbour. Else the mean of what there is (a constant).
@@ -607,33 +593,22 @@ impl Geometry {
         r
     }
 
-    /// The row of odd node x along row y, into the window row `oy` of `r`:
-    /// halves on the coarse nodes left and right of it, or at a missing link the
-    /// extrapolation from the linked side (`extend`); the last node of an even-sized row
-    /// has the ghost coarse node beyond it (see `coarsen`).
-    fn along_row(&self, x: usize, y: usize, oy: usize, r: &mut [f64; 16]) {
+    /// The row of node (x, y), odd along its row (or its column, when `vertical`), on the
+    /// window row (column) `o`: halves on the coarse nodes each side of it, or at a missing
+    /// link the extrapolation from the linked side (`extend`); the last node of an
+    /// even-sized line has the ghost coarse node beyond it (see `coarsen`).
+    fn along(&self, x: usize, y: usize, vertical: bool, o: usize) -> [f64; 16] {
         let i = self.idx(x, y);
-        let left = self.right[i - 1];
-        let right = x + 1 == self.w || self.right[i];
+        let (links, s, t, n) = if vertical { (&self.down, self.w, y, self.h) } else { (&self.right, 1, x, self.w) };
         // Linear across a cut (the node beyond the gap active) where two more links run
         // away from it.
-        let far_left = x >= 3 && x + 1 < self.w && self.active[i + 1] && self.right[i - 2] && self.right[i - 3];
-        let far_right = x + 3 < self.w && self.active[i - 1] && self.right[i + 1] && self.right[i + 2];
-        extend(&mut r[oy * 4 + 4..oy * 4 + 8], left, right, far_left, far_right);
-    }
-
-    /// The same along column x, into the window column `ox`.
-    fn along_column(&self, x: usize, y: usize, ox: usize, r: &mut [f64; 16]) {
-        let (i, w) = (self.idx(x, y), self.w);
-        let up = self.down[i - w];
-        let down = y + 1 == self.h || self.down[i];
-        let far_up = y >= 3 && y + 1 < self.h && self.active[i + w] && self.down[i - 2 * w] && self.down[i - 3 * w];
-        let far_down = y + 3 < self.h && self.active[i - w] && self.down[i + w] && self.down[i + 2 * w];
-        let mut col = [0.0; 4];
-        extend(&mut col, up, down, far_up, far_down);
-        for (k, v) in col.into_iter().enumerate() {
-            r[k * 4 + ox + 1] = v;
+        let fa = t >= 3 && t + 1 < n && self.active[i + s] && links[i - 2 * s] && links[i - 3 * s];
+        let fb = t + 3 < n && self.active[i - s] && links[i + s] && links[i + 2 * s];
+        let mut r = [0.0; 16];
+        for (k, v) in extend(links[i - s], t + 1 == n || links[i], fa, fb).into_iter().enumerate() {
+            r[if vertical { k * 4 + o + 1 } else { (o + 1) * 4 + k }] = v;
         }
+        r
     }
 
     /// Calls `f(ox, oy, weight)` for each nonzero weight of the prolongation row of node
@@ -678,12 +653,22 @@ impl Geometry {
         });
         w
     }
+}
 
-    /// The extended rows of rows `y0..=y1` (see `ext`).
-    pub fn ext_rows(&self, y0: usize, y1: usize) -> &[(u32, [f64; 16])] {
-        let at = |y: usize| self.ext.partition_point(|e| (e.0 as usize) < y * self.w);
-        &self.ext[at(y0)..at(y1 + 1)]
+/// Every `s`-th node of a `w × h` grid (`active`, linked `right` and `down`): node (X, Y)
+/// on (min(sX, w − 1), min(sY, h − 1)), active where that node is; two neighbours linked
+/// where every link of the straight path between them is. Its size and vectors.
+pub(crate) fn coarse_links(w: usize, h: usize, s: usize, active: &[bool], right: &[bool], down: &[bool]) -> (usize, usize, [Vec<bool>; 3]) {
+    let (wc, hc) = ((w - 1).div_ceil(s) + 1, (h - 1).div_ceil(s) + 1);
+    let (px, py) = (|x: usize| (x * s).min(w - 1), |y: usize| (y * s).min(h - 1));
+    let mut out = [vec![false; wc * hc], vec![false; wc * hc], vec![false; wc * hc]];
+    for (yc, xc) in (0..hc).flat_map(|yc| (0..wc).map(move |xc| (yc, xc))) {
+        let (c, fx, fy) = (yc * wc + xc, px(xc), py(yc));
+        out[0][c] = active[fy * w + fx];
+        out[1][c] = xc + 1 < wc && (fx..px(xc + 1)).all(|x| right[fy * w + x]);
+        out[2][c] = yc + 1 < hc && (fy..py(yc + 1)).all(|y| down[y * w + fx]);
     }
+    (wc, hc, out)
 }
 
 /// The code in [`Geometry::prow`] of a row stored in [`Geometry::ext`].
@@ -693,27 +678,18 @@ const CORNERS: [usize; 4] = [5, 6, 9, 10];
 /// The codes of the plain bilinear rows (see [`plain_row`]), by `(y & 1) * 2 + (x & 1)`.
 const PLAIN_CODES: [[u8; 4]; 4] = [[24, 0, 0, 0], [12, 12, 0, 0], [12, 0, 12, 0], [6, 6, 6, 6]];
 
-/// The row of a fine node between coarse nodes 1 and 2 of `r` (a line of the
-/// 4 × 4 window), linked to them as `a` and `b`; at a missing link the linked side's value
-/// is extrapolated linearly when its far link (`fa`, `fb`: coarse 0–1, 2–3) exists.
-#[inline]
-fn extend(r: &mut [f64], a: bool, b: bool, fa: bool, fb: bool) {
+/// The row of a fine node between coarse nodes 1 and 2 of a line of the 4 × 4 window,
+/// linked to them as `a` and `b`; at a missing link the linked side's value is extrapolated
+/// linearly when its far link (`fa`, `fb`: coarse 0–1, 2–3) exists.
+fn extend(a: bool, b: bool, fa: bool, fb: bool) -> [f64; 4] {
     match (a, b) {
-        (true, true) => (r[1], r[2]) = (0.5, 0.5),
-        (true, false) if fa => (r[0], r[1]) = (-0.5, 1.5),
-        (true, false) => r[1] = 1.0,
-        (false, true) if fb => (r[2], r[3]) = (1.5, -0.5),
-        (false, true) => r[2] = 1.0,
-        _ => {}
+        (true, true) => [0.0, 0.5, 0.5, 0.0],
+        (true, false) if fa => [-0.5, 1.5, 0.0, 0.0],
+        (true, false) => [0.0, 1.0, 0.0, 0.0],
+        (false, true) if fb => [0.0, 0.0, 1.5, -0.5],
+        (false, true) => [0.0, 0.0, 1.0, 0.0],
+        _ => [0.0; 4],
     }
-}
-
-/// What a product over the bands also gathers while each band is in cache.
-#[derive(Clone, Copy)]
-enum Fold {
-    Nothing,
-    Dot,
-    ScaledMax,
 }
 
 widest! {
@@ -801,6 +777,12 @@ pub(crate) enum Operator {
 /// A tap of a Galerkin level past its stored 5 × 5 stencils: `(p, q, a_pq)`, padded
 /// indices, sorted by `p` (where extrapolating prolongation rows meet, at a cut's tips).
 pub(crate) type Far = (u32, u32, f64);
+
+/// The far taps of row `p` among `far`.
+fn far_of(far: &[Far], p: usize) -> &[Far] {
+    let k0 = far.partition_point(|e| (e.0 as usize) < p);
+    &far[k0..k0 + far[k0..].partition_point(|e| e.0 as usize == p)]
+}
 
 /// The shared stencil of a Galerkin level when it has the symmetries of the square (it
 /// does whenever the finest operator is the same in x and y): five coefficients, for the
@@ -942,9 +924,8 @@ impl Level {
     /// extrapolates a constant.
     pub fn into_plain(self) -> Level {
         let (w, h) = (self.geo.w, self.geo.h);
-        let right = (0..w * h).map(|i| i % w + 1 < w).collect();
-        let down = (0..w * h).map(|i| i + w < w * h).collect();
-        self.with_prolongation(Geometry::new(w, h, vec![true; w * h], right, down, None))
+        let crate::grid::Grid { active, link_right, link_down, .. } = crate::grid::Grid::new(w, h);
+        self.with_prolongation(Geometry::new(w, h, active, link_right, link_down, None))
     }
 
     /// The level with the prolongation rows of `geo` (the same grid, more nodes or links);
@@ -1035,12 +1016,8 @@ impl Level {
     /// The far taps of row `p` (see [`Far`]).
     pub fn far(&self, p: usize) -> &[Far] {
         match &self.op {
-            Operator::Stored { far, .. } if !far.is_empty() => {
-                let k0 = far.partition_point(|e| (e.0 as usize) < p);
-                let k1 = k0 + far[k0..].partition_point(|e| e.0 as usize == p);
-                &far[k0..k1]
-            }
-            _ => &[],
+            Operator::Stored { far, .. } => far_of(far, p),
+            Operator::Fine { .. } => &[],
         }
     }
 
@@ -1095,7 +1072,10 @@ impl Level {
 
     /// `y = f − A x` on unknowns (zero elsewhere), rows in parallel for large levels.
     pub fn residual<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]]) {
-        self.bands(x, f, out, Fold::Nothing);
+        self.over_bands(out, false, |r0, _, chunk| {
+            self.band_residual(x, f, r0, 0, chunk);
+            [0.0; 2]
+        });
     }
 
     /// `out = f − A x` on a Galerkin level with every product and sum in `f64` (entries
@@ -1103,13 +1083,24 @@ impl Level {
     /// whose product summed in `f32` is rounding noise above the residual it should carry
     /// (`docs/dev/solver-correctness.md`, "Coarse products in f64").
     pub fn residual_f64(&self, x: &[W2], f: Option<&[W2]>, out: &mut [W2]) {
+        let Operator::Stored { runs, far, .. } = &self.op else { unreachable!("a Galerkin level") };
         let wp = self.wp;
-        self.over_bands(out, Fold::Nothing, |r0, _, chunk| {
+        self.over_bands(out, false, |r0, _, chunk| {
             ROW_F64.with(|buf| {
                 let mut buf = buf.borrow_mut();
                 buf.resize(wp, [0.0; 2]);
                 for (k, orow) in chunk.chunks_mut(wp).enumerate() {
-                    residual_row_f64(self, x, f, r0 + k, &mut buf, orow);
+                    // −A x of the row in `f64`, then `f` added and the sum rounded.
+                    let (r, base) = (r0 + k, (r0 + k) * wp);
+                    residual_row::<WS, f64>(self, x, None, r, &mut buf);
+                    subtract_far(far, base, x, &mut buf);
+                    for &run in runs.row(r) {
+                        let (c, e) = (run.start as usize, run.end as usize);
+                        for (j, (o, b)) in orow[c..e].iter_mut().zip(&buf[c..e]).enumerate() {
+                            let fv = f.map_or([0.0; 2], |f| [f[base + c + j][0].get(), f[base + c + j][1].get()]);
+                            *o = if run.kind == RunKind::Skip { [0.0; 2] } else { [WS::of(fv[0] + b[0]), WS::of(fv[1] + b[1])] };
+                        }
+                    }
                 }
             });
             [0.0; 2]
@@ -1119,7 +1110,10 @@ impl Level {
     /// `out = −A x` (as [`Level::residual`] without `f`) and `xᵀ out` per component, taken
     /// band by band while both are in cache.
     pub fn residual_dot<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> [f64; 2] {
-        self.bands(x, None, out, Fold::Dot)
+        self.over_bands(out, false, |r0, r1, chunk| {
+            self.band_residual(x, None, r0, 0, chunk);
+            dot_pairs(&x[r0 * self.wp..r1 * self.wp], chunk)
+        })
     }
 
     /// `out = −A x` in `f64` on the finest level for an `x` in `f32`, every entry of `x`
@@ -1127,24 +1121,27 @@ impl Level {
     /// search direction, kept in `f32` (see `solve_piece`), band by band while both are
     /// in cache; bit for bit the `f64` product of the widened vector (a test holds it so).
     pub fn fine_residual_dot_narrow(&self, x: &[W2], out: &mut [V2]) -> [f64; 2] {
-        let Operator::Fine { tau, runs, own, .. } = &self.op else { unreachable!("the finest level's operator") };
-        let wp = self.wp;
-        self.over_bands(out, Fold::Dot, |r0, r1, chunk| {
-            fine_band(runs, own, *tau, wp, x, None, r0, r1, 0, chunk);
-            pair_sums(x[r0 * wp..r1 * wp].as_flattened(), chunk.as_flattened(), |a: WS, b: f64| a.get() * b)
+        assert!(matches!(self.op, Operator::Fine { .. }), "the finest level");
+        self.over_bands(out, false, |r0, r1, chunk| {
+            self.band_residual(x, None, r0, 0, chunk);
+            pair_sums(x[r0 * self.wp..r1 * self.wp].as_flattened(), chunk.as_flattened(), |a: WS, b: f64| a.get() * b)
         })
     }
 
     /// `out = −A x` and its largest entry scaled by the inverse diagonal (see
     /// [`scaled_max`]), taken band by band while `out` is in cache.
     pub fn residual_scaled_max<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> f64 {
-        self.bands(x, None, out, Fold::ScaledMax)[0]
+        let max = self.over_bands(out, true, |r0, r1, chunk| {
+            self.band_residual(x, None, r0, 0, chunk);
+            [scaled_max(chunk, &self.inv_diag[r0 * self.wp..r1 * self.wp]), 0.0]
+        });
+        max[0]
     }
 
     /// `out = f − A x` on the rows of the band from padded row `r0` (`out` holds those
     /// rows). `x` and `f` hold the level's rows from padded row `shift` on (on the finest
-    /// level; 0 on the others).
-    fn band_residual<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, r0: usize, shift: usize, out: &mut [[T; 2]]) {
+    /// level; 0 on the others). Summed in `T`, `x` widened exactly (see [`widened`]).
+    fn band_residual<S: Real, T: Real>(&self, x: &[[S; 2]], f: Option<&[[T; 2]]>, r0: usize, shift: usize, out: &mut [[T; 2]]) {
         let wp = self.wp;
         match &self.op {
             Operator::Fine { tau, runs, own, .. } => fine_band(runs, own, *tau, wp, x, f, r0, r0 + out.len() / wp, shift, out),
@@ -1158,23 +1155,11 @@ impl Level {
         }
     }
 
-    fn bands<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]], fold: Fold) -> [f64; 2] {
-        let wp = self.wp;
-        self.over_bands(out, fold, |r0, r1, chunk| {
-            self.band_residual(x, f, r0, 0, chunk);
-            match fold {
-                Fold::Nothing => [0.0; 2],
-                Fold::Dot => dot_pairs(&x[r0 * wp..r1 * wp], chunk),
-                Fold::ScaledMax => [scaled_max(chunk, &self.inv_diag[r0 * wp..r1 * wp]), 0.0],
-            }
-        })
-    }
-
     /// `band(r0, r1, rows)` on the level's body in bands of [`PAR_ROWS`] rows (`rows` the
-    /// band's padded rows `r0..r1` of `out`), on the pool's threads, and
-    /// the bands' results by `fold`: the largest first entry for [`Fold::ScaledMax`], else
-    /// the sums, added in order so that they do not depend on the threads.
-    fn over_bands<U: Send>(&self, out: &mut [U], fold: Fold, band: impl Fn(usize, usize, &mut [U]) -> [f64; 2] + Sync + Send) -> [f64; 2] {
+    /// band's padded rows `r0..r1` of `out`: a product, and what it gathers while the band is
+    /// in cache), on the pool's threads, and the bands' results: the largest first entry
+    /// when `max`, else the sums, added in order so that they do not depend on the threads.
+    fn over_bands<U: Send>(&self, out: &mut [U], max: bool, band: impl Fn(usize, usize, &mut [U]) -> [f64; 2] + Sync + Send) -> [f64; 2] {
         let wp = self.wp;
         let run = |(r, chunk): (usize, &mut [U])| {
             let r0 = r * PAR_ROWS + PAD;
@@ -1182,7 +1167,7 @@ impl Level {
         };
         let body = &mut out[PAD * wp..(PAD + self.geo.h) * wp];
         let parts: Vec<[f64; 2]> = body.par_chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect();
-        if let Fold::ScaledMax = fold {
+        if max {
             return [parts.iter().fold(0.0, |m, p| larger(m, p[0])), 0.0];
         }
         parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
@@ -1311,68 +1296,37 @@ widest! {
 }
 
 widest! {
-    /// `out = f − A x` on the unknowns of padded row `r` of Galerkin level `level`, on the
-    /// processor's widest vectors (see [`super::wide`]).
+    /// `out = f − A x` on the unknowns of padded row `r` of Galerkin level `level` (summed in
+    /// `T`, `x` widened exactly: see [`widened`]), on the processor's widest vectors (see
+    /// [`super::wide`]).
     #[inline(never)]
-    fn residual_row<T: Real>(level: &Level, x: &[[T; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) =>
+    fn residual_row<S: Real, T: Real>(level: &Level, x: &[[S; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) =>
     residual_row_body {
         let Operator::Stored { ids, table, narrow, sym, fours, runs, .. } = &level.op else { unreachable!("a Galerkin level") };
         let (wp, base, table) = (level.wp, r * level.wp, T::table(table, narrow));
-        let four = T::has_four_stencils() && !fours.row_first.is_empty();
+        let four = f32::has_four_stencils() && !fours.row_first.is_empty();
         let mut block = if four { fours.row_first[r] as usize } else { 0 };
         for &run in runs.row(r) {
             let (c, e) = (run.start as usize, run.end as usize);
             match (run.kind, sym) {
                 (RunKind::Skip, _) => out[c..e].fill([T::ZERO; 2]),
-                (RunKind::Shared, Some(sym)) => sym_run::<T, T, true>(x, f, sym, wp, base, c, e, out),
+                (RunKind::Shared, Some(sym)) => sym_run::<S, T, true>(x, f, sym, wp, base, c, e, out),
                 (RunKind::Shared, None) => shared_run(x, f, &table[0], wp, base, c, e, out),
                 (RunKind::Own, _) => {
                     // In `f32` with AVX2, four nodes to a vector (see `four_run_avx2`).
                     let mut i = c;
-                    if four {
+                    if let (true, Some(xs), Some(o)) = (four, S::as_f32(x), T::as_f32_mut(out)) {
                         let (n, tail) = ((e - c) / 4, (e - c) % 4);
                         let m = n + usize::from(tail > 0);
                         // Near the end of a level's last row the tail's taps may pass the
                         // vectors' end: there it is summed below, node by node.
                         let tail = if base + c + 4 * m + 2 * wp + 2 <= x.len() { tail } else { 0 };
-                        T::four_run(x, f, base + c, n, tail, wp, &fours.blocks[block..block + m], &mut out[c..c + 4 * n + tail]);
+                        f32::four_run(xs, f.and_then(T::as_f32), base + c, n, tail, wp, &fours.blocks[block..block + m], &mut o[c..c + 4 * n + tail]);
                         block += m;
                         i += 4 * n + tail;
                     }
                     own_sums(x, f, wp, base, i, e, out, |q| &table[ids[q] as usize]);
                 }
-            }
-        }
-    }
-}
-
-widest! {
-    /// `out = f − A x` on padded row `r` of Galerkin level `level` in `f64` (see
-    /// [`Level::residual_f64`]; `buf` a row of scratch), on the processor's widest vectors.
-    #[inline(never)]
-    fn residual_row_f64(level: &Level, x: &[W2], f: Option<&[W2]>, r: usize, buf: &mut [V2], out: &mut [W2]) =>
-    residual_row_f64_body {
-        let Operator::Stored { ids, table, sym, runs, far, .. } = &level.op else { unreachable!("a Galerkin level") };
-        let (wp, base) = (level.wp, r * level.wp);
-        for &run in runs.row(r) {
-            let (c, e) = (run.start as usize, run.end as usize);
-            match (run.kind, sym) {
-                (RunKind::Skip, _) => {}
-                (RunKind::Shared, Some(sym)) => sym_run::<WS, f64, true>(x, None, sym, wp, base, c, e, buf),
-                (RunKind::Shared, None) => shared_run::<WS, f64>(x, None, &table[0], wp, base, c, e, buf),
-                (RunKind::Own, _) => own_sums::<WS, f64>(x, None, wp, base, c, e, buf, |q| &table[ids[q] as usize]),
-            }
-        }
-        subtract_far(far, base, x, buf);
-        for &run in runs.row(r) {
-            let (c, e) = (run.start as usize, run.end as usize);
-            if run.kind == RunKind::Skip {
-                out[c..e].fill([0.0; 2]);
-                continue;
-            }
-            for (j, (o, b)) in out[c..e].iter_mut().zip(&buf[c..e]).enumerate() {
-                let fv = f.map_or([0.0; 2], |f| [f[base + c + j][0].get(), f[base + c + j][1].get()]);
-                *o = [WS::of(fv[0] + b[0]), WS::of(fv[1] + b[1])];
             }
         }
     }
@@ -1644,15 +1598,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let s = sat[y1 * (fw + 1) + x1] + sat[y0 * (fw + 1) + x0] - sat[y0 * (fw + 1) + x1] - sat[y1 * (fw + 1) + x0];
         s as usize == (x1 - x0) * (y1 - y0)
     };
-    let mut shared = [0.0f64; 25];
-    'find: for yc in 0..hc {
-        for xc in 0..wc {
-            if regular(xc, yc) {
-                shared = galerkin_node(fine, xc, yc);
-                break 'find;
-            }
-        }
-    }
+    let first = (0..hc * wc).find(|&c| regular(c % wc, c / wc));
+    let shared = first.map_or([0.0; 25], |c| galerkin_node(fine, c % wc, c / wc));
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let far_here = matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
@@ -1752,16 +1699,15 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
             }
             let s = &table[ids[p] as usize];
             let d = s[12];
-            let k0 = far.partition_point(|e| (e.0 as usize) < p);
-            let far_p = far[k0..].iter().take_while(|e| e.0 as usize == p);
+            let far_p = far_of(&far, p);
             // A vanishing diagonal: the coarse node has no fine children left.
             if d > 1e-300 {
-                let sum: f64 = s.iter().map(|a| a.abs()).sum::<f64>() + far_p.clone().map(|e| e.2.abs()).sum::<f64>();
+                let sum: f64 = s.iter().map(|a| a.abs()).sum::<f64>() + far_p.iter().map(|e| e.2.abs()).sum::<f64>();
                 inv_diag[p] = 1.0 / d;
                 lam_max = lam_max.max(sum / d);
             }
             let i = yc * wc + xc;
-            clean[i] = ids[p] == 0 && far_p.count() == 0 && geo.right[i] && geo.down[i];
+            clean[i] = ids[p] == 0 && far_p.is_empty() && geo.right[i] && geo.down[i];
         }
     }
     let sym = Sym::of(&table[0]);
@@ -1965,9 +1911,10 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
                 }
             }
         }
-        // The rows reaching past their corners, wherever they sit.
-        let rows = fine.geo.children(yc, fh);
-        for (i, row) in fine.geo.ext_rows(*rows.start(), *rows.end()) {
+        // The rows reaching past their corners, wherever they sit (in the rows of the children).
+        let (rows, ext) = (fine.geo.children(yc, fh), &fine.geo.ext);
+        let at = |y: usize| ext.partition_point(|e| (e.0 as usize) < y * fw);
+        for (i, row) in &ext[at(*rows.start())..at(*rows.end() + 1)] {
             let (ix, iy) = (*i as usize % fw, *i as usize / fw);
             let r = get(v[fine.pidx(ix, iy)]);
             let oy = yc as isize - (iy / 2) as isize;
@@ -2040,39 +1987,39 @@ widest! {
 widest! {
     /// The bilinear prolongation onto one fine row `x` whose nodes all interpolate
     /// plainly, from coarse rows `c0` and `c1` (`odd`: halfway between them, else on
-    /// `c0`): `x += α P e` on the nodes whose prolongation row `prow` is not empty, for
-    /// the coarse columns whose right neighbour the row also reaches (2X + 1 < fw), on the
-    /// processor's widest vectors. Returns the first coarse column it left for the caller.
-    fn prolong_row<S: Real, T: Real>(c0: &[[S; 2]], c1: &[[S; 2]], odd: bool, prow: &[[u8; 4]], x: &mut [[T; 2]], alpha: V2) -> usize =>
+    /// `c0`): `x += α P e` on the nodes whose prolongation row `prow` is not empty, on the
+    /// processor's widest vectors.
+    fn prolong_row<S: Real, T: Real>(c0: &[[S; 2]], c1: &[[S; 2]], odd: bool, prow: &[[u8; 4]], x: &mut [[T; 2]], alpha: V2) =>
     prolong_row_body {
         let fw = x.len();
+        // Computed everywhere, then chosen: a branch kept the loop scalar.
         let add = |o: [T; 2], keep: bool, a: V2| {
             let new = [T::of(o[0].get() + alpha[0] * a[0]), T::of(o[1].get() + alpha[1] * a[1])];
-            if keep {
-                new
-            } else {
-                o
-            }
+            if keep { new } else { o }
         };
+        let col = |a: [S; 2], b: [S; 2]| -> V2 {
+            let (a, b) = ([a[0].get(), a[1].get()], [b[0].get(), b[1].get()]);
+            if odd { [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])] } else { a }
+        };
+        let mid = |l: V2, r: V2| [0.5 * (l[0] + r[0]), 0.5 * (l[1] + r[1])];
+        // The coarse columns whose right neighbour the row also reaches (2X + 1 < fw): pairs
+        // of fine nodes (2X, 2X + 1) against pairs of coarse columns (X, X + 1), all of one
+        // length, so the loop has no tests; the rest one by one.
         let done = (fw / 2).min(c0.len().saturating_sub(1)).min(c1.len().saturating_sub(1));
-        // Pairs of fine nodes (2X, 2X + 1) against pairs of coarse columns (X, X + 1), all
-        // of one length, so the loop has no tests.
         let fine = x[..2 * done].chunks_exact_mut(2).zip(prow[..2 * done].chunks_exact(2));
         let coarse = c0[..done + 1].windows(2).zip(c1[..done + 1].windows(2));
         for ((xs, ps), (a, b)) in fine.zip(coarse) {
-            let col = |j: usize| -> V2 {
-                let (a, b) = ([a[j][0].get(), a[j][1].get()], [b[j][0].get(), b[j][1].get()]);
-                if odd {
-                    [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]
-                } else {
-                    a
-                }
-            };
-            let (left, right) = (col(0), col(1));
+            let (left, right) = (col(a[0], b[0]), col(a[1], b[1]));
             xs[0] = add(xs[0], ps[0] != [0; 4], left);
-            xs[1] = add(xs[1], ps[1] != [0; 4], [0.5 * (left[0] + right[0]), 0.5 * (left[1] + right[1])]);
+            xs[1] = add(xs[1], ps[1] != [0; 4], mid(left, right));
         }
-        done
+        for xc in done..c0.len().min(fw.div_ceil(2)) {
+            let (ix, left) = (2 * xc, col(c0[xc], c1[xc]));
+            x[ix] = add(x[ix], prow[ix] != [0; 4], left);
+            if ix + 1 < fw {
+                x[ix + 1] = add(x[ix + 1], prow[ix + 1] != [0; 4], mid(left, col(c0[xc + 1], c1[xc + 1])));
+            }
+        }
     }
 }
 
@@ -2090,38 +2037,8 @@ pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level,
         let cy = iy / 2;
         if fine.geo.plain_rows[iy] {
             // Bilinear interpolation; fixed nodes (rows of zeros) keep their values.
-            let wc = coarse.geo.w;
-            let c0 = &e[coarse.pidx(0, cy)..coarse.pidx(0, cy) + wc];
-            let odd = iy & 1 == 1;
-            let c1 = if odd { &e[coarse.pidx(0, cy + 1)..coarse.pidx(0, cy + 1) + wc] } else { c0 };
-            let col = |xc: usize| -> V2 {
-                let (a, b) = (get(c0[xc]), get(c1[xc]));
-                if odd {
-                    [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]
-                } else {
-                    a
-                }
-            };
-            let prow = &fine.geo.prow[iy * fw..(iy + 1) * fw];
-            // The nodes with both coarse neighbours on vectors, the rest one by one.
-            let done = prolong_row(c0, c1, odd, prow, &mut xrow[PAD..PAD + fw], alpha);
-            let mut left = col(done);
-            for xc in done..wc {
-                let ix = 2 * xc;
-                if ix >= fw {
-                    break;
-                }
-                if prow[ix] != [0; 4] {
-                    add(&mut xrow[ix + PAD], left);
-                }
-                if ix + 1 < fw {
-                    let right = col(xc + 1);
-                    if prow[ix + 1] != [0; 4] {
-                        add(&mut xrow[ix + 1 + PAD], [0.5 * (left[0] + right[0]), 0.5 * (left[1] + right[1])]);
-                    }
-                    left = right;
-                }
-            }
+            let (odd, row) = (iy & 1 == 1, |cy: usize| &e[coarse.pidx(0, cy)..coarse.pidx(0, cy) + coarse.geo.w]);
+            prolong_row(row(cy), row(cy + usize::from(odd)), odd, &fine.geo.prow[iy * fw..(iy + 1) * fw], &mut xrow[PAD..PAD + fw], alpha);
             return;
         }
         for ix in 0..fw {

@@ -121,8 +121,7 @@ impl Ablation {
 
 impl Default for SolveOptions {
     fn default() -> Self {
-        let off = Ablation::default();
-        SolveOptions { tension: 0.0, tolerance_px: 0.01, grid_step: 1, max_cycles: None, method: SolveMethod::Multigrid, southwell_sweeps: 10.0, off }
+        SolveOptions { tension: 0.0, tolerance_px: 0.01, grid_step: 1, max_cycles: None, method: SolveMethod::Multigrid, southwell_sweeps: 10.0, off: Ablation::default() }
     }
 }
 
@@ -236,20 +235,16 @@ pub fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
 }
 
 pub(crate) fn validate(grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>) -> Result<(), SolveError> {
-    if !grid.is_consistent() {
-        return Err(SolveError::InconsistentGrid);
-    }
-    if !(options.tension.is_finite() && options.tension >= 0.0) {
-        return Err(SolveError::BadTension(options.tension));
-    }
-    if !(options.tolerance_px.is_finite() && options.tolerance_px >= 0.0) {
-        return Err(SolveError::BadTolerance(options.tolerance_px));
-    }
-    if options.grid_step == 0 {
-        return Err(SolveError::BadGridStep);
-    }
-    if !(options.southwell_sweeps.is_finite() && options.southwell_sweeps >= 0.0) {
-        return Err(SolveError::BadBudget(options.southwell_sweeps));
+    let bad = |v: f64| !(v.is_finite() && v >= 0.0);
+    let refusals = [
+        (!grid.is_consistent(), SolveError::InconsistentGrid),
+        (bad(options.tension), SolveError::BadTension(options.tension)),
+        (bad(options.tolerance_px), SolveError::BadTolerance(options.tolerance_px)),
+        (options.grid_step == 0, SolveError::BadGridStep),
+        (bad(options.southwell_sweeps), SolveError::BadBudget(options.southwell_sweeps)),
+    ];
+    if let Some((_, e)) = refusals.into_iter().find(|r| r.0) {
+        return Err(e);
     }
     if let Some(index) = samples.iter().position(|s| !s.rest.iter().chain(s.displacement.iter()).all(|v| v.is_finite())) {
         return Err(SolveError::NonFiniteSample { index });
@@ -301,7 +296,12 @@ pub(crate) fn solve_constrained(
     // key marks it open (`BoxLinks::Open`) and whose answer is written without reading
     // labels.
     let (labels, count, open) = grid.pieces_and_open();
-    let pieces = classify(grid, &labels, count, constraints, tau);
+    // Constraints by piece (their mean: a one-line piece's gauge value without a warm start).
+    let mut by_piece: Vec<Vec<usize>> = vec![Vec::new(); count];
+    for (k, &i) in constraints.nodes.iter().enumerate() {
+        by_piece[labels[i] as usize].push(k);
+    }
+    let pieces = classify(grid, &labels, &by_piece, constraints, tau);
     let mut field = Field::zeros(w, h);
 
     // Each piece is a problem of its own: translated pieces take their constraint, and
@@ -328,15 +328,6 @@ pub(crate) fn solve_constrained(
             }
         }
     }
-    // Constraints by piece (their mean: a one-line piece's gauge value without a warm start).
-    let mut by_piece: Vec<Vec<usize>> = vec![Vec::new(); count];
-    for (k, &i) in constraints.nodes.iter().enumerate() {
-        by_piece[labels[i] as usize].push(k);
-    }
-    // The solved pieces' values; pieces on one line are corrected in it before they go to
-    // the field.
-    let lines = pieces.iter().any(|p| matches!(p, Piece::Line { .. }));
-    let mut out: Vec<V2> = if lines { vec![[0.0; 2]; n] } else { Vec::new() };
     for (l, piece) in pieces.iter().enumerate() {
         let gauge = match *piece {
             Piece::Line { gauge, .. } => Some(gauge),
@@ -355,6 +346,8 @@ pub(crate) fn solve_constrained(
             fixed[j] = true;
             value.push((j, constraints.values[k]));
         }
+        // The constrained nodes alone (the gauge pin, off the line, is never one of them).
+        let constrained_only = fixed.clone();
         if let Some(g) = gauge {
             let v = match initial {
                 Some(f) => f.at_index(g).map(f64::from),
@@ -369,12 +362,8 @@ pub(crate) fn solve_constrained(
         }
         // The functions of zero plate energy that the constraints leave free (hinges,
         // strands, thin rings, the line's tilt): where there are any beyond the tilt, the
-        // iteration alone does not give the contract's answer (see `nullspace`).
-        let mut constrained_only = fixed.clone();
-        if let Some(g) = gauge {
-            constrained_only[local(g)] = false;
-        }
-        // (`None` when there are too many to settle.)
+        // iteration alone does not give the contract's answer (see `nullspace`); `None` when
+        // there are too many to settle.
         let vectors = (!open).then(|| links.vectors(bw, bh));
         let geo = vectors.as_ref().map(|[active, right, down]| nullspace::BoxGeo { w: bw, h: bh, active, right, down });
         let max = if tau == 0.0 { nullspace::MAX_NULL_AT_ZERO } else { nullspace::MAX_NULL };
@@ -391,13 +380,11 @@ pub(crate) fn solve_constrained(
                 for &(j, v) in &value {
                     values[j] = v;
                 }
-                let u = BoxValues { values, stride: bw, first: 0 };
-                write_piece(&mut field, &mut out, lines, &labels, l as u32, boxes[l], &u);
+                write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
                 continue;
             }
         }
-        let links_again = (!open).then(|| links.clone());
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed: fixed.clone(), off: options.off };
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
         let start = initial.map(|f| (f, x0, y0));
         // (A one-line piece's single free function is its tilt, which the line fixes.)
         let settles = null.as_ref().is_some_and(|b| b.len() > usize::from(gauge.is_some()));
@@ -407,33 +394,24 @@ pub(crate) fn solve_constrained(
             (Some(basis), Some(g)) if settles && tau == 0.0 => Some(nullspace::Membrane::new(g, basis)),
             _ => None,
         };
+        let again = (settles && !open).then(|| key.clone());
         let (mut u, mut r) = solve_piece(key, &value, start, options, store, membrane.as_ref());
-        if let (Some(basis), Some(links), Some(geo), true) = (&null, links_again, &geo, settles) {
-            (u, r) = settle_null_space(links, geo, tau, fixed, &constrained_only, &value, basis, membrane.as_ref(), u, r, options, store);
+        if let (Some(basis), Some(geo), Some(key)) = (&null, &geo, again) {
+            (u, r) = settle_null_space(key, geo, tau, &constrained_only, &value, basis, membrane.as_ref(), u, r, options, store);
         } else if null.is_none() {
             // Too many free functions to settle: no claim of convergence.
             r.converged = false;
         }
-        write_piece(&mut field, &mut out, lines, &labels, l as u32, boxes[l], &u);
+        if let Piece::Line { a, d, .. } = *piece {
+            line_correction(grid, &labels, l as u32, a, d, boxes[l], &mut u);
+        }
+        write_piece(&mut field, &labels, l as u32, boxes[l], &u);
         // The report starts at zero and converged: the pieces' worst.
         report.cycles = report.cycles.max(r.cycles);
         report.final_change_px = report.final_change_px.max(r.final_change_px);
         report.residual = report.residual.max(r.residual);
         report.initial_residual = report.initial_residual.max(r.initial_residual);
         report.converged &= r.converged;
-    }
-    if lines {
-        for (l, p) in pieces.iter().enumerate() {
-            if let Piece::Line { a, d, .. } = *p {
-                line_correction(grid, &labels, l as u32, a, d, &mut out);
-            }
-        }
-        for i in 0..n {
-            if labels[i] != u32::MAX && matches!(pieces[labels[i] as usize], Piece::Line { .. } | Piece::General) {
-                field.dx[i] = out[i][0] as f32;
-                field.dy[i] = out[i][1] as f32;
-            }
-        }
     }
     (field, report)
 }
@@ -443,7 +421,7 @@ pub(crate) fn solve_constrained(
 /// minimiser; at τ > 0 exact Galerkin corrections in their span, each followed by more
 /// cycles, until a correction moves no node by more than the tolerance.
 fn settle_null_space(
-    links: BoxLinks, geo: &nullspace::BoxGeo, tau: f64, fixed: Vec<bool>, constrained: &[bool], value: &[(usize, V2)], basis: &[nullspace::Sparse],
+    key: CacheKey, geo: &nullspace::BoxGeo, tau: f64, constrained: &[bool], value: &[(usize, V2)], basis: &[nullspace::Sparse],
     membrane: Option<&nullspace::Membrane<'_>>, u: BoxValues, mut report: SolveReport, options: &SolveOptions, store: &mut Store,
 ) -> (BoxValues, SolveReport) {
     let (w, h, active) = (geo.w, geo.h, geo.active);
@@ -468,8 +446,7 @@ fn settle_null_space(
         }
         let (dx, dy) = dense.iter().map(|v| (v[0] as f32, v[1] as f32)).unzip();
         let field = Field { width: w, height: h, dx, dy };
-        let key = CacheKey { w, h, tau_bits: tau.to_bits(), links: links.clone(), fixed: fixed.clone(), off: options.off };
-        let (u2, r2) = solve_piece(key, value, Some((FieldView::from(&field), 0, 0)), options, store, None);
+        let (u2, r2) = solve_piece(key.clone(), value, Some((FieldView::from(&field), 0, 0)), options, store, None);
         report.cycles += r2.cycles;
         report.final_change_px = r2.final_change_px;
         report.residual = r2.residual;
@@ -559,9 +536,10 @@ fn solve_piece(
     settled: Option<&nullspace::Membrane<'_>>,
 ) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
-    let mut report = SolveReport { converged: true, ..Default::default() };
-    let cached = if options.off.has("cache") { None } else { store.take_hierarchy(&key) };
-    let mut hier = cached.unwrap_or_else(|| {
+    let mut report = SolveReport::default();
+    // The hierarchy kept for `key`, taken out.
+    let kept = if options.off.has("cache") { None } else { store.hierarchies.iter().rposition(|(k, _)| *k == key) };
+    let mut hier = kept.map(|pos| store.hierarchies.remove(pos).1).unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
         let fine = Level::fine(geo, tau);
@@ -657,7 +635,6 @@ fn solve_piece(
         hier.coarse_to_fine(&mut u, &mut r, warm);
         report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
     }
-    report.converged = false;
     let mut last_change = f64::INFINITY;
     // The last two cycles' ratios of successive changes.
     let mut ratios = [0.0f64; 2];
@@ -767,21 +744,10 @@ fn solve_piece(
     (out, report)
 }
 
-/// Piece `l`'s nodes of its box `[x0, y0, x1, y1]` from `u`, to the field or (pieces on a
-/// line) to `out`.
-fn write_piece(field: &mut Field, out: &mut [V2], lines: bool, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4], u: &BoxValues) {
+/// Piece `l`'s nodes of its box `[x0, y0, x1, y1]` from `u`, to the field.
+fn write_piece(field: &mut Field, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4], u: &BoxValues) {
     let (w, bw) = (field.width, x1 - x0);
     let rows = |by: usize| (y0 + by) * w + x0..(y0 + by) * w + x1;
-    if lines {
-        for by in 0..y1 - y0 {
-            for (i, v) in rows(by).zip(u.row(by, bw)) {
-                if labels[i] == l {
-                    out[i] = *v;
-                }
-            }
-        }
-        return;
-    }
     let span = y0 * w..y1 * w;
     let (dx, dy) = (&mut field.dx[span.clone()], &mut field.dy[span]);
     dx.par_chunks_mut(w).zip(dy.par_chunks_mut(w)).enumerate().with_min_len(4).for_each(|(by, (dx, dy))| {
@@ -952,12 +918,6 @@ pub(crate) struct Store {
 }
 
 impl Store {
-    /// The hierarchy kept for `key`, taken out.
-    fn take_hierarchy(&mut self, key: &CacheKey) -> Option<Hierarchy> {
-        let pos = self.hierarchies.iter().rposition(|(k, _)| k == key)?;
-        Some(self.hierarchies.remove(pos).1)
-    }
-
     /// Keeps `hier`, dropping the oldest past the limits.
     fn put_hierarchy(&mut self, key: CacheKey, hier: Hierarchy) {
         if key.w * key.h > HIERARCHY_MAX_NODES {
@@ -991,7 +951,7 @@ const OPEN_COARSE_SMOOTHING: usize = 1;
 /// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
 /// constraint values. Consecutive frames of an animation share it. Compared field by field
 /// in this order: the fixed nodes before the (larger) links.
-#[derive(PartialEq)]
+#[derive(Clone, PartialEq)]
 struct CacheKey {
     w: usize,
     h: usize,
@@ -1001,13 +961,10 @@ struct CacheKey {
     links: BoxLinks,
 }
 
-fn classify(grid: &Grid, labels: &[u32], count: usize, c: &Constraints, tau: f64) -> Vec<Piece> {
-    let w = grid.width;
+/// The τ → 0⁺ rule's class of each piece, `members` its constraints.
+fn classify(grid: &Grid, labels: &[u32], members: &[Vec<usize>], c: &Constraints, tau: f64) -> Vec<Piece> {
+    let (w, count) = (grid.width, members.len());
     let xy = |i: usize| [(i % w) as i64, (i / w) as i64];
-    let mut members: Vec<Vec<usize>> = vec![Vec::new(); count];
-    for (k, &i) in c.nodes.iter().enumerate() {
-        members[labels[i] as usize].push(k);
-    }
     let mut pieces = vec![Piece::General; count];
     let mut line_pieces = Vec::new();
     for (l, m) in members.iter().enumerate() {
@@ -1060,42 +1017,36 @@ fn classify(grid: &Grid, labels: &[u32], count: usize, c: &Constraints, tau: f64
     pieces
 }
 
-/// Adds `c·ℓ` to a one-line piece, `ℓ(p) = d × (p − a)`, with `c` minimising the membrane
-/// energy: `c = −⟨u, ℓ⟩ / ⟨ℓ, ℓ⟩` over the piece's links.
-fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64; 2], u: &mut [V2]) {
-    let w = grid.width;
+/// Adds `c·ℓ` to a one-line piece's values `u` on its box, `ℓ(p) = d × (p − a)`, with `c`
+/// minimising the membrane energy: `c = −⟨u, ℓ⟩ / ⟨ℓ, ℓ⟩` over the piece's links (which stay
+/// in its box).
+fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64; 2], [x0, y0, x1, y1]: [usize; 4], u: &mut BoxValues) {
+    let (w, s, first) = (grid.width, u.stride, u.first);
+    let at = |x: usize, y: usize| first + (y - y0) * s + x - x0;
+    // The piece's nodes, in the grid's order.
+    let nodes = || (y0..y1).flat_map(move |y| (x0..x1).map(move |x| (x, y))).filter(move |&(x, y)| labels[y * w + x] == piece);
     // ℓ(p + x̂) − ℓ(p) = −d_y, ℓ(p + ŷ) − ℓ(p) = d_x.
-    let (lx, ly) = (-(d[1] as f64), d[0] as f64);
-    let mut num = [0.0f64; 2];
-    let mut den = 0.0f64;
-    for i in 0..grid.len() {
-        if labels[i] != piece {
-            continue;
-        }
-        if grid.link_right[i] {
-            for k in 0..2 {
-                num[k] += (u[i + 1][k] - u[i][k]) * lx;
+    let (lx, ly, v) = (-(d[1] as f64), d[0] as f64, &mut u.values);
+    let (mut num, mut den) = ([0.0f64; 2], 0.0f64);
+    for (x, y) in nodes() {
+        let (i, j) = (y * w + x, at(x, y));
+        for (linked, q, l) in [(grid.link_right[i], j + 1, lx), (grid.link_down[i], j + s, ly)] {
+            if linked {
+                for k in 0..2 {
+                    num[k] += (v[q][k] - v[j][k]) * l;
+                }
+                den += l * l;
             }
-            den += lx * lx;
-        }
-        if grid.link_down[i] {
-            for k in 0..2 {
-                num[k] += (u[i + w][k] - u[i][k]) * ly;
-            }
-            den += ly * ly;
         }
     }
     if den == 0.0 {
         return;
     }
     let c = [-num[0] / den, -num[1] / den];
-    for i in 0..grid.len() {
-        if labels[i] == piece {
-            let (x, y) = ((i % w) as i64, (i / w) as i64);
-            let l = (d[0] * (y - a[1]) - d[1] * (x - a[0])) as f64;
-            u[i][0] += c[0] * l;
-            u[i][1] += c[1] * l;
-        }
+    for (x, y) in nodes() {
+        let l = (d[0] * (y as i64 - a[1]) - d[1] * (x as i64 - a[0])) as f64;
+        v[at(x, y)][0] += c[0] * l;
+        v[at(x, y)][1] += c[1] * l;
     }
 }
 

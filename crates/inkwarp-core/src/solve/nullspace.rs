@@ -45,6 +45,13 @@ impl BoxGeo<'_> {
         x + 1 < self.w && y + 1 < self.h && self.right[i] && self.down[i] && self.down[i + 1] && self.right[i + self.w]
     }
 
+    /// The ends of the horizontal and the vertical triple centred on `i` with both links.
+    fn triples(&self, i: usize) -> impl Iterator<Item = (usize, usize)> {
+        let (x, y, w) = (i % self.w, i / self.w, self.w);
+        let h = (x > 0 && self.right[i - 1] && self.right[i]).then(|| (i - 1, i + 1));
+        h.into_iter().chain((y > 0 && self.down[i - w] && self.down[i]).then(|| (i - w, i + w)))
+    }
+
     /// The linked neighbours right and down of `i`.
     fn links(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
         self.right[i].then_some(i + 1).into_iter().chain(self.down[i].then_some(i + self.w))
@@ -141,12 +148,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
             expr(i, &mut row, 1.0);
             elim.add(&row);
         }
-        let (x, y) = (i % w, i / w);
-        let triples = [
-            (x > 0 && g.right[i - 1] && g.right[i]).then(|| (i - 1, i + 1)),
-            (y > 0 && g.down[i - w] && g.down[i]).then(|| (i - w, i + w)),
-        ];
-        for (a, b) in triples.into_iter().flatten() {
+        for (a, b) in g.triples(i) {
             let shared = member[i].iter().any(|&c| c != u32::MAX && member[a].contains(&c) && member[b].contains(&c));
             if shared {
                 continue;
@@ -317,24 +319,14 @@ impl Echelon {
 /// The operator's product `y = A z` on the box (`E_plate + τ·E_membrane`, its gradient / 2),
 /// `z` dense over the box's nodes.
 pub(crate) fn apply(g: &BoxGeo, tau: f64, z: &[f64], y: &mut [f64]) {
-    let (w, n) = (g.w, g.w * g.h);
+    let w = g.w;
     y.iter_mut().for_each(|v| *v = 0.0);
-    for i in 0..n {
-        if !g.active[i] {
-            continue;
-        }
-        let (x, yy) = (i % w, i / w);
-        if x > 0 && g.right[i - 1] && g.right[i] {
-            let d = z[i - 1] - 2.0 * z[i] + z[i + 1];
-            y[i - 1] += d;
+    for i in (0..w * g.h).filter(|&i| g.active[i]) {
+        for (a, b) in g.triples(i) {
+            let d = z[a] - 2.0 * z[i] + z[b];
+            y[a] += d;
             y[i] -= 2.0 * d;
-            y[i + 1] += d;
-        }
-        if yy > 0 && g.down[i - w] && g.down[i] {
-            let d = z[i - w] - 2.0 * z[i] + z[i + w];
-            y[i - w] += d;
-            y[i] -= 2.0 * d;
-            y[i + w] += d;
+            y[b] += d;
         }
         if g.full_cell(i) {
             let d = 2.0 * (z[i] - z[i + 1] - z[i + w] + z[i + w + 1]);

@@ -30,6 +30,7 @@ use crate::geometry::Sample;
 use crate::grid::{constrain, nearest_node, Constraints, Grid};
 
 use super::history::solve_from;
+use super::level::coarse_links;
 use super::{in_pool, validate, SolveError, SolveOptions, SolveReport, Solver};
 
 /// The solve at `grid_step = s > 1`: on the coarse grid, from `initial` read at the coarse
@@ -151,16 +152,9 @@ impl Coarse {
     /// A fine field's values at the coarse nodes (read in place: a pass over the coarse
     /// grid, not over every pixel).
     fn restrict(&self, f: FieldView<'_>) -> Field {
-        let (wc, hc) = (self.layout.wc, self.layout.hc);
-        let mut c = Field::zeros(wc, hc);
-        for yc in 0..hc {
-            for xc in 0..wc {
-                let v = f.at_index(self.layout.py(yc) * f.width() + self.layout.px(xc));
-                c.dx[yc * wc + xc] = v[0];
-                c.dy[yc * wc + xc] = v[1];
-            }
-        }
-        c
+        let (l, wc) = (&self.layout, self.layout.wc);
+        let (dx, dy) = (0..wc * l.hc).map(|c| f.at_index(l.py(c / wc) * f.width() + l.px(c % wc))).map(|v| (v[0], v[1])).unzip();
+        Field { width: wc, height: l.hc, dx, dy }
     }
 }
 
@@ -207,22 +201,8 @@ impl Layout {
     /// The coarse grid: a node per coarse position, active where its pixel is, linked
     /// where every fine link between the two pixels is.
     fn coarse_grid(&self, grid: &Grid) -> Grid {
-        let (wc, hc) = (self.wc, self.hc);
-        let (mut active, mut right, mut down) = (vec![false; wc * hc], vec![false; wc * hc], vec![false; wc * hc]);
-        for yc in 0..hc {
-            for xc in 0..wc {
-                let c = yc * wc + xc;
-                let (fx, fy) = (self.px(xc), self.py(yc));
-                active[c] = grid.active[grid.index(fx, fy)];
-                if xc + 1 < wc {
-                    right[c] = (fx..self.px(xc + 1)).all(|x| grid.link_right[grid.index(x, fy)]);
-                }
-                if yc + 1 < hc {
-                    down[c] = (fy..self.py(yc + 1)).all(|y| grid.link_down[grid.index(fx, y)]);
-                }
-            }
-        }
-        Grid { width: wc, height: hc, active, link_right: right, link_down: down }
+        let (width, height, [active, link_right, link_down]) = coarse_links(self.w, self.h, self.s, &grid.active, &grid.link_right, &grid.link_down);
+        Grid { width, height, active, link_right, link_down }
     }
 }
 
@@ -348,25 +328,15 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
             stack.clear();
             stack.push(b);
             while let Some(b) = stack.pop() {
-                let (lx, ly) = (b % bw, b / bw);
-                let i = grid.index(bx0 + lx, by0 + ly);
-                let mut visit = |nb: usize| {
-                    if label[nb] == u32::MAX {
-                        label[nb] = count;
-                        stack.push(nb);
+                for j in grid.linked(grid.index(bx0 + b % bw, by0 + b / bw)) {
+                    let (jx, jy) = (j % w, j / w);
+                    if j != usize::MAX && (bx0..=bx1).contains(&jx) && (by0..=by1).contains(&jy) {
+                        let nb = (jy - by0) * bw + jx - bx0;
+                        if label[nb] == u32::MAX {
+                            label[nb] = count;
+                            stack.push(nb);
+                        }
                     }
-                };
-                if lx + 1 < bw && grid.link_right[i] {
-                    visit(b + 1);
-                }
-                if lx > 0 && grid.link_right[i - 1] {
-                    visit(b - 1);
-                }
-                if ly + 1 < bh && grid.link_down[i] {
-                    visit(b + bw);
-                }
-                if ly > 0 && grid.link_down[i - w] {
-                    visit(b - bw);
                 }
             }
             count += 1;
@@ -397,13 +367,6 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
         }
     }
     masks
-}
-
-/// A column's cubic weights for the separable path of [`upsample`].
-struct Flat {
-    w: [f64; 4],
-    sum: f64,
-    inv: f64,
 }
 
 /// The usable-tap masks of every coarse cell (`cw` × `ch` of them, see [`cell_masks`]):
@@ -461,19 +424,18 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
     let Upsampling { layout, cols, rows, masks } = plan;
     let (w, h, wc) = (layout.w, layout.h, layout.wc);
     let (cw, ch) = layout.cells();
-    let pixel = |ty: &Taps, tx: &Taps, mask: u16| window_value(fc, ty, tx, mask);
-
+    // A pixel's value and whether it has one (see `window_value`).
+    let pixel = |ty: &Taps, tx: &Taps, mask: u16| window_value(fc, ty, tx, mask).map_or((0.0, 0.0, false), |[vx, vy]| (vx, vy, true));
     // Each column's used weights from its first tap on (zero past the last), their sum and
     // its inverse.
-    let flat: Vec<Flat> = cols.iter().map(|t| {
-        let mut f = Flat { w: [0.0; 4], sum: 0.0, inv: 0.0 };
+    let flat: Vec<([f64; 4], f64, f64)> = cols.iter().map(|t| {
+        let (mut w, mut sum) = ([0.0; 4], 0.0);
         for a in 0..t.len {
             let wa = t.weights[t.slot[a] as usize];
-            f.w[t.at[a] - t.at[0]] = wa;
-            f.sum += wa;
+            w[t.at[a] - t.at[0]] = wa;
+            sum += wa;
         }
-        f.inv = 1.0 / f.sum;
-        f
+        (w, sum, 1.0 / sum)
     }).collect();
     // The cells with masks in each row of cells, and each cell's pixels along x.
     let mut masked = vec![Vec::new(); ch];
@@ -507,24 +469,17 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
         }
         let inv_sy = 1.0 / sy;
         // Every active pixel as if its whole window were usable ...
-        let mut unresolved = 0;
-        for x in 0..w {
-            if !active[x] {
-                continue;
-            }
-            let (wx, c0) = (&flat[x], cols[x].at[0]);
+        for x in (0..w).filter(|&x| active[x]) {
+            let ((wx, sum, inv), c0) = (flat[x], cols[x].at[0]);
             let v = &along[c0..c0 + 4];
-            if wx.sum * sy >= 0.5 {
-                let scale = wx.inv * inv_sy;
-                let ax = wx.w[0] * v[0][0] + wx.w[1] * v[1][0] + wx.w[2] * v[2][0] + wx.w[3] * v[3][0];
-                let ay = wx.w[0] * v[0][1] + wx.w[1] * v[1][1] + wx.w[2] * v[2][1] + wx.w[3] * v[3][1];
-                (dx[x], dy[x], resolved[x]) = ((ax * scale) as f32, (ay * scale) as f32, true);
+            (dx[x], dy[x], resolved[x]) = if sum * sy >= 0.5 {
+                let scale = inv * inv_sy;
+                let ax = wx[0] * v[0][0] + wx[1] * v[1][0] + wx[2] * v[2][0] + wx[3] * v[3][0];
+                let ay = wx[0] * v[0][1] + wx[1] * v[1][1] + wx[2] * v[2][1] + wx[3] * v[3][1];
+                ((ax * scale) as f32, (ay * scale) as f32, true)
             } else {
-                match pixel(ty, &cols[x], ALL_TAPS) {
-                    Some([vx, vy]) => (dx[x], dy[x], resolved[x]) = (vx, vy, true),
-                    None => unresolved += 1,
-                }
-            }
+                pixel(ty, &cols[x], ALL_TAPS)
+            };
         }
         // ... then the pixels of windows with a missing link: the taps each reaches inside
         // its window.
@@ -532,21 +487,13 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
             let cell = &masks[ty.cell * cw + cx];
             for x in cell_x[cx].0..cell_x[cx].1 {
                 let mask = layout.mask(cell, cx, ty.cell, x, y);
-                if !active[x] || mask == ALL_TAPS {
-                    continue;
-                }
-                // (Counted as unresolved by the pass above when it was.)
-                unresolved -= usize::from(!resolved[x]);
-                match pixel(ty, &cols[x], mask) {
-                    Some([vx, vy]) => (dx[x], dy[x], resolved[x]) = (vx, vy, true),
-                    None => {
-                        (dx[x], dy[x], resolved[x]) = (0.0, 0.0, false);
-                        unresolved += 1;
-                    }
+                if active[x] && mask != ALL_TAPS {
+                    (dx[x], dy[x], resolved[x]) = pixel(ty, &cols[x], mask);
                 }
             }
         }
-        unresolved
+        // The active pixels left unresolved.
+        active.iter().zip(&*resolved).filter(|(&a, &r)| a && !r).count()
     };
 
     let mut field = Field::zeros(w, h);
