@@ -5,44 +5,40 @@
 //! key, after the last key the last one, and a feature without keys stays at rest.
 //!
 //! `Smooth` is a cubic Hermite curve in time through the keys, its velocity at each key
-//! (the tangent rule) chosen to match the motion on the key's other side:
-//!
-//! - between two smooth spans: the Catmull-Rom tangent for non-uniform times, the
-//!   derivative at `t_i` of the parabola through the keys `i − 1, i, i + 1`,
-//!   `m_i = (Δ⁺·v⁻ + Δ⁻·v⁺) / (Δ⁻ + Δ⁺)`, where `v⁻`, `v⁺` are the slopes of the chords
-//!   before and after the key and `Δ⁻`, `Δ⁺` their durations;
-//! - next to a linear span: that span's slope;
-//! - next to a hold, and at the first and last key: zero.
-//!
-//! Every span meeting at a key uses the same velocity there, so smooth motion is C¹ in
-//! time: through smooth keys, into and out of linear spans, and into the holds before the
-//! first and after the last key (a smooth move therefore eases in and out of its ends).
-//! Only a hold, which jumps at its end, breaks continuity. Like every interpolating cubic,
-//! smooth motion may overshoot a key between keys that reverse direction.
+//! (the tangent rule) matching the motion on the key's other side: between two smooth
+//! spans the Catmull-Rom tangent for non-uniform times, `m_i = (Δ⁺·v⁻ + Δ⁻·v⁺) / (Δ⁻ + Δ⁺)`
+//! (`v⁻`, `v⁺` the slopes of the chords before and after the key, `Δ⁻`, `Δ⁺` their
+//! durations); next to a straight span that span's velocity at the key; next to a hold,
+//! and at the first and last key, zero. So smooth motion is C¹ in time except where a hold
+//! jumps (docs/concepts/drawings.md, "Time", has the details).
 //!
 //! The eased spans move along the straight line between their keys with a set timing,
 //! `u` being the fraction of the span's time gone by: `EaseIn` as `u²` (starts at rest,
 //! arrives at twice the average speed), `EaseOut` as `1 − (1 − u)²` (the reverse) and
-//! `EaseInOut` as `3u² − 2u³` (at rest at both ends). A smooth span next to an eased one
-//! takes the eased span's velocity at the key they share, so motion stays C¹ there too.
+//! `EaseInOut` as `3u² − 2u³` (at rest at both ends).
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 use crate::geometry::{hermite_basis, Point};
 
-/// How the control points move from a key to the next one.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+/// How control points move from a key to the next one.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "kebab-case")]
 pub enum Interpolation {
-    /// A C¹ cubic in time through the neighbouring keys (see the module docs).
+    /// Catmull-Rom through the neighbouring keys (smooth in time).
     #[default]
     Smooth,
     /// Straight lines at constant speed.
     Linear,
-    /// The key's drawing until the next key's time, then a jump.
+    /// Stay at this key until the next one.
     Hold,
-    /// Along the straight line, starting at rest and speeding up (`u²`).
+    /// Straight lines, starting at rest and speeding up: `u²` of the way at the fraction
+    /// `u` of the time to the next key.
     EaseIn,
-    /// Along the straight line, slowing down to rest at the next key (`1 − (1 − u)²`).
+    /// Straight lines, slowing down to rest at the next key: `1 − (1 − u)²` of the way.
     EaseOut,
-    /// Along the straight line, at rest at both keys (`3u² − 2u³`).
+    /// Straight lines, at rest at both keys: `3u² − 2u³` of the way.
     EaseInOut,
 }
 
@@ -80,13 +76,19 @@ impl Interpolation {
 }
 
 /// A feature's control points at one time.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+#[schemars(rename = "KeyDoc")]
 pub struct Key {
-    /// When, in seconds.
+    /// Time in seconds, strictly increasing from key to key.
+    #[serde(rename = "t")]
     pub time_s: f64,
-    /// The control points (as many as the feature's rest geometry).
+    /// The control points at time `t`: as many as `rest` has, in the same order.
     pub points: Vec<Point>,
-    /// How the points move from this key to the next (ignored on the last key).
+    /// How the points move from this key to the next: `smooth` (default), `linear`,
+    /// `hold`, `ease-in`, `ease-out` or `ease-in-out`.
+    #[serde(default, skip_serializing_if = "crate::scene::doc::is_default")]
+    #[schemars(extend("default" = "smooth"))]
     pub interpolation: Interpolation,
 }
 

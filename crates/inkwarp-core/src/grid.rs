@@ -6,31 +6,14 @@
 //! A link joins two 4-neighbour nodes; [`Grid::add_cut`] breaks every link whose straight
 //! segment between the two node centres is crossed by a segment of the cut polyline. Every
 //! decision is an exact orientation predicate (Shewchuk's adaptive `orient2d`, from the
-//! `robust` crate) on the cut's own `f64` coordinates and the integer node centres, so the
-//! decisions for all links agree with one picture of the plane: a cut cannot slip between
-//! two links through rounding.
-//!
-//! Touching and collinear cases are decided by one fixed rule, as if every node centre were
-//! nudged by an infinitesimal `(+ε, +ε²)` (right, and a far smaller amount down) while the
-//! cut stays put. In the nudged picture no node lies on a cut line and no cut end lies on a
-//! link, so "crosses" has one meaning. Consequences:
-//!
-//! - a cut running exactly along a row of node centres (`y = k`) separates the rows above
-//!   it from row `k` and the rows below (it breaks the vertical links between rows `k − 1`
-//!   and `k`); one running along a column `x = k` separates column `k − 1` from column `k`;
-//!   so a cut along the grid's top row or left column breaks nothing, and one along the
-//!   bottom row or right column cuts that row or column off;
-//! - a cut lying on a link's own segment (collinear) never breaks that link;
-//! - a cut through a node centre passes just left of the node (just above it when the cut
-//!   runs along the node's row), whichever way the cut is drawn;
-//! - a cut that ends exactly on a link, or passes exactly through a node, breaks a link
-//!   only where the nudged picture says it crosses, so a polyline whose vertices sit on
-//!   node centres still separates its two sides with no gap and no double cut.
-//!
-//! A cut is a line of zero width: it never deactivates a node. Non-finite vertices end the
-//! segments that touch them (those segments are skipped). Coordinates beyond about 1e150 in
-//! magnitude overflow the predicates' products; such a cut breaks links as if its
-//! undecidable tests were ties.
+//! `robust` crate) on the cut's own `f64` coordinates and the integer node centres, so a
+//! cut cannot slip between two links through rounding. Touching and collinear cases are
+//! decided as if every node centre were nudged by an infinitesimal `(+ε, +ε²)` (right, and
+//! a far smaller amount down) while the cut stays put: a cut along a row of node centres
+//! separates that row from the row above, one through a node passes just left of it, and a
+//! polyline whose vertices sit on node centres separates its two sides with no gap and no
+//! double cut. A cut never deactivates a node; segments with a non-finite end are skipped.
+//! `docs/concepts/cuts.md` lists every case.
 
 use crate::geometry::{Point, Sample};
 
@@ -98,7 +81,21 @@ impl Grid {
     /// The nodes linked to node `i`: right, left, below, above (`usize::MAX` where there
     /// is no link).
     pub fn linked(&self, i: usize) -> [usize; 4] {
-        linked_neighbours(self.width, &self.link_right, &self.link_down, i)
+        let (w, right, down) = (self.width, &self.link_right, &self.link_down);
+        let mut nbrs = [usize::MAX; 4];
+        if right[i] {
+            nbrs[0] = i + 1;
+        }
+        if i % w > 0 && right[i - 1] {
+            nbrs[1] = i - 1;
+        }
+        if down[i] {
+            nbrs[2] = i + w;
+        }
+        if i >= w && down[i - w] {
+            nbrs[3] = i - w;
+        }
+        nbrs
     }
 
     /// Number of nodes (`width × height`).
@@ -405,26 +402,6 @@ pub fn constrain(grid: &Grid, samples: &[Sample]) -> Constraints {
         out.values.push([sum[0] / count, sum[1] / count]);
     }
     out
-}
-
-/// The nodes linked to node `i` of a `w`-wide grid with links `right` and `down` (as in
-/// [`Grid`]): right, left, below, above, `usize::MAX` where there is no link.
-pub(crate) fn linked_neighbours(w: usize, right: &[bool], down: &[bool], i: usize) -> [usize; 4] {
-    let (x, y) = (i % w, i / w);
-    let mut nbrs = [usize::MAX; 4];
-    if right[i] {
-        nbrs[0] = i + 1;
-    }
-    if x > 0 && right[i - 1] {
-        nbrs[1] = i - 1;
-    }
-    if down[i] {
-        nbrs[2] = i + w;
-    }
-    if y > 0 && down[i - w] {
-        nbrs[3] = i - w;
-    }
-    nbrs
 }
 
 /// Whether a `w`-wide grid with activity `active` and links `right` and `down` (as in

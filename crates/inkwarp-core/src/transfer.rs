@@ -35,21 +35,9 @@ pub enum TransferError {
     #[error("Feature \"{id}\" (source features[{source_index}]) is not in the target drawing: transfer matches features by id, so trace it in the target under the same id, or remove it from the source.")]
     MissingFeature { id: String, source_index: usize },
     #[error("Feature \"{id}\" is a {source_kind} in the source (features[{source_index}]) but a {target_kind} in the target (features[{target_index}]): matched features must have the same kind.")]
-    KindMismatch {
-        id: String,
-        source_index: usize,
-        target_index: usize,
-        source_kind: &'static str,
-        target_kind: &'static str,
-    },
+    KindMismatch { id: String, source_index: usize, target_index: usize, source_kind: &'static str, target_kind: &'static str },
     #[error("Feature \"{id}\" has {source_count} rest control points in the source (features[{source_index}].rest) but {target_count} in the target (features[{target_index}].rest): matched features must have the same number of control points.")]
-    CountMismatch {
-        id: String,
-        source_index: usize,
-        target_index: usize,
-        source_count: usize,
-        target_count: usize,
-    },
+    CountMismatch { id: String, source_index: usize, target_index: usize, source_count: usize, target_count: usize },
     #[error("Feature \"{id}\" (source features[{source_index}]) key {key} has {got} control points, its rest has {want}.")]
     KeyCount { id: String, source_index: usize, key: usize, got: usize, want: usize },
     #[error("The source and target drawings share no feature to fit the transfer map to.")]
@@ -59,10 +47,7 @@ pub enum TransferError {
 }
 
 /// The pairs `(source index, target index)` of matched features, checked.
-fn match_features(
-    source: &[TransferFeature],
-    target: &[TransferFeature],
-) -> Result<Vec<(usize, usize)>, TransferError> {
+fn match_features(source: &[TransferFeature], target: &[TransferFeature]) -> Result<Vec<(usize, usize)>, TransferError> {
     let mut pairs = Vec::new();
     for (si, s) in source.iter().enumerate() {
         if s.kind == Kind::Cut {
@@ -72,32 +57,17 @@ fn match_features(
             return Err(TransferError::MissingFeature { id: s.id.clone(), source_index: si });
         };
         let t = &target[ti];
+        let (id, source_index, target_index) = (s.id.clone(), si, ti);
         if t.kind != s.kind {
-            return Err(TransferError::KindMismatch {
-                id: s.id.clone(),
-                source_index: si,
-                target_index: ti,
-                source_kind: s.kind.name(),
-                target_kind: t.kind.name(),
-            });
+            let (source_kind, target_kind) = (s.kind.name(), t.kind.name());
+            return Err(TransferError::KindMismatch { id, source_index, target_index, source_kind, target_kind });
         }
         if t.rest.len() != s.rest.len() {
-            return Err(TransferError::CountMismatch {
-                id: s.id.clone(),
-                source_index: si,
-                target_index: ti,
-                source_count: s.rest.len(),
-                target_count: t.rest.len(),
-            });
+            let (source_count, target_count) = (s.rest.len(), t.rest.len());
+            return Err(TransferError::CountMismatch { id, source_index, target_index, source_count, target_count });
         }
         if let Some((key, k)) = s.keys.iter().enumerate().find(|(_, k)| k.len() != s.rest.len()) {
-            return Err(TransferError::KeyCount {
-                id: s.id.clone(),
-                source_index: si,
-                key,
-                got: k.len(),
-                want: s.rest.len(),
-            });
+            return Err(TransferError::KeyCount { id, source_index, key, got: k.len(), want: s.rest.len() });
         }
         pairs.push((si, ti));
     }
@@ -108,14 +78,14 @@ fn match_features(
 }
 
 /// The map `W` from the source's rest drawing to the target's, fitted to the rest
-/// control points of every matched feature.
-pub fn rest_map(source: &[TransferFeature], target: &[TransferFeature]) -> Result<ThinPlateMap, TransferError> {
+/// control points of every matched feature, and the matched pairs.
+fn rest_map(source: &[TransferFeature], target: &[TransferFeature]) -> Result<(ThinPlateMap, Vec<(usize, usize)>), TransferError> {
     let pairs = match_features(source, target)?;
     let (src, dst): (Vec<Point>, Vec<Point>) = pairs
         .iter()
         .flat_map(|&(si, ti)| source[si].rest.iter().copied().zip(target[ti].rest.iter().copied()))
         .unzip();
-    Ok(ThinPlateMap::fit(&src, &dst)?)
+    Ok((ThinPlateMap::fit(&src, &dst)?, pairs))
 }
 
 /// A place where the transfer map turns the source's drawing over: keys there come out
@@ -151,7 +121,7 @@ impl std::fmt::Display for Fold {
 /// bounding box of the matched rest control points.
 pub const FOLD_GRID: usize = 64;
 
-/// Where the map fitted by [`rest_map`] folds over within the source's drawing, if it
+/// Where the map `W` (see the module docs) folds over within the source's drawing, if it
 /// does: its Jacobian determinant on a [`FOLD_GRID`]² grid over the bounding box of the
 /// matched rest control points, compared in sign with the determinant of the map's
 /// affine part (so a target that is a mirror image of the source is no fold). `None` when
@@ -160,8 +130,7 @@ pub const FOLD_GRID: usize = 64;
 /// # Errors
 /// As [`transfer_keys`].
 pub fn find_fold(source: &[TransferFeature], target: &[TransferFeature]) -> Result<Option<Fold>, TransferError> {
-    let map = rest_map(source, target)?;
-    let pairs = match_features(source, target)?;
+    let (map, pairs) = rest_map(source, target)?;
     let points: Vec<(Point, usize)> =
         pairs.iter().flat_map(|&(si, _)| source[si].rest.iter().map(move |&p| (p, si))).collect();
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
@@ -221,7 +190,7 @@ fn runs_against(source: &TransferFeature, target: &TransferFeature, linear: [[f6
 }
 
 /// The target's new keys: for each target feature (in order), `Some(keys)` with every
-/// source key mapped through [`rest_map`] when the source has the feature, `None` (keep
+/// source key mapped through the map `W` (see the module docs) when the source has the feature, `None` (keep
 /// your own) when it does not.
 ///
 /// ```
@@ -242,8 +211,7 @@ pub fn transfer_keys(
     source: &[TransferFeature],
     target: &[TransferFeature],
 ) -> Result<Vec<Option<Vec<Vec<Point>>>>, TransferError> {
-    let map = rest_map(source, target)?;
-    let pairs = match_features(source, target)?;
+    let (map, pairs) = rest_map(source, target)?;
     let mut out: Vec<Option<Vec<Vec<Point>>>> = vec![None; target.len()];
     for (si, ti) in pairs {
         out[ti] = Some(

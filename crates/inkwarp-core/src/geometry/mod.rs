@@ -37,14 +37,21 @@ pub struct Sample {
     pub displacement: Point,
 }
 
-/// The five feature kinds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+/// What a feature is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "lowercase")]
+#[schemars(rename = "FeatureKind")]
 pub enum Kind {
+    /// One position that pins or moves its spot.
     Point,
+    /// A chain of line segments through ≥ 2 vertices, open or `closed`.
     Polyline,
+    /// A centripetal Catmull-Rom curve through ≥ 2 control points, open or `closed`.
     Spline,
+    /// A filled closed shape (≥ 3 points): outline and interior move together.
     Region,
+    /// An open polyline (≥ 2 points) that moves nothing and breaks the surface along its
+    /// rest geometry.
     Cut,
 }
 
@@ -70,6 +77,14 @@ impl Kind {
             Kind::Polyline | Kind::Spline | Kind::Cut => 2,
             Kind::Region => 3,
         }
+    }
+
+    /// Whether a feature of this kind, given `closed` and `spline_outline`, is drawn as a
+    /// closed curve and as a spline: regions are always closed, and splines and
+    /// spline-outlined regions are splines.
+    pub(crate) fn curve_shape(self, closed: bool, spline_outline: bool) -> (bool, bool) {
+        let region = self == Kind::Region;
+        (closed || region, self == Kind::Spline || (region && spline_outline))
     }
 }
 
@@ -203,21 +218,18 @@ pub fn sample_feature(
     }
     check_points(kind, pose, "posed")?;
     let spacing = check_spacing(opts)?;
+    let (closed, spline) = kind.curve_shape(opts.closed, opts.spline_outline);
     for points in [rest, pose] {
-        let closed = opts.closed || kind == Kind::Region;
         crate::limits::check_curve_samples(points, closed, spacing)
             .map_err(|why| GeometryError::TooManySamples(why.replacen("sampling", "Sampling", 1)))?;
     }
+    let curves = || curve_samples(&Curve::new(rest, closed, spline), &Curve::new(pose, closed, spline), spacing);
     Ok(match kind {
         Kind::Point => vec![Sample { rest: rest[0], displacement: sub(pose[0], rest[0]) }],
-        Kind::Polyline | Kind::Spline => {
-            let spline = kind == Kind::Spline;
-            curve_samples(&Curve::new(rest, opts.closed, spline), &Curve::new(pose, opts.closed, spline), spacing)
-        }
+        Kind::Polyline | Kind::Spline => curves(),
         Kind::Region => {
             let grid = domain.ok_or(GeometryError::RegionWithoutDomain)?;
-            let spline = opts.spline_outline;
-            let mut samples = curve_samples(&Curve::new(rest, true, spline), &Curve::new(pose, true, spline), spacing);
+            let mut samples = curves();
             let (vertices, values): (Vec<Point>, Vec<Point>) = if spline {
                 samples.iter().map(|s| (s.rest, s.displacement)).unzip()
             } else {
@@ -285,13 +297,8 @@ fn check_points(kind: Kind, points: &[Point], which: &'static str) -> Result<(),
 /// ```
 pub fn curve_polyline(kind: Kind, points: &[Point], closed: bool, spline_outline: bool, spacing_px: f64) -> Vec<Point> {
     let spacing = if spacing_px > 0.0 && spacing_px.is_finite() { spacing_px } else { 1.0 };
-    let (closed, spline) = match kind {
-        Kind::Point => return points.to_vec(),
-        Kind::Polyline | Kind::Cut => (closed, false),
-        Kind::Spline => (closed, true),
-        Kind::Region => (true, spline_outline),
-    };
-    if points.len() < 2 {
+    let (closed, spline) = kind.curve_shape(closed, spline_outline);
+    if kind == Kind::Point || points.len() < 2 {
         return points.to_vec();
     }
     let curve = Curve::new(points, closed, spline);

@@ -301,21 +301,23 @@ pub fn nodes_inside(polygon: &[Point], grid: &Grid) -> Vec<[usize; 2]> {
 pub(crate) fn interior_samples(vertices: Vec<Point>, values: Vec<Point>, grid: &Grid) -> Vec<super::Sample> {
     let nodes = nodes_inside(&vertices, grid);
     let mvc = MeanValueInterpolator::new(vertices, values);
-    let pieces: Vec<Vec<super::Sample>> = nodes
+    par_map(&nodes, |&[col, row], scratch| {
+        let rest = [col as f64, row as f64];
+        mvc.value_at(rest, scratch).map(|displacement| super::Sample { rest, displacement })
+    })
+}
+
+/// `f` of each item that gives a value, in order, evaluated in parallel chunks that each
+/// have their own scratch space.
+pub(crate) fn par_map<I: Sync, T: Send>(items: &[I], f: impl Fn(&I, &mut MvcScratch) -> Option<T> + Sync) -> Vec<T> {
+    let pieces: Vec<Vec<T>> = items
         .par_chunks(256)
         .map(|chunk| {
             let mut scratch = MvcScratch::default();
-            chunk
-                .iter()
-                .filter_map(|&[col, row]| {
-                    let rest = [col as f64, row as f64];
-                    mvc.value_at(rest, &mut scratch)
-                        .map(|displacement| super::Sample { rest, displacement })
-                })
-                .collect()
+            chunk.iter().filter_map(|item| f(item, &mut scratch)).collect()
         })
         .collect();
-    pieces.concat()
+    pieces.into_iter().flatten().collect()
 }
 
 #[cfg(test)]

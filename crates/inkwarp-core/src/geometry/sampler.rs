@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 
 use super::curve::{hermite_basis, sub, Curve, CurveParameter};
-use super::region::{nodes_inside, MeanValueInterpolator, MvcScratch};
+use super::region::{nodes_inside, par_map, MeanValueInterpolator, MvcScratch};
 use super::{check_points, check_spacing, GeometryError, Kind, Point, Sample, SampleOptions};
 use crate::grid::Grid;
 
@@ -87,12 +87,7 @@ impl FeatureSampler {
     ) -> Result<Self, GeometryError> {
         check_points(kind, rest, "rest")?;
         let spacing = check_spacing(opts)?;
-        let (closed, spline) = match kind {
-            Kind::Point | Kind::Cut => (false, false),
-            Kind::Polyline => (opts.closed, false),
-            Kind::Spline => (opts.closed, true),
-            Kind::Region => (true, opts.spline_outline),
-        };
+        let (closed, spline) = kind.curve_shape(opts.closed, opts.spline_outline);
         let mut me = FeatureSampler {
             kind,
             closed,
@@ -129,16 +124,10 @@ impl FeatureSampler {
         let mvc = MeanValueInterpolator::new(vertices.clone(), vec![[0.0; 2]; vertices.len()]);
         if nodes.len().saturating_mul(width) > max_coefficients {
             // too big to keep: drop the nodes on the outline now, interpolate per pose
-            let nodes = nodes
-                .par_chunks(256)
-                .map(|chunk| {
-                    let mut scratch = MvcScratch::default();
-                    let pts = chunk.iter().map(|n| [n[0] as f64, n[1] as f64]);
-                    pts.filter(|&x| mvc.value_at(x, &mut scratch).is_some())
-                        .collect::<Vec<_>>()
-                })
-                .collect::<Vec<_>>()
-                .concat();
+            let nodes = par_map(&nodes, |n, scratch| {
+                let x = [n[0] as f64, n[1] as f64];
+                mvc.value_at(x, scratch).map(|_| x)
+            });
             return Interior::Direct { nodes, vertices };
         }
         let s = self.rest.len();
@@ -192,11 +181,6 @@ impl FeatureSampler {
             .collect();
         let (nodes, coefficients): (Vec<Vec<Point>>, Vec<Vec<f32>>) = pieces.into_iter().unzip();
         Interior::Coefficients { nodes: nodes.concat(), coefficients: coefficients.concat(), width }
-    }
-
-    /// The feature's kind.
-    pub fn kind(&self) -> Kind {
-        self.kind
     }
 
     /// How many samples every pose gives.
@@ -268,20 +252,9 @@ impl FeatureSampler {
                     self.rest.iter().zip(pose).map(|(&r, &p)| sub(p, r)).collect()
                 };
                 let mvc = MeanValueInterpolator::new(vertices.clone(), values);
-                let pieces: Vec<Vec<Sample>> = nodes
-                    .par_chunks(256)
-                    .map(|chunk| {
-                        let mut scratch = MvcScratch::default();
-                        chunk
-                            .iter()
-                            .map(|&rest| Sample {
-                                rest,
-                                displacement: mvc.value_at(rest, &mut scratch).unwrap_or([0.0; 2]),
-                            })
-                            .collect()
-                    })
-                    .collect();
-                out.extend(pieces.into_iter().flatten());
+                out.extend(par_map(nodes, |&rest, scratch| {
+                    Some(Sample { rest, displacement: mvc.value_at(rest, scratch).unwrap_or([0.0; 2]) })
+                }));
             }
         }
         Ok(out)

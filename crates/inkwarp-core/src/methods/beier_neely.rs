@@ -37,9 +37,7 @@ pub struct BeierNeelyParams {
 }
 
 impl Default for BeierNeelyParams {
-    fn default() -> Self {
-        Self::DEFAULT
-    }
+    fn default() -> Self { Self::DEFAULT }
 }
 
 impl BeierNeelyParams {

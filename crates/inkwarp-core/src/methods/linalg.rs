@@ -21,12 +21,7 @@ const PARALLEL_ROWS: usize = 128;
 ///
 /// A pivot smaller than `1e-13 ×` the largest entry of `a` in absolute value is
 /// reported as singular.
-pub(crate) fn solve_dense(
-    a: Vec<f64>,
-    n: usize,
-    b: Vec<f64>,
-    nrhs: usize,
-) -> Result<Vec<f64>, SingularPivot> {
+pub(crate) fn solve_dense(a: Vec<f64>, n: usize, b: Vec<f64>, nrhs: usize) -> Result<Vec<f64>, SingularPivot> {
     assert_eq!(a.len(), n * n);
     assert_eq!(b.len(), n * nrhs);
     let cols = n + nrhs;

@@ -336,9 +336,10 @@ pub fn field_on_grid(
 }
 
 /// Sets [`MethodReport::ignored_matte`] and adds its note when `grid` has an inactive node
-/// or a broken link (the report's method names itself in the note).
+/// or a missing link between two active neighbours (the report's method names itself in
+/// the note).
 pub fn note_ignored_matte(report: &mut MethodReport, grid: &Grid) {
-    if grid_has_discontinuities(grid) {
+    if crate::grid::torn(grid.width, &grid.active, &grid.link_right, &grid.link_down) {
         report.ignored_matte = true;
         let method = report.method.map_or("the method", Method::name);
         report.notes.push(format!(
@@ -360,11 +361,6 @@ pub fn controls_field(
         return Ok((Field::zeros(grid.width, grid.height), report));
     }
     field_on_grid(interpolant, controls, grid, params)
-}
-
-/// Whether `grid` has an inactive node or a missing link between two active neighbours.
-pub fn grid_has_discontinuities(grid: &Grid) -> bool {
-    crate::grid::torn(grid.width, &grid.active, &grid.link_right, &grid.link_down)
 }
 
 #[inline]

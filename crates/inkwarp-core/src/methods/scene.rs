@@ -30,24 +30,24 @@ pub fn feature_controls(
     }
     let mut controls = Controls::default();
     for f in features {
-        let track = &scene.tracks()[f.feature];
-        let closed = track.closed || track.kind == Kind::Region;
-        match track.kind {
+        let feature = &scene.doc().features[f.feature];
+        let closed = feature.is_closed();
+        match feature.kind {
             Kind::Cut => {}
             Kind::Point => controls.samples.extend(f.samples.iter().copied()),
             Kind::Spline => {
                 controls.line_pairs.extend(line_pairs_from_chain(&f.samples, closed, BEIER_NEELY_SEGMENT_PX));
             }
-            Kind::Region if track.spline_outline => {
+            Kind::Region if feature.spline_outline() => {
                 let pose = scene.pose_at(f.feature, time_s);
                 let options = SampleOptions { closed: true, spline_outline: false, spacing_px: 1.0 };
-                let chain = sample_feature(Kind::Spline, &track.rest, &pose, &options, None)
+                let chain = sample_feature(Kind::Spline, &feature.rest, &pose, &options, None)
                     .map_err(|e| format!("features[{}]: {e}", f.feature))?;
                 controls.line_pairs.extend(line_pairs_from_chain(&chain, true, BEIER_NEELY_SEGMENT_PX));
             }
             Kind::Polyline | Kind::Region => {
                 let pose = scene.pose_at(f.feature, time_s);
-                let vertices: Vec<Sample> = track
+                let vertices: Vec<Sample> = feature
                     .rest
                     .iter()
                     .zip(&pose)
@@ -97,12 +97,9 @@ pub fn posed_drawing(
     spacing_px: f64,
 ) -> Vec<(String, Kind, Vec<crate::geometry::Point>)> {
     let posed = |f: &crate::scene::FeatureDoc| {
-        let kind = f.kind.to_kind();
-        let pose =
-            if kind == Kind::Cut { f.rest.clone() } else { crate::anim::points_at(&f.rest, &f.anim_keys(), time_s) };
-        let spline_outline = f.curve == Some(crate::scene::Curve::Spline);
+        let pose = if f.kind == Kind::Cut { f.rest.clone() } else { crate::anim::points_at(&f.rest, &f.keys, time_s) };
         // (A point's polyline is its one position.)
-        (f.id.clone(), kind, crate::geometry::curve_polyline(kind, &pose, f.closed, spline_outline, spacing_px))
+        (f.id.clone(), f.kind, crate::geometry::curve_polyline(f.kind, &pose, f.closed, f.spline_outline(), spacing_px))
     };
     doc.features.iter().map(posed).collect()
 }

@@ -77,11 +77,9 @@ impl ThinPlateMap {
     /// Different counts, a non-finite coordinate, or a singular system (points that
     /// nearly, but not exactly, coincide).
     pub fn fit(source_points: &[Point], target_points: &[Point]) -> Result<Self, MethodError> {
-        if source_points.len() != target_points.len() {
-            return Err(MethodError::CountMismatch {
-                source_count: source_points.len(),
-                target_count: target_points.len(),
-            });
+        let (source_count, target_count) = (source_points.len(), target_points.len());
+        if source_count != target_count {
+            return Err(MethodError::CountMismatch { source_count, target_count });
         }
         for (which, pts) in [("source", source_points), ("target", target_points)] {
             if let Some((index, p)) = pts.iter().enumerate().find(|(_, p)| !is_finite_point(**p)) {

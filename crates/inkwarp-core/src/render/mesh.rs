@@ -17,6 +17,9 @@ pub(super) const TOP: u8 = 1; // top-left – top-right
 pub(super) const BOTTOM: u8 = 2; // bottom-left – bottom-right
 pub(super) const LEFT: u8 = 4; // top-left – bottom-left
 pub(super) const RIGHT: u8 = 8; // top-right – bottom-right
+/// Each side's bit, the corners at its ends, and the first end's link to the other.
+const SIDES: [(u8, u8, usize, u8); 4] =
+    [(TOP, 0b0011, 0, LINK_RIGHT), (BOTTOM, 0b1100, 2, LINK_RIGHT), (LEFT, 0b0101, 0, LINK_DOWN), (RIGHT, 0b1010, 1, LINK_DOWN)];
 
 /// Bits of a block's byte in [`Plan::signs`].
 pub(super) const COMPLETE: u8 = 0x80; // the block is one quad; bit 0 = the quad is flipped
@@ -117,17 +120,10 @@ pub(super) fn quarter_corners(b: &Block, s: &Skirts, k: usize) -> [V2; 4] {
 pub(super) fn component(links: u8, k: usize) -> u8 {
     let mut m = 1u8 << k;
     for _ in 0..3 {
-        if links & TOP != 0 && m & 0b0011 != 0 {
-            m |= 0b0011;
-        }
-        if links & BOTTOM != 0 && m & 0b1100 != 0 {
-            m |= 0b1100;
-        }
-        if links & LEFT != 0 && m & 0b0101 != 0 {
-            m |= 0b0101;
-        }
-        if links & RIGHT != 0 && m & 0b1010 != 0 {
-            m |= 0b1010;
+        for (side, ends, _, _) in SIDES {
+            if links & side != 0 && m & ends != 0 {
+                m |= ends;
+            }
         }
     }
     m
@@ -280,18 +276,10 @@ impl<'a> Layer<'a> {
                 }
             }
         }
-        let pr = b.present;
-        if pr & 0b0011 == 0b0011 && self.links[idx[0]] & LINK_RIGHT != 0 {
-            b.links |= TOP;
-        }
-        if pr & 0b1100 == 0b1100 && self.links[idx[2]] & LINK_RIGHT != 0 {
-            b.links |= BOTTOM;
-        }
-        if pr & 0b0101 == 0b0101 && self.links[idx[0]] & LINK_DOWN != 0 {
-            b.links |= LEFT;
-        }
-        if pr & 0b1010 == 0b1010 && self.links[idx[1]] & LINK_DOWN != 0 {
-            b.links |= RIGHT;
+        for (side, ends, first, link) in SIDES {
+            if b.present & ends == ends && self.links[idx[first]] & link != 0 {
+                b.links |= side;
+            }
         }
         b
     }
@@ -303,21 +291,17 @@ impl<'a> Layer<'a> {
         let w = self.w;
         let i = y * w + x;
         let p = self.pos(i);
-        let ex = if self.links[i] & LINK_RIGHT != 0 {
-            Some(sub(self.pos(i + 1), p))
-        } else if x > 0 && self.links[i - 1] & LINK_RIGHT != 0 {
-            Some(sub(p, self.pos(i - 1)))
-        } else {
-            None
+        // The link to the neighbour `step` on, or failing that from the one `step` back.
+        let axis = |link: u8, step: usize, back: bool| {
+            if self.links[i] & link != 0 {
+                Some(sub(self.pos(i + step), p))
+            } else if back && self.links[i - step] & link != 0 {
+                Some(sub(p, self.pos(i - step)))
+            } else {
+                None
+            }
         };
-        let ey = if self.links[i] & LINK_DOWN != 0 {
-            Some(sub(self.pos(i + w), p))
-        } else if y > 0 && self.links[i - w] & LINK_DOWN != 0 {
-            Some(sub(p, self.pos(i - w)))
-        } else {
-            None
-        };
-        match (ex, ey) {
+        match (axis(LINK_RIGHT, 1, x > 0), axis(LINK_DOWN, w, y > 0)) {
             (Some(a), Some(b)) => (a, b),
             (Some(a), None) => (a, [-a[1], a[0]]),
             (None, Some(b)) => ([b[1], -b[0]], b),
@@ -338,20 +322,17 @@ impl<'a> Layer<'a> {
             let h_side = if k < 2 { TOP } else { BOTTOM };
             let v_side = if k & 1 == 0 { LEFT } else { RIGHT };
             let frame = (b.links & h_side == 0 || b.links & v_side == 0).then(|| self.frame(b.xy[k].0, b.xy[k].1));
-            s.h[k] = if b.links & h_side != 0 {
-                mid(p, b.p[k ^ 1])
-            } else {
-                let ex = frame.expect("frame computed for a missing side").0;
-                let sx = if k & 1 == 0 { 0.5 } else { -0.5 };
-                [p[0] + sx * ex[0], p[1] + sx * ex[1]]
+            // The midpoint of the side towards corner `other` if it is a link, else half the
+            // frame's axis `e` that way.
+            let towards = |side: u8, other: usize, e: fn((V2, V2)) -> V2, sign: f32| {
+                if b.links & side != 0 {
+                    return mid(p, b.p[other]);
+                }
+                let e = e(frame.expect("frame computed for a missing side"));
+                [p[0] + sign * e[0], p[1] + sign * e[1]]
             };
-            s.v[k] = if b.links & v_side != 0 {
-                mid(p, b.p[k ^ 2])
-            } else {
-                let ey = frame.expect("frame computed for a missing side").1;
-                let sy = if k < 2 { 0.5 } else { -0.5 };
-                [p[0] + sy * ey[0], p[1] + sy * ey[1]]
-            };
+            s.h[k] = towards(h_side, k ^ 1, |f| f.0, if k & 1 == 0 { 0.5 } else { -0.5 });
+            s.v[k] = towards(v_side, k ^ 2, |f| f.1, if k < 2 { 0.5 } else { -0.5 });
             completion[k] = [s.h[k][0] + s.v[k][0] - p[0], s.h[k][1] + s.v[k][1] - p[1]];
         }
         for k in 0..4 {

@@ -1,57 +1,22 @@
 //! The forward-mapping renderer (DESIGN §5): every pixel of a layer is a vertex of a mesh
-//! placed at its displaced position, and the mesh is drawn onto a premultiplied canvas.
+//! placed at its displaced position, `(x + Δx + offset_x, y + Δy + offset_y)` on the
+//! canvas (pixel centres at integer coordinates, DESIGN §2), and the mesh is drawn onto a
+//! premultiplied canvas.
 //!
-//! # The mesh
+//! The rest plane is cut into *blocks*, the unit squares between pixel centres. A block
+//! whose four pixels are joined by all four links of the [`Grid`] is one bilinear **quad**;
+//! in any other block each drawn pixel owns the quarter of the block nearest to it, a
+//! **skirt quarter**, so pieces are watertight and a missing link (a hole, a cut, the
+//! image border) lets its two sides separate. A pixel is drawn when it is active in the
+//! grid or has nonzero alpha, and its displaced position is finite.
 //!
-//! Pixel `(x, y)` of the layer is drawn at `(x + Δx + offset_x, y + Δy + offset_y)` on the
-//! canvas (pixel centres at integer coordinates, DESIGN §2). The rest plane is cut into
-//! *blocks*: block `(c, r)`, for `c ∈ [-1, W-1]` and `r ∈ [-1, H-1]`, is the unit square
-//! between the centres of pixels `(c, r)`, `(c+1, r)`, `(c, r+1)` and `(c+1, r+1)` (some of
-//! which lie outside the image at the border).
-//!
-//! - A block whose four pixels are joined by all four links of the [`Grid`] is one
-//!   **quad**: its four displaced pixels are the corners, the map from rest to canvas is
-//!   bilinear, and its colour is the bilinear interpolation of the four premultiplied
-//!   pixel colours.
-//! - In any other block each drawn pixel owns the quarter of the block nearest to it, a
-//!   **skirt quarter**. Its corners are the pixel, the two points half way to its block
-//!   neighbours (the midpoint of the link where the link exists, otherwise half a pixel
-//!   along the pixel's local frame `ex`, `ey`: the displaced link to the other side, or a
-//!   perpendicular, or the rest axis), and a centre point shared by the pixels linked to
-//!   it within the block (the mean of their parallelogram completions). Its colour is the
-//!   bilinear interpolation, renormalised, over the block's pixels that can be reached
-//!   from it around the block without crossing a *broken* side (both ends drawn, no link).
-//!
-//! The quads and quarters tile each pixel's unit square exactly, so the identity field
-//! reproduces the layer, border pixels included, and the mesh is watertight: a connected
-//! piece has no cracks. Where a link is missing (a hole, a cut, the image border) the two
-//! sides only share a skirt boundary at rest and separate when the field pulls them apart.
-//!
-//! A pixel is drawn when it is active in the grid or has nonzero alpha (so a continuity
-//! matte never hides visible pixels; an inactive pixel is an isolated square that follows
-//! its own displacement), and its displaced position is finite.
-//!
-//! # Shading and coverage
-//!
-//! For each canvas pixel:
-//!
-//! - **colour** = the mesh's premultiplied colour at the pixel *centre* (found by inverting
-//!   the bilinear map of the element containing it). When several elements contain it (a
-//!   fold-over), the one drawn last wins: elements are drawn block row by block row from
-//!   the top of the rest image, left to right, the quarters of a block in the order
-//!   top-left, top-right, bottom-left, bottom-right; within one folded quad the preimage
-//!   with the larger rest `y` wins. So where the mesh folds, the part that comes from
-//!   further down (then further right) in the rest image is in front. When no element
-//!   contains the centre (a pixel straddling the edge of a piece), the colour comes from
-//!   an element at the edge: one whose block holds the centre's preimage if any, else the
-//!   nearest in rest space; it is evaluated at the preimage clamped to that block.
-//! - **coverage** = `min(1, Σ over elements of the area of the pixel's unit square inside the
-//!   element)`, computed exactly (analytic antialiasing, not point sampling).
-//! - the layer's pixel = colour × coverage, composited "over" the canvas.
-//!
-//! For a translation this is exactly the area-weighted (box-filtered) image of the
-//! translated layer, edges included. `docs/concepts/forward-mapping.md` has the details
-//! and pictures.
+//! Each canvas pixel gets the mesh's colour at its centre (where the mesh folds, the
+//! element drawn last wins: the part from further down, then further right, in the rest
+//! image) times its coverage, the exact area of its square inside the mesh, composited
+//! "over" the canvas. For a translation this is exactly the area-weighted (box-filtered)
+//! image of the translated layer, edges included. `docs/concepts/forward-mapping.md`
+//! states every rule exactly (the skirts' corners and colours, the tie rules, the colour
+//! of pixels on an edge), with pictures.
 
 mod mesh;
 mod raster;
@@ -201,9 +166,7 @@ impl Canvas {
     /// # Panics
     /// If the field or the grid is not the size of the image (see [`Canvas::try_draw_layer`]).
     pub fn draw_layer(&mut self, image: &RgbaImage, field: &Field, grid: &Grid, offset: [f64; 2]) {
-        if let Err(e) = self.try_draw_layer(image, field, grid, offset) {
-            panic!("{e}");
-        }
+        self.try_draw_layer(image, field, grid, offset).unwrap_or_else(|e| panic!("{e}"))
     }
 
     /// [`Canvas::draw_layer`], with an error instead of a panic when the sizes differ.

@@ -54,19 +54,22 @@ pub(super) fn draw_layer(canvas: &mut Canvas, image: &RgbaImage, field: &Field, 
         return;
     }
     let layer = Layer::prepare(image, field.dx.clone(), field.dy.clone(), grid, offset);
-    let plan = layer.plan();
-    canvas
-        .data
-        .par_chunks_mut(BAND_ROWS * cw)
-        .enumerate()
-        .for_each(|(band, dst)| {
-            SCRATCH.with(|scratch| {
-                let mut b = scratch.borrow_mut();
-                b.reset(cw, band * BAND_ROWS, dst.len() / cw);
-                b.render(&layer, &plan);
-                b.composite(dst);
-            })
-        });
+    let layers = [(&layer, &layer.plan())];
+    let bands = canvas.data.par_chunks_mut(BAND_ROWS * cw).enumerate();
+    bands.for_each(|(band, dst)| draw_band(&layers, cw, band * BAND_ROWS, dst));
+}
+
+/// Composites `layers` (the empty ones left out) over `dst`, the canvas rows from `y0`
+/// on (`width` pixels a row), in this thread's band buffers.
+fn draw_band(layers: &[(&Layer<'_>, &Plan)], width: usize, y0: usize, dst: &mut [Rgba]) {
+    SCRATCH.with(|scratch| {
+        let mut b = scratch.borrow_mut();
+        for (layer, plan) in layers.iter().filter(|(l, _)| l.w > 0 && l.h > 0) {
+            b.reset(width, y0, dst.len() / width);
+            b.render(layer, plan);
+            b.composite(dst);
+        }
+    })
 }
 
 /// Draws `layers` back to front over `background` (premultiplied) into the canvas rows
@@ -78,30 +81,17 @@ pub(super) fn draw_frame(width: usize, background: Rgba, layers: &[(&Layer<'_>, 
     if width == 0 {
         return;
     }
-    out.par_chunks_mut(4 * BAND_ROWS * width)
-        .enumerate()
-        .for_each(|(band, out)| {
-            SCRATCH.with(|scratch| {
-                FRAME_BAND.with(|frame| {
-                    let rows = out.len() / (4 * width);
-                    let mut dst = frame.borrow_mut();
-                    dst.clear();
-                    dst.resize(rows * width, background);
-                    let mut b = scratch.borrow_mut();
-                    for (layer, plan) in layers {
-                        if layer.w == 0 || layer.h == 0 {
-                            continue;
-                        }
-                        b.reset(width, y0 + band * BAND_ROWS, rows);
-                        b.render(layer, plan);
-                        b.composite(&mut dst);
-                    }
-                    for (o, &p) in out.chunks_exact_mut(4).zip(dst.iter()) {
-                        o.copy_from_slice(&unpremultiply(p));
-                    }
-                })
-            })
-        });
+    out.par_chunks_mut(4 * BAND_ROWS * width).enumerate().for_each(|(band, out)| {
+        FRAME_BAND.with(|frame| {
+            let mut dst = frame.borrow_mut();
+            dst.clear();
+            dst.resize(out.len() / 4, background);
+            draw_band(layers, width, y0 + band * BAND_ROWS, &mut dst);
+            for (o, &p) in out.chunks_exact_mut(4).zip(dst.iter()) {
+                o.copy_from_slice(&unpremultiply(p));
+            }
+        })
+    });
 }
 
 thread_local! {
@@ -253,11 +243,7 @@ impl Bilinear {
             let s = solve_s(t);
             if s.is_finite() && t.is_finite() {
                 let d = distance(s, t, TOL);
-                let better = match best {
-                    None => true,
-                    Some((r, bd)) => d < bd || (d == bd && t > r[1]),
-                };
-                if better {
+                if best.map_or(true, |(r, bd)| d < bd || (d == bd && t > r[1])) {
                     best = Some(([s, t], d));
                 }
             }

@@ -99,14 +99,12 @@ fn level(image: &RgbaImage, field: &Field, grid: &Grid, k: usize) -> (RgbaImage,
     for j in 0..lh {
         for i in 0..lw {
             let li = j * lw + i;
-            if i + 1 < lw && active[li] && active[li + 1] && whole_right[li] && whole_right[li + 1]
-            {
+            if i + 1 < lw && active[li] && active[li + 1] && whole_right[li] && whole_right[li + 1] {
                 // Every link across the side between the two blocks.
                 let x = (i + 1) * k - 1;
                 link_right[li] = (j * k..((j + 1) * k).min(h)).all(|y| grid.link_right[y * w + x]);
             }
-            if j + 1 < lh && active[li] && active[li + lw] && whole_down[li] && whole_down[li + lw]
-            {
+            if j + 1 < lh && active[li] && active[li + lw] && whole_down[li] && whole_down[li + lw] {
                 let y = (j + 1) * k - 1;
                 link_down[li] = (i * k..((i + 1) * k).min(w)).all(|x| grid.link_down[y * w + x]);
             }

@@ -3,12 +3,14 @@
 //! These types are the single source of truth for the format: the JSON Schema shipped with
 //! the package is generated from them ([`schema`]), the shape check walks that schema, and
 //! the reference documentation is checked against it. The `///` comments below become the
-//! schema's descriptions, so they are written for animators reading the schema.
+//! schema's descriptions, so they are written for animators reading the schema; so do those
+//! of the types the engine shares with the format ([`Method`], [`Interpolation`], [`KeyDoc`]
+//! and the feature kind, `geometry::Kind`).
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::Point;
+use crate::geometry::{Kind, Point};
 
 /// The scene format version this engine reads and writes.
 pub const FORMAT_VERSION: u32 = 1;
@@ -50,6 +52,7 @@ pub struct SceneDoc {
     pub features: Vec<FeatureDoc>,
 }
 
+pub use crate::anim::{Interpolation, Key as KeyDoc};
 pub use crate::methods::Method;
 
 /// How the grid thin plate is relaxed.
@@ -142,9 +145,7 @@ pub struct BeierNeelyDoc {
 }
 
 impl Default for BeierNeelyDoc {
-    fn default() -> Self {
-        BeierNeelyDoc { a: default_bn_a(), b: default_bn_b(), p: 0.0 }
-    }
+    fn default() -> Self { BeierNeelyDoc { a: default_bn_a(), b: default_bn_b(), p: 0.0 } }
 }
 
 /// Settings of the continuous thin-plate spline.
@@ -160,9 +161,7 @@ pub struct TpsExactDoc {
 }
 
 impl Default for TpsExactDoc {
-    fn default() -> Self {
-        TpsExactDoc { max_samples: default_max_samples() }
-    }
+    fn default() -> Self { TpsExactDoc { max_samples: default_max_samples() } }
 }
 
 impl TpsExactDoc {
@@ -261,37 +260,6 @@ pub struct LayerDoc {
     pub border: Border,
 }
 
-/// What a feature is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum FeatureKind {
-    /// One position that pins or moves its spot.
-    Point,
-    /// A chain of line segments through ≥ 2 vertices, open or `closed`.
-    Polyline,
-    /// A centripetal Catmull-Rom curve through ≥ 2 control points, open or `closed`.
-    Spline,
-    /// A filled closed shape (≥ 3 points): outline and interior move together.
-    Region,
-    /// An open polyline (≥ 2 points) that moves nothing and breaks the surface along its
-    /// rest geometry.
-    Cut,
-}
-
-impl FeatureKind {
-    /// The engine's kind (its name and control-point counts).
-    pub fn to_kind(self) -> crate::geometry::Kind {
-        use crate::geometry::Kind;
-        match self {
-            FeatureKind::Point => Kind::Point,
-            FeatureKind::Polyline => Kind::Polyline,
-            FeatureKind::Spline => Kind::Spline,
-            FeatureKind::Region => Kind::Region,
-            FeatureKind::Cut => Kind::Cut,
-        }
-    }
-}
-
 /// The outline of a region.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "lowercase")]
@@ -310,7 +278,7 @@ pub struct FeatureDoc {
     /// A name, unique among the features (layers list features by id).
     pub id: String,
     /// `point`, `polyline`, `spline`, `region` or `cut`.
-    pub kind: FeatureKind,
+    pub kind: Kind,
     /// Control points `[x, y]` traced over the original image (pixel centres at integer
     /// coordinates, y down).
     pub rest: Vec<Point>,
@@ -330,49 +298,14 @@ pub struct FeatureDoc {
 }
 
 impl FeatureDoc {
-    /// The keys in the engine's terms.
-    pub(crate) fn anim_keys(&self) -> Vec<crate::anim::Key> {
-        let key = |k: &KeyDoc| crate::anim::Key {
-            time_s: k.t,
-            points: k.points.clone(),
-            interpolation: k.interpolation.to_anim(),
-        };
-        self.keys.iter().map(key).collect()
+    /// Whether its curve is closed (regions always are).
+    pub fn is_closed(&self) -> bool {
+        self.closed || self.kind == Kind::Region
     }
-}
 
-/// How control points move from a key to the next one.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
-#[serde(rename_all = "kebab-case")]
-pub enum Interpolation {
-    /// Catmull-Rom through the neighbouring keys (smooth in time).
-    #[default]
-    Smooth,
-    /// Straight lines at constant speed.
-    Linear,
-    /// Stay at this key until the next one.
-    Hold,
-    /// Straight lines, starting at rest and speeding up: `u²` of the way at the fraction
-    /// `u` of the time to the next key.
-    EaseIn,
-    /// Straight lines, slowing down to rest at the next key: `1 − (1 − u)²` of the way.
-    EaseOut,
-    /// Straight lines, at rest at both keys: `3u² − 2u³` of the way.
-    EaseInOut,
-}
-
-impl Interpolation {
-    /// The engine's interpolation.
-    pub fn to_anim(self) -> crate::anim::Interpolation {
-        use crate::anim::Interpolation as A;
-        match self {
-            Interpolation::Smooth => A::Smooth,
-            Interpolation::Linear => A::Linear,
-            Interpolation::Hold => A::Hold,
-            Interpolation::EaseIn => A::EaseIn,
-            Interpolation::EaseOut => A::EaseOut,
-            Interpolation::EaseInOut => A::EaseInOut,
-        }
+    /// Whether its outline is a spline (`"curve": "spline"`, for regions).
+    pub fn spline_outline(&self) -> bool {
+        self.curve == Some(Curve::Spline)
     }
 }
 
@@ -388,50 +321,17 @@ pub enum Border {
     Hold,
 }
 
-/// A feature's control points at one time.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields)]
-pub struct KeyDoc {
-    /// Time in seconds, strictly increasing from key to key.
-    pub t: f64,
-    /// The control points at time `t`: as many as `rest` has, in the same order.
-    pub points: Vec<Point>,
-    /// How the points move from this key to the next: `smooth` (default), `linear`,
-    /// `hold`, `ease-in`, `ease-out` or `ease-in-out`.
-    #[serde(default, skip_serializing_if = "is_default")]
-    #[schemars(extend("default" = "smooth"))]
-    pub interpolation: Interpolation,
-}
-
-fn default_fps() -> f64 {
-    24.0
-}
-fn default_background() -> [u8; 4] {
-    [255, 255, 255, 255]
-}
-fn default_tolerance() -> f64 {
-    0.01
-}
-fn default_grid_step() -> u32 {
-    1
-}
-fn default_bn_a() -> f64 {
-    crate::methods::BeierNeelyParams::DEFAULT.a
-}
-fn default_bn_b() -> f64 {
-    crate::methods::BeierNeelyParams::DEFAULT.b
-}
-fn default_max_samples() -> u32 {
-    crate::methods::DEFAULT_MAX_SAMPLES as u32
-}
-fn default_true() -> bool {
-    true
-}
-fn is_true(v: &bool) -> bool {
-    *v
-}
+fn default_fps() -> f64 { 24.0 }
+fn default_background() -> [u8; 4] { [255, 255, 255, 255] }
+fn default_tolerance() -> f64 { 0.01 }
+fn default_grid_step() -> u32 { 1 }
+fn default_bn_a() -> f64 { crate::methods::BeierNeelyParams::DEFAULT.a }
+fn default_bn_b() -> f64 { crate::methods::BeierNeelyParams::DEFAULT.b }
+fn default_max_samples() -> u32 { crate::methods::DEFAULT_MAX_SAMPLES as u32 }
+fn default_true() -> bool { true }
+fn is_true(v: &bool) -> bool { *v }
 /// Whether a value is its type's default, which files leave out.
-fn is_default<T: Default + PartialEq>(v: &T) -> bool {
+pub(crate) fn is_default<T: Default + PartialEq>(v: &T) -> bool {
     *v == T::default()
 }
 

@@ -51,8 +51,8 @@ pub(super) fn compute_field(
     if crate::interrupt::requested() {
         return Err(STOPPED.to_string());
     }
-    let solved = match solver.method {
-        Method::Tps => {
+    let solved = match solver.method.interpolant() {
+        None => {
             let mut samples: Vec<Sample> = features.iter().flat_map(|f| f.samples.iter().copied()).collect();
             if held {
                 samples.extend(crate::geometry::border_samples(grid.width, grid.height, spacing_px));
@@ -64,20 +64,16 @@ pub(super) fn compute_field(
             .map(|(field, report)| LayerSolve { field, report: Some(report), method_report: None })
             .map_err(|e| e.to_string())
         }
-        other => match other.interpolant() {
-            Some(interpolant) => {
-                use crate::methods::scene::{feature_controls, hold_border, method_params};
-                let params = method_params(solver);
-                let mut controls = feature_controls(scene, features, time_s, interpolant)?;
-                if held {
-                    hold_border(&mut controls, interpolant, grid.width, grid.height, spacing_px);
-                }
-                crate::methods::controls_field(interpolant, &controls, grid, &params)
-                    .map_err(|e| e.to_string())
-                    .map(|(field, report)| LayerSolve { field, report: None, method_report: Some(report) })
+        Some(interpolant) => {
+            use crate::methods::scene::{feature_controls, hold_border, method_params};
+            let mut controls = feature_controls(scene, features, time_s, interpolant)?;
+            if held {
+                hold_border(&mut controls, interpolant, grid.width, grid.height, spacing_px);
             }
-            None => Err(not_available(other)),
-        },
+            crate::methods::controls_field(interpolant, &controls, grid, &method_params(solver))
+                .map_err(|e| e.to_string())
+                .map(|(field, report)| LayerSolve { field, report: None, method_report: Some(report) })
+        }
     };
     // A stop requested mid-solve may leave a partial field: never return it.
     if crate::interrupt::requested() {
@@ -101,19 +97,11 @@ fn method_override(method: Option<Method>) -> SolverOverrides {
     SolverOverrides { method, ..SolverOverrides::default() }
 }
 
-pub(super) fn not_available(method: Method) -> String {
-    format!("the method \"{}\" is not available in this version of inkwarp yet; use \"tps\"", method.name())
-}
-
 /// One driving feature's samples at one time.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FeatureSamples {
     /// Index of the feature in the scene.
     pub feature: usize,
-    /// Its kind.
-    pub kind: Kind,
-    /// Whether its curve is closed (regions always are).
-    pub closed: bool,
     /// Its samples: a curve's in order along the curve (a region's outline first, then
     /// its interior nodes).
     pub samples: Vec<Sample>,
@@ -179,8 +167,8 @@ pub const WARM_CHAIN_FRAMES: usize = 16;
 impl Scene {
     /// The control points of feature `feature` at time `time_s`.
     pub fn pose_at(&self, feature: usize, time_s: f64) -> Vec<Point> {
-        let track = &self.tracks()[feature];
-        points_at(&track.rest, &track.keys, time_s)
+        let f = &self.doc().features[feature];
+        points_at(&f.rest, &f.keys, time_s)
     }
 
     /// The constraints that drive layer `layer` at time `time_s`, feature by feature:
@@ -191,22 +179,21 @@ impl Scene {
         let spacing_px = layer_ref.solver.grid_step as f64;
         let mut out = Vec::with_capacity(layer_ref.drivers.len());
         for (&i, sampler) in layer_ref.drivers.iter().zip(&layer_ref.samplers) {
-            let track = &self.tracks()[i];
+            let f = &self.doc().features[i];
             let fail = |e: String| SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"));
             // The rest geometry is prepared once per layer (for a region: its interior
             // nodes and their mean value coordinates); each frame only poses it.
             let sampler = sampler
                 .get_or_init(|| {
-                    let (closed, spline_outline) = (track.closed, track.spline_outline);
-                    let options = SampleOptions { closed, spline_outline, spacing_px };
-                    let domain = (track.kind == Kind::Region).then_some(&layer_ref.grid);
-                    FeatureSampler::new(track.kind, &track.rest, &options, domain).map_err(|e| e.to_string())
+                    let options = SampleOptions { closed: f.is_closed(), spline_outline: f.spline_outline(), spacing_px };
+                    let domain = (f.kind == Kind::Region).then_some(&layer_ref.grid);
+                    FeatureSampler::new(f.kind, &f.rest, &options, domain).map_err(|e| e.to_string())
                 })
                 .as_ref()
                 .map_err(|e| fail(e.clone()))?;
             let pose = self.pose_at(i, time_s);
             let samples = sampler.sample(&pose).map_err(|e| fail(e.to_string()))?;
-            out.push(FeatureSamples { feature: i, kind: track.kind, closed: track.closed, samples });
+            out.push(FeatureSamples { feature: i, samples });
         }
         Ok(out)
     }
@@ -248,30 +235,11 @@ impl Scene {
         self.solve_layer(layer, time_s, Start::Field(initial), overrides)
     }
 
-    /// [`Scene::layer_field_overridden`] started from the layer's earlier frames in
-    /// `solver`'s history (see [`Solver`]), which then keeps this one.
-    pub fn layer_field_warm(
-        &self,
-        layer: usize,
-        time_s: f64,
-        solver: &mut Solver,
-        overrides: &SolverOverrides,
-    ) -> Result<LayerSolve, SceneError> {
-        self.solve_layer(layer, time_s, Start::History(solver), overrides)
-    }
-
-    fn solve_layer(
-        &self,
-        layer: usize,
-        time_s: f64,
-        start: Start<'_>,
-        overrides: &SolverOverrides,
-    ) -> Result<LayerSolve, SceneError> {
+    /// Layer `layer`'s field at `time_s` with `overrides` over its settings, started from
+    /// `start` (the thin plate; the other methods start from nothing).
+    fn solve_layer(&self, layer: usize, time_s: f64, start: Start<'_>, overrides: &SolverOverrides) -> Result<LayerSolve, SceneError> {
         let layer_ref = &self.layers()[layer];
         let solver = overrides.apply(&layer_ref.solver);
-        if !method_available(solver.method) {
-            return Err(SceneError::one("", not_available(solver.method)));
-        }
         let features = self.layer_feature_samples(layer, time_s)?;
         compute_field(self, time_s, &solver, &layer_ref.grid, &features, start, layer_ref.border)
             .map_err(|e| SceneError::one(format!("layers[{layer}]"), format!("at t = {time_s} s: {e}")))
@@ -352,7 +320,7 @@ impl Scene {
     /// Frames `frames` rendered by up to `threads` threads (0: [`default_frame_threads`]),
     /// delivered in order. See [`WARM_CHAIN_FRAMES`] for how warm starts are chained.
     pub fn frames(self: &Arc<Self>, frames: Range<usize>, threads: usize) -> FrameStream {
-        FrameStream::new(Arc::clone(self), frames, threads)
+        FrameStream::with_method(Arc::clone(self), frames, threads, None)
     }
 }
 
@@ -419,7 +387,7 @@ impl<'a> Animator<'a> {
     /// The field of layer `layer` at `time_s`, started from the layer's earlier frames (the
     /// thin plate; the other methods start from nothing).
     pub fn layer_field(&mut self, layer: usize, time_s: f64) -> Result<LayerSolve, SceneError> {
-        let solved = self.scene.layer_field_warm(layer, time_s, &mut self.history[layer], &self.overrides)?;
+        let solved = self.scene.solve_layer(layer, time_s, Start::History(&mut self.history[layer]), &self.overrides)?;
         self.warnings.extend(self.scene.convergence_warning(layer, time_s, &solved));
         Ok(solved)
     }
@@ -463,18 +431,13 @@ pub struct FrameStream {
 
 impl FrameStream {
     /// Frames `frames` (clamped to the scene) by up to `threads` threads (0: the default,
-    /// [`default_frame_threads`]).
-    pub fn new(scene: Arc<Scene>, frames: Range<usize>, threads: usize) -> Self {
-        Self::with_method(scene, frames, threads, None)
-    }
-
-    /// [`FrameStream::new`], every field computed by `method` (when given) instead of each
-    /// layer's own.
+    /// [`default_frame_threads`]), every field computed by `method` (when given) instead of
+    /// each layer's own.
     pub fn with_method(scene: Arc<Scene>, frames: Range<usize>, threads: usize, method: Option<Method>) -> Self {
         Self::with_overrides(scene, frames, threads, method_override(method))
     }
 
-    /// [`FrameStream::new`], `overrides` applied over every layer's own settings.
+    /// [`FrameStream::with_method`], `overrides` applied over every layer's own settings.
     pub fn with_overrides(scene: Arc<Scene>, frames: Range<usize>, threads: usize, overrides: SolverOverrides) -> Self {
         let end = frames.end.min(scene.frame_count());
         let mut chains = Vec::new();

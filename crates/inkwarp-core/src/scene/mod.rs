@@ -43,7 +43,7 @@ pub use engine::{
 pub use crate::render::RgbaImage;
 pub use validate::{validate_doc, validate_overrides};
 
-use crate::geometry::{Kind, Point};
+use crate::geometry::Kind;
 use crate::grid::Grid;
 
 /// One thing wrong with a scene: where (a JSON path such as `features[3].keys[1].points`,
@@ -130,11 +130,9 @@ pub fn parse_overrides(text: &str, path: &str) -> Result<SolverOverrides, SceneE
         let at = if inner == "." { path.to_string() } else { format!("{path}.{inner}") };
         SceneError::one(at, err.into_inner().to_string())
     })?;
-    let problems = validate_overrides(&overrides, path);
-    if problems.is_empty() {
-        Ok(overrides)
-    } else {
-        Err(SceneError { problems })
+    match validate_overrides(&overrides, path) {
+        problems if problems.is_empty() => Ok(overrides),
+        problems => Err(SceneError { problems }),
     }
 }
 
@@ -211,7 +209,9 @@ fn parse_value(value: &Value) -> Parsed {
     let Value::Object(mut map) = value else {
         return parsed;
     };
-    // Unknown keys were set aside, so they break nothing.
+    // A problem at exactly `path`, and one at or under `prefix` (unknown keys were set
+    // aside, so they break nothing).
+    let at = |path: &str| parsed.problems.iter().any(|p| p.path == path);
     let broken = |prefix: &str| {
         parsed.problems.iter().filter(|p| !unknown_keys.contains(&p.path)).any(|p| {
             p.path == prefix || p.path.starts_with(&format!("{prefix}.")) || p.path.starts_with(&format!("{prefix}["))
@@ -240,20 +240,15 @@ fn parse_value(value: &Value) -> Parsed {
         // The method settings are objects of their own: drop only their broken keys (the
         // others keep their values for the meaning check), unless the object as a whole
         // is broken.
-        for (key, value) in solver.iter_mut() {
-            let path = format!("solver.{key}");
-            if let Value::Object(settings) = value {
-                if !parsed.problems.iter().any(|p| p.path == path) {
-                    settings.retain(|inner, _| !broken(&format!("{path}.{inner}")));
-                }
-            }
-        }
         solver.retain(|key, value| {
             let path = format!("solver.{key}");
-            if value.is_object() {
-                !parsed.problems.iter().any(|p| p.path == path)
-            } else {
-                !broken(&path)
+            match value {
+                Value::Object(_) if at(&path) => false,
+                Value::Object(settings) => {
+                    settings.retain(|inner, _| !broken(&format!("{path}.{inner}")));
+                    true
+                }
+                _ => !broken(&path),
             }
         });
     }
@@ -261,10 +256,7 @@ fn parse_value(value: &Value) -> Parsed {
     // whole only when the value itself has the wrong type.
     let broken_top: Vec<String> = map
         .keys()
-        .filter(|k| match k.as_str() {
-            "features" | "layers" | "solver" => parsed.problems.iter().any(|p| p.path == **k),
-            _ => broken(k),
-        })
+        .filter(|k| if matches!(k.as_str(), "features" | "layers" | "solver") { at(k) } else { broken(k) })
         .cloned()
         .collect();
     for key in broken_top {
@@ -324,18 +316,7 @@ pub struct Scene {
     height: usize,
     duration_s: f64,
     frame_count: usize,
-    tracks: Vec<Track>,
     layers: Vec<Layer>,
-}
-
-/// A feature in the engine's terms.
-#[derive(Debug)]
-pub(crate) struct Track {
-    pub kind: Kind,
-    pub rest: Vec<Point>,
-    pub keys: Vec<crate::anim::Key>,
-    pub closed: bool,
-    pub spline_outline: bool,
 }
 
 /// A layer ready to render.
@@ -466,17 +447,6 @@ impl Scene {
         }
         let (width, height, _) = size.expect("checked above");
 
-        let tracks: Vec<Track> = doc
-            .features
-            .iter()
-            .map(|f| Track {
-                kind: f.kind.to_kind(),
-                rest: f.rest.clone(),
-                keys: f.anim_keys(),
-                closed: f.closed || f.kind == FeatureKind::Region,
-                spline_outline: f.curve == Some(Curve::Spline),
-            })
-            .collect();
         let index_of: HashMap<&str, usize> = doc.features.iter().enumerate().map(|(i, f)| (f.id.as_str(), i)).collect();
 
         let mut layers = Vec::with_capacity(doc.layers.len());
@@ -493,91 +463,48 @@ impl Scene {
             };
             let mut grid = match (&continuity, &image) {
                 (Some(matte), _) => Grid::from_matte(width, height, &images::matte_values(matte)),
-                (None, Some(image)) => {
-                    let alpha: Vec<u8> = image.data.chunks_exact(4).map(|px| px[3]).collect();
-                    Grid::from_matte(width, height, &alpha)
-                }
+                (None, Some(image)) => Grid::from_matte(width, height, &image.data.iter().skip(3).step_by(4).copied().collect::<Vec<_>>()),
                 (None, None) => Grid::new(width, height),
             };
             let members: Vec<usize> = match &layer.features {
                 Some(ids) => ids.iter().map(|id| index_of[id.as_str()]).collect(),
-                None => (0..tracks.len()).collect(),
+                None => (0..doc.features.len()).collect(),
             };
-            let mut drivers = Vec::new();
-            for i in members {
-                let track = &tracks[i];
-                if track.kind == Kind::Cut {
-                    grid.add_cut(&crate::geometry::curve_polyline(Kind::Cut, &track.rest, track.closed, false, 0.5));
-                } else {
-                    drivers.push(i);
-                }
+            let (cuts, drivers): (Vec<usize>, Vec<usize>) = members.into_iter().partition(|&i| doc.features[i].kind == Kind::Cut);
+            for cut in cuts.iter().map(|&i| &doc.features[i]) {
+                grid.add_cut(&crate::geometry::curve_polyline(Kind::Cut, &cut.rest, cut.closed, false, 0.5));
             }
+            let (name, offset, visible, border) = (layer.name.clone(), layer.offset, layer.visible, layer.border);
+            let solver = layer.solver.as_ref().map_or_else(|| doc.solver.clone(), |o| o.apply(&doc.solver));
             let samplers = drivers.iter().map(|_| OnceLock::new()).collect();
-            layers.push(Layer {
-                samplers,
-                name: layer.name.clone(),
-                image,
-                grid,
-                drivers,
-                offset: layer.offset,
-                solver: layer.solver.as_ref().map_or_else(|| doc.solver.clone(), |o| o.apply(&doc.solver)),
-                visible: layer.visible,
-                border: layer.border,
-            });
+            layers.push(Layer { name, image, grid, drivers, offset, solver, visible, border, samplers });
         }
 
         let fps = doc.fps;
         let duration_s = doc.duration.unwrap_or_else(|| {
-            let last_key = doc.features.iter().flat_map(|f| f.keys.iter().map(|k| k.t)).fold(0.0, f64::max);
+            let last_key = doc.features.iter().flat_map(|f| f.keys.iter().map(|k| k.time_s)).fold(0.0, f64::max);
             last_key + 1.0 / fps
         });
         let frame_count = ((duration_s * fps - 1e-9).ceil() as usize).max(1);
-        Ok(Scene { doc, width, height, duration_s, frame_count, tracks, layers })
+        Ok(Scene { doc, width, height, duration_s, frame_count, layers })
     }
 
     /// The document this scene was built from (defaults filled in).
-    pub fn doc(&self) -> &SceneDoc {
-        &self.doc
-    }
-
+    pub fn doc(&self) -> &SceneDoc { &self.doc }
     /// Frame width in pixels.
-    pub fn width(&self) -> usize {
-        self.width
-    }
-
+    pub fn width(&self) -> usize { self.width }
     /// Frame height in pixels.
-    pub fn height(&self) -> usize {
-        self.height
-    }
-
+    pub fn height(&self) -> usize { self.height }
     /// Frames per second.
-    pub fn fps(&self) -> f64 {
-        self.doc.fps
-    }
-
+    pub fn fps(&self) -> f64 { self.doc.fps }
     /// Length in seconds (the document's, or up to and including the last key).
-    pub fn duration_s(&self) -> f64 {
-        self.duration_s
-    }
-
+    pub fn duration_s(&self) -> f64 { self.duration_s }
     /// Number of frames: `ceil(duration * fps)`, at least 1.
-    pub fn frame_count(&self) -> usize {
-        self.frame_count
-    }
-
+    pub fn frame_count(&self) -> usize { self.frame_count }
     /// The time of frame `i`: `i / fps` seconds.
-    pub fn frame_time_s(&self, i: usize) -> f64 {
-        i as f64 / self.doc.fps
-    }
-
+    pub fn frame_time_s(&self, i: usize) -> f64 { i as f64 / self.doc.fps }
     /// The layers, back to front.
-    pub fn layers(&self) -> &[Layer] {
-        &self.layers
-    }
-
-    pub(crate) fn tracks(&self) -> &[Track] {
-        &self.tracks
-    }
+    pub fn layers(&self) -> &[Layer] { &self.layers }
 }
 
 fn describe_reference(reference: &str) -> String {

@@ -72,11 +72,20 @@ impl<'a> Walker<'a> {
                 return false;
             }
         }
-        if let Some(constant) = schema.get("const") {
-            if value != constant {
-                self.constant_mismatch(value, constant, path);
-                return false;
-            }
+        if let Some(constant) = schema.get("const").filter(|&c| c != value) {
+            let found = describe(value);
+            self.push(
+                path,
+                if path == "inkwarp" {
+                    format!(
+                        "this inkwarp reads scene format {constant}, found {found}; set \"inkwarp\": {constant} \
+                         (and convert the scene if it was written for another format)"
+                    )
+                } else {
+                    format!("must be {constant}, found {found}")
+                },
+            );
+            return false;
         }
         if let Some(options) = schema.get("enum").and_then(Value::as_array) {
             if !options.contains(value) {
@@ -93,13 +102,7 @@ impl<'a> Walker<'a> {
         self.problems.len() == before
     }
 
-    fn alternatives(
-        &mut self,
-        value: &Value,
-        alternatives: &'a [Value],
-        path: &str,
-        what: Option<&str>,
-    ) -> bool {
+    fn alternatives(&mut self, value: &Value, alternatives: &'a [Value], path: &str, what: Option<&str>) -> bool {
         // All-constant alternatives are an enumeration of names (kinds, methods, ...).
         let constants: Vec<&Value> = alternatives.iter().filter_map(|a| self.resolve(a).0.get("const")).collect();
         if constants.len() == alternatives.len() {
@@ -153,19 +156,6 @@ impl<'a> Walker<'a> {
             }
         }
         false
-    }
-
-    fn constant_mismatch(&mut self, value: &Value, constant: &Value, path: &str) {
-        let message = if path == "inkwarp" {
-            format!(
-                "this inkwarp reads scene format {constant}, found {}; set \"inkwarp\": {constant} \
-                 (and convert the scene if it was written for another format)",
-                describe(value)
-            )
-        } else {
-            format!("must be {constant}, found {}", describe(value))
-        };
-        self.push(path, message);
     }
 
     fn object(&mut self, map: &Map<String, Value>, schema: &'a Value, path: &str, what: Option<&str>) {
@@ -289,17 +279,20 @@ pub(crate) fn join_key(path: &str, key: &str) -> String {
     }
 }
 
+/// JSON Schema's types: how to tell a value of each, and how messages name it.
+#[allow(clippy::type_complexity)]
+const TYPES: [(&str, fn(&Value) -> bool, &str); 7] = [
+    ("object", Value::is_object, "an object {...}"),
+    ("array", Value::is_array, "a list [...]"),
+    ("string", Value::is_string, "a string"),
+    ("boolean", Value::is_boolean, "true or false"),
+    ("null", Value::is_null, "null"),
+    ("number", Value::is_number, "a number"),
+    ("integer", |v| v.is_u64() || v.is_i64(), "a whole number"),
+];
+
 fn type_matches(value: &Value, types: &Value) -> bool {
-    let one = |t: &str| match t {
-        "object" => value.is_object(),
-        "array" => value.is_array(),
-        "string" => value.is_string(),
-        "boolean" => value.is_boolean(),
-        "null" => value.is_null(),
-        "number" => value.is_number(),
-        "integer" => value.is_u64() || value.is_i64(),
-        _ => true,
-    };
+    let one = |t: &str| TYPES.iter().find(|e| e.0 == t).map_or(true, |e| (e.1)(value));
     match types {
         Value::String(t) => one(t),
         Value::Array(ts) => ts.iter().filter_map(Value::as_str).any(one),
@@ -308,20 +301,11 @@ fn type_matches(value: &Value, types: &Value) -> bool {
 }
 
 fn expected_types(types: &Value) -> String {
-    let name = |t: &str| match t {
-        "object" => "an object {...}",
-        "array" => "a list [...]",
-        "string" => "a string",
-        "boolean" => "true or false",
-        "integer" => "a whole number",
-        "number" => "a number",
-        "null" => "null",
-        _ => "a value",
-    };
+    let name = |t: &str| TYPES.iter().find(|e| e.0 == t).map_or("a value", |e| e.2);
     match types {
         Value::String(t) => name(t).to_string(),
+        // `Option<T>` is "T or null": null means "absent", so name only T.
         Value::Array(ts) => {
-            // `Option<T>` is "T or null": null means "absent", so name only T.
             let names: Vec<&str> = ts.iter().filter_map(Value::as_str).filter(|t| *t != "null").map(name).collect();
             names.join(" or ")
         }

@@ -749,7 +749,7 @@ fn samples_come_grouped_by_feature_in_curve_order() {
     assert_eq!(
         groups
             .iter()
-            .map(|g| (g.feature, g.kind))
+            .map(|g| (g.feature, scene.doc().features[g.feature].kind))
             .collect::<Vec<_>>(),
         [(0, crate::Kind::Point), (1, crate::Kind::Spline)]
     );
@@ -862,7 +862,7 @@ fn a_field_that_is_not_finite_is_an_error_not_a_blank_frame() {
     let scene = Scene::from_json(&valid_scene().to_string(), &mut loader).unwrap();
     let grid = crate::grid::Grid::new(16, 12);
     let samples = vec![crate::geometry::Sample { rest: [4.0, 4.0], displacement: [1e300, 0.0] }];
-    let features = [FeatureSamples { feature: 0, kind: crate::geometry::Kind::Point, closed: false, samples }];
+    let features = [FeatureSamples { feature: 0, samples }];
     for method in [super::doc::Method::Tps, super::doc::Method::BeierNeely] {
         let solver = super::doc::SolverDoc { method, ..super::doc::SolverDoc::default() };
         let result = compute_field(&scene, 0.0, &solver, &grid, &features, Start::Field(None), Default::default());

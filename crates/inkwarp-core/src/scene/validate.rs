@@ -3,8 +3,7 @@
 
 use std::collections::HashMap;
 
-use super::doc::{BeierNeelyDoc, SceneDoc, SolverDoc, SolverOverrides, TpsExactDoc, FORMAT_VERSION};
-use super::engine::{method_available, not_available};
+use super::doc::{BeierNeelyDoc, SceneDoc, SolverOverrides, TpsExactDoc, FORMAT_VERSION};
 use super::shape::did_you_mean;
 use super::Problem;
 use crate::geometry::{Kind, Point};
@@ -67,14 +66,20 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
         };
         p.extend(why.map(|why| Problem::new("duration", why)));
     }
-    check_solver(&doc.solver, "solver", &mut p);
+    // The scene's own settings, checked as overrides that give every key.
+    let s = &doc.solver;
+    let all = SolverOverrides {
+        method: Some(s.method), tension: Some(s.tension), tolerance: Some(s.tolerance), grid_step: Some(s.grid_step),
+        max_cycles: s.max_cycles, scheme: Some(s.scheme), beier_neely: Some(s.beier_neely), tps_exact: Some(s.tps_exact),
+    };
+    p.extend(validate_overrides(&all, "solver"));
 
     // Features.
     let mut first_with_id: HashMap<&str, usize> = HashMap::new();
     for (i, feature) in doc.features.iter().enumerate() {
         let path = format!("features[{i}]");
         check_unique(&feature.id, i, ("feature", "id", "features"), &mut first_with_id, &mut p);
-        let kind = feature.kind.to_kind();
+        let kind = feature.kind;
         let (n, point) = (feature.rest.len(), kind == Kind::Point);
         // A point has exactly one control point; the other kinds have no most.
         if n < kind.min_points() || (point && n > 1) {
@@ -99,52 +104,41 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
         }
         let mut previous_t: Option<f64> = None;
         for (k, key) in feature.keys.iter().enumerate() {
-            let key_path = format!("{path}.keys[{k}]");
-            let time_problem = if !key.t.is_finite() {
-                Some(format!("the key time must be a finite number of seconds, found {}", key.t))
-            } else if key.t.abs() > MAX_TIME_S {
-                Some(format!(
+            // `j` is the key before, when there is a `previous_t`.
+            let (key_path, t, j) = (format!("{path}.keys[{k}]"), key.time_s, k.wrapping_sub(1));
+            let why = match previous_t {
+                _ if !t.is_finite() => Some(format!("the key time must be a finite number of seconds, found {t}")),
+                _ if t.abs() > MAX_TIME_S => Some(format!(
                     "key times may be at most {MAX_TIME_S} s (either side of 0), found {}; \
                      split a longer animation into several scenes",
-                    limits::show(key.t)
-                ))
-            } else if let Some(before) = previous_t.filter(|b| key.t > *b && key.t - *b < MIN_KEY_SPACING_S) {
-                Some(format!(
-                    "keys[{}] and keys[{k}] are {:e} s apart, closer than {MIN_KEY_SPACING_S:e} s; \
+                    limits::show(t)
+                )),
+                Some(b) if t > b && t - b < MIN_KEY_SPACING_S => Some(format!(
+                    "keys[{j}] and keys[{k}] are {:e} s apart, closer than {MIN_KEY_SPACING_S:e} s; \
                      move them apart or remove one",
-                    k - 1,
-                    key.t - before
-                ))
-            } else if let Some(before) = previous_t.filter(|&b| key.t == b) {
-                Some(format!(
-                    "two keys at t = {before} s (keys[{}] and keys[{k}]); give each key its own time \
-                     or remove one",
-                    k - 1
-                ))
-            } else {
-                previous_t.filter(|&b| key.t < b).map(|before| {
-                    format!(
-                        "keys must be in increasing time order, but t = {} s follows t = {before} s \
-                         (keys[{}]); sort the keys by time",
-                        key.t,
-                        k - 1
-                    )
-                })
+                    t - b
+                )),
+                Some(b) if t == b => Some(format!(
+                    "two keys at t = {b} s (keys[{j}] and keys[{k}]); give each key its own time or remove one"
+                )),
+                Some(b) if t < b => Some(format!(
+                    "keys must be in increasing time order, but t = {t} s follows t = {b} s (keys[{j}]); \
+                     sort the keys by time"
+                )),
+                _ => None,
             };
-            if let Some(why) = time_problem {
-                p.push(Problem::new(format!("{key_path}.t"), why));
+            p.extend(why.map(|why| Problem::new(format!("{key_path}.t"), why)));
+            if t.is_finite() {
+                previous_t = Some(t);
             }
-            if key.t.is_finite() {
-                previous_t = Some(key.t);
-            }
-            if key.points.len() != n {
+            let m = key.points.len();
+            if m != n {
+                let s = if m == 1 { "" } else { "s" };
                 p.push(Problem::new(
                     format!("{key_path}.points"),
                     format!(
-                        "this key has {} control point{} but the feature's rest has {n}; a key lists the \
-                         same control points as rest, in the same order",
-                        key.points.len(),
-                        if key.points.len() == 1 { "" } else { "s" }
+                        "this key has {m} control point{s} but the feature's rest has {n}; a key lists the \
+                         same control points as rest, in the same order"
                     ),
                 ));
             }
@@ -206,7 +200,7 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
             }
         }
         if let Some(overrides) = &layer.solver {
-            check_overrides(overrides, &format!("{path}.solver"), &mut p);
+            p.extend(validate_overrides(overrides, &format!("{path}.solver")));
         }
     }
     p
@@ -235,115 +229,73 @@ fn check_unique<'d>(
 }
 
 /// Every problem of solver settings given outside a scene (by a caller that overrides
-/// every layer's settings, as `inkwarp compare` does), with paths under `path`.
-pub fn validate_overrides(overrides: &SolverOverrides, path: &str) -> Vec<Problem> {
+/// every layer's settings, as `inkwarp compare` does), with paths under `path`. A scene's
+/// own settings and each layer's overrides are checked the same way.
+pub fn validate_overrides(solver: &SolverOverrides, path: &str) -> Vec<Problem> {
     let mut p = Vec::new();
-    check_overrides(overrides, path, &mut p);
+    let mut push = |key: &str, why: String| p.push(Problem::new(format!("{path}.{key}"), why));
+    if let Some(tension) = solver.tension.filter(|t| !(t.is_finite() && (0.0..=MAX_TENSION).contains(t))) {
+        let tension = limits::show(tension);
+        push("tension", format!("the tension must be a number from 0 to {MAX_TENSION:e}, found {tension}; 0 is a pure thin plate"));
+    }
+    if let Some(tolerance) = solver.tolerance.filter(|t| !(t.is_finite() && *t > 0.0)) {
+        push("tolerance", format!("the tolerance must be a number of pixels > 0, found {tolerance}; the default is 0.01"));
+    }
+    if let Some(step) = solver.grid_step.filter(|s| !(1..=64).contains(s)) {
+        push("grid_step", format!("grid_step must be a whole number from 1 to 64, found {step}; 1 solves on every pixel"));
+    }
+    if solver.max_cycles == Some(0) {
+        push("max_cycles", "max_cycles must be at least 1; leave it out to run until the tolerance is met".into());
+    }
+    // Beier–Neely's weights: the ranges of `methods::BeierNeelyParams::validate`, reported
+    // the scene's way.
+    if let Some(BeierNeelyDoc { a, b, p }) = solver.beier_neely {
+        if !(a.is_finite() && a > 0.0 && a <= MAX_BEIER_NEELY_A) {
+            push(
+                "beier_neely.a",
+                format!(
+                    "Beier–Neely's a must be a number of pixels > 0 and at most {MAX_BEIER_NEELY_A:e}, found {}; the \
+                     default is 1 (smaller values follow the drawing more tightly)",
+                    limits::show(a)
+                ),
+            );
+        }
+        for (key, value, default) in [("b", b, 2), ("p", p, 0)] {
+            if !(value.is_finite() && (0.0..=MAX_BEIER_NEELY_EXPONENT).contains(&value)) {
+                let why = format!(
+                    "Beier–Neely's {key} must be a number from 0 to {MAX_BEIER_NEELY_EXPONENT}, found {}; the default \
+                     is {default}",
+                    limits::show(value)
+                );
+                push(&format!("beier_neely.{key}"), why);
+            }
+        }
+    }
+    let limit = TpsExactDoc::MAX_SAMPLES_LIMIT;
+    if let Some(n) = solver.tps_exact.map(|t| t.max_samples).filter(|n| !(1..=limit).contains(n)) {
+        push(
+            "tps_exact.max_samples",
+            format!(
+                "max_samples must be a whole number from 1 to {limit}, found {n}; the default is 1000 (the fit \
+                 takes O(n³) time and O(n²) memory)"
+            ),
+        );
+    }
     p
 }
 
 fn check_points(points: &[Point], path: &str, p: &mut Vec<Problem>) {
     for (i, point) in points.iter().enumerate() {
-        for (c, v) in point.iter().enumerate() {
-            if !v.is_finite() {
-                let why = format!("coordinates must be finite numbers of pixels, found {v}");
-                p.push(Problem::new(format!("{path}[{i}][{c}]"), why));
-            } else if !limits::coordinate_ok(*v) {
-                p.push(Problem::new(
-                    format!("{path}[{i}][{c}]"),
-                    format!(
-                        "coordinates may be at most {MAX_COORD_PX:e} pixels from the origin, found {}; \
-                         is the point in pixels?",
-                        limits::show(*v)
-                    ),
-                ));
-            }
-        }
-    }
-}
-
-fn check_solver(solver: &SolverDoc, path: &str, p: &mut Vec<Problem>) {
-    let overrides = SolverOverrides {
-        method: Some(solver.method),
-        tension: Some(solver.tension),
-        tolerance: Some(solver.tolerance),
-        grid_step: Some(solver.grid_step),
-        max_cycles: solver.max_cycles,
-        scheme: Some(solver.scheme),
-        beier_neely: Some(solver.beier_neely),
-        tps_exact: Some(solver.tps_exact),
-    };
-    check_overrides(&overrides, path, p);
-}
-
-fn check_overrides(solver: &SolverOverrides, path: &str, p: &mut Vec<Problem>) {
-    if let Some(method) = solver.method.filter(|&m| !method_available(m)) {
-        p.push(Problem::new(format!("{path}.method"), not_available(method)));
-    }
-    if let Some(tension) = solver.tension.filter(|t| !(t.is_finite() && (0.0..=MAX_TENSION).contains(t))) {
-        p.push(Problem::new(
-            format!("{path}.tension"),
-            format!(
-                "the tension must be a number from 0 to {MAX_TENSION:e}, found {}; 0 is a pure thin plate",
-                limits::show(tension)
-            ),
-        ));
-    }
-    if let Some(tolerance) = solver.tolerance.filter(|t| !(t.is_finite() && *t > 0.0)) {
-        p.push(Problem::new(
-            format!("{path}.tolerance"),
-            format!("the tolerance must be a number of pixels > 0, found {tolerance}; the default is 0.01"),
-        ));
-    }
-    if let Some(step) = solver.grid_step.filter(|s| !(1..=64).contains(s)) {
-        p.push(Problem::new(
-            format!("{path}.grid_step"),
-            format!("grid_step must be a whole number from 1 to 64, found {step}; 1 solves on every pixel"),
-        ));
-    }
-    if solver.max_cycles == Some(0) {
-        p.push(Problem::new(
-            format!("{path}.max_cycles"),
-            "max_cycles must be at least 1; leave it out to run until the tolerance is met",
-        ));
-    }
-    if let Some(weights) = &solver.beier_neely {
-        check_beier_neely(weights, &format!("{path}.beier_neely"), p);
-    }
-    if let Some(settings) = &solver.tps_exact {
-        let limit = TpsExactDoc::MAX_SAMPLES_LIMIT;
-        if !(1..=limit).contains(&settings.max_samples) {
-            p.push(Problem::new(
-                format!("{path}.tps_exact.max_samples"),
-                format!(
-                    "max_samples must be a whole number from 1 to {limit}, found {}; the default is 1000 \
-                     (the fit takes O(n³) time and O(n²) memory)",
-                    settings.max_samples
-                ),
-            ));
-        }
-    }
-}
-
-/// Beier–Neely's weights: the ranges of `methods::BeierNeelyParams::validate`, reported
-/// the scene's way.
-fn check_beier_neely(weights: &BeierNeelyDoc, path: &str, p: &mut Vec<Problem>) {
-    if !(weights.a.is_finite() && weights.a > 0.0 && weights.a <= MAX_BEIER_NEELY_A) {
-        p.push(Problem::new(
-            format!("{path}.a"),
-            format!(
-                "Beier–Neely's a must be a number of pixels > 0 and at most {MAX_BEIER_NEELY_A:e}, found {}; the default is 1 (smaller values \
-                 follow the drawing more tightly)",
-                limits::show(weights.a)
-            ),
-        ));
-    }
-    for (key, value, default) in [("b", weights.b, 2), ("p", weights.p, 0)] {
-        if !(value.is_finite() && (0.0..=MAX_BEIER_NEELY_EXPONENT).contains(&value)) {
-            p.push(Problem::new(
-                format!("{path}.{key}"),
-                format!("Beier–Neely's {key} must be a number from 0 to {MAX_BEIER_NEELY_EXPONENT}, found {}; the default is {default}", limits::show(value)),
-            ));
+        for (c, &v) in point.iter().enumerate() {
+            let why = if !v.is_finite() {
+                format!("coordinates must be finite numbers of pixels, found {v}")
+            } else if !limits::coordinate_ok(v) {
+                let v = limits::show(v);
+                format!("coordinates may be at most {MAX_COORD_PX:e} pixels from the origin, found {v}; is the point in pixels?")
+            } else {
+                continue;
+            };
+            p.push(Problem::new(format!("{path}[{i}][{c}]"), why));
         }
     }
 }
