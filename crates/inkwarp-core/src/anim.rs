@@ -15,7 +15,8 @@
 //! The eased spans move along the straight line between their keys with a set timing,
 //! `u` being the fraction of the span's time gone by: `EaseIn` as `u²` (starts at rest,
 //! arrives at twice the average speed), `EaseOut` as `1 − (1 − u)²` (the reverse) and
-//! `EaseInOut` as `3u² − 2u³` (at rest at both ends).
+//! `EaseInOut` as `3u² − 2u³` (at rest at both ends). A smooth span next to an eased one
+//! takes the eased span's velocity at the key they share, so motion stays C¹ there too.
 
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -26,7 +27,7 @@ use crate::geometry::{hermite_basis, Point};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "kebab-case")]
 pub enum Interpolation {
-    /// Catmull-Rom through the neighbouring keys (smooth in time).
+    /// A C¹ cubic in time through the keys (see docs/concepts/drawings.md, "Time").
     #[default]
     Smooth,
     /// Straight lines at constant speed.

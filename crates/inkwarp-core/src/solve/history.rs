@@ -30,7 +30,7 @@ pub struct WarmHistory {
     shape: (usize, usize),
     nodes: Vec<usize>,
     /// Oldest first: (constraint values, field).
-    pub(super) entries: VecDeque<(Vec<[f64; 2]>, Field)>,
+    entries: VecDeque<(Vec<[f64; 2]>, Field)>,
 }
 
 impl WarmHistory {
@@ -48,6 +48,11 @@ impl WarmHistory {
     /// Number of earlier frames kept.
     pub fn len(&self) -> usize {
         self.entries.len()
+    }
+
+    /// The latest frame's field.
+    pub(crate) fn last(&self) -> Option<&Field> {
+        self.entries.back().map(|e| &e.1)
     }
 
     /// Whether no frame is kept.
@@ -75,7 +80,7 @@ impl WarmHistory {
     /// frames pin other nodes or do not help; `None` when empty or kept for another grid
     /// size.
     pub fn predict(&self, grid: &Grid, c: &Constraints) -> Option<Field> {
-        let last = &self.entries.back()?.1;
+        let last = self.last()?;
         if last.width != grid.width || last.height != grid.height {
             return None;
         }

@@ -1096,9 +1096,13 @@ impl Level {
                     subtract_far(far, base, x, &mut buf);
                     for &run in runs.row(r) {
                         let (c, e) = (run.start as usize, run.end as usize);
+                        if run.kind == RunKind::Skip {
+                            orow[c..e].fill([0.0; 2]);
+                            continue;
+                        }
                         for (j, (o, b)) in orow[c..e].iter_mut().zip(&buf[c..e]).enumerate() {
                             let fv = f.map_or([0.0; 2], |f| [f[base + c + j][0].get(), f[base + c + j][1].get()]);
-                            *o = if run.kind == RunKind::Skip { [0.0; 2] } else { [WS::of(fv[0] + b[0]), WS::of(fv[1] + b[1])] };
+                            *o = [WS::of(fv[0] + b[0]), WS::of(fv[1] + b[1])];
                         }
                     }
                 }

@@ -1119,11 +1119,10 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
 /// fall to the tolerance.
 struct SettledChange<'m, 'a> {
     membrane: &'m nullspace::Membrane<'a>,
-    /// The box nodes the free functions touch, each one's place among them (by box node),
-    /// and whether each padded node is one.
+    /// The box nodes the free functions touch, and each one's place among them by padded
+    /// node (`u32::MAX` off them).
     nodes: Vec<usize>,
     slot: Vec<u32>,
-    touched: Vec<bool>,
 }
 
 impl<'m, 'a> SettledChange<'m, 'a> {
@@ -1138,13 +1137,11 @@ impl<'m, 'a> SettledChange<'m, 'a> {
         let mut nodes = membrane.support();
         nodes.sort_unstable();
         nodes.dedup();
-        let mut touched = vec![false; level.len_padded()];
-        let mut slot = vec![u32::MAX; w * level.geo.h];
+        let mut slot = vec![u32::MAX; level.len_padded()];
         for (k, &i) in nodes.iter().enumerate() {
-            touched[level.pidx(i % w, i / w)] = true;
-            slot[i] = k as u32;
+            slot[level.pidx(i % w, i / w)] = k as u32;
         }
-        Some(SettledChange { membrane, nodes, slot, touched })
+        Some(SettledChange { membrane, nodes, slot })
     }
 
     /// The settled step's largest entry.
@@ -1156,13 +1153,13 @@ impl<'m, 'a> SettledChange<'m, 'a> {
         };
         let mut moved: Vec<V2> = self.nodes.iter().map(|&i| step(i)).collect();
         self.membrane.settle(step, |i, v| {
-            let m = &mut moved[self.slot[i] as usize];
+            let m = &mut moved[self.slot[level.pidx(i % w, i / w)] as usize];
             m[0] += v[0];
             m[1] += v[1];
         });
         let on = moved.iter().fold(0.0f64, |m, v| m.max(v[0].abs()).max(v[1].abs()));
-        let off = p.par_chunks(CHUNK).zip(self.touched.par_chunks(CHUNK)).map(|(p, t)| {
-            p.iter().zip(t).filter(|(_, &t)| !t).fold(0.0f64, |m, (q, _)| m.max((alpha[0] * q[0].get()).abs()).max((alpha[1] * q[1].get()).abs()))
+        let off = p.par_chunks(CHUNK).zip(self.slot.par_chunks(CHUNK)).map(|(p, t)| {
+            p.iter().zip(t).filter(|(_, &t)| t == u32::MAX).fold(0.0f64, |m, (q, _)| m.max((alpha[0] * q[0].get()).abs()).max((alpha[1] * q[1].get()).abs()))
         });
         on.max(off.reduce(|| 0.0, f64::max))
     }

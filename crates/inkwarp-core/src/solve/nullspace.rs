@@ -468,7 +468,10 @@ impl<'a> Membrane<'a> {
                     m[local[i]][l] += v;
                 }
             }
-            let b: Vec<V2> = members.iter().map(|&j| self.products[j].iter().fold([0.0; 2], |s, &(p, y)| [s[0] - y * read(p)[0], s[1] - y * read(p)[1]])).collect();
+            let b: Vec<V2> = members.iter().map(|&j| self.products[j].iter().fold([0.0; 2], |s, &(p, y)| {
+                let v = read(p);
+                [s[0] - y * v[0], s[1] - y * v[1]]
+            })).collect();
             // A singular block is left as it is, and not settled.
             let Some(c) = super::dense_solve(m, b) else {
                 all = false;

@@ -693,7 +693,7 @@ fn coarse_steps_start_from_earlier_coarse_frames() {
         let samples = pose(0.1 * frame as f64);
         let (field, report) = solver.solve_warm(&grid, &samples, &opts, previous.clone()).unwrap();
         assert_eq!((field.width, field.height), (w, h));
-        let kept = &solver.history().entries.back().expect("the history keeps the solve").1;
+        let kept = solver.history().last().expect("the history keeps the solve");
         assert_eq!((kept.width, kept.height), (25, 21), "the history keeps the coarse field");
         let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
         let err = gap(&field, &exact);

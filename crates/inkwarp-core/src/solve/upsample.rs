@@ -394,29 +394,43 @@ fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec
 /// where their weights fall short; `None` where neither has a usable node.
 fn window_value(fc: &Field, ty: &Taps, tx: &Taps, mask: u16) -> Option<[f32; 2]> {
     let wc = fc.width;
-    // Σ w·dx, Σ w·dy, Σ w of the cubic, and the same of the bilinear on the inner 2 × 2.
-    let (mut cubic, mut inner) = ([0.0f64; 3], [0.0f64; 3]);
+    let mut acc = [0.0f64; 2];
+    let mut wsum = 0.0;
+    for b in 0..ty.len {
+        let (wyb, row, kb) = (ty.weights[ty.slot[b] as usize], ty.at[b] * wc, 4 * ty.slot[b]);
+        for a in 0..tx.len {
+            if mask & (1 << (kb + tx.slot[a])) == 0 {
+                continue;
+            }
+            let c = row + tx.at[a];
+            let wv = tx.weights[tx.slot[a] as usize] * wyb;
+            acc[0] += wv * fc.dx[c] as f64;
+            acc[1] += wv * fc.dy[c] as f64;
+            wsum += wv;
+        }
+    }
+    if wsum >= 0.5 {
+        return Some([(acc[0] / wsum) as f32, (acc[1] / wsum) as f32]);
+    }
+    let mut inner = [0.0f64; 3];
     for b in 0..ty.len {
         let kb = ty.slot[b] as usize;
+        if !(1..3).contains(&kb) {
+            continue;
+        }
         for a in 0..tx.len {
             let ka = tx.slot[a] as usize;
-            if mask & (1 << (4 * kb + ka)) == 0 {
+            if !(1..3).contains(&ka) || mask & (1 << (4 * kb + ka)) == 0 {
                 continue;
             }
             let c = ty.at[b] * wc + tx.at[a];
-            let (v, wv) = ([fc.dx[c] as f64, fc.dy[c] as f64], tx.weights[ka] * ty.weights[kb]);
-            cubic = [cubic[0] + wv * v[0], cubic[1] + wv * v[1], cubic[2] + wv];
-            if (1..3).contains(&ka) && (1..3).contains(&kb) {
-                let lw = tx.linear(ka) * ty.linear(kb);
-                inner = [inner[0] + lw * v[0], inner[1] + lw * v[1], inner[2] + lw];
-            }
+            let lw = tx.linear(ka) * ty.linear(kb);
+            inner[0] += lw * fc.dx[c] as f64;
+            inner[1] += lw * fc.dy[c] as f64;
+            inner[2] += lw;
         }
     }
-    let ratio = |s: [f64; 3]| [(s[0] / s[2]) as f32, (s[1] / s[2]) as f32];
-    if cubic[2] >= 0.5 {
-        return Some(ratio(cubic));
-    }
-    (inner[2] > 1e-9).then(|| ratio(inner))
+    (inner[2] > 1e-9).then(|| [(inner[0] / inner[2]) as f32, (inner[1] / inner[2]) as f32])
 }
 
 /// The fine field from the coarse one (see the module docs) by `plan`, built for `grid`.
