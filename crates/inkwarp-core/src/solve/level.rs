@@ -8,6 +8,8 @@
 //! memory they stream and doubles the lanes of every vector instruction. The operators are
 //! built in `f64` either way.
 
+use std::ops::{Add, AddAssign, Mul, Sub};
+
 use rayon::prelude::*;
 
 use super::wide::widest;
@@ -23,17 +25,7 @@ pub(crate) type W2 = [WS; 2];
 pub(crate) type WS = f32;
 
 /// The two precisions the kernels run in.
-pub(crate) trait Real:
-    Copy
-    + Send
-    + Sync
-    + PartialEq
-    + std::ops::Add<Output = Self>
-    + std::ops::Sub<Output = Self>
-    + std::ops::Mul<Output = Self>
-    + std::ops::AddAssign
-    + 'static
-{
+pub(crate) trait Real: Copy + Send + Sync + PartialEq + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + AddAssign + 'static {
     const ZERO: Self;
     fn of(v: f64) -> Self;
     fn get(self) -> f64;
@@ -43,9 +35,7 @@ pub(crate) trait Real:
     fn as_f32(v: &[[Self; 2]]) -> Option<&[[f32; 2]]>;
     fn as_f32_mut(v: &mut [[Self; 2]]) -> Option<&mut [[f32; 2]]>;
     /// Whether [`Real::four_run`] takes four nodes to a vector here.
-    fn has_four_stencils() -> bool {
-        false
-    }
+    fn has_four_stencils() -> bool { false }
     /// `out[j] = f[q₀ + j] − Σₜ sⱼ[t] x[q₀ + j + offset(t)]` for the `4n + tail` nodes from
     /// `q₀` (`tail` < 4), each stencil's products summed in [`STORED_TAPS`] order, the
     /// coefficients four nodes to a block of `blocks` (see [`Fours`]); only where
@@ -68,47 +58,25 @@ const STORED_TAPS: [(usize, usize); 21] = [
 impl Real for f64 {
     const ZERO: f64 = 0.0;
     #[inline(always)]
-    fn of(v: f64) -> f64 {
-        v
-    }
+    fn of(v: f64) -> f64 { v }
     #[inline(always)]
-    fn get(self) -> f64 {
-        self
-    }
-    fn table<'a>(wide: &'a [[f64; 25]], _: &'a [[f32; 25]]) -> &'a [[f64; 25]] {
-        wide
-    }
-    fn as_f32(_: &[[f64; 2]]) -> Option<&[[f32; 2]]> {
-        None
-    }
-    fn as_f32_mut(_: &mut [[f64; 2]]) -> Option<&mut [[f32; 2]]> {
-        None
-    }
+    fn get(self) -> f64 { self }
+    fn table<'a>(wide: &'a [[f64; 25]], _: &'a [[f32; 25]]) -> &'a [[f64; 25]] { wide }
+    fn as_f32(_: &[[f64; 2]]) -> Option<&[[f32; 2]]> { None }
+    fn as_f32_mut(_: &mut [[f64; 2]]) -> Option<&mut [[f32; 2]]> { None }
 }
 
 impl Real for f32 {
     const ZERO: f32 = 0.0;
     #[inline(always)]
-    fn of(v: f64) -> f32 {
-        v as f32
-    }
+    fn of(v: f64) -> f32 { v as f32 }
     #[inline(always)]
-    fn get(self) -> f64 {
-        self as f64
-    }
-    fn table<'a>(_: &'a [[f64; 25]], narrow: &'a [[f32; 25]]) -> &'a [[f32; 25]] {
-        narrow
-    }
-    fn as_f32(v: &[[f32; 2]]) -> Option<&[[f32; 2]]> {
-        Some(v)
-    }
-    fn as_f32_mut(v: &mut [[f32; 2]]) -> Option<&mut [[f32; 2]]> {
-        Some(v)
-    }
+    fn get(self) -> f64 { self as f64 }
+    fn table<'a>(_: &'a [[f64; 25]], narrow: &'a [[f32; 25]]) -> &'a [[f32; 25]] { narrow }
+    fn as_f32(v: &[[f32; 2]]) -> Option<&[[f32; 2]]> { Some(v) }
+    fn as_f32_mut(v: &mut [[f32; 2]]) -> Option<&mut [[f32; 2]]> { Some(v) }
     #[cfg(target_arch = "x86_64")]
-    fn has_four_stencils() -> bool {
-        super::wide::avx2()
-    }
+    fn has_four_stencils() -> bool { super::wide::avx2() }
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     fn four_run(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: usize, tail: usize, wp: usize, blocks: &[FourBlock], out: &mut [[f32; 2]]) {
@@ -218,11 +186,10 @@ impl Fours {
         let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD] };
         for r in PAD..PAD + h {
             fours.row_first[r] = fours.blocks.len() as u32;
-            let base = r * wp;
             for run in runs.row(r).iter().filter(|run| run.kind == RunKind::Own) {
                 let (c, e) = (run.start as usize, run.end as usize);
                 for i in (c..e).step_by(4) {
-                    let s: [Option<&[f32; 25]>; 4] = std::array::from_fn(|j| (i + j < e).then(|| &narrow[ids[base + i + j] as usize]));
+                    let s: [Option<&[f32; 25]>; 4] = std::array::from_fn(|j| (i + j < e).then(|| &narrow[ids[r * wp + i + j] as usize]));
                     fours.blocks.push(std::array::from_fn(|t| {
                         let (dy, dx) = STORED_TAPS[t];
                         s.map(|s| s.map_or(0.0, |s| s[dy * 5 + dx]))
@@ -281,8 +248,7 @@ impl OwnStencils {
                 ids.extend((run.start as usize..run.end as usize).map(|c| distinct.id(row_of(r * wp + c))));
             }
         }
-        let narrow = narrowed(&distinct.table);
-        OwnStencils { table: distinct.table, narrow, ids }
+        OwnStencils { narrow: narrowed(&distinct.table), table: distinct.table, ids }
     }
 }
 
@@ -324,24 +290,21 @@ impl Runs {
     /// The runs of the columns `PAD..PAD + w` of each of the `h` body rows of a level `wp`
     /// wide, node p of kind `kind(p)`.
     pub(crate) fn new(wp: usize, w: usize, h: usize, kind: impl Fn(usize) -> RunKind) -> Runs {
-        let mut runs = Runs { first: vec![0; h + 2 * PAD + 1], runs: Vec::new() };
-        for r in 0..h + 2 * PAD {
-            runs.first[r] = runs.runs.len() as u32;
-            if (PAD..PAD + h).contains(&r) {
-                let base = r * wp;
-                let mut c = PAD;
-                while c < PAD + w {
-                    let k = kind(base + c);
-                    let mut e = c + 1;
-                    while e < PAD + w && kind(base + e) == k {
-                        e += 1;
-                    }
-                    runs.runs.push(Run { start: c as u32, end: e as u32, kind: k, at: 0 });
-                    c = e;
+        let mut runs = Runs { first: vec![0; PAD + 1], runs: Vec::new() };
+        for base in (PAD..PAD + h).map(|r| r * wp) {
+            let mut c = PAD;
+            while c < PAD + w {
+                let k = kind(base + c);
+                let mut e = c + 1;
+                while e < PAD + w && kind(base + e) == k {
+                    e += 1;
                 }
+                runs.runs.push(Run { start: c as u32, end: e as u32, kind: k, at: 0 });
+                c = e;
             }
+            runs.first.push(runs.runs.len() as u32);
         }
-        runs.first[h + 2 * PAD] = runs.runs.len() as u32;
+        runs.first.resize(h + 2 * PAD + 1, runs.runs.len() as u32);
         runs
     }
 
@@ -429,41 +392,36 @@ impl Geometry {
         let w = self.w;
         // A row's codes, its rows past the corners, and whether it is plain.
         type Row = (Vec<[u8; 4]>, Vec<(u32, [f64; 16])>, bool);
-        let rows: Vec<Row> = (0..self.h)
-            .into_par_iter()
-            .with_min_len(PAR_ROWS)
-            .map(|y| {
-                let (mut prow, mut ext, mut plain) = (vec![[0u8; 4]; w], Vec::new(), true);
-                for x in 0..w {
-                    let i = self.idx(x, y);
-                    let fixed = self.fixed.as_ref().is_some_and(|f| f[i]);
-                    if self.linked_around(x, y) {
-                        if !fixed {
-                            prow[x] = PLAIN_CODES[(y & 1) * 2 + (x & 1)];
-                        }
-                        continue;
+        let rows: Vec<Row> = (0..self.h).into_par_iter().with_min_len(PAR_ROWS).map(|y| {
+            let (mut prow, mut ext, mut plain) = (vec![[0u8; 4]; w], Vec::new(), true);
+            for x in 0..w {
+                let i = self.idx(x, y);
+                let fixed = self.fixed.as_ref().is_some_and(|f| f[i]);
+                if self.linked_around(x, y) {
+                    if !fixed {
+                        prow[x] = PLAIN_CODES[(y & 1) * 2 + (x & 1)];
                     }
-                    let r = self.geo_row(x, y);
-                    plain &= self.active[i] && r == plain_row(x, y);
-                    if fixed {
-                        continue;
-                    }
-                    if CORNERS.iter().map(|&k| r[k]).sum::<f64>() != r.iter().sum::<f64>() || r.iter().any(|&v| v < 0.0) {
-                        prow[x] = [EXT; 4];
-                        ext.push((i as u32, r));
-                        continue;
-                    }
-                    for (c, &k) in prow[x].iter_mut().zip(&CORNERS) {
-                        let n = (r[k] * 24.0).round();
-                        debug_assert!((n / 24.0 - r[k]).abs() < 1e-12);
-                        *c = n as u8;
-                    }
+                    continue;
                 }
-                (prow, ext, plain)
-            })
-            .collect();
-        self.prow = Vec::with_capacity(w * self.h);
-        self.plain_rows = Vec::with_capacity(self.h);
+                let r = self.geo_row(x, y);
+                plain &= self.active[i] && r == plain_row(x, y);
+                if fixed {
+                    continue;
+                }
+                if CORNERS.iter().map(|&k| r[k]).sum::<f64>() != r.iter().sum::<f64>() || r.iter().any(|&v| v < 0.0) {
+                    prow[x] = [EXT; 4];
+                    ext.push((i as u32, r));
+                    continue;
+                }
+                for (c, &k) in prow[x].iter_mut().zip(&CORNERS) {
+                    let n = (r[k] * 24.0).round();
+                    debug_assert!((n / 24.0 - r[k]).abs() < 1e-12);
+                    *c = n as u8;
+                }
+            }
+            (prow, ext, plain)
+        }).collect();
+        self.prow.reserve(w * self.h);
         for (prow, ext, plain) in rows {
             self.prow.extend(prow);
             self.ext.extend(ext);
@@ -646,11 +604,7 @@ impl Geometry {
             return 0.0;
         }
         let mut w = 0.0;
-        self.p_row(x, y, |a, b, v| {
-            if (a, b) == (ox, oy) {
-                w = v;
-            }
-        });
+        self.p_row(x, y, |a, b, v| if (a, b) == (ox, oy) { w = v });
         w
     }
 }
@@ -865,57 +819,48 @@ impl Level {
     /// The finest level from its geometry (with fixed nodes) and the tension.
     pub fn fine(geo: Geometry, tau: f64) -> Level {
         let (w, h) = (geo.w, geo.h);
-        let (wp, hp) = (w + 2 * PAD, h + 2 * PAD);
-        let mut flags = vec![0u8; wp * hp];
-        let fixed = geo.fixed.as_ref();
-        for y in 0..h {
-            for x in 0..w {
-                let i = geo.idx(x, y);
-                let bits = [
-                    (!fixed.is_some_and(|fx| fx[i]), bit::FREE),
-                    (geo.right[i], bit::RIGHT),
-                    (geo.down[i], bit::DOWN),
-                    (x > 0 && geo.right[i - 1] && geo.right[i], bit::HTRI),
-                    (y > 0 && geo.down[i - w] && geo.down[i], bit::VTRI),
-                    (geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w], bit::CELL),
-                ];
-                if geo.active[i] {
-                    flags[(y + PAD) * wp + x + PAD] = bits.iter().filter(|b| b.0).fold(0, |f, b| f | b.1);
-                }
+        let (wp, n) = (w + 2 * PAD, (w + 2 * PAD) * (h + 2 * PAD));
+        let nodes = || (0..h).flat_map(move |y| (0..w).map(move |x| (x, y)));
+        let fixed = |i: usize| geo.fixed.as_ref().is_some_and(|f| f[i]);
+        let mut flags = vec![0u8; n];
+        for (x, y) in nodes().filter(|&(x, y)| geo.active[geo.idx(x, y)]) {
+            let i = geo.idx(x, y);
+            let bits = [
+                (!fixed(i), bit::FREE),
+                (geo.right[i], bit::RIGHT),
+                (geo.down[i], bit::DOWN),
+                (x > 0 && geo.right[i - 1] && geo.right[i], bit::HTRI),
+                (y > 0 && geo.down[i - w] && geo.down[i], bit::VTRI),
+                (geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w], bit::CELL),
+            ];
+            flags[(y + PAD) * wp + x + PAD] = bits.iter().filter(|b| b.0).fold(0, |f, b| f | b.1);
+        }
+        let (mut inv_diag, mut lam_max) = (vec![0.0; n], 0.0f64);
+        for p in nodes().map(|(x, y)| (y + PAD) * wp + x + PAD) {
+            let has = |q: usize, b: u8| flags[q] & b != 0;
+            if !has(p, bit::FREE) {
+                continue;
+            }
+            if [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
+                && [p - wp, p, p + wp].iter().all(|&q| has(q, bit::VTRI))
+                && [p, p - 1, p - wp, p - wp - 1].iter().all(|&q| has(q, bit::CELL))
+            {
+                flags[p] |= bit::REGULAR;
+            }
+            let (d, s) = fine_diag_and_abs(&flags, p, wp, tau);
+            if d > 0.0 {
+                inv_diag[p] = 1.0 / d;
+                lam_max = lam_max.max(s / d);
             }
         }
-        let (mut inv_diag, mut lam_max) = (vec![0.0; wp * hp], 0.0f64);
-        for y in 0..h {
-            for x in 0..w {
-                let p = (y + PAD) * wp + x + PAD;
-                let has = |q: usize, b: u8| flags[q] & b != 0;
-                if !has(p, bit::FREE) {
-                    continue;
-                }
-                if [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
-                    && [p - wp, p, p + wp].iter().all(|&q| has(q, bit::VTRI))
-                    && [p, p - 1, p - wp, p - wp - 1].iter().all(|&q| has(q, bit::CELL))
-                {
-                    flags[p] |= bit::REGULAR;
-                }
-                let (d, s) = fine_diag_and_abs(&flags, p, wp, tau);
-                if d > 0.0 {
-                    inv_diag[p] = 1.0 / d;
-                    lam_max = lam_max.max(s / d);
-                }
-            }
-        }
-        let clean = (0..w * h)
-            .map(|i| geo.active[i] && geo.right[i] && geo.down[i] && !geo.fixed.as_ref().is_some_and(|f| f[i]))
-            .collect();
-        let inv_diag_w = narrow_diag(&inv_diag);
+        let clean = (0..w * h).map(|i| geo.active[i] && geo.right[i] && geo.down[i] && !fixed(i)).collect();
         let mut runs = Runs::new(wp, w, h, |p| match flags[p] {
             f if f & bit::FREE == 0 => RunKind::Skip,
             f if f & bit::REGULAR != 0 => RunKind::Shared,
             _ => RunKind::Own,
         });
         let own = OwnStencils::new(&mut runs, wp, |p| fine_row(&flags, p, wp, tau));
-        Level { geo, wp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, inv_diag_w, lam_max, clean }
+        Level { inv_diag_w: narrow_diag(&inv_diag), geo, wp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, lam_max, clean }
     }
 
     /// This finest level with the prolongation of the same grid without holes or cuts
@@ -998,9 +943,7 @@ impl Level {
     /// only restricted from and prolonged to from now on).
     pub fn keep_only_prolongation(&mut self) {
         self.op = Operator::Fine { flags: Vec::new(), tau: 0.0, runs: Runs::default(), own: OwnStencils::default() };
-        self.inv_diag = Vec::new();
-        self.inv_diag_w = Vec::new();
-        self.clean = Vec::new();
+        (self.inv_diag, self.inv_diag_w, self.clean) = (Vec::new(), Vec::new(), Vec::new());
         let g = &mut self.geo;
         (g.active, g.right, g.down, g.fixed) = (Vec::new(), Vec::new(), Vec::new(), None);
     }
@@ -1135,11 +1078,10 @@ impl Level {
     /// `out = −A x` and its largest entry scaled by the inverse diagonal (see
     /// [`scaled_max`]), taken band by band while `out` is in cache.
     pub fn residual_scaled_max<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> f64 {
-        let max = self.over_bands(out, true, |r0, r1, chunk| {
+        self.over_bands(out, true, |r0, r1, chunk| {
             self.band_residual(x, None, r0, 0, chunk);
             [scaled_max(chunk, &self.inv_diag[r0 * self.wp..r1 * self.wp]), 0.0]
-        });
-        max[0]
+        })[0]
     }
 
     /// `out = f − A x` on the rows of the band from padded row `r0` (`out` holds those
@@ -1606,8 +1548,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let shared = first.map_or([0.0; 25], |c| galerkin_node(fine, c % wc, c / wc));
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
-    let far_here = matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
-    let wide = !fine.geo.ext.is_empty() || far_here;
+    let wide = !fine.geo.ext.is_empty() || matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
     let win = if wide { Windows::WIDE } else { Windows::NARROW };
     type RowOut = (Vec<u32>, Vec<[f64; 25]>, Vec<(usize, isize, isize, f64)>);
     let build_row = |yc: usize| -> RowOut {
@@ -1692,38 +1633,27 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         }
     }
     let table = distinct.table;
-    let mut inv_diag = vec![0.0; wpc * hpc];
-    let mut lam_max: f64 = 0.0;
-    let mut clean = vec![false; wc * hc];
-    for yc in 0..hc {
-        for xc in 0..wc {
-            let p = (yc + PAD) * wpc + xc + PAD;
-            if !geo.active[yc * wc + xc] {
-                continue;
-            }
-            let s = &table[ids[p] as usize];
-            let d = s[12];
-            let far_p = far_of(&far, p);
-            // A vanishing diagonal: the coarse node has no fine children left.
-            if d > 1e-300 {
-                let sum: f64 = s.iter().map(|a| a.abs()).sum::<f64>() + far_p.iter().map(|e| e.2.abs()).sum::<f64>();
-                inv_diag[p] = 1.0 / d;
-                lam_max = lam_max.max(sum / d);
-            }
-            let i = yc * wc + xc;
-            clean[i] = ids[p] == 0 && far_p.is_empty() && geo.right[i] && geo.down[i];
+    let (mut inv_diag, mut lam_max, mut clean) = (vec![0.0; wpc * hpc], 0.0f64, vec![false; wc * hc]);
+    for i in (0..wc * hc).filter(|&i| geo.active[i]) {
+        let p = (i / wc + PAD) * wpc + i % wc + PAD;
+        let (s, far_p) = (&table[ids[p] as usize], far_of(&far, p));
+        // A vanishing diagonal: the coarse node has no fine children left.
+        if s[12] > 1e-300 {
+            let sum: f64 = s.iter().map(|a| a.abs()).sum::<f64>() + far_p.iter().map(|e| e.2.abs()).sum::<f64>();
+            inv_diag[p] = 1.0 / s[12];
+            lam_max = lam_max.max(sum / s[12]);
         }
+        clean[i] = ids[p] == 0 && far_p.is_empty() && geo.right[i] && geo.down[i];
     }
-    let sym = Sym::of(&table[0]);
     let narrow = narrowed(&table);
-    let inv_diag_w = narrow_diag(&inv_diag);
     let runs = Runs::new(wpc, wc, hc, |p| match (inv_diag[p] != 0.0, ids[p] != 0) {
         (false, _) => RunKind::Skip,
         (true, false) => RunKind::Shared,
         (true, true) => RunKind::Own,
     });
     let fours = Fours::new(&ids, &narrow, &runs, wpc, hc);
-    Level { geo, wp: wpc, op: Operator::Stored { ids, table, narrow, sym, fours, runs, far }, inv_diag, inv_diag_w, lam_max, clean }
+    let op = Operator::Stored { sym: Sym::of(&table[0]), ids, table, narrow, fours, runs, far };
+    Level { inv_diag_w: narrow_diag(&inv_diag), geo, wp: wpc, op, inv_diag, lam_max, clean }
 }
 
 fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {
