@@ -577,17 +577,13 @@ impl Geometry {
         let c = self.prow[i];
         if c[0] == EXT {
             let k = self.ext.partition_point(|e| (e.0 as usize) < i);
-            for (s, &v) in self.ext[k].1.iter().enumerate() {
-                if v != 0.0 {
-                    f((s % 4) as isize - 1, (s / 4) as isize - 1, v);
-                }
+            for (s, &v) in self.ext[k].1.iter().enumerate().filter(|e| *e.1 != 0.0) {
+                f((s % 4) as isize - 1, (s / 4) as isize - 1, v);
             }
             return;
         }
-        for (s, &v) in c.iter().enumerate() {
-            if v != 0 {
-                f((s & 1) as isize, (s >> 1) as isize, v as f64 / 24.0);
-            }
+        for (s, &v) in c.iter().enumerate().filter(|e| *e.1 != 0) {
+            f((s & 1) as isize, (s >> 1) as isize, v as f64 / 24.0);
         }
     }
 
@@ -967,10 +963,8 @@ impl Level {
     /// `f(q, a_pq)` for every nonzero tap of row `p`: the stored stencil's and the far ones.
     pub fn taps(&self, p: usize, mut f: impl FnMut(usize, f64)) {
         let (row, wp) = (self.row(p), self.wp);
-        for (t, &a) in row.iter().enumerate() {
-            if a != 0.0 {
-                f(p + (t / 5) * wp + t % 5 - 2 * wp - 2, a);
-            }
+        for (t, &a) in row.iter().enumerate().filter(|e| *e.1 != 0.0) {
+            f(p + (t / 5) * wp + t % 5 - 2 * wp - 2, a);
         }
         for &(_, q, a) in self.far(p) {
             f(q as usize, a);
@@ -1584,10 +1578,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
                             slot[k] = ap.len() as u32;
                             let start = nz.len();
                             ap_row(fine, ix, iy, win, &mut row);
-                            for (t, &v) in row.iter().enumerate() {
-                                if v != 0.0 {
-                                    nz.push(((t % win.ap) as isize - win.ap0, (t / win.ap) as isize - win.ap0, v));
-                                }
+                            for (t, &v) in row.iter().enumerate().filter(|e| *e.1 != 0.0) {
+                                nz.push(((t % win.ap) as isize - win.ap0, (t / win.ap) as isize - win.ap0, v));
                             }
                             ap.push(start..nz.len());
                         }
@@ -1618,10 +1610,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let mut far: Vec<Far> = Vec::new();
     for (yc, (row_ids, own, row_far)) in rows.into_iter().enumerate() {
         let local: Vec<u32> = own.into_iter().map(|s| distinct.id(s)).collect();
-        for (c, &id) in row_ids.iter().enumerate() {
-            if id != 0 {
-                ids[(yc + PAD) * wpc + c] = local[id as usize - 1];
-            }
+        for (c, &id) in row_ids.iter().enumerate().filter(|e| *e.1 != 0) {
+            ids[(yc + PAD) * wpc + c] = local[id as usize - 1];
         }
         for (xc, dx, dy, a) in row_far {
             let (qx, qy) = (xc as isize + dx, yc as isize + dy);
@@ -1743,10 +1733,7 @@ fn narrow_ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
     let fw = fine.geo.w;
     let row = fine.row(fine.pidx(ix, iy));
     let mut out = [0.0f64; 16];
-    for (t, &a) in row.iter().enumerate() {
-        if a == 0.0 {
-            continue;
-        }
+    for (t, &a) in row.iter().enumerate().filter(|e| *e.1 != 0.0) {
         let (jx, jy) = (ix + t % 5 - 2, iy + t / 5 - 2);
         let c = fine.geo.prow[jy * fw + jx];
         let (cx, cy) = (jx / 2 + 1 - ix / 2, jy / 2 + 1 - iy / 2);
@@ -1773,10 +1760,7 @@ fn split_taps(acc: &[f64], n: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
     let h = (n / 2) as isize;
     let mut s = [0.0; 25];
     let mut far = Vec::new();
-    for (k, &a) in acc.iter().enumerate() {
-        if a == 0.0 {
-            continue;
-        }
+    for (k, &a) in acc.iter().enumerate().filter(|e| *e.1 != 0.0) {
         let (dx, dy) = ((k % n) as isize - h, (k / n) as isize - h);
         if dx.abs() <= 2 && dy.abs() <= 2 && (dx.abs() < 2 || dy.abs() < 2) {
             s[((dy + 2) * 5 + dx + 2) as usize] = a;
@@ -1823,10 +1807,8 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
             }
         } else {
             for iy in rows {
-                let sy = yc as isize - (iy / 2) as isize;
-                if !(0..2).contains(&sy) {
-                    continue;
-                }
+                // 1 for row 2 yc − 1, else 0.
+                let sy = yc - iy / 2;
                 let prow = &fine.geo.prow[iy * fw..(iy + 1) * fw];
                 for ix in 0..fw {
                     let r = get(v[fine.pidx(ix, iy)]);
@@ -1835,7 +1817,7 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
                     }
                     let cx = ix / 2;
                     for sx in 0..2 {
-                        let wv = prow[ix][(sy as usize) * 2 + sx];
+                        let wv = prow[ix][sy * 2 + sx];
                         if wv != 0 && cx + sx < wc {
                             let (o, wv) = (&mut acc[cx + sx], T::of(wv as f64 / 24.0));
                             o[0] += wv * r[0];
