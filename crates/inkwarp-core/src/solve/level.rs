@@ -241,9 +241,8 @@ impl OwnStencils {
     /// nodes' stencils, node p's `row_of(p)`.
     fn new(runs: &mut Runs, wp: usize, row_of: impl Fn(usize) -> [f64; 25]) -> OwnStencils {
         let (mut distinct, mut ids) = (DistinctStencils::default(), Vec::new());
-        for r in 0..runs.first.len() - 1 {
-            let (a, b) = (runs.first[r] as usize, runs.first[r + 1] as usize);
-            for run in runs.runs[a..b].iter_mut().filter(|run| run.kind == RunKind::Own) {
+        for (r, ab) in runs.first.windows(2).enumerate() {
+            for run in runs.runs[ab[0] as usize..ab[1] as usize].iter_mut().filter(|run| run.kind == RunKind::Own) {
                 run.at = ids.len() as u32;
                 ids.extend((run.start as usize..run.end as usize).map(|c| distinct.id(row_of(r * wp + c))));
             }
@@ -1134,9 +1133,8 @@ impl Level {
             let n = (z - a) * wp;
             FIRST_ITERATE.with(|buf| {
                 let mut buf = buf.borrow_mut();
-                if buf.len() < n {
-                    buf.resize(n, [0.0; 2]);
-                }
+                let len = buf.len().max(n);
+                buf.resize(len, [0.0; 2]);
                 // Every entry written (zero where the inverse diagonal is, the padding too).
                 super::cycle::first_from_zero(&mut buf[..n], &f[a * wp..z * wp], &g[a * wp..z * wp], inv_theta);
                 self.step_band(&buf[..n], a, Some(&f[a * wp..z * wp]), r0, chunk, dc, rule, keep);
@@ -1168,12 +1166,10 @@ impl Level {
         let (wp, w, g) = (self.wp, self.geo.w, &self.inv_diag_w[..]);
         self.band_residual(x, f, r0, shift, chunk);
         for (k, (orow, drow)) in chunk.chunks_mut(wp).zip(dc.chunks_mut(wp)).enumerate() {
-            let (xb, gb) = ((r0 - shift + k) * wp, (r0 + k) * wp);
-            let (xrow, grow) = (&x[xb..xb + wp], &g[gb..gb + wp]);
+            let (xb, gb) = ((r0 - shift + k) * wp + PAD, (r0 + k) * wp + PAD);
             orow[..PAD].fill([0.0; 2]);
             orow[PAD + w..].fill([0.0; 2]);
-            let cols = PAD..PAD + w;
-            step_row(&mut orow[cols.clone()], &mut drow[cols.clone()], &xrow[cols.clone()], &grow[cols], rule, keep);
+            step_row(&mut orow[PAD..PAD + w], &mut drow[PAD..PAD + w], &x[xb..xb + w], &g[gb..gb + w], rule, keep);
         }
     }
 }
@@ -1791,8 +1787,7 @@ fn ap_row(fine: &Level, ix: usize, iy: usize, win: Windows, out: &mut [f64]) {
 /// `coarse = Pᵀ fine_v` (restriction of a residual), in either precision.
 pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 2]], out: &mut [[T; 2]]) {
     let (fw, fh) = (fine.geo.w, fine.geo.h);
-    let wc = coarse.geo.w;
-    let wpc = coarse.wp;
+    let (wc, wpc) = (coarse.geo.w, coarse.wp);
     let get = |a: [S; 2]| [T::of(a[0].get()), T::of(a[1].get())];
     let (half, zero) = (T::of(0.5), [T::ZERO; 2]);
     let run = |yc: usize, orow: &mut [[T; 2]]| {
@@ -1837,12 +1832,10 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
             if r == zero || !(-1..3).contains(&oy) || fine.geo.prow[*i as usize][0] != EXT {
                 continue;
             }
-            for (s, &wv) in row[((oy + 1) * 4) as usize..((oy + 2) * 4) as usize].iter().enumerate() {
-                if wv != 0.0 {
-                    let (o, wv) = (&mut acc[ix / 2 + s - 1], T::of(wv));
-                    o[0] += wv * r[0];
-                    o[1] += wv * r[1];
-                }
+            for (s, &wv) in row[((oy + 1) * 4) as usize..((oy + 2) * 4) as usize].iter().enumerate().filter(|e| *e.1 != 0.0) {
+                let (o, wv) = (&mut acc[ix / 2 + s - 1], T::of(wv));
+                o[0] += wv * r[0];
+                o[1] += wv * r[1];
             }
         }
     };
@@ -1942,13 +1935,8 @@ widest! {
 /// `fine_x += α P e` (prolongation of a coarse correction onto the unknowns), α per
 /// component, in either precision.
 pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]], alpha: V2) {
-    let (fw, fh) = (fine.geo.w, fine.geo.h);
-    let wp = fine.wp;
+    let (fw, fh, wp) = (fine.geo.w, fine.geo.h, fine.wp);
     let get = |a: [S; 2]| [a[0].get(), a[1].get()];
-    let add = |o: &mut [T; 2], a: V2| {
-        o[0] = T::of(o[0].get() + alpha[0] * a[0]);
-        o[1] = T::of(o[1].get() + alpha[1] * a[1]);
-    };
     let run = |iy: usize, xrow: &mut [[T; 2]]| {
         let cy = iy / 2;
         if fine.geo.plain_rows[iy] {
@@ -1959,8 +1947,7 @@ pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level,
         }
         for ix in 0..fw {
             let cx = ix / 2;
-            let mut acc = [0.0f64; 2];
-            let mut any = false;
+            let (mut acc, mut any) = ([0.0f64; 2], false);
             fine.geo.p_row(ix, iy, |ox, oy, wv| {
                 let c = get(e[coarse.pidx((cx as isize + ox) as usize, (cy as isize + oy) as usize)]);
                 acc[0] += wv * c[0];
@@ -1968,7 +1955,8 @@ pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level,
                 any = true;
             });
             if any {
-                add(&mut xrow[ix + PAD], acc);
+                let o = &mut xrow[ix + PAD];
+                *o = [T::of(o[0].get() + alpha[0] * acc[0]), T::of(o[1].get() + alpha[1] * acc[1])];
             }
         }
     };
