@@ -1143,9 +1143,8 @@ impl Level {
     }
 
     /// The bands of a smoothing step: `band(r0, r1, rows, d_rows)` for the bands of
-    /// [`PAR_ROWS`] padded rows `r0..r1` of the level's body (`rows` and `d_rows` those
-    /// rows of `next` and `d`), on the pool's threads; then `next`'s
-    /// padding rows, zeros (as every vector's padding is).
+    /// [`PAR_ROWS`] padded rows `r0..r1` of the level's body (`rows` and `d_rows` those rows
+    /// of `next` and `d`), on the pool's threads; then `next`'s padding rows, zeros.
     fn step_bands(&self, d: &mut [W2], next: &mut [W2], band: impl Fn(usize, usize, &mut [W2], &mut [W2]) + Sync + Send) {
         let (wp, h) = (self.wp, self.geo.h);
         let run = |(b, (chunk, dc)): (usize, (&mut [W2], &mut [W2]))| {
@@ -1466,7 +1465,7 @@ fn fine_diag_and_abs(flags: &[u8], p: usize, wp: usize, tau: f64) -> (f64, f64) 
 pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25] {
     let mut s = [0.0f64; 25];
     let m = |q: usize, b: u8| flags[q] & b != 0;
-    // offset of padded node q relative to p as a stencil index
+    // The stencil index of offset (dx, dy) from p.
     let at = |dx: isize, dy: isize| ((dy + 2) * 5 + dx + 2) as usize;
     // The horizontal and vertical triples centred at p + d (d in -1..=1).
     for d in -1isize..=1 {
@@ -1479,27 +1478,19 @@ pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25]
             }
         }
     }
-    // cells with top-left corner at p - (ox, oy), ox, oy in {0, 1}
-    for oy in 0..2isize {
-        for ox in 0..2isize {
-            let q = p - oy as usize * wp - ox as usize;
-            if m(q, bit::CELL) {
-                let sign = |cx: isize, cy: isize| if (cx + cy) % 2 == 0 { 1.0 } else { -1.0 };
-                let cp = sign(ox, oy);
-                for cy in 0..2isize {
-                    for cx in 0..2isize {
-                        s[at(cx - ox, cy - oy)] += 2.0 * cp * sign(cx, cy);
-                    }
-                }
-            }
+    // The cells with top-left corner at p − (ox, oy), ox, oy in {0, 1}.
+    let sign = |cx: isize, cy: isize| if (cx + cy) % 2 == 0 { 1.0 } else { -1.0 };
+    let corners = [(0isize, 0isize), (1, 0), (0, 1), (1, 1)];
+    for (ox, oy) in corners.into_iter().filter(|&(ox, oy)| m(p - oy as usize * wp - ox as usize, bit::CELL)) {
+        for (cx, cy) in corners {
+            s[at(cx - ox, cy - oy)] += 2.0 * sign(ox, oy) * sign(cx, cy);
         }
     }
     if tau != 0.0 {
-        for (q, b, dx, dy) in [(p, bit::RIGHT, 1, 0), (p - 1, bit::RIGHT, -1, 0), (p, bit::DOWN, 0, 1), (p - wp, bit::DOWN, 0, -1)] {
-            if m(q, b) {
-                s[at(0, 0)] += tau;
-                s[at(dx, dy)] -= tau;
-            }
+        let links = [(p, bit::RIGHT, 1, 0), (p - 1, bit::RIGHT, -1, 0), (p, bit::DOWN, 0, 1), (p - wp, bit::DOWN, 0, -1)];
+        for (_, _, dx, dy) in links.into_iter().filter(|&(q, b, ..)| m(q, b)) {
+            s[at(0, 0)] += tau;
+            s[at(dx, dy)] -= tau;
         }
     }
     s
