@@ -115,8 +115,7 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
         let (dy, dx) = STORED_TAPS[t];
         _mm256_mul_ps(c, _mm256_loadu_ps(xs.add(first + 2 * (dy * wp + dx))))
     };
-    // Four j's residual. SAFETY: j < n, so its eight values are within `out` and `f`
-    // (asserted above).
+    // Four j's residual. SAFETY: j < n, so its eight values are within `out` and `f`.
     let store = |j: usize, acc: __m256| unsafe {
         let fv = f.map_or(_mm256_setzero_ps(), |f| _mm256_loadu_ps(f.as_flattened().as_ptr().add(2 * (q0 + 4 * j))));
         _mm256_storeu_ps(outs.add(8 * j), _mm256_sub_ps(fv, acc));
@@ -206,8 +205,7 @@ impl Fours {
 pub(crate) enum RunKind {
     /// No unknowns: the product writes zeros.
     Skip,
-    /// Unknowns that share the level's regular stencil (on the finest level, the interior
-    /// molecule).
+    /// Unknowns that share the level's regular stencil (the finest level's interior molecule).
     Shared,
     /// Unknowns with stencils of their own (on the finest level, its nodes that are not
     /// regular: see [`OwnStencils`]).
@@ -226,8 +224,7 @@ pub(crate) struct Run {
 }
 
 /// The stencils of the finest level's nodes that are not regular (at the borders, holes and
-/// cuts), as 5 × 5 rows ([`fine_row`]) in a table without repeats, summed as a Galerkin
-/// level's are.
+/// cuts), as 5 × 5 rows ([`fine_row`]) in a table without repeats, summed as Galerkin ones.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct OwnStencils {
     table: Vec<[f64; 25]>,
@@ -348,14 +345,14 @@ pub(crate) struct Geometry {
     /// Only on the finest level: fixed (Dirichlet) nodes, whose prolongation rows vanish.
     pub fixed: Option<Vec<bool>>,
     /// Prolongation rows in 24ths on the 2 × 2 coarse corners of each node, or [`EXT`]
-    /// for a row in `ext`; filled by [`Geometry::with_rows`].
+    /// for a row in `ext`; filled by [`Geometry::new`].
     pub prow: Vec<[u8; 4]>,
     /// The rows that reach past the 2 × 2 corners (linear extrapolation at a missing link),
     /// by node index, sorted: weights on the 4 × 4 window of [`Geometry::geo_row`].
     pub ext: Vec<(u32, [f64; 16])>,
     /// `plain_rows[y]`: every node of row y is active and its geometric row is the plain
     /// bilinear one (whether or not it is fixed), so transfers can run the plain formulas
-    /// (see [`restrict`] and [`prolong_add_scaled`]). Filled by [`Geometry::with_rows`].
+    /// (see [`restrict`] and [`prolong_add_scaled`]). Filled by [`Geometry::new`].
     pub plain_rows: Vec<bool>,
 }
 
@@ -365,45 +362,26 @@ impl Geometry {
         y * self.w + x
     }
 
-    /// A geometry with its prolongation rows filled in.
-    pub fn new(w: usize, h: usize, active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, fixed: Option<Vec<bool>>) -> Geometry {
-        Geometry { w, h, active, right, down, fixed, prow: Vec::new(), ext: Vec::new(), plain_rows: Vec::new() }.with_rows()
-    }
-
-    /// The next coarser geometry: node (X, Y) sits on (2X, 2Y) ([`coarse_links`] at step 2).
-    pub fn coarsen(&self) -> Geometry {
-        // ⌊n/2⌋ + 1 coarse nodes: for an even n the last one is a ghost just outside the
-        // grid (at fine position n), so that the last fine node still sits between two
-        // coarse nodes and interpolation keeps reproducing linear functions there.
-        let (w, h, [active, right, down]) = coarse_links(self.w, self.h, 2, &self.active, &self.right, &self.down);
-        Geometry::new(w, h, active, right, down, None)
-    }
-
-    /// Whether the geometry has inactive nodes or missing links between active neighbours.
-    pub fn torn(&self) -> bool {
-        crate::grid::torn(self.w, &self.active, &self.right, &self.down)
-    }
-
-    /// Fills the table of prolongation rows, rows of nodes in parallel. Every weight of a
-    /// 2 × 2 row is a multiple of 1/24 (halves, and averages of up to four halves), so the
+    /// A geometry with its prolongation rows filled in, rows of nodes in parallel. Every weight
+    /// of a 2 × 2 row is a multiple of 1/24 (halves, and averages of up to four halves): the
     /// table is exact.
-    fn with_rows(mut self) -> Geometry {
-        let w = self.w;
+    pub fn new(w: usize, h: usize, active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, fixed: Option<Vec<bool>>) -> Geometry {
+        let mut g = Geometry { w, h, active, right, down, fixed, prow: Vec::with_capacity(w * h), ext: Vec::new(), plain_rows: Vec::new() };
         // A row's codes, its rows past the corners, and whether it is plain.
         type Row = (Vec<[u8; 4]>, Vec<(u32, [f64; 16])>, bool);
-        let rows: Vec<Row> = (0..self.h).into_par_iter().with_min_len(PAR_ROWS).map(|y| {
+        let rows: Vec<Row> = (0..h).into_par_iter().with_min_len(PAR_ROWS).map(|y| {
             let (mut prow, mut ext, mut plain) = (vec![[0u8; 4]; w], Vec::new(), true);
             for x in 0..w {
-                let i = self.idx(x, y);
-                let fixed = self.fixed.as_ref().is_some_and(|f| f[i]);
-                if self.linked_around(x, y) {
+                let i = g.idx(x, y);
+                let fixed = g.fixed.as_ref().is_some_and(|f| f[i]);
+                if g.linked_around(x, y) {
                     if !fixed {
                         prow[x] = PLAIN_CODES[(y & 1) * 2 + (x & 1)];
                     }
                     continue;
                 }
-                let r = self.geo_row(x, y);
-                plain &= self.active[i] && r == plain_row(x, y);
+                let r = g.geo_row(x, y);
+                plain &= g.active[i] && r == plain_row(x, y);
                 if fixed {
                     continue;
                 }
@@ -420,13 +398,26 @@ impl Geometry {
             }
             (prow, ext, plain)
         }).collect();
-        self.prow.reserve(w * self.h);
         for (prow, ext, plain) in rows {
-            self.prow.extend(prow);
-            self.ext.extend(ext);
-            self.plain_rows.push(plain);
+            g.prow.extend(prow);
+            g.ext.extend(ext);
+            g.plain_rows.push(plain);
         }
-        self
+        g
+    }
+
+    /// The next coarser geometry: node (X, Y) sits on (2X, 2Y) ([`coarse_links`] at step 2).
+    pub fn coarsen(&self) -> Geometry {
+        // ⌊n/2⌋ + 1 coarse nodes: for an even n the last one is a ghost just outside the
+        // grid (at fine position n), so that the last fine node still sits between two
+        // coarse nodes and interpolation keeps reproducing linear functions there.
+        let (w, h, [active, right, down]) = coarse_links(self.w, self.h, 2, &self.active, &self.right, &self.down);
+        Geometry::new(w, h, active, right, down, None)
+    }
+
+    /// Whether the geometry has inactive nodes or missing links between active neighbours.
+    pub fn torn(&self) -> bool {
+        crate::grid::torn(self.w, &self.active, &self.right, &self.down)
     }
 
     /// Whether node (x, y) is active and every link its row reads (see
@@ -513,37 +504,30 @@ impl Geometry {
                         r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v / ks.len() as f64);
                     }
                 };
-                if has[0] && has[1] && has[2] && has[3] {
-                    mean(&[0, 1, 2, 3], &mut r);
-                } else if has[0] && has[1] {
-                    mean(&[0, 1], &mut r);
-                } else if has[2] && has[3] {
-                    mean(&[2, 3], &mut r);
-                } else {
-                    let h = (0..2).find(|&k| has[k]);
-                    let v = (2..4).find(|&k| has[k]);
-                    match (h, v) {
-                        (Some(hk), Some(vk)) => {
-                            // The corner (ox, oy) shared by the edge neighbours hk and vk.
-                            let (ox, oy) = (hk, vk - 2);
-                            let (cx, cy) = (x - 1 + 2 * ox, y - 1 + 2 * oy);
-                            let ci = self.idx(cx.min(self.w - 1), cy.min(self.h - 1));
-                            let linked = cx < self.w && cy < self.h && self.active[ci] && {
-                                let (ex, ey) = (self.idx(cx, y), self.idx(x, cy));
-                                (if oy == 0 { self.down[ci] } else { self.down[ex] }) && (if ox == 0 { self.right[ci] } else { self.right[ey] })
-                            };
-                            if linked {
-                                for k in [hk, vk] {
-                                    r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v);
-                                }
-                                r[(oy + 1) * 4 + ox + 1] -= 1.0;
-                            } else {
-                                mean(&[hk, vk], &mut r);
+                match (has, (0..2).find(|&k| has[k]), (2..4).find(|&k| has[k])) {
+                    ([true, true, true, true], ..) => mean(&[0, 1, 2, 3], &mut r),
+                    ([true, true, ..], ..) => mean(&[0, 1], &mut r),
+                    ([.., true, true], ..) => mean(&[2, 3], &mut r),
+                    (_, Some(hk), Some(vk)) => {
+                        // The corner (ox, oy) shared by the edge neighbours hk and vk.
+                        let (ox, oy) = (hk, vk - 2);
+                        let (cx, cy) = (x - 1 + 2 * ox, y - 1 + 2 * oy);
+                        let ci = self.idx(cx.min(self.w - 1), cy.min(self.h - 1));
+                        let linked = cx < self.w && cy < self.h && self.active[ci] && {
+                            let (ex, ey) = (self.idx(cx, y), self.idx(x, cy));
+                            (if oy == 0 { self.down[ci] } else { self.down[ex] }) && (if ox == 0 { self.right[ci] } else { self.right[ey] })
+                        };
+                        if linked {
+                            for k in [hk, vk] {
+                                r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v);
                             }
+                            r[(oy + 1) * 4 + ox + 1] -= 1.0;
+                        } else {
+                            mean(&[hk, vk], &mut r);
                         }
-                        (Some(k), None) | (None, Some(k)) => mean(&[k], &mut r),
-                        _ => {}
                     }
+                    (_, Some(k), None) | (_, None, Some(k)) => mean(&[k], &mut r),
+                    _ => {}
                 }
             }
         }
@@ -557,8 +541,7 @@ impl Geometry {
     fn along(&self, x: usize, y: usize, vertical: bool, o: usize) -> [f64; 16] {
         let i = self.idx(x, y);
         let (links, s, t, n) = if vertical { (&self.down, self.w, y, self.h) } else { (&self.right, 1, x, self.w) };
-        // Linear across a cut (the node beyond the gap active) where two more links run
-        // away from it.
+        // Linear across a cut (the node beyond the gap active) where two more links run away.
         let fa = t >= 3 && t + 1 < n && self.active[i + s] && links[i - 2 * s] && links[i - 3 * s];
         let fb = t + 3 < n && self.active[i - s] && links[i + s] && links[i + 2 * s];
         let mut r = [0.0; 16];
@@ -1232,8 +1215,7 @@ widest! {
 
 widest! {
     /// `out = f − A x` on the unknowns of padded row `r` of Galerkin level `level` (summed in
-    /// `T`, `x` widened exactly: see [`widened`]), on the processor's widest vectors (see
-    /// [`super::wide`]).
+    /// `T`, `x` widened exactly: see [`widened`]), on the processor's widest vectors.
     #[inline(never)]
     fn residual_row<S: Real, T: Real>(level: &Level, x: &[[S; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) =>
     residual_row_body {
@@ -1637,8 +1619,7 @@ fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {
     inv_diag.iter().map(|&d| if WS::of(d).get().is_finite() { WS::of(d) } else { 0.0 }).collect()
 }
 
-/// One coarse stencil `(Pᵀ A P)(C, ·)` for C = (xc, yc), straight from the definition:
-/// its stored taps.
+/// The stored taps of coarse stencil `(Pᵀ A P)(C, ·)`, C = (xc, yc), from the definition.
 pub(crate) fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
     let (fw, fh) = (fine.geo.w, fine.geo.h);
     let win = Windows::WIDE;
@@ -1741,8 +1722,7 @@ const WEIGHTS: [f64; 25] = {
     w
 };
 
-/// A summed stencil (on `n` × `n` offsets) split into its stored taps and the others,
-/// `(dx, dy, a)`.
+/// A summed stencil (on `n` × `n` offsets) split into its stored taps and the others (dx, dy, a).
 fn split_taps(acc: &[f64], n: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
     let h = (n / 2) as isize;
     let mut s = [0.0; 25];
@@ -1758,8 +1738,7 @@ fn split_taps(acc: &[f64], n: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
     (s, far)
 }
 
-/// Row `i = (ix, iy)` of `A P` into `out`: `Σ_j A_ij P_j`, over the coarse nodes of `win`
-/// (row-major).
+/// Row `i = (ix, iy)` of `A P` into `out`: `Σ_j A_ij P_j` on the coarse nodes of `win`, row-major.
 fn ap_row(fine: &Level, ix: usize, iy: usize, win: Windows, out: &mut [f64]) {
     out.fill(0.0);
     let (bx, by) = ((ix / 2) as isize, (iy / 2) as isize);
@@ -1857,8 +1836,7 @@ widest! {
             o[0] += wy * a[0];
             o[1] += wy * a[1];
         };
-        // Coarse nodes 1..inner have both fine neighbours (2X + 1 < fw): the same sums
-        // without the tests.
+        // Coarse nodes 1..inner have both fine neighbours (2X + 1 < fw): the sums, untested.
         let inner = (fw / 2).min(acc.len());
         if let Some(o) = acc.first_mut() {
             general(0, o);
