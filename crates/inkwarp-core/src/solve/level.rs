@@ -1083,12 +1083,11 @@ impl Level {
     /// when `max`, else the sums, added in order so that they do not depend on the threads.
     fn over_bands<U: Send>(&self, out: &mut [U], max: bool, band: impl Fn(usize, usize, &mut [U]) -> [f64; 2] + Sync + Send) -> [f64; 2] {
         let wp = self.wp;
-        let run = |(r, chunk): (usize, &mut [U])| {
-            let r0 = r * PAR_ROWS + PAD;
-            band(r0, r0 + chunk.len() / wp, chunk)
-        };
         let body = &mut out[PAD * wp..(PAD + self.geo.h) * wp];
-        let parts: Vec<[f64; 2]> = body.par_chunks_mut(PAR_ROWS * wp).enumerate().map(run).collect();
+        let parts: Vec<[f64; 2]> = body.par_chunks_mut(PAR_ROWS * wp).enumerate().map(|(b, chunk)| {
+            let r0 = b * PAR_ROWS + PAD;
+            band(r0, r0 + chunk.len() / wp, chunk)
+        }).collect();
         if max {
             return [parts.iter().fold(0.0, |m, p| larger(m, p[0])), 0.0];
         }
@@ -1129,14 +1128,12 @@ impl Level {
     /// [`PAR_ROWS`] padded rows `r0..r1` of the level's body (`rows` and `d_rows` those rows
     /// of `next` and `d`), on the pool's threads; then `next`'s padding rows, zeros.
     fn step_bands(&self, d: &mut [W2], next: &mut [W2], band: impl Fn(usize, usize, &mut [W2], &mut [W2]) + Sync + Send) {
-        let (wp, h) = (self.wp, self.geo.h);
-        let run = |(b, (chunk, dc)): (usize, (&mut [W2], &mut [W2]))| {
+        let (wp, body) = (self.wp, PAD * self.wp..(PAD + self.geo.h) * self.wp);
+        let (nb, db) = (&mut next[body.clone()], &mut d[body.clone()]);
+        nb.par_chunks_mut(PAR_ROWS * wp).zip(db.par_chunks_mut(PAR_ROWS * wp)).enumerate().for_each(|(b, (chunk, dc))| {
             let r0 = b * PAR_ROWS + PAD;
             band(r0, r0 + chunk.len() / wp, chunk, dc);
-        };
-        let body = PAD * wp..(PAD + h) * wp;
-        let (nb, db) = (&mut next[body.clone()], &mut d[body.clone()]);
-        nb.par_chunks_mut(PAR_ROWS * wp).zip(db.par_chunks_mut(PAR_ROWS * wp)).enumerate().for_each(run);
+        });
         next[..body.start].fill([0.0; 2]);
         next[body.end..].fill([0.0; 2]);
     }
@@ -1527,10 +1524,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
         // Each row's nonzeros only, in window order (so the sums below add as over the
         // whole window): most of a row's wide window is zero.
-        let mut ap: Vec<std::ops::Range<usize>> = Vec::new();
-        let mut nz: Vec<(isize, isize, f64)> = Vec::new();
+        let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
         let (mut acc, mut row) = (vec![0.0f64; win.acc * win.acc], vec![0.0f64; win.ap * win.ap]);
-        let mut dense: Vec<[f64; 16]> = Vec::new();
         for &xc in &irregular {
             acc.fill(0.0);
             if !wide {
