@@ -1402,28 +1402,23 @@ fn widened<S: Real, T: Real>(s: S) -> T {
 /// `(A x)_p` on the finest level from the energy terms that contain node p.
 #[inline(always)]
 fn fine_apply<T: Real>(flags: &[u8], x: &[[T; 2]], p: usize, wp: usize, tau: f64) -> [T; 2] {
-    #[inline(always)]
-    fn m<T: Real>(flags: &[u8], q: usize, b: u8) -> T {
-        if (flags[q] & b) != 0 { T::of(1.0) } else { T::ZERO }
-    }
+    let m = |q: usize, b: u8| if (flags[q] & b) != 0 { T::of(1.0) } else { T::ZERO };
     let two = T::of(2.0);
-    let mut acc = [T::ZERO; 2];
-    for k in 0..2 {
+    std::array::from_fn(|k| {
         let xv = |q: usize| x[q][k];
         // horizontal triples centred at p-1, p, p+1 (coefficient of p: 1, -2, 1)
-        let th = |q: usize| m::<T>(flags, q, bit::HTRI) * (xv(q - 1) - two * xv(q) + xv(q + 1));
-        let tv = |q: usize| m::<T>(flags, q, bit::VTRI) * (xv(q - wp) - two * xv(q) + xv(q + wp));
-        let tc = |q: usize| m::<T>(flags, q, bit::CELL) * (xv(q) - xv(q + 1) - xv(q + wp) + xv(q + wp + 1));
+        let th = |q: usize| m(q, bit::HTRI) * (xv(q - 1) - two * xv(q) + xv(q + 1));
+        let tv = |q: usize| m(q, bit::VTRI) * (xv(q - wp) - two * xv(q) + xv(q + wp));
+        let tc = |q: usize| m(q, bit::CELL) * (xv(q) - xv(q + 1) - xv(q + wp) + xv(q + wp + 1));
         let mut a = th(p - 1) - two * th(p) + th(p + 1) + tv(p - wp) - two * tv(p) + tv(p + wp)
             + two * (tc(p) - tc(p - 1) - tc(p - wp) + tc(p - wp - 1));
         if tau != 0.0 {
-            let lr = |q: usize| m::<T>(flags, q, bit::RIGHT) * (xv(q) - xv(q + 1));
-            let ld = |q: usize| m::<T>(flags, q, bit::DOWN) * (xv(q) - xv(q + wp));
+            let lr = |q: usize| m(q, bit::RIGHT) * (xv(q) - xv(q + 1));
+            let ld = |q: usize| m(q, bit::DOWN) * (xv(q) - xv(q + wp));
             a += T::of(tau) * (lr(p) - lr(p - 1) + ld(p) - ld(p - wp));
         }
-        acc[k] = a;
-    }
-    acc
+        a
+    })
 }
 
 /// Diagonal a_pp and the row's Gershgorin sum Σ_t w_t |c_t(p)| Σ_j |c_t(j)| ≥ Σ_j |a_pj|.
@@ -1433,11 +1428,9 @@ fn fine_diag_and_abs(flags: &[u8], p: usize, wp: usize, tau: f64) -> (f64, f64) 
     let v = m(p - wp, bit::VTRI) + 4.0 * m(p, bit::VTRI) + m(p + wp, bit::VTRI);
     let cells = m(p, bit::CELL) + m(p - 1, bit::CELL) + m(p - wp, bit::CELL) + m(p - wp - 1, bit::CELL);
     let links = m(p, bit::RIGHT) + m(p - 1, bit::RIGHT) + m(p, bit::DOWN) + m(p - wp, bit::DOWN);
-    let d = h + v + 2.0 * cells + tau * links;
     let hs = 4.0 * (m(p - 1, bit::HTRI) + 2.0 * m(p, bit::HTRI) + m(p + 1, bit::HTRI));
     let vs = 4.0 * (m(p - wp, bit::VTRI) + 2.0 * m(p, bit::VTRI) + m(p + wp, bit::VTRI));
-    let s = hs + vs + 8.0 * cells + 2.0 * tau * links;
-    (d, s)
+    (h + v + 2.0 * cells + tau * links, hs + vs + 8.0 * cells + 2.0 * tau * links)
 }
 
 /// The 5 × 5 stencil row of the finest operator at padded node p.
@@ -1831,7 +1824,7 @@ widest! {
             o[0] += wy * a[0];
             o[1] += wy * a[1];
         };
-        // Coarse nodes 1..inner have both fine neighbours (2X + 1 < fw): the sums, untested.
+        // Coarse nodes 1..inner have both fine neighbours (2X + 1 < fw): the same sums, without tests.
         let inner = (fw / 2).min(acc.len());
         if let Some(o) = acc.first_mut() {
             general(0, o);
