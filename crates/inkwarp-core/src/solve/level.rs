@@ -1488,17 +1488,12 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     // Extrapolating rows read links three nodes away: a wider window.
     let reach = if !fine.geo.ext.is_empty() { 10 } else { 4 };
     let regular = |xc: usize, yc: usize| -> bool {
-        let (x0, y0) = (2 * xc as isize - reach, 2 * yc as isize - reach);
-        let (x1, y1) = (2 * xc as isize + reach + 1, 2 * yc as isize + reach + 1);
-        if x0 < 0 || y0 < 0 || x1 > fw as isize || y1 > fh as isize {
-            return false;
-        }
-        let (x0, y0, x1, y1) = (x0 as usize, y0 as usize, x1 as usize, y1 as usize);
-        let s = sat[y1 * (fw + 1) + x1] + sat[y0 * (fw + 1) + x0] - sat[y0 * (fw + 1) + x1] - sat[y1 * (fw + 1) + x0];
-        s as usize == (x1 - x0) * (y1 - y0)
+        let (Some(x0), Some(y0)) = ((2 * xc).checked_sub(reach), (2 * yc).checked_sub(reach)) else { return false };
+        let (x1, y1) = (2 * xc + reach + 1, 2 * yc + reach + 1);
+        let at = |x: usize, y: usize| sat[y * (fw + 1) + x];
+        x1 <= fw && y1 <= fh && (at(x1, y1) + at(x0, y0) - at(x1, y0) - at(x0, y1)) as usize == (x1 - x0) * (y1 - y0)
     };
-    let first = (0..hc * wc).find(|&c| regular(c % wc, c / wc));
-    let shared = first.map_or([0.0; 25], |c| galerkin_node(fine, c % wc, c / wc));
+    let shared = (0..hc * wc).find(|&c| regular(c % wc, c / wc)).map_or([0.0; 25], |c| galerkin_node(fine, c % wc, c / wc));
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let wide = !fine.geo.ext.is_empty() || matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
