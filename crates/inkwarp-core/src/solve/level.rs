@@ -244,7 +244,7 @@ impl OwnStencils {
                 ids.extend((run.start as usize..run.end as usize).map(|c| distinct.id(row_of(r * wp + c))));
             }
         }
-        OwnStencils { narrow: narrowed(&distinct.table), table: distinct.table, ids }
+        OwnStencils { narrow: distinct.table.iter().map(|s| s.map(|a| a as f32)).collect(), table: distinct.table, ids }
     }
 }
 
@@ -266,11 +266,6 @@ impl DistinctStencils {
             (table.len() - 1) as u32
         })
     }
-}
-
-/// A table of stencils in `f32`.
-fn narrowed(table: &[[f64; 25]]) -> Vec<[f32; 25]> {
-    table.iter().map(|s| s.map(|a| a as f32)).collect()
 }
 
 /// Each row of a level split into runs of one [`RunKind`], found once when the level is
@@ -784,8 +779,7 @@ impl Level {
     /// Zeroes the padding of a vector of this level: the rows above and below its nodes and
     /// the columns left and right of them.
     pub fn clear_padding<T: Real>(&self, v: &mut [[T; 2]]) {
-        let (wp, w, h) = (self.wp, self.geo.w, self.geo.h);
-        let zero = [T::ZERO; 2];
+        let (wp, w, h, zero) = (self.wp, self.geo.w, self.geo.h, [T::ZERO; 2]);
         v[..PAD * wp].fill(zero);
         v[(PAD + h) * wp..].fill(zero);
         for row in v[PAD * wp..(PAD + h) * wp].chunks_mut(wp) {
@@ -1473,9 +1467,8 @@ pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25]
 /// stencil, computed once.
 pub(crate) fn galerkin(fine: &Level) -> Level {
     let geo = fine.geo.coarsen();
-    let (wc, hc) = (geo.w, geo.h);
+    let (wc, hc, fw, fh) = (geo.w, geo.h, fine.geo.w, fine.geo.h);
     let (wpc, hpc) = (wc + 2 * PAD, hc + 2 * PAD);
-    let (fw, fh) = (fine.geo.w, fine.geo.h);
     // Summed-area table of the clean flags: O(1) window tests.
     let mut sat = vec![0u32; (fw + 1) * (fh + 1)];
     for y in 0..fh {
@@ -1587,7 +1580,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         }
         clean[i] = ids[p] == 0 && far_p.is_empty() && geo.right[i] && geo.down[i];
     }
-    let narrow = narrowed(&table);
+    let narrow: Vec<[f32; 25]> = table.iter().map(|s| s.map(|a| a as f32)).collect();
     let runs = Runs::new(wpc, wc, hc, |p| match (inv_diag[p] != 0.0, ids[p] != 0) {
         (false, _) => RunKind::Skip,
         (true, false) => RunKind::Shared,
@@ -1604,8 +1597,7 @@ fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {
 
 /// The stored taps of coarse stencil `(Pᵀ A P)(C, ·)`, C = (xc, yc), from the definition.
 pub(crate) fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
-    let (fw, fh) = (fine.geo.w, fine.geo.h);
-    let win = Windows::WIDE;
+    let (fw, fh, win) = (fine.geo.w, fine.geo.h, Windows::WIDE);
     let mut acc = vec![0.0f64; win.acc * win.acc];
     for iy in fine.geo.children(yc, fh) {
         for ix in fine.geo.children(xc, fw) {
@@ -1707,9 +1699,7 @@ const WEIGHTS: [f64; 25] = {
 
 /// A summed stencil (on `n` × `n` offsets) split into its stored taps and the others (dx, dy, a).
 fn split_taps(acc: &[f64], n: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
-    let h = (n / 2) as isize;
-    let mut s = [0.0; 25];
-    let mut far = Vec::new();
+    let (h, mut s, mut far) = ((n / 2) as isize, [0.0; 25], Vec::new());
     for (k, &a) in acc.iter().enumerate().filter(|e| *e.1 != 0.0) {
         let (dx, dy) = ((k % n) as isize - h, (k / n) as isize - h);
         if dx.abs() <= 2 && dy.abs() <= 2 && (dx.abs() < 2 || dy.abs() < 2) {
@@ -1724,8 +1714,7 @@ fn split_taps(acc: &[f64], n: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
 /// Row `i = (ix, iy)` of `A P` into `out`: `Σ_j A_ij P_j` on the coarse nodes of `win`, row-major.
 fn ap_row(fine: &Level, ix: usize, iy: usize, win: Windows, out: &mut [f64]) {
     out.fill(0.0);
-    let (bx, by) = ((ix / 2) as isize, (iy / 2) as isize);
-    let n = win.ap as isize;
+    let (bx, by, n) = ((ix / 2) as isize, (iy / 2) as isize, win.ap as isize);
     fine.taps(fine.pidx(ix, iy), |q, a| {
         let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
         let (cjx, cjy) = ((jx / 2) as isize - bx, (jy / 2) as isize - by);
@@ -1739,8 +1728,7 @@ fn ap_row(fine: &Level, ix: usize, iy: usize, win: Windows, out: &mut [f64]) {
 
 /// `coarse = Pᵀ fine_v` (restriction of a residual), in either precision.
 pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 2]], out: &mut [[T; 2]]) {
-    let (fw, fh) = (fine.geo.w, fine.geo.h);
-    let (wc, wpc) = (coarse.geo.w, coarse.wp);
+    let (fw, fh, wc, wpc) = (fine.geo.w, fine.geo.h, coarse.geo.w, coarse.wp);
     let get = |a: [S; 2]| [T::of(a[0].get()), T::of(a[1].get())];
     let (half, zero) = (T::of(0.5), [T::ZERO; 2]);
     let run = |yc: usize, orow: &mut [[T; 2]]| {
