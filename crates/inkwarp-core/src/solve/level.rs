@@ -82,9 +82,7 @@ impl Real for f32 {
     fn four_run(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: usize, tail: usize, wp: usize, blocks: &[FourBlock], out: &mut [[f32; 2]]) {
         // SAFETY: `has_four_stencils` (the only way here) found AVX2 on the processor.
         #[allow(unsafe_code)]
-        unsafe {
-            four_run_avx2(x, f, q0, n, tail, wp, blocks, out)
-        }
+        unsafe { four_run_avx2(x, f, q0, n, tail, wp, blocks, out) }
     }
 }
 
