@@ -282,13 +282,8 @@ pub(crate) fn solve_constrained(
     let (w, h) = (grid.width, grid.height);
     let n = w * h;
     let tau = options.tension;
-    let mut report = SolveReport {
-        constrained_nodes: constraints.len(),
-        constrained_samples: constraints.used_samples,
-        dropped_samples: constraints.dropped_samples,
-        converged: true,
-        ..Default::default()
-    };
+    let (constrained_nodes, constrained_samples, dropped_samples) = (constraints.len(), constraints.used_samples, constraints.dropped_samples);
+    let mut report = SolveReport { constrained_nodes, constrained_samples, dropped_samples, converged: true, ..Default::default() };
     if n == 0 {
         return (Field::zeros(w, h), report);
     }
@@ -338,25 +333,15 @@ pub(crate) fn solve_constrained(
         let (bw, bh) = (x1 - x0, y1 - y0);
         let links = piece_links(grid, &labels, l as u32, boxes[l], open);
         let local = |i: usize| (i / w - y0) * bw + i % w - x0;
-        let mut fixed = vec![false; bw * bh];
         // (node, value) of every fixed node: the constrained ones, then the gauge pin.
-        let mut value: Vec<(usize, V2)> = Vec::with_capacity(by_piece[l].len() + 1);
-        for &k in &by_piece[l] {
-            let j = local(constraints.nodes[k]);
-            fixed[j] = true;
-            value.push((j, constraints.values[k]));
-        }
+        let mut value: Vec<(usize, V2)> = by_piece[l].iter().map(|&k| (local(constraints.nodes[k]), constraints.values[k])).collect();
         // The constrained nodes alone (the gauge pin, off the line, is never one of them).
-        let constrained_only = fixed.clone();
+        let mut constrained_only = vec![false; bw * bh];
+        value.iter().for_each(|&(j, _)| constrained_only[j] = true);
+        let mut fixed = constrained_only.clone();
         if let Some(g) = gauge {
-            let v = match initial {
-                Some(f) => f.at_index(g).map(f64::from),
-                None => {
-                    let m = by_piece[l].len() as f64;
-                    let sum = by_piece[l].iter().fold([0.0; 2], |s, &k| [s[0] + constraints.values[k][0], s[1] + constraints.values[k][1]]);
-                    [sum[0] / m, sum[1] / m]
-                }
-            };
+            let mean = |k: usize| value.iter().fold(0.0, |s, v| s + v.1[k]) / value.len() as f64;
+            let v = initial.map_or_else(|| [mean(0), mean(1)], |f| f.at_index(g).map(f64::from));
             fixed[local(g)] = true;
             value.push((local(g), v));
         }
@@ -424,13 +409,9 @@ fn settle_null_space(
     key: CacheKey, geo: &nullspace::BoxGeo, tau: f64, constrained: &[bool], value: &[(usize, V2)], basis: &[nullspace::Sparse],
     membrane: Option<&nullspace::Membrane<'_>>, u: BoxValues, mut report: SolveReport, options: &SolveOptions, store: &mut Store,
 ) -> (BoxValues, SolveReport) {
-    let (w, h, active) = (geo.w, geo.h, geo.active);
-    let mut dense: Vec<V2> = (0..h).flat_map(|y| u.row(y, w).to_vec()).collect();
-    for (d, &a) in dense.iter_mut().zip(active) {
-        if !a {
-            *d = [0.0; 2];
-        }
-    }
+    let (w, h) = (geo.w, geo.h);
+    let mut dense = u.dense(w, h);
+    dense.iter_mut().zip(geo.active).filter(|(_, &a)| !a).for_each(|(d, _)| *d = [0.0; 2]);
     if let Some(m) = membrane {
         // A block of functions too large to settle: no claim of convergence.
         report.converged &= m.apply(&mut dense);
@@ -447,11 +428,9 @@ fn settle_null_space(
         let (dx, dy) = dense.iter().map(|v| (v[0] as f32, v[1] as f32)).unzip();
         let field = Field { width: w, height: h, dx, dy };
         let (u2, r2) = solve_piece(key.clone(), value, Some((FieldView::from(&field), 0, 0)), options, store, None);
-        report.cycles += r2.cycles;
-        report.final_change_px = r2.final_change_px;
-        report.residual = r2.residual;
-        report.converged = r2.converged;
-        dense = (0..h).flat_map(|y| u2.row(y, w).to_vec()).collect();
+        // The latest solve's report, with every solve's cycles and the first one's start.
+        report = SolveReport { cycles: report.cycles + r2.cycles, initial_residual: report.initial_residual, ..r2 };
+        dense = u2.dense(w, h);
     }
     report.converged = settled;
     (BoxValues { values: dense, stride: w, first: 0 }, report)
@@ -525,6 +504,11 @@ impl BoxValues {
         let a = self.first + y * self.stride;
         &self.values[a..a + w]
     }
+
+    /// The `w × h` box's values, unpadded.
+    fn dense(&self, w: usize, h: usize) -> Vec<V2> {
+        (0..h).flat_map(|y| self.row(y, w).to_vec()).collect()
+    }
 }
 
 /// Solves one piece on its box: `key` describes the box's grid (the piece active, its
@@ -552,12 +536,11 @@ fn solve_piece(
         // other pieces in the box).
         let real = torn.then(|| fine.geo.clone());
         let fine = fine.with_holes_filled();
-        let alt = (fine.geo.active.contains(&false) && !key.off.has("second")).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.clone().unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
+        let second = fine.geo.active.contains(&false) && !key.off.has("second");
+        let alt = second.then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse, true);
-        hier.k_cycles = !key.off.has("kcycle");
-        hier.alt = alt;
-        hier.torn = torn;
+        (hier.k_cycles, hier.alt, hier.torn) = (!key.off.has("kcycle"), alt, torn);
         if !key.off.has("strands") {
             hier.strands = strands::Strands::new(&hier.levels[0]);
             if !key.off.has("coarse_strands") {
@@ -571,40 +554,29 @@ fn solve_piece(
     });
     let len = hier.levels[0].len_padded();
     let mut u: Vec<V2> = vec![[0.0; 2]; len];
-    {
-        let fine = &hier.levels[0];
-        if let Some((field, x0, y0)) = initial {
-            // Every entry written (the padding, then zero off the unknowns), row by row in
-            // parallel: no pass to clear the vector first.
-            let wp = fine.wp;
-            fine.clear_padding(&mut u);
-            u[PAD * wp..(PAD + h) * wp].par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
-                let g = (y0 + y) * field.width() + x0;
-                let p = fine.pidx(0, y);
-                let row = row[PAD..PAD + w].iter_mut().zip(&fine.inv_diag[p..p + w]);
-                let take = |d: f64, vx: f32, vy: f32| if d != 0.0 { [vx as f64, vy as f64] } else { [0.0; 2] };
-                match field {
-                    FieldView::Planar(f) => {
-                        for (((ux, &d), &vx), &vy) in row.zip(&f.dx[g..g + w]).zip(&f.dy[g..g + w]) {
-                            *ux = take(d, vx, vy);
-                        }
-                    }
-                    FieldView::Interleaved { data, .. } => {
-                        for ((ux, &d), v) in row.zip(data[2 * g..2 * (g + w)].chunks_exact(2)) {
-                            *ux = take(d, v[0], v[1]);
-                        }
-                    }
-                }
-            });
-        }
-        for &(i, v) in value {
-            u[fine.pidx(i % w, i / w)] = v;
-        }
+    let fine = &hier.levels[0];
+    if let Some((field, x0, y0)) = initial {
+        // Every entry written (the padding, then zero off the unknowns), row by row in
+        // parallel: no pass to clear the vector first.
+        let wp = fine.wp;
+        fine.clear_padding(&mut u);
+        u[PAD * wp..(PAD + h) * wp].par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
+            let g = (y0 + y) * field.width() + x0;
+            let p = fine.pidx(0, y);
+            let row = row[PAD..PAD + w].iter_mut().zip(&fine.inv_diag[p..p + w]);
+            let take = |d: f64, vx: f32, vy: f32| if d != 0.0 { [vx as f64, vy as f64] } else { [0.0; 2] };
+            match field {
+                FieldView::Planar(f) => row.zip(&f.dx[g..g + w]).zip(&f.dy[g..g + w]).for_each(|(((ux, &d), &vx), &vy)| *ux = take(d, vx, vy)),
+                FieldView::Interleaved { data, .. } => row.zip(data[2 * g..][..2 * w].chunks_exact(2)).for_each(|((ux, &d), v)| *ux = take(d, v[0], v[1])),
+            }
+        });
     }
+    let pin = |u: &mut [V2]| value.iter().for_each(|&(i, v)| u[fine.pidx(i % w, i / w)] = v);
+    pin(&mut u);
     // The residual's every use writes its body's unknowns first: only its padding needs
     // clearing (products and dot products read it).
     let mut r = vec![[0.0; 2]; len];
-    hier.levels[0].clear_padding(&mut r);
+    fine.clear_padding(&mut r);
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves
     // residuals above the tolerance (a user's earlier answer). A closer start (the earlier
     // frames' prediction) first gets one cycle as it is, and the coarse-to-fine correction
@@ -612,21 +584,17 @@ fn solve_piece(
     let mut warm = initial.is_some();
     let mut started = !warm;
     if warm {
-        report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
+        report.initial_residual = fine.residual_scaled_max(&u, &mut r);
         started = !(report.initial_residual <= options.tolerance_px);
         if started {
             // A start worse than none (huge or unrelated values) is dropped for the cold start
             // (`docs/dev/solver-correctness.md`).
             let mut cold = vec![[0.0; 2]; len];
-            for &(i, v) in value {
-                cold[hier.levels[0].pidx(i % w, i / w)] = v;
-            }
-            let cold_residual = hier.levels[0].residual_scaled_max(&cold, &mut r);
-            if report.initial_residual <= cold_residual {
-                hier.levels[0].residual_scaled_max(&u, &mut r);
+            pin(&mut cold);
+            if report.initial_residual <= fine.residual_scaled_max(&cold, &mut r) {
+                fine.residual_scaled_max(&u, &mut r);
             } else {
-                u = cold;
-                warm = false;
+                (u, warm) = (cold, false);
             }
         }
     }
@@ -838,26 +806,6 @@ impl Solver {
     /// is closer), which then keeps the result. With `grid_step` above 1 the history keeps
     /// and combines the coarse solves' fields, and `initial` is read at the coarse nodes
     /// only: a draft's start costs a pass over its coarse grid, not over every pixel.
-    ///
-    /// ```
-    /// use inkwarp_core::solve::{SolveOptions, Solver};
-    /// use inkwarp_core::{Grid, Sample};
-    /// let grid = Grid::new(48, 48);
-    /// let mut solver = Solver::new();
-    /// // A point swinging smoothly while two corners hold: each frame starts from the
-    /// // extrapolation of the ones before.
-    /// let pose = |t: f64| {
-    ///     let s = |x, y, dx, dy| Sample { rest: [x, y], displacement: [dx, dy] };
-    ///     vec![s(0.0, 0.0, 0.0, 0.0), s(47.0, 47.0, 0.0, 0.0), s(10.0, 40.0, 0.0, 0.0),
-    ///          s(24.0, 24.0, 6.0 * t.sin(), 6.0 * t.cos())]
-    /// };
-    /// let mut cycles = Vec::new();
-    /// for frame in 0..8 {
-    ///     let (_, report) = solver.solve_warm(&grid, &pose(0.2 * frame as f64), &SolveOptions::default(), None).unwrap();
-    ///     cycles.push(report.cycles);
-    /// }
-    /// assert!(cycles[7] <= cycles[0]);
-    /// ```
     pub fn solve_warm(&mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<Field>) -> Result<(Field, SolveReport), SolveError> {
         solve_with(grid, samples, options, initial.as_ref().map(FieldView::from), self, true)
     }
@@ -963,54 +911,37 @@ struct CacheKey {
 
 /// The τ → 0⁺ rule's class of each piece, `members` its constraints.
 fn classify(grid: &Grid, labels: &[u32], members: &[Vec<usize>], c: &Constraints, tau: f64) -> Vec<Piece> {
-    let (w, count) = (grid.width, members.len());
+    let w = grid.width;
     let xy = |i: usize| [(i % w) as i64, (i / w) as i64];
-    let mut pieces = vec![Piece::General; count];
-    let mut line_pieces = Vec::new();
-    for (l, m) in members.iter().enumerate() {
-        pieces[l] = match m.len() {
-            0 => Piece::Zero,
-            1 => Piece::Translate(c.values[m[0]]),
-            _ => {
-                let a = xy(c.nodes[m[0]]);
-                let far = m.iter().map(|&k| xy(c.nodes[k])).max_by_key(|p| (p[0] - a[0]).pow(2) + (p[1] - a[1]).pow(2)).unwrap();
-                let d = [far[0] - a[0], far[1] - a[1]];
-                let collinear = m.iter().all(|&k| {
-                    let p = xy(c.nodes[k]);
-                    d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0]) == 0
-                });
-                if collinear && tau == 0.0 {
-                    line_pieces.push(l);
-                    Piece::Line { a, d, gauge: usize::MAX }
-                } else {
-                    Piece::General
-                }
-            }
-        };
-    }
-    if !line_pieces.is_empty() {
+    // `d × (p − a)`: zero on the line through `a` with direction `d`.
+    let cross = |a: [i64; 2], d: [i64; 2], p: [i64; 2]| d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0]);
+    let mut pieces: Vec<Piece> = members.iter().map(|m| match m.len() {
+        0 => Piece::Zero,
+        1 => Piece::Translate(c.values[m[0]]),
+        _ if tau != 0.0 => Piece::General,
+        _ => {
+            let a = xy(c.nodes[m[0]]);
+            let far = m.iter().map(|&k| xy(c.nodes[k])).max_by_key(|p| (p[0] - a[0]).pow(2) + (p[1] - a[1]).pow(2)).unwrap();
+            let d = [far[0] - a[0], far[1] - a[1]];
+            let collinear = m.iter().all(|&k| cross(a, d, xy(c.nodes[k])) == 0);
+            if collinear { Piece::Line { a, d, gauge: usize::MAX } } else { Piece::General }
+        }
+    }).collect();
+    if pieces.iter().any(|p| matches!(p, Piece::Line { .. })) {
         // The node of each one-line piece farthest from its line becomes the gauge pin.
-        let mut best = vec![(0i64, usize::MAX); count];
-        for (i, &l) in labels.iter().enumerate() {
-            if l == u32::MAX {
-                continue;
-            }
-            if let Piece::Line { a, d, .. } = pieces[l as usize] {
-                let p = xy(i);
-                let dist = (d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0])).abs();
-                if dist > best[l as usize].0 {
-                    best[l as usize] = (dist, i);
+        let mut best = vec![0i64; pieces.len()];
+        for (i, &l) in labels.iter().enumerate().filter(|(_, &l)| l != u32::MAX) {
+            if let Piece::Line { a, d, gauge } = &mut pieces[l as usize] {
+                let dist = cross(*a, *d, xy(i)).abs();
+                if dist > best[l as usize] {
+                    (best[l as usize], *gauge) = (dist, i);
                 }
             }
         }
-        for l in line_pieces {
-            if let Piece::Line { a, d, .. } = pieces[l] {
-                pieces[l] = if best[l].1 == usize::MAX {
-                    // The whole piece lies on the line: the constraints pin it.
-                    Piece::General
-                } else {
-                    Piece::Line { a, d, gauge: best[l].1 }
-                };
+        for p in &mut pieces {
+            if let Piece::Line { gauge: usize::MAX, .. } = p {
+                // The whole piece lies on the line: the constraints pin it.
+                *p = Piece::General;
             }
         }
     }
