@@ -9,7 +9,7 @@
 //! motion that is a polynomial extrapolation in time, far closer than the last field
 //! alone (DESIGN §4's warm start, generalised from one earlier frame to a few).
 
-use std::{borrow::Cow, collections::VecDeque};
+use std::{array::from_fn, borrow::Cow, collections::VecDeque};
 
 use crate::field::{Field, FieldView};
 use crate::grid::{Constraints, Grid};
@@ -65,9 +65,7 @@ impl WarmHistory {
     /// largest difference at a constrained node); `None` when there is neither.
     pub fn start<'a>(&self, grid: &Grid, c: &Constraints, given: Option<&'a Field>) -> Option<Cow<'a, Field>> {
         let miss = |f: &Field| {
-            c.nodes.iter().zip(&c.values).fold(0.0f64, |m, (&i, v)| {
-                m.max((f.dx[i] as f64 - v[0]).abs()).max((f.dy[i] as f64 - v[1]).abs())
-            })
+            c.nodes.iter().zip(&c.values).fold(0.0f64, |m, (&i, v)| m.max((f.dx[i] as f64 - v[0]).abs()).max((f.dy[i] as f64 - v[1]).abs()))
         };
         match (self.predict(grid, c), given) {
             (Some(p), Some(g)) => Some(if miss(&p) < miss(g) { Cow::Owned(p) } else { Cow::Borrowed(g) }),
@@ -113,19 +111,12 @@ impl WarmHistory {
         let k = self.entries.len();
         let mut latest = [0.0; HISTORY_FRAMES];
         latest[k - 1] = 1.0;
-        let mut g = [[0.0f64; HISTORY_FRAMES]; HISTORY_FRAMES];
-        let mut b = [0.0f64; HISTORY_FRAMES];
-        for i in 0..k {
-            let vi = &self.entries[i].0;
-            for j in 0..=i {
-                let vj = &self.entries[j].0;
-                let s: f64 = vi.iter().zip(vj).map(|(a, c)| a[q] * c[q]).sum();
-                g[i][j] = s;
-                g[j][i] = s;
-            }
-            b[i] = vi.iter().zip(target).map(|(a, t)| a[q] * t[q]).sum();
-        }
-        let tt: f64 = target.iter().map(|t| t[q] * t[q]).sum();
+        // Component q's products of the kept frames' values and the target's.
+        let dot = |x: &[[f64; 2]], y: &[[f64; 2]]| -> f64 { x.iter().zip(y).map(|(a, c)| a[q] * c[q]).sum() };
+        let v = |i: usize| &self.entries[i].0;
+        let g: [[f64; HISTORY_FRAMES]; HISTORY_FRAMES] = from_fn(|i| from_fn(|j| if i < k && j < k { dot(v(i), v(j)) } else { 0.0 }));
+        let b: [f64; HISTORY_FRAMES] = from_fn(|i| if i < k { dot(v(i), target) } else { 0.0 });
+        let tt = dot(target, target);
         let trace: f64 = (0..k).map(|i| g[i][i]).sum();
         if trace <= 0.0 || target.is_empty() {
             return latest;
@@ -151,16 +142,10 @@ impl WarmHistory {
             let frames: Vec<usize> = (0..k).filter(|&i| subset & (1 << i) != 0).collect();
             let ridge = |i: usize, j: usize| g[i][j] + if i == j { 1e-10 * trace } else { 0.0 };
             let m: Vec<Vec<f64>> = frames.iter().map(|&i| frames.iter().map(|&j| ridge(i, j)).collect()).collect();
-            let Some(x) = dense_solve(m, frames.iter().map(|&i| [b[i], 0.0]).collect()) else {
-                continue;
-            };
+            let rhs = frames.iter().map(|&i| [b[i], 0.0]).collect();
+            let Some(x) = dense_solve(m, rhs).filter(|x| x.iter().all(|v| v[0].is_finite())) else { continue };
             let mut w = [0.0; HISTORY_FRAMES];
-            for (&i, v) in frames.iter().zip(&x) {
-                w[i] = v[0];
-            }
-            if !w.iter().all(|a| a.is_finite()) {
-                continue;
-            }
+            frames.iter().zip(&x).for_each(|(&i, v)| w[i] = v[0]);
             if subset == all && gain(&w) <= 16.0 {
                 return if miss(&w) < miss(&latest) { w } else { latest };
             }

@@ -249,18 +249,17 @@ pub(crate) fn validate(grid: &Grid, samples: &[Sample], options: &SolveOptions, 
     if let Some(index) = samples.iter().position(|s| !s.rest.iter().chain(s.displacement.iter()).all(|v| v.is_finite())) {
         return Err(SolveError::NonFiniteSample { index });
     }
-    if let Some(f) = initial {
-        if f.width() != grid.width || f.height() != grid.height {
-            return Err(SolveError::InitialSize { got_w: f.width(), got_h: f.height(), want_w: grid.width, want_h: grid.height });
-        }
-        if !f.is_consistent() {
-            let (w, h) = (grid.width, grid.height);
-            return Err(SolveError::InitialLength { got: f.values(), want: 2 * w * h, w, h });
-        }
-        // In parallel: every warm solve from Python reads its start here first.
-        if !f.all_finite() {
-            return Err(SolveError::NonFiniteInitial);
-        }
+    let Some(f) = initial else { return Ok(()) };
+    let (w, h) = (grid.width, grid.height);
+    if (f.width(), f.height()) != (w, h) {
+        return Err(SolveError::InitialSize { got_w: f.width(), got_h: f.height(), want_w: w, want_h: h });
+    }
+    if !f.is_consistent() {
+        return Err(SolveError::InitialLength { got: f.values(), want: 2 * w * h, w, h });
+    }
+    // In parallel: every warm solve from Python reads its start here first.
+    if !f.all_finite() {
+        return Err(SolveError::NonFiniteInitial);
     }
     Ok(())
 }
@@ -280,11 +279,10 @@ pub(crate) fn solve_constrained(
     grid: &Grid, constraints: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, store: &mut Store,
 ) -> (Field, SolveReport) {
     let (w, h) = (grid.width, grid.height);
-    let n = w * h;
     let tau = options.tension;
     let (constrained_nodes, constrained_samples, dropped_samples) = (constraints.len(), constraints.used_samples, constraints.dropped_samples);
     let mut report = SolveReport { constrained_nodes, constrained_samples, dropped_samples, converged: true, ..Default::default() };
-    if n == 0 {
+    if w * h == 0 {
         return (Field::zeros(w, h), report);
     }
     // An open grid (every node active, every link there: most grids) is one piece whose
@@ -312,10 +310,7 @@ pub(crate) fn solve_constrained(
             }
             match pieces[l as usize] {
                 Piece::Zero => {}
-                Piece::Translate(v) => {
-                    field.dx[y * w + x] = v[0] as f32;
-                    field.dy[y * w + x] = v[1] as f32;
-                }
+                Piece::Translate(v) => (field.dx[y * w + x], field.dy[y * w + x]) = (v[0] as f32, v[1] as f32),
                 Piece::Line { .. } | Piece::General => {
                     let b = &mut boxes[l as usize];
                     *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
@@ -362,15 +357,12 @@ pub(crate) fn solve_constrained(
             if let Some(m) = affine_fit(&value, bw) {
                 let mut values: Vec<V2> = (0..bw * bh).map(|j| m(j % bw, j / bw)).collect();
                 // The constrained nodes hold their values exactly, not to the map's rounding.
-                for &(j, v) in &value {
-                    values[j] = v;
-                }
+                value.iter().for_each(|&(j, v)| values[j] = v);
                 write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
                 continue;
             }
         }
         let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
-        let start = initial.map(|f| (f, x0, y0));
         // (A one-line piece's single free function is its tilt, which the line fixes.)
         let settles = null.as_ref().is_some_and(|b| b.len() > usize::from(gauge.is_some()));
         // At τ = 0 the settling is a linear map, built once: it settles the answer, and the
@@ -380,7 +372,7 @@ pub(crate) fn solve_constrained(
             _ => None,
         };
         let again = (settles && !open).then(|| key.clone());
-        let (mut u, mut r) = solve_piece(key, &value, start, options, store, membrane.as_ref());
+        let (mut u, mut r) = solve_piece(key, &value, initial.map(|f| (f, x0, y0)), options, store, membrane.as_ref());
         if let (Some(basis), Some(geo), Some(key)) = (&null, &geo, again) {
             (u, r) = settle_null_space(key, geo, tau, &constrained_only, &value, basis, membrane.as_ref(), u, r, options, store);
         } else if null.is_none() {
@@ -608,8 +600,7 @@ fn solve_piece(
     let mut ratios = [0.0f64; 2];
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
     let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, floor: f64| {
-        report.cycles = cycle;
-        report.final_change_px = change;
+        (report.cycles, report.final_change_px) = (cycle, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-gradient steps
         // are not geometric, so ρ is the larger of the last two ratios (0.5 before there is
         // one), and the bound carries a safety margin (the smoothest error moves least per
@@ -694,13 +685,11 @@ fn solve_piece(
                     break;
                 }
             }
-            report.cycles = round;
         }
     }
-    // The conjugate-gradient residual is updated, not recomputed: it is the residual of u
-    // up to rounding.
-    // The maxima pass over a NaN, so the same pass checks the field: one that is not finite
-    // is never converged.
+    // The conjugate-gradient residual is updated, not recomputed: it is the residual of u up
+    // to rounding. The maxima pass over a NaN, so the same pass checks the field: one that is
+    // not finite is never converged.
     let (residual, finite) = r.par_chunks(CHUNK).zip(hier.levels[0].inv_diag.par_chunks(CHUNK)).zip(u.par_chunks(CHUNK))
         .map(|((r, d), u)| (scaled_max(r, d), u.iter().all(|v| v[0].is_finite() && v[1].is_finite())))
         .reduce(|| (0.0, true), |a, b| (larger(a.0, b.0), a.1 && b.1));
@@ -722,8 +711,7 @@ fn write_piece(field: &mut Field, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usi
         let (lab, v) = (&labels[rows(by)], u.row(by, bw));
         for (((dx, dy), &lab), v) in dx[x0..x1].iter_mut().zip(&mut dy[x0..x1]).zip(lab).zip(v) {
             if lab == l {
-                *dx = v[0] as f32;
-                *dy = v[1] as f32;
+                (*dx, *dy) = (v[0] as f32, v[1] as f32);
             }
         }
     });
@@ -742,21 +730,18 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
         let [x, y] = rel(j);
         let b = [1.0, x, y];
         for r in 0..3 {
-            for c in 0..3 {
-                m[r][c] += b[r] * b[c];
-            }
+            m[r].iter_mut().zip(b).for_each(|(m, c)| *m += b[r] * c);
             rhs[r] = [rhs[r][0] + b[r] * v[0], rhs[r][1] + b[r] * v[1]];
         }
     }
     let a = dense_solve(m, rhs)?;
-    let map = move |x: f64, y: f64| [a[0][0] + a[1][0] * x + a[2][0] * y, a[0][1] + a[1][1] * x + a[2][1] * y];
+    let map = move |[x, y]: [f64; 2]| [a[0][0] + a[1][0] * x + a[2][0] * y, a[0][1] + a[1][1] * x + a[2][1] * y];
     let scale = value.iter().fold(1.0f64, |s, (_, v)| s.max(v[0].abs()).max(v[1].abs()));
     let fits = value.iter().all(|&(j, v)| {
-        let [x, y] = rel(j);
-        let p = map(x, y);
+        let p = map(rel(j));
         (p[0] - v[0]).abs().max((p[1] - v[1]).abs()) <= 1e-9 * scale
     });
-    fits.then(|| move |x: usize, y: usize| map(x as f64 - o[0], y as f64 - o[1]))
+    fits.then_some(move |x: usize, y: usize| map([x as f64 - o[0], y as f64 - o[1]]))
 }
 
 /// At most this many hierarchies a solver keeps, and finest nodes in all (about 150 bytes
@@ -818,12 +803,10 @@ impl Solver {
     /// `options.grid_step`.
     ///
     /// ```
-    /// use inkwarp_core::solve::{SolveOptions, Solver, Upsampling};
-    /// use inkwarp_core::{Grid, Sample};
+    /// use inkwarp_core::{solve::{SolveOptions, Solver, Upsampling}, Grid, Sample};
     /// let grid = Grid::new(64, 48);
-    /// let samples = [Sample { rest: [10.0, 10.0], displacement: [2.0, 0.0] },
-    ///                Sample { rest: [50.0, 30.0], displacement: [0.0, -1.0] },
-    ///                Sample { rest: [20.0, 40.0], displacement: [1.0, 1.0] }];
+    /// let s = |x, y, dx, dy| Sample { rest: [x, y], displacement: [dx, dy] };
+    /// let samples = [s(10.0, 10.0, 2.0, 0.0), s(50.0, 30.0, 0.0, -1.0), s(20.0, 40.0, 1.0, 1.0)];
     /// let options = SolveOptions { grid_step: 4, ..Default::default() };
     /// let plan = Upsampling::new(&grid, 4);
     /// let pixels = [0u32, 64 * 20 + 33, 64 * 48 - 1];
