@@ -78,10 +78,7 @@ impl WarmHistory {
     /// frames pin other nodes or do not help; `None` when empty or kept for another grid
     /// size.
     pub fn predict(&self, grid: &Grid, c: &Constraints) -> Option<Field> {
-        let last = self.last()?;
-        if last.width != grid.width || last.height != grid.height {
-            return None;
-        }
+        let last = self.last().filter(|f| (f.width, f.height) == (grid.width, grid.height))?;
         if self.entries.len() < 2 || (grid.width, grid.height) != self.shape || c.nodes != self.nodes {
             return Some(last.clone());
         }
@@ -109,8 +106,7 @@ impl WarmHistory {
     /// amplifies (`Σ|αᵢ|` times [`FRAME_ERROR_PX`]).
     fn fit(&self, target: &[[f64; 2]], q: usize) -> [f64; HISTORY_FRAMES] {
         let k = self.entries.len();
-        let mut latest = [0.0; HISTORY_FRAMES];
-        latest[k - 1] = 1.0;
+        let latest: [f64; HISTORY_FRAMES] = from_fn(|i| if i + 1 == k { 1.0 } else { 0.0 });
         // Component q's products of the kept frames' values and the target's.
         let dot = |x: &[[f64; 2]], y: &[[f64; 2]]| -> f64 { x.iter().zip(y).map(|(a, c)| a[q] * c[q]).sum() };
         let v = |i: usize| &self.entries[i].0;
@@ -124,19 +120,13 @@ impl WarmHistory {
         let nodes = target.len() as f64;
         // The root mean square miss of weights `w` at the constrained nodes, from
         // ‖t − Σ wᵢ vᵢ‖² = tᵀt − 2 wᵀb + wᵀG w; and how much they amplify the frames' errors.
-        let miss = |w: &[f64; HISTORY_FRAMES]| -> f64 {
-            let mut sq = tt;
-            for i in 0..k {
-                sq -= 2.0 * w[i] * b[i];
-                for j in 0..k {
-                    sq += w[i] * g[i][j] * w[j];
-                }
-            }
+        let miss = |w: &[f64; HISTORY_FRAMES]| {
+            let sq = (0..k).fold(tt, |sq, i| (0..k).fold(sq - 2.0 * w[i] * b[i], |sq, j| sq + w[i] * g[i][j] * w[j]));
             (sq.max(0.0) / nodes).sqrt()
         };
         let gain = |w: &[f64; HISTORY_FRAMES]| w[..k].iter().map(|a| a.abs()).sum::<f64>();
         let all = (1usize << k) - 1;
-        let mut best = (miss(&latest) + FRAME_ERROR_PX, None);
+        let mut best = (miss(&latest) + FRAME_ERROR_PX, latest);
         // Every frame first, then the subsets.
         for subset in (1..=all).rev() {
             let frames: Vec<usize> = (0..k).filter(|&i| subset & (1 << i) != 0).collect();
@@ -151,10 +141,10 @@ impl WarmHistory {
             }
             let score = miss(&w) + FRAME_ERROR_PX * gain(&w);
             if score < best.0 {
-                best = (score, Some(w));
+                best = (score, w);
             }
         }
-        best.1.unwrap_or(latest)
+        best.1
     }
 
     /// Keeps the solve on `grid` with constraints `c` that gave `field`.

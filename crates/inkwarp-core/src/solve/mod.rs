@@ -704,11 +704,9 @@ fn solve_piece(
 /// Piece `l`'s nodes of its box `[x0, y0, x1, y1]` from `u`, to the field.
 fn write_piece(field: &mut Field, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4], u: &BoxValues) {
     let (w, bw) = (field.width, x1 - x0);
-    let rows = |by: usize| (y0 + by) * w + x0..(y0 + by) * w + x1;
-    let span = y0 * w..y1 * w;
-    let (dx, dy) = (&mut field.dx[span.clone()], &mut field.dy[span]);
+    let (dx, dy) = (&mut field.dx[y0 * w..y1 * w], &mut field.dy[y0 * w..y1 * w]);
     dx.par_chunks_mut(w).zip(dy.par_chunks_mut(w)).enumerate().with_min_len(4).for_each(|(by, (dx, dy))| {
-        let (lab, v) = (&labels[rows(by)], u.row(by, bw));
+        let (lab, v) = (&labels[(y0 + by) * w + x0..(y0 + by) * w + x1], u.row(by, bw));
         for (((dx, dy), &lab), v) in dx[x0..x1].iter_mut().zip(&mut dy[x0..x1]).zip(lab).zip(v) {
             if lab == l {
                 (*dx, *dy) = (v[0] as f32, v[1] as f32);
@@ -980,8 +978,7 @@ pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<
                 for c in col..k {
                     m[r][c] -= f * m[col][c];
                 }
-                rhs[r][0] -= f * rhs[col][0];
-                rhs[r][1] -= f * rhs[col][1];
+                rhs[r] = [rhs[r][0] - f * rhs[col][0], rhs[r][1] - f * rhs[col][1]];
             }
         }
     }
@@ -989,8 +986,7 @@ pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<
     for r in (0..k).rev() {
         let mut s = rhs[r];
         for c in r + 1..k {
-            s[0] -= m[r][c] * x[c][0];
-            s[1] -= m[r][c] * x[c][1];
+            s = [s[0] - m[r][c] * x[c][0], s[1] - m[r][c] * x[c][1]];
         }
         x[r] = [s[0] / m[r][r], s[1] / m[r][r]];
     }
@@ -1068,8 +1064,7 @@ impl<'m, 'a> SettledChange<'m, 'a> {
         let mut moved: Vec<V2> = self.nodes.iter().map(|&i| step(i)).collect();
         self.membrane.settle(step, |i, v| {
             let m = &mut moved[self.slot[level.pidx(i % w, i / w)] as usize];
-            m[0] += v[0];
-            m[1] += v[1];
+            *m = [m[0] + v[0], m[1] + v[1]];
         });
         let on = moved.iter().fold(0.0f64, |m, v| m.max(v[0].abs()).max(v[1].abs()));
         let off = p.par_chunks(CHUNK).zip(self.slot.par_chunks(CHUNK)).map(|(p, t)| {
