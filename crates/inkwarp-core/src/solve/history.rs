@@ -85,25 +85,23 @@ impl WarmHistory {
         let alpha = [self.fit(&c.values, 0), self.fit(&c.values, 1)];
         let mut out = Field::zeros(grid.width, grid.height);
         for (i, (_, f)) in self.entries.iter().enumerate() {
-            let (ax, ay) = (alpha[0][i] as f32, alpha[1][i] as f32);
-            if ax != 0.0 {
-                out.dx.iter_mut().zip(&f.dx).for_each(|(o, v)| *o += ax * v);
-            }
-            if ay != 0.0 {
-                out.dy.iter_mut().zip(&f.dy).for_each(|(o, v)| *o += ay * v);
+            for (out, v, a) in [(&mut out.dx, &f.dx, alpha[0][i] as f32), (&mut out.dy, &f.dy, alpha[1][i] as f32)] {
+                if a != 0.0 {
+                    out.iter_mut().zip(v).for_each(|(o, v)| *o += a * v);
+                }
             }
         }
         Some(out)
     }
 
     /// Least-squares weights of the kept frames' component `q` for `target`, when they
-    /// match it better than the latest frame alone and stay moderate (`Σ|αᵢ| ≤ 16`: no
-    /// wild extrapolation that would amplify the earlier solves' own errors); `None` when
-    /// the latest frame alone (`[0, …, 1]`) is best. When the fit through every frame is wild (frames
-    /// nearly parallel, as a drag's first short step beside a probe: see the editor), the
-    /// least-squares fits through fewer frames are weighed instead, each by its miss at
-    /// the constrained nodes (root mean square) plus the earlier solves' errors it
-    /// amplifies (`Σ|αᵢ|` times [`FRAME_ERROR_PX`]).
+    /// match it better than the latest frame alone (`[0, …, 1]`, returned otherwise) and
+    /// stay moderate (`Σ|αᵢ| ≤ 16`: no wild extrapolation that would amplify the earlier
+    /// solves' own errors). When the fit through every frame is wild (frames nearly parallel,
+    /// as a drag's first short step beside a probe: see the editor), the least-squares fits
+    /// through fewer frames are weighed instead, each by its miss at the constrained nodes
+    /// (root mean square) plus the earlier solves' errors it amplifies (`Σ|αᵢ|` times
+    /// [`FRAME_ERROR_PX`]).
     fn fit(&self, target: &[[f64; 2]], q: usize) -> [f64; HISTORY_FRAMES] {
         let k = self.entries.len();
         let latest: [f64; HISTORY_FRAMES] = from_fn(|i| if i + 1 == k { 1.0 } else { 0.0 });

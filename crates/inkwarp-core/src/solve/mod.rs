@@ -51,14 +51,10 @@ mod wide;
 pub use history::{WarmHistory, HISTORY_FRAMES};
 pub use upsample::Upsampling;
 
-use crate::clock::Instant;
 use rayon::prelude::*;
 use thiserror::Error;
 
-use crate::field::{Field, FieldView};
-use crate::geometry::Sample;
-use crate::grid::{constrain, Constraints, Grid};
-
+use crate::{clock::Instant, field::{Field, FieldView}, geometry::Sample, grid::{constrain, Constraints, Grid}};
 use cycle::Hierarchy;
 use level::{larger, scaled_max, Geometry, Level, Real, PAD, V2, W2, WS};
 
@@ -304,10 +300,7 @@ pub(crate) fn solve_constrained(
     // back the others and fools the stopping rule).
     let mut boxes = vec![[usize::MAX, usize::MAX, 0, 0]; count];
     for (y, row) in labels.chunks_exact(w).enumerate() {
-        for (x, &l) in row.iter().enumerate() {
-            if l == u32::MAX {
-                continue;
-            }
+        for (x, &l) in row.iter().enumerate().filter(|(_, &l)| l != u32::MAX) {
             match pieces[l as usize] {
                 Piece::Zero => {}
                 Piece::Translate(v) => (field.dx[y * w + x], field.dy[y * w + x]) = (v[0] as f32, v[1] as f32),
