@@ -995,7 +995,6 @@ const CHUNK: usize = 16_384;
 fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [V2], rz: [f64; 2]) -> (f64, [f64; 2]) {
     let pq = hier.levels[0].fine_residual_dot_narrow(p, q);
     if !pq.iter().chain(&rz).all(|v| v.is_finite()) {
-        // A direction that overflowed: no step (NaN tells the caller).
         return (f64::NAN, [0.0; 2]);
     }
     let alpha = [0, 1].map(|k| if pq[k] < 0.0 { -rz[k] / pq[k] } else { 0.0 });
