@@ -935,13 +935,9 @@ fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64
     let (mut num, mut den) = ([0.0f64; 2], 0.0f64);
     for (x, y) in nodes() {
         let (i, j) = (y * w + x, at(x, y));
-        for (linked, q, l) in [(grid.link_right[i], j + 1, lx), (grid.link_down[i], j + s, ly)] {
-            if linked {
-                for k in 0..2 {
-                    num[k] += (v[q][k] - v[j][k]) * l;
-                }
-                den += l * l;
-            }
+        for (_, q, l) in [(grid.link_right[i], j + 1, lx), (grid.link_down[i], j + s, ly)].into_iter().filter(|t| t.0) {
+            num = [num[0] + (v[q][0] - v[j][0]) * l, num[1] + (v[q][1] - v[j][1]) * l];
+            den += l * l;
         }
     }
     if den == 0.0 {
