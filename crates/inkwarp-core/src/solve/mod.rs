@@ -276,7 +276,8 @@ pub(crate) fn solve_constrained(
 ) -> (Field, SolveReport) {
     let (w, h) = (grid.width, grid.height);
     let tau = options.tension;
-    let (constrained_nodes, constrained_samples, dropped_samples) = (constraints.len(), constraints.used_samples, constraints.dropped_samples);
+    let (constrained_nodes, constrained_samples) = (constraints.len(), constraints.used_samples);
+    let dropped_samples = constraints.dropped_samples;
     let mut report = SolveReport { constrained_nodes, constrained_samples, dropped_samples, converged: true, ..Default::default() };
     if w * h == 0 {
         return (Field::zeros(w, h), report);
@@ -551,8 +552,10 @@ fn solve_piece(
             let row = row[PAD..PAD + w].iter_mut().zip(&fine.inv_diag[p..p + w]);
             let take = |d: f64, vx: f32, vy: f32| if d != 0.0 { [vx as f64, vy as f64] } else { [0.0; 2] };
             match field {
-                FieldView::Planar(f) => row.zip(&f.dx[g..g + w]).zip(&f.dy[g..g + w]).for_each(|(((ux, &d), &vx), &vy)| *ux = take(d, vx, vy)),
-                FieldView::Interleaved { data, .. } => row.zip(data[2 * g..][..2 * w].chunks_exact(2)).for_each(|((ux, &d), v)| *ux = take(d, v[0], v[1])),
+                FieldView::Planar(f) => row.zip(f.dx[g..].iter().zip(&f.dy[g..])).for_each(|((ux, &d), (&x, &y))| *ux = take(d, x, y)),
+                FieldView::Interleaved { data, .. } => {
+                    row.zip(data[2 * g..].chunks_exact(2)).for_each(|((ux, &d), v)| *ux = take(d, v[0], v[1]));
+                }
             }
         });
     }
