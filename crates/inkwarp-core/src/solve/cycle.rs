@@ -85,14 +85,10 @@ impl Hierarchy {
             }
             levels.push(galerkin(last));
         }
-        let work = levels
-            .iter()
-            .enumerate()
-            .map(|(k, l)| {
-                let v = || vec![[0.0; 2]; if k == 0 && !smooth_fine { 0 } else { l.len_padded() }];
-                Work { x: v(), f: v(), r: v(), d: v(), z1: Vec::new(), q1: Vec::new() }
-            })
-            .collect();
+        let work = (0..levels.len()).map(|k| {
+            let v = || vec![[0.0; 2]; if k == 0 && !smooth_fine { 0 } else { levels[k].len_padded() }];
+            Work { x: v(), f: v(), r: v(), d: v(), z1: Vec::new(), q1: Vec::new() }
+        }).collect();
         // Chebyshev needs the top of the spectrum of D⁻¹A (two steps aimed at [λ/16, λ]
         // amplify every mode more than 6.25 % above λ). On the finest level, whose top mode
         // alternates in sign as its molecule does, a Collatz–Wielandt bound on |A| is safe
@@ -146,11 +142,8 @@ impl Hierarchy {
         self.levels[0].residual(u, None, r);
         let mut x = vec![[0.0; 2]; r.len()];
         self.coarsest.solve(r, &mut x);
-        for (p, e) in x.iter().enumerate() {
-            if self.levels[0].inv_diag[p] != 0.0 {
-                u[p][0] += e[0];
-                u[p][1] += e[1];
-            }
+        for &p in &self.coarsest.map {
+            u[p] = [u[p][0] + x[p][0], u[p][1] + x[p][1]];
         }
     }
 
@@ -174,11 +167,8 @@ impl Hierarchy {
             // below the finest level in `f64` sums (see `Level::residual_f64`); from zero,
             // `x` is one smoothing of `f`, and the rounding of its product small next to
             // the residual.
-            if k > 0 && !x_zero {
-                level.residual_f64(x, Some(f), r);
-            } else {
-                level.residual(x, Some(f), r);
-            }
+            let residual = if k > 0 && !x_zero { Level::residual_f64 } else { Level::residual };
+            residual(level, x, Some(f), r);
         }
         let (head, tail) = work.split_at_mut(1);
         let w = &mut head[0];
@@ -192,7 +182,7 @@ impl Hierarchy {
                 add_line_searched(level, &self.levels[k + 1], &mut tail[0], &mut w.x);
             } else {
                 // (From the coarsest level of two the correction is exact: its step is 1.)
-                prolong_add_scaled(level, &self.levels[k + 1], &tail[0].x, &mut w.x, [1.0; 2]);
+                prolong_add(level, &self.levels[k + 1], &tail[0].x, &mut w.x);
             }
         }
         if let (Some(alt), Some(aw)) = (self.alt.as_deref().filter(|a| a.levels.len() > 1), alt_work) {
@@ -200,7 +190,7 @@ impl Hierarchy {
             level.residual(&w.x, Some(&w.f), &mut w.r);
             alt.solve_below(0, &w.r, &mut aw[1..]);
             // Unscaled (a line search here gained nothing: `docs/dev/ablation.md`).
-            prolong_add_scaled(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x, [1.0; 2]);
+            prolong_add(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x);
         }
         let Work { x, f, r, d, .. } = w;
         if let Some(Some(s)) = self.level_strands.get(k) {
@@ -238,12 +228,11 @@ impl Hierarchy {
         // terms, in `f64` sums (see `Level::residual_f64`), and z₂'s below.
         coarse.residual_f64(&c.x, None, &mut c.r); // −A z₁ on the unknowns
         let zaz = dot_w(&c.x, &c.r).map(|v| -v);
-        let zf = dot_w(&c.x, &c.f);
-        let a1 = [step(zf[0], zaz[0]), step(zf[1], zaz[1])];
+        let a1 = step(dot_w(&c.x, &c.f), zaz);
         {
             // Keep A z₁ (and z₁ below, if a second step follows); the right-hand side becomes
             // the residual f − α₁ A z₁.
-            let a1w = [WS::of(a1[0]), WS::of(a1[1])];
+            let a1w = a1.map(WS::of);
             let Work { x, f, r, z1, q1, .. } = c;
             q1.resize(r.len(), [WS::ZERO; 2]);
             let before = dot_w(f, f);
@@ -264,20 +253,13 @@ impl Hierarchy {
         self.solve_level(k + 1, tail, true, None);
         let c = &mut tail[0];
         coarse.residual_f64(&c.x, None, &mut c.r); // −A z₂
-        let z2az1 = dot_w(&c.x, &c.q1);
-        let beta = [step(z2az1[0], zaz[0]), step(z2az1[1], zaz[1])];
-        let bw = [WS::of(beta[0]), WS::of(beta[1])];
-        {
-            // d = z₂ − β z₁ into x, A d = −r − β A z₁ into r.
-            let Work { x, r, z1, q1, .. } = c;
-            update(x, z1, |x, z1| *x = [x[0] - bw[0] * z1[0], x[1] - bw[1] * z1[1]]);
-            update(r, q1, |r, q1| *r = [WS::ZERO - r[0] - bw[0] * q1[0], WS::ZERO - r[1] - bw[1] * q1[1]]);
-        }
-        let (df, dad) = (dot_w(&c.x, &c.f), dot_w(&c.x, &c.r));
-        let a2 = [step(df[0], dad[0]), step(df[1], dad[1])];
-        let (a1w, a2w) = ([WS::of(a1[0]), WS::of(a1[1])], [WS::of(a2[0]), WS::of(a2[1])]);
+        let bw = step(dot_w(&c.x, &c.q1), zaz).map(WS::of);
+        // d = z₂ − β z₁ into x, A d = −r − β A z₁ into r.
+        update(&mut c.x, &c.z1, |x, z1| *x = [x[0] - bw[0] * z1[0], x[1] - bw[1] * z1[1]]);
+        update(&mut c.r, &c.q1, |r, q1| *r = [WS::ZERO - r[0] - bw[0] * q1[0], WS::ZERO - r[1] - bw[1] * q1[1]]);
+        let (a1w, a2w) = (a1.map(WS::of), step(dot_w(&c.x, &c.f), dot_w(&c.x, &c.r)).map(WS::of));
         update(&mut c.x, &c.z1, |x, z1| *x = [a1w[0] * z1[0] + a2w[0] * x[0], a1w[1] * z1[1] + a2w[1] * x[1]]);
-        prolong_add_scaled(level, coarse, &c.x, &mut w.x, [1.0; 2]);
+        prolong_add(level, coarse, &c.x, &mut w.x);
     }
 
     /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on
@@ -305,10 +287,10 @@ impl Hierarchy {
             let (head, tail) = work.split_at_mut(k + 1);
             let wk = &mut head[k];
             fill_zero(&mut wk.x);
-            prolong_add_scaled(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut wk.x, [1.0; 2]);
+            prolong_add(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut wk.x);
             self.solve_level(k, &mut work[k..], false, None);
         }
-        prolong_add_scaled(&self.levels[0], &self.levels[1], &work[1].x, u, [1.0; 2]);
+        prolong_add(&self.levels[0], &self.levels[1], &work[1].x, u);
         self.work = work;
     }
 }
@@ -325,6 +307,11 @@ fn add_line_searched(fine: &Level, coarse: &Level, c: &mut Work, x: &mut [W2]) {
     prolong_add_scaled(fine, coarse, &c.x, x, alpha);
 }
 
+/// `x += P e`: the unscaled coarse correction.
+fn prolong_add<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]]) {
+    prolong_add_scaled(fine, coarse, e, x, [1.0; 2]);
+}
+
 /// An upper bound of the largest eigenvalue of the finest level's D⁻¹A (Collatz–Wielandt):
 /// for any g > 0 on the unknowns, λ_max(D⁻¹A) ≤ ρ(D⁻¹|A|) ≤ max_p (D⁻¹|A| g)_p / g_p. The
 /// least of the bounds of [`COLLATZ_STEPS`] power steps g ← D⁻¹|A| g from g = D^-1/2 𝟙.
@@ -337,23 +324,19 @@ pub(crate) fn collatz_bound(level: &Level) -> f64 {
     let mut bound = f64::INFINITY;
     for _ in 0..COLLATZ_STEPS {
         level.fine_abs_product(&g, &mut y);
-        let top = g
-            .par_chunks_mut(PASS_CHUNK)
-            .zip(y.par_chunks(PASS_CHUNK))
-            .zip(inv_d.par_chunks(PASS_CHUNK))
-            .map(|((g, y), d)| {
-                let mut top: f64 = 0.0;
-                for ((g, &y), &i) in g.iter_mut().zip(y).zip(d) {
-                    if i > 0.0 {
-                        let next = y * i;
-                        top = top.max(next / *g);
-                        *g = next;
-                    }
+        let chunks = g.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).zip(inv_d.par_chunks(PASS_CHUNK));
+        let top = chunks.map(|((g, y), d)| {
+            let mut top: f64 = 0.0;
+            for ((g, &y), &i) in g.iter_mut().zip(y).zip(d) {
+                if i > 0.0 {
+                    let next = y * i;
+                    top = top.max(next / *g);
+                    *g = next;
                 }
-                top
-            })
-            .reduce(|| 0.0, f64::max);
-        bound = bound.min(top);
+            }
+            top
+        });
+        bound = bound.min(top.reduce(|| 0.0, f64::max));
     }
     bound
 }
@@ -388,26 +371,20 @@ pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
         let a = -(dot[0] + dot[1]) / (c * c);
         // The next vector, D⁻¹A v − a v − b v_prev, over `prev`, and its squared norm.
         let (sc, sp) = (1.0 / c, b_prev / c_prev);
-        let norm2: f64 = prev
-            .par_chunks_mut(PASS_CHUNK)
-            .zip(cur.par_chunks(PASS_CHUNK))
-            .zip(out.par_chunks(PASS_CHUNK))
-            .zip(inv_d.par_chunks(PASS_CHUNK))
-            .map(|(((w, v), r), d)| {
-                let mut sum = 0.0;
-                for (((w, v), r), &i) in w.iter_mut().zip(v).zip(r).zip(d) {
-                    for k in 0..2 {
-                        w[k] = (-r[k] * i - a * v[k]) * sc - sp * w[k];
-                    }
-                    if i > 0.0 {
-                        sum += (w[0] * w[0] + w[1] * w[1]) / i;
-                    }
+        let chunks = prev.par_chunks_mut(PASS_CHUNK).zip(cur.par_chunks(PASS_CHUNK)).zip(out.par_chunks(PASS_CHUNK));
+        let parts: Vec<f64> = chunks.zip(inv_d.par_chunks(PASS_CHUNK)).map(|(((w, v), r), d)| {
+            let mut sum = 0.0;
+            for (((w, v), r), &i) in w.iter_mut().zip(v).zip(r).zip(d) {
+                for k in 0..2 {
+                    w[k] = (-r[k] * i - a * v[k]) * sc - sp * w[k];
                 }
-                sum
-            })
-            .collect::<Vec<f64>>()
-            .iter()
-            .sum();
+                if i > 0.0 {
+                    sum += (w[0] * w[0] + w[1] * w[1]) / i;
+                }
+            }
+            sum
+        }).collect();
+        let norm2: f64 = parts.iter().sum();
         alpha.push(a);
         let b = norm2.sqrt();
         if b <= 1e-12 * a.abs() {
@@ -454,9 +431,9 @@ pub(super) fn eigenvalues_below(a: &[f64], b: &[f64], x: f64) -> usize {
     count
 }
 
-/// `num / den`, or 0 where the direction has no energy (`den ≤ 0`).
-fn step(num: f64, den: f64) -> f64 {
-    if den > 0.0 { num / den } else { 0.0 }
+/// `num / den` per component, or 0 where the direction has no energy (`den ≤ 0`).
+fn step(num: [f64; 2], den: [f64; 2]) -> [f64; 2] {
+    [0, 1].map(|k| if den[k] > 0.0 { num[k] / den[k] } else { 0.0 })
 }
 
 /// Entries per task of this module's vector passes.
@@ -574,49 +551,37 @@ impl Banded {
         }
         let n = map.len();
         // In row-major order a 5 × 5 stencil reaches at most 2 rows ahead: bandwidth ≤ 2w + 2.
+        // (`number` is `usize::MAX`, above every k, where a tap is no unknown.)
         let (mut bw, mut dropped) = (0, vec![false; n]);
         for (k, &p) in map.iter().enumerate() {
-            level.taps(p, |q, _| {
-                if number[q] != usize::MAX && number[q] < k {
-                    bw = bw.max(k - number[q]);
-                }
-            });
+            level.taps(p, |q, _| if number[q] < k { bw = bw.max(k - number[q]) });
         }
-        let width = bw + 1;
-        let mut l = vec![0.0; n * width];
+        // l_km's index in `l`.
+        let at = |k: usize, m: usize| k * (bw + 1) + m + bw - k;
+        let mut l = vec![0.0; n * (bw + 1)];
         for (k, &p) in map.iter().enumerate() {
-            level.taps(p, |q, a| {
-                if number[q] != usize::MAX && number[q] <= k {
-                    let j = number[q];
-                    l[k * width + (j + bw - k)] = a;
-                }
-            });
+            level.taps(p, |q, a| if number[q] <= k { l[at(k, number[q])] = a });
         }
         for k in 0..n {
             let j0 = k.saturating_sub(bw);
             for j in j0..k {
                 // l_kj = (a_kj - Σ_{m<j} l_km l_jm) / l_jj
-                let mut s = l[k * width + (j + bw - k)];
-                let m0 = j0.max(j.saturating_sub(bw));
-                for m in m0..j {
-                    s -= l[k * width + (m + bw - k)] * l[j * width + (m + bw - j)];
+                let mut s = l[at(k, j)];
+                for m in j0.max(j.saturating_sub(bw))..j {
+                    s -= l[at(k, m)] * l[at(j, m)];
                 }
-                let ljj = l[j * width + bw];
-                l[k * width + (j + bw - k)] = if dropped[j] { 0.0 } else { s / ljj };
+                l[at(k, j)] = if dropped[j] { 0.0 } else { s / l[at(j, j)] };
             }
-            let mut s = l[k * width + bw];
+            let mut s = l[at(k, k)];
             for m in j0..k {
-                let v = l[k * width + (m + bw - k)];
-                s -= v * v;
+                s -= l[at(k, m)] * l[at(k, m)];
             }
             if s <= 1e-10 * level.row(map[k])[12].abs() || s <= 0.0 {
                 dropped[k] = true;
-                l[k * width + bw] = 1.0;
-                for m in j0..k {
-                    l[k * width + (m + bw - k)] = 0.0;
-                }
+                l[at(k, j0)..at(k, k)].fill(0.0);
+                l[at(k, k)] = 1.0;
             } else {
-                l[k * width + bw] = s.sqrt();
+                l[at(k, k)] = s.sqrt();
             }
         }
         Banded { bw, l, map, dropped }
@@ -626,25 +591,23 @@ impl Banded {
     /// Dropped unknowns are zero (their rows and columns in the factor are).
     fn solve<T: Real>(&self, f: &[[T; 2]], x: &mut [[T; 2]]) {
         let (n, bw, l) = (self.map.len(), self.bw, &self.l);
-        let width = bw + 1;
+        let at = |k: usize, m: usize| k * (bw + 1) + m + bw - k;
+        // `s / l_kk`, zero for a dropped unknown.
+        let pivot = |k: usize, s: V2| if self.dropped[k] { [0.0; 2] } else { [s[0] / l[at(k, k)], s[1] / l[at(k, k)]] };
         let mut z: Vec<V2> = self.map.iter().map(|&p| [f[p][0].get(), f[p][1].get()]).collect();
         for k in 0..n {
             let mut s = z[k];
             for m in k.saturating_sub(bw)..k {
-                let v = l[k * width + m + bw - k];
-                s = [s[0] - v * z[m][0], s[1] - v * z[m][1]];
+                s = [s[0] - l[at(k, m)] * z[m][0], s[1] - l[at(k, m)] * z[m][1]];
             }
-            let d = l[k * width + bw];
-            z[k] = if self.dropped[k] { [0.0; 2] } else { [s[0] / d, s[1] / d] };
+            z[k] = pivot(k, s);
         }
         for k in (0..n).rev() {
             let mut s = z[k];
-            for m in k + 1..(k + width).min(n) {
-                let v = l[m * width + k + bw - m];
-                s = [s[0] - v * z[m][0], s[1] - v * z[m][1]];
+            for m in k + 1..(k + bw + 1).min(n) {
+                s = [s[0] - l[at(m, k)] * z[m][0], s[1] - l[at(m, k)] * z[m][1]];
             }
-            let d = l[k * width + bw];
-            z[k] = if self.dropped[k] { [0.0; 2] } else { [s[0] / d, s[1] / d] };
+            z[k] = pivot(k, s);
         }
         for (&p, v) in self.map.iter().zip(z) {
             x[p] = [T::of(v[0]), T::of(v[1])];
