@@ -27,25 +27,41 @@ use rayon::prelude::*;
 use crate::clock::Instant;
 use crate::field::{Field, FieldView};
 use crate::geometry::Sample;
-use crate::grid::{constrain, nearest_node, Constraints, Grid};
+use crate::grid::{constrain, nearest_node, Grid};
 
 use super::history::solve_from;
 use super::level::coarse_links;
 use super::{in_pool, validate, SolveError, SolveOptions, SolveReport, Solver};
 
-/// The solve at `grid_step = s > 1`: on the coarse grid, from `initial` read at the coarse
-/// nodes, or from `history`, which keeps the coarse fields (only their coarse nodes' values
-/// would ever be read), then upsampled.
+/// The solve at `grid_step = s > 1`: on the coarse grid, then upsampled.
 pub(crate) fn solve_coarse(
     grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
 ) -> (Field, SolveReport) {
     if grid.width == 0 || grid.height == 0 {
         return (Field::zeros(grid.width, grid.height), SolveReport { converged: true, ..Default::default() });
     }
-    let coarse = Coarse::new(grid, samples, options.grid_step);
-    let start = initial.map(|f| coarse.restrict(f));
-    let (fc, report) = solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), start.as_ref().map(FieldView::from), solver, warm);
+    let (fc, report) = solve_on_coarse_grid(grid, samples, options, initial, solver, warm);
     (upsample(grid, &Upsampling::new(grid, options.grid_step), &fc, samples), report)
+}
+
+/// The coarse solve of `grid_step = s` on a non-empty grid, from `initial` read at the coarse
+/// nodes (in place: a pass over the coarse grid, not over every pixel), or from the solver's
+/// history, which keeps the coarse fields (only their coarse nodes' values would ever be read).
+fn solve_on_coarse_grid(
+    grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
+) -> (Field, SolveReport) {
+    let (l, sf) = (Layout::new(grid.width, grid.height, options.grid_step), options.grid_step as f64);
+    let coarse = l.coarse_grid(grid);
+    let at = |p: &Sample| Sample { rest: [(p.rest[0] / sf).min((l.wc - 1) as f64), (p.rest[1] / sf).min((l.hc - 1) as f64)], ..*p };
+    let coarse_samples: Vec<Sample> = samples.iter().filter(|p| nearest_node(grid, p.rest).is_some()).map(at).collect();
+    let mut constraints = constrain(&coarse, &coarse_samples);
+    constraints.dropped_samples += samples.len() - coarse_samples.len();
+    let start = initial.map(|f| {
+        let (dx, dy) = (0..l.wc * l.hc).map(|c| f.at_index(l.py(c / l.wc) * f.width() + l.px(c % l.wc))).map(|v| (v[0], v[1])).unzip();
+        Field { width: l.wc, height: l.hc, dx, dy }
+    });
+    let options = SolveOptions { tension: options.tension * sf * sf, grid_step: 1, ..options.clone() };
+    solve_from(&coarse, &constraints, &options, start.as_ref().map(FieldView::from), solver, warm)
 }
 
 /// What upsampling a `grid_step` solve on one grid needs besides the coarse field: the
@@ -99,16 +115,12 @@ pub(crate) fn solve_at(
         return Err(SolveError::BadPixels);
     }
     validate(grid, samples, options, None)?;
-    let (fc, mut report) = in_pool(|| {
-        let coarse = Coarse::new(grid, samples, options.grid_step);
-        solve_from(&coarse.grid, &coarse.constraints, &coarse.options(options), None, solver, true)
-    });
+    let (fc, mut report) = in_pool(|| solve_on_coarse_grid(grid, samples, options, None, solver, true));
     let mut missing = false;
     for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
-        match plan.at(grid, &fc, p as usize) {
-            Some(v) => o.copy_from_slice(&v),
-            None => missing = true,
-        }
+        let v = plan.at(grid, &fc, p as usize);
+        missing |= v.is_none();
+        o.copy_from_slice(&v.unwrap_or_default());
     }
     if missing {
         // A pixel whose window reaches no coarse node takes the full upsampling's fill.
@@ -119,43 +131,6 @@ pub(crate) fn solve_at(
     }
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
-}
-
-/// The problem of `grid_step = s` on a non-empty grid: the coarse grid, its constraints,
-/// and where its nodes sit on the fine one.
-struct Coarse {
-    layout: Layout,
-    grid: Grid,
-    constraints: Constraints,
-}
-
-impl Coarse {
-    fn new(grid: &Grid, samples: &[Sample], s: usize) -> Coarse {
-        let layout = Layout::new(grid.width, grid.height, s);
-        let coarse = layout.coarse_grid(grid);
-        let (wc, hc) = (layout.wc, layout.hc);
-        let sf = s as f64;
-        let at = |smp: &Sample| Sample { rest: [(smp.rest[0] / sf).min((wc - 1) as f64), (smp.rest[1] / sf).min((hc - 1) as f64)], displacement: smp.displacement };
-        let coarse_samples: Vec<Sample> = samples.iter().filter(|smp| nearest_node(grid, smp.rest).is_some()).map(at).collect();
-        let mut constraints = constrain(&coarse, &coarse_samples);
-        constraints.dropped_samples += samples.len() - coarse_samples.len();
-        Coarse { layout, grid: coarse, constraints }
-    }
-
-    /// The options of the coarse solve: tension scaled by s², so that the coarse energy
-    /// approximates the same continuous energy.
-    fn options(&self, options: &SolveOptions) -> SolveOptions {
-        let sf = self.layout.s as f64;
-        SolveOptions { tension: options.tension * sf * sf, grid_step: 1, ..options.clone() }
-    }
-
-    /// A fine field's values at the coarse nodes (read in place: a pass over the coarse
-    /// grid, not over every pixel).
-    fn restrict(&self, f: FieldView<'_>) -> Field {
-        let (l, wc) = (&self.layout, self.layout.wc);
-        let (dx, dy) = (0..wc * l.hc).map(|c| f.at_index(l.py(c / wc) * f.width() + l.px(c % wc))).map(|v| (v[0], v[1])).unzip();
-        Field { width: wc, height: l.hc, dx, dy }
-    }
 }
 
 /// Where the coarse nodes of a `w × h` grid with step `s` sit.
@@ -261,21 +236,22 @@ impl Taps {
 /// (`ka`, `kb`), as in [`Taps::slot`].
 const ALL_TAPS: u16 = u16::MAX;
 
-/// Whether a missing link or an inactive pixel lies inside each coarse cell (the closed
-/// block of pixels between its four corner nodes), cells in rows of `cw`. Stretches of a row
-/// without any are skipped whole.
-fn touched_cells(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps], cw: usize, ch: usize) -> Vec<bool> {
-    let (w, h) = (layout.w, layout.h);
+/// The usable-tap masks of every coarse cell (`cw` × `ch` of them, see [`cell_masks`]):
+/// computed for the cells near one that a missing link or an inactive pixel touches, empty
+/// (every tap usable) for the others.
+fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec<Vec<u16>> {
+    let (w, h, (cw, ch)) = (layout.w, layout.h, layout.cells());
+    // Whether a missing link or an inactive pixel lies inside each coarse cell (the closed
+    // block of pixels between its four corner nodes). Stretches of a row without any are
+    // skipped whole.
     let mut touched = vec![false; cw * ch];
     // The cells whose closed block holds pixel (x, y): one or two along each axis.
     let mut mark = |x: usize, y: usize| {
         let (cx, cy) = (cols[x].cell, rows[y].cell);
-        let xs = if cx > 0 && x == layout.px(cx) { cx - 1..cx + 1 } else { cx..cx + 1 };
+        let x0 = if cx > 0 && x == layout.px(cx) { cx - 1 } else { cx };
         let ys = if cy > 0 && y == layout.py(cy) { cy - 1..cy + 1 } else { cy..cy + 1 };
         for yy in ys {
-            for xx in xs.clone() {
-                touched[yy * cw + xx] = true;
-            }
+            touched[yy * cw + x0..=yy * cw + cx].fill(true);
         }
     };
     // Whether all of `flags` (one stretch of a row) are set, branch-free so that it
@@ -299,7 +275,14 @@ fn touched_cells(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps], cw:
             }
         }
     }
-    touched
+    let near_touched = |k: usize| {
+        let (x0, y0) = (k % cw, k / cw);
+        (y0.saturating_sub(1)..(y0 + 2).min(ch)).any(|y| (x0.saturating_sub(1)..(x0 + 2).min(cw)).any(|x| touched[y * cw + x]))
+    };
+    let scratch = || (Vec::new(), Vec::new());
+    (0..cw * ch).into_par_iter().map_init(scratch, |(label, stack), k| {
+        if near_touched(k) { cell_masks(grid, layout, k % cw, k / cw, label, stack) } else { Vec::new() }
+    }).collect()
 }
 
 /// The taps that each pixel of coarse cell (`cx`, `cy`) may use: the coarse nodes of its
@@ -346,11 +329,9 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
     let mut full = 0u16;
     for kb in 0..4 {
         for ka in 0..4 {
-            let (nx, ny) = ((cx + ka).checked_sub(1), (cy + kb).checked_sub(1));
+            // Window node (ka, kb) at coarse position (nx, ny), if inside the grid.
+            let (nx, ny) = ((cx + ka).checked_sub(1).filter(|&n| n < wc), (cy + kb).checked_sub(1).filter(|&n| n < hc));
             let (Some(nx), Some(ny)) = (nx, ny) else { continue };
-            if nx >= wc || ny >= hc {
-                continue;
-            }
             full |= 1 << (4 * kb + ka);
             let l = label[(layout.py(ny) - by0) * bw + (layout.px(nx) - bx0)];
             if l != u32::MAX {
@@ -369,75 +350,43 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
     masks
 }
 
-/// The usable-tap masks of every coarse cell (`cw` × `ch` of them, see [`cell_masks`]):
-/// computed for the cells near one that a missing link or an inactive pixel touches, empty
-/// (every tap usable) for the others.
-fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec<Vec<u16>> {
-    let (cw, ch) = layout.cells();
-    let touched = touched_cells(grid, layout, cols, rows, cw, ch);
-    let near_touched = |k: usize| {
-        let (x0, y0) = (k % cw, k / cw);
-        (y0.saturating_sub(1)..(y0 + 2).min(ch)).any(|y| (x0.saturating_sub(1)..(x0 + 2).min(cw)).any(|x| touched[y * cw + x]))
-    };
-    let broken: Vec<usize> = (0..cw * ch).filter(|&k| near_touched(k)).collect();
-    let mut masks = vec![Vec::new(); cw * ch];
-    let computed: Vec<Vec<u16>> =
-        broken.par_iter().map_init(|| (Vec::new(), Vec::new()), |(label, stack), &k| cell_masks(grid, layout, k % cw, k / cw, label, stack)).collect();
-    for (&k, m) in broken.iter().zip(computed) {
-        masks[k] = m;
-    }
-    masks
-}
 
 /// One pixel's value from the coarse field `fc`, any window (`ty`, `tx` its taps): the taps
 /// allowed by `mask`, renormalised; the bilinear fallback from the window's inner 2 × 2
 /// where their weights fall short; `None` where neither has a usable node.
 fn window_value(fc: &Field, ty: &Taps, tx: &Taps, mask: u16) -> Option<[f32; 2]> {
-    let wc = fc.width;
-    let mut acc = [0.0f64; 2];
-    let mut wsum = 0.0;
-    for b in 0..ty.len {
-        let (wyb, row, kb) = (ty.weights[ty.slot[b] as usize], ty.at[b] * wc, 4 * ty.slot[b]);
-        for a in 0..tx.len {
-            if mask & (1 << (kb + tx.slot[a])) == 0 {
-                continue;
-            }
-            let c = row + tx.at[a];
-            let wv = tx.weights[tx.slot[a] as usize] * wyb;
-            acc[0] += wv * fc.dx[c] as f64;
-            acc[1] += wv * fc.dy[c] as f64;
-            wsum += wv;
-        }
+    let [x, y, sum] = window_sum(fc, ty, tx, mask, |t, k| Some(t.weights[k]));
+    if sum >= 0.5 {
+        return Some([(x / sum) as f32, (y / sum) as f32]);
     }
-    if wsum >= 0.5 {
-        return Some([(acc[0] / wsum) as f32, (acc[1] / wsum) as f32]);
-    }
-    let mut inner = [0.0f64; 3];
+    let [x, y, sum] = window_sum(fc, ty, tx, mask, |t, k| (1..3).contains(&k).then(|| t.linear(k)));
+    (sum > 1e-9).then(|| [(x / sum) as f32, (y / sum) as f32])
+}
+
+/// `[Σ w dx, Σ w dy, Σ w]` of `fc` over the taps of a window allowed by `mask`, the weight of
+/// window position (`ka`, `kb`) `w = weight(tx, ka) weight(ty, kb)`; none where either is `None`.
+fn window_sum(fc: &Field, ty: &Taps, tx: &Taps, mask: u16, weight: impl Fn(&Taps, usize) -> Option<f64>) -> [f64; 3] {
+    let mut acc = [0.0f64; 3];
     for b in 0..ty.len {
-        let kb = ty.slot[b] as usize;
-        if !(1..3).contains(&kb) {
-            continue;
-        }
+        let (kb, row) = (ty.slot[b] as usize, ty.at[b] * fc.width);
+        let Some(wy) = weight(ty, kb) else { continue };
         for a in 0..tx.len {
             let ka = tx.slot[a] as usize;
-            if !(1..3).contains(&ka) || mask & (1 << (4 * kb + ka)) == 0 {
+            if mask & (1 << (4 * kb + ka)) == 0 {
                 continue;
             }
-            let c = ty.at[b] * wc + tx.at[a];
-            let lw = tx.linear(ka) * ty.linear(kb);
-            inner[0] += lw * fc.dx[c] as f64;
-            inner[1] += lw * fc.dy[c] as f64;
-            inner[2] += lw;
+            let Some(wx) = weight(tx, ka) else { continue };
+            let (c, wv) = (row + tx.at[a], wx * wy);
+            acc = [acc[0] + wv * fc.dx[c] as f64, acc[1] + wv * fc.dy[c] as f64, acc[2] + wv];
         }
     }
-    (inner[2] > 1e-9).then(|| [(inner[0] / inner[2]) as f32, (inner[1] / inner[2]) as f32])
+    acc
 }
 
 /// The fine field from the coarse one (see the module docs) by `plan`, built for `grid`.
 fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> Field {
     let Upsampling { layout, cols, rows, masks } = plan;
-    let (w, h, wc) = (layout.w, layout.h, layout.wc);
-    let (cw, ch) = layout.cells();
+    let (w, h, wc, cw) = (layout.w, layout.h, layout.wc, layout.cells().0);
     // A pixel's value and whether it has one (see `window_value`).
     let pixel = |ty: &Taps, tx: &Taps, mask: u16| window_value(fc, ty, tx, mask).map_or((0.0, 0.0, false), |[vx, vy]| (vx, vy, true));
     // Each column's used weights from its first tap on (zero past the last), their sum and
@@ -452,16 +401,10 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
         (w, sum, 1.0 / sum)
     }).collect();
     // The cells with masks in each row of cells, and each cell's pixels along x.
-    let mut masked = vec![Vec::new(); ch];
-    for (k, m) in masks.iter().enumerate() {
-        if !m.is_empty() {
-            masked[k / cw].push(k % cw);
-        }
-    }
+    let masked: Vec<Vec<usize>> = masks.chunks(cw).map(|row| (0..cw).filter(|&cx| !row[cx].is_empty()).collect()).collect();
     let mut cell_x = vec![(usize::MAX, 0); cw];
     for (x, t) in cols.iter().enumerate() {
-        let r = &mut cell_x[t.cell];
-        *r = (r.0.min(x), x + 1);
+        cell_x[t.cell] = (cell_x[t.cell].0.min(x), x + 1);
     }
     // A row's pixels that use their whole window take the cubic in y first, once per coarse
     // column (`along[c]`: the column's values weighted by the row's taps), then in x: 4 + 4
@@ -529,8 +472,7 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
         for j in grid.linked(i) {
             if j != usize::MAX && !resolved[j] {
                 resolved[j] = true;
-                field.dx[j] = field.dx[i];
-                field.dy[j] = field.dy[i];
+                (field.dx[j], field.dy[j]) = (field.dx[i], field.dy[i]);
                 queue.push_back(j);
             }
         }
@@ -540,33 +482,27 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
         // (The pieces are only labelled here: most grids never get this far.)
         let (labels, count) = grid.pieces();
         let mean = piece_means(grid, &labels, count, samples);
-        for i in 0..w * h {
-            if grid.active[i] && !resolved[i] {
-                let m = mean[labels[i] as usize];
-                if m[2] > 0.0 {
-                    field.dx[i] = (m[0] / m[2]) as f32;
-                    field.dy[i] = (m[1] / m[2]) as f32;
-                }
+        for i in (0..w * h).filter(|&i| grid.active[i] && !resolved[i]) {
+            if let Some([mx, my]) = mean[labels[i] as usize] {
+                (field.dx[i], field.dy[i]) = (mx, my);
             }
         }
     }
     field
 }
 
-/// Per piece: the sum of its samples' displacements and their count.
-fn piece_means(grid: &Grid, labels: &[u32], count: usize, samples: &[Sample]) -> Vec<[f64; 3]> {
-    let mut mean = vec![[0.0f64; 3]; count];
+/// Per piece: its samples' mean displacement, if it has any.
+fn piece_means(grid: &Grid, labels: &[u32], count: usize, samples: &[Sample]) -> Vec<Option<[f32; 2]>> {
+    let mut sum = vec![[0.0f64; 3]; count];
     for smp in samples {
-        if let Some((x, y)) = nearest_node(grid, smp.rest) {
-            let l = labels[grid.index(x, y)];
-            if l != u32::MAX {
-                mean[l as usize][0] += smp.displacement[0];
-                mean[l as usize][1] += smp.displacement[1];
-                mean[l as usize][2] += 1.0;
-            }
+        let Some((x, y)) = nearest_node(grid, smp.rest) else { continue };
+        let l = labels[grid.index(x, y)];
+        if l != u32::MAX {
+            let m = &mut sum[l as usize];
+            *m = [m[0] + smp.displacement[0], m[1] + smp.displacement[1], m[2] + 1.0];
         }
     }
-    mean
+    sum.iter().map(|m| (m[2] > 0.0).then(|| [(m[0] / m[2]) as f32, (m[1] / m[2]) as f32])).collect()
 }
 
 #[cfg(test)]
@@ -749,10 +685,8 @@ mod tests {
         let mean = piece_means(grid, &labels, count, samples);
         for i in 0..w * h {
             if grid.active[i] && !resolved[i] {
-                let m = mean[labels[i] as usize];
-                if m[2] > 0.0 {
-                    field.dx[i] = (m[0] / m[2]) as f32;
-                    field.dy[i] = (m[1] / m[2]) as f32;
+                if let Some([mx, my]) = mean[labels[i] as usize] {
+                    (field.dx[i], field.dy[i]) = (mx, my);
                     paths.piece_mean += 1;
                 }
             }
