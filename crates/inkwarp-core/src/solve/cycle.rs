@@ -16,8 +16,7 @@ const COARSEST_NODES: usize = 300;
 const K_SECOND_STEP: f64 = 0.3;
 /// Lanczos steps of the estimate of the top of each level's spectrum.
 const LANCZOS_STEPS: usize = 12;
-/// Power steps of the finest level's Collatz–Wielandt bound (docs/dev/ablation.md,
-/// eleventh change).
+/// Power steps of the finest level's Collatz–Wielandt bound.
 const COLLATZ_STEPS: usize = 3;
 
 /// The grid hierarchy with its work vectors.
@@ -78,11 +77,7 @@ impl Hierarchy {
     /// `coarse_degree` below it; unless `smooth_fine`, `fine` gets no work vectors or bound.
     pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool) -> Hierarchy {
         let mut levels = vec![fine];
-        loop {
-            let last = levels.last().unwrap();
-            if last.geo.w * last.geo.h <= COARSEST_NODES || last.geo.w <= 2 || last.geo.h <= 2 {
-                break;
-            }
+        while let Some(last) = levels.last().filter(|l| l.geo.w * l.geo.h > COARSEST_NODES && l.geo.w > 2 && l.geo.h > 2) {
             levels.push(galerkin(last));
         }
         let work = (0..levels.len()).map(|k| {
@@ -95,8 +90,7 @@ impl Hierarchy {
         // and close; on the Galerkin levels it is loose, so there Lanczos's largest Ritz
         // value, capped by Gershgorin's (power steps miss the edge modes over holes).
         for (k, l) in levels.iter_mut().enumerate().skip(if smooth_fine { 0 } else { 1 }) {
-            let est = if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) };
-            l.lam_max = l.lam_max.min(est);
+            l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
         }
         let coarsest = Banded::new(levels.last().unwrap());
         Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new() }
@@ -157,21 +151,19 @@ impl Hierarchy {
             self.coarsest.solve(&w.f, &mut w.x);
             return;
         }
-        {
-            let Work { x, f, r, d, .. } = &mut work[0];
-            smooth(level, x, f, r, d, self.steps_at(k), x_zero);
-            if let Some(Some(s)) = self.level_strands.get(k) {
-                s.relax(x, f);
-            }
-            // From a given `x` (the coarse-to-fine start's, the whole answer on this level)
-            // below the finest level in `f64` sums (see `Level::residual_f64`); from zero,
-            // `x` is one smoothing of `f`, and the rounding of its product small next to
-            // the residual.
-            let residual = if k > 0 && !x_zero { Level::residual_f64 } else { Level::residual };
-            residual(level, x, Some(f), r);
-        }
         let (head, tail) = work.split_at_mut(1);
         let w = &mut head[0];
+        let Work { x, f, r, d, .. } = &mut *w;
+        smooth(level, x, f, r, d, self.steps_at(k), x_zero);
+        if let Some(Some(s)) = self.level_strands.get(k) {
+            s.relax(x, f);
+        }
+        // From a given `x` (the coarse-to-fine start's, the whole answer on this level)
+        // below the finest level in `f64` sums (see `Level::residual_f64`); from zero,
+        // `x` is one smoothing of `f`, and the rounding of its product small next to
+        // the residual.
+        let residual = if k > 0 && !x_zero { Level::residual_f64 } else { Level::residual };
+        residual(level, x, Some(f), r);
         // The finest level's own Krylov method is the conjugate gradient around the cycle;
         // the level above the coarsest solves exactly, one visit is all it needs.
         if k > 0 && k + 2 < self.levels.len() && self.k_cycles {
@@ -229,26 +221,23 @@ impl Hierarchy {
         coarse.residual_f64(&c.x, None, &mut c.r); // −A z₁ on the unknowns
         let zaz = dot_w(&c.x, &c.r).map(|v| -v);
         let a1 = step(dot_w(&c.x, &c.f), zaz);
-        {
-            // Keep A z₁ (and z₁ below, if a second step follows); the right-hand side becomes
-            // the residual f − α₁ A z₁.
-            let a1w = a1.map(WS::of);
-            let Work { x, f, r, z1, q1, .. } = c;
-            q1.resize(r.len(), [WS::ZERO; 2]);
-            let before = dot_w(f, f);
-            map_into(q1, r, |r| [WS::ZERO - r[0], WS::ZERO - r[1]]);
-            update(f, r, |f, r| *f = [f[0] + a1w[0] * r[0], f[1] + a1w[1] * r[1]]);
-            let after = dot_w(f, f);
-            // The first step alone when it left little of the residual (Notay's adaptive
-            // K-cycle): the second cycle below would not be worth its cost.
-            let t2 = K_SECOND_STEP * K_SECOND_STEP;
-            if after[0] <= t2 * before[0] && after[1] <= t2 * before[1] {
-                self.second_steps_skipped.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                prolong_add_scaled(level, coarse, x, &mut w.x, a1);
-                return;
-            }
-            z1.clone_from(x);
+        // Keep A z₁ (and z₁ below, if a second step follows); the right-hand side becomes
+        // the residual f − α₁ A z₁.
+        let a1w = a1.map(WS::of);
+        c.q1.resize(c.r.len(), [WS::ZERO; 2]);
+        let before = dot_w(&c.f, &c.f);
+        map_into(&mut c.q1, &c.r, |r| [WS::ZERO - r[0], WS::ZERO - r[1]]);
+        update(&mut c.f, &c.r, |f, r| *f = [f[0] + a1w[0] * r[0], f[1] + a1w[1] * r[1]]);
+        let after = dot_w(&c.f, &c.f);
+        // The first step alone when it left little of the residual (Notay's adaptive
+        // K-cycle): the second cycle below would not be worth its cost.
+        let t2 = K_SECOND_STEP * K_SECOND_STEP;
+        if after[0] <= t2 * before[0] && after[1] <= t2 * before[1] {
+            self.second_steps_skipped.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            prolong_add_scaled(level, coarse, &c.x, &mut w.x, a1);
+            return;
         }
+        c.z1.clone_from(&c.x);
         self.clear_start(k + 1, &mut c.x);
         self.solve_level(k + 1, tail, true, None);
         let c = &mut tail[0];
@@ -285,9 +274,8 @@ impl Hierarchy {
         self.coarsest.solve(&w.f, &mut w.x);
         for k in (1..nl - 1).rev() {
             let (head, tail) = work.split_at_mut(k + 1);
-            let wk = &mut head[k];
-            fill_zero(&mut wk.x);
-            prolong_add(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut wk.x);
+            fill_zero(&mut head[k].x);
+            prolong_add(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut head[k].x);
             self.solve_level(k, &mut work[k..], false, None);
         }
         prolong_add(&self.levels[0], &self.levels[1], &work[1].x, u);
@@ -320,8 +308,7 @@ fn prolong_add<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: 
 pub(crate) fn collatz_bound(level: &Level) -> f64 {
     let inv_d = &level.inv_diag;
     let mut g: Vec<f64> = inv_d.par_iter().map(|&i| i.sqrt()).collect();
-    let mut y = vec![0.0; g.len()];
-    let mut bound = f64::INFINITY;
+    let (mut y, mut bound) = (vec![0.0; g.len()], f64::INFINITY);
     for _ in 0..COLLATZ_STEPS {
         level.fine_abs_product(&g, &mut y);
         let chunks = g.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).zip(inv_d.par_chunks(PASS_CHUNK));
@@ -346,16 +333,13 @@ pub(crate) fn collatz_bound(level: &Level) -> f64 {
 /// inner product `xᵀ D y`, so the Lanczos vectors are kept in that product: a step is one
 /// product (its dot product taken band by band) and one pass, each vector unnormalised.
 pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
-    let n = level.len_padded();
-    let inv_d = &level.inv_diag;
+    let (n, inv_d) = (level.len_padded(), &level.inv_diag);
     // The start D^-1/2 v of a random v on the unknowns.
-    let mut cur: Vec<V2> = (0..n)
-        .map(|p| {
-            let h = |k: u64| ((p as u64 * 2 + k).wrapping_mul(0x9E3779B97F4A7C15) >> 40) as f64 / (1u64 << 24) as f64 - 0.5;
-            let s = inv_d[p].sqrt();
-            if inv_d[p] > 0.0 { [h(0) * s, h(1) * s] } else { [0.0; 2] }
-        })
-        .collect();
+    let mut cur: Vec<V2> = (0..n).map(|p| {
+        let h = |k: u64| ((p as u64 * 2 + k).wrapping_mul(0x9E3779B97F4A7C15) >> 40) as f64 / (1u64 << 24) as f64 - 0.5;
+        let s = inv_d[p].sqrt();
+        if inv_d[p] > 0.0 { [h(0) * s, h(1) * s] } else { [0.0; 2] }
+    }).collect();
     // The norm `√(xᵀ D x)` of the vectors: `cur` is the Lanczos vector times `c`, `prev`
     // the one before it times `c_prev`.
     let d_norm = |x: &[V2]| x.iter().zip(inv_d).map(|(x, &i)| if i > 0.0 { (x[0] * x[0] + x[1] * x[1]) / i } else { 0.0 }).sum::<f64>().sqrt();
@@ -384,9 +368,8 @@ pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
             }
             sum
         }).collect();
-        let norm2: f64 = parts.iter().sum();
         alpha.push(a);
-        let b = norm2.sqrt();
+        let b = parts.iter().sum::<f64>().sqrt();
         if b <= 1e-12 * a.abs() {
             break;
         }
@@ -400,17 +383,12 @@ pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
 /// Largest eigenvalue of the symmetric tridiagonal matrix with diagonal `a` and
 /// off-diagonal `b`, by bisection on Sturm counts.
 fn tridiagonal_max(a: &[f64], b: &[f64]) -> f64 {
-    // Eigenvalues above x: those not below it.
-    let above = |x: f64| a.len() - eigenvalues_below(a, b, x);
     let mut hi = (0..a.len()).map(|i| a[i] + if i > 0 { b[i - 1].abs() } else { 0.0 } + b.get(i).map_or(0.0, |v| v.abs())).fold(0.0, f64::max);
     let mut lo = 0.0;
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
-        if above(mid) > 0 {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
+        // The top is above `mid` when not every eigenvalue is below it.
+        (lo, hi) = if eigenvalues_below(a, b, mid) < a.len() { (mid, hi) } else { (lo, mid) };
     }
     hi
 }
@@ -424,9 +402,7 @@ pub(super) fn eigenvalues_below(a: &[f64], b: &[f64], x: f64) -> usize {
         if d == 0.0 {
             d = -1e-300;
         }
-        if d < 0.0 {
-            count += 1;
-        }
+        count += usize::from(d < 0.0);
     }
     count
 }
@@ -470,10 +446,8 @@ fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2
     }
     let (b, a) = (level.lam_max, level.lam_max / CHEB_RATIO);
     let (theta, delta) = (0.5 * (b + a), 0.5 * (b - a));
-    let sigma = theta / delta;
-    let mut rho = 1.0 / sigma;
-    let inv_theta = WS::of(1.0 / theta);
-    let mut rule = StepRule::First { inv_theta };
+    let (sigma, inv_theta) = (theta / delta, WS::of(1.0 / theta));
+    let (mut rho, mut rule) = (1.0 / sigma, StepRule::First { inv_theta });
     // On the finest level the first two steps from zero are one pass (see
     // `Level::second_step_from_zero`).
     let fused = x_zero && steps >= 2 && matches!(level.op, Operator::Fine { .. });
@@ -482,9 +456,8 @@ fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2
         // which writes x alone (the second step reads the update there, `StepRule::Second`);
         // fused, the second step's pass computes it itself.
         if !fused {
-            x.par_chunks_mut(PASS_CHUNK)
-                .zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)))
-                .for_each(|(x, (f, g))| first_from_zero(x, f, g, inv_theta));
+            let chunks = x.par_chunks_mut(PASS_CHUNK).zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)));
+            chunks.for_each(|(x, (f, g))| first_from_zero(x, f, g, inv_theta));
         }
         steps -= 1;
     }
@@ -537,17 +510,11 @@ struct Banded {
 
 impl Banded {
     fn new(level: &Level) -> Banded {
-        let (w, h) = (level.geo.w, level.geo.h);
-        let mut map = Vec::new();
+        // The unknowns in row-major order (the padding has none), and the number of each.
+        let map: Vec<usize> = (0..level.len_padded()).filter(|&p| level.inv_diag[p] != 0.0).collect();
         let mut number = vec![usize::MAX; level.len_padded()];
-        for y in 0..h {
-            for x in 0..w {
-                let p = level.pidx(x, y);
-                if level.inv_diag[p] != 0.0 {
-                    number[p] = map.len();
-                    map.push(p);
-                }
-            }
+        for (k, &p) in map.iter().enumerate() {
+            number[p] = k;
         }
         let n = map.len();
         // In row-major order a 5 × 5 stencil reaches at most 2 rows ahead: bandwidth ≤ 2w + 2.

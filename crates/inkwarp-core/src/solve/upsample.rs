@@ -51,7 +51,10 @@ fn solve_on_coarse_grid(
     grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
 ) -> (Field, SolveReport) {
     let (l, sf) = (Layout::new(grid.width, grid.height, options.grid_step), options.grid_step as f64);
-    let coarse = l.coarse_grid(grid);
+    // A node per coarse position, active where its pixel is, linked where every fine link
+    // between the two pixels is.
+    let (width, height, [active, link_right, link_down]) = coarse_links(l.w, l.h, l.s, &grid.active, &grid.link_right, &grid.link_down);
+    let coarse = Grid { width, height, active, link_right, link_down };
     let at = |p: &Sample| Sample { rest: [(p.rest[0] / sf).min((l.wc - 1) as f64), (p.rest[1] / sf).min((l.hc - 1) as f64)], ..*p };
     let coarse_samples: Vec<Sample> = samples.iter().filter(|p| nearest_node(grid, p.rest).is_some()).map(at).collect();
     let mut constraints = constrain(&coarse, &coarse_samples);
@@ -133,15 +136,9 @@ pub(crate) fn solve_at(
     Ok(report)
 }
 
-/// Where the coarse nodes of a `w × h` grid with step `s` sit.
+/// Where the `wc × hc` coarse nodes of a `w × h` grid with step `s` sit.
 #[derive(Clone, Copy, Debug)]
-struct Layout {
-    s: usize,
-    w: usize,
-    h: usize,
-    wc: usize,
-    hc: usize,
-}
+struct Layout { s: usize, w: usize, h: usize, wc: usize, hc: usize }
 
 impl Layout {
     fn new(w: usize, h: usize, s: usize) -> Self {
@@ -171,13 +168,6 @@ impl Layout {
     /// Coarse cells across and down (at least one each, even on a one-node axis).
     fn cells(&self) -> (usize, usize) {
         (self.wc.saturating_sub(1).max(1), self.hc.saturating_sub(1).max(1))
-    }
-
-    /// The coarse grid: a node per coarse position, active where its pixel is, linked
-    /// where every fine link between the two pixels is.
-    fn coarse_grid(&self, grid: &Grid) -> Grid {
-        let (width, height, [active, link_right, link_down]) = coarse_links(self.w, self.h, self.s, &grid.active, &grid.link_right, &grid.link_down);
-        Grid { width, height, active, link_right, link_down }
     }
 }
 
@@ -213,10 +203,8 @@ impl Taps {
             };
             let mut taps = Taps { cell, weights, len: 0, slot: [0; 4], at: [0; 4] };
             for (k, &wk) in weights.iter().enumerate() {
-                let c = cell as isize - 1 + k as isize;
-                if c >= 0 && (c as usize) < nc && wk != 0.0 {
-                    taps.slot[taps.len] = k as u8;
-                    taps.at[taps.len] = c as usize;
+                if let Some(c) = (cell + k).checked_sub(1).filter(|&c| c < nc && wk != 0.0) {
+                    (taps.slot[taps.len], taps.at[taps.len]) = (k as u8, c);
                     taps.len += 1;
                 }
             }
@@ -308,7 +296,6 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
                 continue;
             }
             label[b] = count;
-            stack.clear();
             stack.push(b);
             while let Some(b) = stack.pop() {
                 for j in grid.linked(grid.index(bx0 + b % bw, by0 + b / bw)) {
@@ -325,8 +312,7 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
             count += 1;
         }
     }
-    let mut reach = vec![0u16; count as usize];
-    let mut full = 0u16;
+    let (mut reach, mut full) = (vec![0u16; count as usize], 0u16);
     for kb in 0..4 {
         for ka in 0..4 {
             // Window node (ka, kb) at coarse position (nx, ny), if inside the grid.
@@ -411,8 +397,7 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
     // products a pixel instead of 16. `sy` is the sum of the row's weights (below 1 only at
     // the border), so a pixel's weight sum is `sy` times its column weights' sum.
     let upsample_row = |y: usize, dx: &mut [f32], dy: &mut [f32], resolved: &mut [bool], along: &mut Vec<[f64; 2]>| -> usize {
-        let ty = &rows[y];
-        let active = &grid.active[y * w..(y + 1) * w];
+        let (ty, active) = (&rows[y], &grid.active[y * w..(y + 1) * w]);
         along.clear();
         along.resize(wc + 3, [0.0; 2]);
         let mut sy = 0.0;
@@ -573,11 +558,11 @@ mod tests {
         let layout = Layout::new(w, h, s);
         let (wc, hc) = (layout.wc, layout.hc);
         let (px, py) = (|x| layout.px(x), |y| layout.py(y));
-        let coarse = layout.coarse_grid(grid);
+        let (_, _, [coarse_active, ..]) = coarse_links(w, h, s, &grid.active, &grid.link_right, &grid.link_down);
         let mut paths = Paths::default();
         let (labels, count) = grid.pieces();
         let clabel: Vec<u32> = (0..wc * hc)
-            .map(|c| if coarse.active[c] { labels[grid.index(px(c % wc), py(c / wc))] } else { u32::MAX })
+            .map(|c| if coarse_active[c] { labels[grid.index(px(c % wc), py(c / wc))] } else { u32::MAX })
             .collect();
         let taps = |x: usize, n: usize, pos: &dyn Fn(usize) -> usize| -> (isize, [f64; 4]) {
             if n == 1 {
@@ -639,7 +624,7 @@ mod tests {
                         let usable = match rule {
                             Rule::Piece => clabel[c] == labels[i],
                             Rule::Local => {
-                                coarse.active[c] && local.as_ref().is_some_and(|r| r(px(cx as usize), py(cy as usize)))
+                                coarse_active[c] && local.as_ref().is_some_and(|r| r(px(cx as usize), py(cy as usize)))
                             }
                         };
                         if !usable {
