@@ -65,8 +65,7 @@ impl Hierarchy {
     /// V-cycles), with no work vectors or smoothing bound on `fine` itself, which the
     /// hierarchy it serves already has.
     pub fn coarse_space(fine: Level, degree: usize) -> Hierarchy {
-        let mut h = Hierarchy::new(fine, degree, degree, false);
-        h.k_cycles = false;
+        let mut h = Hierarchy { k_cycles: false, ..Hierarchy::new(fine, degree, degree, false) };
         // Past the setup, the finest level only lends its prolongation (restriction and
         // prolongation read nothing else): keep 4 bytes a node instead of about 18.
         h.levels[0].keep_only_prolongation();
@@ -131,24 +130,13 @@ impl Hierarchy {
         if k == 0 { self.degree } else { self.coarse_degree }
     }
 
-    /// A one-level hierarchy: the exact solve of the finest level (`r` is scratch).
-    fn direct(&mut self, u: &mut [V2], r: &mut [V2]) {
-        self.levels[0].residual(u, None, r);
-        let mut x = vec![[0.0; 2]; r.len()];
-        self.coarsest.solve(r, &mut x);
-        for &p in &self.coarsest.map {
-            u[p] = [u[p][0] + x[p][0], u[p][1] + x[p][1]];
-        }
-    }
-
     /// Approximately solves `A_k x = f` on level k (x, f in `work[0]`, the slice starting at
     /// level k) by one cycle from `x` (zero when `x_zero`): a V-cycle, with K-cycle
     /// corrections from the levels between the finest and the one above the coarsest.
     fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, alt_work: Option<&mut [Work]>) {
         let level = &self.levels[k];
         if k + 1 == self.levels.len() {
-            let w = &mut work[0];
-            self.coarsest.solve(&w.f, &mut w.x);
+            self.coarsest.solve(&work[0].f, &mut work[0].x);
             return;
         }
         let (head, tail) = work.split_at_mut(1);
@@ -258,7 +246,13 @@ impl Hierarchy {
     pub fn coarse_to_fine(&mut self, u: &mut [V2], r: &mut [V2], r_ready: bool) {
         let nl = self.levels.len();
         if nl < 2 {
-            self.direct(u, r);
+            // A one-level hierarchy: the exact solve of the finest level.
+            self.levels[0].residual(u, None, r);
+            let mut x = vec![[0.0; 2]; r.len()];
+            self.coarsest.solve(r, &mut x);
+            for &p in &self.coarsest.map {
+                u[p] = [u[p][0] + x[p][0], u[p][1] + x[p][1]];
+            }
             return;
         }
         let mut work = std::mem::take(&mut self.work);
