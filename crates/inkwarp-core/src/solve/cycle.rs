@@ -98,7 +98,7 @@ impl Hierarchy {
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one symmetric cycle from zero, in
     /// `f32`: the returned `z` is the cycle's own output, valid until the next call.
     pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
-        map_into(&mut self.work[0].f, r, |a| [WS::of(a[0]), WS::of(a[1])]);
+        update(&mut self.work[0].f, r, |f, r| *f = [WS::of(r[0]), WS::of(r[1])]);
         if let Some(s) = &mut self.strands {
             s.before(&self.levels[0], r, &mut self.work[0].f);
         }
@@ -214,7 +214,7 @@ impl Hierarchy {
         let a1w = a1.map(WS::of);
         c.q1.resize(c.r.len(), [WS::ZERO; 2]);
         let before = dot_w(&c.f, &c.f);
-        map_into(&mut c.q1, &c.r, |r| [WS::ZERO - r[0], WS::ZERO - r[1]]);
+        update(&mut c.q1, &c.r, |q, r| *q = [WS::ZERO - r[0], WS::ZERO - r[1]]);
         update(&mut c.f, &c.r, |f, r| *f = [f[0] + a1w[0] * r[0], f[1] + a1w[1] * r[1]]);
         let after = dot_w(&c.f, &c.f);
         // The first step alone when it left little of the residual (Notay's adaptive
@@ -336,8 +336,7 @@ pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
     }).collect();
     // The norm `√(xᵀ D x)` of the vectors: `cur` is the Lanczos vector times `c`, `prev`
     // the one before it times `c_prev`.
-    let d_norm = |x: &[V2]| x.iter().zip(inv_d).map(|(x, &i)| if i > 0.0 { (x[0] * x[0] + x[1] * x[1]) / i } else { 0.0 }).sum::<f64>().sqrt();
-    let mut c = d_norm(&cur);
+    let mut c = cur.iter().zip(inv_d).map(|(x, &i)| if i > 0.0 { (x[0] * x[0] + x[1] * x[1]) / i } else { 0.0 }).sum::<f64>().sqrt();
     if c == 0.0 {
         return 0.0;
     }
@@ -421,13 +420,8 @@ fn fill_zero<T: Real>(v: &mut [[T; 2]]) {
     v.par_chunks_mut(PASS_CHUNK).for_each(|v| v.fill([T::ZERO; 2]));
 }
 
-/// `out[i] = f(a[i])` (the vectors' lengths are equal).
-fn map_into<S: Real, T: Real>(out: &mut [[T; 2]], a: &[[S; 2]], f: impl Fn([S; 2]) -> [T; 2] + Sync + Send) {
-    out.par_chunks_mut(PASS_CHUNK).zip(a.par_chunks(PASS_CHUNK)).for_each(|(o, a)| o.iter_mut().zip(a).for_each(|(o, &a)| *o = f(a)));
-}
-
 /// `f(x_i, y_i)` on every entry of `x` (the vectors' lengths are equal).
-fn update<T: Real>(x: &mut [[T; 2]], y: &[[T; 2]], f: impl Fn(&mut [T; 2], [T; 2]) + Sync + Send) {
+fn update<S: Real, T: Real>(x: &mut [[T; 2]], y: &[[S; 2]], f: impl Fn(&mut [T; 2], [S; 2]) + Sync + Send) {
     x.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).for_each(|(x, y)| x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y)));
 }
 

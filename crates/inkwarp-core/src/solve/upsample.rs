@@ -51,8 +51,6 @@ fn solve_on_coarse_grid(
     grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
 ) -> (Field, SolveReport) {
     let (l, sf) = (Layout::new(grid.width, grid.height, options.grid_step), options.grid_step as f64);
-    // A node per coarse position, active where its pixel is, linked where every fine link
-    // between the two pixels is.
     let (width, height, [active, link_right, link_down]) = coarse_links(l.w, l.h, l.s, &grid.active, &grid.link_right, &grid.link_down);
     let coarse = Grid { width, height, active, link_right, link_down };
     let at = |p: &Sample| Sample { rest: [(p.rest[0] / sf).min((l.wc - 1) as f64), (p.rest[1] / sf).min((l.hc - 1) as f64)], ..*p };
@@ -87,8 +85,7 @@ impl Upsampling {
         let layout = Layout::new(grid.width, grid.height, s);
         let cols = Taps::along(layout.w, layout.wc, s, |x| layout.px(x));
         let rows = Taps::along(layout.h, layout.hc, s, |y| layout.py(y));
-        let masks = mask_table(grid, &layout, &cols, &rows);
-        Upsampling { layout, cols, rows, masks }
+        Upsampling { masks: mask_table(grid, &layout, &cols, &rows), layout, cols, rows }
     }
 
     /// The upsampled value of pixel `i` (row-major) of `grid` (the plan's) from the coarse
@@ -119,13 +116,12 @@ pub(crate) fn solve_at(
     }
     validate(grid, samples, options, None)?;
     let (fc, mut report) = in_pool(|| solve_on_coarse_grid(grid, samples, options, None, solver, true));
-    let mut missing = false;
-    for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
+    let windowed = out.chunks_exact_mut(2).zip(pixels).all(|(o, &p)| {
         let v = plan.at(grid, &fc, p as usize);
-        missing |= v.is_none();
         o.copy_from_slice(&v.unwrap_or_default());
-    }
-    if missing {
+        v.is_some()
+    });
+    if !windowed {
         // A pixel whose window reaches no coarse node takes the full upsampling's fill.
         let field = upsample(grid, plan, &fc, samples);
         for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
@@ -242,8 +238,7 @@ fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec
             touched[yy * cw + x0..=yy * cw + cx].fill(true);
         }
     };
-    // Whether all of `flags` (one stretch of a row) are set, branch-free so that it
-    // vectorises.
+    // Whether all of `flags` (a stretch of a row) are set, branch-free so that it vectorises.
     let all = |flags: &[bool]| flags.iter().fold(true, |a, &b| a & b);
     const CHUNK: usize = 64;
     for y in 0..h {
