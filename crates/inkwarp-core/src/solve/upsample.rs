@@ -262,8 +262,7 @@ fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec
         let (x0, y0) = (k % cw, k / cw);
         (y0.saturating_sub(1)..(y0 + 2).min(ch)).any(|y| (x0.saturating_sub(1)..(x0 + 2).min(cw)).any(|x| touched[y * cw + x]))
     };
-    let scratch = || (Vec::new(), Vec::new());
-    (0..cw * ch).into_par_iter().map_init(scratch, |(label, stack), k| {
+    (0..cw * ch).into_par_iter().map_init(|| (Vec::new(), Vec::new()), |(label, stack), k| {
         if near_touched(k) { cell_masks(grid, layout, k % cw, k / cw, label, stack) } else { Vec::new() }
     }).collect()
 }
@@ -433,8 +432,7 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
         active.iter().zip(&*resolved).filter(|(&a, &r)| a && !r).count()
     };
 
-    let mut field = Field::zeros(w, h);
-    let mut resolved = vec![false; w * h];
+    let (mut field, mut resolved) = (Field::zeros(w, h), vec![false; w * h]);
     let chunks = field.dx.par_chunks_mut(w).zip(field.dy.par_chunks_mut(w)).zip(resolved.par_chunks_mut(w)).enumerate();
     let unresolved: usize = chunks.map_init(Vec::new, |along, (y, ((dx, dy), r))| upsample_row(y, dx, dy, r, along)).sum();
     if unresolved == 0 {
