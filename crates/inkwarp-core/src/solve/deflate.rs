@@ -83,16 +83,10 @@ impl Deflation {
             return;
         };
         p.par_chunks_mut(CHUNK).enumerate().for_each(|(c, p)| {
-            let a = c * CHUNK;
             for (j, x) in p.iter_mut().enumerate() {
-                let (mut d0, mut d1) = (0.0, 0.0);
-                for (l, w) in self.w.iter().enumerate() {
-                    let wv = w[a + j] as f64;
-                    d0 += mu[l][0] * wv;
-                    d1 += mu[l][1] * wv;
-                }
-                if d0 != 0.0 || d1 != 0.0 {
-                    *x = [WS::of(x[0].get() - d0), WS::of(x[1].get() - d1)];
+                let d = combination(&self.w, &mu, c * CHUNK + j);
+                if d[0] != 0.0 || d[1] != 0.0 {
+                    *x = [WS::of(x[0].get() - d[0]), WS::of(x[1].get() - d[1])];
                 }
             }
         });
@@ -119,9 +113,7 @@ impl Deflation {
                     s[2] += x[0].get() * bv;
                     s[3] += x[1].get() * bv;
                 }
-                for t in 0..4 {
-                    out[4 * j + t] += s[t];
-                }
+                out[4 * j..4 * j + 4].iter_mut().zip(s).for_each(|(o, s)| *o += s);
             }
             let o = 4 * basis.len();
             for (x, y) in p[a..b].iter().zip(&q[a..b]) {
@@ -138,21 +130,18 @@ impl Deflation {
             self.on = false;
             return false;
         }
-        for row in self.g.iter_mut().chain(self.m.iter_mut()) {
-            row.resize(nb + 2, 0.0);
-        }
         let o = 4 * nb;
         // New rows and columns of G (t = 0, 1) and M (t = 2, 3) for the pair.
         let col = |t: usize, diag: [f64; 2]| -> Vec<f64> { (0..nb).map(|j| sums[4 * j + t]).chain(diag).collect() };
         let (g0, g1) = (col(0, [sums[o], sums[o + 2]]), col(1, [sums[o + 2], sums[o + 1]]));
         let (m0, m1) = (col(2, [sums[o + 3], sums[o + 5]]), col(3, [sums[o + 5], sums[o + 4]]));
         for j in 0..nb {
-            (self.g[j][nb], self.g[j][nb + 1], self.m[j][nb], self.m[j][nb + 1]) = (g0[j], g1[j], m0[j], m1[j]);
+            self.g[j].extend([g0[j], g1[j]]);
+            self.m[j].extend([m0[j], m1[j]]);
         }
         self.g.extend([g0, g1]);
         self.m.extend([m0, m1]);
-        self.v.push(p.iter().map(|x| x[0]).collect());
-        self.v.push(p.iter().map(|x| x[1]).collect());
+        self.v.extend([0, 1].map(|c| p.iter().map(|x| x[c]).collect()));
         self.v.len() >= 2 * WINDOW
     }
 
@@ -189,14 +178,9 @@ impl Deflation {
         fine.clear_padding(&mut q);
         for pair in (0..k).step_by(2) {
             let other = (pair + 1).min(k - 1);
-            for (i, xi) in x.iter_mut().enumerate() {
-                *xi = [w[pair][i], w[other][i]];
-            }
+            x.iter_mut().zip(&w[pair]).zip(&w[other]).for_each(|((xi, &a), &b)| *xi = [a, b]);
             fine.fine_residual_dot_narrow(&x, &mut q);
-            aw.push(q.iter().map(|v| -v[0] as f32).collect());
-            if other != pair {
-                aw.push(q.iter().map(|v| -v[1] as f32).collect());
-            }
+            aw.extend((0..=other - pair).map(|t| q.iter().map(|v| -v[t] as f32).collect()));
         }
         // E = Wᵀ A W and Wᵀ W, the new basis's Gram matrices.
         let sums = chunked_sums(n, 2 * k * k, |a, b, out| {
@@ -227,20 +211,10 @@ impl Deflation {
         };
         let (w, aw) = (&self.w, &self.aw);
         u.par_chunks_mut(CHUNK).zip(r.par_chunks_mut(CHUNK)).enumerate().for_each(|(ch, (u, r))| {
-            let a = ch * CHUNK;
             for (j, (u, r)) in u.iter_mut().zip(r.iter_mut()).enumerate() {
-                let (mut d, mut e) = ([0.0; 2], [0.0; 2]);
-                for l in 0..k {
-                    let (wv, av) = (w[l][a + j] as f64, aw[l][a + j] as f64);
-                    for t in 0..2 {
-                        d[t] += c[l][t] * wv;
-                        e[t] += c[l][t] * av;
-                    }
-                }
-                for t in 0..2 {
-                    u[t] += d[t];
-                    r[t] -= e[t];
-                }
+                let (d, e) = (combination(w, &c, ch * CHUNK + j), combination(aw, &c, ch * CHUNK + j));
+                *u = [u[0] + d[0], u[1] + d[1]];
+                *r = [r[0] - e[0], r[1] - e[1]];
             }
         });
     }
@@ -291,11 +265,7 @@ impl Deflation {
     /// part bounded by cuts, nearly rigid) can stall the changes while its error stays, and
     /// that step is the first chance to find it.
     pub fn rate_floor(&mut self) -> f64 {
-        for c in 0..2 {
-            let st = &self.steps[c];
-            if st.len() < 2 {
-                continue;
-            }
+        for st in self.steps.iter().filter(|st| st.len() >= 2) {
             // T_jj = 1/α_j + β_{j−1}/α_{j−1}, T_{j−1,j} = √β_{j−1}/α_{j−1}.
             let n = st.len();
             let diag: Vec<f64> = (0..n).map(|j| 1.0 / st[j].0 + if j > 0 { st[j - 1].1 / st[j - 1].0 } else { 0.0 }).collect();
@@ -317,12 +287,8 @@ impl Deflation {
     }
 
     fn clear(&mut self) {
-        self.v.clear();
-        self.w.clear();
-        self.aw.clear();
-        self.e.clear();
-        self.g.clear();
-        self.m.clear();
+        [&mut self.v, &mut self.w, &mut self.aw].into_iter().for_each(Vec::clear);
+        [&mut self.e, &mut self.g, &mut self.m].into_iter().for_each(Vec::clear);
     }
 }
 
@@ -354,6 +320,11 @@ fn dots(vs: &[Vec<f32>], len: usize, x: impl Fn(usize) -> V2 + Sync) -> Vec<V2> 
     s.chunks_exact(2).map(|d| [d[0], d[1]]).collect()
 }
 
+/// `Σ_l c_l v_l(i)` per component, `l` ascending.
+fn combination(vs: &[Vec<f32>], c: &[V2], i: usize) -> V2 {
+    vs.iter().zip(c).fold([0.0; 2], |s, (v, c)| [s[0] + c[0] * v[i] as f64, s[1] + c[1] * v[i] as f64])
+}
+
 /// Ritz pairs of `G y = θ M y` (`M` the Gram matrix of a basis that may be dependent):
 /// ascending Ritz values and the coefficient columns `y[j][l]` of the `l`-th Ritz vector,
 /// `M`-orthonormal. Dependent basis vectors are dropped.
@@ -362,25 +333,14 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     let d: Vec<f64> = (0..n).map(|i| if m[i][i] > 0.0 { 1.0 / m[i][i].sqrt() } else { 0.0 }).collect();
     // Cholesky of the scaled M = L Lᵀ, dropping vectors whose part independent of the
     // earlier ones is below f32's resolution.
-    let mut keep: Vec<usize> = Vec::new();
-    let mut l: Vec<Vec<f64>> = Vec::new(); // rows over `keep`
-    for i in 0..n {
-        if d[i] == 0.0 {
-            continue;
-        }
-        let mut row = vec![0.0; keep.len() + 1];
-        for (a, &ja) in keep.iter().enumerate() {
-            let mut s = m[i][ja] * d[i] * d[ja];
-            for b in 0..a {
-                s -= row[b] * l[a][b];
-            }
-            row[a] = s / l[a][a];
-        }
-        let diag = 1.0 - row[..keep.len()].iter().map(|x| x * x).sum::<f64>();
+    let (mut keep, mut l): (Vec<usize>, Vec<Vec<f64>>) = (Vec::new(), Vec::new()); // rows of L over `keep`
+    for i in (0..n).filter(|&i| d[i] != 0.0) {
+        let mut row = forward(&l, &keep.iter().map(|&j| m[i][j] * d[i] * d[j]).collect::<Vec<_>>());
+        let diag = 1.0 - row.iter().map(|x| x * x).sum::<f64>();
         if diag < 1e-6 {
             continue;
         }
-        row[keep.len()] = diag.sqrt();
+        row.push(diag.sqrt());
         keep.push(i);
         l.push(row);
     }
@@ -390,20 +350,9 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     }
     // C = L⁻¹ G_s L⁻ᵀ, G_s the scaled G over the kept vectors.
     let gs: Vec<Vec<f64>> = keep.iter().map(|&i| keep.iter().map(|&j| 0.5 * (g[i][j] + g[j][i]) * d[i] * d[j]).collect()).collect();
-    let solve_l = |b: &[f64]| -> Vec<f64> {
-        let mut x = vec![0.0; k];
-        for i in 0..k {
-            let mut s = b[i];
-            for j in 0..i {
-                s -= l[i][j] * x[j];
-            }
-            x[i] = s / l[i][i];
-        }
-        x
-    };
     // X = L⁻¹ G_s (columns), then C = L⁻¹ Xᵀ.
-    let x: Vec<Vec<f64>> = (0..k).map(|j| solve_l(&(0..k).map(|i| gs[i][j]).collect::<Vec<_>>())).collect(); // x[j] = column j
-    let mut c: Vec<Vec<f64>> = (0..k).map(|i| solve_l(&(0..k).map(|j| x[j][i]).collect::<Vec<_>>())).collect();
+    let x: Vec<Vec<f64>> = (0..k).map(|j| forward(&l, &(0..k).map(|i| gs[i][j]).collect::<Vec<_>>())).collect(); // x[j] = column j
+    let mut c: Vec<Vec<f64>> = (0..k).map(|i| forward(&l, &(0..k).map(|j| x[j][i]).collect::<Vec<_>>())).collect();
     for i in 0..k {
         for j in 0..i {
             let s = 0.5 * (c[i][j] + c[j][i]);
@@ -419,21 +368,25 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     let mut sorted = Vec::with_capacity(k);
     for (col, &e) in order.iter().enumerate() {
         sorted.push(theta[e]);
-        // back substitution Lᵀ z = v
-        let v: Vec<f64> = (0..k).map(|i| vecs[i][e]).collect();
+        // Back substitution: Lᵀ z = v.
         let mut z = vec![0.0; k];
         for i in (0..k).rev() {
-            let mut s = v[i];
-            for j in i + 1..k {
-                s -= l[j][i] * z[j];
-            }
-            z[i] = s / l[i][i];
+            z[i] = (i + 1..k).fold(vecs[i][e], |s, j| s - l[j][i] * z[j]) / l[i][i];
         }
         for (a, &i) in keep.iter().enumerate() {
             y[i][col] = z[a] * d[i];
         }
     }
     Some((sorted, y))
+}
+
+/// `L⁻¹ b` for the lower triangular `L` of rows `l` (at least `b.len()` of them).
+fn forward(l: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
+    let mut x = Vec::with_capacity(b.len() + 1);
+    for (i, &bi) in b.iter().enumerate() {
+        x.push((0..i).fold(bi, |s, j| s - l[i][j] * x[j]) / l[i][i]);
+    }
+    x
 }
 
 /// Eigen-decomposition of a small symmetric matrix by cyclic Jacobi rotations: the
@@ -457,20 +410,15 @@ fn jacobi_eigen(mut a: Vec<Vec<f64>>) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
                 let t = if theta == 0.0 { 1.0 } else { t };
                 let cs = 1.0 / (t * t + 1.0).sqrt();
                 let sn = t * cs;
+                let rotate = |x: f64, y: f64| (cs * x - sn * y, sn * x + cs * y);
                 for k in 0..n {
-                    let (akp, akq) = (a[k][p], a[k][q]);
-                    a[k][p] = cs * akp - sn * akq;
-                    a[k][q] = sn * akp + cs * akq;
+                    (a[k][p], a[k][q]) = rotate(a[k][p], a[k][q]);
                 }
                 for k in 0..n {
-                    let (apk, aqk) = (a[p][k], a[q][k]);
-                    a[p][k] = cs * apk - sn * aqk;
-                    a[q][k] = sn * apk + cs * aqk;
+                    (a[p][k], a[q][k]) = rotate(a[p][k], a[q][k]);
                 }
                 for row in v.iter_mut() {
-                    let (vkp, vkq) = (row[p], row[q]);
-                    row[p] = cs * vkp - sn * vkq;
-                    row[q] = sn * vkp + cs * vkq;
+                    (row[p], row[q]) = rotate(row[p], row[q]);
                 }
             }
         }
@@ -492,16 +440,11 @@ fn extremes(diag: &[f64], off: &[f64]) -> Option<(f64, f64)> {
     if !(lo.is_finite() && hi.is_finite()) {
         return None;
     }
-    let below = |x: f64| super::cycle::eigenvalues_below(diag, off, x);
     let find = |k: usize| {
         let (mut a, mut b) = (lo, hi);
         for _ in 0..100 {
             let m = 0.5 * (a + b);
-            if below(m) > k {
-                b = m;
-            } else {
-                a = m;
-            }
+            (a, b) = if super::cycle::eigenvalues_below(diag, off, m) > k { (a, m) } else { (m, b) };
             if b - a <= 1e-12 * b.abs().max(1e-300) {
                 break;
             }
