@@ -68,15 +68,10 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
     // Clusters: union-find over full cells joined through shared edges.
     let mut parent: Vec<u32> = (0..n as u32).collect();
     let full: Vec<bool> = (0..n).map(|i| g.full_cell(i)).collect();
-    for i in 0..n {
-        if !full[i] {
-            continue;
-        }
+    for i in (0..n).filter(|&i| full[i]) {
         let (x, y) = (i % w, i / w);
-        for j in [(x > 0).then(|| i - 1), (y > 0).then(|| i - w)].into_iter().flatten() {
-            if full[j] {
-                join(&mut parent, i as u32, j as u32);
-            }
+        for j in [(x > 0).then(|| i - 1), (y > 0).then(|| i - w)].into_iter().flatten().filter(|&j| full[j]) {
+            join(&mut parent, i as u32, j as u32);
         }
     }
     // Cluster index per root, and the clusters of each node (the full cells it is a
@@ -84,113 +79,83 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
     let mut cluster_of_root = vec![u32::MAX; n];
     let mut origin: Vec<[f64; 3]> = Vec::new(); // x0, y0, scale
     let mut member: Vec<[u32; 4]> = vec![[u32::MAX; 4]; n];
-    for i in 0..n {
-        if !full[i] {
-            continue;
-        }
+    for i in (0..n).filter(|&i| full[i]) {
         let r = find(&mut parent, i as u32) as usize;
         if cluster_of_root[r] == u32::MAX {
             cluster_of_root[r] = origin.len() as u32;
-            origin.push([(r % w) as f64, (r / w) as f64, (g.w.max(g.h)) as f64]);
+            origin.push([(r % w) as f64, (r / w) as f64, g.w.max(g.h) as f64]);
         }
         let c = cluster_of_root[r];
+        // Slots fill in order: `c` is either before the first free one or absent.
         for j in [i, i + 1, i + w, i + w + 1] {
-            let m = &mut member[j];
-            if !m.contains(&c) {
-                if let Some(slot) = m.iter_mut().find(|s| **s == u32::MAX) {
-                    *slot = c;
-                }
+            if let Some(slot) = member[j].iter_mut().find(|s| **s == c || **s == u32::MAX) {
+                *slot = c;
             }
         }
     }
     let clusters = origin.len();
-    // Unknowns: three a cluster, then one per active node in no full cell.
-    let mut lone = vec![u32::MAX; n];
-    let mut vars = 3 * clusters;
-    for i in 0..n {
-        if g.active[i] && member[i][0] == u32::MAX {
-            lone[i] = vars as u32;
-            vars += 1;
+    // Unknowns: three a cluster, then one per active node in no full cell (a lone node).
+    // Each cluster's nodes are those whose first cluster it is.
+    let (mut lone, mut lone_nodes, mut nodes_of) = (vec![u32::MAX; n], Vec::new(), vec![Vec::new(); clusters]);
+    for i in (0..n).filter(|&i| g.active[i]) {
+        if member[i][0] != u32::MAX {
+            nodes_of[member[i][0] as usize].push(i);
+        } else {
+            lone[i] = (3 * clusters + lone_nodes.len()) as u32;
+            lone_nodes.push(i);
         }
     }
+    let vars = 3 * clusters + lone_nodes.len();
     let in_cluster = |i: usize, c: u32| -> [(usize, f64); 3] {
         let o = origin[c as usize];
         let (x, y) = (((i % w) as f64 - o[0]) / o[2], ((i / w) as f64 - o[1]) / o[2]);
         let b = 3 * c as usize;
         [(b, 1.0), (b + 1, x), (b + 2, y)]
     };
-    let expr = |i: usize, out: &mut Vec<(usize, f64)>, f: f64| {
-        if lone[i] != u32::MAX {
-            out.push((lone[i] as usize, f));
-        } else {
-            for (v, a) in in_cluster(i, member[i][0]) {
-                out.push((v, f * a));
-            }
-        }
-    };
     let mut elim = Echelon::new(vars);
     let mut row: Vec<(usize, f64)> = Vec::new();
-    for i in 0..n {
-        if !g.active[i] {
-            continue;
+    // The equation `Σ f u(node) + extra = 0` over `(node, f)` terms, each node's value its
+    // lone unknown or its first cluster's affine function.
+    let mut equation = |terms: &[(usize, f64)], extra: &[(usize, f64)]| {
+        row.clear();
+        for &(i, f) in terms {
+            if lone[i] != u32::MAX {
+                row.push((lone[i] as usize, f));
+            } else {
+                row.extend(in_cluster(i, member[i][0]).map(|(v, a)| (v, f * a)));
+            }
         }
+        row.extend_from_slice(extra);
+        elim.add(&row);
+    };
+    for i in (0..n).filter(|&i| g.active[i]) {
         // Clusters sharing the node agree there.
         for &c in member[i].iter().skip(1).take_while(|&&c| c != u32::MAX) {
-            row.clear();
-            expr(i, &mut row, 1.0);
-            for (v, a) in in_cluster(i, c) {
-                row.push((v, -a));
-            }
-            elim.add(&row);
+            equation(&[(i, 1.0)], &in_cluster(i, c).map(|(v, a)| (v, -a)));
         }
         if fixed[i] {
-            row.clear();
-            expr(i, &mut row, 1.0);
-            elim.add(&row);
+            equation(&[(i, 1.0)], &[]);
         }
-        for (a, b) in g.triples(i) {
-            let shared = member[i].iter().any(|&c| c != u32::MAX && member[a].contains(&c) && member[b].contains(&c));
-            if shared {
-                continue;
-            }
-            row.clear();
-            expr(a, &mut row, 1.0);
-            expr(i, &mut row, -2.0);
-            expr(b, &mut row, 1.0);
-            elim.add(&row);
+        let shared = |a: usize, b: usize| member[i].iter().any(|&c| c != u32::MAX && member[a].contains(&c) && member[b].contains(&c));
+        for (a, b) in g.triples(i).filter(|&(a, b)| !shared(a, b)) {
+            equation(&[(a, 1.0), (i, -2.0), (b, 1.0)], &[]);
         }
     }
     let basis = elim.null_space(max)?;
-    // Expand to nodes: each cluster's nodes (those whose first cluster it is) and lone nodes.
-    let (mut nodes_of, mut var_node) = (vec![Vec::new(); clusters], vec![usize::MAX; vars]);
-    for i in (0..n).filter(|&i| g.active[i]) {
-        if member[i][0] != u32::MAX {
-            nodes_of[member[i][0] as usize].push(i);
-        } else {
-            var_node[lone[i] as usize] = i;
-        }
-    }
-    let mut qd = vec![0.0; vars];
+    // Expand to nodes: the nodes of the clusters a function involves, then its lone nodes.
+    let mut qd = vec![0.0; 3 * clusters];
     let out = basis.into_iter().map(|mut q| {
         q.sort_unstable_by_key(|&(k, _)| k);
-        for &(k, v) in &q {
-            qd[k] = v;
-        }
-        let mut z: Sparse = Vec::new();
-        let mut touched: Vec<usize> = q.iter().filter(|&&(k, _)| k < 3 * clusters).map(|&(k, _)| k / 3).collect();
+        let (affine, lone_values) = q.split_at(q.partition_point(|&(k, _)| k < 3 * clusters));
+        affine.iter().for_each(|&(k, v)| qd[k] = v);
+        let mut touched: Vec<usize> = affine.iter().map(|&(k, _)| k / 3).collect();
         touched.dedup();
+        let mut z: Sparse = Vec::new();
         for c in touched {
-            for &i in &nodes_of[c] {
-                let v: f64 = in_cluster(i, c as u32).iter().map(|&(k, a)| a * qd[k]).sum();
-                z.push((i, v));
-            }
+            z.extend(nodes_of[c].iter().map(|&i| (i, in_cluster(i, c as u32).iter().map(|&(k, a)| a * qd[k]).sum::<f64>())));
         }
-        for &(k, v) in q.iter().filter(|&&(k, _)| k >= 3 * clusters) {
-            z.push((var_node[k], v));
-        }
-        for &(k, _) in &q {
-            qd[k] = 0.0;
-        }
+        z.extend(lone_values.iter().map(|&(k, v)| (lone_nodes[k - 3 * clusters], v)));
+        affine.iter().for_each(|&(k, _)| qd[k] = 0.0);
         z.retain(|&(_, v)| v.abs() > 1e-13);
         z
     });
@@ -243,16 +208,10 @@ impl Echelon {
             self.acc[pc] = 0.0;
         }
         let big = self.touched.iter().map(|&c| self.acc[c].abs()).fold(0.0, f64::max);
-        let mut new: Vec<(usize, f64)> = Vec::new();
         if big > 1e-9 * scale {
             let piv = *self.touched.iter().max_by(|&&a, &&b| self.acc[a].abs().total_cmp(&self.acc[b].abs())).unwrap();
             let d = self.acc[piv];
-            for &c in &self.touched {
-                let v = self.acc[c] / d;
-                if v.abs() > 1e-12 {
-                    new.push((c, v));
-                }
-            }
+            let new = self.touched.iter().map(|&c| (c, self.acc[c] / d)).filter(|&(_, v)| v.abs() > 1e-12).collect();
             self.pivot_of[piv] = self.rows.len() as u32;
             self.rows.push((piv, new));
         }
@@ -284,8 +243,7 @@ impl Echelon {
             let (mut heap, mut visited) = (BinaryHeap::new(), Vec::new());
             let mut wake = |c: usize, heap: &mut BinaryHeap<u32>| {
                 for &r in &readers[c] {
-                    if !queued[r as usize] {
-                        queued[r as usize] = true;
+                    if !std::mem::replace(&mut queued[r as usize], true) {
                         visited.push(r);
                         heap.push(r);
                     }
@@ -306,11 +264,7 @@ impl Echelon {
             for r in visited {
                 queued[r as usize] = false;
             }
-            let out: Vec<(usize, f64)> = nonzero.iter().map(|&c| (c, q[c])).collect();
-            for &c in &nonzero {
-                q[c] = 0.0;
-            }
-            out
+            nonzero.iter().map(|&c| (c, std::mem::take(&mut q[c]))).collect()
         });
         Some(basis.collect())
     }
@@ -318,9 +272,9 @@ impl Echelon {
 
 /// The operator's product `y = A z` on the box (`E_plate + τ·E_membrane`, its gradient / 2),
 /// `z` dense over the box's nodes.
-pub(crate) fn apply(g: &BoxGeo, tau: f64, z: &[f64], y: &mut [f64]) {
+fn apply(g: &BoxGeo, tau: f64, z: &[f64]) -> Vec<f64> {
     let w = g.w;
-    y.iter_mut().for_each(|v| *v = 0.0);
+    let mut y = vec![0.0; w * g.h];
     for i in (0..w * g.h).filter(|&i| g.active[i]) {
         for (a, b) in g.triples(i) {
             let d = z[a] - 2.0 * z[i] + z[b];
@@ -343,34 +297,32 @@ pub(crate) fn apply(g: &BoxGeo, tau: f64, z: &[f64], y: &mut [f64]) {
             }
         }
     }
+    y
 }
 
 /// The membrane product `y = M z` for a sparse `z`, into the dense scratch `y` (zero on
 /// entry); returns the nodes it touched. `dense` is a zero scratch, left zero.
 fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> Vec<usize> {
     let w = g.w;
-    let mut links: Vec<(usize, usize)> = Vec::new();
     for &(i, v) in z {
         dense[i] = v;
     }
-    for &(i, _) in z {
-        let (x, yy) = (i % w, i / w);
-        links.extend(g.links(i).map(|j| (i, j)));
-        // Links from the left and above, where the other end is outside the support (inside
-        // it, that end lists the link itself).
-        for j in [(x > 0 && g.right[i - 1]).then(|| i - 1), (yy > 0 && g.down[i - w]).then(|| i - w)].into_iter().flatten() {
-            if dense[j] == 0.0 {
-                links.push((j, i));
-            }
-        }
-    }
-    let mut touched = Vec::with_capacity(2 * links.len());
-    for (i, j) in links {
+    let mut touched = Vec::new();
+    let mut link = |i: usize, j: usize| {
         let d = dense[i] - dense[j];
         y[i] += d;
         y[j] -= d;
-        touched.push(i);
-        touched.push(j);
+        touched.extend([i, j]);
+    };
+    for &(i, _) in z {
+        let (x, yy) = (i % w, i / w);
+        g.links(i).for_each(|j| link(i, j));
+        // Links from the left and above, where the other end is outside the support (inside
+        // it, that end lists the link itself).
+        let outer = [(x > 0 && g.right[i - 1]).then(|| i - 1), (yy > 0 && g.down[i - w]).then(|| i - w)];
+        for j in outer.into_iter().flatten().filter(|&j| dense[j] == 0.0) {
+            link(j, i);
+        }
     }
     for &(i, _) in z {
         dense[i] = 0.0;
@@ -414,23 +366,19 @@ impl<'a> Membrane<'a> {
         for (j, z) in basis.iter().enumerate() {
             let touched = membrane_sparse(g, z, &mut dense, &mut y);
             for &p in &touched {
-                if let Some(list) = at.get(&p) {
-                    for &(i, v) in list {
-                        if !seen[i] {
-                            seen[i] = true;
-                            hit.push(i);
-                        }
-                        acc[i] += v * y[p];
+                for &(i, v) in at.get(&p).into_iter().flatten() {
+                    if !std::mem::replace(&mut seen[i], true) {
+                        hit.push(i);
                     }
+                    acc[i] += v * y[p];
                 }
             }
             products.push(touched.iter().map(|&p| (p, std::mem::take(&mut y[p]))).collect());
-            for &i in &hit {
+            for i in hit.drain(..) {
                 gram[j].push((i, acc[i]));
                 (acc[i], seen[i]) = (0.0, false);
                 join(&mut parent, i as u32, j as u32);
             }
-            hit.clear();
         }
         let mut by_root: std::collections::BTreeMap<u32, Vec<usize>> = std::collections::BTreeMap::new();
         for j in 0..k {
@@ -506,30 +454,18 @@ pub(crate) fn galerkin(g: &BoxGeo, tau: f64, fixed: &[bool], basis: &[Sparse], u
     if k == 0 {
         return 0.0;
     }
-    let mut au = [vec![0.0; n], vec![0.0; n]];
-    for c in 0..2 {
-        let comp: Vec<f64> = u.iter().map(|v| v[c]).collect();
-        apply(g, tau, &comp, &mut au[c]);
-    }
-    let (mut dense, mut y) = (vec![0.0; n], vec![0.0; n]);
-    let mut az: Vec<Vec<f64>> = Vec::with_capacity(k);
-    for z in basis {
-        for &(i, v) in z {
-            dense[i] = v;
-        }
-        apply(g, tau, &dense, &mut y);
-        for &(i, _) in z {
-            dense[i] = 0.0;
-        }
-        az.push(y.clone());
-    }
+    let au = [0, 1].map(|c| apply(g, tau, &u.iter().map(|v| v[c]).collect::<Vec<_>>()));
+    let mut dense = vec![0.0; n];
+    let az: Vec<Vec<f64>> = basis.iter().map(|z| {
+        z.iter().for_each(|&(i, v)| dense[i] = v);
+        let y = apply(g, tau, &dense);
+        z.iter().for_each(|&(i, _)| dense[i] = 0.0);
+        y
+    }).collect();
     let mut gram = vec![vec![0.0; k]; k];
     let mut rhs = vec![[0.0; 2]; k];
     for (i, zi) in basis.iter().enumerate() {
-        for &(p, v) in zi {
-            if fixed[p] {
-                continue;
-            }
+        for &(p, v) in zi.iter().filter(|&&(p, _)| !fixed[p]) {
             for (j, azj) in az.iter().enumerate() {
                 gram[i][j] += v * azj[p];
             }
@@ -545,11 +481,8 @@ pub(crate) fn galerkin(g: &BoxGeo, tau: f64, fixed: &[bool], basis: &[Sparse], u
             step[i][1] += c[1] * v;
         }
     }
-    let mut moved = 0.0f64;
-    for (u, s) in u.iter_mut().zip(&step) {
-        u[0] += s[0];
-        u[1] += s[1];
-        moved = moved.max(s[0].abs()).max(s[1].abs());
-    }
-    moved
+    u.iter_mut().zip(&step).fold(0.0f64, |moved, (u, s)| {
+        *u = [u[0] + s[0], u[1] + s[1]];
+        moved.max(s[0].abs()).max(s[1].abs())
+    })
 }
