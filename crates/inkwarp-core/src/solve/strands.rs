@@ -65,8 +65,7 @@ impl Strands {
             // on coarser ones.
             Operator::Fine { flags, .. } => runs(level, |p, _| flags[p] & bit::RIGHT != 0, |p, _| flags[p] & bit::DOWN != 0),
             Operator::Stored { .. } => {
-                let (g, d) = (&level.geo, &level.inv_diag);
-                let wp = level.wp;
+                let (g, d, wp) = (&level.geo, &level.inv_diag, level.wp);
                 runs(level, |p, i| g.right[i] && d[p] != 0.0 && d[p + 1] != 0.0, |p, i| g.down[i] && d[p] != 0.0 && d[p + wp] != 0.0)
             }
         }?;
@@ -90,8 +89,7 @@ impl Strands {
             // The component, then a pseudo-peripheral start (the last node of a
             // breadth-first search from it) and the Cuthill–McKee order from there.
             let comp = bfs(s, &mut seen, neighbours);
-            comp.iter().for_each(|&p| seen[p] = false);
-            let far = *bfs(s, &mut seen, neighbours).last().unwrap();
+            let far = *comp.last().unwrap();
             comp.iter().for_each(|&p| seen[p] = false);
             let mut order = bfs(far, &mut seen, neighbours);
             order.reverse();
@@ -122,8 +120,7 @@ impl Strands {
         if kept.is_empty() {
             return None;
         }
-        let n = kept.len();
-        Some(Strands { nodes: kept, taps, at, blocks, first_pass: vec![[0.0; 2]; n] })
+        Some(Strands { first_pass: vec![[0.0; 2]; kept.len()], nodes: kept, taps, at, blocks })
     }
 
     /// Node `i`'s taps.
@@ -140,12 +137,9 @@ impl Strands {
         self.solve_into(&rhs, &mut z);
         self.first_pass = z;
         for (i, z) in self.first_pass.iter().enumerate() {
-            for &(q, a) in self.row(i) {
-                let q = q as usize;
-                if level.inv_diag[q] != 0.0 {
-                    f[q][0] -= WS::of(a * z[0]);
-                    f[q][1] -= WS::of(a * z[1]);
-                }
+            for &(q, a) in self.row(i).iter().filter(|&&(q, _)| level.inv_diag[q as usize] != 0.0) {
+                f[q as usize][0] -= WS::of(a * z[0]);
+                f[q as usize][1] -= WS::of(a * z[1]);
             }
         }
     }
@@ -182,10 +176,9 @@ impl Strands {
 
     /// `out = A_SS⁻¹ rhs`, block by block.
     fn solve_into(&self, rhs: &[V2], out: &mut [V2]) {
-        let n = self.nodes.len();
-        for (k, b) in self.blocks.iter().enumerate() {
-            let end = self.blocks.get(k + 1).map_or(n, |nb| nb.start);
-            b.solve(&rhs[b.start..end], &mut out[b.start..end]);
+        for b in &self.blocks {
+            let nodes = b.start..b.start + b.d_inv.len();
+            b.solve(&rhs[nodes.clone()], &mut out[nodes]);
         }
     }
 }
@@ -240,8 +233,7 @@ fn bfs(s: usize, seen: &mut [bool], mut next: impl FnMut(usize, &mut Vec<usize>)
     while i < order.len() {
         next(order[i], &mut buf);
         for &q in &buf {
-            if !seen[q] {
-                seen[q] = true;
+            if !std::mem::replace(&mut seen[q], true) {
                 order.push(q);
             }
         }
@@ -266,12 +258,11 @@ impl Block {
             });
         }
         let first: Vec<u32> = entries.iter().enumerate().map(|(i, e)| e.iter().map(|&(j, _)| j).min().unwrap_or(i).min(i) as u32).collect();
-        let mut at = Vec::with_capacity(n);
-        let mut total = 0;
+        let mut at = vec![0];
         for i in 0..n {
-            at.push(total);
-            total += i + 1 - first[i] as usize;
+            at.push(at[i] + i + 1 - first[i] as usize);
         }
+        let total = at[n];
         if total > BAND * n {
             return None;
         }
@@ -322,9 +313,8 @@ impl Block {
             }
             x[i] = s;
         }
-        for i in 0..n {
-            x[i][0] *= self.d_inv[i];
-            x[i][1] *= self.d_inv[i];
+        for (x, &d) in x.iter_mut().zip(&self.d_inv) {
+            *x = [x[0] * d, x[1] * d];
         }
         for i in (0..n).rev() {
             let fi = self.first[i] as usize;
