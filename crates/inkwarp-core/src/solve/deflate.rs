@@ -197,11 +197,8 @@ impl Deflation {
             }
         });
         let sym = |t: usize| -> Vec<Vec<f64>> { (0..k).map(|l| (0..k).map(|j| 0.5 * (sums[2 * (l * k + j) + t] + sums[2 * (j * k + l) + t])).collect()).collect() };
-        self.e = sym(0);
+        (self.e, self.m, self.w, self.aw) = (sym(0), sym(1), w, aw);
         self.g = self.e.clone();
-        self.m = sym(1);
-        self.w = w;
-        self.aw = aw;
         self.v.clear();
         // u += W c, r −= A W c with c = E⁻¹ Wᵀ r.
         let rhs = dots(&self.w, n, |i| r[i]);
@@ -365,9 +362,7 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     let mut order: Vec<usize> = (0..k).collect();
     order.sort_by(|&a, &b| theta[a].total_cmp(&theta[b]));
     let mut y = vec![vec![0.0; k]; n];
-    let mut sorted = Vec::with_capacity(k);
     for (col, &e) in order.iter().enumerate() {
-        sorted.push(theta[e]);
         // Back substitution: Lᵀ z = v.
         let mut z = vec![0.0; k];
         for i in (0..k).rev() {
@@ -377,7 +372,7 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
             y[i][col] = z[a] * d[i];
         }
     }
-    Some((sorted, y))
+    Some((order.iter().map(|&e| theta[e]).collect(), y))
 }
 
 /// `L⁻¹ b` for the lower triangular `L` of rows `l` (at least `b.len()` of them).

@@ -179,8 +179,7 @@ impl Echelon {
 
     fn add(&mut self, row: &[(usize, f64)]) {
         use std::{cmp::Reverse, collections::BinaryHeap};
-        let mut heap = BinaryHeap::new();
-        let mut scale = 0.0f64;
+        let (mut heap, mut scale) = (BinaryHeap::new(), 0.0f64);
         let (seen, touched, pivot_of) = (&mut self.seen, &mut self.touched, &self.pivot_of);
         let mut visit = |c: usize, heap: &mut BinaryHeap<Reverse<u32>>| {
             if !std::mem::replace(&mut seen[c], true) {
@@ -462,8 +461,7 @@ pub(crate) fn galerkin(g: &BoxGeo, tau: f64, fixed: &[bool], basis: &[Sparse], u
         z.iter().for_each(|&(i, _)| dense[i] = 0.0);
         y
     }).collect();
-    let mut gram = vec![vec![0.0; k]; k];
-    let mut rhs = vec![[0.0; 2]; k];
+    let (mut gram, mut rhs) = (vec![vec![0.0; k]; k], vec![[0.0; 2]; k]);
     for (i, zi) in basis.iter().enumerate() {
         for &(p, v) in zi.iter().filter(|&&(p, _)| !fixed[p]) {
             for (j, azj) in az.iter().enumerate() {
