@@ -162,10 +162,9 @@ impl Deflation {
         let mut w: Vec<Vec<f32>> = vec![vec![0.0; n]; k];
         for (l, col) in w.iter_mut().enumerate() {
             col.par_chunks_mut(CHUNK).enumerate().for_each(|(c, col)| {
-                let a = c * CHUNK;
                 let mut acc = vec![0.0f64; col.len()];
                 for (b, yj) in basis.iter().zip(&y).filter(|(_, yj)| yj[l] != 0.0) {
-                    acc.iter_mut().zip(&b[a..]).for_each(|(o, &bv)| *o += yj[l] * bv as f64);
+                    acc.iter_mut().zip(&b[c * CHUNK..]).for_each(|(o, &bv)| *o += yj[l] * bv as f64);
                 }
                 col.iter_mut().zip(&acc).for_each(|(o, &x)| *o = x as f32);
             });
@@ -426,12 +425,10 @@ fn jacobi_eigen(mut a: Vec<Vec<f64>>) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
 /// by bisection on Sturm counts.
 fn extremes(diag: &[f64], off: &[f64]) -> Option<(f64, f64)> {
     let n = diag.len();
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for i in 0..n {
-        let r = if i > 0 { off[i - 1].abs() } else { 0.0 } + if i + 1 < n { off[i].abs() } else { 0.0 };
-        lo = lo.min(diag[i] - r);
-        hi = hi.max(diag[i] + r);
-    }
+    // Gershgorin's bounds.
+    let radius = |i: usize| if i > 0 { off[i - 1].abs() } else { 0.0 } + if i + 1 < n { off[i].abs() } else { 0.0 };
+    let lo = (0..n).map(|i| diag[i] - radius(i)).fold(f64::INFINITY, f64::min);
+    let hi = (0..n).map(|i| diag[i] + radius(i)).fold(f64::NEG_INFINITY, f64::max);
     if !(lo.is_finite() && hi.is_finite()) {
         return None;
     }

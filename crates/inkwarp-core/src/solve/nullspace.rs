@@ -357,8 +357,7 @@ impl<'a> Membrane<'a> {
                 at.entry(i).or_default().push((j, v));
             }
         }
-        let mut gram: Vec<Vec<(usize, f64)>> = vec![Vec::new(); k];
-        let mut products = Vec::with_capacity(k);
+        let (mut gram, mut products): (Vec<Sparse>, Vec<Sparse>) = (vec![Vec::new(); k], Vec::with_capacity(k));
         let (mut dense, mut y) = (vec![0.0; n], vec![0.0; n]);
         let (mut acc, mut seen, mut hit) = (vec![0.0; k], vec![false; k], Vec::new());
         let mut parent: Vec<u32> = (0..k as u32).collect();

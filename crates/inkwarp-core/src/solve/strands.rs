@@ -221,10 +221,8 @@ fn each_run(n: usize, linked: impl Fn(usize) -> bool, mut f: impl FnMut(usize, u
 
 /// Breadth-first order of the component of `s` (marking `seen`).
 fn bfs(s: usize, seen: &mut [bool], mut next: impl FnMut(usize, &mut Vec<usize>)) -> Vec<usize> {
-    let mut order = vec![s];
+    let (mut order, mut buf, mut i) = (vec![s], Vec::new(), 0);
     seen[s] = true;
-    let mut buf = Vec::new();
-    let mut i = 0;
     while i < order.len() {
         next(order[i], &mut buf);
         for &q in &buf {
