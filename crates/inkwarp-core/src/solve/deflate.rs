@@ -102,9 +102,8 @@ impl Deflation {
         let nb = self.w.len() + self.v.len();
         // Entries against the basis: (Ax_c)·b and x_c·b for both components c, then the
         // new pair among themselves.
-        let basis: Vec<&[f32]> = self.w.iter().chain(&self.v).map(|b| b.as_slice()).collect();
         let sums = chunked_sums(n, 4 * nb + 6, |a, b, out| {
-            for (j, bv) in basis.iter().enumerate() {
+            for (j, bv) in self.w.iter().chain(&self.v).enumerate() {
                 let mut s = [0.0f64; 4];
                 for ((x, y), &bv) in p[a..b].iter().zip(&q[a..b]).zip(&bv[a..b]) {
                     let bv = bv as f64;
@@ -115,7 +114,7 @@ impl Deflation {
                 }
                 out[4 * j..4 * j + 4].iter_mut().zip(s).for_each(|(o, s)| *o += s);
             }
-            let o = 4 * basis.len();
+            let o = 4 * nb;
             for (x, y) in p[a..b].iter().zip(&q[a..b]) {
                 let (x0, x1) = (x[0].get(), x[1].get());
                 out[o] -= y[0] * x0;
@@ -157,13 +156,12 @@ impl Deflation {
         self.low = f64::INFINITY;
         let k = self.keep.min(theta.len());
         let n = u.len();
-        let basis: Vec<&[f32]> = self.w.iter().chain(&self.v).map(|b| b.as_slice()).collect();
         // W = B Y, column by column, chunk by chunk in parallel.
         let mut w: Vec<Vec<f32>> = vec![vec![0.0; n]; k];
         for (l, col) in w.iter_mut().enumerate() {
             col.par_chunks_mut(CHUNK).enumerate().for_each(|(c, col)| {
                 let mut acc = vec![0.0f64; col.len()];
-                for (b, yj) in basis.iter().zip(&y).filter(|(_, yj)| yj[l] != 0.0) {
+                for (b, yj) in self.w.iter().chain(&self.v).zip(&y).filter(|(_, yj)| yj[l] != 0.0) {
                     acc.iter_mut().zip(&b[c * CHUNK..]).for_each(|(o, &bv)| *o += yj[l] * bv as f64);
                 }
                 col.iter_mut().zip(&acc).for_each(|(o, &x)| *o = x as f32);

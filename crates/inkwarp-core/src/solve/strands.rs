@@ -60,16 +60,15 @@ pub(crate) struct Strands {
 impl Strands {
     /// The thin nodes of `level`, or `None` when it has none.
     pub fn new(level: &Level) -> Option<Strands> {
-        let across = match &level.op {
+        let thin = match &level.op {
             // Links: the operator's own on the finest level, the geometry's between unknowns
             // on coarser ones.
-            Operator::Fine { flags, .. } => runs(level, |p, _| flags[p] & bit::RIGHT != 0, |p, _| flags[p] & bit::DOWN != 0),
+            Operator::Fine { flags, .. } => thin_nodes(level, |p, _| flags[p] & bit::RIGHT != 0, |p, _| flags[p] & bit::DOWN != 0),
             Operator::Stored { .. } => {
                 let (g, d, wp) = (&level.geo, &level.inv_diag, level.wp);
-                runs(level, |p, i| g.right[i] && d[p] != 0.0 && d[p + 1] != 0.0, |p, i| g.down[i] && d[p] != 0.0 && d[p + wp] != 0.0)
+                thin_nodes(level, |p, i| g.right[i] && d[p] != 0.0 && d[p + 1] != 0.0, |p, i| g.down[i] && d[p] != 0.0 && d[p + wp] != 0.0)
             }
-        }?;
-        let thin: Vec<bool> = (0..across.len()).map(|p| level.inv_diag[p] != 0.0 && across[p] as usize <= THIN).collect();
+        };
         if !thin.contains(&true) {
             return None;
         }
@@ -178,31 +177,25 @@ impl Strands {
     }
 }
 
-/// The length of each node's run of linked nodes along its row or its column, whichever
-/// is shorter (`u32::MAX` off the nodes), from `right(p, i)` and `down(p, i)` (padded and
-/// unpadded index: linked to the right, below); `None` when no run is [`THIN`] or shorter.
-fn runs(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Option<Vec<u32>> {
+/// The thin nodes: the unknowns whose run of linked nodes along the row or along the
+/// column is at most [`THIN`] long, from `right(p, i)` and `down(p, i)` (padded and unpadded
+/// index: linked to the right, below).
+fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Vec<bool> {
     let (w, h) = (level.geo.w, level.geo.h);
     let p = |x: usize, y: usize| level.pidx(x, y);
+    // Each node's shorter run (`u32::MAX` off the nodes).
     let mut across = vec![u32::MAX; level.len_padded()];
-    let mut any = false;
     for y in 0..h {
-        each_run(w, |x| right(p(x, y), y * w + x), |x, e| {
-            across[p(x, y)..=p(e, y)].fill((e - x + 1) as u32);
-            any |= e - x < THIN && level.inv_diag[p(x, y)..=p(e, y)].iter().any(|&d| d != 0.0);
-        });
+        each_run(w, |x| right(p(x, y), y * w + x), |x, e| across[p(x, y)..=p(e, y)].fill((e - x + 1) as u32));
     }
     for x in 0..w {
         each_run(h, |y| down(p(x, y), y * w + x), |y, e| {
-            if e - y < THIN {
-                for i in y..=e {
-                    any |= level.inv_diag[p(x, i)] != 0.0;
-                    across[p(x, i)] = across[p(x, i)].min((e - y + 1) as u32);
-                }
+            for i in y..=e {
+                across[p(x, i)] = across[p(x, i)].min((e - y + 1) as u32);
             }
         });
     }
-    any.then_some(across)
+    (0..across.len()).map(|p| level.inv_diag[p] != 0.0 && across[p] as usize <= THIN).collect()
 }
 
 /// `f(start, end)` for each maximal run `start..=end` of `0..n` joined by `linked(i)` (`i`
