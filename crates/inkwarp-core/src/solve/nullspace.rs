@@ -214,11 +214,10 @@ impl Echelon {
             self.pivot_of[piv] = self.rows.len() as u32;
             self.rows.push((piv, new));
         }
-        for &c in &self.touched {
+        for c in self.touched.drain(..) {
             self.acc[c] = 0.0;
             self.seen[c] = false;
         }
-        self.touched.clear();
     }
 
     /// One basis vector per free column (sparse over the unknowns: its nonzero entries), or
