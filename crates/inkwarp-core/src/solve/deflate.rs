@@ -346,14 +346,8 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     let gs: Vec<Vec<f64>> = keep.iter().map(|&i| keep.iter().map(|&j| 0.5 * (g[i][j] + g[j][i]) * d[i] * d[j]).collect()).collect();
     // X = L⁻¹ G_s (columns), then C = L⁻¹ Xᵀ.
     let x: Vec<Vec<f64>> = (0..k).map(|j| forward(&l, &(0..k).map(|i| gs[i][j]).collect::<Vec<_>>())).collect(); // x[j] = column j
-    let mut c: Vec<Vec<f64>> = (0..k).map(|i| forward(&l, &(0..k).map(|j| x[j][i]).collect::<Vec<_>>())).collect();
-    for i in 0..k {
-        for j in 0..i {
-            let s = 0.5 * (c[i][j] + c[j][i]);
-            c[i][j] = s;
-            c[j][i] = s;
-        }
-    }
+    let c: Vec<Vec<f64>> = (0..k).map(|i| forward(&l, &(0..k).map(|j| x[j][i]).collect::<Vec<_>>())).collect();
+    let c = (0..k).map(|i| (0..k).map(|j| if i == j { c[i][i] } else { 0.5 * (c[i][j] + c[j][i]) }).collect()).collect();
     let (theta, vecs) = jacobi_eigen(c)?;
     // y = D L⁻ᵀ v for each eigenvector v.
     let mut order: Vec<usize> = (0..k).collect();
@@ -403,14 +397,12 @@ fn jacobi_eigen(mut a: Vec<Vec<f64>>) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
                 let cs = 1.0 / (t * t + 1.0).sqrt();
                 let sn = t * cs;
                 let rotate = |x: f64, y: f64| (cs * x - sn * y, sn * x + cs * y);
-                for k in 0..n {
-                    (a[k][p], a[k][q]) = rotate(a[k][p], a[k][q]);
+                // Columns p and q of A and of V, then rows p and q of A.
+                for row in a.iter_mut().chain(v.iter_mut()) {
+                    (row[p], row[q]) = rotate(row[p], row[q]);
                 }
                 for k in 0..n {
                     (a[p][k], a[q][k]) = rotate(a[p][k], a[q][k]);
-                }
-                for row in v.iter_mut() {
-                    (row[p], row[q]) = rotate(row[p], row[q]);
                 }
             }
         }
