@@ -436,8 +436,7 @@ impl<'a> Membrane<'a> {
         let mut n: Vec<(usize, V2)> = Vec::new();
         let all = self.settle(|i| u[i], |i, v| n.push((i, v)));
         for (i, v) in n {
-            u[i][0] += v[0];
-            u[i][1] += v[1];
+            u[i] = [u[i][0] + v[0], u[i][1] + v[1]];
         }
         all
     }
@@ -473,8 +472,7 @@ pub(crate) fn galerkin(g: &BoxGeo, tau: f64, fixed: &[bool], basis: &[Sparse], u
     let mut step = vec![[0.0f64; 2]; n];
     for (z, c) in basis.iter().zip(c) {
         for &(i, v) in z {
-            step[i][0] += c[0] * v;
-            step[i][1] += c[1] * v;
+            step[i] = [step[i][0] + c[0] * v, step[i][1] + c[1] * v];
         }
     }
     u.iter_mut().zip(&step).fold(0.0f64, |moved, (u, s)| {
