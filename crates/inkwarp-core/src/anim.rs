@@ -131,58 +131,47 @@ pub fn points_at(rest: &[Point], keys: &[Key], time_s: f64) -> Vec<Point> {
     let duration = b.time_s - a.time_s;
     let u = (time_s - a.time_s) / duration;
     let n = a.points.len().min(b.points.len());
-    match a.interpolation {
-        Interpolation::Hold => a.points.clone(),
-        Interpolation::Linear | Interpolation::EaseIn | Interpolation::EaseOut | Interpolation::EaseInOut => {
-            let w = a.interpolation.progress(u).unwrap_or(u);
-            (0..n).map(|j| lerp(a.points[j], b.points[j], w)).collect()
-        }
-        Interpolation::Smooth => {
-            let [h00, h10, h11, h01] = hermite_basis(u);
-            (0..n)
-                .map(|j| {
-                    let m0 = velocity(keys, i, j, Side::Before);
-                    let m1 = velocity(keys, i + 1, j, Side::After);
-                    let (p0, p1) = (a.points[j], b.points[j]);
-                    [
-                        h00 * p0[0] + h10 * duration * m0[0] + h01 * p1[0] + h11 * duration * m1[0],
-                        h00 * p0[1] + h10 * duration * m0[1] + h01 * p1[1] + h11 * duration * m1[1],
-                    ]
-                })
-                .collect()
-        }
+    if a.interpolation == Interpolation::Hold {
+        return a.points.clone();
     }
+    if let Some(w) = a.interpolation.progress(u) {
+        return (0..n).map(|j| lerp(a.points[j], b.points[j], w)).collect();
+    }
+    // Smooth
+    let [h00, h10, h11, h01] = hermite_basis(u);
+    (0..n)
+        .map(|j| {
+            let m0 = velocity(keys, i, j, true);
+            let m1 = velocity(keys, i + 1, j, false);
+            let (p0, p1) = (a.points[j], b.points[j]);
+            [
+                h00 * p0[0] + h10 * duration * m0[0] + h01 * p1[0] + h11 * duration * m1[0],
+                h00 * p0[1] + h10 * duration * m0[1] + h01 * p1[1] + h11 * duration * m1[1],
+            ]
+        })
+        .collect()
 }
 
-/// Which side of key `k` the smooth span being evaluated lies on: `Before` the span
-/// starts at the key (its other side is the span ending there), `After` it ends there.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Side {
-    Before,
-    After,
-}
-
-/// The velocity (units per second) of control point `j` at key `k`, for a smooth span on
-/// the given side of it, by the tangent rule of the module docs.
-fn velocity(keys: &[Key], k: usize, j: usize, side: Side) -> Point {
+/// The velocity (units per second) of control point `j` at key `k`, by the tangent rule
+/// of the module docs, for a smooth span that starts at the key (`starts`: the key's
+/// other side is the span ending there) or ends there.
+fn velocity(keys: &[Key], k: usize, j: usize, starts: bool) -> Point {
     // the span on the key's other side: (its start key index, its interpolation)
-    let other = match side {
-        Side::Before => k.checked_sub(1).map(|s| (s, keys[s].interpolation)),
-        Side::After => (k + 1 < keys.len()).then(|| (k, keys[k].interpolation)),
+    let other = if starts {
+        k.checked_sub(1).map(|s| (s, keys[s].interpolation))
+    } else {
+        (k + 1 < keys.len()).then(|| (k, keys[k].interpolation))
     };
     match other {
         None | Some((_, Interpolation::Hold)) => [0.0, 0.0],
-        Some((s, eased @ (Interpolation::Linear
-        | Interpolation::EaseIn
-        | Interpolation::EaseOut
-        | Interpolation::EaseInOut))) => {
-            // the straight span's own velocity at key k: its end (Before) or start (After)
+        Some((s, eased)) if eased != Interpolation::Smooth => {
+            // the straight span's own velocity at key k: its end (the span before) or start
             let (start, end) = eased.end_speeds();
-            let factor = if side == Side::Before { end } else { start };
+            let factor = if starts { end } else { start };
             let v = slope(&keys[s], &keys[s + 1], j);
             [factor * v[0], factor * v[1]]
         }
-        Some((_, Interpolation::Smooth)) => {
+        Some(_) => {
             // both neighbours exist: the parabola through keys k − 1, k, k + 1
             let (prev, key, next) = (&keys[k - 1], &keys[k], &keys[k + 1]);
             let dm = key.time_s - prev.time_s;

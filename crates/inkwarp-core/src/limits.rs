@@ -69,11 +69,7 @@ pub fn check_size(what: &str, width: usize, height: usize) -> Result<(), String>
 /// assert_eq!((show(0.5), show(1e308), show(-2e9)), ("0.5".into(), "1e308".into(), "-2e9".into()));
 /// ```
 pub fn show(v: f64) -> String {
-    if v.is_finite() && v.abs() >= 1e7 {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
+    if v.is_finite() && v.abs() >= 1e7 { format!("{v:e}") } else { format!("{v}") }
 }
 
 /// The most samples one feature's curve may be cut into.

@@ -17,7 +17,7 @@
 //! [`transfer_keys`] works on plain features (the Python package maps scene documents).
 
 use crate::geometry::{Kind, Point};
-use crate::methods::{MethodError, ThinPlateMap};
+use crate::methods::{dist, MethodError, ThinPlateMap};
 
 /// One feature of a drawing as transfer sees it: id, kind, rest control points and the
 /// control points of each key (times and interpolation stay with the caller).
@@ -160,15 +160,8 @@ pub fn find_fold(source: &[TransferFeature], target: &[TransferFeature]) -> Resu
     Ok(worst.map(|(at, det)| {
         let against = pairs.iter().find(|&&(si, ti)| runs_against(&source[si], &target[ti], linear));
         let nearest = || {
-            points
-                .iter()
-                .min_by(|a, b| {
-                    let da = (a.0[0] - at[0]).hypot(a.0[1] - at[1]);
-                    let db = (b.0[0] - at[0]).hypot(b.0[1] - at[1]);
-                    da.total_cmp(&db)
-                })
-                .map(|&(_, si)| source[si].id.clone())
-                .unwrap_or_default()
+            let near = points.iter().min_by(|a, b| dist(a.0, at).total_cmp(&dist(b.0, at)));
+            near.map(|&(_, si)| source[si].id.clone()).unwrap_or_default()
         };
         let feature = against.map_or_else(nearest, |&(si, _)| source[si].id.clone());
         Fold { at, det, feature }
@@ -214,9 +207,7 @@ pub fn transfer_keys(
     let (map, pairs) = rest_map(source, target)?;
     let mut out: Vec<Option<Vec<Vec<Point>>>> = vec![None; target.len()];
     for (si, ti) in pairs {
-        out[ti] = Some(
-            source[si].keys.iter().map(|k| k.iter().map(|&p| map.apply(p)).collect()).collect(),
-        );
+        out[ti] = Some(source[si].keys.iter().map(|k| k.iter().map(|&p| map.apply(p)).collect()).collect());
     }
     Ok(out)
 }

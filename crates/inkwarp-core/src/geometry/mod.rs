@@ -217,7 +217,7 @@ pub fn sample_feature(
         return Err(GeometryError::CountMismatch { rest: rest.len(), pose: pose.len() });
     }
     check_points(kind, pose, "posed")?;
-    let spacing = check_spacing(opts)?;
+    let spacing = check_spacing(opts.spacing_px)?;
     let (closed, spline) = kind.curve_shape(opts.closed, opts.spline_outline);
     for points in [rest, pose] {
         crate::limits::check_curve_samples(points, closed, spacing)
@@ -254,9 +254,8 @@ fn curve_samples(rest: &Curve, pose: &Curve, spacing: f64) -> Vec<Sample> {
         .collect()
 }
 
-/// The spacing of `opts`, when it is positive and finite.
-fn check_spacing(opts: &SampleOptions) -> Result<f64, GeometryError> {
-    let spacing = opts.spacing_px;
+/// `spacing`, when it is positive and finite.
+fn check_spacing(spacing: f64) -> Result<f64, GeometryError> {
     if spacing > 0.0 && spacing.is_finite() { Ok(spacing) } else { Err(GeometryError::BadSpacing(spacing)) }
 }
 
@@ -296,21 +295,17 @@ fn check_points(kind: Kind, points: &[Point], which: &'static str) -> Result<(),
 /// assert_eq!(outline[4], outline[0]);
 /// ```
 pub fn curve_polyline(kind: Kind, points: &[Point], closed: bool, spline_outline: bool, spacing_px: f64) -> Vec<Point> {
-    let spacing = if spacing_px > 0.0 && spacing_px.is_finite() { spacing_px } else { 1.0 };
+    let spacing = check_spacing(spacing_px).unwrap_or(1.0);
     let (closed, spline) = kind.curve_shape(closed, spline_outline);
     if kind == Kind::Point || points.len() < 2 {
         return points.to_vec();
     }
-    let curve = Curve::new(points, closed, spline);
     if spline {
-        curve.to_polyline(spacing)
-    } else {
-        let mut out = points.to_vec();
-        if closed {
-            out.push(points[0]);
-        }
-        out
+        return Curve::spline(points, closed).to_polyline(spacing);
     }
+    let mut out = points.to_vec();
+    out.extend(closed.then_some(points[0]));
+    out
 }
 
 #[cfg(test)]

@@ -24,7 +24,8 @@ use crate::grid::Grid;
 const ON_OUTLINE_PX: f64 = 1e-9;
 
 /// The mean-value interpolation at `x` of `values` given at the vertices of the closed
-/// polygon `polygon` (the last vertex joins the first), summed over every edge.
+/// polygon `polygon` (the last vertex joins the first): a [`MeanValueInterpolator`] for
+/// one point.
 ///
 /// On the polygon it returns the outline's own value: a vertex's value, or on an edge the
 /// linear interpolation between its ends. Away from it the weights are computed with
@@ -44,50 +45,8 @@ const ON_OUTLINE_PX: f64 = 1e-9;
 /// # Panics
 /// If `polygon` and `values` have different lengths.
 pub fn mean_value_interpolate(polygon: &[Point], values: &[Point], x: Point) -> Point {
-    assert_eq!(polygon.len(), values.len(), "one value per polygon vertex");
-    let m = polygon.len();
-    // Running sums `Σ w f` and `Σ w` over the edges.
-    let (mut num, mut den) = ([0.0f64; 2], 0.0f64);
-    for a in 0..m {
-        let b = (a + 1) % m;
-        let (va, vb, fa, fb) = (polygon[a], polygon[b], values[a], values[b]);
-        let (sa, sb) = (sub(va, x), sub(vb, x));
-        let (ra, rb) = (norm(sa), norm(sb));
-        if ra <= ON_OUTLINE_PX {
-            return fa;
-        }
-        let det = sa[0] * sb[1] - sa[1] * sb[0];
-        let dot = sa[0] * sb[0] + sa[1] * sb[1];
-        if dot < 0.0 && det.abs() <= ON_OUTLINE_PX * norm(sub(vb, va)) + 4.0 * f64::EPSILON * ra * rb {
-            // on the open segment: the linear interpolation along it
-            let s = ra / (ra + rb);
-            return [fa[0] + s * (fb[0] - fa[0]), fa[1] + s * (fb[1] - fa[1])];
-        }
-        let t = half_angle_tan(ra, rb, det, dot);
-        if t != 0.0 {
-            let (wa, wb) = (t / ra, t / rb);
-            num[0] += wa * fa[0] + wb * fb[0];
-            num[1] += wa * fa[1] + wb * fb[1];
-            den += wa + wb;
-        }
-    }
-    [num[0] / den, num[1] / den]
-}
-
-/// `tan(α/2)` of the signed angle `α` between two vectors of lengths `ra`, `rb` with
-/// cross product `det` and dot product `dot`, choosing the form without cancellation:
-/// `sin α / (1 + cos α)` for acute angles, `(1 − cos α) / sin α` for obtuse ones.
-#[inline]
-fn half_angle_tan(ra: f64, rb: f64, det: f64, dot: f64) -> f64 {
-    let rr = ra * rb;
-    if dot >= 0.0 {
-        det / (rr + dot)
-    } else if det != 0.0 {
-        (rr - dot) / det
-    } else {
-        // α = ±π: only on the outline, which callers exclude
-        0.0
-    }
+    let mvc = MeanValueInterpolator::new(polygon.to_vec(), values.to_vec());
+    mvc.value_at(x, &mut MvcScratch::default()).unwrap_or_else(|| mvc.outline_value(x))
 }
 
 /// Mean-value interpolation of one outline's values at many points.
@@ -95,7 +54,8 @@ fn half_angle_tan(ra: f64, rb: f64, det: f64, dot: f64) -> f64 {
 /// The direct sum over every edge, laid out for speed (coordinates relative to the point
 /// in structure-of-arrays form, branch-free half-angle tangents that the compiler can
 /// vectorise): `O(m)` per point for an outline of `m` vertices. Points on or within
-/// 1e-9 px of the outline take the exact boundary path of [`mean_value_interpolate`].
+/// 1e-9 px of the outline have no value here; [`mean_value_interpolate`] gives them the
+/// outline's own.
 #[derive(Clone, Debug)]
 pub struct MeanValueInterpolator {
     /// Vertex coordinates, with the first vertex repeated at the end.
@@ -180,6 +140,28 @@ impl MeanValueInterpolator {
         Some(weights.iter().sum())
     }
 
+    /// The outline's own value at `x`, a point on it (where [`MeanValueInterpolator::value_at`]
+    /// gives `None`): the value of the first vertex within 1e-9 px, or the linear
+    /// interpolation along the first edge `x` lies on (by the test of `tangents`).
+    fn outline_value(&self, x: Point) -> Point {
+        let m = self.len();
+        for a in 0..m {
+            let (fa, fb) = (self.values[a], self.values[(a + 1) % m]);
+            let (sa, sb) = (sub(self.vertices[a], x), sub(self.vertices[(a + 1) % m], x));
+            let (ra, rb) = (norm(sa), norm(sb));
+            if ra <= ON_OUTLINE_PX {
+                return fa;
+            }
+            let det = sa[0] * sb[1] - sa[1] * sb[0];
+            let dot = sa[0] * sb[0] + sa[1] * sb[1];
+            if dot < 0.0 && det.abs() <= ON_OUTLINE_PX * self.lengths[a] + 4.0 * f64::EPSILON * ra * rb {
+                let s = ra / (ra + rb);
+                return [fa[0] + s * (fb[0] - fa[0]), fa[1] + s * (fb[1] - fa[1])];
+            }
+        }
+        [f64::NAN; 2]
+    }
+
     /// The interpolated value at `x`, or `None` when `x` lies on the outline (within
     /// 1e-9 px) or the outline is empty.
     pub fn value_at(&self, x: Point, scratch: &mut MvcScratch) -> Option<Point> {
@@ -222,7 +204,8 @@ impl MeanValueInterpolator {
             let det = sx0[i] * sy1[i] - sy0[i] * sx1[i];
             let dot = sx0[i] * sx1[i] + sy0[i] * sy1[i];
             let rr = r0[i] * r1[i];
-            // tan(α/2) without cancellation (see `half_angle_tan`)
+            // tan(α/2) without cancellation: sin α / (1 + cos α) for acute angles,
+            // (1 − cos α) / sin α for obtuse ones
             let acute = dot >= 0.0;
             let num = if acute { det } else { rr - dot };
             let den = if acute { rr + dot } else { det };

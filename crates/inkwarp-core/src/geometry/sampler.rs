@@ -86,7 +86,7 @@ impl FeatureSampler {
         max_coefficients: usize,
     ) -> Result<Self, GeometryError> {
         check_points(kind, rest, "rest")?;
-        let spacing = check_spacing(opts)?;
+        let spacing = check_spacing(opts.spacing_px)?;
         let (closed, spline) = kind.curve_shape(opts.closed, opts.spline_outline);
         let mut me = FeatureSampler {
             kind,

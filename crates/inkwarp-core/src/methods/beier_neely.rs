@@ -103,16 +103,10 @@ pub fn beier_neely_field(
 ) -> Result<Field, MethodError> {
     params.validate()?;
     let BeierNeelyParams { a, b, p: len_power } = *params;
-    let mut pts: Vec<Sample> = Vec::new();
+    let finite = |s: &&Sample| is_finite_point(s.rest) && is_finite_point(s.displacement);
+    let mut pts: Vec<Sample> = points.iter().filter(finite).copied().collect();
+    let mut dropped = points.len() - pts.len();
     let mut lines: Vec<Line> = Vec::new();
-    let mut dropped = 0;
-    for s in points {
-        if is_finite_point(s.rest) && is_finite_point(s.displacement) {
-            pts.push(*s);
-        } else {
-            dropped += 1;
-        }
-    }
     for l in line_pairs {
         if !l.rest.iter().chain(&l.pose).all(|q| is_finite_point(*q)) {
             dropped += 1;
@@ -140,13 +134,7 @@ pub fn beier_neely_field(
     // (a + dist)^-b, with the common b = 2 and b = 1 done without powf.
     let falloff = move |dist: f64| -> f64 {
         let base = 1.0 / (a + dist);
-        if b == 2.0 {
-            base * base
-        } else if b == 1.0 {
-            base
-        } else {
-            base.powf(b)
-        }
+        if b == 2.0 { base * base } else if b == 1.0 { base } else { base.powf(b) }
     };
     let strength_b: Vec<f64> = lines.iter().map(|l| if b == 2.0 { l.strength * l.strength } else { l.strength.powf(b) }).collect();
 

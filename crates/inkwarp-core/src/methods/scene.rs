@@ -31,7 +31,7 @@ pub fn feature_controls(
     let mut controls = Controls::default();
     for f in features {
         let feature = &scene.doc().features[f.feature];
-        let closed = feature.is_closed();
+        let (closed, _) = feature.kind.curve_shape(feature.closed, false);
         match feature.kind {
             Kind::Cut => {}
             Kind::Point => controls.samples.extend(f.samples.iter().copied()),

@@ -113,11 +113,7 @@ impl ThinPlateMap {
         }
         let (merged, dropped) = merge_samples(samples);
         let distinct = merged.len();
-        let kept = if merged.len() > max_samples {
-            farthest_point_subset(&merged, max_samples)
-        } else {
-            merged
-        };
+        let kept = if distinct > max_samples { farthest_point_subset(&merged, max_samples) } else { merged };
         let info = FitInfo { given: samples.len(), dropped, distinct, used: kept.len() };
         Ok((Self::fit_distinct(&kept)?, info))
     }
@@ -203,7 +199,12 @@ impl ThinPlateMap {
     /// The displacement `f(p)` at `p`.
     pub fn displacement(&self, p: Point) -> Point {
         let [qx, qy] = self.normalised(p);
-        let (kx, ky) = self.kernel_sums(qx, qy);
+        let (mut kx, mut ky) = (0.0, 0.0);
+        for i in 0..self.cx.len() {
+            let u = phi(sq(qx - self.cx[i]) + sq(qy - self.cy[i]));
+            kx += self.wx[i] * u;
+            ky += self.wy[i] * u;
+        }
         let [ax, ay] = self.affine;
         [ax[0] + ax[1] * qx + ax[2] * qy + kx, ay[0] + ay[1] * qx + ay[2] * qy + ky]
     }
@@ -250,17 +251,6 @@ impl ThinPlateMap {
     fn identity_plus(&self, g: [[f64; 2]; 2]) -> [[f64; 2]; 2] {
         let s = self.scale;
         [[1.0 + g[0][0] / s, g[0][1] / s], [g[1][0] / s, 1.0 + g[1][1] / s]]
-    }
-
-    #[inline]
-    fn kernel_sums(&self, qx: f64, qy: f64) -> (f64, f64) {
-        let (mut sx, mut sy) = (0.0, 0.0);
-        for i in 0..self.cx.len() {
-            let u = phi(sq(qx - self.cx[i]) + sq(qy - self.cy[i]));
-            sx += self.wx[i] * u;
-            sy += self.wy[i] * u;
-        }
-        (sx, sy)
     }
 
     /// The displacement at every pixel centre of a `width × height` image, rows in
@@ -330,11 +320,7 @@ fn sq(v: f64) -> f64 {
 /// (the factor 2 is absorbed by the weights), `φ(0) = 0`.
 #[inline]
 fn phi(r2: f64) -> f64 {
-    if r2 > 0.0 {
-        r2 * r2.ln()
-    } else {
-        0.0
-    }
+    if r2 > 0.0 { r2 * r2.ln() } else { 0.0 }
 }
 
 /// [`phi`] without a branch or a library call, for the vectorised evaluator.

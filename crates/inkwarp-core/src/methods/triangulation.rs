@@ -105,16 +105,11 @@ fn rasterize(f: &mut Field, p: [[f64; 2]; 3], val: [[f64; 2]; 3]) {
             let k = (ci[0] + ci[2] * yf) / area2; // λ at x = 0
             let slope = ci[1] / area2;
             if slope.abs() < 1e-15 {
-                if k < -eps {
-                    empty = true;
-                }
+                empty |= k < -eps;
+            } else if slope > 0.0 {
+                lo = lo.max((-eps - k) / slope);
             } else {
-                let root = (-eps - k) / slope;
-                if slope > 0.0 {
-                    lo = lo.max(root);
-                } else {
-                    hi = hi.min(root);
-                }
+                hi = hi.min((-eps - k) / slope);
             }
         }
         if empty || lo > hi {

@@ -142,10 +142,7 @@ pub(super) fn shading_mask(present: u8, links: u8, k: usize) -> u8 {
         let (a, b) = (CYCLE[side], CYCLE[(side + 1) % 4]);
         present >> a & 1 != 0 && present >> b & 1 != 0 && links & SIDE[side] == 0
     };
-    let start = CYCLE
-        .iter()
-        .position(|&c| c == k)
-        .expect("corner index below 4");
+    let start = CYCLE.iter().position(|&c| c == k).expect("corner index below 4");
     let mut mask = 1u8 << k;
     // Clockwise, then counter-clockwise, until a broken side.
     for step in 1..4 {

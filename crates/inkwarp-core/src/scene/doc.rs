@@ -298,11 +298,6 @@ pub struct FeatureDoc {
 }
 
 impl FeatureDoc {
-    /// Whether its curve is closed (regions always are).
-    pub fn is_closed(&self) -> bool {
-        self.closed || self.kind == Kind::Region
-    }
-
     /// Whether its outline is a spline (`"curve": "spline"`, for regions).
     pub fn spline_outline(&self) -> bool {
         self.curve == Some(Curve::Spline)

@@ -185,7 +185,7 @@ impl Scene {
             // nodes and their mean value coordinates); each frame only poses it.
             let sampler = sampler
                 .get_or_init(|| {
-                    let options = SampleOptions { closed: f.is_closed(), spline_outline: f.spline_outline(), spacing_px };
+                    let options = SampleOptions { closed: f.closed, spline_outline: f.spline_outline(), spacing_px };
                     let domain = (f.kind == Kind::Region).then_some(&layer_ref.grid);
                     FeatureSampler::new(f.kind, &f.rest, &options, domain).map_err(|e| e.to_string())
                 })

@@ -15,17 +15,12 @@ use super::Problem;
 /// the paths of the unknown keys among them.
 pub(crate) fn check_detailed(doc: &Value, schema: &Value) -> (Vec<Problem>, Vec<String>) {
     let mut walker = Walker::new(schema);
-    if !doc.is_object() {
-        walker.problems.push(Problem::new(
-            "",
-            format!(
-                "a scene is a JSON object such as {{\"inkwarp\": 1, \"layers\": [...]}}, found {}",
-                describe(doc)
-            ),
-        ));
-        return (walker.problems, walker.unknown_keys);
+    if doc.is_object() {
+        walker.walk(doc, schema, "", Some("the scene"));
+    } else {
+        let found = describe(doc);
+        walker.push("", format!("a scene is a JSON object such as {{\"inkwarp\": 1, \"layers\": [...]}}, found {found}"));
     }
-    walker.walk(doc, schema, "", Some("the scene"));
     (walker.problems, walker.unknown_keys)
 }
 
@@ -59,11 +54,7 @@ impl<'a> Walker<'a> {
         let (schema, def_name) = self.resolve(schema);
         let what = def_name.map(object_noun).or(what);
 
-        if let Some(alternatives) = schema
-            .get("oneOf")
-            .or_else(|| schema.get("anyOf"))
-            .and_then(Value::as_array)
-        {
+        if let Some(alternatives) = schema.get("oneOf").or_else(|| schema.get("anyOf")).and_then(Value::as_array) {
             return self.alternatives(value, alternatives, path, what);
         }
         if let Some(types) = schema.get("type") {
@@ -136,25 +127,18 @@ impl<'a> Walker<'a> {
                 None => resolved.get("oneOf").is_some() || resolved.get("anyOf").is_some(),
             }
         });
-        match fitting {
-            Some(alternative) => {
-                self.walk(value, alternative, path, what);
-            }
-            None => {
-                let expected: Vec<String> = alternatives
-                    .iter()
-                    .map(|a| {
-                        let (resolved, name) = self.resolve(a);
-                        match (name, resolved.get("type")) {
-                            (Some(name), _) => object_noun(name).to_string(),
-                            (None, Some(types)) => expected_types(types),
-                            (None, None) => "a value".to_string(),
-                        }
-                    })
-                    .collect();
-                self.push(path, format!("expected {}, found {}", expected.join(" or "), describe(value)));
-            }
+        if let Some(alternative) = fitting {
+            self.walk(value, alternative, path, what);
+            return false;
         }
+        let expected: Vec<String> = alternatives
+            .iter()
+            .map(|a| match self.resolve(a) {
+                (_, Some(name)) => object_noun(name).to_string(),
+                (resolved, None) => resolved.get("type").map_or("a value".to_string(), expected_types),
+            })
+            .collect();
+        self.push(path, format!("expected {}, found {}", expected.join(" or "), describe(value)));
         false
     }
 
@@ -272,11 +256,7 @@ fn object_noun(def_name: &str) -> &'static str {
 }
 
 pub(crate) fn join_key(path: &str, key: &str) -> String {
-    if path.is_empty() {
-        key.to_string()
-    } else {
-        format!("{path}.{key}")
-    }
+    if path.is_empty() { key.to_string() } else { format!("{path}.{key}") }
 }
 
 /// JSON Schema's types: how to tell a value of each, and how messages name it.
@@ -337,11 +317,7 @@ fn list(values: &[Value]) -> String {
 }
 
 fn fmt_num(x: f64) -> String {
-    if x.fract() == 0.0 && x.abs() < 1e15 {
-        format!("{}", x as i64)
-    } else {
-        format!("{x}")
-    }
+    if x.fract() == 0.0 && x.abs() < 1e15 { format!("{}", x as i64) } else { format!("{x}") }
 }
 
 fn first_sentence(text: &str) -> String {
