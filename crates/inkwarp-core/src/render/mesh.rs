@@ -197,21 +197,18 @@ impl<'a> Layer<'a> {
     pub fn prepare(image: &'a RgbaImage, mut px: Vec<f32>, mut py: Vec<f32>, grid: &Grid, offset: [f64; 2]) -> Self {
         let (w, h) = (image.width, image.height);
         let (ox, oy) = (offset[0] as f32, offset[1] as f32);
-        px.par_chunks_mut(w)
-            .zip(py.par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(y, (xrow, yrow))| {
-                let r = y * w..(y + 1) * w;
-                let alphas = image.data[4 * r.start..4 * r.end].chunks_exact(4);
-                let inputs = grid.active[r].iter().zip(alphas);
-                for (x, ((px, py), (&active, pixel))) in
-                    xrow.iter_mut().zip(yrow.iter_mut()).zip(inputs).enumerate()
-                {
-                    let at = [x as f32 + *px + ox, y as f32 + *py + oy];
-                    let drawn = (active || pixel[3] > 0) && at[0].is_finite() && at[1].is_finite();
-                    (*px, *py) = if drawn { (at[0], at[1]) } else { (f32::NAN, f32::NAN) };
-                }
-            });
+        px.par_chunks_mut(w).zip(py.par_chunks_mut(w)).enumerate().for_each(|(y, (xrow, yrow))| {
+            let r = y * w..(y + 1) * w;
+            let alphas = image.data[4 * r.start..4 * r.end].chunks_exact(4);
+            let inputs = grid.active[r].iter().zip(alphas);
+            for (x, ((px, py), (&active, pixel))) in
+                xrow.iter_mut().zip(yrow.iter_mut()).zip(inputs).enumerate()
+            {
+                let at = [x as f32 + *px + ox, y as f32 + *py + oy];
+                let drawn = (active || pixel[3] > 0) && at[0].is_finite() && at[1].is_finite();
+                (*px, *py) = if drawn { (at[0], at[1]) } else { (f32::NAN, f32::NAN) };
+            }
+        });
         let mut links = vec![0u8; w * h];
         links.par_chunks_mut(w).enumerate().for_each(|(y, lrow)| {
             let r = y * w..(y + 1) * w;
@@ -356,54 +353,50 @@ impl<'a> Layer<'a> {
         let mut signs = vec![0u8; bw * bh];
         let mut ranges = vec![[f32::INFINITY, f32::NEG_INFINITY]; bh * nchunks];
         let w = self.w;
-        signs
-            .par_chunks_mut(bw)
-            .zip(ranges.par_chunks_mut(nchunks))
-            .enumerate()
-            .for_each(|(br, (srow, rrow))| {
-                let extend = |range: &mut [f32; 2], q: &[V2; 4]| {
-                    for p in q {
-                        range[0] = if p[1] < range[0] { p[1] } else { range[0] };
-                        range[1] = if p[1] > range[1] { p[1] } else { range[1] };
-                    }
-                };
-                // Rows above and below the block row, for the complete quads inside.
-                let rows = (br >= 1 && br < self.h).then(|| {
-                    let (a, b) = ((br - 1) * w, br * w);
-                    (a, b, &self.links[a..a + w], &self.links[b..b + w])
-                });
-                for bc in 0..bw {
-                    if let Some((a, b, l0, l1)) = rows {
-                        if bc >= 1 && bc < w {
-                            let x = bc - 1;
-                            if l0[x] & (LINK_RIGHT | LINK_DOWN) == LINK_RIGHT | LINK_DOWN
-                                && l0[x + 1] & LINK_DOWN != 0
-                                && l1[x] & LINK_RIGHT != 0
-                            {
-                                let q = [self.pos(a + x), self.pos(a + x + 1), self.pos(b + x + 1), self.pos(b + x)];
-                                srow[bc] = COMPLETE | ANY | is_flipped(&q) as u8;
-                                extend(&mut rrow[bc / CHUNK], &q);
-                                continue;
-                            }
-                        }
-                    }
-                    let b = self.block(bc, br);
-                    if b.present == 0 {
-                        continue;
-                    }
-                    debug_assert!(b.links != TOP | BOTTOM | LEFT | RIGHT, "complete blocks are found above");
-                    let s = self.skirts(&b);
-                    let mut byte = ANY;
-                    for k in 0..4 {
-                        if b.present >> k & 1 != 0 {
-                            let q = quarter_corners(&b, &s, k);
-                            byte |= (is_flipped(&q) as u8) << k;
-                            extend(&mut rrow[bc / CHUNK], &q);
-                        }
-                    }
-                    srow[bc] = byte;
+        signs.par_chunks_mut(bw).zip(ranges.par_chunks_mut(nchunks)).enumerate().for_each(|(br, (srow, rrow))| {
+            let extend = |range: &mut [f32; 2], q: &[V2; 4]| {
+                for p in q {
+                    range[0] = if p[1] < range[0] { p[1] } else { range[0] };
+                    range[1] = if p[1] > range[1] { p[1] } else { range[1] };
                 }
+            };
+            // Rows above and below the block row, for the complete quads inside.
+            let rows = (br >= 1 && br < self.h).then(|| {
+                let (a, b) = ((br - 1) * w, br * w);
+                (a, b, &self.links[a..a + w], &self.links[b..b + w])
             });
+            for bc in 0..bw {
+                if let Some((a, b, l0, l1)) = rows {
+                    if bc >= 1 && bc < w {
+                        let x = bc - 1;
+                        if l0[x] & (LINK_RIGHT | LINK_DOWN) == LINK_RIGHT | LINK_DOWN
+                            && l0[x + 1] & LINK_DOWN != 0
+                            && l1[x] & LINK_RIGHT != 0
+                        {
+                            let q = [self.pos(a + x), self.pos(a + x + 1), self.pos(b + x + 1), self.pos(b + x)];
+                            srow[bc] = COMPLETE | ANY | is_flipped(&q) as u8;
+                            extend(&mut rrow[bc / CHUNK], &q);
+                            continue;
+                        }
+                    }
+                }
+                let b = self.block(bc, br);
+                if b.present == 0 {
+                    continue;
+                }
+                debug_assert!(b.links != TOP | BOTTOM | LEFT | RIGHT, "complete blocks are found above");
+                let s = self.skirts(&b);
+                let mut byte = ANY;
+                for k in 0..4 {
+                    if b.present >> k & 1 != 0 {
+                        let q = quarter_corners(&b, &s, k);
+                        byte |= (is_flipped(&q) as u8) << k;
+                        extend(&mut rrow[bc / CHUNK], &q);
+                    }
+                }
+                srow[bc] = byte;
+            }
+        });
         // Mark the quads inside pieces, away from folds.
         let plain = signs.clone();
         signs.par_chunks_mut(bw).enumerate().for_each(|(br, srow)| {
@@ -417,23 +410,17 @@ impl<'a> Layer<'a> {
             );
             for bc in 1..bw - 1 {
                 let kind = here[bc] & (COMPLETE | 1);
-                if here[bc] & COMPLETE != 0
-                    && [above[bc], below[bc], here[bc - 1], here[bc + 1]]
-                        .iter()
-                        .all(|&n| n & (COMPLETE | 1) == kind)
-                {
+                let neighbours = [above[bc], below[bc], here[bc - 1], here[bc + 1]];
+                if here[bc] & COMPLETE != 0 && neighbours.iter().all(|&n| n & (COMPLETE | 1) == kind) {
                     srow[bc] |= SIMPLE;
                 }
             }
         });
-        let row_ranges = ranges
-            .chunks(nchunks)
-            .map(|row| {
-                row.iter().fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], r| {
-                    [if r[0] < lo { r[0] } else { lo }, if r[1] > hi { r[1] } else { hi }]
-                })
+        let row_ranges = ranges.chunks(nchunks).map(|row| {
+            row.iter().fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], r| {
+                [if r[0] < lo { r[0] } else { lo }, if r[1] > hi { r[1] } else { hi }]
             })
-            .collect();
+        }).collect();
         Plan { signs, ranges, nchunks, row_ranges }
     }
 }

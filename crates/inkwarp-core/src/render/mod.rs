@@ -106,12 +106,7 @@ pub fn premultiply(rgba: [u8; 4]) -> [f32; 4] {
     // The integer products are exact in f32; one rounding each.
     const INV: f32 = 1.0 / (255.0 * 255.0);
     let a = rgba[3] as f32;
-    [
-        rgba[0] as f32 * a * INV,
-        rgba[1] as f32 * a * INV,
-        rgba[2] as f32 * a * INV,
-        a * (1.0 / 255.0),
-    ]
+    [rgba[0] as f32 * a * INV, rgba[1] as f32 * a * INV, rgba[2] as f32 * a * INV, a * (1.0 / 255.0)]
 }
 
 /// Premultiplied RGBA in `[0, 1]` → straight 8-bit RGBA, rounding to nearest.
@@ -170,13 +165,7 @@ impl Canvas {
     }
 
     /// [`Canvas::draw_layer`], with an error instead of a panic when the sizes differ.
-    pub fn try_draw_layer(
-        &mut self,
-        image: &RgbaImage,
-        field: &Field,
-        grid: &Grid,
-        offset: [f64; 2],
-    ) -> Result<(), RenderError> {
+    pub fn try_draw_layer(&mut self, image: &RgbaImage, field: &Field, grid: &Grid, offset: [f64; 2]) -> Result<(), RenderError> {
         check_layer(image, field, grid)?;
         raster::draw_layer(self, image, field, grid, offset);
         Ok(())
@@ -187,13 +176,11 @@ impl Canvas {
         use rayon::prelude::*;
         const CHUNK: usize = 1 << 14;
         let mut data = vec![0u8; self.data.len() * 4];
-        data.par_chunks_mut(4 * CHUNK)
-            .zip(self.data.par_chunks(CHUNK))
-            .for_each(|(out, pixels)| {
-                for (o, &p) in out.chunks_exact_mut(4).zip(pixels) {
-                    o.copy_from_slice(&unpremultiply(p));
-                }
-            });
+        data.par_chunks_mut(4 * CHUNK).zip(self.data.par_chunks(CHUNK)).for_each(|(out, pixels)| {
+            for (o, &p) in out.chunks_exact_mut(4).zip(pixels) {
+                o.copy_from_slice(&unpremultiply(p));
+            }
+        });
         RgbaImage { width: self.width, height: self.height, data }
     }
 
@@ -218,10 +205,7 @@ pub struct PreparedLayer<'a> {
 
 impl std::fmt::Debug for PreparedLayer<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("PreparedLayer")
-            .field("width", &self.layer.w)
-            .field("height", &self.layer.h)
-            .finish_non_exhaustive()
+        f.debug_struct("PreparedLayer").field("width", &self.layer.w).field("height", &self.layer.h).finish_non_exhaustive()
     }
 }
 

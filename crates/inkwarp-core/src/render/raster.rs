@@ -480,12 +480,7 @@ impl Band {
         // Neighbouring blocks top, right, bottom, left, and which of their corners are
         // this side's first and second end.
         let signs = &plan.signs;
-        let neighbours = [
-            (signs[bi - bw], 2, 3),
-            (signs[bi + 1], 0, 2),
-            (signs[bi + bw], 1, 0),
-            (signs[bi - 1], 3, 1),
-        ];
+        let neighbours = [(signs[bi - bw], 2, 3), (signs[bi + 1], 0, 2), (signs[bi + bw], 1, 0), (signs[bi - 1], 3, 1)];
         let col = [layer.col(i), layer.col(i + 1), layer.col(i + w), layer.col(i + w + 1)];
         let flipped = byte & 1 != 0;
         let mut outline = [[0.0f32; 2]; 8];

@@ -162,18 +162,12 @@ pub fn draw_view(
         }
     }
     let prepared = if k == 1 {
-        layers
-            .iter()
-            .map(|l| PreparedLayer::new(l.image, l.field.clone(), l.grid, l.offset))
-            .collect::<Result<Vec<_>, _>>()?
+        layers.iter().map(|l| PreparedLayer::new(l.image, l.field.clone(), l.grid, l.offset)).collect::<Result<Vec<_>, _>>()?
     } else {
         let kf = k as f64;
-        layers
-            .iter()
-            .zip(&levels)
-            .zip(fields)
-            .map(|((l, (image, grid)), field)| PreparedLayer::new(image, field, grid, l.offset.map(|o| o / kf)))
-            .collect::<Result<Vec<_>, _>>()?
+        let levelled = layers.iter().zip(&levels).zip(fields);
+        let prepared = levelled.map(|((l, (image, grid)), field)| PreparedLayer::new(image, field, grid, l.offset.map(|o| o / kf)));
+        prepared.collect::<Result<Vec<_>, _>>()?
     };
     if x0 == 0 && x1 == vw {
         return draw_frame(vw, vh, background, &prepared, y0..y1, out);
