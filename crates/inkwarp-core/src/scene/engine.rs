@@ -115,10 +115,7 @@ pub(crate) fn solve_options(solver: &SolverDoc) -> SolveOptions {
         tolerance_px: solver.tolerance,
         grid_step: solver.grid_step as usize,
         max_cycles: solver.max_cycles.map(|c| c as usize),
-        method: match solver.scheme {
-            Scheme::Multigrid => SolveMethod::Multigrid,
-            Scheme::Southwell => SolveMethod::Southwell,
-        },
+        method: match solver.scheme { Scheme::Multigrid => SolveMethod::Multigrid, Scheme::Southwell => SolveMethod::Southwell },
         ..SolveOptions::default()
     }
 }
@@ -352,13 +349,8 @@ impl<'a> Animator<'a> {
 
     /// An animator that applies `overrides` over every layer's own settings.
     pub fn with_overrides(scene: &'a Scene, overrides: SolverOverrides) -> Self {
-        Animator {
-            scene,
-            fields: vec![None; scene.layers().len()],
-            history: (0..scene.layers().len()).map(|_| Solver::new()).collect(),
-            overrides,
-            warnings: Vec::new(),
-        }
+        let n = scene.layers().len();
+        Animator { scene, fields: vec![None; n], history: (0..n).map(|_| Solver::new()).collect(), overrides, warnings: Vec::new() }
     }
 
     /// Forgets the previous fields, so that the next solves are cold.
@@ -366,7 +358,6 @@ impl<'a> Animator<'a> {
         self.fields.iter_mut().for_each(|f| *f = None);
         self.history.iter_mut().for_each(Solver::clear);
     }
-
 
     /// The frame at `time_s`: every drawn layer solved (warm) and composited.
     pub fn render(&mut self, time_s: f64) -> Result<RgbaImage, SceneError> {
@@ -448,17 +439,9 @@ impl FrameStream {
             start = stop;
         }
         let threads = if threads == 0 { default_frame_threads() } else { threads }.min(chains.len());
-        let mut stream = FrameStream {
-            scene,
-            chains,
-            next_chain: 0,
-            sequential: None,
-            overrides,
-            receivers: Vec::new(),
-            workers: Vec::new(),
-            warnings: Vec::new(),
-            failed: false,
-        };
+        let (receivers, workers, warnings) = (Vec::new(), Vec::new(), Vec::new());
+        let mut stream =
+            FrameStream { scene, chains, next_chain: 0, sequential: None, overrides, receivers, warnings, workers, failed: false };
         if threads > 1 {
             stream.start_workers(threads);
         }
@@ -493,13 +476,8 @@ impl FrameStream {
         let next = Arc::new(AtomicUsize::new(0));
         let chains = Arc::new(self.chains.clone());
         for _ in 0..threads {
-            let (scene, senders, next, chains, overrides) = (
-                Arc::clone(&self.scene),
-                Arc::clone(&senders),
-                Arc::clone(&next),
-                Arc::clone(&chains),
-                self.overrides.clone(),
-            );
+            let (scene, senders, next, chains) = (Arc::clone(&self.scene), Arc::clone(&senders), Arc::clone(&next), Arc::clone(&chains));
+            let overrides = self.overrides.clone();
             self.workers.push(std::thread::spawn(move || {
                 let mut animator = Animator::with_overrides(&scene, overrides);
                 loop {
@@ -514,9 +492,7 @@ impl FrameStream {
                     };
                     animator.reset();
                     for i in chains[c].clone() {
-                        let frame = animator
-                            .render(scene.frame_time_s(i))
-                            .map(|image| (i, image, animator.take_warnings()));
+                        let frame = animator.render(scene.frame_time_s(i)).map(|image| (i, image, animator.take_warnings()));
                         let stop = frame.is_err();
                         if tx.send(frame).is_err() || stop {
                             return;
@@ -537,13 +513,9 @@ impl FrameStream {
         let scene = Arc::clone(&self.scene);
         let (range, fields, history) = self.sequential.as_mut()?;
         let i = range.next()?;
-        let mut animator = Animator {
-            scene: &scene,
-            fields: std::mem::take(fields),
-            history: std::mem::take(history),
-            overrides: self.overrides.clone(),
-            warnings: Vec::new(),
-        };
+        let (fields_taken, history_taken) = (std::mem::take(fields), std::mem::take(history));
+        let overrides = self.overrides.clone();
+        let mut animator = Animator { scene: &scene, fields: fields_taken, history: history_taken, overrides, warnings: Vec::new() };
         let frame = animator.render(scene.frame_time_s(i)).map(|image| (i, image));
         self.warnings.extend(animator.take_warnings());
         *fields = animator.fields;
@@ -575,10 +547,7 @@ impl Iterator for FrameStream {
                         (i, image)
                     }))
                 }
-                Err(_) => Some(Err(SceneError::one(
-                    "",
-                    "a rendering thread stopped unexpectedly (this is a bug in inkwarp)",
-                ))),
+                Err(_) => Some(Err(SceneError::one("", "a rendering thread stopped unexpectedly (this is a bug in inkwarp)"))),
             }
         };
         if matches!(item, Some(Err(_))) {

@@ -14,9 +14,7 @@ pub fn is_data_uri(reference: &str) -> bool {
 /// The bytes of a base64 `data:` URI (`data:image/png;base64,...`).
 pub fn data_uri_bytes(uri: &str) -> Result<Vec<u8>, String> {
     let rest = &uri[5..];
-    let comma = rest
-        .find(',')
-        .ok_or("this data: URI has no comma before its data; write data:image/png;base64,<data>")?;
+    let comma = rest.find(',').ok_or("this data: URI has no comma before its data; write data:image/png;base64,<data>")?;
     let (header, payload) = (&rest[..comma], &rest[comma + 1..]);
     if !header.split(';').any(|part| part.eq_ignore_ascii_case("base64")) {
         return Err("only base64 data: URIs are supported; write data:image/png;base64,<data>".to_string());

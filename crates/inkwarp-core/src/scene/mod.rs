@@ -145,7 +145,9 @@ fn parse_json(text: &str) -> Result<Parsed, SceneError> {
 
 /// The outcome of reading a document: the document (when one could be built), every
 /// problem found, and for a document rebuilt without its broken features and layers, where
-/// each kept one was in the original (so later problems get the original paths).
+/// each kept one was in the original (so later problems get the original paths; empty:
+/// the paths are the original ones).
+#[derive(Default)]
 struct Parsed {
     doc: Option<SceneDoc>,
     problems: Vec<Problem>,
@@ -182,13 +184,11 @@ impl Parsed {
 /// Shape check, then typed deserialization, then the meaning check.
 fn parse_value(value: &Value) -> Parsed {
     let (problems, unknown_keys) = shape::check_detailed(value, cached_schema());
-    let mut parsed = Parsed { doc: None, problems, feature_origin: Vec::new(), layer_origin: Vec::new() };
+    let mut parsed = Parsed { problems, ..Parsed::default() };
     if parsed.problems.is_empty() {
         match serde_path_to_error::deserialize::<_, SceneDoc>(value) {
             Ok(doc) => {
                 let problems = validate_doc(&doc);
-                parsed.feature_origin = (0..doc.features.len()).collect();
-                parsed.layer_origin = (0..doc.layers.len()).collect();
                 parsed.doc = Some(doc);
                 parsed.extend(problems);
             }
@@ -234,8 +234,8 @@ fn parse_value(value: &Value) -> Parsed {
         }
         origin
     };
-    let feature_origin = keep(&mut map, "features");
-    let layer_origin = keep(&mut map, "layers");
+    parsed.feature_origin = keep(&mut map, "features");
+    parsed.layer_origin = keep(&mut map, "layers");
     if let Some(Value::Object(solver)) = map.get_mut("solver") {
         // The method settings are objects of their own: drop only their broken keys (the
         // others keep their values for the meaning check), unless the object as a whole
@@ -268,8 +268,6 @@ fn parse_value(value: &Value) -> Parsed {
     }
     map.entry("inkwarp").or_insert(Value::from(FORMAT_VERSION));
     map.entry("layers").or_insert(Value::Array(Vec::new()));
-    parsed.feature_origin = feature_origin;
-    parsed.layer_origin = layer_origin;
     if let Ok(doc) = serde_json::from_value::<SceneDoc>(Value::Object(map)) {
         let problems = validate::validate_doc_knowing(&doc, &set_aside_ids);
         parsed.doc = Some(doc);
@@ -366,12 +364,7 @@ impl Scene {
 
     /// Validates `doc` and loads its images (see [`Scene::from_json`]).
     pub fn resolve(doc: SceneDoc, load: &mut Loader<'_>) -> Result<Scene, SceneError> {
-        let parsed = Parsed {
-            doc: None,
-            problems: validate_doc(&doc),
-            feature_origin: (0..doc.features.len()).collect(),
-            layer_origin: (0..doc.layers.len()).collect(),
-        };
+        let parsed = Parsed { problems: validate_doc(&doc), ..Parsed::default() };
         Self::resolve_with(doc, parsed, load)
     }
 
@@ -386,14 +379,8 @@ impl Scene {
         };
         for (j, layer) in doc.layers.iter().enumerate() {
             let mut slots: [Option<Arc<RgbaImage>>; 3] = [None, None, None];
-            for (slot, (key, reference)) in [
-                ("image", &layer.image),
-                ("alpha", &layer.alpha),
-                ("continuity", &layer.continuity),
-            ]
-            .into_iter()
-            .enumerate()
-            {
+            let references = [("image", &layer.image), ("alpha", &layer.alpha), ("continuity", &layer.continuity)];
+            for (slot, (key, reference)) in references.into_iter().enumerate() {
                 let Some(reference) = reference.as_deref().filter(|r| !r.trim().is_empty()) else {
                     continue;
                 };
@@ -417,16 +404,12 @@ impl Scene {
                 match &size {
                     None => size = Some((image.width, image.height, path.clone())),
                     Some((w, h, from)) if (image.width, image.height) != (*w, *h) => {
-                        problems.push(Problem::new(
-                            &path,
-                            format!(
-                                "{} is {}×{} pixels but the scene is {w}×{h} (from {from}); every \
-                                 image and matte must be the scene's size",
-                                describe_reference(reference),
-                                image.width,
-                                image.height
-                            ),
-                        ));
+                        let (what, iw, ih) = (describe_reference(reference), image.width, image.height);
+                        let why = format!(
+                            "{what} is {iw}×{ih} pixels but the scene is {w}×{h} (from {from}); every image and matte \
+                             must be the scene's size"
+                        );
+                        problems.push(Problem::new(&path, why));
                         continue;
                     }
                     Some(_) => {}
@@ -436,10 +419,7 @@ impl Scene {
             layer_images.push(slots);
         }
         if size.is_none() && !doc.layers.is_empty() {
-            problems.push(Problem::new(
-                "width",
-                "no layer has an image to take the frame size from; set \"width\" and \"height\"",
-            ));
+            problems.push(Problem::new("width", "no layer has an image to take the frame size from; set \"width\" and \"height\""));
         }
         parsed.extend(problems);
         if !parsed.problems.is_empty() {

@@ -161,10 +161,7 @@ impl<'a> Walker<'a> {
                         self.unknown_keys.push(join_key(path, key));
                         self.push(
                             &join_key(path, key),
-                            format!(
-                                "unknown key \"{key}\" in {what}; {hint}the keys of {what} are {}",
-                                valid.join(", ")
-                            ),
+                            format!("unknown key \"{key}\" in {what}; {hint}the keys of {what} are {}", valid.join(", ")),
                         );
                     }
                     None => {}

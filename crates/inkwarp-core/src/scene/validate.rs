@@ -22,14 +22,12 @@ pub fn validate_doc(doc: &SceneDoc) -> Vec<Problem> {
 pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<Problem> {
     let mut p = Vec::new();
     if doc.inkwarp != FORMAT_VERSION {
-        p.push(Problem::new(
-            "inkwarp",
-            format!(
-                "this inkwarp reads scene format {FORMAT_VERSION}, found {}; set \"inkwarp\": \
-                 {FORMAT_VERSION} (and convert the scene if it was written for another format)",
-                doc.inkwarp
-            ),
-        ));
+        let why = format!(
+            "this inkwarp reads scene format {FORMAT_VERSION}, found {}; set \"inkwarp\": {FORMAT_VERSION} (and convert \
+             the scene if it was written for another format)",
+            doc.inkwarp
+        );
+        p.push(Problem::new("inkwarp", why));
     }
     for (key, value) in [("width", doc.width), ("height", doc.height)] {
         if value == Some(0) {
@@ -44,17 +42,11 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
     if !(doc.fps.is_finite() && doc.fps > 0.0) {
         p.push(Problem::new("fps", format!("frames per second must be a number > 0, found {}; use e.g. 24", doc.fps)));
     } else if doc.fps > MAX_FPS {
-        p.push(Problem::new(
-            "fps",
-            format!("frames per second may be at most {MAX_FPS}, found {}; use e.g. 24", doc.fps),
-        ));
+        p.push(Problem::new("fps", format!("frames per second may be at most {MAX_FPS}, found {}; use e.g. 24", doc.fps)));
     }
     if let Some(duration) = doc.duration {
         let why = if !(duration.is_finite() && duration > 0.0) {
-            Some(format!(
-                "the duration must be a number of seconds > 0, found {duration}; \
-                 leave it out to end at the last key"
-            ))
+            Some(format!("the duration must be a number of seconds > 0, found {duration}; leave it out to end at the last key"))
         } else if duration > MAX_TIME_S {
             Some(format!("the duration may be at most {MAX_TIME_S} s, found {}; split a \
                           longer animation into several scenes", limits::show(duration)))
@@ -86,18 +78,14 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
             let (wanted, s) =
                 if point { ("exactly 1".to_string(), "") } else { (format!("at least {}", kind.min_points()), "s") };
             let hint = if point && n > 1 { "; use a polyline or a spline for several points" } else { "" };
-            p.push(Problem::new(
-                format!("{path}.rest"),
-                format!("a {} needs {wanted} control point{s}, found {n}{hint}", kind.name()),
-            ));
+            let why = format!("a {} needs {wanted} control point{s}, found {n}{hint}", kind.name());
+            p.push(Problem::new(format!("{path}.rest"), why));
         }
         check_points(&feature.rest, &format!("{path}.rest"), &mut p);
         if feature.curve.is_some() && kind != Kind::Region {
             let hint = if kind == Kind::Polyline { " (or use kind \"spline\" for a curve)" } else { "" };
-            p.push(Problem::new(
-                format!("{path}.curve"),
-                format!("\"curve\" applies to regions only, this feature is a {}; remove it{hint}", kind.name()),
-            ));
+            let why = format!("\"curve\" applies to regions only, this feature is a {}; remove it{hint}", kind.name());
+            p.push(Problem::new(format!("{path}.curve"), why));
         }
         if feature.closed && point {
             p.push(Problem::new(format!("{path}.closed"), "a point cannot be closed; remove \"closed\""));
@@ -134,13 +122,11 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
             let m = key.points.len();
             if m != n {
                 let s = if m == 1 { "" } else { "s" };
-                p.push(Problem::new(
-                    format!("{key_path}.points"),
-                    format!(
-                        "this key has {m} control point{s} but the feature's rest has {n}; a key lists the \
-                         same control points as rest, in the same order"
-                    ),
-                ));
+                let why = format!(
+                    "this key has {m} control point{s} but the feature's rest has {n}; a key lists the same control points \
+                     as rest, in the same order"
+                );
+                p.push(Problem::new(format!("{key_path}.points"), why));
             }
             check_points(&key.points, &format!("{key_path}.points"), &mut p);
         }
@@ -148,10 +134,8 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
 
     // Layers.
     if doc.layers.is_empty() {
-        p.push(Problem::new(
-            "layers",
-            "a scene needs at least one layer; add one such as {\"name\": \"main\", \"image\": \"picture.png\"}",
-        ));
+        let why = "a scene needs at least one layer; add one such as {\"name\": \"main\", \"image\": \"picture.png\"}";
+        p.push(Problem::new("layers", why));
     }
     let mut first_with_name: HashMap<&str, usize> = HashMap::new();
     for (j, layer) in doc.layers.iter().enumerate() {
@@ -159,18 +143,14 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
         check_unique(&layer.name, j, ("layer", "name", "layers"), &mut first_with_name, &mut p);
         for (c, v) in layer.offset.iter().enumerate() {
             if !limits::coordinate_ok(*v) {
-                p.push(Problem::new(
-                    format!("{path}.offset[{c}]"),
-                    format!("the offset must be a finite number of pixels within ±{MAX_COORD_PX:e}, found {}", limits::show(*v)),
-                ));
+                let why = format!("the offset must be a finite number of pixels within ±{MAX_COORD_PX:e}, found {}", limits::show(*v));
+                p.push(Problem::new(format!("{path}.offset[{c}]"), why));
             }
         }
         for (key, reference) in [("image", &layer.image), ("alpha", &layer.alpha), ("continuity", &layer.continuity)] {
             if reference.as_ref().is_some_and(|r| r.trim().is_empty()) {
-                p.push(Problem::new(
-                    format!("{path}.{key}"),
-                    "an empty image reference; give a path relative to the scene file or a data: URI",
-                ));
+                let why = "an empty image reference; give a path relative to the scene file or a data: URI";
+                p.push(Problem::new(format!("{path}.{key}"), why));
             }
         }
         if let Some(ids) = &layer.features {
@@ -180,9 +160,8 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                 if other_ids.contains(id) {
                     continue;
                 } else if !first_with_id.contains_key(id.as_str()) {
-                    let hint = did_you_mean(id, doc.features.iter().map(|f| f.id.as_str()))
-                        .map(|s| format!("did you mean \"{s}\"? "))
-                        .unwrap_or_default();
+                    let hint = did_you_mean(id, doc.features.iter().map(|f| f.id.as_str()));
+                    let hint = hint.map(|s| format!("did you mean \"{s}\"? ")).unwrap_or_default();
                     let ids = doc.features.iter().map(|f| f.id.as_str());
                     let known: Vec<&str> = ids.chain(other_ids.iter().map(String::as_str)).collect();
                     let known = if known.is_empty() {
