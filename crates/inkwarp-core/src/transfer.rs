@@ -200,10 +200,7 @@ fn runs_against(source: &TransferFeature, target: &TransferFeature, linear: [[f6
 /// assert!((c[0] - 2.0).abs() < 1e-9 && (c[1] - 24.0).abs() < 1e-9);
 /// assert!(keys[3].is_none());
 /// ```
-pub fn transfer_keys(
-    source: &[TransferFeature],
-    target: &[TransferFeature],
-) -> Result<Vec<Option<Vec<Vec<Point>>>>, TransferError> {
+pub fn transfer_keys(source: &[TransferFeature], target: &[TransferFeature]) -> Result<Vec<Option<Vec<Vec<Point>>>>, TransferError> {
     let (map, pairs) = rest_map(source, target)?;
     let mut out: Vec<Option<Vec<Vec<Point>>>> = vec![None; target.len()];
     for (si, ti) in pairs {

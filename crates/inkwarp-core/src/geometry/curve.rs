@@ -257,12 +257,7 @@ fn catmull_rom_span(a: Point, b: Point, c: Point, d: Point) -> Span {
 pub fn hermite_basis(u: f64) -> [f64; 4] {
     let u2 = u * u;
     let u3 = u2 * u;
-    [
-        2.0 * u3 - 3.0 * u2 + 1.0,
-        u3 - 2.0 * u2 + u,
-        u3 - u2,
-        -2.0 * u3 + 3.0 * u2,
-    ]
+    [2.0 * u3 - 3.0 * u2 + 1.0, u3 - 2.0 * u2 + u, u3 - u2, -2.0 * u3 + 3.0 * u2]
 }
 
 #[inline]
@@ -306,11 +301,7 @@ const GL_WEIGHTS: [f64; 5] = [
 fn gauss_length(s: &Span, a: f64, b: f64) -> f64 {
     let half = 0.5 * (b - a);
     let mid = 0.5 * (a + b);
-    half * GL_NODES
-        .iter()
-        .zip(GL_WEIGHTS)
-        .map(|(&x, w)| w * speed(s, mid + half * x))
-        .sum::<f64>()
+    half * GL_NODES.iter().zip(GL_WEIGHTS).map(|(&x, w)| w * speed(s, mid + half * x)).sum::<f64>()
 }
 
 /// How many equal parameter sub-intervals the quadrature of a span uses: enough that each

@@ -120,12 +120,7 @@ impl MeanValueInterpolator {
     }
 
     /// The mean value weights of `x` before normalisation, and their sum.
-    pub(crate) fn unnormalized_weights_at(
-        &self,
-        x: Point,
-        scratch: &mut MvcScratch,
-        weights: &mut [f64],
-    ) -> Option<f64> {
+    pub(crate) fn unnormalized_weights_at(&self, x: Point, scratch: &mut MvcScratch, weights: &mut [f64]) -> Option<f64> {
         let m = self.len();
         assert_eq!(weights.len(), m, "one weight per vertex");
         if m == 0 || !self.tangents(x, scratch) {

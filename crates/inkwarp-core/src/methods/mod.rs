@@ -342,9 +342,7 @@ pub fn note_ignored_matte(report: &mut MethodReport, grid: &Grid) {
     if crate::grid::torn(grid.width, &grid.active, &grid.link_right, &grid.link_down) {
         report.ignored_matte = true;
         let method = report.method.map_or("the method", Method::name);
-        report.notes.push(format!(
-            "{method} ignores the continuity matte and cuts: its surface is continuous across holes."
-        ));
+        report.notes.push(format!("{method} ignores the continuity matte and cuts: its surface is continuous across holes."));
     }
 }
 

@@ -91,11 +91,7 @@ pub fn method_params(solver: &SolverDoc) -> MethodParams {
 /// The drawing of `doc` posed at `time_s`, for overlays: per feature its id, kind and its
 /// curve as a polyline every `spacing_px` (a point feature as its one position; a cut at
 /// its rest geometry, which never moves).
-pub fn posed_drawing(
-    doc: &crate::scene::SceneDoc,
-    time_s: f64,
-    spacing_px: f64,
-) -> Vec<(String, Kind, Vec<crate::geometry::Point>)> {
+pub fn posed_drawing(doc: &crate::scene::SceneDoc, time_s: f64, spacing_px: f64) -> Vec<(String, Kind, Vec<crate::geometry::Point>)> {
     let posed = |f: &crate::scene::FeatureDoc| {
         let pose = if f.kind == Kind::Cut { f.rest.clone() } else { crate::anim::points_at(&f.rest, &f.keys, time_s) };
         // (A point's polyline is its one position.)

@@ -32,12 +32,7 @@ impl HasPosition for Vertex {
 ///
 /// A pixel centre on an edge shared by two triangles gets the same value from both
 /// (the interpolant is continuous), so the raster order does not matter.
-pub fn triangulation_field(
-    samples: &[Sample],
-    width: usize,
-    height: usize,
-    report: &mut MethodReport,
-) -> Result<Field, MethodError> {
+pub fn triangulation_field(samples: &[Sample], width: usize, height: usize, report: &mut MethodReport) -> Result<Field, MethodError> {
     let (mut merged, dropped) = merge_samples(samples);
     report.samples_given = samples.len();
     report.dropped = dropped;
