@@ -67,16 +67,15 @@ impl Curve {
     /// span stays at its point, and its neighbours meet it with zero tangent.
     pub fn spline(points: &[Point], closed: bool) -> Self {
         let n = points.len();
+        // `q` reflected through `p`
+        let reflect = |p: Point, q: Point| [2.0 * p[0] - q[0], 2.0 * p[1] - q[1]];
         let at = |i: isize| -> Point {
             if closed {
                 points[i.rem_euclid(n as isize) as usize]
             } else if i < 0 {
-                // reflection of P(1) through P(0)
-                let (p0, p1) = (points[0], points[1.min(n - 1)]);
-                [2.0 * p0[0] - p1[0], 2.0 * p0[1] - p1[1]]
+                reflect(points[0], points[1.min(n - 1)])
             } else if i as usize >= n {
-                let (pl, pm) = (points[n - 1], points[n.saturating_sub(2)]);
-                [2.0 * pl[0] - pm[0], 2.0 * pl[1] - pm[1]]
+                reflect(points[n - 1], points[n.saturating_sub(2)])
             } else {
                 points[i as usize]
             }

@@ -245,13 +245,10 @@ pub fn sample_feature(
 /// The samples of a curve: the rest curve's points at its sample parameters, each with
 /// the displacement to the posed curve's point at the same parameter.
 fn curve_samples(rest: &Curve, pose: &Curve, spacing: f64) -> Vec<Sample> {
-    rest.sample_parameters(spacing)
-        .into_iter()
-        .map(|p| {
-            let r = rest.point_at(p.span, p.u);
-            Sample { rest: r, displacement: sub(pose.point_at(p.span, p.u), r) }
-        })
-        .collect()
+    rest.sample_parameters(spacing).into_iter().map(|p| {
+        let r = rest.point_at(p.span, p.u);
+        Sample { rest: r, displacement: sub(pose.point_at(p.span, p.u), r) }
+    }).collect()
 }
 
 /// `spacing`, when it is positive and finite.

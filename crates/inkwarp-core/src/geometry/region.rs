@@ -288,13 +288,10 @@ pub(crate) fn interior_samples(vertices: Vec<Point>, values: Vec<Point>, grid: &
 /// `f` of each item that gives a value, in order, evaluated in parallel chunks that each
 /// have their own scratch space.
 pub(crate) fn par_map<I: Sync, T: Send>(items: &[I], f: impl Fn(&I, &mut MvcScratch) -> Option<T> + Sync) -> Vec<T> {
-    let pieces: Vec<Vec<T>> = items
-        .par_chunks(256)
-        .map(|chunk| {
-            let mut scratch = MvcScratch::default();
-            chunk.iter().filter_map(|item| f(item, &mut scratch)).collect()
-        })
-        .collect();
+    let pieces: Vec<Vec<T>> = items.par_chunks(256).map(|chunk| {
+        let mut scratch = MvcScratch::default();
+        chunk.iter().filter_map(|item| f(item, &mut scratch)).collect()
+    }).collect();
     pieces.into_iter().flatten().collect()
 }
 

@@ -55,16 +55,9 @@ pub struct FeatureSampler {
 enum Interior {
     None,
     /// `displacement(node) = Σ_k coefficients[node·width + k] · basis_change_k(pose)`.
-    Coefficients {
-        nodes: Vec<Point>,
-        coefficients: Vec<f32>,
-        width: usize,
-    },
+    Coefficients { nodes: Vec<Point>, coefficients: Vec<f32>, width: usize },
     /// Mean value coordinates evaluated per pose over the outline polygon.
-    Direct {
-        nodes: Vec<Point>,
-        vertices: Vec<Point>,
-    },
+    Direct { nodes: Vec<Point>, vertices: Vec<Point> },
 }
 
 impl FeatureSampler {
@@ -141,44 +134,41 @@ impl FeatureSampler {
                 r.end = j + 1;
             }
         }
-        let pieces: Vec<(Vec<Point>, Vec<f32>)> = nodes
-            .par_chunks(256)
-            .map(|chunk| {
-                let mut scratch = MvcScratch::default();
-                let mut weights = vec![0.0; vertices.len()];
-                let mut row = vec![0.0f64; width];
-                let mut kept = Vec::with_capacity(chunk.len());
-                let mut coefficients = Vec::with_capacity(chunk.len() * width);
-                for n in chunk {
-                    let x = [n[0] as f64, n[1] as f64];
-                    let Some(sum) = mvc.unnormalized_weights_at(x, &mut scratch, &mut weights)
-                    else {
-                        continue;
-                    };
-                    if self.spline {
-                        // each outline sample's weight spread over its span's Hermite data
-                        row.iter_mut().for_each(|c| *c = 0.0);
-                        for (i, range) in spans.iter().enumerate() {
-                            let mut acc = [0.0; 4];
-                            for (&w, h) in weights[range.clone()].iter().zip(&self.hermite[range.clone()]) {
-                                for k in 0..4 {
-                                    acc[k] += w * h[k];
-                                }
+        let pieces: Vec<(Vec<Point>, Vec<f32>)> = nodes.par_chunks(256).map(|chunk| {
+            let mut scratch = MvcScratch::default();
+            let mut weights = vec![0.0; vertices.len()];
+            let mut row = vec![0.0f64; width];
+            let mut kept = Vec::with_capacity(chunk.len());
+            let mut coefficients = Vec::with_capacity(chunk.len() * width);
+            for n in chunk {
+                let x = [n[0] as f64, n[1] as f64];
+                let Some(sum) = mvc.unnormalized_weights_at(x, &mut scratch, &mut weights)
+                else {
+                    continue;
+                };
+                if self.spline {
+                    // each outline sample's weight spread over its span's Hermite data
+                    row.iter_mut().for_each(|c| *c = 0.0);
+                    for (i, range) in spans.iter().enumerate() {
+                        let mut acc = [0.0; 4];
+                        for (&w, h) in weights[range.clone()].iter().zip(&self.hermite[range.clone()]) {
+                            for k in 0..4 {
+                                acc[k] += w * h[k];
                             }
-                            row[i] += acc[0];
-                            row[s + i] += acc[1];
-                            row[2 * s + i] += acc[2];
-                            row[(i + 1) % s] += acc[3];
                         }
-                        coefficients.extend(row.iter().map(|&c| (c / sum) as f32));
-                    } else {
-                        coefficients.extend(weights.iter().map(|&w| (w / sum) as f32));
+                        row[i] += acc[0];
+                        row[s + i] += acc[1];
+                        row[2 * s + i] += acc[2];
+                        row[(i + 1) % s] += acc[3];
                     }
-                    kept.push(x);
+                    coefficients.extend(row.iter().map(|&c| (c / sum) as f32));
+                } else {
+                    coefficients.extend(weights.iter().map(|&w| (w / sum) as f32));
                 }
-                (kept, coefficients)
-            })
-            .collect();
+                kept.push(x);
+            }
+            (kept, coefficients)
+        }).collect();
         let (nodes, coefficients): (Vec<Vec<Point>>, Vec<Vec<f32>>) = pieces.into_iter().unzip();
         Interior::Coefficients { nodes: nodes.concat(), coefficients: coefficients.concat(), width }
     }
@@ -226,21 +216,19 @@ impl FeatureSampler {
             Interior::Coefficients { nodes, coefficients, width } => {
                 let change = self.basis_change(pose, &posed);
                 debug_assert_eq!(change.len(), *width);
-                let pieces: Vec<Vec<Sample>> = nodes
-                    .par_chunks(1024)
-                    .zip(coefficients.par_chunks(1024 * width))
+                let chunks = nodes.par_chunks(1024).zip(coefficients.par_chunks(1024 * width));
+                let pieces: Vec<Vec<Sample>> = chunks
                     .map(|(ns, cs)| {
-                        ns.iter()
-                            .zip(cs.chunks_exact(*width))
-                            .map(|(&rest, row)| {
-                                let (mut dx, mut dy) = (0.0, 0.0);
-                                for (&c, b) in row.iter().zip(&change) {
-                                    dx += c as f64 * b[0];
-                                    dy += c as f64 * b[1];
-                                }
-                                Sample { rest, displacement: [dx, dy] }
-                            })
-                            .collect()
+                        let rows = ns.iter().zip(cs.chunks_exact(*width));
+                        rows.map(|(&rest, row)| {
+                            let (mut dx, mut dy) = (0.0, 0.0);
+                            for (&c, b) in row.iter().zip(&change) {
+                                dx += c as f64 * b[0];
+                                dy += c as f64 * b[1];
+                            }
+                            Sample { rest, displacement: [dx, dy] }
+                        })
+                        .collect()
                     })
                     .collect();
                 out.extend(pieces.into_iter().flatten());
@@ -267,15 +255,10 @@ impl FeatureSampler {
         let mut change: Vec<Point> = self.rest.iter().zip(pose).map(|(&r, &p)| sub(p, r)).collect();
         if self.spline {
             let rest = self.rest_curve.as_ref().expect("curves have a rest curve");
-            let (mut t0, mut t1) = (Vec::with_capacity(s), Vec::with_capacity(s));
-            for i in 0..s {
-                let [_, a0, a1, _] = rest.span_hermite(i);
-                let [_, b0, b1, _] = posed.span_hermite(i);
-                t0.push(sub(b0, a0));
-                t1.push(sub(b1, a1));
+            // the start tangents' changes, then the end tangents'
+            for k in [1, 2] {
+                change.extend((0..s).map(|i| sub(posed.span_hermite(i)[k], rest.span_hermite(i)[k])));
             }
-            change.extend(t0);
-            change.extend(t1);
         }
         change
     }

@@ -40,9 +40,8 @@ pub(crate) fn solve_dense(a: Vec<f64>, n: usize, b: Vec<f64>, nrhs: usize) -> Re
             return Err(SingularPivot { row: k, pivot: f64::NAN });
         }
         // Partial pivoting: the largest entry of column k at or below the diagonal.
-        let (p, pv) = (k..n)
-            .map(|i| (i, m[i * cols + k].abs()))
-            .fold((k, -1.0), |best, cur| if cur.1 > best.1 { cur } else { best });
+        let column = (k..n).map(|i| (i, m[i * cols + k].abs()));
+        let (p, pv) = column.fold((k, -1.0), |best, cur| if cur.1 > best.1 { cur } else { best });
         if pv.is_nan() || pv <= tiny {
             return Err(SingularPivot { row: k, pivot: pv.max(0.0) });
         }

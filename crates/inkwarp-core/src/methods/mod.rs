@@ -42,7 +42,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::field::Field;
-use crate::geometry::{Point, Sample};
+use crate::geometry::{sub, Point, Sample};
 use crate::grid::Grid;
 
 pub use beier_neely::{beier_neely_field, BeierNeelyParams};
@@ -146,10 +146,7 @@ pub struct LinePair {
 impl LinePair {
     /// The two end points as samples (rest position and displacement).
     pub fn end_samples(&self) -> [Sample; 2] {
-        let s = |i: usize| Sample {
-            rest: self.rest[i],
-            displacement: [self.pose[i][0] - self.rest[i][0], self.pose[i][1] - self.rest[i][1]],
-        };
+        let s = |i: usize| Sample { rest: self.rest[i], displacement: sub(self.pose[i], self.rest[i]) };
         [s(0), s(1)]
     }
 }
@@ -380,18 +377,15 @@ pub(crate) fn merge_samples(samples: &[Sample]) -> (Vec<Sample>, usize) {
         samples.iter().copied().filter(|s| is_finite_point(s.rest) && is_finite_point(s.displacement)).collect();
     let dropped = samples.len() - finite.len();
     finite.sort_by(|a, b| a.rest[0].total_cmp(&b.rest[0]).then(a.rest[1].total_cmp(&b.rest[1])));
-    let merged = finite
-        .chunk_by(|a, b| a.rest == b.rest)
-        .map(|group| {
-            let (mut sx, mut sy) = (0.0, 0.0);
-            for s in group {
-                sx += s.displacement[0];
-                sy += s.displacement[1];
-            }
-            let n = group.len() as f64;
-            Sample { rest: group[0].rest, displacement: [sx / n, sy / n] }
-        })
-        .collect();
+    let merged = finite.chunk_by(|a, b| a.rest == b.rest).map(|group| {
+        let (mut sx, mut sy) = (0.0, 0.0);
+        for s in group {
+            sx += s.displacement[0];
+            sy += s.displacement[1];
+        }
+        let n = group.len() as f64;
+        Sample { rest: group[0].rest, displacement: [sx / n, sy / n] }
+    }).collect();
     (merged, dropped)
 }
 

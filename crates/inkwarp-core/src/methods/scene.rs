@@ -2,7 +2,7 @@
 //! features at a time (the scene engine's dispatch for every method but `tps`).
 
 use super::{line_pairs_from_chain, BeierNeelyParams, Controls, Interpolant, MethodParams};
-use crate::geometry::{sample_feature, Kind, Sample, SampleOptions};
+use crate::geometry::{sample_feature, sub, Kind, Point, Sample, SampleOptions};
 use crate::scene::{BeierNeelyDoc, FeatureSamples, Scene, SolverDoc};
 
 /// Beier–Neely segments along a spline (or a spline region outline) are about this long:
@@ -47,12 +47,8 @@ pub fn feature_controls(
             }
             Kind::Polyline | Kind::Region => {
                 let pose = scene.pose_at(f.feature, time_s);
-                let vertices: Vec<Sample> = feature
-                    .rest
-                    .iter()
-                    .zip(&pose)
-                    .map(|(r, p)| Sample { rest: *r, displacement: [p[0] - r[0], p[1] - r[1]] })
-                    .collect();
+                let moved = |(&r, &p): (&Point, &Point)| Sample { rest: r, displacement: sub(p, r) };
+                let vertices: Vec<Sample> = feature.rest.iter().zip(&pose).map(moved).collect();
                 controls.line_pairs.extend(line_pairs_from_chain(&vertices, closed && vertices.len() > 2, 0.0));
             }
         }
@@ -91,7 +87,7 @@ pub fn method_params(solver: &SolverDoc) -> MethodParams {
 /// The drawing of `doc` posed at `time_s`, for overlays: per feature its id, kind and its
 /// curve as a polyline every `spacing_px` (a point feature as its one position; a cut at
 /// its rest geometry, which never moves).
-pub fn posed_drawing(doc: &crate::scene::SceneDoc, time_s: f64, spacing_px: f64) -> Vec<(String, Kind, Vec<crate::geometry::Point>)> {
+pub fn posed_drawing(doc: &crate::scene::SceneDoc, time_s: f64, spacing_px: f64) -> Vec<(String, Kind, Vec<Point>)> {
     let posed = |f: &crate::scene::FeatureDoc| {
         let pose = if f.kind == Kind::Cut { f.rest.clone() } else { crate::anim::points_at(&f.rest, &f.keys, time_s) };
         // (A point's polyline is its one position.)

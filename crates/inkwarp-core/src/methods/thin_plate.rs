@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use super::linalg::solve_dense;
 use super::{is_finite_point, merge_samples, MethodError, MethodReport};
 use crate::field::Field;
-use crate::geometry::{Point, Sample};
+use crate::geometry::{sub, Point, Sample};
 
 /// How many samples `tps-exact` fits at most by default. The fit costs `O(n³)` and the
 /// evaluation `O(n)` per pixel, so a 513 × 513 field from 1000 samples takes about a
@@ -86,11 +86,8 @@ impl ThinPlateMap {
                 return Err(MethodError::NonFinite { which, index, x: p[0], y: p[1] });
             }
         }
-        let samples: Vec<Sample> = source_points
-            .iter()
-            .zip(target_points)
-            .map(|(s, t)| Sample { rest: *s, displacement: [t[0] - s[0], t[1] - s[1]] })
-            .collect();
+        let pairs = source_points.iter().zip(target_points);
+        let samples: Vec<Sample> = pairs.map(|(&s, &t)| Sample { rest: s, displacement: sub(t, s) }).collect();
         Ok(Self::fit_samples(&samples, usize::MAX)?.0)
     }
 
@@ -134,10 +131,7 @@ impl ThinPlateMap {
         let origin = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
         let half = ((hi[0] - lo[0]).max(hi[1] - lo[1])) / 2.0;
         let scale = if half > 0.0 { half } else { 1.0 };
-        let q: Vec<[f64; 2]> = samples
-            .iter()
-            .map(|s| [(s.rest[0] - origin[0]) / scale, (s.rest[1] - origin[1]) / scale])
-            .collect();
+        let q: Vec<[f64; 2]> = samples.iter().map(|s| [(s.rest[0] - origin[0]) / scale, (s.rest[1] - origin[1]) / scale]).collect();
 
         // The polynomial part spans what the points can pin: constants for one position,
         // constants and the coordinate along the line for collinear positions, the full

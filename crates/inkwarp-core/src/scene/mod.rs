@@ -385,14 +385,11 @@ impl Scene {
                     continue;
                 };
                 let path = format!("layers[{j}].{key}");
-                let result = decoded
-                    .entry(reference.to_string())
-                    .or_insert_with(|| {
-                        let uri = images::is_data_uri(reference);
-                        let bytes = if uri { images::data_uri_bytes(reference) } else { load(reference) };
-                        bytes.and_then(|b| images::decode_image(&b)).map(Arc::new)
-                    })
-                    .clone();
+                let result = decoded.entry(reference.to_string()).or_insert_with(|| {
+                    let uri = images::is_data_uri(reference);
+                    let bytes = if uri { images::data_uri_bytes(reference) } else { load(reference) };
+                    bytes.and_then(|b| images::decode_image(&b)).map(Arc::new)
+                }).clone();
                 let image = match result {
                     Ok(image) => image,
                     Err(why) => {

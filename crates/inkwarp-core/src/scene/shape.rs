@@ -154,9 +154,7 @@ impl<'a> Walker<'a> {
                     }
                     None if closed => {
                         let names = properties.keys().map(String::as_str);
-                        let hint = did_you_mean(key, names.clone())
-                            .map(|s| format!("did you mean \"{s}\"? "))
-                            .unwrap_or_default();
+                        let hint = did_you_mean(key, names.clone()).map(|s| format!("did you mean \"{s}\"? ")).unwrap_or_default();
                         let valid: Vec<&str> = names.collect();
                         self.unknown_keys.push(join_key(path, key));
                         self.push(
