@@ -410,8 +410,9 @@ impl<'a> Layer<'a> {
             );
             for bc in 1..bw - 1 {
                 let kind = here[bc] & (COMPLETE | 1);
-                let neighbours = [above[bc], below[bc], here[bc - 1], here[bc + 1]];
-                if here[bc] & COMPLETE != 0 && neighbours.iter().all(|&n| n & (COMPLETE | 1) == kind) {
+                if here[bc] & COMPLETE != 0
+                    && [above[bc], below[bc], here[bc - 1], here[bc + 1]].iter().all(|&n| n & (COMPLETE | 1) == kind)
+                {
                     srow[bc] |= SIMPLE;
                 }
             }
