@@ -280,12 +280,13 @@ def test_three_close_points_on_a_piece_of_many_cuts_small_displacements():
     assert float(np.abs(field - tight).max()) < TOLERANCE_PX
 
 
-@pytest.mark.parametrize("scale, seed", [(4, 3), (2, 38)])
+@pytest.mark.parametrize("scale, seed", [(4, 3), (2, 38), (2, 49)])
 def test_a_slow_solve_looks_for_hidden_modes_before_it_stops(scale, seed):
     # Float cuts at a fiftieth of the displacements: a piece's slow mode (a part bounded by
     # cuts, nearly rigid) barely shows in the residual, and the changes fell below the
-    # tolerance while its error stayed (converged=True 0.118 and 0.061 px off). A solve
-    # past the deflation's start now stops only after its first look at the slow modes.
+    # tolerance while its error stayed (converged=True 0.118, 0.061 and 0.092 px off). A
+    # solve past the deflation's start now stops only after its second look at the slow
+    # modes (seed 49's wedge is not in the first window's directions).
     pts, disp, cuts = random_cuts(seed, False, scale)
     disp = disp * 0.02
     shape = (64 * scale, 64 * scale)

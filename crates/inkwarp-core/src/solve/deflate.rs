@@ -30,6 +30,9 @@ use super::level::{Level, Real, V2, W2, WS};
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
+/// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop
+/// (see [`Deflation::rate_floor`]).
+const LOOKS: usize = 2;
 /// Ritz vectors kept (`docs/dev/ablation.md`, "Tenth change").
 const KEEP: usize = 8;
 /// Most bytes the kept vectors may take.
@@ -40,7 +43,7 @@ const CHUNK: usize = 4096;
 #[derive(Default)]
 pub(super) struct Deflation {
     on: bool,
-    /// Stops wait for the first look at the kept directions (see [`Deflation::rate_floor`]).
+    /// Stops wait for [`LOOKS`] looks at the kept directions (see [`Deflation::rate_floor`]).
     wait: bool,
     keep: usize,
     /// The window's directions, one scalar vector per component and cycle.
@@ -255,9 +258,10 @@ impl Deflation {
     /// short, and its smallest Ritz value overestimates what is left; modes deflated two
     /// windows ago no longer count). A slow mode the changes do not show yet still shows in
     /// the spectrum. On a torn piece (`wait`), a solve slow enough to keep directions gets
-    /// 1 (no stop) until their first Rayleigh–Ritz step: there a mode the residual hides (a
-    /// part bounded by cuts, nearly rigid) can stall the changes while its error stays, and
-    /// that step is the first chance to find it.
+    /// 1 (no stop) until their [`LOOKS`]th Rayleigh–Ritz step: there a mode the residual
+    /// hides (a part bounded by cuts, nearly rigid) can stall the changes while its error
+    /// stays, and the first window's directions may not hold it yet: the Krylov space
+    /// reaches it a few cycles later.
     pub fn rate_floor(&mut self) -> f64 {
         for st in self.steps.iter().filter(|st| st.len() >= 2) {
             // T_jj = 1/α_j + β_{j−1}/α_{j−1}, T_{j−1,j} = √β_{j−1}/α_{j−1}.
@@ -269,7 +273,7 @@ impl Deflation {
                 self.high = self.high.max(hi);
             }
         }
-        if self.wait && self.on && self.restarts == 0 && !self.v.is_empty() {
+        if self.wait && self.on && self.restarts < LOOKS && (self.restarts > 0 || !self.v.is_empty()) {
             return 1.0;
         }
         let low = self.low.min(self.before);
