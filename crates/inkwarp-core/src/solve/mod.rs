@@ -224,10 +224,7 @@ pub(crate) fn solve_with(
 /// Public for callers that move large arrays around a solve (the Python binding converts
 /// the answer to numpy's layout): run there too, their parallel passes share the pool.
 pub fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
-    if rayon::current_thread_index().is_some() {
-        return f();
-    }
-    rayon::scope(|_| f())
+    if rayon::current_thread_index().is_some() { f() } else { rayon::scope(|_| f()) }
 }
 
 pub(crate) fn validate(grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>) -> Result<(), SolveError> {
@@ -254,10 +251,7 @@ pub(crate) fn validate(grid: &Grid, samples: &[Sample], options: &SolveOptions, 
         return Err(SolveError::InitialLength { got: f.values(), want: 2 * w * h, w, h });
     }
     // In parallel: every warm solve from Python reads its start here first.
-    if !f.all_finite() {
-        return Err(SolveError::NonFiniteInitial);
-    }
-    Ok(())
+    if f.all_finite() { Ok(()) } else { Err(SolveError::NonFiniteInitial) }
 }
 
 /// What the τ → 0⁺ rule makes of a connected piece.
@@ -274,8 +268,7 @@ enum Piece {
 pub(crate) fn solve_constrained(
     grid: &Grid, constraints: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, store: &mut Store,
 ) -> (Field, SolveReport) {
-    let (w, h) = (grid.width, grid.height);
-    let tau = options.tension;
+    let (w, h, tau) = (grid.width, grid.height, options.tension);
     let (constrained_nodes, constrained_samples) = (constraints.len(), constraints.used_samples);
     let dropped_samples = constraints.dropped_samples;
     let mut report = SolveReport { constrained_nodes, constrained_samples, dropped_samples, converged: true, ..Default::default() };
@@ -288,9 +281,7 @@ pub(crate) fn solve_constrained(
     let (labels, count, open) = grid.pieces_and_open();
     // Constraints by piece (their mean: a one-line piece's gauge value without a warm start).
     let mut by_piece: Vec<Vec<usize>> = vec![Vec::new(); count];
-    for (k, &i) in constraints.nodes.iter().enumerate() {
-        by_piece[labels[i] as usize].push(k);
-    }
+    constraints.nodes.iter().enumerate().for_each(|(k, &i)| by_piece[labels[i] as usize].push(k));
     let pieces = classify(grid, &labels, &by_piece, constraints, tau);
     let mut field = Field::zeros(w, h);
 
@@ -507,7 +498,6 @@ fn solve_piece(
 ) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport::default();
-    // The hierarchy kept for `key`, taken out.
     let kept = if options.off.has("cache") { None } else { store.hierarchies.iter().rposition(|(k, _)| *k == key) };
     let mut hier = kept.map(|pos| store.hierarchies.remove(pos).1).unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
@@ -770,9 +760,7 @@ pub struct Solver {
 }
 
 impl Solver {
-    pub fn new() -> Solver {
-        Solver::default()
-    }
+    pub fn new() -> Solver { Solver::default() }
 
     /// [`solve`] from `initial`, keeping what the next solve can reuse (not the history).
     pub fn solve(
@@ -795,23 +783,6 @@ impl Solver {
     /// floats). The values are the full field's up to the rounding of the sums' order (a few
     /// units in the last place of `f32`). `plan` must have been built for `grid` and
     /// `options.grid_step`.
-    ///
-    /// ```
-    /// use inkwarp_core::{solve::{SolveOptions, Solver, Upsampling}, Grid, Sample};
-    /// let grid = Grid::new(64, 48);
-    /// let s = |x, y, dx, dy| Sample { rest: [x, y], displacement: [dx, dy] };
-    /// let samples = [s(10.0, 10.0, 2.0, 0.0), s(50.0, 30.0, 0.0, -1.0), s(20.0, 40.0, 1.0, 1.0)];
-    /// let options = SolveOptions { grid_step: 4, ..Default::default() };
-    /// let plan = Upsampling::new(&grid, 4);
-    /// let pixels = [0u32, 64 * 20 + 33, 64 * 48 - 1];
-    /// let mut out = [0.0f32; 6];
-    /// Solver::new().solve_warm_at(&grid, &samples, &options, &plan, &pixels, &mut out).unwrap();
-    /// let (field, _) = Solver::new().solve_warm(&grid, &samples, &options, None).unwrap();
-    /// for (k, &p) in pixels.iter().enumerate() {
-    ///     assert!((out[2 * k] - field.dx[p as usize]).abs() < 1e-5);
-    ///     assert!((out[2 * k + 1] - field.dy[p as usize]).abs() < 1e-5);
-    /// }
-    /// ```
     pub fn solve_warm_at(
         &mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions, plan: &Upsampling, pixels: &[u32], out: &mut [f32],
     ) -> Result<SolveReport, SolveError> {
@@ -819,9 +790,7 @@ impl Solver {
     }
 
     /// The earlier solves a warm solve starts from.
-    pub fn history(&self) -> &WarmHistory {
-        &self.history
-    }
+    pub fn history(&self) -> &WarmHistory { &self.history }
 
     /// Forgets the history (the next warm solve starts cold). The hierarchies stay: they
     /// never change an answer, only how soon it comes.
@@ -861,14 +830,11 @@ impl Store {
 const STOP_MARGIN: f64 = 1.5;
 /// The same on grids with holes or cuts, where the slowest error moves least per cycle.
 const TORN_STOP_MARGIN: f64 = 3.0;
-
 /// The largest block of free functions whose settling is applied to every cycle's change
 /// (a dense solve a cycle); past it the raw change is judged.
 const SETTLED_CHANGE_BLOCK: usize = 64;
-
 /// Smoothing steps before and after each coarse correction.
 const SMOOTHING_STEPS: usize = 2;
-
 /// The same below the finest level of a grid without holes or cuts (across holes and cuts
 /// one step weakens the cycle too much: `docs/dev/ablation.md`, "Constants").
 const OPEN_COARSE_SMOOTHING: usize = 1;
