@@ -297,7 +297,6 @@ impl Runs {
         runs
     }
 
-    /// The runs of padded row r.
     #[inline]
     pub(crate) fn row(&self, r: usize) -> &[Run] {
         &self.runs[self.first[r] as usize..self.first[r + 1] as usize]
@@ -618,11 +617,10 @@ fn extend(a: bool, b: bool, fa: bool, fb: bool) -> [f64; 4] {
 }
 
 widest! {
-    /// [`scaled_max_body`] on the processor's widest vectors (see [`super::wide`]).
-    pub(crate) fn scaled_max<T: Real>(r: &[[T; 2]], inv_diag: &[f64]) -> f64 =>
     /// The largest `|r_i| / a_ii` of a residual (pixels: how far one Jacobi step would move a
-    /// node), `inv_diag` the matching inverse diagonal (zero where a node is no unknown). Eight
-    /// running maxima: one would wait on the last at every entry.
+    /// node), `inv_diag` the matching inverse diagonal (zero where a node is no unknown), on the
+    /// processor's widest vectors. Eight running maxima: one would wait on the last at every entry.
+    pub(crate) fn scaled_max<T: Real>(r: &[[T; 2]], inv_diag: &[f64]) -> f64 =>
     scaled_max_body {
         let mut m = [0.0f64; 8];
         let (dc, rc) = (inv_diag[..r.len()].chunks_exact(4), r.chunks_exact(4));
@@ -648,9 +646,9 @@ pub(crate) fn larger(a: f64, b: f64) -> f64 {
 }
 
 widest! {
-    /// [`dot_pairs_body`] on the processor's widest vectors (see [`super::wide`]).
+    /// `[Σ a₀b₀, Σ a₁b₁]` of two vectors of pairs, in `f64`, the products taken in `T`, on the
+    /// processor's widest vectors (see [`super::wide`]).
     pub(crate) fn dot_pairs<T: Real>(a: &[[T; 2]], b: &[[T; 2]]) -> [f64; 2] =>
-    /// `[Σ a₀b₀, Σ a₁b₁]` of two vectors of pairs, in `f64`, the products taken in `T`.
     dot_pairs_body {
         pair_sums(a.as_flattened(), b.as_flattened(), |x: T, y: T| (x * y).get())
     }
@@ -703,7 +701,6 @@ pub(crate) enum Operator {
 /// indices, sorted by `p` (where extrapolating prolongation rows meet, at a cut's tips).
 pub(crate) type Far = (u32, u32, f64);
 
-/// The far taps of row `p` among `far`.
 fn far_of(far: &[Far], p: usize) -> &[Far] {
     let k0 = far.partition_point(|e| (e.0 as usize) < p);
     &far[k0..k0 + far[k0..].partition_point(|e| e.0 as usize == p)]
@@ -824,11 +821,8 @@ impl Level {
             }
         }
         let clean = (0..w * h).map(|i| geo.active[i] && geo.right[i] && geo.down[i] && !fixed(i)).collect();
-        let mut runs = Runs::new(wp, w, h, |p| match flags[p] {
-            f if f & bit::FREE == 0 => RunKind::Skip,
-            f if f & bit::REGULAR != 0 => RunKind::Shared,
-            _ => RunKind::Own,
-        });
+        let kind = |f: u8| if f & bit::FREE == 0 { RunKind::Skip } else if f & bit::REGULAR != 0 { RunKind::Shared } else { RunKind::Own };
+        let mut runs = Runs::new(wp, w, h, |p| kind(flags[p]));
         let own = OwnStencils::new(&mut runs, wp, |p| fine_row(&flags, p, wp, tau));
         Level { inv_diag_w: narrow_diag(&inv_diag), geo, wp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, lam_max, clean }
     }
@@ -848,9 +842,7 @@ impl Level {
     fn with_prolongation(mut self, geo: Geometry) -> Level {
         let real = std::mem::replace(&mut self.geo, geo);
         let zero = |i: usize| !real.active[i] || real.fixed.as_ref().is_some_and(|f| f[i]);
-        for i in (0..real.w * real.h).filter(|&i| zero(i)) {
-            self.geo.prow[i] = [0; 4];
-        }
+        (0..real.w * real.h).filter(|&i| zero(i)).for_each(|i| self.geo.prow[i] = [0; 4]);
         self.geo.ext.retain(|e| !zero(e.0 as usize));
         self
     }
@@ -928,10 +920,7 @@ impl Level {
 
     /// The far taps of row `p` (see [`Far`]).
     pub fn far(&self, p: usize) -> &[Far] {
-        match &self.op {
-            Operator::Stored { far, .. } => far_of(far, p),
-            Operator::Fine { .. } => &[],
-        }
+        if let Operator::Stored { far, .. } = &self.op { far_of(far, p) } else { &[] }
     }
 
     /// `f(q, a_pq)` for every nonzero tap of row `p`: the stored stencil's and the far ones.
@@ -1163,10 +1152,9 @@ pub(crate) enum StepRule {
 }
 
 widest! {
-    /// [`step_row_body`] on the processor's widest vectors (see [`super::wide`]).
-    fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule, keep: bool) =>
     /// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one
-    /// row; `d` is written only when `keep`.
+    /// row (`d` written only when `keep`), on the processor's widest vectors.
+    fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule, keep: bool) =>
     step_row_body {
         let n = out.len();
         // On the flattened components (written on pairs, the loops stayed scalar).
@@ -1308,10 +1296,9 @@ fn own_sums<'a, S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, wp: usize,
 widest! {
     /// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level: the
     /// interior molecule on runs of regular nodes, the others' [`OwnStencils`], on the
-    /// processor's widest vectors (see [`super::wide`]).
+    /// processor's widest vectors. `x` and `f` hold the level's rows from padded row `shift` on.
     #[inline(never)]
     fn fine_band<S: Real, T: Real>(runs: &Runs, own: &OwnStencils, tau: f64, wp: usize, x: &[[S; 2]], f: Option<&[[T; 2]]>, r0: usize, r1: usize, shift: usize, out: &mut [[T; 2]]) =>
-    /// `x` and `f` hold the level's rows from padded row `shift` on (0: all of them).
     fine_band_body {
         let molecule = Sym::fine(tau);
         let table = T::table(&own.table, &own.narrow);
@@ -1429,7 +1416,6 @@ fn fine_diag_and_abs(flags: &[u8], p: usize, wp: usize, tau: f64) -> (f64, f64) 
 pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25] {
     let mut s = [0.0f64; 25];
     let m = |q: usize, b: u8| flags[q] & b != 0;
-    // The stencil index of offset (dx, dy) from p.
     let at = |dx: isize, dy: isize| ((dy + 2) * 5 + dx + 2) as usize;
     // The horizontal and vertical triples centred at p + d (d in -1..=1).
     for d in -1isize..=1 {
@@ -1579,11 +1565,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         clean[i] = ids[p] == 0 && far_p.is_empty() && geo.right[i] && geo.down[i];
     }
     let narrow: Vec<[f32; 25]> = table.iter().map(|s| s.map(|a| a as f32)).collect();
-    let runs = Runs::new(wpc, wc, hc, |p| match (inv_diag[p] != 0.0, ids[p] != 0) {
-        (false, _) => RunKind::Skip,
-        (true, false) => RunKind::Shared,
-        (true, true) => RunKind::Own,
-    });
+    let kind = |p: usize| if inv_diag[p] == 0.0 { RunKind::Skip } else if ids[p] == 0 { RunKind::Shared } else { RunKind::Own };
+    let runs = Runs::new(wpc, wc, hc, kind);
     let fours = Fours::new(&ids, &narrow, &runs, wpc, hc);
     let op = Operator::Stored { sym: Sym::of(&table[0]), ids, table, narrow, fours, runs, far };
     Level { inv_diag_w: narrow_diag(&inv_diag), geo, wp: wpc, op, inv_diag, lam_max, clean }
@@ -1727,7 +1710,6 @@ fn ap_row(fine: &Level, ix: usize, iy: usize, win: Windows, out: &mut [f64]) {
 /// `coarse = Pᵀ fine_v` (restriction of a residual), in either precision.
 pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 2]], out: &mut [[T; 2]]) {
     let (fw, fh, wc, wpc) = (fine.geo.w, fine.geo.h, coarse.geo.w, coarse.wp);
-    let get = |a: [S; 2]| [T::of(a[0].get()), T::of(a[1].get())];
     let (half, zero) = (T::of(0.5), [T::ZERO; 2]);
     let run = |yc: usize, orow: &mut [[T; 2]]| {
         orow.fill(zero);
@@ -1745,7 +1727,7 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
                 let sy = yc - iy / 2;
                 let prow = &fine.geo.prow[iy * fw..(iy + 1) * fw];
                 for ix in 0..fw {
-                    let r = get(v[fine.pidx(ix, iy)]);
+                    let r = v[fine.pidx(ix, iy)].map(widened::<S, T>);
                     if r == zero || prow[ix][0] == EXT {
                         continue;
                     }
@@ -1754,8 +1736,7 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
                         let wv = prow[ix][sy * 2 + sx];
                         if wv != 0 && cx + sx < wc {
                             let (o, wv) = (&mut acc[cx + sx], T::of(wv as f64 / 24.0));
-                            o[0] += wv * r[0];
-                            o[1] += wv * r[1];
+                            *o = [o[0] + wv * r[0], o[1] + wv * r[1]];
                         }
                     }
                 }
@@ -1766,15 +1747,14 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
         let at = |y: usize| ext.partition_point(|e| (e.0 as usize) < y * fw);
         for (i, row) in &ext[at(*rows.start())..at(*rows.end() + 1)] {
             let (ix, iy) = (*i as usize % fw, *i as usize / fw);
-            let r = get(v[fine.pidx(ix, iy)]);
+            let r = v[fine.pidx(ix, iy)].map(widened::<S, T>);
             let oy = yc as isize - (iy / 2) as isize;
             if r == zero || !(-1..3).contains(&oy) || fine.geo.prow[*i as usize][0] != EXT {
                 continue;
             }
             for (s, &wv) in row[((oy + 1) * 4) as usize..((oy + 2) * 4) as usize].iter().enumerate().filter(|e| *e.1 != 0.0) {
                 let (o, wv) = (&mut acc[ix / 2 + s - 1], T::of(wv));
-                o[0] += wv * r[0];
-                o[1] += wv * r[1];
+                *o = [o[0] + wv * r[0], o[1] + wv * r[1]];
             }
         }
     };
@@ -1874,7 +1854,6 @@ widest! {
 /// component, in either precision.
 pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]], alpha: V2) {
     let (fw, fh, wp) = (fine.geo.w, fine.geo.h, fine.wp);
-    let get = |a: [S; 2]| [a[0].get(), a[1].get()];
     let run = |iy: usize, xrow: &mut [[T; 2]]| {
         let cy = iy / 2;
         if fine.geo.plain_rows[iy] {
@@ -1887,7 +1866,7 @@ pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level,
             let cx = ix / 2;
             let (mut acc, mut any) = ([0.0f64; 2], false);
             fine.geo.p_row(ix, iy, |ox, oy, wv| {
-                let c = get(e[coarse.pidx((cx as isize + ox) as usize, (cy as isize + oy) as usize)]);
+                let c = e[coarse.pidx((cx as isize + ox) as usize, (cy as isize + oy) as usize)].map(S::get);
                 acc[0] += wv * c[0];
                 acc[1] += wv * c[1];
                 any = true;
