@@ -192,13 +192,9 @@ fn slope(a: &Key, b: &Key, j: usize) -> Point {
 
 /// Point `j` of a key, or the key's last point if it has fewer (invalid input that the
 /// scene rejects; this only keeps the arithmetic total).
-fn point(k: &Key, j: usize) -> Point {
-    k.points.get(j).or(k.points.last()).copied().unwrap_or([0.0, 0.0])
-}
+fn point(k: &Key, j: usize) -> Point { k.points.get(j).or(k.points.last()).copied().unwrap_or([0.0, 0.0]) }
 
-fn lerp(a: Point, b: Point, u: f64) -> Point {
-    [a[0] + u * (b[0] - a[0]), a[1] + u * (b[1] - a[1])]
-}
+fn lerp(a: Point, b: Point, u: f64) -> Point { [a[0] + u * (b[0] - a[0]), a[1] + u * (b[1] - a[1])] }
 
 #[cfg(test)]
 mod tests {

@@ -11,11 +11,7 @@ pub(crate) struct Instant;
 
 #[cfg(all(target_arch = "wasm32", target_os = "unknown"))]
 impl Instant {
-    pub(crate) fn now() -> Self {
-        Instant
-    }
+    pub(crate) fn now() -> Self { Instant }
 
-    pub(crate) fn elapsed(&self) -> std::time::Duration {
-        std::time::Duration::ZERO
-    }
+    pub(crate) fn elapsed(&self) -> std::time::Duration { std::time::Duration::ZERO }
 }

@@ -28,9 +28,7 @@ pub enum FieldView<'a> {
 }
 
 impl<'a> From<&'a Field> for FieldView<'a> {
-    fn from(field: &'a Field) -> Self {
-        FieldView::Planar(field)
-    }
+    fn from(field: &'a Field) -> Self { FieldView::Planar(field) }
 }
 
 impl<'a> FieldView<'a> {

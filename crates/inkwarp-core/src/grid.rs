@@ -32,9 +32,7 @@ pub struct Grid {
 
 impl Grid {
     /// A grid whose nodes are all active and all linked.
-    pub fn new(width: usize, height: usize) -> Self {
-        Self::from_active(width, height, vec![true; width * height])
-    }
+    pub fn new(width: usize, height: usize) -> Self { Self::from_active(width, height, vec![true; width * height]) }
 
     /// A grid from a continuity matte (`nonzero = connected`), row-major `width × height`.
     ///
@@ -74,9 +72,7 @@ impl Grid {
 
     /// Index of node `(x, y)`.
     #[inline]
-    pub fn index(&self, x: usize, y: usize) -> usize {
-        y * self.width + x
-    }
+    pub fn index(&self, x: usize, y: usize) -> usize { y * self.width + x }
 
     /// The nodes linked to node `i`: right, left, below, above (`usize::MAX` where there
     /// is no link).
@@ -100,15 +96,11 @@ impl Grid {
 
     /// Number of nodes (`width × height`).
     #[inline]
-    pub fn len(&self) -> usize {
-        self.width * self.height
-    }
+    pub fn len(&self) -> usize { self.width * self.height }
 
     /// `true` for a grid without nodes.
     #[inline]
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
+    pub fn is_empty(&self) -> bool { self.len() == 0 }
 
     /// Whether the three vectors have `width × height` entries and every link joins two
     /// active nodes inside the grid. The solver checks this before it trusts a grid.

@@ -18,9 +18,7 @@ pub fn request() {
 }
 
 /// Whether a stop has been requested since the last [`clear`].
-pub fn requested() -> bool {
-    REQUESTED.load(Ordering::Relaxed)
-}
+pub fn requested() -> bool { REQUESTED.load(Ordering::Relaxed) }
 
 /// Forgets an earlier request, before new work starts.
 pub fn clear() {

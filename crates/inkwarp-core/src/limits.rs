@@ -95,9 +95,7 @@ pub fn check_curve_samples(points: &[[f64; 2]], closed: bool, spacing_px: f64) -
 }
 
 /// Whether `v` is a coordinate inkwarp accepts (finite, |v| ≤ [`MAX_COORD_PX`]).
-pub fn coordinate_ok(v: f64) -> bool {
-    v.is_finite() && v.abs() <= MAX_COORD_PX
-}
+pub fn coordinate_ok(v: f64) -> bool { v.is_finite() && v.abs() <= MAX_COORD_PX }
 
 /// The rough peak memory, in bytes, of rendering a `width × height` frame with `layers`
 /// layers (see [`RENDER_BYTES_PER_PIXEL`]).
@@ -107,9 +105,7 @@ pub fn render_bytes(width: usize, height: usize, layers: usize) -> u64 {
 }
 
 /// `bytes` as a short figure in GiB, such as "9.4".
-pub fn gib(bytes: u64) -> String {
-    format!("{:.1}", bytes as f64 / (1u64 << 30) as f64)
-}
+pub fn gib(bytes: u64) -> String { format!("{:.1}", bytes as f64 / (1u64 << 30) as f64) }
 
 #[cfg(test)]
 mod tests {

@@ -93,9 +93,7 @@ impl Curve {
     }
 
     /// How many spans the curve has (`n − 1` open, `n` closed).
-    pub fn span_count(&self) -> usize {
-        self.spans.len()
-    }
+    pub fn span_count(&self) -> usize { self.spans.len() }
 
     /// The point at parameter `u ∈ [0, 1]` of span `span`.
     ///

@@ -89,9 +89,7 @@ impl Kind {
 }
 
 impl fmt::Display for Kind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result { f.write_str(self.name()) }
 }
 
 impl FromStr for Kind {
@@ -125,9 +123,7 @@ pub struct SampleOptions {
 
 impl Default for SampleOptions {
     /// Open, polyline outline, 1 px spacing.
-    fn default() -> Self {
-        SampleOptions { closed: false, spline_outline: false, spacing_px: 1.0 }
-    }
+    fn default() -> Self { SampleOptions { closed: false, spline_outline: false, spacing_px: 1.0 } }
 }
 
 /// Why a feature cannot be sampled.

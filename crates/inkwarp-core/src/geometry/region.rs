@@ -92,14 +92,10 @@ impl MeanValueInterpolator {
     }
 
     /// How many vertices the outline has.
-    pub fn len(&self) -> usize {
-        self.vertices.len()
-    }
+    pub fn len(&self) -> usize { self.vertices.len() }
 
     /// Whether the outline has no vertices.
-    pub fn is_empty(&self) -> bool {
-        self.vertices.is_empty()
-    }
+    pub fn is_empty(&self) -> bool { self.vertices.is_empty() }
 
     #[cfg(test)]
     /// The normalised mean value coordinates of `x` (one weight per vertex, summing to 1)

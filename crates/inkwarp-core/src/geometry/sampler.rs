@@ -184,9 +184,7 @@ impl FeatureSampler {
     }
 
     /// Whether poses give no samples (a cut).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
+    pub fn is_empty(&self) -> bool { self.len() == 0 }
 
     /// The samples of the feature in `pose`, in the order of
     /// [`sample_feature`](super::sample_feature).

@@ -36,9 +36,7 @@ pub struct BeierNeelyParams {
     pub p: f64,
 }
 
-impl Default for BeierNeelyParams {
-    fn default() -> Self { Self::DEFAULT }
-}
+impl Default for BeierNeelyParams { fn default() -> Self { Self::DEFAULT } }
 
 impl BeierNeelyParams {
     /// `a` 1 px, `b` 2, `p` 0 (see the type's documentation).
@@ -194,9 +192,7 @@ pub fn beier_neely_field(
 }
 
 #[inline]
-fn dot(a: Point, b: Point) -> f64 {
-    a[0] * b[0] + a[1] * b[1]
-}
+fn dot(a: Point, b: Point) -> f64 { a[0] * b[0] + a[1] * b[1] }
 
 #[cfg(test)]
 mod tests {

@@ -82,9 +82,7 @@ impl Method {
     }
 
     /// The method called `name`, if there is one.
-    pub fn from_name(name: &str) -> Option<Method> {
-        Method::ALL.into_iter().find(|m| m.name() == name)
-    }
+    pub fn from_name(name: &str) -> Option<Method> { Method::ALL.into_iter().find(|m| m.name() == name) }
 
     /// The interpolant of this module that implements the method, or `None` for `tps`
     /// (the grid solver).
@@ -99,9 +97,7 @@ impl Method {
 }
 
 impl fmt::Display for Method {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result { f.write_str(self.name()) }
 }
 
 impl FromStr for Method {
@@ -166,9 +162,7 @@ pub struct Controls {
 
 impl Controls {
     /// Controls made of samples only.
-    pub fn from_samples(samples: Vec<Sample>) -> Self {
-        Controls { samples, line_pairs: Vec::new() }
-    }
+    pub fn from_samples(samples: Vec<Sample>) -> Self { Controls { samples, line_pairs: Vec::new() } }
 
     /// The samples plus both end points of every line pair.
     pub fn all_samples(&self) -> Vec<Sample> {
@@ -359,14 +353,10 @@ pub fn controls_field(
 }
 
 #[inline]
-pub(crate) fn dist(a: Point, b: Point) -> f64 {
-    (a[0] - b[0]).hypot(a[1] - b[1])
-}
+pub(crate) fn dist(a: Point, b: Point) -> f64 { (a[0] - b[0]).hypot(a[1] - b[1]) }
 
 #[inline]
-pub(crate) fn is_finite_point(p: Point) -> bool {
-    p[0].is_finite() && p[1].is_finite()
-}
+pub(crate) fn is_finite_point(p: Point) -> bool { p[0].is_finite() && p[1].is_finite() }
 
 /// Merges samples at exactly the same rest position (averaging their displacements, as
 /// the grid constraints do) and drops samples with a non-finite coordinate. The result

@@ -19,12 +19,7 @@ pub const BEIER_NEELY_SEGMENT_PX: f64 = 8.0;
 ///   joined back to the first; the paper's "four lines along the edges" of a square); each
 ///   spline, and each region with a spline outline, as its curve cut into segments of
 ///   about [`BEIER_NEELY_SEGMENT_PX`]. Region interiors are not used.
-pub fn feature_controls(
-    scene: &Scene,
-    features: &[FeatureSamples],
-    time_s: f64,
-    interpolant: Interpolant,
-) -> Result<Controls, String> {
+pub fn feature_controls(scene: &Scene, features: &[FeatureSamples], time_s: f64, interpolant: Interpolant) -> Result<Controls, String> {
     if interpolant != Interpolant::BeierNeely {
         return Ok(Controls::from_samples(features.iter().flat_map(|f| f.samples.iter().copied()).collect()));
     }

@@ -181,14 +181,10 @@ impl ThinPlateMap {
     }
 
     /// Number of kernel centres.
-    pub fn len(&self) -> usize {
-        self.cx.len()
-    }
+    pub fn len(&self) -> usize { self.cx.len() }
 
     /// Whether the map was fitted to no sample (it is then the identity).
-    pub fn is_empty(&self) -> bool {
-        self.cx.is_empty()
-    }
+    pub fn is_empty(&self) -> bool { self.cx.is_empty() }
 
     /// The displacement `f(p)` at `p`.
     pub fn displacement(&self, p: Point) -> Point {
@@ -306,16 +302,12 @@ pub fn thin_plate_field(
 }
 
 #[inline]
-fn sq(v: f64) -> f64 {
-    v * v
-}
+fn sq(v: f64) -> f64 { v * v }
 
 /// The kernel as a function of the squared distance: `φ = r² ln r² = 2 r² ln r`
 /// (the factor 2 is absorbed by the weights), `φ(0) = 0`.
 #[inline]
-fn phi(r2: f64) -> f64 {
-    if r2 > 0.0 { r2 * r2.ln() } else { 0.0 }
-}
+fn phi(r2: f64) -> f64 { if r2 > 0.0 { r2 * r2.ln() } else { 0.0 } }
 
 /// [`phi`] without a branch or a library call, for the vectorised evaluator.
 #[inline(always)]

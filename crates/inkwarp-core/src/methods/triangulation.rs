@@ -14,9 +14,7 @@ struct Vertex {
 
 impl HasPosition for Vertex {
     type Scalar = f64;
-    fn position(&self) -> Point2<f64> {
-        self.position
-    }
+    fn position(&self) -> Point2<f64> { self.position }
 }
 
 /// The `triangulation` field: the Delaunay triangulation (spade's, with exact

@@ -82,20 +82,14 @@ pub(super) struct Plan {
 }
 
 #[inline]
-pub(super) fn sub(a: V2, b: V2) -> V2 {
-    [a[0] - b[0], a[1] - b[1]]
-}
+pub(super) fn sub(a: V2, b: V2) -> V2 { [a[0] - b[0], a[1] - b[1]] }
 
 #[inline]
-pub(super) fn cross(a: V2, b: V2) -> f32 {
-    a[0] * b[1] - a[1] * b[0]
-}
+pub(super) fn cross(a: V2, b: V2) -> f32 { a[0] * b[1] - a[1] * b[0] }
 
 /// The midpoint of a link. Commutative bit for bit, so both blocks beside a link agree.
 #[inline]
-pub(super) fn mid(a: V2, b: V2) -> V2 {
-    [(a[0] + b[0]) * 0.5, (a[1] + b[1]) * 0.5]
-}
+pub(super) fn mid(a: V2, b: V2) -> V2 { [(a[0] + b[0]) * 0.5, (a[1] + b[1]) * 0.5] }
 
 /// Whether the quadrilateral `q` (corners in the order top-left, top-right, bottom-right,
 /// bottom-left of its rest square) is flipped, i.e. has negative signed area.
@@ -234,15 +228,11 @@ impl<'a> Layer<'a> {
 
     /// The canvas position of pixel `i` (NaN where it is not drawn).
     #[inline(always)]
-    pub fn pos(&self, i: usize) -> V2 {
-        [self.px[i], self.py[i]]
-    }
+    pub fn pos(&self, i: usize) -> V2 { [self.px[i], self.py[i]] }
 
     /// Whether pixel `i` is drawn.
     #[inline(always)]
-    pub fn drawn(&self, i: usize) -> bool {
-        !self.px[i].is_nan()
-    }
+    pub fn drawn(&self, i: usize) -> bool { !self.px[i].is_nan() }
 
     /// The premultiplied colour of pixel `i`.
     #[inline(always)]

@@ -266,15 +266,11 @@ fn ceil_f(x: f32) -> f32 {
 
 /// `⌈x⌉` (NaN gives 0).
 #[inline]
-fn ceil_i(x: f32) -> i64 {
-    ceil_f(x) as i64
-}
+fn ceil_i(x: f32) -> i64 { ceil_f(x) as i64 }
 
 /// `⌊x⌋` without a libm call.
 #[inline]
-fn floor_i(x: f32) -> i64 {
-    -ceil_i(-x)
-}
+fn floor_i(x: f32) -> i64 { -ceil_i(-x) }
 
 /// Where the edge between `a` and `b` crosses the scanline `y`, if it does: the edge owns
 /// the scanlines with `lo.y ≤ y < hi.y` (`lo` its end with the smaller `y`), and the
@@ -354,9 +350,7 @@ impl Band {
     /// Rows of element geometry that can touch this band: centres `y0 .. y0 + rows` and
     /// their unit squares.
     #[inline]
-    fn y_window(&self) -> (f32, f32) {
-        (self.y0 as f32 - 1.0, (self.y0 + self.rows) as f32)
-    }
+    fn y_window(&self) -> (f32, f32) { (self.y0 as f32 - 1.0, (self.y0 + self.rows) as f32) }
 
     #[inline]
     fn reaches(&self, b: Bbox) -> bool {

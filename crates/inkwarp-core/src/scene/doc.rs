@@ -160,9 +160,7 @@ pub struct TpsExactDoc {
     pub max_samples: u32,
 }
 
-impl Default for TpsExactDoc {
-    fn default() -> Self { TpsExactDoc { max_samples: default_max_samples() } }
-}
+impl Default for TpsExactDoc { fn default() -> Self { TpsExactDoc { max_samples: default_max_samples() } } }
 
 impl TpsExactDoc {
     /// The most `max_samples` a scene may ask for: the fit holds an `(n + 3)²` matrix of
@@ -299,9 +297,7 @@ pub struct FeatureDoc {
 
 impl FeatureDoc {
     /// Whether its outline is a spline (`"curve": "spline"`, for regions).
-    pub fn spline_outline(&self) -> bool {
-        self.curve == Some(Curve::Spline)
-    }
+    pub fn spline_outline(&self) -> bool { self.curve == Some(Curve::Spline) }
 }
 
 /// What holds a layer's outer edge.
@@ -326,9 +322,7 @@ fn default_max_samples() -> u32 { crate::methods::DEFAULT_MAX_SAMPLES as u32 }
 fn default_true() -> bool { true }
 fn is_true(v: &bool) -> bool { *v }
 /// Whether a value is its type's default, which files leave out.
-pub(crate) fn is_default<T: Default + PartialEq>(v: &T) -> bool {
-    *v == T::default()
-}
+pub(crate) fn is_default<T: Default + PartialEq>(v: &T) -> bool { *v == T::default() }
 
 /// The JSON Schema (draft 2020-12) of the scene format, generated from [`SceneDoc`].
 pub fn schema() -> serde_json::Value {
@@ -338,6 +332,4 @@ pub fn schema() -> serde_json::Value {
 }
 
 /// [`schema`] as pretty-printed JSON text.
-pub fn schema_json() -> String {
-    serde_json::to_string_pretty(&schema()).expect("a schema is always valid JSON")
-}
+pub fn schema_json() -> String { serde_json::to_string_pretty(&schema()).expect("a schema is always valid JSON") }

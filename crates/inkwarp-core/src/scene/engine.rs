@@ -20,9 +20,7 @@ use crate::methods::MethodReport;
 
 /// Whether `method` can compute fields in this build: every method can (`tps` here, the
 /// other interpolants of DESIGN §6 from the `methods` module through [`compute_field`]).
-pub fn method_available(method: Method) -> bool {
-    Method::ALL.contains(&method)
-}
+pub fn method_available(method: Method) -> bool { Method::ALL.contains(&method) }
 
 /// Where a layer's thin-plate solve starts (the other methods start from nothing).
 pub(super) enum Start<'a> {
@@ -134,9 +132,7 @@ pub struct LayerSolve {
 
 impl LayerSolve {
     /// The remarks worth showing a user about this field (empty for `tps`).
-    pub fn notes(&self) -> &[String] {
-        self.method_report.as_ref().map_or(&[], |r| r.notes.as_slice())
-    }
+    pub fn notes(&self) -> &[String] { self.method_report.as_ref().map_or(&[], |r| r.notes.as_slice()) }
 }
 
 /// A frame and, per layer, the solve that drew it (`None` for layers that are not drawn).

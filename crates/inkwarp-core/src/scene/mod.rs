@@ -84,9 +84,7 @@ impl SceneError {
     }
 
     /// The first problem's path.
-    pub fn path(&self) -> &str {
-        self.problems.first().map_or("", |p| p.path.as_str())
-    }
+    pub fn path(&self) -> &str { self.problems.first().map_or("", |p| p.path.as_str()) }
 }
 
 impl fmt::Display for SceneError {

@@ -40,13 +40,9 @@ pub(crate) fn resolve_ref<'a>(schema: &'a Value, root: &'a Value) -> (&'a Value,
 }
 
 impl<'a> Walker<'a> {
-    fn new(root: &'a Value) -> Self {
-        Walker { root, problems: Vec::new(), unknown_keys: Vec::new() }
-    }
+    fn new(root: &'a Value) -> Self { Walker { root, problems: Vec::new(), unknown_keys: Vec::new() } }
 
-    fn resolve(&self, schema: &'a Value) -> (&'a Value, Option<&'a str>) {
-        resolve_ref(schema, self.root)
-    }
+    fn resolve(&self, schema: &'a Value) -> (&'a Value, Option<&'a str>) { resolve_ref(schema, self.root) }
 
     /// Checks `value` at `path`; returns whether it passed.
     fn walk(&mut self, value: &Value, schema: &'a Value, path: &str, what: Option<&str>) -> bool {

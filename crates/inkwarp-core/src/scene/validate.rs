@@ -13,9 +13,7 @@ use crate::limits::{
 };
 
 /// Every problem of `doc` that does not need its images. Empty when the document is valid.
-pub fn validate_doc(doc: &SceneDoc) -> Vec<Problem> {
-    validate_doc_knowing(doc, &[])
-}
+pub fn validate_doc(doc: &SceneDoc) -> Vec<Problem> { validate_doc_knowing(doc, &[]) }
 
 /// [`validate_doc`], taking `other_ids` as feature ids too (features that were set aside
 /// because of shape problems already reported).
