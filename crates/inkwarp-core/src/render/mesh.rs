@@ -195,9 +195,7 @@ impl<'a> Layer<'a> {
             let r = y * w..(y + 1) * w;
             let alphas = image.data[4 * r.start..4 * r.end].chunks_exact(4);
             let inputs = grid.active[r].iter().zip(alphas);
-            for (x, ((px, py), (&active, pixel))) in
-                xrow.iter_mut().zip(yrow.iter_mut()).zip(inputs).enumerate()
-            {
+            for (x, ((px, py), (&active, pixel))) in xrow.iter_mut().zip(yrow.iter_mut()).zip(inputs).enumerate() {
                 let at = [x as f32 + *px + ox, y as f32 + *py + oy];
                 let drawn = (active || pixel[3] > 0) && at[0].is_finite() && at[1].is_finite();
                 (*px, *py) = if drawn { (at[0], at[1]) } else { (f32::NAN, f32::NAN) };
@@ -393,11 +391,8 @@ impl<'a> Layer<'a> {
             if br == 0 || br + 1 >= bh {
                 return;
             }
-            let (above, here, below) = (
-                &plain[(br - 1) * bw..br * bw],
-                &plain[br * bw..(br + 1) * bw],
-                &plain[(br + 1) * bw..(br + 2) * bw],
-            );
+            let row = |r: usize| &plain[r * bw..(r + 1) * bw];
+            let (above, here, below) = (row(br - 1), row(br), row(br + 1));
             for bc in 1..bw - 1 {
                 let kind = here[bc] & (COMPLETE | 1);
                 if here[bc] & COMPLETE != 0

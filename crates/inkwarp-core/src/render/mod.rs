@@ -255,8 +255,7 @@ pub fn draw_frame(
     if out.len() != expected {
         return Err(RenderError::OutputLength { width, first, end, expected, actual: out.len() });
     }
-    let pairs: Vec<(&mesh::Layer<'_>, &mesh::Plan)> =
-        layers.iter().map(|l| (&l.layer, &l.plan)).collect();
+    let pairs: Vec<(&mesh::Layer<'_>, &mesh::Plan)> = layers.iter().map(|l| (&l.layer, &l.plan)).collect();
     raster::draw_frame(width, premultiply(background), &pairs, rows.start, out);
     Ok(())
 }
@@ -267,19 +266,12 @@ fn check_layer(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<(), Rend
         let (expected, actual) = (width * height * 4, image.data.len());
         return Err(RenderError::ImageDataLength { width, height, expected, actual });
     }
-    let mismatch =
-        |what, got_width, got_height| RenderError::SizeMismatch { what, got_width, got_height, width, height };
-    if (field.width, field.height) != (width, height)
-        || field.dx.len() != width * height
-        || field.dy.len() != width * height
-    {
+    let mismatch = |what, got_width, got_height| RenderError::SizeMismatch { what, got_width, got_height, width, height };
+    let n = width * height;
+    if (field.width, field.height) != (width, height) || field.dx.len() != n || field.dy.len() != n {
         return Err(mismatch("displacement field", field.width, field.height));
     }
-    if (grid.width, grid.height) != (width, height)
-        || grid.active.len() != width * height
-        || grid.link_right.len() != width * height
-        || grid.link_down.len() != width * height
-    {
+    if (grid.width, grid.height) != (width, height) || [&grid.active, &grid.link_right, &grid.link_down].iter().any(|v| v.len() != n) {
         return Err(mismatch("grid", grid.width, grid.height));
     }
     Ok(())

@@ -153,14 +153,8 @@ pub fn draw_view(
     }
     // Above 1, each layer's level: its picture and grid (borrowed by the prepared layer)
     // and its field (taken).
-    let (mut levels, mut fields) = (Vec::new(), Vec::new());
-    if k > 1 {
-        for l in layers {
-            let (image, field, grid) = level(l.image, l.field, l.grid, k);
-            levels.push((image, grid));
-            fields.push(field);
-        }
-    }
+    let levels = layers.iter().filter(|_| k > 1).map(|l| level(l.image, l.field, l.grid, k));
+    let (levels, fields): (Vec<_>, Vec<_>) = levels.map(|(image, field, grid)| ((image, grid), field)).unzip();
     let prepared = if k == 1 {
         layers.iter().map(|l| PreparedLayer::new(l.image, l.field.clone(), l.grid, l.offset)).collect::<Result<Vec<_>, _>>()?
     } else {
