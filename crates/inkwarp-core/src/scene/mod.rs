@@ -36,10 +36,7 @@ use serde::Serialize;
 use serde_json::Value;
 
 pub use doc::*;
-pub use engine::{
-    method_available, Animator, FeatureSamples, FrameStream, LayerSolve, RenderedFrame,
-    WARM_CHAIN_FRAMES,
-};
+pub use engine::{method_available, Animator, FeatureSamples, FrameStream, LayerSolve, RenderedFrame, WARM_CHAIN_FRAMES};
 pub use crate::render::RgbaImage;
 pub use validate::{validate_doc, validate_overrides};
 
@@ -157,12 +154,9 @@ impl Parsed {
     /// `path` (of the rebuilt document) as a path of the original one.
     fn original_path(&self, path: &str) -> String {
         for (prefix, origin) in [("features[", &self.feature_origin), ("layers[", &self.layer_origin)] {
-            if let Some(rest) = path.strip_prefix(prefix) {
-                if let Some((index, tail)) = rest.split_once(']') {
-                    if let Some(&original) = index.parse::<usize>().ok().and_then(|i| origin.get(i)) {
-                        return format!("{prefix}{original}]{tail}");
-                    }
-                }
+            let split = path.strip_prefix(prefix).and_then(|rest| rest.split_once(']'));
+            if let Some((&original, tail)) = split.and_then(|(index, tail)| Some((origin.get(index.parse::<usize>().ok()?)?, tail))) {
+                return format!("{prefix}{original}]{tail}");
             }
         }
         path.to_string()
@@ -252,11 +246,8 @@ fn parse_value(value: &Value) -> Parsed {
     }
     // Arrays and the solver were repaired element by element above; they are broken as a
     // whole only when the value itself has the wrong type.
-    let broken_top: Vec<String> = map
-        .keys()
-        .filter(|k| if matches!(k.as_str(), "features" | "layers" | "solver") { at(k) } else { broken(k) })
-        .cloned()
-        .collect();
+    let repaired = |k: &str| matches!(k, "features" | "layers" | "solver");
+    let broken_top: Vec<String> = map.keys().filter(|k| if repaired(k) { at(k) } else { broken(k) }).cloned().collect();
     for key in broken_top {
         match key.as_str() {
             "inkwarp" => map.insert(key, Value::from(FORMAT_VERSION)),
