@@ -81,10 +81,8 @@ fn match_features(source: &[TransferFeature], target: &[TransferFeature]) -> Res
 /// control points of every matched feature, and the matched pairs.
 fn rest_map(source: &[TransferFeature], target: &[TransferFeature]) -> Result<(ThinPlateMap, Vec<(usize, usize)>), TransferError> {
     let pairs = match_features(source, target)?;
-    let (src, dst): (Vec<Point>, Vec<Point>) = pairs
-        .iter()
-        .flat_map(|&(si, ti)| source[si].rest.iter().copied().zip(target[ti].rest.iter().copied()))
-        .unzip();
+    let matched = pairs.iter().flat_map(|&(si, ti)| source[si].rest.iter().copied().zip(target[ti].rest.iter().copied()));
+    let (src, dst): (Vec<Point>, Vec<Point>) = matched.unzip();
     Ok((ThinPlateMap::fit(&src, &dst)?, pairs))
 }
 

@@ -293,9 +293,7 @@ pub fn field(
     }
     let mut report = MethodReport { method: Some(interpolant.into()), ..Default::default() };
     let f = match interpolant {
-        Interpolant::TpsExact => {
-            thin_plate_field(&controls.all_samples(), width, height, params.max_samples, &mut report)
-        }
+        Interpolant::TpsExact => thin_plate_field(&controls.all_samples(), width, height, params.max_samples, &mut report),
         Interpolant::Triangulation => triangulation_field(&controls.all_samples(), width, height, &mut report),
         Interpolant::BeierNeely => {
             let (samples, lines) = (&controls.samples, &controls.line_pairs);

@@ -91,9 +91,7 @@ pub(super) fn compute_field(
 }
 
 /// The overrides that only change the method (none for `None`).
-fn method_override(method: Option<Method>) -> SolverOverrides {
-    SolverOverrides { method, ..SolverOverrides::default() }
-}
+fn method_override(method: Option<Method>) -> SolverOverrides { SolverOverrides { method, ..SolverOverrides::default() } }
 
 /// One driving feature's samples at one time.
 #[derive(Clone, Debug, PartialEq)]
