@@ -150,8 +150,11 @@ impl Hierarchy {
         // below the finest level in `f64` sums (see `Level::residual_f64`); from zero,
         // `x` is one smoothing of `f`, and the rounding of its product small next to
         // the residual.
-        let residual = if k > 0 && !x_zero { Level::residual_f64 } else { Level::residual };
-        residual(level, x, Some(f), r);
+        if k > 0 && !x_zero {
+            level.residual_f64(x, Some(f), r);
+        } else {
+            level.residual(x, Some(f), r);
+        }
         // The finest level's own Krylov method is the conjugate gradient around the cycle;
         // the level above the coarsest solves exactly, one visit is all it needs.
         if k > 0 && k + 2 < self.levels.len() && self.k_cycles {

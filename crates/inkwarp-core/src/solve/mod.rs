@@ -406,7 +406,8 @@ fn settle_null_space(
         let field = Field { width: w, height: h, dx, dy };
         let (u2, r2) = solve_piece(key.clone(), value, Some((FieldView::from(&field), 0, 0)), options, store, None);
         // The latest solve's report, with every solve's cycles and the first one's start.
-        report = SolveReport { cycles: report.cycles + r2.cycles, initial_residual: report.initial_residual, ..r2 };
+        report.cycles += r2.cycles;
+        (report.final_change_px, report.residual, report.converged) = (r2.final_change_px, r2.residual, r2.converged);
         dense = u2.dense(w, h);
     }
     report.converged = settled;
@@ -498,8 +499,8 @@ fn solve_piece(
 ) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport::default();
-    let kept = if options.off.has("cache") { None } else { store.hierarchies.iter().rposition(|(k, _)| *k == key) };
-    let mut hier = kept.map(|pos| store.hierarchies.remove(pos).1).unwrap_or_else(|| {
+    let kept = if options.off.has("cache") { None } else { store.take_hierarchy(&key) };
+    let mut hier = kept.unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
         let fine = Level::fine(geo, tau);
@@ -812,6 +813,13 @@ pub(crate) struct Store {
 }
 
 impl Store {
+    /// The hierarchy kept for `key`, taken out of the store (it goes back by
+    /// [`Store::put_hierarchy`]).
+    fn take_hierarchy(&mut self, key: &CacheKey) -> Option<Hierarchy> {
+        let pos = self.hierarchies.iter().rposition(|(k, _)| k == key)?;
+        Some(self.hierarchies.remove(pos).1)
+    }
+
     /// Keeps `hier`, dropping the oldest past the limits.
     fn put_hierarchy(&mut self, key: CacheKey, hier: Hierarchy) {
         if key.w * key.h > HIERARCHY_MAX_NODES {

@@ -129,7 +129,10 @@ impl Strands {
     /// right-hand side `f` holds `r` in `f32`) and takes the correction's product out of
     /// `f`.
     pub fn before(&mut self, level: &Level, r: &[V2], f: &mut [W2]) {
-        self.first_pass = self.solve(&self.nodes.iter().map(|&p| r[p as usize]).collect::<Vec<_>>());
+        let rhs: Vec<V2> = self.nodes.iter().map(|&p| r[p as usize]).collect();
+        let mut z = std::mem::take(&mut self.first_pass);
+        self.solve_into(&rhs, &mut z);
+        self.first_pass = z;
         for (i, z) in self.first_pass.iter().enumerate() {
             for &(q, a) in self.row(i).iter().filter(|&&(q, _)| level.inv_diag[q as usize] != 0.0) {
                 f[q as usize][0] -= WS::of(a * z[0]);
@@ -155,7 +158,9 @@ impl Strands {
         let rhs: Vec<V2> = (0..self.nodes.len()).map(|i| {
             self.row(i).iter().fold(b(self.nodes[i] as usize), |s, &(q, a)| [s[0] - a * x[q as usize][0].get(), s[1] - a * x[q as usize][1].get()])
         }).collect();
-        self.add(&self.solve(&rhs), x);
+        let mut z = vec![[0.0; 2]; rhs.len()];
+        self.solve_into(&rhs, &mut z);
+        self.add(&z, x);
     }
 
     /// `x_S += z`.
@@ -166,14 +171,12 @@ impl Strands {
         }
     }
 
-    /// `A_SS⁻¹ rhs`, block by block.
-    fn solve(&self, rhs: &[V2]) -> Vec<V2> {
-        let mut out = vec![[0.0; 2]; rhs.len()];
+    /// `out = A_SS⁻¹ rhs`, block by block.
+    fn solve_into(&self, rhs: &[V2], out: &mut [V2]) {
         for b in &self.blocks {
             let nodes = b.start..b.start + b.d_inv.len();
             b.solve(&rhs[nodes.clone()], &mut out[nodes]);
         }
-        out
     }
 }
 
@@ -330,7 +333,8 @@ mod tests {
         let s = Strands::new(&level).expect("the teeth are thin");
         assert!(s.blocks.len() > 10 && s.blocks.iter().all(|b| b.d_inv.iter().all(|&d| d > 0.0)));
         let rhs: Vec<V2> = (0..s.nodes.len()).map(|i| [(i % 7) as f64 - 3.0, (i % 5) as f64 * 0.5]).collect();
-        let z = s.solve(&rhs);
+        let mut z = vec![[0.0; 2]; rhs.len()];
+        s.solve_into(&rhs, &mut z);
         let mut x = vec![[0.0; 2]; level.len_padded()];
         for (i, &p) in s.nodes.iter().enumerate() {
             x[p as usize] = z[i];

@@ -116,12 +116,14 @@ pub(crate) fn solve_at(
     }
     validate(grid, samples, options, None)?;
     let (fc, mut report) = in_pool(|| solve_on_coarse_grid(grid, samples, options, None, solver, true));
-    let windowed = out.chunks_exact_mut(2).zip(pixels).all(|(o, &p)| {
-        let v = plan.at(grid, &fc, p as usize);
-        o.copy_from_slice(&v.unwrap_or_default());
-        v.is_some()
-    });
-    if !windowed {
+    let mut missing = false;
+    for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
+        match plan.at(grid, &fc, p as usize) {
+            Some(v) => o.copy_from_slice(&v),
+            None => missing = true,
+        }
+    }
+    if missing {
         // A pixel whose window reaches no coarse node takes the full upsampling's fill.
         let field = upsample(grid, plan, &fc, samples);
         for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
@@ -292,15 +294,25 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
             label[b] = count;
             stack.push(b);
             while let Some(b) = stack.pop() {
-                for j in grid.linked(grid.index(bx0 + b % bw, by0 + b / bw)) {
-                    let (jx, jy) = (j % w, j / w);
-                    if j != usize::MAX && (bx0..=bx1).contains(&jx) && (by0..=by1).contains(&jy) {
-                        let nb = (jy - by0) * bw + jx - bx0;
-                        if label[nb] == u32::MAX {
-                            label[nb] = count;
-                            stack.push(nb);
-                        }
+                let (lx, ly) = (b % bw, b / bw);
+                let i = grid.index(bx0 + lx, by0 + ly);
+                let mut visit = |nb: usize| {
+                    if label[nb] == u32::MAX {
+                        label[nb] = count;
+                        stack.push(nb);
                     }
+                };
+                if lx + 1 < bw && grid.link_right[i] {
+                    visit(b + 1);
+                }
+                if lx > 0 && grid.link_right[i - 1] {
+                    visit(b - 1);
+                }
+                if ly + 1 < bh && grid.link_down[i] {
+                    visit(b + bw);
+                }
+                if ly > 0 && grid.link_down[i - w] {
+                    visit(b - bw);
                 }
             }
             count += 1;
