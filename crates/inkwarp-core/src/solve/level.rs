@@ -863,31 +863,19 @@ impl Level {
     pub fn with_holes_filled(self) -> Level {
         let g = &self.geo;
         let (w, h) = (g.w, g.h);
-        let (mut seen, mut fill) = (vec![false; w * h], vec![false; w * h]);
-        for start in 0..w * h {
-            if g.active[start] || seen[start] {
-                continue;
-            }
-            seen[start] = true;
-            let (mut stack, mut hole, mut edges, mut border) = (vec![start], Vec::new(), 0usize, false);
-            while let Some(i) = stack.pop() {
-                hole.push(i);
-                let (x, y) = (i % w, i / w);
-                border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-                let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
-                for j in around.into_iter().flatten() {
-                    if g.active[j] {
-                        edges += 1;
-                    } else if !seen[j] {
-                        seen[j] = true;
-                        stack.push(j);
-                    }
-                }
-            }
-            if hole.len() > 4 * edges && !border {
-                hole.into_iter().for_each(|i| fill[i] = true);
-            }
+        // The holes: the pieces of the grid of inactive nodes; each one's size, links to an
+        // active node, and whether it touches the border.
+        let (hole, count) = crate::grid::Grid::from_active(w, h, g.active.iter().map(|a| !a).collect()).pieces();
+        let (mut size, mut edges, mut border) = (vec![0usize; count], vec![0usize; count], vec![false; count]);
+        for i in (0..w * h).filter(|&i| !g.active[i]) {
+            let (x, y, k) = (i % w, i / w, hole[i] as usize);
+            size[k] += 1;
+            border[k] |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+            let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
+            edges[k] += around.into_iter().flatten().filter(|&j| g.active[j]).count();
         }
+        let wide = |k: usize| size[k] > 4 * edges[k] && !border[k];
+        let fill: Vec<bool> = (0..w * h).map(|i| !g.active[i] && wide(hole[i] as usize)).collect();
         if !fill.contains(&true) {
             return self;
         }
@@ -983,24 +971,23 @@ impl Level {
     /// whose product summed in `f32` is rounding noise above the residual it should carry
     /// (`docs/dev/solver-correctness.md`, "Coarse products in f64").
     pub fn residual_f64(&self, x: &[W2], f: Option<&[W2]>, out: &mut [W2]) {
-        let Operator::Stored { runs, far, .. } = &self.op else { unreachable!("a Galerkin level") };
+        let Operator::Stored { runs, .. } = &self.op else { unreachable!("a Galerkin level") };
         let wp = self.wp;
         self.over_bands(out, false, |r0, _, chunk| {
-            ROW_F64.with(|buf| {
+            BAND_F64.with(|buf| {
                 let mut buf = buf.borrow_mut();
-                buf.resize(wp, [0.0; 2]);
-                for (k, orow) in chunk.chunks_mut(wp).enumerate() {
-                    // −A x of the row in `f64`, then `f` added and the sum rounded.
-                    let (r, base) = (r0 + k, (r0 + k) * wp);
-                    residual_row::<WS, f64>(self, x, None, r, &mut buf);
-                    subtract_far(far, base, x, &mut buf);
-                    for &run in runs.row(r) {
+                buf.resize(chunk.len(), [0.0; 2]);
+                // −A x of the band in `f64`, then `f` added and each sum rounded.
+                self.band_residual::<WS, f64>(x, None, r0, 0, &mut buf);
+                for (k, (orow, brow)) in chunk.chunks_mut(wp).zip(buf.chunks(wp)).enumerate() {
+                    let base = (r0 + k) * wp;
+                    for &run in runs.row(r0 + k) {
                         let (c, e) = (run.start as usize, run.end as usize);
                         if run.kind == RunKind::Skip {
                             orow[c..e].fill([0.0; 2]);
                             continue;
                         }
-                        for (j, (o, b)) in orow[c..e].iter_mut().zip(&buf[c..e]).enumerate() {
+                        for (j, (o, b)) in orow[c..e].iter_mut().zip(&brow[c..e]).enumerate() {
                             let fv = f.map_or([0.0; 2], |f| [f[base + c + j][0].get(), f[base + c + j][1].get()]);
                             *o = [WS::of(fv[0] + b[0]), WS::of(fv[1] + b[1])];
                         }
@@ -1137,8 +1124,8 @@ impl Level {
 thread_local! {
     /// The first iterate's rows of a band (see [`Level::second_step_from_zero`]).
     static FIRST_ITERATE: std::cell::RefCell<Vec<W2>> = const { std::cell::RefCell::new(Vec::new()) };
-    /// One row of `−A x` in `f64` (see [`Level::residual_f64`]).
-    static ROW_F64: std::cell::RefCell<Vec<V2>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// A band of `−A x` in `f64` (see [`Level::residual_f64`]).
+    static BAND_F64: std::cell::RefCell<Vec<V2>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal
@@ -1205,7 +1192,8 @@ widest! {
             match (run.kind, sym) {
                 (RunKind::Skip, _) => out[c..e].fill([T::ZERO; 2]),
                 (RunKind::Shared, Some(sym)) => sym_run::<S, T, true>(x, f, sym, wp, base, c, e, out),
-                (RunKind::Shared, None) => shared_run(x, f, &table[0], wp, base, c, e, out),
+                // A shared stencil without the square's symmetries (not met in practice).
+                (RunKind::Shared, None) => own_sums(x, f, wp, base, c, e, out, |_| &table[0]),
                 (RunKind::Own, _) => {
                     // In `f32` with AVX2, four nodes to a vector (see `four_run_avx2`).
                     let mut i = c;
@@ -1233,31 +1221,6 @@ fn subtract_far<S: Real, T: Real>(far: &[Far], a: usize, x: &[[S; 2]], out: &mut
     for &(p, q, v) in far[k0..].iter().take_while(|e| (e.0 as usize) < b) {
         let (o, xq, v) = (&mut out[p as usize - a], x[q as usize], T::of(v));
         *o = [o[0] - v * widened::<S, T>(xq[0]), o[1] - v * widened::<S, T>(xq[1])];
-    }
-}
-
-/// `out[c] = f[q] − Σₜ s[t] x[q + offset(t)]` for the nodes `q = base + c`, `c` in `c0..c1`
-/// of one row (`out` is that row), all with the one stencil `s` (in [`STORED_TAPS`] order),
-/// 64 nodes at a time, tap by tap. `x` may be narrower than the sums (see [`widened`]).
-#[inline(always)]
-fn shared_run<S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, s: &[T; 25], wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]]) {
-    let mut s0 = c0;
-    while s0 < c1 {
-        let m = (c1 - s0).min(64);
-        let mut acc = [[T::ZERO; 2]; 64];
-        for &(dy, dx) in &STORED_TAPS {
-            let a = s[dy * 5 + dx];
-            let q = base + s0 + dy * wp + dx - 2 * wp - 2;
-            for (o, xv) in acc[..m].iter_mut().zip(&x[q..q + m]) {
-                o[0] += a * widened::<S, T>(xv[0]);
-                o[1] += a * widened::<S, T>(xv[1]);
-            }
-        }
-        for i in 0..m {
-            let fv = f.map_or([T::ZERO; 2], |f| f[base + s0 + i]);
-            out[s0 + i] = [fv[0] - acc[i][0], fv[1] - acc[i][1]];
-        }
-        s0 += m;
     }
 }
 
@@ -1474,7 +1437,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let wide = !fine.geo.ext.is_empty() || matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
-    let win = if wide { Windows::WIDE } else { Windows::NARROW };
+    let n = if wide { WIDE } else { 5 };
     type RowOut = (Vec<u32>, Vec<[f64; 25]>, Vec<(usize, isize, isize, f64)>);
     let build_row = |yc: usize| -> RowOut {
         let mut ids = vec![0u32; wpc];
@@ -1490,7 +1453,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         // Each row's nonzeros only, in window order (so the sums below add as over the
         // whole window): most of a row's wide window is zero.
         let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
-        let (mut acc, mut row) = (vec![0.0f64; win.acc * win.acc], vec![0.0f64; win.ap * win.ap]);
+        let (mut acc, mut row) = (vec![0.0f64; n * n], vec![0.0f64; AP * AP]);
         for &xc in &irregular {
             acc.fill(0.0);
             if !wide {
@@ -1506,20 +1469,20 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
                         if slot[k] == u32::MAX {
                             slot[k] = ap.len() as u32;
                             let start = nz.len();
-                            ap_row(fine, ix, iy, win, &mut row);
+                            ap_row(fine, ix, iy, &mut row);
                             for (t, &v) in row.iter().enumerate().filter(|e| *e.1 != 0.0) {
-                                nz.push(((t % win.ap) as isize - win.ap0, (t / win.ap) as isize - win.ap0, v));
+                                nz.push(((t % AP) as isize - AP0, (t / AP) as isize - AP0, v));
                             }
                             ap.push(start..nz.len());
                         }
                         let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
                         for &(ox, oy, v) in &nz[ap[slot[k] as usize].clone()] {
-                            acc[win.acc_at(bx + ox, by + oy)] += wi * v;
+                            acc[wide_at(bx + ox, by + oy)] += wi * v;
                         }
                     }
                 }
             }
-            let (acc, far_taps) = split_taps(&acc, win.acc);
+            let (acc, far_taps) = split_taps(&acc, n);
             // The window test is conservative: a stencil equal to the shared one up to the
             // rounding of its sums is regular.
             if far_taps.is_empty() && shared_scale > 0.0 && acc.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale) {
@@ -1578,8 +1541,8 @@ fn narrow_diag(inv_diag: &[f64]) -> Vec<WS> {
 
 /// The stored taps of coarse stencil `(Pᵀ A P)(C, ·)`, C = (xc, yc), from the definition.
 pub(crate) fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
-    let (fw, fh, win) = (fine.geo.w, fine.geo.h, Windows::WIDE);
-    let mut acc = vec![0.0f64; win.acc * win.acc];
+    let (fw, fh) = (fine.geo.w, fine.geo.h);
+    let mut acc = vec![0.0f64; WIDE * WIDE];
     for iy in fine.geo.children(yc, fh) {
         for ix in fine.geo.children(xc, fw) {
             let wi = fine.geo.weight(ix, iy, xc, yc);
@@ -1589,40 +1552,31 @@ pub(crate) fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
             fine.taps(fine.pidx(ix, iy), |q, a| {
                 let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
                 let (cjx, cjy) = ((jx / 2) as isize - xc as isize, (jy / 2) as isize - yc as isize);
-                fine.geo.p_row(jx, jy, |ox, oy, wj| acc[win.acc_at(cjx + ox, cjy + oy)] += wi * a * wj);
+                fine.geo.p_row(jx, jy, |ox, oy, wj| acc[wide_at(cjx + ox, cjy + oy)] += wi * a * wj);
             });
         }
     }
-    split_taps(&acc, win.acc).0
+    split_taps(&acc, WIDE).0
 }
 
-/// The windows of the Galerkin sums: a coarse stencil on offsets −`acc` / 2..=`acc` / 2, a
-/// row of `A P` on coarse offsets −`ap0`..`ap` − `ap0` from `(ix / 2, iy / 2)`.
-#[derive(Clone, Copy)]
-struct Windows {
-    acc: usize,
-    ap: usize,
-    ap0: isize,
+/// The Galerkin sums' windows where extrapolating rows meet (taps then reach offset 3: a
+/// level's reach `D` gives the next about `D / 2 + 3`): a coarse stencil on `WIDE` × `WIDE`
+/// offsets centred on its node, a row of `A P` on `AP` × `AP` coarse nodes from offset
+/// −`AP0` of `(ix / 2, iy / 2)`. Elsewhere the sums take 5 × 5 offsets (see [`narrow_sums`]).
+const WIDE: usize = 17;
+const AP: usize = 14;
+const AP0: isize = 6;
+
+/// The entry of offset (dx, dy) in a coarse stencil's sums on the wide window.
+#[inline]
+fn wide_at(dx: isize, dy: isize) -> usize {
+    let h = (WIDE / 2) as isize;
+    assert!(dx.abs() <= h && dy.abs() <= h, "a coarse stencil reaching offset ({dx}, {dy})");
+    ((dy + h) * WIDE as isize + dx + h) as usize
 }
 
-impl Windows {
-    /// Where extrapolating rows meet, taps reach offset 3 (a level's reach `D` gives the
-    /// next about `D / 2 + 3`).
-    const WIDE: Windows = Windows { acc: 17, ap: 14, ap0: 6 };
-    /// Rows on their 2 × 2 corners and a fine operator within its 5 × 5 stencils.
-    const NARROW: Windows = Windows { acc: 5, ap: 4, ap0: 1 };
-
-    #[inline]
-    fn acc_at(self, dx: isize, dy: isize) -> usize {
-        let h = (self.acc / 2) as isize;
-        assert!(dx.abs() <= h && dy.abs() <= h, "a coarse stencil reaching offset ({dx}, {dy})");
-        ((dy + h) * self.acc as isize + dx + h) as usize
-    }
-}
-
-/// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc` on the narrow windows
-/// ([`Windows::NARROW`]: every prolongation row on its 2 × 2 corners, every fine row within
-/// its stencil), from dense rows of `A P`, each made once per coarse row (`slot`, indexed
+/// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc` on the narrow windows (every
+/// prolongation row on its 2 × 2 corners, every fine row within its stencil), from dense rows of `A P`, each made once per coarse row (`slot`, indexed
 /// as in [`galerkin`], into `dense`). The sums run in the order of the general path and add
 /// only exact zeros besides: the same stencil bit for bit.
 fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut Vec<[f64; 16]>, acc: &mut [f64]) {
@@ -1651,7 +1605,7 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
     }
 }
 
-/// Row `(ix, iy)` of `A P` on the narrow window ([`Windows::NARROW`]), dense: the
+/// Row `(ix, iy)` of `A P` on the narrow window (a 4 × 4 one from offset −1), dense: the
 /// products in the order of [`ap_row`].
 fn narrow_ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
     let fw = fine.geo.w;
@@ -1692,15 +1646,15 @@ fn split_taps(acc: &[f64], n: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
     (s, far)
 }
 
-/// Row `i = (ix, iy)` of `A P` into `out`: `Σ_j A_ij P_j` on the coarse nodes of `win`, row-major.
-fn ap_row(fine: &Level, ix: usize, iy: usize, win: Windows, out: &mut [f64]) {
+/// Row `i = (ix, iy)` of `A P` into `out`: `Σ_j A_ij P_j` on the wide window's coarse nodes, row-major.
+fn ap_row(fine: &Level, ix: usize, iy: usize, out: &mut [f64]) {
     out.fill(0.0);
-    let (bx, by, n) = ((ix / 2) as isize, (iy / 2) as isize, win.ap as isize);
+    let (bx, by, n) = ((ix / 2) as isize, (iy / 2) as isize, AP as isize);
     fine.taps(fine.pidx(ix, iy), |q, a| {
         let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
         let (cjx, cjy) = ((jx / 2) as isize - bx, (jy / 2) as isize - by);
         fine.geo.p_row(jx, jy, |ox, oy, wj| {
-            let (ox, oy) = (cjx + ox + win.ap0, cjy + oy + win.ap0);
+            let (ox, oy) = (cjx + ox + AP0, cjy + oy + AP0);
             assert!((0..n).contains(&ox) && (0..n).contains(&oy), "a row of A P reaching past its window");
             out[(oy * n + ox) as usize] += a * wj;
         });
@@ -1770,43 +1724,25 @@ widest! {
     restrict_row_body {
         let fw = vr.len();
         let get = |a: [S; 2]| [T::of(a[0].get()), T::of(a[1].get())];
-        let (half, zero) = (T::of(0.5), [T::ZERO; 2]);
-        let general = |xc: usize, o: &mut [T; 2]| {
-            let ix = 2 * xc;
-            let mut a = if ix < fw { get(vr[ix]) } else { zero };
-            let mut side = if ix >= 1 { get(vr[ix - 1]) } else { zero };
-            if ix + 1 < fw {
-                let b = get(vr[ix + 1]);
-                side[0] += b[0];
-                side[1] += b[1];
-            }
-            a[0] += half * side[0];
-            a[1] += half * side[1];
-            o[0] += wy * a[0];
-            o[1] += wy * a[1];
+        let half = T::of(0.5);
+        let add = |o: &mut [T; 2], l: [T; 2], c: [T; 2], r: [T; 2]| {
+            let side = [l[0] + r[0], l[1] + r[1]];
+            o[0] += wy * (c[0] + half * side[0]);
+            o[1] += wy * (c[1] + half * side[1]);
         };
-        // Coarse nodes 1..inner have both fine neighbours (2X + 1 < fw): the same sums, without tests.
+        // Coarse nodes 1..inner have both fine neighbours (2X + 1 < fw), and every index below
+        // is in bounds by the slices' lengths, so the loop has no tests.
         let inner = (fw / 2).min(acc.len());
-        if let Some(o) = acc.first_mut() {
-            general(0, o);
-        }
-        // Every index below is in bounds by the slices' lengths, so the loop has no tests.
         let (head, v) = (&mut acc[..inner], &vr[..2 * inner]);
         for xc in 1..inner {
             let ix = 2 * xc;
-            let (l, c, r) = (get(v[ix - 1]), get(v[ix]), get(v[ix + 1]));
-            let o = &mut head[xc];
-            let mut side = l;
-            side[0] += r[0];
-            side[1] += r[1];
-            let mut a = c;
-            a[0] += half * side[0];
-            a[1] += half * side[1];
-            o[0] += wy * a[0];
-            o[1] += wy * a[1];
+            add(&mut head[xc], get(v[ix - 1]), get(v[ix]), get(v[ix + 1]));
         }
-        for (xc, o) in acc.iter_mut().enumerate().skip(inner.max(1)) {
-            general(xc, o);
+        // The others, a missing neighbour zero (fine node −1 wraps past the row's end).
+        let at = |ix: usize| if ix < fw { get(vr[ix]) } else { [T::ZERO; 2] };
+        for xc in (0..acc.len().min(1)).chain(inner.max(1)..acc.len()) {
+            let ix = 2 * xc;
+            add(&mut acc[xc], at(ix.wrapping_sub(1)), at(ix), at(ix + 1));
         }
     }
 }
