@@ -163,7 +163,7 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
 /// ([`STORED_TAPS`] order), the four nodes' side by side.
 pub(crate) type FourBlock = [[f32; 4]; 21];
 
-/// A Galerkin level's nodes with stencils of their own in fours, as [`residual_row`] takes
+/// A Galerkin level's nodes with stencils of their own in fours, as [`band_residual`] takes
 /// them (each run from its start; its last one to three nodes padded with zero coefficients),
 /// each four's coefficients one [`FourBlock`], loaded a tap at a time (empty without AVX2).
 #[derive(Debug, Default)]
@@ -175,7 +175,7 @@ pub(crate) struct Fours {
 
 impl Fours {
     /// The fours of the stencils `ids` (into `narrow`) of the nodes with stencils of their
-    /// own on the level's `runs`, as `residual_row` visits them.
+    /// own on the level's `runs`, as `band_residual` visits them.
     pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], runs: &Runs, wp: usize, h: usize) -> Fours {
         if !f32::has_four_stencils() {
             return Fours::default();
@@ -961,7 +961,7 @@ impl Level {
     /// `y = f − A x` on unknowns (zero elsewhere), rows in parallel for large levels.
     pub fn residual<T: Real>(&self, x: &[[T; 2]], f: Option<&[[T; 2]]>, out: &mut [[T; 2]]) {
         self.over_bands(out, false, |r0, _, chunk| {
-            self.band_residual(x, f, r0, 0, chunk);
+            band_residual(self, x, f, r0, 0, chunk);
             [0.0; 2]
         });
     }
@@ -978,7 +978,7 @@ impl Level {
                 let mut buf = buf.borrow_mut();
                 buf.resize(chunk.len(), [0.0; 2]);
                 // −A x of the band in `f64`, then `f` added and each sum rounded.
-                self.band_residual::<WS, f64>(x, None, r0, 0, &mut buf);
+                band_residual::<WS, f64>(self, x, None, r0, 0, &mut buf);
                 for (k, (orow, brow)) in chunk.chunks_mut(wp).zip(buf.chunks(wp)).enumerate() {
                     let base = (r0 + k) * wp;
                     for &run in runs.row(r0 + k) {
@@ -1002,7 +1002,7 @@ impl Level {
     /// band by band while both are in cache.
     pub fn residual_dot<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> [f64; 2] {
         self.over_bands(out, false, |r0, r1, chunk| {
-            self.band_residual(x, None, r0, 0, chunk);
+            band_residual(self, x, None, r0, 0, chunk);
             dot_pairs(&x[r0 * self.wp..r1 * self.wp], chunk)
         })
     }
@@ -1014,7 +1014,7 @@ impl Level {
     pub fn fine_residual_dot_narrow(&self, x: &[W2], out: &mut [V2]) -> [f64; 2] {
         assert!(matches!(self.op, Operator::Fine { .. }), "the finest level");
         self.over_bands(out, false, |r0, r1, chunk| {
-            self.band_residual(x, None, r0, 0, chunk);
+            band_residual(self, x, None, r0, 0, chunk);
             pair_sums(x[r0 * self.wp..r1 * self.wp].as_flattened(), chunk.as_flattened(), |a: WS, b: f64| a.get() * b)
         })
     }
@@ -1023,26 +1023,9 @@ impl Level {
     /// [`scaled_max`]), taken band by band while `out` is in cache.
     pub fn residual_scaled_max<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> f64 {
         self.over_bands(out, true, |r0, r1, chunk| {
-            self.band_residual(x, None, r0, 0, chunk);
+            band_residual(self, x, None, r0, 0, chunk);
             [scaled_max(chunk, &self.inv_diag[r0 * self.wp..r1 * self.wp]), 0.0]
         })[0]
-    }
-
-    /// `out = f − A x` on the rows of the band from padded row `r0` (`out` holds those
-    /// rows). `x` and `f` hold the level's rows from padded row `shift` on (on the finest
-    /// level; 0 on the others). Summed in `T`, `x` widened exactly (see [`widened`]).
-    fn band_residual<S: Real, T: Real>(&self, x: &[[S; 2]], f: Option<&[[T; 2]]>, r0: usize, shift: usize, out: &mut [[T; 2]]) {
-        let wp = self.wp;
-        match &self.op {
-            Operator::Fine { tau, runs, own, .. } => fine_band(runs, own, *tau, wp, x, f, r0, r0 + out.len() / wp, shift, out),
-            Operator::Stored { far, .. } => {
-                assert_eq!(shift, 0, "a Galerkin level's vectors whole");
-                for (k, orow) in out.chunks_mut(wp).enumerate() {
-                    residual_row(self, x, f, r0 + k, orow);
-                }
-                subtract_far(far, r0 * wp, x, out);
-            }
-        }
     }
 
     /// `band(r0, r1, rows)` on the level's body in bands of [`PAR_ROWS`] rows (`rows` the
@@ -1111,7 +1094,7 @@ impl Level {
     /// hold the level's rows from padded row `shift` on.
     fn step_band(&self, x: &[W2], shift: usize, f: Option<&[W2]>, r0: usize, chunk: &mut [W2], dc: &mut [W2], rule: StepRule, keep: bool) {
         let (wp, w, g) = (self.wp, self.geo.w, &self.inv_diag_w[..]);
-        self.band_residual(x, f, r0, shift, chunk);
+        band_residual(self, x, f, r0, shift, chunk);
         for (k, (orow, drow)) in chunk.chunks_mut(wp).zip(dc.chunks_mut(wp)).enumerate() {
             let (xb, gb) = ((r0 - shift + k) * wp + PAD, (r0 + k) * wp + PAD);
             orow[..PAD].fill([0.0; 2]);
@@ -1178,37 +1161,67 @@ widest! {
 }
 
 widest! {
-    /// `out = f − A x` on the unknowns of padded row `r` of Galerkin level `level` (summed in
-    /// `T`, `x` widened exactly: see [`widened`]), on the processor's widest vectors.
+    /// `out = f − A x` on the unknowns of the rows of the band from padded row `r0` (`out`
+    /// holds those rows), on the processor's widest vectors: runs of regular nodes by the
+    /// level's shared stencil (the finest level's interior molecule), the other nodes by their
+    /// own stencils, then a Galerkin level's far taps. `x` and `f` hold the level's rows from
+    /// padded row `shift` on (on the finest level; 0 on the others). Summed in `T`, `x`
+    /// widened exactly (see [`widened`]).
     #[inline(never)]
-    fn residual_row<S: Real, T: Real>(level: &Level, x: &[[S; 2]], f: Option<&[[T; 2]]>, r: usize, out: &mut [[T; 2]]) =>
-    residual_row_body {
-        let Operator::Stored { ids, table, narrow, sym, fours, runs, .. } = &level.op else { unreachable!("a Galerkin level") };
-        let (wp, base, table) = (level.wp, r * level.wp, T::table(table, narrow));
-        let four = f32::has_four_stencils() && !fours.row_first.is_empty();
-        let mut block = if four { fours.row_first[r] as usize } else { 0 };
-        for &run in runs.row(r) {
-            let (c, e) = (run.start as usize, run.end as usize);
-            match (run.kind, sym) {
-                (RunKind::Skip, _) => out[c..e].fill([T::ZERO; 2]),
-                (RunKind::Shared, Some(sym)) => sym_run::<S, T, true>(x, f, sym, wp, base, c, e, out),
-                // A shared stencil without the square's symmetries (not met in practice).
-                (RunKind::Shared, None) => own_sums(x, f, wp, base, c, e, out, |_| &table[0]),
-                (RunKind::Own, _) => {
-                    // In `f32` with AVX2, four nodes to a vector (see `four_run_avx2`).
-                    let mut i = c;
-                    if let (true, Some(xs), Some(o)) = (four, S::as_f32(x), T::as_f32_mut(out)) {
-                        let (n, tail) = ((e - c) / 4, (e - c) % 4);
-                        let m = n + usize::from(tail > 0);
-                        // Near the end of a level's last row the tail's taps may pass the
-                        // vectors' end: there it is summed below, node by node.
-                        let tail = if base + c + 4 * m + 2 * wp + 2 <= x.len() { tail } else { 0 };
-                        f32::four_run(xs, f.and_then(T::as_f32), base + c, n, tail, wp, &fours.blocks[block..block + m], &mut o[c..c + 4 * n + tail]);
-                        block += m;
-                        i += 4 * n + tail;
+    fn band_residual<S: Real, T: Real>(level: &Level, x: &[[S; 2]], f: Option<&[[T; 2]]>, r0: usize, shift: usize, out: &mut [[T; 2]]) =>
+    band_residual_body {
+        let wp = level.wp;
+        let rows = out.chunks_mut(wp).enumerate().map(|(k, orow)| (r0 + k, (r0 + k - shift) * wp, orow));
+        match &level.op {
+            Operator::Fine { tau, runs, own, .. } => {
+                let (molecule, table) = (Sym::fine(*tau), T::table(&own.table, &own.narrow));
+                for (r, base, orow) in rows {
+                    for run in runs.row(r) {
+                        let (c, e) = (run.start as usize, run.end as usize);
+                        match run.kind {
+                            RunKind::Shared => sym_run::<S, T, false>(x, f, &molecule, wp, base, c, e, orow),
+                            RunKind::Own => {
+                                let ids = &own.ids[run.at as usize..run.at as usize + e - c];
+                                own_sums(x, f, wp, base, c, e, orow, |q| &table[ids[q - base - c] as usize]);
+                            }
+                            RunKind::Skip => orow[c..e].fill([T::ZERO; 2]),
+                        }
                     }
-                    own_sums(x, f, wp, base, i, e, out, |q| &table[ids[q] as usize]);
                 }
+            }
+            Operator::Stored { ids, table, narrow, sym, fours, runs, far } => {
+                assert_eq!(shift, 0, "a Galerkin level's vectors whole");
+                let table = T::table(table, narrow);
+                let four = f32::has_four_stencils() && !fours.row_first.is_empty();
+                for (r, base, orow) in rows {
+                    let mut block = if four { fours.row_first[r] as usize } else { 0 };
+                    for &run in runs.row(r) {
+                        let (c, e) = (run.start as usize, run.end as usize);
+                        match (run.kind, sym) {
+                            (RunKind::Skip, _) => orow[c..e].fill([T::ZERO; 2]),
+                            (RunKind::Shared, Some(sym)) => sym_run::<S, T, true>(x, f, sym, wp, base, c, e, orow),
+                            // A shared stencil without the square's symmetries (not met in practice).
+                            (RunKind::Shared, None) => own_sums(x, f, wp, base, c, e, orow, |_| &table[0]),
+                            (RunKind::Own, _) => {
+                                // In `f32` with AVX2, four nodes to a vector (see `four_run_avx2`).
+                                let mut i = c;
+                                if let (true, Some(xs), Some(o)) = (four, S::as_f32(x), T::as_f32_mut(orow)) {
+                                    let (n, tail) = ((e - c) / 4, (e - c) % 4);
+                                    let m = n + usize::from(tail > 0);
+                                    // Near the end of a level's last row the tail's taps may pass the
+                                    // vectors' end: there it is summed below, node by node.
+                                    let tail = if base + c + 4 * m + 2 * wp + 2 <= x.len() { tail } else { 0 };
+                                    let blocks = &fours.blocks[block..block + m];
+                                    f32::four_run(xs, f.and_then(T::as_f32), base + c, n, tail, wp, blocks, &mut o[c..c + 4 * n + tail]);
+                                    block += m;
+                                    i += 4 * n + tail;
+                                }
+                                own_sums(x, f, wp, base, i, e, orow, |q| &table[ids[q] as usize]);
+                            }
+                        }
+                    }
+                }
+                subtract_far(far, r0 * wp, x, out);
             }
         }
     }
@@ -1253,33 +1266,6 @@ fn own_sums<'a, S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, wp: usize,
             out[i + j] = [fv[0] - a[0], fv[1] - a[1]];
         }
         i += k;
-    }
-}
-
-widest! {
-    /// `out = f − A x` on the unknowns of padded rows `r0..r1` of the finest level: the
-    /// interior molecule on runs of regular nodes, the others' [`OwnStencils`], on the
-    /// processor's widest vectors. `x` and `f` hold the level's rows from padded row `shift` on.
-    #[inline(never)]
-    fn fine_band<S: Real, T: Real>(runs: &Runs, own: &OwnStencils, tau: f64, wp: usize, x: &[[S; 2]], f: Option<&[[T; 2]]>, r0: usize, r1: usize, shift: usize, out: &mut [[T; 2]]) =>
-    fine_band_body {
-        let molecule = Sym::fine(tau);
-        let table = T::table(&own.table, &own.narrow);
-        for (k, r) in (r0..r1).enumerate() {
-            let base = (r - shift) * wp;
-            let orow = &mut out[k * wp..(k + 1) * wp];
-            for run in runs.row(r) {
-                let (c, e) = (run.start as usize, run.end as usize);
-                match run.kind {
-                    RunKind::Shared => sym_run::<S, T, false>(x, f, &molecule, wp, base, c, e, orow),
-                    RunKind::Own => {
-                        let ids = &own.ids[run.at as usize..run.at as usize + e - c];
-                        own_sums(x, f, wp, base, c, e, orow, |q| &table[ids[q - base - c] as usize]);
-                    }
-                    RunKind::Skip => orow[c..e].fill([T::ZERO; 2]),
-                }
-            }
-        }
     }
 }
 
@@ -1438,13 +1424,13 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let wide = !fine.geo.ext.is_empty() || matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
     let n = if wide { WIDE } else { 5 };
-    type RowOut = (Vec<u32>, Vec<[f64; 25]>, Vec<(usize, isize, isize, f64)>);
+    // A coarse row's stencils of their own (by column) and far taps.
+    type RowOut = (Vec<(usize, [f64; 25])>, Vec<Far>);
     let build_row = |yc: usize| -> RowOut {
-        let mut ids = vec![0u32; wpc];
         let (mut own, mut far) = (Vec::new(), Vec::new());
         let irregular: Vec<usize> = (0..wc).filter(|&xc| geo.active[yc * wc + xc] && !regular(xc, yc)).collect();
         if irregular.is_empty() {
-            return (ids, own, far);
+            return (own, far);
         }
         // A P for the fine rows of this coarse row's children, once per needed fine node.
         let rows = fine.geo.children(yc, fh);
@@ -1488,11 +1474,17 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
             if far_taps.is_empty() && shared_scale > 0.0 && acc.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale) {
                 continue;
             }
-            far.extend(far_taps.into_iter().map(|(dx, dy, a)| (xc, dx, dy, a)));
-            own.push(acc);
-            ids[xc + PAD] = own.len() as u32; // local, 1-based
+            let p = (yc + PAD) * wpc + xc + PAD;
+            for (dx, dy, a) in far_taps {
+                let (qx, qy) = (xc as isize + dx, yc as isize + dy);
+                // Past the level's nodes a tap only ever meets the padding's zeros.
+                if (0..wc as isize).contains(&qx) && (0..hc as isize).contains(&qy) {
+                    far.push((p as u32, ((qy as usize + PAD) * wpc + qx as usize + PAD) as u32, a));
+                }
+            }
+            own.push((xc, acc));
         }
-        (ids, own, far)
+        (own, far)
     };
     let mut rows: Vec<RowOut> = vec![Default::default(); hc];
     each_row(fw * fh, &mut rows, 1, |yc, row| row[0] = build_row(yc));
@@ -1500,19 +1492,11 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let mut ids = vec![0u32; wpc * hpc];
     let mut distinct = DistinctStencils { table: vec![shared], ..Default::default() };
     let mut far: Vec<Far> = Vec::new();
-    for (yc, (row_ids, own, row_far)) in rows.into_iter().enumerate() {
-        let local: Vec<u32> = own.into_iter().map(|s| distinct.id(s)).collect();
-        for (c, &id) in row_ids.iter().enumerate().filter(|e| *e.1 != 0) {
-            ids[(yc + PAD) * wpc + c] = local[id as usize - 1];
+    for (yc, (own, row_far)) in rows.into_iter().enumerate() {
+        for (xc, s) in own {
+            ids[(yc + PAD) * wpc + xc + PAD] = distinct.id(s);
         }
-        for (xc, dx, dy, a) in row_far {
-            let (qx, qy) = (xc as isize + dx, yc as isize + dy);
-            // Past the level's nodes a tap only ever meets the padding's zeros.
-            if (0..wc as isize).contains(&qx) && (0..hc as isize).contains(&qy) {
-                let q = (qy as usize + PAD) * wpc + qx as usize + PAD;
-                far.push((((yc + PAD) * wpc + xc + PAD) as u32, q as u32, a));
-            }
-        }
+        far.extend(row_far);
     }
     let table = distinct.table;
     let (mut inv_diag, mut lam_max, mut clean) = (vec![0.0; wpc * hpc], 0.0f64, vec![false; wc * hc]);
@@ -1872,10 +1856,9 @@ mod tests {
         let bits = |v: &[V2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&narrow_out), bits(&wide_out), "{w}×{h}, τ = {tau}: A p");
         assert_eq!(narrow_dot.map(f64::to_bits), wide_dot.map(f64::to_bits), "{w}×{h}, τ = {tau}: pᵀA p");
-        let Operator::Fine { tau: t, runs, own, .. } = &fine.op else { unreachable!("the finest level") };
         let (wp, r0, r1) = (fine.wp, PAD, PAD + h);
         let mut plain = vec![[0.0; 2]; n];
-        fine_band_body(runs, own, *t, wp, x, None, r0, r1, 0, &mut plain[r0 * wp..r1 * wp]);
+        band_residual_body(fine, x, None, r0, 0, &mut plain[r0 * wp..r1 * wp]);
         assert_eq!(bits(&plain), bits(&narrow_out), "{w}×{h}, τ = {tau}: the plain copy");
     }
 
@@ -1949,18 +1932,8 @@ mod tests {
         let (n, wp, h) = (x.len(), level.wp, level.geo.h);
         let (mut wide, mut plain) = (vec![[T::ZERO; 2]; n], vec![[T::ZERO; 2]; n]);
         let (r0, r1) = (PAD, PAD + h);
-        match &level.op {
-            Operator::Fine { tau, runs, own, .. } => {
-                fine_band(runs, own, *tau, wp, x, Some(f), r0, r1, 0, &mut wide[r0 * wp..r1 * wp]);
-                fine_band_body(runs, own, *tau, wp, x, Some(f), r0, r1, 0, &mut plain[r0 * wp..r1 * wp]);
-            }
-            Operator::Stored { .. } => {
-                for r in r0..r1 {
-                    residual_row(level, x, Some(f), r, &mut wide[r * wp..(r + 1) * wp]);
-                    residual_row_body(level, x, Some(f), r, &mut plain[r * wp..(r + 1) * wp]);
-                }
-            }
-        }
+        band_residual(level, x, Some(f), r0, 0, &mut wide[r0 * wp..r1 * wp]);
+        band_residual_body(level, x, Some(f), r0, 0, &mut plain[r0 * wp..r1 * wp]);
         assert!(wide.iter().flatten().filter(|v| v.get() != 0.0).count() > n / 2, "most rows must be computed");
         for p in 0..n {
             for k in 0..2 {
