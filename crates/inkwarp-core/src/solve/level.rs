@@ -1560,8 +1560,9 @@ fn wide_at(dx: isize, dy: isize) -> usize {
 }
 
 /// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc` on the narrow windows (every
-/// prolongation row on its 2 × 2 corners, every fine row within its stencil), from dense rows of `A P`, each made once per coarse row (`slot`, indexed
-/// as in [`galerkin`], into `dense`). The sums run in the order of the general path and add
+/// prolongation row on its 2 × 2 corners, every fine row within its stencil), from dense
+/// rows of `A P`, each made once per coarse row (`slot`, indexed as in [`galerkin`], into
+/// `dense`). The sums run in the order of the general path and add
 /// only exact zeros besides: the same stencil bit for bit.
 fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut Vec<[f64; 16]>, acc: &mut [f64]) {
     let (fw, fh, g) = (fine.geo.w, fine.geo.h, &fine.geo);
