@@ -15,10 +15,9 @@
 //! then to the nearest value along the links). A piece that holds no coarse node takes the
 //! mean displacement of its samples, or stays at zero without any.
 //!
-//! This is the path the editor takes while a point is dragged, so it is built for speed
-//! (separable weights; usable-tap masks only for cells near a missing link: see
-//! `docs/dev/multigrid.md`, "`grid_step` and Southwell"). A test holds it to the
-//! straightforward per-pixel loop (to within the rounding of the sums' order).
+//! The editor's drag path, built for speed (`docs/dev/multigrid.md`, "`grid_step` and
+//! Southwell"); a test holds it to the straightforward per-pixel loop (to within the
+//! rounding of the sums' order).
 
 use std::collections::VecDeque;
 
@@ -116,14 +115,9 @@ pub(crate) fn solve_at(
     }
     validate(grid, samples, options, None)?;
     let (fc, mut report) = in_pool(|| solve_on_coarse_grid(grid, samples, options, None, solver, true));
-    let mut missing = false;
-    for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
-        match plan.at(grid, &fc, p as usize) {
-            Some(v) => o.copy_from_slice(&v),
-            None => missing = true,
-        }
-    }
-    if missing {
+    if let Some(values) = pixels.iter().map(|&p| plan.at(grid, &fc, p as usize)).collect::<Option<Vec<_>>>() {
+        out.copy_from_slice(values.as_flattened());
+    } else {
         // A pixel whose window reaches no coarse node takes the full upsampling's fill.
         let field = upsample(grid, plan, &fc, samples);
         for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
@@ -296,39 +290,32 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
             while let Some(b) = stack.pop() {
                 let (lx, ly) = (b % bw, b / bw);
                 let i = grid.index(bx0 + lx, by0 + ly);
-                let mut visit = |nb: usize| {
-                    if label[nb] == u32::MAX {
+                // Right, left, down, up (not linked where off the block).
+                let links = [
+                    (lx + 1 < bw && grid.link_right[i], b + 1),
+                    (lx > 0 && grid.link_right[i - 1], b.wrapping_sub(1)),
+                    (ly + 1 < bh && grid.link_down[i], b + bw),
+                    (ly > 0 && grid.link_down[i - w], b.wrapping_sub(bw)),
+                ];
+                for (linked, nb) in links {
+                    if linked && label[nb] == u32::MAX {
                         label[nb] = count;
                         stack.push(nb);
                     }
-                };
-                if lx + 1 < bw && grid.link_right[i] {
-                    visit(b + 1);
-                }
-                if lx > 0 && grid.link_right[i - 1] {
-                    visit(b - 1);
-                }
-                if ly + 1 < bh && grid.link_down[i] {
-                    visit(b + bw);
-                }
-                if ly > 0 && grid.link_down[i - w] {
-                    visit(b - bw);
                 }
             }
             count += 1;
         }
     }
     let (mut reach, mut full) = (vec![0u16; count as usize], 0u16);
-    for kb in 0..4 {
-        for ka in 0..4 {
-            // Window node (ka, kb) at coarse position (nx, ny), if inside the grid.
-            let (nx, ny) = ((cx + ka).checked_sub(1).filter(|&n| n < wc), (cy + kb).checked_sub(1).filter(|&n| n < hc));
-            let (Some(nx), Some(ny)) = (nx, ny) else { continue };
-            full |= 1 << (4 * kb + ka);
-            let l = label[(layout.py(ny) - by0) * bw + (layout.px(nx) - bx0)];
-            if l != u32::MAX {
-                reach[l as usize] |= 1 << (4 * kb + ka);
-            }
+    for bit in 0..16 {
+        // Window node (bit % 4, bit / 4) at coarse position (nx, ny), if inside the grid.
+        let (nx, ny) = ((cx + bit % 4).checked_sub(1).filter(|&n| n < wc), (cy + bit / 4).checked_sub(1).filter(|&n| n < hc));
+        let (Some(nx), Some(ny)) = (nx, ny) else { continue };
+        full |= 1 << bit;
+        let l = label[(layout.py(ny) - by0) * bw + (layout.px(nx) - bx0)];
+        if l != u32::MAX {
+            reach[l as usize] |= 1 << bit;
         }
     }
     let mut masks = Vec::with_capacity((ix1 - ix0 + 1) * (iy1 - iy0 + 1));
@@ -341,7 +328,6 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
     }
     masks
 }
-
 
 /// One pixel's value from the coarse field `fc`, any window (`ty`, `tx` its taps): the taps
 /// allowed by `mask`, renormalised; the bilinear fallback from the window's inner 2 × 2
