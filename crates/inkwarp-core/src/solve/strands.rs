@@ -32,8 +32,6 @@ const PIVOT: f64 = 1e-6;
 
 #[derive(Debug)]
 struct Block {
-    /// Range of the block's nodes in [`Strands::nodes`].
-    start: usize,
     /// Per node (block order): first column of its envelope row, and where the row starts
     /// in `l`.
     first: Vec<u32>,
@@ -105,8 +103,7 @@ impl Strands {
         let (mut kept, mut taps, mut at, mut blocks) = (Vec::new(), Vec::new(), vec![0], Vec::new());
         for pair in starts.windows(2) {
             let ids = &nodes[pair[0]..pair[1]];
-            let Some(mut b) = Block::factor(level, ids, &local, pair[0], shift) else { continue };
-            b.start = kept.len();
+            let Some(b) = Block::factor(level, ids, &local, pair[0], shift) else { continue };
             blocks.push(b);
             for &p in ids {
                 kept.push(p);
@@ -129,10 +126,10 @@ impl Strands {
     /// right-hand side `f` holds `r` in `f32`) and takes the correction's product out of
     /// `f`.
     pub fn before(&mut self, level: &Level, r: &[V2], f: &mut [W2]) {
-        let rhs: Vec<V2> = self.nodes.iter().map(|&p| r[p as usize]).collect();
-        let mut z = std::mem::take(&mut self.first_pass);
-        self.solve_into(&rhs, &mut z);
-        self.first_pass = z;
+        for (z, &p) in self.first_pass.iter_mut().zip(&self.nodes) {
+            *z = r[p as usize];
+        }
+        solve_blocks(&self.blocks, &mut self.first_pass);
         for (i, z) in self.first_pass.iter().enumerate() {
             for &(q, a) in self.row(i).iter().filter(|&&(q, _)| level.inv_diag[q as usize] != 0.0) {
                 f[q as usize][0] -= WS::of(a * z[0]);
@@ -155,11 +152,10 @@ impl Strands {
 
     /// `x_S += A_SS⁻¹ (b − A x)_S`, `b(p)` the right-hand side at padded node `p`.
     fn relax_from(&self, b: impl Fn(usize) -> V2, x: &mut [W2]) {
-        let rhs: Vec<V2> = (0..self.nodes.len()).map(|i| {
+        let mut z: Vec<V2> = (0..self.nodes.len()).map(|i| {
             self.row(i).iter().fold(b(self.nodes[i] as usize), |s, &(q, a)| [s[0] - a * x[q as usize][0].get(), s[1] - a * x[q as usize][1].get()])
         }).collect();
-        let mut z = vec![[0.0; 2]; rhs.len()];
-        self.solve_into(&rhs, &mut z);
+        solve_blocks(&self.blocks, &mut z);
         self.add(&z, x);
     }
 
@@ -170,13 +166,14 @@ impl Strands {
             *xp = [WS::of(xp[0].get() + z[0]), WS::of(xp[1].get() + z[1])];
         }
     }
+}
 
-    /// `out = A_SS⁻¹ rhs`, block by block.
-    fn solve_into(&self, rhs: &[V2], out: &mut [V2]) {
-        for b in &self.blocks {
-            let nodes = b.start..b.start + b.d_inv.len();
-            b.solve(&rhs[nodes.clone()], &mut out[nodes]);
-        }
+/// `x = A_SS⁻¹ x` (`x` over [`Strands::nodes`]), block by block.
+fn solve_blocks(blocks: &[Block], x: &mut [V2]) {
+    let mut start = 0;
+    for b in blocks {
+        b.solve(&mut x[start..start + b.d_inv.len()]);
+        start += b.d_inv.len();
     }
 }
 
@@ -287,14 +284,15 @@ impl Block {
             }
             d_inv[i] = if di > PIVOT * diag[i] { 1.0 / di } else { 0.0 };
         }
-        Some(Block { start: 0, first, at, l, d_inv })
+        Some(Block { first, at, l, d_inv })
     }
 
-    fn solve(&self, b: &[V2], x: &mut [V2]) {
-        let n = b.len();
+    /// `x = (L D Lᵀ)⁻¹ x`.
+    fn solve(&self, x: &mut [V2]) {
+        let n = x.len();
         for i in 0..n {
             let fi = self.first[i] as usize;
-            let mut s = b[i];
+            let mut s = x[i];
             for k in fi..i {
                 let lik = self.l[self.at[i] + k - fi];
                 s[0] -= lik * x[k][0];
@@ -333,8 +331,8 @@ mod tests {
         let s = Strands::new(&level).expect("the teeth are thin");
         assert!(s.blocks.len() > 10 && s.blocks.iter().all(|b| b.d_inv.iter().all(|&d| d > 0.0)));
         let rhs: Vec<V2> = (0..s.nodes.len()).map(|i| [(i % 7) as f64 - 3.0, (i % 5) as f64 * 0.5]).collect();
-        let mut z = vec![[0.0; 2]; rhs.len()];
-        s.solve_into(&rhs, &mut z);
+        let mut z = rhs.clone();
+        solve_blocks(&s.blocks, &mut z);
         let mut x = vec![[0.0; 2]; level.len_padded()];
         for (i, &p) in s.nodes.iter().enumerate() {
             x[p as usize] = z[i];
