@@ -82,9 +82,7 @@ impl Deflation {
             return;
         }
         let rhs = dots(&self.aw, p.len(), |i| [p[i][0].get(), p[i][1].get()]);
-        let Some(mu) = super::dense_solve(self.e.clone(), rhs) else {
-            return;
-        };
+        let Some(mu) = super::dense_solve(self.e.clone(), rhs) else { return };
         p.par_chunks_mut(CHUNK).enumerate().for_each(|(c, p)| {
             for (j, x) in p.iter_mut().enumerate() {
                 let d = combination(&self.w, &mu, c * CHUNK + j);
@@ -155,8 +153,7 @@ impl Deflation {
             return;
         };
         self.restarts += 1;
-        self.before = self.low;
-        self.low = f64::INFINITY;
+        self.before = std::mem::replace(&mut self.low, f64::INFINITY);
         let k = self.keep.min(theta.len());
         let n = u.len();
         // W = B Y, column by column, chunk by chunk in parallel.

@@ -206,9 +206,8 @@ impl Echelon {
             }
             self.acc[pc] = 0.0;
         }
-        let big = self.touched.iter().map(|&c| self.acc[c].abs()).fold(0.0, f64::max);
-        if big > 1e-9 * scale {
-            let piv = *self.touched.iter().max_by(|&&a, &&b| self.acc[a].abs().total_cmp(&self.acc[b].abs())).unwrap();
+        let piv = self.touched.iter().copied().max_by(|&a, &b| self.acc[a].abs().total_cmp(&self.acc[b].abs()));
+        if let Some(piv) = piv.filter(|&c| self.acc[c].abs() > 1e-9 * scale) {
             let d = self.acc[piv];
             let new = self.touched.iter().map(|&c| (c, self.acc[c] / d)).filter(|&(_, v)| v.abs() > 1e-12).collect();
             self.pivot_of[piv] = self.rows.len() as u32;
