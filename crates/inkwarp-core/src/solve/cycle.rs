@@ -126,9 +126,7 @@ impl Hierarchy {
     }
 
     /// Level k's smoothing steps.
-    fn steps_at(&self, k: usize) -> usize {
-        if k == 0 { self.degree } else { self.coarse_degree }
-    }
+    fn steps_at(&self, k: usize) -> usize { if k == 0 { self.degree } else { self.coarse_degree } }
 
     /// Approximately solves `A_k x = f` on level k (x, f in `work[0]`, the slice starting at
     /// level k) by one cycle from `x` (zero when `x_zero`): a V-cycle, with K-cycle
@@ -165,7 +163,7 @@ impl Hierarchy {
                 add_line_searched(level, &self.levels[k + 1], &mut tail[0], &mut w.x);
             } else {
                 // (From the coarsest level of two the correction is exact: its step is 1.)
-                prolong_add(level, &self.levels[k + 1], &tail[0].x, &mut w.x);
+                prolong_add_scaled(level, &self.levels[k + 1], &tail[0].x, &mut w.x, [1.0; 2]);
             }
         }
         if let (Some(alt), Some(aw)) = (self.alt.as_deref().filter(|a| a.levels.len() > 1), alt_work) {
@@ -173,7 +171,7 @@ impl Hierarchy {
             level.residual(&w.x, Some(&w.f), &mut w.r);
             alt.solve_below(0, &w.r, &mut aw[1..]);
             // Unscaled (a line search here gained nothing: `docs/dev/ablation.md`).
-            prolong_add(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x);
+            prolong_add_scaled(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x, [1.0; 2]);
         }
         let Work { x, f, r, d, .. } = w;
         if let Some(Some(s)) = self.level_strands.get(k) {
@@ -239,7 +237,7 @@ impl Hierarchy {
         update(&mut c.r, &c.q1, |r, q1| *r = [WS::ZERO - r[0] - bw[0] * q1[0], WS::ZERO - r[1] - bw[1] * q1[1]]);
         let (a1w, a2w) = (a1.map(WS::of), step(dot_w(&c.x, &c.f), dot_w(&c.x, &c.r)).map(WS::of));
         update(&mut c.x, &c.z1, |x, z1| *x = [a1w[0] * z1[0] + a2w[0] * x[0], a1w[1] * z1[1] + a2w[1] * x[1]]);
-        prolong_add(level, coarse, &c.x, &mut w.x);
+        prolong_add_scaled(level, coarse, &c.x, &mut w.x, [1.0; 2]);
     }
 
     /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on
@@ -272,10 +270,10 @@ impl Hierarchy {
         for k in (1..nl - 1).rev() {
             let (head, tail) = work.split_at_mut(k + 1);
             fill_zero(&mut head[k].x);
-            prolong_add(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut head[k].x);
+            prolong_add_scaled(&self.levels[k], &self.levels[k + 1], &tail[0].x, &mut head[k].x, [1.0; 2]);
             self.solve_level(k, &mut work[k..], false, None);
         }
-        prolong_add(&self.levels[0], &self.levels[1], &work[1].x, u);
+        prolong_add_scaled(&self.levels[0], &self.levels[1], &work[1].x, u, [1.0; 2]);
         self.work = work;
     }
 }
@@ -290,11 +288,6 @@ fn add_line_searched(fine: &Level, coarse: &Level, c: &mut Work, x: &mut [W2]) {
     let (num, den) = (dot_w(&c.x, &c.f), dot_w(&c.x, &c.r).map(|v| -v));
     let alpha = [0, 1].map(|k| if den[k] > 0.0 { num[k] / den[k] } else { 1.0 });
     prolong_add_scaled(fine, coarse, &c.x, x, alpha);
-}
-
-/// `x += P e`: the unscaled coarse correction.
-fn prolong_add<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]]) {
-    prolong_add_scaled(fine, coarse, e, x, [1.0; 2]);
 }
 
 /// An upper bound of the largest eigenvalue of the finest level's D⁻¹A (Collatz–Wielandt):
@@ -404,9 +397,7 @@ pub(super) fn eigenvalues_below(a: &[f64], b: &[f64], x: f64) -> usize {
 }
 
 /// `num / den` per component, or 0 where the direction has no energy (`den ≤ 0`).
-fn step(num: [f64; 2], den: [f64; 2]) -> [f64; 2] {
-    [0, 1].map(|k| if den[k] > 0.0 { num[k] / den[k] } else { 0.0 })
-}
+fn step(num: [f64; 2], den: [f64; 2]) -> [f64; 2] { [0, 1].map(|k| if den[k] > 0.0 { num[k] / den[k] } else { 0.0 }) }
 
 /// Entries per task of this module's vector passes.
 const PASS_CHUNK: usize = 4096;
@@ -419,9 +410,7 @@ fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
     parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
 }
 
-fn fill_zero<T: Real>(v: &mut [[T; 2]]) {
-    v.par_chunks_mut(PASS_CHUNK).for_each(|v| v.fill([T::ZERO; 2]));
-}
+fn fill_zero<T: Real>(v: &mut [[T; 2]]) { v.par_chunks_mut(PASS_CHUNK).for_each(|v| v.fill([T::ZERO; 2])) }
 
 /// `f(x_i, y_i)` on every entry of `x` (the vectors' lengths are equal).
 fn update<S: Real, T: Real>(x: &mut [[T; 2]], y: &[[S; 2]], f: impl Fn(&mut [T; 2], [S; 2]) + Sync + Send) {

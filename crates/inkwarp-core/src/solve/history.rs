@@ -35,9 +35,7 @@ pub struct WarmHistory {
 
 impl WarmHistory {
     /// An empty history (the next solve is cold).
-    pub fn new() -> Self {
-        Self::default()
-    }
+    pub fn new() -> Self { Self::default() }
 
     /// Forgets every earlier frame.
     pub fn clear(&mut self) {
@@ -46,19 +44,13 @@ impl WarmHistory {
     }
 
     /// Number of earlier frames kept.
-    pub fn len(&self) -> usize {
-        self.entries.len()
-    }
+    pub fn len(&self) -> usize { self.entries.len() }
 
     /// The latest frame's field.
-    pub(crate) fn last(&self) -> Option<&Field> {
-        self.entries.back().map(|e| &e.1)
-    }
+    pub(crate) fn last(&self) -> Option<&Field> { self.entries.back().map(|e| &e.1) }
 
     /// Whether no frame is kept.
-    pub fn is_empty(&self) -> bool {
-        self.entries.is_empty()
-    }
+    pub fn is_empty(&self) -> bool { self.entries.is_empty() }
 
     /// The start for a solve whose constraints on `grid` are `c`: the history's prediction
     /// ([`Self::predict`]) or `given`, whichever misses the constraint values by less (the
@@ -108,8 +100,15 @@ impl WarmHistory {
         // Component q's products of the kept frames' values and the target's.
         let dot = |x: &[[f64; 2]], y: &[[f64; 2]]| -> f64 { x.iter().zip(y).map(|(a, c)| a[q] * c[q]).sum() };
         let v = |i: usize| &self.entries[i].0;
-        let g: [[f64; HISTORY_FRAMES]; HISTORY_FRAMES] = from_fn(|i| from_fn(|j| if i < k && j < k { dot(v(i), v(j)) } else { 0.0 }));
-        let b: [f64; HISTORY_FRAMES] = from_fn(|i| if i < k { dot(v(i), target) } else { 0.0 });
+        // The Gram matrix G (symmetric: each product taken once) and b = (vᵢᵀt).
+        let (mut g, mut b) = ([[0.0f64; HISTORY_FRAMES]; HISTORY_FRAMES], [0.0f64; HISTORY_FRAMES]);
+        for i in 0..k {
+            for j in 0..=i {
+                g[i][j] = dot(v(i), v(j));
+                g[j][i] = g[i][j];
+            }
+            b[i] = dot(v(i), target);
+        }
         let tt = dot(target, target);
         let trace: f64 = (0..k).map(|i| g[i][i]).sum();
         if trace <= 0.0 || target.is_empty() {
@@ -119,7 +118,13 @@ impl WarmHistory {
         // The root mean square miss of weights `w` at the constrained nodes, from
         // ‖t − Σ wᵢ vᵢ‖² = tᵀt − 2 wᵀb + wᵀG w; and how much they amplify the frames' errors.
         let miss = |w: &[f64; HISTORY_FRAMES]| {
-            let sq = (0..k).fold(tt, |sq, i| (0..k).fold(sq - 2.0 * w[i] * b[i], |sq, j| sq + w[i] * g[i][j] * w[j]));
+            let mut sq = tt;
+            for i in 0..k {
+                sq -= 2.0 * w[i] * b[i];
+                for j in 0..k {
+                    sq += w[i] * g[i][j] * w[j];
+                }
+            }
             (sq.max(0.0) / nodes).sqrt()
         };
         let gain = |w: &[f64; HISTORY_FRAMES]| w[..k].iter().map(|a| a.abs()).sum::<f64>();

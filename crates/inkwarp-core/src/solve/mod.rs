@@ -276,32 +276,42 @@ pub(crate) fn solve_constrained(
         return (Field::zeros(w, h), report);
     }
     // An open grid (every node active, every link there: most grids) is one piece whose
-    // key marks it open (`BoxLinks::Open`) and whose answer is written without reading
-    // labels.
+    // key marks it open (`BoxLinks::Open`).
     let (labels, count, open) = grid.pieces_and_open();
     // Constraints by piece (their mean: a one-line piece's gauge value without a warm start).
     let mut by_piece: Vec<Vec<usize>> = vec![Vec::new(); count];
     constraints.nodes.iter().enumerate().for_each(|(k, &i)| by_piece[labels[i] as usize].push(k));
-    let pieces = classify(grid, &labels, &by_piece, constraints, tau);
+    let mut pieces = classify(&by_piece, constraints, w, tau);
     let mut field = Field::zeros(w, h);
 
     // Each piece is a problem of its own: translated pieces take their constraint, and
     // the others are solved one by one, each on the box around it (its own hierarchy,
     // conjugate-gradient steps and stopping rule: one iteration over several pieces
     // shares its step lengths between them, and a piece whose start is far off holds
-    // back the others and fools the stopping rule).
+    // back the others and fools the stopping rule). The node of each one-line piece
+    // farthest from its line becomes its gauge pin.
     let mut boxes = vec![[usize::MAX, usize::MAX, 0, 0]; count];
+    let mut farthest = vec![0i64; count];
     for (y, row) in labels.chunks_exact(w).enumerate() {
-        for (x, &l) in row.iter().enumerate().filter(|(_, &l)| l != u32::MAX) {
-            match pieces[l as usize] {
+        for (x, l) in row.iter().enumerate().filter(|(_, &l)| l != u32::MAX).map(|(x, &l)| (x, l as usize)) {
+            let grow = |b: &mut [usize; 4]| *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
+            match &mut pieces[l] {
                 Piece::Zero => {}
                 Piece::Translate(v) => (field.dx[y * w + x], field.dy[y * w + x]) = (v[0] as f32, v[1] as f32),
-                Piece::Line { .. } | Piece::General => {
-                    let b = &mut boxes[l as usize];
-                    *b = [b[0].min(x), b[1].min(y), b[2].max(x + 1), b[3].max(y + 1)];
+                Piece::Line { a, d, gauge } => {
+                    let dist = cross(*a, *d, [x as i64, y as i64]).abs();
+                    if dist > farthest[l] {
+                        (farthest[l], *gauge) = (dist, y * w + x);
+                    }
+                    grow(&mut boxes[l]);
                 }
+                Piece::General => grow(&mut boxes[l]),
             }
         }
+    }
+    for p in pieces.iter_mut().filter(|p| matches!(p, Piece::Line { gauge: usize::MAX, .. })) {
+        // The whole piece lies on the line: the constraints pin it.
+        *p = Piece::General;
     }
     for (l, piece) in pieces.iter().enumerate() {
         let gauge = match *piece {
@@ -484,9 +494,7 @@ impl BoxValues {
     }
 
     /// The `w × h` box's values, unpadded.
-    fn dense(&self, w: usize, h: usize) -> Vec<V2> {
-        (0..h).flat_map(|y| self.row(y, w).to_vec()).collect()
-    }
+    fn dense(&self, w: usize, h: usize) -> Vec<V2> { (0..h).flat_map(|y| self.row(y, w).to_vec()).collect() }
 }
 
 /// Solves one piece on its box: `key` describes the box's grid (the piece active, its
@@ -533,10 +541,8 @@ fn solve_piece(
     let mut u: Vec<V2> = vec![[0.0; 2]; len];
     let fine = &hier.levels[0];
     if let Some((field, x0, y0)) = initial {
-        // Every entry written (the padding, then zero off the unknowns), row by row in
-        // parallel: no pass to clear the vector first.
+        // Row by row in parallel (zero off the unknowns); the padding stays zero.
         let wp = fine.wp;
-        fine.clear_padding(&mut u);
         u[PAD * wp..(PAD + h) * wp].par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
             let g = (y0 + y) * field.width() + x0;
             let p = fine.pidx(0, y);
@@ -552,10 +558,7 @@ fn solve_piece(
     }
     let pin = |u: &mut [V2]| value.iter().for_each(|&(i, v)| u[fine.pidx(i % w, i / w)] = v);
     pin(&mut u);
-    // The residual's every use writes its body's unknowns first: only its padding needs
-    // clearing (products and dot products read it).
     let mut r = vec![[0.0; 2]; len];
-    fine.clear_padding(&mut r);
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves
     // residuals above the tolerance (a user's earlier answer). A closer start (the earlier
     // frames' prediction) first gets one cycle as it is, and the coarse-to-fine correction
@@ -599,9 +602,8 @@ fn solve_piece(
         change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
     };
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
-    // concept doc's Precision); only q's padding is cleared, each product writes its body.
+    // concept doc's Precision).
     let (mut q, mut p) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
-    hier.levels[0].clear_padding(&mut q);
     match options.method {
         SolveMethod::Multigrid => {
             let mut rz = fresh_direction(&mut hier, &r, &mut p);
@@ -795,9 +797,7 @@ impl Solver {
 
     /// Forgets the history (the next warm solve starts cold). The hierarchies stay: they
     /// never change an answer, only how soon it comes.
-    pub fn clear(&mut self) {
-        self.history.clear();
-    }
+    pub fn clear(&mut self) { self.history.clear() }
 }
 
 impl std::fmt::Debug for Solver {
@@ -860,13 +860,11 @@ struct CacheKey {
     links: BoxLinks,
 }
 
-/// The τ → 0⁺ rule's class of each piece, `members` its constraints.
-fn classify(grid: &Grid, labels: &[u32], members: &[Vec<usize>], c: &Constraints, tau: f64) -> Vec<Piece> {
-    let w = grid.width;
+/// The τ → 0⁺ rule's class of each piece of a grid `w` nodes wide, `members` its
+/// constraints; a one-line piece's gauge is left to [`solve_constrained`]'s pass over the nodes.
+fn classify(members: &[Vec<usize>], c: &Constraints, w: usize, tau: f64) -> Vec<Piece> {
     let xy = |i: usize| [(i % w) as i64, (i / w) as i64];
-    // `d × (p − a)`: zero on the line through `a` with direction `d`.
-    let cross = |a: [i64; 2], d: [i64; 2], p: [i64; 2]| d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0]);
-    let mut pieces: Vec<Piece> = members.iter().map(|m| match m.len() {
+    members.iter().map(|m| match m.len() {
         0 => Piece::Zero,
         1 => Piece::Translate(c.values[m[0]]),
         _ if tau != 0.0 => Piece::General,
@@ -877,27 +875,11 @@ fn classify(grid: &Grid, labels: &[u32], members: &[Vec<usize>], c: &Constraints
             let collinear = m.iter().all(|&k| cross(a, d, xy(c.nodes[k])) == 0);
             if collinear { Piece::Line { a, d, gauge: usize::MAX } } else { Piece::General }
         }
-    }).collect();
-    if pieces.iter().any(|p| matches!(p, Piece::Line { .. })) {
-        // The node of each one-line piece farthest from its line becomes the gauge pin.
-        let mut best = vec![0i64; pieces.len()];
-        for (i, &l) in labels.iter().enumerate().filter(|(_, &l)| l != u32::MAX) {
-            if let Piece::Line { a, d, gauge } = &mut pieces[l as usize] {
-                let dist = cross(*a, *d, xy(i)).abs();
-                if dist > best[l as usize] {
-                    (best[l as usize], *gauge) = (dist, i);
-                }
-            }
-        }
-        for p in &mut pieces {
-            if let Piece::Line { gauge: usize::MAX, .. } = p {
-                // The whole piece lies on the line: the constraints pin it.
-                *p = Piece::General;
-            }
-        }
-    }
-    pieces
+    }).collect()
 }
+
+/// `ℓ(p) = d × (p − a)`: zero on the line through `a` with direction `d`.
+fn cross(a: [i64; 2], d: [i64; 2], p: [i64; 2]) -> i64 { d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0]) }
 
 /// Adds `c·ℓ` to a one-line piece's values `u` on its box, `ℓ(p) = d × (p − a)`, with `c`
 /// minimising the membrane energy: `c = −⟨u, ℓ⟩ / ⟨ℓ, ℓ⟩` over the piece's links (which stay
@@ -922,7 +904,7 @@ fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64
     }
     let c = [-num[0] / den, -num[1] / den];
     for (x, y) in nodes() {
-        let l = (d[0] * (y as i64 - a[1]) - d[1] * (x as i64 - a[0])) as f64;
+        let l = cross(a, d, [x as i64, y as i64]) as f64;
         v[at(x, y)][0] += c[0] * l;
         v[at(x, y)][1] += c[1] * l;
     }
