@@ -159,12 +159,9 @@ impl Hierarchy {
             self.k_correction(k, w, tail);
         } else {
             self.solve_below(k, &w.r, tail);
-            if k > 0 {
-                add_line_searched(level, &self.levels[k + 1], &mut tail[0], &mut w.x);
-            } else {
-                // (From the coarsest level of two the correction is exact: its step is 1.)
-                prolong_add_scaled(level, &self.levels[k + 1], &tail[0].x, &mut w.x, [1.0; 2]);
-            }
+            // Unscaled on the finest level (from the coarsest level of two it is exact).
+            let alpha = if k > 0 { line_step(&self.levels[k + 1], &mut tail[0]) } else { [1.0; 2] };
+            prolong_add_scaled(level, &self.levels[k + 1], &tail[0].x, &mut w.x, alpha);
         }
         if let (Some(alt), Some(aw)) = (self.alt.as_deref().filter(|a| a.levels.len() > 1), alt_work) {
             // The second coarse space, on the residual the first one left.
@@ -278,16 +275,14 @@ impl Hierarchy {
     }
 }
 
-/// `x += α P e` for the coarse solution `e = c.x` of `A_c e = c.f`, with α (per component)
-/// the step that minimises the energy along the correction: α = ⟨P e, r⟩ / ⟨P e, A P e⟩,
-/// evaluated on the coarse level, where ⟨P e, r⟩ = ⟨e, Pᵀ r⟩ = ⟨e, f_c⟩ and
-/// ⟨P e, A P e⟩ = ⟨e, A_c e⟩ (Galerkin): a coarse product instead of a fine one.
-/// `c.r` is scratch.
-fn add_line_searched(fine: &Level, coarse: &Level, c: &mut Work, x: &mut [W2]) {
+/// The step α (per component) of the correction `P e` for the coarse solution `e = c.x` of
+/// `A_c e = c.f` that minimises the energy along it: α = ⟨P e, r⟩ / ⟨P e, A P e⟩, evaluated
+/// on the coarse level, where ⟨P e, r⟩ = ⟨e, Pᵀ r⟩ = ⟨e, f_c⟩ and ⟨P e, A P e⟩ = ⟨e, A_c e⟩
+/// (Galerkin): a coarse product instead of a fine one. `c.r` is scratch.
+fn line_step(coarse: &Level, c: &mut Work) -> [f64; 2] {
     coarse.residual(&c.x, None, &mut c.r); // −A_c e on the unknowns
     let (num, den) = (dot_w(&c.x, &c.f), dot_w(&c.x, &c.r).map(|v| -v));
-    let alpha = [0, 1].map(|k| if den[k] > 0.0 { num[k] / den[k] } else { 1.0 });
-    prolong_add_scaled(fine, coarse, &c.x, x, alpha);
+    [0, 1].map(|k| if den[k] > 0.0 { num[k] / den[k] } else { 1.0 })
 }
 
 /// An upper bound of the largest eigenvalue of the finest level's D⁻¹A (Collatz–Wielandt):

@@ -358,17 +358,15 @@ pub(crate) fn solve_constrained(
             }
         }
         let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
-        // (A one-line piece's single free function is its tilt, which the line fixes.)
-        let settles = null.as_ref().is_some_and(|b| b.len() > usize::from(gauge.is_some()));
+        // The free functions to settle, where there are any beyond a one-line piece's single
+        // one, its tilt (which the line fixes), with the box's grid.
+        let settling = null.as_ref().filter(|b| b.len() > usize::from(gauge.is_some())).zip(geo.as_ref());
         // At τ = 0 the settling is a linear map, built once: it settles the answer, and the
         // stopping rule judges each cycle's move of the settled answer (`SettledChange`).
-        let membrane = match (&null, &geo) {
-            (Some(basis), Some(g)) if settles && tau == 0.0 => Some(nullspace::Membrane::new(g, basis)),
-            _ => None,
-        };
-        let again = (settles && !open).then(|| key.clone());
+        let membrane = settling.filter(|_| tau == 0.0).map(|(basis, g)| nullspace::Membrane::new(g, basis));
+        let again = settling.map(|_| key.clone());
         let (mut u, mut r) = solve_piece(key, &value, initial.map(|f| (f, x0, y0)), options, store, membrane.as_ref());
-        if let (Some(basis), Some(geo), Some(key)) = (&null, &geo, again) {
+        if let (Some((basis, geo)), Some(key)) = (settling, again) {
             (u, r) = settle_null_space(key, geo, tau, &constrained_only, &value, basis, membrane.as_ref(), u, r, options, store);
         } else if null.is_none() {
             // Too many free functions to settle: no claim of convergence.
