@@ -259,8 +259,10 @@ pub(crate) fn validate(grid: &Grid, samples: &[Sample], options: &SolveOptions, 
 enum Piece {
     Zero,
     Translate([f64; 2]),
-    /// Constraints on the line through `a` with direction `d`; `gauge` is the pinned node.
-    Line { a: [i64; 2], d: [i64; 2], gauge: usize },
+    /// Constraints on the line through `a` with direction `d`; `gauge` is the pinned node
+    /// (none where the whole piece lies on the line: the constraints pin it, as a general
+    /// piece's do).
+    Line { a: [i64; 2], d: [i64; 2], gauge: Option<usize> },
     General,
 }
 
@@ -301,7 +303,7 @@ pub(crate) fn solve_constrained(
                 Piece::Line { a, d, gauge } => {
                     let dist = cross(*a, *d, [x as i64, y as i64]).abs();
                     if dist > farthest[l] {
-                        (farthest[l], *gauge) = (dist, y * w + x);
+                        (farthest[l], *gauge) = (dist, Some(y * w + x));
                     }
                     grow(&mut boxes[l]);
                 }
@@ -309,13 +311,9 @@ pub(crate) fn solve_constrained(
             }
         }
     }
-    for p in pieces.iter_mut().filter(|p| matches!(p, Piece::Line { gauge: usize::MAX, .. })) {
-        // The whole piece lies on the line: the constraints pin it.
-        *p = Piece::General;
-    }
     for (l, piece) in pieces.iter().enumerate() {
         let gauge = match *piece {
-            Piece::Line { gauge, .. } => Some(gauge),
+            Piece::Line { gauge, .. } => gauge,
             Piece::General => None,
             _ => continue,
         };
@@ -372,7 +370,7 @@ pub(crate) fn solve_constrained(
             // Too many free functions to settle: no claim of convergence.
             r.converged = false;
         }
-        if let Piece::Line { a, d, .. } = *piece {
+        if let (Piece::Line { a, d, .. }, Some(_)) = (*piece, gauge) {
             line_correction(grid, &labels, l as u32, a, d, boxes[l], &mut u);
         }
         write_piece(&mut field, &labels, l as u32, boxes[l], &u);
@@ -871,7 +869,7 @@ fn classify(members: &[Vec<usize>], c: &Constraints, w: usize, tau: f64) -> Vec<
             let far = m.iter().map(|&k| xy(c.nodes[k])).max_by_key(|p| (p[0] - a[0]).pow(2) + (p[1] - a[1]).pow(2)).unwrap();
             let d = [far[0] - a[0], far[1] - a[1]];
             let collinear = m.iter().all(|&k| cross(a, d, xy(c.nodes[k])) == 0);
-            if collinear { Piece::Line { a, d, gauge: usize::MAX } } else { Piece::General }
+            if collinear { Piece::Line { a, d, gauge: None } } else { Piece::General }
         }
     }).collect()
 }
