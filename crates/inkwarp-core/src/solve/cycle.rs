@@ -103,7 +103,6 @@ impl Hierarchy {
             s.before(&self.levels[0], r, &mut self.work[0].f);
         }
         let mut work = std::mem::take(&mut self.work);
-        self.clear_start(0, &mut work[0].x);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
         self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
         if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
@@ -116,15 +115,6 @@ impl Hierarchy {
         &self.work[0].x[..r.len()]
     }
 
-    /// Zeroes `x` for a solve of level k from zero, unless that solve's first smoothing
-    /// step writes all of it anyway (or, fused with the second on the finest level, does
-    /// not read it: see `Level::second_step_from_zero`).
-    fn clear_start(&self, k: usize, x: &mut [W2]) {
-        if k + 1 == self.levels.len() || self.steps_at(k) == 0 || self.levels[k].lam_max <= 0.0 {
-            fill_zero(x);
-        }
-    }
-
     /// Level k's smoothing steps.
     fn steps_at(&self, k: usize) -> usize { if k == 0 { self.degree } else { self.coarse_degree } }
 
@@ -132,8 +122,14 @@ impl Hierarchy {
     /// level k) by one cycle from `x` (zero when `x_zero`): a V-cycle, with K-cycle
     /// corrections from the levels between the finest and the one above the coarsest.
     fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, alt_work: Option<&mut [Work]>) {
-        let level = &self.levels[k];
-        if k + 1 == self.levels.len() {
+        let (level, coarsest) = (&self.levels[k], k + 1 == self.levels.len());
+        // From zero, `x` is zeroed unless the first smoothing step writes all of it anyway (or,
+        // fused with the second on the finest level, does not read it: see
+        // `Level::second_step_from_zero`).
+        if x_zero && (coarsest || self.steps_at(k) == 0 || level.lam_max <= 0.0) {
+            fill_zero(&mut work[0].x);
+        }
+        if coarsest {
             self.coarsest.solve(&work[0].f, &mut work[0].x);
             return;
         }
@@ -181,7 +177,6 @@ impl Hierarchy {
     /// `tail[0]`, the work from level k + 1 on).
     fn solve_below(&self, k: usize, r: &[W2], tail: &mut [Work]) {
         restrict(&self.levels[k], &self.levels[k + 1], r, &mut tail[0].f);
-        self.clear_start(k + 1, &mut tail[0].x);
         self.solve_level(k + 1, tail, true, None);
     }
 
@@ -224,7 +219,6 @@ impl Hierarchy {
             return;
         }
         c.z1.clone_from(&c.x);
-        self.clear_start(k + 1, &mut c.x);
         self.solve_level(k + 1, tail, true, None);
         let c = &mut tail[0];
         coarse.residual_f64(&c.x, None, &mut c.r); // −A z₂
