@@ -155,7 +155,8 @@ impl Hierarchy {
             self.k_correction(k, w, tail);
         } else {
             self.solve_below(k, &w.r, tail);
-            // Unscaled on the finest level (from the coarsest level of two it is exact).
+            // Line-searched below the finest level; unscaled on it (the conjugate gradient
+            // around the cycle takes the step, and from the coarsest level of two it is exact).
             let alpha = if k > 0 { line_step(&self.levels[k + 1], &mut tail[0]) } else { [1.0; 2] };
             prolong_add_scaled(level, &self.levels[k + 1], &tail[0].x, &mut w.x, alpha);
         }
