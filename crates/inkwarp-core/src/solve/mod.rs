@@ -707,8 +707,7 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
     // Coordinates about the first constraint, for conditioning.
     let o = at(value.first()?.0);
     let rel = |j: usize| [at(j)[0] - o[0], at(j)[1] - o[1]];
-    let mut m = vec![vec![0.0; 3]; 3];
-    let mut rhs = vec![[0.0; 2]; 3];
+    let (mut m, mut rhs) = (vec![vec![0.0; 3]; 3], vec![[0.0; 2]; 3]);
     for &(j, v) in value {
         let [x, y] = rel(j);
         let b = [1.0, x, y];
@@ -926,15 +925,15 @@ pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<
             }
         }
     }
-    let mut x = vec![[0.0f64; 2]; k];
+    // Back substitution in place: the solution's rows below r are final in `rhs`.
     for r in (0..k).rev() {
         let mut s = rhs[r];
         for c in r + 1..k {
-            s = [s[0] - m[r][c] * x[c][0], s[1] - m[r][c] * x[c][1]];
+            s = [s[0] - m[r][c] * rhs[c][0], s[1] - m[r][c] * rhs[c][1]];
         }
-        x[r] = [s[0] / m[r][r], s[1] / m[r][r]];
+        rhs[r] = [s[0] / m[r][r], s[1] / m[r][r]];
     }
-    Some(x)
+    Some(rhs)
 }
 
 /// Vector chunk for parallel loops (large enough that small grids stay on one thread).
