@@ -25,8 +25,8 @@ pub(crate) struct Hierarchy {
     pub levels: Vec<Level>,
     work: Vec<Work>,
     coarsest: Banded,
+    /// Smoothing steps on the finest level, and on the levels below it.
     degree: usize,
-    /// The same on the levels below the finest.
     coarse_degree: usize,
     /// Solve the coarse problems below the finest level by K-cycles (two flexible
     /// conjugate-gradient steps each, see [`Hierarchy::k_correction`]); else by one

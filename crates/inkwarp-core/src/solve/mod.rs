@@ -581,9 +581,8 @@ fn solve_piece(
         hier.coarse_to_fine(&mut u, &mut r, warm);
         report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
     }
-    let mut last_change = f64::INFINITY;
-    // The last two cycles' ratios of successive changes.
-    let mut ratios = [0.0f64; 2];
+    // The last change, and the last two cycles' ratios of successive changes.
+    let (mut last_change, mut ratios) = (f64::INFINITY, [0.0f64; 2]);
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
     let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, floor: f64| {
         (report.cycles, report.final_change_px) = (cycle, change);
