@@ -275,7 +275,7 @@ def test_three_close_points_on_a_piece_of_many_cuts_small_displacements():
     pts, disp, cuts = random_cuts(61, True, 4)
     disp = disp * 0.02
     field, report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts)
-    tight, tight_report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, tolerance=1e-8, max_cycles=2000)
+    tight, tight_report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, tolerance=1e-6, max_cycles=2000)
     assert report.converged and tight_report.converged, (report, tight_report)
     assert float(np.abs(field - tight).max()) < TOLERANCE_PX
 
@@ -291,7 +291,7 @@ def test_a_slow_solve_looks_for_hidden_modes_before_it_stops(scale, seed):
     disp = disp * 0.02
     shape = (64 * scale, 64 * scale)
     field, report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts)
-    tight, tight_report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, tolerance=1e-8, max_cycles=2000)
+    tight, tight_report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, tolerance=1e-6, max_cycles=2000)
     assert report.converged and tight_report.converged, (report, tight_report)
     assert float(np.abs(field - tight).max()) < TOLERANCE_PX
 
@@ -468,7 +468,7 @@ def test_a_cut_vertex_just_above_a_node_does_not_pin_it(n, vertex):
     field, report = inkwarp.thin_plate_report(pts, disp, (n, n), cuts=cuts, max_cycles=24)
     assert report.converged and report.cycles <= 12, report
     if n == 257:
-        tight, tight_report = inkwarp.thin_plate_report(pts, disp, (n, n), cuts=cuts, tolerance=1e-6, max_cycles=400)
+        tight, tight_report = inkwarp.thin_plate_report(pts, disp, (n, n), cuts=cuts, tolerance=1e-5, max_cycles=400)
         assert tight_report.converged, tight_report
         assert float(np.abs(field - tight).max()) < TOLERANCE_PX
 
@@ -478,12 +478,13 @@ def test_a_tight_solve_is_judged_by_its_settled_answer():
     # after the cycles by the least-membrane rule. Where the coarse space holds one, the
     # iteration drifts along it: at 1e-8 px this solve's changes grew from 1e-5 to 2e-3 px
     # while its settled answer stood still, and it stopped unconverged after 2000 cycles.
-    # The stopping rule judges the change of the settled answer.
+    # The stopping rule judges the change of the settled answer. (1e-6 px here: finer than
+    # about 1e-7 of the largest displacement is beyond the float32 field and never claimed.)
     pts, disp, cuts = random_cuts(38, False, 2)
     problem = Problem((128, 128), pts, disp * 0.02, cuts=cuts)
     exact, skipped, _ = oracle(problem)
     assert not skipped.any()
-    field, report = solve(problem, tolerance=1e-8, max_cycles=300)
+    field, report = solve(problem, tolerance=1e-6, max_cycles=300)
     assert report.converged, report
     assert float(np.abs(field - exact).max()) < 1e-5
 
@@ -514,7 +515,7 @@ def test_southwell_default_budget_cuts_the_start_error_tenfold_and_claims_nothin
     pts, disp, mask, cuts = grid_problem(257, hole=torn, cut=torn)
     shape = (257, 257)
     exact, tight = inkwarp.thin_plate_report(pts, disp, shape, mask=mask, cuts=cuts,
-                                             tolerance=1e-6, max_cycles=400)
+                                             tolerance=1e-5, max_cycles=400)
     assert tight.converged
 
     def error(**kwargs):

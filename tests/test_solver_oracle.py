@@ -514,3 +514,70 @@ def test_collinear_constraints_with_a_hole_and_a_free_piece():
     check(problem)
     full, _ = solve(problem)
     assert np.all(full[:, 21:] == 0)
+
+
+@pytest.mark.parametrize("tension", [1e-30, 1e-12, 1e-10, 1e-8])
+@pytest.mark.parametrize("shape", [(40, 40), (64, 96)])
+def test_a_tiny_tension_on_one_line_gives_the_limit(shape, tension):
+    # The tilt about the constraints' line has no plate energy; at a tension too small for
+    # the cycles to see it, only the membrane settling places it (it was left 2-40 px off
+    # with converged=True). The answer is within the contract of the tension -> 0+ limit.
+    problem = Problem(shape, np.array([[5.0, 20.0], [15.0, 20.0], [30.0, 20.0]]),
+                      np.array([[0.0, 0.0], [4.0, 3.0], [0.0, 0.0]]), tension=tension)
+    field, report = solve(problem)
+    assert report.converged, report
+    limit, _, _ = oracle(dataclasses.replace(problem, tension=0.0))
+    assert np.abs(field - limit).max() < TOLERANCE_PX
+
+
+def hinge_chain() -> np.ndarray:
+    """Three squares joined corner to corner by single nodes, a strand 1-2 px wide hanging
+    off the last one down to a bar."""
+    m = np.zeros((48, 64), np.uint8)
+    m[5:15, 2:12] = m[10:20, 13:23] = m[15:25, 24:34] = 1
+    m[14, 12] = m[19, 23] = 1
+    m[24, 33:40] = m[25:30, 39] = m[30:32, 2:40] = 1
+    return m
+
+
+@pytest.mark.parametrize("tension", [1e-7, 1e-6, 1e-5])
+def test_a_chain_of_hinges_with_a_strand_converges_at_small_tensions(tension):
+    # Once the solve deflated, its steps were rᵀz / pᵀAp while pᵀr was thousands of times
+    # smaller (the cycle magnifies the near-null modes the projection takes out): the
+    # iterate grew to 1e32 px over 900 cycles.
+    rng = np.random.default_rng(26)
+    points = np.array([[3.0, 6.0], [10.0, 6.0], [3.0, 13.0]])
+    for _ in range(4):
+        check(Problem((48, 64), points, rng.normal(0, 4, (3, 2)), mask=hinge_chain(), tension=tension))
+
+
+def test_max_cycles_counts_every_cycle():
+    problem = Problem((48, 64), np.array([[3.0, 6.0], [10.0, 6.0], [3.0, 13.0]]),
+                      np.array([[1.4, -5.3], [6.1, 3.0], [2.0, -2.6]]), mask=hinge_chain(), tension=1e-6)
+    for cap in (1, 5):
+        _, report = solve(problem, max_cycles=cap)
+        assert report.cycles <= cap and not report.converged, report
+    # The settling's rounds at a tension (they took 2 cycles for max_cycles=1).
+    _, report = solve(random_problem(13, (40, 31), tension=1.0), max_cycles=1)
+    assert report.cycles <= 1, report
+    # Southwell's rounds, which ran their budget whatever the cap.
+    open_grid = Problem((64, 64), np.array([[5.0, 5.0], [50.0, 8.0], [30.0, 40.0], [10.0, 50.0]]),
+                        np.array([[1.0, 2.0], [3.0, -1.0], [0.0, 4.0], [-2.0, 1.0]]))
+    for cap in (0, 2):
+        _, report = solve(open_grid, method="southwell", max_cycles=cap)
+        assert report.cycles <= cap and not report.converged, report
+
+
+def test_a_tolerance_finer_than_float32_is_never_claimed():
+    problem = Problem((64, 64), np.array([[5.0, 5.0], [50.0, 8.0], [30.0, 40.0], [10.0, 50.0]]),
+                      np.array([[1.0, 2.0], [3.0, -1.0], [0.0, 4.0], [-2.0, 1.0]]),
+                      cuts=[np.array([[20.0, -1.0], [20.3, 40.0]])])
+    field, report = solve(problem, tolerance=1e-8)
+    assert not report.converged, report  # largest displacement 11 px: its float32 step is 1e-6 px
+    _, report = solve(problem, tolerance=1e-3)
+    assert report.converged, report
+
+
+def test_a_tension_past_its_range_is_refused():
+    with pytest.raises(ValueError, match="from 0 to 1e6"):
+        inkwarp.thin_plate_report([[5, 5], [20, 20]], [[1, 0], [0, 1]], (32, 32), tension=1e12)

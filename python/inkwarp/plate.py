@@ -340,11 +340,13 @@ def thin_plate(
         Polylines that break the surface: two neighbouring pixels are disconnected when a
         cut crosses the segment between their centres.
     tension : float, default 0
-        Weight of the membrane energy (``>= 0``): 0 is a pure thin plate; larger values
+        Weight of the membrane energy (0 to 1e6): 0 is a pure thin plate; larger values
         pull the surface tighter, like a rubber sheet.
     tolerance : float, default 0.01
         Stop when the estimated largest remaining error of any pixel is below this
-        (pixels). At the default every pixel is within 0.05 px of the exact minimiser.
+        (pixels). At the default every pixel is within 0.05 px of the exact minimiser. A
+        tolerance below 1e-7 of the largest displacement is finer than the field's float32
+        resolution: the solve then never reports ``converged``.
     grid_step : int, default 1
         Solve on every ``grid_step``-th pixel and upsample with a tensor-product cubic:
         faster, approximate (points move to the nearest coarse node).
@@ -358,7 +360,8 @@ def thin_plate(
         Kept between calls on one grid with the same points: its coarse levels are reused,
         so later calls skip their setup (same answers). Not together with ``warm``.
     max_cycles : int, optional
-        Cap on the number of cycles (default 100).
+        Cap on the number of cycles (default 100), all of them counted (``"southwell"``: on
+        its rounds).
     method : {"multigrid", "southwell"}, default "multigrid"
         ``"southwell"`` spends a fixed budget of greedy single-node relaxations after the
         coarse-to-fine start instead of iterating to the tolerance.

@@ -76,6 +76,11 @@ impl Deflation {
         Deflation { on: !off && keep >= 4, wait, keep, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
     }
 
+    /// Whether [`Deflation::project`] changes directions (vectors are kept).
+    pub fn projects(&self) -> bool {
+        !self.w.is_empty()
+    }
+
     /// Makes the search direction `p` `A`-orthogonal to the kept vectors.
     pub fn project(&self, p: &mut [W2]) {
         if self.w.is_empty() {

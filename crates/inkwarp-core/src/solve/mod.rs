@@ -154,7 +154,7 @@ pub enum SolveError {
     InconsistentGrid,
     #[error("Sample {index} has a non-finite rest position or displacement; every number must be finite.")]
     NonFiniteSample { index: usize },
-    #[error("The tension must be a finite number ≥ 0, got {0}.")]
+    #[error("The tension must be a number from 0 to {max:e}, got {0}; 0 is a pure thin plate.", max = crate::limits::MAX_TENSION)]
     BadTension(f64),
     #[error("The tolerance must be a finite number ≥ 0 (pixels), got {0}.")]
     BadTolerance(f64),
@@ -231,7 +231,7 @@ pub(crate) fn validate(grid: &Grid, samples: &[Sample], options: &SolveOptions, 
     let bad = |v: f64| !(v.is_finite() && v >= 0.0);
     let refusals = [
         (!grid.is_consistent(), SolveError::InconsistentGrid),
-        (bad(options.tension), SolveError::BadTension(options.tension)),
+        (bad(options.tension) || options.tension > crate::limits::MAX_TENSION, SolveError::BadTension(options.tension)),
         (bad(options.tolerance_px), SolveError::BadTolerance(options.tolerance_px)),
         (options.grid_step == 0, SolveError::BadGridStep),
         (bad(options.southwell_sweeps), SolveError::BadBudget(options.southwell_sweeps)),
@@ -337,10 +337,13 @@ pub(crate) fn solve_constrained(
         // strands, thin rings, the line's tilt): where there are any beyond the tilt, the
         // iteration alone does not give the contract's answer (see `nullspace`); `None` when
         // there are too many to settle.
-        let vectors = (!open).then(|| links.vectors(bw, bh));
+        // (On an open grid the only free function is the tilt about a line holding every
+        // constraint: at τ = 0 a one-line piece's gauge and `line_correction` take it; at
+        // τ > 0 it is settled like the others, below.)
+        let tilt = open && tau > 0.0 && by_piece[l].len() > 1 && on_one_line(w, by_piece[l].iter().map(|&k| constraints.nodes[k])).is_some();
+        let vectors = (!open || tilt).then(|| links.vectors(bw, bh));
         let geo = vectors.as_ref().map(|[active, right, down]| nullspace::BoxGeo { w: bw, h: bh, active, right, down });
-        let max = if tau == 0.0 { nullspace::MAX_NULL_AT_ZERO } else { nullspace::MAX_NULL };
-        let null = geo.as_ref().map_or(Some(Vec::new()), |g| nullspace::plate_null_space(g, &constrained_only, max));
+        let null = geo.as_ref().map_or(Some(Vec::new()), |g| nullspace::plate_null_space(g, &constrained_only, nullspace::MAX_NULL));
         // At τ = 0, on a piece whose only free functions are the affine ones (none is left
         // once the constraints hold), constraints that one affine map fits are answered by
         // it: its plate energy is zero, so it is the minimiser. Any three constraints off
@@ -365,7 +368,7 @@ pub(crate) fn solve_constrained(
         let again = settling.map(|_| key.clone());
         let (mut u, mut r) = solve_piece(key, &value, initial.map(|f| (f, x0, y0)), options, store, membrane.as_ref());
         if let (Some((basis, geo)), Some(key)) = (settling, again) {
-            (u, r) = settle_null_space(key, geo, tau, &constrained_only, &value, basis, membrane.as_ref(), u, r, options, store);
+            (u, r) = settle_null_space(key, geo, tau, &value, basis, membrane.as_ref(), u, r, options, store);
         } else if null.is_none() {
             // Too many free functions to settle: no claim of convergence.
             r.converged = false;
@@ -385,32 +388,55 @@ pub(crate) fn solve_constrained(
 }
 
 /// Brings a piece's iterated answer `u` to the contract where its plate operator has free
-/// functions `basis` (zero on the constrained nodes): at τ = 0 the least-membrane plate
-/// minimiser; at τ > 0 exact Galerkin corrections in their span, each followed by more
-/// cycles, until a correction moves no node by more than the tolerance.
+/// functions `basis` (zero on the constrained nodes): the least-membrane choice among
+/// `u + span(basis)`. At τ = 0 that is the answer. At τ > 0 it is still the exact answer's
+/// component along them: `A_plate Z = 0` makes `Zᵀ A u = τ Zᵀ M u` for every `u`, so the
+/// answer has `Zᵀ M u = 0` whatever τ (`Zᵀ A u` taken from the whole operator would be the
+/// rounding of the plate's large terms over τ). More cycles then finish the rest, round by
+/// round, until the settled answer moves by no more than a quarter of the tolerance; every
+/// round's cycles count against `max_cycles`.
 fn settle_null_space(
-    key: CacheKey, geo: &nullspace::BoxGeo, tau: f64, constrained: &[bool], value: &[(usize, V2)], basis: &[nullspace::Sparse],
+    key: CacheKey, geo: &nullspace::BoxGeo, tau: f64, value: &[(usize, V2)], basis: &[nullspace::Sparse],
     membrane: Option<&nullspace::Membrane<'_>>, u: BoxValues, mut report: SolveReport, options: &SolveOptions, store: &mut Store,
 ) -> (BoxValues, SolveReport) {
     let (w, h) = (geo.w, geo.h);
     let mut dense = u.dense(w, h);
     dense.iter_mut().zip(geo.active).filter(|(_, &a)| !a).for_each(|(d, _)| *d = [0.0; 2]);
-    if let Some(m) = membrane {
+    if let Some(m) = membrane.filter(|_| tau == 0.0) {
         // A block of functions too large to settle: no claim of convergence.
         report.converged &= m.apply(&mut dense);
         return (BoxValues { values: dense, stride: w, first: 0 }, report);
     }
+    let own;
+    let m = match membrane {
+        Some(m) => m,
+        None => {
+            own = nullspace::Membrane::new(geo, basis);
+            &own
+        }
+    };
     const ROUNDS: usize = 8;
+    let budget = options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES);
     let mut settled = false;
+    // The settled answer of the round before: a solve may drift along the free functions
+    // (its cycles barely see them), which the settling takes out again, so rounds compare
+    // settled answers.
+    let mut before = dense.clone();
     for _ in 0..ROUNDS {
-        let moved = nullspace::galerkin(geo, tau, constrained, basis, &mut dense);
+        let all = m.apply(&mut dense);
+        let moved = dense.iter().zip(&before).fold(0.0f64, |a, (u, b)| a.max((u[0] - b[0]).abs()).max((u[1] - b[1]).abs()));
         if moved <= options.tolerance_px * 0.25 {
-            settled = report.converged;
+            settled = all && report.converged;
             break;
         }
+        if report.cycles >= budget {
+            break;
+        }
+        before.clone_from(&dense);
         let (dx, dy) = dense.iter().map(|v| (v[0] as f32, v[1] as f32)).unzip();
         let field = Field { width: w, height: h, dx, dy };
-        let (u2, r2) = solve_piece(key.clone(), value, Some((FieldView::from(&field), 0, 0)), options, store, None);
+        let rest = SolveOptions { max_cycles: Some(budget - report.cycles), ..options.clone() };
+        let (u2, r2) = solve_piece(key.clone(), value, Some((FieldView::from(&field), 0, 0)), &rest, store, None);
         // The latest solve's report, with every solve's cycles and the first one's start.
         report.cycles += r2.cycles;
         (report.final_change_px, report.residual, report.converged) = (r2.final_change_px, r2.residual, r2.converged);
@@ -604,11 +630,15 @@ fn solve_piece(
             let mut rz = fresh_direction(&mut hier, &r, &mut p);
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn);
             let settled = settled.and_then(|m| SettledChange::new(m, &hier.levels[0]));
-            for cycle in 1..=options.max_cycles.unwrap_or(100) {
+            for cycle in 1..=options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) {
                 if crate::interrupt::requested() {
                     break;
                 }
-                let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
+                // Once deflation projects the directions, p is no longer z + βp_old and rᵀz
+                // can be far from pᵀr (the cycle magnifies the near-null modes that the
+                // projection takes out): the step is then the exact line search's, pᵀr / pᵀAp.
+                let along = if slow.projects() { dot_z(&r, &p) } else { rz };
+                let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, along);
                 if change.is_nan() {
                     // The directions broke down; the iterate stands, unconverged.
                     (report.cycles, report.final_change_px) = (cycle, f64::INFINITY);
@@ -650,12 +680,12 @@ fn solve_piece(
         }
         SolveMethod::Southwell => {
             // Rounds of one coarse correction and one sweep's worth of Southwell relaxations
-            // until the budget is spent. Converged only by the multigrid's own bound (or
-            // nothing left to relax): a spent budget proves nothing.
+            // until the budget is spent (or `max_cycles` rounds). Converged only by the
+            // multigrid's own bound (or nothing left to relax): a spent budget proves nothing.
             let unknowns = hier.levels[0].inv_diag.iter().filter(|&&d| d != 0.0).count().max(1);
             let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
             let mut round = 0;
-            while left > 0 && !crate::interrupt::requested() {
+            while left > 0 && round < options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) && !crate::interrupt::requested() {
                 let rz = fresh_direction(&mut hier, &r, &mut p);
                 let (step, _) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
                 let take = unknowns.min(left);
@@ -674,11 +704,15 @@ fn solve_piece(
     // The conjugate-gradient residual is updated, not recomputed: it is the residual of u up
     // to rounding. The maxima pass over a NaN, so the same pass checks the field: one that is
     // not finite is never converged.
-    let (residual, finite) = r.par_chunks(CHUNK).zip(hier.levels[0].inv_diag.par_chunks(CHUNK)).zip(u.par_chunks(CHUNK))
-        .map(|((r, d), u)| (scaled_max(r, d), u.iter().all(|v| v[0].is_finite() && v[1].is_finite())))
-        .reduce(|| (0.0, true), |a, b| (larger(a.0, b.0), a.1 && b.1));
+    let (residual, finite, largest) = r.par_chunks(CHUNK).zip(hier.levels[0].inv_diag.par_chunks(CHUNK)).zip(u.par_chunks(CHUNK))
+        .map(|((r, d), u)| {
+            let finite = u.iter().all(|v| v[0].is_finite() && v[1].is_finite());
+            (scaled_max(r, d), finite, u.iter().fold(0.0, |m, v| larger(larger(m, v[0].abs()), v[1].abs())))
+        })
+        .reduce(|| (0.0, true, 0.0), |a, b| (larger(a.0, b.0), a.1 && b.1, larger(a.2, b.2)));
     report.residual = residual;
-    report.converged &= finite;
+    // A tolerance finer than the `f32` field's resolution cannot hold in the field returned.
+    report.converged &= finite && options.tolerance_px >= FINEST_TOLERANCE * largest;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
     store.put_hierarchy(key, hier);
@@ -830,6 +864,11 @@ impl Store {
 /// Safety factor of the stopping rule (see the multigrid loop) on grids without holes or
 /// cuts (`docs/dev/ablation.md`, "Constants").
 const STOP_MARGIN: f64 = 1.5;
+/// The finest tolerance a solve can claim, relative to its answer's largest displacement:
+/// about one unit in the last place of an `f32`, the field's own resolution.
+const FINEST_TOLERANCE: f64 = 1e-7;
+/// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say.
+const DEFAULT_MAX_CYCLES: usize = 100;
 /// The same on grids with holes or cuts, where the slowest error moves least per cycle.
 const TORN_STOP_MARGIN: f64 = 3.0;
 /// The largest block of free functions whose settling is applied to every cycle's change
@@ -857,19 +896,22 @@ struct CacheKey {
 /// The τ → 0⁺ rule's class of each piece of a grid `w` nodes wide, `members` its
 /// constraints; a one-line piece's gauge is left to [`solve_constrained`]'s pass over the nodes.
 fn classify(members: &[Vec<usize>], c: &Constraints, w: usize, tau: f64) -> Vec<Piece> {
-    let xy = |i: usize| [(i % w) as i64, (i / w) as i64];
     members.iter().map(|m| match m.len() {
         0 => Piece::Zero,
         1 => Piece::Translate(c.values[m[0]]),
         _ if tau != 0.0 => Piece::General,
-        _ => {
-            let a = xy(c.nodes[m[0]]);
-            let far = m.iter().map(|&k| xy(c.nodes[k])).max_by_key(|p| (p[0] - a[0]).pow(2) + (p[1] - a[1]).pow(2)).unwrap();
-            let d = [far[0] - a[0], far[1] - a[1]];
-            let collinear = m.iter().all(|&k| cross(a, d, xy(c.nodes[k])) == 0);
-            if collinear { Piece::Line { a, d, gauge: None } } else { Piece::General }
-        }
+        _ => on_one_line(w, m.iter().map(|&k| c.nodes[k])).map_or(Piece::General, |(a, d)| Piece::Line { a, d, gauge: None }),
     }).collect()
+}
+
+/// The line through `a` with direction `d` that holds every node of `nodes` (indices on a
+/// grid `w` wide, at least two distinct ones), if there is one.
+fn on_one_line(w: usize, nodes: impl Iterator<Item = usize> + Clone) -> Option<([i64; 2], [i64; 2])> {
+    let xy = |i: usize| [(i % w) as i64, (i / w) as i64];
+    let a = xy(nodes.clone().next()?);
+    let far = nodes.clone().map(xy).max_by_key(|p| (p[0] - a[0]).pow(2) + (p[1] - a[1]).pow(2))?;
+    let d = [far[0] - a[0], far[1] - a[1]];
+    nodes.map(xy).all(|p| cross(a, d, p) == 0).then_some((a, d))
 }
 
 /// `ℓ(p) = d × (p − a)`: zero on the line through `a` with direction `d`.

@@ -19,16 +19,15 @@
 use super::level::V2;
 use crate::grid::{find, join};
 
-/// The largest dense system of null-space functions solved: at τ > 0 a piece's whole
-/// Galerkin system, at τ = 0 one coupled block of its least-membrane system. Past it the
-/// rule is not applied and the solve does not claim convergence: the dense solve would
-/// cost more than the solve itself.
-pub(crate) const MAX_NULL: usize = 1500;
+/// The largest coupled block of free functions whose least-membrane system is solved
+/// (densely). Past it the rule is not applied and the solve does not claim convergence: the
+/// dense solve would cost more than the solve itself.
+pub(crate) const MAX_BLOCK: usize = 1500;
 
-/// At τ = 0 the functions couple only where their supports meet, so the least-membrane
-/// system falls apart in independent blocks (one hair's free bends, one sliver's): any
-/// number of functions, each block at most [`MAX_NULL`], and at most this many in all.
-pub(crate) const MAX_NULL_AT_ZERO: usize = 200_000;
+/// The functions couple only where their supports meet, so the least-membrane system falls
+/// apart in independent blocks (one hair's free bends, one sliver's): any number of
+/// functions, each block at most [`MAX_BLOCK`], and at most this many in all.
+pub(crate) const MAX_NULL: usize = 200_000;
 
 /// A piece's geometry on its box: node `(x, y)` at `y · w + x`.
 pub(crate) struct BoxGeo<'a> {
@@ -267,36 +266,6 @@ impl Echelon {
     }
 }
 
-/// The operator's product `y = A z` on the box (`E_plate + τ·E_membrane`, its gradient / 2),
-/// `z` dense over the box's nodes.
-fn apply(g: &BoxGeo, tau: f64, z: &[f64]) -> Vec<f64> {
-    let w = g.w;
-    let mut y = vec![0.0; w * g.h];
-    for i in (0..w * g.h).filter(|&i| g.active[i]) {
-        for (a, b) in g.triples(i) {
-            let d = z[a] - 2.0 * z[i] + z[b];
-            y[a] += d;
-            y[i] -= 2.0 * d;
-            y[b] += d;
-        }
-        if g.full_cell(i) {
-            let d = 2.0 * (z[i] - z[i + 1] - z[i + w] + z[i + w + 1]);
-            y[i] += d;
-            y[i + 1] -= d;
-            y[i + w] -= d;
-            y[i + w + 1] += d;
-        }
-        if tau != 0.0 {
-            for j in g.links(i) {
-                let d = tau * (z[i] - z[j]);
-                y[i] += d;
-                y[j] -= d;
-            }
-        }
-    }
-    y
-}
-
 /// The membrane product `y = M z` for a sparse `z`, into the dense scratch `y` (zero on
 /// entry); returns the nodes it touched. `dense` is a zero scratch, left zero.
 fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> Vec<usize> {
@@ -399,7 +368,7 @@ impl<'a> Membrane<'a> {
         let mut all = true;
         let mut local = vec![usize::MAX; self.basis.len()];
         for members in &self.blocks {
-            if members.len() > MAX_NULL {
+            if members.len() > MAX_BLOCK {
                 all = false;
                 continue;
             }
@@ -439,43 +408,4 @@ impl<'a> Membrane<'a> {
         }
         all
     }
-}
-
-/// The Galerkin correction of `u` (dense over the box, fixed nodes holding their values)
-/// in the span of `basis` for the operator at tension `tau`: `u += Z (ZᵀAZ)⁻¹ Zᵀ r` with
-/// `r = −A u` on the free nodes. Returns the largest change it made.
-pub(crate) fn galerkin(g: &BoxGeo, tau: f64, fixed: &[bool], basis: &[Sparse], u: &mut [V2]) -> f64 {
-    let (k, n) = (basis.len(), g.w * g.h);
-    if k == 0 {
-        return 0.0;
-    }
-    let au = [0, 1].map(|c| apply(g, tau, &u.iter().map(|v| v[c]).collect::<Vec<_>>()));
-    let mut dense = vec![0.0; n];
-    let az: Vec<Vec<f64>> = basis.iter().map(|z| {
-        z.iter().for_each(|&(i, v)| dense[i] = v);
-        let y = apply(g, tau, &dense);
-        z.iter().for_each(|&(i, _)| dense[i] = 0.0);
-        y
-    }).collect();
-    let (mut gram, mut rhs) = (vec![vec![0.0; k]; k], vec![[0.0; 2]; k]);
-    for (i, zi) in basis.iter().enumerate() {
-        for &(p, v) in zi.iter().filter(|&&(p, _)| !fixed[p]) {
-            for (j, azj) in az.iter().enumerate() {
-                gram[i][j] += v * azj[p];
-            }
-            rhs[i][0] -= v * au[0][p];
-            rhs[i][1] -= v * au[1][p];
-        }
-    }
-    let Some(c) = super::dense_solve(gram, rhs) else { return 0.0 };
-    let mut step = vec![[0.0f64; 2]; n];
-    for (z, c) in basis.iter().zip(c) {
-        for &(i, v) in z {
-            step[i] = [step[i][0] + c[0] * v, step[i][1] + c[1] * v];
-        }
-    }
-    u.iter_mut().zip(&step).fold(0.0f64, |moved, (u, s)| {
-        *u = [u[0] + s[0], u[1] + s[1]];
-        moved.max(s[0].abs()).max(s[1].abs())
-    })
 }
