@@ -60,3 +60,22 @@ def test_the_cli_prints_one_line_and_succeeds(tmp_path, capsys):
     assert lines[1] == "inkwarp render: warning: 2 more solves did not converge"
     assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == [f"frame_{i:04d}.png" for i in range(4)]
     json.loads(path.read_text())
+
+
+def test_inkwarp_field_prints_the_same_one_line(tmp_path, capsys):
+    path = write_scene(tmp_path, _stopped_early())
+    assert main(["field", str(path), "-o", str(tmp_path / "f.npy"), "--frame", "20", "--layer", "front", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "ConvergenceWarning" not in err and "Traceback" not in err
+    assert err.startswith('inkwarp field: warning: layer "front" at t = 1 s (frame 20)')
+    assert "raise solver.max_cycles" in err
+
+
+def test_a_southwell_warning_does_not_point_at_max_cycles(tmp_path):
+    data = two_layer_scene()
+    data["layers"][1]["solver"] = {"scheme": "southwell", "tolerance": 1e-9}
+    scene = inkwarp.Scene.load(write_scene(tmp_path, data))
+    with pytest.warns(inkwarp.ConvergenceWarning) as caught:
+        scene.field(time=1.0, layer="front")
+    message = str(caught[0].message)
+    assert "fixed budget" in message and "multigrid scheme" in message and "max_cycles" not in message

@@ -208,7 +208,10 @@ fn thin_plate_solve<'py>(
     let (field, report) = result?.map_err(|e| match e {
         // `inkwarp.thin_plate` leaves this check to the core (one pass over the field fewer).
         SolveError::NonFiniteInitial => {
-            PyValueError::new_err("initial has NaN or infinite values; pass a finite field (or None).")
+            PyValueError::new_err(
+                "initial has NaN or infinite values (it is read as float32, where anything beyond \
+                 ±3.4e38 is infinite); pass a finite field (or None).",
+            )
         }
         SolveError::Interrupted => crate::errors::interrupted("the thin-plate solve"),
         e => PyValueError::new_err(e.to_string()),

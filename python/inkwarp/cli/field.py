@@ -45,6 +45,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from inkwarp.cli.render import convergence_lines
+
+    with convergence_lines("field"):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     from inkwarp import video
 
     target = Path(args.output)

@@ -75,9 +75,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 @contextlib.contextmanager
-def _convergence_lines() -> Iterator[None]:
+def convergence_lines(command: str = "render") -> Iterator[None]:
     """Shows each solve that did not converge as one line on stderr (the first of each
-    layer as it happens, then how many more there were), not as a Python warning."""
+    layer as it happens, then how many more there were), not as a Python warning, for
+    `inkwarp COMMAND`."""
     from inkwarp.errors import ConvergenceWarning
 
     seen: set[str] = set()
@@ -93,7 +94,7 @@ def _convergence_lines() -> Iterator[None]:
             more += 1
         else:
             seen.add(layer)
-            print(f"inkwarp render: warning: {text}", file=sys.stderr, flush=True)
+            print(f"inkwarp {command}: warning: {text}", file=sys.stderr, flush=True)
 
     with warnings.catch_warnings():
         warnings.simplefilter("always", ConvergenceWarning)
@@ -103,12 +104,12 @@ def _convergence_lines() -> Iterator[None]:
             yield
         finally:
             if more:
-                print(f"inkwarp render: warning: {more} more solve{'s' if more != 1 else ''} "
+                print(f"inkwarp {command}: warning: {more} more solve{'s' if more != 1 else ''} "
                       f"did not converge", file=sys.stderr, flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
-    with _convergence_lines():
+    with convergence_lines():
         return _run(args)
 
 

@@ -268,10 +268,15 @@ impl Scene {
         } else {
             format!("at t = {time_s} s")
         };
+        let advice = match self.layers()[layer].solver.scheme {
+            Scheme::Southwell => "the southwell scheme stops after a fixed budget of relaxations; use the \
+                                  multigrid scheme to solve to the tolerance, or grid_step > 1 or another method",
+            Scheme::Multigrid => "raise solver.max_cycles (the scene's, or the layer's own), or use grid_step > 1 \
+                                  or another method",
+        };
         Some(format!(
             "layer \"{name}\" {when}: the thin-plate solve did not converge ({} cycles, last \
-             change {:.3} px), so its field may be off by more than 0.05 px; raise the \
-             layer's solver.max_cycles, or use grid_step > 1 or another method",
+             change {:.3} px), so its field may be off by more than 0.05 px; {advice}",
             report.cycles, report.final_change_px
         ))
     }
