@@ -187,6 +187,8 @@ def _check_args(
     for name, value in (("tension", tension), ("tolerance", tolerance)):
         if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value < 0:
             raise ValueError(f"{name} must be a finite number >= 0, got {value!r}.")
+    if tension > 1e6:
+        raise ValueError(f"tension must be a number from 0 to 1e6 (0 is a pure thin plate), got {float(tension):g}.")
     if isinstance(grid_step, bool) or not isinstance(grid_step, numbers.Integral) or grid_step < 1:
         raise ValueError(f"grid_step must be an integer >= 1 (1 solves on every pixel), got {grid_step!r}.")
     if max_cycles is not None and (
