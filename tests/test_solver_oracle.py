@@ -581,3 +581,24 @@ def test_a_tolerance_finer_than_float32_is_never_claimed():
 def test_a_tension_past_its_range_is_refused():
     with pytest.raises(ValueError, match=r"from 0 to 1e6.*got 1e\+12"):
         inkwarp.thin_plate_report([[5, 5], [20, 20]], [[1, 0], [0, 1]], (32, 32), tension=1e12)
+
+
+@pytest.mark.parametrize("tension", [1e-12, 1e-10])
+def test_a_chain_of_hinges_at_a_tiny_tension_is_judged_settled(tension):
+    # The iterate drifts along the free functions by hundreds of pixels (the cycles barely
+    # see them at this tension), so its raw changes never fell to the tolerance: the
+    # stopping rule judges the settled answer at every tension, as at 0.
+    problem = Problem((48, 64), np.array([[3.0, 6.0], [10.0, 6.0], [3.0, 13.0]]),
+                      np.array([[1.4, -5.3], [6.1, 3.0], [2.0, -2.6]]), mask=hinge_chain(), tension=tension)
+    field, report = solve(problem)
+    assert report.converged, report
+    limit, _, _ = oracle(dataclasses.replace(problem, tension=0.0))
+    assert np.abs(field - limit).max() < TOLERANCE_PX
+
+
+def test_southwell_spends_its_budget_once_on_a_piece_with_free_functions():
+    problem = Problem((48, 64), np.array([[3.0, 6.0], [10.0, 6.0], [3.0, 13.0]]),
+                      np.array([[1.4, -5.3], [6.1, 3.0], [2.0, -2.6]]), mask=hinge_chain(), tension=1e-7)
+    for sweeps in (1, 4):
+        _, report = solve(problem, method="southwell", southwell_sweeps=sweeps)
+        assert report.cycles <= sweeps, report

@@ -339,9 +339,9 @@ pub(crate) fn solve_constrained(
         // there are too many to settle.
         // (On an open grid the only free function is the tilt about a line holding every
         // constraint: at τ = 0 a one-line piece's gauge and `line_correction` take it; at
-        // τ > 0 it is settled like the others, below.)
-        let tilt = open && tau > 0.0 && by_piece[l].len() > 1 && on_one_line(w, by_piece[l].iter().map(|&k| constraints.nodes[k])).is_some();
-        let vectors = (!open || tilt).then(|| links.vectors(bw, bh));
+        // τ > 0 the same correction settles it, below.)
+        let tilt = if open && tau > 0.0 && by_piece[l].len() > 1 { on_one_line(w, by_piece[l].iter().map(|&k| constraints.nodes[k])) } else { None };
+        let vectors = (!open).then(|| links.vectors(bw, bh));
         let geo = vectors.as_ref().map(|[active, right, down]| nullspace::BoxGeo { w: bw, h: bh, active, right, down });
         let null = geo.as_ref().map_or(Some(Vec::new()), |g| nullspace::plate_null_space(g, &constrained_only, nullspace::MAX_NULL));
         // At τ = 0, on a piece whose only free functions are the affine ones (none is left
@@ -362,13 +362,24 @@ pub(crate) fn solve_constrained(
         // The free functions to settle, where there are any beyond a one-line piece's single
         // one, its tilt (which the line fixes), with the box's grid.
         let settling = null.as_ref().filter(|b| b.len() > usize::from(gauge.is_some())).zip(geo.as_ref());
-        // At τ = 0 the settling is a linear map, built once: it settles the answer, and the
-        // stopping rule judges each cycle's move of the settled answer (`SettledChange`).
-        let membrane = settling.filter(|_| tau == 0.0).map(|(basis, g)| nullspace::Membrane::new(g, basis));
-        let again = settling.map(|_| key.clone());
+        // The settling is a linear map, built once: it settles the answer, and the stopping
+        // rule judges each cycle's move of the settled answer (`SettledChange`).
+        let membrane = settling.map(|(basis, g)| nullspace::Membrane::new(g, basis));
+        let again = (membrane.is_some() || tilt.is_some()).then(|| key.clone());
         let (mut u, mut r) = solve_piece(key, &value, initial.map(|f| (f, x0, y0)), options, store, membrane.as_ref());
-        if let (Some((basis, geo)), Some(key)) = (settling, again) {
-            (u, r) = settle_null_space(key, geo, tau, &value, basis, membrane.as_ref(), u, r, options, store);
+        if let Some(key) = again {
+            let (piece_box, labels) = (boxes[l], &labels);
+            let settle = |v: &mut Vec<V2>| match (&membrane, tilt) {
+                (Some(m), _) => m.apply(v),
+                (None, Some((a, d))) => {
+                    let mut b = BoxValues { values: std::mem::take(v), stride: bw, first: 0 };
+                    line_correction(grid, labels, l as u32, a, d, piece_box, &mut b);
+                    *v = b.values;
+                    true
+                }
+                _ => true,
+            };
+            (u, r) = settle_null_space(key, geo.as_ref().map(|g| g.active), tau, &value, &settle, membrane.as_ref(), u, r, options, store);
         } else if null.is_none() {
             // Too many free functions to settle: no claim of convergence.
             r.converged = false;
@@ -388,55 +399,51 @@ pub(crate) fn solve_constrained(
 }
 
 /// Brings a piece's iterated answer `u` to the contract where its plate operator has free
-/// functions `basis` (zero on the constrained nodes): the least-membrane choice among
-/// `u + span(basis)`. At τ = 0 that is the answer. At τ > 0 it is still the exact answer's
-/// component along them: `A_plate Z = 0` makes `Zᵀ A u = τ Zᵀ M u` for every `u`, so the
-/// answer has `Zᵀ M u = 0` whatever τ (`Zᵀ A u` taken from the whole operator would be the
-/// rounding of the plate's large terms over τ). More cycles then finish the rest, round by
-/// round, until the settled answer moves by no more than a quarter of the tolerance; every
-/// round's cycles count against `max_cycles`.
+/// functions (zero on the constrained nodes): `settle` adds the least-membrane one to a
+/// field over the box (false where a block of them cannot be settled). At τ = 0 that is the
+/// answer. At τ > 0 it is still the exact answer's component along them: `A_plate Z = 0`
+/// makes `Zᵀ A u = τ Zᵀ M u` for every `u`, so the answer has `Zᵀ M u = 0` whatever τ
+/// (`Zᵀ A u` taken from the whole operator would be the rounding of the plate's large terms
+/// over τ). More cycles then finish the rest, round by round, until the settled answer
+/// moves by no more than a quarter of the tolerance; every round's cycles count against
+/// `max_cycles`. Southwell settles once: more rounds would spend its fixed budget again.
+#[allow(clippy::too_many_arguments)]
 fn settle_null_space(
-    key: CacheKey, geo: &nullspace::BoxGeo, tau: f64, value: &[(usize, V2)], basis: &[nullspace::Sparse],
+    key: CacheKey, active: Option<&[bool]>, tau: f64, value: &[(usize, V2)], settle: &dyn Fn(&mut Vec<V2>) -> bool,
     membrane: Option<&nullspace::Membrane<'_>>, u: BoxValues, mut report: SolveReport, options: &SolveOptions, store: &mut Store,
 ) -> (BoxValues, SolveReport) {
-    let (w, h) = (geo.w, geo.h);
+    let (w, h) = (key.w, key.h);
     let mut dense = u.dense(w, h);
-    dense.iter_mut().zip(geo.active).filter(|(_, &a)| !a).for_each(|(d, _)| *d = [0.0; 2]);
-    if let Some(m) = membrane.filter(|_| tau == 0.0) {
+    if let Some(active) = active {
+        dense.iter_mut().zip(active).filter(|(_, &a)| !a).for_each(|(d, _)| *d = [0.0; 2]);
+    }
+    if tau == 0.0 || options.method == SolveMethod::Southwell {
         // A block of functions too large to settle: no claim of convergence.
-        report.converged &= m.apply(&mut dense);
+        report.converged &= settle(&mut dense);
         return (BoxValues { values: dense, stride: w, first: 0 }, report);
     }
-    let own;
-    let m = match membrane {
-        Some(m) => m,
-        None => {
-            own = nullspace::Membrane::new(geo, basis);
-            &own
-        }
-    };
     const ROUNDS: usize = 8;
     let budget = options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES);
     let mut settled = false;
     // The settled answer of the round before: a solve may drift along the free functions
     // (its cycles barely see them), which the settling takes out again, so rounds compare
-    // settled answers.
+    // settled answers. Every round, the last included, ends settled.
     let mut before = dense.clone();
-    for _ in 0..ROUNDS {
-        let all = m.apply(&mut dense);
+    for round in 0..=ROUNDS {
+        let all = settle(&mut dense);
         let moved = dense.iter().zip(&before).fold(0.0f64, |a, (u, b)| a.max((u[0] - b[0]).abs()).max((u[1] - b[1]).abs()));
-        if moved <= options.tolerance_px * 0.25 {
+        if !all || moved <= options.tolerance_px * 0.25 {
             settled = all && report.converged;
             break;
         }
-        if report.cycles >= budget {
+        if round == ROUNDS || report.cycles >= budget {
             break;
         }
         before.clone_from(&dense);
         let (dx, dy) = dense.iter().map(|v| (v[0] as f32, v[1] as f32)).unzip();
         let field = Field { width: w, height: h, dx, dy };
         let rest = SolveOptions { max_cycles: Some(budget - report.cycles), ..options.clone() };
-        let (u2, r2) = solve_piece(key.clone(), value, Some((FieldView::from(&field), 0, 0)), &rest, store, None);
+        let (u2, r2) = solve_piece(key.clone(), value, Some((FieldView::from(&field), 0, 0)), &rest, store, membrane);
         // The latest solve's report, with every solve's cycles and the first one's start.
         report.cycles += r2.cycles;
         (report.final_change_px, report.residual, report.converged) = (r2.final_change_px, r2.residual, r2.converged);
