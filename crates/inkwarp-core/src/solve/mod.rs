@@ -270,7 +270,10 @@ enum Piece {
 pub(crate) fn solve_constrained(
     grid: &Grid, constraints: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, store: &mut Store,
 ) -> (Field, SolveReport) {
-    let (w, h, tau) = (grid.width, grid.height, options.tension);
+    // A subnormal tension is the τ → 0⁺ limit to far below any tolerance, and its products
+    // underflow: it is taken as 0.
+    let (w, h) = (grid.width, grid.height);
+    let tau = if options.tension < f64::MIN_POSITIVE { 0.0 } else { options.tension };
     let (constrained_nodes, constrained_samples) = (constraints.len(), constraints.used_samples);
     let dropped_samples = constraints.dropped_samples;
     let mut report = SolveReport { constrained_nodes, constrained_samples, dropped_samples, converged: true, ..Default::default() };
