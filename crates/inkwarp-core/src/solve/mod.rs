@@ -372,15 +372,16 @@ pub(crate) fn solve_constrained(
         let (mut u, mut r) = solve_piece(key, &value, initial.map(|f| (f, x0, y0)), options, store, membrane.as_ref());
         if let Some(key) = again {
             let (piece_box, labels) = (boxes[l], &labels);
+            // The free functions' settling, or else the open grid's tilt's.
             let settle = |v: &mut Vec<V2>| match (&membrane, tilt) {
                 (Some(m), _) => m.apply(v),
-                (None, Some((a, d))) => {
+                (None, line) => {
+                    let (a, d) = line.expect("a settled piece has free functions or a tilt");
                     let mut b = BoxValues { values: std::mem::take(v), stride: bw, first: 0 };
                     line_correction(grid, labels, l as u32, a, d, piece_box, &mut b);
                     *v = b.values;
                     true
                 }
-                _ => true,
             };
             (u, r) = settle_null_space(key, geo.as_ref().map(|g| g.active), tau, &value, &settle, membrane.as_ref(), u, r, options, store);
         } else if null.is_none() {
