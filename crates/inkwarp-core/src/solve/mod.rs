@@ -679,10 +679,13 @@ fn solve_piece(
                     continue;
                 }
                 let z = hier.precondition(&r);
-                // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/rz_old, with r − r_old = α q:
-                // the preconditioner's line searches make it slightly nonlinear.
+                // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/(r_oldᵀz_old), with r − r_old = α q:
+                // the preconditioner's line searches make it slightly nonlinear. Deflated, the
+                // preconditioned residual is the projected z̃, whose r_oldᵀz̃_old is the step's
+                // `along` and whose z̃ᵀq is zᵀq (Wᵀq = −WᵀA p_old = 0): both are the
+                // deflated iteration's own, as its Lanczos matrix (`rate_floor`) assumes.
                 let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
-                let beta = [0, 1].map(|k| if rz[k] > 0.0 { ((alpha[k] * zq[k]) / rz[k]).max(0.0) } else { 0.0 });
+                let beta = [0, 1].map(|k| if along[k] > 0.0 { ((alpha[k] * zq[k]) / along[k]).max(0.0) } else { 0.0 });
                 widen_into(&mut p, z, beta);
                 slow.project(&mut p);
                 slow.beta(Some(beta));
