@@ -530,14 +530,17 @@ def test_a_tiny_tension_on_one_line_gives_the_limit(shape, tension):
     assert np.abs(field - limit).max() < TOLERANCE_PX
 
 
-def hinge_chain() -> np.ndarray:
+HINGE_POINTS = np.array([[3.0, 6.0], [10.0, 6.0], [3.0, 13.0]])
+
+
+def hinge_chain(tension: float, displacements=((1.4, -5.3), (6.1, 3.0), (2.0, -2.6))) -> Problem:
     """Three squares joined corner to corner by single nodes, a strand 1-2 px wide hanging
-    off the last one down to a bar."""
+    off the last one down to a bar; three points on the first square."""
     m = np.zeros((48, 64), np.uint8)
     m[5:15, 2:12] = m[10:20, 13:23] = m[15:25, 24:34] = 1
     m[14, 12] = m[19, 23] = 1
     m[24, 33:40] = m[25:30, 39] = m[30:32, 2:40] = 1
-    return m
+    return Problem((48, 64), HINGE_POINTS, np.asarray(displacements, float), mask=m, tension=tension)
 
 
 @pytest.mark.parametrize("tension", [1e-7, 1e-6, 1e-5])
@@ -546,14 +549,12 @@ def test_a_chain_of_hinges_with_a_strand_converges_at_small_tensions(tension):
     # smaller (the cycle magnifies the near-null modes the projection takes out): the
     # iterate grew to 1e32 px over 900 cycles.
     rng = np.random.default_rng(26)
-    points = np.array([[3.0, 6.0], [10.0, 6.0], [3.0, 13.0]])
     for _ in range(4):
-        check(Problem((48, 64), points, rng.normal(0, 4, (3, 2)), mask=hinge_chain(), tension=tension))
+        check(hinge_chain(tension, rng.normal(0, 4, (3, 2))))
 
 
 def test_max_cycles_counts_every_cycle():
-    problem = Problem((48, 64), np.array([[3.0, 6.0], [10.0, 6.0], [3.0, 13.0]]),
-                      np.array([[1.4, -5.3], [6.1, 3.0], [2.0, -2.6]]), mask=hinge_chain(), tension=1e-6)
+    problem = hinge_chain(1e-6)
     for cap in (1, 5):
         _, report = solve(problem, max_cycles=cap)
         assert report.cycles <= cap and not report.converged, report
@@ -588,8 +589,7 @@ def test_a_chain_of_hinges_at_a_tiny_tension_is_judged_settled(tension):
     # The iterate drifts along the free functions by hundreds of pixels (the cycles barely
     # see them at this tension), so its raw changes never fell to the tolerance: the
     # stopping rule judges the settled answer at every tension, as at 0.
-    problem = Problem((48, 64), np.array([[3.0, 6.0], [10.0, 6.0], [3.0, 13.0]]),
-                      np.array([[1.4, -5.3], [6.1, 3.0], [2.0, -2.6]]), mask=hinge_chain(), tension=tension)
+    problem = hinge_chain(tension)
     field, report = solve(problem)
     assert report.converged, report
     limit, _, _ = oracle(dataclasses.replace(problem, tension=0.0))
@@ -597,8 +597,7 @@ def test_a_chain_of_hinges_at_a_tiny_tension_is_judged_settled(tension):
 
 
 def test_southwell_spends_its_budget_once_on_a_piece_with_free_functions():
-    problem = Problem((48, 64), np.array([[3.0, 6.0], [10.0, 6.0], [3.0, 13.0]]),
-                      np.array([[1.4, -5.3], [6.1, 3.0], [2.0, -2.6]]), mask=hinge_chain(), tension=1e-7)
+    problem = hinge_chain(1e-7)
     for sweeps in (1, 4):
         _, report = solve(problem, method="southwell", southwell_sweeps=sweeps)
         assert report.cycles <= sweeps, report
