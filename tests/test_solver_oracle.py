@@ -603,6 +603,44 @@ def test_southwell_spends_its_budget_once_on_a_piece_with_free_functions():
         assert report.cycles <= sweeps, report
 
 
+@pytest.mark.parametrize("tension", [1e-11, 1e-10, 1e-9, 1e-8])
+@pytest.mark.parametrize("shape", ["L", "U"])
+def test_thin_pieces_at_tiny_tensions_are_not_claimed_early(shape, tension):
+    # An L 2 px wide and a U of 3 px arms, two constraints on one line: their free functions
+    # have energies of order τ. The coarsest solve kept their pivots (above 1e-10 of the
+    # diagonal), so each cycle's f32 vectors came back as rounding magnified up to a
+    # billion times: the L stopped after 2-5 cycles 5.8 px off and the U after 3 cycles
+    # 87 px off, both converged (at 1e-9 the U ran 100 cycles unconverged).
+    m = np.zeros((30, 30), np.uint8)
+    if shape == "L":
+        m[3:5, 3:25] = m[3:27, 23:25] = 1
+        points, displacements = [[23.0, 20.0], [23.0, 11.0]], [[6.52, 4.74], [-3.52, -6.33]]
+    else:
+        m[3:6, 3:27] = m[3:27, 3:6] = m[3:27, 24:27] = 1
+        points, displacements = [[24.0, 9.0], [26.0, 9.0]], [[1.652, -6.516], [4.527, 2.232]]
+    problem = Problem(m.shape, np.array(points), np.array(displacements), mask=m, tension=tension)
+    field, report = solve(problem)
+    assert report.converged, report
+    limit, _, _ = oracle(dataclasses.replace(problem, tension=0.0))
+    assert np.abs(field - limit).max() < TOLERANCE_PX
+
+
+@pytest.mark.parametrize("start", [1e20, 3.4e38])
+@pytest.mark.parametrize("masked", [False, True])
+def test_a_huge_start_on_a_piece_whose_constraints_lie_on_one_line(start, masked):
+    # Such a piece pins a node off the line (its gauge) at the warm start's value there:
+    # 1e20 pinned it 1e20 off, and the answer came back 1e7-1e17 px off or not finite.
+    m = np.ones((30, 30), np.uint8)
+    if masked:  # a U of 3 px arms
+        m[:] = 0
+        m[3:6, 3:27] = m[3:27, 3:6] = m[3:27, 24:27] = 1
+    problem = Problem((30, 30), np.array([[24.0, 9.0], [26.0, 9.0]]), np.array([[1.652, -6.516], [4.527, 2.232]]), mask=m)
+    field, report = solve(problem, initial=np.full((30, 30, 2), start, np.float32))
+    exact, _, _ = oracle(problem)
+    assert report.converged, report
+    assert np.abs(field - exact).max() < TOLERANCE_PX
+
+
 @pytest.mark.parametrize("tension", [1e-300, 1e-310, 5e-324])
 def test_a_subnormal_tension_is_the_limit(tension):
     # A square with strands: at a subnormal tension the products underflowed and the solve

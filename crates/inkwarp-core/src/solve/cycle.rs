@@ -18,6 +18,10 @@ const K_SECOND_STEP: f64 = 0.3;
 const LANCZOS_STEPS: usize = 12;
 /// Power steps of the finest level's Collatz–Wielandt bound.
 const COLLATZ_STEPS: usize = 3;
+/// The smallest pivot of the coarsest factor, relative to its diagonal, that is not taken
+/// as zero: about the resolution of the `f32` work vectors, whose rounding a smaller pivot
+/// would magnify past the answer (`docs/dev/solver-correctness.md`, "Tiny tensions").
+const PIVOT_FLOOR: f64 = 1e-7;
 
 /// The grid hierarchy with its work vectors.
 #[derive(Debug)]
@@ -466,7 +470,9 @@ super::wide::widest! {
 }
 
 /// Banded Cholesky factor of the coarsest operator (unknowns in row-major order). Pivots
-/// that vanish (a singular, consistent coarsest system) pin their unknown to zero.
+/// below [`PIVOT_FLOOR`] of their diagonal pin their unknown to zero: those of a singular,
+/// consistent coarsest system, and those of free functions whose energy is of order a tiny
+/// tension.
 #[derive(Debug)]
 struct Banded {
     /// The bandwidth: `l_km` is zero for `k − m > bw`.
@@ -513,7 +519,7 @@ impl Banded {
             for m in j0..k {
                 s -= l[at(k, m)] * l[at(k, m)];
             }
-            if s <= 1e-10 * level.row(map[k])[12].abs() || s <= 0.0 {
+            if s <= PIVOT_FLOOR * level.row(map[k])[12].abs() || s <= 0.0 {
                 dropped[k] = true;
                 l[at(k, j0)..at(k, k)].fill(0.0);
                 l[at(k, k)] = 1.0;

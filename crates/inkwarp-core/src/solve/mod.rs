@@ -331,8 +331,14 @@ pub(crate) fn solve_constrained(
         value.iter().for_each(|&(j, _)| constrained_only[j] = true);
         let mut fixed = constrained_only.clone();
         if let Some(g) = gauge {
+            // The constraints' mean, plus a warm start's own offset of the gauge from its
+            // values at the constrained nodes (so a start of huge values pins nothing far off).
             let mean = |k: usize| value.iter().fold(0.0, |s, v| s + v.1[k]) / value.len() as f64;
-            let v = initial.map_or_else(|| [mean(0), mean(1)], |f| f.at_index(g).map(f64::from));
+            let offset = |f: FieldView<'_>, k: usize| {
+                let own = by_piece[l].iter().fold(0.0, |s, &c| s + f64::from(f.at_index(constraints.nodes[c])[k])) / value.len() as f64;
+                f64::from(f.at_index(g)[k]) - own
+            };
+            let v = [0, 1].map(|k| mean(k) + initial.map_or(0.0, |f| offset(f, k)));
             fixed[local(g)] = true;
             value.push((local(g), v));
         }
@@ -885,9 +891,6 @@ const FINEST_TOLERANCE: f64 = 1e-7;
 const DEFAULT_MAX_CYCLES: usize = 100;
 /// The same on grids with holes or cuts, where the slowest error moves least per cycle.
 const TORN_STOP_MARGIN: f64 = 3.0;
-/// The largest block of free functions whose settling is applied to every cycle's change
-/// (a dense solve a cycle); past it the raw change is judged.
-const SETTLED_CHANGE_BLOCK: usize = 64;
 /// Smoothing steps before and after each coarse correction.
 const SMOOTHING_STEPS: usize = 2;
 /// The same below the finest level of a grid without holes or cuts (across holes and cuts
@@ -1033,11 +1036,10 @@ struct SettledChange<'m, 'a> {
 }
 
 impl<'m, 'a> SettledChange<'m, 'a> {
-    /// `None` where the settling is not applied to every cycle: a block of more than
-    /// [`SETTLED_CHANGE_BLOCK`] functions (a dense solve a cycle), or one that cannot be
-    /// settled (singular); there the raw change is judged.
+    /// `None` where a block cannot be settled (more than `nullspace::MAX_BLOCK` functions,
+    /// or singular): there the raw change is judged.
     fn new(membrane: &'m nullspace::Membrane<'a>, level: &Level) -> Option<Self> {
-        if membrane.largest_block() > SETTLED_CHANGE_BLOCK || !membrane.settle(|_| [0.0; 2], |_, _| {}) {
+        if !membrane.settles_all() {
             return None;
         }
         let w = level.geo.w;

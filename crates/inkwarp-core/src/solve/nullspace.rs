@@ -308,10 +308,10 @@ pub(crate) struct Membrane<'a> {
     basis: &'a [Sparse],
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.
     products: Vec<Sparse>,
-    /// The membrane Gram matrix by columns, its entries where two functions meet.
-    gram: Vec<Sparse>,
-    /// The functions of each block (coupled through their supports).
-    blocks: Vec<Vec<usize>>,
+    /// The functions of each block (coupled through their supports), and the rows of the
+    /// Cholesky factor of its membrane Gram matrix (none for a block too large or
+    /// singular, which is not settled).
+    blocks: Vec<(Vec<usize>, Option<Vec<Vec<f64>>>)>,
 }
 
 impl<'a> Membrane<'a> {
@@ -324,6 +324,7 @@ impl<'a> Membrane<'a> {
                 at.entry(i).or_default().push((j, v));
             }
         }
+        // The membrane Gram matrix by columns, its entries where two functions meet.
         let (mut gram, mut products): (Vec<Sparse>, Vec<Sparse>) = (vec![Vec::new(); k], Vec::with_capacity(k));
         let (mut dense, mut y) = (vec![0.0; n], vec![0.0; n]);
         let (mut acc, mut seen, mut hit) = (vec![0.0; k], vec![false; k], Vec::new());
@@ -349,7 +350,21 @@ impl<'a> Membrane<'a> {
         for j in 0..k {
             by_root.entry(find(&mut parent, j as u32)).or_default().push(j);
         }
-        Membrane { basis, products, gram, blocks: by_root.into_values().collect() }
+        let mut local = vec![usize::MAX; k];
+        let blocks = by_root.into_values().map(|members| {
+            let factor = (members.len() <= MAX_BLOCK).then(|| {
+                members.iter().enumerate().for_each(|(l, &j)| local[j] = l);
+                let mut m = vec![vec![0.0; members.len()]; members.len()];
+                for (l, &j) in members.iter().enumerate() {
+                    for &(i, v) in &gram[j] {
+                        m[local[i]][l] += v;
+                    }
+                }
+                cholesky(m)
+            });
+            (members, factor.flatten())
+        }).collect();
+        Membrane { basis, products, blocks }
     }
 
     /// The nodes the functions touch (with repeats).
@@ -357,46 +372,36 @@ impl<'a> Membrane<'a> {
         self.basis.iter().flat_map(|z| z.iter().map(|e| e.0)).collect()
     }
 
-    /// The largest block's number of functions.
-    pub(crate) fn largest_block(&self) -> usize {
-        self.blocks.iter().map(Vec::len).max().unwrap_or(0)
+    /// Whether every block is settled (none too large or singular).
+    pub(crate) fn settles_all(&self) -> bool {
+        self.blocks.iter().all(|b| b.1.is_some())
     }
 
     /// `n` for the field read by `read` (box node → value): added by `add(node, value)`.
-    /// False when a block was not settled (too large or singular).
+    /// False when a block was not settled (too large or singular: it is left as it is).
     pub(crate) fn settle(&self, read: impl Fn(usize) -> V2, mut add: impl FnMut(usize, V2)) -> bool {
-        let mut all = true;
-        let mut local = vec![usize::MAX; self.basis.len()];
-        for members in &self.blocks {
-            if members.len() > MAX_BLOCK {
-                all = false;
-                continue;
-            }
-            for (l, &j) in members.iter().enumerate() {
-                local[j] = l;
-            }
-            let mut m = vec![vec![0.0; members.len()]; members.len()];
-            for (l, &j) in members.iter().enumerate() {
-                for &(i, v) in &self.gram[j] {
-                    m[local[i]][l] += v;
-                }
-            }
+        for (members, l) in self.blocks.iter().filter_map(|(m, l)| Some((m, l.as_ref()?))) {
             let b: Vec<V2> = members.iter().map(|&j| self.products[j].iter().fold([0.0; 2], |s, &(p, y)| {
                 let v = read(p);
                 [s[0] - y * v[0], s[1] - y * v[1]]
             })).collect();
-            // A singular block is left as it is, and not settled.
-            let Some(c) = super::dense_solve(m, b) else {
-                all = false;
-                continue;
-            };
+            // L Lᵀ c = b: forward, then back substitution.
+            let mut c = b;
+            for i in 0..c.len() {
+                let s = (0..i).fold(c[i], |s, j| [s[0] - l[i][j] * c[j][0], s[1] - l[i][j] * c[j][1]]);
+                c[i] = [s[0] / l[i][i], s[1] / l[i][i]];
+            }
+            for i in (0..c.len()).rev() {
+                let s = (i + 1..c.len()).fold(c[i], |s, j| [s[0] - l[j][i] * c[j][0], s[1] - l[j][i] * c[j][1]]);
+                c[i] = [s[0] / l[i][i], s[1] / l[i][i]];
+            }
             for (&j, c) in members.iter().zip(c) {
                 for &(i, v) in &self.basis[j] {
                     add(i, [c[0] * v, c[1] * v]);
                 }
             }
         }
-        all
+        self.settles_all()
     }
 
     /// Settles `u` (dense over the box); false when a block was not settled.
@@ -408,4 +413,24 @@ impl<'a> Membrane<'a> {
         }
         all
     }
+}
+
+/// The rows of the lower Cholesky factor of the symmetric `m`; `None` where it is not
+/// positive definite (a pivot at rounding level).
+fn cholesky(mut m: Vec<Vec<f64>>) -> Option<Vec<Vec<f64>>> {
+    for i in 0..m.len() {
+        for j in 0..=i {
+            let s = (0..j).fold(m[i][j], |s, k| s - m[i][k] * m[j][k]);
+            if i == j {
+                if !(s > 1e-300) {
+                    return None;
+                }
+                m[i][i] = s.sqrt();
+            } else {
+                m[i][j] = s / m[j][j];
+            }
+        }
+        m[i].truncate(i + 1);
+    }
+    Some(m)
 }
