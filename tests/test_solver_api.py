@@ -78,6 +78,19 @@ def test_southwell_and_grid_step_and_max_cycles_run():
         assert f.shape == (18, 24, 2) and np.all(np.isfinite(f))
 
 
+def test_grid_step_samples_go_to_their_nearest_coarse_node():
+    # The last coarse row and column sit on the border, so the last cell may be shorter
+    # than the step: a sample in it goes to the coarse node nearest to it, which keeps
+    # its displacement (Catmull-Rom keeps the coarse values). They used to go by x / step,
+    # so at a step above the grid's size every sample fell on the first node.
+    pts = [[0.0, 0.0], [0.0, 8.0], [8.9, 4.0]]
+    field, report = inkwarp.thin_plate_report(pts, [[0, 0], [0, 0], [2.0, 1.0]], (9, 10), grid_step=4)
+    assert report.constrained_nodes == 3
+    assert np.allclose(field[4, 9], [2.0, 1.0], atol=1e-5)
+    _, report = inkwarp.thin_plate_report([[5, 5], [25, 5], [15, 25]], [[1, 0], [0, 1], [1, 1]], (32, 32), grid_step=1000)
+    assert report.constrained_nodes == 3
+
+
 def test_solves_run_in_parallel_threads():
     # The GIL is released during the solve: threads finish with correct results.
     results = {}

@@ -52,7 +52,7 @@ fn solve_on_coarse_grid(
     let (l, sf) = (Layout::new(grid.width, grid.height, options.grid_step), options.grid_step as f64);
     let (width, height, [active, link_right, link_down]) = coarse_links(l.w, l.h, l.s, &grid.active, &grid.link_right, &grid.link_down);
     let coarse = Grid { width, height, active, link_right, link_down };
-    let at = |p: &Sample| Sample { rest: [(p.rest[0] / sf).min((l.wc - 1) as f64), (p.rest[1] / sf).min((l.hc - 1) as f64)], ..*p };
+    let at = |p: &Sample| Sample { rest: [l.coarse(p.rest[0], l.wc, |x| l.px(x)), l.coarse(p.rest[1], l.hc, |y| l.py(y))], ..*p };
     let coarse_samples: Vec<Sample> = samples.iter().filter(|p| nearest_node(grid, p.rest).is_some()).map(at).collect();
     let mut constraints = constrain(&coarse, &coarse_samples);
     constraints.dropped_samples += samples.len() - coarse_samples.len();
@@ -145,6 +145,18 @@ impl Layout {
     /// The pixel row of coarse row `yc`.
     fn py(&self, yc: usize) -> usize {
         (yc * self.s).min(self.h - 1)
+    }
+
+    /// The coarse coordinate of pixel coordinate `x` along an axis of `nc` coarse positions
+    /// at pixels `pos(0..nc)`: `x / s`, but for the last cell, which ends on the border and
+    /// may be shorter (so a sample goes to the coarse node nearest to it).
+    fn coarse(&self, x: f64, nc: usize, pos: impl Fn(usize) -> usize) -> f64 {
+        if nc < 2 {
+            return 0.0;
+        }
+        let c = ((x / self.s as f64).max(0.0) as usize).min(nc - 2);
+        let (a, b) = (pos(c) as f64, pos(c + 1) as f64);
+        c as f64 + (x - a) / (b - a)
     }
 
     /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's
