@@ -129,10 +129,13 @@ def test_quick_strands_benchmark_prints_a_row_per_family_and_size():
 def test_quick_honesty_sweep_counts_every_claim():
     # `benchmarks/honesty.py --quick`: one seed's cuts, cold at two scales and warm; the
     # counts are what the sweep reports, not asserted (the contract is the oracle tests').
-    out = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "honesty.py"), "--quick"],
-        check=True, capture_output=True, text=True, timeout=300).stdout
-    line = next(r for r in out.splitlines() if r.startswith("| ") and r[2].isdigit())
-    cells = [int(c) for c in line.strip("|").split("|")]
-    solves, not_converged, claimed = cells[:3]
-    assert solves == 10 and not_converged + claimed == solves and cells[5] > 0
+    # With `--families`: the character and the two combs at 1x, three tensions, three
+    # displacement scales.
+    for extra, expected in (([], 10), (["--families"], 27)):
+        out = subprocess.run(
+            [sys.executable, str(ROOT / "benchmarks" / "honesty.py"), "--quick", *extra],
+            check=True, capture_output=True, text=True, timeout=300).stdout
+        line = next(r for r in out.splitlines() if r.startswith("| ") and r[2].isdigit())
+        cells = [int(c) for c in line.strip("|").split("|")]
+        solves, not_converged, claimed = cells[:3]
+        assert solves == expected and not_converged + claimed == solves and cells[5] > 0
