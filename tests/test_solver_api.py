@@ -87,8 +87,10 @@ def test_grid_step_samples_go_to_their_nearest_coarse_node():
     field, report = inkwarp.thin_plate_report(pts, [[0, 0], [0, 0], [2.0, 1.0]], (9, 10), grid_step=4)
     assert report.constrained_nodes == 3
     assert np.allclose(field[4, 9], [2.0, 1.0], atol=1e-5)
-    _, report = inkwarp.thin_plate_report([[5, 5], [25, 5], [15, 25]], [[1, 0], [0, 1], [1, 1]], (32, 32), grid_step=1000)
+    field, report = inkwarp.thin_plate_report([[5, 5], [25, 5], [15, 25]], [[1, 0], [0, 1], [1, 1]], (32, 32), grid_step=1000)
     assert report.constrained_nodes == 3
+    for (row, col), value in (((0, 0), [1, 0]), ((0, 31), [0, 1]), ((31, 0), [1, 1])):
+        assert np.allclose(field[row, col], value, atol=1e-5), (row, col, field[row, col])
 
 
 def test_solves_run_in_parallel_threads():

@@ -330,17 +330,21 @@ pub(crate) fn solve_constrained(
         let mut constrained_only = vec![false; bw * bh];
         value.iter().for_each(|&(j, _)| constrained_only[j] = true);
         let mut fixed = constrained_only.clone();
+        // The gauge's value without a start: the constraints' mean.
+        let mut cold_gauge = None;
         if let Some(g) = gauge {
-            // The constraints' mean, plus a warm start's own offset of the gauge from its
-            // values at the constrained nodes (so a start of huge values pins nothing far off).
-            let mean = |k: usize| value.iter().fold(0.0, |s, v| s + v.1[k]) / value.len() as f64;
+            // With a start, the constraints' mean plus the start's own offset of the gauge
+            // from its values at the constrained nodes; the mean again where the start is
+            // dropped for the cold one (see `solve_piece`).
+            let mean = [0, 1].map(|k| value.iter().fold(0.0, |s, v| s + v.1[k]) / value.len() as f64);
             let offset = |f: FieldView<'_>, k: usize| {
                 let own = by_piece[l].iter().fold(0.0, |s, &c| s + f64::from(f.at_index(constraints.nodes[c])[k])) / value.len() as f64;
                 f64::from(f.at_index(g)[k]) - own
             };
-            let v = [0, 1].map(|k| mean(k) + initial.map_or(0.0, |f| offset(f, k)));
+            let v = [0, 1].map(|k| mean[k] + initial.map_or(0.0, |f| offset(f, k)));
             fixed[local(g)] = true;
-            value.push((local(g), v));
+            value.push((local(g), if v.iter().all(|x| x.is_finite()) { v } else { mean }));
+            cold_gauge = Some((local(g), mean));
         }
         // The functions of zero plate energy that the constraints leave free (hinges,
         // strands, thin rings, the line's tilt): where there are any beyond the tilt, the
@@ -375,7 +379,7 @@ pub(crate) fn solve_constrained(
         // rule judges each cycle's move of the settled answer (`SettledChange`).
         let membrane = settling.map(|(basis, g)| nullspace::Membrane::new(g, basis));
         let again = (membrane.is_some() || tilt.is_some()).then(|| key.clone());
-        let (mut u, mut r) = solve_piece(key, &value, initial.map(|f| (f, x0, y0)), options, store, membrane.as_ref());
+        let (mut u, mut r) = solve_piece(key, &value, cold_gauge, initial.map(|f| (f, x0, y0)), options, store, membrane.as_ref());
         if let Some(key) = again {
             let (piece_box, labels) = (boxes[l], &labels);
             // The free functions' settling, or else the open grid's tilt's.
@@ -453,7 +457,7 @@ fn settle_null_space(
         let (dx, dy) = dense.iter().map(|v| (v[0] as f32, v[1] as f32)).unzip();
         let field = Field { width: w, height: h, dx, dy };
         let rest = SolveOptions { max_cycles: Some(budget - report.cycles), ..options.clone() };
-        let (u2, r2) = solve_piece(key.clone(), value, Some((FieldView::from(&field), 0, 0)), &rest, store, membrane);
+        let (u2, r2) = solve_piece(key.clone(), value, None, Some((FieldView::from(&field), 0, 0)), &rest, store, membrane);
         // The latest solve's report, with every solve's cycles and the first one's start.
         report.cycles += r2.cycles;
         (report.final_change_px, report.residual, report.converged) = (r2.final_change_px, r2.residual, r2.converged);
@@ -537,11 +541,13 @@ impl BoxValues {
 }
 
 /// Solves one piece on its box: `key` describes the box's grid (the piece active, its
-/// links, its fixed nodes), `value` the fixed nodes' values, `initial` a start: the whole
+/// links, its fixed nodes), `value` the fixed nodes' values (`cold_gauge` a one-line
+/// piece's gauge node and its value for the cold start), `initial` a start: the whole
 /// grid's field and the box's first node (x0, y0). Returns the solution on the box's nodes
 /// and the report's solver fields.
+#[allow(clippy::too_many_arguments)]
 fn solve_piece(
-    key: CacheKey, value: &[(usize, V2)], initial: Option<(FieldView<'_>, usize, usize)>, options: &SolveOptions, store: &mut Store,
+    key: CacheKey, value: &[(usize, V2)], cold_gauge: Option<(usize, V2)>, initial: Option<(FieldView<'_>, usize, usize)>, options: &SolveOptions, store: &mut Store,
     settled: Option<&nullspace::Membrane<'_>>,
 ) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
@@ -612,6 +618,9 @@ fn solve_piece(
             // (`docs/dev/solver-correctness.md`).
             let mut cold = vec![[0.0; 2]; len];
             pin(&mut cold);
+            if let Some((i, v)) = cold_gauge {
+                cold[fine.pidx(i % w, i / w)] = v;
+            }
             if report.initial_residual <= fine.residual_scaled_max(&cold, &mut r) {
                 fine.residual_scaled_max(&u, &mut r);
             } else {

@@ -308,10 +308,10 @@ pub(crate) struct Membrane<'a> {
     basis: &'a [Sparse],
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.
     products: Vec<Sparse>,
-    /// The functions of each block (coupled through their supports), and the rows of the
-    /// Cholesky factor of its membrane Gram matrix (none for a block too large or
-    /// singular, which is not settled).
-    blocks: Vec<(Vec<usize>, Option<Vec<Vec<f64>>>)>,
+    /// The functions of each block (coupled through their supports), and the Cholesky
+    /// factor of its membrane Gram matrix, packed by rows (row `i` at `i(i+1)/2`; none for a
+    /// block too large or singular, which is not settled).
+    blocks: Vec<(Vec<usize>, Option<Vec<f64>>)>,
 }
 
 impl<'a> Membrane<'a> {
@@ -385,15 +385,19 @@ impl<'a> Membrane<'a> {
                 let v = read(p);
                 [s[0] - y * v[0], s[1] - y * v[1]]
             })).collect();
-            // L Lᵀ c = b: forward, then back substitution.
+            // L Lᵀ c = b: forward substitution, then back substitution by L's rows.
             let mut c = b;
             for i in 0..c.len() {
-                let s = (0..i).fold(c[i], |s, j| [s[0] - l[i][j] * c[j][0], s[1] - l[i][j] * c[j][1]]);
-                c[i] = [s[0] / l[i][i], s[1] / l[i][i]];
+                let row = &l[i * (i + 1) / 2..][..i + 1];
+                let s = (0..i).fold(c[i], |s, j| [s[0] - row[j] * c[j][0], s[1] - row[j] * c[j][1]]);
+                c[i] = [s[0] / row[i], s[1] / row[i]];
             }
             for i in (0..c.len()).rev() {
-                let s = (i + 1..c.len()).fold(c[i], |s, j| [s[0] - l[j][i] * c[j][0], s[1] - l[j][i] * c[j][1]]);
-                c[i] = [s[0] / l[i][i], s[1] / l[i][i]];
+                let row = &l[i * (i + 1) / 2..][..i + 1];
+                c[i] = [c[i][0] / row[i], c[i][1] / row[i]];
+                for j in 0..i {
+                    c[j] = [c[j][0] - row[j] * c[i][0], c[j][1] - row[j] * c[i][1]];
+                }
             }
             for (&j, c) in members.iter().zip(c) {
                 for &(i, v) in &self.basis[j] {
@@ -415,22 +419,24 @@ impl<'a> Membrane<'a> {
     }
 }
 
-/// The rows of the lower Cholesky factor of the symmetric `m`; `None` where it is not
-/// positive definite (a pivot at rounding level).
-fn cholesky(mut m: Vec<Vec<f64>>) -> Option<Vec<Vec<f64>>> {
+/// The lower Cholesky factor of the symmetric `m`, packed by rows; `None` where a pivot
+/// is not above 1e-12 of its diagonal entry (a dependent or singular block).
+fn cholesky(m: Vec<Vec<f64>>) -> Option<Vec<f64>> {
+    let mut l = Vec::with_capacity(m.len() * (m.len() + 1) / 2);
     for i in 0..m.len() {
+        let start = l.len();
         for j in 0..=i {
-            let s = (0..j).fold(m[i][j], |s, k| s - m[i][k] * m[j][k]);
+            let row_j = j * (j + 1) / 2;
+            let s = (0..j).fold(m[i][j], |s, k| s - l[start + k] * l[row_j + k]);
             if i == j {
-                if !(s > 1e-300) {
+                if !(s > 1e-12 * m[i][i]) {
                     return None;
                 }
-                m[i][i] = s.sqrt();
+                l.push(s.sqrt());
             } else {
-                m[i][j] = s / m[j][j];
+                l.push(s / l[row_j + j]);
             }
         }
-        m[i].truncate(i + 1);
     }
-    Some(m)
+    Some(l)
 }
