@@ -330,20 +330,14 @@ pub(crate) fn solve_constrained(
         let mut constrained_only = vec![false; bw * bh];
         value.iter().for_each(|&(j, _)| constrained_only[j] = true);
         let mut fixed = constrained_only.clone();
-        // The gauge's value without a start: the constraints' mean.
+        // The gauge's value: a start's (finite) one there, else the constraints' mean, which
+        // the cold start takes where it replaces the start (see `solve_piece`).
         let mut cold_gauge = None;
         if let Some(g) = gauge {
-            // With a start, the constraints' mean plus the start's own offset of the gauge
-            // from its values at the constrained nodes; the mean again where the start is
-            // dropped for the cold one (see `solve_piece`).
             let mean = [0, 1].map(|k| value.iter().fold(0.0, |s, v| s + v.1[k]) / value.len() as f64);
-            let offset = |f: FieldView<'_>, k: usize| {
-                let own = by_piece[l].iter().fold(0.0, |s, &c| s + f64::from(f.at_index(constraints.nodes[c])[k])) / value.len() as f64;
-                f64::from(f.at_index(g)[k]) - own
-            };
-            let v = [0, 1].map(|k| mean[k] + initial.map_or(0.0, |f| offset(f, k)));
+            let v = initial.map(|f| f.at_index(g).map(f64::from)).filter(|v| v.iter().all(|x| x.is_finite()));
             fixed[local(g)] = true;
-            value.push((local(g), if v.iter().all(|x| x.is_finite()) { v } else { mean }));
+            value.push((local(g), v.unwrap_or(mean)));
             cold_gauge = Some((local(g), mean));
         }
         // The functions of zero plate energy that the constraints leave free (hinges,

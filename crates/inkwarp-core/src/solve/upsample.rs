@@ -148,15 +148,14 @@ impl Layout {
     }
 
     /// The coarse coordinate of pixel coordinate `x` along an axis of `nc` coarse positions
-    /// at pixels `pos(0..nc)`: `x / s`, but for the last cell, which ends on the border and
-    /// may be shorter (so a sample goes to the coarse node nearest to it).
+    /// at pixels `pos(0..nc)` (so a sample goes to the coarse node nearest to it, in the
+    /// last, shorter cell too).
     fn coarse(&self, x: f64, nc: usize, pos: impl Fn(usize) -> usize) -> f64 {
         if nc < 2 {
             return 0.0;
         }
-        let c = ((x / self.s as f64).max(0.0) as usize).min(nc - 2);
-        let (a, b) = (pos(c) as f64, pos(c + 1) as f64);
-        c as f64 + (x - a) / (b - a)
+        let (c, t) = cell_of(x, self.s, nc, pos);
+        c as f64 + t
     }
 
     /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's
@@ -173,6 +172,15 @@ impl Layout {
     fn cells(&self) -> (usize, usize) {
         (self.wc.saturating_sub(1).max(1), self.hc.saturating_sub(1).max(1))
     }
+}
+
+/// The coarse cell (its first position, at most `nc − 2`) of pixel coordinate `x` along an
+/// axis of `nc ≥ 2` coarse positions at pixels `pos(0..nc)`, `s` apart, and how far across
+/// it `x` lies (the last cell ends on the border and may be shorter).
+fn cell_of(x: f64, s: usize, nc: usize, pos: impl Fn(usize) -> usize) -> (usize, f64) {
+    let c = ((x / s as f64).max(0.0) as usize).min(nc - 2);
+    let (a, b) = (pos(c) as f64, pos(c + 1) as f64);
+    (c, (x - a) / (b - a))
 }
 
 /// The Catmull-Rom taps of one pixel along one axis: the coarse cell it lies in (`cell`,
@@ -199,9 +207,8 @@ impl Taps {
                 // One coarse position: it is the value everywhere.
                 (0, [0.0, 1.0, 0.0, 0.0])
             } else {
-                let x0 = (x / s).min(nc - 2);
-                let (a, b) = (pos(x0) as f64, pos(x0 + 1) as f64);
-                let t = ((x as f64 - a) / (b - a)).clamp(0.0, 1.0);
+                let (x0, t) = cell_of(x as f64, s, nc, &pos);
+                let t = t.clamp(0.0, 1.0);
                 let (t2, t3) = (t * t, t * t * t);
                 (x0, [0.5 * (-t3 + 2.0 * t2 - t), 0.5 * (3.0 * t3 - 5.0 * t2 + 2.0), 0.5 * (-3.0 * t3 + 4.0 * t2 + t), 0.5 * (t3 - t2)])
             };
