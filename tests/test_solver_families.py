@@ -203,6 +203,29 @@ def test_antialiased_character_mattes(seed):
     check_against_oracle(problem, f"character {seed}")
 
 
+@pytest.mark.parametrize("seed", [2, 4])
+def test_hair_at_a_small_tension_converges_in_few_cycles(seed):
+    # At τ = 1e-6 the hair's free bends are the operator's smallest eigenvectors
+    # (eigenvalues of order τ). The conjugate gradient had to find them one by one: these
+    # characters at 4x stopped unconverged at 100 cycles (the 576 x 512 one at 400). The
+    # iteration now keeps to settled answers, where they are solved exactly.
+    m, pts, disp = character_problem(seed, 4)
+    _, report = check_against_oracle(Problem(m.shape, pts, disp, mask=m, tension=1e-6), f"character {seed} at 4x")
+    assert report.cycles <= 30, report
+
+
+@pytest.mark.parametrize("tension", [1e-9, 1e-8, 1e-7])
+def test_hair_at_tinier_tensions_matches_a_tight_solve(tension):
+    # Below 1e-6 the direct solve of the oracle loses its digits (P + τM is conditioned
+    # past 1e13), so a tight solve is the reference; the cycles stay those of τ = 0.
+    m, pts, disp = character_problem(1, 4)
+    kwargs = dict(mask=m, tension=tension)
+    field, report = inkwarp.thin_plate_report(pts, disp, m.shape, **kwargs)
+    tight, _ = inkwarp.thin_plate_report(pts, disp, m.shape, tolerance=1e-5, max_cycles=400, **kwargs)
+    assert report.converged and report.cycles <= 30, report
+    assert float(np.abs(field - tight).max()) < TOLERANCE_PX
+
+
 # --- combs --------------------------------------------------------------------------------
 
 

@@ -365,15 +365,19 @@ pub(crate) fn solve_constrained(
                 continue;
             }
         }
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
         // The free functions to settle, where there are any beyond a one-line piece's single
         // one, its tilt (which the line fixes), with the box's grid.
         let settling = null.as_ref().filter(|b| b.len() > usize::from(gauge.is_some())).zip(geo.as_ref());
-        // The settling is a linear map, built once: it settles the answer, and the stopping
-        // rule judges each cycle's move of the settled answer (`SettledChange`).
+        // The settling is a linear map, built once: it settles the answer, and the iteration
+        // keeps to settled answers (`Settled`). A one-line piece's iteration keeps its gauge
+        // node fixed, so it keeps to the free functions that vanish there too.
         let membrane = settling.map(|(basis, g)| nullspace::Membrane::new(g, basis));
+        let pinned = gauge.and(settling).and_then(|(_, g)| nullspace::plate_null_space(g, &fixed, nullspace::MAX_NULL));
+        let pinned = pinned.as_ref().filter(|b| !b.is_empty()).zip(geo.as_ref()).map(|(b, g)| nullspace::Membrane::new(g, b));
+        let kept_to = if gauge.is_some() { pinned.as_ref() } else { membrane.as_ref() };
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
         let again = (membrane.is_some() || tilt.is_some()).then(|| key.clone());
-        let (mut u, mut r) = solve_piece(key, &value, cold_gauge, initial.map(|f| (f, x0, y0)), options, store, membrane.as_ref());
+        let (mut u, mut r) = solve_piece(key, &value, cold_gauge, initial.map(|f| (f, x0, y0)), options, store, kept_to);
         if let Some(key) = again {
             let (piece_box, labels) = (boxes[l], &labels);
             // The free functions' settling, or else the open grid's tilt's.
@@ -387,7 +391,7 @@ pub(crate) fn solve_constrained(
                     true
                 }
             };
-            (u, r) = settle_null_space(key, geo.as_ref().map(|g| g.active), tau, &value, &settle, membrane.as_ref(), u, r, options, store);
+            (u, r) = settle_null_space(key, geo.as_ref().map(|g| g.active), tau, &value, &settle, kept_to, u, r, options, store);
         } else if null.is_none() {
             // Too many free functions to settle: no claim of convergence.
             r.converged = false;
@@ -647,9 +651,15 @@ fn solve_piece(
     let (mut q, mut p) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
     match options.method {
         SolveMethod::Multigrid => {
-            let mut rz = fresh_direction(&mut hier, &r, &mut p);
+            // Where every free function can be settled, the iteration runs on the settled
+            // answers (`Settled`): the start settled, every direction projected.
+            let settled = settled.and_then(|m| Settled::new(m, &hier.levels[0]));
+            if let Some(s) = &settled {
+                s.project(&hier.levels[0], &mut u);
+                hier.levels[0].residual(&u, None, &mut r);
+            }
+            let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref());
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn);
-            let settled = settled.and_then(|m| SettledChange::new(m, &hier.levels[0]));
             for cycle in 1..=options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) {
                 if crate::interrupt::requested() {
                     break;
@@ -657,7 +667,7 @@ fn solve_piece(
                 // Once deflation projects the directions, p is no longer z + βp_old and rᵀz
                 // can be far from pᵀr (the cycle magnifies the near-null modes that the
                 // projection takes out): the step is then the exact line search's, pᵀr / pᵀAp.
-                let along = if slow.projects() { dot_z(&r, &p) } else { rz };
+                let along = if slow.projects() || settled.is_some() { dot_z(&r, &p) } else { rz };
                 let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, along);
                 if change.is_nan() {
                     // The directions broke down; the iterate stands, unconverged.
@@ -665,7 +675,6 @@ fn solve_piece(
                     break;
                 }
                 slow.step(alpha);
-                let change = settled.as_ref().map_or(change, |s| s.of(&hier.levels[0], &p, alpha));
                 if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
                     report.converged = true;
                     break;
@@ -674,7 +683,7 @@ fn solve_piece(
                     // A window of directions kept: correct on the slow modes found and
                     // restart the directions, deflated.
                     slow.restart(&hier.levels[0], &mut u, &mut r);
-                    rz = fresh_direction(&mut hier, &r, &mut p);
+                    rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref());
                     slow.project(&mut p);
                     slow.beta(None);
                     continue;
@@ -682,8 +691,11 @@ fn solve_piece(
                 if !started {
                     started = true;
                     hier.coarse_to_fine(&mut u, &mut r, true);
+                    if let Some(s) = &settled {
+                        s.project(&hier.levels[0], &mut u);
+                    }
                     hier.levels[0].residual(&u, None, &mut r);
-                    rz = fresh_direction(&mut hier, &r, &mut p);
+                    rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref());
                     slow.beta(None);
                     continue;
                 }
@@ -696,6 +708,9 @@ fn solve_piece(
                 let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
                 let beta = [0, 1].map(|k| if along[k] > 0.0 { ((alpha[k] * zq[k]) / along[k]).max(0.0) } else { 0.0 });
                 widen_into(&mut p, z, beta);
+                if let Some(s) = &settled {
+                    s.project(&hier.levels[0], &mut p);
+                }
                 slow.project(&mut p);
                 slow.beta(Some(beta));
                 rz = rz_new;
@@ -709,7 +724,7 @@ fn solve_piece(
             let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
             let mut round = 0;
             while left > 0 && round < options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) && !crate::interrupt::requested() {
-                let rz = fresh_direction(&mut hier, &r, &mut p);
+                let rz = fresh_direction(&mut hier, &r, &mut p, None);
                 let (step, _) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
                 let take = unknowns.min(left);
                 let (relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take, unknowns);
@@ -1025,12 +1040,14 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
     (change.reduce(|| 0.0, f64::max), alpha)
 }
 
-/// How far a cycle's step `α p` moved the answer that the τ → 0⁺ settling will give: the
-/// step with the settling's map applied to it. The plate energy does not see the free
-/// functions, so the iteration may drift along them (where the coarse space holds one,
-/// without bound) while the settled answer stands still; the raw change would then never
-/// fall to the tolerance.
-struct SettledChange<'m, 'a> {
+/// The τ → 0⁺ settling as a projection the iteration keeps to: a field minus its
+/// least-membrane free function, `v − Z (ZᵀMZ)⁻¹ ZᵀM v`. With the start settled and every
+/// direction projected, every iterate is settled. At τ > 0 it is the exact Galerkin
+/// correction on the free functions (`A Z = τ M Z`, so `(ZᵀAZ)⁻¹ ZᵀA = (ZᵀMZ)⁻¹ ZᵀM`): the
+/// directions stay `A`-orthogonal to them and the conjugate gradient never meets their
+/// eigenvalues of order τ (deflated conjugate gradient). At τ = 0 it moves nothing the plate
+/// energy sees, and the iteration no longer drifts along them.
+struct Settled<'m, 'a> {
     membrane: &'m nullspace::Membrane<'a>,
     /// The box nodes the free functions touch, and each one's place among them by padded
     /// node (`u32::MAX` off them).
@@ -1038,9 +1055,9 @@ struct SettledChange<'m, 'a> {
     slot: Vec<u32>,
 }
 
-impl<'m, 'a> SettledChange<'m, 'a> {
+impl<'m, 'a> Settled<'m, 'a> {
     /// `None` where a block cannot be settled (more than `nullspace::MAX_BLOCK` functions,
-    /// or singular): there the raw change is judged.
+    /// or singular): there the iteration runs unprojected.
     fn new(membrane: &'m nullspace::Membrane<'a>, level: &Level) -> Option<Self> {
         if !membrane.settles_all() {
             return None;
@@ -1053,26 +1070,22 @@ impl<'m, 'a> SettledChange<'m, 'a> {
         for (k, &i) in nodes.iter().enumerate() {
             slot[level.pidx(i % w, i / w)] = k as u32;
         }
-        Some(SettledChange { membrane, nodes, slot })
+        Some(Settled { membrane, nodes, slot })
     }
 
-    /// The settled step's largest entry.
-    fn of(&self, level: &Level, p: &[W2], alpha: [f64; 2]) -> f64 {
+    /// Settles `v` (padded, on `level`'s nodes), each entry summed in `f64` and rounded once.
+    fn project<T: Real>(&self, level: &Level, v: &mut [[T; 2]]) {
         let w = level.geo.w;
-        let step = |i: usize| {
-            let q = p[level.pidx(i % w, i / w)];
-            [alpha[0] * q[0].get(), alpha[1] * q[1].get()]
-        };
-        let mut moved: Vec<V2> = self.nodes.iter().map(|&i| step(i)).collect();
-        self.membrane.settle(step, |i, v| {
-            let m = &mut moved[self.slot[level.pidx(i % w, i / w)] as usize];
-            *m = [m[0] + v[0], m[1] + v[1]];
+        let at = |i: usize| level.pidx(i % w, i / w);
+        let read = |i: usize| [v[at(i)][0].get(), v[at(i)][1].get()];
+        let mut moved: Vec<V2> = self.nodes.iter().map(|&i| read(i)).collect();
+        self.membrane.settle(read, |i, c| {
+            let m = &mut moved[self.slot[at(i)] as usize];
+            *m = [m[0] + c[0], m[1] + c[1]];
         });
-        let on = moved.iter().fold(0.0f64, |m, v| m.max(v[0].abs()).max(v[1].abs()));
-        let off = p.par_chunks(CHUNK).zip(self.slot.par_chunks(CHUNK)).map(|(p, t)| {
-            p.iter().zip(t).filter(|(_, &t)| t == u32::MAX).fold(0.0f64, |m, (q, _)| m.max((alpha[0] * q[0].get()).abs()).max((alpha[1] * q[1].get()).abs()))
-        });
-        on.max(off.reduce(|| 0.0, f64::max))
+        for (&i, m) in self.nodes.iter().zip(&moved) {
+            v[at(i)] = [T::of(m[0]), T::of(m[1])];
+        }
     }
 }
 
@@ -1092,11 +1105,16 @@ fn widen_into(p: &mut [W2], z: &[W2], b: [f64; 2]) {
     });
 }
 
-/// Restarts the directions: `p = z`, `z` the preconditioned `r`; returns `rᵀz`.
-fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2]) -> [f64; 2] {
+/// Restarts the directions: `p = z`, `z` the preconditioned `r` (settled where `settled`);
+/// returns `rᵀz`.
+fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2], settled: Option<&Settled>) -> [f64; 2] {
     let z = hier.precondition(r);
     p.copy_from_slice(z);
-    dot_z(r, z)
+    let rz = dot_z(r, z);
+    if let Some(s) = settled {
+        s.project(&hier.levels[0], p);
+    }
+    rz
 }
 
 #[cfg(test)]
