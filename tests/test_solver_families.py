@@ -340,6 +340,15 @@ def test_a_slow_solve_looks_for_hidden_modes_before_it_stops(scale, seed):
     assert float(np.abs(field - tight).max()) < TOLERANCE_PX
 
 
+def test_a_cold_torn_solve_does_not_stop_after_its_first_cycle():
+    # Random cuts at a fiftieth of the displacements: one piece's first step moved it by
+    # 0.0018 px, which with no ratio yet the rule took for converged, while a slow mode left
+    # it 0.049 px off (the contract's edge; the later cycles move it by up to 0.018 px).
+    pts, disp, cuts = random_cuts(46, False, 4)
+    err, report = check_against_oracle(Problem((256, 256), pts, disp * 0.02, cuts=cuts), "seed 46 at 4x")
+    assert err < 0.01, (err, report)
+
+
 def test_a_slow_mode_does_not_fool_the_stopping_rule():
     # The float cuts of seed 1 leave a wedge bending against a distant arm (a near-null
     # mode); with the cycle cap far away the report must still be true: converged means

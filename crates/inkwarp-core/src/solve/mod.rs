@@ -634,6 +634,9 @@ fn solve_piece(
     // The last change, and the last two cycles' ratios of successive changes.
     let (mut last_change, mut ratios) = (f64::INFINITY, [0.0f64; 2]);
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
+    // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
+    // slow mode that the first step barely moved hides behind a small change.
+    let first_may_stop = !hier.torn || warm;
     let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, floor: f64| {
         (report.cycles, report.final_change_px) = (cycle, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-gradient steps
@@ -644,7 +647,7 @@ fn solve_piece(
         ratios = [ratios[1], ratio];
         let rho = ratios.iter().fold(floor, |a, &b| a.max(b));
         last_change = change;
-        change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
+        (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
     };
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
     // concept doc's Precision).
