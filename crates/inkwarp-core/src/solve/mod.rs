@@ -437,9 +437,9 @@ fn settle_null_space(
     const ROUNDS: usize = 8;
     let budget = options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES);
     let mut settled = false;
-    // The settled answer of the round before: a solve may drift along the free functions
-    // (its cycles barely see them), which the settling takes out again, so rounds compare
-    // settled answers. Every round, the last included, ends settled.
+    // The settled answer of the round before (a solve that keeps to settled answers ends
+    // in the first round; one left unprojected may drift along the free functions), so
+    // rounds compare settled answers. Every round, the last included, ends settled.
     let mut before = dense.clone();
     for round in 0..=ROUNDS {
         let all = settle(&mut dense);
@@ -541,8 +541,9 @@ impl BoxValues {
 /// Solves one piece on its box: `key` describes the box's grid (the piece active, its
 /// links, its fixed nodes), `value` the fixed nodes' values (`cold_gauge` a one-line
 /// piece's gauge node and its value for the cold start), `initial` a start: the whole
-/// grid's field and the box's first node (x0, y0). Returns the solution on the box's nodes
-/// and the report's solver fields.
+/// grid's field and the box's first node (x0, y0), `settled` the settling the iteration
+/// keeps to (see [`Settled`]). Returns the solution on the box's nodes and the report's
+/// solver fields.
 #[allow(clippy::too_many_arguments)]
 fn solve_piece(
     key: CacheKey, value: &[(usize, V2)], cold_gauge: Option<(usize, V2)>, initial: Option<(FieldView<'_>, usize, usize)>, options: &SolveOptions, store: &mut Store,
@@ -667,9 +668,10 @@ fn solve_piece(
                 if crate::interrupt::requested() {
                     break;
                 }
-                // Once deflation projects the directions, p is no longer z + βp_old and rᵀz
-                // can be far from pᵀr (the cycle magnifies the near-null modes that the
-                // projection takes out): the step is then the exact line search's, pᵀr / pᵀAp.
+                // Once deflation or the settling projects the directions, p is no longer
+                // z + βp_old and rᵀz can be far from pᵀr (the cycle magnifies the near-null
+                // modes that the projection takes out): the step is then the exact line
+                // search's, pᵀr / pᵀAp.
                 let along = if slow.projects() || settled.is_some() { dot_z(&r, &p) } else { rz };
                 let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, along);
                 if change.is_nan() {
@@ -706,8 +708,9 @@ fn solve_piece(
                 // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/(r_oldᵀz_old), with r − r_old = α q:
                 // the preconditioner's line searches make it slightly nonlinear. Deflated, the
                 // preconditioned residual is the projected z̃, whose r_oldᵀz̃_old is the step's
-                // `along` and whose z̃ᵀq is zᵀq (Wᵀq = −WᵀA p_old = 0): both are the
-                // deflated iteration's own, as its Lanczos matrix (`rate_floor`) assumes.
+                // `along` and whose z̃ᵀq is zᵀq (Wᵀq = −WᵀA p_old = 0, and for the settling
+                // Zᵀq = −τ ZᵀM p_old = 0): both are the deflated iteration's own, as its
+                // Lanczos matrix (`rate_floor`) assumes.
                 let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
                 let beta = [0, 1].map(|k| if along[k] > 0.0 { ((alpha[k] * zq[k]) / along[k]).max(0.0) } else { 0.0 });
                 widen_into(&mut p, z, beta);

@@ -302,8 +302,8 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
 /// `n ∈ span(basis)` the function that minimises the membrane energy of `u + n`. The
 /// functions couple only where their supports meet, so their system falls apart in blocks
 /// (one hair's free bends, one sliver's), each solved on its own. Built once per solve: it
-/// settles the answer, and it tells the stopping rule how far each cycle moved the settled
-/// answer (the iteration may drift along the free functions, which the settling removes).
+/// settles the answer, and it projects the iteration's start and directions (see
+/// `Settled` in the solver).
 pub(crate) struct Membrane<'a> {
     basis: &'a [Sparse],
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.

@@ -1519,3 +1519,45 @@ fn energy(grid: &Grid, field: &Field, tension: f64) -> [f64; 2] {
     e
 }
 
+
+#[test]
+fn the_settling_projection_keeps_fixed_nodes_and_is_idempotent() {
+    // Two squares joined by one node and a strand off the right one: free functions (the
+    // turn about the bridge, the strand's bends). Fixed: three nodes of the left square on
+    // one row, and a gauge node off it, as a one-line piece's iteration holds.
+    let grid = matte_grid(30, 14, |x, y| {
+        ((1..13).contains(&y) && ((1..13).contains(&x) || (14..26).contains(&x))) || (y == 6 && x == 13) || (x == 27 && y < 8) || (y == 7 && x == 26)
+    });
+    let (w, h) = (grid.width, grid.height);
+    let mut fixed = vec![false; w * h];
+    for i in [grid.index(2, 3), grid.index(6, 3), grid.index(10, 3)] {
+        fixed[i] = true;
+    }
+    let geo = nullspace::BoxGeo { w, h, active: &grid.active, right: &grid.link_right, down: &grid.link_down };
+    let with_tilt = nullspace::plate_null_space(&geo, &fixed, nullspace::MAX_NULL).unwrap();
+    let gauge = grid.index(4, 10);
+    fixed[gauge] = true;
+    let basis = nullspace::plate_null_space(&geo, &fixed, nullspace::MAX_NULL).unwrap();
+    // Holding the gauge takes out one function: the tilt about the row.
+    assert_eq!(basis.len() + 1, with_tilt.len());
+    assert!(basis.iter().flatten().all(|&(i, v)| !fixed[i] || v == 0.0));
+    let membrane = nullspace::Membrane::new(&geo, &basis);
+    let level = fine_level(&grid, Some(fixed.clone()), 0.0);
+    let settled = Settled::new(&membrane, &level).expect("every block settles");
+    let mut rng = Rng(7);
+    let mut v: Vec<V2> = vec![[0.0; 2]; level.len_padded()];
+    for i in (0..w * h).filter(|&i| grid.active[i] && !fixed[i]) {
+        v[level.pidx(i % w, i / w)] = [rng.next() - 0.5, 10.0 * rng.next()];
+    }
+    let before = v.clone();
+    settled.project(&level, &mut v);
+    assert!(v != before, "the projection moved nothing");
+    for i in (0..w * h).filter(|&i| fixed[i] || !grid.active[i]) {
+        assert_eq!(v[level.pidx(i % w, i / w)], [0.0; 2], "node {i} is fixed or inactive");
+    }
+    // Settled: the membrane energy no longer falls along any free function.
+    let once = v.clone();
+    settled.project(&level, &mut v);
+    let moved = v.iter().zip(&once).fold(0.0f64, |m, (a, b)| m.max((a[0] - b[0]).abs()).max((a[1] - b[1]).abs()));
+    assert!(moved < 1e-12, "a second projection moved a node by {moved}");
+}
