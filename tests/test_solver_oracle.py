@@ -588,9 +588,9 @@ def test_a_tension_past_its_range_is_refused():
 
 @pytest.mark.parametrize("tension", [1e-12, 1e-10])
 def test_a_chain_of_hinges_at_a_tiny_tension_is_judged_settled(tension):
-    # The iterate drifts along the free functions by hundreds of pixels (the cycles barely
-    # see them at this tension), so its raw changes never fell to the tolerance: the
-    # stopping rule judges the settled answer at every tension, as at 0.
+    # The iterate drifted along the free functions by hundreds of pixels (the cycles barely
+    # see them at this tension), so its raw changes never fell to the tolerance. The
+    # iteration now keeps to settled answers at every tension, as at 0.
     problem = hinge_chain(tension)
     field, report = solve(problem)
     assert report.converged, report

@@ -1519,7 +1519,6 @@ fn energy(grid: &Grid, field: &Field, tension: f64) -> [f64; 2] {
     e
 }
 
-
 #[test]
 fn the_settling_projection_keeps_fixed_nodes_and_is_idempotent() {
     // Two squares joined by one node and a strand off the right one: free functions (the
