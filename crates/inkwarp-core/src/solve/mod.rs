@@ -275,6 +275,7 @@ pub(crate) fn solve_constrained(
     let (w, h) = (grid.width, grid.height);
     let tau = if options.tension < f64::MIN_POSITIVE { 0.0 } else { options.tension };
     let (constrained_nodes, constrained_samples) = (constraints.len(), constraints.used_samples);
+    store.solve += 1;
     let dropped_samples = constraints.dropped_samples;
     let mut report = SolveReport { constrained_nodes, constrained_samples, dropped_samples, converged: true, ..Default::default() };
     if w * h == 0 {
@@ -340,48 +341,44 @@ pub(crate) fn solve_constrained(
             value.push((local(g), v.unwrap_or(mean)));
             cold_gauge = Some((local(g), mean));
         }
-        // The functions of zero plate energy that the constraints leave free (hinges,
-        // strands, thin rings, the line's tilt): where there are any beyond the tilt, the
-        // iteration alone does not give the contract's answer (see `nullspace`); `None` when
-        // there are too many to settle.
-        // (On an open grid the only free function is the tilt about a line holding every
-        // constraint: at τ = 0 a one-line piece's gauge and `line_correction` take it; at
-        // τ > 0 the same correction settles it, below.)
+        // The free functions ([`Free`]) on a torn piece, kept by the solver. (On an open grid
+        // the only free function is the tilt about a line holding every constraint: at τ = 0
+        // a one-line piece's gauge and `line_correction` take it; at τ > 0 the same
+        // correction settles it, below.)
         let tilt = if open && tau > 0.0 && by_piece[l].len() > 1 { on_one_line(w, by_piece[l].iter().map(|&k| constraints.nodes[k])) } else { None };
-        let vectors = (!open).then(|| links.vectors(bw, bh));
+        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
+        let vectors = (!open).then(|| key.links.vectors(bw, bh));
         let geo = vectors.as_ref().map(|[active, right, down]| nullspace::BoxGeo { w: bw, h: bh, active, right, down });
-        let null = geo.as_ref().map_or(Some(Vec::new()), |g| nullspace::plate_null_space(g, &constrained_only, nullspace::MAX_NULL));
+        let gauge_at = gauge.map(local);
+        let kept = if options.off.has("cache") { None } else { store.free.take(|k, f| f.gauge == gauge_at && *k == key) };
+        let free = kept.unwrap_or_else(|| Free::new(geo.as_ref(), &constrained_only, &key.fixed, gauge_at));
         // At τ = 0, on a piece whose only free functions are the affine ones (none is left
         // once the constraints hold), constraints that one affine map fits are answered by
         // it: its plate energy is zero, so it is the minimiser. Any three constraints off
         // one line are such; close together they make a large map whose slow mode the
         // cycles resolve late and the stopping rule does not see.
-        if tau == 0.0 && gauge.is_none() && null.as_ref().is_some_and(|b| b.is_empty()) {
+        if tau == 0.0 && gauge.is_none() && free.count == Some(0) {
             if let Some(m) = affine_fit(&value, bw) {
                 let mut values: Vec<V2> = (0..bw * bh).map(|j| m(j % bw, j / bw)).collect();
                 // The constrained nodes hold their values exactly, not to the map's rounding.
                 value.iter().for_each(|&(j, v)| values[j] = v);
                 write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
+                if geo.is_some() {
+                    store.free.put(store.solve, key, free);
+                }
                 continue;
             }
         }
-        // The free functions to settle, where there are any beyond a one-line piece's single
-        // one, its tilt (which the line fixes), with the box's grid.
-        let settling = null.as_ref().filter(|b| b.len() > usize::from(gauge.is_some())).zip(geo.as_ref());
-        // The settling is a linear map, built once: it settles the answer, and the iteration
-        // keeps to settled answers (`Settled`). A one-line piece's iteration keeps its gauge
-        // node fixed, so it keeps to the free functions that vanish there too.
-        let membrane = settling.map(|(basis, g)| nullspace::Membrane::new(g, basis));
-        let pinned = gauge.and(settling).and_then(|(_, g)| nullspace::plate_null_space(g, &fixed, nullspace::MAX_NULL));
-        let pinned = pinned.as_ref().filter(|b| !b.is_empty()).zip(geo.as_ref()).map(|(b, g)| nullspace::Membrane::new(g, b));
-        let kept_to = if gauge.is_some() { pinned.as_ref() } else { membrane.as_ref() };
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
-        let again = (membrane.is_some() || tilt.is_some()).then(|| key.clone());
+        // The iteration keeps to settled answers (`Settled`); a one-line piece's keeps its
+        // gauge node fixed, so it keeps to the free functions that vanish there too.
+        let kept_to = if gauge.is_some() { free.pinned.as_ref() } else { free.membrane.as_ref() };
+        let again = (free.membrane.is_some() || tilt.is_some()).then(|| key.clone());
+        let kept_key = geo.is_some().then(|| key.clone());
         let (mut u, mut r) = solve_piece(key, &value, cold_gauge, initial.map(|f| (f, x0, y0)), options, store, kept_to);
         if let Some(key) = again {
             let (piece_box, labels) = (boxes[l], &labels);
             // The free functions' settling, or else the open grid's tilt's.
-            let settle = |v: &mut Vec<V2>| match (&membrane, tilt) {
+            let settle = |v: &mut Vec<V2>| match (&free.membrane, tilt) {
                 (Some(m), _) => m.apply(v),
                 (None, line) => {
                     let (a, d) = line.expect("a settled piece has free functions or a tilt");
@@ -392,9 +389,12 @@ pub(crate) fn solve_constrained(
                 }
             };
             (u, r) = settle_null_space(key, geo.as_ref().map(|g| g.active), tau, &value, &settle, kept_to, u, r, options, store);
-        } else if null.is_none() {
+        } else if free.count.is_none() {
             // Too many free functions to settle: no claim of convergence.
             r.converged = false;
+        }
+        if let Some(key) = kept_key {
+            store.free.put(store.solve, key, free);
         }
         if let (Piece::Line { a, d, .. }, Some(_)) = (*piece, gauge) {
             line_correction(grid, &labels, l as u32, a, d, boxes[l], &mut u);
@@ -407,6 +407,8 @@ pub(crate) fn solve_constrained(
         report.initial_residual = report.initial_residual.max(r.initial_residual);
         report.converged &= r.converged;
     }
+    store.hierarchies.trim(store.solve);
+    store.free.trim(store.solve);
     (field, report)
 }
 
@@ -422,7 +424,7 @@ pub(crate) fn solve_constrained(
 #[allow(clippy::too_many_arguments)]
 fn settle_null_space(
     key: CacheKey, active: Option<&[bool]>, tau: f64, value: &[(usize, V2)], settle: &dyn Fn(&mut Vec<V2>) -> bool,
-    membrane: Option<&nullspace::Membrane<'_>>, u: BoxValues, mut report: SolveReport, options: &SolveOptions, store: &mut Store,
+    membrane: Option<&nullspace::Membrane>, u: BoxValues, mut report: SolveReport, options: &SolveOptions, store: &mut Store,
 ) -> (BoxValues, SolveReport) {
     let (w, h) = (key.w, key.h);
     let mut dense = u.dense(w, h);
@@ -547,11 +549,11 @@ impl BoxValues {
 #[allow(clippy::too_many_arguments)]
 fn solve_piece(
     key: CacheKey, value: &[(usize, V2)], cold_gauge: Option<(usize, V2)>, initial: Option<(FieldView<'_>, usize, usize)>, options: &SolveOptions, store: &mut Store,
-    settled: Option<&nullspace::Membrane<'_>>,
+    settled: Option<&nullspace::Membrane>,
 ) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport::default();
-    let kept = if options.off.has("cache") { None } else { store.take_hierarchy(&key) };
+    let kept = if options.off.has("cache") { None } else { store.hierarchies.take(|k, _| *k == key) };
     let mut hier = kept.unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
@@ -759,7 +761,7 @@ fn solve_piece(
     report.converged &= finite && options.tolerance_px >= FINEST_TOLERANCE * largest;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
-    store.put_hierarchy(key, hier);
+    store.hierarchies.put(store.solve, key, hier);
     (out, report)
 }
 
@@ -803,16 +805,15 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
     fits.then_some(move |x: usize, y: usize| map([x as f64 - o[0], y as f64 - o[1]]))
 }
 
-/// At most this many hierarchies a solver keeps, and finest nodes in all (about 150 bytes
-/// a node). A solver serves one surface, whose frames share one hierarchy until its drawing
-/// changes; the one before that is kept for an undo.
-const HIERARCHIES: usize = 2;
-const HIERARCHY_MAX_NODES: usize = 1 << 22;
+/// At most this many finest nodes in all a solver keeps hierarchies for (about 150 bytes
+/// a node), and as many free functions for.
+const KEPT_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
-/// editor's drags): the hierarchies of its recent problems (they depend on the grid, the
-/// fixed nodes and the tension, never on the values, so an animation's frames share one)
-/// and the warm-start history ([`WarmHistory`]). Nothing is kept between solves outside
+/// editor's drags): the hierarchies and free functions of the pieces of its recent solves
+/// (they depend on the grid, the fixed nodes and the tension, never on the values, so an
+/// animation's frames share them; the drawing before the latest stays for an undo) and the
+/// warm-start history ([`WarmHistory`]). Nothing is kept between solves outside
 /// it: [`solve`] uses a temporary one.
 ///
 /// ```
@@ -874,34 +875,79 @@ impl Solver {
 
 impl std::fmt::Debug for Solver {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Solver").field("hierarchies", &self.store.hierarchies.len()).field("history", &self.history.len()).finish()
+        f.debug_struct("Solver").field("hierarchies", &self.store.hierarchies.0.len()).field("history", &self.history.len()).finish()
     }
 }
 
 /// What a [`Solver`] keeps for reuse.
 #[derive(Default)]
 pub(crate) struct Store {
-    hierarchies: Vec<(CacheKey, Hierarchy)>,
+    hierarchies: Kept<Hierarchy>,
+    free: Kept<Free>,
+    /// The solves so far: each entry is marked with the last one that used it.
+    solve: u64,
 }
 
-impl Store {
-    /// The hierarchy kept for `key`, taken out of the store (it goes back by
-    /// [`Store::put_hierarchy`]).
-    fn take_hierarchy(&mut self, key: &CacheKey) -> Option<Hierarchy> {
-        let pos = self.hierarchies.iter().rposition(|(k, _)| k == key)?;
-        Some(self.hierarchies.remove(pos).1)
+/// Entries by what they depend on, the least recently used first: at most twice as many as
+/// the latest solve used (its pieces, and as many before them for an undo; at least two)
+/// and [`KEPT_MAX_NODES`] finest nodes in all.
+pub(crate) struct Kept<T>(Vec<(CacheKey, T, u64)>);
+
+impl<T> Default for Kept<T> {
+    fn default() -> Self { Kept(Vec::new()) }
+}
+
+impl<T> Kept<T> {
+    /// The latest entry that `found` accepts, taken out (it goes back by [`Kept::put`]).
+    fn take(&mut self, found: impl Fn(&CacheKey, &T) -> bool) -> Option<T> {
+        let pos = self.0.iter().rposition(|(k, t, _)| found(k, t))?;
+        Some(self.0.remove(pos).1)
     }
 
-    /// Keeps `hier`, dropping the oldest past the limits.
-    fn put_hierarchy(&mut self, key: CacheKey, hier: Hierarchy) {
-        if key.w * key.h > HIERARCHY_MAX_NODES {
+    /// Keeps `value`, used by solve number `solve`, within the node limit.
+    fn put(&mut self, solve: u64, key: CacheKey, value: T) {
+        if key.w * key.h > KEPT_MAX_NODES {
             return;
         }
-        let kept = &mut self.hierarchies;
-        kept.push((key, hier));
-        while kept.len() > HIERARCHIES || kept.iter().map(|(k, _)| k.w * k.h).sum::<usize>() > HIERARCHY_MAX_NODES {
-            kept.remove(0);
+        self.0.push((key, value, solve));
+        while self.0.iter().map(|e| e.0.w * e.0.h).sum::<usize>() > KEPT_MAX_NODES {
+            self.0.remove(0);
         }
+    }
+
+    /// Drops what is past the count limit once solve number `latest` is done.
+    fn trim(&mut self, latest: u64) {
+        let used = self.0.iter().filter(|e| e.2 == latest).count();
+        let past = self.0.len().saturating_sub(2 * used.max(1));
+        self.0.drain(..past);
+    }
+}
+
+/// A torn piece's functions of zero plate energy that its constraints leave free (hinges,
+/// strands, thin rings, a one-line piece's tilt): where there are any beyond the tilt, the
+/// iteration alone does not give the contract's answer (see `nullspace`). They depend on
+/// the piece's grid and fixed nodes alone, so a solver keeps them with the hierarchy.
+pub(crate) struct Free {
+    /// A one-line piece's gauge node (see [`Piece::Line`]).
+    gauge: Option<usize>,
+    /// How many there are (`None`: too many to settle).
+    count: Option<usize>,
+    /// Their least-membrane settling, where there are any beyond a one-line piece's tilt.
+    membrane: Option<nullspace::Membrane>,
+    /// A one-line piece's: the settling of those that vanish at its gauge node too.
+    pinned: Option<nullspace::Membrane>,
+}
+
+impl Free {
+    /// The free functions of the piece on `geo` (none on an open grid) with its constrained
+    /// nodes, and with its gauge node `gauge` too (`fixed`).
+    fn new(geo: Option<&nullspace::BoxGeo>, constrained: &[bool], fixed: &[bool], gauge: Option<usize>) -> Free {
+        let null = geo.map_or(Some(Vec::new()), |g| nullspace::plate_null_space(g, constrained, nullspace::MAX_NULL));
+        let count = null.as_ref().map(Vec::len);
+        let settling = null.filter(|b| b.len() > usize::from(gauge.is_some())).zip(geo);
+        let pinned = gauge.and(settling.as_ref()).and_then(|(_, g)| nullspace::plate_null_space(g, fixed, nullspace::MAX_NULL));
+        let pinned = pinned.filter(|b| !b.is_empty()).zip(geo).map(|(b, g)| nullspace::Membrane::new(g, b));
+        Free { gauge, count, membrane: settling.map(|(b, g)| nullspace::Membrane::new(g, b)), pinned }
     }
 }
 
@@ -1053,18 +1099,18 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
 /// directions stay `A`-orthogonal to them and the conjugate gradient never meets their
 /// eigenvalues of order τ (deflated conjugate gradient). At τ = 0 it moves nothing the plate
 /// energy sees, and the iteration no longer drifts along them.
-struct Settled<'m, 'a> {
-    membrane: &'m nullspace::Membrane<'a>,
+struct Settled<'m> {
+    membrane: &'m nullspace::Membrane,
     /// The box nodes the free functions touch, and each one's place among them by padded
     /// node (`u32::MAX` off them).
     nodes: Vec<usize>,
     slot: Vec<u32>,
 }
 
-impl<'m, 'a> Settled<'m, 'a> {
+impl<'m> Settled<'m> {
     /// `None` where a block cannot be settled (more than `nullspace::MAX_BLOCK` functions,
     /// or singular): there the iteration runs unprojected.
-    fn new(membrane: &'m nullspace::Membrane<'a>, level: &Level) -> Option<Self> {
+    fn new(membrane: &'m nullspace::Membrane, level: &Level) -> Option<Self> {
         if !membrane.settles_all() {
             return None;
         }

@@ -301,11 +301,11 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
 /// The τ → 0⁺ choice among the plate minimisers as a linear map: `u ↦ u + n`, with
 /// `n ∈ span(basis)` the function that minimises the membrane energy of `u + n`. The
 /// functions couple only where their supports meet, so their system falls apart in blocks
-/// (one hair's free bends, one sliver's), each solved on its own. Built once per solve: it
-/// settles the answer, and it projects the iteration's start and directions (see
-/// `Settled` in the solver).
-pub(crate) struct Membrane<'a> {
-    basis: &'a [Sparse],
+/// (one hair's free bends, one sliver's), each solved on its own. Built once per piece (a
+/// solver keeps it): it settles the answer, and it projects the iteration's start and
+/// directions (see `Settled` in the solver).
+pub(crate) struct Membrane {
+    basis: Vec<Sparse>,
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.
     products: Vec<Sparse>,
     /// The functions of each block (coupled through their supports), and the Cholesky
@@ -314,8 +314,8 @@ pub(crate) struct Membrane<'a> {
     blocks: Vec<(Vec<usize>, Option<Vec<f64>>)>,
 }
 
-impl<'a> Membrane<'a> {
-    pub(crate) fn new(g: &BoxGeo, basis: &'a [Sparse]) -> Self {
+impl Membrane {
+    pub(crate) fn new(g: &BoxGeo, basis: Vec<Sparse>) -> Self {
         let (k, n) = (basis.len(), g.w * g.h);
         // Rows of the basis by node: (function, value).
         let mut at: std::collections::HashMap<usize, Vec<(usize, f64)>> = std::collections::HashMap::new();

@@ -1379,14 +1379,57 @@ fn a_kept_solver_reuses_its_hierarchy_and_gives_a_fresh_solvers_answer() {
         let (field, report) = solver.solve(&grid, &samples, &options, None).unwrap();
         assert!(report.converged);
         assert_eq!((field.dx.clone(), field.dy.clone()), (fresh.dx.clone(), fresh.dy.clone()));
-        assert_eq!(solver.store.hierarchies.len(), 1);
+        assert_eq!(solver.store.hierarchies.0.len(), 1);
     }
     solver.solve(&grid, &other, &options, None).unwrap();
-    assert_eq!(solver.store.hierarchies.len(), 2);
+    assert_eq!(solver.store.hierarchies.0.len(), 2);
     solver.solve_warm(&grid, &other, &options, None).unwrap();
     assert_eq!(solver.history().len(), 1);
     solver.clear();
-    assert_eq!((solver.history().len(), solver.store.hierarchies.len()), (0, 2));
+    assert_eq!((solver.history().len(), solver.store.hierarchies.0.len()), (0, 2));
+}
+
+#[test]
+fn a_solver_keeps_every_piece_of_its_latest_solve_and_the_drawing_before() {
+    // Two cuts from border to border: three pieces, each with constraints of its own.
+    let mut grid = Grid::new(90, 60);
+    grid.add_cut(&[[29.5, -2.0], [29.5, 62.0]]);
+    grid.add_cut(&[[59.5, -2.0], [59.5, 62.0]]);
+    let s = |x: f64, y: f64, d: f64| Sample { rest: [x, y], displacement: [d, -d] };
+    // Four points a piece, one of them moving (no affine map fits them), placed a little
+    // differently in each piece (pieces of the same shape would share their hierarchy).
+    let corners = [(5.0, 5.0, 0.0), (20.0, 50.0, 0.0), (12.0, 30.0, 1.0), (25.0, 8.0, 0.0)];
+    let frame = |k: f64, x0: f64| (0..3).flat_map(|p| corners.map(|(x, y, m)| s(x + 30.0 * p as f64 + x0, y + p as f64, m * k))).collect::<Vec<_>>();
+    let options = SolveOptions::default();
+    let mut solver = Solver::new();
+    let kept = |solver: &Solver| [solver.store.hierarchies.0.len(), solver.store.free.0.len()];
+    // A kept hierarchy keeps its vectors where they are.
+    let built = |solver: &Solver| -> std::collections::BTreeSet<usize> {
+        solver.store.hierarchies.0.iter().map(|e| e.1.levels[0].inv_diag.as_ptr() as usize).collect()
+    };
+    let mut first = None;
+    for k in 1..4 {
+        let (field, report) = solver.solve(&grid, &frame(k as f64, 0.0), &options, None).unwrap();
+        assert!(report.converged);
+        // The same answer as a solve that builds everything anew.
+        let (fresh, _) = solve(&grid, &frame(k as f64, 0.0), &options, None).unwrap();
+        assert_eq!((field.dx, field.dy), (fresh.dx, fresh.dy));
+        assert_eq!(kept(&solver), [3, 3], "frame {k}: one hierarchy and one set of free functions a piece");
+        assert_eq!(*first.get_or_insert_with(|| built(&solver)), built(&solver), "frame {k} built a hierarchy again");
+    }
+    let first = first.unwrap();
+    // A new drawing (other fixed nodes): its pieces join the last solve's, kept for an undo,
+    // which builds nothing.
+    solver.solve(&grid, &frame(1.0, 2.0), &options, None).unwrap();
+    assert_eq!(kept(&solver), [6, 6]);
+    solver.solve(&grid, &frame(1.0, 0.0), &options, None).unwrap();
+    assert_eq!(kept(&solver), [6, 6]);
+    assert!(first.is_subset(&built(&solver)), "the undo built its hierarchies again");
+    // Two solves of other drawings later, the first drawing's pieces are gone.
+    solver.solve(&grid, &frame(1.0, 3.0), &options, None).unwrap();
+    solver.solve(&grid, &frame(1.0, 4.0), &options, None).unwrap();
+    assert_eq!(kept(&solver), [6, 6]);
+    assert!(first.is_disjoint(&built(&solver)));
 }
 
 #[test]
@@ -1540,7 +1583,7 @@ fn the_settling_projection_keeps_fixed_nodes_and_is_idempotent() {
     // Holding the gauge takes out one function: the tilt about the row.
     assert_eq!(basis.len() + 1, with_tilt.len());
     assert!(basis.iter().flatten().all(|&(i, v)| !fixed[i] || v == 0.0));
-    let membrane = nullspace::Membrane::new(&geo, &basis);
+    let membrane = nullspace::Membrane::new(&geo, basis);
     let level = fine_level(&grid, Some(fixed.clone()), 0.0);
     let settled = Settled::new(&membrane, &level).expect("every block settles");
     let mut rng = Rng(7);
