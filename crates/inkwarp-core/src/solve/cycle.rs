@@ -49,6 +49,12 @@ pub(crate) struct Hierarchy {
     /// The same on the coarser levels (index k for level k; none on the finest), relaxed
     /// within the cycle after its smoothing steps and before its second ones.
     pub level_strands: Vec<Option<Strands>>,
+    /// The solve's own vectors on the finest level (the residual, the search direction's
+    /// product, a warm start's cold alternative; the search direction in `f32`), kept for
+    /// the next solve: allocated afresh, vectors of megabytes cost the process page faults
+    /// at every solve, a large part of an animation frame's one cycle.
+    pub spare: Vec<Vec<V2>>,
+    pub direction: Vec<W2>,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -96,7 +102,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new() }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new() }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one symmetric cycle from zero, in
@@ -402,6 +408,18 @@ const PASS_CHUNK: usize = 4096;
 fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
     let parts: Vec<[f64; 2]> = a.par_chunks(PASS_CHUNK).zip(b.par_chunks(PASS_CHUNK)).map(|(a, b)| dot_pairs::<WS>(a, b)).collect();
     parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
+}
+
+/// `len` zeros in `v` where it has that length (a vector kept from an earlier solve), else
+/// in a new vector.
+pub(crate) fn zeros_in<T: Real>(v: Option<Vec<[T; 2]>>, len: usize) -> Vec<[T; 2]> {
+    match v {
+        Some(mut v) if v.len() == len => {
+            fill_zero(&mut v);
+            v
+        }
+        _ => vec![[T::ZERO; 2]; len],
+    }
 }
 
 fn fill_zero<T: Real>(v: &mut [[T; 2]]) { v.par_chunks_mut(PASS_CHUNK).for_each(|v| v.fill([T::ZERO; 2])) }

@@ -604,7 +604,7 @@ fn solve_piece(
     }
     let pin = |u: &mut [V2]| value.iter().for_each(|&(i, v)| u[fine.pidx(i % w, i / w)] = v);
     pin(&mut u);
-    let mut r = vec![[0.0; 2]; len];
+    let mut r = cycle::zeros_in(hier.spare.pop(), len);
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves
     // residuals above the tolerance (a user's earlier answer). A closer start (the earlier
     // frames' prediction) first gets one cycle as it is, and the coarse-to-fine correction
@@ -617,7 +617,7 @@ fn solve_piece(
         if started {
             // A start worse than none (huge or unrelated values) is dropped for the cold start
             // (`docs/dev/solver-correctness.md`).
-            let mut cold = vec![[0.0; 2]; len];
+            let mut cold = cycle::zeros_in(hier.spare.pop(), len);
             pin(&mut cold);
             if let Some((i, v)) = cold_gauge {
                 cold[fine.pidx(i % w, i / w)] = v;
@@ -625,8 +625,10 @@ fn solve_piece(
             if report.initial_residual <= fine.residual_scaled_max(&cold, &mut r) {
                 fine.residual_scaled_max(&u, &mut r);
             } else {
-                (u, warm) = (cold, false);
+                std::mem::swap(&mut u, &mut cold);
+                warm = false;
             }
+            hier.spare.push(cold);
         }
     }
     if started {
@@ -654,7 +656,7 @@ fn solve_piece(
     };
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
     // concept doc's Precision).
-    let (mut q, mut p) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
+    let (mut q, mut p) = (cycle::zeros_in(hier.spare.pop(), len), cycle::zeros_in(Some(std::mem::take(&mut hier.direction)), len));
     match options.method {
         SolveMethod::Multigrid => {
             // Where every free function can be settled, the iteration runs on the settled
@@ -759,6 +761,8 @@ fn solve_piece(
     report.residual = residual;
     // A tolerance finer than the `f32` field's resolution cannot hold in the field returned.
     report.converged &= finite && options.tolerance_px >= FINEST_TOLERANCE * largest;
+    hier.spare.extend([r, q]);
+    hier.direction = p;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
     store.hierarchies.put(store.solve, key, hier);
