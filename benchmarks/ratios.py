@@ -9,7 +9,8 @@ its middle half.
    (`cv2.createThinPlateSplineShapeTransformer`: `estimateTransformation` + `warpImage` of
    a 513×513 RGBA image): inkwarp cold (goal ≤ 1.0×), warm from the previous answer with
    the displacements changed by 2 % (goal ≤ 0.5×); inkwarp cold with 4000 points over
-   cold with 10 (goal ≤ 1.3×).
+   cold with 10 (goal ≤ 1.3×). Also, not a goal, an animation's next frame through a
+   `WarmStart` (the earlier frames predict it) over OpenCV's warp.
 2. 2049×2049 open with 100 points over 513×513 with 100 points (16× the nodes; goal ≤ 20×).
 3. 2049×2049 and 3840×2160 with a disc hole and a two-segment cut (the issue's model
    problem): converged or not, cycles, the cold solve's time and the peak memory of a
@@ -117,11 +118,17 @@ def against_opencv(size: int, rounds: int, reps: int) -> None:
     # frame, from the previous answer with a kept Solver (its levels reused), as the scene
     # renderer and the editor solve frames. "kept" is cold with a kept Solver.
     kept, kept_warm = inkwarp.Solver(), inkwarp.Solver()
+    # An animation's next frame through a WarmStart (the earlier frames predict it), each
+    # call the next frame of the 10 points moving on sines of their own.
+    warm, frame = inkwarp.WarmStart(), iter(range(10**9))
+    phase = np.random.default_rng(3).uniform(0, 2 * np.pi, disp.shape)
     sides = {
         "inkwarp cold, N=10": lambda: inkwarp.thin_plate(pts, disp, shape),
         "inkwarp cold, kept Solver, N=10": lambda: inkwarp.thin_plate(pts, disp, shape, solver=kept),
         "inkwarp warm, N=10": lambda: inkwarp.thin_plate(pts, changed, shape, initial=field, solver=kept_warm),
         "inkwarp cold, N=4000": lambda: inkwarp.thin_plate(many_pts, many_disp, shape),
+        "inkwarp frame (WarmStart), N=10": lambda: inkwarp.thin_plate(
+            pts, disp * np.sin(0.15 * next(frame) + phase), shape, warm=warm),
     }
     opencv = have_opencv()
     if opencv:
@@ -142,11 +149,14 @@ def against_opencv(size: int, rounds: int, reps: int) -> None:
         rows.append(("cold with a kept Solver / OpenCV",
                      [a / b for a, b in zip(times["inkwarp cold, kept Solver, N=10"], cv)], 1.0))
         rows.append(("warm / OpenCV", [a / b for a, b in zip(times["inkwarp warm, N=10"], cv)], 0.5))
+        frames = [a / b for a, b in zip(times["inkwarp frame (WarmStart), N=10"], cv)]
     rows.append(("cold N=4000 / cold N=10",
                  [a / b for a, b in zip(times["inkwarp cold, N=4000"], times["inkwarp cold, N=10"])], 1.3))
     for name, values, goal in rows:
         judged = f"≤ {goal}×: {verdict(values, goal)}" if goals else f"≤ {goal}× (judged at 513×513)"
         print(f"| {name} | {summary(values)} | {judged} |")
+    if opencv:
+        print(f"| animation frame through a WarmStart / OpenCV (not a goal: what an animation's frames cost) | {summary(frames)} | – |")
     if not opencv:
         print("\nOpenCV's thin-plate transformer is not installed (requirements-bench.txt): "
               "its ratios are not measured.")
