@@ -54,7 +54,7 @@ Solver.__doc__ = """A thin-plate solver kept between calls, for many solves on o
 Pass the same ``Solver`` as ``solver=`` to :func:`thin_plate` calls on the same grid (and
 mask and cuts) with the same points: the coarse levels it built for the first call, and on
 a grid with holes or cuts the free functions it found (hinges, strands), are reused for
-every piece of the grid, which takes the later calls' setup away; those of the points
+every piece of the grid, which takes the later calls' setup away; as many of the points
 before stay too, for an undo. The answers are the same as without it;
 nothing else carries over (a call starts from ``initial`` or from scratch). Without a
 ``Solver`` every call builds its levels afresh and keeps nothing. A ``WarmStart`` keeps a

@@ -363,7 +363,7 @@ pub(crate) fn solve_constrained(
                 // The constrained nodes hold their values exactly, not to the map's rounding.
                 value.iter().for_each(|&(j, v)| values[j] = v);
                 write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
-                if geo.is_some() {
+                if geo.is_some() && !options.off.has("cache") {
                     store.free.put(store.solve, key, free);
                 }
                 continue;
@@ -373,7 +373,7 @@ pub(crate) fn solve_constrained(
         // gauge node fixed, so it keeps to the free functions that vanish there too.
         let kept_to = if gauge.is_some() { free.pinned.as_ref() } else { free.membrane.as_ref() };
         let again = (free.membrane.is_some() || tilt.is_some()).then(|| key.clone());
-        let kept_key = geo.is_some().then(|| key.clone());
+        let kept_key = (geo.is_some() && !options.off.has("cache")).then(|| key.clone());
         let (mut u, mut r) = solve_piece(key, &value, cold_gauge, initial.map(|f| (f, x0, y0)), options, store, kept_to);
         if let Some(key) = again {
             let (piece_box, labels) = (boxes[l], &labels);
@@ -765,7 +765,9 @@ fn solve_piece(
     hier.direction = p;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
-    store.hierarchies.put(store.solve, key, hier);
+    if !options.off.has("cache") {
+        store.hierarchies.put(store.solve, key, hier);
+    }
     (out, report)
 }
 
@@ -809,14 +811,14 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
     fits.then_some(move |x: usize, y: usize| map([x as f64 - o[0], y as f64 - o[1]]))
 }
 
-/// At most this many finest nodes in all a solver keeps hierarchies for (about 150 bytes
-/// a node), and as many free functions for.
+/// At most this many finest nodes in all a solver keeps hierarchies for (about 200 bytes a
+/// node with their work vectors), and as many free functions for (their size is their own).
 const KEPT_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
 /// editor's drags): the hierarchies and free functions of the pieces of its recent solves
 /// (they depend on the grid, the fixed nodes and the tension, never on the values, so an
-/// animation's frames share them; the drawing before the latest stays for an undo) and the
+/// animation's frames share them; as many before them stay, for an undo) and the
 /// warm-start history ([`WarmHistory`]). Nothing is kept between solves outside
 /// it: [`solve`] uses a temporary one.
 ///
@@ -872,8 +874,8 @@ impl Solver {
     /// The earlier solves a warm solve starts from.
     pub fn history(&self) -> &WarmHistory { &self.history }
 
-    /// Forgets the history (the next warm solve starts cold). The hierarchies stay: they
-    /// never change an answer, only how soon it comes.
+    /// Forgets the history (the next warm solve starts cold). The hierarchies, free functions
+    /// and work vectors stay: they never change an answer, only how soon it comes.
     pub fn clear(&mut self) { self.history.clear() }
 }
 
@@ -893,8 +895,8 @@ pub(crate) struct Store {
 }
 
 /// Entries by what they depend on, the least recently used first: at most twice as many as
-/// the latest solve used (its pieces, and as many before them for an undo; at least two)
-/// and [`KEPT_MAX_NODES`] finest nodes in all.
+/// the latest solve that used any (its pieces, and as many before them for an undo) and
+/// [`KEPT_MAX_NODES`] finest nodes in all.
 pub(crate) struct Kept<T>(Vec<(CacheKey, T, u64)>);
 
 impl<T> Default for Kept<T> {
@@ -922,8 +924,9 @@ impl<T> Kept<T> {
     /// Drops what is past the count limit once solve number `latest` is done.
     fn trim(&mut self, latest: u64) {
         let used = self.0.iter().filter(|e| e.2 == latest).count();
-        let past = self.0.len().saturating_sub(2 * used.max(1));
-        self.0.drain(..past);
+        if used > 0 {
+            self.0.drain(..self.0.len().saturating_sub(2 * used));
+        }
     }
 }
 

@@ -1418,6 +1418,10 @@ fn a_solver_keeps_every_piece_of_its_latest_solve_and_the_drawing_before() {
         assert_eq!(*first.get_or_insert_with(|| built(&solver)), built(&solver), "frame {k} built a hierarchy again");
     }
     let first = first.unwrap();
+    // A frame at rest (every piece answered by an affine map, no hierarchy used) keeps them.
+    solver.solve(&grid, &frame(0.0, 0.0), &options, None).unwrap();
+    solver.solve(&grid, &frame(2.0, 0.0), &options, None).unwrap();
+    assert_eq!(first, built(&solver), "a frame after one at rest built a hierarchy again");
     // A new drawing (other fixed nodes): its pieces join the last solve's, kept for an undo,
     // which builds nothing.
     solver.solve(&grid, &frame(1.0, 2.0), &options, None).unwrap();
