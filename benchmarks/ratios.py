@@ -23,6 +23,7 @@ Usage: python benchmarks/ratios.py [--quick] [--rounds 9] [--no-big]
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import statistics
 import subprocess
@@ -120,7 +121,7 @@ def against_opencv(size: int, rounds: int, reps: int) -> None:
     kept, kept_warm = inkwarp.Solver(), inkwarp.Solver()
     # An animation's next frame through a WarmStart (the earlier frames predict it), each
     # call the next frame of the 10 points moving on sines of their own.
-    warm, frame = inkwarp.WarmStart(), iter(range(10**9))
+    warm, frame = inkwarp.WarmStart(), itertools.count()
     phase = np.random.default_rng(3).uniform(0, 2 * np.pi, disp.shape)
     sides = {
         "inkwarp cold, N=10": lambda: inkwarp.thin_plate(pts, disp, shape),

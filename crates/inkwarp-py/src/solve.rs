@@ -53,10 +53,10 @@ fn locked(solver: &Mutex<Solver>) -> std::sync::MutexGuard<'_, Solver> {
     solver.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// A solver kept between calls (`inkwarp.Solver`): its hierarchies and free functions (of
-/// every piece of the last grids and constraints it solved) are reused by the next solve on
-/// the same grid and points, and nothing else is kept. The answer is the same as a fresh
-/// solver's.
+/// A solver kept between calls (`inkwarp.Solver`): its hierarchies, free functions and work
+/// vectors (of every piece of the last grids and constraints it solved) are reused by the
+/// next solve on the same grid and points; no answer is kept. The answer is the same as a
+/// fresh solver's.
 #[pyclass(name = "Solver", module = "inkwarp")]
 #[derive(Debug, Default)]
 pub struct PySolver {

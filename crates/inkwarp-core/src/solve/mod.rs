@@ -272,10 +272,10 @@ pub(crate) fn solve_constrained(
 ) -> (Field, SolveReport) {
     // A subnormal tension is the τ → 0⁺ limit to far below any tolerance, and its products
     // underflow: it is taken as 0.
+    store.solve += 1;
     let (w, h) = (grid.width, grid.height);
     let tau = if options.tension < f64::MIN_POSITIVE { 0.0 } else { options.tension };
     let (constrained_nodes, constrained_samples) = (constraints.len(), constraints.used_samples);
-    store.solve += 1;
     let dropped_samples = constraints.dropped_samples;
     let mut report = SolveReport { constrained_nodes, constrained_samples, dropped_samples, converged: true, ..Default::default() };
     if w * h == 0 {
@@ -349,8 +349,8 @@ pub(crate) fn solve_constrained(
         let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
         let vectors = (!open).then(|| key.links.vectors(bw, bh));
         let geo = vectors.as_ref().map(|[active, right, down]| nullspace::BoxGeo { w: bw, h: bh, active, right, down });
-        let gauge_at = gauge.map(local);
-        let kept = if options.off.has("cache") { None } else { store.free.take(|k, f| f.gauge == gauge_at && *k == key) };
+        let (gauge_at, keep) = (gauge.map(local), geo.is_some() && !options.off.has("cache"));
+        let kept = if keep { store.free.take(|k, f| f.gauge == gauge_at && *k == key) } else { None };
         let free = kept.unwrap_or_else(|| Free::new(geo.as_ref(), &constrained_only, &key.fixed, gauge_at));
         // At τ = 0, on a piece whose only free functions are the affine ones (none is left
         // once the constraints hold), constraints that one affine map fits are answered by
@@ -363,7 +363,7 @@ pub(crate) fn solve_constrained(
                 // The constrained nodes hold their values exactly, not to the map's rounding.
                 value.iter().for_each(|&(j, v)| values[j] = v);
                 write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
-                if geo.is_some() && !options.off.has("cache") {
+                if keep {
                     store.free.put(store.solve, key, free);
                 }
                 continue;
@@ -373,7 +373,7 @@ pub(crate) fn solve_constrained(
         // gauge node fixed, so it keeps to the free functions that vanish there too.
         let kept_to = if gauge.is_some() { free.pinned.as_ref() } else { free.membrane.as_ref() };
         let again = (free.membrane.is_some() || tilt.is_some()).then(|| key.clone());
-        let kept_key = (geo.is_some() && !options.off.has("cache")).then(|| key.clone());
+        let kept_key = keep.then(|| key.clone());
         let (mut u, mut r) = solve_piece(key, &value, cold_gauge, initial.map(|f| (f, x0, y0)), options, store, kept_to);
         if let Some(key) = again {
             let (piece_box, labels) = (boxes[l], &labels);
