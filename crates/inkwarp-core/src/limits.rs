@@ -26,11 +26,14 @@ pub const MAX_TENSION: f64 = 1e6;
 pub const MAX_BEIER_NEELY_A: f64 = 1e6;
 /// The largest Beier–Neely `b` and `p` (exponents; the paper uses 0.5–2 and 0–1).
 pub const MAX_BEIER_NEELY_EXPONENT: f64 = 16.0;
-/// Rough peak memory of rendering one pixel: the frame, the field and the solver's levels
-/// (measured on the examples; `grid_step` divides the solver's part by its square).
-pub const RENDER_BYTES_PER_PIXEL: u64 = 34;
-/// And per layer and pixel: its picture, its matte, its field and its solver grid.
-pub const LAYER_BYTES_PER_PIXEL: u64 = 32;
+/// Rough peak memory of rendering, per pixel of the frame (its buffers and the process's
+/// own; measured with `/usr/bin/time` on renders of 2048 × 2048 scenes).
+pub const RENDER_BYTES_PER_PIXEL: u64 = 80;
+/// And per pixel of each layer: its picture, its matte, its field and its grid.
+pub const LAYER_BYTES_PER_PIXEL: u64 = 12;
+/// And per node of each layer's solver grid (its pixels over `grid_step²`): the levels, free
+/// functions and work vectors a render keeps for the layer's next frame.
+pub const SOLVER_BYTES_PER_NODE: u64 = 148;
 
 /// Checks a `width × height` size against [`MAX_SIDE_PX`] and [`MAX_PIXELS`]; the message
 /// says what was found and what to do (it starts with `what`, such as "the canvas").
@@ -97,11 +100,14 @@ pub fn check_curve_samples(points: &[[f64; 2]], closed: bool, spacing_px: f64) -
 /// Whether `v` is a coordinate inkwarp accepts (finite, |v| ≤ [`MAX_COORD_PX`]).
 pub fn coordinate_ok(v: f64) -> bool { v.is_finite() && v.abs() <= MAX_COORD_PX }
 
-/// The rough peak memory, in bytes, of rendering a `width × height` frame with `layers`
-/// layers (see [`RENDER_BYTES_PER_PIXEL`]).
-pub fn render_bytes(width: usize, height: usize, layers: usize) -> u64 {
-    let pixels = (width as u64).saturating_mul(height as u64);
-    pixels.saturating_mul(RENDER_BYTES_PER_PIXEL + LAYER_BYTES_PER_PIXEL * layers.max(1) as u64)
+/// The rough peak memory, in bytes, of rendering a `width × height` frame with `layers`,
+/// each given by its size and its `grid_step` (see [`RENDER_BYTES_PER_PIXEL`]).
+pub fn render_bytes(width: usize, height: usize, layers: impl IntoIterator<Item = ([usize; 2], usize)>) -> u64 {
+    let pixels = |w: usize, h: usize, per: u64| (w as u64).saturating_mul(h as u64).saturating_mul(per);
+    layers.into_iter().fold(pixels(width, height, RENDER_BYTES_PER_PIXEL), |sum, ([w, h], step)| {
+        let s = step.max(1);
+        sum.saturating_add(pixels(w, h, LAYER_BYTES_PER_PIXEL)).saturating_add(pixels(w.div_ceil(s), h.div_ceil(s), SOLVER_BYTES_PER_NODE))
+    })
 }
 
 /// `bytes` as a short figure in GiB, such as "9.4".
@@ -129,7 +135,10 @@ mod tests {
 
     #[test]
     fn memory_estimate_saturates() {
-        assert_eq!(render_bytes(1, 1, 1), RENDER_BYTES_PER_PIXEL + LAYER_BYTES_PER_PIXEL);
-        assert_eq!(render_bytes(usize::MAX, usize::MAX, 3), u64::MAX);
+        assert_eq!(render_bytes(1, 1, [([1, 1], 1)]), RENDER_BYTES_PER_PIXEL + LAYER_BYTES_PER_PIXEL + SOLVER_BYTES_PER_NODE);
+        // A layer at grid step 4 keeps a solver of a sixteenth of its pixels.
+        let solver = render_bytes(64, 64, [([64, 64], 1)]) - render_bytes(64, 64, [([64, 64], 4)]);
+        assert_eq!(solver, 15 * 16 * 16 * SOLVER_BYTES_PER_NODE);
+        assert_eq!(render_bytes(usize::MAX, usize::MAX, [([usize::MAX, 2], 3)]), u64::MAX);
     }
 }

@@ -90,7 +90,8 @@ fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>,
 fn resolve_checked(text: &str, base_dir: Option<PathBuf>) -> Result<Scene, SceneError> {
     let mut load = file_loader(base_dir);
     let scene = Scene::from_json(text, &mut load)?;
-    let needed = inkwarp_core::limits::render_bytes(scene.width(), scene.height(), scene.layers().len());
+    let layers = scene.layers().iter().map(|l| ([l.grid.width, l.grid.height], l.solver.grid_step as usize));
+    let needed = inkwarp_core::limits::render_bytes(scene.width(), scene.height(), layers);
     match memory_problem(needed) {
         Some(why) => Err(SceneError::one("width", why)),
         None => Ok(scene),

@@ -77,9 +77,7 @@ impl Deflation {
     }
 
     /// Whether [`Deflation::project`] changes directions (vectors are kept).
-    pub fn projects(&self) -> bool {
-        !self.w.is_empty()
-    }
+    pub fn projects(&self) -> bool { !self.w.is_empty() }
 
     /// Makes the search direction `p` `A`-orthogonal to the kept vectors.
     pub fn project(&self, p: &mut [W2]) {

@@ -298,9 +298,7 @@ impl Runs {
     }
 
     #[inline]
-    pub(crate) fn row(&self, r: usize) -> &[Run] {
-        &self.runs[self.first[r] as usize..self.first[r + 1] as usize]
-    }
+    pub(crate) fn row(&self, r: usize) -> &[Run] { &self.runs[self.first[r] as usize..self.first[r + 1] as usize] }
 }
 
 /// Node flags of the finest level.
@@ -350,9 +348,7 @@ pub(crate) struct Geometry {
 
 impl Geometry {
     #[inline]
-    fn idx(&self, x: usize, y: usize) -> usize {
-        y * self.w + x
-    }
+    fn idx(&self, x: usize, y: usize) -> usize { y * self.w + x }
 
     /// A geometry with its prolongation rows filled in, rows of nodes in parallel. Every weight
     /// of a 2 × 2 row is a multiple of 1/24 (halves, and averages of up to four halves): the
@@ -408,9 +404,7 @@ impl Geometry {
     }
 
     /// Whether the geometry has inactive nodes or missing links between active neighbours.
-    pub fn torn(&self) -> bool {
-        crate::grid::torn(self.w, &self.active, &self.right, &self.down)
-    }
+    pub fn torn(&self) -> bool { crate::grid::torn(self.w, &self.active, &self.right, &self.down) }
 
     /// Whether node (x, y) is active and every link its row reads (see
     /// [`Geometry::geo_row`]) is there: then its row is the plain bilinear one.
@@ -641,9 +635,7 @@ widest! {
 /// The larger of two values, by a comparison: `f64::max` (which must skip a NaN either
 /// side) becomes a call into the C library on WebAssembly, once per node in the passes above.
 #[inline(always)]
-pub(crate) fn larger(a: f64, b: f64) -> f64 {
-    if b > a { b } else { a }
-}
+pub(crate) fn larger(a: f64, b: f64) -> f64 { if b > a { b } else { a } }
 
 widest! {
     /// `[Σ a₀b₀, Σ a₁b₁]` of two vectors of pairs, in `f64`, the products taken in `T`, on the
@@ -716,9 +708,7 @@ pub(crate) struct Sym([f64; 5]);
 impl Sym {
     /// The interior molecule of the finest level: the square of the 5-point Laplacian
     /// (20, −8, 2, 1) plus τ times the Laplacian (4, −1).
-    fn fine(tau: f64) -> Sym {
-        Sym([20.0 + 4.0 * tau, -8.0 - tau, 2.0, 1.0, 0.0])
-    }
+    fn fine(tau: f64) -> Sym { Sym([20.0 + 4.0 * tau, -8.0 - tau, 2.0, 1.0, 0.0]) }
 
     /// The five coefficients of `s` (each the mean of its ring) if it has the symmetries
     /// of the square up to rounding.
@@ -763,13 +753,9 @@ pub(crate) struct Level {
 
 impl Level {
     #[inline]
-    pub fn pidx(&self, x: usize, y: usize) -> usize {
-        (y + PAD) * self.wp + x + PAD
-    }
+    pub fn pidx(&self, x: usize, y: usize) -> usize { (y + PAD) * self.wp + x + PAD }
 
-    pub fn len_padded(&self) -> usize {
-        self.wp * (self.geo.h + 2 * PAD)
-    }
+    pub fn len_padded(&self) -> usize { self.wp * (self.geo.h + 2 * PAD) }
 
     /// Zeroes the padding of a vector of this level: the rows above and below its nodes and
     /// the columns left and right of them.
@@ -907,9 +893,7 @@ impl Level {
     }
 
     /// The far taps of row `p` (see [`Far`]).
-    pub fn far(&self, p: usize) -> &[Far] {
-        if let Operator::Stored { far, .. } = &self.op { far_of(far, p) } else { &[] }
-    }
+    pub fn far(&self, p: usize) -> &[Far] { if let Operator::Stored { far, .. } = &self.op { far_of(far, p) } else { &[] } }
 
     /// `f(q, a_pq)` for every nonzero tap of row `p`: the stored stencil's and the far ones.
     pub fn taps(&self, p: usize, mut f: impl FnMut(usize, f64)) {
@@ -1323,9 +1307,7 @@ fn sym_run<S: Real, T: Real, const KNIGHT: bool>(x: &[[S; 2]], f: Option<&[[T; 2
 /// `s` in the precision `T` of a kernel's sums: `s` itself where `S` is `T`, else widened
 /// exactly (`f32` into `f64`; no kernel narrows its input).
 #[inline(always)]
-fn widened<S: Real, T: Real>(s: S) -> T {
-    T::of(s.get())
-}
+fn widened<S: Real, T: Real>(s: S) -> T { T::of(s.get()) }
 
 /// `(A x)_p` on the finest level from the energy terms that contain node p.
 #[inline(always)]

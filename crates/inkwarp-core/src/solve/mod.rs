@@ -110,9 +110,7 @@ impl Ablation {
     }
 
     /// Whether the mechanism `name` (one of [`Ablation::NAMES`]) is switched off.
-    pub fn has(self, name: &str) -> bool {
-        Self::NAMES.iter().position(|n| *n == name).is_some_and(|k| self.0 & (1 << k) != 0)
-    }
+    pub fn has(self, name: &str) -> bool { Self::NAMES.iter().position(|n| *n == name).is_some_and(|k| self.0 & (1 << k) != 0) }
 }
 
 impl Default for SolveOptions {
@@ -350,7 +348,7 @@ pub(crate) fn solve_constrained(
         let vectors = (!open).then(|| key.links.vectors(bw, bh));
         let geo = vectors.as_ref().map(|[active, right, down]| nullspace::BoxGeo { w: bw, h: bh, active, right, down });
         let (gauge_at, keep) = (gauge.map(local), geo.is_some() && !options.off.has("cache"));
-        let kept = if keep { store.free.take(|k, f| f.gauge == gauge_at && *k == key) } else { None };
+        let kept = if keep { store.free.take(store.solve, bw * bh, |k, f| f.gauge == gauge_at && *k == key) } else { None };
         let free = kept.unwrap_or_else(|| Free::new(geo.as_ref(), &constrained_only, &key.fixed, gauge_at));
         // At τ = 0, on a piece whose only free functions are the affine ones (none is left
         // once the constraints hold), constraints that one affine map fits are answered by
@@ -553,7 +551,7 @@ fn solve_piece(
 ) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport::default();
-    let kept = if options.off.has("cache") { None } else { store.hierarchies.take(|k, _| *k == key) };
+    let kept = if options.off.has("cache") { None } else { store.hierarchies.take(store.solve, w * h, |k, _| *k == key) };
     let mut hier = kept.unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
@@ -812,8 +810,9 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
 }
 
 /// At most this many finest nodes in all a solver keeps hierarchies for (about 200 bytes a
-/// node with their work vectors), and as many free functions for (their size is their own).
-const KEPT_MAX_NODES: usize = 1 << 22;
+/// node with their work vectors), and as many free functions for (their size is their own),
+/// beyond what its latest solve used (small in the crate's tests, to test the limit).
+const KEPT_MAX_NODES: usize = if cfg!(test) { 1 << 15 } else { 1 << 22 };
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
 /// editor's drags): the hierarchies and free functions of the pieces of its recent solves
@@ -895,8 +894,10 @@ pub(crate) struct Store {
 }
 
 /// Entries by what they depend on, the least recently used first: at most twice as many as
-/// the latest solve that used any (its pieces, and as many before them for an undo) and
-/// [`KEPT_MAX_NODES`] finest nodes in all.
+/// the latest solve that used any (its pieces, and as many before them for an undo), and
+/// those before it only within [`KEPT_MAX_NODES`] finest nodes in all. What the latest
+/// solve used stays whatever its size (a 4K layer's next frame finds its hierarchy); what
+/// a solve builds first makes room for itself, so that the old and the new are not both held.
 pub(crate) struct Kept<T>(Vec<(CacheKey, T, u64)>);
 
 impl<T> Default for Kept<T> {
@@ -904,20 +905,28 @@ impl<T> Default for Kept<T> {
 }
 
 impl<T> Kept<T> {
-    /// The latest entry that `found` accepts, taken out (it goes back by [`Kept::put`]).
-    fn take(&mut self, found: impl Fn(&CacheKey, &T) -> bool) -> Option<T> {
-        let pos = self.0.iter().rposition(|(k, t, _)| found(k, t))?;
+    /// The latest entry that `found` accepts, taken out (it goes back by [`Kept::put`]); if
+    /// there is none, room for `nodes` more is made.
+    fn take(&mut self, solve: u64, nodes: usize, found: impl Fn(&CacheKey, &T) -> bool) -> Option<T> {
+        let Some(pos) = self.0.iter().rposition(|(k, t, _)| found(k, t)) else {
+            self.room(solve, nodes);
+            return None;
+        };
         Some(self.0.remove(pos).1)
     }
 
-    /// Keeps `value`, used by solve number `solve`, within the node limit.
+    /// Keeps `value`, used by solve number `solve`.
     fn put(&mut self, solve: u64, key: CacheKey, value: T) {
-        if key.w * key.h > KEPT_MAX_NODES {
-            return;
-        }
         self.0.push((key, value, solve));
-        while self.0.iter().map(|e| e.0.w * e.0.h).sum::<usize>() > KEPT_MAX_NODES {
-            self.0.remove(0);
+        self.room(solve, 0);
+    }
+
+    /// Drops the oldest entries that solve number `solve` has not used until `extra` more
+    /// nodes fit in the node limit, or none is left to drop.
+    fn room(&mut self, solve: u64, extra: usize) {
+        while self.0.iter().map(|e| e.0.w * e.0.h).sum::<usize>() + extra > KEPT_MAX_NODES {
+            let Some(pos) = self.0.iter().position(|e| e.2 != solve) else { return };
+            self.0.remove(pos);
         }
     }
 

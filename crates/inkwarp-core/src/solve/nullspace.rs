@@ -368,14 +368,10 @@ impl Membrane {
     }
 
     /// The nodes the functions touch (with repeats).
-    pub(crate) fn support(&self) -> Vec<usize> {
-        self.basis.iter().flat_map(|z| z.iter().map(|e| e.0)).collect()
-    }
+    pub(crate) fn support(&self) -> Vec<usize> { self.basis.iter().flat_map(|z| z.iter().map(|e| e.0)).collect() }
 
     /// Whether every block is settled (none too large or singular).
-    pub(crate) fn settles_all(&self) -> bool {
-        self.blocks.iter().all(|b| b.1.is_some())
-    }
+    pub(crate) fn settles_all(&self) -> bool { self.blocks.iter().all(|b| b.1.is_some()) }
 
     /// `n` for the field read by `read` (box node → value): added by `add(node, value)`.
     /// False when a block was not settled (too large or singular: it is left as it is).

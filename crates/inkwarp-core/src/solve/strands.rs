@@ -118,9 +118,7 @@ impl Strands {
     }
 
     /// Node `i`'s taps.
-    fn row(&self, i: usize) -> &[(u32, f64)] {
-        &self.taps[self.at[i]..self.at[i + 1]]
-    }
+    fn row(&self, i: usize) -> &[(u32, f64)] { &self.taps[self.at[i]..self.at[i + 1]] }
 
     /// Before the finest level's cycle: solves the thin blocks on `r` (the cycle's
     /// right-hand side `f` holds `r` in `f32`) and takes the correction's product out of

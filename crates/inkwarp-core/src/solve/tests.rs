@@ -1437,6 +1437,29 @@ fn a_solver_keeps_every_piece_of_its_latest_solve_and_the_drawing_before() {
 }
 
 #[test]
+fn a_grid_above_the_node_limit_keeps_its_hierarchy_for_the_next_frame_and_only_that() {
+    // 200 x 170 nodes, more than the limit (small in tests): its frames still share one
+    // hierarchy, and a new drawing drops it before building its own.
+    let grid = Grid::new(200, 170);
+    assert!(200 * 170 > super::KEPT_MAX_NODES);
+    let s = |x: f64, y: f64, d: f64| Sample { rest: [x, y], displacement: [d, 0.5 * d] };
+    let frame = |k: f64, x0: f64| vec![s(5.0 + x0, 5.0, 0.0), s(190.0, 10.0, k), s(20.0, 160.0, 0.0), s(120.0, 80.0, -k)];
+    let mut solver = Solver::new();
+    let built = |solver: &Solver| solver.store.hierarchies.0.iter().map(|e| e.1.levels[0].inv_diag.as_ptr() as usize).collect::<Vec<_>>();
+    let (_, report) = solver.solve(&grid, &frame(1.0, 0.0), &SolveOptions::default(), None).unwrap();
+    let first = built(&solver);
+    assert!(report.converged && first.len() == 1);
+    for k in 2..4 {
+        let (field, _) = solver.solve(&grid, &frame(k as f64, 0.0), &SolveOptions::default(), None).unwrap();
+        assert_eq!(built(&solver), first, "frame {k} built its hierarchy again");
+        let (fresh, _) = solve(&grid, &frame(k as f64, 0.0), &SolveOptions::default(), None).unwrap();
+        assert_eq!((field.dx, field.dy), (fresh.dx, fresh.dy));
+    }
+    solver.solve(&grid, &frame(1.0, 3.0), &SolveOptions::default(), None).unwrap();
+    assert_eq!(solver.store.hierarchies.0.len(), 1, "the old drawing's hierarchy is kept past the limit");
+}
+
+#[test]
 fn ablation_switches_are_parsed_by_name_and_unknown_names_refused() {
     let off = Ablation::parse("second, kcycle").unwrap();
     assert!(off.has("second") && off.has("kcycle") && !off.has("tear"));

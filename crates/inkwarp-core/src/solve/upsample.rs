@@ -133,19 +133,13 @@ pub(crate) fn solve_at(
 struct Layout { s: usize, w: usize, h: usize, wc: usize, hc: usize }
 
 impl Layout {
-    fn new(w: usize, h: usize, s: usize) -> Self {
-        Layout { s, w, h, wc: (w - 1).div_ceil(s) + 1, hc: (h - 1).div_ceil(s) + 1 }
-    }
+    fn new(w: usize, h: usize, s: usize) -> Self { Layout { s, w, h, wc: (w - 1).div_ceil(s) + 1, hc: (h - 1).div_ceil(s) + 1 } }
 
     /// The pixel column of coarse column `xc`.
-    fn px(&self, xc: usize) -> usize {
-        (xc * self.s).min(self.w - 1)
-    }
+    fn px(&self, xc: usize) -> usize { (xc * self.s).min(self.w - 1) }
 
     /// The pixel row of coarse row `yc`.
-    fn py(&self, yc: usize) -> usize {
-        (yc * self.s).min(self.h - 1)
-    }
+    fn py(&self, yc: usize) -> usize { (yc * self.s).min(self.h - 1) }
 
     /// The coarse coordinate of pixel coordinate `x` along an axis of `nc` coarse positions
     /// at pixels `pos(0..nc)` (so a sample goes to the coarse node nearest to it, in the
@@ -169,9 +163,7 @@ impl Layout {
     }
 
     /// Coarse cells across and down (at least one each, even on a one-node axis).
-    fn cells(&self) -> (usize, usize) {
-        (self.wc.saturating_sub(1).max(1), self.hc.saturating_sub(1).max(1))
-    }
+    fn cells(&self) -> (usize, usize) { (self.wc.saturating_sub(1).max(1), self.hc.saturating_sub(1).max(1)) }
 }
 
 /// The coarse cell (its first position, at most `nc − 2`) of pixel coordinate `x` along an

@@ -15,9 +15,7 @@
 /// Whether the processor has AVX2 and FMA (the standard library caches the answer).
 #[cfg(target_arch = "x86_64")]
 #[inline]
-pub(crate) fn avx2() -> bool {
-    std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
-}
+pub(crate) fn avx2() -> bool { std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") }
 
 /// `[vis] fn name<T: Bound>(args) -> R => body { … }` defines `body`, an `#[inline(always)]`
 /// function of those arguments with that block (attributes written before `body` go on
