@@ -222,3 +222,18 @@ def test_skip_existing_needs_a_directory(capsys, tmp_path):
     scene = write_scene(tmp_path / "s")
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.mp4", "--skip-existing")
     assert code == 2 and "--skip-existing works with a directory" in err
+
+
+def test_ray_workers_fit_each_nodes_cpus_and_memory():
+    """How many render workers a Ray cluster holds: per live node the fewer of its CPUs
+    and its memory over the scene's; none at all is a clear error naming the fix."""
+    from inkwarp.rendering import ray_workers
+
+    gib = 1 << 30
+    node = lambda cpus, mem, alive=True: {"Alive": alive, "Resources": {"CPU": cpus, "memory": mem * gib}}
+    assert ray_workers([node(16, 64)], 2 * gib) == 16
+    assert ray_workers([node(16, 10)], 3 * gib) == 3
+    assert ray_workers([node(2, 8), node(8, 8), node(8, 100, alive=False)], 4 * gib) == 4
+    with pytest.raises(ValueError, match=r"about 12\.0 GiB of memory a worker.*largest node has "
+                                         r"8\.0 GiB.*grid_step"):
+        ray_workers([node(8, 8), node(4, 2)], 12 * gib)

@@ -53,3 +53,24 @@ def test_ray_chunks_gathered_in_order_equal_a_sequential_render(capsys, tmp_path
     finally:
         ray.shutdown()
     assert leftovers(tmp_path) == []
+
+
+def test_a_cluster_short_of_memory_renders_on_fewer_workers(capsys, tmp_path):
+    """Each worker asks Ray for the scene's memory: a cluster with two CPUs but memory for
+    one worker renders in one chunk, the same frames."""
+    scene_path = write_scene(tmp_path / "s", wavy_doc())
+    scene = inkwarp.Scene.load(scene_path)
+    sequential = inkwarp.render(scene, tmp_path / "seq/")
+    ray.init(num_cpus=2, _memory=int(1.5 * scene.render_bytes), include_dashboard=False,
+             log_to_driver=False)
+    try:
+        assert inkwarp.rendering.ray_workers(ray.nodes(), scene.render_bytes) == 1
+        code, _, err = run(capsys, "render", scene_path, "-o", tmp_path / "ray/", "--ray")
+        assert code == 0, err
+        assert "render on Ray (1 chunks)" in err
+        want = [np.asarray(Image.open(p).convert("RGBA")) for p in sequential]
+        for got, w in zip(png_frames(tmp_path / "ray", len(want)), want):
+            assert np.abs(got.astype(int) - w).max() <= 1
+    finally:
+        ray.shutdown()
+    assert leftovers(tmp_path) == []

@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "portable_scene", "preroll_start", "render",
-           "render_range"]
+__all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "portable_scene", "preroll_start", "ray_workers",
+           "render", "render_range"]
 
 #: The engine's warm-start chain length (``WARM_CHAIN_FRAMES`` in the core's scene engine).
 WARM_CHAIN_FRAMES = 16
@@ -301,6 +301,29 @@ def _ray_init(address: str | bool | None) -> Any:
     return ray
 
 
+def ray_workers(nodes: list[dict[str, Any]], need: int) -> int:
+    """How many render workers of one CPU and ``need`` bytes the live Ray nodes hold at
+    once (``nodes`` as ``ray.nodes()`` gives them): on each node the fewer of its CPUs and
+    its memory for tasks over ``need``. So a scene whose layers keep large solvers runs on
+    fewer workers than there are CPUs instead of running out of memory; a scene that no
+    node has the memory for is refused with the fix."""
+    slots, largest = 0, 0.0
+    for node in nodes:
+        if not node.get("Alive", True):
+            continue
+        resources = node.get("Resources", {})
+        memory = float(resources.get("memory", 0.0))
+        largest = max(largest, memory)
+        slots += min(int(resources.get("CPU", 0)), int(memory // max(need, 1)))
+    if slots == 0:
+        size = lambda b: f"{b / (1 << 30):.1f} GiB" if b >= 1 << 30 else f"{b / (1 << 20):.0f} MiB"
+        raise ValueError(
+            f"rendering this scene needs about {size(need)} of memory a worker, but the Ray "
+            f"cluster's largest node has {size(largest)} for tasks; use a larger "
+            "solver.grid_step, fewer layers or a smaller picture")
+    return slots
+
+
 class _ChunkRenderer:
     """One Ray actor: renders its contiguous chunk in order, keeping its warm start."""
 
@@ -324,12 +347,12 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
     """Frames ``start`` to ``stop - 1`` rendered by Ray actors, one per contiguous chunk,
     yielded in order; one progress bar counts the frames of every actor."""
     ray = _ray_init(address)
-    cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
-    chunks = chunk_ranges(start, stop, cpus)
+    need = scene.render_bytes
+    chunks = chunk_ranges(start, stop, ray_workers(ray.nodes(), need))
     doc = ray.put(portable_scene(scene))
-    # Each actor gets one CPU; its solver uses that many threads.
-    Actor = ray.remote(num_cpus=1, runtime_env={"env_vars": {"RAYON_NUM_THREADS": "1"}})(
-        _ChunkRenderer)
+    # Each actor gets one CPU (its solver uses that many threads) and the scene's memory.
+    Actor = ray.remote(num_cpus=1, memory=need,
+                       runtime_env={"env_vars": {"RAYON_NUM_THREADS": "1"}})(_ChunkRenderer)
     actors = [Actor.remote(doc, a, b, method) for a, b in chunks]
     remaining = [b - a for a, b in chunks]
     buffers: list[list[np.ndarray]] = [[] for _ in chunks]

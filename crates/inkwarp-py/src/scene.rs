@@ -90,12 +90,16 @@ fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>,
 fn resolve_checked(text: &str, base_dir: Option<PathBuf>) -> Result<Scene, SceneError> {
     let mut load = file_loader(base_dir);
     let scene = Scene::from_json(text, &mut load)?;
-    let layers = scene.layers().iter().map(|l| ([l.grid.width, l.grid.height], l.solver.grid_step as usize));
-    let needed = inkwarp_core::limits::render_bytes(scene.width(), scene.height(), layers);
-    match memory_problem(needed) {
+    match memory_problem(render_bytes(&scene)) {
         Some(why) => Err(SceneError::one("width", why)),
         None => Ok(scene),
     }
+}
+
+/// The rough peak memory of rendering `scene` ([`inkwarp_core::limits::render_bytes`]).
+fn render_bytes(scene: &Scene) -> u64 {
+    let layers = scene.layers().iter().map(|l| ([l.grid.width, l.grid.height], l.solver.grid_step as usize));
+    inkwarp_core::limits::render_bytes(scene.width(), scene.height(), layers)
 }
 
 fn image_to_numpy<'py>(py: Python<'py>, image: scene::RgbaImage) -> PyResult<Bound<'py, PyAny>> {
@@ -190,6 +194,12 @@ impl SceneCore {
     #[getter]
     fn frame_count(&self) -> usize {
         self.scene.frame_count()
+    }
+
+    /// The rough peak memory of rendering the scene in one process, in bytes.
+    #[getter]
+    fn render_bytes(&self) -> u64 {
+        render_bytes(&self.scene)
     }
 
     #[getter]
