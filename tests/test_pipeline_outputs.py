@@ -234,6 +234,8 @@ def test_ray_workers_fit_each_nodes_cpus_and_memory():
     assert ray_workers([node(16, 64)], 2 * gib) == 16
     assert ray_workers([node(16, 10)], 3 * gib) == 3
     assert ray_workers([node(2, 8), node(8, 8), node(8, 100, alive=False)], 4 * gib) == 4
-    with pytest.raises(ValueError, match=r"about 12\.0 GiB of memory a worker.*largest node has "
+    with pytest.raises(ValueError, match=r"about 12\.0 GiB of memory a worker.*the largest has "
                                          r"8\.0 GiB.*grid_step"):
         ray_workers([node(8, 8), node(4, 2)], 12 * gib)
+    with pytest.raises(ValueError, match="no live node"):
+        ray_workers([node(8, 100, alive=False)], gib)

@@ -57,7 +57,8 @@ def test_ray_chunks_gathered_in_order_equal_a_sequential_render(capsys, tmp_path
 
 def test_a_cluster_short_of_memory_renders_on_fewer_workers(capsys, tmp_path):
     """Each worker asks Ray for the scene's memory: a cluster with two CPUs but memory for
-    one worker renders in one chunk, the same frames."""
+    one worker renders on one worker at a time, the same frames. Frames 8 to 39 make two
+    chunks (8:32 starts inside a warm-start chain): the second starts when the first ends."""
     scene_path = write_scene(tmp_path / "s", wavy_doc())
     scene = inkwarp.Scene.load(scene_path)
     sequential = inkwarp.render(scene, tmp_path / "seq/")
@@ -65,11 +66,13 @@ def test_a_cluster_short_of_memory_renders_on_fewer_workers(capsys, tmp_path):
              log_to_driver=False)
     try:
         assert inkwarp.rendering.ray_workers(ray.nodes(), scene.render_bytes) == 1
-        code, _, err = run(capsys, "render", scene_path, "-o", tmp_path / "ray/", "--ray")
+        code, _, err = run(capsys, "render", scene_path, "-o", tmp_path / "ray/", "--ray",
+                           "--frames", "8:40")
         assert code == 0, err
-        assert "render on Ray (1 chunks)" in err
-        want = [np.asarray(Image.open(p).convert("RGBA")) for p in sequential]
-        for got, w in zip(png_frames(tmp_path / "ray", len(want)), want):
+        assert "render on Ray (2 chunks)" in err
+        want = [np.asarray(Image.open(p).convert("RGBA")) for p in sequential[8:]]
+        assert len(want) == 32
+        for got, w in zip(png_frames(tmp_path / "ray", len(want), first=8), want):
             assert np.abs(got.astype(int) - w).max() <= 1
     finally:
         ray.shutdown()

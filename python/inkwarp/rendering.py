@@ -307,20 +307,23 @@ def ray_workers(nodes: list[dict[str, Any]], need: int) -> int:
     its memory for tasks over ``need``. So a scene whose layers keep large solvers runs on
     fewer workers than there are CPUs instead of running out of memory; a scene that no
     node has the memory for is refused with the fix."""
-    slots, largest = 0, 0.0
+    slots, largest, alive = 0, 0.0, False
     for node in nodes:
         if not node.get("Alive", True):
             continue
         resources = node.get("Resources", {})
         memory = float(resources.get("memory", 0.0))
-        largest = max(largest, memory)
+        largest, alive = max(largest, memory), True
         slots += min(int(resources.get("CPU", 0)), int(memory // max(need, 1)))
+    if not alive:
+        raise ValueError("the Ray cluster has no live node to render on; start one "
+                         "('ray start --address=HEAD_IP:6379') and render again")
     if slots == 0:
         size = lambda b: f"{b / (1 << 30):.1f} GiB" if b >= 1 << 30 else f"{b / (1 << 20):.0f} MiB"
         raise ValueError(
-            f"rendering this scene needs about {size(need)} of memory a worker, but the Ray "
-            f"cluster's largest node has {size(largest)} for tasks; use a larger "
-            "solver.grid_step, fewer layers or a smaller picture")
+            f"rendering this scene needs one CPU and about {size(need)} of memory a worker, but "
+            f"no live Ray node has both (the largest has {size(largest)} for tasks); use a "
+            "larger solver.grid_step, fewer layers or a smaller picture")
     return slots
 
 
@@ -330,7 +333,8 @@ class _ChunkRenderer:
     def __init__(self, doc: dict[str, Any], start: int, stop: int, method: str | None) -> None:
         from inkwarp.scene import Scene
 
-        self._frames = render_range(Scene.from_dict(doc), start, stop, method=method)
+        # One chain at a time: the actor has one CPU and one render's memory.
+        self._frames = render_range(Scene.from_dict(doc), start, stop, method=method, threads=1)
 
     def next_batch(self, count: int) -> list[np.ndarray]:
         batch = []
@@ -345,21 +349,31 @@ class _ChunkRenderer:
 def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
                 address: str | bool | None, progress: bool) -> Iterator[np.ndarray]:
     """Frames ``start`` to ``stop - 1`` rendered by Ray actors, one per contiguous chunk,
-    yielded in order; one progress bar counts the frames of every actor."""
+    yielded in order; one progress bar counts the frames of every actor. At most as many
+    actors run at once as the cluster holds (:func:`ray_workers`); each one ends with its
+    chunk, and the next chunk's starts in its place."""
     ray = _ray_init(address)
     need = scene.render_bytes
-    chunks = chunk_ranges(start, stop, ray_workers(ray.nodes(), need))
+    workers = ray_workers(ray.nodes(), need)
+    chunks = chunk_ranges(start, stop, workers)
     doc = ray.put(portable_scene(scene))
     # Each actor gets one CPU (its solver uses that many threads) and the scene's memory.
     Actor = ray.remote(num_cpus=1, memory=need,
                        runtime_env={"env_vars": {"RAYON_NUM_THREADS": "1"}})(_ChunkRenderer)
-    actors = [Actor.remote(doc, a, b, method) for a, b in chunks]
+    actors: dict[int, Any] = {}  # by chunk, the chunks started and not finished
+    started = 0
     remaining = [b - a for a, b in chunks]
     buffers: list[list[np.ndarray]] = [[] for _ in chunks]
     pending: dict[Any, int] = {}
 
+    def launch() -> None:
+        nonlocal started
+        while len(actors) < workers and started < len(chunks):
+            actors[started] = Actor.remote(doc, *chunks[started], method)
+            started += 1
+
     def ask(i: int) -> None:
-        if remaining[i] > 0 and i not in pending.values():
+        if i in actors and remaining[i] > 0 and i not in pending.values():
             pending[actors[i].next_batch.remote(RAY_BATCH_FRAMES)] = i
 
     bar = None
@@ -369,7 +383,8 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
         bar = tqdm(total=stop - start, unit="frame", desc=f"render on Ray ({len(chunks)} "
                    "chunks)", file=sys.stderr, dynamic_ncols=True)
     try:
-        for i in range(len(chunks)):
+        launch()
+        for i in list(actors):
             ask(i)
         current = 0
         while current < len(chunks):
@@ -394,10 +409,16 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
             remaining[i] -= len(batch)
             if bar is not None:
                 bar.update(len(batch))
-            if i == current or len(buffers[i]) < RAY_AHEAD_FRAMES:
+            if remaining[i] == 0:  # its CPU and memory go to the next chunk
+                ray.kill(actors.pop(i))
+                launch()
+                for j in list(actors):
+                    if j == current or len(buffers[j]) < RAY_AHEAD_FRAMES:
+                        ask(j)
+            elif i == current or len(buffers[i]) < RAY_AHEAD_FRAMES:
                 ask(i)
     finally:
         if bar is not None:
             bar.close()
-        for actor in actors:
+        for actor in actors.values():
             ray.kill(actor)

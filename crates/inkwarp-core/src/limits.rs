@@ -31,8 +31,9 @@ pub const MAX_BEIER_NEELY_EXPONENT: f64 = 16.0;
 pub const RENDER_BYTES_PER_PIXEL: u64 = 80;
 /// And per pixel of each layer: its picture, its matte, its field and its grid.
 pub const LAYER_BYTES_PER_PIXEL: u64 = 12;
-/// And per node of each layer's solver grid (its pixels over `grid_step²`): the levels, free
-/// functions and work vectors a render keeps for the layer's next frame.
+/// And per node of each layer's solver grid (every `grid_step`-th pixel each way, the last
+/// row and column included): the levels, free functions and work vectors a render keeps
+/// for the layer's next frame.
 pub const SOLVER_BYTES_PER_NODE: u64 = 148;
 
 /// Checks a `width × height` size against [`MAX_SIDE_PX`] and [`MAX_PIXELS`]; the message
@@ -105,8 +106,8 @@ pub fn coordinate_ok(v: f64) -> bool { v.is_finite() && v.abs() <= MAX_COORD_PX 
 pub fn render_bytes(width: usize, height: usize, layers: impl IntoIterator<Item = ([usize; 2], usize)>) -> u64 {
     let pixels = |w: usize, h: usize, per: u64| (w as u64).saturating_mul(h as u64).saturating_mul(per);
     layers.into_iter().fold(pixels(width, height, RENDER_BYTES_PER_PIXEL), |sum, ([w, h], step)| {
-        let s = step.max(1);
-        sum.saturating_add(pixels(w, h, LAYER_BYTES_PER_PIXEL)).saturating_add(pixels(w.div_ceil(s), h.div_ceil(s), SOLVER_BYTES_PER_NODE))
+        let nodes = |n: usize| n.saturating_sub(1).div_ceil(step.max(1)) + 1;
+        sum.saturating_add(pixels(w, h, LAYER_BYTES_PER_PIXEL)).saturating_add(pixels(nodes(w), nodes(h), SOLVER_BYTES_PER_NODE))
     })
 }
 
@@ -136,9 +137,9 @@ mod tests {
     #[test]
     fn memory_estimate_saturates() {
         assert_eq!(render_bytes(1, 1, [([1, 1], 1)]), RENDER_BYTES_PER_PIXEL + LAYER_BYTES_PER_PIXEL + SOLVER_BYTES_PER_NODE);
-        // A layer at grid step 4 keeps a solver of a sixteenth of its pixels.
-        let solver = render_bytes(64, 64, [([64, 64], 1)]) - render_bytes(64, 64, [([64, 64], 4)]);
-        assert_eq!(solver, 15 * 16 * 16 * SOLVER_BYTES_PER_NODE);
+        // A 65 x 65 layer at grid step 4 keeps a solver of 17 x 17 nodes.
+        let solver = render_bytes(65, 65, [([65, 65], 1)]) - render_bytes(65, 65, [([65, 65], 4)]);
+        assert_eq!(solver, (65 * 65 - 17 * 17) * SOLVER_BYTES_PER_NODE);
         assert_eq!(render_bytes(usize::MAX, usize::MAX, [([usize::MAX, 2], 3)]), u64::MAX);
     }
 }

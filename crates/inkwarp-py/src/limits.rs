@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 /// Rough peak memory of a grid solve per pixel (the field, its levels, work vectors and
 /// matte): about 150 bytes on an open grid, 210 with a hole and a cut (2049 × 2049 and
 /// 3840 × 2160, peak resident memory of the process).
-pub const SOLVE_BYTES_PER_PIXEL: u64 = 200;
+pub const SOLVE_BYTES_PER_PIXEL: u64 = 220;
 /// The same for the other methods' fields (`interpolate`): the field and the method's own
 /// per-pixel work.
 pub const INTERPOLATE_BYTES_PER_PIXEL: u64 = 48;

@@ -13,7 +13,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyList;
 
 use crate::errors::run_engine;
-use crate::limits::{memory_problem, MAX_IMAGE_FILE_BYTES};
+use crate::limits::{available_bytes, memory_problem, MAX_IMAGE_FILE_BYTES};
 
 /// Issues each of `messages` as an `inkwarp.errors.ConvergenceWarning` (an error when
 /// the warnings filter turns warnings into errors).
@@ -311,7 +311,8 @@ impl SceneCore {
         }
     }
 
-    /// Frames `start..stop`, warm-started, by up to `threads` threads (0: the default).
+    /// Frames `start..stop`, warm-started, by up to `threads` threads (0: the default, as
+    /// many as the free memory holds renders of the scene: each keeps its own solvers).
     #[pyo3(signature = (start, stop, threads=0, method=None))]
     fn frames(
         &self,
@@ -321,6 +322,13 @@ impl SceneCore {
         method: Option<&str>,
     ) -> PyResult<FrameIter> {
         let method = method_named(method)?;
+        let threads = match (threads, available_bytes()) {
+            (0, Some(free)) => {
+                let fit = (free / render_bytes(&self.scene).max(1)).max(1);
+                inkwarp_core::scene::default_frame_threads().min(fit as usize)
+            }
+            _ => threads,
+        };
         let stream =
             FrameStream::with_method(Arc::clone(&self.scene), start..stop, threads, method);
         let remaining = stream.len();

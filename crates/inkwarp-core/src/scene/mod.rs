@@ -36,7 +36,7 @@ use serde::Serialize;
 use serde_json::Value;
 
 pub use doc::*;
-pub use engine::{method_available, Animator, FeatureSamples, FrameStream, LayerSolve, RenderedFrame, WARM_CHAIN_FRAMES};
+pub use engine::{default_frame_threads, method_available, Animator, FeatureSamples, FrameStream, LayerSolve, RenderedFrame, WARM_CHAIN_FRAMES};
 pub use crate::render::RgbaImage;
 pub use validate::{validate_doc, validate_overrides};
 

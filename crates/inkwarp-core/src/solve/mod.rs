@@ -348,7 +348,7 @@ pub(crate) fn solve_constrained(
         let vectors = (!open).then(|| key.links.vectors(bw, bh));
         let geo = vectors.as_ref().map(|[active, right, down]| nullspace::BoxGeo { w: bw, h: bh, active, right, down });
         let (gauge_at, keep) = (gauge.map(local), geo.is_some() && !options.off.has("cache"));
-        let kept = if keep { store.free.take(store.solve, bw * bh, |k, f| f.gauge == gauge_at && *k == key) } else { None };
+        let kept = if keep { store.free.take(store.solve, &key, |k, f| f.gauge == gauge_at && *k == key) } else { None };
         let free = kept.unwrap_or_else(|| Free::new(geo.as_ref(), &constrained_only, &key.fixed, gauge_at));
         // At τ = 0, on a piece whose only free functions are the affine ones (none is left
         // once the constraints hold), constraints that one affine map fits are answered by
@@ -551,7 +551,7 @@ fn solve_piece(
 ) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport::default();
-    let kept = if options.off.has("cache") { None } else { store.hierarchies.take(store.solve, w * h, |k, _| *k == key) };
+    let kept = if options.off.has("cache") { None } else { store.hierarchies.take(store.solve, &key, |k, _| *k == key) };
     let mut hier = kept.unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
@@ -809,10 +809,10 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
     fits.then_some(move |x: usize, y: usize| map([x as f64 - o[0], y as f64 - o[1]]))
 }
 
-/// At most this many finest nodes in all a solver keeps hierarchies for (about 200 bytes a
+/// At most this many finest nodes in all a solver keeps hierarchies for (about 150 bytes a
 /// node with their work vectors), and as many free functions for (their size is their own),
-/// beyond what its latest solve used (small in the crate's tests, to test the limit).
-const KEPT_MAX_NODES: usize = if cfg!(test) { 1 << 15 } else { 1 << 22 };
+/// beyond what its latest solve used.
+const KEPT_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
 /// editor's drags): the hierarchies and free functions of the pieces of its recent solves
@@ -895,46 +895,53 @@ pub(crate) struct Store {
 
 /// Entries by what they depend on, the least recently used first: at most twice as many as
 /// the latest solve that used any (its pieces, and as many before them for an undo), and
-/// those before it only within [`KEPT_MAX_NODES`] finest nodes in all. What the latest
-/// solve used stays whatever its size (a 4K layer's next frame finds its hierarchy); what
-/// a solve builds first makes room for itself, so that the old and the new are not both held.
-pub(crate) struct Kept<T>(Vec<(CacheKey, T, u64)>);
+/// those before it only within a node limit (the second field, [`KEPT_MAX_NODES`]). What
+/// the latest solve used stays whatever its size (a 4K layer's next frame finds its
+/// hierarchies); a build first makes room for itself (see [`Kept::room`]).
+pub(crate) struct Kept<T>(Vec<(CacheKey, T, u64)>, usize);
 
 impl<T> Default for Kept<T> {
-    fn default() -> Self { Kept(Vec::new()) }
+    fn default() -> Self { Kept(Vec::new(), KEPT_MAX_NODES) }
 }
 
 impl<T> Kept<T> {
     /// The latest entry that `found` accepts, taken out (it goes back by [`Kept::put`]); if
-    /// there is none, room for `nodes` more is made.
-    fn take(&mut self, solve: u64, nodes: usize, found: impl Fn(&CacheKey, &T) -> bool) -> Option<T> {
+    /// there is none, room is made for `key`'s (see [`Kept::room`]).
+    fn take(&mut self, solve: u64, key: &CacheKey, found: impl Fn(&CacheKey, &T) -> bool) -> Option<T> {
         let Some(pos) = self.0.iter().rposition(|(k, t, _)| found(k, t)) else {
-            self.room(solve, nodes);
+            self.room(solve, key);
             return None;
         };
         Some(self.0.remove(pos).1)
     }
 
     /// Keeps `value`, used by solve number `solve`.
-    fn put(&mut self, solve: u64, key: CacheKey, value: T) {
-        self.0.push((key, value, solve));
-        self.room(solve, 0);
-    }
+    fn put(&mut self, solve: u64, key: CacheKey, value: T) { self.0.push((key, value, solve)) }
 
-    /// Drops the oldest entries that solve number `solve` has not used until `extra` more
-    /// nodes fit in the node limit, or none is left to drop.
-    fn room(&mut self, solve: u64, extra: usize) {
-        while self.0.iter().map(|e| e.0.w * e.0.h).sum::<usize>() + extra > KEPT_MAX_NODES {
-            let Some(pos) = self.0.iter().position(|e| e.2 != solve) else { return };
+    /// Before solve number `solve` builds `key`'s entry, while it would not fit in the node
+    /// limit: drops the oldest entry of the same piece (box and links: its earlier drawings),
+    /// else the oldest that neither this solve nor the one before used (an entry of the one
+    /// before may be a piece this solve has yet to reach).
+    fn room(&mut self, solve: u64, key: &CacheKey) {
+        let same = |k: &CacheKey| (k.w, k.h, &k.links) == (key.w, key.h, &key.links);
+        while self.0.iter().map(|e| e.0.w * e.0.h).sum::<usize>() + key.w * key.h > self.1 {
+            let pos = self.0.iter().position(|e| e.2 != solve && same(&e.0)).or_else(|| self.0.iter().position(|e| e.2 + 1 < solve));
+            let Some(pos) = pos else { return };
             self.0.remove(pos);
         }
     }
 
-    /// Drops what is past the count limit once solve number `latest` is done.
+    /// Once solve number `latest` is done, if it used any: drops what is past the count
+    /// limit, then the oldest entries it did not use while they pass the node limit.
     fn trim(&mut self, latest: u64) {
         let used = self.0.iter().filter(|e| e.2 == latest).count();
-        if used > 0 {
-            self.0.drain(..self.0.len().saturating_sub(2 * used));
+        if used == 0 {
+            return;
+        }
+        self.0.drain(..self.0.len().saturating_sub(2 * used));
+        while self.0.iter().map(|e| e.0.w * e.0.h).sum::<usize>() > self.1 {
+            let Some(pos) = self.0.iter().position(|e| e.2 != latest) else { return };
+            self.0.remove(pos);
         }
     }
 }

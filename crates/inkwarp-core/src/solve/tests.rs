@@ -1437,26 +1437,64 @@ fn a_solver_keeps_every_piece_of_its_latest_solve_and_the_drawing_before() {
 }
 
 #[test]
-fn a_grid_above_the_node_limit_keeps_its_hierarchy_for_the_next_frame_and_only_that() {
-    // 200 x 170 nodes, more than the limit (small in tests): its frames still share one
-    // hierarchy, and a new drawing drops it before building its own.
-    let grid = Grid::new(200, 170);
-    assert!(200 * 170 > super::KEPT_MAX_NODES);
-    let s = |x: f64, y: f64, d: f64| Sample { rest: [x, y], displacement: [d, 0.5 * d] };
-    let frame = |k: f64, x0: f64| vec![s(5.0 + x0, 5.0, 0.0), s(190.0, 10.0, k), s(20.0, 160.0, 0.0), s(120.0, 80.0, -k)];
+fn pieces_above_the_node_limit_are_kept_for_the_next_frame_and_replaced_by_a_new_drawing() {
+    // A cut from border to border: two pieces of 100 x 170 nodes, together above the node
+    // limit (set low here). Their frames still find both hierarchies; a new drawing
+    // replaces them, and afterwards only its own are kept.
+    let mut grid = Grid::new(200, 170);
+    grid.add_cut(&[[99.5, -2.0], [99.5, 172.0]]);
     let mut solver = Solver::new();
+    (solver.store.hierarchies.1, solver.store.free.1) = (20_000, 20_000);
+    let s = |x: f64, y: f64, d: f64| Sample { rest: [x, y], displacement: [d, 0.5 * d] };
+    // The pieces' points placed differently (pieces alike would share one hierarchy).
+    let piece = |x0: f64, y0: f64, k: f64| [s(x0 + 5.0, y0 + 5.0, 0.0), s(x0 + 90.0, 10.0, k), s(x0 + 20.0, 160.0, 0.0), s(x0 + 60.0, 80.0, -k)];
+    let frame = |k: f64, x0: f64| [piece(x0, 0.0, k), piece(100.0 + x0 / 2.0, 3.0, 2.0 * k)].concat();
     let built = |solver: &Solver| solver.store.hierarchies.0.iter().map(|e| e.1.levels[0].inv_diag.as_ptr() as usize).collect::<Vec<_>>();
-    let (_, report) = solver.solve(&grid, &frame(1.0, 0.0), &SolveOptions::default(), None).unwrap();
+    let options = SolveOptions::default();
+    solver.solve(&grid, &frame(1.0, 0.0), &options, None).unwrap();
     let first = built(&solver);
-    assert!(report.converged && first.len() == 1);
+    assert_eq!(first.len(), 2);
     for k in 2..4 {
-        let (field, _) = solver.solve(&grid, &frame(k as f64, 0.0), &SolveOptions::default(), None).unwrap();
-        assert_eq!(built(&solver), first, "frame {k} built its hierarchy again");
-        let (fresh, _) = solve(&grid, &frame(k as f64, 0.0), &SolveOptions::default(), None).unwrap();
+        let (field, report) = solver.solve(&grid, &frame(k as f64, 0.0), &options, None).unwrap();
+        assert!(report.converged);
+        assert_eq!(built(&solver), first, "frame {k} built a hierarchy again");
+        let (fresh, _) = solve(&grid, &frame(k as f64, 0.0), &options, None).unwrap();
         assert_eq!((field.dx, field.dy), (fresh.dx, fresh.dy));
     }
-    solver.solve(&grid, &frame(1.0, 3.0), &SolveOptions::default(), None).unwrap();
-    assert_eq!(solver.store.hierarchies.0.len(), 1, "the old drawing's hierarchy is kept past the limit");
+    solver.solve(&grid, &frame(1.0, 4.0), &options, None).unwrap();
+    let second = built(&solver);
+    assert_eq!(second.len(), 2, "only the new drawing's pieces are kept past the limit");
+    assert!(second.iter().all(|p| !first.contains(p)));
+}
+
+#[test]
+fn a_build_first_drops_its_pieces_earlier_drawing_then_what_no_recent_solve_used() {
+    // Entries of 100 nodes each (open boxes of several shapes) under a limit of 350: room
+    // for one more is made by dropping the same piece's earlier entry, else an entry two
+    // solves old, never one the solve before used (a piece the solve may yet reach).
+    let key = |w: usize, fixed: usize| CacheKey {
+        w, h: 100 / w, tau_bits: 0, off: Ablation::default(), links: BoxLinks::Open,
+        fixed: (0..100).map(|i| i == fixed).collect(),
+    };
+    let mut kept: Kept<u32> = Kept(Vec::new(), 350);
+    let values = |kept: &Kept<u32>| kept.0.iter().map(|e| e.1).collect::<Vec<_>>();
+    kept.put(3, key(20, 1), 2); // piece B, used by solve 3
+    kept.put(4, key(10, 1), 1); // piece A, used by solve 4
+    kept.put(4, key(25, 1), 3); // piece C, used by solve 4
+    // Solve 5 misses piece A with a new drawing: A's earlier entry goes, though B is older.
+    assert!(kept.take(5, &key(10, 7), |_, _| false).is_none());
+    assert_eq!(values(&kept), [2, 3]);
+    kept.put(5, key(10, 7), 4);
+    // Piece D (another box) misses too: B, two solves old, goes; C stays.
+    assert!(kept.take(5, &key(50, 7), |_, _| false).is_none());
+    assert_eq!(values(&kept), [3, 4]);
+    // Once solve 5 is done, what it did not use stays while all fit, and goes when not.
+    kept.put(5, key(50, 7), 5);
+    kept.trim(5);
+    assert_eq!(values(&kept), [3, 4, 5]);
+    kept.1 = 250;
+    kept.trim(5);
+    assert_eq!(values(&kept), [4, 5]);
 }
 
 #[test]
