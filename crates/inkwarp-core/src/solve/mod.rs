@@ -552,6 +552,7 @@ fn solve_piece(
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport::default();
     let kept = if options.off.has("cache") { None } else { store.hierarchies.take(store.solve, &key, |k, _| *k == key) };
+    store.built += u64::from(kept.is_none());
     let mut hier = kept.unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
@@ -880,7 +881,8 @@ impl Solver {
 
 impl std::fmt::Debug for Solver {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Solver").field("hierarchies", &self.store.hierarchies.0.len()).field("history", &self.history.len()).finish()
+        let (kept, built) = (self.store.hierarchies.0.len(), self.store.built);
+        f.debug_struct("Solver").field("hierarchies", &kept).field("built", &built).field("history", &self.history.len()).finish()
     }
 }
 
@@ -891,6 +893,8 @@ pub(crate) struct Store {
     free: Kept<Free>,
     /// The solves so far: each entry is marked with the last one that used it.
     solve: u64,
+    /// The hierarchies built so far.
+    built: u64,
 }
 
 /// Entries by what they depend on, the least recently used first: at most twice as many as

@@ -1403,11 +1403,8 @@ fn a_solver_keeps_every_piece_of_its_latest_solve_and_the_drawing_before() {
     let options = SolveOptions::default();
     let mut solver = Solver::new();
     let kept = |solver: &Solver| [solver.store.hierarchies.0.len(), solver.store.free.0.len()];
-    // A kept hierarchy keeps its vectors where they are.
-    let built = |solver: &Solver| -> std::collections::BTreeSet<usize> {
-        solver.store.hierarchies.0.iter().map(|e| e.1.levels[0].inv_diag.as_ptr() as usize).collect()
-    };
-    let mut first = None;
+    // The fixed nodes of the kept hierarchies (a key's drawing).
+    let drawings = |solver: &Solver| solver.store.hierarchies.0.iter().map(|e| e.0.fixed.clone()).collect::<Vec<_>>();
     for k in 1..4 {
         let (field, report) = solver.solve(&grid, &frame(k as f64, 0.0), &options, None).unwrap();
         assert!(report.converged);
@@ -1415,25 +1412,24 @@ fn a_solver_keeps_every_piece_of_its_latest_solve_and_the_drawing_before() {
         let (fresh, _) = solve(&grid, &frame(k as f64, 0.0), &options, None).unwrap();
         assert_eq!((field.dx, field.dy), (fresh.dx, fresh.dy));
         assert_eq!(kept(&solver), [3, 3], "frame {k}: one hierarchy and one set of free functions a piece");
-        assert_eq!(*first.get_or_insert_with(|| built(&solver)), built(&solver), "frame {k} built a hierarchy again");
+        assert_eq!(solver.store.built, 3, "frame {k} built a hierarchy again");
     }
-    let first = first.unwrap();
+    let first = drawings(&solver);
     // A frame at rest (every piece answered by an affine map, no hierarchy used) keeps them.
     solver.solve(&grid, &frame(0.0, 0.0), &options, None).unwrap();
     solver.solve(&grid, &frame(2.0, 0.0), &options, None).unwrap();
-    assert_eq!(first, built(&solver), "a frame after one at rest built a hierarchy again");
+    assert_eq!(solver.store.built, 3, "a frame after one at rest built a hierarchy again");
     // A new drawing (other fixed nodes): its pieces join the last solve's, kept for an undo,
     // which builds nothing.
     solver.solve(&grid, &frame(1.0, 2.0), &options, None).unwrap();
-    assert_eq!(kept(&solver), [6, 6]);
+    assert_eq!((kept(&solver), solver.store.built), ([6, 6], 6));
     solver.solve(&grid, &frame(1.0, 0.0), &options, None).unwrap();
-    assert_eq!(kept(&solver), [6, 6]);
-    assert!(first.is_subset(&built(&solver)), "the undo built its hierarchies again");
+    assert_eq!((kept(&solver), solver.store.built), ([6, 6], 6), "the undo built its hierarchies again");
     // Two solves of other drawings later, the first drawing's pieces are gone.
     solver.solve(&grid, &frame(1.0, 3.0), &options, None).unwrap();
     solver.solve(&grid, &frame(1.0, 4.0), &options, None).unwrap();
     assert_eq!(kept(&solver), [6, 6]);
-    assert!(first.is_disjoint(&built(&solver)));
+    assert!(drawings(&solver).iter().all(|d| !first.contains(d)));
 }
 
 #[test]
@@ -1449,22 +1445,22 @@ fn pieces_above_the_node_limit_are_kept_for_the_next_frame_and_replaced_by_a_new
     // The pieces' points placed differently (pieces alike would share one hierarchy).
     let piece = |x0: f64, y0: f64, k: f64| [s(x0 + 5.0, y0 + 5.0, 0.0), s(x0 + 90.0, 10.0, k), s(x0 + 20.0, 160.0, 0.0), s(x0 + 60.0, 80.0, -k)];
     let frame = |k: f64, x0: f64| [piece(x0, 0.0, k), piece(100.0 + x0 / 2.0, 3.0, 2.0 * k)].concat();
-    let built = |solver: &Solver| solver.store.hierarchies.0.iter().map(|e| e.1.levels[0].inv_diag.as_ptr() as usize).collect::<Vec<_>>();
+    let drawings = |solver: &Solver| solver.store.hierarchies.0.iter().map(|e| e.0.fixed.clone()).collect::<Vec<_>>();
     let options = SolveOptions::default();
     solver.solve(&grid, &frame(1.0, 0.0), &options, None).unwrap();
-    let first = built(&solver);
-    assert_eq!(first.len(), 2);
+    let first = drawings(&solver);
+    assert_eq!((first.len(), solver.store.built), (2, 2));
     for k in 2..4 {
         let (field, report) = solver.solve(&grid, &frame(k as f64, 0.0), &options, None).unwrap();
         assert!(report.converged);
-        assert_eq!(built(&solver), first, "frame {k} built a hierarchy again");
+        assert_eq!(solver.store.built, 2, "frame {k} built a hierarchy again");
         let (fresh, _) = solve(&grid, &frame(k as f64, 0.0), &options, None).unwrap();
         assert_eq!((field.dx, field.dy), (fresh.dx, fresh.dy));
     }
     solver.solve(&grid, &frame(1.0, 4.0), &options, None).unwrap();
-    let second = built(&solver);
-    assert_eq!(second.len(), 2, "only the new drawing's pieces are kept past the limit");
-    assert!(second.iter().all(|p| !first.contains(p)));
+    let second = drawings(&solver);
+    assert_eq!((second.len(), solver.store.built), (2, 4), "only the new drawing's pieces are kept past the limit");
+    assert!(second.iter().all(|d| !first.contains(d)));
 }
 
 #[test]
