@@ -625,6 +625,12 @@ fn solve_tps(
     }
     let (field, report) =
         history.solve_warm(grid, &samples, &options, initial).map_err(|e| e.to_string())?;
+    // Above LEVELS_MAX_NODES the levels (about 150 bytes a node) are not kept in the
+    // module's memory between requests; the history (three fields) is.
+    let step = options.grid_step.max(1);
+    if grid.width.div_ceil(step) * grid.height.div_ceil(step) > LEVELS_MAX_NODES {
+        history.release_levels();
+    }
     let json = tps_report(&report);
     Ok((field, json))
 }
@@ -778,6 +784,9 @@ pub extern "C" fn iw_image_read(handle: u32, out_ptr: *mut u8, out_len: usize) -
 /// The most nodes a grid thin plate of [`iw_grid_solve_kept`] may solve on (its grid's
 /// pixels over `grid_step` squared) for the grid to keep its solver between calls.
 const KEPT_SOLVER_MAX_NODES: usize = 1 << 20;
+
+/// The most nodes of a grid whose solver keeps its levels between [`iw_solve`] requests.
+const LEVELS_MAX_NODES: usize = 1 << 22;
 
 /// Whether [`iw_grid_solve_kept`] keeps the solver of a `width × height` grid at `step`.
 fn keeps_solver(width: usize, height: usize, step: usize) -> bool {

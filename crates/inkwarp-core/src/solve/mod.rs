@@ -877,6 +877,10 @@ impl Solver {
     /// Forgets the history (the next warm solve starts cold). The hierarchies, free functions
     /// and work vectors stay: they never change an answer, only how soon it comes.
     pub fn clear(&mut self) { self.history.clear() }
+
+    /// Drops the hierarchies, free functions and work vectors (the history stays): for a
+    /// caller short of memory between the solves of a large grid.
+    pub fn release_levels(&mut self) { self.store = Store::default() }
 }
 
 impl std::fmt::Debug for Solver {

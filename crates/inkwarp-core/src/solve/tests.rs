@@ -1494,6 +1494,18 @@ fn a_build_first_drops_its_pieces_earlier_drawing_then_what_no_recent_solve_used
 }
 
 #[test]
+fn releasing_the_levels_keeps_the_history() {
+    let grid = Grid::new(33, 33);
+    let s = |x: f64, y: f64, d: f64| Sample { rest: [x, y], displacement: [d, 0.0] };
+    let samples = [s(2.0, 2.0, 0.0), s(30.0, 3.0, 0.0), s(4.0, 29.0, 0.0), s(16.0, 16.0, 2.0)];
+    let mut solver = Solver::new();
+    solver.solve_warm(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    assert_eq!((solver.store.hierarchies.0.len(), solver.history().len()), (1, 1));
+    solver.release_levels();
+    assert_eq!((solver.store.hierarchies.0.len(), solver.history().len()), (0, 1));
+}
+
+#[test]
 fn ablation_switches_are_parsed_by_name_and_unknown_names_refused() {
     let off = Ablation::parse("second, kcycle").unwrap();
     assert!(off.has("second") && off.has("kcycle") && !off.has("tear"));
