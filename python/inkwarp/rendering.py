@@ -57,8 +57,9 @@ def render_range(scene: Any, start: int, stop: int, *, method: str | None = None
 
 
 def chunk_ranges(start: int, stop: int, chunks: int) -> list[tuple[int, int]]:
-    """``[start, stop)`` cut into at most ``chunks`` contiguous ranges at warm-start chain
-    boundaries (so no chunk needs a pre-roll beyond the one ``start`` itself needs)."""
+    """``[start, stop)`` cut into about ``chunks`` contiguous ranges at warm-start chain
+    boundaries (so no chunk needs a pre-roll beyond the one ``start`` itself needs): one
+    more when ``start`` is inside a chain."""
     count = stop - start
     if count <= 0:
         return []

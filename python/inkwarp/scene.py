@@ -557,7 +557,9 @@ class Scene:
         Frames are solved in chains of 16 (frame numbers that are multiples of 16 start a
         chain cold); chains render in parallel on ``threads`` threads. The solver and the
         renderer already use every core inside a frame, so the default is one thread per
-        four cores. The pixels do not depend on the number of threads.
+        four cores, and no more than the free memory holds renders of the scene
+        (:attr:`render_bytes` each: every thread keeps its own solvers). The pixels do not
+        depend on the number of threads.
 
         Parameters
         ----------

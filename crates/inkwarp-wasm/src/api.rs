@@ -538,7 +538,9 @@ pub extern "C" fn iw_solve_at(handle: u32, req_ptr: *const u8, req_len: usize, o
         let plan = selection.plans.entry(step).or_insert_with(|| Upsampling::new(grid, step));
         let mut histories = domain.history.borrow_mut();
         let history = histories.entry(step).or_default();
-        let report = history.solve_warm_at(grid, &samples, &options, plan, &selection.pixels, out).map_err(|e| e.to_string())?;
+        let solved = history.solve_warm_at(grid, &samples, &options, plan, &selection.pixels, out);
+        release_large(history, grid, step);
+        let report = solved.map_err(|e| e.to_string())?;
         Ok(named(tps_report(&report), Method::Tps, samples.len()))
     });
     match res {
@@ -623,14 +625,9 @@ fn solve_tps(
     if initial.is_none() && matches!(start, Start::Given(_)) {
         history.clear();
     }
-    let (field, report) =
-        history.solve_warm(grid, &samples, &options, initial).map_err(|e| e.to_string())?;
-    // Above LEVELS_MAX_NODES the levels (about 150 bytes a node) are not kept in the
-    // module's memory between requests; the history (three fields) is.
-    let step = options.grid_step.max(1);
-    if grid.width.div_ceil(step) * grid.height.div_ceil(step) > LEVELS_MAX_NODES {
-        history.release_levels();
-    }
+    let solved = history.solve_warm(grid, &samples, &options, initial);
+    release_large(history, grid, options.grid_step);
+    let (field, report) = solved.map_err(|e| e.to_string())?;
     let json = tps_report(&report);
     Ok((field, json))
 }
@@ -785,8 +782,18 @@ pub extern "C" fn iw_image_read(handle: u32, out_ptr: *mut u8, out_len: usize) -
 /// pixels over `grid_step` squared) for the grid to keep its solver between calls.
 const KEPT_SOLVER_MAX_NODES: usize = 1 << 20;
 
-/// The most nodes of a grid whose solver keeps its levels between [`iw_solve`] requests.
+/// The most nodes of a grid whose solver keeps its levels between [`iw_solve`] and
+/// [`iw_solve_at`] requests.
 const LEVELS_MAX_NODES: usize = 1 << 22;
+
+/// Drops `solver`'s levels (about 150 bytes a node; its history stays) when its grid, `grid`
+/// at `step`, has more than [`LEVELS_MAX_NODES`] nodes: the module's memory is short.
+fn release_large(solver: &mut Solver, grid: &Grid, step: usize) {
+    let nodes = |n: usize| n.saturating_sub(1).div_ceil(step.max(1)) + 1;
+    if nodes(grid.width) * nodes(grid.height) > LEVELS_MAX_NODES {
+        solver.release_levels();
+    }
+}
 
 /// Whether [`iw_grid_solve_kept`] keeps the solver of a `width × height` grid at `step`.
 fn keeps_solver(width: usize, height: usize, step: usize) -> bool {

@@ -344,7 +344,7 @@ pub(crate) fn solve_constrained(
         // a one-line piece's gauge and `line_correction` take it; at τ > 0 the same
         // correction settles it, below.)
         let tilt = if open && tau > 0.0 && by_piece[l].len() > 1 { on_one_line(w, by_piece[l].iter().map(|&k| constraints.nodes[k])) } else { None };
-        let key = CacheKey { w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
+        let key = CacheKey { at: [x0, y0], w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
         let vectors = (!open).then(|| key.links.vectors(bw, bh));
         let geo = vectors.as_ref().map(|[active, right, down]| nullspace::BoxGeo { w: bw, h: bh, active, right, down });
         let (gauge_at, keep) = (gauge.map(local), geo.is_some() && !options.off.has("cache"));
@@ -927,13 +927,13 @@ impl<T> Kept<T> {
     fn put(&mut self, solve: u64, key: CacheKey, value: T) { self.0.push((key, value, solve)) }
 
     /// Before solve number `solve` builds `key`'s entry, while it would not fit in the node
-    /// limit: drops the oldest entry of the same piece (box and links: its earlier drawings),
-    /// else the oldest that neither this solve nor the one before used (an entry of the one
-    /// before may be a piece this solve has yet to reach).
+    /// limit: drops the oldest entry of the same piece (its box's first node: its earlier
+    /// drawings), else the oldest that neither this solve nor the latest one before it used
+    /// (an entry of that one may be a piece this solve has yet to reach).
     fn room(&mut self, solve: u64, key: &CacheKey) {
-        let same = |k: &CacheKey| (k.w, k.h, &k.links) == (key.w, key.h, &key.links);
+        let before = self.0.iter().map(|e| e.2).filter(|&s| s < solve).max().unwrap_or(0);
         while self.0.iter().map(|e| e.0.w * e.0.h).sum::<usize>() + key.w * key.h > self.1 {
-            let pos = self.0.iter().position(|e| e.2 != solve && same(&e.0)).or_else(|| self.0.iter().position(|e| e.2 + 1 < solve));
+            let pos = self.0.iter().position(|e| e.2 != solve && e.0.at == key.at).or_else(|| self.0.iter().position(|e| e.2 < before));
             let Some(pos) = pos else { return };
             self.0.remove(pos);
         }
@@ -999,10 +999,12 @@ const SMOOTHING_STEPS: usize = 2;
 const OPEN_COARSE_SMOOTHING: usize = 1;
 
 /// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
-/// constraint values. Consecutive frames of an animation share it. Compared field by field
-/// in this order: the fixed nodes before the (larger) links.
+/// constraint values, and which piece it is (its box's first node `at`). Consecutive
+/// frames of an animation share it. Compared field by field in this order: the fixed
+/// nodes before the (larger) links.
 #[derive(Clone, PartialEq)]
 struct CacheKey {
+    at: [usize; 2],
     w: usize,
     h: usize,
     tau_bits: u64,

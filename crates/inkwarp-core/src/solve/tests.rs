@@ -1457,9 +1457,17 @@ fn pieces_above_the_node_limit_are_kept_for_the_next_frame_and_replaced_by_a_new
         let (fresh, _) = solve(&grid, &frame(k as f64, 0.0), &options, None).unwrap();
         assert_eq!((field.dx, field.dy), (fresh.dx, fresh.dy));
     }
+    // A new drawing of the left piece alone rebuilds that piece only, after a frame at
+    // rest (no hierarchy used) too.
+    let left_moved = |k: f64| [piece(4.0, 0.0, k), piece(100.0, 3.0, 2.0 * k)].concat();
+    solver.solve(&grid, &left_moved(1.0), &options, None).unwrap();
+    assert_eq!(solver.store.built, 3, "the right piece was rebuilt");
+    solver.solve(&grid, &frame(0.0, 0.0), &options, None).unwrap();
+    solver.solve(&grid, &frame(1.0, 0.0), &options, None).unwrap();
+    assert_eq!(solver.store.built, 4, "after a frame at rest, the right piece was rebuilt");
     solver.solve(&grid, &frame(1.0, 4.0), &options, None).unwrap();
     let second = drawings(&solver);
-    assert_eq!((second.len(), solver.store.built), (2, 4), "only the new drawing's pieces are kept past the limit");
+    assert_eq!((second.len(), solver.store.built), (2, 6), "only the new drawing's pieces are kept past the limit");
     assert!(second.iter().all(|d| !first.contains(d)));
 }
 
@@ -1468,8 +1476,9 @@ fn a_build_first_drops_its_pieces_earlier_drawing_then_what_no_recent_solve_used
     // Entries of 100 nodes each (open boxes of several shapes) under a limit of 350: room
     // for one more is made by dropping the same piece's earlier entry, else an entry two
     // solves old, never one the solve before used (a piece the solve may yet reach).
+    // Pieces told apart by their boxes' first nodes, here (w, 0).
     let key = |w: usize, fixed: usize| CacheKey {
-        w, h: 100 / w, tau_bits: 0, off: Ablation::default(), links: BoxLinks::Open,
+        at: [w, 0], w, h: 100 / w, tau_bits: 0, off: Ablation::default(), links: BoxLinks::Open,
         fixed: (0..100).map(|i| i == fixed).collect(),
     };
     let mut kept: Kept<u32> = Kept(Vec::new(), 350);
