@@ -377,25 +377,28 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
         if i in actors and remaining[i] > 0 and i not in pending.values():
             pending[actors[i].next_batch.remote(RAY_BATCH_FRAMES)] = i
 
+    def ask_running() -> None:
+        # The current chunk always; the others while they are not too far ahead.
+        for i in list(actors):
+            if i == current or len(buffers[i]) < RAY_AHEAD_FRAMES:
+                ask(i)
+
     bar = None
     if progress:
         from tqdm import tqdm
 
         bar = tqdm(total=stop - start, unit="frame", desc=f"render on Ray ({len(chunks)} "
                    "chunks)", file=sys.stderr, dynamic_ncols=True)
+    current = 0
     try:
         launch()
-        for i in list(actors):
-            ask(i)
-        current = 0
+        ask_running()
         while current < len(chunks):
             if buffers[current]:
                 yield buffers[current].pop(0)
                 if remaining[current] == 0 and not buffers[current]:
                     current += 1
-                for i in range(current, len(chunks)):
-                    if i == current or len(buffers[i]) < RAY_AHEAD_FRAMES:
-                        ask(i)
+                ask_running()
                 continue
             if remaining[current] == 0:
                 current += 1
@@ -413,11 +416,7 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
             if remaining[i] == 0:  # its CPU and memory go to the next chunk
                 ray.kill(actors.pop(i))
                 launch()
-                for j in list(actors):
-                    if j == current or len(buffers[j]) < RAY_AHEAD_FRAMES:
-                        ask(j)
-            elif i == current or len(buffers[i]) < RAY_AHEAD_FRAMES:
-                ask(i)
+            ask_running()
     finally:
         if bar is not None:
             bar.close()

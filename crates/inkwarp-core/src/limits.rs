@@ -31,9 +31,8 @@ pub const MAX_BEIER_NEELY_EXPONENT: f64 = 16.0;
 pub const RENDER_BYTES_PER_PIXEL: u64 = 80;
 /// And per pixel of each layer: its picture, its matte, its field and its grid.
 pub const LAYER_BYTES_PER_PIXEL: u64 = 12;
-/// And per node of each layer's solver grid (every `grid_step`-th pixel each way, the last
-/// row and column included): the levels, free functions and work vectors a render keeps
-/// for the layer's next frame.
+/// And per node of each layer's solver grid ([`solver_nodes`]): the levels, free functions
+/// and work vectors a render keeps for the layer's next frame.
 pub const SOLVER_BYTES_PER_NODE: u64 = 148;
 
 /// Checks a `width × height` size against [`MAX_SIDE_PX`] and [`MAX_PIXELS`]; the message
@@ -101,13 +100,20 @@ pub fn check_curve_samples(points: &[[f64; 2]], closed: bool, spacing_px: f64) -
 /// Whether `v` is a coordinate inkwarp accepts (finite, |v| ≤ [`MAX_COORD_PX`]).
 pub fn coordinate_ok(v: f64) -> bool { v.is_finite() && v.abs() <= MAX_COORD_PX }
 
+/// The nodes of the grid a `width × height` picture is solved on at `grid_step`: every
+/// `grid_step`-th pixel each way, the last row and column included.
+pub fn solver_nodes(width: usize, height: usize, grid_step: usize) -> u64 {
+    let n = |p: usize| (p.saturating_sub(1).div_ceil(grid_step.max(1)) + 1) as u64;
+    n(width).saturating_mul(n(height))
+}
+
 /// The rough peak memory, in bytes, of rendering a `width × height` frame with `layers`,
 /// each given by its size and its `grid_step` (see [`RENDER_BYTES_PER_PIXEL`]).
 pub fn render_bytes(width: usize, height: usize, layers: impl IntoIterator<Item = ([usize; 2], usize)>) -> u64 {
-    let pixels = |w: usize, h: usize, per: u64| (w as u64).saturating_mul(h as u64).saturating_mul(per);
-    layers.into_iter().fold(pixels(width, height, RENDER_BYTES_PER_PIXEL), |sum, ([w, h], step)| {
-        let nodes = |n: usize| n.saturating_sub(1).div_ceil(step.max(1)) + 1;
-        sum.saturating_add(pixels(w, h, LAYER_BYTES_PER_PIXEL)).saturating_add(pixels(nodes(w), nodes(h), SOLVER_BYTES_PER_NODE))
+    let pixels = |w: usize, h: usize| (w as u64).saturating_mul(h as u64);
+    layers.into_iter().fold(pixels(width, height).saturating_mul(RENDER_BYTES_PER_PIXEL), |sum, ([w, h], step)| {
+        let solver = solver_nodes(w, h, step).saturating_mul(SOLVER_BYTES_PER_NODE);
+        sum.saturating_add(pixels(w, h).saturating_mul(LAYER_BYTES_PER_PIXEL)).saturating_add(solver)
     })
 }
 

@@ -784,13 +784,12 @@ const KEPT_SOLVER_MAX_NODES: usize = 1 << 20;
 
 /// The most nodes of a grid whose solver keeps its levels between [`iw_solve`] and
 /// [`iw_solve_at`] requests.
-const LEVELS_MAX_NODES: usize = 1 << 22;
+const LEVELS_MAX_NODES: u64 = 1 << 22;
 
 /// Drops `solver`'s levels (about 150 bytes a node; its history stays) when its grid, `grid`
 /// at `step`, has more than [`LEVELS_MAX_NODES`] nodes: the module's memory is short.
 fn release_large(solver: &mut Solver, grid: &Grid, step: usize) {
-    let nodes = |n: usize| n.saturating_sub(1).div_ceil(step.max(1)) + 1;
-    if nodes(grid.width) * nodes(grid.height) > LEVELS_MAX_NODES {
+    if inkwarp_core::limits::solver_nodes(grid.width, grid.height, step) > LEVELS_MAX_NODES {
         solver.release_levels();
     }
 }

@@ -268,10 +268,10 @@ enum Piece {
 pub(crate) fn solve_constrained(
     grid: &Grid, constraints: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, store: &mut Store,
 ) -> (Field, SolveReport) {
-    // A subnormal tension is the τ → 0⁺ limit to far below any tolerance, and its products
-    // underflow: it is taken as 0.
     store.solve += 1;
     let (w, h) = (grid.width, grid.height);
+    // A subnormal tension is the τ → 0⁺ limit to far below any tolerance, and its products
+    // underflow: it is taken as 0.
     let tau = if options.tension < f64::MIN_POSITIVE { 0.0 } else { options.tension };
     let (constrained_nodes, constrained_samples) = (constraints.len(), constraints.used_samples);
     let dropped_samples = constraints.dropped_samples;
@@ -348,7 +348,7 @@ pub(crate) fn solve_constrained(
         let vectors = (!open).then(|| key.links.vectors(bw, bh));
         let geo = vectors.as_ref().map(|[active, right, down]| nullspace::BoxGeo { w: bw, h: bh, active, right, down });
         let (gauge_at, keep) = (gauge.map(local), geo.is_some() && !options.off.has("cache"));
-        let kept = if keep { store.free.take(store.solve, &key, |k, f| f.gauge == gauge_at && *k == key) } else { None };
+        let kept = if keep { store.free.take(store.solve, &key, |f| f.gauge == gauge_at) } else { None };
         let free = kept.unwrap_or_else(|| Free::new(geo.as_ref(), &constrained_only, &key.fixed, gauge_at));
         // At τ = 0, on a piece whose only free functions are the affine ones (none is left
         // once the constraints hold), constraints that one affine map fits are answered by
@@ -551,7 +551,7 @@ fn solve_piece(
 ) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport::default();
-    let kept = if options.off.has("cache") { None } else { store.hierarchies.take(store.solve, &key, |k, _| *k == key) };
+    let kept = if options.off.has("cache") { None } else { store.hierarchies.take(store.solve, &key, |_| true) };
     store.built += u64::from(kept.is_none());
     let mut hier = kept.unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
@@ -810,9 +810,8 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
     fits.then_some(move |x: usize, y: usize| map([x as f64 - o[0], y as f64 - o[1]]))
 }
 
-/// At most this many finest nodes in all a solver keeps hierarchies for (about 150 bytes a
-/// node with their work vectors), and as many free functions for (their size is their own),
-/// beyond what its latest solve used.
+/// At most this many finest nodes of hierarchies (about 150 bytes a node), and as many of free
+/// functions, a solver keeps beyond what its latest solve used.
 const KEPT_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
@@ -901,11 +900,9 @@ pub(crate) struct Store {
     built: u64,
 }
 
-/// Entries by what they depend on, the least recently used first: at most twice as many as
-/// the latest solve that used any (its pieces, and as many before them for an undo), and
-/// those before it only within a node limit (the second field, [`KEPT_MAX_NODES`]). What
-/// the latest solve used stays whatever its size (a 4K layer's next frame finds its
-/// hierarchies); a build first makes room for itself (see [`Kept::room`]).
+/// Entries by what they depend on, the least recently used first: what the latest solve that
+/// used any used, whatever its size (an undo's too), and as many before, within a node limit
+/// (the second field, [`KEPT_MAX_NODES`]; see [`Kept::room`] and [`Kept::trim`]).
 pub(crate) struct Kept<T>(Vec<(CacheKey, T, u64)>, usize);
 
 impl<T> Default for Kept<T> {
@@ -913,10 +910,10 @@ impl<T> Default for Kept<T> {
 }
 
 impl<T> Kept<T> {
-    /// The latest entry that `found` accepts, taken out (it goes back by [`Kept::put`]); if
-    /// there is none, room is made for `key`'s (see [`Kept::room`]).
-    fn take(&mut self, solve: u64, key: &CacheKey, found: impl Fn(&CacheKey, &T) -> bool) -> Option<T> {
-        let Some(pos) = self.0.iter().rposition(|(k, t, _)| found(k, t)) else {
+    /// The latest entry of `key` that `also` accepts, taken out (it goes back by
+    /// [`Kept::put`]); if there is none, room is made for one (see [`Kept::room`]).
+    fn take(&mut self, solve: u64, key: &CacheKey, also: impl Fn(&T) -> bool) -> Option<T> {
+        let Some(pos) = self.0.iter().rposition(|(k, t, _)| k == key && also(t)) else {
             self.room(solve, key);
             return None;
         };
@@ -926,13 +923,15 @@ impl<T> Kept<T> {
     /// Keeps `value`, used by solve number `solve`.
     fn put(&mut self, solve: u64, key: CacheKey, value: T) { self.0.push((key, value, solve)) }
 
+    /// The finest nodes of every entry.
+    fn nodes(&self) -> usize { self.0.iter().map(|e| e.0.w * e.0.h).sum() }
+
     /// Before solve number `solve` builds `key`'s entry, while it would not fit in the node
-    /// limit: drops the oldest entry of the same piece (its box's first node: its earlier
-    /// drawings), else the oldest that neither this solve nor the latest one before it used
-    /// (an entry of that one may be a piece this solve has yet to reach).
+    /// limit: drops the oldest entry of the same piece (box's first node) from earlier, else the
+    /// oldest that neither this solve nor the latest before it used (it may yet reach those).
     fn room(&mut self, solve: u64, key: &CacheKey) {
         let before = self.0.iter().map(|e| e.2).filter(|&s| s < solve).max().unwrap_or(0);
-        while self.0.iter().map(|e| e.0.w * e.0.h).sum::<usize>() + key.w * key.h > self.1 {
+        while self.nodes() + key.w * key.h > self.1 {
             let pos = self.0.iter().position(|e| e.2 != solve && e.0.at == key.at).or_else(|| self.0.iter().position(|e| e.2 < before));
             let Some(pos) = pos else { return };
             self.0.remove(pos);
@@ -943,13 +942,12 @@ impl<T> Kept<T> {
     /// limit, then the oldest entries it did not use while they pass the node limit.
     fn trim(&mut self, latest: u64) {
         let used = self.0.iter().filter(|e| e.2 == latest).count();
-        if used == 0 {
-            return;
-        }
-        self.0.drain(..self.0.len().saturating_sub(2 * used));
-        while self.0.iter().map(|e| e.0.w * e.0.h).sum::<usize>() > self.1 {
-            let Some(pos) = self.0.iter().position(|e| e.2 != latest) else { return };
-            self.0.remove(pos);
+        if used > 0 {
+            self.0.drain(..self.0.len().saturating_sub(2 * used));
+            while self.nodes() > self.1 {
+                let Some(pos) = self.0.iter().position(|e| e.2 != latest) else { return };
+                self.0.remove(pos);
+            }
         }
     }
 }
@@ -998,10 +996,9 @@ const SMOOTHING_STEPS: usize = 2;
 /// one step weakens the cycle too much: `docs/dev/ablation.md`, "Constants").
 const OPEN_COARSE_SMOOTHING: usize = 1;
 
-/// What a hierarchy depends on: the operator (geometry, fixed nodes, tension), never the
-/// constraint values, and which piece it is (its box's first node `at`). Consecutive
-/// frames of an animation share it. Compared field by field in this order: the fixed
-/// nodes before the (larger) links.
+/// What a hierarchy depends on (the operator: geometry, fixed nodes, tension; never the values)
+/// and its piece (its box's first node `at`): an animation's frames share it. Compared field
+/// by field in this order: the fixed nodes before the (larger) links.
 #[derive(Clone, PartialEq)]
 struct CacheKey {
     at: [usize; 2],

@@ -1487,11 +1487,11 @@ fn a_build_first_drops_its_pieces_earlier_drawing_then_what_no_recent_solve_used
     kept.put(4, key(10, 1), 1); // piece A, used by solve 4
     kept.put(4, key(25, 1), 3); // piece C, used by solve 4
     // Solve 5 misses piece A with a new drawing: A's earlier entry goes, though B is older.
-    assert!(kept.take(5, &key(10, 7), |_, _| false).is_none());
+    assert!(kept.take(5, &key(10, 7), |_| false).is_none());
     assert_eq!(values(&kept), [2, 3]);
     kept.put(5, key(10, 7), 4);
     // Piece D (another box) misses too: B, two solves old, goes; C stays.
-    assert!(kept.take(5, &key(50, 7), |_, _| false).is_none());
+    assert!(kept.take(5, &key(50, 7), |_| false).is_none());
     assert_eq!(values(&kept), [3, 4]);
     // Once solve 5 is done, what it did not use stays while all fit, and goes when not.
     kept.put(5, key(50, 7), 5);
