@@ -780,7 +780,7 @@ pub extern "C" fn iw_image_read(handle: u32, out_ptr: *mut u8, out_len: usize) -
 
 /// The most nodes a grid thin plate of [`iw_grid_solve_kept`] may solve on (its grid's
 /// pixels over `grid_step` squared) for the grid to keep its solver between calls.
-const KEPT_SOLVER_MAX_NODES: usize = 1 << 20;
+const KEPT_SOLVER_MAX_NODES: u64 = 1 << 20;
 
 /// The most nodes of a grid whose solver keeps its levels between [`iw_solve`] and
 /// [`iw_solve_at`] requests.
@@ -796,7 +796,7 @@ fn release_large(solver: &mut Solver, grid: &Grid, step: usize) {
 
 /// Whether [`iw_grid_solve_kept`] keeps the solver of a `width × height` grid at `step`.
 fn keeps_solver(width: usize, height: usize, step: usize) -> bool {
-    width.div_ceil(step) * height.div_ceil(step) <= KEPT_SOLVER_MAX_NODES
+    inkwarp_core::limits::solver_nodes(width, height, step) <= KEPT_SOLVER_MAX_NODES
 }
 
 /// Solves a layer (the request as [`iw_solve`] takes it) and keeps the field in the
@@ -1247,5 +1247,8 @@ mod tests {
         assert!(keeps_solver(6000, 4000, 6));
         assert!(!keeps_solver(4000, 3000, 1));
         assert!(!keeps_solver(4000, 3000, 2));
+        // The solver's grid counts the last row and column: 1024 × 1024 nodes, then 1025².
+        assert!(keeps_solver(2047, 2047, 2));
+        assert!(!keeps_solver(2048, 2048, 2));
     }
 }

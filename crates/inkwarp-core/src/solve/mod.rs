@@ -877,9 +877,9 @@ impl Solver {
     /// and work vectors stay: they never change an answer, only how soon it comes.
     pub fn clear(&mut self) { self.history.clear() }
 
-    /// Drops the hierarchies, free functions and work vectors (the history stays): for a
-    /// caller short of memory between the solves of a large grid.
-    pub fn release_levels(&mut self) { self.store = Store::default() }
+    /// Drops the hierarchies, free functions and work vectors (the history and the count of
+    /// hierarchies built stay): for a caller short of memory between the solves of a large grid.
+    pub fn release_levels(&mut self) { self.store = Store { built: self.store.built, ..Store::default() } }
 }
 
 impl std::fmt::Debug for Solver {

@@ -1511,7 +1511,9 @@ fn releasing_the_levels_keeps_the_history() {
     solver.solve_warm(&grid, &samples, &SolveOptions::default(), None).unwrap();
     assert_eq!((solver.store.hierarchies.0.len(), solver.history().len()), (1, 1));
     solver.release_levels();
-    assert_eq!((solver.store.hierarchies.0.len(), solver.history().len()), (0, 1));
+    assert_eq!((solver.store.hierarchies.0.len(), solver.history().len(), solver.store.built), (0, 1, 1));
+    solver.solve_warm(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    assert_eq!(solver.store.built, 2, "the released levels were built again, and counted");
 }
 
 #[test]
