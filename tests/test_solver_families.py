@@ -119,6 +119,29 @@ def test_strands_off_a_body(width):
     check_against_oracle(problem, f"strands {width} px")
 
 
+def test_a_piece_solved_directly_stops_once_exact():
+    # A 6 x 3 block with cut links and a one-node staircase strand (the coarse grid of a
+    # grid_step 3 draft of a 33 x 22 matte): few enough nodes for the banded factor alone.
+    # Its steps after the first move rounding only, which kept the stopping rule going to
+    # the cycle limit (converged=False, the answer exact) for these very values.
+    mask = np.zeros((12, 8), np.uint8)
+    mask[0:3, 0:6] = 1
+    for y, x in [(3, 0), (4, 0), (4, 1), (5, 1), (5, 2), (6, 2), (6, 3), (7, 3)]:
+        mask[y, x] = 1
+
+    def tick(x, y, across_x):
+        return np.array([[x - 0.25, y], [x + 0.25, y]] if across_x else [[x, y - 0.25], [x, y + 0.25]])
+
+    cuts = [tick(2.5, 1, False), tick(1.5, 2, False), tick(3, 0.5, True), tick(4, 0.5, True), tick(2, 1.5, True)]
+    points = np.array([[1.0, 1.0], [5.0, 2.0], [2.0, 5.0], [5.0, 2.0]])
+    displacements = np.array([[-6.813091310057158, 4.5056356802303075], [1.1865053933077088, 1.0170445859197168],
+                              [-4.325546916091786, 6.19639124202771], [-3.1358769010493774, -0.19587830171520082]])
+    for scale in (1.0, 1.001):
+        problem = Problem(mask.shape, points, displacements * scale, mask=mask, cuts=cuts)
+        _, report = check_against_oracle(problem, f"directly solved piece, displacements x{scale}")
+        assert report.cycles <= 2, report
+
+
 @pytest.mark.parametrize("tension", [0.0, 1e-6])
 def test_closed_ring(tension):
     # A ring 1.5 px wide (radius 20-21.5 on 64 x 64), six points around it.

@@ -638,9 +638,14 @@ fn solve_piece(
     // The last change, and the last two cycles' ratios of successive changes.
     let (mut last_change, mut ratios) = (f64::INFINITY, [0.0f64; 2]);
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
+    // A piece small enough for one level is solved by the banded factor (its dropped pivots
+    // are the free functions, which the settling takes): the preconditioner is the exact
+    // inverse, so one step finishes and the later ones move rounding, from which neither
+    // the ratios nor the Lanczos floor say anything (they kept such a solve going).
+    let direct = hier.levels.len() == 1;
     // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
     // slow mode that the first step barely moved hides behind a small change.
-    let first_may_stop = !hier.torn || warm;
+    let first_may_stop = !hier.torn || warm || direct;
     let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, floor: f64| {
         (report.cycles, report.final_change_px) = (cycle, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-gradient steps
@@ -649,7 +654,7 @@ fn solve_piece(
         // cycle). A ratio of 0.99 or more (stagnation) never stops.
         let ratio = if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 };
         ratios = [ratios[1], ratio];
-        let rho = ratios.iter().fold(floor, |a, &b| a.max(b));
+        let rho = if direct { 0.0 } else { ratios.iter().fold(floor, |a, &b| a.max(b)) };
         last_change = change;
         (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
     };
