@@ -638,10 +638,8 @@ fn solve_piece(
     // The last change, and the last two cycles' ratios of successive changes.
     let (mut last_change, mut ratios) = (f64::INFINITY, [0.0f64; 2]);
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
-    // A piece small enough for one level is solved by the banded factor (its dropped pivots
-    // are the free functions, which the settling takes): the preconditioner is the exact
-    // inverse, so one step finishes and the later ones move rounding, from which neither
-    // the ratios nor the Lanczos floor say anything (they kept such a solve going).
+    // One level is its banded factor's exact solve: after the first step only rounding moves,
+    // from which neither the ratios nor the Lanczos floor tell a rate (they kept it going).
     let direct = hier.levels.len() == 1;
     // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
     // slow mode that the first step barely moved hides behind a small change.
@@ -910,19 +908,15 @@ pub(crate) struct Store {
 /// (the second field, [`KEPT_MAX_NODES`]; see [`Kept::room`] and [`Kept::trim`]).
 pub(crate) struct Kept<T>(Vec<(CacheKey, T, u64)>, usize);
 
-impl<T> Default for Kept<T> {
-    fn default() -> Self { Kept(Vec::new(), KEPT_MAX_NODES) }
-}
+impl<T> Default for Kept<T> { fn default() -> Self { Kept(Vec::new(), KEPT_MAX_NODES) } }
 
 impl<T> Kept<T> {
     /// The latest entry of `key` that `also` accepts, taken out (it goes back by
     /// [`Kept::put`]); if there is none, room is made for one (see [`Kept::room`]).
     fn take(&mut self, solve: u64, key: &CacheKey, also: impl Fn(&T) -> bool) -> Option<T> {
-        let Some(pos) = self.0.iter().rposition(|(k, t, _)| k == key && also(t)) else {
-            self.room(solve, key);
-            return None;
-        };
-        Some(self.0.remove(pos).1)
+        let pos = self.0.iter().rposition(|(k, t, _)| k == key && also(t));
+        if pos.is_none() { self.room(solve, key) }
+        pos.map(|pos| self.0.remove(pos).1)
     }
 
     /// Keeps `value`, used by solve number `solve`.
