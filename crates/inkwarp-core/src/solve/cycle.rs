@@ -125,6 +125,9 @@ impl Hierarchy {
         &self.work[0].x[..r.len()]
     }
 
+    /// How many pivots the coarsest factor dropped (see [`Banded`]).
+    pub fn dropped(&self) -> usize { self.coarsest.dropped.iter().filter(|&&d| d).count() }
+
     /// Level k's smoothing steps.
     fn steps_at(&self, k: usize) -> usize { if k == 0 { self.degree } else { self.coarse_degree } }
 

@@ -276,9 +276,7 @@ pub(crate) fn solve_constrained(
     let (constrained_nodes, constrained_samples) = (constraints.len(), constraints.used_samples);
     let dropped_samples = constraints.dropped_samples;
     let mut report = SolveReport { constrained_nodes, constrained_samples, dropped_samples, converged: true, ..Default::default() };
-    if w * h == 0 {
-        return (Field::zeros(w, h), report);
-    }
+    if w * h == 0 { return (Field::zeros(w, h), report) }
     // An open grid (every node active, every link there: most grids) is one piece whose
     // key marks it open (`BoxLinks::Open`).
     let (labels, count, open) = grid.pieces_and_open();
@@ -361,9 +359,7 @@ pub(crate) fn solve_constrained(
                 // The constrained nodes hold their values exactly, not to the map's rounding.
                 value.iter().for_each(|&(j, v)| values[j] = v);
                 write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
-                if keep {
-                    store.free.put(store.solve, key, free);
-                }
+                if keep { store.free.put(store.solve, key, free) }
                 continue;
             }
         }
@@ -391,9 +387,7 @@ pub(crate) fn solve_constrained(
             // Too many free functions to settle: no claim of convergence.
             r.converged = false;
         }
-        if let Some(key) = kept_key {
-            store.free.put(store.solve, key, free);
-        }
+        if let Some(key) = kept_key { store.free.put(store.solve, key, free) }
         if let (Piece::Line { a, d, .. }, Some(_)) = (*piece, gauge) {
             line_correction(grid, &labels, l as u32, a, d, boxes[l], &mut u);
         }
@@ -638,9 +632,10 @@ fn solve_piece(
     // The last change, and the last two cycles' ratios of successive changes.
     let (mut last_change, mut ratios) = (f64::INFINITY, [0.0f64; 2]);
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
-    // One level is its banded factor's exact solve: after the first step only rounding moves,
-    // from which neither the ratios nor the Lanczos floor tell a rate (they kept it going).
-    let direct = hier.levels.len() == 1;
+    // One level is its banded factor's exact solve where every dropped pivot is a free
+    // function's (not a soft strand's): after the first step only rounding moves, from
+    // which neither the ratios nor the Lanczos floor tell a rate (they kept it going).
+    let direct = hier.levels.len() == 1 && hier.dropped() <= settled.map_or(0, |m| m.len());
     // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
     // slow mode that the first step barely moved hides behind a small change.
     let first_may_stop = !hier.torn || warm || direct;

@@ -373,6 +373,9 @@ impl Membrane {
     /// Whether every block is settled (none too large or singular).
     pub(crate) fn settles_all(&self) -> bool { self.blocks.iter().all(|b| b.1.is_some()) }
 
+    /// How many functions there are.
+    pub(crate) fn len(&self) -> usize { self.basis.len() }
+
     /// `n` for the field read by `read` (box node → value): added by `add(node, value)`.
     /// False when a block was not settled (too large or singular: it is left as it is).
     pub(crate) fn settle(&self, read: impl Fn(usize) -> V2, mut add: impl FnMut(usize, V2)) -> bool {
