@@ -142,6 +142,30 @@ def test_a_piece_solved_directly_stops_once_exact():
         assert report.cycles <= 2, report
 
 
+def small_piece_problem(seed):
+    """A matte of at most 17 x 17 pixels with holes, up to five short cuts and up to five
+    points (so most of its pieces are solved by one level), at tension 0, 1e-6 or 0.5."""
+    rng = np.random.default_rng(seed)
+    h, w = (int(v) for v in rng.integers(4, 18, 2))
+    m = (rng.random((h, w)) < rng.uniform(0.45, 0.8)).astype(np.uint8)
+    cuts = []
+    for _ in range(rng.integers(0, 6)):
+        a = rng.uniform(-1, [w, h])
+        cuts.append(np.array([a, a + rng.normal(0, 3, 2)]))
+    act = np.argwhere(m > 0)
+    k = int(rng.integers(1, 6))
+    pts = act[rng.integers(0, len(act), k)][:, ::-1].astype(float) + rng.uniform(-0.3, 0.3, (k, 2))
+    disp = rng.normal(0, 5, (k, 2)) * 10 ** rng.uniform(-2, 0)
+    return Problem((h, w), pts, disp, mask=m, cuts=cuts, tension=[0.0, 1e-6, 0.5][seed % 3])
+
+
+# Seeds that ran to the cycle limit before the one-level rule (12 of the first 1500), and
+# others around them.
+@pytest.mark.parametrize("seed", [465, 513, 591, 843, 894, 1184, 1294, 1452, 0, 1, 2, 3])
+def test_small_pieces_converge_to_the_direct_solve(seed):
+    check_against_oracle(small_piece_problem(seed), f"small pieces, seed {seed}")
+
+
 @pytest.mark.parametrize("tension", [0.0, 1e-6])
 def test_closed_ring(tension):
     # A ring 1.5 px wide (radius 20-21.5 on 64 x 64), six points around it.
