@@ -373,7 +373,10 @@ impl Geometry {
                 if fixed {
                     continue;
                 }
-                if CORNERS.iter().map(|&k| r[k]).sum::<f64>() != r.iter().sum::<f64>() || r.iter().any(|&v| v < 0.0) {
+                // Stored whole where coded rows cannot be: past the corners, negative, or on the far
+                // corner along an even coordinate (the coded rows' loops take coarse c from fine 2c − 1).
+                let far_corner = (x % 2 == 0 && (r[6] != 0.0 || r[10] != 0.0)) || (y % 2 == 0 && (r[9] != 0.0 || r[10] != 0.0));
+                if far_corner || CORNERS.iter().map(|&k| r[k]).sum::<f64>() != r.iter().sum::<f64>() || r.iter().any(|&v| v < 0.0) {
                     prow[x] = [EXT; 4];
                     ext.push((i as u32, r));
                     continue;

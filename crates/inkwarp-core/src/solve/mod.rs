@@ -207,9 +207,7 @@ pub(crate) fn solve_with(
             history::solve_from(grid, &constrain(grid, samples), options, initial, solver, warm)
         })
     })?;
-    if crate::interrupt::requested() {
-        return Err(SolveError::Interrupted);
-    }
+    if crate::interrupt::requested() { return Err(SolveError::Interrupted) }
     report.seconds = start.elapsed().as_secs_f64();
     Ok((field, report))
 }
@@ -234,20 +232,14 @@ pub(crate) fn validate(grid: &Grid, samples: &[Sample], options: &SolveOptions, 
         (options.grid_step == 0, SolveError::BadGridStep),
         (bad(options.southwell_sweeps), SolveError::BadBudget(options.southwell_sweeps)),
     ];
-    if let Some((_, e)) = refusals.into_iter().find(|r| r.0) {
-        return Err(e);
-    }
+    if let Some((_, e)) = refusals.into_iter().find(|r| r.0) { return Err(e) }
     if let Some(index) = samples.iter().position(|s| !s.rest.iter().chain(s.displacement.iter()).all(|v| v.is_finite())) {
         return Err(SolveError::NonFiniteSample { index });
     }
     let Some(f) = initial else { return Ok(()) };
     let (w, h) = (grid.width, grid.height);
-    if (f.width(), f.height()) != (w, h) {
-        return Err(SolveError::InitialSize { got_w: f.width(), got_h: f.height(), want_w: w, want_h: h });
-    }
-    if !f.is_consistent() {
-        return Err(SolveError::InitialLength { got: f.values(), want: 2 * w * h, w, h });
-    }
+    if (f.width(), f.height()) != (w, h) { return Err(SolveError::InitialSize { got_w: f.width(), got_h: f.height(), want_w: w, want_h: h }) }
+    if !f.is_consistent() { return Err(SolveError::InitialLength { got: f.values(), want: 2 * w * h, w, h }) }
     // In parallel: every warm solve from Python reads its start here first.
     if f.all_finite() { Ok(()) } else { Err(SolveError::NonFiniteInitial) }
 }
@@ -756,8 +748,10 @@ fn solve_piece(
         })
         .reduce(|| (0.0, true, 0.0), |a, b| (larger(a.0, b.0), a.1 && b.1, larger(a.2, b.2)));
     report.residual = residual;
-    // A tolerance finer than the `f32` field's resolution cannot hold in the field returned.
-    report.converged &= finite && options.tolerance_px >= FINEST_TOLERANCE * largest;
+    // A tolerance finer than the `f32` field's resolution cannot hold in the field returned,
+    // nor one that leaves a scaled residual above 4 times it: |D⁻¹A e| ≤ 4 max|e| (in each
+    // energy term the coefficients sum to at most 4 times the one at the row's node).
+    report.converged &= finite && options.tolerance_px >= FINEST_TOLERANCE * largest && residual <= 4.0 * options.tolerance_px;
     hier.spare.extend([r, q]);
     hier.direction = p;
     let fine = &hier.levels[0];

@@ -1687,3 +1687,35 @@ fn the_settling_projection_keeps_fixed_nodes_and_is_idempotent() {
     let moved = v.iter().zip(&once).fold(0.0f64, |m, (a, b)| m.max((a[0] - b[0]).abs()).max((a[1] - b[1]).abs()));
     assert!(moved < 1e-12, "a second projection moved a node by {moved}");
 }
+
+#[test]
+fn a_node_taking_its_neighbours_row_keeps_the_coarse_operator_symmetric() {
+    // Node (5, 6) keeps only its link down to (5, 7), in its coarse cell, so it takes that
+    // node's row, which weighs coarse row 4 = 6 / 2 + 1 (docs/dev/solver-correctness.md).
+    // Coded on the 2 × 2 corners, coarse node (2, 4) missed it in its own row (its loops
+    // take fine rows from 2 · 4 − 1 on) but not in its neighbours' columns: the Galerkin
+    // operator was off symmetry, and a thin set factored on it had negative pivots.
+    let mut grid = Grid::new(16, 16);
+    for cut in [[[4.5, 5.7], [4.5, 6.3]], [[5.5, 5.7], [5.5, 6.3]], [[4.7, 5.5], [5.3, 5.5]]] {
+        grid.add_cut(&cut);
+    }
+    let mut fixed = vec![false; 256];
+    fixed[2 * 16 + 2] = true;
+    let mut level = fine_level(&grid, Some(fixed), 0.0);
+    assert!(level.geo.ext.iter().any(|e| e.0 == 6 * 16 + 5), "the node's row is stored whole");
+    for depth in 1..3 {
+        let coarse = level::galerkin(&level);
+        let (wc, hc) = (coarse.geo.w, coarse.geo.h);
+        for (xc, yc) in (0..hc).flat_map(|y| (0..wc).map(move |x| (x, y))).filter(|&(x, y)| coarse.inv_diag[coarse.pidx(x, y)] != 0.0) {
+            let (row, def) = (coarse.row(coarse.pidx(xc, yc)), level::galerkin_node(&level, xc, yc));
+            for t in 0..25 {
+                let (qx, qy) = ((xc + t % 5) as isize - 2, (yc + t / 5) as isize - 2);
+                if (0..wc as isize).contains(&qx) && (0..hc as isize).contains(&qy) && coarse.inv_diag[coarse.pidx(qx as usize, qy as usize)] != 0.0 {
+                    let back = coarse.row(coarse.pidx(qx as usize, qy as usize))[24 - t];
+                    assert!((row[t] - back).abs() <= 1e-12 && (row[t] - def[t]).abs() <= 1e-12, "level {depth}: ({xc}, {yc}) to ({qx}, {qy}): {} against {back}", row[t]);
+                }
+            }
+        }
+        level = coarse;
+    }
+}
