@@ -57,9 +57,10 @@ a grid with holes or cuts the free functions it found (hinges, strands), are reu
 every piece of the grid, which takes the later calls' setup away; as many of the points
 before stay too, for an undo (within about 4 million nodes). What the latest call used is
 kept whatever the grid's size, about 150 bytes a node of the grid it solves on, until the
-``Solver`` is dropped. The answers are the same as without it; nothing else carries over (a call starts from ``initial`` or from scratch). Without a
-``Solver`` every call builds its levels afresh and keeps nothing. A ``WarmStart`` keeps a
-solver of its own, so the two are not passed together.
+``Solver`` is dropped. The answers are the same as without it; nothing else carries over
+(a call starts from ``initial`` or from scratch). Without a ``Solver`` every call builds its
+levels afresh and keeps nothing. A ``WarmStart`` keeps a solver of its own, so the two are
+not passed together.
 
 Examples
 --------

@@ -280,8 +280,6 @@ impl Block {
                 l[at[i] + j - fi] = lij;
                 di -= g * lij;
             }
-            // A pivot far below zero: not positive definite, so the set is left to the cycle.
-            if di < -PIVOT * diag[i] { return None }
             d_inv[i] = if di > PIVOT * diag[i] { 1.0 / di } else { 0.0 };
         }
         Some(Block { first, at, l, d_inv })

@@ -409,11 +409,12 @@ fn coarse_products_are_the_galerkin_products_on_cut_grids() {
 #[test]
 fn stored_coarse_stencils_match_their_definition() {
     // Every coarse node's stencil, shared or its own, is (Pᵀ A P)(C, ·) summed straight
-    // from the definition, up to rounding: also the nodes whose window holds a constraint,
-    // a hole or a cut and whose stencil came out as the shared one. Open grids with
-    // constraints take the narrow windows (no row reaches past its corners), torn ones the
-    // wide.
+    // from the definition, up to rounding, and so symmetric: also the nodes whose window
+    // holds a constraint, a hole or a cut and whose stencil came out as the shared one.
+    // Open grids with constraints take the narrow windows (no row reaches past its
+    // corners), torn ones the wide.
     let mut rnd = crate::grid::tests::sequence(5);
+    let mut cases = Vec::new();
     for &(w, h, fixed, tau, torn) in &[(40usize, 36usize, 0.02, 0.0, true), (33, 33, 0.08, 0.3, true), (30, 41, 0.2, 0.0, true), (37, 42, 0.05, 0.0, false), (80, 70, 0.02, 0.2, false)] {
         let mut grid = Grid::new(w, h);
         if torn {
@@ -421,26 +422,41 @@ fn stored_coarse_stencils_match_their_definition() {
             grid = Grid::from_active(w, h, grid.active.clone());
             grid.add_cut(&[[1.0, h as f64 * 0.7], [w as f64 * 0.3, h as f64 * 0.75]]);
         }
-        let mut fine = fine_level(&grid, Some((0..w * h).map(|_| rnd() < fixed).collect()), tau);
+        cases.push(fine_level(&grid, Some((0..w * h).map(|_| rnd() < fixed).collect()), tau));
+    }
+    // Node (5, 6) keeps only its link down to (5, 7), in its coarse cell, so it takes that
+    // node's row, which weighs coarse row 4 = 6 / 2 + 1 (docs/dev/solver-correctness.md).
+    // Coded on the 2 × 2 corners, coarse node (2, 4) missed it in its own row (its loops
+    // take fine rows from 2 · 4 − 1 on) but not in its neighbours' columns: the Galerkin
+    // operator was off symmetry, and a thin set factored on it had negative pivots.
+    let mut grid = Grid::new(16, 16);
+    for cut in [[[4.5, 5.7], [4.5, 6.3]], [[5.5, 5.7], [5.5, 6.3]], [[4.7, 5.5], [5.3, 5.5]]] {
+        grid.add_cut(&cut);
+    }
+    let hanging = fine_level(&grid, Some((0..256).map(|i| i == 2 * 16 + 2).collect()), 0.0);
+    assert!(hanging.geo.ext.iter().any(|e| e.0 == 6 * 16 + 5), "the node's row is stored whole");
+    cases.push(hanging);
+    for mut fine in cases {
+        let (w, h) = (fine.geo.w, fine.geo.h);
         for _ in 0..3 {
             let coarse = level::galerkin(&fine);
-            for yc in 0..coarse.geo.h {
-                for xc in 0..coarse.geo.w {
-                    if !coarse.geo.active[yc * coarse.geo.w + xc] {
-                        continue;
-                    }
-                    let stored = coarse.row(coarse.pidx(xc, yc));
-                    let defined = level::galerkin_node(&fine, xc, yc);
-                    let scale = defined.iter().fold(1.0f64, |m, a| m.max(a.abs()));
-                    for t in 0..25 {
-                        assert!(
-                            (stored[t] - defined[t]).abs() <= 1e-10 * scale,
-                            "{w}x{h} level {}x{} node ({xc},{yc}) tap {t}: stored {} defined {}",
-                            coarse.geo.w,
-                            coarse.geo.h,
-                            stored[t],
-                            defined[t]
-                        );
+            let (wc, hc) = (coarse.geo.w, coarse.geo.h);
+            let active = |x: isize, y: isize| (0..wc as isize).contains(&x) && (0..hc as isize).contains(&y) && coarse.geo.active[y as usize * wc + x as usize];
+            for (xc, yc) in (0..hc).flat_map(|y| (0..wc).map(move |x| (x, y))).filter(|&(x, y)| active(x as isize, y as isize)) {
+                let stored = coarse.row(coarse.pidx(xc, yc));
+                let defined = level::galerkin_node(&fine, xc, yc);
+                let scale = defined.iter().fold(1.0f64, |m, a| m.max(a.abs()));
+                for t in 0..25 {
+                    assert!(
+                        (stored[t] - defined[t]).abs() <= 1e-10 * scale,
+                        "{w}x{h} level {wc}x{hc} node ({xc},{yc}) tap {t}: stored {} defined {}",
+                        stored[t],
+                        defined[t]
+                    );
+                    let (qx, qy) = ((xc + t % 5) as isize - 2, (yc + t / 5) as isize - 2);
+                    if active(qx, qy) {
+                        let back = coarse.row(coarse.pidx(qx as usize, qy as usize))[24 - t];
+                        assert!((stored[t] - back).abs() <= 1e-12 * scale, "{w}x{h} level {wc}x{hc}: ({xc}, {yc}) to ({qx}, {qy}): {} against {back}", stored[t]);
                     }
                 }
             }
@@ -1686,36 +1702,4 @@ fn the_settling_projection_keeps_fixed_nodes_and_is_idempotent() {
     settled.project(&level, &mut v);
     let moved = v.iter().zip(&once).fold(0.0f64, |m, (a, b)| m.max((a[0] - b[0]).abs()).max((a[1] - b[1]).abs()));
     assert!(moved < 1e-12, "a second projection moved a node by {moved}");
-}
-
-#[test]
-fn a_node_taking_its_neighbours_row_keeps_the_coarse_operator_symmetric() {
-    // Node (5, 6) keeps only its link down to (5, 7), in its coarse cell, so it takes that
-    // node's row, which weighs coarse row 4 = 6 / 2 + 1 (docs/dev/solver-correctness.md).
-    // Coded on the 2 × 2 corners, coarse node (2, 4) missed it in its own row (its loops
-    // take fine rows from 2 · 4 − 1 on) but not in its neighbours' columns: the Galerkin
-    // operator was off symmetry, and a thin set factored on it had negative pivots.
-    let mut grid = Grid::new(16, 16);
-    for cut in [[[4.5, 5.7], [4.5, 6.3]], [[5.5, 5.7], [5.5, 6.3]], [[4.7, 5.5], [5.3, 5.5]]] {
-        grid.add_cut(&cut);
-    }
-    let mut fixed = vec![false; 256];
-    fixed[2 * 16 + 2] = true;
-    let mut level = fine_level(&grid, Some(fixed), 0.0);
-    assert!(level.geo.ext.iter().any(|e| e.0 == 6 * 16 + 5), "the node's row is stored whole");
-    for depth in 1..3 {
-        let coarse = level::galerkin(&level);
-        let (wc, hc) = (coarse.geo.w, coarse.geo.h);
-        for (xc, yc) in (0..hc).flat_map(|y| (0..wc).map(move |x| (x, y))).filter(|&(x, y)| coarse.inv_diag[coarse.pidx(x, y)] != 0.0) {
-            let (row, def) = (coarse.row(coarse.pidx(xc, yc)), level::galerkin_node(&level, xc, yc));
-            for t in 0..25 {
-                let (qx, qy) = ((xc + t % 5) as isize - 2, (yc + t / 5) as isize - 2);
-                if (0..wc as isize).contains(&qx) && (0..hc as isize).contains(&qy) && coarse.inv_diag[coarse.pidx(qx as usize, qy as usize)] != 0.0 {
-                    let back = coarse.row(coarse.pidx(qx as usize, qy as usize))[24 - t];
-                    assert!((row[t] - back).abs() <= 1e-12 && (row[t] - def[t]).abs() <= 1e-12, "level {depth}: ({xc}, {yc}) to ({qx}, {qy}): {} against {back}", row[t]);
-                }
-            }
-        }
-        level = coarse;
-    }
 }
