@@ -220,13 +220,9 @@ impl Deflation {
     /// problem, whose changes come in bursts), the largest of the last window's; else
     /// `change`.
     pub fn judged_change(&mut self, change: f64) -> f64 {
-        if self.restarts == 0 {
-            return change;
-        }
+        if self.restarts == 0 { return change; }
         self.changes.push(change);
-        if self.changes.len() > WINDOW {
-            self.changes.remove(0);
-        }
+        if self.changes.len() > WINDOW { self.changes.remove(0); }
         self.changes.iter().fold(0.0, |a: f64, &b| a.max(b))
     }
 

@@ -363,16 +363,12 @@ impl Geometry {
                 let i = g.idx(x, y);
                 let fixed = g.fixed.as_ref().is_some_and(|f| f[i]);
                 if g.linked_around(x, y) {
-                    if !fixed {
-                        prow[x] = PLAIN_CODES[(y & 1) * 2 + (x & 1)];
-                    }
+                    if !fixed { prow[x] = PLAIN_CODES[(y & 1) * 2 + (x & 1)]; }
                     continue;
                 }
                 let r = g.geo_row(x, y);
                 plain &= g.active[i] && r == plain_row(x, y);
-                if fixed {
-                    continue;
-                }
+                if fixed { continue; }
                 // Stored whole where coded rows cannot be: past the corners, negative, or on the far
                 // corner along an even coordinate (the coded rows' loops take coarse c from fine 2c − 1).
                 let far_corner = (x % 2 == 0 && (r[6] != 0.0 || r[10] != 0.0)) || (y % 2 == 0 && (r[9] != 0.0 || r[10] != 0.0));
@@ -434,8 +430,8 @@ impl Geometry {
     /// node's own side (a free edge's zero second difference), or the one linked neighbour's
     /// value where that side is too short; an odd–odd node averages the rows of its linked
     /// edge neighbours. On the finest level (the one with fixed nodes), a node at a cut's
-    /// vertex whose only link runs to a neighbour in its coarse cell, continued along a
-    /// straight triple, takes that neighbour's row (else no coarse function would move it;
+    /// vertex whose only link, continued along a straight triple, runs to a neighbour takes
+    /// that neighbour's row, within its own window (else no coarse function would move it;
     /// docs/dev/solver-correctness.md).
     pub fn geo_row(&self, x: usize, y: usize) -> [f64; 16] {
         let r = self.link_row(x, y);
@@ -452,10 +448,17 @@ impl Geometry {
         ];
         let mut linked = links.iter().filter(|l| l.0);
         match (linked.next(), linked.next()) {
-            // One link, continued straight on, to a node in the same coarse cell (whose row
-            // reads the same window).
-            (Some(&(_, true, (qx, qy))), None) if qx / 2 == x / 2 && qy / 2 == y / 2 => {
-                Some(self.link_row(qx, qy)).filter(|q| q.iter().any(|&v| v != 0.0)).unwrap_or(r)
+            // One link, continued straight on: the neighbour's row, moved to this node's
+            // window (its coarse cell may be the next one); weights past the window dropped,
+            // the rest scaled to sum to one.
+            (Some(&(_, true, (qx, qy))), None) => {
+                let (dx, dy, mut moved) = ((qx / 2) as isize - (x / 2) as isize, (qy / 2) as isize - (y / 2) as isize, [0.0; 16]);
+                for (s, &v) in self.link_row(qx, qy).iter().enumerate() {
+                    let (i, j) = ((s % 4) as isize + dx, (s / 4) as isize + dy);
+                    if (0..4).contains(&i) && (0..4).contains(&j) { moved[(j * 4 + i) as usize] = v }
+                }
+                let sum: f64 = moved.iter().sum();
+                if sum.abs() < 0.5 { r } else { moved.map(|v| v / sum) }
             }
             _ => r,
         }

@@ -1627,6 +1627,20 @@ fn a_node_hanging_at_a_cut_vertex_takes_its_neighbours_row_on_the_finest_level_o
     // On a coarse level (no fixed nodes) the row stays empty.
     let coarse = level::Geometry::new(9, 9, grid.active.clone(), grid.link_right.clone(), grid.link_down.clone(), None);
     assert!(coarse.geo_row(x, y).iter().all(|&v| v == 0.0));
+    // Node (4, 3) keeps only its link left, to (3, 3) in the coarse cell before its own (as
+    // at the bend of a hook-shaped cut): its row was empty, so no coarse function moved it,
+    // and the part it hangs on turned by a few hundredths of its motion a cycle.
+    let mut grid = Grid::new(9, 9);
+    let i = grid.index(4, 3);
+    grid.link_right[i] = false;
+    grid.link_down[i] = false;
+    grid.link_down[i - 9] = false;
+    let geo = level::Geometry::new(9, 9, grid.active.clone(), grid.link_right.clone(), grid.link_down.clone(), Some(vec![false; 81]));
+    let coarse_nodes = || (0..5).flat_map(|yc| (0..5).map(move |xc| (xc, yc)));
+    assert!(coarse_nodes().any(|(xc, yc)| geo.weight(3, 3, xc, yc) != 0.0));
+    for (xc, yc) in coarse_nodes() {
+        assert_eq!(geo.weight(4, 3, xc, yc), geo.weight(3, 3, xc, yc), "coarse node ({xc}, {yc})");
+    }
 }
 
 /// `E_plate + τ·E_membrane` of each component of `field` on `grid`, from the definition.
