@@ -438,6 +438,18 @@ def test_a_flap_cut_from_the_border_turns_with_its_root(points, tension):
     assert full.converged and full.cycles <= 12, full
 
 
+def test_a_v_cut_and_two_points_at_a_small_tension():
+    # The V's tip cuts off a two-node island, so the piece's box has inactive nodes and the
+    # second (plain) coarse space runs. At tension 1e-5 its correction came out about ten
+    # times too large, the cycle stopped being positive, and with displacements of a
+    # quarter pixel the solve claimed convergence after 3 cycles, 0.78 px off.
+    cut = np.array([[33.01, 263.98], [41.78, 283.80], [125.40, 314.05], [58.43, 260.82]])
+    problem = Problem((384, 256), np.array([[254.12, 345.78], [98.08, 293.40]]),
+                      np.array([[0.244, 0.081], [-0.263, 0.082]]), cuts=[cut], tension=1e-5)
+    err, report = check_against_oracle(problem, "V cut, two points, tension 1e-5")
+    assert err < 0.01, (err, report)
+
+
 LEAK_CUT = np.array([[-5.0, 40.7], [70.0, 33.2]])
 LEAK_POINTS = np.array([[5.0, 5.0], [60.0, 5.0], [30.0, 20.0], [10.0, 25.0]])
 

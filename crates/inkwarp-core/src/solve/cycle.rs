@@ -177,8 +177,10 @@ impl Hierarchy {
             // The second coarse space, on the residual the first one left.
             level.residual(&w.x, Some(&w.f), &mut w.r);
             alt.solve_below(0, &w.r, &mut aw[1..]);
-            // Unscaled (a line search here gained nothing: `docs/dev/ablation.md`).
-            prolong_add_scaled(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x, [1.0; 2]);
+            // Line-searched: a soft mode of the plain space can make its cycle's answer far
+            // too large, and added unscaled it would undo the first correction.
+            let alpha = line_step(&alt.levels[1], &mut aw[1]);
+            prolong_add_scaled(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x, alpha);
         }
         let Work { x, f, r, d, .. } = w;
         if let Some(Some(s)) = self.level_strands.get(k) {
