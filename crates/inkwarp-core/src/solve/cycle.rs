@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{dot_pairs, galerkin, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, V2, W2, WS};
+use super::level::{dot_pairs, galerkin, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, PAD, V2, W2, WS};
 use super::strands::Strands;
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
@@ -55,6 +55,8 @@ pub(crate) struct Hierarchy {
     /// at every solve, a large part of an animation frame's one cycle.
     pub spare: Vec<Vec<V2>>,
     pub direction: Vec<W2>,
+    /// The finest level's affine functions, corrected exactly after every cycle (see [`Affine`]).
+    pub affine: Option<Affine>,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -102,7 +104,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new() }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one symmetric cycle from zero, in
@@ -120,6 +122,9 @@ impl Hierarchy {
         }
         if let Some(s) = &self.strands {
             s.after(r, &mut work[0].x);
+        }
+        if let Some(a) = &self.affine {
+            a.add(&self.levels[0], r, &mut work[0].x);
         }
         self.work = work;
         &self.work[0].x[..r.len()]
@@ -285,6 +290,66 @@ impl Hierarchy {
     }
 }
 
+/// The affine functions `W = (1, x − x₀, y − y₀)` on the finest level's unknowns, added to
+/// every cycle's output by their Galerkin correction `z += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`: an
+/// additive coarse space of three functions. On a torn piece the link-aware prolongation
+/// reproduces affine functions only where each side of a cut has room to extrapolate, so an
+/// affine motion that the constraints leave nearly free (points near one line, or close
+/// together) was a near-null mode the cycles barely moved and the first cycles' changes hid
+/// (`docs/dev/solver-correctness.md`, "Affine motions").
+#[derive(Debug)]
+pub(crate) struct Affine(Vec<Vec<f64>>);
+
+/// A piece gets [`Affine`] where its weakest affine motion of size 1 at the box's edges has
+/// less energy than this (a node held `d` off costs about `20 d²`: the motion moves the
+/// constrained nodes by about 1/50 of its size).
+const AFFINE_WEAK: f64 = 1e-2;
+
+/// `W`'s values at padded node `p` of `level` (small integers: exact in `f32`).
+fn affine_at(level: &Level, p: usize) -> [f64; 3] {
+    [1.0, (p % level.wp) as f64 - (level.geo.w / 2 + PAD) as f64, (p / level.wp) as f64 - (level.geo.h / 2 + PAD) as f64]
+}
+
+impl Affine {
+    /// `None` unless the constraints leave an affine motion nearly free (but not free: a
+    /// free function is the settling's, see `nullspace`).
+    pub fn new(level: &Level) -> Option<Affine> {
+        let len = level.len_padded();
+        let w = |k: usize, p: usize| if level.inv_diag[p] == 0.0 { 0.0 } else { affine_at(level, p)[k] };
+        let (mut x, mut q, mut e) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len], vec![vec![0.0; 3]; 3]);
+        for pair in [[0, 1], [2, 2]] {
+            x.iter_mut().enumerate().for_each(|(p, v)| *v = [w(pair[0], p), w(pair[1], p)]);
+            level.residual(&x, None, &mut q); // −A W, exact but for the tension's terms
+            for (c, &j) in pair.iter().enumerate() {
+                (0..3).for_each(|i| e[i][j] = -(0..len).map(|p| w(i, p) * q[p][c]).sum::<f64>());
+            }
+        }
+        // E for W scaled to 1 at the edges: det / (sum of the principal 2 × 2 minors) lies
+        // between a third of its least eigenvalue and that eigenvalue.
+        let s = [1.0, 2.0 / level.geo.w.max(2) as f64, 2.0 / level.geo.h.max(2) as f64];
+        let m = |i: usize, j: usize| e[i][j] * s[i] * s[j];
+        let minor = |i: usize, j: usize| m(i, i) * m(j, j) - m(i, j) * m(i, j);
+        let det = m(0, 0) * minor(1, 2) - m(0, 1) * (m(0, 1) * m(2, 2) - m(1, 2) * m(0, 2)) + m(0, 2) * (m(0, 1) * m(1, 2) - m(1, 1) * m(0, 2));
+        let (minors, trace) = (minor(0, 1) + minor(0, 2) + minor(1, 2), m(0, 0) + m(1, 1) + m(2, 2));
+        (det < AFFINE_WEAK * minors && det > 1e-12 * trace * minors).then_some(Affine(e))
+    }
+
+    /// `z += W E⁻¹ Wᵀ r` (each component) on the unknowns.
+    fn add(&self, level: &Level, r: &[V2], z: &mut [W2]) {
+        let unknowns = |c: usize, d: &[WS]| (0..d.len()).filter(|&j| d[j] != 0.0).map(|j| (j, affine_at(level, c * PASS_CHUNK + j))).collect::<Vec<_>>();
+        let parts: Vec<[V2; 3]> = r.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)).enumerate().map(|(c, (r, d))| {
+            unknowns(c, d).into_iter().fold([[0.0; 2]; 3], |g, (j, v)| std::array::from_fn(|i| [g[i][0] + v[i] * r[j][0], g[i][1] + v[i] * r[j][1]]))
+        }).collect();
+        let g = parts.iter().fold(vec![[0.0; 2]; 3], |s, t| (0..3).map(|i| [s[i][0] + t[i][0], s[i][1] + t[i][1]]).collect());
+        let Some(a) = super::dense_solve(self.0.clone(), g) else { return };
+        z.par_chunks_mut(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)).enumerate().for_each(|(c, (z, d))| {
+            for (j, v) in unknowns(c, d) {
+                z[j] = std::array::from_fn(|k| WS::of(z[j][k].get() + a[0][k] + a[1][k] * v[1] + a[2][k] * v[2]));
+            }
+        });
+    }
+}
+
 /// The step α (per component) of the correction `P e` for the coarse solution `e = c.x` of
 /// `A_c e = c.f` that minimises the energy along it: α = ⟨P e, r⟩ / ⟨P e, A P e⟩, evaluated
 /// on the coarse level, where ⟨P e, r⟩ = ⟨e, Pᵀ r⟩ = ⟨e, f_c⟩ and ⟨P e, A P e⟩ = ⟨e, A_c e⟩
@@ -338,9 +403,7 @@ pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
     // The norm `√(xᵀ D x)` of the vectors: `cur` is the Lanczos vector times `c`, `prev`
     // the one before it times `c_prev`.
     let mut c = cur.iter().zip(inv_d).map(|(x, &i)| if i > 0.0 { (x[0] * x[0] + x[1] * x[1]) / i } else { 0.0 }).sum::<f64>().sqrt();
-    if c == 0.0 {
-        return 0.0;
-    }
+    if c == 0.0 { return 0.0; }
     let (mut prev, mut out) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
     let (mut c_prev, mut b_prev) = (1.0, 0.0);
     let (mut alpha, mut beta) = (Vec::new(), Vec::new());
@@ -364,9 +427,7 @@ pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
         }).collect();
         alpha.push(a);
         let b = parts.iter().sum::<f64>().sqrt();
-        if b <= 1e-12 * a.abs() {
-            break;
-        }
+        if b <= 1e-12 * a.abs() { break; }
         beta.push(b);
         std::mem::swap(&mut prev, &mut cur);
         (c_prev, c, b_prev) = (c, b, b);
@@ -438,9 +499,7 @@ fn update<S: Real, T: Real>(x: &mut [[T; 2]], y: &[[S; 2]], f: impl Fn(&mut [T; 
 /// the part `[λ/CHEB_RATIO, λ]` of the spectrum of D⁻¹A, each one pass over the level
 /// ([`Level::smoothing_step`]). `r` and `d` are scratch; `x` and `r` may come back swapped.
 fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2], mut steps: usize, x_zero: bool) {
-    if steps == 0 || level.lam_max <= 0.0 {
-        return;
-    }
+    if steps == 0 || level.lam_max <= 0.0 { return; }
     let (b, a) = (level.lam_max, level.lam_max / CHEB_RATIO);
     let (theta, delta) = (0.5 * (b + a), 0.5 * (b - a));
     let (sigma, inv_theta) = (theta / delta, WS::of(1.0 / theta));

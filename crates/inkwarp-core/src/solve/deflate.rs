@@ -1,25 +1,15 @@
-//! Deflation of the slow modes the outer conjugate gradient reveals.
-//!
-//! The multigrid cycle misses the near-rigid motions of weakly attached parts (the teeth of
-//! a comb, a wedge bending against a distant arm): each is a near-null mode of the plate
-//! that the preconditioned iteration finds only slowly. When a solve is still running after
-//! [`START`] cycles, the search directions of each window of [`WINDOW`] cycles (both
-//! components, which share the operator) are kept with their Gram matrices `Vᵀ A V` and
-//! `Vᵀ V`; at the window's end a Rayleigh–Ritz step over the window and the vectors already
-//! kept gives the Ritz vectors of the smallest eigenvalues of `A` (thick restart, as eigCG
-//! does), of which the [`KEEP`] smallest are kept as `W`. The iterate is then corrected on
-//! `span W` (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`), and every later search direction is made
-//! `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000): the iteration runs
-//! on the rest of the spectrum.
-//!
-//! The same object gives the stopping rule what a slow solve's changes hide: a floor on
-//! the rate from the Lanczos matrix of the conjugate gradient ([`Deflation::rate_floor`])
-//! and, once it has deflated, the largest change of the last window
-//! ([`Deflation::judged_change`]).
-//!
-//! Memory: `WINDOW·2 + 2·KEEP` vectors of `f32` per node (a window, `W` and `A W`), that
-//! is 96 bytes a node, for pieces of at most [`BUDGET_BYTES`] of them; larger pieces run
-//! without (see `docs/dev/solver-correctness.md`).
+//! Deflation of the slow modes the outer conjugate gradient reveals (the near-rigid
+//! motions of weakly attached parts, which the cycle misses). When a solve is still running
+//! after [`START`] cycles, the search directions of each window of [`WINDOW`] cycles are
+//! kept with their Gram matrices; at the window's end a Rayleigh–Ritz step over the window
+//! and the vectors already kept (a thick restart, as eigCG does) keeps the [`KEEP`] Ritz
+//! vectors of the smallest eigenvalues as `W`. The iterate is corrected on `span W`
+//! (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`) and every later direction made `A`-orthogonal to `W`
+//! (deflated conjugate gradient, Saad et al. 2000). The same object gives the stopping rule
+//! a floor on the rate ([`Deflation::rate_floor`]) and, once it has deflated, the largest
+//! change of the last window ([`Deflation::judged_change`]). Memory: `WINDOW·2 + 2·KEEP`
+//! `f32` vectors (96 bytes a node), for pieces of at most [`BUDGET_BYTES`] of them; larger
+//! pieces run without (see `docs/dev/solver-correctness.md`).
 
 use rayon::prelude::*;
 
@@ -30,6 +20,8 @@ use super::level::{Level, Real, V2, W2, WS};
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
+/// The cycle of the first Rayleigh–Ritz step.
+pub(super) const FIRST_LOOK: usize = START + WINDOW;
 /// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop
 /// (see [`Deflation::rate_floor`]).
 const LOOKS: usize = 2;
@@ -81,9 +73,7 @@ impl Deflation {
 
     /// Makes the search direction `p` `A`-orthogonal to the kept vectors.
     pub fn project(&self, p: &mut [W2]) {
-        if self.w.is_empty() {
-            return;
-        }
+        if self.w.is_empty() { return; }
         let rhs = dots(&self.aw, p.len(), |i| [p[i][0].get(), p[i][1].get()]);
         let Some(mu) = super::dense_solve(self.e.clone(), rhs) else { return };
         p.par_chunks_mut(CHUNK).enumerate().for_each(|(c, p)| {
@@ -99,9 +89,7 @@ impl Deflation {
     /// Keeps the direction `p` of cycle `cycle` (its product `q = −A p`); true when a window
     /// is full and [`Deflation::restart`] is due.
     pub fn record(&mut self, cycle: usize, p: &[W2], q: &[V2]) -> bool {
-        if !self.on || cycle < START {
-            return false;
-        }
+        if !self.on || cycle < START { return false; }
         let n = p.len();
         let nb = self.w.len() + self.v.len();
         // Entries against the basis: (Ax_c)·b and x_c·b for both components c, then the
@@ -269,13 +257,9 @@ impl Deflation {
                 self.high = self.high.max(hi);
             }
         }
-        if self.wait && self.on && self.restarts < LOOKS && (self.restarts > 0 || !self.v.is_empty()) {
-            return 1.0;
-        }
+        if self.wait && self.on && self.restarts < LOOKS && (self.restarts > 0 || !self.v.is_empty()) { return 1.0; }
         let low = self.low.min(self.before);
-        if !(low > 0.0 && self.high > low) {
-            return 0.0;
-        }
+        if !(low > 0.0 && self.high > low) { return 0.0; }
         let k = (self.high / low).sqrt();
         (k - 1.0) / (k + 1.0)
     }
@@ -331,17 +315,13 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     for i in (0..n).filter(|&i| d[i] != 0.0) {
         let mut row = forward(&l, &keep.iter().map(|&j| m[i][j] * d[i] * d[j]).collect::<Vec<_>>());
         let diag = 1.0 - row.iter().map(|x| x * x).sum::<f64>();
-        if diag < 1e-6 {
-            continue;
-        }
+        if diag < 1e-6 { continue; }
         row.push(diag.sqrt());
         keep.push(i);
         l.push(row);
     }
     let k = keep.len();
-    if k == 0 {
-        return None;
-    }
+    if k == 0 { return None; }
     // C = L⁻¹ G_s L⁻ᵀ, G_s the scaled G over the kept vectors.
     let gs: Vec<Vec<f64>> = keep.iter().map(|&i| keep.iter().map(|&j| 0.5 * (g[i][j] + g[j][i]) * d[i] * d[j]).collect()).collect();
     // X = L⁻¹ G_s (columns), then C = L⁻¹ Xᵀ.
@@ -383,14 +363,10 @@ fn jacobi_eigen(mut a: Vec<Vec<f64>>) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     for _ in 0..100 {
         let off: f64 = (0..n).flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j))).map(|(i, j)| a[i][j] * a[i][j]).sum();
         let scale: f64 = (0..n).map(|i| a[i][i] * a[i][i]).sum::<f64>();
-        if off <= 1e-30 * scale.max(1e-300) {
-            break;
-        }
+        if off <= 1e-30 * scale.max(1e-300) { break; }
         for p in 0..n {
             for q in p + 1..n {
-                if a[p][q].abs() < 1e-300 {
-                    continue;
-                }
+                if a[p][q].abs() < 1e-300 { continue; }
                 let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
                 let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
                 let t = if theta == 0.0 { 1.0 } else { t };
@@ -419,17 +395,13 @@ fn extremes(diag: &[f64], off: &[f64]) -> Option<(f64, f64)> {
     let radius = |i: usize| if i > 0 { off[i - 1].abs() } else { 0.0 } + if i + 1 < n { off[i].abs() } else { 0.0 };
     let lo = (0..n).map(|i| diag[i] - radius(i)).fold(f64::INFINITY, f64::min);
     let hi = (0..n).map(|i| diag[i] + radius(i)).fold(f64::NEG_INFINITY, f64::max);
-    if !(lo.is_finite() && hi.is_finite()) {
-        return None;
-    }
+    if !(lo.is_finite() && hi.is_finite()) { return None; }
     let find = |k: usize| {
         let (mut a, mut b) = (lo, hi);
         for _ in 0..100 {
             let m = 0.5 * (a + b);
             (a, b) = if super::cycle::eigenvalues_below(diag, off, m) > k { (a, m) } else { (m, b) };
-            if b - a <= 1e-12 * b.abs().max(1e-300) {
-                break;
-            }
+            if b - a <= 1e-12 * b.abs().max(1e-300) { break; }
         }
         0.5 * (a + b)
     };

@@ -111,9 +111,7 @@ impl WarmHistory {
         }
         let tt = dot(target, target);
         let trace: f64 = (0..k).map(|i| g[i][i]).sum();
-        if trace <= 0.0 || target.is_empty() {
-            return latest;
-        }
+        if trace <= 0.0 || target.is_empty() { return latest; }
         let nodes = target.len() as f64;
         // The root mean square miss of weights `w` at the constrained nodes, from
         // ‖t − Σ wᵢ vᵢ‖² = tᵀt − 2 wᵀb + wᵀG w; and how much they amplify the frames' errors.
@@ -139,9 +137,7 @@ impl WarmHistory {
             let Some(x) = dense_solve(m, rhs).filter(|x| x.iter().all(|v| v[0].is_finite())) else { continue };
             let mut w = [0.0; HISTORY_FRAMES];
             frames.iter().zip(&x).for_each(|(&i, v)| w[i] = v[0]);
-            if subset == all && gain(&w) <= 16.0 {
-                return if miss(&w) < miss(&latest) { w } else { latest };
-            }
+            if subset == all && gain(&w) <= 16.0 { return if miss(&w) < miss(&latest) { w } else { latest }; }
             let score = miss(&w) + FRAME_ERROR_PX * gain(&w);
             if score < best.0 {
                 best = (score, w);
@@ -170,9 +166,7 @@ impl WarmHistory {
 pub(crate) fn solve_from(
     grid: &Grid, c: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
 ) -> (Field, SolveReport) {
-    if !warm {
-        return solve_constrained(grid, c, options, initial, &mut solver.store);
-    }
+    if !warm { return solve_constrained(grid, c, options, initial, &mut solver.store); }
     let given = initial.map(|f| f.to_field());
     let start = solver.history.start(grid, c, given.as_deref());
     let (field, report) = solve_constrained(grid, c, options, start.as_deref().map(FieldView::from), &mut solver.store);

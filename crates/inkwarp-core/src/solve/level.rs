@@ -177,9 +177,7 @@ impl Fours {
     /// The fours of the stencils `ids` (into `narrow`) of the nodes with stencils of their
     /// own on the level's `runs`, as `band_residual` visits them.
     pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], runs: &Runs, wp: usize, h: usize) -> Fours {
-        if !f32::has_four_stencils() {
-            return Fours::default();
-        }
+        if !f32::has_four_stencils() { return Fours::default(); }
         let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD] };
         for r in PAD..PAD + h {
             fours.row_first[r] = fours.blocks.len() as u32;
@@ -435,9 +433,7 @@ impl Geometry {
     /// docs/dev/solver-correctness.md).
     pub fn geo_row(&self, x: usize, y: usize) -> [f64; 16] {
         let r = self.link_row(x, y);
-        if r.iter().any(|&v| v != 0.0) || !self.active[self.idx(x, y)] || self.fixed.is_none() {
-            return r;
-        }
+        if r.iter().any(|&v| v != 0.0) || !self.active[self.idx(x, y)] || self.fixed.is_none() { return r; }
         let (w, i) = (self.w, self.idx(x, y));
         // The node's links (down, up, right, left), and whether each continues straight on.
         let links = [
@@ -468,9 +464,7 @@ impl Geometry {
     fn link_row(&self, x: usize, y: usize) -> [f64; 16] {
         let i = self.idx(x, y);
         let mut r = [0.0; 16];
-        if !self.active[i] {
-            return r;
-        }
+        if !self.active[i] { return r; }
         match (x & 1, y & 1) {
             (0, 0) => r[5] = 1.0,
             (1, 0) => r = self.along(x, y, false, 0),
@@ -570,9 +564,7 @@ impl Geometry {
     /// The weight of coarse node (xc, yc) in the row of node (x, y).
     pub fn weight(&self, x: usize, y: usize, xc: usize, yc: usize) -> f64 {
         let (ox, oy) = (xc as isize - (x / 2) as isize, yc as isize - (y / 2) as isize);
-        if !(-1..3).contains(&ox) || !(-1..3).contains(&oy) {
-            return 0.0;
-        }
+        if !(-1..3).contains(&ox) || !(-1..3).contains(&oy) { return 0.0; }
         let mut w = 0.0;
         self.p_row(x, y, |a, b, v| if (a, b) == (ox, oy) { w = v });
         w
@@ -731,9 +723,7 @@ impl Sym {
         let mut c = [0.0; 5];
         for (k, class) in classes.iter().enumerate() {
             c[k] = class.iter().map(|&(dy, dx)| at(dy, dx)).sum::<f64>() / class.len() as f64;
-            if class.iter().any(|&(dy, dx)| (at(dy, dx) - c[k]).abs() > 1e-13 * scale) {
-                return None;
-            }
+            if class.iter().any(|&(dy, dx)| (at(dy, dx) - c[k]).abs() > 1e-13 * scale) { return None; }
         }
         Some(Sym(c))
     }
@@ -797,9 +787,7 @@ impl Level {
         let (mut inv_diag, mut lam_max) = (vec![0.0; n], 0.0f64);
         for p in nodes().map(|(x, y)| (y + PAD) * wp + x + PAD) {
             let has = |q: usize, b: u8| flags[q] & b != 0;
-            if !has(p, bit::FREE) {
-                continue;
-            }
+            if !has(p, bit::FREE) { continue; }
             if [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
                 && [p - wp, p, p + wp].iter().all(|&q| has(q, bit::VTRI))
                 && [p, p - 1, p - wp, p - wp - 1].iter().all(|&q| has(q, bit::CELL))
@@ -868,9 +856,7 @@ impl Level {
         }
         let wide = |k: usize| size[k] > 4 * edges[k] && !border[k];
         let fill: Vec<bool> = (0..w * h).map(|i| !g.active[i] && wide(hole[i] as usize)).collect();
-        if !fill.contains(&true) {
-            return self;
-        }
+        if !fill.contains(&true) { return self; }
         let active: Vec<bool> = (0..w * h).map(|i| g.active[i] || fill[i]).collect();
         let right = (0..w * h).map(|i| g.right[i] || (i % w + 1 < w && (fill[i] || fill[i + 1]) && active[i] && active[i + 1])).collect();
         let down = (0..w * h).map(|i| g.down[i] || (i + w < w * h && (fill[i] || fill[i + w]) && active[i] && active[i + w])).collect();
@@ -1029,9 +1015,7 @@ impl Level {
             let r0 = b * PAR_ROWS + PAD;
             band(r0, r0 + chunk.len() / wp, chunk)
         }).collect();
-        if max {
-            return [parts.iter().fold(0.0, |m, p| larger(m, p[0])), 0.0];
-        }
+        if max { return [parts.iter().fold(0.0, |m, p| larger(m, p[0])), 0.0]; }
         parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
     }
 
@@ -1417,9 +1401,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let build_row = |yc: usize| -> RowOut {
         let (mut own, mut far) = (Vec::new(), Vec::new());
         let irregular: Vec<usize> = (0..wc).filter(|&xc| geo.active[yc * wc + xc] && !regular(xc, yc)).collect();
-        if irregular.is_empty() {
-            return (own, far);
-        }
+        if irregular.is_empty() { return (own, far); }
         // A P for the fine rows of this coarse row's children, once per needed fine node.
         let rows = fine.geo.children(yc, fh);
         let y_lo = *rows.start();
@@ -1436,9 +1418,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
                 for iy in rows.clone() {
                     for ix in fine.geo.children(xc, fw) {
                         let wi = fine.geo.weight(ix, iy, xc, yc);
-                        if wi == 0.0 {
-                            continue;
-                        }
+                        if wi == 0.0 { continue; }
                         let k = (iy - y_lo) * fw + ix;
                         if slot[k] == u32::MAX {
                             slot[k] = ap.len() as u32;
@@ -1518,9 +1498,7 @@ pub(crate) fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
     for iy in fine.geo.children(yc, fh) {
         for ix in fine.geo.children(xc, fw) {
             let wi = fine.geo.weight(ix, iy, xc, yc);
-            if wi == 0.0 {
-                continue;
-            }
+            if wi == 0.0 { continue; }
             fine.taps(fine.pidx(ix, iy), |q, a| {
                 let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
                 let (cjx, cjy) = ((jx / 2) as isize - xc as isize, (jy / 2) as isize - yc as isize);
@@ -1559,9 +1537,7 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
         for ix in g.children(xc, fw) {
             let (bx, by) = (xc - ix / 2, yc - iy / 2);
             let wi = WEIGHTS[g.prow[iy * fw + ix][by * 2 + bx] as usize];
-            if wi == 0.0 {
-                continue;
-            }
+            if wi == 0.0 { continue; }
             let k = (iy - y_lo) * fw + ix;
             if slot[k] == u32::MAX {
                 slot[k] = dense.len() as u32;
@@ -1655,9 +1631,7 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
                 let prow = &fine.geo.prow[iy * fw..(iy + 1) * fw];
                 for ix in 0..fw {
                     let r = v[fine.pidx(ix, iy)].map(widened::<S, T>);
-                    if r == zero || prow[ix][0] == EXT {
-                        continue;
-                    }
+                    if r == zero || prow[ix][0] == EXT { continue; }
                     let cx = ix / 2;
                     for sx in 0..2 {
                         let wv = prow[ix][sy * 2 + sx];
@@ -1676,9 +1650,7 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
             let (ix, iy) = (*i as usize % fw, *i as usize / fw);
             let r = v[fine.pidx(ix, iy)].map(widened::<S, T>);
             let oy = yc as isize - (iy / 2) as isize;
-            if r == zero || !(-1..3).contains(&oy) || fine.geo.prow[*i as usize][0] != EXT {
-                continue;
-            }
+            if r == zero || !(-1..3).contains(&oy) || fine.geo.prow[*i as usize][0] != EXT { continue; }
             for (s, &wv) in row[((oy + 1) * 4) as usize..((oy + 2) * 4) as usize].iter().enumerate().filter(|e| *e.1 != 0.0) {
                 let (o, wv) = (&mut acc[ix / 2 + s - 1], T::of(wv));
                 *o = [o[0] + wv * r[0], o[1] + wv * r[1]];

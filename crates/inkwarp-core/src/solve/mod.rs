@@ -1,42 +1,21 @@
 //! The discrete thin plate (DESIGN §4) and its multigrid solver.
 //!
-//! For a scalar field `u` on the active nodes of a [`Grid`]:
-//!
-//! ```text
-//! E_plate(u) =   Σ horizontal triples with both links   (u[p−] − 2u[p] + u[p+])²
-//!              + Σ vertical triples with both links     (same)
-//!              + 2 Σ 2×2 cells with all four links       (u00 − u10 − u01 + u11)²
-//! E_membrane(u) = Σ links (u[p] − u[q])²
-//! E = E_plate + τ · E_membrane
-//! ```
-//!
-//! [`solve`] minimises `E` for Δx and Δy (one matrix, solved together) with the nodes that
-//! carry samples fixed ([`crate::grid::constrain`]). Where the minimiser is not unique it
-//! returns the limit τ → 0⁺, piece by piece (a piece is a connected component of the links):
-//!
-//! - a piece with no constraint does not move;
-//! - a piece with one constrained node translates with it (for any τ);
-//! - at τ = 0, a piece whose constrained nodes lie on one line L: `E_plate` is unchanged by
-//!   adding any affine function, so its minimisers are `u₀ + c·ℓ` with `ℓ` the affine
-//!   function that vanishes on L; the solver pins one extra node off L, solves, and then
-//!   picks `c` minimising `E_membrane` in closed form,
-//!   `c = −⟨u₀, ℓ⟩ / ⟨ℓ, ℓ⟩` with `⟨a, b⟩ = Σ_links (a_p − a_q)(b_p − b_q)`.
-//!
-//! Pieces whose plate energy vanishes on more than the affine functions (two parts joined
-//! only by a one-node-wide corridor, a staircase of links with no straight triple) have a
-//! plate minimiser that the constraints may not pin; there the solver returns the minimiser
-//! its iteration reaches. Any tension τ > 0 makes every constrained piece unique.
-//!
-//! # The multigrid
+//! [`solve`] minimises `E = E_plate + τ E_membrane` on the active nodes of a [`Grid`] for
+//! Δx and Δy (one matrix, solved together) with the nodes that carry samples fixed
+//! ([`crate::grid::constrain`]). Where the minimiser is not unique it returns the limit
+//! τ → 0⁺, piece by piece (a piece is a connected component of the links): a piece with
+//! no constraint does not move, one with one constrained node translates with it, and the
+//! free functions of the plate energy (the tilt about a line holding every constraint, the
+//! parts joined by one node) are settled to their least membrane energy ([`nullspace`]).
 //!
 //! Every piece left to the iteration is solved apart, on the box around it, by a flexible
 //! conjugate gradient on the finest level preconditioned by a geometric multigrid cycle
 //! (link-aware prolongation, Galerkin coarse operators, Chebyshev–Jacobi smoothing, K-cycles,
-//! a banded Cholesky coarsest solve, a second coarse space on torn grids, exact solves of the
-//! thin parts: [`strands`]) after a coarse-to-fine start. Free functions of the plate energy
-//! are settled to the τ → 0⁺ limit afterwards ([`nullspace`]). `docs/concepts/thin-plate.md`
-//! explains the choices; `docs/dev/ablation.md` measures each optional mechanism. The
-//! hierarchies a later solve can reuse are kept by the caller's [`Solver`], never by the process.
+//! a banded Cholesky coarsest solve, a second coarse space and the affine functions on torn
+//! grids, exact solves of the thin parts: [`strands`]) after a coarse-to-fine start.
+//! `docs/concepts/thin-plate.md` explains the choices; `docs/dev/ablation.md` measures each
+//! optional mechanism. The hierarchies a later solve can reuse are kept by the caller's
+//! [`Solver`], never by the process.
 
 mod cycle;
 mod deflate;
@@ -97,7 +76,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 7] = ["second", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands"];
+    pub const NAMES: [&'static str; 8] = ["second", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -434,9 +413,7 @@ fn settle_null_space(
             settled = all && report.converged;
             break;
         }
-        if round == ROUNDS || report.cycles >= budget {
-            break;
-        }
+        if round == ROUNDS || report.cycles >= budget { break; }
         before.clone_from(&dense);
         let (dx, dy) = dense.iter().map(|v| (v[0] as f32, v[1] as f32)).unzip();
         let field = Field { width: w, height: h, dx, dy };
@@ -478,9 +455,7 @@ impl BoxLinks {
 /// Piece `l`'s grid on its box `[x0, y0, x1, y1]` ([`BoxLinks`]); on an open grid the box is
 /// the grid, and its labels are not read.
 fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4], open: bool) -> BoxLinks {
-    if open {
-        return BoxLinks::Open;
-    }
+    if open { return BoxLinks::Open; }
     let (w, bw, bh) = (grid.width, x1 - x0, y1 - y0);
     let (mut active, mut right, mut down) = (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh]);
     // Without short-circuits, so that the passes vectorise (every solve builds its key).
@@ -563,6 +538,9 @@ fn solve_piece(
                 hier.level_strands = hier.levels.iter().enumerate().map(|(k, l)| if k == 0 || k + 1 == hier.levels.len() { None } else { strands::Strands::new(l) }).collect();
             }
         }
+        if torn && !key.off.has("affine") {
+            hier.affine = cycle::Affine::new(&hier.levels[0]);
+        }
         if key.off.has("fours") {
             hier.levels.iter_mut().chain(hier.alt.iter_mut().flat_map(|a| a.levels.iter_mut())).for_each(Level::drop_fours);
         }
@@ -629,8 +607,11 @@ fn solve_piece(
     // which neither the ratios nor the Lanczos floor tell a rate (they kept it going).
     let direct = hier.levels.len() == 1 && hier.dropped() <= settled.map_or(0, |m| m.len());
     // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
-    // slow mode that the first step barely moved hides behind a small change.
+    // slow mode that the first step barely moved hides behind a small change. A piece whose
+    // constraints leave an affine motion nearly free (`cycle::Affine`) leaves its parts'
+    // rigid motions nearly free too: it waits for the deflation's first look at them.
     let first_may_stop = !hier.torn || warm || direct;
+    let first_stop = if hier.affine.is_some() { deflate::FIRST_LOOK } else { 1 };
     let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, floor: f64| {
         (report.cycles, report.final_change_px) = (cycle, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-gradient steps
@@ -641,7 +622,7 @@ fn solve_piece(
         ratios = [ratios[1], ratio];
         let rho = if direct { 0.0 } else { ratios.iter().fold(floor, |a, &b| a.max(b)) };
         last_change = change;
-        (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
+        (cycle > 1 || first_may_stop) && cycle >= first_stop && change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
     };
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
     // concept doc's Precision).
@@ -658,9 +639,7 @@ fn solve_piece(
             let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref());
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn);
             for cycle in 1..=options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) {
-                if crate::interrupt::requested() {
-                    break;
-                }
+                if crate::interrupt::requested() { break; }
                 // Once deflation or the settling projects the directions, p is no longer
                 // z + βp_old and rᵀz can be far from pᵀr (the cycle magnifies the near-null
                 // modes that the projection takes out): the step is then the exact line
@@ -1040,9 +1019,7 @@ fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64
             den += l * l;
         }
     }
-    if den == 0.0 {
-        return;
-    }
+    if den == 0.0 { return; }
     let c = [-num[0] / den, -num[1] / den];
     for (x, y) in nodes() {
         let l = cross(a, d, [x as i64, y as i64]) as f64;
@@ -1056,9 +1033,7 @@ pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<
     let k = m.len();
     for col in 0..k {
         let piv = (col..k).max_by(|&p, &q| m[p][col].abs().total_cmp(&m[q][col].abs()))?;
-        if m[piv][col].abs() < 1e-300 {
-            return None;
-        }
+        if m[piv][col].abs() < 1e-300 { return None; }
         m.swap(col, piv);
         rhs.swap(col, piv);
         for r in col + 1..k {
@@ -1090,9 +1065,7 @@ const CHUNK: usize = 16_384;
 /// and no step, when the direction or its product overflowed.
 fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [V2], rz: [f64; 2]) -> (f64, [f64; 2]) {
     let pq = hier.levels[0].fine_residual_dot_narrow(p, q);
-    if !pq.iter().chain(&rz).all(|v| v.is_finite()) {
-        return (f64::NAN, [0.0; 2]);
-    }
+    if !pq.iter().chain(&rz).all(|v| v.is_finite()) { return (f64::NAN, [0.0; 2]); }
     let alpha = [0, 1].map(|k| if pq[k] < 0.0 { -rz[k] / pq[k] } else { 0.0 });
     let chunks = u.par_chunks_mut(CHUNK).zip(r.par_chunks_mut(CHUNK)).zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)));
     let change = chunks.map(|((u, r), (p, q))| {
@@ -1129,9 +1102,7 @@ impl<'m> Settled<'m> {
     /// `None` where a block cannot be settled (more than `nullspace::MAX_BLOCK` functions,
     /// or singular): there the iteration runs unprojected.
     fn new(membrane: &'m nullspace::Membrane, level: &Level) -> Option<Self> {
-        if !membrane.settles_all() {
-            return None;
-        }
+        if !membrane.settles_all() { return None; }
         let w = level.geo.w;
         let mut nodes = membrane.support();
         nodes.sort_unstable();

@@ -196,9 +196,7 @@ impl Echelon {
         while let Some(Reverse(p)) = heap.pop() {
             let (pc, ref prow) = self.rows[p as usize];
             let f = self.acc[pc];
-            if f == 0.0 {
-                continue;
-            }
+            if f == 0.0 { continue; }
             for &(c, v) in prow {
                 visit(c, &mut heap);
                 self.acc[c] -= f * v;
@@ -225,9 +223,7 @@ impl Echelon {
         use std::collections::BinaryHeap;
         let vars = self.pivot_of.len();
         let free: Vec<usize> = (0..vars).filter(|&c| self.pivot_of[c] == u32::MAX).collect();
-        if free.len() > max {
-            return None;
-        }
+        if free.len() > max { return None; }
         let mut readers: Vec<Vec<u32>> = vec![Vec::new(); vars];
         for (r, (pc, prow)) in self.rows.iter().enumerate() {
             for &(c, _) in prow.iter().filter(|&&(c, _)| c != *pc) {
@@ -428,9 +424,7 @@ fn cholesky(m: Vec<Vec<f64>>) -> Option<Vec<f64>> {
             let row_j = j * (j + 1) / 2;
             let s = (0..j).fold(m[i][j], |s, k| s - l[start + k] * l[row_j + k]);
             if i == j {
-                if !(s > 1e-12 * m[i][i]) {
-                    return None;
-                }
+                if !(s > 1e-12 * m[i][i]) { return None; }
                 l.push(s.sqrt());
             } else {
                 l.push(s / l[row_j + j]);

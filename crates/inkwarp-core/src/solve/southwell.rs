@@ -23,14 +23,10 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize, unknowns: usize)
         // A quarter of the unknowns a pass; a remainder under two quarters goes in one.
         let quarter = (unknowns / 4).max(1);
         let k = (if left < 2 * quarter { left } else { quarter }).min(drops.len());
-        if k == 0 {
-            return (largest, true);
-        }
+        if k == 0 { return (largest, true); }
         let (_, &mut kth, _) = drops.select_nth_unstable_by(k - 1, |a, b| b.total_cmp(a));
         // Fewer than k nodes have any drop at all: relax those that do.
-        if kth <= 0.0 && drops.iter().all(|&e| e <= 0.0) {
-            return (largest, true);
-        }
+        if kth <= 0.0 && drops.iter().all(|&e| e <= 0.0) { return (largest, true); }
         let threshold = kth.max(f64::MIN_POSITIVE);
         left -= k;
         let mut relaxed = 0;
@@ -38,27 +34,21 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize, unknowns: usize)
             for x in 0..w {
                 let p = (y + PAD) * level.wp + x + PAD;
                 let d = level.inv_diag[p];
-                if d == 0.0 {
-                    continue;
-                }
+                if d == 0.0 { continue; }
                 let ri = level.fine_residual_at(u, p);
                 if (ri[0] * ri[0] + ri[1] * ri[1]) * d >= threshold {
                     u[p][0] += ri[0] * d;
                     u[p][1] += ri[1] * d;
                     largest = largest.max((ri[0] * d).abs()).max((ri[1] * d).abs());
                     relaxed += 1;
-                    if relaxed == k {
-                        break 'pass;
-                    }
+                    if relaxed == k { break 'pass; }
                 }
             }
         }
         // The largest drops can vanish before their nodes are reached (their neighbours
         // were relaxed first, or they are rounding noise): a pass that relaxes nothing
         // ends the relaxation, without a claim about the error left.
-        if relaxed == 0 {
-            return (largest, false);
-        }
+        if relaxed == 0 { return (largest, false); }
     }
     (largest, false)
 }

@@ -1,18 +1,13 @@
 //! Exact solves on the thin parts of a piece: strands, teeth, slivers between cuts.
 //!
-//! A part a few pixels wide bends almost freely, and the geometric coarse levels, whose
-//! nodes are 2ᵏ pixels apart, do not see it: its bending is a slow mode of every cycle, and
-//! more of them, slower, the longer it is. Such parts are nearly one-dimensional, so their
-//! own system is cheap to solve exactly: the preconditioner solves every connected set of
-//! thin nodes with the rest held (a block of symmetric Gauss–Seidel), before and after the
-//! cycle. The part then follows whatever the cycle does to what it hangs on, as the
-//! minimiser would.
-//!
-//! A node is *thin* when its run of linked nodes along the row or along the column is at
-//! most [`THIN`] long. Each connected set is ordered by reverse Cuthill–McKee and factored
-//! as `L D Lᵀ` within its envelope (its diagonal raised by [`SHIFT`]); a pivot that
-//! vanishes (a set with a free function of its own, at τ = 0) is dropped, which leaves
-//! that function to the cycle and the kernel settlement.
+//! A part a few pixels wide bends almost freely and the coarse levels, whose nodes are 2ᵏ
+//! pixels apart, do not see it: its bending is a slow mode of every cycle. Being nearly
+//! one-dimensional, its own system is cheap to solve exactly, so the preconditioner solves
+//! every connected set of *thin* nodes (a run of linked nodes along the row or the column
+//! at most [`THIN`] long) with the rest held, before and after the cycle (block symmetric
+//! Gauss–Seidel). Each set is ordered by reverse Cuthill–McKee and factored as `L D Lᵀ`
+//! within its envelope (its diagonal raised by [`SHIFT`]); a vanishing pivot (a free
+//! function of the set, at τ = 0) is dropped, leaving it to the cycle and the settling.
 
 use super::level::{bit, Level, Operator, Real, V2, W2, WS};
 
@@ -67,9 +62,7 @@ impl Strands {
                 thin_nodes(level, |p, i| g.right[i] && d[p] != 0.0 && d[p + 1] != 0.0, |p, i| g.down[i] && d[p] != 0.0 && d[p + wp] != 0.0)
             }
         };
-        if !thin.contains(&true) {
-            return None;
-        }
+        if !thin.contains(&true) { return None; }
         let neighbours = |p: usize, out: &mut Vec<usize>| {
             out.clear();
             level.taps(p, |q, _| {
@@ -80,9 +73,7 @@ impl Strands {
         };
         let (mut seen, mut nodes, mut starts) = (vec![false; thin.len()], Vec::new(), Vec::new());
         for s in 0..thin.len() {
-            if !thin[s] || seen[s] {
-                continue;
-            }
+            if !thin[s] || seen[s] { continue; }
             // The component, then a pseudo-peripheral start (the last node of a
             // breadth-first search from it) and the Cuthill–McKee order from there.
             let comp = bfs(s, &mut seen, neighbours);
@@ -111,9 +102,7 @@ impl Strands {
                 at.push(taps.len());
             }
         }
-        if kept.is_empty() {
-            return None;
-        }
+        if kept.is_empty() { return None; }
         Some(Strands { first_pass: vec![[0.0; 2]; kept.len()], nodes: kept, taps, at, blocks })
     }
 
@@ -247,9 +236,7 @@ impl Block {
             at.push(at[i] + i + 1 - first[i] as usize);
         }
         let total = at[n];
-        if total > BAND * n {
-            return None;
-        }
+        if total > BAND * n { return None; }
         let (mut l, mut diag) = (vec![0.0; total], vec![0.0; n]);
         for i in 0..n {
             for &(j, a) in &entries[i] {

@@ -6,18 +6,14 @@
 //! straight path between them is. A sample constrains the nearest coarse node. The tension
 //! is scaled by s² so that the coarse energy approximates the same continuous energy.
 //!
-//! Upsampling is Catmull-Rom (interpolating, so coarse values are kept) in x and y. A pixel
-//! uses only the coarse nodes of its 4 × 4 window that it reaches through links without
-//! leaving the window's block of pixels: a cut or a hole between a pixel and a node drops
-//! that node even where the two are joined far around (the two sides of a cut with free
-//! ends, a tear, are one piece; only this keeps the tear open). Weights of the dropped nodes
-//! are dropped and the rest renormalised (falling back to bilinear from the inner 2 × 2,
-//! then to the nearest value along the links). A piece that holds no coarse node takes the
-//! mean displacement of its samples, or stays at zero without any.
-//!
-//! The editor's drag path, built for speed (`docs/dev/multigrid.md`, "`grid_step` and
-//! Southwell"); a test holds it to the straightforward per-pixel loop (to within the
-//! rounding of the sums' order).
+//! Upsampling is Catmull-Rom (interpolating) in x and y. A pixel uses only the coarse
+//! nodes of its 4 × 4 window that it reaches through links without leaving the window's
+//! block of pixels (so a tear stays open even where its sides are joined far around); the
+//! weights of the dropped nodes are dropped and the rest renormalised (falling back to
+//! bilinear from the inner 2 × 2, then to the nearest value along the links). A piece with
+//! no coarse node takes the mean displacement of its samples, or stays at zero without any.
+//! The editor's drag path, built for speed (`docs/dev/multigrid.md`); a test holds it to
+//! the straightforward per-pixel loop (to within the rounding of the sums' order).
 
 use std::collections::VecDeque;
 
@@ -91,9 +87,7 @@ impl Upsampling {
     /// field `fc`: zero for an inactive pixel, `None` where its window has no usable node
     /// (the full upsampling then fills it along the links).
     fn at(&self, grid: &Grid, fc: &Field, i: usize) -> Option<[f32; 2]> {
-        if !grid.active[i] {
-            return Some([0.0; 2]);
-        }
+        if !grid.active[i] { return Some([0.0; 2]); }
         let l = &self.layout;
         let (x, y) = (i % l.w, i / l.w);
         let (tx, ty) = (&self.cols[x], &self.rows[y]);
@@ -145,9 +139,7 @@ impl Layout {
     /// at pixels `pos(0..nc)` (so a sample goes to the coarse node nearest to it, in the
     /// last, shorter cell too).
     fn coarse(&self, x: f64, nc: usize, pos: impl Fn(usize) -> usize) -> f64 {
-        if nc < 2 {
-            return 0.0;
-        }
+        if nc < 2 { return 0.0; }
         let (c, t) = cell_of(x, self.s, nc, pos);
         c as f64 + t
     }
@@ -155,9 +147,7 @@ impl Layout {
     /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's
     /// pixels) from the cell's `masks` ([`cell_masks`]; empty where the window is whole).
     fn mask(&self, masks: &[u16], cx: usize, cy: usize, x: usize, y: usize) -> u16 {
-        if masks.is_empty() {
-            return ALL_TAPS;
-        }
+        if masks.is_empty() { return ALL_TAPS; }
         let ix0 = self.px(cx);
         masks[(y - self.py(cy)) * (self.px((cx + 1).min(self.wc - 1)) - ix0 + 1) + (x - ix0)]
     }
@@ -293,9 +283,7 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
     for y in iy0..=iy1 {
         for x in ix0..=ix1 {
             let b = (y - by0) * bw + (x - bx0);
-            if !grid.active[grid.index(x, y)] || label[b] != u32::MAX {
-                continue;
-            }
+            if !grid.active[grid.index(x, y)] || label[b] != u32::MAX { continue; }
             label[b] = count;
             stack.push(b);
             while let Some(b) = stack.pop() {
@@ -345,9 +333,7 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
 /// where their weights fall short; `None` where neither has a usable node.
 fn window_value(fc: &Field, ty: &Taps, tx: &Taps, mask: u16) -> Option<[f32; 2]> {
     let [x, y, sum] = window_sum(fc, ty, tx, mask, |t, k| Some(t.weights[k]));
-    if sum >= 0.5 {
-        return Some([(x / sum) as f32, (y / sum) as f32]);
-    }
+    if sum >= 0.5 { return Some([(x / sum) as f32, (y / sum) as f32]); }
     let [x, y, sum] = window_sum(fc, ty, tx, mask, |t, k| (1..3).contains(&k).then(|| t.linear(k)));
     (sum > 1e-9).then(|| [(x / sum) as f32, (y / sum) as f32])
 }
@@ -361,9 +347,7 @@ fn window_sum(fc: &Field, ty: &Taps, tx: &Taps, mask: u16, weight: impl Fn(&Taps
         let Some(wy) = weight(ty, kb) else { continue };
         for a in 0..tx.len {
             let ka = tx.slot[a] as usize;
-            if mask & (1 << (4 * kb + ka)) == 0 {
-                continue;
-            }
+            if mask & (1 << (4 * kb + ka)) == 0 { continue; }
             let Some(wx) = weight(tx, ka) else { continue };
             let (c, wv) = (row + tx.at[a], wx * wy);
             acc = [acc[0] + wv * fc.dx[c] as f64, acc[1] + wv * fc.dy[c] as f64, acc[2] + wv];
@@ -444,9 +428,7 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
     let (mut field, mut resolved) = (Field::zeros(w, h), vec![false; w * h]);
     let chunks = field.dx.par_chunks_mut(w).zip(field.dy.par_chunks_mut(w)).zip(resolved.par_chunks_mut(w)).enumerate();
     let unresolved: usize = chunks.map_init(Vec::new, |along, (y, ((dx, dy), r))| upsample_row(y, dx, dy, r, along)).sum();
-    if unresolved == 0 {
-        return field;
-    }
+    if unresolved == 0 { return field; }
     // Pixels left over: nearest resolved value along the links, breadth first from the
     // resolved pixels in index order. Only those next to an unresolved pixel can pass a
     // value on (the others would leave the queue without effect), so only they start it.

@@ -1,16 +1,10 @@
-//! The solver's hottest loops on the processor's widest vectors.
-//!
-//! The build targets plain x86-64 (128-bit vectors); most x86-64 processors since 2013–2015
-//! have 256-bit ones (AVX2, with FMA). The stencil products of every level, the transfers'
-//! plain rows, the smoothing steps' updates, and the levels' dot products and scaled maxima
-//! vectorise across nodes, so [`widest!`] gives each a second copy compiled for AVX2, run
-//! where the processor has it (checked at run time). Both copies do the same operations in
-//! the same order (no multiply is fused with its add unless written so), so the results are
-//! bit for bit the same. One loop the compiler did not vectorise is written out with AVX2
-//! instructions (`Real::four_run` in `level`: four coarse nodes with stencils of their own
-//! on one vector, their coefficients laid out tap by tap in `level::Fours`); both copies
-//! call it where the processor has AVX2, so a test holds it to the plain sums node by node.
-//! What keeps a body scalar: `docs/dev/ablation.md`, "Kernels".
+//! The solver's hottest loops on the processor's widest vectors. The build targets plain
+//! x86-64; [`widest!`] gives each stencil product, transfer, smoothing update, dot product
+//! and scaled maximum a second copy compiled for AVX2 with FMA, run where the processor has
+//! it (checked at run time). Both copies do the same operations in the same order, so the
+//! results are bit for bit the same. One loop is written out with AVX2 instructions
+//! (`Real::four_run` in `level`: four coarse nodes with stencils of their own on one
+//! vector); a test holds it to the plain sums. See `docs/dev/ablation.md`, "Kernels".
 
 /// Whether the processor has AVX2 and FMA (the standard library caches the answer).
 #[cfg(target_arch = "x86_64")]
