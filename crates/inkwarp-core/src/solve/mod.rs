@@ -538,7 +538,7 @@ fn solve_piece(
                 hier.level_strands = hier.levels.iter().enumerate().map(|(k, l)| if k == 0 || k + 1 == hier.levels.len() { None } else { strands::Strands::new(l) }).collect();
             }
         }
-        if torn && !key.off.has("affine") {
+        if torn && settled.is_none() && !key.off.has("affine") {
             hier.affine = cycle::Affine::new(&hier.levels[0]);
         }
         if key.off.has("fours") {
@@ -609,9 +609,9 @@ fn solve_piece(
     // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
     // slow mode that the first step barely moved hides behind a small change. A piece whose
     // constraints leave an affine motion nearly free (`cycle::Affine`) leaves its parts'
-    // rigid motions nearly free too: it waits for the deflation's first look at them.
+    // rigid motions nearly free too: cold, it waits for the deflation's first look at them.
     let first_may_stop = !hier.torn || warm || direct;
-    let first_stop = if hier.affine.is_some() { deflate::FIRST_LOOK } else { 1 };
+    let first_stop = if hier.affine.is_some() && !warm { deflate::FIRST_LOOK } else { 1 };
     let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, floor: f64| {
         (report.cycles, report.final_change_px) = (cycle, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-gradient steps
