@@ -313,15 +313,20 @@ fn affine_at(level: &Level, p: usize) -> [f64; 3] {
 impl Affine {
     /// `None` unless the constraints leave an affine motion nearly free (but not free: a
     /// free function is the settling's, see `nullspace`).
-    pub fn new(level: &Level) -> Option<Affine> {
-        let len = level.len_padded();
-        let w = |k: usize, p: usize| if level.inv_diag[p] == 0.0 { 0.0 } else { affine_at(level, p)[k] };
-        let (mut x, mut q, mut e) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len], vec![vec![0.0; 3]; 3]);
-        for pair in [[0, 1], [2, 2]] {
-            x.iter_mut().enumerate().for_each(|(p, v)| *v = [w(pair[0], p), w(pair[1], p)]);
-            level.residual(&x, None, &mut q); // −A W, exact but for the tension's terms
-            for (c, &j) in pair.iter().enumerate() {
-                (0..3).for_each(|i| e[i][j] = -(0..len).map(|p| w(i, p) * q[p][c]).sum::<f64>());
+    pub fn new(level: &Level, x: &mut [V2], q: &mut [V2]) -> Option<Affine> {
+        let w = |p: usize| if level.inv_diag[p] == 0.0 { [0.0; 3] } else { affine_at(level, p) };
+        let mut e = vec![vec![0.0; 3]; 3];
+        for pair in [[1, 2], [0, 0]] {
+            x.par_iter_mut().enumerate().for_each(|(p, v)| *v = [w(p)[pair[0]], w(p)[pair[1]]]);
+            level.residual(x, None, q); // −A W, exact but for the tension's terms
+            let parts: Vec<[V2; 3]> = q.par_chunks(PASS_CHUNK).enumerate().map(|(c, q)| {
+                q.iter().enumerate().fold([[0.0; 2]; 3], |s, (j, q)| {
+                    let v = w(c * PASS_CHUNK + j);
+                    std::array::from_fn(|i| [s[i][0] - v[i] * q[0], s[i][1] - v[i] * q[1]])
+                })
+            }).collect();
+            for (i, row) in e.iter_mut().enumerate() {
+                (row[pair[0]], row[pair[1]]) = parts.iter().fold((0.0, 0.0), |s, t| (s.0 + t[i][0], s.1 + t[i][1]));
             }
         }
         // E for W scaled to 1 at the edges: det / (sum of the principal 2 × 2 minors) lies

@@ -539,7 +539,10 @@ fn solve_piece(
             }
         }
         if torn && settled.is_none() && !key.off.has("affine") {
-            hier.affine = cycle::Affine::new(&hier.levels[0]);
+            // Its two vectors become the solve's residual and product below.
+            let (mut x, mut q) = (vec![[0.0; 2]; hier.levels[0].len_padded()], vec![[0.0; 2]; hier.levels[0].len_padded()]);
+            hier.affine = cycle::Affine::new(&hier.levels[0], &mut x, &mut q);
+            hier.spare.extend([x, q]);
         }
         if key.off.has("fours") {
             hier.levels.iter_mut().chain(hier.alt.iter_mut().flat_map(|a| a.levels.iter_mut())).for_each(Level::drop_fours);
