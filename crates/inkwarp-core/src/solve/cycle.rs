@@ -305,28 +305,35 @@ pub(crate) struct Affine(Vec<Vec<f64>>);
 /// constrained nodes by about 1/50 of its size).
 const AFFINE_WEAK: f64 = 1e-2;
 
-/// `W`'s values at padded node `p` of `level` (small integers: exact in `f32`).
+/// `W`'s values at padded node `p` of `level`: small integers (exact in `f32`), zero off
+/// the unknowns.
 fn affine_at(level: &Level, p: usize) -> [f64; 3] {
+    if level.inv_diag_w[p] == 0.0 { return [0.0; 3]; }
     [1.0, (p % level.wp) as f64 - (level.geo.w / 2 + PAD) as f64, (p / level.wp) as f64 - (level.geo.h / 2 + PAD) as f64]
+}
+
+/// `Wᵀ v` per component, the chunks' sums added in order.
+fn affine_sums(level: &Level, v: &[V2]) -> [V2; 3] {
+    let parts: Vec<[V2; 3]> = v.par_chunks(PASS_CHUNK).enumerate().map(|(c, v)| {
+        v.iter().enumerate().fold([[0.0; 2]; 3], |s, (j, v)| {
+            let w = affine_at(level, c * PASS_CHUNK + j);
+            std::array::from_fn(|i| [s[i][0] + w[i] * v[0], s[i][1] + w[i] * v[1]])
+        })
+    }).collect();
+    parts.iter().fold([[0.0; 2]; 3], |s, t| std::array::from_fn(|i| [s[i][0] + t[i][0], s[i][1] + t[i][1]]))
 }
 
 impl Affine {
     /// `None` unless the constraints leave an affine motion nearly free (but not free: a
-    /// free function is the settling's, see `nullspace`).
+    /// free function is the settling's, see `nullspace`). `x` and `q` are scratch.
     pub fn new(level: &Level, x: &mut [V2], q: &mut [V2]) -> Option<Affine> {
-        let w = |p: usize| if level.inv_diag[p] == 0.0 { [0.0; 3] } else { affine_at(level, p) };
         let mut e = vec![vec![0.0; 3]; 3];
         for pair in [[1, 2], [0, 0]] {
-            x.par_iter_mut().enumerate().for_each(|(p, v)| *v = [w(p)[pair[0]], w(p)[pair[1]]]);
+            x.par_iter_mut().enumerate().for_each(|(p, v)| { let w = affine_at(level, p); *v = [w[pair[0]], w[pair[1]]] });
             level.residual(x, None, q); // −A W, exact but for the tension's terms
-            let parts: Vec<[V2; 3]> = q.par_chunks(PASS_CHUNK).enumerate().map(|(c, q)| {
-                q.iter().enumerate().fold([[0.0; 2]; 3], |s, (j, q)| {
-                    let v = w(c * PASS_CHUNK + j);
-                    std::array::from_fn(|i| [s[i][0] - v[i] * q[0], s[i][1] - v[i] * q[1]])
-                })
-            }).collect();
+            let s = affine_sums(level, q);
             for (i, row) in e.iter_mut().enumerate() {
-                (row[pair[0]], row[pair[1]]) = parts.iter().fold((0.0, 0.0), |s, t| (s.0 + t[i][0], s.1 + t[i][1]));
+                (row[pair[0]], row[pair[1]]) = (-s[i][0], -s[i][1]);
             }
         }
         // E for W scaled to 1 at the edges: det / (sum of the principal 2 × 2 minors) lies
@@ -341,15 +348,13 @@ impl Affine {
 
     /// `z += W E⁻¹ Wᵀ r` (each component) on the unknowns.
     fn add(&self, level: &Level, r: &[V2], z: &mut [W2]) {
-        let unknowns = |c: usize, d: &[WS]| (0..d.len()).filter(|&j| d[j] != 0.0).map(|j| (j, affine_at(level, c * PASS_CHUNK + j))).collect::<Vec<_>>();
-        let parts: Vec<[V2; 3]> = r.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)).enumerate().map(|(c, (r, d))| {
-            unknowns(c, d).into_iter().fold([[0.0; 2]; 3], |g, (j, v)| std::array::from_fn(|i| [g[i][0] + v[i] * r[j][0], g[i][1] + v[i] * r[j][1]]))
-        }).collect();
-        let g = parts.iter().fold(vec![[0.0; 2]; 3], |s, t| (0..3).map(|i| [s[i][0] + t[i][0], s[i][1] + t[i][1]]).collect());
-        let Some(a) = super::dense_solve(self.0.clone(), g) else { return };
-        z.par_chunks_mut(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)).enumerate().for_each(|(c, (z, d))| {
-            for (j, v) in unknowns(c, d) {
-                z[j] = std::array::from_fn(|k| WS::of(z[j][k].get() + a[0][k] + a[1][k] * v[1] + a[2][k] * v[2]));
+        let Some(a) = super::dense_solve(self.0.clone(), affine_sums(level, r).to_vec()) else { return };
+        z[..r.len()].par_chunks_mut(PASS_CHUNK).enumerate().for_each(|(c, z)| {
+            for (j, z) in z.iter_mut().enumerate() {
+                let w = affine_at(level, c * PASS_CHUNK + j);
+                if w[0] != 0.0 {
+                    *z = std::array::from_fn(|k| WS::of(z[k].get() + a[0][k] + a[1][k] * w[1] + a[2][k] * w[2]));
+                }
             }
         });
     }

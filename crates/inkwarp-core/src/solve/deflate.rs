@@ -20,8 +20,6 @@ use super::level::{Level, Real, V2, W2, WS};
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
-/// The cycle of the first Rayleigh–Ritz step.
-pub(super) const FIRST_LOOK: usize = START + WINDOW;
 /// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop
 /// (see [`Deflation::rate_floor`]).
 const LOOKS: usize = 2;

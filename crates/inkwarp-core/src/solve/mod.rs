@@ -540,7 +540,7 @@ fn solve_piece(
         }
         if torn && settled.is_none() && !key.off.has("affine") {
             // Its two vectors become the solve's residual and product below.
-            let (mut x, mut q) = (vec![[0.0; 2]; hier.levels[0].len_padded()], vec![[0.0; 2]; hier.levels[0].len_padded()]);
+            let (mut x, mut q) = (cycle::zeros_in(None, hier.levels[0].len_padded()), cycle::zeros_in(None, hier.levels[0].len_padded()));
             hier.affine = cycle::Affine::new(&hier.levels[0], &mut x, &mut q);
             hier.spare.extend([x, q]);
         }
@@ -610,11 +610,8 @@ fn solve_piece(
     // which neither the ratios nor the Lanczos floor tell a rate (they kept it going).
     let direct = hier.levels.len() == 1 && hier.dropped() <= settled.map_or(0, |m| m.len());
     // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
-    // slow mode that the first step barely moved hides behind a small change. A piece whose
-    // constraints leave an affine motion nearly free (`cycle::Affine`) leaves its parts'
-    // rigid motions nearly free too: cold, it waits for the deflation's first look at them.
+    // slow mode that the first step barely moved hides behind a small change.
     let first_may_stop = !hier.torn || warm || direct;
-    let first_stop = if hier.affine.is_some() && !warm { deflate::FIRST_LOOK } else { 1 };
     let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, floor: f64| {
         (report.cycles, report.final_change_px) = (cycle, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-gradient steps
@@ -625,7 +622,7 @@ fn solve_piece(
         ratios = [ratios[1], ratio];
         let rho = if direct { 0.0 } else { ratios.iter().fold(floor, |a, &b| a.max(b)) };
         last_change = change;
-        (cycle > 1 || first_may_stop) && cycle >= first_stop && change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
+        (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
     };
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
     // concept doc's Precision).
