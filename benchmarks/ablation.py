@@ -13,7 +13,8 @@ Problems: 513×513 with 10, 100, 1000 and 4000 random points, cold (no start) an
 `ratios.py`), frames of an animation through a `WarmStart` (10 and 1000 points, hole+cut:
 the only problems where a solver is kept between solves, so the only ones where `cache`
 can buy anything; the free function builds its hierarchy every time), and the issue's 513×513 model problem with a disc hole and a two-segment cut
-(`tests/test_solver_families.py::grid_problem`), cold and warm; and two problems with thin
+(`tests/test_solver_families.py::grid_problem`), cold and warm; a solid matte (an ellipse
+filling most of the picture, 8 points in it), cold, warm and frames; and two problems with thin
 parts, whatever the size: `strands.py`'s comb with 2 px teeth at twice its size
 (80×128) and `test_many_random_cuts`'s float cuts of seed 0 at four times theirs (256×256).
 
@@ -32,7 +33,7 @@ import numpy as np
 
 import inkwarp
 
-SWITCHES = ["second", "kcycle", "cache", "fours", "strands", "coarse_strands"]
+SWITCHES = ["second", "kcycle", "cache", "fours", "strands", "coarse_strands", "outside"]
 
 
 def random_problem(n: int, size: int, seed: int = 0):
@@ -52,6 +53,16 @@ def hole_and_cut(n: int):
     mask = (((xs - 1300 * s) ** 2 + (ys - 800 * s) ** 2) > (150 * s) ** 2).astype(np.uint8)
     cuts = [np.array([[200, 1400.3], [900, 1250.3], [1600, 1500.3]]) * s]
     return pts, disp, mask, cuts
+
+
+def matte_problem(n: int):
+    """A solid matte: an ellipse (a character's body, the layer's alpha) filling most of
+    the picture, 8 seeded points inside it."""
+    ys, xs = np.mgrid[0:n, 0:n]
+    mask = ((((xs - 0.5 * n) / (0.3 * n)) ** 2 + ((ys - 0.55 * n) / (0.4 * n)) ** 2) <= 1).astype(np.uint8)
+    rng = np.random.default_rng(5)
+    pts = np.column_stack([rng.uniform(0.35, 0.65, 8) * n, rng.uniform(0.35, 0.75, 8) * n])
+    return pts, rng.normal(0, 0.01 * n, (8, 2)), mask, None
 
 
 def comb_problem(tooth: int, scale: int):
@@ -76,6 +87,7 @@ def problems(size: int) -> dict:
     out = {}
     cases = [(f"{n} pts", *random_problem(n, size, seed=n), None, None) for n in (10, 100, 1000, 4000)]
     cases.append(("hole+cut", *hole_and_cut(size)))
+    cases.append(("matte", *matte_problem(size)))
     cases.append(("comb", *comb_problem(2, 2)))
     cases.append(("cuts", *random_cuts(0, 4)))
     for name, pts, disp, mask, cuts in cases:
@@ -91,7 +103,7 @@ def problems(size: int) -> dict:
 
         out[f"{name} cold"] = cold
         out[f"{name} warm"] = warm
-        if name in ("10 pts", "1000 pts", "hole+cut"):
+        if name in ("10 pts", "1000 pts", "hole+cut", "matte"):
             out[f"{name} frames"] = frames(pts, disp, shape, mask, cuts)
     return out
 

@@ -571,6 +571,38 @@ impl Geometry {
     }
 }
 
+/// Whether a piece (`active`, linked `right` and `down` on its `w × h` box) is solid: no
+/// cut inside it, and its core (the nodes whose 5 × 5 window lies in it) one 4-connected
+/// set within 4 nodes of every node of the piece. A piece with a cut, or a pinch, strand,
+/// tooth or hair narrower than 5 nodes, is not: filling around such parts ties them to
+/// their neighbours across the gap, and their own slow motions leave the coarse space
+/// (docs/dev/coarse-space.md, "Filling off the matte").
+pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &[bool]) -> bool {
+    let cut = (0..w * h).any(|i| active[i] && ((i % w + 1 < w && active[i + 1] && !right[i]) || (i + w < w * h && active[i + w] && !down[i])));
+    if cut { return false; }
+    // Whether any node of `v` lies within Chebyshev distance r, by running counts along
+    // the rows, then the columns.
+    let near = |v: &[bool], r: usize| -> Vec<bool> {
+        let pass = |v: &[bool], len: usize, lines: usize, at: &dyn Fn(usize, usize) -> usize| {
+            let mut out = vec![false; w * h];
+            for l in 0..lines {
+                let mut count = (0..r.min(len)).filter(|&k| v[at(l, k)]).count();
+                for k in 0..len {
+                    if k + r < len && v[at(l, k + r)] { count += 1; }
+                    if k > r && v[at(l, k - r - 1)] { count -= 1; }
+                    out[at(l, k)] = count > 0;
+                }
+            }
+            out
+        };
+        let rows = pass(v, w, h, &|y, x| y * w + x);
+        pass(&rows, h, w, &|x, y| y * w + x)
+    };
+    let core: Vec<bool> = near(&active.iter().map(|a| !a).collect::<Vec<_>>(), 2).iter().map(|o| !o).collect();
+    let reach = near(&core, 4);
+    (0..w * h).all(|i| !active[i] || reach[i]) && crate::grid::Grid::from_active(w, h, core).pieces().1 == 1
+}
+
 /// Every `s`-th node of a `w × h` grid (`active`, linked `right` and `down`): node (X, Y)
 /// on (min(sX, w − 1), min(sY, h − 1)), active where that node is; two neighbours linked
 /// where every link of the straight path between them is. Its size and vectors.
@@ -839,23 +871,30 @@ impl Level {
     /// link to an active node, made active and linked to everything around it. The operator
     /// stays the level's own, so the coarser levels keep the exact energy on the real domain,
     /// but their functions run smoothly up to a hole's rim (docs/dev/coarse-space.md). Thin
-    /// holes (strips, slits) stay: filling them would tie their two sides together.
-    pub fn with_holes_filled(self) -> Level {
+    /// holes (strips, slits) stay: filling them would tie their two sides together. On a
+    /// [`solid`] piece the wide pieces of `outside` (its box's nodes off the matte) are
+    /// filled too, border or not, so that its coarse functions stay affine up to its edge.
+    pub fn with_holes_filled(self, outside: Option<&[bool]>) -> Level {
         let g = &self.geo;
         let (w, h) = (g.w, g.h);
-        // The holes: the pieces of the grid of inactive nodes; each one's size, links to an
-        // active node, and whether it touches the border.
-        let (hole, count) = crate::grid::Grid::from_active(w, h, g.active.iter().map(|a| !a).collect()).pieces();
-        let (mut size, mut edges, mut border) = (vec![0usize; count], vec![0usize; count], vec![false; count]);
-        for i in (0..w * h).filter(|&i| !g.active[i]) {
-            let (x, y, k) = (i % w, i / w, hole[i] as usize);
-            size[k] += 1;
-            border[k] |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-            let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
-            edges[k] += around.into_iter().flatten().filter(|&j| g.active[j]).count();
+        // The wide ones of the pieces of the grid of `gap` nodes (inactive ones, or those
+        // off the matte), clear of the border unless `border_too`.
+        let wide_pieces = |gap: &dyn Fn(usize) -> bool, border_too: bool| -> Vec<bool> {
+            let (hole, count) = crate::grid::Grid::from_active(w, h, (0..w * h).map(gap).collect()).pieces();
+            let (mut size, mut edges, mut border) = (vec![0usize; count], vec![0usize; count], vec![false; count]);
+            for i in (0..w * h).filter(|&i| gap(i)) {
+                let (x, y, k) = (i % w, i / w, hole[i] as usize);
+                size[k] += 1;
+                border[k] |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+                let around = [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)];
+                edges[k] += around.into_iter().flatten().filter(|&j| g.active[j]).count();
+            }
+            (0..w * h).map(|i| gap(i) && size[hole[i] as usize] > 4 * edges[hole[i] as usize] && (border_too || !border[hole[i] as usize])).collect()
+        };
+        let mut fill = wide_pieces(&|i| !g.active[i], false);
+        if let Some(o) = outside.filter(|_| solid(w, h, &g.active, &g.right, &g.down)) {
+            fill.iter_mut().zip(wide_pieces(&|i| o[i], true)).for_each(|(f, o)| *f |= o);
         }
-        let wide = |k: usize| size[k] > 4 * edges[k] && !border[k];
-        let fill: Vec<bool> = (0..w * h).map(|i| !g.active[i] && wide(hole[i] as usize)).collect();
         if !fill.contains(&true) { return self; }
         let active: Vec<bool> = (0..w * h).map(|i| g.active[i] || fill[i]).collect();
         let right = (0..w * h).map(|i| g.right[i] || (i % w + 1 < w && (fill[i] || fill[i + 1]) && active[i] && active[i + 1])).collect();

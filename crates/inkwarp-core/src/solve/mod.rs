@@ -76,7 +76,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 8] = ["second", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine"];
+    pub const NAMES: [&'static str; 9] = ["second", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -436,7 +436,9 @@ enum BoxLinks {
     /// Every node active and every link there (none off the last column or row, as on a
     /// consistent grid): nothing to copy into a solve's key or to compare in the cache.
     Open,
-    Given { active: Vec<bool>, right: Vec<bool>, down: Vec<bool> },
+    /// `outside`: the box's nodes in no piece (off the matte), which the prolongation may
+    /// fill (see `Level::with_holes_filled`).
+    Given { active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, outside: Vec<bool> },
 }
 
 impl BoxLinks {
@@ -447,9 +449,12 @@ impl BoxLinks {
                 let Grid { active, link_right, link_down, .. } = Grid::new(w, h);
                 [active, link_right, link_down]
             }
-            BoxLinks::Given { active, right, down } => [active.clone(), right.clone(), down.clone()],
+            BoxLinks::Given { active, right, down, .. } => [active.clone(), right.clone(), down.clone()],
         }
     }
+
+    /// The box's nodes off the matte (none on an open box).
+    fn outside(&self) -> Option<&[bool]> { if let BoxLinks::Given { outside, .. } = self { Some(outside) } else { None } }
 }
 
 /// Piece `l`'s grid on its box `[x0, y0, x1, y1]` ([`BoxLinks`]); on an open grid the box is
@@ -457,13 +462,13 @@ impl BoxLinks {
 fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4], open: bool) -> BoxLinks {
     if open { return BoxLinks::Open; }
     let (w, bw, bh) = (grid.width, x1 - x0, y1 - y0);
-    let (mut active, mut right, mut down) = (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh]);
+    let (mut active, mut right, mut down, mut outside) = (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh]);
     // Without short-circuits, so that the passes vectorise (every solve builds its key).
     for by in 0..bh {
         let g = (y0 + by) * w + x0..(y0 + by) * w + x1;
         let b = by * bw..(by + 1) * bw;
-        for (a, &lab) in active[b.clone()].iter_mut().zip(&labels[g.clone()]) {
-            *a = lab == l;
+        for ((a, o), &lab) in active[b.clone()].iter_mut().zip(&mut outside[b.clone()]).zip(&labels[g.clone()]) {
+            (*a, *o) = (lab == l, lab == u32::MAX);
         }
         let act = &active[b.clone()];
         for ((r, &link), &a) in right[b.clone()].iter_mut().zip(&grid.link_right[g.clone()]).zip(act).take(bw - 1) {
@@ -475,7 +480,7 @@ fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4]
             }
         }
     }
-    BoxLinks::Given { active, right, down }
+    BoxLinks::Given { active, right, down, outside }
 }
 
 /// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`:
@@ -526,7 +531,7 @@ fn solve_piece(
         // is needed only where inactive nodes remain (thin holes, holes open to the border,
         // other pieces in the box).
         let real = torn.then(|| fine.geo.clone());
-        let fine = fine.with_holes_filled();
+        let fine = fine.with_holes_filled(key.links.outside().filter(|_| !key.off.has("outside")));
         let second = fine.geo.active.contains(&false) && !key.off.has("second");
         let alt = second.then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
