@@ -257,6 +257,21 @@ def test_a_solid_character_matte_takes_the_open_grids_cycles(seed):
     assert report.cycles <= open_report.cycles + 2, (report, open_report)
 
 
+@pytest.mark.parametrize("tension", [0.0, 1e-6])
+def test_a_face_matte_with_a_mouth_cut_takes_the_open_grids_cycles(tension):
+    # A cut inside a solid matte, away from its edge (a mouth, two brows), leaves it solid:
+    # 19 cycles with the link-aware rows along the matte's edge.
+    n = 160
+    ys, xs = np.mgrid[0:n, 0:n]
+    m = ((((xs - 0.5 * n) / (0.35 * n)) ** 2 + ((ys - 0.5 * n) / (0.42 * n)) ** 2) <= 1).astype(np.uint8)
+    cuts = [np.array(c) * n for c in ([[0.35, 0.68], [0.5, 0.72], [0.65, 0.68]], [[0.3, 0.35], [0.42, 0.33]], [[0.58, 0.33], [0.7, 0.35]])]
+    pts = np.array([[0.4, 0.6], [0.5, 0.76], [0.6, 0.6], [0.45, 0.3], [0.55, 0.45]]) * n
+    disp = np.random.default_rng(3).normal(0, 4, pts.shape)
+    _, report = check_against_oracle(Problem(m.shape, pts, disp, mask=m, cuts=cuts, tension=tension), "face with a mouth")
+    _, open_report = solve(Problem(m.shape, pts, disp, tension=tension))
+    assert report.cycles <= open_report.cycles + 2, (report, open_report)
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_antialiased_character_mattes(seed):
     m, pts, disp = character_problem(seed)

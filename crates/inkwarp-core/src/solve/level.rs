@@ -571,15 +571,24 @@ impl Geometry {
     }
 }
 
-/// Whether a piece (`active`, linked `right` and `down` on its `w × h` box) is solid: no
-/// cut inside it, and its core (the nodes whose 5 × 5 window lies in it) one 4-connected
-/// set within 4 nodes of every node of the piece. A piece with a cut, or a pinch, strand,
-/// tooth or hair narrower than 5 nodes, is not: filling around such parts ties them to
-/// their neighbours across the gap, and their own slow motions leave the coarse space
-/// (docs/dev/coarse-space.md, "Filling off the matte").
+/// Whether a piece (`active`, linked `right` and `down` on its `w × h` box) is solid: its
+/// cuts (two active neighbours without their link) stay more than 4 nodes inside it, and
+/// its core (the nodes whose 5 × 5 window lies in it, clear of cuts) is one 4-connected set
+/// within 4 nodes of every node of the piece. A piece with a pinch, strand, tooth or hair
+/// narrower than 5 nodes, or a cut running to its edge, is not: filling around such parts
+/// ties them to their neighbours across the gap, and their own slow motions leave the
+/// coarse space (docs/dev/coarse-space.md, "Filling off the matte").
 pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &[bool]) -> bool {
-    let cut = (0..w * h).any(|i| active[i] && ((i % w + 1 < w && active[i + 1] && !right[i]) || (i + w < w * h && active[i + w] && !down[i])));
-    if cut { return false; }
+    // The nodes at a cut: two active neighbours without their link.
+    let mut cut = vec![false; w * h];
+    for i in (0..w * h).filter(|&i| active[i]) {
+        let across = [(i % w + 1 < w).then_some((i + 1, right[i])), (i + w < w * h).then_some((i + w, down[i]))];
+        for (j, linked) in across.into_iter().flatten() {
+            if active[j] && !linked {
+                (cut[i], cut[j]) = (true, true);
+            }
+        }
+    }
     // Whether any node of `v` lies within Chebyshev distance r, by running counts along
     // the rows, then the columns.
     let near = |v: &[bool], r: usize| -> Vec<bool> {
@@ -598,7 +607,8 @@ pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &
         let rows = pass(v, w, h, &|y, x| y * w + x);
         pass(&rows, h, w, &|x, y| y * w + x)
     };
-    let core: Vec<bool> = near(&active.iter().map(|a| !a).collect::<Vec<_>>(), 2).iter().map(|o| !o).collect();
+    if cut.contains(&true) && near(&cut, 4).iter().zip(active).any(|(n, a)| *n && !a) { return false; }
+    let core: Vec<bool> = near(&(0..w * h).map(|i| !active[i] || cut[i]).collect::<Vec<_>>(), 2).iter().map(|o| !o).collect();
     let reach = near(&core, 4);
     (0..w * h).all(|i| !active[i] || reach[i]) && crate::grid::Grid::from_active(w, h, core).pieces().1 == 1
 }
@@ -892,8 +902,11 @@ impl Level {
             (0..w * h).map(|i| gap(i) && size[hole[i] as usize] > 4 * edges[hole[i] as usize] && (border_too || !border[hole[i] as usize])).collect()
         };
         let mut fill = wide_pieces(&|i| !g.active[i], false);
-        if let Some(o) = outside.filter(|_| solid(w, h, &g.active, &g.right, &g.down)) {
-            fill.iter_mut().zip(wide_pieces(&|i| o[i], true)).for_each(|(f, o)| *f |= o);
+        if let Some(o) = outside {
+            let more = wide_pieces(&|i| o[i], true);
+            if more.iter().zip(&fill).any(|(m, f)| *m && !f) && solid(w, h, &g.active, &g.right, &g.down) {
+                fill.iter_mut().zip(more).for_each(|(f, m)| *f |= m);
+            }
         }
         if !fill.contains(&true) { return self; }
         let active: Vec<bool> = (0..w * h).map(|i| g.active[i] || fill[i]).collect();

@@ -1591,7 +1591,7 @@ fn a_solid_matte_costs_about_the_cycles_of_the_open_grid() {
 }
 
 #[test]
-fn solid_pieces_have_no_cut_pinch_or_strand() {
+fn solid_pieces_have_no_pinch_strand_or_cut_to_the_edge() {
     let (w, h) = (60, 40);
     let disc = |x: usize, y: usize, cx: f64, r: f64| (x as f64 - cx).hypot(y as f64 - 20.0) <= r;
     let is_solid = |g: &Grid| level::solid(w, h, &g.active, &g.link_right, &g.link_down);
@@ -1603,10 +1603,13 @@ fn solid_pieces_have_no_cut_pinch_or_strand() {
     // The disc with a strand one node wide and 20 long.
     let strand = |i: usize| blob(i) || ((30..52).contains(&(i % w)) && i / w == 20);
     assert!(!is_solid(&Grid::from_active(w, h, (0..w * h).map(strand).collect())));
-    // The disc cut halfway across.
+    // The disc cut from its edge to its centre; a cut inside it (a mouth) leaves it solid.
     let mut cut = Grid::from_active(w, h, (0..w * h).map(blob).collect());
     cut.add_cut(&[[5.0, 20.5], [20.0, 20.5]]);
     assert!(!is_solid(&cut));
+    let mut mouth = Grid::from_active(w, h, (0..w * h).map(blob).collect());
+    mouth.add_cut(&[[16.0, 21.5], [20.0, 22.5], [24.0, 21.5]]);
+    assert!(is_solid(&mouth));
 }
 
 #[test]
