@@ -1541,6 +1541,20 @@ fn ablation_switches_are_parsed_by_name_and_unknown_names_refused() {
     assert!(err.contains("held") && err.contains("second"), "{err}");
 }
 
+/// The default solve's cycles on the open grid of `torn`'s size and on `torn`, each
+/// asserted converged and within 0.05 px of a tight solve.
+fn open_and_torn_cycles(samples: &[Sample], torn: Grid) -> [usize; 2] {
+    let (w, h) = (torn.width, torn.height);
+    let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
+    [Grid::new(w, h), torn].map(|grid| {
+        let (exact, _) = solve(&grid, samples, &tight, None).unwrap();
+        let (field, report) = solve(&grid, samples, &SolveOptions::default(), None).unwrap();
+        let err = gap(&field, &exact);
+        assert!(report.converged && err < 0.05, "{w} x {h}: {err} px off ({report:?})");
+        report.cycles
+    })
+}
+
 #[test]
 fn a_wide_hole_costs_about_the_cycles_of_the_open_grid() {
     // A disc hole of radius 0.075 n (the model problem's): its prolongation runs
@@ -1553,14 +1567,7 @@ fn a_wide_hole_costs_about_the_cycles_of_the_open_grid() {
         let disc = |i: usize| ((i % n) as f64 - 0.63 * nf).hypot((i / n) as f64 - 0.39 * nf) <= 0.075 * nf;
         let mut rng = Rng(2049);
         let samples: Vec<Sample> = random_samples(&mut rng, n, n, 10).into_iter().filter(|s| !disc(s.rest[1].round() as usize * n + s.rest[0].round() as usize)).collect();
-        let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
-        let cycles = [Grid::new(n, n), Grid::from_active(n, n, (0..n * n).map(|i| !disc(i)).collect())].map(|grid| {
-            let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
-            let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
-            let err = gap(&field, &exact);
-            assert!(report.converged && err < 0.05, "{n}: {err} px off ({report:?})");
-            report.cycles
-        });
+        let cycles = open_and_torn_cycles(&samples, Grid::from_active(n, n, (0..n * n).map(|i| !disc(i)).collect()));
         assert!(cycles[1] <= cycles[0] + 2, "{n} x {n}: {} cycles with the hole, {} without", cycles[1], cycles[0]);
     }
 }
@@ -1577,15 +1584,8 @@ fn a_solid_matte_costs_about_the_cycles_of_the_open_grid() {
         let mut rng = Rng(7);
         let samples: Vec<Sample> = random_samples(&mut rng, n, n, 40).into_iter().filter(|s| inside(s.rest[0].round(), s.rest[1].round())).take(6).collect();
         assert!(samples.len() >= 4);
-        let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(500), ..Default::default() };
         let matte = Grid::from_active(n, n, (0..n * n).map(|i| inside((i % n) as f64, (i / n) as f64)).collect());
-        let cycles = [Grid::new(n, n), matte].map(|grid| {
-            let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
-            let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
-            let err = gap(&field, &exact);
-            assert!(report.converged && err < 0.05, "{n}: {err} px off ({report:?})");
-            report.cycles
-        });
+        let cycles = open_and_torn_cycles(&samples, matte);
         assert!(cycles[1] <= cycles[0] + 2, "{n} x {n}: {} cycles on the matte, {} on the open grid", cycles[1], cycles[0]);
     }
 }
