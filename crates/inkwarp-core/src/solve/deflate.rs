@@ -75,11 +75,9 @@ impl Deflation {
         let rhs = dots(&self.aw, p.len(), |i| [p[i][0].get(), p[i][1].get()]);
         let Some(mu) = super::dense_solve(self.e.clone(), rhs) else { return };
         p.par_chunks_mut(CHUNK).enumerate().for_each(|(c, p)| {
-            for (j, x) in p.iter_mut().enumerate() {
-                let d = combination(&self.w, &mu, c * CHUNK + j);
-                if d[0] != 0.0 || d[1] != 0.0 {
-                    *x = [WS::of(x[0].get() - d[0]), WS::of(x[1].get() - d[1])];
-                }
+            let d = combination(&self.w, &mu, c * CHUNK, p.len());
+            for (x, d) in p.iter_mut().zip(d).filter(|(_, d)| d[0] != 0.0 || d[1] != 0.0) {
+                *x = [WS::of(x[0].get() - d[0]), WS::of(x[1].get() - d[1])];
             }
         });
     }
@@ -93,26 +91,13 @@ impl Deflation {
         // Entries against the basis: (Ax_c)·b and x_c·b for both components c, then the
         // new pair among themselves.
         let sums = chunked_sums(n, 4 * nb + 6, |a, b, out| {
+            // The pair's rows −q₀, −q₁, x₀, x₁ against the basis, then among themselves.
+            let rows: [Vec<f64>; 4] = std::array::from_fn(|t| (a..b).map(|i| if t < 2 { -q[i][t] } else { p[i][t - 2].get() }).collect());
             for (j, bv) in self.w.iter().chain(&self.v).enumerate() {
-                let mut s = [0.0f64; 4];
-                for ((x, y), &bv) in p[a..b].iter().zip(&q[a..b]).zip(&bv[a..b]) {
-                    let bv = bv as f64;
-                    s[0] -= y[0] * bv;
-                    s[1] -= y[1] * bv;
-                    s[2] += x[0].get() * bv;
-                    s[3] += x[1].get() * bv;
-                }
-                out[4 * j..4 * j + 4].iter_mut().zip(s).for_each(|(o, s)| *o += s);
+                (0..4).for_each(|t| out[4 * j + t] += dot(&rows[t], &bv[a..b]));
             }
-            let o = 4 * nb;
-            for (x, y) in p[a..b].iter().zip(&q[a..b]) {
-                let (x0, x1) = (x[0].get(), x[1].get());
-                out[o] -= y[0] * x0;
-                out[o + 1] -= y[1] * x1;
-                out[o + 2] -= y[0] * x1;
-                out[o + 3] += x0 * x0;
-                out[o + 4] += x1 * x1;
-                out[o + 5] += x0 * x1;
+            for (k, (s, t)) in [(0, 2), (1, 3), (0, 3), (2, 2), (3, 3), (2, 3)].into_iter().enumerate() {
+                out[4 * nb + k] += dot(&rows[s], &rows[t]);
             }
         });
         if sums.iter().any(|s| !s.is_finite()) {
@@ -130,7 +115,7 @@ impl Deflation {
         }
         self.g.extend([g0, g1]);
         self.m.extend([m0, m1]);
-        self.v.extend([0, 1].map(|c| p.iter().map(|x| x[c]).collect()));
+        self.v.extend([0, 1].map(|c| p.par_iter().map(|x| x[c]).collect()));
         self.v.len() >= 2 * WINDOW
     }
 
@@ -146,7 +131,7 @@ impl Deflation {
         let k = self.keep.min(theta.len());
         let n = u.len();
         // W = B Y, column by column, chunk by chunk in parallel.
-        let mut w: Vec<Vec<f32>> = vec![vec![0.0; n]; k];
+        let mut w: Vec<Vec<f32>> = (0..k).map(|_| vec![0.0; n]).collect();
         for (l, col) in w.iter_mut().enumerate() {
             col.par_chunks_mut(CHUNK).enumerate().for_each(|(c, col)| {
                 let mut acc = vec![0.0f64; col.len()];
@@ -164,26 +149,21 @@ impl Deflation {
         fine.clear_padding(&mut q);
         for pair in (0..k).step_by(2) {
             let other = (pair + 1).min(k - 1);
-            x.iter_mut().zip(&w[pair]).zip(&w[other]).for_each(|((xi, &a), &b)| *xi = [a, b]);
+            x.par_iter_mut().zip(&w[pair][..]).zip(&w[other][..]).for_each(|((xi, &a), &b)| *xi = [a, b]);
             fine.fine_residual_dot_narrow(&x, &mut q);
-            aw.extend((0..=other - pair).map(|t| q.iter().map(|v| -v[t] as f32).collect()));
+            aw.extend((0..=other - pair).map(|t| q.par_iter().map(|v| -v[t] as f32).collect()));
         }
-        // E = Wᵀ A W and Wᵀ W, the new basis's Gram matrices.
-        let sums = chunked_sums(n, 2 * k * k, |a, b, out| {
-            for l in 0..k {
-                for j in 0..k {
-                    let (mut e, mut m) = (0.0, 0.0);
-                    for ((&wl, &awj), &wj) in w[l][a..b].iter().zip(&aw[j][a..b]).zip(&w[j][a..b]) {
-                        e += wl as f64 * awj as f64;
-                        m += wl as f64 * wj as f64;
-                    }
-                    out[2 * (l * k + j)] += e;
-                    out[2 * (l * k + j) + 1] += m;
-                }
+        // E = Wᵀ A W (its upper triangle, mirrored), summed: a near-null vector's own
+        // Rayleigh quotient is below f32's rounding of W. Wᵀ W is the identity up to that
+        // rounding, as the Ritz vectors are orthonormal.
+        let sums = chunked_sums(n, k * k, |a, b, out| {
+            for (l, j) in (0..k).flat_map(|l| (l..k).map(move |j| (l, j))) {
+                out[l * k + j] += dot(&w[l][a..b], &aw[j][a..b]);
             }
         });
-        let sym = |t: usize| -> Vec<Vec<f64>> { (0..k).map(|l| (0..k).map(|j| 0.5 * (sums[2 * (l * k + j) + t] + sums[2 * (j * k + l) + t])).collect()).collect() };
-        (self.e, self.m, self.w, self.aw) = (sym(0), sym(1), w, aw);
+        self.e = (0..k).map(|l| (0..k).map(|j| sums[l.min(j) * k + l.max(j)]).collect()).collect();
+        self.m = (0..k).map(|l| (0..k).map(|j| if l == j { 1.0 } else { 0.0 }).collect()).collect();
+        (self.w, self.aw) = (w, aw);
         self.g = self.e.clone();
         self.v.clear();
         // u += W c, r −= A W c with c = E⁻¹ Wᵀ r.
@@ -194,8 +174,8 @@ impl Deflation {
         };
         let (w, aw) = (&self.w, &self.aw);
         u.par_chunks_mut(CHUNK).zip(r.par_chunks_mut(CHUNK)).enumerate().for_each(|(ch, (u, r))| {
-            for (j, (u, r)) in u.iter_mut().zip(r.iter_mut()).enumerate() {
-                let (d, e) = (combination(w, &c, ch * CHUNK + j), combination(aw, &c, ch * CHUNK + j));
+            let (d, e) = (combination(w, &c, ch * CHUNK, u.len()), combination(aw, &c, ch * CHUNK, u.len()));
+            for (((u, r), d), e) in u.iter_mut().zip(r.iter_mut()).zip(d).zip(e) {
                 *u = [u[0] + d[0], u[1] + d[1]];
                 *r = [r[0] - e[0], r[1] - e[1]];
             }
@@ -285,20 +265,32 @@ fn chunked_sums(len: usize, width: usize, f: impl Fn(usize, usize, &mut [f64]) +
 /// `Σ_i x(i) v_l(i)` per component for each of `vs`, `len` nodes (in [`chunked_sums`]' order).
 fn dots(vs: &[Vec<f32>], len: usize, x: impl Fn(usize) -> V2 + Sync) -> Vec<V2> {
     let s = chunked_sums(len, 2 * vs.len(), |a, b, out| {
+        let rows: [Vec<f64>; 2] = std::array::from_fn(|t| (a..b).map(|i| x(i)[t]).collect());
         for (l, v) in vs.iter().enumerate() {
-            for (i, &y) in (a..b).zip(&v[a..b]) {
-                let xi = x(i);
-                out[2 * l] += xi[0] * y as f64;
-                out[2 * l + 1] += xi[1] * y as f64;
-            }
+            (0..2).for_each(|t| out[2 * l + t] += dot(&rows[t], &v[a..b]));
         }
     });
     s.chunks_exact(2).map(|d| [d[0], d[1]]).collect()
 }
 
-/// `Σ_l c_l v_l(i)` per component, `l` ascending.
-fn combination(vs: &[Vec<f32>], c: &[V2], i: usize) -> V2 {
-    vs.iter().zip(c).fold([0.0; 2], |s, (v, c)| [s[0] + c[0] * v[i] as f64, s[1] + c[1] * v[i] as f64])
+/// `Σ_i a_i b_i` in eight lanes, which vectorise (one running sum waits on each addition).
+fn dot<A: Real, B: Real>(a: &[A], b: &[B]) -> f64 {
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x.get() * y.get()).sum();
+    let lanes = ca.zip(cb).fold([0.0f64; 8], |mut s, (x, y)| {
+        (0..8).for_each(|l| s[l] += x[l].get() * y[l].get());
+        s
+    });
+    lanes.iter().sum::<f64>() + tail
+}
+
+/// `Σ_l c_l v_l` per component on the `len` nodes from `a`, `l` ascending, vector by
+/// vector (so that it vectorises).
+fn combination(vs: &[Vec<f32>], c: &[V2], a: usize, len: usize) -> Vec<V2> {
+    vs.iter().zip(c).fold(vec![[0.0; 2]; len], |mut s, (v, c)| {
+        s.iter_mut().zip(&v[a..a + len]).for_each(|(s, &x)| *s = [s[0] + c[0] * x as f64, s[1] + c[1] * x as f64]);
+        s
+    })
 }
 
 /// Ritz pairs of `G y = θ M y` (`M` the Gram matrix of a basis that may be dependent):
