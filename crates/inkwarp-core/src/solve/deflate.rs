@@ -13,7 +13,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{Level, Real, V2, W2, WS};
+use super::level::{pair_sums, Level, Real, V2, W2, WS};
 
 /// Cycles before the iteration starts keeping directions: solves that end by then pay
 /// nothing.
@@ -273,15 +273,10 @@ fn dots(vs: &[Vec<f32>], len: usize, x: impl Fn(usize) -> V2 + Sync) -> Vec<V2> 
     s.chunks_exact(2).map(|d| [d[0], d[1]]).collect()
 }
 
-/// `Σ_i a_i b_i` in eight lanes, which vectorise (one running sum waits on each addition).
+/// `Σ_i a_i b_i` on [`pair_sums`]' eight running sums (one would wait on each addition).
 fn dot<A: Real, B: Real>(a: &[A], b: &[B]) -> f64 {
-    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
-    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x.get() * y.get()).sum();
-    let lanes = ca.zip(cb).fold([0.0f64; 8], |mut s, (x, y)| {
-        (0..8).for_each(|l| s[l] += x[l].get() * y[l].get());
-        s
-    });
-    lanes.iter().sum::<f64>() + tail
+    let [even, odd] = pair_sums(a, b, |x: A, y: B| x.get() * y.get());
+    even + odd
 }
 
 /// `Σ_l c_l v_l` per component on the `len` nodes from `a`, `l` ascending, vector by

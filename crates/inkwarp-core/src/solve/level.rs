@@ -571,6 +571,29 @@ impl Geometry {
     }
 }
 
+/// Summed-area table of flags on a `w × h` grid: how many lie in a window, in O(1).
+pub(crate) struct Sat { w: usize, h: usize, table: Vec<u32> }
+
+impl Sat {
+    pub fn new(w: usize, h: usize, flag: impl Fn(usize) -> bool) -> Sat {
+        let mut table = vec![0u32; (w + 1) * (h + 1)];
+        for y in 0..h {
+            let mut run = 0u32;
+            for x in 0..w {
+                run += flag(y * w + x) as u32;
+                table[(y + 1) * (w + 1) + x + 1] = table[y * (w + 1) + x + 1] + run;
+            }
+        }
+        Sat { w, h, table }
+    }
+
+    /// The flags in columns `x0..x1` and rows `y0..y1`, the window clipped to the grid.
+    pub fn count(&self, [x0, y0]: [usize; 2], [x1, y1]: [usize; 2]) -> u32 {
+        let at = |x: usize, y: usize| self.table[y.min(self.h) * (self.w + 1) + x.min(self.w)];
+        at(x1, y1) + at(x0, y0) - at(x1, y0) - at(x0, y1)
+    }
+}
+
 /// Whether a piece (`active`, linked `right` and `down` on its `w × h` box) is solid: its
 /// cuts (two active neighbours without their link) stay more than 4 nodes inside it, and
 /// its core (the nodes whose 5 × 5 window lies in it, clear of cuts) is one 4-connected set
@@ -589,23 +612,10 @@ pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &
             }
         }
     }
-    // Whether any node of `v` lies within Chebyshev distance r, by running counts along
-    // the rows, then the columns.
+    // Whether any node of `v` lies within Chebyshev distance r.
     let near = |v: &[bool], r: usize| -> Vec<bool> {
-        let pass = |v: &[bool], len: usize, lines: usize, at: &dyn Fn(usize, usize) -> usize| {
-            let mut out = vec![false; w * h];
-            for l in 0..lines {
-                let mut count = (0..r.min(len)).filter(|&k| v[at(l, k)]).count();
-                for k in 0..len {
-                    if k + r < len && v[at(l, k + r)] { count += 1; }
-                    if k > r && v[at(l, k - r - 1)] { count -= 1; }
-                    out[at(l, k)] = count > 0;
-                }
-            }
-            out
-        };
-        let rows = pass(v, w, h, &|y, x| y * w + x);
-        pass(&rows, h, w, &|x, y| y * w + x)
+        let sat = Sat::new(w, h, |i| v[i]);
+        (0..w * h).map(|i| sat.count([(i % w).saturating_sub(r), (i / w).saturating_sub(r)], [i % w + r + 1, i / w + r + 1]) > 0).collect()
     };
     if cut.contains(&true) && near(&cut, 4).iter().zip(active).any(|(n, a)| *n && !a) { return false; }
     let core: Vec<bool> = near(&(0..w * h).map(|i| !active[i] || cut[i]).collect::<Vec<_>>(), 2).iter().map(|o| !o).collect();
@@ -1426,22 +1436,13 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let geo = fine.geo.coarsen();
     let (wc, hc, fw, fh) = (geo.w, geo.h, fine.geo.w, fine.geo.h);
     let (wpc, hpc) = (wc + 2 * PAD, hc + 2 * PAD);
-    // Summed-area table of the clean flags: O(1) window tests.
-    let mut sat = vec![0u32; (fw + 1) * (fh + 1)];
-    for y in 0..fh {
-        let mut run = 0u32;
-        for x in 0..fw {
-            run += fine.clean[y * fw + x] as u32;
-            sat[(y + 1) * (fw + 1) + x + 1] = sat[y * (fw + 1) + x + 1] + run;
-        }
-    }
+    let sat = Sat::new(fw, fh, |i| fine.clean[i]);
     // Extrapolating rows read links three nodes away: a wider window.
     let reach = if !fine.geo.ext.is_empty() { 10 } else { 4 };
     let regular = |xc: usize, yc: usize| -> bool {
         let (Some(x0), Some(y0)) = ((2 * xc).checked_sub(reach), (2 * yc).checked_sub(reach)) else { return false };
         let (x1, y1) = (2 * xc + reach + 1, 2 * yc + reach + 1);
-        let at = |x: usize, y: usize| sat[y * (fw + 1) + x];
-        x1 <= fw && y1 <= fh && (at(x1, y1) + at(x0, y0) - at(x1, y0) - at(x0, y1)) as usize == (x1 - x0) * (y1 - y0)
+        x1 <= fw && y1 <= fh && sat.count([x0, y0], [x1, y1]) as usize == (x1 - x0) * (y1 - y0)
     };
     let shared = (0..hc * wc).find(|&c| regular(c % wc, c / wc)).map_or([0.0; 25], |c| galerkin_node(fine, c % wc, c / wc));
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
