@@ -11,6 +11,9 @@ mod scene;
 mod render;
 mod solve;
 
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// The compiled core of the `inkwarp` Python package.
 #[pymodule]
 fn _inkwarp(m: &Bound<'_, PyModule>) -> PyResult<()> {
