@@ -161,8 +161,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, default=60)
     ap.add_argument("--quick", action="store_true", help="one seed (and, with --families, 1x only): a smoke run")
-    ap.add_argument("--families", action="store_true", help="the thin-part families instead of the random cuts")
-    ap.add_argument("--oracle", action="store_true", help="the speckle and collinear families against the direct solve")
+    which = ap.add_mutually_exclusive_group()
+    which.add_argument("--families", action="store_true", help="the thin-part families instead of the random cuts")
+    which.add_argument("--oracle", action="store_true", help="the speckle and collinear families against the direct solve")
     args = ap.parse_args()
     seeds = 1 if args.quick else args.seeds
     declined = []
