@@ -10,9 +10,11 @@ least one problem to stay.
 
 Problems: 513×513 with 10, 100, 1000 and 4000 random points, cold (no start) and warm
 (the previous answer as the start, every displacement changed by 2 %, as in
-`ratios.py`), frames of an animation through a `WarmStart` (10 and 1000 points, hole+cut:
-the only problems where a solver is kept between solves, so the only ones where `cache`
-can buy anything; the free function builds its hierarchy every time), and the issue's 513×513 model problem with a disc hole and a two-segment cut
+`ratios.py`), frames of an animation through a `WarmStart` (10 and 1000 points, hole+cut,
+matte, comb, cuts) and, on the torn problems, the warm solve through a `Solver` kept from
+the cold solve before (`kept warm`): the only problems where a solver is kept between
+solves, so the only ones where `cache` and `recycle` can buy anything; the free function
+builds its hierarchy every time; and the issue's 513×513 model problem with a disc hole and a two-segment cut
 (`tests/test_solver_families.py::grid_problem`), cold and warm; a solid matte (an ellipse
 filling most of the picture, 8 points in it), cold, warm and frames; and two problems with thin
 parts, whatever the size: `strands.py`'s comb with 2 px teeth at twice its size
@@ -33,7 +35,7 @@ import numpy as np
 
 import inkwarp
 
-SWITCHES = ["second", "kcycle", "cache", "fours", "strands", "coarse_strands", "outside"]
+SWITCHES = ["second", "recycle", "kcycle", "cache", "fours", "strands", "coarse_strands", "outside"]
 
 
 def random_problem(n: int, size: int, seed: int = 0):
@@ -103,9 +105,27 @@ def problems(size: int) -> dict:
 
         out[f"{name} cold"] = cold
         out[f"{name} warm"] = warm
-        if name in ("10 pts", "1000 pts", "hole+cut", "matte"):
+        if name in ("hole+cut", "comb", "cuts"):
+            out[f"{name} kept warm"] = kept_warm(pts, disp, changed, shape, mask, cuts)
+        if name in ("10 pts", "1000 pts", "hole+cut", "matte", "comb", "cuts"):
             out[f"{name} frames"] = frames(pts, disp, shape, mask, cuts)
     return out
+
+
+def kept_warm(pts, disp, changed, shape, mask, cuts):
+    """The warm solve with a `Solver` kept from the cold solve before it (its hierarchy,
+    and the slow modes that solve found); each side of a pair has a solver of its own."""
+    sides: dict[str, tuple] = {}
+
+    def solve(off):
+        if off not in sides:
+            solver = inkwarp.Solver()
+            field = inkwarp.thin_plate_report(pts, disp, shape, mask=mask, cuts=cuts, solver=solver, _off=off)[0]
+            sides[off] = (solver, field)
+        solver, field = sides[off]
+        return inkwarp.thin_plate_report(pts, changed, shape, mask=mask, cuts=cuts, initial=field, solver=solver, _off=off)[1]
+
+    return solve
 
 
 def frames(pts, disp, shape, mask, cuts):

@@ -97,7 +97,7 @@ def test_quick_pipeline_benchmark_prints_its_table():
 
 def test_quick_ablation_benchmark_prints_a_row_per_switch():
     # `benchmarks/ablation.py --quick`: every switch's row, a ratio and the cycles on/off
-    # for each of the 20 problems; and the line-count script's totals.
+    # for each of the 25 problems; and the line-count script's totals.
     out = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "ablation.py"), "--quick", "--only", "kcycle,cache"],
         check=True, capture_output=True, text=True, timeout=300).stdout
@@ -105,7 +105,7 @@ def test_quick_ablation_benchmark_prints_a_row_per_switch():
     assert set(rows) == {"kcycle", "cache"}
     for row in rows.values():
         cells = [c.strip() for c in row.strip().strip("|").split("|")]
-        assert len(cells) == 22 and all("/" in c for c in cells[1:21]) and float(cells[21]) > 0
+        assert len(cells) == 27 and all("/" in c for c in cells[1:26]) and float(cells[26]) > 0
     counts = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "line_counts.py")],
         check=True, capture_output=True, text=True, timeout=60).stdout

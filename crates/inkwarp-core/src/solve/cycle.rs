@@ -57,6 +57,8 @@ pub(crate) struct Hierarchy {
     pub direction: Vec<W2>,
     /// The finest level's affine functions, corrected exactly after every cycle (see [`Affine`]).
     pub affine: Option<Affine>,
+    /// The slow modes the last solve's deflation found (see [`super::deflate::Modes`]).
+    pub modes: Option<super::deflate::Modes>,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -104,7 +106,7 @@ impl Hierarchy {
             l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
         }
         let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, modes: None }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one symmetric cycle from zero, in

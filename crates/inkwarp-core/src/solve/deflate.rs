@@ -16,7 +16,10 @@ use rayon::prelude::*;
 use super::level::{pair_sums, Level, Real, V2, W2, WS};
 
 /// Cycles before the iteration starts keeping directions: solves that end by then pay
-/// nothing.
+/// nothing. An `early` solve of a torn piece (a warm start new to its hierarchy, whose
+/// error is an earlier answer's and often all in slow modes) keeps them from its first
+/// cycle instead and stops only after its first look at them
+/// (`docs/dev/solver-correctness.md`).
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
@@ -30,10 +33,20 @@ const BUDGET_BYTES: usize = 256 << 20;
 /// Node chunk for the fused passes.
 const CHUNK: usize = 4096;
 
+/// Slow modes an earlier solve found: the kept vectors, their products and `Wᵀ A W`.
+#[derive(Debug)]
+pub(crate) struct Modes {
+    w: Vec<Vec<f32>>,
+    aw: Vec<Vec<f32>>,
+    e: Vec<Vec<f64>>,
+}
+
 #[derive(Default)]
 pub(super) struct Deflation {
     on: bool,
-    /// Stops wait for [`LOOKS`] looks at the kept directions (see [`Deflation::rate_floor`]).
+    start: usize,
+    looks: usize,
+    /// Stops wait for `looks` looks at the kept directions (see [`Deflation::rate_floor`]).
     wait: bool,
     keep: usize,
     /// The window's directions, one scalar vector per component and cycle.
@@ -60,10 +73,11 @@ pub(super) struct Deflation {
 }
 
 impl Deflation {
-    pub fn new(len: usize, off: bool, wait: bool) -> Deflation {
+    pub fn new(len: usize, off: bool, wait: bool, early: bool) -> Deflation {
         let fit = BUDGET_BYTES / (4 * len).max(1);
         let keep = KEEP.min(fit.saturating_sub(2 * WINDOW) / 2);
-        Deflation { on: !off && keep >= 4, wait, keep, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
+        let (start, looks) = if early && wait { (1, 1) } else { (START, LOOKS) };
+        Deflation { on: !off && keep >= 4, start, looks, wait, keep, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
     }
 
     /// Whether [`Deflation::project`] changes directions (vectors are kept).
@@ -85,7 +99,7 @@ impl Deflation {
     /// Keeps the direction `p` of cycle `cycle` (its product `q = −A p`); true when a window
     /// is full and [`Deflation::restart`] is due.
     pub fn record(&mut self, cycle: usize, p: &[W2], q: &[V2]) -> bool {
-        if !self.on || cycle < START { return false; }
+        if !self.on || cycle < self.start { return false; }
         let n = p.len();
         let nb = self.w.len() + self.v.len();
         // Entries against the basis: (Ax_c)·b and x_c·b for both components c, then the
@@ -166,11 +180,35 @@ impl Deflation {
         (self.w, self.aw) = (w, aw);
         self.g = self.e.clone();
         self.v.clear();
-        // u += W c, r −= A W c with c = E⁻¹ Wᵀ r.
+        if !self.correct(u, r) {
+            self.clear();
+        }
+    }
+
+    /// The vectors kept, for the next solve of the same operator, whose slow modes they are.
+    pub fn modes(mut self) -> Option<Modes> {
+        (!self.w.is_empty()).then(|| Modes { w: std::mem::take(&mut self.w), aw: std::mem::take(&mut self.aw), e: std::mem::take(&mut self.e) })
+    }
+
+    /// Starts from an earlier solve's [`Deflation::modes`]: corrects `u` and `r` on them,
+    /// and projects every later direction.
+    pub fn adopt(&mut self, modes: Modes, u: &mut [V2], r: &mut [V2]) {
+        if !self.on || modes.w[0].len() != u.len() { return; }
+        (self.w, self.aw, self.e) = (modes.w, modes.aw, modes.e);
+        self.m = (0..self.e.len()).map(|l| (0..self.e.len()).map(|j| if l == j { 1.0 } else { 0.0 }).collect()).collect();
+        self.g = self.e.clone();
+        if !self.correct(u, r) {
+            self.clear();
+        }
+    }
+
+    /// `u += W c`, `r −= A W c` with `c = E⁻¹ Wᵀ r`; false when `E` is singular.
+    pub fn correct(&self, u: &mut [V2], r: &mut [V2]) -> bool {
+        if self.w.is_empty() { return true; }
+        let n = u.len();
         let rhs = dots(&self.w, n, |i| r[i]);
         let Some(c) = super::dense_solve(self.e.clone(), rhs).filter(|c| c.iter().all(|v| v[0].is_finite() && v[1].is_finite())) else {
-            self.clear();
-            return;
+            return false;
         };
         let (w, aw) = (&self.w, &self.aw);
         u.par_chunks_mut(CHUNK).zip(r.par_chunks_mut(CHUNK)).enumerate().for_each(|(ch, (u, r))| {
@@ -180,6 +218,7 @@ impl Deflation {
                 *r = [r[0] - e[0], r[1] - e[1]];
             }
         });
+        true
     }
 
     /// The change the stopping rule is to judge: once the iteration has deflated (a slow
@@ -235,7 +274,7 @@ impl Deflation {
                 self.high = self.high.max(hi);
             }
         }
-        if self.wait && self.on && self.restarts < LOOKS && (self.restarts > 0 || !self.v.is_empty()) { return 1.0; }
+        if self.wait && self.on && self.restarts < self.looks && (self.restarts > 0 || !self.v.is_empty()) { return 1.0; }
         let low = self.low.min(self.before);
         if !(low > 0.0 && self.high > low) { return 0.0; }
         let k = (self.high / low).sqrt();

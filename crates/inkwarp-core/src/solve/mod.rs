@@ -76,7 +76,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 9] = ["second", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside"];
+    pub const NAMES: [&'static str; 10] = ["second", "recycle", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -518,7 +518,8 @@ fn solve_piece(
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport::default();
     let kept = if options.off.has("cache") { None } else { store.hierarchies.take(store.solve, &key, |_| true) };
-    store.built += u64::from(kept.is_none());
+    let fresh = kept.is_none();
+    store.built += u64::from(fresh);
     let mut hier = kept.unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
@@ -641,8 +642,13 @@ fn solve_piece(
                 s.project(&hier.levels[0], &mut u);
                 hier.levels[0].residual(&u, None, &mut r);
             }
+            // A warm start new to the hierarchy looks for slow modes from its first cycle.
+            let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && fresh);
+            if let Some(modes) = hier.modes.take().filter(|_| !options.off.has("recycle")) {
+                slow.adopt(modes, &mut u, &mut r);
+            }
             let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref());
-            let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn);
+            slow.project(&mut p);
             for cycle in 1..=options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) {
                 if crate::interrupt::requested() { break; }
                 // Once deflation or the settling projects the directions, p is no longer
@@ -677,7 +683,9 @@ fn solve_piece(
                         s.project(&hier.levels[0], &mut u);
                     }
                     hier.levels[0].residual(&u, None, &mut r);
+                    slow.correct(&mut u, &mut r);
                     rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref());
+                    slow.project(&mut p);
                     slow.beta(None);
                     continue;
                 }
@@ -698,6 +706,7 @@ fn solve_piece(
                 slow.beta(Some(beta));
                 rz = rz_new;
             }
+            hier.modes = slow.modes();
         }
         SolveMethod::Southwell => {
             // Rounds of one coarse correction and one sweep's worth of Southwell relaxations
@@ -793,9 +802,10 @@ const KEPT_MAX_NODES: usize = 1 << 22;
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
 /// editor's drags): the hierarchies and free functions of the pieces of its recent solves
 /// (they depend on the grid, the fixed nodes and the tension, never on the values, so an
-/// animation's frames share them; as many before them stay, for an undo) and the
-/// warm-start history ([`WarmHistory`]). Nothing is kept between solves outside
-/// it: [`solve`] uses a temporary one.
+/// animation's frames share them; as many before them stay, for an undo), the slow modes
+/// a hierarchy's last slow solve found (the next solve starts corrected on them: see
+/// `deflate`) and the warm-start history ([`WarmHistory`]). Nothing is kept between solves
+/// outside it: [`solve`] uses a temporary one.
 ///
 /// ```
 /// use inkwarp_core::{solve::{Solver, SolveOptions}, Grid, Sample};
