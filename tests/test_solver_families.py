@@ -430,7 +430,7 @@ def test_a_slow_solve_looks_for_hidden_modes_before_it_stops(scale, seed):
     assert float(np.abs(field - tight).max()) < TOLERANCE_PX
 
 
-@pytest.mark.xfail(strict=True, reason="open: the stopping rule is not a bound (docs/dev/solver-correctness.md)")
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason="open: the stopping rule is not a bound (docs/dev/solver-correctness.md)")
 @pytest.mark.parametrize("seed, integer", [(14, True), (26, False)])
 def test_a_weakly_held_piece_with_a_hidden_mode_is_not_claimed_early(seed, integer):
     # Cuts at 4x and a fiftieth of the displacements: seed 14's piece held by two points
@@ -442,8 +442,10 @@ def test_a_weakly_held_piece_with_a_hidden_mode_is_not_claimed_early(seed, integ
     disp = disp * 0.02
     field, report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts)
     tight, tight_report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, tolerance=1e-6, max_cycles=2000)
-    assert report.converged and tight_report.converged, (report, tight_report)
-    assert float(np.abs(field - tight).max()) < TOLERANCE_PX
+    if not tight_report.converged:
+        pytest.fail(f"the reference did not converge: {tight_report}")  # not the expected failure
+    # The claim must hold; a fix that stops claiming convergence passes too.
+    assert not report.converged or float(np.abs(field - tight).max()) < TOLERANCE_PX, report
 
 
 def test_a_cold_torn_solve_does_not_stop_after_its_first_cycle():

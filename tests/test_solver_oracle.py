@@ -737,9 +737,9 @@ def test_a_warm_start_off_in_a_hanging_part_is_not_claimed_early(tension):
     # 3.7 px off at the matte's far edge, mostly in the cap's turn. The cycles took the tilt
     # out and then moved the field by 0.002-0.004 px a cycle while the cap stayed 0.09 px
     # off: converged=True after 9 cycles. Now a warm start on a hierarchy that has not
-    # solved before keeps its directions from the start of its solve (and so waits for
-    # two looks at them), and a kept `Solver` starts from the slow modes its cold solve
-    # found.
+    # solved before keeps its directions from its first cycle and, past that cycle, stops
+    # only after its first look at them; a kept `Solver` starts from the slow modes its
+    # cold solve found.
     first = hanging_cap(tension)
     moved = dataclasses.replace(first, displacements=first.displacements * 1.02 + 0.05)
     exact, skipped, _ = oracle(moved)

@@ -57,13 +57,14 @@ a grid with holes or cuts the free functions it found (hinges, strands), are reu
 every piece of the grid, which takes the later calls' setup away; as many of the points
 before stay too, for an undo (within about 4 million nodes). What the latest call used is
 kept whatever the grid's size, about 150 bytes a node of the grid it solves on, until the
-``Solver`` is dropped. A slow solve (past about a dozen cycles: hair, combs, many cuts)
-also leaves the slow modes it found (parts turning on thin necks; up to 64 bytes a node
-more), and the next call on that grid and points starts corrected on them: it takes fewer
-cycles, and its answer agrees with a fresh call's within the tolerance, not bit for bit.
-Otherwise the answers are the same as without it; nothing else carries over (a call
-starts from ``initial`` or from scratch). Without a ``Solver`` every call builds its
-levels afresh and keeps nothing. A ``WarmStart`` keeps a solver of its own, so the two are
+``Solver`` is dropped. A solve that looked for slow modes (past about a dozen cycles: hair,
+combs, many cuts; or a warm start on a torn grid's new levels) also leaves the modes it
+found (parts turning on thin necks; up to 64 bytes a node more), and the next call with
+that grid, points and tension starts corrected on them: it takes fewer cycles. So answers
+through a ``Solver`` agree with calls without it within the tolerance, and bit for bit
+where no earlier call left such modes; nothing else carries over (a call starts from
+``initial`` or from scratch). Without a ``Solver`` every call builds its levels afresh
+and keeps nothing. A ``WarmStart`` keeps a solver of its own, so the two are
 not passed together.
 
 Examples

@@ -8,18 +8,17 @@
 //! (deflated conjugate gradient, Saad et al. 2000). The same object gives the stopping rule
 //! a floor on the rate ([`Deflation::rate_floor`]) and, once it has deflated, the largest
 //! change of the last window ([`Deflation::judged_change`]). Memory: `WINDOW·2 + 2·KEEP`
-//! `f32` vectors (96 bytes a node), for pieces of at most [`BUDGET_BYTES`] of them; larger
-//! pieces run without (see `docs/dev/solver-correctness.md`).
+//! `f32` vectors (96 bytes a node; `W` and `A W`, 64, stay with a kept hierarchy), for
+//! pieces of at most [`BUDGET_BYTES`] of them; larger pieces run without.
 
 use rayon::prelude::*;
 
 use super::level::{pair_sums, Level, Real, V2, W2, WS};
 
 /// Cycles before the iteration starts keeping directions: solves that end by then pay
-/// nothing. An `early` solve of a torn piece (a warm start new to its hierarchy, whose
-/// error is an earlier answer's and often all in slow modes) keeps them from its first
-/// cycle instead and stops only after its first look at them
-/// (`docs/dev/solver-correctness.md`).
+/// nothing. An `early` solve (a warm start on a torn piece new to its hierarchy: its error
+/// is an earlier answer's, often all slow modes) keeps them from its first cycle and past
+/// that cycle stops only after its first look at them (`docs/dev/solver-correctness.md`).
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
@@ -33,21 +32,17 @@ const BUDGET_BYTES: usize = 256 << 20;
 /// Node chunk for the fused passes.
 const CHUNK: usize = 4096;
 
-/// Slow modes an earlier solve found: the kept vectors, their products and `Wᵀ A W`.
+/// Slow modes an earlier solve found: the kept vectors `W`, their products and `Wᵀ A W`.
 #[derive(Debug)]
-pub(crate) struct Modes {
-    w: Vec<Vec<f32>>,
-    aw: Vec<Vec<f32>>,
-    e: Vec<Vec<f64>>,
-}
+pub(crate) struct Modes(Vec<Vec<f32>>, Vec<Vec<f32>>, Vec<Vec<f64>>);
 
 #[derive(Default)]
 pub(super) struct Deflation {
     on: bool,
-    start: usize,
-    looks: usize,
-    /// Stops wait for `looks` looks at the kept directions (see [`Deflation::rate_floor`]).
+    /// Stops wait for looks at the kept directions (see [`Deflation::rate_floor`]), one
+    /// from the first cycle if `early` (see [`START`]).
     wait: bool,
+    early: bool,
     keep: usize,
     /// The window's directions, one scalar vector per component and cycle.
     v: Vec<Vec<f32>>,
@@ -76,8 +71,7 @@ impl Deflation {
     pub fn new(len: usize, off: bool, wait: bool, early: bool) -> Deflation {
         let fit = BUDGET_BYTES / (4 * len).max(1);
         let keep = KEEP.min(fit.saturating_sub(2 * WINDOW) / 2);
-        let (start, looks) = if early && wait { (1, 1) } else { (START, LOOKS) };
-        Deflation { on: !off && keep >= 4, start, looks, wait, keep, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
+        Deflation { on: !off && keep >= 4, wait, early: early && wait, keep, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
     }
 
     /// Whether [`Deflation::project`] changes directions (vectors are kept).
@@ -99,7 +93,7 @@ impl Deflation {
     /// Keeps the direction `p` of cycle `cycle` (its product `q = −A p`); true when a window
     /// is full and [`Deflation::restart`] is due.
     pub fn record(&mut self, cycle: usize, p: &[W2], q: &[V2]) -> bool {
-        if !self.on || cycle < self.start { return false; }
+        if !self.on || cycle < if self.early { 1 } else { START } { return false; }
         let n = p.len();
         let nb = self.w.len() + self.v.len();
         // Entries against the basis: (Ax_c)·b and x_c·b for both components c, then the
@@ -175,38 +169,28 @@ impl Deflation {
                 out[l * k + j] += dot(&w[l][a..b], &aw[j][a..b]);
             }
         });
-        self.e = (0..k).map(|l| (0..k).map(|j| sums[l.min(j) * k + l.max(j)]).collect()).collect();
-        self.m = (0..k).map(|l| (0..k).map(|j| if l == j { 1.0 } else { 0.0 }).collect()).collect();
-        (self.w, self.aw) = (w, aw);
-        self.g = self.e.clone();
-        self.v.clear();
-        if !self.correct(u, r) {
-            self.clear();
-        }
+        let e = (0..k).map(|l| (0..k).map(|j| sums[l.min(j) * k + l.max(j)]).collect()).collect();
+        self.adopt(Modes(w, aw, e), u, r);
     }
 
     /// The vectors kept, for the next solve of the same operator, whose slow modes they are.
-    pub fn modes(mut self) -> Option<Modes> {
-        (!self.w.is_empty()).then(|| Modes { w: std::mem::take(&mut self.w), aw: std::mem::take(&mut self.aw), e: std::mem::take(&mut self.e) })
-    }
+    pub fn modes(self) -> Option<Modes> { (!self.w.is_empty()).then_some(Modes(self.w, self.aw, self.e)) }
 
-    /// Starts from an earlier solve's [`Deflation::modes`]: corrects `u` and `r` on them,
-    /// and projects every later direction.
-    pub fn adopt(&mut self, modes: Modes, u: &mut [V2], r: &mut [V2]) {
-        if !self.on || modes.w[0].len() != u.len() { return; }
-        (self.w, self.aw, self.e) = (modes.w, modes.aw, modes.e);
-        self.m = (0..self.e.len()).map(|l| (0..self.e.len()).map(|j| if l == j { 1.0 } else { 0.0 }).collect()).collect();
-        self.g = self.e.clone();
-        if !self.correct(u, r) {
-            self.clear();
-        }
+    /// Keeps `modes` (the Ritz vectors, or an earlier solve's [`Deflation::modes`]) as the
+    /// vectors, a new basis (`Bᵀ B = I`, `Bᵀ A B = E`, no window); corrects `u` and `r` on
+    /// them, and projects every later direction.
+    pub fn adopt(&mut self, Modes(w, aw, e): Modes, u: &mut [V2], r: &mut [V2]) {
+        if !self.on || w[0].len() != u.len() { return; }
+        self.m = (0..e.len()).map(|l| (0..e.len()).map(|j| if l == j { 1.0 } else { 0.0 }).collect()).collect();
+        (self.w, self.aw, self.g, self.e) = (w, aw, e.clone(), e);
+        self.v.clear();
+        if !self.correct(u, r) { self.clear() }
     }
 
     /// `u += W c`, `r −= A W c` with `c = E⁻¹ Wᵀ r`; false when `E` is singular.
     pub fn correct(&self, u: &mut [V2], r: &mut [V2]) -> bool {
         if self.w.is_empty() { return true; }
-        let n = u.len();
-        let rhs = dots(&self.w, n, |i| r[i]);
+        let rhs = dots(&self.w, u.len(), |i| r[i]);
         let Some(c) = super::dense_solve(self.e.clone(), rhs).filter(|c| c.iter().all(|v| v[0].is_finite() && v[1].is_finite())) else {
             return false;
         };
@@ -274,7 +258,7 @@ impl Deflation {
                 self.high = self.high.max(hi);
             }
         }
-        if self.wait && self.on && self.restarts < self.looks && (self.restarts > 0 || !self.v.is_empty()) { return 1.0; }
+        if self.wait && self.on && self.restarts < if self.early { 1 } else { LOOKS } && (self.restarts > 0 || !self.v.is_empty()) { return 1.0; }
         let low = self.low.min(self.before);
         if !(low > 0.0 && self.high > low) { return 0.0; }
         let k = (self.high / low).sqrt();

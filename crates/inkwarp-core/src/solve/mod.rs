@@ -642,7 +642,6 @@ fn solve_piece(
                 s.project(&hier.levels[0], &mut u);
                 hier.levels[0].residual(&u, None, &mut r);
             }
-            // A warm start new to the hierarchy looks for slow modes from its first cycle.
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && fresh);
             if let Some(modes) = hier.modes.take().filter(|_| !options.off.has("recycle")) {
                 slow.adopt(modes, &mut u, &mut r);
@@ -795,8 +794,8 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
     fits.then_some(move |x: usize, y: usize| map([x as f64 - o[0], y as f64 - o[1]]))
 }
 
-/// At most this many finest nodes of hierarchies (about 150 bytes a node), and as many of free
-/// functions, a solver keeps beyond what its latest solve used.
+/// At most this many finest nodes of hierarchies (about 150 bytes a node, 64 more with slow
+/// modes), and as many of free functions, a solver keeps beyond what its latest solve used.
 const KEPT_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
@@ -859,8 +858,8 @@ impl Solver {
     /// The earlier solves a warm solve starts from.
     pub fn history(&self) -> &WarmHistory { &self.history }
 
-    /// Forgets the history (the next warm solve starts cold). The hierarchies, free functions
-    /// and work vectors stay: they never change an answer, only how soon it comes.
+    /// Forgets the history (the next warm solve starts cold). The hierarchies (with their slow
+    /// modes), free functions and work vectors stay.
     pub fn clear(&mut self) { self.history.clear() }
 
     /// Drops the hierarchies, free functions and work vectors (the history and the count of
