@@ -46,6 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 import inkwarp  # noqa: E402
 from test_solver_families import character_problem, comb_mask, random_cuts  # noqa: E402
+from test_solver_oracle import collinear_problem  # noqa: E402
 
 TOL = 0.01
 
@@ -108,17 +109,6 @@ def speckle_problem(seed: int, n: int = 128):
     ys, xs = np.nonzero(m)
     k = rng.choice(len(xs), 6, replace=False)
     return m, np.column_stack([xs[k], ys[k]]).astype(float), rng.normal(0, 3, (6, 2)), []
-
-
-def collinear_problem(seed: int, n: int = 128):
-    rng = np.random.default_rng(1000 + seed)
-    ys, xs = np.mgrid[0:n, 0:n]
-    a, b = rng.uniform(0.3, 0.48, 2) * n
-    m = ((((xs - n / 2) / a) ** 2 + ((ys - n / 2) / b) ** 2) <= 1).astype(np.uint8)
-    cuts = [rng.uniform(0, n, (2, 2)) for _ in range(2)]
-    angle = rng.uniform(0, np.pi)
-    line = np.linspace(-0.3, 0.3, 8)[:, None] * n * np.array([np.cos(angle), np.sin(angle)])
-    return m, np.round(n / 2 + line + rng.uniform(-4, 4, 2)), rng.normal(0, 3, (8, 2)), cuts
 
 
 def oracle_claims(seeds: int):

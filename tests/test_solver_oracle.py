@@ -716,19 +716,26 @@ def test_two_points_on_a_torn_matte_with_free_functions_keeps_to_its_settling():
     assert float(np.abs(field - exact).max()) < TOLERANCE_PX
 
 
-def hanging_cap(tension: float) -> Problem:
-    # `benchmarks/honesty.py`'s collinear family, seed 2: an ellipse on 128 x 128 whose cap
-    # a cut nearly severs (it hangs on a neck a few px wide) and 8 points near one line,
-    # so the tilt about that line and the cap's turn about its neck are both nearly free.
-    n, rng = 128, np.random.default_rng(1002)
+def collinear_problem(seed: int, n: int = 128):
+    """An ellipse matte on n x n with two random cuts and 8 points near one line, so the
+    tilt about that line is nearly free: (mask, points, displacements, cuts). The family of
+    `benchmarks/honesty.py --oracle`."""
+    rng = np.random.default_rng(1000 + seed)
     ys, xs = np.mgrid[0:n, 0:n]
     a, b = rng.uniform(0.3, 0.48, 2) * n
-    mask = ((((xs - n / 2) / a) ** 2 + ((ys - n / 2) / b) ** 2) <= 1).astype(np.uint8)
+    m = ((((xs - n / 2) / a) ** 2 + ((ys - n / 2) / b) ** 2) <= 1).astype(np.uint8)
     cuts = [rng.uniform(0, n, (2, 2)) for _ in range(2)]
     angle = rng.uniform(0, np.pi)
     line = np.linspace(-0.3, 0.3, 8)[:, None] * n * np.array([np.cos(angle), np.sin(angle)])
-    points = np.round(n / 2 + line + rng.uniform(-4, 4, 2))
-    return Problem((n, n), points, rng.normal(0, 3, (8, 2)), mask=mask, cuts=cuts, tension=tension)
+    return m, np.round(n / 2 + line + rng.uniform(-4, 4, 2)), rng.normal(0, 3, (8, 2)), cuts
+
+
+def hanging_cap(tension: float) -> Problem:
+    # Seed 2 of the collinear family: the upper cut nearly severs the ellipse's cap (it
+    # hangs on a neck a few px wide), so the tilt about the points' line and the cap's turn
+    # about its neck are both nearly free.
+    mask, points, displacements, cuts = collinear_problem(2)
+    return Problem(mask.shape, points, displacements, mask=mask, cuts=cuts, tension=tension)
 
 
 @pytest.mark.parametrize("tension", [0.0, 1e-6])

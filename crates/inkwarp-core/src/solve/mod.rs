@@ -646,8 +646,7 @@ fn solve_piece(
             if let Some(modes) = hier.modes.take().filter(|_| !options.off.has("recycle")) {
                 slow.adopt(modes, &mut u, &mut r);
             }
-            let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref());
-            slow.project(&mut p);
+            let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
             for cycle in 1..=options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) {
                 if crate::interrupt::requested() { break; }
                 // Once deflation or the settling projects the directions, p is no longer
@@ -670,8 +669,7 @@ fn solve_piece(
                     // A window of directions kept: correct on the slow modes found and
                     // restart the directions, deflated.
                     slow.restart(&hier.levels[0], &mut u, &mut r);
-                    rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref());
-                    slow.project(&mut p);
+                    rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
                     slow.beta(None);
                     continue;
                 }
@@ -683,8 +681,7 @@ fn solve_piece(
                     }
                     hier.levels[0].residual(&u, None, &mut r);
                     slow.correct(&mut u, &mut r);
-                    rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref());
-                    slow.project(&mut p);
+                    rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
                     slow.beta(None);
                     continue;
                 }
@@ -698,10 +695,7 @@ fn solve_piece(
                 let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
                 let beta = [0, 1].map(|k| if along[k] > 0.0 { ((alpha[k] * zq[k]) / along[k]).max(0.0) } else { 0.0 });
                 widen_into(&mut p, z, beta);
-                if let Some(s) = &settled {
-                    s.project(&hier.levels[0], &mut p);
-                }
-                slow.project(&mut p);
+                keep_to(&hier.levels[0], &mut p, settled.as_ref(), Some(&slow));
                 slow.beta(Some(beta));
                 rz = rz_new;
             }
@@ -715,7 +709,7 @@ fn solve_piece(
             let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
             let mut round = 0;
             while left > 0 && round < options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) && !crate::interrupt::requested() {
-                let rz = fresh_direction(&mut hier, &r, &mut p, None);
+                let rz = fresh_direction(&mut hier, &r, &mut p, None, None);
                 let (step, _) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
                 let take = unknowns.min(left);
                 let (relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take, unknowns);
@@ -1160,16 +1154,20 @@ fn widen_into(p: &mut [W2], z: &[W2], b: [f64; 2]) {
     });
 }
 
-/// Restarts the directions: `p = z`, `z` the preconditioned `r` (settled where `settled`);
+/// Restarts the directions: `p = z`, `z` the preconditioned `r`, kept to (see [`keep_to`]);
 /// returns `rᵀz`.
-fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2], settled: Option<&Settled>) -> [f64; 2] {
+fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2], settled: Option<&Settled>, slow: Option<&deflate::Deflation>) -> [f64; 2] {
     let z = hier.precondition(r);
     p.copy_from_slice(z);
     let rz = dot_z(r, z);
-    if let Some(s) = settled {
-        s.project(&hier.levels[0], p);
-    }
+    keep_to(&hier.levels[0], p, settled, slow);
     rz
+}
+
+/// Keeps the direction `p` to the settled answers and `A`-orthogonal to the kept slow modes.
+fn keep_to(level: &Level, p: &mut [W2], settled: Option<&Settled>, slow: Option<&deflate::Deflation>) {
+    if let Some(s) = settled { s.project(level, p) }
+    if let Some(d) = slow { d.project(p) }
 }
 
 #[cfg(test)]
