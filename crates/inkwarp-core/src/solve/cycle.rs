@@ -79,7 +79,7 @@ impl Hierarchy {
     /// V-cycles), with no work vectors or smoothing bound on `fine` itself, which the
     /// hierarchy it serves already has.
     pub fn coarse_space(fine: Level, degree: usize) -> Hierarchy {
-        let mut h = Hierarchy { k_cycles: false, ..Hierarchy::new(fine, degree, degree, false) };
+        let mut h = Hierarchy { k_cycles: false, ..Hierarchy::new(fine, degree, degree, false, false) };
         // Past the setup, the finest level only lends its prolongation (restriction and
         // prolongation read nothing else): keep 4 bytes a node instead of about 18.
         h.levels[0].keep_only_prolongation();
@@ -87,10 +87,11 @@ impl Hierarchy {
     }
 
     /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and of
-    /// `coarse_degree` below it; unless `smooth_fine`, `fine` gets no work vectors or bound.
-    pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool) -> Hierarchy {
+    /// `coarse_degree` below it; unless `smooth_fine`, `fine` gets no work vectors or bound;
+    /// if `whole`, `fine` is the only level, solved by its banded factor.
+    pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool, whole: bool) -> Hierarchy {
         let mut levels = vec![fine];
-        while let Some(last) = levels.last().filter(|l| l.geo.w * l.geo.h > COARSEST_NODES && l.geo.w > 2 && l.geo.h > 2) {
+        while let Some(last) = levels.last().filter(|l| !whole && l.geo.w * l.geo.h > COARSEST_NODES && l.geo.w > 2 && l.geo.h > 2) {
             levels.push(galerkin(last));
         }
         let work = (0..levels.len()).map(|k| {
@@ -578,16 +579,31 @@ struct Banded {
     dropped: Vec<bool>,
 }
 
+super::wide::widest! {
+    /// `aᵀb` in four running sums (a vector's lanes).
+    fn band_dot(a: &[f64], b: &[f64]) -> f64 => band_dot_body {
+        let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+        let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
+        let s = ca.zip(cb).fold([0.0; 4], |s, (x, y)| std::array::from_fn(|i| s[i] + x[i] * y[i]));
+        (s[0] + s[1]) + (s[2] + s[3]) + tail
+    }
+}
+
 impl Banded {
     fn new(level: &Level) -> Banded {
-        // The unknowns in row-major order (the padding has none), and the number of each.
-        let map: Vec<usize> = (0..level.len_padded()).filter(|&p| level.inv_diag[p] != 0.0).collect();
+        // The unknowns row by row, or column by column where that is shorter (the padding has
+        // none), and the number of each.
+        let mut map: Vec<usize> = (0..level.len_padded()).filter(|&p| level.inv_diag[p] != 0.0).collect();
+        if level.geo.w > level.geo.h {
+            map.sort_by_key(|&p| (p % level.wp, p / level.wp));
+        }
         let mut number = vec![usize::MAX; level.len_padded()];
         for (k, &p) in map.iter().enumerate() {
             number[p] = k;
         }
         let n = map.len();
-        // In row-major order a 5 × 5 stencil reaches at most 2 rows ahead: bandwidth ≤ 2w + 2.
+        // In this order a 5 × 5 stencil reaches at most 2 rows (columns) ahead: bandwidth
+        // ≤ 2 min(w, h) + 2.
         // (`number` is `usize::MAX`, above every k, where a tap is no unknown.)
         let (mut bw, mut dropped) = (0, vec![false; n]);
         for (k, &p) in map.iter().enumerate() {
@@ -602,17 +618,12 @@ impl Banded {
         for k in 0..n {
             let j0 = k.saturating_sub(bw);
             for j in j0..k {
-                // l_kj = (a_kj - Σ_{m<j} l_km l_jm) / l_jj
-                let mut s = l[at(k, j)];
-                for m in j0.max(j.saturating_sub(bw))..j {
-                    s -= l[at(k, m)] * l[at(j, m)];
-                }
+                // l_kj = (a_kj - Σ_{j0 ≤ m < j} l_km l_jm) / l_jj (l_jm is zero for m < j0 too)
+                let s = l[at(k, j)] - band_dot(&l[at(k, j0)..at(k, j)], &l[at(j, j0)..at(j, j)]);
                 l[at(k, j)] = if dropped[j] { 0.0 } else { s / l[at(j, j)] };
             }
-            let mut s = l[at(k, k)];
-            for m in j0..k {
-                s -= l[at(k, m)] * l[at(k, m)];
-            }
+            let row = &l[at(k, j0)..at(k, k)];
+            let s = l[at(k, k)] - band_dot(row, row);
             if s <= PIVOT_FLOOR * level.row(map[k])[12].abs() || s <= 0.0 {
                 dropped[k] = true;
                 l[at(k, j0)..at(k, k)].fill(0.0);
@@ -728,7 +739,7 @@ mod tests {
         for i in [3 * w + 4, 20 * w + 60, 55 * w + 20, 64 * w + 70] {
             fixed[i] = true;
         }
-        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2, true);
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2, true, false);
         assert!(hier.levels.len() >= 4, "the test needs a level with a K-cycle below it");
         let mut rnd = crate::grid::tests::sequence(5);
         let k = 1;

@@ -76,7 +76,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 10] = ["second", "recycle", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside"];
+    pub const NAMES: [&'static str; 11] = ["second", "recycle", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -532,19 +532,24 @@ fn solve_piece(
         // is needed only where inactive nodes remain (thin holes, holes open to the border,
         // other pieces in the box).
         let real = torn.then(|| fine.geo.clone());
+        // A small torn piece is solved whole by its banded factor: exact, so no slow mode of
+        // a weakly held part can hide from the stopping rule (`docs/dev/solver-correctness.md`,
+        // "Small torn pieces solved whole").
+        let unknowns = fine.inv_diag.iter().filter(|&&d| d != 0.0).count();
+        let whole = torn && unknowns * (2 * w.min(h) + 3).pow(2) <= DIRECT_WORK && !key.off.has("whole");
         let fine = fine.with_holes_filled(key.links.outside().filter(|_| !key.off.has("outside")));
-        let second = fine.geo.active.contains(&false) && !key.off.has("second");
+        let second = fine.geo.active.contains(&false) && !whole && !key.off.has("second");
         let alt = second.then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
-        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse, true);
+        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse, true, whole);
         (hier.k_cycles, hier.alt, hier.torn) = (!key.off.has("kcycle"), alt, torn);
-        if !key.off.has("strands") {
+        if !whole && !key.off.has("strands") {
             hier.strands = strands::Strands::new(&hier.levels[0]);
             if !key.off.has("coarse_strands") {
                 hier.level_strands = hier.levels.iter().enumerate().map(|(k, l)| if k == 0 || k + 1 == hier.levels.len() { None } else { strands::Strands::new(l) }).collect();
             }
         }
-        if torn && settled.is_none() && !key.off.has("affine") {
+        if torn && !whole && settled.is_none() && !key.off.has("affine") {
             // Its two vectors become the solve's residual and product below.
             let (mut x, mut q) = (cycle::zeros_in(None, hier.levels[0].len_padded()), cycle::zeros_in(None, hier.levels[0].len_padded()));
             hier.affine = cycle::Affine::new(&hier.levels[0], &mut x, &mut q);
@@ -965,6 +970,9 @@ const FINEST_TOLERANCE: f64 = 1e-7;
 const DEFAULT_MAX_CYCLES: usize = 100;
 /// The same on grids with holes or cuts, where the slowest error moves least per cycle.
 const TORN_STOP_MARGIN: f64 = 3.0;
+/// The largest banded factor's work (unknowns × bandwidth², multiply-adds) of a torn piece
+/// solved whole.
+const DIRECT_WORK: usize = 1 << 25;
 /// Smoothing steps before and after each coarse correction.
 const SMOOTHING_STEPS: usize = 2;
 /// The same below the finest level of a grid without holes or cuts (across holes and cuts
