@@ -635,30 +635,28 @@ impl Banded {
         Banded { bw, l, map, dropped }
     }
 
-    /// `x = A⁻¹ f` on the unknowns: the forward and backward solves of the factor, in `f64`.
+    /// `x = A⁻¹ f` on the unknowns: the forward and backward solves of the factor, in `f64`,
+    /// each component apart (the backward one by columns: the factor's rows are contiguous).
     /// Dropped unknowns are zero (their rows and columns in the factor are).
     fn solve<T: Real>(&self, f: &[[T; 2]], x: &mut [[T; 2]]) {
         let (n, bw, l) = (self.map.len(), self.bw, &self.l);
         let at = |k: usize, m: usize| k * (bw + 1) + m + bw - k;
-        // `s / l_kk`, zero for a dropped unknown.
-        let pivot = |k: usize, s: V2| if self.dropped[k] { [0.0; 2] } else { [s[0] / l[at(k, k)], s[1] / l[at(k, k)]] };
-        let mut z: Vec<V2> = self.map.iter().map(|&p| [f[p][0].get(), f[p][1].get()]).collect();
-        for k in 0..n {
-            let mut s = z[k];
-            for m in k.saturating_sub(bw)..k {
-                s = [s[0] - l[at(k, m)] * z[m][0], s[1] - l[at(k, m)] * z[m][1]];
+        let pivot = |k: usize, s: f64| if self.dropped[k] { 0.0 } else { s / l[at(k, k)] };
+        let z = [0, 1].map(|c| {
+            let mut z: Vec<f64> = self.map.iter().map(|&p| f[p][c].get()).collect();
+            for k in 0..n {
+                let j0 = k.saturating_sub(bw);
+                z[k] = pivot(k, z[k] - band_dot(&l[at(k, j0)..at(k, k)], &z[j0..k]));
             }
-            z[k] = pivot(k, s);
-        }
-        for k in (0..n).rev() {
-            let mut s = z[k];
-            for m in k + 1..(k + bw + 1).min(n) {
-                s = [s[0] - l[at(m, k)] * z[m][0], s[1] - l[at(m, k)] * z[m][1]];
+            for k in (0..n).rev() {
+                let (j0, zk) = (k.saturating_sub(bw), pivot(k, z[k]));
+                z[k] = zk;
+                z[j0..k].iter_mut().zip(&l[at(k, j0)..at(k, k)]).for_each(|(z, l)| *z -= l * zk);
             }
-            z[k] = pivot(k, s);
-        }
-        for (&p, v) in self.map.iter().zip(z) {
-            x[p] = [T::of(v[0]), T::of(v[1])];
+            z
+        });
+        for (k, &p) in self.map.iter().enumerate() {
+            x[p] = [T::of(z[0][k]), T::of(z[1][k])];
         }
     }
 }

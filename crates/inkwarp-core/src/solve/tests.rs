@@ -772,6 +772,28 @@ pub(super) fn comb_grid(w: usize, len: usize) -> Grid {
 }
 
 #[test]
+fn a_small_torn_piece_is_solved_whole_in_either_orientation() {
+    // A box 40 × 24 with a cut (factored column by column) and its transpose (row by row):
+    // each is solved in one cycle, to the dense direct solve's answer and to the other's
+    // transposed.
+    let (w, h) = (40usize, 24usize);
+    let samples = random_samples(&mut Rng(77), w, h, 6);
+    let mut grid = Grid::new(w, h);
+    grid.add_cut(&[[3.5, 12.3], [30.2, 9.7]]);
+    assert_eq!(check_against_dense(&grid, &samples, 0.0).cycles, 1);
+    let mut turned = Grid::new(h, w);
+    turned.add_cut(&[[12.3, 3.5], [9.7, 30.2]]);
+    let swap = |v: [f64; 2]| [v[1], v[0]];
+    let turned_samples: Vec<Sample> = samples.iter().map(|s| Sample { rest: swap(s.rest), displacement: swap(s.displacement) }).collect();
+    let (a, _) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    let (b, report) = solve(&turned, &turned_samples, &SolveOptions::default(), None).unwrap();
+    assert_eq!(report.cycles, 1, "{report:?}");
+    for (i, j) in (0..w * h).map(|i| (i, (i % w) * h + i / w)) {
+        assert!((a.dx[i] - b.dy[j]).abs() < 1e-4 && (a.dy[i] - b.dx[j]).abs() < 1e-4, "node {i}");
+    }
+}
+
+#[test]
 fn solving_the_thin_parts_whole_saves_cycles_on_a_comb() {
     // Each tooth bends nearly freely: a slow mode of the cycle, slower the longer the tooth.
     let grid = comb_grid(48, 60);
