@@ -266,9 +266,7 @@ impl Hierarchy {
             self.levels[0].residual(u, None, r);
             let mut x = vec![[0.0; 2]; r.len()];
             self.coarsest.solve(r, &mut x);
-            for &p in &self.coarsest.map {
-                u[p] = [u[p][0] + x[p][0], u[p][1] + x[p][1]];
-            }
+            self.coarsest.map.iter().for_each(|&p| u[p] = [u[p][0] + x[p][0], u[p][1] + x[p][1]]);
             return;
         }
         let mut work = std::mem::take(&mut self.work);
@@ -492,13 +490,9 @@ fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
 /// `len` zeros in `v` where it has that length (a vector kept from an earlier solve), else
 /// in a new vector.
 pub(crate) fn zeros_in<T: Real>(v: Option<Vec<[T; 2]>>, len: usize) -> Vec<[T; 2]> {
-    match v {
-        Some(mut v) if v.len() == len => {
-            fill_zero(&mut v);
-            v
-        }
-        _ => vec![[T::ZERO; 2]; len],
-    }
+    let Some(mut v) = v.filter(|v| v.len() == len) else { return vec![[T::ZERO; 2]; len] };
+    fill_zero(&mut v);
+    v
 }
 
 fn fill_zero<T: Real>(v: &mut [[T; 2]]) { v.par_chunks_mut(PASS_CHUNK).for_each(|v| v.fill([T::ZERO; 2])) }
@@ -582,10 +576,9 @@ struct Banded {
 super::wide::widest! {
     /// `aᵀb` in four running sums (a vector's lanes).
     fn band_dot(a: &[f64], b: &[f64]) -> f64 => band_dot_body {
-        let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-        let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
-        let s = ca.zip(cb).fold([0.0; 4], |s, (x, y)| std::array::from_fn(|i| s[i] + x[i] * y[i]));
-        (s[0] + s[1]) + (s[2] + s[3]) + tail
+        let s = a.chunks_exact(4).zip(b.chunks_exact(4)).fold([0.0; 4], |s, (x, y)| std::array::from_fn(|i| s[i] + x[i] * y[i]));
+        let t = a.len() / 4 * 4;
+        (s[0] + s[1]) + (s[2] + s[3]) + a[t..].iter().zip(&b[t..]).map(|(x, y)| x * y).sum::<f64>()
     }
 }
 
@@ -598,23 +591,17 @@ impl Banded {
             map.sort_by_key(|&p| (p % level.wp, p / level.wp));
         }
         let mut number = vec![usize::MAX; level.len_padded()];
-        for (k, &p) in map.iter().enumerate() {
-            number[p] = k;
-        }
+        map.iter().enumerate().for_each(|(k, &p)| number[p] = k);
         let n = map.len();
         // In this order a 5 × 5 stencil reaches at most 2 rows (columns) ahead: bandwidth
         // ≤ 2 min(w, h) + 2.
         // (`number` is `usize::MAX`, above every k, where a tap is no unknown.)
         let (mut bw, mut dropped) = (0, vec![false; n]);
-        for (k, &p) in map.iter().enumerate() {
-            level.taps(p, |q, _| if number[q] < k { bw = bw.max(k - number[q]) });
-        }
+        map.iter().enumerate().for_each(|(k, &p)| level.taps(p, |q, _| if number[q] < k { bw = bw.max(k - number[q]) }));
         // l_km's index in `l`.
         let at = |k: usize, m: usize| k * (bw + 1) + m + bw - k;
         let mut l = vec![0.0; n * (bw + 1)];
-        for (k, &p) in map.iter().enumerate() {
-            level.taps(p, |q, a| if number[q] <= k { l[at(k, number[q])] = a });
-        }
+        map.iter().enumerate().for_each(|(k, &p)| level.taps(p, |q, a| if number[q] <= k { l[at(k, number[q])] = a }));
         for k in 0..n {
             let j0 = k.saturating_sub(bw);
             for j in j0..k {
@@ -655,9 +642,7 @@ impl Banded {
             }
             z
         });
-        for (k, &p) in self.map.iter().enumerate() {
-            x[p] = [T::of(z[0][k]), T::of(z[1][k])];
-        }
+        self.map.iter().enumerate().for_each(|(k, &p)| x[p] = [T::of(z[0][k]), T::of(z[1][k])]);
     }
 }
 

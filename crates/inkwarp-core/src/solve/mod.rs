@@ -1124,9 +1124,7 @@ impl<'m> Settled<'m> {
         nodes.sort_unstable();
         nodes.dedup();
         let mut slot = vec![u32::MAX; level.len_padded()];
-        for (k, &i) in nodes.iter().enumerate() {
-            slot[level.pidx(i % w, i / w)] = k as u32;
-        }
+        nodes.iter().enumerate().for_each(|(k, &i)| slot[level.pidx(i % w, i / w)] = k as u32);
         Some(Settled { membrane, nodes, slot })
     }
 
@@ -1140,9 +1138,7 @@ impl<'m> Settled<'m> {
             let m = &mut moved[self.slot[at(i)] as usize];
             *m = [m[0] + c[0], m[1] + c[1]];
         });
-        for (&i, m) in self.nodes.iter().zip(&moved) {
-            v[at(i)] = [T::of(m[0]), T::of(m[1])];
-        }
+        self.nodes.iter().zip(&moved).for_each(|(&i, m)| v[at(i)] = [T::of(m[0]), T::of(m[1])]);
     }
 }
 
