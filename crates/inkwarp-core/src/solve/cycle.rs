@@ -103,9 +103,8 @@ impl Hierarchy {
         // alternates in sign as its molecule does, a Collatz–Wielandt bound on |A| is safe
         // and close; on the Galerkin levels it is loose, so there Lanczos's largest Ritz
         // value, capped by Gershgorin's (power steps miss the edge modes over holes).
-        for (k, l) in levels.iter_mut().enumerate().skip(if smooth_fine { 0 } else { 1 }) {
-            l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
-        }
+        let bound = |(k, l): (usize, &mut Level)| l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
+        levels.iter_mut().enumerate().skip(if smooth_fine { 0 } else { 1 }).for_each(bound);
         let coarsest = Banded::new(levels.last().unwrap());
         Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, modes: None }
     }
@@ -333,9 +332,7 @@ impl Affine {
             x.par_iter_mut().enumerate().for_each(|(p, v)| { let w = affine_at(level, p); *v = [w[pair[0]], w[pair[1]]] });
             level.residual(x, None, q); // −A W, exact but for the tension's terms
             let s = affine_sums(level, q);
-            for (i, row) in e.iter_mut().enumerate() {
-                (row[pair[0]], row[pair[1]]) = (-s[i][0], -s[i][1]);
-            }
+            e.iter_mut().enumerate().for_each(|(i, row)| (row[pair[0]], row[pair[1]]) = (-s[i][0], -s[i][1]));
         }
         // E for W scaled to 1 at the edges: det / (sum of the principal 2 × 2 minors) lies
         // between a third of its least eigenvalue and that eigenvalue.
@@ -558,7 +555,8 @@ super::wide::widest! {
     }
 }
 
-/// Banded Cholesky factor of the coarsest operator (unknowns in row-major order). Pivots
+/// Banded Cholesky factor of the coarsest operator (unknowns by rows, or by columns where
+/// the level is wider than tall; a piece solved whole has no other level). Pivots
 /// below [`PIVOT_FLOOR`] of their diagonal pin their unknown to zero: those of a singular,
 /// consistent coarsest system, and those of free functions whose energy is of order a tiny
 /// tension.
@@ -605,7 +603,7 @@ impl Banded {
         for k in 0..n {
             let j0 = k.saturating_sub(bw);
             for j in j0..k {
-                // l_kj = (a_kj - Σ_{j0 ≤ m < j} l_km l_jm) / l_jj (l_jm is zero for m < j0 too)
+                // l_kj = (a_kj - Σ_{j0 ≤ m < j} l_km l_jm) / l_jj (l_km is zero for m < j0)
                 let s = l[at(k, j)] - band_dot(&l[at(k, j0)..at(k, j)], &l[at(j, j0)..at(j, j)]);
                 l[at(k, j)] = if dropped[j] { 0.0 } else { s / l[at(j, j)] };
             }

@@ -955,9 +955,7 @@ impl Level {
         for (t, &a) in row.iter().enumerate().filter(|e| *e.1 != 0.0) {
             f(p + (t / 5) * wp + t % 5 - 2 * wp - 2, a);
         }
-        for &(_, q, a) in self.far(p) {
-            f(q as usize, a);
-        }
+        self.far(p).iter().for_each(|&(_, q, a)| f(q as usize, a));
     }
 
     /// `out_p = Σ_q |a_pq| g_q` on every unknown p of the finest level (`g` zero off the

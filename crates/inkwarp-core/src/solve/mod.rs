@@ -520,7 +520,8 @@ fn solve_piece(
     let kept = if options.off.has("cache") { None } else { store.hierarchies.take(store.solve, &key, |_| true) };
     let fresh = kept.is_none();
     store.built += u64::from(fresh);
-    let mut hier = kept.unwrap_or_else(|| {
+    // The hierarchy, and whether the piece is solved whole (if `allow_whole`).
+    let build = |allow_whole: bool| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
         let fine = Level::fine(geo, tau);
@@ -536,7 +537,7 @@ fn solve_piece(
         // a weakly held part can hide from the stopping rule (`docs/dev/solver-correctness.md`,
         // "Small torn pieces solved whole").
         let unknowns = fine.inv_diag.iter().filter(|&&d| d != 0.0).count();
-        let whole = torn && unknowns * (2 * w.min(h) + 3).pow(2) <= DIRECT_WORK && !key.off.has("whole");
+        let whole = allow_whole && torn && unknowns * (2 * w.min(h) + 3).pow(2) <= DIRECT_WORK && !key.off.has("whole");
         let fine = fine.with_holes_filled(key.links.outside().filter(|_| !key.off.has("outside")));
         let second = fine.geo.active.contains(&false) && !whole && !key.off.has("second");
         let alt = second.then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
@@ -558,7 +559,13 @@ fn solve_piece(
         if key.off.has("fours") {
             hier.levels.iter_mut().chain(hier.alt.iter_mut().flat_map(|a| a.levels.iter_mut())).for_each(Level::drop_fours);
         }
-        hier
+        (hier, whole)
+    };
+    let mut hier = kept.unwrap_or_else(|| {
+        let (hier, whole) = build(true);
+        // A factor that dropped a pivot no free function accounts for (a soft part under the
+        // pivot floor, such as a long strand's tip) would hold that node still: iterated.
+        if whole && hier.dropped() > settled.map_or(0, |m| m.len()) { build(false).0 } else { hier }
     });
     let len = hier.levels[0].len_padded();
     let mut u: Vec<V2> = vec![[0.0; 2]; len];
@@ -794,7 +801,8 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
 }
 
 /// At most this many finest nodes of hierarchies (about 150 bytes a node, 64 more with slow
-/// modes), and as many of free functions, a solver keeps beyond what its latest solve used.
+/// modes; solved whole, 8 × (bandwidth + 1) for the factor), and as many of free functions,
+/// a solver keeps beyond what its latest solve used.
 const KEPT_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
