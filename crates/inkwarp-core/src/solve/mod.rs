@@ -563,9 +563,9 @@ fn solve_piece(
     };
     let mut hier = kept.unwrap_or_else(|| {
         let (hier, whole) = build(true);
-        // A factor that dropped a pivot no free function accounts for (a soft part under the
-        // pivot floor, such as a long strand's tip) would hold that node still: iterated.
-        if whole && hier.dropped() > settled.map_or(0, |m| m.len()) { build(false).0 } else { hier }
+        // A factor that dropped a pivot no free function accounts for (a soft part's, such as a
+        // long strand's tip; at τ > 0 a count cannot tell) would hold that node still: iterated.
+        if whole && (hier.dropped() > settled.map_or(0, |m| m.len()) || (tau > 0.0 && hier.dropped() > 0)) { build(false).0 } else { hier }
     });
     let len = hier.levels[0].len_padded();
     let mut u: Vec<V2> = vec![[0.0; 2]; len];
