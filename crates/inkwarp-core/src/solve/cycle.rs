@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{dot_pairs, galerkin, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, PAD, V2, W2, WS};
+use super::level::{dot, dot_pairs, galerkin, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, PAD, V2, W2, WS};
 use super::strands::Strands;
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
@@ -59,6 +59,8 @@ pub(crate) struct Hierarchy {
     pub affine: Option<Affine>,
     /// The slow modes the last solve's deflation found (see [`super::deflate::Modes`]).
     pub modes: Option<super::deflate::Modes>,
+    /// Whether the finest level is the only one, solved by its banded factor.
+    pub whole: bool,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -79,7 +81,7 @@ impl Hierarchy {
     /// V-cycles), with no work vectors or smoothing bound on `fine` itself, which the
     /// hierarchy it serves already has.
     pub fn coarse_space(fine: Level, degree: usize) -> Hierarchy {
-        let mut h = Hierarchy { k_cycles: false, ..Hierarchy::new(fine, degree, degree, false, false) };
+        let mut h = Hierarchy { k_cycles: false, ..Hierarchy::new(fine, degree, degree, false, None) };
         // Past the setup, the finest level only lends its prolongation (restriction and
         // prolongation read nothing else): keep 4 bytes a node instead of about 18.
         h.levels[0].keep_only_prolongation();
@@ -87,10 +89,13 @@ impl Hierarchy {
     }
 
     /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and of
-    /// `coarse_degree` below it; unless `smooth_fine`, `fine` gets no work vectors or bound;
-    /// if `whole`, `fine` is the only level, solved by its banded factor.
-    pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool, whole: bool) -> Hierarchy {
+    /// `coarse_degree` below it; unless `smooth_fine`, `fine` gets no work vectors or bound.
+    /// With `whole = Some(max)`, `fine` is the only level, solved by its banded factor, where
+    /// that factor drops at most `max` pivots.
+    pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool, whole: Option<usize>) -> Hierarchy {
         let mut levels = vec![fine];
+        let factor = whole.and_then(|max| Some(Banded::new(&levels[0])).filter(|b| b.dropped.iter().filter(|&&d| d).count() <= max));
+        let whole = factor.is_some();
         while let Some(last) = levels.last().filter(|l| !whole && l.geo.w * l.geo.h > COARSEST_NODES && l.geo.w > 2 && l.geo.h > 2) {
             levels.push(galerkin(last));
         }
@@ -104,9 +109,9 @@ impl Hierarchy {
         // and close; on the Galerkin levels it is loose, so there Lanczos's largest Ritz
         // value, capped by Gershgorin's (power steps miss the edge modes over holes).
         let bound = |(k, l): (usize, &mut Level)| l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
-        levels.iter_mut().enumerate().skip(if smooth_fine { 0 } else { 1 }).for_each(bound);
-        let coarsest = Banded::new(levels.last().unwrap());
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, modes: None }
+        levels.iter_mut().enumerate().skip(if smooth_fine && !whole { 0 } else { 1 }).for_each(bound);
+        let coarsest = factor.unwrap_or_else(|| Banded::new(levels.last().unwrap()));
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, modes: None, whole }
     }
 
     /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one symmetric cycle from zero, in
@@ -571,15 +576,6 @@ struct Banded {
     dropped: Vec<bool>,
 }
 
-super::wide::widest! {
-    /// `aᵀb` in four running sums (a vector's lanes).
-    fn band_dot(a: &[f64], b: &[f64]) -> f64 => band_dot_body {
-        let s = a.chunks_exact(4).zip(b.chunks_exact(4)).fold([0.0; 4], |s, (x, y)| std::array::from_fn(|i| s[i] + x[i] * y[i]));
-        let t = a.len() / 4 * 4;
-        (s[0] + s[1]) + (s[2] + s[3]) + a[t..].iter().zip(&b[t..]).map(|(x, y)| x * y).sum::<f64>()
-    }
-}
-
 impl Banded {
     fn new(level: &Level) -> Banded {
         // The unknowns row by row, or column by column where that is shorter (the padding has
@@ -604,11 +600,11 @@ impl Banded {
             let j0 = k.saturating_sub(bw);
             for j in j0..k {
                 // l_kj = (a_kj - Σ_{j0 ≤ m < j} l_km l_jm) / l_jj (l_km is zero for m < j0)
-                let s = l[at(k, j)] - band_dot(&l[at(k, j0)..at(k, j)], &l[at(j, j0)..at(j, j)]);
+                let s = l[at(k, j)] - dot(&l[at(k, j0)..at(k, j)], &l[at(j, j0)..at(j, j)]);
                 l[at(k, j)] = if dropped[j] { 0.0 } else { s / l[at(j, j)] };
             }
             let row = &l[at(k, j0)..at(k, k)];
-            let s = l[at(k, k)] - band_dot(row, row);
+            let s = l[at(k, k)] - dot(row, row);
             if s <= PIVOT_FLOOR * level.row(map[k])[12].abs() || s <= 0.0 {
                 dropped[k] = true;
                 l[at(k, j0)..at(k, k)].fill(0.0);
@@ -631,7 +627,7 @@ impl Banded {
             let mut z: Vec<f64> = self.map.iter().map(|&p| f[p][c].get()).collect();
             for k in 0..n {
                 let j0 = k.saturating_sub(bw);
-                z[k] = pivot(k, z[k] - band_dot(&l[at(k, j0)..at(k, k)], &z[j0..k]));
+                z[k] = pivot(k, z[k] - dot(&l[at(k, j0)..at(k, k)], &z[j0..k]));
             }
             for k in (0..n).rev() {
                 let (j0, zk) = (k.saturating_sub(bw), pivot(k, z[k]));
@@ -656,6 +652,16 @@ mod tests {
         level.residual(e, None, &mut r); // −A e
         let (ear, ef) = (dot_w(e, &r), dot_w(e, f));
         [-0.5 * ear[0] - ef[0], -0.5 * ear[1] - ef[1]]
+    }
+
+    #[test]
+    fn the_banded_factor_runs_across_the_shorter_side() {
+        // A wide level is numbered column by column, a tall one row by row: either way the
+        // band is about twice the shorter side (row by row, the wide one's would be 122).
+        for (w, h) in [(60, 8), (8, 60)] {
+            let banded = Banded::new(&fine_level(&Grid::new(w, h), None, 0.0));
+            assert!(banded.bw <= 2 * w.min(h) + 2, "{w} × {h}: bandwidth {}", banded.bw);
+        }
     }
 
     #[test]
@@ -720,7 +726,7 @@ mod tests {
         for i in [3 * w + 4, 20 * w + 60, 55 * w + 20, 64 * w + 70] {
             fixed[i] = true;
         }
-        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2, true, false);
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2, true, None);
         assert!(hier.levels.len() >= 4, "the test needs a level with a K-cycle below it");
         let mut rnd = crate::grid::tests::sequence(5);
         let k = 1;

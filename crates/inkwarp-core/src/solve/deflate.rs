@@ -13,7 +13,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{pair_sums, Level, Real, V2, W2, WS};
+use super::level::{dot, Level, Real, V2, W2, WS};
 
 /// Cycles before the iteration starts keeping directions: solves that end by then pay
 /// nothing. An `early` solve (a warm start on a torn piece new to its hierarchy: its error
@@ -294,12 +294,6 @@ fn dots(vs: &[Vec<f32>], len: usize, x: impl Fn(usize) -> V2 + Sync) -> Vec<V2> 
         }
     });
     s.chunks_exact(2).map(|d| [d[0], d[1]]).collect()
-}
-
-/// `Σ_i a_i b_i` on [`pair_sums`]' eight running sums (one would wait on each addition).
-fn dot<A: Real, B: Real>(a: &[A], b: &[B]) -> f64 {
-    let [even, odd] = pair_sums(a, b, |x: A, y: B| x.get() * y.get());
-    even + odd
 }
 
 /// `Σ_l c_l v_l` per component on the `len` nodes from `a`, `l` ascending, vector by

@@ -696,6 +696,16 @@ widest! {
     }
 }
 
+widest! {
+    /// `Σ_i a_i b_i` in `f64` on [`pair_sums`]' eight running sums (one would wait on each
+    /// addition), on the processor's widest vectors.
+    pub(crate) fn dot<A: Real, B: Real>(a: &[A], b: &[B]) -> f64 =>
+    dot_body {
+        let [even, odd] = pair_sums(a, b, |x: A, y: B| x.get() * y.get());
+        even + odd
+    }
+}
+
 /// `[Σ prod(a_j, b_j) over even j, the same over odd j]`: the two components' sums of two
 /// vectors of pairs given flattened (`b` at least as long as `a`), on eight running sums: a
 /// single sum waits on its last addition at every entry.

@@ -520,8 +520,7 @@ fn solve_piece(
     let kept = if options.off.has("cache") { None } else { store.hierarchies.take(store.solve, &key, |_| true) };
     let fresh = kept.is_none();
     store.built += u64::from(fresh);
-    // The hierarchy, and whether the piece is solved whole (if `allow_whole`).
-    let build = |allow_whole: bool| {
+    let mut hier = kept.unwrap_or_else(|| {
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
         let fine = Level::fine(geo, tau);
@@ -535,22 +534,25 @@ fn solve_piece(
         let real = torn.then(|| fine.geo.clone());
         // A small torn piece is solved whole by its banded factor: exact, so no slow mode of
         // a weakly held part can hide from the stopping rule (`docs/dev/solver-correctness.md`,
-        // "Small torn pieces solved whole").
+        // "Small torn pieces solved whole"). Unless the factor drops a pivot no free function
+        // accounts for (a soft part's, such as a long strand's tip, whose node it would hold
+        // still; at τ > 0 a count cannot tell them apart).
         let unknowns = fine.inv_diag.iter().filter(|&&d| d != 0.0).count();
-        let whole = allow_whole && torn && unknowns * (2 * w.min(h) + 3).pow(2) <= DIRECT_WORK && !key.off.has("whole");
+        let small = torn && unknowns * (2 * w.min(h) + 3).pow(2) <= DIRECT_WORK && !key.off.has("whole");
+        let whole = small.then(|| if tau > 0.0 { 0 } else { settled.map_or(0, |m| m.len()) });
         let fine = fine.with_holes_filled(key.links.outside().filter(|_| !key.off.has("outside")));
-        let second = fine.geo.active.contains(&false) && !whole && !key.off.has("second");
-        let alt = second.then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
+        let second = fine.geo.active.contains(&false) && !key.off.has("second");
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
         let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse, true, whole);
+        let alt = (second && !hier.whole).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
         (hier.k_cycles, hier.alt, hier.torn) = (!key.off.has("kcycle"), alt, torn);
-        if !whole && !key.off.has("strands") {
+        if !hier.whole && !key.off.has("strands") {
             hier.strands = strands::Strands::new(&hier.levels[0]);
             if !key.off.has("coarse_strands") {
                 hier.level_strands = hier.levels.iter().enumerate().map(|(k, l)| if k == 0 || k + 1 == hier.levels.len() { None } else { strands::Strands::new(l) }).collect();
             }
         }
-        if torn && !whole && settled.is_none() && !key.off.has("affine") {
+        if torn && !hier.whole && settled.is_none() && !key.off.has("affine") {
             // Its two vectors become the solve's residual and product below.
             let (mut x, mut q) = (cycle::zeros_in(None, hier.levels[0].len_padded()), cycle::zeros_in(None, hier.levels[0].len_padded()));
             hier.affine = cycle::Affine::new(&hier.levels[0], &mut x, &mut q);
@@ -559,13 +561,7 @@ fn solve_piece(
         if key.off.has("fours") {
             hier.levels.iter_mut().chain(hier.alt.iter_mut().flat_map(|a| a.levels.iter_mut())).for_each(Level::drop_fours);
         }
-        (hier, whole)
-    };
-    let mut hier = kept.unwrap_or_else(|| {
-        let (hier, whole) = build(true);
-        // A factor that dropped a pivot no free function accounts for (a soft part's, such as a
-        // long strand's tip; at τ > 0 a count cannot tell) would hold that node still: iterated.
-        if whole && (hier.dropped() > settled.map_or(0, |m| m.len()) || (tau > 0.0 && hier.dropped() > 0)) { build(false).0 } else { hier }
+        hier
     });
     let len = hier.levels[0].len_padded();
     let mut u: Vec<V2> = vec![[0.0; 2]; len];

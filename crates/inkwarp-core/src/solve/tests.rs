@@ -477,7 +477,7 @@ fn k_cycles_take_their_second_step_where_the_first_leaves_much() {
     let mut rnd = crate::grid::tests::sequence(8);
     for (density, dense) in [(0.25, true), (0.001, false)] {
         let fixed: Vec<bool> = (0..w * h).map(|_| rnd() < density).collect();
-        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), SMOOTHING_STEPS, OPEN_COARSE_SMOOTHING, true, false);
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), SMOOTHING_STEPS, OPEN_COARSE_SMOOTHING, true, None);
         assert!(hier.levels.len() >= 4, "a K-cycle needs a level between the first coarse one and the coarsest");
         let fine = &hier.levels[0];
         let r: Vec<V2> = (0..fine.len_padded()).map(|p| if fine.inv_diag[p] != 0.0 { [rnd() - 0.5, rnd() - 0.5] } else { [0.0; 2] }).collect();
@@ -635,7 +635,8 @@ fn starts_from_earlier_frames_keep_the_accuracy_and_save_cycles() {
             .map(|&(rest, amp, phase)| Sample { rest, displacement: [amp[0] * (t + phase).sin(), amp[1] * (0.7 * t + phase).cos()] })
             .collect()
     };
-    let opts = SolveOptions { off: Ablation::parse("whole").unwrap(), ..Default::default() }; // the iteration's starts: iterated
+    // Iterated: a piece this small is otherwise solved whole, in one cycle from any start.
+    let opts = SolveOptions { off: Ablation::parse("whole").unwrap(), ..Default::default() };
     let tight = SolveOptions { tolerance_px: 1e-6, max_cycles: Some(500), ..Default::default() };
     let mut solver = Solver::new();
     let (mut with_history, mut from_previous) = (0, 0);
@@ -674,7 +675,8 @@ fn a_history_of_nearly_parallel_frames_still_starts_close() {
         s.extend(pins.iter().map(|&(rest, displacement)| Sample { rest, displacement }));
         s
     };
-    let opts = SolveOptions { off: Ablation::parse("whole").unwrap(), ..Default::default() }; // the iteration's starts: iterated
+    // Iterated: a piece this small is otherwise solved whole, in one cycle from any start.
+    let opts = SolveOptions { off: Ablation::parse("whole").unwrap(), ..Default::default() };
     let settle = |frames: &[[f64; 2]]| -> usize {
         let mut solver = Solver::new();
         for &d in frames {
@@ -1000,7 +1002,7 @@ fn every_level_smooths_below_the_top_of_its_spectrum() {
     for i in [5 * w + 7, 20 * w + 50, 40 * w + 12, 60 * w + 60, 33 * w + 33] {
         fixed[i] = true;
     }
-    let main = Hierarchy::new(fine_level(&grid, Some(fixed.clone()), 0.05), SMOOTHING_STEPS, SMOOTHING_STEPS, true, false);
+    let main = Hierarchy::new(fine_level(&grid, Some(fixed.clone()), 0.05), SMOOTHING_STEPS, SMOOTHING_STEPS, true, None);
     let alt = Hierarchy::coarse_space(fine_level(&grid, Some(fixed), 0.05).into_plain(), SMOOTHING_STEPS);
     let levels = main.levels.iter().chain(alt.levels.iter().skip(1));
     for (k, level) in levels.enumerate() {
