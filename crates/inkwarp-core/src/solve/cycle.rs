@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{dot, dot_pairs, galerkin, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, PAD, V2, W2, WS};
+use super::level::{dot, dot_pairs, galerkin, sub_scaled, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, PAD, V2, W2, WS};
 use super::strands::Strands;
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
@@ -617,25 +617,24 @@ impl Banded {
     }
 
     /// `x = A⁻¹ f` on the unknowns: the forward and backward solves of the factor, in `f64`,
-    /// each component apart (the backward one by columns: the factor's rows are contiguous).
-    /// Dropped unknowns are zero (their rows and columns in the factor are).
+    /// a row for both components at a time (the backward one by columns: the factor's rows
+    /// are contiguous). Dropped unknowns are zero (their rows and columns in the factor are).
     fn solve<T: Real>(&self, f: &[[T; 2]], x: &mut [[T; 2]]) {
         let (n, bw, l) = (self.map.len(), self.bw, &self.l);
         let at = |k: usize, m: usize| k * (bw + 1) + m + bw - k;
         let pivot = |k: usize, s: f64| if self.dropped[k] { 0.0 } else { s / l[at(k, k)] };
-        let z = [0, 1].map(|c| {
-            let mut z: Vec<f64> = self.map.iter().map(|&p| f[p][c].get()).collect();
-            for k in 0..n {
-                let j0 = k.saturating_sub(bw);
-                z[k] = pivot(k, z[k] - dot(&l[at(k, j0)..at(k, k)], &z[j0..k]));
-            }
-            for k in (0..n).rev() {
-                let (j0, zk) = (k.saturating_sub(bw), pivot(k, z[k]));
-                z[k] = zk;
-                z[j0..k].iter_mut().zip(&l[at(k, j0)..at(k, k)]).for_each(|(z, l)| *z -= l * zk);
-            }
-            z
-        });
+        let mut z = [0, 1].map(|c| self.map.iter().map(|&p| f[p][c].get()).collect::<Vec<f64>>());
+        for k in 0..n {
+            let j0 = k.saturating_sub(bw);
+            z.iter_mut().for_each(|z| z[k] = pivot(k, z[k] - dot(&l[at(k, j0)..at(k, k)], &z[j0..k])));
+        }
+        for k in (0..n).rev() {
+            let j0 = k.saturating_sub(bw);
+            z.iter_mut().for_each(|z| {
+                z[k] = pivot(k, z[k]);
+                sub_scaled(&l[at(k, j0)..at(k, k)], z[k], &mut z[j0..k]);
+            });
+        }
         self.map.iter().enumerate().for_each(|(k, &p)| x[p] = [T::of(z[0][k]), T::of(z[1][k])]);
     }
 }

@@ -706,6 +706,11 @@ widest! {
     }
 }
 
+widest! {
+    /// `zⱼ −= lⱼ y` for every j.
+    pub(crate) fn sub_scaled(l: &[f64], y: f64, z: &mut [f64]) => sub_scaled_body { z.iter_mut().zip(l).for_each(|(z, l)| *z -= l * y) }
+}
+
 /// `[Σ prod(a_j, b_j) over even j, the same over odd j]`: the two components' sums of two
 /// vectors of pairs given flattened (`b` at least as long as `a`), on eight running sums: a
 /// single sum waits on its last addition at every entry.
@@ -1916,9 +1921,10 @@ mod tests {
 
     #[test]
     fn the_vector_passes_copies_match_their_plain_bodies() {
-        // The smoothing step's update, the scaled maximum and the pairs' dot product, by the
-        // dispatching functions (the AVX2 copy where the processor has it) and by their plain
-        // bodies, bit for bit, on lengths that leave remainders.
+        // The smoothing step's update, the scaled maximum, the pairs' dot product and the
+        // banded factor's update, by the dispatching functions (the AVX2 copy where the
+        // processor has it) and by their plain bodies or definitions, bit for bit, on lengths
+        // that leave remainders.
         let mut rnd = crate::grid::tests::sequence(29);
         let mut pairs = |n: usize| -> Vec<W2> { (0..n).map(|_| [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32]).collect() };
         let bits = |v: &[W2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
@@ -1946,6 +1952,11 @@ mod tests {
             let diag: Vec<f64> = g.iter().map(|&v| f64::from(v).abs()).collect();
             assert_eq!(scaled_max(&r, &diag).to_bits(), scaled_max_body(&r, &diag).to_bits(), "{n}");
             assert_eq!(dot_pairs(&r, &x).map(f64::to_bits), dot_pairs_body(&r, &x).map(f64::to_bits), "{n}");
+            // The banded factor's update, against its definition.
+            let (l, z0): (Vec<f64>, Vec<f64>) = r.iter().map(|v| (f64::from(v[0]), f64::from(v[1]))).unzip();
+            let mut z = z0.clone();
+            sub_scaled(&l, 0.73, &mut z);
+            assert!(z.iter().zip(&z0).zip(&l).all(|((z, z0), l)| z.to_bits() == (z0 - l * 0.73).to_bits()), "{n}");
         }
     }
 
