@@ -1,4 +1,4 @@
-"""Cycles of the thin-plate solve on thin strands as the picture grows (issue 42 item 1).
+"""Cycles of the thin-plate solve on thin strands and many cuts as the picture grows (issue 42 item 1).
 
 The oracle families (`tests/test_solver_families.py`) check combs and antialiased
 character mattes at 40×64 and 72×64. Real mattes have the same shapes at photograph size:
@@ -10,11 +10,17 @@ reports the cycles, convergence and time of a cold solve at default settings (bu
   wide with 1 px gaps), points on the bar and on every 4·scale-th tip;
 - a character: `test_antialiased_character_mattes`'s problem (seed 0): body, head on a thin
   neck, an arm, and hair strands 0.3–1.6 px wide whose length and number grow with the
-  scale.
+  scale;
+- many cuts: `test_many_random_cuts`' float cuts (seeds 0 and 3: 20–50 straight and bent
+  cuts, 40 points) with the picture and the displacements scaled together, so that every
+  part keeps its shape and its share of the motion.
 
 The thin parts solved whole (`solve/strands.rs`) keep these counts nearly flat; before
 them the combs took 62/502/841 and 96/403/2000+ cycles (see docs/dev/ablation.md,
 "Strands as the picture grows" and "Ninth change").
+
+The many cuts' counts grow with the picture: parts joined to the rest through necks that
+scale with it (`docs/dev/solver-correctness.md`, "Many cuts as the picture grows").
 
 Usage: python benchmarks/strands.py [--quick] [--max-cycles 2000]
 """
@@ -31,7 +37,7 @@ import numpy as np
 import inkwarp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from test_solver_families import character_problem, comb_mask  # noqa: E402
+from test_solver_families import character_problem, comb_mask, random_cuts  # noqa: E402
 
 
 def comb(tooth: int, scale: int):
@@ -45,23 +51,32 @@ def comb(tooth: int, scale: int):
     return m, pts, disp
 
 
+def many_cuts(seed: int, scale: int):
+    """The random float cuts of `seed` on 64·scale square, displacements scaled too; no mask."""
+    pts, disp, cuts = random_cuts(seed, False, scale)
+    return np.ones((64 * scale, 64 * scale), np.uint8), pts, disp * scale, cuts
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="scale 1 (and 2 for the character): a smoke run")
     ap.add_argument("--max-cycles", type=int, default=2000)
     args = ap.parse_args()
-    scales = (1, 2) if args.quick else (1, 2, 4, 8)
+    scales = (1, 2) if args.quick else (1, 2, 4, 8, 16)
     print("| family | grid | cycles | converged | seconds |")
     print("|---|---|---|---|---|")
     cases = [(f"comb, {t} px teeth", lambda s, t=t: comb(t, s)) for t in (1, 2)]
     cases.append(("character with hair", lambda s: character_problem(0, s)))
+    cases += [(f"many cuts, seed {k}", lambda s, k=k: many_cuts(k, s)) for k in (0, 3)]
     for name, make in cases:
         for s in scales:
-            if name.startswith("comb") and args.quick and s > 1:
+            # The combs and the character stop at 8x (a 2,560-pixel comb, a 1,152-pixel
+            # character), as before; the cuts run to 1,024 px.
+            if (name.startswith("comb") and args.quick and s > 1) or (s > 8 and not name.startswith("many")):
                 continue
-            m, pts, disp = make(s)
+            m, pts, disp, *cuts = make(s)
             t = time.perf_counter()
-            _, rep = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, max_cycles=args.max_cycles)
+            _, rep = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, cuts=cuts[0] if cuts else None, max_cycles=args.max_cycles)
             print(f"| {name} | {m.shape[0]}×{m.shape[1]} | {rep.cycles} | {rep.converged} | "
                   f"{time.perf_counter() - t:.2f} |", flush=True)
     return 0

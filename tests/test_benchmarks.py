@@ -113,14 +113,15 @@ def test_quick_ablation_benchmark_prints_a_row_per_switch():
 
 
 def test_quick_strands_benchmark_prints_a_row_per_family_and_size():
-    # `benchmarks/strands.py --quick`: the comb and character families scaled; cycles and
+    # `benchmarks/strands.py --quick`: the comb, character and many-cuts families scaled; cycles and
     # convergence are numbers the table reports, not asserted.
     out = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "strands.py"), "--quick"],
         check=True, capture_output=True, text=True, timeout=300).stdout
     assert "| family | grid | cycles | converged | seconds |" in out
     for row in ("| comb, 1 px teeth | 40×64 |", "| comb, 2 px teeth | 40×64 |",
-                "| character with hair | 72×64 |", "| character with hair | 144×128 |"):
+                "| character with hair | 72×64 |", "| character with hair | 144×128 |",
+                "| many cuts, seed 0 | 64×64 |", "| many cuts, seed 3 | 128×128 |"):
         line = next(r for r in out.splitlines() if r.startswith(row))
         cells = [c.strip() for c in line.strip("|").split("|")]
         assert int(cells[2]) >= 1 and cells[3] in ("True", "False")
