@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SUITES = ["solve.py", "ratios.py", "ablation.py", "strands.py", "honesty.py", "scene.py", "methods.py", "pipeline.py", "track.py"]
+SUITES = ["solve.py", "ratios.py", "ablation.py", "strands.py", "grid_independence.py", "honesty.py", "scene.py", "methods.py", "pipeline.py", "track.py"]
 
 
 def main() -> int:

@@ -127,6 +127,20 @@ def test_quick_strands_benchmark_prints_a_row_per_family_and_size():
         assert int(cells[2]) >= 1 and cells[3] in ("True", "False")
 
 
+def test_quick_grid_independence_prints_a_row_per_problem_and_the_count():
+    # `benchmarks/grid_independence.py --quick`: the four model problems, one seed, two
+    # small sizes; the cycles are what the table reports, not asserted.
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "grid_independence.py"), "--quick"],
+        check=True, capture_output=True, text=True, timeout=300).stdout
+    rows = [r for r in out.splitlines() if r.startswith("| ") and r[2:3].isalpha() and "problem" not in r]
+    assert [r.split("|")[1].strip() for r in rows] == ["open", "hole", "cut", "hole+cut"]
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert all(int(c.split()[0]) >= 1 for c in cells[2:4]) and cells[4] in ("yes", "no")
+    assert "rows past a bound" in out and "of 4" in out
+
+
 def test_quick_honesty_sweep_counts_every_claim():
     # `benchmarks/honesty.py --quick`: one seed's cuts, cold at two scales and warm; the
     # counts are what the sweep reports, not asserted (the contract is the oracle tests').

@@ -1,0 +1,67 @@
+"""Cycles of the issue's model problems by grid size, across seeds (issue 42, "Grid
+independence": at 257², 513² and 1025² the cycles differ by at most 2 and none exceeds 12).
+
+`tests/test_solver_families.py::test_cycles_do_not_grow_with_the_grid` checks one seed.
+This runs the same problems (the disc hole, the two-segment cut, both, and the open grid)
+with the 10 points and displacements of `ratios.py`'s `random_problem(10, n, n, seed)` for
+several seeds, one cold solve at default settings each, and reports every row with the
+rows that break either bound counted. A torn solve still running at cycle 10 waits for two
+looks at its slow modes, so a row's count can jump to 17–19 at one size
+(`docs/dev/solver-correctness.md`, "Grid independence across seeds").
+
+Usage: python benchmarks/grid_independence.py [--quick] [--seeds 2045-2052]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+import inkwarp
+from ratios import random_problem
+
+PROBLEMS = [("open", False, False), ("hole", True, False), ("cut", False, True), ("hole+cut", True, True)]
+
+
+def model(n: int, seed: int, hole: bool, cut: bool):
+    """The model problem at n × n with `seed`'s points (s = n / 2049)."""
+    s = n / 2049
+    pts, disp = random_problem(10, n, n, seed=seed)
+    mask = None
+    if hole:
+        ys, xs = np.mgrid[0:n, 0:n]
+        mask = (((xs - 1300 * s) ** 2 + (ys - 800 * s) ** 2) > (150 * s) ** 2).astype(np.uint8)
+    cuts = [np.array([[200, 1400.3], [900, 1250.3], [1600, 1500.3]]) * s] if cut else None
+    return pts, disp, mask, cuts
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="one seed at 65² and 129²: a smoke run")
+    ap.add_argument("--seeds", default="2045-2052", help="a range a-b of seeds")
+    args = ap.parse_args()
+    first, last = (int(v) for v in args.seeds.split("-"))
+    sizes = (65, 129) if args.quick else (257, 513, 1025)
+    seeds = [first] if args.quick else list(range(first, last + 1))
+    print("| problem | seed | " + " | ".join(f"{n}²" for n in sizes) + " | within the bounds |")
+    print("|---|---|" + "---|" * len(sizes) + "---|")
+    broken = 0
+    for name, hole, cut in PROBLEMS:
+        for seed in seeds:
+            cycles = []
+            for n in sizes:
+                pts, disp, mask, cuts = model(n, seed, hole, cut)
+                _, rep = inkwarp.thin_plate_report(pts, disp, (n, n), mask=mask, cuts=cuts)
+                cycles.append(f"{rep.cycles}" + ("" if rep.converged else " (not converged)"))
+            counts = [int(c.split()[0]) for c in cycles]
+            ok = max(counts) - min(counts) <= 2 and max(counts) <= 12 and all(c.isdigit() for c in cycles)
+            broken += not ok
+            print(f"| {name} | {seed} | " + " | ".join(cycles) + f" | {'yes' if ok else 'no'} |", flush=True)
+    print(f"\nrows past a bound (spread over 2 or over 12 cycles): {broken} of {len(PROBLEMS) * len(seeds)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
