@@ -2,10 +2,10 @@
 independence": at 257², 513² and 1025² the cycles differ by at most 2 and none exceeds 12).
 
 `tests/test_solver_families.py::test_cycles_do_not_grow_with_the_grid` checks one seed.
-This runs the same problems (the disc hole, the two-segment cut, both, and the open grid)
-with the 10 points and displacements of `ratios.py`'s `random_problem(10, n, n, seed)` for
-several seeds, one cold solve at default settings each, and reports every row with the
-rows that break either bound counted. A torn solve still running at cycle 10 waits for two
+This runs the same problems (the disc hole, the two-segment cut, both, and the open grid),
+as `ratios.py`'s `model_problem` builds them, with the points and displacements of several
+seeds: one cold solve at default settings each, every row reported and the rows that break
+either bound counted. A torn solve still running at cycle 10 waits for two
 looks at its slow modes, so a row's count can jump to 17–19 at one size
 (`docs/dev/solver-correctness.md`, "Grid independence across seeds").
 
@@ -17,24 +17,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-import numpy as np
-
 import inkwarp
-from ratios import random_problem
+from ratios import model_problem
 
 PROBLEMS = [("open", False, False), ("hole", True, False), ("cut", False, True), ("hole+cut", True, True)]
-
-
-def model(n: int, seed: int, hole: bool, cut: bool):
-    """The model problem at n × n with `seed`'s points (s = n / 2049)."""
-    s = n / 2049
-    pts, disp = random_problem(10, n, n, seed=seed)
-    mask = None
-    if hole:
-        ys, xs = np.mgrid[0:n, 0:n]
-        mask = (((xs - 1300 * s) ** 2 + (ys - 800 * s) ** 2) > (150 * s) ** 2).astype(np.uint8)
-    cuts = [np.array([[200, 1400.3], [900, 1250.3], [1600, 1500.3]]) * s] if cut else None
-    return pts, disp, mask, cuts
 
 
 def main() -> int:
@@ -52,7 +38,7 @@ def main() -> int:
         for seed in seeds:
             cycles = []
             for n in sizes:
-                pts, disp, mask, cuts = model(n, seed, hole, cut)
+                pts, disp, mask, cuts = model_problem(n, n, hole, cut, seed)
                 _, rep = inkwarp.thin_plate_report(pts, disp, (n, n), mask=mask, cuts=cuts)
                 cycles.append(f"{rep.cycles}" + ("" if rep.converged else " (not converged)"))
             counts = [int(c.split()[0]) for c in cycles]

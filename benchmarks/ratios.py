@@ -42,12 +42,12 @@ def random_problem(n: int, height: int, width: int, seed: int = 0):
     return pts, disp
 
 
-def model_problem(height: int, width: int, hole: bool = True, cut: bool = True):
-    """The issue's problem scaled to the grid: 10 seeded points, a disc hole of radius
+def model_problem(height: int, width: int, hole: bool = True, cut: bool = True, seed: int = 2049):
+    """The issue's problem scaled to the grid: 10 points of `seed`, a disc hole of radius
     150 s at (1300 s, 800 s) and a cut through (200, 1400.3), (900, 1250.3),
     (1600, 1500.3) · s, with s = size / 2049 along each axis."""
     sx, sy = width / 2049, height / 2049
-    pts, disp = random_problem(10, height, width, seed=2049)
+    pts, disp = random_problem(10, height, width, seed=seed)
     mask = None
     if hole:
         ys, xs = np.mgrid[0:height, 0:width]
