@@ -5,9 +5,7 @@ independence": at 257², 513² and 1025² the cycles differ by at most 2 and non
 This runs the same problems (the disc hole, the two-segment cut, both, and the open grid),
 as `ratios.py`'s `model_problem` builds them, with the points and displacements of several
 seeds: one cold solve at default settings each, every row reported and the rows that break
-either bound counted. A torn solve still running at cycle 10 waits for two
-looks at its slow modes, so a row's count can jump to 17–19 at one size
-(`docs/dev/solver-correctness.md`, "Grid independence across seeds").
+either bound counted (`docs/dev/solver-correctness.md`, "Grid independence across seeds").
 
 Usage: python benchmarks/grid_independence.py [--quick] [--seeds 2045-2052]
 """

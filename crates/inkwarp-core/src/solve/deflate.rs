@@ -22,9 +22,12 @@ use super::level::{dot, Level, Real, V2, W2, WS};
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
-/// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop
-/// (see [`Deflation::rate_floor`]).
+/// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop where its
+/// rate floor exceeds [`WAIT_RATE`], a condition of 9 or more seen: a slow mode showing.
 const LOOKS: usize = 2;
+const WAIT_RATE: f64 = 0.5;
+/// The smallest Ritz value has settled when a cycle lowers it by less than 5 %.
+const SETTLED: f64 = 0.95;
 /// Ritz vectors kept (`docs/dev/ablation.md`, "Tenth change").
 const KEEP: usize = 8;
 /// Most bytes the kept vectors may take.
@@ -236,18 +239,16 @@ impl Deflation {
         }
     }
 
-    /// The least ratio of successive changes the stopping rule may assume: the conjugate
-    /// gradient's rate `(√κ − 1)/(√κ + 1)` for the condition `κ` of the preconditioned
-    /// operator, from the extreme Ritz values of its Lanczos matrix (the smallest and
-    /// largest seen since the deflating restart before the last: a sequence after one is
-    /// short, and its smallest Ritz value overestimates what is left; modes deflated two
-    /// windows ago no longer count). A slow mode the changes do not show yet still shows in
-    /// the spectrum. On a torn piece (`wait`), a solve slow enough to keep directions gets
-    /// 1 (no stop) until their [`LOOKS`]th Rayleigh–Ritz step: there a mode the residual
-    /// hides (a part bounded by cuts, nearly rigid) can stall the changes while its error
-    /// stays, and the first window's directions may not hold it yet: the Krylov space
-    /// reaches it a few cycles later.
-    pub fn rate_floor(&mut self) -> f64 {
+    /// The least ratio of successive changes the stopping rule may assume, the conjugate
+    /// gradient's rate `(√κ − 1)/(√κ + 1)` from the extreme Ritz values of its Lanczos matrix
+    /// (since the deflating restart before the last: modes deflated two windows ago no longer
+    /// count), and whether the smallest has [`SETTLED`] (no slow mode being found). On a torn
+    /// piece (`wait`) whose rate exceeds [`WAIT_RATE`], a solve slow enough to keep directions
+    /// gets 1 (no stop) until their [`LOOKS`]th Rayleigh–Ritz step: a nearly rigid part bounded
+    /// by cuts can stall the changes while its error stays, and the Krylov space may reach its
+    /// mode only after the first window.
+    pub fn rate_floor(&mut self) -> (f64, bool) {
+        let was = self.low;
         for st in self.steps.iter().filter(|st| st.len() >= 2) {
             // T_jj = 1/α_j + β_{j−1}/α_{j−1}, T_{j−1,j} = √β_{j−1}/α_{j−1}.
             let n = st.len();
@@ -258,11 +259,11 @@ impl Deflation {
                 self.high = self.high.max(hi);
             }
         }
-        if self.wait && self.on && self.restarts < if self.early { 1 } else { LOOKS } && (self.restarts > 0 || !self.v.is_empty()) { return 1.0; }
+        let settled = was.is_finite() && self.low >= SETTLED * was;
         let low = self.low.min(self.before);
-        if !(low > 0.0 && self.high > low) { return 0.0; }
-        let k = (self.high / low).sqrt();
-        (k - 1.0) / (k + 1.0)
+        let rate = if low > 0.0 && self.high > low { let k = (self.high / low).sqrt(); (k - 1.0) / (k + 1.0) } else { 0.0 };
+        if self.wait && self.on && rate > WAIT_RATE && self.restarts < if self.early { 1 } else { LOOKS } && (self.restarts > 0 || !self.v.is_empty()) { return (1.0, false); }
+        (rate, settled)
     }
 
     fn clear(&mut self) {

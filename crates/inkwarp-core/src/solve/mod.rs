@@ -626,15 +626,16 @@ fn solve_piece(
     // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
     // slow mode that the first step barely moved hides behind a small change.
     let first_may_stop = !hier.torn || warm || direct;
-    let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, floor: f64| {
+    let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, (floor, settled): (f64, bool)| {
         (report.cycles, report.final_change_px) = (cycle, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-gradient steps
-        // are not geometric, so ρ is the larger of the last two ratios (0.5 before there is
-        // one), and the bound carries a safety margin (the smoothest error moves least per
-        // cycle). A ratio of 0.99 or more (stagnation) never stops.
+        // are not geometric: ρ is the larger of the last two ratios (0.5 before one), their
+        // geometric mean once the spectrum seen has settled, and at least the Lanczos floor; the
+        // bound carries a safety margin. A ρ of 0.99 or more (stagnation) never stops.
         let ratio = if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 };
         ratios = [ratios[1], ratio];
-        let rho = if direct { 0.0 } else { ratios.iter().fold(floor, |a, &b| a.max(b)) };
+        let two = if settled && ratios[0] > 0.0 { (ratios[0] * ratios[1]).sqrt() } else { ratios[0].max(ratios[1]) };
+        let rho = if direct { 0.0 } else { floor.max(two) };
         last_change = change;
         (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
     };
@@ -725,7 +726,7 @@ fn solve_piece(
                 round += 1;
                 hier.levels[0].residual(&u, None, &mut r);
                 // No node moved by more than the two parts' largest moves together.
-                if stop(step + relaxed, round, &mut report, 0.0) || finished {
+                if stop(step + relaxed, round, &mut report, (0.0, false)) || finished {
                     report.converged = true;
                     break;
                 }
@@ -964,23 +965,21 @@ impl Free {
     }
 }
 
-/// Safety factor of the stopping rule (see the multigrid loop) on grids without holes or
-/// cuts (`docs/dev/ablation.md`, "Constants").
+/// Safety factors of the stopping rule (see the multigrid loop) on open grids and on grids
+/// with holes or cuts, where the slowest error moves least per cycle (`docs/dev/ablation.md`).
 const STOP_MARGIN: f64 = 1.5;
+const TORN_STOP_MARGIN: f64 = 3.0;
 /// The finest tolerance a solve can claim, relative to its answer's largest displacement:
 /// about one unit in the last place of an `f32`, the field's own resolution.
 const FINEST_TOLERANCE: f64 = 1e-7;
 /// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say.
 const DEFAULT_MAX_CYCLES: usize = 100;
-/// The same on grids with holes or cuts, where the slowest error moves least per cycle.
-const TORN_STOP_MARGIN: f64 = 3.0;
 /// The largest banded factor's work (unknowns × bandwidth², multiply-adds) of a torn piece
 /// solved whole.
 const DIRECT_WORK: usize = 1 << 25;
-/// Smoothing steps before and after each coarse correction.
+/// Smoothing steps before and after each coarse correction, and below the finest level of
+/// an open grid (across holes and cuts one step weakens the cycle too much: `docs/dev/ablation.md`).
 const SMOOTHING_STEPS: usize = 2;
-/// The same below the finest level of a grid without holes or cuts (across holes and cuts
-/// one step weakens the cycle too much: `docs/dev/ablation.md`, "Constants").
 const OPEN_COARSE_SMOOTHING: usize = 1;
 
 /// What a hierarchy depends on (the operator: geometry, fixed nodes, tension; never the values)
