@@ -23,7 +23,7 @@ const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
 /// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop where its
-/// rate floor exceeds [`WAIT_RATE`], a condition of 9 or more seen: a slow mode showing.
+/// rate floor exceeds [`WAIT_RATE`], a condition of 9 or more seen (an `early` one always).
 const LOOKS: usize = 2;
 const WAIT_RATE: f64 = 0.5;
 /// The smallest Ritz value has settled when a cycle lowers it by less than 5 %.
@@ -262,7 +262,7 @@ impl Deflation {
         let settled = was.is_finite() && self.low >= SETTLED * was;
         let low = self.low.min(self.before);
         let rate = if low > 0.0 && self.high > low { let k = (self.high / low).sqrt(); (k - 1.0) / (k + 1.0) } else { 0.0 };
-        if self.wait && self.on && rate > WAIT_RATE && self.restarts < if self.early { 1 } else { LOOKS } && (self.restarts > 0 || !self.v.is_empty()) { return (1.0, false); }
+        if self.wait && self.on && (self.early || rate > WAIT_RATE) && self.restarts < if self.early { 1 } else { LOOKS } && (self.restarts > 0 || !self.v.is_empty()) { return (1.0, false); }
         (rate, settled)
     }
 
