@@ -31,7 +31,11 @@ on 128 × 128, where tight solves of their slow modes are themselves in doubt:
   warm from that answer with the displacements changed by 2 % and 0.05 (an animation's
   next frame). Problems the oracle declines (a plate kernel it cannot decide) are listed.
 
-Usage: python benchmarks/honesty.py [--seeds 60] [--quick] [--families | --oracle]
+With `--open`, open grids (no matte, no cut: the margin of the rule is 1.5 there, not 3)
+at 129², 257² and 513² with 3, 10, 100 and 1000 random points, displacements times 0.02
+and 1, cold and warm (the next frame, as above), against tight solves.
+
+Usage: python benchmarks/honesty.py [--seeds 60] [--quick] [--families | --oracle | --open]
 """
 
 from __future__ import annotations
@@ -54,7 +58,7 @@ TOL = 0.01
 def judged(pts, d, shape, **kw):
     """The default solve's error over a tight one's, in tolerances (None when it did not
     converge), and its cycles; `mask` (if given) limits the error to its active nodes."""
-    tight, _ = inkwarp.thin_plate_report(pts, d, shape, tolerance=1e-8, max_cycles=2000, **kw)
+    tight, _ = inkwarp.thin_plate_report(pts, d, shape, tolerance=1e-8, max_cycles=2000, **{k: v for k, v in kw.items() if k != "initial"})
     field, report = inkwarp.thin_plate_report(pts, d, shape, **kw)
     on = kw["mask"] > 0 if kw.get("mask") is not None else slice(None)
     return (float(np.abs(field - tight)[on].max()) / TOL if report.converged else None), report.cycles
@@ -77,6 +81,24 @@ def claims(seeds: int):
                     field, report = inkwarp.thin_plate_report(pts, moved, shape, cuts=cuts, initial=start)
                     err = float(np.abs(field - tight).max()) / TOL if report.converged else None
                     yield f"{name}, next frame, warm", err, report.cycles
+
+
+def open_claims(seeds: int, sizes=(129, 257, 513)):
+    """The same judgement on open grids (no matte, no cut): 3, 10, 100 and 1000 random
+    points (`ratios.py`'s `random_problem`), displacements times 0.02 and 1, cold and
+    warm from that answer with the displacements changed by 2 % and 0.05 px."""
+    from ratios import random_problem
+
+    for n in sizes:
+        for count in (3, 10, 100, 1000):
+            for seed in range(seeds):
+                pts, disp = random_problem(count, n, n, seed=seed)
+                for k in (0.02, 1.0):
+                    name = f"{n}² {count} points seed {seed}, displacements x{k}"
+                    yield f"{name}, cold", *judged(pts, disp * k, (n, n))
+                    moved = disp * k * 1.02 + 0.05 * k
+                    start = inkwarp.thin_plate(pts, disp * k, (n, n))
+                    yield f"{name}, next frame, warm", *judged(pts, moved, (n, n), initial=start)
 
 
 def family_problems(seeds: int, scales=(1, 2, 4)):
@@ -154,11 +176,14 @@ def main() -> int:
     which = ap.add_mutually_exclusive_group()
     which.add_argument("--families", action="store_true", help="the thin-part families instead of the random cuts")
     which.add_argument("--oracle", action="store_true", help="the speckle and collinear families against the direct solve")
+    which.add_argument("--open", action="store_true", help="open grids (no matte, no cut) at 129², 257² and 513²")
     args = ap.parse_args()
     seeds = 1 if args.quick else args.seeds
     declined = []
     if args.oracle:
         rows, declined = oracle_claims(seeds)
+    elif args.open:
+        rows = list(open_claims(seeds, (65,) if args.quick else (129, 257, 513)))
     else:
         rows = list(family_claims(seeds, (1,) if args.quick else (1, 2, 4)) if args.families else claims(seeds))
     judged = [(e, what, c) for what, e, c in rows if e is not None]

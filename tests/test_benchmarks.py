@@ -146,8 +146,9 @@ def test_quick_honesty_sweep_counts_every_claim():
     # counts are what the sweep reports, not asserted (the contract is the oracle tests').
     # With `--families`: the character and the two combs at 1x, three tensions, three
     # displacement scales. With `--oracle`: one speckle and one collinear problem against
-    # the direct solve (4 and 6 cold solves, 6 warm).
-    for extra, expected in (([], 10), (["--families"], 27), (["--oracle"], 16)):
+    # the direct solve (4 and 6 cold solves, 6 warm). With `--open`: four point counts on 65²,
+    # two displacement scales, cold and warm.
+    for extra, expected in (([], 10), (["--families"], 27), (["--oracle"], 16), (["--open"], 16)):
         out = subprocess.run(
             [sys.executable, str(ROOT / "benchmarks" / "honesty.py"), "--quick", *extra],
             check=True, capture_output=True, text=True, timeout=300).stdout

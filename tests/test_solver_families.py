@@ -649,7 +649,8 @@ def test_a_model_solve_still_running_at_cycle_ten_stops_by_twelve(name, seed, n)
     # Rows of benchmarks/grid_independence.py (points drawn as ratios.py draws them) that
     # were within 0.0016 px at cycle 10 but then waited for two looks at slow modes: 19
     # cycles. The wait is now for pieces whose spectrum shows a slow mode (these show none),
-    # and a settled spectrum judges the rate over two cycles, not one rising change.
+    # and a settled spectrum judges the rate over two cycles, not one rising change. (Some
+    # now stop before cycle 10.)
     rng = np.random.default_rng(seed)
     pts = np.column_stack([rng.uniform(0, n - 1, 10), rng.uniform(0, n - 1, 10)])
     disp = rng.normal(0, 0.01 * n, (10, 2))
@@ -658,7 +659,7 @@ def test_a_model_solve_still_running_at_cycle_ten_stops_by_twelve(name, seed, n)
     tight, _ = inkwarp.thin_plate_report(pts, disp, (n, n), mask=mask, cuts=cuts, tolerance=1e-6, max_cycles=500)
     on = mask > 0 if mask is not None else slice(None)
     assert report.converged and report.cycles <= 12, report
-    assert np.abs(field - tight)[on].max() <= 5 * TOLERANCE_PX
+    assert np.abs(field - tight)[on].max() < TOLERANCE_PX
 
 
 def test_cycles_stay_flat_at_2049():

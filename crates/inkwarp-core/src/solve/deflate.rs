@@ -23,10 +23,11 @@ const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
 /// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop where its
-/// rate floor exceeds [`WAIT_RATE`], a condition of 9 or more seen (an `early` one always).
+/// rate floor exceeds [`WAIT_RATE`], a condition over 9 seen (an `early` one always).
 const LOOKS: usize = 2;
 const WAIT_RATE: f64 = 0.5;
-/// The smallest Ritz value has settled when a cycle lowers it by less than 5 %.
+/// The smallest Ritz value has settled when a cycle's Lanczos matrix lowers it by less than
+/// 5 % (before any deflating restart: after one the judged changes come in windows).
 const SETTLED: f64 = 0.95;
 /// Ritz vectors kept (`docs/dev/ablation.md`, "Tenth change").
 const KEEP: usize = 8;
@@ -241,25 +242,24 @@ impl Deflation {
 
     /// The least ratio of successive changes the stopping rule may assume, the conjugate
     /// gradient's rate `(√κ − 1)/(√κ + 1)` from the extreme Ritz values of its Lanczos matrix
-    /// (since the deflating restart before the last: modes deflated two windows ago no longer
-    /// count), and whether the smallest has [`SETTLED`] (no slow mode being found). On a torn
+    /// (since the deflating restart before the last), and whether the smallest has [`SETTLED`]
+    /// (no slow mode surfacing; one the Krylov space has not reached does not show). On a torn
     /// piece (`wait`) whose rate exceeds [`WAIT_RATE`], a solve slow enough to keep directions
     /// gets 1 (no stop) until their [`LOOKS`]th Rayleigh–Ritz step: a nearly rigid part bounded
     /// by cuts can stall the changes while its error stays, and the Krylov space may reach its
     /// mode only after the first window.
     pub fn rate_floor(&mut self) -> (f64, bool) {
-        let was = self.low;
+        let (was, mut seen) = (self.low, false);
         for st in self.steps.iter().filter(|st| st.len() >= 2) {
             // T_jj = 1/α_j + β_{j−1}/α_{j−1}, T_{j−1,j} = √β_{j−1}/α_{j−1}.
             let n = st.len();
             let diag: Vec<f64> = (0..n).map(|j| 1.0 / st[j].0 + if j > 0 { st[j - 1].1 / st[j - 1].0 } else { 0.0 }).collect();
             let off: Vec<f64> = (1..n).map(|j| st[j - 1].1.sqrt() / st[j - 1].0).collect();
             if let Some((lo, hi)) = extremes(&diag, &off) {
-                self.low = self.low.min(lo);
-                self.high = self.high.max(hi);
+                (self.low, self.high, seen) = (self.low.min(lo), self.high.max(hi), true);
             }
         }
-        let settled = was.is_finite() && self.low >= SETTLED * was;
+        let settled = seen && self.restarts == 0 && self.low >= SETTLED * was;
         let low = self.low.min(self.before);
         let rate = if low > 0.0 && self.high > low { let k = (self.high / low).sqrt(); (k - 1.0) / (k + 1.0) } else { 0.0 };
         if self.wait && self.on && (self.early || rate > WAIT_RATE) && self.restarts < if self.early { 1 } else { LOOKS } && (self.restarts > 0 || !self.v.is_empty()) { return (1.0, false); }

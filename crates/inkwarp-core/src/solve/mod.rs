@@ -628,13 +628,12 @@ fn solve_piece(
     let first_may_stop = !hier.torn || warm || direct;
     let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, (floor, settled): (f64, bool)| {
         (report.cycles, report.final_change_px) = (cycle, change);
-        // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. Conjugate-gradient steps
-        // are not geometric: ρ is the larger of the last two ratios (0.5 before one), their
-        // geometric mean once the spectrum seen has settled, and at least the Lanczos floor; the
-        // bound carries a safety margin. A ρ of 0.99 or more (stagnation) never stops.
+        // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. CG steps are not: ρ is the
+        // larger of the last two ratios (0.5 before one; their geometric mean where the spectrum
+        // has settled and the last change fell), at least the Lanczos floor; 0.99 never stops.
         let ratio = if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 };
         ratios = [ratios[1], ratio];
-        let two = if settled && ratios[0] > 0.0 { (ratios[0] * ratios[1]).sqrt() } else { ratios[0].max(ratios[1]) };
+        let two = if settled && ratios[0] > 0.0 && ratio < 1.0 { (ratios[0] * ratios[1]).sqrt() } else { ratios[0].max(ratios[1]) };
         let rho = if direct { 0.0 } else { floor.max(two) };
         last_change = change;
         (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
@@ -966,7 +965,7 @@ impl Free {
 }
 
 /// Safety factors of the stopping rule (see the multigrid loop) on open grids and on grids
-/// with holes or cuts, where the slowest error moves least per cycle (`docs/dev/ablation.md`).
+/// with holes or cuts, where the slowest error moves least per cycle (`docs/dev/ablation.md`, "Constants").
 const STOP_MARGIN: f64 = 1.5;
 const TORN_STOP_MARGIN: f64 = 3.0;
 /// The finest tolerance a solve can claim, relative to its answer's largest displacement:
@@ -977,8 +976,8 @@ const DEFAULT_MAX_CYCLES: usize = 100;
 /// The largest banded factor's work (unknowns × bandwidth², multiply-adds) of a torn piece
 /// solved whole.
 const DIRECT_WORK: usize = 1 << 25;
-/// Smoothing steps before and after each coarse correction, and below the finest level of
-/// an open grid (across holes and cuts one step weakens the cycle too much: `docs/dev/ablation.md`).
+/// Smoothing steps before and after each coarse correction; below the finest level of an open
+/// grid one (across holes and cuts one weakens the cycle too much: `docs/dev/ablation.md`, "Constants").
 const SMOOTHING_STEPS: usize = 2;
 const OPEN_COARSE_SMOOTHING: usize = 1;
 
