@@ -15,12 +15,17 @@ oracle is reported as the worse failure (a wrong answer claimed right).
 from __future__ import annotations
 
 import dataclasses
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import inkwarp
 from test_solver_oracle import TOLERANCE_PX, Problem, links, oracle, piece_labels, solve
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from ratios import model_problem  # noqa: E402
 
 
 def check_against_oracle(problem: Problem, what: str, **kwargs):
@@ -646,15 +651,11 @@ def test_cycles_do_not_grow_with_the_grid():
 
 @pytest.mark.parametrize("name, seed, n", [("hole", 2045, 513), ("cut", 2049, 513), ("hole+cut", 2050, 257), ("cut", 2045, 257)])
 def test_a_model_solve_still_running_at_cycle_ten_stops_by_twelve(name, seed, n):
-    # Rows of benchmarks/grid_independence.py (points drawn as ratios.py draws them) that
-    # were within 0.0016 px at cycle 10 but then waited for two looks at slow modes: 19
-    # cycles. The wait is now for pieces whose spectrum shows a slow mode (these show none),
-    # and a settled spectrum judges the rate over two cycles, not one rising change. (Some
-    # now stop before cycle 10.)
-    rng = np.random.default_rng(seed)
-    pts = np.column_stack([rng.uniform(0, n - 1, 10), rng.uniform(0, n - 1, 10)])
-    disp = rng.normal(0, 0.01 * n, (10, 2))
-    _, _, mask, cuts = grid_problem(n, "hole" in name, "cut" in name)
+    # Rows of benchmarks/grid_independence.py that were within 0.0016 px at cycle 10 but
+    # then waited for two looks at slow modes: 19 cycles. The wait is now for pieces whose
+    # spectrum shows a slow mode (these show none), and a settled spectrum judges the rate
+    # over two cycles, not one rising change. (Some now stop before cycle 10.)
+    pts, disp, mask, cuts = model_problem(n, n, "hole" in name, "cut" in name, seed)
     field, report = inkwarp.thin_plate_report(pts, disp, (n, n), mask=mask, cuts=cuts, max_cycles=24)
     tight, _ = inkwarp.thin_plate_report(pts, disp, (n, n), mask=mask, cuts=cuts, tolerance=1e-6, max_cycles=500)
     on = mask > 0 if mask is not None else slice(None)
