@@ -127,6 +127,19 @@ def test_quick_strands_benchmark_prints_a_row_per_family_and_size():
         assert int(cells[2]) >= 1 and cells[3] in ("True", "False")
 
 
+def test_pair_packages_compares_a_build_with_itself():
+    # `benchmarks/pair_packages.py`: this checkout's package against itself, one round on
+    # two small problems; the same build solves each problem in the same cycles.
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "pair_packages.py"), str(ROOT / "python"),
+         "--rounds", "1", "--problems", "cuts:0:1,comb:1:1"],
+        check=True, capture_output=True, text=True, timeout=300).stdout
+    for name in ("cuts:0:1", "comb:1:1"):
+        cells = [c.strip() for c in next(r for r in out.splitlines() if r.startswith(f"| {name} |")).strip("|").split("|")]
+        old, new = cells[2].split(" → ")
+        assert int(old) == int(new) >= 1 and float(cells[1].split()[0]) > 0
+
+
 def test_quick_grid_independence_prints_a_row_per_problem_and_the_count():
     # `benchmarks/grid_independence.py --quick`: the four model problems, one seed, two
     # small sizes; the cycles are what the table reports, not asserted.

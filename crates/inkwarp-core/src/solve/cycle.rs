@@ -274,9 +274,7 @@ impl Hierarchy {
             return;
         }
         let mut work = std::mem::take(&mut self.work);
-        if !r_ready {
-            self.levels[0].residual(u, None, r);
-        }
+        if !r_ready { self.levels[0].residual(u, None, r); }
         restrict(&self.levels[0], &self.levels[1], r, &mut work[1].f);
         for k in 1..nl - 1 {
             let (head, tail) = work.split_at_mut(k + 1);
@@ -432,9 +430,7 @@ pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
                 for k in 0..2 {
                     w[k] = (-r[k] * i - a * v[k]) * sc - sp * w[k];
                 }
-                if i > 0.0 {
-                    sum += (w[0] * w[0] + w[1] * w[1]) / i;
-                }
+                if i > 0.0 { sum += (w[0] * w[0] + w[1] * w[1]) / i; }
             }
             sum
         }).collect();
@@ -467,9 +463,7 @@ pub(super) fn eigenvalues_below(a: &[f64], b: &[f64], x: f64) -> usize {
     let (mut count, mut d) = (0, 1.0);
     for i in 0..a.len() {
         d = a[i] - x - if i > 0 { b[i - 1] * b[i - 1] / d } else { 0.0 };
-        if d == 0.0 {
-            d = -1e-300;
-        }
+        if d == 0.0 { d = -1e-300; }
         count += usize::from(d < 0.0);
     }
     count

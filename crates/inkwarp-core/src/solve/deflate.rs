@@ -3,13 +3,13 @@
 //! after [`START`] cycles, the search directions of each window of [`WINDOW`] cycles are
 //! kept with their Gram matrices; at the window's end a Rayleigh–Ritz step over the window
 //! and the vectors already kept (a thick restart, as eigCG does) keeps the [`KEEP`] Ritz
-//! vectors of the smallest eigenvalues as `W`. The iterate is corrected on `span W`
+//! vectors of the smallest eigenvalues as `W` ([`KEEP_SLOW`] from the third step). The iterate is corrected on `span W`
 //! (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`) and every later direction made `A`-orthogonal to `W`
 //! (deflated conjugate gradient, Saad et al. 2000). The same object gives the stopping rule
 //! a floor on the rate ([`Deflation::rate_floor`]) and, once it has deflated, the largest
-//! change of the last window ([`Deflation::judged_change`]). Memory: `WINDOW·2 + 2·KEEP`
-//! `f32` vectors (96 bytes a node; `W` and `A W`, 64, stay with a kept hierarchy), for
-//! pieces of at most [`BUDGET_BYTES`] of them; larger pieces run without.
+//! change of the last window ([`Deflation::judged_change`]). Memory: `WINDOW·2 + 2·KEEP_SLOW`
+//! `f32` vectors (160 bytes a node; `W` and `A W`, 128, stay with a kept hierarchy), at
+//! most [`BUDGET_BYTES`] (fewer kept in larger pieces, none under 4).
 
 use rayon::prelude::*;
 
@@ -29,8 +29,10 @@ const WAIT_RATE: f64 = 0.5;
 /// The smallest Ritz value has settled when a cycle's Lanczos matrix lowers it by less than
 /// 5 % (before any deflating restart: after one the judged changes come in windows).
 const SETTLED: f64 = 0.95;
-/// Ritz vectors kept (`docs/dev/ablation.md`, "Tenth change").
+/// Ritz vectors kept (`docs/dev/ablation.md`, "Tenth change"), and past the [`LOOKS`]th
+/// Rayleigh–Ritz step (a tangle of cuts: many slow modes; "Twenty-first change").
 const KEEP: usize = 8;
+const KEEP_SLOW: usize = 16;
 /// Most bytes the kept vectors may take.
 const BUDGET_BYTES: usize = 256 << 20;
 /// Node chunk for the fused passes.
@@ -47,7 +49,9 @@ pub(super) struct Deflation {
     /// from the first cycle if `early` (see [`START`]).
     wait: bool,
     early: bool,
+    /// Ritz vectors kept now, and past the [`LOOKS`]th step.
     keep: usize,
+    most: usize,
     /// The window's directions, one scalar vector per component and cycle.
     v: Vec<Vec<f32>>,
     /// The kept vectors and their products.
@@ -75,7 +79,8 @@ impl Deflation {
     pub fn new(len: usize, off: bool, wait: bool, early: bool) -> Deflation {
         let fit = BUDGET_BYTES / (4 * len).max(1);
         let keep = KEEP.min(fit.saturating_sub(2 * WINDOW) / 2);
-        Deflation { on: !off && keep >= 4, wait, early: early && wait, keep, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
+        let most = KEEP_SLOW.min(fit.saturating_sub(2 * WINDOW) / 2);
+        Deflation { on: !off && keep >= 4, wait, early: early && wait, keep, most, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
     }
 
     /// Whether [`Deflation::project`] changes directions (vectors are kept).
@@ -139,20 +144,25 @@ impl Deflation {
             return;
         };
         self.restarts += 1;
+        self.keep = if self.restarts > LOOKS { self.most } else { self.keep };
         self.before = std::mem::replace(&mut self.low, f64::INFINITY);
         let k = self.keep.min(theta.len());
         let n = u.len();
-        // W = B Y, column by column, chunk by chunk in parallel.
+        // W = B Y, chunk by chunk in parallel, every column of a chunk at once (so each
+        // basis chunk is read from memory once, not once per column).
         let mut w: Vec<Vec<f32>> = (0..k).map(|_| vec![0.0; n]).collect();
-        for (l, col) in w.iter_mut().enumerate() {
-            col.par_chunks_mut(CHUNK).enumerate().for_each(|(c, col)| {
+        let mut parts: Vec<Vec<&mut [f32]>> = (0..n.div_ceil(CHUNK)).map(|_| Vec::with_capacity(k)).collect();
+        w.iter_mut().for_each(|col| col.chunks_mut(CHUNK).zip(parts.iter_mut()).for_each(|(part, cols)| cols.push(part)));
+        let basis: Vec<&Vec<f32>> = self.w.iter().chain(&self.v).collect();
+        parts.into_par_iter().enumerate().for_each(|(c, cols)| {
+            for (l, col) in cols.into_iter().enumerate() {
                 let mut acc = vec![0.0f64; col.len()];
-                for (b, yj) in self.w.iter().chain(&self.v).zip(&y).filter(|(_, yj)| yj[l] != 0.0) {
+                for (b, yj) in basis.iter().zip(&y).filter(|(_, yj)| yj[l] != 0.0) {
                     acc.iter_mut().zip(&b[c * CHUNK..]).for_each(|(o, &bv)| *o += yj[l] * bv as f64);
                 }
                 col.iter_mut().zip(&acc).for_each(|(o, &x)| *o = x as f32);
-            });
-        }
+            }
+        });
         // A W by the operator itself (a combination of the window's products would cancel
         // below f32 for the near-null vectors), two at a time.
         let mut aw: Vec<Vec<f32>> = Vec::with_capacity(k);
@@ -342,9 +352,7 @@ fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
         for i in (0..k).rev() {
             z[i] = (i + 1..k).fold(vecs[i][e], |s, j| s - l[j][i] * z[j]) / l[i][i];
         }
-        for (a, &i) in keep.iter().enumerate() {
-            y[i][col] = z[a] * d[i];
-        }
+        for (a, &i) in keep.iter().enumerate() { y[i][col] = z[a] * d[i]; }
     }
     Some((order.iter().map(|&e| theta[e]).collect(), y))
 }
@@ -380,9 +388,7 @@ fn jacobi_eigen(mut a: Vec<Vec<f64>>) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
                 for row in a.iter_mut().chain(v.iter_mut()) {
                     (row[p], row[q]) = rotate(row[p], row[q]);
                 }
-                for k in 0..n {
-                    (a[p][k], a[q][k]) = rotate(a[p][k], a[q][k]);
-                }
+                for k in 0..n { (a[p][k], a[q][k]) = rotate(a[p][k], a[q][k]); }
             }
         }
     }

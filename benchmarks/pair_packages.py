@@ -1,0 +1,88 @@
+"""Two builds of the Python package compared on the slow families, in alternating rounds.
+
+For a change to the solver that is not a runtime switch: keep a copy of the package built
+before it (the `python/inkwarp` folder with its compiled module), then
+
+    python benchmarks/pair_packages.py OLD_DIR [NEW_DIR] [--rounds 5] [--problems cuts:0:8,comb:1:8]
+
+where `OLD_DIR` holds the old `inkwarp` folder (it goes first on `PYTHONPATH`) and
+`NEW_DIR` the new one (default: this checkout's `python/`). Each round runs one child
+process per build (the order reversed every other round); a child solves every problem
+once, cold, at default settings but `max_cycles=2000`, and prints its time and cycles. A
+row is the median over the rounds of the time ratio new / old (below 1: the new build is
+faster), its middle half in brackets, then the cycles old → new.
+
+Problems (`benchmarks/strands.py`' families): `cuts:SEED:SCALE` (many random float
+cuts), `comb:TOOTH:SCALE` (1 or 2 px teeth), `character:SEED:SCALE` (a matte with hair).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DEFAULT = "cuts:0:8,cuts:3:8,comb:1:8,comb:2:8,character:0:8,cuts:0:16,cuts:3:16"
+
+CHILD = """
+import json, sys, time
+sys.path[:0] = [{bench!r}, {tests!r}]
+import inkwarp
+from strands import comb, many_cuts
+from test_solver_families import character_problem
+out = {{}}
+for name in {problems!r}:
+    kind, a, s = name.split(":")
+    a, s = int(a), int(s)
+    if kind == "cuts":
+        m, pts, disp, cuts = many_cuts(a, s)
+    elif kind == "comb":
+        (m, pts, disp), cuts = comb(a, s), None
+    else:
+        m, pts, disp, *rest = character_problem(a, s)
+        cuts = rest[0] if rest else None
+    t = time.perf_counter()
+    _, rep = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, cuts=cuts, max_cycles=2000)
+    out[name] = (time.perf_counter() - t, rep.cycles, rep.converged)
+print(json.dumps(out))
+"""
+
+
+def run(package_dir: str, problems: list[str]) -> dict:
+    code = CHILD.format(bench=str(ROOT / "benchmarks"), tests=str(ROOT / "tests"), problems=problems)
+    env = dict(os.environ, PYTHONPATH=package_dir)
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, env=env).stdout
+    return json.loads(out.splitlines()[-1])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("old")
+    ap.add_argument("new", nargs="?", default=str(ROOT / "python"))
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--problems", default=DEFAULT)
+    args = ap.parse_args()
+    problems = args.problems.split(",")
+    builds = {"old": args.old, "new": args.new}
+    results: dict[str, list[dict]] = {k: [] for k in builds}
+    for r in range(args.rounds):
+        for name in (list(builds) if r % 2 == 0 else list(builds)[::-1]):
+            results[name].append(run(builds[name], problems))
+    print(f"{args.rounds} alternating rounds, one cold solve per problem and build per round\n")
+    print("| problem | new / old | cycles old → new | converged old, new |")
+    print("|---|---|---|---|")
+    for p in problems:
+        ratios = [n[p][0] / o[p][0] for o, n in zip(results["old"], results["new"])]
+        q = statistics.quantiles(ratios, n=4, method="inclusive") if len(ratios) > 1 else [ratios[0]] * 3
+        o, n = results["old"][0][p], results["new"][0][p]
+        print(f"| {p} | {statistics.median(ratios):.2f} ({q[0]:.2f}–{q[2]:.2f}) | {o[1]} → {n[1]} | {o[2]}, {n[2]} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
