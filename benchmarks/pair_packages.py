@@ -5,7 +5,7 @@ before it (the `python/inkwarp` folder with its compiled module), then
 
     python benchmarks/pair_packages.py OLD_DIR [NEW_DIR] [--rounds 5] [--problems cuts:0:8,comb:1:8]
 
-where `OLD_DIR` holds the old `inkwarp` folder (it goes first on `PYTHONPATH`) and
+where `OLD_DIR` holds the old `inkwarp` folder (the child's `PYTHONPATH` is that folder) and
 `NEW_DIR` the new one (default: this checkout's `python/`). Each round runs one child
 process per build (the order reversed every other round); a child solves every problem
 once, cold, at default settings but `max_cycles=2000`, and prints its time and cycles. A
@@ -56,7 +56,8 @@ print(json.dumps(out))
 def run(package_dir: str, problems: list[str]) -> dict:
     code = CHILD.format(bench=str(ROOT / "benchmarks"), tests=str(ROOT / "tests"), problems=problems)
     env = dict(os.environ, PYTHONPATH=package_dir)
-    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, env=env).stdout
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, env=env,
+                         cwd=ROOT).stdout
     return json.loads(out.splitlines()[-1])
 
 

@@ -70,7 +70,7 @@ def main() -> int:
     cases += [(f"many cuts, seed {k}", lambda s, k=k: many_cuts(k, s)) for k in (0, 3)]
     for name, make in cases:
         for s in scales:
-            # The combs and the character stop at 8x (a 2,560-pixel comb, a 1,152-pixel
+            # The combs and the character stop at 8x (a 320 × 512 comb, a 576 × 512
             # character), as before; the cuts run to 1,024 px.
             if (name.startswith("comb") and args.quick and s > 1) or (s > 8 and not name.startswith("many")):
                 continue

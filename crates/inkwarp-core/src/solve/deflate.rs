@@ -3,13 +3,12 @@
 //! after [`START`] cycles, the search directions of each window of [`WINDOW`] cycles are
 //! kept with their Gram matrices; at the window's end a Rayleigh–Ritz step over the window
 //! and the vectors already kept (a thick restart, as eigCG does) keeps the [`KEEP`] Ritz
-//! vectors of the smallest eigenvalues as `W` ([`KEEP_SLOW`] from the third step). The iterate is corrected on `span W`
-//! (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`) and every later direction made `A`-orthogonal to `W`
-//! (deflated conjugate gradient, Saad et al. 2000). The same object gives the stopping rule
-//! a floor on the rate ([`Deflation::rate_floor`]) and, once it has deflated, the largest
-//! change of the last window ([`Deflation::judged_change`]). Memory: `WINDOW·2 + 2·KEEP_SLOW`
-//! `f32` vectors (160 bytes a node; `W` and `A W`, 128, stay with a kept hierarchy), at
-//! most [`BUDGET_BYTES`] (fewer kept in larger pieces, none under 4).
+//! vectors of the smallest eigenvalues as `W` ([`KEEP_SLOW`] from the third step). The
+//! iterate is corrected on `span W` (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`) and every later
+//! direction made `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000).
+//! It also gives the stopping rule a rate floor ([`Deflation::rate_floor`]) and the largest
+//! change of the last window ([`Deflation::judged_change`]). Memory: at most
+//! `2·WINDOW + 2·KEEP_SLOW` `f32` vectors (160 bytes a node) within [`BUDGET_BYTES`].
 
 use rayon::prelude::*;
 
@@ -29,8 +28,7 @@ const WAIT_RATE: f64 = 0.5;
 /// The smallest Ritz value has settled when a cycle's Lanczos matrix lowers it by less than
 /// 5 % (before any deflating restart: after one the judged changes come in windows).
 const SETTLED: f64 = 0.95;
-/// Ritz vectors kept (`docs/dev/ablation.md`, "Tenth change"), and past the [`LOOKS`]th
-/// Rayleigh–Ritz step (a tangle of cuts: many slow modes; "Twenty-first change").
+/// Ritz vectors kept, and from the third Rayleigh–Ritz step on (`docs/dev/ablation.md`).
 const KEEP: usize = 8;
 const KEEP_SLOW: usize = 16;
 /// Most bytes the kept vectors may take.
@@ -49,9 +47,8 @@ pub(super) struct Deflation {
     /// from the first cycle if `early` (see [`START`]).
     wait: bool,
     early: bool,
-    /// Ritz vectors kept now, and past the [`LOOKS`]th step.
-    keep: usize,
-    most: usize,
+    /// Ritz vectors kept now, and from the third step on.
+    keep: usize, most: usize,
     /// The window's directions, one scalar vector per component and cycle.
     v: Vec<Vec<f32>>,
     /// The kept vectors and their products.
@@ -77,9 +74,8 @@ pub(super) struct Deflation {
 
 impl Deflation {
     pub fn new(len: usize, off: bool, wait: bool, early: bool) -> Deflation {
-        let fit = BUDGET_BYTES / (4 * len).max(1);
-        let keep = KEEP.min(fit.saturating_sub(2 * WINDOW) / 2);
-        let most = KEEP_SLOW.min(fit.saturating_sub(2 * WINDOW) / 2);
+        let room = (BUDGET_BYTES / (4 * len).max(1)).saturating_sub(2 * WINDOW) / 2;
+        let (keep, most) = (KEEP.min(room), KEEP_SLOW.min(room));
         Deflation { on: !off && keep >= 4, wait, early: early && wait, keep, most, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
     }
 
@@ -144,25 +140,23 @@ impl Deflation {
             return;
         };
         self.restarts += 1;
-        self.keep = if self.restarts > LOOKS { self.most } else { self.keep };
+        if self.restarts > LOOKS { self.keep = self.most; }
         self.before = std::mem::replace(&mut self.low, f64::INFINITY);
         let k = self.keep.min(theta.len());
         let n = u.len();
-        // W = B Y, chunk by chunk in parallel, every column of a chunk at once (so each
-        // basis chunk is read from memory once, not once per column).
+        // W = B Y, column by column, chunk by chunk in parallel; then the old vectors go (the budget).
+        self.aw.clear();
         let mut w: Vec<Vec<f32>> = (0..k).map(|_| vec![0.0; n]).collect();
-        let mut parts: Vec<Vec<&mut [f32]>> = (0..n.div_ceil(CHUNK)).map(|_| Vec::with_capacity(k)).collect();
-        w.iter_mut().for_each(|col| col.chunks_mut(CHUNK).zip(parts.iter_mut()).for_each(|(part, cols)| cols.push(part)));
-        let basis: Vec<&Vec<f32>> = self.w.iter().chain(&self.v).collect();
-        parts.into_par_iter().enumerate().for_each(|(c, cols)| {
-            for (l, col) in cols.into_iter().enumerate() {
+        for (l, col) in w.iter_mut().enumerate() {
+            col.par_chunks_mut(CHUNK).enumerate().for_each(|(c, col)| {
                 let mut acc = vec![0.0f64; col.len()];
-                for (b, yj) in basis.iter().zip(&y).filter(|(_, yj)| yj[l] != 0.0) {
+                for (b, yj) in self.w.iter().chain(&self.v).zip(&y).filter(|(_, yj)| yj[l] != 0.0) {
                     acc.iter_mut().zip(&b[c * CHUNK..]).for_each(|(o, &bv)| *o += yj[l] * bv as f64);
                 }
                 col.iter_mut().zip(&acc).for_each(|(o, &x)| *o = x as f32);
-            }
-        });
+            });
+        }
+        (self.w, self.v) = (Vec::new(), Vec::new());
         // A W by the operator itself (a combination of the window's products would cancel
         // below f32 for the near-null vectors), two at a time.
         let mut aw: Vec<Vec<f32>> = Vec::with_capacity(k);
@@ -188,7 +182,14 @@ impl Deflation {
     }
 
     /// The vectors kept, for the next solve of the same operator, whose slow modes they are.
-    pub fn modes(self) -> Option<Modes> { (!self.w.is_empty()).then_some(Modes(self.w, self.aw, self.e)) }
+    /// At most the [`KEEP`] smallest: adopted, more misled a 1024² solve (`docs/dev/ablation.md`).
+    pub fn modes(mut self) -> Option<Modes> {
+        let k = self.w.len().min(KEEP);
+        [&mut self.w, &mut self.aw].into_iter().for_each(|v| v.truncate(k));
+        self.e.truncate(k);
+        self.e.iter_mut().for_each(|r| r.truncate(k));
+        (!self.w.is_empty()).then_some(Modes(self.w, self.aw, self.e))
+    }
 
     /// Keeps `modes` (the Ritz vectors, or an earlier solve's [`Deflation::modes`]) as the
     /// vectors, a new basis (`Bᵀ B = I`, `Bᵀ A B = E`, no window); corrects `u` and `r` on
