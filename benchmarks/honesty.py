@@ -11,7 +11,8 @@ residual), so it scales the displacements down:
   straight and bent cuts, 40 points, float or integer end points) at 2x and 4x, seeds
   `--seeds`, displacements times 0.02 and 0.2, each solved cold at the default settings;
 - the same at 4x with the displacements changed by 2 % and 0.05 px, warm from the
-  previous answer (an animation's next frame);
+  previous answer (an animation's next frame), and times 1.1 through a `Solver` kept from
+  the solve of the displacements (its levels and the slow modes that solve found);
 - with `--families`, the oracle tests' thin-part families beyond the direct solve's reach:
   the antialiased characters (`character_problem`, seeds `--seeds`, scales 1, 2 and 4) and
   the combs with 1 and 2 px teeth at 1x, 2x and 4x (`comb_mask`, seeded points on the bar
@@ -65,6 +66,7 @@ def judged(pts, d, shape, initial=None, **kw):
 def error(field, report, pts, d, shape, **kw):
     """`field`'s error over a tight solve's, in tolerances, or None when `report` did not
     converge; `mask` (if given) limits it to the active nodes."""
+    kw = {k: v for k, v in kw.items() if k != "solver"}  # the tight solve starts afresh
     tight, _ = inkwarp.thin_plate_report(pts, d, shape, tolerance=1e-8, max_cycles=2000, **kw)
     on = kw["mask"] > 0 if kw.get("mask") is not None else slice(None)
     return float(np.abs(field - tight)[on].max()) / TOL if report.converged else None
@@ -83,6 +85,10 @@ def claims(seeds: int):
                 if scale == 4:
                     start = inkwarp.thin_plate(pts, disp, shape, cuts=cuts)
                     yield f"{name}, next frame, warm", *judged(pts, disp * 1.02 + 0.05, shape, initial=start, cuts=cuts)
+                    # A kept Solver's next solve: its levels and the slow modes it found kept.
+                    kept = inkwarp.Solver()
+                    inkwarp.thin_plate(pts, disp, shape, cuts=cuts, solver=kept)
+                    yield f"{name}, displacements x1.1, kept Solver", *judged(pts, disp * 1.1, shape, cuts=cuts, solver=kept)
 
 
 def open_claims(seeds: int, sizes=(129, 257, 513)):
