@@ -12,7 +12,7 @@ once, cold, at default settings but `max_cycles=2000`, and prints its time and c
 row is the median over the rounds of the time ratio new / old (below 1: the new build is
 faster), its middle half in brackets, then the cycles old → new.
 
-Problems (`benchmarks/strands.py`' families): `cuts:SEED:SCALE` (many random float
+Problems: `benchmarks/strands.py`'s `problem` specs, `cuts:SEED:SCALE` (many random float
 cuts), `comb:TOOTH:SCALE` (1 or 2 px teeth), `character:SEED:SCALE` (a matte with hair).
 """
 
@@ -33,19 +33,10 @@ CHILD = """
 import json, sys, time
 sys.path[:0] = [{bench!r}, {tests!r}]
 import inkwarp
-from strands import comb, many_cuts
-from test_solver_families import character_problem
+from strands import problem
 out = {{}}
 for name in {problems!r}:
-    kind, a, s = name.split(":")
-    a, s = int(a), int(s)
-    if kind == "cuts":
-        m, pts, disp, cuts = many_cuts(a, s)
-    elif kind == "comb":
-        (m, pts, disp), cuts = comb(a, s), None
-    else:
-        m, pts, disp, *rest = character_problem(a, s)
-        cuts = rest[0] if rest else None
+    m, pts, disp, cuts = problem(name)
     t = time.perf_counter()
     _, rep = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, cuts=cuts, max_cycles=2000)
     out[name] = (time.perf_counter() - t, rep.cycles, rep.converged)

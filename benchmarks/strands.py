@@ -57,6 +57,15 @@ def many_cuts(seed: int, scale: int):
     return np.ones((64 * scale, 64 * scale), np.uint8), pts, disp * scale, cuts
 
 
+def problem(spec: str):
+    """`(mask, points, displacements, cuts or None)` of a spec `KIND:A:SCALE`: `cuts:SEED`
+    (many cuts), `comb:TOOTH` or `character:SEED`."""
+    kind, a, scale = spec.split(":")
+    make = {"cuts": many_cuts, "comb": comb, "character": character_problem}[kind]
+    m, pts, disp, *cuts = make(int(a), int(scale))
+    return m, pts, disp, cuts[0] if cuts else None
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="scale 1 (and 2 for the character): a smoke run")

@@ -47,8 +47,8 @@ pub(super) struct Deflation {
     /// from the first cycle if `early` (see [`START`]).
     wait: bool,
     early: bool,
-    /// Ritz vectors kept now, and from the third step on.
-    keep: usize, most: usize,
+    /// Ritz vectors the budget leaves room for.
+    room: usize,
     /// The window's directions, one scalar vector per component and cycle.
     v: Vec<Vec<f32>>,
     /// The kept vectors and their products.
@@ -75,8 +75,7 @@ pub(super) struct Deflation {
 impl Deflation {
     pub fn new(len: usize, off: bool, wait: bool, early: bool) -> Deflation {
         let room = (BUDGET_BYTES / (4 * len).max(1)).saturating_sub(2 * WINDOW) / 2;
-        let (keep, most) = (KEEP.min(room), KEEP_SLOW.min(room));
-        Deflation { on: !off && keep >= 4, wait, early: early && wait, keep, most, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
+        Deflation { on: !off && room >= 4, wait, early: early && wait, room, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
     }
 
     /// Whether [`Deflation::project`] changes directions (vectors are kept).
@@ -140,9 +139,8 @@ impl Deflation {
             return;
         };
         self.restarts += 1;
-        if self.restarts > LOOKS { self.keep = self.most; }
         self.before = std::mem::replace(&mut self.low, f64::INFINITY);
-        let k = self.keep.min(theta.len());
+        let k = (if self.restarts > LOOKS { KEEP_SLOW } else { KEEP }).min(self.room).min(theta.len());
         let n = u.len();
         // W = B Y, column by column, chunk by chunk in parallel; then the old vectors go (the budget).
         self.aw.clear();
