@@ -161,6 +161,12 @@ def test_field_errors(capsys, tmp_path):
                           "-o", tmp_path / "f.npy")
     assert code == 2 and "nope" in stderr and len(stderr.splitlines()) == 1
     assert not (tmp_path / "f.npy").exists() and leftovers(tmp_path) == []
+    # Two layers and no --layer: the file, the layers and the option to use.
+    two = write_scene(tmp_path / "two", mutated(lambda d: d["layers"].append({**d["layers"][0], "name": "top"})))
+    code, _, stderr = run(capsys, "field", two, "--time", "1", "-o", tmp_path / "f.npy")
+    assert code == 2 and len(stderr.splitlines()) == 1, stderr
+    assert str(two) in stderr and "2 layers" in stderr and "--layer NAME" in stderr and "layer=" not in stderr
+    assert not (tmp_path / "f.npy").exists()
 
 
 class _Breaks:

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+import inkwarp
 from _cli_scenes import HEIGHT, WIDTH, leftovers, mutated, write_scene
 from inkwarp.cli import main
 
@@ -188,6 +189,27 @@ def wavy_doc():
             {"id": "pin", "kind": "point", "rest": [[14, 30]],
              "keys": [{"t": 0, "points": [[14, 30]]}, {"t": 2, "points": [[17, 33]]}]}]
     return mutated(change)
+
+
+def test_one_frame_to_a_png_is_that_frame_of_a_sequential_render(capsys, tmp_path):
+    # A farm re-renders one frame: through its warm-start chain, not from zero, so its
+    # pixels are the sequence's (docs/guides/render-farm.md).
+    scene = write_scene(tmp_path / "s", wavy_doc())
+    # A picture of noise: a field a few thousandths of a pixel off changes its pixels.
+    noise = np.random.default_rng(0).integers(0, 256, (HEIGHT, WIDTH, 4), dtype=np.uint8)
+    noise[..., 3] = 255
+    Image.fromarray(noise, "RGBA").save(tmp_path / "s" / "square.png")
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "seq/", "-q")
+    assert code == 0, err
+    sequential = png_frames(tmp_path / "seq", 40)
+    cold = inkwarp.Scene.load(scene).render(frame=21)
+    for index in (21, 32):
+        code, _, err = run(capsys, "render", scene, "-o", tmp_path / f"f{index}.png", "--frame", index, "-q")
+        assert code == 0, err
+        got = np.asarray(Image.open(tmp_path / f"f{index}.png").convert("RGBA"))
+        assert np.array_equal(got, sequential[index]), index
+    # Frame 21 solved from zero is a different (equally valid) answer: the chain matters.
+    assert not np.array_equal(cold, sequential[21])
 
 
 def test_chunked_and_skip_existing_renders_equal_a_sequential_one(capsys, tmp_path):

@@ -53,6 +53,9 @@ MISTAKES = [
     ("missing image", changed("layers/0/image", "nowhere.png"), "layers[0].image", "no such file"),
     ("negative layer tension", changed("layers/1/solver", {"tension": -2}), "layers[1].solver.tension", "at least 0"),
     ("no layers", changed("layers", []), "layers", "at least one layer"),
+    ("a width alone, not the images'", changed("width", 50), "width", "50 does not match the images, which are 40×30"),
+    ("a height alone, not the images'", changed("height", 31), "height", "31 does not match the images, which are 40×30"),
+    ("a width alone, no image", changed("layers", [{"name": "plain"}]) | {"width": 64}, "height", 'no layer has an image to take the frame size from'),
 ]
 
 

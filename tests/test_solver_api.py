@@ -134,6 +134,9 @@ def test_solves_run_in_parallel_threads():
         ({"method": "jacobi"}, "method must be one of"),
         ({"initial": np.zeros((2, 2, 2))}, r"initial has shape \(2, 2, 2\) but must be \(18, 24, 2\)"),
         ({"initial": np.full((18, 24, 2), np.nan)}, "initial has NaN"),
+        ({"points": np.array(PTS) + 1j}, "points holds complex numbers"),
+        ({"displacements": np.array(DISP, complex)}, "displacements holds complex numbers"),
+        ({"initial": np.zeros((18, 24, 2), complex)}, "initial holds complex numbers"),
     ],
 )
 def test_bad_arguments_say_what_to_fix(kwargs, match):
@@ -249,3 +252,21 @@ def test_three_points_and_affine_motions_take_their_map_exactly():
     field, report = inkwarp.thin_plate_report(anywhere, np.tile([0.7, -2.25], (12, 1)), SHAPE)
     assert report.converged and report.cycles == 0
     assert np.abs(field - [0.7, -2.25]).max() < 1e-6
+
+
+@pytest.mark.parametrize("tension", [0.0, 0.3])
+def test_a_piece_whose_points_move_together_translates_with_no_cycle(tension):
+    # A rest frame (every displacement zero) or a piece dragged whole: the translation has
+    # no energy of either kind, so it is the answer, on torn grids too, at once; a cycle
+    # cap cannot make it unconverged.
+    h, w = 40, 56
+    ys, xs = np.mgrid[0:h, 0:w]
+    mask = ((xs - 30) ** 2 + (ys - 20) ** 2 > 36).astype(np.uint8)
+    cuts = [[[5.5, 30.5], [40.5, 25.5]]]
+    pts = [[10, 10], [45, 8], [30, 35], [50, 30], [8, 36]]  # both sides of the cut
+    for move in ([0.0, 0.0], [1.25, -3.5]):
+        field, report = inkwarp.thin_plate_report(pts, [move] * len(pts), (h, w), mask=mask, cuts=cuts,
+                                                  tension=tension, max_cycles=1)
+        assert report.converged and report.cycles == 0, report
+        assert np.array_equal(field[mask > 0], np.tile(np.float32(move), (int(mask.sum()), 1)))
+        assert not field[mask == 0].any()

@@ -128,6 +128,9 @@ def _size(value: Any) -> int:
 
 
 def _points(name: str, value: Any) -> npt.NDArray[np.float64]:
+    if np.iscomplexobj(value):
+        raise ValueError(f"{name} holds complex numbers; pass real (x, y) values (np.real({name}) "
+                         "if the imaginary parts are zero).")
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -215,6 +218,8 @@ def _check_args(
         raise ValueError(f"southwell_sweeps must be a finite number >= 0, got {southwell_sweeps!r}.")
     init = None
     if initial is not None:
+        if np.iscomplexobj(initial):
+            raise ValueError("initial holds complex numbers; pass a real (H, W, 2) field.")
         init = np.asarray(initial, dtype=np.float32)
         if init.shape != (height, width, 2):
             raise ValueError(
@@ -357,7 +362,8 @@ def thin_plate(
         Stop when the estimated largest remaining error of any pixel is below this
         (pixels). At the default every pixel is within 0.05 px of the exact minimiser. A
         tolerance below 1e-7 of the largest displacement is finer than the field's float32
-        resolution: the solve then never reports ``converged``.
+        resolution: the solve then never reports ``converged``; so does 0, which runs
+        exactly ``max_cycles`` cycles (scenes, whose settings are for rendering, refuse it).
     grid_step : int, default 1
         Solve on every ``grid_step``-th pixel and upsample with a tensor-product cubic:
         faster, approximate (points move to the nearest coarse node).
@@ -372,7 +378,8 @@ def thin_plate(
         so later calls skip their setup (same answers). Not together with ``warm``.
     max_cycles : int, optional
         Cap on the number of cycles (default 100), all of them counted (``"southwell"``: on
-        its rounds).
+        its rounds). 0 runs none and returns the start; the report says converged only where
+        no cycle is needed (a piece that translates, or that one affine map fits).
     method : {"multigrid", "southwell"}, default "multigrid"
         ``"southwell"`` spends a fixed budget of greedy single-node relaxations after the
         coarse-to-fine start instead of iterating to the tolerance.

@@ -23,11 +23,14 @@ import math
 import mimetypes
 import os
 import sys
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from inkwarp.errors import ConvergenceWarning
 
 __all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "portable_scene", "preroll_start", "ray_workers",
            "render", "render_range"]
@@ -45,13 +48,18 @@ def preroll_start(start: int) -> int:
 def render_range(scene: Any, start: int, stop: int, *, method: str | None = None,
                  threads: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
     """``(index, frame)`` for frames ``start`` to ``stop - 1``, each exactly as a sequential
-    render of the whole scene gives it (the pre-roll frames are solved and dropped)."""
+    render of the whole scene gives it (the pre-roll frames are solved and dropped, and so
+    are their convergence warnings: they are about frames this range does not render; each
+    frame rendered reports its own)."""
     first = preroll_start(start)
     frames = scene.frames(start=first, stop=stop, threads=threads, method=method)
     try:
-        for index, frame in enumerate(frames, first):
-            if index >= start:
-                yield index, frame
+        for index in range(first, start):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ConvergenceWarning)
+                next(frames)
+        for index, frame in enumerate(frames, start):
+            yield index, frame
     finally:
         frames.close()  # stops the engine's workers when the caller stops early
 

@@ -67,6 +67,13 @@ def _run(args: argparse.Namespace) -> int:
         time_s = _common.check_time(args.time)
     else:
         time_s = _common.check_frame(args.frame, scene.frame_count) / scene.fps
+    names = scene.layers
+    if args.layer is None and len(names) > 1:
+        raise ValueError(f"{args.scene}: the scene has {len(names)} layers ({', '.join(names)}), each with "
+                         "its own field; choose one with --layer NAME")
+    if args.layer is not None and args.layer not in names:
+        raise ValueError(f"{args.scene}: --layer {args.layer}: no layer is called that; the layers are "
+                         f"{', '.join(names)}")
     started = time.perf_counter()
     field = np.asarray(scene.field(time=time_s, layer=args.layer, method=args.method),
                        dtype=np.float32)

@@ -53,7 +53,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     one.add_argument("--time", type=float, metavar="T",
                      help="for a .png: the time in seconds of the frame to render")
     one.add_argument("--frame", type=int, metavar="N",
-                     help="for a .png: the number of the frame to render (from 0)")
+                     help="for a .png: the number of the frame to render (from 0; the same pixels "
+                          "as that frame of a sequence or chunked render)")
     parser.add_argument("--frames", metavar="A:B",
                         help="for an animation: render frames A to B-1 only (default: all)")
     _common.add_method_argument(parser)
@@ -152,8 +153,12 @@ def _run(args: argparse.Namespace) -> int:
             frame = scene.render(time=args.time, method=args.method)
             what = f"t = {args.time:g} s"
         else:
+            # Through its warm-start chain, as a sequence renders it: the same pixels as that
+            # frame of any chunked or sequential render (docs/guides/render-farm.md).
             index = _common.check_frame(args.frame or 0, scene.frame_count)
-            frame = scene.render(frame=index, method=args.method)
+            frames = rendering.render_range(scene, index, index + 1, method=args.method, threads=1)
+            _, frame = next(frames)
+            frames.close()
             what = f"frame {index}"
         with video.open_writer(target, fps=scene.fps, kind="png") as writer:
             writer.write(frame)

@@ -362,10 +362,7 @@ impl Scene {
         // Decode every image once, keep the problems of each place that refers to it.
         let mut decoded: HashMap<String, Result<Arc<RgbaImage>, String>> = HashMap::new();
         let mut layer_images: Vec<[Option<Arc<RgbaImage>>; 3]> = Vec::new();
-        let mut size: Option<(usize, usize, String)> = match (doc.width, doc.height) {
-            (Some(w), Some(h)) if w > 0 && h > 0 => Some((w as usize, h as usize, "width and height".to_string())),
-            _ => None,
-        };
+        let mut size = doc.width.zip(doc.height).filter(|&(w, h)| w > 0 && h > 0).map(|(w, h)| (w as usize, h as usize, "width and height".to_string()));
         for (j, layer) in doc.layers.iter().enumerate() {
             let mut slots: [Option<Arc<RgbaImage>>; 3] = [None, None, None];
             let references = [("image", &layer.image), ("alpha", &layer.alpha), ("continuity", &layer.continuity)];
@@ -391,10 +388,7 @@ impl Scene {
                     None => size = Some((image.width, image.height, path.clone())),
                     Some((w, h, from)) if (image.width, image.height) != (*w, *h) => {
                         let (what, iw, ih) = (describe_reference(reference), image.width, image.height);
-                        let why = format!(
-                            "{what} is {iw}×{ih} pixels but the scene is {w}×{h} (from {from}); every image and matte \
-                             must be the scene's size"
-                        );
+                        let why = format!("{what} is {iw}×{ih} pixels but the scene is {w}×{h} (from {from}); every image and matte must be the scene's size");
                         problems.push(Problem::new(&path, why));
                         continue;
                     }
@@ -404,8 +398,14 @@ impl Scene {
             }
             layer_images.push(slots);
         }
-        if size.is_none() && !doc.layers.is_empty() {
-            problems.push(Problem::new("width", "no layer has an image to take the frame size from; set \"width\" and \"height\""));
+        // A size given by one key alone: the images must agree with it, or the other is missing.
+        let alone = match (doc.width, doc.height) { (Some(w), None) => Some(("width", "height", w, 0)), (None, Some(h)) => Some(("height", "width", h, 1)), _ => None };
+        if let (Some((w, h, from)), Some((key, _, given, axis))) = (&size, alone) {
+            if [*w, *h][axis] != given as usize {
+                problems.push(Problem::new(key, format!("{given} does not match the images, which are {w}×{h} (from {from}); set both \"width\" and \"height\" to the images' size, or leave both out")));
+            }
+        } else if size.is_none() && !doc.layers.is_empty() {
+            problems.push(Problem::new(alone.map_or("width", |a| a.1), "no layer has an image to take the frame size from; set both \"width\" and \"height\""));
         }
         parsed.extend(problems);
         if !parsed.problems.is_empty() {

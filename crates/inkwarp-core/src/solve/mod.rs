@@ -1000,7 +1000,8 @@ struct CacheKey {
 fn classify(members: &[Vec<usize>], c: &Constraints, w: usize, tau: f64) -> Vec<Piece> {
     members.iter().map(|m| match m.len() {
         0 => Piece::Zero,
-        1 => Piece::Translate(c.values[m[0]]),
+        // Equal values (a rest frame, a piece dragged whole): a translation has no energy.
+        _ if m.iter().all(|&k| c.values[k] == c.values[m[0]]) => Piece::Translate(c.values[m[0]]),
         _ if tau != 0.0 => Piece::General,
         _ => on_one_line(w, m.iter().map(|&k| c.nodes[k])).map_or(Piece::General, |(a, d)| Piece::Line { a, d, gauge: None }),
     }).collect()
