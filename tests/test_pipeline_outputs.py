@@ -212,6 +212,26 @@ def test_one_frame_to_a_png_is_that_frame_of_a_sequential_render(capsys, tmp_pat
     assert not np.array_equal(cold, sequential[21])
 
 
+def test_only_warm_started_layers_need_a_pre_roll(tmp_path):
+    from inkwarp import rendering
+
+    scene = inkwarp.Scene.load(write_scene(tmp_path / "s", wavy_doc()))
+    assert rendering.warm_starts(scene) and not rendering.warm_starts(scene, "triangulation")
+    solved = []
+    real = scene.frames
+
+    def frames(start=0, stop=None, **options):
+        solved.append((start, stop))
+        return real(start=start, stop=stop, **options)
+
+    scene.frames = frames
+    assert [i for i, _ in rendering.render_range(scene, 21, 23, method="triangulation")] == [21, 22]
+    assert [i for i, _ in rendering.render_range(scene, 21, 23)] == [21, 22]
+    assert solved == [(21, 23), (16, 23)]
+    # A range past the last frame is empty, as the frames are.
+    assert list(rendering.render_range(scene, 45, 47)) == []
+
+
 def test_chunked_and_skip_existing_renders_equal_a_sequential_one(capsys, tmp_path):
     scene = write_scene(tmp_path / "s", wavy_doc())
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "seq/", "-q")

@@ -176,3 +176,9 @@ def test_a_byte_order_mark_is_fine(tmp_path):
     file.write_bytes(b"\xef\xbb\xbf" + file.read_bytes())
     assert inkwarp.Scene.load(file).frame_count == 40
     assert inkwarp.validate_scene(file) == []
+
+
+@pytest.mark.parametrize("key, value", [("width", 40), ("height", 30)])
+def test_a_width_or_height_alone_that_matches_the_images_is_fine(tmp_path, key, value):
+    scene = inkwarp.Scene.load(write_scene(tmp_path, {**two_layer_scene(), key: value}))
+    assert (scene.width, scene.height) == (40, 30)

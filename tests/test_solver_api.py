@@ -270,3 +270,20 @@ def test_a_piece_whose_points_move_together_translates_with_no_cycle(tension):
         assert report.converged and report.cycles == 0, report
         assert np.array_equal(field[mask > 0], np.tile(np.float32(move), (int(mask.sum()), 1)))
         assert not field[mask == 0].any()
+    # Displacements computed as pose - rest differ in their last bits: still a translation.
+    rest = np.array(pts, float) * 1.37
+    drag = (rest + [3.7, -0.3]) - rest
+    assert len({tuple(d) for d in drag}) > 1  # not bit for bit equal
+    field, report = inkwarp.thin_plate_report(pts, drag, (h, w), mask=mask, cuts=cuts, tension=tension, max_cycles=1)
+    assert report.converged and report.cycles == 0 and np.abs(field[mask > 0] - [3.7, -0.3]).max() < 1e-6
+    # A tolerance finer than the float32 field's resolution is not met, even by a translation.
+    _, report = inkwarp.thin_plate_report(pts, [[0.1, 0.0]] * len(pts), (h, w), mask=mask, tolerance=1e-12)
+    assert not report.converged
+
+
+def test_complex_numbers_are_refused_everywhere_points_are_taken():
+    pts = np.array([[1.0, 2.0], [5.0, 6.0], [3.0, 1.0]]) + 1j
+    for call in (lambda: inkwarp.interpolate(pts, np.zeros((3, 2)), (8, 8), method="triangulation"),
+                 lambda: inkwarp.sample("polyline", pts.real, pts)):
+        with pytest.raises(ValueError, match="holds complex numbers"):
+            call()

@@ -9,6 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from inkwarp import _inkwarp
+from inkwarp.errors import ComplexValuesError, real_array
 
 #: The feature kinds, in the order the documentation lists them.
 KINDS: tuple[str, ...] = ("point", "polyline", "spline", "region", "cut")
@@ -25,8 +26,10 @@ def _count(n: int) -> str:
 
 def _points(name: str, value: npt.ArrayLike) -> npt.NDArray[np.float64]:
     try:
-        arr = np.asarray(value, dtype=np.float64)
+        arr = real_array(name, value, np.float64)
     except (TypeError, ValueError) as exc:
+        if isinstance(exc, ComplexValuesError):
+            raise
         raise ValueError(
             f"{name} must be an (N, 2) array of (x, y) numbers; it could not be read as numbers ({exc})."
         ) from None

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 
 class InkwarpError(Exception):
     """Base class of every error inkwarp raises on purpose."""
@@ -43,3 +45,17 @@ class ConvergenceWarning(InkwarpWarning):
     """A thin-plate solve stopped (at its ``max_cycles``) before it converged, so its field
     may be off by more than the 0.05 px accuracy contract. The message names the layer and
     the frame; ``inkwarp render`` prints it as one line on stderr."""
+
+
+class ComplexValuesError(ValueError):
+    """Complex numbers where real ones are needed (raised by :func:`real_array`)."""
+
+
+def real_array(name: str, value: object, dtype: type = float) -> np.ndarray:
+    """``value`` as an array of ``dtype``. Complex values are a :class:`ComplexValuesError`
+    (numpy would drop their imaginary parts with only a warning); other failures are numpy's."""
+    arr = np.asarray(value)
+    if arr.dtype.kind == "c":
+        raise ComplexValuesError(f"{name} holds complex numbers; pass real values (np.real({name}) if "
+                         "the imaginary parts are zero).")
+    return arr.astype(dtype, copy=False)

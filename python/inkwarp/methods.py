@@ -26,6 +26,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from inkwarp import _inkwarp
+from inkwarp.errors import real_array
 
 __all__ = ["METHODS", "ThinPlateMap", "interpolate", "interpolate_report"]
 
@@ -83,7 +84,7 @@ def check_method(method: str) -> str:
 
 
 def _points(name: str, value: Any) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
+    arr = real_array(name, value, np.float64)
     if arr.size == 0:
         arr = arr.reshape(0, 2)
     if arr.ndim != 2 or arr.shape[1] != 2:
@@ -95,7 +96,7 @@ def _points(name: str, value: Any) -> np.ndarray:
 
 
 def _segments(name: str, value: Any) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
+    arr = real_array(name, value, np.float64)
     if arr.size == 0:
         arr = arr.reshape(0, 2, 2)
     if arr.ndim != 3 or arr.shape[1:] != (2, 2):

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from inkwarp import _inkwarp
+from inkwarp.errors import ComplexValuesError, real_array
 
 __all__ = ["SolveReport", "Solver", "WarmStart", "thin_plate", "thin_plate_report"]
 
@@ -128,12 +129,11 @@ def _size(value: Any) -> int:
 
 
 def _points(name: str, value: Any) -> npt.NDArray[np.float64]:
-    if np.iscomplexobj(value):
-        raise ValueError(f"{name} holds complex numbers; pass real (x, y) values (np.real({name}) "
-                         "if the imaginary parts are zero).")
     try:
-        arr = np.asarray(value, dtype=np.float64)
+        arr = real_array(name, value, np.float64)
     except (TypeError, ValueError) as exc:
+        if isinstance(exc, ComplexValuesError):
+            raise
         raise ValueError(f"{name} must be an (N, 2) array of numbers ({exc}).") from None
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise ValueError(
@@ -218,9 +218,7 @@ def _check_args(
         raise ValueError(f"southwell_sweeps must be a finite number >= 0, got {southwell_sweeps!r}.")
     init = None
     if initial is not None:
-        if np.iscomplexobj(initial):
-            raise ValueError("initial holds complex numbers; pass a real (H, W, 2) field.")
-        init = np.asarray(initial, dtype=np.float32)
+        init = real_array("initial", initial, np.float32)
         if init.shape != (height, width, 2):
             raise ValueError(
                 f"initial has shape {init.shape} but must be {(height, width, 2)}: a previous field of this grid."
@@ -362,8 +360,9 @@ def thin_plate(
         Stop when the estimated largest remaining error of any pixel is below this
         (pixels). At the default every pixel is within 0.05 px of the exact minimiser. A
         tolerance below 1e-7 of the largest displacement is finer than the field's float32
-        resolution: the solve then never reports ``converged``; so does 0, which runs
-        exactly ``max_cycles`` cycles (scenes, whose settings are for rendering, refuse it).
+        resolution: the solve then never reports ``converged``. 0 runs every piece that
+        needs cycles for exactly ``max_cycles`` of them, never converged (scenes, whose
+        settings are for rendering, refuse it).
     grid_step : int, default 1
         Solve on every ``grid_step``-th pixel and upsample with a tensor-product cubic:
         faster, approximate (points move to the nearest coarse node).

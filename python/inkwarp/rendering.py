@@ -33,7 +33,7 @@ import numpy as np
 from inkwarp.errors import ConvergenceWarning
 
 __all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "portable_scene", "preroll_start", "ray_workers",
-           "render", "render_range"]
+           "render", "render_range", "warm_starts"]
 
 #: The engine's warm-start chain length (``WARM_CHAIN_FRAMES`` in the core's scene engine).
 WARM_CHAIN_FRAMES = 16
@@ -45,19 +45,29 @@ def preroll_start(start: int) -> int:
     return (start // WARM_CHAIN_FRAMES) * WARM_CHAIN_FRAMES
 
 
+def warm_starts(scene: Any, method: str | None = None) -> bool:
+    """Whether some layer of ``scene`` (with ``method`` instead of the layers' own, if given)
+    solves with warm starts, the grid's thin plate (``"tps"``): only then does a frame
+    depend on the frames before it, and a range need its pre-roll."""
+    doc = scene.to_dict()
+    default = (doc.get("solver") or {}).get("method", "tps")
+    return any((method or (layer.get("solver") or {}).get("method") or default) == "tps" for layer in doc["layers"])
+
+
 def render_range(scene: Any, start: int, stop: int, *, method: str | None = None,
                  threads: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
     """``(index, frame)`` for frames ``start`` to ``stop - 1``, each exactly as a sequential
     render of the whole scene gives it (the pre-roll frames are solved and dropped, and so
     are their convergence warnings: they are about frames this range does not render; each
     frame rendered reports its own)."""
-    first = preroll_start(start)
+    first = preroll_start(start) if warm_starts(scene, method) else start
     frames = scene.frames(start=first, stop=stop, threads=threads, method=method)
     try:
-        for index in range(first, start):
+        for _ in range(first, min(start, scene.frame_count if stop is None else stop)):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ConvergenceWarning)
-                next(frames)
+                if next(frames, None) is None:
+                    return
         for index, frame in enumerate(frames, start):
             yield index, frame
     finally:

@@ -24,11 +24,11 @@ pub struct SceneDoc {
     /// The scene format version. Always 1.
     #[schemars(extend("const" = 1))]
     pub inkwarp: u32,
-    /// Frame width in pixels. Default: the width of the first layer image.
+    /// Frame width in pixels. Default: the width of the first layer image; given without `height`, it must be that width.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 1))]
     pub width: Option<u32>,
-    /// Frame height in pixels. Default: the height of the first layer image.
+    /// Frame height in pixels. Default: the height of the first layer image; given without `width`, it must be that height.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 1))]
     pub height: Option<u32>,

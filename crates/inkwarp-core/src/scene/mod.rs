@@ -388,8 +388,7 @@ impl Scene {
                     None => size = Some((image.width, image.height, path.clone())),
                     Some((w, h, from)) if (image.width, image.height) != (*w, *h) => {
                         let (what, iw, ih) = (describe_reference(reference), image.width, image.height);
-                        let why = format!("{what} is {iw}×{ih} pixels but the scene is {w}×{h} (from {from}); every image and matte must be the scene's size");
-                        problems.push(Problem::new(&path, why));
+                        problems.push(Problem::new(&path, format!("{what} is {iw}×{ih} pixels but the scene is {w}×{h} (from {from}); every image and matte must be the scene's size")));
                         continue;
                     }
                     Some(_) => {}
@@ -404,7 +403,7 @@ impl Scene {
             if [*w, *h][axis] != given as usize {
                 problems.push(Problem::new(key, format!("{given} does not match the images, which are {w}×{h} (from {from}); set both \"width\" and \"height\" to the images' size, or leave both out")));
             }
-        } else if size.is_none() && !doc.layers.is_empty() {
+        } else if size.is_none() && !doc.layers.is_empty() && problems.is_empty() {
             problems.push(Problem::new(alone.map_or("width", |a| a.1), "no layer has an image to take the frame size from; set both \"width\" and \"height\""));
         }
         parsed.extend(problems);

@@ -370,8 +370,10 @@ pub(crate) fn solve_constrained(
         report.initial_residual = report.initial_residual.max(r.initial_residual);
         report.converged &= r.converged;
     }
-    store.hierarchies.trim(store.solve);
-    store.free.trim(store.solve);
+    // No answer in the `f32` field is finer than its resolution, a translated piece's included.
+    report.converged &= options.tolerance_px >= FINEST_TOLERANCE * field.dx.iter().chain(&field.dy).fold(0.0f32, |m, v| m.max(v.abs())) as f64;
+    let constrained = pieces.iter().filter(|p| **p != Piece::Zero).count(); // translated ones keep theirs
+    (store.hierarchies.trim(store.solve, constrained), store.free.trim(store.solve, constrained));
     (field, report)
 }
 
@@ -922,12 +924,12 @@ impl<T> Kept<T> {
         }
     }
 
-    /// Once solve number `latest` is done, if it used any: drops what is past the count
-    /// limit, then the oldest entries it did not use while they pass the node limit.
-    fn trim(&mut self, latest: u64) {
+    /// Once solve number `latest` (of `pieces` constrained pieces) used any: drops what is past
+    /// the count limit, then the oldest entries it did not use while over the node limit.
+    fn trim(&mut self, latest: u64, pieces: usize) {
         let used = self.0.iter().filter(|e| e.2 == latest).count();
         if used > 0 {
-            self.0.drain(..self.0.len().saturating_sub(2 * used));
+            self.0.drain(..self.0.len().saturating_sub(2 * used.max(pieces)));
             while self.nodes() > self.1 {
                 let Some(pos) = self.0.iter().position(|e| e.2 != latest) else { return };
                 self.0.remove(pos);
@@ -1001,7 +1003,7 @@ fn classify(members: &[Vec<usize>], c: &Constraints, w: usize, tau: f64) -> Vec<
     members.iter().map(|m| match m.len() {
         0 => Piece::Zero,
         // Equal values (a rest frame, a piece dragged whole): a translation has no energy.
-        _ if m.iter().all(|&k| c.values[k] == c.values[m[0]]) => Piece::Translate(c.values[m[0]]),
+        _ if m.iter().all(|&k| (0..2).all(|i| (c.values[k][i] - c.values[m[0]][i]).abs() <= 1e-9 * (1.0 + c.values[m[0]][i].abs()))) => Piece::Translate(c.values[m[0]]),
         _ if tau != 0.0 => Piece::General,
         _ => on_one_line(w, m.iter().map(|&k| c.nodes[k])).map_or(Piece::General, |(a, d)| Piece::Line { a, d, gauge: None }),
     }).collect()

@@ -1480,6 +1480,11 @@ fn a_solver_keeps_every_piece_of_its_latest_solve_and_the_drawing_before() {
     solver.solve(&grid, &frame(0.0, 0.0), &options, None).unwrap();
     solver.solve(&grid, &frame(2.0, 0.0), &options, None).unwrap();
     assert_eq!(solver.store.built, 3, "a frame after one at rest built a hierarchy again");
+    // One piece moving and two at rest (translated, using no entry): the two keep theirs.
+    let mixed: Vec<Sample> = frame(2.0, 0.0).into_iter().enumerate().map(|(i, s)| if i < 4 { s } else { Sample { displacement: [0.0; 2], ..s } }).collect();
+    solver.solve(&grid, &mixed, &options, None).unwrap();
+    solver.solve(&grid, &frame(3.0, 0.0), &options, None).unwrap();
+    assert_eq!(solver.store.built, 3, "the pieces at rest the frame before built their hierarchies again");
     // A new drawing (other fixed nodes): its pieces join the last solve's, kept for an undo,
     // which builds nothing.
     solver.solve(&grid, &frame(1.0, 2.0), &options, None).unwrap();
@@ -1556,10 +1561,10 @@ fn a_build_first_drops_its_pieces_earlier_drawing_then_what_no_recent_solve_used
     assert_eq!(values(&kept), [3, 4]);
     // Once solve 5 is done, what it did not use stays while all fit, and goes when not.
     kept.put(5, key(50, 7), 5);
-    kept.trim(5);
+    kept.trim(5, 0);
     assert_eq!(values(&kept), [3, 4, 5]);
     kept.1 = 250;
-    kept.trim(5);
+    kept.trim(5, 0);
     assert_eq!(values(&kept), [4, 5]);
 }
 
