@@ -374,3 +374,38 @@ def test_unknown_host_is_a_clean_error(editor: Path, monkeypatch, capsys) -> Non
     assert main(["edit", "--no-browser", "--host", "nonexistent.invalid"]) == 2
     err = capsys.readouterr().err
     assert "--host nonexistent.invalid" in err and "Traceback" not in err
+
+
+def _first_url(editor: Path, *argv: str) -> str:
+    """The URL `inkwarp edit --no-browser ARGV` prints, the server stopped after."""
+    import re
+    import subprocess
+    import sys
+
+    env = {**os.environ, "INKWARP_EDITOR_DIR": str(editor)}
+    proc = subprocess.Popen([sys.executable, "-m", "inkwarp.cli", "edit", "--no-browser", *argv],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    with proc, proc.stdout:
+        try:
+            line = proc.stdout.readline()
+        finally:
+            proc.kill()
+    found = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
+    assert found, line
+    return found.group(1)
+
+
+def test_the_editor_keeps_its_port_from_run_to_run_unless_it_is_taken(editor: Path) -> None:
+    # The browser keeps unsaved work per origin: the same port each run finds it again.
+    from inkwarp.cli.edit import DEFAULT_PORT
+
+    with socket.socket() as probe:
+        try:
+            probe.bind(("127.0.0.1", DEFAULT_PORT))
+        except OSError:
+            pytest.skip(f"port {DEFAULT_PORT} is in use on this machine")
+    assert _first_url(editor) == str(DEFAULT_PORT)
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", DEFAULT_PORT))
+        taken.listen()
+        assert _first_url(editor) not in ("", str(DEFAULT_PORT))

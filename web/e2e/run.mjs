@@ -988,6 +988,37 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
   }
 });
 
+test('a scene opened by inkwarp edit: a reload offers its unsaved work back, which saves to the file', async () => {
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-restore-'));
+  copyFileSync(join(repo, 'examples/checkerboard-hole/checkerboard.png'), join(dir, 'checker.png'));
+  const scenePath = join(dir, 'kept.json');
+  writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, fps: 12, duration: 1, layers: [{ name: 'checker', image: 'checker.png' }], features: [] }));
+  const own = await startServer([scenePath]);
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  try {
+    await p.keyboard.press('p');
+    await click(p, [40, 40]);
+    await idle(p);
+    assert(await p.evaluate(() => window.inkwarp.store.unsaved && window.inkwarp.store.doc.features.length === 1), 'a point was added, unsaved');
+    await p.evaluate(() => window.inkwarp.autosave.flush());
+    await p.reload();
+    await p.waitForSelector('body[data-ready]');
+    await p.waitForSelector('#restore', { timeout: 10000 });
+    const question = await p.textContent('#restore span');
+    assert(/^Restore the scene you were editing at \d\d:\d\d\?$/.test(question), `the offer reads: ${question}`);
+    await p.click('#restore-yes');
+    await p.waitForFunction(() => window.inkwarp.store.doc.features.length === 1, null, { timeout: 10000 });
+    await p.keyboard.press('Control+s');
+    await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
+    const saved = JSON.parse(readFileSync(scenePath, 'utf8'));
+    assert(saved.features.length === 1 && saved.layers[0].image === 'checker.png', `the restored work went back to its file: ${JSON.stringify(saved).slice(0, 120)}`);
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
 /** Presses a key diamond of the timeline and moves the pointer `dx` px in 1 px steps. */
 async function dragDiamond(p, feature, t, dx, opts = {}) {
   const box = await p.evaluate(([f, time]) => {

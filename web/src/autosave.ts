@@ -17,6 +17,11 @@ export interface Snapshot {
   unsaved: boolean;
   /** Where the editor was (rest or pose mode, the time), restored with the scene. */
   view?: KeptView;
+  /**
+   * The file a save writes to (the path `inkwarp edit SCENE` serves), or null when a save
+   * downloads: restored work goes back to its file only when the page opened that file.
+   */
+  source?: string | null;
 }
 
 /** The part of the editor's view a snapshot keeps. */
@@ -122,10 +127,14 @@ export function clockTime(ms: number): string {
   return `${String(d.getHours()).padStart(2, '0')}:${String(d.getMinutes()).padStart(2, '0')}`;
 }
 
-/** The question the page asks on load when an unsaved snapshot is waiting. */
-export function restoreQuestion(s: Snapshot, now = Date.now()): string {
+/**
+ * The question the page asks on load when an unsaved snapshot is waiting; `instead`: the
+ * name of another scene the page opened, which the restored one would replace.
+ */
+export function restoreQuestion(s: Snapshot, now = Date.now(), instead?: string): string {
   const day = new Date(s.savedAt).toDateString() === new Date(now).toDateString() ? '' : ` on ${new Date(s.savedAt).toDateString()}`;
-  return `Restore the scene you were editing at ${clockTime(s.savedAt)}${day}?`;
+  const other = instead ? ` (${s.fileName}) instead of ${instead}` : '';
+  return `Restore the scene you were editing at ${clockTime(s.savedAt)}${day}${other}?`;
 }
 
 /**
@@ -142,7 +151,7 @@ export class Autosaver {
 
   constructor(
     private store: SnapshotStore,
-    private current: () => { doc: SceneDoc; fileName: string; unsaved: boolean; view?: KeptView },
+    private current: () => Omit<Snapshot, 'savedAt'>,
     private inline: Inliner,
     private delayMs = 800,
     private onError: (err: Error) => void = () => {},
@@ -170,11 +179,11 @@ export class Autosaver {
       this.timer = null;
     }
     this.writing = this.writing.then(async () => {
-      const { doc, fileName, unsaved, view } = this.current();
+      const { doc, ...rest } = this.current();
       try {
         const inlined = await inlineImages(doc, this.inline);
         const savedAt = this.now();
-        await this.store.put({ doc: inlined, fileName, savedAt, unsaved, ...(view ? { view } : {}) });
+        await this.store.put({ ...rest, doc: inlined, savedAt });
         this.lastSavedAt = savedAt;
         this.reported = false;
       } catch (err) {

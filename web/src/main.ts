@@ -45,11 +45,14 @@ async function start(): Promise<void> {
   const ui = new Ui(app, root);
   // Hooks for the end-to-end tests and for scripting the editor from the console.
   Object.assign(window, { inkwarp: { app, ui, store, engine, scene, state, images, examples } });
+  // The file the scene came from (its path on the machine `inkwarp edit` serves it from).
+  let source: string | null = null;
   if (sceneUrl) {
     try {
       const resp = await fetch(sceneUrl);
       if (!resp.ok) throw new Error(`HTTP ${resp.status}: ${await resp.text()}`);
       const name = resp.headers.get('X-Inkwarp-Name') ?? 'scene.json';
+      source = resp.headers.get('X-Inkwarp-Path') ?? sceneUrl;
       await ui.openSceneText(await resp.text(), name);
       if (params.get('save') !== 'download') ui.saveUrl = sceneUrl;
     } catch (err) {
@@ -61,7 +64,7 @@ async function start(): Promise<void> {
   }
   document.body.dataset.ready = 'true';
   // After "ready": the restore offer waits for the user, the editor works meanwhile.
-  await keepWork(store, ui, sceneUrl === null);
+  await keepWork(store, ui, source);
 }
 
 /**
@@ -69,7 +72,7 @@ async function start(): Promise<void> {
  * inlined), offered back on the next load when it held unsaved changes, and leaving the
  * page with unsaved changes asks first.
  */
-async function keepWork(store: Store, ui: Ui, offer: boolean): Promise<void> {
+async function keepWork(store: Store, ui: Ui, source: string | null): Promise<void> {
   let kept: SnapshotStore;
   try {
     kept = new IndexedDbStore();
@@ -80,15 +83,20 @@ async function keepWork(store: Store, ui: Ui, offer: boolean): Promise<void> {
   }
   const saver = new Autosaver(
     kept,
-    () => ({ doc: store.doc, fileName: ui.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time } }),
+    () => ({ doc: store.doc, fileName: ui.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: ui.saveUrl ? source : null }),
     fetchDataUri,
     800,
     (err) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error'),
   );
-  const previous = offer ? await kept.get().catch(() => null) : null;
-  if (previous?.unsaved && (await ui.offerRestore(restoreQuestion(previous)))) {
+  // Unsaved work is offered back whatever the page opened: it is the file's own (the same
+  // path), or it names itself and what it would replace, and then saves by download.
+  const previous = await kept.get().catch(() => null);
+  const own = (previous?.source ?? null) === source;
+  if (previous?.unsaved && (await ui.offerRestore(restoreQuestion(previous, Date.now(), own || !source ? undefined : ui.fileName)))) {
     try {
+      const saveUrl = ui.saveUrl;
       await ui.openScene(previous.doc, previous.fileName);
+      ui.saveUrl = own ? saveUrl : null;
       // Back where the editor was: pose mode stays pose mode, at the same time.
       if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
       store.markUnsaved();

@@ -67,6 +67,8 @@ describe('autosave', () => {
     const snap = { doc: scene(), fileName: 'x', savedAt: at, unsaved: true };
     expect(restoreQuestion(snap, at + 60_000)).toBe('Restore the scene you were editing at 14:32?');
     expect(restoreQuestion(snap, at + 3 * 86_400_000)).toMatch(/^Restore the scene you were editing at 14:32 on .+\?$/);
+    // Work of another scene than the one the page opened names both.
+    expect(restoreQuestion(snap, at + 60_000, 'scene.json')).toBe(`Restore the scene you were editing at 14:32 (${snap.fileName}) instead of scene.json?`);
   });
 });
 

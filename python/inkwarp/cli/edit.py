@@ -434,12 +434,18 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"{args.scene}: no such scene file.")
         SceneFile(scene).read()  # bad JSON or missing images: say so now, exit 2
     try:
-        server = make_server(scene, root, args.host, args.port)
+        try:
+            server = make_server(scene, root, args.host, DEFAULT_PORT if args.port is None else args.port)
+        except OSError as err:
+            if args.port is not None or isinstance(err, socket.gaierror):
+                raise
+            server = make_server(scene, root, args.host, 0)  # in use (another editor): a free one
     except socket.gaierror as err:
         raise ValueError(f"--host {args.host}: no such address ({err.strerror}); use 127.0.0.1 "
                          "or localhost.") from None
     except OSError as err:
-        raise ValueError(f"--host {args.host} --port {args.port}: cannot serve there "
+        where = f"--host {args.host}" + ("" if args.port is None else f" --port {args.port}")
+        raise ValueError(f"{where}: cannot serve there "
                          f"({err.strerror or err}); leave --port out to pick a free one.") from None
     url = editor_url(server, scene is not None)
     print(f"inkwarp editor at {url}" + (f" (editing {scene})" if scene else ""), flush=True)
@@ -453,6 +459,11 @@ def run(args: argparse.Namespace) -> int:
     finally:
         server.server_close()
     return 0
+
+
+#: The port tried first. The browser keeps unsaved work per origin (host and port), so the
+#: same port from one run to the next lets the editor offer it back after a restart.
+DEFAULT_PORT = 8470
 
 
 def _port(text: str) -> int:
@@ -475,7 +486,9 @@ def add_parser(subparsers: Any) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("scene", nargs="?", metavar="SCENE", help="a scene file to open (optional)")
-    p.add_argument("--port", type=_port, default=0, help="port to serve on (default: a free one)")
+    p.add_argument("--port", type=_port, default=None,
+                   help=f"port to serve on (default: {DEFAULT_PORT}, or a free one when it is in use; "
+                        "0: a free one)")
     p.add_argument("--host", default="127.0.0.1", help="address to serve on (default: 127.0.0.1)")
     p.add_argument("--no-browser", action="store_true", help="print the URL without opening a browser")
     p.set_defaults(func=run)
