@@ -144,6 +144,7 @@ def test_missing_scene_file(capsys, tmp_path):
     (["-o", "{tmp}/x.gif", "--frames", "2"], "write a range A:B"),
     (["-o", "{tmp}/x.png", "--frame", "4"], "the scene has frames 0 to 3"),
     (["-o", "{tmp}/x.png", "--time", "nan"], "give a time in seconds"),
+    (["-o", "{tmp}/x.png", "--time", "-1"], "--time -1: give a time in seconds from 0"),
 ])
 def test_bad_options_say_what_to_do(capsys, tmp_path, args, expected):
     scene = write_scene(tmp_path / "s")
@@ -262,3 +263,15 @@ def test_sigterm_mid_render_leaves_nothing_behind(tmp_path):
     assert process.returncode == 128 + signal.SIGTERM, stderr
     assert stderr.strip().endswith("inkwarp render: terminated")
     assert sorted(os.listdir(tmp_path)) == ["s"]
+
+
+@pytest.mark.parametrize("command", [["render", "{scene}"], ["new", "{picture}"], ["field", "{scene}", "--time", "1"]])
+def test_an_empty_output_is_refused_not_taken_for_here(capsys, tmp_path, monkeypatch, command):
+    # -o "$OUT" with OUT unset: nothing is written into the working directory.
+    scene = write_scene(tmp_path / "s")
+    monkeypatch.chdir(tmp_path / "s")
+    before = sorted(p.name for p in (tmp_path / "s").iterdir())
+    argv = [a.format(scene=scene, picture=tmp_path / "s" / "square.png") for a in command]
+    code, _, err = run(capsys, *argv, "-o", "")
+    assert code == 2 and "-o is empty" in err and len(err.splitlines()) == 1, err
+    assert sorted(p.name for p in (tmp_path / "s").iterdir()) == before

@@ -109,6 +109,11 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help(sys.stderr)
         return 2
+    if isinstance(getattr(args, "output", None), str) and not args.output.strip():
+        # An unset shell variable (-o "$OUT"): not "here", which would fill the directory.
+        print(f"inkwarp {args.command}: error: -o is empty; give the file or directory to write",
+              file=sys.stderr)
+        return 2
     try:
         with _sigterm_unwinds():
             return int(args.func(args) or 0)

@@ -70,8 +70,8 @@ def parse_frames(spec: str, frame_count: int) -> tuple[int, int]:
 
 
 def check_time(time_s: float, option: str = "--time") -> float:
-    if not math.isfinite(time_s):
-        raise ValueError(f"{option} {time_s}: give a time in seconds, such as 0.5")
+    if not math.isfinite(time_s) or time_s < 0:
+        raise ValueError(f"{option} {time_s:g}: give a time in seconds from 0, such as 0.5")
     return time_s
 
 
