@@ -141,6 +141,36 @@ def test_lost_features_are_named_with_their_frames(tmp_path, capsys):
         track_dict(video, sv.scene(W, H, features))
 
 
+def test_a_covered_spot_and_one_leaving_the_picture_are_lost_and_the_spot_found_again(tmp_path):
+    # A flat grey box covers a textured spot on frames 3-8 of a still picture; from frame
+    # 12 the picture slides right, 3 px a frame, and a point near its right edge leaves it.
+    slide = lambda p, k: p + [3.0 * max(0, k - 11), 0.0]  # noqa: E731
+    motion = sv.Motion("slide", slide, lambda p, k: p - [3.0 * max(0, k - 11), 0.0])
+    frames = sv.render(sv.picture(W, H, seed=5), motion, FRAMES)
+    for k in range(3, 9):
+        frames[k][30:70, 20:60] = 128
+    video = sv.write_mp4(tmp_path / "covered.mp4", frames)
+    features = [{"id": "spot", "kind": "point", "rest": [[40.0, 50.0]]},
+                {"id": "edge", "kind": "point", "rest": [[150.0, 60.0]]},
+                {"id": "seen", "kind": "spline", "rest": [[30.0, 95.0], [50.0, 105.0], [70.0, 92.0]]}]
+    truth = np.array([slide(np.array([40.0, 50.0]), k) for k in range(FRAMES)])
+    with pytest.warns(InkwarpWarning) as caught:
+        doc = track_dict(video, sv.scene(W, H, features))
+    said = str(caught[0].message)
+    # (at frame 14 the edge point sits on the picture's last column: too near to check)
+    assert "'spot' at frames 3-8;" in said and "'edge' at frames 14-23" in said and "'seen'" not in said, said
+    spot = np.array([k["points"][0] for k in doc["features"][0]["keys"]])
+    # Before the box, and once it is gone (found again where it was last seen).
+    seen = [k for k in range(FRAMES) if not 3 <= k <= 8]
+    assert np.abs(spot[seen] - truth[seen]).max() < 0.5, np.abs(spot - truth).max(axis=1)
+    # A correction after the box leaves the frames before the box as they were.
+    features[0]["keys"] = [{"t": 10 / 24, "points": [[40.0, 50.0]]}]
+    with pytest.warns(InkwarpWarning, match="'spot' at frames 3-8;"):
+        corrected = track_dict(video, sv.scene(W, H, features))
+    spot = np.array([k["points"][0] for k in corrected["features"][0]["keys"]])
+    assert np.abs(spot[seen] - truth[seen]).max() < 0.5, np.abs(spot - truth).max(axis=1)
+
+
 def test_cli_writes_the_tracked_scene_and_a_frame(videos, tmp_path, capsys):
     path, motion = videos["translate"]
     scene = tmp_path / "drawing.json"

@@ -30,10 +30,12 @@ them, forward and backward, as from frame ``K``, and between two anchors of a fe
 the two tracks are blended linearly in time, so the result passes through every key.
 
 A feature is **lost** at a frame when the median forward–backward error of its points is
-over ``lost_px``: a textured point's error is the smaller of its two Lucas–Kanade checks
-(once over ``lost_px`` it stays lost until the anchor registration confirms it again), an
+over ``lost_px``: a textured point's error is the smaller of its two Lucas–Kanade checks,
+infinite where it is out of the picture or on no texture (once lost it stays lost until
+the anchor registration confirms it again, tried also where it was last seen), an
 untextured point's that of the dense flow. A :class:`~inkwarp.InkwarpWarning` names the
-features and the frames.
+features and the frames. Between two anchors, a track that has lost the feature at a
+frame gives way to the other's.
 
 The video's grey frames are held in memory (1 byte per pixel per frame).
 """
@@ -325,6 +327,8 @@ class _Tracker:
         eig0 = _bilinear(self.min_eig(anchor)[..., None], start_points)[:, 0]
         textured_at_anchor = eig0 > TRUST_MIN_EIG
         current = start_points.copy()
+        # Where each point was last confirmed: a lost point is looked for there again.
+        last_seen = start_points.copy()
         lost = np.zeros(len(current), bool)
         for k in range(anchor + step, stop + step, step):
             a, b = self.frames[k - step], self.frames[k]
@@ -359,11 +363,22 @@ class _Tracker:
                                                        estimate[turned])
                     refined[turned], refined_fb[turned] = again, again_fb
             use_anchor = (refined_fb < TRUST_FB_PX) & (np.linalg.norm(refined - estimate, axis=1) < REGAIN_PX)
+            # A lost point (covered, or out of the picture) may show again where it was
+            # last seen, far from where the frame-to-frame estimate has taken it.
+            retry = np.flatnonzero(lost & ~use_anchor)
+            if len(retry):
+                again, again_fb = self._lk_checked(template, b, start_points[retry], last_seen[retry])
+                found = (again_fb < TRUST_FB_PX) & (np.linalg.norm(again - last_seen[retry], axis=1) < REGAIN_PX)
+                refined[retry[found]], refined_fb[retry[found]] = again[found], again_fb[found]
+                use_anchor[retry[found]] = True
             best = np.where(use_anchor[:, None], refined, estimate)
-            trusted = textured & ((local_fb < TRUST_FB_PX) | use_anchor)
+            # Texture at the anchor and where the point is placed now (a point covered by
+            # a flat box, or slid onto flat skin, passes any forward-backward check).
+            textured_now = textured_at_anchor & (
+                _bilinear(self.min_eig(k)[..., None], best)[:, 0] > TRUST_MIN_EIG)
             inside = ((best[:, 0] >= 0) & (best[:, 0] <= w - 1) & (best[:, 1] >= 0)
                       & (best[:, 1] <= h - 1))
-            trusted &= inside
+            trusted = textured_now & ((local_fb < TRUST_FB_PX) | use_anchor) & inside
             untrusted = ~trusted
             if untrusted.any() and trusted.sum() >= 3:
                 fill = _thin_plate_fill(start_points, best, trusted, untrusted)
@@ -379,14 +394,17 @@ class _Tracker:
             current = best
             positions[k] = best.copy()
             self._eig.pop(k - step, None)
-            # Lost: a textured point neither Lucas-Kanade check confirms (an untextured one
-            # is placed by the thin plate; only the dense flow's own check speaks for it).
-            # Once lost, a point stays lost until it is registered to the anchor again
+            # Lost: a point textured where it was traced that is not confirmed here: out of
+            # the picture, on no texture, or by neither Lucas-Kanade check (an untextured
+            # one is placed by the thin plate; only the dense flow's own check speaks for
+            # it). Once lost, a point stays lost until it is registered to the anchor again
             # (noise can pass a frame-to-frame check by chance).
             lost_px = self.options.lost_px
             checked = np.where(lost, refined_fb, np.minimum(local_fb, refined_fb))
-            lost = textured & (checked > lost_px)
-            errors[k] = np.where(lost, np.inf, np.where(textured, checked, dense_fb))
+            confirmed = textured_now & inside & (checked <= lost_px)
+            lost = textured_at_anchor & ~confirmed
+            last_seen[confirmed] = best[confirmed]
+            errors[k] = np.where(lost, np.inf, np.where(textured_at_anchor, checked, dense_fb))
             tick()
         return positions, errors
 
@@ -579,7 +597,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             elif a in f.keys:
                 poses.append(f.keys[a])
             else:
-                poses.append(_track_at(tracks, anchors_of[f.id], f, a))
+                poses.append(_track_at(tracks, anchors_of[f.id], f, a, lost_px))
         start = _all_points(features, poses)
         lo, hi = ranges[a]
         fwd_pos, fwd_err = tracker.run(a, start, hi, tick)
@@ -591,7 +609,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     for i, f in enumerate(features):
         series = np.empty((count, len(f.rest), 2))
         for k in range(count):
-            series[k], err = _blend(tracks, anchors_of[f.id], f, k)
+            series[k], err = _blend(tracks, anchors_of[f.id], f, k, lost_px)
             if err is not None and np.median(err) > lost_px:
                 lost.setdefault(f.id, []).append(k)
         kept = range(count)
@@ -614,14 +632,16 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     return doc
 
 
-def _track_at(tracks: dict, anchors: Sequence[int], f: _Feature, k: int) -> np.ndarray:
-    return _blend(tracks, anchors, f, k)[0]
+def _track_at(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: float) -> np.ndarray:
+    return _blend(tracks, anchors, f, k, lost_px)[0]
 
 
-def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int
+def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: float = 2.0
            ) -> tuple[np.ndarray, np.ndarray | None]:
     """Feature ``f``'s control points at frame ``k``: its anchors' tracks blended linearly
-    between the anchors around ``k``; and the forward-backward errors of its points."""
+    between the anchors around ``k`` (where one of the two has lost the feature at ``k``
+    and the other has not, the other's alone); and the forward-backward errors of its
+    points."""
     n = len(f.rest)
     before = [a for a in anchors if a <= k and a in tracks]
     after = [a for a in anchors if a >= k and a in tracks]
@@ -631,6 +651,9 @@ def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int
         parts = [(1.0, a)] if a == b else [((b - k) / (b - a), a), ((k - a) / (b - a), b)]
     elif before or after:
         parts = [(1.0, (before or after)[-1 if before else 0])]
+    held = [(w, a) for w, a in parts if np.median(tracks[a][1][k][f.rows]) <= lost_px]
+    if held and len(held) < len(parts):
+        parts = [(1.0, held[0][1])]
     pose = np.zeros((n, 2))
     err = np.zeros(f.rows.stop - f.rows.start)
     for weight, a in parts:
