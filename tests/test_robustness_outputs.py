@@ -295,3 +295,15 @@ def test_frame_writers_refuse_frames_that_are_not_pixels(tmp_path: Path) -> None
             writer.write(bad)
         writer.abort()
         assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_a_folder_that_takes_no_files_names_the_folder(tmp_path: Path, capsys) -> None:
+    """Any other refusal (a system folder such as /proc): the folder, exit 2, no traceback."""
+    from inkwarp.cli import main
+
+    if not Path("/proc/self").exists():
+        pytest.skip("needs /proc")
+    assert main(["transfer", "--source", str(FACE), "--target", str(FACE), "-o", "/proc/t.json", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "/proc: cannot create a file in this output folder" in err, err
+    assert ".part" not in err and "Traceback" not in err

@@ -85,7 +85,11 @@ def _unwritable(parent: Path, err: OSError) -> OSError:
         return PermissionError(
             err.errno, f"cannot write in this output folder ({why}); choose an output in a "
             "writable folder or change the folder's permissions", str(parent))
-    return err
+    # Any other refusal (a folder of the system's, such as /proc): name the folder, not the
+    # hidden temporary name nobody asked for.
+    why = (err.strerror or str(err)).lower()
+    return PermissionError(f"{parent}: cannot create a file in this output folder ({why}); "
+                           "choose an output in an ordinary writable folder")
 
 
 def temp_path(target: str | os.PathLike[str], suffix: str = "", *, directory: bool = False) -> Path:
