@@ -370,8 +370,8 @@ pub(crate) fn solve_constrained(
         report.initial_residual = report.initial_residual.max(r.initial_residual);
         report.converged &= r.converged;
     }
-    // No answer in the `f32` field is finer than its resolution, a translated piece's included.
-    report.converged &= options.tolerance_px >= FINEST_TOLERANCE * field.dx.iter().chain(&field.dy).fold(0.0f32, |m, v| m.max(v.abs())) as f64;
+    // No answer in the `f32` field is finer than its rounding, a translated piece's included.
+    report.converged &= options.tolerance_px >= 0.5 * f64::from(f32::EPSILON) * field.dx.iter().chain(&field.dy).fold(0.0f32, |m, v| m.max(v.abs())) as f64;
     let constrained = pieces.iter().filter(|p| **p != Piece::Zero).count(); // translated ones keep theirs
     (store.hierarchies.trim(store.solve, constrained), store.free.trim(store.solve, constrained));
     (field, report)
