@@ -366,11 +366,12 @@ class _Tracker:
             # A lost point (covered, or out of the picture) may show again where it was
             # last seen, far from where the frame-to-frame estimate has taken it.
             retry = np.flatnonzero(lost & ~use_anchor)
+            regained = np.zeros(len(current), bool)
             if len(retry):
                 again, again_fb = self._lk_checked(template, b, start_points[retry], last_seen[retry])
                 found = (again_fb < TRUST_FB_PX) & (np.linalg.norm(again - last_seen[retry], axis=1) < REGAIN_PX)
                 refined[retry[found]], refined_fb[retry[found]] = again[found], again_fb[found]
-                use_anchor[retry[found]] = True
+                use_anchor[retry[found]] = regained[retry[found]] = True
             best = np.where(use_anchor[:, None], refined, estimate)
             # Texture at the anchor and where the point is placed now (a point covered by
             # a flat box, or slid onto flat skin, passes any forward-backward check).
@@ -378,7 +379,8 @@ class _Tracker:
                 _bilinear(self.min_eig(k)[..., None], best)[:, 0] > TRUST_MIN_EIG)
             inside = ((best[:, 0] >= 0) & (best[:, 0] <= w - 1) & (best[:, 1] >= 0)
                       & (best[:, 1] <= h - 1))
-            trusted = textured_now & ((local_fb < TRUST_FB_PX) | use_anchor) & inside
+            # (the texture at the estimate, or where a lost point was found again)
+            trusted = np.where(regained, textured_now, textured) & ((local_fb < TRUST_FB_PX) | use_anchor) & inside
             untrusted = ~trusted
             if untrusted.any() and trusted.sum() >= 3:
                 fill = _thin_plate_fill(start_points, best, trusted, untrusted)
