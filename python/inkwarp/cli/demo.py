@@ -11,10 +11,11 @@ examples:
   inkwarp demo                       everything into out/
   inkwarp demo -o /tmp/demo --only face --formats gif
 
-It renders, into DIR: the still demo (before.png, after.png, field.png: a generated
-picture warped by a curve, a point and a hole in its matte) and each example scene in
-examples/ (face, cat, checkerboard-hole with and without its hole) as GIF and MP4. The
-examples are read from a source checkout; --examples points elsewhere.
+It renders, into DIR: the still demo (before.png, after.png, field.png, matte.png: a
+generated picture warped by a curve, a point and a hole in its matte) and the example
+scenes (face, cat, checkerboard-hole with and without its hole, the comparison plates,
+the transfer and the rotoscoping pipeline) as GIF and MP4. The examples are read from the
+source checkout, else from the copy a wheel ships; --examples points elsewhere.
 """
 
 
