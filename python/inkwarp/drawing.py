@@ -27,9 +27,9 @@ def _count(n: int) -> str:
 def _points(name: str, value: npt.ArrayLike) -> npt.NDArray[np.float64]:
     try:
         arr = real_array(name, value, np.float64)
+    except ComplexValuesError:
+        raise
     except (TypeError, ValueError) as exc:
-        if isinstance(exc, ComplexValuesError):
-            raise
         raise ValueError(
             f"{name} must be an (N, 2) array of (x, y) numbers; it could not be read as numbers ({exc})."
         ) from None

@@ -131,9 +131,9 @@ def _size(value: Any) -> int:
 def _points(name: str, value: Any) -> npt.NDArray[np.float64]:
     try:
         arr = real_array(name, value, np.float64)
+    except ComplexValuesError:
+        raise
     except (TypeError, ValueError) as exc:
-        if isinstance(exc, ComplexValuesError):
-            raise
         raise ValueError(f"{name} must be an (N, 2) array of numbers ({exc}).") from None
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise ValueError(

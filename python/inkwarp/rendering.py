@@ -49,9 +49,7 @@ def warm_starts(scene: Any, method: str | None = None) -> bool:
     """Whether some layer of ``scene`` (with ``method`` instead of the layers' own, if given)
     solves with warm starts, the grid's thin plate (``"tps"``): only then does a frame
     depend on the frames before it, and a range need its pre-roll."""
-    doc = scene.to_dict()
-    default = (doc.get("solver") or {}).get("method", "tps")
-    return any((method or (layer.get("solver") or {}).get("method") or default) == "tps" for layer in doc["layers"])
+    return bool(scene._core.warm_starts(method))
 
 
 def render_range(scene: Any, start: int, stop: int, *, method: str | None = None,
@@ -63,7 +61,7 @@ def render_range(scene: Any, start: int, stop: int, *, method: str | None = None
     first = preroll_start(start) if warm_starts(scene, method) else start
     frames = scene.frames(start=first, stop=stop, threads=threads, method=method)
     try:
-        for _ in range(first, min(start, scene.frame_count if stop is None else stop)):
+        for _ in range(first, min(start, stop)):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ConvergenceWarning)
                 if next(frames, None) is None:

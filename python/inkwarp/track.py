@@ -638,7 +638,7 @@ def _track_at(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px
     return _blend(tracks, anchors, f, k, lost_px)[0]
 
 
-def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: float = 2.0
+def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: float
            ) -> tuple[np.ndarray, np.ndarray | None]:
     """Feature ``f``'s control points at frame ``k``: its anchors' tracks blended linearly
     between the anchors around ``k`` (where one of the two has lost the feature at ``k``
@@ -653,9 +653,9 @@ def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: f
         parts = [(1.0, a)] if a == b else [((b - k) / (b - a), a), ((k - a) / (b - a), b)]
     elif before or after:
         parts = [(1.0, (before or after)[-1 if before else 0])]
-    held = [(w, a) for w, a in parts if np.median(tracks[a][1][k][f.rows]) <= lost_px]
+    held = [a for _, a in parts if np.median(tracks[a][1][k][f.rows]) <= lost_px]
     if held and len(held) < len(parts):
-        parts = [(1.0, held[0][1])]
+        parts = [(1.0, held[0])]
     pose = np.zeros((n, 2))
     err = np.zeros(f.rows.stop - f.rows.start)
     for weight, a in parts:

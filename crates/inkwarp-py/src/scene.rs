@@ -222,6 +222,14 @@ impl SceneCore {
         self.scene.frame_time_s(frame)
     }
 
+    /// Whether some layer (solved by `method` instead of its own, if given) starts each frame
+    /// from the frames before it (the grid's thin plate): only then does a frame depend on them.
+    #[pyo3(signature = (method=None))]
+    fn warm_starts(&self, method: Option<&str>) -> PyResult<bool> {
+        let method = method_named(method)?;
+        Ok(self.scene.layers().iter().any(|l| method.unwrap_or(l.solver.method).interpolant().is_none()))
+    }
+
     /// The document with its defaults filled in, as JSON text.
     fn doc_json(&self) -> String {
         serde_json::to_string(self.scene.doc()).expect("a scene document is always valid JSON")

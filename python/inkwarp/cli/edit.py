@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import base64
+import errno
 import hmac
 import json
 import mimetypes
@@ -434,12 +435,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"{args.scene}: no such scene file.")
         SceneFile(scene).read()  # bad JSON or missing images: say so now, exit 2
     try:
-        try:
-            server = make_server(scene, root, args.host, DEFAULT_PORT if args.port is None else args.port)
-        except OSError as err:
-            if args.port is not None or isinstance(err, socket.gaierror):
-                raise
-            server = make_server(scene, root, args.host, 0)  # in use (another editor): a free one
+        server = _serve(scene, root, args.host, args.port)
     except socket.gaierror as err:
         raise ValueError(f"--host {args.host}: no such address ({err.strerror}); use 127.0.0.1 "
                          "or localhost.") from None
@@ -464,6 +460,19 @@ def run(args: argparse.Namespace) -> int:
 #: The port tried first. The browser keeps unsaved work per origin (host and port), so the
 #: same port from one run to the next lets the editor offer it back after a restart.
 DEFAULT_PORT = 8470
+
+
+def _serve(scene: Path | None, root: Path, host: str, port: int | None) -> EditorServer:
+    """The server on ``port``; without one on :data:`DEFAULT_PORT`, or a free port while
+    that one is in use (another editor)."""
+    if port is not None:
+        return make_server(scene, root, host, port)
+    try:
+        return make_server(scene, root, host, DEFAULT_PORT)
+    except OSError as err:
+        if err.errno != errno.EADDRINUSE:
+            raise
+        return make_server(scene, root, host, 0)
 
 
 def _port(text: str) -> int:

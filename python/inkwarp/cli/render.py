@@ -156,9 +156,7 @@ def _run(args: argparse.Namespace) -> int:
             # Through its warm-start chain, as a sequence renders it: the same pixels as that
             # frame of any chunked or sequential render (docs/guides/render-farm.md).
             index = _common.check_frame(args.frame or 0, scene.frame_count)
-            frames = rendering.render_range(scene, index, index + 1, method=args.method, threads=1)
-            _, frame = next(frames)
-            frames.close()
+            (_, frame), = rendering.render_range(scene, index, index + 1, method=args.method, threads=1)
             what = f"frame {index}"
         with video.open_writer(target, fps=scene.fps, kind="png") as writer:
             writer.write(frame)

@@ -399,12 +399,10 @@ impl Scene {
         }
         // A size given by one key alone: the images must agree with it, or the other is missing.
         let alone = match (doc.width, doc.height) { (Some(w), None) => Some(("width", "height", w, 0)), (None, Some(h)) => Some(("height", "width", h, 1)), _ => None };
-        if let (Some((w, h, from)), Some((key, _, given, axis))) = (&size, alone) {
-            if [*w, *h][axis] != given as usize {
-                problems.push(Problem::new(key, format!("{given} does not match the images, which are {w}×{h} (from {from}); set both \"width\" and \"height\" to the images' size, or leave both out")));
-            }
-        } else if size.is_none() && !doc.layers.is_empty() && problems.is_empty() {
-            problems.push(Problem::new(alone.map_or("width", |a| a.1), "no layer has an image to take the frame size from; set both \"width\" and \"height\""));
+        match (&size, alone) {
+            (Some((w, h, from)), Some((key, _, given, axis))) if [*w, *h][axis] != given as usize => problems.push(Problem::new(key, format!("{given} does not match the images, which are {w}×{h} (from {from}); set both \"width\" and \"height\" to the images' size, or leave both out"))),
+            (None, _) if !doc.layers.is_empty() && problems.is_empty() => problems.push(Problem::new(alone.map_or("width", |a| a.1), "no layer has an image to take the frame size from; set both \"width\" and \"height\"")),
+            _ => {}
         }
         parsed.extend(problems);
         if !parsed.problems.is_empty() {

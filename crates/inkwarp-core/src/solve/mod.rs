@@ -256,6 +256,8 @@ pub(crate) fn solve_constrained(
     constraints.nodes.iter().enumerate().for_each(|(k, &i)| by_piece[labels[i] as usize].push(k));
     let mut pieces = classify(&by_piece, constraints, w, tau);
     let mut field = Field::zeros(w, h);
+    // The largest value an exact answer (a translation, an affine map) holds, for the `f32` check.
+    let mut exact = pieces.iter().map(|p| if let Piece::Translate(v) = p { v[0].abs().max(v[1].abs()) } else { 0.0 }).fold(0.0, f64::max);
 
     // Each piece is a problem of its own: translated pieces take their constraint, and
     // the others are solved one by one, each on the box around it (its own hierarchy,
@@ -329,6 +331,7 @@ pub(crate) fn solve_constrained(
                 let mut values: Vec<V2> = (0..bw * bh).map(|j| m(j % bw, j / bw)).collect();
                 // The constrained nodes hold their values exactly, not to the map's rounding.
                 value.iter().for_each(|&(j, v)| values[j] = v);
+                exact = values.iter().fold(exact, |m, v| m.max(v[0].abs()).max(v[1].abs()));
                 write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
                 if keep { store.free.put(store.solve, key, free) }
                 continue;
@@ -370,8 +373,8 @@ pub(crate) fn solve_constrained(
         report.initial_residual = report.initial_residual.max(r.initial_residual);
         report.converged &= r.converged;
     }
-    // No answer in the `f32` field is finer than its rounding, a translated piece's included.
-    report.converged &= options.tolerance_px >= 0.5 * f64::from(f32::EPSILON) * field.dx.iter().chain(&field.dy).fold(0.0f32, |m, v| m.max(v.abs())) as f64;
+    // No exact answer in the `f32` field is finer than its rounding (iterated ones: `solve_piece`).
+    report.converged &= options.tolerance_px >= 0.5 * f64::from(f32::EPSILON) * exact;
     let constrained = pieces.iter().filter(|p| **p != Piece::Zero).count(); // translated ones keep theirs
     (store.hierarchies.trim(store.solve, constrained), store.free.trim(store.solve, constrained));
     (field, report)
@@ -924,8 +927,7 @@ impl<T> Kept<T> {
         }
     }
 
-    /// Once solve number `latest` (of `pieces` constrained pieces) used any: drops what is past
-    /// the count limit, then the oldest entries it did not use while over the node limit.
+    /// Once solve number `latest` (of `pieces` constrained pieces) used any: drops what is past the count limit, then the oldest unused while over the node limit.
     fn trim(&mut self, latest: u64, pieces: usize) {
         let used = self.0.iter().filter(|e| e.2 == latest).count();
         if used > 0 {
