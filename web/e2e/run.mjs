@@ -1080,6 +1080,14 @@ test('a 3 px key drag moves the key by at most one frame, onto a frame; keys sta
   await page.mouse.click(ruler[0] + ruler[2] * 0.3183, ruler[1]);
   const tNow = await page.evaluate(() => window.inkwarp.store.view.time);
   assert(Math.abs(tNow * 24 - Math.round(tNow * 24)) < 1e-9, `scrubbing left the time off a frame: ${tNow}`);
+  // Frame steps from the keyboard are counted, not summed: 18 of them at 24 fps are 0.75 s
+  // exactly (summed, 0.7499999999999998, which a key set there wrote to the file).
+  await page.evaluate(() => window.inkwarp.ui.setTime(0));
+  for (let i = 0; i < 18; i++) await page.keyboard.press('ArrowRight');
+  const stepped = await page.evaluate(() => window.inkwarp.store.view.time);
+  assert(stepped === 0.75, `18 frame steps at 24 fps reached ${stepped} s`);
+  await page.keyboard.press('ArrowLeft');
+  assert((await page.evaluate(() => window.inkwarp.store.view.time)) === 17 / 24, 'a frame step back lands on frame 17');
   await screenshot(page, 'timeline-keys');
 });
 

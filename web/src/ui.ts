@@ -1228,6 +1228,12 @@ export class Ui {
     this.tryEdit((d) => deleteKey(d, id, this.store.view.time));
   }
 
+  /** To the next or previous frame (k / fps, counted, not summed: on the frames exactly). */
+  private stepFrame(dir: 1 | -1): void {
+    const f = this.store.view.time * this.store.doc.fps;
+    this.setTime((dir > 0 ? Math.floor(f + 1e-6) + 1 : Math.ceil(f - 1e-6) - 1) / this.store.doc.fps);
+  }
+
   private stepKey(dir: 1 | -1): void {
     const { doc, view } = this.store;
     const f = getFeature(doc, view.selection.feature);
@@ -1331,8 +1337,8 @@ export class Ui {
       case ' ': handled(); this.spaceDown = true; return;
       case '0': return handled(), this.zoomFit();
       case '1': return handled(), this.zoom100();
-      case 'ArrowLeft': return handled(), e.shiftKey ? this.stepKey(-1) : this.setTime(this.store.view.time - 1 / this.store.doc.fps);
-      case 'ArrowRight': return handled(), e.shiftKey ? this.stepKey(1) : this.setTime(this.store.view.time + 1 / this.store.doc.fps);
+      case 'ArrowLeft': return handled(), e.shiftKey ? this.stepKey(-1) : this.stepFrame(-1);
+      case 'ArrowRight': return handled(), e.shiftKey ? this.stepKey(1) : this.stepFrame(1);
       case 'Home': return handled(), this.setTime(0);
       case 'End': return handled(), this.setTime(this.store.doc.duration);
       case 'd': return handled(), this.setOverlay({ drawing: !this.store.view.overlays.drawing });

@@ -7,6 +7,7 @@ import {
   deleteKey,
   keyIndexAt,
   moveKey,
+  moveKeys,
   movePoint,
   setInterpolation,
   setKey,
@@ -113,6 +114,20 @@ describe('keys', () => {
     expect(doc.features[0].keys!.map((k) => k.t)).toEqual([1.5]);
     doc = deleteKey(doc, 'polyline1', 1.5);
     expect(doc.features[0].keys).toBeUndefined();
+  });
+
+  it('key times summed in floating point are kept to the nanosecond', () => {
+    // Fifteen frame steps at 30 fps: 0.49999999999999994, which the file kept as such.
+    let t = 0;
+    for (let i = 0; i < 15; i++) t += 1 / 30;
+    expect(t).not.toBe(0.5);
+    let doc = addKeyHere(setKey(base(), 'polyline1', 0.2, [[0, 1], [10, 1]]), 'polyline1', t);
+    expect(doc.features[0].keys!.map((k) => k.t)).toEqual([0.2, 0.5]);
+    // A drag by the difference of two frame times: 0.2 + (0.9 − 0.2) is 0.8999999999999999.
+    doc = moveKeys(doc, [{ feature: 'polyline1', t: 0.2 }], 0.9 - 0.2);
+    expect(doc.features[0].keys!.map((k) => k.t)).toEqual([0.5, 0.9]);
+    doc = moveKey(doc, 'polyline1', 0.9, 0.1 + 0.2);
+    expect(doc.features[0].keys!.map((k) => k.t)).toEqual([0.3, 0.5]);
   });
 
   it('add key here holds the current pose', () => {
