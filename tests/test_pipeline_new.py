@@ -246,6 +246,16 @@ def test_bad_path_data_names_the_element(capsys, tmp_path):
     assert not [p for p in os.listdir(tmp_path) if ".part" in p]
 
 
+def test_a_repeated_id_is_renamed_with_a_note(tmp_path):
+    svg = tmp_path / "twice.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="64" height="48">'
+                   '<path id="arm" d="M 4 4 L 20 4" fill="none"/>'
+                   '<path id="arm" d="M 4 20 L 20 20" fill="none"/></svg>')
+    features, notes = read_drawing(svg, 64, 48)
+    assert [f["id"] for f in features] == ["arm", "arm-2"]
+    assert any("'arm' is taken by an earlier feature; this path is 'arm-2'" in n for n in notes), notes
+
+
 def test_groups_are_flattened_with_their_opacity_and_a_note(tmp_path):
     from psd_tools import PSDImage
     from psd_tools.api.layers import Group, PixelLayer

@@ -157,8 +157,12 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
                 if not name:
                     counts[feature["kind"]] = counts.get(feature["kind"], 0) + 1
                     name = f"{feature['kind']}-{counts[feature['kind']]}"
+                wanted = name
                 while name in ids:
                     name += "-2"
+                if name != wanted:
+                    notes.append(f"{source}: the id {wanted!r} is taken by an earlier feature; "
+                                 f"this {tag} is {name!r}")
                 ids.add(name)
                 features.append({"id": name, **feature})
             if len(subpaths) > 1:
