@@ -171,6 +171,29 @@ def test_a_covered_spot_and_one_leaving_the_picture_are_lost_and_the_spot_found_
     assert np.abs(spot[seen] - truth[seen]).max() < 0.5, np.abs(spot - truth).max(axis=1)
 
 
+def test_a_flat_point_carried_off_the_picture_is_lost(tmp_path):
+    # A textured square slides right, 4 px a frame, over a flat background that stays; a
+    # point traced on the background follows the square's thin plate (nothing there to
+    # track) and left the picture from frame 9 without a word.
+    rng = np.random.default_rng(1)
+    square = rng.integers(0, 256, (40, 40, 3), dtype=np.uint8)
+    frames = []
+    for k in range(FRAMES):
+        frame = np.full((H, W, 3), 128, np.uint8)
+        frame[40:80, 10 + 4 * k:50 + 4 * k] = square[:, :max(0, min(40, W - 10 - 4 * k))]
+        frames.append(frame)
+    video = sv.write_mp4(tmp_path / "slide.mp4", frames)
+    features = [{"id": "square", "kind": "polyline", "rest": [[15.0, 45.0], [45.0, 45.0], [45.0, 75.0], [15.0, 75.0]]},
+                {"id": "background", "kind": "point", "rest": [[150.0, 20.0]]}]
+    with pytest.warns(InkwarpWarning) as caught:
+        doc = track_dict(video, sv.scene(W, H, features))
+    said = str(caught[0].message)
+    where = np.array([k["points"][0] for k in doc["features"][1]["keys"]])
+    gone = [k for k in range(FRAMES) if where[k, 0] > W - 1 + 2.0]
+    assert gone and f"'background' at frames {gone[0]}" in said, (said, where[:, 0])
+    assert "'square' at frames 0" not in said
+
+
 def test_cli_writes_the_tracked_scene_and_a_frame(videos, tmp_path, capsys):
     path, motion = videos["translate"]
     scene = tmp_path / "drawing.json"
@@ -194,6 +217,11 @@ def test_cli_writes_the_tracked_scene_and_a_frame(videos, tmp_path, capsys):
     result = json.loads((out_dir / "t.json").read_text())
     assert result["layers"][0]["image"] == "../frame.png"  # rebased for the output's folder
     assert [p.name for p in out_dir.iterdir()] == ["t.json"]  # no temporary left
+    # A scene without width and height has its image's size (it read "None x None").
+    del doc["width"], doc["height"]
+    scene.write_text(json.dumps(doc))
+    code, out, err = run(capsys, "track", path, "--scene", scene, "-o", out_dir / "u.json", "-q")
+    assert code == 0, err
 
 
 @pytest.mark.parametrize("case", ["unreadable", "missing", "frame past end", "size", "simplify",

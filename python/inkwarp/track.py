@@ -33,7 +33,8 @@ A feature is **lost** at a frame when the median forward–backward error of its
 over ``lost_px``: a textured point's error is the smaller of its two Lucas–Kanade checks,
 infinite where it is out of the picture or on no texture (once lost it stays lost until
 the anchor registration confirms it again, tried also where it was last seen), an
-untextured point's that of the dense flow. A :class:`~inkwarp.InkwarpWarning` names the
+untextured point's that of the dense flow, infinite where it is placed more than
+``lost_px`` off the picture. A :class:`~inkwarp.InkwarpWarning` names the
 features and the frames. Between two anchors, a track that has lost the feature at a
 frame gives way to the other's.
 
@@ -406,7 +407,11 @@ class _Tracker:
             confirmed = textured_now & inside & (checked <= lost_px)
             lost = textured_at_anchor & ~confirmed
             last_seen[confirmed] = best[confirmed]
-            errors[k] = np.where(lost, np.inf, np.where(textured_at_anchor, checked, dense_fb))
+            # Any point placed more than `lost_px` off the picture is lost too: nothing there
+            # confirms it (an untextured one follows the thin plate of the others, which can
+            # carry it out of the frame over a background that stays).
+            off = ((best < -lost_px) | (best > np.array([w - 1, h - 1]) + lost_px)).any(axis=1)
+            errors[k] = np.where(lost | off, np.inf, np.where(textured_at_anchor, checked, dense_fb))
             tick()
         return positions, errors
 
@@ -555,14 +560,20 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         raise ValueError(f"frame must be a whole number (the frame the drawing is traced on); got {frame!r:.40}")
     frame = int(frame)
     where = os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else "the scene"
+    loaded = None
     if isinstance(scene, (str, os.PathLike)):
         from inkwarp.cli._common import load_scene
 
-        load_scene(os.fspath(scene))  # every problem of the file, with its JSON path
+        loaded = load_scene(os.fspath(scene))  # every problem of the file, with its JSON path
     doc, base = _load(scene, "input")
     clip = video if isinstance(video, Video) else read_video(video)
     count = len(clip)
     size = (doc.get("width"), doc.get("height"))
+    if None in size:  # the size of its images
+        from inkwarp.scene import Scene
+
+        loaded = loaded or (scene if isinstance(scene, Scene) else Scene.from_dict(doc, base_dir=base))
+        size = (loaded.width, loaded.height)
     if size != (clip.width, clip.height):
         raise ValueError(
             f"{where}: the scene is {size[0]}x{size[1]} but the video {clip.path} is "
