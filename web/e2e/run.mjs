@@ -931,8 +931,34 @@ test('`inkwarp edit SCENE` opens the scene and Save writes it back', async () =>
   }
 });
 
-// ---------------------------------------------------------------------------------------
-
+test('`inkwarp edit SCENE` on a scene with a mistake names the file and shows the example instead', async () => {
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-edit-bad-'));
+  const png = await page.evaluate(async () => {
+    const c = new OffscreenCanvas(64, 48);
+    c.getContext('2d').fillRect(0, 0, 64, 48);
+    const buf = new Uint8Array(await (await c.convertToBlob({ type: 'image/png' })).arrayBuffer());
+    return btoa(String.fromCharCode(...buf));
+  });
+  writeFileSync(join(dir, 'black.png'), Buffer.from(png, 'base64'));
+  const scenePath = join(dir, 'keycount.json');
+  const bad = { inkwarp: 1, width: 64, height: 48, fps: 12, duration: 1, layers: [{ name: 'black', image: 'black.png' }],
+    features: [{ id: 'arm', kind: 'polyline', rest: [[4, 4], [20, 4], [30, 10], [40, 20]], keys: [{ t: 0.5, points: [[4, 4], [20, 4], [30, 10]] }] }] };
+  writeFileSync(scenePath, JSON.stringify(bad));
+  const own = await startServer([scenePath]);
+  try {
+    const ed = await openEditor(browser, own.url);
+    const said = await ed.page.evaluate(() => document.querySelector('#message')?.textContent ?? '');
+    assert(said.startsWith(scenePath) && /features\[0\]\.keys\[0\]/.test(said), `the message names the file and the place: ${said}`);
+    // The built-in example is drawn, not an empty stage (its picture was never loaded).
+    const shown = await frame(ed.page);
+    let coloured = 0;
+    for (let i = 0; i < shown.data.length; i += 4) coloured += Math.max(shown.data[i], shown.data[i + 1], shown.data[i + 2]) - Math.min(shown.data[i], shown.data[i + 1], shown.data[i + 2]) > 60 ? 1 : 0;
+    assert(coloured > shown.data.length / 40, `the example's picture is not drawn (${coloured} coloured pixels)`);
+    await ed.context.close();
+  } finally {
+    own.proc.kill();
+  }
+});
 
 // ---------------------------------------------------------------------------------------
 // Trust: work is never lost, time behaves, the border holds.
@@ -1088,6 +1114,10 @@ test('a 3 px key drag moves the key by at most one frame, onto a frame; keys sta
   assert(stepped === 0.75, `18 frame steps at 24 fps reached ${stepped} s`);
   await page.keyboard.press('ArrowLeft');
   assert((await page.evaluate(() => window.inkwarp.store.view.time)) === 17 / 24, 'a frame step back lands on frame 17');
+  // End is the last frame `inkwarp render` draws (47 of 0-47 in 2 s at 24 fps), not 2 s.
+  await page.keyboard.press('End');
+  assert((await page.evaluate(() => window.inkwarp.store.view.time)) === 47 / 24, 'End goes to the last frame');
+  assert(/frame 48\/48/.test(await page.evaluate(() => document.querySelector('#time').textContent)), 'the last frame is frame 48/48');
   await screenshot(page, 'timeline-keys');
 });
 

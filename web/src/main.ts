@@ -47,18 +47,28 @@ async function start(): Promise<void> {
   Object.assign(window, { inkwarp: { app, ui, store, engine, scene, state, images, examples } });
   // The file the scene came from (its path on the machine `inkwarp edit` serves it from).
   let source: string | null = null;
+  // A scene that fails to open is named by its file, and the built-in example shown instead.
+  let opened = false;
   if (sceneUrl) {
+    let named = sceneUrl;
     try {
       const resp = await fetch(sceneUrl);
-      if (!resp.ok) throw new Error(`HTTP ${resp.status}: ${await resp.text()}`);
+      named = resp.headers.get('X-Inkwarp-Path') ?? named;
+      if (!resp.ok) {
+        named = ''; // the server's message names the file
+        throw new Error(await resp.text());
+      }
       const name = resp.headers.get('X-Inkwarp-Name') ?? 'scene.json';
       source = resp.headers.get('X-Inkwarp-Path') ?? sceneUrl;
       await ui.openSceneText(await resp.text(), name);
       if (params.get('save') !== 'download') ui.saveUrl = sceneUrl;
+      opened = true;
     } catch (err) {
-      ui.fileError(sceneUrl, err);
+      if (named) ui.fileError(named, err);
+      else ui.message(err instanceof Error ? err.message : String(err), 'error');
     }
-  } else {
+  }
+  if (!opened) {
     app.syncLayers();
     ui.refresh(true);
   }

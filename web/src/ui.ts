@@ -1340,7 +1340,7 @@ export class Ui {
       case 'ArrowLeft': return handled(), e.shiftKey ? this.stepKey(-1) : this.stepFrame(-1);
       case 'ArrowRight': return handled(), e.shiftKey ? this.stepKey(1) : this.stepFrame(1);
       case 'Home': return handled(), this.setTime(0);
-      case 'End': return handled(), this.setTime(this.store.doc.duration);
+      case 'End': return handled(), this.setTime((frameCount(this.store.doc) - 1) / this.store.doc.fps);
       case 'd': return handled(), this.setOverlay({ drawing: !this.store.view.overlays.drawing });
       case 'h': {
         handled();
