@@ -142,7 +142,16 @@ def test_cli_refuses_a_missing_scene_with_exit_2(editor: Path, tmp_path: Path, m
     monkeypatch.setenv("INKWARP_EDITOR_DIR", str(editor))
     assert main(["edit", "--no-browser", str(tmp_path / "nope.json")]) == 2
     err = capsys.readouterr().err
-    assert "nope.json" in err and "no such scene" in err
+    assert "nope.json" in err and "no such scene" in err and "inkwarp new PICTURE -o" in err
+
+
+def test_cli_names_a_picture_given_as_the_scene(editor: Path, tmp_path: Path, monkeypatch, capsys) -> None:
+    from PIL import Image
+
+    monkeypatch.setenv("INKWARP_EDITOR_DIR", str(editor))
+    Image.new("RGB", (8, 6)).save(tmp_path / "pic.png")
+    assert main(["edit", "--no-browser", str(tmp_path / "pic.png")]) == 2
+    assert "pic.png: a PNG picture, not a scene; make a scene of it with inkwarp new" in capsys.readouterr().err
 
 
 def test_cli_says_when_the_editor_is_not_built(tmp_path: Path, monkeypatch, capsys) -> None:

@@ -114,6 +114,26 @@ def test_byte_order_mark_and_non_utf8(tmp_path: Path, capsys) -> None:
     assert f"{latin}: not UTF-8 text" in err.out and f"{latin}: not UTF-8 text" in err.err
 
 
+def test_a_picture_given_as_the_scene_is_named_a_picture(tmp_path: Path, capsys) -> None:
+    from PIL import Image
+
+    Image.new("RGB", (8, 6)).save(tmp_path / "pic.png")
+    assert main(["render", str(tmp_path / "pic.png"), "-o", str(tmp_path / "o.png")]) == 2
+    err = capsys.readouterr().err
+    assert "pic.png: a PNG picture, not a scene; make a scene of it with inkwarp new" in err, err
+    assert not (tmp_path / "o.png").exists()
+
+
+@pytest.mark.parametrize("number", ["NaN", "Infinity", "-Infinity"])
+def test_nan_in_a_scene_file_is_named_as_such(tmp_path: Path, capsys, number) -> None:
+    path = tmp_path / "nan.json"
+    doc = {**SCENE, "features": [{"id": "p", "kind": "point", "rest": [[1.0, 123456.0]]}]}
+    path.write_text(json.dumps(doc).replace("123456.0", number))
+    assert main(["validate", str(path)]) == 2
+    out = capsys.readouterr().out
+    assert "not valid JSON" in out and "NaN and Infinity are not JSON numbers" in out, out
+
+
 @pytest.mark.parametrize("shape", [(2 ** 62, 4), (20000, 20000), (10000, 10000), (2 ** 64, 4)])
 def test_thin_plate_refuses_grids_beyond_the_limits(shape) -> None:
     with pytest.raises(ValueError, match="at most|megapixels"):

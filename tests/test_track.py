@@ -241,7 +241,7 @@ def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
         expect = "nothing.mp4: no such file"
     elif case == "frame past end":
         args += ["--frame", "24"]
-        expect = "--frame 24: " + str(path) + " has frames 0 to 23"
+        expect = "--frame 24: " + str(path) + " has frames 0 to 23; give a frame number below 24"
     elif case == "size":
         doc["width"] = W + 2
         expect = f"the scene is {W + 2}x{H} but the video {path} is {W}x{H}"

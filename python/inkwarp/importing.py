@@ -344,8 +344,8 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
     existing = [path for path, _ in files if path.exists()]
     if existing and not force:
         names = ", ".join(str(path) for path in existing)
-        raise ValueError(f"{names}: already exists; choose another scene name, or pass --force "
-                         "(force=True) to replace it")
+        raise ValueError(f"{names}: already exists; choose another scene name, or replace it "
+                         "with --force (in Python, force=True)")
     _write_all(files)
     return [path for path, _ in files], notes
 

@@ -235,9 +235,35 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as err:
+        picture = picture_kind(data)
+        if picture:
+            raise SceneError(f"{name}: a {picture} picture, not a scene; make a scene of it with "
+                             f"inkwarp new {name} -o scene.json", file=name) from None
         line = data[: err.start].count(b"\n") + 1
         raise SceneError(f"{name}: not UTF-8 text (byte {err.start}, line {line}); save the "
                          "scene as UTF-8", file=name) from None
+
+
+def _with_json_hint(err: SceneError, text: str) -> SceneError:
+    """``err``, saying why where the text is JSON to Python but not to the engine: it
+    holds NaN or Infinity, which JSON has no numbers for."""
+    if "not valid JSON" not in str(err):
+        return err
+    try:
+        json.loads(text)
+    except ValueError:
+        return err
+    return SceneError(f"{err}; NaN and Infinity are not JSON numbers: write a finite number "
+                      "there", file=err.file, path=err.path)
+
+
+def picture_kind(data: bytes) -> str | None:
+    """The kind of picture ``data`` starts as (PNG, JPEG, GIF, WebP, PSD, TIFF), or None."""
+    kinds = {b"\x89PNG": "PNG", b"\xff\xd8\xff": "JPEG", b"GIF8": "GIF", b"8BPS": "PSD",
+             b"II*\x00": "TIFF", b"MM\x00*": "TIFF"}
+    if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
+        return "WebP"
+    return next((kind for magic, kind in kinds.items() if data.startswith(magic)), None)
 
 
 class Frames(Iterator[np.ndarray]):
@@ -357,7 +383,10 @@ class Scene:
         file = _path_argument(path, "Scene.load's path")
         text = read_scene_text(file)
         base_dir = os.fspath(Path(file).resolve().parent)
-        core = _inkwarp.SceneCore.from_json(text, base_dir, file)
+        try:
+            core = _inkwarp.SceneCore.from_json(text, base_dir, file)
+        except SceneError as err:
+            raise _with_json_hint(err, text) from None
         return cls(core, file=file, base_dir=base_dir)
 
     @classmethod

@@ -580,7 +580,8 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             f"{clip.width}x{clip.height}; trace the drawing on a frame of this video "
             f"(inkwarp frame {clip.path} -o frame.png) in a scene of its size")
     if not 0 <= frame < count:
-        raise ValueError(f"--frame {frame}: {clip.path} has frames 0 to {count - 1}")
+        raise ValueError(f"--frame {frame}: {clip.path} has frames 0 to {count - 1}; give a frame "
+                         f"number below {count}")
     if simplify_px is not None and not (math.isfinite(simplify_px) and simplify_px >= 0):
         raise ValueError(f"--simplify {simplify_px}: give a distance in pixels, 0 or more")
     features = _features(doc, clip.fps, count, frame, where)

@@ -128,6 +128,13 @@ class SceneFile:
                 f"{self.path}: not valid JSON (line {err.lineno}, column {err.colno}: {err.msg})."
             ) from None
         except UnicodeDecodeError as err:
+            from inkwarp.scene import picture_kind
+
+            picture = picture_kind(self.path.read_bytes()[:16])
+            if picture:
+                raise ValueError(f"{self.path}: a {picture} picture, not a scene; make a scene of it "
+                                 f"with inkwarp new {self.path.name} -o scene.json, or open "
+                                 "the editor without a scene and drop the picture on it.") from None
             raise ValueError(f"{self.path}: not UTF-8 text (byte {err.start}); save the scene "
                              "as UTF-8.") from None
         for i, key, ref in list(self._image_refs(doc)):
@@ -432,7 +439,9 @@ def run(args: argparse.Namespace) -> int:
     if args.scene is not None:
         scene = Path(args.scene).resolve()
         if not scene.is_file():
-            raise ValueError(f"{args.scene}: no such scene file.")
+            raise ValueError(f"{args.scene}: no such scene file; make one from a picture with "
+                             f"inkwarp new PICTURE -o {args.scene}, or run inkwarp edit without a "
+                             "scene and save from the editor.")
         SceneFile(scene).read()  # bad JSON or missing images: say so now, exit 2
     try:
         server = _serve(scene, root, args.host, args.port)
