@@ -154,6 +154,14 @@ def test_bad_options_say_what_to_do(capsys, tmp_path, args, expected):
     assert leftovers(tmp_path) == [] and not any(tmp_path.glob("x.*"))
 
 
+def test_a_time_past_the_end_renders_with_a_warning(capsys, tmp_path):
+    # --frame past the end is refused; --time past it is a pose (the keys held), said so.
+    scene = write_scene(tmp_path / "s")
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "x.png", "--time", "99")
+    assert code == 0 and "warning: --time 99 is past the scene's end" in stderr, stderr
+    assert (tmp_path / "x.png").exists()
+
+
 def test_field_errors(capsys, tmp_path):
     scene = write_scene(tmp_path / "s")
     code, _, stderr = run(capsys, "field", scene, "--time", "1", "-o", tmp_path / "f.txt")
