@@ -13,6 +13,7 @@ import shlex
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from inkwarp.cli import COMMANDS, build_parser, main
@@ -142,3 +143,10 @@ def test_the_docs_commands_and_code_run(doc, tmp_path, monkeypatch, capsys):
             ran += 1
     capsys.readouterr()
     assert ran, f"{doc.name} has nothing to run"
+    if doc.name == "psd-and-svg.md":
+        # What the guide says its tracing does: the chin drops, the shoulders stay.
+        scene = inkwarp.Scene.load(tmp_path / "character.json")
+        body = scene.field(0.75, layer="body")
+        head = scene.field(0.75, layer="head")
+        assert np.abs(body[80:151, 60:141]).max() < 0.05, np.abs(body[80:151, 60:141]).max()
+        assert abs(head[76, 100, 1] - 3.0) < 0.05 and abs(head[23, 100, 1]) < 1.0

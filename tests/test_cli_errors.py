@@ -154,6 +154,12 @@ def test_bad_options_say_what_to_do(capsys, tmp_path, args, expected):
     assert leftovers(tmp_path) == [] and not any(tmp_path.glob("x.*"))
 
 
+def test_a_background_of_three_numbers_says_what_to_write(capsys, tmp_path):
+    scene = write_scene(tmp_path / "s", mutated(_set(["background"], [0, 0, 0])))
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "x.png")
+    assert code == 2 and "background: expected exactly 4 items [R, G, B, A], each 0 to 255, found 3" in stderr, stderr
+
+
 def test_a_time_past_the_end_renders_with_a_warning(capsys, tmp_path):
     # --frame past the end is refused; --time past it is a pose (the keys held), said so.
     scene = write_scene(tmp_path / "s")

@@ -302,7 +302,7 @@ def test_layer_names_that_share_a_file_name_or_are_long_each_get_an_image(capsys
         assert pixels[..., 3].sum() == 255
 
 
-def test_new_refuses_to_replace_an_existing_scene_unless_forced(capsys, tmp_path):
+def test_new_refuses_to_replace_an_existing_scene_unless_forced(capsys, tmp_path, monkeypatch):
     psd = write_psd(tmp_path / "character.psd")
     scene = tmp_path / "character.json"
     scene.write_text('{"traced": "a day of work"}')
@@ -313,3 +313,7 @@ def test_new_refuses_to_replace_an_existing_scene_unless_forced(capsys, tmp_path
     code, _, err = run(capsys, "new", psd, "-o", scene, "--force", "-q")
     assert code == 0, err
     assert inkwarp.Scene.load(scene).width == W
+    # Again: the scene and its images, named alike (as given), in the plural.
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run(capsys, "new", "character.psd", "-o", "character.json")
+    assert code == 2 and "character-square.png" in err and "already exist;" in err and str(tmp_path) not in err, err

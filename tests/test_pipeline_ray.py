@@ -29,6 +29,32 @@ def test_an_address_nobody_answers_at_is_a_clear_error(capsys, tmp_path):
     assert leftovers(tmp_path) == []
 
 
+def test_an_address_where_something_else_answers_is_a_clear_error(capsys, tmp_path):
+    # A web server on a mistyped port: Ray retried without end, printing its own warnings.
+    import threading
+    from http.server import HTTPServer, SimpleHTTPRequestHandler
+
+    from inkwarp.rendering import _check_address
+
+    server = HTTPServer(("127.0.0.1", 0), SimpleHTTPRequestHandler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        port = server.server_address[1]
+        scene = write_scene(tmp_path / "s")
+        code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif", "--ray", f"127.0.0.1:{port}")
+        assert code == 2 and f"--ray 127.0.0.1:{port}: something answers there, but not a Ray cluster" in err, err
+        assert not (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []
+    finally:
+        server.shutdown()
+        server.server_close()
+    # A Ray head's own address passes the check.
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+    try:
+        _check_address(ray.get_runtime_context().gcs_address)
+    finally:
+        ray.shutdown()
+
+
 def test_ray_chunks_gathered_in_order_equal_a_sequential_render(capsys, tmp_path):
     scene_path = write_scene(tmp_path / "s", wavy_doc())
     code, _, err = run(capsys, "render", scene_path, "-o", tmp_path / "seq/", "-q")

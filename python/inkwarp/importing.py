@@ -337,15 +337,16 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
                     file_name = f"{target.stem}-{_slug(name)}-{suffix}.png"
                     suffix += 1
                 used.add(file_name.casefold())
-                files.append((folder / file_name, png))
+                files.append((target.parent / file_name, png))
                 reference = file_name
             data["layers"][index]["image"] = reference
     files.append((target, (json.dumps(data, indent=2) + "\n").encode("utf-8")))
     existing = [path for path, _ in files if path.exists()]
     if existing and not force:
         names = ", ".join(str(path) for path in existing)
-        raise ValueError(f"{names}: already exists; choose another scene name, or replace it "
-                         "with --force (in Python, force=True)")
+        verb = "exists" if len(existing) == 1 else "exist"
+        raise ValueError(f"{names}: already {verb}; choose another scene name, or replace "
+                         f"{'it' if len(existing) == 1 else 'them'} with --force (in Python, force=True)")
     _write_all(files)
     return [path for path, _ in files], notes
 

@@ -288,12 +288,32 @@ def _check_address(address: str) -> None:
         raise ValueError(f"--ray {address}: give the cluster's address as HOST:PORT (such as "
                          "10.0.0.5:6379), ray://HOST:PORT, or auto")
     try:
-        with socket.create_connection((host.strip("[]"), int(port)), timeout=5):
-            pass
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=5) as conn:
+            reply = _http2_reply(conn)
     except OSError as err:
         raise ValueError(f"--ray {address}: no Ray cluster answers there ({err.strerror or err}); "
                          "start one with 'ray start --head' (or 'ray up cluster.yaml') and give "
                          "its address, or leave the address out to start a local one") from None
+    # Ray's head (and its client server) speak gRPC: HTTP/2, which answers the connection
+    # preface with a SETTINGS frame. Anything else (a web server on a mistyped port) left
+    # Ray retrying without end. Under TLS (RAY_USE_TLS) the preface is not spoken in clear.
+    tls = os.environ.get("RAY_USE_TLS", "").lower() in ("1", "true")
+    if not tls and (len(reply) < 4 or reply[3] != 4):
+        said = (reply.splitlines() or [b"nothing"])[0].decode("latin-1")[:60]
+        raise ValueError(f"--ray {address}: something answers there, but not a Ray cluster (it "
+                         f"replied {said!r}); give the address 'ray status' prints on the head "
+                         "node (port 6379 unless it was started with another)")
+
+
+def _http2_reply(conn: Any) -> bytes:
+    """The first bytes a server sends back to an HTTP/2 connection preface (within 5 s)."""
+    import socket
+
+    try:
+        conn.sendall(b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0]))
+        return conn.recv(64)
+    except (socket.timeout, ConnectionError):
+        return b""
 
 
 def _ray_init(address: str | bool | None) -> Any:
@@ -313,8 +333,12 @@ def _ray_init(address: str | bool | None) -> Any:
         try:
             ray.init(address=str(address), log_to_driver=False, configure_logging=False)
         except (ConnectionError, RuntimeError, TimeoutError) as err:
+            # A head started where Ray keeps a token (~/.ray/auth_token) asks for it, which
+            # this process sends only under RAY_AUTH_MODE=token; Ray says so only in its log.
+            token = not os.environ.get("RAY_AUTH_MODE") and (Path.home() / ".ray" / "auth_token").exists()
+            hint = "; or, since this machine has a Ray token (~/.ray/auth_token), set RAY_AUTH_MODE=token" if token else ""
             raise ValueError(f"--ray {address}: cannot join the Ray cluster there ({err}); "
-                             "check the address 'ray status' prints on the head node") from None
+                             f"check the address 'ray status' prints on the head node{hint}") from None
     return ray
 
 

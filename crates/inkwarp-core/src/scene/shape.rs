@@ -185,7 +185,7 @@ impl<'a> Walker<'a> {
         if !count_ok {
             let wanted = match (min, max) {
                 (Some(a), Some(b)) if a == b && a == 2 => "exactly 2 numbers [x, y]".to_string(),
-                (Some(a), Some(b)) if a == b => format!("exactly {a} items"),
+                (Some(a), Some(b)) if a == b => format!("exactly {a} items{}", if path == "background" { " [R, G, B, A], each 0 to 255" } else { "" }),
                 (Some(a), Some(b)) => format!("{a} to {b} items"),
                 (Some(a), None) => format!("at least {a} items"),
                 (None, Some(b)) => format!("at most {b} items"),
