@@ -740,18 +740,6 @@ mod tests {
         let pixels: Vec<u32> = (0..w * h)
             .map(|p| 0xff00_0000 | (20 * (p % w) as u32) | (20 * (p / w) as u32) << 8)
             .collect();
-        let layer = DraftLayer {
-            width: w,
-            height: h,
-            pixels: pixels.clone(),
-            coarse: vec![],
-            skirts: vec![],
-            links: vec![7; w * h],
-            index: (0..(w * h) as u32).collect(),
-            reads: w * h,
-            push_border: true,
-            level: None,
-        };
         let shade = Shade {
             pixels: &pixels,
             width: w,
