@@ -247,11 +247,11 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
 def _with_json_hint(err: SceneError, text: str) -> SceneError:
     """``err``, saying why where the text is JSON to Python but not to the engine: it
     holds NaN or Infinity, which JSON has no numbers for."""
-    if "not valid JSON" not in str(err):
+    if "not valid JSON" not in str(err) or ("NaN" not in text and "Infinity" not in text):
         return err
     try:
         json.loads(text)
-    except ValueError:
+    except (ValueError, RecursionError):
         return err
     return SceneError(f"{err}; NaN and Infinity are not JSON numbers: write a finite number "
                       "there", file=err.file, path=err.path)
