@@ -128,7 +128,7 @@ def test_thin_plate_map_reproduces_affine_maps():
         ({"displacements": [[1.0, 1.0], [0.0, 0.0]]}, "same length"),
         ({"shape": (0, 5)}, "at least"),
         ({"method": "beier-neely", "a": 0.0}, "parameter a = 0 is out of range"),
-        ({"max_samples": 0}, "max_samples must be at least 1"),
+        ({"max_samples": 0}, "max_samples must be a whole number, at least 1"),
         ({"lines": ([[[0, 0], [1, 1]]], [])}, "the rest and pose segments must match"),
     ],
 )

@@ -178,6 +178,35 @@ def test_warm_start_follows_an_animation_with_fewer_cycles_and_the_same_accuracy
     assert len(warm) == 0 and "0 earlier" in repr(warm)
 
 
+def test_warm_start_starts_over_when_the_cuts_change():
+    # The same grid size and points, another cut: the frames before it (another surface)
+    # were kept, and the next three frames solved as from no start at all.
+    rng = np.random.default_rng(0)
+    pts, disp, shape = rng.uniform(0, 127, (25, 2)), rng.normal(0, 4, (25, 2)), (128, 128)
+    cut_a, cut_b = [np.array([[10.5, 100], [120.5, 110]])], [np.array([[64.5, 0], [64.5, 80]])]
+    warm = inkwarp.WarmStart()
+    for k in (1.0, 0.9):
+        inkwarp.thin_plate(pts, disp * k, shape, cuts=cut_a, warm=warm)
+    assert len(warm) == 2
+    inkwarp.thin_plate(pts, disp * 0.8, shape, cuts=cut_b, warm=warm)
+    assert len(warm) == 1
+    _, second = inkwarp.thin_plate_report(pts, disp * 0.7, shape, cuts=cut_b, warm=warm)
+    _, cold = inkwarp.thin_plate_report(pts, disp * 0.7, shape, cuts=cut_b)
+    assert second.cycles < cold.cycles, (second, cold)
+
+
+def test_sizes_and_counts_are_whole_numbers_and_an_empty_list_is_empty():
+    pts, disp = [[4, 4], [20, 4], [12, 12]], [[1, 0], [0, 1], [2, 2]]
+    with pytest.raises(ValueError, match="max_samples must be a whole number"):
+        inkwarp.interpolate(pts, disp, (16, 24), max_samples="x")
+    with pytest.raises(ValueError, match="max_samples must be a whole number"):
+        inkwarp.interpolate(pts, disp, (16, 24), max_samples=2.5)
+    with pytest.raises(ValueError, match="shape must be"):
+        inkwarp.interpolate(pts, disp, (16.7, 24))  # was cut to 16
+    with pytest.raises(ValueError, match="points is empty"):
+        inkwarp.thin_plate([], [], (16, 24))  # was "must have shape (N, 2)"
+
+
 def test_warm_start_mistakes_say_what_to_do():
     with pytest.raises(ValueError, match="inkwarp.WarmStart"):
         inkwarp.thin_plate(PTS, DISP, SHAPE, warm="yes")

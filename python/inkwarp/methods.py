@@ -109,8 +109,10 @@ def _segments(name: str, value: Any) -> np.ndarray:
 
 
 def _shape(shape: Sequence[int]) -> tuple[int, int]:
+    from inkwarp.plate import _size
+
     try:
-        height, width = (int(v) for v in shape)
+        height, width = (_size(v) for v in shape)  # whole numbers: 16.7 is refused, not cut
     except (TypeError, ValueError):
         raise ValueError(f"shape must be (H, W); got {shape!r}.") from None
     if height < 1 or width < 1:
@@ -184,8 +186,8 @@ def interpolate_report(
             return np.zeros((height, width, 2), np.float32), _tps_report(0, 0)
         field = thin_plate(pts, disp, (height, width))
         return field, _tps_report(len(pts), len(pts))
-    if max_samples < 1:
-        raise ValueError(f"max_samples must be at least 1; got {max_samples}.")
+    if isinstance(max_samples, (bool, np.bool_)) or not isinstance(max_samples, (int, np.integer)) or max_samples < 1:
+        raise ValueError(f"max_samples must be a whole number, at least 1; got {max_samples!r}.")
     field, report = _inkwarp.interpolate_field(
         method, pts, disp, height, width, rest, pose, int(max_samples), float(a), float(b), float(p)
     )

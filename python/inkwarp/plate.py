@@ -33,7 +33,9 @@ the same grid and the same points (only their displacements changing). The solut
 linear in the displacements, so each solve starts from the combination of the last three
 frames' fields that best matches the new displacements (least squares); along a smooth
 motion that is an extrapolation, far closer than the previous field alone. Frames with
-other points or another grid start the series over; ``clear()`` does so by hand.
+other points or another grid (another size, mask or cuts) start the series over; their
+first frame still starts from the previous field where that is closer than none.
+``clear()`` starts over by hand.
 
 Examples
 --------
@@ -135,6 +137,8 @@ def _points(name: str, value: Any) -> npt.NDArray[np.float64]:
         raise
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name} must be an (N, 2) array of numbers ({exc}).") from None
+    if arr.size == 0:
+        arr = arr.reshape(0, 2)  # an empty list: "empty", below, not a shape to fix
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise ValueError(
             f"{name} must have shape (N, 2) with one (x, y) pair per row, got shape "

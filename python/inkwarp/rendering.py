@@ -215,9 +215,10 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
                                  scene.height, layout)
         writer: Any = outputs.SpriteSheetWriter(target, scene.fps, stop - start, layout, start)
     elif kind == "png":
-        raise ValueError(f"{target}: a .png holds one frame; render an animation to a .gif, "
+        raise ValueError(f"{target}: a .png holds one frame (save Scene.render(time=T) for one; "
+                         "inkwarp render --time or --frame); render an animation to a .gif, "
                          ".mp4, .webm, .mov, .apng, a directory, or a sprite sheet "
-                         "(--sprite-sheet)")
+                         "(sprite_sheet=True; inkwarp render --sprite-sheet)")
     elif skip_existing:
         if kind != "dir":
             raise ValueError(f"{target}: --skip-existing works with a directory of PNG frames "

@@ -615,7 +615,9 @@ class Scene:
     # ---- the document -------------------------------------------------------------------
 
     def to_dict(self) -> dict[str, Any]:
-        """The scene as a dict in the scene format, defaults filled in."""
+        """The scene as a dict in the scene format, defaults filled in; ``width`` and
+        ``height`` only where the scene gives them (otherwise they are its images' size,
+        ``Scene.width`` and ``Scene.height``), so the dict stays sized by its images."""
         return json.loads(self._core.doc_json())
 
     def save(self, path: str | os.PathLike[str]) -> None:

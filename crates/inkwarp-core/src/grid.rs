@@ -18,7 +18,7 @@
 use crate::geometry::{Point, Sample};
 
 /// Active nodes and links of a `width × height` node grid.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Grid {
     pub width: usize,
     pub height: usize,

@@ -26,8 +26,8 @@ const FRAME_ERROR_PX: f64 = 0.01;
 /// The last few solves of one animated surface: their constraint values and fields.
 #[derive(Clone, Debug, Default)]
 pub struct WarmHistory {
-    /// Grid size and constrained nodes the entries share.
-    shape: (usize, usize),
+    /// The grid (its size, nodes and links) and constrained nodes the entries share.
+    grid: Grid,
     nodes: Vec<usize>,
     /// Oldest first: (constraint values, field).
     entries: VecDeque<(Vec<[f64; 2]>, Field)>,
@@ -67,11 +67,11 @@ impl WarmHistory {
 
     /// The combination of the kept fields whose constraint values best match `c`'s (per
     /// component; with moderate weights: see `fit`), or the latest field when the earlier
-    /// frames pin other nodes or do not help; `None` when empty or kept for another grid
-    /// size.
+    /// frames pin other nodes or another grid (its cuts or matte changed) or do not help;
+    /// `None` when empty or kept for another grid size.
     pub fn predict(&self, grid: &Grid, c: &Constraints) -> Option<Field> {
         let last = self.last().filter(|f| (f.width, f.height) == (grid.width, grid.height))?;
-        if self.entries.len() < 2 || (grid.width, grid.height) != self.shape || c.nodes != self.nodes {
+        if self.entries.len() < 2 || *grid != self.grid || c.nodes != self.nodes {
             return Some(last.clone());
         }
         let alpha = [self.fit(&c.values, 0), self.fit(&c.values, 1)];
@@ -148,9 +148,9 @@ impl WarmHistory {
 
     /// Keeps the solve on `grid` with constraints `c` that gave `field`.
     pub fn record(&mut self, grid: &Grid, c: &Constraints, field: &Field) {
-        if (grid.width, grid.height) != self.shape || c.nodes != self.nodes {
+        if *grid != self.grid || c.nodes != self.nodes {
             self.entries.clear();
-            self.shape = (grid.width, grid.height);
+            self.grid = grid.clone();
             self.nodes = c.nodes.clone();
         }
         if self.entries.len() == HISTORY_FRAMES {
