@@ -235,7 +235,7 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as err:
-        picture = picture_kind(data)
+        picture = _picture_kind(data)
         if picture:
             raise SceneError(f"{name}: a {picture} picture, not a scene; make a scene of it with "
                              f"inkwarp new {name} -o scene.json", file=name) from None
@@ -244,20 +244,23 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
                          "scene as UTF-8", file=name) from None
 
 
-def _with_json_hint(err: SceneError, text: str) -> SceneError:
-    """``err``, saying why where the text is JSON to Python but not to the engine: it
-    holds NaN or Infinity, which JSON has no numbers for."""
-    if "not valid JSON" not in str(err) or ("NaN" not in text and "Infinity" not in text):
-        return err
+def _core_from_json(text: str, base: str | None, file: str | None) -> Any:
+    """The engine's scene of JSON ``text``; where the text is JSON to Python but not to the
+    engine, the error says why: it holds NaN or Infinity, which JSON has no numbers for."""
     try:
-        json.loads(text)
-    except (ValueError, RecursionError):
-        return err
-    return SceneError(f"{err}; NaN and Infinity are not JSON numbers: write a finite number "
-                      "there", file=err.file, path=err.path)
+        return _inkwarp.SceneCore.from_json(text, base, file)
+    except SceneError as err:
+        if "not valid JSON" not in str(err) or ("NaN" not in text and "Infinity" not in text):
+            raise
+        try:
+            json.loads(text)
+        except (ValueError, RecursionError):
+            raise err from None
+        raise SceneError(f"{err}; NaN and Infinity are not JSON numbers: write a finite number "
+                         "there", file=err.file, path=err.path) from None
 
 
-def picture_kind(data: bytes) -> str | None:
+def _picture_kind(data: bytes) -> str | None:
     """The kind of picture ``data`` starts as (PNG, JPEG, GIF, WebP, PSD, TIFF), or None."""
     kinds = {b"\x89PNG": "PNG", b"\xff\xd8\xff": "JPEG", b"GIF8": "GIF", b"8BPS": "PSD",
              b"II*\x00": "TIFF", b"MM\x00*": "TIFF"}
@@ -383,11 +386,7 @@ class Scene:
         file = _path_argument(path, "Scene.load's path")
         text = read_scene_text(file)
         base_dir = os.fspath(Path(file).resolve().parent)
-        try:
-            core = _inkwarp.SceneCore.from_json(text, base_dir, file)
-        except SceneError as err:
-            raise _with_json_hint(err, text) from None
-        return cls(core, file=file, base_dir=base_dir)
+        return cls(_core_from_json(text, base_dir, file), file=file, base_dir=base_dir)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], base_dir: str | os.PathLike[str] | None = None) -> Scene:
@@ -416,8 +415,7 @@ class Scene:
         if problems:
             others = _inkwarp.scene_problems(text, base)
             _raise_for(problems + [p for p in others if p[0] not in {q[0] for q in problems}], None)
-        core = _inkwarp.SceneCore.from_json(text, base, None)
-        return cls(core, base_dir=base)
+        return cls(_core_from_json(text, base, None), base_dir=base)
 
     @classmethod
     def new(cls, picture: str | os.PathLike[str], *, drawing: str | os.PathLike[str] | None = None,
@@ -439,7 +437,7 @@ class Scene:
     def from_json(cls, text: str, base_dir: str | os.PathLike[str] | None = None) -> Scene:
         """Builds a scene from JSON text (see :meth:`from_dict`)."""
         base = os.fspath(base_dir) if base_dir is not None else None
-        return cls(_inkwarp.SceneCore.from_json(text, base, None), base_dir=base)
+        return cls(_core_from_json(text, base, None), base_dir=base)
 
     # ---- what it is ---------------------------------------------------------------------
 

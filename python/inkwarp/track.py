@@ -378,8 +378,7 @@ class _Tracker:
             # a flat box, or slid onto flat skin, passes any forward-backward check).
             textured_now = textured_at_anchor & (
                 _bilinear(self.min_eig(k)[..., None], best)[:, 0] > TRUST_MIN_EIG)
-            inside = ((best[:, 0] >= 0) & (best[:, 0] <= w - 1) & (best[:, 1] >= 0)
-                      & (best[:, 1] <= h - 1))
+            inside = ~_off_picture(best, w, h, 0.0)
             # (the texture at the estimate, or where a lost point was found again)
             trusted = np.where(regained, textured_now, textured) & ((local_fb < TRUST_FB_PX) | use_anchor) & inside
             untrusted = ~trusted
@@ -410,10 +409,15 @@ class _Tracker:
             # Any point placed more than `lost_px` off the picture is lost too: nothing there
             # confirms it (an untextured one follows the thin plate of the others, which can
             # carry it out of the frame over a background that stays).
-            off = ((best < -lost_px) | (best > np.array([w - 1, h - 1]) + lost_px)).any(axis=1)
+            off = _off_picture(best, w, h, lost_px)
             errors[k] = np.where(lost | off, np.inf, np.where(textured_at_anchor, checked, dense_fb))
             tick()
         return positions, errors
+
+
+def _off_picture(points: np.ndarray, w: int, h: int, margin: float) -> np.ndarray:
+    """Which points lie more than ``margin`` pixels off a ``w × h`` picture."""
+    return ((points < -margin) | (points > np.array([w - 1, h - 1]) + margin)).any(axis=1)
 
 
 def _thin_plate_fill(rest: np.ndarray, now: np.ndarray, trusted: np.ndarray,

@@ -933,13 +933,8 @@ test('`inkwarp edit SCENE` opens the scene and Save writes it back', async () =>
 
 test('`inkwarp edit SCENE` on a scene with a mistake names the file and shows the example instead', async () => {
   const dir = mkdtempSync(join(tmpdir(), 'inkwarp-edit-bad-'));
-  const png = await page.evaluate(async () => {
-    const c = new OffscreenCanvas(64, 48);
-    c.getContext('2d').fillRect(0, 0, 64, 48);
-    const buf = new Uint8Array(await (await c.convertToBlob({ type: 'image/png' })).arrayBuffer());
-    return btoa(String.fromCharCode(...buf));
-  });
-  writeFileSync(join(dir, 'black.png'), Buffer.from(png, 'base64'));
+  const black = new Uint8Array(64 * 48 * 4).map((_, i) => (i % 4 === 3 ? 255 : 0));
+  await savePng(page, image(64, 48, Buffer.from(black).toString('base64')), join(dir, 'black.png'));
   const scenePath = join(dir, 'keycount.json');
   const bad = { inkwarp: 1, width: 64, height: 48, fps: 12, duration: 1, layers: [{ name: 'black', image: 'black.png' }],
     features: [{ id: 'arm', kind: 'polyline', rest: [[4, 4], [20, 4], [30, 10], [40, 20]], keys: [{ t: 0.5, points: [[4, 4], [20, 4], [30, 10]] }] }] };

@@ -53,19 +53,17 @@ async function start(): Promise<void> {
     let named = sceneUrl;
     try {
       const resp = await fetch(sceneUrl);
-      named = resp.headers.get('X-Inkwarp-Path') ?? named;
+      const text = await resp.text();
       if (!resp.ok) {
-        named = ''; // the server's message names the file
-        throw new Error(await resp.text());
+        ui.message(text, 'error'); // the server's message names the file
+      } else {
+        named = source = resp.headers.get('X-Inkwarp-Path') ?? sceneUrl;
+        await ui.openSceneText(text, resp.headers.get('X-Inkwarp-Name') ?? 'scene.json');
+        if (params.get('save') !== 'download') ui.saveUrl = sceneUrl;
+        opened = true;
       }
-      const name = resp.headers.get('X-Inkwarp-Name') ?? 'scene.json';
-      source = resp.headers.get('X-Inkwarp-Path') ?? sceneUrl;
-      await ui.openSceneText(await resp.text(), name);
-      if (params.get('save') !== 'download') ui.saveUrl = sceneUrl;
-      opened = true;
     } catch (err) {
-      if (named) ui.fileError(named, err);
-      else ui.message(err instanceof Error ? err.message : String(err), 'error');
+      ui.fileError(named, err);
     }
   }
   if (!opened) {

@@ -29,7 +29,7 @@ export const KEY_EPS = 1e-4;
  * A key's time to the nanosecond: times summed in floating point (fifteen frame steps of
  * 1/30 s make 0.49999999999999994) reach the scene file as 0.5.
  */
-export const tidyTime = (t: number): number => Math.round(t * 1e9) / 1e9;
+const tidyTime = (t: number): number => Math.round(t * 1e9) / 1e9;
 
 export interface Selection {
   feature: string | null;
@@ -164,8 +164,9 @@ export function keyIndexAt(f: Feature, t: number): number {
   return (f.keys ?? []).findIndex((k) => Math.abs(k.t - t) < KEY_EPS);
 }
 
+/** The feature with `keys`, sorted, their times tidied (every key's write goes through here). */
 function withKeys(f: Feature, keys: Key[]): Feature {
-  const sorted = [...keys].sort((a, b) => a.t - b.t);
+  const sorted = keys.map((k) => ({ ...k, t: tidyTime(k.t) })).sort((a, b) => a.t - b.t);
   const out: Feature = { ...f, keys: sorted };
   if (sorted.length === 0) delete out.keys;
   return out;
@@ -179,7 +180,7 @@ export function setKey(doc: SceneDoc, id: string, t: number, points: Pt[]): Scen
     const i = keyIndexAt(f, t);
     const pts = points.map((p) => [p[0], p[1]] as Pt);
     if (i >= 0) keys[i] = { ...keys[i], points: pts };
-    else keys.push({ t: tidyTime(t), points: pts });
+    else keys.push({ t, points: pts });
     return withKeys(f, keys);
   });
 }
@@ -205,7 +206,7 @@ export function moveKey(doc: SceneDoc, id: string, from: number, to: number): Sc
   return mapFeature(doc, id, (f) => {
     const i = keyIndexAt(f, from);
     if (i < 0) throw new Error(`${id} has no key at ${from.toFixed(3)} s.`);
-    const t = tidyTime(Math.max(0, to));
+    const t = Math.max(0, to);
     if (t > doc.duration + KEY_EPS) {
       throw new Error(`${t.toFixed(3)} s is past the end of the animation (${doc.duration} s); lengthen the duration first.`);
     }
@@ -250,7 +251,7 @@ export function moveKeys(doc: SceneDoc, refs: KeyRef[], dt: number): SceneDoc {
         if (t < -KEY_EPS || t > doc.duration + KEY_EPS) {
           throw new Error(`The keys would leave the animation (0 – ${doc.duration} s); ${id}'s key would be at ${t.toFixed(3)} s.`);
         }
-        return { ...k, t: tidyTime(Math.min(doc.duration, Math.max(0, t))) };
+        return { ...k, t: Math.min(doc.duration, Math.max(0, t)) };
       });
       keys.forEach((k, i) => {
         if (!moving.has(i)) return;

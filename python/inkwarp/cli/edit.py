@@ -121,22 +121,16 @@ class SceneFile:
 
     def read(self) -> bytes:
         """The scene as JSON with every relative image path replaced by a data: URI."""
+        from inkwarp.scene import read_scene_text
+
+        # The scene files' one reader: a picture given as the scene, bytes that are not
+        # UTF-8 and oversized files get the messages every command gives.
         try:
-            doc = json.loads(self.path.read_text(encoding="utf-8-sig"))
+            doc = json.loads(read_scene_text(self.path))
         except json.JSONDecodeError as err:
             raise ValueError(
                 f"{self.path}: not valid JSON (line {err.lineno}, column {err.colno}: {err.msg})."
             ) from None
-        except UnicodeDecodeError as err:
-            from inkwarp.scene import picture_kind
-
-            picture = picture_kind(self.path.read_bytes()[:16])
-            if picture:
-                raise ValueError(f"{self.path}: a {picture} picture, not a scene; make a scene of it "
-                                 f"with inkwarp new {self.path.name} -o scene.json, or open "
-                                 "the editor without a scene and drop the picture on it.") from None
-            raise ValueError(f"{self.path}: not UTF-8 text (byte {err.start}); save the scene "
-                             "as UTF-8.") from None
         for i, key, ref in list(self._image_refs(doc)):
             file = self.image_file(i, key, ref)
             data = file.read_bytes()
