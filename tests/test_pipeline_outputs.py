@@ -260,6 +260,71 @@ def test_chunked_and_skip_existing_renders_equal_a_sequential_one(capsys, tmp_pa
     assert leftovers(tmp_path / "chunks") == []
 
 
+def test_skip_existing_leaves_frames_another_chunk_writes_meanwhile(capsys, tmp_path, monkeypatch):
+    # Two farm chunks over the same frames: each frame is checked just before it is
+    # rendered and written, so frames the other chunk wrote meanwhile are neither rendered
+    # nor replaced, and the summary counts them as already there.
+    from inkwarp import rendering
+
+    scene = write_scene(tmp_path / "s", wavy_doc())
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "seq/", "-q")
+    assert code == 0, err
+    out = tmp_path / "frames"
+    real = rendering.render_range
+    solved = []
+
+    def other_chunk(*indices):
+        for i in indices:
+            (out / f"frame_{i:04d}.png").write_bytes((tmp_path / "seq" / f"frame_{i:04d}.png").read_bytes())
+        return {i: os.stat(out / f"frame_{i:04d}.png").st_ino for i in indices}
+
+    theirs = {}
+
+    def render_range(scene, start, stop, **options):
+        for index, frame in real(scene, start, stop, **options):
+            solved.append(index)
+            if index == 10:  # the other chunk writes frames 11 to 29 while this one renders 10
+                theirs.update(other_chunk(*range(11, 30)))
+            if index == 35:  # and frame 35 while this one renders it
+                theirs.update(other_chunk(35))
+            yield index, frame
+
+    monkeypatch.setattr(rendering, "render_range", render_range)
+    code, stdout, err = run(capsys, "render", scene, "-o", f"{out}/", "--frames", "0:40",
+                            "--skip-existing")
+    assert code == 0, err
+    assert "wrote 20 new frames of 0:40" in stdout and "(20 already there)" in stdout
+    assert not set(range(11, 30)) & set(solved)
+    assert {i: os.stat(out / f"frame_{i:04d}.png").st_ino for i in theirs} == theirs
+    for got, want in zip(png_frames(out, 40), png_frames(tmp_path / "seq", 40)):
+        assert np.abs(got.astype(int) - want).max() <= 1
+    assert leftovers(out) == []
+
+
+def test_skip_existing_renders_empty_and_cut_off_frame_files_again(capsys, tmp_path):
+    from inkwarp.rendering import frame_file_complete
+
+    scene = write_scene(tmp_path / "s")
+    out = tmp_path / "frames"
+    code, _, err = run(capsys, "render", scene, "-o", f"{out}/", "-q")
+    assert code == 0, err
+    whole = (out / "frame_0001.png").read_bytes()
+    (out / "frame_0000.png").write_bytes(b"")
+    (out / "frame_0002.png").write_bytes(whole[: len(whole) // 2])
+    (out / "frame_0003.png").write_bytes(b"not a picture at all")
+    kept = os.stat(out / "frame_0001.png").st_mtime_ns
+    assert [frame_file_complete(out / f"frame_{i:04d}.png") for i in range(4)] == [False, True, False, False]
+    code, stdout, err = run(capsys, "render", scene, "-o", f"{out}/", "--skip-existing")
+    assert code == 0, err
+    assert "wrote 3 new frames of 0:4" in stdout and "(1 already there)" in stdout
+    assert all(frame_file_complete(out / f"frame_{i:04d}.png") for i in range(4))
+    assert os.stat(out / "frame_0001.png").st_mtime_ns == kept
+    reference = tmp_path / "ref"
+    assert main(["render", str(scene), "-o", str(reference), "-q"]) == 0
+    for got, want in zip(png_frames(out), png_frames(reference)):
+        assert np.array_equal(got, want)
+
+
 def test_skip_existing_needs_a_directory(capsys, tmp_path):
     scene = write_scene(tmp_path / "s")
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.mp4", "--skip-existing")

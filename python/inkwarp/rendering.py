@@ -32,8 +32,8 @@ import numpy as np
 
 from inkwarp.errors import ConvergenceWarning
 
-__all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "portable_scene", "preroll_start", "ray_workers",
-           "render", "render_range", "warm_starts"]
+__all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "frame_file_complete", "portable_scene",
+           "preroll_start", "ray_workers", "render", "render_range", "warm_starts"]
 
 #: The engine's warm-start chain length (``WARM_CHAIN_FRAMES`` in the core's scene engine).
 WARM_CHAIN_FRAMES = 16
@@ -119,30 +119,63 @@ def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[in
     return start, stop
 
 
-def _write_png_atomic(path: Path, frame: np.ndarray) -> None:
+#: A PNG file starts with its signature and ends with its IEND chunk (length 0, type, CRC).
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
+
+
+def frame_file_complete(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` holds a whole PNG: its signature first and its IEND chunk last,
+    checked without decoding it. A missing, empty or cut-off frame file is not complete,
+    so ``skip_existing`` renders that frame again.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> path = os.path.join(tempfile.mkdtemp(), "frame_0000.png")
+    >>> open(path, "wb").close()
+    >>> frame_file_complete(path)
+    False
+    """
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(len(PNG_SIGNATURE)) != PNG_SIGNATURE:
+                return False
+            fh.seek(-len(PNG_END), os.SEEK_END)
+            return fh.read(len(PNG_END)) == PNG_END
+    except OSError:  # missing, unreadable, a folder, or shorter than a PNG's two ends
+        return False
+
+
+def _write_new_frame(path: Path, frame: np.ndarray) -> bool:
+    """Writes ``frame`` to ``path`` unless a complete frame file is there by the time it
+    is written (another process's: a farm chunk over the same frames); whether it wrote.
+    The file is written under a temporary name and linked into place, which never
+    replaces a file, so two processes do not both write one frame; an incomplete file
+    there is replaced."""
     from PIL import Image
 
     from inkwarp._atomic import temp_path
     from inkwarp.imaging import PNG_COMPRESS_LEVEL
 
+    if frame_file_complete(path):
+        return False
     temp = temp_path(path, ".png")
     try:
         Image.fromarray(frame, "RGBA").save(temp, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
-        os.replace(temp, path)
-    except BaseException:
+        try:
+            os.link(temp, path)
+        except FileExistsError:
+            if frame_file_complete(path):
+                return False
+            os.replace(temp, path)
+        except OSError:  # a file system without hard links
+            if frame_file_complete(path):
+                return False
+            os.replace(temp, path)
+        return True
+    finally:
         temp.unlink(missing_ok=True)
-        raise
-
-
-def _runs(indices: list[int]) -> list[tuple[int, int]]:
-    """Contiguous runs ``[a, b)`` of sorted frame numbers."""
-    runs: list[tuple[int, int]] = []
-    for i in indices:
-        if runs and runs[-1][1] == i:
-            runs[-1] = (runs[-1][0], i + 1)
-        else:
-            runs.append((i, i + 1))
-    return runs
 
 
 def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int] | str | None = None,
@@ -168,8 +201,11 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     sprite_sheet : True or "COLSxROWS", optional
         Write one atlas PNG with a TexturePacker JSON.
     skip_existing : bool
-        For a directory: leave frames whose ``frame_NNNN.png`` exists alone and write each
-        new frame atomically as soon as it is rendered.
+        For a directory: leave frames whose ``frame_NNNN.png`` is a complete PNG alone (an
+        empty or cut-off file is rendered again) and write each new frame atomically as
+        soon as it is rendered. Each frame is checked again just before it is rendered and
+        written, so a frame that another process (an overlapping farm chunk) wrote
+        meanwhile is left as it is; only the paths this call wrote are returned.
     ray : True or address, optional
         Render on a Ray cluster (``True``: start a local one; or an address such as
         ``"auto"``, ``"HOST:6379"`` or ``"ray://HOST:10001"``), in contiguous chunks, one
@@ -249,24 +285,52 @@ def _render_missing(scene: Any, target: Path, start: int, stop: int, *, method: 
 
     target.mkdir(exist_ok=True)
     names = {i: target / video.FRAME_PATTERN.format(i) for i in range(start, stop)}
-    missing = [i for i in range(start, stop) if not names[i].exists()]
+    missing = [i for i in range(start, stop) if not frame_file_complete(names[i])]
     written: list[Path] = []
     if not missing:
         return written
 
-    def frames() -> Iterator[tuple[int, np.ndarray]]:
-        for a, b in _runs(missing):
-            if ray:
-                yield from zip(range(a, b), _ray_frames(scene, a, b, method=method,
-                                                         address=ray, progress=False))
-            else:
-                yield from render_range(scene, a, b, method=method)
+    def frames() -> Iterator[tuple[int, np.ndarray | None]]:
+        """``(index, frame)`` for each missing frame, or ``(index, None)`` for one that
+        another process wrote meanwhile. Each frame is checked again just before it is
+        rendered: a run that meets a frame written meanwhile stops there and starts again
+        (with its pre-roll) at the next frame still missing. Ray chunks run on: their
+        frames are checked just before they are written."""
+        pos = 0
+        while pos < len(missing):
+            a = missing[pos]
+            if not ray and frame_file_complete(names[a]):
+                yield a, None
+                pos += 1
+                continue
+            b = a + 1
+            while pos + (b - a) < len(missing) and missing[pos + (b - a)] == b:
+                b += 1
+            source = (_indexed(a, _ray_frames(scene, a, b, method=method, address=ray,
+                                              progress=False)) if ray
+                      else render_range(scene, a, b, method=method))
+            try:
+                for index, frame in source:
+                    pos += 1
+                    yield index, frame
+                    if not ray and index + 1 < b and frame_file_complete(names[index + 1]):
+                        break
+            finally:
+                source.close()
 
     for index, frame in _common.progress(frames(), len(missing), quiet=not progress,
                                          desc=f"render {target.name}"):
-        _write_png_atomic(names[index], frame)
-        written.append(names[index])
+        if frame is not None and _write_new_frame(names[index], frame):
+            written.append(names[index])
     return written
+
+
+def _indexed(start: int, frames: Iterator[np.ndarray]) -> Iterator[tuple[int, np.ndarray]]:
+    """``(index, frame)`` of ``frames`` numbered from ``start``; closing it closes them."""
+    try:
+        yield from enumerate(frames, start)
+    finally:
+        frames.close()  # type: ignore[attr-defined]
 
 
 # ---- Ray ---------------------------------------------------------------------------------
