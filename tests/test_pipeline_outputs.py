@@ -218,18 +218,45 @@ def test_only_warm_started_layers_need_a_pre_roll(tmp_path):
     scene = inkwarp.Scene.load(write_scene(tmp_path / "s", wavy_doc()))
     assert rendering.warm_starts(scene) and not rendering.warm_starts(scene, "triangulation")
     solved = []
-    real = scene.frames
 
-    def frames(start=0, stop=None, **options):
-        solved.append((start, stop))
-        return real(start=start, stop=stop, **options)
+    class Recording:  # the engine's scene, noting the ranges it is asked to solve
+        def __init__(self, core):
+            self.core = core
 
-    scene.frames = frames
+        def __getattr__(self, name):
+            return getattr(self.core, name)
+
+        def frames(self, start, stop, *rest):
+            solved.append((start, stop))
+            return self.core.frames(start, stop, *rest)
+
+    scene._core = Recording(scene._core)
     assert [i for i, _ in rendering.render_range(scene, 21, 23, method="triangulation")] == [21, 22]
     assert [i for i, _ in rendering.render_range(scene, 21, 23)] == [21, 22]
-    assert solved == [(21, 23), (16, 23)]
+    frames = scene.frames(21, 23)
+    assert len(frames) == 2 and frames.index == 20
+    assert solved == [(21, 23), (16, 23), (16, 23)]
     # A range past the last frame is empty, as the frames are.
     assert list(rendering.render_range(scene, 45, 47)) == []
+
+
+def test_scene_frames_from_inside_a_chain_are_those_of_a_sequential_render(tmp_path):
+    # Scene.frames pre-rolls as `inkwarp render --frames` and inkwarp.render(frames=) do.
+    folder = tmp_path / "s"
+    path = write_scene(folder, wavy_doc())
+    noise = np.random.default_rng(0).integers(0, 256, (HEIGHT, WIDTH, 4), dtype=np.uint8)
+    noise[..., 3] = 255
+    Image.fromarray(noise, "RGBA").save(folder / "square.png")
+    scene = inkwarp.Scene.load(path)
+    sequential = list(scene.frames(0, 34))
+    part = scene.frames(20, 34)
+    assert len(part) == 14
+    got = list(part)
+    assert len(got) == 14 and part.index == 33
+    for i, frame in enumerate(got, 20):
+        np.testing.assert_array_equal(frame, sequential[i], err_msg=f"frame {i}")
+    # Started cold at frame 20, the frames differ: the pre-roll is what makes them equal.
+    assert not np.array_equal(scene.render(frame=20), sequential[20])
 
 
 def test_chunked_and_skip_existing_renders_equal_a_sequential_one(capsys, tmp_path):

@@ -4,8 +4,9 @@ frames already written, or spread over a Ray cluster.
 Chunks and warm starts. The engine solves frames in warm-start chains of
 :data:`WARM_CHAIN_FRAMES` (frames 0, 16, 32, ... start cold, every other frame starts from
 the ones before). A range that begins inside a chain first solves that chain's earlier
-frames (a pre-roll of at most 15 frames, rendered and dropped), so every frame of a chunk
-is the frame a sequential render gives, pixel for pixel, however a shot is split. Ray
+frames (a pre-roll of at most 15 frames, rendered and dropped: :meth:`inkwarp.Scene.frames`
+does it), so every frame of a chunk is the frame a sequential render gives, pixel for
+pixel, however a shot is split. Ray
 chunks are cut at chain boundaries and need no pre-roll.
 
 Examples
@@ -23,26 +24,16 @@ import math
 import mimetypes
 import os
 import sys
-import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from inkwarp.errors import ConvergenceWarning
+from inkwarp.scene import WARM_CHAIN_FRAMES, preroll_start
 
 __all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "frame_file_complete", "portable_scene",
            "preroll_start", "ray_workers", "render", "render_range", "warm_starts"]
-
-#: The engine's warm-start chain length (``WARM_CHAIN_FRAMES`` in the core's scene engine).
-WARM_CHAIN_FRAMES = 16
-
-
-def preroll_start(start: int) -> int:
-    """The frame a range starting at ``start`` must be solved from to match a sequential
-    render: the start of its warm-start chain."""
-    return (start // WARM_CHAIN_FRAMES) * WARM_CHAIN_FRAMES
 
 
 def warm_starts(scene: Any, method: str | None = None) -> bool:
@@ -54,20 +45,15 @@ def warm_starts(scene: Any, method: str | None = None) -> bool:
 
 def render_range(scene: Any, start: int, stop: int, *, method: str | None = None,
                  threads: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
-    """``(index, frame)`` for frames ``start`` to ``stop - 1``, each exactly as a sequential
-    render of the whole scene gives it (the pre-roll frames are solved and dropped, and so
-    are their convergence warnings: they are about frames this range does not render; each
-    frame rendered reports its own)."""
-    first = preroll_start(start) if warm_starts(scene, method) else start
-    frames = scene.frames(start=first, stop=stop, threads=threads, method=method)
+    """``(index, frame)`` for frames ``start`` to ``stop - 1`` (those the scene has), each
+    exactly as a sequential render of the whole scene gives it (:meth:`inkwarp.Scene.frames`
+    solves the pre-roll)."""
+    stop = min(stop, scene.frame_count)
+    if start >= stop:
+        return
+    frames = scene.frames(start=start, stop=stop, threads=threads, method=method)
     try:
-        for _ in range(first, min(start, stop)):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", ConvergenceWarning)
-                if next(frames, None) is None:
-                    return
-        for index, frame in enumerate(frames, start):
-            yield index, frame
+        yield from enumerate(frames, start)
     finally:
         frames.close()  # stops the engine's workers when the caller stops early
 

@@ -45,7 +45,8 @@ import numpy as np
 from inkwarp import _inkwarp
 from inkwarp.errors import SceneError
 
-__all__ = ["Frames", "Scene", "image_data_uri", "scene_schema", "validate_scene"]
+__all__ = ["WARM_CHAIN_FRAMES", "Frames", "Scene", "image_data_uri", "preroll_start", "scene_schema",
+           "validate_scene"]
 
 #: One problem of a scene: ``(JSON path, message)``.
 Problem = tuple[str, str]
@@ -269,23 +270,60 @@ def _picture_kind(data: bytes) -> str | None:
     return next((kind for magic, kind in kinds.items() if data.startswith(magic)), None)
 
 
+#: The engine's warm-start chain length (``WARM_CHAIN_FRAMES`` in the core's scene engine):
+#: frames 0, 16, 32, ... are solved from zero, every other frame from the ones before it.
+WARM_CHAIN_FRAMES = 16
+
+
+def preroll_start(start: int) -> int:
+    """The frame a range starting at ``start`` must be solved from to match a sequential
+    render: the start of its warm-start chain.
+
+    Examples
+    --------
+    >>> preroll_start(37), preroll_start(32)
+    (32, 32)
+    """
+    return (start // WARM_CHAIN_FRAMES) * WARM_CHAIN_FRAMES
+
+
 class Frames(Iterator[np.ndarray]):
     """The frames of a scene, in order, as RGBA uint8 arrays ``(H, W, 4)``.
 
     Rendered by the engine while you consume them (on worker threads, at most a few frames
-    ahead, when more than one thread renders). ``len()`` gives the number of frames still to come; ``close()`` (or leaving a
-    ``with`` block) stops the rendering early. :attr:`index` is the frame number of the
-    frame last returned.
+    ahead, when more than one thread renders). ``len()`` gives the number of frames still
+    to come; ``close()`` (or leaving a ``with`` block) stops the rendering early.
+    :attr:`index` is the frame number of the frame last returned.
+
+    The engine's frames start at ``start - preroll``: the first ``preroll`` (the pre-roll
+    of a range that starts inside a warm-start chain) are solved and dropped before the
+    first frame is returned, and so are their convergence warnings, which are about frames
+    not returned.
     """
 
-    def __init__(self, core: Any, start: int) -> None:
+    def __init__(self, core: Any, start: int, preroll: int = 0) -> None:
         self._core = core
         self.index = start - 1
+        self._preroll = preroll
 
     def __iter__(self) -> Frames:
         return self
 
+    def _drop_preroll(self) -> None:
+        import warnings
+
+        from inkwarp.errors import ConvergenceWarning
+
+        while self._preroll > 0:
+            self._preroll -= 1
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ConvergenceWarning)
+                if self._core.__next__() is None:
+                    self._preroll = 0
+
     def __next__(self) -> np.ndarray:
+        if self._preroll:
+            self._drop_preroll()
         item = self._core.__next__()
         if item is None:
             raise StopIteration
@@ -293,7 +331,7 @@ class Frames(Iterator[np.ndarray]):
         return frame
 
     def __len__(self) -> int:
-        return len(self._core)
+        return max(0, len(self._core) - self._preroll)
 
     def close(self) -> None:
         """Stops rendering; the iterator is exhausted afterwards."""
@@ -582,7 +620,11 @@ class Scene:
         """Frames ``start`` to ``stop - 1``, each warm-started from the one before.
 
         Frames are solved in chains of 16 (frame numbers that are multiples of 16 start a
-        chain cold); chains render in parallel on ``threads`` threads. The solver and the
+        chain cold); chains render in parallel on ``threads`` threads. A range that starts
+        inside a chain first solves that chain's earlier frames (a pre-roll of at most 15
+        frames, solved and dropped; none where no layer warm-starts, see
+        :func:`inkwarp.rendering.warm_starts`), so every frame is the one a sequential
+        render gives, pixel for pixel, as with ``inkwarp render --frames``. The solver and the
         renderer already use every core inside a frame, so the default is one thread per
         four cores, and no more than the free memory holds renders of the scene
         (:attr:`render_bytes` each: every thread keeps its own solvers). The pixels do not
@@ -608,7 +650,9 @@ class Scene:
             raise ValueError(f"frames({start}, {stop}) is not a range of this scene's frames 0 to {self.frame_count}")
         if threads is not None and not 1 <= _integer_argument(threads, "threads") <= 4096:
             raise ValueError(f"threads must be from 1 to 4096, got {threads}")
-        return Frames(self._core.frames(start, stop, 0 if threads is None else int(threads), method), start)
+        first = preroll_start(start) if start < stop and self._core.warm_starts(method) else start
+        core = self._core.frames(first, stop, 0 if threads is None else int(threads), method)
+        return Frames(core, start, start - first)
 
     # ---- the document -------------------------------------------------------------------
 
