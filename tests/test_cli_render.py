@@ -84,6 +84,22 @@ def test_directory_ranges_land_under_their_frame_numbers(capsys, scene, tmp_path
     assert (out / "notes.txt").read_text() == "mine"
 
 
+def test_a_directory_whose_name_has_a_dot_is_one_when_it_ends_in_a_slash(capsys, scene, tmp_path):
+    import inkwarp
+
+    code, _, err = run(capsys, "render", scene, "-o", f"{tmp_path / 'shot010_v1.2'}/", "--frames", "0:2", "-q")
+    assert code == 0, err
+    assert sorted(p.name for p in (tmp_path / "shot010_v1.2").iterdir()) == ["frame_0000.png", "frame_0001.png"]
+    paths = inkwarp.render(str(scene), f"{tmp_path / 'take_v2.0'}/", frames=(1, 3))
+    assert [p.name for p in paths] == ["frame_0001.png", "frame_0002.png"]
+    assert (tmp_path / "take_v2.0").is_dir() and leftovers(tmp_path) == []
+    # Without the slash the suffix is a format, and the message says how to name a folder.
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "shot_v1.3", "-q")
+    assert code == 2 and "cannot write '.2' files" not in err
+    assert "cannot write '.3' files" in err and "end the name with /" in err
+    assert not (tmp_path / "shot_v1.3").exists()
+
+
 def test_gif_has_every_frame_at_the_scene_rate(capsys, scene, tmp_path):
     out = tmp_path / "anim.gif"
     code, stdout, _ = run(capsys, "render", scene, "-o", out)

@@ -374,8 +374,8 @@ def open_writer(path: str | os.PathLike[str], *, fps: float, kind: str | None = 
                 first_frame: int = 0, transparent: bool = False) -> FrameWriter:
     """The writer for ``path``: the alpha formats here, a 1-bit transparent GIF when
     ``transparent``, otherwise :func:`inkwarp.video.open_writer`."""
-    target = video.check_target(path)
-    kind = kind or video.output_kind(target)
+    kind = kind or video.output_kind(path)
+    target = video.check_target(path, kind)  # type: ignore[arg-type]
     if kind in ALPHA_KINDS.values():
         return FfmpegAlphaWriter(target, fps, kind)
     if kind == "gif" and transparent:

@@ -225,8 +225,8 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
         scene = outputs.with_background(scene, colour)
     transparent = scene.to_dict().get("background", [255, 255, 255, 255])[3] == 0
     start, stop = _frame_indices(scene, frames)
-    target = video.check_target(output)
-    kind = video.output_kind(target)
+    kind = video.output_kind(output)
+    target = video.check_target(output, kind)
     if sprite_sheet:
         if target.suffix.lower() != ".png":
             raise ValueError(f"{target}: a sprite sheet is a .png (with a .json beside it); "

@@ -69,19 +69,22 @@ def output_kind(path: str | os.PathLike[str]) -> OutputKind:
         return "dir"
     raise ValueError(
         f"{text}: cannot write '{suffix}' files; name the output .png (one frame), "
-        ".gif, .mp4, .webm, .mov, .apng, or a directory (a PNG sequence)"
+        ".gif, .mp4, .webm, .mov, .apng, or a directory (a PNG sequence: end the name with "
+        f"/, as in {text}{os.sep}, for a folder whose name has a dot)"
     )
 
 
-def check_target(path: str | os.PathLike[str]) -> Path:
+def check_target(path: str | os.PathLike[str], kind: OutputKind | None = None) -> Path:
     """Check up front that ``path`` can be written, before any rendering starts.
 
-    Raises ``ValueError`` with the fix when the parent directory is missing or is not a
-    directory, when a file output names an existing directory, or when a directory output
-    names an existing file.
+    ``kind`` is the output's kind if known (default: :func:`output_kind` of ``path`` as
+    given: the returned ``Path`` has lost a trailing separator, which is what makes
+    ``shot_v1.2/`` a directory). Raises ``ValueError`` with the fix when the parent
+    directory is missing or is not a directory, when a file output names an existing
+    directory, or when a directory output names an existing file.
     """
+    kind = kind or output_kind(path)
     target = Path(os.fspath(path))
-    kind = output_kind(target)
     parent = target.absolute().parent
     if not parent.exists():
         raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
@@ -531,8 +534,8 @@ def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
     FrameWriter
         Use it as a context manager; ``writer.paths`` lists the files written.
     """
-    target = check_target(path)
-    kind = kind or output_kind(target)
+    kind = kind or output_kind(path)
+    target = check_target(path, kind)
     if kind == "png":
         return PngWriter(target, fps)
     if kind == "dir":

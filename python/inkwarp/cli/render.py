@@ -119,8 +119,8 @@ def _run(args: argparse.Namespace) -> int:
 
     from inkwarp import outputs, rendering
 
-    target = video.check_target(args.output)
     kind = video.output_kind(args.output)
+    target = video.check_target(args.output, kind)
     outputs.check_not_an_input(target, args.scene)
     if args.sprite_sheet is not None:
         if kind != "png":
@@ -171,7 +171,8 @@ def _run(args: argparse.Namespace) -> int:
 
     start, stop = (_common.parse_frames(args.frames, scene.frame_count)
                    if args.frames is not None else (0, scene.frame_count))
-    paths = rendering.render(scene, target, frames=(start, stop), method=args.method,
+    # The output as given: a trailing / makes shot_v1.2/ a directory.
+    paths = rendering.render(scene, args.output, frames=(start, stop), method=args.method,
                              sprite_sheet=args.sprite_sheet, skip_existing=args.skip_existing,
                              ray=args.ray, progress=not args.quiet)
     count = stop - start
