@@ -294,6 +294,37 @@ def test_an_output_that_cannot_be_written_exits_2_before_any_work(videos, tmp_pa
         assert not any(out.iterdir())
 
 
+@pytest.mark.parametrize("command", ["frame", "track"])
+def test_a_missing_output_folder_is_refused_not_made(videos, tmp_path, capsys, command):
+    """As render and new refuse it: a mistyped folder would hide the output."""
+    path, _ = videos["translate"]
+    suffix = ".png" if command == "frame" else ".json"
+    out = tmp_path / "no" / "such" / f"out{suffix}"
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(sv.scene(W, H, sv.drawing(W, H, seed=7))))
+    args = [command, path, "-o", out] + (["--scene", scene] if command == "track" else [])
+    code, _, err = run(capsys, *args)
+    assert code == 2, err
+    assert f"{out}: the directory {out.parent} does not exist; create it first" in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "no").exists()
+
+
+def test_track_refuses_to_write_over_its_own_scene(videos, tmp_path, capsys, monkeypatch):
+    path, _ = videos["translate"]
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(sv.scene(W, H, sv.drawing(W, H, seed=7))))
+    before = scene.read_bytes()
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run(capsys, "track", path, "--scene", "s.json", "-o", "./s.json")
+    assert code == 2, err
+    assert "s.json: is the input (--scene s.json); writing there would replace it" in err
+    assert "such as s-tracked.json" in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert "%" not in err  # refused before any tracking
+    assert scene.read_bytes() == before
+
+
 def test_python_api_returns_a_scene(videos):
     import inkwarp
 

@@ -769,20 +769,30 @@ def rotoscope_example(examples_dir: str | os.PathLike[str], out_dir: str | os.Pa
     return tracked_path, save_json(cat, out / "rotoscope.json")
 
 
-def check_output(path: str | os.PathLike[str]) -> Path:
-    """Check before any work that the file ``path`` can be written (its missing folders are
-    made when it is saved). Raises ``ValueError`` with the fix when ``path`` is a directory,
-    when a folder on the way is a file, or when the folder cannot be written."""
+def check_output(path: str | os.PathLike[str], *, source: str | os.PathLike[str] | None = None,
+                 option: str = "--scene") -> Path:
+    """Check before any work that the file ``path`` can be written, as ``inkwarp render``
+    and ``inkwarp new`` check theirs. Raises ``ValueError`` with the fix when ``path`` is
+    a directory, when its folder does not exist (a mistyped folder is not made) or is a
+    file, when the folder cannot be written, or when ``path`` is the input file
+    ``source`` (given as ``option``), which writing would replace."""
     out = Path(path)
     if out.is_dir():
         raise ValueError(f"{out}: is a directory; name a file, such as {out / ('out' + out.suffix)}")
     folder = out.absolute().parent
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
+    above = folder
+    while not above.exists() and above != above.parent:
+        above = above.parent
+    if above.is_dir() and not folder.exists():
+        raise ValueError(f"{out}: the directory {folder} does not exist; create it first")
+    folder = above
     if not folder.is_dir():
         raise ValueError(f"{out}: {folder} is a file, not a directory; choose another output path")
     if not os.access(folder, os.W_OK):
         raise ValueError(f"{out}: the directory {folder} is not writable")
+    if source is not None and out.exists() and os.path.exists(source) and os.path.samefile(out, source):
+        raise ValueError(f"{out}: is the input ({option} {source}); writing there would replace "
+                         f"it. Name the output otherwise, such as {out.stem}-tracked{out.suffix}")
     return out
 
 
@@ -791,6 +801,5 @@ def save_json(doc: dict[str, Any], path: str | os.PathLike[str]) -> Path:
     from inkwarp._atomic import write_text
 
     out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
     return write_text(out, json.dumps(doc, indent=1) + "\n", suffix=".json")
 

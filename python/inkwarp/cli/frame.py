@@ -42,7 +42,6 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"the output {out} must be a .png file.")
     check_output(out)
     rgb = read_frame(args.video, args.frame)
-    out.parent.mkdir(parents=True, exist_ok=True)
     write_png(out, rgb)
     if not args.quiet:
         print(f"wrote {out} (frame {args.frame}, {rgb.shape[1]}x{rgb.shape[0]})")

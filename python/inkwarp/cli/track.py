@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"the output {out} must be a .json scene file.")
     if args.lost <= 0:
         raise ValueError(f"--lost {args.lost}: give a distance in pixels above 0")
-    check_output(out)
+    check_output(out, source=args.scene)
     clip = read_video(args.video)
 
     def progress(total: int):
