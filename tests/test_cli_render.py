@@ -254,3 +254,33 @@ def test_an_output_that_is_a_layer_image_is_refused_and_the_artwork_kept(capsys,
     code, _, err = run(capsys, "render", scene, "-o", art, "--frame", "1")
     assert code == 2 and "square.png" in err and "would replace it" in err
     assert art.read_bytes() == before and "Traceback" not in err
+
+
+def test_progress_without_a_terminal_is_an_occasional_line(capsys, tmp_path, monkeypatch):
+    # A farm's log gets a line now and then, not a bar's carriage returns on one line.
+    from _cli_scenes import mutated
+    from inkwarp.cli import _common
+
+    scene = write_scene(tmp_path / "s", mutated(lambda d: d.update(duration=10.0)))  # 40 frames
+    now = [0.0]
+
+    def clock():
+        now[0] += 10.0  # every frame takes 10 s
+        return now[0]
+
+    monkeypatch.setattr(_common, "_clock", clock)
+    code, out, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif")
+    assert code == 0, err
+    assert "\r" not in err
+    lines = err.splitlines()
+    assert err.endswith("\n") and all(line.startswith("render a.gif: ") for line in lines)
+    # One line per 10 % (4 frames) when that takes over 30 s, and the last one.
+    assert len(lines) == 10
+    assert lines[0].startswith("render a.gif: 10% (4/40 frames in 0:40, ")
+    assert lines[-1].startswith("render a.gif: 100% (40/40 frames in ")
+    assert "left" in lines[0] and "left" not in lines[-1]
+    # Faster frames make no more lines than one per 30 s.
+    now[0] = 0.0
+    monkeypatch.setattr(_common, "_clock", lambda: now.__setitem__(0, now[0] + 1.0) or now[0])
+    code, out, err = run(capsys, "render", scene, "-o", tmp_path / "b.gif")
+    assert code == 0 and len(err.splitlines()) == 2, err

@@ -346,3 +346,7 @@ def test_frame_and_track_take_q_like_render_and_new(videos, tmp_path, capsys):
     code, out, err = run(capsys, "track", path, "--scene", scene, "-o", tmp_path / "t.json", "-q")
     assert code == 0, err
     assert out == "" and "%" not in err and (tmp_path / "t.json").exists()
+    # Without -q, and stderr not a terminal: a plain line, no bar's carriage returns.
+    code, out, err = run(capsys, "track", path, "--scene", scene, "-o", tmp_path / "u.json")
+    assert code == 0, err
+    assert "\r" not in err and "inkwarp track: 100% (23/23 frames in " in err

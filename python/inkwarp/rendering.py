@@ -23,7 +23,6 @@ import base64
 import math
 import mimetypes
 import os
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -476,10 +475,9 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
 
     bar = None
     if progress:
-        from tqdm import tqdm
+        from inkwarp.cli._common import progress_bar
 
-        bar = tqdm(total=stop - start, unit="frame", desc=f"render on Ray ({len(chunks)} "
-                   "chunks)", file=sys.stderr, dynamic_ncols=True)
+        bar = progress_bar(stop - start, f"render on Ray ({len(chunks)} chunks)")
     current = 0
     try:
         launch()

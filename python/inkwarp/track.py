@@ -46,7 +46,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import sys
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -751,9 +750,9 @@ def rotoscope_example(examples_dir: str | os.PathLike[str], out_dir: str | os.Pa
     def bar(total: int) -> Callable[[], None] | None:
         if quiet:
             return None
-        from tqdm import tqdm
+        from inkwarp.cli._common import progress_bar
 
-        bars.append(tqdm(total=total, unit="frame", desc="rotoscope (track)", file=sys.stderr))
+        bars.append(progress_bar(total, "rotoscope (track)"))
         return lambda: bars[-1].update(1)
 
     bars: list[Any] = []

@@ -1,4 +1,4 @@
-"""What the commands share: loading a scene, picking frames and times, the progress bar."""
+"""What the commands share: loading a scene, picking frames and times, the progress display."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import argparse
 import math
 import os
 import sys
+import time
 from collections.abc import Iterable, Iterator
 from typing import Any
 
@@ -81,20 +82,78 @@ def check_frame(frame: int, frame_count: int) -> int:
     return frame
 
 
+#: Without a terminal, a progress line is printed at most every this many seconds, and
+#: only after this fraction of the frames more is done (whichever is less frequent).
+PROGRESS_LINE_S = 30.0
+PROGRESS_LINE_FRACTION = 0.1
+_clock = time.monotonic
+
+
+def _duration(seconds: float) -> str:
+    """``M:SS`` or ``H:MM:SS``."""
+    minutes, secs = divmod(int(round(seconds)), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
+
+
+class ProgressLines:
+    """Progress as plain lines, for a stderr that is not a terminal (a log file, a farm's
+    pipe), where a bar's carriage-return updates would pile up on one growing line: one
+    line when at least :data:`PROGRESS_LINE_FRACTION` more of the frames is done and
+    :data:`PROGRESS_LINE_S` have passed since the last one, and one at the end."""
+
+    def __init__(self, total: int, desc: str) -> None:
+        self.total, self.desc, self.n = total, desc, 0
+        self._start = self._last_time = _clock()
+        self._last_n = 0
+
+    def update(self, n: int = 1) -> None:
+        self.n += n
+        now = _clock()
+        if (self.n - self._last_n >= PROGRESS_LINE_FRACTION * self.total
+                and now - self._last_time >= PROGRESS_LINE_S and self.n < self.total):
+            self._line(now)
+
+    def _line(self, now: float) -> None:
+        elapsed = now - self._start
+        rate = self.n / elapsed if elapsed > 0 else 0.0
+        left = (f", {_duration((self.total - self.n) / rate)} left"
+                if rate > 0 and self.n < self.total else "")
+        print(f"{self.desc}: {100 * self.n // max(self.total, 1)}% ({self.n}/{self.total} frames "
+              f"in {_duration(elapsed)}, {rate:.2f} frames/s{left})", file=sys.stderr, flush=True)
+        self._last_n, self._last_time = self.n, now
+
+    def close(self) -> None:
+        if self.n > self._last_n:
+            self._line(_clock())
+
+
+def progress_bar(total: int, desc: str) -> Any:
+    """A progress display on stderr for ``total`` frames, with ``update(n=1)`` and
+    ``close()``: a bar (frames/s and time left) on a terminal, :class:`ProgressLines`
+    elsewhere. The one progress display of every command (render, track, --ray)."""
+    if not sys.stderr.isatty():
+        return ProgressLines(total, desc)
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
+                leave=True, smoothing=0.1,
+                bar_format="{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} frames "
+                           "[{elapsed}<{remaining}, {rate_fmt}]")
+
+
 def progress(frames: Iterable[Any], total: int, *, quiet: bool, desc: str) -> Iterator[Any]:
-    """``frames`` with a progress bar on stderr (frames/s and time left) unless ``quiet``."""
+    """``frames`` with a progress display on stderr (:func:`progress_bar`) unless ``quiet``."""
     if quiet or total <= 1:
         yield from frames
         return
-    from tqdm import tqdm
-
-    with tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, dynamic_ncols=True,
-              leave=True, smoothing=0.1,
-              bar_format="{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} frames "
-                         "[{elapsed}<{remaining}, {rate_fmt}]") as bar:
+    bar = progress_bar(total, desc)
+    try:
         for item in frames:
             yield item
             bar.update(1)
+    finally:
+        bar.close()
 
 
 def scene_size(scene: Any) -> str:

@@ -63,10 +63,9 @@ def run(args: argparse.Namespace) -> int:
     def progress(total: int):
         if args.quiet or total <= 1:
             return None
-        from tqdm import tqdm
+        from inkwarp.cli._common import progress_bar
 
-        bar = tqdm(total=total, unit="frame", desc="inkwarp track", file=sys.stderr,
-                   dynamic_ncols=True, smoothing=0.1)
+        bar = progress_bar(total, "inkwarp track")
         bars.append(bar)
         return lambda: bar.update(1)
 
