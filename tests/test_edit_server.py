@@ -167,6 +167,41 @@ def test_edit_is_listed_in_help(capsys) -> None:
     assert "inkwarp edit examples/cat/scene.json" in out
 
 
+def test_a_save_over_a_file_changed_since_it_was_read_is_refused(editor: Path, scene: Path) -> None:
+    # Two tabs on one scene, or the file edited by another program: each save carries the
+    # version it read (If-Match); one that another writer overtook is refused (409) and
+    # the file keeps what that writer wrote, until the editor says to overwrite (*).
+    server = serve(scene, editor)
+    try:
+        api = api_url(server)
+        status, headers, body = fetch(api)
+        read_version = headers["ETag"]
+        assert status == 200 and read_version.startswith('"')
+        tab_a, tab_b = json.loads(body), json.loads(body)
+        tab_a["features"] = [{"id": "a", "kind": "point", "rest": [[0, 0]]}]
+        status, headers, _ = fetch(api, "PUT", json.dumps(tab_a).encode(), {"If-Match": read_version})
+        assert status == 200 and headers["ETag"] not in (None, read_version)
+        a_version = headers["ETag"]
+        assert fetch(api)[1]["ETag"] == a_version  # the version a save answers is the file's
+        tab_b["features"] = [{"id": "b", "kind": "point", "rest": [[0, 0]]}]
+        status, headers, body = fetch(api, "PUT", json.dumps(tab_b).encode(), {"If-Match": read_version})
+        assert status == 409 and b"changed on disk since the editor read it" in body
+        assert str(scene).encode() in body
+        assert json.loads(scene.read_text())["features"][0]["id"] == "a"
+        # Edited on disk by hand: the same.
+        scene.write_text(scene.read_text().replace('"a"', '"nose"'))
+        status, _, _ = fetch(api, "PUT", json.dumps(tab_a).encode(), {"If-Match": a_version})
+        assert status == 409 and json.loads(scene.read_text())["features"][0]["id"] == "nose"
+        # Told to overwrite, or with no version at all (a script), the save goes through.
+        assert fetch(api, "PUT", json.dumps(tab_b).encode(), {"If-Match": "*"})[0] == 200
+        assert json.loads(scene.read_text())["features"][0]["id"] == "b"
+        assert fetch(api, "PUT", json.dumps(tab_a).encode())[0] == 200
+        assert json.loads(scene.read_text())["features"][0]["id"] == "a"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
 # --- Who may ask, and what may be read --------------------------------------------------
 
 

@@ -1040,6 +1040,73 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
   }
 });
 
+test('Save writes each scene to its own file: undo past opening, two tabs, a file changed on disk, a server gone', async () => {
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-origin-'));
+  copyFileSync(join(repo, 'examples/checkerboard-hole/checkerboard.png'), join(dir, 'checker.png'));
+  const scenePath = join(dir, 'mine.json');
+  writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, fps: 12, duration: 1, layers: [{ name: 'checker', image: 'checker.png' }], features: [] }));
+  const own = await startServer([scenePath]);
+  const a = await openEditor(browser, own.url);
+  const b = await openEditor(browser, own.url);
+  const features = () => JSON.parse(readFileSync(scenePath, 'utf8')).features.map((f) => f.rest[0]);
+  const message = (p) => p.evaluate(() => document.querySelector('#message')?.textContent ?? '');
+  try {
+    const p = a.page;
+    assert((await p.title()) === 'mine.json — inkwarp editor', `the title names the scene: ${await p.title()}`);
+    // One undo past the open shows the built-in example; Save must not write it to mine.json.
+    await p.keyboard.press('Control+z');
+    await idle(p);
+    assert((await p.evaluate(() => window.inkwarp.store.origin.saveUrl)) === null, 'the example before the open saves nowhere');
+    const [example] = await Promise.all([p.waitForEvent('download'), p.keyboard.press('Control+s')]);
+    assert(example.suggestedFilename() === 'scene.json', `the example downloads: ${example.suggestedFilename()}`);
+    assert(/^Downloaded scene\.json/.test(await message(p)), `a download says so: ${await message(p)}`);
+    assert(JSON.parse(readFileSync(scenePath, 'utf8')).layers[0].image === 'checker.png', 'mine.json was not overwritten by the example');
+    await p.keyboard.press('Control+y');
+    await idle(p);
+    // Tab A adds a point and saves; the title marks unsaved work until then.
+    await p.keyboard.press('p');
+    await click(p, [20, 20]);
+    assert((await p.title()).startsWith('● '), `unsaved work is marked in the title: ${await p.title()}`);
+    await p.keyboard.press('Control+s');
+    await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
+    assert(!(await p.title()).startsWith('● ') && features().length === 1, 'saved: one point, title unmarked');
+    // Tab B, open all along, adds its own point: its save is refused, not written over A's.
+    const q = b.page;
+    await q.keyboard.press('p');
+    await click(q, [40, 30]);
+    q.declineDialogs = true;
+    await q.keyboard.press('Control+s');
+    await q.waitForFunction(() => /^Not saved: .*changed on disk/.test(document.querySelector('#message')?.textContent ?? ''));
+    assert(q.dialogs.includes('confirm') && features().length === 1, `tab B asked and kept A's save: ${JSON.stringify(features())}`);
+    assert(await q.evaluate(() => window.inkwarp.store.unsaved), 'tab B keeps its work unsaved');
+    // Told to overwrite, it does.
+    q.declineDialogs = false;
+    await q.keyboard.press('Control+s');
+    await q.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
+    assert(features().length === 1 && features()[0][0] > 30, `tab B's scene overwrote the file when told to: ${JSON.stringify(features())}`);
+    // Ctrl+S from a number field saves too, with the value just typed.
+    await q.fill('#duration', '2');
+    await q.focus('#duration');
+    await q.keyboard.press('Control+s');
+    await q.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? '') && !window.inkwarp.store.unsaved);
+    assert(JSON.parse(readFileSync(scenePath, 'utf8')).duration === 2, 'Ctrl+S in the duration field saved the typed duration');
+    // The server gone: the work stays unsaved (and in the browser's copy), a copy downloads.
+    own.proc.kill();
+    await new Promise((r) => setTimeout(r, 300));
+    await q.keyboard.press('p');
+    await click(q, [10, 40]);
+    const [copy] = await Promise.all([q.waitForEvent('download'), q.keyboard.press('Control+s')]);
+    assert(copy.suggestedFilename() === 'mine.json', `the copy downloads as mine.json: ${copy.suggestedFilename()}`);
+    assert(/^Could not save to .*mine\.json .*kept in this browser, unsaved/.test(await message(q)), `the failure is said: ${await message(q)}`);
+    assert(await q.evaluate(() => window.inkwarp.store.unsaved), 'a failed save leaves the work unsaved');
+    assert(a.errors.length === 0 && b.errors.filter((e) => !/Failed to fetch|ERR_CONNECTION_REFUSED/.test(e)).length === 0, `page errors: ${[...a.errors, ...b.errors].join('; ')}`);
+  } finally {
+    await a.context.close();
+    await b.context.close();
+    own.proc.kill();
+  }
+});
+
 /** Presses a key diamond of the timeline and moves the pointer `dx` px in 1 px steps. */
 async function dragDiamond(p, feature, t, dx, opts = {}) {
   const box = await p.evaluate(([f, time]) => {

@@ -22,6 +22,8 @@ export interface Snapshot {
    * downloads: restored work goes back to its file only when the page opened that file.
    */
   source?: string | null;
+  /** The version of that file the work was read from or last saved as (see `Origin`). */
+  version?: string | null;
 }
 
 /** The part of the editor's view a snapshot keeps. */

@@ -47,6 +47,7 @@ async function start(): Promise<void> {
   Object.assign(window, { inkwarp: { app, ui, store, engine, scene, state, images, examples } });
   // The file the scene came from (its path on the machine `inkwarp edit` serves it from).
   let source: string | null = null;
+  let version: string | null = null;
   // A scene that fails to open is named by its file, and the built-in example shown instead.
   let opened = false;
   if (sceneUrl) {
@@ -58,8 +59,9 @@ async function start(): Promise<void> {
         ui.message(text, 'error'); // the server's message names the file
       } else {
         named = source = resp.headers.get('X-Inkwarp-Path') ?? sceneUrl;
+        version = resp.headers.get('ETag');
         await ui.openSceneText(text, resp.headers.get('X-Inkwarp-Name') ?? 'scene.json');
-        if (params.get('save') !== 'download') ui.saveUrl = sceneUrl;
+        Object.assign(store.origin, { path: source, version, saveUrl: params.get('save') !== 'download' ? sceneUrl : null });
         opened = true;
       }
     } catch (err) {
@@ -73,6 +75,12 @@ async function start(): Promise<void> {
   document.body.dataset.ready = 'true';
   // After "ready": the restore offer waits for the user, the editor works meanwhile.
   await keepWork(store, ui, source);
+}
+
+/** The page's title: the scene's name, marked while it holds changes not saved to a file. */
+function showTitle(store: Store): void {
+  const title = `${store.unsaved ? '● ' : ''}${store.origin.fileName} — inkwarp editor`;
+  if (document.title !== title) document.title = title;
 }
 
 /**
@@ -91,7 +99,7 @@ async function keepWork(store: Store, ui: Ui, source: string | null): Promise<vo
   }
   const saver = new Autosaver(
     kept,
-    () => ({ doc: store.doc, fileName: ui.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: ui.saveUrl ? source : null }),
+    () => ({ doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: store.origin.saveUrl ? store.origin.path : null, version: store.origin.saveUrl ? store.origin.version : null }),
     fetchDataUri,
     800,
     (err) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error'),
@@ -102,9 +110,10 @@ async function keepWork(store: Store, ui: Ui, source: string | null): Promise<vo
   const own = (previous?.source ?? null) === source;
   if (previous?.unsaved && (await ui.offerRestore(restoreQuestion(previous, Date.now(), own || !source ? undefined : ui.fileName)))) {
     try {
-      const saveUrl = ui.saveUrl;
+      const opened = store.origin;
       await ui.openScene(previous.doc, previous.fileName);
-      ui.saveUrl = own ? saveUrl : null;
+      // Back to its own file, which a save checks is still as the kept work found it.
+      if (own && opened.saveUrl) Object.assign(store.origin, { saveUrl: opened.saveUrl, path: opened.path, version: previous.version ?? null });
       // Back where the editor was: pose mode stays pose mode, at the same time.
       if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
       store.markUnsaved();
@@ -115,7 +124,9 @@ async function keepWork(store: Store, ui: Ui, source: string | null): Promise<vo
   }
   let revision = store.revision;
   let unsaved = store.unsaved;
+  showTitle(store);
   store.subscribe(() => {
+    showTitle(store);
     if (store.revision === revision && store.unsaved === unsaved) return;
     revision = store.revision;
     unsaved = store.unsaved;

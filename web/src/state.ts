@@ -443,11 +443,39 @@ export function allKeyTimes(doc: SceneDoc): number[] {
 
 export type Listener = (store: Store, docChanged: boolean) => void;
 
+/**
+ * Where a document came from and where Save puts it. Each opened scene gets its own (one
+ * object, shared by every undo step of that scene, so a save's new version holds for all
+ * of them); Undo and Redo bring a document back with its origin, so Save never writes one
+ * scene into another's file.
+ */
+export interface Origin {
+  /** The name a download takes. */
+  fileName: string;
+  /** The URL Save writes back to (a scene `inkwarp edit` serves), or null: Save downloads. */
+  saveUrl: string | null;
+  /** The file's path on the machine that serves it. */
+  path: string | null;
+  /** The version of that file the document was read from or last written as (its ETag). */
+  version: string | null;
+}
+
+/** A new origin: a scene Save downloads as `fileName`. */
+export function downloadOrigin(fileName = 'scene.json'): Origin {
+  return { fileName, saveUrl: null, path: null, version: null };
+}
+
+interface Step {
+  doc: SceneDoc;
+  origin: Origin;
+}
+
 export class Store {
   doc: SceneDoc;
   view: View;
-  private undoStack: SceneDoc[] = [];
-  private redoStack: SceneDoc[] = [];
+  origin: Origin = downloadOrigin();
+  private undoStack: Step[] = [];
+  private redoStack: Step[] = [];
   private txBase: SceneDoc | null = null;
   private listeners: Listener[] = [];
   /** Bumps on every document change (views compare it to know what to redo). */
@@ -474,11 +502,7 @@ export class Store {
   /** Replaces the document with a new one (undoable unless inside a transaction). */
   apply(next: SceneDoc): void {
     if (next === this.doc) return;
-    if (this.txBase === null) {
-      this.undoStack.push(this.doc);
-      if (this.undoStack.length > 500) this.undoStack.shift();
-      this.redoStack = [];
-    }
+    if (this.txBase === null) this.pushUndo(this.doc);
     this.doc = next;
     this.revision++;
     this.emit(true);
@@ -499,9 +523,7 @@ export class Store {
     const base = this.txBase;
     this.txBase = null;
     if (base !== null && base !== this.doc) {
-      this.undoStack.push(base);
-      if (this.undoStack.length > 500) this.undoStack.shift();
-      this.redoStack = [];
+      this.pushUndo(base);
       // the gesture is now one undo step: the views show Undo as available
       this.emit(false);
     }
@@ -512,10 +534,16 @@ export class Store {
     return this.revision !== this.savedRevision;
   }
 
-  /** The document as it is now has been written to a file. */
-  markSaved(): void {
-    this.savedRevision = this.revision;
+  /** The document as it was at `revision` (default: now) has been written to its file. */
+  markSaved(revision = this.revision): void {
+    this.savedRevision = revision;
     this.emit(false);
+  }
+
+  private pushUndo(doc: SceneDoc): void {
+    this.undoStack.push({ doc, origin: this.origin });
+    if (this.undoStack.length > 500) this.undoStack.shift();
+    this.redoStack = [];
   }
 
   /** The document as it is now is not in any file (a restored autosave). */
@@ -551,8 +579,8 @@ export class Store {
     this.commit();
     const prev = this.undoStack.pop();
     if (!prev) return;
-    this.redoStack.push(this.doc);
-    this.doc = prev;
+    this.redoStack.push({ doc: this.doc, origin: this.origin });
+    ({ doc: this.doc, origin: this.origin } = prev);
     this.fixSelection();
     this.revision++;
     this.emit(true);
@@ -561,23 +589,22 @@ export class Store {
   redo(): void {
     const next = this.redoStack.pop();
     if (!next) return;
-    this.undoStack.push(this.doc);
-    this.doc = next;
+    this.undoStack.push({ doc: this.doc, origin: this.origin });
+    ({ doc: this.doc, origin: this.origin } = next);
     this.fixSelection();
     this.revision++;
     this.emit(true);
   }
 
   /**
-   * Replaces the whole document (opening a file). Undo brings back the document that was
-   * open before; the new one counts as saved.
+   * Replaces the whole document (opening a file) with its origin. Undo brings back the
+   * document that was open before, with its own; the new one counts as saved.
    */
-  load(doc: SceneDoc): void {
+  load(doc: SceneDoc, origin: Origin = downloadOrigin()): void {
     this.commit();
-    this.undoStack.push(this.doc);
-    if (this.undoStack.length > 500) this.undoStack.shift();
-    this.redoStack = [];
+    this.pushUndo(this.doc);
     this.doc = doc;
+    this.origin = origin;
     this.view = { ...initialView(), overlays: this.view.overlays };
     this.revision++;
     this.savedRevision = this.revision;

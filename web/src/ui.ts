@@ -54,6 +54,7 @@ import {
   shownPoints,
   updateLayer,
   deleteLayer,
+  downloadOrigin,
   type Tool,
 } from './state';
 
@@ -127,9 +128,20 @@ export class Ui {
   /** A marquee being dragged on empty stage (scene pixels), and whether it adds (Shift). */
   private marquee: { start: Pt; add: boolean; base: PointRef[] } | null = null;
   private messageTimer: number | null = null;
-  fileName = 'scene.json';
-  /** Set when the scene came from `inkwarp edit`: Save also writes it back there. */
-  saveUrl: string | null = null;
+  /** The name the scene downloads as (its origin's: see `Origin`). */
+  get fileName(): string {
+    return this.store.origin.fileName;
+  }
+  set fileName(name: string) {
+    this.store.origin.fileName = name;
+  }
+  /** Set when the scene came from `inkwarp edit`: Save writes it back there. */
+  get saveUrl(): string | null {
+    return this.store.origin.saveUrl;
+  }
+  set saveUrl(url: string | null) {
+    this.store.origin.saveUrl = url;
+  }
   private playStart: { wall: number; time: number } | null = null;
   private lastShownFrame = -1;
 
@@ -1295,10 +1307,17 @@ export class Ui {
 
   private onKey(e: KeyboardEvent): void {
     const target = e.target as HTMLElement;
-    if (target && (target.tagName === 'INPUT' || target.tagName === 'SELECT' || target.tagName === 'TEXTAREA') && (target as HTMLInputElement).type !== 'checkbox' && (target as HTMLInputElement).type !== 'range') return;
     const ctrl = e.ctrlKey || e.metaKey;
     const k = e.key;
     const handled = () => e.preventDefault();
+    const field = target && (target.tagName === 'INPUT' || target.tagName === 'SELECT' || target.tagName === 'TEXTAREA') && (target as HTMLInputElement).type !== 'checkbox' && (target as HTMLInputElement).type !== 'range';
+    if (field && ctrl && k === 's') {
+      // Save from a field too: leaving it first commits the value typed so far.
+      handled();
+      target.blur();
+      return void this.save();
+    }
+    if (field) return;
     if (ctrl && (k === 'z' || k === 'Z')) {
       handled();
       if (e.shiftKey) this.store.redo();
@@ -1359,9 +1378,8 @@ export class Ui {
   /** Opens a scene document: checks it, loads it, reports problems with their JSON path. */
   async openScene(doc: SceneDoc, name: string, validate = true): Promise<void> {
     if (validate) await this.throwProblems(doc);
-    this.fileName = name;
     this.app.resetStats();
-    this.store.load(doc);
+    this.store.load(doc, downloadOrigin(name));
     this.store.setView({ activeLayer: Math.max(0, doc.layers.length - 1) });
     await this.app.idle();
   }
@@ -1596,21 +1614,45 @@ export class Ui {
     }
   }
 
+  /**
+   * Saves the scene where it came from: a scene `inkwarp edit` serves goes back to its
+   * file, unless the file changed since it was read (another tab or program: the user
+   * chooses whether to overwrite it); any other scene downloads. A save that could not
+   * write the file leaves the work unsaved (the browser keeps its copy) and downloads a
+   * copy.
+   */
   async save(): Promise<void> {
+    const { origin, revision } = this.store;
     const text = serializeScene(this.store.doc);
-    if (this.saveUrl) {
+    const blob = () => new Blob([text], { type: 'application/json' });
+    if (origin.saveUrl) {
+      const where = origin.path ?? origin.fileName;
       try {
-        const resp = await fetch(this.saveUrl, { method: 'PUT', body: text, headers: { 'Content-Type': 'application/json' } });
+        const put = (version: string | null) => fetch(origin.saveUrl as string, {
+          method: 'PUT', body: text, headers: { 'Content-Type': 'application/json', ...(version ? { 'If-Match': version } : {}) },
+        });
+        let resp = await put(origin.version);
+        if (resp.status === 409) {
+          const why = await resp.text();
+          if (!window.confirm(`${why}\n\nOverwrite it with the scene as the editor shows it? Cancel keeps your changes here, unsaved: open the file again to see what was written.`)) {
+            this.message(`Not saved: ${why}`, 'error');
+            return;
+          }
+          resp = await put('*');
+        }
         if (!resp.ok) throw new Error(await resp.text());
-        this.store.markSaved();
-        this.message(`Saved to ${resp.headers.get('X-Inkwarp-Path') ?? this.fileName}.`, 'info');
-        return;
+        origin.version = resp.headers.get('ETag');
+        this.store.markSaved(revision);
+        this.message(`Saved to ${resp.headers.get('X-Inkwarp-Path') ?? where}.`, 'info');
       } catch (err) {
-        this.message(`Could not save to the server (${(err as Error).message}); downloading instead.`, 'error');
+        download(blob(), origin.fileName);
+        this.message(`Could not save to ${where} (${(err as Error).message}). Your changes are kept in this browser, unsaved; a copy was downloaded as ${origin.fileName}.`, 'error');
       }
+      return;
     }
-    download(new Blob([text], { type: 'application/json' }), this.fileName);
-    this.store.markSaved();
+    download(blob(), origin.fileName);
+    this.store.markSaved(revision);
+    this.message(`Downloaded ${origin.fileName}: this scene has no file the editor writes to (open one with inkwarp edit SCENE to save in place).`, 'info');
   }
 
   /**

@@ -11,6 +11,7 @@ import {
   movePoint,
   setInterpolation,
   setKey,
+  downloadOrigin,
 } from '../src/state';
 
 function scene(): SceneDoc {
@@ -204,6 +205,56 @@ describe('undo', () => {
     s.edit((d) => movePoint(d, 'rest', 0, 'point1', 0, [9, 9]));
     s.cancel();
     expect(s.doc.features[0].rest).toEqual([[5, 5]]);
+  });
+
+  it('undo and redo across opening a scene bring each document back with its own origin', () => {
+    // Save writes to the current document's origin: one undo past opening a served file
+    // must not make Save write the scene before it into that file, and back again the
+    // file's own scene must save to the file (one origin object per opened scene, so a
+    // save's new version holds for all its steps).
+    const s = new Store(scene());
+    const demo = s.origin;
+    expect(demo.saveUrl).toBeNull();
+    s.setView({ tool: 'point' });
+    s.placePoint([1, 1]);
+    const file = { ...downloadOrigin('cat.json'), saveUrl: '/api/scene', path: '/work/cat.json', version: '"v1"' };
+    s.load(scene(), file);
+    expect(s.origin).toBe(file);
+    expect(s.unsaved).toBe(false);
+    s.setView({ tool: 'point' });
+    s.placePoint([2, 2]);
+    file.version = '"v2"'; // saved
+    s.undo();
+    expect(s.origin).toBe(file);
+    s.undo();
+    expect(s.origin).toBe(demo);
+    expect(s.doc.features).toHaveLength(1);
+    expect(s.unsaved).toBe(true);
+    s.redo();
+    expect(s.origin).toBe(file);
+    expect(s.origin.version).toBe('"v2"');
+    // Opening another scene over unsaved work and undoing brings the work and its file back.
+    s.redo();
+    s.setView({ tool: 'point' });
+    s.placePoint([3, 3]);
+    s.load(scene(), downloadOrigin('face.json'));
+    expect(s.origin.saveUrl).toBeNull();
+    s.undo();
+    expect(s.origin).toBe(file);
+    expect(s.doc.features).toHaveLength(2);
+    expect(s.unsaved).toBe(true);
+  });
+
+  it('markSaved marks the revision that was written, not edits made while it was written', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'point' });
+    s.placePoint([1, 1]);
+    const written = s.revision;
+    s.placePoint([2, 2]);
+    s.markSaved(written);
+    expect(s.unsaved).toBe(true);
+    s.markSaved();
+    expect(s.unsaved).toBe(false);
   });
 
   it('undo of a deletion brings the selection back to a valid state', () => {

@@ -5,6 +5,10 @@ built from ``web/`` by ``make editor``). This command serves it on 127.0.0.1 at 
 port. Given a scene, it also serves ``/api/scene``: the scene with its images inlined as
 ``data:`` URIs (GET), and a way to save it back (PUT) — images that came from files keep
 their relative paths when the scene is written back, new ones stay inline.
+
+Every GET and PUT answers the file's version (``ETag``: a hash of its text); a PUT that
+carries ``If-Match`` with another version is refused (409), so a save never overwrites
+what another tab or program wrote to the file since the editor read it.
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ from __future__ import annotations
 import argparse
 import base64
 import errno
+import hashlib
 import hmac
 import json
 import mimetypes
@@ -80,6 +85,8 @@ class SceneFile:
         self.path = path
         self.folder = path.resolve().parent
         self.inlined: dict[str, str] = {}
+        # A save's check of the file's version and its write happen together.
+        self.lock = threading.Lock()
         # The images the user's own file names (such as ../cat/cat.png) stay readable.
         self.trusted: set[Path] = set()
         try:
@@ -119,14 +126,30 @@ class SceneFile:
             raise ValueError(f"{where}: the image {ref!r} is not a regular file.")
         return file
 
-    def read(self) -> bytes:
-        """The scene as JSON with every relative image path replaced by a data: URI."""
+    @staticmethod
+    def version_of(text: str) -> str:
+        """The version of a scene file's text, as the ``ETag`` the editor sends back."""
+        return '"' + hashlib.sha256(text.encode("utf-8")).hexdigest()[:24] + '"'
+
+    def version(self) -> str | None:
+        """The version of the file as it is now (None when it cannot be read)."""
+        from inkwarp.scene import read_scene_text
+
+        try:
+            return self.version_of(read_scene_text(self.path))
+        except (OSError, ValueError):
+            return None
+
+    def read(self) -> tuple[bytes, str]:
+        """The scene as JSON with every relative image path replaced by a data: URI, and
+        the version of the file's text it was made from."""
         from inkwarp.scene import read_scene_text
 
         # The scene files' one reader: a picture given as the scene, bytes that are not
         # UTF-8 and oversized files get the messages every command gives.
+        text = read_scene_text(self.path)
         try:
-            doc = json.loads(read_scene_text(self.path))
+            doc = json.loads(text)
         except json.JSONDecodeError as err:
             raise ValueError(
                 f"{self.path}: not valid JSON (line {err.lineno}, column {err.colno}: {err.msg})."
@@ -141,13 +164,16 @@ class SceneFile:
             uri = f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
             self.inlined[uri] = ref
             doc["layers"][i][key] = uri
-        return json.dumps(doc).encode("utf-8")
+        return json.dumps(doc).encode("utf-8"), self.version_of(text)
 
-    def write(self, body: bytes) -> None:
-        """Writes the editor's scene back, restoring the original image paths.
+    def write(self, body: bytes, if_match: str | None = None) -> str:
+        """Writes the editor's scene back, restoring the original image paths; returns the
+        file's new version.
 
         The scene is validated first (as ``inkwarp validate`` would); the file is replaced
-        atomically and keeps its permissions.
+        atomically and keeps its permissions. With ``if_match`` (a version from
+        :meth:`read` or an earlier write; ``*`` for any), a file whose version is another
+        one now is left as it is: :class:`ChangedOnDisk`.
         """
         from inkwarp.scene import validate_scene
 
@@ -172,13 +198,22 @@ class SceneFile:
             more = f" (and {len(problems) - 5} more)" if len(problems) > 5 else ""
             raise ValueError(f"Not saved: the scene is not valid: {lines}{more}.")
         text = json.dumps(doc, indent=1) + "\n"
-        try:
-            mode = stat.S_IMODE(self.path.stat().st_mode)
-        except FileNotFoundError:
-            mode = 0o666 & ~_umask()
         from inkwarp._atomic import write_text
 
-        write_text(self.path, text, suffix=".json", mode=mode, sync=True)
+        with self.lock:
+            if if_match not in (None, "*") and self.version() != if_match:
+                raise ChangedOnDisk(f"{self.path} changed on disk since the editor read it (another "
+                                    "tab or program saved it); not saved.")
+            try:
+                mode = stat.S_IMODE(self.path.stat().st_mode)
+            except FileNotFoundError:
+                mode = 0o666 & ~_umask()
+            write_text(self.path, text, suffix=".json", mode=mode, sync=True)
+        return self.version_of(text)
+
+
+class ChangedOnDisk(Exception):
+    """A save whose file another writer changed since the editor read it."""
 
 
 def _umask() -> int:
@@ -355,12 +390,12 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                 if scene_file is None:
                     return self._reply(HTTPStatus.NOT_FOUND, b"No scene was given to inkwarp edit.")
                 try:
-                    body = scene_file.read()
+                    body, version = scene_file.read()
                 except (OSError, ValueError) as err:
                     return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode())
                 return self._reply(HTTPStatus.OK, body, "application/json",
                                    {"X-Inkwarp-Name": scene_file.path.name,
-                                    "X-Inkwarp-Path": str(scene_file.path)})
+                                    "X-Inkwarp-Path": str(scene_file.path), "ETag": version})
             if urlsplit(self.path).path.startswith("/api/"):
                 return self._reply(HTTPStatus.NOT_FOUND, b"No such API.")
             return super().do_GET()
@@ -402,10 +437,14 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
             if body is None:
                 return
             try:
-                scene_file.write(body)
+                version = scene_file.write(body, self.headers.get("If-Match"))
+            except ChangedOnDisk as err:
+                return self._reply(HTTPStatus.CONFLICT, str(err).encode(),
+                                   headers={"X-Inkwarp-Path": str(scene_file.path)})
             except (OSError, ValueError) as err:
                 return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode())
-            return self._reply(HTTPStatus.OK, b"saved", headers={"X-Inkwarp-Path": str(scene_file.path)})
+            return self._reply(HTTPStatus.OK, b"saved", headers={"X-Inkwarp-Path": str(scene_file.path),
+                                                                 "ETag": version})
 
         def _not_allowed(self) -> None:
             self._reply(HTTPStatus.METHOD_NOT_ALLOWED, b"Method not allowed.")
