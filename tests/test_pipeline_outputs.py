@@ -358,6 +358,45 @@ def test_skip_existing_needs_a_directory(capsys, tmp_path):
     assert code == 2 and "--skip-existing works with a directory" in err
 
 
+@pytest.mark.parametrize("output, args", [
+    ("out.mp4", []), ("out.webm", []), ("out.mov", []), ("out.apng", []), ("out.gif", []),
+    ("clear.gif", ["--background", "transparent"]), ("frames/", []),
+    ("chunk/", ["--skip-existing"]), ("sheet.png", ["--sprite-sheet"])])
+def test_a_full_disk_is_one_message_naming_the_output_for_every_format(tmp_path, output, args):
+    # A file-size limit (ulimit -f) fails writes as a full disk does, at the same places.
+    import resource
+    import sys
+
+    folder = tmp_path / "s"
+    scene = write_scene(folder, mutated(lambda d: d.update(duration=3.0)))  # 12 frames
+    noise = np.random.default_rng(0).integers(0, 256, (HEIGHT, WIDTH, 4), dtype=np.uint8)
+    noise[..., 3] = 255  # incompressible: every output is over the limit
+    Image.fromarray(noise, "RGBA").save(folder / "square.png")
+    out = tmp_path / "out"
+    out.mkdir()
+    limit = 2048
+
+    def limited():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
+
+    result = subprocess.run([sys.executable, "-m", "inkwarp.cli", "render", str(scene), "-o",
+                             f"{out}/{output}", "-q", *args], capture_output=True, text=True,
+                            preexec_fn=limited, cwd=tmp_path,
+                            env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})
+    assert result.returncode == 1, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
+    name = output.rstrip("/")
+    written = f"{out / name}" + ("/frame_0000.png" if output.endswith("/") else "")
+    assert lines[0].startswith(f"inkwarp render: error: {written}: the file could not be "
+                               "written (File too large); "), lines[0]
+    assert "ulimit -f" in lines[0]
+    assert leftovers(out) == [] and [p.name for p in out.iterdir()] == (
+        ["chunk"] if output == "chunk/" else [])
+    if output == "chunk/":
+        assert list((out / "chunk").iterdir()) == []
+
+
 def test_ray_workers_fit_each_nodes_cpus_and_memory():
     """How many render workers a Ray cluster holds: per live node the fewer of its CPUs
     and its memory over the scene's; none at all is a clear error naming the fix."""

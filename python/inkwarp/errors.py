@@ -36,6 +36,14 @@ class InternalError(InkwarpError):
     program. The message asks for a report; the command line exits with status 1."""
 
 
+class OutputWriteError(OSError):
+    """An output could not be written for a reason of the machine's, not of the input: a
+    full disk, a quota, a file-size limit, a failing device, or ffmpeg failing. The message
+    names the output, the reason and what to do; whatever was written of it is removed.
+    ``errno`` is the reason's error number where there is one. The command line exits
+    with status 1."""
+
+
 class InkwarpWarning(UserWarning):
     """Something inkwarp did works but is probably not what was meant (for example a
     transfer map that folds the drawing over)."""

@@ -125,23 +125,25 @@ class FfmpegAlphaWriter(FrameWriter):
         try:
             self._process.stdin.write(np.ascontiguousarray(rgba).tobytes())
         except BrokenPipeError:
-            self._process.wait()
-            raise OSError(f"{self.target}: ffmpeg stopped while encoding: {self._errors()}"
-                          ) from None
+            # ffmpeg stopped reading: its exit status and messages say why.
+            raise video.ffmpeg_failure(self.target, self._process.wait(), self._errors()
+                                       ) from None
 
     def _errors(self) -> str:
         if self._log is None:
             return ""
         self._log.seek(0)
-        text = self._log.read().decode("utf-8", "replace").strip()
-        return " ".join(text.split())[-400:] or "no message"
+        return self._log.read().decode("utf-8", "replace").strip()
 
     def _commit(self) -> list[Path]:
         assert self._process is not None and self._process.stdin is not None
-        self._process.stdin.close()
+        try:
+            self._process.stdin.close()
+        except BrokenPipeError:
+            pass  # ffmpeg stopped: its exit status says why
         code = self._process.wait()
         if code != 0:
-            raise OSError(f"{self.target}: ffmpeg failed (exit status {code}): {self._errors()}")
+            raise video.ffmpeg_failure(self.target, code, self._errors())
         self._process = None
         assert self._temp is not None
         os.replace(self._temp, self.target)

@@ -142,12 +142,17 @@ def _write_new_frame(path: Path, frame: np.ndarray) -> bool:
 
     from inkwarp._atomic import temp_path
     from inkwarp.imaging import PNG_COMPRESS_LEVEL
+    from inkwarp.video import write_failure
 
     if frame_file_complete(path):
         return False
     temp = temp_path(path, ".png")
     try:
-        Image.fromarray(frame, "RGBA").save(temp, format="PNG", compress_level=PNG_COMPRESS_LEVEL)
+        try:
+            Image.fromarray(frame, "RGBA").save(temp, format="PNG",
+                                                compress_level=PNG_COMPRESS_LEVEL)
+        except OSError as err:
+            raise write_failure(path, err) from None
         try:
             os.link(temp, path)
         except FileExistsError:

@@ -25,6 +25,7 @@ Examples
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 from pathlib import Path
@@ -129,6 +130,56 @@ def _as_frame(frame: np.ndarray) -> np.ndarray:
     return arr
 
 
+#: What to do when a write fails for each of the reasons a disk gives.
+_WRITE_FIXES = {
+    errno.ENOSPC: "free space on that disk or write the output to another one",
+    errno.EDQUOT: "free space within your quota or write the output to another disk",
+    errno.EFBIG: "the file system's or the process's file-size limit (ulimit -f) allows no "
+                 "more; raise the limit or write the output to another disk",
+    errno.EIO: "check the disk, or write the output to another one",
+}
+
+#: How ffmpeg reports those reasons in its messages.
+_FFMPEG_REASONS = {"No space left on device": errno.ENOSPC, "Disk quota exceeded": errno.EDQUOT,
+                   "File too large": errno.EFBIG, "Input/output error": errno.EIO}
+
+
+def write_failure(target: Path, err: OSError) -> OSError:
+    """The error for an output that could not be written because of ``err``: where that is
+    a disk's reason (full, quota, file-size limit, I/O), one
+    :class:`~inkwarp.errors.OutputWriteError` naming the output, the reason and the fix;
+    any other error as it is."""
+    from inkwarp.errors import OutputWriteError
+
+    if isinstance(err, OutputWriteError) or err.errno not in _WRITE_FIXES:
+        return err
+    what = "the frames" if target.is_dir() or not target.suffix else "the file"
+    failure = OutputWriteError(f"{target}: {what} could not be written "
+                               f"({os.strerror(err.errno)}); {_WRITE_FIXES[err.errno]}")
+    failure.errno = err.errno
+    return failure
+
+
+def ffmpeg_failure(target: Path, code: int, said: str) -> OSError:
+    """The error for ffmpeg exiting with ``code`` (negative: killed by that signal) having
+    said ``said``: :func:`write_failure` where it could not write (a full disk; SIGXFSZ is
+    a file-size limit), otherwise ffmpeg's own words."""
+    import signal
+
+    reason = next((number for text, number in _FFMPEG_REASONS.items() if text in said), None)
+    if code == -getattr(signal, "SIGXFSZ", 0):
+        reason = errno.EFBIG
+    if reason is not None:
+        return write_failure(target, OSError(reason, os.strerror(reason)))
+    if code < 0:
+        how = f"killed by {signal.Signals(-code).name} ({signal.strsignal(-code)})"
+    else:
+        how = f"exit status {code}"
+    words = " ".join(said.split())[-400:]
+    return OSError(f"{target}: ffmpeg failed ({how})" + (f": {words}" if words else
+                                                         ": it gave no reason"))
+
+
 def _temp_name(target: Path, suffix: str) -> Path:
     """A new empty file beside ``target``, created with the permissions of any new file
     (0o666 less the umask: mkstemp's 0o600 would survive the rename); its name carries
@@ -191,7 +242,10 @@ class FrameWriter:
         elif size != self.size:
             raise ValueError(f"frame {self.frames_written} is {size[0]}x{size[1]}; the others "
                              f"are {self.size[0]}x{self.size[1]}")
-        self._write(arr)
+        try:
+            self._write(arr)
+        except OSError as err:
+            raise write_failure(self.target, err) from None
         self.frames_written += 1
 
     def close(self) -> list[Path]:
@@ -203,6 +257,9 @@ class FrameWriter:
             raise ValueError(f"{self.target}: no frames to write")
         try:
             self.paths = self._commit()
+        except OSError as err:
+            self._discard()
+            raise write_failure(self.target, err) from None
         except BaseException:
             self._discard()
             raise
@@ -288,7 +345,11 @@ class PngSequenceWriter(FrameWriter):
         return FRAME_PATTERN.format(self.first_frame + i)
 
     def _write(self, frame: np.ndarray) -> None:
-        _save_png(frame, self._temp / self._name(self.frames_written))
+        name = self._name(self.frames_written)
+        try:
+            _save_png(frame, self._temp / name)
+        except OSError as err:
+            raise write_failure(self.target / name, err) from None
 
     def _commit(self) -> list[Path]:
         names = [self._name(i) for i in range(self.frames_written)]
@@ -361,7 +422,10 @@ class GifWriter(FrameWriter):
 
     def _discard(self) -> None:
         if self._file is not None:
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError:
+                pass  # the buffered rest could not be written either (a full disk): removed below
             self._file = None
         if self._temp is not None:
             self._temp.unlink(missing_ok=True)
@@ -441,7 +505,7 @@ class Mp4Writer(FrameWriter):
             # ffmpeg stopped reading: its exit status and stderr say why.
             self._finish()
             raise OSError(f"{self.target}: ffmpeg stopped after {self.frames_written} "
-                          "frames") from None
+                          "frames; it gave no reason") from None
 
     def _start(self, width: int, height: int) -> None:
         import subprocess
@@ -480,14 +544,7 @@ class Mp4Writer(FrameWriter):
             log.seek(0)
             said = log.read().decode("utf-8", "replace").strip().splitlines()
         if code != 0:
-            reason = "; ".join(line.strip() for line in said[-3:])
-            if code < 0:
-                import signal
-
-                how = f"killed by {signal.Signals(-code).name} ({signal.strsignal(-code)})"
-            else:
-                how = f"exit status {code}"
-            raise OSError(f"{self.target}: ffmpeg failed ({how})" + (f": {reason}" if reason else ""))
+            raise ffmpeg_failure(self.target, code, "; ".join(line.strip() for line in said[-3:]))
 
     def _commit(self) -> list[Path]:
         assert self._temp is not None
