@@ -44,9 +44,12 @@ _NAMED = {"white": [255, 255, 255, 255], "black": [0, 0, 0, 255],
           "transparent": [0, 0, 0, 0], "none": [0, 0, 0, 0]}
 
 
-def parse_background(text: str) -> list[int]:
+def parse_background(text: str, option: str = "--background") -> list[int]:
     """An RGBA background from ``transparent``, ``white``, ``black``, ``#RRGGBB``,
-    ``#RRGGBBAA`` or ``R,G,B[,A]`` (0-255)."""
+    ``#RRGGBBAA`` or ``R,G,B[,A]`` (0-255); a message names ``option`` (``"background"``
+    for Python's argument)."""
+    from inkwarp.cli._common import given
+
     spec = text.strip().lower()
     if spec in _NAMED:
         return list(_NAMED[spec])
@@ -60,7 +63,7 @@ def parse_background(text: str) -> list[int]:
     parts = [p.strip() for p in spec.split(",")]
     if len(parts) in (3, 4) and all(p.isdigit() and int(p) <= 255 for p in parts):
         return [int(p) for p in parts] + [255] * (4 - len(parts))
-    raise ValueError(f"--background {text}: give transparent, white, black, #RRGGBB, "
+    raise ValueError(f"{given(option, text)}: give transparent, white, black, #RRGGBB, "
                      "#RRGGBBAA or R,G,B[,A] with numbers 0-255")
 
 
@@ -217,15 +220,24 @@ class TransparentGifWriter(FrameWriter):
 MAX_SHEET_SIDE_PX = 16384
 
 
-def check_sheet_size(columns: int, rows: int, width: int, height: int, spec: str | None) -> None:
+def check_sheet_size(columns: int, rows: int, width: int, height: int, spec: str | None,
+                     option: str = "--sprite-sheet") -> None:
     """Refuse, before any rendering, a sprite sheet wider or taller than
-    :data:`MAX_SHEET_SIDE_PX`."""
+    :data:`MAX_SHEET_SIDE_PX`; the message names ``option`` (``"sprite_sheet"`` for
+    Python's argument)."""
+    from inkwarp.cli._common import given
+
     w, h = columns * width, rows * height
     if max(w, h) > MAX_SHEET_SIDE_PX:
-        given = f"--sprite-sheet {spec}" if spec and spec != "auto" else "--sprite-sheet"
-        raise ValueError(f"{given}: {columns}x{rows} frames of {width}x{height} make a "
+        cli = option.startswith("-")
+        if spec and spec != "auto":
+            what = given(option, spec)
+        else:
+            what = option if cli else f"{option}=True"
+        frames = "--frames" if cli else "frames=(A, B)"
+        raise ValueError(f"{what}: {columns}x{rows} frames of {width}x{height} make a "
                          f"{w}x{h} sheet, over the {MAX_SHEET_SIDE_PX} px a side that game "
-                         "engines load; pick fewer frames with --frames, another COLSxROWS, "
+                         f"engines load; pick fewer frames with {frames}, another COLSxROWS, "
                          "or render a smaller scene")
 
 
@@ -268,9 +280,10 @@ def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.Path
                              f"{out.stem}-frame{out.suffix}")
 
 
-def sheet_layout(count: int, spec: str | None) -> tuple[int, int]:
+def sheet_layout(count: int, spec: str | None, option: str = "--sprite-sheet") -> tuple[int, int]:
     """``(columns, rows)`` of a sprite sheet for ``count`` frames: ``COLSxROWS``, ``COLS``
-    (rows as needed), or None for the squarest grid.
+    (rows as needed), or None for the squarest grid; a message names ``option``
+    (``"sprite_sheet"`` for Python's argument).
 
     Examples
     --------
@@ -280,6 +293,8 @@ def sheet_layout(count: int, spec: str | None) -> tuple[int, int]:
     if spec is None or spec == "auto":
         columns = max(1, math.ceil(math.sqrt(count)))
         return columns, max(1, math.ceil(count / columns))
+    from inkwarp.cli._common import given
+
     text = spec.lower().strip()
     try:
         if "x" in text:
@@ -288,13 +303,14 @@ def sheet_layout(count: int, spec: str | None) -> tuple[int, int]:
             c = int(text)
             r = math.ceil(count / c) if c > 0 else 0
     except ValueError:
-        raise ValueError(f"--sprite-sheet {spec}: give COLSxROWS (such as 8x4) or COLS"
+        raise ValueError(f"{given(option, spec)}: give COLSxROWS (such as 8x4) or COLS"
                          ) from None
     if c < 1 or r < 1:
-        raise ValueError(f"--sprite-sheet {spec}: columns and rows must be at least 1")
+        raise ValueError(f"{given(option, spec)}: columns and rows must be at least 1")
     if c * r < count:
-        raise ValueError(f"--sprite-sheet {spec}: {c}x{r} holds {c * r} frames, the render "
-                         f"has {count}; give more rows or columns, or pick fewer with --frames")
+        raise ValueError(f"{given(option, spec)}: {c}x{r} holds {c * r} frames, the render "
+                         f"has {count}; give more rows or columns, or pick fewer with "
+                         f"{'--frames' if option.startswith('-') else 'frames=(A, B)'}")
     return c, r
 
 

@@ -96,10 +96,10 @@ def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[in
     if frames is None:
         return 0, scene.frame_count
     if isinstance(frames, str):
-        return parse_frames(frames, scene.frame_count)
+        return parse_frames(frames, scene.frame_count, option="frames")
     start, stop = int(frames[0]), int(frames[1])
     if not 0 <= start < stop <= scene.frame_count:
-        raise ValueError(f"frames {start}:{stop}: the scene has frames 0 to "
+        raise ValueError(f"frames=({start}, {stop}): the scene has frames 0 to "
                          f"{scene.frame_count - 1}; give 0 <= A < B <= {scene.frame_count}")
     return start, stop
 
@@ -224,7 +224,8 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
             outputs.check_sheet_json(output, scene)
         scene = _common.load_scene(os.fspath(scene))
     if background is not None:
-        colour = (outputs.parse_background(background) if isinstance(background, str)
+        colour = (outputs.parse_background(background, option="background")
+                  if isinstance(background, str)
                   else [int(v) for v in background])
         scene = outputs.with_background(scene, colour)
     transparent = scene.to_dict().get("background", [255, 255, 255, 255])[3] == 0
@@ -237,8 +238,8 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
                              "name the output sheet.png")
         layout = None if sprite_sheet is True else str(sprite_sheet)
         # A bad layout, or a sheet too big to load, fails before rendering.
-        outputs.check_sheet_size(*outputs.sheet_layout(stop - start, layout), scene.width,
-                                 scene.height, layout)
+        outputs.check_sheet_size(*outputs.sheet_layout(stop - start, layout, "sprite_sheet"),
+                                 scene.width, scene.height, layout, "sprite_sheet")
         writer: Any = outputs.SpriteSheetWriter(target, scene.fps, stop - start, layout, start)
     elif kind == "png":
         raise ValueError(f"{target}: a .png holds one frame (save Scene.render(time=T) for one; "
@@ -247,8 +248,8 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
                          "(sprite_sheet=True; inkwarp render --sprite-sheet)")
     elif skip_existing:
         if kind != "dir":
-            raise ValueError(f"{target}: --skip-existing works with a directory of PNG frames "
-                             "(-o DIR/), whose frames are separate files")
+            raise ValueError(f"{target}: skip_existing=True works with a directory of PNG "
+                             "frames (an output ending in /), whose frames are separate files")
         return _render_missing(scene, target, start, stop, method=method, ray=ray,
                                progress=progress)
     else:

@@ -45,9 +45,22 @@ def load_scene(path: str) -> Any:
     return inkwarp.Scene.load(path)
 
 
-def parse_frames(spec: str, frame_count: int) -> tuple[int, int]:
+def given(option: str, value: object) -> str:
+    """How a message quotes a value given: ``--frames 5:1`` for a command-line flag,
+    ``frames='5:1'`` for a Python argument (``option`` without the dashes).
+
+    Examples
+    --------
+    >>> given("--frames", "5:1"), given("frames", "5:1")
+    ('--frames 5:1', "frames='5:1'")
+    """
+    return f"{option} {value}" if option.startswith("-") else f"{option}={value!r}"
+
+
+def parse_frames(spec: str, frame_count: int, option: str = "--frames") -> tuple[int, int]:
     """``(start, stop)`` of ``--frames A:B``: frames A, A+1, ..., B-1 (either end may be
-    left out, as in a Python slice).
+    left out, as in a Python slice). Messages name ``option`` (``"frames"`` for Python's
+    argument).
 
     Examples
     --------
@@ -56,16 +69,16 @@ def parse_frames(spec: str, frame_count: int) -> tuple[int, int]:
     """
     text = spec.strip()
     if ":" not in text:
-        raise ValueError(f"--frames {spec}: write a range A:B (frames A to B-1), such as 0:24")
+        raise ValueError(f"{given(option, spec)}: write a range A:B (frames A to B-1), such as 0:24")
     first, _, last = text.partition(":")
     try:
         start = int(first) if first.strip() else 0
         stop = int(last) if last.strip() else frame_count
     except ValueError:
-        raise ValueError(f"--frames {spec}: A and B must be whole frame numbers, such as 0:24"
+        raise ValueError(f"{given(option, spec)}: A and B must be whole frame numbers, such as 0:24"
                          ) from None
     if start < 0 or stop > frame_count or start >= stop:
-        raise ValueError(f"--frames {spec}: the scene has frames 0 to {frame_count - 1}; give "
+        raise ValueError(f"{given(option, spec)}: the scene has frames 0 to {frame_count - 1}; give "
                          f"0 <= A < B <= {frame_count}")
     return start, stop
 

@@ -171,6 +171,10 @@ def _run(args: argparse.Namespace) -> int:
 
     start, stop = (_common.parse_frames(args.frames, scene.frame_count)
                    if args.frames is not None else (0, scene.frame_count))
+    if kind == "sheet":  # refused here in the command line's words, before rendering
+        layout = None if args.sprite_sheet == "auto" else args.sprite_sheet
+        outputs.check_sheet_size(*outputs.sheet_layout(stop - start, layout), scene.width,
+                                 scene.height, layout)
     # The output as given: a trailing / makes shot_v1.2/ a directory.
     paths = rendering.render(scene, args.output, frames=(start, stop), method=args.method,
                              sprite_sheet=args.sprite_sheet, skip_existing=args.skip_existing,
