@@ -1107,6 +1107,42 @@ test('Save writes each scene to its own file: undo past opening, two tabs, a fil
   }
 });
 
+test('two tabs closed with unsaved work: each is offered back, neither overwrites the other', async () => {
+  const { page: a, context, errors: errs } = await openEditor(browser, server.url);
+  try {
+    const b = await context.newPage();
+    b.on('dialog', (d) => void d.accept());
+    await b.goto(server.url);
+    await b.waitForSelector('body[data-ready]');
+    for (const [p, at] of [[a, [100, 50]], [b, [300, 60]]]) {
+      await p.keyboard.press('r');
+      await p.keyboard.press('p');
+      await click(p, at);
+      await p.evaluate(() => window.inkwarp.autosave.flush());
+    }
+    const last = (p) => p.evaluate(() => window.inkwarp.store.doc.features.at(-1).rest[0].map(Math.round));
+    const wanted = new Set([JSON.stringify(await last(a)), JSON.stringify(await last(b))]);
+    await a.close({ runBeforeUnload: false });
+    await b.close({ runBeforeUnload: false });
+    const found = new Set();
+    for (let i = 0; i < 2; i++) {
+      const p = await context.newPage();
+      await p.goto(server.url);
+      await p.waitForSelector('body[data-ready]');
+      await p.waitForSelector('#restore', { timeout: 10000 });
+      const question = await p.textContent('#restore span');
+      assert(i === 1 || /1 more kept from other tabs/.test(question), `the first offer says another is kept: ${question}`);
+      await p.click('#restore-yes');
+      await p.waitForFunction(() => /Restored/.test(document.querySelector('#message')?.textContent ?? ''));
+      found.add(JSON.stringify(await last(p)));
+    }
+    assert(JSON.stringify([...found].sort()) === JSON.stringify([...wanted].sort()), `both tabs' work came back: ${[...found]} of ${[...wanted]}`);
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+  }
+});
+
 /** Presses a key diamond of the timeline and moves the pointer `dx` px in 1 px steps. */
 async function dragDiamond(p, feature, t, dx, opts = {}) {
   const box = await p.evaluate(([f, time]) => {

@@ -32,36 +32,93 @@ export interface KeptView {
   time: number;
 }
 
-/** A place that holds one snapshot. */
+/**
+ * A place that holds this tab's snapshot (`get`, `put`, `clear`), beside those other tabs
+ * left: each tab keeps its own, so two tabs' unsaved work never overwrite each other.
+ */
 export interface SnapshotStore {
   get(): Promise<Snapshot | null>;
   put(s: Snapshot): Promise<void>;
   clear(): Promise<void>;
+  /** Snapshots that tabs no longer open left, newest first. */
+  left(): Promise<{ key: string; snapshot: Snapshot }[]>;
+  /** Forgets another tab's snapshot (restored here, or declined). */
+  drop(key: string): Promise<void>;
 }
 
-/** A snapshot store in memory (tests, and browsers without IndexedDB). */
+/** Which of `keys` belong to tabs still open (see `holdTab`); none where the browser cannot tell. */
+export type OpenTabs = (keys: string[]) => Promise<Set<string>>;
+
+/** Of `all` (key, snapshot) pairs, those other than `own` whose tab is closed, newest first. */
+async function leftBehind(all: [string, Snapshot][], own: string, open: OpenTabs): Promise<{ key: string; snapshot: Snapshot }[]> {
+  const others = all.filter(([k]) => k !== own);
+  const live = await open(others.map(([k]) => k));
+  return others.filter(([k]) => !live.has(k)).map(([key, snapshot]) => ({ key, snapshot })).sort((a, b) => b.snapshot.savedAt - a.snapshot.savedAt);
+}
+
+const noneOpen: OpenTabs = async () => new Set();
+
+/** A snapshot store in memory (tests, and browsers without IndexedDB); `shared` plays IndexedDB. */
 export class MemoryStore implements SnapshotStore {
-  value: Snapshot | null = null;
+  constructor(
+    readonly key = 'tab',
+    readonly shared = new Map<string, Snapshot>(),
+    private open: OpenTabs = noneOpen,
+  ) {}
+  get value(): Snapshot | null {
+    return this.shared.get(this.key) ?? null;
+  }
   async get(): Promise<Snapshot | null> {
     return this.value;
   }
   async put(s: Snapshot): Promise<void> {
-    this.value = s;
+    this.shared.set(this.key, s);
   }
   async clear(): Promise<void> {
-    this.value = null;
+    this.shared.delete(this.key);
+  }
+  left(): Promise<{ key: string; snapshot: Snapshot }[]> {
+    return leftBehind([...this.shared], this.key, this.open);
+  }
+  async drop(key: string): Promise<void> {
+    this.shared.delete(key);
   }
 }
 
 const DB = 'inkwarp-editor';
 const STORE = 'autosave';
-const KEY = 'current';
+const LOCK = 'inkwarp-tab-';
 
-/** The snapshot store of the page: one record in an IndexedDB object store. */
+/**
+ * This tab's key: kept in sessionStorage, so a reload (or a closed tab reopened) finds its
+ * own snapshot, and held as a Web Lock for as long as the tab lives, so other tabs can tell
+ * its snapshot is not left behind.
+ */
+export function holdTab(): string {
+  let key = sessionStorage.getItem('inkwarp-tab');
+  if (!key) {
+    key = `tab-${Date.now().toString(36)}-${Math.random().toString(36).slice(2, 8)}`;
+    sessionStorage.setItem('inkwarp-tab', key);
+  }
+  void navigator.locks?.request(LOCK + key, () => new Promise<void>(() => {}));
+  return key;
+}
+
+/** Which tabs are open, from the Web Locks they hold. */
+export const openTabs: OpenTabs = async (keys) => {
+  const held = new Set(((await navigator.locks?.query())?.held ?? []).map((l) => l.name));
+  return new Set(keys.filter((k) => held.has(LOCK + k)));
+};
+
+/** The snapshot store of the page: a record per tab in an IndexedDB object store. */
 export class IndexedDbStore implements SnapshotStore {
   private db: Promise<IDBDatabase>;
 
-  constructor(factory: IDBFactory = indexedDB) {
+  constructor(
+    readonly key: string,
+    private open: OpenTabs = openTabs,
+    factory: IDBFactory = indexedDB,
+  ) {
     this.db = new Promise((resolve, reject) => {
       const req = factory.open(DB, 1);
       req.onupgradeneeded = () => req.result.createObjectStore(STORE);
@@ -82,13 +139,21 @@ export class IndexedDbStore implements SnapshotStore {
   }
 
   async get(): Promise<Snapshot | null> {
-    return ((await this.run('readonly', (s) => s.get(KEY))) as Snapshot | undefined) ?? null;
+    return ((await this.run('readonly', (s) => s.get(this.key))) as Snapshot | undefined) ?? null;
   }
   async put(snap: Snapshot): Promise<void> {
-    await this.run('readwrite', (s) => s.put(snap, KEY));
+    await this.run('readwrite', (s) => s.put(snap, this.key));
   }
   async clear(): Promise<void> {
-    await this.run('readwrite', (s) => s.delete(KEY));
+    await this.run('readwrite', (s) => s.delete(this.key));
+  }
+  async left(): Promise<{ key: string; snapshot: Snapshot }[]> {
+    const keys = (await this.run('readonly', (s) => s.getAllKeys())) as string[];
+    const values = (await this.run('readonly', (s) => s.getAll())) as Snapshot[];
+    return leftBehind(keys.map((k, i) => [String(k), values[i]]), this.key, this.open);
+  }
+  async drop(key: string): Promise<void> {
+    await this.run('readwrite', (s) => s.delete(key));
   }
 }
 

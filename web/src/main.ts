@@ -2,7 +2,7 @@
 // solving), builds the page, and opens the scene named in the URL or the built-in example.
 
 import { App } from './app';
-import { Autosaver, IndexedDbStore, MemoryStore, type SnapshotStore, clockTime, fetchDataUri, restoreQuestion } from './autosave';
+import { Autosaver, IndexedDbStore, MemoryStore, type SnapshotStore, clockTime, fetchDataUri, holdTab, restoreQuestion } from './autosave';
 import { Engine } from './engine';
 import { builtinScene } from './examples';
 import * as examples from './examples';
@@ -91,7 +91,7 @@ function showTitle(store: Store): void {
 async function keepWork(store: Store, ui: Ui, source: string | null): Promise<void> {
   let kept: SnapshotStore;
   try {
-    kept = new IndexedDbStore();
+    kept = new IndexedDbStore(holdTab());
     await kept.get();
   } catch {
     kept = new MemoryStore();
@@ -105,10 +105,23 @@ async function keepWork(store: Store, ui: Ui, source: string | null): Promise<vo
     (err) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error'),
   );
   // Unsaved work is offered back whatever the page opened: it is the file's own (the same
-  // path), or it names itself and what it would replace, and then saves by download.
-  const previous = await kept.get().catch(() => null);
+  // path), or it names itself and what it would replace, and then saves by download. This
+  // tab's own work (a reload) first, else the newest that a closed tab left.
+  let previous = await kept.get().catch(() => null);
+  let left: Awaited<ReturnType<SnapshotStore['left']>> = [];
+  if (!previous?.unsaved) {
+    const closed = await kept.left().catch(() => []);
+    // Closed tabs' saved scenes are in their files: only their unsaved work is kept.
+    for (const c of closed.filter((c) => !c.snapshot.unsaved)) await kept.drop(c.key).catch(() => {});
+    left = closed.filter((c) => c.snapshot.unsaved);
+    previous = left[0]?.snapshot ?? null;
+  }
   const own = (previous?.source ?? null) === source;
-  if (previous?.unsaved && (await ui.offerRestore(restoreQuestion(previous, Date.now(), own || !source ? undefined : ui.fileName)))) {
+  const more = left.length > 1 ? ` (${left.length - 1} more kept from other tabs: open the editor again to be offered them)` : '';
+  const restore = previous?.unsaved && (await ui.offerRestore(restoreQuestion(previous, Date.now(), own || !source ? undefined : ui.fileName) + more));
+  // Another tab's work, once restored here or declined, is not offered again.
+  let settled = !restore;
+  if (previous?.unsaved && restore) {
     try {
       const opened = store.origin;
       await ui.openScene(previous.doc, previous.fileName);
@@ -118,10 +131,13 @@ async function keepWork(store: Store, ui: Ui, source: string | null): Promise<vo
       if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
       store.markUnsaved();
       ui.message(`Restored the scene from ${clockTime(previous.savedAt)}.`, 'info');
+      await saver.flush(); // now this tab's, before the other tab's copy goes
+      settled = true;
     } catch (err) {
       ui.fileError('The kept scene', err);
     }
   }
+  if (left.length && settled) await kept.drop(left[0].key).catch(() => {});
   let revision = store.revision;
   let unsaved = store.unsaved;
   showTitle(store);

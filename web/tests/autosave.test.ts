@@ -61,6 +61,27 @@ describe('autosave', () => {
     expect(errors).toEqual(['quota']);
   });
 
+  it('each tab keeps its own snapshot; closed tabs\' are left behind, newest first, open tabs\' not', async () => {
+    const shared = new Map();
+    const openKeys = new Set(['b']);
+    const open = async (keys: string[]) => new Set(keys.filter((k) => openKeys.has(k)));
+    const [a, b, c, d] = ['a', 'b', 'c', 'd'].map((k) => new MemoryStore(k, shared, open));
+    const snap = (fileName: string, savedAt: number, unsaved = true) => ({ doc: scene(), fileName, savedAt, unsaved });
+    await a.put(snap('a.json', 1));
+    await b.put(snap('b.json', 3));
+    await c.put(snap('c.json', 2));
+    await d.put(snap('d.json', 4, false));
+    expect((await a.get())?.fileName).toBe('a.json');
+    expect((await b.get())?.fileName).toBe('b.json'); // not overwritten by another tab
+    const fresh = new MemoryStore('new', shared, open);
+    expect(await fresh.get()).toBeNull();
+    // b is still open: not left behind; the others newest first, saved ones too (to drop).
+    expect((await fresh.left()).map((l) => l.key)).toEqual(['d', 'c', 'a']);
+    await fresh.drop('c');
+    expect((await fresh.left()).map((l) => l.key)).toEqual(['d', 'a']);
+    expect(await c.get()).toBeNull();
+  });
+
   it('asks to restore with the time of day', () => {
     const at = new Date(2026, 10, 27, 14, 32, 5).getTime();
     expect(clockTime(at)).toBe('14:32');
