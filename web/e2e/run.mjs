@@ -1090,6 +1090,13 @@ test('Save writes each scene to its own file: undo past opening, two tabs, a fil
     await q.keyboard.press('Control+s');
     await q.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? '') && !window.inkwarp.store.unsaved);
     assert(JSON.parse(readFileSync(scenePath, 'utf8')).duration === 2, 'Ctrl+S in the duration field saved the typed duration');
+    // A duration that would leave keys past the end is refused, and the field shows the
+    // scene's own again.
+    await q.evaluate(() => window.inkwarp.store.edit((d) => ({ ...d, features: d.features.map((f, i) => (i ? f : { ...f, keys: [{ t: 1.5, points: f.rest }] })) })));
+    await q.fill('#duration', '1');
+    await q.press('#duration', 'Enter');
+    await q.waitForFunction(() => /has keys past 1 s \(the last at 1\.5 s\)/.test(document.querySelector('#message')?.textContent ?? ''));
+    assert((await q.evaluate(() => [window.inkwarp.store.doc.duration, document.querySelector('#duration').value])).join() === '2,2', 'the duration stayed 2 s, in the field too');
     // The server gone: the work stays unsaved (and in the browser's copy), a copy downloads.
     own.proc.kill();
     await new Promise((r) => setTimeout(r, 300));

@@ -1217,13 +1217,27 @@ export class Ui {
     this.app.dragging = false;
   }
 
+  /** A refused value: say why and show the scene's own value in its field again. */
+  private refuse(why: string): void {
+    this.message(why, 'error');
+    (this.els.fps as HTMLInputElement).value = String(this.store.doc.fps);
+    (this.els.duration as HTMLInputElement).value = String(this.store.doc.duration);
+  }
+
   private setFps(fps: number): void {
-    if (!(fps > 0 && fps <= 240)) return this.message('Frames per second must be between 1 and 240.', 'error');
+    if (!(fps > 0 && fps <= 240)) return this.refuse('Frames per second must be between 1 and 240.');
     this.tryEdit((d) => ({ ...d, fps }));
   }
 
   private setDuration(duration: number): void {
-    if (!(duration > 0)) return this.message('The duration must be more than 0 seconds.', 'error');
+    if (!(duration > 0)) return this.refuse('The duration must be more than 0 seconds.');
+    // A key cannot leave the animation: a shorter duration would hide keys past its end.
+    const past = this.store.doc.features.filter((f) => (f.keys ?? []).some((k) => k.t > duration + 1e-9));
+    if (past.length) {
+      const last = Math.max(...past.flatMap((f) => (f.keys ?? []).map((k) => k.t)));
+      const names = past.slice(0, 3).map((f) => f.id).join(', ') + (past.length > 3 ? ', …' : '');
+      return this.refuse(`${names} ${past.length === 1 ? 'has keys' : 'have keys'} past ${duration} s (the last at ${last} s): move or delete them first, or keep a duration of at least ${last} s.`);
+    }
     this.tryEdit((d) => ({ ...d, duration }));
     if (this.store.view.time > duration) this.setTime(duration);
   }
