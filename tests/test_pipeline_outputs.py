@@ -422,6 +422,34 @@ def test_the_command_line_names_its_flags(capsys, tmp_path):
     assert code == 2 and "--frames 5:1: the scene has frames 0 to 3" in err
 
 
+def test_a_transparent_scene_to_an_mp4_warns_once_with_the_formats_that_keep_alpha(capsys, tmp_path, transparent):
+    scene, _ = transparent
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.mp4", "-q")
+    assert code == 0 and (tmp_path / "a.mp4").exists()
+    assert err == ("inkwarp render: warning: a.mp4: an .mp4 has no alpha, so the transparent "
+                   "background is flattened over white; for alpha render a .webm, .mov, .apng "
+                   "or a directory of PNGs, or give an opaque background\n")
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "b.mp4", "-q", "--background", "white")
+    assert code == 0 and err == ""
+    with pytest.warns(inkwarp.InkwarpWarning, match=r"b\.mp4: an \.mp4 has no alpha") as caught:
+        inkwarp.render(str(scene), tmp_path / "b.mp4",
+                       background="transparent")
+    assert len(caught) == 1
+
+
+@pytest.mark.parametrize("command, hint", [
+    (["render", "{scene}"], "name the file or directory to write, such as out.mp4 or frames/"),
+    (["schema"], "leave -o out to print the schema")])
+def test_o_dash_is_refused_not_made_a_folder_named_dash(capsys, tmp_path, monkeypatch, command, hint):
+    scene = write_scene(tmp_path / "s")
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, *[a.format(scene=scene) for a in command], "-o", "-")
+    assert code == 2 and out == ""
+    assert err == (f"inkwarp {command[0]}: error: -o -: inkwarp {command[0]} writes files, not "
+                   f"standard output; {hint}\n")
+    assert not (tmp_path / "-").exists()
+
+
 def test_ray_workers_fit_each_nodes_cpus_and_memory():
     """How many render workers a Ray cluster holds: per live node the fewer of its CPUs
     and its memory over the scene's; none at all is a clear error naming the fix."""

@@ -114,6 +114,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"inkwarp {args.command}: error: -o is empty; give the file or directory to write",
               file=sys.stderr)
         return 2
+    if getattr(args, "output", None) == "-":
+        # Not standard output, as "-" is elsewhere: it would be a file or folder named "-".
+        hint = {"render": "name the file or directory to write, such as out.mp4 or frames/",
+                "schema": "leave -o out to print the schema"}.get(
+                    args.command, "name the file to write")
+        print(f"inkwarp {args.command}: error: -o -: inkwarp {args.command} writes files, not "
+              f"standard output; {hint}", file=sys.stderr)
+        return 2
     try:
         with _sigterm_unwinds():
             return int(args.func(args) or 0)

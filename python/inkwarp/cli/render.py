@@ -31,10 +31,10 @@ The output's suffix picks the format: .png (one frame: --time or --frame, defaul
 0), .gif, .mp4, .webm (VP9, alpha), .mov (ProRes 4444, alpha), .apng (alpha), or a
 directory (a path ending in / or without a suffix). A scene whose background has alpha 0
 (or --background transparent) keeps its alpha in PNGs, .webm, .mov and .apng, and gets
-1-bit transparency in a .gif; .mp4 is flattened over white. Frame i is the drawing at time
-i / fps; frames are the same however a render is split into --frames ranges or Ray
-chunks. The output is written under a temporary name and renamed at the end, so a failed
-or interrupted render leaves nothing behind.
+1-bit transparency in a .gif; .mp4 is flattened over white (with a warning). Frame i is
+the drawing at time i / fps; frames are the same however a render is split into --frames
+ranges or Ray chunks. The output is written under a temporary name and renamed at the
+end, so a failed or interrupted render leaves nothing behind.
 """
 
 
@@ -78,18 +78,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 @contextlib.contextmanager
 def convergence_lines(command: str = "render") -> Iterator[None]:
     """Shows each solve that did not converge as one line on stderr (the first of each
-    layer as it happens, then how many more there were), not as a Python warning, for
-    `inkwarp COMMAND`."""
-    from inkwarp.errors import ConvergenceWarning
+    layer as it happens, then how many more there were), and every other inkwarp warning
+    as one line, not as a Python warning, for `inkwarp COMMAND`."""
+    from inkwarp.errors import ConvergenceWarning, InkwarpWarning
 
     seen: set[str] = set()
     more = 0
 
     def show(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
         nonlocal more
-        if not issubclass(category, ConvergenceWarning):
+        if not issubclass(category, InkwarpWarning):
             return shown(message, category, filename, lineno, file, line)
         text = str(message)
+        if not issubclass(category, ConvergenceWarning):
+            print(f"inkwarp {command}: warning: {text}", file=sys.stderr, flush=True)
+            return None
         layer = text.split(" at t = ")[0]
         if layer in seen:
             more += 1
@@ -98,7 +101,7 @@ def convergence_lines(command: str = "render") -> Iterator[None]:
             print(f"inkwarp {command}: warning: {text}", file=sys.stderr, flush=True)
 
     with warnings.catch_warnings():
-        warnings.simplefilter("always", ConvergenceWarning)
+        warnings.simplefilter("always", InkwarpWarning)
         shown = warnings.showwarning
         warnings.showwarning = show
         try:
