@@ -218,7 +218,7 @@ export class Ui {
           if (sel.value) void this.openExample(sel.value);
           sel.value = '';
         } })),
-        h('button#save', { title: 'Save the scene as one JSON file (Ctrl+S)', onclick: () => void this.save() }, 'Save'),
+        h('button#save', { title: 'Save the scene (Ctrl+S): back to its file when inkwarp edit SCENE opened it, else a download of one JSON file', onclick: () => void this.save() }, 'Save'),
         h('button#export-png', { title: 'Export the current frame as PNG', onclick: () => void this.exportPng() }, 'PNG'),
         h('button#export-webm', { title: 'Export the animation as WebM video', onclick: () => void this.exportWebm() }, 'WebM'),
       ),
@@ -323,7 +323,8 @@ export class Ui {
     scrub.value = String(view.time);
     const n = frameCount(doc);
     const frame = Math.min(n - 1, Math.round(view.time * doc.fps));
-    this.els.timeText.textContent = `${view.time.toFixed(2)} s · frame ${frame + 1}/${n}`;
+    // Frames counted from 0, as `inkwarp render --frame`, `--frames a:b` and file names count them.
+    this.els.timeText.textContent = `${view.time.toFixed(2)} s · frame ${frame} of 0–${n - 1}`;
     if (document.activeElement !== this.els.fps) (this.els.fps as HTMLInputElement).value = String(doc.fps);
     if (document.activeElement !== this.els.duration) (this.els.duration as HTMLInputElement).value = String(doc.duration);
     const ex = this.els.examples as HTMLSelectElement;
@@ -493,7 +494,7 @@ export class Ui {
     const ruler = h('div.track.ruler', { onpointerdown: (e: PointerEvent) => this.scrubTrack(e) });
     const n = frameCount(doc);
     const every = Math.max(1, Math.round(n / 24));
-    for (let i = 0; i < n; i += every) ruler.append(h('span.tick', { style: { left: pct(i / doc.fps) } }, i % (every * 4) === 0 ? String(i + 1) : ''));
+    for (let i = 0; i < n; i += every) ruler.append(h('span.tick', { style: { left: pct(i / doc.fps) } }, i % (every * 4) === 0 ? String(i) : ''));
     ruler.append(h('span.playhead', { style: { left: pct(view.time) } }));
     this.els.ready = h('div#ready.ready', { title: 'Frames solved and ready to play (solved ahead while playing)' });
     ruler.append(this.els.ready);
