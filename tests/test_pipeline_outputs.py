@@ -422,19 +422,25 @@ def test_the_command_line_names_its_flags(capsys, tmp_path):
     assert code == 2 and "--frames 5:1: the scene has frames 0 to 3" in err
 
 
-def test_a_transparent_scene_to_an_mp4_warns_once_with_the_formats_that_keep_alpha(capsys, tmp_path, transparent):
-    scene, _ = transparent
+def test_an_mp4_of_frames_with_transparent_pixels_warns_once_with_the_formats_that_keep_alpha(capsys, tmp_path, transparent):
+    # Only frames that show the transparent background count: a picture that covers the
+    # whole frame (a photograph) renders to an .mp4 without a word.
+    scene, reference = transparent
+    count = sum(int(f[..., 3].min() < 255) for f in reference)
+    assert count == len(reference) > 1
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.mp4", "-q")
     assert code == 0 and (tmp_path / "a.mp4").exists()
-    assert err == ("inkwarp render: warning: a.mp4: an .mp4 has no alpha, so the transparent "
-                   "background is flattened over white; for alpha render a .webm, .mov, .apng "
-                   "or a directory of PNGs, or give an opaque background\n")
+    assert err == (f"inkwarp render: warning: a.mp4: {count} of its {count} frames had transparent "
+                   "pixels, flattened over white (an .mp4 has no alpha); for alpha render a .webm, "
+                   ".mov, .apng or a directory of PNGs, or give the scene an opaque background\n")
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "b.mp4", "-q", "--background", "white")
     assert code == 0 and err == ""
-    with pytest.warns(inkwarp.InkwarpWarning, match=r"b\.mp4: an \.mp4 has no alpha") as caught:
-        inkwarp.render(str(scene), tmp_path / "b.mp4",
-                       background="transparent")
+    with pytest.warns(inkwarp.InkwarpWarning, match=r"b\.mp4: 1 of its 1 frames had transparent pixels") as caught:
+        inkwarp.render(str(scene), tmp_path / "b.mp4", frames=(2, 3), background="transparent")
     assert len(caught) == 1
+    opaque = write_scene(tmp_path / "opaque")
+    code, _, err = run(capsys, "render", opaque, "-o", tmp_path / "c.mp4", "-q")
+    assert code == 0 and err == ""
 
 
 @pytest.mark.parametrize("command, hint", [

@@ -23,14 +23,12 @@ import base64
 import math
 import mimetypes
 import os
-import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from inkwarp.errors import InkwarpWarning
 from inkwarp.scene import WARM_CHAIN_FRAMES, preroll_start
 
 __all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "frame_file_complete", "portable_scene",
@@ -234,11 +232,6 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     start, stop = _frame_indices(scene, frames)
     kind = video.output_kind(output)
     target = video.check_target(output, kind)
-    if transparent and kind == "mp4" and not sprite_sheet:
-        warnings.warn(f"{target.name}: an .mp4 has no alpha, so the transparent background is "
-                      "flattened over white; for alpha render a .webm, .mov, .apng or a "
-                      "directory of PNGs, or give an opaque background", InkwarpWarning,
-                      stacklevel=2)
     if sprite_sheet:
         if target.suffix.lower() != ".png":
             raise ValueError(f"{target}: a sprite sheet is a .png (with a .json beside it); "

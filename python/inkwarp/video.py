@@ -28,6 +28,7 @@ from __future__ import annotations
 import errno
 import os
 import shutil
+import warnings
 from pathlib import Path
 from types import TracebackType
 from typing import Any, Literal
@@ -490,8 +491,12 @@ class Mp4Writer(FrameWriter):
         self._temp: Path | None = None
         self._pipe: Any = None  # the ffmpeg process, started on the first frame
         self._log: Any = None
+        #: Frames that had pixels with alpha below 255 (flattened over white), for the
+        #: warning when the file is done.
+        self.see_through = 0
 
     def _write(self, frame: np.ndarray) -> None:
+        self.see_through += frame.shape[2] == 4 and frame[..., 3].min() < 255
         rgb = flatten(frame)
         h, w = rgb.shape[:2]
         if h % 2 or w % 2:
@@ -552,6 +557,14 @@ class Mp4Writer(FrameWriter):
         if self._temp.stat().st_size == 0:
             raise OSError(f"{self.target}: ffmpeg wrote an empty file")
         os.replace(self._temp, self.target)
+        if self.see_through:
+            from inkwarp.errors import InkwarpWarning
+
+            which = f"{self.see_through} of its {self.frames_written} frames"
+            warnings.warn(f"{self.target.name}: {which} had transparent pixels, flattened over "
+                          "white (an .mp4 has no alpha); for alpha render a .webm, .mov, .apng "
+                          "or a directory of PNGs, or give the scene an opaque background",
+                          InkwarpWarning, stacklevel=4)
         return [self.target]
 
     def _discard(self) -> None:

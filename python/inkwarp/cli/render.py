@@ -31,7 +31,8 @@ The output's suffix picks the format: .png (one frame: --time or --frame, defaul
 0), .gif, .mp4, .webm (VP9, alpha), .mov (ProRes 4444, alpha), .apng (alpha), or a
 directory (a path ending in / or without a suffix). A scene whose background has alpha 0
 (or --background transparent) keeps its alpha in PNGs, .webm, .mov and .apng, and gets
-1-bit transparency in a .gif; .mp4 is flattened over white (with a warning). Frame i is
+1-bit transparency in a .gif; .mp4 is flattened over white (with a warning where a frame
+shows through). Frame i is
 the drawing at time i / fps; frames are the same however a render is split into --frames
 ranges or Ray chunks. The output is written under a temporary name and renamed at the
 end, so a failed or interrupted render leaves nothing behind.
