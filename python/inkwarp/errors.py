@@ -36,7 +36,7 @@ class InternalError(InkwarpError):
     program. The message asks for a report; the command line exits with status 1."""
 
 
-class OutputWriteError(OSError):
+class OutputWriteError(InkwarpError, OSError):
     """An output could not be written for a reason of the machine's, not of the input: a
     full disk, a quota, a file-size limit, a failing device, or ffmpeg failing. The message
     names the output, the reason and what to do; whatever was written of it is removed.

@@ -20,6 +20,7 @@ Examples
 from __future__ import annotations
 
 import base64
+import errno
 import math
 import mimetypes
 import os
@@ -154,18 +155,29 @@ def _write_new_frame(path: Path, frame: np.ndarray) -> bool:
         except OSError as err:
             raise write_failure(path, err) from None
         try:
-            os.link(temp, path)
-        except FileExistsError:
-            if frame_file_complete(path):
-                return False
-            os.replace(temp, path)
-        except OSError:  # a file system without hard links
-            if frame_file_complete(path):
-                return False
-            os.replace(temp, path)
+            try:
+                os.link(temp, path)
+            except FileExistsError:
+                if frame_file_complete(path):
+                    return False
+                os.replace(temp, path)
+            except OSError as err:
+                if err.errno not in NO_HARD_LINKS:
+                    raise
+                # A file system without hard links: checked, then renamed (two chunks that
+                # reach the frame at the same moment may both write it, the same bytes).
+                if frame_file_complete(path):
+                    return False
+                os.replace(temp, path)
+        except OSError as err:
+            raise write_failure(path, err) from None
         return True
     finally:
         temp.unlink(missing_ok=True)
+
+
+#: The errors of ``os.link`` that mean the file system has no hard links (not a failure).
+NO_HARD_LINKS = {errno.EPERM, errno.EOPNOTSUPP, errno.ENOTSUP, errno.EXDEV, errno.EMLINK, errno.ENOSYS}
 
 
 def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int] | str | None = None,

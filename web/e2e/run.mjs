@@ -1067,8 +1067,13 @@ test('Save writes each scene to its own file: undo past opening, two tabs, a fil
     await p.keyboard.press('p');
     await click(p, [20, 20]);
     assert((await p.title()).startsWith('● '), `unsaved work is marked in the title: ${await p.title()}`);
+    // Saved twice at once (a held Ctrl+S): the second waits for the first and knows its
+    // version, so it is no conflict.
+    await p.keyboard.press('Control+s');
     await p.keyboard.press('Control+s');
     await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
+    await p.evaluate(() => window.inkwarp.ui.save());
+    assert(!p.dialogs.includes('confirm') && /Saved to/.test(await message(p)), `two quick saves asked nothing: ${p.dialogs} ${await message(p)}`);
     assert(!(await p.title()).startsWith('● ') && features().length === 1, 'saved: one point, title unmarked');
     // Tab B, open all along, adds its own point: its save is refused, not written over A's.
     const q = b.page;
@@ -1117,10 +1122,15 @@ test('Save writes each scene to its own file: undo past opening, two tabs, a fil
 test('two tabs closed with unsaved work: each is offered back, neither overwrites the other', async () => {
   const { page: a, context, errors: errs } = await openEditor(browser, server.url);
   try {
+    // B starts as a duplicate of A (sessionStorage copied, with A's key): it takes its own.
+    const aKey = await a.evaluate(() => sessionStorage.getItem('inkwarp-tab'));
     const b = await context.newPage();
+    await b.addInitScript((key) => { if (!sessionStorage.getItem('inkwarp-tab')) sessionStorage.setItem('inkwarp-tab', key); }, aKey);
     b.on('dialog', (d) => void d.accept());
     await b.goto(server.url);
     await b.waitForSelector('body[data-ready]');
+    const bKey = await b.evaluate(() => sessionStorage.getItem('inkwarp-tab'));
+    assert(aKey && bKey && aKey !== bKey, `a duplicated tab keeps its own copy: ${aKey} ${bKey}`);
     for (const [p, at] of [[a, [100, 50]], [b, [300, 60]]]) {
       await p.keyboard.press('r');
       await p.keyboard.press('p');

@@ -46,7 +46,7 @@ export interface SnapshotStore {
   drop(key: string): Promise<void>;
 }
 
-/** Which of `keys` belong to tabs still open (see `holdTab`); none where the browser cannot tell. */
+/** Which of `keys` belong to tabs still open (see `holdTab`); all where the browser cannot tell. */
 export type OpenTabs = (keys: string[]) => Promise<Set<string>>;
 
 /** Of `all` (key, snapshot) pairs, those other than `own` whose tab is closed, newest first. */
@@ -90,23 +90,42 @@ const STORE = 'autosave';
 const LOCK = 'inkwarp-tab-';
 
 /**
+ * Holds the Web Lock of `key` until `release` is called (never, by default): null when
+ * another tab holds it. Where the browser has no Web Locks (an address that is neither
+ * https nor this machine), every key counts as held elsewhere (see `openTabs`).
+ */
+export function claimTab(key: string, release: Promise<void> = new Promise(() => {})): Promise<boolean> {
+  const locks = navigator.locks;
+  if (!locks) return Promise.resolve(false);
+  return new Promise((resolve) => {
+    void locks.request(LOCK + key, { ifAvailable: true }, (lock) => {
+      resolve(lock !== null);
+      return lock ? release : undefined;
+    });
+  });
+}
+
+/**
  * This tab's key: kept in sessionStorage, so a reload (or a closed tab reopened) finds its
  * own snapshot, and held as a Web Lock for as long as the tab lives, so other tabs can tell
- * its snapshot is not left behind.
+ * its snapshot is not left behind. A duplicated tab, which copies sessionStorage while the
+ * first still holds the key, takes a key of its own.
  */
-export function holdTab(): string {
-  let key = sessionStorage.getItem('inkwarp-tab');
-  if (!key) {
-    key = `tab-${Date.now().toString(36)}-${Math.random().toString(36).slice(2, 8)}`;
-    sessionStorage.setItem('inkwarp-tab', key);
+export async function holdTab(): Promise<string> {
+  const fresh = () => `tab-${Date.now().toString(36)}-${Math.random().toString(36).slice(2, 8)}`;
+  let key = sessionStorage.getItem('inkwarp-tab') ?? fresh();
+  if (navigator.locks && !(await claimTab(key))) {
+    key = fresh();
+    await claimTab(key);
   }
-  void navigator.locks?.request(LOCK + key, () => new Promise<void>(() => {}));
+  sessionStorage.setItem('inkwarp-tab', key);
   return key;
 }
 
-/** Which tabs are open, from the Web Locks they hold. */
+/** Which tabs are open, from the Web Locks they hold (all of them, without Web Locks). */
 export const openTabs: OpenTabs = async (keys) => {
-  const held = new Set(((await navigator.locks?.query())?.held ?? []).map((l) => l.name));
+  if (!navigator.locks) return new Set(keys);
+  const held = new Set(((await navigator.locks.query()).held ?? []).map((l) => l.name));
   return new Set(keys.filter((k) => held.has(LOCK + k)));
 };
 
@@ -148,9 +167,22 @@ export class IndexedDbStore implements SnapshotStore {
     await this.run('readwrite', (s) => s.delete(this.key));
   }
   async left(): Promise<{ key: string; snapshot: Snapshot }[]> {
-    const keys = (await this.run('readonly', (s) => s.getAllKeys())) as string[];
-    const values = (await this.run('readonly', (s) => s.getAll())) as Snapshot[];
-    return leftBehind(keys.map((k, i) => [String(k), values[i]]), this.key, this.open);
+    // Keys and values from one transaction, so that they pair up whatever other tabs write.
+    const db = await this.db;
+    const all = await new Promise<[string, Snapshot][]>((resolve, reject) => {
+      const out: [string, Snapshot][] = [];
+      const tx = db.transaction(STORE, 'readonly');
+      const req = tx.objectStore(STORE).openCursor();
+      req.onsuccess = () => {
+        const cursor = req.result;
+        if (!cursor) return;
+        out.push([String(cursor.key), cursor.value as Snapshot]);
+        cursor.continue();
+      };
+      tx.oncomplete = () => resolve(out);
+      tx.onerror = () => reject(tx.error ?? new Error('IndexedDB failed.'));
+    });
+    return leftBehind(all, this.key, this.open);
   }
   async drop(key: string): Promise<void> {
     await this.run('readwrite', (s) => s.delete(key));

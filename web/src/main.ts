@@ -2,7 +2,7 @@
 // solving), builds the page, and opens the scene named in the URL or the built-in example.
 
 import { App } from './app';
-import { Autosaver, IndexedDbStore, MemoryStore, type SnapshotStore, clockTime, fetchDataUri, holdTab, restoreQuestion } from './autosave';
+import { Autosaver, IndexedDbStore, MemoryStore, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, restoreQuestion } from './autosave';
 import { Engine } from './engine';
 import { builtinScene } from './examples';
 import * as examples from './examples';
@@ -91,7 +91,7 @@ function showTitle(store: Store): void {
 async function keepWork(store: Store, ui: Ui, source: string | null): Promise<void> {
   let kept: SnapshotStore;
   try {
-    kept = new IndexedDbStore(holdTab());
+    kept = new IndexedDbStore(await holdTab());
     await kept.get();
   } catch {
     kept = new MemoryStore();
@@ -107,14 +107,24 @@ async function keepWork(store: Store, ui: Ui, source: string | null): Promise<vo
   // Unsaved work is offered back whatever the page opened: it is the file's own (the same
   // path), or it names itself and what it would replace, and then saves by download. This
   // tab's own work (a reload) first, else the newest that a closed tab left.
+  showTitle(store);
   let previous = await kept.get().catch(() => null);
   let left: Awaited<ReturnType<SnapshotStore['left']>> = [];
+  // A closed tab's work is offered here while this tab holds its lock, so that no other new
+  // tab offers it too; the lock goes when the offer is answered.
+  let answered = () => {};
+  let claimed: string | null = null;
   if (!previous?.unsaved) {
     const closed = await kept.left().catch(() => []);
     // Closed tabs' saved scenes are in their files: only their unsaved work is kept.
     for (const c of closed.filter((c) => !c.snapshot.unsaved)) await kept.drop(c.key).catch(() => {});
     left = closed.filter((c) => c.snapshot.unsaved);
-    previous = left[0]?.snapshot ?? null;
+    for (const c of left) {
+      if (await claimTab(c.key, new Promise((r) => (answered = r)))) {
+        [claimed, previous] = [c.key, c.snapshot];
+        break;
+      }
+    }
   }
   const own = (previous?.source ?? null) === source;
   const more = left.length > 1 ? ` (${left.length - 1} more kept from other tabs: open the editor again to be offered them)` : '';
@@ -137,7 +147,8 @@ async function keepWork(store: Store, ui: Ui, source: string | null): Promise<vo
       ui.fileError('The kept scene', err);
     }
   }
-  if (left.length && settled) await kept.drop(left[0].key).catch(() => {});
+  if (claimed && settled) await kept.drop(claimed).catch(() => {});
+  answered();
   let revision = store.revision;
   let unsaved = store.unsaved;
   showTitle(store);

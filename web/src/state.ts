@@ -540,6 +540,18 @@ export class Store {
     this.emit(false);
   }
 
+  /**
+   * A save of the document at `revision` with origin `origin` wrote its file, which is now
+   * at `version`: every step of the history on that file knows the new version, and the
+   * document counts as saved if it is still that one's.
+   */
+  fileSaved(origin: Origin, version: string | null, revision: number): void {
+    for (const o of [this.origin, ...this.undoStack.map((s) => s.origin), ...this.redoStack.map((s) => s.origin)]) {
+      if (o.saveUrl === origin.saveUrl && o.path === origin.path) o.version = version;
+    }
+    if (this.origin === origin) this.markSaved(revision);
+  }
+
   private pushUndo(doc: SceneDoc): void {
     this.undoStack.push({ doc, origin: this.origin });
     if (this.undoStack.length > 500) this.undoStack.shift();

@@ -132,16 +132,10 @@ export class Ui {
   get fileName(): string {
     return this.store.origin.fileName;
   }
-  set fileName(name: string) {
-    this.store.origin.fileName = name;
-  }
-  /** Set when the scene came from `inkwarp edit`: Save writes it back there. */
-  get saveUrl(): string | null {
-    return this.store.origin.saveUrl;
-  }
-  set saveUrl(url: string | null) {
-    this.store.origin.saveUrl = url;
-  }
+  /** The save in progress: saves run one after another, each with the version the last one left. */
+  private saving: Promise<void> = Promise.resolve();
+  /** Set when a field's value was refused (see `refuse`). */
+  private refused = false;
   private playStart: { wall: number; time: number } | null = null;
   private lastShownFrame = -1;
 
@@ -1220,6 +1214,7 @@ export class Ui {
 
   /** A refused value: say why and show the scene's own value in its field again. */
   private refuse(why: string): void {
+    this.refused = true;
     this.message(why, 'error');
     (this.els.fps as HTMLInputElement).value = String(this.store.doc.fps);
     (this.els.duration as HTMLInputElement).value = String(this.store.doc.duration);
@@ -1327,10 +1322,12 @@ export class Ui {
     const handled = () => e.preventDefault();
     const field = target && (target.tagName === 'INPUT' || target.tagName === 'SELECT' || target.tagName === 'TEXTAREA') && (target as HTMLInputElement).type !== 'checkbox' && (target as HTMLInputElement).type !== 'range';
     if (field && ctrl && k === 's') {
-      // Save from a field too: leaving it first commits the value typed so far.
+      // Save from a field too: leaving it first commits the value typed so far (a refused
+      // one is said, and nothing is saved).
       handled();
+      this.refused = false;
       target.blur();
-      return void this.save();
+      return this.refused ? undefined : void this.save();
     }
     if (field) return;
     if (ctrl && (k === 'z' || k === 'Z')) {
@@ -1450,7 +1447,6 @@ export class Ui {
       if (json && !this.confirmReplace(file.name)) return;
       if (json) {
         await this.openSceneText(await file.text(), file.name);
-        this.saveUrl = null;
         this.message(`Opened ${file.name}.`, 'info');
         return;
       }
@@ -1467,7 +1463,6 @@ export class Ui {
       }
       if (!this.confirmReplace(file.name)) return;
       await this.openScene(this.sceneFromImage(uri, img, file.name), file.name.replace(/\.[^.]*$/, '') + '.json');
-      this.saveUrl = null;
       this.message(`Opened ${file.name} (${img.width}×${img.height}). Pick a tool and trace.`, 'info');
     } catch (err) {
       this.fileError(file.name, err);
@@ -1492,7 +1487,6 @@ export class Ui {
       doc.layers.push(layer.visible ? { name: names[i], image } : { name: names[i], image, visible: false });
     }
     await this.openScene(doc, file.name.replace(/\.[^.]*$/, '') + '.json');
-    this.saveUrl = null;
     this.psdNotes = picture.notes;
     for (const note of picture.notes) console.warn(note);
     const warned = picture.notes.filter((n) => /blend mode/.test(n));
@@ -1619,11 +1613,9 @@ export class Ui {
       if (entry.url === null) doc = await builtinScene();
       else {
         await this.openSceneText(await (await fetch(entry.url)).text(), `${entry.name}.json`);
-        this.saveUrl = null;
         return;
       }
       await this.openScene(doc, `${entry.name}.json`);
-      this.saveUrl = null;
     } catch (err) {
       this.fileError(entry.title, err);
     }
@@ -1636,7 +1628,12 @@ export class Ui {
    * write the file leaves the work unsaved (the browser keeps its copy) and downloads a
    * copy.
    */
-  async save(): Promise<void> {
+  save(): Promise<void> {
+    this.saving = this.saving.catch(() => {}).then(() => this.saveNow());
+    return this.saving;
+  }
+
+  private async saveNow(): Promise<void> {
     const { origin, revision } = this.store;
     const text = serializeScene(this.store.doc);
     const blob = () => new Blob([text], { type: 'application/json' });
@@ -1656,8 +1653,7 @@ export class Ui {
           resp = await put('*');
         }
         if (!resp.ok) throw new Error(await resp.text());
-        origin.version = resp.headers.get('ETag');
-        this.store.markSaved(revision);
+        this.store.fileSaved(origin, resp.headers.get('ETag'), revision);
         this.message(`Saved to ${resp.headers.get('X-Inkwarp-Path') ?? where}.`, 'info');
       } catch (err) {
         download(blob(), origin.fileName);
@@ -1666,7 +1662,7 @@ export class Ui {
       return;
     }
     download(blob(), origin.fileName);
-    this.store.markSaved(revision);
+    if (this.store.origin === origin) this.store.markSaved(revision);
     this.message(`Downloaded ${origin.fileName}: this scene has no file the editor writes to (open one with inkwarp edit SCENE to save in place).`, 'info');
   }
 

@@ -209,7 +209,7 @@ class SceneFile:
             except FileNotFoundError:
                 mode = 0o666 & ~_umask()
             write_text(self.path, text, suffix=".json", mode=mode, sync=True)
-        return self.version_of(text)
+            return self.version() or self.version_of(text)  # the file's, as read back
 
 
 class ChangedOnDisk(Exception):
