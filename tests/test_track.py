@@ -77,11 +77,15 @@ def test_a_correction_key_pulls_the_track_through_it(videos):
     path, motion = videos["translate"]
     features = sv.drawing(W, H, seed=7)
     target = features[0]
-    rest = np.asarray(target["rest"], float)
+    rest = np.asarray(target["rest"], float) + 1e-4 / 3  # traced to more than a thousandth
+    target["rest"] = rest.tolist()
     nudged = motion.forward(rest, 12) + [5.0, 0.0]  # the animator moves it 5 px right
     target["keys"] = [{"t": 12 / 24, "points": nudged.tolist()}]
     doc = track_dict(path, sv.scene(W, H, features))
     keys = doc["features"][0]["keys"]
+    # The traced frame and the correction are written exactly as given (frame 0 is then
+    # the picture as it is); tracked frames to a thousandth.
+    assert keys[0]["points"] == rest.tolist() and keys[12]["points"] == nudged.tolist()
     offset = np.array([np.mean(np.asarray(keys[k]["points"]) - motion.forward(rest, k), axis=0)
                        for k in range(FRAMES)])
     assert np.asarray(keys[12]["points"]) == pytest.approx(nudged, abs=1e-3)
@@ -112,6 +116,14 @@ def test_simplify_keeps_every_frame_within_tolerance(videos):
                 between = pts[i] * (1 - w) + pts[i + 1] * w
                 dev = np.linalg.norm(between - np.asarray(key["points"]), axis=1).max()
                 assert dev <= px + 2e-3, (f_full["id"], k, dev)
+
+
+def test_ffmpegs_rounded_ntsc_rates_are_read_as_the_exact_rates():
+    from inkwarp.track import _exact_rate
+
+    assert _exact_rate(29.97) == 30000 / 1001 and _exact_rate(23.98) == 24000 / 1001
+    assert _exact_rate(59.94) == 60000 / 1001 and _exact_rate(119.88) == 120000 / 1001
+    assert [_exact_rate(r) for r in (24.0, 25.0, 30.0, 12.5, 29.5, 29.9)] == [24.0, 25.0, 30.0, 12.5, 29.5, 29.9]
 
 
 def test_simplify_keys_keeps_corrections():

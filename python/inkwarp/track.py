@@ -145,7 +145,17 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int]:
     if size is None or rate is None or not float(rate.group(1)) > 0:
         raise _unreadable(name, "ffmpeg finds no frame size or frame rate in it")
     width, height, fps = int(size.group(1)), int(size.group(2)), float(rate.group(1))
-    return name, float(fps), width, height
+    return name, _exact_rate(fps), width, height
+
+
+def _exact_rate(fps: float) -> float:
+    """The frame rate ffmpeg prints rounded (29.97, 23.98, 59.94) as the NTSC rate it
+    stands for (30000/1001 ...), so that a scene tracked from such a video, and the video
+    rendered from it, keep the source's exact rate; any other rate as printed."""
+    whole = round(fps * 1.001)
+    if fps != int(fps) and whole in (24, 30, 48, 60, 120) and abs(fps - whole / 1.001) < 0.006:
+        return whole * 1000 / 1001
+    return fps
 
 
 def _decode(name: str, pix_fmt: str, *, frames: int | None = None) -> bytes:
@@ -633,8 +643,12 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         if simplify_px is not None:
             kept = simplify_keys(series, simplify_px, keep=anchors_of[f.id])
         feature = doc["features"][i]
+        # The traced frame and the corrections keep their points exactly as given (frame K
+        # is then the picture as it is); the tracked ones are written to a thousandth.
+        given = {frame: f.rest, **f.keys}
         feature["keys"] = [{"t": k / clip.fps,
-                            "points": [[round(float(x), 3), round(float(y), 3)] for x, y in series[k]],
+                            "points": [[float(x), float(y)] if k in given else [round(float(x), 3), round(float(y), 3)]
+                                       for x, y in (given[k] if k in given else series[k])],
                             "interpolation": "linear"} for k in kept]
         out_features.append(feature)
     doc["features"] = out_features
