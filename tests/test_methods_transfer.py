@@ -100,7 +100,8 @@ def test_features_only_in_the_target_keep_their_keys():
         (lambda s: s["features"][2].update(kind="spline"),
          r'Feature "brow" is a polyline in the source \(features\[2\]\) but a spline in the target'),
         (lambda s: s["features"][3]["rest"].pop(),
-         r'Feature "cheek" has 4 rest control points in the source .* but 3 in the target'),
+         r'Feature "cheek" has 4 rest control points in the source .* but 3 in the target .*; '
+         r"give the target's 4 .*or leave the feature out of the source"),
     ],
 )
 def test_mismatches_are_errors_naming_the_feature(change, message):
@@ -140,6 +141,8 @@ def test_cli_bad_input_exits_2_with_one_line_and_no_output(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2
     assert err.count("\n") == 1 and 'Feature "nose"' in err
+    # The files come first, as in every message about a file.
+    assert err.startswith(f"inkwarp transfer: error: {tmp_path / 's.json'} → {tmp_path / 't.json'}: Feature"), err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json", "t.json"]
 
 

@@ -182,7 +182,7 @@ def test_a_full_disk_during_mp4_is_exit_1_with_no_file(tmp_path: Path) -> None:
                          capture_output=True, text=True, timeout=120,
                          preexec_fn=lambda: signal.signal(signal.SIGXFSZ, signal.SIG_IGN))
     assert run.returncode == 1, run.stderr
-    assert "ffmpeg" in run.stderr and str(out) in run.stderr and "Traceback" not in run.stderr
+    assert "file-size limit" in run.stderr and str(out) in run.stderr and "Traceback" not in run.stderr
     assert not out.exists()
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
 

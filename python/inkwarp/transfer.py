@@ -124,7 +124,12 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
     src_doc, _ = _load(source, "source")
     tgt_doc, tgt_base = _load(target, "target")
     src_features, tgt_features = _features(src_doc, "source"), _features(tgt_doc, "target")
-    new_keys = _inkwarp.transfer_keys(src_features, tgt_features)
+    try:
+        new_keys = _inkwarp.transfer_keys(src_features, tgt_features)
+    except ValueError as err:
+        # The engine names the feature and its places; the files they are in come first.
+        name = lambda scene, role: os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else f"the {role} scene"  # noqa: E731
+        raise ValueError(f"{name(source, 'source')} → {name(target, 'target')}: {err}") from None
     fold = _inkwarp.transfer_fold(src_features, tgt_features)
     if fold is not None:
         warnings.warn(fold[3], InkwarpWarning, stacklevel=2)
