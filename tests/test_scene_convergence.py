@@ -57,7 +57,7 @@ def test_the_cli_prints_one_line_and_succeeds(tmp_path, capsys):
     # the others counted.
     assert len(lines) == 2
     assert lines[0].startswith('inkwarp render: warning: layer "front" at t = 0.05 s (frame 1)')
-    assert lines[1] == "inkwarp render: warning: 2 more solves did not converge"
+    assert lines[1] == "inkwarp render: warning: 2 more solves did not converge (frames 2, 3)"
     assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == [f"frame_{i:04d}.png" for i in range(4)]
     json.loads(path.read_text())
 

@@ -49,17 +49,10 @@ pub fn check_size(what: &str, width: usize, height: usize) -> Result<(), String>
         return Err(format!("{what} is {width}×{height} pixels; both sides must be at least 1"));
     }
     if width > MAX_SIDE_PX || height > MAX_SIDE_PX {
-        return Err(format!(
-            "{what} is {width}×{height} pixels; each side may be at most {MAX_SIDE_PX}; use a \
-             smaller picture"
-        ));
+        return Err(format!("{what} is {width}×{height} pixels; each side may be at most {MAX_SIDE_PX}; use a smaller picture"));
     }
     if width.saturating_mul(height) > MAX_PIXELS {
-        return Err(format!(
-            "{what} is {width}×{height} pixels, more than the {} megapixels inkwarp handles; \
-             use a smaller picture",
-            MAX_PIXELS >> 20
-        ));
+        return Err(format!("{what} is {width}×{height} pixels, more than the {} megapixels inkwarp handles; use a smaller picture", MAX_PIXELS >> 20));
     }
     Ok(())
 }

@@ -155,6 +155,17 @@ def progress_bar(total: int, desc: str) -> Any:
                            "[{elapsed}<{remaining}, {rate_fmt}]")
 
 
+def say(line: str) -> None:
+    """Prints ``line`` on stderr on a line of its own: on a terminal, above a progress bar
+    that is showing (which is drawn again below it) instead of after the bar's text."""
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        tqdm.write(line, file=sys.stderr)
+    else:
+        print(line, file=sys.stderr, flush=True)
+
+
 def progress(frames: Iterable[Any], total: int, *, quiet: bool, desc: str) -> Iterator[Any]:
     """``frames`` with a progress display on stderr (:func:`progress_bar`) unless ``quiet``."""
     if quiet or total <= 1:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import re
 import sys
 import time
 import warnings
@@ -84,22 +85,22 @@ def convergence_lines(command: str = "render") -> Iterator[None]:
     from inkwarp.errors import ConvergenceWarning, InkwarpWarning
 
     seen: set[str] = set()
-    more = 0
+    more: list[str] = []  # where the solves after each layer's first did not converge
 
     def show(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
-        nonlocal more
         if not issubclass(category, InkwarpWarning):
             return shown(message, category, filename, lineno, file, line)
         text = str(message)
         if not issubclass(category, ConvergenceWarning):
-            print(f"inkwarp {command}: warning: {text}", file=sys.stderr, flush=True)
+            _common.say(f"inkwarp {command}: warning: {text}")
             return None
         layer = text.split(" at t = ")[0]
         if layer in seen:
-            more += 1
+            found = re.search(r"\(frame (\d+)\)", text)
+            more.append(found.group(1) if found else text.split(" at t = ")[1].split(":")[0])
         else:
             seen.add(layer)
-            print(f"inkwarp {command}: warning: {text}", file=sys.stderr, flush=True)
+            _common.say(f"inkwarp {command}: warning: {text}")
 
     with warnings.catch_warnings():
         warnings.simplefilter("always", InkwarpWarning)
@@ -109,8 +110,9 @@ def convergence_lines(command: str = "render") -> Iterator[None]:
             yield
         finally:
             if more:
-                print(f"inkwarp {command}: warning: {more} more solve{'s' if more != 1 else ''} "
-                      f"did not converge", file=sys.stderr, flush=True)
+                shown_at = ", ".join(more[:20]) + (", …" if len(more) > 20 else "")
+                print(f"inkwarp {command}: warning: {len(more)} more solve{'s' if len(more) != 1 else ''} "
+                      f"did not converge (frames {shown_at})", file=sys.stderr, flush=True)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -40,16 +40,21 @@ pub fn decode_image(bytes: &[u8]) -> Result<RgbaImage, String> {
     crate::limits::check_size("the picture", width as usize, height as usize)?;
     let decoded = image::load_from_memory_with_format(bytes, format)
         .map_err(|e| format!("the {format:?} image could not be decoded ({e})"))?;
-    let rgba = decoded.to_rgba8();
+    let mut rgba = decoded.to_rgba8();
+    if decoded.color().bits_per_pixel() == 16 * decoded.color().channel_count() as u16 {
+        // Sixteen bits rounded to eight, but never a faint nonzero value (a matte's, an alpha's) to 0.
+        rgba.iter_mut().zip(decoded.to_rgba16().iter()).for_each(|(n, &w)| *n = (*n).max((w > 0) as u8));
+    }
     Ok(RgbaImage { width: rgba.width() as usize, height: rgba.height() as usize, data: rgba.into_raw() })
 }
 
-/// A matte from an image: grey level times alpha, so black or transparent pixels are 0.
+/// A matte from an image: grey level times alpha, so black or transparent pixels are 0, and
+/// only they (a faint pixel rounds to 1, not 0: nonzero is connected).
 pub fn matte_values(image: &RgbaImage) -> Vec<u8> {
     let value = |px: &[u8]| {
         // Rec. 601 luma, then scaled by alpha; exact for pure black/white and grey.
         let luma = (299 * px[0] as u32 + 587 * px[1] as u32 + 114 * px[2] as u32 + 500) / 1000;
-        ((luma * px[3] as u32 + 127) / 255) as u8
+        (((luma * px[3] as u32 + 127) / 255) as u8).max((px[3] > 0 && px[..3] != [0, 0, 0]) as u8)
     };
     image.data.chunks_exact(4).map(value).collect()
 }
@@ -133,5 +138,21 @@ mod tests {
             data: vec![255, 255, 255, 255, 0, 0, 0, 255, 255, 255, 255, 0],
         };
         assert_eq!(matte_values(&image), vec![255, 0, 0]);
+        // Faint is not a hole: dark grey at low alpha, and a pure blue (luma 0), are 1.
+        let faint = RgbaImage { width: 2, height: 1, data: vec![3, 3, 3, 20, 0, 0, 1, 255] };
+        assert_eq!(matte_values(&faint), vec![1, 1]);
+    }
+
+    #[test]
+    fn a_faint_sixteen_bit_value_stays_nonzero() {
+        // 16-bit grey with alpha: 1, 128 and 129 of 65535 round to 0, 0 and 1 in 8 bits; a
+        // matte or alpha that faint must stay connected (nonzero), and 0 stay 0.
+        let mut bytes = Vec::new();
+        let pixels: Vec<u8> = [[0u16, 65535], [1, 1], [128, 128], [129, 65535]].iter().flatten().flat_map(|v| v.to_ne_bytes()).collect();
+        image::ImageEncoder::write_image(image::codecs::png::PngEncoder::new(&mut bytes), &pixels, 4, 1, image::ExtendedColorType::La16).unwrap();
+        let image = decode_image(&bytes).unwrap();
+        let alpha: Vec<u8> = image.data.chunks(4).map(|p| p[3]).collect();
+        assert_eq!((alpha, image.data[0], image.data[4], image.data[8]), (vec![255, 1, 1, 255], 0, 1, 1));
+        assert_eq!(matte_values(&image), vec![0, 1, 1, 1]);
     }
 }

@@ -826,6 +826,24 @@ proptest::proptest! {
 }
 
 #[test]
+fn the_warning_says_why_the_solve_stopped() {
+    // The cycle cap, the grid step's thin parts, or free parts too many to settle: each its own fix.
+    let mut loader = files(&[("back.png", picture(64, 48, |_, _| false)), ("front.png", picture(64, 48, |_, _| false))]);
+    let mut doc = valid_scene();
+    doc["layers"][1]["solver"] = json!({"max_cycles": 7});
+    doc["layers"][0]["solver"] = json!({"grid_step": 2});
+    let scene = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
+    let warn = |layer: usize, cycles: usize, t: f64| {
+        let report = Some(crate::solve::SolveReport { cycles, converged: false, ..Default::default() });
+        scene.convergence_warning(layer, t, &LayerSolve { field: crate::field::Field::zeros(1, 1), report, method_report: None }).unwrap()
+    };
+    assert!(warn(1, 7, 0.1).contains("raise solver.max_cycles"), "{}", warn(1, 7, 0.1));
+    assert!(warn(0, 30, 0.1).contains("at grid_step 2 parts of the matte thinner than the step"), "{}", warn(0, 30, 0.1));
+    assert!(warn(1, 3, 0.1).contains("too many to settle"), "{}", warn(1, 3, 0.1));
+    assert!(warn(1, 3, 1.0 / 24.0).contains("at t = 0.0417 s:"), "{}", warn(1, 3, 1.0 / 24.0));
+}
+
+#[test]
 fn a_solve_stopped_early_is_warned_about_with_its_layer_and_frame() {
     // Big enough that one cycle does not finish the solve (small grids solve directly).
     let mut loader = files(&[

@@ -976,7 +976,7 @@ const TORN_STOP_MARGIN: f64 = 3.0;
 /// about one unit in the last place of an `f32`, the field's own resolution.
 const FINEST_TOLERANCE: f64 = 1e-7;
 /// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say.
-const DEFAULT_MAX_CYCLES: usize = 100;
+pub(crate) const DEFAULT_MAX_CYCLES: usize = 100;
 /// The largest banded factor's work (unknowns × bandwidth², multiply-adds) of a torn piece
 /// solved whole.
 const DIRECT_WORK: usize = 1 << 25;
