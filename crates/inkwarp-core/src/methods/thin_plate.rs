@@ -293,10 +293,7 @@ pub fn thin_plate_field(
     report.dropped = info.dropped;
     report.samples_used = info.used;
     if info.used < info.distinct {
-        report.notes.push(format!(
-            "tps-exact thinned {} distinct sample positions to {} by farthest-point sampling (max_samples).",
-            info.distinct, info.used
-        ));
+        report.notes.push(format!("tps-exact thinned {} distinct sample positions to {} by farthest-point sampling (max_samples).", info.distinct, info.used));
     }
     Ok(map.field(width, height))
 }

@@ -81,11 +81,7 @@ pub(super) fn compute_field(
     // blank with no error): the limits refuse the inputs known to cause one, and this
     // catches any other.
     if solved.as_ref().is_ok_and(|layer| !layer.field.dx.iter().chain(&layer.field.dy).all(|v| v.is_finite())) {
-        return Err(format!(
-            "the {} field at t = {time_s} s is not finite (NaN or infinity); \
-             check the keys and the solver settings near this time",
-            solver.method.name()
-        ));
+        return Err(format!("the {} field at t = {time_s} s is not finite (NaN or infinity); check the keys and the solver settings near this time", solver.method.name()));
     }
     solved
 }
@@ -272,11 +268,7 @@ impl Scene {
             _ if solver.grid_step > 1 => format!("at grid_step {} parts of the matte thinner than the step (hair, strands) come apart and move freely; use grid_step 1 for this layer", solver.grid_step),
             _ => "parts of the surface joined to the rest at single points or by 1 px strands are too many to settle; hold them with points of their own, give the layer a tension, or use another method".to_string(),
         };
-        Some(format!(
-            "layer \"{name}\" {when}: the thin-plate solve did not converge ({} cycles, last \
-             change {:.3} px), so its field may be off by more than 0.05 px; {advice}",
-            report.cycles, report.final_change_px
-        ))
+        Some(format!("layer \"{name}\" {when}: the thin-plate solve did not converge ({} cycles, last change {:.3} px), so its field may be off by more than 0.05 px; {advice}", report.cycles, report.final_change_px))
     }
 
     /// Whether layer `layer` shows in frames (visible, with an image).

@@ -64,10 +64,7 @@ impl<'a> Walker<'a> {
             self.push(
                 path,
                 if path == "inkwarp" {
-                    format!(
-                        "this inkwarp reads scene format {constant}, found {found}; set \"inkwarp\": {constant} \
-                         (and convert the scene if it was written for another format)"
-                    )
+                    format!("this inkwarp reads scene format {constant}, found {found}; set \"inkwarp\": {constant} (and convert the scene if it was written for another format)")
                 } else {
                     format!("must be {constant}, found {found}")
                 },

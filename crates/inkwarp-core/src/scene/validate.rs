@@ -20,11 +20,7 @@ pub fn validate_doc(doc: &SceneDoc) -> Vec<Problem> { validate_doc_knowing(doc, 
 pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<Problem> {
     let mut p = Vec::new();
     if doc.inkwarp != FORMAT_VERSION {
-        let why = format!(
-            "this inkwarp reads scene format {FORMAT_VERSION}, found {}; set \"inkwarp\": {FORMAT_VERSION} (and convert \
-             the scene if it was written for another format)",
-            doc.inkwarp
-        );
+        let why = format!("this inkwarp reads scene format {FORMAT_VERSION}, found {}; set \"inkwarp\": {FORMAT_VERSION} (and convert the scene if it was written for another format)", doc.inkwarp);
         p.push(Problem::new("inkwarp", why));
     }
     for (key, value) in [("width", doc.width), ("height", doc.height)] {
@@ -46,11 +42,9 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
         let why = if !(duration.is_finite() && duration > 0.0) {
             Some(format!("the duration must be a number of seconds > 0, found {duration}; leave it out to end at the last key"))
         } else if duration > MAX_TIME_S {
-            Some(format!("the duration may be at most {MAX_TIME_S} s, found {}; split a \
-                          longer animation into several scenes", limits::show(duration)))
+            Some(format!("the duration may be at most {MAX_TIME_S} s, found {}; split a longer animation into several scenes", limits::show(duration)))
         } else if doc.fps.is_finite() && doc.fps > 0.0 && duration * doc.fps > MAX_FRAMES as f64 {
-            Some(format!("{duration} s at {} frames per second is more than {MAX_FRAMES} frames; \
-                          shorten it or lower fps", doc.fps))
+            Some(format!("{duration} s at {} frames per second is more than {MAX_FRAMES} frames; shorten it or lower fps", doc.fps))
         } else {
             None
         };
@@ -94,23 +88,10 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
             let (key_path, t, j) = (format!("{path}.keys[{k}]"), key.time_s, k.wrapping_sub(1));
             let why = match previous_t {
                 _ if !t.is_finite() => Some(format!("the key time must be a finite number of seconds, found {t}")),
-                _ if t.abs() > MAX_TIME_S => Some(format!(
-                    "key times may be at most {MAX_TIME_S} s (either side of 0), found {}; \
-                     split a longer animation into several scenes",
-                    limits::show(t)
-                )),
-                Some(b) if t > b && t - b < MIN_KEY_SPACING_S => Some(format!(
-                    "keys[{j}] and keys[{k}] are {:e} s apart, closer than {MIN_KEY_SPACING_S:e} s; \
-                     move them apart or remove one",
-                    t - b
-                )),
-                Some(b) if t == b => Some(format!(
-                    "two keys at t = {b} s (keys[{j}] and keys[{k}]); give each key its own time or remove one"
-                )),
-                Some(b) if t < b => Some(format!(
-                    "keys must be in increasing time order, but t = {t} s follows t = {b} s (keys[{j}]); \
-                     sort the keys by time"
-                )),
+                _ if t.abs() > MAX_TIME_S => Some(format!("key times may be at most {MAX_TIME_S} s (either side of 0), found {}; split a longer animation into several scenes", limits::show(t))),
+                Some(b) if t > b && t - b < MIN_KEY_SPACING_S => Some(format!("keys[{j}] and keys[{k}] are {:e} s apart, closer than {MIN_KEY_SPACING_S:e} s; move them apart or remove one", t - b)),
+                Some(b) if t == b => Some(format!("two keys at t = {b} s (keys[{j}] and keys[{k}]); give each key its own time or remove one")),
+                Some(b) if t < b => Some(format!("keys must be in increasing time order, but t = {t} s follows t = {b} s (keys[{j}]); sort the keys by time")),
                 _ => None,
             };
             p.extend(why.map(|why| Problem::new(format!("{key_path}.t"), why)));
@@ -120,10 +101,7 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
             let m = key.points.len();
             if m != n {
                 let s = if m == 1 { "" } else { "s" };
-                let why = format!(
-                    "this key has {m} control point{s} but the feature's rest has {n}; a key lists the same control points \
-                     as rest, in the same order"
-                );
+                let why = format!("this key has {m} control point{s} but the feature's rest has {n}; a key lists the same control points as rest, in the same order");
                 p.push(Problem::new(format!("{key_path}.points"), why));
             }
             check_points(&key.points, &format!("{key_path}.points"), &mut p);
@@ -230,20 +208,12 @@ pub fn validate_overrides(solver: &SolverOverrides, path: &str) -> Vec<Problem> 
         if !(a.is_finite() && a > 0.0 && a <= MAX_BEIER_NEELY_A) {
             push(
                 "beier_neely.a",
-                format!(
-                    "Beier–Neely's a must be a number of pixels > 0 and at most {MAX_BEIER_NEELY_A:e}, found {}; the \
-                     default is 1 (smaller values follow the drawing more tightly)",
-                    limits::show(a)
-                ),
+                format!("Beier–Neely's a must be a number of pixels > 0 and at most {MAX_BEIER_NEELY_A:e}, found {}; the default is 1 (smaller values follow the drawing more tightly)", limits::show(a)),
             );
         }
         for (key, value, default) in [("b", b, 2), ("p", p, 0)] {
             if !(value.is_finite() && (0.0..=MAX_BEIER_NEELY_EXPONENT).contains(&value)) {
-                let why = format!(
-                    "Beier–Neely's {key} must be a number from 0 to {MAX_BEIER_NEELY_EXPONENT}, found {}; the default \
-                     is {default}",
-                    limits::show(value)
-                );
+                let why = format!("Beier–Neely's {key} must be a number from 0 to {MAX_BEIER_NEELY_EXPONENT}, found {}; the default is {default}", limits::show(value));
                 push(&format!("beier_neely.{key}"), why);
             }
         }
@@ -252,10 +222,7 @@ pub fn validate_overrides(solver: &SolverOverrides, path: &str) -> Vec<Problem> 
     if let Some(n) = solver.tps_exact.map(|t| t.max_samples).filter(|n| !(1..=limit).contains(n)) {
         push(
             "tps_exact.max_samples",
-            format!(
-                "max_samples must be a whole number from 1 to {limit}, found {n}; the default is 1000 (the fit \
-                 takes O(n³) time and O(n²) memory)"
-            ),
+            format!("max_samples must be a whole number from 1 to {limit}, found {n}; the default is 1000 (the fit takes O(n³) time and O(n²) memory)"),
         );
     }
     p

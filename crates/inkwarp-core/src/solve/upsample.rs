@@ -11,7 +11,8 @@
 //! block of pixels (so a tear stays open even where its sides are joined far around); the
 //! weights of the dropped nodes are dropped and the rest renormalised (falling back to
 //! bilinear from the inner 2 × 2, then to the nearest value along the links). A piece with
-//! no coarse node takes the mean displacement of its samples, or stays at zero without any.
+//! no coarse node takes the mean displacement of its samples, or stays at zero without any;
+//! a coarse piece no sample holds moves with the held one it joins on the full grid.
 //! The editor's drag path, built for speed (`docs/dev/multigrid.md`); a test holds it to
 //! the straightforward per-pixel loop (to within the rounding of the sums' order).
 
@@ -57,7 +58,35 @@ fn solve_on_coarse_grid(
         Field { width: l.wc, height: l.hc, dx, dy }
     });
     let options = SolveOptions { tension: options.tension * sf * sf, grid_step: 1, ..options.clone() };
-    solve_from(&coarse, &constraints, &options, start.as_ref().map(FieldView::from), solver, warm)
+    let (mut fc, report) = solve_from(&coarse, &constraints, &options, start.as_ref().map(FieldView::from), solver, warm);
+    follow_held(grid, &l, &coarse, &constraints, &mut fc);
+    (fc, report)
+}
+
+/// A coarse piece that no sample holds but that joins a held one on the full grid (a strand
+/// thinner than the step, cut off on the coarse grid) moves with the nearest held coarse node
+/// along the full grid's links, instead of standing still while the part it hangs from moves.
+fn follow_held(grid: &Grid, l: &Layout, coarse: &Grid, constraints: &crate::grid::Constraints, fc: &mut Field) {
+    let (labels, count) = coarse.pieces();
+    let mut held = vec![false; count];
+    constraints.nodes.iter().for_each(|&c| held[labels[c] as usize] = true);
+    let pixel = |c: usize| l.py(c / l.wc) * grid.width + l.px(c % l.wc);
+    let loose = |c: usize| labels[c] != u32::MAX && !held[labels[c] as usize];
+    if constraints.nodes.is_empty() || !(0..labels.len()).any(loose) { return; }
+    // Breadth first over the full grid from the pixels of held coarse nodes: `from[p]` the coarse node reached.
+    let mut from = vec![u32::MAX; grid.len()];
+    let mut queue: VecDeque<usize> = (0..labels.len()).filter(|&c| labels[c] != u32::MAX && !loose(c)).map(|c| { from[pixel(c)] = c as u32; pixel(c) }).collect();
+    while let Some(p) = queue.pop_front() {
+        let (x, w) = (p % grid.width, grid.width);
+        let next = [(grid.link_right[p], p + 1), (x > 0 && grid.link_right[p - 1], p.wrapping_sub(1)), (grid.link_down[p], p + w), (p >= w && grid.link_down[p.wrapping_sub(w)], p.wrapping_sub(w))];
+        for (linked, q) in next {
+            if linked && from[q] == u32::MAX { (from[q], _) = (from[p], queue.push_back(q)); }
+        }
+    }
+    for c in (0..labels.len()).filter(|&c| loose(c) && from[pixel(c)] != u32::MAX) {
+        let h = from[pixel(c)] as usize;
+        (fc.dx[c], fc.dy[c]) = (fc.dx[h], fc.dy[h]);
+    }
 }
 
 /// What upsampling a `grid_step` solve on one grid needs besides the coarse field: the
@@ -842,6 +871,33 @@ mod tests {
                 let got = upsample(&grid, &Upsampling::new(&grid, s), &fc, &samples);
                 assert_same_values(&got, &expected, &format!("open {w}×{h}, s = {s}"));
             }
+        }
+    }
+
+    #[test]
+    fn a_strand_thinner_than_the_step_moves_with_what_it_hangs_from() {
+        // A 1 px diagonal staircase of hair off a held block: on the coarse grid at step 4
+        // its nodes are cut off from the block (no straight path links them), and held by
+        // nothing they stood still while the block moved 10 px right.
+        let (w, h) = (80, 60);
+        let mut active = vec![false; w * h];
+        (10..50).for_each(|y| (5..30).for_each(|x| active[y * w + x] = true));
+        for k in 0..25 {
+            let (x, y) = (30 + k, 42 - k); // through coarse nodes (32, 40), (36, 36), …
+            active[y * w + x] = true;
+            active[(y - 1) * w + x] = true;
+        }
+        let grid = Grid::from_active(w, h, active);
+        assert_eq!(grid.pieces().1, 1);
+        let samples: Vec<Sample> = [(8.0, 12.0), (26.0, 12.0), (8.0, 46.0), (26.0, 46.0)]
+            .iter().map(|&(x, y)| Sample { rest: [x, y], displacement: [10.0, 0.0] }).collect();
+        let (full, _) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+        let (coarse, report) = solve(&grid, &samples, &SolveOptions { grid_step: 4, ..Default::default() }, None).unwrap();
+        assert!(report.converged, "{report:?}");
+        for k in 0..25 {
+            let i = (42 - k) * w + 30 + k;
+            assert!((full.dx[i] - 10.0).abs() < 0.01, "step 1 at strand pixel {k}: {}", full.dx[i]);
+            assert!((coarse.dx[i] - 10.0).abs() < 0.5, "step 4 at strand pixel {k}: {}", coarse.dx[i]);
         }
     }
 
