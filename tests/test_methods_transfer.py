@@ -101,7 +101,7 @@ def test_features_only_in_the_target_keep_their_keys():
          r'Feature "brow" is a polyline in the source \(features\[2\]\) but a spline in the target'),
         (lambda s: s["features"][3]["rest"].pop(),
          r'Feature "cheek" has 4 rest control points in the source .* but 3 in the target .*; '
-         r"give the target's 4 .*or leave the feature out of the source"),
+         r"give the target's feature 4 control points .*or leave the feature out of the source"),
     ],
 )
 def test_mismatches_are_errors_naming_the_feature(change, message):

@@ -36,7 +36,7 @@ pub enum TransferError {
     MissingFeature { id: String, source_index: usize },
     #[error("Feature \"{id}\" is a {source_kind} in the source (features[{source_index}]) but a {target_kind} in the target (features[{target_index}]): matched features must have the same kind.")]
     KindMismatch { id: String, source_index: usize, target_index: usize, source_kind: &'static str, target_kind: &'static str },
-    #[error("Feature \"{id}\" has {source_count} rest control points in the source (features[{source_index}].rest) but {target_count} in the target (features[{target_index}].rest): matched features must have the same number of control points; give the target's {source_count} (an SVG path gets as many as its curve needs: draw it with the same nodes as the source's), or leave the feature out of the source.")]
+    #[error("Feature \"{id}\" has {source_count} rest control points in the source (features[{source_index}].rest) but {target_count} in the target (features[{target_index}].rest): matched features must have the same number of control points; give the target's feature {source_count} control points (an SVG path gets as many as its curve needs: draw it with the same nodes as the source's), or leave the feature out of the source.")]
     CountMismatch { id: String, source_index: usize, target_index: usize, source_count: usize, target_count: usize },
     #[error("Feature \"{id}\" (source features[{source_index}]) key {key} has {got} control points, its rest has {want}.")]
     KeyCount { id: String, source_index: usize, key: usize, got: usize, want: usize },

@@ -110,9 +110,13 @@ def convergence_lines(command: str = "render") -> Iterator[None]:
             yield
         finally:
             if more:
-                shown_at = ", ".join(more[:20]) + (", …" if len(more) > 20 else "")
+                # Each frame once, in order (a frame where several layers stopped is one).
+                frames = sorted({int(a) for a in more if a.isdigit()})
+                where = [f"frame{'s' if len(frames) > 1 else ''} " + ", ".join(map(str, frames[:20]))
+                         + (", …" if len(frames) > 20 else "")] if frames else []
+                where += [f"t = {a}" for a in sorted({a for a in more if not a.isdigit()})[:5]]
                 print(f"inkwarp {command}: warning: {len(more)} more solve{'s' if len(more) != 1 else ''} "
-                      f"did not converge (frames {shown_at})", file=sys.stderr, flush=True)
+                      f"did not converge ({'; '.join(where)})", file=sys.stderr, flush=True)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -258,15 +258,15 @@ impl Scene {
     pub fn convergence_warning(&self, layer: usize, time_s: f64, solved: &LayerSolve) -> Option<String> {
         let report = solved.report.as_ref().filter(|r| !r.converged)?;
         let name = &self.layers()[layer].name;
-        let (frame, t) = (time_s * self.fps(), (time_s * 1e4).round() / 1e4);
+        let (frame, t) = (time_s * self.fps(), (time_s * 1e4).round() / 1e4 + 0.0);
         let when = if (frame - frame.round()).abs() < 1e-6 && frame >= 0.0 { format!("at t = {t} s (frame {})", frame.round() as u64) } else { format!("at t = {t} s") };
         let solver = &self.layers()[layer].solver;
         // Why it stopped: the budget of relaxations, the cycle cap, or neither (free parts of the surface left unsettled).
         let advice = match solver.scheme {
             Scheme::Southwell => "the southwell scheme stops after a fixed budget of relaxations; use the multigrid scheme to solve to the tolerance, or another method".to_string(),
             _ if report.cycles >= solver.max_cycles.map_or(crate::solve::DEFAULT_MAX_CYCLES, |c| c as usize) => "raise solver.max_cycles (the scene's, or the layer's own), or use another method".to_string(),
-            _ if solver.grid_step > 1 => format!("at grid_step {} parts of the matte thinner than the step (hair, strands) come apart and move freely; use grid_step 1 for this layer", solver.grid_step),
-            _ => "parts of the surface joined to the rest at single points or by 1 px strands are too many to settle; hold them with points of their own, give the layer a tension, or use another method".to_string(),
+            _ if solver.grid_step > 1 => format!("at grid_step {} parts of the matte thinner than the step (hair, strands) may be too many to settle, or the tolerance finer than the field's precision; use grid_step 1 for this layer, or a coarser tolerance", solver.grid_step),
+            _ => "parts of the surface joined to the rest at single points or by 1 px strands may be too many to settle, or the tolerance finer than the field's precision; hold those parts with points of their own, give the layer a tension, use a coarser tolerance, or another method".to_string(),
         };
         Some(format!("layer \"{name}\" {when}: the thin-plate solve did not converge ({} cycles, last change {:.3} px), so its field may be off by more than 0.05 px; {advice}", report.cycles, report.final_change_px))
     }

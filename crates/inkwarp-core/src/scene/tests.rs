@@ -839,8 +839,9 @@ fn the_warning_says_why_the_solve_stopped() {
     };
     assert!(warn(1, 7, 0.1).contains("raise solver.max_cycles"), "{}", warn(1, 7, 0.1));
     assert!(warn(0, 30, 0.1).contains("at grid_step 2 parts of the matte thinner than the step"), "{}", warn(0, 30, 0.1));
-    assert!(warn(1, 3, 0.1).contains("too many to settle"), "{}", warn(1, 3, 0.1));
+    assert!(warn(1, 3, 0.1).contains("may be too many to settle, or the tolerance finer"), "{}", warn(1, 3, 0.1));
     assert!(warn(1, 3, 1.0 / 24.0).contains("at t = 0.0417 s:"), "{}", warn(1, 3, 1.0 / 24.0));
+    assert!(warn(1, 3, -1e-9).contains("at t = 0 s"), "{}", warn(1, 3, -1e-9));
 }
 
 #[test]

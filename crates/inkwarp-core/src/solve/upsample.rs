@@ -36,7 +36,7 @@ pub(crate) fn solve_coarse(
     if grid.width == 0 || grid.height == 0 {
         return (Field::zeros(grid.width, grid.height), SolveReport { converged: true, ..Default::default() });
     }
-    let (fc, report) = solve_on_coarse_grid(grid, samples, options, initial, solver, warm);
+    let (fc, report) = solve_on_coarse_grid(grid, samples, options, initial, solver, warm, true);
     (upsample(grid, &Upsampling::new(grid, options.grid_step), &fc, samples), report)
 }
 
@@ -44,7 +44,7 @@ pub(crate) fn solve_coarse(
 /// nodes (in place: a pass over the coarse grid, not over every pixel), or from the solver's
 /// history, which keeps the coarse fields (only their coarse nodes' values would ever be read).
 fn solve_on_coarse_grid(
-    grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
+    grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool, follow: bool,
 ) -> (Field, SolveReport) {
     let (l, sf) = (Layout::new(grid.width, grid.height, options.grid_step), options.grid_step as f64);
     let (width, height, [active, link_right, link_down]) = coarse_links(l.w, l.h, l.s, &grid.active, &grid.link_right, &grid.link_down);
@@ -59,13 +59,15 @@ fn solve_on_coarse_grid(
     });
     let options = SolveOptions { tension: options.tension * sf * sf, grid_step: 1, ..options.clone() };
     let (mut fc, report) = solve_from(&coarse, &constraints, &options, start.as_ref().map(FieldView::from), solver, warm);
-    follow_held(grid, &l, &coarse, &constraints, &mut fc);
+    if follow { follow_held(grid, &l, &coarse, &constraints, &mut fc); }
     (fc, report)
 }
 
 /// A coarse piece that no sample holds but that joins a held one on the full grid (a strand
 /// thinner than the step, cut off on the coarse grid) moves with the nearest held coarse node
 /// along the full grid's links, instead of standing still while the part it hangs from moves.
+/// A pass over the full grid where some coarse piece is loose; the editor's drafts
+/// ([`solve_at`]) go without it.
 fn follow_held(grid: &Grid, l: &Layout, coarse: &Grid, constraints: &crate::grid::Constraints, fc: &mut Field) {
     let (labels, count) = coarse.pieces();
     let mut held = vec![false; count];
@@ -75,12 +77,15 @@ fn follow_held(grid: &Grid, l: &Layout, coarse: &Grid, constraints: &crate::grid
     if constraints.nodes.is_empty() || !(0..labels.len()).any(loose) { return; }
     // Breadth first over the full grid from the pixels of held coarse nodes: `from[p]` the coarse node reached.
     let mut from = vec![u32::MAX; grid.len()];
-    let mut queue: VecDeque<usize> = (0..labels.len()).filter(|&c| labels[c] != u32::MAX && !loose(c)).map(|c| { from[pixel(c)] = c as u32; pixel(c) }).collect();
-    while let Some(p) = queue.pop_front() {
+    let mut queue: VecDeque<u32> = (0..labels.len()).filter(|&c| labels[c] != u32::MAX && !loose(c)).map(|c| { from[pixel(c)] = c as u32; pixel(c) as u32 }).collect();
+    while let Some(p) = queue.pop_front().map(|p| p as usize) {
         let (x, w) = (p % grid.width, grid.width);
         let next = [(grid.link_right[p], p + 1), (x > 0 && grid.link_right[p - 1], p.wrapping_sub(1)), (grid.link_down[p], p + w), (p >= w && grid.link_down[p.wrapping_sub(w)], p.wrapping_sub(w))];
         for (linked, q) in next {
-            if linked && from[q] == u32::MAX { (from[q], _) = (from[p], queue.push_back(q)); }
+            if linked && from[q] == u32::MAX {
+                from[q] = from[p];
+                queue.push_back(q as u32);
+            }
         }
     }
     for c in (0..labels.len()).filter(|&c| loose(c) && from[pixel(c)] != u32::MAX) {
@@ -137,7 +142,7 @@ pub(crate) fn solve_at(
         return Err(SolveError::BadPixels);
     }
     validate(grid, samples, options, None)?;
-    let (fc, mut report) = in_pool(|| solve_on_coarse_grid(grid, samples, options, None, solver, true));
+    let (fc, mut report) = in_pool(|| solve_on_coarse_grid(grid, samples, options, None, solver, true, false));
     if let Some(values) = pixels.iter().map(|&p| plan.at(grid, &fc, p as usize)).collect::<Option<Vec<_>>>() {
         out.copy_from_slice(values.as_flattened());
     } else {
