@@ -62,6 +62,20 @@ def test_the_cli_prints_one_line_and_succeeds(tmp_path, capsys):
     json.loads(path.read_text())
 
 
+def test_strict_exits_3_when_a_solve_did_not_converge_and_0_when_all_did(tmp_path, capsys):
+    # A farm reads the exit status, not stderr: --strict says 3, with the output written.
+    path = write_scene(tmp_path, _stopped_early())
+    assert main(["render", str(path), "-o", str(tmp_path / "f.png"), "--frame", "20", "-q", "--strict"]) == 3
+    assert (tmp_path / "f.png").exists() and "did not converge" in capsys.readouterr().err
+    assert main(["field", str(path), "-o", str(tmp_path / "f.npy"), "--frame", "20", "--layer", "front", "-q", "--strict"]) == 3
+    assert (tmp_path / "f.npy").exists()
+    (tmp_path / "good").mkdir()
+    good = write_scene(tmp_path / "good", two_layer_scene())
+    assert main(["render", str(good), "-o", str(tmp_path / "g.png"), "--frame", "20", "-q", "--strict"]) == 0
+    assert main(["render", str(good), "-o", str(tmp_path / "g/"), "--strict", "--ray", "-q"]) == 2
+    assert "--strict with --ray" in capsys.readouterr().err
+
+
 def test_inkwarp_field_prints_the_same_one_line(tmp_path, capsys):
     path = write_scene(tmp_path, _stopped_early())
     assert main(["field", str(path), "-o", str(tmp_path / "f.npy"), "--frame", "20", "--layer", "front", "--quiet"]) == 0

@@ -35,7 +35,8 @@ examples:
   inkwarp track actor.mp4 --scene actor.json -o actor-tracked.json
 
 Run 'inkwarp COMMAND --help' for a command's options. Exit status: 0 success, 2 bad input
-(the message names the file, the place in it and the fix), 1 internal error.
+(the message names the file, the place in it and the fix), 1 internal error, 3 a solve that
+did not converge (render and field with --strict).
 """
 
 

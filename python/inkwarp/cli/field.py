@@ -40,15 +40,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="the layer whose field to write (each layer has its own; needed "
                              "when the scene has more than one)")
     _common.add_method_argument(parser)
+    parser.add_argument("--strict", action="store_true",
+                        help="exit with status 3 when the solve did not converge (the field is "
+                             "still written)")
     parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from inkwarp.cli.render import convergence_lines
+    from inkwarp.cli.render import NOT_CONVERGED, convergence_lines
 
-    with convergence_lines("field"):
-        return _run(args)
+    with convergence_lines("field") as stopped:
+        code = _run(args)
+    return NOT_CONVERGED if code == 0 and args.strict and stopped else code
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -72,20 +72,25 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--ray", nargs="?", const="local", metavar="ADDRESS",
                         help="render on a Ray cluster, in contiguous chunks; without ADDRESS "
                              "on a local one started for the render (needs inkwarp[ray])")
+    parser.add_argument("--strict", action="store_true",
+                        help="exit with status 3 when a solve did not converge (the output is "
+                             "still written and the warnings printed), so a farm can tell")
     parser.add_argument("-q", "--quiet", action="store_true",
                         help="print nothing on success (no progress bar, no summary)")
     parser.set_defaults(func=run)
 
 
 @contextlib.contextmanager
-def convergence_lines(command: str = "render") -> Iterator[None]:
+def convergence_lines(command: str = "render") -> Iterator[list[str]]:
     """Shows each solve that did not converge as one line on stderr (the first of each
     layer as it happens, then how many more there were), and every other inkwarp warning
-    as one line, not as a Python warning, for `inkwarp COMMAND`."""
+    as one line, not as a Python warning, for `inkwarp COMMAND`. Yields the list of those
+    solves' warnings, filled as they come (for ``--strict``)."""
     from inkwarp.errors import ConvergenceWarning, InkwarpWarning
 
     seen: set[str] = set()
     more: list[str] = []  # where the solves after each layer's first did not converge
+    stopped: list[str] = []
 
     def show(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
         if not issubclass(category, InkwarpWarning):
@@ -94,6 +99,7 @@ def convergence_lines(command: str = "render") -> Iterator[None]:
         if not issubclass(category, ConvergenceWarning):
             _common.say(f"inkwarp {command}: warning: {text}")
             return None
+        stopped.append(text)
         layer = text.split(" at t = ")[0]
         if layer in seen:
             found = re.search(r"\(frame (\d+)\)", text)
@@ -107,7 +113,7 @@ def convergence_lines(command: str = "render") -> Iterator[None]:
         shown = warnings.showwarning
         warnings.showwarning = show
         try:
-            yield
+            yield stopped
         finally:
             if more:
                 # Each frame once, in order (a frame where several layers stopped is one).
@@ -119,9 +125,17 @@ def convergence_lines(command: str = "render") -> Iterator[None]:
                       f"did not converge ({'; '.join(where)})", file=sys.stderr, flush=True)
 
 
+#: The exit status of ``--strict`` when a solve did not converge.
+NOT_CONVERGED = 3
+
+
 def run(args: argparse.Namespace) -> int:
-    with convergence_lines():
-        return _run(args)
+    if args.strict and args.ray is not None:
+        raise ValueError("--strict with --ray: the Ray workers' solves report in their own logs, "
+                         "not here; render without --ray to use --strict, or leave --strict out")
+    with convergence_lines() as stopped:
+        code = _run(args)
+    return NOT_CONVERGED if code == 0 and args.strict and stopped else code
 
 
 def _run(args: argparse.Namespace) -> int:
