@@ -155,20 +155,18 @@ def _write_new_frame(path: Path, frame: np.ndarray) -> bool:
         except OSError as err:
             raise write_failure(path, err) from None
         try:
-            try:
-                os.link(temp, path)
-            except FileExistsError:
-                if frame_file_complete(path):
-                    return False
-                os.replace(temp, path)
-            except OSError as err:
-                if err.errno not in NO_HARD_LINKS:
-                    raise
-                # A file system without hard links: checked, then renamed (two chunks that
-                # reach the frame at the same moment may both write it, the same bytes).
-                if frame_file_complete(path):
-                    return False
-                os.replace(temp, path)
+            os.link(temp, path)
+            return True
+        except OSError as err:
+            # Another file there (a whole frame stays; a cut-off one is replaced), or a file
+            # system without hard links: checked, then renamed (two chunks that reach the
+            # frame at the same moment may both write it, the same bytes).
+            if not isinstance(err, FileExistsError) and err.errno not in NO_HARD_LINKS:
+                raise write_failure(path, err) from None
+        if frame_file_complete(path):
+            return False
+        try:
+            os.replace(temp, path)
         except OSError as err:
             raise write_failure(path, err) from None
         return True

@@ -1009,11 +1009,17 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
   }
 });
 
-test('a scene opened by inkwarp edit: a reload offers its unsaved work back, which saves to the file', async () => {
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-restore-'));
+/** A scene file `name` in a new folder: the checkerboard picture beside it, no features. */
+function checkerScene(name) {
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-served-'));
   copyFileSync(join(repo, 'examples/checkerboard-hole/checkerboard.png'), join(dir, 'checker.png'));
-  const scenePath = join(dir, 'kept.json');
+  const scenePath = join(dir, name);
   writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, fps: 12, duration: 1, layers: [{ name: 'checker', image: 'checker.png' }], features: [] }));
+  return scenePath;
+}
+
+test('a scene opened by inkwarp edit: a reload offers its unsaved work back, which saves to the file', async () => {
+  const scenePath = checkerScene('kept.json');
   const own = await startServer([scenePath]);
   const { page: p, context, errors: errs } = await openEditor(browser, own.url);
   try {
@@ -1041,10 +1047,7 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
 });
 
 test('Save writes each scene to its own file: undo past opening, two tabs, a file changed on disk, a server gone', async () => {
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-origin-'));
-  copyFileSync(join(repo, 'examples/checkerboard-hole/checkerboard.png'), join(dir, 'checker.png'));
-  const scenePath = join(dir, 'mine.json');
-  writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, fps: 12, duration: 1, layers: [{ name: 'checker', image: 'checker.png' }], features: [] }));
+  const scenePath = checkerScene('mine.json');
   const own = await startServer([scenePath]);
   const a = await openEditor(browser, own.url);
   const b = await openEditor(browser, own.url);

@@ -90,18 +90,16 @@ const STORE = 'autosave';
 const LOCK = 'inkwarp-tab-';
 
 /**
- * Holds the Web Lock of `key` until `release` is called (never, by default): null when
- * another tab holds it. Where the browser has no Web Locks (an address that is neither
- * https nor this machine), every key counts as held elsewhere (see `openTabs`).
+ * Takes the Web Lock of `key`: the function that lets it go, or null when another tab holds
+ * it. Where the browser has no Web Locks (an address that is neither https nor this
+ * machine), every key counts as held elsewhere (see `openTabs`).
  */
-export function claimTab(key: string, release: Promise<void> = new Promise(() => {})): Promise<boolean> {
+export function claimTab(key: string): Promise<(() => void) | null> {
   const locks = navigator.locks;
-  if (!locks) return Promise.resolve(false);
+  if (!locks) return Promise.resolve(null);
   return new Promise((resolve) => {
-    void locks.request(LOCK + key, { ifAvailable: true }, (lock) => {
-      resolve(lock !== null);
-      return lock ? release : undefined;
-    });
+    void locks.request(LOCK + key, { ifAvailable: true }, (lock) =>
+      lock ? new Promise<void>((release) => resolve(release)) : resolve(null));
   });
 }
 
@@ -114,6 +112,7 @@ export function claimTab(key: string, release: Promise<void> = new Promise(() =>
 export async function holdTab(): Promise<string> {
   const fresh = () => `tab-${Date.now().toString(36)}-${Math.random().toString(36).slice(2, 8)}`;
   let key = sessionStorage.getItem('inkwarp-tab') ?? fresh();
+  // Held for as long as the tab lives: its release is never called.
   if (navigator.locks && !(await claimTab(key))) {
     key = fresh();
     await claimTab(key);

@@ -45,9 +45,6 @@ async function start(): Promise<void> {
   const ui = new Ui(app, root);
   // Hooks for the end-to-end tests and for scripting the editor from the console.
   Object.assign(window, { inkwarp: { app, ui, store, engine, scene, state, images, examples } });
-  // The file the scene came from (its path on the machine `inkwarp edit` serves it from).
-  let source: string | null = null;
-  let version: string | null = null;
   // A scene that fails to open is named by its file, and the built-in example shown instead.
   let opened = false;
   if (sceneUrl) {
@@ -58,10 +55,10 @@ async function start(): Promise<void> {
       if (!resp.ok) {
         ui.message(text, 'error'); // the server's message names the file
       } else {
-        named = source = resp.headers.get('X-Inkwarp-Path') ?? sceneUrl;
-        version = resp.headers.get('ETag');
+        named = resp.headers.get('X-Inkwarp-Path') ?? sceneUrl;
         await ui.openSceneText(text, resp.headers.get('X-Inkwarp-Name') ?? 'scene.json');
-        Object.assign(store.origin, { path: source, version, saveUrl: params.get('save') !== 'download' ? sceneUrl : null });
+        // The file it came from (its path on the machine `inkwarp edit` serves it from).
+        Object.assign(store.origin, { path: named, version: resp.headers.get('ETag'), saveUrl: params.get('save') !== 'download' ? sceneUrl : null });
         opened = true;
       }
     } catch (err) {
@@ -74,7 +71,7 @@ async function start(): Promise<void> {
   }
   document.body.dataset.ready = 'true';
   // After "ready": the restore offer waits for the user, the editor works meanwhile.
-  await keepWork(store, ui, source);
+  await keepWork(store, ui);
 }
 
 /** The page's title: the scene's name, marked while it holds changes not saved to a file. */
@@ -88,7 +85,8 @@ function showTitle(store: Store): void {
  * inlined), offered back on the next load when it held unsaved changes, and leaving the
  * page with unsaved changes asks first.
  */
-async function keepWork(store: Store, ui: Ui, source: string | null): Promise<void> {
+async function keepWork(store: Store, ui: Ui): Promise<void> {
+  const source = store.origin.path; // the served file the page opened, if any
   let kept: SnapshotStore;
   try {
     kept = new IndexedDbStore(await holdTab());
@@ -112,7 +110,7 @@ async function keepWork(store: Store, ui: Ui, source: string | null): Promise<vo
   let left: Awaited<ReturnType<SnapshotStore['left']>> = [];
   // A closed tab's work is offered here while this tab holds its lock, so that no other new
   // tab offers it too; the lock goes when the offer is answered.
-  let answered = () => {};
+  let release: (() => void) | null = null;
   let claimed: string | null = null;
   if (!previous?.unsaved) {
     const closed = await kept.left().catch(() => []);
@@ -120,7 +118,7 @@ async function keepWork(store: Store, ui: Ui, source: string | null): Promise<vo
     for (const c of closed.filter((c) => !c.snapshot.unsaved)) await kept.drop(c.key).catch(() => {});
     left = closed.filter((c) => c.snapshot.unsaved);
     for (const c of left) {
-      if (await claimTab(c.key, new Promise((r) => (answered = r)))) {
+      if ((release = await claimTab(c.key))) {
         [claimed, previous] = [c.key, c.snapshot];
         break;
       }
@@ -148,7 +146,7 @@ async function keepWork(store: Store, ui: Ui, source: string | null): Promise<vo
     }
   }
   if (claimed && settled) await kept.drop(claimed).catch(() => {});
-  answered();
+  release?.();
   let revision = store.revision;
   let unsaved = store.unsaved;
   showTitle(store);
