@@ -1122,7 +1122,7 @@ struct Settled<'m> {
 }
 
 impl<'m> Settled<'m> {
-    /// `None` where a block cannot be settled (more than `nullspace::MAX_BLOCK` functions,
+    /// `None` where a block cannot be settled (a factor past `nullspace::MAX_BLOCK_WORK`,
     /// or singular): there the iteration runs unprojected.
     fn new(membrane: &'m nullspace::Membrane, level: &Level) -> Option<Self> {
         if !membrane.settles_all() { return None; }

@@ -17,16 +17,17 @@
 //! exact Galerkin correction in their span removes that error.
 
 use super::level::V2;
+use super::strands::{blocks_in_order, Envelope};
 use crate::grid::{find, join};
 
-/// The largest coupled block of free functions whose least-membrane system is solved
-/// (densely). Past it the rule is not applied and the solve does not claim convergence: the
-/// dense solve would cost more than the solve itself.
-pub(crate) const MAX_BLOCK: usize = 1500;
+/// The most entries of a block's factor (a dense block of 1,500 functions; a strand's
+/// chain of bends holds a few a function). Past it the rule is not applied and the solve
+/// does not claim convergence.
+pub(crate) const MAX_BLOCK_ENTRIES: usize = 1500 * 1501 / 2;
 
 /// The functions couple only where their supports meet, so the least-membrane system falls
 /// apart in independent blocks (one hair's free bends, one sliver's): any number of
-/// functions, each block at most [`MAX_BLOCK`], and at most this many in all.
+/// functions, each block's factor at most [`MAX_BLOCK_ENTRIES`], and at most this many in all.
 pub(crate) const MAX_NULL: usize = 200_000;
 
 /// A piece's geometry on its box: node `(x, y)` at `y · w + x`.
@@ -150,7 +151,9 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
         let mut touched: Vec<usize> = affine.iter().map(|&(k, _)| k / 3).collect();
         touched.dedup();
         let mut z: Sparse = Vec::new();
-        for c in touched {
+        // A cluster's values are at most the sum of its coefficients (|x|, |y| ≤ 1): one whose
+        // sum is below the cut of `retain` below adds nothing, and may hold every node.
+        for c in touched.into_iter().filter(|&c| qd[3 * c..3 * c + 3].iter().map(|v| v.abs()).sum::<f64>() > 1e-13) {
             z.extend(nodes_of[c].iter().map(|&i| (i, in_cluster(i, c as u32).iter().map(|&(k, a)| a * qd[k]).sum::<f64>())));
         }
         z.extend(lone_values.iter().map(|&(k, v)| (lone_nodes[k - 3 * clusters], v)));
@@ -304,10 +307,10 @@ pub(crate) struct Membrane {
     basis: Vec<Sparse>,
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.
     products: Vec<Sparse>,
-    /// The functions of each block (coupled through their supports), and the Cholesky
-    /// factor of its membrane Gram matrix, packed by rows (row `i` at `i(i+1)/2`; none for a
-    /// block too large or singular, which is not settled).
-    blocks: Vec<(Vec<usize>, Option<Vec<f64>>)>,
+    /// The functions of each block (coupled through their supports), in the order of its
+    /// factor, and the envelope factor of its membrane Gram matrix (none for a block too
+    /// costly or singular, which is not settled).
+    blocks: Vec<(Vec<usize>, Option<Envelope>)>,
 }
 
 impl Membrane {
@@ -324,7 +327,6 @@ impl Membrane {
         let (mut gram, mut products): (Vec<Sparse>, Vec<Sparse>) = (vec![Vec::new(); k], Vec::with_capacity(k));
         let (mut dense, mut y) = (vec![0.0; n], vec![0.0; n]);
         let (mut acc, mut seen, mut hit) = (vec![0.0; k], vec![false; k], Vec::new());
-        let mut parent: Vec<u32> = (0..k as u32).collect();
         for (j, z) in basis.iter().enumerate() {
             let touched = membrane_sparse(g, z, &mut dense, &mut y);
             for &p in &touched {
@@ -339,26 +341,17 @@ impl Membrane {
             for i in hit.drain(..) {
                 gram[j].push((i, acc[i]));
                 (acc[i], seen[i]) = (0.0, false);
-                join(&mut parent, i as u32, j as u32);
             }
         }
-        let mut by_root: std::collections::BTreeMap<u32, Vec<usize>> = std::collections::BTreeMap::new();
-        for j in 0..k {
-            by_root.entry(find(&mut parent, j as u32)).or_default().push(j);
-        }
-        let mut local = vec![usize::MAX; k];
-        let blocks = by_root.into_values().map(|members| {
-            let factor = (members.len() <= MAX_BLOCK).then(|| {
-                members.iter().enumerate().for_each(|(l, &j)| local[j] = l);
-                let mut m = vec![vec![0.0; members.len()]; members.len()];
-                for (l, &j) in members.iter().enumerate() {
-                    for &(i, v) in &gram[j] {
-                        m[local[i]][l] += v;
-                    }
-                }
-                cholesky(m)
-            });
-            (members, factor.flatten())
+        // Each block in an order that keeps its envelope narrow (a strand's bends in order
+        // along it); one with a dropped pivot (dependent functions) is not settled.
+        let mut local = vec![0; k];
+        let order = blocks_in_order(k, |_| true, |j, out| *out = gram[j].iter().map(|e| e.0).collect());
+        let blocks = order.into_iter().map(|members| {
+            members.iter().enumerate().for_each(|(l, &j)| local[j] = l);
+            let entries = members.iter().map(|&j| gram[j].iter().map(|&(i, v)| (local[i], v)).collect()).collect();
+            let factor = Envelope::factor(entries, 0.0, 1e-12, MAX_BLOCK_ENTRIES).filter(|f| !f.dropped());
+            (members, factor)
         }).collect();
         Membrane { basis, products, blocks }
     }
@@ -380,20 +373,8 @@ impl Membrane {
                 let v = read(p);
                 [s[0] - y * v[0], s[1] - y * v[1]]
             })).collect();
-            // L Lᵀ c = b: forward substitution, then back substitution by L's rows.
             let mut c = b;
-            for i in 0..c.len() {
-                let row = &l[i * (i + 1) / 2..][..i + 1];
-                let s = (0..i).fold(c[i], |s, j| [s[0] - row[j] * c[j][0], s[1] - row[j] * c[j][1]]);
-                c[i] = [s[0] / row[i], s[1] / row[i]];
-            }
-            for i in (0..c.len()).rev() {
-                let row = &l[i * (i + 1) / 2..][..i + 1];
-                c[i] = [c[i][0] / row[i], c[i][1] / row[i]];
-                for j in 0..i {
-                    c[j] = [c[j][0] - row[j] * c[i][0], c[j][1] - row[j] * c[i][1]];
-                }
-            }
+            l.solve(&mut c);
             for (&j, c) in members.iter().zip(c) {
                 for &(i, v) in &self.basis[j] {
                     add(i, [c[0] * v, c[1] * v]);
@@ -414,22 +395,42 @@ impl Membrane {
     }
 }
 
-/// The lower Cholesky factor of the symmetric `m`, packed by rows; `None` where a pivot
-/// is not above 1e-12 of its diagonal entry (a dependent or singular block).
-fn cholesky(m: Vec<Vec<f64>>) -> Option<Vec<f64>> {
-    let mut l = Vec::with_capacity(m.len() * (m.len() + 1) / 2);
-    for i in 0..m.len() {
-        let start = l.len();
-        for j in 0..=i {
-            let row_j = j * (j + 1) / 2;
-            let s = (0..j).fold(m[i][j], |s, k| s - l[start + k] * l[row_j + k]);
-            if i == j {
-                if !(s > 1e-12 * m[i][i]) { return None; }
-                l.push(s.sqrt());
-            } else {
-                l.push(s / l[row_j + j]);
-            }
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_block_folded_back_on_itself_keeps_a_narrow_envelope() {
+        // A chain folded back on itself (a U-shaped strand: function j meets j ± 1 and
+        // n − 1 − j), diagonally dominant: the order found keeps the envelope narrow (in
+        // the functions' own order it would be n / 2 wide), and the solve matches the matrix.
+        let n = 400;
+        let mut rows: Vec<Vec<(usize, f64)>> = (0..n).map(|j| vec![(j, 4.0 + (j % 7) as f64 * 0.1)]).collect();
+        let mut couple = |a: usize, b: usize, v: f64| {
+            rows[a].push((b, v));
+            rows[b].push((a, v));
+        };
+        for j in 0..n - 1 {
+            couple(j, j + 1, -1.0);
+        }
+        for j in 0..n / 2 {
+            couple(j, n - 1 - j, 0.5);
+        }
+        let blocks = blocks_in_order(n, |_| true, |j, out| *out = rows[j].iter().map(|e| e.0).collect());
+        assert_eq!(blocks.len(), 1);
+        let order = &blocks[0];
+        let mut local = vec![0; n];
+        order.iter().enumerate().for_each(|(l, &j)| local[j] = l);
+        let entries = order.iter().map(|&j| rows[j].iter().map(|&(i, v)| (local[i], v)).collect()).collect();
+        assert!(Envelope::factor(entries, 0.0, 1e-12, 8 * n).is_some_and(|f| !f.dropped()), "an envelope wider than 8 entries a row");
+        let entries = order.iter().map(|&j| rows[j].iter().map(|&(i, v)| (local[i], v)).collect()).collect();
+        let factor = Envelope::factor(entries, 0.0, 1e-12, usize::MAX).unwrap();
+        let b: Vec<V2> = (0..n).map(|r| [(r as f64).sin(), 1.0]).collect();
+        let mut x = b.clone();
+        factor.solve(&mut x);
+        for r in 0..n {
+            let ax = rows[order[r]].iter().fold([0.0; 2], |s, &(i, v)| [s[0] + v * x[local[i]][0], s[1] + v * x[local[i]][1]]);
+            assert!((ax[0] - b[r][0]).abs() < 1e-12 && (ax[1] - b[r][1]).abs() < 1e-12, "row {r}: {ax:?} against {:?}", b[r]);
         }
     }
-    Some(l)
 }

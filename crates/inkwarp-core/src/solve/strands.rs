@@ -25,13 +25,14 @@ const SHIFT: f64 = 1e-8;
 /// functions; docs/dev/ablation.md, "Tenth change").
 const PIVOT: f64 = 1e-6;
 
+/// The `L D Lᵀ` factor of a symmetric matrix within its envelope: row `i` of `L` from
+/// column `first[i]` (its first nonzero) to the diagonal, at `at[i]` in `l`.
 #[derive(Debug)]
-struct Block {
-    /// Per node (block order): first column of its envelope row, and where the row starts
-    /// in `l`.
+pub(crate) struct Envelope {
     first: Vec<u32>,
     at: Vec<usize>,
-    /// `L`'s rows within the envelope (the diagonal slot unused) and `D⁻¹`.
+    /// `L`'s rows within the envelope (the diagonal slot unused) and `D⁻¹` (zero where a
+    /// pivot was dropped).
     l: Vec<f64>,
     d_inv: Vec<f64>,
 }
@@ -44,7 +45,7 @@ pub(crate) struct Strands {
     /// The operator's row of each node: `(q, a_pq)` from `at[i]` to `at[i + 1]`.
     taps: Vec<(u32, f64)>,
     at: Vec<usize>,
-    blocks: Vec<Block>,
+    blocks: Vec<Envelope>,
     /// The finest level's first solve's correction (from [`Strands::before`] to
     /// [`Strands::after`]), per node.
     first_pass: Vec<V2>,
@@ -71,16 +72,10 @@ impl Strands {
                 }
             });
         };
-        let (mut seen, mut nodes, mut starts) = (vec![false; thin.len()], Vec::new(), Vec::new());
-        for s in 0..thin.len() {
-            if !thin[s] || seen[s] { continue; }
-            // The component, then a pseudo-peripheral start (the last node of a
-            // breadth-first search from it) and the Cuthill–McKee order from there.
-            let comp = bfs(s, &mut seen, neighbours);
-            let far = *comp.last().unwrap();
-            comp.iter().for_each(|&p| seen[p] = false);
+        let (mut nodes, mut starts) = (Vec::new(), Vec::new());
+        for block in blocks_in_order(thin.len(), |p| thin[p], neighbours) {
             starts.push(nodes.len());
-            nodes.extend(bfs(far, &mut seen, neighbours).iter().rev().map(|&p| p as u32));
+            nodes.extend(block.into_iter().map(|p| p as u32));
         }
         let mut local = vec![u32::MAX; thin.len()];
         for (i, &p) in nodes.iter().enumerate() {
@@ -94,7 +89,12 @@ impl Strands {
         let (mut kept, mut taps, mut at, mut blocks) = (Vec::new(), Vec::new(), vec![0], Vec::new());
         for pair in starts.windows(2) {
             let ids = &nodes[pair[0]..pair[1]];
-            let Some(b) = Block::factor(level, ids, &local, pair[0], shift) else { continue };
+            let entries = ids.iter().map(|&p| {
+                let mut row = Vec::new();
+                level.taps(p as usize, |q, a| if (pair[0]..pair[1]).contains(&(local[q] as usize)) { row.push((local[q] as usize - pair[0], a)) });
+                row
+            }).collect();
+            let Some(b) = Envelope::factor(entries, shift, PIVOT, BAND * ids.len()) else { continue };
             blocks.push(b);
             for &p in ids {
                 kept.push(p);
@@ -156,7 +156,7 @@ impl Strands {
 }
 
 /// `x = A_SS⁻¹ x` (`x` over [`Strands::nodes`]), block by block.
-fn solve_blocks(blocks: &[Block], x: &mut [V2]) {
+fn solve_blocks(blocks: &[Envelope], x: &mut [V2]) {
     let mut start = 0;
     for b in blocks {
         b.solve(&mut x[start..start + b.d_inv.len()]);
@@ -199,44 +199,46 @@ fn each_run(n: usize, linked: impl Fn(usize) -> bool, mut f: impl FnMut(usize, u
     }
 }
 
-/// Breadth-first order of the component of `s` (marking `seen`).
-fn bfs(s: usize, seen: &mut [bool], mut next: impl FnMut(usize, &mut Vec<usize>)) -> Vec<usize> {
-    let (mut order, mut buf, mut i) = (vec![s], Vec::new(), 0);
-    seen[s] = true;
-    while i < order.len() {
-        next(order[i], &mut buf);
-        for &q in &buf {
-            if !std::mem::replace(&mut seen[q], true) {
-                order.push(q);
-            }
+/// The connected sets of the nodes `0..n` with `include` (`next(p, out)`: `p`'s
+/// neighbours, all included), each in reverse Cuthill–McKee order: breadth first from the
+/// last node of a breadth-first search (a pseudo-peripheral one), reversed. Along a strand
+/// that keeps a factor's envelope narrow.
+pub(crate) fn blocks_in_order(n: usize, include: impl Fn(usize) -> bool, mut next: impl FnMut(usize, &mut Vec<usize>)) -> Vec<Vec<usize>> {
+    let mut bfs = |s: usize, seen: &mut [bool]| {
+        let (mut order, mut buf, mut i) = (vec![s], Vec::new(), 0);
+        seen[s] = true;
+        while i < order.len() {
+            next(order[i], &mut buf);
+            order.extend(buf.iter().copied().filter(|&q| !std::mem::replace(&mut seen[q], true)));
+            i += 1;
         }
-        i += 1;
+        order
+    };
+    let (mut seen, mut blocks) = (vec![false; n], Vec::new());
+    for s in (0..n).filter(|&s| include(s)) {
+        if seen[s] { continue; }
+        let component = bfs(s, &mut seen);
+        component.iter().for_each(|&p| seen[p] = false);
+        let mut block = bfs(*component.last().expect("a search finds its start"), &mut seen);
+        block.reverse();
+        blocks.push(block);
     }
-    order
+    blocks
 }
 
-impl Block {
-    /// The factor of the block of `ids` (padded indices; `local` maps an index to its
-    /// place in the list that starts at `first_id`), or `None` when its envelope is wider
-    /// than [`BAND`] entries a node on average.
-    fn factor(level: &Level, ids: &[u32], local: &[u32], first_id: usize, shift: f64) -> Option<Block> {
-        let n = ids.len();
-        let mut entries: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
-        for (i, &p) in ids.iter().enumerate() {
-            level.taps(p as usize, |q, a| {
-                let j = local[q] as usize;
-                if local[q] != u32::MAX && j >= first_id && j < first_id + n {
-                    entries[i].push((j - first_id, a));
-                }
-            });
-        }
+impl Envelope {
+    /// The factor of the matrix whose row `i` has the entries `entries[i]` (column, value;
+    /// repeats add) and its diagonal raised by `shift` times itself; a pivot not above
+    /// `pivot` times its diagonal entry is dropped. `None` past `max_entries` entries.
+    pub(crate) fn factor(entries: Vec<Vec<(usize, f64)>>, shift: f64, pivot: f64, max_entries: usize) -> Option<Envelope> {
+        let n = entries.len();
         let first: Vec<u32> = entries.iter().enumerate().map(|(i, e)| e.iter().map(|&(j, _)| j).min().unwrap_or(i).min(i) as u32).collect();
         let mut at = vec![0];
         for i in 0..n {
             at.push(at[i] + i + 1 - first[i] as usize);
         }
         let total = at[n];
-        if total > BAND * n { return None; }
+        if total > max_entries { return None; }
         let (mut l, mut diag) = (vec![0.0; total], vec![0.0; n]);
         for i in 0..n {
             for &(j, a) in &entries[i] {
@@ -267,13 +269,16 @@ impl Block {
                 l[at[i] + j - fi] = lij;
                 di -= g * lij;
             }
-            d_inv[i] = if di > PIVOT * diag[i] { 1.0 / di } else { 0.0 };
+            d_inv[i] = if di > pivot * diag[i] { 1.0 / di } else { 0.0 };
         }
-        Some(Block { first, at, l, d_inv })
+        Some(Envelope { first, at, l, d_inv })
     }
 
+    /// Whether a pivot was dropped.
+    pub(crate) fn dropped(&self) -> bool { self.d_inv.contains(&0.0) }
+
     /// `x = (L D Lᵀ)⁻¹ x`.
-    fn solve(&self, x: &mut [V2]) {
+    pub(crate) fn solve(&self, x: &mut [V2]) {
         let n = x.len();
         for i in 0..n {
             let fi = self.first[i] as usize;
