@@ -78,6 +78,22 @@ def test_southwell_and_grid_step_and_max_cycles_run():
         assert f.shape == (18, 24, 2) and np.all(np.isfinite(f))
 
 
+def test_a_report_says_why_its_solve_stopped():
+    # Recorded by the solve, not inferred: converged exactly when "converged".
+    rng = np.random.default_rng(0)
+    pts, disp = rng.uniform(0, 256, (10, 2)), rng.normal(0, 3, (10, 2))
+    cases = [
+        ({}, "converged"),
+        ({"max_cycles": 1}, "max_cycles"),
+        ({"method": "southwell", "southwell_sweeps": 1}, "budget"),
+        ({"method": "southwell", "southwell_sweeps": 3, "max_cycles": 2}, "max_cycles"),
+        ({"tolerance": 1e-9}, "precision"),
+    ]
+    for kwargs, stop in cases:
+        _, report = inkwarp.thin_plate_report(pts, disp, (257, 257), **kwargs)
+        assert report.stop == stop and report.converged == (stop == "converged"), (kwargs, report)
+
+
 def test_grid_step_samples_go_to_their_nearest_coarse_node():
     # The last coarse row and column sit on the border, so the last cell may be shorter
     # than the step: a sample in it goes to the coarse node nearest to it, which keeps

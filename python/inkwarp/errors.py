@@ -50,9 +50,10 @@ class InkwarpWarning(UserWarning):
 
 
 class ConvergenceWarning(InkwarpWarning):
-    """A thin-plate solve stopped (at its ``max_cycles``) before it converged, so its field
-    may be off by more than the 0.05 px accuracy contract. The message names the layer and
-    the frame; ``inkwarp render`` prints it as one line on stderr."""
+    """A thin-plate solve stopped before it converged (its cycles ran out, a budget was
+    spent, parts were left unsettled: see :attr:`SolveReport.stop`), so its field may be off
+    by more than the 0.05 px accuracy contract. The message names the layer and the frame,
+    and what to change; ``inkwarp render`` prints it as one line on stderr."""
 
 
 class ComplexValuesError(ValueError):

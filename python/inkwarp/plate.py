@@ -111,6 +111,13 @@ class SolveReport:
     converged : bool
         Whether the tolerance was met within ``max_cycles`` (``"southwell"``: the same error
         bound; a spent budget is not convergence).
+    stop : str
+        Why the solve stopped: ``"converged"`` (exactly when ``converged``),
+        ``"max_cycles"`` (the cycles ran out), ``"budget"`` (``"southwell"``'s fixed budget
+        was spent), ``"unsettled"`` (parts joined at single nodes or by 1 px strands too
+        many to settle to the tension → 0 rule), ``"precision"`` (a tolerance finer than
+        the field's ``float32`` precision), ``"breakdown"`` (a value not finite) or
+        ``"interrupted"``. With several pieces, the first reason found.
     """
 
     cycles: int
@@ -122,6 +129,7 @@ class SolveReport:
     dropped_samples: int
     seconds: float
     converged: bool
+    stop: str = "converged"
 
 
 def _size(value: Any) -> int:

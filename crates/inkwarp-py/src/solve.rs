@@ -9,7 +9,7 @@ use pyo3::types::PyDict;
 
 use std::sync::{Arc, Mutex};
 
-use inkwarp_core::solve::{in_pool, SolveError, SolveMethod, SolveOptions, Solver};
+use inkwarp_core::solve::{in_pool, SolveError, SolveMethod, SolveOptions, Solver, Stop};
 use inkwarp_core::{FieldView, Grid, Sample};
 
 /// Earlier solves of one animated surface (`inkwarp.WarmStart`): the next solve starts
@@ -228,7 +228,21 @@ fn thin_plate_solve<'py>(
     d.set_item("dropped_samples", report.dropped_samples)?;
     d.set_item("seconds", report.seconds)?;
     d.set_item("converged", report.converged)?;
+    d.set_item("stop", stop_name(report.stop))?;
     Ok((array.into_any(), d))
+}
+
+/// The report's `stop`, as Python reads it.
+fn stop_name(stop: Stop) -> &'static str {
+    match stop {
+        Stop::Converged => "converged",
+        Stop::MaxCycles => "max_cycles",
+        Stop::Budget => "budget",
+        Stop::Unsettled => "unsettled",
+        Stop::Precision => "precision",
+        Stop::Breakdown => "breakdown",
+        Stop::Interrupted => "interrupted",
+    }
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

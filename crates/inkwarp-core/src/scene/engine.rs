@@ -11,7 +11,7 @@ use super::doc::{Border, Method, Scheme, SolverDoc, SolverOverrides};
 use crate::anim::points_at;
 use crate::geometry::{FeatureSampler, SampleOptions};
 use crate::render::{Canvas, RgbaImage};
-use crate::solve::{SolveMethod, SolveOptions, SolveReport, Solver};
+use crate::solve::{SolveMethod, SolveOptions, SolveReport, Solver, Stop};
 use super::{Scene, SceneError};
 use crate::field::Field;
 use crate::geometry::{Kind, Point, Sample};
@@ -261,12 +261,15 @@ impl Scene {
         let (frame, t) = (time_s * self.fps(), (time_s * 1e4).round() / 1e4 + 0.0);
         let when = if (frame - frame.round()).abs() < 1e-6 && frame >= 0.0 { format!("at t = {t} s (frame {})", frame.round() as u64) } else { format!("at t = {t} s") };
         let solver = &self.layers()[layer].solver;
-        // Why it stopped: the budget of relaxations, the cycle cap, or neither (free parts of the surface left unsettled).
-        let advice = match solver.scheme {
-            Scheme::Southwell => "the southwell scheme stops after a fixed budget of relaxations; use the multigrid scheme to solve to the tolerance, or another method".to_string(),
-            _ if report.cycles >= solver.max_cycles.map_or(crate::solve::DEFAULT_MAX_CYCLES, |c| c as usize) => "raise solver.max_cycles (the scene's, or the layer's own), or use another method".to_string(),
-            _ if solver.grid_step > 1 => format!("at grid_step {} parts of the matte thinner than the step (hair, strands) may be too many to settle, or the tolerance finer than the field's precision; use grid_step 1 for this layer, or a coarser tolerance", solver.grid_step),
-            _ => "parts of the surface joined to the rest at single points or by 1 px strands may be too many to settle, or the tolerance finer than the field's precision; hold those parts with points of their own, give the layer a tension, use a coarser tolerance, or another method".to_string(),
+        // Why it stopped, as the solve recorded it.
+        let advice = match report.stop {
+            Stop::Budget => "the southwell scheme stops after a fixed budget of relaxations; use the multigrid scheme to solve to the tolerance, or another method".to_string(),
+            Stop::MaxCycles => "raise solver.max_cycles (the scene's, or the layer's own), or use another method".to_string(),
+            Stop::Unsettled if solver.grid_step > 1 => format!("at grid_step {} parts of the matte thinner than the step (hair, strands) are too many to settle; use grid_step 1 for this layer, or hold those parts with points of their own", solver.grid_step),
+            Stop::Unsettled => "parts of the surface joined to the rest at single points or by 1 px strands are too many to settle; hold those parts with points of their own, give the layer a tension, or use another method".to_string(),
+            Stop::Precision => "the tolerance is finer than the field's precision; use a coarser solver.tolerance".to_string(),
+            Stop::Interrupted => "it was interrupted".to_string(),
+            Stop::Breakdown | Stop::Converged => "its iteration broke down; give the layer a tension, or use another method".to_string(),
         };
         Some(format!("layer \"{name}\" {when}: the thin-plate solve did not converge ({} cycles, last change {:.3} px), so its field may be off by more than 0.05 px; {advice}", report.cycles, report.final_change_px))
     }

@@ -5,6 +5,7 @@ use base64::Engine as _;
 use serde_json::{json, Value};
 
 use super::*;
+use crate::solve::Stop;
 
 /// PNG bytes of an RGBA image.
 fn png(width: u32, height: u32, pixels: &[u8]) -> Vec<u8> {
@@ -827,21 +828,29 @@ proptest::proptest! {
 
 #[test]
 fn the_warning_says_why_the_solve_stopped() {
-    // The cycle cap, the grid step's thin parts, or free parts too many to settle: each its own fix.
+    // The reason the solve recorded, each with its own fix: the cycle cap, Southwell's
+    // budget, free parts too many to settle (at a grid step: its thin parts), precision.
     let mut loader = files(&[("back.png", picture(64, 48, |_, _| false)), ("front.png", picture(64, 48, |_, _| false))]);
     let mut doc = valid_scene();
     doc["layers"][1]["solver"] = json!({"max_cycles": 7});
     doc["layers"][0]["solver"] = json!({"grid_step": 2});
     let scene = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
-    let warn = |layer: usize, cycles: usize, t: f64| {
-        let report = Some(crate::solve::SolveReport { cycles, converged: false, ..Default::default() });
+    let warn = |layer: usize, stop: Stop, t: f64| {
+        let report = Some(crate::solve::SolveReport { cycles: 3, converged: false, stop, ..Default::default() });
         scene.convergence_warning(layer, t, &LayerSolve { field: crate::field::Field::zeros(1, 1), report, method_report: None }).unwrap()
     };
-    assert!(warn(1, 7, 0.1).contains("raise solver.max_cycles"), "{}", warn(1, 7, 0.1));
-    assert!(warn(0, 30, 0.1).contains("at grid_step 2 parts of the matte thinner than the step"), "{}", warn(0, 30, 0.1));
-    assert!(warn(1, 3, 0.1).contains("may be too many to settle, or the tolerance finer"), "{}", warn(1, 3, 0.1));
-    assert!(warn(1, 3, 1.0 / 24.0).contains("at t = 0.0417 s:"), "{}", warn(1, 3, 1.0 / 24.0));
-    assert!(warn(1, 3, -1e-9).contains("at t = 0 s"), "{}", warn(1, 3, -1e-9));
+    for (layer, stop, says) in [
+        (1, Stop::MaxCycles, "raise solver.max_cycles"),
+        (1, Stop::Budget, "fixed budget of relaxations"),
+        (0, Stop::Unsettled, "at grid_step 2 parts of the matte thinner than the step"),
+        (1, Stop::Unsettled, "1 px strands are too many to settle"),
+        (1, Stop::Precision, "finer than the field's precision"),
+        (1, Stop::Breakdown, "broke down"),
+    ] {
+        assert!(warn(layer, stop, 0.1).contains(says), "{stop:?}: {}", warn(layer, stop, 0.1));
+    }
+    assert!(warn(1, Stop::MaxCycles, 1.0 / 24.0).contains("at t = 0.0417 s:"), "{}", warn(1, Stop::MaxCycles, 1.0 / 24.0));
+    assert!(warn(1, Stop::MaxCycles, -1e-9).contains("at t = 0 s"), "{}", warn(1, Stop::MaxCycles, -1e-9));
 }
 
 #[test]

@@ -122,6 +122,36 @@ pub struct SolveReport {
     /// Whether the tolerance was met (by the same error bound for Southwell; a spent
     /// budget is not convergence).
     pub converged: bool,
+    /// Why the solve stopped ([`Stop::Converged`] exactly when `converged`; with several
+    /// pieces, the first reason found).
+    pub stop: Stop,
+}
+
+/// Why a solve stopped.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Stop {
+    /// The stopping rule found the tolerance met.
+    #[default]
+    Converged,
+    /// `max_cycles` cycles (Southwell: rounds) ran.
+    MaxCycles,
+    /// Southwell's fixed budget of relaxations was spent.
+    Budget,
+    /// Free parts (hinges, strands) too many or too coupled to settle (the τ → 0⁺ rule).
+    Unsettled,
+    /// A tolerance finer than the `f32` field's precision, or a residual left above it.
+    Precision,
+    /// The iteration broke down (a value not finite).
+    Breakdown,
+    /// Interrupted (Ctrl+C).
+    Interrupted,
+}
+
+impl SolveReport {
+    /// Not converged, for `why` unless an earlier reason stands.
+    fn fail(&mut self, why: Stop) {
+        (self.stop, self.converged) = (if self.stop == Stop::Converged { why } else { self.stop }, false);
+    }
 }
 
 /// Why a solve was refused.
@@ -359,7 +389,7 @@ pub(crate) fn solve_constrained(
             (u, r) = settle_null_space(key, geo.as_ref().map(|g| g.active), tau, &value, &settle, kept_to, u, r, options, store);
         } else if free.count.is_none() {
             // Too many free functions to settle: no claim of convergence.
-            r.converged = false;
+            r.fail(Stop::Unsettled);
         }
         if let Some(key) = kept_key { store.free.put(store.solve, key, free) }
         if let (Piece::Line { a, d, .. }, Some(_)) = (*piece, gauge) {
@@ -371,10 +401,12 @@ pub(crate) fn solve_constrained(
         report.final_change_px = report.final_change_px.max(r.final_change_px);
         report.residual = report.residual.max(r.residual);
         report.initial_residual = report.initial_residual.max(r.initial_residual);
-        report.converged &= r.converged;
+        if !r.converged { report.fail(r.stop) }
     }
     // No exact answer in the `f32` field is finer than its rounding (iterated ones: `solve_piece`).
-    report.converged &= options.tolerance_px >= 0.5 * f64::from(f32::EPSILON) * exact;
+    if options.tolerance_px < 0.5 * f64::from(f32::EPSILON) * exact {
+        report.fail(Stop::Precision);
+    }
     let constrained = pieces.iter().filter(|p| **p != Piece::Zero).count(); // translated ones keep theirs
     (store.hierarchies.trim(store.solve, constrained), store.free.trim(store.solve, constrained));
     (field, report)
@@ -401,12 +433,12 @@ fn settle_null_space(
     }
     if tau == 0.0 || options.method == SolveMethod::Southwell {
         // A block of functions too large to settle: no claim of convergence.
-        report.converged &= settle(&mut dense);
+        if !settle(&mut dense) { report.fail(Stop::Unsettled) }
         return (BoxValues { values: dense, stride: w, first: 0 }, report);
     }
     const ROUNDS: usize = 8;
     let budget = options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES);
-    let mut settled = false;
+    let mut settled = Stop::MaxCycles;
     // The settled answer of the round before (a solve that keeps to settled answers ends
     // in the first round; one left unprojected may drift along the free functions), so
     // rounds compare settled answers. Every round, the last included, ends settled.
@@ -415,7 +447,7 @@ fn settle_null_space(
         let all = settle(&mut dense);
         let moved = dense.iter().zip(&before).fold(0.0f64, |a, (u, b)| a.max((u[0] - b[0]).abs()).max((u[1] - b[1]).abs()));
         if !all || moved <= options.tolerance_px * 0.25 {
-            settled = all && report.converged;
+            settled = if !all { Stop::Unsettled } else { report.stop };
             break;
         }
         if round == ROUNDS || report.cycles >= budget { break; }
@@ -426,10 +458,10 @@ fn settle_null_space(
         let (u2, r2) = solve_piece(key.clone(), value, None, Some((FieldView::from(&field), 0, 0)), &rest, store, membrane);
         // The latest solve's report, with every solve's cycles and the first one's start.
         report.cycles += r2.cycles;
-        (report.final_change_px, report.residual, report.converged) = (r2.final_change_px, r2.residual, r2.converged);
+        (report.final_change_px, report.residual, report.converged, report.stop) = (r2.final_change_px, r2.residual, r2.converged, r2.stop);
         dense = u2.dense(w, h);
     }
-    report.converged = settled;
+    (report.converged, report.stop) = (settled == Stop::Converged, settled);
     (BoxValues { values: dense, stride: w, first: 0 }, report)
 }
 
@@ -646,6 +678,7 @@ fn solve_piece(
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
     // concept doc's Precision).
     let (mut q, mut p) = (cycle::zeros_in(hier.spare.pop(), len), cycle::zeros_in(Some(std::mem::take(&mut hier.direction)), len));
+    let mut southwell_spent = false;
     match options.method {
         SolveMethod::Multigrid => {
             // Where every free function can be settled, the iteration runs on the settled
@@ -671,6 +704,7 @@ fn solve_piece(
                 if change.is_nan() {
                     // The directions broke down; the iterate stands, unconverged.
                     (report.cycles, report.final_change_px) = (cycle, f64::INFINITY);
+                    report.fail(Stop::Breakdown);
                     break;
                 }
                 slow.step(alpha);
@@ -720,6 +754,7 @@ fn solve_piece(
             // multigrid's own bound (or nothing left to relax): a spent budget proves nothing.
             let unknowns = hier.levels[0].inv_diag.iter().filter(|&&d| d != 0.0).count().max(1);
             let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
+            southwell_spent = left == 0;
             let mut round = 0;
             while left > 0 && round < options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) && !crate::interrupt::requested() {
                 let rz = fresh_direction(&mut hier, &r, &mut p, None, None);
@@ -728,6 +763,7 @@ fn solve_piece(
                 let (relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take, unknowns);
                 left -= take;
                 round += 1;
+                southwell_spent = left == 0;
                 hier.levels[0].residual(&u, None, &mut r);
                 // No node moved by more than the two parts' largest moves together.
                 if stop(step + relaxed, round, &mut report, (0.0, false)) || finished {
@@ -750,7 +786,15 @@ fn solve_piece(
     // A tolerance finer than the `f32` field's resolution cannot hold in the field returned,
     // nor one that leaves a scaled residual above 4 times it: |D⁻¹A e| ≤ 4 max|e| (in each
     // energy term the coefficients sum to at most 4 times the one at the row's node).
-    report.converged &= finite && options.tolerance_px >= FINEST_TOLERANCE * largest && residual <= 4.0 * options.tolerance_px;
+    if !report.converged && report.stop == Stop::Converged {
+        // The loop ran out: its cycles, the interrupt, or Southwell's budget.
+        report.stop = if crate::interrupt::requested() { Stop::Interrupted } else if southwell_spent { Stop::Budget } else { Stop::MaxCycles };
+    }
+    if !finite {
+        report.fail(Stop::Breakdown);
+    } else if options.tolerance_px < FINEST_TOLERANCE * largest || residual > 4.0 * options.tolerance_px {
+        report.fail(Stop::Precision);
+    }
     hier.spare.extend([r, q]);
     hier.direction = p;
     let fine = &hier.levels[0];
