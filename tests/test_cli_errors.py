@@ -32,6 +32,12 @@ def _set(path, value):
     return change
 
 
+def _add_feature(feature):
+    def change(doc):
+        doc["features"].append(feature)
+    return change
+
+
 def _add_layer(image):
     def change(doc):
         doc["layers"].append({"name": "second", "image": image})
@@ -63,6 +69,12 @@ MISTAKES = [
      "layers[1].image"),
     ("matte of another size", mutated(_set(["layers", 0, "continuity"], "small.png")),
      {"small.png": (20, 20)}, "layers[0].continuity"),
+    # A cut moves nothing: keys on it did nothing, silently; one of zero length tore nothing.
+    ("keys on a cut", mutated(_add_feature({
+        "id": "slit", "kind": "cut", "rest": [[2.5, 3.5], [9.5, 3.5]],
+        "keys": [{"t": 0, "points": [[2.5, 3.5], [9.5, 6.5]]}]})), {}, "features[1].keys"),
+    ("a cut of zero length", mutated(_add_feature({
+        "id": "slit", "kind": "cut", "rest": [[2.5, 3.5], [2.5, 3.5]]})), {}, "features[1].rest"),
 ]
 
 

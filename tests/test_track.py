@@ -347,6 +347,19 @@ def test_python_api_returns_a_scene(videos):
     assert isinstance(scene, inkwarp.Scene) and scene.frame_count == FRAMES
 
 
+def test_a_cut_is_left_as_drawn_without_keys(videos):
+    # A cut moves nothing (it tears the picture along its rest line), and a scene with keys
+    # on a cut is refused: the tracked scene keeps it as drawn.
+    import inkwarp
+
+    path, _ = videos["translate"]
+    cut = {"id": "slit", "kind": "cut", "rest": [[20.5, 30.5], [60.5, 34.5]]}
+    doc = track_dict(path, sv.scene(W, H, sv.drawing(W, H, seed=7) + [cut]))
+    assert doc["features"][-1] == cut
+    assert all(f["keys"] for f in doc["features"][:-1])
+    assert inkwarp.Scene.from_dict(doc).frame_count == FRAMES
+
+
 def test_frame_and_track_take_q_like_render_and_new(videos, tmp_path, capsys):
     """`-q` is `--quiet` in render and new; frame and track refused it as unrecognised."""
     path, _ = videos["translate"]

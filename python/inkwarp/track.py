@@ -634,6 +634,10 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     lost: dict[str, list[int]] = {}
     out_features = []
     for i, f in enumerate(features):
+        if f.kind == "cut":
+            # A cut moves nothing (it tears the picture along its rest line): no keys.
+            out_features.append(doc["features"][i])
+            continue
         series = np.empty((count, len(f.rest), 2))
         for k in range(count):
             series[k], err = _blend(tracks, anchors_of[f.id], f, k, lost_px)
@@ -742,7 +746,8 @@ def track(video: str | os.PathLike[str], scene: Any, frame: int = 0, **options: 
     Returns
     -------
     inkwarp.Scene
-        The scene with a key at every video frame for every feature.
+        The scene with a key at every video frame for every feature but its cuts, which
+        move nothing.
     """
     from inkwarp import Scene
 

@@ -79,6 +79,12 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
             let why = format!("\"curve\" applies to regions only, this feature is a {}; remove it{hint}", kind.name());
             p.push(Problem::new(format!("{path}.curve"), why));
         }
+        if kind == Kind::Cut && !feature.keys.is_empty() {
+            p.push(Problem::new(format!("{path}.keys"), "a cut does not move: it tears the surface along its rest line; remove \"keys\" (or make it a polyline to move the picture)"));
+        }
+        if kind == Kind::Cut && n >= 2 && feature.rest.windows(2).all(|s| s[0] == s[1]) {
+            p.push(Problem::new(format!("{path}.rest"), "a cut of zero length tears nothing; give its points different positions"));
+        }
         if feature.closed && point {
             p.push(Problem::new(format!("{path}.closed"), "a point cannot be closed; remove \"closed\""));
         }

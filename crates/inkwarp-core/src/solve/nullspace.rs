@@ -346,12 +346,10 @@ impl Membrane {
         // Each block in an order that keeps its envelope narrow (a strand's bends in order
         // along it); one with a dropped pivot (dependent functions) is not settled.
         let mut local = vec![0; k];
-        let order = blocks_in_order(k, |_| true, |j, out| *out = gram[j].iter().map(|e| e.0).collect());
-        let blocks = order.into_iter().map(|members| {
+        let blocks = blocks_in_order(k, |_| true, |j, out| *out = gram[j].iter().map(|e| e.0).collect()).into_iter().map(|members| {
             members.iter().enumerate().for_each(|(l, &j)| local[j] = l);
             let entries = members.iter().map(|&j| gram[j].iter().map(|&(i, v)| (local[i], v)).collect()).collect();
-            let factor = Envelope::factor(entries, 0.0, 1e-12, MAX_BLOCK_ENTRIES).filter(|f| !f.dropped());
-            (members, factor)
+            (members, Envelope::factor(entries, 0.0, 1e-12, MAX_BLOCK_ENTRIES).filter(|f| !f.dropped()))
         }).collect();
         Membrane { basis, products, blocks }
     }
