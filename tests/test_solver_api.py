@@ -88,6 +88,8 @@ def test_a_report_says_why_its_solve_stopped():
         ({"method": "southwell", "southwell_sweeps": 1}, "budget"),
         ({"method": "southwell", "southwell_sweeps": 3, "max_cycles": 2}, "max_cycles"),
         ({"tolerance": 1e-9}, "precision"),
+        # No number of cycles meets that tolerance: the reason, though the cycles ran out too.
+        ({"tolerance": 1e-9, "max_cycles": 3}, "precision"),
     ]
     for kwargs, stop in cases:
         _, report = inkwarp.thin_plate_report(pts, disp, (257, 257), **kwargs)

@@ -240,6 +240,7 @@ fn stop_name(stop: Stop) -> &'static str {
         Stop::Budget => "budget",
         Stop::Unsettled => "unsettled",
         Stop::Precision => "precision",
+        Stop::Residual => "residual",
         Stop::Breakdown => "breakdown",
         Stop::Interrupted => "interrupted",
     }

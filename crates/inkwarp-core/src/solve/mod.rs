@@ -127,24 +127,16 @@ pub struct SolveReport {
     pub stop: Stop,
 }
 
-/// Why a solve stopped.
+/// Why a solve stopped: the stopping rule found the tolerance met; `max_cycles` cycles
+/// (Southwell: rounds) ran; Southwell's fixed budget was spent; free parts (hinges, strands)
+/// were too many or too coupled to settle (the τ → 0⁺ rule); the tolerance is finer than the
+/// `f32` field's precision; the rule's claim left a residual above the tolerance; a value
+/// was not finite; Ctrl+C.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Stop {
-    /// The stopping rule found the tolerance met.
     #[default]
     Converged,
-    /// `max_cycles` cycles (Southwell: rounds) ran.
-    MaxCycles,
-    /// Southwell's fixed budget of relaxations was spent.
-    Budget,
-    /// Free parts (hinges, strands) too many or too coupled to settle (the τ → 0⁺ rule).
-    Unsettled,
-    /// A tolerance finer than the `f32` field's precision, or a residual left above it.
-    Precision,
-    /// The iteration broke down (a value not finite).
-    Breakdown,
-    /// Interrupted (Ctrl+C).
-    Interrupted,
+    MaxCycles, Budget, Unsettled, Precision, Residual, Breakdown, Interrupted,
 }
 
 impl SolveReport {
@@ -438,7 +430,7 @@ fn settle_null_space(
     }
     const ROUNDS: usize = 8;
     let budget = options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES);
-    let mut settled = Stop::MaxCycles;
+    let mut settled = None;
     // The settled answer of the round before (a solve that keeps to settled answers ends
     // in the first round; one left unprojected may drift along the free functions), so
     // rounds compare settled answers. Every round, the last included, ends settled.
@@ -447,7 +439,7 @@ fn settle_null_space(
         let all = settle(&mut dense);
         let moved = dense.iter().zip(&before).fold(0.0f64, |a, (u, b)| a.max((u[0] - b[0]).abs()).max((u[1] - b[1]).abs()));
         if !all || moved <= options.tolerance_px * 0.25 {
-            settled = if !all { Stop::Unsettled } else { report.stop };
+            settled = Some(if !all { Stop::Unsettled } else { report.stop });
             break;
         }
         if round == ROUNDS || report.cycles >= budget { break; }
@@ -461,7 +453,11 @@ fn settle_null_space(
         (report.final_change_px, report.residual, report.converged, report.stop) = (r2.final_change_px, r2.residual, r2.converged, r2.stop);
         dense = u2.dense(w, h);
     }
-    (report.converged, report.stop) = (settled == Stop::Converged, settled);
+    // Rounds run out: the last solve's reason, else the field's resolution or the cycles.
+    let largest = dense.iter().fold(0.0f64, |m, v| m.max(v[0].abs()).max(v[1].abs()));
+    let fine = options.tolerance_px < FINEST_TOLERANCE * largest;
+    let stop = settled.unwrap_or(if report.stop != Stop::Converged { report.stop } else if fine { Stop::Precision } else { Stop::MaxCycles });
+    (report.converged, report.stop) = (stop == Stop::Converged, stop);
     (BoxValues { values: dense, stride: w, first: 0 }, report)
 }
 
@@ -754,7 +750,6 @@ fn solve_piece(
             // multigrid's own bound (or nothing left to relax): a spent budget proves nothing.
             let unknowns = hier.levels[0].inv_diag.iter().filter(|&&d| d != 0.0).count().max(1);
             let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
-            southwell_spent = left == 0;
             let mut round = 0;
             while left > 0 && round < options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) && !crate::interrupt::requested() {
                 let rz = fresh_direction(&mut hier, &r, &mut p, None, None);
@@ -763,7 +758,6 @@ fn solve_piece(
                 let (relaxed, finished) = southwell::relax(&hier.levels[0], &mut u, take, unknowns);
                 left -= take;
                 round += 1;
-                southwell_spent = left == 0;
                 hier.levels[0].residual(&u, None, &mut r);
                 // No node moved by more than the two parts' largest moves together.
                 if stop(step + relaxed, round, &mut report, (0.0, false)) || finished {
@@ -771,6 +765,7 @@ fn solve_piece(
                     break;
                 }
             }
+            southwell_spent = left == 0;
         }
     }
     // The conjugate-gradient residual is updated, not recomputed: it is the residual of u up
@@ -790,10 +785,12 @@ fn solve_piece(
         // The loop ran out: its cycles, the interrupt, or Southwell's budget.
         report.stop = if crate::interrupt::requested() { Stop::Interrupted } else if southwell_spent { Stop::Budget } else { Stop::MaxCycles };
     }
-    if !finite {
-        report.fail(Stop::Breakdown);
-    } else if options.tolerance_px < FINEST_TOLERANCE * largest || residual > 4.0 * options.tolerance_px {
-        report.fail(Stop::Precision);
+    // A field not finite, or a tolerance no cycle count meets, is the reason whatever
+    // stopped the loop.
+    if !finite || options.tolerance_px < FINEST_TOLERANCE * largest {
+        (report.converged, report.stop) = (false, if finite { Stop::Precision } else { Stop::Breakdown });
+    } else if residual > 4.0 * options.tolerance_px {
+        report.fail(Stop::Residual);
     }
     hier.spare.extend([r, q]);
     hier.direction = p;
@@ -1166,7 +1163,7 @@ struct Settled<'m> {
 }
 
 impl<'m> Settled<'m> {
-    /// `None` where a block cannot be settled (a factor past `nullspace::MAX_BLOCK_WORK`,
+    /// `None` where a block cannot be settled (a factor past `nullspace::MAX_BLOCK_ENTRIES`,
     /// or singular): there the iteration runs unprojected.
     fn new(membrane: &'m nullspace::Membrane, level: &Level) -> Option<Self> {
         if !membrane.settles_all() { return None; }
