@@ -116,7 +116,8 @@ class SolveReport:
         ``"max_cycles"`` (the cycles ran out), ``"budget"`` (``"southwell"``'s fixed budget
         was spent), ``"unsettled"`` (parts joined at single nodes or by 1 px strands too
         many to settle to the tension → 0 rule), ``"precision"`` (a tolerance finer than
-        the field's ``float32`` precision), ``"breakdown"`` (a value not finite) or
+        the field's ``float32`` precision), ``"residual"`` (the stopping rule's claim left a
+        residual above the tolerance), ``"breakdown"`` (a value not finite) or
         ``"interrupted"``. With several pieces, the first reason found.
     """
 
