@@ -7,7 +7,7 @@
 //! iterate is corrected on `span W` (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`) and every later
 //! direction made `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000).
 //! It also gives the stopping rule a rate floor ([`Deflation::rate_floor`]) and the largest
-//! change of the last window ([`Deflation::judged_change`]). Memory: at most
+//! change of the last window and its rate ([`Deflation::judged`]). Memory: at most
 //! `2·WINDOW + 2·KEEP_SLOW` `f32` vectors (160 bytes a node) within [`BUDGET_BYTES`].
 
 use rayon::prelude::*;
@@ -218,14 +218,16 @@ impl Deflation {
         true
     }
 
-    /// The change the stopping rule is to judge: once the iteration has deflated (a slow
-    /// problem, whose changes come in bursts), the largest of the last window's; else
-    /// `change`.
-    pub fn judged_change(&mut self, change: f64) -> f64 {
-        if self.restarts == 0 { return change; }
+    /// The change the stopping rule is to judge and its rate a cycle: once the iteration has
+    /// deflated (changes in bursts), the largest of the last window's and the rate from the
+    /// window before (a sliding maximum's own ratios are 1 until its largest leaves); else none.
+    pub fn judged(&mut self, change: f64) -> (f64, Option<f64>) {
+        if self.restarts == 0 { return (change, None); }
         self.changes.push(change);
-        if self.changes.len() > WINDOW { self.changes.remove(0); }
-        self.changes.iter().fold(0.0, |a: f64, &b| a.max(b))
+        if self.changes.len() > 2 * WINDOW { self.changes.remove(0); }
+        let (older, last) = self.changes.split_at(self.changes.len().saturating_sub(WINDOW));
+        let [older, last] = [older, last].map(|c| c.iter().fold(0.0, |a: f64, &b| a.max(b)));
+        (last, (self.changes.len() == 2 * WINDOW && older > 0.0).then(|| (last / older).powf(1.0 / WINDOW as f64)))
     }
 
     /// A step of length `alpha` taken (per component).
@@ -414,4 +416,26 @@ fn extremes(diag: &[f64], off: &[f64]) -> Option<(f64, f64)> {
         0.5 * (a + b)
     };
     Some((find(0), find(n - 1)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_deflated_solve_is_judged_by_its_windows_rate_not_a_sliding_maximums() {
+        // Changes falling by half a cycle in bursts (every other one small): the judged change
+        // is the window's largest, and its rate a cycle the window-to-window one, 0.5 (the
+        // sliding maximum's own ratio would be 1 on most cycles, which never stops).
+        let mut d = Deflation { restarts: 1, ..Default::default() };
+        let changes: Vec<f64> = (0..12).map(|k| 0.5f64.powi(k) * if k % 2 == 0 { 1.0 } else { 0.01 }).collect();
+        let judged: Vec<(f64, Option<f64>)> = changes.iter().map(|&c| d.judged(c)).collect();
+        assert!(judged[..7].iter().all(|j| j.1.is_none()), "{judged:?}");
+        for (k, &(change, rate)) in judged.iter().enumerate().skip(7) {
+            let largest = changes[k + 1 - WINDOW..=k].iter().fold(0.0f64, |a, &b| a.max(b));
+            assert_eq!(change, largest);
+            assert!((rate.unwrap() - 0.5).abs() < 1e-12, "cycle {k}: {rate:?}");
+        }
+        assert_eq!(Deflation::default().judged(0.3), (0.3, None));
+    }
 }

@@ -127,11 +127,9 @@ pub struct SolveReport {
     pub stop: Stop,
 }
 
-/// Why a solve stopped: the stopping rule found the tolerance met; `max_cycles` cycles
-/// (Southwell: rounds) ran; Southwell's fixed budget was spent; free parts (hinges, strands)
-/// were too many or too coupled to settle (the τ → 0⁺ rule); the tolerance is finer than the
-/// `f32` field's precision; the rule's claim left a residual above the tolerance; a value
-/// was not finite; Ctrl+C.
+/// Why a solve stopped: the rule found the tolerance met; `max_cycles` cycles (Southwell:
+/// rounds) ran; Southwell's budget was spent; free parts (hinges, strands) too many to settle;
+/// a tolerance finer than the `f32` field's precision; a residual left above it; not finite; Ctrl+C.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Stop {
     #[default]
@@ -659,12 +657,12 @@ fn solve_piece(
     // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
     // slow mode that the first step barely moved hides behind a small change.
     let first_may_stop = !hier.torn || warm || direct;
-    let mut stop = |change: f64, cycle: usize, report: &mut SolveReport, (floor, settled): (f64, bool)| {
+    let mut stop = |(change, rate): (f64, Option<f64>), cycle: usize, report: &mut SolveReport, (floor, settled): (f64, bool)| {
         (report.cycles, report.final_change_px) = (cycle, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. CG steps are not: ρ is the
         // larger of the last two ratios (0.5 before one; their geometric mean where the spectrum
         // has settled and the last change fell), at least the Lanczos floor; 0.99 never stops.
-        let ratio = if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 };
+        let ratio = rate.unwrap_or(if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 });
         ratios = [ratios[1], ratio];
         let two = if settled && ratios[0] > 0.0 && ratio < 1.0 { (ratios[0] * ratios[1]).sqrt() } else { ratios[0].max(ratios[1]) };
         let rho = if direct { 0.0 } else { floor.max(two) };
@@ -704,7 +702,7 @@ fn solve_piece(
                     break;
                 }
                 slow.step(alpha);
-                if stop(slow.judged_change(change), cycle, &mut report, slow.rate_floor()) {
+                if stop(slow.judged(change), cycle, &mut report, slow.rate_floor()) {
                     report.converged = true;
                     break;
                 }
@@ -760,7 +758,7 @@ fn solve_piece(
                 round += 1;
                 hier.levels[0].residual(&u, None, &mut r);
                 // No node moved by more than the two parts' largest moves together.
-                if stop(step + relaxed, round, &mut report, (0.0, false)) || finished {
+                if stop((step + relaxed, None), round, &mut report, (0.0, false)) || finished {
                     report.converged = true;
                     break;
                 }
