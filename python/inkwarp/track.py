@@ -597,7 +597,10 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
                          f"number below {count}")
     if simplify_px is not None and not (math.isfinite(simplify_px) and simplify_px >= 0):
         raise ValueError(f"--simplify {simplify_px}: give a distance in pixels, 0 or more")
-    features = _features(doc, clip.fps, count, frame, where)
+    # A cut moves nothing (it tears the picture along its rest line): it is not tracked, and
+    # keeps no keys.
+    drawn = _features(doc, clip.fps, count, frame, where)
+    features = [f for f in drawn if f.kind != "cut"]
     _layout(features)
 
     anchors_of = {f.id: sorted({frame, *f.keys}) for f in features}
@@ -632,12 +635,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         tracks[a] = ({**back_pos, **fwd_pos}, {**back_err, **fwd_err})
 
     lost: dict[str, list[int]] = {}
-    out_features = []
-    for i, f in enumerate(features):
-        if f.kind == "cut":
-            # A cut moves nothing (it tears the picture along its rest line): no keys.
-            out_features.append(doc["features"][i])
-            continue
+    for i, f in ((i, f) for i, f in enumerate(drawn) if f.kind != "cut"):  # keys written into doc
         series = np.empty((count, len(f.rest), 2))
         for k in range(count):
             series[k], err = _blend(tracks, anchors_of[f.id], f, k, lost_px)
@@ -654,8 +652,6 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
                             "points": [[float(x), float(y)] if k in given else [round(float(x), 3), round(float(y), 3)]
                                        for x, y in (given[k] if k in given else series[k])],
                             "interpolation": "linear"} for k in kept]
-        out_features.append(feature)
-    doc["features"] = out_features
     doc["fps"] = clip.fps if clip.fps != int(clip.fps) else int(clip.fps)
     doc["duration"] = count / clip.fps
     if lost:

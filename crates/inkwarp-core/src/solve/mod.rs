@@ -451,10 +451,9 @@ fn settle_null_space(
         (report.final_change_px, report.residual, report.converged, report.stop) = (r2.final_change_px, r2.residual, r2.converged, r2.stop);
         dense = u2.dense(w, h);
     }
-    // Rounds run out: the last solve's reason, else the field's resolution or the cycles.
-    let largest = dense.iter().fold(0.0f64, |m, v| m.max(v[0].abs()).max(v[1].abs()));
-    let fine = options.tolerance_px < FINEST_TOLERANCE * largest;
-    let stop = settled.unwrap_or(if report.stop != Stop::Converged { report.stop } else if fine { Stop::Precision } else { Stop::MaxCycles });
+    // Rounds run out: the last solve's reason (a tolerance below the field's resolution is
+    // one, see `solve_piece`), else the cycles.
+    let stop = settled.unwrap_or(if report.stop != Stop::Converged { report.stop } else { Stop::MaxCycles });
     (report.converged, report.stop) = (stop == Stop::Converged, stop);
     (BoxValues { values: dense, stride: w, first: 0 }, report)
 }
