@@ -115,7 +115,7 @@ class SolveReport:
         Why the solve stopped: ``"converged"`` (exactly when ``converged``),
         ``"max_cycles"`` (the cycles ran out), ``"budget"`` (``"southwell"``'s fixed budget
         was spent), ``"unsettled"`` (parts joined at single nodes or by 1 px strands too
-        many to settle to the tension → 0 rule), ``"precision"`` (a tolerance finer than
+        many to settle to the tension → 0 rule, or not settling within its rounds), ``"precision"`` (a tolerance finer than
         the field's ``float32`` precision), ``"residual"`` (the stopping rule's claim left a
         residual above the tolerance), ``"breakdown"`` (a value not finite) or
         ``"interrupted"``. With several pieces, the first reason found.

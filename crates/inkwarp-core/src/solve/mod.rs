@@ -128,7 +128,7 @@ pub struct SolveReport {
 }
 
 /// Why a solve stopped: the rule found the tolerance met; `max_cycles` cycles (Southwell:
-/// rounds) ran; Southwell's budget was spent; free parts (hinges, strands) too many to settle;
+/// rounds) ran; Southwell's budget was spent; free parts (hinges, strands) too many to settle, or never settled;
 /// a tolerance finer than the `f32` field's precision; a residual left above it; not finite; Ctrl+C.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Stop {
@@ -452,8 +452,8 @@ fn settle_null_space(
         dense = u2.dense(w, h);
     }
     // Rounds run out: the last solve's reason (a tolerance below the field's resolution is
-    // one, see `solve_piece`), else the cycles.
-    let stop = settled.unwrap_or(if report.stop != Stop::Converged { report.stop } else { Stop::MaxCycles });
+    // one, see `solve_piece`), else the cycles, else the rounds (the settling never held).
+    let stop = settled.unwrap_or(if report.stop != Stop::Converged { report.stop } else if report.cycles >= budget { Stop::MaxCycles } else { Stop::Unsettled });
     (report.converged, report.stop) = (stop == Stop::Converged, stop);
     (BoxValues { values: dense, stride: w, first: 0 }, report)
 }

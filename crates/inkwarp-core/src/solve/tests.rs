@@ -1569,6 +1569,31 @@ fn a_build_first_drops_its_pieces_earlier_drawing_then_what_no_recent_solve_used
 }
 
 #[test]
+fn settling_rounds_that_never_hold_are_reported_unsettled_not_the_cycle_cap() {
+    // A settling that moves the answer by one more pixel every round never holds: after its
+    // rounds the report says so (`Unsettled`, whose advice is about free parts), not
+    // `MaxCycles` (whose advice, more cycles, would not help); with the cycles spent, `MaxCycles`.
+    let (w, h) = (17, 17);
+    let fixed: Vec<bool> = (0..w * h).map(|i| [0, 16, 8 * 17 + 8].contains(&i)).collect();
+    let key = CacheKey { at: [0, 0], w, h, tau_bits: 0.5f64.to_bits(), off: Ablation::default(), links: BoxLinks::Open, fixed };
+    let value = [(0, [0.0, 0.0]), (16, [1.0, 0.0]), (8 * 17 + 8, [0.0, 2.0])];
+    let rounds = std::cell::Cell::new(0.0);
+    let drift = |v: &mut Vec<V2>| {
+        rounds.set(rounds.get() + 1.0);
+        v.iter_mut().for_each(|x| x[0] += rounds.get());
+        true
+    };
+    let options = SolveOptions { tension: 0.5, ..Default::default() };
+    for (max, want) in [(None, Stop::Unsettled), (Some(3), Stop::MaxCycles)] {
+        let options = SolveOptions { max_cycles: max, ..options.clone() };
+        rounds.set(0.0);
+        let u = BoxValues { values: vec![[0.0; 2]; w * h], stride: w, first: 0 };
+        let (_, report) = settle_null_space(key.clone(), None, 0.5, &value, &drift, None, u, SolveReport::default(), &options, &mut Store::default());
+        assert_eq!((report.converged, report.stop), (false, want), "{report:?}");
+    }
+}
+
+#[test]
 fn releasing_the_levels_keeps_the_history() {
     let grid = Grid::new(33, 33);
     let s = |x: f64, y: f64, d: f64| Sample { rest: [x, y], displacement: [d, 0.0] };
