@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import threading
+import warnings
 
 import numpy as np
 import pytest
@@ -130,8 +131,9 @@ def test_solves_run_in_parallel_threads():
     ("kwargs", "match"),
     [
         ({"points": [[1, 2, 3]]}, r"points must have shape \(N, 2\)"),
-        ({"points": [[1, np.nan]], "displacements": [[0, 0]]}, "points has a NaN or infinite value in row 0"),
-        ({"displacements": [[0, np.inf]] * 3}, "displacements has a NaN or infinite value"),
+        ({"points": [[1, np.nan]], "displacements": [[0, 0]]}, r"points has a value that is not a finite number \(NaN, None or infinite\) in row 0"),
+        ({"displacements": [[0, np.inf]] * 3}, "displacements has a value that is not a finite number"),
+        ({"points": [[None, 1]], "displacements": [[0, 0]]}, r"\(NaN, None or infinite\) in row 0"),
         ({"points": np.zeros((0, 2)), "displacements": np.zeros((0, 2))}, "points is empty"),
         ({"displacements": [[0, 0]]}, "points has 3 rows but displacements has 1"),
         ({"points": "abc"}, "points must be an"),
@@ -142,13 +144,17 @@ def test_solves_run_in_parallel_threads():
         ({"mask": np.full(SHAPE, np.nan)}, "mask has NaN"),
         ({"cuts": [[[1, 1]]]}, r"cuts\[0\] has 1 point"),
         ({"cuts": np.zeros((3, 2))}, "wrap a single cut in a list"),
-        ({"cuts": [[[1, 1], [np.nan, 2]]]}, r"cuts\[0\] has a NaN"),
+        ({"cuts": [[[1, 1], [np.nan, 2]]]}, r"cuts\[0\] has a value that is not a finite number"),
         ({"tension": -1.0}, "tension must be a finite number >= 0"),
         ({"tension": np.inf}, "tension must be a finite number >= 0"),
         ({"tolerance": -0.1}, "tolerance must be a finite number >= 0"),
-        ({"grid_step": 0}, "grid_step must be an integer >= 1"),
-        ({"grid_step": 1.5}, "grid_step must be an integer >= 1"),
-        ({"max_cycles": -1}, "max_cycles must be None or an integer >= 0"),
+        ({"grid_step": 0}, "grid_step must be an integer from 1 to 32768"),
+        ({"grid_step": 1.5}, "grid_step must be an integer from 1 to 32768"),
+        ({"grid_step": 10**20}, "grid_step must be an integer from 1 to 32768"),
+        ({"max_cycles": -1}, r"max_cycles must be None \(no cap but the default\) or an integer from 0 to 1,000,000,000"),
+        # Past the engine's integers: a ValueError naming it, not numpy's or Rust's OverflowError.
+        ({"max_cycles": 10**20}, "max_cycles must be None .* from 0 to 1,000,000,000, got 100000000000000000000"),
+        ({"mask": "head.png"}, r"mask must be an \(H, W\) array, got the path 'head.png'"),
         ({"method": "jacobi"}, "method must be one of"),
         ({"initial": np.zeros((2, 2, 2))}, r"initial has shape \(2, 2, 2\) but must be \(18, 24, 2\)"),
         ({"initial": np.full((18, 24, 2), np.nan)}, "initial has NaN"),
@@ -334,3 +340,22 @@ def test_complex_numbers_are_refused_everywhere_points_are_taken():
                  lambda: inkwarp.sample("polyline", pts.real, pts)):
         with pytest.raises(ValueError, match="holds complex numbers"):
             call()
+
+
+def test_no_cycle_returns_a_warm_start_as_it_is():
+    # max_cycles=0 runs none and returns the start: a close but rough start (the answer
+    # rounded to half pixels) came back with its coarse-to-fine correction, 7 px off.
+    pts, disp, shape = [[20, 20], [100, 20], [20, 80], [100, 80], [64, 48]], [[0, 0]] * 4 + [[10, -6]], (96, 128)
+    start = np.round(inkwarp.thin_plate(pts, disp, shape, tolerance=1e-5) * 2) / 2
+    field, report = inkwarp.thin_plate_report(pts, disp, shape, initial=start, max_cycles=0)
+    assert (report.cycles, report.converged, report.stop) == (0, False, "max_cycles")
+    for (x, y), d in zip(pts, disp):  # the constrained nodes hold their displacements
+        start[y, x] = d
+    assert np.array_equal(field, start)
+
+
+def test_a_start_past_float32_is_refused_without_numpy_warnings():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match="initial"):
+            inkwarp.thin_plate(PTS, DISP, SHAPE, initial=np.full(SHAPE + (2,), 1e300))

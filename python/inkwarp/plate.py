@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import numbers
 import operator
+import os
 from collections.abc import Sequence
 from typing import Any
 
@@ -24,6 +25,9 @@ from inkwarp.errors import ComplexValuesError, real_array
 __all__ = ["SolveReport", "Solver", "WarmStart", "thin_plate", "thin_plate_report"]
 
 _METHODS = ("multigrid", "southwell")
+
+#: The largest ``max_cycles`` taken (any cap past it is never reached in practice).
+MAX_CYCLES = 10**9
 
 WarmStart = _inkwarp.WarmStart
 WarmStart.__doc__ = """Earlier solves of one animated surface, to start the next solve from.
@@ -155,7 +159,8 @@ def _points(name: str, value: Any) -> npt.NDArray[np.float64]:
         )
     if not np.all(np.isfinite(arr)):
         row = int(np.argwhere(~np.isfinite(arr))[0][0])
-        raise ValueError(f"{name} has a NaN or infinite value in row {row}; every number must be finite.")
+        raise ValueError(f"{name} has a value that is not a finite number (NaN, None or infinite) in row {row}; "
+                         "every value must be a finite number.")
     return np.ascontiguousarray(arr)
 
 
@@ -192,6 +197,9 @@ def _check_args(
         )
     mask_u8 = None
     if mask is not None:
+        if isinstance(mask, (str, bytes, os.PathLike)):
+            raise ValueError(f"mask must be an (H, W) array, got the path {os.fspath(mask)!r}; read the picture "
+                             "first (its alpha channel, for example np.asarray(PIL.Image.open(path))[..., 3]).")
         m = np.asarray(mask)
         if m.shape != (height, width):
             raise ValueError(f"mask has shape {m.shape} but shape is {(height, width)}; pass an (H, W) mask.")
@@ -214,12 +222,15 @@ def _check_args(
             raise ValueError(f"{name} must be a finite number >= 0, got {value!r}.")
     if tension > 1e6:
         raise ValueError(f"tension must be a number from 0 to 1e6 (0 is a pure thin plate), got {float(tension):g}.")
-    if isinstance(grid_step, bool) or not isinstance(grid_step, numbers.Integral) or grid_step < 1:
-        raise ValueError(f"grid_step must be an integer >= 1 (1 solves on every pixel), got {grid_step!r}.")
+    if (isinstance(grid_step, bool) or not isinstance(grid_step, numbers.Integral) or grid_step < 1
+            or grid_step > _inkwarp.MAX_SIDE_PX):
+        raise ValueError(f"grid_step must be an integer from 1 to {_inkwarp.MAX_SIDE_PX} (1 solves on every "
+                         f"pixel), got {grid_step!r}.")
     if max_cycles is not None and (
-        isinstance(max_cycles, bool) or not isinstance(max_cycles, numbers.Integral) or max_cycles < 0
+        isinstance(max_cycles, bool) or not isinstance(max_cycles, numbers.Integral) or not 0 <= max_cycles <= MAX_CYCLES
     ):
-        raise ValueError(f"max_cycles must be None or an integer >= 0, got {max_cycles!r}.")
+        raise ValueError(f"max_cycles must be None (no cap but the default) or an integer from 0 to {MAX_CYCLES:,}, "
+                         f"got {max_cycles!r}.")
     if method not in _METHODS:
         raise ValueError(f"method must be one of {_METHODS}, got {method!r}.")
     if (

@@ -615,15 +615,15 @@ fn solve_piece(
     let pin = |u: &mut [V2]| value.iter().for_each(|&(i, v)| u[fine.pidx(i % w, i / w)] = v);
     pin(&mut u);
     let mut r = cycle::zeros_in(hier.spare.pop(), len);
-    // A cold solve starts coarse to fine, and so does a warm one whose start leaves
-    // residuals above the tolerance (a user's earlier answer). A closer start (the earlier
-    // frames' prediction) first gets one cycle as it is, and the coarse-to-fine correction
-    // only when that cycle did not finish: for it the correction costs more than it saves.
+    // A cold solve starts coarse to fine, and so does a warm one whose start leaves residuals
+    // above the tolerance (a user's earlier answer), unless no cycle may run (the start is then
+    // the answer). A closer start (the earlier frames' prediction) first gets one cycle as it
+    // is, and the coarse-to-fine correction only when that cycle did not finish.
     let mut warm = initial.is_some();
     let mut started = !warm;
     if warm {
         report.initial_residual = fine.residual_scaled_max(&u, &mut r);
-        started = !(report.initial_residual <= options.tolerance_px);
+        started = !(report.initial_residual <= options.tolerance_px) && options.max_cycles != Some(0);
         if started {
             // A start worse than none (huge or unrelated values) is dropped for the cold start
             // (`docs/dev/solver-correctness.md`).
