@@ -120,7 +120,7 @@ class SolveReport:
         ``"max_cycles"`` (the cycles ran out), ``"budget"`` (``"southwell"``'s fixed budget
         was spent), ``"unsettled"`` (parts joined at single nodes or by 1 px strands too
         many to settle to the tension → 0 rule, or not settling within its rounds), ``"precision"`` (a tolerance finer than
-        the field's ``float32`` precision), ``"residual"`` (the stopping rule's claim left a
+        the field's ``float32`` precision, reported even where the cycles ran out too), ``"residual"`` (the stopping rule's claim left a
         residual above the tolerance), ``"breakdown"`` (a value not finite) or
         ``"interrupted"``. With several pieces, the first reason found.
     """
