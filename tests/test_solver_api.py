@@ -131,7 +131,8 @@ def test_solves_run_in_parallel_threads():
     ("kwargs", "match"),
     [
         ({"points": [[1, 2, 3]]}, r"points must have shape \(N, 2\)"),
-        ({"points": [[1, np.nan]], "displacements": [[0, 0]]}, r"points has a value that is not a finite number \(NaN, None or infinite\) in row 0"),
+        ({"points": [[1, np.nan]], "displacements": [[0, 0]]},
+         r"points has a value that is not a finite number \(NaN, None or infinite\) in row 0"),
         ({"displacements": [[0, np.inf]] * 3}, "displacements has a value that is not a finite number"),
         ({"points": [[None, 1]], "displacements": [[0, 0]]}, r"\(NaN, None or infinite\) in row 0"),
         ({"points": np.zeros((0, 2)), "displacements": np.zeros((0, 2))}, "points is empty"),

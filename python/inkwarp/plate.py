@@ -119,8 +119,9 @@ class SolveReport:
         Why the solve stopped: ``"converged"`` (exactly when ``converged``),
         ``"max_cycles"`` (the cycles ran out), ``"budget"`` (``"southwell"``'s fixed budget
         was spent), ``"unsettled"`` (parts joined at single nodes or by 1 px strands too
-        many to settle to the tension → 0 rule, or not settling within its rounds), ``"precision"`` (a tolerance finer than
-        the field's ``float32`` precision, reported even where the cycles ran out too), ``"residual"`` (the stopping rule's claim left a
+        many to settle to the tension → 0 rule, or not settling within its rounds),
+        ``"precision"`` (a tolerance finer than the field's ``float32`` precision, reported
+        even where the cycles ran out too), ``"residual"`` (the stopping rule's claim left a
         residual above the tolerance), ``"breakdown"`` (a value not finite) or
         ``"interrupted"``. With several pieces, the first reason found.
     """
@@ -227,7 +228,8 @@ def _check_args(
         raise ValueError(f"grid_step must be an integer from 1 to {_inkwarp.MAX_SIDE_PX} (1 solves on every "
                          f"pixel), got {grid_step!r}.")
     if max_cycles is not None and (
-        isinstance(max_cycles, bool) or not isinstance(max_cycles, numbers.Integral) or not 0 <= max_cycles <= MAX_CYCLES
+        isinstance(max_cycles, bool) or not isinstance(max_cycles, numbers.Integral)
+        or not 0 <= max_cycles <= MAX_CYCLES
     ):
         raise ValueError(f"max_cycles must be None (no cap but the default) or an integer from 0 to {MAX_CYCLES:,}, "
                          f"got {max_cycles!r}.")
