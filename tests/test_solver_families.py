@@ -509,6 +509,23 @@ def test_a_weakly_held_piece_with_a_hidden_mode_is_not_claimed_early(seed, integ
     assert not report.converged or float(np.abs(field - tight).max()) < TOLERANCE_PX, report
 
 
+def test_no_cycle_leaves_a_start_and_a_kept_solvers_slow_modes_alone():
+    # max_cycles=0 returns the start: a kept solver's slow modes (found by an earlier slow
+    # solve of the same operator) corrected it all the same, and they stay for the next solve.
+    pts, disp, cuts = random_cuts(0, False, 4)
+    shape, a, b = (256, 256), inkwarp.Solver(), inkwarp.Solver()
+    field, first = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=a)
+    inkwarp.thin_plate(pts, disp, shape, cuts=cuts, solver=b)
+    assert first.cycles > 10, first  # past the cycle where deflation starts keeping modes
+    start = field * 1.1
+    fresh, _ = inkwarp.thin_plate_report(pts, disp * 1.1, shape, cuts=cuts, initial=start, max_cycles=0)
+    kept, report = inkwarp.thin_plate_report(pts, disp * 1.1, shape, cuts=cuts, initial=start, max_cycles=0, solver=a)
+    assert report.cycles == 0 and np.array_equal(kept, fresh)
+    after_a = inkwarp.thin_plate_report(pts, disp * 1.2, shape, cuts=cuts, initial=field, solver=a)
+    after_b = inkwarp.thin_plate_report(pts, disp * 1.2, shape, cuts=cuts, initial=field, solver=b)
+    assert after_a[1].cycles == after_b[1].cycles and np.array_equal(after_a[0], after_b[0])
+
+
 def test_a_cold_torn_solve_does_not_stop_after_its_first_cycle():
     # Random cuts at a fiftieth of the displacements: one piece's first step moved it by
     # 0.0018 px, which with no ratio yet the rule took for converged, while a slow mode left

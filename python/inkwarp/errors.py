@@ -52,8 +52,9 @@ class InkwarpWarning(UserWarning):
 class ConvergenceWarning(InkwarpWarning):
     """A thin-plate solve stopped before it converged (its cycles ran out, a budget was
     spent, parts were left unsettled: see :attr:`SolveReport.stop`), so its field may be off
-    by more than the 0.05 px accuracy contract. The message names the layer and the frame,
-    and what to change; ``inkwarp render`` prints it as one line on stderr."""
+    by more than the accuracy contract, 5 times ``solver.tolerance`` (0.05 px at the default).
+    The message names the layer and the frame, and what to change; ``inkwarp render`` prints
+    it as one line on stderr."""
 
 
 class ComplexValuesError(ValueError):

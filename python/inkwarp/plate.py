@@ -26,8 +26,8 @@ __all__ = ["SolveReport", "Solver", "WarmStart", "thin_plate", "thin_plate_repor
 
 _METHODS = ("multigrid", "southwell")
 
-#: The largest ``max_cycles`` taken (any cap past it is never reached in practice).
-MAX_CYCLES = 10**9
+#: The largest ``max_cycles`` taken, as in scenes (the engine counts cycles in 32 bits).
+MAX_CYCLES = 2**32 - 1
 
 WarmStart = _inkwarp.WarmStart
 WarmStart.__doc__ = """Earlier solves of one animated surface, to start the next solve from.
@@ -200,7 +200,7 @@ def _check_args(
     if mask is not None:
         if isinstance(mask, (str, bytes, os.PathLike)):
             raise ValueError(f"mask must be an (H, W) array, got the path {os.fspath(mask)!r}; read the picture "
-                             "first (its alpha channel, for example np.asarray(PIL.Image.open(path))[..., 3]).")
+                             "first (its alpha, for example np.asarray(PIL.Image.open(path).convert('RGBA'))[..., 3]).")
         m = np.asarray(mask)
         if m.shape != (height, width):
             raise ValueError(f"mask has shape {m.shape} but shape is {(height, width)}; pass an (H, W) mask.")
@@ -231,7 +231,7 @@ def _check_args(
         isinstance(max_cycles, bool) or not isinstance(max_cycles, numbers.Integral)
         or not 0 <= max_cycles <= MAX_CYCLES
     ):
-        raise ValueError(f"max_cycles must be None (no cap but the default) or an integer from 0 to {MAX_CYCLES:,}, "
+        raise ValueError(f"max_cycles must be None (the default cap, 100) or an integer from 0 to {MAX_CYCLES:,}, "
                          f"got {max_cycles!r}.")
     if method not in _METHODS:
         raise ValueError(f"method must be one of {_METHODS}, got {method!r}.")

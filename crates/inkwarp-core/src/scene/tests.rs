@@ -843,7 +843,7 @@ fn the_warning_says_why_the_solve_stopped() {
         (1, Stop::MaxCycles, "raise solver.max_cycles"),
         (1, Stop::Budget, "fixed budget of relaxations"),
         (0, Stop::Unsettled, "at grid_step 2 parts of the matte thinner than the step"),
-        (1, Stop::Unsettled, "1 px strands are too many to settle; hold those parts with points of their own, or"),
+        (1, Stop::Unsettled, "1 px strands are too many to settle, or did not settle; hold those parts with points of their own, or"),
         (1, Stop::Precision, "finer than the field's precision"),
         (1, Stop::Residual, "residual stayed above the tolerance"),
         (1, Stop::Breakdown, "broke down"),

@@ -127,8 +127,8 @@ pub struct SolveReport {
     pub stop: Stop,
 }
 
-/// Why a solve stopped: the rule found the tolerance met; `max_cycles` cycles (Southwell:
-/// rounds) ran; Southwell's budget was spent; free parts (hinges, strands) too many to settle, or never settled;
+/// Why a solve stopped: the rule found the tolerance met; `max_cycles` cycles (Southwell: rounds)
+/// ran; Southwell's budget was spent; free parts (hinges, strands) too many to settle, or not settling;
 /// a tolerance finer than the `f32` field's precision; a residual left above it; not finite; Ctrl+C.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Stop {
@@ -682,7 +682,7 @@ fn solve_piece(
                 hier.levels[0].residual(&u, None, &mut r);
             }
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && fresh);
-            if let Some(modes) = hier.modes.take().filter(|_| !options.off.has("recycle")) {
+            if let Some(modes) = hier.modes.take_if(|_| options.max_cycles != Some(0)).filter(|_| !options.off.has("recycle")) {
                 slow.adopt(modes, &mut u, &mut r);
             }
             let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
@@ -739,7 +739,7 @@ fn solve_piece(
                 slow.beta(Some(beta));
                 rz = rz_new;
             }
-            hier.modes = slow.modes();
+            hier.modes = slow.modes().or(hier.modes.take());
         }
         SolveMethod::Southwell => {
             // Rounds of one coarse correction and one sweep's worth of Southwell relaxations
