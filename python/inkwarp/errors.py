@@ -68,5 +68,5 @@ def real_array(name: str, value: object, dtype: type = float) -> np.ndarray:
     if arr.dtype.kind == "c":
         raise ComplexValuesError(f"{name} holds complex numbers; pass real values (np.real({name}) if "
                          "the imaginary parts are zero).")
-    with np.errstate(over="ignore", invalid="ignore"):  # values past the dtype become inf: the callers refuse them
+    with np.errstate(over="ignore"):  # values past the dtype become inf, which the callers refuse
         return arr.astype(dtype, copy=False)

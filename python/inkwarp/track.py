@@ -599,8 +599,8 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         raise ValueError(f"--simplify {simplify_px}: give a distance in pixels, 0 or more")
     # A cut moves nothing (it tears the picture along its rest line): it is not tracked, and
     # keeps no keys.
-    drawn = _features(doc, clip.fps, count, frame, where)
-    features = [f for f in drawn if f.kind != "cut"]
+    tracked = [(i, f) for i, f in enumerate(_features(doc, clip.fps, count, frame, where)) if f.kind != "cut"]
+    features = [f for _, f in tracked]
     _layout(features)
 
     anchors_of = {f.id: sorted({frame, *f.keys}) for f in features}
@@ -635,7 +635,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         tracks[a] = ({**back_pos, **fwd_pos}, {**back_err, **fwd_err})
 
     lost: dict[str, list[int]] = {}
-    for i, f in ((i, f) for i, f in enumerate(drawn) if f.kind != "cut"):  # keys written into doc
+    for i, f in tracked:  # doc["features"][i] gets the keys
         series = np.empty((count, len(f.rest), 2))
         for k in range(count):
             series[k], err = _blend(tracks, anchors_of[f.id], f, k, lost_px)

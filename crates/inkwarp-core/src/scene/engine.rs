@@ -272,9 +272,8 @@ impl Scene {
             Stop::Interrupted => "it was interrupted".to_string(),
             Stop::Breakdown | Stop::Converged => "its iteration broke down; give the layer a tension, or use another method".to_string(),
         };
-        let (cycles, contract) = (if report.cycles == 1 { "1 cycle".to_string() } else { format!("{} cycles", report.cycles) }, 5.0 * solver.tolerance);
-        let bound = if contract >= 1e-3 { format!("{}", (contract * 1e4).round() / 1e4) } else { format!("{contract:.1e}") };
-        Some(format!("layer \"{name}\" {when}: the thin-plate solve did not converge ({cycles}, last change {:.3} px), so its field may be off by more than {bound} px (5 times solver.tolerance); {advice}", report.final_change_px))
+        let bound = match 5.0 * solver.tolerance { c if c >= 1e-3 => format!("{}", (c * 1e4).round() / 1e4), c => format!("{c:.1e}") };
+        Some(format!("layer \"{name}\" {when}: the thin-plate solve did not converge ({} cycle{}, last change {:.3} px), so its field may be off by more than {bound} px (5 times solver.tolerance); {advice}", report.cycles, if report.cycles == 1 { "" } else { "s" }, report.final_change_px))
     }
 
     /// Whether layer `layer` shows in frames (visible, with an image).

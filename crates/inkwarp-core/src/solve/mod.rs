@@ -619,11 +619,11 @@ fn solve_piece(
     // above the tolerance (a user's earlier answer), unless no cycle may run (the start is then
     // the answer). A closer start (the earlier frames' prediction) first gets one cycle as it
     // is, and the coarse-to-fine correction only when that cycle did not finish.
-    let mut warm = initial.is_some();
+    let (mut warm, cycles) = (initial.is_some(), options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES));
     let mut started = !warm;
     if warm {
         report.initial_residual = fine.residual_scaled_max(&u, &mut r);
-        started = !(report.initial_residual <= options.tolerance_px) && options.max_cycles != Some(0);
+        started = !(report.initial_residual <= options.tolerance_px) && cycles > 0;
         if started {
             // A start worse than none (huge or unrelated values) is dropped for the cold start
             // (`docs/dev/solver-correctness.md`).
@@ -682,11 +682,11 @@ fn solve_piece(
                 hier.levels[0].residual(&u, None, &mut r);
             }
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && fresh);
-            if let Some(modes) = hier.modes.take_if(|_| options.max_cycles != Some(0)).filter(|_| !options.off.has("recycle")) {
+            if let Some(modes) = hier.modes.take_if(|_| cycles > 0).filter(|_| !options.off.has("recycle")) {
                 slow.adopt(modes, &mut u, &mut r);
             }
             let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
-            for cycle in 1..=options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) {
+            for cycle in 1..=cycles {
                 if crate::interrupt::requested() { break; }
                 // Once deflation or the settling projects the directions, p is no longer
                 // z + βp_old and rᵀz can be far from pᵀr (the cycle magnifies the near-null
@@ -748,7 +748,7 @@ fn solve_piece(
             let unknowns = hier.levels[0].inv_diag.iter().filter(|&&d| d != 0.0).count().max(1);
             let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
             let mut round = 0;
-            while left > 0 && round < options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES) && !crate::interrupt::requested() {
+            while left > 0 && round < cycles && !crate::interrupt::requested() {
                 let rz = fresh_direction(&mut hier, &r, &mut p, None, None);
                 let (step, _) = energy_step(&hier, &mut u, &mut r, &p, &mut q, rz);
                 let take = unknowns.min(left);
