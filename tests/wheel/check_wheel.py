@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -70,7 +71,9 @@ def test_a_fresh_virtualenv_with_only_the_wheel_runs_demo_render_and_edit(tmp_pa
     assert render.returncode == 0, render.stderr
     assert np.asarray(Image.open(tmp_path / "f.png")).shape[2] == 4
 
-    edit = subprocess.Popen([inkwarp, "edit", "--no-browser", "--port", "0"], env=env,
+    # PYTHONFAULTHANDLER: should it not stop, SIGABRT prints every thread's stack.
+    edit = subprocess.Popen([inkwarp, "edit", "--no-browser", "--port", "0"],
+                            env={**env, "PYTHONFAULTHANDLER": "1"},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = edit.stdout.readline()
@@ -89,7 +92,12 @@ def test_a_fresh_virtualenv_with_only_the_wheel_runs_demo_render_and_edit(tmp_pa
         assert "<script" in page and "inkwarp" in page.lower()
     finally:
         edit.terminate()
-        edit.communicate(timeout=30)  # waits, and closes the pipes
+        try:
+            edit.communicate(timeout=30)  # waits, and closes the pipes
+        except subprocess.TimeoutExpired:
+            edit.send_signal(signal.SIGABRT)
+            _, err = edit.communicate(timeout=30)
+            raise AssertionError(f"inkwarp edit still ran 30 s after SIGTERM; its threads:\n{err}") from None
 
 
 if __name__ == "__main__":
