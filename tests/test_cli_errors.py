@@ -157,6 +157,7 @@ def test_missing_scene_file(capsys, tmp_path):
     (["-o", "{tmp}/x.png", "--frame", "4"], "the scene has frames 0 to 3"),
     (["-o", "{tmp}/x.png", "--time", "nan"], "give a time in seconds"),
     (["-o", "{tmp}/x.png", "--time", "-1"], "--time -1: give a time in seconds from 0"),
+    (["-o", "{tmp}/x.png", "--time", "2e5"], "--time 200000: give a time in seconds from 0 to 100000"),
 ])
 def test_bad_options_say_what_to_do(capsys, tmp_path, args, expected):
     scene = write_scene(tmp_path / "s")
@@ -184,6 +185,10 @@ def test_field_errors(capsys, tmp_path):
     scene = write_scene(tmp_path / "s")
     code, _, stderr = run(capsys, "field", scene, "--time", "1", "-o", tmp_path / "f.txt")
     assert code == 2 and "name the output .npy" in stderr
+    # Past the times a scene holds: refused (it gave a field, with no word, at 1e300 s).
+    code, _, stderr = run(capsys, "field", scene, "--time", "1e300", "-o", tmp_path / "f.npy")
+    assert code == 2 and "--time 1e+300: give a time in seconds from 0 to 100000" in stderr, stderr
+    assert not (tmp_path / "f.npy").exists()
     code, _, stderr = run(capsys, "field", scene, "--time", "1", "--layer", "nope",
                           "-o", tmp_path / "f.npy")
     assert code == 2 and "nope" in stderr and len(stderr.splitlines()) == 1

@@ -130,6 +130,8 @@ def test_cli_compare(tmp_path, capsys):
     assert out.exists()
     assert main(["compare", str(scene), "--methods", "bicubic", "-o", str(out)]) == 2
     assert 'unknown method "bicubic"' in capsys.readouterr().err
+    assert main(["compare", str(scene), "--time", "1e300", "-o", str(out)]) == 2
+    assert "--time 1e+300: give a time in seconds from 0 to 100000" in capsys.readouterr().err
 
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "checkerboard-hole"

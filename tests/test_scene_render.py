@@ -64,6 +64,12 @@ def test_time_and_frame_arguments(scene):
         scene.render(frame=40)
     with pytest.raises(ValueError, match="finite"):
         scene.render(time=float("nan"))
+    # Past the times a scene holds (its warnings named frame 2^64 - 1 at 1e300 s).
+    for t in (1e300, -2e5):
+        with pytest.raises(ValueError, match=r"past the times a scene holds \(±100000 s"):
+            scene.render(time=t)
+        with pytest.raises(ValueError, match="past the times a scene holds"):
+            scene.field(time=t, layer=0)
 
 
 def test_a_moving_point_moves_the_picture(tmp_path):

@@ -159,6 +159,20 @@ def test_solves_run_in_parallel_threads():
         ({"method": "jacobi"}, "method must be one of"),
         ({"initial": np.zeros((2, 2, 2))}, r"initial has shape \(2, 2, 2\) but must be \(18, 24, 2\)"),
         ({"initial": np.full((18, 24, 2), np.nan)}, "initial has NaN"),
+        # Cut points within the coordinate limit, as points are (one at 1e308 dropped the cut).
+        ({"cuts": [[[-1e308, 5.5], [1e308, 5.5]]]}, r"cuts\[0\] must be finite numbers of pixels within ±1e6, found -1e308"),
+        ({"cuts": [[[0, 5.5], [1e7, 5.5]]]}, r"cuts\[0\] must be finite numbers of pixels within ±1e6, found 1e7"),
+        # Python integers past any float, and other wrong types: ValueErrors naming the argument.
+        ({"points": [[10**400, 1]], "displacements": [[1, 1]]}, r"points must be an \(N, 2\) array of numbers \(a number too large for a float\)"),
+        ({"cuts": [[[0, 0], [10**400, 1]]]}, r"cuts\[0\] must be an \(N, 2\) array of numbers \(a number too large"),
+        ({"initial": [[[10**400, 0]]]}, r"initial must be an \(H, W, 2\) array of numbers \(a number too large"),
+        ({"initial": "abc"}, r"initial must be an \(H, W, 2\) array of numbers"),
+        ({"tension": 10**400}, "tension must be a finite number >= 0, got an integer of 401 digits"),
+        ({"tolerance": 10**400}, "tolerance must be a finite number >= 0, got an integer of 401 digits"),
+        ({"southwell_sweeps": 10**400}, "southwell_sweeps must be a finite number >= 0, got an integer of 401 digits"),
+        ({"tension": 1000001}, r"tension must be a number from 0 to 1e6 .*, got 1000001.0"),
+        ({"cuts": 5}, r"cuts must be a list of \(K, 2\) polylines, got 5"),
+        ({"mask": [[1, 2], [3]]}, r"mask must be an \(H, W\) array of numbers"),
         ({"points": np.array(PTS) + 1j}, "points holds complex numbers"),
         ({"displacements": np.array(DISP, complex)}, "displacements holds complex numbers"),
         ({"initial": np.zeros((18, 24, 2), complex)}, "initial holds complex numbers"),
@@ -168,7 +182,7 @@ def test_bad_arguments_say_what_to_fix(kwargs, match):
     args = {"points": PTS, "displacements": DISP, "shape": SHAPE}
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
-        inkwarp.thin_plate(args.pop("points"), args.pop("displacements"), args.pop("shape"), **args)
+        inkwarp.thin_plate_report(args.pop("points"), args.pop("displacements"), args.pop("shape"), **args)
 
 
 def test_southwell_stops_once_nothing_is_left_to_relax():

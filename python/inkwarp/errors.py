@@ -63,10 +63,14 @@ class ComplexValuesError(ValueError):
 
 def real_array(name: str, value: object, dtype: type = float) -> np.ndarray:
     """``value`` as an array of ``dtype``. Complex values are a :class:`ComplexValuesError`
-    (numpy would drop their imaginary parts with only a warning); other failures are numpy's."""
+    (numpy would drop their imaginary parts with only a warning); an integer too large for
+    any float is a ValueError; other failures are numpy's."""
     arr = np.asarray(value)
     if arr.dtype.kind == "c":
         raise ComplexValuesError(f"{name} holds complex numbers; pass real values (np.real({name}) if "
                          "the imaginary parts are zero).")
-    with np.errstate(over="ignore"):  # values past the dtype become inf, which the callers refuse
-        return arr.astype(dtype, copy=False)
+    try:
+        with np.errstate(over="ignore"):  # values past the dtype become inf, which the callers refuse
+            return arr.astype(dtype, copy=False)
+    except OverflowError:  # a Python int past 1.8e308
+        raise ValueError("a number too large for a float") from None

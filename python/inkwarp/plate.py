@@ -10,10 +10,11 @@ solve.
 from __future__ import annotations
 
 import dataclasses
+import math
 import numbers
 import operator
 import os
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -105,11 +106,15 @@ class SolveReport:
     initial_residual : float
         The same before the first cycle.
     constrained_nodes : int
-        Grid nodes fixed by the points (several points on one node count once).
+        Grid nodes fixed by the points (several points on one node count once; with
+        ``grid_step`` > 1, nodes of the coarse grid solved).
     constrained_samples : int
         Points that constrain a node.
     dropped_samples : int
-        Points that fell outside the grid or on a masked-out node.
+        Points that fell outside the grid or on a masked-out node. With ``grid_step`` > 1,
+        also points whose nearest coarse node is masked out; a part of the matte with no
+        coarse node at all (a strip thinner than the step) still moves by the mean of
+        its points, dropped or not.
     seconds : float
         Wall time of the solve.
     converged : bool
@@ -142,6 +147,27 @@ def _size(value: Any) -> int:
     if isinstance(value, (bool, np.bool_)):
         raise TypeError("a bool is not a size")
     return operator.index(value)
+
+
+def _finite(value: Any) -> bool:
+    """Whether ``value`` is a real number (not a bool) that a float holds finitely."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int past 1.8e308
+        return False
+
+
+def _shown(value: Any) -> str:
+    """``value`` for a message: an integer too long to read as its number of digits."""
+    if isinstance(value, numbers.Integral) and len(digits := str(abs(int(value)))) > 24:
+        return f"an integer of {len(digits)} digits"
+    return repr(value)
+
+
+def _first_line(exc: BaseException) -> str:
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
 def _points(name: str, value: Any) -> npt.NDArray[np.float64]:
@@ -201,7 +227,10 @@ def _check_args(
         if isinstance(mask, (str, bytes, os.PathLike)):
             raise ValueError(f"mask must be an (H, W) array, got the path {os.fspath(mask)!r}; read the picture "
                              "first (its alpha, for example np.asarray(PIL.Image.open(path).convert('RGBA'))[..., 3]).")
-        m = np.asarray(mask)
+        try:
+            m = np.asarray(mask)
+        except (TypeError, ValueError) as exc:  # rows of different lengths, for example
+            raise ValueError(f"mask must be an (H, W) array of numbers ({_first_line(exc)}).") from None
         if m.shape != (height, width):
             raise ValueError(f"mask has shape {m.shape} but shape is {(height, width)}; pass an (H, W) mask.")
         if m.dtype.kind == "f" and not np.all(np.isfinite(m)):
@@ -211,6 +240,8 @@ def _check_args(
         mask_u8 = np.ascontiguousarray(m != 0, dtype=np.uint8)
     cut_list = []
     if cuts is not None:
+        if not isinstance(cuts, Iterable) or isinstance(cuts, (str, bytes)):
+            raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r}.")
         if isinstance(cuts, np.ndarray) and cuts.ndim == 2:
             raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")
         for k, cut in enumerate(cuts):
@@ -219,32 +250,32 @@ def _check_args(
                 raise ValueError(f"cuts[{k}] has {len(c)} point(s); a cut needs at least two (x, y) points.")
             cut_list.append(c)
     for name, value in (("tension", tension), ("tolerance", tolerance)):
-        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value < 0:
-            raise ValueError(f"{name} must be a finite number >= 0, got {value!r}.")
+        if not _finite(value) or value < 0:
+            raise ValueError(f"{name} must be a finite number >= 0, got {_shown(value)}.")
     if tension > 1e6:
-        raise ValueError(f"tension must be a number from 0 to 1e6 (0 is a pure thin plate), got {float(tension):g}.")
+        raise ValueError(f"tension must be a number from 0 to 1e6 (0 is a pure thin plate), got {float(tension)!r}.")
     if (isinstance(grid_step, bool) or not isinstance(grid_step, numbers.Integral) or grid_step < 1
             or grid_step > _inkwarp.MAX_SIDE_PX):
         raise ValueError(f"grid_step must be an integer from 1 to {_inkwarp.MAX_SIDE_PX} (1 solves on every "
-                         f"pixel), got {grid_step!r}.")
+                         f"pixel), got {_shown(grid_step)}.")
     if max_cycles is not None and (
         isinstance(max_cycles, bool) or not isinstance(max_cycles, numbers.Integral)
         or not 0 <= max_cycles <= MAX_CYCLES
     ):
         raise ValueError(f"max_cycles must be None (the default cap, 100) or an integer from 0 to {MAX_CYCLES:,}, "
-                         f"got {max_cycles!r}.")
+                         f"got {_shown(max_cycles)}.")
     if method not in _METHODS:
         raise ValueError(f"method must be one of {_METHODS}, got {method!r}.")
-    if (
-        isinstance(southwell_sweeps, bool)
-        or not isinstance(southwell_sweeps, numbers.Real)
-        or not np.isfinite(southwell_sweeps)
-        or southwell_sweeps < 0
-    ):
-        raise ValueError(f"southwell_sweeps must be a finite number >= 0, got {southwell_sweeps!r}.")
+    if not _finite(southwell_sweeps) or southwell_sweeps < 0:
+        raise ValueError(f"southwell_sweeps must be a finite number >= 0, got {_shown(southwell_sweeps)}.")
     init = None
     if initial is not None:
-        init = real_array("initial", initial, np.float32)
+        try:
+            init = real_array("initial", initial, np.float32)
+        except ComplexValuesError:
+            raise
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"initial must be an (H, W, 2) array of numbers ({_first_line(exc)}).") from None
         if init.shape != (height, width, 2):
             raise ValueError(
                 f"initial has shape {init.shape} but must be {(height, width, 2)}: a previous field of this grid."
@@ -387,8 +418,8 @@ def thin_plate(
         (pixels). At the default every pixel is within 0.05 px of the exact minimiser. A
         tolerance below 1e-7 of the largest displacement is finer than the field's float32
         resolution: the solve then never reports ``converged``. 0 runs every piece that
-        needs cycles for exactly ``max_cycles`` of them, never converged (scenes, whose
-        settings are for rendering, refuse it).
+        needs cycles until ``max_cycles`` of them or a cycle that moves nothing, never
+        converged (scenes, whose settings are for rendering, refuse it).
     grid_step : int, default 1
         Solve on every ``grid_step``-th pixel and upsample with a tensor-product cubic:
         faster, approximate (points move to the nearest coarse node).

@@ -546,7 +546,11 @@ class Scene:
             return float(self._core.frame_time(index))
         if time is None:
             return 0.0
-        return _number_argument(time, "time (seconds)")
+        seconds = _number_argument(time, "time (seconds)")
+        if abs(seconds) > _inkwarp.MAX_TIME_S:
+            raise ValueError(f"time {seconds:g} s is past the times a scene holds (±{_inkwarp.MAX_TIME_S:g} s, "
+                             "about 27 hours); give a time within its keys, or frame=")
+        return seconds
 
     def _layer_index(self, layer: str | int | None) -> int:
         names = self.layers

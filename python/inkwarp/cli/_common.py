@@ -10,6 +10,8 @@ import time
 from collections.abc import Iterable, Iterator
 from typing import Any
 
+from inkwarp._inkwarp import MAX_TIME_S
+
 #: The surfaces a drawing can drive (DESIGN §6); ``tps`` is the grid thin plate.
 METHODS = ("tps", "tps-exact", "triangulation", "beier-neely")
 
@@ -84,8 +86,9 @@ def parse_frames(spec: str, frame_count: int, option: str = "--frames") -> tuple
 
 
 def check_time(time_s: float, option: str = "--time") -> float:
-    if not math.isfinite(time_s) or time_s < 0:
-        raise ValueError(f"{option} {time_s:g}: give a time in seconds from 0, such as 0.5")
+    if not math.isfinite(time_s) or not 0 <= time_s <= MAX_TIME_S:
+        raise ValueError(f"{option} {time_s:g}: give a time in seconds from 0 to {MAX_TIME_S:g} "
+                         "(about 27 hours), such as 0.5")
     return time_s
 
 

@@ -162,11 +162,12 @@ impl Parsed {
         path.to_string()
     }
 
-    /// Adds problems of the rebuilt document, skipping places that already have one.
+    /// Adds problems of the rebuilt document, skipping places that already have one at or
+    /// under them (a layer set aside for its problems is no missing layer).
     fn extend(&mut self, problems: Vec<Problem>) {
         for mut problem in problems {
             problem.path = self.original_path(&problem.path);
-            if !self.problems.iter().any(|p| p.path == problem.path) {
+            if !self.problems.iter().any(|p| p.path.strip_prefix(&problem.path).is_some_and(|t| t.is_empty() || t.starts_with(['[', '.']))) {
                 self.problems.push(problem);
             }
         }

@@ -256,7 +256,7 @@ const TYPES: [(&str, fn(&Value) -> bool, &str); 7] = [
     ("boolean", Value::is_boolean, "true or false"),
     ("null", Value::is_null, "null"),
     ("number", Value::is_number, "a number"),
-    ("integer", |v| v.is_u64() || v.is_i64(), "a whole number"),
+    ("integer", |v| v.is_u64() || v.is_i64(), "a whole number written without a decimal point or exponent (2, not 2.0)"),
 ];
 
 fn type_matches(value: &Value, types: &Value) -> bool {

@@ -905,3 +905,22 @@ fn a_field_that_is_not_finite_is_an_error_not_a_blank_frame() {
         }
     }
 }
+
+#[test]
+fn a_lone_layer_set_aside_for_its_problems_is_not_reported_missing() {
+    // Its broken solver override was the one problem; "needs at least one layer" was a second.
+    let mut scene = valid_scene();
+    scene["layers"] = json!([{"name": "back", "image": "back.png", "solver": {"grid_step": 0}}]);
+    assert_eq!(problems_of(&scene), ["layers[0].solver.grid_step: must be at least 1, found 0"]);
+    scene["layers"][0]["solver"] = json!({"max_cycles": 1.5});
+    assert_eq!(problems_of(&scene).len(), 1, "{:?}", problems_of(&scene));
+    // No layer at all is still a problem.
+    scene["layers"] = json!([]);
+    assert!(problems_of(&scene).iter().any(|p| p.starts_with("layers: a scene needs at least one layer")));
+}
+
+#[test]
+fn a_whole_number_written_as_a_float_is_told_how_to_write_it() {
+    let scene = with(valid_scene(), "/solver", json!({"grid_step": 2.0}));
+    assert_eq!(problems_of(&scene), ["solver.grid_step: expected a whole number written without a decimal point or exponent (2, not 2.0), found the number 2.0"]);
+}
