@@ -131,7 +131,8 @@ def test_cli_compare(tmp_path, capsys):
     assert main(["compare", str(scene), "--methods", "bicubic", "-o", str(out)]) == 2
     assert 'unknown method "bicubic"' in capsys.readouterr().err
     assert main(["compare", str(scene), "--time", "1e300", "-o", str(out)]) == 2
-    assert "--time 1e+300: give a time in seconds from 0 to 100000" in capsys.readouterr().err
+    assert "--time 1e+300: give a time in seconds from -100000 to 100000" in capsys.readouterr().err
+    assert main(["compare", str(scene), "--time", "-0.5", "-o", str(out)]) == 0  # before the keys
 
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "checkerboard-hole"

@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from inkwarp import _inkwarp
-from inkwarp.errors import ComplexValuesError, real_array
+from inkwarp.errors import ArrayValuesError, real_array
 
 #: The feature kinds, in the order the documentation lists them.
 KINDS: tuple[str, ...] = ("point", "polyline", "spline", "region", "cut")
@@ -27,7 +27,7 @@ def _count(n: int) -> str:
 def _points(name: str, value: npt.ArrayLike) -> npt.NDArray[np.float64]:
     try:
         arr = real_array(name, value, np.float64)
-    except ComplexValuesError:
+    except ArrayValuesError:
         raise
     except (TypeError, ValueError) as exc:
         raise ValueError(

@@ -57,14 +57,18 @@ class ConvergenceWarning(InkwarpWarning):
     it as one line on stderr."""
 
 
-class ComplexValuesError(ValueError):
+class ArrayValuesError(ValueError):
+    """Values :func:`real_array` refuses, its message naming the array."""
+
+
+class ComplexValuesError(ArrayValuesError):
     """Complex numbers where real ones are needed (raised by :func:`real_array`)."""
 
 
 def real_array(name: str, value: object, dtype: type = float) -> np.ndarray:
     """``value`` as an array of ``dtype``. Complex values are a :class:`ComplexValuesError`
-    (numpy would drop their imaginary parts with only a warning); an integer too large for
-    any float is a ValueError; other failures are numpy's."""
+    (numpy would drop their imaginary parts with only a warning), an integer too large for
+    any float an :class:`ArrayValuesError`; other failures are numpy's."""
     arr = np.asarray(value)
     if arr.dtype.kind == "c":
         raise ComplexValuesError(f"{name} holds complex numbers; pass real values (np.real({name}) if "
@@ -73,4 +77,5 @@ def real_array(name: str, value: object, dtype: type = float) -> np.ndarray:
         with np.errstate(over="ignore"):  # values past the dtype become inf, which the callers refuse
             return arr.astype(dtype, copy=False)
     except OverflowError:  # a Python int past 1.8e308
-        raise ValueError("a number too large for a float") from None
+        raise ArrayValuesError(f"{name} holds a number too large for a float; every value must be a "
+                               "finite number of pixels.") from None

@@ -14,14 +14,14 @@ import math
 import numbers
 import operator
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from inkwarp import _inkwarp
-from inkwarp.errors import ComplexValuesError, real_array
+from inkwarp.errors import ArrayValuesError, real_array
 
 __all__ = ["SolveReport", "Solver", "WarmStart", "thin_plate", "thin_plate_report"]
 
@@ -161,8 +161,12 @@ def _finite(value: Any) -> bool:
 
 def _shown(value: Any) -> str:
     """``value`` for a message: an integer too long to read as its number of digits."""
-    if isinstance(value, numbers.Integral) and len(digits := str(abs(int(value)))) > 24:
-        return f"an integer of {len(digits)} digits"
+    if isinstance(value, numbers.Integral) and abs(int(value)).bit_length() > 80:
+        # Its digit count, without writing it out (Python refuses past 4300 digits).
+        digits = len(str(abs(int(value)))) if abs(int(value)).bit_length() < 14000 else f"about {int(abs(int(value)).bit_length() * 0.30103)}"
+        return f"{'a negative' if value < 0 else 'an'} integer of {digits} digits"
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):  # numpy's scalars as plain numbers
+        return str(int(value)) if isinstance(value, numbers.Integral) else f"{float(value):.15g}"
     return repr(value)
 
 
@@ -173,7 +177,7 @@ def _first_line(exc: BaseException) -> str:
 def _points(name: str, value: Any) -> npt.NDArray[np.float64]:
     try:
         arr = real_array(name, value, np.float64)
-    except ComplexValuesError:
+    except ArrayValuesError:
         raise
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name} must be an (N, 2) array of numbers ({exc}).") from None
@@ -240,8 +244,12 @@ def _check_args(
         mask_u8 = np.ascontiguousarray(m != 0, dtype=np.uint8)
     cut_list = []
     if cuts is not None:
-        if not isinstance(cuts, Iterable) or isinstance(cuts, (str, bytes)):
-            raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r}.")
+        try:
+            iter(cuts)
+        except TypeError:
+            raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.") from None
+        if isinstance(cuts, (str, bytes)):
+            raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.")
         if isinstance(cuts, np.ndarray) and cuts.ndim == 2:
             raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")
         for k, cut in enumerate(cuts):
@@ -253,7 +261,7 @@ def _check_args(
         if not _finite(value) or value < 0:
             raise ValueError(f"{name} must be a finite number >= 0, got {_shown(value)}.")
     if tension > 1e6:
-        raise ValueError(f"tension must be a number from 0 to 1e6 (0 is a pure thin plate), got {float(tension)!r}.")
+        raise ValueError(f"tension must be a number from 0 to 1e6 (0 is a pure thin plate), got {_shown(tension)}.")
     if (isinstance(grid_step, bool) or not isinstance(grid_step, numbers.Integral) or grid_step < 1
             or grid_step > _inkwarp.MAX_SIDE_PX):
         raise ValueError(f"grid_step must be an integer from 1 to {_inkwarp.MAX_SIDE_PX} (1 solves on every "
@@ -272,7 +280,7 @@ def _check_args(
     if initial is not None:
         try:
             init = real_array("initial", initial, np.float32)
-        except ComplexValuesError:
+        except ArrayValuesError:
             raise
         except (TypeError, ValueError) as exc:
             raise ValueError(f"initial must be an (H, W, 2) array of numbers ({_first_line(exc)}).") from None

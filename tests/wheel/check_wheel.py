@@ -71,8 +71,8 @@ def test_a_fresh_virtualenv_with_only_the_wheel_runs_demo_render_and_edit(tmp_pa
     assert render.returncode == 0, render.stderr
     assert np.asarray(Image.open(tmp_path / "f.png")).shape[2] == 4
 
-    # PYTHONFAULTHANDLER: should it not stop, SIGABRT prints every thread's stack.
-    edit = subprocess.Popen([inkwarp, "edit", "--no-browser", "--port", "0"],
+    # PYTHONFAULTHANDLER: should it not stop, SIGABRT prints its Python threads' stacks.
+    edit = subprocess.Popen([inkwarp, "edit", "--no-browser", "--port", "0"], cwd=tmp_path,
                             env={**env, "PYTHONFAULTHANDLER": "1"},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -96,8 +96,11 @@ def test_a_fresh_virtualenv_with_only_the_wheel_runs_demo_render_and_edit(tmp_pa
             edit.communicate(timeout=30)  # waits, and closes the pipes
         except subprocess.TimeoutExpired:
             edit.send_signal(signal.SIGABRT)
-            _, err = edit.communicate(timeout=30)
-            raise AssertionError(f"inkwarp edit still ran 30 s after SIGTERM; its threads:\n{err}") from None
+            try:
+                _, err = edit.communicate(timeout=30)
+            finally:
+                edit.kill()
+            raise AssertionError(f"inkwarp edit still ran 30 s after SIGTERM; its Python threads:\n{err}")
 
 
 if __name__ == "__main__":

@@ -85,9 +85,9 @@ def parse_frames(spec: str, frame_count: int, option: str = "--frames") -> tuple
     return start, stop
 
 
-def check_time(time_s: float, option: str = "--time") -> float:
-    if not math.isfinite(time_s) or not 0 <= time_s <= MAX_TIME_S:
-        raise ValueError(f"{option} {time_s:g}: give a time in seconds from 0 to {MAX_TIME_S:g} "
+def check_time(time_s: float, option: str = "--time", earliest: float = 0.0) -> float:
+    if not math.isfinite(time_s) or not earliest <= time_s <= MAX_TIME_S:
+        raise ValueError(f"{option} {time_s:g}: give a time in seconds from {earliest:g} to {MAX_TIME_S:g} "
                          "(about 27 hours), such as 0.5")
     return time_s
 

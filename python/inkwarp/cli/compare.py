@@ -69,9 +69,11 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix.lower() != ".png":
         raise ValueError(f"the sheet {out} must be a .png file.")
     scene = Scene.load(args.scene)
+    from inkwarp._inkwarp import MAX_TIME_S
     from inkwarp.cli._common import check_time
 
-    time = check_time(args.time) if args.time is not None else float(getattr(scene, "duration", 0.0) or 0.0)
+    # Before the first keys too, as Scene.render takes.
+    time = check_time(args.time, earliest=-MAX_TIME_S) if args.time is not None else float(getattr(scene, "duration", 0.0) or 0.0)
     comparison = compare(scene, time, args.methods, layer=args.layer, max_samples=args.max_samples,
                          **(_weights(args.beier_neely) if args.beier_neely is not None else {}))
     out.parent.mkdir(parents=True, exist_ok=True)

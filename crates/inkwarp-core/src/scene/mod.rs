@@ -162,12 +162,11 @@ impl Parsed {
         path.to_string()
     }
 
-    /// Adds problems of the rebuilt document, skipping places that already have one at or
-    /// under them (a layer set aside for its problems is no missing layer).
+    /// Adds problems of the rebuilt document, skipping places that already have one.
     fn extend(&mut self, problems: Vec<Problem>) {
         for mut problem in problems {
             problem.path = self.original_path(&problem.path);
-            if !self.problems.iter().any(|p| p.path.strip_prefix(&problem.path).is_some_and(|t| t.is_empty() || t.starts_with(['[', '.']))) {
+            if !self.problems.iter().any(|p| p.path == problem.path) {
                 self.problems.push(problem);
             }
         }
@@ -196,12 +195,11 @@ fn parse_value(value: &Value) -> Parsed {
     // With shape problems, rebuild the document without what is broken (unknown keys,
     // features and layers with problems, top-level values replaced by their defaults) so
     // that the meaning check and the images can report their problems too.
+    let had_layers = value.get("layers").and_then(Value::as_array).is_some_and(|a| !a.is_empty());
     let mut value = value.clone();
     let schema = cached_schema();
     strip_unknown_keys(&mut value, schema, schema);
-    let Value::Object(mut map) = value else {
-        return parsed;
-    };
+    let Value::Object(mut map) = value else { return parsed };
     // A problem at exactly `path`, and one at or under `prefix` (unknown keys were set
     // aside, so they break nothing).
     let at = |path: &str| parsed.problems.iter().any(|p| p.path == path);
@@ -259,7 +257,8 @@ fn parse_value(value: &Value) -> Parsed {
     map.entry("inkwarp").or_insert(Value::from(FORMAT_VERSION));
     map.entry("layers").or_insert(Value::Array(Vec::new()));
     if let Ok(doc) = serde_json::from_value::<SceneDoc>(Value::Object(map)) {
-        let problems = validate::validate_doc_knowing(&doc, &set_aside_ids);
+        // Layers set aside for their problems are no missing layer.
+        let problems = validate::validate_doc_knowing(&doc, &set_aside_ids).into_iter().filter(|p| p.path != "layers" || !had_layers).collect();
         parsed.doc = Some(doc);
         parsed.extend(problems);
     }

@@ -55,7 +55,8 @@ impl<'a> Walker<'a> {
         }
         if let Some(types) = schema.get("type") {
             if !type_matches(value, types) {
-                self.push(path, format!("expected {}, found {}", expected_types(types), describe(value)));
+                let whole = value.as_f64().is_some_and(|f| f.fract() == 0.0) && expected_types(types) == "a whole number";
+                self.push(path, format!("expected {}, found {}{}", expected_types(types), describe(value), if whole { "; write it without a decimal point or exponent (2, not 2.0)" } else { "" }));
                 return false;
             }
         }
@@ -256,7 +257,7 @@ const TYPES: [(&str, fn(&Value) -> bool, &str); 7] = [
     ("boolean", Value::is_boolean, "true or false"),
     ("null", Value::is_null, "null"),
     ("number", Value::is_number, "a number"),
-    ("integer", |v| v.is_u64() || v.is_i64(), "a whole number written without a decimal point or exponent (2, not 2.0)"),
+    ("integer", |v| v.is_u64() || v.is_i64(), "a whole number"),
 ];
 
 fn type_matches(value: &Value, types: &Value) -> bool {

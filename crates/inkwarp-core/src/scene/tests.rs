@@ -914,13 +914,18 @@ fn a_lone_layer_set_aside_for_its_problems_is_not_reported_missing() {
     assert_eq!(problems_of(&scene), ["layers[0].solver.grid_step: must be at least 1, found 0"]);
     scene["layers"][0]["solver"] = json!({"max_cycles": 1.5});
     assert_eq!(problems_of(&scene).len(), 1, "{:?}", problems_of(&scene));
-    // No layer at all is still a problem.
+    // No layer at all is still a problem, beside another one that sets a feature aside.
     scene["layers"] = json!([]);
-    assert!(problems_of(&scene).iter().any(|p| p.starts_with("layers: a scene needs at least one layer")));
+    scene["features"][0]["keys"][0]["t"] = json!("soon");
+    let problems = problems_of(&scene);
+    assert!(problems.iter().any(|p| p.starts_with("layers: a scene needs at least one layer")), "{problems:?}");
+    assert!(problems.iter().any(|p| p.starts_with("features[0].keys[0].t")), "{problems:?}");
 }
 
 #[test]
 fn a_whole_number_written_as_a_float_is_told_how_to_write_it() {
     let scene = with(valid_scene(), "/solver", json!({"grid_step": 2.0}));
-    assert_eq!(problems_of(&scene), ["solver.grid_step: expected a whole number written without a decimal point or exponent (2, not 2.0), found the number 2.0"]);
+    assert_eq!(problems_of(&scene), ["solver.grid_step: expected a whole number, found the number 2.0; write it without a decimal point or exponent (2, not 2.0)"]);
+    let scene = with(valid_scene(), "/solver", json!({"grid_step": 1.5}));
+    assert_eq!(problems_of(&scene), ["solver.grid_step: expected a whole number, found the number 1.5"]);
 }
