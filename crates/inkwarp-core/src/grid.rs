@@ -112,9 +112,7 @@ impl Grid {
         // Row by row without early exits, so the comparisons run side by side (every solve
         // checks its grid).
         let (w, h) = (self.width, self.height);
-        if w == 0 || h == 0 {
-            return true;
-        }
+        if w == 0 || h == 0 { return true; }
         let mut bad = false;
         for y in 0..h {
             let row = y * w..(y + 1) * w;

@@ -166,6 +166,8 @@ impl Parsed {
     fn extend(&mut self, problems: Vec<Problem>) {
         for mut problem in problems {
             problem.path = self.original_path(&problem.path);
+            // And the places its message names (`layers[0]` of the rebuilt document is `layers[1]` past a broken one).
+            problem.message = problem.message.split(' ').map(|word| self.original_path(word)).collect::<Vec<_>>().join(" ");
             if !self.problems.iter().any(|p| p.path == problem.path) {
                 self.problems.push(problem);
             }

@@ -929,3 +929,14 @@ fn a_whole_number_written_as_a_float_is_told_how_to_write_it() {
     let scene = with(valid_scene(), "/solver", json!({"grid_step": 1.5}));
     assert_eq!(problems_of(&scene), ["solver.grid_step: expected a whole number, found the number 1.5"]);
 }
+
+#[test]
+fn places_in_messages_are_the_original_documents_past_a_layer_set_aside() {
+    // The duplicate name's first use is layers[1]; the rebuilt document (without layers[0])
+    // called it layers[0].
+    let mut scene = valid_scene();
+    scene["layers"] = json!([{"name": "x", "image": "back.png", "solver": {"grid_step": 0}},
+                             {"name": "b", "image": "back.png"}, {"name": "b", "image": "front.png"}]);
+    let problems = problems_of(&scene);
+    assert!(problems.iter().any(|p| p.starts_with("layers[2].name:") && p.contains("layers[1]") && !p.contains("layers[0]")), "{problems:?}");
+}
