@@ -264,7 +264,7 @@ impl Scene {
         // Why it stopped, as the solve recorded it.
         let advice = match report.stop {
             Stop::Budget => "the southwell scheme stops after a fixed budget of relaxations; use the multigrid scheme to solve to the tolerance, or another method".to_string(),
-            Stop::MaxCycles => "raise solver.max_cycles (the scene's, or the layer's own), or use another method".to_string(),
+            Stop::MaxCycles => format!("raise solver.max_cycles (the scene's, or the layer's own){}, or use another method", if solver.grid_step == 1 { ", solve every other pixel (solver.grid_step 2: mattes with hair need the most cycles)" } else { "" }),
             Stop::Unsettled if solver.grid_step > 1 => format!("at grid_step {} parts of the matte thinner than the step (hair, strands) are too many to settle; use grid_step 1 for this layer, or hold those parts with points of their own", solver.grid_step),
             Stop::Unsettled => "parts of the surface joined to the rest at single points or by 1 px strands are too many to settle, or did not settle; hold those parts with points of their own, or use another method".to_string(),
             Stop::Precision => "the tolerance is finer than the field's precision; use a coarser solver.tolerance".to_string(),

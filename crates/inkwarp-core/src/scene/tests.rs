@@ -840,7 +840,8 @@ fn the_warning_says_why_the_solve_stopped() {
         scene.convergence_warning(layer, t, &LayerSolve { field: crate::field::Field::zeros(1, 1), report, method_report: None }).unwrap()
     };
     for (layer, stop, says) in [
-        (1, Stop::MaxCycles, "raise solver.max_cycles"),
+        (1, Stop::MaxCycles, "raise solver.max_cycles (the scene's, or the layer's own), solve every other pixel (solver.grid_step 2: mattes with hair"),
+        (0, Stop::MaxCycles, "raise solver.max_cycles (the scene's, or the layer's own), or use another method"),
         (1, Stop::Budget, "fixed budget of relaxations"),
         (0, Stop::Unsettled, "at grid_step 2 parts of the matte thinner than the step"),
         (1, Stop::Unsettled, "1 px strands are too many to settle, or did not settle; hold those parts with points of their own, or"),
