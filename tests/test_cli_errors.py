@@ -306,3 +306,30 @@ def test_an_empty_output_is_refused_not_taken_for_here(capsys, tmp_path, monkeyp
     code, _, err = run(capsys, *argv, "-o", "")
     assert code == 2 and "-o is empty" in err and len(err.splitlines()) == 1, err
     assert sorted(p.name for p in (tmp_path / "s").iterdir()) == before
+
+
+def test_no_command_replaces_the_users_own_files(capsys, tmp_path):
+    # field and compare over a scene's picture, transfer over its source or target, a
+    # sprite sheet's atlas over another scene or an unrelated JSON, and the schema over a
+    # scene all wrote over them with exit status 0.
+    scene = write_scene(tmp_path)
+    other = write_scene(tmp_path, name="other.json")
+    (tmp_path / "notes.json").write_text('{"hello": 1}\n')
+    files = {p: p.read_bytes() for p in (tmp_path / "square.png", scene, other, tmp_path / "notes.json")}
+    for args, says in [
+        (["field", scene, "--time", "0.5", "-o", tmp_path / "square.png"], "writing the field there would replace it"),
+        (["compare", scene, "--methods", "tps", "-o", tmp_path / "square.png"], "writing the comparison sheet there"),
+        (["transfer", "--source", scene, "--target", other, "-o", other], "is the input (--target"),
+        (["transfer", "--source", scene, "--target", other, "-o", scene], "is the input (--source"),
+        (["render", scene, "-o", tmp_path / "other.png", "--sprite-sheet"], "the sprite sheet's other.json is a scene"),
+        (["render", scene, "-o", tmp_path / "notes.png", "--sprite-sheet"], "notes.json is a file inkwarp did not write"),
+        (["schema", "-o", other], "other.json: is a scene; writing the schema there would replace it"),
+    ]:
+        code, _, stderr = run(capsys, *args)
+        assert code == 2 and says in stderr and len(stderr.splitlines()) == 1, (args, stderr)
+    assert {p: p.read_bytes() for p in files} == files
+    assert not (tmp_path / "other.png").exists() and not (tmp_path / "notes.png").exists()
+    # Their own earlier outputs are replaced as before.
+    for args in (["schema", "-o", tmp_path / "s.json"], ["render", scene, "-o", tmp_path / "sheet.png", "--sprite-sheet"],
+                 ["transfer", "--source", scene, "--target", other, "-o", tmp_path / "t.json"]):
+        assert run(capsys, *args)[0] == 0 and run(capsys, *args)[0] == 0, args

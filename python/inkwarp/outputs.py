@@ -250,12 +250,18 @@ def check_sheet_json(target: str | os.PathLike[str], scene_path: str | os.PathLi
         raise ValueError(f"{target}: the sprite sheet's {sheet_json.name} would replace the "
                          f"scene {scene}; name the sheet otherwise, such as "
                          f"{sheet_json.stem}-sheet.png")
+    # Another scene, or any JSON that is not an earlier sheet's atlas, is not replaced either.
+    out = Path(os.fspath(target))
+    check_not_a_scene(sheet_json, "meta", "sheet's atlas", f"{target}: the sprite sheet's {sheet_json.name}",
+                      f"{out.stem}-sheet{out.suffix}")
 
 
-def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.PathLike[str]) -> None:
+def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.PathLike[str],
+                       written: str = "frame") -> None:
     """Refuse an output that is one of the scene's own files (the scene, or a layer's
     ``image``, ``alpha`` or ``continuity`` picture), before any rendering: ``-o face.png``
-    beside a layer drawn from ``face.png`` would replace the artwork with a frame."""
+    beside a layer drawn from ``face.png`` would replace the artwork with a frame (or the
+    ``written`` output of another command)."""
     import json
 
     out = Path(os.fspath(target))
@@ -275,9 +281,31 @@ def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.Path
     for path in inputs:
         if path.exists() and os.path.samefile(out, path):
             what = "the scene" if path == scene else "an image of the scene"
-            raise ValueError(f"{target}: is {what} being rendered ({path}); writing the frame "
+            raise ValueError(f"{target}: is {what} being rendered ({path}); writing the {written} "
                              f"there would replace it. Name the output otherwise, such as "
-                             f"{out.stem}-frame{out.suffix}")
+                             f"{out.stem}-{written.split()[-1]}{out.suffix}")
+
+
+def check_not_a_scene(target: str | os.PathLike[str], keep: str, written: str, lead: str | None = None,
+                      instead: str | None = None) -> None:
+    """Refuse to replace an existing JSON file that is not what this command writes: a
+    scene, or any file without the ``keep`` key of the command's own output (``"meta"``
+    for a sprite sheet's atlas, ``"$schema"`` for the schema), before any work."""
+    import json
+
+    out = Path(os.fspath(target))
+    if not out.is_file():
+        return
+    try:
+        doc = json.loads(out.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        doc = None
+    if isinstance(doc, dict) and keep in doc:
+        return  # an earlier output of the same kind
+    what = "a scene" if isinstance(doc, dict) and "layers" in doc else "a file inkwarp did not write"
+    raise ValueError(f"{lead or str(target) + ':'} is {what}; writing the {written} there would replace it. "
+                     f"Name it otherwise, such as {instead or out.stem + '-' + written + out.suffix}, or "
+                     "remove the file first")
 
 
 def sheet_layout(count: int, spec: str | None, option: str = "--sprite-sheet") -> tuple[int, int]:

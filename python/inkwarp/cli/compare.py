@@ -68,6 +68,9 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix.lower() != ".png":
         raise ValueError(f"the sheet {out} must be a .png file.")
+    from inkwarp import outputs
+
+    outputs.check_not_an_input(out, args.scene, "comparison sheet")
     scene = Scene.load(args.scene)
     from inkwarp._inkwarp import MAX_TIME_S
     from inkwarp.cli._common import check_time

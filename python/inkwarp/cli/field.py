@@ -66,6 +66,9 @@ def _run(args: argparse.Namespace) -> int:
     parent = target.absolute().parent
     if not parent.is_dir():
         raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
+    from inkwarp import outputs
+
+    outputs.check_not_an_input(target, args.scene, "field")
     scene = _common.load_scene(args.scene)
     if args.time is not None:
         time_s = _common.check_time(args.time)

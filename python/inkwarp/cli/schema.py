@@ -39,8 +39,9 @@ def run(args: argparse.Namespace) -> int:
     parent = target.absolute().parent
     if not parent.is_dir():
         raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
-    from inkwarp import video
+    from inkwarp import outputs, video
 
+    outputs.check_not_a_scene(target, "$schema", "schema")
     video.write_bytes(target, text.encode("utf-8"))
     print(f"wrote {target}")
     return 0
