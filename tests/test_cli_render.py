@@ -116,6 +116,26 @@ def test_gif_has_every_frame_at_the_scene_rate(capsys, scene, tmp_path):
     assert f"{FRAMES} frames" in stdout
 
 
+@pytest.mark.parametrize("fps, background", [(60, None), (240, None), (60, [0, 0, 0, 0])])
+def test_a_gif_above_50_fps_leaves_frames_out_and_keeps_its_length(capsys, tmp_path, fps, background):
+    # Browsers play a GIF delay of 1/100 s or less as 1/10 s: 60 fps wrote 10 and 20 ms
+    # delays (a clip several times slower there), 240 fps 10 ms each (2.4 s for 1 s).
+    # Opaque and transparent scenes take the two GIF writers.
+    doc = json.loads(write_scene(tmp_path / "s").read_text())
+    doc.update(fps=fps, duration=1.0, **({"background": background} if background else {}))
+    scene = write_scene(tmp_path / "s", doc)
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif", "-q")
+    assert code == 0 and f"of its {fps} frames left out, as browsers play a GIF at most 50" in err, err
+    with Image.open(tmp_path / "a.gif") as gif:
+        delays = []
+        for i in range(gif.n_frames):
+            gif.seek(i)
+            delays.append(gif.info["duration"])
+    assert min(delays) >= 20 and sum(delays) == 1000, delays
+    if background is None:
+        assert len(delays) == 50
+
+
 def test_frames_range_renders_only_those_frames(capsys, scene, tmp_path):
     out = tmp_path / "part.gif"
     assert run(capsys, "render", scene, "-o", out, "--frames", "2:", "-q")[0] == 0

@@ -198,15 +198,15 @@ class TransparentGifWriter(FrameWriter):
 
     def _commit(self) -> list[Path]:
         n = len(self._frames)
-        ends = [round((i + 1) * 100 / self.fps) for i in range(n)]
-        starts = [0] + ends[:-1]
-        durations = [max(1, e - s) * 10 for s, e in zip(starts, ends)]
-        first, *rest = self._frames
+        kept = [i for i in range(n) if video.gif_keeps(i, self.fps)]
+        durations = [video.gif_delay_cs(i, self.fps) * 10 for i in kept]
+        first, *rest = (self._frames[i] for i in kept)
         self._temp = _temp_name(self.target, ".gif")
         first.save(self._temp, format="GIF", save_all=True, append_images=rest,
                    duration=durations, loop=0, optimize=False, disposal=2, transparency=255)
         self._frames.clear()
         os.replace(self._temp, self.target)
+        video.warn_gif_frames_left_out(self.target, n, len(kept), self.fps)
         return [self.target]
 
     def _discard(self) -> None:

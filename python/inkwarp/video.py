@@ -373,17 +373,14 @@ class GifWriter(FrameWriter):
     Pillow encodes each frame alone; its image block is copied into the file with the
     frame's palette as a local colour table. GIF stores frame delays in hundredths of a
     second, so the delays are spread to keep the clip's total length right (24 fps plays
-    as 4, 4, 5, 4, 4, 5, ... hundredths).
+    as 4, 4, 5, 4, 4, 5, ... hundredths); above 50 fps frames are left out (`gif_keeps`).
     """
 
     def __init__(self, target: Path, fps: float) -> None:
         super().__init__(target, fps)
         self._temp: Path | None = None
         self._file: Any = None
-
-    def _delay_cs(self, i: int) -> int:
-        start, end = round(i * 100 / self.fps), round((i + 1) * 100 / self.fps)
-        return max(1, end - start)
+        self._kept = 0  # frames in the file (see `gif_keeps`)
 
     def _write(self, frame: np.ndarray) -> None:
         import io
@@ -391,6 +388,9 @@ class GifWriter(FrameWriter):
 
         from PIL import Image
 
+        if not gif_keeps(self.frames_written, self.fps):
+            return
+        self._kept += 1
         rgb = Image.fromarray(flatten(frame), "RGB")
         # The octree keeps saturated colours (eyes, lips) and gives files about half the
         # size of a median cut's, at a mean error of about 3 levels on a photograph.
@@ -404,7 +404,7 @@ class GifWriter(FrameWriter):
             # Header, a screen without a global palette, and the loop-forever extension.
             self._file.write(b"GIF89a" + struct.pack("<HHBBB", w, h, 0, 0, 0)
                              + b"\x21\xff\x0bNETSCAPE2.0\x03\x01\x00\x00\x00")
-        delay = self._delay_cs(self.frames_written)
+        delay = gif_delay_cs(self.frames_written, self.fps)
         # Graphic control: disposal 1 (leave the frame in place), the delay, no transparency.
         self._file.write(b"\x21\xf9\x04" + struct.pack("<BHB", 1 << 2, delay, 0) + b"\x00")
         self._file.write(block[:9] + bytes([block[9] | 0x80 | _palette_bits(palette)]))
@@ -419,6 +419,7 @@ class GifWriter(FrameWriter):
         self._file.close()
         self._file = None
         os.replace(self._temp, self.target)
+        warn_gif_frames_left_out(self.target, self.frames_written, self._kept, self.fps)
         return [self.target]
 
     def _discard(self) -> None:
@@ -430,6 +431,36 @@ class GifWriter(FrameWriter):
             self._file = None
         if self._temp is not None:
             self._temp.unlink(missing_ok=True)
+
+
+#: The most frames a second a GIF plays in browsers: delays are whole hundredths of a
+#: second, and a delay of 1 or less plays as 10.
+GIF_MAX_FPS = 50
+
+
+def gif_keeps(i: int, fps: float) -> bool:
+    """Whether a GIF at ``fps`` holds frame ``i``: every frame up to :data:`GIF_MAX_FPS`;
+    above it, the frame nearest each of its 1/50 s ticks, so the clip keeps its length."""
+    if fps <= GIF_MAX_FPS:
+        return True
+    return round(round(i * GIF_MAX_FPS / fps) * fps / GIF_MAX_FPS) == i
+
+
+def gif_delay_cs(i: int, fps: float) -> int:
+    """Frame ``i``'s delay in hundredths of a second, spread so that the clip keeps its
+    length (24 fps plays as 4, 4, 5, 4, 4, 5, ...); 2 above :data:`GIF_MAX_FPS`."""
+    if fps > GIF_MAX_FPS:
+        return 100 // GIF_MAX_FPS
+    return round((i + 1) * 100 / fps) - round(i * 100 / fps)
+
+
+def warn_gif_frames_left_out(target: Path, frames: int, kept: int, fps: float) -> None:
+    if kept < frames:
+        from inkwarp.errors import InkwarpWarning
+
+        warnings.warn(f"{target.name}: {frames - kept} of its {frames} frames left out, as browsers play "
+                      f"a GIF at most {GIF_MAX_FPS} frames a second and the scene has {fps:g}; for every "
+                      "frame render a .webm, .mov, .apng or a directory of PNGs", InkwarpWarning, stacklevel=5)
 
 
 def _palette_bits(palette: bytes) -> int:
