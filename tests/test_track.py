@@ -375,3 +375,18 @@ def test_frame_and_track_take_q_like_render_and_new(videos, tmp_path, capsys):
     code, out, err = run(capsys, "track", path, "--scene", scene, "-o", tmp_path / "u.json")
     assert code == 0, err
     assert "\r" not in err and "inkwarp track: 100% (23/23 frames in " in err
+
+
+def test_a_key_on_the_traced_frame_that_differs_from_the_rest_is_warned_about(videos):
+    # The rest drawing is the anchor on the traced frame: a key there that says otherwise
+    # was replaced by the track without a word.
+    path, _ = videos["translate"]
+    features = sv.drawing(W, H, seed=7)
+    rest = np.asarray(features[0]["rest"], float)
+    features[0]["keys"] = [{"t": 0, "points": (rest + [7.0, 3.0]).tolist()}]
+    features[1]["keys"] = [{"t": 0, "points": features[1]["rest"]}]  # the same: no word
+    with pytest.warns(InkwarpWarning) as caught:
+        doc = track_dict(path, sv.scene(W, H, features))
+    said = [str(w.message) for w in caught if "traced on" in str(w.message)]
+    assert len(said) == 1 and "features[0]" in said[0] and "7 px from the rest" in said[0], said
+    assert doc["features"][0]["keys"][0]["points"] == rest.tolist()

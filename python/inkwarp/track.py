@@ -500,9 +500,17 @@ def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: st
                 raise ValueError(
                     f"{where}: features[{i}].keys[{j}]: t = {key['t']} s is frame {k}, outside "
                     f"the video's frames 0 to {count - 1}; remove the key or move it inside")
-            if k == frame:
-                continue  # the rest drawing is the anchor at frame K
-            keys[k] = np.asarray(key["points"], dtype=np.float64).reshape(-1, 2)
+            points = np.asarray(key["points"], dtype=np.float64).reshape(-1, 2)
+            if k == frame:  # the rest drawing is the anchor at frame K
+                off = float(np.abs(points - rest).max()) if points.shape == rest.shape else math.inf
+                if off > 0.01:
+                    warnings.warn(f"{where}: features[{i}] ({f['id']}): its key at t = {key['t']} s is "
+                                  f"frame {k}, the frame the drawing is traced on, where its rest is the "
+                                  f"anchor; the key ({off:.3g} px from the rest) is replaced by the track. "
+                                  "Trace on another frame with --frame, or move the key off it",
+                                  InkwarpWarning, stacklevel=3)
+                continue
+            keys[k] = points
         out.append(_Feature(str(f["id"]), str(f["kind"]), bool(f.get("closed", False)), rest, keys))
     return out
 
