@@ -154,9 +154,7 @@ impl Field {
         let taps = |n: usize, nc: usize| -> Vec<(usize, f32)> {
             (0..n)
                 .map(|x| {
-                    if nc < 2 {
-                        return (0, 0.0);
-                    }
+                    if nc < 2 { return (0, 0.0); }
                     let x0 = (x / step).min(nc - 2);
                     let (a, b) = (x0 * step, ((x0 + 1) * step).min(n - 1));
                     (x0, (x - a) as f32 / (b - a) as f32)

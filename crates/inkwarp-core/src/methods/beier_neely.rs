@@ -67,7 +67,6 @@ struct Line {
     pose_p: Point,
     pose_d: Point,
     pose_len: f64,
-    strength: f64,
 }
 
 /// The `beier-neely` field, as a **forward** displacement on the rest image (the paper
@@ -118,8 +117,7 @@ pub fn beier_neely_field(
         }
         let pose_d = sub(l.pose[1], l.pose[0]);
         let len = len2.sqrt();
-        let (pose_len, strength) = (dot(pose_d, pose_d).sqrt(), len.powf(len_power));
-        lines.push(Line { p: l.rest[0], d, len2, len, pose_p: l.pose[0], pose_d, pose_len, strength });
+        lines.push(Line { p: l.rest[0], d, len2, len, pose_p: l.pose[0], pose_d, pose_len: dot(pose_d, pose_d).sqrt() });
     }
     report.samples_given = points.len();
     report.samples_used = pts.len();
@@ -134,7 +132,11 @@ pub fn beier_neely_field(
         let base = 1.0 / (a + dist);
         if b == 2.0 { base * base } else if b == 1.0 { base } else { base.powf(b) }
     };
-    let strength_b: Vec<f64> = lines.iter().map(|l| if b == 2.0 { l.strength * l.strength } else { l.strength.powf(b) }).collect();
+    // Strengths (len^p)^b over the longest line's, and the points' weights by the same
+    // factor (it cancels): len^(p·b) itself overflows for long lines at large b and p.
+    let longest = lines.iter().map(|l| l.len).fold(0.0, f64::max);
+    let strength_b: Vec<f64> = lines.iter().map(|l| (l.len / longest).powf(len_power * b)).collect();
+    let point_scale = if lines.is_empty() { 1.0 } else { longest.powf(-len_power * b) };
 
     let mut f = Field::zeros(width, height);
     let xs: Vec<f64> = (0..width).map(|x| x as f64).collect();
@@ -177,7 +179,7 @@ pub fn beier_neely_field(
             let dy = yf - s.rest[1];
             for x in 0..width {
                 let dx = xs[x] - s.rest[0];
-                let w = falloff((dx * dx + dy * dy).sqrt());
+                let w = point_scale * falloff((dx * dx + dy * dy).sqrt());
                 sx[x] += w * s.displacement[0];
                 sy[x] += w * s.displacement[1];
                 sw[x] += w;
@@ -232,6 +234,30 @@ mod tests {
         let got = f.at(17, 23);
         assert!((got[0] as f64 - (want[0] - 17.0)).abs() < 1e-4);
         assert!((got[1] as f64 - (want[1] - 23.0)).abs() < 1e-4);
+    }
+
+    #[test]
+    fn the_largest_weights_allowed_stay_finite_and_keep_their_balance() {
+        // (len^p)^b of a 360 px line at b = 8, p = 16 overflowed: every pixel NaN, at rest too.
+        let long = LinePair { rest: [[10.0, 10.0], [300.0, 200.0]], pose: [[10.0, 10.0], [300.0, 200.0]] };
+        let short = LinePair { rest: [[5.0, 30.0], [6.0, 30.0]], pose: [[9.0, 30.0], [10.0, 30.0]] };
+        let dot = Sample { rest: [40.0, 5.0], displacement: [3.0, 0.0] };
+        let params = BeierNeelyParams { a: 1.0, b: 8.0, p: 16.0 };
+        let f = beier_neely_field(&[dot], &[long, short], 320, 240, &params, &mut MethodReport::default()).unwrap();
+        assert!(f.dx.iter().chain(&f.dy).all(|v| v.is_finite()));
+        // The long line at rest holds everything (the short one and the point weigh nothing beside it).
+        assert!(f.dx.iter().chain(&f.dy).all(|v| v.abs() < 1e-3));
+        // The balance of a line and a point is the formula's: (len^p)^b (a + dist)^-b against
+        // (a + dist)^-b, here at pixel (20, 30) for a translated line and a point.
+        let p = BeierNeelyParams { a: 1.0, b: 2.0, p: 0.5 };
+        let moved = LinePair { rest: [[10.0, 10.0], [30.0, 12.0]], pose: [[12.0, 11.0], [32.0, 13.0]] };
+        let f = beier_neely_field(&[dot], &[moved], 64, 48, &p, &mut MethodReport::default()).unwrap();
+        let len = 404.0f64.sqrt();
+        let wl = len.powf(0.5 * 2.0) / (1.0 + 380.0 / len).powi(2);
+        let wp = 1.0 / (1.0 + (400.0f64 + 625.0).sqrt()).powi(2);
+        let want = [(wl * 2.0 + wp * 3.0) / (wl + wp), wl / (wl + wp)];
+        let got = f.at(20, 30);
+        assert!((got[0] as f64 - want[0]).abs() < 1e-5 && (got[1] as f64 - want[1]).abs() < 1e-5, "{got:?} {want:?}");
     }
 
     #[test]
