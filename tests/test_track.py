@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 pytest.importorskip("cv2", reason="inkwarp track needs the [track] extra (OpenCV)")
 
@@ -390,3 +391,14 @@ def test_a_key_on_the_traced_frame_that_differs_from_the_rest_is_warned_about(vi
     said = [str(w.message) for w in caught if "traced on" in str(w.message)]
     assert len(said) == 1 and "features[0]" in said[0] and "7 px from the rest" in said[0], said
     assert doc["features"][0]["keys"][0]["points"] == rest.tolist()
+
+
+def test_a_still_picture_is_refused_as_a_video(tmp_path, capsys):
+    # ffmpeg reads a PNG as a one-frame video, which was "tracked" into keys at t = 0 only.
+    picture = tmp_path / "still.png"
+    Image.fromarray(np.zeros((H, W, 3), np.uint8)).save(picture)
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(sv.scene(W, H, sv.drawing(W, H, seed=7))))
+    code, _, err = run(capsys, "track", picture, "--scene", scene, "-o", tmp_path / "t.json")
+    assert code == 2 and "still.png: has one frame (a still picture?)" in err and "give a video" in err, err
+    assert not (tmp_path / "t.json").exists()

@@ -589,6 +589,9 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     doc, base = _load(scene, "input")
     clip = video if isinstance(video, Video) else read_video(video)
     count = len(clip)
+    if count < 2:
+        raise ValueError(f"{clip.path}: has one frame (a still picture?); track follows the drawing "
+                         "through a video's frames: give a video (any format ffmpeg reads)")
     size = (doc.get("width"), doc.get("height"))
     if None in size:  # the size of its images
         from inkwarp.scene import Scene
