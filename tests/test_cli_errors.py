@@ -324,9 +324,20 @@ def test_no_command_replaces_the_users_own_files(capsys, tmp_path):
         (["render", scene, "-o", tmp_path / "other.png", "--sprite-sheet"], "the sprite sheet's other.json is a scene"),
         (["render", scene, "-o", tmp_path / "notes.png", "--sprite-sheet"], "notes.json is a file inkwarp did not write"),
         (["schema", "-o", other], "other.json: is a scene; writing the schema there would replace it"),
+        (["schema", "-o", tmp_path / "notes.json"], "notes.json: is a file inkwarp did not write"),
     ]:
         code, _, stderr = run(capsys, *args)
         assert code == 2 and says in stderr and len(stderr.splitlines()) == 1, (args, stderr)
+    # Another tool's JSON schema is not an earlier schema of inkwarp's.
+    (tmp_path / "biome.json").write_text('{"$schema": "https://biomejs.dev/schemas/1.9.4/schema.json"}\n')
+    code, _, stderr = run(capsys, "schema", "-o", tmp_path / "biome.json")
+    assert code == 2 and "biome.json: is a file inkwarp did not write" in stderr, stderr
+    # A loaded Scene rendered as a sprite sheet by Python: the same checks.
+    import inkwarp
+
+    for name, says in (("scene.png", "would replace the scene"), ("other.png", "other.json is a scene")):
+        with pytest.raises(ValueError, match=says):
+            inkwarp.render(inkwarp.Scene.load(scene), tmp_path / name, sprite_sheet=True)
     assert {p: p.read_bytes() for p in files} == files
     assert not (tmp_path / "other.png").exists() and not (tmp_path / "notes.png").exists()
     # Their own earlier outputs are replaced as before.

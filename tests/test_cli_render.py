@@ -126,6 +126,12 @@ def test_a_gif_above_50_fps_leaves_frames_out_and_keeps_its_length(capsys, tmp_p
     scene = write_scene(tmp_path / "s", doc)
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif", "-q")
     assert code == 0 and f"of its {fps} frames left out, as browsers play a GIF at most 50" in err, err
+    # Through Python, the warning names the caller's line, not inkwarp's.
+    import inkwarp
+
+    with pytest.warns(inkwarp.InkwarpWarning, match="frames left out") as caught:
+        inkwarp.render(inkwarp.Scene.load(scene), tmp_path / "b.gif")
+    assert caught[0].filename == __file__, caught[0].filename
     with Image.open(tmp_path / "a.gif") as gif:
         delays = []
         for i in range(gif.n_frames):

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import sys
+
 import numpy as np
 
 
@@ -79,3 +82,12 @@ def real_array(name: str, value: object, dtype: type = float) -> np.ndarray:
     except OverflowError:  # a Python int past 1.8e308
         raise ArrayValuesError(f"{name} holds a number too large for a float; every value must be a "
                                "finite number of pixels.") from None
+
+
+def caller_outside() -> int:
+    """The ``stacklevel`` for :func:`warnings.warn`, called where this is called, that names
+    the first caller outside the inkwarp package (the user's line, not inkwarp's)."""
+    package, frame, level = os.path.dirname(os.path.abspath(__file__)), sys._getframe(1), 1
+    while frame.f_back is not None and os.path.abspath(frame.f_code.co_filename).startswith(package + os.sep):
+        frame, level = frame.f_back, level + 1
+    return level

@@ -182,6 +182,8 @@ class TransparentGifWriter(FrameWriter):
     def _write(self, frame: np.ndarray) -> None:
         from PIL import Image
 
+        if not video.gif_keeps(self.frames_written, self.fps):
+            return
         rgba = frame if frame.shape[2] == 4 else np.dstack(
             [frame, np.full(frame.shape[:2], 255, np.uint8)])
         opaque = rgba[..., 3] >= 128
@@ -197,10 +199,10 @@ class TransparentGifWriter(FrameWriter):
         self._frames.append(image)
 
     def _commit(self) -> list[Path]:
-        n = len(self._frames)
-        kept = [i for i in range(n) if video.gif_keeps(i, self.fps)]
+        n = self.frames_written
+        kept = [i for i in range(n) if video.gif_keeps(i, self.fps)]  # the frames held
         durations = [video.gif_delay_cs(i, self.fps) * 10 for i in kept]
-        first, *rest = (self._frames[i] for i in kept)
+        first, *rest = self._frames
         self._temp = _temp_name(self.target, ".gif")
         first.save(self._temp, format="GIF", save_all=True, append_images=rest,
                    duration=durations, loop=0, optimize=False, disposal=2, transparency=255)
@@ -246,7 +248,7 @@ def check_sheet_json(target: str | os.PathLike[str], scene_path: str | os.PathLi
     rendered (``-o character.png`` for ``character.json``), before any rendering."""
     sheet_json = Path(os.fspath(target)).with_suffix(".json")
     scene = Path(os.fspath(scene_path))
-    if sheet_json.exists() and scene.exists() and os.path.samefile(sheet_json, scene):
+    if sheet_json.exists() and os.fspath(scene_path) and scene.exists() and os.path.samefile(sheet_json, scene):
         raise ValueError(f"{target}: the sprite sheet's {sheet_json.name} would replace the "
                          f"scene {scene}; name the sheet otherwise, such as "
                          f"{sheet_json.stem}-sheet.png")
@@ -290,7 +292,7 @@ def check_not_a_scene(target: str | os.PathLike[str], keep: str, written: str, l
                       instead: str | None = None) -> None:
     """Refuse to replace an existing JSON file that is not what this command writes: a
     scene, or any file without the ``keep`` key of the command's own output (``"meta"``
-    for a sprite sheet's atlas, ``"$schema"`` for the schema), before any work."""
+    for a sprite sheet's atlas, ``"$id"`` for the schema, inkwarp's), before any work."""
     import json
 
     out = Path(os.fspath(target))
@@ -300,7 +302,7 @@ def check_not_a_scene(target: str | os.PathLike[str], keep: str, written: str, l
         doc = json.loads(out.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         doc = None
-    if isinstance(doc, dict) and keep in doc:
+    if isinstance(doc, dict) and keep in doc and (keep != "$id" or str(doc["$id"]).startswith("https://inkwarp.dev/")):
         return  # an earlier output of the same kind
     what = "a scene" if isinstance(doc, dict) and "layers" in doc else "a file inkwarp did not write"
     raise ValueError(f"{lead or str(target) + ':'} is {what}; writing the {written} there would replace it. "

@@ -233,6 +233,9 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
         if sprite_sheet:
             outputs.check_sheet_json(output, scene)
         scene = _common.load_scene(os.fspath(scene))
+    elif sprite_sheet:
+        # A loaded scene: its own file (if it came from one), or any other JSON there.
+        outputs.check_sheet_json(output, getattr(scene, "file", None) or "")
     if background is not None:
         colour = (outputs.parse_background(background, option="background")
                   if isinstance(background, str)

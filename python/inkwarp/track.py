@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from inkwarp.errors import InkwarpWarning
+from inkwarp.errors import InkwarpWarning, caller_outside
 
 __all__ = ["Video", "read_video", "read_frame", "track", "track_dict", "simplify_keys",
            "SAMPLE_SPACING_PX"]
@@ -508,7 +508,7 @@ def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: st
                                   f"frame {k}, the frame the drawing is traced on, where its rest is the "
                                   f"anchor; the key ({off:.3g} px from the rest) is replaced by the track. "
                                   "Trace on another frame with --frame, or move the key off it",
-                                  InkwarpWarning, stacklevel=3)
+                                  InkwarpWarning, stacklevel=caller_outside())
                 continue
             keys[k] = points
         out.append(_Feature(str(f["id"]), str(f["kind"]), bool(f.get("closed", False)), rest, keys))
@@ -669,7 +669,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         names = "; ".join(f"'{fid}' at frames {_frames_text(ks)}" for fid, ks in lost.items())
         warnings.warn(f"{clip.path}: lost track (forward-backward error over {lost_px:g} px) of "
                       f"{names}; check those frames and add a correction key there",
-                      InkwarpWarning, stacklevel=2)
+                      InkwarpWarning, stacklevel=caller_outside())
     _rebase_images(doc, base, Path(relative_to).resolve() if relative_to is not None else None)
     return doc
 

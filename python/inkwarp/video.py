@@ -456,11 +456,11 @@ def gif_delay_cs(i: int, fps: float) -> int:
 
 def warn_gif_frames_left_out(target: Path, frames: int, kept: int, fps: float) -> None:
     if kept < frames:
-        from inkwarp.errors import InkwarpWarning
+        from inkwarp.errors import InkwarpWarning, caller_outside
 
         warnings.warn(f"{target.name}: {frames - kept} of its {frames} frames left out, as browsers play "
                       f"a GIF at most {GIF_MAX_FPS} frames a second and the scene has {fps:g}; for every "
-                      "frame render a .webm, .mov, .apng or a directory of PNGs", InkwarpWarning, stacklevel=5)
+                      "frame render a .webm, .mov, .apng or a directory of PNGs", InkwarpWarning, stacklevel=caller_outside())
 
 
 def _palette_bits(palette: bytes) -> int:
@@ -589,13 +589,13 @@ class Mp4Writer(FrameWriter):
             raise OSError(f"{self.target}: ffmpeg wrote an empty file")
         os.replace(self._temp, self.target)
         if self.see_through:
-            from inkwarp.errors import InkwarpWarning
+            from inkwarp.errors import InkwarpWarning, caller_outside
 
             which = f"{self.see_through} of its {self.frames_written} frames"
             warnings.warn(f"{self.target.name}: {which} had transparent pixels, flattened over "
                           "white (an .mp4 has no alpha); for alpha render a .webm, .mov, .apng "
                           "or a directory of PNGs, or give the scene an opaque background",
-                          InkwarpWarning, stacklevel=4)
+                          InkwarpWarning, stacklevel=caller_outside())
         return [self.target]
 
     def _discard(self) -> None:

@@ -134,7 +134,7 @@ pub fn beier_neely_field(
     };
     // Strengths (len^p)^b over the longest line's, and the points' weights by the same
     // factor (it cancels): len^(p·b) itself overflows for long lines at large b and p.
-    let longest = lines.iter().map(|l| l.len).fold(0.0, f64::max);
+    let longest = lines.iter().map(|l| l.len).fold(1.0, f64::max); // at least 1 px: a tiny one's inverse overflows
     let strength_b: Vec<f64> = lines.iter().map(|l| (l.len / longest).powf(len_power * b)).collect();
     let point_scale = if lines.is_empty() { 1.0 } else { longest.powf(-len_power * b) };
 
@@ -238,15 +238,20 @@ mod tests {
 
     #[test]
     fn the_largest_weights_allowed_stay_finite_and_keep_their_balance() {
-        // (len^p)^b of a 360 px line at b = 8, p = 16 overflowed: every pixel NaN, at rest too.
+        // (len^p)^b of a 345 px line at b = 8, p = 16 overflowed: every pixel NaN, at rest too.
         let long = LinePair { rest: [[10.0, 10.0], [300.0, 200.0]], pose: [[10.0, 10.0], [300.0, 200.0]] };
         let short = LinePair { rest: [[5.0, 30.0], [6.0, 30.0]], pose: [[9.0, 30.0], [10.0, 30.0]] };
         let dot = Sample { rest: [40.0, 5.0], displacement: [3.0, 0.0] };
-        let params = BeierNeelyParams { a: 1.0, b: 8.0, p: 16.0 };
+        let params = BeierNeelyParams { a: 1.0, b: 16.0, p: 16.0 };
         let f = beier_neely_field(&[dot], &[long, short], 320, 240, &params, &mut MethodReport::default()).unwrap();
         assert!(f.dx.iter().chain(&f.dy).all(|v| v.is_finite()));
         // The long line at rest holds everything (the short one and the point weigh nothing beside it).
         assert!(f.dx.iter().chain(&f.dy).all(|v| v.abs() < 1e-3));
+        // A line shorter than a pixel alone with a point: the point carries the field (the
+        // inverse of a 0.05 px line's (len^p)^b overflowed).
+        let tiny = LinePair { rest: [[50.0, 50.0], [50.05, 50.0]], pose: [[50.0, 50.0], [50.05, 50.0]] };
+        let f = beier_neely_field(&[dot], &[tiny], 64, 64, &params, &mut MethodReport::default()).unwrap();
+        assert!(f.dx.iter().chain(&f.dy).all(|v| v.is_finite()) && (f.at(10, 10)[0] - 3.0).abs() < 1e-3, "{:?}", f.at(10, 10));
         // The balance of a line and a point is the formula's: (len^p)^b (a + dist)^-b against
         // (a + dist)^-b, here at pixel (20, 30) for a translated line and a point.
         let p = BeierNeelyParams { a: 1.0, b: 2.0, p: 0.5 };

@@ -941,3 +941,16 @@ fn places_in_messages_are_the_original_documents_past_a_layer_set_aside() {
     let problems = problems_of(&scene);
     assert!(problems.iter().any(|p| p.starts_with("layers[2].name:") && p.contains("layers[1]") && !p.contains("layers[0]")), "{problems:?}");
 }
+
+#[test]
+fn a_layers_own_feature_list_is_named_by_its_full_path() {
+    // "also at features[2]" was the layer's list, and was renumbered as the scene's
+    // features once a broken feature was set aside.
+    let mut scene = valid_scene();
+    let features = scene["features"].as_array().unwrap().clone();
+    scene["features"] = json!([{"id": "broken", "kind": "point", "rest": "nope"}]);
+    scene["features"].as_array_mut().unwrap().extend(features);
+    scene["layers"][1]["features"] = json!(["dot", "lid", "lid"]);
+    let problems = problems_of(&scene);
+    assert!(problems.iter().any(|p| p.contains("\"lid\" is listed twice (also at layers[1].features[1])")), "{problems:?}");
+}

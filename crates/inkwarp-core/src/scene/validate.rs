@@ -153,7 +153,7 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
                     };
                     p.push(Problem::new(id_path, format!("no feature has the id \"{id}\"; {hint}{known}")));
                 } else if let Some(&first) = seen.get(id.as_str()) {
-                    let why = format!("\"{id}\" is listed twice (also at features[{first}]); list it once");
+                    let why = format!("\"{id}\" is listed twice (also at {path}.features[{first}]); list it once");
                     p.push(Problem::new(id_path, why));
                 } else {
                     seen.insert(id, k);
