@@ -205,6 +205,11 @@ def test_a_flat_point_carried_off_the_picture_is_lost(tmp_path):
     gone = [k for k in range(FRAMES) if where[k, 0] > W - 1 + 2.0]
     assert gone and f"'background' at frames {gone[0]}" in said, (said, where[:, 0])
     assert "'square' at frames 0" not in said
+    # It is also named as untracked from the start: on no texture where traced, it follows
+    # the square (before it is lost, too).
+    blind = [str(w.message) for w in caught if "on no texture" in str(w.message)]
+    assert len(blind) == 1 and "'background' lies on no texture at frame 0" in blind[0], blind
+    assert "'square'" not in blind[0]
 
 
 def test_cli_writes_the_tracked_scene_and_a_frame(videos, tmp_path, capsys):

@@ -645,6 +645,11 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         back_pos, back_err = tracker.run(a, start, lo, tick)
         tracks[a] = ({**back_pos, **fwd_pos}, {**back_err, **fwd_err})
 
+    # Features on no texture where traced (flat skin, a plain background): the tracker cannot
+    # see them move, and they follow the thin plate of the points around them.
+    at_k = _all_points(features, [f.rest for f in features])
+    eig = _bilinear(tracker.min_eig(frame)[..., None], at_k)[:, 0] if len(at_k) else at_k[:, 0]
+    blind = [f.id for f in features if f.rows.stop > f.rows.start and np.mean(eig[f.rows] <= TRUST_MIN_EIG) > 0.5]
     lost: dict[str, list[int]] = {}
     for i, f in tracked:  # doc["features"][i] gets the keys
         series = np.empty((count, len(f.rest), 2))
@@ -669,6 +674,12 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         names = "; ".join(f"'{fid}' at frames {_frames_text(ks)}" for fid, ks in lost.items())
         warnings.warn(f"{clip.path}: lost track (forward-backward error over {lost_px:g} px) of "
                       f"{names}; check those frames and add a correction key there",
+                      InkwarpWarning, stacklevel=caller_outside())
+    if blind:
+        names = ", ".join(f"'{fid}'" for fid in blind)
+        warnings.warn(f"{clip.path}: {names} lie{'s' if len(blind) == 1 else ''} on no texture at frame {frame} "
+                      "(a flat area the tracker cannot see move): followed by the tracked points around, "
+                      "not by the picture; check them, and add a correction key where they stray",
                       InkwarpWarning, stacklevel=caller_outside())
     _rebase_images(doc, base, Path(relative_to).resolve() if relative_to is not None else None)
     return doc
