@@ -26,6 +26,7 @@ import math
 import os
 import subprocess
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -177,6 +178,7 @@ class TransparentGifWriter(FrameWriter):
     def __init__(self, target: Path, fps: float) -> None:
         super().__init__(target, fps)
         self._frames: list[Any] = []
+        self._delays_ms: list[int] = []  # of the frames kept (see `video.gif_keeps`)
         self._temp: Path | None = None
 
     def _write(self, frame: np.ndarray) -> None:
@@ -184,6 +186,7 @@ class TransparentGifWriter(FrameWriter):
 
         if not video.gif_keeps(self.frames_written, self.fps):
             return
+        self._delays_ms.append(video.gif_delay_cs(self.frames_written, self.fps) * 10)
         rgba = frame if frame.shape[2] == 4 else np.dstack(
             [frame, np.full(frame.shape[:2], 255, np.uint8)])
         opaque = rgba[..., 3] >= 128
@@ -199,16 +202,14 @@ class TransparentGifWriter(FrameWriter):
         self._frames.append(image)
 
     def _commit(self) -> list[Path]:
-        n = self.frames_written
-        kept = [i for i in range(n) if video.gif_keeps(i, self.fps)]  # the frames held
-        durations = [video.gif_delay_cs(i, self.fps) * 10 for i in kept]
+        kept = len(self._frames)
         first, *rest = self._frames
         self._temp = _temp_name(self.target, ".gif")
         first.save(self._temp, format="GIF", save_all=True, append_images=rest,
-                   duration=durations, loop=0, optimize=False, disposal=2, transparency=255)
+                   duration=self._delays_ms, loop=0, optimize=False, disposal=2, transparency=255)
         self._frames.clear()
         os.replace(self._temp, self.target)
-        video.warn_gif_frames_left_out(self.target, n, len(kept), self.fps)
+        video.warn_gif_frames_left_out(self.target, self.frames_written, kept, self.fps)
         return [self.target]
 
     def _discard(self) -> None:
@@ -243,19 +244,18 @@ def check_sheet_size(columns: int, rows: int, width: int, height: int, spec: str
                          "or render a smaller scene")
 
 
-def check_sheet_json(target: str | os.PathLike[str], scene_path: str | os.PathLike[str]) -> None:
+def check_sheet_json(target: str | os.PathLike[str], scene_path: str | os.PathLike[str] | None) -> None:
     """Refuse a sprite sheet whose ``.json`` beside the atlas would replace the scene being
     rendered (``-o character.png`` for ``character.json``), before any rendering."""
-    sheet_json = Path(os.fspath(target)).with_suffix(".json")
-    scene = Path(os.fspath(scene_path))
-    if sheet_json.exists() and os.fspath(scene_path) and scene.exists() and os.path.samefile(sheet_json, scene):
+    out = Path(os.fspath(target))
+    sheet_json = out.with_suffix(".json")
+    if scene_path is not None and sheet_json.exists() and os.path.exists(scene_path) and os.path.samefile(sheet_json, scene_path):
         raise ValueError(f"{target}: the sprite sheet's {sheet_json.name} would replace the "
-                         f"scene {scene}; name the sheet otherwise, such as "
+                         f"scene {scene_path}; name the sheet otherwise, such as "
                          f"{sheet_json.stem}-sheet.png")
     # Another scene, or any JSON that is not an earlier sheet's atlas, is not replaced either.
-    out = Path(os.fspath(target))
-    check_not_a_scene(sheet_json, "meta", "sheet's atlas", f"{target}: the sprite sheet's {sheet_json.name}",
-                      f"{out.stem}-sheet{out.suffix}")
+    check_ours(sheet_json, lambda doc: "meta" in doc, "sheet's atlas", f"{target}: the sprite sheet's {sheet_json.name}",
+               f"{out.stem}-sheet{out.suffix}")
 
 
 def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.PathLike[str],
@@ -288,13 +288,21 @@ def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.Path
                              f"{out.stem}-{written.split()[-1]}{out.suffix}")
 
 
-def check_not_a_scene(target: str | os.PathLike[str], keep: str, written: str, lead: str | None = None,
-                      instead: str | None = None) -> None:
-    """Refuse to replace an existing JSON file that is not what this command writes: a
-    scene, or any file without the ``keep`` key of the command's own output (``"meta"``
-    for a sprite sheet's atlas, ``"$id"`` for the schema, inkwarp's), before any work."""
-    import json
+def check_not_the_input(target: str | os.PathLike[str], given: str | os.PathLike[str], option: str,
+                        suffix: str) -> None:
+    """Refuse, before any work, an output that is the input file ``given`` (as ``option``):
+    writing it would replace that file."""
+    out = Path(os.fspath(target))
+    if out.exists() and os.path.exists(given) and os.path.samefile(out, given):
+        raise ValueError(f"{out}: is the input ({option} {given}); writing there would replace "
+                         f"it. Name the output otherwise, such as {out.stem}{suffix}{out.suffix}")
 
+
+def check_ours(target: str | os.PathLike[str], ours: Callable[[dict[str, Any]], bool], written: str,
+               lead: str | None = None, instead: str | None = None) -> None:
+    """Refuse, before any work, to replace an existing file unless it is a JSON object that
+    ``ours`` takes for an earlier output of the command (a sprite sheet's atlas, the schema):
+    a scene, or any other file, is the user's."""
     out = Path(os.fspath(target))
     if not out.is_file():
         return
@@ -302,8 +310,8 @@ def check_not_a_scene(target: str | os.PathLike[str], keep: str, written: str, l
         doc = json.loads(out.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         doc = None
-    if isinstance(doc, dict) and keep in doc and (keep != "$id" or str(doc["$id"]).startswith("https://inkwarp.dev/")):
-        return  # an earlier output of the same kind
+    if isinstance(doc, dict) and ours(doc):
+        return
     what = "a scene" if isinstance(doc, dict) and "layers" in doc else "a file inkwarp did not write"
     raise ValueError(f"{lead or str(target) + ':'} is {what}; writing the {written} there would replace it. "
                      f"Name it otherwise, such as {instead or out.stem + '-' + written + out.suffix}, or "

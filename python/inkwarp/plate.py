@@ -161,13 +161,16 @@ def _finite(value: Any) -> bool:
 
 def _shown(value: Any) -> str:
     """``value`` for a message: an integer too long to read as its number of digits."""
-    if isinstance(value, numbers.Integral) and abs(int(value)).bit_length() > 80:
-        # Its digit count, without writing it out (Python refuses past 4300 digits).
-        digits = len(str(abs(int(value)))) if abs(int(value)).bit_length() < 14000 else f"about {int(abs(int(value)).bit_length() * 0.30103)}"
-        return f"{'a negative' if value < 0 else 'an'} integer of {digits} digits"
-    if isinstance(value, numbers.Real) and not isinstance(value, bool):  # numpy's scalars as plain numbers
-        return str(int(value)) if isinstance(value, numbers.Integral) else f"{float(value):.15g}"
-    return repr(value)
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        return repr(value)
+    if not isinstance(value, numbers.Integral):
+        return f"{float(value):.15g}"  # numpy's scalars as plain numbers
+    bits = abs(int(value)).bit_length()
+    if bits <= 80:
+        return str(int(value))
+    # Its digit count, without writing it out (Python refuses past 4300 digits).
+    digits = len(str(abs(int(value)))) if bits < 14000 else f"about {int(bits * 0.30103)}"
+    return f"{'a negative' if value < 0 else 'an'} integer of {digits} digits"
 
 
 def _first_line(exc: BaseException) -> str:
@@ -245,10 +248,10 @@ def _check_args(
     cut_list = []
     if cuts is not None:
         try:
-            iter(cuts)
-        except TypeError:
-            raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.") from None
-        if isinstance(cuts, (str, bytes)):
+            polylines = not isinstance(cuts, (str, bytes)) and iter(cuts) is not None
+        except TypeError:  # not iterable
+            polylines = False
+        if not polylines:
             raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.")
         if isinstance(cuts, np.ndarray) and cuts.ndim == 2:
             raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")

@@ -235,7 +235,7 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
         scene = _common.load_scene(os.fspath(scene))
     elif sprite_sheet:
         # A loaded scene: its own file (if it came from one), or any other JSON there.
-        outputs.check_sheet_json(output, getattr(scene, "file", None) or "")
+        outputs.check_sheet_json(output, getattr(scene, "file", None))
     if background is not None:
         colour = (outputs.parse_background(background, option="background")
                   if isinstance(background, str)

@@ -628,6 +628,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
 
     tracker = _Tracker(clip.frames, TrackOptions(lost_px))
     tracks: dict[int, tuple[dict[int, np.ndarray], dict[int, np.ndarray]]] = {}
+    at_k = np.empty((0, 2))  # every feature's points where traced (none: only cuts)
     # Frame K first: the anchors at corrections start features without a key there
     # from its track.
     for a in sorted(union, key=lambda a: (a != frame, abs(a - frame))):
@@ -640,6 +641,8 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             else:
                 poses.append(_track_at(tracks, anchors_of[f.id], f, a, lost_px))
         start = _all_points(features, poses)
+        if a == frame:
+            at_k = start
         lo, hi = ranges[a]
         fwd_pos, fwd_err = tracker.run(a, start, hi, tick)
         back_pos, back_err = tracker.run(a, start, lo, tick)
@@ -647,9 +650,8 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
 
     # Features on no texture where traced (flat skin, a plain background): the tracker cannot
     # see them move, and they follow the thin plate of the points around them.
-    at_k = _all_points(features, [f.rest for f in features])
-    eig = _bilinear(tracker.min_eig(frame)[..., None], at_k)[:, 0] if len(at_k) else at_k[:, 0]
-    blind = [f.id for f in features if f.rows.stop > f.rows.start and np.mean(eig[f.rows] <= TRUST_MIN_EIG) > 0.5]
+    eig = _bilinear(tracker.min_eig(frame)[..., None], at_k)[:, 0]
+    blind = [f.id for f in features if np.mean(eig[f.rows] <= TRUST_MIN_EIG) > 0.5]
     lost: dict[str, list[int]] = {}
     for i, f in tracked:  # doc["features"][i] gets the keys
         series = np.empty((count, len(f.rest), 2))
@@ -826,9 +828,10 @@ def check_output(path: str | os.PathLike[str], *, source: str | os.PathLike[str]
         raise ValueError(f"{out}: {folder} is a file, not a directory; choose another output path")
     if not os.access(folder, os.W_OK):
         raise ValueError(f"{out}: the directory {folder} is not writable")
-    if source is not None and out.exists() and os.path.exists(source) and os.path.samefile(out, source):
-        raise ValueError(f"{out}: is the input ({option} {source}); writing there would replace "
-                         f"it. Name the output otherwise, such as {out.stem}-tracked{out.suffix}")
+    if source is not None:
+        from inkwarp.outputs import check_not_the_input
+
+        check_not_the_input(out, source, option, "-tracked")
     return out
 
 

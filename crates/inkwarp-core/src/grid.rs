@@ -106,9 +106,7 @@ impl Grid {
     /// active nodes inside the grid. The solver checks this before it trusts a grid.
     pub fn is_consistent(&self) -> bool {
         let n = self.len();
-        if self.active.len() != n || self.link_right.len() != n || self.link_down.len() != n {
-            return false;
-        }
+        if self.active.len() != n || self.link_right.len() != n || self.link_down.len() != n { return false; }
         // Row by row without early exits, so the comparisons run side by side (every solve
         // checks its grid).
         let (w, h) = (self.width, self.height);

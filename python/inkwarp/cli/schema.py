@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
     from inkwarp import outputs, video
 
-    outputs.check_not_a_scene(target, "$id", "schema")
+    outputs.check_ours(target, lambda doc: str(doc.get("$id", "")).startswith("https://inkwarp.dev/"), "schema")
     video.write_bytes(target, text.encode("utf-8"))
     print(f"wrote {target}")
     return 0

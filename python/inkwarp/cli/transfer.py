@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import warnings
 from pathlib import Path
@@ -42,10 +41,10 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix.lower() != ".json":
         raise ValueError(f"the output {out} must be a .json scene file.")
+    from inkwarp.outputs import check_not_the_input
+
     for option, given in (("--source", args.source), ("--target", args.target)):
-        if out.exists() and os.path.exists(given) and os.path.samefile(out, given):
-            raise ValueError(f"{out}: is the input ({option} {given}); writing there would replace it. "
-                             f"Name the output otherwise, such as {out.stem}-transferred{out.suffix}")
+        check_not_the_input(out, given, option, "-transferred")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InkwarpWarning)
         doc = transfer_dict(args.source, args.target, relative_to=out.resolve().parent)

@@ -260,7 +260,7 @@ fn parse_value(value: &Value) -> Parsed {
     map.entry("layers").or_insert(Value::Array(Vec::new()));
     if let Ok(doc) = serde_json::from_value::<SceneDoc>(Value::Object(map)) {
         // Layers set aside for their problems are no missing layer.
-        let problems = validate::validate_doc_knowing(&doc, &set_aside_ids).into_iter().filter(|p| p.path != "layers" || !had_layers).collect();
+        let problems = validate::validate_doc_knowing(&doc, &set_aside_ids, had_layers);
         parsed.doc = Some(doc);
         parsed.extend(problems);
     }

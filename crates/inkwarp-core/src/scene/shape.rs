@@ -55,8 +55,9 @@ impl<'a> Walker<'a> {
         }
         if let Some(types) = schema.get("type") {
             if !type_matches(value, types) {
-                let whole = value.as_f64().is_some_and(|f| f.fract() == 0.0) && expected_types(types) == "a whole number";
-                self.push(path, format!("expected {}, found {}{}", expected_types(types), describe(value), if whole { "; write it without a decimal point or exponent (2, not 2.0)" } else { "" }));
+                let expected = expected_types(types);
+                let hint = if expected == "a whole number" && value.as_f64().is_some_and(|f| f.fract() == 0.0) { "; write it without a decimal point or exponent (2, not 2.0)" } else { "" };
+                self.push(path, format!("expected {expected}, found {}{hint}", describe(value)));
                 return false;
             }
         }

@@ -13,11 +13,11 @@ use crate::limits::{
 };
 
 /// Every problem of `doc` that does not need its images. Empty when the document is valid.
-pub fn validate_doc(doc: &SceneDoc) -> Vec<Problem> { validate_doc_knowing(doc, &[]) }
+pub fn validate_doc(doc: &SceneDoc) -> Vec<Problem> { validate_doc_knowing(doc, &[], false) }
 
-/// [`validate_doc`], taking `other_ids` as feature ids too (features that were set aside
-/// because of shape problems already reported).
-pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<Problem> {
+/// [`validate_doc`], taking `other_ids` as feature ids too, and no layer as none missing
+/// where `layers_set_aside` (set aside because of shape problems already reported).
+pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_set_aside: bool) -> Vec<Problem> {
     let mut p = Vec::new();
     if doc.inkwarp != FORMAT_VERSION {
         let why = format!("this inkwarp reads scene format {FORMAT_VERSION}, found {}; set \"inkwarp\": {FORMAT_VERSION} (and convert the scene if it was written for another format)", doc.inkwarp);
@@ -115,7 +115,7 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String]) -> Vec<
     }
 
     // Layers.
-    if doc.layers.is_empty() {
+    if doc.layers.is_empty() && !layers_set_aside {
         let why = "a scene needs at least one layer; add one such as {\"name\": \"main\", \"image\": \"picture.png\"}";
         p.push(Problem::new("layers", why));
     }
