@@ -5,7 +5,8 @@
 //! Per band and element:
 //! - pixel centres inside the element (non-zero winding of its outline, top-left rule:
 //!   an edge owns the centres with `y_lo ≤ Y < y_hi`, a span owns `x_left ≤ X < x_right`)
-//!   get the element's colour at their preimage, priority 0 (the last element wins);
+//!   get the element's colour at their preimage, priority 0, "over" what an earlier
+//!   element put there (the last element is in front);
 //! - edges of the element that are not cancelled by a neighbour of the same orientation
 //!   (the outline of a piece, and fold lines) are accumulated as signed areas, whose
 //!   running sum along a row is the coverage;
@@ -50,9 +51,7 @@ const QUARTER_EDGES: [[EdgeKind; 4]; 4] = [
 
 pub(super) fn draw_layer(canvas: &mut Canvas, image: &RgbaImage, field: &Field, grid: &Grid, offset: [f64; 2]) {
     let cw = canvas.width;
-    if image.width == 0 || image.height == 0 || cw == 0 || canvas.height == 0 {
-        return;
-    }
+    if image.width == 0 || image.height == 0 || cw == 0 || canvas.height == 0 { return; }
     let layer = Layer::prepare(image, field.dx.clone(), field.dy.clone(), grid, offset);
     let layers = [(&layer, &layer.plan())];
     let bands = canvas.data.par_chunks_mut(BAND_ROWS * cw).enumerate();
@@ -78,9 +77,7 @@ fn draw_band(layers: &[(&Layer<'_>, &Plan)], width: usize, y0: usize, dst: &mut 
 /// canvas of the whole frame is ever held. Each pixel goes through the same operations as
 /// [`draw_layer`] on a [`Canvas`] then [`Canvas::to_rgba8`], so the bytes are the same.
 pub(super) fn draw_frame(width: usize, background: Rgba, layers: &[(&Layer<'_>, &Plan)], y0: usize, out: &mut [u8]) {
-    if width == 0 {
-        return;
-    }
+    if width == 0 { return; }
     out.par_chunks_mut(4 * BAND_ROWS * width).enumerate().for_each(|(band, out)| {
         FRAME_BAND.with(|frame| {
             let mut dst = frame.borrow_mut();
@@ -614,8 +611,9 @@ impl Band {
         let y = row as f32;
         for x in start..end {
             if let Some([s, t]) = map.preimage_inside([x as f32, y]) {
-                let i = line + x as usize;
-                self.col[i] = colour(s, t);
+                let (i, c) = (line + x as usize, colour(s, t));
+                let (d, keep) = (self.col[i], 1.0 - c[3]);
+                self.col[i] = if self.prio[i] == 0.0 { [0, 1, 2, 3].map(|k| c[k] + d[k] * keep) } else { c };
                 self.prio[i] = 0.0;
             }
         }

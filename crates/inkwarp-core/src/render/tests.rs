@@ -416,6 +416,30 @@ fn fold_overs_put_the_later_rest_pixels_in_front() {
 }
 
 #[test]
+fn a_translucent_part_in_front_shows_what_lies_behind_it() {
+    // An opaque square moves right over a faint fringe pixel (alpha 3) of the same layer that
+    // stays put: the pixel is drawn later, so it is in front, but over the square, not in
+    // its place (it punched an almost transparent hole in the square).
+    let (w, h) = (24, 16);
+    let mut image = solid(w, h, [0, 0, 0, 0]);
+    let set = |image: &mut RgbaImage, x: usize, y: usize, p: [u8; 4]| image.data[(y * w + x) * 4..][..4].copy_from_slice(&p);
+    (4..12).for_each(|y| (2..10).for_each(|x| set(&mut image, x, y, [200, 120, 60, 255])));
+    set(&mut image, 14, 8, [0, 0, 250, 128]);
+    let field = field_from(w, h, |x, y| [if (2.0..10.0).contains(&x) && (4.0..12.0).contains(&y) { 9.0 } else { 0.0 }, 0.0]);
+    let out = render(&image, &field, &alpha_matte(&image), w, h, [0.0, 0.0]);
+    for x in 11..19 {
+        let p = out.pixel(x, 8);
+        assert_eq!(p[3], 255, "({x}, 8): the square covers it");
+        if x != 14 {
+            assert_eq!(p, [200, 120, 60, 255], "({x}, 8)");
+        }
+    }
+    // At the fringe pixel: half its blue over the square's orange.
+    let [r, g, b, _] = out.pixel(14, 8);
+    assert!((r as i32 - 100).abs() <= 1 && (g as i32 - 60).abs() <= 1 && (b as i32 - 155).abs() <= 1, "{:?}", [r, g, b]);
+}
+
+#[test]
 fn a_flap_folded_back_over_its_piece_stays_covered() {
     // The last 8 columns are mirrored back over the piece: the folded flap and the sheet
     // under it have opposite orientations, and the flap must still cover.
