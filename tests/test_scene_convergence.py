@@ -95,7 +95,8 @@ def test_a_solve_that_runs_out_of_cycles_says_raise_max_cycles(tmp_path):
     with pytest.warns(inkwarp.ConvergenceWarning) as caught:
         scene.field(time=1.0, layer="front")
     message = str(caught[0].message)
-    assert "(2 cycles" in message and "raise solver.max_cycles" in message, message
+    # The setting in effect is the layer's own: the advice names it, with its value.
+    assert "(2 cycles" in message and "raise layers[1].solver.max_cycles (the layer's own, 2)" in message, message
     # The accuracy it may miss is the contract of the layer's own tolerance: 5 times 0.001.
     assert "off by more than 0.005 px (5 times solver.tolerance)" in message, message
 

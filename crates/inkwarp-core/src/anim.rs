@@ -116,24 +116,16 @@ pub fn points_at(rest: &[Point], keys: &[Key], time_s: f64) -> Vec<Point> {
         (Some(f), Some(l)) => (f, l),
         _ => return rest.to_vec(),
     };
-    if time_s.is_nan() || time_s <= first.time_s {
-        return first.points.clone();
-    }
-    if time_s >= last.time_s {
-        return last.points.clone();
-    }
+    if time_s.is_nan() || time_s <= first.time_s { return first.points.clone(); }
+    if time_s >= last.time_s { return last.points.clone(); }
     // the span [keys[i], keys[i + 1]) holding time_s: t_i ≤ t < t_{i+1}
     let i = keys.partition_point(|k| k.time_s <= time_s) - 1;
     let (a, b) = (&keys[i], &keys[i + 1]);
-    if time_s == a.time_s {
-        return a.points.clone();
-    }
+    if time_s == a.time_s { return a.points.clone(); }
     let duration = b.time_s - a.time_s;
     let u = (time_s - a.time_s) / duration;
     let n = a.points.len().min(b.points.len());
-    if a.interpolation == Interpolation::Hold {
-        return a.points.clone();
-    }
+    if a.interpolation == Interpolation::Hold { return a.points.clone(); }
     if let Some(w) = a.interpolation.progress(u) {
         return (0..n).map(|j| lerp(a.points[j], b.points[j], w)).collect();
     }

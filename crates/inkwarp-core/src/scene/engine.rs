@@ -11,7 +11,7 @@ use super::doc::{Border, Method, Scheme, SolverDoc, SolverOverrides};
 use crate::anim::points_at;
 use crate::geometry::{FeatureSampler, SampleOptions};
 use crate::render::{Canvas, RgbaImage};
-use crate::solve::{SolveMethod, SolveOptions, SolveReport, Solver, Stop};
+use crate::solve::{SolveMethod, SolveOptions, SolveReport, Solver, Stop, DEFAULT_MAX_CYCLES};
 use super::{Scene, SceneError};
 use crate::field::Field;
 use crate::geometry::{Kind, Point, Sample};
@@ -46,9 +46,7 @@ pub(super) fn compute_field(
     let held = border == Border::Hold;
     let spacing_px = solver.grid_step as f64;
     const STOPPED: &str = "stopped: interrupted (Ctrl-C or SIGTERM)";
-    if crate::interrupt::requested() {
-        return Err(STOPPED.to_string());
-    }
+    if crate::interrupt::requested() { return Err(STOPPED.to_string()); }
     let solved = match solver.method.interpolant() {
         None => {
             let mut samples: Vec<Sample> = features.iter().flat_map(|f| f.samples.iter().copied()).collect();
@@ -74,9 +72,7 @@ pub(super) fn compute_field(
         }
     };
     // A stop requested mid-solve may leave a partial field: never return it.
-    if crate::interrupt::requested() {
-        return Err(STOPPED.to_string());
-    }
+    if crate::interrupt::requested() { return Err(STOPPED.to_string()); }
     // A frame is never drawn from a field with NaN or infinity in it (it would come out
     // blank with no error): the limits refuse the inputs known to cause one, and this
     // catches any other.
@@ -264,7 +260,16 @@ impl Scene {
         // Why it stopped, as the solve recorded it.
         let advice = match report.stop {
             Stop::Budget => "the southwell scheme stops after a fixed budget of relaxations; use the multigrid scheme to solve to the tolerance, or another method".to_string(),
-            Stop::MaxCycles => format!("raise solver.max_cycles (the scene's, or the layer's own){}, or use another method", if solver.grid_step == 1 { ", solve every other pixel (solver.grid_step 2: mattes with hair need the most cycles)" } else { "" }),
+            Stop::MaxCycles => {
+                // The setting in effect: the layer's own, else the scene's (or the default).
+                let cap = solver.max_cycles.map_or(DEFAULT_MAX_CYCLES, |n| n as usize);
+                let setting = match self.doc().layers[layer].solver.as_ref().and_then(|o| o.max_cycles) {
+                    Some(n) => format!("layers[{layer}].solver.max_cycles (the layer's own, {n})"),
+                    None => format!("solver.max_cycles ({}{cap})", if solver.max_cycles.is_some() { "" } else { "the default, " }),
+                };
+                let step = if solver.grid_step == 1 && cap >= DEFAULT_MAX_CYCLES { ", solve every other pixel (solver.grid_step 2: mattes with hair need the most cycles)" } else { "" };
+                format!("raise {setting}{step}, or use another method")
+            }
             Stop::Unsettled if solver.grid_step > 1 => format!("at grid_step {} parts of the matte thinner than the step (hair, strands) are too many to settle; use grid_step 1 for this layer, or hold those parts with points of their own", solver.grid_step),
             Stop::Unsettled => "parts of the surface joined to the rest at single points or by 1 px strands are too many to settle, or did not settle; hold those parts with points of their own, or use another method".to_string(),
             Stop::Precision => "the tolerance is finer than the field's precision; use a coarser solver.tolerance".to_string(),
