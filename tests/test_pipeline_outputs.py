@@ -402,7 +402,7 @@ def test_a_full_disk_is_one_message_naming_the_output_for_every_format(tmp_path,
     ({"frames": (0, 99)}, "frames=(0, 99): the scene has frames 0 to 3"),
     ({"background": "nope"}, "background='nope': give transparent"),
     ({"sprite_sheet": "0x1"}, "sprite_sheet='0x1': columns and rows must be at least 1"),
-    ({"sprite_sheet": "1x1"}, "sprite_sheet='1x1': 1x1 holds 1 frames, the render has 4; give "
+    ({"sprite_sheet": "1x1"}, "sprite_sheet='1x1': 1x1 holds 1 frame, the render has 4; give "
                               "more rows or columns, or pick fewer with frames=(A, B)"),
     ({"skip_existing": True}, "skip_existing=True works with a directory")])
 def test_python_callers_see_argument_names_not_flags(tmp_path, options, message):
@@ -417,7 +417,7 @@ def test_python_callers_see_argument_names_not_flags(tmp_path, options, message)
 def test_the_command_line_names_its_flags(capsys, tmp_path):
     scene = write_scene(tmp_path / "s")
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "sheet.png", "--sprite-sheet", "1x1")
-    assert code == 2 and "--sprite-sheet 1x1: 1x1 holds 1 frames" in err and "with --frames" in err
+    assert code == 2 and "--sprite-sheet 1x1: 1x1 holds 1 frame" in err and "with --frames" in err
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif", "--frames", "5:1")
     assert code == 2 and "--frames 5:1: the scene has frames 0 to 3" in err
 

@@ -176,7 +176,10 @@ def test_the_default_matte_is_the_alpha():
 @pytest.mark.parametrize(
     "image,field,matte,message",
     [
-        (np.zeros((4, 4, 4), np.float32), np.zeros((4, 4, 2)), None, "uint8"),
+        (np.zeros((4, 4, 4), np.float32), np.zeros((4, 4, 2)), None, r"uint8 .* a float image in \[0, 1\] with \(image \* 255\)"),
+        # Levels 0-255 already (a nested list of ints, a float array of levels): cast them.
+        (np.zeros((4, 4, 4), int).tolist(), np.zeros((4, 4, 2)), None, r"dtype int64; convert with np.asarray\(image\).astype\(np.uint8\)"),
+        (np.full((4, 4, 4), 200.0), np.zeros((4, 4, 2)), None, r"dtype float64; convert with np.asarray\(image\).astype\(np.uint8\)"),
         (np.zeros((4, 4, 2), np.uint8), np.zeros((4, 4, 2)), None, r"\(H, W, 3\) or \(H, W, 4\)"),
         (np.zeros((4, 4), np.uint8), np.zeros((4, 4, 2)), None, r"\(H, W, 3\) or \(H, W, 4\)"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 5, 2)), None, r"\(4, 4, 2\)"),

@@ -171,7 +171,10 @@ def test_solves_run_in_parallel_threads():
         ({"tolerance": 10**400}, "tolerance must be a finite number >= 0, got an integer of 401 digits"),
         ({"southwell_sweeps": 10**400}, "southwell_sweeps must be a finite number >= 0, got an integer of 401 digits"),
         ({"tension": 1000001}, r"tension must be a number from 0 to 1e6 .*, got 1000001\.$"),
-        ({"tension": np.float64(2e6)}, r"tension must be a number from 0 to 1e6 .*, got 2000000\.$"),
+        ({"tension": np.float64(2e6)}, r"tension must be a number from 0 to 1e6 .*, got 2000000\.0\.$"),
+        # A whole float is shown as the float it is: "an integer ..., got 2" misread it.
+        ({"grid_step": 2.0}, r"grid_step must be an integer from 1 to 32768 .*, got 2\.0\.$"),
+        ({"max_cycles": 5.0}, r"max_cycles must be None .*, got 5\.0\.$"),
         ({"tension": -(10**5000)}, "tension must be a finite number >= 0, got a negative integer of about 5000 digits"),
         ({"cuts": np.array(5)}, r"cuts must be a list of \(K, 2\) polylines, got array\(5\)"),
         ({"cuts": 5}, r"cuts must be a list of \(K, 2\) polylines, got 5"),

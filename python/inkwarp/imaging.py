@@ -23,10 +23,12 @@ PathLike = Union[str, "os.PathLike[str]"]
 def _as_rgba(image: ArrayLike, name: str = "image") -> NDArray[np.uint8]:
     array = np.asarray(image)
     if array.dtype != np.uint8:
-        raise ValueError(
-            f"{name} must be a uint8 array, got dtype {array.dtype}; convert a float image in "
-            f"[0, 1] with (image * 255).round().astype(np.uint8)"
-        )
+        # The fix for the values it holds: levels 0-255 already, or a float image in [0, 1].
+        levels = array.dtype.kind in "iub" or (array.size > 0 and array.dtype.kind == "f"
+                                               and np.isfinite(array).all() and array.max() > 1)
+        fix = ("with np.asarray(image).astype(np.uint8) if its values are levels 0-255" if levels else
+               "a float image in [0, 1] with (image * 255).round().astype(np.uint8)")
+        raise ValueError(f"{name} must be a uint8 array, got dtype {array.dtype}; convert {fix}")
     if array.ndim != 3 or array.shape[2] not in (3, 4):
         raise ValueError(
             f"{name} must have shape (H, W, 3) or (H, W, 4) (RGB or RGBA), got {array.shape}"

@@ -346,10 +346,14 @@ def sheet_layout(count: int, spec: str | None, option: str = "--sprite-sheet") -
     if c < 1 or r < 1:
         raise ValueError(f"{given(option, spec)}: columns and rows must be at least 1")
     if c * r < count:
-        raise ValueError(f"{given(option, spec)}: {c}x{r} holds {c * r} frames, the render "
+        raise ValueError(f"{given(option, spec)}: {c}x{r} holds {_frames(c * r)}, the render "
                          f"has {count}; give more rows or columns, or pick fewer with "
                          f"{'--frames' if option.startswith('-') else 'frames=(A, B)'}")
     return c, r
+
+
+def _frames(n: int) -> str:
+    return f"{n} frame{'' if n == 1 else 's'}"
 
 
 class SpriteSheetWriter(FrameWriter):
@@ -372,7 +376,7 @@ class SpriteSheetWriter(FrameWriter):
 
     def _write(self, frame: np.ndarray) -> None:
         if self.frames_written >= self.columns * self.rows:
-            raise ValueError(f"{self.target}: the sheet holds {self.columns * self.rows} frames")
+            raise ValueError(f"{self.target}: the sheet holds {_frames(self.columns * self.rows)}")
         h, w = frame.shape[:2]
         if self._sheet is None:
             self._sheet = np.zeros((h * self.rows, w * self.columns, 4), np.uint8)

@@ -164,7 +164,8 @@ def _shown(value: Any) -> str:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         return repr(value)
     if not isinstance(value, numbers.Integral):
-        return f"{float(value):.15g}"  # numpy's scalars as plain numbers
+        text = f"{float(value):.15g}"  # numpy's scalars as plain numbers, a float as one (2.0)
+        return text if any(c in text for c in ".eni") else f"{text}.0"
     bits = abs(int(value)).bit_length()
     if bits <= 80:
         return str(int(value))
