@@ -335,6 +335,45 @@ def test_saves_are_validated_size_limited_and_keep_the_mode(served, scene: Path)
     assert [p.name for p in scene.parent.iterdir() if p.name.startswith(".")] == []
 
 
+def test_a_read_only_scene_file_is_not_replaced(served, scene: Path) -> None:
+    # A rename replaces a file whatever its mode: a file locked against writing (even for a
+    # user the system lets write anything) is left alone, with a message saying why.
+    api = api_url(served)
+    doc = json.loads(fetch(api)[2])
+    before = scene.read_bytes()
+    os.chmod(scene, 0o444)
+    try:
+        status, _, body = fetch(api, "PUT", json.dumps({**doc, "fps": 12}).encode())
+        assert status == 422 and b"read-only (mode 444); not saved" in body and b"chmod u+w" in body
+        assert scene.read_bytes() == before and stat.S_IMODE(scene.stat().st_mode) == 0o444
+    finally:
+        os.chmod(scene, 0o644)
+    assert fetch(api, "PUT", json.dumps({**doc, "fps": 12}).encode())[0] == 200
+
+
+def test_two_pictures_with_the_same_bytes_keep_their_own_paths(editor: Path, scene: Path) -> None:
+    # Layers a and b name two files with the same bytes, so the same data: URI: an
+    # unchanged save wrote the last file's path into both layers.
+    (scene.parent / "art" / "copy.png").write_bytes(PNG_1x1)
+    doc = json.loads(scene.read_text())
+    doc["layers"] = [{"name": "a", "image": "art/dot.png"}, {"name": "b", "image": "art/copy.png"}]
+    scene.write_text(json.dumps(doc))
+    server = serve(scene, editor)
+    try:
+        api = api_url(server)
+        edited = json.loads(fetch(api)[2])
+        assert edited["layers"][0]["image"] == edited["layers"][1]["image"]
+        assert fetch(api, "PUT", json.dumps(edited).encode())[0] == 200
+        assert [layer["image"] for layer in json.loads(scene.read_text())["layers"]] == ["art/dot.png", "art/copy.png"]
+        # Reordered in the editor, each layer keeps its own path by its name.
+        edited["layers"].reverse()
+        assert fetch(api, "PUT", json.dumps(edited).encode())[0] == 200
+        assert [layer["image"] for layer in json.loads(scene.read_text())["layers"]] == ["art/copy.png", "art/dot.png"]
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
 def test_security_headers_and_no_listings(served, editor: Path) -> None:
     (editor / "assets").mkdir()
     (editor / "assets" / "a.js").write_text("1")

@@ -84,7 +84,9 @@ class SceneFile:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.folder = path.resolve().parent
-        self.inlined: dict[str, str] = {}
+        # Each inlined picture's data: URI and the paths it came from (two files with the
+        # same bytes share one), with the layer name and index each path was read at.
+        self.inlined: dict[str, list[tuple[str, Any, int]]] = {}
         # A save's check of the file's version and its write happen together.
         self.lock = threading.Lock()
         # The images the user's own file names (such as ../cat/cat.png) stay readable.
@@ -162,7 +164,10 @@ class SceneFile:
                                  "picture.")
             mime = MIME.get(file.suffix.lower()) or mimetypes.guess_type(file.name)[0] or "image/png"
             uri = f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
-            self.inlined[uri] = ref
+            froms, entry = self.inlined.setdefault(uri, []), (ref, doc["layers"][i].get("name"), i)
+            if entry in froms:
+                froms.remove(entry)
+            froms.append(entry)  # the latest read last
             doc["layers"][i][key] = uri
         return json.dumps(doc).encode("utf-8"), self.version_of(text)
 
@@ -184,12 +189,17 @@ class SceneFile:
         if not isinstance(doc, dict):
             raise ValueError("A scene is a JSON object.")
         layers = doc.get("layers", [])
-        for layer in layers if isinstance(layers, list) else []:
+        for i, layer in enumerate(layers if isinstance(layers, list) else []):
             if isinstance(layer, dict):
                 for key in IMAGE_KEYS:
-                    ref = layer.get(key)
-                    if isinstance(ref, str) and ref in self.inlined:
-                        layer[key] = self.inlined[ref]
+                    uri = layer.get(key)
+                    if isinstance(uri, str) and uri in self.inlined:
+                        # The path the same-named layer was read with, else the same place's,
+                        # else the latest read's.
+                        froms = self.inlined[uri][::-1]
+                        named = [r for r, name, _ in froms if name == layer.get("name")]
+                        placed = [r for r, _, at in froms if at == i]
+                        layer[key] = (named or placed or [froms[0][0]])[0]
         for i, key, ref in self._image_refs(doc):
             self.image_file(i, key, ref)
         problems = validate_scene(doc, base_dir=self.folder)
@@ -208,6 +218,12 @@ class SceneFile:
                 mode = stat.S_IMODE(self.path.stat().st_mode)
             except FileNotFoundError:
                 mode = 0o666 & ~_umask()
+            else:
+                # A rename replaces a file whatever its permissions: one locked against writing
+                # (no write bit for anyone, or none for this user) is left as it is.
+                if not mode & 0o222 or not os.access(self.path, os.W_OK):
+                    raise PermissionError(f"{self.path} is read-only (mode {mode:o}); not saved. Make it "
+                                          "writable (chmod u+w), or save a copy under another name.")
             write_text(self.path, text, suffix=".json", mode=mode, sync=True)
             return self.version() or self.version_of(text)  # the file's, as read back
 
