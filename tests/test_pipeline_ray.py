@@ -103,3 +103,39 @@ def test_a_cluster_short_of_memory_renders_on_fewer_workers(capsys, tmp_path):
     finally:
         ray.shutdown()
     assert leftovers(tmp_path) == []
+
+
+def test_a_chunk_whose_worker_dies_is_rendered_again_on_a_new_one(capsys, tmp_path, monkeypatch):
+    """A worker killed mid-render (for memory, or its node lost): its chunk's frames not yet
+    received are rendered on a new actor, the same frames; it was a traceback calling itself
+    an inkwarp bug."""
+    import os
+    import signal
+    import subprocess
+
+    scene_path = write_scene(tmp_path / "s", wavy_doc())
+    scene = inkwarp.Scene.load(scene_path)
+    sequential = [np.asarray(Image.open(p).convert("RGBA")) for p in inkwarp.render(scene, tmp_path / "seq/")]
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        def render_killing_one() -> list[np.ndarray]:
+            frames: list[np.ndarray] = []
+            for frame in inkwarp.rendering._ray_frames(scene, 0, 40, method=None, address=True, progress=False):
+                frames.append(frame)
+                if len(frames) == 1:  # the first chunk's actor, still rendering
+                    pids = subprocess.run(["pgrep", "-f", "ray::_ChunkRenderer"], capture_output=True, text=True).stdout.split()
+                    assert pids, "no Ray actor process to kill"
+                    for pid in pids:
+                        os.kill(int(pid), signal.SIGKILL)
+            return frames
+
+        frames = render_killing_one()
+        assert len(frames) == 40
+        for got, want in zip(frames, sequential):
+            assert np.abs(got.astype(int) - want).max() <= 1
+        # With no restarts allowed the death is said in one line, with the fix.
+        monkeypatch.setattr(inkwarp.rendering, "RAY_RESTARTS", 0)
+        with pytest.raises(inkwarp.errors.InkwarpError, match=r"the Ray worker rendering frames \d+:\d+ died 1 time \(.*run again to resume"):
+            render_killing_one()
+    finally:
+        ray.shutdown()

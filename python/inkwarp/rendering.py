@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from inkwarp.errors import InkwarpError
 from inkwarp.scene import WARM_CHAIN_FRAMES, preroll_start
 
 __all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "frame_file_complete", "portable_scene",
@@ -342,6 +343,9 @@ def _indexed(start: int, frames: Iterator[np.ndarray]) -> Iterator[tuple[int, np
 #: How many frames an actor sends at a time, and how far one may run ahead of the writer.
 RAY_BATCH_FRAMES = 4
 RAY_AHEAD_FRAMES = 32
+#: Times a chunk is started again on a new actor after its worker died (killed for memory,
+#: its node lost) before the render stops.
+RAY_RESTARTS = 2
 
 
 def _check_address(address: str) -> None:
@@ -473,8 +477,10 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
     actors: dict[int, Any] = {}  # by chunk, the chunks started and not finished
     started = 0
     remaining = [b - a for a, b in chunks]
+    restarts = [0 for _ in chunks]
     buffers: list[list[np.ndarray]] = [[] for _ in chunks]
     pending: dict[Any, int] = {}
+    lost = (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError, ray.exceptions.ObjectLostError)
 
     def launch() -> None:
         nonlocal started
@@ -513,9 +519,24 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
                 continue
             ready, _ = ray.wait(list(pending), num_returns=1)
             i = pending.pop(ready[0])
-            batch = ray.get(ready[0])
+            try:
+                batch = ray.get(ready[0])
+            except lost as err:
+                # Its worker died: the chunk's frames not yet received on a new actor.
+                first, end = chunks[i][1] - remaining[i], chunks[i][1]
+                restarts[i] += 1
+                if restarts[i] > RAY_RESTARTS:
+                    why = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+                    raise InkwarpError(
+                        f"the Ray worker rendering frames {first}:{end} died {restarts[i]} time{'s' if restarts[i] > 1 else ''} "
+                        f"({type(err).__name__}: {why[:200]}); give the cluster more memory, or "
+                        f"render to a folder (-o DIR/ --skip-existing) and run again to resume") from None
+                _kill(ray, actors[i])
+                actors[i] = Actor.remote(doc, first, end, method)
+                ask_running()
+                continue
             if not batch:
-                raise RuntimeError(f"the Ray actor of frames {chunks[i][0]}:{chunks[i][1]} "
+                raise InkwarpError(f"the Ray actor of frames {chunks[i][0]}:{chunks[i][1]} "
                                    f"stopped with {remaining[i]} frames to go")
             buffers[i].extend(batch)
             remaining[i] -= len(batch)
@@ -529,4 +550,11 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
         if bar is not None:
             bar.close()
         for actor in actors.values():
-            ray.kill(actor)
+            _kill(ray, actor)
+
+
+def _kill(ray: Any, actor: Any) -> None:
+    try:
+        ray.kill(actor)
+    except Exception:  # noqa: BLE001 - an actor already gone
+        pass

@@ -1009,6 +1009,31 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
   }
 });
 
+test('edits made while the restore offer waits: leaving asks, and the offered work stays', async () => {
+  const { page: p, context, errors: errs } = await openEditor(browser, server.url);
+  try {
+    await p.keyboard.press('r');
+    await p.keyboard.press('p');
+    await click(p, [100, 300]);
+    await p.evaluate(() => window.inkwarp.autosave.flush());
+    await p.reload();
+    await p.waitForSelector('#restore');
+    // Not answered: the editor works meanwhile, and what is drawn now is unsaved work too.
+    await p.keyboard.press('p');
+    await click(p, [160, 320]);
+    assert(await p.evaluate(() => window.inkwarp.store.unsaved), 'the edit made during the offer is unsaved');
+    p.dialogs.length = 0;
+    await p.reload();
+    await p.waitForSelector('body[data-ready]');
+    assert(p.dialogs.includes('beforeunload'), `leaving during the offer asked first (dialogs: ${p.dialogs})`);
+    await p.waitForSelector('#restore');
+    await p.click('#restore-no');
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+  }
+});
+
 /** A scene file `name` in a new folder: the checkerboard picture beside it, no features. */
 function checkerScene(name) {
   const dir = mkdtempSync(join(tmpdir(), 'inkwarp-served-'));
@@ -1400,6 +1425,23 @@ test('keys: Shift-click picks several, they drag together, copy and paste; easin
   });
   assert(await page.evaluate(() => window.inkwarp.store.view.onion), 'the onion skin is on by default');
   await screenshot(page, 'keys-onion');
+  // A chosen option gives the keys back: the shortcuts work after the chooser, not in it.
+  await page.focus('.key-interp >> nth=0');
+  await page.selectOption('.key-interp >> nth=0', 'ease-in');
+  assert(await page.evaluate(() => document.activeElement?.tagName !== 'SELECT'), 'the chooser lets go of the focus');
+  await page.keyboard.press('o');
+  assert(!(await page.evaluate(() => window.inkwarp.store.view.onion)), 'O toggles the onion skin after the chooser');
+  await page.keyboard.press('o');
+  // Caps Lock: K (no Shift) keys, Shift+K unkeys, Ctrl+Z with a capital undoes.
+  const keysOf = () => page.evaluate(() => window.inkwarp.store.doc.features.find((f) => f.id === 'pin1').keys.length);
+  const before = await keysOf();
+  await page.keyboard.press('K');
+  assert((await keysOf()) === before + 1, 'K with Caps Lock keys the feature, as k does');
+  await page.keyboard.press('Shift+K');
+  assert((await keysOf()) === before, 'Shift+K unkeys it');
+  await page.keyboard.press('K');
+  await page.keyboard.press('Control+Z');
+  assert((await keysOf()) === before, 'Ctrl+Z with Caps Lock undoes');
 });
 
 

@@ -87,6 +87,17 @@ function showTitle(store: Store): void {
  */
 async function keepWork(store: Store, ui: Ui): Promise<void> {
   const source = store.origin.path; // the served file the page opened, if any
+  // Leaving with unsaved changes asks from the start, while the restore offer waits for its
+  // answer too (edits made meanwhile were lost without a word). The kept copy is written
+  // once the offer is answered: before, it would write over the work the offer holds.
+  let keeper: Autosaver | null = null;
+  window.addEventListener('beforeunload', (e) => {
+    if (!store.unsaved) return;
+    void keeper?.flush();
+    e.preventDefault();
+    e.returnValue = '';
+  });
+  window.addEventListener('pagehide', () => void keeper?.flush());
   let kept: SnapshotStore;
   try {
     kept = new IndexedDbStore(await holdTab());
@@ -158,13 +169,7 @@ async function keepWork(store: Store, ui: Ui): Promise<void> {
     saver.changed();
   });
   if (store.unsaved) saver.changed();
-  window.addEventListener('beforeunload', (e) => {
-    if (!store.unsaved) return;
-    void saver.flush();
-    e.preventDefault();
-    e.returnValue = '';
-  });
-  window.addEventListener('pagehide', () => void saver.flush());
+  keeper = saver;
   Object.assign((window as unknown as { inkwarp: object }).inkwarp, { autosave: saver });
 }
 

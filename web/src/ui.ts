@@ -169,6 +169,9 @@ export class Ui {
     app.store.subscribe((_, docChanged) => this.refresh(docChanged));
     new ResizeObserver(() => this.layout()).observe(this.stage);
     window.addEventListener('keydown', (e) => this.onKey(e));
+    // A dropdown gives the keys back once a choice is made: with the focus left on it, the
+    // shortcuts went to it (and an arrow key could change its choice).
+    window.addEventListener('change', (e) => e.target instanceof HTMLSelectElement && e.target.blur());
     this.bindPointer();
     this.bindZoomPan();
     this.bindDrop();
@@ -1318,7 +1321,8 @@ export class Ui {
   private onKey(e: KeyboardEvent): void {
     const target = e.target as HTMLElement;
     const ctrl = e.ctrlKey || e.metaKey;
-    const k = e.key;
+    // Letters by their key, whatever Caps Lock does to them (Shift is read on its own).
+    const k = e.key.length === 1 ? e.key.toLowerCase() : e.key;
     const handled = () => e.preventDefault();
     const field = target && (target.tagName === 'INPUT' || target.tagName === 'SELECT' || target.tagName === 'TEXTAREA') && (target as HTMLInputElement).type !== 'checkbox' && (target as HTMLInputElement).type !== 'range';
     if (field && ctrl && k === 's') {
@@ -1330,7 +1334,7 @@ export class Ui {
       return this.refused ? undefined : void this.save();
     }
     if (field) return;
-    if (ctrl && (k === 'z' || k === 'Z')) {
+    if (ctrl && k === 'z') {
       handled();
       if (e.shiftKey) this.store.redo();
       else this.store.undo();
@@ -1345,8 +1349,8 @@ export class Ui {
     const tool = TOOLS.find((t) => t.key === k.toLowerCase());
     if (tool && !e.shiftKey) return handled(), this.setTool(tool.tool);
     switch (k) {
-      case 'r': case 'R': return handled(), this.setMode('rest');
-      case 'e': case 'E': return handled(), this.setMode('pose');
+      case 'r': return handled(), this.setMode('rest');
+      case 'e': return handled(), this.setMode('pose');
       case 'Tab': return handled(), this.setMode(this.store.view.mode === 'rest' ? 'pose' : 'rest');
       case 'Enter': return handled(), this.finishDraft(false);
       case 'Escape':
@@ -1362,8 +1366,7 @@ export class Ui {
           this.message((err as Error).message, 'error');
         }
         return;
-      case 'k': return handled(), this.keyHere();
-      case 'K': return handled(), this.unkeyHere();
+      case 'k': return handled(), e.shiftKey ? this.unkeyHere() : this.keyHere();
       // Space plays on release, unless it was held to pan (Space-drag).
       case ' ': handled(); this.spaceDown = true; return;
       case '0': return handled(), this.zoomFit();
