@@ -184,6 +184,60 @@ def test_a_covered_spot_and_one_leaving_the_picture_are_lost_and_the_spot_found_
     assert np.abs(spot[seen] - truth[seen]).max() < 0.5, np.abs(spot - truth).max(axis=1)
 
 
+def test_a_bar_appearing_far_from_every_feature_loses_none(tmp_path):
+    # A textured patch slides over a flat background; a flat bar covers the right of the
+    # picture on frames 25-34, 60 px and more from the points. Lucas-Kanade's coarse pyramid
+    # levels saw the bar inside their windows and failed, and a point tracked to within a
+    # pixel was named lost on those frames.
+    from scipy.ndimage import gaussian_filter
+
+    w, h, count = 256, 192, 40
+    texture = gaussian_filter(np.random.default_rng(0).random((70, 70)) * 255, 1.2)
+    texture = ((texture - texture.min()) / np.ptp(texture) * 255).astype(np.uint8)
+    frames, truth = [], []
+    for k in range(count):
+        frame = np.full((h, w, 3), 128, np.uint8)
+        x0, y0 = 40 + 2 * k, 50 + k
+        frame[y0:y0 + 70, x0:x0 + 70] = texture[..., None]
+        if 25 <= k < 35:
+            frame[:, 230:] = 60
+        frames.append(frame)
+        truth.append([[x0 + 10.0, y0 + 35.0], [x0 + 62.0, y0 + 35.0]])
+    video = sv.write_mp4(tmp_path / "bar.mp4", frames)
+    features = [{"id": "left", "kind": "point", "rest": [[50.0, 85.0]]},
+                {"id": "right", "kind": "point", "rest": [[102.0, 85.0]]}]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", InkwarpWarning)
+        doc = track_dict(video, sv.scene(w, h, features))
+    got = np.array([[f["keys"][k]["points"][0] for f in doc["features"]] for k in range(count)])
+    assert np.abs(got - np.array(truth)).max() < 1.0, np.abs(got - np.array(truth)).max()
+
+
+def test_a_video_cut_short_is_refused_not_tracked_as_a_shorter_clip(tmp_path, capsys):
+    # Its header gives 24 frames; ffmpeg decodes a part of them with errors. It was tracked
+    # as a shorter clip, the scene's duration rewritten, without a word.
+    import subprocess
+
+    import imageio_ffmpeg
+
+    frames = sv.render(sv.picture(W, H, seed=5), sv.translate(), FRAMES)
+    whole = sv.write_mp4(tmp_path / "whole.mp4", frames)
+    fast = tmp_path / "fast.mp4"  # the header first, so that a cut keeps it
+    subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-y", "-i", str(whole), "-c", "copy",
+                    "-movflags", "+faststart", str(fast)], check=True)
+    cut = tmp_path / "cut.mp4"
+    cut.write_bytes(fast.read_bytes()[: fast.stat().st_size * 6 // 10])
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(sv.scene(W, H, [{"id": "a", "kind": "point", "rest": [[60.0, 60.0]]}])))
+    code, _, err = run(capsys, "track", cut, "--scene", scene, "-o", tmp_path / "out.json", "-q")
+    assert code == 2 and "cut.mp4: damaged or cut short: ffmpeg decoded" in err and "of the 24 its header gives" in err, err
+    assert not (tmp_path / "out.json").exists() and "Traceback" not in err
+    code, _, err = run(capsys, "frame", cut, "--frame", "20", "-o", tmp_path / "f.png")
+    assert code == 2 and "damaged or cut short" in err, err
+    # Frames before the damage are read.
+    assert run(capsys, "frame", cut, "--frame", "1", "-o", tmp_path / "f.png")[0] == 0
+
+
 def test_a_flat_point_carried_off_the_picture_is_lost(tmp_path):
     # A textured square slides right, 4 px a frame, over a flat background that stays; a
     # point traced on the background follows the square's thin plate (nothing there to
