@@ -47,6 +47,12 @@ class OutputWriteError(InkwarpError, OSError):
     with status 1."""
 
 
+class WorkerLostError(InkwarpError, OSError):
+    """A render farm's worker died (killed for memory, its node lost) more often than a
+    chunk is rendered again: not the user's input and not a bug. The message names the
+    frames, the reason Ray gives and how to resume; the command line exits with status 1."""
+
+
 class InkwarpWarning(UserWarning):
     """Something inkwarp did works but is probably not what was meant (for example a
     transfer map that folds the drawing over)."""

@@ -24,13 +24,14 @@ import errno
 import math
 import mimetypes
 import os
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from inkwarp.errors import InkwarpError
+from inkwarp.errors import InkwarpWarning, InternalError, WorkerLostError
 from inkwarp.scene import WARM_CHAIN_FRAMES, preroll_start
 
 __all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "frame_file_complete", "portable_scene",
@@ -522,22 +523,31 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
             try:
                 batch = ray.get(ready[0])
             except lost as err:
-                # Its worker died: the chunk's frames not yet received on a new actor.
+                # Its worker died: the chunk's frames not yet received on a new actor. One
+                # that could not start (the scene or inkwarp missing on a node) would fail
+                # again: its reason is said at once.
                 first, end = chunks[i][1] - remaining[i], chunks[i][1]
+                said = [line.strip() for line in str(err).splitlines() if line.strip()]
+                why = f"{type(err).__name__}: {_sentences(said[-1], 160) if said else 'no reason given'}"
+                if getattr(err, "actor_init_failed", False):
+                    raise WorkerLostError(f"the Ray worker for frames {first}:{end} could not start ({why}); "
+                                          "check that every node has inkwarp and the scene's files") from None
                 restarts[i] += 1
                 if restarts[i] > RAY_RESTARTS:
-                    why = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-                    raise InkwarpError(
-                        f"the Ray worker rendering frames {first}:{end} died {restarts[i]} time{'s' if restarts[i] > 1 else ''} "
-                        f"({type(err).__name__}: {why[:200]}); give the cluster more memory, or "
-                        f"render to a folder (-o DIR/ --skip-existing) and run again to resume") from None
+                    raise WorkerLostError(
+                        f"the Ray worker rendering frames {first}:{end} died {restarts[i]} time{'s' if restarts[i] > 1 else ''} ({why}); give "
+                        "the cluster more memory, or render to a folder (-o DIR/ --skip-existing) and run "
+                        "again to resume") from None
+                warnings.warn(f"the Ray worker rendering frames {first}:{end} died ({why}); rendering them "
+                              "on a new one", InkwarpWarning, stacklevel=2)
                 _kill(ray, actors[i])
                 actors[i] = Actor.remote(doc, first, end, method)
                 ask_running()
                 continue
             if not batch:
-                raise InkwarpError(f"the Ray actor of frames {chunks[i][0]}:{chunks[i][1]} "
-                                   f"stopped with {remaining[i]} frames to go")
+                raise InternalError(f"internal error: the Ray actor of frames {chunks[i][0]}:{chunks[i][1]} "
+                                    f"stopped with {remaining[i]} frames to go; this is a bug in inkwarp, "
+                                    "please report it")
             buffers[i].extend(batch)
             remaining[i] -= len(batch)
             if bar is not None:
@@ -551,6 +561,14 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
             bar.close()
         for actor in actors.values():
             _kill(ray, actor)
+
+
+def _sentences(text: str, most: int) -> str:
+    """The first sentences of ``text`` within ``most`` characters (at least the first, cut)."""
+    if len(text) <= most:
+        return text
+    end = text.rfind(". ", 0, most)
+    return text[:end + 1] if end > 0 else text[:most] + "..."
 
 
 def _kill(ray: Any, actor: Any) -> None:

@@ -16,7 +16,7 @@ import threading
 import traceback
 
 from inkwarp.cli._common import prefixed, problem_parts
-from inkwarp.errors import InkwarpError, InternalError, OutputWriteError, SceneError
+from inkwarp.errors import InkwarpError, InternalError, OutputWriteError, SceneError, WorkerLostError
 
 # The command modules, in the order `inkwarp --help` lists them.
 COMMANDS: list[str] = ["new", "render", "field", "validate", "schema", "demo", "edit", "compare", "transfer",
@@ -129,8 +129,9 @@ def main(argv: list[str] | None = None) -> int:
     except InternalError as err:
         print(f"inkwarp {args.command}: {err}", file=sys.stderr)
         return 1
-    except OutputWriteError as err:
-        # Not the user's input and not a bug: the machine could not take the output.
+    except (OutputWriteError, WorkerLostError) as err:
+        # Not the user's input and not a bug: the machine could not take the output, or a
+        # farm's worker died.
         print(f"inkwarp {args.command}: error: {error_message(err)}", file=sys.stderr)
         return 1
     except (InkwarpError, ValueError, FileNotFoundError, PermissionError, IsADirectoryError,
