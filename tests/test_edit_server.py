@@ -365,6 +365,16 @@ def test_two_pictures_with_the_same_bytes_keep_their_own_paths(editor: Path, sce
         assert edited["layers"][0]["image"] == edited["layers"][1]["image"]
         assert fetch(api, "PUT", json.dumps(edited).encode())[0] == 200
         assert [layer["image"] for layer in json.loads(scene.read_text())["layers"]] == ["art/dot.png", "art/copy.png"]
+        # One layer's picture and continuity matte, copies of each other, keep theirs too.
+        doc["layers"] = [{"name": "a", "image": "art/dot.png", "continuity": "art/copy.png"}]
+        scene.write_text(json.dumps(doc))
+        one = json.loads(fetch(api)[2])
+        assert fetch(api, "PUT", json.dumps(one).encode())[0] == 200
+        saved = json.loads(scene.read_text())["layers"][0]
+        assert (saved["image"], saved["continuity"]) == ("art/dot.png", "art/copy.png")
+        doc["layers"] = [{"name": "a", "image": "art/dot.png"}, {"name": "b", "image": "art/copy.png"}]
+        scene.write_text(json.dumps(doc))
+        edited = json.loads(fetch(api)[2])
         # Reordered in the editor, each layer keeps its own path by its name.
         edited["layers"].reverse()
         assert fetch(api, "PUT", json.dumps(edited).encode())[0] == 200

@@ -85,8 +85,8 @@ class SceneFile:
         self.path = path
         self.folder = path.resolve().parent
         # Each inlined picture's data: URI and the paths it came from (two files with the
-        # same bytes share one), with the layer name and index each path was read at.
-        self.inlined: dict[str, list[tuple[str, Any, int]]] = {}
+        # same bytes share one), with the layer name, index and key each was read at.
+        self.inlined: dict[str, list[tuple[str, Any, int, str]]] = {}
         # A save's check of the file's version and its write happen together.
         self.lock = threading.Lock()
         # The images the user's own file names (such as ../cat/cat.png) stay readable.
@@ -164,7 +164,7 @@ class SceneFile:
                                  "picture.")
             mime = MIME.get(file.suffix.lower()) or mimetypes.guess_type(file.name)[0] or "image/png"
             uri = f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
-            froms, entry = self.inlined.setdefault(uri, []), (ref, doc["layers"][i].get("name"), i)
+            froms, entry = self.inlined.setdefault(uri, []), (ref, doc["layers"][i].get("name"), i, key)
             if entry in froms:
                 froms.remove(entry)
             froms.append(entry)  # the latest read last
@@ -194,11 +194,11 @@ class SceneFile:
                 for key in IMAGE_KEYS:
                     uri = layer.get(key)
                     if isinstance(uri, str) and uri in self.inlined:
-                        # The path the same-named layer was read with, else the same place's,
-                        # else the latest read's.
+                        # The path this key of the same-named layer was read with, else of the
+                        # same place's, else the latest read's.
                         froms = self.inlined[uri][::-1]
-                        named = [r for r, name, _ in froms if name == layer.get("name")]
-                        placed = [r for r, _, at in froms if at == i]
+                        named = [r for r, name, _, k in froms if (name, k) == (layer.get("name"), key)]
+                        placed = [r for r, _, at, k in froms if (at, k) == (i, key)]
                         layer[key] = (named or placed or [froms[0][0]])[0]
         for i, key, ref in self._image_refs(doc):
             self.image_file(i, key, ref)
@@ -221,9 +221,12 @@ class SceneFile:
             else:
                 # A rename replaces a file whatever its permissions: one locked against writing
                 # (no write bit for anyone, or none for this user) is left as it is.
-                if not mode & 0o222 or not os.access(self.path, os.W_OK):
+                if not mode & 0o222:
                     raise PermissionError(f"{self.path} is read-only (mode {mode:o}); not saved. Make it "
                                           "writable (chmod u+w), or save a copy under another name.")
+                if not os.access(self.path, os.W_OK):
+                    raise PermissionError(f"{self.path} is not writable by you (mode {mode:o}, owner "
+                                          f"{self.path.stat().st_uid}); not saved. Save a copy under another name.")
             write_text(self.path, text, suffix=".json", mode=mode, sync=True)
             return self.version() or self.version_of(text)  # the file's, as read back
 
