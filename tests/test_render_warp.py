@@ -176,10 +176,13 @@ def test_the_default_matte_is_the_alpha():
 @pytest.mark.parametrize(
     "image,field,matte,message",
     [
-        (np.zeros((4, 4, 4), np.float32), np.zeros((4, 4, 2)), None, r"uint8 .* a float image in \[0, 1\] with \(image \* 255\)"),
-        # Levels 0-255 already (a nested list of ints, a float array of levels): cast them.
-        (np.zeros((4, 4, 4), int).tolist(), np.zeros((4, 4, 2)), None, r"dtype int64; convert with np.asarray\(image\).astype\(np.uint8\)"),
-        (np.full((4, 4, 4), 200.0), np.zeros((4, 4, 2)), None, r"dtype float64; convert with np.asarray\(image\).astype\(np.uint8\)"),
+        (np.zeros((4, 4, 4), np.float32), np.zeros((4, 4, 2)), None, r"uint8 .* a float image in \[0, 1\] with \(np.clip\(image, 0, 1\) \* 255\)"),
+        # A float image a little past 1 (after a filter) is still one in [0, 1].
+        (np.full((4, 4, 4), 1.02), np.zeros((4, 4, 2)), None, r"a float image in \[0, 1\]"),
+        # Levels 0-255 already (a nested list of ints, a float array of levels): rounded and cast.
+        (np.zeros((4, 4, 4), int).tolist(), np.zeros((4, 4, 2)), None, r"dtype int64; convert levels 0-255 with np.clip\(np.round\(image\), 0, 255\)"),
+        (np.full((4, 4, 4), 200.0), np.zeros((4, 4, 2)), None, r"dtype float64; convert levels 0-255 with"),
+        (np.zeros((4, 4, 4), np.uint16), np.zeros((4, 4, 2)), None, r"dtype uint16; convert 16-bit levels with \(image >> 8\)"),
         (np.zeros((4, 4, 2), np.uint8), np.zeros((4, 4, 2)), None, r"\(H, W, 3\) or \(H, W, 4\)"),
         (np.zeros((4, 4), np.uint8), np.zeros((4, 4, 2)), None, r"\(H, W, 3\) or \(H, W, 4\)"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 5, 2)), None, r"\(4, 4, 2\)"),

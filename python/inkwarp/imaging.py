@@ -23,11 +23,18 @@ PathLike = Union[str, "os.PathLike[str]"]
 def _as_rgba(image: ArrayLike, name: str = "image") -> NDArray[np.uint8]:
     array = np.asarray(image)
     if array.dtype != np.uint8:
-        # The fix for the values it holds: levels 0-255 already, or a float image in [0, 1].
-        levels = array.dtype.kind in "iub" or (array.size > 0 and array.dtype.kind == "f"
-                                               and np.isfinite(array).all() and array.max() > 1)
-        fix = ("with np.asarray(image).astype(np.uint8) if its values are levels 0-255" if levels else
-               "a float image in [0, 1] with (image * 255).round().astype(np.uint8)")
+        # The fix for the values it holds: 16-bit levels, levels 0-255 already (integers, or
+        # floats well past 1), or a float image in [0, 1] (a little past 1 after a filter).
+        kind, big = array.dtype.kind, array.dtype.itemsize > 1
+        past = kind == "f" and array.size > 0 and bool(np.isfinite(array).all()) and float(array.max()) > 2
+        if kind == "u" and big:
+            fix = "16-bit levels with (image >> 8).astype(np.uint8)"
+        elif kind == "b":
+            fix = "a mask with image.astype(np.uint8) * 255"
+        elif kind in "iu" or past:
+            fix = "levels 0-255 with np.clip(np.round(image), 0, 255).astype(np.uint8)"
+        else:
+            fix = "a float image in [0, 1] with (np.clip(image, 0, 1) * 255).round().astype(np.uint8)"
         raise ValueError(f"{name} must be a uint8 array, got dtype {array.dtype}; convert {fix}")
     if array.ndim != 3 or array.shape[2] not in (3, 4):
         raise ValueError(

@@ -1425,8 +1425,10 @@ test('keys: Shift-click picks several, they drag together, copy and paste; easin
   });
   assert(await page.evaluate(() => window.inkwarp.store.view.onion), 'the onion skin is on by default');
   await screenshot(page, 'keys-onion');
-  // A chosen option gives the keys back: the shortcuts work after the chooser, not in it.
+  // An option chosen with the pointer gives the keys back: the shortcuts work after the
+  // chooser, not in it.
   await page.focus('.key-interp >> nth=0');
+  await page.dispatchEvent('.key-interp >> nth=0', 'pointerdown');
   await page.selectOption('.key-interp >> nth=0', 'ease-in');
   assert(await page.evaluate(() => document.activeElement?.tagName !== 'SELECT'), 'the chooser lets go of the focus');
   await page.keyboard.press('o');
@@ -1442,6 +1444,10 @@ test('keys: Shift-click picks several, they drag together, copy and paste; easin
   await page.keyboard.press('K');
   await page.keyboard.press('Control+Z');
   assert((await keysOf()) === before, 'Ctrl+Z with Caps Lock undoes');
+  // Ctrl+Shift+C stays the browser's (the inspector): the editor neither copies nor says a word.
+  await page.evaluate(() => window.inkwarp.ui.message('(marker)', 'info'));
+  await page.keyboard.press('Control+Shift+C');
+  assert((await page.textContent('#message')) === '(marker)', `Ctrl+Shift+C is left to the browser: ${await page.textContent('#message')}`);
 });
 
 

@@ -169,9 +169,13 @@ export class Ui {
     app.store.subscribe((_, docChanged) => this.refresh(docChanged));
     new ResizeObserver(() => this.layout()).observe(this.stage);
     window.addEventListener('keydown', (e) => this.onKey(e));
-    // A dropdown gives the keys back once a choice is made: with the focus left on it, the
-    // shortcuts went to it (and an arrow key could change its choice).
-    window.addEventListener('change', (e) => e.target instanceof HTMLSelectElement && e.target.blur());
+    // A dropdown chosen from with the pointer gives the keys back: with the focus left on it,
+    // the shortcuts went to it (an arrow key could change its choice). One stepped through
+    // with the keyboard keeps the focus.
+    let pointed: EventTarget | null = null;
+    window.addEventListener('pointerdown', (e) => (pointed = e.target), true);
+    window.addEventListener('keydown', () => (pointed = null), true);
+    window.addEventListener('change', (e) => e.target instanceof HTMLSelectElement && e.target === pointed && e.target.blur());
     this.bindPointer();
     this.bindZoomPan();
     this.bindDrop();
@@ -1325,7 +1329,7 @@ export class Ui {
     const k = e.key.length === 1 ? e.key.toLowerCase() : e.key;
     const handled = () => e.preventDefault();
     const field = target && (target.tagName === 'INPUT' || target.tagName === 'SELECT' || target.tagName === 'TEXTAREA') && (target as HTMLInputElement).type !== 'checkbox' && (target as HTMLInputElement).type !== 'range';
-    if (field && ctrl && k === 's') {
+    if (field && ctrl && !e.shiftKey && k === 's') {
       // Save from a field too: leaving it first commits the value typed so far (a refused
       // one is said, and nothing is saved).
       handled();
@@ -1340,11 +1344,13 @@ export class Ui {
       else this.store.undo();
       return;
     }
-    if (ctrl && k === 'y') return handled(), this.store.redo();
-    if (ctrl && k === 's') return handled(), void this.save();
-    if (ctrl && k === 'o') return handled(), this.els.fileInput.click();
-    if (ctrl && k === 'c') return handled(), this.copyKeys();
-    if (ctrl && k === 'v') return handled(), this.pasteKeys();
+    // (Ctrl+Shift with these letters stays the browser's: bookmarks, the inspector.)
+    const plain = ctrl && !e.shiftKey;
+    if (plain && k === 'y') return handled(), this.store.redo();
+    if (plain && k === 's') return handled(), void this.save();
+    if (plain && k === 'o') return handled(), this.els.fileInput.click();
+    if (plain && k === 'c') return handled(), this.copyKeys();
+    if (plain && k === 'v') return handled(), this.pasteKeys();
     if (ctrl || e.altKey) return;
     const tool = TOOLS.find((t) => t.key === k.toLowerCase());
     if (tool && !e.shiftKey) return handled(), this.setTool(tool.tool);

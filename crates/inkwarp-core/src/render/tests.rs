@@ -417,9 +417,9 @@ fn fold_overs_put_the_later_rest_pixels_in_front() {
 
 #[test]
 fn a_translucent_part_in_front_shows_what_lies_behind_it() {
-    // An opaque square moves right over a faint fringe pixel (alpha 3) of the same layer that
-    // stays put: the pixel is drawn later, so it is in front, but over the square, not in
-    // its place (it punched an almost transparent hole in the square).
+    // An opaque square moves right over a translucent pixel (alpha 128) of the same layer
+    // that stays put: the pixel is drawn later, so it is in front, but over the square, not
+    // in its place (a faint fringe pixel, alpha 3, punched a see-through hole in it).
     let (w, h) = (24, 16);
     let mut image = solid(w, h, [0, 0, 0, 0]);
     let set = |image: &mut RgbaImage, x: usize, y: usize, p: [u8; 4]| image.data[(y * w + x) * 4..][..4].copy_from_slice(&p);
