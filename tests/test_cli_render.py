@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import re
 
 import numpy as np
@@ -280,6 +281,26 @@ def test_an_output_that_is_a_layer_image_is_refused_and_the_artwork_kept(capsys,
     code, _, err = run(capsys, "render", scene, "-o", art, "--frame", "1")
     assert code == 2 and "square.png" in err and "would replace it" in err
     assert art.read_bytes() == before and "Traceback" not in err
+
+
+def test_frames_rendered_into_the_scenes_folder_keep_a_picture_named_like_a_frame(capsys, tmp_path):
+    # A layer's picture named frame_0000.png beside the scene, rendered into that folder:
+    # the first frame replaced the artwork, exit 0.
+    import shutil
+
+    import inkwarp
+
+    shutil.copy(Path(__file__).resolve().parent.parent / "examples" / "cat" / "cat.png", tmp_path / "frame_0000.png")
+    assert run(capsys, "new", tmp_path / "frame_0000.png", "-o", tmp_path / "s.json", "--duration", "0.25", "-q")[0] == 0
+    before = (tmp_path / "frame_0000.png").read_bytes()
+    code, _, err = run(capsys, "render", tmp_path / "s.json", "-o", f"{tmp_path}/", "-q")
+    assert code == 2 and "frame 0 would be written over" in err and "Render into another folder" in err, err
+    with pytest.raises(ValueError, match="frame 0 would be written over"):
+        inkwarp.render(inkwarp.Scene.load(tmp_path / "s.json"), tmp_path)
+    assert (tmp_path / "frame_0000.png").read_bytes() == before
+    # Frames that miss it (from 1 on) are written.
+    assert run(capsys, "render", tmp_path / "s.json", "-o", f"{tmp_path}/", "--frames", "1:3", "-q")[0] == 0
+    assert (tmp_path / "frame_0000.png").read_bytes() == before and (tmp_path / "frame_0002.png").exists()
 
 
 def test_progress_without_a_terminal_is_an_occasional_line(capsys, tmp_path, monkeypatch):

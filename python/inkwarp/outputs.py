@@ -258,18 +258,10 @@ def check_sheet_json(target: str | os.PathLike[str], scene_path: str | os.PathLi
                f"{out.stem}-sheet{out.suffix}")
 
 
-def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.PathLike[str],
-                       written: str = "frame") -> None:
-    """Refuse an output that is one of the scene's own files (the scene, or a layer's
-    ``image``, ``alpha`` or ``continuity`` picture), before any rendering: ``-o face.png``
-    beside a layer drawn from ``face.png`` would replace the artwork with a frame (or the
-    ``written`` output of another command)."""
+def _scene_inputs(scene: Path) -> list[Path]:
+    """The scene file and its layers' ``image``, ``alpha`` and ``continuity`` pictures."""
     import json
 
-    out = Path(os.fspath(target))
-    scene = Path(os.fspath(scene_path))
-    if not out.exists() or not scene.exists():
-        return
     inputs = [scene]
     try:
         doc = json.loads(scene.read_text(encoding="utf-8"))
@@ -280,12 +272,47 @@ def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.Path
                     inputs.append(scene.parent / ref)
     except (OSError, ValueError, AttributeError):
         pass  # the scene itself is checked, with a clear error, when it is loaded
-    for path in inputs:
+    return inputs
+
+
+def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.PathLike[str],
+                       written: str = "frame") -> None:
+    """Refuse an output that is one of the scene's own files (the scene, or a layer's
+    ``image``, ``alpha`` or ``continuity`` picture), before any rendering: ``-o face.png``
+    beside a layer drawn from ``face.png`` would replace the artwork with a frame (or the
+    ``written`` output of another command)."""
+    out = Path(os.fspath(target))
+    scene = Path(os.fspath(scene_path))
+    if not out.exists() or not scene.exists():
+        return
+    for path in _scene_inputs(scene):
         if path.exists() and os.path.samefile(out, path):
             what = "the scene" if path == scene else "an image of the scene"
             raise ValueError(f"{target}: is {what} being rendered ({path}); writing the {written} "
                              f"there would replace it. Name the output otherwise, such as "
                              f"{out.stem}-{written.split()[-1]}{out.suffix}")
+
+
+def check_frames_not_inputs(folder: str | os.PathLike[str], first: int, stop: int,
+                            scene_path: str | os.PathLike[str]) -> None:
+    """Refuse a render into ``folder`` whose frame files ``first`` to ``stop - 1``
+    (``frame_NNNN.png``) would replace one of the scene's own files: a picture named like a
+    frame beside the scene, rendered into its own folder."""
+    import re
+
+    from inkwarp.video import FRAME_PATTERN
+
+    out, scene = Path(os.fspath(folder)), Path(os.fspath(scene_path))
+    if not out.is_dir() or not scene.exists():
+        return
+    for path in _scene_inputs(scene):
+        frame = re.fullmatch(r"frame_(\d+)\.png", path.name)
+        here = out / path.name
+        if (frame and first <= int(frame.group(1)) < stop and path.exists() and here.exists()
+                and os.path.samefile(here, path) and path.name == FRAME_PATTERN.format(int(frame.group(1)))):
+            raise ValueError(f"{folder}: frame {int(frame.group(1))} would be written over {path}, an "
+                             f"image of the scene being rendered. Render into another folder, such "
+                             f"as {out / 'frames'}/")
 
 
 def check_not_the_input(target: str | os.PathLike[str], given: str | os.PathLike[str], option: str,
