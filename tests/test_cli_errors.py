@@ -308,6 +308,28 @@ def test_an_empty_output_is_refused_not_taken_for_here(capsys, tmp_path, monkeyp
     assert sorted(p.name for p in (tmp_path / "s").iterdir()) == before
 
 
+def test_every_command_refuses_a_missing_folder_or_a_folder_for_its_output_file(capsys, tmp_path):
+    # compare and transfer made missing folders (a typo became a new folder), and a folder
+    # given as the output file was named by its temporary file, or was an internal error.
+    scene = write_scene(tmp_path / "s")
+    other = write_scene(tmp_path / "s", name="other.json")
+    for name in ("d.png", "d.npy", "d.json"):
+        (tmp_path / name).mkdir()
+    missing = tmp_path / "typo"
+    for args, says in [
+        (["compare", scene, "--methods", "tps", "-o", missing / "a.png"], f"the directory {missing} does not exist; create it first"),
+        (["transfer", "--source", scene, "--target", other, "-o", missing / "a.json"], f"the directory {missing} does not exist"),
+        (["compare", scene, "--methods", "tps", "-o", tmp_path / "d.png"], "d.png: is a directory; name a file"),
+        (["field", scene, "--time", "0.5", "-o", tmp_path / "d.npy"], "d.npy: is a directory; name a file"),
+        (["transfer", "--source", scene, "--target", other, "-o", tmp_path / "d.json"], "d.json: is a directory; name a file"),
+        (["schema", "-o", tmp_path / "d.json"], "d.json: is a directory; name a file"),
+        (["schema", "-o", tmp_path], "is a directory; name a file, such as"),
+    ]:
+        code, _, stderr = run(capsys, *args)
+        assert code == 2 and says in stderr and ".part" not in stderr and len(stderr.splitlines()) == 1, (args, stderr)
+    assert not missing.exists()
+
+
 def test_no_command_replaces_the_users_own_files(capsys, tmp_path):
     # field and compare over a scene's picture, transfer over its source or target, a
     # sprite sheet's atlas over another scene or an unrelated JSON, and the schema over a

@@ -121,6 +121,7 @@ def test_cli_writes_the_transferred_scene_with_image_paths_that_still_resolve(tm
     (tmp_path / "a" / "face.json").write_text(json.dumps(source))
     (tmp_path / "b" / "cat.json").write_text(json.dumps(target))
     out = tmp_path / "out" / "cat_animated.json"
+    out.parent.mkdir()  # (a missing folder is refused, as by every command)
     code = main(["transfer", "--source", str(tmp_path / "a" / "face.json"),
                  "--target", str(tmp_path / "b" / "cat.json"), "-o", str(out), "--quiet"])
     assert code == 0

@@ -87,18 +87,37 @@ def check_target(path: str | os.PathLike[str], kind: OutputKind | None = None) -
     """
     kind = kind or output_kind(path)
     target = Path(os.fspath(path))
+    if kind != "dir":
+        return check_file(target)
+    parent = _check_parent(target)
+    if target.exists() and not target.is_dir():
+        raise ValueError(f"{target}: is a file, not a directory for PNG frames")
+    if not os.access(parent, os.W_OK):
+        raise ValueError(f"{target}: the directory {parent} is not writable")
+    return target
+
+
+def check_file(path: str | os.PathLike[str], suffix: str = "") -> Path:
+    """Check up front that a file can be written at ``path`` (any command's output): its
+    folder exists, is a folder and is writable, and ``path`` is not a folder. Raises
+    ``ValueError`` naming ``path`` and the fix (a file name with ``suffix`` where the path
+    has none)."""
+    target = Path(os.fspath(path))
+    parent = _check_parent(target)
+    if target.is_dir():
+        raise ValueError(f"{target}: is a directory; name a file, such as {target / 'out'}{target.suffix or suffix}")
+    if not os.access(parent, os.W_OK):
+        raise ValueError(f"{target}: the directory {parent} is not writable")
+    return target
+
+
+def _check_parent(target: Path) -> Path:
     parent = target.absolute().parent
     if not parent.exists():
         raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
     if not parent.is_dir():
         raise ValueError(f"{target}: {parent} is not a directory")
-    if kind == "dir" and target.exists() and not target.is_dir():
-        raise ValueError(f"{target}: is a file, not a directory for PNG frames")
-    if kind != "dir" and target.is_dir():
-        raise ValueError(f"{target}: is a directory; name a file, such as {target / 'out'}{target.suffix}")
-    if not os.access(parent, os.W_OK):
-        raise ValueError(f"{target}: the directory {parent} is not writable")
-    return target
+    return parent
 
 
 def flatten(rgba: np.ndarray, background: tuple[int, int, int] = (255, 255, 255)) -> np.ndarray:

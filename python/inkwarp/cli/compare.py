@@ -40,7 +40,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("-o", "--output", required=True, metavar="SHEET.png", help="the sheet to write")
     parser.add_argument("--dpi", type=_dpi, default=100,
                         help="resolution of the sheet, 10 to 600 (default 100)")
-    parser.add_argument("--quiet", action="store_true", help="print nothing on success")
+    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     parser.set_defaults(func=run)
 
 
@@ -68,7 +68,9 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix.lower() != ".png":
         raise ValueError(f"the sheet {out} must be a .png file.")
-    from inkwarp import outputs
+    from inkwarp import outputs, video
+
+    video.check_file(out)
 
     outputs.check_not_an_input(out, args.scene, "comparison sheet")
     scene = Scene.load(args.scene)
@@ -79,7 +81,6 @@ def run(args: argparse.Namespace) -> int:
     time = check_time(args.time, earliest=-MAX_TIME_S) if args.time is not None else float(getattr(scene, "duration", 0.0) or 0.0)
     comparison = compare(scene, time, args.methods, layer=args.layer, max_samples=args.max_samples,
                          **(_weights(args.beier_neely) if args.beier_neely is not None else {}))
-    out.parent.mkdir(parents=True, exist_ok=True)
     from inkwarp._atomic import temp_path
 
     tmp = temp_path(out, ".png")

@@ -63,10 +63,9 @@ def _run(args: argparse.Namespace) -> int:
     if suffix not in (".npy", ".png"):
         raise ValueError(f"{target}: name the output .npy (the field as numbers) or .png "
                          "(a picture of it)")
-    parent = target.absolute().parent
-    if not parent.is_dir():
-        raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
     from inkwarp import outputs
+
+    video.check_file(target)
 
     outputs.check_not_an_input(target, args.scene, "field")
     scene = _common.load_scene(args.scene)

@@ -36,10 +36,9 @@ def run(args: argparse.Namespace) -> int:
         print(text, end="")
         return 0
     target = Path(args.output)
-    parent = target.absolute().parent
-    if not parent.is_dir():
-        raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
     from inkwarp import outputs, video
+
+    video.check_file(target, ".json")
 
     outputs.check_ours(target, lambda doc: str(doc.get("$id", "")).startswith("https://inkwarp.dev/"), "schema")
     video.write_bytes(target, text.encode("utf-8"))

@@ -30,7 +30,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--source", required=True, metavar="A.json", help="the animated scene")
     parser.add_argument("--target", required=True, metavar="B.json", help="the scene that receives the motion")
     parser.add_argument("-o", "--output", required=True, metavar="C.json", help="where to write the result")
-    parser.add_argument("--quiet", action="store_true", help="print nothing on success")
+    parser.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     parser.set_defaults(func=run)
 
 
@@ -42,7 +42,9 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix.lower() != ".json":
         raise ValueError(f"the output {out} must be a .json scene file.")
     from inkwarp.outputs import check_not_the_input
+    from inkwarp.video import check_file
 
+    check_file(out)
     for option, given in (("--source", args.source), ("--target", args.target)):
         check_not_the_input(out, given, option, "-transferred")
     with warnings.catch_warnings(record=True) as caught:
@@ -53,7 +55,6 @@ def run(args: argparse.Namespace) -> int:
             print(f"inkwarp transfer: warning: {warning.message}", file=sys.stderr)
         else:
             warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
-    out.parent.mkdir(parents=True, exist_ok=True)
     from inkwarp._atomic import write_text
 
     write_text(out, json.dumps(doc, indent=2) + "\n", suffix=".json")
