@@ -147,6 +147,27 @@ def test_cli_bad_input_exits_2_with_one_line_and_no_output(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json", "t.json"]
 
 
+def test_cli_names_a_picture_a_folder_or_a_scene_mistake_as_every_command_does(tmp_path, capsys):
+    # A picture given as a scene gave Python's "'utf-8' codec can't decode byte 0x89", a
+    # folder a bare "Is a directory", and an invalid scene one problem with no place.
+    source = face_scene()
+    (tmp_path / "s.json").write_text(json.dumps(source))
+    (tmp_path / "p.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(64))
+    bad = retraced(source, lambda p: p)
+    bad["features"][1]["kind"], bad["fps"] = "x", 0
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    for source_arg, target_arg, says in [
+        (tmp_path / "p.png", tmp_path / "s.json", "p.png: a PNG picture, not a scene; make a scene of it with inkwarp new"),
+        (tmp_path, tmp_path / "s.json", "not a regular file (a folder, FIFO or device); give a scene's JSON file"),
+        (tmp_path / "s.json", tmp_path / "bad.json", 'bad.json: features[1].kind: unknown kind "x"'),
+    ]:
+        code = main(["transfer", "--source", str(source_arg), "--target", str(target_arg), "-o", str(tmp_path / "o.json")])
+        err = capsys.readouterr().err
+        assert code == 2 and says in err and err.count("\n") == 1, err
+    assert "(and 1 more problem" in err
+    assert not (tmp_path / "o.json").exists()
+
+
 def test_cli_missing_file_exits_2(tmp_path, capsys):
     code = main(["transfer", "--source", str(tmp_path / "nope.json"), "--target", str(tmp_path / "nope.json"),
                  "-o", str(tmp_path / "o.json")])
