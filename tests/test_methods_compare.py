@@ -172,6 +172,20 @@ def test_the_notes_of_each_method_reach_the_comparison(comparisons):
     assert all(n == [] for n in comparisons[False].notes.values())
 
 
+def test_a_field_at_rest_is_drawn_flat_not_as_its_rounding(comparisons):
+    # Beier-Neely at rest gives about 1e-14 px: scaled to the panel, that rounding filled
+    # it with full-contrast speckle under a "±0.0 px" heading.
+    import dataclasses
+
+    rest = dataclasses.replace(comparisons[True])
+    noise = np.random.default_rng(0).normal(0, 1e-14, rest.fields[rest.methods[0]].shape).astype(np.float32)
+    rest.fields = {m: noise for m in rest.methods}
+    fig = inkwarp.comparison_sheet(rest)
+    panel = fig.axes[1].get_images()[0].get_array()
+    assert float(np.ptp(np.asarray(panel)[..., :3])) < 1 / 255, np.ptp(np.asarray(panel)[..., :3])  # one level at most
+    assert fig.axes[1].get_title() == "ΔX surface (flat)" and not fig.axes[1].collections
+
+
 def test_the_sheet_prints_the_notes_under_the_frames(comparisons):
     fig = inkwarp.comparison_sheet(comparisons[True])
     labels = [ax.get_xlabel() for ax in fig.axes]

@@ -191,6 +191,10 @@ def _hillshade(dx: np.ndarray, limit: float) -> np.ndarray:
                        blend_mode="soft", vert_exag=exaggeration)
 
 
+#: A ΔX surface whose largest value is under this (pixels) is drawn flat.
+FLAT_PX = 0.01
+
+
 def comparison_sheet(
     comparison: Comparison,
     path: str | os.PathLike | None = None,
@@ -219,8 +223,10 @@ def comparison_sheet(
     if isinstance(dpi, bool) or not isinstance(dpi, (int, np.integer)) or not 10 <= dpi <= 600:
         raise ValueError(f"dpi must be a whole number from 10 to 600, got {dpi!r}; the default is 100")
     rows = len(comparison.methods)
-    limit = max((float(np.abs(comparison.fields[m][..., 0]).max()) for m in comparison.methods), default=1.0)
-    limit = limit if limit > 0 else 1.0
+    # A surface under a hundredth of a pixel is drawn flat: scaled up, rounding (a field at
+    # rest of 1e-14 px) filled the panel with speckle.
+    limit = max((float(np.abs(comparison.fields[m][..., 0]).max()) for m in comparison.methods), default=0.0)
+    limit = max(limit, FLAT_PX)
     fig = Figure(figsize=(2 * row_height * 1.05 + 0.6, row_height * rows + 0.6), dpi=dpi)
     FigureCanvasAgg(fig)
     axes = fig.subplots(rows, 2, squeeze=False)
@@ -243,13 +249,14 @@ def comparison_sheet(
             ax_img.set_xlabel("\n".join(textwrap.fill(n, 52) for n in said), fontsize=6.5,
                               color="#7f3f00", loc="left")
         ax_dx.imshow(_hillshade(dx, limit), interpolation="nearest")
-        ax_dx.contour(dx, levels=levels, colors="k", linewidths=0.4, alpha=0.6)
+        if float(np.abs(dx).max()) >= FLAT_PX:
+            ax_dx.contour(dx, levels=levels, colors="k", linewidths=0.4, alpha=0.6)
         for ax in (ax_img, ax_dx):
             ax.set_xticks([])
             ax.set_yticks([])
         if r == 0:
             ax_img.set_title("warped frame and drawing", fontsize=9)
-            ax_dx.set_title(f"ΔX surface (±{limit:.1f} px)", fontsize=9)
+            ax_dx.set_title(f"ΔX surface (±{limit:.2g} px)" if limit > FLAT_PX else "ΔX surface (flat)", fontsize=9)
     fig.suptitle(title or f"t = {comparison.time:g} s", fontsize=10)
     fig.tight_layout()
     if path is not None:
