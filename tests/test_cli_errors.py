@@ -111,6 +111,23 @@ def test_each_mistake_gets_one_clear_line(capsys, tmp_path, command, what, doc, 
     assert len(message.split()) >= 3, message  # a sentence, not a code
 
 
+def test_a_reader_that_goes_away_ends_the_command_quietly(tmp_path):
+    # `inkwarp validate many.json | head -1`: the rest of the lines met a closed pipe, and
+    # the command said "error: [Errno 32] Broken pipe" with exit status 1.
+    import json
+
+    doc = {"inkwarp": 1, "width": 8, "height": 8, "layers": [{"name": "a"}],
+           "features": [{"id": f"f{i}", "kind": "splin", "rest": [[1, 1], [2, 2]]} for i in range(3000)]}
+    (tmp_path / "many.json").write_text(json.dumps(doc))
+    command = [sys.executable, "-c", "import sys; from inkwarp.cli import main; sys.exit(main())",
+               "validate", str(tmp_path / "many.json")]
+    with subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE) as child:
+        assert child.stdout.readline().startswith(str(tmp_path / "many.json").encode())
+        child.stdout.close()
+        err = child.stderr.read().decode()
+        assert child.wait(timeout=60) == 141 and err == "", err
+
+
 def test_validate_lists_every_problem(capsys, tmp_path):
     def many(doc):
         doc["fps"] = 0

@@ -308,11 +308,10 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
     target = Path(os.fspath(output))
     if target.suffix.lower() != ".json":
         raise ValueError(f"{target}: name the scene file .json, such as {target.with_suffix('.json').name}")
+    from inkwarp.video import check_file
+
+    check_file(target, ".json")
     folder = target.absolute().parent
-    if not folder.is_dir():
-        raise ValueError(f"{target}: the directory {folder} does not exist; create it first")
-    if target.is_dir():
-        raise ValueError(f"{target}: is a directory; name a .json file")
     picture, features, notes = _picture_and_drawing(picture_path, drawing)
     encoded = [_encode_png(layer.image) for layer in picture.layers]
     import base64

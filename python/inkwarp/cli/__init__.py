@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import os
 import signal
 import sys
 import threading
@@ -129,6 +130,12 @@ def main(argv: list[str] | None = None) -> int:
     except InternalError as err:
         print(f"inkwarp {args.command}: {err}", file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        # The reader went away (`inkwarp validate ... | head -1`): stop without a word, as
+        # command-line tools do, and let nothing flush into the closed pipe at exit.
+        with contextlib.suppress(OSError, ValueError, AttributeError):  # (a stdout with no descriptor)
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
     except (OutputWriteError, WorkerLostError) as err:
         # Not the user's input and not a bug: the machine could not take the output, or a
         # farm's worker died.

@@ -62,7 +62,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     _common.add_method_argument(parser)
     parser.add_argument("--background", metavar="COLOR",
                         help="the background instead of the scene's: transparent, white, "
-                             "#RRGGBB, #RRGGBBAA or R,G,B[,A]")
+                             "black, #RRGGBB, #RRGGBBAA or R,G,B[,A]")
     parser.add_argument("--sprite-sheet", nargs="?", const="auto", metavar="COLSxROWS",
                         help="with -o SHEET.png: every frame on one atlas, and SHEET.json "
                              "(TexturePacker hash) beside it (default: a square grid)")
