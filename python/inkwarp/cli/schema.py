@@ -13,8 +13,10 @@ examples:
   inkwarp schema                       print it
   inkwarp schema -o scene.schema.json  write it to a file (for an editor's completion)
 
-The schema is generated from the engine's own types, so it is exactly what
-'inkwarp validate' and 'inkwarp render' accept.
+The schema is generated from the engine's own types: its keys, types and
+kinds are the ones 'inkwarp validate' and 'inkwarp render' read. They check
+more than a schema can say (fps above 0, ids unique, keys in time order,
+images that exist), so a scene the schema passes may still be refused.
 """
 
 
