@@ -297,6 +297,10 @@ def test_frames_rendered_into_the_scenes_folder_keep_a_picture_named_like_a_fram
     assert code == 2 and "frame 0 would be written over" in err and "Render into another folder" in err, err
     with pytest.raises(ValueError, match="frame 0 would be written over"):
         inkwarp.render(inkwarp.Scene.load(tmp_path / "s.json"), tmp_path)
+    # A scene built from a dict reads its pictures from its base_dir: the same check.
+    doc = json.loads((tmp_path / "s.json").read_text())
+    with pytest.raises(ValueError, match="frame 0 would be written over"):
+        inkwarp.render(inkwarp.Scene.from_dict(doc, base_dir=tmp_path), tmp_path)
     assert (tmp_path / "frame_0000.png").read_bytes() == before
     # Frames that miss it (from 1 on) are written.
     assert run(capsys, "render", tmp_path / "s.json", "-o", f"{tmp_path}/", "--frames", "1:3", "-q")[0] == 0

@@ -177,16 +177,17 @@ def distance_to(points, curve):
     return d.min(1)
 
 
-def test_a_closed_shape_named_cut_stays_closed(tmp_path):
-    # A rectangle whose id says cut lost its fourth (closing) side: an open cut of three.
+def test_a_closed_shape_named_cut_tears_all_around(tmp_path):
+    # A rectangle whose id says cut lost its fourth (closing) side: a cut of three sides.
+    # A cut is an open polyline (DESIGN section 3): it runs back to its start.
     svg = tmp_path / "d.svg"
     svg.write_text(f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {W} {H}">'
                    '<rect id="cut1" x="10" y="10" width="20" height="30" fill="red"/>'
                    '<path id="slit-cut" d="M 5 5 L 15 5"/></svg>')
     features, _ = read_drawing(svg, W, H)
     by_id = {f["id"]: f for f in features}
-    assert by_id["cut1"] == {"id": "cut1", "kind": "cut", "closed": True,
-                             "rest": [[9.5, 9.5], [29.5, 9.5], [29.5, 39.5], [9.5, 39.5]]}, by_id["cut1"]
+    assert by_id["cut1"] == {"id": "cut1", "kind": "cut",
+                             "rest": [[9.5, 9.5], [29.5, 9.5], [29.5, 39.5], [9.5, 39.5], [9.5, 9.5]]}, by_id["cut1"]
     assert "closed" not in by_id["slit-cut"]
 
 

@@ -182,7 +182,7 @@ def test_the_default_matte_is_the_alpha():
         # Levels 0-255 already (a nested list of ints, a float array of levels): rounded and cast.
         (np.zeros((4, 4, 4), int).tolist(), np.zeros((4, 4, 2)), None, r"dtype int64; convert levels 0-255 with np.clip\(np.round\(image\), 0, 255\)"),
         (np.full((4, 4, 4), 200.0), np.zeros((4, 4, 2)), None, r"dtype float64; convert levels 0-255 with"),
-        (np.zeros((4, 4, 4), np.uint16), np.zeros((4, 4, 2)), None, r"dtype uint16; convert 16-bit levels with \(image >> 8\)"),
+        (np.full((4, 4, 4), 40000, np.uint16), np.zeros((4, 4, 2)), None, r"dtype uint16; convert levels up to 40000 \(16-bit ones: 65535\) with \(image // 257\)"),
         (np.zeros((4, 4, 2), np.uint8), np.zeros((4, 4, 2)), None, r"\(H, W, 3\) or \(H, W, 4\)"),
         (np.zeros((4, 4), np.uint8), np.zeros((4, 4, 2)), None, r"\(H, W, 3\) or \(H, W, 4\)"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 5, 2)), None, r"\(4, 4, 2\)"),

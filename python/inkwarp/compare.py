@@ -225,8 +225,8 @@ def comparison_sheet(
     rows = len(comparison.methods)
     # A surface under a hundredth of a pixel is drawn flat: scaled up, rounding (a field at
     # rest of 1e-14 px) filled the panel with speckle.
-    limit = max((float(np.abs(comparison.fields[m][..., 0]).max()) for m in comparison.methods), default=0.0)
-    limit = max(limit, FLAT_PX)
+    largest = max((float(np.abs(comparison.fields[m][..., 0]).max()) for m in comparison.methods), default=0.0)
+    limit = max(largest, FLAT_PX)
     fig = Figure(figsize=(2 * row_height * 1.05 + 0.6, row_height * rows + 0.6), dpi=dpi)
     FigureCanvasAgg(fig)
     axes = fig.subplots(rows, 2, squeeze=False)
@@ -248,15 +248,17 @@ def comparison_sheet(
             # The interpolant's remarks (an ignored matte, a thinning) under its frame.
             ax_img.set_xlabel("\n".join(textwrap.fill(n, 52) for n in said), fontsize=6.5,
                               color="#7f3f00", loc="left")
-        ax_dx.imshow(_hillshade(dx, limit), interpolation="nearest")
-        if float(np.abs(dx).max()) >= FLAT_PX:
+        flat = float(np.abs(dx).max()) < FLAT_PX
+        ax_dx.imshow(_hillshade(np.zeros_like(dx) if flat else dx, limit), interpolation="nearest")
+        if not flat:
             ax_dx.contour(dx, levels=levels, colors="k", linewidths=0.4, alpha=0.6)
         for ax in (ax_img, ax_dx):
             ax.set_xticks([])
             ax.set_yticks([])
         if r == 0:
             ax_img.set_title("warped frame and drawing", fontsize=9)
-            ax_dx.set_title(f"ΔX surface (±{limit:.2g} px)" if limit > FLAT_PX else "ΔX surface (flat)", fontsize=9)
+            scale = "flat" if largest < FLAT_PX else f"±{limit:.1f} px" if limit >= 0.1 else f"±{limit:.2f} px"
+            ax_dx.set_title(f"ΔX surface ({scale})", fontsize=9)
     fig.suptitle(title or f"t = {comparison.time:g} s", fontsize=10)
     fig.tight_layout()
     if path is not None:

@@ -25,10 +25,12 @@ def _as_rgba(image: ArrayLike, name: str = "image") -> NDArray[np.uint8]:
     if array.dtype != np.uint8:
         # The fix for the values it holds: 16-bit levels, levels 0-255 already (integers, or
         # floats well past 1), or a float image in [0, 1] (a little past 1 after a filter).
-        kind, big = array.dtype.kind, array.dtype.itemsize > 1
-        past = kind == "f" and array.size > 0 and bool(np.isfinite(array).all()) and float(array.max()) > 2
-        if kind == "u" and big:
-            fix = "16-bit levels with (image >> 8).astype(np.uint8)"
+        kind = array.dtype.kind
+        numbers = kind in "iuf" and array.size > 0 and bool(np.isfinite(array).all())
+        top = float(array.max()) if numbers else 0.0
+        past = kind == "f" and top > 2
+        if kind in "iu" and top > 255:
+            fix = f"levels up to {top:.0f} (16-bit ones: 65535) with (image // 257).astype(np.uint8)"
         elif kind == "b":
             fix = "a mask with image.astype(np.uint8) * 255"
         elif kind in "iu" or past:

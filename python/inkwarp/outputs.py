@@ -258,59 +258,70 @@ def check_sheet_json(target: str | os.PathLike[str], scene_path: str | os.PathLi
                f"{out.stem}-sheet{out.suffix}")
 
 
-def _scene_inputs(scene: Path) -> list[Path]:
-    """The scene file and its layers' ``image``, ``alpha`` and ``continuity`` pictures."""
+def _scene_inputs(scene: Any) -> tuple[Path | None, list[Path]]:
+    """The scene's own file (None for one built from a dict) and every file it reads: that
+    file and its layers' ``image``, ``alpha`` and ``continuity`` pictures. ``scene`` is a
+    scene file's path or a loaded :class:`~inkwarp.Scene` (its pictures as it holds them,
+    relative to its ``base_dir``)."""
     import json
 
-    inputs = [scene]
-    try:
-        doc = json.loads(scene.read_text(encoding="utf-8"))
-        for layer in doc.get("layers", []):
-            for key in ("image", "alpha", "continuity"):
-                ref = layer.get(key) if isinstance(layer, dict) else None
-                if isinstance(ref, str) and not ref.startswith("data:"):
-                    inputs.append(scene.parent / ref)
-    except (OSError, ValueError, AttributeError):
-        pass  # the scene itself is checked, with a clear error, when it is loaded
-    return inputs
+    if isinstance(scene, (str, os.PathLike)):
+        own: Path | None = Path(os.fspath(scene))
+        base = own.parent
+        try:
+            doc = json.loads(own.read_text(encoding="utf-8-sig"))
+        except (OSError, ValueError):
+            doc = {}  # the scene itself is checked, with a clear error, when it is loaded
+    else:
+        own = Path(scene.file) if getattr(scene, "file", None) else None
+        base = Path(scene.base_dir) if getattr(scene, "base_dir", None) else Path.cwd()
+        doc = scene.to_dict()
+    inputs = [own] if own is not None else []
+    layers = doc.get("layers", []) if isinstance(doc, dict) else []
+    for layer in layers if isinstance(layers, list) else []:
+        for key in ("image", "alpha", "continuity"):
+            ref = layer.get(key) if isinstance(layer, dict) else None
+            if isinstance(ref, str) and not ref.startswith("data:"):
+                inputs.append(base / ref)
+    return own, inputs
 
 
-def check_not_an_input(target: str | os.PathLike[str], scene_path: str | os.PathLike[str],
-                       written: str = "frame") -> None:
+def check_not_an_input(target: str | os.PathLike[str], scene: Any, written: str = "frame") -> None:
     """Refuse an output that is one of the scene's own files (the scene, or a layer's
     ``image``, ``alpha`` or ``continuity`` picture), before any rendering: ``-o face.png``
     beside a layer drawn from ``face.png`` would replace the artwork with a frame (or the
-    ``written`` output of another command)."""
+    ``written`` output of another command). ``scene``: a scene file's path or a Scene."""
     out = Path(os.fspath(target))
-    scene = Path(os.fspath(scene_path))
-    if not out.exists() or not scene.exists():
+    if not out.exists():
         return
-    for path in _scene_inputs(scene):
+    own, inputs = _scene_inputs(scene)
+    for path in inputs:
         if path.exists() and os.path.samefile(out, path):
-            what = "the scene" if path == scene else "an image of the scene"
+            what = "the scene" if path == own else "an image of the scene"
             raise ValueError(f"{target}: is {what} being rendered ({path}); writing the {written} "
                              f"there would replace it. Name the output otherwise, such as "
                              f"{out.stem}-{written.split()[-1]}{out.suffix}")
 
 
-def check_frames_not_inputs(folder: str | os.PathLike[str], first: int, stop: int,
-                            scene_path: str | os.PathLike[str]) -> None:
+def check_frames_not_inputs(folder: str | os.PathLike[str], first: int, stop: int, scene: Any) -> None:
     """Refuse a render into ``folder`` whose frame files ``first`` to ``stop - 1``
     (``frame_NNNN.png``) would replace one of the scene's own files: a picture named like a
-    frame beside the scene, rendered into its own folder."""
+    frame, rendered into its own folder (on a file system that ignores case, whatever the
+    case of its name). ``scene``: a scene file's path or a Scene."""
     import re
 
     from inkwarp.video import FRAME_PATTERN
 
-    out, scene = Path(os.fspath(folder)), Path(os.fspath(scene_path))
-    if not out.is_dir() or not scene.exists():
+    out = Path(os.fspath(folder))
+    if not out.is_dir():
         return
-    for path in _scene_inputs(scene):
-        frame = re.fullmatch(r"frame_(\d+)\.png", path.name)
-        here = out / path.name
-        if (frame and first <= int(frame.group(1)) < stop and path.exists() and here.exists()
-                and os.path.samefile(here, path) and path.name == FRAME_PATTERN.format(int(frame.group(1)))):
-            raise ValueError(f"{folder}: frame {int(frame.group(1))} would be written over {path}, an "
+    for path in _scene_inputs(scene)[1]:
+        number = re.fullmatch(r"frame_(\d+)\.png", path.name, re.IGNORECASE)
+        if not number or not first <= int(number.group(1)) < stop:
+            continue
+        frame = out / FRAME_PATTERN.format(int(number.group(1)))
+        if path.exists() and frame.exists() and os.path.samefile(frame, path):
+            raise ValueError(f"{folder}: frame {int(number.group(1))} would be written over {path}, an "
                              f"image of the scene being rendered. Render into another folder, such "
                              f"as {out / 'frames'}/")
 

@@ -234,13 +234,10 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
                              f"got {type(scene).__name__}")
         if sprite_sheet:
             outputs.check_sheet_json(output, scene)
-        source = os.fspath(scene)
-        scene = _common.load_scene(source)
-    else:
-        source = getattr(scene, "file", None)
-        if sprite_sheet:
-            # A loaded scene: its own file (if it came from one), or any other JSON there.
-            outputs.check_sheet_json(output, source)
+        scene = _common.load_scene(os.fspath(scene))
+    elif sprite_sheet:
+        # A loaded scene: its own file (if it came from one), or any other JSON there.
+        outputs.check_sheet_json(output, getattr(scene, "file", None))
     if background is not None:
         colour = (outputs.parse_background(background, option="background")
                   if isinstance(background, str)
@@ -250,10 +247,10 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     start, stop = _frame_indices(scene, frames)
     kind = video.output_kind(output)
     target = video.check_target(output, kind)
-    if source:  # never over the scene's own files
-        outputs.check_not_an_input(target, source)
-        if kind == "dir":
-            outputs.check_frames_not_inputs(target, start, stop, source)
+    # Never over the scene's own files (its pictures as it holds them).
+    outputs.check_not_an_input(target, scene)
+    if kind == "dir":
+        outputs.check_frames_not_inputs(target, start, stop, scene)
     if sprite_sheet:
         if target.suffix.lower() != ".png":
             raise ValueError(f"{target}: a sprite sheet is a .png (with a .json beside it); "

@@ -10,8 +10,8 @@ How each element becomes a feature:
   when it is made of straight segments; a closed shape without fill becomes a closed
   ``spline`` or ``polyline``;
 - an element whose ``id`` or ``class`` (or a group around it, by id, class or Inkscape
-  layer name) contains ``cut`` becomes a ``cut`` (a polyline, curves flattened within
-  0.25 px; closed where the shape is);
+  layer name) contains ``cut`` becomes a ``cut`` (an open polyline, curves flattened
+  within 0.25 px; a closed shape's back to its start);
 - a single-point marker (a path of one point, or a circle or ellipse of radius at most
   3 px) becomes a ``point`` at its centre.
 
@@ -539,12 +539,12 @@ def _feature(subpath: _Subpath, transform: Affine, filled: bool, cut: bool, tag:
         for s in segments)
     closed = subpath.closed
     if cut:
-        # A closed shape stays closed (a rectangle's fourth side is its closing edge).
+        # A cut is an open polyline (DESIGN §3): a closed shape's runs back to its start, so
+        # that its closing side (a rectangle's fourth) tears too.
         points = list(_flatten(segments))
-        if closed and len(points) > 2 and np.allclose(points[0], points[-1]):
-            points = points[:-1]
-        rest = [_rounded(p) for p in points]
-        return {"kind": "cut", "rest": rest, **({"closed": True} if closed and len(rest) >= 3 else {})}
+        if closed and len(points) > 2 and not np.allclose(points[0], points[-1]):
+            points.append(points[0])
+        return {"kind": "cut", "rest": [_rounded(p) for p in points]}
     if straight:
         points = [segments[0][0]] + [s[3] for s in segments]
         if closed and np.allclose(points[0], points[-1]):

@@ -102,9 +102,17 @@ def check_file(path: str | os.PathLike[str], suffix: str = "") -> Path:
     folder exists, is a folder and is writable, and ``path`` is not a folder. Raises
     ``ValueError`` naming ``path`` and the fix (a file name with ``suffix`` where the path
     has none)."""
-    target = Path(os.fspath(path))
+    text = os.fspath(path)
+    target = Path(text)
+    if text.endswith(("/", os.sep)):
+        raise ValueError(f"{text}: names a directory (it ends in {text[-1]}); name a file, such as "
+                         f"{target / 'out'}{suffix}")
     parent = _check_parent(target)
-    if target.is_dir():
+    try:
+        folder = target.is_dir()
+    except OSError as err:  # a name too long for the file system, ...
+        raise ValueError(f"{target}: {err.strerror or err}; name the output otherwise") from None
+    if folder:
         raise ValueError(f"{target}: is a directory; name a file, such as {target / 'out'}{target.suffix or suffix}")
     if not os.access(parent, os.W_OK):
         raise ValueError(f"{target}: the directory {parent} is not writable")

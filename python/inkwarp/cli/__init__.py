@@ -105,6 +105,18 @@ def _sigterm_unwinds():
         signal.signal(signal.SIGTERM, previous)
 
 
+def _stdout_closed() -> bool:
+    """Whether standard output is a pipe whose reader has gone (it polls as an error)."""
+    import select
+
+    try:
+        poll = select.poll()
+        poll.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(events & (select.POLLERR | select.POLLHUP) for _, events in poll.poll(0))
+    except (OSError, ValueError, AttributeError):  # (a stdout with no descriptor)
+        return False
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -130,12 +142,16 @@ def main(argv: list[str] | None = None) -> int:
     except InternalError as err:
         print(f"inkwarp {args.command}: {err}", file=sys.stderr)
         return 1
-    except BrokenPipeError:
-        # The reader went away (`inkwarp validate ... | head -1`): stop without a word, as
-        # command-line tools do, and let nothing flush into the closed pipe at exit.
-        with contextlib.suppress(OSError, ValueError, AttributeError):  # (a stdout with no descriptor)
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 128 + signal.SIGPIPE
+    except BrokenPipeError as err:
+        # The reader of the output went away (`inkwarp validate ... | head -1`): stop without
+        # a word, as command-line tools do, and let nothing flush into the closed pipe at exit.
+        # Another pipe breaking (an encoder's) is a failing system, said below.
+        if _stdout_closed():
+            with contextlib.suppress(OSError, ValueError, AttributeError):
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 128 + signal.SIGPIPE
+        print(f"inkwarp {args.command}: error: {error_message(err)}", file=sys.stderr)
+        return 1
     except (OutputWriteError, WorkerLostError) as err:
         # Not the user's input and not a bug: the machine could not take the output, or a
         # farm's worker died.
@@ -152,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"inkwarp {args.command}: terminated", file=sys.stderr)
         return 128 + signal.SIGTERM
     except OSError as err:
-        # Not the user's input and not a bug: a full disk, a broken pipe, ffmpeg dying.
+        # Not the user's input and not a bug: a full disk, ffmpeg dying.
         print(f"inkwarp {args.command}: error: {error_message(err)}", file=sys.stderr)
         return 1
     except Exception:  # noqa: BLE001 - the last line of defence: report the bug, exit 1

@@ -195,8 +195,6 @@ def _run(args: argparse.Namespace) -> int:
 
     start, stop = (_common.parse_frames(args.frames, scene.frame_count)
                    if args.frames is not None else (0, scene.frame_count))
-    if kind == "dir":
-        outputs.check_frames_not_inputs(target, start, stop, args.scene)
     if kind == "sheet":  # refused here in the command line's words, before rendering
         layout = None if args.sprite_sheet == "auto" else args.sprite_sheet
         outputs.check_sheet_size(*outputs.sheet_layout(stop - start, layout), scene.width,
