@@ -458,6 +458,18 @@ test('undo and redo from the keyboard', async () => {
   await click(page, [60, 440]);
   await page.keyboard.press('Delete');
   assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0, 'Delete removed the selected point');
+  // While drawing, Ctrl+Z takes back the last click, not the feature before; another tool
+  // finishes the feature being drawn (it dropped it).
+  await page.keyboard.press('l');
+  for (const p of [[60, 420], [90, 430], [120, 420]]) await click(page, p);
+  await page.keyboard.press('Control+z');
+  const drawing = await page.evaluate(() => ({ draft: window.inkwarp.store.view.draft.length, features: window.inkwarp.store.doc.features.length }));
+  assert(drawing.draft === 2 && drawing.features === n0, `Ctrl+Z while drawing took back a click: ${JSON.stringify(drawing)}`);
+  await page.keyboard.press('s');
+  const kept = await page.evaluate(() => ({ draft: window.inkwarp.store.view.draft.length, last: window.inkwarp.store.doc.features.at(-1) }));
+  assert(kept.draft === 0 && kept.last.kind === 'polyline' && kept.last.rest.length === 2, `another tool finished the polyline: ${JSON.stringify(kept)}`);
+  await page.keyboard.press('Control+z');
+  assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0, 'Ctrl+Z took the finished polyline back');
   await page.keyboard.press('v');
 });
 
@@ -1434,6 +1446,15 @@ test('keys: Shift-click picks several, they drag together, copy and paste; easin
   await page.keyboard.press('o');
   assert(!(await page.evaluate(() => window.inkwarp.store.view.onion)), 'O toggles the onion skin after the chooser');
   await page.keyboard.press('o');
+  // Opened with the pointer and closed without a choice: the next key is a shortcut, and an
+  // arrow does not change the scene's method.
+  const method = await page.evaluate(() => window.inkwarp.store.doc.solver?.method ?? 'tps');
+  await page.focus('#method');
+  await page.dispatchEvent('#method', 'pointerdown');
+  const t0 = await page.evaluate(() => window.inkwarp.store.view.time);
+  await page.keyboard.press('ArrowRight');
+  const after = await page.evaluate(() => ({ method: window.inkwarp.store.doc.solver?.method ?? 'tps', time: window.inkwarp.store.view.time, focus: document.activeElement?.id }));
+  assert(after.method === method && after.time > t0 && after.focus !== 'method', `the arrow stepped a frame: ${JSON.stringify([method, t0, after])}`);
   // Caps Lock: K (no Shift) keys, Shift+K unkeys, Ctrl+Z with a capital undoes.
   const keysOf = () => page.evaluate(() => window.inkwarp.store.doc.features.find((f) => f.id === 'pin1').keys.length);
   const before = await keysOf();

@@ -174,7 +174,16 @@ export class Ui {
     // with the keyboard keeps the focus.
     let pointed: EventTarget | null = null;
     window.addEventListener('pointerdown', (e) => (pointed = e.target), true);
-    window.addEventListener('keydown', () => (pointed = null), true);
+    window.addEventListener('keydown', (e) => {
+      // One opened with the pointer and closed without a choice (Escape) gives them back at
+      // the next key, which it must not take: an arrow changed the scene's method, a letter
+      // opened an example.
+      if (e.target instanceof HTMLSelectElement && e.target === pointed && e.key !== 'Tab') {
+        e.preventDefault();
+        e.target.blur();
+      }
+      pointed = null;
+    }, true);
     window.addEventListener('change', (e) => e.target instanceof HTMLSelectElement && e.target === pointed && e.target.blur());
     this.bindPointer();
     this.bindZoomPan();
@@ -1203,6 +1212,9 @@ export class Ui {
   }
 
   setTool(tool: Tool): void {
+    // A feature being drawn is finished first, as switching to pose mode does (another tool
+    // dropped it without a word).
+    if (tool !== this.store.view.tool && this.store.view.draft.length) this.finishDraft(false);
     if (tool !== 'select' && this.store.view.mode === 'pose') this.setMode('rest');
     this.store.setView({ tool });
   }
@@ -1328,7 +1340,7 @@ export class Ui {
     // Letters by their key, whatever Caps Lock does to them (Shift is read on its own).
     const k = e.key.length === 1 ? e.key.toLowerCase() : e.key;
     const handled = () => e.preventDefault();
-    const field = target && (target.tagName === 'INPUT' || target.tagName === 'SELECT' || target.tagName === 'TEXTAREA') && (target as HTMLInputElement).type !== 'checkbox' && (target as HTMLInputElement).type !== 'range';
+    const field = target && target === document.activeElement && (target.tagName === 'INPUT' || target.tagName === 'SELECT' || target.tagName === 'TEXTAREA') && (target as HTMLInputElement).type !== 'checkbox' && (target as HTMLInputElement).type !== 'range';
     if (field && ctrl && !e.shiftKey && k === 's') {
       // Save from a field too: leaving it first commits the value typed so far (a refused
       // one is said, and nothing is saved).
@@ -1340,6 +1352,8 @@ export class Ui {
     if (field) return;
     if (ctrl && k === 'z') {
       handled();
+      // While drawing, the last click goes (the feature before it stays).
+      if (!e.shiftKey && this.store.view.draft.length) return this.store.setView({ draft: this.store.view.draft.slice(0, -1) });
       if (e.shiftKey) this.store.redo();
       else this.store.undo();
       return;
