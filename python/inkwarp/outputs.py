@@ -316,12 +316,13 @@ def check_frames_not_inputs(folder: str | os.PathLike[str], first: int, stop: in
     if not out.is_dir():
         return
     for path in _scene_inputs(scene)[1]:
-        number = re.fullmatch(r"frame_(\d+)\.png", path.name, re.IGNORECASE)
-        if not number or not first <= int(number.group(1)) < stop:
+        named = re.fullmatch(r"frame_(\d+)\.png", path.name, re.IGNORECASE)
+        index = int(named.group(1)) if named else -1
+        if not first <= index < stop:
             continue
-        frame = out / FRAME_PATTERN.format(int(number.group(1)))
+        frame = out / FRAME_PATTERN.format(index)
         if path.exists() and frame.exists() and os.path.samefile(frame, path):
-            raise ValueError(f"{folder}: frame {int(number.group(1))} would be written over {path}, an "
+            raise ValueError(f"{folder}: frame {index} would be written over {path}, an "
                              f"image of the scene being rendered. Render into another folder, such "
                              f"as {out / 'frames'}/")
 

@@ -247,10 +247,12 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     start, stop = _frame_indices(scene, frames)
     kind = video.output_kind(output)
     target = video.check_target(output, kind)
-    # Never over the scene's own files (its pictures as it holds them).
-    outputs.check_not_an_input(target, scene)
+    # Never over the scene's own files (its pictures as it holds them): the output itself,
+    # or, for a folder, the frames written into it.
     if kind == "dir":
         outputs.check_frames_not_inputs(target, start, stop, scene)
+    else:
+        outputs.check_not_an_input(target, scene)
     if sprite_sheet:
         if target.suffix.lower() != ".png":
             raise ValueError(f"{target}: a sprite sheet is a .png (with a .json beside it); "

@@ -151,7 +151,8 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | No
     width, height, fps = int(size.group(1)), int(size.group(2)), float(rate.group(1))
     took = re.search(r"Duration: (\d+):(\d\d):(\d\d(?:\.\d+)?)", log)
     seconds = 3600 * int(took.group(1)) + 60 * int(took.group(2)) + float(took.group(3)) if took else None
-    return name, _exact_rate(fps), width, height, round(seconds * _exact_rate(fps)) if seconds else None
+    fps = _exact_rate(fps)
+    return name, fps, width, height, round(seconds * fps) if seconds else None
 
 
 def _exact_rate(fps: float) -> float:
@@ -178,10 +179,9 @@ def _decode(name: str, pix_fmt: str, *, frames: int | None = None, promised: int
         cmd += ["-frames:v", str(frames)]
     cmd += ["-f", "rawvideo", "-pix_fmt", pix_fmt, "-"]
     done = subprocess.run(cmd, capture_output=True, stdin=subprocess.DEVNULL)
-    if done.returncode != 0:
-        lines = done.stderr.decode(errors="replace").strip().splitlines()
-        raise _unreadable(name, lines[-1] if lines else f"ffmpeg exited with {done.returncode}")
     said = [line.strip() for line in done.stderr.decode(errors="replace").splitlines() if line.strip()]
+    if done.returncode != 0:
+        raise _unreadable(name, said[-1] if said else f"ffmpeg exited with {done.returncode}")
     wanted = promised if frames is None else min(frames, promised or frames)
     if said and wanted and len(done.stdout) // size < wanted - 1:
         raise ValueError(f"{name}: damaged or cut short: ffmpeg decoded {len(done.stdout) // size} "

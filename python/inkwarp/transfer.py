@@ -44,8 +44,7 @@ _IMAGE_FIELDS = ("image", "alpha", "continuity")
 def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
     """A scene document as a dict, and the directory its relative paths start from."""
     if isinstance(scene, (str, os.PathLike)):
-        from inkwarp.errors import SceneError
-        from inkwarp.scene import read_scene_text, validate_scene
+        from inkwarp.scene import _raise_for, read_scene_text, validate_scene
 
         path = Path(scene)
         if not path.exists():
@@ -58,13 +57,8 @@ def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
         except json.JSONDecodeError as err:
             raise ValueError(f"the {role} scene {path} is not valid JSON: {err}.") from None
         # The pictures play no part in a transfer: one missing or moved is not a problem here.
-        problems = [p for p in validate_scene(doc, base_dir=path.resolve().parent)
-                    if not re.fullmatch(r"layers\[\d+\]\.(image|alpha|continuity)", p[0])]
-        if problems:
-            where, what = problems[0]
-            more = f" (and {len(problems) - 1} more problem{'s' if len(problems) > 2 else ''}: inkwarp validate {path})" if len(problems) > 1 else ""
-            raise SceneError(f"{path}: {where + ': ' if where else ''}{what}{more}", file=os.fspath(path),
-                             path=where, problems=problems)
+        _raise_for([p for p in validate_scene(doc, base_dir=path.resolve().parent)
+                    if not re.fullmatch(r"layers\[\d+\]\.(image|alpha|continuity)", p[0])], os.fspath(path))
         return doc, path.resolve().parent
     if isinstance(scene, dict):
         return copy.deepcopy(scene), None

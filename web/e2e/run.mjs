@@ -129,6 +129,13 @@ async function click(page, p) {
  * pointer first arrives on `from` and rests there that long before it presses, as a hand
  * aims.
  */
+/** A point traced at canvas position `at`, in rest mode with the point tool. */
+async function tracePoint(page, at) {
+  await page.keyboard.press('r');
+  await page.keyboard.press('p');
+  await click(page, at);
+}
+
 async function drag(page, from, to, steps = 8, restMs = 0) {
   const [x0, y0] = await toClient(page, from);
   const [x1, y1] = await toClient(page, to);
@@ -446,9 +453,7 @@ test('overlays: heat map, mesh, matte; help panel', async () => {
 
 test('undo and redo from the keyboard', async () => {
   const n0 = await page.evaluate(() => window.inkwarp.store.doc.features.length);
-  await page.keyboard.press('r');
-  await page.keyboard.press('p');
-  await click(page, [60, 440]);
+  await tracePoint(page, [60, 440]);
   assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0 + 1, 'a point was added');
   await page.keyboard.press('Control+z');
   assert((await page.evaluate(() => window.inkwarp.store.doc.features.length)) === n0, 'Ctrl+Z removed it');
@@ -973,9 +978,7 @@ test('`inkwarp edit SCENE` on a scene with a mistake names the file and shows th
 test('a reload restores the work; leaving asks first; opening over unsaved work asks and Undo brings it back', async () => {
   const { page: p, context, errors: errs } = await openEditor(browser, server.url);
   try {
-    await p.keyboard.press('r');
-    await p.keyboard.press('p');
-    await click(p, [100, 300]);
+    await tracePoint(p, [100, 300]);
     await p.keyboard.press('e');
     await p.keyboard.press('v');
     await drag(p, [100, 300], [130, 290]);
@@ -1024,9 +1027,7 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
 test('edits made while the restore offer waits: leaving asks, and the offered work stays', async () => {
   const { page: p, context, errors: errs } = await openEditor(browser, server.url);
   try {
-    await p.keyboard.press('r');
-    await p.keyboard.press('p');
-    await click(p, [100, 300]);
+    await tracePoint(p, [100, 300]);
     await p.evaluate(() => window.inkwarp.autosave.flush());
     await p.reload();
     await p.waitForSelector('#restore');

@@ -1366,7 +1366,7 @@ export class Ui {
     if (plain && k === 'c') return handled(), this.copyKeys();
     if (plain && k === 'v') return handled(), this.pasteKeys();
     if (ctrl || e.altKey) return;
-    const tool = TOOLS.find((t) => t.key === k.toLowerCase());
+    const tool = TOOLS.find((t) => t.key === k);
     if (tool && !e.shiftKey) return handled(), this.setTool(tool.tool);
     switch (k) {
       case 'r': return handled(), this.setMode('rest');

@@ -71,7 +71,6 @@ def run(args: argparse.Namespace) -> int:
     from inkwarp import outputs, video
 
     video.check_file(out)
-
     outputs.check_not_an_input(out, args.scene, "comparison sheet")
     scene = Scene.load(args.scene)
     from inkwarp._inkwarp import MAX_TIME_S

@@ -66,7 +66,6 @@ def _run(args: argparse.Namespace) -> int:
     from inkwarp import outputs
 
     video.check_file(target)
-
     outputs.check_not_an_input(target, args.scene, "field")
     scene = _common.load_scene(args.scene)
     if args.time is not None:

@@ -139,13 +139,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from inkwarp import video
-
-    from inkwarp import outputs, rendering
+    from inkwarp import outputs, rendering, video
 
     kind = video.output_kind(args.output)
     target = video.check_target(args.output, kind)
-    outputs.check_not_an_input(target, args.scene)
+    if kind == "png" and args.sprite_sheet is None:  # (animations are checked by rendering.render)
+        outputs.check_not_an_input(target, args.scene)
     if args.sprite_sheet is not None:
         if kind != "png":
             raise ValueError(f"--sprite-sheet writes a .png atlas (and a .json beside it); "

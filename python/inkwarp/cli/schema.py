@@ -41,7 +41,6 @@ def run(args: argparse.Namespace) -> int:
     from inkwarp import outputs, video
 
     video.check_file(target, ".json")
-
     outputs.check_ours(target, lambda doc: str(doc.get("$id", "")).startswith("https://inkwarp.dev/"), "schema")
     video.write_bytes(target, text.encode("utf-8"))
     print(f"wrote {target}")

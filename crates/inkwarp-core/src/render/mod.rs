@@ -12,8 +12,8 @@
 //!
 //! Each canvas pixel gets the mesh's colour at its centre (where the mesh folds, the
 //! element drawn last is in front, "over" the others: the part from further down, then
-//! further right, in the rest image) times its coverage, the exact area of its square inside the mesh, composited
-//! "over" the canvas. For a translation this is exactly the area-weighted (box-filtered)
+//! further right, in the rest image) times its coverage, the exact area of its square
+//! inside the mesh, composited "over" the canvas. For a translation this is exactly the area-weighted (box-filtered)
 //! image of the translated layer, edges included. `docs/concepts/forward-mapping.md`
 //! states every rule exactly (the skirts' corners and colours, the tie rules, the colour
 //! of pixels on an edge), with pictures.

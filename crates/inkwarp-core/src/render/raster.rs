@@ -612,8 +612,8 @@ impl Band {
         for x in start..end {
             if let Some([s, t]) = map.preimage_inside([x as f32, y]) {
                 let (i, c) = (line + x as usize, colour(s, t));
-                let (d, keep) = (self.col[i], 1.0 - c[3]);
-                self.col[i] = if self.prio[i] == 0.0 { [0, 1, 2, 3].map(|k| c[k] + d[k] * keep) } else { c };
+                let d = self.col[i];
+                self.col[i] = if self.prio[i] == 0.0 { [0, 1, 2, 3].map(|k| c[k] + d[k] * (1.0 - c[3])) } else { c };
                 self.prio[i] = 0.0;
             }
         }
