@@ -158,6 +158,30 @@ def test_broken_json_names_the_file_and_where(capsys, tmp_path, text, expected):
     assert "line 1" in stderr and len(stderr.splitlines()) == 1
 
 
+def test_a_key_given_twice_is_refused_where_it_stands(capsys, tmp_path):
+    # JSON readers keep the last of two equal keys silently, so a hand edit ("fps": 24 ...
+    # "fps": 12) was lost without a word.
+    import inkwarp
+
+    text = ('{"inkwarp": 1, "width": 8, "fps": 24, "height": 8, "fps": 12, '
+            '"layers": [{"name": "a", "solver": {"tension": 1, "tension": 2}}]}')
+    scene = write_scene(tmp_path, text)
+    code, stdout, _ = run(capsys, "validate", scene)
+    assert code == 2
+    assert sorted(line.split(": ")[1] for line in stdout.splitlines()) == ["fps", "layers[0].solver.tension"]
+    assert "given more than once" in stdout and "keep one" in stdout
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "x.png")
+    assert code == 2 and f"{scene}: fps: given more than once" in stderr and not (tmp_path / "x.png").exists()
+    with pytest.raises(inkwarp.SceneError) as err:
+        inkwarp.Scene.from_json(text)
+    assert err.value.path == "fps" and len(err.value.problems) == 2
+    # The same keys in different objects are fine.
+    assert inkwarp.validate_scene(tmp_path / "ok.json") == [("", f"no such scene file: {tmp_path / 'ok.json'}")]
+    ok = write_scene(tmp_path / "ok", '{"inkwarp": 1, "width": 8, "height": 8, '
+                                      '"layers": [{"name": "a"}, {"name": "b"}]}')
+    assert inkwarp.validate_scene(ok) == []
+
+
 def test_missing_scene_file(capsys, tmp_path):
     code, _, stderr = run(capsys, "render", tmp_path / "nope.json", "-o", tmp_path / "x.gif")
     assert code == 2

@@ -138,6 +138,20 @@ def test_missing_image_is_reported_with_its_json_path(editor: Path, scene: Path)
         server.server_close()
 
 
+def test_a_scene_with_a_key_given_twice_is_not_opened(editor: Path, scene: Path) -> None:
+    # Opened, its first save would have dropped one of the two values without a word.
+    text = scene.read_text()
+    scene.write_text(text.replace('"width": ', '"width": 3, "width": ', 1))
+    assert scene.read_text() != text
+    server = serve(scene, editor)
+    try:
+        status, _, body = fetch(api_url(server))
+        assert status == 422 and b"width: given more than once" in body, body
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
 def test_cli_refuses_a_missing_scene_with_exit_2(editor: Path, tmp_path: Path, monkeypatch, capsys) -> None:
     monkeypatch.setenv("INKWARP_EDITOR_DIR", str(editor))
     assert main(["edit", "--no-browser", str(tmp_path / "nope.json")]) == 2

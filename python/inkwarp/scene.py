@@ -168,6 +168,44 @@ def _dict_to_json(data: Mapping[str, Any]) -> tuple[str, list[Problem]]:
     return json.dumps(plain), problems
 
 
+class _Object(dict):  # type: ignore[type-arg]
+    """A JSON object as parsed, with the keys it held more than once."""
+
+    repeated: list[str]
+
+
+def _object(pairs: list[tuple[str, Any]]) -> _Object:
+    obj = _Object(pairs)
+    seen: set[str] = set()
+    obj.repeated = [k for k, _ in pairs if k in seen or seen.add(k)]  # type: ignore[func-returns-value]
+    return obj
+
+
+def _repeated_keys(text: str) -> list[Problem]:
+    """A problem for every key that stands twice in one object of the scene's JSON ``text``
+    (JSON parsers keep one of them silently, so a hand edit could be lost); none for text
+    that is not JSON (the engine says why)."""
+    try:
+        doc = json.loads(text, object_pairs_hook=_object)
+    except (ValueError, RecursionError):
+        return []
+    problems: list[Problem] = []
+
+    def walk(v: Any, path: str) -> None:
+        if isinstance(v, _Object):
+            at = (lambda key: f"{path}.{key}" if path else key)
+            problems.extend((at(key), "given more than once in its object; keep one (JSON takes each key "
+                                      "once: the last would win)") for key in dict.fromkeys(v.repeated))
+            for key, item in v.items():
+                walk(item, at(key))
+        elif isinstance(v, list):
+            for i, item in enumerate(v):
+                walk(item, f"{path}[{i}]")
+
+    walk(doc, "")
+    return problems
+
+
 def validate_scene(source: str | os.PathLike[str] | Mapping[str, Any], base_dir: str | os.PathLike[str] | None = None) -> list[Problem]:
     """Every problem of a scene, images included, without raising.
 
@@ -203,7 +241,7 @@ def validate_scene(source: str | os.PathLike[str] | Mapping[str, Any], base_dir:
             return [("", str(err).removeprefix(f"{path}: "))]
         except OSError as err:
             return [("", f"cannot read the scene file {path}: {err.strerror or err}")]
-        problems = []
+        problems = _repeated_keys(text)
         base = os.fspath(base_dir) if base_dir is not None else os.fspath(path.resolve().parent)
     return problems + [p for p in _inkwarp.scene_problems(text, base) if p[0] not in {q[0] for q in problems}]
 
@@ -248,6 +286,10 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
 def _core_from_json(text: str, base: str | None, file: str | None) -> Any:
     """The engine's scene of JSON ``text``; where the text is JSON to Python but not to the
     engine, the error says why: it holds NaN or Infinity, which JSON has no numbers for."""
+    repeated = _repeated_keys(text)
+    if repeated:
+        others = _inkwarp.scene_problems(text, base)
+        _raise_for(repeated + [p for p in others if p[0] not in {q[0] for q in repeated}], file)
     try:
         return _inkwarp.SceneCore.from_json(text, base, file)
     except SceneError as err:

@@ -145,7 +145,7 @@ class SceneFile:
     def read(self) -> tuple[bytes, str]:
         """The scene as JSON with every relative image path replaced by a data: URI, and
         the version of the file's text it was made from."""
-        from inkwarp.scene import read_scene_text
+        from inkwarp.scene import _repeated_keys, read_scene_text
 
         # The scene files' one reader: a picture given as the scene, bytes that are not
         # UTF-8 and oversized files get the messages every command gives.
@@ -156,6 +156,11 @@ class SceneFile:
             raise ValueError(
                 f"{self.path}: not valid JSON (line {err.lineno}, column {err.colno}: {err.msg})."
             ) from None
+        # A key given twice would lose one of its values at the first save.
+        repeated = _repeated_keys(text)
+        if repeated:
+            where, message = repeated[0]
+            raise ValueError(f"{self.path}: {where}: {message}.")
         for i, key, ref in list(self._image_refs(doc)):
             file = self.image_file(i, key, ref)
             data = file.read_bytes()
