@@ -152,3 +152,22 @@ def test_the_method_can_be_chosen_per_call(scene):
     with pytest.raises(ValueError, match='unknown method "rbf"; use one of "tps"'):
         scene.render(time=0.7, method="rbf")
     assert len(list(scene.frames(0, 3, method="tps"))) == 3
+
+
+@pytest.mark.parametrize("closed", [True, False])
+def test_a_closed_cut_frees_what_it_encloses(closed):
+    # A cut with "closed" runs back to its first point: the square inside it is a piece of
+    # its own, which no feature holds, so it stays where it is while the rest follows the
+    # points. Left open, the fourth side joins the square to the rest, which pulls it along.
+    square = [[20.5, 20.5], [43.5, 20.5], [43.5, 43.5], [20.5, 43.5]]
+    doc = {"inkwarp": 1, "width": 64, "height": 64, "duration": 1, "layers": [{"name": "a"}],
+           "features": [{"id": "loop", "kind": "cut", "closed": closed, "rest": square}] + [
+               {"id": f"p{i}", "kind": "point", "rest": [p], "keys": [{"t": 0, "points": [[p[0] + 4, p[1]]]}]}
+               for i, p in enumerate([[5, 5], [58, 5], [5, 58]])]}
+    field = inkwarp.Scene.from_dict(doc).field(0)
+    assert np.allclose(field[5, 58], [4, 0], atol=0.02) and np.allclose(field[58, 58], [4, 0], atol=0.05)
+    inside = field[22:43, 22:43]
+    if closed:
+        assert np.abs(inside).max() == 0
+    else:
+        assert np.allclose(inside, [4, 0], atol=0.05)

@@ -280,8 +280,8 @@ pub struct FeatureDoc {
     /// Control points `[x, y]` traced over the original image (pixel centres at integer
     /// coordinates, y down).
     pub rest: Vec<Point>,
-    /// Whether a polyline or spline joins its last point back to its first (regions are
-    /// always closed).
+    /// Whether a polyline, spline or cut joins its last point back to its first (a closed
+    /// cut frees what it encloses; regions are always closed).
     #[serde(default, skip_serializing_if = "is_default")]
     #[schemars(extend("default" = false))]
     pub closed: bool,
