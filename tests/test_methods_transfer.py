@@ -156,7 +156,9 @@ def test_cli_names_a_picture_a_folder_or_a_scene_mistake_as_every_command_does(t
     bad = retraced(source, lambda p: p)
     bad["features"][1]["kind"], bad["fps"] = "x", 0
     (tmp_path / "bad.json").write_text(json.dumps(bad))
+    (tmp_path / "twice.json").write_text(json.dumps(source).replace('"fps": ', '"fps": 12, "fps": ', 1))
     for source_arg, target_arg, says in [
+        (tmp_path / "twice.json", tmp_path / "s.json", "twice.json: fps: given more than once in its object"),
         (tmp_path / "p.png", tmp_path / "s.json", "p.png: a PNG picture, not a scene; make a scene of it with inkwarp new"),
         (tmp_path, tmp_path / "s.json", "not a regular file (a folder, FIFO or device); give a scene's JSON file"),
         (tmp_path / "s.json", tmp_path / "bad.json", 'bad.json: features[1].kind: unknown kind "x"'),

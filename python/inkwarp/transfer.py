@@ -44,7 +44,7 @@ _IMAGE_FIELDS = ("image", "alpha", "continuity")
 def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
     """A scene document as a dict, and the directory its relative paths start from."""
     if isinstance(scene, (str, os.PathLike)):
-        from inkwarp.scene import _raise_for, read_scene_text, validate_scene
+        from inkwarp.scene import _raise_for, _repeated_keys, read_scene_text, validate_scene
 
         path = Path(scene)
         if not path.exists():
@@ -57,7 +57,7 @@ def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
         except json.JSONDecodeError as err:
             raise ValueError(f"the {role} scene {path} is not valid JSON: {err}.") from None
         # The pictures play no part in a transfer: one missing or moved is not a problem here.
-        _raise_for([p for p in validate_scene(doc, base_dir=path.resolve().parent)
+        _raise_for(_repeated_keys(text) + [p for p in validate_scene(doc, base_dir=path.resolve().parent)
                     if not re.fullmatch(r"layers\[\d+\]\.(image|alpha|continuity)", p[0])], os.fspath(path))
         return doc, path.resolve().parent
     if isinstance(scene, dict):
