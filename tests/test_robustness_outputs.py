@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -106,6 +107,8 @@ READ_ONLY_COMMANDS = {
     "render png": lambda h, r: ["render", str(h / "scene.json"), "-o", str(r / "a.png"), "-q"],
     "render gif": lambda h, r: ["render", str(h / "scene.json"), "-o", str(r / "a.gif"), "-q"],
     "render dir": lambda h, r: ["render", str(h / "scene.json"), "-o", str(r / "frames") + "/", "-q"],
+    # The folder itself read-only: refused before a frame is rendered, not after all of them.
+    "render into the folder": lambda h, r: ["render", str(h / "scene.json"), "-o", str(r) + "/", "-q"],
     "field": lambda h, r: ["field", str(h / "scene.json"), "-o", str(r / "f.npy"), "--time", "0.5",
                            "--layer", "face", "-q"],
     "compare": lambda h, r: ["compare", str(h / "scene.json"), "-o", str(r / "c.png"),
@@ -130,6 +133,40 @@ def test_a_read_only_output_folder_is_named_in_the_error(tmp_path: Path, case: s
     assert str(read_only) in done.stderr and "writ" in done.stderr, done.stderr
     assert ".part" not in done.stderr
     assert list(read_only.iterdir()) == []
+
+
+def test_render_frames_and_scene_frames_name_what_was_given(tmp_path: Path) -> None:
+    # frames=(1.5, 4) rendered frames 1 to 3; frames=3 raised "'int' object is not
+    # subscriptable"; frames(20, 30) on a shorter scene said "frames(20, 12)".
+    import inkwarp
+
+    scene = inkwarp.Scene.load(FACE)
+    for frames, says in [((1.5, 4), "frames[0] must be a whole number; got 1.5"),
+                         (3, 'frames must be (start, stop) or "A:B", got 3'), ([3], "got [3]")]:
+        with pytest.raises(ValueError, match=re.escape(says)):
+            inkwarp.render(scene, tmp_path / "f/", frames=frames)
+    assert not (tmp_path / "f").exists()
+    end = scene.frame_count
+    with pytest.raises(ValueError, match=re.escape(f"frames({end + 8}, {end + 18}) is not a range")):
+        scene.frames(end + 8, end + 18)
+
+
+def test_a_folder_standing_where_a_frame_goes_is_refused_and_nothing_is_written(tmp_path: Path, capsys) -> None:
+    # The frames before it were moved into the folder, then the render failed on
+    # ".out.PID….part/frame_0002.png: Is a directory": half an output.
+    from inkwarp.cli import main
+
+    out = tmp_path / "out"
+    (out / "frame_0002.png").mkdir(parents=True)
+    (out / "frame_0000.png").write_bytes(b"kept")
+    assert main(["render", str(FACE), "-o", f"{out}/", "--frames", "0:3", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert f"{out / 'frame_0002.png'}: a folder stands where frame 2 goes" in err and ".part" not in err, err
+    assert sorted(p.name for p in out.iterdir()) == ["frame_0000.png", "frame_0002.png"]
+    assert (out / "frame_0000.png").read_bytes() == b"kept" and _parts(tmp_path, "out") == []
+    # Outside the range it is no obstacle.
+    assert main(["render", str(FACE), "-o", f"{out}/", "--frames", "0:2", "-q"]) == 0
+    assert (out / "frame_0001.png").is_file()
 
 
 def test_an_unwritable_folder_names_the_folder_not_the_temporary_file(tmp_path: Path, monkeypatch,
@@ -191,6 +228,8 @@ def _api_cases():
         "Scene.frames threads": lambda b: scene.frames(0, 1, threads=b),
         "render scene": lambda b: inkwarp.render(b, "unused.png") if hasattr(inkwarp, "render")
         else __import__("inkwarp.rendering").rendering.render(b, "unused.png"),
+        "render frames": lambda b: inkwarp.render(scene, "unused/", frames=b),
+        "render frames start": lambda b: inkwarp.render(scene, "unused/", frames=(b, 2)),
         "transfer source": lambda b: inkwarp.transfer(b, scene),
         "track video": lambda b: inkwarp.track(b, FACE),
         "track frame": lambda b: inkwarp.track(face_gif, FACE, frame=b),

@@ -470,7 +470,7 @@ class SpriteSheetWriter(FrameWriter):
 
 
 def open_writer(path: str | os.PathLike[str], *, fps: float, kind: str | None = None,
-                first_frame: int = 0, transparent: bool = False) -> FrameWriter:
+                first_frame: int = 0, transparent: bool = False, frames: int = 1) -> FrameWriter:
     """The writer for ``path``: the alpha formats here, a 1-bit transparent GIF when
     ``transparent``, otherwise :func:`inkwarp.video.open_writer`."""
     kind = kind or video.output_kind(path)
@@ -479,4 +479,4 @@ def open_writer(path: str | os.PathLike[str], *, fps: float, kind: str | None = 
         return FfmpegAlphaWriter(target, fps, kind)
     if kind == "gif" and transparent:
         return TransparentGifWriter(target, fps)
-    return video.open_writer(target, fps=fps, kind=kind, first_frame=first_frame)  # type: ignore[arg-type]
+    return video.open_writer(target, fps=fps, kind=kind, first_frame=first_frame, frames=frames)  # type: ignore[arg-type]

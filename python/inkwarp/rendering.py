@@ -100,7 +100,11 @@ def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[in
         return 0, scene.frame_count
     if isinstance(frames, str):
         return parse_frames(frames, scene.frame_count, option="frames")
-    start, stop = int(frames[0]), int(frames[1])
+    from inkwarp.scene import _integer_argument
+
+    if not isinstance(frames, (tuple, list)) or len(frames) != 2:
+        raise ValueError(f'frames must be (start, stop) or "A:B", got {frames!r:.40}')
+    start, stop = (_integer_argument(v, f"frames[{i}]") for i, v in enumerate(frames))
     if not 0 <= start < stop <= scene.frame_count:
         raise ValueError(f"frames=({start}, {stop}): the scene has frames 0 to "
                          f"{scene.frame_count - 1}; give 0 <= A < B <= {scene.frame_count}")
@@ -275,7 +279,7 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
                                progress=progress)
     else:
         writer = outputs.open_writer(target, fps=scene.fps, kind=kind, first_frame=start,
-                                     transparent=transparent)
+                                     transparent=transparent, frames=stop - start)
     count = stop - start
     source = (_ray_frames(scene, start, stop, method=method, address=ray, progress=progress)
               if ray else _common.progress((f for _, f in render_range(scene, start, stop,

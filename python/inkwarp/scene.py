@@ -679,7 +679,8 @@ class Scene:
         Parameters
         ----------
         start, stop : int
-            Frame range, like ``range(start, stop)``; ``stop`` defaults to the last frame.
+            Frame range, like ``range(start, stop)``; ``stop`` defaults to the end, and one
+            past the end is cut to it, as a slice is.
         threads : int, optional
             Worker threads; 1 renders on the calling thread only.
         method : str, optional
@@ -690,10 +691,12 @@ class Scene:
         Frames
             An iterator of RGBA uint8 ``(height, width, 4)`` arrays with ``len()``.
         """
-        stop = self.frame_count if stop is None else min(_integer_argument(stop, "stop"), self.frame_count)
-        start = _integer_argument(start, "start")
+        given = self.frame_count if stop is None else _integer_argument(stop, "stop")
+        start, stop = _integer_argument(start, "start"), min(given, self.frame_count)
         if start < 0 or stop < start:
-            raise ValueError(f"frames({start}, {stop}) is not a range of this scene's frames 0 to {self.frame_count}")
+            raise ValueError(f"frames({start}, {given}) is not a range of this scene's frames 0 to "
+                             f"{self.frame_count - 1}: give 0 <= start <= stop (a stop past the end "
+                             "is cut to it)")
         if threads is not None and not 1 <= _integer_argument(threads, "threads") <= 4096:
             raise ValueError(f"threads must be from 1 to 4096, got {threads}")
         first = preroll_start(start) if start < stop and self._core.warm_starts(method) else start

@@ -364,10 +364,25 @@ class PngSequenceWriter(FrameWriter):
     replace the target's files of the same names (other files are left as they are).
     """
 
-    def __init__(self, target: Path, fps: float, first_frame: int = 0) -> None:
+    def __init__(self, target: Path, fps: float, first_frame: int = 0, frames: int = 1) -> None:
         super().__init__(target, fps)
         self.first_frame = first_frame
+        # A folder this run could not fill is refused before any frame is rendered.
+        self._check_target(frames)
         self._temp = _temp_dir(target)
+
+    def _check_target(self, count: int) -> None:
+        """Refuse an existing target that cannot take ``count`` frames: a folder that cannot
+        be written (the error names it), or one where a frame's name is taken by a folder.
+        Checked again before the frames move in, so none moves unless all can."""
+        if not self.target.is_dir():
+            return
+        temp_path(self.target / self._name(0)).unlink()
+        for i in range(count):
+            path = self.target / self._name(i)
+            if path.is_dir() and not path.is_symlink():
+                raise ValueError(f"{path}: a folder stands where frame {self.first_frame + i} goes; "
+                                 "move it away or render into another folder")
 
     def _name(self, i: int) -> str:
         return FRAME_PATTERN.format(self.first_frame + i)
@@ -384,6 +399,7 @@ class PngSequenceWriter(FrameWriter):
         if not self.target.exists():
             os.replace(self._temp, self.target)
         else:
+            self._check_target(len(names))
             for name in names:
                 os.replace(self._temp / name, self.target / name)
             shutil.rmtree(self._temp, ignore_errors=True)
@@ -643,7 +659,7 @@ class Mp4Writer(FrameWriter):
 
 
 def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
-                kind: OutputKind | None = None, first_frame: int = 0) -> FrameWriter:
+                kind: OutputKind | None = None, first_frame: int = 0, frames: int = 1) -> FrameWriter:
     """The writer for ``path``: ``.png`` (one frame), a directory, ``.gif`` or ``.mp4``.
 
     Parameters
@@ -656,6 +672,9 @@ def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
         Overrides the guess from the suffix (see :func:`output_kind`).
     first_frame : int
         For a directory: the number of the first frame's file.
+    frames : int
+        For a directory: how many frames will be written, so that an existing folder that
+        cannot take them is refused before any is rendered.
 
     Returns
     -------
@@ -667,7 +686,7 @@ def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
     if kind == "png":
         return PngWriter(target, fps)
     if kind == "dir":
-        return PngSequenceWriter(target, fps, first_frame)
+        return PngSequenceWriter(target, fps, first_frame, frames)
     if kind == "gif":
         return GifWriter(target, fps)
     if kind == "mp4":
