@@ -427,6 +427,12 @@ class _Tracker:
             # (noise can pass a frame-to-frame check by chance).
             lost_px = self.options.lost_px
             checked = np.where(lost, refined_fb, np.minimum(local_fb, refined_fb))
+            # A registration to the anchor that holds (its own check passes) but lands
+            # elsewhere says the point has drifted: frame-to-frame checks cannot see drift
+            # (a point stuck beside its feature on a still picture passes them every frame).
+            apart = np.linalg.norm(refined - best, axis=1)
+            drifted = (refined_fb <= lost_px) & (apart > lost_px)
+            checked = np.where(drifted, np.maximum(checked, apart), checked)
             confirmed = textured_now & inside & (checked <= lost_px)
             lost = textured_at_anchor & ~confirmed
             last_seen[confirmed] = best[confirmed]
@@ -434,7 +440,10 @@ class _Tracker:
             # confirms it (an untextured one follows the thin plate of the others, which can
             # carry it out of the frame over a background that stays).
             off = _off_picture(best, w, h, lost_px)
-            errors[k] = np.where(lost | off, np.inf, np.where(textured_at_anchor, checked, dense_fb))
+            # A lost point's error is what its check found (a drift, a failed check), or
+            # infinite where nothing could be checked (no texture, off the picture).
+            unseen = off | (lost & (checked <= lost_px))
+            errors[k] = np.where(unseen, np.inf, np.where(textured_at_anchor, checked, dense_fb))
             tick()
         return positions, errors
 
@@ -613,7 +622,9 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
 
         loaded = loaded or (scene if isinstance(scene, Scene) else Scene.from_dict(doc, base_dir=base))
         size = (loaded.width, loaded.height)
-    if size != (clip.width, clip.height):
+    # An MP4 of an odd-sized scene (inkwarp's own) carries one more column or row, the edge
+    # repeated: H.264 wants even sides. Its pixels are the scene's where they overlap.
+    if size != (clip.width, clip.height) and tuple(v + v % 2 for v in size) != (clip.width, clip.height):
         raise ValueError(
             f"{where}: the scene is {size[0]}x{size[1]} but the video {clip.path} is "
             f"{clip.width}x{clip.height}; trace the drawing on a frame of this video "
@@ -672,7 +683,10 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         series = np.empty((count, len(f.rest), 2))
         for k in range(count):
             series[k], err = _blend(tracks, anchors_of[f.id], f, k, lost_px)
-            if err is not None and np.median(err) > lost_px:
+            # Lost where most of its points are, or where a point its keys are made of was
+            # checked and found off (not merely unseen: a corner on the picture's edge).
+            keys_off = err is not None and bool(np.any(np.isfinite(err[:len(f.rest)]) & (err[:len(f.rest)] > lost_px)))
+            if err is not None and (np.median(err) > lost_px or keys_off):
                 lost.setdefault(f.id, []).append(k)
         kept = range(count)
         if simplify_px is not None:
@@ -689,7 +703,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     doc["duration"] = count / clip.fps
     if lost:
         names = "; ".join(f"'{fid}' at frames {_frames_text(ks)}" for fid, ks in lost.items())
-        warnings.warn(f"{clip.path}: lost track (forward-backward error over {lost_px:g} px) of "
+        warnings.warn(f"{clip.path}: lost track (checks over {lost_px:g} px) of "
                       f"{names}; check those frames and add a correction key there",
                       InkwarpWarning, stacklevel=caller_outside())
     if blind:
