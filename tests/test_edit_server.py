@@ -103,7 +103,7 @@ def test_scene_images_are_inlined_and_paths_restored_on_save(editor: Path, scene
         api = url.split("?")[0] + "api/scene"
         status, headers, body = fetch(api)
         assert status == 200
-        assert headers["X-Inkwarp-Name"] == "scene.json"
+        assert headers["X-Inkwarp-Name"] == "scene.json"  # percent-encoded where it must be
         doc = json.loads(body)
         uri = doc["layers"][0]["image"]
         assert uri == "data:image/png;base64," + base64.b64encode(PNG_1x1).decode()
@@ -211,6 +211,60 @@ def test_a_save_over_a_file_changed_since_it_was_read_is_refused(editor: Path, s
         assert json.loads(scene.read_text())["features"][0]["id"] == "b"
         assert fetch(api, "PUT", json.dumps(tab_a).encode())[0] == 200
         assert json.loads(scene.read_text())["features"][0]["id"] == "a"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def test_a_tab_that_opened_another_file_never_writes_this_one(editor: Path, scene: Path, tmp_path: Path) -> None:
+    # inkwarp edit stopped and started again on the same port with another scene, the old
+    # tab still open: its save (with "overwrite" answered to the version conflict) wrote
+    # its scene into the other file.
+    from urllib.parse import quote
+
+    server = serve(scene, editor)
+    try:
+        api = api_url(server)
+        status, headers, body = fetch(api)
+        assert status == 200 and headers["X-Inkwarp-Path"] == quote(str(scene))
+        mine = json.loads(body)
+        mine["features"] = [{"id": "mine", "kind": "point", "rest": [[0, 0]]}]
+        before = scene.read_text()
+        other = str(tmp_path / "other" / "scene.json")
+        for version in (headers["ETag"], "*"):
+            status, _, said = fetch(api, "PUT", json.dumps(mine).encode(),
+                                    {"If-Match": version, "X-Inkwarp-Scene": quote(other)})
+            assert status == 422 and f"this tab opened {other}, but inkwarp edit now serves {scene}".encode() in said
+            assert scene.read_text() == before
+        status, _, _ = fetch(api, "PUT", json.dumps(mine).encode(), {"If-Match": "*", "X-Inkwarp-Scene": quote(str(scene))})
+        assert status == 200 and json.loads(scene.read_text())["features"][0]["id"] == "mine"
+        # A file deleted since it was read is not called "changed".
+        version = fetch(api)[1]["ETag"]
+        scene.unlink()
+        status, _, said = fetch(api, "PUT", json.dumps(mine).encode(), {"If-Match": version})
+        assert status == 409 and b"is no longer there (deleted or moved" in said
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+def test_a_scene_in_a_folder_named_in_any_script_opens_and_saves(editor: Path, tmp_path: Path) -> None:
+    # Its path went into a response header as it was; one outside Latin-1 made the server
+    # drop the connection, so the editor could not open the scene at all.
+    from urllib.parse import quote, unquote
+
+    folder = tmp_path / "日本語 scènes"
+    folder.mkdir()
+    path = folder / "猫.json"
+    path.write_text(json.dumps({"inkwarp": 1, "width": 2, "height": 2, "layers": [{"name": "a"}]}))
+    server = serve(path, editor)
+    try:
+        status, headers, body = fetch(api_url(server))
+        assert status == 200 and unquote(headers["X-Inkwarp-Path"]) == str(path)
+        assert unquote(headers["X-Inkwarp-Name"]) == "猫.json"
+        status, headers, _ = fetch(api_url(server), "PUT", body, {"If-Match": headers["ETag"],
+                                                                  "X-Inkwarp-Scene": quote(str(path))})
+        assert status == 200 and unquote(headers["X-Inkwarp-Path"]) == str(path)
     finally:
         server.shutdown()
         server.server_close()

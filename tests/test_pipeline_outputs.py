@@ -398,8 +398,8 @@ def test_a_full_disk_is_one_message_naming_the_output_for_every_format(tmp_path,
 
 
 @pytest.mark.parametrize("options, message", [
-    ({"frames": "5:1"}, "frames='5:1': the scene has frames 0 to 3"),
-    ({"frames": (0, 99)}, "frames=(0, 99): the scene has frames 0 to 3"),
+    ({"frames": "5:1"}, "frames='5:1' is not a range of the scene, which has frames 0 to 3"),
+    ({"frames": (0, 99)}, "frames=(0, 99) is not a range of the scene, which has frames 0 to 3"),
     ({"background": "nope"}, "background='nope': give transparent"),
     ({"sprite_sheet": "0x1"}, "sprite_sheet='0x1': columns and rows must be at least 1"),
     ({"sprite_sheet": "1x1"}, "sprite_sheet='1x1': 1x1 holds 1 frame, the render has 4; give "
@@ -419,7 +419,7 @@ def test_the_command_line_names_its_flags(capsys, tmp_path):
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "sheet.png", "--sprite-sheet", "1x1")
     assert code == 2 and "--sprite-sheet 1x1: 1x1 holds 1 frame" in err and "with --frames" in err
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif", "--frames", "5:1")
-    assert code == 2 and "--frames 5:1: the scene has frames 0 to 3" in err
+    assert code == 2 and "--frames 5:1 is not a range of the scene, which has frames 0 to 3" in err
 
 
 def test_an_mp4_of_frames_with_transparent_pixels_warns_once_with_the_formats_that_keep_alpha(capsys, tmp_path, transparent):

@@ -122,6 +122,11 @@ def test_a_picture_given_as_the_scene_is_named_a_picture(tmp_path: Path, capsys)
     err = capsys.readouterr().err
     assert "pic.png: a PNG picture, not a scene; make a scene of it with inkwarp new" in err, err
     assert not (tmp_path / "o.png").exists()
+    # An SVG drawing given as the scene said only "not valid JSON".
+    (tmp_path / "tracing.svg").write_text('<?xml version="1.0"?>\n<svg xmlns="http://www.w3.org/2000/svg"/>')
+    assert main(["render", str(tmp_path / "tracing.svg"), "-o", str(tmp_path / "o.png")]) == 2
+    err = capsys.readouterr().err
+    assert f"tracing.svg: an SVG drawing, not a scene; trace it over its picture into a scene with inkwarp new PICTURE --drawing {tmp_path / 'tracing.svg'}" in err, err
 
 
 @pytest.mark.parametrize("number", ["NaN", "Infinity", "-Infinity"])

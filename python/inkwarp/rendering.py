@@ -106,7 +106,7 @@ def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[in
         raise ValueError(f'frames must be (start, stop) or "A:B", got {frames!r:.40}')
     start, stop = (_integer_argument(v, f"frames[{i}]") for i, v in enumerate(frames))
     if not 0 <= start < stop <= scene.frame_count:
-        raise ValueError(f"frames=({start}, {stop}): the scene has frames 0 to "
+        raise ValueError(f"frames=({start}, {stop}) is not a range of the scene, which has frames 0 to "
                          f"{scene.frame_count - 1}; give 0 <= A < B <= {scene.frame_count}")
     return start, stop
 

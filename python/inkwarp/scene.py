@@ -272,7 +272,7 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
                          "as files beside it", file=name)
     data = Path(name).read_bytes()
     try:
-        return data.decode("utf-8-sig")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as err:
         picture = _picture_kind(data)
         if picture:
@@ -281,6 +281,10 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
         line = data[: err.start].count(b"\n") + 1
         raise SceneError(f"{name}: not UTF-8 text (byte {err.start}, line {line}); save the "
                          "scene as UTF-8", file=name) from None
+    if text.lstrip().startswith("<") and "<svg" in text[:4096]:
+        raise SceneError(f"{name}: an SVG drawing, not a scene; trace it over its picture into a "
+                         f"scene with inkwarp new PICTURE --drawing {name} -o scene.json", file=name)
+    return text
 
 
 def _core_from_json(text: str, base: str | None, file: str | None) -> Any:

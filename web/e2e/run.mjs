@@ -1027,20 +1027,68 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
 test('edits made while the restore offer waits: leaving asks, and the offered work stays', async () => {
   const { page: p, context, errors: errs } = await openEditor(browser, server.url);
   try {
+    const rests = () => p.evaluate(() => JSON.stringify(window.inkwarp.store.doc.features.map((f) => f.rest)));
     await tracePoint(p, [100, 300]);
     await p.evaluate(() => window.inkwarp.autosave.flush());
+    const offered = await rests();
     await p.reload();
     await p.waitForSelector('#restore');
-    // Not answered: the editor works meanwhile, and what is drawn now is unsaved work too.
+    // Not answered: the editor works meanwhile, and what is drawn now is unsaved work too,
+    // marked in the title and kept in the browser apart from the offered copy (a crash
+    // before the answer lost it).
     await p.keyboard.press('p');
     await click(p, [160, 320]);
     assert(await p.evaluate(() => window.inkwarp.store.unsaved), 'the edit made during the offer is unsaved');
+    assert((await p.title()).startsWith('● '), `the title marks it: ${await p.title()}`);
+    const kept = () => p.evaluate(() => new Promise((resolve, reject) => {
+      const req = indexedDB.open('inkwarp-editor', 1);
+      req.onerror = () => reject(req.error);
+      req.onsuccess = () => {
+        const all = {};
+        const cursor = req.result.transaction('autosave').objectStore('autosave').openCursor();
+        cursor.onsuccess = () => {
+          const c = cursor.result;
+          if (!c) { req.result.close(); resolve(all); return; }
+          all[String(c.key)] = JSON.stringify(c.value.doc.features.map((f) => f.rest));
+          c.continue();
+        };
+      };
+    }));
+    let copies = {};
+    for (let i = 0; i < 40 && !Object.keys(copies).some((k) => k.includes('-meanwhile-')); i++) {
+      await new Promise((r) => setTimeout(r, 100));
+      copies = await kept();
+    }
+    const drawn = await rests();
+    const meanwhile = Object.entries(copies).filter(([k]) => k.includes('-meanwhile-'));
+    assert(drawn !== offered && meanwhile.length === 1 && meanwhile[0][1] === drawn, `the edit is kept apart: ${JSON.stringify(copies)}`);
+    assert(Object.entries(copies).some(([k, r]) => !k.includes('-meanwhile-') && r === offered), `the offered copy stays as it was: ${JSON.stringify(copies)}`);
     p.dialogs.length = 0;
     await p.reload();
     await p.waitForSelector('body[data-ready]');
     assert(p.dialogs.includes('beforeunload'), `leaving during the offer asked first (dialogs: ${p.dialogs})`);
     await p.waitForSelector('#restore');
+    // Left by leaving the page, the copy apart stays, to be offered as a closed tab's work.
+    const first = meanwhile[0][0];
+    assert(first in (await kept()), 'the edits made during the first offer are still kept');
+    // Answered on the page where they were made, this tab's own copy takes them over and
+    // the copy apart goes.
+    await p.keyboard.press('p');
+    await click(p, [200, 340]);
+    const now = await rests();
+    const others = () => Object.keys(copies).filter((k) => k.includes('-meanwhile-') && k !== first);
+    for (let i = 0; i < 40 && others().length === 0; i++) {
+      await new Promise((r) => setTimeout(r, 100));
+      copies = await kept();
+    }
+    assert(others().length === 1, `the new edits are kept apart too: ${JSON.stringify(copies)}`);
     await p.click('#restore-no');
+    for (let i = 0; i < 40 && others().length > 0; i++) {
+      await new Promise((r) => setTimeout(r, 100));
+      copies = await kept();
+    }
+    assert(others().length === 0 && first in copies, `the copy apart is dropped once answered: ${JSON.stringify(copies)}`);
+    assert(Object.entries(copies).some(([k, r]) => !k.includes('-meanwhile-') && r === now), `this tab's copy holds them: ${JSON.stringify(copies)}`);
     assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
   } finally {
     await context.close();
@@ -1108,6 +1156,9 @@ test('Save writes each scene to its own file: undo past opening, two tabs, a fil
     await p.keyboard.press('p');
     await click(p, [20, 20]);
     assert((await p.title()).startsWith('● '), `unsaved work is marked in the title: ${await p.title()}`);
+    // Each save names the file the tab opened, which a server serving another one refuses.
+    const named = [];
+    p.on('request', (r) => { if (r.method() === 'PUT') named.push(r.headers()['x-inkwarp-scene']); });
     // Saved twice at once (a held Ctrl+S): the second waits for the first and knows its
     // version, so it is no conflict.
     await p.keyboard.press('Control+s');
@@ -1116,6 +1167,7 @@ test('Save writes each scene to its own file: undo past opening, two tabs, a fil
     await p.evaluate(() => window.inkwarp.ui.save());
     assert(!p.dialogs.includes('confirm') && /Saved to/.test(await message(p)), `two quick saves asked nothing: ${p.dialogs} ${await message(p)}`);
     assert(!(await p.title()).startsWith('● ') && features().length === 1, 'saved: one point, title unmarked');
+    assert(named.length >= 2 && named.every((v) => decodeURIComponent(v) === scenePath), `the saves name ${scenePath}: ${named}`);
     // Tab B, open all along, adds its own point: its save is refused, not written over A's.
     const q = b.page;
     await q.keyboard.press('p');

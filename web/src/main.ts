@@ -55,8 +55,10 @@ async function start(): Promise<void> {
       if (!resp.ok) {
         ui.message(text, 'error'); // the server's message names the file
       } else {
-        named = resp.headers.get('X-Inkwarp-Path') ?? sceneUrl;
-        await ui.openSceneText(text, resp.headers.get('X-Inkwarp-Name') ?? 'scene.json');
+        // Percent-encoded by the server: a header carries no other characters.
+        const header = (name: string) => { const v = resp.headers.get(name); return v === null ? null : decodeURIComponent(v); };
+        named = header('X-Inkwarp-Path') ?? sceneUrl;
+        await ui.openSceneText(text, header('X-Inkwarp-Name') ?? 'scene.json');
         // The file it came from (its path on the machine `inkwarp edit` serves it from).
         Object.assign(store.origin, { path: named, version: resp.headers.get('ETag'), saveUrl: params.get('save') !== 'download' ? sceneUrl : null });
         opened = true;
@@ -106,13 +108,9 @@ async function keepWork(store: Store, ui: Ui): Promise<void> {
     kept = new MemoryStore();
     ui.message('This browser keeps no copy of your work (IndexedDB is off): save often.', 'error');
   }
-  const saver = new Autosaver(
-    kept,
-    () => ({ doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: store.origin.saveUrl ? store.origin.path : null, version: store.origin.saveUrl ? store.origin.version : null }),
-    fetchDataUri,
-    800,
-    (err) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error'),
-  );
+  const snapshot = () => ({ doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: store.origin.saveUrl ? store.origin.path : null, version: store.origin.saveUrl ? store.origin.version : null });
+  const failed = (err: Error) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error');
+  const saver = new Autosaver(kept, snapshot, fetchDataUri, 800, failed);
   // Unsaved work is offered back whatever the page opened: it is the file's own (the same
   // path), or it names itself and what it would replace, and then saves by download. This
   // tab's own work (a reload) first, else the newest that a closed tab left.
@@ -137,7 +135,24 @@ async function keepWork(store: Store, ui: Ui): Promise<void> {
   }
   const own = (previous?.source ?? null) === source;
   const more = left.length > 1 ? ` (${left.length - 1} more kept from other tabs: open the editor again to be offered them)` : '';
+  // Edits made while the offer waits are kept too, apart: under a key of their own that this
+  // tab holds, so the offered copy is not written over, and a crash leaves them to be
+  // offered as a closed tab's work is. Once the offer is answered, this tab's copy takes over.
+  let aside: { saver: Autosaver; key: string; release: (() => void) | null } | null = null;
+  const watch = store.subscribe(() => {
+    showTitle(store);
+    if (!store.unsaved || !(kept instanceof IndexedDbStore)) return;
+    if (!aside) {
+      const key = `${kept.key}-meanwhile-${Date.now().toString(36)}`;
+      const made = { key, release: null as (() => void) | null, saver: new Autosaver(new IndexedDbStore(key), snapshot, fetchDataUri, 800, failed) };
+      void claimTab(key).then((r) => { made.release = r; });
+      aside = made;
+      keeper = made.saver;
+    }
+    aside.saver.changed();
+  });
   const restore = previous?.unsaved && (await ui.offerRestore(restoreQuestion(previous, Date.now(), own || !source ? undefined : ui.fileName) + more));
+  watch();
   // Another tab's work, once restored here or declined, is not offered again.
   let settled = !restore;
   if (previous?.unsaved && restore) {
@@ -149,7 +164,8 @@ async function keepWork(store: Store, ui: Ui): Promise<void> {
       // Back where the editor was: pose mode stays pose mode, at the same time.
       if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
       store.markUnsaved();
-      ui.message(`Restored the scene from ${clockTime(previous.savedAt)}.`, 'info');
+      const meanwhile = aside ? '; Ctrl+Z brings back what you drew while the question waited' : '';
+      ui.message(`Restored the scene from ${clockTime(previous.savedAt)}${meanwhile}.`, 'info');
       await saver.flush(); // now this tab's, before the other tab's copy goes
       settled = true;
     } catch (err) {
@@ -170,6 +186,14 @@ async function keepWork(store: Store, ui: Ui): Promise<void> {
   });
   if (store.unsaved) saver.changed();
   keeper = saver;
+  const apart = aside as { saver: Autosaver; key: string; release: (() => void) | null } | null;
+  if (apart) {
+    // This tab's copy now holds the scene (the restored one, or the edits made meanwhile).
+    await apart.saver.flush();
+    await saver.flush();
+    await kept.drop(apart.key).catch(() => {});
+    apart.release?.();
+  }
   Object.assign((window as unknown as { inkwarp: object }).inkwarp, { autosave: saver });
 }
 

@@ -1663,30 +1663,37 @@ export class Ui {
     if (origin.saveUrl) {
       const where = origin.path ?? origin.fileName;
       try {
+        // The file this tab opened goes with the save: a server restarted on the same port
+        // with another scene refuses it instead of taking this scene into that file.
         const put = (version: string | null) => fetch(origin.saveUrl as string, {
-          method: 'PUT', body: text, headers: { 'Content-Type': 'application/json', ...(version ? { 'If-Match': version } : {}) },
+          method: 'PUT', body: text, headers: {
+            'Content-Type': 'application/json', ...(version ? { 'If-Match': version } : {}),
+            ...(origin.path ? { 'X-Inkwarp-Scene': encodeURIComponent(origin.path) } : {}),
+          },
         });
         let resp = await put(origin.version);
         if (resp.status === 409) {
           const why = await resp.text();
-          if (!window.confirm(`${why}\n\nOverwrite it with the scene as the editor shows it? Cancel keeps your changes here, unsaved: open the file again to see what was written.`)) {
-            this.message(`Not saved: ${why}`, 'error');
+          if (!window.confirm(`${why}.\n\nOverwrite it with the scene as the editor shows it? Cancel keeps your changes here, unsaved: open the file again to see what was written.`)) {
+            this.message(`Not saved: ${why}; your changes are kept here, unsaved.`, 'error');
             return;
           }
           resp = await put('*');
         }
         if (!resp.ok) throw new Error(await resp.text());
         this.store.fileSaved(origin, resp.headers.get('ETag'), revision);
-        this.message(`Saved to ${resp.headers.get('X-Inkwarp-Path') ?? where}.`, 'info');
+        const saved = resp.headers.get('X-Inkwarp-Path');
+        this.message(`Saved to ${saved === null ? where : decodeURIComponent(saved)}.`, 'info');
       } catch (err) {
         download(blob(), origin.fileName);
         this.message(`Could not save to ${where} (${(err as Error).message}). Your changes are kept in this browser, unsaved; a copy was downloaded as ${origin.fileName}.`, 'error');
       }
       return;
     }
+    // The page cannot see whether the browser kept the download (a cancelled "Save as"
+    // keeps nothing): the work stays unsaved, kept in this browser and asked about on leaving.
     download(blob(), origin.fileName);
-    if (this.store.origin === origin) this.store.markSaved(revision);
-    this.message(`Downloaded ${origin.fileName}: this scene has no file the editor writes to (open one with inkwarp edit SCENE to save in place).`, 'info');
+    this.message(`Downloaded ${origin.fileName}; it stays marked unsaved (●) here, as the editor cannot see whether your browser kept it. This scene has no file the editor writes to (open one with inkwarp edit SCENE to save in place).`, 'info');
   }
 
   /**

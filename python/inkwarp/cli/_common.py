@@ -80,7 +80,7 @@ def parse_frames(spec: str, frame_count: int, option: str = "--frames") -> tuple
         raise ValueError(f"{given(option, spec)}: A and B must be whole frame numbers, such as 0:24"
                          ) from None
     if start < 0 or stop > frame_count or start >= stop:
-        raise ValueError(f"{given(option, spec)}: the scene has frames 0 to {frame_count - 1}; give "
+        raise ValueError(f"{given(option, spec)} is not a range of the scene, which has frames 0 to {frame_count - 1}; give "
                          f"0 <= A < B <= {frame_count}")
     return start, stop
 

@@ -31,7 +31,7 @@ from http import HTTPStatus
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
+from urllib.parse import parse_qs, quote, unquote, urlsplit
 
 IMAGE_KEYS = ("image", "alpha", "continuity")
 MIME = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
@@ -217,8 +217,11 @@ class SceneFile:
 
         with self.lock:
             if if_match not in (None, "*") and self.version() != if_match:
+                if not self.path.exists():
+                    raise ChangedOnDisk(f"{self.path} is no longer there (deleted or moved since the "
+                                        "editor read it)")
                 raise ChangedOnDisk(f"{self.path} changed on disk since the editor read it (another "
-                                    "tab or program saved it); not saved.")
+                                    "tab or program saved it)")
             try:
                 mode = stat.S_IMODE(self.path.stat().st_mode)
             except FileNotFoundError:
@@ -418,8 +421,8 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                 except (OSError, ValueError) as err:
                     return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode())
                 return self._reply(HTTPStatus.OK, body, "application/json",
-                                   {"X-Inkwarp-Name": scene_file.path.name,
-                                    "X-Inkwarp-Path": str(scene_file.path), "ETag": version})
+                                   {"X-Inkwarp-Name": quote(scene_file.path.name),
+                                    "X-Inkwarp-Path": quote(str(scene_file.path)), "ETag": version})
             if urlsplit(self.path).path.startswith("/api/"):
                 return self._reply(HTTPStatus.NOT_FOUND, b"No such API.")
             return super().do_GET()
@@ -457,6 +460,13 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                 return
             if urlsplit(self.path).path != "/api/scene" or scene_file is None:
                 return self._reply(HTTPStatus.NOT_FOUND, b"Nothing to save to here.")
+            # A tab that opened another file (a server restarted on this port with another
+            # scene, the tab still open) would write its scene over this one.
+            opened = unquote(self.headers.get("X-Inkwarp-Scene") or "")
+            if opened and opened != str(scene_file.path):
+                return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, (
+                    f"this tab opened {opened}, but inkwarp edit now serves {scene_file.path}, so "
+                    f"nothing was written there; open {opened} with inkwarp edit to save it in place").encode())
             body = self._body()
             if body is None:
                 return
@@ -464,10 +474,10 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                 version = scene_file.write(body, self.headers.get("If-Match"))
             except ChangedOnDisk as err:
                 return self._reply(HTTPStatus.CONFLICT, str(err).encode(),
-                                   headers={"X-Inkwarp-Path": str(scene_file.path)})
+                                   headers={"X-Inkwarp-Path": quote(str(scene_file.path))})
             except (OSError, ValueError) as err:
                 return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode())
-            return self._reply(HTTPStatus.OK, b"saved", headers={"X-Inkwarp-Path": str(scene_file.path),
+            return self._reply(HTTPStatus.OK, b"saved", headers={"X-Inkwarp-Path": quote(str(scene_file.path)),
                                                                  "ETag": version})
 
         def _not_allowed(self) -> None:

@@ -21,7 +21,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "frame",
         help="write one frame of a video as a PNG (the picture to trace on)",
-        description="Write frame K of the video as an RGB PNG.",
+        description="Write frame K of the video as a PNG (RGBA, opaque: videos keep no alpha).",
         epilog=EXAMPLE,
         formatter_class=formatter,
     )

@@ -36,10 +36,10 @@ pub fn decode_image(bytes: &[u8]) -> Result<RgbaImage, String> {
     // The header's size first: a few kilobytes can declare a picture that needs gigabytes.
     let (width, height) = image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
         .into_dimensions()
-        .map_err(|e| format!("the {format:?} image could not be decoded ({e})"))?;
+        .map_err(|e| format!("the {format:?} image could not be decoded ({e}): the file is damaged or cut short; save it again"))?;
     crate::limits::check_size("the picture", width as usize, height as usize)?;
     let decoded = image::load_from_memory_with_format(bytes, format)
-        .map_err(|e| format!("the {format:?} image could not be decoded ({e})"))?;
+        .map_err(|e| format!("the {format:?} image could not be decoded ({e}): the file is damaged or cut short; save it again"))?;
     let mut rgba = decoded.to_rgba8();
     if decoded.color().bits_per_pixel() == 16 * decoded.color().channel_count() as u16 {
         // Sixteen bits rounded to eight, but never a faint nonzero value (a matte's, an alpha's) to 0.
