@@ -7,7 +7,7 @@
 // Timings are measured and reported (web/test-results/perf.json), never asserted.
 
 import { spawn, spawnSync } from 'node:child_process';
-import { copyFileSync, mkdirSync, mkdtempSync, readFileSync, writeFileSync } from 'node:fs';
+import { copyFileSync, mkdirSync, mkdtempSync, readFileSync, renameSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -1125,6 +1125,25 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
     await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
     const saved = JSON.parse(readFileSync(scenePath, 'utf8'));
     assert(saved.features.length === 1 && saved.layers[0].image === 'checker.png', `the restored work went back to its file: ${JSON.stringify(saved).slice(0, 120)}`);
+    // Its picture moved away, the file does not open; work kept from it is still its own
+    // (it was offered as another scene's, and then saved only by download, for good).
+    await p.keyboard.press('p');
+    await click(p, [60, 60]);
+    await idle(p);
+    await p.evaluate(() => window.inkwarp.autosave.flush());
+    const picture = join(dirname(scenePath), 'checker.png');
+    renameSync(picture, `${picture}.moved`);
+    await p.reload();
+    await p.waitForSelector('#restore', { timeout: 10000 });
+    const again = await p.textContent('#restore span');
+    assert(/^Restore the scene you were editing at \d\d:\d\d\?$/.test(again), `offered as the file's own: ${again}`);
+    await p.click('#restore-yes');
+    await p.waitForFunction(() => window.inkwarp.store.doc.features.length === 2, null, { timeout: 10000 });
+    assert((await p.evaluate(() => window.inkwarp.store.origin.saveUrl)) !== null, 'it saves to its file');
+    renameSync(`${picture}.moved`, picture);
+    await p.keyboard.press('Control+s');
+    await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
+    assert(JSON.parse(readFileSync(scenePath, 'utf8')).features.length === 2, 'the work went back to its file');
     assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
   } finally {
     await context.close();

@@ -227,11 +227,13 @@ export function clockTime(ms: number): string {
 
 /**
  * The question the page asks on load when an unsaved snapshot is waiting; `instead`: the
- * name of another scene the page opened, which the restored one would replace.
+ * path of another scene file the page opened, which the restored one would replace (the
+ * kept one is named by its own file's path where it had one: two files called scene.json
+ * are told apart).
  */
 export function restoreQuestion(s: Snapshot, now = Date.now(), instead?: string): string {
   const day = new Date(s.savedAt).toDateString() === new Date(now).toDateString() ? '' : ` on ${new Date(s.savedAt).toDateString()}`;
-  const other = instead ? ` (${s.fileName}) instead of ${instead}` : '';
+  const other = instead ? ` (${s.source ?? s.fileName}) instead of ${instead}` : '';
   return `Restore the scene you were editing at ${clockTime(s.savedAt)}${day}${other}?`;
 }
 

@@ -47,20 +47,25 @@ async function start(): Promise<void> {
   Object.assign(window, { inkwarp: { app, ui, store, engine, scene, state, images, examples } });
   // A scene that fails to open is named by its file, and the built-in example shown instead.
   let opened = false;
+  // The file `inkwarp edit` serves, even where it could not be opened (a picture missing):
+  // work kept from it is still its own, and saves back to it.
+  let served: Served | null = null;
   if (sceneUrl) {
     let named = sceneUrl;
     try {
       const resp = await fetch(sceneUrl);
       const text = await resp.text();
+      // Percent-encoded by the server: a header carries no other characters.
+      const header = (name: string) => { const v = resp.headers.get(name); return v === null ? null : decodeURIComponent(v); };
+      const path = header('X-Inkwarp-Path');
+      if (path) served = { path, saveUrl: params.get('save') !== 'download' ? sceneUrl : null };
       if (!resp.ok) {
         ui.message(text, 'error'); // the server's message names the file
       } else {
-        // Percent-encoded by the server: a header carries no other characters.
-        const header = (name: string) => { const v = resp.headers.get(name); return v === null ? null : decodeURIComponent(v); };
-        named = header('X-Inkwarp-Path') ?? sceneUrl;
+        named = path ?? sceneUrl;
         await ui.openSceneText(text, header('X-Inkwarp-Name') ?? 'scene.json');
         // The file it came from (its path on the machine `inkwarp edit` serves it from).
-        Object.assign(store.origin, { path: named, version: resp.headers.get('ETag'), saveUrl: params.get('save') !== 'download' ? sceneUrl : null });
+        Object.assign(store.origin, { path: named, version: resp.headers.get('ETag'), saveUrl: served?.saveUrl ?? null });
         opened = true;
       }
     } catch (err) {
@@ -73,7 +78,7 @@ async function start(): Promise<void> {
   }
   document.body.dataset.ready = 'true';
   // After "ready": the restore offer waits for the user, the editor works meanwhile.
-  await keepWork(store, ui);
+  await keepWork(store, ui, served);
 }
 
 /** The page's title: the scene's name, marked while it holds changes not saved to a file. */
@@ -87,8 +92,14 @@ function showTitle(store: Store): void {
  * inlined), offered back on the next load when it held unsaved changes, and leaving the
  * page with unsaved changes asks first.
  */
-async function keepWork(store: Store, ui: Ui): Promise<void> {
-  const source = store.origin.path; // the served file the page opened, if any
+/** The scene file `inkwarp edit` serves: its path, and the URL a save goes to (none where saves download). */
+interface Served {
+  path: string;
+  saveUrl: string | null;
+}
+
+async function keepWork(store: Store, ui: Ui, served: Served | null): Promise<void> {
+  const source = served?.path ?? null; // the served file, opened or not
   // Leaving with unsaved changes asks from the start, while the restore offer waits for its
   // answer too (edits made meanwhile were lost without a word). The kept copy is written
   // once the offer is answered: before, it would write over the work the offer holds.
@@ -151,16 +162,15 @@ async function keepWork(store: Store, ui: Ui): Promise<void> {
     }
     aside.saver.changed();
   });
-  const restore = previous?.unsaved && (await ui.offerRestore(restoreQuestion(previous, Date.now(), own || !source ? undefined : ui.fileName) + more));
+  const restore = previous?.unsaved && (await ui.offerRestore(restoreQuestion(previous, Date.now(), own || !source ? undefined : source) + more));
   watch();
   // Another tab's work, once restored here or declined, is not offered again.
   let settled = !restore;
   if (previous?.unsaved && restore) {
     try {
-      const opened = store.origin;
       await ui.openScene(previous.doc, previous.fileName);
       // Back to its own file, which a save checks is still as the kept work found it.
-      if (own && opened.saveUrl) Object.assign(store.origin, { saveUrl: opened.saveUrl, path: opened.path, version: previous.version ?? null });
+      if (own && served?.saveUrl) Object.assign(store.origin, { saveUrl: served.saveUrl, path: served.path, version: previous.version ?? null });
       // Back where the editor was: pose mode stays pose mode, at the same time.
       if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
       store.markUnsaved();

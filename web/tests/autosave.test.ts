@@ -90,6 +90,9 @@ describe('autosave', () => {
     expect(restoreQuestion(snap, at + 3 * 86_400_000)).toMatch(/^Restore the scene you were editing at 14:32 on .+\?$/);
     // Work of another scene than the one the page opened names both.
     expect(restoreQuestion(snap, at + 60_000, 'scene.json')).toBe(`Restore the scene you were editing at 14:32 (${snap.fileName}) instead of scene.json?`);
+    // Two files of one name are told apart by their paths.
+    expect(restoreQuestion({ ...snap, source: '/shots/cat/scene.json' }, at + 60_000, '/shots/dog/scene.json'))
+      .toBe('Restore the scene you were editing at 14:32 (/shots/cat/scene.json) instead of /shots/dog/scene.json?');
   });
 });
 

@@ -419,7 +419,9 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                 try:
                     body, version = scene_file.read()
                 except (OSError, ValueError) as err:
-                    return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode())
+                    # Named even so: work the browser kept from this file saves back to it.
+                    return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode(),
+                                       headers={"X-Inkwarp-Path": quote(str(scene_file.path))})
                 return self._reply(HTTPStatus.OK, body, "application/json",
                                    {"X-Inkwarp-Name": quote(scene_file.path.name),
                                     "X-Inkwarp-Path": quote(str(scene_file.path)), "ETag": version})
