@@ -513,7 +513,8 @@ def test_a_weakly_held_piece_with_a_hidden_mode_is_not_claimed_early(seed, integ
 
 @pytest.mark.xfail(strict=True, raises=AssertionError,
                    reason="open: the stopping rule is not a bound (docs/dev/solver-correctness.md)")
-def test_a_flap_joined_through_a_border_strip_is_not_claimed_early():
+@pytest.mark.parametrize("case", ["flap_on_a_border_strip", "many_cuts_256_seed61", "many_cuts_256_seed62"])
+def test_weakly_attached_parts_among_many_cuts_are_not_claimed_early(case):
     # Found by a user's sweep: 50 random cuts on 256², six points on the right and below;
     # the upper left is a flap joined to the rest through a strip along the left border,
     # nearly free to turn. With displacements of a few hundredths of a pixel (an answer of
@@ -521,11 +522,14 @@ def test_a_flap_joined_through_a_border_strip_is_not_claimed_early():
     # the default solve stopped at cycle 41, changes 0.001 px, the flap 0.64 px off,
     # converged=True (its scaled residual 7e-7: the mode's residual is too small to show).
     # The same cuts with 5 or 50 times the displacements run 73 to 81 cycles and hold.
-    case = np.load(DATA / "flap_on_a_border_strip.npz")
+    # The same sweep's seeds 61 and 62 (46 and 50 cuts, answers up to 273 and 84 px) stopped
+    # at cycles 79 and 53, 0.16 and 0.074 px off.
+    case = np.load(DATA / f"{case}.npz")
     cuts = np.split(case["cut_points"], np.cumsum(case["cut_lengths"])[:-1])
     pts, disp = case["points"], case["displacements"]
     field, report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts)
-    tight, tight_report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, tolerance=1e-6, max_cycles=3000)
+    # (A hundredth of the default tolerance: seed 61's answer of 273 px holds no finer.)
+    tight, tight_report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, tolerance=1e-4, max_cycles=3000)
     if not tight_report.converged:
         pytest.fail(f"the reference did not converge: {tight_report}")  # not the expected failure
     assert not report.converged or float(np.abs(field - tight).max()) < TOLERANCE_PX, report
