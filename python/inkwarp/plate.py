@@ -39,8 +39,10 @@ linear in the displacements, so each solve starts from the combination of the la
 frames' fields that best matches the new displacements (least squares); along a smooth
 motion that is an extrapolation, far closer than the previous field alone. Frames with
 other points or another grid (another size, mask or cuts) start the series over; their
-first frame still starts from the previous field where that is closer than none.
-``clear()`` starts over by hand.
+first frame still starts from the previous field where that is closer than none. A frame
+that did not converge is no start: the next one starts cold (from its error the stopping
+rule could claim convergence it had not reached); a ``southwell`` frame, unconverged by
+design, stays a start. ``clear()`` starts over by hand.
 
 Examples
 --------
@@ -68,7 +70,8 @@ kept whatever the grid's size, about 150 bytes a node of the grid it solves on, 
 ``Solver`` is dropped. A solve that looked for slow modes (past about a dozen cycles: hair,
 combs, many cuts; or a warm start on a torn grid's new levels) also leaves the modes it
 found (parts turning on thin necks; up to 64 bytes a node more), and the next call with
-that grid, points and tension starts corrected on them: it takes fewer cycles. So answers
+that grid, points and tension starts corrected on them: it takes fewer cycles (a call
+that did not converge leaves none). So answers
 through a ``Solver`` agree with calls without it within the tolerance, and bit for bit
 where no earlier call left such modes; nothing else carries over (a call starts from
 ``initial`` or from scratch). Without a ``Solver`` every call builds its levels afresh

@@ -193,7 +193,7 @@ fn thin_plate_solve<'py>(
             // Read in place by the solve (no planar copy first).
             let initial = initial.map(|data| FieldView::Interleaved { width, height, data });
             let result = match (history.as_mut(), kept.as_mut()) {
-                (Some(s), _) => s.solve_warm(&grid, &samples, &options, None),
+                (Some(s), _) => s.solve_frame(&grid, &samples, &options),
                 (None, Some(s)) => s.solve(&grid, &samples, &options, initial),
                 (None, None) => Solver::new().solve(&grid, &samples, &options, initial),
             };

@@ -54,7 +54,7 @@ pub(super) fn compute_field(
                 samples.extend(crate::geometry::border_samples(grid.width, grid.height, spacing_px));
             }
             match start {
-                Start::History(s) => s.solve_warm(grid, &samples, &solve_options(solver), None),
+                Start::History(s) => s.solve_frame(grid, &samples, &solve_options(solver)),
                 Start::Field(initial) => Solver::new().solve(grid, &samples, &solve_options(solver), initial.map(Into::into)),
             }
             .map(|(field, report)| LayerSolve { field, report: Some(report), method_report: None })

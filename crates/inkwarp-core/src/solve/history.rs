@@ -71,9 +71,7 @@ impl WarmHistory {
     /// `None` when empty or kept for another grid size.
     pub fn predict(&self, grid: &Grid, c: &Constraints) -> Option<Field> {
         let last = self.last().filter(|f| (f.width, f.height) == (grid.width, grid.height))?;
-        if self.entries.len() < 2 || *grid != self.grid || c.nodes != self.nodes {
-            return Some(last.clone());
-        }
+        if self.entries.len() < 2 || *grid != self.grid || c.nodes != self.nodes { return Some(last.clone()) }
         let alpha = [self.fit(&c.values, 0), self.fit(&c.values, 1)];
         let mut out = Field::zeros(grid.width, grid.height);
         for (i, (_, f)) in self.entries.iter().enumerate() {

@@ -671,7 +671,7 @@ fn solve_piece(
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
     // concept doc's Precision).
     let (mut q, mut p) = (cycle::zeros_in(hier.spare.pop(), len), cycle::zeros_in(Some(std::mem::take(&mut hier.direction)), len));
-    let mut southwell_spent = false;
+    let (mut southwell_spent, mut kept) = (false, None);
     match options.method {
         SolveMethod::Multigrid => {
             // Where every free function can be settled, the iteration runs on the settled
@@ -739,7 +739,7 @@ fn solve_piece(
                 slow.beta(Some(beta));
                 rz = rz_new;
             }
-            hier.modes = slow.modes().or(hier.modes.take());
+            kept = Some((slow.restarts > 0, slow.modes()));
         }
         SolveMethod::Southwell => {
             // Rounds of one coarse correction and one sweep's worth of Southwell relaxations
@@ -789,6 +789,9 @@ fn solve_piece(
     } else if residual > 4.0 * options.tolerance_px {
         report.fail(Stop::Residual);
     }
+    // Slow modes found by a solve that did not converge are not kept: adopted, they quieted the
+    // next solve's changes before the mode that stopped this one showed (a false claim).
+    if let Some((found, modes)) = kept { hier.modes = if found && !report.converged { None } else { modes.or(hier.modes.take()) } }
     hier.spare.extend([r, q]);
     hier.direction = p;
     let fine = &hier.levels[0];
@@ -889,6 +892,15 @@ impl Solver {
         solve_with(grid, samples, options, initial.as_ref().map(FieldView::from), self, true)
     }
 
+    /// [`Solver::solve_warm`] for an animation's frame: after a multigrid frame that did not
+    /// converge the next starts afresh (from its answer, whose error the stopping rule does not
+    /// see, it claimed convergence 0.7 px off); Southwell's (a fixed budget) stay starts.
+    pub fn solve_frame(&mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions) -> Result<(Field, SolveReport), SolveError> {
+        let solved = self.solve_warm(grid, samples, options, None);
+        if matches!(&solved, Ok((_, r)) if !r.converged && options.method == SolveMethod::Multigrid) { self.history.clear() }
+        solved
+    }
+
     /// [`Solver::solve_warm`] at `grid_step` > 1 evaluated at `pixels` only (row-major
     /// indices into `grid`): the coarse solve, from and into the history, then the upsampled
     /// field at those pixels, written to `out` as (Δx, Δy) pairs (`2 · pixels.len()`
@@ -958,9 +970,8 @@ impl<T> Kept<T> {
     /// oldest that neither this solve nor the latest before it used (it may yet reach those).
     fn room(&mut self, solve: u64, key: &CacheKey) {
         let before = self.0.iter().map(|e| e.2).filter(|&s| s < solve).max().unwrap_or(0);
-        while self.nodes() + key.w * key.h > self.1 {
-            let pos = self.0.iter().position(|e| e.2 != solve && e.0.at == key.at).or_else(|| self.0.iter().position(|e| e.2 < before));
-            let Some(pos) = pos else { return };
+        let over = |k: &Self| k.nodes() + key.w * key.h > k.1;
+        while let Some(pos) = over(self).then(|| self.0.iter().position(|e| e.2 != solve && e.0.at == key.at).or_else(|| self.0.iter().position(|e| e.2 < before))).flatten() {
             self.0.remove(pos);
         }
     }
@@ -970,8 +981,7 @@ impl<T> Kept<T> {
         let used = self.0.iter().filter(|e| e.2 == latest).count();
         if used > 0 {
             self.0.drain(..self.0.len().saturating_sub(2 * used.max(pieces)));
-            while self.nodes() > self.1 {
-                let Some(pos) = self.0.iter().position(|e| e.2 != latest) else { return };
+            while let Some(pos) = (self.nodes() > self.1).then(|| self.0.iter().position(|e| e.2 != latest)).flatten() {
                 self.0.remove(pos);
             }
         }

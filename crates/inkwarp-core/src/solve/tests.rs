@@ -658,6 +658,40 @@ fn starts_from_earlier_frames_keep_the_accuracy_and_save_cycles() {
 }
 
 #[test]
+fn a_frame_that_did_not_converge_is_no_start_for_the_next() {
+    // `solve_frame` keeps a converged frame as the next one's start and forgets the history
+    // after one that stopped unconverged (here at a cap of one cycle), so the next frame
+    // starts cold; Southwell's frames (a fixed budget) stay starts either way.
+    let mut grid = Grid::new(48, 40);
+    grid.add_cut(&[[20.5, -1.0], [20.5, 30.0]]);
+    let samples = |s: f64| -> Vec<Sample> {
+        [([5.0, 5.0], [1.0, 2.0]), ([40.0, 6.0], [-2.0, 1.0]), ([10.0, 35.0], [0.5, -1.0]), ([42.0, 33.0], [3.0, 0.0])]
+            .into_iter()
+            .map(|(rest, d)| Sample { rest, displacement: [s * d[0], s * d[1]] })
+            .collect()
+    };
+    let whole = Ablation::parse("whole").unwrap();
+    let full = SolveOptions { off: whole, ..Default::default() };
+    let capped = SolveOptions { max_cycles: Some(1), ..full.clone() };
+    let mut solver = Solver::new();
+    assert!(solver.solve_frame(&grid, &samples(1.0), &full).unwrap().1.converged);
+    assert_eq!(solver.history().len(), 1);
+    assert!(!solver.solve_frame(&grid, &samples(1.1), &capped).unwrap().1.converged);
+    assert!(solver.history().is_empty());
+    // Cold again: the same first cycle as a fresh solver's.
+    let (again, report) = solver.solve_frame(&grid, &samples(1.2), &capped).unwrap();
+    let (fresh, _) = Solver::new().solve(&grid, &samples(1.2), &capped, None).unwrap();
+    assert_eq!(report.cycles, 1);
+    assert_eq!((again.dx, again.dy), (fresh.dx, fresh.dy));
+    let southwell = SolveOptions { method: SolveMethod::Southwell, southwell_sweeps: 1.0, ..full };
+    let mut solver = Solver::new();
+    for k in 0..2 {
+        assert!(!solver.solve_frame(&grid, &samples(1.0 + 0.1 * k as f64), &southwell).unwrap().1.converged);
+    }
+    assert_eq!(solver.history().len(), 2);
+}
+
+#[test]
 fn a_history_of_nearly_parallel_frames_still_starts_close() {
     // The editor's probe of a spline point (moved by (12, 12)), then the drag's first short
     // step (1, -0.25): for a pose further along the drag the fit through all three frames

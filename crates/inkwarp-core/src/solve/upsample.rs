@@ -135,12 +135,8 @@ pub(crate) fn solve_at(
     grid: &Grid, samples: &[Sample], options: &SolveOptions, solver: &mut Solver, plan: &Upsampling, pixels: &[u32], out: &mut [f32],
 ) -> Result<SolveReport, SolveError> {
     let start = Instant::now();
-    if options.grid_step != plan.layout.s || plan.layout.w != grid.width || plan.layout.h != grid.height {
-        return Err(SolveError::PlanMismatch);
-    }
-    if out.len() != 2 * pixels.len() || pixels.iter().any(|&p| p as usize >= grid.len()) {
-        return Err(SolveError::BadPixels);
-    }
+    if options.grid_step != plan.layout.s || plan.layout.w != grid.width || plan.layout.h != grid.height { return Err(SolveError::PlanMismatch) }
+    if out.len() != 2 * pixels.len() || pixels.iter().any(|&p| p as usize >= grid.len()) { return Err(SolveError::BadPixels) }
     validate(grid, samples, options, None)?;
     let (fc, mut report) = in_pool(|| solve_on_coarse_grid(grid, samples, options, None, solver, true, false));
     if let Some(values) = pixels.iter().map(|&p| plan.at(grid, &fc, p as usize)).collect::<Option<Vec<_>>>() {
