@@ -59,7 +59,7 @@ pub(super) struct Deflation {
     /// `Bᵀ A B` and `Bᵀ B` over the basis `B = [W, V]`.
     g: Vec<Vec<f64>>,
     m: Vec<Vec<f64>>,
-    pub restarts: usize,
+    pub(super) restarts: usize,
     /// The conjugate gradient's step lengths and β per component since its directions last
     /// restarted: the Lanczos matrix of the preconditioned operator.
     steps: [Vec<(f64, f64)>; 2],

@@ -671,7 +671,7 @@ fn solve_piece(
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
     // concept doc's Precision).
     let (mut q, mut p) = (cycle::zeros_in(hier.spare.pop(), len), cycle::zeros_in(Some(std::mem::take(&mut hier.direction)), len));
-    let (mut southwell_spent, mut kept) = (false, None);
+    let (mut southwell_spent, mut found) = (false, false);
     match options.method {
         SolveMethod::Multigrid => {
             // Where every free function can be settled, the iteration runs on the settled
@@ -739,7 +739,8 @@ fn solve_piece(
                 slow.beta(Some(beta));
                 rz = rz_new;
             }
-            kept = Some((slow.restarts > 0, slow.modes()));
+            found = slow.restarts > 0;
+            hier.modes = slow.modes().or(hier.modes.take());
         }
         SolveMethod::Southwell => {
             // Rounds of one coarse correction and one sweep's worth of Southwell relaxations
@@ -791,7 +792,7 @@ fn solve_piece(
     }
     // Slow modes found by a solve that did not converge are not kept: adopted, they quieted the
     // next solve's changes before the mode that stopped this one showed (a false claim).
-    if let Some((found, modes)) = kept { hier.modes = if found && !report.converged { None } else { modes.or(hier.modes.take()) } }
+    if found && !report.converged { hier.modes = None }
     hier.spare.extend([r, q]);
     hier.direction = p;
     let fine = &hier.levels[0];
@@ -970,8 +971,8 @@ impl<T> Kept<T> {
     /// oldest that neither this solve nor the latest before it used (it may yet reach those).
     fn room(&mut self, solve: u64, key: &CacheKey) {
         let before = self.0.iter().map(|e| e.2).filter(|&s| s < solve).max().unwrap_or(0);
-        let over = |k: &Self| k.nodes() + key.w * key.h > k.1;
-        while let Some(pos) = over(self).then(|| self.0.iter().position(|e| e.2 != solve && e.0.at == key.at).or_else(|| self.0.iter().position(|e| e.2 < before))).flatten() {
+        while self.nodes() + key.w * key.h > self.1 {
+            let Some(pos) = self.0.iter().position(|e| e.2 != solve && e.0.at == key.at).or_else(|| self.0.iter().position(|e| e.2 < before)) else { return };
             self.0.remove(pos);
         }
     }
@@ -981,7 +982,8 @@ impl<T> Kept<T> {
         let used = self.0.iter().filter(|e| e.2 == latest).count();
         if used > 0 {
             self.0.drain(..self.0.len().saturating_sub(2 * used.max(pieces)));
-            while let Some(pos) = (self.nodes() > self.1).then(|| self.0.iter().position(|e| e.2 != latest)).flatten() {
+            while self.nodes() > self.1 {
+                let Some(pos) = self.0.iter().position(|e| e.2 != latest) else { return };
                 self.0.remove(pos);
             }
         }
