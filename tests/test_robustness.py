@@ -218,7 +218,12 @@ def seconds_to_stop_after_ctrl_c(script: str, running_s: float, timeout_s: float
     time.sleep(running_s)
     sent = time.monotonic()
     proc.send_signal(signal.SIGINT)
-    out, _ = proc.communicate(timeout=timeout_s)
+    try:
+        out, _ = proc.communicate(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()  # not left running past a failed test
+        proc.communicate()
+        raise
     stopped_s = time.monotonic() - sent
     assert out.strip() == "interrupted" and proc.returncode == 130
     return stopped_s
@@ -255,6 +260,28 @@ print("finished", flush=True)
 def test_ctrl_c_stops_a_long_grid_solve_within_a_second() -> None:
     stopped_s = seconds_to_stop_after_ctrl_c(GRID_INTERRUPT, running_s=2, timeout_s=60)  # cycles running
     assert stopped_s < 5  # generous for a loaded machine; the solver checks between cycles
+
+
+WARP_INTERRUPT = """
+import sys, numpy as np, inkwarp
+rng = np.random.default_rng(3)
+image = rng.integers(0, 256, (800, 800, 4), np.uint8)
+# A field of noise hundreds of pixels wide (a user's mistake): every quad spans much of the
+# canvas, so the draw takes hours.
+field = rng.normal(0, 300, (800, 800, 2)).astype(np.float32)
+print("ready", flush=True)
+try:
+    inkwarp.warp_image(image, field)
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+    sys.exit(130)
+print("finished", flush=True)
+"""
+
+
+def test_ctrl_c_stops_a_long_warp_within_a_second() -> None:
+    stopped_s = seconds_to_stop_after_ctrl_c(WARP_INTERRUPT, running_s=2, timeout_s=60)
+    assert stopped_s < 5  # generous for a loaded machine; the draw checks every mesh row
 
 
 def test_compare_refuses_an_absurd_dpi(capsys) -> None:

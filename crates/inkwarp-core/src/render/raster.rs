@@ -362,8 +362,8 @@ impl Band {
         self.forget_rows(layer);
         let misses = |[ymin, ymax]: [f32; 2]| ymax < lo || ymin > hi;
         for br in 0..=layer.h {
-            if misses(plan.row_ranges[br]) {
-                continue;
+            if misses(plan.row_ranges[br]) || crate::interrupt::requested() {
+                continue; // A stop requested mid-draw (Ctrl-C) skips the rest: the caller drops the image.
             }
             for ch in 0..plan.nchunks {
                 if misses(plan.ranges[br * plan.nchunks + ch]) {
