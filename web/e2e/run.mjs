@@ -1151,6 +1151,53 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
   }
 });
 
+test('work kept over a server restart takes the picture retouched on disk since, and saves it by its path', async () => {
+  const scenePath = checkerScene('retouched.json');
+  const picture = join(dirname(scenePath), 'checker.png');
+  let own = await startServer([scenePath]);
+  const port = new URL(own.url).port;
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  // A point drawn and kept, `retouch` done to the picture in another program, the editor's
+  // server started again (same port: the same browser storage), the kept work restored.
+  const restoreAfter = async (at, retouch, features) => {
+    await p.keyboard.press('p');
+    await click(p, at);
+    await idle(p);
+    await p.evaluate(() => window.inkwarp.autosave.flush());
+    retouch();
+    own.proc.kill();
+    await new Promise((r) => own.proc.on('exit', r));
+    own = await startServer([scenePath, '--port', port]);
+    await p.goto(own.url);
+    await p.waitForSelector('#restore', { timeout: 20000 });
+    await p.click('#restore-yes');
+    await p.waitForFunction((n) => window.inkwarp.store.doc.features.length === n, features, { timeout: 10000 });
+    return p.evaluate(() => document.querySelector('#message')?.textContent ?? '');
+  };
+  try {
+    const python = join(repo, '.venv/bin/python');
+    // Retouched in place: a green patch painted over the picture, the same size.
+    const paint = () => spawnSync(python, ['-c', 'import sys; from PIL import Image; im = Image.open(sys.argv[1]); im.paste((0, 200, 0, 255), (100, 100, 160, 140)); im.save(sys.argv[1])', picture]);
+    const said = await restoreAfter([40, 40], paint, 1);
+    const shown = await p.evaluate(() => window.inkwarp.store.doc.layers[0].image);
+    assert(shown === `data:image/png;base64,${readFileSync(picture).toString('base64')}`, 'the restored scene shows the picture as the file has it now');
+    assert(/layer 'checker' changed on disk since, and is shown as the file has it now/.test(said), `the restore says so: ${said}`);
+    await p.keyboard.press('Control+s');
+    await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
+    const saved = JSON.parse(readFileSync(scenePath, 'utf8'));
+    assert(saved.features.length === 1 && saved.layers[0].image === 'checker.png', `the picture is saved by its path: ${JSON.stringify(saved).slice(0, 120)}`);
+    // Retouched to another size, the file does not open (its picture no longer fits): the
+    // work is restored with the kept copy of the picture.
+    const kept = readFileSync(picture).toString('base64');
+    await restoreAfter([60, 60], () => copyFileSync(join(repo, 'examples/checkerboard-hole/checkerboard-plates.png'), picture), 2);
+    assert((await p.evaluate(() => window.inkwarp.store.doc.layers[0].image)) === `data:image/png;base64,${kept}`, 'the kept copy of the picture');
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
 test('Save writes each scene to its own file: undo past opening, two tabs, a file changed on disk, a server gone', async () => {
   const scenePath = checkerScene('mine.json');
   const own = await startServer([scenePath]);

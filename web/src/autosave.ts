@@ -24,6 +24,11 @@ export interface Snapshot {
   source?: string | null;
   /** The version of that file the work was read from or last saved as (see `Origin`). */
   version?: string | null;
+  /**
+   * The pictures of that file as the page that made the snapshot opened it ([`pictureMarks`]):
+   * a restore takes a picture changed on disk since from the file (see `restorePictures`).
+   */
+  pictures?: Record<string, string>;
 }
 
 /** The part of the editor's view a snapshot keeps. */
@@ -204,6 +209,49 @@ export async function inlineImages(doc: SceneDoc, inline: Inliner): Promise<Scen
     }),
   );
   return { ...doc, layers };
+}
+
+/** A short mark of each layer's pictures (by layer name and key), to tell one changed. */
+export function pictureMarks(doc: SceneDoc): Record<string, string> {
+  const marks: Record<string, string> = {};
+  for (const l of doc.layers) {
+    for (const k of ['image', 'alpha', 'continuity'] as const) {
+      const ref = l[k];
+      if (typeof ref !== 'string') continue;
+      let h = 0x811c9dc5; // FNV-1a over the reference (a data: URI holds the picture's bytes)
+      for (let i = 0; i < ref.length; i++) h = Math.imul(h ^ ref.charCodeAt(i), 0x01000193);
+      marks[`${l.name}\u0000${k}`] = `${ref.length}:${(h >>> 0).toString(36)}`;
+    }
+  }
+  return marks;
+}
+
+/**
+ * Kept work, restored into the page that opened its file: every picture the work did not
+ * change but the file did (retouched on disk since) is taken from the file as it is now
+ * (`now`, the scene as this page opened it), so a save keeps naming the file's picture
+ * rather than writing the kept, older copy into the scene. Returns the scene and the
+ * names of the layers whose pictures were taken.
+ */
+export function restorePictures(kept: SceneDoc, opened: Record<string, string> | undefined, now: SceneDoc): { doc: SceneDoc; taken: string[] } {
+  if (!opened) return { doc: kept, taken: [] };
+  const [keptMarks, nowMarks] = [pictureMarks(kept), pictureMarks(now)];
+  const taken = new Set<string>();
+  const layers = kept.layers.map((l) => {
+    const fresh = now.layers.find((n) => n.name === l.name);
+    const out = { ...l };
+    for (const k of ['image', 'alpha', 'continuity'] as const) {
+      const key = `${l.name}\u0000${k}`;
+      const unchangedHere = keptMarks[key] !== undefined && keptMarks[key] === opened[key];
+      const changedThere = nowMarks[key] !== undefined && nowMarks[key] !== opened[key];
+      if (fresh && unchangedHere && changedThere) {
+        out[k] = fresh[k];
+        taken.add(l.name);
+      }
+    }
+    return out;
+  });
+  return taken.size ? { doc: { ...kept, layers }, taken: [...taken] } : { doc: kept, taken: [] };
 }
 
 /** Fetches a URL into a data: URI. */

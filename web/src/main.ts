@@ -2,7 +2,7 @@
 // solving), builds the page, and opens the scene named in the URL or the built-in example.
 
 import { App } from './app';
-import { Autosaver, IndexedDbStore, MemoryStore, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, restoreQuestion } from './autosave';
+import { Autosaver, IndexedDbStore, MemoryStore, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureMarks, restorePictures, restoreQuestion } from './autosave';
 import { Engine } from './engine';
 import { builtinScene } from './examples';
 import * as examples from './examples';
@@ -11,6 +11,7 @@ import * as scene from './scene';
 import { FullClient, SolverClient } from './solver';
 import * as state from './state';
 import { Store } from './state';
+import type { SceneDoc } from './scene';
 import { Ui } from './ui';
 import wasmUrl from './generated/inkwarp.wasm?url';
 import './style.css';
@@ -78,7 +79,7 @@ async function start(): Promise<void> {
   }
   document.body.dataset.ready = 'true';
   // After "ready": the restore offer waits for the user, the editor works meanwhile.
-  await keepWork(store, ui, served);
+  await keepWork(store, ui, served, opened ? store.doc : null);
 }
 
 /** The page's title: the scene's name, marked while it holds changes not saved to a file. */
@@ -98,7 +99,7 @@ interface Served {
   saveUrl: string | null;
 }
 
-async function keepWork(store: Store, ui: Ui, served: Served | null): Promise<void> {
+async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: SceneDoc | null): Promise<void> {
   const source = served?.path ?? null; // the served file, opened or not
   // Leaving with unsaved changes asks from the start, while the restore offer waits for its
   // answer too (edits made meanwhile were lost without a word). The kept copy is written
@@ -119,7 +120,10 @@ async function keepWork(store: Store, ui: Ui, served: Served | null): Promise<vo
     kept = new MemoryStore();
     ui.message('This browser keeps no copy of your work (IndexedDB is off): save often.', 'error');
   }
-  const snapshot = () => ({ doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: store.origin.saveUrl ? store.origin.path : null, version: store.origin.saveUrl ? store.origin.version : null });
+  // The served file's pictures as this page opened them: a later restore of this work can
+  // tell a picture retouched on disk from one the work changed.
+  const pictures = openedDoc ? pictureMarks(openedDoc) : undefined;
+  const snapshot = () => ({ doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: store.origin.saveUrl ? store.origin.path : null, version: store.origin.saveUrl ? store.origin.version : null, pictures: store.origin.saveUrl ? pictures : undefined });
   const failed = (err: Error) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error');
   const saver = new Autosaver(kept, snapshot, fetchDataUri, 800, failed);
   // Unsaved work is offered back whatever the page opened: it is the file's own (the same
@@ -168,14 +172,26 @@ async function keepWork(store: Store, ui: Ui, served: Served | null): Promise<vo
   let settled = !restore;
   if (previous?.unsaved && restore) {
     try {
-      await ui.openScene(previous.doc, previous.fileName);
+      // Into its own file's page: pictures retouched on disk since come from the file.
+      let { doc, taken } = own && openedDoc ? restorePictures(previous.doc, previous.pictures, openedDoc) : { doc: previous.doc, taken: [] };
+      let misfit = '';
+      try {
+        await ui.openScene(doc, previous.fileName);
+      } catch (err) {
+        // A picture retouched to another size no longer fits the kept scene: the kept copy.
+        if (!taken.length) throw err;
+        misfit = `; the picture of ${taken.map((n) => `layer '${n}'`).join(', ')} changed on disk since but no longer fits the scene (${(err as Error).message}), so the kept copy is shown, and a save writes it into the scene`;
+        [doc, taken] = [previous.doc, []];
+        await ui.openScene(doc, previous.fileName);
+      }
       // Back to its own file, which a save checks is still as the kept work found it.
       if (own && served?.saveUrl) Object.assign(store.origin, { saveUrl: served.saveUrl, path: served.path, version: previous.version ?? null });
       // Back where the editor was: pose mode stays pose mode, at the same time.
       if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
       store.markUnsaved();
       const meanwhile = aside ? '; Ctrl+Z brings back what you drew while the question waited' : '';
-      ui.message(`Restored the scene from ${clockTime(previous.savedAt)}${meanwhile}.`, 'info');
+      const retouched = taken.length ? `; the picture of ${taken.map((n) => `layer '${n}'`).join(', ')} changed on disk since, and is shown as the file has it now` : '';
+      ui.message(`Restored the scene from ${clockTime(previous.savedAt)}${retouched}${misfit}${meanwhile}.`, misfit ? 'error' : 'info');
       await saver.flush(); // now this tab's, before the other tab's copy goes
       settled = true;
     } catch (err) {

@@ -468,6 +468,8 @@ export function downloadOrigin(fileName = 'scene.json'): Origin {
 interface Step {
   doc: SceneDoc;
   origin: Origin;
+  /** The document's revision, which Undo and Redo bring back with it. */
+  revision: number;
 }
 
 export class Store {
@@ -477,9 +479,16 @@ export class Store {
   private undoStack: Step[] = [];
   private redoStack: Step[] = [];
   private txBase: SceneDoc | null = null;
+  private txRevision = 0;
   private listeners: Listener[] = [];
-  /** Bumps on every document change (views compare it to know what to redo). */
+  /**
+   * Names the document: a new one on every change (views compare it to know what to redo);
+   * Undo and Redo bring back the revision of the document they restore, so a document
+   * undone back to its saved state counts as saved again.
+   */
   revision = 0;
+  /** The last revision handed out: a changed document never takes an earlier one's. */
+  private lastRevision = 0;
   /** The revision last saved to a file (or opened from one). */
   private savedRevision = 0;
 
@@ -504,7 +513,7 @@ export class Store {
     if (next === this.doc) return;
     if (this.txBase === null) this.pushUndo(this.doc);
     this.doc = next;
-    this.revision++;
+    this.revision = ++this.lastRevision;
     this.emit(true);
   }
 
@@ -515,7 +524,7 @@ export class Store {
 
   /** Starts a gesture (a drag): its many changes undo as one step. */
   begin(): void {
-    if (this.txBase === null) this.txBase = this.doc;
+    if (this.txBase === null) [this.txBase, this.txRevision] = [this.doc, this.revision];
   }
 
   /** Ends a gesture. */
@@ -523,7 +532,7 @@ export class Store {
     const base = this.txBase;
     this.txBase = null;
     if (base !== null && base !== this.doc) {
-      this.pushUndo(base);
+      this.pushUndo(base, this.txRevision);
       // the gesture is now one undo step: the views show Undo as available
       this.emit(false);
     }
@@ -552,8 +561,8 @@ export class Store {
     if (this.origin === origin) this.markSaved(revision);
   }
 
-  private pushUndo(doc: SceneDoc): void {
-    this.undoStack.push({ doc, origin: this.origin });
+  private pushUndo(doc: SceneDoc, base = this.revision): void {
+    this.undoStack.push({ doc, origin: this.origin, revision: base });
     if (this.undoStack.length > 500) this.undoStack.shift();
     this.redoStack = [];
   }
@@ -569,8 +578,7 @@ export class Store {
     const base = this.txBase;
     this.txBase = null;
     if (base !== null && base !== this.doc) {
-      this.doc = base;
-      this.revision++;
+      [this.doc, this.revision] = [base, this.txRevision];
       this.emit(true);
     }
   }
@@ -591,20 +599,18 @@ export class Store {
     this.commit();
     const prev = this.undoStack.pop();
     if (!prev) return;
-    this.redoStack.push({ doc: this.doc, origin: this.origin });
-    ({ doc: this.doc, origin: this.origin } = prev);
+    this.redoStack.push({ doc: this.doc, origin: this.origin, revision: this.revision });
+    ({ doc: this.doc, origin: this.origin, revision: this.revision } = prev);
     this.fixSelection();
-    this.revision++;
     this.emit(true);
   }
 
   redo(): void {
     const next = this.redoStack.pop();
     if (!next) return;
-    this.undoStack.push({ doc: this.doc, origin: this.origin });
-    ({ doc: this.doc, origin: this.origin } = next);
+    this.undoStack.push({ doc: this.doc, origin: this.origin, revision: this.revision });
+    ({ doc: this.doc, origin: this.origin, revision: this.revision } = next);
     this.fixSelection();
-    this.revision++;
     this.emit(true);
   }
 
@@ -618,7 +624,7 @@ export class Store {
     this.doc = doc;
     this.origin = origin;
     this.view = { ...initialView(), overlays: this.view.overlays };
-    this.revision++;
+    this.revision = ++this.lastRevision;
     this.savedRevision = this.revision;
     this.emit(true);
   }

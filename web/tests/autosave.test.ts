@@ -1,5 +1,5 @@
 import { describe, expect, it, vi } from 'vitest';
-import { Autosaver, MemoryStore, clockTime, inlineImages, restoreQuestion } from '../src/autosave';
+import { Autosaver, MemoryStore, clockTime, inlineImages, pictureMarks, restorePictures, restoreQuestion } from '../src/autosave';
 import { emptyScene, type SceneDoc } from '../src/scene';
 import { Store, copyKeys, moveKey, moveKeys, neighbourKeys, pasteKeys, setKey, toggleKeyRef } from '../src/state';
 
@@ -80,6 +80,23 @@ describe('autosave', () => {
     await fresh.drop('c');
     expect((await fresh.left()).map((l) => l.key)).toEqual(['d', 'a']);
     expect(await c.get()).toBeNull();
+  });
+
+  it('restored work takes the pictures retouched on disk since, and keeps those it changed itself', () => {
+    const picture = (name: string, image: string) => ({ name, image });
+    const opened = { ...emptyScene(20, 10), layers: [picture('face', 'data:image/png;base64,OLD'), picture('eyes', 'data:image/png;base64,E1')] };
+    const marks = pictureMarks(opened);
+    // The work: a point drawn, the eyes' picture replaced in the editor, a layer added.
+    const kept = { ...opened, layers: [opened.layers[0], picture('eyes', 'data:image/png;base64,MINE'), picture('new', 'data:image/png;base64,N')] };
+    // On disk since: both pictures retouched.
+    const now = { ...opened, layers: [picture('face', 'data:image/png;base64,NEW'), picture('eyes', 'data:image/png;base64,E2')] };
+    const { doc, taken } = restorePictures(kept, marks, now);
+    expect(doc.layers.map((l) => l.image)).toEqual(['data:image/png;base64,NEW', 'data:image/png;base64,MINE', 'data:image/png;base64,N']);
+    expect(taken).toEqual(['face']);
+    // Nothing changed on disk, or a snapshot from before pictures were marked: as kept.
+    expect(restorePictures(kept, marks, opened)).toEqual({ doc: kept, taken: [] });
+    expect(restorePictures(kept, undefined, now)).toEqual({ doc: kept, taken: [] });
+    expect(pictureMarks(now)['face\u0000image']).not.toBe(marks['face\u0000image']);
   });
 
   it('asks to restore with the time of day', () => {

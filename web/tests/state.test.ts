@@ -257,6 +257,47 @@ describe('undo', () => {
     expect(s.unsaved).toBe(false);
   });
 
+  it('a document undone or redone back to what was saved counts as saved', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'point' });
+    s.placePoint([1, 1]);
+    s.markSaved();
+    s.placePoint([2, 2]);
+    expect(s.unsaved).toBe(true);
+    s.undo();
+    expect(s.unsaved).toBe(false);
+    s.redo();
+    expect(s.unsaved).toBe(true);
+    s.undo();
+    s.undo();
+    expect(s.unsaved).toBe(true);
+    s.redo();
+    expect(s.unsaved).toBe(false);
+    // A new edit from there is a new document, never mistaken for the one undone away.
+    const seen = new Set([s.revision]);
+    s.undo();
+    seen.add(s.revision);
+    s.placePoint([3, 3]);
+    expect(seen.has(s.revision)).toBe(false);
+    expect(s.unsaved).toBe(true);
+  });
+
+  it('a drag undone, or cancelled, is the document from before it', () => {
+    const s = new Store(scene());
+    s.markSaved();
+    s.begin();
+    s.setView({ tool: 'point' });
+    s.placePoint([1, 1]);
+    s.commit();
+    expect(s.unsaved).toBe(true);
+    s.undo();
+    expect(s.unsaved).toBe(false);
+    s.begin();
+    s.placePoint([2, 2]);
+    s.cancel();
+    expect(s.unsaved).toBe(false);
+  });
+
   it('undo of a deletion brings the selection back to a valid state', () => {
     const s = new Store(scene());
     s.setView({ tool: 'point' });
