@@ -152,3 +152,16 @@ def test_a_chunk_whose_worker_dies_is_rendered_again_on_a_new_one(capsys, tmp_pa
             render_killing_one()
     finally:
         ray.shutdown()
+
+
+def test_a_quiet_render_on_a_cluster_it_starts_prints_nothing(capfd, tmp_path):
+    # Ray's own start-up lines (such as its token notice) went to the terminal under -q.
+    scene = write_scene(tmp_path / "s")
+    assert not ray.is_initialized()
+    try:
+        code = main(["render", str(scene), "-o", str(tmp_path / "a.gif"), "--frames", "0:2", "--ray", "-q"])
+    finally:
+        ray.shutdown()
+    out, err = capfd.readouterr()
+    assert code == 0 and out == "" and err == "", err
+    assert (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []

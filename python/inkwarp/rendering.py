@@ -20,10 +20,12 @@ Examples
 from __future__ import annotations
 
 import base64
+import contextlib
 import errno
 import math
 import mimetypes
 import os
+import sys
 import warnings
 from collections.abc import Iterator
 from pathlib import Path
@@ -305,6 +307,8 @@ def _render_missing(scene: Any, target: Path, start: int, stop: int, *, method: 
     written: list[Path] = []
     if not missing:
         return written
+    if ray:
+        _ray_init(ray, chatter=progress)  # its chunks' runs below join quietly
 
     def frames() -> Iterator[tuple[int, np.ndarray | None]]:
         """``(index, frame)`` for each missing frame, or ``(index, None)`` for one that
@@ -400,7 +404,31 @@ def _http2_reply(conn: Any) -> bytes:
         return b""
 
 
-def _ray_init(address: str | bool | None) -> Any:
+@contextlib.contextmanager
+def _stderr_held() -> Iterator[list[str]]:
+    """What this process (Ray's C++ core included) writes to file descriptor 2 meanwhile,
+    held back and handed over in the list yielded, instead of printed."""
+    import tempfile
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    held: list[str] = []
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield held
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            held.append(sink.read().decode("utf-8", "replace"))
+
+
+def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
+    """Ray, joined to the cluster at ``address`` (a local one started for ``True``). Ray's
+    own start-up lines are shown only with ``chatter`` (not under ``-q``), and never when
+    joining fails: the error says what to do."""
     try:
         import ray
     except ImportError:
@@ -412,10 +440,16 @@ def _ray_init(address: str | bool | None) -> Any:
     if ray.is_initialized():
         return ray
     if local:
-        ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False)
+        with _stderr_held() as said:
+            ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False)
+        if chatter:
+            sys.stderr.write(said[0])
     else:
         try:
-            ray.init(address=str(address), log_to_driver=False, configure_logging=False)
+            with _stderr_held() as said:
+                ray.init(address=str(address), log_to_driver=False, configure_logging=False)
+            if chatter:
+                sys.stderr.write(said[0])
         except (ConnectionError, RuntimeError, TimeoutError) as err:
             # A head started where Ray keeps a token (~/.ray/auth_token) asks for it, which
             # this process sends only under RAY_AUTH_MODE=token; Ray says so only in its log.
@@ -477,7 +511,7 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
     yielded in order; one progress bar counts the frames of every actor. At most as many
     actors run at once as the cluster holds (:func:`ray_workers`); each one ends with its
     chunk, and the next chunk's starts in its place."""
-    ray = _ray_init(address)
+    ray = _ray_init(address, chatter=progress)
     need = scene.render_bytes
     workers = ray_workers(ray.nodes(), need)
     chunks = chunk_ranges(start, stop, workers)
@@ -513,7 +547,7 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
     if progress:
         from inkwarp.cli._common import progress_bar
 
-        bar = progress_bar(stop - start, f"render on Ray ({len(chunks)} chunks)")
+        bar = progress_bar(stop - start, f"render on Ray ({len(chunks)} chunk{'s' if len(chunks) != 1 else ''})")
     current = 0
     try:
         launch()
