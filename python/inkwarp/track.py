@@ -648,7 +648,9 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             lo, hi = _range_of(a, anchors_of[f.id], count)
             old = ranges.get(a, (lo, hi))
             ranges[a] = (min(old[0], lo), max(old[1], hi))
-    steps = sum(hi - lo for lo, hi in ranges.values())
+    # The frames tracked from each anchor, the anchor's own included (a 60-frame clip traced
+    # at one frame counts 60, not its 59 steps).
+    steps = sum(hi - lo + 1 for lo, hi in ranges.values())
     tick = progress(steps) if progress is not None else (lambda: None)
     tick = tick or (lambda: None)
 
@@ -670,6 +672,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         if a == frame:
             at_k = start
         lo, hi = ranges[a]
+        tick()
         fwd_pos, fwd_err = tracker.run(a, start, hi, tick)
         back_pos, back_err = tracker.run(a, start, lo, tick)
         tracks[a] = ({**back_pos, **fwd_pos}, {**back_err, **fwd_err})
@@ -702,7 +705,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     doc["fps"] = clip.fps if clip.fps != int(clip.fps) else int(clip.fps)
     doc["duration"] = count / clip.fps
     if lost:
-        names = "; ".join(f"'{fid}' at frames {_frames_text(ks)}" for fid, ks in lost.items())
+        names = "; ".join(f"'{fid}' at frame{'s' if len(ks) > 1 else ''} {_frames_text(ks)}" for fid, ks in lost.items())
         warnings.warn(f"{clip.path}: lost track (checks over {lost_px:g} px) of "
                       f"{names}; check those frames and add a correction key there",
                       InkwarpWarning, stacklevel=caller_outside())

@@ -1151,6 +1151,25 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
   }
 });
 
+test('a value typed into a field and not entered is kept when the page is left', async () => {
+  const scenePath = checkerScene('typed.json');
+  const own = await startServer([scenePath]);
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  try {
+    await p.fill('#duration', '0.5'); // no Enter, the field still focused
+    assert((await p.evaluate(() => window.inkwarp.store.doc.duration)) === 1, 'not entered yet');
+    await p.reload();
+    assert(p.dialogs.includes('beforeunload'), `leaving asked first: ${p.dialogs}`);
+    await p.waitForSelector('#restore', { timeout: 20000 });
+    await p.click('#restore-yes');
+    await p.waitForFunction(() => window.inkwarp.store.doc.duration === 0.5, null, { timeout: 10000 });
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
 test('work kept over a server restart takes the picture retouched on disk since, and saves it by its path', async () => {
   const scenePath = checkerScene('retouched.json');
   const picture = join(dirname(scenePath), 'checker.png');

@@ -106,6 +106,9 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
   // once the offer is answered: before, it would write over the work the offer holds.
   let keeper: Autosaver | null = null;
   window.addEventListener('beforeunload', (e) => {
+    // A value typed into a field and not yet entered (the field still focused) counts: the
+    // blur enters it, as clicking elsewhere would.
+    if (document.activeElement instanceof HTMLInputElement) document.activeElement.blur();
     if (!store.unsaved) return;
     void keeper?.flush();
     e.preventDefault();
