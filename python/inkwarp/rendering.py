@@ -407,19 +407,24 @@ def _http2_reply(conn: Any) -> bytes:
 @contextlib.contextmanager
 def _stderr_held() -> Iterator[list[str]]:
     """What this process (Ray's C++ core included) writes to file descriptor 2 meanwhile,
-    held back and handed over in the list yielded, instead of printed."""
+    held back and handed over in the list yielded, instead of printed. Under
+    ``RAY_LOG_TO_STDERR`` nothing is held: Ray's processes started meanwhile keep fd 2 as
+    their log, which must stay the terminal."""
+    held: list[str] = []
+    if os.environ.get("RAY_LOG_TO_STDERR"):
+        held.append("")
+        yield held
+        return
     import tempfile
 
-    sys.stderr.flush()
-    saved = os.dup(2)
-    held: list[str] = []
     with tempfile.TemporaryFile() as sink:
-        os.dup2(sink.fileno(), 2)
+        sys.stderr.flush()
+        saved = os.dup(2)
         try:
+            os.dup2(sink.fileno(), 2)
             yield held
         finally:
-            sys.stderr.flush()
-            os.dup2(saved, 2)
+            os.dup2(saved, 2)  # the terminal back first, whatever else fails
             os.close(saved)
             sink.seek(0)
             held.append(sink.read().decode("utf-8", "replace"))
@@ -427,8 +432,8 @@ def _stderr_held() -> Iterator[list[str]]:
 
 def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
     """Ray, joined to the cluster at ``address`` (a local one started for ``True``). Ray's
-    own start-up lines are shown only with ``chatter`` (not under ``-q``), and never when
-    joining fails: the error says what to do."""
+    own start-up lines are shown only with ``chatter`` (not under ``-q``) or when a local
+    start fails, and not when joining a cluster fails: the error says what to do."""
     try:
         import ray
     except ImportError:
@@ -440,8 +445,13 @@ def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
     if ray.is_initialized():
         return ray
     if local:
-        with _stderr_held() as said:
-            ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False)
+        said: list[str] = []
+        try:
+            with _stderr_held() as said:
+                ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False)
+        except BaseException:
+            sys.stderr.write("".join(said))  # Ray's own account of a local start that failed
+            raise
         if chatter:
             sys.stderr.write(said[0])
     else:

@@ -233,9 +233,9 @@ export function pictureMarks(doc: SceneDoc): Record<string, string> {
  * rather than writing the kept, older copy into the scene. Returns the scene and the
  * names of the layers whose pictures were taken.
  */
-export function restorePictures(kept: SceneDoc, opened: Record<string, string> | undefined, now: SceneDoc): { doc: SceneDoc; taken: string[] } {
+export function restorePictures(kept: SceneDoc, opened: Record<string, string> | undefined, now: SceneDoc, nowMarks = pictureMarks(now)): { doc: SceneDoc; taken: string[] } {
   if (!opened) return { doc: kept, taken: [] };
-  const [keptMarks, nowMarks] = [pictureMarks(kept), pictureMarks(now)];
+  const keptMarks = pictureMarks(kept);
   const taken = new Set<string>();
   const layers = kept.layers.map((l) => {
     const fresh = now.layers.find((n) => n.name === l.name);

@@ -125,7 +125,7 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
   }
   // The served file's pictures as this page opened them: a later restore of this work can
   // tell a picture retouched on disk from one the work changed.
-  const pictures = openedDoc ? pictureMarks(openedDoc) : undefined;
+  let pictures = openedDoc ? pictureMarks(openedDoc) : undefined;
   const snapshot = () => ({ doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: store.origin.saveUrl ? store.origin.path : null, version: store.origin.saveUrl ? store.origin.version : null, pictures: store.origin.saveUrl ? pictures : undefined });
   const failed = (err: Error) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error');
   const saver = new Autosaver(kept, snapshot, fetchDataUri, 800, failed);
@@ -176,14 +176,14 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
   if (previous?.unsaved && restore) {
     try {
       // Into its own file's page: pictures retouched on disk since come from the file.
-      let { doc, taken } = own && openedDoc ? restorePictures(previous.doc, previous.pictures, openedDoc) : { doc: previous.doc, taken: [] };
+      let { doc, taken } = own && openedDoc && pictures ? restorePictures(previous.doc, previous.pictures, openedDoc, pictures) : { doc: previous.doc, taken: [] as string[] };
       let misfit = '';
       try {
         await ui.openScene(doc, previous.fileName);
       } catch (err) {
         // A picture retouched to another size no longer fits the kept scene: the kept copy.
         if (!taken.length) throw err;
-        misfit = `; the picture of ${taken.map((n) => `layer '${n}'`).join(', ')} changed on disk since but no longer fits the scene (${(err as Error).message}), so the kept copy is shown, and a save writes it into the scene`;
+        misfit = `; the picture of ${taken.map((n) => `layer '${n}'`).join(', ')} changed on disk since, but the scene did not open with it (${(err as Error).message}), so the kept copy is shown, and a save writes it into the scene`;
         [doc, taken] = [previous.doc, []];
         await ui.openScene(doc, previous.fileName);
       }
@@ -211,6 +211,8 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
     if (store.revision === revision && store.unsaved === unsaved) return;
     revision = store.revision;
     unsaved = store.unsaved;
+    // Saved to its file: the file's pictures are now the document's.
+    if (!unsaved && store.origin.saveUrl && pictures) pictures = pictureMarks(store.doc);
     saver.changed();
   });
   if (store.unsaved) saver.changed();

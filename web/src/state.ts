@@ -535,6 +535,10 @@ export class Store {
       this.pushUndo(base, this.txRevision);
       // the gesture is now one undo step: the views show Undo as available
       this.emit(false);
+    } else if (base !== null && this.revision !== this.txRevision) {
+      // A drag that came back to where it started: the document it began with.
+      this.revision = this.txRevision;
+      this.emit(true);
     }
   }
 
@@ -577,7 +581,7 @@ export class Store {
   cancel(): void {
     const base = this.txBase;
     this.txBase = null;
-    if (base !== null && base !== this.doc) {
+    if (base !== null && (base !== this.doc || this.revision !== this.txRevision)) {
       [this.doc, this.revision] = [base, this.txRevision];
       this.emit(true);
     }

@@ -296,6 +296,13 @@ describe('undo', () => {
     s.placePoint([2, 2]);
     s.cancel();
     expect(s.unsaved).toBe(false);
+    // A drag that comes back to where it started (keys moved out and back).
+    const start = s.doc;
+    s.begin();
+    s.apply({ ...start, duration: start.duration + 1 });
+    s.apply(start);
+    s.commit();
+    expect(s.unsaved).toBe(false);
   });
 
   it('undo of a deletion brings the selection back to a valid state', () => {

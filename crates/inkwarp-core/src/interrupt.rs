@@ -20,6 +20,10 @@ pub fn request() {
 /// Whether a stop has been requested since the last [`clear`].
 pub fn requested() -> bool { REQUESTED.load(Ordering::Relaxed) }
 
+/// `value`, or `stopped` where a stop was requested meanwhile: work it cut short (a frame
+/// drawn in part) is never handed on as if it were whole.
+pub fn unless_requested<T, E>(value: T, stopped: E) -> Result<T, E> { if requested() { Err(stopped) } else { Ok(value) } }
+
 /// Forgets an earlier request, before new work starts.
 pub fn clear() {
     REQUESTED.store(false, Ordering::Relaxed);

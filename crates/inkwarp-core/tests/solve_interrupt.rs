@@ -1,6 +1,7 @@
-//! An interrupt request stops a solve with its error. A process of its own: the flag is
-//! global, and would stop the unit tests' solves running beside it.
+//! An interrupt request stops a solve, and a drawing, with its error. A process of its own
+//! (and one test: the flag is global, and would stop the work of tests running beside it).
 
+use inkwarp_core::render::{try_warp_image, RenderError, RgbaImage};
 use inkwarp_core::solve::{solve, SolveError, SolveOptions};
 use inkwarp_core::{Grid, Sample};
 
@@ -13,6 +14,13 @@ fn an_interrupt_stops_the_solve_with_its_error() {
     let result = solve(&grid, &samples, &SolveOptions::default(), None);
     inkwarp_core::interrupt::clear();
     assert_eq!(result.unwrap_err(), SolveError::Interrupted);
-    let (_, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
+    let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
     assert!(report.converged);
+    // A drawing cut short is refused, never handed on as a whole picture.
+    let image = RgbaImage::from_raw(65, 65, vec![200; 65 * 65 * 4]).unwrap();
+    inkwarp_core::interrupt::request();
+    let drawn = try_warp_image(&image, &field, &grid);
+    inkwarp_core::interrupt::clear();
+    assert_eq!(drawn.unwrap_err(), RenderError::Interrupted);
+    assert!(try_warp_image(&image, &field, &grid).unwrap().data.iter().any(|&v| v != 0));
 }

@@ -14,7 +14,7 @@
 //! four for the scene format, the command line and the Python API.
 //!
 //! None of these methods knows about mattes or cuts: the paper's point is that the
-//! continuous interpolants cannot be given holes. [`field_on_grid`] says so in its report
+//! continuous interpolants cannot be given holes. [`controls_field`] says so in its report
 //! when the grid it was handed has any.
 //!
 //! ```
@@ -240,7 +240,7 @@ pub struct MethodReport {
     pub line_pairs_used: usize,
     /// Samples or line pairs skipped because a coordinate was not finite.
     pub dropped: usize,
-    /// Whether a continuity matte or cut of the grid was ignored ([`field_on_grid`]).
+    /// Whether a continuity matte or cut of the grid was ignored ([`controls_field`]).
     pub ignored_matte: bool,
     /// Full-sentence remarks worth showing a user (thinning, an ignored matte).
     pub notes: Vec<String>,
@@ -310,20 +310,6 @@ pub fn field(
     Ok((f, report))
 }
 
-/// [`field`] on the node grid of `grid`: the same field (these methods have no notion
-/// of a continuity matte), with [`MethodReport::ignored_matte`] set and a note when the
-/// grid has an inactive node or a broken link.
-pub fn field_on_grid(
-    interpolant: Interpolant,
-    controls: &Controls,
-    grid: &Grid,
-    params: &MethodParams,
-) -> Result<(Field, MethodReport), MethodError> {
-    let (f, mut report) = field(interpolant, controls, grid.width, grid.height, params)?;
-    note_ignored_matte(&mut report, grid);
-    Ok((f, report))
-}
-
 /// Sets [`MethodReport::ignored_matte`] and adds its note when `grid` has an inactive node
 /// or a missing link between two active neighbours (the report's method names itself in
 /// the note).
@@ -335,8 +321,10 @@ pub fn note_ignored_matte(report: &mut MethodReport, grid: &Grid) {
     }
 }
 
-/// [`field_on_grid`] for a layer's controls, where a layer that nothing drives stays where
-/// it is, whatever the method (Beier–Neely on its own has no field without a primitive).
+/// [`field`] of a layer's controls on the node grid of `grid`: the same field (these methods
+/// have no notion of a continuity matte), with [`MethodReport::ignored_matte`] set and a
+/// note when the grid has an inactive node or a broken link. A layer that nothing drives
+/// stays where it is, whatever the method (Beier–Neely alone has no field without a primitive).
 pub fn controls_field(
     interpolant: Interpolant,
     controls: &Controls,
@@ -347,7 +335,9 @@ pub fn controls_field(
         let report = MethodReport { method: Some(interpolant.into()), ..MethodReport::default() };
         return Ok((Field::zeros(grid.width, grid.height), report));
     }
-    field_on_grid(interpolant, controls, grid, params)
+    let (f, mut report) = field(interpolant, controls, grid.width, grid.height, params)?;
+    note_ignored_matte(&mut report, grid);
+    Ok((f, report))
 }
 
 #[inline]
@@ -417,15 +407,15 @@ mod tests {
     }
 
     #[test]
-    fn field_on_grid_reports_an_ignored_matte() {
+    fn controls_field_reports_an_ignored_matte() {
         let controls = Controls::from_samples(vec![Sample { rest: [2.0, 2.0], displacement: [1.0, 0.0] }]);
         let open = Grid::new(5, 5);
-        let (_, r) = field_on_grid(Interpolant::TpsExact, &controls, &open, &MethodParams::default()).unwrap();
+        let (_, r) = controls_field(Interpolant::TpsExact, &controls, &open, &MethodParams::default()).unwrap();
         assert!(!r.ignored_matte && r.notes.is_empty());
         let mut matte = vec![1u8; 25];
         matte[12] = 0;
         let holed = Grid::from_matte(5, 5, &matte);
-        let (f, r) = field_on_grid(Interpolant::TpsExact, &controls, &holed, &MethodParams::default()).unwrap();
+        let (f, r) = controls_field(Interpolant::TpsExact, &controls, &holed, &MethodParams::default()).unwrap();
         assert!(r.ignored_matte);
         assert!(r.notes[0].contains("tps-exact ignores the continuity matte"));
         // One sample: a translation everywhere, hole or not.

@@ -56,6 +56,9 @@ pub enum RenderError {
     /// Rows asked for outside the frame.
     #[error("Rows {first}..{end} are not rows of a frame {height} pixels high.")]
     Rows { first: usize, end: usize, height: usize },
+    /// A stop requested while drawing ([`crate::interrupt`]): the image is not whole.
+    #[error("stopped: interrupted (Ctrl-C or SIGTERM)")]
+    Interrupted,
 }
 
 /// An image with straight (not premultiplied) 8-bit RGBA, row-major, 4 bytes per pixel.
@@ -257,7 +260,7 @@ pub fn draw_frame(
     }
     let pairs: Vec<(&mesh::Layer<'_>, &mesh::Plan)> = layers.iter().map(|l| (&l.layer, &l.plan)).collect();
     raster::draw_frame(width, premultiply(background), &pairs, rows.start, out);
-    Ok(())
+    crate::interrupt::unless_requested((), RenderError::Interrupted)
 }
 
 fn check_layer(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<(), RenderError> {
@@ -298,7 +301,7 @@ pub fn warp_image(image: &RgbaImage, field: &Field, grid: &Grid) -> RgbaImage {
 pub fn try_warp_image(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<RgbaImage, RenderError> {
     let mut canvas = Canvas::new(image.width, image.height, [0; 4]);
     canvas.try_draw_layer(image, field, grid, [0.0, 0.0])?;
-    Ok(canvas.to_rgba8())
+    crate::interrupt::unless_requested(canvas.to_rgba8(), RenderError::Interrupted)
 }
 
 #[cfg(test)]

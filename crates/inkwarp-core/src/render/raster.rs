@@ -363,7 +363,7 @@ impl Band {
         let misses = |[ymin, ymax]: [f32; 2]| ymax < lo || ymin > hi;
         for br in 0..=layer.h {
             if misses(plan.row_ranges[br]) || crate::interrupt::requested() {
-                continue; // A stop requested mid-draw (Ctrl-C) skips the rest: the caller drops the image.
+                continue; // A stop requested mid-draw (Ctrl-C) skips the rest: the image is refused.
             }
             for ch in 0..plan.nchunks {
                 if misses(plan.ranges[br * plan.nchunks + ch]) {

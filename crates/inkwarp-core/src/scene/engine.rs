@@ -245,7 +245,7 @@ impl Scene {
             .map(Option::transpose)
             .collect::<Result<Vec<_>, _>>()?;
         let fields: Vec<Option<Field>> = layers.iter().map(|l| l.as_ref().map(|s| s.field.clone())).collect();
-        Ok(RenderedFrame { image: self.composite(&fields), layers })
+        Ok(RenderedFrame { image: self.composite(&fields)?, layers })
     }
 
     /// The warning a user should see about `solved`, layer `layer`'s field at `time_s`:
@@ -289,14 +289,14 @@ impl Scene {
 
     /// Composites the drawn layers, back to front, each warped by its field (`fields[j]`
     /// for layer `j`; ignored for layers that are not drawn) over the background.
-    pub fn composite(&self, fields: &[Option<Field>]) -> RgbaImage {
+    pub fn composite(&self, fields: &[Option<Field>]) -> Result<RgbaImage, SceneError> {
         let mut canvas = Canvas::new(self.width(), self.height(), self.doc().background);
         for (j, layer) in self.layers().iter().enumerate() {
             if let (true, Some(image), Some(Some(field))) = (layer.visible, &layer.image, fields.get(j)) {
                 canvas.draw_layer(image, field, &layer.grid, layer.offset);
             }
         }
-        canvas.to_rgba8()
+        crate::interrupt::unless_requested(canvas.to_rgba8(), SceneError::one("", "stopped: interrupted (Ctrl-C or SIGTERM)"))
     }
 
     /// The frame at time `time_s`, every field solved cold.
@@ -366,7 +366,7 @@ impl<'a> Animator<'a> {
                 self.fields[layer] = Some(solved.field);
             }
         }
-        Ok(self.scene.composite(&self.fields))
+        self.scene.composite(&self.fields)
     }
 
     /// The warnings of the solves since the last call (a solve that did not converge).
