@@ -20,6 +20,9 @@ pub fn request() {
 /// Whether a stop has been requested since the last [`clear`].
 pub fn requested() -> bool { REQUESTED.load(Ordering::Relaxed) }
 
+/// What work stopped this way says, wherever it is reported.
+pub const STOPPED: &str = "stopped: interrupted (Ctrl-C or SIGTERM)";
+
 /// `value`, or `stopped` where a stop was requested meanwhile: work it cut short (a frame
 /// drawn in part) is never handed on as if it were whole.
 pub fn unless_requested<T, E>(value: T, stopped: E) -> Result<T, E> { if requested() { Err(stopped) } else { Ok(value) } }

@@ -57,7 +57,7 @@ pub enum RenderError {
     #[error("Rows {first}..{end} are not rows of a frame {height} pixels high.")]
     Rows { first: usize, end: usize, height: usize },
     /// A stop requested while drawing ([`crate::interrupt`]): the image is not whole.
-    #[error("stopped: interrupted (Ctrl-C or SIGTERM)")]
+    #[error("{}", crate::interrupt::STOPPED)]
     Interrupted,
 }
 

@@ -45,8 +45,7 @@ pub(super) fn compute_field(
 ) -> Result<LayerSolve, String> {
     let held = border == Border::Hold;
     let spacing_px = solver.grid_step as f64;
-    const STOPPED: &str = "stopped: interrupted (Ctrl-C or SIGTERM)";
-    if crate::interrupt::requested() { return Err(STOPPED.to_string()); }
+    if crate::interrupt::requested() { return Err(crate::interrupt::STOPPED.to_string()); }
     let solved = match solver.method.interpolant() {
         None => {
             let mut samples: Vec<Sample> = features.iter().flat_map(|f| f.samples.iter().copied()).collect();
@@ -72,7 +71,7 @@ pub(super) fn compute_field(
         }
     };
     // A stop requested mid-solve may leave a partial field: never return it.
-    if crate::interrupt::requested() { return Err(STOPPED.to_string()); }
+    if crate::interrupt::requested() { return Err(crate::interrupt::STOPPED.to_string()); }
     // A frame is never drawn from a field with NaN or infinity in it (it would come out
     // blank with no error): the limits refuse the inputs known to cause one, and this
     // catches any other.
@@ -296,7 +295,7 @@ impl Scene {
                 canvas.draw_layer(image, field, &layer.grid, layer.offset);
             }
         }
-        crate::interrupt::unless_requested(canvas.to_rgba8(), SceneError::one("", "stopped: interrupted (Ctrl-C or SIGTERM)"))
+        crate::interrupt::unless_requested(canvas.to_rgba8(), SceneError::one("", crate::interrupt::STOPPED))
     }
 
     /// The frame at time `time_s`, every field solved cold.
