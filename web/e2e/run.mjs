@@ -1158,8 +1158,17 @@ test('a value typed into a field and not entered is kept when the page is left',
   try {
     await p.fill('#duration', '0.5'); // no Enter, the field still focused
     assert((await p.evaluate(() => window.inkwarp.store.doc.duration)) === 1, 'not entered yet');
+    // Leaving: the page's own handler enters the value, and then counts the scene unsaved
+    // (so the browser asks). Dispatched here, the kept copy is then written before the reload.
+    const asked = await p.evaluate(() => {
+      const e = new Event('beforeunload', { cancelable: true });
+      window.dispatchEvent(e);
+      return e.defaultPrevented;
+    });
+    assert(asked, 'leaving asks first');
+    assert((await p.evaluate(() => [window.inkwarp.store.doc.duration, window.inkwarp.store.unsaved].join())) === '0.5,true', 'the value was entered');
+    await p.evaluate(() => window.inkwarp.autosave.flush());
     await p.reload();
-    assert(p.dialogs.includes('beforeunload'), `leaving asked first: ${p.dialogs}`);
     await p.waitForSelector('#restore', { timeout: 20000 });
     await p.click('#restore-yes');
     await p.waitForFunction(() => window.inkwarp.store.doc.duration === 0.5, null, { timeout: 10000 });
