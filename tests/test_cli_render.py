@@ -210,6 +210,39 @@ def test_validate_ok_prints_the_summary(capsys, scene):
     for part in ("48x40", "1 layer (square)", "1 feature (1 point)", "4 frames at 4 fps",
                  "(1 s)"):
         assert part in stdout
+    assert "note:" not in stdout
+
+
+def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path):
+    # A feature typed off the picture, a key after the end and a feature no layer lists
+    # all render without a word; validate names each after its "ok" (and still exits 0).
+    path = write_scene(tmp_path / "scene")
+    doc = json.loads(path.read_text())
+    point = doc["features"][0]
+    doc["features"] += [
+        {"id": "typo", "kind": "point", "rest": [[470, 20]], "keys": [{"t": 0.5, "points": [[475, 20]]}]},
+        {"id": "late", "kind": "polyline", "rest": [[4, 4], [10, 4]], "keys": [{"t": 3.0, "points": [[4, 8], [10, 8]]}]},
+        {"id": "spare", "kind": "cut", "rest": [[0, 30], [20, 30]]},
+        # Control points off the picture, but the curve through them touches its edge.
+        {"id": "dips", "kind": "spline", "rest": [[-6, 10], [0, 20], [-6, 30]]},
+    ]
+    doc["layers"][0]["features"] = [point["id"], "typo", "late", "dips"]
+    path.write_text(json.dumps(doc))
+    code, stdout, _ = run(capsys, "validate", path)
+    assert code == 0
+    ok, *notes = stdout.splitlines()
+    assert ok.startswith(f"ok: {path}: ")
+    assert notes == [
+        f"note: {path}: features[1]: 'typo' lies wholly off the picture, so it moves nothing: its rest points span "
+        f"x 470 to 470, y 20 to 20, the picture's pixel centres x 0 to {WIDTH - 1}, y 0 to {HEIGHT - 1}",
+        f"note: {path}: features[2].keys[0].t: 'late' has a key at 3 s, after the scene's end (1 s): no frame shows "
+        "it, the frames before it show the move toward it; a duration of 3.25 s ends on it, or move the key",
+        f"note: {path}: features[3]: 'spare' drives no layer: every layer lists its features and none lists it; "
+        "add it to a layer's features",
+    ]
+    import inkwarp
+
+    assert [p for p, _ in inkwarp.Scene.load(path).notes()] == ["features[1]", "features[2].keys[0].t", "features[3]"]
 
 
 def test_schema_prints_the_engines_schema(capsys, tmp_path):

@@ -730,6 +730,43 @@ class Scene:
 
         write_text(target, json.dumps(data, indent=2) + "\n", suffix=".json")
 
+    def notes(self) -> list[Problem]:
+        """What in this scene is allowed but probably a mistake, as ``(JSON path, message)``:
+        a feature drawn wholly off the picture (it moves and tears nothing), a key after the
+        scene's end (no frame shows it), a feature that drives no layer. ``inkwarp validate``
+        prints them as notes after its "ok"; a scene with notes renders as any other (a
+        feature off the picture may be there on purpose, as a correspondence point for
+        :func:`inkwarp.transfer`).
+        """
+        doc = self.to_dict()
+        width, height, duration = self.width, self.height, self.duration
+        layers = doc.get("layers", [])
+        driven = (None if any(layer.get("features") is None for layer in layers)
+                  else {name for layer in layers for name in layer["features"]})
+        notes: list[Problem] = []
+        for i, feature in enumerate(doc.get("features", [])):
+            name, rest = feature["id"], np.asarray(feature["rest"], dtype=np.float64).reshape(-1, 2)
+            low, high = rest.min(axis=0), rest.max(axis=0)
+            # A node takes the samples within half a pixel of its centre; a spline may swing a
+            # little past its control points, so the box is widened by a quarter of its size.
+            margin = 0.5 + 0.25 * (high - low)
+            if (high[0] + margin[0] < 0 or low[0] - margin[0] > width - 1
+                    or high[1] + margin[1] < 0 or low[1] - margin[1] > height - 1):
+                does = "tears" if feature["kind"] == "cut" else "moves"
+                notes.append((f"features[{i}]", f"{name!r} lies wholly off the picture, so it {does} nothing: its rest "
+                              f"points span x {low[0]:g} to {high[0]:g}, y {low[1]:g} to {high[1]:g}, the picture's pixel "
+                              f"centres x 0 to {width - 1}, y 0 to {height - 1}"))
+            if driven is not None and name not in driven:
+                notes.append((f"features[{i}]", f"{name!r} drives no layer: every layer lists its features "
+                              "and none lists it; add it to a layer's features"))
+            for k, key in enumerate(feature.get("keys", [])):
+                if key["t"] > duration + 1e-9:
+                    notes.append((f"features[{i}].keys[{k}].t",
+                                  f"{name!r} has a key at {key['t']:g} s, after the scene's end ({duration:g} s): "
+                                  f"no frame shows it, the frames before it show the move toward it; a duration of "
+                                  f"{key['t'] + 1 / self.fps:g} s ends on it, or move the key"))
+        return notes
+
     def validate(self) -> list[Problem]:
         """Every problem of this scene's document now (images are read again).
 

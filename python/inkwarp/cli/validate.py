@@ -17,8 +17,10 @@ examples:
 On success it prints one line, such as
   ok: scene.json: 384x384, 2 layers (eyes, face), 15 features (2 point, 3 polyline,
   10 spline), 60 frames at 24 fps (2.5 s)
-and exits 0. Otherwise it prints each problem as FILE: JSON.PATH: what is wrong and how
-to fix it, then the count, and exits 2.
+then a line "note: FILE: JSON.PATH: ..." for each thing that is allowed but probably
+a mistake (a feature wholly off the picture, a key after the scene's end, a feature
+that drives no layer), and exits 0. Otherwise it prints each problem as
+FILE: JSON.PATH: what is wrong and how to fix it, then the count, and exits 2.
 """
 
 
@@ -49,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{args.scene}: {count} problem{'s' if count > 1 else ''}", file=sys.stderr)
         return 2
     print(f"ok: {args.scene}: {summary(scene, _read_json(args.scene))}")
+    for path, message in scene.notes():
+        print(" ".join(("note: " + _common.prefixed(_common.prefixed(message, path), args.scene)).split()))
     return 0
 
 
