@@ -1487,6 +1487,51 @@ test('WebM export: a 2.5 s, 24 fps scene lasts 2.5 s ± one frame and has 60 fra
   assert(Math.abs(duration - 2.5) <= 1 / 24 + 1e-6, `the WebM lasts ${duration} s; expected 2.5 s ± one frame`);
 });
 
+test('a WebM export is cancelled by Escape or its button: no download, the editor as it was', async () => {
+  await page.evaluate(async () => {
+    const { ui, examples, app, store } = window.inkwarp;
+    const doc = await examples.builtinScene(96);
+    doc.fps = 24;
+    doc.duration = 10;
+    doc.features = [{ id: 'dot', kind: 'point', rest: [[40, 40]], keys: [{ t: 0, points: [[40, 40]] }, { t: 10, points: [[60, 50]] }] }];
+    await ui.openScene(doc, 'long.json');
+    store.setView({ mode: 'rest', time: 0.5 });
+    await app.idle();
+  });
+  let downloads = 0;
+  const counted = () => downloads++;
+  page.on('download', counted);
+  try {
+    for (const how of ['Escape', 'button']) {
+      await page.click('#export-webm');
+      await page.waitForFunction(() => /Exported 12 of 240/.test(document.querySelector('#message')?.textContent ?? ''), null, { timeout: 120000 });
+      assert(await page.textContent('#export-webm') === 'Cancel', 'the export button offers to cancel');
+      if (how === 'Escape') await page.keyboard.press('Escape');
+      else await page.click('#export-webm');
+      await page.waitForFunction(() => /cancelled/.test(document.querySelector('#message')?.textContent ?? ''), null, { timeout: 30000 });
+      const after = await page.evaluate(() => ({
+        message: document.querySelector('#message').textContent,
+        button: document.querySelector('#export-webm').textContent,
+        mode: window.inkwarp.store.view.mode,
+        time: window.inkwarp.store.view.time,
+        exporting: window.inkwarp.app.exporting,
+      }));
+      assert(/WebM export cancelled after (1[2-9]|[2-9]\d) of 240 frames; nothing was saved/.test(after.message), `${how}: ${after.message}`);
+      assert(after.button === 'WebM' && after.mode === 'rest' && after.time === 0.5 && !after.exporting, `${how}: ${JSON.stringify(after)}`);
+    }
+    // Nothing was downloaded, and a later export runs to its end.
+    await page.evaluate(() => {
+      const { store } = window.inkwarp;
+      store.edit((doc) => ({ ...doc, duration: 0.5 }));
+    });
+    const [download] = await Promise.all([page.waitForEvent('download', { timeout: 60000 }), page.click('#export-webm')]);
+    assert(download.suggestedFilename() === 'long.webm', download.suggestedFilename());
+    assert(downloads === 1, `${downloads} downloads; only the finished export's expected`);
+  } finally {
+    page.off('download', counted);
+  }
+});
+
 
 test('zoom keeps the point under the pointer fixed; pan, Fit and 100 %; the stage keeps its size when rows are added', async () => {
   await page.evaluate(async () => {

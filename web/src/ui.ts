@@ -74,7 +74,7 @@ export const SHORTCUTS: [string, string][] = [
   ['Click', 'Add a control point (drawing tools, rest mode)'],
   ['Enter or double-click', 'Finish the feature being drawn'],
   ['Click the first point', 'Close a polyline or spline'],
-  ['Esc', 'Cancel the drawing / clear the selection'],
+  ['Esc', 'Cancel the drawing or a WebM export / clear the selection'],
   ['Drag', 'Move a control point, or a whole feature by its line'],
   ['Drag on empty stage (Shift: add)', 'Marquee: pick the control points inside; drag one to move them all'],
   ['Shift-click a point', 'Add a control point to the picked ones, or take it out'],
@@ -107,6 +107,7 @@ function download(blob: Blob, name: string): void {
 
 /** A drag moves the drawing on at most one raw pointer update this often (ms). */
 const RAW_GAP_MS = 4;
+const WEBM_TITLE = 'Export the animation as WebM video';
 
 export class Ui {
   readonly overlay: Overlay;
@@ -114,6 +115,8 @@ export class Ui {
   readonly glCanvas: HTMLCanvasElement;
   readonly overlayCanvas: HTMLCanvasElement;
   private els: Record<string, HTMLElement> = {};
+  /** Stops the WebM export in progress (null when none is). */
+  private exportStop: AbortController | null = null;
   private examples: ExampleEntry[] = [BUILTIN];
   private drag: {
     id: string;
@@ -230,7 +233,7 @@ export class Ui {
         } })),
         h('button#save', { title: 'Save the scene (Ctrl+S): back to its file when inkwarp edit SCENE opened it, else a download of one JSON file', onclick: () => void this.save() }, 'Save'),
         h('button#export-png', { title: 'Export the current frame as PNG', onclick: () => void this.exportPng() }, 'PNG'),
-        h('button#export-webm', { title: 'Export the animation as WebM video', onclick: () => void this.exportWebm() }, 'WebM'),
+        (this.els.exportWebm = h('button#export-webm', { title: WEBM_TITLE, onclick: () => (this.exportStop ? this.cancelExport() : void this.exportWebm()) }, 'WebM')),
       ),
       h('div.group.modes', { role: 'radiogroup' },
         h('button#mode-rest', { title: 'Rest mode: trace features over the original picture (R)', onclick: () => this.setMode('rest') }, 'Rest'),
@@ -1375,6 +1378,7 @@ export class Ui {
       case 'Enter': return handled(), this.finishDraft(false);
       case 'Escape':
         handled();
+        if (this.exportStop) return this.cancelExport();
         if (!this.els.help.hidden) return this.toggleHelp();
         if (this.store.view.draft.length) return this.store.cancelDraft();
         return this.store.setView({ selection: { feature: null, point: null }, pointSelection: [] });
@@ -1748,9 +1752,14 @@ export class Ui {
     const wasMode = this.store.view.mode;
     const wasTime = this.store.view.time;
     const n = frameCount(doc);
+    if (this.exportStop) return null;
+    const stop = (this.exportStop = new AbortController());
+    const button = this.els.exportWebm as HTMLButtonElement;
+    [button.textContent, button.title] = ['Cancel', 'Stop the WebM export (Escape); nothing is downloaded'];
+    let done = 0;
     this.app.exporting = true;
     this.store.setView({ mode: 'pose', playing: false });
-    this.message(`Exporting ${n} frames…`, 'info');
+    this.message(`Exporting ${n} frames… (Escape cancels)`, 'info');
     try {
       // A large picture's video is drawn at its proxy's size (see `proxy.ts`).
       const { width, height } = this.app.frameSize;
@@ -1760,19 +1769,28 @@ export class Ui {
         this.app.renderNow(false);
         return this.app.gl.readPixels();
       }, (i) => {
-        if (i % 12 === 11) this.message(`Exported ${i + 1} of ${n} frames…`, 'info');
-      });
+        done = i + 1;
+        if (i % 12 === 11) this.message(`Exported ${i + 1} of ${n} frames… (Escape cancels)`, 'info');
+      }, stop.signal);
       download(blob, `${this.baseName()}.webm`);
       const size = this.app.proxy > 1 ? ` at the preview's ${width}×${height}; \`inkwarp render scene.json -o out.mp4\` renders ${doc.width}×${doc.height}` : '';
       this.message(`Exported ${n} frames as WebM (${(n / doc.fps).toFixed(2)} s at ${doc.fps} fps${size}).`, 'info');
       return blob;
     } catch (err) {
-      this.message(`The WebM export failed: ${(err as Error).message}`, 'error');
+      if (stop.signal.aborted) this.message(`WebM export cancelled after ${done} of ${n} frames; nothing was saved.`, 'info');
+      else this.message(`The WebM export failed: ${(err as Error).message}`, 'error');
       return null;
     } finally {
+      this.exportStop = null;
+      [button.textContent, button.title] = ['WebM', WEBM_TITLE];
       this.app.exporting = false;
       this.store.setView({ mode: wasMode, time: wasTime });
     }
+  }
+
+  /** Stops a WebM export in progress (its button, or Escape): nothing is downloaded. */
+  cancelExport(): void {
+    this.exportStop?.abort(new DOMException('The export was cancelled.', 'AbortError'));
   }
 
   /** Names of the layers' features (for tests). */

@@ -23,6 +23,7 @@ export function frameTimestampUs(i: number, fps: number): number {
  * Encodes `count` frames of `width × height` as a WebM file: `frame(i)` draws frame `i`
  * and returns its straight RGBA8 pixels; `progress(i)` is told after each one. Frame `i`
  * is shown at `i / fps` seconds for `1 / fps` seconds, however long it took to draw.
+ * Once `signal` is aborted no frame more is drawn and the promise rejects with its reason.
  */
 export async function encodeWebm(
   width: number,
@@ -31,6 +32,7 @@ export async function encodeWebm(
   count: number,
   frame: (i: number) => Promise<Uint8Array>,
   progress: (i: number) => void = () => {},
+  signal?: AbortSignal,
 ): Promise<Blob> {
   let chosen: [string, string] | null = null;
   for (const [codec, id] of CODECS) {
@@ -55,7 +57,9 @@ export async function encodeWebm(
   const keyEvery = Math.max(1, Math.round(2 * fps));
   try {
     for (let i = 0; i < count; i++) {
+      signal?.throwIfAborted();
       const pixels = await frame(i);
+      signal?.throwIfAborted();
       if (failure) throw failure;
       const vf = new VideoFrame(pixels, {
         format: 'RGBA',
