@@ -83,6 +83,30 @@ def test_transparent_gif_has_1_bit_alpha(capsys, tmp_path, transparent):
     for got, want in zip(frames, reference):
         assert set(np.unique(got[..., 3])) <= {0, 255}
         assert (got[..., 3] == np.where(want[..., 3] >= 128, 255, 0)).all()
+    # The same from Python, through write_frames (it flattened the frames over white).
+    from inkwarp.video import write_frames
+
+    write_frames(tmp_path / "python.gif", inkwarp.Scene.load(scene).frames(), fps=4)
+    assert (tmp_path / "python.gif").read_bytes() == (tmp_path / "anim.gif").read_bytes()
+
+
+def test_a_gif_stores_a_run_of_identical_frames_once_with_its_delays_added(tmp_path):
+    from inkwarp.video import write_frames
+
+    still, moved = np.full((6, 8, 4), 255, np.uint8), np.full((6, 8, 4), 255, np.uint8)
+    still[..., :3], moved[2, 3, :3] = 40, 0
+    clear = still.copy()
+    clear[:3, :, 3] = 0  # half of it transparent
+    write_frames(tmp_path / "a.gif", [still] * 5 + [moved] + [clear] * 3 + [still], fps=24)
+    frames, delays = [], []
+    with Image.open(tmp_path / "a.gif") as gif:
+        for i in range(gif.n_frames):
+            gif.seek(i)
+            frames.append(np.asarray(gif.convert("RGBA")))
+            delays.append(gif.info["duration"])
+    # 4, 4, 4, 5, 4 | 4 | 4, 4, 5 | 4 hundredths: 10 frames at 24 fps keep their 0.42 s.
+    assert delays == [210, 40, 130, 40] and sum(delays) == round(1000 * 10 / 24, -1)
+    assert [f.tolist() for f in frames] == [still.tolist(), moved.tolist(), np.where(clear[..., 3:] == 0, 0, clear).tolist(), still.tolist()]
 
 
 def test_background_option_overrides_the_scene(capsys, tmp_path, transparent):

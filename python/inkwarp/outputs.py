@@ -170,54 +170,6 @@ class FfmpegAlphaWriter(FrameWriter):
             self._temp.unlink(missing_ok=True)
 
 
-class TransparentGifWriter(FrameWriter):
-    """An animated GIF with 1-bit transparency: pixels with alpha < 128 are transparent,
-    the others opaque; each frame has its own 255-colour palette plus the transparent
-    index, and is drawn on a cleared canvas (disposal 2), so moving parts leave no trail."""
-
-    def __init__(self, target: Path, fps: float) -> None:
-        super().__init__(target, fps)
-        self._frames: list[Any] = []
-        self._delays_ms: list[int] = []  # of the frames kept (see `video.gif_keeps`)
-        self._temp: Path | None = None
-
-    def _write(self, frame: np.ndarray) -> None:
-        from PIL import Image
-
-        if not video.gif_keeps(self.frames_written, self.fps):
-            return
-        self._delays_ms.append(video.gif_delay_cs(self.frames_written, self.fps) * 10)
-        rgba = frame if frame.shape[2] == 4 else np.dstack(
-            [frame, np.full(frame.shape[:2], 255, np.uint8)])
-        opaque = rgba[..., 3] >= 128
-        rgb = Image.fromarray(np.ascontiguousarray(rgba[..., :3]), "RGB")
-        quantized = rgb.quantize(colors=255, method=Image.Quantize.FASTOCTREE)
-        indexed = np.array(quantized, copy=True)
-        palette = quantized.getpalette() or []
-        indexed[~opaque] = 255
-        image = Image.fromarray(indexed, "P")
-        palette = (palette + [0] * 768)[:765] + [0, 0, 0]
-        image.putpalette(palette)
-        image.info["transparency"] = 255
-        self._frames.append(image)
-
-    def _commit(self) -> list[Path]:
-        kept = len(self._frames)
-        first, *rest = self._frames
-        self._temp = _temp_name(self.target, ".gif")
-        first.save(self._temp, format="GIF", save_all=True, append_images=rest,
-                   duration=self._delays_ms, loop=0, optimize=False, disposal=2, transparency=255)
-        self._frames.clear()
-        os.replace(self._temp, self.target)
-        video.warn_gif_frames_left_out(self.target, self.frames_written, kept, self.fps)
-        return [self.target]
-
-    def _discard(self) -> None:
-        self._frames.clear()
-        if self._temp is not None:
-            self._temp.unlink(missing_ok=True)
-
-
 #: The widest side of a sprite sheet: the largest texture Unity, Godot and WebGL engines load
 #: (and TexturePacker makes); a bigger atlas would also have to be held whole in memory.
 MAX_SHEET_SIDE_PX = 16384
@@ -470,13 +422,11 @@ class SpriteSheetWriter(FrameWriter):
 
 
 def open_writer(path: str | os.PathLike[str], *, fps: float, kind: str | None = None,
-                first_frame: int = 0, transparent: bool = False, frames: int = 1) -> FrameWriter:
-    """The writer for ``path``: the alpha formats here, a 1-bit transparent GIF when
-    ``transparent``, otherwise :func:`inkwarp.video.open_writer`."""
+                first_frame: int = 0, frames: int = 1) -> FrameWriter:
+    """The writer for ``path``: the alpha formats here, otherwise
+    :func:`inkwarp.video.open_writer`."""
     kind = kind or video.output_kind(path)
     target = video.check_target(path, kind)  # type: ignore[arg-type]
     if kind in ALPHA_KINDS.values():
         return FfmpegAlphaWriter(target, fps, kind)
-    if kind == "gif" and transparent:
-        return TransparentGifWriter(target, fps)
     return video.open_writer(target, fps=fps, kind=kind, first_frame=first_frame, frames=frames)  # type: ignore[arg-type]

@@ -249,7 +249,6 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
                   if isinstance(background, str)
                   else [int(v) for v in background])
         scene = outputs.with_background(scene, colour)
-    transparent = scene.to_dict().get("background", [255, 255, 255, 255])[3] == 0
     start, stop = _frame_indices(scene, frames)
     kind = video.output_kind(output)
     target = video.check_target(output, kind)
@@ -281,7 +280,7 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
                                progress=progress)
     else:
         writer = outputs.open_writer(target, fps=scene.fps, kind=kind, first_frame=start,
-                                     transparent=transparent, frames=stop - start)
+                                     frames=stop - start)
     count = stop - start
     source = (_ray_frames(scene, start, stop, method=method, address=ray, progress=progress)
               if ray else _common.progress((f for _, f in render_range(scene, start, stop,

@@ -5,9 +5,9 @@ the target only when the last frame is in, so a render that fails or is interrup
 nothing behind (and an existing file of the same name stays as it was until then).
 
 Frames are RGBA ``uint8`` arrays of shape ``(H, W, 4)`` with straight alpha, as
-:meth:`inkwarp.Scene.render` returns them. GIF and MP4 have no (or only 1-bit) alpha, so
-their frames are flattened over white first; give the scene an opaque ``background`` to
-choose the colour yourself.
+:meth:`inkwarp.Scene.render` returns them. A GIF's alpha is 1-bit (pixels with alpha < 128
+are transparent); an MP4 has none, so its frames are flattened over white first. Give the
+scene an opaque ``background`` to choose the colour yourself.
 
 Examples
 --------
@@ -413,17 +413,23 @@ class GifWriter(FrameWriter):
     """An animated GIF, looping forever, each frame with its own palette, streamed to the
     file frame by frame (memory holds one frame, not the clip).
 
-    Pillow encodes each frame alone; its image block is copied into the file with the
-    frame's palette as a local colour table. GIF stores frame delays in hundredths of a
-    second, so the delays are spread to keep the clip's total length right (24 fps plays
-    as 4, 4, 5, 4, 4, 5, ... hundredths); above 50 fps frames are left out (`gif_keeps`).
+    GIF's alpha is 1-bit: pixels with alpha < 128 are transparent, the others show their
+    own colour; every frame is drawn on a cleared canvas, so moving parts leave no trail.
+    Pillow encodes each frame alone (255 colours and the transparent index); its image
+    block is copied into the file with the frame's palette as a local colour table. A run
+    of identical frames is stored once, with the delays added. GIF stores delays in
+    hundredths of a second, so they are spread to keep the clip's total length right
+    (24 fps plays as 4, 4, 4, 5, 4, ... hundredths); above 50 fps frames are left out
+    (`gif_keeps`).
     """
 
     def __init__(self, target: Path, fps: float) -> None:
         super().__init__(target, fps)
         self._temp: Path | None = None
         self._file: Any = None
-        self._kept = 0  # frames in the file (see `gif_keeps`)
+        self._kept = 0  # frames kept (see `gif_keeps`), before runs are merged
+        # The last frame, written when the next one differs: (image, delay).
+        self._pending: tuple[bytes, int] | None = None
 
     def _write(self, frame: np.ndarray) -> None:
         import io
@@ -434,28 +440,49 @@ class GifWriter(FrameWriter):
         if not gif_keeps(self.frames_written, self.fps):
             return
         self._kept += 1
-        rgb = Image.fromarray(flatten(frame), "RGB")
+        rgba = _as_frame(frame)
+        clear = rgba[..., 3] < 128 if rgba.shape[2] == 4 else np.zeros(rgba.shape[:2], bool)
+        rgb = Image.fromarray(np.ascontiguousarray(rgba[..., :3]), "RGB")
         # The octree keeps saturated colours (eyes, lips) and gives files about half the
         # size of a median cut's, at a mean error of about 3 levels on a photograph.
+        quantized = rgb.quantize(colors=255, method=Image.Quantize.FASTOCTREE)
+        indexed = np.array(quantized, copy=True)
+        indexed[clear] = 255
+        image = Image.fromarray(indexed, "P")
+        image.putpalette(((quantized.getpalette() or []) + [0] * 768)[:765] + [0, 0, 0])
         one = io.BytesIO()
-        rgb.quantize(colors=256, method=Image.Quantize.FASTOCTREE).save(one, format="GIF")
+        image.save(one, format="GIF", optimize=False)
         palette, block = _gif_image_block(one.getvalue())
         if self._file is None:
             self._temp = _temp_name(self.target, ".gif")
             self._file = open(self._temp, "wb")  # noqa: SIM115 - closed by _commit/_discard
-            w, h = rgb.size
             # Header, a screen without a global palette, and the loop-forever extension.
-            self._file.write(b"GIF89a" + struct.pack("<HHBBB", w, h, 0, 0, 0)
+            self._file.write(b"GIF89a" + struct.pack("<HHBBB", rgb.width, rgb.height, 0, 0, 0)
                              + b"\x21\xff\x0bNETSCAPE2.0\x03\x01\x00\x00\x00")
+        data = block[:9] + bytes([block[9] | 0x80 | _palette_bits(palette)]) + palette + block[10:]
         delay = gif_delay_cs(self.frames_written, self.fps)
-        # Graphic control: disposal 1 (leave the frame in place), the delay, no transparency.
-        self._file.write(b"\x21\xf9\x04" + struct.pack("<BHB", 1 << 2, delay, 0) + b"\x00")
-        self._file.write(block[:9] + bytes([block[9] | 0x80 | _palette_bits(palette)]))
-        self._file.write(palette + block[10:])
+        if self._pending is not None and self._pending[0] == data and self._pending[1] + delay <= 0xFFFF:
+            self._pending = (data, self._pending[1] + delay)
+            return
+        self._flush_pending()
+        self._pending = (data, delay)
+
+    def _flush_pending(self) -> None:
+        import struct
+
+        if self._pending is None:
+            return
+        data, delay = self._pending
+        # Graphic control: disposal 2 (the canvas is cleared after the frame, so the next
+        # one's transparent pixels show nothing of it), the delay, transparent index 255 (on
+        # opaque frames too: decoders then clear to transparent, not to a colour).
+        self._file.write(b"\x21\xf9\x04" + struct.pack("<BHB", 2 << 2 | 1, delay, 255) + b"\x00" + data)
         self._file.flush()
+        self._pending = None
 
     def _commit(self) -> list[Path]:
         assert self._file is not None and self._temp is not None
+        self._flush_pending()
         self._file.write(b"\x3b")
         self._file.flush()
         os.fsync(self._file.fileno())
