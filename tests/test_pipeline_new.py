@@ -103,6 +103,31 @@ def test_a_flat_picture_is_one_layer_used_where_it_is(capsys, tmp_path):
     assert (scene.render()[..., :3] == art).all()
 
 
+def test_a_phone_photograph_is_read_upright_everywhere(capsys, tmp_path):
+    # A portrait photograph as a phone stores it: sideways, tagged "rotate 90° clockwise to
+    # view" (EXIF orientation 6). Viewers, browsers and drawing programs show it upright, so
+    # a drawing traced over it only lines up if the scene reads it upright too.
+    from PIL import ImageOps
+
+    from inkwarp.imaging import read_image
+
+    stored = np.zeros((H, W, 3), np.uint8)
+    stored[:, : W // 2] = (230, 20, 20)  # red on the stored picture's left half
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    Image.fromarray(stored).save(tmp_path / "phone.jpg", exif=exif.tobytes(), quality=95)
+    upright = np.asarray(ImageOps.exif_transpose(Image.open(tmp_path / "phone.jpg")).convert("RGBA"))
+    assert upright.shape == (W, H, 4) and upright[2, H // 2, 0] > 200  # red on top
+    assert (read_image(tmp_path / "phone.jpg") == upright).all()
+    code, out, err = run(capsys, "new", tmp_path / "phone.jpg", "-o", tmp_path / "phone.json")
+    assert code == 0, err
+    code, out, err = run(capsys, "validate", tmp_path / "phone.json")
+    assert code == 0 and f"{H}x{W}" in out, out + err
+    frame = inkwarp.Scene.load(tmp_path / "phone.json").render()
+    # The engine's JPEG decoder and Pillow's differ by a level or two.
+    assert frame.shape == (W, H, 4) and np.abs(frame.astype(int) - upright).max() <= 3
+
+
 def test_scene_new_warns_about_blend_modes_naming_the_layer(tmp_path):
     from psd_tools import PSDImage
     from psd_tools.constants import BlendMode

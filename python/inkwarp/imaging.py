@@ -150,7 +150,8 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
     ----------
     path : str or os.PathLike
         Any format Pillow reads (PNG, JPEG, ...). Grey, palette and RGB images are
-        converted; images without alpha come back opaque.
+        converted; images without alpha come back opaque. A photograph tagged with an EXIF
+        orientation comes back upright, as viewers show it and scenes read it.
 
     Returns
     -------
@@ -173,11 +174,11 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
     >>> read_image(path)[1, 2].tolist()
     [10, 20, 30, 255]
     """
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image, ImageOps, UnidentifiedImageError
 
     try:
         with Image.open(path) as im:
-            return np.asarray(im.convert("RGBA"), dtype=np.uint8).copy()
+            return np.asarray(ImageOps.exif_transpose(im).convert("RGBA"), dtype=np.uint8).copy()
     except UnidentifiedImageError as e:
         raise ValueError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
 

@@ -103,12 +103,13 @@ def read_picture(path: str | os.PathLike[str]) -> Picture:
 
 
 def _read_flat(source: Path) -> Picture:
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image, ImageOps, UnidentifiedImageError
 
     try:
         with Image.open(source) as image:
             image.load()
-            rgba = np.asarray(image.convert("RGBA")).copy()
+            # Upright, as viewers show it and the engine reads it (a phone's EXIF orientation).
+            rgba = np.asarray(ImageOps.exif_transpose(image).convert("RGBA")).copy()
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
         raise ValueError(f"{source}: not a readable {source.suffix.lstrip('.').upper()} "
                          f"picture ({err}); export it again from the painting app") from None

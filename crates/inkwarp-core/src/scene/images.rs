@@ -26,20 +26,21 @@ pub fn data_uri_bytes(uri: &str) -> Result<Vec<u8>, String> {
         .map_err(|e| format!("the data: URI is not valid base64 ({e})"))
 }
 
-/// Decodes a PNG or JPEG into straight-alpha RGBA8.
+/// Decodes a PNG or JPEG into straight-alpha RGBA8, upright by its EXIF orientation.
 pub fn decode_image(bytes: &[u8]) -> Result<RgbaImage, String> {
     let format = image::guess_format(bytes)
         .map_err(|_| "not a PNG or JPEG image (unrecognised file contents); save it as PNG or JPEG")?;
     if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
         return Err(format!("a {format:?} image; inkwarp reads PNG and JPEG, save it as one of those"));
     }
+    let damaged = |e: image::ImageError| format!("the {format:?} image could not be decoded ({e}): the file is damaged or cut short; save it again");
+    let mut decoder = image::ImageReader::with_format(std::io::Cursor::new(bytes), format).into_decoder().map_err(damaged)?;
     // The header's size first: a few kilobytes can declare a picture that needs gigabytes.
-    let (width, height) = image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
-        .into_dimensions()
-        .map_err(|e| format!("the {format:?} image could not be decoded ({e}): the file is damaged or cut short; save it again"))?;
+    let (width, height) = image::ImageDecoder::dimensions(&decoder);
     crate::limits::check_size("the picture", width as usize, height as usize)?;
-    let decoded = image::load_from_memory_with_format(bytes, format)
-        .map_err(|e| format!("the {format:?} image could not be decoded ({e}): the file is damaged or cut short; save it again"))?;
+    let orientation = image::ImageDecoder::orientation(&mut decoder).unwrap_or(image::metadata::Orientation::NoTransforms);
+    let mut decoded = image::DynamicImage::from_decoder(decoder).map_err(damaged)?;
+    decoded.apply_orientation(orientation);
     let mut rgba = decoded.to_rgba8();
     if decoded.color().bits_per_pixel() == 16 * decoded.color().channel_count() as u16 {
         // Sixteen bits rounded to eight, but never a faint nonzero value (a matte's, an alpha's) to 0.
@@ -117,6 +118,27 @@ mod tests {
         bytes[29..33].copy_from_slice(&crc.to_be_bytes());
         let err = decode_image(&bytes).unwrap_err();
         assert!(err.contains("40000×40000") && err.contains("at most"), "{err}");
+    }
+
+    #[test]
+    fn a_jpeg_is_turned_upright_by_its_exif_orientation() {
+        // 6 wide, 4 high, red on its left half; tagged "rotate 90° clockwise to view", as a
+        // phone held upright stores its photograph, and as viewers, browsers and drawing
+        // programs show it (a drawing traced there lines up only with the upright picture).
+        let pixels: Vec<u8> = (0..4 * 6).flat_map(|i| if i % 6 < 3 { [255, 0, 0] } else { [0, 0, 255] }).collect();
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 100).encode(&pixels, 6, 4, image::ExtendedColorType::Rgb8).unwrap();
+        let mut exif = b"Exif\0\0MM\0\x2a\0\0\0\x08\0\x01\x01\x12\0\x03\0\0\0\x01\0\x06\0\0\0\0\0\0".to_vec();
+        let mut app1 = vec![0xff, 0xe1];
+        app1.extend_from_slice(&((exif.len() + 2) as u16).to_be_bytes());
+        app1.append(&mut exif);
+        jpeg.splice(2..2, app1);
+        let upright = decode_image(&jpeg).unwrap();
+        assert_eq!((upright.width, upright.height), (4, 6));
+        let px = |x: usize, y: usize| &upright.data[4 * (y * 4 + x)..4 * (y * 4 + x) + 3];
+        // The left half turned clockwise is the top half.
+        assert!(px(1, 0)[0] > 200 && px(1, 0)[2] < 60, "{:?}", px(1, 0));
+        assert!(px(1, 5)[2] > 200 && px(1, 5)[0] < 60, "{:?}", px(1, 5));
     }
 
     fn crc32(data: &[u8]) -> u32 {
