@@ -2,6 +2,7 @@
 thin-plate map."""
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -200,6 +201,15 @@ def test_transfer_returns_a_scene(tmp_path):
                              ROOT / "examples" / "transfer" / "cat-target.json")
     assert isinstance(scene, inkwarp.Scene)
     assert (scene.width, scene.height) == (451, 300)
+    # Saved, its pictures are relative to where it goes, as `inkwarp transfer -o` writes
+    # them (they were absolute paths: a folder moved or sent to a farm lost them).
+    (tmp_path / "shot").mkdir()
+    scene.save(tmp_path / "shot" / "cat.json")
+    saved = json.loads((tmp_path / "shot" / "cat.json").read_text())
+    cat = (ROOT / "examples" / "cat").resolve()
+    assert [layer["image"] for layer in saved["layers"]] == [
+        os.path.relpath(cat / Path(layer["image"]).name, tmp_path / "shot") for layer in saved["layers"]]
+    assert inkwarp.Scene.load(tmp_path / "shot" / "cat.json").render(time=1.0).shape == (300, 451, 4)
 
 
 EXAMPLE = ROOT / "examples" / "transfer"

@@ -290,6 +290,12 @@ def test_cli_writes_the_tracked_scene_and_a_frame(videos, tmp_path, capsys):
     result = json.loads((out_dir / "t.json").read_text())
     assert result["layers"][0]["image"] == "../frame.png"  # rebased for the output's folder
     assert [p.name for p in out_dir.iterdir()] == ["t.json"]  # no temporary left
+    # The same from Python: the tracked Scene saves its picture relative to where it goes.
+    import inkwarp
+
+    inkwarp.track(path, scene, simplify_px=0.5).save(out_dir / "p.json")
+    assert json.loads((out_dir / "p.json").read_text())["layers"][0]["image"] == "../frame.png"
+    assert inkwarp.Scene.load(out_dir / "p.json").render().shape == (H, W, 4)
     # A scene without width and height has its image's size (it read "None x None").
     del doc["width"], doc["height"]
     scene.write_text(json.dumps(doc))

@@ -799,12 +799,14 @@ def track(video: str | os.PathLike[str], scene: Any, frame: int = 0, **options: 
     -------
     inkwarp.Scene
         The scene with a key at every video frame for every feature but its cuts, which
-        move nothing.
+        move nothing. Its image paths start from the input scene's folder, as that
+        scene's did, so :meth:`inkwarp.Scene.save` writes them relative to where it saves.
     """
     from inkwarp import Scene
+    from inkwarp.transfer import _folder
 
-    doc = track_dict(video, scene, frame, **options)
-    return Scene.from_dict(doc)
+    base = options.pop("relative_to", None) or _folder(scene)
+    return Scene.from_dict(track_dict(video, scene, frame, relative_to=base, **options), base_dir=base)
 
 
 def rotoscope_example(examples_dir: str | os.PathLike[str], out_dir: str | os.PathLike[str], *,

@@ -72,6 +72,15 @@ def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
     raise ValueError(f"the {role} scene must be a path, a dict or an inkwarp.Scene; got {type(scene).__name__}.")
 
 
+def _folder(scene: Any) -> Path | None:
+    """The folder a scene's relative image paths start from: a file's, a Scene's
+    ``base_dir``; None for a dict."""
+    if isinstance(scene, (str, os.PathLike)):
+        return Path(scene).resolve().parent
+    base = getattr(scene, "base_dir", None)
+    return Path(base) if base is not None else None
+
+
 def _features(doc: dict[str, Any], role: str) -> list[tuple[str, str, list, list]]:
     features = doc.get("features")
     if not isinstance(features, list):
@@ -169,7 +178,9 @@ def transfer(source: Any, target: Any) -> Any:
     Returns
     -------
     inkwarp.Scene
-        The target with the transferred keys (its own picture, layers and settings).
+        The target with the transferred keys (its own picture, layers and settings). Its
+        image paths start from the target's folder, as the target's did, so
+        :meth:`inkwarp.Scene.save` writes them relative to where it saves.
 
     Raises
     ------
@@ -179,7 +190,8 @@ def transfer(source: Any, target: Any) -> Any:
     """
     from inkwarp import Scene
 
-    return Scene.from_dict(transfer_dict(source, target))
+    base = _folder(target)
+    return Scene.from_dict(transfer_dict(source, target, relative_to=base), base_dir=base)
 
 
 def transfer_example(examples_dir: str | os.PathLike, out_dir: str | os.PathLike) -> Path:
