@@ -221,10 +221,10 @@ def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path)
     point = doc["features"][0]
     doc["features"] += [
         {"id": "typo", "kind": "point", "rest": [[470, 20]], "keys": [{"t": 0.5, "points": [[475, 20]]}]},
-        {"id": "late", "kind": "polyline", "rest": [[4, 4], [10, 4]], "keys": [{"t": 3.0, "points": [[4, 8], [10, 8]]}]},
+        {"id": "late", "kind": "point", "rest": point["rest"], "keys": [{"t": 3.0, "points": point["rest"]}]},
         {"id": "spare", "kind": "cut", "rest": [[0, 30], [20, 30]]},
-        # Control points off the picture, but the curve through them touches its edge.
-        {"id": "dips", "kind": "spline", "rest": [[-6, 10], [0, 20], [-6, 30]]},
+        # Points off the picture, but the line through them touches its edge.
+        {"id": "dips", "kind": "cut", "rest": [[-6, 10], [0, 20], [-6, 30]]},
     ]
     doc["layers"][0]["features"] = [point["id"], "typo", "late", "dips"]
     path.write_text(json.dumps(doc))
@@ -243,6 +243,44 @@ def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path)
     import inkwarp
 
     assert [p for p, _ in inkwarp.Scene.load(path).notes()] == ["features[1]", "features[2].keys[0].t", "features[3]"]
+
+
+def test_validate_notes_a_feature_drawn_wholly_on_holes(capsys, tmp_path):
+    # A pin traced on a cut-out's transparent pixels (or in a hole of a continuity matte) is
+    # dropped by the solver: it pins and moves nothing, without a word at render time.
+    cutout = np.zeros((HEIGHT, WIDTH, 4), np.uint8)
+    cutout[10:30, 10:30] = (200, 60, 60, 255)
+    Image.fromarray(cutout, "RGBA").save(tmp_path / "cutout.png")
+    matte = np.full((HEIGHT, WIDTH), 255, np.uint8)
+    matte[5:15, 35:45] = 0
+    Image.fromarray(matte).save(tmp_path / "holes.png")
+    point = lambda id, x, y: {"id": id, "kind": "point", "rest": [[x, y]], "keys": [{"t": 0.5, "points": [[x + 3, y]]}]}  # noqa: E731
+    doc = {"inkwarp": 1, "fps": 4, "duration": 1, "layers": [
+        {"name": "cutout", "image": "cutout.png", "features": ["beside", "on", "across", "ring"]},
+        {"name": "plate", "continuity": "holes.png", "features": ["in_hole", "ring"]}],
+        "features": [
+            point("beside", 30, 20),  # the first transparent column
+            point("on", 29, 20),
+            {"id": "across", "kind": "polyline", "rest": [[2, 2], [40, 38]]},  # its ends off the square
+            point("in_hole", 40, 10),
+            # On the cutout's transparent pixels all round, but on the plate's connected ones.
+            {"id": "ring", "kind": "spline", "closed": True, "rest": [[4, 4], [40, 4], [40, 36], [4, 36]]}]}
+    (tmp_path / "s.json").write_text(json.dumps(doc))
+    code, stdout, _ = run(capsys, "validate", tmp_path / "s.json")
+    assert code == 0
+    assert stdout.splitlines()[1:] == [
+        f"note: {tmp_path / 's.json'}: features[0]: 'beside' lies wholly on the transparent pixels of layer 'cutout', "
+        "so it pins and moves nothing; trace it on the picture itself",
+        f"note: {tmp_path / 's.json'}: features[3]: 'in_hole' lies wholly on the holes of layer 'plate''s continuity "
+        "matte, so it pins and moves nothing; trace it on the picture itself",
+    ]
+    # What the note says is what the solver does.
+    import inkwarp
+
+    scene = inkwarp.Scene.load(tmp_path / "s.json")
+    assert np.abs(scene.field(time=1.0, layer="cutout")).max() > 1
+    doc["layers"][0]["features"] = ["beside"]
+    assert np.abs(inkwarp.Scene.from_dict(doc, base_dir=tmp_path).field(time=1.0, layer="cutout")).max() == 0
 
 
 def test_schema_prints_the_engines_schema(capsys, tmp_path):
