@@ -314,6 +314,29 @@ def test_method_option_reaches_the_engine(capsys, scene, tmp_path, monkeypatch, 
     assert code == 0 and seen == ["tps"]
 
 
+def test_a_method_that_ignores_holes_and_cuts_says_so_where_the_scene_has_them(capsys, tmp_path):
+    # compare said it; render drew the torn surface whole without a word.
+    scene = write_scene(tmp_path / "s")
+    note = ("inkwarp render: note: --method triangulation ignores the continuity matte and cuts: layer 'square' "
+            "stays whole across its holes and cuts (only tps tears them)\n")
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.png", "--method", "triangulation")
+    assert code == 0 and err == note  # the square's transparent pixels are holes
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.png", "--method", "triangulation", "-q")
+    assert code == 0 and err == ""
+    picture = tmp_path / "s" / "square.png"
+    opaque = np.asarray(Image.open(picture)).copy()
+    opaque[..., 3] = 255
+    Image.fromarray(opaque).save(picture)
+    for method in ("triangulation", "tps"):
+        code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.png", "--method", method)
+        assert code == 0 and err == "", method
+    doc = json.loads(scene.read_text())
+    doc["features"].append({"id": "slit", "kind": "cut", "rest": [[30, 0], [30, 20]]})
+    scene.write_text(json.dumps(doc))
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.png", "--method", "triangulation")
+    assert code == 0 and err == note
+
+
 def test_an_unknown_method_is_a_usage_error(capsys, scene, tmp_path):
     with pytest.raises(SystemExit) as stop:
         main(["render", str(scene), "-o", str(tmp_path / "m.png"), "--method", "rbf"])

@@ -170,6 +170,12 @@ def _run(args: argparse.Namespace) -> int:
     scene = _common.load_scene(args.scene)
     if background is not None:
         scene = outputs.with_background(scene, background)
+    if args.method not in (None, "tps") and not args.quiet:
+        torn = _torn_layers(scene)
+        if torn:
+            print(f"inkwarp render: note: --method {args.method} ignores the continuity matte and cuts: "
+                  f"{', '.join(torn)} stay{'s' if len(torn) == 1 else ''} whole across {'its' if len(torn) == 1 else 'their'} "
+                  "holes and cuts (only tps tears them)", file=sys.stderr, flush=True)
     started = time.perf_counter()
     if kind == "png":
         if args.time is not None:
@@ -216,3 +222,14 @@ def _run(args: argparse.Namespace) -> int:
                   f"{start}:{stop}, {_common.scene_size(scene)}, {scene.fps:g} fps){where} in "
                   f"{seconds:.2f} s ({count / max(seconds, 1e-9):.1f} frames/s)")
     return 0
+
+
+def _torn_layers(scene) -> list[str]:
+    """The layers a cut drives or whose continuity matte has holes, as "layer 'NAME'"."""
+    from inkwarp.scene import _continuity
+
+    doc = scene.to_dict()
+    cuts = {f["id"] for f in doc.get("features", []) if f["kind"] == "cut"}
+    drives = lambda layer: cuts if layer.get("features") is None else set(layer["features"])  # noqa: E731
+    return [f"layer {layer['name']!r}" for layer in doc.get("layers", [])
+            if cuts & drives(layer) or _continuity(layer, scene.base_dir) is not None]
