@@ -319,7 +319,7 @@ def test_layer_names_that_share_a_file_name_or_are_long_each_get_an_image(capsys
     from psd_tools import PSDImage
     from psd_tools.api.layers import PixelLayer
 
-    names = ["a-b", "a-b-2", "a b", "arm", "Arm", "x" * 250, "../../up"]
+    names = ["a-b", "a-b-2", "a b", "arm", "Arm", "x" * 250, "../../up", "Ébauche 1"]
     psd = PSDImage.new("RGB", (16, 12))
     for i, name in enumerate(names):
         picture = Image.new("RGBA", (16, 12), (0, 0, 0, 0))
@@ -335,6 +335,7 @@ def test_layer_names_that_share_a_file_name_or_are_long_each_get_an_image(capsys
     assert len({image.casefold() for image in images}) == len(names)
     assert sorted(images + ["n.json"]) == files(out)  # all inside the scene's folder
     assert all(len(image) <= 80 for image in images)
+    assert images[-1] == "n-Ebauche-1.png"  # an accent keeps its letter
     for i, image in enumerate(images):  # each layer's own pixels under its own file
         pixels = np.asarray(Image.open(out / image))
         assert pixels[i, i, 3] == 255 and pixels[i, i, 0] == 10 + 30 * i

@@ -27,6 +27,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import unicodedata
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -230,8 +231,10 @@ def _unique_names(names: list[str]) -> list[str]:
 
 def _slug(name: str) -> str:
     """A layer's name as part of a file name: safe characters only, and short (a PSD layer
-    name may be 255 characters, more than a file name may hold with the scene's name)."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "-", name).strip("-.")[:64].strip("-.") or "layer"
+    name may be 255 characters, more than a file name may hold with the scene's name).
+    Accented letters keep their base letter ("Ébauche" → "Ebauche")."""
+    plain = unicodedata.normalize("NFKD", name).encode("ascii", "ignore").decode("ascii")
+    return re.sub(r"[^A-Za-z0-9._-]+", "-", plain).strip("-.")[:64].strip("-.") or "layer"
 
 
 def scene_dict(picture: Picture, images: list[str], *, fps: float = 24.0,
