@@ -1420,6 +1420,21 @@ test('a 3 px key drag moves the key by at most one frame, onto a frame; keys sta
   await page.keyboard.press('End');
   assert((await page.evaluate(() => window.inkwarp.store.view.time)) === 47 / 24, 'End goes to the last frame');
   assert(/frame 47 of 0–47/.test(await page.evaluate(() => document.querySelector('#time').textContent)), 'the last frame is frame 47, as inkwarp render counts');
+  // A step past it, the ruler's right end and the slider's end are the last frame too (the
+  // slider ran on to 2 s, a pose no frame shows, labelled frame 47).
+  const now = () => page.evaluate(() => window.inkwarp.store.view.time);
+  await page.keyboard.press('ArrowRight');
+  assert((await now()) === 47 / 24, `a step past the last frame went to ${await now()} s`);
+  await page.evaluate(() => window.inkwarp.ui.setTime(0));
+  await page.mouse.click(ruler[0] + ruler[2] - 1, ruler[1]);
+  assert((await now()) === 47 / 24, `the ruler's right end is ${await now()} s`);
+  assert((await page.evaluate(() => Number(document.querySelector('#scrub').max))) === 47 / 24, 'the slider ends at the last frame');
+  // A key at the scene's end is reached by a key step, and said to be past the last frame.
+  await page.evaluate(() => window.inkwarp.store.edit((d) => window.inkwarp.state.setKey(d, 'pin1', 2, [[40, 30]])));
+  await page.keyboard.press('Shift+ArrowRight');
+  assert((await now()) === 2, `Shift+Right went to ${await now()} s, not the key at 2 s`);
+  const label = await page.evaluate(() => document.querySelector('#time').textContent);
+  assert(/2\.00 s · past the last frame \(47\)/.test(label), `at the key past the last frame the label reads ${label}`);
   await screenshot(page, 'timeline-keys');
 });
 

@@ -331,13 +331,17 @@ export class Ui {
     (this.els.redo as HTMLButtonElement).disabled = !this.store.canRedo();
     this.els.play.textContent = view.playing ? '❚❚' : '▶';
     const scrub = this.els.scrub as HTMLInputElement;
-    scrub.max = String(doc.duration);
+    const n = frameCount(doc);
+    // The slider ends at the last frame `inkwarp render` draws, (n − 1) / fps, not at the
+    // duration: a time past it (a key at the end) is shown by no frame.
+    scrub.max = String((n - 1) / doc.fps);
     scrub.step = String(1 / doc.fps);
     scrub.value = String(view.time);
-    const n = frameCount(doc);
-    const frame = Math.min(n - 1, Math.round(view.time * doc.fps));
+    const frame = Math.round(view.time * doc.fps);
     // Frames counted from 0, as `inkwarp render --frame`, `--frames a:b` and file names count them.
-    this.els.timeText.textContent = `${view.time.toFixed(2)} s · frame ${frame} of 0–${n - 1}`;
+    this.els.timeText.textContent = frame < n
+      ? `${view.time.toFixed(2)} s · frame ${frame} of 0–${n - 1}`
+      : `${view.time.toFixed(2)} s · past the last frame (${n - 1})`;
     if (document.activeElement !== this.els.fps) (this.els.fps as HTMLInputElement).value = String(doc.fps);
     if (document.activeElement !== this.els.duration) (this.els.duration as HTMLInputElement).value = String(doc.duration);
     const ex = this.els.examples as HTMLSelectElement;
@@ -632,7 +636,8 @@ export class Ui {
     const move = (ev: PointerEvent) => {
       const { duration } = this.store.doc;
       const raw = ((ev.clientX - x0) / Math.max(1, r.width)) * duration;
-      const to = ev.altKey ? t0 + raw : this.snapTime(t0 + raw);
+      // Onto frames, where a key at the scene's end (past the last frame) may go too.
+      const to = ev.altKey ? t0 + raw : Math.round((t0 + raw) * this.store.doc.fps) / this.store.doc.fps;
       const next = Math.max(-first, Math.min(duration - last, to - t0));
       if (Math.abs(next - dt) < KEY_EPS) return;
       try {
@@ -761,9 +766,10 @@ export class Ui {
     }
   }
 
+  /** The nearest frame's time, up to the last frame's. */
   private snapTime(t: number): number {
-    const fps = this.store.doc.fps;
-    return Math.round(t * fps) / fps;
+    const doc = this.store.doc;
+    return Math.min(frameCount(doc) - 1, Math.max(0, Math.round(t * doc.fps))) / doc.fps;
   }
 
   updateStatus(): void {
@@ -1275,7 +1281,7 @@ export class Ui {
   /** To the next or previous frame (k / fps, counted, not summed: on the frames exactly). */
   private stepFrame(dir: 1 | -1): void {
     const f = this.store.view.time * this.store.doc.fps;
-    this.setTime((dir > 0 ? Math.floor(f + 1e-6) + 1 : Math.ceil(f - 1e-6) - 1) / this.store.doc.fps);
+    this.setTime(this.snapTime((dir > 0 ? Math.floor(f + 1e-6) + 1 : Math.ceil(f - 1e-6) - 1) / this.store.doc.fps));
   }
 
   private stepKey(dir: 1 | -1): void {
