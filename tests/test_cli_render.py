@@ -247,40 +247,58 @@ def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path)
 
 def test_validate_notes_a_feature_drawn_wholly_on_holes(capsys, tmp_path):
     # A pin traced on a cut-out's transparent pixels (or in a hole of a continuity matte) is
-    # dropped by the solver: it pins and moves nothing, without a word at render time.
+    # dropped by the solver: it pins and moves nothing, without a word at render time. The
+    # note is the solver's own rule (each sample's nearest node, at grid_step 1).
     cutout = np.zeros((HEIGHT, WIDTH, 4), np.uint8)
-    cutout[10:30, 10:30] = (200, 60, 60, 255)
+    cutout[10:30, 11:30] = (200, 60, 60, 255)
+    cutout[7, 19] = (200, 60, 60, 255)  # one opaque pixel on a curve's bend
     Image.fromarray(cutout, "RGBA").save(tmp_path / "cutout.png")
     matte = np.full((HEIGHT, WIDTH), 255, np.uint8)
     matte[5:15, 35:45] = 0
     Image.fromarray(matte).save(tmp_path / "holes.png")
     point = lambda id, x, y: {"id": id, "kind": "point", "rest": [[x, y]], "keys": [{"t": 0.5, "points": [[x + 3, y]]}]}  # noqa: E731
     doc = {"inkwarp": 1, "fps": 4, "duration": 1, "layers": [
-        {"name": "cutout", "image": "cutout.png", "features": ["beside", "on", "across", "ring"]},
+        {"name": "cutout", "image": "cutout.png", "features": ["beside", "on", "half", "across", "bend", "ring", "patch"]},
         {"name": "plate", "continuity": "holes.png", "features": ["in_hole", "ring"]}],
         "features": [
             point("beside", 30, 20),  # the first transparent column
             point("on", 29, 20),
+            point("half", 10.5, 20),  # halves round up, to the first opaque column
             {"id": "across", "kind": "polyline", "rest": [[2, 2], [40, 38]]},  # its ends off the square
+            # The straight lines between its points pass at y 6; the curve bends to 6.75, onto
+            # the one opaque pixel.
+            {"id": "bend", "kind": "spline", "rest": [[5, 0], [12, 6], [26, 6], [33, 0]]},
             point("in_hole", 40, 10),
             # On the cutout's transparent pixels all round, but on the plate's connected ones.
-            {"id": "ring", "kind": "spline", "closed": True, "rest": [[4, 4], [40, 4], [40, 36], [4, 36]]}]}
+            {"id": "ring", "kind": "spline", "closed": True, "rest": [[4, 4], [40, 4], [40, 36], [4, 36]]},
+            {"id": "patch", "kind": "region", "rest": [[33, 2], [46, 2], [46, 12], [33, 12]]}]}
     (tmp_path / "s.json").write_text(json.dumps(doc))
     code, stdout, _ = run(capsys, "validate", tmp_path / "s.json")
     assert code == 0
+    drop = "so it pins and moves nothing; trace it on the picture itself"
     assert stdout.splitlines()[1:] == [
-        f"note: {tmp_path / 's.json'}: features[0]: 'beside' lies wholly on the transparent pixels of layer 'cutout', "
-        "so it pins and moves nothing; trace it on the picture itself",
-        f"note: {tmp_path / 's.json'}: features[3]: 'in_hole' lies wholly on the holes of layer 'plate''s continuity "
-        "matte, so it pins and moves nothing; trace it on the picture itself",
+        f"note: {tmp_path / 's.json'}: features[0]: 'beside' lies wholly on the transparent pixels of layer 'cutout', {drop}",
+        f"note: {tmp_path / 's.json'}: features[5]: 'in_hole' lies wholly on the holes of the continuity matte of layer "
+        f"'plate', {drop}",
+        f"note: {tmp_path / 's.json'}: features[7]: 'patch' lies wholly on the transparent pixels of layer 'cutout', {drop}",
     ]
-    # What the note says is what the solver does.
+    # What the notes say is what the solver does: alone, each noted feature moves nothing,
+    # and each of the others moves its layer.
     import inkwarp
 
-    scene = inkwarp.Scene.load(tmp_path / "s.json")
-    assert np.abs(scene.field(time=1.0, layer="cutout")).max() > 1
-    doc["layers"][0]["features"] = ["beside"]
-    assert np.abs(inkwarp.Scene.from_dict(doc, base_dir=tmp_path).field(time=1.0, layer="cutout")).max() == 0
+    for name, layer, moves in [("beside", 0, False), ("patch", 0, False), ("in_hole", 1, False), ("on", 0, True),
+                               ("half", 0, True), ("across", 0, True), ("bend", 0, True)]:
+        alone = json.loads(json.dumps(doc))
+        alone["layers"][layer]["features"] = [name]
+        for f in alone["features"]:
+            f.setdefault("keys", [{"t": 0.5, "points": [[x + 3, y] for x, y in f["rest"]]}])
+        field = inkwarp.Scene.from_dict(alone, base_dir=tmp_path).field(time=1.0, layer=layer)
+        assert (np.abs(field).max() > 1) == moves, name
+    # At grid_step 2 samples go to the coarse nodes: no note is given there. A layer with
+    # an alpha matte but no image is solved on a whole grid: nothing is on a hole.
+    doc["solver"] = {"grid_step": 2}
+    doc["layers"][1] = {"name": "plate", "alpha": "holes.png", "features": ["in_hole", "ring"]}
+    assert inkwarp.Scene.from_dict(doc, base_dir=tmp_path).notes() == []
 
 
 def test_schema_prints_the_engines_schema(capsys, tmp_path):

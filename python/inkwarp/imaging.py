@@ -8,7 +8,7 @@ premultiplied) RGBA, row ``y``, column ``x``, with pixel centres at integer coor
 from __future__ import annotations
 
 import os
-from typing import Union
+from typing import Any, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -174,13 +174,30 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
     >>> read_image(path)[1, 2].tolist()
     [10, 20, 30, 255]
     """
-    from PIL import Image, ImageOps, UnidentifiedImageError
+    from PIL import Image, UnidentifiedImageError
 
     try:
         with Image.open(path) as im:
-            return np.asarray(ImageOps.exif_transpose(im).convert("RGBA"), dtype=np.uint8).copy()
+            return np.asarray(upright(im).convert("RGBA"), dtype=np.uint8).copy()
     except UnidentifiedImageError as e:
         raise ValueError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
+
+
+def upright(image: Any) -> Any:
+    """A Pillow image turned upright by the orientation in its EXIF block (a JPEG's APP1, a
+    PNG's eXIf chunk), as the engine reads pictures; an orientation written elsewhere (XMP,
+    a PNG text chunk) is read by neither."""
+    from PIL import Image
+
+    raw = image.info.get("exif")
+    if not raw:
+        return image
+    exif = Image.Exif()
+    exif.load(raw)
+    turn = {2: Image.Transpose.FLIP_LEFT_RIGHT, 3: Image.Transpose.ROTATE_180, 4: Image.Transpose.FLIP_TOP_BOTTOM,
+            5: Image.Transpose.TRANSPOSE, 6: Image.Transpose.ROTATE_270, 7: Image.Transpose.TRANSVERSE,
+            8: Image.Transpose.ROTATE_90}.get(exif.get(0x0112))
+    return image.transpose(turn) if turn else image
 
 
 #: zlib level of every PNG inkwarp writes. Level 1 writes a 12-megapixel photograph's frame

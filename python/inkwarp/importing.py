@@ -104,13 +104,15 @@ def read_picture(path: str | os.PathLike[str]) -> Picture:
 
 
 def _read_flat(source: Path) -> Picture:
-    from PIL import Image, ImageOps, UnidentifiedImageError
+    from PIL import Image, UnidentifiedImageError
+
+    from inkwarp.imaging import upright
 
     try:
         with Image.open(source) as image:
             image.load()
             # Upright, as viewers show it and the engine reads it (a phone's EXIF orientation).
-            rgba = np.asarray(ImageOps.exif_transpose(image).convert("RGBA")).copy()
+            rgba = np.asarray(upright(image).convert("RGBA")).copy()
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
         raise ValueError(f"{source}: not a readable {source.suffix.lstrip('.').upper()} "
                          f"picture ({err}); export it again from the painting app") from None
@@ -229,11 +231,17 @@ def _unique_names(names: list[str]) -> list[str]:
     return out
 
 
+#: Letters with no decomposition into a base letter and an accent, spelled in ASCII.
+_LETTERS = str.maketrans({"ß": "ss", "Œ": "OE", "œ": "oe", "Æ": "AE", "æ": "ae", "Ø": "O", "ø": "o",
+                          "Ł": "L", "ł": "l", "Đ": "D", "đ": "d", "Þ": "Th", "þ": "th", "ı": "i"})
+
+
 def _slug(name: str) -> str:
     """A layer's name as part of a file name: safe characters only, and short (a PSD layer
     name may be 255 characters, more than a file name may hold with the scene's name).
     Accented letters keep their base letter ("Ébauche" → "Ebauche")."""
-    plain = unicodedata.normalize("NFKD", name).encode("ascii", "ignore").decode("ascii")
+    spelled = name.translate(_LETTERS)
+    plain = "".join(c for c in unicodedata.normalize("NFKD", spelled) if not unicodedata.combining(c))
     return re.sub(r"[^A-Za-z0-9._-]+", "-", plain).strip("-.")[:64].strip("-.") or "layer"
 
 

@@ -1,5 +1,6 @@
-"""Outputs for pipelines: video with alpha (WebM VP9, ProRes 4444 MOV, APNG), GIF with 1-bit
-transparency, sprite sheets with a TexturePacker JSON, and background overrides.
+"""Outputs for pipelines: video with alpha (WebM VP9, ProRes 4444 MOV, APNG), sprite sheets
+with a TexturePacker JSON, and background overrides (GIF, with 1-bit transparency, is
+:mod:`inkwarp.video`'s).
 
 These writers follow :mod:`inkwarp.video`'s rules: frames are RGBA ``uint8`` arrays with
 straight alpha, everything is written under a temporary name beside the target and renamed
@@ -9,9 +10,7 @@ behind. Video goes through the ffmpeg that the ``imageio-ffmpeg`` wheel ships.
 - ``.webm``: VP9 in ``yuva420p`` (alpha kept; plays in browsers, imports into DaVinci
   Resolve, Premiere, After Effects and Blender);
 - ``.mov``: Apple ProRes 4444 (``yuva444p10le``; alpha kept, the editing codec);
-- ``.apng``: animated PNG, lossless RGBA, looping;
-- ``.gif`` of a transparent scene: 1-bit transparency (a pixel is transparent where its
-  alpha is below 128, otherwise opaque, its colour unblended), 255 colours a frame.
+- ``.apng``: animated PNG, lossless RGBA, looping.
 
 Examples
 --------

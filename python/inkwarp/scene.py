@@ -421,40 +421,6 @@ def _number_argument(value: Any, name: str) -> float:
         raise ValueError(f"{name} must be a finite number; got {value!r:.40}")
     return number
 
-def _continuity(layer: Mapping[str, Any], base_dir: str | None) -> np.ndarray | None:
-    """A layer's connected pixels (bool, rows × columns) by the scene format's matte rule:
-    its continuity matte, else its alpha (an alpha matte, else its image's); None when it
-    has no holes (no picture, or every pixel connected)."""
-    from PIL import Image, ImageOps
-
-    def rgba(reference: str) -> np.ndarray:
-        source: Any = (io.BytesIO(base64.b64decode(reference.split(",", 1)[1])) if reference[:5].lower() == "data:"
-                       else Path(base_dir or ".") / reference)
-        with Image.open(source) as image:
-            return np.asarray(ImageOps.exif_transpose(image).convert("RGBA"))
-
-    matte = layer.get("continuity") or layer.get("alpha")
-    if matte:
-        pixels = rgba(matte)
-        connected = (pixels[..., 3] > 0) & pixels[..., :3].any(axis=2)  # grey × alpha > 0
-    elif layer.get("image"):
-        connected = rgba(layer["image"])[..., 3] > 0
-    else:
-        return None
-    return None if connected.all() else connected
-
-
-def _pixels_along(points: np.ndarray, closed: bool, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """The pixels (rows, columns) a line through ``points`` passes over, every half pixel,
-    within ``shape``."""
-    path = np.vstack([points, points[:1]]) if closed and len(points) > 2 else points
-    along = [path[:1]] + [a + (b - a) * np.linspace(0, 1, int(np.ceil(2 * np.hypot(*(b - a)))) + 1)[1:, None]
-                          for a, b in zip(path[:-1], path[1:])]
-    xy = np.rint(np.vstack(along)).astype(np.int64)
-    inside = (xy[:, 0] >= 0) & (xy[:, 0] < shape[1]) & (xy[:, 1] >= 0) & (xy[:, 1] < shape[0])
-    return xy[inside, 1], xy[inside, 0]
-
-
 def _check_finite_field(field: Any, where: str) -> None:
     """A field with a NaN or an infinity would render as a blank frame: refuse it instead."""
     values = np.asarray(field)
@@ -766,9 +732,9 @@ class Scene:
 
     def notes(self) -> list[Problem]:
         """What in this scene is allowed but probably a mistake, as ``(JSON path, message)``:
-        a feature drawn wholly off the picture (it moves and tears nothing), a point, line or
-        curve drawn wholly on holes of the layers it drives (transparent pixels, by default:
-        it pins nothing), a key after the scene's end (no frame shows it), a feature that
+        a feature drawn wholly off the picture (it moves and tears nothing), one drawn wholly
+        on holes of the layers it drives (transparent pixels, by default: the solver drops
+        its samples, so it pins nothing; judged at ``grid_step`` 1 only), a key after the scene's end (no frame shows it), a feature that
         drives no layer. ``inkwarp validate``
         prints them as notes after its "ok"; a scene with notes renders as any other (a
         feature off the picture may be there on purpose, as a correspondence point for
@@ -780,13 +746,8 @@ class Scene:
         driven = (None if any(layer.get("features") is None for layer in layers)
                   else {name for layer in layers for name in layer["features"]})
         notes: list[Problem] = []
-        read: dict[int, np.ndarray | None] = {}
-
-        def active(j: int) -> np.ndarray | None:
-            if j not in read:
-                read[j] = _continuity(layers[j], self.base_dir)
-            return read[j]
-
+        # Per layer, the features whose every sample the solver drops (None at grid_step > 1).
+        dropped = [None if wholly is None else set(wholly) for _, wholly in self._core.layer_checks()]
         for i, feature in enumerate(doc.get("features", [])):
             name, rest = feature["id"], np.asarray(feature["rest"], dtype=np.float64).reshape(-1, 2)
             low, high = rest.min(axis=0), rest.max(axis=0)
@@ -799,12 +760,10 @@ class Scene:
                 notes.append((f"features[{i}]", f"{name!r} lies wholly off the picture, so it {does} nothing: its rest "
                               f"points span x {low[0]:g} to {high[0]:g}, y {low[1]:g} to {high[1]:g}, the picture's pixel "
                               f"centres x 0 to {width - 1}, y 0 to {height - 1}"))
-            elif feature["kind"] in ("point", "polyline", "spline"):
+            elif feature["kind"] != "cut":
                 drives = [j for j, layer in enumerate(layers) if layer.get("features") is None or name in layer["features"]]
-                connected = [active(j) for j in drives]
-                if drives and all(m is not None for m in connected) and not any(
-                        m[_pixels_along(rest, feature.get("closed", False), m.shape)].any() for m in connected):
-                    where = " and ".join(f"the holes of layer {layers[j]['name']!r}'s continuity matte" if layers[j].get("continuity")
+                if drives and all(dropped[j] is not None and i in dropped[j] for j in drives):
+                    where = " and ".join(f"the holes of the continuity matte of layer {layers[j]['name']!r}" if layers[j].get("continuity")
                                          else f"the transparent pixels of layer {layers[j]['name']!r}" for j in drives)
                     notes.append((f"features[{i}]", f"{name!r} lies wholly on {where}, so it pins and moves nothing; "
                                   "trace it on the picture itself"))

@@ -59,26 +59,25 @@ def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
         # The pictures play no part in a transfer: one missing or moved is not a problem here.
         _raise_for(_repeated_keys(text) + [p for p in validate_scene(doc, base_dir=path.resolve().parent)
                     if not re.fullmatch(r"layers\[\d+\]\.(image|alpha|continuity)", p[0])], os.fspath(path))
-        return doc, path.resolve().parent
+        return doc, _folder(scene)
     if isinstance(scene, dict):
         return copy.deepcopy(scene), None
     to_dict = getattr(scene, "to_dict", None)
     if callable(to_dict):
-        base = getattr(scene, "base_dir", None) or getattr(scene, "path", None)
-        if base is not None:
-            base = Path(base)
-            base = base.parent if base.suffix == ".json" else base
-        return to_dict(), base
+        return to_dict(), _folder(scene)
     raise ValueError(f"the {role} scene must be a path, a dict or an inkwarp.Scene; got {type(scene).__name__}.")
 
 
 def _folder(scene: Any) -> Path | None:
-    """The folder a scene's relative image paths start from: a file's, a Scene's
-    ``base_dir``; None for a dict."""
+    """The folder a scene's relative image paths start from: a scene file's, a Scene's
+    ``base_dir`` (or the folder of its ``path``); None for a dict."""
     if isinstance(scene, (str, os.PathLike)):
         return Path(scene).resolve().parent
-    base = getattr(scene, "base_dir", None)
-    return Path(base) if base is not None else None
+    base = None if isinstance(scene, dict) else getattr(scene, "base_dir", None) or getattr(scene, "path", None)
+    if base is None:
+        return None
+    base = Path(base).resolve()
+    return base.parent if base.suffix == ".json" else base
 
 
 def _features(doc: dict[str, Any], role: str) -> list[tuple[str, str, list, list]]:

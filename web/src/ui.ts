@@ -1384,8 +1384,8 @@ export class Ui {
       case 'Enter': return handled(), this.finishDraft(false);
       case 'Escape':
         handled();
-        if (this.exportStop) return this.cancelExport();
         if (!this.els.help.hidden) return this.toggleHelp();
+        if (this.exportStop) return this.cancelExport();
         if (this.store.view.draft.length) return this.store.cancelDraft();
         return this.store.setView({ selection: { feature: null, point: null }, pointSelection: [] });
       case 'Delete': case 'Backspace':

@@ -76,6 +76,7 @@ export async function encodeWebm(
     }
     await encoder.flush();
     if (failure) throw failure;
+    signal?.throwIfAborted();
   } finally {
     if (encoder.state !== 'closed') encoder.close();
   }

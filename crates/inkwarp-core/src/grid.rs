@@ -394,7 +394,7 @@ pub fn constrain(grid: &Grid, samples: &[Sample]) -> Constraints {
 
 /// Whether a `w`-wide grid with activity `active` and links `right` and `down` (as in
 /// [`Grid`]) has an inactive node or a missing link between two active neighbours.
-pub(crate) fn torn(w: usize, active: &[bool], right: &[bool], down: &[bool]) -> bool {
+pub fn torn(w: usize, active: &[bool], right: &[bool], down: &[bool]) -> bool {
     let n = active.len();
     (0..n).any(|i| !active[i] || (i % w + 1 < w && !right[i]) || (i + w < n && !down[i]))
 }

@@ -230,6 +230,28 @@ impl SceneCore {
         Ok(self.scene.layers().iter().any(|l| method.unwrap_or(l.solver.method).interpolant().is_none()))
     }
 
+    /// Per layer: whether its grid is torn (an inactive node, or a cut between two active
+    /// neighbours: what `tps` tears and the other methods ignore), and the features that
+    /// drive it of which every sample is dropped (off the grid or on inactive nodes), or
+    /// None at a `grid_step` above 1, whose samples go to the coarse nodes.
+    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(bool, Option<Vec<usize>>)>> {
+        let scene = Arc::clone(&self.scene);
+        let checks = run_engine(py, move || {
+            let check = |(i, layer): (usize, &scene::Layer)| -> Result<_, SceneError> {
+                let g = &layer.grid;
+                let torn = inkwarp_core::grid::torn(g.width, &g.active, &g.link_right, &g.link_down);
+                if layer.solver.grid_step > 1 {
+                    return Ok((torn, None));
+                }
+                let features = scene.layer_feature_samples(i, 0.0)?;
+                let dropped = features.iter().filter(|f| inkwarp_core::grid::constrain(g, &f.samples).used_samples == 0);
+                Ok((torn, Some(dropped.map(|f| f.feature).collect())))
+            };
+            scene.layers().iter().enumerate().map(check).collect::<Result<Vec<_>, _>>()
+        })?;
+        checks.map_err(|err| scene_error(py, &err, self.file.as_deref()))
+    }
+
     /// The document with its defaults filled in, as JSON text.
     fn doc_json(&self) -> String {
         serde_json::to_string(self.scene.doc()).expect("a scene document is always valid JSON")

@@ -225,11 +225,5 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _torn_layers(scene) -> list[str]:
-    """The layers a cut drives or whose continuity matte has holes, as "layer 'NAME'"."""
-    from inkwarp.scene import _continuity
-
-    doc = scene.to_dict()
-    cuts = {f["id"] for f in doc.get("features", []) if f["kind"] == "cut"}
-    drives = lambda layer: cuts if layer.get("features") is None else set(layer["features"])  # noqa: E731
-    return [f"layer {layer['name']!r}" for layer in doc.get("layers", [])
-            if cuts & drives(layer) or _continuity(layer, scene.base_dir) is not None]
+    """The layers whose grid a cut or a hole tears, as "layer 'NAME'"."""
+    return [f"layer {name!r}" for name, (torn, _) in zip(scene.layers, scene._core.layer_checks()) if torn]
