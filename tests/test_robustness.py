@@ -314,8 +314,9 @@ def test_the_gif_writer_streams_frames_to_disk(tmp_path: Path) -> None:
         for i, frame in enumerate(frames):
             gif.seek(i)
             assert gif.info["duration"] in (40, 50)
-            # Exactly the frame as quantised to its own palette.
+            # Exactly the frame as quantised to its own palette (255 colours and the
+            # transparent index).
             quantised = Image.fromarray(frame[..., :3]).quantize(
-                colors=256, method=Image.Quantize.FASTOCTREE).convert("RGB")
+                colors=255, method=Image.Quantize.FASTOCTREE).convert("RGB")
             assert np.array_equal(np.asarray(gif.convert("RGB")), np.asarray(quantised))
     assert [p.name for p in tmp_path.iterdir()] == ["clip.gif"]
