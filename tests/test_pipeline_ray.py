@@ -154,6 +154,26 @@ def test_a_chunk_whose_worker_dies_is_rendered_again_on_a_new_one(capsys, tmp_pa
         ray.shutdown()
 
 
+def test_the_workers_convergence_warnings_are_said_here_and_strict_holds(capsys, tmp_path):
+    # On Ray the solves that stopped early were said in the workers' logs only, and --strict
+    # was refused; now the warnings come back with the frames, as a local render says them.
+    import scene_art
+    from test_scene_convergence import _stopped_early
+
+    (tmp_path / "s").mkdir()
+    scene = scene_art.write_scene(tmp_path / "s", _stopped_early())
+    code, _, local = run(capsys, "render", scene, "-o", tmp_path / "here/", "--frames", "0:6", "-q")
+    assert code == 0 and "did not converge" in local
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        code, _, err = run(capsys, "render", scene, "-o", tmp_path / "ray/", "--frames", "0:6", "--ray", "-q")
+        assert code == 0 and err == local, err
+        code, _, err = run(capsys, "render", scene, "-o", tmp_path / "strict/", "--frames", "0:6", "--ray", "-q", "--strict")
+        assert code == 3 and err == local, err
+    finally:
+        ray.shutdown()
+
+
 def test_a_quiet_render_on_a_cluster_it_starts_prints_nothing(capfd, tmp_path):
     # Ray's own start-up lines (such as its token notice) went to the terminal under -q.
     scene = write_scene(tmp_path / "s")

@@ -73,8 +73,6 @@ def test_strict_exits_3_when_a_solve_did_not_converge_and_0_when_all_did(tmp_pat
     (tmp_path / "good").mkdir()
     good = write_scene(tmp_path / "good", two_layer_scene())
     assert main(["render", str(good), "-o", str(tmp_path / "g.png"), "--frame", "20", "-q", "--strict"]) == 0
-    assert main(["render", str(good), "-o", str(tmp_path / "g/"), "--strict", "--ray", "-q"]) == 2
-    assert "--strict with --ray" in capsys.readouterr().err
 
 
 def test_inkwarp_field_prints_the_same_one_line(tmp_path, capsys):

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from inkwarp import errors
 from inkwarp.errors import InkwarpWarning, InternalError, WorkerLostError
 from inkwarp.scene import WARM_CHAIN_FRAMES, preroll_start
 
@@ -504,14 +505,18 @@ class _ChunkRenderer:
         # One chain at a time: the actor has one CPU and one render's memory.
         self._frames = render_range(Scene.from_dict(doc), start, stop, method=method, threads=1)
 
-    def next_batch(self, count: int) -> list[np.ndarray]:
+    def next_batch(self, count: int) -> tuple[list[np.ndarray], list[tuple[str, str]]]:
+        """Up to ``count`` frames, and the inkwarp warnings their solves gave (a solve that
+        did not converge): ``(class name, message)``, for the caller to give again."""
         batch = []
-        for _ in range(count):
-            item = next(self._frames, None)
-            if item is None:
-                break
-            batch.append(item[1])
-        return batch
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always", InkwarpWarning)
+            for _ in range(count):
+                item = next(self._frames, None)
+                if item is None:
+                    break
+                batch.append(item[1])
+        return batch, [(w.category.__name__, str(w.message)) for w in said if issubclass(w.category, InkwarpWarning)]
 
 
 def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
@@ -574,7 +579,7 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
             ready, _ = ray.wait(list(pending), num_returns=1)
             i = pending.pop(ready[0])
             try:
-                batch = ray.get(ready[0])
+                batch, said = ray.get(ready[0])
             except lost as err:
                 # Its worker died: the chunk's frames not yet received on a new actor. One
                 # that could not start (the scene or inkwarp missing on a node) would fail
@@ -601,6 +606,9 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
                 raise InternalError(f"internal error: the Ray actor of frames {chunks[i][0]}:{chunks[i][1]} "
                                     f"stopped with {remaining[i]} frames to go; this is a bug in inkwarp, "
                                     "please report it")
+            # The workers' warnings (a solve that did not converge), given here as if solved here.
+            for kind, text in said:
+                warnings.warn(text, getattr(errors, kind, InkwarpWarning), stacklevel=2)
             buffers[i].extend(batch)
             remaining[i] -= len(batch)
             if bar is not None:

@@ -2171,6 +2171,48 @@ test('a layer smaller than the scene is placed by its offset (numeric fields, Mo
 });
 
 
+test('a cut is not posed: a pose drag on it keys nothing and says why; Escape or a mode ends layer Move', async () => {
+  await page.evaluate(async () => {
+    const { ui, examples, app } = window.inkwarp;
+    await ui.openScene(await examples.builtinScene(256), 'cut.json');
+    ui.setMode('pose');
+    await app.idle();
+  });
+  // The slit runs from (154, 51) to (154, 205) on 256 px: drag its top end, then its line.
+  const before = await page.evaluate(() => JSON.stringify(window.inkwarp.store.doc));
+  await drag(page, [154, 51], [180, 60], 6);
+  await drag(page, [154, 128], [170, 128], 6);
+  const after = await page.evaluate(() => ({
+    doc: JSON.stringify(window.inkwarp.store.doc),
+    message: document.querySelector('#message').textContent,
+    selected: window.inkwarp.store.view.selection.feature,
+  }));
+  assert(after.doc === before, 'a pose drag on a cut changed the scene (a cut with keys does not load)');
+  assert(after.selected === 'slit' && /slit is a cut: it moves nothing/.test(after.message), `the drag said ${after.message}`);
+  const keyed = await page.evaluate(() => {
+    try {
+      window.inkwarp.state.setKey(window.inkwarp.store.doc, 'slit', 0.5, [[160, 51], [154, 205]]);
+      return null;
+    } catch (e) {
+      return e.message;
+    }
+  });
+  assert(/is a cut/.test(keyed ?? ''), `a key on a cut was made: ${keyed}`);
+  // Layer Move stays on until ended: Escape ends it, and so does a mode or a tool.
+  const moving = () => page.evaluate(() => [window.inkwarp.ui.layerMove, document.querySelector('#layer-move').textContent]);
+  for (const end of ['Escape', 'r', 'e']) {
+    await page.click('#layer-move');
+    assert(JSON.stringify(await moving()) === '[true,"Moving…"]', `Move is on before ${end}`);
+    await page.keyboard.press(end);
+    assert(JSON.stringify(await moving()) === '[false,"Move"]', `${end} left Move on: ${JSON.stringify(await moving())}`);
+  }
+  // Posed afterwards, a drag moves the feature, not the layer.
+  await drag(page, [8, 8], [14, 10], 6);
+  const state = await page.evaluate(() => ({ offset: window.inkwarp.store.doc.layers[0].offset ?? null, keys: window.inkwarp.store.doc.features[0].keys?.length ?? 0 }));
+  assert(state.offset === null && state.keys === 1, `after Move ended, a pose drag: ${JSON.stringify(state)}`);
+});
+
+
 test('a region is dragged by its fill: the whole region moves', async () => {
   await page.evaluate(async () => {
     const { ui, store, examples, state, app } = window.inkwarp;

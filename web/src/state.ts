@@ -175,6 +175,7 @@ function withKeys(f: Feature, keys: Key[]): Feature {
 /** Sets (or adds) the key of a feature at time `t` with the given points. */
 export function setKey(doc: SceneDoc, id: string, t: number, points: Pt[]): SceneDoc {
   return mapFeature(doc, id, (f) => {
+    if (f.kind === 'cut') throw new Error(CUT_HAS_NO_KEYS(id));
     if (points.length !== f.rest.length) throw new Error(`A key of ${id} needs ${f.rest.length} points.`);
     const keys = [...(f.keys ?? [])];
     const i = keyIndexAt(f, t);
@@ -184,6 +185,10 @@ export function setKey(doc: SceneDoc, id: string, t: number, points: Pt[]): Scen
     return withKeys(f, keys);
   });
 }
+
+/** Why a cut cannot be posed or keyed (the scene format refuses a cut with keys). */
+export const CUT_HAS_NO_KEYS = (id: string) =>
+  `${id} is a cut: it moves nothing (it tears the picture along its line), so it has no keys; change its line in rest mode (R).`;
 
 /** Adds a key at `t` holding the feature where it is now (no-op if one is there). */
 export function addKeyHere(doc: SceneDoc, id: string, t: number): SceneDoc {

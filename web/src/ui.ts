@@ -29,6 +29,7 @@ import {
   type SceneDoc,
 } from './scene';
 import {
+  CUT_HAS_NO_KEYS,
   KEY_EPS,
   addKeyHere,
   deleteKey,
@@ -428,7 +429,7 @@ export class Ui {
             this.tryEdit((d) => updateLayer(d, i, { offset: o[0] === 0 && o[1] === 0 ? undefined : o }));
           } })),
         ' px ',
-        h('button#layer-move.small', { class: this.layerMove ? 'on' : '', title: 'Move the layer: drag on the picture (Alt: off whole pixels); click again to stop', onclick: () => {
+        h('button#layer-move.small', { class: this.layerMove ? 'on' : '', title: 'Move the layer: drag on the picture (Alt: off whole pixels); click again, Escape or a mode or tool to stop', onclick: () => {
           this.layerMove = !this.layerMove;
           this.refresh(false);
         } }, this.layerMove ? 'Moving…' : 'Move')),
@@ -437,6 +438,14 @@ export class Ui {
 
   /** Layer-move mode (the layer panel's Move): a drag on the stage moves the active layer. */
   layerMove = false;
+
+  /** Ends layer-move mode (Escape, another mode or tool); true when it was on. */
+  private endLayerMove(): boolean {
+    if (!this.layerMove) return false;
+    this.layerMove = false;
+    this.refresh(false);
+    return true;
+  }
 
   /** Drags the active layer's offset with the pointer, from the press at `p` (one undo step). */
   private moveLayer(e: PointerEvent, p: Pt): void {
@@ -1062,6 +1071,11 @@ export class Ui {
         return;
       }
       const f = getFeature(this.store.doc, hit.id)!;
+      if (f.kind === 'cut' && view.mode === 'pose') {
+        // Selected, to be seen, but not dragged: a cut is not posed.
+        this.store.setView({ selection: { feature: hit.id, point: null }, pointSelection: [] });
+        return this.message(CUT_HAS_NO_KEYS(hit.id), 'info');
+      }
       const ref = hit.point !== null ? { feature: hit.id, point: hit.point } : null;
       let picked = view.pointSelection;
       if (ref && e.shiftKey) {
@@ -1216,11 +1230,13 @@ export class Ui {
   }
 
   setMode(mode: 'rest' | 'pose'): void {
+    this.endLayerMove();
     if (this.store.view.draft.length) this.finishDraft(false);
     this.store.setView({ mode, tool: mode === 'pose' ? 'select' : this.store.view.tool });
   }
 
   setTool(tool: Tool): void {
+    this.endLayerMove();
     // A feature being drawn is finished first, as switching to pose mode does (another tool
     // dropped it without a word).
     if (tool !== this.store.view.tool && this.store.view.draft.length) this.finishDraft(false);
@@ -1386,6 +1402,7 @@ export class Ui {
         handled();
         if (!this.els.help.hidden) return this.toggleHelp();
         if (this.exportStop) return this.cancelExport();
+        if (this.endLayerMove()) return;
         if (this.store.view.draft.length) return this.store.cancelDraft();
         return this.store.setView({ selection: { feature: null, point: null }, pointSelection: [] });
       case 'Delete': case 'Backspace':

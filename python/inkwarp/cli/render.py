@@ -130,9 +130,6 @@ NOT_CONVERGED = 3
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.strict and args.ray is not None:
-        raise ValueError("--strict with --ray: the Ray workers' solves report in their own logs, "
-                         "not here; render without --ray to use --strict, or leave --strict out")
     with convergence_lines() as stopped:
         code = _run(args)
     return NOT_CONVERGED if code == 0 and args.strict and stopped else code
