@@ -1435,6 +1435,10 @@ test('a 3 px key drag moves the key by at most one frame, onto a frame; keys sta
   assert((await now()) === 2, `Shift+Right went to ${await now()} s, not the key at 2 s`);
   const label = await page.evaluate(() => document.querySelector('#time').textContent);
   assert(/2\.00 s · past the last frame \(47\)/.test(label), `at the key past the last frame the label reads ${label}`);
+  await page.keyboard.press('ArrowRight');
+  assert((await now()) === 2, `→ past the last frame went to ${await now()} s`);
+  await page.keyboard.press('ArrowLeft');
+  assert((await now()) === 47 / 24, `← from past the last frame went to ${await now()} s`);
   await screenshot(page, 'timeline-keys');
 });
 

@@ -1297,7 +1297,9 @@ export class Ui {
   /** To the next or previous frame (k / fps, counted, not summed: on the frames exactly). */
   private stepFrame(dir: 1 | -1): void {
     const f = this.store.view.time * this.store.doc.fps;
-    this.setTime(this.snapTime((dir > 0 ? Math.floor(f + 1e-6) + 1 : Math.ceil(f - 1e-6) - 1) / this.store.doc.fps));
+    const to = this.snapTime((dir > 0 ? Math.floor(f + 1e-6) + 1 : Math.ceil(f - 1e-6) - 1) / this.store.doc.fps);
+    // Past the last frame (a key at the end), → stays: the last frame is behind.
+    if (dir < 0 || to > this.store.view.time) this.setTime(to);
   }
 
   private stepKey(dir: 1 | -1): void {
