@@ -307,7 +307,8 @@ def test_the_gif_writer_streams_frames_to_disk(tmp_path: Path) -> None:
             frames.append(frame)
             writer.write(frame)
             sizes.append(sum(p.stat().st_size for p in tmp_path.iterdir()))
-    # Each frame is on disk as soon as it is written (nothing is held for the end).
+    # Each frame is on disk once the next is written (the last one is held, to merge a
+    # run of equal frames; nothing is held for the end).
     assert all(b > a for a, b in zip(sizes, sizes[1:]))
     with Image.open(out) as gif:
         assert gif.n_frames == 6 and gif.info["loop"] == 0 and gif.size == (33, 20)

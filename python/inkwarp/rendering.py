@@ -33,7 +33,6 @@ from typing import Any
 
 import numpy as np
 
-from inkwarp import errors
 from inkwarp.errors import InkwarpWarning, InternalError, WorkerLostError
 from inkwarp.scene import WARM_CHAIN_FRAMES, preroll_start
 
@@ -505,9 +504,9 @@ class _ChunkRenderer:
         # One chain at a time: the actor has one CPU and one render's memory.
         self._frames = render_range(Scene.from_dict(doc), start, stop, method=method, threads=1)
 
-    def next_batch(self, count: int) -> tuple[list[np.ndarray], list[tuple[str, str]]]:
+    def next_batch(self, count: int) -> tuple[list[np.ndarray], list[tuple[type[Warning], str]]]:
         """Up to ``count`` frames, and the inkwarp warnings their solves gave (a solve that
-        did not converge): ``(class name, message)``, for the caller to give again."""
+        did not converge): ``(category, message)``, for the caller to give again."""
         batch = []
         with warnings.catch_warnings(record=True) as said:
             warnings.simplefilter("always", InkwarpWarning)
@@ -516,7 +515,7 @@ class _ChunkRenderer:
                 if item is None:
                     break
                 batch.append(item[1])
-        return batch, [(w.category.__name__, str(w.message)) for w in said if issubclass(w.category, InkwarpWarning)]
+        return batch, [(w.category, str(w.message)) for w in said if issubclass(w.category, InkwarpWarning)]
 
 
 def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
@@ -607,8 +606,8 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
                                     f"stopped with {remaining[i]} frames to go; this is a bug in inkwarp, "
                                     "please report it")
             # The workers' warnings (a solve that did not converge), given here as if solved here.
-            for kind, text in said:
-                warnings.warn(text, getattr(errors, kind, InkwarpWarning), stacklevel=2)
+            for category, text in said:
+                warnings.warn(text, category, stacklevel=2)
             buffers[i].extend(batch)
             remaining[i] -= len(batch)
             if bar is not None:

@@ -734,8 +734,8 @@ class Scene:
         """What in this scene is allowed but probably a mistake, as ``(JSON path, message)``:
         a feature drawn wholly off the picture (it moves and tears nothing), one drawn wholly
         on holes of the layers it drives (transparent pixels, by default: the solver drops
-        its samples, so it pins nothing; judged at ``grid_step`` 1 only), a key after the scene's end (no frame shows it), a feature that
-        drives no layer. ``inkwarp validate``
+        its samples, so it pins nothing; judged at ``grid_step`` 1 only), a key after the
+        scene's end (no frame shows it), a feature that drives no layer. ``inkwarp validate``
         prints them as notes after its "ok"; a scene with notes renders as any other (a
         feature off the picture may be there on purpose, as a correspondence point for
         :func:`inkwarp.transfer`).
@@ -743,13 +743,12 @@ class Scene:
         doc = self.to_dict()
         width, height, duration = self.width, self.height, self.duration
         layers = doc.get("layers", [])
-        driven = (None if any(layer.get("features") is None for layer in layers)
-                  else {name for layer in layers for name in layer["features"]})
         notes: list[Problem] = []
         # Per layer, the features whose every sample the solver drops (None at grid_step > 1).
         dropped = [None if wholly is None else set(wholly) for _, wholly in self._core.layer_checks()]
         for i, feature in enumerate(doc.get("features", [])):
             name, rest = feature["id"], np.asarray(feature["rest"], dtype=np.float64).reshape(-1, 2)
+            drives = [j for j, layer in enumerate(layers) if layer.get("features") is None or name in layer["features"]]
             low, high = rest.min(axis=0), rest.max(axis=0)
             # A node takes the samples within half a pixel of its centre; a spline may swing a
             # little past its control points, so the box is widened by a quarter of its size.
@@ -760,14 +759,12 @@ class Scene:
                 notes.append((f"features[{i}]", f"{name!r} lies wholly off the picture, so it {does} nothing: its rest "
                               f"points span x {low[0]:g} to {high[0]:g}, y {low[1]:g} to {high[1]:g}, the picture's pixel "
                               f"centres x 0 to {width - 1}, y 0 to {height - 1}"))
-            elif feature["kind"] != "cut":
-                drives = [j for j, layer in enumerate(layers) if layer.get("features") is None or name in layer["features"]]
-                if drives and all(dropped[j] is not None and i in dropped[j] for j in drives):
-                    where = " and ".join(f"the holes of the continuity matte of layer {layers[j]['name']!r}" if layers[j].get("continuity")
-                                         else f"the transparent pixels of layer {layers[j]['name']!r}" for j in drives)
-                    notes.append((f"features[{i}]", f"{name!r} lies wholly on {where}, so it pins and moves nothing; "
-                                  "trace it on the picture itself"))
-            if driven is not None and name not in driven:
+            elif feature["kind"] != "cut" and drives and all(dropped[j] is not None and i in dropped[j] for j in drives):
+                where = " and ".join(f"the holes of the continuity matte of layer {layers[j]['name']!r}" if layers[j].get("continuity")
+                                     else f"the transparent pixels of layer {layers[j]['name']!r}" for j in drives)
+                notes.append((f"features[{i}]", f"{name!r} lies wholly on {where}, so it pins and moves nothing; "
+                              "trace it on the picture itself"))
+            if not drives:
                 notes.append((f"features[{i}]", f"{name!r} drives no layer: every layer lists its features "
                               "and none lists it; add it to a layer's features"))
             for k, key in enumerate(feature.get("keys", [])):

@@ -428,10 +428,12 @@ class GifWriter(FrameWriter):
         self._temp: Path | None = None
         self._file: Any = None
         self._kept = 0  # frames kept (see `gif_keeps`), before runs are merged
-        # The last frame, written when the next one differs: (image, delay).
-        self._pending: tuple[bytes, int] | None = None
+        # The last frame, written when the next one differs: (its pixels' digest, the
+        # encoded image, the delay).
+        self._pending: tuple[bytes, bytes, int] | None = None
 
     def _write(self, frame: np.ndarray) -> None:
+        import hashlib
         import io
         import struct
 
@@ -441,6 +443,12 @@ class GifWriter(FrameWriter):
             return
         self._kept += 1
         rgba = _as_frame(frame)
+        # A frame the same as the last (a held pose) adds its delay to it, unencoded.
+        digest = hashlib.blake2b(rgba.tobytes(), digest_size=16).digest()
+        delay = gif_delay_cs(self.frames_written, self.fps)
+        if self._pending is not None and self._pending[0] == digest and self._pending[2] + delay <= 0xFFFF:
+            self._pending = (digest, self._pending[1], self._pending[2] + delay)
+            return
         clear = rgba[..., 3] < 128 if rgba.shape[2] == 4 else np.zeros(rgba.shape[:2], bool)
         colours = np.array(rgba[..., :3])
         colours[clear] = 0  # one colour for the transparent pixels: no palette entries spent on them
@@ -461,20 +469,15 @@ class GifWriter(FrameWriter):
             # Header, a screen without a global palette, and the loop-forever extension.
             self._file.write(b"GIF89a" + struct.pack("<HHBBB", rgb.width, rgb.height, 0, 0, 0)
                              + b"\x21\xff\x0bNETSCAPE2.0\x03\x01\x00\x00\x00")
-        data = block[:9] + bytes([block[9] | 0x80 | _palette_bits(palette)]) + palette + block[10:]
-        delay = gif_delay_cs(self.frames_written, self.fps)
-        if self._pending is not None and self._pending[0] == data and self._pending[1] + delay <= 0xFFFF:
-            self._pending = (data, self._pending[1] + delay)
-            return
         self._flush_pending()
-        self._pending = (data, delay)
+        self._pending = (digest, block[:9] + bytes([block[9] | 0x80 | _palette_bits(palette)]) + palette + block[10:], delay)
 
     def _flush_pending(self) -> None:
         import struct
 
         if self._pending is None:
             return
-        data, delay = self._pending
+        _, data, delay = self._pending
         # Graphic control: disposal 2 (the canvas is cleared after the frame, so the next
         # one's transparent pixels show nothing of it), the delay, transparent index 255 (on
         # opaque frames too: decoders then clear to transparent, not to a colour).

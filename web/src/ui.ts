@@ -1773,11 +1773,11 @@ export class Ui {
       this.message('This browser cannot encode video (no WebCodecs VideoEncoder); render with `inkwarp render scene.json -o out.mp4` instead.', 'error');
       return null;
     }
+    if (this.exportStop) return null;
     const doc = this.store.doc;
     const wasMode = this.store.view.mode;
     const wasTime = this.store.view.time;
     const n = frameCount(doc);
-    if (this.exportStop) return null;
     const stop = (this.exportStop = new AbortController());
     const button = this.els.exportWebm as HTMLButtonElement;
     [button.textContent, button.title] = ['Cancel', 'Stop the WebM export (Escape); nothing is downloaded'];

@@ -43,16 +43,18 @@ def run(args: argparse.Namespace) -> int:
         problems = [_common.problem_parts(p) for p in (scene.validate() or [])]
     except SceneError as err:
         problems = [_common.problem_parts(p) for p in err.problems] or [(err.path, str(err))]
+    def say(path: str, message: str, lead: str = "") -> None:
+        print(" ".join((lead + _common.prefixed(_common.prefixed(message, path), args.scene)).split()))
+
     if problems:
         for path, message in problems:
-            line = _common.prefixed(message, path)
-            print(" ".join(_common.prefixed(line, args.scene).split()))
+            say(path, message)
         count = len(problems)
         print(f"{args.scene}: {count} problem{'s' if count > 1 else ''}", file=sys.stderr)
         return 2
     print(f"ok: {args.scene}: {summary(scene, _read_json(args.scene))}")
     for path, message in scene.notes():
-        print(" ".join(("note: " + _common.prefixed(_common.prefixed(message, path), args.scene)).split()))
+        say(path, message, "note: ")
     return 0
 
 
