@@ -225,8 +225,10 @@ def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path)
         {"id": "spare", "kind": "cut", "rest": [[0, 30], [20, 30]]},
         # Points off the picture, but the line through them touches its edge.
         {"id": "dips", "kind": "cut", "rest": [[-6, 10], [0, 20], [-6, 30]]},
+        # Straight segments stay within their vertices' box (a spline's box is widened).
+        {"id": "beyond", "kind": "polyline", "rest": [[WIDTH + 3, 5], [WIDTH + 40, 20]]},
     ]
-    doc["layers"][0]["features"] = [point["id"], "typo", "late", "dips"]
+    doc["layers"][0]["features"] = [point["id"], "typo", "late", "dips", "beyond"]
     path.write_text(json.dumps(doc))
     code, stdout, _ = run(capsys, "validate", path)
     assert code == 0
@@ -239,10 +241,13 @@ def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path)
         "it, the frames before it show the move toward it; a duration of 3.25 s ends on it, or move the key",
         f"note: {path}: features[3]: 'spare' drives no layer: every layer lists its features and none lists it; "
         "add it to a layer's features",
+        f"note: {path}: features[5]: 'beyond' lies wholly off the picture, so it moves nothing: its rest points span "
+        f"x {WIDTH + 3} to {WIDTH + 40}, y 5 to 20, the picture's pixel centres x 0 to {WIDTH - 1}, y 0 to {HEIGHT - 1}",
     ]
     import inkwarp
 
-    assert [p for p, _ in inkwarp.Scene.load(path).notes()] == ["features[1]", "features[2].keys[0].t", "features[3]"]
+    assert [p for p, _ in inkwarp.Scene.load(path).notes()] == ["features[1]", "features[2].keys[0].t", "features[3]",
+                                                               "features[5]"]
 
 
 def test_validate_notes_a_feature_drawn_wholly_on_holes(capsys, tmp_path):

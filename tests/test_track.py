@@ -304,7 +304,7 @@ def test_cli_writes_the_tracked_scene_and_a_frame(videos, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("case", ["unreadable", "missing", "frame past end", "size", "simplify",
-                                  "frame cmd past end", "key past end"])
+                                  "frame cmd past end", "key past end", "no features", "only a cut"])
 def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
     path, _ = videos["translate"]
     doc = sv.scene(W, H, sv.drawing(W, H, seed=7))
@@ -333,6 +333,12 @@ def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
     elif case == "key past end":
         doc["features"][0]["keys"] = [{"t": 5.0, "points": doc["features"][0]["rest"]}]
         expect = "features[0].keys[0]: t = 5.0 s is frame 120, outside the video's frames 0 to 23"
+    elif case == "no features":
+        doc["features"] = []
+        expect = f"s.json: has no features to track; trace points or curves over frame 0 of {path} first"
+    elif case == "only a cut":
+        doc["features"] = [{"id": "slit", "kind": "cut", "rest": [[20.5, 30.5], [60.5, 34.5]]}]
+        expect = "s.json: has no features to track (cuts are not tracked"
     (tmp_path / "s.json").write_text(json.dumps(doc))
     code, out, err = run(capsys, *args)
     assert code == 2, err
@@ -505,3 +511,23 @@ def test_a_feature_left_far_off_its_picture_is_named_lost():
     assert far, "the clip no longer has a hard stretch"
     assert [(fid, k) for fid, k in far if k not in named.get(fid, ()) and fid not in blind] == []
     assert set(range(40, 60)) <= named["lid_l_upper"] & named["lid_r_upper"] & named["brow_r"]
+
+
+def test_a_feature_off_the_picture_where_traced_is_named_once_not_as_lost(videos):
+    # A correspondence point traced beside the picture (as for transfer) cannot be seen:
+    # it follows the tracked points around, and the warning says so, not that the tracker
+    # lost it at every frame.
+    path, motion = videos["translate"]
+    drawing = sv.drawing(W, H, seed=7)
+    outside = [{"id": "beside", "kind": "point", "rest": [[W + 30.0, 40.0]]},
+               {"id": "beyond", "kind": "polyline", "rest": [[W + 5.0, 10.0], [W + 40.0, 50.0]]}]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        doc = track_dict(path, sv.scene(W, H, drawing + outside))
+    said = [str(w.message) for w in caught if issubclass(w.category, InkwarpWarning)]
+    assert any("'beside', 'beyond' lie off the picture at frame 0" in m for m in said), said
+    assert not any("lost track" in m and ("beside" in m or "beyond" in m) for m in said), said
+    # They are carried along with the drawing (the picture slides), and keyed at every frame.
+    assert all(len(f["keys"]) == FRAMES for f in doc["features"])
+    last = np.array(doc["features"][-2]["keys"][-1]["points"])
+    assert np.abs(last - motion.forward(np.array(outside[0]["rest"]), FRAMES - 1)).max() < 3, last

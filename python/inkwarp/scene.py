@@ -751,8 +751,10 @@ class Scene:
             drives = [j for j, layer in enumerate(layers) if layer.get("features") is None or name in layer["features"]]
             low, high = rest.min(axis=0), rest.max(axis=0)
             # A node takes the samples within half a pixel of its centre; a spline may swing a
-            # little past its control points, so the box is widened by a quarter of its size.
-            margin = 0.5 + 0.25 * (high - low)
+            # little past its control points, so its box is widened by a quarter of its size
+            # (straight segments stay within their vertices' box).
+            curved = feature["kind"] == "spline" or feature.get("curve") == "spline"
+            margin = 0.5 + (0.25 * (high - low) if curved else np.zeros(2))
             if (high[0] + margin[0] < 0 or low[0] - margin[0] > width - 1
                     or high[1] + margin[1] < 0 or low[1] - margin[1] > height - 1):
                 does = "tears" if feature["kind"] == "cut" else "moves"
@@ -762,6 +764,8 @@ class Scene:
             elif feature["kind"] != "cut" and drives and all(dropped[j] is not None and i in dropped[j] for j in drives):
                 where = " and ".join(f"the holes of the continuity matte of layer {layers[j]['name']!r}" if layers[j].get("continuity")
                                      else f"the transparent pixels of layer {layers[j]['name']!r}" for j in drives)
+                if (low < -0.5).any() or (high > [width - 0.5, height - 0.5]).any():
+                    where += " and off the picture"
                 notes.append((f"features[{i}]", f"{name!r} lies wholly on {where}, so it pins and moves nothing; "
                               "trace it on the picture itself"))
             if not drives:

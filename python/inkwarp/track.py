@@ -638,6 +638,11 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     # keeps no keys.
     tracked = [(i, f) for i, f in enumerate(_features(doc, clip.fps, count, frame, where)) if f.kind != "cut"]
     features = [f for _, f in tracked]
+    if not features:
+        cuts = " (cuts are not tracked: they tear the picture along their rest line)" if doc["features"] else ""
+        raise ValueError(f"{where}: has no features to track{cuts}; trace points or curves over frame {frame} "
+                         f"of {clip.path} first (inkwarp frame {clip.path} --frame {frame} -o frame.png; "
+                         "inkwarp new frame.png -o scene.json; inkwarp edit scene.json)")
     _layout(features)
 
     anchors_of = {f.id: sorted({frame, *f.keys}) for f in features}
@@ -679,8 +684,11 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
 
     # Features on no texture where traced (flat skin, a plain background): the tracker cannot
     # see them move, and they follow the thin plate of the points around them.
+    # Features wholly off the picture where traced (a correspondence point for transfer,
+    # say): nothing there to see; they too follow the points around.
+    outside = {f.id for f in features if _off_picture(at_k[f.rows], clip.width, clip.height, 0.5).all()}
     eig = _bilinear(tracker.min_eig(frame)[..., None], at_k)[:, 0]
-    blind = [f.id for f in features if np.mean(eig[f.rows] <= TRUST_MIN_EIG) > 0.5]
+    blind = [f.id for f in features if f.id not in outside and np.mean(eig[f.rows] <= TRUST_MIN_EIG) > 0.5]
     lost: dict[str, list[int]] = {}
     for i, f in tracked:  # doc["features"][i] gets the keys
         series = np.empty((count, len(f.rest), 2))
@@ -689,7 +697,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             # Lost where most of its points are, or where a point its keys are made of was
             # checked and found off (not merely unseen: a corner on the picture's edge).
             keys_off = err is not None and bool(np.any(np.isfinite(err[:len(f.rest)]) & (err[:len(f.rest)] > lost_px)))
-            if err is not None and (np.median(err) > lost_px or keys_off):
+            if err is not None and (np.median(err) > lost_px or keys_off) and f.id not in outside:
                 lost.setdefault(f.id, []).append(k)
         kept = range(count)
         if simplify_px is not None:
@@ -708,6 +716,12 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         names = "; ".join(f"'{fid}' at frame{'s' if len(ks) > 1 else ''} {_frames_text(ks)}" for fid, ks in lost.items())
         warnings.warn(f"{clip.path}: lost track (checks over {lost_px:g} px) of "
                       f"{names}; check those frames and add a correction key there",
+                      InkwarpWarning, stacklevel=caller_outside())
+    if outside:
+        names = ", ".join(f"'{f.id}'" for f in features if f.id in outside)
+        warnings.warn(f"{clip.path}: {names} lie{'s' if len(outside) == 1 else ''} off the picture at frame {frame}, "
+                      "where the tracker cannot see: followed by the tracked points around, not by the picture; "
+                      "check them, and add a correction key where they stray",
                       InkwarpWarning, stacklevel=caller_outside())
     if blind:
         names = ", ".join(f"'{fid}'" for fid in blind)
