@@ -6,7 +6,7 @@ import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse, sparseValuesAt }
 import { decodeImage, forgetImage, matteFromAlpha, matteFromImage, OFF_PAGE_DECODE_BYTES, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
-import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt } from './scene';
+import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt, toLayer } from './scene';
 import type { FieldEvent, FullClient, FullFrame } from './solver';
 import { viewCovers } from './proxy';
 import type { ViewSpec } from './engine';
@@ -329,12 +329,16 @@ export class App {
 
   // -- Layers ---------------------------------------------------------------------------
 
-  /** The layer's cuts at rest, in scene pixels (`proxied`: in the proxy's pixels). */
+  /**
+   * The layer's cuts at rest, in its own pixels (`proxied`: in the proxy's pixels). The
+   * drawing is in the frame; a layer at `offset` reads it at `p − offset`, as the engine does.
+   */
   private cutsOf(layer: Layer, proxied = true): Pt[][] {
     const f = proxied ? this.proxy : 1;
+    const onto = toLayer(layer);
     return layerFeatures(this.doc, layer)
       .filter((c) => c.kind === 'cut')
-      .map((c) => c.rest.map((p) => toProxy(p, f)));
+      .map((c) => onto(c.rest).map((p) => toProxy(p, f)));
   }
 
   /**
@@ -563,10 +567,14 @@ export class App {
     return ps;
   }
 
-  /** A layer's features at `time` as the solver reads them (`proxied`: in the proxy's pixels). */
+  /**
+   * A layer's features at `time` as the solver reads them: in the layer's own pixels (the
+   * frame's, less its offset), `proxied`: in the proxy's.
+   */
   solveFeatures(layer: Layer, time: number, proxied = true): SolveFeature[] {
     const f = proxied ? this.proxy : 1;
-    const at = (pts: Pt[]) => (f === 1 ? pts : pts.map((p) => toProxy(p, f)));
+    const onto = toLayer(layer);
+    const at = (pts: Pt[]) => (f === 1 ? onto(pts) : onto(pts).map((p) => toProxy(p, f)));
     return layerFeatures(this.doc, layer)
       .filter((c) => c.kind !== 'cut')
       .map((c) => ({

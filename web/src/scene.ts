@@ -163,6 +163,15 @@ export function layerFeatures(doc: SceneDoc, layer: Layer): Feature[] {
   return doc.features.filter((f) => wanted.has(f.id));
 }
 
+/**
+ * Points of the frame in the pixels of `layer`: the drawing is traced over the frame, and a
+ * layer placed at `offset` reads it at `p − offset` (the displacements are the same).
+ */
+export function toLayer(layer: Layer): (pts: Pt[]) => Pt[] {
+  const [dx, dy] = layer.offset ?? [0, 0];
+  return dx === 0 && dy === 0 ? (pts) => pts : (pts) => pts.map(([x, y]) => [x - dx, y - dy] as Pt);
+}
+
 /** A fresh feature id of the form `<kind><n>`. */
 export function freshId(doc: SceneDoc, kind: Kind): string {
   const used = new Set(doc.features.map((f) => f.id));

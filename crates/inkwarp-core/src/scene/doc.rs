@@ -237,7 +237,9 @@ pub struct LayerDoc {
     /// surface can tear along. Default: where the layer's alpha is > 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub continuity: Option<String>,
-    /// Where the warped layer is placed in the frame, `[dx, dy]` pixels.
+    /// Where the warped layer is placed in the frame, `[dx, dy]` pixels. The drawing is in
+    /// the frame's coordinates, so the layer reads a feature's points at `p − offset` in its
+    /// own pixels: a drawing traced over the layer where it shows moves it.
     #[serde(default, skip_serializing_if = "is_default")]
     #[schemars(extend("default" = [0.0, 0.0]))]
     pub offset: [f64; 2],
@@ -277,8 +279,8 @@ pub struct FeatureDoc {
     pub id: String,
     /// `point`, `polyline`, `spline`, `region` or `cut`.
     pub kind: Kind,
-    /// Control points `[x, y]` traced over the original image (pixel centres at integer
-    /// coordinates, y down).
+    /// Control points `[x, y]` traced over the original image, in the frame's coordinates
+    /// (pixel centres at integer coordinates, y down).
     pub rest: Vec<Point>,
     /// Whether a polyline, spline or cut joins its last point back to its first (a closed
     /// cut frees what it encloses; regions are always closed).

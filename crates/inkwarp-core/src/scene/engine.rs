@@ -140,6 +140,11 @@ impl RenderedFrame {
     }
 }
 
+/// `points` of the frame in the grid of a layer placed at `offset`.
+pub(crate) fn to_layer(points: &[Point], offset: [f64; 2]) -> Vec<Point> {
+    points.iter().map(|p| [p[0] - offset[0], p[1] - offset[1]]).collect()
+}
+
 /// Consecutive frames are solved in chains of this many, each chain starting cold at a
 /// frame index that is a multiple of it and warm-starting every later frame from the one
 /// before. Because the chains do not depend on how many threads render them, a frame's
@@ -155,9 +160,11 @@ impl Scene {
 
     /// The constraints that drive layer `layer` at time `time_s`, feature by feature:
     /// every driving feature sampled at the layer's grid spacing, region interiors on the
-    /// layer's grid.
+    /// layer's grid. Features are drawn in the frame, the layer's pixels in its own grid:
+    /// a layer at `offset` reads them at `p − offset` (the same displacements).
     pub fn layer_feature_samples(&self, layer: usize, time_s: f64) -> Result<Vec<FeatureSamples>, SceneError> {
         let layer_ref = &self.layers()[layer];
+        let onto = |points: &[Point]| to_layer(points, layer_ref.offset);
         let spacing_px = layer_ref.solver.grid_step as f64;
         let mut out = Vec::with_capacity(layer_ref.drivers.len());
         for (&i, sampler) in layer_ref.drivers.iter().zip(&layer_ref.samplers) {
@@ -169,11 +176,11 @@ impl Scene {
                 .get_or_init(|| {
                     let options = SampleOptions { closed: f.closed, spline_outline: f.spline_outline(), spacing_px };
                     let domain = (f.kind == Kind::Region).then_some(&layer_ref.grid);
-                    FeatureSampler::new(f.kind, &f.rest, &options, domain).map_err(|e| e.to_string())
+                    FeatureSampler::new(f.kind, &onto(&f.rest), &options, domain).map_err(|e| e.to_string())
                 })
                 .as_ref()
                 .map_err(|e| fail(e.clone()))?;
-            let pose = self.pose_at(i, time_s);
+            let pose = onto(&self.pose_at(i, time_s));
             let samples = sampler.sample(&pose).map_err(|e| fail(e.to_string()))?;
             out.push(FeatureSamples { feature: i, samples });
         }

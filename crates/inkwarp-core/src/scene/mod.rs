@@ -437,7 +437,7 @@ impl Scene {
             };
             let (cuts, drivers): (Vec<usize>, Vec<usize>) = members.into_iter().partition(|&i| doc.features[i].kind == Kind::Cut);
             for cut in cuts.iter().map(|&i| &doc.features[i]) {
-                grid.add_cut(&crate::geometry::curve_polyline(Kind::Cut, &cut.rest, cut.closed, false, 0.5));
+                grid.add_cut(&crate::geometry::curve_polyline(Kind::Cut, &engine::to_layer(&cut.rest, layer.offset), cut.closed, false, 0.5));
             }
             let (name, offset, visible, border) = (layer.name.clone(), layer.offset, layer.visible, layer.border);
             let solver = layer.solver.as_ref().map_or_else(|| doc.solver.clone(), |o| o.apply(&doc.solver));

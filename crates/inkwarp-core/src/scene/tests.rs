@@ -536,10 +536,35 @@ fn layer_fields_follow_the_drawing() {
     let solved = scene.layer_field(0, 0.5, None).unwrap();
     let [dx, dy] = solved.field.at(10, 3);
     assert!(dx.abs() < 0.05 && (dy - 2.0).abs() < 0.05, "{dx} {dy}");
+    // The front layer sits at offset (1, 0): it reads the drawing one pixel to the left in
+    // its own grid, with the same displacements.
     let samples = scene.layer_samples(1, 0.5).unwrap();
     assert!(samples
         .iter()
-        .any(|s| s.rest == [10.0, 3.0] && s.displacement == [0.0, 2.0]));
+        .any(|s| s.rest == [9.0, 3.0] && s.displacement == [0.0, 2.0]));
+}
+
+#[test]
+fn a_layer_placed_by_its_offset_follows_the_drawing_traced_over_it_in_the_frame() {
+    // A prop added at an offset, a point traced on it in the frame and dragged: the
+    // layer's pixel under the point moves with it, and a cut drawn in the frame tears the
+    // layer where it is drawn over it.
+    let mut doc = valid_scene();
+    doc["layers"][1]["offset"] = json!([5, 3]);
+    doc["layers"][1]["features"] = json!(["dot", "edge"]);
+    doc["features"][0]["rest"] = json!([[9, 7]]);
+    doc["features"][0]["keys"] = json!([{"t": 0, "points": [[9, 7]]}, {"t": 1, "points": [[11, 8]], "interpolation": "linear"}]);
+    let scene = Scene::from_json(&doc.to_string(), &mut files(&valid_files())).unwrap();
+    let samples = scene.layer_samples(1, 1.0).unwrap();
+    assert_eq!((samples[0].rest, samples[0].displacement), ([4.0, 4.0], [2.0, 1.0]));
+    assert_eq!(scene.layer_field(1, 1.0, None).unwrap().field.at(4, 4), [2.0, 1.0]);
+    // The back layer, at no offset, reads it where it is drawn.
+    assert_eq!(scene.layer_samples(0, 1.0).unwrap()[0].rest, [9.0, 7.0]);
+    // The cut from (2.5, 7.5) to (8.5, 7.5) in the frame: between rows 7 and 8 of the back
+    // layer, columns 3 to 8; between rows 4 and 5 of the front one, columns 0 to 3.
+    let down = |layer: usize, x: usize, y: usize| scene.layers()[layer].grid.link_down[y * 16 + x];
+    assert!(!down(0, 5, 7) && down(0, 5, 4) && down(0, 1, 7));
+    assert!(!down(1, 1, 4) && !down(1, 3, 4) && down(1, 5, 4) && down(1, 1, 7));
 }
 
 #[test]
