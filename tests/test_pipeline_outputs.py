@@ -376,6 +376,33 @@ def test_skip_existing_renders_empty_and_cut_off_frame_files_again(capsys, tmp_p
         assert np.array_equal(got, want)
 
 
+def test_frames_go_into_a_writable_folder_whose_parent_is_read_only(capsys, tmp_path, monkeypatch):
+    # A farm's writable frames/ inside a shot folder only an admin may write to: the
+    # frames are gathered inside frames/ itself. (The tests run as root, whom permissions
+    # do not stop, so the shot folder refuses here by its access check and by mkdir.)
+    from pathlib import Path
+
+    scene = write_scene(tmp_path / "s")
+    shot = tmp_path / "shot"
+    out = shot / "frames"
+    out.mkdir(parents=True)
+    access, mkdir, opened = os.access, os.mkdir, os.open
+    locked = lambda path: Path(path).absolute().parent == shot and Path(path).absolute() != out  # noqa: E731
+
+    def refused(path):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    monkeypatch.setattr(os, "access", lambda path, mode, **kw: False if Path(path) == shot and mode & os.W_OK
+                        else access(path, mode, **kw))
+    monkeypatch.setattr(os, "mkdir", lambda path, *a, **kw: refused(path) if locked(path) else mkdir(path, *a, **kw))
+    monkeypatch.setattr(os, "open", lambda path, *a, **kw: refused(path) if locked(path) else opened(path, *a, **kw))
+    for args in ([], ["--frames", "0:2", "--skip-existing"]):
+        code, _, err = run(capsys, "render", scene, "-o", f"{out}/", "-q", *args)
+        assert code == 0, err
+    assert sorted(p.name for p in out.iterdir()) == [f"frame_{i:04d}.png" for i in range(FRAMES)]
+    assert sorted(p.name for p in shot.iterdir()) == ["frames"]
+
+
 def test_skip_existing_needs_a_directory(capsys, tmp_path):
     scene = write_scene(tmp_path / "s")
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.mp4", "--skip-existing")

@@ -92,7 +92,12 @@ def check_target(path: str | os.PathLike[str], kind: OutputKind | None = None) -
     parent = _check_parent(target)
     if target.exists() and not target.is_dir():
         raise ValueError(f"{target}: is a file, not a directory for PNG frames")
-    if not os.access(parent, os.W_OK):
+    # An existing folder takes the frames itself (its parent may be read-only, as a
+    # writable frames folder in a locked shot folder is); a new one is made in the parent.
+    if target.is_dir():
+        if not os.access(target, os.W_OK):
+            raise ValueError(f"{target}: the directory is not writable")
+    elif not os.access(parent, os.W_OK):
         raise ValueError(f"{target}: the directory {parent} is not writable")
     return target
 
@@ -238,8 +243,10 @@ def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 
 
 def _temp_dir(target: Path) -> Path:
-    """A new empty directory beside ``target`` (0o777 less the umask)."""
-    return temp_path(target, directory=True)
+    """A new empty directory for the frames bound for the folder ``target``: inside it
+    when it exists (its parent need not be writable), else beside it (0o777 less the
+    umask)."""
+    return temp_path(target / ".frames" if target.is_dir() else target, directory=True)
 
 
 class FrameWriter:
@@ -359,9 +366,10 @@ class PngSequenceWriter(FrameWriter):
 
     Files are numbered by frame, from ``first_frame``, so a range of an animation
     (``--frames 24:48``) lands under its own numbers and several ranges can be rendered
-    into one directory. The frames go into a fresh temporary directory beside the target;
-    at the end that directory becomes the target, or, when the target exists, its frames
-    replace the target's files of the same names (other files are left as they are).
+    into one directory. The frames go into a fresh temporary directory beside the target
+    (inside it, when it exists); at the end that directory becomes the target, or, when the
+    target exists, its frames replace the target's files of the same names (other files
+    are left as they are).
     """
 
     def __init__(self, target: Path, fps: float, first_frame: int = 0, frames: int = 1) -> None:
