@@ -409,6 +409,54 @@ def test_skip_existing_needs_a_directory(capsys, tmp_path):
     assert code == 2 and "--skip-existing works with a directory" in err
 
 
+@pytest.mark.parametrize("command", [["new", "{folder}/square.png", "--embed"], ["schema"],
+                                     ["field", "{scene}", "--time", "0.5"], ["frame", "{video}", "--frame", "0"]])
+def test_a_full_disk_names_the_output_of_every_command(tmp_path, command):
+    # Files written whole by a library (json, numpy, PIL) fail without a file name; the
+    # message names the command's output, as render's does, and nothing is left.
+    import resource
+    import sys
+
+    folder = tmp_path / "s"
+    scene = write_scene(folder)
+    noise = np.random.default_rng(0).integers(0, 256, (HEIGHT, WIDTH, 4), dtype=np.uint8)
+    noise[..., 3] = 255
+    Image.fromarray(noise, "RGBA").save(folder / "square.png")
+    video = tmp_path / "clip.mp4"
+    assert main(["render", str(scene), "-o", str(video), "-q"]) == 0
+    out = tmp_path / "out"
+    out.mkdir()
+    suffix = {"new": ".json", "schema": ".json", "field": ".npy", "frame": ".png"}[command[0]]
+    target = out / f"result{suffix}"
+    args = [a.format(folder=folder, scene=scene, video=video) for a in command]
+
+    def limited():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (1024, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
+
+    result = subprocess.run([sys.executable, "-m", "inkwarp.cli", *args, "-o", str(target)], capture_output=True,
+                            text=True, preexec_fn=limited, cwd=tmp_path, env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})
+    assert result.returncode == 1, result.stderr
+    assert result.stderr.strip() == (f"inkwarp {command[0]}: error: {target}: the file could not be written (File too "
+                                     "large); the file system's or the process's file-size limit (ulimit -f) allows no "
+                                     "more; raise the limit or write the output to another disk"), result.stderr
+    assert list(out.iterdir()) == []
+
+
+def test_a_full_standard_output_is_named_as_such(tmp_path):
+    # `inkwarp render ... > /dev/full`: the GIF is written; what failed is the report.
+    import sys
+
+    scene = write_scene(tmp_path / "s")
+    with open("/dev/full", "w") as full:
+        result = subprocess.run([sys.executable, "-m", "inkwarp.cli", "render", str(scene), "-o",
+                                 str(tmp_path / "a.gif")], stdout=full, stderr=subprocess.PIPE, text=True)
+    assert result.returncode == 1
+    assert result.stderr.strip().splitlines()[-1] == (
+        "inkwarp render: error: standard output could not be written (No space left on device); free space on that "
+        "disk or write the output to another one"), result.stderr
+    assert (tmp_path / "a.gif").stat().st_size > 0
+
+
 @pytest.mark.parametrize("output, args", [
     ("out.mp4", []), ("out.webm", []), ("out.mov", []), ("out.apng", []), ("out.gif", []),
     ("clear.gif", ["--background", "transparent"]), ("frames/", []),

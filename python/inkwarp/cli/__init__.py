@@ -117,6 +117,64 @@ def _stdout_closed() -> bool:
         return False
 
 
+class _Stdout:
+    """Standard output during a command: a write that fails for a disk's reason (a full
+    disk, a quota) says it was standard output, not one of the command's files."""
+
+    def __init__(self, inner: object) -> None:
+        self._inner = inner
+
+    def _failed(self, err: OSError) -> OSError:
+        from inkwarp.video import _WRITE_FIXES
+
+        if err.errno not in _WRITE_FIXES:
+            return err
+        failure = OutputWriteError(f"standard output could not be written ({os.strerror(err.errno)}); "
+                                   f"{_WRITE_FIXES[err.errno]}")
+        failure.errno = err.errno
+        return failure
+
+    def write(self, text: str) -> int:
+        try:
+            return self._inner.write(text)  # type: ignore[attr-defined,no-any-return]
+        except OSError as err:
+            raise self._failed(err) from None
+
+    def flush(self) -> None:
+        try:
+            self._inner.flush()  # type: ignore[attr-defined]
+        except OSError as err:
+            raise self._failed(err) from None
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._inner, name)
+
+
+@contextlib.contextmanager
+def _stdout_said() -> object:
+    """Within: standard output as :class:`_Stdout`, flushed at the end (so that a failing
+    write is seen here, not at exit)."""
+    inner = sys.stdout
+    sys.stdout = _Stdout(inner)  # type: ignore[assignment]
+    try:
+        yield
+        sys.stdout.flush()
+    finally:
+        sys.stdout = inner
+
+
+def _unwritten(err: OSError, output: object) -> OSError:
+    """A disk's reason without a file name (a full disk while writing a file already
+    open) as the error naming the command's output, where it has one."""
+    from pathlib import Path
+
+    from inkwarp.video import write_failure
+
+    if err.filename is not None or not isinstance(output, str) or isinstance(err, OutputWriteError):
+        return err
+    return write_failure(Path(output), err)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -137,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
               f"standard output; {hint}", file=sys.stderr)
         return 2
     try:
-        with _sigterm_unwinds():
+        with _sigterm_unwinds(), _stdout_said():
             return int(args.func(args) or 0)
     except InternalError as err:
         print(f"inkwarp {args.command}: {err}", file=sys.stderr)
@@ -169,7 +227,8 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + signal.SIGTERM
     except OSError as err:
         # Not the user's input and not a bug: a full disk, ffmpeg dying.
-        print(f"inkwarp {args.command}: error: {error_message(err)}", file=sys.stderr)
+        print(f"inkwarp {args.command}: error: {error_message(_unwritten(err, getattr(args, 'output', None)))}",
+              file=sys.stderr)
         return 1
     except Exception:  # noqa: BLE001 - the last line of defence: report the bug, exit 1
         traceback.print_exc()
