@@ -150,7 +150,7 @@ def test_scene_new_warns_about_blend_modes_naming_the_layer(tmp_path):
     assert scene.layers == ["backdrop", "square", "ghost"] and scene.frame_count == 12
 
 
-@pytest.mark.parametrize("case", ["corrupt", "cmyk", "svg-without-paths", "bad-suffix"])
+@pytest.mark.parametrize("case", ["corrupt", "cmyk", "svg-without-paths", "bad-suffix", "too large", "far too large"])
 def test_bad_pictures_and_drawings_get_one_clear_error_and_leave_nothing(capsys, tmp_path, case):
     picture = tmp_path / "in.psd"
     args = []
@@ -167,6 +167,16 @@ def test_bad_pictures_and_drawings_get_one_clear_error_and_leave_nothing(capsys,
                                         'viewBox="0 0 64 48"><text x="1" y="9">hi</text></svg>')
         args = ["--drawing", tmp_path / "d.svg"]
         expect = "d.svg: the SVG has no paths, lines, polylines, polygons"
+    elif case == "too large":
+        # 72 megapixels (1 bit each, so the file is small): refused naming the picture, not
+        # the scene that was never written; Pillow's warnings stay out of it.
+        picture = tmp_path / "big.png"
+        Image.new("1", (9000, 8000)).save(picture)
+        expect = "big.png: the picture is 9000×8000 pixels, more than the 64 megapixels inkwarp handles; scale it down"
+    elif case == "far too large":
+        picture = tmp_path / "bigger.png"  # past twice Pillow's limit, which it refuses to open
+        Image.new("1", (14000, 13000)).save(picture)
+        expect = "bigger.png: the picture has more than the 64 megapixels inkwarp handles; scale it down"
     else:
         picture = tmp_path / "in.tga"
         picture.write_bytes(b"x")

@@ -103,19 +103,46 @@ def read_picture(path: str | os.PathLike[str]) -> Picture:
                      "give a PNG, JPEG, WebP or layered PSD picture")
 
 
+def _too_large(source: Path, size: tuple[int, int] | None = None) -> ValueError | None:
+    """The error for a picture over the most pixels inkwarp handles, naming it (checked
+    before decoding), or None; without a size, one Pillow found far over it."""
+    from inkwarp._inkwarp import MAX_PIXELS
+
+    if size is not None and size[0] * size[1] <= MAX_PIXELS:
+        return None
+    what = f"is {size[0]}×{size[1]} pixels," if size is not None else "has"
+    return ValueError(f"{source}: the picture {what} more than the {MAX_PIXELS >> 20} megapixels inkwarp "
+                      "handles; scale it down first")
+
+
 def _read_flat(source: Path) -> Picture:
     from PIL import Image, UnidentifiedImageError
 
     from inkwarp.imaging import upright
 
+    def unreadable(err: BaseException) -> ValueError:
+        return ValueError(f"{source}: not a readable {source.suffix.lstrip('.').upper()} "
+                          f"picture ({err}); export it again from the painting app")
+
     try:
-        with Image.open(source) as image:
+        # Pillow's own guard (a warning past 89 megapixels, an error past twice that) speaks
+        # of attacks; the size is checked against inkwarp's limit before decoding.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            image = Image.open(source)
+    except Image.DecompressionBombError:
+        raise _too_large(source) or AssertionError from None
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
+        raise unreadable(err) from None
+    with image:
+        if error := _too_large(source, image.size):
+            raise error
+        try:
             image.load()
             # Upright, as viewers show it and the engine reads it (a phone's EXIF orientation).
             rgba = np.asarray(upright(image).convert("RGBA")).copy()
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
-        raise ValueError(f"{source}: not a readable {source.suffix.lstrip('.').upper()} "
-                         f"picture ({err}); export it again from the painting app") from None
+        except (OSError, SyntaxError, ValueError) as err:
+            raise unreadable(err) from None
     height, width = rgba.shape[:2]
     keep = source if source.suffix.lower() in ENGINE_SUFFIXES else None
     return Picture(width, height, [PictureLayer(source.stem, rgba, True, keep)])
@@ -134,6 +161,8 @@ def _read_psd(source: Path) -> Picture:
         reason = " ".join(str(err).split()) or type(err).__name__
         raise ValueError(f"{source}: not a readable PSD file ({reason}); save it again from "
                          "the painting app as a Photoshop document (RGB, 8 bits)") from None
+    if error := _too_large(source, (psd.width, psd.height)):
+        raise error
     if psd.color_mode != ColorMode.RGB:
         mode = getattr(psd.color_mode, "name", str(psd.color_mode))
         raise ValueError(f"{source}: the PSD is in {mode} colour mode; inkwarp reads RGB "
