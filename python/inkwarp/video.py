@@ -164,6 +164,12 @@ def _as_frame(frame: np.ndarray) -> np.ndarray:
 
 
 #: What to do when a write fails for each of the reasons a disk gives.
+#: An MP4's frames are flattened over white; the warning names frames with a pixel whose
+#: alpha is under this. An opaque picture's outer pixels can come out at 252-254 where
+#: the field squeezes the surface at the picture's edge (a held border beside a large
+#: move): over white they change by at most 3 levels, under the encoder's own error.
+SEE_THROUGH_ALPHA = 250
+
 _WRITE_FIXES = {
     errno.ENOSPC: "free space on that disk or write the output to another one",
     errno.EDQUOT: "free space within your quota or write the output to another disk",
@@ -605,12 +611,12 @@ class Mp4Writer(FrameWriter):
         self._temp: Path | None = None
         self._pipe: Any = None  # the ffmpeg process, started on the first frame
         self._log: Any = None
-        #: Frames that had pixels with alpha below 255 (flattened over white), for the
-        #: warning when the file is done.
+        #: Frames that had see-through pixels (alpha under :data:`SEE_THROUGH_ALPHA`,
+        #: flattened over white), for the warning when the file is done.
         self.see_through = 0
 
     def _write(self, frame: np.ndarray) -> None:
-        self.see_through += frame.shape[2] == 4 and frame[..., 3].min() < 255
+        self.see_through += frame.shape[2] == 4 and frame[..., 3].min() < SEE_THROUGH_ALPHA
         rgb = flatten(frame)
         h, w = rgb.shape[:2]
         if h % 2 or w % 2:
