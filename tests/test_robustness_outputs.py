@@ -190,6 +190,16 @@ def test_an_unwritable_folder_names_the_folder_not_the_temporary_file(tmp_path: 
     assert not out.exists()
 
 
+def test_saving_into_a_missing_folder_raises_file_not_found_naming_it(tmp_path: Path) -> None:
+    import inkwarp
+
+    scene = inkwarp.Scene.load(FACE)
+    with pytest.raises(FileNotFoundError, match="the folder does not exist; create it first") as caught:
+        scene.save(tmp_path / "nowhere" / "s.json")
+    assert caught.value.filename == str(tmp_path / "nowhere")
+    assert not (tmp_path / "nowhere").exists()
+
+
 def _deep(levels: int = 100_000):
     value: object = 1
     for _ in range(levels):

@@ -85,6 +85,8 @@ def _unwritable(parent: Path, err: OSError) -> OSError:
         return PermissionError(
             err.errno, f"cannot write in this output folder ({why}); choose an output in a "
             "writable folder or change the folder's permissions", str(parent))
+    if err.errno == errno.ENOENT and not parent.exists():
+        return FileNotFoundError(err.errno, "the folder does not exist; create it first", str(parent))
     # Any other refusal (a folder of the system's, such as /proc): name the folder, not the
     # hidden temporary name nobody asked for.
     why = (err.strerror or str(err)).lower()
@@ -96,7 +98,8 @@ def temp_path(target: str | os.PathLike[str], suffix: str = "", *, directory: bo
     """A new empty file (or folder) beside ``target`` under a hidden temporary name that
     carries this process's id, created with the permissions of any new file (0o666, or
     0o777 for a folder, less the umask). Stale temporary files of ``target`` are removed
-    first. A folder that cannot be written raises PermissionError naming the folder."""
+    first. A folder that cannot be written raises PermissionError naming the folder (one
+    that does not exist, FileNotFoundError)."""
     target = Path(os.fspath(target))
     parent = target.absolute().parent
     clean_stale(target)
