@@ -221,6 +221,9 @@ def test_a_time_past_the_end_renders_with_a_warning(capsys, tmp_path):
     code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "x.png", "--time", "99")
     assert code == 0 and "warning: --time 99 is past the scene's end" in stderr, stderr
     assert (tmp_path / "x.png").exists()
+    code, _, stderr = run(capsys, "field", scene, "-o", tmp_path / "x.npy", "--time", "99")
+    assert code == 0 and "inkwarp field: warning: --time 99 is past the scene's end" in stderr, stderr
+    assert (tmp_path / "x.npy").exists()
 
 
 def test_field_errors(capsys, tmp_path):

@@ -380,3 +380,17 @@ def test_a_start_past_float32_is_refused_without_numpy_warnings():
         warnings.simplefilter("error")
         with pytest.raises(ValueError, match="initial has NaN or infinite"):
             inkwarp.thin_plate(PTS, DISP, SHAPE, initial=np.full(SHAPE + (2,), 1e300))
+
+
+def test_thin_plate_warns_of_what_its_hidden_report_would_say():
+    # thin_plate returns the field alone: a solve stopped short, or points that all miss the
+    # grid (a field of zeros), are said in a warning; thin_plate_report says them in its report.
+    rng = np.random.default_rng(0)
+    pts, disp = rng.uniform(0, 255, (20, 2)), rng.normal(0, 3, (20, 2))
+    with pytest.warns(inkwarp.InkwarpWarning, match=r"did not converge \(stopped: max_cycles, after 1 cycle\)"):
+        inkwarp.thin_plate(pts, disp, (256, 256), max_cycles=1)
+    with pytest.warns(inkwarp.InkwarpWarning, match="all 2 points lie off the grid or on masked-out nodes, so the field is zero"):
+        field = inkwarp.thin_plate([[100, 100], [200, 3]], [[5, 5], [1, 1]], (32, 32))
+    assert not field.any()
+    _, report = inkwarp.thin_plate_report([[100, 100], [200, 3]], [[5, 5], [1, 1]], (32, 32))  # no warning
+    assert report.dropped_samples == 2 and report.constrained_samples == 0

@@ -14,6 +14,7 @@ import math
 import numbers
 import operator
 import os
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -21,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from inkwarp import _inkwarp
-from inkwarp.errors import ArrayValuesError, real_array
+from inkwarp.errors import ArrayValuesError, InkwarpWarning, real_array
 
 __all__ = ["SolveReport", "Solver", "WarmStart", "thin_plate", "thin_plate_report"]
 
@@ -467,6 +468,13 @@ def thin_plate(
         For wrong shapes, non-finite numbers, empty or mismatched points, or bad options;
         the message says what to change.
 
+    Warns
+    -----
+    InkwarpWarning
+        When the solve stopped before it converged (the report's ``stop``), or when every
+        point missed the grid (off it, or on masked-out nodes: the field is zero).
+        :func:`thin_plate_report` says these in its report instead.
+
     See Also
     --------
     thin_plate_report : the same, with the solve report.
@@ -492,7 +500,7 @@ def thin_plate(
     >>> float(abs(cut[8, 12, 0])) < float(abs(free[8, 12, 0]))
     True
     """
-    field, _ = thin_plate_report(
+    field, report = thin_plate_report(
         points,
         displacements,
         shape,
@@ -507,4 +515,14 @@ def thin_plate(
         warm=warm,
         solver=solver,
     )
+    # This function hides the report: what it would say against the field, it warns.
+    if report.constrained_samples == 0 and report.dropped_samples > 0:
+        which = "the point lies" if report.dropped_samples == 1 else f"all {report.dropped_samples} points lie"
+        warnings.warn(f"{which} off the grid or on masked-out nodes, so the field is zero; give points in pixels "
+                      "of the grid (x across, y down)",
+                      InkwarpWarning, stacklevel=2)
+    elif not report.converged:
+        warnings.warn(f"the thin-plate solve did not converge (stopped: {report.stop}, after {report.cycles} "
+                      f"cycle{'s' if report.cycles != 1 else ''}), so the field may be off by more than 5 times "
+                      "the tolerance; thin_plate_report says more", InkwarpWarning, stacklevel=2)
     return field
