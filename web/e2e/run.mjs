@@ -2231,6 +2231,75 @@ test('a cut is not posed: a pose drag on it keys nothing and says why; Escape or
 });
 
 
+test('a drag stays one undo step through Ctrl+Z; Space keeps a line being drawn; Enter in a field keeps Tab for the fields', async () => {
+  await page.evaluate(async () => {
+    const { ui, examples, app } = window.inkwarp;
+    await ui.openScene(await examples.builtinScene(256), 'undo.json');
+    ui.setMode('pose');
+    await app.idle();
+  });
+  const doc = () => page.evaluate(() => JSON.stringify(window.inkwarp.store.doc));
+  const before = await doc();
+  // Ctrl+Z in the middle of a pose drag waits for its end; the drag is then one step.
+  const [x0, y0] = await toClient(page, [8, 8]);
+  await page.mouse.move(x0, y0);
+  await page.mouse.down();
+  for (let i = 1; i <= 4; i++) await page.mouse.move(x0 + 3 * i, y0 + i);
+  await page.keyboard.press('Control+z');
+  const said = await page.evaluate(() => document.querySelector('#message').textContent);
+  for (let i = 5; i <= 8; i++) await page.mouse.move(x0 + 3 * i, y0 + i);
+  await page.mouse.up();
+  assert(/wait for the drag to end/.test(said), `Ctrl+Z during a drag said: ${said}`);
+  assert((await doc()) !== before, 'the drag keyed the feature');
+  await page.keyboard.press('Control+z');
+  assert((await doc()) === before, 'one Ctrl+Z after the drag undoes all of it');
+  // Delete in the middle of a drag waits too (the release said "There is no feature ...").
+  await page.mouse.move(x0, y0);
+  await page.mouse.down();
+  for (let i = 1; i <= 3; i++) await page.mouse.move(x0 + 3 * i, y0 + i);
+  await page.keyboard.press('Delete');
+  const saidDelete = await page.evaluate(() => document.querySelector('#message').textContent);
+  await page.mouse.move(x0 + 12, y0 + 4);
+  await page.mouse.up();
+  const dragged = await page.evaluate(() => window.inkwarp.store.view.selection.feature);
+  const kept = await page.evaluate((id) => window.inkwarp.store.doc.features.some((f) => f.id === id && f.keys?.length === 1), dragged);
+  assert(/Deleting waits for the drag to end/.test(saidDelete) && kept, `Delete during a drag: ${saidDelete}, feature kept and keyed: ${kept}`);
+  // A key time typed below 0 is refused as such (it said the feature had a key at 0 s).
+  await page.fill('.key-time', '-1');
+  await page.press('.key-time', 'Enter');
+  const typed = await page.evaluate(() => ({ message: document.querySelector('#message').textContent, value: document.querySelector('.key-time').value }));
+  assert(/A key's time is a number of seconds, 0 or more, not -1/.test(typed.message) && typed.value === '0.000', `a key time of -1: ${JSON.stringify(typed)}`);
+  // A grid step refused shows the scene's step again.
+  await page.fill('#grid-step', '0');
+  await page.press('#grid-step', 'Enter');
+  const step = await page.evaluate(() => ({ message: document.querySelector('#message').textContent, value: document.querySelector('#grid-step').value }));
+  assert(/grid step is a whole number/.test(step.message) && step.value === '1', `a grid step of 0: ${JSON.stringify(step)}`);
+  // Space while a spline is being drawn: the two points stay, and playback waits.
+  await page.evaluate(() => { window.inkwarp.ui.setMode('rest'); window.inkwarp.ui.setTool('spline'); });
+  for (const q of [[60, 60], [120, 80]]) {
+    const [x, y] = await toClient(page, q);
+    await page.mouse.click(x, y);
+  }
+  await page.keyboard.press('Space');
+  const drawing = await page.evaluate(() => ({ draft: window.inkwarp.store.view.draft.length, playing: window.inkwarp.store.view.playing, message: document.querySelector('#message').textContent }));
+  assert(drawing.draft === 2 && !drawing.playing && /Finish the line first/.test(drawing.message), `Space during a draft: ${JSON.stringify(drawing)}`);
+  await page.keyboard.press('Escape');
+  // Enter enters a field's value and leaves the focus there: Tab goes to the next field,
+  // the mode stays.
+  await page.fill('#layer-offset-x', '3');
+  await page.press('#layer-offset-x', 'Enter');
+  await page.keyboard.press('Tab');
+  const after = await page.evaluate(() => ({ offset: window.inkwarp.store.doc.layers[0].offset, focus: document.activeElement?.id, mode: window.inkwarp.store.view.mode }));
+  assert(JSON.stringify(after) === '{"offset":[3,0],"focus":"layer-offset-y","mode":"rest"}', `Enter then Tab in the offset: ${JSON.stringify(after)}`);
+  for (const [id, value] of [['fps', '12'], ['duration', '3']]) {
+    await page.fill(`#${id}`, value);
+    await page.press(`#${id}`, 'Enter');
+    await page.keyboard.press('Tab');
+    const state = await page.evaluate(() => ({ focus: document.activeElement?.tagName, mode: window.inkwarp.store.view.mode }));
+    assert(state.mode === 'rest' && state.focus !== 'BODY', `Enter then Tab in #${id}: ${JSON.stringify(state)}`);
+  }
+});
+
 test('a region is dragged by its fill: the whole region moves', async () => {
   await page.evaluate(async () => {
     const { ui, store, examples, state, app } = window.inkwarp;

@@ -220,8 +220,9 @@ export class Ui {
     const matteInput = h('input', { type: 'file', accept: 'image/png,image/jpeg', hidden: true, onchange: () => {
       const f = matteInput.files?.[0];
       if (f) void this.setMatteFile(f);
+      else this.showLayerAgain();
       matteInput.value = '';
-    } }) as HTMLInputElement;
+    }, oncancel: () => this.showLayerAgain() }) as HTMLInputElement;
     this.els.matteInput = matteInput;
 
     const toolbar = h('header.toolbar', {},
@@ -291,7 +292,7 @@ export class Ui {
         (this.els.play = h('button#play', { title: 'Play / pause (Space)', onclick: () => this.togglePlay() }, '▶')),
         (this.els.scrub = h('input#scrub', { type: 'range', min: 0, step: 'any', oninput: (e: Event) => this.setTime(this.snapTime(Number((e.target as HTMLInputElement).value)), true) })),
         (this.els.timeText = h('span#time.time')),
-        h('label', {}, 'fps ', (this.els.fps = h('input#fps', { type: 'number', min: 1, max: 120, step: 1, onchange: (e: Event) => this.setFps(Number((e.target as HTMLInputElement).value)) }))),
+        h('label', {}, 'fps ', (this.els.fps = h('input#fps', { type: 'number', min: 1, max: 240, step: 1, onchange: (e: Event) => this.setFps(Number((e.target as HTMLInputElement).value)) }))),
         h('label', {}, 'duration ', (this.els.duration = h('input#duration', { type: 'number', min: 0.05, step: 0.05, onchange: (e: Event) => this.setDuration(Number((e.target as HTMLInputElement).value)) })), ' s'),
         h('button#key-add', { title: 'Key the selected feature here (K)', onclick: () => this.keyHere() }, '◆ Key'),
         h('button#key-delete', { title: 'Delete the selected feature’s key here (Shift+K)', onclick: () => this.unkeyHere() }, '◇ Unkey'),
@@ -373,6 +374,15 @@ export class Ui {
     const shown = this.layersShown;
     if (shown && shown.layers === doc.layers && shown.key === key) return;
     this.layersShown = { layers: doc.layers, key };
+    // A field entered with Enter keeps the focus through the rebuild (its new copy takes
+    // it), so Tab goes on to the next field instead of switching Rest and Pose.
+    const focused = document.activeElement instanceof HTMLElement && this.els.layerDetail.contains(document.activeElement) ? document.activeElement.id : '';
+    this.buildLayers();
+    if (focused) (this.els.layerDetail.querySelector(`#${CSS.escape(focused)}`) as HTMLElement | null)?.focus();
+  }
+
+  private buildLayers(): void {
+    const { doc, view } = this.store;
     clear(this.els.layers);
     // Listed front to back (the top of the list is drawn last, on top).
     for (let i = doc.layers.length - 1; i >= 0; i--) {
@@ -486,7 +496,16 @@ export class Ui {
         h('tr', {}, h('th', {}, 'key'), h('th', {}, 'time (s)'), h('th', {}, 'to next'), h('th', {})),
         ...keys.map((k, n) => h('tr', { class: Math.abs(k.t - view.time) < KEY_EPS ? 'current' : '' },
           h('td', {}, h('button.small', { title: 'Go to this key', onclick: () => this.setTime(k.t) }, `◆${n + 1}`)),
-          h('td', {}, h('input.key-time', { type: 'number', step: 1 / doc.fps, min: 0, value: k.t.toFixed(3), onchange: (e: Event) => this.tryEdit((d) => moveKey(d, f.id, k.t, Number((e.target as HTMLInputElement).value))) })),
+          h('td', {}, h('input.key-time', { type: 'number', step: 1 / doc.fps, min: 0, value: k.t.toFixed(3), onchange: (e: Event) => {
+            const input = e.target as HTMLInputElement;
+            const t = input.value.trim() === '' ? NaN : Number(input.value);
+            if (!(t >= 0)) {
+              const typed = input.value.trim() === '' ? 'nothing' : input.value;
+              input.value = k.t.toFixed(3);
+              return this.message(`A key's time is a number of seconds, 0 or more, not ${typed}.`, 'error');
+            }
+            this.tryEdit((d) => moveKey(d, f.id, k.t, t));
+          } })),
           h('td', {}, (() => {
             const sel = h('select.key-interp', { onchange: (e: Event) => this.tryEdit((d) => setInterpolation(d, f.id, k.t, (e.target as HTMLSelectElement).value as Interpolation)) },
               ...INTERPOLATIONS.map((m) => h('option', { value: m }, m))) as HTMLSelectElement;
@@ -1312,7 +1331,10 @@ export class Ui {
 
   togglePlay(): void {
     const playing = !this.store.view.playing;
-    if (playing && this.store.view.draft.length) this.store.cancelDraft();
+    // A line being drawn is kept: only Escape drops it.
+    if (playing && this.store.view.draft.length) {
+      return this.message('Finish the line first (Enter, or a double click) or drop it (Escape), then play.', 'info');
+    }
     this.store.setView({ playing });
     if (playing) {
       const doc = this.store.doc;
@@ -1377,8 +1399,12 @@ export class Ui {
       return this.refused ? undefined : void this.save();
     }
     if (field) return;
-    if (ctrl && k === 'z') {
+    if ((ctrl && k === 'z') || (ctrl && !e.shiftKey && k === 'y')) {
       handled();
+      // A drag is one step: undone once it ends (undoing in the middle made the rest of it
+      // a step per move).
+      if (this.store.inGesture) return this.message('Undo and redo wait for the drag to end.', 'info');
+      if (k === 'y') return this.store.redo();
       // While drawing, the last click goes (the feature before it stays).
       if (!e.shiftKey && this.store.view.draft.length) return this.store.setView({ draft: this.store.view.draft.slice(0, -1) });
       if (e.shiftKey) this.store.redo();
@@ -1387,7 +1413,6 @@ export class Ui {
     }
     // (Ctrl+Shift with these letters stays the browser's: bookmarks, the inspector.)
     const plain = ctrl && !e.shiftKey;
-    if (plain && k === 'y') return handled(), this.store.redo();
     if (plain && k === 's') return handled(), void this.save();
     if (plain && k === 'o') return handled(), this.els.fileInput.click();
     if (plain && k === 'c') return handled(), this.copyKeys();
@@ -1409,6 +1434,7 @@ export class Ui {
         return this.store.setView({ selection: { feature: null, point: null }, pointSelection: [] });
       case 'Delete': case 'Backspace':
         handled();
+        if (this.store.inGesture) return this.message('Deleting waits for the drag to end.', 'info');
         try {
           this.store.deleteSelection();
         } catch (err) {
@@ -1560,7 +1586,8 @@ export class Ui {
   setGridStep(step: number): void {
     if (!Number.isInteger(step) || step < 1 || step > 64) {
       this.message(`The grid step is a whole number of pixels from 1 to 64, not ${step}.`, 'error');
-      this.refresh(false);
+      // The field shows the scene's step again (it keeps its own while focused).
+      (this.els.gridStep as HTMLInputElement).value = String(this.store.doc.solver?.grid_step ?? 1);
       return;
     }
     this.tryEdit((d) => {
@@ -1653,8 +1680,14 @@ export class Ui {
       this.setOverlay({ matte: true });
     } catch (err) {
       this.fileError(file.name, err);
-      this.refresh(false);
+      this.showLayerAgain();
     }
+  }
+
+  /** The layer panel rebuilt from the scene (a dropdown left on a choice that did not happen). */
+  private showLayerAgain(): void {
+    this.layersShown = null;
+    this.refresh(false);
   }
 
   async openExample(name: string): Promise<void> {
