@@ -527,6 +527,50 @@ test('the GPU frame matches the CPU renderer around a hole that opens', async ()
   assert(ok, `GPU and CPU frames differ around the hole: mean ${stats.mean.toFixed(3)}, p99 ${stats.p99}, max ${stats.max} (tolerance: mean ≤ 1.5, p99 ≤ 40); see test-results/gpu-vs-cpu-hole-diff.png`);
 });
 
+test('the GPU frame keeps the CPU renderer\'s order where a part is pushed over a hole\'s own pixels', async () => {
+  // An opaque picture whose continuity matte has a hole (its pixels drawn on their own) and
+  // a region below it pushed up over it: the part from further down the rest image is in
+  // front. The GPU drew every skirt quarter (a hole's pixels among them) after every quad,
+  // so the hole's own picture showed on top.
+  await page.evaluate(async () => {
+    const { ui, scene, images } = window.inkwarp;
+    const size = 128;
+    const c = new OffscreenCanvas(size, size);
+    const ctx = c.getContext('2d');
+    for (let y = 0; y < size; y += 8) for (let x = 0; x < size; x += 8) {
+      ctx.fillStyle = `hsl(${(x * 3 + y * 5) % 360} 70% ${((x + y) / 8) % 2 ? 40 : 70}%)`;
+      ctx.fillRect(x, y, 8, 8);
+    }
+    const uri = await images.blobToDataUri(await c.convertToBlob({ type: 'image/png' }));
+    const m = new OffscreenCanvas(size, size);
+    const mctx = m.getContext('2d');
+    mctx.fillStyle = '#fff';
+    mctx.fillRect(0, 0, size, size);
+    mctx.fillStyle = '#000';
+    mctx.beginPath();
+    mctx.arc(64, 40, 12, 0, 2 * Math.PI);
+    mctx.fill();
+    const matte = await images.blobToDataUri(await m.convertToBlob({ type: 'image/png' }));
+    const doc = scene.emptyScene(size, size);
+    doc.layers.push({ name: 'plate', image: uri, continuity: matte });
+    const square = [[52, 78], [76, 78], [76, 100], [52, 100]];
+    doc.features.push(
+      { id: 'a', kind: 'point', rest: [[8, 8]] }, { id: 'b', kind: 'point', rest: [[119, 8]] },
+      { id: 'c', kind: 'point', rest: [[8, 119]] }, { id: 'd', kind: 'point', rest: [[119, 119]] },
+      { id: 'patch', kind: 'region', rest: square, keys: [{ t: 0, points: square.map(([x, y]) => [x, y - 42]) }] },
+    );
+    await ui.openScene(doc, 'pushed.json');
+    ui.setMode('pose');
+  });
+  await idle(page);
+  const gpu = await frame(page);
+  const cpu = await cpuFrame(page);
+  const { ok, stats } = await compareImages(page, gpu, cpu, 'gpu-vs-cpu-fold-over-hole', { meanTol: 1.5, p99Tol: 40 });
+  perf.gpuVsCpuFoldOverHole = stats;
+  await screenshot(page, 'fold-over-hole');
+  assert(ok, `GPU and CPU frames differ where the region covers the hole: mean ${stats.mean.toFixed(3)}, p99 ${stats.p99}, max ${stats.max} (tolerance: mean ≤ 1.5, p99 ≤ 40); see test-results/gpu-vs-cpu-fold-over-hole-diff.png`);
+});
+
 test('measure: drag latency, settle time and playback on 512×512 with a dozen features', async () => {
   // Reopen the example and trace a dozen features over it.
   await page.evaluate(() => window.inkwarp.ui.openExample('grid'));

@@ -6,15 +6,17 @@
 // is a quad, coloured by the bilinear mix of its pixels' premultiplied RGBA; in any other
 // block (the border, a cut, a hole) each drawn pixel owns a skirt quarter, so the identity
 // field covers every pixel exactly and the two sides of a missing link separate when the
-// field pulls them apart. Quads are drawn block row by block row, top to bottom, left to
-// right, so where the mesh folds the part from further down the rest image is in front.
+// field pulls them apart. Where the mesh folds, the part from further down the rest image
+// (within a block row, further right) is in front: each element's depth is its block's
+// place in that order (full frames; drafts keep their draw order).
 // Layers are composited back to front with premultiplied "over" into a 4× multisampled
 // target (coverage antialiasing), resolved into the canvas.
 //
 // Where it differs from the CPU renderer (stated tolerances in the browser test): each
 // quad is drawn as two triangles (affine, not the exact inverse bilinear map), coverage is
-// four samples rather than exact area, and a skirt's centre point is the parallelogram
-// completion from its own pixel.
+// four samples rather than exact area, a skirt's centre point is the parallelogram
+// completion from its own pixel, and where a translucent part is folded over another the
+// one behind, if drawn after it, does not show through.
 
 import type { DraftGeometry, DraftHandle, DraftLayer, Engine, FieldData } from './engine';
 import { DRAFT_TARGET_PX } from './options';
@@ -42,6 +44,16 @@ vec2 fieldAt(ivec2 p) {
 }
 `;
 
+// Where the mesh folds, the element from further down the rest image (and within a block
+// row, further right) is in front, as the CPU renderer draws them in that order: its block's
+// place in that order, as a depth that only a later element passes (quads are drawn before
+// the skirt quarters, so the draw order alone put every quarter in front).
+const ORDER = `
+float order(ivec2 block) {
+  return float((block.y + 1) * (uSize.x + 1) + block.x + 1) / float((uSize.y + 1) * (uSize.x + 1));
+}
+`;
+
 const VERT = `#version 300 es
 precision highp float;
 precision highp int;
@@ -62,9 +74,11 @@ uniform float uEdge;
 uniform float uLoose;
 out vec2 vRest;
 flat out vec4 vClamp;
-
+flat out float vOrder;
+${ORDER}
 void main() {
   ivec2 p = ivec2(gl_VertexID % uSize.x, gl_VertexID / uSize.x);
+  vOrder = order(p);
   vec2 rest = vec2(p);
   vec2 d = fieldAt(p);
   vec2 out_ = uEdge * 0.5 * vec2(p.x == 0 ? -1.0 : p.x == uSize.x - 1 ? 1.0 : 0.0, p.y == 0 ? -1.0 : p.y == uSize.y - 1 ? 1.0 : 0.0);
@@ -92,7 +106,8 @@ in vec4 aQuarter;   // pixel x, y, and the block's side sx, sy (±1)
 in vec2 aCorner;    // (0|1, 0|1) along x and y
 out vec2 vRest;
 flat out vec4 vClamp;
-
+flat out float vOrder;
+${ORDER}
 vec2 pos(ivec2 p) { return vec2(p) + fieldAt(p); }
 uint links(ivec2 p) { return texelFetch(uLinks, p, 0).r; }
 bool right(ivec2 p) { return p.x >= 0 && p.x < uSize.x - 1 && (links(p) & 2u) != 0u; }
@@ -102,6 +117,7 @@ void main() {
   ivec2 p = ivec2(aQuarter.xy);
   float sx = aQuarter.z;
   float sy = aQuarter.w;
+  vOrder = order(p - ivec2(sx < 0.0 ? 1 : 0, sy < 0.0 ? 1 : 0));
   vec2 P = pos(p);
   bool rx = right(p), lx = right(p - ivec2(1, 0));
   bool dy = down(p), uy = down(p - ivec2(0, 1));
@@ -128,6 +144,7 @@ uniform ivec2 uSize;
 uniform float uOpacity;
 in vec2 vRest;
 flat in vec4 vClamp;
+flat in float vOrder;
 out vec4 outColor;
 
 vec4 px(int i, int j) {
@@ -146,6 +163,7 @@ void main() {
   vec4 top = mix(px(i, j), px(i + 1, j), f.x);
   vec4 bottom = mix(px(i, j + 1), px(i + 1, j + 1), f.x);
   outColor = mix(top, bottom, f.y) * uOpacity;
+  gl_FragDepth = vOrder;
 }
 `;
 
@@ -822,6 +840,8 @@ export class GlRenderer {
   private msaaRb: WebGLRenderbuffer | null = null;
   private plainFbo: WebGLFramebuffer | null = null;
   private plainRb: WebGLRenderbuffer | null = null;
+  /** The targets' depth (each element's place in the CPU renderer's order). */
+  private depthRbs: WebGLRenderbuffer[] = [];
   private resolveFbo: WebGLFramebuffer | null = null;
   private resolveTex: WebGLTexture | null = null;
   /** What the last frame drew (see `frameKey`). */
@@ -919,12 +939,23 @@ void main() { o = texture(uTex, vPos); }`);
     if (this.msaaRb) gl.deleteRenderbuffer(this.msaaRb);
     if (this.plainFbo) gl.deleteFramebuffer(this.plainFbo);
     if (this.plainRb) gl.deleteRenderbuffer(this.plainRb);
+    for (const rb of this.depthRbs) gl.deleteRenderbuffer(rb);
+    this.depthRbs = [];
+    const depth = (samples: number) => {
+      const rb = gl.createRenderbuffer()!;
+      gl.bindRenderbuffer(gl.RENDERBUFFER, rb);
+      if (samples) gl.renderbufferStorageMultisample(gl.RENDERBUFFER, samples, gl.DEPTH_COMPONENT32F, width, height);
+      else gl.renderbufferStorage(gl.RENDERBUFFER, gl.DEPTH_COMPONENT32F, width, height);
+      gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.DEPTH_ATTACHMENT, gl.RENDERBUFFER, rb);
+      this.depthRbs.push(rb);
+    };
     this.plainRb = gl.createRenderbuffer();
     gl.bindRenderbuffer(gl.RENDERBUFFER, this.plainRb);
     gl.renderbufferStorage(gl.RENDERBUFFER, gl.RGBA8, width, height);
     this.plainFbo = gl.createFramebuffer();
     gl.bindFramebuffer(gl.FRAMEBUFFER, this.plainFbo);
     gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.RENDERBUFFER, this.plainRb);
+    depth(0);
     if (this.resolveFbo) gl.deleteFramebuffer(this.resolveFbo);
     if (this.resolveTex) gl.deleteTexture(this.resolveTex);
     this.msaaRb = gl.createRenderbuffer();
@@ -933,6 +964,7 @@ void main() { o = texture(uTex, vPos); }`);
     this.msaaFbo = gl.createFramebuffer();
     gl.bindFramebuffer(gl.FRAMEBUFFER, this.msaaFbo);
     gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.RENDERBUFFER, this.msaaRb);
+    depth(this.samples);
     this.resolveTex = this.texture();
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, width, height, 0, gl.RGBA, gl.UNSIGNED_BYTE, null);
     this.resolveFbo = gl.createFramebuffer();
@@ -986,7 +1018,16 @@ void main() { o = texture(uTex, vPos); }`);
     gl.clear(gl.COLOR_BUFFER_BIT);
     gl.enable(gl.BLEND);
     gl.blendFunc(gl.ONE, gl.ONE_MINUS_SRC_ALPHA);
+    // Full frames keep the CPU renderer's order where a layer folds (see ORDER); drafts
+    // keep their draw order.
+    const ordered = !draft && target !== null;
+    if (ordered) {
+      gl.enable(gl.DEPTH_TEST);
+      gl.depthFunc(gl.GEQUAL);
+      gl.clearDepth(0);
+    }
     for (const { layer, offset, opacity } of layers) {
+      if (ordered) gl.clear(gl.DEPTH_BUFFER_BIT);
       if (fast) layer.useAdaptive();
       gl.activeTexture(gl.TEXTURE0);
       gl.bindTexture(gl.TEXTURE_2D, layer.field);
@@ -1029,6 +1070,7 @@ void main() { o = texture(uTex, vPos); }`);
     }
     gl.bindVertexArray(null);
     gl.disable(gl.BLEND);
+    gl.disable(gl.DEPTH_TEST);
     if (direct) return;
     // Resolve the samples, then show the frame on the canvas.
     gl.bindFramebuffer(gl.READ_FRAMEBUFFER, target);
