@@ -281,6 +281,15 @@ export class Overlay {
             for (let yy = Math.max(0, Math.ceil(y0 - 1e-6)); yy <= Math.min(h - 1, Math.floor(y1 + 1e-6)); yy++) {
               for (let xx = Math.max(0, Math.ceil(x0 - 1e-6)); xx <= Math.min(w - 1, Math.floor(x1 + 1e-6)); xx++) img.data[4 * (yy * w + xx) + 3] = 0;
             }
+            // A whole block (four links) is a quad of the surface, stretched or turned: the
+            // centres inside its two triangles are covered too (the cells alone left dots
+            // at the middle of stretched, turned blocks).
+            if (x + 1 < w && y + 1 < h && linked(i, i + 1, 2) && linked(i, i + w, 4) && linked(i + w, i + w + 1, 2) && linked(i + 1, i + w + 1, 4)) {
+              const at = (j: number): [number, number] => [(j % w) + f.dx[j], Math.floor(j / w) + f.dy[j]];
+              const [a, b, c, d] = [at(i), at(i + 1), at(i + w + 1), at(i + w)];
+              clearTriangle(img.data, w, h, a, b, c);
+              clearTriangle(img.data, w, h, a, c, d);
+            }
           }
         }
       }
@@ -322,5 +331,20 @@ export class Overlay {
       }
     }
     ctx.stroke();
+  }
+}
+
+/** Clears the overlay's alpha at the pixel centres inside (or on) the triangle `a b c`. */
+function clearTriangle(data: Uint8ClampedArray, w: number, h: number, a: [number, number], b: [number, number], c: [number, number]): void {
+  const area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+  if (!(Math.abs(area) > 1e-12)) return;
+  const s = Math.sign(area);
+  const edge = (p: [number, number], q: [number, number], x: number, y: number) => s * ((q[0] - p[0]) * (y - p[1]) - (q[1] - p[1]) * (x - p[0]));
+  const x0 = Math.max(0, Math.ceil(Math.min(a[0], b[0], c[0]) - 1e-6)), x1 = Math.min(w - 1, Math.floor(Math.max(a[0], b[0], c[0]) + 1e-6));
+  const y0 = Math.max(0, Math.ceil(Math.min(a[1], b[1], c[1]) - 1e-6)), y1 = Math.min(h - 1, Math.floor(Math.max(a[1], b[1], c[1]) + 1e-6));
+  for (let y = y0; y <= y1; y++) {
+    for (let x = x0; x <= x1; x++) {
+      if (edge(a, b, x, y) >= -1e-9 && edge(b, c, x, y) >= -1e-9 && edge(c, a, x, y) >= -1e-9) data[4 * (y * w + x) + 3] = 0;
+    }
   }
 }
