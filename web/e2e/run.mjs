@@ -2368,6 +2368,21 @@ test('a drag stays one undo step through Ctrl+Z; Space keeps a line being drawn;
   }
 });
 
+test('the frame ruler stays in view while many features\' rows scroll', async () => {
+  const placed = await page.evaluate(async () => {
+    const { ui, examples, store, state, app } = window.inkwarp;
+    await ui.openScene(await examples.builtinScene(256), 'many.json');
+    for (let k = 0; k < 24; k++) store.edit((d) => state.addFeature(d, 'point', [[10 + 9 * k, 30]], { id: `pin${k}` }).doc);
+    await app.idle();
+    const tracks = document.querySelector('#tracks');
+    tracks.scrollTop = tracks.scrollHeight;
+    await new Promise((r) => requestAnimationFrame(() => r()));
+    const ruler = tracks.querySelector('.ruler-row').getBoundingClientRect();
+    return { scrolled: tracks.scrollTop, top: tracks.getBoundingClientRect().top, ruler: ruler.top };
+  });
+  assert(placed.scrolled > 100 && Math.abs(placed.ruler - placed.top) < 1, `the ruler scrolled away: ${JSON.stringify(placed)}`);
+});
+
 test('a region is dragged by its fill: the whole region moves', async () => {
   await page.evaluate(async () => {
     const { ui, store, examples, state, app } = window.inkwarp;
