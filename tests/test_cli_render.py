@@ -250,6 +250,18 @@ def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path)
                                                                "features[5]"]
 
 
+def test_a_feature_beside_the_frame_over_a_layer_moved_there_is_no_slip(tmp_path):
+    # A layer moved 20 px left of the frame: a pin traced at x = -10 holds its pixel 10
+    # (off the frame, but on the layer, which the warp can pull into view); one at -30 is
+    # off both.
+    import inkwarp
+
+    Image.fromarray(np.full((HEIGHT, WIDTH, 4), 200, np.uint8)).save(tmp_path / "p.png")
+    doc = {"inkwarp": 1, "fps": 4, "duration": 1, "layers": [{"name": "l", "image": "p.png", "offset": [-20, 0]}],
+           "features": [{"id": "pin", "kind": "point", "rest": [[-10, 5]]}, {"id": "far", "kind": "point", "rest": [[-30, 5]]}]}
+    notes = inkwarp.Scene.from_dict(doc, base_dir=tmp_path).notes()
+    assert [(path, message.split(" lies ")[0]) for path, message in notes] == [("features[1]", "'far'")], notes
+
 def test_validate_notes_a_feature_drawn_wholly_on_holes(capsys, tmp_path):
     # A pin traced on a cut-out's transparent pixels (or in a hole of a continuity matte) is
     # dropped by the solver: it pins and moves nothing, without a word at render time. The

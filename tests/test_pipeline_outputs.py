@@ -456,6 +456,10 @@ def test_a_full_standard_output_is_named_as_such(tmp_path):
         "inkwarp render: error: standard output could not be written (No space left on device); free space on that "
         "disk or write the output to another one"), result.stderr
     assert (tmp_path / "a.gif").stat().st_size > 0
+    # Started without a standard output at all (`>&-`), a command works and says nothing.
+    closed = subprocess.run(["sh", "-c", f'"{sys.executable}" -m inkwarp.cli validate "{scene}" >&-'],
+                            stderr=subprocess.PIPE, text=True)
+    assert closed.returncode == 0 and closed.stderr == "", closed.stderr
 
 
 @pytest.mark.parametrize("output, args", [

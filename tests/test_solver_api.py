@@ -394,3 +394,12 @@ def test_thin_plate_warns_of_what_its_hidden_report_would_say():
     assert not field.any()
     _, report = inkwarp.thin_plate_report([[100, 100], [200, 3]], [[5, 5], [1, 1]], (32, 32))  # no warning
     assert report.dropped_samples == 2 and report.constrained_samples == 0
+    # Stops that are the settings' own doing say nothing (warnings are errors in this suite):
+    # southwell's fixed budget, a tolerance of 0 (never converged by definition).
+    inkwarp.thin_plate(pts, disp, (256, 256), method="southwell")
+    inkwarp.thin_plate(pts, disp, (256, 256), tolerance=0, max_cycles=3)
+    # interpolate_report's tps puts it in its report, not in a warning from inside inkwarp.
+    _, said = inkwarp.interpolate_report([[100, 100], [200, 3]], [[5, 5], [1, 1]], (32, 32), method="tps")
+    assert said["samples_used"] == 0 and said["dropped"] == 2
+    _, said = inkwarp.interpolate_report(pts, disp, (256, 256), method="tps")
+    assert said["samples_used"] == 20 and said["dropped"] == 0 and said["notes"] == []

@@ -176,7 +176,7 @@ def interpolate_report(
                 f"lines: the rest and pose segments must match; got {len(rest)} and {len(pose)} segments."
             )
     if method == "tps":
-        from inkwarp import thin_plate
+        from inkwarp import thin_plate_report
 
         if rest is not None and pose is not None and len(rest):
             ends = rest.reshape(-1, 2)
@@ -184,8 +184,13 @@ def interpolate_report(
             disp = np.concatenate([disp, pose.reshape(-1, 2) - ends])
         if len(pts) == 0:
             return np.zeros((height, width, 2), np.float32), _tps_report(0, 0)
-        field = thin_plate(pts, disp, (height, width))
-        return field, _tps_report(len(pts), len(pts))
+        field, solved = thin_plate_report(pts, disp, (height, width))
+        report = _tps_report(len(pts), solved.constrained_samples)
+        report["dropped"] = solved.dropped_samples
+        if not solved.converged:
+            report["notes"].append(f"the thin-plate solve did not converge (stopped: {solved.stop}, after "
+                                   f"{solved.cycles} cycles)")
+        return field, report
     if isinstance(max_samples, (bool, np.bool_)) or not isinstance(max_samples, (int, np.integer)) or max_samples < 1:
         raise ValueError(f"max_samples must be a whole number, at least 1; got {max_samples!r}.")
     field, report = _inkwarp.interpolate_field(

@@ -471,8 +471,9 @@ def thin_plate(
     Warns
     -----
     InkwarpWarning
-        When the solve stopped before it converged (the report's ``stop``), or when every
-        point missed the grid (off it, or on masked-out nodes: the field is zero).
+        When the solve stopped before it converged (the report's ``stop``: ``max_cycles``,
+        ``unsettled``, ``residual`` or ``breakdown``), or when every point missed the grid
+        (off it, or on masked-out nodes: the field is zero).
         :func:`thin_plate_report` says these in its report instead.
 
     See Also
@@ -515,13 +516,16 @@ def thin_plate(
         warm=warm,
         solver=solver,
     )
-    # This function hides the report: what it would say against the field, it warns.
-    if report.constrained_samples == 0 and report.dropped_samples > 0:
+    # This function hides the report: what it would say against the field, it warns. (Not
+    # where stopping short is the setting's own doing: southwell's budget, a tolerance of 0
+    # or under the field's precision; and at a grid step over 1 a strip without a coarse
+    # node still moves by its points, dropped or not.)
+    if report.constrained_samples == 0 and report.dropped_samples > 0 and grid_step == 1:
         which = "the point lies" if report.dropped_samples == 1 else f"all {report.dropped_samples} points lie"
         warnings.warn(f"{which} off the grid or on masked-out nodes, so the field is zero; give points in pixels "
                       "of the grid (x across, y down)",
                       InkwarpWarning, stacklevel=2)
-    elif not report.converged:
+    elif report.stop in ("max_cycles", "unsettled", "residual", "breakdown"):
         warnings.warn(f"the thin-plate solve did not converge (stopped: {report.stop}, after {report.cycles} "
                       f"cycle{'s' if report.cycles != 1 else ''}), so the field may be off by more than 5 times "
                       "the tolerance; thin_plate_report says more", InkwarpWarning, stacklevel=2)

@@ -36,7 +36,7 @@ import json
 import math
 import os
 import stat
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -755,8 +755,13 @@ class Scene:
             # (straight segments stay within their vertices' box).
             curved = feature["kind"] == "spline" or feature.get("curve") == "spline"
             margin = 0.5 + (0.25 * (high - low) if curved else np.zeros(2))
-            if (high[0] + margin[0] < 0 or low[0] - margin[0] > width - 1
-                    or high[1] + margin[1] < 0 or low[1] - margin[1] > height - 1):
+
+            def outside(at: Sequence[float]) -> bool:  # off the picture placed at `at`
+                return bool((high + margin < at).any() or (low - margin > np.add(at, [width - 1, height - 1])).any())
+
+            # Off the frame and off every layer it drives, as placed by its offset (a layer
+            # moved past the frame's edge can be pulled into view).
+            if outside([0, 0]) and all(outside(layers[j].get("offset", [0, 0])) for j in drives):
                 does = "tears" if feature["kind"] == "cut" else "moves"
                 notes.append((f"features[{i}]", f"{name!r} lies wholly off the picture, so it {does} nothing: its rest "
                               f"points span x {low[0]:g} to {high[0]:g}, y {low[1]:g} to {high[1]:g}, the picture's pixel "

@@ -35,7 +35,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from inkwarp._atomic import temp_path
+from inkwarp._atomic import clean_stale, temp_path
 
 OutputKind = Literal["png", "dir", "gif", "mp4", "webm", "mov", "apng"]
 
@@ -163,13 +163,13 @@ def _as_frame(frame: np.ndarray) -> np.ndarray:
     return arr
 
 
-#: What to do when a write fails for each of the reasons a disk gives.
 #: An MP4's frames are flattened over white; the warning names frames with a pixel whose
 #: alpha is under this. An opaque picture's outer pixels can come out at 252-254 where
 #: the field squeezes the surface at the picture's edge (a held border beside a large
 #: move): over white they change by at most 3 levels, under the encoder's own error.
 SEE_THROUGH_ALPHA = 250
 
+#: What to do when a write fails for each of the reasons a disk gives.
 _WRITE_FIXES = {
     errno.ENOSPC: "free space on that disk or write the output to another one",
     errno.EDQUOT: "free space within your quota or write the output to another disk",
@@ -251,8 +251,11 @@ def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 def _temp_dir(target: Path) -> Path:
     """A new empty directory for the frames bound for the folder ``target``: inside it
     when it exists (its parent need not be writable), else beside it (0o777 less the
-    umask)."""
-    return temp_path(target / ".frames" if target.is_dir() else target, directory=True)
+    umask). Stale ones of killed runs go first, beside it too."""
+    if not target.is_dir():
+        return temp_path(target, directory=True)
+    clean_stale(target)  # (left beside it before the folder existed)
+    return temp_path(target / ".frames", directory=True)
 
 
 class FrameWriter:

@@ -2220,6 +2220,25 @@ test('a layer smaller than the scene is placed by its offset (numeric fields, Mo
   await page.click('#layer-move');
   const byDrag = await page.evaluate(() => window.inkwarp.store.doc.layers.at(-1).offset);
   assert(Math.abs(byDrag[0] - 22) <= 1 && Math.abs(byDrag[1] - 54) <= 1, `a Move drag of (12, −6) px moved the layer: ${JSON.stringify(byDrag)}`);
+  // The matte overlay shows the layer's holes (its transparent margin) where the layer is
+  // placed: none over the sticker itself.
+  const overlay = await page.evaluate(async (o) => {
+    const { ui, app, store } = window.inkwarp;
+    ui.setOverlay({ matte: true, drawing: false });
+    await app.idle();
+    app.renderNow();
+    const c = document.querySelector('canvas.overlay');
+    const ctx = c.getContext('2d');
+    const s = c.width / store.doc.width;
+    const magenta = (x, y) => {
+      const [r, g, b, a] = ctx.getImageData(Math.floor((x + 0.5) * s), Math.floor((y + 0.5) * s), 1, 1).data;
+      return a > 40 && r > 200 && g < 60 && b > 100;
+    };
+    const out = { sticker: magenta(o[0] + 20, o[1] + 12), beside: magenta(o[0] + 45, o[1] + 12) };
+    ui.setOverlay({ matte: false, drawing: true });
+    return out;
+  }, byDrag);
+  assert(!overlay.sticker && overlay.beside, `the matte overlay at the layer's offset: ${JSON.stringify(overlay)}`);
   // A point traced over the green square's left edge where it is now, in the frame, and
   // moved 6 px right by t = 1: the sticker follows it (3 px at t = 0.5).
   const edge = [byDrag[0] + 10, byDrag[1] + 12];

@@ -8,7 +8,7 @@
 // field covers every pixel exactly and the two sides of a missing link separate when the
 // field pulls them apart. Where the mesh folds, the part from further down the rest image
 // (within a block row, further right) is in front: each element's depth is its block's
-// place in that order (full frames; drafts keep their draw order).
+// place in that order (full frames; drafts and fast frames keep their draw order).
 // Layers are composited back to front with premultiplied "over" into a 4× multisampled
 // target (coverage antialiasing), resolved into the canvas.
 //
@@ -163,6 +163,8 @@ void main() {
   vec4 top = mix(px(i, j), px(i + 1, j), f.x);
   vec4 bottom = mix(px(i, j + 1), px(i + 1, j + 1), f.x);
   outColor = mix(top, bottom, f.y) * uOpacity;
+  // (A see-through part adds nothing, and must not hide what is behind it.)
+  if (outColor.a == 0.0) discard;
   gl_FragDepth = vOrder;
 }
 `;
@@ -1018,9 +1020,9 @@ void main() { o = texture(uTex, vPos); }`);
     gl.clear(gl.COLOR_BUFFER_BIT);
     gl.enable(gl.BLEND);
     gl.blendFunc(gl.ONE, gl.ONE_MINUS_SRC_ALPHA);
-    // Full frames keep the CPU renderer's order where a layer folds (see ORDER); drafts
-    // keep their draw order.
-    const ordered = !draft && target !== null;
+    // Full frames keep the CPU renderer's order where a layer folds (see ORDER); drafts and
+    // fast frames (elements of many blocks, ranked by one) keep their draw order.
+    const ordered = !draft && !fast && target !== null;
     if (ordered) {
       gl.enable(gl.DEPTH_TEST);
       gl.depthFunc(gl.GEQUAL);

@@ -63,6 +63,8 @@ export class Overlay {
   }
 
   private proxy = 1;
+  /** Where the active layer's pixel (0, 0) is drawn, on the overlay canvas (its offset). */
+  private shift: [number, number] = [0, 0];
 
   /**
    * Draws the overlays; `proxy` is the factor a large picture's layers are scaled down by
@@ -76,9 +78,18 @@ export class Overlay {
     const view = store.view;
     ctx.clearRect(0, 0, canvas.width, canvas.height);
     const s = this.scale;
+    // The active layer's matte, field and mesh are in its own pixels: placed by its offset,
+    // as the frame draws it (the drawing is in the frame's).
+    const o = store.doc.layers[view.activeLayer]?.offset ?? [0, 0];
+    this.shift = [(o[0] * canvas.width) / sceneWidth, (o[1] * canvas.height) / sceneHeight];
     if (rt && view.overlays.matte && rt.matte) this.drawMatte(rt, pw, ph, view.mode === 'pose');
     if (rt && view.overlays.heat !== 'off' && rt.field) this.drawHeat(rt, view.overlays.heat, pw, ph);
-    if (rt && view.overlays.mesh && rt.links) this.drawMesh(rt, pw, ph);
+    if (rt && view.overlays.mesh && rt.links) {
+      ctx.save();
+      ctx.translate(...this.shift);
+      this.drawMesh(rt, pw, ph);
+      ctx.restore();
+    }
     if (!view.overlays.drawing) return;
     const posed = view.mode === 'pose';
     for (const f of store.doc.features) {
@@ -220,7 +231,7 @@ export class Overlay {
     }
     this.heatCanvas.getContext('2d')!.putImageData(img, 0, 0);
     this.ctx.imageSmoothingEnabled = false;
-    this.ctx.drawImage(this.heatCanvas, 0, 0, this.canvas.width, this.canvas.height);
+    this.ctx.drawImage(this.heatCanvas, ...this.shift, this.canvas.width, this.canvas.height);
     // The scale, as a legend.
     const y0 = this.canvas.height - 26;
     this.ctx.fillStyle = 'rgba(0,0,0,0.7)';
@@ -297,7 +308,7 @@ export class Overlay {
       if (f) this.posedMatte = { field: f, matte: m, canvas: c };
     }
     this.ctx.imageSmoothingEnabled = false;
-    this.ctx.drawImage(c, 0, 0, this.canvas.width, this.canvas.height);
+    this.ctx.drawImage(c, ...this.shift, this.canvas.width, this.canvas.height);
   }
 
   private drawMesh(rt: LayerRuntime, w: number, h: number): void {

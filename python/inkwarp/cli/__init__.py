@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import importlib
 import os
 import signal
@@ -127,7 +128,7 @@ class _Stdout:
     def _failed(self, err: OSError) -> OSError:
         from inkwarp.video import _WRITE_FIXES
 
-        if err.errno not in _WRITE_FIXES:
+        if err.errno not in _WRITE_FIXES or err.errno == errno.EIO:  # (EIO: a terminal that hung up)
             return err
         failure = OutputWriteError(f"standard output could not be written ({os.strerror(err.errno)}); "
                                    f"{_WRITE_FIXES[err.errno]}")
@@ -155,6 +156,9 @@ def _stdout_said() -> object:
     """Within: standard output as :class:`_Stdout`, flushed at the end (so that a failing
     write is seen here, not at exit)."""
     inner = sys.stdout
+    if inner is None:  # started without a standard output (`>&-`): prints go nowhere
+        yield
+        return
     sys.stdout = _Stdout(inner)  # type: ignore[assignment]
     try:
         yield
@@ -164,15 +168,18 @@ def _stdout_said() -> object:
 
 
 def _unwritten(err: OSError, output: object) -> OSError:
-    """A disk's reason without a file name (a full disk while writing a file already
-    open) as the error naming the command's output, where it has one."""
-    from pathlib import Path
+    """A full disk, a quota or a file-size limit without a file name (met while writing a
+    file already open) as the error naming the command's output, where it has one (an
+    input's read error, EIO, is left as it is)."""
+    from inkwarp.video import _WRITE_FIXES
 
-    from inkwarp.video import write_failure
-
-    if err.filename is not None or not isinstance(output, str) or isinstance(err, OutputWriteError):
+    full = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+    if err.filename is not None or not isinstance(output, str) or isinstance(err, OutputWriteError) or err.errno not in full:
         return err
-    return write_failure(Path(output), err)
+    failure = OutputWriteError(f"{output}: the file could not be written ({os.strerror(err.errno)}); "
+                               f"{_WRITE_FIXES[err.errno]}")
+    failure.errno = err.errno
+    return failure
 
 
 def main(argv: list[str] | None = None) -> int:

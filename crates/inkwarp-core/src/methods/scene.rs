@@ -10,7 +10,8 @@ use crate::scene::{BeierNeelyDoc, FeatureSamples, Scene, SolverDoc};
 pub const BEIER_NEELY_SEGMENT_PX: f64 = 8.0;
 
 /// The controls a layer's drawing gives `interpolant`, from the layer's samples grouped by
-/// feature (as the scene engine makes them at `time_s`).
+/// feature (as the scene engine makes them at `time_s`, in the grid of a layer placed at
+/// `offset`: the features' own points are read there too).
 ///
 /// * `tps-exact` and `triangulation`: every sample the grid thin plate gets (curves
 ///   sampled at the layer's grid spacing, region interiors on the layer's grid).
@@ -19,7 +20,7 @@ pub const BEIER_NEELY_SEGMENT_PX: f64 = 8.0;
 ///   joined back to the first; the paper's "four lines along the edges" of a square); each
 ///   spline, and each region with a spline outline, as its curve cut into segments of
 ///   about [`BEIER_NEELY_SEGMENT_PX`]. Region interiors are not used.
-pub fn feature_controls(scene: &Scene, features: &[FeatureSamples], time_s: f64, interpolant: Interpolant) -> Result<Controls, String> {
+pub fn feature_controls(scene: &Scene, features: &[FeatureSamples], time_s: f64, interpolant: Interpolant, offset: [f64; 2]) -> Result<Controls, String> {
     if interpolant != Interpolant::BeierNeely {
         return Ok(Controls::from_samples(features.iter().flat_map(|f| f.samples.iter().copied()).collect()));
     }
@@ -27,6 +28,8 @@ pub fn feature_controls(scene: &Scene, features: &[FeatureSamples], time_s: f64,
     for f in features {
         let feature = &scene.doc().features[f.feature];
         let (closed, _) = feature.kind.curve_shape(feature.closed, false);
+        let onto = |points: &[Point]| -> Vec<Point> { points.iter().map(|p| [p[0] - offset[0], p[1] - offset[1]]).collect() };
+        let (rest, pose) = (onto(&feature.rest), onto(&scene.pose_at(f.feature, time_s)));
         match feature.kind {
             Kind::Cut => {}
             Kind::Point => controls.samples.extend(f.samples.iter().copied()),
@@ -34,16 +37,14 @@ pub fn feature_controls(scene: &Scene, features: &[FeatureSamples], time_s: f64,
                 controls.line_pairs.extend(line_pairs_from_chain(&f.samples, closed, BEIER_NEELY_SEGMENT_PX));
             }
             Kind::Region if feature.spline_outline() => {
-                let pose = scene.pose_at(f.feature, time_s);
                 let options = SampleOptions { closed: true, spline_outline: false, spacing_px: 1.0 };
-                let chain = sample_feature(Kind::Spline, &feature.rest, &pose, &options, None)
+                let chain = sample_feature(Kind::Spline, &rest, &pose, &options, None)
                     .map_err(|e| format!("features[{}]: {e}", f.feature))?;
                 controls.line_pairs.extend(line_pairs_from_chain(&chain, true, BEIER_NEELY_SEGMENT_PX));
             }
             Kind::Polyline | Kind::Region => {
-                let pose = scene.pose_at(f.feature, time_s);
                 let moved = |(&r, &p): (&Point, &Point)| Sample { rest: r, displacement: sub(p, r) };
-                let vertices: Vec<Sample> = feature.rest.iter().zip(&pose).map(moved).collect();
+                let vertices: Vec<Sample> = rest.iter().zip(&pose).map(moved).collect();
                 controls.line_pairs.extend(line_pairs_from_chain(&vertices, closed && vertices.len() > 2, 0.0));
             }
         }

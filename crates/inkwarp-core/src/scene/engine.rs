@@ -42,6 +42,7 @@ pub(super) fn compute_field(
     features: &[FeatureSamples],
     start: Start<'_>,
     border: Border,
+    offset: [f64; 2],
 ) -> Result<LayerSolve, String> {
     let held = border == Border::Hold;
     let spacing_px = solver.grid_step as f64;
@@ -61,7 +62,7 @@ pub(super) fn compute_field(
         }
         Some(interpolant) => {
             use crate::methods::scene::{feature_controls, hold_border, method_params};
-            let mut controls = feature_controls(scene, features, time_s, interpolant)?;
+            let mut controls = feature_controls(scene, features, time_s, interpolant, offset)?;
             if held {
                 hold_border(&mut controls, interpolant, grid.width, grid.height, spacing_px);
             }
@@ -230,7 +231,7 @@ impl Scene {
         let layer_ref = &self.layers()[layer];
         let solver = overrides.apply(&layer_ref.solver);
         let features = self.layer_feature_samples(layer, time_s)?;
-        compute_field(self, time_s, &solver, &layer_ref.grid, &features, start, layer_ref.border)
+        compute_field(self, time_s, &solver, &layer_ref.grid, &features, start, layer_ref.border, layer_ref.offset)
             .map_err(|e| SceneError::one(format!("layers[{layer}]"), format!("at t = {time_s} s: {e}")))
     }
 

@@ -568,6 +568,46 @@ fn a_layer_placed_by_its_offset_follows_the_drawing_traced_over_it_in_the_frame(
 }
 
 #[test]
+fn every_method_reads_the_drawing_of_an_offset_layer_where_the_layer_shows() {
+    // The same drawing traced over a layer at offset (5, 3), and over it at no offset with
+    // the drawing shifted back: the same fields, method by method (Beier-Neely's lines
+    // and regions read the features' points themselves).
+    let shifted = |doc: &mut Value, by: [f64; 2]| {
+        for f in doc["features"].as_array_mut().unwrap() {
+            let mut lists = vec![f["rest"].clone()];
+            lists.extend(f.get("keys").and_then(Value::as_array).into_iter().flatten().map(|k| k["points"].clone()));
+            let moved: Vec<Value> = lists.iter().map(|pts| json!(pts.as_array().unwrap().iter().map(|p| [p[0].as_f64().unwrap() + by[0], p[1].as_f64().unwrap() + by[1]]).collect::<Vec<_>>())).collect();
+            f["rest"] = moved[0].clone();
+            if let Some(keys) = f.get_mut("keys").and_then(Value::as_array_mut) {
+                for (k, pts) in keys.iter_mut().zip(&moved[1..]) {
+                    k["points"] = pts.clone();
+                }
+            }
+        }
+    };
+    let mut plain = valid_scene();
+    plain["features"].as_array_mut().unwrap().extend([
+        json!({"id": "bar", "kind": "polyline", "rest": [[3, 9], [12, 8]], "keys": [{"t": 1, "points": [[3, 10], [12, 10]]}]}),
+        json!({"id": "patch", "kind": "region", "rest": [[9, 3], [13, 3], [13, 6], [9, 6]], "keys": [{"t": 1, "points": [[10, 3], [14, 4], [14, 7], [10, 6]]}]}),
+    ]);
+    plain["layers"][1]["features"] = json!(["dot", "lid", "bar", "patch", "edge"]);
+    plain["layers"][1]["offset"] = json!([0, 0]);
+    let mut placed = plain.clone();
+    placed["layers"][1]["offset"] = json!([5, 3]);
+    shifted(&mut placed, [5.0, 3.0]);
+    let (plain, placed) = (Scene::from_json(&plain.to_string(), &mut files(&valid_files())).unwrap(),
+                           Scene::from_json(&placed.to_string(), &mut files(&valid_files())).unwrap());
+    assert_eq!(plain.layer_samples(1, 0.75).unwrap(), placed.layer_samples(1, 0.75).unwrap());
+    for method in [None, Some(Method::TpsExact), Some(Method::Triangulation), Some(Method::BeierNeely)] {
+        let want = plain.layer_field_with(1, 0.75, None, method).unwrap().field;
+        let got = placed.layer_field_with(1, 0.75, None, method).unwrap().field;
+        let worst = want.dx.iter().chain(&want.dy).zip(got.dx.iter().chain(&got.dy)).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+        assert!(worst < 1e-4, "{method:?}: {worst}");
+        assert!(want.dx.iter().any(|v| v.abs() > 0.5), "{method:?} moved nothing");
+    }
+}
+
+#[test]
 fn warm_started_frames_match_cold_frames() {
     let scene = small_scene();
     let mut animator = Animator::new(&scene);
@@ -702,7 +742,7 @@ fn method_settings_in_the_scene_reach_the_interpolants() {
     // Beier–Neely with the scene's weights: the field the methods module gives for them,
     // and not the default weights' field.
     let features = scene.layer_feature_samples(0, 1.0).unwrap();
-    let controls = feature_controls(&scene, &features, 1.0, Interpolant::BeierNeely).unwrap();
+    let controls = feature_controls(&scene, &features, 1.0, Interpolant::BeierNeely, [0.0, 0.0]).unwrap();
     let (want, _) = controls_field(Interpolant::BeierNeely, &controls, &scene.layers()[0].grid, &params).unwrap();
     let got = scene.layer_field(0, 1.0, None).unwrap();
     assert_eq!(got.field, want);
@@ -928,7 +968,7 @@ fn a_field_that_is_not_finite_is_an_error_not_a_blank_frame() {
     let features = [FeatureSamples { feature: 0, samples }];
     for method in [super::doc::Method::Tps, super::doc::Method::BeierNeely] {
         let solver = super::doc::SolverDoc { method, ..super::doc::SolverDoc::default() };
-        let result = compute_field(&scene, 0.0, &solver, &grid, &features, Start::Field(None), Default::default());
+        let result = compute_field(&scene, 0.0, &solver, &grid, &features, Start::Field(None), Default::default(), [0.0, 0.0]);
         match result {
             Err(message) => assert!(message.contains("is not finite"), "{method:?}: {message}"),
             Ok(layer) => panic!(
