@@ -10,8 +10,7 @@ use crate::scene::{BeierNeelyDoc, FeatureSamples, Scene, SolverDoc};
 pub const BEIER_NEELY_SEGMENT_PX: f64 = 8.0;
 
 /// The controls a layer's drawing gives `interpolant`, from the layer's samples grouped by
-/// feature (as the scene engine makes them at `time_s`, in the grid of a layer placed at
-/// `offset`: the features' own points are read there too).
+/// feature (as the scene engine makes them at `time_s`, for a layer placed at `offset`).
 ///
 /// * `tps-exact` and `triangulation`: every sample the grid thin plate gets (curves
 ///   sampled at the layer's grid spacing, region interiors on the layer's grid).
@@ -33,9 +32,7 @@ pub fn feature_controls(scene: &Scene, features: &[FeatureSamples], time_s: f64,
         match feature.kind {
             Kind::Cut => {}
             Kind::Point => controls.samples.extend(f.samples.iter().copied()),
-            Kind::Spline => {
-                controls.line_pairs.extend(line_pairs_from_chain(&f.samples, closed, BEIER_NEELY_SEGMENT_PX));
-            }
+            Kind::Spline => controls.line_pairs.extend(line_pairs_from_chain(&f.samples, closed, BEIER_NEELY_SEGMENT_PX)),
             Kind::Region if feature.spline_outline() => {
                 let options = SampleOptions { closed: true, spline_outline: false, spacing_px: 1.0 };
                 let chain = sample_feature(Kind::Spline, &rest, &pose, &options, None)
@@ -56,17 +53,13 @@ pub fn feature_controls(scene: &Scene, features: &[FeatureSamples], time_s: f64,
 /// four edges of the `width × height` grid as line pairs that stay put, for the others
 /// [`border_samples`](crate::geometry::border_samples) every `spacing_px`.
 pub fn hold_border(controls: &mut Controls, interpolant: Interpolant, width: usize, height: usize, spacing_px: f64) {
-    if width == 0 || height == 0 {
-        return;
-    }
+    if width == 0 || height == 0 { return; }
     if interpolant == Interpolant::BeierNeely {
         let (r, b) = ((width - 1) as f64, (height - 1) as f64);
         let corners = [[0.0, 0.0], [r, 0.0], [r, b], [0.0, b]];
         for k in 0..4 {
             let edge = [corners[k], corners[(k + 1) % 4]];
-            if edge[0] != edge[1] {
-                controls.line_pairs.push(super::LinePair { rest: edge, pose: edge });
-            }
+            if edge[0] != edge[1] { controls.line_pairs.push(super::LinePair { rest: edge, pose: edge }); }
         }
     } else {
         controls.samples.extend(crate::geometry::border_samples(width, height, spacing_px));

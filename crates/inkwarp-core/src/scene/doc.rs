@@ -237,9 +237,8 @@ pub struct LayerDoc {
     /// surface can tear along. Default: where the layer's alpha is > 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub continuity: Option<String>,
-    /// Where the warped layer is placed in the frame, `[dx, dy]` pixels. The drawing is in
-    /// the frame's coordinates, so the layer reads a feature's points at `p − offset` in its
-    /// own pixels: a drawing traced over the layer where it shows moves it.
+    /// Where the warped layer is placed in the frame, `[dx, dy]` pixels. It reads the drawing
+    /// (in the frame's coordinates) at `p − offset`: a drawing over it where it shows moves it.
     #[serde(default, skip_serializing_if = "is_default")]
     #[schemars(extend("default" = [0.0, 0.0]))]
     pub offset: [f64; 2],

@@ -142,9 +142,7 @@ impl RenderedFrame {
 }
 
 /// `points` of the frame in the grid of a layer placed at `offset`.
-pub(crate) fn to_layer(points: &[Point], offset: [f64; 2]) -> Vec<Point> {
-    points.iter().map(|p| [p[0] - offset[0], p[1] - offset[1]]).collect()
-}
+pub(crate) fn to_layer(points: &[Point], offset: [f64; 2]) -> Vec<Point> { points.iter().map(|p| [p[0] - offset[0], p[1] - offset[1]]).collect() }
 
 /// Consecutive frames are solved in chains of this many, each chain starting cold at a
 /// frame index that is a multiple of it and warm-starting every later frame from the one
@@ -159,13 +157,11 @@ impl Scene {
         points_at(&f.rest, &f.keys, time_s)
     }
 
-    /// The constraints that drive layer `layer` at time `time_s`, feature by feature:
-    /// every driving feature sampled at the layer's grid spacing, region interiors on the
-    /// layer's grid. Features are drawn in the frame, the layer's pixels in its own grid:
-    /// a layer at `offset` reads them at `p − offset` (the same displacements).
+    /// The constraints that drive layer `layer` at time `time_s`, feature by feature: every
+    /// driving feature sampled at the layer's grid spacing, region interiors on its grid;
+    /// read in the layer's own pixels (a layer at `offset` at `p − offset`).
     pub fn layer_feature_samples(&self, layer: usize, time_s: f64) -> Result<Vec<FeatureSamples>, SceneError> {
         let layer_ref = &self.layers()[layer];
-        let onto = |points: &[Point]| to_layer(points, layer_ref.offset);
         let spacing_px = layer_ref.solver.grid_step as f64;
         let mut out = Vec::with_capacity(layer_ref.drivers.len());
         for (&i, sampler) in layer_ref.drivers.iter().zip(&layer_ref.samplers) {
@@ -177,11 +173,11 @@ impl Scene {
                 .get_or_init(|| {
                     let options = SampleOptions { closed: f.closed, spline_outline: f.spline_outline(), spacing_px };
                     let domain = (f.kind == Kind::Region).then_some(&layer_ref.grid);
-                    FeatureSampler::new(f.kind, &onto(&f.rest), &options, domain).map_err(|e| e.to_string())
+                    FeatureSampler::new(f.kind, &to_layer(&f.rest, layer_ref.offset), &options, domain).map_err(|e| e.to_string())
                 })
                 .as_ref()
                 .map_err(|e| fail(e.clone()))?;
-            let pose = onto(&self.pose_at(i, time_s));
+            let pose = to_layer(&self.pose_at(i, time_s), layer_ref.offset);
             let samples = sampler.sample(&pose).map_err(|e| fail(e.to_string()))?;
             out.push(FeatureSamples { feature: i, samples });
         }
