@@ -43,7 +43,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "within PX pixels of every frame (default: a key at every frame)")
     parser.add_argument("--lost", type=float, default=2.0, metavar="PX",
                         help="warn about a feature at the frames where its points' median "
-                        "forward-backward error is over PX pixels (default 2)")
+                        "forward-backward error is over PX pixels, or one of its control points "
+                        "is found PX off (drift from the traced frame, off the picture) (default 2)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     parser.set_defaults(func=run)
 
