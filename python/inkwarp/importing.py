@@ -103,16 +103,15 @@ def read_picture(path: str | os.PathLike[str]) -> Picture:
                      "give a PNG, JPEG, WebP or layered PSD picture")
 
 
-def _too_large(source: Path, size: tuple[int, int] | None = None) -> ValueError | None:
-    """The error for a picture over the most pixels inkwarp handles, naming it (checked
-    before decoding), or None; without a size, one Pillow found far over it."""
+def _check_size(source: Path, size: tuple[int, int] | None) -> None:
+    """Refuse a picture over the most pixels inkwarp handles, naming it, before it is
+    decoded; ``size`` None: one Pillow found far over it."""
     from inkwarp._inkwarp import MAX_PIXELS
 
-    if size is not None and size[0] * size[1] <= MAX_PIXELS:
-        return None
-    what = f"is {size[0]}×{size[1]} pixels," if size is not None else "has"
-    return ValueError(f"{source}: the picture {what} more than the {MAX_PIXELS >> 20} megapixels inkwarp "
-                      "handles; scale it down first")
+    if size is None or size[0] * size[1] > MAX_PIXELS:
+        what = f"is {size[0]}×{size[1]} pixels," if size is not None else "has"
+        raise ValueError(f"{source}: the picture {what} more than the {MAX_PIXELS >> 20} megapixels inkwarp "
+                         "handles; scale it down first")
 
 
 def _read_flat(source: Path) -> Picture:
@@ -131,12 +130,12 @@ def _read_flat(source: Path) -> Picture:
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
             image = Image.open(source)
     except Image.DecompressionBombError:
-        raise _too_large(source) or AssertionError from None
+        _check_size(source, None)
+        raise  # (not reached: the size is refused)
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as err:
         raise unreadable(err) from None
     with image:
-        if error := _too_large(source, image.size):
-            raise error
+        _check_size(source, image.size)
         try:
             image.load()
             # Upright, as viewers show it and the engine reads it (a phone's EXIF orientation).
@@ -161,8 +160,7 @@ def _read_psd(source: Path) -> Picture:
         reason = " ".join(str(err).split()) or type(err).__name__
         raise ValueError(f"{source}: not a readable PSD file ({reason}); save it again from "
                          "the painting app as a Photoshop document (RGB, 8 bits)") from None
-    if error := _too_large(source, (psd.width, psd.height)):
-        raise error
+    _check_size(source, (psd.width, psd.height))
     if psd.color_mode != ColorMode.RGB:
         mode = getattr(psd.color_mode, "name", str(psd.color_mode))
         raise ValueError(f"{source}: the PSD is in {mode} colour mode; inkwarp reads RGB "

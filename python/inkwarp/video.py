@@ -177,6 +177,8 @@ _WRITE_FIXES = {
                  "more; raise the limit or write the output to another disk",
     errno.EIO: "check the disk, or write the output to another one",
 }
+#: The reasons that mean the disk took no more (not a failing device, EIO).
+DISK_FULL = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
 
 #: How ffmpeg reports those reasons in its messages.
 _FFMPEG_REASONS = {"No space left on device": errno.ENOSPC, "Disk quota exceeded": errno.EDQUOT,
@@ -192,9 +194,15 @@ def write_failure(target: Path, err: OSError) -> OSError:
 
     if isinstance(err, OutputWriteError) or err.errno not in _WRITE_FIXES:
         return err
-    what = "the frames" if target.is_dir() or not target.suffix else "the file"
-    failure = OutputWriteError(f"{target}: {what} could not be written "
-                               f"({os.strerror(err.errno)}); {_WRITE_FIXES[err.errno]}")
+    return disk_failure(f"{target}: {'the frames' if target.is_dir() or not target.suffix else 'the file'}", err)
+
+
+def disk_failure(subject: str, err: OSError) -> OSError:
+    """The :class:`~inkwarp.errors.OutputWriteError` saying that ``subject`` could not be
+    written for ``err``'s reason, one of :data:`_WRITE_FIXES`, and what to do."""
+    from inkwarp.errors import OutputWriteError
+
+    failure = OutputWriteError(f"{subject} could not be written ({os.strerror(err.errno)}); {_WRITE_FIXES[err.errno]}")
     failure.errno = err.errno
     return failure
 

@@ -150,6 +150,33 @@ async function drag(page, from, to, steps = 8, restMs = 0) {
   await page.mouse.up();
 }
 
+/**
+ * The matte overlay turned on (and left on) and drawn now: which scene pixels it marks as
+ * holes (magenta), row by row, with the scene's width and the mode. See `marked`.
+ */
+async function matteMarks(page) {
+  return page.evaluate(async () => {
+    const { ui, app, store } = window.inkwarp;
+    ui.setOverlay({ matte: true, drawing: false });
+    await app.idle();
+    app.renderNow();
+    const c = document.querySelector('canvas.overlay');
+    const data = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+    const w = store.doc.width, h = store.doc.height, s = c.width / w;
+    const marks = [];
+    for (let y = 0; y < h; y++) for (let x = 0; x < w; x++) {
+      const j = 4 * (Math.floor((y + 0.5) * s) * c.width + Math.floor((x + 0.5) * s));
+      marks.push(data[j + 3] > 40 && data[j] > 200 && data[j + 1] < 60 && data[j + 2] > 100 ? 1 : 0);
+    }
+    return { width: w, height: h, marks, mode: store.view.mode };
+  });
+}
+
+/** Whether `matteMarks` found scene pixel (x, y) marked as a hole. */
+const marked = (m, x, y) => m.marks[y * m.width + x] === 1;
+
+const overlayOff = (page) => page.evaluate(() => window.inkwarp.ui.setOverlay({ matte: false, drawing: true }));
+
 // ---------------------------------------------------------------------------------------
 // Pictures.
 
@@ -571,27 +598,15 @@ test('the GPU frame keeps the CPU renderer\'s order where a part is pushed over 
   assert(ok, `GPU and CPU frames differ where the region covers the hole: mean ${stats.mean.toFixed(3)}, p99 ${stats.p99}, max ${stats.max} (tolerance: mean ≤ 1.5, p99 ≤ 40); see test-results/gpu-vs-cpu-fold-over-hole-diff.png`);
   // The matte overlay, posed, marks holes only where the picture shows none of the surface:
   // not inside the stretched, turned surface below the region (it marked dots there).
-  const falseHoles = await page.evaluate(async (pixels) => {
-    const { ui, app, store } = window.inkwarp;
-    ui.setOverlay({ matte: true, drawing: false });
-    await app.idle();
-    app.renderNow();
-    const c = document.querySelector('canvas.overlay');
-    const ctx = c.getContext('2d');
-    const w = store.doc.width, h = store.doc.height, s = c.width / w;
-    const data = ctx.getImageData(0, 0, c.width, c.height).data;
-    const background = (x, y) => { const i = 4 * (y * w + x); return pixels[i] > 250 && pixels[i + 1] > 250 && pixels[i + 2] > 250; };
-    let n = 0;
-    for (let y = 1; y < h - 1; y++) for (let x = 1; x < w - 1; x++) {
-      let near = false;
-      for (let dy = -1; dy <= 1; dy++) for (let dx = -1; dx <= 1; dx++) near ||= background(x + dx, y + dy);
-      if (near) continue;
-      const j = 4 * (Math.floor((y + 0.5) * s) * c.width + Math.floor((x + 0.5) * s));
-      if (data[j + 3] > 40 && data[j] > 200 && data[j + 1] < 60 && data[j + 2] > 100) n++;
-    }
-    ui.setOverlay({ matte: false, drawing: true });
-    return n;
-  }, Array.from(gpu.data));
+  const m = await matteMarks(page);
+  await overlayOff(page);
+  const background = (x, y) => [0, 1, 2].every((c) => gpu.data[4 * (y * m.width + x) + c] > 250);
+  let falseHoles = 0;
+  for (let y = 1; y < m.height - 1; y++) for (let x = 1; x < m.width - 1; x++) {
+    let near = false;
+    for (let dy = -1; dy <= 1; dy++) for (let dx = -1; dx <= 1; dx++) near ||= background(x + dx, y + dy);
+    if (!near && marked(m, x, y)) falseHoles++;
+  }
   assert(falseHoles === 0, `the posed matte overlay marks ${falseHoles} pixels inside the drawn surface as holes`);
 });
 
@@ -2222,22 +2237,9 @@ test('a layer smaller than the scene is placed by its offset (numeric fields, Mo
   assert(Math.abs(byDrag[0] - 22) <= 1 && Math.abs(byDrag[1] - 54) <= 1, `a Move drag of (12, −6) px moved the layer: ${JSON.stringify(byDrag)}`);
   // The matte overlay shows the layer's holes (its transparent margin) where the layer is
   // placed: none over the sticker itself.
-  const overlay = await page.evaluate(async (o) => {
-    const { ui, app, store } = window.inkwarp;
-    ui.setOverlay({ matte: true, drawing: false });
-    await app.idle();
-    app.renderNow();
-    const c = document.querySelector('canvas.overlay');
-    const ctx = c.getContext('2d');
-    const s = c.width / store.doc.width;
-    const magenta = (x, y) => {
-      const [r, g, b, a] = ctx.getImageData(Math.floor((x + 0.5) * s), Math.floor((y + 0.5) * s), 1, 1).data;
-      return a > 40 && r > 200 && g < 60 && b > 100;
-    };
-    const out = { sticker: magenta(o[0] + 20, o[1] + 12), beside: magenta(o[0] + 45, o[1] + 12) };
-    ui.setOverlay({ matte: false, drawing: true });
-    return out;
-  }, byDrag);
+  const m = await matteMarks(page);
+  await overlayOff(page);
+  const overlay = { sticker: marked(m, byDrag[0] + 20, byDrag[1] + 12), beside: marked(m, byDrag[0] + 45, byDrag[1] + 12) };
   assert(!overlay.sticker && overlay.beside, `the matte overlay at the layer's offset: ${JSON.stringify(overlay)}`);
   // A point traced over the green square's left edge where it is now, in the frame, and
   // moved 6 px right by t = 1: the sticker follows it (3 px at t = 0.5).
@@ -2485,22 +2487,12 @@ test('the matte overlay follows the picture in pose mode (at rest in rest mode)'
   });
   await idle(page);
   await drag(page, [14, 8], [20, 8]);
-  const sample = () => page.evaluate(async () => {
-    const { ui, app, store } = window.inkwarp;
-    ui.setOverlay({ matte: true, drawing: false });
-    await app.idle();
-    app.renderNow();
-    const c = document.querySelector('canvas.overlay');
-    const ctx = c.getContext('2d');
-    const s = c.width / store.doc.width;
-    const magenta = (x, y) => {
-      const [r, g, b, a] = ctx.getImageData(Math.floor((x + 0.5) * s), Math.floor((y + 0.5) * s), 1, 1).data;
-      return a > 40 && r > 200 && g < 60 && b > 100;
-    };
+  const sample = async () => {
+    const m = await matteMarks(page);
     const out = {};
-    for (const x of [3, 10, 12, 14, 17, 20, 23, 27, 30]) out[x] = magenta(x, 8);
-    return { out, mode: store.view.mode };
-  });
+    for (const x of [3, 10, 12, 14, 17, 20, 23, 27, 30]) out[x] = marked(m, x, 8);
+    return { out, mode: m.mode };
+  };
   // The posed overlay follows the layer's field, which the full-resolution worker may still
   // be solving on a loaded machine: sample until it arrives (at most about 5 s).
   let posed = await sample();
@@ -2520,7 +2512,7 @@ test('the matte overlay follows the picture in pose mode (at rest in rest mode)'
   // where it was is a hole (the field is solved on connected pixels only).
   assert(!rest.out[10] && !rest.out[14] && !rest.out[17] && rest.out[20] && rest.out[3], `rest: ${JSON.stringify(rest.out)}`);
   assert(posed.out[10] && posed.out[12] && !posed.out[17] && !posed.out[20] && !posed.out[23] && posed.out[27] && posed.out[3], `posed: ${JSON.stringify(posed.out)}`);
-  await page.evaluate(() => window.inkwarp.ui.setOverlay({ matte: false, drawing: true }));
+  await overlayOff(page);
 });
 
 test('a marquee on empty stage picks the control points inside (Shift adds); picked points move together, at rest and posed', async () => {

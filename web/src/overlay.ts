@@ -81,7 +81,7 @@ export class Overlay {
     // The active layer's matte, field and mesh are in its own pixels: placed by its offset,
     // as the frame draws it (the drawing is in the frame's).
     const o = store.doc.layers[view.activeLayer]?.offset ?? [0, 0];
-    this.shift = [(o[0] * canvas.width) / sceneWidth, (o[1] * canvas.height) / sceneHeight];
+    this.shift = [o[0] * s, o[1] * s];
     if (rt && view.overlays.matte && rt.matte) this.drawMatte(rt, pw, ph, view.mode === 'pose');
     if (rt && view.overlays.heat !== 'off' && rt.field) this.drawHeat(rt, view.overlays.heat, pw, ph);
     if (rt && view.overlays.mesh && rt.links) {

@@ -498,11 +498,11 @@ export class Ui {
           h('td', {}, h('button.small', { title: 'Go to this key', onclick: () => this.setTime(k.t) }, `◆${n + 1}`)),
           h('td', {}, h('input.key-time', { type: 'number', step: 1 / doc.fps, min: 0, value: k.t.toFixed(3), onchange: (e: Event) => {
             const input = e.target as HTMLInputElement;
-            const t = input.value.trim() === '' ? NaN : Number(input.value);
+            const typed = input.value.trim();
+            const t = typed === '' ? NaN : Number(typed);
             if (!(t >= 0)) {
-              const typed = input.value.trim() === '' ? 'nothing' : input.value;
               input.value = k.t.toFixed(3);
-              return this.message(`A key's time is a number of seconds, 0 or more, not ${typed}.`, 'error');
+              return this.message(`A key's time is a number of seconds, 0 or more, not ${typed || 'nothing'}.`, 'error');
             }
             this.tryEdit((d) => moveKey(d, f.id, k.t, t));
           } })),

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import errno
 import importlib
 import os
 import signal
@@ -126,14 +125,10 @@ class _Stdout:
         self._inner = inner
 
     def _failed(self, err: OSError) -> OSError:
-        from inkwarp.video import _WRITE_FIXES
+        from inkwarp.video import DISK_FULL, disk_failure
 
-        if err.errno not in _WRITE_FIXES or err.errno == errno.EIO:  # (EIO: a terminal that hung up)
-            return err
-        failure = OutputWriteError(f"standard output could not be written ({os.strerror(err.errno)}); "
-                                   f"{_WRITE_FIXES[err.errno]}")
-        failure.errno = err.errno
-        return failure
+        # (not EIO: a terminal that hung up)
+        return disk_failure("standard output", err) if err.errno in DISK_FULL else err
 
     def write(self, text: str) -> int:
         try:
@@ -171,15 +166,11 @@ def _unwritten(err: OSError, output: object) -> OSError:
     """A full disk, a quota or a file-size limit without a file name (met while writing a
     file already open) as the error naming the command's output, where it has one (an
     input's read error, EIO, is left as it is)."""
-    from inkwarp.video import _WRITE_FIXES
+    from inkwarp.video import DISK_FULL, disk_failure
 
-    full = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
-    if err.filename is not None or not isinstance(output, str) or isinstance(err, OutputWriteError) or err.errno not in full:
+    if err.filename is not None or not isinstance(output, str) or isinstance(err, OutputWriteError) or err.errno not in DISK_FULL:
         return err
-    failure = OutputWriteError(f"{output}: the file could not be written ({os.strerror(err.errno)}); "
-                               f"{_WRITE_FIXES[err.errno]}")
-    failure.errno = err.errno
-    return failure
+    return disk_failure(f"{output}: the file", err)
 
 
 def main(argv: list[str] | None = None) -> int:

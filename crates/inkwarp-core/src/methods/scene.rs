@@ -3,7 +3,7 @@
 
 use super::{line_pairs_from_chain, BeierNeelyParams, Controls, Interpolant, MethodParams};
 use crate::geometry::{sample_feature, sub, Kind, Point, Sample, SampleOptions};
-use crate::scene::{BeierNeelyDoc, FeatureSamples, Scene, SolverDoc};
+use crate::scene::{to_layer, BeierNeelyDoc, FeatureSamples, Scene, SolverDoc};
 
 /// Beier–Neely segments along a spline (or a spline region outline) are about this long:
 /// short enough to follow the curve, long enough to act as lines rather than points.
@@ -27,19 +27,20 @@ pub fn feature_controls(scene: &Scene, features: &[FeatureSamples], time_s: f64,
     for f in features {
         let feature = &scene.doc().features[f.feature];
         let (closed, _) = feature.kind.curve_shape(feature.closed, false);
-        let onto = |points: &[Point]| -> Vec<Point> { points.iter().map(|p| [p[0] - offset[0], p[1] - offset[1]]).collect() };
-        let (rest, pose) = (onto(&feature.rest), onto(&scene.pose_at(f.feature, time_s)));
+        let placed = || (to_layer(&feature.rest, offset), to_layer(&scene.pose_at(f.feature, time_s), offset));
         match feature.kind {
             Kind::Cut => {}
             Kind::Point => controls.samples.extend(f.samples.iter().copied()),
             Kind::Spline => controls.line_pairs.extend(line_pairs_from_chain(&f.samples, closed, BEIER_NEELY_SEGMENT_PX)),
             Kind::Region if feature.spline_outline() => {
+                let (rest, pose) = placed();
                 let options = SampleOptions { closed: true, spline_outline: false, spacing_px: 1.0 };
                 let chain = sample_feature(Kind::Spline, &rest, &pose, &options, None)
                     .map_err(|e| format!("features[{}]: {e}", f.feature))?;
                 controls.line_pairs.extend(line_pairs_from_chain(&chain, true, BEIER_NEELY_SEGMENT_PX));
             }
             Kind::Polyline | Kind::Region => {
+                let (rest, pose) = placed();
                 let moved = |(&r, &p): (&Point, &Point)| Sample { rest: r, displacement: sub(p, r) };
                 let vertices: Vec<Sample> = rest.iter().zip(&pose).map(moved).collect();
                 controls.line_pairs.extend(line_pairs_from_chain(&vertices, closed && vertices.len() > 2, 0.0));

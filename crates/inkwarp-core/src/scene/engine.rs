@@ -12,7 +12,7 @@ use crate::anim::points_at;
 use crate::geometry::{FeatureSampler, SampleOptions};
 use crate::render::{Canvas, RgbaImage};
 use crate::solve::{SolveMethod, SolveOptions, SolveReport, Solver, Stop, DEFAULT_MAX_CYCLES};
-use super::{Scene, SceneError};
+use super::{to_layer, Scene, SceneError};
 use crate::field::Field;
 use crate::geometry::{Kind, Point, Sample};
 use crate::grid::Grid;
@@ -140,9 +140,6 @@ impl RenderedFrame {
         notes.flatten().collect()
     }
 }
-
-/// `points` of the frame in the grid of a layer placed at `offset`.
-pub(crate) fn to_layer(points: &[Point], offset: [f64; 2]) -> Vec<Point> { points.iter().map(|p| [p[0] - offset[0], p[1] - offset[1]]).collect() }
 
 /// Consecutive frames are solved in chains of this many, each chain starting cold at a
 /// frame index that is a multiple of it and warm-starting every later frame from the one

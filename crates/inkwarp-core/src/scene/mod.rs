@@ -40,7 +40,7 @@ pub use engine::{default_frame_threads, method_available, Animator, FeatureSampl
 pub use crate::render::RgbaImage;
 pub use validate::{validate_doc, validate_overrides};
 
-use crate::geometry::Kind;
+use crate::geometry::{Kind, Point};
 use crate::grid::Grid;
 
 /// One thing wrong with a scene: where (a JSON path such as `features[3].keys[1].points`,
@@ -437,7 +437,7 @@ impl Scene {
             };
             let (cuts, drivers): (Vec<usize>, Vec<usize>) = members.into_iter().partition(|&i| doc.features[i].kind == Kind::Cut);
             for cut in cuts.iter().map(|&i| &doc.features[i]) {
-                grid.add_cut(&crate::geometry::curve_polyline(Kind::Cut, &engine::to_layer(&cut.rest, layer.offset), cut.closed, false, 0.5));
+                grid.add_cut(&crate::geometry::curve_polyline(Kind::Cut, &to_layer(&cut.rest, layer.offset), cut.closed, false, 0.5));
             }
             let (name, offset, visible, border) = (layer.name.clone(), layer.offset, layer.visible, layer.border);
             let solver = layer.solver.as_ref().map_or_else(|| doc.solver.clone(), |o| o.apply(&doc.solver));
@@ -480,6 +480,9 @@ fn describe_reference(reference: &str) -> String {
         format!("\"{reference}\"")
     }
 }
+
+/// `points` of the frame in the grid of a layer placed at `offset` (the drawing is traced in the frame).
+pub(crate) fn to_layer(points: &[Point], offset: [f64; 2]) -> Vec<Point> { points.iter().map(|p| [p[0] - offset[0], p[1] - offset[1]]).collect() }
 
 #[cfg(test)]
 mod tests;
