@@ -97,6 +97,11 @@ async function openEditor(browser, url, viewport = { width: 1400, height: 900 })
 }
 
 const idle = (page) => page.evaluate(() => window.inkwarp.app.idle());
+// The autosaver is the page's once its start settles (an IndexedDB read, later than ready).
+const flush = async (page) => {
+  await page.waitForFunction(() => window.inkwarp.autosave, null, { timeout: 10000 });
+  await page.evaluate(() => window.inkwarp.autosave.flush());
+};
 
 /** Straight RGBA8 of `width × height` from the page's `pixelsB64`. */
 const image = (width, height, b64) => ({ width, height, data: new Uint8Array(Buffer.from(b64, 'base64')) });
@@ -1069,7 +1074,7 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
     const viewBefore = await p.evaluate(() => ({ mode: window.inkwarp.store.view.mode, time: window.inkwarp.store.view.time }));
     assert(await p.evaluate(() => window.inkwarp.store.unsaved), 'the edits are unsaved');
     assert(!(await p.evaluate(() => document.querySelector('#undo').disabled)), 'Undo is enabled right after the drag');
-    await p.evaluate(() => window.inkwarp.autosave.flush());
+    await flush(p);
     await p.reload();
     await p.waitForSelector('body[data-ready]');
     assert(p.dialogs.includes('beforeunload'), `leaving with unsaved changes asked first (dialogs: ${p.dialogs})`);
@@ -1096,7 +1101,8 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
     await idle(p);
     assert((await p.evaluate(() => JSON.stringify(window.inkwarp.store.doc.features))) === before, 'Undo brought the work back after opening');
     // A saved scene is not offered again.
-    await p.evaluate(() => { window.inkwarp.store.markSaved(); return window.inkwarp.autosave.flush(); });
+    await p.evaluate(() => window.inkwarp.store.markSaved());
+    await flush(p);
     await p.reload();
     await p.waitForSelector('body[data-ready]');
     await p.waitForTimeout(500);
@@ -1112,7 +1118,7 @@ test('edits made while the restore offer waits: leaving asks, and the offered wo
   try {
     const rests = () => p.evaluate(() => JSON.stringify(window.inkwarp.store.doc.features.map((f) => f.rest)));
     await tracePoint(p, [100, 300]);
-    await p.evaluate(() => window.inkwarp.autosave.flush());
+    await flush(p);
     const offered = await rests();
     await p.reload();
     await p.waitForSelector('#restore');
@@ -1196,7 +1202,7 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
     await click(p, [40, 40]);
     await idle(p);
     assert(await p.evaluate(() => window.inkwarp.store.unsaved && window.inkwarp.store.doc.features.length === 1), 'a point was added, unsaved');
-    await p.evaluate(() => window.inkwarp.autosave.flush());
+    await flush(p);
     await p.reload();
     await p.waitForSelector('body[data-ready]');
     await p.waitForSelector('#restore', { timeout: 10000 });
@@ -1213,7 +1219,7 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
     await p.keyboard.press('p');
     await click(p, [60, 60]);
     await idle(p);
-    await p.evaluate(() => window.inkwarp.autosave.flush());
+    await flush(p);
     const picture = join(dirname(scenePath), 'checker.png');
     renameSync(picture, `${picture}.moved`);
     await p.reload();
@@ -1250,7 +1256,7 @@ test('a value typed into a field and not entered is kept when the page is left',
     });
     assert(asked, 'leaving asks first');
     assert((await p.evaluate(() => [window.inkwarp.store.doc.duration, window.inkwarp.store.unsaved].join())) === '0.5,true', 'the value was entered');
-    await p.evaluate(() => window.inkwarp.autosave.flush());
+    await flush(p);
     await p.reload();
     await p.waitForSelector('#restore', { timeout: 20000 });
     await p.click('#restore-yes');
@@ -1274,7 +1280,7 @@ test('work kept over a server restart takes the picture retouched on disk since,
     await p.keyboard.press('p');
     await click(p, at);
     await idle(p);
-    await p.evaluate(() => window.inkwarp.autosave.flush());
+    await flush(p);
     retouch();
     own.proc.kill();
     await new Promise((r) => own.proc.on('exit', r));
@@ -1405,7 +1411,7 @@ test('two tabs closed with unsaved work: each is offered back, neither overwrite
       await p.keyboard.press('r');
       await p.keyboard.press('p');
       await click(p, at);
-      await p.evaluate(() => window.inkwarp.autosave.flush());
+      await flush(p);
     }
     const last = (p) => p.evaluate(() => window.inkwarp.store.doc.features.at(-1).rest[0].map(Math.round));
     const wanted = new Set([JSON.stringify(await last(a)), JSON.stringify(await last(b))]);
