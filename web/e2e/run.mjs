@@ -2284,6 +2284,42 @@ test('a layer smaller than the scene is placed by its offset (numeric fields, Mo
 });
 
 
+test('a layer moved under a cut builds its grid once, when the drag ends, torn where the cut is now', async () => {
+  await page.evaluate(async () => {
+    const { ui, examples, app } = window.inkwarp;
+    await ui.openScene(await examples.builtinScene(256), 'cut.json');
+    ui.setMode('pose');
+    await app.idle();
+    window.gridBuilds = 0;
+    for (const c of app.clients) {
+      const own = c.setGrid.bind(c);
+      c.setGrid = (...a) => { window.gridBuilds++; return own(...a); };
+    }
+  });
+  await page.click('#layer-move');
+  await drag(page, [60, 60], [90, 70], 8);
+  await page.click('#layer-move');
+  const got = await page.evaluate(async () => {
+    const { app, engine, store } = window.inkwarp;
+    await app.idle();
+    const doc = store.doc;
+    const layer = doc.layers[0];
+    const rt = app.runtimes.get(layer.name);
+    const o = layer.offset ?? [0, 0];
+    // The slit in the layer's own pixels: where the frame's cut now lies over the moved picture.
+    const cuts = doc.features.filter((f) => f.kind === 'cut').map((f) => f.rest.map(([x, y]) => [x - o[0], y - o[1]]));
+    const grid = engine.grid(doc.width, doc.height, rt.matte, cuts);
+    const want = grid.links();
+    grid.free();
+    let differ = 0;
+    for (let i = 0; i < want.length; i++) differ += want[i] !== rt.links[i] ? 1 : 0;
+    return { builds: window.gridBuilds, clients: app.clients.length, offset: o, differ };
+  });
+  assert(Math.abs(got.offset[0] - 30) <= 1 && Math.abs(got.offset[1] - 10) <= 1, `the drag moved the layer: ${JSON.stringify(got.offset)}`);
+  assert(got.builds === got.clients, `one grid build per worker, at the drag's end: ${got.builds} builds for ${got.clients} workers`);
+  assert(got.differ === 0, `the layer is torn where the cut lies over it now: ${got.differ} links differ`);
+});
+
 test('a cut is not posed: a pose drag on it keys nothing and says why; Escape or a mode ends layer Move', async () => {
   await page.evaluate(async () => {
     const { ui, examples, app } = window.inkwarp;

@@ -305,7 +305,7 @@ export class App {
       };
     }
     store.subscribe((_, docChanged) => {
-      if (docChanged) this.syncLayers();
+      if (docChanged || (this.gridsDue && !store.inGesture)) this.syncLayers();
       this.dropStale();
       this.scheduleAhead();
       this.requestSolve(this.dragging ? 'draft' : 'final');
@@ -378,7 +378,11 @@ export class App {
     return proxySize(this.doc.width, this.doc.height, this.proxy);
   }
 
+  /** A grid change waits for the drag that made it to end (see `syncLayers`). */
+  private gridsDue = false;
+
   syncLayers(): void {
+    this.gridsDue = false;
     const f = proxyFactor(this.doc.width, this.doc.height);
     if (f !== this.proxy) {
       // Every layer is loaded again at the new scale.
@@ -423,6 +427,14 @@ export class App {
         rt.cutsSig = cutsSig;
         void this.loadLayer(rt, layer);
       } else if (cutsSig !== rt.cutsSig) {
+        // A drag (a layer moved under a cut, a cut's point moved) rebuilds the grid when it
+        // ends: a build at every pointer move would redo the whole grid in every worker and
+        // its mesh on the page, for a tear that shows only once posed. Meanwhile the layer
+        // draws on its grid as it was.
+        if (this.store.inGesture) {
+          this.gridsDue = true;
+          continue;
+        }
         rt.cutsSig = cutsSig;
         if (rt.matte) this.rebuildGrid(rt, layer);
         if (this.full) this.full.setLayer(rt.name, null, null, this.cutsOf(layer, false));

@@ -864,6 +864,8 @@ export class GlRenderer {
    * for a large frame while dragging (see `App.draftShrink`).
    */
   draftShrink = 1;
+  /** Full frames draw where a layer folds in the CPU renderer's order (a depth test, see ORDER); off only to measure its cost. */
+  orderFolds = true;
   private engine: Engine | null = null;
   private cpuFrame: ImageData | null = null;
   private cpuShown = false;
@@ -1022,7 +1024,7 @@ void main() { o = texture(uTex, vPos); }`);
     gl.blendFunc(gl.ONE, gl.ONE_MINUS_SRC_ALPHA);
     // Full frames keep the CPU renderer's order where a layer folds (see ORDER); drafts and
     // fast frames (elements of many blocks, ranked by one) keep their draw order.
-    const ordered = !draft && !fast && target !== null;
+    const ordered = this.orderFolds && !draft && !fast && target !== null;
     if (ordered) {
       gl.enable(gl.DEPTH_TEST);
       gl.depthFunc(gl.GEQUAL);
