@@ -741,8 +741,10 @@ def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: f
            ) -> tuple[np.ndarray, np.ndarray | None]:
     """Feature ``f``'s control points at frame ``k``: its anchors' tracks blended linearly
     between the anchors around ``k`` (where one of the two has lost the feature at ``k``
-    and the other has not, the other's alone); and the forward-backward errors of its
-    points."""
+    and the other has not, the other's alone); and its points' errors, each track's
+    checks blended with the same weights (a blend of two places is off by at most the
+    blend of their errors: a track that strays near the far anchor hardly moves the
+    points there)."""
     n = len(f.rest)
     before = [a for a in anchors if a <= k and a in tracks]
     after = [a for a in anchors if a >= k and a in tracks]
@@ -760,7 +762,7 @@ def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: f
     for weight, a in parts:
         positions, errors = tracks[a]
         pose += weight * positions[k][f.rows][:n]
-        err = np.maximum(err, errors[k][f.rows])
+        err += weight * errors[k][f.rows]
     return pose, (err if parts else None)
 
 
