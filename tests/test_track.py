@@ -539,6 +539,29 @@ def test_a_feature_left_far_off_its_picture_is_named_lost():
     assert set(range(40, 60)) <= named["lid_l_upper"] & named["lid_r_upper"] & named["brow_r"]
 
 
+def test_a_feature_partly_off_the_picture_is_named_so_and_judged_by_its_points_on_it(videos):
+    # A line running out of the picture where traced: its points beyond the edge are unseen
+    # (followed by the points around), which the warning says; they are not evidence of a
+    # lost track, and its points on the picture (on texture here) are not "on no texture".
+    # Before, its unseen half made it "lost" at frames where the rest held, and a line half
+    # on a flat area and half off was called wholly "on no texture".
+    path, motion = videos["translate"]
+    drawing = sv.drawing(W, H, seed=7)
+    out = [{"id": "out", "kind": "polyline", "rest": [[W - 60.0, 30.0], [W - 30.0, 40.0], [W + 20.0, 50.0], [W + 60.0, 60.0]]}]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        doc = track_dict(path, sv.scene(W, H, drawing + out))
+    said = [str(w.message) for w in caught if issubclass(w.category, InkwarpWarning)]
+    assert any("'out' (2 of its 4 control points) lies partly off the picture at frame 0" in m for m in said), said
+    assert not any("'out'" in m and ("lost track" in m or "no texture" in m) for m in said), said
+    keys = doc["features"][-1]["keys"]
+    assert len(keys) == FRAMES
+    # Its points on the picture are tracked: not lost.
+    on = np.array(out[0]["rest"][:2])
+    worst = max(np.abs(np.array(key["points"][:2]) - motion.forward(on, k)).max() for k, key in enumerate(keys))
+    assert worst < 1.0, worst
+
+
 def test_a_feature_off_the_picture_where_traced_is_named_once_not_as_lost(videos):
     # A correspondence point traced beside the picture (as for transfer) cannot be seen:
     # it follows the tracked points around, and the warning says so, not that the tracker

@@ -686,18 +686,29 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     # see them move, and they follow the thin plate of the points around them.
     # Features wholly off the picture where traced (a correspondence point for transfer,
     # say): nothing there to see; they too follow the points around.
-    outside = {f.id for f in features if _off_picture(at_k[f.rows], clip.width, clip.height, 0.5).all()}
+    # A feature partly off the picture where traced (a shoulder running out of the frame):
+    # its points there are unseen in the same way, named so, and only its points on the
+    # picture are judged for texture and for a lost track.
+    beside = _off_picture(at_k, clip.width, clip.height, 0.5)
+    outside = {f.id for f in features if beside[f.rows].all()}
+    partly = {f.id: int(beside[f.rows][:len(f.rest)].sum()) for f in features
+              if f.id not in outside and beside[f.rows].any()}
     eig = _bilinear(tracker.min_eig(frame)[..., None], at_k)[:, 0]
-    blind = [f.id for f in features if f.id not in outside and np.mean(eig[f.rows] <= TRUST_MIN_EIG) > 0.5]
+    blind = [f.id for f in features
+             if f.id not in outside and np.mean(eig[f.rows][~beside[f.rows]] <= TRUST_MIN_EIG) > 0.5]
     lost: dict[str, list[int]] = {}
     for i, f in tracked:  # doc["features"][i] gets the keys
         series = np.empty((count, len(f.rest), 2))
+        seen = ~beside[f.rows]
         for k in range(count):
             series[k], err = _blend(tracks, anchors_of[f.id], f, k, lost_px)
+            if err is None or f.id in outside:
+                continue
             # Lost where most of its points are, or where a point its keys are made of was
             # checked and found off (not merely unseen: a corner on the picture's edge).
-            keys_off = err is not None and bool(np.any(np.isfinite(err[:len(f.rest)]) & (err[:len(f.rest)] > lost_px)))
-            if err is not None and (np.median(err) > lost_px or keys_off) and f.id not in outside:
+            keys = err[:len(f.rest)][seen[:len(f.rest)]]
+            keys_off = bool(np.any(np.isfinite(keys) & (keys > lost_px)))
+            if np.median(err[seen]) > lost_px or keys_off:
                 lost.setdefault(f.id, []).append(k)
         kept = range(count)
         if simplify_px is not None:
@@ -721,6 +732,13 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         names = ", ".join(f"'{f.id}'" for f in features if f.id in outside)
         warnings.warn(f"{clip.path}: {names} lie{'s' if len(outside) == 1 else ''} off the picture at frame {frame}, "
                       "where the tracker cannot see: followed by the tracked points around, not by the picture; "
+                      "check them, and add a correction key where they stray",
+                      InkwarpWarning, stacklevel=caller_outside())
+    if partly:
+        names = ", ".join(f"'{f.id}' ({partly[f.id]} of its {len(f.rest)} control points)" if partly[f.id]
+                          else f"'{f.id}' (a part of its curve)" for f in features if f.id in partly)
+        warnings.warn(f"{clip.path}: {names} lie{'s' if len(partly) == 1 else ''} partly off the picture at frame {frame}: "
+                      "the points there are followed by the tracked points around, not by the picture; "
                       "check them, and add a correction key where they stray",
                       InkwarpWarning, stacklevel=caller_outside())
     if blind:
