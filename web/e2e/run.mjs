@@ -2287,8 +2287,13 @@ test('a layer smaller than the scene is placed by its offset (numeric fields, Mo
 test('a layer moved under a cut builds its grid once, when the drag ends, torn where the cut is now', async () => {
   await page.evaluate(async () => {
     const { ui, examples, app } = window.inkwarp;
-    await ui.openScene(await examples.builtinScene(256), 'cut.json');
+    const doc = await examples.builtinScene(256);
+    // A point beside the slit, pulled across where it will be once the layer has moved.
+    doc.duration = 1;
+    doc.features.push({ id: 'tug', kind: 'point', rest: [[170, 128]], keys: [{ t: 0, points: [[170, 128]] }, { t: 1, points: [[150, 120]] }] });
+    await ui.openScene(doc, 'cut.json');
     ui.setMode('pose');
+    ui.setTime(1);
     await app.idle();
     window.gridBuilds = 0;
     for (const c of app.clients) {
@@ -2313,11 +2318,28 @@ test('a layer moved under a cut builds its grid once, when the drag ends, torn w
     grid.free();
     let differ = 0;
     for (let i = 0; i < want.length; i++) differ += want[i] !== rt.links[i] ? 1 : 0;
-    return { builds: window.gridBuilds, clients: app.clients.length, offset: o, differ };
+    // What is shown was solved on that grid, as the same scene opened afresh shows it: not
+    // a field solved during the drag on the grid from before it, nor one kept for playback
+    // (shown again after a step away and back).
+    const { ui } = window.inkwarp;
+    ui.setTime(0.5);
+    await app.idle();
+    ui.setTime(1);
+    await app.idle();
+    const shown = rt.field;
+    await window.inkwarp.ui.openScene(structuredClone(doc), 'moved.json');
+    window.inkwarp.ui.setMode('pose');
+    window.inkwarp.ui.setTime(1);
+    await app.idle();
+    const fresh = app.runtimes.get(layer.name).field;
+    let apart = 0;
+    for (let i = 0; i < fresh.dx.length; i++) apart = Math.max(apart, Math.abs(fresh.dx[i] - shown.dx[i]), Math.abs(fresh.dy[i] - shown.dy[i]));
+    return { builds: window.gridBuilds, clients: app.clients.length, offset: o, differ, apart };
   });
   assert(Math.abs(got.offset[0] - 30) <= 1 && Math.abs(got.offset[1] - 10) <= 1, `the drag moved the layer: ${JSON.stringify(got.offset)}`);
   assert(got.builds === got.clients, `one grid build per worker, at the drag's end: ${got.builds} builds for ${got.clients} workers`);
   assert(got.differ === 0, `the layer is torn where the cut lies over it now: ${got.differ} links differ`);
+  assert(got.apart < 0.1, `the field shown after the drag is the one of the grid torn there: ${got.apart.toFixed(2)} px from the same scene opened afresh`);
 });
 
 test('a cut is not posed: a pose drag on it keys nothing and says why; Escape or a mode ends layer Move', async () => {

@@ -305,6 +305,7 @@ export class App {
       };
     }
     store.subscribe((_, docChanged) => {
+      if (this.gridsDue && !store.inGesture) this.gridEpoch++;
       if (docChanged || (this.gridsDue && !store.inGesture)) this.syncLayers();
       this.dropStale();
       this.scheduleAhead();
@@ -380,6 +381,16 @@ export class App {
 
   /** A grid change waits for the drag that made it to end (see `syncLayers`). */
   private gridsDue = false;
+  /** Bumped when grids wait for a drag's end are built: what was solved on the old ones is stale. */
+  private gridEpoch = 0;
+
+  /**
+   * What the fields solved now are solved for: the document's revision, and the grids
+   * built after a drag (the drag's last revision was solved on the grids from before it).
+   */
+  private get revision(): number {
+    return this.store.revision + this.gridEpoch * 2 ** 32;
+  }
 
   syncLayers(): void {
     this.gridsDue = false;
@@ -605,7 +616,7 @@ export class App {
   }
 
   private cached(frame: number | null): Map<string, KeptField> | undefined {
-    if (frame === null || this.cache.rev !== this.store.revision) return undefined;
+    if (frame === null || this.cache.rev !== this.revision) return undefined;
     const fields = this.cache.frames.get(frame);
     return fields && this.doc.layers.every((l) => {
       const rt = this.runtimes.get(l.name);
@@ -635,7 +646,7 @@ export class App {
   }
 
   private remember(frame: number, key: string, solved: FieldData): void {
-    if (this.cache.rev !== this.store.revision) this.cache = { rev: this.store.revision, bytes: 0, frames: new Map() };
+    if (this.cache.rev !== this.revision) this.cache = { rev: this.revision, bytes: 0, frames: new Map() };
     // A proxied scene's fields are kept at the draft mesh's pixels where the CPU plays them,
     // else packed, in a smaller budget (see `keepForPlayback`).
     const field = keepForPlayback(solved, this.proxy, this.keptPixels(this.runtimes.get(key)));
@@ -654,7 +665,7 @@ export class App {
    * through a whole drag).
    */
   private dropStale(): void {
-    const rev = this.store.revision;
+    const rev = this.revision;
     if (this.cache.rev !== rev && this.cache.frames.size > 0) this.cache = { rev, bytes: 0, frames: new Map() };
     if (this.drawnFrames.rev !== rev && this.drawnFrames.frames.size > 0) this.drawnFrames = { rev, spec: '', bytes: 0, frames: new Map() };
   }
@@ -688,7 +699,7 @@ export class App {
         const rt = this.runtimes.get(layer.name);
         if (!rt?.gridReady || this.cache.frames.get(frame)?.has(layer.name)) continue;
         this.solver.solve(layer.name, this.solveFeatures(layer, time), this.solverOptions(layer, 'final'), {
-          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.store.revision, frame, prefetch: true, seq: ++this.seq,
+          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.revision, frame, prefetch: true, seq: ++this.seq,
         });
       }
       return;
@@ -747,14 +758,14 @@ export class App {
       let asked = false;
       for (const layer of this.doc.layers) {
         const rt = this.runtimes.get(layer.name);
-        if (!rt?.gridReady || !rt.gl || this.cache.rev === this.store.revision && this.cache.frames.get(frame)?.has(layer.name)) continue;
+        if (!rt?.gridReady || !rt.gl || this.cache.rev === this.revision && this.cache.frames.get(frame)?.has(layer.name)) continue;
         // A few cycles a request, each continuing from the last (the worker keeps it), until
         // the frame converges: a drag that starts meanwhile waits for a few cycles at most.
         // A scene's own cycle limit is kept as it is.
         const options = this.solverOptions(layer, 'final');
         const chunked = options.method === 'tps' && (options.max_cycles ?? null) === null;
         ahead.solve(layer.name, this.solveFeatures(layer, time), chunked ? { ...options, max_cycles: AHEAD_CYCLES } : options, {
-          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.store.revision, frame, ahead: true, chunked, prefetch: true, seq: ++this.seq,
+          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.revision, frame, ahead: true, chunked, prefetch: true, seq: ++this.seq,
         });
         asked = true;
       }
@@ -809,7 +820,7 @@ export class App {
   /** What the frame on screen depends on: a full-resolution frame is shown for this only. */
   private fullKey(): string {
     const { view } = this.store;
-    return JSON.stringify([this.store.revision, view.time, this.posed, view.hidden, this.doc.background ?? null]);
+    return JSON.stringify([this.revision, view.time, this.posed, view.hidden, this.doc.background ?? null]);
   }
 
   /**
@@ -994,7 +1005,7 @@ export class App {
         gen: rt.gridGen,
         pointerAt: quality === 'draft' ? this.lastPointerAt : null,
         time,
-        rev: this.store.revision,
+        rev: this.revision,
         frame,
         settleStart: quality === 'final' ? this.settleStart : null,
       }, { mesh: quality === 'final' && this.slowAntialias, sparse, draw: sparse && this.largeFrame ? this.draftDraw(seq) : undefined });
@@ -1020,7 +1031,7 @@ export class App {
 
   /** Asks the full-resolution solver for a pose it solves and keeps, sending back only its report. */
   private keep(rt: LayerRuntime, layer: Layer, features: SolveFeature[], options: SolveOptions, quality: 'follow' | 'probe', time: number): void {
-    const tag = { madeAt: performance.now(), seq: ++this.seq, quality, gen: rt.gridGen, time, rev: this.store.revision };
+    const tag = { madeAt: performance.now(), seq: ++this.seq, quality, gen: rt.gridGen, time, rev: this.revision };
     this.solver.solve(layer.name, features, options, tag, { follow: true });
   }
 
@@ -1040,7 +1051,7 @@ export class App {
   probe(id: string, point: number | null, on: 'rest' | 'press'): void {
     if (!this.drafts || !this.posed || this.dragging || this.store.view.playing || this.solver.busy) return;
     const time = this.store.view.time;
-    const sig = JSON.stringify([id, point, time, this.store.revision]);
+    const sig = JSON.stringify([id, point, time, this.revision]);
     if (sig === this.lastProbe) return;
     this.lastProbe = sig;
     let asked = false;
@@ -1131,7 +1142,7 @@ export class App {
     if (!drafts || !this.gl.cpuDrafts || this.drawingAhead || this.dragging || this.exporting) return;
     const spec = this.draftDraw(0, this.draftShrink);
     if (!spec || spec.layers.length === 0) return;
-    const rev = this.store.revision;
+    const rev = this.revision;
     const kept = this.drawnFrames;
     if (kept.rev !== rev || kept.spec !== spec.spec) this.drawnFrames = { rev, spec: spec.spec, bytes: 0, frames: new Map() };
     const drawn = proxySize(spec.width, spec.height, spec.shrink);
@@ -1161,7 +1172,7 @@ export class App {
     if (!asked || asked.id !== id) return;
     this.drawingAhead = null;
     const kept = this.drawnFrames;
-    if (!pixels || asked.rev !== kept.rev || asked.spec !== kept.spec || asked.rev !== this.store.revision) return;
+    if (!pixels || asked.rev !== kept.rev || asked.spec !== kept.spec || asked.rev !== this.revision) return;
     kept.frames.set(asked.frame, pixels);
     kept.bytes += pixels.byteLength;
     this.drawAhead();
@@ -1171,7 +1182,7 @@ export class App {
   private drawnFrame(frame: number | null): { pixels: Uint8ClampedArray; draw: DraftDraw } | null {
     const kept = this.drawnFrames;
     const pixels = frame === null ? undefined : kept.frames.get(frame);
-    if (!pixels || kept.rev !== this.store.revision) return null;
+    if (!pixels || kept.rev !== this.revision) return null;
     const draw = this.draftDraw(0, this.draftShrink);
     return draw && draw.spec === kept.spec ? { pixels, draw } : null;
   }
@@ -1227,13 +1238,13 @@ export class App {
       else this.stats.finalSolveMs.push(ev.ms);
     }
     const unfinished = ev.tag.chunked && ev.report.converged === false;
-    if (ev.field && !unfinished && ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.store.revision) {
+    if (ev.field && !unfinished && ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.revision) {
       this.remember(ev.tag.frame, ev.key, ev.field);
       this.drawAhead();
     }
     if (ev.tag.ahead) {
       // Solved ahead: into the cache (above) only, then the next frame.
-      if (ev.tag.rev === this.store.revision && typeof ev.tag.frame === 'number' && !unfinished) this.stats.ahead.push(ev.tag.frame);
+      if (ev.tag.rev === this.revision && typeof ev.tag.frame === 'number' && !unfinished) this.stats.ahead.push(ev.tag.frame);
       this.onSolved(ev);
       if (!this.ahead?.busy) this.solveAhead();
       this.checkIdle();

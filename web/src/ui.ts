@@ -470,13 +470,16 @@ export class Ui {
       if (!ev.altKey) o = [Math.round(o[0]), Math.round(o[1])];
       this.store.apply(updateLayer(this.store.doc, i, { offset: o[0] === 0 && o[1] === 0 ? undefined : o }));
     };
+    // (A cancelled pointer, a pen lifted out of range say, ends the drag as a release does.)
     const up = () => {
       window.removeEventListener('pointermove', move);
       window.removeEventListener('pointerup', up);
+      window.removeEventListener('pointercancel', up);
       this.store.commit();
     };
     window.addEventListener('pointermove', move);
     window.addEventListener('pointerup', up);
+    window.addEventListener('pointercancel', up);
     void e;
   }
 
