@@ -36,7 +36,9 @@ the anchor registration confirms it again, tried also where it was last seen), a
 untextured point's that of the dense flow, infinite where it is placed more than
 ``lost_px`` off the picture. A :class:`~inkwarp.InkwarpWarning` names the
 features and the frames. Between two anchors, a track that has lost the feature at a
-frame gives way to the other's.
+frame gives way to the other's; else the two tracks' errors are blended as their places
+are. Points of a feature that lie off the picture where traced are named apart and
+judged by nothing (nothing there can be seen).
 
 The video's grey frames are held in memory (1 byte per pixel per frame).
 """
