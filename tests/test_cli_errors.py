@@ -195,6 +195,8 @@ def test_missing_scene_file(capsys, tmp_path):
     (["-o", "{tmp}/x.png", "--frames", "0:2"], "a .png holds one frame"),
     (["-o", "{tmp}/x.gif", "--frames", "3:99"], "--frames 3:99 is not a range of the scene, which has frames 0 to 3"),
     (["-o", "{tmp}/x.gif", "--frames", "4:"], "--frames 4: is not a range of the scene"),
+    # (A range starting with a minus sign, which the parser took for an option.)
+    (["-o", "{tmp}/x.gif", "--frames", "-5:3"], "--frames -5:3 is not a range of the scene, which has frames 0 to 3"),
     (["-o", "{tmp}/x.gif", "--frames", "2"], "write a range A:B"),
     (["-o", "{tmp}/x.png", "--frame", "4"], "the scene has frames 0 to 3"),
     (["-o", "{tmp}/x.png", "--time", "nan"], "give a time in seconds"),

@@ -150,7 +150,7 @@ def test_scene_new_warns_about_blend_modes_naming_the_layer(tmp_path):
     assert scene.layers == ["backdrop", "square", "ghost"] and scene.frame_count == 12
 
 
-@pytest.mark.parametrize("case", ["corrupt", "cmyk", "svg-without-paths", "bad-suffix", "too large", "far too large"])
+@pytest.mark.parametrize("case", ["corrupt", "not-a-psd", "cmyk", "svg-without-paths", "bad-suffix", "too large", "far too large"])
 def test_bad_pictures_and_drawings_get_one_clear_error_and_leave_nothing(capsys, tmp_path, case):
     picture = tmp_path / "in.psd"
     args = []
@@ -158,6 +158,10 @@ def test_bad_pictures_and_drawings_get_one_clear_error_and_leave_nothing(capsys,
         data = write_psd(picture).read_bytes()
         picture.write_bytes(data[: len(data) // 3])
         expect = "not a readable PSD file"
+    elif case == "not-a-psd":
+        # (psd-tools' own words, "24864 is not a valid ColorMode", meant nothing to a user.)
+        picture.write_text("notes, saved under the wrong name\n")
+        expect = "in.psd: not a PSD file (it does not start as one does); save it from the painting app"
     elif case == "cmyk":
         write_psd(picture, mode="CMYK")
         expect = "CMYK colour mode; inkwarp reads RGB documents: convert it"
@@ -280,6 +284,20 @@ def test_an_svg_with_every_element_kind_becomes_the_expected_features(tmp_path):
     u = ring @ np.array([[np.cos(angle), np.sin(angle)], [-np.sin(angle), np.cos(angle)]])
     assert np.allclose((u[:, 0] / 4) ** 2 + (u[:, 1] / 2.5) ** 2, 1, atol=2e-3)
     assert notes == []
+
+
+def test_text_and_pictures_in_a_drawing_are_named_as_left_out(tmp_path):
+    # A label or a reference picture left in the tracing: no feature, and a note says so
+    # (it was dropped without a word).
+    svg = tmp_path / "drawing.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="64" height="48">'
+                   '<path id="brow" d="M 10 10 L 30 12" fill="none"/>'
+                   '<text id="label" x="5" y="40">left arm</text>'
+                   '<image id="ref" href="ref.png" width="64" height="48"/></svg>')
+    features, notes = read_drawing(svg, 64, 48)
+    assert [f["id"] for f in features] == ["brow"]
+    assert len(notes) == 2 and "<text> id='label' is left out: text makes no feature" in notes[0], notes
+    assert "<image> id='ref' is left out: a picture in the drawing makes no feature" in notes[1], notes
 
 
 def test_new_with_a_drawing_makes_a_scene_that_renders(capsys, tmp_path):

@@ -309,7 +309,31 @@ def test_chunked_and_skip_existing_renders_equal_a_sequential_one(capsys, tmp_pa
     for i in (7, 33):
         got = np.asarray(Image.open(tmp_path / "chunks" / f"frame_{i:04d}.png").convert("RGBA"))
         assert np.abs(got.astype(int) - sequential[i]).max() <= 1
+    # A frame of another size there (another render's, copied in) is no frame of this
+    # scene: rendered again, not kept as done.
+    Image.new("RGBA", (8, 6), (255, 0, 0, 255)).save(tmp_path / "chunks" / "frame_0011.png")
+    code, stdout, _ = run(capsys, "render", scene, "-o", tmp_path / "chunks/", "--skip-existing")
+    assert code == 0 and "wrote 1 new frame" in stdout, stdout
+    got = np.asarray(Image.open(tmp_path / "chunks" / "frame_0011.png").convert("RGBA"))
+    assert got.shape == sequential[11].shape and np.abs(got.astype(int) - sequential[11]).max() <= 1
     assert leftovers(tmp_path / "chunks") == []
+
+
+def test_a_shorter_render_into_a_folder_names_the_frames_left_past_its_end(capsys, tmp_path):
+    # A shot shortened and rendered again into its folder: the earlier render's last frames
+    # stay (other files are left alone), and a join of the folder's frames would take them.
+    doc = wavy_doc()
+    long = write_scene(tmp_path / "long", doc)
+    code, _, err = run(capsys, "render", long, "-o", tmp_path / "shot/", "-q")
+    assert code == 0 and "past this scene" not in err, err
+    doc["duration"] = 1.0
+    short = write_scene(tmp_path / "short", doc)
+    for extra in ([], ["--skip-existing"]):
+        code, _, err = run(capsys, "render", short, "-o", tmp_path / "shot/", "-q", *extra)
+        assert code == 0 and "frame_0020.png and maybe more, from an earlier render, lie past this scene's last frame (19)" in err, err
+    # A chunk that stops before the end says nothing: the frames after it are the shot's.
+    code, _, err = run(capsys, "render", long, "-o", tmp_path / "shot/", "--frames", "0:10", "-q")
+    assert code == 0 and "past this scene" not in err, err
 
 
 def test_skip_existing_leaves_frames_another_chunk_writes_meanwhile(capsys, tmp_path, monkeypatch):

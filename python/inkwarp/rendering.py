@@ -118,10 +118,11 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
 
-def frame_file_complete(path: str | os.PathLike[str]) -> bool:
+def frame_file_complete(path: str | os.PathLike[str], size: tuple[int, int] | None = None) -> bool:
     """Whether ``path`` holds a whole PNG: its signature first and its IEND chunk last,
-    checked without decoding it. A missing, empty or cut-off frame file is not complete,
-    so ``skip_existing`` renders that frame again.
+    and, given ``size`` (width, height), a picture of that size; checked without decoding
+    it. A missing, empty or cut-off frame file is not complete, nor one of another size (a
+    frame of another render copied there), so ``skip_existing`` renders that frame again.
 
     Examples
     --------
@@ -134,6 +135,11 @@ def frame_file_complete(path: str | os.PathLike[str]) -> bool:
     try:
         with open(path, "rb") as fh:
             if fh.read(len(PNG_SIGNATURE)) != PNG_SIGNATURE:
+                return False
+            # The IHDR chunk comes first: its length, its name, the width and the height.
+            header = fh.read(16)
+            if size is not None and (header[4:8] != b"IHDR" or (int.from_bytes(header[8:12], "big"),
+                                                                 int.from_bytes(header[12:16], "big")) != tuple(size)):
                 return False
             fh.seek(-len(PNG_END), os.SEEK_END)
             return fh.read(len(PNG_END)) == PNG_END
@@ -153,7 +159,8 @@ def _write_new_frame(path: Path, frame: np.ndarray) -> bool:
     from inkwarp.imaging import PNG_COMPRESS_LEVEL
     from inkwarp.video import write_failure
 
-    if frame_file_complete(path):
+    size = (frame.shape[1], frame.shape[0])
+    if frame_file_complete(path, size):
         return False
     temp = temp_path(path, ".png")
     try:
@@ -171,7 +178,7 @@ def _write_new_frame(path: Path, frame: np.ndarray) -> bool:
             # frame at the same moment may both write it, the same bytes).
             if not isinstance(err, FileExistsError) and err.errno not in NO_HARD_LINKS:
                 raise write_failure(path, err) from None
-        if frame_file_complete(path):
+        if frame_file_complete(path, size):
             return False
         try:
             os.replace(temp, path)
@@ -276,8 +283,10 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
         if kind != "dir":
             raise ValueError(f"{target}: skip_existing=True works with a directory of PNG "
                              "frames (an output ending in /), whose frames are separate files")
-        return _render_missing(scene, target, start, stop, method=method, ray=ray,
-                               progress=progress)
+        written = _render_missing(scene, target, start, stop, method=method, ray=ray,
+                                  progress=progress)
+        _note_frames_past_the_end(target, stop, scene.frame_count)
+        return written
     else:
         writer = outputs.open_writer(target, fps=scene.fps, kind=kind, first_frame=start,
                                      frames=stop - start)
@@ -292,7 +301,23 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
             writer.write(frame)
         if writer.frames_written != count:
             raise RuntimeError(f"the scene gave {writer.frames_written} frames for {start}:{stop}")
+    if kind == "dir":
+        _note_frames_past_the_end(target, stop, scene.frame_count)
     return writer.paths
+
+
+def _note_frames_past_the_end(folder: Path, stop: int, frame_count: int) -> None:
+    """Warns where a render that reached the scene's last frame leaves frame files past it
+    in ``folder`` (an earlier, longer render's): a join of the folder's frames would take
+    them too."""
+    from inkwarp.errors import InkwarpWarning, caller_outside
+    from inkwarp.video import FRAME_PATTERN
+
+    after = folder / FRAME_PATTERN.format(frame_count)
+    if stop == frame_count and after.exists():
+        warnings.warn(f"{folder}: {after.name} and maybe more, from an earlier render, lie past this scene's "
+                      f"last frame ({frame_count - 1}); delete them before joining the folder's frames",
+                      InkwarpWarning, stacklevel=caller_outside())
 
 
 def _render_missing(scene: Any, target: Path, start: int, stop: int, *, method: str | None,
@@ -302,7 +327,8 @@ def _render_missing(scene: Any, target: Path, start: int, stop: int, *, method: 
 
     target.mkdir(exist_ok=True)
     names = {i: target / video.FRAME_PATTERN.format(i) for i in range(start, stop)}
-    missing = [i for i in range(start, stop) if not frame_file_complete(names[i])]
+    size = (scene.width, scene.height)
+    missing = [i for i in range(start, stop) if not frame_file_complete(names[i], size)]
     written: list[Path] = []
     if not missing:
         return written
@@ -318,7 +344,7 @@ def _render_missing(scene: Any, target: Path, start: int, stop: int, *, method: 
         pos = 0
         while pos < len(missing):
             a = missing[pos]
-            if not ray and frame_file_complete(names[a]):
+            if not ray and frame_file_complete(names[a], size):
                 yield a, None
                 pos += 1
                 continue
@@ -332,7 +358,7 @@ def _render_missing(scene: Any, target: Path, start: int, stop: int, *, method: 
                 for index, frame in source:
                     pos += 1
                     yield index, frame
-                    if not ray and index + 1 < b and frame_file_complete(names[index + 1]):
+                    if not ray and index + 1 < b and frame_file_complete(names[index + 1], size):
                         break
             finally:
                 source.close()

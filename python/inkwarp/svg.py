@@ -140,6 +140,12 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
                                                     element))
         fill = style.get("fill", fill)
         cut = cut or _says_cut(element)
+        if tag in ("text", "image", "foreignObject"):
+            why = {"text": "text makes no feature (Inkscape: Path > Object to Path turns it into paths)",
+                   "image": "a picture in the drawing makes no feature (the scene's pictures are its layers)"
+                   }.get(tag, "embedded content makes no feature")
+            notes.append(f"{source}: <{tag}> {_name(element)} is left out: {why}")
+            return
         if tag == "use":
             notes.append(f"{source}: <use> {_name(element)} is left out; unlink the clone "
                          "(Inkscape: Edit > Clone > Unlink Clone) to trace it")

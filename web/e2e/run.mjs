@@ -1193,6 +1193,47 @@ function checkerScene(name) {
   return scenePath;
 }
 
+test('a scene opened by inkwarp edit is where Undo stops, and Undo after a restore brings it back as saved', async () => {
+  const scenePath = checkerScene('history.json');
+  const own = await startServer([scenePath]);
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  const state = () => p.evaluate(() => ({
+    layer: window.inkwarp.store.doc.layers[0]?.name, features: window.inkwarp.store.doc.features.length,
+    unsaved: window.inkwarp.store.unsaved, title: document.title, undo: !document.querySelector('#undo').disabled,
+  }));
+  try {
+    // (Before, the built-in example shown while the scene loaded was an undo step: Ctrl+Z
+    // swapped the scene for it, and a save then downloaded the example under its name.)
+    let now = await state();
+    assert(now.layer === 'checker' && !now.undo && !now.unsaved, `opened, nothing to undo: ${JSON.stringify(now)}`);
+    await p.keyboard.press('Control+z');
+    await idle(p);
+    now = await state();
+    assert(now.layer === 'checker' && !now.unsaved, `Ctrl+Z right after opening keeps the scene: ${JSON.stringify(now)}`);
+    await p.keyboard.press('p');
+    await click(p, [40, 40]);
+    await idle(p);
+    await flush(p);
+    await p.reload();
+    await p.waitForSelector('body[data-ready]');
+    await p.waitForSelector('#restore', { timeout: 10000 });
+    await p.click('#restore-yes');
+    await p.waitForFunction(() => window.inkwarp.store.doc.features.length === 1, null, { timeout: 10000 });
+    now = await state();
+    assert(now.unsaved && now.title.startsWith('● '), `restored, unsaved: ${JSON.stringify(now)}`);
+    // Undo brings back the scene as its file has it: saved, unmarked; and nothing before it.
+    await p.keyboard.press('Control+z');
+    await idle(p);
+    now = await state();
+    assert(now.layer === 'checker' && now.features === 0 && !now.unsaved && !now.title.startsWith('● ') && !now.undo,
+      `Undo after the restore: the file's scene, saved: ${JSON.stringify(now)}`);
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
 test('a scene opened by inkwarp edit: a reload offers its unsaved work back, which saves to the file', async () => {
   const scenePath = checkerScene('kept.json');
   const own = await startServer([scenePath]);

@@ -226,6 +226,7 @@ export class App {
   resetStats(): void {
     Object.assign(this.stats, emptyStats());
     this.lastReport = null;
+    this.shownFromCache = false;
   }
   onMessage: (text: string, kind: 'error' | 'info') => void = () => {};
   onFrame: () => void = () => {};
@@ -245,6 +246,8 @@ export class App {
   /** When the pointer last moved or pressed on the picture (solving ahead waits after it). */
   lastActivityAt = 0;
   lastReport: FieldEvent | null = null;
+  /** The frame shown now came from the playback cache (fields solved ahead), not from `lastReport`'s solve. */
+  shownFromCache = false;
   /** Full-resolution fields by frame, for the document revision they were solved for. */
   private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, KeptField>>() };
 
@@ -950,6 +953,7 @@ export class App {
     const frame = this.frameOf(time);
     const hit = quality === 'final' ? this.cached(frame) : undefined;
     if (hit) {
+      this.shownFromCache = true;
       for (const [key, kept] of hit) {
         const rt = this.runtimes.get(key);
         if (!rt?.gl) continue;
@@ -1234,6 +1238,7 @@ export class App {
     }
     if (!ev.tag.ahead) {
       this.lastReport = ev;
+      this.shownFromCache = false;
       if (ev.tag.quality === 'draft') this.stats.draftSolveMs.push(ev.ms);
       else this.stats.finalSolveMs.push(ev.ms);
     }

@@ -67,6 +67,7 @@ async function start(): Promise<void> {
         await ui.openSceneText(text, header('X-Inkwarp-Name') ?? 'scene.json');
         // The file it came from (its path on the machine `inkwarp edit` serves it from).
         Object.assign(store.origin, { path: named, version: resp.headers.get('ETag'), saveUrl: served?.saveUrl ?? null });
+        store.startHistory();
         opened = true;
       }
     } catch (err) {

@@ -496,6 +496,8 @@ export class Store {
   private lastRevision = 0;
   /** The revision last saved to a file (or opened from one). */
   private savedRevision = 0;
+  /** The saved revision before the last `load` (see `markUnsaved`). */
+  private savedBeforeLoad = -1;
 
   constructor(doc: SceneDoc, view: View = initialView()) {
     this.doc = doc;
@@ -576,9 +578,23 @@ export class Store {
     this.redoStack = [];
   }
 
-  /** The document as it is now is not in any file (a restored autosave). */
+  /**
+   * The document as it is now is not in any file (a restored autosave): what was saved
+   * before it was loaded still is, so Undo back to that counts as saved.
+   */
   markUnsaved(): void {
-    this.savedRevision = -1;
+    this.savedRevision = this.savedBeforeLoad;
+    this.emit(false);
+  }
+
+  /**
+   * The document now open is where the history starts: nothing before it to undo to (the
+   * scene `inkwarp edit` opened, not the built-in example shown while it loaded).
+   */
+  startHistory(): void {
+    this.undoStack = [];
+    this.redoStack = [];
+    this.savedBeforeLoad = -1;
     this.emit(false);
   }
 
@@ -630,6 +646,7 @@ export class Store {
   load(doc: SceneDoc, origin: Origin = downloadOrigin()): void {
     this.commit();
     this.pushUndo(this.doc);
+    this.savedBeforeLoad = this.savedRevision;
     this.doc = doc;
     this.origin = origin;
     this.view = { ...initialView(), overlays: this.view.overlays };

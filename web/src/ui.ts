@@ -812,7 +812,9 @@ export class Ui {
     const method = layer ? layerMethod(doc, layer) : (doc.solver?.method ?? 'tps');
     this.els.methodNote.textContent = METHOD_NOTES[method] ?? '';
     const r = ev?.report;
-    const solved = !ev || !r
+    const solved = this.app.shownFromCache && this.app.posed
+      ? 'field solved ahead for this frame (kept for playback), not solved again'
+      : !ev || !r
       ? 'no solve yet'
       : ev.reused
         ? `last field (${r.method}) already solved for this pose, not solved again · grid step ${ev.gridStep} · ${r.cycles} cycles · ${r.samples} samples`

@@ -173,9 +173,21 @@ def _unwritten(err: OSError, output: object) -> OSError:
     return disk_failure(f"{output}: the file", err)
 
 
+def _ranges_joined(argv: list[str]) -> list[str]:
+    """``--frames -5:3`` as ``--frames=-5:3``: a range starting with a minus sign looks
+    like an option to the parser, which would refuse it without the range's own message."""
+    out: list[str] = []
+    for arg in argv:
+        if out and out[-1] == "--frames" and arg.startswith("-") and ":" in arg:
+            out[-1] = f"--frames={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_ranges_joined(sys.argv[1:] if argv is None else [str(a) for a in argv]))
     if not getattr(args, "func", None):
         parser.print_help(sys.stderr)
         return 2
