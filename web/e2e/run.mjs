@@ -1366,16 +1366,23 @@ test('Save writes each scene to its own file: undo past opening, two tabs, a fil
   try {
     const p = a.page;
     assert((await p.title()) === 'mine.json — inkwarp editor', `the title names the scene: ${await p.title()}`);
-    // One undo past the open shows the built-in example; Save must not write it to mine.json.
+    // The opened scene is where Undo stops: Ctrl+Z keeps it, and its file.
     await p.keyboard.press('Control+z');
     await idle(p);
-    assert((await p.evaluate(() => window.inkwarp.store.origin.saveUrl)) === null, 'the example before the open saves nowhere');
-    const [example] = await Promise.all([p.waitForEvent('download'), p.keyboard.press('Control+s')]);
-    assert(example.suggestedFilename() === 'scene.json', `the example downloads: ${example.suggestedFilename()}`);
-    assert(/^Downloaded scene\.json/.test(await message(p)), `a download says so: ${await message(p)}`);
-    assert(JSON.parse(readFileSync(scenePath, 'utf8')).layers[0].image === 'checker.png', 'mine.json was not overwritten by the example');
-    await p.keyboard.press('Control+y');
+    const kept = await p.evaluate(() => ({ saveUrl: window.inkwarp.store.origin.saveUrl, layer: window.inkwarp.store.doc.layers[0].name }));
+    assert(kept.saveUrl !== null && kept.layer === 'checker', `Ctrl+Z right after opening keeps the scene and its file: ${JSON.stringify(kept)}`);
+    // An example opened over it saves nowhere; Save must not write it to mine.json.
+    await p.evaluate(() => window.inkwarp.ui.openExample('builtin'));
     await idle(p);
+    assert((await p.evaluate(() => window.inkwarp.store.origin.saveUrl)) === null, 'the example saves nowhere');
+    const [example] = await Promise.all([p.waitForEvent('download'), p.keyboard.press('Control+s')]);
+    assert(example.suggestedFilename() === 'grid.json', `the example downloads under its own name: ${example.suggestedFilename()}`);
+    assert(/^Downloaded grid\.json/.test(await message(p)), `a download says so: ${await message(p)}`);
+    assert(JSON.parse(readFileSync(scenePath, 'utf8')).layers[0].image === 'checker.png', 'mine.json was not overwritten by the example');
+    // Undo past that open: mine.json again, saving to its file.
+    await p.keyboard.press('Control+z');
+    await idle(p);
+    assert((await p.evaluate(() => window.inkwarp.store.origin.saveUrl)) !== null, 'Undo past the open brings back the scene with its file');
     // Tab A adds a point and saves; the title marks unsaved work until then.
     await p.keyboard.press('p');
     await click(p, [20, 20]);
