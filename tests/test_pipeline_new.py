@@ -150,7 +150,7 @@ def test_scene_new_warns_about_blend_modes_naming_the_layer(tmp_path):
     assert scene.layers == ["backdrop", "square", "ghost"] and scene.frame_count == 12
 
 
-@pytest.mark.parametrize("case", ["corrupt", "not-a-psd", "cmyk", "svg-without-paths", "bad-suffix", "too large", "far too large"])
+@pytest.mark.parametrize("case", ["corrupt", "not-a-psd", "png-named-psd", "cmyk", "svg-without-paths", "bad-suffix", "too large", "far too large"])
 def test_bad_pictures_and_drawings_get_one_clear_error_and_leave_nothing(capsys, tmp_path, case):
     picture = tmp_path / "in.psd"
     args = []
@@ -162,6 +162,9 @@ def test_bad_pictures_and_drawings_get_one_clear_error_and_leave_nothing(capsys,
         # (psd-tools' own words, "24864 is not a valid ColorMode", meant nothing to a user.)
         picture.write_text("notes, saved under the wrong name\n")
         expect = "in.psd: not a PSD file (it does not start as one does); save it from the painting app"
+    elif case == "png-named-psd":
+        Image.new("RGBA", (8, 6)).save(picture, format="PNG")
+        expect = "in.psd: is a PNG picture under a .psd name; rename it to in.png"
     elif case == "cmyk":
         write_psd(picture, mode="CMYK")
         expect = "CMYK colour mode; inkwarp reads RGB documents: convert it"

@@ -154,10 +154,19 @@ def _read_psd(source: Path) -> Picture:
     except ImportError:  # pragma: no cover - psd-tools is a dependency
         raise ValueError(f"{source}: reading PSD files needs psd-tools; "
                          "install it with 'pip install psd-tools'") from None
-    with open(source, "rb") as fh:
-        if fh.read(4) != b"8BPS":  # every Photoshop document starts so
-            raise ValueError(f"{source}: not a PSD file (it does not start as one does); save it from "
-                             "the painting app as a Photoshop document (RGB, 8 bits), or give a PNG or JPEG")
+    try:
+        with open(source, "rb") as fh:
+            start = fh.read(8)
+    except OSError:
+        start = b"8BPS"  # unreadable: said below, as psd-tools meets it
+    if not start.startswith(b"8BPS"):  # every Photoshop document starts so
+        named = {b"\x89PNG": ("a PNG picture", ".png"), b"\xff\xd8\xff": ("a JPEG picture", ".jpg")}
+        found = next((kind for sig, kind in named.items() if start.startswith(sig)), None)
+        if found:
+            raise ValueError(f"{source}: is {found[0]} under a .psd name; rename it to "
+                             f"{source.with_suffix(found[1]).name}")
+        raise ValueError(f"{source}: not a PSD file (it does not start as one does); save it from "
+                         "the painting app as a Photoshop document (RGB, 8 bits), or give a PNG or JPEG")
     try:
         psd = PSDImage.open(source)
     except Exception as err:  # noqa: BLE001 - psd-tools raises many kinds on a broken file

@@ -2405,8 +2405,10 @@ test('a cut is not posed: a pose drag on it keys nothing and says why; Escape or
     doc: JSON.stringify(window.inkwarp.store.doc),
     message: document.querySelector('#message').textContent,
     selected: window.inkwarp.store.view.selection.feature,
+    panel: document.querySelector('#feature')?.textContent ?? '',
   }));
   assert(after.doc === before, 'a pose drag on a cut changed the scene (a cut with keys does not load)');
+  assert(/A cut is not posed/.test(after.panel) && !/Drag it in pose mode/.test(after.panel), `the cut's panel: ${after.panel}`);
   assert(after.selected === 'slit' && /slit is a cut: it moves nothing/.test(after.message), `the drag said ${after.message}`);
   const keyed = await page.evaluate(() => {
     try {

@@ -1238,7 +1238,6 @@ export class App {
     }
     if (!ev.tag.ahead) {
       this.lastReport = ev;
-      this.shownFromCache = false;
       if (ev.tag.quality === 'draft') this.stats.draftSolveMs.push(ev.ms);
       else this.stats.finalSolveMs.push(ev.ms);
     }
@@ -1262,6 +1261,7 @@ export class App {
     const seq = typeof ev.tag.seq === 'number' ? ev.tag.seq : 0;
     if (rt && ev.tag.gen === rt.gridGen && this.posed && rt.gl && seq > rt.shownSeq) {
       rt.shownSeq = seq;
+      this.shownFromCache = false;
       rt.field = ev.field;
       rt.notes = ev.report.notes ?? [];
       rt.error = null;

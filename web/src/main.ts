@@ -64,10 +64,12 @@ async function start(): Promise<void> {
         ui.message(text, 'error'); // the server's message names the file
       } else {
         named = path ?? sceneUrl;
-        await ui.openSceneText(text, header('X-Inkwarp-Name') ?? 'scene.json');
-        // The file it came from (its path on the machine `inkwarp edit` serves it from).
-        Object.assign(store.origin, { path: named, version: resp.headers.get('ETag'), saveUrl: served?.saveUrl ?? null });
-        store.startHistory();
+        // The file it came from (its path on the machine `inkwarp edit` serves it from),
+        // where the history starts.
+        await ui.openSceneText(text, header('X-Inkwarp-Name') ?? 'scene.json', {
+          origin: { path: named, version: resp.headers.get('ETag'), saveUrl: served?.saveUrl ?? null },
+          first: true,
+        });
         opened = true;
       }
     } catch (err) {

@@ -366,5 +366,13 @@ export function parseScene(text: string): SceneDoc {
 
 /** The scene as the JSON text the editor saves. */
 export function serializeScene(doc: SceneDoc): string {
-  return JSON.stringify(doc, null, 1);
+  // Drawing coordinates to a millionth of a pixel: a point dragged by a fraction is saved
+  // as 10.622, not 10.622000000000002.
+  const points = (pts: Pt[]) => pts.map(([x, y]) => [Math.round(x * 1e6) / 1e6, Math.round(y * 1e6) / 1e6]);
+  const features = doc.features.map((f) => ({
+    ...f,
+    rest: points(f.rest),
+    ...(f.keys ? { keys: f.keys.map((k) => ({ ...k, points: points(k.points) })) } : {}),
+  }));
+  return JSON.stringify({ ...doc, features }, null, 1);
 }

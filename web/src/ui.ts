@@ -56,6 +56,7 @@ import {
   updateLayer,
   deleteLayer,
   downloadOrigin,
+  type Origin,
   type Tool,
 } from './state';
 
@@ -104,6 +105,15 @@ function download(blob: Blob, name: string): void {
   a.click();
   a.remove();
   setTimeout(() => URL.revokeObjectURL(a.href), 10_000);
+}
+
+/**
+ * How a scene is opened: the file it came from (`origin`, merged over a download's), and
+ * whether it is where the editor's history starts (`first`: the scene `inkwarp edit` serves).
+ */
+export interface Opened {
+  origin?: Partial<Origin>;
+  first?: boolean;
 }
 
 /** A drag moves the drawing on at most one raw pointer update this often (ms). */
@@ -518,7 +528,9 @@ export class Ui {
           h('td', {}, h('button.small', { title: 'Delete this key', onclick: () => this.tryEdit((d) => deleteKey(d, f.id, k.t)) }, '✕')),
         )),
       ),
-      keys.length === 0 ? h('p.hint', {}, 'No keys: the feature stays at rest. Drag it in pose mode to key it.') : '',
+      f.kind === 'cut'
+        ? h('p.hint', {}, 'A cut is not posed: it tears the picture along its line at rest. Change it in rest mode.')
+        : keys.length === 0 ? h('p.hint', {}, 'No keys: the feature stays at rest. Drag it in pose mode to key it.') : '',
     );
   }
 
@@ -1474,10 +1486,12 @@ export class Ui {
   // -- Files -------------------------------------------------------------------------------
 
   /** Opens a scene document: checks it, loads it, reports problems with their JSON path. */
-  async openScene(doc: SceneDoc, name: string, validate = true): Promise<void> {
+  async openScene(doc: SceneDoc, name: string, validate = true, opened: Opened = {}): Promise<void> {
     if (validate) await this.throwProblems(doc);
     this.app.resetStats();
-    this.store.load(doc, downloadOrigin(name));
+    this.store.load(doc, { ...downloadOrigin(name), ...opened.origin });
+    // At once, not after the wait below: the page takes edits meanwhile.
+    if (opened.first) this.store.startHistory();
     this.store.setView({ activeLayer: Math.max(0, doc.layers.length - 1) });
     await this.app.idle();
   }
@@ -1486,7 +1500,7 @@ export class Ui {
    * Opens scene JSON text: the engine validates it (every message with its JSON path, as
    * `inkwarp validate` prints them), then the editor fills in the defaults it shows.
    */
-  async openSceneText(text: string, name: string): Promise<void> {
+  async openSceneText(text: string, name: string, opened: Opened = {}): Promise<void> {
     let raw: unknown;
     try {
       raw = JSON.parse(text);
@@ -1501,7 +1515,7 @@ export class Ui {
       doc.width ||= img?.width ?? 1;
       doc.height ||= img?.height ?? 1;
     }
-    await this.openScene(doc, name, false);
+    await this.openScene(doc, name, false, opened);
   }
 
   private async throwProblems(doc: unknown): Promise<void> {
