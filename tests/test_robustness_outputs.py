@@ -4,12 +4,15 @@ the error, and the Python API raises ValueError where it promises."""
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -19,6 +22,10 @@ from inkwarp._atomic import clean_stale, temp_path
 
 ROOT = Path(__file__).resolve().parents[1]
 FACE = ROOT / "examples" / "face" / "scene.json"
+#: Where the wrong-argument calls below would write, were one to get through: not the
+#: folder the tests run in (a render there once left 60 frames in the repository's root).
+SCRATCH = Path(tempfile.mkdtemp(prefix="inkwarp-robustness-"))
+atexit.register(shutil.rmtree, SCRATCH, ignore_errors=True)
 
 
 def _parts(folder: Path, name: str) -> list[Path]:
@@ -236,10 +243,11 @@ def _api_cases():
         "Scene.field layer": lambda b: scene.field(0.5, layer=b),
         "Scene.frames start": lambda b: list(scene.frames(b, 1)),
         "Scene.frames threads": lambda b: scene.frames(0, 1, threads=b),
-        "render scene": lambda b: inkwarp.render(b, "unused.png") if hasattr(inkwarp, "render")
-        else __import__("inkwarp.rendering").rendering.render(b, "unused.png"),
-        "render frames": lambda b: inkwarp.render(scene, "unused/", frames=b),
-        "render frames start": lambda b: inkwarp.render(scene, "unused/", frames=(b, 2)),
+        "render scene": lambda b: inkwarp.render(b, f"{SCRATCH}/unused.png") if hasattr(inkwarp, "render")
+        else __import__("inkwarp.rendering").rendering.render(b, f"{SCRATCH}/unused.png"),
+        # (frames=None is the default, every frame: no wrong argument, so not rendered here.)
+        "render frames": lambda b: None if b is None else inkwarp.render(scene, f"{SCRATCH}/unused/", frames=b),
+        "render frames start": lambda b: inkwarp.render(scene, f"{SCRATCH}/unused/", frames=(b, 2)),
         "transfer source": lambda b: inkwarp.transfer(b, scene),
         "track video": lambda b: inkwarp.track(b, FACE),
         "track frame": lambda b: inkwarp.track(face_gif, FACE, frame=b),
