@@ -155,6 +155,14 @@ def test_lost_features_are_named_with_their_frames(tmp_path, capsys):
         track_dict(video, sv.scene(W, H, features))
 
 
+def tracked_saying(video, scene, **options):
+    """The tracked scene and the texts of the warnings the track gave."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        doc = track_dict(video, scene, **options)
+    return doc, [str(w.message) for w in caught if issubclass(w.category, InkwarpWarning)]
+
+
 def test_a_correction_names_no_frame_where_its_far_track_barely_counts():
     # The rotoscope example's outline corrected at frame 56 (its truth there): between the
     # traced frame 0 and the correction, the track from 56 strays a few pixels near frame 0,
@@ -167,11 +175,8 @@ def test_a_correction_names_no_frame_where_its_far_track_barely_counts():
     doc["fps"], doc["duration"] = 24, 2.5
     head = next(f for f in doc["features"] if f["id"] == "head")
     head["keys"] = [{"t": 56 / 24, "points": truth[56]}]
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        tracked = track_dict(actor / "actor.mp4", doc, relative_to=actor)
-    named = [m for w in caught if "lost track" in str(w.message)
-             for m in re.findall(r"'head' at frames? ([\d ,-]+)", str(w.message))]
+    tracked, said = tracked_saying(actor / "actor.mp4", doc, relative_to=actor)
+    named = [m for text in said if "lost track" in text for m in re.findall(r"'head' at frames? ([\d ,-]+)", text)]
     frames = {k for part in ",".join(named).split(",") if part.strip()
               for a, _, b in [part.strip().partition("-")] for k in range(int(a), int(b or a) + 1)}
     keys = next(f for f in tracked["features"] if f["id"] == "head")["keys"]
@@ -548,10 +553,7 @@ def test_a_feature_partly_off_the_picture_is_named_so_and_judged_by_its_points_o
     path, motion = videos["translate"]
     drawing = sv.drawing(W, H, seed=7)
     out = [{"id": "out", "kind": "polyline", "rest": [[W - 60.0, 30.0], [W - 30.0, 40.0], [W + 20.0, 50.0], [W + 60.0, 60.0]]}]
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        doc = track_dict(path, sv.scene(W, H, drawing + out))
-    said = [str(w.message) for w in caught if issubclass(w.category, InkwarpWarning)]
+    doc, said = tracked_saying(path, sv.scene(W, H, drawing + out))
     assert any("'out' (2 of its 4 control points) lies partly off the picture at frame 0" in m for m in said), said
     assert not any("'out'" in m and ("lost track" in m or "no texture" in m) for m in said), said
     keys = doc["features"][-1]["keys"]
@@ -570,10 +572,7 @@ def test_a_feature_off_the_picture_where_traced_is_named_once_not_as_lost(videos
     drawing = sv.drawing(W, H, seed=7)
     outside = [{"id": "beside", "kind": "point", "rest": [[W + 30.0, 40.0]]},
                {"id": "beyond", "kind": "polyline", "rest": [[W + 5.0, 10.0], [W + 40.0, 50.0]]}]
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        doc = track_dict(path, sv.scene(W, H, drawing + outside))
-    said = [str(w.message) for w in caught if issubclass(w.category, InkwarpWarning)]
+    doc, said = tracked_saying(path, sv.scene(W, H, drawing + outside))
     assert any("'beside', 'beyond' lie off the picture at frame 0" in m for m in said), said
     assert not any("lost track" in m and ("beside" in m or "beyond" in m) for m in said), said
     # They are carried along with the drawing (the picture slides), and keyed at every frame.

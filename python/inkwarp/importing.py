@@ -154,12 +154,13 @@ def _read_psd(source: Path) -> Picture:
     except ImportError:  # pragma: no cover - psd-tools is a dependency
         raise ValueError(f"{source}: reading PSD files needs psd-tools; "
                          "install it with 'pip install psd-tools'") from None
+    start: bytes | None = None  # unreadable: said below, as psd-tools meets it
     try:
         with open(source, "rb") as fh:
             start = fh.read(8)
     except OSError:
-        start = b"8BPS"  # unreadable: said below, as psd-tools meets it
-    if not start.startswith(b"8BPS"):  # every Photoshop document starts so
+        pass
+    if start is not None and not start.startswith(b"8BPS"):  # every Photoshop document starts so
         named = {b"\x89PNG": ("a PNG picture", ".png"), b"\xff\xd8\xff": ("a JPEG picture", ".jpg")}
         found = next((kind for sig, kind in named.items() if start.startswith(sig)), None)
         if found:

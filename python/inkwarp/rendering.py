@@ -138,8 +138,8 @@ def frame_file_complete(path: str | os.PathLike[str], size: tuple[int, int] | No
                 return False
             # The IHDR chunk comes first: its length, its name, the width and the height.
             header = fh.read(16)
-            if size is not None and (header[4:8] != b"IHDR" or (int.from_bytes(header[8:12], "big"),
-                                                                 int.from_bytes(header[12:16], "big")) != tuple(size)):
+            width, height = int.from_bytes(header[8:12], "big"), int.from_bytes(header[12:16], "big")
+            if size is not None and (header[4:8] != b"IHDR" or (width, height) != size):
                 return False
             fh.seek(-len(PNG_END), os.SEEK_END)
             return fh.read(len(PNG_END)) == PNG_END

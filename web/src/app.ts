@@ -308,8 +308,11 @@ export class App {
       };
     }
     store.subscribe((_, docChanged) => {
-      if (this.gridsDue && !store.inGesture) this.gridEpoch++;
-      if (docChanged || (this.gridsDue && !store.inGesture)) this.syncLayers();
+      // A drag that put off its grids has ended: build them, and what was solved on the
+      // old ones is stale.
+      const gridsNow = this.gridsDue && !store.inGesture;
+      if (gridsNow) this.gridEpoch++;
+      if (docChanged || gridsNow) this.syncLayers();
       this.dropStale();
       this.scheduleAhead();
       this.requestSolve(this.dragging ? 'draft' : 'final');
