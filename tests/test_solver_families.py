@@ -511,8 +511,6 @@ def test_a_weakly_held_piece_with_a_hidden_mode_is_not_claimed_early(seed, integ
     assert not report.converged or float(np.abs(field - tight).max()) < TOLERANCE_PX, report
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="open: the stopping rule is not a bound (docs/dev/solver-correctness.md)")
 @pytest.mark.parametrize("case", ["flap_on_a_border_strip", "many_cuts_256_seed61", "many_cuts_256_seed62"])
 def test_weakly_attached_parts_among_many_cuts_are_not_claimed_early(case):
     # Found by a user's sweep: 50 random cuts on 256², six points on the right and below;
@@ -523,7 +521,9 @@ def test_weakly_attached_parts_among_many_cuts_are_not_claimed_early(case):
     # converged=True (its scaled residual 7e-7: the mode's residual is too small to show).
     # The same cuts with 5 or 50 times the displacements run 73 to 81 cycles and hold.
     # The same sweep's seeds 61 and 62 (46 and 50 cuts, answers up to 273 and 84 px) stopped
-    # at cycles 79 and 53, 0.16 and 0.074 px off.
+    # at cycles 79 and 53, 0.16 and 0.074 px off. A solve still running at cycle 20 now
+    # probes its operator from a random start, and what the cycles leave of it (the flap's
+    # bending) is deflated from then on.
     case = np.load(DATA / f"{case}.npz")
     cuts = np.split(case["cut_points"], np.cumsum(case["cut_lengths"])[:-1])
     pts, disp = case["points"], case["displacements"]
@@ -531,8 +531,15 @@ def test_weakly_attached_parts_among_many_cuts_are_not_claimed_early(case):
     # (A hundredth of the default tolerance: seed 61's answer of 273 px holds no finer.)
     tight, tight_report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, tolerance=1e-4, max_cycles=3000)
     if not tight_report.converged:
-        pytest.fail(f"the reference did not converge: {tight_report}")  # not the expected failure
-    assert not report.converged or float(np.abs(field - tight).max()) < TOLERANCE_PX, report
+        pytest.fail(f"the reference did not converge: {tight_report}")
+    assert report.converged and float(np.abs(field - tight).max()) < TOLERANCE_PX, report
+    if case == "flap_on_a_border_strip":
+        # Its warm twin (0.63 px off at cycle 32 before): the next frame through a kept
+        # Solver, every displacement 2 % larger, started from this answer.
+        kept = inkwarp.Solver()
+        inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, solver=kept)
+        field, report = inkwarp.thin_plate_report(pts, disp * 1.02, (256, 256), cuts=cuts, solver=kept, initial=field)
+        assert report.converged and float(np.abs(field - tight * 1.02).max()) < TOLERANCE_PX, report
 
 
 def test_no_claim_builds_on_an_answer_that_did_not_converge():

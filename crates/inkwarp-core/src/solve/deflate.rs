@@ -33,6 +33,9 @@ const KEEP: usize = 8;
 const KEEP_SLOW: usize = 16;
 /// Most bytes the kept vectors may take.
 const BUDGET_BYTES: usize = 256 << 20;
+/// Rayleigh quotients below this fraction of the operator's largest diagonal entry are the
+/// rounding of `f32` vectors (see [`Modes::with`]).
+const NULL_FLOOR: f64 = 1e-12;
 /// Node chunk for the fused passes.
 const CHUNK: usize = 4096;
 
@@ -155,6 +158,15 @@ impl Deflation {
             });
         }
         (self.w, self.v) = (Vec::new(), Vec::new());
+        let modes = Modes::of(fine, w);
+        self.adopt(modes, u, r);
+    }
+}
+
+impl Modes {
+    /// The modes spanned by `w` (orthonormal), with their products by `fine`'s operator.
+    pub fn of(fine: &Level, w: Vec<Vec<f32>>) -> Modes {
+        let (k, n) = (w.len(), w[0].len());
         // A W by the operator itself (a combination of the window's products would cancel
         // below f32 for the near-null vectors), two at a time.
         let mut aw: Vec<Vec<f32>> = Vec::with_capacity(k);
@@ -176,9 +188,27 @@ impl Deflation {
             }
         });
         let e = (0..k).map(|l| (0..k).map(|j| sums[l.min(j) * k + l.max(j)]).collect()).collect();
-        self.adopt(Modes(w, aw, e), u, r);
+        Modes(w, aw, e)
     }
 
+    /// The Ritz vectors of `A` over `first` and `then`, less those it does not see (below
+    /// [`NULL_FLOOR`] of its largest diagonal entry, or a hundredth of the box's smoothest
+    /// plate mode: a free function's, whose correction would divide rounding by rounding).
+    pub fn with(first: Vec<Vec<f64>>, then: Option<Modes>, fine: &Level) -> Option<Modes> {
+        let unit = |v: Vec<f64>| { let n = v.iter().map(|x| x * x).sum::<f64>().sqrt(); v.into_iter().map(move |x| (x / n) as f32).collect() };
+        let w: Vec<Vec<f32>> = first.into_iter().map(unit).chain(then.map_or(Vec::new(), |m| m.0)).filter(|v: &Vec<f32>| v.iter().all(|x| x.is_finite())).collect();
+        let (k, n) = (w.len(), w.first()?.len());
+        let sums = chunked_sums(n, k * k, |a, b, out| (0..k * k).for_each(|t| out[t] += dot(&w[t / k][a..b], &w[t % k][a..b])));
+        let (theta, y) = ritz(&Modes::of(fine, w.clone()).2, &sums.chunks(k).map(<[f64]>::to_vec).collect::<Vec<_>>())?;
+        let largest = fine.inv_diag.iter().filter(|&&d| d > 0.0).fold(0.0f64, |m, &d| m.max(1.0 / d));
+        let floor = (NULL_FLOOR * largest).max(0.01 * (std::f64::consts::PI / fine.geo.w.max(fine.geo.h) as f64).powi(4));
+        let w: Vec<Vec<f32>> = (0..theta.len()).filter(|&l| theta[l] > floor)
+            .map(|l| (0..n).map(|i| w.iter().zip(&y).map(|(v, yj)| yj[l] * v[i] as f64).sum::<f64>() as f32).collect()).collect();
+        (!w.is_empty()).then(|| Modes::of(fine, w))
+    }
+}
+
+impl Deflation {
     /// The vectors kept, for the next solve of the same operator, whose slow modes they are.
     /// At most the [`KEEP`] smallest: adopted, more misled a 1024² solve (`docs/dev/ablation.md`).
     pub fn modes(mut self) -> Option<Modes> {

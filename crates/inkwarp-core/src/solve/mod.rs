@@ -76,7 +76,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 11] = ["second", "recycle", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole"];
+    pub const NAMES: [&'static str; 12] = ["second", "recycle", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole", "probe"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -676,11 +676,15 @@ fn solve_piece(
         SolveMethod::Multigrid => {
             // Where every free function can be settled, the iteration runs on the settled
             // answers (`Settled`): the start settled, every direction projected.
+            let settled_in = settled;
             let settled = settled.and_then(|m| Settled::new(m, &hier.levels[0]));
             if let Some(s) = &settled {
                 s.project(&hier.levels[0], &mut u);
                 hier.levels[0].residual(&u, None, &mut r);
             }
+            // (Not where free functions are left unsettled: the probe's start would keep them.)
+            let free = settled.is_none() && settled_in.is_some_and(|m| m.len() > 0);
+            let may_probe = hier.torn && !hier.whole && !free && !options.off.has("probe") && !options.off.has("deflate");
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && fresh);
             if let Some(modes) = hier.modes.take_if(|_| cycles > 0).filter(|_| !options.off.has("recycle")) {
                 slow.adopt(modes, &mut u, &mut r);
@@ -688,6 +692,20 @@ fn solve_piece(
             let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
             for cycle in 1..=cycles {
                 if crate::interrupt::requested() { break; }
+                if may_probe && cycle == PROBE_AT && !hier.probed {
+                    // A slow solve: its operator probed once for the slow modes its residual
+                    // may not show, deflated from here on.
+                    hier.probed = true;
+                    if let Some(modes) = probe(&mut hier, settled.as_ref(), len) {
+                        slow.adopt(modes, &mut u, &mut r);
+                        if let Some(s) = &settled {
+                            s.project(&hier.levels[0], &mut u);
+                            hier.levels[0].residual(&u, None, &mut r);
+                        }
+                        rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
+                        slow.beta(None);
+                    }
+                }
                 // Once deflation or the settling projects the directions, p is no longer
                 // z + βp_old and rᵀz can be far from pᵀr (the cycle magnifies the near-null
                 // modes that the projection takes out): the step is then the exact line
@@ -709,6 +727,10 @@ fn solve_piece(
                     // A window of directions kept: correct on the slow modes found and
                     // restart the directions, deflated.
                     slow.restart(&hier.levels[0], &mut u, &mut r);
+                    if let Some(s) = &settled {
+                        s.project(&hier.levels[0], &mut u);
+                        hier.levels[0].residual(&u, None, &mut r);
+                    }
                     rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
                     slow.beta(None);
                     continue;
@@ -801,6 +823,51 @@ fn solve_piece(
         store.hierarchies.put(store.solve, key, hier);
     }
     (out, report)
+}
+
+/// The cycle at which a torn piece's solve still running probes its operator (past the
+/// dozen cycles that open, holed and cut grids take), and the probe's cycles.
+const PROBE_AT: usize = 20;
+const PROBE_CYCLES: usize = 24;
+
+/// Slow modes of a torn piece's operator: the iteration on `A x = 0` from a pseudo-random
+/// start. Unlike a solve's residual, the start holds every mode, and what the cycles leave
+/// of it is the error they miss (a weakly attached part's bending, however little of it a
+/// right-hand side shows); with the 8 Ritz vectors of its windows, the modes to deflate.
+fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize) -> Option<deflate::Modes> {
+    let fine = &hier.levels[0];
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let mut u: Vec<V2> = fine.inv_diag.iter().map(|&d| if d != 0.0 { [next(), next()] } else { [0.0; 2] }).collect();
+    if let Some(s) = settled { s.project(fine, &mut u) }
+    let (mut r, mut q) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
+    fine.residual(&u, None, &mut r);
+    let mut p = cycle::zeros_in(None, len);
+    let mut slow = deflate::Deflation::new(len, false, true, true);
+    let mut rz = fresh_direction(hier, &r, &mut p, settled, Some(&slow));
+    for cycle in 1..=PROBE_CYCLES {
+        if crate::interrupt::requested() { return None; }
+        let along = if slow.projects() || settled.is_some() { dot_z(&r, &p) } else { rz };
+        let (change, alpha) = energy_step(hier, &mut u, &mut r, &p, &mut q, along);
+        if !change.is_finite() { return None; }
+        if slow.record(cycle, &p, &q) {
+            slow.restart(&hier.levels[0], &mut u, &mut r);
+            rz = fresh_direction(hier, &r, &mut p, settled, Some(&slow));
+            continue;
+        }
+        let z = hier.precondition(&r);
+        let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
+        let beta = [0, 1].map(|k| if along[k] > 0.0 { ((alpha[k] * zq[k]) / along[k]).max(0.0) } else { 0.0 });
+        widen_into(&mut p, z, beta);
+        keep_to(&hier.levels[0], &mut p, settled, Some(&slow));
+        rz = rz_new;
+    }
+    deflate::Modes::with((0..2).map(|c| u.iter().map(|v| v[c]).collect()).collect(), slow.modes(), &hier.levels[0])
 }
 
 /// Piece `l`'s nodes of its box `[x0, y0, x1, y1]` from `u`, to the field.
@@ -1225,10 +1292,11 @@ fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2], settled: Option
     rz
 }
 
-/// Keeps the direction `p` to the settled answers and `A`-orthogonal to the kept slow modes.
+/// Keeps the direction `p` `A`-orthogonal to the kept slow modes and to the settled answers
+/// (settled last: the `f32` vectors' rounding would put free functions back in).
 fn keep_to(level: &Level, p: &mut [W2], settled: Option<&Settled>, slow: Option<&deflate::Deflation>) {
-    if let Some(s) = settled { s.project(level, p) }
     if let Some(d) = slow { d.project(p) }
+    if let Some(s) = settled { s.project(level, p) }
 }
 
 #[cfg(test)]
