@@ -191,12 +191,12 @@ impl Modes {
         Modes(w, aw, e)
     }
 
-    /// The Ritz vectors of `A` over `first` and `then`, less those it does not see (below
-    /// [`NULL_FLOOR`] of its largest diagonal entry, or a hundredth of the box's smoothest
-    /// plate mode: a free function's, whose correction would divide rounding by rounding).
-    pub fn with(first: Vec<Vec<f64>>, then: Option<Modes>, fine: &Level) -> Option<Modes> {
+    /// The Ritz vectors of `A` over `vectors` and `modes`' own, less those it does not see
+    /// (below [`NULL_FLOOR`] of its largest diagonal entry, or a hundredth of the box's
+    /// smoothest plate mode: a free function's, whose correction would divide rounding by rounding).
+    pub fn with(vectors: Vec<Vec<f64>>, modes: Option<Modes>, fine: &Level) -> Option<Modes> {
         let unit = |v: Vec<f64>| { let n = v.iter().map(|x| x * x).sum::<f64>().sqrt(); v.into_iter().map(move |x| (x / n) as f32).collect() };
-        let w: Vec<Vec<f32>> = first.into_iter().map(unit).chain(then.map_or(Vec::new(), |m| m.0)).filter(|v: &Vec<f32>| v.iter().all(|x| x.is_finite())).collect();
+        let w: Vec<Vec<f32>> = vectors.into_iter().map(unit).chain(modes.map_or(Vec::new(), |m| m.0)).filter(|v: &Vec<f32>| v.iter().all(|x| x.is_finite())).collect();
         let (k, n) = (w.len(), w.first()?.len());
         let sums = chunked_sums(n, k * k, |a, b, out| (0..k * k).for_each(|t| out[t] += dot(&w[t / k][a..b], &w[t % k][a..b])));
         let (theta, y) = ritz(&Modes::of(fine, w.clone()).2, &sums.chunks(k).map(<[f64]>::to_vec).collect::<Vec<_>>())?;

@@ -676,15 +676,15 @@ fn solve_piece(
         SolveMethod::Multigrid => {
             // Where every free function can be settled, the iteration runs on the settled
             // answers (`Settled`): the start settled, every direction projected.
-            let settled_in = settled;
+            let membrane = settled;
             let settled = settled.and_then(|m| Settled::new(m, &hier.levels[0]));
             if let Some(s) = &settled {
                 s.project(&hier.levels[0], &mut u);
                 hier.levels[0].residual(&u, None, &mut r);
             }
             // (Not where free functions are left unsettled: the probe's start would keep them.)
-            let free = settled.is_none() && settled_in.is_some_and(|m| m.len() > 0);
-            let may_probe = hier.torn && !hier.whole && !free && !options.off.has("probe") && !options.off.has("deflate");
+            let unsettled = settled.is_none() && membrane.is_some_and(|m| m.len() > 0);
+            let may_probe = hier.torn && !hier.whole && !unsettled && !options.off.has("probe") && !options.off.has("deflate");
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && fresh);
             if let Some(modes) = hier.modes.take_if(|_| cycles > 0).filter(|_| !options.off.has("recycle")) {
                 slow.adopt(modes, &mut u, &mut r);
@@ -698,12 +698,7 @@ fn solve_piece(
                     hier.probed = true;
                     if let Some(modes) = probe(&mut hier, settled.as_ref(), len) {
                         slow.adopt(modes, &mut u, &mut r);
-                        if let Some(s) = &settled {
-                            s.project(&hier.levels[0], &mut u);
-                            hier.levels[0].residual(&u, None, &mut r);
-                        }
-                        rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
-                        slow.beta(None);
+                        rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
                     }
                 }
                 // Once deflation or the settling projects the directions, p is no longer
@@ -727,12 +722,7 @@ fn solve_piece(
                     // A window of directions kept: correct on the slow modes found and
                     // restart the directions, deflated.
                     slow.restart(&hier.levels[0], &mut u, &mut r);
-                    if let Some(s) = &settled {
-                        s.project(&hier.levels[0], &mut u);
-                        hier.levels[0].residual(&u, None, &mut r);
-                    }
-                    rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
-                    slow.beta(None);
+                    rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
                     continue;
                 }
                 if !started {
@@ -747,19 +737,9 @@ fn solve_piece(
                     slow.beta(None);
                     continue;
                 }
-                let z = hier.precondition(&r);
-                // Flexible (Polak–Ribière) β = zᵀ(r − r_old)/(r_oldᵀz_old), with r − r_old = α q:
-                // the preconditioner's line searches make it slightly nonlinear. Deflated, the
-                // preconditioned residual is the projected z̃, whose r_oldᵀz̃_old is the step's
-                // `along` and whose z̃ᵀq is zᵀq (Wᵀq = −WᵀA p_old = 0, and for the settling
-                // Zᵀq = −τ ZᵀM p_old = 0): both are the deflated iteration's own, as its
-                // Lanczos matrix (`rate_floor`) assumes.
-                let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
-                let beta = [0, 1].map(|k| if along[k] > 0.0 { ((alpha[k] * zq[k]) / along[k]).max(0.0) } else { 0.0 });
-                widen_into(&mut p, z, beta);
-                keep_to(&hier.levels[0], &mut p, settled.as_ref(), Some(&slow));
+                let beta;
+                (rz, beta) = next_direction(&mut hier, &r, &q, &mut p, (alpha, along), settled.as_ref(), &slow);
                 slow.beta(Some(beta));
-                rz = rz_new;
             }
             found = slow.restarts > 0;
             hier.modes = slow.modes().or(hier.modes.take());
@@ -857,15 +837,10 @@ fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize) -> Option<
         if !change.is_finite() { return None; }
         if slow.record(cycle, &p, &q) {
             slow.restart(&hier.levels[0], &mut u, &mut r);
-            rz = fresh_direction(hier, &r, &mut p, settled, Some(&slow));
+            rz = restart_directions(hier, &mut u, &mut r, &mut p, settled, &mut slow);
             continue;
         }
-        let z = hier.precondition(&r);
-        let (rz_new, zq) = (dot_z(&r, z), dot_z(&q, z));
-        let beta = [0, 1].map(|k| if along[k] > 0.0 { ((alpha[k] * zq[k]) / along[k]).max(0.0) } else { 0.0 });
-        widen_into(&mut p, z, beta);
-        keep_to(&hier.levels[0], &mut p, settled, Some(&slow));
-        rz = rz_new;
+        rz = next_direction(hier, &r, &q, &mut p, (alpha, along), settled, &slow).0;
     }
     deflate::Modes::with((0..2).map(|c| u.iter().map(|v| v[c]).collect()).collect(), slow.modes(), &hier.levels[0])
 }
@@ -1290,6 +1265,33 @@ fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2], settled: Option
     let rz = dot_z(r, z);
     keep_to(&hier.levels[0], p, settled, slow);
     rz
+}
+
+/// After a deflating correction of `u`: settles it again (the `f32` vectors' rounding puts
+/// free functions back in) and restarts the directions; returns `rᵀz`.
+fn restart_directions(hier: &mut Hierarchy, u: &mut [V2], r: &mut [V2], p: &mut [W2], settled: Option<&Settled>, slow: &mut deflate::Deflation) -> [f64; 2] {
+    if let Some(s) = settled {
+        s.project(&hier.levels[0], u);
+        hier.levels[0].residual(u, None, r);
+    }
+    slow.beta(None);
+    fresh_direction(hier, r, p, settled, Some(slow))
+}
+
+/// The next direction `p = z + βp`, kept to (see [`keep_to`]), after a step of `alpha` along
+/// `p` (its `along` the step's `rᵀz` or `pᵀr`); returns the new `rᵀz` and `β`. Flexible
+/// (Polak–Ribière) β = zᵀ(r − r_old)/(r_oldᵀz_old), with r − r_old = α q: the
+/// preconditioner's line searches make it slightly nonlinear. Deflated, the preconditioned
+/// residual is the projected z̃, whose r_oldᵀz̃_old is `along` and whose z̃ᵀq is zᵀq
+/// (Wᵀq = −WᵀA p_old = 0, and for the settling Zᵀq = −τ ZᵀM p_old = 0): both are the deflated
+/// iteration's own, as its Lanczos matrix (`rate_floor`) assumes.
+fn next_direction(hier: &mut Hierarchy, r: &[V2], q: &[V2], p: &mut [W2], (alpha, along): ([f64; 2], [f64; 2]), settled: Option<&Settled>, slow: &deflate::Deflation) -> ([f64; 2], [f64; 2]) {
+    let z = hier.precondition(r);
+    let (rz, zq) = (dot_z(r, z), dot_z(q, z));
+    let beta = [0, 1].map(|k| if along[k] > 0.0 { ((alpha[k] * zq[k]) / along[k]).max(0.0) } else { 0.0 });
+    widen_into(p, z, beta);
+    keep_to(&hier.levels[0], p, settled, Some(slow));
+    (rz, beta)
 }
 
 /// Keeps the direction `p` `A`-orthogonal to the kept slow modes and to the settled answers
