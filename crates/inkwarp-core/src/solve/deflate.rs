@@ -29,7 +29,7 @@ const WAIT_RATE: f64 = 0.5;
 /// 5 % (before any deflating restart: after one the judged changes come in windows).
 const SETTLED: f64 = 0.95;
 /// Ritz vectors kept, and from the third Rayleigh–Ritz step on (`docs/dev/ablation.md`).
-const KEEP: usize = 8;
+pub(super) const KEEP: usize = 8;
 const KEEP_SLOW: usize = 16;
 /// Most bytes the kept vectors may take.
 const BUDGET_BYTES: usize = 256 << 20;
@@ -191,12 +191,12 @@ impl Modes {
         Modes(w, aw, e)
     }
 
-    /// The Ritz vectors of `A` over `vectors` and `modes`' own, less those it does not see
+    /// The Ritz vectors of `A` over `vectors`, smallest first, less those it does not see
     /// (below [`NULL_FLOOR`] of its largest diagonal entry, or a hundredth of the box's
     /// smoothest plate mode: a free function's, whose correction would divide rounding by rounding).
-    pub fn with(vectors: Vec<Vec<f64>>, modes: Option<Modes>, fine: &Level) -> Option<Modes> {
+    pub fn with(vectors: Vec<Vec<f64>>, fine: &Level) -> Option<Modes> {
         let unit = |v: Vec<f64>| { let n = v.iter().map(|x| x * x).sum::<f64>().sqrt(); v.into_iter().map(move |x| (x / n) as f32).collect() };
-        let w: Vec<Vec<f32>> = vectors.into_iter().map(unit).chain(modes.map_or(Vec::new(), |m| m.0)).filter(|v: &Vec<f32>| v.iter().all(|x| x.is_finite())).collect();
+        let w: Vec<Vec<f32>> = vectors.into_iter().map(unit).filter(|v: &Vec<f32>| v.iter().all(|x| x.is_finite())).collect();
         let (k, n) = (w.len(), w.first()?.len());
         let sums = chunked_sums(n, k * k, |a, b, out| (0..k * k).for_each(|t| out[t] += dot(&w[t / k][a..b], &w[t % k][a..b])));
         let (theta, y) = ritz(&Modes::of(fine, w.clone()).2, &sums.chunks(k).map(<[f64]>::to_vec).collect::<Vec<_>>())?;
@@ -208,15 +208,24 @@ impl Modes {
     }
 }
 
+impl Modes {
+    /// The first `k` modes.
+    pub fn first(mut self, k: usize) -> Modes {
+        [&mut self.0, &mut self.1].into_iter().for_each(|v| v.truncate(k));
+        self.2.truncate(k);
+        self.2.iter_mut().for_each(|r| r.truncate(k));
+        self
+    }
+}
+
 impl Deflation {
+    /// The kept vectors, in `f64`.
+    pub fn vectors(&self) -> impl Iterator<Item = Vec<f64>> + '_ { self.w.iter().map(|v| v.iter().map(|&x| f64::from(x)).collect()) }
+
     /// The vectors kept, for the next solve of the same operator, whose slow modes they are.
     /// At most the [`KEEP`] smallest: adopted, more misled a 1024² solve (`docs/dev/ablation.md`).
-    pub fn modes(mut self) -> Option<Modes> {
-        let k = self.w.len().min(KEEP);
-        [&mut self.w, &mut self.aw].into_iter().for_each(|v| v.truncate(k));
-        self.e.truncate(k);
-        self.e.iter_mut().for_each(|r| r.truncate(k));
-        (!self.w.is_empty()).then_some(Modes(self.w, self.aw, self.e))
+    pub fn modes(self) -> Option<Modes> {
+        (!self.w.is_empty()).then(|| Modes(self.w, self.aw, self.e).first(KEEP))
     }
 
     /// Keeps `modes` (the Ritz vectors, or an earlier solve's [`Deflation::modes`]) as the

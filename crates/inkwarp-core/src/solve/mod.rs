@@ -690,15 +690,22 @@ fn solve_piece(
                 slow.adopt(modes, &mut u, &mut r);
             }
             let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
+            let mut probed = None;
             for cycle in 1..=cycles {
                 if crate::interrupt::requested() { break; }
                 if may_probe && cycle == PROBE_AT && !hier.probed {
                     // A slow solve: its operator probed once for the slow modes its residual
                     // may not show, deflated from here on.
                     hier.probed = true;
-                    if let Some(modes) = probe(&mut hier, settled.as_ref(), len) {
-                        slow.adopt(modes, &mut u, &mut r);
-                        rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
+                    if let Some(rest) = probe(&mut hier, settled.as_ref(), len) {
+                        // Deflated here: what the probe left. Kept for the next solve of this
+                        // operator: the slowest modes of that and of the vectors kept so far.
+                        let fine = &hier.levels[0];
+                        probed = deflate::Modes::with(rest.iter().cloned().chain(slow.vectors()).collect(), fine).map(|m| m.first(deflate::KEEP));
+                        if let Some(modes) = deflate::Modes::with(rest, fine) {
+                            slow.adopt(modes, &mut u, &mut r);
+                            rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
+                        }
                     }
                 }
                 // Once deflation or the settling projects the directions, p is no longer
@@ -738,11 +745,11 @@ fn solve_piece(
                     continue;
                 }
                 let beta;
-                (rz, beta) = next_direction(&mut hier, &r, &q, &mut p, (alpha, along), settled.as_ref(), &slow);
+                (rz, beta) = next_direction(&mut hier, &r, &q, &mut p, (alpha, along), settled.as_ref(), Some(&slow));
                 slow.beta(Some(beta));
             }
             found = slow.restarts > 0;
-            hier.modes = slow.modes().or(hier.modes.take());
+            hier.modes = probed.or_else(|| slow.modes()).or(hier.modes.take());
         }
         SolveMethod::Southwell => {
             // Rounds of one coarse correction and one sweep's worth of Southwell relaxations
@@ -810,11 +817,11 @@ fn solve_piece(
 const PROBE_AT: usize = 20;
 const PROBE_CYCLES: usize = 24;
 
-/// Slow modes of a torn piece's operator: the iteration on `A x = 0` from a pseudo-random
-/// start. Unlike a solve's residual, the start holds every mode, and what the cycles leave
-/// of it is the error they miss (a weakly attached part's bending, however little of it a
-/// right-hand side shows); with the 8 Ritz vectors of its windows, the modes to deflate.
-fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize) -> Option<deflate::Modes> {
+/// What the iteration on `A x = 0` leaves of a pseudo-random start, by component: the
+/// slow modes of a torn piece's operator. Unlike a solve's residual, the start holds every
+/// mode, and what the cycles leave of it is the error they miss (a weakly attached part's
+/// bending, however little of it a right-hand side shows).
+fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize) -> Option<Vec<Vec<f64>>> {
     let fine = &hier.levels[0];
     let mut seed = 0x9e37_79b9_7f4a_7c15u64;
     let mut next = move || {
@@ -828,21 +835,15 @@ fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize) -> Option<
     let (mut r, mut q) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
     fine.residual(&u, None, &mut r);
     let mut p = cycle::zeros_in(None, len);
-    let mut slow = deflate::Deflation::new(len, false, true, true);
-    let mut rz = fresh_direction(hier, &r, &mut p, settled, Some(&slow));
-    for cycle in 1..=PROBE_CYCLES {
+    let mut rz = fresh_direction(hier, &r, &mut p, settled, None);
+    for _ in 0..PROBE_CYCLES {
         if crate::interrupt::requested() { return None; }
-        let along = if slow.projects() || settled.is_some() { dot_z(&r, &p) } else { rz };
+        let along = if settled.is_some() { dot_z(&r, &p) } else { rz };
         let (change, alpha) = energy_step(hier, &mut u, &mut r, &p, &mut q, along);
         if !change.is_finite() { return None; }
-        if slow.record(cycle, &p, &q) {
-            slow.restart(&hier.levels[0], &mut u, &mut r);
-            rz = restart_directions(hier, &mut u, &mut r, &mut p, settled, &mut slow);
-            continue;
-        }
-        rz = next_direction(hier, &r, &q, &mut p, (alpha, along), settled, &slow).0;
+        rz = next_direction(hier, &r, &q, &mut p, (alpha, along), settled, None).0;
     }
-    deflate::Modes::with((0..2).map(|c| u.iter().map(|v| v[c]).collect()).collect(), slow.modes(), &hier.levels[0])
+    Some((0..2).map(|c| u.iter().map(|v| v[c]).collect()).collect())
 }
 
 /// Piece `l`'s nodes of its box `[x0, y0, x1, y1]` from `u`, to the field.
@@ -1285,12 +1286,12 @@ fn restart_directions(hier: &mut Hierarchy, u: &mut [V2], r: &mut [V2], p: &mut 
 /// residual is the projected z̃, whose r_oldᵀz̃_old is `along` and whose z̃ᵀq is zᵀq
 /// (Wᵀq = −WᵀA p_old = 0, and for the settling Zᵀq = −τ ZᵀM p_old = 0): both are the deflated
 /// iteration's own, as its Lanczos matrix (`rate_floor`) assumes.
-fn next_direction(hier: &mut Hierarchy, r: &[V2], q: &[V2], p: &mut [W2], (alpha, along): ([f64; 2], [f64; 2]), settled: Option<&Settled>, slow: &deflate::Deflation) -> ([f64; 2], [f64; 2]) {
+fn next_direction(hier: &mut Hierarchy, r: &[V2], q: &[V2], p: &mut [W2], (alpha, along): ([f64; 2], [f64; 2]), settled: Option<&Settled>, slow: Option<&deflate::Deflation>) -> ([f64; 2], [f64; 2]) {
     let z = hier.precondition(r);
     let (rz, zq) = (dot_z(r, z), dot_z(q, z));
     let beta = [0, 1].map(|k| if along[k] > 0.0 { ((alpha[k] * zq[k]) / along[k]).max(0.0) } else { 0.0 });
     widen_into(p, z, beta);
-    keep_to(&hier.levels[0], p, settled, Some(slow));
+    keep_to(&hier.levels[0], p, settled, slow);
     (rz, beta)
 }
 
