@@ -81,6 +81,9 @@ impl Deflation {
         Deflation { on: !off && room >= 4, wait, early: early && wait, room, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
     }
 
+    /// Whether vectors may be kept (not switched off, and the budget leaves room).
+    pub fn on(&self) -> bool { self.on }
+
     /// Whether [`Deflation::project`] changes directions (vectors are kept).
     pub fn projects(&self) -> bool { !self.w.is_empty() }
 

@@ -684,8 +684,9 @@ fn solve_piece(
             }
             // (Not where free functions are left unsettled: the probe's start would keep them.)
             let unsettled = settled.is_none() && membrane.is_some_and(|m| m.len() > 0);
-            let may_probe = hier.torn && !hier.whole && !unsettled && !options.off.has("probe") && !options.off.has("deflate");
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && fresh);
+            // (Nor where the deflation's budget leaves no room: nothing could use what it finds.)
+            let may_probe = hier.torn && !hier.whole && !unsettled && !options.off.has("probe") && slow.on();
             if let Some(modes) = hier.modes.take_if(|_| cycles > 0).filter(|_| !options.off.has("recycle")) {
                 slow.adopt(modes, &mut u, &mut r);
             }

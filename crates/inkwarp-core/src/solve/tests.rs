@@ -1874,3 +1874,12 @@ fn the_settling_projection_keeps_fixed_nodes_and_is_idempotent() {
     let moved = v.iter().zip(&once).fold(0.0f64, |m, (a, b)| m.max((a[0] - b[0]).abs()).max((a[1] - b[1]).abs()));
     assert!(moved < 1e-12, "a second projection moved a node by {moved}");
 }
+
+#[test]
+fn deflation_and_so_the_probe_are_off_where_the_budget_leaves_no_room() {
+    // A 1024² piece has room; a 3840 × 2160 one (8.3 million nodes) has none, and a slow solve
+    // there does not probe for modes it could not keep.
+    assert!(deflate::Deflation::new(1024 * 1024, false, true, false).on());
+    assert!(!deflate::Deflation::new(3840 * 2160, false, true, false).on());
+    assert!(!deflate::Deflation::new(1024 * 1024, true, true, false).on());
+}
