@@ -112,10 +112,7 @@ pub struct Key {
 /// assert_eq!(points_at(&rest, &keys, 9.0), vec![[10.0, 4.0]]);
 /// ```
 pub fn points_at(rest: &[Point], keys: &[Key], time_s: f64) -> Vec<Point> {
-    let (first, last) = match (keys.first(), keys.last()) {
-        (Some(f), Some(l)) => (f, l),
-        _ => return rest.to_vec(),
-    };
+    let (Some(first), Some(last)) = (keys.first(), keys.last()) else { return rest.to_vec() };
     if time_s.is_nan() || time_s <= first.time_s { return first.points.clone(); }
     if time_s >= last.time_s { return last.points.clone(); }
     // the span [keys[i], keys[i + 1]) holding time_s: t_i ≤ t < t_{i+1}

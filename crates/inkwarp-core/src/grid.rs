@@ -50,8 +50,7 @@ impl Grid {
     pub fn from_active(width: usize, height: usize, active: Vec<bool>) -> Self {
         assert_eq!(active.len(), width * height, "activity mask has the wrong size");
         let n = width * height;
-        let mut link_right = vec![false; n];
-        let mut link_down = vec![false; n];
+        let (mut link_right, mut link_down) = (vec![false; n], vec![false; n]);
         // Row by row without branches, so that the passes vectorise (every solve from
         // Python builds its grid).
         for y in 0..height {
@@ -326,14 +325,10 @@ pub struct Constraints {
 
 impl Constraints {
     /// Number of constrained nodes.
-    pub fn len(&self) -> usize {
-        self.nodes.len()
-    }
+    pub fn len(&self) -> usize { self.nodes.len() }
 
     /// `true` when no node is constrained.
-    pub fn is_empty(&self) -> bool {
-        self.nodes.is_empty()
-    }
+    pub fn is_empty(&self) -> bool { self.nodes.is_empty() }
 }
 
 /// The node a sample at `point` constrains: `(⌊x + ½⌋, ⌊y + ½⌋)` (halves round towards +x

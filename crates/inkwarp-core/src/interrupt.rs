@@ -13,9 +13,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 static REQUESTED: AtomicBool = AtomicBool::new(false);
 
 /// Asks every running solve and render to stop at its next check.
-pub fn request() {
-    REQUESTED.store(true, Ordering::Relaxed);
-}
+pub fn request() { REQUESTED.store(true, Ordering::Relaxed) }
 
 /// Whether a stop has been requested since the last [`clear`].
 pub fn requested() -> bool { REQUESTED.load(Ordering::Relaxed) }
@@ -28,6 +26,4 @@ pub const STOPPED: &str = "stopped: interrupted (Ctrl-C or SIGTERM)";
 pub fn unless_requested<T, E>(value: T, stopped: E) -> Result<T, E> { if requested() { Err(stopped) } else { Ok(value) } }
 
 /// Forgets an earlier request, before new work starts.
-pub fn clear() {
-    REQUESTED.store(false, Ordering::Relaxed);
-}
+pub fn clear() { REQUESTED.store(false, Ordering::Relaxed) }

@@ -16,7 +16,7 @@
 //!
 //! [`transfer_keys`] works on plain features (the Python package maps scene documents).
 
-use crate::geometry::{Kind, Point};
+use crate::geometry::{bounds, Kind, Point};
 use crate::methods::{dist, MethodError, ThinPlateMap};
 
 /// One feature of a drawing as transfer sees it: id, kind, rest control points and the
@@ -131,13 +131,7 @@ pub fn find_fold(source: &[TransferFeature], target: &[TransferFeature]) -> Resu
     let (map, pairs) = rest_map(source, target)?;
     let points: Vec<(Point, usize)> =
         pairs.iter().flat_map(|&(si, _)| source[si].rest.iter().map(move |&p| (p, si))).collect();
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for (p, _) in &points {
-        for k in 0..2 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
+    let (lo, hi) = bounds(points.iter().map(|(p, _)| p));
     let det = |j: [[f64; 2]; 2]| j[0][0] * j[1][1] - j[0][1] * j[1][0];
     let linear = map.affine_jacobian();
     let sign = det(linear).signum();

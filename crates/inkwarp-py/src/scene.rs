@@ -290,7 +290,7 @@ impl SceneCore {
         self.check_layer(layer)?;
         let scene = Arc::clone(&self.scene);
         let solved = run_engine(py, move || {
-            let solved = scene.layer_field_with(layer, time, None, method)?;
+            let solved = scene.layer_field_overridden(layer, time, None, &SolverOverrides::method(method))?;
             let warning = scene.convergence_warning(layer, time, &solved);
             Ok::<_, SceneError>((solved, warning))
         })?;
@@ -360,7 +360,7 @@ impl SceneCore {
             _ => threads,
         };
         let stream =
-            FrameStream::with_method(Arc::clone(&self.scene), start..stop, threads, method);
+            FrameStream::new(Arc::clone(&self.scene), start..stop, threads, SolverOverrides::method(method));
         let remaining = stream.len();
         Ok(FrameIter {
             stream: Mutex::new(Some(stream)),

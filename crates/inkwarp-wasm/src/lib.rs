@@ -464,6 +464,7 @@ mod tests {
     #[test]
     fn every_method_gives_the_scene_engines_field() {
         use inkwarp_core::methods::Method;
+        use inkwarp_core::scene::SolverOverrides;
         let (scene, features, cuts) = every_kind(0.6);
         let (w, h) = (48, 40);
         let (cuts, cuts_len) = put(cuts.to_string().as_bytes());
@@ -472,7 +473,7 @@ mod tests {
         let mut fields = Vec::new();
         let mut options: serde_json::Value = serde_json::from_str(SOLVER).unwrap();
         for method in Method::ALL {
-            let expected = scene.layer_field_with(0, 0.6, None, Some(method)).unwrap().field;
+            let expected = scene.layer_field_overridden(0, 0.6, None, &SolverOverrides::method(Some(method))).unwrap().field;
             options["method"] = method.name().into();
             let what = method.to_string();
             let report = solve_ok(grid, &serde_json::json!({"features": features, "options": options}), out, &what);
@@ -482,7 +483,7 @@ mod tests {
             // A layer that nothing drives stays put under every method.
             solve_ok(grid, &serde_json::json!({"features": [], "options": options}), out, &what);
             assert!(view(out, 2 * w * h).iter().all(|&v| v == 0.0));
-            let still = scene.layer_field_with(1, 0.6, None, Some(method)).unwrap().field;
+            let still = scene.layer_field_overridden(1, 0.6, None, &SolverOverrides::method(Some(method))).unwrap().field;
             assert!(still.dx.iter().chain(&still.dy).all(|&v| v == 0.0));
             solve_ok(grid, &serde_json::json!({"features": features, "options": options}), out, &what);
             assert_eq!(report["method"], method.name());

@@ -186,11 +186,8 @@ impl Curve {
     pub fn to_polyline(&self, spacing_px: f64) -> Vec<Point> {
         let mut pts: Vec<Point> =
             self.sample_parameters(spacing_px).iter().map(|p| self.point_at(p.span, p.u)).collect();
-        if self.closed {
-            if let Some(&first) = pts.first() {
-                pts.push(first);
-            }
-        }
+        let first = pts.first().copied().filter(|_| self.closed);
+        pts.extend(first);
         pts
     }
 }
@@ -204,16 +201,12 @@ fn span_ends(n: usize, closed: bool) -> impl Iterator<Item = (usize, usize)> {
 /// How many equal pieces a span of length `len` needs so that none exceeds `spacing`.
 fn pieces_for(len: f64, spacing: f64) -> usize {
     let pieces = (len / spacing).ceil();
-    if pieces.is_finite() && pieces >= 1.0 {
-        // a division that rounds up by one ulp must not leave a piece longer than spacing
-        let mut n = pieces as usize;
-        if len / n as f64 > spacing {
-            n += 1;
-        }
-        n
-    } else {
-        1
+    if !(pieces.is_finite() && pieces >= 1.0) {
+        return 1;
     }
+    // a division that rounds up by one ulp must not leave a piece longer than spacing
+    let n = pieces as usize;
+    n + usize::from(len / n as f64 > spacing)
 }
 
 /// The centripetal Catmull-Rom span from `b` to `c` with neighbours `a` and `d`, in
@@ -309,11 +302,7 @@ fn subdivisions(s: &Span) -> usize {
     let b2 = [s.p1[0] - s.t1[0] / 3.0, s.p1[1] - s.t1[1] / 3.0];
     let bound = norm(sub(b1, s.p0)) + norm(sub(b2, b1)) + norm(sub(s.p1, b2));
     let k = (4.0 * bound).ceil();
-    if k.is_finite() {
-        (k as usize).clamp(8, 1 << 20)
-    } else {
-        8
-    }
+    if k.is_finite() { (k as usize).clamp(8, 1 << 20) } else { 8 }
 }
 
 /// Appends the parameters that split span `s` into equal arc lengths no longer than
@@ -324,10 +313,7 @@ fn equal_arc_parameters(s: &Span, span: usize, spacing: f64, out: &mut Vec<Curve
     let mut cumulative = Vec::with_capacity(k + 1);
     cumulative.push(0.0);
     for j in 0..k {
-        let a = j as f64 / k as f64;
-        let b = (j + 1) as f64 / k as f64;
-        let next = cumulative[j] + gauss_length(s, a, b);
-        cumulative.push(next);
+        cumulative.push(cumulative[j] + gauss_length(s, j as f64 / k as f64, (j + 1) as f64 / k as f64));
     }
     let total = cumulative[k];
     let pieces = pieces_for(total, spacing);
@@ -370,14 +356,10 @@ fn invert_length(s: &Span, lo: f64, hi: f64, want: f64) -> f64 {
 }
 
 #[inline]
-pub(crate) fn sub(a: Point, b: Point) -> Point {
-    [a[0] - b[0], a[1] - b[1]]
-}
+pub(crate) fn sub(a: Point, b: Point) -> Point { [a[0] - b[0], a[1] - b[1]] }
 
 #[inline]
-pub(crate) fn norm(a: Point) -> f64 {
-    (a[0] * a[0] + a[1] * a[1]).sqrt()
-}
+pub(crate) fn norm(a: Point) -> f64 { (a[0] * a[0] + a[1] * a[1]).sqrt() }
 
 #[cfg(test)]
 mod tests {

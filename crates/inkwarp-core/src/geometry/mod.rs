@@ -270,6 +270,14 @@ fn check_points(kind: Kind, points: &[Point], which: &'static str) -> Result<(),
     Ok(())
 }
 
+/// The smallest and the largest coordinates of `points`, each axis on its own (`+∞` and
+/// `−∞` for no point).
+pub(crate) fn bounds<'a>(points: impl IntoIterator<Item = &'a Point>) -> (Point, Point) {
+    points.into_iter().fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), p| {
+        ([lo[0].min(p[0]), lo[1].min(p[1])], [hi[0].max(p[0]), hi[1].max(p[1])])
+    })
+}
+
 /// The curve through `points` as a dense polyline, for overlays and cuts.
 ///
 /// A point gives itself; a polyline or cut its vertices; a spline its samples at

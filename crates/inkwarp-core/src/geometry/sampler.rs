@@ -128,11 +128,7 @@ impl FeatureSampler {
         let mut spans = vec![0..0; s];
         for (j, p) in self.params.iter().enumerate() {
             let r = &mut spans[p.span];
-            if r.start == r.end {
-                *r = j..j + 1;
-            } else {
-                r.end = j + 1;
-            }
+            *r = if r.start == r.end { j..j + 1 } else { r.start..j + 1 };
         }
         let pieces: Vec<(Vec<Point>, Vec<f32>)> = nodes.par_chunks(256).map(|chunk| {
             let mut scratch = MvcScratch::default();

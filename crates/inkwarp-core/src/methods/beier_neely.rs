@@ -48,11 +48,10 @@ impl BeierNeelyParams {
         if !(self.a > 0.0 && self.a <= MAX_BEIER_NEELY_A) {
             return Err(MethodError::BadParameter { name: "a", value: self.a, hint: "it must be a number of pixels greater than 0 and at most 1e6 (default 1)" });
         }
-        if !(0.0..=MAX_BEIER_NEELY_EXPONENT).contains(&self.b) {
-            return Err(MethodError::BadParameter { name: "b", value: self.b, hint: "it must be from 0 to 16 (default 2)" });
-        }
-        if !(0.0..=MAX_BEIER_NEELY_EXPONENT).contains(&self.p) {
-            return Err(MethodError::BadParameter { name: "p", value: self.p, hint: "it must be from 0 to 16 (default 0)" });
+        for (name, value, hint) in [("b", self.b, "it must be from 0 to 16 (default 2)"), ("p", self.p, "it must be from 0 to 16 (default 0)")] {
+            if !(0.0..=MAX_BEIER_NEELY_EXPONENT).contains(&value) {
+                return Err(MethodError::BadParameter { name, value, hint });
+            }
         }
         Ok(())
     }

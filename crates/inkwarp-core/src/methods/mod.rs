@@ -195,14 +195,12 @@ pub fn line_pairs_from_chain(chain: &[Sample], closed: bool, min_length_px: f64)
             run = 0.0;
         }
     }
-    let mut pairs: Vec<LinePair> = kept
-        .windows(2)
-        .map(|w| LinePair { rest: [w[0].rest, w[1].rest], pose: [pose(w[0]), pose(w[1])] })
-        .collect();
+    let pair = |a: &Sample, b: &Sample| LinePair { rest: [a.rest, b.rest], pose: [pose(a), pose(b)] };
+    let mut pairs: Vec<LinePair> = kept.windows(2).map(|w| pair(w[0], w[1])).collect();
     if closed && kept.len() > 2 {
         let (a, b) = (kept[kept.len() - 1], kept[0]);
         if dist(a.rest, b.rest) > 0.0 {
-            pairs.push(LinePair { rest: [a.rest, b.rest], pose: [pose(a), pose(b)] });
+            pairs.push(pair(a, b));
         }
     }
     pairs
@@ -356,11 +354,7 @@ pub(crate) fn merge_samples(samples: &[Sample]) -> (Vec<Sample>, usize) {
     let dropped = samples.len() - finite.len();
     finite.sort_by(|a, b| a.rest[0].total_cmp(&b.rest[0]).then(a.rest[1].total_cmp(&b.rest[1])));
     let merged = finite.chunk_by(|a, b| a.rest == b.rest).map(|group| {
-        let (mut sx, mut sy) = (0.0, 0.0);
-        for s in group {
-            sx += s.displacement[0];
-            sy += s.displacement[1];
-        }
+        let [sx, sy] = group.iter().fold([0.0; 2], |[sx, sy], s| [sx + s.displacement[0], sy + s.displacement[1]]);
         let n = group.len() as f64;
         Sample { rest: group[0].rest, displacement: [sx / n, sy / n] }
     }).collect();

@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use super::linalg::solve_dense;
 use super::{is_finite_point, merge_samples, MethodError, MethodReport};
 use crate::field::Field;
-use crate::geometry::{sub, Point, Sample};
+use crate::geometry::{bounds, sub, Point, Sample};
 
 /// How many samples `tps-exact` fits at most by default. The fit costs `O(n³)` and the
 /// evaluation `O(n)` per pixel, so a 513 × 513 field from 1000 samples takes about a
@@ -121,13 +121,7 @@ impl ThinPlateMap {
             let (cx, cy, wx, wy) = (vec![], vec![], vec![], vec![]);
             return Ok(ThinPlateMap { origin: [0.0, 0.0], scale: 1.0, cx, cy, wx, wy, affine: [[0.0; 3]; 2] });
         }
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for s in samples {
-            for k in 0..2 {
-                lo[k] = lo[k].min(s.rest[k]);
-                hi[k] = hi[k].max(s.rest[k]);
-            }
-        }
+        let (lo, hi) = bounds(samples.iter().map(|s| &s.rest));
         let origin = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
         let half = ((hi[0] - lo[0]).max(hi[1] - lo[1])) / 2.0;
         let scale = if half > 0.0 { half } else { 1.0 };
@@ -153,11 +147,8 @@ impl ThinPlateMap {
                 a[(n + k) * size + i] = v;
             }
         }
-        let mut rhs = vec![0.0; size * 2];
-        for (i, s) in samples.iter().enumerate() {
-            rhs[i * 2] = s.displacement[0];
-            rhs[i * 2 + 1] = s.displacement[1];
-        }
+        let mut rhs: Vec<f64> = samples.iter().flat_map(|s| s.displacement).collect();
+        rhs.resize(size * 2, 0.0);
         let x = solve_dense(a, size, rhs, 2)
             .map_err(|e| MethodError::Singular { points: n, row: e.row, pivot: e.pivot })?;
         let mut affine = [[0.0; 3]; 2];
@@ -382,10 +373,7 @@ fn farthest_point_subset(samples: &[Sample], count: usize) -> Vec<Sample> {
         let c = samples[next].rest;
         let mut best = (0, -1.0);
         for (i, s) in samples.iter().enumerate() {
-            let d = d2(s.rest, c);
-            if d < nearest[i] {
-                nearest[i] = d;
-            }
+            nearest[i] = nearest[i].min(d2(s.rest, c));
             if nearest[i] > best.1 {
                 best = (i, nearest[i]);
             }

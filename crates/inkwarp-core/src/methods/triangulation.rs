@@ -45,16 +45,13 @@ pub fn triangulation_field(samples: &[Sample], width: usize, height: usize, repo
         .iter()
         .map(|s| Vertex { position: Point2::new(s.rest[0], s.rest[1]), value: s.displacement })
         .collect();
-    let tri: DelaunayTriangulation<Vertex> = DelaunayTriangulation::bulk_load_stable(vertices)
-        .map_err(|e| {
-            MethodError::Triangulation(match e {
-                spade::InsertionError::TooSmall => {
-                    "a point's coordinates are too close to zero (below 1e-100 pixels); round them to 0".into()
-                }
-                spade::InsertionError::TooLarge => "a point's coordinates are too large; keep them within ±1e6 pixels".into(),
-                spade::InsertionError::NAN => "a point's coordinates are not numbers (NaN); give finite coordinates".into(),
-            })
-        })?;
+    let why = |e: spade::InsertionError| match e {
+        spade::InsertionError::TooSmall => "a point's coordinates are too close to zero (below 1e-100 pixels); round them to 0",
+        spade::InsertionError::TooLarge => "a point's coordinates are too large; keep them within ±1e6 pixels",
+        spade::InsertionError::NAN => "a point's coordinates are not numbers (NaN); give finite coordinates",
+    };
+    let tri: DelaunayTriangulation<Vertex> =
+        DelaunayTriangulation::bulk_load_stable(vertices).map_err(|e| MethodError::Triangulation(why(e).into()))?;
 
     let mut f = Field::zeros(width, height);
     if tri.num_inner_faces() == 0 {

@@ -186,15 +186,6 @@ impl Canvas {
         });
         RgbaImage { width: self.width, height: self.height, data }
     }
-
-    /// The premultiplied value of pixel `(x, y)`.
-    ///
-    /// # Panics
-    /// If `(x, y)` is outside the canvas.
-    pub fn pixel(&self, x: usize, y: usize) -> [f32; 4] {
-        assert!(x < self.width && y < self.height, "pixel ({x}, {y}) is outside the canvas");
-        self.data[y * self.width + x]
-    }
 }
 
 /// A layer ready for [`draw_frame`]: its picture (borrowed), placed by its field, which it
@@ -281,23 +272,15 @@ fn check_layer(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<(), Rend
 }
 
 /// Forward-maps `image` by `field` over `grid`'s mesh onto a transparent canvas of the
-/// image's size.
+/// image's size; an error when the field or the grid is not the size of the image.
 ///
 /// ```
-/// use inkwarp_core::render::{warp_image, RgbaImage};
+/// use inkwarp_core::render::{try_warp_image, RgbaImage};
 /// use inkwarp_core::{Field, Grid};
 /// let image = RgbaImage::from_raw(2, 2, (0..16).map(|v| v as u8 * 10 + 5).collect()).unwrap();
 /// // The identity field reproduces the image exactly.
-/// assert_eq!(warp_image(&image, &Field::zeros(2, 2), &Grid::new(2, 2)), image);
+/// assert_eq!(try_warp_image(&image, &Field::zeros(2, 2), &Grid::new(2, 2)).unwrap(), image);
 /// ```
-///
-/// # Panics
-/// If the field or the grid is not the size of the image (see [`try_warp_image`]).
-pub fn warp_image(image: &RgbaImage, field: &Field, grid: &Grid) -> RgbaImage {
-    try_warp_image(image, field, grid).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// [`warp_image`], with an error instead of a panic when the sizes differ.
 pub fn try_warp_image(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<RgbaImage, RenderError> {
     let mut canvas = Canvas::new(image.width, image.height, [0; 4]);
     canvas.try_draw_layer(image, field, grid, [0.0, 0.0])?;

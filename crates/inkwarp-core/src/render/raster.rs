@@ -129,11 +129,8 @@ fn bbox(points: &[V2; 4]) -> Bbox {
 #[inline]
 fn flipped_at(plan: &Plan, w: usize, bc: usize, br: usize, k: usize) -> bool {
     let byte = plan.signs[br * (w + 1) + bc];
-    if byte & COMPLETE != 0 {
-        byte & 1 != 0
-    } else {
-        byte >> k & 1 != 0
-    }
+    let bit = if byte & COMPLETE != 0 { 0 } else { k };
+    byte >> bit & 1 != 0
 }
 
 /// An element being drawn: its bilinear corners, its rest square inside its block, and
@@ -219,30 +216,15 @@ impl Bilinear {
         // The numerically stable pair of roots: k0 / m and m / k2.
         let m = -0.5 * (k1 + w.copysign(k1));
         let solve_s = |t: f32| {
-            let dx = e[0] + g[0] * t;
-            let dy = e[1] + g[1] * t;
-            if dx.abs() >= dy.abs() {
-                (h[0] - f[0] * t) / dx
-            } else {
-                (h[1] - f[1] * t) / dy
-            }
+            let (dx, dy) = (e[0] + g[0] * t, e[1] + g[1] * t);
+            if dx.abs() >= dy.abs() { (h[0] - f[0] * t) / dx } else { (h[1] - f[1] * t) / dy }
         };
         let mut best: Option<([f32; 2], f32)> = None;
-        if m != 0.0 {
-            let t = k0 / m;
+        for t in [(m != 0.0).then(|| k0 / m), (k2 != 0.0).then(|| m / k2)].into_iter().flatten() {
             let s = solve_s(t);
-            if s.is_finite() && t.is_finite() {
-                best = Some(([s, t], distance(s, t, TOL)));
-            }
-        }
-        if k2 != 0.0 {
-            let t = m / k2;
-            let s = solve_s(t);
-            if s.is_finite() && t.is_finite() {
-                let d = distance(s, t, TOL);
-                if best.map_or(true, |(r, bd)| d < bd || (d == bd && t > r[1])) {
-                    best = Some(([s, t], d));
-                }
+            let d = distance(s, t, TOL);
+            if s.is_finite() && t.is_finite() && best.map_or(true, |(r, bd)| d < bd || (d == bd && t > r[1])) {
+                best = Some(([s, t], d));
             }
         }
         best.map(|([s, t], _)| ([s, t], distance(s, t, 0.0)))
@@ -474,10 +456,8 @@ impl Band {
         let neighbours = [(signs[bi - bw], 2, 3), (signs[bi + 1], 0, 2), (signs[bi + bw], 1, 0), (signs[bi - 1], 3, 1)];
         let col = [layer.col(i), layer.col(i + 1), layer.col(i + w), layer.col(i + w + 1)];
         let flipped = byte & 1 != 0;
-        let mut outline = [[0.0f32; 2]; 8];
-        let mut n = 0;
-        let mut edges = [([0.0f32; 2], [0.0f32; 2]); 8];
-        let mut ne = 0;
+        let (mut outline, mut n) = ([[0.0f32; 2]; 8], 0);
+        let (mut edges, mut ne) = ([([0.0f32; 2], [0.0f32; 2]); 8], 0);
         for (side, &(nbyte, ka, kb)) in neighbours.iter().enumerate() {
             let (a, z) = (q[side], q[(side + 1) % 4]);
             outline[n] = a;
@@ -503,9 +483,8 @@ impl Band {
                 }
             }
         }
-        for k in n..8 {
-            outline[k] = outline[n - 1];
-        }
+        let last = outline[n - 1];
+        outline[n..].fill(last);
         let el = Element { q, u0: 0.0, v0: 0.0, size: 1.0, col, mask: 0b1111, own: 0 };
         self.element(&outline, &el, bb, &edges[..ne], flipped);
     }
@@ -527,8 +506,7 @@ impl Band {
                 continue;
             }
             let flipped = byte >> k & 1 != 0;
-            let mut edges = [([0.0f32; 2], [0.0f32; 2]); 4];
-            let mut ne = 0;
+            let (mut edges, mut ne) = ([([0.0f32; 2], [0.0f32; 2]); 4], 0);
             for (e, kind) in QUARTER_EDGES[k].iter().enumerate() {
                 let neighbour_flipped = match kind {
                     HBlock => Some(flipped_at(plan, w, bc, if k < 2 { br - 1 } else { br + 1 }, k ^ 2)),
@@ -659,14 +637,9 @@ impl Band {
         if ay == zy {
             return;
         }
-        let (dir, (x0, y0), (x1, y1)) = if ay < zy {
-            (1.0, (ax, ay), (zx, zy))
-        } else {
-            (-1.0, (zx, zy), (ax, ay))
-        };
+        let (dir, (x0, y0), (x1, y1)) = if ay < zy { (1.0, (ax, ay), (zx, zy)) } else { (-1.0, (zx, zy), (ax, ay)) };
         let dxdy = (x1 - x0) / (y1 - y0);
-        let top = self.y0 as f64;
-        let bottom = (self.y0 + self.rows) as f64;
+        let (top, bottom) = (self.y0 as f64, (self.y0 + self.rows) as f64);
         let (ys, ye) = (y0.max(top), y1.min(bottom));
         if ys >= ye {
             return;

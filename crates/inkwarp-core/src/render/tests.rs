@@ -173,7 +173,7 @@ proptest! {
     fn identity_reproduces_the_layer(
         (image, grid) in rgba_image(14).prop_flat_map(|im| { let (w, h) = (im.width, im.height); (Just(im), random_grid(w, h)) })
     ) {
-        let out = warp_image(&image, &Field::zeros(image.width, image.height), &grid);
+        let out = try_warp_image(&image, &Field::zeros(image.width, image.height), &grid).unwrap();
         prop_assert_eq!(out, canonical(&image));
     }
 
@@ -265,7 +265,7 @@ fn render_shift(image: &RgbaImage, tx: i32, ty: i32, cw: usize, ch: usize) -> Rg
 fn identity_on_a_large_opaque_image_is_exact() {
     let image = opaque_noise(67, 45, 7);
     assert_eq!(
-        warp_image(&image, &Field::zeros(67, 45), &Grid::new(67, 45)),
+        try_warp_image(&image, &Field::zeros(67, 45), &Grid::new(67, 45)).unwrap(),
         image
     );
 }
@@ -511,7 +511,7 @@ fn inactive_visible_pixels_are_drawn_as_isolated_squares() {
         matte[y * w + 4] = 0;
     }
     let grid = Grid::from_matte(w, h, &matte);
-    assert_eq!(warp_image(&image, &Field::zeros(w, h), &grid), image);
+    assert_eq!(try_warp_image(&image, &Field::zeros(w, h), &grid).unwrap(), image);
 }
 
 #[test]
@@ -554,7 +554,7 @@ fn non_finite_displacements_drop_their_pixels() {
     let mut field = Field::zeros(5, 5);
     field.dx[12] = f32::NAN;
     field.dy[3] = f32::INFINITY;
-    let out = warp_image(&image, &field, &Grid::new(5, 5));
+    let out = try_warp_image(&image, &field, &Grid::new(5, 5)).unwrap();
     assert_eq!(out.pixel(2, 2)[3], 0);
     assert_eq!(out.pixel(3, 0)[3], 0);
     assert_eq!(out.pixel(0, 0), image.pixel(0, 0));

@@ -42,9 +42,8 @@ fn level(image: &RgbaImage, field: &Field, grid: &Grid, k: usize) -> (RgbaImage,
     let mut active = vec![false; n];
     // Per level pixel: every link in that direction inside the block is present.
     let (mut whole_right, mut whole_down) = (vec![true; n], vec![true; n]);
-    let mut col = vec![[0f64; 4]; lw];
-    let mut pos = vec![[0f64; 3]; lw];
-    let mut count = vec![0u32; lw];
+    // Per level pixel of the row: the sums of its block's colours and drawn positions.
+    let (mut col, mut pos, mut count) = (vec![[0f64; 4]; lw], vec![[0f64; 3]; lw], vec![0u32; lw]);
     for j in 0..lh {
         col.iter_mut().for_each(|c| *c = [0.0; 4]);
         pos.iter_mut().for_each(|p| *p = [0.0; 3]);
@@ -94,8 +93,7 @@ fn level(image: &RgbaImage, field: &Field, grid: &Grid, k: usize) -> (RgbaImage,
             }
         }
     }
-    let mut link_right = vec![false; n];
-    let mut link_down = vec![false; n];
+    let (mut link_right, mut link_down) = (vec![false; n], vec![false; n]);
     for j in 0..lh {
         for i in 0..lw {
             let li = j * lw + i;

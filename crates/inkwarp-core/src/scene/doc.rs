@@ -202,6 +202,9 @@ pub struct SolverOverrides {
 }
 
 impl SolverOverrides {
+    /// The overrides that only change the method (none for `None`).
+    pub fn method(method: Option<Method>) -> Self { SolverOverrides { method, ..Self::default() } }
+
     /// The scene's settings with these overrides applied.
     pub fn apply(&self, base: &SolverDoc) -> SolverDoc {
         SolverDoc {

@@ -82,9 +82,6 @@ pub(super) fn compute_field(
     solved
 }
 
-/// The overrides that only change the method (none for `None`).
-fn method_override(method: Option<Method>) -> SolverOverrides { SolverOverrides { method, ..SolverOverrides::default() } }
-
 /// One driving feature's samples at one time.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FeatureSamples {
@@ -191,18 +188,7 @@ impl Scene {
     /// The field of layer `layer` at time `time_s`, starting from `initial` (warm start)
     /// or from zero.
     pub fn layer_field(&self, layer: usize, time_s: f64, initial: Option<&Field>) -> Result<LayerSolve, SceneError> {
-        self.layer_field_with(layer, time_s, initial, None)
-    }
-
-    /// [`Scene::layer_field`] with `method` instead of the layer's own, when given.
-    pub fn layer_field_with(
-        &self,
-        layer: usize,
-        time_s: f64,
-        initial: Option<&Field>,
-        method: Option<Method>,
-    ) -> Result<LayerSolve, SceneError> {
-        self.layer_field_overridden(layer, time_s, initial, &method_override(method))
+        self.layer_field_overridden(layer, time_s, initial, &SolverOverrides::default())
     }
 
     /// [`Scene::layer_field`] with `overrides` applied over the layer's own settings (a
@@ -308,7 +294,7 @@ impl Scene {
     /// layer's own, when given, and the warnings of its solves (see
     /// [`Scene::convergence_warning`]).
     pub fn render_warned(&self, time_s: f64, method: Option<Method>) -> Result<(RgbaImage, Vec<String>), SceneError> {
-        let mut animator = Animator::with_method(self, method);
+        let mut animator = Animator::with_overrides(self, SolverOverrides::method(method));
         let image = animator.render(time_s)?;
         Ok((image, animator.take_warnings()))
     }
@@ -316,7 +302,7 @@ impl Scene {
     /// Frames `frames` rendered by up to `threads` threads (0: [`default_frame_threads`]),
     /// delivered in order. See [`WARM_CHAIN_FRAMES`] for how warm starts are chained.
     pub fn frames(self: &Arc<Self>, frames: Range<usize>, threads: usize) -> FrameStream {
-        FrameStream::with_method(Arc::clone(self), frames, threads, None)
+        FrameStream::new(Arc::clone(self), frames, threads, SolverOverrides::default())
     }
 }
 
@@ -336,15 +322,7 @@ pub struct Animator<'a> {
 
 impl<'a> Animator<'a> {
     /// An animator with no previous fields (the first solve is cold).
-    pub fn new(scene: &'a Scene) -> Self {
-        Self::with_method(scene, None)
-    }
-
-    /// An animator that computes every field with `method` (when given) instead of each
-    /// layer's own.
-    pub fn with_method(scene: &'a Scene, method: Option<Method>) -> Self {
-        Self::with_overrides(scene, method_override(method))
-    }
+    pub fn new(scene: &'a Scene) -> Self { Self::with_overrides(scene, SolverOverrides::default()) }
 
     /// An animator that applies `overrides` over every layer's own settings.
     pub fn with_overrides(scene: &'a Scene, overrides: SolverOverrides) -> Self {
@@ -370,9 +348,7 @@ impl<'a> Animator<'a> {
     }
 
     /// The warnings of the solves since the last call (a solve that did not converge).
-    pub fn take_warnings(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.warnings)
-    }
+    pub fn take_warnings(&mut self) -> Vec<String> { std::mem::take(&mut self.warnings) }
 
     /// The field of layer `layer` at `time_s`, started from the layer's earlier frames (the
     /// thin plate; the other methods start from nothing).
@@ -421,14 +397,8 @@ pub struct FrameStream {
 
 impl FrameStream {
     /// Frames `frames` (clamped to the scene) by up to `threads` threads (0: the default,
-    /// [`default_frame_threads`]), every field computed by `method` (when given) instead of
-    /// each layer's own.
-    pub fn with_method(scene: Arc<Scene>, frames: Range<usize>, threads: usize, method: Option<Method>) -> Self {
-        Self::with_overrides(scene, frames, threads, method_override(method))
-    }
-
-    /// [`FrameStream::with_method`], `overrides` applied over every layer's own settings.
-    pub fn with_overrides(scene: Arc<Scene>, frames: Range<usize>, threads: usize, overrides: SolverOverrides) -> Self {
+    /// [`default_frame_threads`]), `overrides` applied over every layer's own settings.
+    pub fn new(scene: Arc<Scene>, frames: Range<usize>, threads: usize, overrides: SolverOverrides) -> Self {
         let end = frames.end.min(scene.frame_count());
         let mut chains = Vec::new();
         let mut start = frames.start;
@@ -448,20 +418,14 @@ impl FrameStream {
     }
 
     /// Number of frames this stream delivers in all.
-    pub fn len(&self) -> usize {
-        self.chains.iter().map(|c| c.len()).sum()
-    }
+    pub fn len(&self) -> usize { self.chains.iter().map(|c| c.len()).sum() }
 
     /// The warnings of the frames delivered since the last call (each names its layer and
     /// frame; see [`Scene::convergence_warning`]).
-    pub fn take_warnings(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.warnings)
-    }
+    pub fn take_warnings(&mut self) -> Vec<String> { std::mem::take(&mut self.warnings) }
 
     /// Whether the stream delivers no frame at all.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
+    pub fn is_empty(&self) -> bool { self.len() == 0 }
 
     fn start_workers(&mut self, threads: usize) {
         let mut senders: Vec<Option<SyncSender<WorkerResult>>> = Vec::with_capacity(self.chains.len());

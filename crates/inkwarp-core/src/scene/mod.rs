@@ -4,8 +4,8 @@
 //! - [`doc`]: the format as serde types, and its JSON Schema.
 //! - [`parse_doc`]: JSON text to a validated [`SceneDoc`], every problem reported as a
 //!   [`Problem`] (a JSON path and a message that says how to fix it).
-//! - [`Scene::from_json`] / [`Scene::resolve`]: a document plus its images (read by the
-//!   front end through a loader callback; `data:` URIs decoded here) to a renderable scene.
+//! - [`Scene::from_json`]: a document plus its images (read by the front end through a
+//!   loader callback; `data:` URIs decoded here) to a renderable scene.
 //! - [`Scene::render`], [`Animator`], [`FrameStream`]: fields and frames, warm-started from
 //!   frame to frame, in parallel across cores for whole animations.
 //!
@@ -347,19 +347,7 @@ impl Scene {
     /// paths (`data:` URIs are decoded here). Every problem is reported, images included.
     pub fn from_json(text: &str, load: &mut Loader<'_>) -> Result<Scene, SceneError> {
         let mut parsed = parse_json(text)?;
-        match parsed.doc.take() {
-            Some(doc) => Self::resolve_with(doc, parsed, load),
-            None => Err(SceneError { problems: parsed.problems }),
-        }
-    }
-
-    /// Validates `doc` and loads its images (see [`Scene::from_json`]).
-    pub fn resolve(doc: SceneDoc, load: &mut Loader<'_>) -> Result<Scene, SceneError> {
-        let parsed = Parsed { problems: validate_doc(&doc), ..Parsed::default() };
-        Self::resolve_with(doc, parsed, load)
-    }
-
-    fn resolve_with(doc: SceneDoc, mut parsed: Parsed, load: &mut Loader<'_>) -> Result<Scene, SceneError> {
+        let Some(doc) = parsed.doc.take() else { return Err(SceneError { problems: parsed.problems }) };
         let mut problems = Vec::new();
         // Decode every image once, keep the problems of each place that refers to it.
         let mut decoded: HashMap<String, Result<Arc<RgbaImage>, String>> = HashMap::new();

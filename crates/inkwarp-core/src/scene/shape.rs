@@ -63,14 +63,12 @@ impl<'a> Walker<'a> {
         }
         if let Some(constant) = schema.get("const").filter(|&c| c != value) {
             let found = describe(value);
-            self.push(
-                path,
-                if path == "inkwarp" {
-                    format!("this inkwarp reads scene format {constant}, found {found}; set \"inkwarp\": {constant} (and convert the scene if it was written for another format)")
-                } else {
-                    format!("must be {constant}, found {found}")
-                },
-            );
+            let why = if path == "inkwarp" {
+                format!("this inkwarp reads scene format {constant}, found {found}; set \"inkwarp\": {constant} (and convert the scene if it was written for another format)")
+            } else {
+                format!("must be {constant}, found {found}")
+            };
+            self.push(path, why);
             return false;
         }
         if let Some(options) = schema.get("enum").and_then(Value::as_array) {
@@ -152,10 +150,8 @@ impl<'a> Walker<'a> {
                         let hint = did_you_mean(key, names.clone()).map(|s| format!("did you mean \"{s}\"? ")).unwrap_or_default();
                         let valid: Vec<&str> = names.collect();
                         self.unknown_keys.push(join_key(path, key));
-                        self.push(
-                            &join_key(path, key),
-                            format!("unknown key \"{key}\" in {what}; {hint}the keys of {what} are {}", valid.join(", ")),
-                        );
+                        let why = format!("unknown key \"{key}\" in {what}; {hint}the keys of {what} are {}", valid.join(", "));
+                        self.push(&join_key(path, key), why);
                     }
                     None => {}
                 }
@@ -202,19 +198,15 @@ impl<'a> Walker<'a> {
 
     fn number(&mut self, value: &Value, schema: &Value, path: &str) {
         let x = value.as_f64().unwrap_or(f64::NAN);
-        if let Some(format) = schema.get("format").and_then(Value::as_str) {
-            let limit = match format {
-                "uint8" => Some(u8::MAX as f64),
-                "uint16" => Some(u16::MAX as f64),
-                "uint32" => Some(u32::MAX as f64),
-                _ => None,
-            };
-            if let Some(limit) = limit {
-                if x > limit {
-                    self.push(path, format!("must be at most {limit}, found {value}"));
-                    return;
-                }
-            }
+        let limit = match schema.get("format").and_then(Value::as_str) {
+            Some("uint8") => u8::MAX as f64,
+            Some("uint16") => u16::MAX as f64,
+            Some("uint32") => u32::MAX as f64,
+            _ => f64::INFINITY,
+        };
+        if x > limit {
+            self.push(path, format!("must be at most {limit}, found {value}"));
+            return;
         }
         if let Some(min) = schema.get("minimum").and_then(Value::as_f64).filter(|&min| x < min) {
             self.push(path, format!("must be at least {}, found {value}", fmt_num(min)));
@@ -299,11 +291,8 @@ pub(crate) fn describe(value: &Value) -> String {
 }
 
 fn list(values: &[Value]) -> String {
-    let names: Vec<String> = values
-        .iter()
-        .map(|v| if let Value::String(s) = v { format!("\"{s}\"") } else { v.to_string() })
-        .collect();
-    names.join(", ")
+    let name = |v: &Value| if let Value::String(s) = v { format!("\"{s}\"") } else { v.to_string() };
+    values.iter().map(name).collect::<Vec<_>>().join(", ")
 }
 
 fn fmt_num(x: f64) -> String {

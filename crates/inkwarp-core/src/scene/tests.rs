@@ -599,8 +599,8 @@ fn every_method_reads_the_drawing_of_an_offset_layer_where_the_layer_shows() {
                            Scene::from_json(&placed.to_string(), &mut files(&valid_files())).unwrap());
     assert_eq!(plain.layer_samples(1, 0.75).unwrap(), placed.layer_samples(1, 0.75).unwrap());
     for method in [None, Some(Method::TpsExact), Some(Method::Triangulation), Some(Method::BeierNeely)] {
-        let want = plain.layer_field_with(1, 0.75, None, method).unwrap().field;
-        let got = placed.layer_field_with(1, 0.75, None, method).unwrap().field;
+        let want = plain.layer_field_overridden(1, 0.75, None, &SolverOverrides::method(method)).unwrap().field;
+        let got = placed.layer_field_overridden(1, 0.75, None, &SolverOverrides::method(method)).unwrap().field;
         let worst = want.dx.iter().chain(&want.dy).zip(got.dx.iter().chain(&got.dy)).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
         assert!(worst < 1e-4, "{method:?}: {worst}");
         assert!(want.dx.iter().any(|v| v.abs() > 0.5), "{method:?} moved nothing");
@@ -714,7 +714,7 @@ fn the_method_can_be_chosen_per_call() {
         assert_ne!(frame, scene.render(0.7).unwrap(), "{}", method.name());
     }
     let stream =
-        FrameStream::with_method(Arc::clone(&scene), 0..3, 2, Some(Method::Triangulation));
+        FrameStream::new(Arc::clone(&scene), 0..3, 2, SolverOverrides::method(Some(Method::Triangulation)));
     assert_eq!(stream.filter(|f| f.is_ok()).count(), 3);
 }
 
@@ -746,9 +746,9 @@ fn method_settings_in_the_scene_reach_the_interpolants() {
     let (want, _) = controls_field(Interpolant::BeierNeely, &controls, &scene.layers()[0].grid, &params).unwrap();
     let got = scene.layer_field(0, 1.0, None).unwrap();
     assert_eq!(got.field, want);
-    assert_ne!(got.field, plain.layer_field_with(0, 1.0, None, Some(Method::BeierNeely)).unwrap().field);
+    assert_ne!(got.field, plain.layer_field_overridden(0, 1.0, None, &SolverOverrides::method(Some(Method::BeierNeely))).unwrap().field);
     // tps-exact thins to the scene's max_samples, and says so.
-    let exact = scene.layer_field_with(0, 1.0, None, Some(Method::TpsExact)).unwrap();
+    let exact = scene.layer_field_overridden(0, 1.0, None, &SolverOverrides::method(Some(Method::TpsExact))).unwrap();
     let report = exact.method_report.as_ref().unwrap();
     assert_eq!(report.samples_used, 3);
     assert!(exact.notes().iter().any(|n| n.contains("thinned") && n.contains("to 3")), "{:?}", exact.notes());
@@ -789,7 +789,7 @@ fn rendering_passes_the_interpolants_notes_up() {
     doc["layers"][0]["features"] = json!([]);
     let still = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
     for method in Method::ALL {
-        let solved = still.layer_field_with(0, 1.0, None, Some(method)).unwrap();
+        let solved = still.layer_field_overridden(0, 1.0, None, &SolverOverrides::method(Some(method))).unwrap();
         assert!(solved.field.dx.iter().chain(&solved.field.dy).all(|&v| v == 0.0), "{method}");
     }
     // Overrides are checked like a scene's solver settings.

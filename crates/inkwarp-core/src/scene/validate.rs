@@ -180,10 +180,8 @@ fn check_unique<'d>(
     if value.trim().is_empty() {
         p.push(Problem::new(path, format!("a {noun} needs a non-empty {key}")));
     } else if let Some(&earlier) = first.get(value) {
-        p.push(Problem::new(
-            path,
-            format!("the {key} \"{value}\" is already used by {list}[{earlier}]; give each {noun} its own {key}"),
-        ));
+        let why = format!("the {key} \"{value}\" is already used by {list}[{earlier}]; give each {noun} its own {key}");
+        p.push(Problem::new(path, why));
     } else {
         first.insert(value, index);
     }
@@ -212,10 +210,8 @@ pub fn validate_overrides(solver: &SolverOverrides, path: &str) -> Vec<Problem> 
     // the scene's way.
     if let Some(BeierNeelyDoc { a, b, p }) = solver.beier_neely {
         if !(a.is_finite() && a > 0.0 && a <= MAX_BEIER_NEELY_A) {
-            push(
-                "beier_neely.a",
-                format!("Beier–Neely's a must be a number of pixels > 0 and at most {MAX_BEIER_NEELY_A:e}, found {}; the default is 1 (smaller values follow the drawing more tightly)", limits::show(a)),
-            );
+            let why = format!("Beier–Neely's a must be a number of pixels > 0 and at most {MAX_BEIER_NEELY_A:e}, found {}; the default is 1 (smaller values follow the drawing more tightly)", limits::show(a));
+            push("beier_neely.a", why);
         }
         for (key, value, default) in [("b", b, 2), ("p", p, 0)] {
             if !(value.is_finite() && (0.0..=MAX_BEIER_NEELY_EXPONENT).contains(&value)) {
@@ -226,10 +222,8 @@ pub fn validate_overrides(solver: &SolverOverrides, path: &str) -> Vec<Problem> 
     }
     let limit = TpsExactDoc::MAX_SAMPLES_LIMIT;
     if let Some(n) = solver.tps_exact.map(|t| t.max_samples).filter(|n| !(1..=limit).contains(n)) {
-        push(
-            "tps_exact.max_samples",
-            format!("max_samples must be a whole number from 1 to {limit}, found {n}; the default is 1000 (the fit takes O(n³) time and O(n²) memory)"),
-        );
+        let why = format!("max_samples must be a whole number from 1 to {limit}, found {n}; the default is 1000 (the fit takes O(n³) time and O(n²) memory)");
+        push("tps_exact.max_samples", why);
     }
     p
 }
