@@ -57,9 +57,11 @@ pub(crate) struct Hierarchy {
     pub direction: Vec<W2>,
     /// The finest level's affine functions, corrected exactly after every cycle (see [`Affine`]).
     pub affine: Option<Affine>,
-    /// The slow modes the last solve's deflation found (see [`super::deflate::Modes`]).
+    /// The slow modes the last slow solve kept: its deflation's, or after a probe the slowest
+    /// of the probe's and the deflation's at that cycle (see [`super::deflate::Modes`]).
     pub modes: Option<super::deflate::Modes>,
-    /// Whether a solve has probed its operator for slow modes (see `super::probe`).
+    /// Whether a solve has probed its operator for slow modes (see `super::probe`), and
+    /// converged.
     pub probed: bool,
     /// Whether the finest level is the only one, solved by its banded factor.
     pub whole: bool,

@@ -233,9 +233,10 @@ impl Deflation {
 
     /// Keeps `modes` (the Ritz vectors, or an earlier solve's [`Deflation::modes`]) as the
     /// vectors, a new basis (`Bᵀ B = I`, `Bᵀ A B = E`, no window); corrects `u` and `r` on
-    /// them, and projects every later direction.
-    pub fn adopt(&mut self, Modes(w, aw, e): Modes, u: &mut [V2], r: &mut [V2]) {
-        if !self.on || w[0].len() != u.len() { return; }
+    /// them, and projects every later direction. At most as many as the budget leaves room for.
+    pub fn adopt(&mut self, modes: Modes, u: &mut [V2], r: &mut [V2]) {
+        if !self.on || modes.0[0].len() != u.len() { return; }
+        let Modes(w, aw, e) = modes.first(self.room);
         self.m = (0..e.len()).map(|l| (0..e.len()).map(|j| if l == j { 1.0 } else { 0.0 }).collect()).collect();
         (self.w, self.aw, self.g, self.e) = (w, aw, e.clone(), e);
         self.v.clear();

@@ -691,13 +691,13 @@ fn solve_piece(
                 slow.adopt(modes, &mut u, &mut r);
             }
             let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
-            let mut probed = None;
+            let (mut probed, mut looked) = (None, false);
             for cycle in 1..=cycles {
                 if crate::interrupt::requested() { break; }
                 if may_probe && cycle == PROBE_AT && !hier.probed {
                     // A slow solve: its operator probed once for the slow modes its residual
                     // may not show, deflated from here on.
-                    hier.probed = true;
+                    (hier.probed, looked) = (true, true);
                     if let Some(rest) = probe(&mut hier, settled.as_ref(), len) {
                         // Deflated here: what the probe left. Kept for the next solve of this
                         // operator: the slowest modes of that and of the vectors kept so far.
@@ -749,7 +749,7 @@ fn solve_piece(
                 (rz, beta) = next_direction(&mut hier, &r, &q, &mut p, (alpha, along), settled.as_ref(), Some(&slow));
                 slow.beta(Some(beta));
             }
-            found = slow.restarts > 0;
+            found = slow.restarts > 0 || looked;
             hier.modes = probed.or_else(|| slow.modes()).or(hier.modes.take());
         }
         SolveMethod::Southwell => {
@@ -801,8 +801,9 @@ fn solve_piece(
         report.fail(Stop::Residual);
     }
     // Slow modes found by a solve that did not converge are not kept: adopted, they quieted the
-    // next solve's changes before the mode that stopped this one showed (a false claim).
-    if found && !report.converged { hier.modes = None }
+    // next solve's changes before the mode that stopped this one showed (a false claim). Nor
+    // is its probe counted: the next slow solve probes again.
+    if found && !report.converged { (hier.modes, hier.probed) = (None, false) }
     hier.spare.extend([r, q]);
     hier.direction = p;
     let fine = &hier.levels[0];
