@@ -939,11 +939,12 @@ impl Solver {
     }
 
     /// [`Solver::solve_warm`] for an animation's frame: after a multigrid frame that did not
-    /// converge the next starts afresh (from its answer, whose error the stopping rule does not
-    /// see, it claimed convergence 0.7 px off); Southwell's (a fixed budget) stay starts.
+    /// converge, or any that failed (an interrupt), the next starts afresh (from its answer,
+    /// whose error the stopping rule does not see, it claimed convergence 0.7 px off);
+    /// Southwell's (a fixed budget) stay starts.
     pub fn solve_frame(&mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions) -> Result<(Field, SolveReport), SolveError> {
         let solved = self.solve_warm(grid, samples, options, None);
-        if matches!(&solved, Ok((_, r)) if !r.converged && options.method == SolveMethod::Multigrid) { self.history.clear() }
+        if solved.as_ref().map_or(true, |(_, r)| !r.converged && options.method == SolveMethod::Multigrid) { self.history.clear() }
         solved
     }
 
