@@ -87,3 +87,19 @@ def test_every_example_scene_is_valid(capsys):
         for scene in scenes:
             code, stdout, _ = run(capsys, "validate", root / name / scene)
             assert code == 0 and stdout.startswith("ok: "), (name, scene, stdout)
+
+
+def test_a_warning_along_the_way_is_one_line(capsys, tmp_path, monkeypatch):
+    # The rotoscope example's lost track came out as a Python warning: the launcher's path
+    # and line, then its source line.
+    import warnings
+
+    from inkwarp.errors import InkwarpWarning
+
+    def run_with_a_warning(out, **_):
+        warnings.warn("actor.mp4: lost track of 'head' at frame 55", InkwarpWarning, stacklevel=2)
+
+    monkeypatch.setattr(demo, "run", run_with_a_warning)
+    code, _, stderr = run(capsys, "demo", "-o", tmp_path / "out")
+    assert code == 0
+    assert stderr == "inkwarp demo: warning: actor.mp4: lost track of 'head' at frame 55\n"

@@ -46,8 +46,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from inkwarp import demo
+    from inkwarp.cli.render import convergence_lines
 
     formats = [f.strip().lower() for f in args.formats.split(",") if f.strip()]
-    demo.run(args.output, only=args.only, formats=formats, examples_dir=args.examples,
-             quiet=args.quiet)
+    # Warnings (the rotoscope example's lost track) as one line each, as `inkwarp render`
+    # and `inkwarp track` show them, not as Python warnings.
+    with convergence_lines("demo"):
+        demo.run(args.output, only=args.only, formats=formats, examples_dir=args.examples,
+                 quiet=args.quiet)
     return 0
