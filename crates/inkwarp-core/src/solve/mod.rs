@@ -691,13 +691,13 @@ fn solve_piece(
                 slow.adopt(modes, &mut u, &mut r);
             }
             let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
-            let (mut probed, mut looked) = (None, false);
+            let mut probed = None;
             for cycle in 1..=cycles {
                 if crate::interrupt::requested() { break; }
                 if may_probe && cycle == PROBE_AT && !hier.probed {
                     // A slow solve: its operator probed once for the slow modes its residual
                     // may not show, deflated from here on.
-                    (hier.probed, looked) = (true, true);
+                    (hier.probed, found) = (true, true);
                     if let Some(rest) = probe(&mut hier, settled.as_ref(), len) {
                         // Deflated here: what the probe left. Kept for the next solve of this
                         // operator: the slowest modes of that and of the vectors kept so far.
@@ -749,7 +749,7 @@ fn solve_piece(
                 (rz, beta) = next_direction(&mut hier, &r, &q, &mut p, (alpha, along), settled.as_ref(), Some(&slow));
                 slow.beta(Some(beta));
             }
-            found = slow.restarts > 0 || looked;
+            found |= slow.restarts > 0;
             hier.modes = probed.or_else(|| slow.modes()).or(hier.modes.take());
         }
         SolveMethod::Southwell => {
