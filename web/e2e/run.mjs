@@ -97,6 +97,12 @@ async function openEditor(browser, url, viewport = { width: 1400, height: 900 })
 }
 
 const idle = (page) => page.evaluate(() => window.inkwarp.app.idle());
+// Restores the offered work and waits for the restore to finish (its message), not only for
+// its scene to show: the page marks it unsaved and points it at its file after that.
+const restoreYes = async (page) => {
+  await page.click('#restore-yes');
+  await page.waitForFunction(() => /Restored the scene/.test(document.querySelector('#message')?.textContent ?? ''), null, { timeout: 10000 });
+};
 // The autosaver is the page's once its start settles (an IndexedDB read, later than ready).
 const flush = async (page) => {
   await page.waitForFunction(() => window.inkwarp.autosave, null, { timeout: 10000 });
@@ -1082,7 +1088,7 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
     const question = await p.textContent('#restore span');
     assert(/^Restore the scene you were editing at \d\d:\d\d\?$/.test(question), `the offer reads: ${question}`);
     await screenshot(p, 'restore');
-    await p.click('#restore-yes');
+    await restoreYes(p);
     await p.waitForFunction((f) => JSON.stringify(window.inkwarp.store.doc.features) === f, before, { timeout: 10000 });
     const shown = await p.evaluate(() => ({ unsaved: window.inkwarp.store.unsaved, images: window.inkwarp.store.doc.layers.every((l) => !l.image || l.image.startsWith('data:')) }));
     assert(shown.unsaved && shown.images, `restored unsaved, with its images: ${JSON.stringify(shown)}`);
@@ -1217,7 +1223,7 @@ test('a scene opened by inkwarp edit is where Undo stops, and Undo after a resto
     await p.reload();
     await p.waitForSelector('body[data-ready]');
     await p.waitForSelector('#restore', { timeout: 10000 });
-    await p.click('#restore-yes');
+    await restoreYes(p);
     await p.waitForFunction(() => window.inkwarp.store.doc.features.length === 1, null, { timeout: 10000 });
     now = await state();
     assert(now.unsaved && now.title.startsWith('● '), `restored, unsaved: ${JSON.stringify(now)}`);
@@ -1249,7 +1255,7 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
     await p.waitForSelector('#restore', { timeout: 10000 });
     const question = await p.textContent('#restore span');
     assert(/^Restore the scene you were editing at \d\d:\d\d\?$/.test(question), `the offer reads: ${question}`);
-    await p.click('#restore-yes');
+    await restoreYes(p);
     await p.waitForFunction(() => window.inkwarp.store.doc.features.length === 1, null, { timeout: 10000 });
     await p.keyboard.press('Control+s');
     await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
@@ -1268,8 +1274,10 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
     const again = await p.textContent('#restore span');
     assert(/^Restore the scene you were editing at \d\d:\d\d\?$/.test(again), `offered as the file's own: ${again}`);
     await p.click('#restore-yes');
+    // From the moment the restored scene shows (a save then goes to its file, not a download).
     await p.waitForFunction(() => window.inkwarp.store.doc.features.length === 2, null, { timeout: 10000 });
     assert((await p.evaluate(() => window.inkwarp.store.origin.saveUrl)) !== null, 'it saves to its file');
+    await p.waitForFunction(() => /Restored the scene/.test(document.querySelector('#message')?.textContent ?? ''), null, { timeout: 10000 });
     renameSync(`${picture}.moved`, picture);
     await p.keyboard.press('Control+s');
     await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
@@ -1300,7 +1308,7 @@ test('a value typed into a field and not entered is kept when the page is left',
     await flush(p);
     await p.reload();
     await p.waitForSelector('#restore', { timeout: 20000 });
-    await p.click('#restore-yes');
+    await restoreYes(p);
     await p.waitForFunction(() => window.inkwarp.store.doc.duration === 0.5, null, { timeout: 10000 });
     assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
   } finally {
@@ -1328,7 +1336,7 @@ test('work kept over a server restart takes the picture retouched on disk since,
     own = await startServer([scenePath, '--port', port]);
     await p.goto(own.url);
     await p.waitForSelector('#restore', { timeout: 20000 });
-    await p.click('#restore-yes');
+    await restoreYes(p);
     await p.waitForFunction((n) => window.inkwarp.store.doc.features.length === n, features, { timeout: 10000 });
     return p.evaluate(() => document.querySelector('#message')?.textContent ?? '');
   };
@@ -1473,8 +1481,7 @@ test('two tabs closed with unsaved work: each is offered back, neither overwrite
       await p.waitForSelector('#restore', { timeout: 10000 });
       const question = await p.textContent('#restore span');
       assert(i === 1 || /1 more kept from other tabs/.test(question), `the first offer says another is kept: ${question}`);
-      await p.click('#restore-yes');
-      await p.waitForFunction(() => /Restored/.test(document.querySelector('#message')?.textContent ?? ''));
+      await restoreYes(p);
       found.add(JSON.stringify(await last(p)));
     }
     assert(JSON.stringify([...found].sort()) === JSON.stringify([...wanted].sort()), `both tabs' work came back: ${[...found]} of ${[...wanted]}`);

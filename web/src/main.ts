@@ -181,17 +181,18 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
       // Into its own file's page: pictures retouched on disk since come from the file.
       let { doc, taken } = own && openedDoc && pictures ? restorePictures(previous.doc, previous.pictures, openedDoc, pictures) : { doc: previous.doc, taken: [] as string[] };
       let misfit = '';
+      // Back to its own file, which a save checks is still as the kept work found it: set
+      // with the scene, so that a save made while the page settles goes to the file too.
+      const back = own && served?.saveUrl ? { origin: { saveUrl: served.saveUrl, path: served.path, version: previous.version ?? null } } : {};
       try {
-        await ui.openScene(doc, previous.fileName);
+        await ui.openScene(doc, previous.fileName, true, back);
       } catch (err) {
         // A picture retouched to another size no longer fits the kept scene: the kept copy.
         if (!taken.length) throw err;
         misfit = `; the picture of ${taken.map((n) => `layer '${n}'`).join(', ')} changed on disk since, but the scene did not open with it (${(err as Error).message}), so the kept copy is shown, and a save writes it into the scene`;
         [doc, taken] = [previous.doc, []];
-        await ui.openScene(doc, previous.fileName);
+        await ui.openScene(doc, previous.fileName, true, back);
       }
-      // Back to its own file, which a save checks is still as the kept work found it.
-      if (own && served?.saveUrl) Object.assign(store.origin, { saveUrl: served.saveUrl, path: served.path, version: previous.version ?? null });
       // Back where the editor was: pose mode stays pose mode, at the same time.
       if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
       store.markUnsaved();
