@@ -85,6 +85,8 @@ export interface Stats {
   frames: { drawn: number; overlayOnly: number };
   /** The frames solved ahead (see `App.scheduleAhead`), in the order they arrived. */
   ahead: number[];
+  /** Frames being solved ahead that were ended (a press on the picture, a change: see `App.cancelAhead`). */
+  aheadCancelled: number;
   /** Where opening the last layer's picture took its time (ms), by step. */
   open: Record<string, number>;
   /** The full-resolution frames of a proxied scene: request to arrival (ms). */
@@ -163,7 +165,7 @@ function frameParts(
 type FrameFn = (gpuDone: number, drawn: { start: number; end: number }) => void;
 
 function emptyStats(): Stats {
-  return { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 }, ahead: [], open: {}, fullMs: [], fullParts: [] };
+  return { dragLatency: [], settle: [], draftSolveMs: [], finalSolveMs: [], followSolveMs: [], probeSolveMs: [], probesAsked: { rest: 0, press: 0 }, playback: null, settleParts: [], dragParts: [], frames: { drawn: 0, overlayOnly: 0 }, ahead: [], aheadCancelled: 0, open: {}, fullMs: [], fullParts: [] };
 }
 
 /** Fields kept for playback (a 512×512 layer's field is 2 MiB). */
@@ -180,8 +182,6 @@ const DRAWN_BUDGET_BYTES = 96 * 2 ** 20;
 const AHEAD_IDLE_MS = 400;
 /** The ahead worker is replaced by a fresh one once it has nothing to solve and its module holds more than this (see `App.renewAhead`). */
 export const AHEAD_RENEW_BYTES = 64 * 2 ** 20;
-/** The multigrid cycles of one request for a frame solved ahead (it is asked again until it converges). */
-const AHEAD_CYCLES = 2;
 /** A multisampled full frame slower than this (ms) is preceded by a single-sampled one. */
 const SLOW_ANTIALIAS_MS = 50;
 /**
@@ -313,6 +313,7 @@ export class App {
       const gridsNow = this.gridsDue && !store.inGesture;
       if (gridsNow) this.gridEpoch++;
       if (docChanged || gridsNow) this.syncLayers();
+      if (docChanged) this.cancelAhead(false);
       this.dropStale();
       this.scheduleAhead();
       this.requestSolve(this.dragging ? 'draft' : 'final');
@@ -765,19 +766,29 @@ export class App {
       for (const layer of this.doc.layers) {
         const rt = this.runtimes.get(layer.name);
         if (!rt?.gridReady || !rt.gl || this.cache.rev === this.revision && this.cache.frames.get(frame)?.has(layer.name)) continue;
-        // A few cycles a request, each continuing from the last (the worker keeps it), until
-        // the frame converges: a drag that starts meanwhile waits for a few cycles at most.
-        // A scene's own cycle limit is kept as it is.
-        const options = this.solverOptions(layer, 'final');
-        const chunked = options.method === 'tps' && (options.max_cycles ?? null) === null;
-        ahead.solve(layer.name, this.solveFeatures(layer, time), chunked ? { ...options, max_cycles: AHEAD_CYCLES } : options, {
-          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.revision, frame, ahead: true, chunked, prefetch: true, seq: ++this.seq,
+        // Solved whole, as `inkwarp render` solves the frame (with its report): a press on the
+        // picture or a change of the scene meanwhile ends it (`cancelAhead`), so a drag never
+        // waits for it. (Solved a few cycles a request instead, each continuing from the last,
+        // the frame never reached the cycles that find a torn grid's slow modes, and a series
+        // could end on a small change far from the answer.)
+        ahead.solve(layer.name, this.solveFeatures(layer, time), this.solverOptions(layer, 'final'), {
+          madeAt: performance.now(), quality: 'final', gen: rt.gridGen, time, rev: this.revision, frame, ahead: true, prefetch: true, seq: ++this.seq,
         });
         asked = true;
       }
       if (asked) return;
     }
     this.renewAhead();
+  }
+
+  /**
+   * Ends the frame being solved ahead (see `SolverClient.cancel`) when `always` (a press on
+   * the picture: a drag may start, which must not share the two cores with it) or when it was
+   * asked for another revision of the scene. It is asked again once the editor is left alone.
+   */
+  cancelAhead(always: boolean): void {
+    const tag = this.ahead?.current?.tag;
+    if (tag && (always || tag.rev !== this.revision) && this.ahead?.cancel()) this.stats.aheadCancelled++;
   }
 
   /**
@@ -1244,14 +1255,13 @@ export class App {
       if (ev.tag.quality === 'draft') this.stats.draftSolveMs.push(ev.ms);
       else this.stats.finalSolveMs.push(ev.ms);
     }
-    const unfinished = ev.tag.chunked && ev.report.converged === false;
-    if (ev.field && !unfinished && ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.revision) {
+    if (ev.field && ev.tag.quality === 'final' && typeof ev.tag.frame === 'number' && ev.tag.rev === this.revision) {
       this.remember(ev.tag.frame, ev.key, ev.field);
       this.drawAhead();
     }
     if (ev.tag.ahead) {
       // Solved ahead: into the cache (above) only, then the next frame.
-      if (ev.tag.rev === this.revision && typeof ev.tag.frame === 'number' && !unfinished) this.stats.ahead.push(ev.tag.frame);
+      if (ev.tag.rev === this.revision && typeof ev.tag.frame === 'number') this.stats.ahead.push(ev.tag.frame);
       this.onSolved(ev);
       if (!this.ahead?.busy) this.solveAhead();
       this.checkIdle();

@@ -133,6 +133,7 @@ export class SolverClient {
 
   private send(msg: ToWorker, transfer: Transferable[] = []): void {
     if (this.makeWorker) this.record(msg);
+    if (this.ended) void this.restart();
     if (this.queue) this.queue.push({ msg, transfer });
     else this.worker.postMessage(msg, transfer);
   }
@@ -191,10 +192,37 @@ export class SolverClient {
    * meanwhile wait for the fresh worker.
    */
   renew(): Promise<void> {
-    const make = this.makeWorker;
-    if (!make || this.queue || this.busy || this.decodes.size > 0 || this.checks.size > 0) return Promise.resolve();
-    this.queue = [];
+    if (!this.makeWorker || this.ended || this.queue || this.busy || this.decodes.size > 0 || this.checks.size > 0) return Promise.resolve();
     this.worker.terminate();
+    return this.restart();
+  }
+
+  /** Set by `cancel`: the worker is ended; the fresh one starts with the next message. */
+  private ended = false;
+
+  /**
+   * Ends the solve in flight, and drops the requests waiting, by ending the worker: a solve
+   * in WebAssembly cannot be stopped otherwise. The fresh worker (as `renew` makes it, with
+   * the layers' setup) starts with the next request, not now: the user who made the solve
+   * stale is busy. Only a solve: not while a picture is decoded, a scene checked or a grid
+   * built, whose answers are awaited. Returns whether a solve was ended.
+   */
+  cancel(): boolean {
+    const waited = this.decodes.size > 0 || this.checks.size > 0 || this.linkWaiters.size > 0;
+    if (!this.makeWorker || !this.inFlight || this.queue || waited) return false;
+    this.worker.terminate();
+    this.ended = true;
+    this.inFlight = null;
+    this.pending.clear();
+    for (const w of this.idleWaiters.splice(0)) w();
+    return true;
+  }
+
+  /** Starts a fresh worker in place of the one ended, with the layers' setup. */
+  private restart(): Promise<void> {
+    const make = this.makeWorker as () => Worker;
+    this.ended = false;
+    this.queue = [];
     const fresh = make();
     this.worker = fresh;
     const go = (ok: boolean) => {
@@ -277,7 +305,7 @@ export class SolverClient {
 
   /** The worker's memory (see `workerMemory`). */
   memory(): ReturnType<typeof workerMemory> {
-    return workerMemory(this.worker);
+    return this.ended ? Promise.resolve(null) : workerMemory(this.worker);
   }
 
   private receive(msg: FromWorker): void {

@@ -1079,6 +1079,7 @@ export class Ui {
     c.addEventListener('pointerdown', (e) => {
       this.app.lastActivityAt = performance.now();
       if (e.button !== 0) return;
+      this.app.cancelAhead(true);
       c.setPointerCapture(e.pointerId);
       const p = this.toScene(e.clientX, e.clientY);
       const { view } = this.store;

@@ -145,6 +145,47 @@ describe('replacing a solver worker by a fresh one (the ahead worker, once every
     expect(c.busy).toBe(false);
   });
 
+  it('a solve in flight is ended with its worker; the fresh one starts with the next request', async () => {
+    const made: FakeWorker[] = [];
+    const first = new FakeWorker();
+    const c = new SolverClient(first as unknown as Worker, 'engine.wasm', () => {
+      const w = new FakeWorker();
+      made.push(w);
+      return w as unknown as Worker;
+    });
+    first.reply({ type: 'ready' });
+    await c.ready;
+    expect(c.cancel()).toBe(false); // nothing in flight
+    const links = c.setGrid('a', 2, 1, null, []);
+    c.solve('a', [], {}, { madeAt: 0 });
+    expect(c.cancel()).toBe(false); // not while a grid's links are awaited
+    first.reply({ type: 'links', key: 'a', links: new Uint8Array([1, 0]) });
+    await links;
+    c.solve('b', [], {}, { madeAt: 0, n: 0 }); // waiting behind 'a'
+    const got: FieldEvent[] = [];
+    c.onField = (ev) => got.push(ev);
+    const idle = c.idle();
+    expect(c.cancel()).toBe(true);
+    await idle;
+    expect(first.terminated).toBe(true);
+    expect(c.busy).toBe(false);
+    expect(made).toHaveLength(0); // not until asked again
+    expect(await c.memory()).toBeNull();
+    // The ended worker's late answer (had it sent one) is no one's.
+    first.reply({ type: 'field', id: 1, key: 'a', field, report, ms: 1, gridStep: 1, began: 0, ended: 0 });
+    expect(got).toHaveLength(0);
+    c.solve('a', [], {}, { madeAt: 1, n: 1 });
+    expect(made).toHaveLength(1);
+    const fresh = made[0];
+    fresh.reply({ type: 'ready' });
+    await Promise.resolve();
+    await Promise.resolve();
+    expect(fresh.sent.map((m) => m.type)).toEqual(['init', 'grid', 'solve']);
+    fresh.reply({ type: 'field', id: fresh.solves()[0].id, key: 'a', field, report, ms: 1, gridStep: 1, began: 0, ended: 0 });
+    expect(got.map((e) => e.tag.n)).toEqual([1]);
+    expect(c.renewals).toBe(1);
+  });
+
   it('a client without a way to make workers is never replaced', async () => {
     const { w, c } = await client();
     expect(c.renewable).toBe(false);
