@@ -312,8 +312,9 @@ export class App {
       // old ones is stale.
       const gridsNow = this.gridsDue && !store.inGesture;
       if (gridsNow) this.gridEpoch++;
-      if (docChanged || gridsNow) this.syncLayers();
+      // Before the grids: a grid being rebuilt in the ahead worker keeps its solve going.
       if (docChanged) this.cancelAhead(false);
+      if (docChanged || gridsNow) this.syncLayers();
       this.dropStale();
       this.scheduleAhead();
       this.requestSolve(this.dragging ? 'draft' : 'final');
@@ -783,12 +784,16 @@ export class App {
 
   /**
    * Ends the frame being solved ahead (see `SolverClient.cancel`) when `always` (a press on
-   * the picture: a drag may start, which must not share the two cores with it) or when it was
-   * asked for another revision of the scene. It is asked again once the editor is left alone.
+   * the picture, Play: a drag or playback must not share the two cores with it) or when it
+   * was asked for another revision of the scene. It is asked again once the editor is left
+   * alone.
    */
   cancelAhead(always: boolean): void {
     const tag = this.ahead?.current?.tag;
-    if (tag && (always || tag.rev !== this.revision) && this.ahead?.cancel()) this.stats.aheadCancelled++;
+    if (tag && (always || tag.rev !== this.revision) && this.ahead?.cancel()) {
+      this.stats.aheadCancelled++;
+      this.scheduleAhead();
+    }
   }
 
   /**

@@ -89,9 +89,6 @@ export function workerMemory(worker: Worker): Promise<{ wasmBytes: number; heapB
   });
 }
 
-/** The messages that make up a layer's setup in a solver worker (see `SolverClient.record`). */
-const SETUP_TYPES: readonly ToWorker['type'][] = ['grid', 'drop', 'select', 'draft-layer'];
-
 export class SolverClient {
   private worker: Worker;
   readonly ready: Promise<void>;
@@ -138,7 +135,7 @@ export class SolverClient {
     else this.worker.postMessage(msg, transfer);
   }
 
-  /** Keeps a layer's setup messages (see `setup`, `SETUP_TYPES`): a new grid starts it again. */
+  /** Keeps a layer's setup messages (`grid`, `select`, `draft-layer`; `drop` ends it): a new grid starts it again. */
   private record(msg: ToWorker): void {
     if (msg.type === 'grid') this.setup.set(msg.key, [msg]);
     else if (msg.type === 'drop') this.setup.delete(msg.key);
@@ -154,6 +151,8 @@ export class SolverClient {
    * module memory for a 4000 × 3000 JPEG) is then the worker's, not the page's.
    */
   decode(bytes: Uint8Array): Promise<{ width: number; height: number; data: Uint8Array }> {
+    // A picture being opened waits for no solve: one in flight is ended (see `cancel`).
+    this.cancel();
     const id = this.nextId++;
     return new Promise((resolve, reject) => {
       this.decodes.set(id, { resolve, reject });
@@ -166,6 +165,7 @@ export class SolverClient {
    * a photograph's decoder memory is then the worker's, not the page's).
    */
   check(json: string): Promise<{ path: string; message: string }[]> {
+    this.cancel();
     const id = this.nextId++;
     return new Promise((resolve) => {
       this.checks.set(id, resolve);
@@ -223,17 +223,20 @@ export class SolverClient {
     const make = this.makeWorker as () => Worker;
     this.ended = false;
     this.queue = [];
+    // The layers' setup as it is now (`record` replaces a layer's list, never changes it).
+    const before = new Map(this.setup);
     const fresh = make();
     this.worker = fresh;
     const go = (ok: boolean) => {
       if (ok) this.renewals++;
       else this.onError(null, 'A solver worker could not be restarted.');
-      // The layers' setup as it is now, then what was asked meanwhile (less the setup itself,
-      // sent already in its newest state).
-      for (const list of this.setup.values()) for (const msg of list) fresh.postMessage(msg);
+      // That setup, less the layers whose grid was asked for or dropped meanwhile, then what
+      // was asked meanwhile in order: each grid asked for is answered once.
       const queued = this.queue ?? [];
       this.queue = null;
-      for (const q of queued) if (!SETUP_TYPES.includes(q.msg.type)) fresh.postMessage(q.msg, q.transfer);
+      const superseded = new Set(queued.filter((q) => q.msg.type === 'grid' || q.msg.type === 'drop').map((q) => (q.msg as { key: string }).key));
+      for (const [key, list] of before) if (!superseded.has(key)) for (const msg of list) fresh.postMessage(msg);
+      for (const q of queued) fresh.postMessage(q.msg, q.transfer);
       this.pump();
     };
     const ready = engineReady(fresh, (msg) => this.receive(msg));
@@ -340,6 +343,8 @@ export class SolverClient {
       return;
     }
     if (msg.type === 'field' || (msg.type === 'error' && msg.id !== null)) {
+      // (An ended worker's answer, had it sent one, is no one's.)
+      if (msg.id !== this.inFlight?.id) return;
       const done = this.inFlight;
       this.inFlight = null;
       if (msg.type === 'field' && done) {

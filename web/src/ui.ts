@@ -1358,6 +1358,7 @@ export class Ui {
     }
     this.store.setView({ playing });
     if (playing) {
+      this.app.cancelAhead(true);
       const doc = this.store.doc;
       const start = this.store.view.time >= doc.duration - 1e-6 ? 0 : this.store.view.time;
       this.playStart = { wall: performance.now(), time: start };

@@ -186,6 +186,39 @@ describe('replacing a solver worker by a fresh one (the ahead worker, once every
     expect(c.renewals).toBe(1);
   });
 
+  it('grids asked for while the fresh worker starts are each answered once, in order', async () => {
+    const made: FakeWorker[] = [];
+    const first = new FakeWorker();
+    const c = new SolverClient(first as unknown as Worker, 'engine.wasm', () => {
+      const w = new FakeWorker();
+      made.push(w);
+      return w as unknown as Worker;
+    });
+    first.reply({ type: 'ready' });
+    await c.ready;
+    for (const key of ['a', 'b', 'c']) {
+      const g = c.setGrid(key, 2, 1, null, []);
+      first.reply({ type: 'links', key, links: new Uint8Array([1]) });
+      await g;
+    }
+    c.solve('a', [], {}, { madeAt: 0 });
+    expect(c.cancel()).toBe(true);
+    // Meanwhile: layer a's grid twice (a cut, then its undo), b's dropped, c untouched.
+    const a1 = c.setGrid('a', 3, 1, null, []);
+    const a2 = c.setGrid('a', 2, 1, null, []);
+    c.dropGrid('b');
+    const fresh = made[0];
+    fresh.reply({ type: 'ready' });
+    await Promise.resolve();
+    await Promise.resolve();
+    const sent = fresh.sent.map((m) => `${m.type}${'key' in m ? ` ${m.key}` : ''}${m.type === 'grid' ? ` ${m.width}` : ''}`);
+    expect(sent).toEqual(['init', 'grid c 2', 'grid a 3', 'grid a 2', 'drop b']);
+    fresh.reply({ type: 'links', key: 'a', links: new Uint8Array([3]) });
+    fresh.reply({ type: 'links', key: 'a', links: new Uint8Array([2]) });
+    expect(Array.from(await a1)).toEqual([3]);
+    expect(Array.from(await a2)).toEqual([2]);
+  });
+
   it('a client without a way to make workers is never replaced', async () => {
     const { w, c } = await client();
     expect(c.renewable).toBe(false);
