@@ -451,7 +451,11 @@ def thin_plate(
     max_cycles : int, optional
         Cap on the number of cycles (default 100), all of them counted (``"southwell"``: on
         its rounds). 0 runs none and returns the start; the report says converged only where
-        no cycle is needed (a piece that translates, or that one affine map fits).
+        no cycle is needed (a piece that translates, or that one affine map fits). Through a
+        ``solver``, a multigrid solve the cap stopped goes on where it stopped when the next
+        call gives its answer as ``initial`` with the same points, displacements and
+        tolerance: solving in steps of a few cycles (to show progress, or to stay
+        responsive) is the same solve, cycle for cycle, with the same report at its end.
     method : {"multigrid", "southwell"}, default "multigrid"
         ``"southwell"`` spends a fixed budget of greedy single-node relaxations after the
         coarse-to-fine start instead of iterating to the tolerance.

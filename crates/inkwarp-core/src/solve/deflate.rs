@@ -43,7 +43,7 @@ const CHUNK: usize = 4096;
 #[derive(Debug)]
 pub(crate) struct Modes(Vec<Vec<f32>>, Vec<Vec<f32>>, Vec<Vec<f64>>);
 
-#[derive(Default)]
+#[derive(Debug, Default)]
 pub(super) struct Deflation {
     on: bool,
     /// Stops wait for looks at the kept directions (see [`Deflation::rate_floor`]), one

@@ -614,14 +614,26 @@ fn solve_piece(
     }
     let pin = |u: &mut [V2]| value.iter().for_each(|&(i, v)| u[fine.pidx(i % w, i / w)] = v);
     pin(&mut u);
-    let mut r = cycle::zeros_in(hier.spare.pop(), len);
+    // A solve its cycle limit stopped goes on when the next starts from its answer (at the
+    // unknowns, to the `f32` field's and the settling's rounding) with the same constraints
+    // and tolerance: capped solves in series are one solve (each started over, a series
+    // could end on a small change far from the answer).
+    let resumed = hier.paused.take().filter(|p| {
+        let near = 1e-6 * p.u.iter().fold(0.0, |m, v| larger(larger(m, v[0].abs()), v[1].abs()));
+        options.method == SolveMethod::Multigrid && initial.is_some() && p.tolerance == options.tolerance_px && p.value == value
+            && key.links.vectors(w, h)[0].iter().enumerate().filter(|(_, &a)| a).all(|(j, _)| {
+                let i = fine.pidx(j % w, j / w);
+                fine.inv_diag[i] == 0.0 || (0..2).all(|c| (p.u[i][c] - u[i][c]).abs() <= near)
+            })
+    });
+    let mut r = match &resumed { Some(_) => Vec::new(), None => cycle::zeros_in(hier.spare.pop(), len) };
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves residuals
     // above the tolerance (a user's earlier answer), unless no cycle may run (the start is then
     // the answer). A closer start (the earlier frames' prediction) first gets one cycle as it
     // is, and the coarse-to-fine correction only when that cycle did not finish.
     let (mut warm, cycles) = (initial.is_some(), options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES));
     let mut started = !warm;
-    if warm {
+    if let Some(p) = &resumed { started = p.started } else if warm {
         report.initial_residual = fine.residual_scaled_max(&u, &mut r);
         started = !(report.initial_residual <= options.tolerance_px) && cycles > 0;
         if started {
@@ -641,13 +653,14 @@ fn solve_piece(
             hier.spare.push(cold);
         }
     }
-    if started {
+    if started && resumed.is_none() {
         // A warm start's residual is in r already.
         hier.coarse_to_fine(&mut u, &mut r, warm);
         report.initial_residual = hier.levels[0].residual_scaled_max(&u, &mut r);
     }
     // The last change, and the last two cycles' ratios of successive changes.
-    let (mut last_change, mut ratios) = (f64::INFINITY, [0.0f64; 2]);
+    let (mut last_change, mut ratios) = resumed.as_ref().map_or((f64::INFINITY, [0.0f64; 2]), |p| (p.last_change, p.ratios));
+    let base = resumed.as_ref().map_or(0, |p| p.cycle); // the cycles run before it
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
     // One level is its banded factor's exact solve where every dropped pivot is a free
     // function's (not a soft strand's): after the first step only rounding moves, from
@@ -657,7 +670,7 @@ fn solve_piece(
     // slow mode that the first step barely moved hides behind a small change.
     let first_may_stop = !hier.torn || warm || direct;
     let mut stop = |(change, rate): (f64, Option<f64>), cycle: usize, report: &mut SolveReport, (floor, settled): (f64, bool)| {
-        (report.cycles, report.final_change_px) = (cycle, change);
+        (report.cycles, report.final_change_px) = (cycle - base, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. CG steps are not: ρ is the
         // larger of the last two ratios (0.5 before one; their geometric mean where the spectrum
         // has settled and the last change fell), at least the Lanczos floor; 0.99 never stops.
@@ -670,15 +683,17 @@ fn solve_piece(
     };
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
     // concept doc's Precision).
-    let (mut q, mut p) = (cycle::zeros_in(hier.spare.pop(), len), cycle::zeros_in(Some(std::mem::take(&mut hier.direction)), len));
-    let (mut southwell_spent, mut found) = (false, false);
+    let (mut q, mut p) = if resumed.is_some() { (Vec::new(), std::mem::take(&mut hier.direction)) } else {
+        (cycle::zeros_in(hier.spare.pop(), len), cycle::zeros_in(Some(std::mem::take(&mut hier.direction)), len))
+    };
+    let (mut southwell_spent, mut found, mut pause) = (false, false, None);
     match options.method {
         SolveMethod::Multigrid => {
             // Where every free function can be settled, the iteration runs on the settled
             // answers (`Settled`): the start settled, every direction projected.
             let membrane = settled;
             let settled = settled.and_then(|m| Settled::new(m, &hier.levels[0]));
-            if let Some(s) = &settled {
+            if let Some(s) = settled.as_ref().filter(|_| resumed.is_none()) {
                 s.project(&hier.levels[0], &mut u);
                 hier.levels[0].residual(&u, None, &mut r);
             }
@@ -687,12 +702,16 @@ fn solve_piece(
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && fresh);
             // (Nor where the deflation's budget leaves no room: nothing could use what it finds.)
             let may_probe = hier.torn && !hier.whole && !unsettled && !options.off.has("probe") && slow.on();
-            if let Some(modes) = hier.modes.take_if(|_| cycles > 0).filter(|_| !options.off.has("recycle")) {
-                slow.adopt(modes, &mut u, &mut r);
-            }
-            let mut rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
             let mut probed = None;
-            for cycle in 1..=cycles {
+            let mut rz = if let Some(was) = resumed {
+                (u, r, q, slow, probed, found, hier.probed) = (was.u, was.r, was.q, was.slow, was.probed, was.found, was.probed_before);
+                report.initial_residual = scaled_max(&r, &hier.levels[0].inv_diag);
+                was.rz
+            } else {
+                if let Some(modes) = hier.modes.take_if(|_| cycles > 0).filter(|_| !options.off.has("recycle")) { slow.adopt(modes, &mut u, &mut r) }
+                fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow))
+            };
+            for cycle in base + 1..=base + cycles {
                 if crate::interrupt::requested() { break; }
                 if may_probe && cycle == PROBE_AT && !hier.probed {
                     // A slow solve: its operator probed once for the slow modes its residual
@@ -717,7 +736,7 @@ fn solve_piece(
                 let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, along);
                 if change.is_nan() {
                     // The directions broke down; the iterate stands, unconverged.
-                    (report.cycles, report.final_change_px) = (cycle, f64::INFINITY);
+                    (report.cycles, report.final_change_px) = (cycle - base, f64::INFINITY);
                     report.fail(Stop::Breakdown);
                     break;
                 }
@@ -749,8 +768,14 @@ fn solve_piece(
                 (rz, beta) = next_direction(&mut hier, &r, &q, &mut p, (alpha, along), settled.as_ref(), Some(&slow));
                 slow.beta(Some(beta));
             }
-            found |= slow.restarts > 0;
-            hier.modes = probed.or_else(|| slow.modes()).or(hier.modes.take());
+            if !report.converged && report.stop == Stop::Converged && report.cycles > 0 && !crate::interrupt::requested() {
+                // Out of cycles: where it stands, for a next solve that goes on (its modes its own).
+                pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, probed, found, probed_before: hier.probed, value: value.to_vec(), tolerance: options.tolerance_px });
+                found = true;
+            } else {
+                found |= slow.restarts > 0;
+                hier.modes = probed.or_else(|| slow.modes()).or(hier.modes.take());
+            }
         }
         SolveMethod::Southwell => {
             // Rounds of one coarse correction and one sweep's worth of Southwell relaxations
@@ -804,7 +829,10 @@ fn solve_piece(
     // next solve's changes before the mode that stopped this one showed (a false claim). Nor
     // is its probe counted: the next slow solve probes again.
     if found && !report.converged { (hier.modes, hier.probed) = (None, false) }
-    hier.spare.extend([r, q]);
+    if let Some(mut at) = pause.filter(|_| report.stop == Stop::MaxCycles) {
+        (at.r, at.q) = (r, q);
+        hier.paused = Some(Box::new(at));
+    } else { hier.spare.extend([r, q]) }
     hier.direction = p;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
@@ -812,6 +840,17 @@ fn solve_piece(
         store.hierarchies.put(store.solve, key, hier);
     }
     (out, report)
+}
+
+/// Where a piece's solve stood when its cycle limit stopped it (see `solve_piece`): the
+/// iterate (in `f64`), residual, direction's product, deflation, stopping rule and probe.
+#[derive(Debug)]
+pub(crate) struct Paused {
+    u: Vec<V2>, r: Vec<V2>, q: Vec<V2>, rz: [f64; 2], slow: deflate::Deflation, cycle: usize, ratios: [f64; 2], last_change: f64,
+    started: bool, probed: Option<deflate::Modes>, found: bool, probed_before: bool,
+    /// What it solved: the pinned values and the tolerance.
+    value: Vec<(usize, V2)>,
+    tolerance: f64,
 }
 
 /// The cycle at which a torn piece's solve still running probes its operator (past the
@@ -889,8 +928,8 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
 }
 
 /// At most this many finest nodes of hierarchies (about 150 bytes a node, 64 more with slow
-/// modes; solved whole, 8 × (bandwidth + 1) for the factor), and as many of free functions,
-/// a solver keeps beyond what its latest solve used.
+/// modes, 16 and the deflation's after a capped solve; solved whole, 8 × (bandwidth + 1) for
+/// the factor), and as many of free functions, a solver keeps beyond its latest solve's.
 const KEPT_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the
