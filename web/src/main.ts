@@ -183,7 +183,7 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
       let misfit = '';
       // Back to its own file, which a save checks is still as the kept work found it: set
       // with the scene, so that a save made while the page settles goes to the file too.
-      const back = own && served?.saveUrl ? { origin: { saveUrl: served.saveUrl, path: served.path, version: previous.version ?? null } } : {};
+      const back = { unsaved: true, ...(own && served?.saveUrl ? { origin: { saveUrl: served.saveUrl, path: served.path, version: previous.version ?? null } } : {}) };
       try {
         await ui.openScene(doc, previous.fileName, true, back);
       } catch (err) {
@@ -195,7 +195,6 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
       }
       // Back where the editor was: pose mode stays pose mode, at the same time.
       if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
-      store.markUnsaved();
       const meanwhile = aside ? '; Ctrl+Z brings back what you drew while the question waited' : '';
       const retouched = taken.length ? `; the picture of ${taken.map((n) => `layer '${n}'`).join(', ')} changed on disk since, and is shown as the file has it now` : '';
       ui.message(`Restored the scene from ${clockTime(previous.savedAt)}${retouched}${misfit}${meanwhile}.`, misfit ? 'error' : 'info');

@@ -114,6 +114,8 @@ function download(blob: Blob, name: string): void {
 export interface Opened {
   origin?: Partial<Origin>;
   first?: boolean;
+  /** Opened as unsaved work (a restore): marked so with the scene, before the page settles. */
+  unsaved?: boolean;
 }
 
 /** A drag moves the drawing on at most one raw pointer update this often (ms). */
@@ -1494,6 +1496,7 @@ export class Ui {
     this.store.load(doc, { ...downloadOrigin(name), ...opened.origin });
     // At once, not after the wait below: the page takes edits meanwhile.
     if (opened.first) this.store.startHistory();
+    if (opened.unsaved) this.store.markUnsaved();
     this.store.setView({ activeLayer: Math.max(0, doc.layers.length - 1) });
     await this.app.idle();
   }
