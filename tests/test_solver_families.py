@@ -489,27 +489,21 @@ def test_a_slow_solve_looks_for_hidden_modes_before_it_stops(scale, seed, off):
     assert float(np.abs(field - tight).max()) < TOLERANCE_PX
 
 
-ITERATED_CLAIM = pytest.mark.xfail(
-    strict=True, raises=AssertionError, reason="open: iterated, the stopping rule is not a bound (docs/dev/solver-correctness.md)")
-
-
 @pytest.mark.parametrize("seed, integer", [(14, True), (26, False)])
-@pytest.mark.parametrize("off", ["", pytest.param("whole", marks=ITERATED_CLAIM)])
+@pytest.mark.parametrize("off", ["", "whole"])
 def test_a_weakly_held_piece_with_a_hidden_mode_is_not_claimed_early(seed, integer, off):
     # Cuts at 4x and a fiftieth of the displacements: seed 14's piece (1,241 nodes) held by
     # two points (its tilt about their line is a free function) holds a wedge between two
     # cuts that turns about its base. Iterated, the piece stopped at cycle 5, changes
     # 0.003 px, the wedge 0.222 px off (seed 26: 0.196 px), converged=True. Such a piece is
-    # now solved whole by its banded factor; iterated (`_off="whole"`, as a larger piece
-    # is) the false claim stays, an expected failure (strict: it shows once fixed).
+    # solved whole by its banded factor; iterated (`_off="whole"`, as a larger piece is) a
+    # piece with free functions now probes its operator before its first claim.
     pts, disp, cuts = random_cuts(seed, integer, 4)
     disp = disp * 0.02
     field, report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, _off=off)
     tight, tight_report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, tolerance=1e-6, max_cycles=2000)
-    if not tight_report.converged:
-        pytest.fail(f"the reference did not converge: {tight_report}")  # not the expected failure
-    # The claim must hold; a fix that stops claiming convergence passes too.
-    assert not report.converged or float(np.abs(field - tight).max()) < TOLERANCE_PX, report
+    assert tight_report.converged, tight_report
+    assert report.converged and float(np.abs(field - tight).max()) < TOLERANCE_PX, report
 
 
 @pytest.mark.parametrize("case", ["flap_on_a_border_strip", "many_cuts_256_seed61", "many_cuts_256_seed62"])

@@ -702,7 +702,7 @@ fn solve_piece(
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && fresh);
             // (Nor where the deflation's budget leaves no room: nothing could use what it finds.)
             let may_probe = hier.torn && !hier.whole && !unsettled && !options.off.has("probe") && slow.on();
-            let mut probed = None;
+            let (mut probed, mut probe_now) = (None, false);
             let mut rz = if let Some(was) = resumed {
                 (u, r, q, slow, probed, found, hier.probed) = (was.u, was.r, was.q, was.slow, was.probed, was.found, was.probed_before);
                 report.initial_residual = scaled_max(&r, &hier.levels[0].inv_diag);
@@ -713,7 +713,7 @@ fn solve_piece(
             };
             for cycle in base + 1..=base + cycles {
                 if crate::interrupt::requested() { break; }
-                if may_probe && cycle == PROBE_AT && !hier.probed {
+                if may_probe && (cycle == PROBE_AT || probe_now) && !hier.probed {
                     // A slow solve: its operator probed once for the slow modes its residual
                     // may not show, deflated from here on.
                     (hier.probed, found) = (true, true);
@@ -742,8 +742,10 @@ fn solve_piece(
                 }
                 slow.step(alpha);
                 if stop(slow.judged(change), cycle, &mut report, slow.rate_floor()) {
-                    report.converged = true;
-                    break;
+                    // A piece with free functions is weakly held: near them lie slow motions the
+                    // changes do not show. Its operator is probed before its first claim.
+                    probe_now = may_probe && settled.is_some() && !hier.probed;
+                    if !probe_now { report.converged = true; break }
                 }
                 if slow.record(cycle, &p, &q) {
                     // A window of directions kept: correct on the slow modes found and
@@ -829,10 +831,7 @@ fn solve_piece(
     // next solve's changes before the mode that stopped this one showed (a false claim). Nor
     // is its probe counted: the next slow solve probes again.
     if found && !report.converged { (hier.modes, hier.probed) = (None, false) }
-    if let Some(mut at) = pause.filter(|_| report.stop == Stop::MaxCycles) {
-        (at.r, at.q) = (r, q);
-        hier.paused = Some(Box::new(at));
-    } else { hier.spare.extend([r, q]) }
+    if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
     hier.direction = p;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
@@ -854,7 +853,8 @@ pub(crate) struct Paused {
 }
 
 /// The cycle at which a torn piece's solve still running probes its operator (past the
-/// dozen cycles that open, holed and cut grids take), and the probe's cycles.
+/// dozen cycles that open, holed and cut grids take; one with free functions probes before
+/// its first claim instead if that comes sooner), and the probe's cycles.
 const PROBE_AT: usize = 20;
 const PROBE_CYCLES: usize = 24;
 
