@@ -537,39 +537,53 @@ def test_weakly_attached_parts_among_many_cuts_are_not_claimed_early(case):
         assert report.converged and float(np.abs(field - tight * 1.02).max()) < TOLERANCE_PX, report
 
 
-@pytest.mark.parametrize("case", ["flap_on_a_border_strip", "many_cuts_256_seed62"])
-@pytest.mark.parametrize("steps", [2, 7])
+def torn_case(case):
+    """`(points, displacements, cuts, off)` of a stored sweep case, or `weak-SEED`: the
+    random float cuts of SEED at 4x with a fiftieth of the displacements, iterated."""
+    if case.startswith("weak-"):
+        pts, disp, cuts = random_cuts(int(case[5:]), False, 4)
+        return pts, disp * 0.02, cuts, "whole"
+    data = np.load(DATA / f"{case}.npz")
+    return data["points"], data["displacements"], np.split(data["cut_points"], np.cumsum(data["cut_lengths"])[:-1]), ""
+
+
+@pytest.mark.parametrize("case", ["flap_on_a_border_strip", "many_cuts_256_seed62", "weak-26", "weak-14"])
+@pytest.mark.parametrize("steps", [1, 7])
 def test_a_capped_solve_goes_on_where_it_stopped(case, steps):
     # Solved a few cycles a call through a kept Solver, each call from the last one's answer
     # (a progress bar's loop, as the editor once solved its frames ahead): every call
     # restarted the directions and the search for slow modes, and the series ended on a
     # small change 0.5-0.7 px off, converged=True. Now a capped solve goes on where it
-    # stopped: the series takes the one solve's cycles and ends on its answer.
-    data = np.load(DATA / f"{case}.npz")
-    cuts = np.split(data["cut_points"], np.cumsum(data["cut_lengths"])[:-1])
-    pts, disp, shape = data["points"], data["displacements"], (256, 256)
-    whole, whole_report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=inkwarp.Solver())
+    # stopped: the series takes the one solve's cycles and ends on its answer. (The weak
+    # pieces are held on one line: their answer is written tilted, from which they go on.)
+    pts, disp, cuts, off = torn_case(case)
+    shape = (256, 256)
+    whole, whole_report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=inkwarp.Solver(), _off=off)
     assert whole_report.converged, whole_report
     kept, field, cycles = inkwarp.Solver(), None, []
     for _ in range(whole_report.cycles):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", inkwarp.InkwarpWarning)
-            field, report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=kept, initial=field, max_cycles=steps)
+            field, report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=kept, initial=field, max_cycles=steps, _off=off)
         cycles.append(report.cycles)
         if report.converged:
             break
         assert report.stop == "max_cycles" and report.cycles == steps, report
     assert report.converged and sum(cycles) == whole_report.cycles, (cycles, whole_report)
-    assert float(np.abs(field - whole).max()) <= 1e-5
+    # (Pieces that converged in an earlier call are solved again from their answer by each
+    # later one, so the two answers agree to the tolerance, not to the bit.)
+    assert float(np.abs(field - whole).max()) <= 0.01
+    chunked = field
     # Stopped again, then asked for other displacements from there: a solve of its own,
     # whose claim holds (the tight answer is linear in the displacements).
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", inkwarp.InkwarpWarning)
-        field, report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=kept, max_cycles=steps)
+        field, report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=kept, max_cycles=steps, _off=off)
     assert not report.converged
-    tight, tight_report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, tolerance=1e-4, max_cycles=3000)
+    tight, tight_report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, tolerance=1e-4, max_cycles=3000, _off=off)
     assert tight_report.converged, tight_report
-    field, report = inkwarp.thin_plate_report(pts, disp * 1.02, shape, cuts=cuts, solver=kept, initial=field)
+    assert max(float(np.abs(whole - tight).max()), float(np.abs(chunked - tight).max())) < TOLERANCE_PX
+    field, report = inkwarp.thin_plate_report(pts, disp * 1.02, shape, cuts=cuts, solver=kept, initial=field, _off=off)
     assert not report.converged or float(np.abs(field - 1.02 * tight).max()) < TOLERANCE_PX, report
 
 

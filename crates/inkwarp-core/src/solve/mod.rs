@@ -295,9 +295,7 @@ pub(crate) fn solve_constrained(
                 Piece::Translate(v) => (field.dx[y * w + x], field.dy[y * w + x]) = (v[0] as f32, v[1] as f32),
                 Piece::Line { a, d, gauge } => {
                     let dist = cross(*a, *d, [x as i64, y as i64]).abs();
-                    if dist > farthest[l] {
-                        (farthest[l], *gauge) = (dist, Some(y * w + x));
-                    }
+                    if dist > farthest[l] { (farthest[l], *gauge) = (dist, Some(y * w + x)) }
                     grow(&mut boxes[l]);
                 }
                 Piece::General => grow(&mut boxes[l]),
@@ -386,6 +384,9 @@ pub(crate) fn solve_constrained(
             line_correction(grid, &labels, l as u32, a, d, boxes[l], &mut u);
         }
         write_piece(&mut field, &labels, l as u32, boxes[l], &u);
+        // A paused solve's answer as written (tilted or settled): where one that goes on starts.
+        let paused = store.hierarchies.0.iter_mut().rev().find(|e| e.2 == store.solve && e.0.at == [x0, y0] && (e.0.w, e.0.h) == (bw, bh)).and_then(|e| e.1.paused.as_mut());
+        if let Some(p) = paused.filter(|_| r.stop == Stop::MaxCycles) { p.written = (0..bh).flat_map(|y| u.row(y, bw).iter().map(|v| [v[0] as f32, v[1] as f32])).collect() }
         // The report starts at zero and converged: the pieces' worst.
         report.cycles = report.cycles.max(r.cycles);
         report.final_change_px = report.final_change_px.max(r.final_change_px);
@@ -394,11 +395,10 @@ pub(crate) fn solve_constrained(
         if !r.converged { report.fail(r.stop) }
     }
     // No exact answer in the `f32` field is finer than its rounding (iterated ones: `solve_piece`).
-    if options.tolerance_px < 0.5 * f64::from(f32::EPSILON) * exact {
-        report.fail(Stop::Precision);
-    }
+    if options.tolerance_px < 0.5 * f64::from(f32::EPSILON) * exact { report.fail(Stop::Precision) }
     let constrained = pieces.iter().filter(|p| **p != Piece::Zero).count(); // translated ones keep theirs
     (store.hierarchies.trim(store.solve, constrained), store.free.trim(store.solve, constrained));
+    store.hierarchies.0.iter_mut().filter(|e| e.2 != store.solve).for_each(|e| e.1.paused = None); // none goes on but the latest's
     (field, report)
 }
 
@@ -614,16 +614,16 @@ fn solve_piece(
     }
     let pin = |u: &mut [V2]| value.iter().for_each(|&(i, v)| u[fine.pidx(i % w, i / w)] = v);
     pin(&mut u);
-    // A solve its cycle limit stopped goes on when the next starts from its answer (at the
-    // unknowns, to the `f32` field's and the settling's rounding) with the same constraints
-    // and tolerance: capped solves in series are one solve (each started over, a series
-    // could end on a small change far from the answer).
+    // A solve its cycle limit stopped goes on when the next starts from its answer as written
+    // (at the unknowns) with the same constraints (a gauge pin's value is the start's) and
+    // tolerance: capped solves in series are one solve (each started over, a series could
+    // end on a small change far from the answer).
+    let constraints = &value[..value.len() - usize::from(cold_gauge.is_some())];
     let resumed = hier.paused.take().filter(|p| {
-        let near = 1e-6 * p.u.iter().fold(0.0, |m, v| larger(larger(m, v[0].abs()), v[1].abs()));
-        options.method == SolveMethod::Multigrid && initial.is_some() && p.tolerance == options.tolerance_px && p.value == value
-            && key.links.vectors(w, h)[0].iter().enumerate().filter(|(_, &a)| a).all(|(j, _)| {
+        options.method == SolveMethod::Multigrid && initial.is_some() && p.tolerance == options.tolerance_px && p.value == constraints
+            && p.written.len() == w * h && key.links.vectors(w, h)[0].iter().enumerate().filter(|(_, &a)| a).all(|(j, _)| {
                 let i = fine.pidx(j % w, j / w);
-                fine.inv_diag[i] == 0.0 || (0..2).all(|c| (p.u[i][c] - u[i][c]).abs() <= near)
+                fine.inv_diag[i] == 0.0 || (0..2).all(|c| u[i][c] as f32 == p.written[j][c])
             })
     });
     let mut r = match &resumed { Some(_) => Vec::new(), None => cycle::zeros_in(hier.spare.pop(), len) };
@@ -641,9 +641,7 @@ fn solve_piece(
             // (`docs/dev/solver-correctness.md`).
             let mut cold = cycle::zeros_in(hier.spare.pop(), len);
             pin(&mut cold);
-            if let Some((i, v)) = cold_gauge {
-                cold[fine.pidx(i % w, i / w)] = v;
-            }
+            if let Some((i, v)) = cold_gauge { cold[fine.pidx(i % w, i / w)] = v }
             if report.initial_residual <= fine.residual_scaled_max(&cold, &mut r) {
                 fine.residual_scaled_max(&u, &mut r);
             } else {
@@ -704,7 +702,7 @@ fn solve_piece(
             let may_probe = hier.torn && !hier.whole && !unsettled && !options.off.has("probe") && slow.on();
             let (mut probed, mut probe_now) = (None, false);
             let mut rz = if let Some(was) = resumed {
-                (u, r, q, slow, probed, found, hier.probed) = (was.u, was.r, was.q, was.slow, was.probed, was.found, was.probed_before);
+                (u, r, q, slow, probed, found, hier.probed, probe_now) = (was.u, was.r, was.q, was.slow, was.probed, was.found, was.probed_before, was.probe_now);
                 report.initial_residual = scaled_max(&r, &hier.levels[0].inv_diag);
                 was.rz
             } else {
@@ -772,7 +770,7 @@ fn solve_piece(
             }
             if !report.converged && report.stop == Stop::Converged && report.cycles > 0 && !crate::interrupt::requested() {
                 // Out of cycles: where it stands, for a next solve that goes on (its modes its own).
-                pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, probed, found, probed_before: hier.probed, value: value.to_vec(), tolerance: options.tolerance_px });
+                pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, probed, found, probed_before: hier.probed, probe_now, value: constraints.to_vec(), tolerance: options.tolerance_px, written: Vec::new() });
                 found = true;
             } else {
                 found |= slow.restarts > 0;
@@ -835,9 +833,7 @@ fn solve_piece(
     hier.direction = p;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
-    if !options.off.has("cache") {
-        store.hierarchies.put(store.solve, key, hier);
-    }
+    if !options.off.has("cache") { store.hierarchies.put(store.solve, key, hier) }
     (out, report)
 }
 
@@ -846,10 +842,11 @@ fn solve_piece(
 #[derive(Debug)]
 pub(crate) struct Paused {
     u: Vec<V2>, r: Vec<V2>, q: Vec<V2>, rz: [f64; 2], slow: deflate::Deflation, cycle: usize, ratios: [f64; 2], last_change: f64,
-    started: bool, probed: Option<deflate::Modes>, found: bool, probed_before: bool,
-    /// What it solved: the pinned values and the tolerance.
+    started: bool, probed: Option<deflate::Modes>, found: bool, probed_before: bool, probe_now: bool,
+    /// What it solved (the constrained values, the tolerance) and its answer as written (see `solve_constrained`).
     value: Vec<(usize, V2)>,
     tolerance: f64,
+    written: Vec<[f32; 2]>,
 }
 
 /// The cycle at which a torn piece's solve still running probes its operator (past the
@@ -1197,9 +1194,7 @@ pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<
         for r in col + 1..k {
             let f = m[r][col] / m[col][col];
             if f != 0.0 {
-                for c in col..k {
-                    m[r][c] -= f * m[col][c];
-                }
+                for c in col..k { m[r][c] -= f * m[col][c] }
                 rhs[r] = [rhs[r][0] - f * rhs[col][0], rhs[r][1] - f * rhs[col][1]];
             }
         }
@@ -1207,9 +1202,7 @@ pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<
     // Back substitution in place: the solution's rows below r are final in `rhs`.
     for r in (0..k).rev() {
         let mut s = rhs[r];
-        for c in r + 1..k {
-            s = [s[0] - m[r][c] * rhs[c][0], s[1] - m[r][c] * rhs[c][1]];
-        }
+        for c in r + 1..k { s = [s[0] - m[r][c] * rhs[c][0], s[1] - m[r][c] * rhs[c][1]] }
         rhs[r] = [s[0] / m[r][r], s[1] / m[r][r]];
     }
     Some(rhs)
