@@ -506,6 +506,16 @@ def test_a_weakly_held_piece_with_a_hidden_mode_is_not_claimed_early(seed, integ
     assert report.converged and float(np.abs(field - tight).max()) < TOLERANCE_PX, report
 
 
+def torn_case(case):
+    """`(points, displacements, cuts, off)` of a stored sweep case, or `weak-SEED`: the
+    random float cuts of SEED at 4x with a fiftieth of the displacements, iterated."""
+    if case.startswith("weak-"):
+        pts, disp, cuts = random_cuts(int(case[5:]), False, 4)
+        return pts, disp * 0.02, cuts, "whole"
+    data = np.load(DATA / f"{case}.npz")
+    return data["points"], data["displacements"], np.split(data["cut_points"], np.cumsum(data["cut_lengths"])[:-1]), ""
+
+
 @pytest.mark.parametrize("case", ["flap_on_a_border_strip", "many_cuts_256_seed61", "many_cuts_256_seed62"])
 def test_weakly_attached_parts_among_many_cuts_are_not_claimed_early(case):
     # Found by a user's sweep: 50 random cuts on 256², six points on the right and below;
@@ -519,9 +529,7 @@ def test_weakly_attached_parts_among_many_cuts_are_not_claimed_early(case):
     # at cycles 79 and 53, 0.16 and 0.074 px off. A solve still running at cycle 20 now
     # probes its operator from a random start, and what the cycles leave of it (the flap's
     # bending) is deflated from then on.
-    case = np.load(DATA / f"{case}.npz")
-    cuts = np.split(case["cut_points"], np.cumsum(case["cut_lengths"])[:-1])
-    pts, disp = case["points"], case["displacements"]
+    pts, disp, cuts, _ = torn_case(case)
     field, report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts)
     # (A hundredth of the default tolerance: seed 61's answer of 273 px holds no finer.)
     tight, tight_report = inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, tolerance=1e-4, max_cycles=3000)
@@ -535,16 +543,6 @@ def test_weakly_attached_parts_among_many_cuts_are_not_claimed_early(case):
         inkwarp.thin_plate_report(pts, disp, (256, 256), cuts=cuts, solver=kept)
         field, report = inkwarp.thin_plate_report(pts, disp * 1.02, (256, 256), cuts=cuts, solver=kept, initial=field)
         assert report.converged and float(np.abs(field - tight * 1.02).max()) < TOLERANCE_PX, report
-
-
-def torn_case(case):
-    """`(points, displacements, cuts, off)` of a stored sweep case, or `weak-SEED`: the
-    random float cuts of SEED at 4x with a fiftieth of the displacements, iterated."""
-    if case.startswith("weak-"):
-        pts, disp, cuts = random_cuts(int(case[5:]), False, 4)
-        return pts, disp * 0.02, cuts, "whole"
-    data = np.load(DATA / f"{case}.npz")
-    return data["points"], data["displacements"], np.split(data["cut_points"], np.cumsum(data["cut_lengths"])[:-1]), ""
 
 
 @pytest.mark.parametrize("case", ["flap_on_a_border_strip", "many_cuts_256_seed62", "weak-26", "weak-14"])
@@ -595,9 +593,8 @@ def test_no_claim_builds_on_an_answer_that_did_not_converge():
     # and claimed it at cycle 20, 0.64 px off. (At 512² a user's sweep found both at the
     # default cap of 100.) Now such a frame starts afresh, and no Solver keeps modes found
     # by a solve that did not converge.
-    case = np.load(DATA / "flap_on_a_border_strip.npz")
-    cuts = np.split(case["cut_points"], np.cumsum(case["cut_lengths"])[:-1])
-    pts, disp, shape = case["points"], case["displacements"], (256, 256)
+    pts, disp, cuts, _ = torn_case("flap_on_a_border_strip")
+    shape = (256, 256)
     tight, tight_report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, tolerance=1e-4, max_cycles=3000)
     assert tight_report.converged, tight_report
     warm, kept = inkwarp.WarmStart(), inkwarp.Solver()

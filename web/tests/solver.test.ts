@@ -39,6 +39,20 @@ async function client() {
   return { w, c };
 }
 
+/** A client that can replace its worker (as the ahead worker's): the first worker, and those made since. */
+async function renewable() {
+  const made: FakeWorker[] = [];
+  const first = new FakeWorker();
+  const c = new SolverClient(first as unknown as Worker, 'engine.wasm', () => {
+    const w = new FakeWorker();
+    made.push(w);
+    return w as unknown as Worker;
+  });
+  first.reply({ type: 'ready' });
+  await c.ready;
+  return { first, c, made };
+}
+
 describe('solver scheduling', () => {
   it('one solve in flight; newer requests for a layer replace older ones', async () => {
     const { w, c } = await client();
@@ -100,16 +114,7 @@ describe('solve timing', () => {
 
 describe('replacing a solver worker by a fresh one (the ahead worker, once every frame is solved)', () => {
   it('the fresh worker gets each layer\'s newest setup, then what was asked meanwhile', async () => {
-    const made: FakeWorker[] = [];
-    const make = () => {
-      const w = new FakeWorker();
-      made.push(w);
-      return w as unknown as Worker;
-    };
-    const first = new FakeWorker();
-    const c = new SolverClient(first as unknown as Worker, 'engine.wasm', make);
-    first.reply({ type: 'ready' });
-    await c.ready;
+    const { first, c, made } = await renewable();
     expect(c.renewable).toBe(true);
     void c.setGrid('a', 2, 1, null, []);
     c.select('a', new Uint32Array([0]));
@@ -146,15 +151,7 @@ describe('replacing a solver worker by a fresh one (the ahead worker, once every
   });
 
   it('a solve in flight is ended with its worker; the fresh one starts with the next request', async () => {
-    const made: FakeWorker[] = [];
-    const first = new FakeWorker();
-    const c = new SolverClient(first as unknown as Worker, 'engine.wasm', () => {
-      const w = new FakeWorker();
-      made.push(w);
-      return w as unknown as Worker;
-    });
-    first.reply({ type: 'ready' });
-    await c.ready;
+    const { first, c, made } = await renewable();
     expect(c.cancel()).toBe(false); // nothing in flight
     const links = c.setGrid('a', 2, 1, null, []);
     c.solve('a', [], {}, { madeAt: 0 });
@@ -187,15 +184,7 @@ describe('replacing a solver worker by a fresh one (the ahead worker, once every
   });
 
   it('grids asked for while the fresh worker starts are each answered once, in order', async () => {
-    const made: FakeWorker[] = [];
-    const first = new FakeWorker();
-    const c = new SolverClient(first as unknown as Worker, 'engine.wasm', () => {
-      const w = new FakeWorker();
-      made.push(w);
-      return w as unknown as Worker;
-    });
-    first.reply({ type: 'ready' });
-    await c.ready;
+    const { first, c, made } = await renewable();
     for (const key of ['a', 'b', 'c']) {
       const g = c.setGrid(key, 2, 1, null, []);
       first.reply({ type: 'links', key, links: new Uint8Array([1]) });
@@ -229,15 +218,7 @@ describe('replacing a solver worker by a fresh one (the ahead worker, once every
 
 describe('pictures decoded by a solver worker', () => {
   it('resolves with the picture, rejects with the reason, and the worker is not replaced while one decodes', async () => {
-    const made: FakeWorker[] = [];
-    const first = new FakeWorker();
-    const c = new SolverClient(first as unknown as Worker, 'engine.wasm', () => {
-      const w = new FakeWorker();
-      made.push(w);
-      return w as unknown as Worker;
-    });
-    first.reply({ type: 'ready' });
-    await c.ready;
+    const { first, c, made } = await renewable();
     const p = c.decode(new Uint8Array([1, 2, 3]));
     const asked = first.sent.at(-1) as Extract<ToWorker, { type: 'decode' }>;
     expect(asked.type).toBe('decode');

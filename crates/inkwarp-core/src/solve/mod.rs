@@ -260,6 +260,9 @@ pub(crate) fn solve_constrained(
     grid: &Grid, constraints: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, store: &mut Store,
 ) -> (Field, SolveReport) {
     store.solve += 1;
+    // A solve from exactly the field the latest returned when its cycle limit stopped a piece
+    // goes on where that piece stood (see `Paused`).
+    store.goes_on = store.written.take().zip(initial).is_some_and(|(f, i)| (0..f.dx.len()).all(|k| i.at_index(k) == [f.dx[k], f.dy[k]]));
     let (w, h) = (grid.width, grid.height);
     // A subnormal tension is the τ → 0⁺ limit to far below any tolerance, and its products
     // underflow: it is taken as 0.
@@ -384,9 +387,6 @@ pub(crate) fn solve_constrained(
             line_correction(grid, &labels, l as u32, a, d, boxes[l], &mut u);
         }
         write_piece(&mut field, &labels, l as u32, boxes[l], &u);
-        // A paused solve's answer as written (tilted or settled): where one that goes on starts.
-        let paused = store.hierarchies.0.iter_mut().rev().find(|e| e.2 == store.solve && e.0.at == [x0, y0] && (e.0.w, e.0.h) == (bw, bh)).and_then(|e| e.1.paused.as_mut());
-        if let Some(p) = paused.filter(|_| r.stop == Stop::MaxCycles) { p.written = (0..bh).flat_map(|y| u.row(y, bw).iter().map(|v| [v[0] as f32, v[1] as f32])).collect() }
         // The report starts at zero and converged: the pieces' worst.
         report.cycles = report.cycles.max(r.cycles);
         report.final_change_px = report.final_change_px.max(r.final_change_px);
@@ -399,6 +399,7 @@ pub(crate) fn solve_constrained(
     let constrained = pieces.iter().filter(|p| **p != Piece::Zero).count(); // translated ones keep theirs
     (store.hierarchies.trim(store.solve, constrained), store.free.trim(store.solve, constrained));
     store.hierarchies.0.iter_mut().filter(|e| e.2 != store.solve).for_each(|e| e.1.paused = None); // none goes on but the latest's
+    store.written = (report.stop == Stop::MaxCycles).then(|| field.clone());
     (field, report)
 }
 
@@ -614,17 +615,13 @@ fn solve_piece(
     }
     let pin = |u: &mut [V2]| value.iter().for_each(|&(i, v)| u[fine.pidx(i % w, i / w)] = v);
     pin(&mut u);
-    // A solve its cycle limit stopped goes on when the next starts from its answer as written
-    // (at the unknowns) with the same constraints (a gauge pin's value is the start's) and
+    // A solve its cycle limit stopped goes on when the next starts from its answer (see
+    // `solve_constrained`) with the same constraints (a gauge pin's value is the start's) and
     // tolerance: capped solves in series are one solve (each started over, a series could
     // end on a small change far from the answer).
     let constraints = &value[..value.len() - usize::from(cold_gauge.is_some())];
     let resumed = hier.paused.take().filter(|p| {
-        options.method == SolveMethod::Multigrid && initial.is_some() && p.tolerance == options.tolerance_px && p.value == constraints
-            && p.written.len() == w * h && key.links.vectors(w, h)[0].iter().enumerate().filter(|(_, &a)| a).all(|(j, _)| {
-                let i = fine.pidx(j % w, j / w);
-                fine.inv_diag[i] == 0.0 || (0..2).all(|c| u[i][c] as f32 == p.written[j][c])
-            })
+        store.goes_on && options.method == SolveMethod::Multigrid && p.tolerance == options.tolerance_px && p.value == constraints
     });
     let mut r = match &resumed { Some(_) => Vec::new(), None => cycle::zeros_in(hier.spare.pop(), len) };
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves residuals
@@ -770,7 +767,7 @@ fn solve_piece(
             }
             if !report.converged && report.stop == Stop::Converged && report.cycles > 0 && !crate::interrupt::requested() {
                 // Out of cycles: where it stands, for a next solve that goes on (its modes its own).
-                pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, probed, found, probed_before: hier.probed, probe_now, value: constraints.to_vec(), tolerance: options.tolerance_px, written: Vec::new() });
+                pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, probed, found, probed_before: hier.probed, probe_now, value: constraints.to_vec(), tolerance: options.tolerance_px });
                 found = true;
             } else {
                 found |= slow.restarts > 0;
@@ -843,10 +840,9 @@ fn solve_piece(
 pub(crate) struct Paused {
     u: Vec<V2>, r: Vec<V2>, q: Vec<V2>, rz: [f64; 2], slow: deflate::Deflation, cycle: usize, ratios: [f64; 2], last_change: f64,
     started: bool, probed: Option<deflate::Modes>, found: bool, probed_before: bool, probe_now: bool,
-    /// What it solved (the constrained values, the tolerance) and its answer as written (see `solve_constrained`).
+    /// What it solved: the constrained values and the tolerance.
     value: Vec<(usize, V2)>,
     tolerance: f64,
-    written: Vec<[f32; 2]>,
 }
 
 /// The cycle at which a torn piece's solve still running probes its operator (past the
@@ -1024,6 +1020,10 @@ pub(crate) struct Store {
     solve: u64,
     /// The hierarchies built so far.
     built: u64,
+    /// The field the latest solve returned if its cycle limit stopped it, and whether this
+    /// solve starts from it (see `Paused`).
+    written: Option<Field>,
+    goes_on: bool,
 }
 
 /// Entries by what they depend on, the least recently used first: what the latest solve that
