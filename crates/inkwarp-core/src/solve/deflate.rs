@@ -8,7 +8,8 @@
 //! direction made `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000).
 //! It also gives the stopping rule a rate floor ([`Deflation::rate_floor`]) and the largest
 //! change of the last window and its rate ([`Deflation::judged`]). Memory: at most
-//! `2·WINDOW + 2·KEEP_SLOW` `f32` vectors (160 bytes a node) within [`BUDGET_BYTES`].
+//! `2·WINDOW + 2·KEEP_SLOW` `f32` vectors (160 bytes a node) within [`BUDGET_BYTES`], which
+//! the modes a probe keeps for the next solve share ([`Deflation::spare`]).
 
 use rayon::prelude::*;
 
@@ -83,6 +84,10 @@ impl Deflation {
 
     /// Whether vectors may be kept (not switched off, and the budget leaves room).
     pub fn on(&self) -> bool { self.on }
+
+    /// How many modes (a probe's, held for the next solve) fit in the budget beside the most
+    /// vectors this deflation keeps, at most [`KEEP`].
+    pub fn spare(&self) -> usize { KEEP.min(self.room.saturating_sub(KEEP_SLOW)) }
 
     /// Whether [`Deflation::project`] changes directions (vectors are kept).
     pub fn projects(&self) -> bool { !self.w.is_empty() }
@@ -480,5 +485,18 @@ mod tests {
             assert!((rate.unwrap() - 0.5).abs() < 1e-12, "cycle {k}: {rate:?}");
         }
         assert_eq!(Deflation::default().judged(0.3), (0.3, None));
+    }
+
+    #[test]
+    fn a_probes_kept_modes_count_within_the_budget() {
+        // The modes a probe keeps for the next solve (with their products) fit beside the most
+        // the deflation may keep: all 8 at 1024², 2 at 1.5 million nodes (room for 18), none
+        // at 2.65 million (room for 8: the solve's own vectors take it).
+        for (len, kept) in [(1 << 20, KEEP), (1_500_000, 2), (2_650_000, 0)] {
+            let d = Deflation::new(len, false, true, false);
+            let held = d.spare();
+            assert_eq!(held, kept, "{len} nodes");
+            assert!((2 * WINDOW + 2 * (d.room.min(KEEP_SLOW) + held)) * 4 * len <= BUDGET_BYTES, "{len} nodes");
+        }
     }
 }

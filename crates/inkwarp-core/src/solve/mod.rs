@@ -714,9 +714,11 @@ fn solve_piece(
                     (hier.probed, found) = (true, true);
                     if let Some(rest) = probe(&mut hier, settled.as_ref(), len) {
                         // Deflated here: what the probe left. Kept for the next solve of this
-                        // operator: the slowest modes of that and of the vectors kept so far.
-                        let fine = &hier.levels[0];
-                        probed = deflate::Modes::with(rest.iter().cloned().chain(slow.vectors()).collect(), fine).map(|m| m.first(deflate::KEEP));
+                        // operator: the slowest modes of that and of the vectors kept so far, as
+                        // many as the deflation's budget leaves room for beside its own.
+                        let (fine, spare) = (&hier.levels[0], slow.spare());
+                        let with = || deflate::Modes::with(rest.iter().cloned().chain(slow.vectors()).collect(), fine);
+                        probed = (spare > 0).then(with).flatten().map(|m| m.first(spare));
                         if let Some(modes) = deflate::Modes::with(rest, fine) {
                             slow.adopt(modes, &mut u, &mut r);
                             rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
