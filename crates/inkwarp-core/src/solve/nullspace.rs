@@ -25,9 +25,7 @@ use crate::grid::{find, join};
 /// does not claim convergence.
 pub(crate) const MAX_BLOCK_ENTRIES: usize = 1500 * 1501 / 2;
 
-/// The functions couple only where their supports meet, so the least-membrane system falls
-/// apart in independent blocks (one hair's free bends, one sliver's): any number of
-/// functions, each block's factor at most [`MAX_BLOCK_ENTRIES`], and at most this many in all.
+/// The most functions in all (each block's factor at most [`MAX_BLOCK_ENTRIES`], see [`Membrane`]).
 pub(crate) const MAX_NULL: usize = 200_000;
 
 /// A piece's geometry on its box: node `(x, y)` at `y · w + x`.
@@ -74,8 +72,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
             join(&mut parent, i as u32, j as u32);
         }
     }
-    // Cluster index per root, and the clusters of each node (the full cells it is a
-    // corner of).
+    // Cluster index per root, and the clusters of each node (the full cells it is a corner of).
     let mut cluster_of_root = vec![u32::MAX; n];
     let mut origin: Vec<[f64; 3]> = Vec::new(); // x0, y0, scale
     let mut member: Vec<[u32; 4]> = vec![[u32::MAX; 4]; n];
@@ -114,8 +111,8 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
     };
     let mut elim = Echelon::new(vars);
     let mut row: Vec<(usize, f64)> = Vec::new();
-    // The equation `Σ f u(node) + extra = 0` over `(node, f)` terms, each node's value its
-    // lone unknown or its first cluster's affine function.
+    // The equation `Σ f u(node) + extra = 0` over `(node, f)` terms, each node's value its lone unknown or
+    // its first cluster's affine function.
     let mut equation = |terms: &[(usize, f64)], extra: &[(usize, f64)]| {
         row.clear();
         for &(i, f) in terms {
@@ -151,8 +148,8 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
         let mut touched: Vec<usize> = affine.iter().map(|&(k, _)| k / 3).collect();
         touched.dedup();
         let mut z: Sparse = Vec::new();
-        // A cluster's values are at most the sum of its coefficients (|x|, |y| ≤ 1): one whose
-        // sum is below the cut of `retain` below adds nothing, and may hold every node.
+        // A cluster's values are at most the sum of its coefficients (|x|, |y| ≤ 1): one whose sum is below
+        // the cut of `retain` below adds nothing, and may hold every node.
         for c in touched.into_iter().filter(|&c| qd[3 * c..3 * c + 3].iter().map(|v| v.abs()).sum::<f64>() > 1e-13) {
             z.extend(nodes_of[c].iter().map(|&i| (i, in_cluster(i, c as u32).iter().map(|&(k, a)| a * qd[k]).sum::<f64>())));
         }
@@ -219,9 +216,8 @@ impl Echelon {
         }
     }
 
-    /// One basis vector per free column (sparse over the unknowns: its nonzero entries), or
-    /// `None` past `max`. Back-substitution from the last row up visits only the rows that
-    /// read an entry already nonzero: a row reads free columns and later rows' pivots only.
+    /// One sparse basis vector per free column, or `None` past `max`. Back-substitution from the last row up
+    /// visits only the rows that read an entry already nonzero (free columns and later rows' pivots).
     fn null_space(&self, max: usize) -> Option<Vec<Vec<(usize, f64)>>> {
         use std::collections::BinaryHeap;
         let vars = self.pivot_of.len();
@@ -265,8 +261,8 @@ impl Echelon {
     }
 }
 
-/// The membrane product `y = M z` for a sparse `z`, into the dense scratch `y` (zero on
-/// entry); returns the nodes it touched. `dense` is a zero scratch, left zero.
+/// The membrane product `y = M z` for a sparse `z` into `y` (zero on entry); returns the nodes it touched.
+/// `dense` is a zero scratch, left zero.
 fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> Vec<usize> {
     let w = g.w;
     for &(i, v) in z {
@@ -282,8 +278,7 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
     for &(i, _) in z {
         let (x, yy) = (i % w, i / w);
         g.links(i).for_each(|j| link(i, j));
-        // Links from the left and above, where the other end is outside the support (inside
-        // it, that end lists the link itself).
+        // Links from the left and above, where the other end is outside the support (inside, it lists them).
         let outer = [(x > 0 && g.right[i - 1]).then(|| i - 1), (yy > 0 && g.down[i - w]).then(|| i - w)];
         for j in outer.into_iter().flatten().filter(|&j| dense[j] == 0.0) {
             link(j, i);
@@ -297,12 +292,11 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
     touched
 }
 
-/// The τ → 0⁺ choice among the plate minimisers as a linear map: `u ↦ u + n`, with
-/// `n ∈ span(basis)` the function that minimises the membrane energy of `u + n`. The
-/// functions couple only where their supports meet, so their system falls apart in blocks
-/// (one hair's free bends, one sliver's), each solved on its own. Built once per piece (a
-/// solver keeps it): it settles the answer, and it projects the iteration's start and
-/// directions (see `Settled` in the solver).
+/// The τ → 0⁺ choice among the plate minimisers as a linear map: `u ↦ u + n`, with `n ∈ span(basis)`
+/// the function that minimises the membrane energy of `u + n`. The functions couple only where their
+/// supports meet, so their system falls apart in blocks (one hair's free bends, one sliver's), each
+/// solved on its own. Built once per piece: it settles the answer, and projects the iteration's start
+/// and directions (see `Settled` in the solver).
 pub(crate) struct Membrane {
     basis: Vec<Sparse>,
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.
@@ -343,8 +337,8 @@ impl Membrane {
                 (acc[i], seen[i]) = (0.0, false);
             }
         }
-        // Each block in an order that keeps its envelope narrow (a strand's bends in order
-        // along it); one with a dropped pivot (dependent functions) is not settled.
+        // Each block in an order that keeps its envelope narrow (a strand's bends in order along it); one
+        // with a dropped pivot (dependent functions) is not settled.
         let mut local = vec![0; k];
         let blocks = blocks_in_order(k, |_| true, |j, out| { out.clear(); out.extend(gram[j].iter().map(|e| e.0)) }).into_iter().map(|members| {
             members.iter().enumerate().for_each(|(l, &j)| local[j] = l);
@@ -363,8 +357,8 @@ impl Membrane {
     /// How many functions there are.
     pub(crate) fn len(&self) -> usize { self.basis.len() }
 
-    /// `n` for the field read by `read` (box node → value): added by `add(node, value)`.
-    /// False when a block was not settled (too large or singular: it is left as it is).
+    /// `n` for the field read by `read` (box node → value), added by `add(node, value)`; false when a block
+    /// was not settled (too large or singular: it is left as it is).
     pub(crate) fn settle(&self, read: impl Fn(usize) -> V2, mut add: impl FnMut(usize, V2)) -> bool {
         for (members, l) in self.blocks.iter().filter_map(|(m, l)| Some((m, l.as_ref()?))) {
             let mut c: Vec<V2> = members.iter().map(|&j| self.products[j].iter().fold([0.0; 2], |s, &(p, y)| {

@@ -66,11 +66,7 @@ impl Strands {
         if !thin.contains(&true) { return None; }
         let neighbours = |p: usize, out: &mut Vec<usize>| {
             out.clear();
-            level.taps(p, |q, _| {
-                if q != p && thin[q] {
-                    out.push(q);
-                }
-            });
+            level.taps(p, |q, _| if q != p && thin[q] { out.push(q) });
         };
         let (mut nodes, mut starts) = (Vec::new(), Vec::new());
         for block in blocks_in_order(thin.len(), |p| thin[p], neighbours) {
@@ -78,12 +74,9 @@ impl Strands {
             nodes.extend(block.into_iter().map(|p| p as u32));
         }
         let mut local = vec![u32::MAX; thin.len()];
-        for (i, &p) in nodes.iter().enumerate() {
-            local[p as usize] = i as u32;
-        }
-        // Each block factored; a set whose order is not a narrow band is two-dimensional
-        // (a region riddled with pinholes, say), not a strand: the cycle serves it, and its
-        // factor would not be cheap. Its nodes leave the lists.
+        nodes.iter().enumerate().for_each(|(i, &p)| local[p as usize] = i as u32);
+        // Each block factored; a set whose order is not a narrow band is two-dimensional (a region riddled
+        // with pinholes, say), not a strand: the cycle serves it, and its nodes leave the lists.
         starts.push(nodes.len());
         let shift = if matches!(level.op, Operator::Fine { .. }) { SHIFT } else { 0.0 };
         let (mut kept, mut taps, mut at, mut blocks) = (Vec::new(), Vec::new(), vec![0], Vec::new());
@@ -109,9 +102,8 @@ impl Strands {
     /// Node `i`'s taps.
     fn row(&self, i: usize) -> &[(u32, f64)] { &self.taps[self.at[i]..self.at[i + 1]] }
 
-    /// Before the finest level's cycle: solves the thin blocks on `r` (the cycle's
-    /// right-hand side `f` holds `r` in `f32`) and takes the correction's product out of
-    /// `f`.
+    /// Before the finest level's cycle: solves the thin blocks on `r` and takes the correction's product out
+    /// of the cycle's right-hand side `f` (`r` in `f32`).
     pub fn before(&mut self, level: &Level, r: &[V2], f: &mut [W2]) {
         for (z, &p) in self.first_pass.iter_mut().zip(&self.nodes) {
             *z = r[p as usize];
@@ -125,8 +117,7 @@ impl Strands {
         }
     }
 
-    /// After the finest level's cycle: adds the first correction to the cycle's `x` and
-    /// relaxes the thin blocks again on the residual left.
+    /// After the finest level's cycle: adds the first correction to its `x` and relaxes the blocks again.
     pub fn after(&self, r: &[V2], x: &mut [W2]) {
         self.add(&self.first_pass, x);
         self.relax_from(|p| r[p], x);
@@ -164,9 +155,8 @@ fn solve_blocks(blocks: &[Envelope], x: &mut [V2]) {
     }
 }
 
-/// The thin nodes: the unknowns whose run of linked nodes along the row or along the
-/// column is at most [`THIN`] long, from `right(p, i)` and `down(p, i)` (padded and unpadded
-/// index: linked to the right, below).
+/// The thin nodes: the unknowns whose run of linked nodes along the row or the column is at most [`THIN`]
+/// long, from `right(p, i)` and `down(p, i)` (padded and unpadded index: linked to the right, below).
 fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Vec<bool> {
     let (w, h) = (level.geo.w, level.geo.h);
     let p = |x: usize, y: usize| level.pidx(x, y);
@@ -185,8 +175,7 @@ fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn
     (0..across.len()).map(|p| level.inv_diag[p] != 0.0 && across[p] as usize <= THIN).collect()
 }
 
-/// `f(start, end)` for each maximal run `start..=end` of `0..n` joined by `linked(i)` (`i`
-/// linked to `i + 1`).
+/// `f(start, end)` for each maximal run `start..=end` of `0..n` joined by `linked(i)` (`i` to `i + 1`).
 fn each_run(n: usize, linked: impl Fn(usize) -> bool, mut f: impl FnMut(usize, usize)) {
     let mut s = 0;
     while s < n {
@@ -199,10 +188,9 @@ fn each_run(n: usize, linked: impl Fn(usize) -> bool, mut f: impl FnMut(usize, u
     }
 }
 
-/// The connected sets of the nodes `0..n` with `include` (`next(p, out)`: `p`'s
-/// neighbours, all included), each in reverse Cuthill–McKee order: breadth first from the
-/// last node of a breadth-first search (a pseudo-peripheral one), reversed. Along a strand
-/// that keeps a factor's envelope narrow.
+/// The connected sets of the nodes `0..n` with `include` (`next(p, out)`: `p`'s neighbours, all included),
+/// each in reverse Cuthill–McKee order: breadth first from the last node of a breadth-first search (a
+/// pseudo-peripheral one), reversed. Along a strand that keeps a factor's envelope narrow.
 pub(crate) fn blocks_in_order(n: usize, include: impl Fn(usize) -> bool, mut next: impl FnMut(usize, &mut Vec<usize>)) -> Vec<Vec<usize>> {
     let mut bfs = |s: usize, seen: &mut [bool]| {
         let (mut order, mut buf, mut i) = (vec![s], Vec::new(), 0);
@@ -227,9 +215,9 @@ pub(crate) fn blocks_in_order(n: usize, include: impl Fn(usize) -> bool, mut nex
 }
 
 impl Envelope {
-    /// The factor of the matrix whose row `i` has the entries `entries[i]` (column, value;
-    /// repeats add) and its diagonal raised by `shift` times itself; a pivot not above
-    /// `pivot` times its diagonal entry is dropped. `None` past `max_entries` entries.
+    /// The factor of the matrix whose row `i` has the entries `entries[i]` (column, value; repeats add), its
+    /// diagonal raised by `shift` times itself; a pivot not above `pivot` times its diagonal entry is
+    /// dropped. `None` past `max_entries` entries.
     pub(crate) fn factor(entries: Vec<Vec<(usize, f64)>>, shift: f64, pivot: f64, max_entries: usize) -> Option<Envelope> {
         let n = entries.len();
         let first: Vec<u32> = entries.iter().enumerate().map(|(i, e)| e.iter().map(|&(j, _)| j).min().unwrap_or(i).min(i) as u32).collect();
