@@ -1,5 +1,4 @@
-//! Multigrid cycles over the hierarchy: Chebyshev–Jacobi smoothing, V-cycles, the
-//! coarse-to-fine start and the exact coarsest solve.
+//! Multigrid cycles: Chebyshev–Jacobi smoothing, V- and K-cycles, the coarse-to-fine start, the coarsest solve.
 
 use rayon::prelude::*;
 
@@ -10,17 +9,15 @@ use super::strands::Strands;
 const CHEB_RATIO: f64 = 16.0;
 /// Stop coarsening when a level has at most this many nodes.
 const COARSEST_NODES: usize = 300;
-/// A K-cycle takes its second step only when its first left more than this fraction of
-/// the coarse residual (Euclidean norm, each component): Notay's adaptive K-cycle (see
-/// `docs/dev/ablation.md`, "Constants", for the choice of 0.3).
+/// A K-cycle takes its second step only when its first left more than this fraction of the coarse residual
+/// (Euclidean norm, each component): Notay's adaptive K-cycle (`docs/dev/ablation.md`, "Constants").
 const K_SECOND_STEP: f64 = 0.3;
 /// Lanczos steps of the estimate of the top of each level's spectrum.
 const LANCZOS_STEPS: usize = 12;
 /// Power steps of the finest level's Collatz–Wielandt bound.
 const COLLATZ_STEPS: usize = 3;
-/// The smallest pivot of the coarsest factor, relative to its diagonal, that is not taken
-/// as zero: about the resolution of the `f32` work vectors, whose rounding a smaller pivot
-/// would magnify past the answer (`docs/dev/solver-correctness.md`, "Tiny tensions").
+/// The smallest pivot of the coarsest factor, relative to its diagonal, not taken as zero: about the `f32`
+/// work vectors' resolution, whose rounding a smaller one would magnify (`docs/dev/solver-correctness.md`).
 const PIVOT_FLOOR: f64 = 1e-7;
 
 /// The grid hierarchy with its work vectors.
@@ -32,22 +29,18 @@ pub(crate) struct Hierarchy {
     /// Smoothing steps on the finest level, and on the levels below it.
     degree: usize,
     coarse_degree: usize,
-    /// Solve the coarse problems below the finest level by K-cycles (two flexible
-    /// conjugate-gradient steps each, see [`Hierarchy::k_correction`]); else by one
-    /// line-searched cycle each, a V-cycle.
+    /// Solve the coarse problems below the finest level by K-cycles ([`Hierarchy::k_correction`]); else by
+    /// one line-searched cycle each, a V-cycle.
     pub k_cycles: bool,
-    /// A second coarse space for the finest level (see [`Level::into_plain`]), visited
-    /// after the first on every cycle; its own levels are regular grids.
+    /// A second coarse space for the finest level ([`Level::into_plain`]), visited after the first.
     pub alt: Option<Box<Hierarchy>>,
     /// Whether the finest level has holes or cuts (see [`super::level::Geometry::torn`]).
     pub torn: bool,
-    /// K-cycle coarse corrections that took their first step alone (see
-    /// [`K_SECOND_STEP`]), since the hierarchy was built.
+    /// K-cycle coarse corrections that took their first step alone ([`K_SECOND_STEP`]).
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
     /// Exact solves on the finest level's thin parts around each cycle (see [`Strands`]).
     pub strands: Option<Strands>,
-    /// The same on the coarser levels (index k for level k; none on the finest), relaxed
-    /// within the cycle after its smoothing steps and before its second ones.
+    /// The same on the coarser levels (index k for level k), relaxed after each smoothing within the cycle.
     pub level_strands: Vec<Option<Strands>>,
     /// The solve's own vectors on the finest level (the residual, the search direction and its product,
     /// a warm start's cold alternative), kept for the next solve: allocated afresh, they cost page faults.
@@ -72,8 +65,7 @@ struct Work {
     f: Vec<W2>,
     r: Vec<W2>,
     d: Vec<W2>,
-    /// The first search direction of a K-cycle's coarse problem, and `A` times it
-    /// (allocated by the first K-cycle that solves on this level).
+    /// The first search direction of a K-cycle's coarse problem, and `A` times it (allocated when first used).
     z1: Vec<W2>,
     q1: Vec<W2>,
 }
@@ -88,10 +80,9 @@ impl Hierarchy {
         h
     }
 
-    /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and of
-    /// `coarse_degree` below it; unless `smooth_fine`, `fine` gets no work vectors or bound.
-    /// With `whole = Some(max)`, `fine` is the only level, solved by its banded factor, where
-    /// that factor drops at most `max` pivots.
+    /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and `coarse_degree` below
+    /// it; unless `smooth_fine`, `fine` gets no work vectors or bound. With `whole = Some(max)`, `fine` is the
+    /// only level, solved by its banded factor, where that factor drops at most `max` pivots.
     pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool, whole: Option<usize>) -> Hierarchy {
         let mut levels = vec![fine];
         let factor = whole.and_then(|max| Some(Banded::new(&levels[0])).filter(|b| b.dropped.iter().filter(|&&d| d).count() <= max));
@@ -113,8 +104,7 @@ impl Hierarchy {
         Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, modes: None, probed: false, whole, paused: None }
     }
 
-    /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one symmetric cycle from zero, in
-    /// `f32`: the returned `z` is the cycle's own output, valid until the next call.
+    /// `z ≈ A⁻¹ r` on the finest level by one symmetric cycle from zero in `f32`, valid until the next call.
     pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
         update(&mut self.work[0].f, r, |f, r| *f = [WS::of(r[0]), WS::of(r[1])]);
         if let Some(s) = &mut self.strands {
@@ -142,9 +132,8 @@ impl Hierarchy {
     /// Level k's smoothing steps.
     fn steps_at(&self, k: usize) -> usize { if k == 0 { self.degree } else { self.coarse_degree } }
 
-    /// Approximately solves `A_k x = f` on level k (x, f in `work[0]`, the slice starting at
-    /// level k) by one cycle from `x` (zero when `x_zero`): a V-cycle, with K-cycle
-    /// corrections from the levels between the finest and the one above the coarsest.
+    /// Approximately solves `A_k x = f` on level k (x, f in `work[0]`, the slice from level k) by one cycle from
+    /// `x` (zero when `x_zero`): a V-cycle, with K-cycle corrections strictly between the finest and the coarsest.
     fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, alt_work: Option<&mut [Work]>) {
         let (level, coarsest) = (&self.levels[k], k + 1 == self.levels.len());
         // From zero, `x` is zeroed unless the first smoothing step writes all of it anyway (or, fused with
@@ -171,8 +160,7 @@ impl Hierarchy {
         } else {
             level.residual(x, Some(f), r);
         }
-        // The finest level's own Krylov method is the conjugate gradient around the cycle;
-        // the level above the coarsest solves exactly, one visit is all it needs.
+        // No K-cycle on the finest level (the conjugate gradient runs around the cycle) nor above the coarsest.
         if k > 0 && k + 2 < self.levels.len() && self.k_cycles {
             self.k_correction(k, w, tail);
         } else {
@@ -214,8 +202,8 @@ impl Hierarchy {
     /// α₂ = dᵀ(f − α₁ A z₁) / dᵀA d
     /// ```
     ///
-    /// The second step minimises the energy over both directions (a W-cycle's second visit
-    /// takes the second alone) and needs no fine residual, the coarse one updated in place.
+    /// The second step minimises the energy over both directions (a W-cycle's second visit takes the second
+    /// alone) and needs no fine residual, the coarse one updated in place.
     fn k_correction(&self, k: usize, w: &mut Work, tail: &mut [Work]) {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
         self.solve_below(k, &w.r, tail);
@@ -292,9 +280,8 @@ impl Hierarchy {
 #[derive(Debug)]
 pub(crate) struct Affine(Vec<Vec<f64>>);
 
-/// A piece gets [`Affine`] where its weakest affine motion of size 1 at the box's edges has
-/// less energy than this (a node held `d` off costs about `20 d²`: the motion moves the
-/// constrained nodes by about 1/50 of its size).
+/// A piece gets [`Affine`] where its weakest affine motion of size 1 at the box's edges has less energy than
+/// this (a node held `d` off costs about `20 d²`: the motion moves the constrained nodes by about 1/50).
 const AFFINE_WEAK: f64 = 1e-2;
 
 /// `W`'s values at padded node `p` of `level`: small integers (exact in `f32`), zero off the unknowns.
@@ -315,8 +302,8 @@ fn affine_sums(level: &Level, v: &[V2]) -> [V2; 3] {
 }
 
 impl Affine {
-    /// `None` unless the constraints leave an affine motion nearly free (but not free: a
-    /// free function is the settling's, see `nullspace`). `x` and `q` are scratch.
+    /// `None` unless the constraints leave an affine motion nearly free (not free: see `nullspace`). `x`, `q`
+    /// are scratch.
     pub fn new(level: &Level, x: &mut [V2], q: &mut [V2]) -> Option<Affine> {
         let mut e = vec![vec![0.0; 3]; 3];
         for pair in [[1, 2], [0, 0]] {
@@ -325,8 +312,7 @@ impl Affine {
             let s = affine_sums(level, q);
             e.iter_mut().enumerate().for_each(|(i, row)| (row[pair[0]], row[pair[1]]) = (-s[i][0], -s[i][1]));
         }
-        // E for W scaled to 1 at the edges: det / (sum of the principal 2 × 2 minors) lies
-        // between a third of its least eigenvalue and that eigenvalue.
+        // E for W scaled to 1 at the edges: det / Σ principal 2 × 2 minors is within 3× its least eigenvalue.
         let s = [1.0, 2.0 / level.geo.w.max(2) as f64, 2.0 / level.geo.h.max(2) as f64];
         let m = |i: usize, j: usize| e[i][j] * s[i] * s[j];
         let minor = |i: usize, j: usize| m(i, i) * m(j, j) - m(i, j) * m(i, j);
@@ -518,8 +504,7 @@ fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2
 super::wide::widest! {
     /// [`first_from_zero_body`] on the processor's widest vectors (see [`super::wide`]).
     pub(crate) fn first_from_zero(x: &mut [W2], f: &[W2], g: &[WS], inv_theta: WS) =>
-    /// A smoothing's first step from zero, `x = D⁻¹ f / θ` (`g` the inverse diagonal; zero
-    /// where it is).
+    /// A smoothing's first step from zero, `x = D⁻¹ f / θ` (`g` the inverse diagonal; zero where it is).
     first_from_zero_body {
         for ((x, f), &g) in x.iter_mut().zip(f).zip(g) {
             // Computed everywhere, then chosen: a branch kept the loop scalar.

@@ -21,20 +21,18 @@ use super::level::{dot, Level, Real, V2, W2, WS};
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
-/// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop where its
-/// rate floor exceeds [`WAIT_RATE`], a condition over 9 seen (an `early` one always).
+/// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop where its rate floor exceeds
+/// [`WAIT_RATE`] (an `early` one waits for one always).
 const LOOKS: usize = 2;
 const WAIT_RATE: f64 = 0.5;
-/// The smallest Ritz value has settled when a cycle's Lanczos matrix lowers it by less than
-/// 5 % (before any deflating restart: after one the judged changes come in windows).
+/// The smallest Ritz value has settled when a cycle lowers it by less than 5 % (before any deflating restart).
 const SETTLED: f64 = 0.95;
 /// Ritz vectors kept, and from the third Rayleigh–Ritz step on (`docs/dev/ablation.md`).
 pub(super) const KEEP: usize = 8;
 const KEEP_SLOW: usize = 16;
 /// Most bytes the kept vectors may take.
 const BUDGET_BYTES: usize = 256 << 20;
-/// Rayleigh quotients below this fraction of the operator's largest diagonal entry are the
-/// rounding of `f32` vectors (see [`Modes::with`]).
+/// Rayleigh quotients below this fraction of the largest diagonal entry are `f32` rounding ([`Modes::with`]).
 const NULL_FLOOR: f64 = 1e-12;
 /// Node chunk for the fused passes.
 const CHUNK: usize = 4096;
@@ -46,8 +44,7 @@ pub(crate) struct Modes(Vec<Vec<f32>>, Vec<Vec<f32>>, Vec<Vec<f64>>);
 #[derive(Debug, Default)]
 pub(super) struct Deflation {
     on: bool,
-    /// Stops wait for looks at the kept directions (see [`Deflation::rate_floor`]), one
-    /// from the first cycle if `early` (see [`START`]).
+    /// Stops wait for looks at the kept directions ([`Deflation::rate_floor`]), from the first cycle if `early`.
     wait: bool,
     early: bool,
     /// Ritz vectors the budget leaves room for.
@@ -63,8 +60,7 @@ pub(super) struct Deflation {
     g: Vec<Vec<f64>>,
     m: Vec<Vec<f64>>,
     pub(super) restarts: usize,
-    /// The conjugate gradient's step lengths and β per component since its directions last
-    /// restarted: the Lanczos matrix of the preconditioned operator.
+    /// The conjugate gradient's step lengths and β per component since its last restart: its Lanczos matrix.
     steps: [Vec<(f64, f64)>; 2],
     /// The extreme Ritz values of the preconditioned operator seen in this solve.
     low: f64,
@@ -165,15 +161,14 @@ impl Deflation {
     /// The kept vectors, in `f64`.
     pub fn vectors(&self) -> impl Iterator<Item = Vec<f64>> + '_ { self.w.iter().map(|v| v.iter().map(|&x| f64::from(x)).collect()) }
 
-    /// The vectors kept, for the next solve of the same operator, whose slow modes they are.
-    /// At most the [`KEEP`] smallest: adopted, more misled a 1024² solve (`docs/dev/ablation.md`).
+    /// The vectors kept, for the next solve of the same operator: at most the [`KEEP`] smallest (more misled
+    /// larger solves: `docs/dev/ablation.md`).
     pub fn modes(self) -> Option<Modes> {
         (!self.w.is_empty()).then(|| Modes(self.w, self.aw, self.e).first(KEEP))
     }
 
-    /// Keeps `modes` (the Ritz vectors, or an earlier solve's [`Deflation::modes`]) as the
-    /// vectors, a new basis (`Bᵀ B = I`, `Bᵀ A B = E`, no window); corrects `u` and `r` on
-    /// them, and projects every later direction. At most as many as the budget leaves room for.
+    /// Keeps `modes` (the Ritz vectors, or an earlier solve's) as the vectors, a new basis (`Bᵀ B = I`,
+    /// `Bᵀ A B = E`, no window), as many as the budget allows; corrects `u` and `r` on them.
     pub fn adopt(&mut self, modes: Modes, u: &mut [V2], r: &mut [V2]) {
         if !self.on || modes.0[0].len() != u.len() { return; }
         let Modes(w, aw, e) = modes.first(self.room);
@@ -201,9 +196,8 @@ impl Deflation {
         true
     }
 
-    /// The change the stopping rule is to judge and its rate a cycle: once the iteration has
-    /// deflated (changes in bursts), the largest of the last window's and the rate from the
-    /// window before (a sliding maximum's own ratios are 1 until its largest leaves); else none.
+    /// The change the stopping rule is to judge and its rate a cycle: once the iteration has deflated (changes
+    /// in bursts), the largest of the last window's and the rate from the window before; else none.
     pub fn judged(&mut self, change: f64) -> (f64, Option<f64>) {
         if self.restarts == 0 { return (change, None); }
         self.changes.push(change);
@@ -291,9 +285,8 @@ impl Modes {
         Modes(w, aw, e)
     }
 
-    /// The Ritz vectors of `A` over `vectors`, smallest first, less those it does not see
-    /// (below [`NULL_FLOOR`] of its largest diagonal entry, or a hundredth of the box's
-    /// smoothest plate mode: a free function's, whose correction would divide rounding by rounding).
+    /// The Ritz vectors of `A` over `vectors`, smallest first, less those below [`NULL_FLOOR`] of its largest
+    /// diagonal entry or a hundredth of the box's smoothest plate mode (free functions: rounding by rounding).
     pub fn with(vectors: Vec<Vec<f64>>, fine: &Level) -> Option<Modes> {
         let unit = |v: Vec<f64>| { let n = v.iter().map(|x| x * x).sum::<f64>().sqrt(); v.into_iter().map(move |x| (x / n) as f32).collect() };
         let w: Vec<Vec<f32>> = vectors.into_iter().map(unit).filter(|v: &Vec<f32>| v.iter().all(|x| x.is_finite())).collect();

@@ -1,13 +1,10 @@
 //! Warm starts from several earlier frames.
 //!
-//! On a fixed grid with fixed constrained nodes (an animation: the drawing's rest pose, and
-//! so the nodes its samples pin, does not change between frames) the solution is linear in
-//! the constraint values. So if the new values are close to a combination `Σ αᵢ vᵢ` of
-//! earlier frames' values, the same combination of their fields `Σ αᵢ uᵢ` is as close to
-//! the new solution (up to the earlier solves' own tolerance). [`WarmHistory`] keeps the
-//! last few frames and starts each solve from the least-squares combination; for smooth
-//! motion that is a polynomial extrapolation in time, far closer than the last field
-//! alone (DESIGN §4's warm start, generalised from one earlier frame to a few).
+//! On a fixed grid with fixed constrained nodes (an animation: the rest pose does not change between frames)
+//! the solution is linear in the constraint values. So if the new values are close to a combination
+//! `Σ αᵢ vᵢ` of earlier frames' values, the same combination of their fields `Σ αᵢ uᵢ` is as close to the
+//! new solution (up to the earlier solves' tolerance). [`WarmHistory`] keeps the last few frames and starts
+//! each solve from the least-squares combination: for smooth motion a polynomial extrapolation in time.
 
 use std::{array::from_fn, borrow::Cow, collections::VecDeque};
 
@@ -19,8 +16,7 @@ use super::{dense_solve, solve_constrained, SolveOptions, SolveReport, Solver};
 /// How many earlier frames a [`WarmHistory`] keeps.
 pub const HISTORY_FRAMES: usize = 3;
 
-/// The error (pixels) taken for each kept frame when weighing combinations of them (see
-/// [`WarmHistory::predict`]): the default tolerance, which frames are usually solved to.
+/// The error (pixels) taken for each kept frame when weighing their combinations: the default tolerance.
 const FRAME_ERROR_PX: f64 = 0.01;
 
 /// The last few solves of one animated surface: their constraint values and fields.

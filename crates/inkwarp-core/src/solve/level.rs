@@ -42,8 +42,7 @@ pub(crate) trait Real: Copy + Send + Sync + PartialEq + Add<Output = Self> + Sub
     }
 }
 
-/// The taps of a Galerkin stencil, (row, column) in its 5 × 5 window: its corners are
-/// always zero (see `galerkin`).
+/// The taps of a Galerkin stencil, (row, column) in its 5 × 5 window: its corners are always zero.
 const STORED_TAPS: [(usize, usize); 21] = [
     (0, 1), (0, 2), (0, 3),
     (1, 0), (1, 1), (1, 2), (1, 3), (1, 4),
@@ -154,8 +153,7 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
     }
 }
 
-/// The coefficients of four consecutive nodes with stencils of their own, tap by tap
-/// ([`STORED_TAPS`] order), the four nodes' side by side.
+/// The coefficients of four consecutive nodes with own stencils, tap by tap, the four nodes' side by side.
 pub(crate) type FourBlock = [[f32; 4]; 21];
 
 /// A Galerkin level's own stencils in fours of nodes (each run from its start, its last four padded with
@@ -168,8 +166,7 @@ pub(crate) struct Fours {
 }
 
 impl Fours {
-    /// The fours of the stencils `ids` (into `narrow`) of the nodes with stencils of their
-    /// own on the level's `runs`, as `band_residual` visits them.
+    /// The fours of the own stencils `ids` (into `narrow`) on the level's `runs`, as `band_residual` visits them.
     pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], runs: &Runs, wp: usize, h: usize) -> Fours {
         if !f32::has_four_stencils() { return Fours::default(); }
         let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD] };
@@ -197,8 +194,7 @@ pub(crate) enum RunKind {
     Skip,
     /// Unknowns that share the level's regular stencil (the finest level's interior molecule).
     Shared,
-    /// Unknowns with stencils of their own (on the finest level, its nodes that are not
-    /// regular: see [`OwnStencils`]).
+    /// Unknowns with stencils of their own (on the finest level, those not regular: see [`OwnStencils`]).
     Own,
 }
 
@@ -208,8 +204,7 @@ pub(crate) struct Run {
     pub start: u32,
     pub end: u32,
     pub kind: RunKind,
-    /// On the finest level, a run of [`RunKind::Own`]: its first node's entry in
-    /// [`OwnStencils::ids`] (the run's nodes follow it).
+    /// On the finest level, a run of [`RunKind::Own`]: its first node's entry in [`OwnStencils::ids`].
     pub at: u32,
 }
 
@@ -224,8 +219,7 @@ pub(crate) struct OwnStencils {
 }
 
 impl OwnStencils {
-    /// Numbers the [`RunKind::Own`] runs of `runs` (a level `wp` wide) and takes their
-    /// nodes' stencils, node p's `row_of(p)`.
+    /// Numbers the [`RunKind::Own`] runs of `runs` (a level `wp` wide) and takes their nodes' stencils `row_of(p)`.
     fn new(runs: &mut Runs, wp: usize, row_of: impl Fn(usize) -> [f64; 25]) -> OwnStencils {
         let (mut distinct, mut ids) = (DistinctStencils::default(), Vec::new());
         for (r, ab) in runs.first.windows(2).enumerate() {
@@ -257,8 +251,7 @@ impl DistinctStencils {
     }
 }
 
-/// Each row of a level split into runs of one [`RunKind`], found once when the level is
-/// built, so that the products do not test node after node where each run ends.
+/// Each row of a level split into runs of one [`RunKind`], so that the products do not test each node's kind.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Runs {
     /// Row r's runs are `runs[first[r]..first[r + 1]]` (padded rows; padding rows have none).
@@ -267,8 +260,7 @@ pub(crate) struct Runs {
 }
 
 impl Runs {
-    /// The runs of the columns `PAD..PAD + w` of each of the `h` body rows of a level `wp`
-    /// wide, node p of kind `kind(p)`.
+    /// The runs of the columns `PAD..PAD + w` of the `h` body rows of a level `wp` wide, node p of kind `kind(p)`.
     pub(crate) fn new(wp: usize, w: usize, h: usize, kind: impl Fn(usize) -> RunKind) -> Runs {
         let mut runs = Runs { first: vec![0; PAD + 1], runs: Vec::new() };
         for base in (PAD..PAD + h).map(|r| r * wp) {
@@ -310,8 +302,7 @@ pub(crate) mod bit {
     pub const REGULAR: u8 = 128;
 }
 
-/// Rows per parallel task; the transfers and the Galerkin build of levels smaller than
-/// `PAR_MIN_NODES` run on one thread.
+/// Rows per parallel task; the transfers and Galerkin build of levels below `PAR_MIN_NODES` run on one thread.
 const PAR_ROWS: usize = 16;
 const PAR_MIN_NODES: usize = 4_000;
 
@@ -325,11 +316,9 @@ pub(crate) struct Geometry {
     pub down: Vec<bool>,
     /// Only on the finest level: fixed (Dirichlet) nodes, whose prolongation rows vanish.
     pub fixed: Option<Vec<bool>>,
-    /// Prolongation rows in 24ths on the 2 × 2 coarse corners of each node, or [`EXT`]
-    /// for a row in `ext`; filled by [`Geometry::new`].
+    /// Prolongation rows in 24ths on the 2 × 2 coarse corners of each node, or [`EXT`] for a row in `ext`.
     pub prow: Vec<[u8; 4]>,
-    /// The rows that reach past the 2 × 2 corners (linear extrapolation at a missing link),
-    /// by node index, sorted: weights on the 4 × 4 window of [`Geometry::geo_row`].
+    /// The rows that reach past the 2 × 2 corners, by node index, sorted (see [`Geometry::geo_row`]).
     pub ext: Vec<(u32, [f64; 16])>,
     /// `plain_rows[y]`: every node of row y is active with the plain bilinear geometric row (fixed or
     /// not), so [`restrict`] and [`prolong_add_scaled`] can run the plain formulas there.
@@ -384,9 +373,8 @@ impl Geometry {
 
     /// The next coarser geometry: node (X, Y) sits on (2X, 2Y) ([`coarse_links`] at step 2).
     pub fn coarsen(&self) -> Geometry {
-        // ⌊n/2⌋ + 1 coarse nodes: for an even n the last one is a ghost just outside the
-        // grid (at fine position n), so that the last fine node still sits between two
-        // coarse nodes and interpolation keeps reproducing linear functions there.
+        // ⌊n/2⌋ + 1 coarse nodes: for an even n the last one is a ghost at fine position n, so that the last
+        // fine node still sits between two coarse nodes and interpolation reproduces linear functions there.
         let (w, h, [active, right, down]) = coarse_links(self.w, self.h, 2, &self.active, &self.right, &self.down);
         Geometry::new(w, h, active, right, down, None)
     }
@@ -394,8 +382,7 @@ impl Geometry {
     /// Whether the geometry has inactive nodes or missing links between active neighbours.
     pub fn torn(&self) -> bool { crate::grid::torn(self.w, &self.active, &self.right, &self.down) }
 
-    /// Whether node (x, y) is active and every link its row reads (see
-    /// [`Geometry::geo_row`]) is there: then its row is the plain bilinear one.
+    /// Whether node (x, y) is active with every link its row reads: then its row is the plain bilinear one.
     fn linked_around(&self, x: usize, y: usize) -> bool {
         let r = |x: usize, y: usize| x + 1 == self.w || self.right[self.idx(x, y)];
         let d = |x: usize, y: usize| y + 1 == self.h || self.down[self.idx(x, y)];
@@ -432,9 +419,8 @@ impl Geometry {
         ];
         let mut linked = links.iter().filter(|l| l.0);
         match (linked.next(), linked.next()) {
-            // One link, continued straight on: the neighbour's row, moved to this node's
-            // window (its coarse cell may be the next one); weights past the window dropped,
-            // the rest scaled to sum to one.
+            // One link, continued straight on: the neighbour's row, moved to this node's window (its coarse
+            // cell may be the next one); weights past the window dropped, the rest scaled to sum to one.
             (Some(&(_, true, (qx, qy))), None) => {
                 let (dx, dy, mut moved) = ((qx / 2) as isize - (x / 2) as isize, (qy / 2) as isize - (y / 2) as isize, [0.0; 16]);
                 for (s, &v) in self.link_row(qx, qy).iter().enumerate() {
@@ -468,9 +454,8 @@ impl Geometry {
                 ];
                 let rows: [[f64; 16]; 4] = std::array::from_fn(|k| parts[k].map_or([0.0; 16], |(px, py, o)| self.along(px, py, k < 2, o)));
                 let has = rows.map(|row| row.iter().sum::<f64>() > 0.0);
-                // Opposite neighbours: their mean. One in each direction: the bilinear
-                // completion through the coarse corner they share, when that corner is
-                // their neighbour. Else the mean of what there is (a constant).
+                // Opposite neighbours: their mean. One in each direction: the bilinear completion through the
+                // coarse corner they share, when that corner is their neighbour. Else the mean of what there is.
                 let mean = |ks: &[usize], r: &mut [f64; 16]| {
                     for &k in ks {
                         r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v / ks.len() as f64);
@@ -605,9 +590,8 @@ pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &
     (0..w * h).all(|i| !active[i] || reach[i]) && crate::grid::Grid::from_active(w, h, core).pieces().1 == 1
 }
 
-/// Every `s`-th node of a `w × h` grid (`active`, linked `right` and `down`): node (X, Y)
-/// on (min(sX, w − 1), min(sY, h − 1)), active where that node is; two neighbours linked
-/// where every link of the straight path between them is. Its size and vectors.
+/// Every `s`-th node of a `w × h` grid: node (X, Y) on (min(sX, w − 1), min(sY, h − 1)), active where that
+/// node is; two neighbours linked where every link of the straight path between them is.
 pub(crate) fn coarse_links(w: usize, h: usize, s: usize, active: &[bool], right: &[bool], down: &[bool]) -> (usize, usize, [Vec<bool>; 3]) {
     let (wc, hc) = ((w - 1).div_ceil(s) + 1, (h - 1).div_ceil(s) + 1);
     let (px, py) = (|x: usize| (x * s).min(w - 1), |y: usize| (y * s).min(h - 1));
@@ -643,9 +627,8 @@ fn extend(a: bool, b: bool, fa: bool, fb: bool) -> [f64; 4] {
 }
 
 widest! {
-    /// The largest `|r_i| / a_ii` of a residual (pixels: how far one Jacobi step would move a
-    /// node), `inv_diag` the matching inverse diagonal (zero where a node is no unknown), on the
-    /// processor's widest vectors. Eight running maxima: one would wait on the last at every entry.
+    /// The largest `|r_i| / a_ii` of a residual (how far one Jacobi step would move a node), `inv_diag` the
+    /// matching inverse diagonal. Eight running maxima: one would wait on the last at every entry.
     pub(crate) fn scaled_max<T: Real>(r: &[[T; 2]], inv_diag: &[f64]) -> f64 =>
     scaled_max_body {
         let mut m = [0.0f64; 8];
@@ -664,14 +647,12 @@ widest! {
     }
 }
 
-/// The larger of two values, by a comparison: `f64::max` (which must skip a NaN either
-/// side) becomes a call into the C library on WebAssembly, once per node in the passes above.
+/// The larger of two values, by a comparison: `f64::max` (which must skip a NaN) is a libm call on WebAssembly.
 #[inline(always)]
 pub(crate) fn larger(a: f64, b: f64) -> f64 { if b > a { b } else { a } }
 
 widest! {
-    /// `[Σ a₀b₀, Σ a₁b₁]` of two vectors of pairs, in `f64`, the products taken in `T`, on the
-    /// processor's widest vectors (see [`super::wide`]).
+    /// `[Σ a₀b₀, Σ a₁b₁]` of two vectors of pairs, in `f64`, the products taken in `T`.
     pub(crate) fn dot_pairs<T: Real>(a: &[[T; 2]], b: &[[T; 2]]) -> [f64; 2] =>
     dot_pairs_body {
         pair_sums(a.as_flattened(), b.as_flattened(), |x: T, y: T| (x * y).get())
@@ -679,8 +660,7 @@ widest! {
 }
 
 widest! {
-    /// `Σ_i a_i b_i` in `f64` on [`pair_sums`]' eight running sums (one would wait on each
-    /// addition), on the processor's widest vectors.
+    /// `Σ_i a_i b_i` in `f64` on [`pair_sums`]' eight running sums.
     pub(crate) fn dot<A: Real, B: Real>(a: &[A], b: &[B]) -> f64 =>
     dot_body {
         let [even, odd] = pair_sums(a, b, |x: A, y: B| x.get() * y.get());
@@ -725,18 +705,15 @@ fn plain_row(x: usize, y: usize) -> [f64; 16] {
 /// The operator of one level.
 #[derive(Debug)]
 pub(crate) enum Operator {
-    /// The finest level: the energy terms read off per-node flags, applied as the interior
-    /// molecule on runs of regular nodes and as the other nodes' own stencils (built from
-    /// the flags with the level).
+    /// The finest level: the energy terms read off per-node flags, applied as the interior molecule on runs
+    /// of regular nodes and as the other nodes' own stencils.
     Fine { flags: Vec<u8>, tau: f64, runs: Runs, own: OwnStencils },
-    /// A Galerkin level: a 5 × 5 stencil (row-major offsets, dy outer) per padded node,
-    /// as an index into a table; entry 0 is the stencil shared by every regular node
-    /// (all zeros when there is none).
+    /// A Galerkin level: a 5 × 5 stencil (dy outer) per padded node, an index into a table whose entry 0 is
+    /// the stencil shared by every regular node (all zeros when there is none).
     Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, narrow: Vec<[f32; 25]>, sym: Option<Sym>, fours: Fours, runs: Runs, far: Vec<Far> },
 }
 
-/// A tap of a Galerkin level past its stored 5 × 5 stencils: `(p, q, a_pq)`, padded
-/// indices, sorted by `p` (where extrapolating prolongation rows meet, at a cut's tips).
+/// A tap past a Galerkin level's 5 × 5 stencils (at a cut's tips): `(p, q, a_pq)`, padded, sorted by `p`.
 pub(crate) type Far = (u32, u32, f64);
 
 fn far_of(far: &[Far], p: usize) -> &[Far] {
@@ -751,12 +728,10 @@ fn far_of(far: &[Far], p: usize) -> &[Far] {
 pub(crate) struct Sym([f64; 5]);
 
 impl Sym {
-    /// The interior molecule of the finest level: the square of the 5-point Laplacian
-    /// (20, −8, 2, 1) plus τ times the Laplacian (4, −1).
+    /// The finest level's interior molecule: the squared 5-point Laplacian (20, −8, 2, 1) plus τ times (4, −1).
     fn fine(tau: f64) -> Sym { Sym([20.0 + 4.0 * tau, -8.0 - tau, 2.0, 1.0, 0.0]) }
 
-    /// The five coefficients of `s` (each the mean of its ring) if it has the symmetries
-    /// of the square up to rounding.
+    /// The five coefficients of `s` (each its ring's mean) if it has the square's symmetries up to rounding.
     fn of(s: &[f64; 25]) -> Option<Sym> {
         let at = |dy: isize, dx: isize| s[((dy + 2) * 5 + dx + 2) as usize];
         let classes: [&[(isize, isize)]; 5] = [
@@ -788,9 +763,8 @@ pub(crate) struct Level {
     pub inv_diag_w: Vec<WS>,
     /// Upper bound of the spectrum of D⁻¹A (Gershgorin).
     pub lam_max: f64,
-    /// `clean[y * w + x]`: active, linked right and down, not fixed, and (on Galerkin
-    /// levels) carrying the regular stencil. A coarse node whose whole 9 × 9 window here is
-    /// clean gets the regular coarse stencil without computing it.
+    /// `clean[y * w + x]`: active, linked right and down, not fixed, and (on Galerkin levels) regular. A coarse
+    /// node whose whole 9 × 9 window here is clean gets the regular coarse stencil without computing it.
     pub clean: Vec<bool>,
 }
 
@@ -800,8 +774,7 @@ impl Level {
 
     pub fn len_padded(&self) -> usize { self.wp * (self.geo.h + 2 * PAD) }
 
-    /// Zeroes the padding of a vector of this level: the rows above and below its nodes and
-    /// the columns left and right of them.
+    /// Zeroes the padding of a vector of this level.
     pub fn clear_padding<T: Real>(&self, v: &mut [[T; 2]]) {
         let (wp, w, h, zero) = (self.wp, self.geo.w, self.geo.h, [T::ZERO; 2]);
         v[..PAD * wp].fill(zero);
@@ -862,8 +835,7 @@ impl Level {
         self.with_prolongation(Geometry::new(w, h, active, link_right, link_down, None))
     }
 
-    /// The level with the prolongation rows of `geo` (the same grid, more nodes or links);
-    /// the rows of its inactive and fixed nodes stay zero.
+    /// The level with the prolongation rows of `geo` (more nodes or links), zero on its inactive and fixed nodes.
     fn with_prolongation(mut self, geo: Geometry) -> Level {
         let real = std::mem::replace(&mut self.geo, geo);
         let zero = |i: usize| !real.active[i] || real.fixed.as_ref().is_some_and(|f| f[i]);
@@ -888,8 +860,7 @@ impl Level {
     pub fn with_holes_filled(self, outside: Option<&[bool]>) -> Level {
         let g = &self.geo;
         let (w, h) = (g.w, g.h);
-        // The wide ones of the pieces of the grid of `gap` nodes (inactive ones, or those
-        // off the matte), clear of the border unless `border_too`.
+        // The wide pieces of `gap` nodes (inactive, or off the matte), clear of the border unless `border_too`.
         let wide_pieces = |gap: &dyn Fn(usize) -> bool, border_too: bool| -> Vec<bool> {
             let (hole, count) = crate::grid::Grid::from_active(w, h, (0..w * h).map(gap).collect()).pieces();
             let (mut size, mut edges, mut border) = (vec![0usize; count], vec![0usize; count], vec![false; count]);
@@ -920,8 +891,7 @@ impl Level {
         level
     }
 
-    /// Frees everything but the dimensions and the prolongation rows (for a level that is
-    /// only restricted from and prolonged to from now on).
+    /// Frees everything but the dimensions and the prolongation rows (all that transfers read).
     pub fn keep_only_prolongation(&mut self) {
         self.op = Operator::Fine { flags: Vec::new(), tau: 0.0, runs: Runs::default(), own: OwnStencils::default() };
         (self.inv_diag, self.inv_diag_w, self.clean) = (Vec::new(), Vec::new(), Vec::new());
@@ -949,8 +919,7 @@ impl Level {
         self.far(p).iter().for_each(|&(_, q, a)| f(q as usize, a));
     }
 
-    /// `out_p = Σ_q |a_pq| g_q` on every unknown p of the finest level (`g` zero off the
-    /// unknowns; `out` zero there): the product with the operator's absolute values.
+    /// `out_p = Σ_q |a_pq| g_q` on the finest level's unknowns (`g` zero off them; `out` zero there).
     pub(crate) fn fine_abs_product(&self, g: &[f64], out: &mut [f64]) {
         let Operator::Fine { flags, tau, runs, own } = &self.op else { unreachable!("a Galerkin level") };
         let wp = self.wp;
@@ -1024,8 +993,7 @@ impl Level {
         });
     }
 
-    /// `out = −A x` (as [`Level::residual`] without `f`) and `xᵀ out` per component, taken
-    /// band by band while both are in cache.
+    /// `out = −A x` and `xᵀ out` per component, taken band by band while both are in cache.
     pub fn residual_dot<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> [f64; 2] {
         self.over_bands(out, false, |r0, r1, chunk| {
             band_residual(self, x, None, r0, 0, chunk);
@@ -1043,8 +1011,7 @@ impl Level {
         })
     }
 
-    /// `out = −A x` and its largest entry scaled by the inverse diagonal (see
-    /// [`scaled_max`]), taken band by band while `out` is in cache.
+    /// `out = −A x` and its largest entry scaled by the inverse diagonal ([`scaled_max`]), band by band.
     pub fn residual_scaled_max<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> f64 {
         self.over_bands(out, true, |r0, r1, chunk| {
             band_residual(self, x, None, r0, 0, chunk);
@@ -1066,10 +1033,9 @@ impl Level {
         parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
     }
 
-    /// One smoothing step in one pass, band by band: the residual `r = f − A x` (into `next`,
-    /// as scratch), the update `d` from it (`rule`) and `next = x + d`, bit for bit the three
-    /// passes. `next` must differ from `x` (the bands read `x` two rows past their own); `d`
-    /// is written only when `keep` (a later step reads it), read only by [`StepRule::Next`].
+    /// One smoothing step in one pass, band by band: the residual `r = f − A x` (into `next`), the update `d`
+    /// from it (`rule`) and `next = x + d`, bit for bit the three passes. `next` must differ from `x` (the
+    /// bands read `x` two rows past their own); `d` is written only when `keep`.
     pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
         self.step_bands(d, next, |r0, _, chunk, dc| self.step_band(x, 0, f, r0, chunk, dc, rule, keep));
     }
@@ -1129,9 +1095,8 @@ thread_local! {
     static BAND_F64: std::cell::RefCell<Vec<V2>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal
-/// `g`: `d = g r / θ` for the first step, `d = c₁ d + c₂ g r` for later ones, and
-/// `d = c₁ x + c₂ g r` for the second after a first from zero (whose update is its iterate).
+/// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal `g`: `d = g r / θ`
+/// first, `d = c₁ d + c₂ g r` later, `d = c₁ x + c₂ g r` second after a first from zero (its update its iterate).
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum StepRule {
     First { inv_theta: WS },
@@ -1140,8 +1105,7 @@ pub(crate) enum StepRule {
 }
 
 widest! {
-    /// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one
-    /// row (`d` written only when `keep`), on the processor's widest vectors.
+    /// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one row.
     fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule, keep: bool) =>
     step_row_body {
         let n = out.len();
@@ -1223,8 +1187,7 @@ widest! {
                                 if let (true, Some(xs), Some(o)) = (four, S::as_f32(x), T::as_f32_mut(orow)) {
                                     let (n, tail) = ((e - c) / 4, (e - c) % 4);
                                     let m = n + usize::from(tail > 0);
-                                    // Near the end of a level's last row the tail's taps may pass the
-                                    // vectors' end: there it is summed below, node by node.
+                                    // The tail's taps may pass the vectors' end: there it is summed below.
                                     let tail = if base + c + 4 * m + 2 * wp + 2 <= x.len() { tail } else { 0 };
                                     let blocks = &fours.blocks[block..block + m];
                                     f32::four_run(xs, f.and_then(T::as_f32), base + c, n, tail, wp, blocks, &mut o[c..c + 4 * n + tail]);
@@ -1242,8 +1205,7 @@ widest! {
     }
 }
 
-/// `out[j] −= a_pq x[q]` for the far taps `(p, q, a_pq)` of the nodes `p = a + j` that
-/// `out` covers, in the precision of `out` (`x` widened exactly).
+/// `out[j] −= a_pq x[q]` for the far taps `(p, q, a_pq)` of the nodes `p = a + j` that `out` covers.
 fn subtract_far<S: Real, T: Real>(far: &[Far], a: usize, x: &[[S; 2]], out: &mut [[T; 2]]) {
     let (k0, b) = (far.partition_point(|e| (e.0 as usize) < a), a + out.len());
     for &(p, q, v) in far[k0..].iter().take_while(|e| (e.0 as usize) < b) {
@@ -1329,8 +1291,7 @@ fn sym_run<S: Real, T: Real, const KNIGHT: bool>(x: &[[S; 2]], f: Option<&[[T; 2
     }
 }
 
-/// `s` in the precision `T` of a kernel's sums: `s` itself where `S` is `T`, else widened
-/// exactly (`f32` into `f64`; no kernel narrows its input).
+/// `s` in the precision `T` of a kernel's sums: itself, or widened exactly (no kernel narrows its input).
 #[inline(always)]
 fn widened<S: Real, T: Real>(s: S) -> T { T::of(s.get()) }
 
@@ -1431,8 +1392,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let rows = fine.geo.children(yc, fh);
         let y_lo = *rows.start();
         let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
-        // Each row's nonzeros only, in window order (so the sums below add as over the
-        // whole window): most of a row's wide window is zero.
+        // Each row's nonzeros only, in window order (so the sums add as over the whole window, mostly zero).
         let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
         let (mut acc, mut row) = (vec![0.0f64; n * n], vec![0.0f64; AP * AP]);
         for &xc in &irregular {
@@ -1462,8 +1422,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
                 }
             }
             let (acc, far_taps) = split_taps(&acc, n);
-            // The window test is conservative: a stencil equal to the shared one up to the
-            // rounding of its sums is regular.
+            // The window test is conservative: a stencil equal to the shared one up to rounding is regular.
             if far_taps.is_empty() && shared_scale > 0.0 && acc.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale) {
                 continue;
             }
@@ -1572,8 +1531,7 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
     }
 }
 
-/// Row `(ix, iy)` of `A P` on the narrow window (a 4 × 4 one from offset −1), dense: the
-/// products in the order of [`ap_row`].
+/// Row `(ix, iy)` of `A P` on the 4 × 4 window from offset −1, dense, in the order of [`ap_row`].
 fn narrow_ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
     let fw = fine.geo.w;
     let row = fine.row(fine.pidx(ix, iy));
@@ -1698,8 +1656,7 @@ widest! {
             o[0] += wy * (c[0] + half * side[0]);
             o[1] += wy * (c[1] + half * side[1]);
         };
-        // Coarse nodes 1..inner have both fine neighbours (2X + 1 < fw), and every index below
-        // is in bounds by the slices' lengths, so the loop has no tests.
+        // Coarse nodes 1..inner have both fine neighbours, and the slices' lengths bound every index: no tests.
         let inner = (fw / 2).min(acc.len());
         let (head, v) = (&mut acc[..inner], &vr[..2 * inner]);
         for xc in 1..inner {
@@ -1731,9 +1688,8 @@ widest! {
             if odd { [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])] } else { a }
         };
         let mid = |l: V2, r: V2| [0.5 * (l[0] + r[0]), 0.5 * (l[1] + r[1])];
-        // The coarse columns whose right neighbour the row also reaches (2X + 1 < fw): pairs
-        // of fine nodes (2X, 2X + 1) against pairs of coarse columns (X, X + 1), all of one
-        // length, so the loop has no tests; the rest one by one.
+        // Where 2X + 1 < fw: pairs of fine nodes (2X, 2X + 1) against pairs of coarse columns (X, X + 1), all
+        // of one length, so the loop has no tests; the rest one by one.
         let done = (fw / 2).min(c0.len().saturating_sub(1)).min(c1.len().saturating_sub(1));
         let fine = x[..2 * done].chunks_exact_mut(2).zip(prow[..2 * done].chunks_exact(2));
         let coarse = c0[..done + 1].windows(2).zip(c1[..done + 1].windows(2));
@@ -1752,8 +1708,7 @@ widest! {
     }
 }
 
-/// `fine_x += α P e` (prolongation of a coarse correction onto the unknowns), α per
-/// component, in either precision.
+/// `fine_x += α P e` (prolongation of a coarse correction onto the unknowns), α per component.
 pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]], alpha: V2) {
     let (fw, fh, wp) = (fine.geo.w, fine.geo.h, fine.wp);
     let run = |iy: usize, xrow: &mut [[T; 2]]| {
@@ -1782,8 +1737,7 @@ pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level,
     each_row(fw * fh, &mut x[PAD * wp..(PAD + fh) * wp], wp, run);
 }
 
-/// `f(y, row)` on each row (`wp` long) of `body`, on the pool's threads when the fine level
-/// has [`PAR_MIN_NODES`] nodes or more.
+/// `f(y, row)` on each row (`wp` long) of `body`, on the pool's threads from [`PAR_MIN_NODES`] fine nodes.
 fn each_row<U: Send>(fine_nodes: usize, body: &mut [U], wp: usize, f: impl Fn(usize, &mut [U]) + Sync + Send) {
     if fine_nodes >= PAR_MIN_NODES {
         body.par_chunks_mut(wp).enumerate().for_each(|(y, r)| f(y, r));

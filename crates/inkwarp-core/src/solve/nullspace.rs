@@ -20,9 +20,8 @@ use super::level::V2;
 use super::strands::{blocks_in_order, Envelope};
 use crate::grid::{find, join};
 
-/// The most entries of a block's factor (a dense block of 1,500 functions; a strand's
-/// chain of bends holds a few a function). Past it the rule is not applied and the solve
-/// does not claim convergence.
+/// The most entries of a block's factor (a dense block of 1,500 functions): past it the rule is not applied
+/// and the solve does not claim convergence.
 pub(crate) const MAX_BLOCK_ENTRIES: usize = 1500 * 1501 / 2;
 
 /// The most functions in all (each block's factor at most [`MAX_BLOCK_ENTRIES`], see [`Membrane`]).
@@ -59,8 +58,7 @@ impl BoxGeo<'_> {
 /// A basis function: (node, value) pairs.
 pub(crate) type Sparse = Vec<(usize, f64)>;
 
-/// A basis of the fields on the box's active nodes with zero plate energy that vanish on
-/// `fixed`, or `None` when it has more than `max` functions.
+/// A basis of the fields of zero plate energy that vanish on `fixed`, or `None` past `max` functions.
 pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option<Vec<Sparse>> {
     let (w, n) = (g.w, g.w * g.h);
     // Clusters: union-find over full cells joined through shared edges.
@@ -91,8 +89,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
         }
     }
     let clusters = origin.len();
-    // Unknowns: three a cluster, then one per active node in no full cell (a lone node).
-    // Each cluster's nodes are those whose first cluster it is.
+    // Unknowns: three a cluster (its nodes those whose first cluster it is), then one per lone active node.
     let (mut lone, mut lone_nodes, mut nodes_of) = (vec![u32::MAX; n], Vec::new(), vec![Vec::new(); clusters]);
     for i in (0..n).filter(|&i| g.active[i]) {
         if member[i][0] != u32::MAX {
@@ -161,8 +158,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
     Some(out.filter(|z| !z.is_empty()).collect())
 }
 
-/// Incremental sparse Gaussian elimination: pivot rows normalised on their pivot, each
-/// free of the columns of earlier pivots.
+/// Incremental sparse Gaussian elimination: rows normalised on their pivot, free of earlier pivots' columns.
 struct Echelon {
     pivot_of: Vec<u32>,
     rows: Vec<(usize, Vec<(usize, f64)>)>,
@@ -301,9 +297,8 @@ pub(crate) struct Membrane {
     basis: Vec<Sparse>,
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.
     products: Vec<Sparse>,
-    /// The functions of each block (coupled through their supports), in the order of its
-    /// factor, and the envelope factor of its membrane Gram matrix (none for a block too
-    /// costly or singular, which is not settled).
+    /// The functions of each block in its factor's order, and the factor of its membrane Gram matrix (none
+    /// for a block too costly or singular, which is not settled).
     blocks: Vec<(Vec<usize>, Option<Envelope>)>,
 }
 

@@ -17,22 +17,19 @@ const THIN: usize = 16;
 /// The most entries a node's row of a block's factor may hold on average.
 const BAND: usize = 64;
 
-/// The finest level's blocks factored are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant
-/// hair's exact response where the `f32` search direction can hold it (docs/dev/ablation.md).
+/// The finest level's blocks factored are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant hair's exact
+/// response where the `f32` search direction can hold it (docs/dev/ablation.md).
 const SHIFT: f64 = 1e-8;
 
-/// A pivot below this fraction of its diagonal entry is dropped (slivers' near-free
-/// functions; docs/dev/ablation.md, "Tenth change").
+/// A pivot below this fraction of its diagonal entry is dropped (slivers' near-free functions).
 const PIVOT: f64 = 1e-6;
 
-/// The `L D Lᵀ` factor of a symmetric matrix within its envelope: row `i` of `L` from
-/// column `first[i]` (its first nonzero) to the diagonal, at `at[i]` in `l`.
+/// The `L D Lᵀ` factor of a symmetric matrix in its envelope: row `i` of `L` from column `first[i]`, at `at[i]`.
 #[derive(Debug)]
 pub(crate) struct Envelope {
     first: Vec<u32>,
     at: Vec<usize>,
-    /// `L`'s rows within the envelope (the diagonal slot unused) and `D⁻¹` (zero where a
-    /// pivot was dropped).
+    /// `L`'s rows (the diagonal slot unused) and `D⁻¹` (zero where a pivot was dropped).
     l: Vec<f64>,
     d_inv: Vec<f64>,
 }
@@ -46,8 +43,7 @@ pub(crate) struct Strands {
     taps: Vec<(u32, f64)>,
     at: Vec<usize>,
     blocks: Vec<Envelope>,
-    /// The finest level's first solve's correction (from [`Strands::before`] to
-    /// [`Strands::after`]), per node.
+    /// The finest level's first solve's correction (from [`Strands::before`] to [`Strands::after`]).
     first_pass: Vec<V2>,
 }
 
@@ -55,8 +51,7 @@ impl Strands {
     /// The thin nodes of `level`, or `None` when it has none.
     pub fn new(level: &Level) -> Option<Strands> {
         let thin = match &level.op {
-            // Links: the operator's own on the finest level, the geometry's between unknowns
-            // on coarser ones.
+            // Links: the operator's own on the finest level, the geometry's between unknowns on coarser ones.
             Operator::Fine { flags, .. } => thin_nodes(level, |p, _| flags[p] & bit::RIGHT != 0, |p, _| flags[p] & bit::DOWN != 0),
             Operator::Stored { .. } => {
                 let (g, d, wp) = (&level.geo, &level.inv_diag, level.wp);

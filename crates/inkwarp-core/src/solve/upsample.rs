@@ -1,20 +1,16 @@
 //! `grid_step = s > 1`: solve on every s-th node and upsample with a tensor-product cubic.
 //!
-//! The coarse node (X, Y) sits on pixel (min(sX, W−1), min(sY, H−1)) (the last row and
-//! column are pulled onto the image border, so every pixel lies between coarse nodes). It is
-//! active when that pixel is; two coarse neighbours are linked when every fine link on the
-//! straight path between them is. A sample constrains the nearest coarse node. The tension
-//! is scaled by s² so that the coarse energy approximates the same continuous energy.
+//! The coarse node (X, Y) sits on pixel (min(sX, W−1), min(sY, H−1)) (the last row and column pulled onto
+//! the border, so every pixel lies between coarse nodes), active when that pixel is; two coarse neighbours
+//! are linked when every fine link on the straight path between them is. A sample constrains the nearest
+//! coarse node. The tension is scaled by s² so that the coarse energy approximates the same continuous one.
 //!
-//! Upsampling is Catmull-Rom (interpolating) in x and y. A pixel uses only the coarse
-//! nodes of its 4 × 4 window that it reaches through links without leaving the window's
-//! block of pixels (so a tear stays open even where its sides are joined far around); the
-//! weights of the dropped nodes are dropped and the rest renormalised (falling back to
-//! bilinear from the inner 2 × 2, then to the nearest value along the links). A piece with
-//! no coarse node takes the mean displacement of its samples, or stays at zero without any;
-//! a coarse piece no sample holds moves with the held one it joins on the full grid.
-//! The editor's drag path, built for speed (`docs/dev/multigrid.md`); a test holds it to
-//! the straightforward per-pixel loop (to within the rounding of the sums' order).
+//! Upsampling is Catmull-Rom in x and y. A pixel uses only the coarse nodes of its 4 × 4 window that it
+//! reaches through links within the window's block of pixels (so a tear stays open even where its sides
+//! join far around), renormalised (falling back to bilinear from the inner 2 × 2, then to the nearest value
+//! along the links). A piece with no coarse node takes the mean displacement of its samples, or zero; a
+//! coarse piece no sample holds moves with the held one it joins on the full grid. The editor's drag path,
+//! built for speed (`docs/dev/multigrid.md`); a test holds it to the per-pixel loop (up to sums' order).
 
 use std::collections::VecDeque;
 
@@ -40,9 +36,8 @@ pub(crate) fn solve_coarse(
     (upsample(grid, &Upsampling::new(grid, options.grid_step), &fc, samples), report)
 }
 
-/// The coarse solve of `grid_step = s` on a non-empty grid, from `initial` read at the coarse
-/// nodes (in place: a pass over the coarse grid, not over every pixel), or from the solver's
-/// history, which keeps the coarse fields (only their coarse nodes' values would ever be read).
+/// The coarse solve of `grid_step = s` on a non-empty grid, from `initial` read at the coarse nodes, or from
+/// the solver's history, which keeps the coarse fields.
 fn solve_on_coarse_grid(
     grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool, follow: bool,
 ) -> (Field, SolveReport) {
@@ -228,8 +223,7 @@ impl Taps {
     }
 }
 
-/// Every coarse node of a window's taps: the bit `4 kb + ka` stands for window position
-/// (`ka`, `kb`), as in [`Taps::slot`].
+/// Every coarse node of a window's taps: the bit `4 kb + ka` stands for window position (`ka`, `kb`).
 const ALL_TAPS: u16 = u16::MAX;
 
 /// The usable-tap masks of every coarse cell ([`cell_masks`]) near one that a missing link or an inactive
