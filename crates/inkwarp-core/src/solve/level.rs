@@ -267,10 +267,7 @@ impl Runs {
             let mut c = PAD;
             while c < PAD + w {
                 let k = kind(base + c);
-                let mut e = c + 1;
-                while e < PAD + w && kind(base + e) == k {
-                    e += 1;
-                }
+                let e = (c + 1..PAD + w).find(|&e| kind(base + e) != k).unwrap_or(PAD + w);
                 runs.runs.push(Run { start: c as u32, end: e as u32, kind: k, at: 0 });
                 c = e;
             }

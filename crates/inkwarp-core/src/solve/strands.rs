@@ -174,10 +174,7 @@ fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn
 fn each_run(n: usize, linked: impl Fn(usize) -> bool, mut f: impl FnMut(usize, usize)) {
     let mut s = 0;
     while s < n {
-        let mut e = s;
-        while e + 1 < n && linked(e) {
-            e += 1;
-        }
+        let e = (s..n - 1).find(|&e| !linked(e)).unwrap_or(n - 1);
         f(s, e);
         s = e + 1;
     }
