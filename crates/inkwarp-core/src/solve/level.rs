@@ -1220,15 +1220,17 @@ fn own_sums<'a, S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, wp: usize,
     while i < c1 {
         let (k, q0) = ((c1 - i).min(4), base + i);
         // Past the run's end the last node stands in (its sums are dropped).
-        let o = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
-        let s = o.map(|j| stencil(q0 + j));
+        let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
+        let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| stencil(q0 + j));
         let mut a = [[T::ZERO; 2]; 4];
         for &(dy, dx) in &STORED_TAPS {
             let (t, q) = (dy * 5 + dx, q0 + dy * wp + dx - 2 * wp - 2);
-            for l in 0..4 {
-                let xl = x[q + o[l]].map(widened::<S, T>);
-                a[l] = [a[l][0] + s[l][t] * xl[0], a[l][1] + s[l][t] * xl[1]];
-            }
+            let v = |p: usize| x[p].map(widened::<S, T>);
+            let (x0, x1, x2, x3) = (v(q), v(q + o1), v(q + o2), v(q + o3));
+            a[0] = [a[0][0] + s0[t] * x0[0], a[0][1] + s0[t] * x0[1]];
+            a[1] = [a[1][0] + s1[t] * x1[0], a[1][1] + s1[t] * x1[1]];
+            a[2] = [a[2][0] + s2[t] * x2[0], a[2][1] + s2[t] * x2[1]];
+            a[3] = [a[3][0] + s3[t] * x3[0], a[3][1] + s3[t] * x3[1]];
         }
         for (j, a) in a.into_iter().take(k).enumerate() {
             let fv = f.map_or([T::ZERO; 2], |f| f[q0 + j]);
