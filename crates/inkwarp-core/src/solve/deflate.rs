@@ -1,14 +1,12 @@
-//! Deflation of the slow modes the outer conjugate gradient reveals (the near-rigid
-//! motions of weakly attached parts, which the cycle misses). When a solve is still running
-//! after [`START`] cycles, the search directions of each window of [`WINDOW`] cycles are
-//! kept with their Gram matrices; at the window's end a Rayleigh–Ritz step over the window
-//! and the vectors already kept (a thick restart, as eigCG does) keeps the [`KEEP`] Ritz
-//! vectors of the smallest eigenvalues as `W` ([`KEEP_SLOW`] from the third step). The
-//! iterate is corrected on `span W` (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`) and every later
-//! direction made `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000).
-//! It also gives the stopping rule a rate floor ([`Deflation::rate_floor`]) and the largest
-//! change of the last window and its rate ([`Deflation::judged`]). Memory: at most
-//! `2·WINDOW + 2·KEEP_SLOW` `f32` vectors (160 bytes a node) within [`BUDGET_BYTES`].
+//! Deflation of the slow modes the outer conjugate gradient reveals (the near-rigid motions of weakly
+//! attached parts, which the cycle misses). When a solve is still running after [`START`] cycles, the
+//! search directions of each window of [`WINDOW`] cycles are kept with their Gram matrices; at the window's
+//! end a Rayleigh–Ritz step over the window and the vectors already kept (a thick restart, as eigCG does)
+//! keeps the [`KEEP`] Ritz vectors of the smallest eigenvalues as `W` ([`KEEP_SLOW`] from the third step).
+//! The iterate is corrected on `span W` (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`) and every later direction made
+//! `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000). It also gives the stopping rule a
+//! rate floor ([`Deflation::rate_floor`]) and the last window's largest change and rate
+//! ([`Deflation::judged`]). Memory: at most `2·WINDOW + 2·KEEP_SLOW` `f32` vectors within [`BUDGET_BYTES`].
 
 use rayon::prelude::*;
 

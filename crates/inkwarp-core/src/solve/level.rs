@@ -285,15 +285,13 @@ impl Runs {
 pub(crate) mod bit {
     /// Active and not fixed: an unknown.
     pub const FREE: u8 = 1;
-    /// Horizontal triple centred here (links left and right).
+    /// Horizontal and vertical triples centred here (links either side).
     pub const HTRI: u8 = 2;
-    /// Vertical triple centred here.
     pub const VTRI: u8 = 4;
     /// 2 × 2 cell with this node as its top-left corner and all four links.
     pub const CELL: u8 = 8;
-    /// Link to the right neighbour.
+    /// Links to the right neighbour and to the one below.
     pub const RIGHT: u8 = 16;
-    /// Link to the neighbour below.
     pub const DOWN: u8 = 32;
     /// Free, with every term of the interior 13-point molecule present.
     pub const REGULAR: u8 = 128;

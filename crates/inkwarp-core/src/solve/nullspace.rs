@@ -1,20 +1,18 @@
 //! The null space of a piece's constrained plate operator, and the τ → 0⁺ rule on it.
 //!
-//! A field has zero plate energy when every straight triple with both links has a zero
-//! second difference and every fully linked 2 × 2 cell a zero mixed difference. Fully
-//! linked cells that share an edge are then one affine function (the two rows or columns
-//! through both are straight triples), so the fields of zero plate energy are described by
-//! a few unknowns: three affine coefficients per *cluster* of edge-connected full cells and
-//! one value per node in no full cell. They must agree where clusters share a node, give a
-//! zero second difference on every triple not inside one cluster, and vanish on the fixed
-//! nodes. The solutions of that small sparse system span the null space `N`: the hinge's
-//! turn of one square about the other, a strand's free bend, a ring's shear.
+//! A field has zero plate energy when every straight triple with both links has a zero second difference
+//! and every fully linked 2 × 2 cell a zero mixed difference. Fully linked cells that share an edge are
+//! then one affine function (the two rows or columns through both are straight triples), so the fields of
+//! zero plate energy are described by a few unknowns: three affine coefficients per *cluster* of
+//! edge-connected full cells and one value per node in no full cell. They must agree where clusters share
+//! a node, give a zero second difference on every triple not inside one cluster, and vanish on the fixed
+//! nodes. The solutions of that small sparse system span the null space `N`: the hinge's turn of one
+//! square about the other, a strand's free bend, a ring's shear.
 //!
-//! At τ = 0 the contract's answer is the plate minimiser of least membrane energy: the
-//! iteration's minimiser `u` plus the `n ∈ N` that minimises `E_membrane(u + n)`, a dense
-//! `k × k` solve for the `k` basis functions. At τ > 0 the same functions are the operator's
-//! smallest eigenvectors (eigenvalues of order τ), which an iteration barely moves: an
-//! exact Galerkin correction in their span removes that error.
+//! At τ = 0 the contract's answer is the plate minimiser of least membrane energy: the iteration's
+//! minimiser `u` plus the `n ∈ N` that minimises `E_membrane(u + n)`. At τ > 0 the same functions are the
+//! operator's smallest eigenvectors (eigenvalues of order τ), which an iteration barely moves: an exact
+//! Galerkin correction in their span removes that error.
 
 use super::level::V2;
 use super::strands::{blocks_in_order, Envelope};

@@ -1,13 +1,12 @@
 //! Exact solves on the thin parts of a piece: strands, teeth, slivers between cuts.
 //!
-//! A part a few pixels wide bends almost freely and the coarse levels, whose nodes are 2ᵏ
-//! pixels apart, do not see it: its bending is a slow mode of every cycle. Being nearly
-//! one-dimensional, its own system is cheap to solve exactly, so the preconditioner solves
-//! every connected set of *thin* nodes (a run of linked nodes along the row or the column
-//! at most [`THIN`] long) with the rest held, before and after the cycle (block symmetric
-//! Gauss–Seidel). Each set is ordered by reverse Cuthill–McKee and factored as `L D Lᵀ`
-//! within its envelope (its diagonal raised by [`SHIFT`]); a vanishing pivot (a free
-//! function of the set, at τ = 0) is dropped, leaving it to the cycle and the settling.
+//! A part a few pixels wide bends almost freely and the coarse levels, whose nodes are 2ᵏ pixels apart,
+//! do not see it: its bending is a slow mode of every cycle. Nearly one-dimensional, its own system is
+//! cheap to solve exactly, so the preconditioner solves every connected set of *thin* nodes (a run of
+//! linked nodes along the row or the column at most [`THIN`] long) with the rest held, before and after the
+//! cycle (block symmetric Gauss–Seidel). Each set is ordered by reverse Cuthill–McKee and factored as
+//! `L D Lᵀ` in its envelope (its diagonal raised by [`SHIFT`]); a vanishing pivot (a free function of the
+//! set, at τ = 0) is dropped, leaving it to the cycle and the settling.
 
 use super::level::{bit, Level, Operator, Real, V2, W2, WS};
 
