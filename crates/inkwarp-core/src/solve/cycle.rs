@@ -1,5 +1,4 @@
-//! Multigrid cycles over the hierarchy: Chebyshev–Jacobi smoothing, V-cycles, the
-//! coarse-to-fine start and the exact coarsest solve.
+//! Multigrid cycles: Chebyshev–Jacobi smoothing, V- and K-cycles, the coarse-to-fine start, the coarsest solve.
 
 use rayon::prelude::*;
 
@@ -10,17 +9,15 @@ use super::strands::Strands;
 const CHEB_RATIO: f64 = 16.0;
 /// Stop coarsening when a level has at most this many nodes.
 const COARSEST_NODES: usize = 300;
-/// A K-cycle takes its second step only when its first left more than this fraction of
-/// the coarse residual (Euclidean norm, each component): Notay's adaptive K-cycle (see
-/// `docs/dev/ablation.md`, "Constants", for the choice of 0.3).
+/// A K-cycle takes its second step only when its first left more than this fraction of the coarse residual
+/// (Euclidean norm, each component): Notay's adaptive K-cycle (`docs/dev/ablation.md`, "Constants").
 const K_SECOND_STEP: f64 = 0.3;
 /// Lanczos steps of the estimate of the top of each level's spectrum.
 const LANCZOS_STEPS: usize = 12;
 /// Power steps of the finest level's Collatz–Wielandt bound.
 const COLLATZ_STEPS: usize = 3;
-/// The smallest pivot of the coarsest factor, relative to its diagonal, that is not taken
-/// as zero: about the resolution of the `f32` work vectors, whose rounding a smaller pivot
-/// would magnify past the answer (`docs/dev/solver-correctness.md`, "Tiny tensions").
+/// The smallest pivot of the coarsest factor, relative to its diagonal, not taken as zero: about the `f32`
+/// work vectors' resolution, whose rounding a smaller one would magnify (`docs/dev/solver-correctness.md`).
 const PIVOT_FLOOR: f64 = 1e-7;
 
 /// The grid hierarchy with its work vectors.
@@ -32,36 +29,28 @@ pub(crate) struct Hierarchy {
     /// Smoothing steps on the finest level, and on the levels below it.
     degree: usize,
     coarse_degree: usize,
-    /// Solve the coarse problems below the finest level by K-cycles (two flexible
-    /// conjugate-gradient steps each, see [`Hierarchy::k_correction`]); else by one
-    /// line-searched cycle each, a V-cycle.
+    /// Solve the coarse problems below the finest level by K-cycles ([`Hierarchy::k_correction`]); else by
+    /// one line-searched cycle each, a V-cycle.
     pub k_cycles: bool,
-    /// A second coarse space for the finest level (see [`Level::into_plain`]), visited
-    /// after the first on every cycle; its own levels are regular grids.
+    /// A second coarse space for the finest level ([`Level::into_plain`]), visited after the first.
     pub alt: Option<Box<Hierarchy>>,
     /// Whether the finest level has holes or cuts (see [`super::level::Geometry::torn`]).
     pub torn: bool,
-    /// K-cycle coarse corrections that took their first step alone (see
-    /// [`K_SECOND_STEP`]), since the hierarchy was built.
+    /// K-cycle coarse corrections that took their first step alone ([`K_SECOND_STEP`]).
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
     /// Exact solves on the finest level's thin parts around each cycle (see [`Strands`]).
     pub strands: Option<Strands>,
-    /// The same on the coarser levels (index k for level k; none on the finest), relaxed
-    /// within the cycle after its smoothing steps and before its second ones.
+    /// The same on the coarser levels (index k for level k), relaxed after each smoothing within the cycle.
     pub level_strands: Vec<Option<Strands>>,
-    /// The solve's own vectors on the finest level (the residual, the search direction's
-    /// product, a warm start's cold alternative; the search direction in `f32`), kept for
-    /// the next solve: allocated afresh, vectors of megabytes cost the process page faults
-    /// at every solve, a large part of an animation frame's one cycle.
+    /// The solve's own vectors on the finest level (the residual, the search direction and its product,
+    /// a warm start's cold alternative), kept for the next solve: allocated afresh, they cost page faults.
     pub spare: Vec<Vec<V2>>,
     pub direction: Vec<W2>,
     /// The finest level's affine functions, corrected exactly after every cycle (see [`Affine`]).
     pub affine: Option<Affine>,
-    /// The slow modes the last slow solve kept: its deflation's, or after a probe the slowest
-    /// of the probe's and the deflation's at that cycle (see [`super::deflate::Modes`]).
+    /// The slow modes the last slow solve kept (its deflation's or its probe's: see [`super::deflate::Modes`]).
     pub modes: Option<super::deflate::Modes>,
-    /// Whether a solve has probed its operator for slow modes (see `super::probe`), and
-    /// converged.
+    /// Whether a solve has probed its operator for slow modes (see `super::probe`), and converged.
     pub probed: bool,
     /// Whether the finest level is the only one, solved by its banded factor.
     pub whole: bool,
@@ -76,28 +65,24 @@ struct Work {
     f: Vec<W2>,
     r: Vec<W2>,
     d: Vec<W2>,
-    /// The first search direction of a K-cycle's coarse problem, and `A` times it
-    /// (allocated by the first K-cycle that solves on this level).
+    /// The first search direction of a K-cycle's coarse problem, and `A` times it (allocated when first used).
     z1: Vec<W2>,
     q1: Vec<W2>,
 }
 
 impl Hierarchy {
-    /// A second coarse space for `fine`'s unknowns: the levels below `fine` (visited by
-    /// V-cycles), with no work vectors or smoothing bound on `fine` itself, which the
-    /// hierarchy it serves already has.
+    /// A second coarse space for `fine`'s unknowns: the levels below `fine`, visited by V-cycles (`fine`
+    /// itself, which the hierarchy it serves smooths, without work vectors or bound).
     pub fn coarse_space(fine: Level, degree: usize) -> Hierarchy {
         let mut h = Hierarchy { k_cycles: false, ..Hierarchy::new(fine, degree, degree, false, None) };
-        // Past the setup, the finest level only lends its prolongation (restriction and
-        // prolongation read nothing else): keep 4 bytes a node instead of about 18.
+        // Past the setup, the finest level only lends its prolongation: 4 bytes a node instead of about 18.
         h.levels[0].keep_only_prolongation();
         h
     }
 
-    /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and of
-    /// `coarse_degree` below it; unless `smooth_fine`, `fine` gets no work vectors or bound.
-    /// With `whole = Some(max)`, `fine` is the only level, solved by its banded factor, where
-    /// that factor drops at most `max` pivots.
+    /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and `coarse_degree` below
+    /// it; unless `smooth_fine`, `fine` gets no work vectors or bound. With `whole = Some(max)`, `fine` is the
+    /// only level, solved by its banded factor, where that factor drops at most `max` pivots.
     pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool, whole: Option<usize>) -> Hierarchy {
         let mut levels = vec![fine];
         let factor = whole.and_then(|max| Some(Banded::new(&levels[0])).filter(|b| b.dropped.iter().filter(|&&d| d).count() <= max));
@@ -109,19 +94,17 @@ impl Hierarchy {
             let v = || vec![[0.0; 2]; if k == 0 && !smooth_fine { 0 } else { levels[k].len_padded() }];
             Work { x: v(), f: v(), r: v(), d: v(), z1: Vec::new(), q1: Vec::new() }
         }).collect();
-        // Chebyshev needs the top of the spectrum of D⁻¹A (two steps aimed at [λ/16, λ]
-        // amplify every mode more than 6.25 % above λ). On the finest level, whose top mode
-        // alternates in sign as its molecule does, a Collatz–Wielandt bound on |A| is safe
-        // and close; on the Galerkin levels it is loose, so there Lanczos's largest Ritz
-        // value, capped by Gershgorin's (power steps miss the edge modes over holes).
+        // Chebyshev needs the top of the spectrum of D⁻¹A (two steps aimed at [λ/16, λ] amplify every mode
+        // more than 6.25 % above λ). On the finest level, whose top mode alternates in sign as its molecule
+        // does, a Collatz–Wielandt bound on |A| is safe and close; on the Galerkin levels it is loose, so
+        // there Lanczos's largest Ritz value, capped by Gershgorin's (power steps miss edge modes at holes).
         let bound = |(k, l): (usize, &mut Level)| l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
         levels.iter_mut().enumerate().skip(if smooth_fine && !whole { 0 } else { 1 }).for_each(bound);
         let coarsest = factor.unwrap_or_else(|| Banded::new(levels.last().unwrap()));
         Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, modes: None, probed: false, whole, paused: None }
     }
 
-    /// `z ≈ A⁻¹ r` on the unknowns of the finest level by one symmetric cycle from zero, in
-    /// `f32`: the returned `z` is the cycle's own output, valid until the next call.
+    /// `z ≈ A⁻¹ r` on the finest level by one symmetric cycle from zero in `f32`, valid until the next call.
     pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
         update(&mut self.work[0].f, r, |f, r| *f = [WS::of(r[0]), WS::of(r[1])]);
         if let Some(s) = &mut self.strands {
@@ -149,14 +132,12 @@ impl Hierarchy {
     /// Level k's smoothing steps.
     fn steps_at(&self, k: usize) -> usize { if k == 0 { self.degree } else { self.coarse_degree } }
 
-    /// Approximately solves `A_k x = f` on level k (x, f in `work[0]`, the slice starting at
-    /// level k) by one cycle from `x` (zero when `x_zero`): a V-cycle, with K-cycle
-    /// corrections from the levels between the finest and the one above the coarsest.
+    /// Approximately solves `A_k x = f` on level k (x, f in `work[0]`, the slice from level k) by one cycle from
+    /// `x` (zero when `x_zero`): a V-cycle, with K-cycle corrections strictly between the finest and the coarsest.
     fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, alt_work: Option<&mut [Work]>) {
         let (level, coarsest) = (&self.levels[k], k + 1 == self.levels.len());
-        // From zero, `x` is zeroed unless the first smoothing step writes all of it anyway (or,
-        // fused with the second on the finest level, does not read it: see
-        // `Level::second_step_from_zero`).
+        // From zero, `x` is zeroed unless the first smoothing step writes all of it anyway (or, fused with
+        // the second on the finest level, does not read it: see `Level::second_step_from_zero`).
         if x_zero && (coarsest || self.steps_at(k) == 0 || level.lam_max <= 0.0) {
             fill_zero(&mut work[0].x);
         }
@@ -171,23 +152,21 @@ impl Hierarchy {
         if let Some(Some(s)) = self.level_strands.get(k) {
             s.relax(x, f);
         }
-        // From a given `x` (the coarse-to-fine start's, the whole answer on this level)
-        // below the finest level in `f64` sums (see `Level::residual_f64`); from zero,
-        // `x` is one smoothing of `f`, and the rounding of its product small next to
-        // the residual.
+        // From a given `x` (the coarse-to-fine start's, the whole answer on this level) below the finest
+        // level in `f64` sums (see `Level::residual_f64`); from zero, `x` is one smoothing of `f`, and the
+        // rounding of its product small next to the residual.
         if k > 0 && !x_zero {
             level.residual_f64(x, Some(f), r);
         } else {
             level.residual(x, Some(f), r);
         }
-        // The finest level's own Krylov method is the conjugate gradient around the cycle;
-        // the level above the coarsest solves exactly, one visit is all it needs.
+        // No K-cycle on the finest level (the conjugate gradient runs around the cycle) nor above the coarsest.
         if k > 0 && k + 2 < self.levels.len() && self.k_cycles {
             self.k_correction(k, w, tail);
         } else {
             self.solve_below(k, &w.r, tail);
-            // Line-searched below the finest level; unscaled on it (the conjugate gradient
-            // around the cycle takes the step, and from the coarsest level of two it is exact).
+            // Line-searched below the finest level; unscaled on it (the conjugate gradient around the cycle
+            // takes the step, and from the coarsest level of two it is exact).
             let alpha = if k > 0 { line_step(&self.levels[k + 1], &mut tail[0]) } else { [1.0; 2] };
             prolong_add_scaled(level, &self.levels[k + 1], &tail[0].x, &mut w.x, alpha);
         }
@@ -195,8 +174,8 @@ impl Hierarchy {
             // The second coarse space, on the residual the first one left.
             level.residual(&w.x, Some(&w.f), &mut w.r);
             alt.solve_below(0, &w.r, &mut aw[1..]);
-            // Line-searched: a soft mode of the plain space can make its cycle's answer far
-            // too large, and added unscaled it would undo the first correction.
+            // Line-searched: a soft mode of the plain space can make its cycle's answer far too large, and
+            // added unscaled it would undo the first correction.
             let alpha = line_step(&alt.levels[1], &mut aw[1]);
             prolong_add_scaled(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x, alpha);
         }
@@ -207,45 +186,40 @@ impl Hierarchy {
         smooth(level, x, f, r, d, self.steps_at(k), false);
     }
 
-    /// Level k + 1's cycle from zero on the restriction of level k's residual `r` (into
-    /// `tail[0]`, the work from level k + 1 on).
+    /// Level k + 1's cycle from zero on the restriction of level k's residual `r` (`tail`: from level k + 1).
     fn solve_below(&self, k: usize, r: &[W2], tail: &mut [Work]) {
         restrict(&self.levels[k], &self.levels[k + 1], r, &mut tail[0].f);
         self.solve_level(k + 1, tail, true, None);
     }
 
-    /// Level k's coarse correction from its residual `w.r`: two steps of flexible conjugate
-    /// gradients on the coarse problem `A_c e = Pᵀ r`, each preconditioned by one cycle of
-    /// level k + 1 (a K-cycle), then `P e` added to `w.x`; the second step only when the
-    /// first left more than [`K_SECOND_STEP`] of the residual. Per component, with `zᵢ` the
-    /// cycles' outputs:
+    /// Level k's coarse correction from its residual `w.r`: two steps of flexible conjugate gradients on
+    /// `A_c e = Pᵀ r`, each preconditioned by one cycle of level k + 1 (a K-cycle), then `P e` added to
+    /// `w.x`; the second step only when the first left more than [`K_SECOND_STEP`] of the residual. Per
+    /// component, with `zᵢ` the cycles' outputs:
     ///
     /// ```text
     /// e = α₁ z₁ + α₂ d,   α₁ = z₁ᵀf / z₁ᵀA z₁,   d = z₂ − β z₁,   β = z₂ᵀA z₁ / z₁ᵀA z₁,
     /// α₂ = dᵀ(f − α₁ A z₁) / dᵀA d
     /// ```
     ///
-    /// The second step minimises the energy over both directions (a W-cycle's second visit
-    /// takes the second alone) and needs no fine residual, the coarse one updated in place.
+    /// The second step minimises the energy over both directions (a W-cycle's second visit takes the second
+    /// alone) and needs no fine residual, the coarse one updated in place.
     fn k_correction(&self, k: usize, w: &mut Work, tail: &mut [Work]) {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
         self.solve_below(k, &w.r, tail);
         let c = &mut tail[0];
-        // z₁ is smooth and as large as the coarse error: its product, small next to its
-        // terms, in `f64` sums (see `Level::residual_f64`), and z₂'s below.
+        // z₁ is smooth and as large as the coarse error: its product (and z₂'s) in `f64` sums.
         coarse.residual_f64(&c.x, None, &mut c.r); // −A z₁ on the unknowns
         let zaz = dot_w(&c.x, &c.r).map(|v| -v);
-        let a1 = step(dot_w(&c.x, &c.f), zaz);
-        // Keep A z₁ (and z₁ below, if a second step follows); the right-hand side becomes
-        // the residual f − α₁ A z₁.
+        let a1 = step(dot_w(&c.x, &c.f), zaz, 0.0);
+        // Keep A z₁ (and z₁ below, if a second step follows); the right-hand side becomes f − α₁ A z₁.
         let a1w = a1.map(WS::of);
         c.q1.resize(c.r.len(), [WS::ZERO; 2]);
         let before = dot_w(&c.f, &c.f);
         update(&mut c.q1, &c.r, |q, r| *q = [WS::ZERO - r[0], WS::ZERO - r[1]]);
         update(&mut c.f, &c.r, |f, r| *f = [f[0] + a1w[0] * r[0], f[1] + a1w[1] * r[1]]);
         let after = dot_w(&c.f, &c.f);
-        // The first step alone when it left little of the residual (Notay's adaptive
-        // K-cycle): the second cycle below would not be worth its cost.
+        // The first step alone when it left little of the residual: the second cycle is not worth its cost.
         let t2 = K_SECOND_STEP * K_SECOND_STEP;
         if after[0] <= t2 * before[0] && after[1] <= t2 * before[1] {
             self.second_steps_skipped.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -256,19 +230,18 @@ impl Hierarchy {
         self.solve_level(k + 1, tail, true, None);
         let c = &mut tail[0];
         coarse.residual_f64(&c.x, None, &mut c.r); // −A z₂
-        let bw = step(dot_w(&c.x, &c.q1), zaz).map(WS::of);
+        let bw = step(dot_w(&c.x, &c.q1), zaz, 0.0).map(WS::of);
         // d = z₂ − β z₁ into x, A d = −r − β A z₁ into r.
         update(&mut c.x, &c.z1, |x, z1| *x = [x[0] - bw[0] * z1[0], x[1] - bw[1] * z1[1]]);
         update(&mut c.r, &c.q1, |r, q1| *r = [WS::ZERO - r[0] - bw[0] * q1[0], WS::ZERO - r[1] - bw[1] * q1[1]]);
-        let (a1w, a2w) = (a1.map(WS::of), step(dot_w(&c.x, &c.f), dot_w(&c.x, &c.r)).map(WS::of));
+        let (a1w, a2w) = (a1.map(WS::of), step(dot_w(&c.x, &c.f), dot_w(&c.x, &c.r), 0.0).map(WS::of));
         update(&mut c.x, &c.z1, |x, z1| *x = [a1w[0] * z1[0] + a2w[0] * x[0], a1w[1] * z1[1] + a2w[1] * x[1]]);
         prolong_add_scaled(level, coarse, &c.x, &mut w.x, [1.0; 2]);
     }
 
-    /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on
-    /// the coarsest, then interpolated and improved by one V-cycle per level on the way up;
-    /// `u` receives the interpolated correction on the unknowns. `r` is scratch, or holds
-    /// the residual of `u` already when `r_ready` (it is left stale).
+    /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on the coarsest,
+    /// then interpolated and improved by one V-cycle per level on the way up into `u`. `r` is scratch,
+    /// or holds the residual of `u` already when `r_ready` (it is left stale).
     pub fn coarse_to_fine(&mut self, u: &mut [V2], r: &mut [V2], r_ready: bool) {
         let nl = self.levels.len();
         if nl < 2 {
@@ -299,23 +272,19 @@ impl Hierarchy {
     }
 }
 
-/// The affine functions `W = (1, x − x₀, y − y₀)` on the finest level's unknowns, added to
-/// every cycle's output by their Galerkin correction `z += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`: an
-/// additive coarse space of three functions. On a torn piece the link-aware prolongation
-/// reproduces affine functions only where each side of a cut has room to extrapolate, so an
-/// affine motion that the constraints leave nearly free (points near one line, or close
-/// together) was a near-null mode the cycles barely moved and the first cycles' changes hid
-/// (`docs/dev/solver-correctness.md`, "Affine motions").
+/// The affine functions `W = (1, x − x₀, y − y₀)` on the finest level's unknowns, added to every cycle's
+/// output by their Galerkin correction `z += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`. On a torn piece the link-aware
+/// prolongation reproduces affine functions only where each side of a cut has room to extrapolate, so an
+/// affine motion the constraints leave nearly free (points near one line, or close together) is a
+/// near-null mode the cycles barely move (`docs/dev/solver-correctness.md`, "Affine motions").
 #[derive(Debug)]
 pub(crate) struct Affine(Vec<Vec<f64>>);
 
-/// A piece gets [`Affine`] where its weakest affine motion of size 1 at the box's edges has
-/// less energy than this (a node held `d` off costs about `20 d²`: the motion moves the
-/// constrained nodes by about 1/50 of its size).
+/// A piece gets [`Affine`] where its weakest affine motion of size 1 at the box's edges has less energy than
+/// this (a node held `d` off costs about `20 d²`: the motion moves the constrained nodes by about 1/50).
 const AFFINE_WEAK: f64 = 1e-2;
 
-/// `W`'s values at padded node `p` of `level`: small integers (exact in `f32`), zero off
-/// the unknowns.
+/// `W`'s values at padded node `p` of `level`: small integers (exact in `f32`), zero off the unknowns.
 fn affine_at(level: &Level, p: usize) -> [f64; 3] {
     if level.inv_diag_w[p] == 0.0 { return [0.0; 3]; }
     [1.0, (p % level.wp) as f64 - (level.geo.w / 2 + PAD) as f64, (p / level.wp) as f64 - (level.geo.h / 2 + PAD) as f64]
@@ -333,8 +302,8 @@ fn affine_sums(level: &Level, v: &[V2]) -> [V2; 3] {
 }
 
 impl Affine {
-    /// `None` unless the constraints leave an affine motion nearly free (but not free: a
-    /// free function is the settling's, see `nullspace`). `x` and `q` are scratch.
+    /// `None` unless the constraints leave an affine motion nearly free (not free: see `nullspace`). `x`, `q`
+    /// are scratch.
     pub fn new(level: &Level, x: &mut [V2], q: &mut [V2]) -> Option<Affine> {
         let mut e = vec![vec![0.0; 3]; 3];
         for pair in [[1, 2], [0, 0]] {
@@ -343,8 +312,7 @@ impl Affine {
             let s = affine_sums(level, q);
             e.iter_mut().enumerate().for_each(|(i, row)| (row[pair[0]], row[pair[1]]) = (-s[i][0], -s[i][1]));
         }
-        // E for W scaled to 1 at the edges: det / (sum of the principal 2 × 2 minors) lies
-        // between a third of its least eigenvalue and that eigenvalue.
+        // E for W scaled to 1 at the edges: det / Σ principal 2 × 2 minors is within 3× its least eigenvalue.
         let s = [1.0, 2.0 / level.geo.w.max(2) as f64, 2.0 / level.geo.h.max(2) as f64];
         let m = |i: usize, j: usize| e[i][j] * s[i] * s[j];
         let minor = |i: usize, j: usize| m(i, i) * m(j, j) - m(i, j) * m(i, j);
@@ -367,21 +335,18 @@ impl Affine {
     }
 }
 
-/// The step α (per component) of the correction `P e` for the coarse solution `e = c.x` of
-/// `A_c e = c.f` that minimises the energy along it: α = ⟨P e, r⟩ / ⟨P e, A P e⟩, evaluated
-/// on the coarse level, where ⟨P e, r⟩ = ⟨e, Pᵀ r⟩ = ⟨e, f_c⟩ and ⟨P e, A P e⟩ = ⟨e, A_c e⟩
-/// (Galerkin): a coarse product instead of a fine one. `c.r` is scratch.
+/// The step α (per component) of the correction `P e` for the coarse solution `e = c.x` of `A_c e = c.f`
+/// that minimises the energy along it: α = ⟨P e, r⟩ / ⟨P e, A P e⟩ = ⟨e, f_c⟩ / ⟨e, A_c e⟩ (Galerkin), a
+/// coarse product instead of a fine one. `c.r` is scratch.
 fn line_step(coarse: &Level, c: &mut Work) -> [f64; 2] {
     coarse.residual(&c.x, None, &mut c.r); // −A_c e on the unknowns
-    let (num, den) = (dot_w(&c.x, &c.f), dot_w(&c.x, &c.r).map(|v| -v));
-    [0, 1].map(|k| if den[k] > 0.0 { num[k] / den[k] } else { 1.0 })
+    step(dot_w(&c.x, &c.f), dot_w(&c.x, &c.r).map(|v| -v), 1.0)
 }
 
-/// An upper bound of the largest eigenvalue of the finest level's D⁻¹A (Collatz–Wielandt):
-/// for any g > 0 on the unknowns, λ_max(D⁻¹A) ≤ ρ(D⁻¹|A|) ≤ max_p (D⁻¹|A| g)_p / g_p. The
-/// least of the bounds of [`COLLATZ_STEPS`] power steps g ← D⁻¹|A| g from g = D^-1/2 𝟙.
-/// Where A's signs alternate as its top mode's do (the interior molecule's), |A| loses
-/// nothing.
+/// An upper bound of the largest eigenvalue of the finest level's D⁻¹A (Collatz–Wielandt): for any g > 0
+/// on the unknowns, λ_max(D⁻¹A) ≤ ρ(D⁻¹|A|) ≤ max_p (D⁻¹|A| g)_p / g_p; the least of the bounds of
+/// [`COLLATZ_STEPS`] power steps g ← D⁻¹|A| g from g = D^-1/2 𝟙. Where A's signs alternate as its top
+/// mode's do (the interior molecule's), |A| loses nothing.
 pub(crate) fn collatz_bound(level: &Level) -> f64 {
     let inv_d = &level.inv_diag;
     let mut g: Vec<f64> = inv_d.par_iter().map(|&i| i.sqrt()).collect();
@@ -405,10 +370,9 @@ pub(crate) fn collatz_bound(level: &Level) -> f64 {
     bound
 }
 
-/// Largest eigenvalue of D⁻¹A estimated by [`LANCZOS_STEPS`] Lanczos steps from a
-/// pseudo-random start (the largest Ritz value, a lower bound). D⁻¹A is symmetric in the
-/// inner product `xᵀ D y`, so the Lanczos vectors are kept in that product: a step is one
-/// product (its dot product taken band by band) and one pass, each vector unnormalised.
+/// Largest eigenvalue of D⁻¹A estimated by [`LANCZOS_STEPS`] Lanczos steps from a pseudo-random start (the
+/// largest Ritz value, a lower bound). D⁻¹A is symmetric in `xᵀ D y`, so the Lanczos vectors are kept in
+/// that product: a step is one product (its dot product taken band by band) and one pass, unnormalised.
 pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
     let (n, inv_d) = (level.len_padded(), &level.inv_diag);
     // The start D^-1/2 v of a random v on the unknowns.
@@ -417,8 +381,7 @@ pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
         let s = inv_d[p].sqrt();
         if inv_d[p] > 0.0 { [h(0) * s, h(1) * s] } else { [0.0; 2] }
     }).collect();
-    // The norm `√(xᵀ D x)` of the vectors: `cur` is the Lanczos vector times `c`, `prev`
-    // the one before it times `c_prev`.
+    // The norm `√(xᵀ D x)`: `cur` is the Lanczos vector times `c`, `prev` the one before it times `c_prev`.
     let mut c = cur.iter().zip(inv_d).map(|(x, &i)| if i > 0.0 { (x[0] * x[0] + x[1] * x[1]) / i } else { 0.0 }).sum::<f64>().sqrt();
     if c == 0.0 { return 0.0; }
     let (mut prev, mut out) = (vec![[0.0; 2]; n], vec![[0.0; 2]; n]);
@@ -450,8 +413,7 @@ pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
     tridiagonal_max(&alpha, &beta[..alpha.len() - 1])
 }
 
-/// Largest eigenvalue of the symmetric tridiagonal matrix with diagonal `a` and
-/// off-diagonal `b`, by bisection on Sturm counts.
+/// Largest eigenvalue of the symmetric tridiagonal matrix (diagonal `a`, off-diagonal `b`) by bisection.
 fn tridiagonal_max(a: &[f64], b: &[f64]) -> f64 {
     let mut hi = (0..a.len()).map(|i| a[i] + if i > 0 { b[i - 1].abs() } else { 0.0 } + b.get(i).map_or(0.0, |v| v.abs())).fold(0.0, f64::max);
     let mut lo = 0.0;
@@ -463,8 +425,8 @@ fn tridiagonal_max(a: &[f64], b: &[f64]) -> f64 {
     hi
 }
 
-/// How many eigenvalues of the symmetric tridiagonal matrix (diagonal `a`, off-diagonal
-/// `b`) lie below `x`: the negative pivots of the LDLᵀ factorisation of T − x (Sturm count).
+/// How many eigenvalues of the symmetric tridiagonal matrix (diagonal `a`, off-diagonal `b`) lie below `x`:
+/// the negative pivots of the LDLᵀ factorisation of T − x (Sturm count).
 pub(super) fn eigenvalues_below(a: &[f64], b: &[f64], x: f64) -> usize {
     let (mut count, mut d) = (0, 1.0);
     for i in 0..a.len() {
@@ -475,22 +437,20 @@ pub(super) fn eigenvalues_below(a: &[f64], b: &[f64], x: f64) -> usize {
     count
 }
 
-/// `num / den` per component, or 0 where the direction has no energy (`den ≤ 0`).
-fn step(num: [f64; 2], den: [f64; 2]) -> [f64; 2] { [0, 1].map(|k| if den[k] > 0.0 { num[k] / den[k] } else { 0.0 }) }
+/// `num / den` per component, or `none` where the direction has no energy (`den ≤ 0`).
+fn step(num: [f64; 2], den: [f64; 2], none: f64) -> [f64; 2] { [0, 1].map(|k| if den[k] > 0.0 { num[k] / den[k] } else { none }) }
 
 /// Entries per task of this module's vector passes.
 const PASS_CHUNK: usize = 4096;
 
-/// `Σ a_i b_i` per component, in `f64`. The chunks' sums are added in order, so the result
-/// does not depend on how the pool's threads split the work (a parallel `reduce` adds
+/// `Σ a_i b_i` per component, in `f64`, the chunks' sums added in order (a parallel `reduce` would add
 /// them in a tree shaped by the work stealing).
 fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
     let parts: Vec<[f64; 2]> = a.par_chunks(PASS_CHUNK).zip(b.par_chunks(PASS_CHUNK)).map(|(a, b)| dot_pairs::<WS>(a, b)).collect();
     parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
 }
 
-/// `len` zeros in `v` where it has that length (a vector kept from an earlier solve), else
-/// in a new vector.
+/// `len` zeros in `v` where it has that length (a vector kept from an earlier solve), else in a new one.
 pub(crate) fn zeros_in<T: Real>(v: Option<Vec<[T; 2]>>, len: usize) -> Vec<[T; 2]> {
     let Some(mut v) = v.filter(|v| v.len() == len) else { return vec![[T::ZERO; 2]; len] };
     fill_zero(&mut v);
@@ -504,22 +464,20 @@ fn update<S: Real, T: Real>(x: &mut [[T; 2]], y: &[[S; 2]], f: impl Fn(&mut [T; 
     x.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).for_each(|(x, y)| x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y)));
 }
 
-/// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `steps` steps aimed at
-/// the part `[λ/CHEB_RATIO, λ]` of the spectrum of D⁻¹A, each one pass over the level
-/// ([`Level::smoothing_step`]). `r` and `d` are scratch; `x` and `r` may come back swapped.
+/// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `steps` steps aimed at `[λ/CHEB_RATIO, λ]`
+/// of the spectrum of D⁻¹A, each one pass ([`Level::smoothing_step`]). `r` and `d` are scratch; `x` and
+/// `r` may come back swapped.
 fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2], mut steps: usize, x_zero: bool) {
     if steps == 0 || level.lam_max <= 0.0 { return; }
     let (b, a) = (level.lam_max, level.lam_max / CHEB_RATIO);
     let (theta, delta) = (0.5 * (b + a), 0.5 * (b - a));
     let (sigma, inv_theta) = (theta / delta, WS::of(1.0 / theta));
     let (mut rho, mut rule) = (1.0 / sigma, StepRule::First { inv_theta });
-    // On the finest level the first two steps from zero are one pass (see
-    // `Level::second_step_from_zero`).
+    // On the finest level the first two steps from zero are one pass (see `Level::second_step_from_zero`).
     let fused = x_zero && steps >= 2 && matches!(level.op, Operator::Fine { .. });
     if x_zero {
-        // From x = 0 the residual is f and the first step is x = d = D⁻¹ f / θ: one pass,
-        // which writes x alone (the second step reads the update there, `StepRule::Second`);
-        // fused, the second step's pass computes it itself.
+        // From x = 0 the first step is x = d = D⁻¹ f / θ: one pass, which writes x alone (the second step
+        // reads the update there, `StepRule::Second`); fused, the second step's pass computes it itself.
         if !fused {
             let chunks = x.par_chunks_mut(PASS_CHUNK).zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)));
             chunks.for_each(|(x, (f, g))| first_from_zero(x, f, g, inv_theta));
@@ -533,8 +491,7 @@ fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2
             rule = if k == 0 { StepRule::Second { c1, c2 } } else { StepRule::Next { c1, c2 } };
             rho = rho_new;
         }
-        // The step writes x + d into r's vector, which then becomes x's; the last one's
-        // update is not kept.
+        // The step writes x + d into r's vector, which then becomes x's; the last one's update is not kept.
         if fused && k == 0 {
             level.second_step_from_zero(f, inv_theta, d, r, rule, k + 1 < steps);
         } else {
@@ -547,8 +504,7 @@ fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2
 super::wide::widest! {
     /// [`first_from_zero_body`] on the processor's widest vectors (see [`super::wide`]).
     pub(crate) fn first_from_zero(x: &mut [W2], f: &[W2], g: &[WS], inv_theta: WS) =>
-    /// A smoothing's first step from zero, `x = D⁻¹ f / θ` (`g` the inverse diagonal; zero
-    /// where it is).
+    /// A smoothing's first step from zero, `x = D⁻¹ f / θ` (`g` the inverse diagonal; zero where it is).
     first_from_zero_body {
         for ((x, f), &g) in x.iter_mut().zip(f).zip(g) {
             // Computed everywhere, then chosen: a branch kept the loop scalar.
@@ -560,11 +516,9 @@ super::wide::widest! {
     }
 }
 
-/// Banded Cholesky factor of the coarsest operator (unknowns by rows, or by columns where
-/// the level is wider than tall; a piece solved whole has no other level). Pivots
-/// below [`PIVOT_FLOOR`] of their diagonal pin their unknown to zero: those of a singular,
-/// consistent coarsest system, and those of free functions whose energy is of order a tiny
-/// tension.
+/// Banded Cholesky factor of the coarsest operator (unknowns by rows, or by columns where the level is
+/// wider than tall). Pivots below [`PIVOT_FLOOR`] of their diagonal pin their unknown to zero: those of a
+/// singular, consistent system, and those of free functions whose energy is of order a tiny tension.
 #[derive(Debug)]
 struct Banded {
     /// The bandwidth: `l_km` is zero for `k − m > bw`.
@@ -578,8 +532,7 @@ struct Banded {
 
 impl Banded {
     fn new(level: &Level) -> Banded {
-        // The unknowns row by row, or column by column where that is shorter (the padding has
-        // none), and the number of each.
+        // The unknowns row by row, or column by column where that is shorter, and the number of each.
         let mut map: Vec<usize> = (0..level.len_padded()).filter(|&p| level.inv_diag[p] != 0.0).collect();
         if level.geo.w > level.geo.h {
             map.sort_by_key(|&p| (p % level.wp, p / level.wp));
@@ -587,9 +540,8 @@ impl Banded {
         let mut number = vec![usize::MAX; level.len_padded()];
         map.iter().enumerate().for_each(|(k, &p)| number[p] = k);
         let n = map.len();
-        // In this order a 5 × 5 stencil reaches at most 2 rows (columns) ahead: bandwidth
-        // ≤ 2 min(w, h) + 2.
-        // (`number` is `usize::MAX`, above every k, where a tap is no unknown.)
+        // In this order a 5 × 5 stencil reaches at most 2 rows (columns) ahead: bandwidth ≤ 2 min(w, h) + 2
+        // (`number` is `usize::MAX`, above every k, where a tap is no unknown).
         let (mut bw, mut dropped) = (0, vec![false; n]);
         map.iter().enumerate().for_each(|(k, &p)| level.taps(p, |q, _| if number[q] < k { bw = bw.max(k - number[q]) }));
         // l_km's index in `l`.
@@ -616,9 +568,8 @@ impl Banded {
         Banded { bw, l, map, dropped }
     }
 
-    /// `x = A⁻¹ f` on the unknowns: the forward and backward solves of the factor, in `f64`,
-    /// a row for both components at a time (the backward one by columns: the factor's rows
-    /// are contiguous). Dropped unknowns are zero (their rows and columns in the factor are).
+    /// `x = A⁻¹ f` on the unknowns by the factor, in `f64`, a row for both components at a time (the
+    /// backward solve by columns: the factor's rows are contiguous). Dropped unknowns are zero.
     fn solve<T: Real>(&self, f: &[[T; 2]], x: &mut [[T; 2]]) {
         let (n, bw, l) = (self.map.len(), self.bw, &self.l);
         let at = |k: usize, m: usize| k * (bw + 1) + m + bw - k;

@@ -1,15 +1,13 @@
-//! Deflation of the slow modes the outer conjugate gradient reveals (the near-rigid
-//! motions of weakly attached parts, which the cycle misses). When a solve is still running
-//! after [`START`] cycles, the search directions of each window of [`WINDOW`] cycles are
-//! kept with their Gram matrices; at the window's end a Rayleigh–Ritz step over the window
-//! and the vectors already kept (a thick restart, as eigCG does) keeps the [`KEEP`] Ritz
-//! vectors of the smallest eigenvalues as `W` ([`KEEP_SLOW`] from the third step). The
-//! iterate is corrected on `span W` (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`) and every later
-//! direction made `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000).
-//! It also gives the stopping rule a rate floor ([`Deflation::rate_floor`]) and the largest
-//! change of the last window and its rate ([`Deflation::judged`]). Memory: at most
-//! `2·WINDOW + 2·KEEP_SLOW` `f32` vectors (160 bytes a node) within [`BUDGET_BYTES`], which
-//! the modes a probe keeps for the next solve share ([`Deflation::spare`]).
+//! Deflation of the slow modes the outer conjugate gradient reveals (the near-rigid motions of weakly
+//! attached parts, which the cycle misses). When a solve is still running after [`START`] cycles, the
+//! search directions of each window of [`WINDOW`] cycles are kept with their Gram matrices; at the window's
+//! end a Rayleigh–Ritz step over the window and the vectors already kept (a thick restart, as eigCG does)
+//! keeps the [`KEEP`] Ritz vectors of the smallest eigenvalues as `W` ([`KEEP_SLOW`] from the third step).
+//! The iterate is corrected on `span W` (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`) and every later direction made
+//! `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000). It also gives the stopping rule a
+//! rate floor ([`Deflation::rate_floor`]) and the last window's largest change and rate
+//! ([`Deflation::judged`]). Memory: at most `2·WINDOW + 2·KEEP_SLOW` `f32` vectors within [`BUDGET_BYTES`],
+//! which the modes a probe keeps for the next solve share ([`Deflation::spare`]).
 
 use rayon::prelude::*;
 
@@ -22,20 +20,18 @@ use super::level::{dot, Level, Real, V2, W2, WS};
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
-/// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop where its
-/// rate floor exceeds [`WAIT_RATE`], a condition over 9 seen (an `early` one always).
+/// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop where its rate floor exceeds
+/// [`WAIT_RATE`] (an `early` one waits for one always).
 const LOOKS: usize = 2;
 const WAIT_RATE: f64 = 0.5;
-/// The smallest Ritz value has settled when a cycle's Lanczos matrix lowers it by less than
-/// 5 % (before any deflating restart: after one the judged changes come in windows).
+/// The smallest Ritz value has settled when a cycle lowers it by less than 5 % (before any deflating restart).
 const SETTLED: f64 = 0.95;
 /// Ritz vectors kept, and from the third Rayleigh–Ritz step on (`docs/dev/ablation.md`).
 pub(super) const KEEP: usize = 8;
 const KEEP_SLOW: usize = 16;
 /// Most bytes the kept vectors may take.
 const BUDGET_BYTES: usize = 256 << 20;
-/// Rayleigh quotients below this fraction of the operator's largest diagonal entry are the
-/// rounding of `f32` vectors (see [`Modes::with`]).
+/// Rayleigh quotients below this fraction of the largest diagonal entry are `f32` rounding ([`Modes::with`]).
 const NULL_FLOOR: f64 = 1e-12;
 /// Node chunk for the fused passes.
 const CHUNK: usize = 4096;
@@ -47,8 +43,7 @@ pub(crate) struct Modes(Vec<Vec<f32>>, Vec<Vec<f32>>, Vec<Vec<f64>>);
 #[derive(Debug, Default)]
 pub(super) struct Deflation {
     on: bool,
-    /// Stops wait for looks at the kept directions (see [`Deflation::rate_floor`]), one
-    /// from the first cycle if `early` (see [`START`]).
+    /// Stops wait for looks at the kept directions ([`Deflation::rate_floor`]), from the first cycle if `early`.
     wait: bool,
     early: bool,
     /// Ritz vectors the budget leaves room for.
@@ -64,8 +59,7 @@ pub(super) struct Deflation {
     g: Vec<Vec<f64>>,
     m: Vec<Vec<f64>>,
     pub(super) restarts: usize,
-    /// The conjugate gradient's step lengths and β per component since its directions last
-    /// restarted: the Lanczos matrix of the preconditioned operator.
+    /// The conjugate gradient's step lengths and β per component since its last restart: its Lanczos matrix.
     steps: [Vec<(f64, f64)>; 2],
     /// The extreme Ritz values of the preconditioned operator seen in this solve.
     low: f64,
@@ -105,16 +99,13 @@ impl Deflation {
         });
     }
 
-    /// Keeps the direction `p` of cycle `cycle` (its product `q = −A p`); true when a window
-    /// is full and [`Deflation::restart`] is due.
+    /// Keeps the direction `p` of cycle `cycle` (`q = −A p`); true when [`Deflation::restart`] is due.
     pub fn record(&mut self, cycle: usize, p: &[W2], q: &[V2]) -> bool {
         if !self.on || cycle < if self.early { 1 } else { START } { return false; }
         let n = p.len();
         let nb = self.w.len() + self.v.len();
-        // Entries against the basis: (Ax_c)·b and x_c·b for both components c, then the
-        // new pair among themselves.
         let sums = chunked_sums(n, 4 * nb + 6, |a, b, out| {
-            // The pair's rows −q₀, −q₁, x₀, x₁ against the basis, then among themselves.
+            // The pair's rows −q₀, −q₁ (A x), x₀, x₁ against the basis, then among themselves.
             let rows: [Vec<f64>; 4] = std::array::from_fn(|t| (a..b).map(|i| if t < 2 { -q[i][t] } else { p[i][t - 2].get() }).collect());
             for (j, bv) in self.w.iter().chain(&self.v).enumerate() {
                 (0..4).for_each(|t| out[4 * j + t] += dot(&rows[t], &bv[a..b]));
@@ -142,8 +133,8 @@ impl Deflation {
         self.v.len() >= 2 * WINDOW
     }
 
-    /// Rayleigh–Ritz over the kept vectors and the window, keeps the Ritz vectors of the
-    /// smallest Ritz values, and corrects `u` and its residual `r` on their span.
+    /// Rayleigh–Ritz over the kept vectors and the window: keeps the Ritz vectors of the smallest Ritz
+    /// values, and corrects `u` and its residual `r` on their span.
     pub fn restart(&mut self, fine: &Level, u: &mut [V2], r: &mut [V2]) {
         let Some((theta, y)) = ritz(&self.g, &self.m) else {
             self.clear();
@@ -169,76 +160,18 @@ impl Deflation {
         let modes = Modes::of(fine, w);
         self.adopt(modes, u, r);
     }
-}
 
-impl Modes {
-    /// The modes spanned by `w` (orthonormal), with their products by `fine`'s operator.
-    pub fn of(fine: &Level, w: Vec<Vec<f32>>) -> Modes {
-        let (k, n) = (w.len(), w[0].len());
-        // A W by the operator itself (a combination of the window's products would cancel
-        // below f32 for the near-null vectors), two at a time.
-        let mut aw: Vec<Vec<f32>> = Vec::with_capacity(k);
-        let mut x: Vec<W2> = vec![[WS::of(0.0); 2]; n];
-        let mut q: Vec<V2> = vec![[0.0; 2]; n];
-        fine.clear_padding(&mut q);
-        for pair in (0..k).step_by(2) {
-            let other = (pair + 1).min(k - 1);
-            x.par_iter_mut().zip(&w[pair][..]).zip(&w[other][..]).for_each(|((xi, &a), &b)| *xi = [a, b]);
-            fine.fine_residual_dot_narrow(&x, &mut q);
-            aw.extend((0..=other - pair).map(|t| q.par_iter().map(|v| -v[t] as f32).collect()));
-        }
-        // E = Wᵀ A W (its upper triangle, mirrored), summed: a near-null vector's own
-        // Rayleigh quotient is below f32's rounding of W. Wᵀ W is the identity up to that
-        // rounding, as the Ritz vectors are orthonormal.
-        let sums = chunked_sums(n, k * k, |a, b, out| {
-            for (l, j) in (0..k).flat_map(|l| (l..k).map(move |j| (l, j))) {
-                out[l * k + j] += dot(&w[l][a..b], &aw[j][a..b]);
-            }
-        });
-        let e = (0..k).map(|l| (0..k).map(|j| sums[l.min(j) * k + l.max(j)]).collect()).collect();
-        Modes(w, aw, e)
-    }
-
-    /// The Ritz vectors of `A` over `vectors`, smallest first, less those it does not see
-    /// (below [`NULL_FLOOR`] of its largest diagonal entry, or a hundredth of the box's
-    /// smoothest plate mode: a free function's, whose correction would divide rounding by rounding).
-    pub fn with(vectors: Vec<Vec<f64>>, fine: &Level) -> Option<Modes> {
-        let unit = |v: Vec<f64>| { let n = v.iter().map(|x| x * x).sum::<f64>().sqrt(); v.into_iter().map(move |x| (x / n) as f32).collect() };
-        let w: Vec<Vec<f32>> = vectors.into_iter().map(unit).filter(|v: &Vec<f32>| v.iter().all(|x| x.is_finite())).collect();
-        let (k, n) = (w.len(), w.first()?.len());
-        let sums = chunked_sums(n, k * k, |a, b, out| (0..k * k).for_each(|t| out[t] += dot(&w[t / k][a..b], &w[t % k][a..b])));
-        let (theta, y) = ritz(&Modes::of(fine, w.clone()).2, &sums.chunks(k).map(<[f64]>::to_vec).collect::<Vec<_>>())?;
-        let largest = fine.inv_diag.iter().filter(|&&d| d > 0.0).fold(0.0f64, |m, &d| m.max(1.0 / d));
-        let floor = (NULL_FLOOR * largest).max(0.01 * (std::f64::consts::PI / fine.geo.w.max(fine.geo.h) as f64).powi(4));
-        let w: Vec<Vec<f32>> = (0..theta.len()).filter(|&l| theta[l] > floor)
-            .map(|l| (0..n).map(|i| w.iter().zip(&y).map(|(v, yj)| yj[l] * v[i] as f64).sum::<f64>() as f32).collect()).collect();
-        (!w.is_empty()).then(|| Modes::of(fine, w))
-    }
-}
-
-impl Modes {
-    /// The first `k` modes.
-    pub fn first(mut self, k: usize) -> Modes {
-        [&mut self.0, &mut self.1].into_iter().for_each(|v| v.truncate(k));
-        self.2.truncate(k);
-        self.2.iter_mut().for_each(|r| r.truncate(k));
-        self
-    }
-}
-
-impl Deflation {
     /// The kept vectors, in `f64`.
     pub fn vectors(&self) -> impl Iterator<Item = Vec<f64>> + '_ { self.w.iter().map(|v| v.iter().map(|&x| f64::from(x)).collect()) }
 
-    /// The vectors kept, for the next solve of the same operator, whose slow modes they are.
-    /// At most the [`KEEP`] smallest: adopted, more misled a 1024² solve (`docs/dev/ablation.md`).
+    /// The vectors kept, for the next solve of the same operator: at most the [`KEEP`] smallest (more misled
+    /// larger solves: `docs/dev/ablation.md`).
     pub fn modes(self) -> Option<Modes> {
         (!self.w.is_empty()).then(|| Modes(self.w, self.aw, self.e).first(KEEP))
     }
 
-    /// Keeps `modes` (the Ritz vectors, or an earlier solve's [`Deflation::modes`]) as the
-    /// vectors, a new basis (`Bᵀ B = I`, `Bᵀ A B = E`, no window); corrects `u` and `r` on
-    /// them, and projects every later direction. At most as many as the budget leaves room for.
+    /// Keeps `modes` (the Ritz vectors, or an earlier solve's) as the vectors, a new basis (`Bᵀ B = I`,
+    /// `Bᵀ A B = E`, no window), as many as the budget allows; corrects `u` and `r` on them.
     pub fn adopt(&mut self, modes: Modes, u: &mut [V2], r: &mut [V2]) {
         if !self.on || modes.0[0].len() != u.len() { return; }
         let Modes(w, aw, e) = modes.first(self.room);
@@ -266,9 +199,8 @@ impl Deflation {
         true
     }
 
-    /// The change the stopping rule is to judge and its rate a cycle: once the iteration has
-    /// deflated (changes in bursts), the largest of the last window's and the rate from the
-    /// window before (a sliding maximum's own ratios are 1 until its largest leaves); else none.
+    /// The change the stopping rule is to judge and its rate a cycle: once the iteration has deflated (changes
+    /// in bursts), the largest of the last window's and the rate from the window before; else none.
     pub fn judged(&mut self, change: f64) -> (f64, Option<f64>) {
         if self.restarts == 0 { return (change, None); }
         self.changes.push(change);
@@ -299,14 +231,12 @@ impl Deflation {
         }
     }
 
-    /// The least ratio of successive changes the stopping rule may assume, the conjugate
-    /// gradient's rate `(√κ − 1)/(√κ + 1)` from the extreme Ritz values of its Lanczos matrix
-    /// (since the deflating restart before the last), and whether the smallest has [`SETTLED`]
-    /// (no slow mode surfacing; one the Krylov space has not reached does not show). On a torn
-    /// piece (`wait`) whose rate exceeds [`WAIT_RATE`], a solve slow enough to keep directions
-    /// gets 1 (no stop) until their [`LOOKS`]th Rayleigh–Ritz step: a nearly rigid part bounded
-    /// by cuts can stall the changes while its error stays, and the Krylov space may reach its
-    /// mode only after the first window.
+    /// The least ratio of successive changes the stopping rule may assume, the conjugate gradient's rate
+    /// `(√κ − 1)/(√κ + 1)` from the extreme Ritz values of its Lanczos matrix (since the deflating restart
+    /// before the last), and whether the smallest has [`SETTLED`]. On a torn piece (`wait`) whose rate
+    /// exceeds [`WAIT_RATE`], a solve slow enough to keep directions gets 1 (no stop) until their
+    /// [`LOOKS`]th Rayleigh–Ritz step: a nearly rigid part bounded by cuts can stall the changes while its
+    /// error stays, and the Krylov space may reach its mode only after the first window.
     pub fn rate_floor(&mut self) -> (f64, bool) {
         let (was, mut seen) = (self.low, false);
         for st in self.steps.iter().filter(|st| st.len() >= 2) {
@@ -331,8 +261,58 @@ impl Deflation {
     }
 }
 
-/// Sums of `len` nodes in chunks, each chunk adding into its own `width` sums, the chunks
-/// added in order (the result does not depend on the threads).
+impl Modes {
+    /// The modes spanned by `w` (orthonormal), with their products by `fine`'s operator.
+    pub fn of(fine: &Level, w: Vec<Vec<f32>>) -> Modes {
+        let (k, n) = (w.len(), w[0].len());
+        // A W by the operator itself (a combination of the window's products would cancel below f32 for
+        // the near-null vectors), two at a time.
+        let mut aw: Vec<Vec<f32>> = Vec::with_capacity(k);
+        let mut x: Vec<W2> = vec![[WS::of(0.0); 2]; n];
+        let mut q: Vec<V2> = vec![[0.0; 2]; n];
+        fine.clear_padding(&mut q);
+        for pair in (0..k).step_by(2) {
+            let other = (pair + 1).min(k - 1);
+            x.par_iter_mut().zip(&w[pair][..]).zip(&w[other][..]).for_each(|((xi, &a), &b)| *xi = [a, b]);
+            fine.fine_residual_dot_narrow(&x, &mut q);
+            aw.extend((0..=other - pair).map(|t| q.par_iter().map(|v| -v[t] as f32).collect()));
+        }
+        // E = Wᵀ A W (its upper triangle, mirrored), summed: a near-null vector's own Rayleigh quotient is
+        // below f32's rounding of W. Wᵀ W is the identity up to that rounding (orthonormal Ritz vectors).
+        let sums = chunked_sums(n, k * k, |a, b, out| {
+            for (l, j) in (0..k).flat_map(|l| (l..k).map(move |j| (l, j))) {
+                out[l * k + j] += dot(&w[l][a..b], &aw[j][a..b]);
+            }
+        });
+        let e = (0..k).map(|l| (0..k).map(|j| sums[l.min(j) * k + l.max(j)]).collect()).collect();
+        Modes(w, aw, e)
+    }
+
+    /// The Ritz vectors of `A` over `vectors`, smallest first, less those below [`NULL_FLOOR`] of its largest
+    /// diagonal entry or a hundredth of the box's smoothest plate mode (free functions: rounding by rounding).
+    pub fn with(vectors: Vec<Vec<f64>>, fine: &Level) -> Option<Modes> {
+        let unit = |v: Vec<f64>| { let n = v.iter().map(|x| x * x).sum::<f64>().sqrt(); v.into_iter().map(move |x| (x / n) as f32).collect() };
+        let w: Vec<Vec<f32>> = vectors.into_iter().map(unit).filter(|v: &Vec<f32>| v.iter().all(|x| x.is_finite())).collect();
+        let (k, n) = (w.len(), w.first()?.len());
+        let sums = chunked_sums(n, k * k, |a, b, out| (0..k * k).for_each(|t| out[t] += dot(&w[t / k][a..b], &w[t % k][a..b])));
+        let (theta, y) = ritz(&Modes::of(fine, w.clone()).2, &sums.chunks(k).map(<[f64]>::to_vec).collect::<Vec<_>>())?;
+        let largest = fine.inv_diag.iter().filter(|&&d| d > 0.0).fold(0.0f64, |m, &d| m.max(1.0 / d));
+        let floor = (NULL_FLOOR * largest).max(0.01 * (std::f64::consts::PI / fine.geo.w.max(fine.geo.h) as f64).powi(4));
+        let w: Vec<Vec<f32>> = (0..theta.len()).filter(|&l| theta[l] > floor)
+            .map(|l| (0..n).map(|i| w.iter().zip(&y).map(|(v, yj)| yj[l] * v[i] as f64).sum::<f64>() as f32).collect()).collect();
+        (!w.is_empty()).then(|| Modes::of(fine, w))
+    }
+
+    /// The first `k` modes.
+    pub fn first(mut self, k: usize) -> Modes {
+        [&mut self.0, &mut self.1].into_iter().for_each(|v| v.truncate(k));
+        self.2.truncate(k);
+        self.2.iter_mut().for_each(|r| r.truncate(k));
+        self
+    }
+}
+
+/// Sums of `len` nodes in chunks, each into its own `width` sums, added in order (not by the threads').
 fn chunked_sums(len: usize, width: usize, f: impl Fn(usize, usize, &mut [f64]) + Sync) -> Vec<f64> {
     let parts: Vec<Vec<f64>> = (0..len.div_ceil(CHUNK)).into_par_iter().map(|c| {
         let mut out = vec![0.0; width];
@@ -356,8 +336,7 @@ fn dots(vs: &[Vec<f32>], len: usize, x: impl Fn(usize) -> V2 + Sync) -> Vec<V2> 
     s.chunks_exact(2).map(|d| [d[0], d[1]]).collect()
 }
 
-/// `Σ_l c_l v_l` per component on the `len` nodes from `a`, `l` ascending, vector by
-/// vector (so that it vectorises).
+/// `Σ_l c_l v_l` per component on the `len` nodes from `a`, `l` ascending, vector by vector (it vectorises).
 fn combination(vs: &[Vec<f32>], c: &[V2], a: usize, len: usize) -> Vec<V2> {
     vs.iter().zip(c).fold(vec![[0.0; 2]; len], |mut s, (v, c)| {
         s.iter_mut().zip(&v[a..a + len]).for_each(|(s, &x)| *s = [s[0] + c[0] * x as f64, s[1] + c[1] * x as f64]);
@@ -365,14 +344,13 @@ fn combination(vs: &[Vec<f32>], c: &[V2], a: usize, len: usize) -> Vec<V2> {
     })
 }
 
-/// Ritz pairs of `G y = θ M y` (`M` the Gram matrix of a basis that may be dependent):
-/// ascending Ritz values and the coefficient columns `y[j][l]` of the `l`-th Ritz vector,
-/// `M`-orthonormal. Dependent basis vectors are dropped.
+/// Ritz pairs of `G y = θ M y` (`M` the Gram matrix of a basis that may be dependent, whose dependent
+/// vectors are dropped): ascending Ritz values and the `M`-orthonormal coefficient columns `y[j][l]`.
 fn ritz(g: &[Vec<f64>], m: &[Vec<f64>]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     let n = g.len();
     let d: Vec<f64> = (0..n).map(|i| if m[i][i] > 0.0 { 1.0 / m[i][i].sqrt() } else { 0.0 }).collect();
-    // Cholesky of the scaled M = L Lᵀ, dropping vectors whose part independent of the
-    // earlier ones is below f32's resolution.
+    // Cholesky of the scaled M = L Lᵀ, dropping vectors whose part independent of the earlier ones is
+    // below f32's resolution.
     let (mut keep, mut l): (Vec<usize>, Vec<Vec<f64>>) = (Vec::new(), Vec::new()); // rows of L over `keep`
     for i in (0..n).filter(|&i| d[i] != 0.0) {
         let mut row = forward(&l, &keep.iter().map(|&j| m[i][j] * d[i] * d[j]).collect::<Vec<_>>());
@@ -415,8 +393,7 @@ fn forward(l: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
     x
 }
 
-/// Eigen-decomposition of a small symmetric matrix by cyclic Jacobi rotations: the
-/// eigenvalues and the eigenvectors as columns.
+/// Eigenvalues and eigenvectors (columns) of a small symmetric matrix by cyclic Jacobi rotations.
 fn jacobi_eigen(mut a: Vec<Vec<f64>>) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     let n = a.len();
     let mut v: Vec<Vec<f64>> = (0..n).map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect()).collect();
@@ -445,8 +422,7 @@ fn jacobi_eigen(mut a: Vec<Vec<f64>>) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
     d.iter().all(|x| x.is_finite()).then_some((d, v))
 }
 
-/// The smallest and largest eigenvalues of the symmetric tridiagonal matrix (`diag`, `off`)
-/// by bisection on Sturm counts.
+/// The smallest and largest eigenvalues of the symmetric tridiagonal matrix (`diag`, `off`) by bisection.
 fn extremes(diag: &[f64], off: &[f64]) -> Option<(f64, f64)> {
     let n = diag.len();
     // Gershgorin's bounds.

@@ -1,13 +1,10 @@
 //! Warm starts from several earlier frames.
 //!
-//! On a fixed grid with fixed constrained nodes (an animation: the drawing's rest pose, and
-//! so the nodes its samples pin, does not change between frames) the solution is linear in
-//! the constraint values. So if the new values are close to a combination `Σ αᵢ vᵢ` of
-//! earlier frames' values, the same combination of their fields `Σ αᵢ uᵢ` is as close to
-//! the new solution (up to the earlier solves' own tolerance). [`WarmHistory`] keeps the
-//! last few frames and starts each solve from the least-squares combination; for smooth
-//! motion that is a polynomial extrapolation in time, far closer than the last field
-//! alone (DESIGN §4's warm start, generalised from one earlier frame to a few).
+//! On a fixed grid with fixed constrained nodes (an animation: the rest pose does not change between frames)
+//! the solution is linear in the constraint values. So if the new values are close to a combination
+//! `Σ αᵢ vᵢ` of earlier frames' values, the same combination of their fields `Σ αᵢ uᵢ` is as close to the
+//! new solution (up to the earlier solves' tolerance). [`WarmHistory`] keeps the last few frames and starts
+//! each solve from the least-squares combination: for smooth motion a polynomial extrapolation in time.
 
 use std::{array::from_fn, borrow::Cow, collections::VecDeque};
 
@@ -19,8 +16,7 @@ use super::{dense_solve, solve_constrained, SolveOptions, SolveReport, Solver};
 /// How many earlier frames a [`WarmHistory`] keeps.
 pub const HISTORY_FRAMES: usize = 3;
 
-/// The error (pixels) taken for each kept frame when weighing combinations of them (see
-/// [`WarmHistory::predict`]): the default tolerance, which frames are usually solved to.
+/// The error (pixels) taken for each kept frame when weighing their combinations: the default tolerance.
 const FRAME_ERROR_PX: f64 = 0.01;
 
 /// The last few solves of one animated surface: their constraint values and fields.
@@ -52,9 +48,8 @@ impl WarmHistory {
     /// Whether no frame is kept.
     pub fn is_empty(&self) -> bool { self.entries.is_empty() }
 
-    /// The start for a solve whose constraints on `grid` are `c`: the history's prediction
-    /// ([`Self::predict`]) or `given`, whichever misses the constraint values by less (the
-    /// largest difference at a constrained node); `None` when there is neither.
+    /// The start for a solve of constraints `c` on `grid`: the history's prediction or `given`, whichever
+    /// misses the constraint values by less (at any constrained node); `None` when there is neither.
     pub fn start<'a>(&self, grid: &Grid, c: &Constraints, given: Option<&'a Field>) -> Option<Cow<'a, Field>> {
         let miss = |f: &Field| {
             c.nodes.iter().zip(&c.values).fold(0.0f64, |m, (&i, v)| m.max((f.dx[i] as f64 - v[0]).abs()).max((f.dy[i] as f64 - v[1]).abs()))
@@ -65,9 +60,8 @@ impl WarmHistory {
         }
     }
 
-    /// The combination of the kept fields whose constraint values best match `c`'s (per
-    /// component; with moderate weights: see `fit`), or the latest field when the earlier
-    /// frames pin other nodes or another grid (its cuts or matte changed) or do not help;
+    /// The combination of the kept fields whose constraint values best match `c`'s (per component, see
+    /// `fit`), or the latest field when the earlier frames pin other nodes or another grid or do not help;
     /// `None` when empty or kept for another grid size.
     pub fn predict(&self, grid: &Grid, c: &Constraints) -> Option<Field> {
         let last = self.last().filter(|f| (f.width, f.height) == (grid.width, grid.height))?;
@@ -84,14 +78,11 @@ impl WarmHistory {
         Some(out)
     }
 
-    /// Least-squares weights of the kept frames' component `q` for `target`, when they
-    /// match it better than the latest frame alone (`[0, …, 1]`, returned otherwise) and
-    /// stay moderate (`Σ|αᵢ| ≤ 16`: no wild extrapolation that would amplify the earlier
-    /// solves' own errors). When the fit through every frame is wild (frames nearly parallel,
-    /// as a drag's first short step beside a probe: see the editor), the least-squares fits
-    /// through fewer frames are weighed instead, each by its miss at the constrained nodes
-    /// (root mean square) plus the earlier solves' errors it amplifies (`Σ|αᵢ|` times
-    /// [`FRAME_ERROR_PX`]).
+    /// Least-squares weights of the kept frames' component `q` for `target`, when they match it better than
+    /// the latest frame alone (`[0, …, 1]`, returned otherwise) and stay moderate (`Σ|αᵢ| ≤ 16`: no wild
+    /// extrapolation that would amplify the earlier solves' errors). When the fit through every frame is
+    /// wild (frames nearly parallel), the fits through fewer frames are weighed instead, each by its root
+    /// mean square miss at the constrained nodes plus the errors it amplifies (`Σ|αᵢ|` × [`FRAME_ERROR_PX`]).
     fn fit(&self, target: &[[f64; 2]], q: usize) -> [f64; HISTORY_FRAMES] {
         let k = self.entries.len();
         let latest: [f64; HISTORY_FRAMES] = from_fn(|i| if i + 1 == k { 1.0 } else { 0.0 });
@@ -111,8 +102,8 @@ impl WarmHistory {
         let trace: f64 = (0..k).map(|i| g[i][i]).sum();
         if trace <= 0.0 || target.is_empty() { return latest; }
         let nodes = target.len() as f64;
-        // The root mean square miss of weights `w` at the constrained nodes, from
-        // ‖t − Σ wᵢ vᵢ‖² = tᵀt − 2 wᵀb + wᵀG w; and how much they amplify the frames' errors.
+        // The root mean square miss of weights `w` at the constrained nodes, from ‖t − Σ wᵢ vᵢ‖² =
+        // tᵀt − 2 wᵀb + wᵀG w; and how much they amplify the frames' errors.
         let miss = |w: &[f64; HISTORY_FRAMES]| {
             let mut sq = tt;
             for i in 0..k {
@@ -158,9 +149,8 @@ impl WarmHistory {
     }
 }
 
-/// The solve of constraints `c` on `grid` (the solve's own grid: the coarse one at
-/// `grid_step` above 1) with `solver`, from its history's start when `warm`, which then
-/// keeps the result; from `initial` otherwise.
+/// The solve of constraints `c` on `grid` (the coarse one at `grid_step` above 1) with `solver`, from its
+/// history's start when `warm`, which then keeps the result; from `initial` otherwise.
 pub(crate) fn solve_from(
     grid: &Grid, c: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
 ) -> (Field, SolveReport) {

@@ -1,12 +1,10 @@
 //! The grid hierarchy: the finest operator read off the links, link-aware prolongation,
 //! Galerkin coarse operators stored per node, and the matrix-vector kernels.
 //!
-//! Every vector is stored padded: a margin of two inactive nodes around the grid, so the
-//! 5 × 5 stencils never leave the array. Values are pairs (Δx, Δy): both components share
-//! every operator and travel together. The solution and its residual are kept in `f64`
-//! ([`V2`]); the cycles that precondition them run in `f32` ([`W2`]), which halves the
-//! memory they stream and doubles the lanes of every vector instruction. The operators are
-//! built in `f64` either way.
+//! Vectors are padded by two inactive nodes around the grid, so the 5 × 5 stencils never leave
+//! the array. Values are pairs (Δx, Δy) that share every operator. The solution and its residual
+//! are `f64` ([`V2`]); the cycles that precondition them run in `f32` ([`W2`]), which halves the
+//! memory they stream and doubles every vector instruction's lanes. Operators are built in `f64`.
 
 use std::ops::{Add, AddAssign, Mul, Sub};
 
@@ -36,17 +34,15 @@ pub(crate) trait Real: Copy + Send + Sync + PartialEq + Add<Output = Self> + Sub
     fn as_f32_mut(v: &mut [[Self; 2]]) -> Option<&mut [[f32; 2]]>;
     /// Whether [`Real::four_run`] takes four nodes to a vector here.
     fn has_four_stencils() -> bool { false }
-    /// `out[j] = f[q₀ + j] − Σₜ sⱼ[t] x[q₀ + j + offset(t)]` for the `4n + tail` nodes from
-    /// `q₀` (`tail` < 4), each stencil's products summed in [`STORED_TAPS`] order, the
-    /// coefficients four nodes to a block of `blocks` (see [`Fours`]); only where
-    /// [`Real::has_four_stencils`].
+    /// `out[j] = f[q₀ + j] − Σₜ sⱼ[t] x[q₀ + j + offset(t)]` for the `4n + tail` nodes from `q₀`
+    /// (`tail` < 4), summed in [`STORED_TAPS`] order, the coefficients four nodes to a block of
+    /// `blocks` (see [`Fours`]); only where [`Real::has_four_stencils`].
     fn four_run(_x: &[[Self; 2]], _f: Option<&[[Self; 2]]>, _q0: usize, _n: usize, _tail: usize, _wp: usize, _blocks: &[FourBlock], _out: &mut [[Self; 2]]) {
         unreachable!("only where has_four_stencils")
     }
 }
 
-/// The taps of a Galerkin stencil, (row, column) in its 5 × 5 window: its corners are
-/// always zero (see `galerkin`).
+/// The taps of a Galerkin stencil, (row, column) in its 5 × 5 window: its corners are always zero.
 const STORED_TAPS: [(usize, usize); 21] = [
     (0, 1), (0, 2), (0, 3),
     (1, 0), (1, 1), (1, 2), (1, 3), (1, 4),
@@ -86,10 +82,9 @@ impl Real for f32 {
     }
 }
 
-/// [`Real::four_run`] in `f32`, a four's two components the eight lanes of a 256-bit vector:
-/// per tap, one load of the four nodes' values times the tap's four coefficients, multiplied
-/// then added as the plain sums are (so bit for bit theirs). Two fours at a time, so their
-/// chains of additions overlap; the tail's four reads past the run by zero coefficients.
+/// [`Real::four_run`] in `f32`, a four's two components the eight lanes of a 256-bit vector, multiplied
+/// then added as the plain sums are (so bit for bit theirs). Two fours at a time, so their chains of
+/// additions overlap; the tail's four reads past the run by zero coefficients.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[allow(unsafe_code)]
@@ -113,16 +108,15 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
         let (dy, dx) = STORED_TAPS[t];
         _mm256_mul_ps(c, _mm256_loadu_ps(xs.add(first + 2 * (dy * wp + dx))))
     };
-    // Four j's residual. SAFETY: j < n, so its eight values are within `out` and `f`.
-    let store = |j: usize, acc: __m256| unsafe {
-        let fv = f.map_or(_mm256_setzero_ps(), |f| _mm256_loadu_ps(f.as_flattened().as_ptr().add(2 * (q0 + 4 * j))));
-        _mm256_storeu_ps(outs.add(8 * j), _mm256_sub_ps(fv, acc));
-    };
     let first = |j: usize| 2 * (q0 + 4 * j - 2 * wp - 2);
     // Four j's residual, of its first `tail` nodes only for the tail's four (j = n).
     let put = |j: usize, acc: __m256| {
         if j < n {
-            store(j, acc);
+            // SAFETY: j < n, so its eight values are within `out` and `f`.
+            unsafe {
+                let fv = f.map_or(_mm256_setzero_ps(), |f| _mm256_loadu_ps(f.as_flattened().as_ptr().add(2 * (q0 + 4 * j))));
+                _mm256_storeu_ps(outs.add(8 * j), _mm256_sub_ps(fv, acc));
+            }
             return;
         }
         let mut sums = [0.0f32; 8];
@@ -159,13 +153,11 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
     }
 }
 
-/// The coefficients of four consecutive nodes with stencils of their own, tap by tap
-/// ([`STORED_TAPS`] order), the four nodes' side by side.
+/// The coefficients of four consecutive nodes with own stencils, tap by tap, the four nodes' side by side.
 pub(crate) type FourBlock = [[f32; 4]; 21];
 
-/// A Galerkin level's nodes with stencils of their own in fours, as [`band_residual`] takes
-/// them (each run from its start; its last one to three nodes padded with zero coefficients),
-/// each four's coefficients one [`FourBlock`], loaded a tap at a time (empty without AVX2).
+/// A Galerkin level's own stencils in fours of nodes (each run from its start, its last four padded with
+/// zero coefficients), one [`FourBlock`] each, as [`band_residual`] takes them; empty without AVX2.
 #[derive(Debug, Default)]
 pub(crate) struct Fours {
     blocks: Vec<FourBlock>,
@@ -174,8 +166,7 @@ pub(crate) struct Fours {
 }
 
 impl Fours {
-    /// The fours of the stencils `ids` (into `narrow`) of the nodes with stencils of their
-    /// own on the level's `runs`, as `band_residual` visits them.
+    /// The fours of the own stencils `ids` (into `narrow`) on the level's `runs`, as `band_residual` visits them.
     pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], runs: &Runs, wp: usize, h: usize) -> Fours {
         if !f32::has_four_stencils() { return Fours::default(); }
         let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD] };
@@ -203,8 +194,7 @@ pub(crate) enum RunKind {
     Skip,
     /// Unknowns that share the level's regular stencil (the finest level's interior molecule).
     Shared,
-    /// Unknowns with stencils of their own (on the finest level, its nodes that are not
-    /// regular: see [`OwnStencils`]).
+    /// Unknowns with stencils of their own (on the finest level, those not regular: see [`OwnStencils`]).
     Own,
 }
 
@@ -214,8 +204,7 @@ pub(crate) struct Run {
     pub start: u32,
     pub end: u32,
     pub kind: RunKind,
-    /// On the finest level, a run of [`RunKind::Own`]: its first node's entry in
-    /// [`OwnStencils::ids`] (the run's nodes follow it).
+    /// On the finest level, a run of [`RunKind::Own`]: its first node's entry in [`OwnStencils::ids`].
     pub at: u32,
 }
 
@@ -230,8 +219,7 @@ pub(crate) struct OwnStencils {
 }
 
 impl OwnStencils {
-    /// Numbers the [`RunKind::Own`] runs of `runs` (a level `wp` wide) and takes their
-    /// nodes' stencils, node p's `row_of(p)`.
+    /// Numbers the [`RunKind::Own`] runs of `runs` (a level `wp` wide) and takes their nodes' stencils `row_of(p)`.
     fn new(runs: &mut Runs, wp: usize, row_of: impl Fn(usize) -> [f64; 25]) -> OwnStencils {
         let (mut distinct, mut ids) = (DistinctStencils::default(), Vec::new());
         for (r, ab) in runs.first.windows(2).enumerate() {
@@ -244,9 +232,8 @@ impl OwnStencils {
     }
 }
 
-/// Stencils stored once each (they repeat: the same neighbourhood of a constraint, a
-/// border or a cut recurs all over a level), so a level's table stays small enough to sit
-/// in cache; `index` finds a stencil's entry by its bits.
+/// Stencils stored once each (the neighbourhood of a constraint, border or cut recurs all over a
+/// level), so a level's table stays small enough to sit in cache; `index` finds an entry by its bits.
 #[derive(Default)]
 struct DistinctStencils {
     table: Vec<[f64; 25]>,
@@ -264,8 +251,7 @@ impl DistinctStencils {
     }
 }
 
-/// Each row of a level split into runs of one [`RunKind`], found once when the level is
-/// built, so that the products do not test node after node where each run ends.
+/// Each row of a level split into runs of one [`RunKind`], so that the products do not test each node's kind.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Runs {
     /// Row r's runs are `runs[first[r]..first[r + 1]]` (padded rows; padding rows have none).
@@ -274,18 +260,14 @@ pub(crate) struct Runs {
 }
 
 impl Runs {
-    /// The runs of the columns `PAD..PAD + w` of each of the `h` body rows of a level `wp`
-    /// wide, node p of kind `kind(p)`.
+    /// The runs of the columns `PAD..PAD + w` of the `h` body rows of a level `wp` wide, node p of kind `kind(p)`.
     pub(crate) fn new(wp: usize, w: usize, h: usize, kind: impl Fn(usize) -> RunKind) -> Runs {
         let mut runs = Runs { first: vec![0; PAD + 1], runs: Vec::new() };
         for base in (PAD..PAD + h).map(|r| r * wp) {
             let mut c = PAD;
             while c < PAD + w {
                 let k = kind(base + c);
-                let mut e = c + 1;
-                while e < PAD + w && kind(base + e) == k {
-                    e += 1;
-                }
+                let e = (c + 1..PAD + w).find(|&e| kind(base + e) != k).unwrap_or(PAD + w);
                 runs.runs.push(Run { start: c as u32, end: e as u32, kind: k, at: 0 });
                 c = e;
             }
@@ -303,22 +285,19 @@ impl Runs {
 pub(crate) mod bit {
     /// Active and not fixed: an unknown.
     pub const FREE: u8 = 1;
-    /// Horizontal triple centred here (links left and right).
+    /// Horizontal and vertical triples centred here (links either side).
     pub const HTRI: u8 = 2;
-    /// Vertical triple centred here.
     pub const VTRI: u8 = 4;
     /// 2 × 2 cell with this node as its top-left corner and all four links.
     pub const CELL: u8 = 8;
-    /// Link to the right neighbour.
+    /// Links to the right neighbour and to the one below.
     pub const RIGHT: u8 = 16;
-    /// Link to the neighbour below.
     pub const DOWN: u8 = 32;
     /// Free, with every term of the interior 13-point molecule present.
     pub const REGULAR: u8 = 128;
 }
 
-/// Rows per parallel task; the transfers and the Galerkin build of levels smaller than
-/// `PAR_MIN_NODES` run on one thread.
+/// Rows per parallel task; the transfers and Galerkin build of levels below `PAR_MIN_NODES` run on one thread.
 const PAR_ROWS: usize = 16;
 const PAR_MIN_NODES: usize = 4_000;
 
@@ -332,15 +311,12 @@ pub(crate) struct Geometry {
     pub down: Vec<bool>,
     /// Only on the finest level: fixed (Dirichlet) nodes, whose prolongation rows vanish.
     pub fixed: Option<Vec<bool>>,
-    /// Prolongation rows in 24ths on the 2 × 2 coarse corners of each node, or [`EXT`]
-    /// for a row in `ext`; filled by [`Geometry::new`].
+    /// Prolongation rows in 24ths on the 2 × 2 coarse corners of each node, or [`EXT`] for a row in `ext`.
     pub prow: Vec<[u8; 4]>,
-    /// The rows that reach past the 2 × 2 corners (linear extrapolation at a missing link),
-    /// by node index, sorted: weights on the 4 × 4 window of [`Geometry::geo_row`].
+    /// The rows that reach past the 2 × 2 corners, by node index, sorted (see [`Geometry::geo_row`]).
     pub ext: Vec<(u32, [f64; 16])>,
-    /// `plain_rows[y]`: every node of row y is active and its geometric row is the plain
-    /// bilinear one (whether or not it is fixed), so transfers can run the plain formulas
-    /// (see [`restrict`] and [`prolong_add_scaled`]). Filled by [`Geometry::new`].
+    /// `plain_rows[y]`: every node of row y is active with the plain bilinear geometric row (fixed or
+    /// not), so [`restrict`] and [`prolong_add_scaled`] can run the plain formulas there.
     pub plain_rows: Vec<bool>,
 }
 
@@ -348,9 +324,8 @@ impl Geometry {
     #[inline]
     fn idx(&self, x: usize, y: usize) -> usize { y * self.w + x }
 
-    /// A geometry with its prolongation rows filled in, rows of nodes in parallel. Every weight
-    /// of a 2 × 2 row is a multiple of 1/24 (halves, and averages of up to four halves): the
-    /// table is exact.
+    /// A geometry with its prolongation rows filled in. Every weight of a 2 × 2 row is a multiple of
+    /// 1/24 (halves, and averages of up to four halves): the codes are exact.
     pub fn new(w: usize, h: usize, active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, fixed: Option<Vec<bool>>) -> Geometry {
         let mut g = Geometry { w, h, active, right, down, fixed, prow: Vec::with_capacity(w * h), ext: Vec::new(), plain_rows: Vec::new() };
         // A row's codes, its rows past the corners, and whether it is plain.
@@ -393,9 +368,8 @@ impl Geometry {
 
     /// The next coarser geometry: node (X, Y) sits on (2X, 2Y) ([`coarse_links`] at step 2).
     pub fn coarsen(&self) -> Geometry {
-        // ⌊n/2⌋ + 1 coarse nodes: for an even n the last one is a ghost just outside the
-        // grid (at fine position n), so that the last fine node still sits between two
-        // coarse nodes and interpolation keeps reproducing linear functions there.
+        // ⌊n/2⌋ + 1 coarse nodes: for an even n the last one is a ghost at fine position n, so that the last
+        // fine node still sits between two coarse nodes and interpolation reproduces linear functions there.
         let (w, h, [active, right, down]) = coarse_links(self.w, self.h, 2, &self.active, &self.right, &self.down);
         Geometry::new(w, h, active, right, down, None)
     }
@@ -403,8 +377,7 @@ impl Geometry {
     /// Whether the geometry has inactive nodes or missing links between active neighbours.
     pub fn torn(&self) -> bool { crate::grid::torn(self.w, &self.active, &self.right, &self.down) }
 
-    /// Whether node (x, y) is active and every link its row reads (see
-    /// [`Geometry::geo_row`]) is there: then its row is the plain bilinear one.
+    /// Whether node (x, y) is active with every link its row reads: then its row is the plain bilinear one.
     fn linked_around(&self, x: usize, y: usize) -> bool {
         let r = |x: usize, y: usize| x + 1 == self.w || self.right[self.idx(x, y)];
         let d = |x: usize, y: usize| y + 1 == self.h || self.down[self.idx(x, y)];
@@ -421,16 +394,13 @@ impl Geometry {
             }
     }
 
-    /// Link-aware prolongation row of node (x, y), ignoring whether the node is fixed:
-    /// weights of the coarse nodes (cx + ox, cy + oy), ox, oy = −1..=2, slot
-    /// `(oy + 1) * 4 + ox + 1`, with cx = x / 2, cy = y / 2. Between two linked coarse
-    /// neighbours, the bilinear weights; at a missing link, the linear extrapolation from the
-    /// node's own side (a free edge's zero second difference), or the one linked neighbour's
-    /// value where that side is too short; an odd–odd node averages the rows of its linked
-    /// edge neighbours. On the finest level (the one with fixed nodes), a node at a cut's
-    /// vertex whose only link, continued along a straight triple, runs to a neighbour takes
-    /// that neighbour's row, within its own window (else no coarse function would move it;
-    /// docs/dev/solver-correctness.md).
+    /// Link-aware prolongation row of node (x, y), fixed or not: weights of the coarse nodes
+    /// (x / 2 + ox, y / 2 + oy), ox, oy = −1..=2, at slot `(oy + 1) * 4 + ox + 1`. Between two linked
+    /// coarse neighbours, the bilinear weights; at a missing link, the linear extrapolation from the
+    /// node's own side (a free edge's zero second difference), or the one linked neighbour's value
+    /// where that side is too short; an odd–odd node averages the rows of its linked edge neighbours.
+    /// On the finest level, a node at a cut's vertex whose only link continues straight on takes that
+    /// neighbour's row (else no coarse function would move it; docs/dev/solver-correctness.md).
     pub fn geo_row(&self, x: usize, y: usize) -> [f64; 16] {
         let r = self.link_row(x, y);
         if r.iter().any(|&v| v != 0.0) || !self.active[self.idx(x, y)] || self.fixed.is_none() { return r; }
@@ -444,9 +414,8 @@ impl Geometry {
         ];
         let mut linked = links.iter().filter(|l| l.0);
         match (linked.next(), linked.next()) {
-            // One link, continued straight on: the neighbour's row, moved to this node's
-            // window (its coarse cell may be the next one); weights past the window dropped,
-            // the rest scaled to sum to one.
+            // One link, continued straight on: the neighbour's row, moved to this node's window (its coarse
+            // cell may be the next one); weights past the window dropped, the rest scaled to sum to one.
             (Some(&(_, true, (qx, qy))), None) => {
                 let (dx, dy, mut moved) = ((qx / 2) as isize - (x / 2) as isize, (qy / 2) as isize - (y / 2) as isize, [0.0; 16]);
                 for (s, &v) in self.link_row(qx, qy).iter().enumerate() {
@@ -470,10 +439,8 @@ impl Geometry {
             (1, 0) => r = self.along(x, y, false, 0),
             (0, 1) => r = self.along(x, y, true, 0),
             _ => {
-                // The rows of its linked edge neighbours. Past the last column (row) sits
-                // the ghost coarse node's column (row), whose nodes would interpolate along
-                // this node's column (row) links (see `coarsen`).
-                // (The first two interpolate along their column, the others along their row.)
+                // The rows of its linked edge neighbours (the first two along their column, the others
+                // along their row). Past the last column (row), the ghost coarse node's (see `coarsen`).
                 let parts = [
                     self.right[i - 1].then_some((x - 1, y, 0)),
                     if x + 1 == self.w { Some((x, y, 1)) } else { self.right[i].then_some((x + 1, y, 1)) },
@@ -482,9 +449,8 @@ impl Geometry {
                 ];
                 let rows: [[f64; 16]; 4] = std::array::from_fn(|k| parts[k].map_or([0.0; 16], |(px, py, o)| self.along(px, py, k < 2, o)));
                 let has = rows.map(|row| row.iter().sum::<f64>() > 0.0);
-                // Opposite neighbours: their mean. One in each direction: the bilinear
-                // completion through the coarse corner they share, when that corner is
-                // their neighbour. Else the mean of what there is (a constant).
+                // Opposite neighbours: their mean. One in each direction: the bilinear completion through the
+                // coarse corner they share, when that corner is their neighbour. Else the mean of what there is.
                 let mean = |ks: &[usize], r: &mut [f64; 16]| {
                     for &k in ks {
                         r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v / ks.len() as f64);
@@ -520,10 +486,8 @@ impl Geometry {
         r
     }
 
-    /// The row of node (x, y), odd along its row (or its column, when `vertical`), on the
-    /// window row (column) `o`: halves on the coarse nodes each side of it, or at a missing
-    /// link the extrapolation from the linked side (`extend`); the last node of an
-    /// even-sized line has the ghost coarse node beyond it (see `coarsen`).
+    /// The row of node (x, y), odd along its row (column when `vertical`), on window row (column) `o`:
+    /// see [`extend`]; the last node of an even-sized line has the ghost coarse node beyond it.
     fn along(&self, x: usize, y: usize, vertical: bool, o: usize) -> [f64; 16] {
         let i = self.idx(x, y);
         let (links, s, t, n) = if vertical { (&self.down, self.w, y, self.h) } else { (&self.right, 1, x, self.w) };
@@ -537,8 +501,8 @@ impl Geometry {
         r
     }
 
-    /// Calls `f(ox, oy, weight)` for each nonzero weight of the prolongation row of node
-    /// (x, y) used by the solver (nothing for a fixed node), offsets from (x / 2, y / 2).
+    /// `f(ox, oy, weight)` for each nonzero weight of node (x, y)'s prolongation row (none for a fixed
+    /// node), offsets from (x / 2, y / 2).
     #[inline]
     pub fn p_row(&self, x: usize, y: usize, mut f: impl FnMut(isize, isize, f64)) {
         let i = self.idx(x, y);
@@ -594,13 +558,11 @@ impl Sat {
     }
 }
 
-/// Whether a piece (`active`, linked `right` and `down` on its `w × h` box) is solid: its
-/// cuts (two active neighbours without their link) stay more than 4 nodes inside it, and
-/// its core (the nodes whose 5 × 5 window lies in it, clear of cuts) is one 4-connected set
-/// within 4 nodes of every node of the piece. A piece with a pinch, strand, tooth or hair
-/// narrower than 5 nodes, or a cut running to its edge, is not: filling around such parts
-/// ties them to their neighbours across the gap, and their own slow motions leave the
-/// coarse space (docs/dev/coarse-space.md, "Filling off the matte").
+/// Whether a piece (`active`, linked `right` and `down` on its `w × h` box) is solid: its cuts stay more
+/// than 4 nodes inside it, and its core (the nodes whose 5 × 5 window lies in it, clear of cuts) is one
+/// 4-connected set within 4 nodes of every node. Filling around a pinch, strand, tooth or hair narrower
+/// than 5 nodes, or a cut running to the edge, would tie it to its neighbours across the gap
+/// (docs/dev/coarse-space.md, "Filling off the matte").
 pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &[bool]) -> bool {
     // The nodes at a cut: two active neighbours without their link.
     let mut cut = vec![false; w * h];
@@ -623,9 +585,8 @@ pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &
     (0..w * h).all(|i| !active[i] || reach[i]) && crate::grid::Grid::from_active(w, h, core).pieces().1 == 1
 }
 
-/// Every `s`-th node of a `w × h` grid (`active`, linked `right` and `down`): node (X, Y)
-/// on (min(sX, w − 1), min(sY, h − 1)), active where that node is; two neighbours linked
-/// where every link of the straight path between them is. Its size and vectors.
+/// Every `s`-th node of a `w × h` grid: node (X, Y) on (min(sX, w − 1), min(sY, h − 1)), active where that
+/// node is; two neighbours linked where every link of the straight path between them is.
 pub(crate) fn coarse_links(w: usize, h: usize, s: usize, active: &[bool], right: &[bool], down: &[bool]) -> (usize, usize, [Vec<bool>; 3]) {
     let (wc, hc) = ((w - 1).div_ceil(s) + 1, (h - 1).div_ceil(s) + 1);
     let (px, py) = (|x: usize| (x * s).min(w - 1), |y: usize| (y * s).min(h - 1));
@@ -646,9 +607,9 @@ const CORNERS: [usize; 4] = [5, 6, 9, 10];
 /// The codes of the plain bilinear rows (see [`plain_row`]), by `(y & 1) * 2 + (x & 1)`.
 const PLAIN_CODES: [[u8; 4]; 4] = [[24, 0, 0, 0], [12, 12, 0, 0], [12, 0, 12, 0], [6, 6, 6, 6]];
 
-/// The row of a fine node between coarse nodes 1 and 2 of a line of the 4 × 4 window,
-/// linked to them as `a` and `b`; at a missing link the linked side's value is extrapolated
-/// linearly when its far link (`fa`, `fb`: coarse 0–1, 2–3) exists.
+/// The row of a fine node between coarse nodes 1 and 2 of a line of the 4 × 4 window, linked to them as
+/// `a` and `b`; at a missing link, the linked side's linear extrapolation when its far link (`fa`, `fb`:
+/// coarse 0–1, 2–3) exists, else its value.
 fn extend(a: bool, b: bool, fa: bool, fb: bool) -> [f64; 4] {
     match (a, b) {
         (true, true) => [0.0, 0.5, 0.5, 0.0],
@@ -661,9 +622,8 @@ fn extend(a: bool, b: bool, fa: bool, fb: bool) -> [f64; 4] {
 }
 
 widest! {
-    /// The largest `|r_i| / a_ii` of a residual (pixels: how far one Jacobi step would move a
-    /// node), `inv_diag` the matching inverse diagonal (zero where a node is no unknown), on the
-    /// processor's widest vectors. Eight running maxima: one would wait on the last at every entry.
+    /// The largest `|r_i| / a_ii` of a residual (how far one Jacobi step would move a node), `inv_diag` the
+    /// matching inverse diagonal. Eight running maxima: one would wait on the last at every entry.
     pub(crate) fn scaled_max<T: Real>(r: &[[T; 2]], inv_diag: &[f64]) -> f64 =>
     scaled_max_body {
         let mut m = [0.0f64; 8];
@@ -682,14 +642,12 @@ widest! {
     }
 }
 
-/// The larger of two values, by a comparison: `f64::max` (which must skip a NaN either
-/// side) becomes a call into the C library on WebAssembly, once per node in the passes above.
+/// The larger of two values, by a comparison: `f64::max` (which must skip a NaN) is a libm call on WebAssembly.
 #[inline(always)]
 pub(crate) fn larger(a: f64, b: f64) -> f64 { if b > a { b } else { a } }
 
 widest! {
-    /// `[Σ a₀b₀, Σ a₁b₁]` of two vectors of pairs, in `f64`, the products taken in `T`, on the
-    /// processor's widest vectors (see [`super::wide`]).
+    /// `[Σ a₀b₀, Σ a₁b₁]` of two vectors of pairs, in `f64`, the products taken in `T`.
     pub(crate) fn dot_pairs<T: Real>(a: &[[T; 2]], b: &[[T; 2]]) -> [f64; 2] =>
     dot_pairs_body {
         pair_sums(a.as_flattened(), b.as_flattened(), |x: T, y: T| (x * y).get())
@@ -697,8 +655,7 @@ widest! {
 }
 
 widest! {
-    /// `Σ_i a_i b_i` in `f64` on [`pair_sums`]' eight running sums (one would wait on each
-    /// addition), on the processor's widest vectors.
+    /// `Σ_i a_i b_i` in `f64` on [`pair_sums`]' eight running sums.
     pub(crate) fn dot<A: Real, B: Real>(a: &[A], b: &[B]) -> f64 =>
     dot_body {
         let [even, odd] = pair_sums(a, b, |x: A, y: B| x.get() * y.get());
@@ -711,9 +668,8 @@ widest! {
     pub(crate) fn sub_scaled(l: &[f64], y: f64, z: &mut [f64]) => sub_scaled_body { z.iter_mut().zip(l).for_each(|(z, l)| *z -= l * y) }
 }
 
-/// `[Σ prod(a_j, b_j) over even j, the same over odd j]`: the two components' sums of two
-/// vectors of pairs given flattened (`b` at least as long as `a`), on eight running sums: a
-/// single sum waits on its last addition at every entry.
+/// `[Σ prod(a_j, b_j) over even j, the same over odd j]` of two flattened vectors of pairs (`b` at least
+/// as long as `a`), on eight running sums: a single sum waits on its last addition at every entry.
 #[inline(always)]
 pub(crate) fn pair_sums<A: Copy, B: Copy>(a: &[A], b: &[B], prod: impl Fn(A, B) -> f64) -> [f64; 2] {
     let b = &b[..a.len()];
@@ -744,18 +700,15 @@ fn plain_row(x: usize, y: usize) -> [f64; 16] {
 /// The operator of one level.
 #[derive(Debug)]
 pub(crate) enum Operator {
-    /// The finest level: the energy terms read off per-node flags, applied as the interior
-    /// molecule on runs of regular nodes and as the other nodes' own stencils (built from
-    /// the flags with the level).
+    /// The finest level: the energy terms read off per-node flags, applied as the interior molecule on runs
+    /// of regular nodes and as the other nodes' own stencils.
     Fine { flags: Vec<u8>, tau: f64, runs: Runs, own: OwnStencils },
-    /// A Galerkin level: a 5 × 5 stencil (row-major offsets, dy outer) per padded node,
-    /// as an index into a table; entry 0 is the stencil shared by every regular node
-    /// (all zeros when there is none).
+    /// A Galerkin level: a 5 × 5 stencil (dy outer) per padded node, an index into a table whose entry 0 is
+    /// the stencil shared by every regular node (all zeros when there is none).
     Stored { ids: Vec<u32>, table: Vec<[f64; 25]>, narrow: Vec<[f32; 25]>, sym: Option<Sym>, fours: Fours, runs: Runs, far: Vec<Far> },
 }
 
-/// A tap of a Galerkin level past its stored 5 × 5 stencils: `(p, q, a_pq)`, padded
-/// indices, sorted by `p` (where extrapolating prolongation rows meet, at a cut's tips).
+/// A tap past a Galerkin level's 5 × 5 stencils (at a cut's tips): `(p, q, a_pq)`, padded, sorted by `p`.
 pub(crate) type Far = (u32, u32, f64);
 
 fn far_of(far: &[Far], p: usize) -> &[Far] {
@@ -763,20 +716,17 @@ fn far_of(far: &[Far], p: usize) -> &[Far] {
     &far[k0..k0 + far[k0..].partition_point(|e| e.0 as usize == p)]
 }
 
-/// The shared stencil of a Galerkin level when it has the symmetries of the square (it
-/// does whenever the finest operator is the same in x and y): five coefficients, for the
-/// centre and the rings of 4 edge, 4 diagonal, 4 far and 8 knight's-move neighbours, so
-/// runs of regular nodes sum neighbours first and multiply five times instead of 21.
+/// The shared stencil of a Galerkin level with the symmetries of the square (as the finest operator
+/// has): five coefficients, for the centre and the rings of 4 edge, 4 diagonal, 4 far and 8 knight's-move
+/// neighbours, so runs of regular nodes sum neighbours first and multiply five times instead of 21.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Sym([f64; 5]);
 
 impl Sym {
-    /// The interior molecule of the finest level: the square of the 5-point Laplacian
-    /// (20, −8, 2, 1) plus τ times the Laplacian (4, −1).
+    /// The finest level's interior molecule: the squared 5-point Laplacian (20, −8, 2, 1) plus τ times (4, −1).
     fn fine(tau: f64) -> Sym { Sym([20.0 + 4.0 * tau, -8.0 - tau, 2.0, 1.0, 0.0]) }
 
-    /// The five coefficients of `s` (each the mean of its ring) if it has the symmetries
-    /// of the square up to rounding.
+    /// The five coefficients of `s` (each its ring's mean) if it has the square's symmetries up to rounding.
     fn of(s: &[f64; 25]) -> Option<Sym> {
         let at = |dy: isize, dx: isize| s[((dy + 2) * 5 + dx + 2) as usize];
         let classes: [&[(isize, isize)]; 5] = [
@@ -808,9 +758,8 @@ pub(crate) struct Level {
     pub inv_diag_w: Vec<WS>,
     /// Upper bound of the spectrum of D⁻¹A (Gershgorin).
     pub lam_max: f64,
-    /// `clean[y * w + x]`: active, linked right and down, not fixed, and (on Galerkin
-    /// levels) carrying the regular stencil. A coarse node whose whole 9 × 9 window here is
-    /// clean gets the regular coarse stencil without computing it.
+    /// `clean[y * w + x]`: active, linked right and down, not fixed, and (on Galerkin levels) regular. A coarse
+    /// node whose whole 9 × 9 window here is clean gets the regular coarse stencil without computing it.
     pub clean: Vec<bool>,
 }
 
@@ -820,8 +769,7 @@ impl Level {
 
     pub fn len_padded(&self) -> usize { self.wp * (self.geo.h + 2 * PAD) }
 
-    /// Zeroes the padding of a vector of this level: the rows above and below its nodes and
-    /// the columns left and right of them.
+    /// Zeroes the padding of a vector of this level.
     pub fn clear_padding<T: Real>(&self, v: &mut [[T; 2]]) {
         let (wp, w, h, zero) = (self.wp, self.geo.w, self.geo.h, [T::ZERO; 2]);
         v[..PAD * wp].fill(zero);
@@ -874,18 +822,15 @@ impl Level {
         Level { inv_diag_w: narrow_diag(&inv_diag), geo, wp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, lam_max, clean }
     }
 
-    /// This finest level with the prolongation of the same grid without holes or cuts
-    /// (plain bilinear, every coarse level fully linked): its coarse space holds the
-    /// functions that run smoothly across holes and cuts, where the link-aware prolongation
-    /// extrapolates a constant.
+    /// This finest level with the plain bilinear prolongation of its grid without holes or cuts: its
+    /// coarse space holds the functions that run smoothly across holes and cuts.
     pub fn into_plain(self) -> Level {
         let (w, h) = (self.geo.w, self.geo.h);
         let crate::grid::Grid { active, link_right, link_down, .. } = crate::grid::Grid::new(w, h);
         self.with_prolongation(Geometry::new(w, h, active, link_right, link_down, None))
     }
 
-    /// The level with the prolongation rows of `geo` (the same grid, more nodes or links);
-    /// the rows of its inactive and fixed nodes stay zero.
+    /// The level with the prolongation rows of `geo` (more nodes or links), zero on its inactive and fixed nodes.
     fn with_prolongation(mut self, geo: Geometry) -> Level {
         let real = std::mem::replace(&mut self.geo, geo);
         let zero = |i: usize| !real.active[i] || real.fixed.as_ref().is_some_and(|f| f[i]);
@@ -901,19 +846,16 @@ impl Level {
         }
     }
 
-    /// The same level with the prolongation of a geometry whose wide holes are filled: each
-    /// hole (4-connected inactive nodes) clear of the border with more than four nodes per
-    /// link to an active node, made active and linked to everything around it. The operator
-    /// stays the level's own, so the coarser levels keep the exact energy on the real domain,
-    /// but their functions run smoothly up to a hole's rim (docs/dev/coarse-space.md). Thin
-    /// holes (strips, slits) stay: filling them would tie their two sides together. On a
-    /// [`solid`] piece the wide pieces of `outside` (its box's nodes off the matte) are
-    /// filled too, border or not, so that its coarse functions stay affine up to its edge.
+    /// The same level with the prolongation of a geometry whose wide holes are filled: each hole clear
+    /// of the border with more than four nodes per link to an active node, made active and linked all
+    /// round. The operator stays the level's own, so the coarser levels keep the exact energy, but their
+    /// functions run smoothly up to a hole's rim (docs/dev/coarse-space.md). Thin holes stay: filling
+    /// would tie their two sides together. On a [`solid`] piece the wide pieces of `outside` (its box's
+    /// nodes off the matte) are filled too, border or not, so its coarse functions stay affine to its edge.
     pub fn with_holes_filled(self, outside: Option<&[bool]>) -> Level {
         let g = &self.geo;
         let (w, h) = (g.w, g.h);
-        // The wide ones of the pieces of the grid of `gap` nodes (inactive ones, or those
-        // off the matte), clear of the border unless `border_too`.
+        // The wide pieces of `gap` nodes (inactive, or off the matte), clear of the border unless `border_too`.
         let wide_pieces = |gap: &dyn Fn(usize) -> bool, border_too: bool| -> Vec<bool> {
             let (hole, count) = crate::grid::Grid::from_active(w, h, (0..w * h).map(gap).collect()).pieces();
             let (mut size, mut edges, mut border) = (vec![0usize; count], vec![0usize; count], vec![false; count]);
@@ -944,8 +886,7 @@ impl Level {
         level
     }
 
-    /// Frees everything but the dimensions and the prolongation rows (for a level that is
-    /// only restricted from and prolonged to from now on).
+    /// Frees everything but the dimensions and the prolongation rows (all that transfers read).
     pub fn keep_only_prolongation(&mut self) {
         self.op = Operator::Fine { flags: Vec::new(), tau: 0.0, runs: Runs::default(), own: OwnStencils::default() };
         (self.inv_diag, self.inv_diag_w, self.clean) = (Vec::new(), Vec::new(), Vec::new());
@@ -973,8 +914,7 @@ impl Level {
         self.far(p).iter().for_each(|&(_, q, a)| f(q as usize, a));
     }
 
-    /// `out_p = Σ_q |a_pq| g_q` on every unknown p of the finest level (`g` zero off the
-    /// unknowns; `out` zero there): the product with the operator's absolute values.
+    /// `out_p = Σ_q |a_pq| g_q` on the finest level's unknowns (`g` zero off them; `out` zero there).
     pub(crate) fn fine_abs_product(&self, g: &[f64], out: &mut [f64]) {
         let Operator::Fine { flags, tau, runs, own } = &self.op else { unreachable!("a Galerkin level") };
         let wp = self.wp;
@@ -1017,10 +957,9 @@ impl Level {
         });
     }
 
-    /// `out = f − A x` on a Galerkin level with every product and sum in `f64` (entries
-    /// widened exactly), rounded once: for smooth vectors as large as the answer or its error,
-    /// whose product summed in `f32` is rounding noise above the residual it should carry
-    /// (`docs/dev/solver-correctness.md`, "Coarse products in f64").
+    /// `out = f − A x` on a Galerkin level summed in `f64`, rounded once: for smooth vectors as large as
+    /// the answer, whose product summed in `f32` would be rounding noise above the residual it should
+    /// carry (`docs/dev/solver-correctness.md`, "Coarse products in f64").
     pub fn residual_f64(&self, x: &[W2], f: Option<&[W2]>, out: &mut [W2]) {
         let Operator::Stored { runs, .. } = &self.op else { unreachable!("a Galerkin level") };
         let wp = self.wp;
@@ -1049,8 +988,7 @@ impl Level {
         });
     }
 
-    /// `out = −A x` (as [`Level::residual`] without `f`) and `xᵀ out` per component, taken
-    /// band by band while both are in cache.
+    /// `out = −A x` and `xᵀ out` per component, taken band by band while both are in cache.
     pub fn residual_dot<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> [f64; 2] {
         self.over_bands(out, false, |r0, r1, chunk| {
             band_residual(self, x, None, r0, 0, chunk);
@@ -1058,10 +996,8 @@ impl Level {
         })
     }
 
-    /// `out = −A x` in `f64` on the finest level for an `x` in `f32`, every entry of `x`
-    /// widened exactly, and `xᵀ out` per component: the product of the conjugate gradient's
-    /// search direction, kept in `f32` (see `solve_piece`), band by band while both are
-    /// in cache; bit for bit the `f64` product of the widened vector (a test holds it so).
+    /// `out = −A x` in `f64` on the finest level for an `x` in `f32` (the conjugate gradient's search
+    /// direction) and `xᵀ out` per component: bit for bit the `f64` product of the widened vector.
     pub fn fine_residual_dot_narrow(&self, x: &[W2], out: &mut [V2]) -> [f64; 2] {
         assert!(matches!(self.op, Operator::Fine { .. }), "the finest level");
         self.over_bands(out, false, |r0, r1, chunk| {
@@ -1070,8 +1006,7 @@ impl Level {
         })
     }
 
-    /// `out = −A x` and its largest entry scaled by the inverse diagonal (see
-    /// [`scaled_max`]), taken band by band while `out` is in cache.
+    /// `out = −A x` and its largest entry scaled by the inverse diagonal ([`scaled_max`]), band by band.
     pub fn residual_scaled_max<T: Real>(&self, x: &[[T; 2]], out: &mut [[T; 2]]) -> f64 {
         self.over_bands(out, true, |r0, r1, chunk| {
             band_residual(self, x, None, r0, 0, chunk);
@@ -1079,10 +1014,9 @@ impl Level {
         })[0]
     }
 
-    /// `band(r0, r1, rows)` on the level's body in bands of [`PAR_ROWS`] rows (`rows` the
-    /// band's padded rows `r0..r1` of `out`: a product, and what it gathers while the band is
-    /// in cache), on the pool's threads, and the bands' results: the largest first entry
-    /// when `max`, else the sums, added in order so that they do not depend on the threads.
+    /// `band(r0, r1, rows)` on the level's body in bands of [`PAR_ROWS`] padded rows `r0..r1` of `out`, on
+    /// the pool's threads; the bands' results: the largest first entry when `max`, else the sums, added
+    /// in order so that they do not depend on the threads.
     fn over_bands<U: Send>(&self, out: &mut [U], max: bool, band: impl Fn(usize, usize, &mut [U]) -> [f64; 2] + Sync + Send) -> [f64; 2] {
         let wp = self.wp;
         let body = &mut out[PAD * wp..(PAD + self.geo.h) * wp];
@@ -1094,18 +1028,16 @@ impl Level {
         parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
     }
 
-    /// One smoothing step in one pass, band by band: the residual `r = f − A x` (into `next`,
-    /// as scratch), the update `d` from it (`rule`) and `next = x + d`, bit for bit the three
-    /// passes. `next` must differ from `x` (the bands read `x` two rows past their own); `d`
-    /// is written only when `keep` (a later step reads it), read only by [`StepRule::Next`].
+    /// One smoothing step in one pass, band by band: the residual `r = f − A x` (into `next`), the update `d`
+    /// from it (`rule`) and `next = x + d`, bit for bit the three passes. `next` must differ from `x` (the
+    /// bands read `x` two rows past their own); `d` is written only when `keep`.
     pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
         self.step_bands(d, next, |r0, _, chunk, dc| self.step_band(x, 0, f, r0, chunk, dc, rule, keep));
     }
 
     /// A smoothing's second step (`rule`) from zero on the finest level, the first iterate
-    /// `x = D⁻¹ f / θ` ([`super::cycle::first_from_zero`]) computed band by band into a buffer
-    /// of the thread's own where the product reads it: bit for bit the first step's pass and
-    /// then [`Level::smoothing_step`], one pass and one vector fewer.
+    /// ([`super::cycle::first_from_zero`]) computed band by band into a buffer of the thread's own:
+    /// bit for bit the first step's pass and then [`Level::smoothing_step`], one pass and one vector fewer.
     pub(crate) fn second_step_from_zero(&self, f: &[W2], inv_theta: WS, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
         assert!(matches!(self.op, Operator::Fine { .. }), "the finest level");
         let (wp, g) = (self.wp, &self.inv_diag_w[..]);
@@ -1124,9 +1056,8 @@ impl Level {
         });
     }
 
-    /// The bands of a smoothing step: `band(r0, r1, rows, d_rows)` for the bands of
-    /// [`PAR_ROWS`] padded rows `r0..r1` of the level's body (`rows` and `d_rows` those rows
-    /// of `next` and `d`), on the pool's threads; then `next`'s padding rows, zeros.
+    /// `band(r0, r1, rows, d_rows)` for the bands of [`PAR_ROWS`] padded rows `r0..r1` of `next` and `d`,
+    /// on the pool's threads; then `next`'s padding rows, zeros.
     fn step_bands(&self, d: &mut [W2], next: &mut [W2], band: impl Fn(usize, usize, &mut [W2], &mut [W2]) + Sync + Send) {
         let (wp, body) = (self.wp, PAD * self.wp..(PAD + self.geo.h) * self.wp);
         let (nb, db) = (&mut next[body.clone()], &mut d[body.clone()]);
@@ -1138,9 +1069,8 @@ impl Level {
         next[body.end..].fill([0.0; 2]);
     }
 
-    /// One band of a smoothing step, from padded row `r0` (`chunk` and `dc` its rows of
-    /// `next` and `d`): the residual, the update from it and `next = x + d`. `x` and `f`
-    /// hold the level's rows from padded row `shift` on.
+    /// One band of a smoothing step from padded row `r0` (`chunk`, `dc` its rows of `next`, `d`); `x` and
+    /// `f` hold the level's rows from padded row `shift` on.
     fn step_band(&self, x: &[W2], shift: usize, f: Option<&[W2]>, r0: usize, chunk: &mut [W2], dc: &mut [W2], rule: StepRule, keep: bool) {
         let (wp, w, g) = (self.wp, self.geo.w, &self.inv_diag_w[..]);
         band_residual(self, x, f, r0, shift, chunk);
@@ -1160,9 +1090,8 @@ thread_local! {
     static BAND_F64: std::cell::RefCell<Vec<V2>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal
-/// `g`: `d = g r / θ` for the first step, `d = c₁ d + c₂ g r` for later ones, and
-/// `d = c₁ x + c₂ g r` for the second after a first from zero (whose update is its iterate).
+/// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal `g`: `d = g r / θ`
+/// first, `d = c₁ d + c₂ g r` later, `d = c₁ x + c₂ g r` second after a first from zero (its update its iterate).
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum StepRule {
     First { inv_theta: WS },
@@ -1171,8 +1100,7 @@ pub(crate) enum StepRule {
 }
 
 widest! {
-    /// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one
-    /// row (`d` written only when `keep`), on the processor's widest vectors.
+    /// `d` from the residual `r` (given in `out`) by `rule`, then `out = x + d`, along one row.
     fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule, keep: bool) =>
     step_row_body {
         let n = out.len();
@@ -1210,12 +1138,9 @@ widest! {
 }
 
 widest! {
-    /// `out = f − A x` on the unknowns of the rows of the band from padded row `r0` (`out`
-    /// holds those rows), on the processor's widest vectors: runs of regular nodes by the
-    /// level's shared stencil (the finest level's interior molecule), the other nodes by their
-    /// own stencils, then a Galerkin level's far taps. `x` and `f` hold the level's rows from
-    /// padded row `shift` on (on the finest level; 0 on the others). Summed in `T`, `x`
-    /// widened exactly (see [`widened`]).
+    /// `out = f − A x` on the unknowns of the band's rows from padded row `r0`: runs of regular nodes by
+    /// the shared stencil, the others by their own, then a Galerkin level's far taps. `x` and `f` hold the
+    /// level's rows from padded row `shift` on (0 but on the finest level). Summed in `T` ([`widened`]).
     #[inline(never)]
     fn band_residual<S: Real, T: Real>(level: &Level, x: &[[S; 2]], f: Option<&[[T; 2]]>, r0: usize, shift: usize, out: &mut [[T; 2]]) =>
     band_residual_body {
@@ -1257,8 +1182,7 @@ widest! {
                                 if let (true, Some(xs), Some(o)) = (four, S::as_f32(x), T::as_f32_mut(orow)) {
                                     let (n, tail) = ((e - c) / 4, (e - c) % 4);
                                     let m = n + usize::from(tail > 0);
-                                    // Near the end of a level's last row the tail's taps may pass the
-                                    // vectors' end: there it is summed below, node by node.
+                                    // The tail's taps may pass the vectors' end: there it is summed below.
                                     let tail = if base + c + 4 * m + 2 * wp + 2 <= x.len() { tail } else { 0 };
                                     let blocks = &fours.blocks[block..block + m];
                                     f32::four_run(xs, f.and_then(T::as_f32), base + c, n, tail, wp, blocks, &mut o[c..c + 4 * n + tail]);
@@ -1276,8 +1200,7 @@ widest! {
     }
 }
 
-/// `out[j] −= a_pq x[q]` for the far taps `(p, q, a_pq)` of the nodes `p = a + j` that
-/// `out` covers, in the precision of `out` (`x` widened exactly).
+/// `out[j] −= a_pq x[q]` for the far taps `(p, q, a_pq)` of the nodes `p = a + j` that `out` covers.
 fn subtract_far<S: Real, T: Real>(far: &[Far], a: usize, x: &[[S; 2]], out: &mut [[T; 2]]) {
     let (k0, b) = (far.partition_point(|e| (e.0 as usize) < a), a + out.len());
     for &(p, q, v) in far[k0..].iter().take_while(|e| (e.0 as usize) < b) {
@@ -1286,23 +1209,20 @@ fn subtract_far<S: Real, T: Real>(far: &[Far], a: usize, x: &[[S; 2]], out: &mut
     }
 }
 
-/// `out[c] = f[q] − Σₜ s_q[t] x[q + offset(t)]` for the nodes `q = base + c`, `c` in
-/// `c0..c1` of one row (`out` is that row), each with its own stencil `s_q = stencil(q)`
-/// (in [`STORED_TAPS`] order, each product added to the sum in turn), four nodes side by
+/// `out[c] = f[q] − Σₜ s_q[t] x[q + offset(t)]` for the nodes `q = base + c`, `c` in `c0..c1` of the row
+/// `out`, each with its own stencil `s_q = stencil(q)` summed in [`STORED_TAPS`] order, four nodes side by
 /// side: one node's 21 taps summed one after another wait on each other, four nodes' do not.
 #[inline(always)]
 fn own_sums<'a, S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]], stencil: impl Fn(usize) -> &'a [T; 25]) {
     let mut i = c0;
     while i < c1 {
-        let k = (c1 - i).min(4);
-        let q0 = base + i;
+        let (k, q0) = ((c1 - i).min(4), base + i);
         // Past the run's end the last node stands in (its sums are dropped).
         let [_, o1, o2, o3] = [0, 1, 2, 3].map(|j: usize| j.min(k - 1));
         let [s0, s1, s2, s3] = [0, o1, o2, o3].map(|j| stencil(q0 + j));
         let mut a = [[T::ZERO; 2]; 4];
         for &(dy, dx) in &STORED_TAPS {
-            let t = dy * 5 + dx;
-            let q = q0 + dy * wp + dx - 2 * wp - 2;
+            let (t, q) = (dy * 5 + dx, q0 + dy * wp + dx - 2 * wp - 2);
             let v = |p: usize| x[p].map(widened::<S, T>);
             let (x0, x1, x2, x3) = (v(q), v(q + o1), v(q + o2), v(q + o3));
             a[0] = [a[0][0] + s0[t] * x0[0], a[0][1] + s0[t] * x0[1]];
@@ -1318,10 +1238,9 @@ fn own_sums<'a, S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, wp: usize,
     }
 }
 
-/// A symmetric stencil ([`Sym`]) on columns `c0..c1` of padded row `base / wp` (`out` is
-/// that row): a Galerkin level's shared stencil, or (`KNIGHT` false, no knight's-move ring)
-/// the finest level's interior molecule. On the flattened components, so the loop
-/// vectorises across nodes; `x` may be narrower than the sums (see [`widened`]).
+/// A symmetric stencil ([`Sym`]) on columns `c0..c1` of the row `out` at `base`: a Galerkin level's shared
+/// stencil, or (`KNIGHT` false) the finest level's interior molecule. On the flattened components, so the
+/// loop vectorises across nodes.
 #[inline(always)]
 fn sym_run<S: Real, T: Real, const KNIGHT: bool>(x: &[[S; 2]], f: Option<&[[T; 2]]>, sym: &Sym, wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]]) {
     let n = 2 * (c1 - c0);
@@ -1369,8 +1288,7 @@ fn sym_run<S: Real, T: Real, const KNIGHT: bool>(x: &[[S; 2]], f: Option<&[[T; 2
     }
 }
 
-/// `s` in the precision `T` of a kernel's sums: `s` itself where `S` is `T`, else widened
-/// exactly (`f32` into `f64`; no kernel narrows its input).
+/// `s` in the precision `T` of a kernel's sums: itself, or widened exactly (no kernel narrows its input).
 #[inline(always)]
 fn widened<S: Real, T: Real>(s: S) -> T { T::of(s.get()) }
 
@@ -1442,9 +1360,8 @@ pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25]
     s
 }
 
-/// Galerkin coarse level `Pᵀ A P` of `fine`, with `P` the link-aware prolongation of
-/// `fine.geo` (rows of fixed nodes zero). Coarse nodes whose fine window is clean share one
-/// stencil, computed once.
+/// Galerkin coarse level `Pᵀ A P` of `fine` (`P` from `fine.geo`). Coarse nodes whose fine window is
+/// clean share one stencil, computed once.
 pub(crate) fn galerkin(fine: &Level) -> Level {
     let geo = fine.geo.coarsen();
     let (wc, hc, fw, fh) = (geo.w, geo.h, fine.geo.w, fine.geo.h);
@@ -1472,8 +1389,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let rows = fine.geo.children(yc, fh);
         let y_lo = *rows.start();
         let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
-        // Each row's nonzeros only, in window order (so the sums below add as over the
-        // whole window): most of a row's wide window is zero.
+        // Each row's nonzeros only, in window order (so the sums add as over the whole window, mostly zero).
         let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
         let (mut acc, mut row) = (vec![0.0f64; n * n], vec![0.0f64; AP * AP]);
         for &xc in &irregular {
@@ -1503,8 +1419,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
                 }
             }
             let (acc, far_taps) = split_taps(&acc, n);
-            // The window test is conservative: a stencil equal to the shared one up to the
-            // rounding of its sums is regular.
+            // The window test is conservative: a stencil equal to the shared one up to rounding is regular.
             if far_taps.is_empty() && shared_scale > 0.0 && acc.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale) {
                 continue;
             }
@@ -1565,20 +1480,15 @@ pub(crate) fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
         for ix in fine.geo.children(xc, fw) {
             let wi = fine.geo.weight(ix, iy, xc, yc);
             if wi == 0.0 { continue; }
-            fine.taps(fine.pidx(ix, iy), |q, a| {
-                let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
-                let (cjx, cjy) = ((jx / 2) as isize - xc as isize, (jy / 2) as isize - yc as isize);
-                fine.geo.p_row(jx, jy, |ox, oy, wj| acc[wide_at(cjx + ox, cjy + oy)] += wi * a * wj);
-            });
+            ap_terms(fine, ix, iy, [xc, yc], |dx, dy, a, wj| acc[wide_at(dx, dy)] += wi * a * wj);
         }
     }
     split_taps(&acc, WIDE).0
 }
 
-/// The Galerkin sums' windows where extrapolating rows meet (taps then reach offset 3: a
-/// level's reach `D` gives the next about `D / 2 + 3`): a coarse stencil on `WIDE` × `WIDE`
-/// offsets centred on its node, a row of `A P` on `AP` × `AP` coarse nodes from offset
-/// −`AP0` of `(ix / 2, iy / 2)`. Elsewhere the sums take 5 × 5 offsets (see [`narrow_sums`]).
+/// The Galerkin sums' windows where extrapolating rows meet (a level's reach `D` gives the next about
+/// `D / 2 + 3`): a coarse stencil on `WIDE` × `WIDE` offsets centred on its node, a row of `A P` on
+/// `AP` × `AP` coarse nodes from offset −`AP0` of `(ix / 2, iy / 2)`. Elsewhere, 5 × 5 ([`narrow_sums`]).
 const WIDE: usize = 17;
 const AP: usize = 14;
 const AP0: isize = 6;
@@ -1591,11 +1501,9 @@ fn wide_at(dx: isize, dy: isize) -> usize {
     ((dy + h) * WIDE as isize + dx + h) as usize
 }
 
-/// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc` on the narrow windows (every
-/// prolongation row on its 2 × 2 corners, every fine row within its stencil), from dense
-/// rows of `A P`, each made once per coarse row (`slot`, indexed as in [`galerkin`], into
-/// `dense`). The sums run in the order of the general path and add
-/// only exact zeros besides: the same stencil bit for bit.
+/// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc` where every prolongation row sits on its
+/// 2 × 2 corners, from dense rows of `A P` made once per coarse row (`slot`, as in [`galerkin`], into
+/// `dense`): in the general path's order, adding only exact zeros besides, so bit for bit its stencil.
 fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut Vec<[f64; 16]>, acc: &mut [f64]) {
     let (fw, fh, g) = (fine.geo.w, fine.geo.h, &fine.geo);
     let y_lo = (2 * yc).saturating_sub(1);
@@ -1620,8 +1528,7 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
     }
 }
 
-/// Row `(ix, iy)` of `A P` on the narrow window (a 4 × 4 one from offset −1), dense: the
-/// products in the order of [`ap_row`].
+/// Row `(ix, iy)` of `A P` on the 4 × 4 window from offset −1, dense, in the order of [`ap_row`].
 fn narrow_ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
     let fw = fine.geo.w;
     let row = fine.row(fine.pidx(ix, iy));
@@ -1664,15 +1571,21 @@ fn split_taps(acc: &[f64], n: usize) -> ([f64; 25], Vec<(isize, isize, f64)>) {
 /// Row `i = (ix, iy)` of `A P` into `out`: `Σ_j A_ij P_j` on the wide window's coarse nodes, row-major.
 fn ap_row(fine: &Level, ix: usize, iy: usize, out: &mut [f64]) {
     out.fill(0.0);
-    let (bx, by, n) = ((ix / 2) as isize, (iy / 2) as isize, AP as isize);
+    let n = AP as isize;
+    ap_terms(fine, ix, iy, [ix / 2, iy / 2], |dx, dy, a, wj| {
+        let (ox, oy) = (dx + AP0, dy + AP0);
+        assert!((0..n).contains(&ox) && (0..n).contains(&oy), "a row of A P reaching past its window");
+        out[(oy * n + ox) as usize] += a * wj;
+    });
+}
+
+/// `f(dx, dy, a_ij, p_jc)` for each tap `a_ij` of fine row `i = (ix, iy)` and each weight `p_jc` of
+/// row j of `P`, (dx, dy) the offset of coarse node c from `base`.
+fn ap_terms(fine: &Level, ix: usize, iy: usize, base: [usize; 2], mut f: impl FnMut(isize, isize, f64, f64)) {
     fine.taps(fine.pidx(ix, iy), |q, a| {
         let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
-        let (cjx, cjy) = ((jx / 2) as isize - bx, (jy / 2) as isize - by);
-        fine.geo.p_row(jx, jy, |ox, oy, wj| {
-            let (ox, oy) = (cjx + ox + AP0, cjy + oy + AP0);
-            assert!((0..n).contains(&ox) && (0..n).contains(&oy), "a row of A P reaching past its window");
-            out[(oy * n + ox) as usize] += a * wj;
-        });
+        let (cjx, cjy) = ((jx / 2) as isize - base[0] as isize, (jy / 2) as isize - base[1] as isize);
+        fine.geo.p_row(jx, jy, |ox, oy, wj| f(cjx + ox, cjy + oy, a, wj));
     });
 }
 
@@ -1728,9 +1641,8 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
 }
 
 widest! {
-    /// Full weighting of one fine row `vr` whose nodes all interpolate plainly, times `wy`,
-    /// added to the coarse row `acc`: `acc[X] += wy (v[2X] + ½ (v[2X − 1] + v[2X + 1]))`
-    /// (a missing neighbour past either end left out), on the processor's widest vectors.
+    /// Full weighting of one fine row `vr` whose nodes all interpolate plainly, into the coarse row `acc`:
+    /// `acc[X] += wy (v[2X] + ½ (v[2X − 1] + v[2X + 1]))`, a neighbour past either end left out.
     fn restrict_row<S: Real, T: Real>(vr: &[[S; 2]], acc: &mut [[T; 2]], wy: T) =>
     restrict_row_body {
         let fw = vr.len();
@@ -1741,8 +1653,7 @@ widest! {
             o[0] += wy * (c[0] + half * side[0]);
             o[1] += wy * (c[1] + half * side[1]);
         };
-        // Coarse nodes 1..inner have both fine neighbours (2X + 1 < fw), and every index below
-        // is in bounds by the slices' lengths, so the loop has no tests.
+        // Coarse nodes 1..inner have both fine neighbours, and the slices' lengths bound every index: no tests.
         let inner = (fw / 2).min(acc.len());
         let (head, v) = (&mut acc[..inner], &vr[..2 * inner]);
         for xc in 1..inner {
@@ -1759,10 +1670,8 @@ widest! {
 }
 
 widest! {
-    /// The bilinear prolongation onto one fine row `x` whose nodes all interpolate
-    /// plainly, from coarse rows `c0` and `c1` (`odd`: halfway between them, else on
-    /// `c0`): `x += α P e` on the nodes whose prolongation row `prow` is not empty, on the
-    /// processor's widest vectors.
+    /// `x += α P e` on one fine row whose nodes all interpolate plainly, from coarse rows `c0` and `c1`
+    /// (`odd`: halfway between them, else on `c0`), where its prolongation row `prow` is not empty.
     fn prolong_row<S: Real, T: Real>(c0: &[[S; 2]], c1: &[[S; 2]], odd: bool, prow: &[[u8; 4]], x: &mut [[T; 2]], alpha: V2) =>
     prolong_row_body {
         let fw = x.len();
@@ -1776,9 +1685,8 @@ widest! {
             if odd { [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])] } else { a }
         };
         let mid = |l: V2, r: V2| [0.5 * (l[0] + r[0]), 0.5 * (l[1] + r[1])];
-        // The coarse columns whose right neighbour the row also reaches (2X + 1 < fw): pairs
-        // of fine nodes (2X, 2X + 1) against pairs of coarse columns (X, X + 1), all of one
-        // length, so the loop has no tests; the rest one by one.
+        // Where 2X + 1 < fw: pairs of fine nodes (2X, 2X + 1) against pairs of coarse columns (X, X + 1), all
+        // of one length, so the loop has no tests; the rest one by one.
         let done = (fw / 2).min(c0.len().saturating_sub(1)).min(c1.len().saturating_sub(1));
         let fine = x[..2 * done].chunks_exact_mut(2).zip(prow[..2 * done].chunks_exact(2));
         let coarse = c0[..done + 1].windows(2).zip(c1[..done + 1].windows(2));
@@ -1797,8 +1705,7 @@ widest! {
     }
 }
 
-/// `fine_x += α P e` (prolongation of a coarse correction onto the unknowns), α per
-/// component, in either precision.
+/// `fine_x += α P e` (prolongation of a coarse correction onto the unknowns), α per component.
 pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level, e: &[[S; 2]], x: &mut [[T; 2]], alpha: V2) {
     let (fw, fh, wp) = (fine.geo.w, fine.geo.h, fine.wp);
     let run = |iy: usize, xrow: &mut [[T; 2]]| {
@@ -1827,8 +1734,7 @@ pub(crate) fn prolong_add_scaled<S: Real, T: Real>(fine: &Level, coarse: &Level,
     each_row(fw * fh, &mut x[PAD * wp..(PAD + fh) * wp], wp, run);
 }
 
-/// `f(y, row)` on each row (`wp` long) of `body`, on the pool's threads when the fine level
-/// has [`PAR_MIN_NODES`] nodes or more.
+/// `f(y, row)` on each row (`wp` long) of `body`, on the pool's threads from [`PAR_MIN_NODES`] fine nodes.
 fn each_row<U: Send>(fine_nodes: usize, body: &mut [U], wp: usize, f: impl Fn(usize, &mut [U]) + Sync + Send) {
     if fine_nodes >= PAR_MIN_NODES {
         body.par_chunks_mut(wp).enumerate().for_each(|(y, r)| f(y, r));

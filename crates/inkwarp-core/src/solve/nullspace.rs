@@ -1,33 +1,28 @@
 //! The null space of a piece's constrained plate operator, and the τ → 0⁺ rule on it.
 //!
-//! A field has zero plate energy when every straight triple with both links has a zero
-//! second difference and every fully linked 2 × 2 cell a zero mixed difference. Fully
-//! linked cells that share an edge are then one affine function (the two rows or columns
-//! through both are straight triples), so the fields of zero plate energy are described by
-//! a few unknowns: three affine coefficients per *cluster* of edge-connected full cells and
-//! one value per node in no full cell. They must agree where clusters share a node, give a
-//! zero second difference on every triple not inside one cluster, and vanish on the fixed
-//! nodes. The solutions of that small sparse system span the null space `N`: the hinge's
-//! turn of one square about the other, a strand's free bend, a ring's shear.
+//! A field has zero plate energy when every straight triple with both links has a zero second difference
+//! and every fully linked 2 × 2 cell a zero mixed difference. Fully linked cells that share an edge are
+//! then one affine function (the two rows or columns through both are straight triples), so the fields of
+//! zero plate energy are described by a few unknowns: three affine coefficients per *cluster* of
+//! edge-connected full cells and one value per node in no full cell. They must agree where clusters share
+//! a node, give a zero second difference on every triple not inside one cluster, and vanish on the fixed
+//! nodes. The solutions of that small sparse system span the null space `N`: the hinge's turn of one
+//! square about the other, a strand's free bend, a ring's shear.
 //!
-//! At τ = 0 the contract's answer is the plate minimiser of least membrane energy: the
-//! iteration's minimiser `u` plus the `n ∈ N` that minimises `E_membrane(u + n)`, a dense
-//! `k × k` solve for the `k` basis functions. At τ > 0 the same functions are the operator's
-//! smallest eigenvectors (eigenvalues of order τ), which an iteration barely moves: an
-//! exact Galerkin correction in their span removes that error.
+//! At τ = 0 the contract's answer is the plate minimiser of least membrane energy: the iteration's
+//! minimiser `u` plus the `n ∈ N` that minimises `E_membrane(u + n)`. At τ > 0 the same functions are the
+//! operator's smallest eigenvectors (eigenvalues of order τ), which an iteration barely moves: an exact
+//! Galerkin correction in their span removes that error.
 
 use super::level::V2;
 use super::strands::{blocks_in_order, Envelope};
 use crate::grid::{find, join};
 
-/// The most entries of a block's factor (a dense block of 1,500 functions; a strand's
-/// chain of bends holds a few a function). Past it the rule is not applied and the solve
-/// does not claim convergence.
+/// The most entries of a block's factor (a dense block of 1,500 functions): past it the rule is not applied
+/// and the solve does not claim convergence.
 pub(crate) const MAX_BLOCK_ENTRIES: usize = 1500 * 1501 / 2;
 
-/// The functions couple only where their supports meet, so the least-membrane system falls
-/// apart in independent blocks (one hair's free bends, one sliver's): any number of
-/// functions, each block's factor at most [`MAX_BLOCK_ENTRIES`], and at most this many in all.
+/// The most functions in all (each block's factor at most [`MAX_BLOCK_ENTRIES`], see [`Membrane`]).
 pub(crate) const MAX_NULL: usize = 200_000;
 
 /// A piece's geometry on its box: node `(x, y)` at `y · w + x`.
@@ -61,8 +56,7 @@ impl BoxGeo<'_> {
 /// A basis function: (node, value) pairs.
 pub(crate) type Sparse = Vec<(usize, f64)>;
 
-/// A basis of the fields on the box's active nodes with zero plate energy that vanish on
-/// `fixed`, or `None` when it has more than `max` functions.
+/// A basis of the fields of zero plate energy that vanish on `fixed`, or `None` past `max` functions.
 pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option<Vec<Sparse>> {
     let (w, n) = (g.w, g.w * g.h);
     // Clusters: union-find over full cells joined through shared edges.
@@ -74,8 +68,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
             join(&mut parent, i as u32, j as u32);
         }
     }
-    // Cluster index per root, and the clusters of each node (the full cells it is a
-    // corner of).
+    // Cluster index per root, and the clusters of each node (the full cells it is a corner of).
     let mut cluster_of_root = vec![u32::MAX; n];
     let mut origin: Vec<[f64; 3]> = Vec::new(); // x0, y0, scale
     let mut member: Vec<[u32; 4]> = vec![[u32::MAX; 4]; n];
@@ -94,8 +87,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
         }
     }
     let clusters = origin.len();
-    // Unknowns: three a cluster, then one per active node in no full cell (a lone node).
-    // Each cluster's nodes are those whose first cluster it is.
+    // Unknowns: three a cluster (its nodes those whose first cluster it is), then one per lone active node.
     let (mut lone, mut lone_nodes, mut nodes_of) = (vec![u32::MAX; n], Vec::new(), vec![Vec::new(); clusters]);
     for i in (0..n).filter(|&i| g.active[i]) {
         if member[i][0] != u32::MAX {
@@ -114,8 +106,8 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
     };
     let mut elim = Echelon::new(vars);
     let mut row: Vec<(usize, f64)> = Vec::new();
-    // The equation `Σ f u(node) + extra = 0` over `(node, f)` terms, each node's value its
-    // lone unknown or its first cluster's affine function.
+    // The equation `Σ f u(node) + extra = 0` over `(node, f)` terms, each node's value its lone unknown or
+    // its first cluster's affine function.
     let mut equation = |terms: &[(usize, f64)], extra: &[(usize, f64)]| {
         row.clear();
         for &(i, f) in terms {
@@ -151,8 +143,8 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
         let mut touched: Vec<usize> = affine.iter().map(|&(k, _)| k / 3).collect();
         touched.dedup();
         let mut z: Sparse = Vec::new();
-        // A cluster's values are at most the sum of its coefficients (|x|, |y| ≤ 1): one whose
-        // sum is below the cut of `retain` below adds nothing, and may hold every node.
+        // A cluster's values are at most the sum of its coefficients (|x|, |y| ≤ 1): one whose sum is below
+        // the cut of `retain` below adds nothing, and may hold every node.
         for c in touched.into_iter().filter(|&c| qd[3 * c..3 * c + 3].iter().map(|v| v.abs()).sum::<f64>() > 1e-13) {
             z.extend(nodes_of[c].iter().map(|&i| (i, in_cluster(i, c as u32).iter().map(|&(k, a)| a * qd[k]).sum::<f64>())));
         }
@@ -164,8 +156,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
     Some(out.filter(|z| !z.is_empty()).collect())
 }
 
-/// Incremental sparse Gaussian elimination: pivot rows normalised on their pivot, each
-/// free of the columns of earlier pivots.
+/// Incremental sparse Gaussian elimination: rows normalised on their pivot, free of earlier pivots' columns.
 struct Echelon {
     pivot_of: Vec<u32>,
     rows: Vec<(usize, Vec<(usize, f64)>)>,
@@ -219,9 +210,8 @@ impl Echelon {
         }
     }
 
-    /// One basis vector per free column (sparse over the unknowns: its nonzero entries), or
-    /// `None` past `max`. Back-substitution from the last row up visits only the rows that
-    /// read an entry already nonzero: a row reads free columns and later rows' pivots only.
+    /// One sparse basis vector per free column, or `None` past `max`. Back-substitution from the last row up
+    /// visits only the rows that read an entry already nonzero (free columns and later rows' pivots).
     fn null_space(&self, max: usize) -> Option<Vec<Vec<(usize, f64)>>> {
         use std::collections::BinaryHeap;
         let vars = self.pivot_of.len();
@@ -265,8 +255,8 @@ impl Echelon {
     }
 }
 
-/// The membrane product `y = M z` for a sparse `z`, into the dense scratch `y` (zero on
-/// entry); returns the nodes it touched. `dense` is a zero scratch, left zero.
+/// The membrane product `y = M z` for a sparse `z` into `y` (zero on entry); returns the nodes it touched.
+/// `dense` is a zero scratch, left zero.
 fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> Vec<usize> {
     let w = g.w;
     for &(i, v) in z {
@@ -282,8 +272,7 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
     for &(i, _) in z {
         let (x, yy) = (i % w, i / w);
         g.links(i).for_each(|j| link(i, j));
-        // Links from the left and above, where the other end is outside the support (inside
-        // it, that end lists the link itself).
+        // Links from the left and above, where the other end is outside the support (inside, it lists them).
         let outer = [(x > 0 && g.right[i - 1]).then(|| i - 1), (yy > 0 && g.down[i - w]).then(|| i - w)];
         for j in outer.into_iter().flatten().filter(|&j| dense[j] == 0.0) {
             link(j, i);
@@ -297,19 +286,17 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
     touched
 }
 
-/// The τ → 0⁺ choice among the plate minimisers as a linear map: `u ↦ u + n`, with
-/// `n ∈ span(basis)` the function that minimises the membrane energy of `u + n`. The
-/// functions couple only where their supports meet, so their system falls apart in blocks
-/// (one hair's free bends, one sliver's), each solved on its own. Built once per piece (a
-/// solver keeps it): it settles the answer, and it projects the iteration's start and
-/// directions (see `Settled` in the solver).
+/// The τ → 0⁺ choice among the plate minimisers as a linear map: `u ↦ u + n`, with `n ∈ span(basis)`
+/// the function that minimises the membrane energy of `u + n`. The functions couple only where their
+/// supports meet, so their system falls apart in blocks (one hair's free bends, one sliver's), each
+/// solved on its own. Built once per piece: it settles the answer, and projects the iteration's start
+/// and directions (see `Settled` in the solver).
 pub(crate) struct Membrane {
     basis: Vec<Sparse>,
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.
     products: Vec<Sparse>,
-    /// The functions of each block (coupled through their supports), in the order of its
-    /// factor, and the envelope factor of its membrane Gram matrix (none for a block too
-    /// costly or singular, which is not settled).
+    /// The functions of each block in its factor's order, and the factor of its membrane Gram matrix (none
+    /// for a block too costly or singular, which is not settled).
     blocks: Vec<(Vec<usize>, Option<Envelope>)>,
 }
 
@@ -343,8 +330,8 @@ impl Membrane {
                 (acc[i], seen[i]) = (0.0, false);
             }
         }
-        // Each block in an order that keeps its envelope narrow (a strand's bends in order
-        // along it); one with a dropped pivot (dependent functions) is not settled.
+        // Each block in an order that keeps its envelope narrow (a strand's bends in order along it); one
+        // with a dropped pivot (dependent functions) is not settled.
         let mut local = vec![0; k];
         let blocks = blocks_in_order(k, |_| true, |j, out| { out.clear(); out.extend(gram[j].iter().map(|e| e.0)) }).into_iter().map(|members| {
             members.iter().enumerate().for_each(|(l, &j)| local[j] = l);
@@ -363,8 +350,8 @@ impl Membrane {
     /// How many functions there are.
     pub(crate) fn len(&self) -> usize { self.basis.len() }
 
-    /// `n` for the field read by `read` (box node → value): added by `add(node, value)`.
-    /// False when a block was not settled (too large or singular: it is left as it is).
+    /// `n` for the field read by `read` (box node → value), added by `add(node, value)`; false when a block
+    /// was not settled (too large or singular: it is left as it is).
     pub(crate) fn settle(&self, read: impl Fn(usize) -> V2, mut add: impl FnMut(usize, V2)) -> bool {
         for (members, l) in self.blocks.iter().filter_map(|(m, l)| Some((m, l.as_ref()?))) {
             let mut c: Vec<V2> = members.iter().map(|&j| self.products[j].iter().fold([0.0; 2], |s, &(p, y)| {

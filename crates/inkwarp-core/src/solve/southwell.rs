@@ -1,17 +1,13 @@
-//! Southwell relaxation with a fixed budget: relax the nodes whose relaxation lowers the
-//! energy most first. A single relaxation of node `i` lowers the energy by
-//! `e_i = |r_i|² / a_ii`; each pass takes the drops of every unknown, finds the `k`-th
-//! largest (`k` a quarter of the unknowns, or what is left of the budget), and relaxes, in
-//! order, every node whose drop is still at least that when it is reached. This is
-//! Southwell's greedy rule in bulk: a pass costs one residual and one scan of the grid,
-//! however many nodes it relaxes, where picking one node at a time would cost a search per
-//! relaxation. The budget is charged `k` per pass.
+//! Southwell relaxation with a fixed budget: relax first the nodes whose relaxation lowers the energy most.
+//! Relaxing node `i` lowers the energy by `e_i = |r_i|² / a_ii`; each pass finds the `k`-th largest drop
+//! (`k` a quarter of the unknowns, or what is left of the budget, charged `k` per pass) and relaxes, in
+//! order, every node whose drop is still at least that when reached: Southwell's greedy rule in bulk, one
+//! residual and one scan a pass where picking one node at a time would cost a search per relaxation.
 
 use super::level::{Level, V2, PAD};
 
-/// Spends at most `budget` relaxations on the finest level; returns the largest single
-/// change made, and whether it stopped because nothing was left to relax (every residual
-/// exactly zero) rather than because the budget ran out.
+/// Spends at most `budget` relaxations on the finest level; returns the largest single change made, and
+/// whether it stopped because nothing was left to relax rather than because the budget ran out.
 pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize, unknowns: usize) -> (f64, bool) {
     let (w, h) = (level.geo.w, level.geo.h);
     let mut r = vec![[0.0; 2]; u.len()];
@@ -45,9 +41,8 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize, unknowns: usize)
                 }
             }
         }
-        // The largest drops can vanish before their nodes are reached (their neighbours
-        // were relaxed first, or they are rounding noise): a pass that relaxes nothing
-        // ends the relaxation, without a claim about the error left.
+        // The largest drops can vanish before their nodes are reached (their neighbours relaxed first, or
+        // rounding noise): a pass that relaxes nothing ends it, without a claim about the error left.
         if relaxed == 0 { return (largest, false); }
     }
     (largest, false)

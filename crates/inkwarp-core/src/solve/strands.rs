@@ -1,13 +1,12 @@
 //! Exact solves on the thin parts of a piece: strands, teeth, slivers between cuts.
 //!
-//! A part a few pixels wide bends almost freely and the coarse levels, whose nodes are 2ᵏ
-//! pixels apart, do not see it: its bending is a slow mode of every cycle. Being nearly
-//! one-dimensional, its own system is cheap to solve exactly, so the preconditioner solves
-//! every connected set of *thin* nodes (a run of linked nodes along the row or the column
-//! at most [`THIN`] long) with the rest held, before and after the cycle (block symmetric
-//! Gauss–Seidel). Each set is ordered by reverse Cuthill–McKee and factored as `L D Lᵀ`
-//! within its envelope (its diagonal raised by [`SHIFT`]); a vanishing pivot (a free
-//! function of the set, at τ = 0) is dropped, leaving it to the cycle and the settling.
+//! A part a few pixels wide bends almost freely and the coarse levels, whose nodes are 2ᵏ pixels apart,
+//! do not see it: its bending is a slow mode of every cycle. Nearly one-dimensional, its own system is
+//! cheap to solve exactly, so the preconditioner solves every connected set of *thin* nodes (a run of
+//! linked nodes along the row or the column at most [`THIN`] long) with the rest held, before and after the
+//! cycle (block symmetric Gauss–Seidel). Each set is ordered by reverse Cuthill–McKee and factored as
+//! `L D Lᵀ` in its envelope (its diagonal raised by [`SHIFT`]); a vanishing pivot (a free function of the
+//! set, at τ = 0) is dropped, leaving it to the cycle and the settling.
 
 use super::level::{bit, Level, Operator, Real, V2, W2, WS};
 
@@ -17,22 +16,19 @@ const THIN: usize = 16;
 /// The most entries a node's row of a block's factor may hold on average.
 const BAND: usize = 64;
 
-/// The finest level's blocks factored are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant
-/// hair's exact response where the `f32` search direction can hold it (docs/dev/ablation.md).
+/// The finest level's blocks factored are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant hair's exact
+/// response where the `f32` search direction can hold it (docs/dev/ablation.md).
 const SHIFT: f64 = 1e-8;
 
-/// A pivot below this fraction of its diagonal entry is dropped (slivers' near-free
-/// functions; docs/dev/ablation.md, "Tenth change").
+/// A pivot below this fraction of its diagonal entry is dropped (slivers' near-free functions).
 const PIVOT: f64 = 1e-6;
 
-/// The `L D Lᵀ` factor of a symmetric matrix within its envelope: row `i` of `L` from
-/// column `first[i]` (its first nonzero) to the diagonal, at `at[i]` in `l`.
+/// The `L D Lᵀ` factor of a symmetric matrix in its envelope: row `i` of `L` from column `first[i]`, at `at[i]`.
 #[derive(Debug)]
 pub(crate) struct Envelope {
     first: Vec<u32>,
     at: Vec<usize>,
-    /// `L`'s rows within the envelope (the diagonal slot unused) and `D⁻¹` (zero where a
-    /// pivot was dropped).
+    /// `L`'s rows (the diagonal slot unused) and `D⁻¹` (zero where a pivot was dropped).
     l: Vec<f64>,
     d_inv: Vec<f64>,
 }
@@ -46,8 +42,7 @@ pub(crate) struct Strands {
     taps: Vec<(u32, f64)>,
     at: Vec<usize>,
     blocks: Vec<Envelope>,
-    /// The finest level's first solve's correction (from [`Strands::before`] to
-    /// [`Strands::after`]), per node.
+    /// The finest level's first solve's correction (from [`Strands::before`] to [`Strands::after`]).
     first_pass: Vec<V2>,
 }
 
@@ -55,8 +50,7 @@ impl Strands {
     /// The thin nodes of `level`, or `None` when it has none.
     pub fn new(level: &Level) -> Option<Strands> {
         let thin = match &level.op {
-            // Links: the operator's own on the finest level, the geometry's between unknowns
-            // on coarser ones.
+            // Links: the operator's own on the finest level, the geometry's between unknowns on coarser ones.
             Operator::Fine { flags, .. } => thin_nodes(level, |p, _| flags[p] & bit::RIGHT != 0, |p, _| flags[p] & bit::DOWN != 0),
             Operator::Stored { .. } => {
                 let (g, d, wp) = (&level.geo, &level.inv_diag, level.wp);
@@ -66,11 +60,7 @@ impl Strands {
         if !thin.contains(&true) { return None; }
         let neighbours = |p: usize, out: &mut Vec<usize>| {
             out.clear();
-            level.taps(p, |q, _| {
-                if q != p && thin[q] {
-                    out.push(q);
-                }
-            });
+            level.taps(p, |q, _| if q != p && thin[q] { out.push(q) });
         };
         let (mut nodes, mut starts) = (Vec::new(), Vec::new());
         for block in blocks_in_order(thin.len(), |p| thin[p], neighbours) {
@@ -78,12 +68,9 @@ impl Strands {
             nodes.extend(block.into_iter().map(|p| p as u32));
         }
         let mut local = vec![u32::MAX; thin.len()];
-        for (i, &p) in nodes.iter().enumerate() {
-            local[p as usize] = i as u32;
-        }
-        // Each block factored; a set whose order is not a narrow band is two-dimensional
-        // (a region riddled with pinholes, say), not a strand: the cycle serves it, and its
-        // factor would not be cheap. Its nodes leave the lists.
+        nodes.iter().enumerate().for_each(|(i, &p)| local[p as usize] = i as u32);
+        // Each block factored; a set whose order is not a narrow band is two-dimensional (a region riddled
+        // with pinholes, say), not a strand: the cycle serves it, and its nodes leave the lists.
         starts.push(nodes.len());
         let shift = if matches!(level.op, Operator::Fine { .. }) { SHIFT } else { 0.0 };
         let (mut kept, mut taps, mut at, mut blocks) = (Vec::new(), Vec::new(), vec![0], Vec::new());
@@ -109,9 +96,8 @@ impl Strands {
     /// Node `i`'s taps.
     fn row(&self, i: usize) -> &[(u32, f64)] { &self.taps[self.at[i]..self.at[i + 1]] }
 
-    /// Before the finest level's cycle: solves the thin blocks on `r` (the cycle's
-    /// right-hand side `f` holds `r` in `f32`) and takes the correction's product out of
-    /// `f`.
+    /// Before the finest level's cycle: solves the thin blocks on `r` and takes the correction's product out
+    /// of the cycle's right-hand side `f` (`r` in `f32`).
     pub fn before(&mut self, level: &Level, r: &[V2], f: &mut [W2]) {
         for (z, &p) in self.first_pass.iter_mut().zip(&self.nodes) {
             *z = r[p as usize];
@@ -125,8 +111,7 @@ impl Strands {
         }
     }
 
-    /// After the finest level's cycle: adds the first correction to the cycle's `x` and
-    /// relaxes the thin blocks again on the residual left.
+    /// After the finest level's cycle: adds the first correction to its `x` and relaxes the blocks again.
     pub fn after(&self, r: &[V2], x: &mut [W2]) {
         self.add(&self.first_pass, x);
         self.relax_from(|p| r[p], x);
@@ -164,9 +149,8 @@ fn solve_blocks(blocks: &[Envelope], x: &mut [V2]) {
     }
 }
 
-/// The thin nodes: the unknowns whose run of linked nodes along the row or along the
-/// column is at most [`THIN`] long, from `right(p, i)` and `down(p, i)` (padded and unpadded
-/// index: linked to the right, below).
+/// The thin nodes: the unknowns whose run of linked nodes along the row or the column is at most [`THIN`]
+/// long, from `right(p, i)` and `down(p, i)` (padded and unpadded index: linked to the right, below).
 fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Vec<bool> {
     let (w, h) = (level.geo.w, level.geo.h);
     let p = |x: usize, y: usize| level.pidx(x, y);
@@ -185,24 +169,19 @@ fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn
     (0..across.len()).map(|p| level.inv_diag[p] != 0.0 && across[p] as usize <= THIN).collect()
 }
 
-/// `f(start, end)` for each maximal run `start..=end` of `0..n` joined by `linked(i)` (`i`
-/// linked to `i + 1`).
+/// `f(start, end)` for each maximal run `start..=end` of `0..n` joined by `linked(i)` (`i` to `i + 1`).
 fn each_run(n: usize, linked: impl Fn(usize) -> bool, mut f: impl FnMut(usize, usize)) {
     let mut s = 0;
     while s < n {
-        let mut e = s;
-        while e + 1 < n && linked(e) {
-            e += 1;
-        }
+        let e = (s..n - 1).find(|&e| !linked(e)).unwrap_or(n - 1);
         f(s, e);
         s = e + 1;
     }
 }
 
-/// The connected sets of the nodes `0..n` with `include` (`next(p, out)`: `p`'s
-/// neighbours, all included), each in reverse Cuthill–McKee order: breadth first from the
-/// last node of a breadth-first search (a pseudo-peripheral one), reversed. Along a strand
-/// that keeps a factor's envelope narrow.
+/// The connected sets of the nodes `0..n` with `include` (`next(p, out)`: `p`'s neighbours, all included),
+/// each in reverse Cuthill–McKee order: breadth first from the last node of a breadth-first search (a
+/// pseudo-peripheral one), reversed. Along a strand that keeps a factor's envelope narrow.
 pub(crate) fn blocks_in_order(n: usize, include: impl Fn(usize) -> bool, mut next: impl FnMut(usize, &mut Vec<usize>)) -> Vec<Vec<usize>> {
     let mut bfs = |s: usize, seen: &mut [bool]| {
         let (mut order, mut buf, mut i) = (vec![s], Vec::new(), 0);
@@ -227,9 +206,9 @@ pub(crate) fn blocks_in_order(n: usize, include: impl Fn(usize) -> bool, mut nex
 }
 
 impl Envelope {
-    /// The factor of the matrix whose row `i` has the entries `entries[i]` (column, value;
-    /// repeats add) and its diagonal raised by `shift` times itself; a pivot not above
-    /// `pivot` times its diagonal entry is dropped. `None` past `max_entries` entries.
+    /// The factor of the matrix whose row `i` has the entries `entries[i]` (column, value; repeats add), its
+    /// diagonal raised by `shift` times itself; a pivot not above `pivot` times its diagonal entry is
+    /// dropped. `None` past `max_entries` entries.
     pub(crate) fn factor(entries: Vec<Vec<(usize, f64)>>, shift: f64, pivot: f64, max_entries: usize) -> Option<Envelope> {
         let n = entries.len();
         let first: Vec<u32> = entries.iter().enumerate().map(|(i, e)| e.iter().map(|&(j, _)| j).min().unwrap_or(i).min(i) as u32).collect();

@@ -1,20 +1,16 @@
 //! `grid_step = s > 1`: solve on every s-th node and upsample with a tensor-product cubic.
 //!
-//! The coarse node (X, Y) sits on pixel (min(sX, W−1), min(sY, H−1)) (the last row and
-//! column are pulled onto the image border, so every pixel lies between coarse nodes). It is
-//! active when that pixel is; two coarse neighbours are linked when every fine link on the
-//! straight path between them is. A sample constrains the nearest coarse node. The tension
-//! is scaled by s² so that the coarse energy approximates the same continuous energy.
+//! The coarse node (X, Y) sits on pixel (min(sX, W−1), min(sY, H−1)) (the last row and column pulled onto
+//! the border, so every pixel lies between coarse nodes), active when that pixel is; two coarse neighbours
+//! are linked when every fine link on the straight path between them is. A sample constrains the nearest
+//! coarse node. The tension is scaled by s² so that the coarse energy approximates the same continuous one.
 //!
-//! Upsampling is Catmull-Rom (interpolating) in x and y. A pixel uses only the coarse
-//! nodes of its 4 × 4 window that it reaches through links without leaving the window's
-//! block of pixels (so a tear stays open even where its sides are joined far around); the
-//! weights of the dropped nodes are dropped and the rest renormalised (falling back to
-//! bilinear from the inner 2 × 2, then to the nearest value along the links). A piece with
-//! no coarse node takes the mean displacement of its samples, or stays at zero without any;
-//! a coarse piece no sample holds moves with the held one it joins on the full grid.
-//! The editor's drag path, built for speed (`docs/dev/multigrid.md`); a test holds it to
-//! the straightforward per-pixel loop (to within the rounding of the sums' order).
+//! Upsampling is Catmull-Rom in x and y. A pixel uses only the coarse nodes of its 4 × 4 window that it
+//! reaches through links within the window's block of pixels (so a tear stays open even where its sides
+//! join far around), renormalised (falling back to bilinear from the inner 2 × 2, then to the nearest value
+//! along the links). A piece with no coarse node takes the mean displacement of its samples, or zero; a
+//! coarse piece no sample holds moves with the held one it joins on the full grid. The editor's drag path,
+//! built for speed (`docs/dev/multigrid.md`); a test holds it to the per-pixel loop (up to sums' order).
 
 use std::collections::VecDeque;
 
@@ -40,9 +36,8 @@ pub(crate) fn solve_coarse(
     (upsample(grid, &Upsampling::new(grid, options.grid_step), &fc, samples), report)
 }
 
-/// The coarse solve of `grid_step = s` on a non-empty grid, from `initial` read at the coarse
-/// nodes (in place: a pass over the coarse grid, not over every pixel), or from the solver's
-/// history, which keeps the coarse fields (only their coarse nodes' values would ever be read).
+/// The coarse solve of `grid_step = s` on a non-empty grid, from `initial` read at the coarse nodes, or from
+/// the solver's history, which keeps the coarse fields.
 fn solve_on_coarse_grid(
     grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool, follow: bool,
 ) -> (Field, SolveReport) {
@@ -63,11 +58,9 @@ fn solve_on_coarse_grid(
     (fc, report)
 }
 
-/// A coarse piece that no sample holds but that joins a held one on the full grid (a strand
-/// thinner than the step, cut off on the coarse grid) moves with the nearest held coarse node
-/// along the full grid's links, instead of standing still while the part it hangs from moves.
-/// A pass over the full grid where some coarse piece is loose; the editor's drafts
-/// ([`solve_at`]) go without it.
+/// A coarse piece that no sample holds but that joins a held one on the full grid (a strand thinner than
+/// the step) moves with the nearest held coarse node along the full grid's links, instead of standing
+/// still while the part it hangs from moves. The editor's drafts ([`solve_at`]) go without it.
 fn follow_held(grid: &Grid, l: &Layout, coarse: &Grid, constraints: &crate::grid::Constraints, fc: &mut Field) {
     let (labels, count) = coarse.pieces();
     let mut held = vec![false; count];
@@ -79,10 +72,8 @@ fn follow_held(grid: &Grid, l: &Layout, coarse: &Grid, constraints: &crate::grid
     let mut from = vec![u32::MAX; grid.len()];
     let mut queue: VecDeque<u32> = (0..labels.len()).filter(|&c| labels[c] != u32::MAX && !loose(c)).map(|c| { from[pixel(c)] = c as u32; pixel(c) as u32 }).collect();
     while let Some(p) = queue.pop_front().map(|p| p as usize) {
-        let (x, w) = (p % grid.width, grid.width);
-        let next = [(grid.link_right[p], p + 1), (x > 0 && grid.link_right[p - 1], p.wrapping_sub(1)), (grid.link_down[p], p + w), (p >= w && grid.link_down[p.wrapping_sub(w)], p.wrapping_sub(w))];
-        for (linked, q) in next {
-            if linked && from[q] == u32::MAX {
+        for q in grid.linked(p) {
+            if q != usize::MAX && from[q] == u32::MAX {
                 from[q] = from[p];
                 queue.push_back(q as u32);
             }
@@ -94,11 +85,9 @@ fn follow_held(grid: &Grid, l: &Layout, coarse: &Grid, constraints: &crate::grid
     }
 }
 
-/// What upsampling a `grid_step` solve on one grid needs besides the coarse field: the
-/// taps of every pixel column and row and the usable-tap masks of the cells along missing
-/// links. The full upsampling builds it for each solve; kept once per grid and step, it
-/// evaluates the upsampled field at chosen pixels only ([`Solver::solve_warm_at`]): the
-/// editor's drafts need it at their mesh's vertices, a few percent of the pixels.
+/// What upsampling a `grid_step` solve on one grid needs besides the coarse field: the taps of every
+/// pixel column and row and the usable-tap masks of the cells along missing links. Kept once per grid and
+/// step, it evaluates the field at chosen pixels only ([`Solver::solve_warm_at`]: a mesh's vertices).
 #[derive(Debug)]
 pub struct Upsampling {
     layout: Layout,
@@ -117,9 +106,8 @@ impl Upsampling {
         Upsampling { masks: mask_table(grid, &layout, &cols, &rows), layout, cols, rows }
     }
 
-    /// The upsampled value of pixel `i` (row-major) of `grid` (the plan's) from the coarse
-    /// field `fc`: zero for an inactive pixel, `None` where its window has no usable node
-    /// (the full upsampling then fills it along the links).
+    /// The upsampled value of pixel `i` of `grid` from the coarse field `fc`: zero for an inactive pixel,
+    /// `None` where its window has no usable node (the full upsampling then fills it along the links).
     fn at(&self, grid: &Grid, fc: &Field, i: usize) -> Option<[f32; 2]> {
         if !grid.active[i] { return Some([0.0; 2]); }
         let l = &self.layout;
@@ -159,23 +147,19 @@ struct Layout { s: usize, w: usize, h: usize, wc: usize, hc: usize }
 impl Layout {
     fn new(w: usize, h: usize, s: usize) -> Self { Layout { s, w, h, wc: (w - 1).div_ceil(s) + 1, hc: (h - 1).div_ceil(s) + 1 } }
 
-    /// The pixel column of coarse column `xc`.
+    /// The pixel column of coarse column `xc`, and the pixel row of coarse row `yc`.
     fn px(&self, xc: usize) -> usize { (xc * self.s).min(self.w - 1) }
-
-    /// The pixel row of coarse row `yc`.
     fn py(&self, yc: usize) -> usize { (yc * self.s).min(self.h - 1) }
 
-    /// The coarse coordinate of pixel coordinate `x` along an axis of `nc` coarse positions
-    /// at pixels `pos(0..nc)` (so a sample goes to the coarse node nearest to it, in the
-    /// last, shorter cell too).
+    /// The coarse coordinate of pixel coordinate `x` along an axis of `nc` coarse positions at pixels
+    /// `pos(0..nc)` (so a sample goes to the coarse node nearest to it, in the last, shorter cell too).
     fn coarse(&self, x: f64, nc: usize, pos: impl Fn(usize) -> usize) -> f64 {
         if nc < 2 { return 0.0; }
         let (c, t) = cell_of(x, self.s, nc, pos);
         c as f64 + t
     }
 
-    /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's
-    /// pixels) from the cell's `masks` ([`cell_masks`]; empty where the window is whole).
+    /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) from the cell's `masks` ([`cell_masks`]).
     fn mask(&self, masks: &[u16], cx: usize, cy: usize, x: usize, y: usize) -> u16 {
         if masks.is_empty() { return ALL_TAPS; }
         let ix0 = self.px(cx);
@@ -186,18 +170,16 @@ impl Layout {
     fn cells(&self) -> (usize, usize) { (self.wc.saturating_sub(1).max(1), self.hc.saturating_sub(1).max(1)) }
 }
 
-/// The coarse cell (its first position, at most `nc − 2`) of pixel coordinate `x` along an
-/// axis of `nc ≥ 2` coarse positions at pixels `pos(0..nc)`, `s` apart, and how far across
-/// it `x` lies (the last cell ends on the border and may be shorter).
+/// The coarse cell (its first position, at most `nc − 2`) of pixel coordinate `x` along an axis of
+/// `nc ≥ 2` coarse positions at pixels `pos(0..nc)`, `s` apart, and how far across it `x` lies.
 fn cell_of(x: f64, s: usize, nc: usize, pos: impl Fn(usize) -> usize) -> (usize, f64) {
     let c = ((x / s as f64).max(0.0) as usize).min(nc - 2);
     let (a, b) = (pos(c) as f64, pos(c + 1) as f64);
     (c, (x - a) / (b - a))
 }
 
-/// The Catmull-Rom taps of one pixel along one axis: the coarse cell it lies in (`cell`,
-/// its window spans coarse positions `cell − 1 ..= cell + 2`) and, of the window's four
-/// positions, those inside the grid with a nonzero weight, in order.
+/// The Catmull-Rom taps of one pixel along one axis: its coarse cell (its window spans coarse positions
+/// `cell − 1 ..= cell + 2`) and the window's positions inside the grid with a nonzero weight, in order.
 #[derive(Clone, Copy, Debug)]
 struct Taps {
     cell: usize,
@@ -211,8 +193,7 @@ struct Taps {
 }
 
 impl Taps {
-    /// The taps of every pixel `0..n` along an axis with `nc` coarse positions at
-    /// `pos(0..nc)`, `s` pixels apart.
+    /// The taps of every pixel `0..n` along an axis with `nc` coarse positions at `pos(0..nc)`, `s` apart.
     fn along(n: usize, nc: usize, s: usize, pos: impl Fn(usize) -> usize) -> Vec<Taps> {
         (0..n).map(|x| {
             let (cell, weights) = if nc == 1 {
@@ -235,26 +216,22 @@ impl Taps {
         }).collect()
     }
 
-    /// The bilinear weight of window position `k` (1 or 2), recovered from the two inner
-    /// cubic weights (exact at t = 0 and t = 1).
+    /// The bilinear weight of window position `k` (1 or 2) from the two inner cubic weights (exact at t = 0, 1).
     fn linear(&self, k: usize) -> f64 {
         let s = self.weights[1] + self.weights[2];
         if s.abs() < 1e-12 { 0.5 } else { self.weights[k] / s }
     }
 }
 
-/// Every coarse node of a window's taps: the bit `4 kb + ka` stands for window position
-/// (`ka`, `kb`), as in [`Taps::slot`].
+/// Every coarse node of a window's taps: the bit `4 kb + ka` stands for window position (`ka`, `kb`).
 const ALL_TAPS: u16 = u16::MAX;
 
-/// The usable-tap masks of every coarse cell (`cw` × `ch` of them, see [`cell_masks`]):
-/// computed for the cells near one that a missing link or an inactive pixel touches, empty
-/// (every tap usable) for the others.
+/// The usable-tap masks of every coarse cell ([`cell_masks`]) near one that a missing link or an inactive
+/// pixel touches, empty (every tap usable) for the others.
 fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec<Vec<u16>> {
     let (w, h, (cw, ch)) = (layout.w, layout.h, layout.cells());
-    // Whether a missing link or an inactive pixel lies inside each coarse cell (the closed
-    // block of pixels between its four corner nodes). Stretches of a row without any are
-    // skipped whole.
+    // Whether a missing link or an inactive pixel lies inside each coarse cell (the closed block of pixels
+    // between its four corner nodes). Stretches of a row without any are skipped whole.
     let mut touched = vec![false; cw * ch];
     // The cells whose closed block holds pixel (x, y): one or two along each axis.
     let mut mark = |x: usize, y: usize| {
@@ -294,11 +271,10 @@ fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec
     }).collect()
 }
 
-/// The taps that each pixel of coarse cell (`cx`, `cy`) may use: the coarse nodes of its
-/// 4 × 4 window that lie in the pixel's connected component of the links inside the
-/// window's block of pixels (from the pixel of window node (0, 0) to that of (3, 3), clipped
-/// to the grid), as bits of [`ALL_TAPS`]. One mask per pixel of the cell's closed block, row
-/// by row; zero for inactive pixels, [`ALL_TAPS`] for those reaching every node.
+/// The taps that each pixel of coarse cell (`cx`, `cy`) may use: the coarse nodes of its 4 × 4 window in
+/// the pixel's connected component of the links inside the window's block of pixels (clipped to the
+/// grid), as bits of [`ALL_TAPS`]. One mask per pixel of the cell's closed block, row by row; zero for
+/// inactive pixels, [`ALL_TAPS`] for those reaching every node.
 fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Vec<u32>, stack: &mut Vec<usize>) -> Vec<u16> {
     let (w, wc, hc) = (grid.width, layout.wc, layout.hc);
     let (bx0, bx1) = (layout.px(cx.saturating_sub(1)), layout.px((cx + 2).min(wc - 1)));
@@ -358,9 +334,8 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
     masks
 }
 
-/// One pixel's value from the coarse field `fc`, any window (`ty`, `tx` its taps): the taps
-/// allowed by `mask`, renormalised; the bilinear fallback from the window's inner 2 × 2
-/// where their weights fall short; `None` where neither has a usable node.
+/// One pixel's value from the coarse field `fc` (`ty`, `tx` its taps): the taps allowed by `mask`,
+/// renormalised; the bilinear fallback from the inner 2 × 2 where their weights fall short; else `None`.
 fn window_value(fc: &Field, ty: &Taps, tx: &Taps, mask: u16) -> Option<[f32; 2]> {
     let [x, y, sum] = window_sum(fc, ty, tx, mask, |t, k| Some(t.weights[k]));
     if sum >= 0.5 { return Some([(x / sum) as f32, (y / sum) as f32]); }
@@ -368,8 +343,8 @@ fn window_value(fc: &Field, ty: &Taps, tx: &Taps, mask: u16) -> Option<[f32; 2]>
     (sum > 1e-9).then(|| [(x / sum) as f32, (y / sum) as f32])
 }
 
-/// `[Σ w dx, Σ w dy, Σ w]` of `fc` over the taps of a window allowed by `mask`, the weight of
-/// window position (`ka`, `kb`) `w = weight(tx, ka) weight(ty, kb)`; none where either is `None`.
+/// `[Σ w dx, Σ w dy, Σ w]` of `fc` over the taps allowed by `mask`, at window position (`ka`, `kb`)
+/// `w = weight(tx, ka) weight(ty, kb)` (none where either is `None`).
 fn window_sum(fc: &Field, ty: &Taps, tx: &Taps, mask: u16, weight: impl Fn(&Taps, usize) -> Option<f64>) -> [f64; 3] {
     let mut acc = [0.0f64; 3];
     for b in 0..ty.len {
@@ -392,8 +367,7 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
     let (w, h, wc, cw) = (layout.w, layout.h, layout.wc, layout.cells().0);
     // A pixel's value and whether it has one (see `window_value`).
     let pixel = |ty: &Taps, tx: &Taps, mask: u16| window_value(fc, ty, tx, mask).map_or((0.0, 0.0, false), |[vx, vy]| (vx, vy, true));
-    // Each column's used weights from its first tap on (zero past the last), their sum and
-    // its inverse.
+    // Each column's used weights from its first tap on (zero past the last), their sum and its inverse.
     let flat: Vec<([f64; 4], f64, f64)> = cols.iter().map(|t| {
         let (mut w, mut sum) = ([0.0; 4], 0.0);
         for a in 0..t.len {
@@ -409,10 +383,9 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
     for (x, t) in cols.iter().enumerate() {
         cell_x[t.cell] = (cell_x[t.cell].0.min(x), x + 1);
     }
-    // A row's pixels that use their whole window take the cubic in y first, once per coarse
-    // column (`along[c]`: the column's values weighted by the row's taps), then in x: 4 + 4
-    // products a pixel instead of 16. `sy` is the sum of the row's weights (below 1 only at
-    // the border), so a pixel's weight sum is `sy` times its column weights' sum.
+    // A row's pixels that use their whole window take the cubic in y first, once per coarse column
+    // (`along[c]`), then in x: 4 + 4 products a pixel instead of 16. `sy` is the sum of the row's weights
+    // (below 1 only at the border), so a pixel's weight sum is `sy` times its column weights' sum.
     let upsample_row = |y: usize, dx: &mut [f32], dy: &mut [f32], resolved: &mut [bool], along: &mut Vec<[f64; 2]>| -> usize {
         let (ty, active) = (&rows[y], &grid.active[y * w..(y + 1) * w]);
         along.clear();
@@ -440,8 +413,7 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
                 pixel(ty, &cols[x], ALL_TAPS)
             };
         }
-        // ... then the pixels of windows with a missing link: the taps each reaches inside
-        // its window.
+        // ... then the pixels of windows with a missing link: the taps each reaches inside its window.
         for &cx in &masked[ty.cell] {
             let cell = &masks[ty.cell * cw + cx];
             for x in cell_x[cx].0..cell_x[cx].1 {
@@ -459,9 +431,8 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
     let chunks = field.dx.par_chunks_mut(w).zip(field.dy.par_chunks_mut(w)).zip(resolved.par_chunks_mut(w)).enumerate();
     let unresolved: usize = chunks.map_init(Vec::new, |along, (y, ((dx, dy), r))| upsample_row(y, dx, dy, r, along)).sum();
     if unresolved == 0 { return field; }
-    // Pixels left over: nearest resolved value along the links, breadth first from the
-    // resolved pixels in index order. Only those next to an unresolved pixel can pass a
-    // value on (the others would leave the queue without effect), so only they start it.
+    // Pixels left over: nearest resolved value along the links, breadth first from the resolved pixels
+    // next to an unresolved one (the others would leave the queue without effect), in index order.
     let pending = (0..w * h).filter(|&i| grid.active[i] && !resolved[i]);
     let mut seeds: Vec<usize> = pending.flat_map(|i| grid.linked(i).into_iter().filter(|&j| j != usize::MAX && resolved[j])).collect();
     seeds.sort_unstable();
