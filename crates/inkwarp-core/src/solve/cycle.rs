@@ -40,7 +40,8 @@ pub(crate) struct Hierarchy {
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
     /// Exact solves on the finest level's thin parts around each cycle (see [`Strands`]).
     pub strands: Option<Strands>,
-    /// The same on the coarser levels (index k for level k), relaxed after each smoothing within the cycle.
+    /// The same on the coarser levels (index k for level k), relaxed after the cycle's first smoothing and
+    /// before its second.
     pub level_strands: Vec<Option<Strands>>,
     /// The solve's own vectors on the finest level (the residual, the search direction and its product,
     /// a warm start's cold alternative), kept for the next solve: allocated afresh, they cost page faults.
