@@ -17,7 +17,8 @@ const LANCZOS_STEPS: usize = 12;
 /// Power steps of the finest level's Collatz–Wielandt bound.
 const COLLATZ_STEPS: usize = 3;
 /// The smallest pivot of the coarsest factor, relative to its diagonal, not taken as zero: about the `f32`
-/// work vectors' resolution, whose rounding a smaller one would magnify (`docs/dev/solver-correctness.md`).
+/// work vectors' resolution, whose rounding a smaller one would magnify past the answer
+/// (`docs/dev/solver-correctness.md`, "Tiny tensions").
 const PIVOT_FLOOR: f64 = 1e-7;
 
 /// The grid hierarchy with its work vectors.
@@ -36,15 +37,18 @@ pub(crate) struct Hierarchy {
     pub alt: Option<Box<Hierarchy>>,
     /// Whether the finest level has holes or cuts (see [`super::level::Geometry::torn`]).
     pub torn: bool,
-    /// K-cycle coarse corrections that took their first step alone ([`K_SECOND_STEP`]).
+    /// K-cycle coarse corrections that took their first step alone ([`K_SECOND_STEP`]), since the hierarchy
+    /// was built.
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
     /// Exact solves on the finest level's thin parts around each cycle (see [`Strands`]).
     pub strands: Option<Strands>,
-    /// The same on the coarser levels (index k for level k), relaxed after the cycle's first smoothing and
-    /// before its second.
+    /// The same on the coarser levels (index k for level k; none on the finest), relaxed twice in the cycle:
+    /// right after its first smoothing and again right before its second.
     pub level_strands: Vec<Option<Strands>>,
-    /// The solve's own vectors on the finest level (the residual, the search direction and its product,
-    /// a warm start's cold alternative), kept for the next solve: allocated afresh, they cost page faults.
+    /// The solve's own vectors on the finest level (the residual, the search direction's product, a warm
+    /// start's cold alternative; `direction`: the search direction in `f32`), kept for the next solve:
+    /// allocated afresh, vectors of megabytes cost page faults at every solve, a large part of an animation
+    /// frame's one cycle.
     pub spare: Vec<Vec<V2>>,
     pub direction: Vec<W2>,
     /// The finest level's affine functions, corrected exactly after every cycle (see [`Affine`]).
@@ -134,7 +138,8 @@ impl Hierarchy {
     fn steps_at(&self, k: usize) -> usize { if k == 0 { self.degree } else { self.coarse_degree } }
 
     /// Approximately solves `A_k x = f` on level k (x, f in `work[0]`, the slice from level k) by one cycle from
-    /// `x` (zero when `x_zero`): a V-cycle, with K-cycle corrections strictly between the finest and the coarsest.
+    /// `x` (zero when `x_zero`): a V-cycle, with K-cycle corrections on the levels between the finest and the one
+    /// above the coarsest.
     fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, alt_work: Option<&mut [Work]>) {
         let (level, coarsest) = (&self.levels[k], k + 1 == self.levels.len());
         // From zero, `x` is zeroed unless the first smoothing step writes all of it anyway (or, fused with
@@ -161,7 +166,8 @@ impl Hierarchy {
         } else {
             level.residual(x, Some(f), r);
         }
-        // No K-cycle on the finest level (the conjugate gradient runs around the cycle) nor above the coarsest.
+        // No K-cycle on the finest level (the conjugate gradient runs around the cycle) nor on the one above the
+        // coarsest (its coarse solve is exact: one visit is all it needs).
         if k > 0 && k + 2 < self.levels.len() && self.k_cycles {
             self.k_correction(k, w, tail);
         } else {
@@ -209,7 +215,8 @@ impl Hierarchy {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
         self.solve_below(k, &w.r, tail);
         let c = &mut tail[0];
-        // z₁ is smooth and as large as the coarse error: its product (and z₂'s) in `f64` sums.
+        // z₁ is smooth and as large as the coarse error: its product, small next to its terms, in `f64` sums
+        // (see `Level::residual_f64`), and z₂'s below.
         coarse.residual_f64(&c.x, None, &mut c.r); // −A z₁ on the unknowns
         let zaz = dot_w(&c.x, &c.r).map(|v| -v);
         let a1 = step(dot_w(&c.x, &c.f), zaz, 0.0);
@@ -241,8 +248,9 @@ impl Hierarchy {
     }
 
     /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on the coarsest,
-    /// then interpolated and improved by one V-cycle per level on the way up into `u`. `r` is scratch,
-    /// or holds the residual of `u` already when `r_ready` (it is left stale).
+    /// then interpolated and improved by one V-cycle per level below the finest on the way up; `u` receives
+    /// the interpolated correction on the unknowns (added). `r` is scratch, or holds the residual of `u`
+    /// already when `r_ready` (it is left stale).
     pub fn coarse_to_fine(&mut self, u: &mut [V2], r: &mut [V2], r_ready: bool) {
         let nl = self.levels.len();
         if nl < 2 {
@@ -282,7 +290,8 @@ impl Hierarchy {
 pub(crate) struct Affine(Vec<Vec<f64>>);
 
 /// A piece gets [`Affine`] where its weakest affine motion of size 1 at the box's edges has less energy than
-/// this (a node held `d` off costs about `20 d²`: the motion moves the constrained nodes by about 1/50).
+/// this (a node held `d` off costs about `20 d²`: the motion moves the constrained nodes by about 1/50 of its
+/// size).
 const AFFINE_WEAK: f64 = 1e-2;
 
 /// `W`'s values at padded node `p` of `level`: small integers (exact in `f32`), zero off the unknowns.
@@ -313,7 +322,8 @@ impl Affine {
             let s = affine_sums(level, q);
             e.iter_mut().enumerate().for_each(|(i, row)| (row[pair[0]], row[pair[1]]) = (-s[i][0], -s[i][1]));
         }
-        // E for W scaled to 1 at the edges: det / Σ principal 2 × 2 minors is within 3× its least eigenvalue.
+        // E for W scaled to 1 at the edges: det / Σ principal 2 × 2 minors, 1 / Σ 1/λᵢ, lies between a third of
+        // its least eigenvalue and that eigenvalue.
         let s = [1.0, 2.0 / level.geo.w.max(2) as f64, 2.0 / level.geo.h.max(2) as f64];
         let m = |i: usize, j: usize| e[i][j] * s[i] * s[j];
         let minor = |i: usize, j: usize| m(i, i) * m(j, j) - m(i, j) * m(i, j);
@@ -444,8 +454,8 @@ fn step(num: [f64; 2], den: [f64; 2], none: f64) -> [f64; 2] { [0, 1].map(|k| if
 /// Entries per task of this module's vector passes.
 const PASS_CHUNK: usize = 4096;
 
-/// `Σ a_i b_i` per component, in `f64`, the chunks' sums added in order (a parallel `reduce` would add
-/// them in a tree shaped by the work stealing).
+/// `Σ a_i b_i` per component, in `f64`, the chunks' sums added in order, so the result does not depend on how
+/// the pool's threads split the work (a parallel `reduce` would add them in a tree shaped by the work stealing).
 fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
     let parts: Vec<[f64; 2]> = a.par_chunks(PASS_CHUNK).zip(b.par_chunks(PASS_CHUNK)).map(|(a, b)| dot_pairs::<WS>(a, b)).collect();
     parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
@@ -570,7 +580,8 @@ impl Banded {
     }
 
     /// `x = A⁻¹ f` on the unknowns by the factor, in `f64`, a row for both components at a time (the
-    /// backward solve by columns: the factor's rows are contiguous). Dropped unknowns are zero.
+    /// backward solve by columns: the factor's rows are contiguous). Dropped unknowns are zero (their rows and
+    /// columns in the factor are).
     fn solve<T: Real>(&self, f: &[[T; 2]], x: &mut [[T; 2]]) {
         let (n, bw, l) = (self.map.len(), self.bw, &self.l);
         let at = |k: usize, m: usize| k * (bw + 1) + m + bw - k;

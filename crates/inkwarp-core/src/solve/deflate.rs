@@ -21,10 +21,11 @@ const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
 /// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop where its rate floor exceeds
-/// [`WAIT_RATE`] (an `early` one waits for one always).
+/// [`WAIT_RATE`], a condition over 9 seen (an `early` one waits for one always).
 const LOOKS: usize = 2;
 const WAIT_RATE: f64 = 0.5;
-/// The smallest Ritz value has settled when a cycle lowers it by less than 5 % (before any deflating restart).
+/// The smallest Ritz value has settled when a cycle lowers it by less than 5 % (before any deflating restart:
+/// after one the judged changes come in windows).
 const SETTLED: f64 = 0.95;
 /// Ritz vectors kept, and from the third Rayleigh–Ritz step on (`docs/dev/ablation.md`).
 pub(super) const KEEP: usize = 8;
@@ -164,8 +165,8 @@ impl Deflation {
     /// The kept vectors, in `f64`.
     pub fn vectors(&self) -> impl Iterator<Item = Vec<f64>> + '_ { self.w.iter().map(|v| v.iter().map(|&x| f64::from(x)).collect()) }
 
-    /// The vectors kept, for the next solve of the same operator: at most the [`KEEP`] smallest (more misled
-    /// larger solves: `docs/dev/ablation.md`).
+    /// The vectors kept, for the next solve of the same operator: at most the [`KEEP`] smallest (adopted, more
+    /// misled a 1024² solve: `docs/dev/ablation.md`).
     pub fn modes(self) -> Option<Modes> {
         (!self.w.is_empty()).then(|| Modes(self.w, self.aw, self.e).first(KEEP))
     }
@@ -200,7 +201,8 @@ impl Deflation {
     }
 
     /// The change the stopping rule is to judge and its rate a cycle: once the iteration has deflated (changes
-    /// in bursts), the largest of the last window's and the rate from the window before; else none.
+    /// in bursts), the largest of the last window's and the rate from the window before (a sliding maximum's
+    /// own ratios are 1 until its largest leaves); else none.
     pub fn judged(&mut self, change: f64) -> (f64, Option<f64>) {
         if self.restarts == 0 { return (change, None); }
         self.changes.push(change);
@@ -233,7 +235,8 @@ impl Deflation {
 
     /// The least ratio of successive changes the stopping rule may assume, the conjugate gradient's rate
     /// `(√κ − 1)/(√κ + 1)` from the extreme Ritz values of its Lanczos matrix (since the deflating restart
-    /// before the last), and whether the smallest has [`SETTLED`]. On a torn piece (`wait`) whose rate
+    /// before the last), and whether the smallest has [`SETTLED`] (no slow mode surfacing; one the Krylov
+    /// space has not reached does not show). On a torn piece (`wait`) whose rate
     /// exceeds [`WAIT_RATE`], a solve slow enough to keep directions gets 1 (no stop) until their
     /// [`LOOKS`]th Rayleigh–Ritz step: a nearly rigid part bounded by cuts can stall the changes while its
     /// error stays, and the Krylov space may reach its mode only after the first window.
@@ -312,7 +315,8 @@ impl Modes {
     }
 }
 
-/// Sums of `len` nodes in chunks, each into its own `width` sums, added in order (not by the threads').
+/// Sums of `len` nodes in chunks, each into its own `width` sums, added in order (the result does not depend
+/// on the threads).
 fn chunked_sums(len: usize, width: usize, f: impl Fn(usize, usize, &mut [f64]) + Sync) -> Vec<f64> {
     let parts: Vec<Vec<f64>> = (0..len.div_ceil(CHUNK)).into_par_iter().map(|c| {
         let mut out = vec![0.0; width];

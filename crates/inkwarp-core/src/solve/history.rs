@@ -16,7 +16,8 @@ use super::{dense_solve, solve_constrained, SolveOptions, SolveReport, Solver};
 /// How many earlier frames a [`WarmHistory`] keeps.
 pub const HISTORY_FRAMES: usize = 3;
 
-/// The error (pixels) taken for each kept frame when weighing their combinations: the default tolerance.
+/// The error (pixels) taken for each kept frame when weighing their combinations: the default tolerance,
+/// which frames are usually solved to.
 const FRAME_ERROR_PX: f64 = 0.01;
 
 /// The last few solves of one animated surface: their constraint values and fields.
@@ -49,7 +50,8 @@ impl WarmHistory {
     pub fn is_empty(&self) -> bool { self.entries.is_empty() }
 
     /// The start for a solve of constraints `c` on `grid`: the history's prediction or `given`, whichever
-    /// misses the constraint values by less (at any constrained node); `None` when there is neither.
+    /// misses the constraint values by less (the largest difference at a constrained node); `None` when there
+    /// is neither.
     pub fn start<'a>(&self, grid: &Grid, c: &Constraints, given: Option<&'a Field>) -> Option<Cow<'a, Field>> {
         let miss = |f: &Field| {
             c.nodes.iter().zip(&c.values).fold(0.0f64, |m, (&i, v)| m.max((f.dx[i] as f64 - v[0]).abs()).max((f.dy[i] as f64 - v[1]).abs()))
@@ -81,7 +83,7 @@ impl WarmHistory {
     /// Least-squares weights of the kept frames' component `q` for `target`, when they match it better than
     /// the latest frame alone (`[0, …, 1]`, returned otherwise) and stay moderate (`Σ|αᵢ| ≤ 16`: no wild
     /// extrapolation that would amplify the earlier solves' errors). When the fit through every frame is
-    /// wild (frames nearly parallel), the fits through fewer frames are weighed instead, each by its root
+    /// wild (frames nearly parallel, as a drag's first short step beside a probe: see the editor), the fits through fewer frames are weighed instead, each by its root
     /// mean square miss at the constrained nodes plus the errors it amplifies (`Σ|αᵢ|` × [`FRAME_ERROR_PX`]).
     fn fit(&self, target: &[[f64; 2]], q: usize) -> [f64; HISTORY_FRAMES] {
         let k = self.entries.len();

@@ -156,8 +156,8 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
 /// The coefficients of four consecutive nodes with own stencils, tap by tap, the four nodes' side by side.
 pub(crate) type FourBlock = [[f32; 4]; 21];
 
-/// A Galerkin level's own stencils in fours of nodes (each run from its start, its last four padded with
-/// zero coefficients), one [`FourBlock`] each, as [`band_residual`] takes them; empty without AVX2.
+/// A Galerkin level's own stencils in fours of nodes (each run from its start, its last, short four padded
+/// with zero coefficients), one [`FourBlock`] each, as [`band_residual`] takes them; empty without AVX2.
 #[derive(Debug, Default)]
 pub(crate) struct Fours {
     blocks: Vec<FourBlock>,
@@ -399,8 +399,9 @@ impl Geometry {
     /// coarse neighbours, the bilinear weights; at a missing link, the linear extrapolation from the
     /// node's own side (a free edge's zero second difference), or the one linked neighbour's value
     /// where that side is too short; an odd–odd node averages the rows of its linked edge neighbours.
-    /// On the finest level, a node at a cut's vertex whose only link continues straight on takes that
-    /// neighbour's row (else no coarse function would move it; docs/dev/solver-correctness.md).
+    /// On the finest level, a node at a cut's vertex whose only link, continued along a straight triple, runs
+    /// to a neighbour takes that neighbour's row, within its own window (else no coarse function would move
+    /// it; docs/dev/solver-correctness.md).
     pub fn geo_row(&self, x: usize, y: usize) -> [f64; 16] {
         let r = self.link_row(x, y);
         if r.iter().any(|&v| v != 0.0) || !self.active[self.idx(x, y)] || self.fixed.is_none() { return r; }
@@ -561,8 +562,8 @@ impl Sat {
 /// Whether a piece (`active`, linked `right` and `down` on its `w × h` box) is solid: its cuts stay more
 /// than 4 nodes inside it, and its core (the nodes whose 5 × 5 window lies in it, clear of cuts) is one
 /// 4-connected set within 4 nodes of every node. Filling around a pinch, strand, tooth or hair narrower
-/// than 5 nodes, or a cut running to the edge, would tie it to its neighbours across the gap
-/// (docs/dev/coarse-space.md, "Filling off the matte").
+/// than 5 nodes, or a cut running to the edge, would tie it to its neighbours across the gap, and its own
+/// slow motions would leave the coarse space (docs/dev/coarse-space.md, "Filling off the matte").
 pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &[bool]) -> bool {
     // The nodes at a cut: two active neighbours without their link.
     let mut cut = vec![false; w * h];
@@ -823,7 +824,8 @@ impl Level {
     }
 
     /// This finest level with the plain bilinear prolongation of its grid without holes or cuts: its
-    /// coarse space holds the functions that run smoothly across holes and cuts.
+    /// coarse space holds the functions that run smoothly across holes and cuts, where the link-aware
+    /// prolongation extrapolates a constant.
     pub fn into_plain(self) -> Level {
         let (w, h) = (self.geo.w, self.geo.h);
         let crate::grid::Grid { active, link_right, link_down, .. } = crate::grid::Grid::new(w, h);
@@ -958,7 +960,7 @@ impl Level {
     }
 
     /// `out = f − A x` on a Galerkin level summed in `f64`, rounded once: for smooth vectors as large as
-    /// the answer, whose product summed in `f32` would be rounding noise above the residual it should
+    /// the answer or its error, whose product summed in `f32` would be rounding noise above the residual it should
     /// carry (`docs/dev/solver-correctness.md`, "Coarse products in f64").
     pub fn residual_f64(&self, x: &[W2], f: Option<&[W2]>, out: &mut [W2]) {
         let Operator::Stored { runs, .. } = &self.op else { unreachable!("a Galerkin level") };
@@ -1030,7 +1032,8 @@ impl Level {
 
     /// One smoothing step in one pass, band by band: the residual `r = f − A x` (into `next`), the update `d`
     /// from it (`rule`) and `next = x + d`, bit for bit the three passes. `next` must differ from `x` (the
-    /// bands read `x` two rows past their own); `d` is written only when `keep`.
+    /// bands read `x` two rows past their own); `d` is written only when `keep` (a later step reads it), read
+    /// only by [`StepRule::Next`].
     pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
         self.step_bands(d, next, |r0, _, chunk, dc| self.step_band(x, 0, f, r0, chunk, dc, rule, keep));
     }
@@ -1389,7 +1392,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let rows = fine.geo.children(yc, fh);
         let y_lo = *rows.start();
         let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
-        // Each row's nonzeros only, in window order (so the sums add as over the whole window, mostly zero).
+        // Each row's nonzeros only, in window order (so the sums add as over the whole window): most of a row's
+        // wide window is zero.
         let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
         let (mut acc, mut row) = (vec![0.0f64; n * n], vec![0.0f64; AP * AP]);
         for &xc in &irregular {

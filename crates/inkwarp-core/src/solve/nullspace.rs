@@ -18,7 +18,8 @@ use super::level::V2;
 use super::strands::{blocks_in_order, Envelope};
 use crate::grid::{find, join};
 
-/// The most entries of a block's factor (a dense block of 1,500 functions): past it the rule is not applied
+/// The most entries of a block's factor (a dense block of 1,500 functions; a strand's chain of bends holds a
+/// few a function): past it the rule is not applied
 /// and the solve does not claim convergence.
 pub(crate) const MAX_BLOCK_ENTRIES: usize = 1500 * 1501 / 2;
 

@@ -7,7 +7,8 @@
 use super::level::{Level, V2, PAD};
 
 /// Spends at most `budget` relaxations on the finest level; returns the largest single change made, and
-/// whether it stopped because nothing was left to relax rather than because the budget ran out.
+/// whether it stopped because nothing was left to relax (every residual exactly zero) rather than because
+/// the budget ran out.
 pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize, unknowns: usize) -> (f64, bool) {
     let (w, h) = (level.geo.w, level.geo.h);
     let mut r = vec![[0.0; 2]; u.len()];

@@ -20,7 +20,8 @@ const BAND: usize = 64;
 /// response where the `f32` search direction can hold it (docs/dev/ablation.md).
 const SHIFT: f64 = 1e-8;
 
-/// A pivot below this fraction of its diagonal entry is dropped (slivers' near-free functions).
+/// A pivot below this fraction of its diagonal entry is dropped (slivers' near-free functions; smaller
+/// floors let them through and tight tolerances ran away: docs/dev/ablation.md, "Tenth change").
 const PIVOT: f64 = 1e-6;
 
 /// The `L D Lᵀ` factor of a symmetric matrix in its envelope: row `i` of `L` from column `first[i]`, at `at[i]`.

@@ -37,7 +37,7 @@ pub(crate) fn solve_coarse(
 }
 
 /// The coarse solve of `grid_step = s` on a non-empty grid, from `initial` read at the coarse nodes, or from
-/// the solver's history, which keeps the coarse fields.
+/// the solver's history, which keeps the coarse fields (only their coarse nodes' values would ever be read).
 fn solve_on_coarse_grid(
     grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool, follow: bool,
 ) -> (Field, SolveReport) {
@@ -106,7 +106,7 @@ impl Upsampling {
         Upsampling { masks: mask_table(grid, &layout, &cols, &rows), layout, cols, rows }
     }
 
-    /// The upsampled value of pixel `i` of `grid` from the coarse field `fc`: zero for an inactive pixel,
+    /// The upsampled value of pixel `i` of `grid` (the plan's) from the coarse field `fc`: zero for an inactive pixel,
     /// `None` where its window has no usable node (the full upsampling then fills it along the links).
     fn at(&self, grid: &Grid, fc: &Field, i: usize) -> Option<[f32; 2]> {
         if !grid.active[i] { return Some([0.0; 2]); }
@@ -159,7 +159,8 @@ impl Layout {
         c as f64 + t
     }
 
-    /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) from the cell's `masks` ([`cell_masks`]).
+    /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's pixels) from the
+    /// cell's `masks` ([`cell_masks`]; empty where the window is whole).
     fn mask(&self, masks: &[u16], cx: usize, cy: usize, x: usize, y: usize) -> u16 {
         if masks.is_empty() { return ALL_TAPS; }
         let ix0 = self.px(cx);
