@@ -142,6 +142,14 @@ impl SolveReport {
     fn fail(&mut self, why: Stop) {
         (self.stop, self.converged) = (if self.stop == Stop::Converged { why } else { self.stop }, false);
     }
+
+    /// Takes in a piece's report `r` (the solve's starts at zero and converged): the pieces' worst.
+    fn worst_of(&mut self, r: &SolveReport) {
+        self.cycles = self.cycles.max(r.cycles);
+        self.final_change_px = self.final_change_px.max(r.final_change_px);
+        (self.residual, self.initial_residual) = (self.residual.max(r.residual), self.initial_residual.max(r.initial_residual));
+        if !r.converged { self.fail(r.stop) }
+    }
 }
 
 /// Why a solve was refused.
@@ -306,11 +314,7 @@ pub(crate) fn solve_constrained(
         }
     }
     for (l, piece) in pieces.iter().enumerate() {
-        let gauge = match *piece {
-            Piece::Line { gauge, .. } => gauge,
-            Piece::General => None,
-            _ => continue,
-        };
+        let gauge = match *piece { Piece::Line { gauge, .. } => gauge, Piece::General => None, _ => continue };
         let [x0, y0, x1, y1] = boxes[l];
         let (bw, bh) = (x1 - x0, y1 - y0);
         let links = piece_links(grid, &labels, l as u32, boxes[l], open);
@@ -347,16 +351,15 @@ pub(crate) fn solve_constrained(
         // it: its plate energy is zero, so it is the minimiser. Any three constraints off
         // one line are such; close together they make a large map whose slow mode the
         // cycles resolve late and the stopping rule does not see.
-        if tau == 0.0 && gauge.is_none() && free.count == Some(0) {
-            if let Some(m) = affine_fit(&value, bw) {
-                let mut values: Vec<V2> = (0..bw * bh).map(|j| m(j % bw, j / bw)).collect();
-                // The constrained nodes hold their values exactly, not to the map's rounding.
-                value.iter().for_each(|&(j, v)| values[j] = v);
-                exact = values.iter().fold(exact, |m, v| m.max(v[0].abs()).max(v[1].abs()));
-                write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
-                if keep { store.free.put(store.solve, key, free) }
-                continue;
-            }
+        let affine_only = tau == 0.0 && gauge.is_none() && free.count == Some(0);
+        if let Some(m) = affine_only.then(|| affine_fit(&value, bw)).flatten() {
+            let mut values: Vec<V2> = (0..bw * bh).map(|j| m(j % bw, j / bw)).collect();
+            // The constrained nodes hold their values exactly, not to the map's rounding.
+            value.iter().for_each(|&(j, v)| values[j] = v);
+            exact = values.iter().fold(exact, |m, v| m.max(v[0].abs()).max(v[1].abs()));
+            write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
+            if keep { store.free.put(store.solve, key, free) }
+            continue;
         }
         // The iteration keeps to settled answers (`Settled`); a one-line piece's keeps its
         // gauge node fixed, so it keeps to the free functions that vanish there too.
@@ -387,12 +390,7 @@ pub(crate) fn solve_constrained(
             line_correction(grid, &labels, l as u32, a, d, boxes[l], &mut u);
         }
         write_piece(&mut field, &labels, l as u32, boxes[l], &u);
-        // The report starts at zero and converged: the pieces' worst.
-        report.cycles = report.cycles.max(r.cycles);
-        report.final_change_px = report.final_change_px.max(r.final_change_px);
-        report.residual = report.residual.max(r.residual);
-        report.initial_residual = report.initial_residual.max(r.initial_residual);
-        if !r.converged { report.fail(r.stop) }
+        report.worst_of(&r);
     }
     // No exact answer in the `f32` field is finer than its rounding (iterated ones: `solve_piece`).
     if options.tolerance_px < 0.5 * f64::from(f32::EPSILON) * exact { report.fail(Stop::Precision) }
@@ -419,9 +417,7 @@ fn settle_null_space(
 ) -> (BoxValues, SolveReport) {
     let (w, h) = (key.w, key.h);
     let mut dense = u.dense(w, h);
-    if let Some(active) = active {
-        dense.iter_mut().zip(active).filter(|(_, &a)| !a).for_each(|(d, _)| *d = [0.0; 2]);
-    }
+    dense.iter_mut().zip(active.unwrap_or_default()).filter(|(_, &a)| !a).for_each(|(d, _)| *d = [0.0; 2]);
     if tau == 0.0 || options.method == SolveMethod::Southwell {
         // A block of functions too large to settle: no claim of convergence.
         if !settle(&mut dense) { report.fail(Stop::Unsettled) }
@@ -448,8 +444,7 @@ fn settle_null_space(
         let rest = SolveOptions { max_cycles: Some(budget - report.cycles), ..options.clone() };
         let (u2, r2) = solve_piece(key.clone(), value, None, Some((FieldView::from(&field), 0, 0)), &rest, store, membrane);
         // The latest solve's report, with every solve's cycles and the first one's start.
-        report.cycles += r2.cycles;
-        (report.final_change_px, report.residual, report.converged, report.stop) = (r2.final_change_px, r2.residual, r2.converged, r2.stop);
+        report = SolveReport { cycles: report.cycles + r2.cycles, initial_residual: report.initial_residual, ..r2 };
         dense = u2.dense(w, h);
     }
     // Rounds run out: the last solve's reason (a tolerance below the field's resolution is
@@ -475,13 +470,11 @@ enum BoxLinks {
 impl BoxLinks {
     /// The nodes and links on a `w × h` box, as [`Geometry::new`] takes them.
     fn vectors(&self, w: usize, h: usize) -> [Vec<bool>; 3] {
-        match self {
-            BoxLinks::Open => {
-                let Grid { active, link_right, link_down, .. } = Grid::new(w, h);
-                [active, link_right, link_down]
-            }
-            BoxLinks::Given { active, right, down, .. } => [active.clone(), right.clone(), down.clone()],
-        }
+        let BoxLinks::Given { active, right, down, .. } = self else {
+            let Grid { active, link_right, link_down, .. } = Grid::new(w, h);
+            return [active, link_right, link_down];
+        };
+        [active.clone(), right.clone(), down.clone()]
     }
 
     /// The box's nodes off the matte (none on an open box).
@@ -518,18 +511,11 @@ fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4]
 /// the solve's own padded vector, handed over without a copy, or (where the null space was
 /// settled) an unpadded copy (stride the box's width). Its nodes off the piece are not
 /// read.
-struct BoxValues {
-    values: Vec<V2>,
-    stride: usize,
-    first: usize,
-}
+struct BoxValues { values: Vec<V2>, stride: usize, first: usize }
 
 impl BoxValues {
     /// Row `y` of the box, `w` nodes wide.
-    fn row(&self, y: usize, w: usize) -> &[V2] {
-        let a = self.first + y * self.stride;
-        &self.values[a..a + w]
-    }
+    fn row(&self, y: usize, w: usize) -> &[V2] { &self.values[self.first + y * self.stride..][..w] }
 
     /// The `w × h` box's values, unpadded.
     fn dense(&self, w: usize, h: usize) -> Vec<V2> { (0..h).flat_map(|y| self.row(y, w).to_vec()).collect() }
@@ -754,9 +740,7 @@ fn solve_piece(
                 if !started {
                     started = true;
                     hier.coarse_to_fine(&mut u, &mut r, true);
-                    if let Some(s) = &settled {
-                        s.project(&hier.levels[0], &mut u);
-                    }
+                    if let Some(s) = &settled { s.project(&hier.levels[0], &mut u) }
                     hier.levels[0].residual(&u, None, &mut r);
                     slow.correct(&mut u, &mut r);
                     rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
@@ -1064,12 +1048,11 @@ impl<T> Kept<T> {
     /// Once solve number `latest` (of `pieces` constrained pieces) used any: drops what is past the count limit, then the oldest unused while over the node limit.
     fn trim(&mut self, latest: u64, pieces: usize) {
         let used = self.0.iter().filter(|e| e.2 == latest).count();
-        if used > 0 {
-            self.0.drain(..self.0.len().saturating_sub(2 * used.max(pieces)));
-            while self.nodes() > self.1 {
-                let Some(pos) = self.0.iter().position(|e| e.2 != latest) else { return };
-                self.0.remove(pos);
-            }
+        if used == 0 { return }
+        self.0.drain(..self.0.len().saturating_sub(2 * used.max(pieces)));
+        while self.nodes() > self.1 {
+            let Some(pos) = self.0.iter().position(|e| e.2 != latest) else { return };
+            self.0.remove(pos);
         }
     }
 }
@@ -1123,15 +1106,7 @@ const OPEN_COARSE_SMOOTHING: usize = 1;
 /// and its piece (its box's first node `at`): an animation's frames share it. Compared field
 /// by field in this order: the fixed nodes before the (larger) links.
 #[derive(Clone, PartialEq)]
-struct CacheKey {
-    at: [usize; 2],
-    w: usize,
-    h: usize,
-    tau_bits: u64,
-    off: Ablation,
-    fixed: Vec<bool>,
-    links: BoxLinks,
-}
+struct CacheKey { at: [usize; 2], w: usize, h: usize, tau_bits: u64, off: Ablation, fixed: Vec<bool>, links: BoxLinks }
 
 /// The τ → 0⁺ rule's class of each piece of a grid `w` nodes wide, `members` its
 /// constraints; a one-line piece's gauge is left to [`solve_constrained`]'s pass over the nodes.
