@@ -1,21 +1,18 @@
 //! The discrete thin plate (DESIGN §4) and its multigrid solver.
 //!
-//! [`solve`] minimises `E = E_plate + τ E_membrane` on the active nodes of a [`Grid`] for
-//! Δx and Δy (one matrix, solved together) with the nodes that carry samples fixed
-//! ([`crate::grid::constrain`]). Where the minimiser is not unique it returns the limit
-//! τ → 0⁺, piece by piece (a piece is a connected component of the links): a piece with
-//! no constraint does not move, one with one constrained node translates with it, and the
-//! free functions of the plate energy (the tilt about a line holding every constraint, the
-//! parts joined by one node) are settled to their least membrane energy ([`nullspace`]).
+//! [`solve`] minimises `E = E_plate + τ E_membrane` on the active nodes of a [`Grid`] for Δx and Δy (one matrix,
+//! solved together) with the nodes that carry samples fixed ([`crate::grid::constrain`]). Where the minimiser is
+//! not unique it returns the limit τ → 0⁺, piece by piece (a piece is a connected component of the links): a
+//! piece with no constraint does not move, one with one constrained node translates with it, and the free
+//! functions of the plate energy (the tilt about a line holding every constraint, the parts joined by one node)
+//! are settled to their least membrane energy ([`nullspace`]).
 //!
-//! Every piece left to the iteration is solved apart, on the box around it, by a flexible
-//! conjugate gradient on the finest level preconditioned by a geometric multigrid cycle
-//! (link-aware prolongation, Galerkin coarse operators, Chebyshev–Jacobi smoothing, K-cycles,
-//! a banded Cholesky coarsest solve, a second coarse space and the affine functions on torn
-//! grids, exact solves of the thin parts: [`strands`]) after a coarse-to-fine start.
-//! `docs/concepts/thin-plate.md` explains the choices; `docs/dev/ablation.md` measures each
-//! optional mechanism. The hierarchies a later solve can reuse are kept by the caller's
-//! [`Solver`], never by the process.
+//! Every piece left to the iteration is solved apart, on the box around it, by a flexible conjugate gradient on
+//! the finest level preconditioned by a geometric multigrid cycle (link-aware prolongation, Galerkin coarse
+//! operators, Chebyshev–Jacobi smoothing, K-cycles, a banded Cholesky coarsest solve, a second coarse space and
+//! the affine functions on torn grids, exact solves of the thin parts: [`strands`]) after a coarse-to-fine
+//! start. `docs/concepts/thin-plate.md` explains the choices; `docs/dev/ablation.md` measures each optional
+//! mechanism. The hierarchies a later solve can reuse are kept by the caller's [`Solver`], never by the process.
 
 mod cycle;
 mod deflate;
@@ -43,9 +40,8 @@ pub enum SolveMethod {
     /// Coarse-to-fine start plus V-cycles until the tolerance is met.
     #[default]
     Multigrid,
-    /// The coarse-to-fine start plus a fixed budget of rounds, each one coarse correction
-    /// and one sweep's worth of greedy single-node relaxations (Southwell), as the paper
-    /// offers for a fixed amount of work.
+    /// The coarse-to-fine start plus a fixed budget of rounds, each one coarse correction and one sweep's worth
+    /// of greedy single-node relaxations (Southwell), as the paper offers for a fixed amount of work.
     Southwell,
 }
 
@@ -119,8 +115,7 @@ pub struct SolveReport {
     pub dropped_samples: usize,
     /// Wall time of the whole solve.
     pub seconds: f64,
-    /// Whether the tolerance was met (by the same error bound for Southwell; a spent
-    /// budget is not convergence).
+    /// Whether the tolerance was met (by the same error bound for Southwell; a spent budget is not convergence).
     pub converged: bool,
     /// Why the solve stopped ([`Stop::Converged`] exactly when `converged`; with several
     /// pieces, the first reason found).
@@ -141,6 +136,14 @@ impl SolveReport {
     /// Not converged, for `why` unless an earlier reason stands.
     fn fail(&mut self, why: Stop) {
         (self.stop, self.converged) = (if self.stop == Stop::Converged { why } else { self.stop }, false);
+    }
+
+    /// Takes in a piece's report `r` (the solve's starts at zero and converged): the pieces' worst.
+    fn worst_of(&mut self, r: &SolveReport) {
+        self.cycles = self.cycles.max(r.cycles);
+        self.final_change_px = self.final_change_px.max(r.final_change_px);
+        (self.residual, self.initial_residual) = (self.residual.max(r.residual), self.initial_residual.max(r.initial_residual));
+        if !r.converged { self.fail(r.stop) }
     }
 }
 
@@ -211,10 +214,9 @@ pub(crate) fn solve_with(
     Ok((field, report))
 }
 
-/// Runs `f` on a thread of the pool. The solve makes hundreds of parallel calls a cycle;
-/// made from outside the pool, each hands its work to the pool's threads and puts the
-/// caller to sleep until they finish, two context switches a call. Inside the pool the
-/// caller takes part instead.
+/// Runs `f` on a thread of the pool. The solve makes hundreds of parallel calls a cycle; made from outside the
+/// pool, each hands its work to the pool's threads and puts the caller to sleep until they finish, two context
+/// switches a call. Inside the pool the caller takes part instead.
 ///
 /// Public for callers that move large arrays around a solve (the Python binding converts
 /// the answer to numpy's layout): run there too, their parallel passes share the pool.
@@ -248,9 +250,8 @@ pub(crate) fn validate(grid: &Grid, samples: &[Sample], options: &SolveOptions, 
 enum Piece {
     Zero,
     Translate([f64; 2]),
-    /// Constraints on the line through `a` with direction `d`; `gauge` is the pinned node
-    /// (none where the whole piece lies on the line: the constraints pin it, as a general
-    /// piece's do).
+    /// Constraints on the line through `a` with direction `d`; `gauge` is the pinned node (none where the whole
+    /// piece lies on the line: the constraints pin it, as a general piece's do).
     Line { a: [i64; 2], d: [i64; 2], gauge: Option<usize> },
     General,
 }
@@ -282,12 +283,11 @@ pub(crate) fn solve_constrained(
     // The largest value an exact answer (a translation, an affine map) holds, for the `f32` check.
     let mut exact = pieces.iter().map(|p| if let Piece::Translate(v) = p { v[0].abs().max(v[1].abs()) } else { 0.0 }).fold(0.0, f64::max);
 
-    // Each piece is a problem of its own: translated pieces take their constraint, and
-    // the others are solved one by one, each on the box around it (its own hierarchy,
-    // conjugate-gradient steps and stopping rule: one iteration over several pieces
-    // shares its step lengths between them, and a piece whose start is far off holds
-    // back the others and fools the stopping rule). The node of each one-line piece
-    // farthest from its line becomes its gauge pin.
+    // Each piece is a problem of its own: translated pieces take their constraint, and the others are solved one
+    // by one, each on the box around it (its own hierarchy, conjugate-gradient steps and stopping rule: one
+    // iteration over several pieces shares its step lengths between them, and a piece whose start is far off
+    // holds back the others and fools the stopping rule). The node of each one-line piece farthest from its line
+    // becomes its gauge pin.
     let mut boxes = vec![[usize::MAX, usize::MAX, 0, 0]; count];
     let mut farthest = vec![0i64; count];
     for (y, row) in labels.chunks_exact(w).enumerate() {
@@ -306,11 +306,7 @@ pub(crate) fn solve_constrained(
         }
     }
     for (l, piece) in pieces.iter().enumerate() {
-        let gauge = match *piece {
-            Piece::Line { gauge, .. } => gauge,
-            Piece::General => None,
-            _ => continue,
-        };
+        let gauge = match *piece { Piece::Line { gauge, .. } => gauge, Piece::General => None, _ => continue };
         let [x0, y0, x1, y1] = boxes[l];
         let (bw, bh) = (x1 - x0, y1 - y0);
         let links = piece_links(grid, &labels, l as u32, boxes[l], open);
@@ -331,10 +327,9 @@ pub(crate) fn solve_constrained(
             value.push((local(g), v.unwrap_or(mean)));
             cold_gauge = Some((local(g), mean));
         }
-        // The free functions ([`Free`]) on a torn piece, kept by the solver. (On an open grid
-        // the only free function is the tilt about a line holding every constraint: at τ = 0
-        // a one-line piece's gauge and `line_correction` take it; at τ > 0 the same
-        // correction settles it, below.)
+        // The free functions ([`Free`]) on a torn piece, kept by the solver. (On an open grid the only free
+        // function is the tilt about a line holding every constraint: at τ = 0 a one-line piece's gauge and
+        // `line_correction` take it; at τ > 0 the same correction settles it, below.)
         let tilt = if open && tau > 0.0 && by_piece[l].len() > 1 { on_one_line(w, by_piece[l].iter().map(|&k| constraints.nodes[k])) } else { None };
         let key = CacheKey { at: [x0, y0], w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
         let vectors = (!open).then(|| key.links.vectors(bw, bh));
@@ -342,21 +337,19 @@ pub(crate) fn solve_constrained(
         let (gauge_at, keep) = (gauge.map(local), geo.is_some() && !options.off.has("cache"));
         let kept = if keep { store.free.take(store.solve, &key, |f| f.gauge == gauge_at) } else { None };
         let free = kept.unwrap_or_else(|| Free::new(geo.as_ref(), &constrained_only, &key.fixed, gauge_at));
-        // At τ = 0, on a piece whose only free functions are the affine ones (none is left
-        // once the constraints hold), constraints that one affine map fits are answered by
-        // it: its plate energy is zero, so it is the minimiser. Any three constraints off
-        // one line are such; close together they make a large map whose slow mode the
-        // cycles resolve late and the stopping rule does not see.
-        if tau == 0.0 && gauge.is_none() && free.count == Some(0) {
-            if let Some(m) = affine_fit(&value, bw) {
-                let mut values: Vec<V2> = (0..bw * bh).map(|j| m(j % bw, j / bw)).collect();
-                // The constrained nodes hold their values exactly, not to the map's rounding.
-                value.iter().for_each(|&(j, v)| values[j] = v);
-                exact = values.iter().fold(exact, |m, v| m.max(v[0].abs()).max(v[1].abs()));
-                write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
-                if keep { store.free.put(store.solve, key, free) }
-                continue;
-            }
+        // At τ = 0, on a piece whose only free functions are the affine ones (none is left once the constraints
+        // hold), constraints that one affine map fits are answered by it: its plate energy is zero, so it is the
+        // minimiser. Any three constraints off one line are such; close together they make a large map whose
+        // slow mode the cycles resolve late and the stopping rule does not see.
+        let affine_only = tau == 0.0 && gauge.is_none() && free.count == Some(0);
+        if let Some(m) = affine_only.then(|| affine_fit(&value, bw)).flatten() {
+            let mut values: Vec<V2> = (0..bw * bh).map(|j| m(j % bw, j / bw)).collect();
+            // The constrained nodes hold their values exactly, not to the map's rounding.
+            value.iter().for_each(|&(j, v)| values[j] = v);
+            exact = values.iter().fold(exact, |m, v| m.max(v[0].abs()).max(v[1].abs()));
+            write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
+            if keep { store.free.put(store.solve, key, free) }
+            continue;
         }
         // The iteration keeps to settled answers (`Settled`); a one-line piece's keeps its
         // gauge node fixed, so it keeps to the free functions that vanish there too.
@@ -387,12 +380,7 @@ pub(crate) fn solve_constrained(
             line_correction(grid, &labels, l as u32, a, d, boxes[l], &mut u);
         }
         write_piece(&mut field, &labels, l as u32, boxes[l], &u);
-        // The report starts at zero and converged: the pieces' worst.
-        report.cycles = report.cycles.max(r.cycles);
-        report.final_change_px = report.final_change_px.max(r.final_change_px);
-        report.residual = report.residual.max(r.residual);
-        report.initial_residual = report.initial_residual.max(r.initial_residual);
-        if !r.converged { report.fail(r.stop) }
+        report.worst_of(&r);
     }
     // No exact answer in the `f32` field is finer than its rounding (iterated ones: `solve_piece`).
     if options.tolerance_px < 0.5 * f64::from(f32::EPSILON) * exact { report.fail(Stop::Precision) }
@@ -403,15 +391,14 @@ pub(crate) fn solve_constrained(
     (field, report)
 }
 
-/// Brings a piece's iterated answer `u` to the contract where its plate operator has free
-/// functions (zero on the constrained nodes): `settle` adds the least-membrane one to a
-/// field over the box (false where a block of them cannot be settled). At τ = 0 that is the
-/// answer. At τ > 0 it is still the exact answer's component along them: `A_plate Z = 0`
-/// makes `Zᵀ A u = τ Zᵀ M u` for every `u`, so the answer has `Zᵀ M u = 0` whatever τ
-/// (`Zᵀ A u` taken from the whole operator would be the rounding of the plate's large terms
-/// over τ). More cycles then finish the rest, round by round, until the settled answer
-/// moves by no more than a quarter of the tolerance; every round's cycles count against
-/// `max_cycles`. Southwell settles once: more rounds would spend its fixed budget again.
+/// Brings a piece's iterated answer `u` to the contract where its plate operator has free functions (zero on the
+/// constrained nodes): `settle` adds the least-membrane one to a field over the box (false where a block of them
+/// cannot be settled). At τ = 0 that is the answer. At τ > 0 it is still the exact answer's component along
+/// them: `A_plate Z = 0` makes `Zᵀ A u = τ Zᵀ M u` for every `u`, so the answer has `Zᵀ M u = 0` whatever τ
+/// (`Zᵀ A u` taken from the whole operator would be the rounding of the plate's large terms over τ). More cycles
+/// then finish the rest, round by round, until the settled answer moves by no more than a quarter of the
+/// tolerance; every round's cycles count against `max_cycles`. Southwell settles once: more rounds would spend
+/// its fixed budget again.
 #[allow(clippy::too_many_arguments)]
 fn settle_null_space(
     key: CacheKey, active: Option<&[bool]>, tau: f64, value: &[(usize, V2)], settle: &dyn Fn(&mut Vec<V2>) -> bool,
@@ -419,9 +406,7 @@ fn settle_null_space(
 ) -> (BoxValues, SolveReport) {
     let (w, h) = (key.w, key.h);
     let mut dense = u.dense(w, h);
-    if let Some(active) = active {
-        dense.iter_mut().zip(active).filter(|(_, &a)| !a).for_each(|(d, _)| *d = [0.0; 2]);
-    }
+    dense.iter_mut().zip(active.unwrap_or_default()).filter(|(_, &a)| !a).for_each(|(d, _)| *d = [0.0; 2]);
     if tau == 0.0 || options.method == SolveMethod::Southwell {
         // A block of functions too large to settle: no claim of convergence.
         if !settle(&mut dense) { report.fail(Stop::Unsettled) }
@@ -448,8 +433,7 @@ fn settle_null_space(
         let rest = SolveOptions { max_cycles: Some(budget - report.cycles), ..options.clone() };
         let (u2, r2) = solve_piece(key.clone(), value, None, Some((FieldView::from(&field), 0, 0)), &rest, store, membrane);
         // The latest solve's report, with every solve's cycles and the first one's start.
-        report.cycles += r2.cycles;
-        (report.final_change_px, report.residual, report.converged, report.stop) = (r2.final_change_px, r2.residual, r2.converged, r2.stop);
+        report = SolveReport { cycles: report.cycles + r2.cycles, initial_residual: report.initial_residual, ..r2 };
         dense = u2.dense(w, h);
     }
     // Rounds run out: the last solve's reason (a tolerance below the field's resolution is
@@ -459,9 +443,8 @@ fn settle_null_space(
     (BoxValues { values: dense, stride: w, first: 0 }, report)
 }
 
-/// The grid a piece's hierarchy is built on: the piece's nodes on its box (row-major, the
-/// box's width) and its right and down links within the box, or [`BoxLinks::Open`] when
-/// the box is an open grid.
+/// The grid a piece's hierarchy is built on: the piece's nodes on its box (row-major, the box's width) and its
+/// right and down links within the box, or [`BoxLinks::Open`] when the box is an open grid.
 #[derive(Clone, Debug, PartialEq)]
 enum BoxLinks {
     /// Every node active and every link there (none off the last column or row, as on a
@@ -475,13 +458,11 @@ enum BoxLinks {
 impl BoxLinks {
     /// The nodes and links on a `w × h` box, as [`Geometry::new`] takes them.
     fn vectors(&self, w: usize, h: usize) -> [Vec<bool>; 3] {
-        match self {
-            BoxLinks::Open => {
-                let Grid { active, link_right, link_down, .. } = Grid::new(w, h);
-                [active, link_right, link_down]
-            }
-            BoxLinks::Given { active, right, down, .. } => [active.clone(), right.clone(), down.clone()],
-        }
+        let BoxLinks::Given { active, right, down, .. } = self else {
+            let Grid { active, link_right, link_down, .. } = Grid::new(w, h);
+            return [active, link_right, link_down];
+        };
+        [active.clone(), right.clone(), down.clone()]
     }
 
     /// The box's nodes off the matte (none on an open box).
@@ -514,33 +495,24 @@ fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4]
     BoxLinks::Given { active, right, down, outside }
 }
 
-/// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`:
-/// the solve's own padded vector, handed over without a copy, or (where the null space was
-/// settled) an unpadded copy (stride the box's width). Its nodes off the piece are not
-/// read.
-struct BoxValues {
-    values: Vec<V2>,
-    stride: usize,
-    first: usize,
-}
+/// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`: the solve's own
+/// padded vector, handed over without a copy, or (where the null space was settled) an unpadded copy (stride the
+/// box's width). Its nodes off the piece are not read.
+struct BoxValues { values: Vec<V2>, stride: usize, first: usize }
 
 impl BoxValues {
     /// Row `y` of the box, `w` nodes wide.
-    fn row(&self, y: usize, w: usize) -> &[V2] {
-        let a = self.first + y * self.stride;
-        &self.values[a..a + w]
-    }
+    fn row(&self, y: usize, w: usize) -> &[V2] { &self.values[self.first + y * self.stride..][..w] }
 
     /// The `w × h` box's values, unpadded.
     fn dense(&self, w: usize, h: usize) -> Vec<V2> { (0..h).flat_map(|y| self.row(y, w).to_vec()).collect() }
 }
 
-/// Solves one piece on its box: `key` describes the box's grid (the piece active, its
-/// links, its fixed nodes), `value` the fixed nodes' values (`cold_gauge` a one-line
-/// piece's gauge node and its value for the cold start), `initial` a start: the whole
-/// grid's field and the box's first node (x0, y0), `settled` the settling the iteration
-/// keeps to (see [`Settled`]). Returns the solution on the box's nodes and the report's
-/// solver fields.
+/// Solves one piece on its box: `key` describes the box's grid (the piece active, its links, its fixed nodes),
+/// `value` the fixed nodes' values (`cold_gauge` a one-line piece's gauge node and its value for the cold
+/// start), `initial` a start: the whole grid's field and the box's first node (x0, y0), `settled` the settling
+/// the iteration keeps to (see [`Settled`]). Returns the solution on the box's nodes and the report's solver
+/// fields.
 #[allow(clippy::too_many_arguments)]
 fn solve_piece(
     key: CacheKey, value: &[(usize, V2)], cold_gauge: Option<(usize, V2)>, initial: Option<(FieldView<'_>, usize, usize)>, options: &SolveOptions, store: &mut Store,
@@ -558,16 +530,14 @@ fn solve_piece(
         // Holes and cuts: a second coarse space that runs smoothly across them (visited by
         // V-cycles), next to the link-aware one that tears with them.
         let torn = fine.geo.torn();
-        // Wide holes filled for the prolongation (see `Level::with_holes_filled`); cuts are
-        // crossed by linear extrapolation (see `Geometry::geo_row`). The second space below
-        // is needed only where inactive nodes remain (thin holes, holes open to the border,
-        // other pieces in the box).
+        // Wide holes filled for the prolongation (see `Level::with_holes_filled`); cuts are crossed by linear
+        // extrapolation (see `Geometry::geo_row`). The second space below is needed only where inactive nodes
+        // remain (thin holes, holes open to the border, other pieces in the box).
         let real = torn.then(|| fine.geo.clone());
-        // A small torn piece is solved whole by its banded factor: exact, so no slow mode of
-        // a weakly held part can hide from the stopping rule (`docs/dev/solver-correctness.md`,
-        // "Small torn pieces solved whole"). Unless the factor drops a pivot no free function
-        // accounts for (a soft part's, such as a long strand's tip, whose node it would hold
-        // still; at τ > 0 a count cannot tell them apart).
+        // A small torn piece is solved whole by its banded factor: exact, so no slow mode of a weakly held part
+        // can hide from the stopping rule (`docs/dev/solver-correctness.md`, "Small torn pieces solved whole").
+        // Unless the factor drops a pivot no free function accounts for (a soft part's, such as a long strand's
+        // tip, whose node it would hold still; at τ > 0 a count cannot tell them apart).
         let unknowns = fine.inv_diag.iter().filter(|&&d| d != 0.0).count();
         let small = torn && unknowns * (2 * w.min(h) + 3).pow(2) <= DIRECT_WORK && !key.off.has("whole");
         let whole = small.then(|| if tau > 0.0 { 0 } else { settled.map_or(0, |m| m.len()) });
@@ -615,10 +585,9 @@ fn solve_piece(
     }
     let pin = |u: &mut [V2]| value.iter().for_each(|&(i, v)| u[fine.pidx(i % w, i / w)] = v);
     pin(&mut u);
-    // A solve its cycle limit stopped goes on when the next starts from its answer (see
-    // `solve_constrained`) with the same constraints (a gauge pin's value is the start's) and
-    // tolerance: capped solves in series are one solve (each started over, a series could
-    // end on a small change far from the answer).
+    // A solve its cycle limit stopped goes on when the next starts from its answer (see `solve_constrained`)
+    // with the same constraints (a gauge pin's value is the start's) and tolerance: capped solves in series are
+    // one solve (each started over, a series could end on a small change far from the answer).
     let constraints = &value[..value.len() - usize::from(cold_gauge.is_some())];
     let resumed = hier.paused.take().filter(|p| {
         store.goes_on && options.method == SolveMethod::Multigrid && p.tolerance == options.tolerance_px && p.value == constraints
@@ -725,10 +694,9 @@ fn solve_piece(
                         }
                     }
                 }
-                // Once deflation or the settling projects the directions, p is no longer
-                // z + βp_old and rᵀz can be far from pᵀr (the cycle magnifies the near-null
-                // modes that the projection takes out): the step is then the exact line
-                // search's, pᵀr / pᵀAp.
+                // Once deflation or the settling projects the directions, p is no longer z + βp_old and rᵀz can
+                // be far from pᵀr (the cycle magnifies the near-null modes that the projection takes out): the
+                // step is then the exact line search's, pᵀr / pᵀAp.
                 let along = if slow.projects() || settled.is_some() { dot_z(&r, &p) } else { rz };
                 let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, along);
                 if change.is_nan() {
@@ -754,9 +722,7 @@ fn solve_piece(
                 if !started {
                     started = true;
                     hier.coarse_to_fine(&mut u, &mut r, true);
-                    if let Some(s) = &settled {
-                        s.project(&hier.levels[0], &mut u);
-                    }
+                    if let Some(s) = &settled { s.project(&hier.levels[0], &mut u) }
                     hier.levels[0].residual(&u, None, &mut r);
                     slow.correct(&mut u, &mut r);
                     rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
@@ -800,9 +766,8 @@ fn solve_piece(
             southwell_spent = left == 0;
         }
     }
-    // The conjugate-gradient residual is updated, not recomputed: it is the residual of u up
-    // to rounding. The maxima pass over a NaN, so the same pass checks the field: one that is
-    // not finite is never converged.
+    // The conjugate-gradient residual is updated, not recomputed: it is the residual of u up to rounding. The
+    // maxima pass over a NaN, so the same pass checks the field: one that is not finite is never converged.
     let (residual, finite, largest) = r.par_chunks(CHUNK).zip(hier.levels[0].inv_diag.par_chunks(CHUNK)).zip(u.par_chunks(CHUNK))
         .map(|((r, d), u)| {
             let finite = u.iter().all(|v| v[0].is_finite() && v[1].is_finite());
@@ -817,8 +782,7 @@ fn solve_piece(
         // The loop ran out: its cycles, the interrupt, or Southwell's budget.
         report.stop = if crate::interrupt::requested() { Stop::Interrupted } else if southwell_spent { Stop::Budget } else { Stop::MaxCycles };
     }
-    // A field not finite, or a tolerance no cycle count meets, is the reason whatever
-    // stopped the loop.
+    // A field not finite, or a tolerance no cycle count meets, is the reason whatever stopped the loop.
     if !finite || options.tolerance_px < FINEST_TOLERANCE * largest {
         (report.converged, report.stop) = (false, if finite { Stop::Precision } else { Stop::Breakdown });
     } else if residual > 4.0 * options.tolerance_px {
@@ -853,10 +817,9 @@ pub(crate) struct Paused {
 const PROBE_AT: usize = 20;
 const PROBE_CYCLES: usize = 24;
 
-/// What the iteration on `A x = 0` leaves of a pseudo-random start, by component: the
-/// slow modes of a torn piece's operator. Unlike a solve's residual, the start holds every
-/// mode, and what the cycles leave of it is the error they miss (a weakly attached part's
-/// bending, however little of it a right-hand side shows).
+/// What the iteration on `A x = 0` leaves of a pseudo-random start, by component: the slow modes of a torn
+/// piece's operator. Unlike a solve's residual, the start holds every mode, and what the cycles leave of it is
+/// the error they miss (a weakly attached part's bending, however little of it a right-hand side shows).
 fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize) -> Option<Vec<Vec<f64>>> {
     let fine = &hier.levels[0];
     let mut seed = 0x9e37_79b9_7f4a_7c15u64;
@@ -927,13 +890,12 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
 /// the factor), and as many of free functions, a solver keeps beyond its latest solve's.
 const KEPT_MAX_NODES: usize = 1 << 22;
 
-/// The solver a caller keeps between the solves of one surface (an animated layer, the
-/// editor's drags): the hierarchies and free functions of the pieces of its recent solves
-/// (they depend on the grid, the fixed nodes and the tension, never on the values, so an
-/// animation's frames share them; as many before them stay, for an undo), the slow modes
-/// a hierarchy's last slow solve found (the next solve starts corrected on them: see
-/// `deflate`) and the warm-start history ([`WarmHistory`]). Nothing is kept between solves
-/// outside it: [`solve`] uses a temporary one.
+/// The solver a caller keeps between the solves of one surface (an animated layer, the editor's drags): the
+/// hierarchies and free functions of the pieces of its recent solves (they depend on the grid, the fixed nodes
+/// and the tension, never on the values, so an animation's frames share them; as many before them stay, for an
+/// undo), the slow modes a hierarchy's last slow solve found (the next solve starts corrected on them: see
+/// `deflate`) and the warm-start history ([`WarmHistory`]). Nothing is kept between solves outside it: [`solve`]
+/// uses a temporary one.
 ///
 /// ```
 /// use inkwarp_core::{solve::{Solver, SolveOptions}, Grid, Sample};
@@ -972,21 +934,19 @@ impl Solver {
         solve_with(grid, samples, options, initial.as_ref().map(FieldView::from), self, true)
     }
 
-    /// [`Solver::solve_warm`] for an animation's frame: after a multigrid frame that did not
-    /// converge, or any that failed (an interrupt), the next starts afresh (from its answer,
-    /// whose error the stopping rule does not see, it claimed convergence 0.7 px off);
-    /// Southwell's (a fixed budget) stay starts.
+    /// [`Solver::solve_warm`] for an animation's frame: after a multigrid frame that did not converge, or any
+    /// that failed (an interrupt), the next starts afresh (from its answer, whose error the stopping rule does
+    /// not see, it claimed convergence 0.7 px off); Southwell's (a fixed budget) stay starts.
     pub fn solve_frame(&mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions) -> Result<(Field, SolveReport), SolveError> {
         let solved = self.solve_warm(grid, samples, options, None);
         if solved.as_ref().map_or(true, |(_, r)| !r.converged && options.method == SolveMethod::Multigrid) { self.history.clear() }
         solved
     }
 
-    /// [`Solver::solve_warm`] at `grid_step` > 1 evaluated at `pixels` only (row-major
-    /// indices into `grid`): the coarse solve, from and into the history, then the upsampled
-    /// field at those pixels, written to `out` as (Δx, Δy) pairs (`2 · pixels.len()`
-    /// floats). The values are the full field's up to the rounding of the sums' order (a few
-    /// units in the last place of `f32`). `plan` must have been built for `grid` and
+    /// [`Solver::solve_warm`] at `grid_step` > 1 evaluated at `pixels` only (row-major indices into `grid`): the
+    /// coarse solve, from and into the history, then the upsampled field at those pixels, written to `out` as
+    /// (Δx, Δy) pairs (`2 · pixels.len()` floats). The values are the full field's up to the rounding of the
+    /// sums' order (a few units in the last place of `f32`). `plan` must have been built for `grid` and
     /// `options.grid_step`.
     pub fn solve_warm_at(
         &mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions, plan: &Upsampling, pixels: &[u32], out: &mut [f32],
@@ -1061,15 +1021,15 @@ impl<T> Kept<T> {
         }
     }
 
-    /// Once solve number `latest` (of `pieces` constrained pieces) used any: drops what is past the count limit, then the oldest unused while over the node limit.
+    /// Once solve number `latest` (of `pieces` constrained pieces) used any: drops what is past the count limit,
+    /// then the oldest unused while over the node limit.
     fn trim(&mut self, latest: u64, pieces: usize) {
         let used = self.0.iter().filter(|e| e.2 == latest).count();
-        if used > 0 {
-            self.0.drain(..self.0.len().saturating_sub(2 * used.max(pieces)));
-            while self.nodes() > self.1 {
-                let Some(pos) = self.0.iter().position(|e| e.2 != latest) else { return };
-                self.0.remove(pos);
-            }
+        if used == 0 { return }
+        self.0.drain(..self.0.len().saturating_sub(2 * used.max(pieces)));
+        while self.nodes() > self.1 {
+            let Some(pos) = self.0.iter().position(|e| e.2 != latest) else { return };
+            self.0.remove(pos);
         }
     }
 }
@@ -1111,8 +1071,7 @@ const TORN_STOP_MARGIN: f64 = 3.0;
 const FINEST_TOLERANCE: f64 = 1e-7;
 /// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say.
 pub(crate) const DEFAULT_MAX_CYCLES: usize = 100;
-/// The largest banded factor's work (unknowns × bandwidth², multiply-adds) of a torn piece
-/// solved whole.
+/// The largest banded factor's work (unknowns × bandwidth², multiply-adds) of a torn piece solved whole.
 const DIRECT_WORK: usize = 1 << 25;
 /// Smoothing steps before and after each coarse correction; below the finest level of an open
 /// grid one (across holes and cuts one weakens the cycle too much: `docs/dev/ablation.md`, "Constants").
@@ -1123,15 +1082,7 @@ const OPEN_COARSE_SMOOTHING: usize = 1;
 /// and its piece (its box's first node `at`): an animation's frames share it. Compared field
 /// by field in this order: the fixed nodes before the (larger) links.
 #[derive(Clone, PartialEq)]
-struct CacheKey {
-    at: [usize; 2],
-    w: usize,
-    h: usize,
-    tau_bits: u64,
-    off: Ablation,
-    fixed: Vec<bool>,
-    links: BoxLinks,
-}
+struct CacheKey { at: [usize; 2], w: usize, h: usize, tau_bits: u64, off: Ablation, fixed: Vec<bool>, links: BoxLinks }
 
 /// The τ → 0⁺ rule's class of each piece of a grid `w` nodes wide, `members` its
 /// constraints; a one-line piece's gauge is left to [`solve_constrained`]'s pass over the nodes.
@@ -1158,9 +1109,8 @@ fn on_one_line(w: usize, nodes: impl Iterator<Item = usize> + Clone) -> Option<(
 /// `ℓ(p) = d × (p − a)`: zero on the line through `a` with direction `d`.
 fn cross(a: [i64; 2], d: [i64; 2], p: [i64; 2]) -> i64 { d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0]) }
 
-/// Adds `c·ℓ` to a one-line piece's values `u` on its box, `ℓ(p) = d × (p − a)`, with `c`
-/// minimising the membrane energy: `c = −⟨u, ℓ⟩ / ⟨ℓ, ℓ⟩` over the piece's links (which stay
-/// in its box).
+/// Adds `c·ℓ` to a one-line piece's values `u` on its box, `ℓ(p) = d × (p − a)`, with `c` minimising the
+/// membrane energy: `c = −⟨u, ℓ⟩ / ⟨ℓ, ℓ⟩` over the piece's links (which stay in its box).
 fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64; 2], [x0, y0, x1, y1]: [usize; 4], u: &mut BoxValues) {
     let (w, s, first) = (grid.width, u.stride, u.first);
     let at = |x: usize, y: usize| first + (y - y0) * s + x - x0;
@@ -1236,13 +1186,12 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
     (change.reduce(|| 0.0, f64::max), alpha)
 }
 
-/// The τ → 0⁺ settling as a projection the iteration keeps to: a field minus its
-/// least-membrane free function, `v − Z (ZᵀMZ)⁻¹ ZᵀM v`. With the start settled and every
-/// direction projected, every iterate is settled. At τ > 0 it is the exact Galerkin
-/// correction on the free functions (`A Z = τ M Z`, so `(ZᵀAZ)⁻¹ ZᵀA = (ZᵀMZ)⁻¹ ZᵀM`): the
-/// directions stay `A`-orthogonal to them and the conjugate gradient never meets their
-/// eigenvalues of order τ (deflated conjugate gradient). At τ = 0 it moves nothing the plate
-/// energy sees, and the iteration no longer drifts along them.
+/// The τ → 0⁺ settling as a projection the iteration keeps to: a field minus its least-membrane free function,
+/// `v − Z (ZᵀMZ)⁻¹ ZᵀM v`. With the start settled and every direction projected, every iterate is settled. At
+/// τ > 0 it is the exact Galerkin correction on the free functions (`A Z = τ M Z`, so
+/// `(ZᵀAZ)⁻¹ ZᵀA = (ZᵀMZ)⁻¹ ZᵀM`): the directions stay `A`-orthogonal to them and the conjugate gradient never
+/// meets their eigenvalues of order τ (deflated conjugate gradient). At τ = 0 it moves nothing the plate energy
+/// sees, and the iteration no longer drifts along them.
 struct Settled<'m> {
     membrane: &'m nullspace::Membrane,
     /// The box nodes the free functions touch, and each one's place among them by padded
@@ -1295,8 +1244,7 @@ fn widen_into(p: &mut [W2], z: &[W2], b: [f64; 2]) {
     });
 }
 
-/// Restarts the directions: `p = z`, `z` the preconditioned `r`, kept to (see [`keep_to`]);
-/// returns `rᵀz`.
+/// Restarts the directions: `p = z`, `z` the preconditioned `r`, kept to (see [`keep_to`]); returns `rᵀz`.
 fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2], settled: Option<&Settled>, slow: Option<&deflate::Deflation>) -> [f64; 2] {
     let z = hier.precondition(r);
     p.copy_from_slice(z);
@@ -1316,12 +1264,11 @@ fn restart_directions(hier: &mut Hierarchy, u: &mut [V2], r: &mut [V2], p: &mut 
     fresh_direction(hier, r, p, settled, Some(slow))
 }
 
-/// The next direction `p = z + βp`, kept to (see [`keep_to`]), after a step of `alpha` along
-/// `p` (its `along` the step's `rᵀz` or `pᵀr`); returns the new `rᵀz` and `β`. Flexible
-/// (Polak–Ribière) β = zᵀ(r − r_old)/(r_oldᵀz_old), with r − r_old = α q: the
-/// preconditioner's line searches make it slightly nonlinear. Deflated, the preconditioned
-/// residual is the projected z̃, whose r_oldᵀz̃_old is `along` and whose z̃ᵀq is zᵀq
-/// (Wᵀq = −WᵀA p_old = 0, and for the settling Zᵀq = −τ ZᵀM p_old = 0): both are the deflated
+/// The next direction `p = z + βp`, kept to (see [`keep_to`]), after a step of `alpha` along `p` (its `along`
+/// the step's `rᵀz` or `pᵀr`); returns the new `rᵀz` and `β`. Flexible (Polak–Ribière)
+/// β = zᵀ(r − r_old)/(r_oldᵀz_old), with r − r_old = α q: the preconditioner's line searches make it slightly
+/// nonlinear. Deflated, the preconditioned residual is the projected z̃, whose r_oldᵀz̃_old is `along` and whose
+/// z̃ᵀq is zᵀq (Wᵀq = −WᵀA p_old = 0, and for the settling Zᵀq = −τ ZᵀM p_old = 0): both are the deflated
 /// iteration's own, as its Lanczos matrix (`rate_floor`) assumes.
 fn next_direction(hier: &mut Hierarchy, r: &[V2], q: &[V2], p: &mut [W2], (alpha, along): ([f64; 2], [f64; 2]), settled: Option<&Settled>, slow: Option<&deflate::Deflation>) -> ([f64; 2], [f64; 2]) {
     let z = hier.precondition(r);
