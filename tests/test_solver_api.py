@@ -152,7 +152,7 @@ def test_solves_run_in_parallel_threads():
         ({"grid_step": 0}, "grid_step must be an integer from 1 to 32768"),
         ({"grid_step": 1.5}, "grid_step must be an integer from 1 to 32768"),
         ({"grid_step": 10**20}, "grid_step must be an integer from 1 to 32768"),
-        ({"max_cycles": -1}, r"max_cycles must be None \(the default cap, 100\) or an integer from 0 to 4,294,967,295"),
+        ({"max_cycles": -1}, r"max_cycles must be None \(the default cap, 300\) or an integer from 0 to 4,294,967,295"),
         # Past the engine's integers: a ValueError naming it, not numpy's or Rust's OverflowError.
         ({"max_cycles": 10**20}, "max_cycles must be None .* from 0 to 4,294,967,295, got 100000000000000000000"),
         ({"mask": "head.png"}, r"mask must be an \(H, W\) array, got the path 'head.png'"),

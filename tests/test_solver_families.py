@@ -420,6 +420,38 @@ def test_longer_strands_stay_in_few_cycles(family):
     assert report.cycles <= 40, report
 
 
+def straight_comb(length, spacing=9, teeth=14, body=40):
+    """A body `body` px tall with `teeth` straight 1 px strands `length` px long hanging from
+    it, `spacing` px apart; points on the body and on every third tip."""
+    w = spacing * (teeth - 1) + 11
+    m = np.zeros((body + length, w), np.uint8)
+    m[:body] = 1
+    xs = [5 + spacing * k for k in range(teeth)]
+    m[body:, xs] = 1
+    pts = [[3.0, 3.0], [w - 4.0, 3.0], [w / 2, body - 4.0]] + [[float(x), body + length - 1.0] for x in xs[::3]]
+    return m, np.array(pts)
+
+
+def test_an_animation_of_long_free_strands_converges_at_the_default_cap():
+    # Straight 1 px strands that no point holds turn about their roots almost freely (a
+    # mode whose energy falls as the cube of their length): at 750 px the first frame needs
+    # over 100 cycles. At the old default cap of 100 it stopped there, so every next frame
+    # started cold (an unconverged answer is no start) and stopped there too: three frames,
+    # none converged, the last 0.65 px off. At the default cap the first converges and the
+    # next ones start warm from it. (If the solver gets faster than 100 cycles here, the
+    # case no longer tests the cap: take longer strands.)
+    m, pts = straight_comb(750)
+    disp = np.random.default_rng(0).normal(0, 4, pts.shape)
+    warm, reports = inkwarp.WarmStart(), []
+    for k in range(3):
+        field, report = inkwarp.thin_plate_report(pts, disp * (1 + 0.05 * k), m.shape, mask=m, warm=warm)
+        reports.append(report)
+    assert all(r.converged for r in reports) and reports[0].cycles > 100 and reports[2].cycles <= 5, reports
+    tight, tight_report = inkwarp.thin_plate_report(pts, disp * 1.1, m.shape, mask=m, tolerance=1e-5, max_cycles=3000)
+    assert tight_report.converged, tight_report
+    assert float(np.abs(field - tight)[m > 0].max()) < TOLERANCE_PX
+
+
 def test_a_hairy_matte_at_photograph_size_converges_to_the_tight_answer():
     # The character at 12x (864 x 768, 48+ hairs up to 170 px long on a 1 px root): beyond
     # the direct solve's reach, so the default solve is checked against a solve a thousand

@@ -278,7 +278,7 @@ def _check_args(
         isinstance(max_cycles, bool) or not isinstance(max_cycles, numbers.Integral)
         or not 0 <= max_cycles <= MAX_CYCLES
     ):
-        raise ValueError(f"max_cycles must be None (the default cap, 100) or an integer from 0 to {MAX_CYCLES:,}, "
+        raise ValueError(f"max_cycles must be None (the default cap, 300) or an integer from 0 to {MAX_CYCLES:,}, "
                          f"got {_shown(max_cycles)}.")
     if method not in _METHODS:
         raise ValueError(f"method must be one of {_METHODS}, got {method!r}.")
@@ -449,7 +449,7 @@ def thin_plate(
         Kept between calls on one grid with the same points: its coarse levels are reused,
         so later calls skip their setup (same answers). Not together with ``warm``.
     max_cycles : int, optional
-        Cap on the number of cycles (default 100), all of them counted (``"southwell"``: on
+        Cap on the number of cycles (default 300), all of them counted (``"southwell"``: on
         its rounds). 0 runs none and returns the start; the report says converged only where
         no cycle is needed (a piece that translates, or that one affine map fits). Through a
         ``solver``, a multigrid solve the cap stopped goes on where it stopped when the next

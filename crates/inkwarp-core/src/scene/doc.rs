@@ -88,7 +88,7 @@ pub struct SolverDoc {
     #[serde(default = "default_grid_step")]
     #[schemars(range(min = 1, max = 64))]
     pub grid_step: u32,
-    /// At most this many cycles per solve (≥ 1; southwell: rounds). Default: 100, or fewer where `tolerance` is met first.
+    /// At most this many cycles per solve (≥ 1; southwell: rounds). Default: 300, or fewer where `tolerance` is met first.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 1))]
     pub max_cycles: Option<u32>,

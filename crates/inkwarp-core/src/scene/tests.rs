@@ -907,7 +907,7 @@ fn the_warning_says_why_the_solve_stopped() {
     for (layer, stop, says) in [
         // The setting in effect named; a smaller step offered only where the cap is not low.
         (1, Stop::MaxCycles, "raise layers[1].solver.max_cycles (the layer's own, 7), or use another method"),
-        (0, Stop::MaxCycles, "raise solver.max_cycles (the default, 100), or use another method"),
+        (0, Stop::MaxCycles, "raise solver.max_cycles (the default, 300), or use another method"),
         (1, Stop::Budget, "fixed budget of relaxations"),
         (0, Stop::Unsettled, "at grid_step 2 parts of the matte thinner than the step"),
         (1, Stop::Unsettled, "1 px strands are too many to settle, or did not settle; hold those parts with points of their own, or"),
@@ -920,11 +920,11 @@ fn the_warning_says_why_the_solve_stopped() {
     assert!(warn(1, Stop::MaxCycles, 1.0 / 24.0).contains("at t = 0.0417 s:"), "{}", warn(1, Stop::MaxCycles, 1.0 / 24.0));
     assert!(warn(1, Stop::MaxCycles, -1e-9).contains("at t = 0 s"), "{}", warn(1, Stop::MaxCycles, -1e-9));
     doc["layers"][1]["solver"] = json!({"tension": 0.1});
-    doc["solver"] = json!({"max_cycles": 150});
+    doc["solver"] = json!({"max_cycles": 400});
     let scene = Scene::from_json(&doc.to_string(), &mut loader).unwrap();
-    let report = Some(crate::solve::SolveReport { cycles: 150, converged: false, stop: Stop::MaxCycles, ..Default::default() });
+    let report = Some(crate::solve::SolveReport { cycles: 400, converged: false, stop: Stop::MaxCycles, ..Default::default() });
     let said = scene.convergence_warning(1, 0.1, &LayerSolve { field: crate::field::Field::zeros(1, 1), report, method_report: None }).unwrap();
-    assert!(said.contains("raise solver.max_cycles (150), solve every other pixel (solver.grid_step 2: mattes with hair"), "{said}");
+    assert!(said.contains("raise solver.max_cycles (400), solve every other pixel (solver.grid_step 2: mattes with hair"), "{said}");
 }
 
 #[test]

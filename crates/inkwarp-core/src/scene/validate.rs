@@ -204,7 +204,7 @@ pub fn validate_overrides(solver: &SolverOverrides, path: &str) -> Vec<Problem> 
         push("grid_step", format!("grid_step must be a whole number from 1 to 64, found {step}; 1 solves on every pixel"));
     }
     if solver.max_cycles == Some(0) {
-        push("max_cycles", "max_cycles must be at least 1; leave it out for the default cap (100 cycles, or until the tolerance is met)".into());
+        push("max_cycles", "max_cycles must be at least 1; leave it out for the default cap (300 cycles, or until the tolerance is met)".into());
     }
     // Beier–Neely's weights: the ranges of `methods::BeierNeelyParams::validate`, reported
     // the scene's way.

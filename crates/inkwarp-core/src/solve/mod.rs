@@ -54,7 +54,7 @@ pub struct SolveOptions {
     pub tolerance_px: f64,
     /// Solve on every `grid_step`-th node and upsample (1 = every pixel).
     pub grid_step: usize,
-    /// At most this many cycles (default: 100).
+    /// At most this many cycles (default: 300).
     pub max_cycles: Option<usize>,
     pub method: SolveMethod,
     /// Southwell budget: single-node relaxations, in units of the number of unknowns.
@@ -1069,8 +1069,11 @@ const TORN_STOP_MARGIN: f64 = 3.0;
 /// The finest tolerance a solve can claim, relative to its answer's largest displacement:
 /// about one unit in the last place of an `f32`, the field's own resolution.
 const FINEST_TOLERANCE: f64 = 1e-7;
-/// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say.
-pub(crate) const DEFAULT_MAX_CYCLES: usize = 100;
+/// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say: about twice what the slowest
+/// families measured take to converge (hair at photograph size, long free strands, dense cuts: 105–142), so
+/// that they converge, and an animation's next frames start warm from them (after a frame the cap stopped,
+/// the next starts cold: every frame of such a layer would stop at the cap, `docs/dev/solver-correctness.md`).
+pub(crate) const DEFAULT_MAX_CYCLES: usize = 300;
 /// The largest banded factor's work (unknowns × bandwidth², multiply-adds) of a torn piece solved whole.
 const DIRECT_WORK: usize = 1 << 25;
 /// Smoothing steps before and after each coarse correction; below the finest level of an open
