@@ -1069,8 +1069,8 @@ const TORN_STOP_MARGIN: f64 = 3.0;
 /// The finest tolerance a solve can claim, relative to its answer's largest displacement:
 /// about one unit in the last place of an `f32`, the field's own resolution.
 const FINEST_TOLERANCE: f64 = 1e-7;
-/// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say: about twice what the slowest
-/// families measured take to converge (hair at photograph size, long free strands, dense cuts: 105–142), so
+/// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say: 1.7 times what the slowest
+/// families measured take to converge (hair at photograph size, dense cuts, long free strands: 105–180), so
 /// that they converge, and an animation's next frames start warm from them (after a frame the cap stopped,
 /// the next starts cold: every frame of such a layer would stop at the cap, `docs/dev/solver-correctness.md`).
 pub(crate) const DEFAULT_MAX_CYCLES: usize = 300;

@@ -786,7 +786,7 @@ pub(super) fn torn_grid(n: usize, hole: bool, cut: bool, open: f64) -> Grid {
 /// The cycles of the default solve of 10 random points on `grid` with both optional
 /// spaces and then with the spaces `without`: the first must converge, and each that reports
 /// convergence must be within 0.05 px of a tight solve (the second may stop unconverged at
-/// its 100 cycles).
+/// its default cap).
 fn cycles_with_and_without(grid: &Grid, without: &str) -> [usize; 2] {
     let mut rng = Rng(12345);
     let samples = random_samples(&mut rng, grid.width, grid.height, 10);
