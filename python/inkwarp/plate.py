@@ -455,7 +455,7 @@ def thin_plate(
         ``solver``, a multigrid solve the cap stopped goes on where it stopped when the next
         call gives its answer as ``initial`` with the same points, displacements and
         tolerance: solving in steps of a few cycles (to show progress, or to stay
-        responsive) is the same solve, cycle for cycle, with the same report at its end.
+        responsive) is the same solve, cycle for cycle; the steps' cycles add up to its own.
     method : {"multigrid", "southwell"}, default "multigrid"
         ``"southwell"`` spends a fixed budget of greedy single-node relaxations after the
         coarse-to-fine start instead of iterating to the tolerance.

@@ -139,6 +139,7 @@ impl SolveReport {
     }
 
     /// Takes in a piece's report `r` (the solve's starts at zero and converged): the pieces' worst.
+    /// Takes in a piece's report: the most cycles, the largest change and residuals, its failure.
     fn worst_of(&mut self, r: &SolveReport) {
         self.cycles = self.cycles.max(r.cycles);
         self.final_change_px = self.final_change_px.max(r.final_change_px);
@@ -686,8 +687,9 @@ fn solve_piece(
                         // operator: the slowest modes of that and of the vectors kept so far, as
                         // many as the deflation's budget leaves room for beside its own.
                         let (fine, spare) = (&hier.levels[0], slow.spare());
-                        let with = || deflate::Modes::with(rest.iter().cloned().chain(slow.vectors()).collect(), fine);
-                        probed = (spare > 0).then(with).flatten().map(|m| m.first(spare));
+                        if spare > 0 {
+                            probed = deflate::Modes::with(rest.iter().cloned().chain(slow.vectors()).collect(), fine).map(|m| m.first(spare));
+                        }
                         if let Some(modes) = deflate::Modes::with(rest, fine) {
                             slow.adopt(modes, &mut u, &mut r);
                             rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
@@ -734,9 +736,10 @@ fn solve_piece(
                 slow.beta(Some(beta));
             }
             if !report.converged && report.stop == Stop::Converged && report.cycles > 0 && !crate::interrupt::requested() {
-                // Out of cycles: where it stands, for a next solve that goes on (its modes its own).
+                // Out of cycles: where it stands, for a next solve that goes on (its modes its own). Its
+                // probe counts for that solve only: the hierarchy is unprobed for any other.
                 pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, probed, found, probed_before: hier.probed, probe_now, value: constraints.to_vec(), tolerance: options.tolerance_px });
-                found = true;
+                hier.probed = false;
             } else {
                 found |= slow.restarts > 0;
                 hier.modes = probed.or_else(|| slow.modes()).or(hier.modes.take());
