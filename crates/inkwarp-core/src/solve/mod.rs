@@ -138,8 +138,8 @@ impl SolveReport {
         (self.stop, self.converged) = (if self.stop == Stop::Converged { why } else { self.stop }, false);
     }
 
-    /// Takes in a piece's report `r` (the solve's starts at zero and converged): the pieces' worst.
-    /// Takes in a piece's report: the most cycles, the largest change and residuals, its failure.
+    /// Takes in a piece's report (the solve's starts at zero and converged): the most cycles, the largest
+    /// change and residuals, its failure.
     fn worst_of(&mut self, r: &SolveReport) {
         self.cycles = self.cycles.max(r.cycles);
         self.final_change_px = self.final_change_px.max(r.final_change_px);
@@ -433,8 +433,9 @@ fn settle_null_space(
         let field = Field { width: w, height: h, dx, dy };
         let rest = SolveOptions { max_cycles: Some(budget - report.cycles), ..options.clone() };
         let (u2, r2) = solve_piece(key.clone(), value, None, Some((FieldView::from(&field), 0, 0)), &rest, store, membrane);
-        // The latest solve's report, with every solve's cycles and the first one's start.
-        report = SolveReport { cycles: report.cycles + r2.cycles, initial_residual: report.initial_residual, ..r2 };
+        // Every solve's cycles; the latest's change, residual and verdict; the rest (the start) the first's.
+        let SolveReport { cycles, final_change_px, residual, converged, stop, .. } = r2;
+        report = SolveReport { cycles: report.cycles + cycles, final_change_px, residual, converged, stop, ..report };
         dense = u2.dense(w, h);
     }
     // Rounds run out: the last solve's reason (a tolerance below the field's resolution is
