@@ -166,9 +166,10 @@ impl Deflation {
     pub fn vectors(&self) -> impl Iterator<Item = Vec<f64>> + '_ { self.w.iter().map(|v| v.iter().map(|&x| f64::from(x)).collect()) }
 
     /// The vectors kept, for the next solve of the same operator: at most the [`KEEP`] smallest (adopted, more
-    /// misled a 1024² solve: `docs/dev/ablation.md`).
+    /// misled a 1024² solve: `docs/dev/ablation.md`). None where the budget leaves room for fewer than [`KEEP`]:
+    /// so few Ritz vectors of a slow spectrum misled the next frame of a 2304 × 2048 character with hair.
     pub fn modes(self) -> Option<Modes> {
-        (!self.w.is_empty()).then(|| Modes(self.w, self.aw, self.e).first(KEEP))
+        (!self.w.is_empty() && self.room >= KEEP).then(|| Modes(self.w, self.aw, self.e).first(KEEP))
     }
 
     /// Keeps `modes` (the Ritz vectors, or an earlier solve's) as the vectors, a new basis (`Bᵀ B = I`,
@@ -478,5 +479,21 @@ mod tests {
             assert_eq!(held, kept, "{len} nodes");
             assert!((2 * WINDOW + 2 * (d.room.min(KEEP_SLOW) + held)) * 4 * len <= BUDGET_BYTES, "{len} nodes");
         }
+    }
+
+    #[test]
+    fn a_deflation_squeezed_by_the_budget_hands_no_modes_on() {
+        // Room for 8 Ritz vectors up to 2.8 million nodes: its modes go to the next solve. Past
+        // that (room for 4 to 7, up to 4.19 million) it deflates its own solve but keeps none.
+        let kept = |len: usize| {
+            let mut d = Deflation::new(len, false, true, false);
+            assert!(d.on(), "{len} nodes");
+            d.w = vec![vec![1.0; 4]];
+            (d.aw, d.e) = (vec![vec![1.0; 4]], vec![vec![1.0]]);
+            d.modes().is_some()
+        };
+        assert!(kept(2_700_000));
+        assert!(!kept(2_900_000) && !kept(4_100_000));
+        assert!(!Deflation::new(4_300_000, false, true, false).on());
     }
 }
