@@ -897,8 +897,8 @@ const KEPT_MAX_NODES: usize = 1 << 22;
 /// The solver a caller keeps between the solves of one surface (an animated layer, the editor's drags): the
 /// hierarchies and free functions of the pieces of its recent solves (they depend on the grid, the fixed nodes
 /// and the tension, never on the values, so an animation's frames share them; as many before them stay, for an
-/// undo), the slow modes a hierarchy's last slow solve found (the next solve starts corrected on them: see
-/// `deflate`) and the warm-start history ([`WarmHistory`]). Nothing is kept between solves outside it: [`solve`]
+/// undo), the slow modes a hierarchy's last slow solve found (the next solve starts corrected on them; none past
+/// 2.8 million nodes a piece: see `deflate`) and the warm-start history ([`WarmHistory`]). Nothing is kept between solves outside it: [`solve`]
 /// uses a temporary one.
 ///
 /// ```
