@@ -166,8 +166,8 @@ impl Deflation {
     pub fn vectors(&self) -> impl Iterator<Item = Vec<f64>> + '_ { self.w.iter().map(|v| v.iter().map(|&x| f64::from(x)).collect()) }
 
     /// The vectors kept, for the next solve of the same operator: at most the [`KEEP`] smallest (adopted, more
-    /// misled a 1024² solve: `docs/dev/ablation.md`). None where the budget leaves room for fewer than [`KEEP`]:
-    /// so few Ritz vectors of a slow spectrum misled the next frame of a 2304 × 2048 character with hair.
+    /// misled a 1024² solve: `docs/dev/ablation.md`); none where the budget leaves room for fewer than [`KEEP`]
+    /// (they stalled a large picture's next frame: `docs/dev/solver-correctness.md`).
     pub fn modes(self) -> Option<Modes> {
         (!self.w.is_empty() && self.room >= KEEP).then(|| Modes(self.w, self.aw, self.e).first(KEEP))
     }

@@ -138,8 +138,8 @@ impl SolveReport {
         (self.stop, self.converged) = (if self.stop == Stop::Converged { why } else { self.stop }, false);
     }
 
-    /// Takes in a piece's report (the solve's starts at zero and converged): the most cycles, the largest
-    /// change and residuals, its failure.
+    /// Takes in a piece's report: the most cycles, the largest change and residuals, and its failure unless an
+    /// earlier one stands.
     fn worst_of(&mut self, r: &SolveReport) {
         self.cycles = self.cycles.max(r.cycles);
         self.final_change_px = self.final_change_px.max(r.final_change_px);
@@ -898,8 +898,8 @@ const KEPT_MAX_NODES: usize = 1 << 22;
 /// hierarchies and free functions of the pieces of its recent solves (they depend on the grid, the fixed nodes
 /// and the tension, never on the values, so an animation's frames share them; as many before them stay, for an
 /// undo), the slow modes a hierarchy's last slow solve found (the next solve starts corrected on them; none past
-/// 2.8 million nodes a piece: see `deflate`) and the warm-start history ([`WarmHistory`]). Nothing is kept between solves outside it: [`solve`]
-/// uses a temporary one.
+/// 2.8 million nodes a piece: see `deflate`) and the warm-start history ([`WarmHistory`]). Nothing is kept
+/// between solves outside it: [`solve`] uses a temporary one.
 ///
 /// ```
 /// use inkwarp_core::{solve::{Solver, SolveOptions}, Grid, Sample};
