@@ -22,7 +22,14 @@ them the combs took 62/502/841 and 96/403/2000+ cycles (see docs/dev/ablation.md
 The many cuts' counts grow with the picture: parts joined to the rest through necks that
 scale with it (`docs/dev/solver-correctness.md`, "Many cuts as the picture grows").
 
-Usage: python benchmarks/strands.py [--quick | --photo] [--max-cycles 2000]
+`--straight`: straight strands 1 px wide and 150–1,400 px long (and 2 px, 750 px) that no point holds
+(`tests/test_solver_families.py::straight_comb`, a point on every third tip), each
+default solve judged against a solve to 10⁻³ px (its own cap raised to 3000): a strand's
+block with no free function is factored exactly, so the count stays flat where the
+shifted factor left the strands' turn to the cycle (`docs/dev/solver-correctness.md`,
+"Strands with no free function factored exactly").
+
+Usage: python benchmarks/strands.py [--quick | --photo | --straight] [--max-cycles 2000]
 """
 
 from __future__ import annotations
@@ -37,7 +44,7 @@ import numpy as np
 import inkwarp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from test_solver_families import character_problem, comb_mask, random_cuts  # noqa: E402
+from test_solver_families import character_problem, comb_mask, random_cuts, straight_comb  # noqa: E402
 
 
 def comb(tooth: int, scale: int):
@@ -57,11 +64,18 @@ def many_cuts(seed: int, scale: int):
     return np.ones((64 * scale, 64 * scale), np.uint8), pts, disp * scale, cuts
 
 
+def straight(width: int, length: int):
+    """Straight strands `width` px wide and `length` px long that no point holds
+    (`straight_comb`), displacements of seed 0."""
+    m, pts = straight_comb(length, width=width)
+    return m, pts, np.random.default_rng(0).normal(0, 4, pts.shape)
+
+
 def problem(spec: str):
     """`(mask, points, displacements, cuts or None)` of a spec `KIND:A:SCALE`: `cuts:SEED`
-    (many cuts), `comb:TOOTH` or `character:SEED`."""
+    (many cuts), `comb:TOOTH`, `character:SEED`, or `straight:WIDTH:LENGTH`."""
     kind, a, scale = spec.split(":")
-    make = {"cuts": many_cuts, "comb": comb, "character": character_problem}[kind]
+    make = {"cuts": many_cuts, "comb": comb, "character": character_problem, "straight": straight}[kind]
     m, pts, disp, *cuts = make(int(a), int(scale))
     return m, pts, disp, cuts[0] if cuts else None
 
@@ -73,9 +87,12 @@ def main() -> int:
     ap.add_argument("--photo", action="store_true",
                     help="only the character at photograph sizes (16x and 32x: 1152 x 1024 and 2304 x 2048, its "
                          "displacements scaled with it; making the 32x matte takes about a minute)")
+    ap.add_argument("--straight", action="store_true", help="only the straight strands no point holds, by width and length")
     args = ap.parse_args()
     if args.photo:
         return photo(args.max_cycles)
+    if args.straight:
+        return straight_table()
     scales = (1, 2) if args.quick else (1, 2, 4, 8, 16)
     print("| family | grid | cycles | converged | seconds |")
     print("|---|---|---|---|---|")
@@ -107,6 +124,23 @@ def photo(max_cycles: int) -> int:
         _, rep = inkwarp.thin_plate_report(pts, disp * s / 4, m.shape, mask=m, max_cycles=max_cycles)
         print(f"| {s}x | {m.shape[0]}×{m.shape[1]} | {rep.cycles} | {rep.converged} | {rep.stop} | "
               f"{time.perf_counter() - t:.1f} |", flush=True)
+    return 0
+
+
+def straight_table() -> int:
+    """Straight free strands by width and length: cycles at the default cap, and the answer's
+    largest distance from a solve to 10⁻³ px."""
+    print("| width | length | cycles | converged | off the tight answer (px) | seconds |")
+    print("|---|---|---|---|---|---|")
+    for width, lengths in ((1, (150, 300, 600, 1000, 1400)), (2, (750,))):
+        for length in lengths:
+            m, pts, disp = straight(width, length)
+            t = time.perf_counter()
+            field, rep = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m)
+            seconds = time.perf_counter() - t
+            tight, tight_rep = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, tolerance=1e-3, max_cycles=3000)
+            off = f"{np.abs(field - tight)[m > 0].max():.4f}" if tight_rep.converged else "(tight solve did not converge)"
+            print(f"| {width} | {length} | {rep.cycles} | {rep.converged} | {off} | {seconds:.1f} |", flush=True)
     return 0
 
 

@@ -5,8 +5,8 @@
 //! cheap to solve exactly, so the preconditioner solves every connected set of *thin* nodes (a run of
 //! linked nodes along the row or the column at most [`THIN`] long) with the rest held, before and after the
 //! cycle (block symmetric Gauss–Seidel). Each set is ordered by reverse Cuthill–McKee and factored as
-//! `L D Lᵀ` in its envelope (its diagonal raised by [`SHIFT`]); a vanishing pivot (a free function of the
-//! set, at τ = 0) is dropped, leaving it to the cycle and the settling.
+//! `L D Lᵀ` in its envelope, its diagonal raised by [`SHIFT`] (a straight strand's exactly); a vanishing
+//! pivot (a free function of the set, at τ = 0) is dropped, leaving it to the cycle and the settling.
 
 use super::level::{bit, Level, Operator, Real, V2, W2, WS};
 
@@ -16,13 +16,18 @@ const THIN: usize = 16;
 /// The most entries a node's row of a block's factor may hold on average.
 const BAND: usize = 64;
 
-/// The finest level's blocks factored are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant hair's exact
+/// The finest level's blocks not factored exactly are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant hair's exact
 /// response where the `f32` search direction can hold it (docs/dev/ablation.md).
 const SHIFT: f64 = 1e-8;
 
 /// A pivot below this fraction of its diagonal entry is dropped (slivers' near-free functions; smaller
 /// floors let them through and tight tolerances ran away: docs/dev/ablation.md, "Tenth change").
 const PIVOT: f64 = 1e-6;
+
+/// A pivot below this fraction of its diagonal entry leaves a straight strand's exact factor for the shifted
+/// one: a loose strand, or one so long (over about 1,400 px) that solved exactly it let solves claim
+/// convergence they had not reached (docs/dev/solver-correctness.md, "Straight strands factored exactly").
+const EXACT_PIVOT: f64 = 1e-9;
 
 /// The `L D Lᵀ` factor of a symmetric matrix in its envelope: row `i` of `L` from column `first[i]`, at `at[i]`.
 #[derive(Debug)]
@@ -77,12 +82,20 @@ impl Strands {
         let (mut kept, mut taps, mut at, mut blocks) = (Vec::new(), Vec::new(), vec![0], Vec::new());
         for pair in starts.windows(2) {
             let ids = &nodes[pair[0]..pair[1]];
-            let entries = ids.iter().map(|&p| {
+            let entries: Vec<Vec<(usize, f64)>> = ids.iter().map(|&p| {
                 let mut row = Vec::new();
                 level.taps(p as usize, |q, a| if (pair[0]..pair[1]).contains(&(local[q] as usize)) { row.push((local[q] as usize - pair[0], a)) });
                 row
             }).collect();
-            let Some(b) = Envelope::factor(entries, shift, PIVOT, BAND * ids.len()) else { continue };
+            // On the finest level a straight 1 px strand (its nodes on one row or one column) is factored exactly,
+            // neither shifted nor with pivots dropped: its pivots fall as the cube of its length, and dropped or
+            // shifted, its slowest bending was left to the cycle (960 cycles at 1,000 px). Where a pivot falls
+            // below [`EXACT_PIVOT`] (a loose strand, or a very long one), shifted as the others.
+            let wp = level.wp;
+            let straight = ids.iter().all(|&p| p as usize % wp == ids[0] as usize % wp) || ids.iter().all(|&p| p as usize / wp == ids[0] as usize / wp);
+            let exact = (shift > 0.0 && ids.len() > 1 && straight).then(|| Envelope::factor(entries.clone(), 0.0, EXACT_PIVOT, BAND * ids.len()));
+            let exact = exact.flatten().filter(|b| !b.dropped());
+            let Some(b) = exact.or_else(|| Envelope::factor(entries, shift, PIVOT, BAND * ids.len())) else { continue };
             blocks.push(b);
             for &p in ids {
                 kept.push(p);
@@ -290,8 +303,39 @@ mod tests {
     use super::super::tests::{comb_grid, fine_level};
     use super::*;
 
+    /// For each block of `s`: its size, and whether its solve answers the block's own system exactly and
+    /// with the diagonal raised by [`SHIFT`].
+    fn blocks_answer(level: &Level, s: &Strands) -> Vec<(usize, bool, bool)> {
+        let rhs: Vec<V2> = (0..s.nodes.len()).map(|i| [(i % 7) as f64 - 3.0, (i % 5) as f64 * 0.5]).collect();
+        let mut z = rhs.clone();
+        solve_blocks(&s.blocks, &mut z);
+        let mut x = vec![[0.0; 2]; level.len_padded()];
+        for (i, &p) in s.nodes.iter().enumerate() {
+            x[p as usize] = z[i];
+        }
+        let mut start = 0;
+        s.blocks.iter().map(|b| {
+            let rows = start..start + b.d_inv.len();
+            start = rows.end;
+            let holds = |shift: f64| rows.clone().all(|i| {
+                let p = s.nodes[i];
+                // (Past the rounding of the row's sum: a compliant strand's answer is large.)
+                let (mut ax, mut size) = ([0.0; 2], [0.0; 2]);
+                for &(q, a) in s.row(i) {
+                    let a = if q == p { a * (1.0 + shift) } else { a };
+                    for k in 0..2 {
+                        ax[k] += a * x[q as usize][k];
+                        size[k] += (a * x[q as usize][k]).abs();
+                    }
+                }
+                (0..2).all(|k| (ax[k] - rhs[i][k]).abs() < 1e-12 * size[k] + 1e-9 * (1.0 + rhs[i][k].abs()))
+            });
+            (b.d_inv.len(), holds(0.0), holds(SHIFT))
+        }).collect()
+    }
+
     #[test]
-    fn the_blocks_solve_the_thin_nodes_own_shifted_system() {
+    fn the_blocks_solve_the_thin_nodes_own_system() {
         let grid = comb_grid(40, 30);
         let mut fixed = vec![false; grid.len()];
         for i in [grid.index(3, 1), grid.index(20, 3), grid.index(36, 0), grid.index(10, 34)] {
@@ -300,24 +344,30 @@ mod tests {
         let level = fine_level(&grid, Some(fixed), 0.0);
         let s = Strands::new(&level).expect("the teeth are thin");
         assert!(s.blocks.len() > 10 && s.blocks.iter().all(|b| b.d_inv.iter().all(|&d| d > 0.0)));
-        let rhs: Vec<V2> = (0..s.nodes.len()).map(|i| [(i % 7) as f64 - 3.0, (i % 5) as f64 * 0.5]).collect();
-        let mut z = rhs.clone();
-        solve_blocks(&s.blocks, &mut z);
-        let mut x = vec![[0.0; 2]; level.len_padded()];
-        for (i, &p) in s.nodes.iter().enumerate() {
-            x[p as usize] = z[i];
-        }
-        for (i, &p) in s.nodes.iter().enumerate() {
-            let mut ax = [0.0; 2];
-            for &(q, a) in s.row(i) {
-                // The factor's matrix: the diagonal raised by SHIFT.
-                let a = if q == p { a * (1.0 + SHIFT) } else { a };
-                ax[0] += a * x[q as usize][0];
-                ax[1] += a * x[q as usize][1];
+        // Each block answers its own system, shifted or (the straight teeth) exactly.
+        let answers = blocks_answer(&level, &s);
+        assert!(answers.iter().all(|&(_, exact, shifted)| exact || shifted), "{answers:?}");
+        let teeth = || answers.iter().filter(|b| (29..=30).contains(&b.0));
+        assert!(teeth().count() >= 18 && teeth().all(|b| b.1), "{answers:?}");
+    }
+
+    #[test]
+    fn teeth_too_compliant_for_an_exact_factor_are_shifted() {
+        // Free straight 1 px teeth hanging from a bar: at 1,000 px factored exactly, at 2,600 px their pivots
+        // fall past EXACT_PIVOT and the factor is the shifted one.
+        for (len, exact_teeth) in [(1000, true), (2600, false)] {
+            let grid = comb_grid(40, len);
+            let mut fixed = vec![false; grid.len()];
+            for i in [grid.index(3, 1), grid.index(20, 3), grid.index(36, 0)] {
+                fixed[i] = true;
             }
-            for k in 0..2 {
-                assert!((ax[k] - rhs[i][k]).abs() < 1e-9 * (1.0 + rhs[i][k].abs()), "row {i}: {ax:?} against {:?}", rhs[i]);
-            }
+            let level = fine_level(&grid, Some(fixed), 0.0);
+            let s = Strands::new(&level).expect("the teeth are thin");
+            let answers = blocks_answer(&level, &s);
+            let teeth: Vec<_> = answers.iter().filter(|b| b.0 >= len).collect();
+            assert_eq!(teeth.len(), 20, "{len}: {answers:?}");
+            assert!(teeth.iter().all(|&&(_, exact, shifted)| if exact_teeth { exact } else { shifted && !exact }), "{len}: {teeth:?}");
+            assert!(answers.iter().all(|b| b.1 || b.2), "{len}: {answers:?}");
         }
     }
 }
