@@ -24,10 +24,10 @@ scale with it (`docs/dev/solver-correctness.md`, "Many cuts as the picture grows
 
 `--straight`: straight strands 1 px wide and 150–1,400 px long (and 2 px, 750 px) that no point holds
 (`tests/test_solver_families.py::straight_comb`, a point on every third tip), each
-default solve judged against a solve to 10⁻³ px (its own cap raised to 3000): a strand's
-block with no free function is factored exactly, so the count stays flat where the
-shifted factor left the strands' turn to the cycle (`docs/dev/solver-correctness.md`,
-"Strands with no free function factored exactly").
+default solve judged against a solve to 10⁻³ px (its own cap raised to 3000): a straight
+1 px strand's block is factored exactly, so the count stays flat where the shifted factor
+left the strands' slowest bending to the cycle (`docs/dev/solver-correctness.md`,
+"Straight strands factored exactly").
 
 Usage: python benchmarks/strands.py [--quick | --photo | --straight] [--max-cycles 2000]
 """

@@ -25,8 +25,9 @@ const SHIFT: f64 = 1e-8;
 const PIVOT: f64 = 1e-6;
 
 /// A pivot below this fraction of its diagonal entry leaves a straight strand's exact factor for the shifted
-/// one: a loose strand, or one so long (over about 1,400 px) that solved exactly it let solves claim
-/// convergence they had not reached (docs/dev/solver-correctness.md, "Straight strands factored exactly").
+/// one: a loose strand, or a very long one (on the measured comb, past about 1,400 px; solved exactly at 2,000
+/// and 2,500 px, solves claimed convergence they had not reached: docs/dev/solver-correctness.md, "Straight
+/// strands factored exactly").
 const EXACT_PIVOT: f64 = 1e-9;
 
 /// The `L D Lᵀ` factor of a symmetric matrix in its envelope: row `i` of `L` from column `first[i]`, at `at[i]`.
@@ -78,7 +79,8 @@ impl Strands {
         // Each block factored; a set whose order is not a narrow band is two-dimensional (a region riddled
         // with pinholes, say), not a strand: the cycle serves it, and its nodes leave the lists.
         starts.push(nodes.len());
-        let shift = if matches!(level.op, Operator::Fine { .. }) { SHIFT } else { 0.0 };
+        let fine = matches!(level.op, Operator::Fine { .. });
+        let shift = if fine { SHIFT } else { 0.0 };
         let (mut kept, mut taps, mut at, mut blocks) = (Vec::new(), Vec::new(), vec![0], Vec::new());
         for pair in starts.windows(2) {
             let ids = &nodes[pair[0]..pair[1]];
@@ -87,13 +89,13 @@ impl Strands {
                 level.taps(p as usize, |q, a| if (pair[0]..pair[1]).contains(&(local[q] as usize)) { row.push((local[q] as usize - pair[0], a)) });
                 row
             }).collect();
-            // On the finest level a straight 1 px strand (its nodes on one row or one column) is factored exactly,
+            // On the finest level a straight 1 px line (a strand, or a sliver between parallel cuts) is factored exactly,
             // neither shifted nor with pivots dropped: its pivots fall as the cube of its length, and dropped or
             // shifted, its slowest bending was left to the cycle (960 cycles at 1,000 px). Where a pivot falls
             // below [`EXACT_PIVOT`] (a loose strand, or a very long one), shifted as the others.
             let wp = level.wp;
             let straight = ids.iter().all(|&p| p as usize % wp == ids[0] as usize % wp) || ids.iter().all(|&p| p as usize / wp == ids[0] as usize / wp);
-            let exact = (shift > 0.0 && ids.len() > 1 && straight).then(|| Envelope::factor(entries.clone(), 0.0, EXACT_PIVOT, BAND * ids.len()));
+            let exact = (fine && ids.len() > 1 && straight).then(|| Envelope::factor(entries.clone(), 0.0, EXACT_PIVOT, BAND * ids.len()));
             let exact = exact.flatten().filter(|b| !b.dropped());
             let Some(b) = exact.or_else(|| Envelope::factor(entries, shift, PIVOT, BAND * ids.len())) else { continue };
             blocks.push(b);
@@ -344,11 +346,14 @@ mod tests {
         let level = fine_level(&grid, Some(fixed), 0.0);
         let s = Strands::new(&level).expect("the teeth are thin");
         assert!(s.blocks.len() > 10 && s.blocks.iter().all(|b| b.d_inv.iter().all(|&d| d > 0.0)));
-        // Each block answers its own system, shifted or (the straight teeth) exactly.
+        // Each block answers its own system: the straight teeth exactly, the others shifted.
         let answers = blocks_answer(&level, &s);
         assert!(answers.iter().all(|&(_, exact, shifted)| exact || shifted), "{answers:?}");
         let teeth = || answers.iter().filter(|b| (29..=30).contains(&b.0));
         assert!(teeth().count() >= 18 && teeth().all(|b| b.1), "{answers:?}");
+        // The bar's thin columns with their joints are no straight line: shifted, as before.
+        let others = || answers.iter().filter(|b| b.0 > 30);
+        assert!(others().count() >= 1 && others().all(|b| b.2 && !b.1), "{answers:?}");
     }
 
     #[test]
