@@ -336,8 +336,8 @@ impl Membrane {
         let mut local = vec![0; k];
         let blocks = blocks_in_order(k, |_| true, |j, out| { out.clear(); out.extend(gram[j].iter().map(|e| e.0)) }).into_iter().map(|members| {
             members.iter().enumerate().for_each(|(l, &j)| local[j] = l);
-            let entries = members.iter().map(|&j| gram[j].iter().map(|&(i, v)| (local[i], v)).collect()).collect();
-            (members, Envelope::factor(entries, 0.0, 1e-12, MAX_BLOCK_ENTRIES).filter(|f| !f.dropped()))
+            let entries: Vec<_> = members.iter().map(|&j| gram[j].iter().map(|&(i, v)| (local[i], v)).collect()).collect();
+            (members, Envelope::factor(&entries, 0.0, 1e-12, MAX_BLOCK_ENTRIES).filter(|f| !f.dropped()))
         }).collect();
         Membrane { basis, products, blocks }
     }
@@ -406,8 +406,8 @@ mod tests {
         let order = &blocks[0];
         let mut local = vec![0; n];
         order.iter().enumerate().for_each(|(l, &j)| local[j] = l);
-        let entries = order.iter().map(|&j| rows[j].iter().map(|&(i, v)| (local[i], v)).collect()).collect();
-        let factor = Envelope::factor(entries, 0.0, 1e-12, 8 * n).expect("an envelope within 8 entries a row");
+        let entries: Vec<_> = order.iter().map(|&j| rows[j].iter().map(|&(i, v)| (local[i], v)).collect()).collect();
+        let factor = Envelope::factor(&entries, 0.0, 1e-12, 8 * n).expect("an envelope within 8 entries a row");
         assert!(!factor.dropped());
         let b: Vec<V2> = (0..n).map(|r| [(r as f64).sin(), 1.0]).collect();
         let mut x = b.clone();

@@ -25,9 +25,8 @@ const SHIFT: f64 = 1e-8;
 const PIVOT: f64 = 1e-6;
 
 /// A pivot below this fraction of its diagonal entry leaves a straight strand's exact factor for the shifted
-/// one: a loose strand, or a very long one (on the measured comb, past about 1,400 px; solved exactly at 2,000
-/// and 2,500 px, solves claimed convergence they had not reached: docs/dev/solver-correctness.md, "Straight
-/// strands factored exactly").
+/// one: a loose strand, or one so long that, solved exactly, solves claimed convergence they had not reached
+/// (docs/dev/solver-correctness.md, "Straight strands factored exactly").
 const EXACT_PIVOT: f64 = 1e-9;
 
 /// The `L D Lᵀ` factor of a symmetric matrix in its envelope: row `i` of `L` from column `first[i]`, at `at[i]`.
@@ -84,20 +83,19 @@ impl Strands {
         let (mut kept, mut taps, mut at, mut blocks) = (Vec::new(), Vec::new(), vec![0], Vec::new());
         for pair in starts.windows(2) {
             let ids = &nodes[pair[0]..pair[1]];
-            let entries: Vec<Vec<(usize, f64)>> = ids.iter().map(|&p| {
+            let entries: Vec<_> = ids.iter().map(|&p| {
                 let mut row = Vec::new();
                 level.taps(p as usize, |q, a| if (pair[0]..pair[1]).contains(&(local[q] as usize)) { row.push((local[q] as usize - pair[0], a)) });
                 row
             }).collect();
-            // On the finest level a straight 1 px line (a strand, or a sliver between parallel cuts) is factored exactly,
-            // neither shifted nor with pivots dropped: its pivots fall as the cube of its length, and dropped or
-            // shifted, its slowest bending was left to the cycle (960 cycles at 1,000 px). Where a pivot falls
-            // below [`EXACT_PIVOT`] (a loose strand, or a very long one), shifted as the others.
+            // On the finest level a straight 1 px line (a strand, or a sliver between parallel cuts) is factored
+            // exactly: its pivots fall as the cube of its length, and dropped or shifted, its slowest bending was
+            // left to the cycle. Past [`EXACT_PIVOT`], shifted as the others.
             let wp = level.wp;
             let straight = ids.iter().all(|&p| p as usize % wp == ids[0] as usize % wp) || ids.iter().all(|&p| p as usize / wp == ids[0] as usize / wp);
-            let exact = (fine && ids.len() > 1 && straight).then(|| Envelope::factor(entries.clone(), 0.0, EXACT_PIVOT, BAND * ids.len()));
+            let exact = (fine && ids.len() > 1 && straight).then(|| Envelope::factor(&entries, 0.0, EXACT_PIVOT, BAND * ids.len()));
             let exact = exact.flatten().filter(|b| !b.dropped());
-            let Some(b) = exact.or_else(|| Envelope::factor(entries, shift, PIVOT, BAND * ids.len())) else { continue };
+            let Some(b) = exact.or_else(|| Envelope::factor(&entries, shift, PIVOT, BAND * ids.len())) else { continue };
             blocks.push(b);
             for &p in ids {
                 kept.push(p);
@@ -225,7 +223,7 @@ impl Envelope {
     /// The factor of the matrix whose row `i` has the entries `entries[i]` (column, value; repeats add), its
     /// diagonal raised by `shift` times itself; a pivot not above `pivot` times its diagonal entry is
     /// dropped. `None` past `max_entries` entries.
-    pub(crate) fn factor(entries: Vec<Vec<(usize, f64)>>, shift: f64, pivot: f64, max_entries: usize) -> Option<Envelope> {
+    pub(crate) fn factor(entries: &[Vec<(usize, f64)>], shift: f64, pivot: f64, max_entries: usize) -> Option<Envelope> {
         let n = entries.len();
         let first: Vec<u32> = entries.iter().enumerate().map(|(i, e)| e.iter().map(|&(j, _)| j).min().unwrap_or(i).min(i) as u32).collect();
         let mut at = vec![0];
