@@ -450,10 +450,10 @@ def test_an_animation_of_long_free_strands_converges_at_the_default_cap():
         fields.append(field)
         reports.append(report)
     assert all(r.converged for r in reports) and reports[0].cycles > 100 and reports[2].cycles <= 5, reports
-    for k in (0, 2):
-        tight, tight_report = inkwarp.thin_plate_report(pts, disp * (1 + 0.05 * k), m.shape, mask=m, tolerance=1e-5, max_cycles=3000)
-        assert tight_report.converged, tight_report
-        assert float(np.abs(fields[k] - tight)[m > 0].max()) < TOLERANCE_PX, k
+    for k in range(3):
+        exact, skipped, _ = oracle(Problem(m.shape, pts, disp * (1 + 0.05 * k), mask=m))
+        assert not skipped.any()
+        assert float(np.abs(fields[k] - exact)[m > 0].max()) < TOLERANCE_PX, k
 
 
 @pytest.mark.parametrize("length", [600, 1000, 1200])
@@ -461,14 +461,16 @@ def test_long_straight_free_strands_take_a_bounded_number_of_cycles(length):
     # A straight 1 px strand that no point holds extends its root's slope: its own system
     # is factored exactly (shifted, or with its smallest pivots dropped, its slowest bending
     # was left to the cycle: 67 / 960 cycles at 600 / 1000 px). Every strand length up to
-    # about 1,400 px takes about as many cycles (1,200: 26), and the answer is the tight one.
+    # about 1,400 px takes about as many cycles (1,200: 26). Judged by the direct solve (a
+    # solve to a tighter tolerance is no reference here: on such strands it can claim
+    # convergence it has not reached, see docs/dev/solver-correctness.md).
     m, pts = straight_comb(length)
     disp = np.random.default_rng(0).normal(0, 4, pts.shape)
     field, report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m)
-    tight, tight_report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, tolerance=1e-3, max_cycles=600)
-    assert report.converged and tight_report.converged, (report, tight_report)
+    exact, skipped, _ = oracle(Problem(m.shape, pts, disp, mask=m))
+    assert report.converged and not skipped.any(), report
     assert report.cycles <= 40, report
-    assert float(np.abs(field - tight)[m > 0].max()) < TOLERANCE_PX
+    assert float(np.abs(field - exact)[m > 0].max()) < TOLERANCE_PX
 
 
 def test_a_hairy_matte_at_photograph_size_converges_to_the_tight_answer():
