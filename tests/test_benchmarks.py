@@ -161,8 +161,9 @@ def test_quick_honesty_sweep_counts_every_claim():
     # With `--families`: the character and the two combs at 1x, three tensions, three
     # displacement scales. With `--oracle`: one speckle and one collinear problem against
     # the direct solve (4 and 6 cold solves, 6 warm). With `--open`: four point counts on 65²,
-    # two displacement scales, cold and warm.
-    for extra, expected in (([], 12), (["--families"], 27), (["--oracle"], 16), (["--open"], 16)):
+    # two displacement scales, cold and warm. With `--direct`: the cuts judged by the direct
+    # solve instead of tight solves.
+    for extra, expected in (([], 12), (["--direct"], 12), (["--families"], 27), (["--oracle"], 16), (["--open"], 16)):
         out = subprocess.run(
             [sys.executable, str(ROOT / "benchmarks" / "honesty.py"), "--quick", *extra],
             check=True, capture_output=True, text=True, timeout=300).stdout
@@ -170,3 +171,4 @@ def test_quick_honesty_sweep_counts_every_claim():
         cells = [int(c) for c in line.strip("|").split("|")]
         solves, not_converged, claimed = cells[:3]
         assert solves == expected and not_converged + claimed == solves and cells[5] > 0
+        assert ("against the direct solve" in out) == bool({"--direct", "--oracle"} & set(extra)), out
