@@ -226,6 +226,15 @@ SLOW_ABOVE = 1e-8
 _SHIFT = 1e-6  # shift-invert Lanczos factors A + _SHIFT I
 
 
+def _proved_positive(a: sp.csr_matrix, vals: np.ndarray, vecs: np.ndarray) -> np.ndarray:
+    """Which computed eigenvalues of the symmetric `a` are proved positive by their own
+    residuals: for a unit vector v, some eigenvalue lies within |a v - λ v| of λ (Weyl), so
+    λ above ten times that residual is no kernel vector's rounding but a slow mode."""
+    vecs = vecs / np.linalg.norm(vecs, axis=0)
+    residual = np.linalg.norm(a @ vecs - vecs * vals, axis=0)
+    return vals > 10 * residual
+
+
 def plate_kernel(a: sp.csr_matrix) -> np.ndarray:
     """Orthonormal basis (n, k) of the null space of a symmetric positive semidefinite
     plate block, checked to be separated from the rest of its spectrum.
@@ -236,7 +245,7 @@ def plate_kernel(a: sp.csr_matrix) -> np.ndarray:
     n = a.shape[0]
     if n <= 100:
         vals, vecs = np.linalg.eigh(a.toarray())
-        unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE)
+        unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE) & ~_proved_positive(a, vals, vecs)
         kernel = vecs[:, vals < KERNEL_BELOW]
     else:
         lu = spla.splu((a + _SHIFT * sp.identity(n, format="csr")).tocsc())
@@ -252,7 +261,7 @@ def plate_kernel(a: sp.csr_matrix) -> np.ndarray:
             vals, vecs = spla.eigsh(a, k=k, sigma=-_SHIFT, which="LM", tol=1e-13,
                                     OPinv=spla.LinearOperator((n, n), matvec=op, dtype=float),
                                     v0=op(rng.standard_normal(n)))
-            unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE)
+            unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE) & ~_proved_positive(a, vals, vecs)
             new = vecs[:, vals < KERNEL_BELOW]
             if unsure.any() or not new.shape[1]:
                 break

@@ -68,10 +68,9 @@ def test_a_piece_cut_off_by_a_hole_or_a_cut_is_untouched():
     assert np.all(only_left[:, 20:] == 0)  # pieces without a constraint do not move
     assert np.all(only_right[:, :20] == 0)
     # and every piece meets the tolerance, as when it is solved alone
-    # (a tolerance under float32's resolution: the report says so, stop "precision")
-    tight, _ = inkwarp.thin_plate_report(np.vstack([left_pts, right_pts]), np.vstack([left_disp, right_disp]), SHAPE,
-                                         mask=mask, cuts=[cut], tolerance=1e-6)
-    assert np.abs(both - tight).max() < 0.01
+    exact = oracle(Problem(SHAPE, np.vstack([left_pts, right_pts]), np.vstack([left_disp, right_disp]),
+                           mask=mask, cuts=[np.array(cut)]))[0]
+    assert np.abs(both - exact).max() < 0.01
 
 
 def test_one_constrained_node_translates_its_piece():
@@ -118,6 +117,8 @@ def test_warm_start_from_the_answer_takes_at_most_one_cycle():
     again, report = inkwarp.thin_plate_report(pts, disp, (h, w), cuts=cuts, initial=field)
     assert report.cycles <= 1 and report.converged
     assert np.abs(again - field).max() < 0.01
+    exact = oracle(Problem((h, w), pts, disp, cuts=[np.array(c) for c in cuts]))[0]
+    assert np.abs(again - exact).max() < 0.05
 
 
 # Average residual reduction per cycle on the open grid (fixed seed), the bound this
@@ -141,9 +142,11 @@ def test_convergence_is_reached_with_holes_and_cuts(seed):
     from test_solver_oracle import random_problem
 
     p = random_problem(100 + seed, (96, 96))
-    _, report = inkwarp.thin_plate_report(p.points, p.displacements, p.shape, mask=p.mask, cuts=p.cuts,
-                                          tension=p.tension)
-    assert report.converged, report
+    field, report = inkwarp.thin_plate_report(p.points, p.displacements, p.shape, mask=p.mask, cuts=p.cuts,
+                                              tension=p.tension)
+    exact, skipped, _ = oracle(p)
+    on = ~skipped & (p.mask > 0 if p.mask is not None else True)
+    assert report.converged and np.abs(field - exact)[on].max() < 0.05, report
 
 
 def test_grid_step_is_close_to_the_full_solve_on_a_smooth_problem():
