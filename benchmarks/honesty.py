@@ -41,7 +41,7 @@ With `--direct`, the random cuts, the families and the open grids are judged aga
 direct solve instead of tight solves (a tight solve can stagnate on a very compliant part
 and claim what it has not reached: docs/dev/solver-correctness.md, "Straight strands
 factored exactly"); a claim the direct solve declines is left out of the counts, and listed.
-The direct solve of a 4× character at tension 0 takes minutes (its hair's free functions).
+The direct solve of a 4× character at tension 0 takes about a minute (its hair's free functions).
 
 Usage: python benchmarks/honesty.py [--seeds 60] [--quick] [--families | --oracle | --open] [--direct]
 """

@@ -293,6 +293,14 @@ def test_antialiased_character_mattes(seed):
     check_against_oracle(problem, f"character {seed}")
 
 
+def test_a_hairy_character_at_four_times_matches_the_direct_solve():
+    # 288 x 256, its hair's free bends a plate kernel of 132 functions (the direct solve
+    # resolves them with more Lanczos vectors than a small kernel needs).
+    m, pts, disp = character_problem(0, 4)
+    _, report = check_against_oracle(Problem(m.shape, pts, disp, mask=m), "character 0 at 4x", _off="")
+    assert report.cycles <= 30, report
+
+
 def zigzag_strand(teeth: int, amplitude: int):
     """A body 12 px square and a 1 px strand off its right side: diagonal staircases down
     and up `teeth` times, `amplitude` rows each, joined by short runs along the bottom and

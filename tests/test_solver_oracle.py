@@ -241,7 +241,9 @@ def plate_kernel(a: sp.csr_matrix) -> np.ndarray:
 
     Small blocks: a dense eigendecomposition. Larger ones: shift-invert Lanczos, deflated by
     the kernel found so far and repeated until a run finds no more (Lanczos can miss copies
-    of a multiple eigenvalue, never the whole cluster at the end of the spectrum)."""
+    of a multiple eigenvalue, never the whole cluster at the end of the spectrum). A run that
+    does not converge is repeated with twice the vectors: a kernel of hundreds (a hairy
+    matte's free bends) resolves its copies only with more vectors than the default's."""
     n = a.shape[0]
     if n <= 100:
         vals, vecs = np.linalg.eigh(a.toarray())
@@ -251,16 +253,23 @@ def plate_kernel(a: sp.csr_matrix) -> np.ndarray:
         lu = spla.splu((a + _SHIFT * sp.identity(n, format="csr")).tocsc())
         kernel = np.zeros((n, 0))
         rng = np.random.default_rng(0)
+        vectors = 24
         while True:
             def op(x, z=kernel):
                 x = x - z @ (z.T @ x)
                 y = lu.solve(x)
                 return y - z @ (z.T @ y)
 
-            k = min(24, n - kernel.shape[1] - 2)
-            vals, vecs = spla.eigsh(a, k=k, sigma=-_SHIFT, which="LM", tol=1e-13,
-                                    OPinv=spla.LinearOperator((n, n), matvec=op, dtype=float),
-                                    v0=op(rng.standard_normal(n)))
+            k = min(vectors, n - kernel.shape[1] - 2)
+            try:
+                vals, vecs = spla.eigsh(a, k=k, sigma=-_SHIFT, which="LM", tol=1e-13, maxiter=100,
+                                        OPinv=spla.LinearOperator((n, n), matvec=op, dtype=float),
+                                        v0=op(rng.standard_normal(n)))
+            except spla.ArpackNoConvergence:
+                if k < vectors:
+                    raise
+                vectors *= 2
+                continue
             unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE) & ~_proved_positive(a, vals, vecs)
             new = vecs[:, vals < KERNEL_BELOW]
             if unsure.any() or not new.shape[1]:
