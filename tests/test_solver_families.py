@@ -589,8 +589,9 @@ def test_weakly_attached_parts_among_many_cuts_are_not_claimed_early(case):
     # bending) is deflated from then on.
     # Judged by the direct solve (`torn_exact`).
     pts, disp, cuts, _ = torn_case(case)
+    problem = Problem((256, 256), pts, disp, cuts=cuts)
     exact = torn_exact(case)
-    field, report = solve(problem := Problem((256, 256), pts, disp, cuts=cuts))
+    field, report = solve(problem)
     assert report.converged and float(np.abs(field - exact).max()) < TOLERANCE_PX, report
     if case == "flap_on_a_border_strip":
         # Its warm twin (0.63 px off at cycle 32 before): the next frame through a kept
@@ -950,9 +951,9 @@ def test_each_piece_of_a_cut_grid_matches_alone():
 def test_southwell_default_budget_cuts_the_start_error_tenfold_and_claims_nothing(torn):
     # The paper's fixed budget on the bench's model problem at 257 x 257, judged by the
     # direct solve: at its default 10 rounds the error of the coarse-to-fine start (a
-    # budget of 0) falls at least tenfold, and `converged` is claimed only where it
-    # holds. (At 65 x 65 with the hole and
-    # the cut the default budget cuts it 6.8-fold: docs/concepts/thin-plate.md.)
+    # budget of 0) falls at least tenfold, and `converged` is claimed only where it holds.
+    # (At 65 x 65 with the hole and the cut the default budget cuts it 6.8-fold:
+    # docs/concepts/thin-plate.md.)
     pts, disp, mask, cuts = grid_problem(257, hole=torn, cut=torn)
     shape = (257, 257)
     exact, skipped, _ = oracle(Problem(shape, pts, disp, mask=mask, cuts=cuts or []))
