@@ -195,7 +195,6 @@ def _fixed_solve(a: sp.csr_matrix, piece: np.ndarray, fixed: dict[int, np.ndarra
     if len(free) == 0:
         return u
     aff = a[free][:, free].tocsc()
-    rhs = -(a[free][:, fixed_idx] @ u[fixed_idx])
     try:
         lu = spla.splu(aff)
     except RuntimeError:  # exactly singular
@@ -203,17 +202,21 @@ def _fixed_solve(a: sp.csr_matrix, piece: np.ndarray, fixed: dict[int, np.ndarra
     diag = np.abs(lu.U.diagonal())
     if check_pivots and diag.min() <= 1e-9 * diag.max():
         return None
-    # Iterative refinement: at the smallest tensions the block's condition is so large that
-    # one LU solve can miss by several hundredths of a pixel. Its last steps must be well
-    # under the 0.05 px contract (a fifth of it), or the oracle could not be trusted.
-    x = lu.solve(rhs)
-    for _ in range(4):
-        step = lu.solve(rhs - aff @ x)
+    # Iterative refinement with residuals in extended precision: at the smallest tensions the
+    # block's condition is so large (past 1e13 at 1e-9) that one LU solve can miss by
+    # several hundredths of a pixel, and a float64 residual could not show by how much.
+    # Its last steps must be well under the 0.05 px contract (a fifth of it), or the oracle
+    # could not be trusted.
+    wide = aff.astype(np.longdouble)
+    rhs = -(a[free][:, fixed_idx].astype(np.longdouble) @ u[fixed_idx].astype(np.longdouble))
+    x = lu.solve(np.asarray(rhs, np.float64)).astype(np.longdouble)
+    for _ in range(6):
+        step = lu.solve(np.asarray(rhs - wide @ x, np.float64))
         x += step
         if np.abs(step).max() < 1e-5:
             break
     assert np.abs(step).max() < TOLERANCE_PX / 5, f"the direct solve does not settle ({np.abs(step).max():.3g} px)"
-    u[free] = x
+    u[free] = np.asarray(x, np.float64)
     return u
 
 
@@ -396,7 +399,8 @@ def oracle(problem: Problem):
             # the limit tension -> 0+ (the affine map vanishing on the line is free)
             u[piece] = _piece_limit(a, piece, cons, membrane)
             continue
-        sol = _fixed_solve(a, piece, cons)
+        # (At a tension the block is positive definite, however small its pivots.)
+        sol = _fixed_solve(a, piece, cons, check_pivots=not problem.tension)
         if sol is None and problem.tension == 0:
             # A plate kernel larger than the affine functions: the tension -> 0+ limit.
             degenerate[piece] = True
