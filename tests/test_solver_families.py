@@ -359,9 +359,9 @@ def test_hair_at_a_small_tension_converges_in_few_cycles(seed):
 
 @pytest.mark.parametrize("tension", [1e-9, 1e-8, 1e-7])
 def test_hair_at_tinier_tensions_matches_the_direct_solve(tension):
-    # Below 1e-6, P + τM is conditioned past 1e13: the oracle refines its direct solve with
-    # residuals in extended precision (in float64 it lost its digits, and a tight solve was
-    # the reference). The cycles stay those of τ = 0.
+    # Below 1e-6 the LU pivots of P + τM fall to 6e-12 of the largest: the oracle refines
+    # its direct solve with residuals in extended precision (with float64 ones it never
+    # settled, and a tight solve was the reference). The cycles stay those of τ = 0.
     m, pts, disp = character_problem(1, 4)
     _, report = check_against_oracle(Problem(m.shape, pts, disp, mask=m, tension=tension), f"character 1 at 4x, tension {tension}")
     assert report.cycles <= 30, report

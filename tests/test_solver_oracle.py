@@ -194,7 +194,8 @@ def _fixed_solve(a: sp.csr_matrix, piece: np.ndarray, fixed: dict[int, np.ndarra
         u[i] = fixed[i]
     if len(free) == 0:
         return u
-    aff = a[free][:, free].tocsc()
+    rows = a[free]
+    aff = rows[:, free].tocsc()
     try:
         lu = spla.splu(aff)
     except RuntimeError:  # exactly singular
@@ -203,12 +204,12 @@ def _fixed_solve(a: sp.csr_matrix, piece: np.ndarray, fixed: dict[int, np.ndarra
     if check_pivots and diag.min() <= 1e-9 * diag.max():
         return None
     # Iterative refinement with residuals in extended precision: at the smallest tensions the
-    # block's condition is so large (past 1e13 at 1e-9) that one LU solve can miss by
-    # several hundredths of a pixel, and a float64 residual could not show by how much.
-    # Its last steps must be well under the 0.05 px contract (a fifth of it), or the oracle
-    # could not be trusted.
+    # block's pivots fall to 6e-12 of the largest (the hairy character at 4x, tension 1e-9),
+    # and with float64 residuals the steps never settled (3-7e-3 px each, the answer that
+    # far off); with these they fall to 1e-6 px. Its last steps must be well under the
+    # 0.05 px contract (a fifth of it), or the oracle could not be trusted.
     wide = aff.astype(np.longdouble)
-    rhs = -(a[free][:, fixed_idx].astype(np.longdouble) @ u[fixed_idx].astype(np.longdouble))
+    rhs = -(rows[:, fixed_idx].astype(np.longdouble) @ u[fixed_idx].astype(np.longdouble))
     x = lu.solve(np.asarray(rhs, np.float64)).astype(np.longdouble)
     for _ in range(6):
         step = lu.solve(np.asarray(rhs - wide @ x, np.float64))
@@ -399,7 +400,6 @@ def oracle(problem: Problem):
             # the limit tension -> 0+ (the affine map vanishing on the line is free)
             u[piece] = _piece_limit(a, piece, cons, membrane)
             continue
-        # (At a tension the block is positive definite, however small its pivots.)
         sol = _fixed_solve(a, piece, cons, check_pivots=not problem.tension)
         if sol is None and problem.tension == 0:
             # A plate kernel larger than the affine functions: the tension -> 0+ limit.
