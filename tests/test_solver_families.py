@@ -628,10 +628,11 @@ def test_a_capped_solve_goes_on_where_it_stopped(case, steps):
     assert float(np.abs(field - whole).max()) <= 0.01
     chunked = field
     # Stopped again, then asked for other displacements from there: a solve of its own,
-    # whose claim holds (the exact answer is linear in the displacements).
+    # whose claim holds (the exact answer is linear in the displacements). Capped at 4 at
+    # most: started on the slow modes the kept Solver found, this solve takes 7 to 45 cycles.
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", inkwarp.InkwarpWarning)
-        field, report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=kept, max_cycles=steps, _off=off)
+        field, report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=kept, max_cycles=min(steps, 4), _off=off)
     assert not report.converged
     exact = torn_exact(case)
     assert max(float(np.abs(whole - exact).max()), float(np.abs(chunked - exact).max())) < TOLERANCE_PX

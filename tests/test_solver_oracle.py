@@ -593,12 +593,13 @@ def test_a_chain_of_hinges_with_a_strand_converges_at_small_tensions(tension):
 
 
 def test_max_cycles_counts_every_cycle():
-    # Iterated (`_off="whole"`): the chain is small enough to be solved whole, in one cycle.
+    # Iterated (`_off="whole,exact_coarsest"`): the chain is small enough to be solved whole,
+    # or on one exact coarsest level, in a cycle or two.
     problem = hinge_chain(1e-6)
-    _, full = solve(problem, _off="whole")
+    _, full = solve(problem, _off="whole,exact_coarsest")
     assert full.converged and full.cycles > 2, full
     for cap in (1, full.cycles - 1):
-        _, report = solve(problem, max_cycles=cap, _off="whole")
+        _, report = solve(problem, max_cycles=cap, _off="whole,exact_coarsest")
         assert report.cycles <= cap and not report.converged, report
     # The settling's rounds at a tension (they took 2 cycles for max_cycles=1).
     _, report = solve(random_problem(13, (40, 31), tension=1.0), max_cycles=1)

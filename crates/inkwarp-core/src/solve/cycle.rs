@@ -78,8 +78,8 @@ struct Work {
 impl Hierarchy {
     /// A second coarse space for `fine`'s unknowns: the levels below `fine`, visited by V-cycles (`fine`
     /// itself, which the hierarchy it serves smooths, without work vectors or bound).
-    pub fn coarse_space(fine: Level, degree: usize) -> Hierarchy {
-        let mut h = Hierarchy { k_cycles: false, ..Hierarchy::new(fine, degree, degree, false, None) };
+    pub fn coarse_space(fine: Level, degree: usize, exact_work: Option<usize>) -> Hierarchy {
+        let mut h = Hierarchy { k_cycles: false, ..Hierarchy::new(fine, degree, degree, false, None, exact_work) };
         // Past the setup, the finest level only lends its prolongation: 4 bytes a node instead of about 18.
         h.levels[0].keep_only_prolongation();
         h
@@ -87,12 +87,16 @@ impl Hierarchy {
 
     /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and `coarse_degree` below
     /// it; unless `smooth_fine`, `fine` gets no work vectors or bound. With `whole = Some(max)`, `fine` is the
-    /// only level, solved by its banded factor, where that factor drops at most `max` pivots.
-    pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool, whole: Option<usize>) -> Hierarchy {
+    /// only level, solved by its banded factor, where that factor drops at most `max` pivots. The levels coarsen
+    /// to at most [`COARSEST_NODES`] nodes, or with `exact_work = Some(work)` to the first whose banded factor
+    /// costs at most `work` (nodes × bandwidth², multiply-adds).
+    pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool, whole: Option<usize>, exact_work: Option<usize>) -> Hierarchy {
         let mut levels = vec![fine];
         let factor = whole.and_then(|max| Some(Banded::new(&levels[0])).filter(|b| b.dropped.iter().filter(|&&d| d).count() <= max));
         let whole = factor.is_some();
-        while let Some(last) = levels.last().filter(|l| !whole && l.geo.w * l.geo.h > COARSEST_NODES && l.geo.w > 2 && l.geo.h > 2) {
+        let (w, h) = (|l: &Level| l.geo.w, |l: &Level| l.geo.h);
+        let coarser = |l: &Level| exact_work.map_or(w(l) * h(l) > COARSEST_NODES, |work| w(l) * h(l) * (2 * w(l).min(h(l)) + 3).pow(2) > work);
+        while let Some(last) = levels.last().filter(|l| !whole && coarser(l) && l.geo.w > 2 && l.geo.h > 2) {
             levels.push(galerkin(last));
         }
         let work = (0..levels.len()).map(|k| {
@@ -688,7 +692,7 @@ mod tests {
         for i in [3 * w + 4, 20 * w + 60, 55 * w + 20, 64 * w + 70] {
             fixed[i] = true;
         }
-        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2, true, None);
+        let mut hier = Hierarchy::new(fine_level(&grid, Some(fixed), 0.0), 2, 2, true, None, None);
         assert!(hier.levels.len() >= 4, "the test needs a level with a K-cycle below it");
         let mut rnd = crate::grid::tests::sequence(5);
         let k = 1;

@@ -377,6 +377,12 @@ impl Geometry {
     /// Whether the geometry has inactive nodes or missing links between active neighbours.
     pub fn torn(&self) -> bool { crate::grid::torn(self.w, &self.active, &self.right, &self.down) }
 
+    /// Whether two active neighbours are not linked: a cut inside the piece (holes and the matte's edges leave none).
+    pub fn cut_inside(&self) -> bool {
+        let (w, n) = (self.w, self.active.len());
+        (0..n).any(|i| self.active[i] && ((i % w + 1 < w && self.active[i + 1] && !self.right[i]) || (i + w < n && self.active[i + w] && !self.down[i])))
+    }
+
     /// Whether node (x, y) is active with every link its row reads: then its row is the plain bilinear one.
     fn linked_around(&self, x: usize, y: usize) -> bool {
         let r = |x: usize, y: usize| x + 1 == self.w || self.right[self.idx(x, y)];

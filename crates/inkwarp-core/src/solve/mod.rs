@@ -72,7 +72,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 12] = ["second", "recycle", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole", "probe"];
+    pub const NAMES: [&'static str; 13] = ["second", "recycle", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole", "probe", "exact_coarsest"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -543,11 +543,16 @@ fn solve_piece(
         let unknowns = fine.inv_diag.iter().filter(|&&d| d != 0.0).count();
         let small = torn && unknowns * (2 * w.min(h) + 3).pow(2) <= DIRECT_WORK && !key.off.has("whole");
         let whole = small.then(|| if tau > 0.0 { 0 } else { settled.map_or(0, |m| m.len()) });
+        // A piece torn by holes or its matte's edges alone coarsens only to the first level a banded factor of
+        // `DIRECT_WORK` solves exactly: hair, combs and characters take fewer cycles. Not an open grid (it gains
+        // nothing) nor a piece with a cut inside, whose parts' slow turns the faster convergence then hid from
+        // the stopping rule (`docs/dev/solver-correctness.md`, "A larger exact coarsest level").
+        let exact_work = (torn && !fine.geo.cut_inside() && !key.off.has("exact_coarsest")).then_some(DIRECT_WORK);
         let fine = fine.with_holes_filled(key.links.outside().filter(|_| !key.off.has("outside")));
         let second = fine.geo.active.contains(&false) && !key.off.has("second");
         let coarse = if torn { SMOOTHING_STEPS } else { OPEN_COARSE_SMOOTHING };
-        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse, true, whole);
-        let alt = (second && !hier.whole).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.unwrap(), tau).into_plain(), SMOOTHING_STEPS)));
+        let mut hier = Hierarchy::new(fine, SMOOTHING_STEPS, coarse, true, whole, exact_work);
+        let alt = (second && !hier.whole).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.unwrap(), tau).into_plain(), SMOOTHING_STEPS, exact_work)));
         (hier.k_cycles, hier.alt, hier.torn) = (!key.off.has("kcycle"), alt, torn);
         if !hier.whole && !key.off.has("strands") {
             hier.strands = strands::Strands::new(&hier.levels[0]);
