@@ -88,15 +88,18 @@ impl Hierarchy {
     /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and `coarse_degree` below
     /// it; unless `smooth_fine`, `fine` gets no work vectors or bound. With `whole = Some(max)`, `fine` is the
     /// only level, solved by its banded factor, where that factor drops at most `max` pivots. The levels coarsen
-    /// to at most [`COARSEST_NODES`] nodes, or with `exact_work = Some(work)` to the first whose banded factor
-    /// costs at most `work` (nodes × bandwidth², multiply-adds).
+    /// to at most [`COARSEST_NODES`] nodes, or with `exact_work = Some(work)` to the first below `fine` whose
+    /// banded factor costs at most `work` (nodes × bandwidth², multiply-adds): `fine`'s own factor is the one
+    /// `whole` judges (it may hold a soft part still).
     pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool, whole: Option<usize>, exact_work: Option<usize>) -> Hierarchy {
         let mut levels = vec![fine];
         let factor = whole.and_then(|max| Some(Banded::new(&levels[0])).filter(|b| b.dropped.iter().filter(|&&d| d).count() <= max));
         let whole = factor.is_some();
-        let (w, h) = (|l: &Level| l.geo.w, |l: &Level| l.geo.h);
-        let coarser = |l: &Level| exact_work.map_or(w(l) * h(l) > COARSEST_NODES, |work| w(l) * h(l) * (2 * w(l).min(h(l)) + 3).pow(2) > work);
-        while let Some(last) = levels.last().filter(|l| !whole && coarser(l) && l.geo.w > 2 && l.geo.h > 2) {
+        let coarser = |l: &Level, k: usize| {
+            let (n, side) = (l.geo.w * l.geo.h, l.geo.w.min(l.geo.h));
+            exact_work.filter(|_| k > 0).map_or(n > COARSEST_NODES, |work| n.saturating_mul((2 * side + 3).pow(2)) > work)
+        };
+        while let Some(last) = levels.last().filter(|l| !whole && coarser(l, levels.len() - 1) && l.geo.w > 2 && l.geo.h > 2) {
             levels.push(galerkin(last));
         }
         let work = (0..levels.len()).map(|k| {

@@ -544,9 +544,9 @@ fn solve_piece(
         let small = torn && unknowns * (2 * w.min(h) + 3).pow(2) <= DIRECT_WORK && !key.off.has("whole");
         let whole = small.then(|| if tau > 0.0 { 0 } else { settled.map_or(0, |m| m.len()) });
         // A piece torn by holes or its matte's edges alone coarsens only to the first level a banded factor of
-        // `DIRECT_WORK` solves exactly: hair, combs and characters take fewer cycles. Not an open grid (it gains
-        // nothing) nor a piece with a cut inside, whose parts' slow turns the faster convergence then hid from
-        // the stopping rule (`docs/dev/solver-correctness.md`, "A larger exact coarsest level").
+        // `DIRECT_WORK` solves exactly: hair, combs and characters take fewer cycles. Not an open grid (no fewer
+        // cycles measured) nor a piece with a cut inside, whose parts' slow turns the faster convergence then hid
+        // from the stopping rule (`docs/dev/solver-correctness.md`, "A larger exact coarsest level").
         let exact_work = (torn && !fine.geo.cut_inside() && !key.off.has("exact_coarsest")).then_some(DIRECT_WORK);
         let fine = fine.with_holes_filled(key.links.outside().filter(|_| !key.off.has("outside")));
         let second = fine.geo.active.contains(&false) && !key.off.has("second");

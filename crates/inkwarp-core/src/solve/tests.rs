@@ -842,10 +842,30 @@ fn a_whole_piece_whose_factor_drops_a_soft_pivot_is_iterated() {
     let grid = Grid::from_active(w, h, (0..w * h).map(|i| i % w < 20 || i / w == 10).collect());
     let samples = random_samples(&mut Rng(3), 19, 19, 5);
     let (field, report) = solve(&grid, &samples, &SolveOptions::default(), None).unwrap();
-    let tight = SolveOptions { tolerance_px: 1e-6, max_cycles: Some(1000), off: Ablation::parse("whole").unwrap(), ..Default::default() };
+    let tight = SolveOptions { tolerance_px: 1e-6, max_cycles: Some(1000), off: Ablation::parse("whole,exact_coarsest").unwrap(), ..Default::default() };
     let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
     let err = gap(&field, &exact);
     assert!(report.converged && err < 0.05, "{err} px off ({report:?})");
+}
+
+#[test]
+fn an_exact_coarsest_level_is_never_the_finest() {
+    // A matte's hierarchy stops at the first level below the finest whose factor is within
+    // `DIRECT_WORK` (33² under 257², where the node rule goes on to 17²); a box within it
+    // keeps one level below its finest, whose own factor is the one `whole` judges.
+    let fixed = |n: usize| Some((0..n * n).map(|i| i == n * n / 3 || i == n * n / 2 + 7).collect::<Vec<_>>());
+    let holed = |n: usize| Grid::from_active(n, n, (0..n * n).map(|i| i != n * (n / 2) + n / 2).collect());
+    for (n, sizes) in [(40usize, vec![40, 21]), (257, vec![257, 129, 65, 33])] {
+        let fine = fine_level(&holed(n), fixed(n), 0.0);
+        assert!(fine.geo.torn() && !fine.geo.cut_inside());
+        let hier = Hierarchy::new(fine, SMOOTHING_STEPS, SMOOTHING_STEPS, true, None, Some(DIRECT_WORK));
+        assert_eq!(hier.levels.iter().map(|l| l.geo.w).collect::<Vec<_>>(), sizes);
+    }
+    let plain = Hierarchy::new(fine_level(&holed(257), fixed(257), 0.0), SMOOTHING_STEPS, SMOOTHING_STEPS, true, None, None);
+    assert_eq!(plain.levels.last().map(|l| l.geo.w), Some(17));
+    let mut cut = Grid::new(40, 40);
+    cut.add_cut(&[[3.5, 12.3], [30.2, 9.7]]);
+    assert!(fine_level(&cut, None, 0.0).geo.cut_inside());
 }
 
 #[test]
