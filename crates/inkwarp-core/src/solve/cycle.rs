@@ -96,8 +96,8 @@ impl Hierarchy {
         let factor = whole.and_then(|max| Some(Banded::new(&levels[0])).filter(|b| b.dropped.iter().filter(|&&d| d).count() <= max));
         let whole = factor.is_some();
         let coarser = |l: &Level, k: usize| {
-            let (n, side) = (l.geo.w * l.geo.h, l.geo.w.min(l.geo.h));
-            exact_work.filter(|_| k > 0).map_or(n > COARSEST_NODES, |work| n.saturating_mul((2 * side + 3).pow(2)) > work)
+            let n = l.geo.w * l.geo.h;
+            exact_work.filter(|_| k > 0).map_or(n > COARSEST_NODES, |work| banded_work(n, l.geo.w, l.geo.h) > work)
         };
         while let Some(last) = levels.last().filter(|l| !whole && coarser(l, levels.len() - 1) && l.geo.w > 2 && l.geo.h > 2) {
             levels.push(galerkin(last));
@@ -547,6 +547,10 @@ struct Banded {
     map: Vec<usize>,
     dropped: Vec<bool>,
 }
+
+/// About the multiply-adds of [`Banded::new`]'s factor of `unknowns` on a `w × h` level (its bandwidth is at most
+/// `2 min(w, h) + 2`).
+pub(crate) fn banded_work(unknowns: usize, w: usize, h: usize) -> usize { unknowns.saturating_mul((2 * w.min(h) + 3).pow(2)) }
 
 impl Banded {
     fn new(level: &Level) -> Banded {

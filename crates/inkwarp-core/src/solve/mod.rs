@@ -541,7 +541,7 @@ fn solve_piece(
         // Unless the factor drops a pivot no free function accounts for (a soft part's, such as a long strand's
         // tip, whose node it would hold still; at τ > 0 a count cannot tell them apart).
         let unknowns = fine.inv_diag.iter().filter(|&&d| d != 0.0).count();
-        let small = torn && unknowns * (2 * w.min(h) + 3).pow(2) <= DIRECT_WORK && !key.off.has("whole");
+        let small = torn && cycle::banded_work(unknowns, w, h) <= DIRECT_WORK && !key.off.has("whole");
         let whole = small.then(|| if tau > 0.0 { 0 } else { settled.map_or(0, |m| m.len()) });
         // A piece torn by holes or its matte's edges alone coarsens only to the first level a banded factor of
         // `DIRECT_WORK` solves exactly: hair, combs and characters take fewer cycles. Not an open grid (no fewer
