@@ -35,7 +35,7 @@ import numpy as np
 
 import inkwarp
 
-SWITCHES = ["second", "recycle", "kcycle", "cache", "fours", "strands", "coarse_strands", "outside", "whole", "exact_coarsest"]
+SWITCHES = ["second", "recycle", "kcycle", "cache", "fours", "strands", "coarse_strands", "outside", "whole", "exact_coarsest", "answers"]
 
 
 def random_problem(n: int, size: int, seed: int = 0):

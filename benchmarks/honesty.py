@@ -37,13 +37,19 @@ With `--open`, open grids (no matte, no cut: the margin of the rule is 1.5 there
 at 129², 257² and 513² with 3, 10, 100 and 1000 random points, displacements times 0.02
 and 1, cold and warm (the next frame, as above), against tight solves.
 
+With `--kept`, one `Solver` kept through a series of calls at the same points, the
+displacements drawn anew every call (times 0.02 and 1), so that from the sixth call or so
+its pieces start from their earlier answers (`solve/history.rs`, `Answers`): the random
+cuts at 2x (8 calls), the open grid at 257² with 10 random points and the model problem
+with a disc hole and a cut at 257² (`ratios.py`'s `model_problem`; 12 calls each).
+
 With `--direct`, the random cuts, the families and the open grids are judged against the
 direct solve instead of tight solves (a tight solve can stagnate on a very compliant part
 and claim what it has not reached: docs/dev/solver-correctness.md, "Straight strands
 factored exactly"); a claim the direct solve declines is left out of the counts, and listed.
 The direct solve of a 4× character at tension 0 takes about a minute (its hair's free functions).
 
-Usage: python benchmarks/honesty.py [--seeds 60] [--quick] [--families | --oracle | --open] [--direct]
+Usage: python benchmarks/honesty.py [--seeds 60] [--quick] [--families | --oracle | --open | --kept] [--direct]
 """
 
 from __future__ import annotations
@@ -123,6 +129,27 @@ def claims(seeds: int):
                     start = inkwarp.thin_plate(pts, disp, shape, cuts=cuts, solver=kept)
                     yield f"{name}, next frame, warm", *judged(pts, disp * 1.02 + 0.05, shape, initial=start, cuts=cuts)
                     yield f"{name}, displacements x1.1, kept Solver", *judged(pts, disp * 1.1, shape, cuts=cuts, solver=kept)
+
+
+def kept_claims(seeds: int):
+    """(what, error / tolerance or None, cycles) per call of a `Solver` kept through new
+    displacements at the same points (see `--kept`)."""
+    from ratios import model_problem, random_problem
+
+    for seed in range(seeds):
+        pts, disp, cuts = random_cuts(seed, False, 2)
+        problems = [(f"2x seed {seed} cuts", pts, (128, 128), {"cuts": cuts}, 8)]
+        pts, _ = random_problem(10, 257, 257, seed)
+        problems.append((f"257² seed {seed} open", pts, (257, 257), {}, 12))
+        pts, _, mask, cuts = model_problem(257, 257, True, True, seed)
+        problems.append((f"257² seed {seed} hole and cut", pts, (257, 257), {"mask": mask, "cuts": cuts}, 12))
+        rng = np.random.default_rng(seed)
+        for name, pts, shape, kw, calls in problems:
+            for k in (0.02, 1):
+                solver = inkwarp.Solver()
+                for call in range(calls):
+                    d = rng.normal(0, 0.01 * shape[0], (len(pts), 2)) * k
+                    yield f"{name}, x{k}, call {call}", *judged(pts, d, shape, solver=solver, **kw)
 
 
 def open_claims(seeds: int, sizes=(129, 257, 513)):
@@ -211,6 +238,7 @@ def main() -> int:
     which.add_argument("--families", action="store_true", help="the thin-part families instead of the random cuts")
     which.add_argument("--oracle", action="store_true", help="the speckle and collinear families against the direct solve")
     which.add_argument("--open", action="store_true", help="open grids (no matte, no cut) at 129², 257² and 513²")
+    which.add_argument("--kept", action="store_true", help="a Solver kept through new displacements at the same points")
     ap.add_argument("--direct", action="store_true",
                     help="judge the random cuts, families and open grids by the direct solve, not by tight solves")
     args = ap.parse_args()
@@ -218,6 +246,8 @@ def main() -> int:
     DIRECT["on"] = args.direct
     if args.oracle:
         rows = oracle_claims(seeds)
+    elif args.kept:
+        rows = list(kept_claims(seeds))
     elif args.open:
         rows = list(open_claims(seeds, (65,) if args.quick else (129, 257, 513)))
     else:

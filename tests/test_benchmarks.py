@@ -161,9 +161,11 @@ def test_quick_honesty_sweep_counts_every_claim():
     # With `--families`: the character and the two combs at 1x, three tensions, three
     # displacement scales. With `--oracle`: one speckle and one collinear problem against
     # the direct solve (4 and 6 cold solves, 6 warm). With `--open`: four point counts on 65²,
-    # two displacement scales, cold and warm. With `--direct`: the cuts judged by the direct
-    # solve instead of tight solves.
-    for extra, expected in (([], 12), (["--direct"], 12), (["--families"], 27), (["--oracle"], 16), (["--open"], 16)):
+    # two displacement scales, cold and warm. With `--kept`: one seed's three problems, a
+    # Solver kept through 8, 12 and 12 calls, two displacement scales. With `--direct`: the
+    # cuts judged by the direct solve instead of tight solves.
+    for extra, expected in (([], 12), (["--direct"], 12), (["--families"], 27), (["--oracle"], 16), (["--open"], 16),
+                            (["--kept"], 64)):
         out = subprocess.run(
             [sys.executable, str(ROOT / "benchmarks" / "honesty.py"), "--quick", *extra],
             check=True, capture_output=True, text=True, timeout=300).stdout

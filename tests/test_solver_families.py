@@ -988,3 +988,35 @@ def test_a_tight_tolerance_never_runs_away(seed, integer):
         assert np.isfinite(field).all() and err < 1e-3, f"tolerance {tolerance}: {err:.3g} px off ({report})"
         if report.converged:
             assert err <= 5 * max(tolerance, 1e-5), f"tolerance {tolerance}: converged {err:.3g} px off ({report})"
+
+
+def kept_families():
+    """Problems for a kept solver: (name, problem, whether its slowest piece can start from its
+    earlier answers: not where a piece has free functions, as the character's hair and some of
+    the many cuts' pieces do, or is held on one line)."""
+    pts, disp, mask, cuts = model_problem(65, 65, True, True, 2049)
+    yield "hole and cut", Problem((65, 65), pts, disp, mask=mask, cuts=cuts), True
+    m = comb_mask(2)
+    pts = np.array([[5.0, 4.0], [30.0, 5.0], [58.0, 3.0], [2.0, 36.0], [14.0, 36.0], [26.0, 36.0]])
+    yield "comb 2", Problem(m.shape, pts, disp[:6], mask=m), True
+    pts, disp, cuts = random_cuts(0, False)
+    yield "many cuts", Problem((64, 64), pts, disp, cuts=cuts), False
+    m, pts, disp = character_problem(0)
+    yield "character", Problem(m.shape, pts, disp, mask=m), False
+
+
+@pytest.mark.parametrize("family", ["hole and cut", "comb 2", "many cuts", "character"])
+def test_a_kept_solver_starts_from_earlier_answers_within_the_contract(family):
+    # One solver, new values at the same points every solve: once the earlier values span
+    # the new ones (at most 10 points a piece: 5 solves), a piece starts from the combination
+    # of their answers and takes a cycle or two; every claim is checked against the direct
+    # solve (the iterated path: `_off="whole"`).
+    name, problem, spans = next(f for f in kept_families() if f[0] == family)
+    solver, rng = inkwarp.Solver(), np.random.default_rng(7)
+    cycles = []
+    for _ in range(9):
+        problem = dataclasses.replace(problem, displacements=rng.normal(0, 5, problem.displacements.shape))
+        _, report = check_against_oracle(problem, name, _off="whole", solver=solver)
+        cycles.append(report.cycles)
+    if spans:
+        assert max(cycles[-3:]) <= 2 < min(cycles[:2]), cycles

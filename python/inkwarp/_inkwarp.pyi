@@ -111,6 +111,7 @@ class Solver:
     """A solver kept between calls; see `inkwarp.Solver`."""
 
     def __init__(self) -> None: ...
+    def clear(self) -> None: ...
 
 def thin_plate_solve(
     points: npt.NDArray[np.float64],

@@ -55,8 +55,8 @@ fn locked(solver: &Mutex<Solver>) -> std::sync::MutexGuard<'_, Solver> {
 
 /// A solver kept between calls (`inkwarp.Solver`): its hierarchies, free functions and work
 /// vectors (of every piece of the last grids and constraints it solved) are reused by the
-/// next solve on the same grid and points; no answer is kept. The answer is the same as a
-/// fresh solver's.
+/// next solve on the same grid and points, which starts from its earlier answers where their
+/// displacements span the new ones (see the core's `Solver`).
 #[pyclass(name = "Solver", module = "inkwarp")]
 #[derive(Debug, Default)]
 pub struct PySolver {
@@ -68,6 +68,12 @@ impl PySolver {
     #[new]
     fn new() -> Self {
         Self::default()
+    }
+
+    /// Forgets the pieces' earlier answers (the next solve starts from its `initial` or
+    /// from scratch); the levels stay.
+    fn clear(&self) {
+        self.lock().clear();
     }
 
     fn __repr__(&self) -> String {

@@ -61,6 +61,8 @@ pub(crate) struct Hierarchy {
     pub whole: bool,
     /// Where the last solve stood if its cycle limit stopped it, for the next to go on.
     pub paused: Option<Box<super::Paused>>,
+    /// The earlier solves' answers, for starts.
+    pub answers: super::history::Answers,
 }
 
 /// Work vectors of one level (`f32`: see the `level` module).
@@ -113,7 +115,7 @@ impl Hierarchy {
         let bound = |(k, l): (usize, &mut Level)| l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
         levels.iter_mut().enumerate().skip(if smooth_fine && !whole { 0 } else { 1 }).for_each(bound);
         let coarsest = factor.unwrap_or_else(|| Banded::new(levels.last().unwrap()));
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, modes: None, probed: false, whole, paused: None }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, modes: None, probed: false, whole, paused: None, answers: Default::default() }
     }
 
     /// `z ≈ A⁻¹ r` on the finest level by one symmetric cycle from zero in `f32`, valid until the next call.

@@ -11,7 +11,9 @@ use std::{array::from_fn, borrow::Cow, collections::VecDeque};
 use crate::field::{Field, FieldView};
 use crate::grid::{Constraints, Grid};
 
-use super::{dense_solve, solve_constrained, SolveOptions, SolveReport, Solver};
+use rayon::prelude::*;
+
+use super::{dense_solve, level::V2, solve_constrained, SolveOptions, SolveReport, Solver, CHUNK};
 
 /// How many earlier frames a [`WarmHistory`] keeps.
 pub const HISTORY_FRAMES: usize = 3;
@@ -156,6 +158,7 @@ impl WarmHistory {
 pub(crate) fn solve_from(
     grid: &Grid, c: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
 ) -> (Field, SolveReport) {
+    solver.store.answers = !warm;
     if !warm { return solve_constrained(grid, c, options, initial, &mut solver.store); }
     let given = initial.map(|f| f.to_field());
     let start = solver.history.start(grid, c, given.as_deref());
@@ -163,3 +166,94 @@ pub(crate) fn solve_from(
     solver.history.record(grid, c, &field);
     (field, report)
 }
+
+/// The most floats a piece's [`Answers`] keep: 64 MB, ten fields of a 1.6-megapixel piece (none for a piece
+/// with more fixed nodes than it holds fields).
+const ANSWER_FLOATS: usize = 1 << 24;
+
+/// A start from [`Answers`] is taken where its estimated error is within the accuracy a converged solve
+/// promises (DESIGN §4: 0.05 px at the default tolerance of 0.01 px).
+const CONTRACT: f64 = 5.0;
+
+/// A kept piece's earlier answers (one hierarchy: the same grid, fixed nodes and tension), for the starts of
+/// its next solves. Each component of an answer is linear in its constraint values (one operator for both),
+/// so values in the span of earlier ones are answered, up to those answers' errors, by the same combination of
+/// their fields: once as many independent values as fixed nodes were solved (five solves of ten points), every
+/// solve of the piece starts there. Kept as an orthonormal basis of the values seen, with the matching fields
+/// and an estimate of each field's error per unit of value: the stopping rule's estimates of the answers'
+/// errors, carried through the combinations in quadrature (as independent errors).
+#[derive(Debug, Default)]
+pub(crate) struct Answers {
+    nodes: Vec<usize>,
+    basis: Vec<Vec<f64>>,
+    fields: Vec<Vec<f32>>,
+    error: Vec<f64>,
+}
+
+impl Answers {
+    /// The combination answering `value` (the constrained nodes and their values) where both components lie
+    /// in the span of the values seen and its estimated error is within [`CONTRACT`] times `tolerance` (px).
+    pub fn start(&self, value: &[(usize, V2)], tolerance: f64) -> Option<Vec<V2>> {
+        if self.basis.is_empty() || !value.iter().map(|v| v.0).eq(self.nodes.iter().copied()) { return None }
+        let mut coef = [Vec::new(), Vec::new()];
+        for (q, c) in coef.iter_mut().enumerate() {
+            let mut d: Vec<f64> = value.iter().map(|v| v.1[q]).collect();
+            let size = norm(&d);
+            *c = self.project(&mut d);
+            if norm(&d) > 1e-9 * size || self.spread(c) > CONTRACT * tolerance { return None }
+        }
+        let mut u = vec![[0.0; 2]; self.fields[0].len()];
+        u.par_chunks_mut(CHUNK).enumerate().for_each(|(k, u)| {
+            for (i, f) in self.fields.iter().enumerate() {
+                let (a, b) = (coef[0][i], coef[1][i]);
+                u.iter_mut().zip(&f[k * CHUNK..]).for_each(|(u, &f)| (u[0], u[1]) = (u[0] + a * f as f64, u[1] + b * f as f64));
+            }
+        });
+        Some(u)
+    }
+
+    /// Keeps the answer `u` to `value`, estimated within `error` px, where its values add to the span and there
+    /// is room. Nearly parallel values are kept too: their field's error, magnified by the little they add,
+    /// counts only in proportion to how much of a later value lies along it.
+    pub fn add(&mut self, value: &[(usize, V2)], u: &[V2], error: f64) {
+        if !value.iter().map(|v| v.0).eq(self.nodes.iter().copied()) {
+            *self = Answers { nodes: value.iter().map(|v| v.0).collect(), ..Answers::default() };
+        }
+        // None where the span could not fill (a field a fixed node).
+        for q in 0..2 {
+            if self.basis.len() >= value.len() || value.len() * u.len() > ANSWER_FLOATS { return }
+            let mut d: Vec<f64> = value.iter().map(|v| v.1[q]).collect();
+            let size = norm(&d);
+            let c = self.project(&mut d);
+            let rest = norm(&d);
+            if rest <= 1e-6 * size { continue }
+            let mut f: Vec<f64> = u.iter().map(|v| v[q]).collect();
+            // The field is kept in `f32`: its rounding is part of its error.
+            let rounding = f64::from(f32::EPSILON) * f.iter().fold(0.0, |m: f64, f| m.max(f.abs()));
+            for (c, g) in c.iter().zip(&self.fields) {
+                f.par_iter_mut().zip(g).for_each(|(f, &g)| *f -= c * g as f64);
+            }
+            self.error.push((error + rounding).hypot(self.spread(&c)) / rest);
+            self.basis.push(d.iter().map(|d| d / rest).collect());
+            self.fields.push(f.iter().map(|f| (f / rest) as f32).collect());
+        }
+    }
+
+    /// The estimated error of the fields' combination with coefficients `c`.
+    fn spread(&self, c: &[f64]) -> f64 { c.iter().zip(&self.error).map(|(c, e)| (c * e).powi(2)).sum::<f64>().sqrt() }
+
+    /// The coefficients of `d` on the basis, `d` left with what lies outside it (twice Gram–Schmidt).
+    fn project(&self, d: &mut [f64]) -> Vec<f64> {
+        let mut c = vec![0.0; self.basis.len()];
+        for _ in 0..2 {
+            for (c, b) in c.iter_mut().zip(&self.basis) {
+                let t: f64 = b.iter().zip(&*d).map(|(b, d)| b * d).sum();
+                d.iter_mut().zip(b).for_each(|(d, b)| *d -= t * b);
+                *c += t;
+            }
+        }
+        c
+    }
+}
+
+fn norm(d: &[f64]) -> f64 { d.iter().map(|d| d * d).sum::<f64>().sqrt() }

@@ -72,7 +72,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 13] = ["second", "recycle", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole", "probe", "exact_coarsest"];
+    pub const NAMES: [&'static str; 14] = ["second", "recycle", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole", "probe", "exact_coarsest", "answers"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -599,16 +599,22 @@ fn solve_piece(
     let resumed = hier.paused.take().filter(|p| {
         store.goes_on && options.method == SolveMethod::Multigrid && p.tolerance == options.tolerance_px && p.value == constraints
     });
+    // Values in the span of the piece's earlier ones start from their answers' combination (`Answers`), as it
+    // is, in place of `initial`: free functions and a gauge pin aside, which an answer does not fix, and a call
+    // that runs no cycle, whose answer is its start.
+    let linear = store.answers && options.method == SolveMethod::Multigrid && cold_gauge.is_none() && !hier.whole
+        && settled.map_or(true, |m| m.len() == 0) && options.max_cycles != Some(0) && !options.off.has("answers");
+    let spanned = resumed.is_none() && linear && hier.answers.start(value, options.tolerance_px).map(|s| { u = s; pin(&mut u) }).is_some();
     let mut r = match &resumed { Some(_) => Vec::new(), None => cycle::zeros_in(hier.spare.pop(), len) };
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves residuals
     // above the tolerance (a user's earlier answer), unless no cycle may run (the start is then
     // the answer). A closer start (the earlier frames' prediction) first gets one cycle as it
     // is, and the coarse-to-fine correction only when that cycle did not finish.
-    let (mut warm, cycles) = (initial.is_some(), options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES));
+    let (mut warm, cycles) = (initial.is_some() || spanned, options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES));
     let mut started = !warm;
     if let Some(p) = &resumed { started = p.started } else if warm {
         report.initial_residual = fine.residual_scaled_max(&u, &mut r);
-        started = !(report.initial_residual <= options.tolerance_px) && cycles > 0;
+        started = !spanned && !(report.initial_residual <= options.tolerance_px) && cycles > 0;
         if started {
             // A start worse than none (huge or unrelated values) is dropped for the cold start
             // (`docs/dev/solver-correctness.md`).
@@ -640,6 +646,7 @@ fn solve_piece(
     // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
     // slow mode that the first step barely moved hides behind a small change.
     let first_may_stop = !hier.torn || warm || direct;
+    let mut tail = f64::INFINITY; // the stopping rule's last estimate of the error: the changes' geometric tail
     let mut stop = |(change, rate): (f64, Option<f64>), cycle: usize, report: &mut SolveReport, (floor, settled): (f64, bool)| {
         (report.cycles, report.final_change_px) = (cycle - base, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. CG steps are not: ρ is the
@@ -649,8 +656,8 @@ fn solve_piece(
         ratios = [ratios[1], ratio];
         let two = if settled && ratios[0] > 0.0 && ratio < 1.0 { (ratios[0] * ratios[1]).sqrt() } else { ratios[0].max(ratios[1]) };
         let rho = if direct { 0.0 } else { floor.max(two) };
-        last_change = change;
-        (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change * (rho / (1.0 - rho)).max(1.0) <= options.tolerance_px
+        (last_change, tail) = (change, change * (rho / (1.0 - rho)));
+        (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change.max(tail) <= options.tolerance_px
     };
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
     // concept doc's Precision).
@@ -802,6 +809,8 @@ fn solve_piece(
     // is its probe counted: the next slow solve probes again.
     if found && !report.converged { (hier.modes, hier.probed) = (None, false) }
     if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
+    // (Not from a hierarchy's first solve: a solver used once, the free functions' own, would only pay for it.)
+    if linear && report.converged && !fresh && !options.off.has("cache") { hier.answers.add(value, &u, tail) }
     hier.direction = p;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
@@ -903,8 +912,9 @@ const KEPT_MAX_NODES: usize = 1 << 22;
 /// hierarchies and free functions of the pieces of its recent solves (they depend on the grid, the fixed nodes
 /// and the tension, never on the values, so an animation's frames share them; as many before them stay, for an
 /// undo), the slow modes a hierarchy's last slow solve found (the next solve starts corrected on them; none past
-/// 2.8 million nodes a piece: see `deflate`) and the warm-start history ([`WarmHistory`]). Nothing is kept
-/// between solves outside it: [`solve`] uses a temporary one.
+/// 2.8 million nodes a piece: see `deflate`), each piece's converged answers (a later solve whose values they
+/// span starts from their combination: see `history::Answers`) and the warm-start history ([`WarmHistory`]).
+/// Nothing is kept between solves outside it: [`solve`] uses a temporary one.
 ///
 /// ```
 /// use inkwarp_core::{solve::{Solver, SolveOptions}, Grid, Sample};
@@ -966,9 +976,12 @@ impl Solver {
     /// The earlier solves a warm solve starts from.
     pub fn history(&self) -> &WarmHistory { &self.history }
 
-    /// Forgets the history (the next warm solve starts cold). The hierarchies (with their slow
-    /// modes), free functions and work vectors stay.
-    pub fn clear(&mut self) { self.history.clear() }
+    /// Forgets the history and the pieces' earlier answers (the next solve starts cold). The
+    /// hierarchies (with their slow modes), free functions and work vectors stay.
+    pub fn clear(&mut self) {
+        self.history.clear();
+        self.store.hierarchies.0.iter_mut().for_each(|e| e.1.answers = Default::default());
+    }
 
     /// Drops the hierarchies, free functions and work vectors (the history and the count of
     /// hierarchies built stay): for a caller short of memory between the solves of a large grid.
@@ -995,6 +1008,9 @@ pub(crate) struct Store {
     /// solve starts from it (see `Paused`).
     written: Option<Field>,
     goes_on: bool,
+    /// Whether this solve starts from and keeps its pieces' answers (`history::Answers`): not an animation's
+    /// frame, which starts from the frames before it as closely, and sooner, for less.
+    answers: bool,
 }
 
 /// Entries by what they depend on, the least recently used first: what the latest solve that

@@ -670,7 +670,7 @@ fn a_frame_that_did_not_converge_is_no_start_for_the_next() {
             .map(|(rest, d)| Sample { rest, displacement: [s * d[0], s * d[1]] })
             .collect()
     };
-    let whole = Ablation::parse("whole").unwrap();
+    let whole = Ablation::parse("whole,answers").unwrap(); // (a scaled frame is in the earlier answers' span)
     let full = SolveOptions { off: whole, ..Default::default() };
     let capped = SolveOptions { max_cycles: Some(1), ..full.clone() };
     let mut solver = Solver::new();
@@ -1489,7 +1489,8 @@ fn a_kept_solver_reuses_its_hierarchy_and_gives_a_fresh_solvers_answer() {
     let mut rng = Rng(77);
     let samples = random_samples(&mut rng, 97, 97, 12);
     let other = random_samples(&mut rng, 97, 97, 9);
-    let options = SolveOptions::default();
+    // (The pieces' earlier answers off: they would give later solves a closer start.)
+    let options = SolveOptions { off: Ablation::parse("answers").unwrap(), ..Default::default() };
     let (fresh, _) = solve(&grid, &samples, &options, None).unwrap();
     let mut solver = Solver::new();
     for _ in 0..3 {
@@ -1517,7 +1518,8 @@ fn a_solver_keeps_every_piece_of_its_latest_solve_and_the_drawing_before() {
     // differently in each piece (pieces of the same shape would share their hierarchy).
     let corners = [(5.0, 5.0, 0.0), (20.0, 50.0, 0.0), (12.0, 30.0, 1.0), (25.0, 8.0, 0.0)];
     let frame = |k: f64, x0: f64| (0..3).flat_map(|p| corners.map(|(x, y, m)| s(x + 30.0 * p as f64 + x0, y + p as f64, m * k))).collect::<Vec<_>>();
-    let options = SolveOptions::default();
+    // (The pieces' earlier answers off: they would give later solves a closer start.)
+    let options = SolveOptions { off: Ablation::parse("answers").unwrap(), ..Default::default() };
     let mut solver = Solver::new();
     let kept = |solver: &Solver| [solver.store.hierarchies.0.len(), solver.store.free.0.len()];
     // The fixed nodes of the kept hierarchies (a key's drawing).
@@ -1568,7 +1570,8 @@ fn pieces_above_the_node_limit_are_kept_for_the_next_frame_and_replaced_by_a_new
     let piece = |x0: f64, y0: f64, k: f64| [s(x0 + 5.0, y0 + 5.0, 0.0), s(x0 + 90.0, 10.0, k), s(x0 + 20.0, 160.0, 0.0), s(x0 + 60.0, 80.0, -k)];
     let frame = |k: f64, x0: f64| [piece(x0, 0.0, k), piece(100.0 + x0 / 2.0, 3.0, 2.0 * k)].concat();
     let drawings = |solver: &Solver| solver.store.hierarchies.0.iter().map(|e| e.0.fixed.clone()).collect::<Vec<_>>();
-    let options = SolveOptions::default();
+    // (The pieces' earlier answers off: they would give later solves a closer start.)
+    let options = SolveOptions { off: Ablation::parse("answers").unwrap(), ..Default::default() };
     solver.solve(&grid, &frame(1.0, 0.0), &options, None).unwrap();
     let first = drawings(&solver);
     assert_eq!((first.len(), solver.store.built), (2, 2));
@@ -1904,4 +1907,43 @@ fn deflation_is_off_where_the_budget_leaves_no_room() {
     assert!(deflate::Deflation::new(1024 * 1024, false, true, false).on());
     assert!(!deflate::Deflation::new(3840 * 2160, false, true, false).on());
     assert!(!deflate::Deflation::new(1024 * 1024, true, true, false).on());
+}
+
+#[test]
+fn a_kept_piece_answers_values_in_the_span_of_its_earlier_ones() {
+    // Six fixed nodes: the values (two components each) of three solves after the first (whose
+    // answer a solver used once would keep for nothing) span every value, so every later solve
+    // starts from their answers' combination and stops after one cycle, within the
+    // tolerance of a tight solve (the same solver with the answers off takes several); values
+    // of other nodes, or a cleared solver, start cold.
+    let mut grid = Grid::new(97, 97);
+    grid.add_cut(&[[5.0, 60.3], [90.0, 40.7]]);
+    let mut rng = Rng(91);
+    let at = random_samples(&mut rng, 97, 97, 6);
+    let values = |rng: &mut Rng| -> Vec<Sample> {
+        at.iter().map(|s| Sample { rest: s.rest, displacement: [rng.next() * 20.0 - 10.0, rng.next() * 20.0 - 10.0] }).collect()
+    };
+    let options = SolveOptions::default();
+    let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(300), ..Default::default() };
+    let off = SolveOptions { off: Ablation::parse("answers").unwrap(), ..Default::default() };
+    let (mut solver, mut plain) = (Solver::new(), Solver::new());
+    for k in 0..8 {
+        let samples = values(&mut rng);
+        let (field, report) = solver.solve(&grid, &samples, &options, None).unwrap();
+        let (_, cold) = plain.solve(&grid, &samples, &off, None).unwrap();
+        assert!(report.converged && cold.converged && cold.cycles > 1, "{report:?}, {cold:?}");
+        if k < 4 {
+            assert!(report.cycles > 1, "{report:?}");
+            continue;
+        }
+        let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
+        let err = field.dx.iter().chain(&field.dy).zip(exact.dx.iter().chain(&exact.dy)).fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+        assert!(report.cycles == 1 && err < 0.01, "{report:?}, error {err}");
+    }
+    let other = random_samples(&mut rng, 97, 97, 6);
+    assert!(solver.solve(&grid, &other, &options, None).unwrap().1.cycles > 1);
+    let samples = values(&mut rng);
+    assert_eq!(solver.solve(&grid, &samples, &options, None).unwrap().1.cycles, 1);
+    solver.clear();
+    assert!(solver.solve(&grid, &samples, &options, None).unwrap().1.cycles > 1);
 }
