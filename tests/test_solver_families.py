@@ -538,6 +538,17 @@ def test_a_slow_solve_looks_for_hidden_modes_before_it_stops(scale, seed, off):
     check_against_oracle(problem, f"float cuts of seed {seed} at {scale}x", _off=off)
 
 
+def test_a_probes_cycles_are_reported_beside_the_cycles():
+    # Seed 38 at 2x probes one piece (24 cycles on A x = 0); the report counts them in
+    # `probe_cycles`, apart from `cycles` and from `max_cycles`, and none without the probe.
+    pts, disp, cuts = random_cuts(38, False, 2)
+    solve = functools.partial(inkwarp.thin_plate_report, pts, disp * 0.02, (128, 128), cuts=cuts)
+    (_, probed), (_, plain) = solve(), solve(_off="probe")
+    assert probed.converged and probed.probe_cycles == 24 and plain.probe_cycles == 0, (probed, plain)
+    _, capped = solve(max_cycles=probed.cycles)
+    assert capped.converged and (capped.cycles, capped.probe_cycles) == (probed.cycles, 24), capped
+
+
 @pytest.mark.parametrize("seed, integer", [(14, True), (26, False)])
 @pytest.mark.parametrize("off", ["", "whole"])
 def test_a_weakly_held_piece_with_a_hidden_mode_is_not_claimed_early(seed, integer, off):

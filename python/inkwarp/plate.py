@@ -43,9 +43,8 @@ other points or another grid (another size, mask or cuts) start the series over;
 first frame still starts from the previous field where that is closer than none. A frame
 that did not converge is no start: the next one starts cold (from its error the stopping
 rule could claim convergence it had not reached); a ``southwell`` frame, unconverged by
-design, stays a start. Its solver keeps each piece's answers as a ``Solver`` does: once the
-frames' displacements span the new ones, a frame starts from their combination instead.
-``clear()`` starts over by hand.
+design, stays a start. (Its solver does not keep the pieces' answers as a ``Solver`` does:
+the frames before predict the next as closely, sooner.) ``clear()`` starts over by hand.
 
 Examples
 --------
@@ -82,9 +81,12 @@ displacements, so once the kept answers' displacements span the new ones (with 1
 five calls with independent displacements after the first; one for a repeat or a uniform
 scaling), a call starts from the same combination of their answers, in place of
 ``initial``, where the error that combination carries (the earlier solves' own estimates)
-is within the accuracy a converged solve promises; it then takes a cycle or two. Not on
-pieces with free functions (hinges, strands) or all points on one line, nor with
-``max_cycles=0`` (the answer is then the start).
+is within the accuracy a converged solve promises; it then takes a cycle (two where holes
+or cuts tear the piece: the stopping rule needs a ratio of changes). A start refused for
+that error still teaches the solver: its answer replaces the field the error came from.
+Not on pieces with free functions (hinges, strands, a tension's tilt about one line of
+points) or a gauge pin, nor with ``method="southwell"`` or ``max_cycles=0`` (the answer is
+then the start).
 
 So answers through a ``Solver`` agree with calls without it within the tolerance, and bit
 for bit where no earlier call left slow modes or answers that span the new displacements.
@@ -152,6 +154,11 @@ class SolveReport:
         even where the cycles ran out too), ``"residual"`` (the stopping rule's claim left a
         residual above the tolerance), ``"breakdown"`` (a value not finite) or
         ``"interrupted"``. With several pieces, the first reason found.
+    probe_cycles : int
+        Cycles a slow solve of a piece with holes or cuts spent probing its operator for
+        slow modes (24, once, on a random start, from cycle 20 or before a weakly held
+        piece's first claim), beside ``cycles``: they are not counted there, nor against
+        ``max_cycles``. With several pieces, the sum over them.
     """
 
     cycles: int
@@ -164,6 +171,7 @@ class SolveReport:
     seconds: float
     converged: bool
     stop: str = "converged"
+    probe_cycles: int = 0
 
 
 def _size(value: Any) -> int:
@@ -469,7 +477,7 @@ def thin_plate(
         so later calls skip their setup (same answers). Not together with ``warm``.
     max_cycles : int, optional
         Cap on the number of cycles (default 300), all of them counted (``"southwell"``: on
-        its rounds). 0 runs none and returns the start; the report says converged only where
+        its rounds), but a slow solve's probe (``SolveReport.probe_cycles``). 0 runs none and returns the start; the report says converged only where
         no cycle is needed (a piece that translates, or that one affine map fits). Through a
         ``solver``, a multigrid solve the cap stopped goes on where it stopped when the next
         call gives its answer as ``initial`` with the same points, displacements and

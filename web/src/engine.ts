@@ -97,6 +97,7 @@ export interface SolveReport {
   constrained_samples?: number;
   dropped_samples?: number;
   converged?: boolean;
+  probe_cycles?: number; // a slow solve's probe for slow modes, beside `cycles`
   // The other methods:
   samples_used?: number;
   line_pairs_used?: number;

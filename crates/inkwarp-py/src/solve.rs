@@ -236,6 +236,7 @@ fn thin_plate_solve<'py>(
     d.set_item("seconds", report.seconds)?;
     d.set_item("converged", report.converged)?;
     d.set_item("stop", stop_name(report.stop))?;
+    d.set_item("probe_cycles", report.probe_cycles)?;
     Ok((array.into_any(), d))
 }
 

@@ -190,6 +190,7 @@ fn tps_report(report: &inkwarp_core::solve::SolveReport) -> serde_json::Value {
         "constrained_samples": report.constrained_samples,
         "dropped_samples": report.dropped_samples,
         "converged": report.converged,
+        "probe_cycles": report.probe_cycles,
         "notes": Vec::<String>::new(),
     })
 }
@@ -388,7 +389,7 @@ fn controls_of(
 /// The result is a report as JSON: `method`, `samples`, `notes` (full sentences worth
 /// showing, such as a matte that the method ignores) and, for `tps`, the solver's report
 /// (`cycles`, `final_change_px`, `residual`, `constrained_nodes`, `constrained_samples`,
-/// `dropped_samples`, `converged`); for the other methods `samples_used`,
+/// `dropped_samples`, `converged`, `probe_cycles`); for the other methods `samples_used`,
 /// `line_pairs_used`, `dropped` and `ignored_matte`. Status 0/1.
 #[no_mangle]
 pub extern "C" fn iw_solve(

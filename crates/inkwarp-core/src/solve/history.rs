@@ -175,6 +175,9 @@ const ANSWER_FLOATS: usize = 1 << 24;
 /// promises (DESIGN §4: 0.05 px at the default tolerance of 0.01 px).
 const CONTRACT: f64 = 5.0;
 
+/// Values with less than this share of their size outside the span lie in it.
+const INDEPENDENT: f64 = 1e-9;
+
 /// A kept piece's earlier answers (one hierarchy: the same grid, fixed nodes and tension), for the starts of
 /// its next solves. Each component of an answer is linear in its constraint values (one operator for both),
 /// so values in the span of earlier ones are answered, up to those answers' errors, by the same combination of
@@ -200,7 +203,7 @@ impl Answers {
             let mut d: Vec<f64> = value.iter().map(|v| v.1[q]).collect();
             let size = norm(&d);
             *c = self.project(&mut d);
-            if norm(&d) > 1e-9 * size || self.spread(c) > CONTRACT * tolerance { return None }
+            if norm(&d) > INDEPENDENT * size || self.spread(c) > CONTRACT * tolerance { return None }
         }
         let mut u = vec![[0.0; 2]; self.fields[0].len()];
         u.par_chunks_mut(CHUNK).enumerate().for_each(|(k, u)| {
@@ -212,30 +215,45 @@ impl Answers {
         Some(u)
     }
 
-    /// Keeps the answer `u` to `value`, estimated within `error` px, where its values add to the span and there
-    /// is room. Nearly parallel values are kept too: their field's error, magnified by the little they add,
-    /// counts only in proportion to how much of a later value lies along it.
-    pub fn add(&mut self, value: &[(usize, V2)], u: &[V2], error: f64) {
+    /// Keeps the answer `u` to `value`, estimated within `error` px, where its values add to the span (while
+    /// there is room). Nearly parallel values add a field whose error, magnified by the little they add, counts
+    /// only in proportion to how much of a later value lies along it. Where a later value in the span was
+    /// refused a start for that error, its answer takes the place of the field that error mostly came from,
+    /// if it makes it smaller (a nudge of one point would otherwise hold its place for good).
+    pub fn add(&mut self, value: &[(usize, V2)], u: &[V2], error: f64, tolerance: f64) {
         if !value.iter().map(|v| v.0).eq(self.nodes.iter().copied()) {
             *self = Answers { nodes: value.iter().map(|v| v.0).collect(), ..Answers::default() };
         }
         // None where the span could not fill (a field a fixed node).
+        if value.len() * u.len() > ANSWER_FLOATS { return }
         for q in 0..2 {
-            if self.basis.len() >= value.len() || value.len() * u.len() > ANSWER_FLOATS { return }
             let mut d: Vec<f64> = value.iter().map(|v| v.1[q]).collect();
             let size = norm(&d);
             let c = self.project(&mut d);
-            let rest = norm(&d);
-            if rest <= 1e-6 * size { continue }
+            let (rest, spread) = (norm(&d), self.spread(&c));
+            let spanned = rest <= INDEPENDENT * size;
+            if (spanned && spread <= CONTRACT * tolerance) || (!spanned && self.basis.len() >= value.len()) { continue }
+            // The field to take this answer's place (its value's own direction, or the one refused for).
+            let j = if spanned { (0..c.len()).max_by(|&a, &b| (c[a] * self.error[a]).abs().total_cmp(&(c[b] * self.error[b]).abs())) } else { None };
+            let scale = j.map_or(rest, |j| c[j].abs());
             let mut f: Vec<f64> = u.iter().map(|v| v[q]).collect();
             // The field is kept in `f32`: its rounding is part of its error.
             let rounding = f64::from(f32::EPSILON) * f.iter().fold(0.0, |m: f64, f| m.max(f.abs()));
-            for (c, g) in c.iter().zip(&self.fields) {
+            let others = j.map_or(spread, |j| (spread.powi(2) - (c[j] * self.error[j]).powi(2)).max(0.0).sqrt());
+            let unit = (error + rounding).hypot(others) / scale;
+            if scale <= 0.0 || j.is_some_and(|j| unit >= self.error[j]) { continue }
+            for (_, (c, g)) in c.iter().zip(&self.fields).enumerate().filter(|(i, _)| Some(*i) != j) {
                 f.par_iter_mut().zip(g).for_each(|(f, &g)| *f -= c * g as f64);
             }
-            self.error.push((error + rounding).hypot(self.spread(&c)) / rest);
-            self.basis.push(d.iter().map(|d| d / rest).collect());
-            self.fields.push(f.iter().map(|f| (f / rest) as f32).collect());
+            let field = f.iter().map(|f| (f / scale.copysign(j.map_or(1.0, |j| c[j]))) as f32).collect();
+            match j {
+                Some(j) => (self.fields[j], self.error[j]) = (field, unit),
+                None => {
+                    self.basis.push(d.iter().map(|d| d / rest).collect());
+                    self.fields.push(field);
+                    self.error.push(unit);
+                }
+            }
         }
     }
 

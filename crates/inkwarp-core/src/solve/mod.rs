@@ -120,6 +120,9 @@ pub struct SolveReport {
     /// Why the solve stopped ([`Stop::Converged`] exactly when `converged`; with several
     /// pieces, the first reason found).
     pub stop: Stop,
+    /// Cycles of a slow solve's probe for its operator's slow modes (on `A x = 0`, from a random start), run
+    /// beside `cycles` and not counted there nor against `max_cycles`; with several pieces, all of theirs.
+    pub probe_cycles: usize,
 }
 
 /// Why a solve stopped: the rule found the tolerance met; `max_cycles` cycles (Southwell: rounds)
@@ -141,7 +144,7 @@ impl SolveReport {
     /// Takes in a piece's report: the most cycles, the largest change and residuals, and its failure unless an
     /// earlier one stands.
     fn worst_of(&mut self, r: &SolveReport) {
-        self.cycles = self.cycles.max(r.cycles);
+        (self.cycles, self.probe_cycles) = (self.cycles.max(r.cycles), self.probe_cycles + r.probe_cycles);
         self.final_change_px = self.final_change_px.max(r.final_change_px);
         (self.residual, self.initial_residual) = (self.residual.max(r.residual), self.initial_residual.max(r.initial_residual));
         if !r.converged { self.fail(r.stop) }
@@ -357,7 +360,10 @@ pub(crate) fn solve_constrained(
         let kept_to = if gauge.is_some() { free.pinned.as_ref() } else { free.membrane.as_ref() };
         let again = (free.membrane.is_some() || tilt.is_some()).then(|| key.clone());
         let kept_key = keep.then(|| key.clone());
-        let (mut u, mut r) = solve_piece(key, &value, cold_gauge, initial.map(|f| (f, x0, y0)), options, store, kept_to);
+        // Its answer is linear in its values, and a start from earlier ones (`history::Answers`), where nothing
+        // but the cycles settles it: no free function (a one-line piece's tilt included), no gauge.
+        let spannable = free.count == Some(0) && tilt.is_none() && gauge.is_none();
+        let (mut u, mut r) = solve_piece(key, &value, cold_gauge, initial.map(|f| (f, x0, y0)), options, store, kept_to, spannable);
         if let Some(key) = again {
             let (piece_box, labels) = (boxes[l], &labels);
             // The free functions' settling, or else the open grid's tilt's.
@@ -432,10 +438,11 @@ fn settle_null_space(
         let (dx, dy) = dense.iter().map(|v| (v[0] as f32, v[1] as f32)).unzip();
         let field = Field { width: w, height: h, dx, dy };
         let rest = SolveOptions { max_cycles: Some(budget - report.cycles), ..options.clone() };
-        let (u2, r2) = solve_piece(key.clone(), value, None, Some((FieldView::from(&field), 0, 0)), &rest, store, membrane);
+        let (u2, r2) = solve_piece(key.clone(), value, None, Some((FieldView::from(&field), 0, 0)), &rest, store, membrane, false);
         // Every solve's cycles; the latest's change, residual and verdict; the rest (the start) the first's.
-        let SolveReport { cycles, final_change_px, residual, converged, stop, .. } = r2;
-        report = SolveReport { cycles: report.cycles + cycles, final_change_px, residual, converged, stop, ..report };
+        let SolveReport { cycles, final_change_px, residual, converged, stop, probe_cycles, .. } = r2;
+        let probe_cycles = report.probe_cycles + probe_cycles;
+        report = SolveReport { cycles: report.cycles + cycles, final_change_px, residual, converged, stop, probe_cycles, ..report };
         dense = u2.dense(w, h);
     }
     // Rounds run out: the last solve's reason (a tolerance below the field's resolution is
@@ -518,7 +525,7 @@ impl BoxValues {
 #[allow(clippy::too_many_arguments)]
 fn solve_piece(
     key: CacheKey, value: &[(usize, V2)], cold_gauge: Option<(usize, V2)>, initial: Option<(FieldView<'_>, usize, usize)>, options: &SolveOptions, store: &mut Store,
-    settled: Option<&nullspace::Membrane>,
+    settled: Option<&nullspace::Membrane>, spannable: bool,
 ) -> (BoxValues, SolveReport) {
     let (w, h, tau) = (key.w, key.h, f64::from_bits(key.tau_bits));
     let mut report = SolveReport::default();
@@ -600,10 +607,9 @@ fn solve_piece(
         store.goes_on && options.method == SolveMethod::Multigrid && p.tolerance == options.tolerance_px && p.value == constraints
     });
     // Values in the span of the piece's earlier ones start from their answers' combination (`Answers`), as it
-    // is, in place of `initial`: free functions and a gauge pin aside, which an answer does not fix, and a call
-    // that runs no cycle, whose answer is its start.
-    let linear = store.answers && options.method == SolveMethod::Multigrid && cold_gauge.is_none() && !hier.whole
-        && settled.map_or(true, |m| m.len() == 0) && options.max_cycles != Some(0) && !options.off.has("answers");
+    // is, in place of `initial`: not a call that runs no cycle, whose answer is its start.
+    let linear = spannable && store.answers && options.method == SolveMethod::Multigrid && !hier.whole
+        && options.max_cycles != Some(0) && !options.off.has("answers");
     let spanned = resumed.is_none() && linear && hier.answers.start(value, options.tolerance_px).map(|s| { u = s; pin(&mut u) }).is_some();
     let mut r = match &resumed { Some(_) => Vec::new(), None => cycle::zeros_in(hier.spare.pop(), len) };
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves residuals
@@ -645,7 +651,8 @@ fn solve_piece(
     let direct = hier.levels.len() == 1 && hier.dropped() <= settled.map_or(0, |m| m.len());
     // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
     // slow mode that the first step barely moved hides behind a small change.
-    let first_may_stop = !hier.torn || warm || direct;
+    // Nor does one from earlier answers (their errors are the slow modes those solves left).
+    let first_may_stop = !hier.torn || (warm && !spanned) || direct;
     let mut tail = f64::INFINITY; // the stopping rule's last estimate of the error: the changes' geometric tail
     let mut stop = |(change, rate): (f64, Option<f64>), cycle: usize, report: &mut SolveReport, (floor, settled): (f64, bool)| {
         (report.cycles, report.final_change_px) = (cycle - base, change);
@@ -695,7 +702,7 @@ fn solve_piece(
                     // A slow solve: its operator probed once for the slow modes its residual
                     // may not show, deflated from here on.
                     (hier.probed, found) = (true, true);
-                    if let Some(rest) = probe(&mut hier, settled.as_ref(), len) {
+                    if let Some(rest) = probe(&mut hier, settled.as_ref(), len, &mut report.probe_cycles) {
                         // Deflated here: what the probe left. Kept for the next solve of this
                         // operator: the slowest modes of that and of the vectors kept so far, as
                         // many as the deflation's budget leaves room for beside its own.
@@ -810,7 +817,7 @@ fn solve_piece(
     if found && !report.converged { (hier.modes, hier.probed) = (None, false) }
     if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
     // (Not from a hierarchy's first solve: a solver used once, the free functions' own, would only pay for it.)
-    if linear && report.converged && !fresh && !options.off.has("cache") { hier.answers.add(value, &u, tail) }
+    if linear && report.converged && !fresh && !options.off.has("cache") { hier.answers.add(value, &u, tail, options.tolerance_px) }
     hier.direction = p;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };
@@ -838,7 +845,7 @@ const PROBE_CYCLES: usize = 24;
 /// What the iteration on `A x = 0` leaves of a pseudo-random start, by component: the slow modes of a torn
 /// piece's operator. Unlike a solve's residual, the start holds every mode, and what the cycles leave of it is
 /// the error they miss (a weakly attached part's bending, however little of it a right-hand side shows).
-fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize) -> Option<Vec<Vec<f64>>> {
+fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize, ran: &mut usize) -> Option<Vec<Vec<f64>>> {
     let fine = &hier.levels[0];
     let mut seed = 0x9e37_79b9_7f4a_7c15u64;
     let mut next = move || {
@@ -855,6 +862,7 @@ fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize) -> Option<
     let mut rz = fresh_direction(hier, &r, &mut p, settled, None);
     for _ in 0..PROBE_CYCLES {
         if crate::interrupt::requested() { return None; }
+        *ran += 1;
         let along = if settled.is_some() { dot_z(&r, &p) } else { rz };
         let (change, alpha) = energy_step(hier, &mut u, &mut r, &p, &mut q, along);
         if !change.is_finite() { return None; }
