@@ -606,12 +606,15 @@ fn solve_piece(
     let resumed = hier.paused.take().filter(|p| {
         store.goes_on && options.method == SolveMethod::Multigrid && p.tolerance == options.tolerance_px && p.value == constraints
     });
+    let mut r = match &resumed { Some(_) => Vec::new(), None => cycle::zeros_in(hier.spare.pop(), len) };
     // Values in the span of the piece's earlier ones start from their answers' combination (`Answers`), as it
-    // is, in place of `initial`: not a call that runs no cycle, whose answer is its start.
+    // is, in place of `initial`: not one whose residuals meet the tolerance already (a converged piece solved
+    // again, as each capped call of a series solves every piece), nor a call that runs no cycle.
     let linear = spannable && store.answers && options.method == SolveMethod::Multigrid && !hier.whole
         && options.max_cycles != Some(0) && !options.off.has("answers");
-    let spanned = resumed.is_none() && linear && hier.answers.start(value, options.tolerance_px).map(|s| { u = s; pin(&mut u) }).is_some();
-    let mut r = match &resumed { Some(_) => Vec::new(), None => cycle::zeros_in(hier.spare.pop(), len) };
+    let given = (initial.is_some() && resumed.is_none()).then(|| fine.residual_scaled_max(&u, &mut r));
+    let spanned = resumed.is_none() && linear && !given.is_some_and(|g| g <= options.tolerance_px)
+        && hier.answers.start(value, options.tolerance_px).map(|s| { u = s; pin(&mut u) }).is_some();
     // A cold solve starts coarse to fine, and so does a warm one whose start leaves residuals
     // above the tolerance (a user's earlier answer), unless no cycle may run (the start is then
     // the answer). A closer start (the earlier frames' prediction) first gets one cycle as it
@@ -619,7 +622,7 @@ fn solve_piece(
     let (mut warm, cycles) = (initial.is_some() || spanned, options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES));
     let mut started = !warm;
     if let Some(p) = &resumed { started = p.started } else if warm {
-        report.initial_residual = fine.residual_scaled_max(&u, &mut r);
+        report.initial_residual = match given { Some(g) if !spanned => g, _ => fine.residual_scaled_max(&u, &mut r) };
         started = !spanned && !(report.initial_residual <= options.tolerance_px) && cycles > 0;
         if started {
             // A start worse than none (huge or unrelated values) is dropped for the cold start
