@@ -80,9 +80,10 @@ per point of the piece at most, and none past 64 MB a piece). The answer is line
 displacements, so once the kept answers' displacements span the new ones (with 10 points:
 five calls with independent displacements after the first; one for a repeat or a uniform
 scaling), a call starts from the same combination of their answers, in place of
-``initial``, where the error that combination carries (the earlier solves' own estimates)
-is within the accuracy a converged solve promises; it then takes a cycle (two where holes
-or cuts tear the piece: the stopping rule needs a ratio of changes). A start refused for
+``initial`` (unless that already meets the tolerance), where the error the combination
+carries (the earlier solves' own estimates) is within the accuracy a converged solve
+promises; it then takes a cycle (two where holes or cuts tear the piece: the stopping
+rule needs a ratio of changes). A start refused for
 that error still teaches the solver: its answer replaces the field the error came from.
 Not on pieces with free functions (hinges, strands, a tension's tilt about one line of
 points) or a gauge pin, nor with ``method="southwell"`` or ``max_cycles=0`` (the answer is
