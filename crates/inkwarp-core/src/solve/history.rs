@@ -184,10 +184,10 @@ const INDEPENDENT: f64 = 1e-9;
 /// their fields: once as many independent values as fixed nodes were solved (five solves of ten points), every
 /// solve of the piece starts there. Kept as an orthonormal basis of the values seen, with the matching fields
 /// and an estimate of each field's error per unit of value: the stopping rule's estimates of the answers'
-/// errors, carried through the combinations in quadrature (as independent errors).
+/// errors, carried through the combinations in quadrature (as independent errors). The hierarchy's key holds
+/// the fixed nodes, so every value it sees lists the same nodes in the same order.
 #[derive(Debug, Default)]
 pub(crate) struct Answers {
-    nodes: Vec<usize>,
     basis: Vec<Vec<f64>>,
     fields: Vec<Vec<f32>>,
     error: Vec<f64>,
@@ -197,7 +197,7 @@ impl Answers {
     /// The combination answering `value` (the constrained nodes and their values) where both components lie
     /// in the span of the values seen and its estimated error is within [`CONTRACT`] times `tolerance` (px).
     pub fn start(&self, value: &[(usize, V2)], tolerance: f64) -> Option<Vec<V2>> {
-        if self.basis.is_empty() || !value.iter().map(|v| v.0).eq(self.nodes.iter().copied()) { return None }
+        if self.basis.is_empty() { return None }
         let mut coef = [Vec::new(), Vec::new()];
         for (q, c) in coef.iter_mut().enumerate() {
             let mut d: Vec<f64> = value.iter().map(|v| v.1[q]).collect();
@@ -221,9 +221,6 @@ impl Answers {
     /// refused a start for that error, its answer takes the place of the field that error mostly came from,
     /// if it makes it smaller (a nudge of one point would otherwise hold its place for good).
     pub fn add(&mut self, value: &[(usize, V2)], u: &[V2], error: f64, tolerance: f64) {
-        if !value.iter().map(|v| v.0).eq(self.nodes.iter().copied()) {
-            *self = Answers { nodes: value.iter().map(|v| v.0).collect(), ..Answers::default() };
-        }
         // None where the span could not fill (a field a fixed node).
         if value.len() * u.len() > ANSWER_FLOATS { return }
         for q in 0..2 {
@@ -235,17 +232,18 @@ impl Answers {
             if (spanned && spread <= CONTRACT * tolerance) || (!spanned && self.basis.len() >= value.len()) { continue }
             // The field to take this answer's place (its value's own direction, or the one refused for).
             let j = if spanned { (0..c.len()).max_by(|&a, &b| (c[a] * self.error[a]).abs().total_cmp(&(c[b] * self.error[b]).abs())) } else { None };
-            let scale = j.map_or(rest, |j| c[j].abs());
+            // The field is the answer less the other fields' share, over its own coefficient.
+            let over = j.map_or(rest, |j| c[j]);
             let mut f: Vec<f64> = u.iter().map(|v| v[q]).collect();
             // The field is kept in `f32`: its rounding is part of its error.
             let rounding = f64::from(f32::EPSILON) * f.iter().fold(0.0, |m: f64, f| m.max(f.abs()));
             let others = j.map_or(spread, |j| (spread.powi(2) - (c[j] * self.error[j]).powi(2)).max(0.0).sqrt());
-            let unit = (error + rounding).hypot(others) / scale;
-            if scale <= 0.0 || j.is_some_and(|j| unit >= self.error[j]) { continue }
-            for (_, (c, g)) in c.iter().zip(&self.fields).enumerate().filter(|(i, _)| Some(*i) != j) {
-                f.par_iter_mut().zip(g).for_each(|(f, &g)| *f -= c * g as f64);
+            let unit = (error + rounding).hypot(others) / over.abs();
+            if over == 0.0 || j.is_some_and(|j| unit >= self.error[j]) { continue }
+            for (i, (c, g)) in c.iter().zip(&self.fields).enumerate() {
+                if Some(i) != j { f.par_iter_mut().zip(g).for_each(|(f, &g)| *f -= c * g as f64) }
             }
-            let field = f.iter().map(|f| (f / scale.copysign(j.map_or(1.0, |j| c[j]))) as f32).collect();
+            let field = f.iter().map(|f| (f / over) as f32).collect();
             match j {
                 Some(j) => (self.fields[j], self.error[j]) = (field, unit),
                 None => {
@@ -262,6 +260,7 @@ impl Answers {
 
     /// The coefficients of `d` on the basis, `d` left with what lies outside it (twice Gram–Schmidt).
     fn project(&self, d: &mut [f64]) -> Vec<f64> {
+        debug_assert!(self.basis.iter().all(|b| b.len() == d.len()), "one piece's values list the same nodes");
         let mut c = vec![0.0; self.basis.len()];
         for _ in 0..2 {
             for (c, b) in c.iter_mut().zip(&self.basis) {

@@ -819,8 +819,9 @@ fn solve_piece(
     // is its probe counted: the next slow solve probes again.
     if found && !report.converged { (hier.modes, hier.probed) = (None, false) }
     if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
-    // (Not from a hierarchy's first solve: a solver used once, the free functions' own, would only pay for it.)
-    if linear && report.converged && !fresh && !options.off.has("cache") { hier.answers.add(value, &u, tail, options.tolerance_px) }
+    // (Not from a hierarchy's first solve: a solver used once, the free functions' own or one that keeps no
+    // hierarchy, would only pay for it.)
+    if linear && report.converged && !fresh { hier.answers.add(value, &u, tail, options.tolerance_px) }
     hier.direction = p;
     let fine = &hier.levels[0];
     let out = BoxValues { values: u, stride: fine.wp, first: fine.pidx(0, 0) };

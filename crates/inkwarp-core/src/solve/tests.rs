@@ -182,6 +182,11 @@ fn torn_scattered_level(rnd: &mut dyn FnMut() -> f64, density: f64, tau: f64) ->
     fine_level(&grid, Some(fixed), tau)
 }
 
+/// New displacements (within ±10 px) at the points of `at`.
+fn new_values(at: &[Sample], rng: &mut Rng) -> Vec<Sample> {
+    at.iter().map(|s| Sample { rest: s.rest, displacement: [rng.next() * 20.0 - 10.0, rng.next() * 20.0 - 10.0] }).collect()
+}
+
 /// The next frame of an animation, as the bench's warm solves have it: every displacement
 /// changed by 2 % and 0.05 px.
 fn next_frame(samples: &[Sample]) -> Vec<Sample> {
@@ -1921,15 +1926,12 @@ fn a_kept_piece_answers_values_in_the_span_of_its_earlier_ones() {
     grid.add_cut(&[[5.0, 60.3], [90.0, 40.7]]);
     let mut rng = Rng(91);
     let at = random_samples(&mut rng, 97, 97, 6);
-    let values = |rng: &mut Rng| -> Vec<Sample> {
-        at.iter().map(|s| Sample { rest: s.rest, displacement: [rng.next() * 20.0 - 10.0, rng.next() * 20.0 - 10.0] }).collect()
-    };
     let options = SolveOptions::default();
     let tight = SolveOptions { tolerance_px: 1e-7, max_cycles: Some(300), ..Default::default() };
     let off = SolveOptions { off: Ablation::parse("answers").unwrap(), ..Default::default() };
     let (mut solver, mut plain) = (Solver::new(), Solver::new());
     for k in 0..8 {
-        let samples = values(&mut rng);
+        let samples = new_values(&at, &mut rng);
         let (field, report) = solver.solve(&grid, &samples, &options, None).unwrap();
         let (_, cold) = plain.solve(&grid, &samples, &off, None).unwrap();
         assert!(report.converged && cold.converged && cold.cycles > 2, "{report:?}, {cold:?}");
@@ -1938,10 +1940,10 @@ fn a_kept_piece_answers_values_in_the_span_of_its_earlier_ones() {
             continue;
         }
         let (exact, _) = solve(&grid, &samples, &tight, None).unwrap();
-        let err = field.dx.iter().chain(&field.dy).zip(exact.dx.iter().chain(&exact.dy)).fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+        let err = gap(&field, &exact);
         assert!(report.cycles == 2 && err < 0.01, "{report:?}, error {err}");
     }
-    let samples = values(&mut rng);
+    let samples = new_values(&at, &mut rng);
     let finer = SolveOptions { tolerance_px: 1e-4, ..Default::default() };
     assert!(solver.solve(&grid, &samples, &finer, None).unwrap().1.cycles > 2);
     let other = random_samples(&mut rng, 97, 97, 6);
@@ -1964,7 +1966,7 @@ fn a_nudge_does_not_hold_a_kept_pieces_answers_back() {
     nudged[0].displacement[0] += 0.05;
     let mut series = vec![first.clone(), first.clone(), nudged];
     for _ in 0..10 {
-        series.push(first.iter().map(|s| Sample { rest: s.rest, displacement: [rng.next() * 20.0 - 10.0, rng.next() * 20.0 - 10.0] }).collect());
+        series.push(new_values(&first, &mut rng));
     }
     let mut solver = Solver::new();
     let cycles: Vec<usize> = series.iter().map(|s| solver.solve(&grid, s, &SolveOptions::default(), None).unwrap().1.cycles).collect();
