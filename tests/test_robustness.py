@@ -321,3 +321,38 @@ def test_the_gif_writer_streams_frames_to_disk(tmp_path: Path) -> None:
                 colors=255, method=Image.Quantize.FASTOCTREE).convert("RGB")
             assert np.array_equal(np.asarray(gif.convert("RGB")), np.asarray(quantised))
     assert [p.name for p in tmp_path.iterdir()] == ["clip.gif"]
+
+
+FORKED = """
+import multiprocessing as mp, sys
+import numpy as np, inkwarp
+
+def job(kind):
+    pts, disp = [[5.0, 5.0], [50.0, 40.0], [30.0, 10.0]], [[1.0, 0.0], [0.0, 2.0], [-1.0, 1.0]]
+    if kind == "thin_plate":
+        return inkwarp.thin_plate(pts, disp, (64, 64)).tobytes()
+    if kind == "warp_image":
+        field = inkwarp.thin_plate(pts, disp, (64, 64))
+        return inkwarp.warp_image(np.full((64, 64, 4), 200, np.uint8), field).tobytes()
+    if kind == "scene":
+        return inkwarp.Scene.load(sys.argv[1]).render(time=0.5).tobytes()
+
+if __name__ == "__main__":
+    kinds = ["thin_plate", "warp_image", "scene"]
+    here = [job(k) for k in kinds]  # the engine runs in the parent first
+    with mp.get_context("fork").Pool(2) as pool:
+        there = pool.map_async(job, kinds).get(timeout=120)
+    assert here == there, [k for k, a, b in zip(kinds, here, there) if a != b]
+    print("forked: same")
+"""
+
+
+def test_the_engine_works_in_processes_forked_after_it_ran(tmp_path: Path) -> None:
+    # multiprocessing's default start method on Linux forks, and a fork copies the engine's
+    # thread pool without its threads: each process needs its own.
+    script = tmp_path / "forked.py"
+    script.write_text(FORKED)
+    scene = Path(__file__).resolve().parent.parent / "examples" / "cat" / "scene.json"
+    done = subprocess.run([sys.executable, str(script), str(scene)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "forked: same" in done.stdout

@@ -5,6 +5,7 @@
 
 use std::any::Any;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicPtr, Ordering};
 use std::sync::mpsc;
 use std::time::Duration;
 
@@ -60,8 +61,47 @@ pub fn internal_error(py: Python<'_>, payload: &(dyn Any + Send)) -> PyErr {
     build().unwrap_or_else(|e| e)
 }
 
+/// The engine's thread pool and the process it belongs to.
+struct Pool {
+    pid: u32,
+    pool: rayon::ThreadPool,
+}
+
+static POOL: AtomicPtr<Pool> = AtomicPtr::new(std::ptr::null_mut());
+
+/// The engine's thread pool, this process's own. A forked process inherits its parent's
+/// pool without the pool's threads (`fork` copies only the calling thread), so work handed
+/// to it would wait forever: a child forked after the engine ran (the default start method
+/// of `multiprocessing` on Linux) builds a pool of its own on its first call. The parent's
+/// is left as it is, never dropped: its locks may have been held by threads that do not
+/// exist in the child.
+#[allow(unsafe_code)] // pointers from `Box::into_raw`, stored once and never freed
+fn pool() -> Result<&'static rayon::ThreadPool, String> {
+    let pid = std::process::id();
+    let current = POOL.load(Ordering::Acquire);
+    // SAFETY: a pointer stored in POOL comes from `Box::into_raw` and is never freed.
+    if let Some(p) = unsafe { current.as_ref() }.filter(|p| p.pid == pid) {
+        return Ok(&p.pool);
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .thread_name(|i| format!("inkwarp-pool-{i}"))
+        .build()
+        .map_err(|e| e.to_string())?;
+    let fresh = Box::into_raw(Box::new(Pool { pid, pool }));
+    match POOL.compare_exchange(current, fresh, Ordering::AcqRel, Ordering::Acquire) {
+        // SAFETY: as above; `fresh` is stored now and never freed.
+        Ok(_) => Ok(unsafe { &(*fresh).pool }),
+        Err(other) => {
+            // Another thread of this process stored its pool first: use that one.
+            // SAFETY: `fresh` was never shared; `other` is a stored pointer.
+            drop(unsafe { Box::from_raw(fresh) });
+            Ok(unsafe { &(*other).pool })
+        }
+    }
+}
+
 /// Runs `work` on a worker thread with the GIL released, polling for signals every
-/// [`POLL`]. A signal whose handler raises (KeyboardInterrupt, the CLI's SIGTERM) asks the
+/// [`POLL`]. Its parallel work runs on [`pool`]. A signal whose handler raises (KeyboardInterrupt, the CLI's SIGTERM) asks the
 /// engine to stop, waits for it, and returns that exception; a panic becomes
 /// `InternalError`.
 pub fn run_engine<T, F>(py: Python<'_>, work: F) -> PyResult<T>
@@ -69,13 +109,14 @@ where
     T: Send,
     F: FnOnce() -> T + Send,
 {
+    let pool = pool().map_err(|e| pyo3::exceptions::PyOSError::new_err(format!("could not start the engine's threads ({e})")))?;
     std::thread::scope(|scope| {
         let (done_tx, done_rx) = mpsc::channel::<()>();
         let worker = std::thread::Builder::new()
             .name("inkwarp-engine".into())
             .stack_size(STACK_BYTES)
             .spawn_scoped(scope, move || {
-                let result = catch_unwind(AssertUnwindSafe(work));
+                let result = catch_unwind(AssertUnwindSafe(|| pool.install(work)));
                 let _ = done_tx.send(());
                 result
             });
