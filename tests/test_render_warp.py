@@ -159,6 +159,33 @@ def test_a_hole_in_the_matte_opens_where_the_field_pulls_it_apart():
     assert (whole[:, 3 : w - 3, 3] == 255).all()
 
 
+def test_cuts_tear_the_picture_where_the_field_pulls_their_sides_apart():
+    # A red top and a blue bottom, a horizontal cut between them, the sides pulled apart.
+    h, w = 80, 100
+    image = np.zeros((h, w, 4), np.uint8)
+    image[..., 3] = 255
+    image[:40, :, 0] = 255
+    image[40:, :, 2] = 255
+    points = [[50, 20], [50, 60], [0, 0], [99, 0], [0, 79], [99, 79]]
+    moves = [[0, -10], [0, 10], [0, 0], [0, 0], [0, 0], [0, 0]]
+    cuts = [[[20, 39.5], [80, 39.5]]]
+    field = inkwarp.thin_plate(points, moves, (h, w), cuts=cuts)
+    torn = inkwarp.warp_image(image, field, cuts=cuts)
+    # A gap opens along the cut's middle: clear pixels between red above and blue below.
+    column = torn[30:50, 50]
+    clear = np.flatnonzero(column[:, 3] == 0)
+    assert len(clear) >= 5
+    assert (column[: clear[0] - 1, :3] == (255, 0, 0)).all() and (column[clear[-1] + 2 :, :3] == (0, 0, 255)).all()
+    # Past the cut's ends the picture holds together, and without the cuts nothing tears.
+    assert (torn[30:50, 2:10, 3] == 255).all() and (torn[30:50, -10:-2, 3] == 255).all()
+    assert (inkwarp.warp_image(image, field)[30:50, 2:-2, 3] == 255).all()
+    # The cuts are checked as thin_plate checks them.
+    with pytest.raises(ValueError, match=r"wrap a single cut in a list"):
+        inkwarp.warp_image(image, field, cuts=np.array(cuts[0]))
+    with pytest.raises(ValueError, match=r"cuts\[0\] has a value that is not a finite number"):
+        inkwarp.warp_image(image, field, cuts=[[[0, 0], [np.nan, 1]]])
+
+
 def test_the_default_matte_is_the_alpha():
     image = np.full((6, 10, 4), 200, np.uint8)
     image[:, 5, 3] = 0  # a transparent column separates two pieces

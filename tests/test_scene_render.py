@@ -171,3 +171,14 @@ def test_a_closed_cut_frees_what_it_encloses(closed):
         assert np.abs(inside).max() == 0
     else:
         assert np.allclose(inside, [4, 0], atol=0.05)
+
+
+def test_save_writes_only_json_names(scene, tmp_path):
+    # A slip of the name must not replace a picture (the scene's own, here) with text.
+    picture = tmp_path / "back.png"
+    before = picture.read_bytes()
+    with pytest.raises(ValueError, match=r"back\.png: a scene is saved as JSON; name the file \.json, such as back\.json"):
+        scene.save(picture)
+    assert picture.read_bytes() == before
+    scene.save(tmp_path / "Copy.JSON")
+    assert inkwarp.Scene.load(tmp_path / "Copy.JSON").to_dict() == scene.to_dict()

@@ -77,10 +77,13 @@ def scene_problems(text: str, base_dir: str | None = None) -> list[tuple[str, st
 
 # --- render (forward mapping) ---
 def warp_image(
-    image: npt.NDArray[np.uint8], field: npt.NDArray[np.float32], matte: npt.NDArray[np.uint8]
+    image: npt.NDArray[np.uint8],
+    field: npt.NDArray[np.float32],
+    matte: npt.NDArray[np.uint8],
+    cuts: list[npt.NDArray[np.float64]],
 ) -> npt.NDArray[np.uint8]:
     """Forward-map C-contiguous uint8 RGBA (H, W, 4) by float32 (H, W, 2) over uint8 matte
-    (H, W); see `inkwarp.warp_image` for the checked, documented entry point."""
+    (H, W), its links crossed by the (K, 2) float64 cuts removed; see `inkwarp.warp_image` for the checked, documented entry point."""
 
 # --- methods (comparison interpolants, thin-plate map, transfer) ---
 from typing import Any

@@ -49,7 +49,7 @@ def _as_rgba(image: ArrayLike, name: str = "image") -> NDArray[np.uint8]:
 
 
 def warp_image(
-    image: ArrayLike, field: ArrayLike, matte: ArrayLike | None = None
+    image: ArrayLike, field: ArrayLike, matte: ArrayLike | None = None, cuts: Any = None
 ) -> NDArray[np.uint8]:
     """Warp an image by a displacement field, by forward mapping.
 
@@ -70,6 +70,10 @@ def warp_image(
         The continuity matte: nonzero pixels are connected to their nonzero 4-neighbours.
         Default: the image's alpha > 0. Pixels outside the matte that are visible are still
         drawn, each on its own.
+    cuts : list of array_like, each shape (K, 2), optional
+        Polylines in pixel coordinates, as :func:`inkwarp.thin_plate` takes them: two
+        pixels whose link a cut crosses are not connected, so the picture tears there
+        where the field pulls the sides apart. Pass the cuts the field was solved with.
 
     Returns
     -------
@@ -140,7 +144,9 @@ def warp_image(
             raise ValueError("matte must be finite, but holds NaN or infinity")
         connected = np.ascontiguousarray(m != 0, dtype=np.uint8)
 
-    return _inkwarp.warp_image(rgba, displacement, connected)
+    from inkwarp.plate import _cuts
+
+    return _inkwarp.warp_image(rgba, displacement, connected, _cuts(cuts))
 
 
 def read_image(path: PathLike) -> NDArray[np.uint8]:

@@ -231,6 +231,28 @@ def _points(name: str, value: Any) -> npt.NDArray[np.float64]:
     return np.ascontiguousarray(arr)
 
 
+def _cuts(cuts: Any) -> list[np.ndarray]:
+    """``cuts`` (None, or a list of (K, 2) polylines of at least two points) as a list of
+    contiguous float64 arrays; ``ValueError`` naming the cut otherwise."""
+    if cuts is None:
+        return []
+    try:
+        polylines = not isinstance(cuts, (str, bytes)) and iter(cuts) is not None
+    except TypeError:  # not iterable
+        polylines = False
+    if not polylines:
+        raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.")
+    if isinstance(cuts, np.ndarray) and cuts.ndim == 2:
+        raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")
+    cut_list = []
+    for k, cut in enumerate(cuts):
+        c = _points(f"cuts[{k}]", cut)
+        if len(c) < 2:
+            raise ValueError(f"cuts[{k}] has {len(c)} point(s); a cut needs at least two (x, y) points.")
+        cut_list.append(c)
+    return cut_list
+
+
 def _check_args(
     points: Any,
     displacements: Any,
@@ -278,21 +300,7 @@ def _check_args(
         if m.dtype.kind not in "biuf":
             raise ValueError(f"mask must hold numbers or booleans (nonzero = connected), got dtype {m.dtype}.")
         mask_u8 = np.ascontiguousarray(m != 0, dtype=np.uint8)
-    cut_list = []
-    if cuts is not None:
-        try:
-            polylines = not isinstance(cuts, (str, bytes)) and iter(cuts) is not None
-        except TypeError:  # not iterable
-            polylines = False
-        if not polylines:
-            raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.")
-        if isinstance(cuts, np.ndarray) and cuts.ndim == 2:
-            raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")
-        for k, cut in enumerate(cuts):
-            c = _points(f"cuts[{k}]", cut)
-            if len(c) < 2:
-                raise ValueError(f"cuts[{k}] has {len(c)} point(s); a cut needs at least two (x, y) points.")
-            cut_list.append(c)
+    cut_list = _cuts(cuts)
     for name, value in (("tension", tension), ("tolerance", tolerance)):
         if not _finite(value) or value < 0:
             raise ValueError(f"{name} must be a finite number >= 0, got {_shown(value)}.")

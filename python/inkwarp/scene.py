@@ -716,8 +716,15 @@ class Scene:
         return json.loads(self._core.doc_json())
 
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Writes the scene as JSON; relative image paths are rewritten for the new folder."""
+        """Writes the scene as JSON; relative image paths are rewritten for the new folder.
+
+        The file name must end in ``.json`` (``ValueError`` otherwise): a slip such as
+        ``save("cat.png")`` would replace the scene's own picture with text.
+        """
         target = Path(path)
+        if target.suffix.lower() != ".json":
+            raise ValueError(f"{target}: a scene is saved as JSON; name the file .json, such as "
+                             f"{target.with_suffix('.json').name}")
         data = self.to_dict()
         if self.base_dir is not None:
             for layer in data.get("layers", []):

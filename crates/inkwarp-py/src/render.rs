@@ -16,14 +16,16 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// checks and converts its arguments before calling this).
 ///
 /// `image`: uint8 (H, W, 4) straight RGBA; `field`: float32 (H, W, 2); `matte`: uint8
-/// (H, W), nonzero = connected. All C-contiguous. Returns uint8 (H, W, 4).
+/// (H, W), nonzero = connected; `cuts`: float64 (K, 2) polylines whose crossed links are
+/// removed. All C-contiguous. Returns uint8 (H, W, 4).
 #[pyfunction]
-#[pyo3(signature = (image, field, matte))]
+#[pyo3(signature = (image, field, matte, cuts))]
 fn warp_image<'py>(
     py: Python<'py>,
     image: PyReadonlyArray3<'py, u8>,
     field: PyReadonlyArray3<'py, f32>,
     matte: PyReadonlyArray2<'py, u8>,
+    cuts: Vec<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<Bound<'py, PyArray3<u8>>> {
     let shape = image.shape();
     let (h, w) = (shape[0], shape[1]);
@@ -49,10 +51,20 @@ fn warp_image<'py>(
     let pixels = image.as_slice().map_err(|_| contiguous("image"))?;
     let displacement = field.as_slice().map_err(|_| contiguous("field"))?;
     let matte = matte.as_slice().map_err(|_| contiguous("matte"))?;
+    let mut polylines = Vec::with_capacity(cuts.len());
+    for (k, cut) in cuts.iter().enumerate() {
+        let c = cut.as_array();
+        if c.ncols() != 2 {
+            return Err(PyValueError::new_err("every cut must be a (K, 2) array of (x, y) points."));
+        }
+        crate::limits::check_coordinates(&format!("cuts[{k}]"), c.iter())?;
+        polylines.push((0..c.nrows()).map(|k| [c[[k, 0]], c[[k, 1]]]).collect::<Vec<[f64; 2]>>());
+    }
     let out = crate::errors::run_engine(py, || {
         let image = RgbaImage::from_raw(w, h, pixels.to_vec())?;
         let field = Field::from_interleaved(w, h, displacement);
-        let grid = Grid::from_matte(w, h, matte);
+        let mut grid = Grid::from_matte(w, h, matte);
+        polylines.iter().for_each(|p| grid.add_cut(p));
         try_warp_image(&image, &field, &grid)
     })?;
     let out = out.map_err(|e| PyValueError::new_err(e.to_string()))?;
