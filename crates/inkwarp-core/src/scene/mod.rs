@@ -198,6 +198,11 @@ fn parse_value(value: &Value) -> Parsed {
     // features and layers with problems, top-level values replaced by their defaults) so
     // that the meaning check and the images can report their problems too.
     let had_layers = value.get("layers").and_then(Value::as_array).is_some_and(|a| !a.is_empty());
+    // The features' ids and the layers' names, for the uniqueness across items set aside below.
+    let names = |list: &str, key: &str| -> Vec<Option<&str>> {
+        value.get(list).and_then(Value::as_array).map_or(Vec::new(), |items| items.iter().map(|item| item.get(key).and_then(Value::as_str)).collect())
+    };
+    let (ids, layer_names) = (names("features", "id"), names("layers", "name"));
     let mut value = value.clone();
     let schema = cached_schema();
     strip_unknown_keys(&mut value, schema, schema);
@@ -263,6 +268,26 @@ fn parse_value(value: &Value) -> Parsed {
         let problems = validate::validate_doc_knowing(&doc, &set_aside_ids, had_layers);
         parsed.doc = Some(doc);
         parsed.extend(problems);
+    }
+    // Ids and names are unique across every item: the meaning check saw the kept ones only, so
+    // an item set aside for its problems and another with its id or name are told here.
+    for (values, (noun, key, list)) in [(ids, ("feature", "id", "features")), (layer_names, ("layer", "name", "layers"))] {
+        let origin = if list == "features" { &parsed.feature_origin } else { &parsed.layer_origin };
+        let mut first = std::collections::HashMap::new();
+        let mut found = Vec::new();
+        for (i, value) in values.iter().enumerate() {
+            let Some(value) = value.filter(|v| !v.trim().is_empty()) else { continue };
+            match first.get(value) {
+                Some(&j) if !(origin.contains(&i) && origin.contains(&j)) => {
+                    let why = format!("the {key} \"{value}\" is already used by {list}[{j}]; give each {noun} its own {key}");
+                    found.push(Problem::new(format!("{list}[{i}].{key}"), why));
+                }
+                Some(_) => {}
+                None => _ = first.insert(value, i),
+            }
+        }
+        found.retain(|f| !parsed.problems.iter().any(|p| p.path == f.path));
+        parsed.problems.extend(found);
     }
     parsed
 }

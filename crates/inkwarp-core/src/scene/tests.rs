@@ -1015,6 +1015,24 @@ fn places_in_messages_are_the_original_documents_past_a_layer_set_aside() {
 }
 
 #[test]
+fn an_id_or_name_shared_with_an_item_set_aside_is_reported_with_its_problems() {
+    // Both at once: the misspelt kind set the first feature aside, and its id was checked
+    // only after the kind was fixed.
+    let mut scene = valid_scene();
+    let mut features = scene["features"].as_array().unwrap().clone();
+    features.insert(0, json!({"id": "dot", "kind": "splin", "rest": [[1, 1], [5, 5]]}));
+    scene["features"] = json!(features);
+    let problems = problems_of(&scene);
+    assert!(problems.iter().any(|p| p.starts_with("features[0].kind: unknown kind \"splin\"")), "{problems:?}");
+    assert!(problems.iter().any(|p| p == "features[1].id: the id \"dot\" is already used by features[0]; give each feature its own id"), "{problems:?}");
+    // The same for a layer set aside and a later one with its name.
+    let mut scene = valid_scene();
+    scene["layers"] = json!([{"name": "b", "image": "back.png", "solver": {"grid_step": 0}}, {"name": "b", "image": "front.png"}]);
+    let problems = problems_of(&scene);
+    assert!(problems.iter().any(|p| p == "layers[1].name: the name \"b\" is already used by layers[0]; give each layer its own name"), "{problems:?}");
+}
+
+#[test]
 fn a_layers_own_feature_list_is_named_by_its_full_path() {
     // "also at features[2]" was the layer's list, and was renumbered as the scene's
     // features once a broken feature was set aside.
