@@ -226,6 +226,9 @@ def test_a_time_past_the_end_renders_with_a_warning(capsys, tmp_path):
     code, _, stderr = run(capsys, "field", scene, "-o", tmp_path / "x.npy", "--time", "99")
     assert code == 0 and "inkwarp field: warning: --time 99 is past the scene's end" in stderr, stderr
     assert (tmp_path / "x.npy").exists()
+    code, _, stderr = run(capsys, "compare", scene, "-o", tmp_path / "c.png", "--time", "99", "--methods", "tps")
+    assert code == 0 and "inkwarp compare: warning: --time 99 is past the scene's end" in stderr, stderr
+    assert (tmp_path / "c.png").exists()
 
 
 def test_field_errors(capsys, tmp_path):

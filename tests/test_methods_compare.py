@@ -256,6 +256,14 @@ def test_bad_settings_for_compare_are_scene_errors(tmp_path):
         inkwarp.compare(path, 1.0, "beier-neely", a=float("nan"))
 
 
+@pytest.mark.parametrize("scene", [None, 5, {"inkwarp": 1}])
+def test_a_scene_that_is_neither_a_scene_nor_a_path_is_a_value_error(tmp_path, scene):
+    with pytest.raises(ValueError, match=r"the scene must be an inkwarp\.Scene or the path of a scene file; got"):
+        inkwarp.compare(scene, 1.0)
+    with pytest.raises(ValueError, match=r"the output must be a path .*; got NoneType"):
+        inkwarp.render(checkerboard_scene(tmp_path, hole=True), None)
+
+
 def test_the_schema_has_the_method_settings():
     solver = inkwarp.scene_schema()["$defs"]["SolverDoc"]["properties"]
     assert solver["beier_neely"]["default"] == {"a": 1.0, "b": 2.0, "p": 0.0}

@@ -398,3 +398,16 @@ def test_new_refuses_to_replace_an_existing_scene_unless_forced(capsys, tmp_path
     monkeypatch.chdir(tmp_path)
     code, _, err = run(capsys, "new", "character.psd", "-o", "character.json")
     assert code == 2 and "character-square.png" in err and "already exist;" in err and str(tmp_path) not in err, err
+
+
+@pytest.mark.parametrize("option,value,message", [
+    ("--fps", "inf", "--fps inf: give a number of frames per second > 0"),
+    ("--fps", "5000", "--fps 5000: frames per second may be at most 1000"),
+    ("--duration", "inf", "--duration inf: give a length in seconds > 0"),
+    ("--duration", "1e9", "--duration 1e+09: the duration may be at most"),
+])
+def test_new_names_the_option_past_a_scenes_limits(capsys, tmp_path, option, value, message):
+    psd = write_psd(tmp_path / "character.psd")
+    code, _, err = run(capsys, "new", psd, "-o", tmp_path / "c.json", option, value)
+    assert code == 2 and message in err, err
+    assert files(tmp_path) == ["character.psd"]

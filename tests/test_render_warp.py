@@ -218,6 +218,8 @@ def test_the_default_matte_is_the_alpha():
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.ones((3, 4)), r"\(4, 4\)"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.array([["a"] * 4] * 4), "matte"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.full((4, 4), np.nan), "finite"),
+        (None, None, None, r"image must be an \(H, W, 3\) or \(H, W, 4\) uint8 array \(RGB or RGBA\), got None"),
+        ("cat.png", None, None, r"got the path 'cat.png'; read the picture first, with inkwarp.imaging.read_image"),
     ],
 )
 def test_bad_arguments_raise_value_error(image, field, matte, message):

@@ -130,6 +130,8 @@ def compare(
 
     if isinstance(scene, (str, os.PathLike)):
         scene = Scene.load(scene)
+    elif not isinstance(scene, Scene):
+        raise ValueError(f"the scene must be an inkwarp.Scene or the path of a scene file; got {type(scene).__name__}")
     chosen = _methods(methods)
     index = _compared_layer(scene, layer)
     settings = _settings(scene, a=a, b=b, p=p, max_samples=max_samples)

@@ -21,7 +21,13 @@ PathLike = Union[str, "os.PathLike[str]"]
 
 
 def _as_rgba(image: ArrayLike, name: str = "image") -> NDArray[np.uint8]:
+    if isinstance(image, (str, bytes, os.PathLike)):
+        raise ValueError(f"{name} must be an (H, W, 3) or (H, W, 4) uint8 array, got the path {image!r}; "
+                         "read the picture first, with inkwarp.imaging.read_image(path)")
     array = np.asarray(image)
+    if array.dtype.kind not in "biuf":
+        raise ValueError(f"{name} must be an (H, W, 3) or (H, W, 4) uint8 array (RGB or RGBA), got "
+                         f"{'None' if image is None else type(image).__name__ + ' of dtype ' + str(array.dtype)}")
     if array.dtype != np.uint8:
         # The fix for the values it holds: 16-bit levels, levels 0-255 already (integers, or
         # floats well past 1), or a float image in [0, 1] (a little past 1 after a filter).

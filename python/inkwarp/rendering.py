@@ -241,6 +241,9 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     from inkwarp import outputs, video
     from inkwarp.cli import _common
 
+    if not isinstance(output, (str, os.PathLike)):
+        raise ValueError(f"the output must be a path (a video file, a folder of PNGs or a sprite sheet); "
+                         f"got {type(output).__name__}")
     if not hasattr(scene, "frames"):
         if not isinstance(scene, (str, os.PathLike)):
             raise ValueError(f"the scene must be an inkwarp.Scene or the path of a scene file; "

@@ -220,13 +220,13 @@ def read_frame(path: str | os.PathLike[str], frame: int = 0) -> np.ndarray:
         The video cannot be decoded, or has no such frame (the message says how many it has).
     """
     if frame < 0:
-        raise ValueError(f"--frame {frame}: frames are numbered from 0")
+        raise ValueError(f"frame {frame}: frames are numbered from 0")
     name, _, width, height, promised = _probe(path)
     size = width * height * 3
     raw = _decode(name, "rgb24", frames=frame + 1, promised=promised, size=size)
     if len(raw) < size * (frame + 1):
         count = len(_decode(name, "gray", promised=promised, size=width * height)) // (width * height)
-        raise ValueError(f"--frame {frame}: {name} has frames 0 to {count - 1}; give a frame "
+        raise ValueError(f"frame {frame}: {name} has frames 0 to {count - 1}; give a frame "
                          f"number below {count}")
     start = size * frame
     return np.frombuffer(raw, np.uint8)[start:start + size].reshape(height, width, 3).copy()
@@ -632,10 +632,12 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             f"{clip.width}x{clip.height}; trace the drawing on a frame of this video "
             f"(inkwarp frame {clip.path} -o frame.png) in a scene of its size")
     if not 0 <= frame < count:
-        raise ValueError(f"--frame {frame}: {clip.path} has frames 0 to {count - 1}; give a frame "
+        raise ValueError(f"frame {frame}: {clip.path} has frames 0 to {count - 1}; give a frame "
                          f"number below {count}")
     if simplify_px is not None and not (math.isfinite(simplify_px) and simplify_px >= 0):
-        raise ValueError(f"--simplify {simplify_px}: give a distance in pixels, 0 or more")
+        raise ValueError(f"simplify_px {simplify_px}: give a distance in pixels, 0 or more")
+    if not (math.isfinite(lost_px) and lost_px > 0):
+        raise ValueError(f"lost_px {lost_px}: give a distance in pixels above 0")
     # A cut moves nothing (it tears the picture along its rest line): it is not tracked, and
     # keeps no keys.
     tracked = [(i, f) for i, f in enumerate(_features(doc, clip.fps, count, frame, where)) if f.kind != "cut"]

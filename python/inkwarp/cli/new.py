@@ -4,6 +4,7 @@ optional SVG drawing traced over it."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 from inkwarp.cli import _common
@@ -52,13 +53,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from inkwarp.importing import write_new_scene
 
-    if not args.fps > 0:
+    from inkwarp.errors import SceneError
+
+    if not (math.isfinite(args.fps) and args.fps > 0):
         raise ValueError(f"--fps {args.fps}: give a number of frames per second > 0, such as 24")
-    if not args.duration > 0:
+    if not (math.isfinite(args.duration) and args.duration > 0):
         raise ValueError(f"--duration {args.duration}: give a length in seconds > 0, such as 2")
-    paths, notes = write_new_scene(args.picture, args.output, drawing=args.drawing,
-                                   embed=args.embed, fps=args.fps, duration=args.duration,
-                                   force=args.force)
+    try:
+        paths, notes = write_new_scene(args.picture, args.output, drawing=args.drawing,
+                                       embed=args.embed, fps=args.fps, duration=args.duration,
+                                       force=args.force)
+    except SceneError as err:
+        # The scene's limits on what the options set (1000 frames per second, ...) are the options'.
+        if err.path in ("fps", "duration"):
+            raise ValueError(f"--{err.path} {getattr(args, err.path):g}: {str(err).split(': ', 1)[-1]}") from None
+        raise
     if not args.quiet:
         for note in notes:
             print(f"inkwarp new: note: {note}", file=sys.stderr)

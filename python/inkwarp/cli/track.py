@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import warnings
 from pathlib import Path
@@ -56,8 +57,10 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.suffix.lower() != ".json":
         raise ValueError(f"the output {out} must be a .json scene file.")
-    if args.lost <= 0:
+    if not (math.isfinite(args.lost) and args.lost > 0):
         raise ValueError(f"--lost {args.lost}: give a distance in pixels above 0")
+    if args.simplify is not None and not (math.isfinite(args.simplify) and args.simplify >= 0):
+        raise ValueError(f"--simplify {args.simplify}: give a distance in pixels, 0 or more")
     check_output(out, source=args.scene)
     clip = read_video(args.video)
 
