@@ -138,6 +138,25 @@ def test_missing_image_is_reported_with_its_json_path(editor: Path, scene: Path)
         server.server_close()
 
 
+def test_a_damaged_picture_is_named_by_its_file_not_its_data_uri(editor: Path, scene: Path, monkeypatch, capsys) -> None:
+    # Cut short while the server runs: the page is told the file; at start, exit 2.
+    picture = scene.parent / "art" / "dot.png"
+    server = serve(scene, editor)
+    try:
+        data = picture.read_bytes()
+        picture.write_bytes(data[: len(data) // 2])
+        status, _, body = fetch(api_url(server))
+        assert status == 422, body
+        assert b"layers[0].image: cannot use 'art/dot.png': the picture could not be decoded" in body, body
+        assert b"data:" not in body
+    finally:
+        server.shutdown()
+        server.server_close()
+    monkeypatch.setenv("INKWARP_EDITOR_DIR", str(editor))
+    assert main(["edit", "--no-browser", str(scene)]) == 2
+    assert "cannot use 'art/dot.png': the picture could not be decoded" in capsys.readouterr().err
+
+
 def test_a_scene_with_a_key_given_twice_is_not_opened(editor: Path, scene: Path) -> None:
     # Opened, its first save would have dropped one of the two values without a word.
     text = scene.read_text()

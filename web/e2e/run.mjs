@@ -1364,6 +1364,89 @@ test('work kept over a server restart takes the picture retouched on disk since,
   }
 });
 
+test("work restored in a tab whose link an earlier run gave stays its file's, and saves back from the new run's page", async () => {
+  const scenePath = checkerScene('restarted.json');
+  let own = await startServer([scenePath]);
+  const [port, stale] = [new URL(own.url).port, own.url];
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  try {
+    await tracePoint(p, [40, 40]);
+    await idle(p);
+    await flush(p);
+    own.proc.kill();
+    await new Promise((r) => own.proc.on('exit', r));
+    own = await startServer([scenePath, '--port', port]);
+    // The tab reloaded on its old link (the earlier run's token: the file does not open), the
+    // work restored there: a save cannot reach the file, but the kept copy still names it.
+    await p.goto(stale);
+    await p.waitForSelector('#restore', { timeout: 20000 });
+    await restoreYes(p);
+    await flush(p);
+    // The new run's link: offered as the file's own, restored into it, saved to it.
+    await p.goto(own.url);
+    await p.waitForSelector('#restore', { timeout: 20000 });
+    const question = await p.textContent('#restore span');
+    assert(/^Restore the scene you were editing at \d\d:\d\d\?$/.test(question), `offered as the file's own: ${question}`);
+    await restoreYes(p);
+    await p.keyboard.press('Control+s');
+    await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''), null, { timeout: 10000 });
+    assert(JSON.parse(readFileSync(scenePath, 'utf8')).features.length === 1, 'the work went back to its file');
+    assert(errs.filter((e) => !/403|Forbidden/.test(e)).length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
+test('Discard forgets the kept work: the next reload offers nothing', async () => {
+  const { page: p, context, errors: errs } = await openEditor(browser, server.url);
+  try {
+    await tracePoint(p, [100, 300]);
+    await flush(p);
+    await p.reload();
+    await p.waitForSelector('#restore');
+    await p.click('#restore-no');
+    // The answer settled (no write of this tab's copy asked for: nothing changed since).
+    await p.waitForFunction(() => window.inkwarp.autosave, null, { timeout: 10000 });
+    await p.waitForTimeout(1000);
+    await p.reload();
+    await p.waitForSelector('body[data-ready]');
+    // Settled with no offer, or offering.
+    await p.waitForFunction(() => window.inkwarp.autosave || document.querySelector('#restore'), null, { timeout: 10000 });
+    assert((await p.$('#restore')) === null, 'no offer after Discard');
+    assert(!(await p.evaluate(() => window.inkwarp.store.unsaved)), 'a fresh, saved scene');
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+  }
+});
+
+test('Backspace or Delete while drawing takes back the last click, never a finished feature', async () => {
+  const { page: p, context, errors: errs } = await openEditor(browser, server.url);
+  try {
+    const count = () => p.evaluate(() => window.inkwarp.store.doc.features.length);
+    await p.keyboard.press('r');
+    const before = await count();
+    await p.keyboard.press('l');
+    await click(p, [60, 60]);
+    await click(p, [120, 80]);
+    await p.keyboard.press('Enter');
+    assert((await count()) === before + 1, 'the first line is drawn (and selected)');
+    await p.keyboard.press('l');
+    await click(p, [60, 160]);
+    await click(p, [120, 180]);
+    for (const key of ['Backspace', 'Delete']) {
+      const draft = await p.evaluate(() => window.inkwarp.store.view.draft.length);
+      await p.keyboard.press(key);
+      assert((await p.evaluate(() => window.inkwarp.store.view.draft.length)) === draft - 1, `${key} took back a click`);
+      assert((await count()) === before + 1, `${key} deleted no feature`);
+    }
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+  }
+});
+
 test('Save writes each scene to its own file: undo past opening, two tabs, a file changed on disk, a server gone', async () => {
   const scenePath = checkerScene('mine.json');
   const own = await startServer([scenePath]);

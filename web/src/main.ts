@@ -2,7 +2,7 @@
 // solving), builds the page, and opens the scene named in the URL or the built-in example.
 
 import { App } from './app';
-import { Autosaver, IndexedDbStore, MemoryStore, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureMarks, restorePictures, restoreQuestion } from './autosave';
+import { Autosaver, IndexedDbStore, MemoryStore, type Snapshot, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureMarks, restorePictures, restoreQuestion } from './autosave';
 import { Engine } from './engine';
 import { builtinScene } from './examples';
 import * as examples from './examples';
@@ -10,7 +10,7 @@ import * as images from './images';
 import * as scene from './scene';
 import { FullClient, SolverClient } from './solver';
 import * as state from './state';
-import { Store } from './state';
+import { type Origin, Store } from './state';
 import type { SceneDoc } from './scene';
 import { Ui } from './ui';
 import wasmUrl from './generated/inkwarp.wasm?url';
@@ -129,7 +129,15 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
   // The served file's pictures as this page opened them: a later restore of this work can
   // tell a picture retouched on disk from one the work changed.
   let pictures = openedDoc ? pictureMarks(openedDoc) : undefined;
-  const snapshot = () => ({ doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: store.origin.saveUrl ? store.origin.path : null, version: store.origin.saveUrl ? store.origin.version : null, pictures: store.origin.saveUrl ? pictures : undefined });
+  // A file's work restored where it cannot be saved into that file (a page whose link is from
+  // an earlier run of `inkwarp edit`, another scene's page): its kept copy still names that
+  // file, so that the page the file opens next offers it as its own and saves it back.
+  let carried: { origin: Origin; source: string; version: string | null; pictures?: Snapshot['pictures'] } | null = null;
+  const snapshot = () => {
+    const file = store.origin.saveUrl ? { source: store.origin.path, version: store.origin.version, pictures }
+      : carried?.origin === store.origin ? carried : { source: null, version: null, pictures: undefined };
+    return { doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: file.source, version: file.version, pictures: file.pictures };
+  };
   const failed = (err: Error) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error');
   const saver = new Autosaver(kept, snapshot, fetchDataUri, 800, failed);
   // Unsaved work is offered back whatever the page opened: it is the file's own (the same
@@ -193,6 +201,7 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
         [doc, taken] = [previous.doc, []];
         await ui.openScene(doc, previous.fileName, true, back);
       }
+      if (!store.origin.saveUrl && previous.source) carried = { origin: store.origin, source: previous.source, version: previous.version ?? null, pictures: previous.pictures };
       // Back where the editor was: pose mode stays pose mode, at the same time.
       if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
       const meanwhile = aside ? '; Ctrl+Z brings back what you drew while the question waited' : '';
@@ -205,6 +214,9 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
     }
   }
   if (claimed && settled) await kept.drop(claimed).catch(() => {});
+  // This tab's own copy, declined, is forgotten too: Discard starts afresh, and the next
+  // reload offers nothing (edits made since are kept again below).
+  if (previous?.unsaved && !restore && !claimed) await kept.clear().catch(() => {});
   release?.();
   let revision = store.revision;
   let unsaved = store.unsaved;

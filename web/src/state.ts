@@ -465,6 +465,15 @@ export interface Origin {
   version: string | null;
 }
 
+/** Whether two documents hold the same values (edits share unchanged parts, so this walks only what differs). */
+function same(a: unknown, b: unknown): boolean {
+  if (a === b) return true;
+  if (typeof a !== 'object' || typeof b !== 'object' || a === null || b === null || Array.isArray(a) !== Array.isArray(b)) return false;
+  const [x, y] = [a as Record<string, unknown>, b as Record<string, unknown>];
+  const keys = Object.keys(x);
+  return keys.length === Object.keys(y).length && keys.every((k) => Object.prototype.hasOwnProperty.call(y, k) && same(x[k], y[k]));
+}
+
 /** A new origin: a scene Save downloads as `fileName`. */
 export function downloadOrigin(fileName = 'scene.json'): Origin {
   return { fileName, saveUrl: null, path: null, version: null };
@@ -515,9 +524,13 @@ export class Store {
     for (const l of this.listeners) l(this, docChanged);
   }
 
-  /** Replaces the document with a new one (undoable unless inside a transaction). */
+  /**
+   * Replaces the document with a new one (undoable unless inside a transaction). One equal to
+   * it (a key time typed again, a key pasted over itself) changes nothing: no undo step, not
+   * marked unsaved.
+   */
   apply(next: SceneDoc): void {
-    if (next === this.doc) return;
+    if (next === this.doc || (this.txBase === null && same(next, this.doc))) return;
     if (this.txBase === null) this.pushUndo(this.doc);
     this.doc = next;
     this.revision = ++this.lastRevision;

@@ -80,7 +80,7 @@ export const SHORTCUTS: [string, string][] = [
   ['Drag', 'Move a control point, or a whole feature by its line'],
   ['Drag on empty stage (Shift: add)', 'Marquee: pick the control points inside; drag one to move them all'],
   ['Shift-click a point', 'Add a control point to the picked ones, or take it out'],
-  ['Delete / Backspace', 'Delete the selected point (rest mode) or feature'],
+  ['Delete / Backspace', 'Delete the selected point (rest mode) or feature; while drawing, the last click'],
   ['K / Shift+K', 'Add / delete the selected feature’s key at this time'],
   ['Space', 'Play / pause (hold and drag: pan)'],
   ['Wheel', 'Zoom about the pointer'],
@@ -1459,6 +1459,8 @@ export class Ui {
       case 'Delete': case 'Backspace':
         handled();
         if (this.store.inGesture) return this.message('Deleting waits for the drag to end.', 'info');
+        // While drawing, the last click goes (as Ctrl+Z takes it), never a finished feature.
+        if (this.store.view.draft.length) return this.store.setView({ draft: this.store.view.draft.slice(0, -1) });
         try {
           this.store.deleteSelection();
         } catch (err) {

@@ -194,6 +194,22 @@ describe('undo', () => {
     expect(s.canRedo()).toBe(false);
   });
 
+  it('an edit that changes nothing is no step and leaves the scene saved', () => {
+    // A key time typed again, a key pasted over itself: a new document with the same values.
+    const s = new Store(scene());
+    s.setView({ tool: 'point' });
+    s.placePoint([1, 1]);
+    s.markSaved();
+    const [steps, revision] = [s.canUndo(), s.revision];
+    s.edit((d) => JSON.parse(JSON.stringify(d)));
+    expect([s.unsaved, s.revision, s.canUndo()]).toEqual([false, revision, steps]);
+    s.undo();
+    expect(s.doc.features).toHaveLength(0);
+    s.redo();
+    s.edit((d) => ({ ...d, features: d.features.map((f) => ({ ...f, rest: [[2, 1]] as Pt[] })) }));
+    expect([s.unsaved, s.doc.features[0].rest]).toEqual([true, [[2, 1]]]);
+  });
+
   it('a new edit clears redo; cancel restores the gesture start', () => {
     const s = new Store(scene());
     s.setView({ tool: 'point' });

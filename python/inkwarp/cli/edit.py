@@ -69,6 +69,24 @@ def _inside(path: Path, folder: Path) -> bool:
     return True
 
 
+def _check_decodes(data: bytes, where: str) -> None:
+    """Refuse a picture that does not decode (cut short, damaged), naming its file at
+    ``where``: inlined as it is, the editor could name only its data: URI."""
+    import io
+    import warnings
+
+    from PIL import Image
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # a large picture is the scene's limits' matter
+            with Image.open(io.BytesIO(data)) as picture:
+                picture.load()
+    except Exception as err:  # PIL raises OSError, SyntaxError, ValueError, ... for bad bytes
+        raise ValueError(f"{where}: the picture could not be decoded ({err}): the file is damaged or "
+                         "cut short; save it again") from None
+
+
 class SceneFile:
     """A scene on disk as the editor sees it: images inlined, and written back with paths.
 
@@ -167,6 +185,7 @@ class SceneFile:
             if not data.startswith(IMAGE_MAGIC):
                 raise ValueError(f"{self.path}: layers[{i}].{key}: {ref!r} is not a PNG or JPEG "
                                  "picture.")
+            _check_decodes(data, f"{self.path}: layers[{i}].{key}: cannot use {ref!r}")
             mime = MIME.get(file.suffix.lower()) or mimetypes.guess_type(file.name)[0] or "image/png"
             uri = f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
             froms, entry = self.inlined.setdefault(uri, []), (ref, doc["layers"][i].get("name"), i, key)
