@@ -411,3 +411,10 @@ def test_new_names_the_option_past_a_scenes_limits(capsys, tmp_path, option, val
     code, _, err = run(capsys, "new", psd, "-o", tmp_path / "c.json", option, value)
     assert code == 2 and message in err, err
     assert files(tmp_path) == ["character.psd"]
+
+
+def test_new_names_every_option_past_the_limits_at_once(capsys, tmp_path):
+    psd = write_psd(tmp_path / "character.psd")
+    code, _, err = run(capsys, "new", psd, "-o", tmp_path / "c.json", "--fps", "5000", "--duration", "1e9")
+    assert code == 2 and "--fps 5000: frames per second may be at most 1000" in err, err
+    assert "--duration 1e+09: the duration may be at most" in err and "\n  duration" not in err, err

@@ -220,6 +220,7 @@ def test_the_default_matte_is_the_alpha():
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.full((4, 4), np.nan), "finite"),
         (None, None, None, r"image must be an \(H, W, 3\) or \(H, W, 4\) uint8 array \(RGB or RGBA\), got None"),
         ("cat.png", None, None, r"got the path 'cat.png'; read the picture first, with inkwarp.imaging.read_image"),
+        (b"\x89PNG" + bytes(1000), None, None, r"got 1004 bytes of a file; decode them first, with inkwarp.imaging.read_image\(io.BytesIO\(data\)\)"),
     ],
 )
 def test_bad_arguments_raise_value_error(image, field, matte, message):

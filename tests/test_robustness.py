@@ -336,9 +336,14 @@ def job(kind):
         return inkwarp.warp_image(np.full((64, 64, 4), 200, np.uint8), field).tobytes()
     if kind == "scene":
         return inkwarp.Scene.load(sys.argv[1]).render(time=0.5).tobytes()
+    if kind == "frames":  # past one chain of frames, on two threads: the stream's own workers
+        return b"".join(frame.tobytes() for frame in inkwarp.Scene.load(sys.argv[1]).frames(0, 40, threads=2))
+    if kind == "map":  # enough points for the fit's parallel solve
+        grid = np.stack(np.meshgrid(np.arange(12.0), np.arange(12.0)), -1).reshape(-1, 2) * 5
+        return np.asarray(inkwarp.ThinPlateMap(grid, grid + 1.5)(grid[:7] + 0.5)).tobytes()
 
 if __name__ == "__main__":
-    kinds = ["thin_plate", "warp_image", "scene"]
+    kinds = ["thin_plate", "warp_image", "scene", "frames", "map"]
     here = [job(k) for k in kinds]  # the engine runs in the parent first
     with mp.get_context("fork").Pool(2) as pool:
         there = pool.map_async(job, kinds).get(timeout=120)

@@ -351,7 +351,7 @@ def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
         expect = "nothing.mp4: no such file"
     elif case == "frame past end":
         args += ["--frame", "24"]
-        expect = "frame 24: " + str(path) + " has frames 0 to 23; give a frame number below 24"
+        expect = "--frame 24: " + str(path) + " has frames 0 to 23; give a frame number below 24"
     elif case == "size":
         doc["width"] = W + 2
         expect = f"the scene is {W + 2}x{H} but the video {path} is {W}x{H}"
@@ -360,7 +360,7 @@ def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
         expect = "--simplify -1.0: give a distance in pixels"
     elif case == "frame cmd past end":
         args = ["frame", path, "--frame", "99", "-o", tmp_path / "f.png"]
-        expect = "frame 99: " + str(path) + " has frames 0 to 23"
+        expect = "--frame 99: " + str(path) + " has frames 0 to 23"
     elif case == "key past end":
         doc["features"][0]["keys"] = [{"t": 5.0, "points": doc["features"][0]["rest"]}]
         expect = "features[0].keys[0]: t = 5.0 s is frame 120, outside the video's frames 0 to 23"

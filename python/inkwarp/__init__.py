@@ -4,7 +4,9 @@ The grid thin plate of Litwinowicz & Williams ("Animating Images with Drawings",
 SIGGRAPH '94), solved by multigrid in a compiled core.
 """
 
-from inkwarp._inkwarp import __version__
+import os as _os
+
+from inkwarp._inkwarp import __version__, _after_fork
 from inkwarp.drawing import sample
 from inkwarp.errors import ConvergenceWarning, InkwarpError, InkwarpWarning, SceneError
 from inkwarp.compare import Comparison, compare, comparison_sheet
@@ -15,6 +17,9 @@ from inkwarp.track import track, track_dict
 from inkwarp.plate import SolveReport, Solver, WarmStart, thin_plate, thin_plate_report
 from inkwarp.scene import Frames, Scene, image_data_uri, scene_schema, validate_scene
 from inkwarp.rendering import render
+
+# A forked child builds its own engine threads (a fork copies none of the parent's).
+_os.register_at_fork(after_in_child=_after_fork)
 
 __all__ = [
     "Comparison",

@@ -21,8 +21,11 @@ PathLike = Union[str, "os.PathLike[str]"]
 
 
 def _as_rgba(image: ArrayLike, name: str = "image") -> NDArray[np.uint8]:
-    if isinstance(image, (str, bytes, os.PathLike)):
-        raise ValueError(f"{name} must be an (H, W, 3) or (H, W, 4) uint8 array, got the path {image!r}; "
+    if isinstance(image, (bytes, bytearray)):
+        raise ValueError(f"{name} must be an (H, W, 3) or (H, W, 4) uint8 array, got {len(image)} bytes of a "
+                         "file; decode them first, with inkwarp.imaging.read_image(io.BytesIO(data))")
+    if isinstance(image, (str, os.PathLike)):
+        raise ValueError(f"{name} must be an (H, W, 3) or (H, W, 4) uint8 array, got the path {os.fspath(image)!r:.200}; "
                          "read the picture first, with inkwarp.imaging.read_image(path)")
     array = np.asarray(image)
     if array.dtype.kind not in "biuf":

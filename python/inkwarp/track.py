@@ -562,6 +562,13 @@ def _frames_text(frames: Sequence[int]) -> str:
     return ", ".join(runs)
 
 
+def as_option(err: ValueError, frame: int) -> ValueError:
+    """``err`` with the command line's option for a ``frame N: ...`` message (``--frame N:
+    ...``), as the commands name their options; any other message as it is."""
+    text = str(err)
+    return ValueError("--" + text) if text.startswith(f"frame {frame}:") else err
+
+
 def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0, *,
                simplify_px: float | None = None, lost_px: float = 2.0,
                progress: Callable[[int], Any] | None = None,

@@ -15,7 +15,7 @@ use pyo3::prelude::*;
 /// How often the waiting thread looks for signals.
 const POLL: Duration = Duration::from_millis(50);
 
-/// The worker's stack: deep enough for any recursion the engine does.
+/// The engine's threads' stack: deep enough for any recursion the engine does.
 const STACK_BYTES: usize = 64 << 20;
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -25,7 +25,15 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_COORD_PX", limits::MAX_COORD_PX)?;
     m.add("MAX_TIME_S", limits::MAX_TIME_S)?;
     m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
+    m.add_function(wrap_pyfunction!(_after_fork, m)?)?;
     Ok(())
+}
+
+/// Forgets the parent's thread pool in a forked child (`os.register_at_fork`), so that its
+/// first engine call builds its own (see [`pool`]) whatever its process id.
+#[pyfunction]
+fn _after_fork() {
+    POOL.store(std::ptr::null_mut(), Ordering::Release);
 }
 
 /// Panics inside the engine's worker thread, so that tests can check the net that turns a
@@ -72,9 +80,10 @@ static POOL: AtomicPtr<Pool> = AtomicPtr::new(std::ptr::null_mut());
 /// The engine's thread pool, this process's own. A forked process inherits its parent's
 /// pool without the pool's threads (`fork` copies only the calling thread), so work handed
 /// to it would wait forever: a child forked after the engine ran (the default start method
-/// of `multiprocessing` on Linux) builds a pool of its own on its first call. The parent's
-/// is left as it is, never dropped: its locks may have been held by threads that do not
-/// exist in the child.
+/// of `multiprocessing` on Linux before Python 3.14) builds a pool of its own on its first
+/// call: Python forgets the parent's after a fork ([`_after_fork`]), and a pool is this
+/// process's only if its id is. The parent's is left as it is, never dropped: its locks
+/// may have been held by threads that do not exist in the child.
 #[allow(unsafe_code)] // pointers from `Box::into_raw`, stored once and never freed
 fn pool() -> Result<&'static rayon::ThreadPool, String> {
     let pid = std::process::id();
@@ -85,6 +94,7 @@ fn pool() -> Result<&'static rayon::ThreadPool, String> {
     }
     let pool = rayon::ThreadPoolBuilder::new()
         .thread_name(|i| format!("inkwarp-pool-{i}"))
+        .stack_size(STACK_BYTES)
         .build()
         .map_err(|e| e.to_string())?;
     let fresh = Box::into_raw(Box::new(Pool { pid, pool }));
@@ -101,7 +111,7 @@ fn pool() -> Result<&'static rayon::ThreadPool, String> {
 }
 
 /// Runs `work` on a worker thread with the GIL released, polling for signals every
-/// [`POLL`]. Its parallel work runs on [`pool`]. A signal whose handler raises (KeyboardInterrupt, the CLI's SIGTERM) asks the
+/// [`POLL`]; `work` runs on [`pool`]. A signal whose handler raises (KeyboardInterrupt, the CLI's SIGTERM) asks the
 /// engine to stop, waits for it, and returns that exception; a panic becomes
 /// `InternalError`.
 pub fn run_engine<T, F>(py: Python<'_>, work: F) -> PyResult<T>
@@ -109,14 +119,39 @@ where
     T: Send,
     F: FnOnce() -> T + Send,
 {
-    let pool = pool().map_err(|e| pyo3::exceptions::PyOSError::new_err(format!("could not start the engine's threads ({e})")))?;
+    let pool = engine_pool()?;
+    run_waiting(py, move || pool.install(work))
+}
+
+/// [`run_engine`] for work that waits on the engine's own threads (a frame stream's
+/// workers): it runs on the worker thread itself, as a job of the pool would keep a
+/// thread that the frames it waits for may need (rayon runs any queued job on a thread
+/// that waits for its own).
+pub fn run_engine_outside_pool<T, F>(py: Python<'_>, work: F) -> PyResult<T>
+where
+    T: Send,
+    F: FnOnce() -> T + Send,
+{
+    run_waiting(py, work)
+}
+
+/// [`pool`], or the `OSError` a caller raises.
+pub fn engine_pool() -> PyResult<&'static rayon::ThreadPool> {
+    pool().map_err(|e| pyo3::exceptions::PyOSError::new_err(format!("could not start the engine's threads ({e})")))
+}
+
+fn run_waiting<T, F>(py: Python<'_>, work: F) -> PyResult<T>
+where
+    T: Send,
+    F: FnOnce() -> T + Send,
+{
     std::thread::scope(|scope| {
         let (done_tx, done_rx) = mpsc::channel::<()>();
         let worker = std::thread::Builder::new()
             .name("inkwarp-engine".into())
             .stack_size(STACK_BYTES)
             .spawn_scoped(scope, move || {
-                let result = catch_unwind(AssertUnwindSafe(|| pool.install(work)));
+                let result = catch_unwind(AssertUnwindSafe(work));
                 let _ = done_tx.send(());
                 result
             });

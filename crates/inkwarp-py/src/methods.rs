@@ -129,10 +129,11 @@ struct PyThinPlateMap {
 #[pymethods]
 impl PyThinPlateMap {
     #[new]
-    fn new(source: PyReadonlyArray2<'_, f64>, target: PyReadonlyArray2<'_, f64>) -> PyResult<Self> {
+    fn new(py: Python<'_>, source: PyReadonlyArray2<'_, f64>, target: PyReadonlyArray2<'_, f64>) -> PyResult<Self> {
         let src = points_of("source", &source)?;
         let dst = points_of("target", &target)?;
-        let map = methods::ThinPlateMap::fit(&src, &dst).map_err(value_error)?;
+        // Its dense solve runs in parallel for many points: on the engine's pool.
+        let map = crate::errors::run_engine(py, || methods::ThinPlateMap::fit(&src, &dst))?.map_err(value_error)?;
         Ok(PyThinPlateMap { map })
     }
 
@@ -174,11 +175,12 @@ fn features_of(list: Vec<FeatureTuple>) -> PyResult<Vec<TransferFeature>> {
 /// Each feature is a tuple `(id, kind, rest_points, [key_points, ...])`.
 #[pyfunction]
 fn transfer_keys(
+    py: Python<'_>,
     source: Vec<FeatureTuple>,
     target: Vec<FeatureTuple>,
 ) -> PyResult<Vec<Option<Vec<Vec<Point>>>>> {
     let (s, t) = (features_of(source)?, features_of(target)?);
-    transfer::transfer_keys(&s, &t).map_err(value_error)
+    crate::errors::run_engine(py, || transfer::transfer_keys(&s, &t))?.map_err(value_error)
 }
 
 /// transfer_fold(source, target) -> (x, y, feature_id, message) or None
@@ -186,11 +188,12 @@ fn transfer_keys(
 /// Where the transfer map folds the source's drawing over (see `transfer::find_fold`).
 #[pyfunction]
 fn transfer_fold(
+    py: Python<'_>,
     source: Vec<FeatureTuple>,
     target: Vec<FeatureTuple>,
 ) -> PyResult<Option<(f64, f64, String, String)>> {
     let (s, t) = (features_of(source)?, features_of(target)?);
-    let fold = transfer::find_fold(&s, &t).map_err(value_error)?;
+    let fold = crate::errors::run_engine(py, || transfer::find_fold(&s, &t))?.map_err(value_error)?;
     Ok(fold.map(|f| (f.at[0], f.at[1], f.feature.clone(), f.to_string())))
 }
 

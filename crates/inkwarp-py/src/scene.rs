@@ -359,8 +359,9 @@ impl SceneCore {
             }
             _ => threads,
         };
-        let stream =
-            FrameStream::new(Arc::clone(&self.scene), start..stop, threads, SolverOverrides::method(method));
+        // Its frames render on the engine's pool, this process's own (see `errors::pool`).
+        let pool = crate::errors::engine_pool()?;
+        let stream = FrameStream::new(Arc::clone(&self.scene), start..stop, threads, SolverOverrides::method(method), Some(pool));
         let remaining = stream.len();
         Ok(FrameIter {
             stream: Mutex::new(Some(stream)),
@@ -389,9 +390,10 @@ impl FrameIter {
         *self.remaining.lock().expect("frame counter")
     }
 
-    /// The next `(index, frame)`; renders with the GIL released.
+    /// The next `(index, frame)`; renders with the GIL released (on the pool: this waits
+    /// outside it for the stream's workers).
     fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<(usize, Bound<'py, PyAny>)>> {
-        let next = run_engine(py, || {
+        let next = crate::errors::run_engine_outside_pool(py, || {
             let mut guard = self.stream.lock().expect("frame stream");
             guard.as_mut().and_then(|stream| stream.next().map(|item| (item, stream.take_warnings())))
         });

@@ -82,6 +82,8 @@ def _check_decodes(data: bytes, where: str) -> None:
             warnings.simplefilter("ignore")  # a large picture is the scene's limits' matter
             with Image.open(io.BytesIO(data)) as picture:
                 picture.load()
+    except (Image.DecompressionBombError, MemoryError):
+        return  # not damaged: too large, which the scene's own checks say
     except Exception as err:  # PIL raises OSError, SyntaxError, ValueError, ... for bad bytes
         raise ValueError(f"{where}: the picture could not be decoded ({err}): the file is damaged or "
                          "cut short; save it again") from None

@@ -35,13 +35,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from inkwarp.imaging import write_png
-    from inkwarp.track import check_output, read_frame
+    from inkwarp.track import as_option, check_output, read_frame
 
     out = Path(args.output)
     if out.suffix.lower() != ".png":
         raise ValueError(f"the output {out} must be a .png file.")
     check_output(out)
-    rgb = read_frame(args.video, args.frame)
+    try:
+        rgb = read_frame(args.video, args.frame)
+    except ValueError as err:
+        raise as_option(err, args.frame) from None
     write_png(out, rgb)
     if not args.quiet:
         print(f"wrote {out} (frame {args.frame}, {rgb.shape[1]}x{rgb.shape[0]})")

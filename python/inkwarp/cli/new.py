@@ -65,8 +65,8 @@ def run(args: argparse.Namespace) -> int:
                                        force=args.force)
     except SceneError as err:
         # The scene's limits on what the options set (1000 frames per second, ...) are the options'.
-        if err.path in ("fps", "duration"):
-            raise ValueError(f"--{err.path} {getattr(args, err.path):g}: {str(err).split(': ', 1)[-1]}") from None
+        if err.problems and all(path in ("fps", "duration") for path, _ in err.problems):
+            raise ValueError("; ".join(f"--{path} {getattr(args, path):g}: {why}" for path, why in err.problems)) from None
         raise
     if not args.quiet:
         for note in notes:

@@ -52,7 +52,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from inkwarp.errors import InkwarpWarning
-    from inkwarp.track import check_output, read_video, save_json, track_dict
+    from inkwarp.track import as_option, check_output, read_video, save_json, track_dict
 
     out = Path(args.output)
     if out.suffix.lower() != ".json":
@@ -80,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
             doc = track_dict(clip, args.scene, args.frame, simplify_px=args.simplify,
                              lost_px=args.lost, progress=progress,
                              relative_to=out.resolve().parent)
+    except ValueError as err:
+        raise as_option(err, args.frame) from None
     finally:
         for bar in bars:
             bar.close()

@@ -302,7 +302,7 @@ impl Scene {
     /// Frames `frames` rendered by up to `threads` threads (0: [`default_frame_threads`]),
     /// delivered in order. See [`WARM_CHAIN_FRAMES`] for how warm starts are chained.
     pub fn frames(self: &Arc<Self>, frames: Range<usize>, threads: usize) -> FrameStream {
-        FrameStream::new(Arc::clone(self), frames, threads, SolverOverrides::default())
+        FrameStream::new(Arc::clone(self), frames, threads, SolverOverrides::default(), None)
     }
 }
 
@@ -393,12 +393,16 @@ pub struct FrameStream {
     warnings: Vec<String>,
     workers: Vec<JoinHandle<()>>,
     failed: bool,
+    /// Where frames render (`None`: rayon's global pool).
+    pool: Option<&'static rayon::ThreadPool>,
 }
 
 impl FrameStream {
     /// Frames `frames` (clamped to the scene) by up to `threads` threads (0: the default,
-    /// [`default_frame_threads`]), `overrides` applied over every layer's own settings.
-    pub fn new(scene: Arc<Scene>, frames: Range<usize>, threads: usize, overrides: SolverOverrides) -> Self {
+    /// [`default_frame_threads`]), `overrides` applied over every layer's own settings; the
+    /// frames render on `pool` (default: rayon's global pool), never the consumer's thread
+    /// waiting on a worker: it may call `next` from outside any pool.
+    pub fn new(scene: Arc<Scene>, frames: Range<usize>, threads: usize, overrides: SolverOverrides, pool: Option<&'static rayon::ThreadPool>) -> Self {
         let end = frames.end.min(scene.frame_count());
         let mut chains = Vec::new();
         let mut start = frames.start;
@@ -410,7 +414,7 @@ impl FrameStream {
         let threads = if threads == 0 { default_frame_threads() } else { threads }.min(chains.len());
         let (receivers, workers, warnings) = (Vec::new(), Vec::new(), Vec::new());
         let mut stream =
-            FrameStream { scene, chains, next_chain: 0, sequential: None, overrides, receivers, warnings, workers, failed: false };
+            FrameStream { scene, chains, next_chain: 0, sequential: None, overrides, receivers, warnings, workers, failed: false, pool };
         if threads > 1 {
             stream.start_workers(threads);
         }
@@ -428,6 +432,7 @@ impl FrameStream {
     pub fn is_empty(&self) -> bool { self.len() == 0 }
 
     fn start_workers(&mut self, threads: usize) {
+        let pool = self.pool;
         let mut senders: Vec<Option<SyncSender<WorkerResult>>> = Vec::with_capacity(self.chains.len());
         for _ in &self.chains {
             // Two frames of slack per chain bound the memory held by workers running ahead.
@@ -455,7 +460,8 @@ impl FrameStream {
                     };
                     animator.reset();
                     for i in chains[c].clone() {
-                        let frame = animator.render(scene.frame_time_s(i)).map(|image| (i, image, animator.take_warnings()));
+                        let mut render = || animator.render(scene.frame_time_s(i)).map(|image| (i, image, animator.take_warnings()));
+                        let frame = match pool { Some(pool) => pool.install(render), None => render() };
                         let stop = frame.is_err();
                         if tx.send(frame).is_err() || stop {
                             return;
@@ -479,7 +485,8 @@ impl FrameStream {
         let (fields_taken, history_taken) = (std::mem::take(fields), std::mem::take(history));
         let overrides = self.overrides.clone();
         let mut animator = Animator { scene: &scene, fields: fields_taken, history: history_taken, overrides, warnings: Vec::new() };
-        let frame = animator.render(scene.frame_time_s(i)).map(|image| (i, image));
+        let mut render = || animator.render(scene.frame_time_s(i)).map(|image| (i, image));
+        let frame = match self.pool { Some(pool) => pool.install(render), None => render() };
         self.warnings.extend(animator.take_warnings());
         *fields = animator.fields;
         *history = animator.history;

@@ -714,7 +714,7 @@ fn the_method_can_be_chosen_per_call() {
         assert_ne!(frame, scene.render(0.7).unwrap(), "{}", method.name());
     }
     let stream =
-        FrameStream::new(Arc::clone(&scene), 0..3, 2, SolverOverrides::method(Some(Method::Triangulation)));
+        FrameStream::new(Arc::clone(&scene), 0..3, 2, SolverOverrides::method(Some(Method::Triangulation)), None);
     assert_eq!(stream.filter(|f| f.is_ok()).count(), 3);
 }
 
