@@ -120,19 +120,7 @@ where
     F: FnOnce() -> T + Send,
 {
     let pool = engine_pool()?;
-    run_waiting(py, move || pool.install(work))
-}
-
-/// [`run_engine`] for work that waits on the engine's own threads (a frame stream's
-/// workers): it runs on the worker thread itself, as a job of the pool would keep a
-/// thread that the frames it waits for may need (rayon runs any queued job on a thread
-/// that waits for its own).
-pub fn run_engine_outside_pool<T, F>(py: Python<'_>, work: F) -> PyResult<T>
-where
-    T: Send,
-    F: FnOnce() -> T + Send,
-{
-    run_waiting(py, work)
+    run_engine_outside_pool(py, move || pool.install(work))
 }
 
 /// [`pool`], or the `OSError` a caller raises.
@@ -140,7 +128,11 @@ pub fn engine_pool() -> PyResult<&'static rayon::ThreadPool> {
     pool().map_err(|e| pyo3::exceptions::PyOSError::new_err(format!("could not start the engine's threads ({e})")))
 }
 
-fn run_waiting<T, F>(py: Python<'_>, work: F) -> PyResult<T>
+/// [`run_engine`] for work that waits on the engine's own threads (a frame stream's
+/// workers): it runs on the worker thread itself, as a job of the pool would keep a
+/// thread that the frames it waits for may need (rayon runs any queued job on a thread
+/// that waits for its own).
+pub fn run_engine_outside_pool<T, F>(py: Python<'_>, work: F) -> PyResult<T>
 where
     T: Send,
     F: FnOnce() -> T + Send,

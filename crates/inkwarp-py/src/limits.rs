@@ -31,6 +31,18 @@ pub fn check_coordinates<'a>(name: &str, values: impl Iterator<Item = &'a f64>) 
 pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 30;
 
 /// ValueError unless a `width × height` grid or picture is within the core's limits.
+/// The cuts as polylines: each a (K, 2) array of (x, y) points within the coordinate limits.
+pub fn cuts_of(cuts: &[numpy::PyReadonlyArray2<'_, f64>]) -> PyResult<Vec<Vec<[f64; 2]>>> {
+    cuts.iter().enumerate().map(|(k, cut)| {
+        let c = cut.as_array();
+        if c.ncols() != 2 {
+            return Err(PyValueError::new_err("every cut must be a (K, 2) array of (x, y) points."));
+        }
+        check_coordinates(&format!("cuts[{k}]"), c.iter())?;
+        Ok((0..c.nrows()).map(|k| [c[[k, 0]], c[[k, 1]]]).collect())
+    }).collect()
+}
+
 pub fn check_grid(width: usize, height: usize) -> PyResult<()> {
     limits::check_size("the grid", width, height).map_err(PyValueError::new_err)
 }

@@ -51,15 +51,7 @@ fn warp_image<'py>(
     let pixels = image.as_slice().map_err(|_| contiguous("image"))?;
     let displacement = field.as_slice().map_err(|_| contiguous("field"))?;
     let matte = matte.as_slice().map_err(|_| contiguous("matte"))?;
-    let mut polylines = Vec::with_capacity(cuts.len());
-    for (k, cut) in cuts.iter().enumerate() {
-        let c = cut.as_array();
-        if c.ncols() != 2 {
-            return Err(PyValueError::new_err("every cut must be a (K, 2) array of (x, y) points."));
-        }
-        crate::limits::check_coordinates(&format!("cuts[{k}]"), c.iter())?;
-        polylines.push((0..c.nrows()).map(|k| [c[[k, 0]], c[[k, 1]]]).collect::<Vec<[f64; 2]>>());
-    }
+    let polylines = crate::limits::cuts_of(&cuts)?;
     let out = crate::errors::run_engine(py, || {
         let image = RgbaImage::from_raw(w, h, pixels.to_vec())?;
         let field = Field::from_interleaved(w, h, displacement);

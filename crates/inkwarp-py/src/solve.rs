@@ -166,15 +166,7 @@ fn thin_plate_solve<'py>(
             }
             None => Grid::new(width, height),
         };
-        for (k, cut) in cuts.iter().enumerate() {
-            let c = cut.as_array();
-            if c.ncols() != 2 {
-                return Err(PyValueError::new_err("every cut must be a (K, 2) array of (x, y) points."));
-            }
-            crate::limits::check_coordinates(&format!("cuts[{k}]"), c.iter())?;
-            let polyline: Vec<[f64; 2]> = (0..c.nrows()).map(|k| [c[[k, 0]], c[[k, 1]]]).collect();
-            grid.add_cut(&polyline);
-        }
+        crate::limits::cuts_of(&cuts)?.iter().for_each(|p| grid.add_cut(p));
         Arc::new(grid)
     };
     if let Some(f) = &initial {

@@ -92,6 +92,14 @@ def check_time(time_s: float, option: str = "--time", earliest: float = 0.0) -> 
     return time_s
 
 
+def warn_past_end(command: str, given: float, scene: Any, shows: str) -> None:
+    """Warn on stderr when ``--time given`` is past the scene's end: what ``shows`` (such
+    as "the frame shows") is the poses held after the last keys."""
+    if given > scene.duration:
+        print(f"inkwarp {command}: warning: --time {given:g} is past the scene's end ({scene.duration:g} s); "
+              f"{shows} the poses held after the last keys", file=sys.stderr, flush=True)
+
+
 def check_frame(frame: int, frame_count: int) -> int:
     if not 0 <= frame < frame_count:
         raise ValueError(f"--frame {frame}: the scene has frames 0 to {frame_count - 1}")

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 from pathlib import Path
 
 EXAMPLE = """\
@@ -75,13 +74,12 @@ def run(args: argparse.Namespace) -> int:
     outputs.check_not_an_input(out, args.scene, "comparison sheet")
     scene = Scene.load(args.scene)
     from inkwarp._inkwarp import MAX_TIME_S
-    from inkwarp.cli._common import check_time
+    from inkwarp.cli._common import check_time, warn_past_end
 
     # Before the first keys too, as Scene.render takes.
     time = check_time(args.time, earliest=-MAX_TIME_S) if args.time is not None else float(getattr(scene, "duration", 0.0) or 0.0)
-    if args.time is not None and time > scene.duration:
-        print(f"inkwarp compare: warning: --time {args.time:g} is past the scene's end ({scene.duration:g} s); "
-              "the sheet shows the poses held after the last keys", file=sys.stderr, flush=True)
+    if args.time is not None:
+        warn_past_end("compare", args.time, scene, "the sheet shows")
     comparison = compare(scene, time, args.methods, layer=args.layer, max_samples=args.max_samples,
                          **(_weights(args.beier_neely) if args.beier_neely is not None else {}))
     from inkwarp._atomic import temp_path

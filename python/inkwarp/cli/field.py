@@ -71,9 +71,7 @@ def _run(args: argparse.Namespace) -> int:
     scene = _common.load_scene(args.scene)
     if args.time is not None:
         time_s = _common.check_time(args.time)
-        if time_s > scene.duration:
-            print(f"inkwarp field: warning: --time {args.time:g} is past the scene's end ({scene.duration:g} s); "
-                  "the field is the poses held after the last keys", file=sys.stderr, flush=True)
+        _common.warn_past_end("field", args.time, scene, "the field is")
     else:
         time_s = _common.check_frame(args.frame, scene.frame_count) / scene.fps
     names = scene.layers

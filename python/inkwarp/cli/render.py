@@ -176,10 +176,7 @@ def _run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     if kind == "png":
         if args.time is not None:
-            if args.time > scene.duration:
-                print(f"inkwarp render: warning: --time {args.time:g} is past the scene's end "
-                      f"({scene.duration:g} s); the frame shows the poses held after the last keys",
-                      file=sys.stderr, flush=True)
+            _common.warn_past_end("render", args.time, scene, "the frame shows")
             frame = scene.render(time=args.time, method=args.method)
             what = f"t = {args.time:g} s"
         else:

@@ -279,8 +279,7 @@ fn parse_value(value: &Value) -> Parsed {
             let Some(value) = value.filter(|v| !v.trim().is_empty()) else { continue };
             match first.get(value) {
                 Some(&j) if !(origin.contains(&i) && origin.contains(&j)) => {
-                    let why = format!("the {key} \"{value}\" is already used by {list}[{j}]; give each {noun} its own {key}");
-                    found.push(Problem::new(format!("{list}[{i}].{key}"), why));
+                    found.push(Problem::new(format!("{list}[{i}].{key}"), validate::already_used(value, j, (noun, key, list))));
                 }
                 Some(_) => {}
                 None => _ = first.insert(value, i),

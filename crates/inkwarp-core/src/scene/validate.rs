@@ -180,11 +180,15 @@ fn check_unique<'d>(
     if value.trim().is_empty() {
         p.push(Problem::new(path, format!("a {noun} needs a non-empty {key}")));
     } else if let Some(&earlier) = first.get(value) {
-        let why = format!("the {key} \"{value}\" is already used by {list}[{earlier}]; give each {noun} its own {key}");
-        p.push(Problem::new(path, why));
+        p.push(Problem::new(path, already_used(value, earlier, (noun, key, list))));
     } else {
         first.insert(value, index);
     }
+}
+
+/// The message for `value`, the `key` of a `noun` in `list`, used already by `list[earlier]`.
+pub(crate) fn already_used(value: &str, earlier: usize, (noun, key, list): (&str, &str, &str)) -> String {
+    format!("the {key} \"{value}\" is already used by {list}[{earlier}]; give each {noun} its own {key}")
 }
 
 /// Every problem of solver settings given outside a scene (by a caller that overrides
