@@ -8,9 +8,12 @@
 //! (the tangent rule) matching the motion on the key's other side: between two smooth
 //! spans the Catmull-Rom tangent for non-uniform times, `m_i = (Δ⁺·v⁻ + Δ⁻·v⁺) / (Δ⁻ + Δ⁺)`
 //! (`v⁻`, `v⁺` the slopes of the chords before and after the key, `Δ⁻`, `Δ⁺` their
-//! durations); next to a straight span that span's velocity at the key; next to a hold,
-//! and at the first and last key, zero. So smooth motion is C¹ in time except where a hold
-//! jumps (docs/concepts/drawings.md, "Time", has the details).
+//! durations), clamped coordinate by coordinate so that a smooth span never passes its keys:
+//! zero where `v⁻` and `v⁺` differ in sign or one is zero (a key at a turn is the extreme,
+//! equal keys hold still), at most `3·min(|v⁻|, |v⁺|)` (Fritsch–Carlson); next to a straight
+//! span that span's velocity at the key; next to a hold, and at the first and last key,
+//! zero. So smooth motion is C¹ in time except where a hold jumps (docs/concepts/drawings.md,
+//! "Time", has the details).
 //!
 //! The eased spans move along the straight line between their keys with a set timing,
 //! `u` being the fraction of the span's time gone by: `EaseIn` as `u²` (starts at rest,
@@ -161,13 +164,18 @@ fn velocity(keys: &[Key], k: usize, j: usize, starts: bool) -> Point {
             [factor * v[0], factor * v[1]]
         }
         Some(_) => {
-            // both neighbours exist: the parabola through keys k − 1, k, k + 1
+            // both neighbours exist: the parabola through keys k − 1, k, k + 1, clamped by
+            // coordinate so that neither span passes a key (Fritsch–Carlson): zero where the
+            // chords' slopes differ in sign or one is zero, at most three times the smaller
             let (prev, key, next) = (&keys[k - 1], &keys[k], &keys[k + 1]);
             let dm = key.time_s - prev.time_s;
             let dp = next.time_s - key.time_s;
             let vm = slope(prev, key, j);
             let vp = slope(key, next, j);
-            [(dp * vm[0] + dm * vp[0]) / (dm + dp), (dp * vm[1] + dm * vp[1]) / (dm + dp)]
+            [0, 1].map(|c| {
+                let limit = if vm[c] * vp[c] > 0.0 { 3.0 * vm[c].abs().min(vp[c].abs()) } else { 0.0 };
+                ((dp * vm[c] + dm * vp[c]) / (dm + dp)).clamp(-limit, limit)
+            })
         }
     }
 }
@@ -283,6 +291,27 @@ mod tests {
     }
 
     #[test]
+    fn smooth_holds_between_equal_keys_and_stops_at_the_last() {
+        // A pose keyed twice is held; keys that only rise never rise past the last one.
+        let keys = [
+            key(0.0, 20.0, Interpolation::Smooth),
+            key(0.2, 30.0, Interpolation::Smooth),
+            key(1.0, 30.0, Interpolation::Smooth),
+            key(1.2, 20.0, Interpolation::Smooth),
+        ];
+        for t in [0.3, 0.6, 0.9] {
+            assert_eq!(x_at(&keys, t), 30.0);
+        }
+        let rising = [
+            key(0.0, 0.0, Interpolation::Smooth),
+            key(0.1, 10.0, Interpolation::Smooth),
+            key(1.0, 12.0, Interpolation::Smooth),
+        ];
+        let peak = (0..=1000).map(|i| x_at(&rising, i as f64 / 1000.0)).fold(f64::MIN, f64::max);
+        assert!(peak <= 12.0 + 1e-12, "{peak}");
+    }
+
+    #[test]
     fn smooth_joins_a_linear_span_with_its_slope() {
         let keys = [
             key(0.0, 0.0, Interpolation::Smooth),
@@ -374,6 +403,25 @@ mod tests {
             // far above the fastest chord's allows
             let tp = t0 + probe * (t1 - t0);
             prop_assert!((x_at(&keys, tp + 1e-9) - x_at(&keys, tp)).abs() < 1e-7 * scale);
+        }
+
+        #[test]
+        fn smooth_spans_never_pass_their_keys(
+            steps in prop::collection::vec((0.05..2.0f64, -50.0..50.0f64), 2..8),
+            probes in prop::collection::vec(0.0..1.0f64, 16),
+        ) {
+            // Unevenly timed keys, reversals and repeats included: each coordinate stays
+            // between the values of the two keys around it (an animation curve's clamped
+            // automatic tangents), so a key at a turn is the extreme and equal keys hold.
+            let mut t = 0.0;
+            let keys: Vec<Key> = steps.iter().map(|&(dt, x)| { t += dt; key(t, if x.abs() < 10.0 { 0.0 } else { x }, Interpolation::Smooth) }).collect();
+            for w in keys.windows(2) {
+                let (a, b) = (w[0].points[0][0], w[1].points[0][0]);
+                for &u in &probes {
+                    let x = x_at(&keys, w[0].time_s + u * (w[1].time_s - w[0].time_s));
+                    prop_assert!(x >= a.min(b) - 1e-9 && x <= a.max(b) + 1e-9, "{} between {} and {}", x, a, b);
+                }
+            }
         }
 
         #[test]
