@@ -202,6 +202,7 @@ def test_missing_scene_file(capsys, tmp_path):
     (["-o", "{tmp}/x.png", "--time", "nan"], "give a time in seconds"),
     (["-o", "{tmp}/x.png", "--time", "-1"], "--time -1: give a time in seconds from 0"),
     (["-o", "{tmp}/x.png", "--time", "2e5"], "--time 200000: give a time in seconds from 0 to 100000"),
+    (["-o", "{tmp}/x.png", "--background", ""], "--background '': give transparent, white"),
 ])
 def test_bad_options_say_what_to_do(capsys, tmp_path, args, expected):
     scene = write_scene(tmp_path / "s")

@@ -138,6 +138,17 @@ def test_save_rewrites_relative_image_paths(scene, tmp_path):
     np.testing.assert_array_equal(inkwarp.Scene.load(target).render(time=0.7), scene.render(time=0.7))
 
 
+def test_a_scene_built_in_the_current_folder_saves_elsewhere(scene, tmp_path, monkeypatch):
+    # from_dict and from_json without base_dir read images from the current folder; a save
+    # to another folder rewrites their paths from there, as it does with base_dir given.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "elsewhere").mkdir()
+    for built in (inkwarp.Scene.from_dict(scene.to_dict()), inkwarp.Scene.from_json(json.dumps(scene.to_dict()))):
+        built.save("elsewhere/copy.json")
+        assert json.loads((tmp_path / "elsewhere" / "copy.json").read_text())["layers"][0]["image"] == "../back.png"
+        np.testing.assert_array_equal(inkwarp.Scene.load("elsewhere/copy.json").render(time=0.7), scene.render(time=0.7))
+
+
 def test_data_uri_images(tmp_path):
     data = two_layer_scene()
     data["layers"][0]["image"] = inkwarp.image_data_uri(gradient())

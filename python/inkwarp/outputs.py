@@ -63,7 +63,7 @@ def parse_background(text: str, option: str = "--background") -> list[int]:
     parts = [p.strip() for p in spec.split(",")]
     if len(parts) in (3, 4) and all(p.isdigit() and int(p) <= 255 for p in parts):
         return [int(p) for p in parts] + [255] * (4 - len(parts))
-    raise ValueError(f"{given(option, text)}: give transparent, white, black, #RRGGBB, "
+    raise ValueError(f"{given(option, text if spec else repr(text))}: give transparent, white, black, #RRGGBB, "
                      "#RRGGBBAA or R,G,B[,A] with numbers 0-255")
 
 

@@ -162,7 +162,7 @@ def _run(args: argparse.Namespace) -> int:
                          "whose frames are separate files")
     if args.ray is not None and kind == "png":
         raise ValueError("--ray renders animations; a single .png frame renders here")
-    background = outputs.parse_background(args.background) if args.background else None
+    background = outputs.parse_background(args.background) if args.background is not None else None
 
     scene = _common.load_scene(args.scene)
     if background is not None:

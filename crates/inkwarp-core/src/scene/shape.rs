@@ -309,12 +309,14 @@ fn first_sentence(text: &str) -> String {
 
 /// The candidate closest to `word` by edit distance, when it is close enough to be a typo.
 pub(crate) fn did_you_mean<'b>(word: &str, candidates: impl Iterator<Item = &'b str>) -> Option<&'b str> {
+    // Nearest first by the words without their separators ("easeinout" is "ease-in-out").
+    let bare = |s: &str| s.to_lowercase().replace(['-', '_', ' '], "");
     let word_l = word.to_lowercase();
     candidates
-        .map(|c| (edit_distance(&word_l, &c.to_lowercase()), c))
-        .filter(|(d, c)| *d <= 2.max(c.len() / 3) && *d < c.len().max(word.len()))
-        .min_by_key(|(d, _)| *d)
-        .map(|(_, c)| c)
+        .map(|c| (edit_distance(&word_l, &c.to_lowercase()), edit_distance(&bare(word), &bare(c)), c))
+        .filter(|(d, _, c)| *d <= 2.max(c.len() / 3) && *d < c.len().max(word.len()))
+        .min_by_key(|(d, bare, _)| (*bare, *d))
+        .map(|(.., c)| c)
 }
 
 fn edit_distance(a: &str, b: &str) -> usize {

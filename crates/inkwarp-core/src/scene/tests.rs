@@ -1044,3 +1044,9 @@ fn a_layers_own_feature_list_is_named_by_its_full_path() {
     let problems = problems_of(&scene);
     assert!(problems.iter().any(|p| p.contains("\"lid\" is listed twice (also at layers[1].features[1])")), "{problems:?}");
 }
+
+#[test]
+fn a_name_written_without_its_hyphens_is_suggested() {
+    let text = problems_of(&with(valid_scene(), "/features/0/keys/0/interpolation", json!("easeinout"))).join("\n");
+    assert!(text.contains("(did you mean \"ease-in-out\"?)"), "{text}");
+}
