@@ -192,6 +192,25 @@ def test_the_sheet_prints_the_notes_under_the_frames(comparisons):
     assert sum("ignores the continuity matte" in label.replace("\n", " ") for label in labels) == 3
 
 
+def test_long_notes_stay_clear_of_the_next_row(comparisons):
+    # Six lines of notes under a frame ran into the top of the next row's frame.
+    import dataclasses
+
+    base = comparisons[True]
+    notes = {m: [f"layer \"layer {k}\": a remark about this interpolant long enough to wrap onto a second line"
+                 for k in range(3)] for m in base.methods}
+    # Landscape frames, as a character's 320 × 256 picture.
+    frames = {m: np.zeros((256, 320, 4), np.uint8) for m in base.methods}
+    fields = {m: np.zeros((256, 320, 2), np.float32) for m in base.methods}
+    fig = inkwarp.comparison_sheet(dataclasses.replace(base, notes=notes, frames=frames, fields=fields, drawing=[]))
+    fig.canvas.draw()  # the layout is made when drawn
+    renderer = fig.canvas.get_renderer()
+    frames = fig.axes[::2]
+    for above, below in zip(frames, frames[1:]):
+        label = above.xaxis.label.get_window_extent(renderer)
+        assert label.height > 0 and label.y0 > below.get_window_extent(renderer).y1, (label, below.get_window_extent(renderer))
+
+
 def test_a_thinning_note_and_the_cap_from_the_scene_file(tmp_path):
     path = checkerboard_scene(tmp_path, hole=False)
     doc = json.loads(path.read_text())

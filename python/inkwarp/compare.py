@@ -229,9 +229,13 @@ def comparison_sheet(
     # rest of 1e-14 px) filled the panel with speckle.
     largest = max((float(np.abs(comparison.fields[m][..., 0]).max()) for m in comparison.methods), default=0.0)
     limit = max(largest, FLAT_PX)
-    fig = Figure(figsize=(2 * row_height * 1.05 + 0.6, row_height * rows + 0.6), dpi=dpi)
+    # The interpolants' remarks (an ignored matte, a thinning) go under their frames: each
+    # row is taller by its lines of them (about 0.11 in each at 6.5 pt).
+    said = {m: "\n".join(textwrap.fill(n, 52) for n in comparison.notes.get(m, [])) for m in comparison.methods}
+    heights = [row_height + (0.11 * (said[m].count("\n") + 1) if said[m] else 0.0) for m in comparison.methods]
+    fig = Figure(figsize=(2 * row_height * 1.05 + 0.6, sum(heights) + 0.6), dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(rows, 2, squeeze=False)
+    axes = fig.subplots(rows, 2, squeeze=False, gridspec_kw={"height_ratios": heights})
     levels = np.linspace(-limit, limit, 17)
     for r, method in enumerate(comparison.methods):
         frame, dx = comparison.frames[method], comparison.fields[method][..., 0]
@@ -245,11 +249,8 @@ def comparison_sheet(
         ax_img.set_xlim(-0.5, frame.shape[1] - 0.5)
         ax_img.set_ylim(frame.shape[0] - 0.5, -0.5)
         ax_img.set_ylabel(TITLES.get(method, method), fontsize=8)
-        said = comparison.notes.get(method, [])
-        if said:
-            # The interpolant's remarks (an ignored matte, a thinning) under its frame.
-            ax_img.set_xlabel("\n".join(textwrap.fill(n, 52) for n in said), fontsize=6.5,
-                              color="#7f3f00", loc="left")
+        if said[method]:
+            ax_img.set_xlabel(said[method], fontsize=6.5, color="#7f3f00", loc="left")
         flat = float(np.abs(dx).max()) < FLAT_PX
         ax_dx.imshow(_hillshade(np.zeros_like(dx) if flat else dx, limit), interpolation="nearest")
         if not flat:
@@ -262,7 +263,6 @@ def comparison_sheet(
             scale = "flat" if largest < FLAT_PX else f"±{limit:.1f} px" if limit >= 0.1 else f"±{limit:.2f} px"
             ax_dx.set_title(f"ΔX surface ({scale})", fontsize=9)
     fig.suptitle(title or f"t = {comparison.time:g} s", fontsize=10)
-    fig.tight_layout()
     if path is not None:
         fig.savefig(os.fspath(path), dpi=dpi)
     return fig
