@@ -49,7 +49,7 @@ def test_an_address_where_something_else_answers_is_a_clear_error(capsys, tmp_pa
         server.shutdown()
         server.server_close()
     # A Ray head's own address passes the check.
-    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=1, include_dashboard=False, log_to_driver=False)
     try:
         _check_address(ray.get_runtime_context().gcs_address)
     finally:
@@ -61,7 +61,7 @@ def test_ray_chunks_gathered_in_order_equal_a_sequential_render(capsys, tmp_path
     code, _, err = run(capsys, "render", scene_path, "-o", tmp_path / "seq/", "-q")
     assert code == 0, err
     sequential = png_frames(tmp_path / "seq", 40)
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         # Frames 5 to 39 in two chunks (5:16 with its pre-roll, 16:40), gathered in order.
         code, stdout, err = run(capsys, "render", scene_path, "-o", tmp_path / "ray/",
@@ -89,7 +89,7 @@ def test_a_cluster_short_of_memory_renders_on_fewer_workers(capsys, tmp_path):
     scene_path = write_scene(tmp_path / "s", wavy_doc())
     scene = inkwarp.Scene.load(scene_path)
     sequential = inkwarp.render(scene, tmp_path / "seq/")
-    ray.init(num_cpus=2, _memory=int(1.5 * scene.render_bytes), include_dashboard=False,
+    ray.init(address="local", num_cpus=2, _memory=int(1.5 * scene.render_bytes), include_dashboard=False,
              log_to_driver=False)
     try:
         assert inkwarp.rendering.ray_workers(ray.nodes(), scene.render_bytes) == 1
@@ -127,7 +127,7 @@ def test_a_chunk_whose_worker_dies_is_rendered_again_on_a_new_one(capsys, tmp_pa
     scene_path = write_scene(tmp_path / "s", wavy_doc())
     scene = inkwarp.Scene.load(scene_path)
     sequential = [np.asarray(Image.open(p).convert("RGBA")) for p in inkwarp.render(scene, tmp_path / "seq/")]
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         def render_killing_one() -> list[np.ndarray]:
             frames: list[np.ndarray] = []
@@ -164,7 +164,7 @@ def test_the_workers_convergence_warnings_are_said_here_and_strict_holds(capsys,
     scene = scene_art.write_scene(tmp_path / "s", _stopped_early())
     code, _, local = run(capsys, "render", scene, "-o", tmp_path / "here/", "--frames", "0:6", "-q")
     assert code == 0 and "did not converge" in local
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
         code, _, err = run(capsys, "render", scene, "-o", tmp_path / "ray/", "--frames", "0:6", "--ray", "-q")
         assert code == 0 and err == local, err
@@ -185,3 +185,30 @@ def test_a_quiet_render_on_a_cluster_it_starts_prints_nothing(capfd, tmp_path):
     out, err = capfd.readouterr()
     assert code == 0 and out == "" and err == "", err
     assert (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []
+
+
+def test_a_cluster_ray_start_left_that_has_gone_is_passed_over(monkeypatch, tmp_path):
+    # `ray start --head` writes its address to Ray's temporary folder; killed, it leaves the
+    # file, and ray.init() without an address retried that address without end. --ray
+    # without an address then starts a cluster of its own.
+    import shutil
+    import tempfile
+
+    ray_tmp = Path(tempfile.mkdtemp(prefix="iw", dir="/tmp"))  # short: Ray's sockets live there
+    try:
+        with socket.socket() as probe:  # a port that was free a moment ago
+            probe.bind(("127.0.0.1", 0))
+            port = probe.getsockname()[1]
+        (ray_tmp / "ray").mkdir()
+        (ray_tmp / "ray" / "ray_current_cluster").write_text(f"127.0.0.1:{port}\n")
+        monkeypatch.setenv("RAY_TMPDIR", str(ray_tmp))
+        monkeypatch.delenv("RAY_ADDRESS", raising=False)
+        scene = write_scene(tmp_path / "s")
+        assert not ray.is_initialized()
+        try:
+            code = main(["render", str(scene), "-o", str(tmp_path / "a.gif"), "--frames", "0:2", "--ray", "-q"])
+        finally:
+            ray.shutdown()
+        assert code == 0 and (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []
+    finally:
+        shutil.rmtree(ray_tmp, ignore_errors=True)

@@ -421,6 +421,16 @@ def _check_address(address: str) -> None:
                          "node (port 6379 unless it was started with another)")
 
 
+def _left_by_ray_start() -> str | None:
+    """The address `ray start --head` last wrote on this machine (``ray_current_cluster``
+    in Ray's temporary folder), which ``ray.init()`` without an address joins."""
+    base = os.environ.get("RAY_TMPDIR") or (sys.platform.startswith("linux") and os.environ.get("TMPDIR")) or "/tmp"
+    try:
+        return (Path(base) / "ray" / "ray_current_cluster").read_text().strip() or None
+    except OSError:
+        return None
+
+
 def _http2_reply(conn: Any) -> bytes:
     """The first bytes a server sends back to an HTTP/2 connection preface (within 5 s)."""
     import socket
@@ -435,7 +445,8 @@ def _http2_reply(conn: Any) -> bytes:
 @contextlib.contextmanager
 def _stderr_held() -> Iterator[list[str]]:
     """What this process (Ray's C++ core included) writes to file descriptor 2 meanwhile,
-    held back and handed over in the list yielded, instead of printed. Under
+    and to ``sys.stderr`` where that is not fd 2 (Ray's warnings, through logging's last
+    resort), held back and handed over in the list yielded, instead of printed. Under
     ``RAY_LOG_TO_STDERR`` nothing is held: Ray's processes started meanwhile keep fd 2 as
     their log, which must stay the terminal."""
     held: list[str] = []
@@ -443,10 +454,11 @@ def _stderr_held() -> Iterator[list[str]]:
         held.append("")
         yield held
         return
+    import io
     import tempfile
 
-    with tempfile.TemporaryFile() as sink:
-        sys.stderr.flush()
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as sink, contextlib.redirect_stderr(io.StringIO()) as said:
         saved = os.dup(2)
         try:
             os.dup2(sink.fileno(), 2)
@@ -455,7 +467,7 @@ def _stderr_held() -> Iterator[list[str]]:
             os.dup2(saved, 2)  # the terminal back first, whatever else fails
             os.close(saved)
             sink.seek(0)
-            held.append(sink.read().decode("utf-8", "replace"))
+            held.append(said.getvalue() + sink.read().decode("utf-8", "replace"))
 
 
 def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
@@ -473,10 +485,20 @@ def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
     if ray.is_initialized():
         return ray
     if local:
+        # Ray joins the cluster that `ray start --head` last left on this machine, and where
+        # that cluster has gone (stopped by a kill, or crashed) it retried without end: start
+        # one here then (unless RAY_ADDRESS names a cluster, which Ray goes to).
+        target = None
+        left = None if os.environ.get("RAY_ADDRESS") else _left_by_ray_start()
+        if left:
+            try:
+                _check_address(left)
+            except ValueError:
+                target = "local"
         said: list[str] = []
         try:
             with _stderr_held() as said:
-                ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False)
+                ray.init(address=target, include_dashboard=False, log_to_driver=False, configure_logging=False)
         except BaseException:
             sys.stderr.write("".join(said))  # Ray's own account of a local start that failed
             raise
