@@ -75,6 +75,25 @@ def test_transparent_video_keeps_the_alpha_of_the_png_render(capsys, tmp_path, t
     assert leftovers(tmp_path) == []
 
 
+@pytest.mark.parametrize("suffix", [".mp4", ".webm", ".mov"])
+def test_videos_are_bt709_and_say_so(tmp_path, suffix):
+    # Untagged, ffmpeg converted by the BT.601 matrix, which players and editors assume only
+    # for standard definition: an HD (200, 50, 50) came back as (212, 62, 47).
+    frame = np.zeros((64, 96, 4), np.uint8)
+    frame[...] = (200, 50, 50, 255)
+    frame[:32] = (30, 160, 220, 255)
+    out = tmp_path / f"solid{suffix}"
+    with inkwarp.video.open_writer(out, fps=24, frames=3) as writer:
+        for _ in range(3):
+            writer.write(frame)
+    probe = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-i", str(out)],
+                           capture_output=True, text=True).stderr
+    assert "bt709, progressive" in probe, probe  # matrix, primaries and transfer alike
+    got = decode_rgba(out, 96, 64)[0]  # ffmpeg decodes by the tags
+    assert np.abs(got[48, 48, :3].astype(int) - (200, 50, 50)).max() <= 3, got[48, 48]
+    assert np.abs(got[8, 48, :3].astype(int) - (30, 160, 220)).max() <= 3, got[8, 48]
+
+
 def test_transparent_gif_has_1_bit_alpha(capsys, tmp_path, transparent):
     scene, reference = transparent
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "anim.gif")

@@ -115,7 +115,8 @@ class FfmpegAlphaWriter(FrameWriter):
         self._log = tempfile.TemporaryFile()
         command = [_ffmpeg(), "-hide_banner", "-loglevel", "error", "-y",
                    "-f", "rawvideo", "-pix_fmt", "rgba", "-s", f"{width}x{height}",
-                   "-r", _rate(self.fps), "-i", "-", *self.CODECS[self.kind], str(self._temp)]
+                   "-r", _rate(self.fps), "-i", "-", *([] if self.kind == "apng" else video.BT709),
+                   *self.CODECS[self.kind], str(self._temp)]
         self._process = subprocess.Popen(command, stdin=subprocess.PIPE,
                                          stdout=subprocess.DEVNULL, stderr=self._log)
 

@@ -227,6 +227,14 @@ def ffmpeg_failure(target: Path, code: int, said: str) -> OSError:
                                                          ": it gave no reason"))
 
 
+#: ffmpeg's arguments that convert RGB frames to Y'CbCr by the BT.709 matrix (limited range)
+#: and tag the video as BT.709 (primaries, transfer and matrix): untagged, ffmpeg used the
+#: BT.601 matrix, which players and editors assume only for standard definition, so HD
+#: colours came back shifted (200, 50, 50 as 212, 62, 47).
+BT709 = ["-vf", "setparams=color_primaries=bt709:color_trc=bt709:colorspace=bt709:range=tv,"
+         "scale=out_color_matrix=bt709:out_range=tv"]
+
+
 def _temp_name(target: Path, suffix: str) -> Path:
     """A new empty file beside ``target``, created with the permissions of any new file
     (0o666 less the umask: mkstemp's 0o600 would survive the rename); its name carries
@@ -657,7 +665,7 @@ class Mp4Writer(FrameWriter):
             imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-hide_banner", "-loglevel", "error",
             "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}",
             "-pix_fmt", "rgb24", "-r", f"{self.fps:.12g}", "-i", "-", "-an",
-            "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf),
+            *BT709, "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf),
             "-movflags", "+faststart", "-f", "mp4", str(self._temp),
         ]
         self._pipe = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
