@@ -69,6 +69,11 @@ def output_kind(path: str | os.PathLike[str]) -> OutputKind:
         return FILE_SUFFIXES[suffix]  # type: ignore[return-value]
     if suffix == "":
         return "dir"
+    if suffix == ".json":
+        # A scene's own name given as the output, most likely: no folder hint.
+        raise ValueError(f"{text}: a .json name is a scene, not an output; name the output .png (one "
+                         f"frame), .gif, .mp4, .webm, .mov, .apng, or a folder of PNG frames, such as "
+                         f"{p.with_suffix('.gif').name}")
     raise ValueError(
         f"{text}: cannot write '{suffix}' files; name the output .png (one frame), "
         ".gif, .mp4, .webm, .mov, .apng, or a directory (a PNG sequence: end the name with "
