@@ -555,7 +555,13 @@ def test_a_feature_left_far_off_its_picture_is_named_lost():
         far += [(fid, k) for fid in want if np.linalg.norm(want[fid] - got[fid], axis=1).max() > 10]
     assert far, "the clip no longer has a hard stretch"
     assert [(fid, k) for fid, k in far if k not in named.get(fid, ()) and fid not in blind] == []
-    assert set(range(40, 60)) <= named["lid_l_upper"] & named["lid_r_upper"] & named["brow_r"]
+    # After the blink the lids and brows are found again where the picture is as traced:
+    # the anchor's picture warped by the plate is taken only where it matches the frame
+    # better than the picture as it is (they stayed 9-12 px off, named lost, to the end).
+    def median_off(fid, frames):
+        return np.median([np.linalg.norm(poses(truth, k)[fid] - poses(tracked, k)[fid], axis=1).max() for k in frames])
+    for fid in ("lid_l_upper", "lid_r_upper", "brow_l", "brow_r"):
+        assert median_off(fid, range(40, 60)) < 0.5, fid
 
 
 def test_a_feature_partly_off_the_picture_is_named_so_and_judged_by_its_points_on_it(videos):
@@ -593,3 +599,43 @@ def test_a_feature_off_the_picture_where_traced_is_named_once_not_as_lost(videos
     assert all(len(f["keys"]) == FRAMES for f in doc["features"])
     last = np.array(doc["features"][-2]["keys"][-1]["points"])
     assert np.abs(last - motion.forward(np.array(outside[0]["rest"]), FRAMES - 1)).max() < 3, last
+
+
+def test_a_feature_beside_an_object_that_moves_away_stays_where_it_is(tmp_path):
+    # A textured patch slides right over a still textured background. Tracked with features
+    # on the patch, a point on the background moved 2.9 px and the patch's own centre
+    # drifted 1.6 px (each alone: exact): the anchor's picture warped by the plate of all
+    # the points, bent between the two, was registered instead of the picture as it is.
+    import cv2
+
+    rng = np.random.default_rng(1)
+    w, h, n = 256, 192, 40
+    background = cv2.GaussianBlur(rng.random((h, w)), (0, 0), 2.0)
+    background = (background - background.min()) / np.ptp(background) * 120 + 40
+    patch = cv2.GaussianBlur(rng.random((40, 40)), (0, 0), 1.0)
+    patch = (patch - patch.min()) / np.ptp(patch) * 200 + 30
+
+    def at(k):
+        return np.array([60 + 2.5 * k, 70 + 20 * np.sin(k / 8)])
+
+    frames = []
+    for k in range(n):
+        x, y = at(k)
+        frame = background.copy()
+        shifted = cv2.warpAffine(patch, np.float32([[1, 0, x - int(x)], [0, 1, y - int(y)]]), (40, 40),
+                                 flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        frame[int(y):int(y) + 40, int(x):int(x) + 40] = shifted
+        frames.append(np.repeat(frame[..., None], 3, 2).astype(np.uint8))
+    path = sv.write_mp4(tmp_path / "slide.mp4", frames, crf=0)
+    features = [{"id": "centre", "kind": "point", "rest": [[79.5, 89.5]]},
+                {"id": "top", "kind": "polyline", "rest": [[65, 75], [80, 75], [95, 75]]},
+                {"id": "still", "kind": "point", "rest": [[200, 170]]}]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", InkwarpWarning)
+        doc = track_dict(path, {**sv.scene(w, h, features), "duration": n / 24})
+    keys = {f["id"]: f["keys"] for f in doc["features"]}
+    for key in keys["still"]:
+        assert np.linalg.norm(np.subtract(key["points"][0], [200, 170])) < 0.5, key
+    for key in keys["centre"]:
+        k = round(key["t"] * 24)
+        assert np.linalg.norm(np.subtract(key["points"][0], [79.5, 89.5]) - (at(k) - at(0))) < 0.5, key

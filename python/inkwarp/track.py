@@ -314,6 +314,15 @@ class _Tracker:
         fb[~(ok1 & ok2) | ~np.isfinite(fb)] = np.inf
         return fwd, fb
 
+    def _mismatch(self, a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarray) -> np.ndarray:
+        """The mean absolute difference of the Lucas-Kanade windows of ``a`` at ``at_a`` and
+        of ``b`` at ``at_b``, point by point."""
+        size = (LK_WINDOW_PX, LK_WINDOW_PX)
+        fa, fb = a.astype(np.float32), b.astype(np.float32)
+        return np.array([float(np.abs(self.cv2.getRectSubPix(fa, size, tuple(map(float, p)))
+                                      - self.cv2.getRectSubPix(fb, size, tuple(map(float, q)))).mean())
+                         for p, q in zip(at_a, at_b)])
+
     def predicted(self, template: np.ndarray, rest: np.ndarray, now: np.ndarray,
                   good: np.ndarray) -> tuple[np.ndarray, Any] | None:
         """The anchor frame warped by the thin plate taking ``rest[good]`` to ``now[good]``
@@ -388,7 +397,15 @@ class _Tracker:
                 if turned.any():
                     again, again_fb = self._lk_checked(picture, b, estimate[turned],
                                                        estimate[turned])
-                    refined[turned], refined_fb[turned] = again, again_fb
+                    # The warped picture is the thin plate's guess of how the window turned: kept
+                    # unless the anchor's picture as it is matches this frame better (a still
+                    # point beside an object that moves away is bent by the plate, not in the
+                    # picture).
+                    plain = (refined_fb[turned] < TRUST_FB_PX) & (
+                        self._mismatch(template, start_points[turned], b, refined[turned])
+                        <= self._mismatch(picture, estimate[turned], b, again))
+                    take = np.flatnonzero(turned)[~plain]
+                    refined[take], refined_fb[take] = again[~plain], again_fb[~plain]
             use_anchor = (refined_fb < TRUST_FB_PX) & (np.linalg.norm(refined - estimate, axis=1) < REGAIN_PX)
             # A lost point (covered, or out of the picture) may show again where it was
             # last seen, far from where the frame-to-frame estimate has taken it.
