@@ -897,10 +897,10 @@ def test_a_model_solve_still_running_at_cycle_ten_stops_by_twelve(name, seed, n)
 @pytest.mark.parametrize("name", ["cut", "hole+cut"])
 def test_where_the_changes_swing_the_energy_rate_judges(name):
     # benchmarks/grid_independence.py's rows of seed 2048, 8, 8, 11 and 8, 9, 11 cycles: at
-    # 1025² a short step (a change ratio of 0.19) then a long one (0.79) read as a rate of
-    # 0.67 over two cycles, where the error's energy norm fell at 0.35-0.43 a step; the
-    # answer was 0.0005 px off when the rule went on to cycle 11. Where the spectrum has
-    # settled, the rate counts no more than the energy norm's.
+    # 1025² the changes' ratios swung (0.19, 0.79, 0.56 at cycles 8-10: a two-cycle rate of
+    # 0.67 at cycle 10) where the steps' energy decrements gave 0.35-0.43 a step; the answer
+    # was 0.0005 px off when the rule went on to cycle 11. Where the spectrum has settled and
+    # the last change fell, the rate counts no more than the energy norm's.
     cycles = []
     for n in (257, 513, 1025):
         pts, disp, mask, cuts = model_problem(n, n, "hole" in name, True, 2048)

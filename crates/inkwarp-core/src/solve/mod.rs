@@ -657,8 +657,9 @@ fn solve_piece(
     // Nor does one from earlier answers (their errors are the slow modes those solves left).
     let first_may_stop = !hier.torn || (warm && !spanned) || direct;
     let mut tail = f64::INFINITY; // the stopping rule's last estimate of the error: the changes' geometric tail
-    // A conjugate-gradient step takes `α·rᵀz` off the squared energy norm of the error (per component), so the
-    // square root of two successive steps' ratio is that norm's rate over the step: the larger component's.
+    // A conjugate-gradient step takes `α·pᵀr` (`α·rᵀz` unprojected) off the squared energy norm of the error, per
+    // component, so where that norm falls geometrically the square root of two successive steps' ratio estimates its
+    // rate: the larger component's.
     let (mut last_energy, mut energy_rates) = ([0.0f64; 2], [f64::INFINITY; 2]);
     let mut stop = |(change, rate): (f64, Option<f64>), cycle: usize, report: &mut SolveReport, (floor, settled): (f64, bool), energy: [f64; 2]| {
         let step_rate = (0..2).filter(|&c| last_energy[c] > 0.0 && energy[c] >= 0.0).map(|c| (energy[c] / last_energy[c]).sqrt()).fold(-1.0, f64::max);
@@ -667,12 +668,13 @@ fn solve_piece(
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. CG steps are not: ρ is the
         // larger of the last two ratios (0.5 before one; their geometric mean where the spectrum
         // has settled and the last change fell, and there no more than the energy norm's larger
-        // rate over the last two steps, which the steps' alternating lengths do not swing), at
+        // estimated rate over the last two steps, which long and short steps do not swing), at
         // least the Lanczos floor; 0.99 never stops.
         let ratio = rate.unwrap_or(if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 });
         ratios = [ratios[1], ratio];
-        let two = if settled && ratios[0] > 0.0 && ratio < 1.0 { (ratios[0] * ratios[1]).sqrt() } else { ratios[0].max(ratios[1]) };
-        let two = if settled && rate.is_none() { two.min(energy_rates[0].max(energy_rates[1])) } else { two };
+        let fell = settled && ratios[0] > 0.0 && ratio < 1.0;
+        let two = if fell { (ratios[0] * ratios[1]).sqrt() } else { ratios[0].max(ratios[1]) };
+        let two = if fell && rate.is_none() { two.min(energy_rates[0].max(energy_rates[1])) } else { two };
         let rho = if direct { 0.0 } else { floor.max(two) };
         (last_change, tail) = (change, change * (rho / (1.0 - rho)));
         (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change.max(tail) <= options.tolerance_px
