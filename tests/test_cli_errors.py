@@ -190,7 +190,7 @@ def test_missing_scene_file(capsys, tmp_path):
 
 @pytest.mark.parametrize("args, expected", [
     (["-o", "{tmp}/x.avi"], "cannot write '.avi' files"),
-    (["-o", "{tmp}/x.json"], "x.json: a .json name is a scene, not an output; name the output .png (one frame), .gif, .mp4, .webm, .mov, .apng, or a folder of PNG frames, such as x.gif"),
+    (["-o", "{tmp}/x.json"], "x.json: a .json name is a scene, not an output; name the output .png (one frame), .gif, .mp4, .webm, .mov, .apng, or a folder of PNG frames (end it with /); such as x.gif"),
     (["-o", "{tmp}/missing/x.gif"], "does not exist; create it first"),
     (["-o", "{tmp}/x.gif", "--time", "1"], "--time picks one frame"),
     (["-o", "{tmp}/x.png", "--frames", "0:2"], "a .png holds one frame"),

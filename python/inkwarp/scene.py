@@ -501,7 +501,7 @@ class Scene:
             _raise_for(problems + [p for p in others if p[0] not in {q[0] for q in problems}], None)
         # Kept as the folder it was when the images were read, so that save() elsewhere
         # rewrites their relative paths from there.
-        return cls(_core_from_json(text, base, None), base_dir=base if base is not None else os.getcwd())
+        return cls(_core_from_json(text, base, None), base_dir=os.path.abspath(base if base is not None else os.curdir))
 
     @classmethod
     def new(cls, picture: str | os.PathLike[str], *, drawing: str | os.PathLike[str] | None = None,
@@ -523,7 +523,7 @@ class Scene:
     def from_json(cls, text: str, base_dir: str | os.PathLike[str] | None = None) -> Scene:
         """Builds a scene from JSON text (see :meth:`from_dict`)."""
         base = os.fspath(base_dir) if base_dir is not None else None
-        return cls(_core_from_json(text, base, None), base_dir=base if base is not None else os.getcwd())
+        return cls(_core_from_json(text, base, None), base_dir=os.path.abspath(base if base is not None else os.curdir))
 
     # ---- what it is ---------------------------------------------------------------------
 

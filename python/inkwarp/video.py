@@ -72,8 +72,8 @@ def output_kind(path: str | os.PathLike[str]) -> OutputKind:
     if suffix == ".json":
         # A scene's own name given as the output, most likely: no folder hint.
         raise ValueError(f"{text}: a .json name is a scene, not an output; name the output .png (one "
-                         f"frame), .gif, .mp4, .webm, .mov, .apng, or a folder of PNG frames, such as "
-                         f"{p.with_suffix('.gif').name}")
+                         f"frame), .gif, .mp4, .webm, .mov, .apng, or a folder of PNG frames (end it with /); "
+                         f"such as {p.with_suffix('.gif').name}")
     raise ValueError(
         f"{text}: cannot write '{suffix}' files; name the output .png (one frame), "
         ".gif, .mp4, .webm, .mov, .apng, or a directory (a PNG sequence: end the name with "

@@ -8,7 +8,7 @@
 //! (the tangent rule) matching the motion on the key's other side: between two smooth
 //! spans the Catmull-Rom tangent for non-uniform times, `m_i = (Δ⁺·v⁻ + Δ⁻·v⁺) / (Δ⁻ + Δ⁺)`
 //! (`v⁻`, `v⁺` the slopes of the chords before and after the key, `Δ⁻`, `Δ⁺` their
-//! durations), clamped coordinate by coordinate so that a smooth span never passes its keys:
+//! durations), clamped coordinate by coordinate so that a span between two such keys never passes them:
 //! zero where `v⁻` and `v⁺` differ in sign or one is zero (a key at a turn is the extreme,
 //! equal keys hold still), at most `3·min(|v⁻|, |v⁺|)` (Fritsch–Carlson); next to a straight
 //! span that span's velocity at the key; next to a hold, and at the first and last key,
