@@ -212,3 +212,16 @@ def test_a_cluster_ray_start_left_that_has_gone_is_passed_over(monkeypatch, tmp_
         assert code == 0 and (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []
     finally:
         shutil.rmtree(ray_tmp, ignore_errors=True)
+
+
+def test_a_ray_address_in_the_environment_that_nobody_answers_at_is_a_clear_error(capsys, monkeypatch, tmp_path):
+    # Ray joins RAY_ADDRESS when --ray gives none, and retried a dead one without end.
+    with socket.socket() as probe:  # a port that was free a moment ago
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    monkeypatch.setenv("RAY_ADDRESS", f"127.0.0.1:{port}")
+    scene = write_scene(tmp_path / "s")
+    code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif", "--ray")
+    assert code == 2 and f"RAY_ADDRESS=127.0.0.1:{port}, the cluster --ray without an address joins: no Ray cluster answers there" in err, err
+    assert "unset RAY_ADDRESS to start a local one" in err and "Traceback" not in err
+    assert not (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []

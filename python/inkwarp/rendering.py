@@ -424,7 +424,11 @@ def _check_address(address: str) -> None:
 def _left_by_ray_start() -> str | None:
     """The address `ray start --head` last wrote on this machine (``ray_current_cluster``
     in Ray's temporary folder), which ``ray.init()`` without an address joins."""
-    base = os.environ.get("RAY_TMPDIR") or (sys.platform.startswith("linux") and os.environ.get("TMPDIR")) or "/tmp"
+    import tempfile
+
+    unix = sys.platform.startswith(("linux", "darwin"))
+    base = (os.environ.get("RAY_TMPDIR") or (sys.platform.startswith("linux") and os.environ.get("TMPDIR"))
+            or ("/tmp" if unix else tempfile.gettempdir()))
     try:
         return (Path(base) / "ray" / "ray_current_cluster").read_text().strip() or None
     except OSError:
@@ -445,8 +449,8 @@ def _http2_reply(conn: Any) -> bytes:
 @contextlib.contextmanager
 def _stderr_held() -> Iterator[list[str]]:
     """What this process (Ray's C++ core included) writes to file descriptor 2 meanwhile,
-    and to ``sys.stderr`` where that is not fd 2 (Ray's warnings, through logging's last
-    resort), held back and handed over in the list yielded, instead of printed. Under
+    and Ray's Python warnings (which logging's last resort writes to ``sys.stderr``, not
+    always fd 2), held back and handed over in the list yielded, instead of printed. Under
     ``RAY_LOG_TO_STDERR`` nothing is held: Ray's processes started meanwhile keep fd 2 as
     their log, which must stay the terminal."""
     held: list[str] = []
@@ -455,10 +459,14 @@ def _stderr_held() -> Iterator[list[str]]:
         yield held
         return
     import io
+    import logging
     import tempfile
 
     sys.stderr.flush()
-    with tempfile.TemporaryFile() as sink, contextlib.redirect_stderr(io.StringIO()) as said:
+    said = logging.StreamHandler(io.StringIO())
+    ray_log = logging.getLogger("ray")
+    ray_log.addHandler(said)
+    with tempfile.TemporaryFile() as sink:
         saved = os.dup(2)
         try:
             os.dup2(sink.fileno(), 2)
@@ -466,8 +474,9 @@ def _stderr_held() -> Iterator[list[str]]:
         finally:
             os.dup2(saved, 2)  # the terminal back first, whatever else fails
             os.close(saved)
+            ray_log.removeHandler(said)
             sink.seek(0)
-            held.append(said.getvalue() + sink.read().decode("utf-8", "replace"))
+            held.append(said.stream.getvalue() + sink.read().decode("utf-8", "replace"))
 
 
 def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
@@ -485,12 +494,19 @@ def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
     if ray.is_initialized():
         return ray
     if local:
-        # Ray joins the cluster that `ray start --head` last left on this machine, and where
-        # that cluster has gone (stopped by a kill, or crashed) it retried without end: start
-        # one here then (unless RAY_ADDRESS names a cluster, which Ray goes to).
-        target = None
-        left = None if os.environ.get("RAY_ADDRESS") else _left_by_ray_start()
-        if left:
+        # Ray joins the cluster RAY_ADDRESS names, else the one `ray start --head` last left
+        # on this machine, and where that has gone (stopped by a kill, or crashed) it retried
+        # without end: RAY_ADDRESS is checked as an address given is, and a cluster gone is
+        # passed over for one started here.
+        target, named = None, os.environ.get("RAY_ADDRESS")
+        if named:
+            try:
+                _check_address(named)
+            except ValueError as err:
+                why = str(err).partition(named)[2].split(";")[0].lstrip(": ")
+                raise ValueError(f"RAY_ADDRESS={named}, the cluster --ray without an address joins: {why}; "
+                                 "start it, or unset RAY_ADDRESS to start a local one") from None
+        elif (left := _left_by_ray_start()) is not None:
             try:
                 _check_address(left)
             except ValueError:

@@ -71,7 +71,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              "frame as soon as it is done (for render farms)")
     parser.add_argument("--ray", nargs="?", const="local", metavar="ADDRESS",
                         help="render on a Ray cluster, in contiguous chunks; without ADDRESS "
-                             "on a local one started for the render (needs inkwarp[ray])")
+                             "on the one RAY_ADDRESS names or 'ray start' runs here, else on "
+                             "one started for the render (needs inkwarp[ray])")
     parser.add_argument("--strict", action="store_true",
                         help="exit with status 3 when a solve did not converge (the output is "
                              "still written and the warnings printed), so a farm can tell")
