@@ -18,11 +18,25 @@ from test_pipeline_outputs import decode_rgba, png_frames, run, wavy_doc
 ray = pytest.importorskip("ray", reason="make test installs ray (inkwarp[ray])")
 
 
+def free_port() -> int:
+    """A port of 127.0.0.1 that was free a moment ago."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def quiet_local_render(scene: Path, out: Path) -> int:
+    """`inkwarp render SCENE -o OUT --frames 0:2 --ray -q` on a cluster it starts; its exit status."""
+    assert not ray.is_initialized()
+    try:
+        return main(["render", str(scene), "-o", str(out), "--frames", "0:2", "--ray", "-q"])
+    finally:
+        ray.shutdown()
+
+
 def test_an_address_nobody_answers_at_is_a_clear_error(capsys, tmp_path):
     scene = write_scene(tmp_path / "s")
-    with socket.socket() as probe:  # a port that was free a moment ago
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    port = free_port()
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif", "--ray",
                        f"127.0.0.1:{port}")
     assert code == 2 and f"--ray 127.0.0.1:{port}: no Ray cluster answers there" in err
@@ -176,12 +190,7 @@ def test_the_workers_convergence_warnings_are_said_here_and_strict_holds(capsys,
 
 def test_a_quiet_render_on_a_cluster_it_starts_prints_nothing(capfd, tmp_path):
     # Ray's own start-up lines (such as its token notice) went to the terminal under -q.
-    scene = write_scene(tmp_path / "s")
-    assert not ray.is_initialized()
-    try:
-        code = main(["render", str(scene), "-o", str(tmp_path / "a.gif"), "--frames", "0:2", "--ray", "-q"])
-    finally:
-        ray.shutdown()
+    code = quiet_local_render(write_scene(tmp_path / "s"), tmp_path / "a.gif")
     out, err = capfd.readouterr()
     assert code == 0 and out == "" and err == "", err
     assert (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []
@@ -196,19 +205,12 @@ def test_a_cluster_ray_start_left_that_has_gone_is_passed_over(monkeypatch, tmp_
 
     ray_tmp = Path(tempfile.mkdtemp(prefix="iw", dir="/tmp"))  # short: Ray's sockets live there
     try:
-        with socket.socket() as probe:  # a port that was free a moment ago
-            probe.bind(("127.0.0.1", 0))
-            port = probe.getsockname()[1]
+        port = free_port()
         (ray_tmp / "ray").mkdir()
         (ray_tmp / "ray" / "ray_current_cluster").write_text(f"127.0.0.1:{port}\n")
         monkeypatch.setenv("RAY_TMPDIR", str(ray_tmp))
         monkeypatch.delenv("RAY_ADDRESS", raising=False)
-        scene = write_scene(tmp_path / "s")
-        assert not ray.is_initialized()
-        try:
-            code = main(["render", str(scene), "-o", str(tmp_path / "a.gif"), "--frames", "0:2", "--ray", "-q"])
-        finally:
-            ray.shutdown()
+        code = quiet_local_render(write_scene(tmp_path / "s"), tmp_path / "a.gif")
         assert code == 0 and (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []
     finally:
         shutil.rmtree(ray_tmp, ignore_errors=True)
@@ -216,9 +218,7 @@ def test_a_cluster_ray_start_left_that_has_gone_is_passed_over(monkeypatch, tmp_
 
 def test_a_ray_address_in_the_environment_that_nobody_answers_at_is_a_clear_error(capsys, monkeypatch, tmp_path):
     # Ray joins RAY_ADDRESS when --ray gives none, and retried a dead one without end.
-    with socket.socket() as probe:  # a port that was free a moment ago
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    port = free_port()
     monkeypatch.setenv("RAY_ADDRESS", f"127.0.0.1:{port}")
     scene = write_scene(tmp_path / "s")
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif", "--ray")

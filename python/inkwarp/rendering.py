@@ -391,32 +391,35 @@ RAY_AHEAD_FRAMES = 32
 RAY_RESTARTS = 2
 
 
-def _check_address(address: str) -> None:
+def _check_address(address: str, where: str | None = None, fix: str | None = None) -> None:
     """A quick connection test, so that an address nobody answers at fails in seconds
-    with a clear message instead of Ray's long retries."""
+    with a clear message instead of Ray's long retries. Messages start with ``where`` (the
+    option that gave the address) and say ``fix`` where nothing answers."""
     import socket
+
+    where = where or f"--ray {address}"
 
     if address in ("auto", "local"):
         return
     text = address.split("://", 1)[-1]
     host, _, port = text.rpartition(":")
     if not host or not port.isdigit():
-        raise ValueError(f"--ray {address}: give the cluster's address as HOST:PORT (such as "
+        raise ValueError(f"{where}: give the cluster's address as HOST:PORT (such as "
                          "10.0.0.5:6379), ray://HOST:PORT, or auto")
     try:
         with socket.create_connection((host.strip("[]"), int(port)), timeout=5) as conn:
             reply = _http2_reply(conn)
     except OSError as err:
-        raise ValueError(f"--ray {address}: no Ray cluster answers there ({err.strerror or err}); "
-                         "start one with 'ray start --head' (or 'ray up cluster.yaml') and give "
-                         "its address, or leave the address out to start a local one") from None
+        raise ValueError(f"{where}: no Ray cluster answers there ({err.strerror or err}); " + (
+            fix or "start one with 'ray start --head' (or 'ray up cluster.yaml') and give its "
+            "address, or leave the address out to start a local one")) from None
     # Ray's head (and its client server) speak gRPC: HTTP/2, which answers the connection
     # preface with a SETTINGS frame. Anything else (a web server on a mistyped port) left
     # Ray retrying without end. Under TLS (RAY_USE_TLS) the preface is not spoken in clear.
     tls = os.environ.get("RAY_USE_TLS", "").lower() in ("1", "true")
     if not tls and (len(reply) < 4 or reply[3] != 4):
         said = (reply.splitlines() or [b"nothing"])[0].decode("latin-1")[:60]
-        raise ValueError(f"--ray {address}: something answers there, but not a Ray cluster (it "
+        raise ValueError(f"{where}: something answers there, but not a Ray cluster (it "
                          f"replied {said!r}); give the address 'ray status' prints on the head "
                          "node (port 6379 unless it was started with another)")
 
@@ -500,12 +503,8 @@ def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
         # passed over for one started here.
         target, named = None, os.environ.get("RAY_ADDRESS")
         if named:
-            try:
-                _check_address(named)
-            except ValueError as err:
-                why = str(err).partition(named)[2].split(";")[0].lstrip(": ")
-                raise ValueError(f"RAY_ADDRESS={named}, the cluster --ray without an address joins: {why}; "
-                                 "start it, or unset RAY_ADDRESS to start a local one") from None
+            _check_address(named, f"RAY_ADDRESS={named}, the cluster --ray without an address joins",
+                           "start it, or unset RAY_ADDRESS to start a local one")
         elif (left := _left_by_ray_start()) is not None:
             try:
                 _check_address(left)

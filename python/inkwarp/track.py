@@ -317,10 +317,9 @@ class _Tracker:
     def _mismatch(self, a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarray) -> np.ndarray:
         """The mean absolute difference of the Lucas-Kanade windows of ``a`` at ``at_a`` and
         of ``b`` at ``at_b``, point by point."""
-        size = (LK_WINDOW_PX, LK_WINDOW_PX)
-        fa, fb = a.astype(np.float32), b.astype(np.float32)
-        return np.array([float(np.abs(self.cv2.getRectSubPix(fa, size, tuple(map(float, p)))
-                                      - self.cv2.getRectSubPix(fb, size, tuple(map(float, q)))).mean())
+        size, window = (LK_WINDOW_PX, LK_WINDOW_PX), self.cv2.getRectSubPix
+        return np.array([float(np.abs(window(a, size, tuple(map(float, p)), patchType=self.cv2.CV_32F)
+                                      - window(b, size, tuple(map(float, q)), patchType=self.cv2.CV_32F)).mean())
                          for p, q in zip(at_a, at_b)])
 
     def predicted(self, template: np.ndarray, rest: np.ndarray, now: np.ndarray,

@@ -662,8 +662,8 @@ fn solve_piece(
     // rate: the larger component's.
     let (mut last_energy, mut energy_rates) = ([0.0f64; 2], [f64::INFINITY; 2]);
     let mut stop = |(change, rate): (f64, Option<f64>), cycle: usize, report: &mut SolveReport, (floor, settled): (f64, bool), energy: [f64; 2]| {
-        let step_rate = (0..2).filter(|&c| last_energy[c] > 0.0 && energy[c] >= 0.0).map(|c| (energy[c] / last_energy[c]).sqrt()).fold(-1.0, f64::max);
-        (last_energy, energy_rates) = (energy, [energy_rates[1], if step_rate >= 0.0 { step_rate } else { f64::INFINITY }]);
+        let step_rate = (0..2).filter(|&c| last_energy[c] > 0.0 && energy[c] >= 0.0).map(|c| (energy[c] / last_energy[c]).sqrt()).reduce(f64::max);
+        (last_energy, energy_rates) = (energy, [energy_rates[1], step_rate.unwrap_or(f64::INFINITY)]);
         (report.cycles, report.final_change_px) = (cycle - base, change);
         // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. CG steps are not: ρ is the
         // larger of the last two ratios (0.5 before one; their geometric mean where the spectrum
