@@ -213,6 +213,18 @@ def test_bad_options_say_what_to_do(capsys, tmp_path, args, expected):
     assert leftovers(tmp_path) == [] and not any(tmp_path.glob("x.*"))
 
 
+def test_an_unknown_option_is_named_by_its_command(capsys, tmp_path):
+    # It was the top level's error (`inkwarp: error: unrecognized arguments: --fps 12`), with
+    # the top level's usage, which does not show render's options.
+    scene = write_scene(tmp_path / "s")
+    for extra in (["--fps", "12"], [str(scene)]):
+        with pytest.raises(SystemExit) as exit:
+            main(["render", str(scene), "-o", str(tmp_path / "x.gif"), *extra])
+        stderr = capsys.readouterr().err
+        assert exit.value.code == 2 and f"inkwarp render: error: unrecognized arguments: {' '.join(extra)}" in stderr, stderr
+        assert "usage: inkwarp render" in stderr and not any(tmp_path.glob("x.*")), stderr
+
+
 def test_a_background_of_three_numbers_says_what_to_write(capsys, tmp_path):
     scene = write_scene(tmp_path / "s", mutated(_set(["background"], [0, 0, 0])))
     code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "x.png")

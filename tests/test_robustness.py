@@ -127,6 +127,15 @@ def test_a_picture_given_as_the_scene_is_named_a_picture(tmp_path: Path, capsys)
     assert main(["render", str(tmp_path / "tracing.svg"), "-o", str(tmp_path / "o.png")]) == 2
     err = capsys.readouterr().err
     assert f"tracing.svg: an SVG drawing, not a scene; trace it over its picture into a scene with inkwarp new PICTURE --drawing {tmp_path / 'tracing.svg'}" in err, err
+    # A video given as the scene said "not UTF-8 text (byte 43, line 1)".
+    from inkwarp.video import write_frames
+
+    for name, kind in (("clip.mp4", "an MP4 video"), ("clip.webm", "a WebM video")):
+        write_frames(tmp_path / name, [np.full((32, 32, 4), 255, np.uint8)] * 4, fps=4)
+        assert main(["track", str(tmp_path / name), "--scene", str(tmp_path / name), "-o", str(tmp_path / "t.json")]) == 2
+        err = capsys.readouterr().err
+        assert f"{name}: {kind}, not a scene; a scene is a JSON file" in err, err
+        assert f"inkwarp track {tmp_path / name} --scene SCENE" in err and not (tmp_path / "t.json").exists(), err
 
 
 @pytest.mark.parametrize("number", ["NaN", "Infinity", "-Infinity"])

@@ -278,6 +278,11 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
         if picture:
             raise SceneError(f"{name}: a {picture} picture, not a scene; make a scene of it with "
                              f"inkwarp new {name} -o scene.json", file=name) from None
+        video = _video_kind(data)
+        if video:
+            raise SceneError(f"{name}: {'an' if video in ('MP4', 'AVI') else 'a'} {video} video, not a scene; "
+                             f"a scene is a JSON file (inkwarp new PICTURE -o scene.json), and inkwarp track "
+                             f"{name} --scene SCENE follows its drawing through the video", file=name) from None
         line = data[: err.start].count(b"\n") + 1
         raise SceneError(f"{name}: not UTF-8 text (byte {err.start}, line {line}); save the "
                          "scene as UTF-8", file=name) from None
@@ -314,6 +319,15 @@ def _picture_kind(data: bytes) -> str | None:
     if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
         return "WebP"
     return next((kind for magic, kind in kinds.items() if data.startswith(magic)), None)
+
+
+def _video_kind(data: bytes) -> str | None:
+    """The kind of video ``data`` starts as (MP4 or MOV, WebM or Matroska, AVI), or None."""
+    if data[4:8] == b"ftyp":
+        return "MOV" if data[8:10] == b"qt" else "MP4"
+    if data.startswith(b"\x1a\x45\xdf\xa3"):
+        return "WebM" if b"webm" in data[:64] else "Matroska"
+    return "AVI" if data[:4] == b"RIFF" and data[8:12] == b"AVI " else None
 
 
 #: The engine's warm-start chain length (``WARM_CHAIN_FRAMES`` in the core's scene engine):

@@ -54,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         importlib.import_module(f"inkwarp.cli.{name}").add_parser(subparsers)
+    parser.set_defaults(commands=subparsers.choices)
     return parser
 
 
@@ -187,7 +188,10 @@ def _ranges_joined(argv: list[str]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(_ranges_joined(sys.argv[1:] if argv is None else [str(a) for a in argv]))
+    args, extra = parser.parse_known_args(_ranges_joined(sys.argv[1:] if argv is None else [str(a) for a in argv]))
+    if extra:
+        # The command's own usage and name, not the top level's (`inkwarp render ... --fps 12`).
+        args.commands.get(args.command, parser).error(f"unrecognized arguments: {' '.join(extra)}")
     if not getattr(args, "func", None):
         parser.print_help(sys.stderr)
         return 2
