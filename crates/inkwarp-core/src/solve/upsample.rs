@@ -232,9 +232,8 @@ impl Taps {
     fn linear(&self, k: usize) -> f64 { if k == 1 { 1.0 - self.t } else { self.t } }
 }
 
-/// The Catmull-Rom weights of the four window positions of a pixel `t` across its cell; in the first (`first`) or
-/// last (`last`) cell, the position past the border as the linear extrapolation of the two inside it, so that
-/// the weights still sum to 1 and keep linear functions (renormalised, they bent a turn by 0.35 px at step 4).
+/// The Catmull-Rom weights of the window of a pixel `t` across its cell; in the `first` or `last` cell the position
+/// past the border as the linear extrapolation of the two inside it, so the weights sum to 1 and keep linear functions.
 fn catmull_rom(t: f64, first: bool, last: bool) -> [f64; 4] {
     let (t2, t3) = (t * t, t * t * t);
     let mut w = [0.5 * (-t3 + 2.0 * t2 - t), 0.5 * (3.0 * t3 - 5.0 * t2 + 2.0), 0.5 * (-3.0 * t3 + 4.0 * t2 + t), 0.5 * (t3 - t2)];
@@ -370,17 +369,16 @@ fn window_moments(fc: &Field, ty: &Taps, tx: &Taps, mask: u16, weight: impl Fn(&
         let (kb, row) = (ty.slot[b] as usize, ty.at[b] * fc.width);
         let Some(wy) = weight(ty, kb) else { continue };
         for a in 0..tx.len {
-            let ka = tx.slot[a] as usize;
+            let (ka, c) = (tx.slot[a] as usize, row + tx.at[a]);
             let Some(wx) = weight(tx, ka) else { continue };
-            let c = row + tx.at[a];
             m.add(wx * wy, [ka as f64, kb as f64], (mask & (1 << (4 * kb + ka)) != 0).then(|| [fc.dx[c] as f64, fc.dy[c] as f64]));
         }
     }
     m
 }
 
-/// Sums over a window's taps: the whole window's weights `w` and their centre; the allowed taps' weights,
-/// values and centre; and, weighted by `|w|`, the allowed taps' moments for a least-squares plane through them.
+/// Sums over a window's taps: the whole window's weights and centre; the allowed taps' weights, values and centre,
+/// and their moments weighted by `|w|` for a least-squares plane through them.
 #[derive(Default)]
 struct Moments { whole: [f64; 3], allowed: [f64; 5], plane: [f64; 12] }
 
@@ -390,8 +388,7 @@ impl Moments {
         self.whole = [self.whole[0] + w, self.whole[1] + w * x, self.whole[2] + w * y];
         let Some([fx, fy]) = f else { return };
         self.allowed.iter_mut().zip([w, w * fx, w * fy, w * x, w * y]).for_each(|(s, v)| *s += v);
-        let terms = [1.0, x, y, x * x, x * y, y * y, fx, x * fx, y * fx, fy, x * fy, y * fy];
-        self.plane.iter_mut().zip(terms).for_each(|(s, v)| *s += w.abs() * v);
+        self.plane.iter_mut().zip([1.0, x, y, x * x, x * y, y * y, fx, x * fx, y * fx, fy, x * fy, y * fy]).for_each(|(s, v)| *s += w.abs() * v);
     }
 
     /// The allowed taps' renormalised value where their weights sum to `least` or more, less the gradient of the
