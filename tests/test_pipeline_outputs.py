@@ -548,6 +548,17 @@ def test_a_full_disk_is_one_message_naming_the_output_for_every_format(tmp_path,
     ({"frames": "5:1"}, "frames='5:1' is not a range of the scene, which has frames 0 to 3"),
     ({"frames": (0, 99)}, "frames=(0, 99) is not a range of the scene, which has frames 0 to 3"),
     ({"background": "nope"}, "background='nope': give transparent"),
+    # Levels 0 to 1 were cut to [0, 0, 0, 1]; NaN and None raised int()'s own errors.
+    ({"background": [0.5, 0.5, 0.5, 1.0]}, "background=[0.5, 0.5, 0.5, 1.0] is not a colour; give four "
+     "integers 0 to 255, [R, G, B, A] (or a colour such as 'transparent' or '#RRGGBB'); for levels 0 to 1, "
+     "scale them: [round(v * 255) for v in background]"),
+    ({"background": [float("nan")] * 4}, "background=[nan, nan, nan, nan] is not a colour; give four integers"),
+    ({"background": [None] * 4}, "background=[None, None, None, None] is not a colour; give four integers"),
+    # As a scene's background: whole numbers written as floats, and booleans, are refused too.
+    ({"background": [255.0] * 4}, "background=[255.0, 255.0, 255.0, 255.0] is not a colour"),
+    ({"background": [0, 0, 0, 256]}, "background=[0, 0, 0, 256] is not a colour"),
+    ({"background": [255, 0, 0]}, "background=[255, 0, 0] is not a colour"),
+    ({"background": [True, 0, 0, 255]}, "background=[True, 0, 0, 255] is not a colour"),
     ({"sprite_sheet": "0x1"}, "sprite_sheet='0x1': columns and rows must be at least 1"),
     ({"sprite_sheet": "1x1"}, "sprite_sheet='1x1': 1x1 holds 1 frame, the render has 4; give "
                               "more rows or columns, or pick fewer with frames=(A, B)"),
@@ -559,6 +570,13 @@ def test_python_callers_see_argument_names_not_flags(tmp_path, options, message)
         inkwarp.render(str(scene), output, **options)
     assert message in str(caught.value) and "--" not in str(caught.value)
     assert list(tmp_path.iterdir()) == [tmp_path / "s"]
+
+
+def test_python_takes_a_background_of_four_integers(tmp_path, transparent):
+    scene, _ = transparent
+    for i, background in enumerate(([255, 0, 0, 255], np.array([0, 0, 255, 255], np.uint8))):
+        inkwarp.render(str(scene), tmp_path / f"f{i}", frames=(0, 1), background=background)
+        assert png_frames(tmp_path / f"f{i}", count=1)[0][0, 0].tolist() == list(background)
 
 
 def test_the_command_line_names_its_flags(capsys, tmp_path):

@@ -56,6 +56,29 @@ def test_read_image_converts_grey_palette_and_rgb(tmp_path):
     assert photo.shape == (4, 5, 4) and (photo[..., 3] == 255).all()
 
 
+def test_16_bit_grey_reads_as_the_engine_reads_it(tmp_path):
+    # Pillow's convert("RGBA") clipped 16-bit grey to white. The engine rounds 16 bits to
+    # eight, (v + 128) // 257, but never a faint nonzero level (1, 200) to 0.
+    levels = np.array([[0, 1, 200, 32896, 40000, 65535]], np.uint16)
+    expected = [0, 1, 1, 128, 156, 255]
+    path = tmp_path / "grey16.png"
+    Image.fromarray(levels).save(path)
+    with Image.open(path) as im:
+        assert im.mode == "I;16"
+    engine = inkwarp.Scene.from_dict({"inkwarp": 1, "layers": [{"name": "l", "image": "grey16.png"}]},
+                                     base_dir=tmp_path).render()
+    assert engine[0, :, 0].tolist() == expected
+    np.testing.assert_array_equal(read_image(path), engine)
+    np.testing.assert_array_equal(inkwarp.Scene.new(path).render(), engine)
+    # The other modes Pillow holds wide grey in (older Pillow reads a 16-bit PNG as "I").
+    from inkwarp.imaging import rgba_pixels
+
+    for mode in ("I", "I;16B"):
+        wide = Image.fromarray(levels).convert(mode) if mode == "I" else Image.frombytes(
+            mode, (6, 1), levels.astype(">u2").tobytes())
+        np.testing.assert_array_equal(rgba_pixels(wide), engine, err_msg=mode)
+
+
 def test_read_image_errors(tmp_path):
     with pytest.raises(FileNotFoundError):
         read_image(tmp_path / "missing.png")

@@ -210,15 +210,15 @@ def test_the_default_matte_is_the_alpha():
         (np.zeros((4, 4, 4), int).tolist(), np.zeros((4, 4, 2)), None, r"dtype int64; convert levels 0-255 with np.clip\(np.round\(image\), 0, 255\)"),
         (np.full((4, 4, 4), 200.0), np.zeros((4, 4, 2)), None, r"dtype float64; convert levels 0-255 with"),
         (np.full((4, 4, 4), 40000, np.uint16), np.zeros((4, 4, 2)), None, r"dtype uint16; convert levels up to 40000 \(16-bit ones: 65535\) with \(image // 257\)"),
-        (np.zeros((4, 4, 2), np.uint8), np.zeros((4, 4, 2)), None, r"\(H, W, 3\) or \(H, W, 4\)"),
-        (np.zeros((4, 4), np.uint8), np.zeros((4, 4, 2)), None, r"\(H, W, 3\) or \(H, W, 4\)"),
+        (np.zeros((4, 4, 2), np.uint8), np.zeros((4, 4, 2)), None, r"\(H, W\), \(H, W, 3\) or \(H, W, 4\) \(grey, RGB or RGBA\), got \(4, 4, 2\); make grey and alpha RGBA with np.dstack\(\[image\[..., 0\]\] \* 3 \+ \[image\[..., 1\]\]\)"),
+        (np.zeros((4, 4, 1), np.uint8), np.zeros((4, 4, 2)), None, r"got \(4, 4, 1\); pass a grey image as \(H, W\): image\[..., 0\]"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 5, 2)), None, r"\(4, 4, 2\)"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4)), None, r"\(4, 4, 2\)"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2), complex), None, "real numeric"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.ones((3, 4)), r"\(4, 4\)"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.array([["a"] * 4] * 4), "matte"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.full((4, 4), np.nan), "finite"),
-        (None, None, None, r"image must be an \(H, W, 3\) or \(H, W, 4\) uint8 array \(RGB or RGBA\), got None"),
+        (None, None, None, r"image must be an \(H, W\), \(H, W, 3\) or \(H, W, 4\) uint8 array \(grey, RGB or RGBA\), got None"),
         ("cat.png", None, None, r"got the path 'cat.png'; read the picture first, with inkwarp.imaging.read_image"),
         (b"\x89PNG" + bytes(1000), None, None, r"got 1004 bytes of a file; decode them first, with inkwarp.imaging.read_image\(io.BytesIO\(data\)\)"),
     ],
@@ -226,6 +226,24 @@ def test_the_default_matte_is_the_alpha():
 def test_bad_arguments_raise_value_error(image, field, matte, message):
     with pytest.raises(ValueError, match=message):
         inkwarp.warp_image(image, field, matte)
+
+
+def test_a_grey_image_is_warped_as_opaque_rgb():
+    # As image_data_uri takes it and a scene reads a grey PNG.
+    grey = np.random.default_rng(3).integers(0, 256, (6, 9), dtype=np.uint8)
+    field = np.zeros((6, 9, 2), np.float32)
+    field[..., 0] = 0.5
+    np.testing.assert_array_equal(inkwarp.warp_image(grey, field), inkwarp.warp_image(np.dstack([grey] * 3), field))
+
+
+@pytest.mark.parametrize("height, width, message", [
+    (9000, 9000, "image is 9000×9000 pixels, more than the 64 megapixels inkwarp handles; use a smaller picture"),
+    (1, 40000, "image is 40000×1 pixels; each side may be at most 32768; use a smaller picture")])
+def test_an_image_past_the_limits_is_refused_as_scenes_refuse_it(height, width, message):
+    # Refused from the shape, before a pixel is converted or warped (broadcast arrays: no memory).
+    image = np.broadcast_to(np.zeros(1, np.uint8), (height, width, 3))
+    with pytest.raises(ValueError, match=message):
+        inkwarp.warp_image(image, np.broadcast_to(np.zeros(1, np.float32), (height, width, 2)))
 
 
 def test_non_finite_field_names_the_first_bad_pixel():

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import copy
 import json
+import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -155,6 +158,55 @@ def test_data_uri_images(tmp_path):
     data["layers"][1]["image"] = inkwarp.image_data_uri(np.asarray(Image.fromarray(gradient()).convert("RGB")))
     scene = inkwarp.Scene.from_dict(data)
     np.testing.assert_array_equal(scene.render(), gradient())
+
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def test_a_scene_pickles_and_copies_to_one_that_renders_the_same_frames(tmp_path, monkeypatch):
+    # Process pools pickle their arguments; the engine's scene itself cannot be pickled.
+    face = inkwarp.Scene.load(EXAMPLES / "face" / "scene.json")
+    copied = pickle.loads(pickle.dumps(face))
+    assert (copied.file, copied.base_dir, copied.to_dict()) == (face.file, face.base_dir, face.to_dict())
+    np.testing.assert_array_equal(copied.render(time=0.7), face.render(time=0.7))
+    np.testing.assert_array_equal(copy.deepcopy(face).render(frame=30), face.render(frame=30))
+    # Relative image paths of a scene built in the current folder are read from that folder
+    # wherever the copy is unpickled; data: URIs travel in the pickle.
+    write_scene(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    data = two_layer_scene()
+    data["layers"][1]["image"] = inkwarp.image_data_uri(gradient(hole=(slice(2, 8), slice(2, 8))))
+    built = inkwarp.Scene.from_dict(data)
+    pickled = pickle.dumps(built)
+    monkeypatch.chdir(EXAMPLES)
+    np.testing.assert_array_equal(pickle.loads(pickled).render(time=0.7), built.render(time=0.7))
+    np.testing.assert_array_equal(copy.deepcopy(built).render(time=0.7), built.render(time=0.7))
+
+
+def test_a_scene_renders_in_a_process_pool():
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    face = inkwarp.Scene.load(EXAMPLES / "face" / "scene.json")
+    # Spawned, so the scene goes through pickle (a forked worker could share it).
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        frame = pool.submit(face.render, time=0.7).result(timeout=120)
+    np.testing.assert_array_equal(frame, face.render(time=0.7))
+
+
+@pytest.mark.parametrize("kind", [inkwarp.Solver, inkwarp.WarmStart])
+def test_solvers_and_warm_starts_pickle_and_copy_as_fresh_ones(kind):
+    # What they hold is a cache of the engine's: a copy starts empty and solves the same.
+    pts, disp = [[8, 8], [56, 8], [8, 40], [56, 40], [32, 24]], [[0, 0]] * 4 + [[3, 0]]
+    used = kind()
+    keyword = "solver" if kind is inkwarp.Solver else "warm"
+    inkwarp.thin_plate(pts, disp, (48, 64), **{keyword: used})
+    fresh = inkwarp.thin_plate(pts, disp, (48, 64))
+    for copied in (pickle.loads(pickle.dumps(used)), copy.deepcopy(used), copy.copy(used)):
+        assert type(copied) is kind and copied is not used
+        if kind is inkwarp.WarmStart:
+            assert len(used) == 1 and len(copied) == 0
+        np.testing.assert_array_equal(inkwarp.thin_plate(pts, disp, (48, 64), **{keyword: copied}), fresh)
 
 
 def test_the_method_can_be_chosen_per_call(scene):

@@ -20,16 +20,20 @@ __all__ = ["read_image", "warp_image", "write_png"]
 PathLike = Union[str, "os.PathLike[str]"]
 
 
-def _as_rgba(image: ArrayLike, name: str = "image") -> NDArray[np.uint8]:
+def _as_rgba(image: ArrayLike, name: str = "image", *, grey: bool = False, limit: bool = False) -> NDArray[np.uint8]:
+    """``image`` as a C-contiguous ``(H, W, 4)`` uint8 array, RGB and (with ``grey``) grey
+    ``(H, W)`` made opaque RGBA; with ``limit``, refused past inkwarp's largest picture
+    before anything is copied."""
+    shapes = "(H, W), (H, W, 3) or (H, W, 4)" if grey else "(H, W, 3) or (H, W, 4)"
     if isinstance(image, (bytes, bytearray)):
-        raise ValueError(f"{name} must be an (H, W, 3) or (H, W, 4) uint8 array, got {len(image)} bytes of a "
+        raise ValueError(f"{name} must be an {shapes} uint8 array, got {len(image)} bytes of a "
                          "file; decode them first, with inkwarp.imaging.read_image(io.BytesIO(data))")
     if isinstance(image, (str, os.PathLike)):
-        raise ValueError(f"{name} must be an (H, W, 3) or (H, W, 4) uint8 array, got the path {os.fspath(image)!r:.200}; "
+        raise ValueError(f"{name} must be an {shapes} uint8 array, got the path {os.fspath(image)!r:.200}; "
                          "read the picture first, with inkwarp.imaging.read_image(path)")
     array = np.asarray(image)
     if array.dtype.kind not in "biuf":
-        raise ValueError(f"{name} must be an (H, W, 3) or (H, W, 4) uint8 array (RGB or RGBA), got "
+        raise ValueError(f"{name} must be an {shapes} uint8 array ({'grey, ' if grey else ''}RGB or RGBA), got "
                          f"{'None' if image is None else type(image).__name__ + ' of dtype ' + str(array.dtype)}")
     if array.dtype != np.uint8:
         # The fix for the values it holds: 16-bit levels, levels 0-255 already (integers, or
@@ -47,14 +51,38 @@ def _as_rgba(image: ArrayLike, name: str = "image") -> NDArray[np.uint8]:
         else:
             fix = "a float image in [0, 1] with (np.clip(image, 0, 1) * 255).round().astype(np.uint8)"
         raise ValueError(f"{name} must be a uint8 array, got dtype {array.dtype}; convert {fix}")
-    if array.ndim != 3 or array.shape[2] not in (3, 4):
+    if not ((array.ndim == 3 and array.shape[2] in (3, 4)) or (grey and array.ndim == 2)):
+        if array.ndim == 2:
+            fix = "; make a grey image RGB with np.dstack([image] * 3)"
+        elif array.ndim == 3 and array.shape[2] == 1:
+            fix = ("; pass a grey image as (H, W): image[..., 0]" if grey
+                   else "; make a grey image RGB with np.dstack([image[..., 0]] * 3)")
+        elif array.ndim == 3 and array.shape[2] == 2:
+            fix = "; make grey and alpha RGBA with np.dstack([image[..., 0]] * 3 + [image[..., 1]])"
+        else:
+            fix = ""
         raise ValueError(
-            f"{name} must have shape (H, W, 3) or (H, W, 4) (RGB or RGBA), got {array.shape}"
+            f"{name} must have shape {shapes} ({'grey, ' if grey else ''}RGB or RGBA), got {array.shape}{fix}"
         )
+    if limit:
+        _check_size(name, array.shape[1], array.shape[0])
+    if array.ndim == 2:
+        array = array[..., None].repeat(3, axis=2)
     if array.shape[2] == 3:
         alpha = np.full(array.shape[:2] + (1,), 255, dtype=np.uint8)
         array = np.concatenate([array, alpha], axis=2)
     return np.ascontiguousarray(array)
+
+
+def _check_size(name: str, width: int, height: int) -> None:
+    """Refuse a picture past the engine's limits (``inkwarp_core::limits::check_size``), in
+    its words."""
+    if max(width, height) > _inkwarp.MAX_SIDE_PX:
+        raise ValueError(f"{name} is {width}×{height} pixels; each side may be at most "
+                         f"{_inkwarp.MAX_SIDE_PX}; use a smaller picture")
+    if width * height > _inkwarp.MAX_PIXELS:
+        raise ValueError(f"{name} is {width}×{height} pixels, more than the {_inkwarp.MAX_PIXELS >> 20} "
+                         "megapixels inkwarp handles; use a smaller picture")
 
 
 def warp_image(
@@ -70,8 +98,11 @@ def warp_image(
 
     Parameters
     ----------
-    image : array_like of uint8, shape (H, W, 3) or (H, W, 4)
-        The picture, RGB (made opaque) or straight RGBA.
+    image : array_like of uint8, shape (H, W), (H, W, 3) or (H, W, 4)
+        The picture: grey or RGB (both made opaque RGBA, as a scene reads a grey PNG), or
+        straight RGBA. At most 32768 pixels a side and 64 megapixels, as for every picture
+        inkwarp takes. Grey with alpha, ``(H, W, 2)``, is refused: make it RGBA with
+        ``np.dstack([image[..., 0]] * 3 + [image[..., 1]])``.
     field : array_like of float, shape (H, W, 2)
         The displacement of every pixel in pixels: ``field[y, x] = (Δx, Δy)``, such as
         :func:`inkwarp.thin_plate` returns. Converted to float32.
@@ -93,7 +124,8 @@ def warp_image(
     Raises
     ------
     ValueError
-        If a shape or dtype is wrong, or the field holds NaN or infinity.
+        If a shape or dtype is wrong, the image is larger than inkwarp handles, or the
+        field holds NaN or infinity.
 
     Notes
     -----
@@ -117,7 +149,7 @@ def warp_image(
     >>> out[0, :, 3].tolist()               # the first column is uncovered
     [0, 255, 255, 255, 255, 255]
     """
-    rgba = _as_rgba(image)
+    rgba = _as_rgba(image, grey=True, limit=True)
     height, width = rgba.shape[:2]
 
     array = np.asarray(field)
@@ -193,7 +225,7 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
 
     try:
         with Image.open(path) as im:
-            return np.asarray(upright(im).convert("RGBA"), dtype=np.uint8).copy()
+            return rgba_pixels(upright(im))
     except UnidentifiedImageError as e:
         raise ValueError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
 
@@ -213,6 +245,30 @@ def upright(image: Any) -> Any:
             5: Image.Transpose.TRANSPOSE, 6: Image.Transpose.ROTATE_270, 7: Image.Transpose.TRANSVERSE,
             8: Image.Transpose.ROTATE_90}.get(exif.get(0x0112))
     return image.transpose(turn) if turn else image
+
+
+def rgba_pixels(image: Any) -> NDArray[np.uint8]:
+    """A Pillow image's pixels as straight RGBA ``uint8``, as the engine decodes them.
+
+    Greyscale of more than 8 bits (Pillow's modes ``I;16``, ``I;16B``, ``I;16L`` and ``I``,
+    in which some Pillow versions and formats hold 16-bit grey; levels taken as 0 to 65535)
+    is rounded to 8 bits as the engine rounds 16-bit pictures, ``(v + 128) // 257``, but
+    never a faint nonzero level to 0; a PNG's transparent grey level is made transparent.
+    Pillow's own ``convert("RGBA")`` clips those levels to 255, turning the picture white.
+    Every other mode is converted by Pillow (16-bit RGB, RGBA and grey with alpha, which
+    Pillow reads as 8-bit RGB or RGBA, keep their high bytes).
+    """
+    if image.mode == "I" or image.mode.startswith("I;16"):
+        levels = np.clip(np.asarray(image).astype(np.int64), 0, 65535)
+        grey = np.maximum((levels + 128) // 257, levels > 0).astype(np.uint8)
+        rgba = np.empty(grey.shape + (4,), np.uint8)
+        rgba[..., :3] = grey[..., None]
+        transparent = image.info.get("transparency")
+        rgba[..., 3] = 255
+        if isinstance(transparent, int):
+            rgba[..., 3][levels == transparent] = 0
+        return rgba
+    return np.asarray(image.convert("RGBA"), dtype=np.uint8).copy()
 
 
 #: zlib level of every PNG inkwarp writes. Level 1 writes a 12-megapixel photograph's frame

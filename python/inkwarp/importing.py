@@ -117,7 +117,7 @@ def _check_size(source: Path, size: tuple[int, int] | None) -> None:
 def _read_flat(source: Path) -> Picture:
     from PIL import Image, UnidentifiedImageError
 
-    from inkwarp.imaging import upright
+    from inkwarp.imaging import rgba_pixels, upright
 
     def unreadable(err: BaseException) -> ValueError:
         return ValueError(f"{source}: not a readable {source.suffix.lstrip('.').upper()} "
@@ -139,7 +139,7 @@ def _read_flat(source: Path) -> Picture:
         try:
             image.load()
             # Upright, as viewers show it and the engine reads it (a phone's EXIF orientation).
-            rgba = np.asarray(upright(image).convert("RGBA")).copy()
+            rgba = rgba_pixels(upright(image))
         except (OSError, SyntaxError, ValueError) as err:
             raise unreadable(err) from None
     height, width = rgba.shape[:2]

@@ -46,6 +46,9 @@ rule could claim convergence it had not reached); a ``southwell`` frame, unconve
 design, stays a start. (Its solver does not keep the pieces' answers as a ``Solver`` does:
 the frames before predict the next as closely, sooner.) ``clear()`` starts over by hand.
 
+What it keeps is a cache: a ``WarmStart`` pickled (to a process pool, say) or copied is a
+fresh, empty one, whose first solve starts cold.
+
 Examples
 --------
 >>> import numpy as np, inkwarp
@@ -95,6 +98,9 @@ for bit where no earlier call left slow modes or answers that span the new displ
 keeps the levels. Without a ``Solver`` every call builds its levels afresh and keeps
 nothing. A ``WarmStart`` keeps a solver of its own, so the two are not passed together.
 
+What it keeps is a cache: a ``Solver`` pickled (to a process pool, say) or copied is a
+fresh, empty one, which builds its levels again on its first call.
+
 Examples
 --------
 >>> import numpy as np, inkwarp
@@ -111,6 +117,17 @@ Examples
 >>> bool(np.array_equal(again, fresh))
 True
 """
+
+
+def _fresh(cache: Any) -> tuple[Any, tuple[()]]:
+    """Pickled or copied, a ``Solver`` or ``WarmStart`` is a new, empty one of its kind: it
+    holds an engine cache, which neither pickles nor needs to (the answers do not depend on it
+    beyond the tolerance), and its constructor takes no settings."""
+    return type(cache), ()
+
+
+Solver.__reduce__ = _fresh
+WarmStart.__reduce__ = _fresh
 
 
 @dataclasses.dataclass(frozen=True)

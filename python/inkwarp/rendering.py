@@ -95,6 +95,25 @@ def portable_scene(scene: Any) -> dict[str, Any]:
     return data
 
 
+def _background_argument(background: Any) -> list[int]:
+    """``[r, g, b, a]`` of a sequence of four integers 0-255, or a ValueError naming the
+    argument. Floats are refused, 255.0 included, as a scene's ``background`` refuses them:
+    levels 0 to 1 (``[1.0, 1.0, 1.0, 1.0]``) would otherwise pass as almost black."""
+    try:
+        values = list(background)
+    except TypeError:
+        values = []
+    whole = [isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in values]
+    if len(values) == 4 and all(whole) and all(0 <= v <= 255 for v in values):
+        return [int(v) for v in values]
+    fix = "give four integers 0 to 255, [R, G, B, A] (or a colour such as 'transparent' or '#RRGGBB')"
+    numbers = [float(v) for v in values if isinstance(v, (int, float, np.integer, np.floating))
+               and not isinstance(v, bool)]
+    if len(numbers) == len(values) == 4 and not all(whole) and all(0 <= v <= 1 for v in numbers):
+        fix += "; for levels 0 to 1, scale them: [round(v * 255) for v in background]"
+    raise ValueError(f"background={background!r:.80} is not a colour; {fix}")
+
+
 def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[int, int]:
     from inkwarp.cli._common import parse_frames
 
@@ -212,7 +231,8 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
         The interpolant instead of every layer's ``solver.method``.
     background : str or RGBA list, optional
         ``"transparent"``, a colour (see :func:`inkwarp.outputs.parse_background`), or
-        ``[r, g, b, a]``, instead of the scene's.
+        ``[r, g, b, a]``, four integers 0 to 255 as in the scene format, instead of the
+        scene's.
     sprite_sheet : True or "COLSxROWS", optional
         Write one atlas PNG with a TexturePacker JSON.
     skip_existing : bool
@@ -257,7 +277,7 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     if background is not None:
         colour = (outputs.parse_background(background, option="background")
                   if isinstance(background, str)
-                  else [int(v) for v in background])
+                  else _background_argument(background))
         scene = outputs.with_background(scene, colour)
     start, stop = _frame_indices(scene, frames)
     kind = video.output_kind(output)

@@ -446,6 +446,11 @@ def _check_finite_field(field: Any, where: str) -> None:
             "almost at the same time apart, or lower solver.tension / beier_neely weights")
 
 
+def _rebuilt_scene(cls: type[Scene], text: str, base_dir: str | None, file: str | None) -> Scene:
+    """A pickled or copied :class:`Scene`, built again from its document (``Scene.__reduce__``)."""
+    return cls(_core_from_json(text, base_dir, file), file=file, base_dir=base_dir)
+
+
 class Scene:
     """A scene ready to render: its layers' images decoded, mattes and cuts applied.
 
@@ -455,6 +460,12 @@ class Scene:
 
     Times are in seconds; frame ``i`` is at time ``i / fps``. Before a feature's first key
     it holds that key, after its last key the last one.
+
+    A scene can be pickled (to a process pool, say) and copied with :func:`copy.deepcopy`:
+    the copy is built again from its document (:meth:`to_dict`) and folder (``base_dir``),
+    so it renders the same frames. Images held as ``data:`` URIs travel with it; image
+    files are read again where it is unpickled, so they must be there (on another machine,
+    pickle a scene whose images are ``data:`` URIs, as :meth:`new` makes them).
     """
 
     def __init__(self, core: Any, *, file: str | None = None, base_dir: str | None = None) -> None:
@@ -462,6 +473,12 @@ class Scene:
         self._core = core
         self.file = file
         self.base_dir = base_dir
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # The engine's scene cannot be pickled; its document and folder rebuild it (images
+        # read again from the same absolute folder, whatever the current one is then).
+        state = {key: value for key, value in self.__dict__.items() if key != "_core"}
+        return _rebuilt_scene, (type(self), self._core.doc_json(), self.base_dir, self.file), state
 
     # ---- construction -------------------------------------------------------------------
 
@@ -632,7 +649,10 @@ class Scene:
         """The frame at ``time`` seconds (or frame number ``frame``; default: time 0).
 
         Every layer is solved from scratch (no warm start); :meth:`frames` is faster for
-        consecutive frames.
+        consecutive frames. A sequence's frames are warm-started, so frame ``N`` here can
+        differ from the sequence's frame ``N`` by a level or so where the solve's tolerance
+        allows; ``next(iter(scene.frames(N, N + 1)))`` is the sequence's frame pixel for
+        pixel (as ``inkwarp render --frame N`` is), at the cost of its warm-start chain.
 
         Parameters
         ----------
