@@ -225,3 +225,32 @@ def test_a_ray_address_in_the_environment_that_nobody_answers_at_is_a_clear_erro
     assert code == 2 and f"RAY_ADDRESS=127.0.0.1:{port}, the cluster --ray without an address joins: no Ray cluster answers there" in err, err
     assert "unset RAY_ADDRESS to start a local one" in err and "Traceback" not in err
     assert not (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("signum, code, said", [("SIGTERM", 143, "terminated"), ("SIGINT", 130, "interrupted")])
+def test_a_signal_mid_render_on_ray_ends_it_as_it_ends_a_local_render(tmp_path, signum, code, said):
+    # Joining Ray installed Ray's SIGTERM handlers (exit status 1, a crash dump), and the
+    # signal's exception raised inside Ray's wait came out as a SystemError (an internal
+    # error): a farm's scheduler cancelling the job could not tell it from a crash.
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from _cli_scenes import square_doc
+
+    doc = square_doc()
+    doc["duration"] = 500.0  # 2000 frames: far more than the time it takes to stop it
+    scene = write_scene(tmp_path / "s", doc)
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    process = subprocess.Popen([sys.executable, "-m", "inkwarp.cli", "render", str(scene), "-o", str(tmp_path / "a.mp4"),
+                                "--ray", "-q"], stderr=subprocess.PIPE, text=True, env=env)
+    deadline = time.monotonic() + 180
+    while not leftovers(tmp_path) and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)  # frames coming in
+    process.send_signal(getattr(signal, signum))
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == code and stderr.strip().endswith(f"inkwarp render: {said}"), stderr
+    assert sorted(os.listdir(tmp_path)) == ["s"]

@@ -516,6 +516,29 @@ def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
         _check_address(str(address))
     if ray.is_initialized():
         return ray
+    with _sigterm_kept():
+        _ray_join(ray, address, local, chatter)
+    return ray
+
+
+@contextlib.contextmanager
+def _sigterm_kept() -> Iterator[None]:
+    """Keeps the SIGTERM handler of the command line: joining Ray installs Ray's own (one that
+    exits with status 1, and one in its core that prints a crash dump), so a render a farm's
+    scheduler cancelled left no word of its own and an exit status that said it crashed."""
+    import signal
+    import threading
+
+    handler = signal.getsignal(signal.SIGTERM)
+    try:
+        yield
+    finally:
+        if handler is not None and threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGTERM, handler)
+
+
+def _ray_join(ray: Any, address: str | bool | None, local: bool, chatter: bool) -> None:
+    """``ray.init`` for :func:`_ray_init`."""
     if local:
         # Ray joins the cluster RAY_ADDRESS names, else the one `ray start --head` last left
         # on this machine, and where that has gone (stopped by a kill, or crashed) it retried
@@ -552,7 +575,6 @@ def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
             hint = "; or, since this machine has a Ray token (~/.ray/auth_token), set RAY_AUTH_MODE=token" if token else ""
             raise ValueError(f"--ray {address}: cannot join the Ray cluster there ({err}); "
                              f"check the address 'ray status' prints on the head node{hint}") from None
-    return ray
 
 
 def ray_workers(nodes: list[dict[str, Any]], need: int) -> int:
@@ -661,10 +683,16 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
             if remaining[current] == 0:
                 current += 1
                 continue
-            ready, _ = ray.wait(list(pending), num_returns=1)
-            i = pending.pop(ready[0])
             try:
+                ready, _ = ray.wait(list(pending), num_returns=1)
+                i = pending.pop(ready[0])
                 batch, said = ray.get(ready[0])
+            except SystemError as err:
+                # A signal's exception (SIGTERM's, Ctrl-C's) raised inside Ray's core comes out
+                # as a SystemError around it: the signal's own goes on, to end the command so.
+                if isinstance(err.__context__, BaseException) and not isinstance(err.__context__, Exception):
+                    raise err.__context__ from None
+                raise
             except lost as err:
                 # Its worker died: the chunk's frames not yet received on a new actor. One
                 # that could not start (the scene or inkwarp missing on a node) would fail
