@@ -194,7 +194,7 @@ def test_missing_scene_file(capsys, tmp_path):
     (["-o", "{tmp}/missing/x.gif"], "does not exist; create it first"),
     (["-o", "{tmp}/x.gif", "--time", "1"], "--time picks one frame"),
     (["-o", "{tmp}/x.png", "--frames", "0:2"], "a .png holds one frame"),
-    (["-o", "{tmp}/x.gif", "--frames", "3:99"], "--frames 3:99 is not a range of the scene, which has frames 0 to 3"),
+    (["-o", "{tmp}/x.gif", "--frames", "4:99"], "--frames 4:99 is not a range of the scene, which has frames 0 to 3"),
     (["-o", "{tmp}/x.gif", "--frames", "4:"], "--frames 4: is not a range of the scene"),
     # (A range starting with a minus sign, which the parser took for an option.)
     (["-o", "{tmp}/x.gif", "--frames", "-5:3"], "--frames -5:3 is not a range of the scene, which has frames 0 to 3"),
@@ -223,6 +223,20 @@ def test_an_unknown_option_is_named_by_its_command(capsys, tmp_path):
         stderr = capsys.readouterr().err
         assert exit.value.code == 2 and f"inkwarp render: error: unrecognized arguments: {' '.join(extra)}" in stderr, stderr
         assert "usage: inkwarp render" in stderr and not any(tmp_path.glob("x.*")), stderr
+
+
+def test_a_frame_range_past_the_end_is_cut_to_it_with_a_warning(capsys, tmp_path):
+    # A farm hands out fixed-size chunks: the last one runs past the end, as in Scene.frames
+    # (a slice). It was refused on the command line and by inkwarp.render.
+    import inkwarp
+
+    scene = write_scene(tmp_path / "s")
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "frames/", "--frames", "2:16", "-q")
+    assert code == 0 and stderr == ("inkwarp render: warning: --frames 2:16 runs past the scene's last frame (3); "
+                                    "rendering 2:4\n"), stderr
+    assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == ["frame_0002.png", "frame_0003.png"]
+    written = inkwarp.render(inkwarp.Scene.load(scene), tmp_path / "py/", frames=(2, 16), progress=False)
+    assert [p.name for p in written] == ["frame_0002.png", "frame_0003.png"]
 
 
 def test_a_background_of_three_numbers_says_what_to_write(capsys, tmp_path):

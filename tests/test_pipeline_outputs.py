@@ -546,7 +546,7 @@ def test_a_full_disk_is_one_message_naming_the_output_for_every_format(tmp_path,
 
 @pytest.mark.parametrize("options, message", [
     ({"frames": "5:1"}, "frames='5:1' is not a range of the scene, which has frames 0 to 3"),
-    ({"frames": (0, 99)}, "frames=(0, 99) is not a range of the scene, which has frames 0 to 3"),
+    ({"frames": (4, 99)}, "frames=(4, 99) is not a range of the scene, which has frames 0 to 3"),
     ({"background": "nope"}, "background='nope': give transparent"),
     # Levels 0 to 1 were cut to [0, 0, 0, 1]; NaN and None raised int()'s own errors.
     ({"background": [0.5, 0.5, 0.5, 1.0]}, "background=[0.5, 0.5, 0.5, 1.0] is not a colour; give four "

@@ -126,10 +126,10 @@ def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[in
     if not isinstance(frames, (tuple, list)) or len(frames) != 2:
         raise ValueError(f'frames must be (start, stop) or "A:B", got {frames!r:.40}')
     start, stop = (_integer_argument(v, f"frames[{i}]") for i, v in enumerate(frames))
-    if not 0 <= start < stop <= scene.frame_count:
+    if not 0 <= start < min(stop, scene.frame_count):
         raise ValueError(f"frames=({start}, {stop}) is not a range of the scene, which has frames 0 to "
-                         f"{scene.frame_count - 1}; give 0 <= A < B <= {scene.frame_count}")
-    return start, stop
+                         f"{scene.frame_count - 1}; give 0 <= A < B with A < {scene.frame_count}")
+    return start, min(stop, scene.frame_count)  # a stop past the end cut to it, as Scene.frames does
 
 
 #: A PNG file starts with its signature and ends with its IEND chunk (length 0, type, CRC).

@@ -59,15 +59,16 @@ def given(option: str, value: object) -> str:
     return f"{option} {value}" if option.startswith("-") else f"{option}={value!r}"
 
 
-def parse_frames(spec: str, frame_count: int, option: str = "--frames") -> tuple[int, int]:
+def parse_frames(spec: str, frame_count: int, option: str = "--frames", command: str | None = None) -> tuple[int, int]:
     """``(start, stop)`` of ``--frames A:B``: frames A, A+1, ..., B-1 (either end may be
-    left out, as in a Python slice). Messages name ``option`` (``"frames"`` for Python's
-    argument).
+    left out, as in a Python slice; a B past the end is cut to it, as in a slice, so that a
+    farm's fixed-size chunks end on the last frame). Messages name ``option`` (``"frames"``
+    for Python's argument); with ``command``, a B past the end is said on stderr.
 
     Examples
     --------
-    >>> parse_frames("10:20", 48), parse_frames(":12", 48), parse_frames("40:", 48)
-    ((10, 20), (0, 12), (40, 48))
+    >>> parse_frames("10:20", 48), parse_frames(":12", 48), parse_frames("40:", 48), parse_frames("40:64", 48)
+    ((10, 20), (0, 12), (40, 48), (40, 48))
     """
     text = spec.strip()
     if ":" not in text:
@@ -79,10 +80,13 @@ def parse_frames(spec: str, frame_count: int, option: str = "--frames") -> tuple
     except ValueError:
         raise ValueError(f"{given(option, spec)}: A and B must be whole frame numbers, such as 0:24"
                          ) from None
-    if start < 0 or stop > frame_count or start >= stop:
+    if start < 0 or start >= min(stop, frame_count):
         raise ValueError(f"{given(option, spec)} is not a range of the scene, which has frames 0 to {frame_count - 1}; give "
-                         f"0 <= A < B <= {frame_count}")
-    return start, stop
+                         f"0 <= A < B with A < {frame_count}")
+    if stop > frame_count and command:
+        print(f"inkwarp {command}: warning: {given(option, spec)} runs past the scene's last frame ({frame_count - 1}); "
+              f"rendering {start}:{frame_count}", file=sys.stderr, flush=True)
+    return start, min(stop, frame_count)
 
 
 def check_time(time_s: float, option: str = "--time", earliest: float = 0.0) -> float:

@@ -193,7 +193,7 @@ def _run(args: argparse.Namespace) -> int:
                   f"{time.perf_counter() - started:.2f} s")
         return 0
 
-    start, stop = (_common.parse_frames(args.frames, scene.frame_count)
+    start, stop = (_common.parse_frames(args.frames, scene.frame_count, command="render")
                    if args.frames is not None else (0, scene.frame_count))
     if kind == "sheet":  # refused here in the command line's words, before rendering
         layout = None if args.sprite_sheet == "auto" else args.sprite_sheet
