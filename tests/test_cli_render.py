@@ -250,6 +250,25 @@ def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path)
                                                                "features[5]"]
 
 
+def test_validate_notes_lines_and_regions_with_no_extent(tmp_path):
+    # A spline whose points coincide holds one pixel; a region whose points lie on one line
+    # holds only its outline. Both validated without a word.
+    import inkwarp
+
+    Image.fromarray(np.full((HEIGHT, WIDTH, 4), 200, np.uint8)).save(tmp_path / "p.png")
+    doc = {"inkwarp": 1, "layers": [{"name": "l", "image": "p.png"}], "features": [
+        {"id": "dot", "kind": "spline", "rest": [[30, 30], [30, 30]]},
+        {"id": "flat", "kind": "region", "rest": [[5, 5], [10, 10], [20, 20]]},
+        {"id": "eight", "kind": "region", "rest": [[0, 0], [10, 10], [10, 0], [0, 10]]},
+        {"id": "fine", "kind": "polyline", "rest": [[5, 5], [6, 5]]}]}
+    notes = inkwarp.Scene.from_dict(doc, base_dir=tmp_path).notes()
+    assert notes == [
+        ("features[0].rest", "'dot', a spline, has all its points at one place (30, 30): it holds that one pixel, "
+         "as a point does; spread its points along what it traces"),
+        ("features[1].rest", "'flat', a region, has no area (its points lie on one line): it holds nothing inside, "
+         "only its outline, as a polyline does; trace around what it should hold")], notes
+
+
 def test_a_feature_beside_the_frame_over_a_layer_moved_there_is_no_slip(tmp_path):
     # A layer moved 20 px left of the frame: a pin traced at x = -10 holds its pixel 10
     # (off the frame, but on the layer, which the warp can pull into view); one at -30 is

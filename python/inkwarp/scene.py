@@ -778,7 +778,8 @@ class Scene:
         a feature drawn wholly off the picture (it moves and tears nothing), one drawn wholly
         on holes of the layers it drives (transparent pixels, by default: the solver drops
         its samples, so it pins nothing; judged at ``grid_step`` 1 only), a key after the
-        scene's end (no frame shows it), a feature that drives no layer. ``inkwarp validate``
+        scene's end (no frame shows it), a feature that drives no layer, a line, curve or
+        region whose points are all at one place, a region with no area. ``inkwarp validate``
         prints them as notes after its "ok"; a scene with notes renders as any other (a
         feature off the picture may be there on purpose, as a correspondence point for
         :func:`inkwarp.transfer`).
@@ -819,6 +820,14 @@ class Scene:
             if not drives:
                 notes.append((f"features[{i}]", f"{name!r} drives no layer: every layer lists its features "
                               "and none lists it; add it to a layer's features"))
+            if feature["kind"] in ("polyline", "spline", "region") and (rest == rest[0]).all():
+                notes.append((f"features[{i}].rest", f"{name!r}, a {feature['kind']}, has all its points at one "
+                              f"place ({rest[0][0]:g}, {rest[0][1]:g}): it holds that one pixel, as a point does; "
+                              "spread its points along what it traces"))
+            elif feature["kind"] == "region" and np.linalg.svd(rest - rest.mean(axis=0), compute_uv=False)[-1] < 1e-9:
+                notes.append((f"features[{i}].rest", f"{name!r}, a region, has no area (its points lie on one line): "
+                              "it holds nothing inside, only its outline, as a polyline does; trace around what "
+                              "it should hold"))
             for k, key in enumerate(feature.get("keys", [])):
                 if key["t"] > duration + 1e-9:
                     notes.append((f"features[{i}].keys[{k}].t",
