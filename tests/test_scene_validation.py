@@ -129,6 +129,36 @@ def test_mattes_of_the_wrong_size_and_unreadable_images(tmp_path):
     assert "not a PNG or JPEG" in problems["layers[1].continuity"]
 
 
+def test_a_jpeg_cut_short_is_refused_and_one_with_data_after_its_end_is_not(tmp_path):
+    # A JPEG cut short (a half-synced file on a share) decoded without an error, the rest of
+    # the picture grey. Data after the end marker (a motion photo's video, which may hold
+    # FF DA) must not make a whole file look cut short.
+    import io
+
+    picture = Image.fromarray(gradient(40, 30)[..., :3])
+    files = {}
+    for name, options in (("baseline", {}), ("progressive", {"progressive": True})):
+        data = io.BytesIO()
+        picture.save(data, "JPEG", quality=90, **options)
+        files[name] = data.getvalue()
+    trailer = np.random.default_rng(1).bytes(200_000) + b"\xff\xda\x00\x0c" + bytes(40)
+    whole = {"baseline.jpg": files["baseline"], "progressive.jpg": files["progressive"],
+             "motion.jpg": files["baseline"] + trailer}
+    cut = {"half.jpg": files["baseline"][: len(files["baseline"]) // 2],
+           "late.jpg": files["progressive"][: len(files["progressive"]) * 9 // 10],
+           "no_end.jpg": files["baseline"][:-2]}
+    for name, data in {**whole, **cut}.items():
+        (tmp_path / name).write_bytes(data)
+        scene = {"inkwarp": 1, "layers": [{"name": "a", "image": name}]}
+        problems = inkwarp.Scene.from_dict(scene, base_dir=tmp_path).validate() if name in whole else None
+        if name in whole:
+            assert problems == [], (name, problems)
+        else:
+            with pytest.raises(inkwarp.SceneError, match="is a JPEG that ends before its end-of-image marker: "
+                               "the file is cut short"):
+                inkwarp.Scene.from_dict(scene, base_dir=tmp_path)
+
+
 def test_bad_data_uris(tmp_path):
     scene = changed("layers/0/image", "data:image/png;base64,%%%")
     scene["layers"][1]["image"] = "data:image/png,plain"

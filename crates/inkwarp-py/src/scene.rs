@@ -81,8 +81,46 @@ fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>,
                 MAX_IMAGE_FILE_BYTES >> 20
             ));
         }
-        std::fs::read(&full).map_err(describe)
+        let bytes = std::fs::read(&full).map_err(describe)?;
+        if jpeg_cut_short(&bytes) {
+            // The decoder reads such a file without an error, the rest of the picture grey.
+            return Err(format!("{} is a JPEG that ends before its end-of-image marker: the file is cut short \
+                                (copied or synced only in part); copy or save it again", full.display()));
+        }
+        Ok(bytes)
     }
+}
+
+/// Whether `bytes` start as a JPEG whose marker segments and scans run out before its
+/// end-of-image marker (FF D9). Walked from the start, segment by segment, so that a marker
+/// inside an EXIF thumbnail or an ICC profile, or in data after the end (a motion photo's
+/// video), counts for nothing.
+fn jpeg_cut_short(bytes: &[u8]) -> bool {
+    if !bytes.starts_with(&[0xFF, 0xD8]) {
+        return false;
+    }
+    let mut i = 2;
+    while i + 1 < bytes.len() {
+        if bytes[i] != 0xFF {
+            return false; // not a marker where one belongs: a damaged file, for the decoder to judge
+        }
+        match bytes[i + 1] {
+            0xD9 => return false,
+            0xFF => i += 1,                             // fill
+            0x01 | 0xD0..=0xD7 => i += 2,               // markers without a length
+            marker if i + 3 < bytes.len() => {
+                i += 2 + (usize::from(bytes[i + 2]) << 8 | usize::from(bytes[i + 3]));
+                if marker == 0xDA {
+                    // Entropy-coded data up to the next marker (FF 00 and restarts belong to it).
+                    while i + 1 < bytes.len() && !(bytes[i] == 0xFF && bytes[i + 1] != 0 && !(0xD0..=0xD7).contains(&bytes[i + 1])) {
+                        i += 1;
+                    }
+                }
+            }
+            _ => break,
+        }
+    }
+    true
 }
 
 /// The scene from JSON text, refused when rendering it would not fit in free memory (so
