@@ -318,22 +318,6 @@ def test_a_failed_render_leaves_nothing_behind(capsys, tmp_path, monkeypatch, ou
         assert last in ("inkwarp render: interrupted", "inkwarp render: error: the solve failed")
 
 
-def test_a_chunk_that_fails_before_its_first_frame_leaves_no_empty_folder(capsys, tmp_path, monkeypatch):
-    # --skip-existing made the folder first and left it empty behind the error; a folder
-    # that was there, or frames written before the failure (a retry resumes them), stay.
-    import inkwarp
-
-    scene = write_scene(tmp_path / "s")
-    real_load = inkwarp.Scene.load
-    monkeypatch.setattr(inkwarp.Scene, "load",
-                        staticmethod(lambda path: _Breaks(real_load(path), ValueError("the solve failed"), good=0)))
-    code, _, stderr = run(capsys, "render", scene, "-o", f"{tmp_path / 'chunk'}/", "--skip-existing", "-q")
-    assert code == 2 and "the solve failed" in stderr and sorted(os.listdir(tmp_path)) == ["s"], stderr
-    (tmp_path / "kept").mkdir()
-    assert run(capsys, "render", scene, "-o", f"{tmp_path / 'kept'}/", "--skip-existing", "-q")[0] == 2
-    assert sorted(os.listdir(tmp_path)) == ["kept", "s"]
-
-
 def test_a_failed_render_keeps_the_previous_output(capsys, tmp_path, monkeypatch):
     import inkwarp
 

@@ -345,22 +345,10 @@ def _note_frames_past_the_end(folder: Path, stop: int, frame_count: int) -> None
 
 def _render_missing(scene: Any, target: Path, start: int, stop: int, *, method: str | None,
                     ray: str | bool | None, progress: bool) -> list[Path]:
-    created = not target.exists()
-    target.mkdir(exist_ok=True)
-    try:
-        return _render_missing_into(scene, target, start, stop, method=method, ray=ray, progress=progress)
-    except BaseException:
-        if created:  # a folder this render made and nothing was written into (its frames stay)
-            with contextlib.suppress(OSError):
-                target.rmdir()
-        raise
-
-
-def _render_missing_into(scene: Any, target: Path, start: int, stop: int, *, method: str | None,
-                         ray: str | bool | None, progress: bool) -> list[Path]:
     from inkwarp import video
     from inkwarp.cli import _common
 
+    target.mkdir(exist_ok=True)
     names = {i: target / video.FRAME_PATTERN.format(i) for i in range(start, stop)}
     size = (scene.width, scene.height)
     missing = [i for i in range(start, stop) if not frame_file_complete(names[i], size)]
