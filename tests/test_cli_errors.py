@@ -223,6 +223,10 @@ def test_an_unknown_option_is_named_by_its_command(capsys, tmp_path):
         stderr = capsys.readouterr().err
         assert exit.value.code == 2 and f"inkwarp render: error: unrecognized arguments: {' '.join(extra)}" in stderr, stderr
         assert "usage: inkwarp render" in stderr and not any(tmp_path.glob("x.*")), stderr
+    # One before the command is the top level's.
+    with pytest.raises(SystemExit):
+        main(["--bogus", "validate", str(scene)])
+    assert "inkwarp: error: unrecognized arguments: --bogus" in capsys.readouterr().err
 
 
 def test_a_frame_range_past_the_end_is_cut_to_it_with_a_warning(capsys, tmp_path):

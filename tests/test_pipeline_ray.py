@@ -227,11 +227,11 @@ def test_a_ray_address_in_the_environment_that_nobody_answers_at_is_a_clear_erro
     assert not (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []
 
 
-@pytest.mark.parametrize("signum, code, said", [("SIGTERM", 143, "terminated"), ("SIGINT", 130, "interrupted")])
-def test_a_signal_mid_render_on_ray_ends_it_as_it_ends_a_local_render(tmp_path, signum, code, said):
+def test_sigterm_mid_render_on_ray_ends_it_as_it_ends_a_local_render(tmp_path):
     # Joining Ray installed Ray's SIGTERM handlers (exit status 1, a crash dump), and the
     # signal's exception raised inside Ray's wait came out as a SystemError (an internal
-    # error): a farm's scheduler cancelling the job could not tell it from a crash.
+    # error): a farm's scheduler cancelling the job could not tell it from a crash. (Not
+    # SIGINT: a test run in the background, as a CI job may be, starts Python ignoring it.)
     import os
     import signal
     import subprocess
@@ -250,7 +250,7 @@ def test_a_signal_mid_render_on_ray_ends_it_as_it_ends_a_local_render(tmp_path, 
     while not leftovers(tmp_path) and process.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
     time.sleep(0.5)  # frames coming in
-    process.send_signal(getattr(signal, signum))
+    process.send_signal(signal.SIGTERM)
     _, stderr = process.communicate(timeout=120)
-    assert process.returncode == code and stderr.strip().endswith(f"inkwarp render: {said}"), stderr
+    assert process.returncode == 143 and stderr.strip().endswith("inkwarp render: terminated"), stderr
     assert sorted(os.listdir(tmp_path)) == ["s"]

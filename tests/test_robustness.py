@@ -127,6 +127,10 @@ def test_a_picture_given_as_the_scene_is_named_a_picture(tmp_path: Path, capsys)
     assert main(["render", str(tmp_path / "tracing.svg"), "-o", str(tmp_path / "o.png")]) == 2
     err = capsys.readouterr().err
     assert f"tracing.svg: an SVG drawing, not a scene; trace it over its picture into a scene with inkwarp new PICTURE --drawing {tmp_path / 'tracing.svg'}" in err, err
+    # A HEIC photo (an ISO media file, as MP4 is) is a picture, not a video.
+    (tmp_path / "photo.heic").write_bytes(b"\x00\x00\x00\x18ftypheic\x00\x00\x00\x00mif1heic" + bytes(200) + b"\xff")
+    assert main(["validate", str(tmp_path / "photo.heic")]) == 2
+    assert "photo.heic: a HEIC picture, not a scene" in capsys.readouterr().out
     # A video given as the scene said "not UTF-8 text (byte 43, line 1)".
     from inkwarp.video import write_frames
 

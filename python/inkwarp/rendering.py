@@ -533,8 +533,21 @@ def _sigterm_kept() -> Iterator[None]:
     try:
         yield
     finally:
-        if handler is not None and threading.current_thread() is threading.main_thread():
+        # (A handler of the caller's own, as the command line's; Python's default gives way to Ray's.)
+        if callable(handler) and threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGTERM, handler)
+
+
+@contextlib.contextmanager
+def _signals_raised() -> Iterator[None]:
+    """A signal's exception (SIGTERM's, Ctrl-C's) raised inside Ray's core comes out as a
+    SystemError around it: the signal's own goes on, to end the command as the signal does."""
+    try:
+        yield
+    except SystemError as err:
+        if isinstance(err.__context__, BaseException) and not isinstance(err.__context__, Exception):
+            raise err.__context__ from None
+        raise
 
 
 def _ray_join(ray: Any, address: str | bool | None, local: bool, chatter: bool) -> None:
@@ -683,16 +696,12 @@ def _ray_frames(scene: Any, start: int, stop: int, *, method: str | None,
             if remaining[current] == 0:
                 current += 1
                 continue
-            try:
+            with _signals_raised():
                 ready, _ = ray.wait(list(pending), num_returns=1)
-                i = pending.pop(ready[0])
-                batch, said = ray.get(ready[0])
-            except SystemError as err:
-                # A signal's exception (SIGTERM's, Ctrl-C's) raised inside Ray's core comes out
-                # as a SystemError around it: the signal's own goes on, to end the command so.
-                if isinstance(err.__context__, BaseException) and not isinstance(err.__context__, Exception):
-                    raise err.__context__ from None
-                raise
+            i = pending.pop(ready[0])
+            try:
+                with _signals_raised():
+                    batch, said = ray.get(ready[0])
             except lost as err:
                 # Its worker died: the chunk's frames not yet received on a new actor. One
                 # that could not start (the scene or inkwarp missing on a node) would fail

@@ -313,11 +313,13 @@ def _core_from_json(text: str, base: str | None, file: str | None) -> Any:
 
 
 def _picture_kind(data: bytes) -> str | None:
-    """The kind of picture ``data`` starts as (PNG, JPEG, GIF, WebP, PSD, TIFF), or None."""
+    """The kind of picture ``data`` starts as (PNG, JPEG, GIF, WebP, PSD, TIFF, HEIC, AVIF), or None."""
     kinds = {b"\x89PNG": "PNG", b"\xff\xd8\xff": "JPEG", b"GIF8": "GIF", b"8BPS": "PSD",
              b"II*\x00": "TIFF", b"MM\x00*": "TIFF"}
     if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
         return "WebP"
+    if data[4:8] == b"ftyp" and data[8:12] in (b"heic", b"heix", b"mif1", b"msf1", b"avif", b"avis"):
+        return "AVIF" if data[8:12] in (b"avif", b"avis") else "HEIC"
     return next((kind for magic, kind in kinds.items() if data.startswith(magic)), None)
 
 

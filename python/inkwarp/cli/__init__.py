@@ -188,10 +188,14 @@ def _ranges_joined(argv: list[str]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args, extra = parser.parse_known_args(_ranges_joined(sys.argv[1:] if argv is None else [str(a) for a in argv]))
+    words = _ranges_joined(sys.argv[1:] if argv is None else [str(a) for a in argv])
+    args, extra = parser.parse_known_args(words)
     if extra:
-        # The command's own usage and name, not the top level's (`inkwarp render ... --fps 12`).
-        args.commands.get(args.command, parser).error(f"unrecognized arguments: {' '.join(extra)}")
+        # The command's own usage and name (`inkwarp render ... --fps 12`), unless the word
+        # came before the command (`inkwarp --bogus render ...`).
+        before = words[: words.index(args.command)] if args.command in words else words
+        owner = parser if any(word in before for word in extra) else args.commands.get(args.command, parser)
+        owner.error(f"unrecognized arguments: {' '.join(extra)}")
     if not getattr(args, "func", None):
         parser.print_help(sys.stderr)
         return 2
