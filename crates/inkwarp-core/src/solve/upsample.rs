@@ -353,9 +353,13 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
     masks
 }
 
-/// One pixel's value from the coarse field `fc` (`ty`, `tx` its taps): the taps allowed by `mask`,
-/// renormalised; the bilinear fallback from the inner 2 × 2 where their weights fall short; else `None`.
+/// One pixel's value from the coarse field `fc` (`ty`, `tx` its taps): a whole window's cubic (its weights sum to 1);
+/// the taps allowed by `mask`, renormalised and corrected ([`Moments::value`]), or bilinear where they fall short.
 fn window_value(fc: &Field, ty: &Taps, tx: &Taps, mask: u16) -> Option<[f32; 2]> {
+    if mask == ALL_TAPS {
+        let at = |f: &[f32], b: usize| (0..tx.len).map(|a| tx.weights[tx.slot[a] as usize] * f[ty.at[b] * fc.width + tx.at[a]] as f64).sum::<f64>();
+        return Some([&fc.dx, &fc.dy].map(|f| (0..ty.len).map(|b| ty.weights[ty.slot[b] as usize] * at(f, b)).sum::<f64>() as f32));
+    }
     let cubic = window_moments(fc, ty, tx, mask, |t, k| Some(t.weights[k]));
     cubic.value(0.5, &cubic.plane)
         .or_else(|| window_moments(fc, ty, tx, mask, |t, k| (1..3).contains(&k).then(|| t.linear(k))).value(1e-9, &cubic.plane))
@@ -401,8 +405,7 @@ impl Moments {
         let (mx, my) = (p[1] / p[0], p[2] / p[0]);
         let (cxx, cxy, cyy) = (p[3] / p[0] - mx * mx, p[4] / p[0] - mx * my, p[5] / p[0] - my * my);
         // The gradient along the taps' line where they lie on one (a ridge far below a cell's spread); none for one tap.
-        let ridge = 1e-9 * (cxx + cyy);
-        let det = (cxx + ridge) * (cyy + ridge) - cxy * cxy;
+        let (ridge, det) = (1e-9 * (cxx + cyy), (cxx + 1e-9 * (cxx + cyy)) * (cyy + 1e-9 * (cxx + cyy)) - cxy * cxy);
         let value = |f: f64, k: usize| if shift == [0.0; 2] || ridge < 1e-20 { f / sum } else {
             let b = [p[k + 1] / p[0] - mx * p[k] / p[0], p[k + 2] / p[0] - my * p[k] / p[0]];
             let g = [((cyy + ridge) * b[0] - cxy * b[1]) / det, ((cxx + ridge) * b[1] - cxy * b[0]) / det];
