@@ -7,6 +7,8 @@ MAX_PIXELS: int
 MAX_COORD_PX: float
 MAX_TIME_S: float
 
+def check_size(what: str, width: int, height: int) -> None: ...
+
 # --- geometry (feature sampling) ---
 import numpy as np
 import numpy.typing as npt

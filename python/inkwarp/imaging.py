@@ -65,24 +65,13 @@ def _as_rgba(image: ArrayLike, name: str = "image", *, grey: bool = False, limit
             f"{name} must have shape {shapes} ({'grey, ' if grey else ''}RGB or RGBA), got {array.shape}{fix}"
         )
     if limit:
-        _check_size(name, array.shape[1], array.shape[0])
+        _inkwarp.check_size(name, array.shape[1], array.shape[0])
     if array.ndim == 2:
         array = array[..., None].repeat(3, axis=2)
     if array.shape[2] == 3:
         alpha = np.full(array.shape[:2] + (1,), 255, dtype=np.uint8)
         array = np.concatenate([array, alpha], axis=2)
     return np.ascontiguousarray(array)
-
-
-def _check_size(name: str, width: int, height: int) -> None:
-    """Refuse a picture past the engine's limits (``inkwarp_core::limits::check_size``), in
-    its words."""
-    if max(width, height) > _inkwarp.MAX_SIDE_PX:
-        raise ValueError(f"{name} is {width}×{height} pixels; each side may be at most "
-                         f"{_inkwarp.MAX_SIDE_PX}; use a smaller picture")
-    if width * height > _inkwarp.MAX_PIXELS:
-        raise ValueError(f"{name} is {width}×{height} pixels, more than the {_inkwarp.MAX_PIXELS >> 20} "
-                         "megapixels inkwarp handles; use a smaller picture")
 
 
 def warp_image(

@@ -30,7 +30,6 @@ pub fn check_coordinates<'a>(name: &str, values: impl Iterator<Item = &'a f64>) 
 /// The largest image file read (bigger files are refused before reading).
 pub const MAX_IMAGE_FILE_BYTES: u64 = 1 << 30;
 
-/// ValueError unless a `width × height` grid or picture is within the core's limits.
 /// The cuts as polylines: each a (K, 2) array of (x, y) points within the coordinate limits.
 pub fn cuts_of(cuts: &[numpy::PyReadonlyArray2<'_, f64>]) -> PyResult<Vec<Vec<[f64; 2]>>> {
     cuts.iter().enumerate().map(|(k, cut)| {
@@ -43,8 +42,16 @@ pub fn cuts_of(cuts: &[numpy::PyReadonlyArray2<'_, f64>]) -> PyResult<Vec<Vec<[f
     }).collect()
 }
 
+/// ValueError unless a `width × height` grid is within the core's limits.
 pub fn check_grid(width: usize, height: usize) -> PyResult<()> {
-    limits::check_size("the grid", width, height).map_err(PyValueError::new_err)
+    check_size("the grid", width, height)
+}
+
+/// ValueError unless a `width × height` picture or grid is within the core's limits, in the
+/// core's words (`inkwarp_core::limits::check_size`; its message starts with `what`).
+#[pyfunction]
+pub fn check_size(what: &str, width: usize, height: usize) -> PyResult<()> {
+    limits::check_size(what, width, height).map_err(PyValueError::new_err)
 }
 
 /// The memory this machine has free for new work, in bytes (None when unknown).

@@ -65,11 +65,11 @@ fn solve_on_coarse_grid(
 /// The samples that count on the coarse grid: of those that round to one active node, the nearest to it (ties
 /// averaged, as on a full grid's node). The mean of all is the displacement at their centre: up to s/2 off.
 fn nearest_samples(coarse: &Grid, samples: &[Sample]) -> Vec<Sample> {
-    let node = |p: &Sample| nearest_node(coarse, p.rest).map(|(x, y)| (coarse.index(x, y), (p.rest[0] - x as f64).hypot(p.rest[1] - y as f64)))
-        .filter(|&(i, _)| coarse.active[i] && p.displacement.iter().all(|d| d.is_finite()));
+    let nodes: Vec<Option<(usize, f64)>> = samples.iter().map(|p| nearest_node(coarse, p.rest).map(|(x, y)| (coarse.index(x, y), (p.rest[0] - x as f64).hypot(p.rest[1] - y as f64)))
+        .filter(|&(i, _)| coarse.active[i] && p.displacement.iter().all(|d| d.is_finite()))).collect();
     let mut least = vec![f64::INFINITY; coarse.len()];
-    samples.iter().filter_map(node).for_each(|(i, d)| least[i] = least[i].min(d));
-    samples.iter().filter(|p| node(p).map_or(true, |(i, d)| d <= least[i] + 1e-9)).copied().collect()
+    nodes.iter().flatten().for_each(|&(i, d)| least[i] = least[i].min(d));
+    samples.iter().zip(&nodes).filter(|(_, n)| n.map_or(true, |(i, d)| d <= least[i] + 1e-9)).map(|(p, _)| *p).collect()
 }
 
 /// A coarse piece that no sample holds but that joins a held one on the full grid (a strand thinner than
@@ -213,10 +213,9 @@ impl Taps {
     /// The taps of every pixel `0..n` along an axis with `nc` coarse positions at `pos(0..nc)`, `s` apart.
     fn along(n: usize, nc: usize, s: usize, pos: impl Fn(usize) -> usize) -> Vec<Taps> {
         (0..n).map(|x| {
-            // One coarse position: it is the value everywhere.
-            let (cell, t) = if nc == 1 { (0, 0.0) } else { cell_of(x as f64, s, nc, &pos) };
+            let (cell, t) = if nc == 1 { (0, 0.0) } else { cell_of(x as f64, s, nc, &pos) }; // (one position: its value)
             let t = t.clamp(0.0, 1.0);
-            let weights = if nc == 1 { [0.0, 1.0, 0.0, 0.0] } else { catmull_rom(t, cell == 0, cell + 2 == nc) };
+            let weights = catmull_rom(t, cell == 0, cell + 2 >= nc);
             let mut taps = Taps { cell, weights, t, len: 0, slot: [0; 4], at: [0; 4] };
             for (k, &wk) in weights.iter().enumerate() {
                 if let Some(c) = (cell + k).checked_sub(1).filter(|&c| c < nc && wk != 0.0) {
@@ -405,7 +404,8 @@ impl Moments {
         let (mx, my) = (p[1] / p[0], p[2] / p[0]);
         let (cxx, cxy, cyy) = (p[3] / p[0] - mx * mx, p[4] / p[0] - mx * my, p[5] / p[0] - my * my);
         // The gradient along the taps' line where they lie on one (a ridge far below a cell's spread); none for one tap.
-        let (ridge, det) = (1e-9 * (cxx + cyy), (cxx + 1e-9 * (cxx + cyy)) * (cyy + 1e-9 * (cxx + cyy)) - cxy * cxy);
+        let ridge = 1e-9 * (cxx + cyy);
+        let det = (cxx + ridge) * (cyy + ridge) - cxy * cxy;
         let value = |f: f64, k: usize| if shift == [0.0; 2] || ridge < 1e-20 { f / sum } else {
             let b = [p[k + 1] / p[0] - mx * p[k] / p[0], p[k + 2] / p[0] - my * p[k] / p[0]];
             let g = [((cyy + ridge) * b[0] - cxy * b[1]) / det, ((cxx + ridge) * b[1] - cxy * b[0]) / det];
