@@ -1,33 +1,29 @@
-//! Deflation of the slow modes the outer conjugate gradient reveals (the near-rigid motions of weakly
-//! attached parts, which the cycle misses). When a solve is still running after [`START`] cycles, the
-//! search directions of each window of [`WINDOW`] cycles are kept with their Gram matrices; at the window's
-//! end a Rayleigh–Ritz step over the window and the vectors already kept (a thick restart, as eigCG does)
-//! keeps the [`KEEP`] Ritz vectors of the smallest eigenvalues as `W` ([`KEEP_SLOW`] from the third step).
-//! The iterate is corrected on `span W` (`u += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`) and every later direction made
-//! `A`-orthogonal to `W` (deflated conjugate gradient, Saad et al. 2000). It also gives the stopping rule a
-//! rate floor ([`Deflation::rate_floor`]) and the last window's largest change and rate
-//! ([`Deflation::judged`]). Memory: at most `2·WINDOW + 2·KEEP_SLOW` `f32` vectors within [`BUDGET_BYTES`],
-//! which the modes a probe keeps for the next solve share ([`Deflation::spare`]).
+//! Deflation of the slow modes the outer conjugate gradient reveals (near-rigid motions of weakly attached
+//! parts, which the cycle misses). Past [`START`] cycles the search directions of each window of [`WINDOW`]
+//! cycles are kept with their Gram matrices; at the window's end a Rayleigh–Ritz step over the window and the
+//! kept vectors (a thick restart, as in eigCG) keeps the [`KEEP`] Ritz vectors of the smallest eigenvalues as
+//! `W` ([`KEEP_SLOW`] from the third step). The iterate is corrected on `span W` (`u += W E⁻¹ Wᵀ r`,
+//! `E = Wᵀ A W`) and later directions made `A`-orthogonal to `W` (deflated CG, Saad et al. 2000). It also gives
+//! the stopping rule a rate floor and the last window's largest change and rate. Memory: at most
+//! `2·WINDOW + 2·KEEP_SLOW` `f32` vectors within [`BUDGET_BYTES`], shared with a probe's kept modes.
 
 use rayon::prelude::*;
 
 use super::level::{dot, Level, Real, V2, W2, WS};
 
-/// Cycles before the iteration starts keeping directions: solves that end by then pay
-/// nothing. An `early` solve (a warm start on a torn piece new to its hierarchy: its error
-/// is an earlier answer's, often all slow modes) keeps them from its first cycle and past
-/// that cycle stops only after its first look at them (`docs/dev/solver-correctness.md`).
+/// Cycles before directions are kept (solves that end by then pay nothing). An `early` solve (a warm start on
+/// a torn piece new to its hierarchy: often all slow modes) keeps them from its first cycle and, past it,
+/// stops only after its first look at them.
 const START: usize = 10;
 /// Cycles per window.
 const WINDOW: usize = 4;
 /// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop where its rate floor exceeds
-/// [`WAIT_RATE`], a condition over 9 seen (an `early` one waits for one always).
+/// [`WAIT_RATE`] (an `early` one waits for one always).
 const LOOKS: usize = 2;
 const WAIT_RATE: f64 = 0.5;
-/// The smallest Ritz value has settled when a cycle lowers it by less than 5 % (before any deflating restart:
-/// after one the judged changes come in windows).
+/// The smallest Ritz value has settled when a cycle lowers it by less than 5 % (only before a deflating restart).
 const SETTLED: f64 = 0.95;
-/// Ritz vectors kept, and from the third Rayleigh–Ritz step on (`docs/dev/ablation.md`).
+/// Ritz vectors kept, and from the third Rayleigh–Ritz step on.
 pub(super) const KEEP: usize = 8;
 const KEEP_SLOW: usize = 16;
 /// Most bytes the kept vectors may take.
@@ -80,8 +76,7 @@ impl Deflation {
     /// Whether vectors may be kept (not switched off, and the budget leaves room).
     pub fn on(&self) -> bool { self.on }
 
-    /// How many modes (a probe's, held for the next solve) fit in the budget beside the most
-    /// vectors this deflation keeps, at most [`KEEP`].
+    /// How many modes (a probe's, for the next solve) fit beside the most vectors kept here, at most [`KEEP`].
     pub fn spare(&self) -> usize { KEEP.min(self.room.saturating_sub(KEEP_SLOW)) }
 
     /// Whether [`Deflation::project`] changes directions (vectors are kept).
@@ -137,10 +132,7 @@ impl Deflation {
     /// Rayleigh–Ritz over the kept vectors and the window: keeps the Ritz vectors of the smallest Ritz
     /// values, and corrects `u` and its residual `r` on their span.
     pub fn restart(&mut self, fine: &Level, u: &mut [V2], r: &mut [V2]) {
-        let Some((theta, y)) = ritz(&self.g, &self.m) else {
-            self.clear();
-            return;
-        };
+        let Some((theta, y)) = ritz(&self.g, &self.m) else { return self.clear() };
         self.restarts += 1;
         self.before = std::mem::replace(&mut self.low, f64::INFINITY);
         let k = (if self.restarts > LOOKS { KEEP_SLOW } else { KEEP }).min(self.room).min(theta.len());
@@ -158,16 +150,14 @@ impl Deflation {
             });
         }
         (self.w, self.v) = (Vec::new(), Vec::new());
-        let modes = Modes::of(fine, w);
-        self.adopt(modes, u, r);
+        self.adopt(Modes::of(fine, w), u, r);
     }
 
     /// The kept vectors, in `f64`.
     pub fn vectors(&self) -> impl Iterator<Item = Vec<f64>> + '_ { self.w.iter().map(|v| v.iter().map(|&x| f64::from(x)).collect()) }
 
-    /// The vectors kept, for the next solve of the same operator: at most the [`KEEP`] smallest (adopted, more
-    /// misled a 1024² solve: `docs/dev/ablation.md`); none where the budget leaves room for fewer than [`KEEP`]
-    /// (they stalled a large picture's next frame: `docs/dev/solver-correctness.md`).
+    /// The vectors kept, for the next solve of the same operator: at most the [`KEEP`] smallest; none where the
+    /// budget leaves room for fewer than [`KEEP`] (both measured: `docs/dev/ablation.md`, `solver-correctness.md`).
     pub fn modes(self) -> Option<Modes> {
         (!self.w.is_empty() && self.room >= KEEP).then(|| Modes(self.w, self.aw, self.e).first(KEEP))
     }
@@ -201,9 +191,8 @@ impl Deflation {
         true
     }
 
-    /// The change the stopping rule is to judge and its rate a cycle: once the iteration has deflated (changes
-    /// in bursts), the largest of the last window's and the rate from the window before (a sliding maximum's
-    /// own ratios are 1 until its largest leaves); else none.
+    /// The change the stopping rule is to judge and its rate a cycle: once deflated (changes in bursts), the
+    /// last window's largest and the rate from the window before (a sliding maximum's ratios stay 1); else none.
     pub fn judged(&mut self, change: f64) -> (f64, Option<f64>) {
         if self.restarts == 0 { return (change, None); }
         self.changes.push(change);
@@ -216,11 +205,7 @@ impl Deflation {
     /// A step of length `alpha` taken (per component).
     pub fn step(&mut self, alpha: [f64; 2]) {
         for (c, &a) in alpha.iter().enumerate() {
-            if a > 0.0 && a.is_finite() {
-                self.steps[c].push((a, 0.0));
-            } else {
-                self.steps[c].clear();
-            }
+            if a > 0.0 && a.is_finite() { self.steps[c].push((a, 0.0)) } else { self.steps[c].clear() }
         }
     }
 
@@ -234,13 +219,11 @@ impl Deflation {
         }
     }
 
-    /// The least ratio of successive changes the stopping rule may assume, the conjugate gradient's rate
-    /// `(√κ − 1)/(√κ + 1)` from the extreme Ritz values of its Lanczos matrix (since the deflating restart
-    /// before the last), and whether the smallest has [`SETTLED`] (no slow mode surfacing; one the Krylov
-    /// space has not reached does not show). On a torn piece (`wait`) whose rate
-    /// exceeds [`WAIT_RATE`], a solve slow enough to keep directions gets 1 (no stop) until their
-    /// [`LOOKS`]th Rayleigh–Ritz step: a nearly rigid part bounded by cuts can stall the changes while its
-    /// error stays, and the Krylov space may reach its mode only after the first window.
+    /// The least ratio of successive changes the stopping rule may assume, CG's rate `(√κ − 1)/(√κ + 1)` from
+    /// the extreme Ritz values of its Lanczos matrix (since the deflating restart before the last), and whether
+    /// the smallest has [`SETTLED`]. On a torn piece (`wait`) with a rate over [`WAIT_RATE`], a solve keeping
+    /// directions gets 1 (no stop) until their [`LOOKS`]th Rayleigh–Ritz step: a nearly rigid part bounded by
+    /// cuts can stall the changes while its error stays, and the Krylov space may reach it only later.
     pub fn rate_floor(&mut self) -> (f64, bool) {
         let (was, mut seen) = (self.low, false);
         for st in self.steps.iter().filter(|st| st.len() >= 2) {
@@ -269,8 +252,7 @@ impl Modes {
     /// The modes spanned by `w` (orthonormal), with their products by `fine`'s operator.
     pub fn of(fine: &Level, w: Vec<Vec<f32>>) -> Modes {
         let (k, n) = (w.len(), w[0].len());
-        // A W by the operator itself (a combination of the window's products would cancel below f32 for
-        // the near-null vectors), two at a time.
+        // A W by the operator itself, two at a time (combining the window's products would cancel below `f32`).
         let mut aw: Vec<Vec<f32>> = Vec::with_capacity(k);
         let mut x: Vec<W2> = vec![[WS::of(0.0); 2]; n];
         let mut q: Vec<V2> = vec![[0.0; 2]; n];
@@ -281,8 +263,8 @@ impl Modes {
             fine.fine_residual_dot_narrow(&x, &mut q);
             aw.extend((0..=other - pair).map(|t| q.par_iter().map(|v| -v[t] as f32).collect()));
         }
-        // E = Wᵀ A W (its upper triangle, mirrored), summed: a near-null vector's own Rayleigh quotient is
-        // below f32's rounding of W. Wᵀ W is the identity up to that rounding (orthonormal Ritz vectors).
+        // E = Wᵀ A W (upper triangle, mirrored), summed: a near-null vector's Rayleigh quotient is below `f32`'s
+        // rounding of W. Wᵀ W is the identity up to that rounding.
         let sums = chunked_sums(n, k * k, |a, b, out| {
             for (l, j) in (0..k).flat_map(|l| (l..k).map(move |j| (l, j))) {
                 out[l * k + j] += dot(&w[l][a..b], &aw[j][a..b]);
@@ -316,8 +298,7 @@ impl Modes {
     }
 }
 
-/// Sums of `len` nodes in chunks, each into its own `width` sums, added in order (the result does not depend
-/// on the threads).
+/// Sums of `len` nodes in chunks, each into its own `width` sums, added in order (independent of the threads).
 fn chunked_sums(len: usize, width: usize, f: impl Fn(usize, usize, &mut [f64]) + Sync) -> Vec<f64> {
     let parts: Vec<Vec<f64>> = (0..len.div_ceil(CHUNK)).into_par_iter().map(|c| {
         let mut out = vec![0.0; width];

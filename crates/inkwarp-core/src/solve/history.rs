@@ -1,10 +1,7 @@
-//! Warm starts from several earlier frames.
-//!
-//! On a fixed grid with fixed constrained nodes (an animation: the rest pose does not change between frames)
-//! the solution is linear in the constraint values. So if the new values are close to a combination
-//! `Σ αᵢ vᵢ` of earlier frames' values, the same combination of their fields `Σ αᵢ uᵢ` is as close to the
-//! new solution (up to the earlier solves' tolerance). [`WarmHistory`] keeps the last few frames and starts
-//! each solve from the least-squares combination: for smooth motion a polynomial extrapolation in time.
+//! Warm starts from several earlier frames. On a fixed grid with fixed constrained nodes (an animation) the
+//! solution is linear in the constraint values: new values close to a combination `Σ αᵢ vᵢ` of earlier ones are
+//! answered as closely by `Σ αᵢ uᵢ` of their fields (up to those solves' tolerance). [`WarmHistory`] starts each
+//! solve from the least-squares combination of the last few frames (for smooth motion, an extrapolation in time).
 
 use std::{array::from_fn, borrow::Cow, collections::VecDeque};
 
@@ -18,14 +15,13 @@ use super::{dense_solve, level::V2, solve_constrained, SolveOptions, SolveReport
 /// How many earlier frames a [`WarmHistory`] keeps.
 pub const HISTORY_FRAMES: usize = 3;
 
-/// The error (pixels) taken for each kept frame when weighing their combinations: the default tolerance,
-/// which frames are usually solved to.
+/// The error (px) taken for each kept frame when weighing combinations: the default tolerance.
 const FRAME_ERROR_PX: f64 = 0.01;
 
 /// The last few solves of one animated surface: their constraint values and fields.
 #[derive(Clone, Debug, Default)]
 pub struct WarmHistory {
-    /// The grid (its size, nodes and links) and constrained nodes the entries share.
+    /// The grid and constrained nodes the entries share.
     grid: Grid,
     nodes: Vec<usize>,
     /// Oldest first: (constraint values, field).
@@ -51,9 +47,8 @@ impl WarmHistory {
     /// Whether no frame is kept.
     pub fn is_empty(&self) -> bool { self.entries.is_empty() }
 
-    /// The start for a solve of constraints `c` on `grid`: the history's prediction or `given`, whichever
-    /// misses the constraint values by less (the largest difference at a constrained node); `None` when there
-    /// is neither.
+    /// The start for a solve of `c` on `grid`: the prediction or `given`, whichever misses the constraint values
+    /// by less (largest difference at a constrained node); `None` when there is neither.
     pub fn start<'a>(&self, grid: &Grid, c: &Constraints, given: Option<&'a Field>) -> Option<Cow<'a, Field>> {
         let miss = |f: &Field| {
             c.nodes.iter().zip(&c.values).fold(0.0f64, |m, (&i, v)| m.max((f.dx[i] as f64 - v[0]).abs()).max((f.dy[i] as f64 - v[1]).abs()))
@@ -64,9 +59,8 @@ impl WarmHistory {
         }
     }
 
-    /// The combination of the kept fields whose constraint values best match `c`'s (per component, see
-    /// `fit`), or the latest field when the earlier frames pin other nodes or another grid or do not help;
-    /// `None` when empty or kept for another grid size.
+    /// The combination of the kept fields whose values best match `c`'s (per component, see `fit`), or the latest
+    /// field when the frames pin other nodes or another grid; `None` when empty or kept for another grid size.
     pub fn predict(&self, grid: &Grid, c: &Constraints) -> Option<Field> {
         let last = self.last().filter(|f| (f.width, f.height) == (grid.width, grid.height))?;
         if self.entries.len() < 2 || *grid != self.grid || c.nodes != self.nodes { return Some(last.clone()) }
@@ -82,18 +76,16 @@ impl WarmHistory {
         Some(out)
     }
 
-    /// Least-squares weights of the kept frames' component `q` for `target`, when they match it better than
-    /// the latest frame alone (`[0, …, 1]`, returned otherwise) and stay moderate (`Σ|αᵢ| ≤ 16`: no wild
-    /// extrapolation that would amplify the earlier solves' errors). When the fit through every frame is
-    /// wild (frames nearly parallel, as a drag's first short step beside a probe: see the editor), the fits through fewer frames are weighed instead, each by its root
-    /// mean square miss at the constrained nodes plus the errors it amplifies (`Σ|αᵢ|` × [`FRAME_ERROR_PX`]).
+    /// Least-squares weights of the kept frames' component `q` for `target`, where they beat the latest frame
+    /// alone (`[0, …, 1]`) and stay moderate (`Σ|αᵢ| ≤ 16`: no amplifying the frames' errors). Where the fit
+    /// through every frame is wild (frames nearly parallel), the fits through subsets are weighed instead, each
+    /// by its root mean square miss at the constrained nodes plus `Σ|αᵢ|` × [`FRAME_ERROR_PX`].
     fn fit(&self, target: &[[f64; 2]], q: usize) -> [f64; HISTORY_FRAMES] {
         let k = self.entries.len();
         let latest: [f64; HISTORY_FRAMES] = from_fn(|i| if i + 1 == k { 1.0 } else { 0.0 });
-        // Component q's products of the kept frames' values and the target's.
         let dot = |x: &[[f64; 2]], y: &[[f64; 2]]| -> f64 { x.iter().zip(y).map(|(a, c)| a[q] * c[q]).sum() };
         let v = |i: usize| &self.entries[i].0;
-        // The Gram matrix G (symmetric: each product taken once) and b = (vᵢᵀt).
+        // The Gram matrix G (each product taken once) and b = (vᵢᵀt).
         let (mut g, mut b) = ([[0.0f64; HISTORY_FRAMES]; HISTORY_FRAMES], [0.0f64; HISTORY_FRAMES]);
         for i in 0..k {
             for j in 0..=i {
@@ -106,8 +98,7 @@ impl WarmHistory {
         let trace: f64 = (0..k).map(|i| g[i][i]).sum();
         if trace <= 0.0 || target.is_empty() { return latest; }
         let nodes = target.len() as f64;
-        // The root mean square miss of weights `w` at the constrained nodes, from ‖t − Σ wᵢ vᵢ‖² =
-        // tᵀt − 2 wᵀb + wᵀG w; and how much they amplify the frames' errors.
+        // The root mean square miss of weights `w`, from ‖t − Σ wᵢ vᵢ‖² = tᵀt − 2 wᵀb + wᵀG w, and their gain.
         let miss = |w: &[f64; HISTORY_FRAMES]| {
             let mut sq = tt;
             for i in 0..k {
@@ -146,9 +137,7 @@ impl WarmHistory {
             self.grid = grid.clone();
             self.nodes = c.nodes.clone();
         }
-        if self.entries.len() == HISTORY_FRAMES {
-            self.entries.pop_front();
-        }
+        if self.entries.len() == HISTORY_FRAMES { self.entries.pop_front(); }
         self.entries.push_back((c.values.clone(), field.clone()));
     }
 }
@@ -167,25 +156,21 @@ pub(crate) fn solve_from(
     (field, report)
 }
 
-/// The most floats a piece's [`Answers`] keep: 64 MB, ten fields of a 1.6-megapixel piece (none for a piece
-/// with more fixed nodes than it holds fields).
+/// The most floats (fixed nodes × nodes) a piece's [`Answers`] may come to keep: 64 MB.
 const ANSWER_FLOATS: usize = 1 << 24;
 
-/// A start from [`Answers`] is taken where its estimated error is within the accuracy a converged solve
-/// promises (DESIGN §4: 0.05 px at the default tolerance of 0.01 px).
+/// A start from [`Answers`] is taken where its estimated error is within this many tolerances (DESIGN §4's contract).
 const CONTRACT: f64 = 5.0;
 
 /// Values with less than this share of their size outside the span lie in it.
 const INDEPENDENT: f64 = 1e-9;
 
-/// A kept piece's earlier answers (one hierarchy: the same grid, fixed nodes and tension), for the starts of
-/// its next solves. Each component of an answer is linear in its constraint values (one operator for both),
-/// so values in the span of earlier ones are answered, up to those answers' errors, by the same combination of
-/// their fields: once as many independent values as fixed nodes were solved (five solves of ten points), every
-/// solve of the piece starts there. Kept as an orthonormal basis of the values seen, with the matching fields
-/// and an estimate of each field's error per unit of value: the stopping rule's estimates of the answers'
-/// errors, carried through the combinations in quadrature (as independent errors). The hierarchy's key holds
-/// the fixed nodes, so every value it sees lists the same nodes in the same order.
+/// A kept piece's earlier answers (one hierarchy: same grid, fixed nodes and tension), for its next solves'
+/// starts. Each component of an answer is linear in its constraint values, so values in the span of earlier
+/// ones are answered, up to those answers' errors, by the same combination of their fields. Kept as an
+/// orthonormal basis of the values seen, the matching fields and each field's error per unit of value (the
+/// stopping rule's estimates, combined in quadrature). The hierarchy's key holds the fixed nodes, so every
+/// value lists the same nodes in the same order.
 #[derive(Debug, Default)]
 pub(crate) struct Answers {
     basis: Vec<Vec<f64>>,
@@ -216,12 +201,10 @@ impl Answers {
     }
 
     /// Keeps the answer `u` to `value`, estimated within `error` px, where its values add to the span (while
-    /// there is room). Nearly parallel values add a field whose error, magnified by the little they add, counts
-    /// only in proportion to how much of a later value lies along it. Where a later value in the span was
-    /// refused a start for that error, its answer takes the place of the field that error mostly came from,
-    /// if it makes it smaller (a nudge of one point would otherwise hold its place for good).
+    /// there is room). A nearly parallel value's field has a magnified error, which counts only as far as a later
+    /// value lies along it; a value in the span refused a start for its error replaces the field that error
+    /// mostly came from, if that makes it smaller (else a nudged point's field would stay for good).
     pub fn add(&mut self, value: &[(usize, V2)], u: &[V2], error: f64, tolerance: f64) {
-        // None where the span could not fill (a field a fixed node).
         if value.len() * u.len() > ANSWER_FLOATS { return }
         for q in 0..2 {
             let mut d: Vec<f64> = value.iter().map(|v| v.1[q]).collect();
@@ -230,12 +213,12 @@ impl Answers {
             let (rest, spread) = (norm(&d), self.spread(&c));
             let spanned = rest <= INDEPENDENT * size;
             if (spanned && spread <= CONTRACT * tolerance) || (!spanned && self.basis.len() >= value.len()) { continue }
-            // The field to take this answer's place (its value's own direction, or the one refused for).
+            // The field this answer replaces (none: it adds its value's own direction).
             let j = if spanned { (0..c.len()).max_by(|&a, &b| (c[a] * self.error[a]).abs().total_cmp(&(c[b] * self.error[b]).abs())) } else { None };
-            // The field is the answer less the other fields' share, over its own coefficient.
+            // The field: the answer less the other fields' share, over its own coefficient; its error per unit
+            // holds the answer's, its `f32` rounding's and (replacing one) the other fields'.
             let over = j.map_or(rest, |j| c[j]);
             let mut f: Vec<f64> = u.iter().map(|v| v[q]).collect();
-            // The field is kept in `f32`: its rounding is part of its error.
             let rounding = f64::from(f32::EPSILON) * f.iter().fold(0.0, |m: f64, f| m.max(f.abs()));
             let others = j.map_or(spread, |j| (spread.powi(2) - (c[j] * self.error[j]).powi(2)).max(0.0).sqrt());
             let unit = (error + rounding).hypot(others) / over.abs();

@@ -1,26 +1,23 @@
 //! The null space of a piece's constrained plate operator, and the τ → 0⁺ rule on it.
 //!
-//! A field has zero plate energy when every straight triple with both links has a zero second difference
-//! and every fully linked 2 × 2 cell a zero mixed difference. Fully linked cells that share an edge are
-//! then one affine function (the two rows or columns through both are straight triples), so the fields of
-//! zero plate energy are described by a few unknowns: three affine coefficients per *cluster* of
-//! edge-connected full cells and one value per node in no full cell. They must agree where clusters share
-//! a node, give a zero second difference on every triple not inside one cluster, and vanish on the fixed
-//! nodes. The solutions of that small sparse system span the null space `N`: the hinge's turn of one
-//! square about the other, a strand's free bend, a ring's shear.
+//! A field has zero plate energy when every straight linked triple has a zero second difference and every
+//! fully linked 2 × 2 cell a zero mixed difference. Full cells sharing an edge are then one affine function
+//! (the rows or columns through both are straight triples), so such fields have few unknowns: three affine
+//! coefficients per *cluster* of edge-connected full cells and one value per node in no full cell. They must
+//! agree where clusters share a node, give a zero second difference on every triple not inside one cluster,
+//! and vanish on the fixed nodes. That small sparse system's solutions span the null space `N` (a hinge's
+//! turn, a strand's free bend, a ring's shear).
 //!
-//! At τ = 0 the contract's answer is the plate minimiser of least membrane energy: the iteration's
-//! minimiser `u` plus the `n ∈ N` that minimises `E_membrane(u + n)`. At τ > 0 the same functions are the
-//! operator's smallest eigenvectors (eigenvalues of order τ), which an iteration barely moves: an exact
-//! Galerkin correction in their span removes that error.
+//! At τ = 0 the contract's answer is the plate minimiser `u` plus the `n ∈ N` minimising `E_membrane(u + n)`.
+//! At τ > 0 the same functions are the operator's smallest eigenvectors (eigenvalues of order τ), which an
+//! iteration barely moves: an exact Galerkin correction in their span removes that error.
 
 use super::level::V2;
 use super::strands::{blocks_in_order, Envelope};
 use crate::grid::{find, join};
 
-/// The most entries of a block's factor (a dense block of 1,500 functions; a strand's chain of bends holds a
-/// few a function): past it the rule is not applied
-/// and the solve does not claim convergence.
+/// The most entries of a block's factor (a dense block of 1,500 functions): past it the rule is not applied and
+/// the solve does not claim convergence.
 pub(crate) const MAX_BLOCK_ENTRIES: usize = 1500 * 1501 / 2;
 
 /// The most functions in all (each block's factor at most [`MAX_BLOCK_ENTRIES`], see [`Membrane`]).
@@ -41,7 +38,7 @@ impl BoxGeo<'_> {
         x + 1 < self.w && y + 1 < self.h && self.right[i] && self.down[i] && self.down[i + 1] && self.right[i + self.w]
     }
 
-    /// The ends of the horizontal and the vertical triple centred on `i` with both links.
+    /// The ends of the linked horizontal and vertical triples centred on `i`.
     fn triples(&self, i: usize) -> impl Iterator<Item = (usize, usize)> {
         let (x, y, w) = (i % self.w, i / self.w, self.w);
         let h = (x > 0 && self.right[i - 1] && self.right[i]).then(|| (i - 1, i + 1));
@@ -69,7 +66,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
             join(&mut parent, i as u32, j as u32);
         }
     }
-    // Cluster index per root, and the clusters of each node (the full cells it is a corner of).
+    // Cluster index per root, and each node's clusters (of the full cells it is a corner of).
     let mut cluster_of_root = vec![u32::MAX; n];
     let mut origin: Vec<[f64; 3]> = Vec::new(); // x0, y0, scale
     let mut member: Vec<[u32; 4]> = vec![[u32::MAX; 4]; n];
@@ -126,9 +123,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
         for &c in member[i].iter().skip(1).take_while(|&&c| c != u32::MAX) {
             equation(&[(i, 1.0)], &in_cluster(i, c).map(|(v, a)| (v, -a)));
         }
-        if fixed[i] {
-            equation(&[(i, 1.0)], &[]);
-        }
+        if fixed[i] { equation(&[(i, 1.0)], &[]); }
         let shared = |a: usize, b: usize| member[i].iter().any(|&c| c != u32::MAX && member[a].contains(&c) && member[b].contains(&c));
         for (a, b) in g.triples(i).filter(|&(a, b)| !shared(a, b)) {
             equation(&[(a, 1.0), (i, -2.0), (b, 1.0)], &[]);
@@ -247,9 +242,7 @@ impl Echelon {
                     wake(*pc, &mut heap);
                 }
             }
-            for r in visited {
-                queued[r as usize] = false;
-            }
+            visited.into_iter().for_each(|r| queued[r as usize] = false);
             nonzero.iter().map(|&c| (c, std::mem::take(&mut q[c]))).collect()
         });
         Some(basis.collect())
@@ -260,9 +253,7 @@ impl Echelon {
 /// `dense` is a zero scratch, left zero.
 fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> Vec<usize> {
     let w = g.w;
-    for &(i, v) in z {
-        dense[i] = v;
-    }
+    z.iter().for_each(|&(i, v)| dense[i] = v);
     let mut touched = Vec::new();
     let mut link = |i: usize, j: usize| {
         let d = dense[i] - dense[j];
@@ -279,25 +270,21 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
             link(j, i);
         }
     }
-    for &(i, _) in z {
-        dense[i] = 0.0;
-    }
+    z.iter().for_each(|&(i, _)| dense[i] = 0.0);
     touched.sort_unstable();
     touched.dedup();
     touched
 }
 
-/// The τ → 0⁺ choice among the plate minimisers as a linear map: `u ↦ u + n`, with `n ∈ span(basis)`
-/// the function that minimises the membrane energy of `u + n`. The functions couple only where their
-/// supports meet, so their system falls apart in blocks (one hair's free bends, one sliver's), each
-/// solved on its own. Built once per piece: it settles the answer, and projects the iteration's start
-/// and directions (see `Settled` in the solver).
+/// The τ → 0⁺ choice among the plate minimisers as a linear map `u ↦ u + n`, `n ∈ span(basis)` minimising
+/// the membrane energy of `u + n`. The functions couple only where their supports meet, so the system falls
+/// apart in blocks (one hair's free bends, one sliver's), each solved on its own. Built once per piece.
 pub(crate) struct Membrane {
     basis: Vec<Sparse>,
     /// `M z_j` for each basis function `z_j`, on the nodes it touches.
     products: Vec<Sparse>,
-    /// The functions of each block in its factor's order, and the factor of its membrane Gram matrix (none
-    /// for a block too costly or singular, which is not settled).
+    /// Each block's functions in its factor's order, and the factor of its membrane Gram matrix (none for a
+    /// block too costly or singular, which is not settled).
     blocks: Vec<(Vec<usize>, Option<Envelope>)>,
 }
 
@@ -331,8 +318,8 @@ impl Membrane {
                 (acc[i], seen[i]) = (0.0, false);
             }
         }
-        // Each block in an order that keeps its envelope narrow (a strand's bends in order along it); one
-        // with a dropped pivot (dependent functions) is not settled.
+        // Each block in an order keeping its envelope narrow; one with a dropped pivot (dependent functions)
+        // is not settled.
         let mut local = vec![0; k];
         let blocks = blocks_in_order(k, |_| true, |j, out| { out.clear(); out.extend(gram[j].iter().map(|e| e.0)) }).into_iter().map(|members| {
             members.iter().enumerate().for_each(|(l, &j)| local[j] = l);
@@ -373,9 +360,7 @@ impl Membrane {
     pub(crate) fn apply(&self, u: &mut [V2]) -> bool {
         let mut n: Vec<(usize, V2)> = Vec::new();
         let all = self.settle(|i| u[i], |i, v| n.push((i, v)));
-        for (i, v) in n {
-            u[i] = [u[i][0] + v[0], u[i][1] + v[1]];
-        }
+        n.into_iter().for_each(|(i, v)| u[i] = [u[i][0] + v[0], u[i][1] + v[1]]);
         all
     }
 }

@@ -1,12 +1,11 @@
 //! Exact solves on the thin parts of a piece: strands, teeth, slivers between cuts.
 //!
-//! A part a few pixels wide bends almost freely and the coarse levels, whose nodes are 2ᵏ pixels apart,
-//! do not see it: its bending is a slow mode of every cycle. Nearly one-dimensional, its own system is
-//! cheap to solve exactly, so the preconditioner solves every connected set of *thin* nodes (a run of
-//! linked nodes along the row or the column at most [`THIN`] long) with the rest held, before and after the
-//! cycle (block symmetric Gauss–Seidel). Each set is ordered by reverse Cuthill–McKee and factored as
-//! `L D Lᵀ` in its envelope, its diagonal raised by [`SHIFT`] (a straight strand's exactly); a vanishing
-//! pivot (a free function of the set, at τ = 0) is dropped, leaving it to the cycle and the settling.
+//! A part a few pixels wide bends almost freely and the coarse levels (nodes 2ᵏ pixels apart) miss it: its
+//! bending is a slow mode of every cycle. Nearly one-dimensional, its system is cheap to solve exactly, so
+//! the preconditioner solves every connected set of *thin* nodes (a run of linked nodes along the row or the
+//! column at most [`THIN`] long) with the rest held, before and after the cycle (block symmetric Gauss–Seidel).
+//! Each set is ordered by reverse Cuthill–McKee and factored as `L D Lᵀ` in its envelope, its diagonal raised
+//! by [`SHIFT`] (a straight strand's exactly); a vanishing pivot (a free function, at τ = 0) is dropped.
 
 use super::level::{bit, Level, Operator, Real, V2, W2, WS};
 
@@ -16,17 +15,15 @@ const THIN: usize = 16;
 /// The most entries a node's row of a block's factor may hold on average.
 const BAND: usize = 64;
 
-/// The finest level's blocks not factored exactly are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant hair's exact
-/// response where the `f32` search direction can hold it (docs/dev/ablation.md).
+/// The finest level's blocks not factored exactly are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant hair's
+/// response to what the `f32` search direction can hold.
 const SHIFT: f64 = 1e-8;
 
-/// A pivot below this fraction of its diagonal entry is dropped (slivers' near-free functions; smaller
-/// floors let them through and tight tolerances ran away: docs/dev/ablation.md, "Tenth change").
+/// A pivot below this fraction of its diagonal entry is dropped (slivers' near-free functions: `docs/dev/ablation.md`).
 const PIVOT: f64 = 1e-6;
 
-/// A pivot below this fraction of its diagonal entry leaves a straight strand's exact factor for the shifted
-/// one: a loose strand, or one so long that, solved exactly, solves claimed convergence they had not reached
-/// (docs/dev/solver-correctness.md, "Straight strands factored exactly").
+/// A pivot below this fraction of its diagonal entry leaves a straight strand's exact factor for the shifted one
+/// (a loose or very long strand, whose exact solve misled the stopping rule: `docs/dev/solver-correctness.md`).
 const EXACT_PIVOT: f64 = 1e-9;
 
 /// The `L D Lᵀ` factor of a symmetric matrix in its envelope: row `i` of `L` from column `first[i]`, at `at[i]`.
@@ -75,8 +72,8 @@ impl Strands {
         }
         let mut local = vec![u32::MAX; thin.len()];
         nodes.iter().enumerate().for_each(|(i, &p)| local[p as usize] = i as u32);
-        // Each block factored; a set whose order is not a narrow band is two-dimensional (a region riddled
-        // with pinholes, say), not a strand: the cycle serves it, and its nodes leave the lists.
+        // Each block factored; a set whose order is no narrow band is two-dimensional (a region riddled with
+        // pinholes), not a strand: the cycle serves it, and its nodes leave the lists.
         starts.push(nodes.len());
         let fine = matches!(level.op, Operator::Fine { .. });
         let shift = if fine { SHIFT } else { 0.0 };
@@ -88,9 +85,8 @@ impl Strands {
                 level.taps(p as usize, |q, a| if (pair[0]..pair[1]).contains(&(local[q] as usize)) { row.push((local[q] as usize - pair[0], a)) });
                 row
             }).collect();
-            // On the finest level a straight 1 px line (a strand, or a sliver between parallel cuts) is factored
-            // exactly: its pivots fall as the cube of its length, and dropped or shifted, its slowest bending was
-            // left to the cycle. Past [`EXACT_PIVOT`], shifted as the others.
+            // On the finest level a straight 1 px line is factored exactly (its pivots fall as its length cubed:
+            // dropped or shifted, its slowest bending is left to the cycle); past [`EXACT_PIVOT`], shifted.
             let wp = level.wp;
             let straight = ids.iter().all(|&p| p as usize % wp == ids[0] as usize % wp) || ids.iter().all(|&p| p as usize / wp == ids[0] as usize / wp);
             let exact = (fine && ids.len() > 1 && straight).then(|| Envelope::factor(&entries, 0.0, EXACT_PIVOT, BAND * ids.len()));
@@ -113,9 +109,7 @@ impl Strands {
     /// Before the finest level's cycle: solves the thin blocks on `r` and takes the correction's product out
     /// of the cycle's right-hand side `f` (`r` in `f32`).
     pub fn before(&mut self, level: &Level, r: &[V2], f: &mut [W2]) {
-        for (z, &p) in self.first_pass.iter_mut().zip(&self.nodes) {
-            *z = r[p as usize];
-        }
+        self.first_pass.iter_mut().zip(&self.nodes).for_each(|(z, &p)| *z = r[p as usize]);
         solve_blocks(&self.blocks, &mut self.first_pass);
         for (i, z) in self.first_pass.iter().enumerate() {
             for &(q, a) in self.row(i).iter().filter(|&&(q, _)| level.inv_diag[q as usize] != 0.0) {

@@ -1,18 +1,16 @@
 //! `grid_step = s > 1`: solve on every s-th node and upsample with a tensor-product cubic.
 //!
-//! The coarse node (X, Y) sits on pixel (min(sX, W−1), min(sY, H−1)) (the last row and column pulled onto
-//! the border, so every pixel lies between coarse nodes), active when that pixel is; two coarse neighbours
-//! are linked when every fine link on the straight path between them is. A sample constrains the nearest
-//! coarse node, which takes the nearest of its samples. The tension is scaled by s² so that the coarse energy
-//! approximates the same continuous one.
+//! Coarse node (X, Y) sits on pixel (min(sX, W−1), min(sY, H−1)) (so every pixel lies between coarse nodes),
+//! active when that pixel is; two coarse neighbours are linked when every fine link between them is. A sample
+//! constrains the nearest coarse node, which takes the nearest of its samples; the tension is scaled by s²
+//! (the same continuous energy).
 //!
-//! Upsampling is Catmull-Rom in x and y, linear past the border. A pixel uses only the coarse nodes of its
-//! 4 × 4 window that it reaches through links within the window's block of pixels (so a tear stays open even
-//! where its sides join far around), renormalised and corrected to keep affine fields affine (falling back to
-//! bilinear from the inner 2 × 2, then to the nearest value along the links). A piece with no coarse node
-//! takes the mean displacement of its samples, or zero; a coarse piece no sample holds moves with the held one
-//! it joins on the full grid. The editor's drag path, built for speed (`docs/dev/multigrid.md`); a test holds
-//! it to the per-pixel loop (up to sums' order).
+//! Upsampling is Catmull-Rom in x and y, linear past the border. A pixel uses only the nodes of its 4 × 4
+//! window it reaches through links within the window's block (a tear stays open even where its sides join
+//! far around), renormalised and corrected to keep affine fields affine; else bilinear from the inner 2 × 2,
+//! else the nearest value along the links. A piece with no coarse node takes its samples' mean displacement
+//! or zero; a coarse piece no sample holds moves with the held one it joins on the full grid. Built for speed
+//! (the editor's drag path, `docs/dev/multigrid.md`); a test holds it to the per-pixel loop (up to sums' order).
 
 use std::collections::VecDeque;
 
@@ -72,9 +70,8 @@ fn nearest_samples(coarse: &Grid, samples: &[Sample]) -> Vec<Sample> {
     samples.iter().zip(&nodes).filter(|(_, n)| n.map_or(true, |(i, d)| d <= least[i] + 1e-9)).map(|(p, _)| *p).collect()
 }
 
-/// A coarse piece that no sample holds but that joins a held one on the full grid (a strand thinner than
-/// the step) moves with the nearest held coarse node along the full grid's links, instead of standing
-/// still while the part it hangs from moves. The editor's drafts ([`solve_at`]) go without it.
+/// A coarse piece no sample holds that joins a held one on the full grid (a strand thinner than the step) moves
+/// with the nearest held coarse node along the full grid's links. The drafts ([`solve_at`]) go without it.
 fn follow_held(grid: &Grid, l: &Layout, coarse: &Grid, constraints: &crate::grid::Constraints, fc: &mut Field) {
     let (labels, count) = coarse.pieces();
     let mut held = vec![false; count];
@@ -99,9 +96,9 @@ fn follow_held(grid: &Grid, l: &Layout, coarse: &Grid, constraints: &crate::grid
     }
 }
 
-/// What upsampling a `grid_step` solve on one grid needs besides the coarse field: the taps of every
-/// pixel column and row and the usable-tap masks of the cells along missing links. Kept once per grid and
-/// step, it evaluates the field at chosen pixels only ([`Solver::solve_warm_at`]: a mesh's vertices).
+/// What upsampling a `grid_step` solve on one grid needs besides the coarse field: every pixel column's and
+/// row's taps and the usable-tap masks of cells along missing links. Kept per grid and step, it also evaluates
+/// chosen pixels only ([`Solver::solve_warm_at`]).
 #[derive(Debug)]
 pub struct Upsampling {
     layout: Layout,
@@ -193,21 +190,11 @@ fn cell_of(x: f64, s: usize, nc: usize, pos: impl Fn(usize) -> usize) -> (usize,
     (c, (x - a) / (b - a))
 }
 
-/// The Catmull-Rom taps of one pixel along one axis: its coarse cell (its window spans coarse positions
-/// `cell − 1 ..= cell + 2`) and the window's positions inside the grid with a nonzero weight, in order.
+/// The Catmull-Rom taps of one pixel along one axis: its coarse `cell` (its window spans coarse positions `cell − 1 ..=
+/// cell + 2`), the cubic `weights` of the window's four positions, `t` how far across the cell it lies, and the `len`
+/// used taps (inside the grid, nonzero weight): their window positions `slot` and coarse indices `at`.
 #[derive(Clone, Copy, Debug)]
-struct Taps {
-    cell: usize,
-    /// The cubic weights of the window's four positions (outside ones included).
-    weights: [f64; 4],
-    /// How far across its cell the pixel lies.
-    t: f64,
-    len: usize,
-    /// Position in the window (0..4) of each used tap.
-    slot: [u8; 4],
-    /// Coarse index of each used tap.
-    at: [usize; 4],
-}
+struct Taps { cell: usize, weights: [f64; 4], t: f64, len: usize, slot: [u8; 4], at: [usize; 4] }
 
 impl Taps {
     /// The taps of every pixel `0..n` along an axis with `nc` coarse positions at `pos(0..nc)`, `s` apart.
@@ -248,8 +235,8 @@ const ALL_TAPS: u16 = u16::MAX;
 /// pixel touches, empty (every tap usable) for the others.
 fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec<Vec<u16>> {
     let (w, h, (cw, ch)) = (layout.w, layout.h, layout.cells());
-    // Whether a missing link or an inactive pixel lies inside each coarse cell (the closed block of pixels
-    // between its four corner nodes). Stretches of a row without any are skipped whole.
+    // Whether a missing link or an inactive pixel lies in each cell's closed block (stretches of a row
+    // without any are skipped whole).
     let mut touched = vec![false; cw * ch];
     // The cells whose closed block holds pixel (x, y): one or two along each axis.
     let mut mark = |x: usize, y: usize| {
@@ -396,7 +383,7 @@ impl Moments {
 
     /// The allowed taps' renormalised value where their weights sum to `least` or more, less the gradient of the
     /// least-squares plane `p` (the cubic window's) times the shift of their centre from the whole window's: an
-    /// affine field's value, as a whole window gives (renormalised alone, turned limbs came out as beads).
+    /// affine field's value, as a whole window gives.
     fn value(&self, least: f64, p: &[f64; 12]) -> Option<[f32; 2]> {
         let [sum, fx, fy, x, y] = self.allowed;
         if sum < least { return None; }
@@ -431,8 +418,7 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
     for (x, t) in cols.iter().enumerate() {
         cell_x[t.cell] = (cell_x[t.cell].0.min(x), x + 1);
     }
-    // A row's pixels that use their whole window (whose weights sum to 1) take the cubic in y first, once
-    // per coarse column (`along[c]`), then in x: 4 + 4 products a pixel instead of 16.
+    // Pixels using their whole window take the cubic in y once per coarse column (`along[c]`), then in x.
     let upsample_row = |y: usize, dx: &mut [f32], dy: &mut [f32], resolved: &mut [bool], along: &mut Vec<[f64; 2]>| -> usize {
         let (ty, active) = (&rows[y], &grid.active[y * w..(y + 1) * w]);
         along.clear();
@@ -470,7 +456,7 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
     let unresolved: usize = chunks.map_init(Vec::new, |along, (y, ((dx, dy), r))| upsample_row(y, dx, dy, r, along)).sum();
     if unresolved == 0 { return field; }
     // Pixels left over: nearest resolved value along the links, breadth first from the resolved pixels
-    // next to an unresolved one (the others would leave the queue without effect), in index order.
+    // next to an unresolved one (the only ones that spread), in index order.
     let pending = (0..w * h).filter(|&i| grid.active[i] && !resolved[i]);
     let mut seeds: Vec<usize> = pending.flat_map(|i| grid.linked(i).into_iter().filter(|&j| j != usize::MAX && resolved[j])).collect();
     seeds.sort_unstable();
@@ -485,9 +471,8 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
             }
         }
     }
-    // Pieces without a coarse node: their samples' mean displacement, else zero.
+    // Pieces without a coarse node: their samples' mean displacement, else zero (labelled only here: rare).
     if (0..w * h).any(|i| grid.active[i] && !resolved[i]) {
-        // (The pieces are only labelled here: most grids never get this far.)
         let (labels, count) = grid.pieces();
         let mean = piece_means(grid, &labels, count, samples);
         for i in (0..w * h).filter(|&i| grid.active[i] && !resolved[i]) {
