@@ -168,11 +168,7 @@ fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn
         each_run(w, |x| right(p(x, y), y * w + x), |x, e| across[p(x, y)..=p(e, y)].fill((e - x + 1) as u32));
     }
     for x in 0..w {
-        each_run(h, |y| down(p(x, y), y * w + x), |y, e| {
-            for i in y..=e {
-                across[p(x, i)] = across[p(x, i)].min((e - y + 1) as u32);
-            }
-        });
+        each_run(h, |y| down(p(x, y), y * w + x), |y, e| (y..=e).for_each(|i| across[p(x, i)] = across[p(x, i)].min((e - y + 1) as u32)));
     }
     (0..across.len()).map(|p| level.inv_diag[p] != 0.0 && across[p] as usize <= THIN).collect()
 }

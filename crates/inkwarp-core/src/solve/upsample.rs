@@ -143,9 +143,7 @@ pub(crate) fn solve_at(
     } else {
         // A pixel whose window reaches no coarse node takes the full upsampling's fill.
         let field = upsample(grid, plan, &fc, samples);
-        for (o, &p) in out.chunks_exact_mut(2).zip(pixels) {
-            o.copy_from_slice(&[field.dx[p as usize], field.dy[p as usize]]);
-        }
+        out.chunks_exact_mut(2).zip(pixels).for_each(|(o, &p)| o.copy_from_slice(&[field.dx[p as usize], field.dy[p as usize]]));
     }
     report.seconds = start.elapsed().as_secs_f64();
     Ok(report)
@@ -415,9 +413,7 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
     // The cells with masks in each row of cells, and each cell's pixels along x.
     let masked: Vec<Vec<usize>> = masks.chunks(cw).map(|row| (0..cw).filter(|&cx| !row[cx].is_empty()).collect()).collect();
     let mut cell_x = vec![(usize::MAX, 0); cw];
-    for (x, t) in cols.iter().enumerate() {
-        cell_x[t.cell] = (cell_x[t.cell].0.min(x), x + 1);
-    }
+    cols.iter().enumerate().for_each(|(x, t)| cell_x[t.cell] = (cell_x[t.cell].0.min(x), x + 1));
     // Pixels using their whole window take the cubic in y once per coarse column (`along[c]`), then in x.
     let upsample_row = |y: usize, dx: &mut [f32], dy: &mut [f32], resolved: &mut [bool], along: &mut Vec<[f64; 2]>| -> usize {
         let (ty, active) = (&rows[y], &grid.active[y * w..(y + 1) * w]);
