@@ -472,8 +472,8 @@ def _http2_reply(conn: Any) -> bytes:
 @contextlib.contextmanager
 def _stderr_held() -> Iterator[list[str]]:
     """What this process (Ray's C++ core included) writes to file descriptor 2 meanwhile,
-    and Ray's Python warnings (which logging's last resort writes to ``sys.stderr``, not
-    always fd 2), held back and handed over in the list yielded, instead of printed. Under
+    and to ``sys.stderr`` (where Ray's Python warnings go, which in a notebook is not fd 2),
+    held back and handed over in the list yielded, instead of printed. Under
     ``RAY_LOG_TO_STDERR`` nothing is held: Ray's processes started meanwhile keep fd 2 as
     their log, which must stay the terminal."""
     held: list[str] = []
@@ -482,24 +482,22 @@ def _stderr_held() -> Iterator[list[str]]:
         yield held
         return
     import io
-    import logging
     import tempfile
 
     sys.stderr.flush()
-    said = logging.StreamHandler(io.StringIO())
-    ray_log = logging.getLogger("ray")
-    ray_log.addHandler(said)
+    said, shown = io.StringIO(), sys.stderr
     with tempfile.TemporaryFile() as sink:
         saved = os.dup(2)
         try:
             os.dup2(sink.fileno(), 2)
+            sys.stderr = said
             yield held
         finally:
+            sys.stderr = shown
             os.dup2(saved, 2)  # the terminal back first, whatever else fails
             os.close(saved)
-            ray_log.removeHandler(said)
             sink.seek(0)
-            held.append(said.stream.getvalue() + sink.read().decode("utf-8", "replace"))
+            held.append(said.getvalue() + sink.read().decode("utf-8", "replace"))
 
 
 def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
