@@ -10,15 +10,14 @@ const CHEB_RATIO: f64 = 16.0;
 /// Stop coarsening when a level has at most this many nodes.
 const COARSEST_NODES: usize = 300;
 /// A K-cycle takes its second step only when its first left more than this fraction of the coarse residual
-/// (Euclidean norm, each component): Notay's adaptive K-cycle (`docs/dev/ablation.md`, "Constants").
+/// (2-norm, per component): Notay's adaptive K-cycle (`docs/dev/ablation.md`, "Constants").
 const K_SECOND_STEP: f64 = 0.3;
 /// Lanczos steps of the estimate of the top of each level's spectrum.
 const LANCZOS_STEPS: usize = 12;
 /// Power steps of the finest level's Collatz–Wielandt bound.
 const COLLATZ_STEPS: usize = 3;
-/// The smallest pivot of the coarsest factor, relative to its diagonal, not taken as zero: about the `f32`
-/// work vectors' resolution, whose rounding a smaller one would magnify past the answer
-/// (`docs/dev/solver-correctness.md`, "Tiny tensions").
+/// The smallest pivot of the coarsest factor, relative to its diagonal, not taken as zero: about the `f32` work
+/// vectors' resolution, whose rounding a smaller one would magnify (`docs/dev/solver-correctness.md`, "Tiny tensions").
 const PIVOT_FLOOR: f64 = 1e-7;
 
 /// The grid hierarchy with its work vectors.
@@ -30,30 +29,26 @@ pub(crate) struct Hierarchy {
     /// Smoothing steps on the finest level, and on the levels below it.
     degree: usize,
     coarse_degree: usize,
-    /// Solve the coarse problems below the finest level by K-cycles ([`Hierarchy::k_correction`]); else by
-    /// one line-searched cycle each, a V-cycle.
+    /// Solve the coarse problems below the finest level by K-cycles ([`Hierarchy::k_correction`]), else V-cycles.
     pub k_cycles: bool,
     /// A second coarse space for the finest level ([`Level::into_plain`]), visited after the first.
     pub alt: Option<Box<Hierarchy>>,
     /// Whether the finest level has holes or cuts (see [`super::level::Geometry::torn`]).
     pub torn: bool,
-    /// K-cycle coarse corrections that took their first step alone ([`K_SECOND_STEP`]), since the hierarchy
-    /// was built.
+    /// K-cycle coarse corrections that took their first step alone ([`K_SECOND_STEP`]) since the build.
     pub second_steps_skipped: std::sync::atomic::AtomicUsize,
     /// Exact solves on the finest level's thin parts around each cycle (see [`Strands`]).
     pub strands: Option<Strands>,
-    /// The same on the coarser levels (index k for level k; none on the finest), relaxed twice in the cycle:
-    /// right after its first smoothing and again right before its second.
+    /// The same on the coarser levels (index k for level k; none on the finest), relaxed right after the
+    /// first smoothing and right before the second.
     pub level_strands: Vec<Option<Strands>>,
-    /// The solve's own vectors on the finest level (the residual, the search direction's product, a warm
-    /// start's cold alternative; `direction`: the search direction in `f32`), kept for the next solve:
-    /// allocated afresh, vectors of megabytes cost page faults at every solve, a large part of an animation
-    /// frame's one cycle.
+    /// The solve's finest-level vectors (the residual, the search direction's product, a warm start's cold
+    /// alternative; `direction`: the search direction in `f32`), kept: fresh ones cost page faults every solve.
     pub spare: Vec<Vec<V2>>,
     pub direction: Vec<W2>,
     /// The finest level's affine functions, corrected exactly after every cycle (see [`Affine`]).
     pub affine: Option<Affine>,
-    /// The slow modes the last slow solve kept (its deflation's or its probe's: see [`super::deflate::Modes`]).
+    /// The slow modes the last slow solve kept (its deflation's or probe's: [`super::deflate::Modes`]).
     pub modes: Option<super::deflate::Modes>,
     /// Whether a solve has probed its operator for slow modes (see `super::probe`), and converged.
     pub probed: bool,
@@ -78,21 +73,20 @@ struct Work {
 }
 
 impl Hierarchy {
-    /// A second coarse space for `fine`'s unknowns: the levels below `fine`, visited by V-cycles (`fine`
-    /// itself, which the hierarchy it serves smooths, without work vectors or bound).
+    /// A second coarse space for `fine`'s unknowns: the levels below it, by V-cycles (`fine` itself, smoothed
+    /// by the hierarchy it serves, without work vectors or bound).
     pub fn coarse_space(fine: Level, degree: usize, exact_work: Option<usize>) -> Hierarchy {
         let mut h = Hierarchy { k_cycles: false, ..Hierarchy::new(fine, degree, degree, false, None, exact_work) };
-        // Past the setup, the finest level only lends its prolongation: 4 bytes a node instead of about 18.
+        // Past the setup, the finest level only lends its prolongation.
         h.levels[0].keep_only_prolongation();
         h
     }
 
-    /// The hierarchy below `fine`, smoothing by Chebyshev steps of `degree` on `fine` and `coarse_degree` below
-    /// it; unless `smooth_fine`, `fine` gets no work vectors or bound. With `whole = Some(max)`, `fine` is the
-    /// only level, solved by its banded factor, where that factor drops at most `max` pivots. The levels coarsen
-    /// to at most [`COARSEST_NODES`] nodes, or with `exact_work = Some(work)` to the first below `fine` whose
-    /// banded factor costs at most `work` (nodes × bandwidth², multiply-adds): `fine`'s own factor is the one
-    /// `whole` judges (it may hold a soft part still).
+    /// The hierarchy below `fine`, smoothing by `degree` Chebyshev steps on `fine` and `coarse_degree` below; unless
+    /// `smooth_fine`, `fine` gets no work vectors or bound. With `whole = Some(max)`, `fine` is the only level,
+    /// solved by its banded factor, where that drops at most `max` pivots. Levels coarsen to at most
+    /// [`COARSEST_NODES`] nodes, or with `exact_work = Some(work)` to the first below `fine` whose banded factor
+    /// costs at most `work` ([`banded_work`]; `fine`'s own is for `whole` to judge: it may hold a soft part).
     pub fn new(fine: Level, degree: usize, coarse_degree: usize, smooth_fine: bool, whole: Option<usize>, exact_work: Option<usize>) -> Hierarchy {
         let mut levels = vec![fine];
         let factor = whole.and_then(|max| Some(Banded::new(&levels[0])).filter(|b| b.dropped.iter().filter(|&&d| d).count() <= max));
@@ -108,10 +102,10 @@ impl Hierarchy {
             let v = || vec![[0.0; 2]; if k == 0 && !smooth_fine { 0 } else { levels[k].len_padded() }];
             Work { x: v(), f: v(), r: v(), d: v(), z1: Vec::new(), q1: Vec::new() }
         }).collect();
-        // Chebyshev needs the top of the spectrum of D⁻¹A (two steps aimed at [λ/16, λ] amplify every mode
-        // more than 6.25 % above λ). On the finest level, whose top mode alternates in sign as its molecule
-        // does, a Collatz–Wielandt bound on |A| is safe and close; on the Galerkin levels it is loose, so
-        // there Lanczos's largest Ritz value, capped by Gershgorin's (power steps miss edge modes at holes).
+        // Chebyshev needs the top of D⁻¹A's spectrum (two steps aimed at [λ/16, λ] amplify modes over 6.25 % above
+        // λ). On the finest level, whose top mode alternates in sign as its molecule does, a Collatz–Wielandt bound
+        // on |A| is safe and close; on Galerkin levels it is loose: there Lanczos's largest Ritz value, capped by
+        // Gershgorin's.
         let bound = |(k, l): (usize, &mut Level)| l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
         levels.iter_mut().enumerate().skip(if smooth_fine && !whole { 0 } else { 1 }).for_each(bound);
         let coarsest = factor.unwrap_or_else(|| Banded::new(levels.last().unwrap()));
@@ -121,21 +115,13 @@ impl Hierarchy {
     /// `z ≈ A⁻¹ r` on the finest level by one symmetric cycle from zero in `f32`, valid until the next call.
     pub fn precondition(&mut self, r: &[V2]) -> &[W2] {
         update(&mut self.work[0].f, r, |f, r| *f = [WS::of(r[0]), WS::of(r[1])]);
-        if let Some(s) = &mut self.strands {
-            s.before(&self.levels[0], r, &mut self.work[0].f);
-        }
+        if let Some(s) = &mut self.strands { s.before(&self.levels[0], r, &mut self.work[0].f); }
         let mut work = std::mem::take(&mut self.work);
         let mut alt_work = self.alt.as_mut().map(|a| std::mem::take(&mut a.work));
         self.solve_level(0, &mut work, true, alt_work.as_deref_mut());
-        if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) {
-            a.work = w;
-        }
-        if let Some(s) = &self.strands {
-            s.after(r, &mut work[0].x);
-        }
-        if let Some(a) = &self.affine {
-            a.add(&self.levels[0], r, &mut work[0].x);
-        }
+        if let (Some(a), Some(w)) = (self.alt.as_mut(), alt_work) { a.work = w; }
+        if let Some(s) = &self.strands { s.after(r, &mut work[0].x); }
+        if let Some(a) = &self.affine { a.add(&self.levels[0], r, &mut work[0].x); }
         self.work = work;
         &self.work[0].x[..r.len()]
     }
@@ -151,11 +137,9 @@ impl Hierarchy {
     /// above the coarsest.
     fn solve_level(&self, k: usize, work: &mut [Work], x_zero: bool, alt_work: Option<&mut [Work]>) {
         let (level, coarsest) = (&self.levels[k], k + 1 == self.levels.len());
-        // From zero, `x` is zeroed unless the first smoothing step writes all of it anyway (or, fused with
-        // the second on the finest level, does not read it: see `Level::second_step_from_zero`).
-        if x_zero && (coarsest || self.steps_at(k) == 0 || level.lam_max <= 0.0) {
-            fill_zero(&mut work[0].x);
-        }
+        // From zero, `x` is zeroed unless the first smoothing step writes all of it (or, fused with the second,
+        // does not read it: `Level::second_step_from_zero`).
+        if x_zero && (coarsest || self.steps_at(k) == 0 || level.lam_max <= 0.0) { fill_zero(&mut work[0].x); }
         if coarsest {
             self.coarsest.solve(&work[0].f, &mut work[0].x);
             return;
@@ -164,25 +148,20 @@ impl Hierarchy {
         let w = &mut head[0];
         let Work { x, f, r, d, .. } = &mut *w;
         smooth(level, x, f, r, d, self.steps_at(k), x_zero);
-        if let Some(Some(s)) = self.level_strands.get(k) {
-            s.relax(x, f);
-        }
-        // From a given `x` (the coarse-to-fine start's, the whole answer on this level) below the finest
-        // level in `f64` sums (see `Level::residual_f64`); from zero, `x` is one smoothing of `f`, and the
-        // rounding of its product small next to the residual.
+        if let Some(Some(s)) = self.level_strands.get(k) { s.relax(x, f); }
+        // From a given `x` (the coarse-to-fine start's whole answer) below the finest level in `f64` sums
+        // (`Level::residual_f64`); from zero, `x` is one smoothing of `f`, its product's rounding small.
         if k > 0 && !x_zero {
             level.residual_f64(x, Some(f), r);
-        } else {
-            level.residual(x, Some(f), r);
-        }
-        // No K-cycle on the finest level (the conjugate gradient runs around the cycle) nor on the one above the
-        // coarsest (its coarse solve is exact: one visit is all it needs).
+        } else { level.residual(x, Some(f), r); }
+        // No K-cycle on the finest level (the conjugate gradient runs around the cycle) nor above the coarsest
+        // (its coarse solve is exact).
         if k > 0 && k + 2 < self.levels.len() && self.k_cycles {
             self.k_correction(k, w, tail);
         } else {
             self.solve_below(k, &w.r, tail);
-            // Line-searched below the finest level; unscaled on it (the conjugate gradient around the cycle
-            // takes the step, and from the coarsest level of two it is exact).
+            // Line-searched below the finest level; unscaled on it (the conjugate gradient takes the step, and
+            // above the coarsest of two levels the correction is exact).
             let alpha = if k > 0 { line_step(&self.levels[k + 1], &mut tail[0]) } else { [1.0; 2] };
             prolong_add_scaled(level, &self.levels[k + 1], &tail[0].x, &mut w.x, alpha);
         }
@@ -190,15 +169,12 @@ impl Hierarchy {
             // The second coarse space, on the residual the first one left.
             level.residual(&w.x, Some(&w.f), &mut w.r);
             alt.solve_below(0, &w.r, &mut aw[1..]);
-            // Line-searched: a soft mode of the plain space can make its cycle's answer far too large, and
-            // added unscaled it would undo the first correction.
+            // Line-searched: a soft mode of the plain space can make its answer far too large, undoing the first.
             let alpha = line_step(&alt.levels[1], &mut aw[1]);
             prolong_add_scaled(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x, alpha);
         }
         let Work { x, f, r, d, .. } = w;
-        if let Some(Some(s)) = self.level_strands.get(k) {
-            s.relax(x, f);
-        }
+        if let Some(Some(s)) = self.level_strands.get(k) { s.relax(x, f); }
         smooth(level, x, f, r, d, self.steps_at(k), false);
     }
 
@@ -209,23 +185,21 @@ impl Hierarchy {
     }
 
     /// Level k's coarse correction from its residual `w.r`: two steps of flexible conjugate gradients on
-    /// `A_c e = Pᵀ r`, each preconditioned by one cycle of level k + 1 (a K-cycle), then `P e` added to
-    /// `w.x`; the second step only when the first left more than [`K_SECOND_STEP`] of the residual. Per
-    /// component, with `zᵢ` the cycles' outputs:
+    /// `A_c e = Pᵀ r`, each preconditioned by one cycle of level k + 1, then `P e` added to `w.x`; the second
+    /// only when the first left more than [`K_SECOND_STEP`] of the residual. Per component, `zᵢ` the cycles':
     ///
     /// ```text
     /// e = α₁ z₁ + α₂ d,   α₁ = z₁ᵀf / z₁ᵀA z₁,   d = z₂ − β z₁,   β = z₂ᵀA z₁ / z₁ᵀA z₁,
     /// α₂ = dᵀ(f − α₁ A z₁) / dᵀA d
     /// ```
     ///
-    /// The second step minimises the energy over both directions (a W-cycle's second visit takes the second
-    /// alone) and needs no fine residual, the coarse one updated in place.
+    /// The second step minimises the energy over both directions and needs no fine residual (the coarse one
+    /// is updated in place).
     fn k_correction(&self, k: usize, w: &mut Work, tail: &mut [Work]) {
         let (level, coarse) = (&self.levels[k], &self.levels[k + 1]);
         self.solve_below(k, &w.r, tail);
         let c = &mut tail[0];
-        // z₁ is smooth and as large as the coarse error: its product, small next to its terms, in `f64` sums
-        // (see `Level::residual_f64`), and z₂'s below.
+        // z₁, z₂ are smooth and as large as the coarse error: their products in `f64` sums (`Level::residual_f64`).
         coarse.residual_f64(&c.x, None, &mut c.r); // −A z₁ on the unknowns
         let zaz = dot_w(&c.x, &c.r).map(|v| -v);
         let a1 = step(dot_w(&c.x, &c.f), zaz, 0.0);
@@ -236,7 +210,7 @@ impl Hierarchy {
         update(&mut c.q1, &c.r, |q, r| *q = [WS::ZERO - r[0], WS::ZERO - r[1]]);
         update(&mut c.f, &c.r, |f, r| *f = [f[0] + a1w[0] * r[0], f[1] + a1w[1] * r[1]]);
         let after = dot_w(&c.f, &c.f);
-        // The first step alone when it left little of the residual: the second cycle is not worth its cost.
+        // The first step alone when it left little of the residual.
         let t2 = K_SECOND_STEP * K_SECOND_STEP;
         if after[0] <= t2 * before[0] && after[1] <= t2 * before[1] {
             self.second_steps_skipped.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -256,10 +230,9 @@ impl Hierarchy {
         prolong_add_scaled(level, coarse, &c.x, &mut w.x, [1.0; 2]);
     }
 
-    /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on the coarsest,
-    /// then interpolated and improved by one V-cycle per level below the finest on the way up; `u` receives
-    /// the interpolated correction on the unknowns (added). `r` is scratch, or holds the residual of `u`
-    /// already when `r_ready` (it is left stale).
+    /// The coarse-to-fine start: the residual of `u` restricted to every level, solved on the coarsest, then
+    /// interpolated and improved by one V-cycle per level below the finest; the correction is added to `u`.
+    /// `r` is scratch, or already holds the residual of `u` when `r_ready` (it is left stale).
     pub fn coarse_to_fine(&mut self, u: &mut [V2], r: &mut [V2], r_ready: bool) {
         let nl = self.levels.len();
         if nl < 2 {
@@ -290,17 +263,15 @@ impl Hierarchy {
     }
 }
 
-/// The affine functions `W = (1, x − x₀, y − y₀)` on the finest level's unknowns, added to every cycle's
-/// output by their Galerkin correction `z += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`. On a torn piece the link-aware
-/// prolongation reproduces affine functions only where each side of a cut has room to extrapolate, so an
-/// affine motion the constraints leave nearly free (points near one line, or close together) is a
-/// near-null mode the cycles barely move (`docs/dev/solver-correctness.md`, "Affine motions").
+/// The affine functions `W = (1, x − x₀, y − y₀)` on the finest level's unknowns, added to every cycle's output
+/// by their Galerkin correction `z += W E⁻¹ Wᵀ r`, `E = Wᵀ A W`. On a torn piece the link-aware prolongation
+/// reproduces them only where each side of a cut has room to extrapolate, so an affine motion the constraints
+/// leave nearly free is a near-null mode the cycles barely move (`docs/dev/solver-correctness.md`, "Affine motions").
 #[derive(Debug)]
 pub(crate) struct Affine(Vec<Vec<f64>>);
 
 /// A piece gets [`Affine`] where its weakest affine motion of size 1 at the box's edges has less energy than
-/// this (a node held `d` off costs about `20 d²`: the motion moves the constrained nodes by about 1/50 of its
-/// size).
+/// this (a node held `d` off costs about `20 d²`: constrained nodes moved by about 1/50 of the motion's size).
 const AFFINE_WEAK: f64 = 1e-2;
 
 /// `W`'s values at padded node `p` of `level`: small integers (exact in `f32`), zero off the unknowns.
@@ -321,8 +292,7 @@ fn affine_sums(level: &Level, v: &[V2]) -> [V2; 3] {
 }
 
 impl Affine {
-    /// `None` unless the constraints leave an affine motion nearly free (not free: see `nullspace`). `x`, `q`
-    /// are scratch.
+    /// `None` unless the constraints leave an affine motion nearly free (not free: see `nullspace`). `x`, `q`: scratch.
     pub fn new(level: &Level, x: &mut [V2], q: &mut [V2]) -> Option<Affine> {
         let mut e = vec![vec![0.0; 3]; 3];
         for pair in [[1, 2], [0, 0]] {
@@ -331,8 +301,7 @@ impl Affine {
             let s = affine_sums(level, q);
             e.iter_mut().enumerate().for_each(|(i, row)| (row[pair[0]], row[pair[1]]) = (-s[i][0], -s[i][1]));
         }
-        // E for W scaled to 1 at the edges: det / Σ principal 2 × 2 minors, 1 / Σ 1/λᵢ, lies between a third of
-        // its least eigenvalue and that eigenvalue.
+        // E for W scaled to 1 at the edges: det / Σ principal 2 × 2 minors (1 / Σ 1/λᵢ) lies in [λ_min / 3, λ_min].
         let s = [1.0, 2.0 / level.geo.w.max(2) as f64, 2.0 / level.geo.h.max(2) as f64];
         let m = |i: usize, j: usize| e[i][j] * s[i] * s[j];
         let minor = |i: usize, j: usize| m(i, i) * m(j, j) - m(i, j) * m(i, j);
@@ -355,18 +324,16 @@ impl Affine {
     }
 }
 
-/// The step α (per component) of the correction `P e` for the coarse solution `e = c.x` of `A_c e = c.f`
-/// that minimises the energy along it: α = ⟨P e, r⟩ / ⟨P e, A P e⟩ = ⟨e, f_c⟩ / ⟨e, A_c e⟩ (Galerkin), a
-/// coarse product instead of a fine one. `c.r` is scratch.
+/// The energy-minimising step α (per component) of the correction `P e`, `e = c.x` solving `A_c e = c.f`:
+/// α = ⟨P e, r⟩ / ⟨P e, A P e⟩ = ⟨e, f_c⟩ / ⟨e, A_c e⟩ (Galerkin), a coarse product. `c.r` is scratch.
 fn line_step(coarse: &Level, c: &mut Work) -> [f64; 2] {
     coarse.residual(&c.x, None, &mut c.r); // −A_c e on the unknowns
     step(dot_w(&c.x, &c.f), dot_w(&c.x, &c.r).map(|v| -v), 1.0)
 }
 
-/// An upper bound of the largest eigenvalue of the finest level's D⁻¹A (Collatz–Wielandt): for any g > 0
-/// on the unknowns, λ_max(D⁻¹A) ≤ ρ(D⁻¹|A|) ≤ max_p (D⁻¹|A| g)_p / g_p; the least of the bounds of
-/// [`COLLATZ_STEPS`] power steps g ← D⁻¹|A| g from g = D^-1/2 𝟙. Where A's signs alternate as its top
-/// mode's do (the interior molecule's), |A| loses nothing.
+/// An upper bound of the largest eigenvalue of the finest level's D⁻¹A (Collatz–Wielandt): for any g > 0 on the
+/// unknowns, λ_max(D⁻¹A) ≤ ρ(D⁻¹|A|) ≤ max_p (D⁻¹|A| g)_p / g_p; the least bound of [`COLLATZ_STEPS`] power steps
+/// g ← D⁻¹|A| g from g = D^-1/2 𝟙. Where A's signs alternate as its top mode's do, |A| loses nothing.
 pub(crate) fn collatz_bound(level: &Level) -> f64 {
     let inv_d = &level.inv_diag;
     let mut g: Vec<f64> = inv_d.par_iter().map(|&i| i.sqrt()).collect();
@@ -390,9 +357,9 @@ pub(crate) fn collatz_bound(level: &Level) -> f64 {
     bound
 }
 
-/// Largest eigenvalue of D⁻¹A estimated by [`LANCZOS_STEPS`] Lanczos steps from a pseudo-random start (the
-/// largest Ritz value, a lower bound). D⁻¹A is symmetric in `xᵀ D y`, so the Lanczos vectors are kept in
-/// that product: a step is one product (its dot product taken band by band) and one pass, unnormalised.
+/// Largest eigenvalue of D⁻¹A estimated by [`LANCZOS_STEPS`] Lanczos steps from a pseudo-random start (the largest
+/// Ritz value, a lower bound). D⁻¹A is symmetric in `xᵀ D y`, so Lanczos runs in that inner product:
+/// a step is one product (its dot product taken band by band) and one pass, unnormalised.
 pub(crate) fn lanczos_estimate(level: &Level) -> f64 {
     let (n, inv_d) = (level.len_padded(), &level.inv_diag);
     // The start D^-1/2 v of a random v on the unknowns.
@@ -463,8 +430,8 @@ fn step(num: [f64; 2], den: [f64; 2], none: f64) -> [f64; 2] { [0, 1].map(|k| if
 /// Entries per task of this module's vector passes.
 const PASS_CHUNK: usize = 4096;
 
-/// `Σ a_i b_i` per component, in `f64`, the chunks' sums added in order, so the result does not depend on how
-/// the pool's threads split the work (a parallel `reduce` would add them in a tree shaped by the work stealing).
+/// `Σ a_i b_i` per component, in `f64`, the chunks' sums added in order so the result does not depend on the
+/// threads (a parallel `reduce` adds in a tree shaped by work stealing).
 fn dot_w(a: &[W2], b: &[W2]) -> [f64; 2] {
     let parts: Vec<[f64; 2]> = a.par_chunks(PASS_CHUNK).zip(b.par_chunks(PASS_CHUNK)).map(|(a, b)| dot_pairs::<WS>(a, b)).collect();
     parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
@@ -484,9 +451,8 @@ fn update<S: Real, T: Real>(x: &mut [[T; 2]], y: &[[S; 2]], f: impl Fn(&mut [T; 
     x.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).for_each(|(x, y)| x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y)));
 }
 
-/// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `steps` steps aimed at `[λ/CHEB_RATIO, λ]`
-/// of the spectrum of D⁻¹A, each one pass ([`Level::smoothing_step`]). `r` and `d` are scratch; `x` and
-/// `r` may come back swapped.
+/// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `steps` steps aimed at `[λ/CHEB_RATIO, λ]` of
+/// D⁻¹A's spectrum, one pass each ([`Level::smoothing_step`]). `r`, `d` are scratch; `x`, `r` may come back swapped.
 fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2], mut steps: usize, x_zero: bool) {
     if steps == 0 || level.lam_max <= 0.0 { return; }
     let (b, a) = (level.lam_max, level.lam_max / CHEB_RATIO);
@@ -496,8 +462,8 @@ fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2
     // On the finest level the first two steps from zero are one pass (see `Level::second_step_from_zero`).
     let fused = x_zero && steps >= 2 && matches!(level.op, Operator::Fine { .. });
     if x_zero {
-        // From x = 0 the first step is x = d = D⁻¹ f / θ: one pass, which writes x alone (the second step
-        // reads the update there, `StepRule::Second`); fused, the second step's pass computes it itself.
+        // From x = 0 the first step is x = d = D⁻¹ f / θ: one pass writing x alone (the second step reads the
+        // update there, `StepRule::Second`); fused, the second step's pass computes it itself.
         if !fused {
             let chunks = x.par_chunks_mut(PASS_CHUNK).zip(f.par_chunks(PASS_CHUNK).zip(level.inv_diag_w.par_chunks(PASS_CHUNK)));
             chunks.for_each(|(x, (f, g))| first_from_zero(x, f, g, inv_theta));
@@ -514,9 +480,7 @@ fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2
         // The step writes x + d into r's vector, which then becomes x's; the last one's update is not kept.
         if fused && k == 0 {
             level.second_step_from_zero(f, inv_theta, d, r, rule, k + 1 < steps);
-        } else {
-            level.smoothing_step(x, Some(f), d, r, rule, k + 1 < steps);
-        }
+        } else { level.smoothing_step(x, Some(f), d, r, rule, k + 1 < steps); }
         std::mem::swap(x, r);
     }
 }
@@ -536,9 +500,9 @@ super::wide::widest! {
     }
 }
 
-/// Banded Cholesky factor of the coarsest operator (unknowns by rows, or by columns where the level is
-/// wider than tall). Pivots below [`PIVOT_FLOOR`] of their diagonal pin their unknown to zero: those of a
-/// singular, consistent system, and those of free functions whose energy is of order a tiny tension.
+/// Banded Cholesky factor of the coarsest operator (unknowns by rows, or by columns where the level is wider
+/// than tall). Pivots below [`PIVOT_FLOOR`] of their diagonal pin their unknown to zero: those of a singular,
+/// consistent system, and of free functions whose energy is of order a tiny tension.
 #[derive(Debug)]
 struct Banded {
     /// The bandwidth: `l_km` is zero for `k − m > bw`.
@@ -550,22 +514,19 @@ struct Banded {
     dropped: Vec<bool>,
 }
 
-/// About the multiply-adds of [`Banded::new`]'s factor of `unknowns` on a `w × h` level (its bandwidth is at most
-/// `2 min(w, h) + 2`).
+/// About the multiply-adds of [`Banded::new`]'s factor of `unknowns` on a `w × h` level (bandwidth ≤ 2 min(w, h) + 2).
 pub(crate) fn banded_work(unknowns: usize, w: usize, h: usize) -> usize { unknowns.saturating_mul((2 * w.min(h) + 3).pow(2)) }
 
 impl Banded {
     fn new(level: &Level) -> Banded {
         // The unknowns row by row, or column by column where that is shorter, and the number of each.
         let mut map: Vec<usize> = (0..level.len_padded()).filter(|&p| level.inv_diag[p] != 0.0).collect();
-        if level.geo.w > level.geo.h {
-            map.sort_by_key(|&p| (p % level.wp, p / level.wp));
-        }
+        if level.geo.w > level.geo.h { map.sort_by_key(|&p| (p % level.wp, p / level.wp)); }
         let mut number = vec![usize::MAX; level.len_padded()];
         map.iter().enumerate().for_each(|(k, &p)| number[p] = k);
         let n = map.len();
-        // In this order a 5 × 5 stencil reaches at most 2 rows (columns) ahead: bandwidth ≤ 2 min(w, h) + 2
-        // (`number` is `usize::MAX`, above every k, where a tap is no unknown).
+        // A 5 × 5 stencil reaches at most 2 rows (columns) ahead: bandwidth ≤ 2 min(w, h) + 2 (`number` is
+        // `usize::MAX`, above every k, off the unknowns).
         let (mut bw, mut dropped) = (0, vec![false; n]);
         map.iter().enumerate().for_each(|(k, &p)| level.taps(p, |q, _| if number[q] < k { bw = bw.max(k - number[q]) }));
         // l_km's index in `l`.
@@ -585,16 +546,13 @@ impl Banded {
                 dropped[k] = true;
                 l[at(k, j0)..at(k, k)].fill(0.0);
                 l[at(k, k)] = 1.0;
-            } else {
-                l[at(k, k)] = s.sqrt();
-            }
+            } else { l[at(k, k)] = s.sqrt(); }
         }
         Banded { bw, l, map, dropped }
     }
 
-    /// `x = A⁻¹ f` on the unknowns by the factor, in `f64`, a row for both components at a time (the
-    /// backward solve by columns: the factor's rows are contiguous). Dropped unknowns are zero (their rows and
-    /// columns in the factor are).
+    /// `x = A⁻¹ f` on the unknowns by the factor, in `f64`, a row for both components at a time (the backward
+    /// solve by columns: the factor's rows are contiguous). Dropped unknowns are zero, as their rows and columns are.
     fn solve<T: Real>(&self, f: &[[T; 2]], x: &mut [[T; 2]]) {
         let (n, bw, l) = (self.map.len(), self.bw, &self.l);
         let at = |k: usize, m: usize| k * (bw + 1) + m + bw - k;

@@ -1,10 +1,8 @@
-//! The grid hierarchy: the finest operator read off the links, link-aware prolongation,
-//! Galerkin coarse operators stored per node, and the matrix-vector kernels.
-//!
-//! Vectors are padded by two inactive nodes around the grid, so the 5 × 5 stencils never leave
-//! the array. Values are pairs (Δx, Δy) that share every operator. The solution and its residual
-//! are `f64` ([`V2`]); the cycles that precondition them run in `f32` ([`W2`]), which halves the
-//! memory they stream and doubles every vector instruction's lanes. Operators are built in `f64`.
+//! The grid hierarchy: the finest operator read off the links, link-aware prolongation, Galerkin coarse
+//! operators stored per node, and the matrix-vector kernels. Vectors are padded by two inactive nodes around
+//! the grid, so 5 × 5 stencils never leave the array; values are pairs (Δx, Δy) sharing every operator. The
+//! solution and residual are `f64` ([`V2`]); the cycles that precondition them run in `f32` ([`W2`]): half
+//! the memory streamed, twice the lanes. Operators are built in `f64`.
 
 use std::ops::{Add, AddAssign, Mul, Sub};
 
@@ -34,9 +32,8 @@ pub(crate) trait Real: Copy + Send + Sync + PartialEq + Add<Output = Self> + Sub
     fn as_f32_mut(v: &mut [[Self; 2]]) -> Option<&mut [[f32; 2]]>;
     /// Whether [`Real::four_run`] takes four nodes to a vector here.
     fn has_four_stencils() -> bool { false }
-    /// `out[j] = f[q₀ + j] − Σₜ sⱼ[t] x[q₀ + j + offset(t)]` for the `4n + tail` nodes from `q₀`
-    /// (`tail` < 4), summed in [`STORED_TAPS`] order, the coefficients four nodes to a block of
-    /// `blocks` (see [`Fours`]); only where [`Real::has_four_stencils`].
+    /// `out[j] = f[q₀ + j] − Σₜ sⱼ[t] x[q₀ + j + offset(t)]` for the `4n + tail` nodes from `q₀` (`tail` < 4),
+    /// in [`STORED_TAPS`] order, coefficients four nodes to a block of `blocks` ([`Fours`]).
     fn four_run(_x: &[[Self; 2]], _f: Option<&[[Self; 2]]>, _q0: usize, _n: usize, _tail: usize, _wp: usize, _blocks: &[FourBlock], _out: &mut [[Self; 2]]) {
         unreachable!("only where has_four_stencils")
     }
@@ -82,9 +79,9 @@ impl Real for f32 {
     }
 }
 
-/// [`Real::four_run`] in `f32`, a four's two components the eight lanes of a 256-bit vector, multiplied
-/// then added as the plain sums are (so bit for bit theirs). Two fours at a time, so their chains of
-/// additions overlap; the tail's four reads past the run by zero coefficients.
+/// [`Real::four_run`] in `f32`, a four's two components the eight lanes of a 256-bit vector, multiplied then
+/// added as the plain sums are (bit for bit theirs). Two fours at a time, so their addition chains overlap;
+/// the tail's four reads past the run by zero coefficients.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[allow(unsafe_code)]
@@ -93,8 +90,7 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
         __m256, _mm256_add_ps, _mm256_castps128_ps256, _mm256_loadu_ps, _mm256_mul_ps, _mm256_permutevar8x32_ps, _mm256_setr_epi32,
         _mm256_setzero_ps, _mm256_storeu_ps, _mm256_sub_ps, _mm_loadu_ps,
     };
-    // Every load and store below stays within these: the taps of node q reach from
-    // q − 2 wp − 2 to q + 2 wp + 2, those of the last four's last node q₀ + 4m − 1.
+    // Every load and store below stays within these: node q's taps reach q ± (2 wp + 2), the last node is q₀ + 4m − 1.
     let m = n + usize::from(tail > 0);
     assert!(tail < 4, "a tail of four nodes or more");
     assert!(q0 >= 2 * wp + 2 && q0 + 4 * m + 2 * wp + 2 <= x.len(), "a run's taps outside its level");
@@ -153,11 +149,11 @@ unsafe fn four_run_avx2(x: &[[f32; 2]], f: Option<&[[f32; 2]]>, q0: usize, n: us
     }
 }
 
-/// The coefficients of four consecutive nodes with own stencils, tap by tap, the four nodes' side by side.
+/// The coefficients of four consecutive nodes with own stencils, tap by tap, the four side by side.
 pub(crate) type FourBlock = [[f32; 4]; 21];
 
-/// A Galerkin level's own stencils in fours of nodes (each run from its start, its last, short four padded
-/// with zero coefficients), one [`FourBlock`] each, as [`band_residual`] takes them; empty without AVX2.
+/// A Galerkin level's own stencils in fours of nodes from each run's start (a short last four padded with
+/// zeros), one [`FourBlock`] each, as [`band_residual`] takes them; empty without AVX2.
 #[derive(Debug, Default)]
 pub(crate) struct Fours {
     blocks: Vec<FourBlock>,
@@ -166,7 +162,7 @@ pub(crate) struct Fours {
 }
 
 impl Fours {
-    /// The fours of the own stencils `ids` (into `narrow`) on the level's `runs`, as `band_residual` visits them.
+    /// The fours of the own stencils `ids` (into `narrow`) on the level's `runs`.
     pub(crate) fn new(ids: &[u32], narrow: &[[f32; 25]], runs: &Runs, wp: usize, h: usize) -> Fours {
         if !f32::has_four_stencils() { return Fours::default(); }
         let mut fours = Fours { blocks: Vec::new(), row_first: vec![0; h + 2 * PAD] };
@@ -208,8 +204,8 @@ pub(crate) struct Run {
     pub at: u32,
 }
 
-/// The stencils of the finest level's nodes that are not regular (at the borders, holes and
-/// cuts), as 5 × 5 rows ([`fine_row`]) in a table without repeats, summed as Galerkin ones.
+/// The stencils of the finest level's irregular nodes (at borders, holes and cuts), as 5 × 5 rows
+/// ([`fine_row`]) in a table without repeats, summed as Galerkin ones.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct OwnStencils {
     table: Vec<[f64; 25]>,
@@ -232,8 +228,8 @@ impl OwnStencils {
     }
 }
 
-/// Stencils stored once each (the neighbourhood of a constraint, border or cut recurs all over a
-/// level), so a level's table stays small enough to sit in cache; `index` finds an entry by its bits.
+/// Stencils stored once each (a constraint's, border's or cut's neighbourhood recurs all over a level), so
+/// the table stays in cache; `index` finds an entry by its bits.
 #[derive(Default)]
 struct DistinctStencils {
     table: Vec<[f64; 25]>,
@@ -285,12 +281,12 @@ impl Runs {
 pub(crate) mod bit {
     /// Active and not fixed: an unknown.
     pub const FREE: u8 = 1;
-    /// Horizontal and vertical triples centred here (links either side).
+    /// Horizontal, vertical triples centred here (links either side).
     pub const HTRI: u8 = 2;
     pub const VTRI: u8 = 4;
     /// 2 × 2 cell with this node as its top-left corner and all four links.
     pub const CELL: u8 = 8;
-    /// Links to the right neighbour and to the one below.
+    /// Links to the right neighbour, to the one below.
     pub const RIGHT: u8 = 16;
     pub const DOWN: u8 = 32;
     /// Free, with every term of the interior 13-point molecule present.
@@ -315,8 +311,8 @@ pub(crate) struct Geometry {
     pub prow: Vec<[u8; 4]>,
     /// The rows that reach past the 2 × 2 corners, by node index, sorted (see [`Geometry::geo_row`]).
     pub ext: Vec<(u32, [f64; 16])>,
-    /// `plain_rows[y]`: every node of row y is active with the plain bilinear geometric row (fixed or
-    /// not), so [`restrict`] and [`prolong_add_scaled`] can run the plain formulas there.
+    /// `plain_rows[y]`: every node of row y is active with the plain bilinear row (fixed or not), so
+    /// [`restrict`] and [`prolong_add_scaled`] run the plain formulas there.
     pub plain_rows: Vec<bool>,
 }
 
@@ -324,8 +320,8 @@ impl Geometry {
     #[inline]
     fn idx(&self, x: usize, y: usize) -> usize { y * self.w + x }
 
-    /// A geometry with its prolongation rows filled in. Every weight of a 2 × 2 row is a multiple of
-    /// 1/24 (halves, and averages of up to four halves): the codes are exact.
+    /// A geometry with its prolongation rows. A 2 × 2 row's weights are multiples of 1/24 (halves and
+    /// averages of up to four): the codes are exact.
     pub fn new(w: usize, h: usize, active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, fixed: Option<Vec<bool>>) -> Geometry {
         let mut g = Geometry { w, h, active, right, down, fixed, prow: Vec::with_capacity(w * h), ext: Vec::new(), plain_rows: Vec::new() };
         // A row's codes, its rows past the corners, and whether it is plain.
@@ -342,8 +338,8 @@ impl Geometry {
                 let r = g.geo_row(x, y);
                 plain &= g.active[i] && r == plain_row(x, y);
                 if fixed { continue; }
-                // Stored whole where coded rows cannot be: past the corners, negative, or on the far
-                // corner along an even coordinate (the coded rows' loops take coarse c from fine 2c − 1).
+                // Stored whole where codes cannot be: past the corners, negative, or on the far corner along
+                // an even coordinate (the coded rows' loops take coarse c from fine 2c − 1).
                 let far_corner = (x % 2 == 0 && (r[6] != 0.0 || r[10] != 0.0)) || (y % 2 == 0 && (r[9] != 0.0 || r[10] != 0.0));
                 if far_corner || CORNERS.iter().map(|&k| r[k]).sum::<f64>() != r.iter().sum::<f64>() || r.iter().any(|&v| v < 0.0) {
                     prow[x] = [EXT; 4];
@@ -368,8 +364,8 @@ impl Geometry {
 
     /// The next coarser geometry: node (X, Y) sits on (2X, 2Y) ([`coarse_links`] at step 2).
     pub fn coarsen(&self) -> Geometry {
-        // ⌊n/2⌋ + 1 coarse nodes: for an even n the last one is a ghost at fine position n, so that the last
-        // fine node still sits between two coarse nodes and interpolation reproduces linear functions there.
+        // ⌊n/2⌋ + 1 coarse nodes: for an even n the last is a ghost at fine position n, so the last fine node
+        // sits between two coarse nodes and interpolation reproduces linear functions there.
         let (w, h, [active, right, down]) = coarse_links(self.w, self.h, 2, &self.active, &self.right, &self.down);
         Geometry::new(w, h, active, right, down, None)
     }
@@ -400,14 +396,13 @@ impl Geometry {
             }
     }
 
-    /// Link-aware prolongation row of node (x, y), fixed or not: weights of the coarse nodes
-    /// (x / 2 + ox, y / 2 + oy), ox, oy = −1..=2, at slot `(oy + 1) * 4 + ox + 1`. Between two linked
-    /// coarse neighbours, the bilinear weights; at a missing link, the linear extrapolation from the
-    /// node's own side (a free edge's zero second difference), or the one linked neighbour's value
-    /// where that side is too short; an odd–odd node averages the rows of its linked edge neighbours.
-    /// On the finest level, a node at a cut's vertex whose only link, continued along a straight triple, runs
-    /// to a neighbour takes that neighbour's row, within its own window (else no coarse function would move
-    /// it; docs/dev/solver-correctness.md).
+    /// Link-aware prolongation row of node (x, y), fixed or not: weights of coarse nodes (x / 2 + ox, y / 2 + oy),
+    /// ox, oy = −1..=2, at slot `(oy + 1) * 4 + ox + 1`. Between linked coarse neighbours, bilinear; at a missing
+    /// link, the linear extrapolation from the node's own side (a free edge's zero second difference), or the
+    /// linked neighbour's value where that side is too short; an odd–odd node averages its linked edge
+    /// neighbours' rows. On the finest level, a node at a cut's vertex whose only link continues straight on
+    /// takes that neighbour's row, within its own window (else no coarse function would move it;
+    /// docs/dev/solver-correctness.md).
     pub fn geo_row(&self, x: usize, y: usize) -> [f64; 16] {
         let r = self.link_row(x, y);
         if r.iter().any(|&v| v != 0.0) || !self.active[self.idx(x, y)] || self.fixed.is_none() { return r; }
@@ -421,8 +416,8 @@ impl Geometry {
         ];
         let mut linked = links.iter().filter(|l| l.0);
         match (linked.next(), linked.next()) {
-            // One link, continued straight on: the neighbour's row, moved to this node's window (its coarse
-            // cell may be the next one); weights past the window dropped, the rest scaled to sum to one.
+            // The neighbour's row moved to this node's window (its coarse cell may be the next one); weights
+            // past the window dropped, the rest scaled to sum to one.
             (Some(&(_, true, (qx, qy))), None) => {
                 let (dx, dy, mut moved) = ((qx / 2) as isize - (x / 2) as isize, (qy / 2) as isize - (y / 2) as isize, [0.0; 16]);
                 for (s, &v) in self.link_row(qx, qy).iter().enumerate() {
@@ -446,8 +441,8 @@ impl Geometry {
             (1, 0) => r = self.along(x, y, false, 0),
             (0, 1) => r = self.along(x, y, true, 0),
             _ => {
-                // The rows of its linked edge neighbours (the first two along their column, the others
-                // along their row). Past the last column (row), the ghost coarse node's (see `coarsen`).
+                // Its linked edge neighbours' rows (the first two along their column, the others along their
+                // row); past the last column (row), the ghost coarse node's (see `coarsen`).
                 let parts = [
                     self.right[i - 1].then_some((x - 1, y, 0)),
                     if x + 1 == self.w { Some((x, y, 1)) } else { self.right[i].then_some((x + 1, y, 1)) },
@@ -457,11 +452,9 @@ impl Geometry {
                 let rows: [[f64; 16]; 4] = std::array::from_fn(|k| parts[k].map_or([0.0; 16], |(px, py, o)| self.along(px, py, k < 2, o)));
                 let has = rows.map(|row| row.iter().sum::<f64>() > 0.0);
                 // Opposite neighbours: their mean. One in each direction: the bilinear completion through the
-                // coarse corner they share, when that corner is their neighbour. Else the mean of what there is.
+                // coarse corner they share, when linked to it. Else the mean of what there is.
                 let mean = |ks: &[usize], r: &mut [f64; 16]| {
-                    for &k in ks {
-                        r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v / ks.len() as f64);
-                    }
+                    for &k in ks { r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v / ks.len() as f64); }
                 };
                 match (has, (0..2).find(|&k| has[k]), (2..4).find(|&k| has[k])) {
                     ([true, true, true, true], ..) => mean(&[0, 1, 2, 3], &mut r),
@@ -477,9 +470,7 @@ impl Geometry {
                             (if oy == 0 { self.down[ci] } else { self.down[ex] }) && (if ox == 0 { self.right[ci] } else { self.right[ey] })
                         };
                         if linked {
-                            for k in [hk, vk] {
-                                r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v);
-                            }
+                            for k in [hk, vk] { r.iter_mut().zip(&rows[k]).for_each(|(a, v)| *a += v); }
                             r[(oy + 1) * 4 + ox + 1] -= 1.0;
                         } else {
                             mean(&[hk, vk], &mut r);
@@ -493,8 +484,8 @@ impl Geometry {
         r
     }
 
-    /// The row of node (x, y), odd along its row (column when `vertical`), on window row (column) `o`:
-    /// see [`extend`]; the last node of an even-sized line has the ghost coarse node beyond it.
+    /// The row of node (x, y), odd along its row (column when `vertical`), on window row (column) `o`
+    /// ([`extend`]); the last node of an even-sized line has the ghost coarse node beyond it.
     fn along(&self, x: usize, y: usize, vertical: bool, o: usize) -> [f64; 16] {
         let i = self.idx(x, y);
         let (links, s, t, n) = if vertical { (&self.down, self.w, y, self.h) } else { (&self.right, 1, x, self.w) };
@@ -508,8 +499,7 @@ impl Geometry {
         r
     }
 
-    /// `f(ox, oy, weight)` for each nonzero weight of node (x, y)'s prolongation row (none for a fixed
-    /// node), offsets from (x / 2, y / 2).
+    /// `f(ox, oy, weight)` for each nonzero weight of node (x, y)'s prolongation row (none for a fixed node), offsets from (x / 2, y / 2).
     #[inline]
     pub fn p_row(&self, x: usize, y: usize, mut f: impl FnMut(isize, isize, f64)) {
         let i = self.idx(x, y);
@@ -521,9 +511,7 @@ impl Geometry {
             }
             return;
         }
-        for (s, &v) in c.iter().enumerate().filter(|e| *e.1 != 0) {
-            f((s & 1) as isize, (s >> 1) as isize, v as f64 / 24.0);
-        }
+        for (s, &v) in c.iter().enumerate().filter(|e| *e.1 != 0) { f((s & 1) as isize, (s >> 1) as isize, v as f64 / 24.0); }
     }
 
     /// The fine positions along one axis (`n` nodes) whose rows can reach coarse node `c`.
@@ -565,20 +553,17 @@ impl Sat {
     }
 }
 
-/// Whether a piece (`active`, linked `right` and `down` on its `w × h` box) is solid: its cuts stay more
-/// than 4 nodes inside it, and its core (the nodes whose 5 × 5 window lies in it, clear of cuts) is one
-/// 4-connected set within 4 nodes of every node. Filling around a pinch, strand, tooth or hair narrower
-/// than 5 nodes, or a cut running to the edge, would tie it to its neighbours across the gap, and its own
-/// slow motions would leave the coarse space (docs/dev/coarse-space.md, "Filling off the matte").
+/// Whether a piece (`active`, linked `right` and `down` on its `w × h` box) is solid: its cuts stay more than
+/// 4 nodes inside it, and its core (nodes whose 5 × 5 window lies in it, clear of cuts) is one 4-connected set
+/// within 4 nodes of every node. Filling around anything narrower than 5 nodes, or a cut to the edge, would tie
+/// it to its neighbours across the gap, its slow motions out of the coarse space (docs/dev/coarse-space.md, "Filling off the matte").
 pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &[bool]) -> bool {
     // The nodes at a cut: two active neighbours without their link.
     let mut cut = vec![false; w * h];
     for i in (0..w * h).filter(|&i| active[i]) {
         let across = [(i % w + 1 < w).then_some((i + 1, right[i])), (i + w < w * h).then_some((i + w, down[i]))];
         for (j, linked) in across.into_iter().flatten() {
-            if active[j] && !linked {
-                (cut[i], cut[j]) = (true, true);
-            }
+            if active[j] && !linked { (cut[i], cut[j]) = (true, true); }
         }
     }
     // Whether any node of `v` lies within Chebyshev distance r.
@@ -592,8 +577,8 @@ pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &
     (0..w * h).all(|i| !active[i] || reach[i]) && crate::grid::Grid::from_active(w, h, core).pieces().1 == 1
 }
 
-/// Every `s`-th node of a `w × h` grid: node (X, Y) on (min(sX, w − 1), min(sY, h − 1)), active where that
-/// node is; two neighbours linked where every link of the straight path between them is.
+/// Every `s`-th node of a `w × h` grid: node (X, Y) on (min(sX, w − 1), min(sY, h − 1)), active where that node
+/// is; neighbours linked where every link of the straight path between them is.
 pub(crate) fn coarse_links(w: usize, h: usize, s: usize, active: &[bool], right: &[bool], down: &[bool]) -> (usize, usize, [Vec<bool>; 3]) {
     let (wc, hc) = ((w - 1).div_ceil(s) + 1, (h - 1).div_ceil(s) + 1);
     let (px, py) = (|x: usize| (x * s).min(w - 1), |y: usize| (y * s).min(h - 1));
@@ -614,9 +599,9 @@ const CORNERS: [usize; 4] = [5, 6, 9, 10];
 /// The codes of the plain bilinear rows (see [`plain_row`]), by `(y & 1) * 2 + (x & 1)`.
 const PLAIN_CODES: [[u8; 4]; 4] = [[24, 0, 0, 0], [12, 12, 0, 0], [12, 0, 12, 0], [6, 6, 6, 6]];
 
-/// The row of a fine node between coarse nodes 1 and 2 of a line of the 4 × 4 window, linked to them as
-/// `a` and `b`; at a missing link, the linked side's linear extrapolation when its far link (`fa`, `fb`:
-/// coarse 0–1, 2–3) exists, else its value.
+/// The row of a fine node between coarse nodes 1 and 2 of a window line, linked to them as `a` and `b`; at a
+/// missing link, the linked side's linear extrapolation if its far link (`fa`, `fb`: coarse 0–1, 2–3) exists,
+/// else its value.
 fn extend(a: bool, b: bool, fa: bool, fb: bool) -> [f64; 4] {
     match (a, b) {
         (true, true) => [0.0, 0.5, 0.5, 0.0],
@@ -629,8 +614,8 @@ fn extend(a: bool, b: bool, fa: bool, fb: bool) -> [f64; 4] {
 }
 
 widest! {
-    /// The largest `|r_i| / a_ii` of a residual (how far one Jacobi step would move a node), `inv_diag` the
-    /// matching inverse diagonal. Eight running maxima: one would wait on the last at every entry.
+    /// The largest `|r_i| / a_ii` of a residual (one Jacobi step's largest move), `inv_diag` the inverse
+    /// diagonal. Eight running maxima: one would wait on the last at every entry.
     pub(crate) fn scaled_max<T: Real>(r: &[[T; 2]], inv_diag: &[f64]) -> f64 =>
     scaled_max_body {
         let mut m = [0.0f64; 8];
@@ -675,8 +660,8 @@ widest! {
     pub(crate) fn sub_scaled(l: &[f64], y: f64, z: &mut [f64]) => sub_scaled_body { z.iter_mut().zip(l).for_each(|(z, l)| *z -= l * y) }
 }
 
-/// `[Σ prod(a_j, b_j) over even j, the same over odd j]` of two flattened vectors of pairs (`b` at least
-/// as long as `a`), on eight running sums: a single sum waits on its last addition at every entry.
+/// `[Σ prod(a_j, b_j) over even j, the same over odd j]` of two flattened vectors of pairs (`b` at least as
+/// long as `a`), on eight running sums: a single sum waits on its last addition at every entry.
 #[inline(always)]
 pub(crate) fn pair_sums<A: Copy, B: Copy>(a: &[A], b: &[B], prod: impl Fn(A, B) -> f64) -> [f64; 2] {
     let b = &b[..a.len()];
@@ -698,17 +683,15 @@ pub(crate) fn pair_sums<A: Copy, B: Copy>(a: &[A], b: &[B], prod: impl Fn(A, B) 
 /// The plain bilinear prolongation row of node (x, y) (see [`Geometry::geo_row`]).
 fn plain_row(x: usize, y: usize) -> [f64; 16] {
     let mut r = [0.0; 16];
-    for (k, c) in CORNERS.into_iter().zip(PLAIN_CODES[(y & 1) * 2 + (x & 1)]) {
-        r[k] = WEIGHTS[c as usize];
-    }
+    for (k, c) in CORNERS.into_iter().zip(PLAIN_CODES[(y & 1) * 2 + (x & 1)]) { r[k] = WEIGHTS[c as usize]; }
     r
 }
 
 /// The operator of one level.
 #[derive(Debug)]
 pub(crate) enum Operator {
-    /// The finest level: the energy terms read off per-node flags, applied as the interior molecule on runs
-    /// of regular nodes and as the other nodes' own stencils.
+    /// The finest level: energy terms read off per-node flags, applied as the interior molecule on runs of
+    /// regular nodes and as the other nodes' own stencils.
     Fine { flags: Vec<u8>, tau: f64, runs: Runs, own: OwnStencils },
     /// A Galerkin level: a 5 × 5 stencil (dy outer) per padded node, an index into a table whose entry 0 is
     /// the stencil shared by every regular node (all zeros when there is none).
@@ -723,9 +706,9 @@ fn far_of(far: &[Far], p: usize) -> &[Far] {
     &far[k0..k0 + far[k0..].partition_point(|e| e.0 as usize == p)]
 }
 
-/// The shared stencil of a Galerkin level with the symmetries of the square (as the finest operator
-/// has): five coefficients, for the centre and the rings of 4 edge, 4 diagonal, 4 far and 8 knight's-move
-/// neighbours, so runs of regular nodes sum neighbours first and multiply five times instead of 21.
+/// A shared stencil with the square's symmetries (as the finest operator has): five coefficients, for the
+/// centre and the rings of 4 edge, 4 diagonal, 4 far and 8 knight's-move neighbours, so runs of regular
+/// nodes sum neighbours first and multiply five times instead of 21.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Sym([f64; 5]);
 
@@ -766,7 +749,7 @@ pub(crate) struct Level {
     /// Upper bound of the spectrum of D⁻¹A (Gershgorin).
     pub lam_max: f64,
     /// `clean[y * w + x]`: active, linked right and down, not fixed, and (on Galerkin levels) regular. A coarse
-    /// node whose whole 9 × 9 window here is clean gets the regular coarse stencil without computing it.
+    /// node whose 9 × 9 window here is all clean gets the shared coarse stencil.
     pub clean: Vec<bool>,
 }
 
@@ -829,9 +812,8 @@ impl Level {
         Level { inv_diag_w: narrow_diag(&inv_diag), geo, wp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, lam_max, clean }
     }
 
-    /// This finest level with the plain bilinear prolongation of its grid without holes or cuts: its
-    /// coarse space holds the functions that run smoothly across holes and cuts, where the link-aware
-    /// prolongation extrapolates a constant.
+    /// This finest level with the plain bilinear prolongation of its box without holes or cuts: a coarse
+    /// space of functions smooth across holes and cuts, where the link-aware one extrapolates a constant.
     pub fn into_plain(self) -> Level {
         let (w, h) = (self.geo.w, self.geo.h);
         let crate::grid::Grid { active, link_right, link_down, .. } = crate::grid::Grid::new(w, h);
@@ -849,17 +831,15 @@ impl Level {
 
     /// Drops the four-node layout of its own stencils (the ablation's switch `fours`).
     pub fn drop_fours(&mut self) {
-        if let Operator::Stored { fours, .. } = &mut self.op {
-            *fours = Fours::default();
-        }
+        if let Operator::Stored { fours, .. } = &mut self.op { *fours = Fours::default(); }
     }
 
-    /// The same level with the prolongation of a geometry whose wide holes are filled: each hole clear
-    /// of the border with more than four nodes per link to an active node, made active and linked all
-    /// round. The operator stays the level's own, so the coarser levels keep the exact energy, but their
-    /// functions run smoothly up to a hole's rim (docs/dev/coarse-space.md). Thin holes stay: filling
-    /// would tie their two sides together. On a [`solid`] piece the wide pieces of `outside` (its box's
-    /// nodes off the matte) are filled too, border or not, so its coarse functions stay affine to its edge.
+    /// The same level with the prolongation of a geometry whose wide holes (clear of the border, more than
+    /// four nodes per link to an active node) are made active and linked all round. The operator stays the
+    /// level's own (coarser levels keep the exact energy), but coarse functions run smoothly up to a hole's
+    /// rim (docs/dev/coarse-space.md). Thin holes stay: filling would tie their sides together. On a [`solid`]
+    /// piece the wide pieces of `outside` (box nodes off the matte) are filled too, border or not, so coarse
+    /// functions stay affine to its edge.
     pub fn with_holes_filled(self, outside: Option<&[bool]>) -> Level {
         let g = &self.geo;
         let (w, h) = (g.w, g.h);
@@ -916,9 +896,7 @@ impl Level {
     /// `f(q, a_pq)` for every nonzero tap of row `p`: the stored stencil's and the far ones.
     pub fn taps(&self, p: usize, mut f: impl FnMut(usize, f64)) {
         let (row, wp) = (self.row(p), self.wp);
-        for (t, &a) in row.iter().enumerate().filter(|e| *e.1 != 0.0) {
-            f(p + (t / 5) * wp + t % 5 - 2 * wp - 2, a);
-        }
+        for (t, &a) in row.iter().enumerate().filter(|e| *e.1 != 0.0) { f(p + (t / 5) * wp + t % 5 - 2 * wp - 2, a); }
         self.far(p).iter().for_each(|&(_, q, a)| f(q as usize, a));
     }
 
@@ -965,9 +943,9 @@ impl Level {
         });
     }
 
-    /// `out = f − A x` on a Galerkin level summed in `f64`, rounded once: for smooth vectors as large as
-    /// the answer or its error, whose product summed in `f32` would be rounding noise above the residual it should
-    /// carry (`docs/dev/solver-correctness.md`, "Coarse products in f64").
+    /// `out = f − A x` on a Galerkin level summed in `f64`, rounded once: for smooth vectors as large as the answer
+    /// or its error, whose product summed in `f32` would bury the residual in rounding noise
+    /// (`docs/dev/solver-correctness.md`, "Coarse products in f64").
     pub fn residual_f64(&self, x: &[W2], f: Option<&[W2]>, out: &mut [W2]) {
         let Operator::Stored { runs, .. } = &self.op else { unreachable!("a Galerkin level") };
         let wp = self.wp;
@@ -1004,8 +982,8 @@ impl Level {
         })
     }
 
-    /// `out = −A x` in `f64` on the finest level for an `x` in `f32` (the conjugate gradient's search
-    /// direction) and `xᵀ out` per component: bit for bit the `f64` product of the widened vector.
+    /// `out = −A x` in `f64` on the finest level for an `x` in `f32` (the search direction) and `xᵀ out` per
+    /// component: bit for bit the `f64` product of the widened vector.
     pub fn fine_residual_dot_narrow(&self, x: &[W2], out: &mut [V2]) -> [f64; 2] {
         assert!(matches!(self.op, Operator::Fine { .. }), "the finest level");
         self.over_bands(out, false, |r0, r1, chunk| {
@@ -1022,9 +1000,8 @@ impl Level {
         })[0]
     }
 
-    /// `band(r0, r1, rows)` on the level's body in bands of [`PAR_ROWS`] padded rows `r0..r1` of `out`, on
-    /// the pool's threads; the bands' results: the largest first entry when `max`, else the sums, added
-    /// in order so that they do not depend on the threads.
+    /// `band(r0, r1, rows)` on bands of [`PAR_ROWS`] padded rows `r0..r1` of `out`'s body, in parallel; the
+    /// largest first entry of the results when `max`, else their sums, added in order (thread-independent).
     fn over_bands<U: Send>(&self, out: &mut [U], max: bool, band: impl Fn(usize, usize, &mut [U]) -> [f64; 2] + Sync + Send) -> [f64; 2] {
         let wp = self.wp;
         let body = &mut out[PAD * wp..(PAD + self.geo.h) * wp];
@@ -1036,17 +1013,16 @@ impl Level {
         parts.iter().fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
     }
 
-    /// One smoothing step in one pass, band by band: the residual `r = f − A x` (into `next`), the update `d`
-    /// from it (`rule`) and `next = x + d`, bit for bit the three passes. `next` must differ from `x` (the
-    /// bands read `x` two rows past their own); `d` is written only when `keep` (a later step reads it), read
-    /// only by [`StepRule::Next`].
+    /// One smoothing step in one pass, band by band: `r = f − A x` (into `next`), the update `d` from it
+    /// (`rule`), `next = x + d`; bit for bit the three passes. `next` must differ from `x` (bands read `x` two
+    /// rows past their own); `d` is written only when `keep`, read only by [`StepRule::Next`].
     pub(crate) fn smoothing_step(&self, x: &[W2], f: Option<&[W2]>, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
         self.step_bands(d, next, |r0, _, chunk, dc| self.step_band(x, 0, f, r0, chunk, dc, rule, keep));
     }
 
     /// A smoothing's second step (`rule`) from zero on the finest level, the first iterate
-    /// ([`super::cycle::first_from_zero`]) computed band by band into a buffer of the thread's own:
-    /// bit for bit the first step's pass and then [`Level::smoothing_step`], one pass and one vector fewer.
+    /// ([`super::cycle::first_from_zero`]) made band by band in a thread-local buffer: bit for bit the first
+    /// step's pass then [`Level::smoothing_step`], one pass and one vector fewer.
     pub(crate) fn second_step_from_zero(&self, f: &[W2], inv_theta: WS, d: &mut [W2], next: &mut [W2], rule: StepRule, keep: bool) {
         assert!(matches!(self.op, Operator::Fine { .. }), "the finest level");
         let (wp, g) = (self.wp, &self.inv_diag_w[..]);
@@ -1065,8 +1041,8 @@ impl Level {
         });
     }
 
-    /// `band(r0, r1, rows, d_rows)` for the bands of [`PAR_ROWS`] padded rows `r0..r1` of `next` and `d`,
-    /// on the pool's threads; then `next`'s padding rows, zeros.
+    /// `band(r0, r1, rows, d_rows)` on bands of [`PAR_ROWS`] padded rows of `next` and `d`, in parallel; then
+    /// zeros in `next`'s padding rows.
     fn step_bands(&self, d: &mut [W2], next: &mut [W2], band: impl Fn(usize, usize, &mut [W2], &mut [W2]) + Sync + Send) {
         let (wp, body) = (self.wp, PAD * self.wp..(PAD + self.geo.h) * self.wp);
         let (nb, db) = (&mut next[body.clone()], &mut d[body.clone()]);
@@ -1078,8 +1054,8 @@ impl Level {
         next[body.end..].fill([0.0; 2]);
     }
 
-    /// One band of a smoothing step from padded row `r0` (`chunk`, `dc` its rows of `next`, `d`); `x` and
-    /// `f` hold the level's rows from padded row `shift` on.
+    /// One band of a smoothing step from padded row `r0` (`chunk`, `dc`: its rows of `next`, `d`); `x`, `f`
+    /// hold the level's rows from padded row `shift` on.
     fn step_band(&self, x: &[W2], shift: usize, f: Option<&[W2]>, r0: usize, chunk: &mut [W2], dc: &mut [W2], rule: StepRule, keep: bool) {
         let (wp, w, g) = (self.wp, self.geo.w, &self.inv_diag_w[..]);
         band_residual(self, x, f, r0, shift, chunk);
@@ -1099,8 +1075,8 @@ thread_local! {
     static BAND_F64: std::cell::RefCell<Vec<V2>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// How a smoothing step makes its update `d` from the residual `r` and the inverse diagonal `g`: `d = g r / θ`
-/// first, `d = c₁ d + c₂ g r` later, `d = c₁ x + c₂ g r` second after a first from zero (its update its iterate).
+/// A smoothing step's update `d` from the residual `r` and inverse diagonal `g`: `d = g r / θ` first,
+/// `d = c₁ d + c₂ g r` later, `d = c₁ x + c₂ g r` second after a first from zero (whose update is its iterate).
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum StepRule {
     First { inv_theta: WS },
@@ -1113,7 +1089,7 @@ widest! {
     fn step_row(out: &mut [W2], d: &mut [W2], x: &[W2], g: &[WS], rule: StepRule, keep: bool) =>
     step_row_body {
         let n = out.len();
-        // On the flattened components (written on pairs, the loops stayed scalar).
+        // On the flattened components: on pairs, the loops stayed scalar.
         let (o, d, x, g) = (out.as_flattened_mut(), d[..n].as_flattened_mut(), x[..n].as_flattened(), &g[..n]);
         macro_rules! each {
             (|$j:ident, $r:ident, $g:ident| $v:expr) => {
@@ -1147,9 +1123,9 @@ widest! {
 }
 
 widest! {
-    /// `out = f − A x` on the unknowns of the band's rows from padded row `r0`: runs of regular nodes by
-    /// the shared stencil, the others by their own, then a Galerkin level's far taps. `x` and `f` hold the
-    /// level's rows from padded row `shift` on (0 but on the finest level). Summed in `T` ([`widened`]).
+    /// `out = f − A x` on the unknowns of the band's rows from padded row `r0`: regular runs by the shared
+    /// stencil, the others by their own, then a Galerkin level's far taps. `x`, `f` hold the level's rows from
+    /// padded row `shift` on (0 but on the finest level). Summed in `T` ([`widened`]).
     #[inline(never)]
     fn band_residual<S: Real, T: Real>(level: &Level, x: &[[S; 2]], f: Option<&[[T; 2]]>, r0: usize, shift: usize, out: &mut [[T; 2]]) =>
     band_residual_body {
@@ -1218,9 +1194,9 @@ fn subtract_far<S: Real, T: Real>(far: &[Far], a: usize, x: &[[S; 2]], out: &mut
     }
 }
 
-/// `out[c] = f[q] − Σₜ s_q[t] x[q + offset(t)]` for the nodes `q = base + c`, `c` in `c0..c1` of the row
-/// `out`, each with its own stencil `s_q = stencil(q)` summed in [`STORED_TAPS`] order, four nodes side by
-/// side: one node's 21 taps summed one after another wait on each other, four nodes' do not.
+/// `out[c] = f[q] − Σₜ s_q[t] x[q + offset(t)]` for `q = base + c`, `c` in `c0..c1` of the row `out`, each
+/// with its own stencil `s_q = stencil(q)` in [`STORED_TAPS`] order, four nodes side by side so that their
+/// chains of additions overlap.
 #[inline(always)]
 fn own_sums<'a, S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]], stencil: impl Fn(usize) -> &'a [T; 25]) {
     let mut i = c0;
@@ -1247,9 +1223,8 @@ fn own_sums<'a, S: Real, T: Real>(x: &[[S; 2]], f: Option<&[[T; 2]]>, wp: usize,
     }
 }
 
-/// A symmetric stencil ([`Sym`]) on columns `c0..c1` of the row `out` at `base`: a Galerkin level's shared
-/// stencil, or (`KNIGHT` false) the finest level's interior molecule. On the flattened components, so the
-/// loop vectorises across nodes.
+/// A symmetric stencil ([`Sym`]) on columns `c0..c1` of the row `out` at `base`: a Galerkin level's shared one,
+/// or (`KNIGHT` false) the finest interior molecule. On the flattened components: it vectorises across nodes.
 #[inline(always)]
 fn sym_run<S: Real, T: Real, const KNIGHT: bool>(x: &[[S; 2]], f: Option<&[[T; 2]]>, sym: &Sym, wp: usize, base: usize, c0: usize, c1: usize, out: &mut [[T; 2]]) {
     let n = 2 * (c1 - c0);
@@ -1345,9 +1320,7 @@ pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25]
         let cp = if d == 0 { -2.0 } else { 1.0 };
         for (q, b, tap) in [(p as isize + d, bit::HTRI, (1, 0)), (p as isize + d * wp as isize, bit::VTRI, (0, 1))] {
             if m(q as usize, b) {
-                for (o, c) in [(-1isize, 1.0), (0, -2.0), (1, 1.0)] {
-                    s[at(tap.0 * (d + o), tap.1 * (d + o))] += cp * c;
-                }
+                for (o, c) in [(-1isize, 1.0), (0, -2.0), (1, 1.0)] { s[at(tap.0 * (d + o), tap.1 * (d + o))] += cp * c; }
             }
         }
     }
@@ -1355,9 +1328,7 @@ pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25]
     let sign = |cx: isize, cy: isize| if (cx + cy) % 2 == 0 { 1.0 } else { -1.0 };
     let corners = [(0isize, 0isize), (1, 0), (0, 1), (1, 1)];
     for (ox, oy) in corners.into_iter().filter(|&(ox, oy)| m(p - oy as usize * wp - ox as usize, bit::CELL)) {
-        for (cx, cy) in corners {
-            s[at(cx - ox, cy - oy)] += 2.0 * sign(ox, oy) * sign(cx, cy);
-        }
+        for (cx, cy) in corners { s[at(cx - ox, cy - oy)] += 2.0 * sign(ox, oy) * sign(cx, cy); }
     }
     if tau != 0.0 {
         let links = [(p, bit::RIGHT, 1, 0), (p - 1, bit::RIGHT, -1, 0), (p, bit::DOWN, 0, 1), (p - wp, bit::DOWN, 0, -1)];
@@ -1369,8 +1340,7 @@ pub(crate) fn fine_row(flags: &[u8], p: usize, wp: usize, tau: f64) -> [f64; 25]
     s
 }
 
-/// Galerkin coarse level `Pᵀ A P` of `fine` (`P` from `fine.geo`). Coarse nodes whose fine window is
-/// clean share one stencil, computed once.
+/// Galerkin coarse level `Pᵀ A P` of `fine` (`P` from `fine.geo`); coarse nodes with clean fine windows share one stencil.
 pub(crate) fn galerkin(fine: &Level) -> Level {
     let geo = fine.geo.coarsen();
     let (wc, hc, fw, fh) = (geo.w, geo.h, fine.geo.w, fine.geo.h);
@@ -1394,12 +1364,11 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let (mut own, mut far) = (Vec::new(), Vec::new());
         let irregular: Vec<usize> = (0..wc).filter(|&xc| geo.active[yc * wc + xc] && !regular(xc, yc)).collect();
         if irregular.is_empty() { return (own, far); }
-        // A P for the fine rows of this coarse row's children, once per needed fine node.
+        // Rows of A P for this coarse row's children, once per needed fine node: nonzeros only, in window order
+        // (so the sums add as over the whole window, most of which is zero).
         let rows = fine.geo.children(yc, fh);
         let y_lo = *rows.start();
         let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
-        // Each row's nonzeros only, in window order (so the sums add as over the whole window): most of a row's
-        // wide window is zero.
         let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
         let (mut acc, mut row) = (vec![0.0f64; n * n], vec![0.0f64; AP * AP]);
         for &xc in &irregular {
@@ -1422,9 +1391,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
                             ap.push(start..nz.len());
                         }
                         let (bx, by) = ((ix / 2) as isize - xc as isize, (iy / 2) as isize - yc as isize);
-                        for &(ox, oy, v) in &nz[ap[slot[k] as usize].clone()] {
-                            acc[wide_at(bx + ox, by + oy)] += wi * v;
-                        }
+                        for &(ox, oy, v) in &nz[ap[slot[k] as usize].clone()] { acc[wide_at(bx + ox, by + oy)] += wi * v; }
                     }
                 }
             }
@@ -1452,9 +1419,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let mut distinct = DistinctStencils { table: vec![shared], ..Default::default() };
     let mut far: Vec<Far> = Vec::new();
     for (yc, (own, row_far)) in rows.into_iter().enumerate() {
-        for (xc, s) in own {
-            ids[(yc + PAD) * wpc + xc + PAD] = distinct.id(s);
-        }
+        for (xc, s) in own { ids[(yc + PAD) * wpc + xc + PAD] = distinct.id(s); }
         far.extend(row_far);
     }
     let table = distinct.table;
@@ -1496,9 +1461,9 @@ pub(crate) fn galerkin_node(fine: &Level, xc: usize, yc: usize) -> [f64; 25] {
     split_taps(&acc, WIDE).0
 }
 
-/// The Galerkin sums' windows where extrapolating rows meet (a level's reach `D` gives the next about
-/// `D / 2 + 3`): a coarse stencil on `WIDE` × `WIDE` offsets centred on its node, a row of `A P` on
-/// `AP` × `AP` coarse nodes from offset −`AP0` of `(ix / 2, iy / 2)`. Elsewhere, 5 × 5 ([`narrow_sums`]).
+/// The Galerkin sums' windows where extrapolating rows meet (a level's reach `D` gives the next about `D / 2 + 3`):
+/// a coarse stencil on `WIDE` × `WIDE` offsets centred on its node, a row of `A P` on `AP` × `AP` coarse nodes
+/// from offset −`AP0` of `(ix / 2, iy / 2)`. Elsewhere, 5 × 5 ([`narrow_sums`]).
 const WIDE: usize = 17;
 const AP: usize = 14;
 const AP0: isize = 6;
@@ -1511,9 +1476,9 @@ fn wide_at(dx: isize, dy: isize) -> usize {
     ((dy + h) * WIDE as isize + dx + h) as usize
 }
 
-/// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc` where every prolongation row sits on its
-/// 2 × 2 corners, from dense rows of `A P` made once per coarse row (`slot`, as in [`galerkin`], into
-/// `dense`): in the general path's order, adding only exact zeros besides, so bit for bit its stencil.
+/// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc` where every prolongation row sits on its 2 × 2
+/// corners, from dense rows of `A P` made once per coarse row (`slot` as in [`galerkin`], into `dense`): the
+/// general path's order, adding only exact zeros besides, so bit for bit its stencil.
 fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut Vec<[f64; 16]>, acc: &mut [f64]) {
     let (fw, fh, g) = (fine.geo.w, fine.geo.h, &fine.geo);
     let y_lo = (2 * yc).saturating_sub(1);
@@ -1547,9 +1512,7 @@ fn narrow_ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
         let (jx, jy) = (ix + t % 5 - 2, iy + t / 5 - 2);
         let c = fine.geo.prow[jy * fw + jx];
         let (cx, cy) = (jx / 2 + 1 - ix / 2, jy / 2 + 1 - iy / 2);
-        for (s, &v) in c.iter().enumerate() {
-            out[(cy + (s >> 1)) * 4 + cx + (s & 1)] += a * WEIGHTS[v as usize];
-        }
+        for (s, &v) in c.iter().enumerate() { out[(cy + (s >> 1)) * 4 + cx + (s & 1)] += a * WEIGHTS[v as usize]; }
     }
     out
 }
@@ -1589,8 +1552,8 @@ fn ap_row(fine: &Level, ix: usize, iy: usize, out: &mut [f64]) {
     });
 }
 
-/// `f(dx, dy, a_ij, p_jc)` for each tap `a_ij` of fine row `i = (ix, iy)` and each weight `p_jc` of
-/// row j of `P`, (dx, dy) the offset of coarse node c from `base`.
+/// `f(dx, dy, a_ij, p_jc)` for each tap `a_ij` of fine row `i = (ix, iy)` and weight `p_jc` of row j of `P`,
+/// (dx, dy) the offset of coarse node c from `base`.
 fn ap_terms(fine: &Level, ix: usize, iy: usize, base: [usize; 2], mut f: impl FnMut(isize, isize, f64, f64)) {
     fine.taps(fine.pidx(ix, iy), |q, a| {
         let (jx, jy) = (q % fine.wp - PAD, q / fine.wp - PAD);
@@ -1651,7 +1614,7 @@ pub(crate) fn restrict<S: Real, T: Real>(fine: &Level, coarse: &Level, v: &[[S; 
 }
 
 widest! {
-    /// Full weighting of one fine row `vr` whose nodes all interpolate plainly, into the coarse row `acc`:
+    /// Full weighting of one plain fine row `vr` into the coarse row `acc`:
     /// `acc[X] += wy (v[2X] + ½ (v[2X − 1] + v[2X + 1]))`, a neighbour past either end left out.
     fn restrict_row<S: Real, T: Real>(vr: &[[S; 2]], acc: &mut [[T; 2]], wy: T) =>
     restrict_row_body {
@@ -1663,7 +1626,7 @@ widest! {
             o[0] += wy * (c[0] + half * side[0]);
             o[1] += wy * (c[1] + half * side[1]);
         };
-        // Coarse nodes 1..inner have both fine neighbours, and the slices' lengths bound every index: no tests.
+        // Coarse nodes 1..inner have both fine neighbours; the slices' lengths bound every index (no checks).
         let inner = (fw / 2).min(acc.len());
         let (head, v) = (&mut acc[..inner], &vr[..2 * inner]);
         for xc in 1..inner {
@@ -1680,8 +1643,8 @@ widest! {
 }
 
 widest! {
-    /// `x += α P e` on one fine row whose nodes all interpolate plainly, from coarse rows `c0` and `c1`
-    /// (`odd`: halfway between them, else on `c0`), where its prolongation row `prow` is not empty.
+    /// `x += α P e` on one plain fine row from coarse rows `c0` and `c1` (`odd`: halfway between them, else on
+    /// `c0`), where its prolongation row `prow` is not empty.
     fn prolong_row<S: Real, T: Real>(c0: &[[S; 2]], c1: &[[S; 2]], odd: bool, prow: &[[u8; 4]], x: &mut [[T; 2]], alpha: V2) =>
     prolong_row_body {
         let fw = x.len();
@@ -1695,8 +1658,8 @@ widest! {
             if odd { [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])] } else { a }
         };
         let mid = |l: V2, r: V2| [0.5 * (l[0] + r[0]), 0.5 * (l[1] + r[1])];
-        // Where 2X + 1 < fw: pairs of fine nodes (2X, 2X + 1) against pairs of coarse columns (X, X + 1), all
-        // of one length, so the loop has no tests; the rest one by one.
+        // Where 2X + 1 < fw: fine pairs (2X, 2X + 1) against coarse pairs (X, X + 1), slices of one length (no
+        // checks in the loop); the rest one by one.
         let done = (fw / 2).min(c0.len().saturating_sub(1)).min(c1.len().saturating_sub(1));
         let fine = x[..2 * done].chunks_exact_mut(2).zip(prow[..2 * done].chunks_exact(2));
         let coarse = c0[..done + 1].windows(2).zip(c1[..done + 1].windows(2));
