@@ -225,7 +225,7 @@ impl Hierarchy {
         // d = z₂ − β z₁ into x, A d = −r − β A z₁ into r.
         update(&mut c.x, &c.z1, |x, z1| *x = [x[0] - bw[0] * z1[0], x[1] - bw[1] * z1[1]]);
         update(&mut c.r, &c.q1, |r, q1| *r = [WS::ZERO - r[0] - bw[0] * q1[0], WS::ZERO - r[1] - bw[1] * q1[1]]);
-        let (a1w, a2w) = (a1.map(WS::of), step(dot_w(&c.x, &c.f), dot_w(&c.x, &c.r), 0.0).map(WS::of));
+        let a2w = step(dot_w(&c.x, &c.f), dot_w(&c.x, &c.r), 0.0).map(WS::of);
         update(&mut c.x, &c.z1, |x, z1| *x = [a1w[0] * z1[0] + a2w[0] * x[0], a1w[1] * z1[1] + a2w[1] * x[1]]);
         prolong_add_scaled(level, coarse, &c.x, &mut w.x, [1.0; 2]);
     }
