@@ -64,8 +64,7 @@ pub struct SolveOptions {
     pub off: Ablation,
 }
 
-/// A set of the solver's optional mechanisms switched off (none by default), so that a
-/// paired benchmark can measure what each one buys. Not part of the stable API.
+/// The solver's optional mechanisms switched off (none by default), for paired benchmarks. Not part of the stable API.
 #[doc(hidden)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Ablation(u32);
@@ -97,8 +96,7 @@ impl Default for SolveOptions {
 /// What a solve did.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SolveReport {
-    /// Cycles run after the coarse-to-fine start (Southwell: rounds); with
-    /// several pieces, which are solved apart, the most any piece took.
+    /// Cycles run after the coarse-to-fine start (Southwell: rounds); with several pieces, the most any piece took.
     pub cycles: usize,
     /// Largest change of any node in the last cycle (pixels; of any piece).
     pub final_change_px: f64,
@@ -117,8 +115,7 @@ pub struct SolveReport {
     pub seconds: f64,
     /// Whether the tolerance was met (by the same error bound for Southwell; a spent budget is not convergence).
     pub converged: bool,
-    /// Why the solve stopped ([`Stop::Converged`] exactly when `converged`; with several
-    /// pieces, the first reason found).
+    /// Why the solve stopped ([`Stop::Converged`] exactly when `converged`; with several pieces, the first found).
     pub stop: Stop,
     /// Cycles of a slow solve's probe for its operator's slow modes (on `A x = 0`, from a random start), run
     /// beside `cycles` and not counted there nor against `max_cycles`; with several pieces, all of theirs.
@@ -141,8 +138,7 @@ impl SolveReport {
         (self.stop, self.converged) = (if self.stop == Stop::Converged { why } else { self.stop }, false);
     }
 
-    /// Takes in a piece's report: the most cycles, the largest change and residuals, and its failure unless an
-    /// earlier one stands.
+    /// Takes in a piece's report: the most cycles, the largest change and residuals, its failure unless one stands.
     fn worst_of(&mut self, r: &SolveReport) {
         (self.cycles, self.probe_cycles) = (self.cycles.max(r.cycles), self.probe_cycles + r.probe_cycles);
         self.final_change_px = self.final_change_px.max(r.final_change_px);
@@ -218,12 +214,9 @@ pub(crate) fn solve_with(
     Ok((field, report))
 }
 
-/// Runs `f` on a thread of the pool. The solve makes hundreds of parallel calls a cycle; made from outside the
-/// pool, each hands its work to the pool's threads and puts the caller to sleep until they finish, two context
-/// switches a call. Inside the pool the caller takes part instead.
-///
-/// Public for callers that move large arrays around a solve (the Python binding converts
-/// the answer to numpy's layout): run there too, their parallel passes share the pool.
+/// Runs `f` on a thread of the pool, where the caller of a parallel call takes part instead of sleeping through
+/// two context switches (a solve makes hundreds a cycle). Public for callers that move large arrays around a solve
+/// (the Python binding's conversion to numpy's layout): run there too, their parallel passes share the pool.
 pub fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     if rayon::current_thread_index().is_some() { f() } else { rayon::scope(|_| f()) }
 }
@@ -265,19 +258,15 @@ pub(crate) fn solve_constrained(
     grid: &Grid, constraints: &Constraints, options: &SolveOptions, initial: Option<FieldView<'_>>, store: &mut Store,
 ) -> (Field, SolveReport) {
     store.solve += 1;
-    // A solve from exactly the field the latest returned when its cycle limit stopped a piece
-    // goes on where that piece stood (see `Paused`).
+    // A solve from exactly the field the latest returned when its cycle limit stopped a piece goes on (`Paused`).
     store.goes_on = store.written.take().zip(initial).is_some_and(|(f, i)| (0..f.dx.len()).all(|k| i.at_index(k) == [f.dx[k], f.dy[k]]));
     let (w, h) = (grid.width, grid.height);
-    // A subnormal tension is the τ → 0⁺ limit to far below any tolerance, and its products
-    // underflow: it is taken as 0.
+    // A subnormal tension (its products underflow) is the τ → 0⁺ limit to far below any tolerance: taken as 0.
     let tau = if options.tension < f64::MIN_POSITIVE { 0.0 } else { options.tension };
-    let (constrained_nodes, constrained_samples) = (constraints.len(), constraints.used_samples);
-    let dropped_samples = constraints.dropped_samples;
+    let (constrained_nodes, constrained_samples, dropped_samples) = (constraints.len(), constraints.used_samples, constraints.dropped_samples);
     let mut report = SolveReport { constrained_nodes, constrained_samples, dropped_samples, converged: true, ..Default::default() };
     if w * h == 0 { return (Field::zeros(w, h), report) }
-    // An open grid (every node active, every link there: most grids) is one piece whose
-    // key marks it open (`BoxLinks::Open`).
+    // An open grid (every node active, every link there: most grids) is one piece keyed as open (`BoxLinks::Open`).
     let (labels, count, open) = grid.pieces_and_open();
     // Constraints by piece (their mean: a one-line piece's gauge value without a warm start).
     let mut by_piece: Vec<Vec<usize>> = vec![Vec::new(); count];
@@ -287,11 +276,9 @@ pub(crate) fn solve_constrained(
     // The largest value an exact answer (a translation, an affine map) holds, for the `f32` check.
     let mut exact = pieces.iter().map(|p| if let Piece::Translate(v) = p { v[0].abs().max(v[1].abs()) } else { 0.0 }).fold(0.0, f64::max);
 
-    // Each piece is a problem of its own: translated pieces take their constraint, and the others are solved one
-    // by one, each on the box around it (its own hierarchy, conjugate-gradient steps and stopping rule: one
-    // iteration over several pieces shares its step lengths between them, and a piece whose start is far off
-    // holds back the others and fools the stopping rule). The node of each one-line piece farthest from its line
-    // becomes its gauge pin.
+    // Translated pieces take their constraint; the others are solved one by one, each on its box with its own
+    // hierarchy and stopping rule (one iteration over several would share step lengths, and a far-off start would
+    // hold back the others and fool the stopping rule). A one-line piece's node farthest from its line is its gauge.
     let mut boxes = vec![[usize::MAX, usize::MAX, 0, 0]; count];
     let mut farthest = vec![0i64; count];
     for (y, row) in labels.chunks_exact(w).enumerate() {
@@ -321,19 +308,16 @@ pub(crate) fn solve_constrained(
         let mut constrained_only = vec![false; bw * bh];
         value.iter().for_each(|&(j, _)| constrained_only[j] = true);
         let mut fixed = constrained_only.clone();
-        // The gauge's value: a start's (finite) one there, else the constraints' mean, which
-        // the cold start takes where it replaces the start (see `solve_piece`).
-        let mut cold_gauge = None;
-        if let Some(g) = gauge {
+        // The gauge's value: a start's (finite) one there, else the constraints' mean, which a cold start takes.
+        let cold_gauge = gauge.map(|g| {
             let mean = [0, 1].map(|k| value.iter().fold(0.0, |s, v| s + v.1[k]) / value.len() as f64);
             let v = initial.map(|f| f.at_index(g).map(f64::from)).filter(|v| v.iter().all(|x| x.is_finite()));
             fixed[local(g)] = true;
             value.push((local(g), v.unwrap_or(mean)));
-            cold_gauge = Some((local(g), mean));
-        }
-        // The free functions ([`Free`]) on a torn piece, kept by the solver. (On an open grid the only free
-        // function is the tilt about a line holding every constraint: at τ = 0 a one-line piece's gauge and
-        // `line_correction` take it; at τ > 0 the same correction settles it, below.)
+            (local(g), mean)
+        });
+        // The free functions ([`Free`]) of a torn piece. On an open grid the only one is the tilt about a line holding
+        // every constraint: at τ = 0 a one-line piece's gauge and `line_correction` take it, at τ > 0 settled below.
         let tilt = if open && tau > 0.0 && by_piece[l].len() > 1 { on_one_line(w, by_piece[l].iter().map(|&k| constraints.nodes[k])) } else { None };
         let key = CacheKey { at: [x0, y0], w: bw, h: bh, tau_bits: tau.to_bits(), links, fixed, off: options.off };
         let vectors = (!open).then(|| key.links.vectors(bw, bh));
@@ -341,10 +325,9 @@ pub(crate) fn solve_constrained(
         let (gauge_at, keep) = (gauge.map(local), geo.is_some() && !options.off.has("cache"));
         let kept = if keep { store.free.take(store.solve, &key, |f| f.gauge == gauge_at) } else { None };
         let free = kept.unwrap_or_else(|| Free::new(geo.as_ref(), &constrained_only, &key.fixed, gauge_at));
-        // At τ = 0, on a piece whose only free functions are the affine ones (none is left once the constraints
-        // hold), constraints that one affine map fits are answered by it: its plate energy is zero, so it is the
-        // minimiser. Any three constraints off one line are such; close together they make a large map whose
-        // slow mode the cycles resolve late and the stopping rule does not see.
+        // At τ = 0 with no free function left, constraints that one affine map fits (any three off one line) are
+        // answered by it: zero plate energy, so the minimiser. Close together, their large map's slow mode would be
+        // resolved late by the cycles and hidden from the stopping rule.
         let affine_only = tau == 0.0 && gauge.is_none() && free.count == Some(0);
         if let Some(m) = affine_only.then(|| affine_fit(&value, bw)).flatten() {
             let mut values: Vec<V2> = (0..bw * bh).map(|j| m(j % bw, j / bw)).collect();
@@ -355,13 +338,12 @@ pub(crate) fn solve_constrained(
             if keep { store.free.put(store.solve, key, free) }
             continue;
         }
-        // The iteration keeps to settled answers (`Settled`); a one-line piece's keeps its
-        // gauge node fixed, so it keeps to the free functions that vanish there too.
+        // The iteration keeps to settled answers (`Settled`); with a gauge, to the free functions vanishing there.
         let kept_to = if gauge.is_some() { free.pinned.as_ref() } else { free.membrane.as_ref() };
         let again = (free.membrane.is_some() || tilt.is_some()).then(|| key.clone());
         let kept_key = keep.then(|| key.clone());
-        // Its answer is linear in its values, and a start from earlier ones (`history::Answers`), where nothing
-        // but the cycles settles it: no free function (a one-line piece's tilt included), no gauge.
+        // Where the cycles alone settle it (no free function, tilt or gauge), the answer is linear in the values and
+        // may start from earlier ones (`history::Answers`).
         let spannable = free.count == Some(0) && tilt.is_none() && gauge.is_none();
         let (mut u, mut r) = solve_piece(key, &value, cold_gauge, initial.map(|f| (f, x0, y0)), options, store, kept_to, spannable);
         if let Some(key) = again {
@@ -392,20 +374,19 @@ pub(crate) fn solve_constrained(
     // No exact answer in the `f32` field is finer than its rounding (iterated ones: `solve_piece`).
     if options.tolerance_px < 0.5 * f64::from(f32::EPSILON) * exact { report.fail(Stop::Precision) }
     let constrained = pieces.iter().filter(|p| **p != Piece::Zero).count(); // translated ones keep theirs
-    (store.hierarchies.trim(store.solve, constrained), store.free.trim(store.solve, constrained));
+    store.hierarchies.trim(store.solve, constrained);
+    store.free.trim(store.solve, constrained);
     store.hierarchies.0.iter_mut().filter(|e| e.2 != store.solve).for_each(|e| e.1.paused = None); // none goes on but the latest's
     store.written = (report.stop == Stop::MaxCycles).then(|| field.clone());
     (field, report)
 }
 
-/// Brings a piece's iterated answer `u` to the contract where its plate operator has free functions (zero on the
-/// constrained nodes): `settle` adds the least-membrane one to a field over the box (false where a block of them
-/// cannot be settled). At τ = 0 that is the answer. At τ > 0 it is still the exact answer's component along
-/// them: `A_plate Z = 0` makes `Zᵀ A u = τ Zᵀ M u` for every `u`, so the answer has `Zᵀ M u = 0` whatever τ
-/// (`Zᵀ A u` taken from the whole operator would be the rounding of the plate's large terms over τ). More cycles
-/// then finish the rest, round by round, until the settled answer moves by no more than a quarter of the
-/// tolerance; every round's cycles count against `max_cycles`. Southwell settles once: more rounds would spend
-/// its fixed budget again.
+/// Brings a piece's iterated answer `u` to the contract where its plate operator has free functions `Z` (zero on
+/// the constrained nodes): `settle` adds the least-membrane one to a box field (false where a block cannot be
+/// settled). At τ = 0 that is the answer. At τ > 0 the answer still has `Zᵀ M u = 0` (`A_plate Z = 0` makes
+/// `Zᵀ A u = τ Zᵀ M u`; taken from `A` it would be the plate's rounding over τ), and rounds of more cycles, counted
+/// against `max_cycles`, finish the rest until the settled answer moves by at most a quarter of the tolerance.
+/// Southwell settles once (more rounds would spend its budget again).
 #[allow(clippy::too_many_arguments)]
 fn settle_null_space(
     key: CacheKey, active: Option<&[bool]>, tau: f64, value: &[(usize, V2)], settle: &dyn Fn(&mut Vec<V2>) -> bool,
@@ -422,9 +403,8 @@ fn settle_null_space(
     const ROUNDS: usize = 8;
     let budget = options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES);
     let mut settled = None;
-    // The settled answer of the round before (a solve that keeps to settled answers ends
-    // in the first round; one left unprojected may drift along the free functions), so
-    // rounds compare settled answers. Every round, the last included, ends settled.
+    // The round before's settled answer (a solve kept to settled answers ends in the first round; one unprojected
+    // may drift along the free functions). Every round, the last included, ends settled.
     let mut before = dense.clone();
     for round in 0..=ROUNDS {
         let all = settle(&mut dense);
@@ -445,8 +425,7 @@ fn settle_null_space(
         report = SolveReport { cycles: report.cycles + cycles, final_change_px, residual, converged, stop, probe_cycles, ..report };
         dense = u2.dense(w, h);
     }
-    // Rounds run out: the last solve's reason (a tolerance below the field's resolution is
-    // one, see `solve_piece`), else the cycles, else the rounds (the settling never held).
+    // Rounds run out: the last solve's reason (`solve_piece`), else the cycles, else the rounds (never settled).
     let stop = settled.unwrap_or(if report.stop != Stop::Converged { report.stop } else if report.cycles >= budget { Stop::MaxCycles } else { Stop::Unsettled });
     (report.converged, report.stop) = (stop == Stop::Converged, stop);
     (BoxValues { values: dense, stride: w, first: 0 }, report)
@@ -456,57 +435,47 @@ fn settle_null_space(
 /// right and down links within the box, or [`BoxLinks::Open`] when the box is an open grid.
 #[derive(Clone, Debug, PartialEq)]
 enum BoxLinks {
-    /// Every node active and every link there (none off the last column or row, as on a
-    /// consistent grid): nothing to copy into a solve's key or to compare in the cache.
+    /// Every node active, every link there (none off the last column or row): nothing to copy into a key or compare.
     Open,
-    /// `outside`: the box's nodes in no piece (off the matte), which the prolongation may
-    /// fill (see `Level::with_holes_filled`).
+    /// `outside`: the box's nodes in no piece (off the matte), which the prolongation may fill (`Level::with_holes_filled`).
     Given { active: Vec<bool>, right: Vec<bool>, down: Vec<bool>, outside: Vec<bool> },
 }
 
 impl BoxLinks {
     /// The nodes and links on a `w × h` box, as [`Geometry::new`] takes them.
     fn vectors(&self, w: usize, h: usize) -> [Vec<bool>; 3] {
-        let BoxLinks::Given { active, right, down, .. } = self else {
-            let Grid { active, link_right, link_down, .. } = Grid::new(w, h);
-            return [active, link_right, link_down];
-        };
-        [active.clone(), right.clone(), down.clone()]
+        match self {
+            BoxLinks::Given { active, right, down, .. } => [active.clone(), right.clone(), down.clone()],
+            BoxLinks::Open => { let g = Grid::new(w, h); [g.active, g.link_right, g.link_down] }
+        }
     }
 
     /// The box's nodes off the matte (none on an open box).
     fn outside(&self) -> Option<&[bool]> { if let BoxLinks::Given { outside, .. } = self { Some(outside) } else { None } }
 }
 
-/// Piece `l`'s grid on its box `[x0, y0, x1, y1]` ([`BoxLinks`]); on an open grid the box is
-/// the grid, and its labels are not read.
+/// Piece `l`'s grid on its box `[x0, y0, x1, y1]` ([`BoxLinks`]); on an open grid (the box) the labels are not read.
 fn piece_links(grid: &Grid, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usize; 4], open: bool) -> BoxLinks {
     if open { return BoxLinks::Open; }
     let (w, bw, bh) = (grid.width, x1 - x0, y1 - y0);
     let (mut active, mut right, mut down, mut outside) = (vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh], vec![false; bw * bh]);
     // Without short-circuits, so that the passes vectorise (every solve builds its key).
     for by in 0..bh {
-        let g = (y0 + by) * w + x0..(y0 + by) * w + x1;
-        let b = by * bw..(by + 1) * bw;
+        let (g, b) = ((y0 + by) * w + x0..(y0 + by) * w + x1, by * bw..(by + 1) * bw);
         for ((a, o), &lab) in active[b.clone()].iter_mut().zip(&mut outside[b.clone()]).zip(&labels[g.clone()]) {
             (*a, *o) = (lab == l, lab == u32::MAX);
         }
         let act = &active[b.clone()];
-        for ((r, &link), &a) in right[b.clone()].iter_mut().zip(&grid.link_right[g.clone()]).zip(act).take(bw - 1) {
-            *r = link & a;
-        }
+        for ((r, &link), &a) in right[b.clone()].iter_mut().zip(&grid.link_right[g.clone()]).zip(act).take(bw - 1) { *r = link & a }
         if by + 1 < bh {
-            for ((d, &link), &a) in down[b].iter_mut().zip(&grid.link_down[g]).zip(act) {
-                *d = link & a;
-            }
+            for ((d, &link), &a) in down[b].iter_mut().zip(&grid.link_down[g]).zip(act) { *d = link & a }
         }
     }
     BoxLinks::Given { active, right, down, outside }
 }
 
-/// A piece's solution on its box: node (x, y) of the box at `values[first + y · stride + x]`: the solve's own
-/// padded vector, handed over without a copy, or (where the null space was settled) an unpadded copy (stride the
-/// box's width). Its nodes off the piece are not read.
+/// A piece's solution on its box, node (x, y) at `values[first + y · stride + x]`: the solve's padded vector (no
+/// copy) or an unpadded one (stride the box's width). Its nodes off the piece are not read.
 struct BoxValues { values: Vec<V2>, stride: usize, first: usize }
 
 impl BoxValues {
@@ -517,11 +486,10 @@ impl BoxValues {
     fn dense(&self, w: usize, h: usize) -> Vec<V2> { (0..h).flat_map(|y| self.row(y, w).to_vec()).collect() }
 }
 
-/// Solves one piece on its box: `key` describes the box's grid (the piece active, its links, its fixed nodes),
-/// `value` the fixed nodes' values (`cold_gauge` a one-line piece's gauge node and its value for the cold
-/// start), `initial` a start: the whole grid's field and the box's first node (x0, y0), `settled` the settling
-/// the iteration keeps to (see [`Settled`]). Returns the solution on the box's nodes and the report's solver
-/// fields.
+/// Solves one piece on its box: `key` the box's grid (the piece active, its links, its fixed nodes), `value` the
+/// fixed nodes' values (`cold_gauge` a one-line piece's gauge node and value for the cold start), `initial` a start
+/// (the whole grid's field, the box's first node x0, y0), `settled` what the iteration keeps to ([`Settled`]),
+/// `spannable` whether it may start from earlier answers. Returns the box's solution and the report's solver fields.
 #[allow(clippy::too_many_arguments)]
 fn solve_piece(
     key: CacheKey, value: &[(usize, V2)], cold_gauge: Option<(usize, V2)>, initial: Option<(FieldView<'_>, usize, usize)>, options: &SolveOptions, store: &mut Store,
@@ -536,24 +504,21 @@ fn solve_piece(
         let [active, right, down] = key.links.vectors(w, h);
         let geo = Geometry::new(w, h, active, right, down, Some(key.fixed.clone()));
         let fine = Level::fine(geo, tau);
-        // Holes and cuts: a second coarse space that runs smoothly across them (visited by
-        // V-cycles), next to the link-aware one that tears with them.
+        // Holes and cuts: wide holes are filled for the prolongation (`Level::with_holes_filled`), cuts crossed by
+        // linear extrapolation (`Geometry::geo_row`); where inactive nodes remain (thin holes, holes open to the
+        // border, other pieces in the box), a second coarse space (visited by V-cycles) runs smoothly across them.
         let torn = fine.geo.torn();
-        // Wide holes filled for the prolongation (see `Level::with_holes_filled`); cuts are crossed by linear
-        // extrapolation (see `Geometry::geo_row`). The second space below is needed only where inactive nodes
-        // remain (thin holes, holes open to the border, other pieces in the box).
         let real = torn.then(|| fine.geo.clone());
-        // A small torn piece is solved whole by its banded factor: exact, so no slow mode of a weakly held part
-        // can hide from the stopping rule (`docs/dev/solver-correctness.md`, "Small torn pieces solved whole").
-        // Unless the factor drops a pivot no free function accounts for (a soft part's, such as a long strand's
-        // tip, whose node it would hold still; at τ > 0 a count cannot tell them apart).
+        // A small torn piece is solved whole by its banded factor: exact, so no weakly held part's slow mode hides
+        // from the stopping rule (`docs/dev/solver-correctness.md`, "Small torn pieces solved whole"). Not where it
+        // drops a pivot no free function accounts for (a soft part's, such as a strand's tip, which it would hold
+        // still; at τ > 0 a count cannot tell them apart).
         let unknowns = fine.inv_diag.iter().filter(|&&d| d != 0.0).count();
         let small = torn && cycle::banded_work(unknowns, w, h) <= DIRECT_WORK && !key.off.has("whole");
         let whole = small.then(|| if tau > 0.0 { 0 } else { settled.map_or(0, |m| m.len()) });
-        // A piece torn by holes or its matte's edges alone coarsens only to the first level a banded factor of
-        // `DIRECT_WORK` solves exactly: hair, combs and characters take fewer cycles. Not an open grid (no fewer
-        // cycles measured) nor a piece with a cut inside, whose parts' slow turns the faster convergence then hid
-        // from the stopping rule (`docs/dev/solver-correctness.md`, "A larger exact coarsest level").
+        // A piece torn by holes or its matte's edges alone coarsens only to the first level a `DIRECT_WORK` factor
+        // solves (fewer cycles on hair, combs, characters); not one with a cut inside, whose parts' slow turns the
+        // faster convergence hid from the stopping rule (`docs/dev/solver-correctness.md`, "A larger exact coarsest level").
         let exact_work = (torn && !fine.geo.cut_inside() && !key.off.has("exact_coarsest")).then_some(DIRECT_WORK);
         let fine = fine.with_holes_filled(key.links.outside().filter(|_| !key.off.has("outside")));
         let second = fine.geo.active.contains(&false) && !key.off.has("second");
@@ -585,48 +550,41 @@ fn solve_piece(
         // Row by row in parallel (zero off the unknowns); the padding stays zero.
         let wp = fine.wp;
         u[PAD * wp..(PAD + h) * wp].par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
-            let g = (y0 + y) * field.width() + x0;
-            let p = fine.pidx(0, y);
+            let (g, p) = ((y0 + y) * field.width() + x0, fine.pidx(0, y));
             let row = row[PAD..PAD + w].iter_mut().zip(&fine.inv_diag[p..p + w]);
             let take = |d: f64, vx: f32, vy: f32| if d != 0.0 { [vx as f64, vy as f64] } else { [0.0; 2] };
             match field {
                 FieldView::Planar(f) => row.zip(f.dx[g..].iter().zip(&f.dy[g..])).for_each(|((ux, &d), (&x, &y))| *ux = take(d, x, y)),
-                FieldView::Interleaved { data, .. } => {
-                    row.zip(data[2 * g..].chunks_exact(2)).for_each(|((ux, &d), v)| *ux = take(d, v[0], v[1]));
-                }
+                FieldView::Interleaved { data, .. } => row.zip(data[2 * g..].chunks_exact(2)).for_each(|((ux, &d), v)| *ux = take(d, v[0], v[1])),
             }
         });
     }
     let pin = |u: &mut [V2]| value.iter().for_each(|&(i, v)| u[fine.pidx(i % w, i / w)] = v);
     pin(&mut u);
-    // A solve its cycle limit stopped goes on when the next starts from its answer (see `solve_constrained`)
-    // with the same constraints (a gauge pin's value is the start's) and tolerance: capped solves in series are
-    // one solve (each started over, a series could end on a small change far from the answer).
+    // A capped solve goes on when the next starts from its answer (`solve_constrained`) with the same constraints
+    // (not the gauge, whose value is the start's) and tolerance: started over, a series could stop far from the answer.
     let constraints = &value[..value.len() - usize::from(cold_gauge.is_some())];
     let resumed = hier.paused.take().filter(|p| {
         store.goes_on && options.method == SolveMethod::Multigrid && p.tolerance == options.tolerance_px && p.value == constraints
     });
     let mut r = match &resumed { Some(_) => Vec::new(), None => cycle::zeros_in(hier.spare.pop(), len) };
-    // Values in the span of the piece's earlier ones start from their answers' combination (`Answers`), as it
-    // is, in place of `initial`: not one whose residuals meet the tolerance already (a converged piece solved
-    // again, as each capped call of a series solves every piece), nor a call that runs no cycle.
+    // Values in the span of earlier ones start from their answers' combination (`Answers`) instead of `initial`,
+    // unless that meets the tolerance already (a capped series solves converged pieces again) or no cycle runs.
     let linear = spannable && store.answers && options.method == SolveMethod::Multigrid && !hier.whole
         && options.max_cycles != Some(0) && !options.off.has("answers");
     let given = (initial.is_some() && resumed.is_none()).then(|| fine.residual_scaled_max(&u, &mut r));
     let spanned = resumed.is_none() && linear && !given.is_some_and(|g| g <= options.tolerance_px)
         && hier.answers.start(value, options.tolerance_px).map(|s| { u = s; pin(&mut u) }).is_some();
-    // A cold solve starts coarse to fine, and so does a warm one whose start leaves residuals
-    // above the tolerance (a user's earlier answer), unless no cycle may run (the start is then
-    // the answer). A closer start (the earlier frames' prediction) first gets one cycle as it
-    // is, and the coarse-to-fine correction only when that cycle did not finish.
+    // A cold solve starts coarse to fine, as does a warm one whose start leaves residuals above the tolerance (unless
+    // no cycle may run); a closer start (earlier frames' prediction, earlier answers) first gets one cycle as it is,
+    // and the coarse-to-fine correction only if that cycle did not finish.
     let (mut warm, cycles) = (initial.is_some() || spanned, options.max_cycles.unwrap_or(DEFAULT_MAX_CYCLES));
     let mut started = !warm;
     if let Some(p) = &resumed { started = p.started } else if warm {
         report.initial_residual = match given { Some(g) if !spanned => g, _ => fine.residual_scaled_max(&u, &mut r) };
         started = !spanned && !(report.initial_residual <= options.tolerance_px) && cycles > 0;
         if started {
-            // A start worse than none (huge or unrelated values) is dropped for the cold start
-            // (`docs/dev/solver-correctness.md`).
+            // A start worse than none (huge or unrelated values) gives way to the cold one (`docs/dev/solver-correctness.md`).
             let mut cold = cycle::zeros_in(hier.spare.pop(), len);
             pin(&mut cold);
             if let Some((i, v)) = cold_gauge { cold[fine.pidx(i % w, i / w)] = v }
@@ -648,28 +606,24 @@ fn solve_piece(
     let (mut last_change, mut ratios) = resumed.as_ref().map_or((f64::INFINITY, [0.0f64; 2]), |p| (p.last_change, p.ratios));
     let base = resumed.as_ref().map_or(0, |p| p.cycle); // the cycles run before it
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
-    // One level is its banded factor's exact solve where every dropped pivot is a free
-    // function's (not a soft strand's): after the first step only rounding moves, from
-    // which neither the ratios nor the Lanczos floor tell a rate (they kept it going).
+    // A single level whose dropped pivots are all free functions' is an exact solve: after its first step only
+    // rounding moves, in which neither the ratios nor the Lanczos floor tell a rate.
     let direct = hier.levels.len() == 1 && hier.dropped() <= settled.map_or(0, |m| m.len());
-    // A cold solve of a torn piece never stops after its first cycle: with no ratio yet, a
-    // slow mode that the first step barely moved hides behind a small change.
-    // Nor does one from earlier answers (their errors are the slow modes those solves left).
+    // A torn piece's cold solve, or one from earlier answers (their errors are those solves' slow modes), never stops
+    // after its first cycle: with no ratio yet, a slow mode the first step barely moved hides behind a small change.
     let first_may_stop = !hier.torn || (warm && !spanned) || direct;
     let mut tail = f64::INFINITY; // the stopping rule's last estimate of the error: the changes' geometric tail
-    // A conjugate-gradient step takes `α·pᵀr` (`α·rᵀz` unprojected) off the squared energy norm of the error, per
-    // component, so where that norm falls geometrically the square root of two successive steps' ratio estimates its
-    // rate: the larger component's.
+    // A CG step takes `α·pᵀr` (`α·rᵀz` unprojected) off the error's squared energy norm, per component: where that
+    // falls geometrically, the root of two successive steps' ratio estimates its rate (the larger component's).
     let (mut last_energy, mut energy_rates) = ([0.0f64; 2], [f64::INFINITY; 2]);
     let mut stop = |(change, rate): (f64, Option<f64>), cycle: usize, report: &mut SolveReport, (floor, settled): (f64, bool), energy: [f64; 2]| {
         let step_rate = (0..2).filter(|&c| last_energy[c] > 0.0 && energy[c] >= 0.0).map(|c| (energy[c] / last_energy[c]).sqrt()).reduce(f64::max);
         (last_energy, energy_rates) = (energy, [energy_rates[1], step_rate.unwrap_or(f64::INFINITY)]);
         (report.cycles, report.final_change_px) = (cycle - base, change);
-        // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. CG steps are not: ρ is the
-        // larger of the last two ratios (0.5 before one; their geometric mean where the spectrum
-        // has settled and the last change fell, and there no more than the energy norm's larger
-        // estimated rate over the last two steps, which long and short steps do not swing), at
-        // least the Lanczos floor; 0.99 never stops.
+        // Geometric convergence at rate ρ leaves change·ρ/(1−ρ) to go. CG steps are not geometric: ρ is the larger of
+        // the last two ratios (0.5 before one; where the spectrum has settled and the last change fell, their geometric
+        // mean, capped by the energy norm's larger rate over the last two steps, which long and short steps do not
+        // swing), at least the Lanczos floor; 0.99 never stops.
         let ratio = rate.unwrap_or(if last_change.is_finite() && last_change > 0.0 { change / last_change } else { 0.5 });
         ratios = [ratios[1], ratio];
         let fell = settled && ratios[0] > 0.0 && ratio < 1.0;
@@ -679,16 +633,14 @@ fn solve_piece(
         (last_change, tail) = (change, change * (rho / (1.0 - rho)));
         (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change.max(tail) <= options.tolerance_px
     };
-    // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (see the
-    // concept doc's Precision).
+    // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (the concept doc's Precision).
     let (mut q, mut p) = if resumed.is_some() { (Vec::new(), std::mem::take(&mut hier.direction)) } else {
         (cycle::zeros_in(hier.spare.pop(), len), cycle::zeros_in(Some(std::mem::take(&mut hier.direction)), len))
     };
     let (mut southwell_spent, mut found, mut pause) = (false, false, None);
     match options.method {
         SolveMethod::Multigrid => {
-            // Where every free function can be settled, the iteration runs on the settled
-            // answers (`Settled`): the start settled, every direction projected.
+            // Where every free function can be settled, the iteration keeps to settled answers (`Settled`).
             let membrane = settled;
             let settled = settled.and_then(|m| Settled::new(m, &hier.levels[0]));
             if let Some(s) = settled.as_ref().filter(|_| resumed.is_none()) {
@@ -712,13 +664,11 @@ fn solve_piece(
             for cycle in base + 1..=base + cycles {
                 if crate::interrupt::requested() { break; }
                 if may_probe && (cycle == PROBE_AT || probe_now) && !hier.probed {
-                    // A slow solve: its operator probed once for the slow modes its residual
-                    // may not show, deflated from here on.
+                    // A slow solve: its operator probed once for slow modes its residual may not show, then deflated.
                     (hier.probed, found) = (true, true);
                     if let Some(rest) = probe(&mut hier, settled.as_ref(), len, &mut report.probe_cycles) {
-                        // Deflated here: what the probe left. Kept for the next solve of this
-                        // operator: the slowest modes of that and of the vectors kept so far, as
-                        // many as the deflation's budget leaves room for beside its own.
+                        // Deflated here: what the probe left. Kept for the next solve of this operator: the slowest
+                        // of those and the deflation's vectors, as many as its budget leaves room for beside its own.
                         let (fine, spare) = (&hier.levels[0], slow.spare());
                         if spare > 0 {
                             probed = deflate::Modes::with(rest.iter().cloned().chain(slow.vectors()).collect(), fine).map(|m| m.first(spare));
@@ -729,9 +679,8 @@ fn solve_piece(
                         }
                     }
                 }
-                // Once deflation or the settling projects the directions, p is no longer z + βp_old and rᵀz can
-                // be far from pᵀr (the cycle magnifies the near-null modes that the projection takes out): the
-                // step is then the exact line search's, pᵀr / pᵀAp.
+                // Projected directions are no longer z + βp_old, and rᵀz can be far from pᵀr (the cycle magnifies the
+                // near-null modes the projection takes out): the step is then the exact line search's, pᵀr / pᵀAp.
                 let along = if slow.projects() || settled.is_some() { dot_z(&r, &p) } else { rz };
                 let (change, alpha) = energy_step(&hier, &mut u, &mut r, &p, &mut q, along);
                 if change.is_nan() {
@@ -742,14 +691,12 @@ fn solve_piece(
                 }
                 slow.step(alpha);
                 if stop(slow.judged(change), cycle, &mut report, slow.rate_floor(), [alpha[0] * along[0], alpha[1] * along[1]]) {
-                    // A piece with free functions is weakly held: near them lie slow motions the
-                    // changes do not show. Its operator is probed before its first claim.
+                    // A piece with free functions is weakly held (slow motions the changes do not show): probe first.
                     probe_now = may_probe && settled.is_some() && !hier.probed;
                     if !probe_now { report.converged = true; break }
                 }
                 if slow.record(cycle, &p, &q) {
-                    // A window of directions kept: correct on the slow modes found and
-                    // restart the directions, deflated.
+                    // A window of directions kept: correct on the slow modes found, restart the directions deflated.
                     slow.restart(&hier.levels[0], &mut u, &mut r);
                     rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
                     continue;
@@ -769,8 +716,8 @@ fn solve_piece(
                 slow.beta(Some(beta));
             }
             if !report.converged && report.stop == Stop::Converged && report.cycles > 0 && !crate::interrupt::requested() {
-                // Out of cycles: where it stands, for a next solve that goes on (its modes its own). Its
-                // probe counts for that solve only: the hierarchy is unprobed for any other.
+                // Out of cycles: where it stands, for a next solve that goes on (its modes its own). Its probe counts
+                // for that solve only: the hierarchy is unprobed for any other.
                 pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, probed, found, probed_before: hier.probed, probe_now, value: constraints.to_vec(), tolerance: options.tolerance_px });
                 hier.probed = false;
             } else {
@@ -779,9 +726,8 @@ fn solve_piece(
             }
         }
         SolveMethod::Southwell => {
-            // Rounds of one coarse correction and one sweep's worth of Southwell relaxations
-            // until the budget is spent (or `max_cycles` rounds). Converged only by the
-            // multigrid's own bound (or nothing left to relax): a spent budget proves nothing.
+            // Rounds of one coarse correction and one sweep's worth of relaxations until the budget or `max_cycles`
+            // runs out; converged only by the multigrid's bound or nothing left to relax, never by a spent budget.
             let unknowns = hier.levels[0].inv_diag.iter().filter(|&&d| d != 0.0).count().max(1);
             let mut left = (options.southwell_sweeps * unknowns as f64).round() as usize;
             let mut round = 0;
@@ -811,26 +757,23 @@ fn solve_piece(
         })
         .reduce(|| (0.0, true, 0.0), |a, b| (larger(a.0, b.0), a.1 && b.1, larger(a.2, b.2)));
     report.residual = residual;
-    // A tolerance finer than the `f32` field's resolution cannot hold in the field returned,
-    // nor one that leaves a scaled residual above 4 times it: |D⁻¹A e| ≤ 4 max|e| (in each
-    // energy term the coefficients sum to at most 4 times the one at the row's node).
     if !report.converged && report.stop == Stop::Converged {
         // The loop ran out: its cycles, the interrupt, or Southwell's budget.
         report.stop = if crate::interrupt::requested() { Stop::Interrupted } else if southwell_spent { Stop::Budget } else { Stop::MaxCycles };
     }
-    // A field not finite, or a tolerance no cycle count meets, is the reason whatever stopped the loop.
+    // A field not finite, or a tolerance finer than its `f32` resolution, is the reason whatever stopped the loop; a
+    // scaled residual above 4 tolerances fails too: |D⁻¹A e| ≤ 4 max|e| (each energy term's coefficients sum to at
+    // most 4 times the one at the row's node).
     if !finite || options.tolerance_px < FINEST_TOLERANCE * largest {
         (report.converged, report.stop) = (false, if finite { Stop::Precision } else { Stop::Breakdown });
     } else if residual > 4.0 * options.tolerance_px {
         report.fail(Stop::Residual);
     }
-    // Slow modes found by a solve that did not converge are not kept: adopted, they quieted the
-    // next solve's changes before the mode that stopped this one showed (a false claim). Nor
-    // is its probe counted: the next slow solve probes again.
+    // A solve that did not converge keeps neither its slow modes (adopted, they quieted the next solve's changes
+    // before the mode that stopped this one showed: a false claim) nor its probe (the next slow solve probes again).
     if found && !report.converged { (hier.modes, hier.probed) = (None, false) }
     if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
-    // (Not from a hierarchy's first solve: a solver used once, the free functions' own or one that keeps no
-    // hierarchy, would only pay for it.)
+    // Not from a hierarchy's first solve: a solver used once (or keeping no hierarchy) would only pay for it.
     if linear && report.converged && !fresh { hier.answers.add(value, &u, tail, options.tolerance_px) }
     hier.direction = p;
     let fine = &hier.levels[0];
@@ -839,26 +782,21 @@ fn solve_piece(
     (out, report)
 }
 
-/// Where a piece's solve stood when its cycle limit stopped it (see `solve_piece`): the
-/// iterate (in `f64`), residual, direction's product, deflation, stopping rule and probe.
+/// Where a piece's solve stood when its cycle limit stopped it: the iterate (in `f64`), residual, direction's
+/// product, deflation, stopping rule and probe, and what it solved (the constrained values and the tolerance).
 #[derive(Debug)]
 pub(crate) struct Paused {
     u: Vec<V2>, r: Vec<V2>, q: Vec<V2>, rz: [f64; 2], slow: deflate::Deflation, cycle: usize, ratios: [f64; 2], last_change: f64,
-    started: bool, probed: Option<deflate::Modes>, found: bool, probed_before: bool, probe_now: bool,
-    /// What it solved: the constrained values and the tolerance.
-    value: Vec<(usize, V2)>,
-    tolerance: f64,
+    started: bool, probed: Option<deflate::Modes>, found: bool, probed_before: bool, probe_now: bool, value: Vec<(usize, V2)>, tolerance: f64,
 }
 
-/// The cycle at which a torn piece's solve still running probes its operator (past the
-/// dozen cycles that open, holed and cut grids take; one with free functions probes before
-/// its first claim instead if that comes sooner), and the probe's cycles.
+/// The cycle at which a torn piece's solve still running probes its operator (one with free functions probes before
+/// its first claim if that comes sooner), and the probe's cycles.
 const PROBE_AT: usize = 20;
 const PROBE_CYCLES: usize = 24;
 
-/// What the iteration on `A x = 0` leaves of a pseudo-random start, by component: the slow modes of a torn
-/// piece's operator. Unlike a solve's residual, the start holds every mode, and what the cycles leave of it is
-/// the error they miss (a weakly attached part's bending, however little of it a right-hand side shows).
+/// What the iteration on `A x = 0` leaves of a pseudo-random start, by component: a torn piece's slow modes. The
+/// start, unlike a residual, holds every mode (a weakly held part's bending, however little a right side shows it).
 fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize, ran: &mut usize) -> Option<Vec<Vec<f64>>> {
     let fine = &hier.levels[0];
     let mut seed = 0x9e37_79b9_7f4a_7c15u64;
@@ -892,15 +830,12 @@ fn write_piece(field: &mut Field, labels: &[u32], l: u32, [x0, y0, x1, y1]: [usi
     dx.par_chunks_mut(w).zip(dy.par_chunks_mut(w)).enumerate().with_min_len(4).for_each(|(by, (dx, dy))| {
         let (lab, v) = (&labels[(y0 + by) * w + x0..(y0 + by) * w + x1], u.row(by, bw));
         for (((dx, dy), &lab), v) in dx[x0..x1].iter_mut().zip(&mut dy[x0..x1]).zip(lab).zip(v) {
-            if lab == l {
-                (*dx, *dy) = (v[0] as f32, v[1] as f32);
-            }
+            if lab == l { (*dx, *dy) = (v[0] as f32, v[1] as f32) }
         }
     });
 }
 
-/// The affine map `(x, y) ↦ value` that fits the constraints `value` (box nodes `bw` wide)
-/// to rounding, or `None` when none does.
+/// The affine map `(x, y) ↦ value` that fits the constraints `value` (box nodes `bw` wide) to rounding, if any.
 fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) -> V2> {
     let at = |j: usize| [(j % bw) as f64, (j / bw) as f64];
     // Coordinates about the first constraint, for conditioning.
@@ -925,18 +860,17 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
     fits.then_some(move |x: usize, y: usize| map([x as f64 - o[0], y as f64 - o[1]]))
 }
 
-/// At most this many finest nodes of hierarchies (about 150 bytes a node, 64 more with slow
-/// modes, 16 and the deflation's after a capped solve; solved whole, 8 × (bandwidth + 1) for
-/// the factor), and as many of free functions, a solver keeps beyond its latest solve's.
+/// At most this many finest nodes of hierarchies, and as many of free functions, a solver keeps beyond its latest
+/// solve's (`docs/dev/solver-notes-mod.md` has what a node costs).
 const KEPT_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the editor's drags): the
-/// hierarchies and free functions of the pieces of its recent solves (they depend on the grid, the fixed nodes
-/// and the tension, never on the values, so an animation's frames share them; as many before them stay, for an
-/// undo), the slow modes a hierarchy's last slow solve found (the next solve starts corrected on them; none past
-/// 2.8 million nodes a piece: see `deflate`), each piece's converged answers (a later solve whose values they
-/// span starts from their combination: see `history::Answers`) and the warm-start history ([`WarmHistory`]).
-/// Nothing is kept between solves outside it: [`solve`] uses a temporary one.
+/// hierarchies and free functions of its recent solves' pieces (they depend on the grid, the fixed nodes and the
+/// tension, never on the values, so an animation's frames share them; as many before them stay, for an undo), the
+/// slow modes a hierarchy's last slow solve found (the next starts corrected on them; not on the largest pieces:
+/// see `deflate`), each piece's converged answers (a later solve whose values they span starts from their
+/// combination: `history::Answers`) and the warm-start history ([`WarmHistory`]). Nothing is kept between solves
+/// outside it: [`solve`] uses a temporary one.
 ///
 /// ```
 /// use inkwarp_core::{solve::{Solver, SolveOptions}, Grid, Sample};
@@ -961,9 +895,7 @@ impl Solver {
     pub fn new() -> Solver { Solver::default() }
 
     /// [`solve`] from `initial`, keeping what the next solve can reuse (not the history).
-    pub fn solve(
-        &mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>,
-    ) -> Result<(Field, SolveReport), SolveError> {
+    pub fn solve(&mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>) -> Result<(Field, SolveReport), SolveError> {
         solve_with(grid, samples, options, initial, self, false)
     }
 
@@ -975,9 +907,9 @@ impl Solver {
         solve_with(grid, samples, options, initial.as_ref().map(FieldView::from), self, true)
     }
 
-    /// [`Solver::solve_warm`] for an animation's frame: after a multigrid frame that did not converge, or any
-    /// that failed (an interrupt), the next starts afresh (from its answer, whose error the stopping rule does
-    /// not see, it claimed convergence 0.7 px off); Southwell's (a fixed budget) stay starts.
+    /// [`Solver::solve_warm`] for an animation's frame: after a multigrid frame that did not converge, or any that
+    /// failed (an interrupt), the next starts afresh (from that answer the stopping rule can miss its error and claim
+    /// convergence); Southwell's (a fixed budget) stay starts.
     pub fn solve_frame(&mut self, grid: &Grid, samples: &[Sample], options: &SolveOptions) -> Result<(Field, SolveReport), SolveError> {
         let solved = self.solve_warm(grid, samples, options, None);
         if solved.as_ref().map_or(true, |(_, r)| !r.converged && options.method == SolveMethod::Multigrid) { self.history.clear() }
@@ -998,15 +930,15 @@ impl Solver {
     /// The earlier solves a warm solve starts from.
     pub fn history(&self) -> &WarmHistory { &self.history }
 
-    /// Forgets the history and the pieces' earlier answers (the next solve starts cold). The
-    /// hierarchies (with their slow modes), free functions and work vectors stay.
+    /// Forgets the history and the pieces' earlier answers (the next solve starts cold). The hierarchies (with their
+    /// slow modes), free functions and work vectors stay.
     pub fn clear(&mut self) {
         self.history.clear();
         self.store.hierarchies.0.iter_mut().for_each(|e| e.1.answers = Default::default());
     }
 
-    /// Drops the hierarchies, free functions and work vectors (the history and the count of
-    /// hierarchies built stay): for a caller short of memory between the solves of a large grid.
+    /// Drops the hierarchies, free functions and work vectors (the history and the count of hierarchies built
+    /// stay): for a caller short of memory between the solves of a large grid.
     pub fn release_levels(&mut self) { self.store = Store { built: self.store.built, ..Store::default() } }
 }
 
@@ -1026,8 +958,7 @@ pub(crate) struct Store {
     solve: u64,
     /// The hierarchies built so far.
     built: u64,
-    /// The field the latest solve returned if its cycle limit stopped it, and whether this
-    /// solve starts from it (see `Paused`).
+    /// The field the latest solve returned if its cycle limit stopped it, and whether this solve starts from it.
     written: Option<Field>,
     goes_on: bool,
     /// Whether this solve starts from and keeps its pieces' answers (`history::Answers`): not an animation's
@@ -1035,16 +966,14 @@ pub(crate) struct Store {
     answers: bool,
 }
 
-/// Entries by what they depend on, the least recently used first: what the latest solve that
-/// used any used, whatever its size (an undo's too), and as many before, within a node limit
-/// (the second field, [`KEPT_MAX_NODES`]; see [`Kept::room`] and [`Kept::trim`]).
+/// Entries by what they depend on, the least recently used first: what the latest solve that used any used, whatever
+/// its size (an undo's too), and as many before within a node limit (the second field; [`Kept::room`], [`Kept::trim`]).
 pub(crate) struct Kept<T>(Vec<(CacheKey, T, u64)>, usize);
 
 impl<T> Default for Kept<T> { fn default() -> Self { Kept(Vec::new(), KEPT_MAX_NODES) } }
 
 impl<T> Kept<T> {
-    /// The latest entry of `key` that `also` accepts, taken out (it goes back by
-    /// [`Kept::put`]); if there is none, room is made for one (see [`Kept::room`]).
+    /// The latest entry of `key` that `also` accepts, taken out (back by [`Kept::put`]); if none, room is made for one.
     fn take(&mut self, solve: u64, key: &CacheKey, also: impl Fn(&T) -> bool) -> Option<T> {
         let pos = self.0.iter().rposition(|(k, t, _)| k == key && also(t));
         if pos.is_none() { self.room(solve, key) }
@@ -1057,9 +986,9 @@ impl<T> Kept<T> {
     /// The finest nodes of every entry.
     fn nodes(&self) -> usize { self.0.iter().map(|e| e.0.w * e.0.h).sum() }
 
-    /// Before solve number `solve` builds `key`'s entry, while it would not fit in the node
-    /// limit: drops the oldest entry of the same piece (box's first node) from earlier, else the
-    /// oldest that neither this solve nor the latest before it used (it may yet reach those).
+    /// Before solve number `solve` builds `key`'s entry, while it would not fit in the node limit: drops the oldest
+    /// entry of the same piece (box's first node) from earlier, else the oldest that neither this solve nor the latest
+    /// before it used (it may yet reach those).
     fn room(&mut self, solve: u64, key: &CacheKey) {
         let before = self.0.iter().map(|e| e.2).filter(|&s| s < solve).max().unwrap_or(0);
         while self.nodes() + key.w * key.h > self.1 {
@@ -1081,10 +1010,9 @@ impl<T> Kept<T> {
     }
 }
 
-/// A torn piece's functions of zero plate energy that its constraints leave free (hinges,
-/// strands, thin rings, a one-line piece's tilt): where there are any beyond the tilt, the
-/// iteration alone does not give the contract's answer (see `nullspace`). They depend on
-/// the piece's grid and fixed nodes alone, so a solver keeps them with the hierarchy.
+/// A torn piece's functions of zero plate energy that its constraints leave free (hinges, strands, thin rings, a
+/// one-line piece's tilt): beyond the tilt, the iteration alone does not give the contract's answer (`nullspace`).
+/// They depend on the piece's grid and fixed nodes alone, so a solver keeps them with the hierarchy.
 pub(crate) struct Free {
     /// A one-line piece's gauge node (see [`Piece::Line`]).
     gauge: Option<usize>,
@@ -1097,8 +1025,7 @@ pub(crate) struct Free {
 }
 
 impl Free {
-    /// The free functions of the piece on `geo` (none on an open grid) with its constrained
-    /// nodes, and with its gauge node `gauge` too (`fixed`).
+    /// The free functions of the piece on `geo` (none on an open grid) with its constrained nodes, and with `gauge` too.
     fn new(geo: Option<&nullspace::BoxGeo>, constrained: &[bool], fixed: &[bool], gauge: Option<usize>) -> Free {
         let null = geo.map_or(Some(Vec::new()), |g| nullspace::plate_null_space(g, constrained, nullspace::MAX_NULL));
         let count = null.as_ref().map(Vec::len);
@@ -1109,33 +1036,30 @@ impl Free {
     }
 }
 
-/// Safety factors of the stopping rule (see the multigrid loop) on open grids and on grids
-/// with holes or cuts, where the slowest error moves least per cycle (`docs/dev/ablation.md`, "Constants").
+/// Safety factors of the stopping rule on open grids and on grids with holes or cuts, where the slowest error moves
+/// least per cycle (`docs/dev/ablation.md`, "Constants").
 const STOP_MARGIN: f64 = 1.5;
 const TORN_STOP_MARGIN: f64 = 3.0;
-/// The finest tolerance a solve can claim, relative to its answer's largest displacement:
-/// about one unit in the last place of an `f32`, the field's own resolution.
+/// The finest tolerance a solve can claim, relative to its answer's largest displacement: about an `f32`'s resolution.
 const FINEST_TOLERANCE: f64 = 1e-7;
-/// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say: 1.7 times what the slowest
-/// families measured take to converge (hair at photograph size, dense cuts, long free strands: 105–180), so
-/// that they converge, and an animation's next frames start warm from them (after a frame the cap stopped,
-/// the next starts cold: every frame of such a layer would stop at the cap, `docs/dev/solver-correctness.md`).
+/// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say: well above what the slowest
+/// families take, so that they converge and an animation's next frames start warm from them (a frame the cap
+/// stopped makes the next start cold: `docs/dev/solver-correctness.md`, "The default cap").
 pub(crate) const DEFAULT_MAX_CYCLES: usize = 300;
 /// The largest banded factor's work (unknowns × bandwidth², multiply-adds) of a torn piece solved whole.
 const DIRECT_WORK: usize = 1 << 25;
-/// Smoothing steps before and after each coarse correction; below the finest level of an open
-/// grid one (across holes and cuts one weakens the cycle too much: `docs/dev/ablation.md`, "Constants").
+/// Smoothing steps before and after each coarse correction; below the finest level of an open grid one (across
+/// holes and cuts one weakens the cycle too much: `docs/dev/ablation.md`, "Constants").
 const SMOOTHING_STEPS: usize = 2;
 const OPEN_COARSE_SMOOTHING: usize = 1;
 
-/// What a hierarchy depends on (the operator: geometry, fixed nodes, tension; never the values)
-/// and its piece (its box's first node `at`): an animation's frames share it. Compared field
-/// by field in this order: the fixed nodes before the (larger) links.
+/// What a hierarchy depends on (the operator: geometry, fixed nodes, tension; never the values) and its piece (its
+/// box's first node `at`). Compared field by field in this order: the fixed nodes before the (larger) links.
 #[derive(Clone, PartialEq)]
 struct CacheKey { at: [usize; 2], w: usize, h: usize, tau_bits: u64, off: Ablation, fixed: Vec<bool>, links: BoxLinks }
 
-/// The τ → 0⁺ rule's class of each piece of a grid `w` nodes wide, `members` its
-/// constraints; a one-line piece's gauge is left to [`solve_constrained`]'s pass over the nodes.
+/// The τ → 0⁺ rule's class of each piece of a grid `w` nodes wide, `members` its constraints; a one-line piece's
+/// gauge is left to [`solve_constrained`]'s pass over the nodes.
 fn classify(members: &[Vec<usize>], c: &Constraints, w: usize, tau: f64) -> Vec<Piece> {
     members.iter().map(|m| match m.len() {
         0 => Piece::Zero,
@@ -1146,8 +1070,7 @@ fn classify(members: &[Vec<usize>], c: &Constraints, w: usize, tau: f64) -> Vec<
     }).collect()
 }
 
-/// The line through `a` with direction `d` that holds every node of `nodes` (indices on a
-/// grid `w` wide, at least two distinct ones), if there is one.
+/// The line `(a, d)` through every node of `nodes` (indices on a grid `w` wide, at least two distinct), if any.
 fn on_one_line(w: usize, nodes: impl Iterator<Item = usize> + Clone) -> Option<([i64; 2], [i64; 2])> {
     let xy = |i: usize| [(i % w) as i64, (i / w) as i64];
     let a = xy(nodes.clone().next()?);
@@ -1213,9 +1136,8 @@ pub(crate) fn dense_solve(mut m: Vec<Vec<f64>>, mut rhs: Vec<V2>) -> Option<Vec<
 /// Vector chunk for parallel loops (large enough that small grids stay on one thread).
 const CHUNK: usize = 16_384;
 
-/// The energy-minimising step along `p` (`rz = rᵀz` of the preconditioned residual it came
-/// from): `q = −A p`, `u += α p`, `r += α q`. Returns the largest `|α p|` and `α`; NaN,
-/// and no step, when the direction or its product overflowed.
+/// The energy-minimising step along `p` (`rz = rᵀz` of the preconditioned residual it came from): `q = −A p`,
+/// `u += α p`, `r += α q`. Returns the largest `|α p|` and `α`; NaN, and no step, where `p` or `q` overflowed.
 fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [V2], rz: [f64; 2]) -> (f64, [f64; 2]) {
     let pq = hier.levels[0].fine_residual_dot_narrow(p, q);
     if !pq.iter().chain(&rz).all(|v| v.is_finite()) { return (f64::NAN, [0.0; 2]); }
@@ -1236,23 +1158,20 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
     (change.reduce(|| 0.0, f64::max), alpha)
 }
 
-/// The τ → 0⁺ settling as a projection the iteration keeps to: a field minus its least-membrane free function,
-/// `v − Z (ZᵀMZ)⁻¹ ZᵀM v`. With the start settled and every direction projected, every iterate is settled. At
-/// τ > 0 it is the exact Galerkin correction on the free functions (`A Z = τ M Z`, so
-/// `(ZᵀAZ)⁻¹ ZᵀA = (ZᵀMZ)⁻¹ ZᵀM`): the directions stay `A`-orthogonal to them and the conjugate gradient never
-/// meets their eigenvalues of order τ (deflated conjugate gradient). At τ = 0 it moves nothing the plate energy
-/// sees, and the iteration no longer drifts along them.
+/// The τ → 0⁺ settling as a projection the iteration keeps to: `v − Z (ZᵀMZ)⁻¹ ZᵀM v`, a field minus its
+/// least-membrane free function; with the start settled and every direction projected, every iterate is settled.
+/// At τ > 0 it is the exact Galerkin correction on the free functions (`A Z = τ M Z`, so `(ZᵀAZ)⁻¹ ZᵀA =
+/// (ZᵀMZ)⁻¹ ZᵀM`): deflated CG, which never meets their eigenvalues of order τ. At τ = 0 it moves nothing the plate
+/// energy sees, and the iteration no longer drifts along them.
 struct Settled<'m> {
     membrane: &'m nullspace::Membrane,
-    /// The box nodes the free functions touch, and each one's place among them by padded
-    /// node (`u32::MAX` off them).
+    /// The box nodes the free functions touch, and each one's place among them by padded node (`u32::MAX` off them).
     nodes: Vec<usize>,
     slot: Vec<u32>,
 }
 
 impl<'m> Settled<'m> {
-    /// `None` where a block cannot be settled (a factor past `nullspace::MAX_BLOCK_ENTRIES`,
-    /// or singular): there the iteration runs unprojected.
+    /// `None` where a block cannot be settled (a factor past `nullspace::MAX_BLOCK_ENTRIES`, or singular).
     fn new(membrane: &'m nullspace::Membrane, level: &Level) -> Option<Self> {
         if !membrane.settles_all() { return None; }
         let w = level.geo.w;
@@ -1278,16 +1197,14 @@ impl<'m> Settled<'m> {
     }
 }
 
-/// `Σ a_i z_i` per component, `z` the preconditioner's `f32` output. The chunks' sums are
-/// added in order, so the result does not depend on the threads.
+/// `Σ a_i z_i` per component, `z` the preconditioner's `f32` output; the chunks' sums added in order, whatever the threads.
 fn dot_z(a: &[V2], z: &[W2]) -> [f64; 2] {
     let parts: Vec<[f64; 2]> =
         a.par_chunks(CHUNK).zip(z.par_chunks(CHUNK)).map(|(a, z)| level::pair_sums(a.as_flattened(), z.as_flattened(), |x: f64, y: WS| x * y.get())).collect();
     parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
 }
 
-/// `p = z + β p`, `z` the preconditioner's `f32` output and `p` the search direction in
-/// `f32`, summed in `f64` and rounded once.
+/// `p = z + β p`, `z` the preconditioner's `f32` output and `p` the `f32` direction, summed in `f64`, rounded once.
 fn widen_into(p: &mut [W2], z: &[W2], b: [f64; 2]) {
     p.par_chunks_mut(CHUNK).zip(z.par_chunks(CHUNK)).for_each(|(p, z)| {
         p.iter_mut().zip(z).for_each(|(p, z)| *p = [WS::of(z[0].get() + b[0] * p[0].get()), WS::of(z[1].get() + b[1] * p[1].get())])
@@ -1303,8 +1220,8 @@ fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2], settled: Option
     rz
 }
 
-/// After a deflating correction of `u`: settles it again (the `f32` vectors' rounding puts
-/// free functions back in) and restarts the directions; returns `rᵀz`.
+/// After a deflating correction of `u`: settles it again (`f32` rounding puts free functions back) and restarts the
+/// directions; returns `rᵀz`.
 fn restart_directions(hier: &mut Hierarchy, u: &mut [V2], r: &mut [V2], p: &mut [W2], settled: Option<&Settled>, slow: &mut deflate::Deflation) -> [f64; 2] {
     if let Some(s) = settled {
         s.project(&hier.levels[0], u);
@@ -1314,12 +1231,11 @@ fn restart_directions(hier: &mut Hierarchy, u: &mut [V2], r: &mut [V2], p: &mut 
     fresh_direction(hier, r, p, settled, Some(slow))
 }
 
-/// The next direction `p = z + βp`, kept to (see [`keep_to`]), after a step of `alpha` along `p` (its `along`
-/// the step's `rᵀz` or `pᵀr`); returns the new `rᵀz` and `β`. Flexible (Polak–Ribière)
-/// β = zᵀ(r − r_old)/(r_oldᵀz_old), with r − r_old = α q: the preconditioner's line searches make it slightly
-/// nonlinear. Deflated, the preconditioned residual is the projected z̃, whose r_oldᵀz̃_old is `along` and whose
-/// z̃ᵀq is zᵀq (Wᵀq = −WᵀA p_old = 0, and for the settling Zᵀq = −τ ZᵀM p_old = 0): both are the deflated
-/// iteration's own, as its Lanczos matrix (`rate_floor`) assumes.
+/// The next direction `p = z + βp`, kept to ([`keep_to`]), after a step of `alpha` along `p` (`along` the step's
+/// `rᵀz` or `pᵀr`); returns the new `rᵀz` and `β`. Flexible (Polak–Ribière, for the preconditioner's line searches):
+/// β = zᵀ(r − r_old)/(r_oldᵀz_old), r − r_old = α q. Deflated, the projected z̃ has r_oldᵀz̃_old = `along` and
+/// z̃ᵀq = zᵀq (Wᵀq = −WᵀA p_old = 0; for the settling Zᵀq = −τ ZᵀM p_old = 0): the deflated iteration's own, as
+/// its Lanczos matrix (`rate_floor`) assumes.
 fn next_direction(hier: &mut Hierarchy, r: &[V2], q: &[V2], p: &mut [W2], (alpha, along): ([f64; 2], [f64; 2]), settled: Option<&Settled>, slow: Option<&deflate::Deflation>) -> ([f64; 2], [f64; 2]) {
     let z = hier.precondition(r);
     let (rz, zq) = (dot_z(r, z), dot_z(q, z));
@@ -1329,8 +1245,8 @@ fn next_direction(hier: &mut Hierarchy, r: &[V2], q: &[V2], p: &mut [W2], (alpha
     (rz, beta)
 }
 
-/// Keeps the direction `p` `A`-orthogonal to the kept slow modes and to the settled answers
-/// (settled last: the `f32` vectors' rounding would put free functions back in).
+/// Keeps the direction `p` `A`-orthogonal to the kept slow modes and to the settled answers (settled last: the
+/// `f32` rounding would put free functions back in).
 fn keep_to(level: &Level, p: &mut [W2], settled: Option<&Settled>, slow: Option<&deflate::Deflation>) {
     if let Some(d) = slow { d.project(p) }
     if let Some(s) = settled { s.project(level, p) }
