@@ -861,7 +861,7 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
 }
 
 /// At most this many finest nodes of hierarchies, and as many of free functions, a solver keeps beyond its latest
-/// solve's (`docs/dev/solver-notes-mod.md` has what a node costs).
+/// solve's (`docs/dev/core-measurements.md` has what a node costs).
 const KEPT_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the editor's drags): the
