@@ -352,6 +352,44 @@ def test_groups_are_flattened_with_their_opacity_and_a_note(tmp_path):
     assert np.abs(scene.render().astype(int) - psd_composite(tmp_path / "g.psd")).max() <= 2
 
 
+def test_a_layer_clipped_to_the_one_below_is_cut_to_its_shape(tmp_path):
+    # Shading clipped to a character's base layer (painting apps' clipping masks) covered
+    # the whole canvas, silently.
+    from psd_tools import PSDImage
+    from psd_tools.api.layers import Group, PixelLayer
+
+    psd = PSDImage.new("RGB", (40, 30))
+    psd.append(PixelLayer.frompil(Image.new("RGBA", (40, 30), (255, 255, 255, 255)), psd, "paper", 0, 0))
+    body = np.zeros((30, 40, 4), np.uint8)
+    body[5:25, 8:32] = (200, 0, 0, 255)
+    body[10:20, 14:26, 3] = 128  # a half-transparent part: the shade is half there too
+    psd.append(PixelLayer.frompil(Image.fromarray(body, "RGBA"), psd, "body", 0, 0))
+    shade = PixelLayer.frompil(Image.new("RGBA", (40, 15), (0, 0, 200, 255)), psd, "shade", 15, 0)
+    psd.append(shade)
+    shade.clipping = True
+    hidden = PixelLayer.frompil(Image.new("RGBA", (10, 10), (0, 200, 0, 255)), psd, "hidden", 0, 0)
+    psd.append(hidden)
+    hidden.visible = False
+    glint = PixelLayer.frompil(Image.new("RGBA", (40, 30), (250, 250, 0, 255)), psd, "glint", 0, 0)
+    psd.append(glint)
+    glint.clipping = True  # clipped to the hidden layer below it: hidden with it
+    psd.save(tmp_path / "c.psd")
+    with pytest.warns(inkwarp.InkwarpWarning) as said:
+        scene = inkwarp.Scene.new(tmp_path / "c.psd")
+    notes = [str(w.message) for w in said]
+    assert any("layer 'shade' is clipped to 'body'" in n for n in notes), notes
+    assert scene.layers == ["paper", "body", "shade", "hidden", "glint"]
+    picture = inkwarp.importing.read_picture(tmp_path / "c.psd")
+    alpha = {layer.name: layer.image[..., 3].astype(int) for layer in picture.layers}
+    assert (alpha["shade"][:15] == 0).all() and (alpha["shade"][15:, :8] == 0).all()
+    assert (alpha["shade"][15:25, 8:14] == 255).all() and abs(alpha["shade"][17, 20] - 128) <= 1
+    assert [layer.visible for layer in picture.layers] == [True, True, True, False, False]
+    # As the PSD shows it, but where the body is half there: two layers "over" one another
+    # mix the shade with the body's colour there, where the clipping group shows the shade.
+    solid = (alpha["body"] == 0) | (alpha["body"] == 255)
+    assert np.abs(scene.render().astype(int) - psd_composite(tmp_path / "c.psd"))[solid].max() <= 2
+
+
 def test_layer_names_that_share_a_file_name_or_are_long_each_get_an_image(capsys, tmp_path):
     """Layer names are free text: "a b" and "a-b" share a slug (this once looped forever
     when a third layer's fallback name was taken too), case-insensitive file systems take

@@ -7,8 +7,10 @@ with the layer's pixels where the PSD puts them (a scene's images all have the f
 so the drawing traced over the composite lines up with every layer, and each layer's
 ``offset`` stays ``[0, 0]`` for the animator to use). A layer's opacity is multiplied into
 its alpha. Groups are flattened into their layers (a group's opacity and visibility pass on
-to the layers in it); a layer or group whose blend mode is not Normal (or Pass Through, for
-a group) is kept but reported, because inkwarp composites every layer with "over".
+to the layers in it); a layer clipped to the one below (a clipping mask) is cut to that
+layer's shape and stays a layer of its own; a layer or group whose blend mode is not Normal
+(or Pass Through, for a group) is kept but reported, because inkwarp composites every layer
+with "over".
 
 Examples
 --------
@@ -190,62 +192,98 @@ def _read_psd(source: Path) -> Picture:
     normal = {BlendMode.NORMAL, BlendMode.PASS_THROUGH}
 
     def walk(group: Iterable[Any], path: list[str], opacity: float, visible: bool) -> None:
+        # The layers the last unclipped item of this group gave (its base for the clipped
+        # layers above it), its name and whether it shows.
+        base: tuple[int, int, str, bool] | None = None
         for layer in group:
             name = str(layer.name)
             here = [*path, name]
             shown = visible and bool(layer.visible)
-            alpha = opacity * int(layer.opacity) / 255.0
-            if layer.blend_mode not in normal and shown:
-                mode = getattr(layer.blend_mode, "name", str(layer.blend_mode))
-                kind = "group" if layer.is_group() else "layer"
-                notes.append(f"{source}: {kind} '{' / '.join(here)}' uses the blend mode "
-                             f"{mode.replace('_', ' ').title()}; inkwarp composites it as "
-                             "Normal, so it will look different: merge it into the layer "
-                             "below or set it to Normal")
-            if layer.is_group():
-                notes.append(f"{source}: group '{' / '.join(here)}' is flattened into its "
-                             "layers (names kept, its opacity and visibility applied to them)")
-                walk(layer, here, alpha, shown)
-                continue
-            try:
-                image = layer.topil()
-            except Exception as err:  # noqa: BLE001 - a damaged layer record
-                raise ValueError(f"{source}: layer '{' / '.join(here)}' cannot be read ({err}); "
-                                 "save the PSD again from the painting app") from None
-            if image is None:  # an empty layer, or an adjustment or fill layer without pixels
-                if layer.kind not in ("pixel", "type", "shape", "smartobject"):
-                    notes.append(f"{source}: layer '{' / '.join(here)}' ({layer.kind}) has no "
-                                 "pixels and is left out; rasterise it to keep it")
-                    continue
-                image = None
-            if layer.kind != "pixel" and image is not None:
-                notes.append(f"{source}: layer '{' / '.join(here)}' ({layer.kind}) is taken as "
-                             "the pixels the PSD stores for it")
-            canvas = np.zeros((height, width, 4), np.uint8)
-            if image is not None:
-                rgba = np.asarray(image.convert("RGBA"))
-                _paste(canvas, rgba, int(layer.left), int(layer.top))
-            mask = layer.mask if layer.has_mask() else None
-            if mask is not None and not mask.disabled:
-                # A layer mask (psd-tools keeps a layer's transparency in one too) scales
-                # the alpha; outside its box it is its background colour.
-                matte = np.full((height, width), int(mask.background_color), np.uint8)
-                pixels = mask.topil()
-                if pixels is not None:
-                    grey = np.asarray(pixels.convert("L"))[..., None]
-                    holder = np.repeat(matte[..., None], 4, axis=2)
-                    _paste(holder, np.repeat(grey, 4, axis=2), int(mask.left), int(mask.top))
-                    matte = holder[..., 0]
-                canvas[..., 3] = (canvas[..., 3].astype(np.uint16) * matte // 255).astype(np.uint8)
-            if alpha < 1.0:
-                canvas[..., 3] = np.round(canvas[..., 3] * alpha).astype(np.uint8)
-            layers.append(PictureLayer(name, canvas, shown))
+            first = len(layers)
+            clipped = base is not None and _clipped(layer)
+            if clipped and not base[3]:
+                shown = False  # a hidden base hides what is clipped to it
+            walk_one(layer, here, opacity, shown)
+            if clipped:
+                _clip(layers[first:], layers[base[0]:base[1]])
+                notes.append(f"{source}: {'group' if layer.is_group() else 'layer'} "
+                             f"'{' / '.join(here)}' is clipped to '{base[2]}': it is cut to "
+                             "that layer's shape as the PSD shows it, and stays a layer of its own")
+            else:
+                base = (first, len(layers), name, shown)
+
+    def walk_one(layer: Any, here: list[str], opacity: float, shown: bool) -> None:
+        alpha = opacity * int(layer.opacity) / 255.0
+        if layer.blend_mode not in normal and shown:
+            mode = getattr(layer.blend_mode, "name", str(layer.blend_mode))
+            kind = "group" if layer.is_group() else "layer"
+            notes.append(f"{source}: {kind} '{' / '.join(here)}' uses the blend mode "
+                         f"{mode.replace('_', ' ').title()}; inkwarp composites it as "
+                         "Normal, so it will look different: merge it into the layer "
+                         "below or set it to Normal")
+        if layer.is_group():
+            notes.append(f"{source}: group '{' / '.join(here)}' is flattened into its "
+                         "layers (names kept, its opacity and visibility applied to each of them, "
+                         "which shows where they overlap)")
+            walk(layer, here, alpha, shown)
+            return
+        try:
+            image = layer.topil()
+        except Exception as err:  # noqa: BLE001 - a damaged layer record
+            raise ValueError(f"{source}: layer '{' / '.join(here)}' cannot be read ({err}); "
+                             "save the PSD again from the painting app") from None
+        if image is None:  # an empty layer, or an adjustment or fill layer without pixels
+            if layer.kind not in ("pixel", "type", "shape", "smartobject"):
+                notes.append(f"{source}: layer '{' / '.join(here)}' ({layer.kind}) has no "
+                             "pixels and is left out; rasterise it to keep it")
+                return
+            image = None
+        if layer.kind != "pixel" and image is not None:
+            notes.append(f"{source}: layer '{' / '.join(here)}' ({layer.kind}) is taken as "
+                         "the pixels the PSD stores for it")
+        canvas = np.zeros((height, width, 4), np.uint8)
+        if image is not None:
+            rgba = np.asarray(image.convert("RGBA"))
+            _paste(canvas, rgba, int(layer.left), int(layer.top))
+        mask = layer.mask if layer.has_mask() else None
+        if mask is not None and not mask.disabled:
+            # A layer mask (psd-tools keeps a layer's transparency in one too) scales
+            # the alpha; outside its box it is its background colour.
+            matte = np.full((height, width), int(mask.background_color), np.uint8)
+            pixels = mask.topil()
+            if pixels is not None:
+                grey = np.asarray(pixels.convert("L"))[..., None]
+                holder = np.repeat(matte[..., None], 4, axis=2)
+                _paste(holder, np.repeat(grey, 4, axis=2), int(mask.left), int(mask.top))
+                matte = holder[..., 0]
+            canvas[..., 3] = (canvas[..., 3].astype(np.uint16) * matte // 255).astype(np.uint8)
+        if alpha < 1.0:
+            canvas[..., 3] = np.round(canvas[..., 3] * alpha).astype(np.uint8)
+        layers.append(PictureLayer(here[-1], canvas, shown))
 
     walk(psd, [], 1.0, True)
     if not layers:
         raise ValueError(f"{source}: the PSD has no pixel layers; add a layer with the picture "
                          "and save it again")
     return Picture(width, height, layers, notes)
+
+
+def _clipped(layer: Any) -> bool:
+    """Whether a PSD layer is clipped to the one below it (psd-tools renamed the flag)."""
+    flag = getattr(type(layer), "clipping", None)
+    return bool(layer.clipping if isinstance(flag, property) else layer.clipping_layer)
+
+
+def _clip(clipped: list[PictureLayer], base: list[PictureLayer]) -> None:
+    """Cuts ``clipped`` to the shape of ``base``: their alphas scaled by the alpha of the
+    base's layers composited "over" one another (a group's, where the base is a group)."""
+    if not clipped:
+        return
+    clear = np.ones(clipped[0].image.shape[:2])
+    for layer in base:
+        clear *= 1.0 - layer.image[..., 3] / 255.0
+    for layer in clipped:
+        layer.image[..., 3] = np.round(layer.image[..., 3] * (1.0 - clear)).astype(np.uint8)
 
 
 def _paste(canvas: np.ndarray, image: np.ndarray, left: int, top: int) -> None:
