@@ -49,7 +49,7 @@ import json
 import math
 import os
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Container, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -672,12 +672,20 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
                          "inkwarp new frame.png -o scene.json; inkwarp edit scene.json)")
     _layout(features)
 
+    tracker = _Tracker(clip.frames, TrackOptions(lost_px))
     anchors_of = {f.id: sorted({frame, *f.keys}) for f in features}
+    # A correction on no texture (a point put where it belongs while a flat box covers it):
+    # nothing there for the tracker to follow. The key holds still around its frame,
+    # unchecked, and the feature's other anchors track on past it (reaching the frames
+    # where the feature shows again).
+    blind_at = {f.id: {a for a, pose in f.keys.items() if a != frame and _untextured(tracker, a, f, pose)}
+                for f in features}
     union = sorted({k for a in anchors_of.values() for k in a})
     ranges: dict[int, tuple[int, int]] = {}
     for f in features:
+        seeing = [a for a in anchors_of[f.id] if a not in blind_at[f.id]]
         for a in anchors_of[f.id]:
-            lo, hi = _range_of(a, anchors_of[f.id], count)
+            lo, hi = _range_of(a, anchors_of[f.id] if a in blind_at[f.id] else seeing, count)
             old = ranges.get(a, (lo, hi))
             ranges[a] = (min(old[0], lo), max(old[1], hi))
     # The frames tracked from each anchor, the anchor's own included (a 60-frame clip traced
@@ -686,7 +694,6 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     tick = progress(steps) if progress is not None else (lambda: None)
     tick = tick or (lambda: None)
 
-    tracker = _Tracker(clip.frames, TrackOptions(lost_px))
     tracks: dict[int, tuple[dict[int, np.ndarray], dict[int, np.ndarray]]] = {}
     at_k = np.empty((0, 2))  # every feature's points where traced (none: only cuts)
     # Frame K first: the anchors at corrections start features without a key there
@@ -699,7 +706,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             elif a in f.keys:
                 poses.append(f.keys[a])
             else:
-                poses.append(_track_at(tracks, anchors_of[f.id], f, a, lost_px))
+                poses.append(_blend(tracks, anchors_of[f.id], f, a, lost_px, blind_at[f.id])[0])
         start = _all_points(features, poses)
         if a == frame:
             at_k = start
@@ -708,6 +715,11 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         fwd_pos, fwd_err = tracker.run(a, start, hi, tick)
         back_pos, back_err = tracker.run(a, start, lo, tick)
         tracks[a] = ({**back_pos, **fwd_pos}, {**back_err, **fwd_err})
+        for f in features:
+            if a in blind_at[f.id]:
+                for k, pos in tracks[a][0].items():
+                    if k != a:
+                        pos[f.rows], tracks[a][1][k][f.rows] = start[f.rows], np.inf
 
     # Features on no texture where traced (flat skin, a plain background): the tracker cannot
     # see them move, and they follow the thin plate of the points around them.
@@ -728,7 +740,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         series = np.empty((count, len(f.rest), 2))
         seen = ~beside[f.rows]
         for k in range(count):
-            series[k], err = _blend(tracks, anchors_of[f.id], f, k, lost_px)
+            series[k], err = _blend(tracks, anchors_of[f.id], f, k, lost_px, blind_at[f.id])
             if err is None or f.id in outside:
                 continue
             # Lost where most of its points are, or where a point its keys are made of was
@@ -778,29 +790,43 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     return doc
 
 
-def _track_at(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: float) -> np.ndarray:
-    return _blend(tracks, anchors, f, k, lost_px)[0]
+def _untextured(tracker: _Tracker, k: int, f: _Feature, pose: np.ndarray) -> bool:
+    """Whether most of feature ``f``'s points in ``pose`` on frame ``k``'s picture lie on no
+    texture (a flat area the tracker cannot see move)."""
+    points = _all_points([f], [pose])
+    h, w = tracker.frames[k].shape
+    on = ~_off_picture(points, w, h, 0.5)
+    eig = _bilinear(tracker.min_eig(k)[..., None], points)[:, 0]
+    return bool(on.any() and np.mean(eig[on] <= TRUST_MIN_EIG) > 0.5)
 
 
-def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: float
-           ) -> tuple[np.ndarray, np.ndarray | None]:
+def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: float,
+           blind: Container[int] = ()) -> tuple[np.ndarray, np.ndarray | None]:
     """Feature ``f``'s control points at frame ``k``: its anchors' tracks blended linearly
     between the anchors around ``k`` (where one of the two has lost the feature at ``k``
-    and the other has not, the other's alone); and its points' errors, each track's
-    checks blended with the same weights (a blend of two places is off by at most the
-    blend of their errors: a track that strays near the far anchor hardly moves the
-    points there)."""
+    and the other has not, the other's alone; where both have, the track of the nearest
+    anchor not ``blind`` on either side that holds there, alone); and its points' errors,
+    each track's checks blended with the same weights (a blend of two places is off by at
+    most the blend of their errors: a track that strays near the far anchor hardly moves
+    the points there)."""
     n = len(f.rest)
-    before = [a for a in anchors if a <= k and a in tracks]
-    after = [a for a in anchors if a >= k and a in tracks]
-    parts: list[tuple[float, int]] = []
-    if before and after:
-        a, b = before[-1], after[0]
-        parts = [(1.0, a)] if a == b else [((b - k) / (b - a), a), ((k - a) / (b - a), b)]
-    elif before or after:
-        parts = [(1.0, (before or after)[-1 if before else 0])]
-    held = [a for _, a in parts if np.median(tracks[a][1][k][f.rows]) <= lost_px]
-    if held and len(held) < len(parts):
+
+    def around(usable: Sequence[int]) -> list[tuple[float, int]]:
+        before = [a for a in usable if a <= k and a in tracks and k in tracks[a][0]]
+        after = [a for a in usable if a >= k and a in tracks and k in tracks[a][0]]
+        if before and after:
+            a, b = before[-1], after[0]
+            return [(1.0, a)] if a == b else [((b - k) / (b - a), a), ((k - a) / (b - a), b)]
+        return [(1.0, (before or after)[-1 if before else 0])] if before or after else []
+
+    def holds(a: int) -> bool:
+        return bool(np.median(tracks[a][1][k][f.rows]) <= lost_px)
+
+    parts = around(anchors)
+    held = [a for _, a in parts if holds(a)]
+    if not held:
+        held = [a for _, a in around([a for a in anchors if a not in blind]) if holds(a)]
+    if held and held != [a for _, a in parts]:
         parts = [(1.0, held[0])]
     pose = np.zeros((n, 2))
     err = np.zeros(f.rows.stop - f.rows.start)
