@@ -238,6 +238,43 @@ def test_a_correction_where_a_flat_box_covers_the_point_spoils_no_frame_tracked_
     assert spot[5].tolist() == [40.0, 50.0]
 
 
+def lost_frames(said: list[str], fid: str) -> set[int]:
+    """The frames a lost-track warning names for feature ``fid``."""
+    named = [m for text in said if "lost track" in text for m in re.findall(rf"'{fid}' at frames? ([\d ,-]+)", text)]
+    return {k for part in ",".join(named).split(",") if part.strip()
+            for a, _, b in [part.strip().partition("-")] for k in range(int(a), int(b or a) + 1)}
+
+
+@pytest.mark.parametrize("seed", [1, 6, 7])
+def test_a_textured_disc_leaving_the_picture_is_never_confirmed_where_it_is_not(tmp_path, seed):
+    # A textured disc slides off the right edge of a flat grey picture, a line on it and a
+    # still disc beside. Its centre point was placed 12-23 px off as it left, and confirmed
+    # there with no warning: where the thin plate placed it (checked where Lucas-Kanade had
+    # put it instead), and once lost, by a loose check on what was left of the disc at the
+    # edge.
+    width, height, count = 240, 180, 48
+    texture = sv.picture(200, 200, seed=seed)
+    ys, xs = np.mgrid[0:height, 0:width]
+    frames = []
+    for k in range(count):
+        frame = np.full((height, width, 3), 128, np.uint8)
+        for cx, cy in [(120 + 4 * k, 60), (60, 130)]:
+            disc = (xs - cx) ** 2 + (ys - cy) ** 2 < 30 ** 2
+            frame[disc] = texture[(ys[disc] - cy + 100) % 200, (xs[disc] - cx + 100) % 200]
+        frames.append(frame)
+    video = sv.write_mp4(tmp_path / "leaving.mp4", frames)
+    features = [{"id": "a", "kind": "point", "rest": [[120.0, 60.0]]},
+                {"id": "a-line", "kind": "polyline", "rest": [[100.0, 60.0], [120.0, 50.0], [140.0, 60.0]]},
+                {"id": "b", "kind": "point", "rest": [[60.0, 130.0]]},
+                {"id": "blank", "kind": "point", "rest": [[200.0, 150.0]]}]
+    doc, said = tracked_saying(video, sv.scene(width, height, features))
+    truth = np.array([[120 + 4 * k, 60] for k in range(count)])
+    off = np.linalg.norm(np.array([k["points"][0] for k in doc["features"][0]["keys"]]) - truth, axis=1)
+    lost = lost_frames(said, "a")
+    assert all(k in lost for k in range(count) if off[k] > 2.0), (sorted(lost), off.round(1))
+    assert off[:27].max() < 0.5 and not lost & set(range(27))
+
+
 def test_a_bar_appearing_far_from_every_feature_loses_none(tmp_path):
     # A textured patch slides over a flat background; a flat bar covers the right of the
     # picture on frames 25-34, 60 px and more from the points. Lucas-Kanade's coarse pyramid

@@ -451,7 +451,17 @@ class _Tracker:
             apart = np.linalg.norm(refined - best, axis=1)
             drifted = (refined_fb <= lost_px) & (apart > lost_px)
             checked = np.where(drifted, np.maximum(checked, apart), checked)
-            confirmed = textured_now & inside & (checked <= lost_px)
+            # A point the thin plate placed was checked where Lucas-Kanade put it: the checks
+            # speak for the plate's place only as far as it lies from theirs.
+            moved = np.minimum(np.linalg.norm(best - local, axis=1), np.linalg.norm(best - refined, axis=1))
+            checked = np.where(untrusted, np.maximum(checked, moved), checked)
+            # A lost point is confirmed again only by a registration to the anchor that Lucas-
+            # Kanade trusts, with its whole window on the picture: one leaving it matches what
+            # is left of its texture at the edge (border pixels repeated), or an edge beside
+            # it, well enough to pass the looser checks, far from where it went.
+            whole = ~_off_picture(best, w, h, -LK_WINDOW_PX / 2)
+            again = (use_anchor | regained) & whole
+            confirmed = textured_now & inside & (checked <= lost_px) & (~lost | again)
             lost = textured_at_anchor & ~confirmed
             last_seen[confirmed] = best[confirmed]
             # Any point placed more than `lost_px` off the picture is lost too: nothing there
