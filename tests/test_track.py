@@ -393,7 +393,7 @@ def test_cli_writes_the_tracked_scene_and_a_frame(videos, tmp_path, capsys):
     assert code == 0, err
 
 
-@pytest.mark.parametrize("case", ["unreadable", "missing", "frame past end", "size", "simplify",
+@pytest.mark.parametrize("case", ["unreadable", "sound only", "missing", "frame past end", "size", "simplify",
                                   "frame cmd past end", "key past end", "no features", "only a cut"])
 def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
     path, _ = videos["translate"]
@@ -405,6 +405,16 @@ def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
         bad.write_text("not a video")
         args[1] = bad
         expect = f"{bad}: cannot be read as a video"
+    elif case == "sound only":  # a clip's sound exported alone, under a video's name
+        import subprocess
+
+        import imageio_ffmpeg
+
+        bad = tmp_path / "voice.mp4"
+        subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-hide_banner", "-loglevel", "error", "-f", "lavfi",
+                        "-i", "sine=frequency=440:duration=0.3", "-c:a", "aac", str(bad)], check=True)
+        args[1] = bad
+        expect = f"{bad}: has sound but no video stream; give the video itself"
     elif case == "missing":
         args[1] = tmp_path / "nothing.mp4"
         expect = "nothing.mp4: no such file"

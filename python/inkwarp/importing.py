@@ -173,6 +173,11 @@ def _read_psd(source: Path) -> Picture:
     try:
         psd = PSDImage.open(source)
     except Exception as err:  # noqa: BLE001 - psd-tools raises many kinds on a broken file
+        size, needs = source.stat().st_size, _psd_layers_end(source)
+        if needs is not None and size < needs:
+            raise ValueError(f"{source}: the file is cut short ({size:,} bytes, where its layers "
+                             f"need {needs:,}: a copy or download that did not finish?); copy it "
+                             "again, or save it again from the painting app") from None
         reason = " ".join(str(err).split()) or type(err).__name__
         raise ValueError(f"{source}: not a readable PSD file ({reason}); save it again from "
                          "the painting app as a Photoshop document (RGB, 8 bits)") from None
@@ -266,6 +271,27 @@ def _read_psd(source: Path) -> Picture:
         raise ValueError(f"{source}: the PSD has no pixel layers; add a layer with the picture "
                          "and save it again")
     return Picture(width, height, layers, notes)
+
+
+def _psd_layers_end(source: Path) -> int | None:
+    """Where a PSD's layer section ends by the lengths its sections declare (the header,
+    colour mode data, image resources, then layers and masks), or None where the file is
+    too short or odd to tell."""
+    try:
+        with open(source, "rb") as fh:
+            head = fh.read(26)
+            if len(head) < 26 or head[4:6] not in (b"\x00\x01", b"\x00\x02"):
+                return None
+            at = 26
+            for width in (4, 4, 8 if head[4:6] == b"\x00\x02" else 4):
+                fh.seek(at)
+                field = fh.read(width)
+                if len(field) < width:
+                    return at + width
+                at += width + int.from_bytes(field, "big")
+            return at
+    except OSError:
+        return None
 
 
 def _clipped(layer: Any) -> bool:

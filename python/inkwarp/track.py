@@ -143,6 +143,9 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | No
     stream = next((line for line in log.splitlines()
                    if re.search(r"Stream #.*: Video:", line)), None)
     if stream is None:
+        if re.search(r"Stream #.*: Audio:", log):  # a sound file, or a video's sound alone
+            raise ValueError(f"{name}: has sound but no video stream; give the video itself "
+                             "(any format ffmpeg decodes, such as an .mp4)")
         lines = [line.strip() for line in log.splitlines() if line.strip()
                  and "At least one output file" not in line]
         raise _unreadable(name, lines[-1] if lines else "ffmpeg found no video stream")
