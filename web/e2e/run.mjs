@@ -1376,10 +1376,19 @@ test("work restored in a tab whose link an earlier run gave stays its file's, an
     own.proc.kill();
     await new Promise((r) => own.proc.on('exit', r));
     own = await startServer([scenePath, '--port', port]);
+    // A save from the tab still open on the earlier run's link is refused (another token):
+    // the message says how the work gets back into its file.
+    const [copy] = await Promise.all([p.waitForEvent('download'), p.keyboard.press('Control+s')]);
+    await copy.delete();
+    const refused = await p.textContent('#message');
+    assert(/close this tab, then open \(or reload\) the URL the running inkwarp edit printed/.test(refused), `the way back: ${refused}`);
     // The tab reloaded on its old link (the earlier run's token: the file does not open), the
     // work restored there: a save cannot reach the file, but the kept copy still names it.
     await p.goto(stale);
     await p.waitForSelector('#restore', { timeout: 20000 });
+    const said = await p.textContent('#message');
+    assert(/link is not the running inkwarp edit's/.test(said), `a stale link is named so: ${said}`);
+    assert((await p.title()) === 'grid.json — inkwarp editor', `the example shown meanwhile is not named as the file: ${await p.title()}`);
     await restoreYes(p);
     await flush(p);
     // The new run's link: offered as the file's own, restored into it, saved to it.
@@ -2845,6 +2854,29 @@ test('a marquee on empty stage picks the control points inside (Shift adds); pic
   const keys = await page.evaluate(() => Object.fromEntries(window.inkwarp.store.doc.features.map((f) => [f.id, f.keys?.map((k) => k.points) ?? null])));
   assert(keys.bar && near(keys.bar[0], [[110, 125], [160, 125], [200, 120]]) && keys.pin === null, `a key on the bar only, every point 20 px down: ${JSON.stringify(keys)}`);
   await page.evaluate(() => window.inkwarp.ui.setMode('rest'));
+});
+
+test('a feature selected shows its timeline row, wherever the rows are scrolled', async () => {
+  const { page: p, context, errors: errs } = await openEditor(browser, server.url);
+  try {
+    // More rows than the timeline shows; the last one traced, then the first selected.
+    await p.evaluate(() => window.inkwarp.store.edit((d) => ({ ...d, features: [...d.features,
+      ...Array.from({ length: 14 }, (_, i) => ({ id: `spot${i}`, kind: 'point', rest: [[20 + 10 * i, 40]] }))] })));
+    const shown = (id) => p.evaluate((id) => {
+      const box = document.querySelector('#tracks').getBoundingClientRect();
+      const row = [...document.querySelectorAll('#tracks .track-row')].find((r) => r.textContent.startsWith(id));
+      const b = row.getBoundingClientRect();
+      return b.top >= box.top - 1 && b.bottom <= box.bottom + 1;
+    }, id);
+    for (const id of ['spot13', 'pin1', 'spot7']) {
+      await p.evaluate((id) => window.inkwarp.store.setView({ selection: { feature: id, point: null } }), id);
+      await p.waitForTimeout(100);
+      assert(await shown(id), `${id}'s row is in view`);
+    }
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+  }
 });
 
 test('a marquee on the timeline picks the keys inside it, on every row it crosses (Shift adds)', async () => {

@@ -40,6 +40,8 @@ async function start(): Promise<void> {
   const params = new URLSearchParams(location.search);
   const sceneUrl = params.get('scene');
   const store = new Store(await builtinScene());
+  // Named as the examples menu names it: not a scene file's name while a file failed to open.
+  store.origin = state.downloadOrigin(`${examples.BUILTIN.name}.json`);
   const glCanvas = document.createElement('canvas');
   glCanvas.className = 'picture';
   const app = new App(engine, solver, glCanvas, store, drafts, ahead, full);
@@ -61,7 +63,9 @@ async function start(): Promise<void> {
       const path = header('X-Inkwarp-Path');
       if (path) served = { path, saveUrl: params.get('save') !== 'download' ? sceneUrl : null };
       if (!resp.ok) {
-        ui.message(text, 'error'); // the server's message names the file
+        // The server's message names the file (a stale link: what to open instead).
+        const stale = resp.status === 403 ? ' This page\'s link is not the running inkwarp edit\'s (an earlier run\'s, or one copied without its token): the built-in example is shown instead.' : '';
+        ui.message(text + stale, 'error');
       } else {
         named = path ?? sceneUrl;
         // The file it came from (its path on the machine `inkwarp edit` serves it from),

@@ -577,10 +577,17 @@ export class Ui {
         track.append(diamond);
       }
       track.append(h('span.playhead', { style: { left: pct(view.time) } }));
-      this.els.tracks.append(h('div.track-row', { class: f.id === view.selection.feature ? 'selected' : '' },
-        h('span.track-name', { onclick: () => this.store.setView({ selection: { feature: f.id, point: null } }) }, f.id), track));
+      const row = h('div.track-row', { class: f.id === view.selection.feature ? 'selected' : '' },
+        h('span.track-name', { onclick: () => this.store.setView({ selection: { feature: f.id, point: null } }) }, f.id), track);
+      this.els.tracks.append(row);
+      // A feature selected (on the stage, or just traced) shows its row, wherever the rows are scrolled.
+      if (f.id === view.selection.feature && f.id !== this.tracksSelected) row.scrollIntoView({ block: 'nearest' });
     }
+    this.tracksSelected = view.selection.feature;
   }
+
+  /** The feature selected when the timeline's rows were last built. */
+  private tracksSelected: string | null = null;
 
   /** The ready bar: a mark under every frame whose fields are solved (playback needs no solve there). */
   renderReady(): void {
@@ -781,7 +788,10 @@ export class Ui {
     }
     const { width, height } = this.app.frameSize;
     const what = `Preview (1/${f} picture, ${width}×${height})`;
-    const text = this.app.dragging || this.store.view.playing ? what : `${what} — settling…`;
+    // A scene written by hand (or by a script) keeps its own step, often none: say why it settles slowly.
+    const step = this.store.doc.solver?.grid_step ?? 1;
+    const slow = step < f ? ` (grid step ${step}: the full picture takes a while; Grid step ${f} settles as quickly as this preview)` : '';
+    const text = this.app.dragging || this.store.view.playing ? what : `${what} — settling…${slow}`;
     if (note.textContent !== text) note.textContent = text;
   }
 
@@ -1753,6 +1763,7 @@ export class Ui {
     const blob = () => new Blob([text], { type: 'application/json' });
     if (origin.saveUrl) {
       const where = origin.path ?? origin.fileName;
+      let stale = false;
       try {
         // The file this tab opened goes with the save: a server restarted on the same port
         // with another scene refuses it instead of taking this scene into that file.
@@ -1771,13 +1782,16 @@ export class Ui {
           }
           resp = await put('*');
         }
+        if (resp.status === 403) stale = true; // a restarted `inkwarp edit` has another token
         if (!resp.ok) throw new Error(await resp.text());
         this.store.fileSaved(origin, resp.headers.get('ETag'), revision);
         const saved = resp.headers.get('X-Inkwarp-Path');
         this.message(`Saved to ${saved === null ? where : decodeURIComponent(saved)}.`, 'info');
       } catch (err) {
         download(blob(), origin.fileName);
-        this.message(`Could not save to ${where} (${(err as Error).message}). Your changes are kept in this browser, unsaved; a copy was downloaded as ${origin.fileName}.`, 'error');
+        // The page a restarted server opens offers this tab's kept changes once this tab is closed.
+        const next = stale ? ' To save into the file, close this tab, then open (or reload) the URL the running inkwarp edit printed: it offers these changes.' : '';
+        this.message(`Could not save to ${where} (${(err as Error).message}). Your changes are kept in this browser, unsaved; a copy was downloaded as ${origin.fileName}.${next}`, 'error');
       }
       return;
     }
