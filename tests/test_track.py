@@ -216,26 +216,65 @@ def test_a_covered_spot_and_one_leaving_the_picture_are_lost_and_the_spot_found_
     assert np.abs(spot[seen] - truth[seen]).max() < 0.5, np.abs(spot - truth).max(axis=1)
 
 
-def test_a_correction_where_a_flat_box_covers_the_point_spoils_no_frame_tracked_well(tmp_path):
+@pytest.mark.parametrize("kind", ["point", "spline"])
+def test_a_correction_where_a_flat_box_covers_the_point_spoils_no_frame_tracked_well(tmp_path, kind):
     # The guide's advice for a covered point: key it where it belongs. On a flat box the
     # tracker has nothing to follow from that key; its track drifted, and was blended into
     # frames tracked well before the box and used alone after it (tens of px off, unnamed).
+    # A curve's points run off under the box were confirmed there: the backward check
+    # started from the very place it was to come back to.
     slide = lambda p, k: p + [3.0 * max(0, k - 11), 0.0]  # noqa: E731
     motion = sv.Motion("slide", slide, lambda p, k: p - [3.0 * max(0, k - 11), 0.0])
     frames = sv.render(sv.picture(W, H, seed=5), motion, FRAMES)
     for k in range(3, 9):
         frames[k][30:70, 20:60] = 128
     video = sv.write_mp4(tmp_path / "covered.mp4", frames)
-    features = [{"id": "spot", "kind": "point", "rest": [[40.0, 50.0]],
-                 "keys": [{"t": 5 / 24, "points": [[40.0, 50.0]]}]},
+    rest = np.array([[40.0, 50.0]] if kind == "point" else [[30.0, 45.0], [40.0, 52.0], [50.0, 45.0]])
+    features = [{"id": "spot", "kind": kind, "rest": rest.tolist(), "keys": [{"t": 5 / 24, "points": rest.tolist()}]},
                 {"id": "seen", "kind": "spline", "rest": [[30.0, 95.0], [50.0, 105.0], [70.0, 92.0]]}]
-    truth = np.array([slide(np.array([40.0, 50.0]), k) for k in range(FRAMES)])
+    truth = np.array([slide(rest, k) for k in range(FRAMES)])
     doc, said = tracked_saying(video, sv.scene(W, H, features))
-    assert any("'spot' at frames 3-4, 6-8;" in text for text in said), said
-    spot = np.array([k["points"][0] for k in doc["features"][0]["keys"]])
+    spot = np.array([k["points"] for k in doc["features"][0]["keys"]])
+    off = np.linalg.norm(spot - truth, axis=2).max(axis=1)
+    lost = lost_frames(said, "spot")
+    assert all(k in lost for k in range(FRAMES) if off[k] > 2.0), (sorted(lost), off.round(1))
+    assert lost <= set(range(3, 9)) - {5}, sorted(lost)
     seen = [k for k in range(FRAMES) if not 3 <= k <= 8]
-    assert np.abs(spot[seen] - truth[seen]).max() < 0.5, np.abs(spot - truth).max(axis=1)
-    assert spot[5].tolist() == [40.0, 50.0]
+    assert off[seen].max() < 0.5, off.round(2)
+    assert spot[5].tolist() == rest.tolist()
+
+
+def test_a_correction_of_a_point_on_no_texture_is_eased_into(tmp_path):
+    # A point on flat skin follows the points around it; its corrections are what moves it,
+    # so one on flat picture is eased into like any other, not held to its own frame.
+    motion = sv.translate()
+    frames = sv.render(sv.picture(W, H, seed=5, flat=(45, 35, 115, 95)), motion, FRAMES)
+    video = sv.write_mp4(tmp_path / "flat.mp4", frames)
+    key = motion.forward(np.array([80.0, 65.0]), 12) + [0.0, 6.0]
+    features = [{"id": "cheek", "kind": "point", "rest": [[80.0, 65.0]], "keys": [{"t": 12 / 24, "points": [key.tolist()]}]},
+                *({"id": name, "kind": "point", "rest": [at]} for name, at in
+                  [("eye", [20.0, 20.0]), ("mouth", [140.0, 100.0]), ("ear", [20.0, 100.0]), ("nose", [140.0, 20.0])])]
+    doc, _ = tracked_saying(video, sv.scene(W, H, features))
+    cheek = np.array([k["points"][0] for k in doc["features"][0]["keys"]])
+    below = np.array([cheek[k, 1] - motion.forward(np.array([80.0, 65.0]), k)[1] for k in range(FRAMES)])
+    assert below[12] == pytest.approx(6.0, abs=1e-3)
+    assert (below[8:12] > 2.0).all() and (below[13:17] > 2.0).all(), below.round(2)
+
+
+def test_a_point_near_the_edge_covered_for_a_while_is_found_again(tmp_path):
+    # Its window reached past the picture's edge where traced: once lost it could never be
+    # confirmed again (a window wholly on the picture asked of it), named lost to the end.
+    frames = sv.render(sv.picture(W, H, seed=5), sv.translate(0.0, 0.0), FRAMES)
+    for k in range(8, 13):
+        frames[k][40:80, 0:30] = 128
+    video = sv.write_mp4(tmp_path / "edge.mp4", frames)
+    features = [{"id": "rim", "kind": "point", "rest": [[5.0, 60.0]]},
+                *({"id": name, "kind": "point", "rest": [at]} for name, at in
+                  [("eye", [80.0, 60.0]), ("a", [120.0, 20.0]), ("b", [120.0, 100.0])])]
+    doc, said = tracked_saying(video, sv.scene(W, H, features))
+    assert lost_frames(said, "rim") == set(range(8, 13)), said
+    rim = np.array([k["points"][0] for k in doc["features"][0]["keys"]])
+    assert np.abs(rim[13:] - [5.0, 60.0]).max() < 0.1
 
 
 def lost_frames(said: list[str], fid: str) -> set[int]:

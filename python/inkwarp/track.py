@@ -312,7 +312,9 @@ class _Tracker:
         """LK from ``a`` to ``b`` and back: the positions in ``b`` and the forward-backward
         error (inf where LK failed)."""
         fwd, ok1 = self._lk(a, b, pts, guess)
-        back, ok2 = self._lk(b, a, fwd, pts)
+        # Back from where the forward guess's move implies, not from the start itself: started
+        # there, a track run off under a flat cover "came back" by construction.
+        back, ok2 = self._lk(b, a, fwd, fwd - (guess - pts))
         fb = np.linalg.norm(back - pts, axis=1)
         fb[~(ok1 & ok2) | ~np.isfinite(fb)] = np.inf
         return fwd, fb
@@ -364,6 +366,8 @@ class _Tracker:
         template = self.frames[anchor]
         eig0 = _bilinear(self.min_eig(anchor)[..., None], start_points)[:, 0]
         textured_at_anchor = eig0 > TRUST_MIN_EIG
+        # Points whose window reached past the picture's edge where traced (see `whole` below).
+        near_edge = _off_picture(start_points, w, h, -LK_WINDOW_PX / 2)
         current = start_points.copy()
         # Where each point was last confirmed: a lost point is looked for there again.
         last_seen = start_points.copy()
@@ -462,7 +466,7 @@ class _Tracker:
             # Kanade trusts, with its whole window on the picture: one leaving it matches what
             # is left of its texture at the edge (border pixels repeated), or an edge beside
             # it, well enough to pass the looser checks, far from where it went.
-            whole = ~_off_picture(best, w, h, -LK_WINDOW_PX / 2)
+            whole = ~_off_picture(best, w, h, -LK_WINDOW_PX / 2) | near_edge
             again = (use_anchor | regained) & whole
             confirmed = textured_now & inside & (checked <= lost_px) & (~lost | again)
             lost = textured_at_anchor & ~confirmed
@@ -691,8 +695,10 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     # nothing there for the tracker to follow. The key holds still around its frame,
     # unchecked, and the feature's other anchors track on past it (reaching the frames
     # where the feature shows again).
+    # (A feature on no texture where traced is followed by the points around it everywhere: its
+    # corrections are what moves it, and are kept as any correction is.)
     blind_at = {f.id: {a for a, pose in f.keys.items() if a != frame and _untextured(tracker, a, f, pose)}
-                for f in features}
+                if f.keys and not _untextured(tracker, frame, f, f.rest) else set() for f in features}
     union = sorted({k for a in anchors_of.values() for k in a})
     ranges: dict[int, tuple[int, int]] = {}
     for f in features:
@@ -837,8 +843,11 @@ def _blend(tracks: dict, anchors: Sequence[int], f: _Feature, k: int, lost_px: f
 
     parts = around(anchors)
     held = [a for _, a in parts if holds(a)]
-    if not held:
-        held = [a for _, a in around([a for a in anchors if a not in blind]) if holds(a)]
+    if not held and blind:
+        seeing = around([a for a in anchors if a not in blind])
+        held = [a for _, a in seeing if holds(a)]
+        if held and len(held) == len(seeing):
+            parts = seeing  # both hold: blended as any two anchors are
     if held and held != [a for _, a in parts]:
         parts = [(1.0, held[0])]
     pose = np.zeros((n, 2))
