@@ -390,6 +390,33 @@ def test_a_layer_clipped_to_the_one_below_is_cut_to_its_shape(tmp_path):
     assert np.abs(scene.render().astype(int) - psd_composite(tmp_path / "c.psd"))[solid].max() <= 2
 
 
+def test_a_hidden_layer_of_a_base_group_does_not_shape_what_is_clipped_to_it(tmp_path):
+    from psd_tools import PSDImage
+    from psd_tools.api.layers import Group, PixelLayer
+
+    from inkwarp.importing import read_picture
+
+    psd = PSDImage.new("RGB", (40, 30))
+    psd.append(PixelLayer.frompil(Image.new("RGBA", (40, 30), (255, 255, 255, 255)), psd, "paper", 0, 0))
+    small = PixelLayer.frompil(Image.new("RGBA", (10, 10), (200, 0, 0, 255)), psd, "small", 5, 5)
+    sketch = PixelLayer.frompil(Image.new("RGBA", (40, 30), (0, 200, 0, 255)), psd, "old sketch", 0, 0)
+    psd.append(small)
+    psd.append(sketch)
+    Group.group_layers(psd, [small, sketch], name="body")
+    sketch.visible = False
+    shade = PixelLayer.frompil(Image.new("RGBA", (40, 30), (0, 0, 200, 255)), psd, "shade", 0, 0)
+    psd.append(shade)
+    shade.clipping = True
+    psd.save(tmp_path / "h.psd")
+    picture = read_picture(tmp_path / "h.psd")
+    assert any("layer 'shade' is clipped to 'body'" in note for note in picture.notes), picture.notes
+    shade_alpha = next(layer.image[..., 3] for layer in picture.layers if layer.name == "shade")
+    assert (shade_alpha > 0).sum() == 100 and (shade_alpha[5:15, 5:15] == 255).all()
+    with pytest.warns(inkwarp.InkwarpWarning):
+        scene = inkwarp.Scene.new(tmp_path / "h.psd")
+    assert np.abs(scene.render().astype(int) - psd_composite(tmp_path / "h.psd")).max() <= 2
+
+
 def test_layer_names_that_share_a_file_name_or_are_long_each_get_an_image(capsys, tmp_path):
     """Layer names are free text: "a b" and "a-b" share a slug (this once looped forever
     when a third layer's fallback name was taken too), case-insensitive file systems take

@@ -306,7 +306,10 @@ def _clip(clipped: list[PictureLayer], base: list[PictureLayer]) -> None:
     if not clipped:
         return
     clear = np.ones(clipped[0].image.shape[:2])
-    for layer in base:
+    # A hidden layer of a base group shapes nothing (all of a hidden base's do: shown again,
+    # it shapes what is clipped to it).
+    shown = [layer for layer in base if layer.visible] or base
+    for layer in shown:
         clear *= 1.0 - layer.image[..., 3] / 255.0
     for layer in clipped:
         layer.image[..., 3] = np.round(layer.image[..., 3] * (1.0 - clear)).astype(np.uint8)
