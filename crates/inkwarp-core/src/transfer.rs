@@ -150,28 +150,68 @@ pub fn find_fold(source: &[TransferFeature], target: &[TransferFeature]) -> Resu
         }
     }
     Ok(worst.map(|(at, det)| {
-        let against = pairs.iter().find(|&&(si, ti)| runs_against(&source[si], &target[ti], linear));
+        // The feature that runs against the affine map of all the others, where leaving it out
+        // fits those others best: the whole map's linear part is bent by the reversed
+        // feature itself, and may make a correct one seem reversed.
+        let against = pairs
+            .iter()
+            .filter(|&&(si, _)| source[si].rest.len() >= 2)
+            .filter_map(|&(si, ti)| {
+                let others = pairs.iter().filter(|&&(sj, _)| sj != si).flat_map(|&(sj, tj)| source[sj].rest.iter().zip(&target[tj].rest));
+                least_squares_affine(others).map(|(lin, misfit)| (misfit, si, ti, lin))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .filter(|&(_, si, ti, lin)| runs_against(&source[si], &target[ti], lin).is_some_and(|c| c < 0.0))
+            .or_else(|| pairs.iter().find(|&&(si, ti)| runs_against(&source[si], &target[ti], linear).is_some_and(|c| c < 0.0)).map(|&(si, ti)| (0.0, si, ti, linear)))
+            .map(|(_, si, _, _)| si);
         let nearest = || {
             let near = points.iter().min_by(|a, b| dist(a.0, at).total_cmp(&dist(b.0, at)));
             near.map(|&(_, si)| source[si].id.clone()).unwrap_or_default()
         };
-        let feature = against.map_or_else(nearest, |&(si, _)| source[si].id.clone());
+        let feature = against.map_or_else(nearest, |si| source[si].id.clone());
         Fold { at, det, feature }
     }))
 }
 
-/// Whether the target's feature runs the other way from the source's, carried by the
-/// linear map `linear`: its first-to-last direction turned by more than a right angle
-/// (which is what listing the control points in reverse order does).
-fn runs_against(source: &TransferFeature, target: &TransferFeature, linear: [[f64; 2]; 2]) -> bool {
+/// The cosine between the target feature's first-to-last direction and the source's carried
+/// by the linear map `linear` (below 0: turned by more than a right angle, which is what
+/// listing the control points in reverse order does); none for a single point.
+fn runs_against(source: &TransferFeature, target: &TransferFeature, linear: [[f64; 2]; 2]) -> Option<f64> {
     let (s, t) = (&source.rest, &target.rest);
     if s.len() < 2 || t.len() != s.len() {
-        return false;
+        return None;
     }
     let v = [s[s.len() - 1][0] - s[0][0], s[s.len() - 1][1] - s[0][1]];
     let ds = [linear[0][0] * v[0] + linear[0][1] * v[1], linear[1][0] * v[0] + linear[1][1] * v[1]];
     let dt = [t[t.len() - 1][0] - t[0][0], t[t.len() - 1][1] - t[0][1]];
-    ds[0] * dt[0] + ds[1] * dt[1] < 0.0
+    let norms = (ds[0].hypot(ds[1]) * dt[0].hypot(dt[1])).max(f64::MIN_POSITIVE);
+    Some((ds[0] * dt[0] + ds[1] * dt[1]) / norms)
+}
+
+/// The linear part of the least-squares affine map taking each pair's first point to its
+/// second, and its mean squared misfit; none where the first points lie on one line.
+fn least_squares_affine<'a>(pairs: impl Iterator<Item = (&'a Point, &'a Point)>) -> Option<([[f64; 2]; 2], f64)> {
+    let pairs: Vec<_> = pairs.collect();
+    let n = pairs.len() as f64;
+    let mean = pairs.iter().fold([0.0; 2], |m, (p, _)| [m[0] + p[0] / n, m[1] + p[1] / n]);
+    let c = pairs.iter().fold([0.0; 3], |c, (p, _)| {
+        let d = [p[0] - mean[0], p[1] - mean[1]];
+        [c[0] + d[0] * d[0], c[1] + d[1] * d[1], c[2] + d[0] * d[1]]
+    });
+    if !(c[0] * c[1] - c[2] * c[2] > 1e-9 * (c[0] + c[1]).powi(2)) {
+        return None; // on one line (or none): no linear map to tell
+    }
+    let (mut m, mut rhs) = (vec![vec![0.0; 3]; 3], vec![[0.0; 2]; 3]);
+    for (p, q) in &pairs {
+        let b = [1.0, p[0], p[1]];
+        for r in 0..3 {
+            m[r].iter_mut().zip(b).for_each(|(m, c)| *m += b[r] * c);
+            rhs[r] = [rhs[r][0] + b[r] * q[0], rhs[r][1] + b[r] * q[1]];
+        }
+    }
+    let a = crate::solve::dense_solve(m, rhs)?;
+    let misfit = pairs.iter().map(|(p, q)| (0..2).map(|k| (a[0][k] + a[1][k] * p[0] + a[2][k] * p[1] - q[k]).powi(2)).sum::<f64>()).sum::<f64>() / n;
+    Some(([[a[1][0], a[2][0]], [a[1][1], a[2][1]]], misfit))
 }
 
 /// The target's new keys: for each target feature (in order), `Some(keys)` with every
@@ -285,6 +325,32 @@ mod tests {
             .unwrap_err()
             .to_string()
             .starts_with("Feature \"mouth\" has 3 rest control points in the source (features[1].rest) but 4 in the target"));
+    }
+
+    #[test]
+    fn the_reversed_feature_is_named_even_where_it_bends_the_whole_map() {
+        // Two long features across the face: the one reversed bends the map's affine part
+        // enough to make the other seem reversed against it; the others' fit without it does not.
+        let source = vec![
+            feat("nose", Kind::Point, vec![[100.0, 100.0]], vec![]),
+            feat("brow", Kind::Spline, vec![[60.0, 60.0], [100.0, 50.0], [140.0, 60.0]], vec![]),
+            feat("mouth", Kind::Polyline, vec![[70.0, 150.0], [100.0, 160.0], [130.0, 150.0]], vec![]),
+            feat("eye", Kind::Region, vec![[80.0, 80.0], [90.0, 75.0], [100.0, 80.0], [90.0, 85.0]], vec![]),
+            feat("chin", Kind::Point, vec![[100.0, 185.0]], vec![]),
+        ];
+        let wider = |id: &str, p: &Point| if id == "eye" { [2.0 * p[0] - 30.0, 1.6 * p[1] - 58.0] } else { [1.5 * p[0] + 30.0, 0.9 * p[1] + 2.0] };
+        for reversed in ["brow", "mouth"] {
+            let target: Vec<TransferFeature> = source
+                .iter()
+                .map(|f| {
+                    let mut rest: Vec<Point> = f.rest.iter().map(|p| wider(&f.id, p)).collect();
+                    if f.id == reversed { rest.reverse() }
+                    TransferFeature { rest, ..f.clone() }
+                })
+                .collect();
+            let fold = find_fold(&source, &target).unwrap().expect("a reversed feature folds the map");
+            assert_eq!(fold.feature, reversed);
+        }
     }
 
     #[test]
