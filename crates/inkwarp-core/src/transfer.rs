@@ -198,7 +198,8 @@ fn least_squares_affine<'a>(pairs: impl Iterator<Item = (&'a Point, &'a Point)>)
         let d = [p[0] - mean[0], p[1] - mean[1]];
         [c[0] + d[0] * d[0], c[1] + d[1] * d[1], c[2] + d[0] * d[1]]
     });
-    if !(c[0] * c[1] - c[2] * c[2] > 1e-9 * (c[0] + c[1]).powi(2)) {
+    let spread = c[0] * c[1] - c[2] * c[2];
+    if spread.is_nan() || spread <= 1e-9 * (c[0] + c[1]).powi(2) {
         return None; // on one line (or none): no linear map to tell
     }
     let (mut m, mut rhs) = (vec![vec![0.0; 3]; 3], vec![[0.0; 2]; 3]);
