@@ -46,6 +46,9 @@ pub(super) struct Layer<'a> {
     pub rgba: &'a [u8],
     /// `LINK_RIGHT | LINK_DOWN` bits of the grid links whose two ends are drawn.
     pub links: Vec<u8>,
+    /// The layer's offset on the canvas (a pixel the field leaves where it is sits at its
+    /// own coordinates plus this).
+    pub offset: V2,
 }
 
 /// One block: the (up to) four pixels around a unit square of the rest plane, corners
@@ -221,7 +224,7 @@ impl<'a> Layer<'a> {
                 lrow[x] = l;
             }
         });
-        Layer { w, h, px, py, rgba: &image.data, links }
+        Layer { w, h, px, py, rgba: &image.data, links, offset: [ox, oy] }
     }
 
     /// The canvas position of pixel `i` (NaN where it is not drawn).
@@ -291,6 +294,17 @@ impl<'a> Layer<'a> {
         }
     }
 
+    /// Whether pixel `(x, y)` and its drawn neighbours along the picture's edge through it
+    /// (a row's for a `horizontal` edge, else a column's) sit where they are at rest across it.
+    fn edge_still(&self, x: usize, y: usize, horizontal: bool) -> bool {
+        let (along, n) = if horizontal { (x, self.w) } else { (y, self.h) };
+        (along.saturating_sub(1)..(along + 2).min(n)).all(|a| {
+            let (px, py) = if horizontal { (a, y) } else { (x, a) };
+            let i = py * self.w + px;
+            !self.drawn(i) || if horizontal { self.py[i] == py as f32 + self.offset[1] } else { self.px[i] == px as f32 + self.offset[0] }
+        })
+    }
+
     /// The skirt points of a block that is not a complete quad.
     pub fn skirts(&self, b: &Block) -> Skirts {
         let mut s = Skirts { h: [[0.0; 2]; 4], v: [[0.0; 2]; 4], c: [[0.0; 2]; 4] };
@@ -303,18 +317,25 @@ impl<'a> Layer<'a> {
             let p = b.p[k];
             let h_side = if k < 2 { TOP } else { BOTTOM };
             let v_side = if k & 1 == 0 { LEFT } else { RIGHT };
-            let frame = (b.links & h_side == 0 || b.links & v_side == 0).then(|| self.frame(b.xy[k].0, b.xy[k].1));
+            let (x, y) = b.xy[k];
+            let frame = (b.links & h_side == 0 || b.links & v_side == 0).then(|| self.frame(x, y));
+            // Where the field does not move the picture's edge across itself (at a pixel and its
+            // neighbours along the edge), the edge pixel keeps its outer half-pixel: a held edge
+            // stays on the frame's edge however the picture inside it is squeezed (half the
+            // squeezed link inwards would pull it away).
+            let held_x = (if k & 1 == 0 { x + 1 == self.w } else { x == 0 }) && self.edge_still(x, y, false);
+            let held_y = (if k < 2 { y + 1 == self.h } else { y == 0 }) && self.edge_still(x, y, true);
             // The midpoint of the side towards corner `other` if it is a link, else half the
-            // frame's axis `e` that way.
-            let towards = |side: u8, other: usize, e: fn((V2, V2)) -> V2, sign: f32| {
+            // frame's axis `e` that way (the rest axis `rest` past a held edge).
+            let towards = |side: u8, other: usize, e: fn((V2, V2)) -> V2, sign: f32, held: bool, rest: V2| {
                 if b.links & side != 0 {
                     return mid(p, b.p[other]);
                 }
-                let e = e(frame.expect("frame computed for a missing side"));
+                let e = if held { rest } else { e(frame.expect("frame computed for a missing side")) };
                 [p[0] + sign * e[0], p[1] + sign * e[1]]
             };
-            s.h[k] = towards(h_side, k ^ 1, |f| f.0, if k & 1 == 0 { 0.5 } else { -0.5 });
-            s.v[k] = towards(v_side, k ^ 2, |f| f.1, if k < 2 { 0.5 } else { -0.5 });
+            s.h[k] = towards(h_side, k ^ 1, |f| f.0, if k & 1 == 0 { 0.5 } else { -0.5 }, held_x, [1.0, 0.0]);
+            s.v[k] = towards(v_side, k ^ 2, |f| f.1, if k < 2 { 0.5 } else { -0.5 }, held_y, [0.0, 1.0]);
             completion[k] = [s.h[k][0] + s.v[k][0] - p[0], s.h[k][1] + s.v[k][1] - p[1]];
         }
         for k in 0..4 {

@@ -271,6 +271,22 @@ fn identity_on_a_large_opaque_image_is_exact() {
 }
 
 #[test]
+fn a_held_edge_stays_on_the_frame_however_the_picture_is_squeezed_toward_it() {
+    // The picture pushed toward its held edges (the field vanishes on every edge pixel and
+    // squeezes the last rows and columns to 0.6 of a pixel): the outer half-pixel of
+    // an edge pixel was half the squeezed link, and the background showed along the edge.
+    let (w, h) = (24, 20);
+    let bump = |t: f64, n: f64| 0.4 * t * (1.0 - t / n);
+    let field = field_from(w, h, |x, y| [bump(x, (w - 1) as f64), bump(y, (h - 1) as f64)]);
+    assert!(field.dy[(h - 2) * w + 5] > 0.35 && field.dy[(h - 1) * w + 5] == 0.0 && field.dx[5 * w + w - 1] == 0.0);
+    let out = render(&solid(w, h, [10, 200, 30, 255]), &field, &Grid::new(w, h), w, h, [0.0, 0.0]);
+    assert!(out.data.chunks(4).all(|p| p[3] == 255), "the layer still covers the whole frame");
+    // A layer that moves keeps the rule it had: its edge goes with it.
+    let moved = render(&solid(w, h, [10, 200, 30, 255]), &constant_field(w, h, [0.0, -0.5]), &Grid::new(w, h), w, h, [0.0, 0.0]);
+    assert_eq!(moved.pixel(3, h - 1)[3], 128);
+}
+
+#[test]
 fn sine_warp_has_no_cracks() {
     let (w, h) = (64, 48);
     let image = opaque_noise(w, h, 3);
