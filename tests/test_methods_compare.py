@@ -188,27 +188,33 @@ def test_a_field_at_rest_is_drawn_flat_not_as_its_rounding(comparisons):
 
 def test_the_sheet_prints_the_notes_under_the_frames(comparisons):
     fig = inkwarp.comparison_sheet(comparisons[True])
-    labels = [ax.get_xlabel() for ax in fig.axes]
-    assert sum("ignores the continuity matte" in label.replace("\n", " ") for label in labels) == 3
+    texts = [t.get_text() for ax in fig.axes for t in ax.texts]
+    assert sum("ignores the continuity matte" in text.replace("\n", " ") for text in texts) == 3
 
 
-def test_long_notes_stay_clear_of_the_next_row(comparisons):
-    # Six lines of notes under a frame ran into the top of the next row's frame.
+def test_long_notes_stay_clear_of_the_next_row_and_every_panel_has_one_size(comparisons):
+    # Six lines of notes under a frame ran into the top of the next row's frame; a row with
+    # notes drew its panels larger than one without (the sheet compares them side by side).
     import dataclasses
 
     base = comparisons[True]
     notes = {m: [f"layer \"layer {k}\": a remark about this interpolant long enough to wrap onto a second line"
-                 for k in range(3)] for m in base.methods}
+                 for k in range(3)] if m != base.methods[1] else [] for m in base.methods}
     # Landscape frames, as a character's 320 × 256 picture.
     frames = {m: np.zeros((256, 320, 4), np.uint8) for m in base.methods}
     fields = {m: np.zeros((256, 320, 2), np.float32) for m in base.methods}
     fig = inkwarp.comparison_sheet(dataclasses.replace(base, notes=notes, frames=frames, fields=fields, drawing=[]))
     fig.canvas.draw()  # the layout is made when drawn
     renderer = fig.canvas.get_renderer()
-    frames = fig.axes[::2]
-    for above, below in zip(frames, frames[1:]):
-        label = above.xaxis.label.get_window_extent(renderer)
-        assert label.height > 0 and label.y0 > below.get_window_extent(renderer).y1, (label, below.get_window_extent(renderer))
+    panels = [ax for ax in fig.axes if ax.images]
+    sizes = {(round(ax.get_window_extent(renderer).width), round(ax.get_window_extent(renderer).height)) for ax in panels}
+    assert len(panels) == 2 * len(base.methods) and len(sizes) == 1, sizes
+    said = [t.get_window_extent(renderer) for ax in fig.axes for t in ax.texts]
+    assert len(said) == len(base.methods) - 1
+    for box in said:
+        assert box.height > 0
+        for panel in (ax.get_window_extent(renderer) for ax in panels):
+            assert box.y0 >= panel.y1 or box.y1 <= panel.y0, (box, panel)
 
 
 def test_a_thinning_note_and_the_cap_from_the_scene_file(tmp_path):

@@ -224,22 +224,28 @@ def comparison_sheet(
 
     if isinstance(dpi, bool) or not isinstance(dpi, (int, np.integer)) or not 10 <= dpi <= 600:
         raise ValueError(f"dpi must be a whole number from 10 to 600, got {dpi!r}; the default is 100")
-    rows = len(comparison.methods)
     # A surface under a hundredth of a pixel is drawn flat: scaled up, rounding (a field at
     # rest of 1e-14 px) filled the panel with speckle.
     largest = max((float(np.abs(comparison.fields[m][..., 0]).max()) for m in comparison.methods), default=0.0)
     limit = max(largest, FLAT_PX)
     # The interpolants' remarks (an ignored matte, a thinning) go under their frames: each
     # row is taller by its lines of them (about 0.11 in each at 6.5 pt).
+    # A row of text of their own, so that every row's panels are drawn at one size.
     said = {m: "\n".join(textwrap.fill(n, 52) for n in comparison.notes.get(m, [])) for m in comparison.methods}
-    heights = [row_height + (0.11 * (said[m].count("\n") + 1) if said[m] else 0.0) for m in comparison.methods]
+    heights = [h for m in comparison.methods for h in ([row_height] + ([0.11 * (said[m].count("\n") + 1) + 0.05] if said[m] else []))]
     fig = Figure(figsize=(2 * row_height * 1.05 + 0.6, sum(heights) + 0.6), dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(rows, 2, squeeze=False, gridspec_kw={"height_ratios": heights})
+    grid = fig.add_gridspec(len(heights), 2, height_ratios=heights)
     levels = np.linspace(-limit, limit, 17)
+    at = 0
     for r, method in enumerate(comparison.methods):
         frame, dx = comparison.frames[method], comparison.fields[method][..., 0]
-        ax_img, ax_dx = axes[r]
+        ax_img, ax_dx = fig.add_subplot(grid[at, 0]), fig.add_subplot(grid[at, 1])
+        if said[method]:
+            ax_note = fig.add_subplot(grid[at + 1, :])
+            ax_note.axis("off")
+            ax_note.text(0.0, 1.0, said[method], fontsize=6.5, color="#7f3f00", va="top", ha="left", transform=ax_note.transAxes)
+        at += 2 if said[method] else 1
         ax_img.imshow(_checker_under(frame), interpolation="nearest")
         for poly in comparison.drawing:
             if len(poly) == 1:
@@ -249,8 +255,6 @@ def comparison_sheet(
         ax_img.set_xlim(-0.5, frame.shape[1] - 0.5)
         ax_img.set_ylim(frame.shape[0] - 0.5, -0.5)
         ax_img.set_ylabel(TITLES.get(method, method), fontsize=8)
-        if said[method]:
-            ax_img.set_xlabel(said[method], fontsize=6.5, color="#7f3f00", loc="left")
         flat = float(np.abs(dx).max()) < FLAT_PX
         ax_dx.imshow(_hillshade(np.zeros_like(dx) if flat else dx, limit), interpolation="nearest")
         if not flat:
