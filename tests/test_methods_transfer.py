@@ -288,6 +288,25 @@ def test_the_transferred_cat_shuts_its_eyes_at_the_blink():
     assert open_pixels(1.05) == (0, 0)
 
 
+@pytest.mark.parametrize("source_has, target_has, expect", [
+    (None, 1.0, 3.5 + 1 / 12),  # the source's last key (its length) outlasts the target's duration
+    (4.0, None, 4.0),
+    (4.0, 5.0, 5.0),
+    (None, None, None),  # neither says: the result ends at its last key too
+])
+def test_the_result_lasts_as_long_as_the_longer_scene(source_has, target_has, expect):
+    # A source with no duration of its own was cut to the target's shorter one, silently.
+    source = face_scene()
+    source["features"][0]["keys"].append({"t": 3.5, "points": [[60, 56]]})
+    target = retraced(source, lambda p: 1.1 * p)
+    for doc, has in ((source, source_has), (target, target_has)):
+        doc.pop("duration", None)
+        if has is not None:
+            doc["duration"] = has
+    result = inkwarp.transfer_dict(source, target)
+    assert result.get("duration") == (pytest.approx(expect) if expect is not None else None)
+
+
 def test_a_feature_traced_the_other_way_round_is_a_warning_naming_it():
     source = face_scene()
     target = retraced(source, lambda p: 1.1 * p)

@@ -14,8 +14,9 @@ Rules
 * The map is fitted to the rest control points of all matched features.
 * A matched target feature's keys are replaced by the source's, mapped (times and
   interpolation kept); target features the source lacks keep their own keys.
-* The result's ``duration`` is the longer of the two scenes'; everything else (size,
-  fps, layers, images, solver) is the target's.
+* The result's ``duration`` is the longer of the two scenes' (each its own, or up to and
+  including its last key where it gives none); everything else (size, fps, layers,
+  images, solver) is the target's.
 * When ``W`` folds the source's drawing over somewhere (its Jacobian turns the plane
   over, which a matched curve traced the other way round in one of the drawings does),
   an :class:`inkwarp.InkwarpWarning` says where and names the nearest feature: the keys
@@ -158,11 +159,21 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
             {**copy.deepcopy(k), "points": [[float(x), float(y)] for x, y in pts]}
             for k, pts in zip(src_keys, keys)
         ]
-    durations = [d.get("duration") for d in (src_doc, tgt_doc)]
-    if all(isinstance(d, (int, float)) for d in durations):
-        tgt_doc["duration"] = max(durations)
+    # The longer of the two lengths, each the scene's own or up to and including its last
+    # key (as `Scene.duration` reads it): a target's shorter duration cut the source's motion.
+    if any(isinstance(d.get("duration"), (int, float)) for d in (src_doc, tgt_doc)):
+        tgt_doc["duration"] = max(_length(src_doc), _length(tgt_doc))
     _rebase_images(tgt_doc, tgt_base, Path(relative_to).resolve() if relative_to is not None else None)
     return tgt_doc
+
+
+def _length(doc: dict[str, Any]) -> float:
+    """A scene document's length in seconds: its ``duration``, or up to and including its
+    last key."""
+    if isinstance(doc.get("duration"), (int, float)):
+        return float(doc["duration"])
+    last = max((float(k["t"]) for f in doc.get("features", []) for k in f.get("keys", [])), default=0.0)
+    return last + 1.0 / float(doc.get("fps", 24))
 
 
 def transfer(source: Any, target: Any) -> Any:
