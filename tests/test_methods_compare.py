@@ -281,6 +281,16 @@ def test_bad_settings_for_compare_are_scene_errors(tmp_path):
         inkwarp.compare(path, 1.0, "beier-neely", a=float("nan"))
 
 
+@pytest.mark.parametrize("time", [float("nan"), float("inf"), "1"])
+def test_a_time_that_is_no_time_is_refused_by_name_and_none_is_the_scenes_end(tmp_path, time):
+    # NaN and infinity were taken, and titled the sheet "t = nan s"; the default was 0, where
+    # `inkwarp compare` shows the scene's end.
+    path = checkerboard_scene(tmp_path, hole=True)
+    with pytest.raises(ValueError, match=r"time \(seconds\)"):
+        inkwarp.compare(path, time, "tps")
+    assert inkwarp.compare(path, methods="tps").time == inkwarp.Scene.load(path).duration
+
+
 @pytest.mark.parametrize("scene", [None, 5, {"inkwarp": 1}])
 def test_a_scene_that_is_neither_a_scene_nor_a_path_is_a_value_error(tmp_path, scene):
     with pytest.raises(ValueError, match=r"the scene must be an inkwarp\.Scene or the path of a scene file; got"):

@@ -172,6 +172,7 @@ def test_solves_run_in_parallel_threads():
         ({"mask": np.full(SHAPE, np.nan)}, "mask has NaN"),
         ({"cuts": [[[1, 1]]]}, r"cuts\[0\] has 1 point"),
         ({"cuts": np.zeros((3, 2))}, "wrap a single cut in a list"),
+        ({"cuts": [[0, 20], [60, 20]]}, "wrap a single cut in a list"),  # pointed at a reshape to one point
         ({"cuts": [[[1, 1], [np.nan, 2]]]}, r"cuts\[0\] has a value that is not a finite number"),
         ({"tension": -1.0}, "tension must be a finite number >= 0"),
         ({"tension": np.inf}, "tension must be a finite number >= 0"),

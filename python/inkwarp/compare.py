@@ -71,7 +71,7 @@ def _methods(methods: Iterable[str] | str | None) -> list[str]:
 
 def compare(
     scene: Any,
-    time: float = 0.0,
+    time: float | None = None,
     methods: Iterable[str] | str | None = None,
     *,
     layer: str | int | None = None,
@@ -86,8 +86,8 @@ def compare(
     ----------
     scene : inkwarp.Scene or path
         The scene (a path is loaded with :meth:`inkwarp.Scene.load`).
-    time : float
-        Seconds.
+    time : float, optional
+        Seconds (default: the scene's end, as ``inkwarp compare`` without ``--time``).
     methods : sequence of str or str, optional
         Methods to compare (a comma-separated string is accepted). Default: all of
         ``"tps"``, ``"tps-exact"``, ``"triangulation"``, ``"beier-neely"``.
@@ -132,6 +132,7 @@ def compare(
         scene = Scene.load(scene)
     elif not isinstance(scene, Scene):
         raise ValueError(f"the scene must be an inkwarp.Scene or the path of a scene file; got {type(scene).__name__}")
+    time = scene.duration if time is None else scene._time(time, None)  # NaN and past ±27 h refused by name
     chosen = _methods(methods)
     index = _compared_layer(scene, layer)
     settings = _settings(scene, a=a, b=b, p=p, max_samples=max_samples)

@@ -259,7 +259,11 @@ def _cuts(cuts: Any) -> list[np.ndarray]:
         polylines = False
     if not polylines:
         raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.")
-    if isinstance(cuts, np.ndarray) and cuts.ndim == 2:
+    try:  # one polyline given without the list around it (an array, or a list of pairs)
+        single = np.asarray(cuts, dtype=float).ndim == 2
+    except (TypeError, ValueError, OverflowError):  # ragged polylines, or a value said below by name
+        single = False
+    if single and len(cuts) > 0 and all(np.ndim(c) == 1 for c in cuts):
         raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")
     cut_list = []
     for k, cut in enumerate(cuts):

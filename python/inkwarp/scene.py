@@ -641,7 +641,8 @@ class Scene:
             raise ValueError(f"the scene has {len(names)} layers ({', '.join(names)}); choose one with layer=NAME")
         if isinstance(layer, (int, np.integer)) and not isinstance(layer, bool):
             if not 0 <= int(layer) < len(names):
-                raise ValueError(f"layer index {layer} is out of range; the scene has {len(names)} layers")
+                raise ValueError(f"layer index {layer} is out of range; the scene has {len(names)} "
+                                 f"layer{'s' if len(names) != 1 else ''}")
             return int(layer)
         if layer in names:
             return names.index(layer)
