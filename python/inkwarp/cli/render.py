@@ -213,8 +213,11 @@ def _run(args: argparse.Namespace) -> int:
                   f"{target} ({count - done} already there){where} in {seconds:.2f} s")
         else:
             also = f" and {paths[1]}" if kind == "sheet" else ""
+            size = _common.scene_size(scene)
+            if kind == "mp4" and (scene.width % 2 or scene.height % 2):  # H.264 wants even sides
+                size += f" padded to {scene.width + scene.width % 2}x{scene.height + scene.height % 2}"
             print(f"wrote {target}{also} ({count} frame{'s' if count != 1 else ''} "
-                  f"{start}:{stop}, {_common.scene_size(scene)}, {scene.fps:g} fps){where} in "
+                  f"{start}:{stop}, {size}, {scene.fps:g} fps){where} in "
                   f"{seconds:.2f} s ({count / max(seconds, 1e-9):.1f} frames/s)")
     return 0
 

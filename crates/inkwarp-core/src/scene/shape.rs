@@ -308,10 +308,16 @@ fn first_sentence(text: &str) -> String {
 }
 
 /// The candidate closest to `word` by edit distance, when it is close enough to be a typo.
-pub(crate) fn did_you_mean<'b>(word: &str, candidates: impl Iterator<Item = &'b str>) -> Option<&'b str> {
+pub(crate) fn did_you_mean<'b>(word: &str, candidates: impl Iterator<Item = &'b str> + Clone) -> Option<&'b str> {
+    // A drawing program's word for a kind first ("dot" is nearer "cut" by its letters).
+    const SYNONYMS: [(&str, &str); 10] = [("dot", "point"), ("pin", "point"), ("line", "polyline"), ("path", "polyline"),
+        ("curve", "spline"), ("bezier", "spline"), ("shape", "region"), ("area", "region"), ("polygon", "region"), ("tear", "cut")];
+    let word_l = word.to_lowercase();
+    if let Some(&(_, to)) = SYNONYMS.iter().find(|(from, _)| *from == word_l) {
+        if let Some(c) = candidates.clone().find(|c| *c == to) { return Some(c) }
+    }
     // Nearest first by the words without their separators ("easeinout" is "ease-in-out").
     let bare = |s: &str| s.to_lowercase().replace(['-', '_', ' '], "");
-    let word_l = word.to_lowercase();
     candidates
         .map(|c| (edit_distance(&word_l, &c.to_lowercase()), edit_distance(&bare(word), &bare(c)), c))
         .filter(|(d, _, c)| *d <= 2.max(c.len() / 3) && *d < c.len().max(word.len()))

@@ -1046,6 +1046,15 @@ fn a_layers_own_feature_list_is_named_by_its_full_path() {
 }
 
 #[test]
+fn a_drawing_programs_word_for_a_kind_is_suggested_as_that_kind() {
+    // "dot" is nearer "cut" by its letters than "point".
+    for (word, kind) in [("dot", "point"), ("curve", "spline"), ("line", "polyline"), ("shape", "region")] {
+        let text = problems_of(&with(valid_scene(), "/features/0/kind", json!(word))).join("\n");
+        assert!(text.contains(&format!("(did you mean \"{kind}\"?)")), "{text}");
+    }
+}
+
+#[test]
 fn a_name_written_without_its_hyphens_is_suggested() {
     let text = problems_of(&with(valid_scene(), "/features/0/keys/0/interpolation", json!("easeinout"))).join("\n");
     assert!(text.contains("(did you mean \"ease-in-out\"?)"), "{text}");
