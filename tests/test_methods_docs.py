@@ -10,7 +10,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.mark.parametrize("module", ["inkwarp.methods", "inkwarp.compare", "inkwarp.transfer"])
+@pytest.mark.parametrize("module", ["inkwarp.methods", "inkwarp.compare", "inkwarp.transfer", "inkwarp.outputs"])
 def test_docstring_examples_run(module):
     result = doctest.testmod(importlib.import_module(module))
     assert result.attempted > 0 and result.failed == 0

@@ -309,17 +309,26 @@ def check_ours(target: str | os.PathLike[str], ours: Callable[[dict[str, Any]], 
                      "remove the file first")
 
 
-def sheet_layout(count: int, spec: str | None, option: str = "--sprite-sheet") -> tuple[int, int]:
+def sheet_layout(count: int, spec: str | None, option: str = "--sprite-sheet",
+                 size: tuple[int, int] | None = None) -> tuple[int, int]:
     """``(columns, rows)`` of a sprite sheet for ``count`` frames: ``COLSxROWS``, ``COLS``
-    (rows as needed), or None for the squarest grid; a message names ``option``
-    (``"sprite_sheet"`` for Python's argument).
+    (rows as needed), or None for the squarest grid (of frames ``size = (width, height)``
+    where given: the sheet whose longer side is shortest, so the most frames fit the
+    engines' limit); a message names ``option`` (``"sprite_sheet"`` for Python's argument).
 
     Examples
     --------
     >>> sheet_layout(10, None), sheet_layout(10, "5"), sheet_layout(10, "2x5")
     ((4, 3), (5, 2), (2, 5))
+    >>> sheet_layout(1440, None, size=(451, 300))  # 38x38 made a sheet 17138 px wide
+    (31, 47)
     """
     if spec is None or spec == "auto":
+        if size is not None and count > 0:
+            width, height = size
+            side = lambda c: max(c * width, math.ceil(count / c) * height)  # noqa: E731
+            columns = min(range(1, count + 1), key=lambda c: (side(c), c * math.ceil(count / c), -c))
+            return columns, math.ceil(count / columns)
         columns = max(1, math.ceil(math.sqrt(count)))
         return columns, max(1, math.ceil(count / columns))
     from inkwarp.cli._common import given
@@ -356,10 +365,10 @@ class SpriteSheetWriter(FrameWriter):
     ``first_frame``."""
 
     def __init__(self, target: Path, fps: float, count: int, layout: str | None = None,
-                 first_frame: int = 0) -> None:
+                 first_frame: int = 0, size: tuple[int, int] | None = None) -> None:
         super().__init__(target, fps)
         self.count = count
-        self.columns, self.rows = sheet_layout(count, layout)
+        self.columns, self.rows = sheet_layout(count, layout, size=size)
         self.first_frame = first_frame
         self.json_path = target.with_suffix(".json")
         self._sheet: np.ndarray | None = None

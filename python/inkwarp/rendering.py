@@ -294,9 +294,10 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
                              "name the output sheet.png")
         layout = None if sprite_sheet is True else str(sprite_sheet)
         # A bad layout, or a sheet too big to load, fails before rendering.
-        outputs.check_sheet_size(*outputs.sheet_layout(stop - start, layout, "sprite_sheet"),
+        size = (scene.width, scene.height)
+        outputs.check_sheet_size(*outputs.sheet_layout(stop - start, layout, "sprite_sheet", size),
                                  scene.width, scene.height, layout, "sprite_sheet")
-        writer: Any = outputs.SpriteSheetWriter(target, scene.fps, stop - start, layout, start)
+        writer: Any = outputs.SpriteSheetWriter(target, scene.fps, stop - start, layout, start, size)
     elif kind == "png":
         raise ValueError(f"{target}: a .png holds one frame (save Scene.render(time=T) for one; "
                          "inkwarp render --time or --frame); render an animation to a .gif, "

@@ -197,8 +197,8 @@ def _run(args: argparse.Namespace) -> int:
                    if args.frames is not None else (0, scene.frame_count))
     if kind == "sheet":  # refused here in the command line's words, before rendering
         layout = None if args.sprite_sheet == "auto" else args.sprite_sheet
-        outputs.check_sheet_size(*outputs.sheet_layout(stop - start, layout), scene.width,
-                                 scene.height, layout)
+        outputs.check_sheet_size(*outputs.sheet_layout(stop - start, layout, size=(scene.width, scene.height)),
+                                 scene.width, scene.height, layout)
     # The output as given: a trailing / makes shot_v1.2/ a directory.
     paths = rendering.render(scene, args.output, frames=(start, stop), method=args.method,
                              sprite_sheet=args.sprite_sheet, skip_existing=args.skip_existing,
