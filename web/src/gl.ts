@@ -125,9 +125,14 @@ void main() {
   vec2 ey = dy ? pos(p + ivec2(0, 1)) - P : uy ? P - pos(p - ivec2(0, 1)) : vec2(0.0);
   if (ex == vec2(0.0)) ex = ey == vec2(0.0) ? vec2(1.0, 0.0) : vec2(ey.y, -ey.x);
   if (ey == vec2(0.0)) ey = vec2(-ex.y, ex.x);
-  vec2 q = P + 0.5 * (aCorner.x * sx * ex + aCorner.y * sy * ey) + uOffset;
   bool linkX = sx > 0.0 ? rx : lx;
   bool linkY = sy > 0.0 ? dy : uy;
+  // Past the picture's edge, a pixel near its rest place across it reaches out to the frame's
+  // edge (the CPU renderer's rule: a held edge stays on the frame however squeezed).
+  vec2 moved = abs(P - vec2(p));
+  if (!linkX && (p.x + int(sx) < 0 || p.x + int(sx) >= uSize.x) && ex.x > 0.0) ex.x = max(ex.x, clamp(1.0 - moved.x / 0.5, 0.0, 1.0));
+  if (!linkY && (p.y + int(sy) < 0 || p.y + int(sy) >= uSize.y) && ey.y > 0.0) ey.y = max(ey.y, clamp(1.0 - moved.y / 0.5, 0.0, 1.0));
+  vec2 q = P + 0.5 * (aCorner.x * sx * ex + aCorner.y * sy * ey) + uOffset;
   vec2 rest = vec2(p);
   vec2 far = rest + 0.5 * vec2(linkX ? sx : 0.0, linkY ? sy : 0.0);
   vRest = rest + 0.5 * vec2(aCorner.x * (linkX ? sx : 0.0), aCorner.y * (linkY ? sy : 0.0));

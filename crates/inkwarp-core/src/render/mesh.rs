@@ -31,6 +31,10 @@ pub(super) const SIMPLE: u8 = 0x20;
 /// Blocks per chunk of a block row in [`Plan::ranges`].
 pub(super) const CHUNK: usize = 32;
 
+/// The displacement across the picture's edge (px) over which an edge pixel's reach to the
+/// frame's edge fades out (see [`Layer::skirts`]).
+const EDGE_REST_PX: f32 = 0.5;
+
 /// A layer ready to be drawn: canvas positions, links, and the picture its premultiplied
 /// colours are read from (premultiplied as they are read, the runs of quads inside a piece
 /// a picture row at a time into a small cache of each band: a 4000 × 3000 layer would
@@ -294,17 +298,6 @@ impl<'a> Layer<'a> {
         }
     }
 
-    /// Whether pixel `(x, y)` and its drawn neighbours along the picture's edge through it
-    /// (a row's for a `horizontal` edge, else a column's) sit where they are at rest across it.
-    fn edge_still(&self, x: usize, y: usize, horizontal: bool) -> bool {
-        let (along, n) = if horizontal { (x, self.w) } else { (y, self.h) };
-        (along.saturating_sub(1)..(along + 2).min(n)).all(|a| {
-            let (px, py) = if horizontal { (a, y) } else { (x, a) };
-            let i = py * self.w + px;
-            !self.drawn(i) || if horizontal { self.py[i] == py as f32 + self.offset[1] } else { self.px[i] == px as f32 + self.offset[0] }
-        })
-    }
-
     /// The skirt points of a block that is not a complete quad.
     pub fn skirts(&self, b: &Block) -> Skirts {
         let mut s = Skirts { h: [[0.0; 2]; 4], v: [[0.0; 2]; 4], c: [[0.0; 2]; 4] };
@@ -319,23 +312,30 @@ impl<'a> Layer<'a> {
             let v_side = if k & 1 == 0 { LEFT } else { RIGHT };
             let (x, y) = b.xy[k];
             let frame = (b.links & h_side == 0 || b.links & v_side == 0).then(|| self.frame(x, y));
-            // Where the field does not move the picture's edge across itself (at a pixel and its
-            // neighbours along the edge), the edge pixel keeps its outer half-pixel: a held edge
-            // stays on the frame's edge however the picture inside it is squeezed (half the
-            // squeezed link inwards would pull it away).
-            let held_x = (if k & 1 == 0 { x + 1 == self.w } else { x == 0 }) && self.edge_still(x, y, false);
-            let held_y = (if k < 2 { y + 1 == self.h } else { y == 0 }) && self.edge_still(x, y, true);
+            // Past the picture's edge, an edge pixel near its rest place across the edge reaches
+            // out at least to the frame's edge: a held edge stays there however the picture
+            // inside it is squeezed (half the squeezed link would pull it away). The reach fades
+            // out over `EDGE_REST_PX` of displacement, so a moved edge keeps the plain rule.
+            let reach = |past: bool, a: usize, coord: usize| {
+                let moved = (p[a] - (coord as f32 + self.offset[a])).abs();
+                if past { (1.0 - moved / EDGE_REST_PX).clamp(0.0, 1.0) } else { 0.0 }
+            };
+            let (reach_x, reach_y) = (
+                reach(if k & 1 == 0 { x + 1 == self.w } else { x == 0 }, 0, x),
+                reach(if k < 2 { y + 1 == self.h } else { y == 0 }, 1, y),
+            );
             // The midpoint of the side towards corner `other` if it is a link, else half the
-            // frame's axis `e` that way (the rest axis `rest` past a held edge).
-            let towards = |side: u8, other: usize, e: fn((V2, V2)) -> V2, sign: f32, held: bool, rest: V2| {
+            // frame's axis `e` that way, its component `a` across the picture's edge at least `reach`.
+            let towards = |side: u8, other: usize, e: fn((V2, V2)) -> V2, sign: f32, a: usize, reach: f32| {
                 if b.links & side != 0 {
                     return mid(p, b.p[other]);
                 }
-                let e = if held { rest } else { e(frame.expect("frame computed for a missing side")) };
+                let mut e = e(frame.expect("frame computed for a missing side"));
+                if e[a] > 0.0 { e[a] = e[a].max(reach) } // (not where the picture is turned over there)
                 [p[0] + sign * e[0], p[1] + sign * e[1]]
             };
-            s.h[k] = towards(h_side, k ^ 1, |f| f.0, if k & 1 == 0 { 0.5 } else { -0.5 }, held_x, [1.0, 0.0]);
-            s.v[k] = towards(v_side, k ^ 2, |f| f.1, if k < 2 { 0.5 } else { -0.5 }, held_y, [0.0, 1.0]);
+            s.h[k] = towards(h_side, k ^ 1, |f| f.0, if k & 1 == 0 { 0.5 } else { -0.5 }, 0, reach_x);
+            s.v[k] = towards(v_side, k ^ 2, |f| f.1, if k < 2 { 0.5 } else { -0.5 }, 1, reach_y);
             completion[k] = [s.h[k][0] + s.v[k][0] - p[0], s.h[k][1] + s.v[k][1] - p[1]];
         }
         for k in 0..4 {

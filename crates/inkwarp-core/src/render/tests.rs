@@ -281,6 +281,10 @@ fn a_held_edge_stays_on_the_frame_however_the_picture_is_squeezed_toward_it() {
     assert!(field.dy[(h - 2) * w + 5] > 0.35 && field.dy[(h - 1) * w + 5] == 0.0 && field.dx[5 * w + w - 1] == 0.0);
     let out = render(&solid(w, h, [10, 200, 30, 255]), &field, &Grid::new(w, h), w, h, [0.0, 0.0]);
     assert!(out.data.chunks(4).all(|p| p[3] == 255), "the layer still covers the whole frame");
+    // Held to rounding only (an exact solve's 1e-13 px), and at an offset: the same.
+    let nudged = field_from(w, h, |x, y| [bump(x, (w - 1) as f64) + 1e-7, bump(y, (h - 1) as f64) - 1e-7]);
+    let out = render(&solid(w, h, [10, 200, 30, 255]), &nudged, &Grid::new(w, h), w + 6, h + 6, [3.0, 3.0]);
+    assert!((3..3 + h).all(|y| (3..3 + w).all(|x| out.pixel(x, y)[3] == 255)), "held to rounding, the layer covers its frame");
     // A layer that moves keeps the rule it had: its edge goes with it.
     let moved = render(&solid(w, h, [10, 200, 30, 255]), &constant_field(w, h, [0.0, -0.5]), &Grid::new(w, h), w, h, [0.0, 0.0]);
     assert_eq!(moved.pixel(3, h - 1)[3], 128);
