@@ -150,20 +150,23 @@ pub fn find_fold(source: &[TransferFeature], target: &[TransferFeature]) -> Resu
         }
     }
     Ok(worst.map(|(at, det)| {
-        // The feature that runs against the affine map of all the others, where leaving it out
-        // fits those others best: the whole map's linear part is bent by the reversed
+        // The feature that runs against the affine map of all the others, among those where
+        // leaving it out fits the others best by a map that keeps orientation (from four
+        // points: three fit any map): the whole map's linear part is bent by the reversed
         // feature itself, and may make a correct one seem reversed.
         let against = pairs
             .iter()
             .filter(|&&(si, _)| source[si].rest.len() >= 2)
             .filter_map(|&(si, ti)| {
-                let others = pairs.iter().filter(|&&(sj, _)| sj != si).flat_map(|&(sj, tj)| source[sj].rest.iter().zip(&target[tj].rest));
-                least_squares_affine(others).map(|(lin, misfit)| (misfit, si, ti, lin))
+                let others: Vec<_> = pairs.iter().filter(|&&(sj, _)| sj != si).flat_map(|&(sj, tj)| source[sj].rest.iter().zip(&target[tj].rest)).collect();
+                let (lin, misfit) = least_squares_affine(others.iter().copied()).filter(|_| others.len() >= 4)?;
+                let keeps = lin[0][0] * lin[1][1] - lin[0][1] * lin[1][0] > 0.0;
+                let turned = keeps && runs_against(&source[si], &target[ti], lin).is_some_and(|c| c < 0.0);
+                turned.then_some((misfit, si))
             })
             .min_by(|a, b| a.0.total_cmp(&b.0))
-            .filter(|&(_, si, ti, lin)| runs_against(&source[si], &target[ti], lin).is_some_and(|c| c < 0.0))
-            .or_else(|| pairs.iter().find(|&&(si, ti)| runs_against(&source[si], &target[ti], linear).is_some_and(|c| c < 0.0)).map(|&(si, ti)| (0.0, si, ti, linear)))
-            .map(|(_, si, _, _)| si);
+            .or_else(|| pairs.iter().find(|&&(si, ti)| runs_against(&source[si], &target[ti], linear).is_some_and(|c| c < 0.0)).map(|&(si, _)| (0.0, si)))
+            .map(|(_, si)| si);
         let nearest = || {
             let near = points.iter().min_by(|a, b| dist(a.0, at).total_cmp(&dist(b.0, at)));
             near.map(|&(_, si)| source[si].id.clone()).unwrap_or_default()
@@ -352,6 +355,18 @@ mod tests {
             let fold = find_fold(&source, &target).unwrap().expect("a reversed feature folds the map");
             assert_eq!(fold.feature, reversed);
         }
+        // Symmetric about the nose: the others without the mouth fit a mirror image exactly,
+        // by which the correct mouth runs against; only a map that keeps orientation counts.
+        let symmetric: Vec<TransferFeature> = source.iter().filter(|f| f.id != "eye").cloned().collect();
+        let target: Vec<TransferFeature> = symmetric
+            .iter()
+            .map(|f| {
+                let mut rest: Vec<Point> = f.rest.iter().map(|p| wider("", p)).collect();
+                if f.id == "brow" { rest.reverse() }
+                TransferFeature { rest, ..f.clone() }
+            })
+            .collect();
+        assert_eq!(find_fold(&symmetric, &target).unwrap().expect("a fold").feature, "brow");
     }
 
     #[test]
