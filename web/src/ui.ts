@@ -581,13 +581,21 @@ export class Ui {
         h('span.track-name', { onclick: () => this.store.setView({ selection: { feature: f.id, point: null } }) }, f.id), track);
       this.els.tracks.append(row);
       // A feature selected (on the stage, or just traced) shows its row, wherever the rows are scrolled.
-      if (f.id === view.selection.feature && f.id !== this.tracksSelected) row.scrollIntoView({ block: 'nearest' });
+      if (f.id === view.selection.feature && f.id !== this.tracksSelected) this.showRow(row);
     }
     this.tracksSelected = view.selection.feature;
   }
 
   /** The feature selected when the timeline's rows were last built. */
   private tracksSelected: string | null = null;
+
+  /** Scrolls the timeline's rows (only them, never the page) so that `row` shows. */
+  private showRow(row: HTMLElement): void {
+    const box = this.els.tracks;
+    const [r, b] = [row.getBoundingClientRect(), box.getBoundingClientRect()];
+    if (r.top < b.top) box.scrollTop -= b.top - r.top;
+    else if (r.bottom > b.bottom) box.scrollTop += r.bottom - b.bottom;
+  }
 
   /** The ready bar: a mark under every frame whose fields are solved (playback needs no solve there). */
   renderReady(): void {
