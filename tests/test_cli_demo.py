@@ -71,6 +71,21 @@ def test_an_example_renders_to_every_format_asked(capsys, tmp_path):
     assert "4 frames of 48x40 at 4 fps in" in stdout
 
 
+def test_each_progress_bar_is_named_by_what_it_writes(capsys, tmp_path):
+    # Two scenes of one folder were both "checkerboard-hole:" (and the transfer and rotoscope
+    # results, made in the demo's own folder, both "demo:").
+    from _cli_scenes import write_scene
+
+    examples = tmp_path / "examples"
+    write_scene(examples / "face")
+    for scene in demo.EXAMPLES["checkerboard-hole"]:
+        write_scene(examples / "checkerboard-hole", name=scene)
+    code, _, stderr = run(capsys, "demo", "-o", tmp_path / "out", "--only", "checkerboard-hole",
+                          "--examples", examples, "--formats", "gif")
+    assert code == 0
+    assert "checkerboard-hole-with-hole:" in stderr and "checkerboard-hole-without-hole:" in stderr, stderr
+
+
 @pytest.mark.parametrize("args, expected", [
     (["--formats", "webm"], "unknown format 'webm'"),
     (["--only", "face", "--examples", "{tmp}"], "no example scenes there"),

@@ -161,8 +161,10 @@ def render_example(scene_path: str | os.PathLike[str], targets: Sequence[Path], 
     started = time.perf_counter()
     with contextlib.ExitStack() as stack:
         writers = [stack.enter_context(video.open_writer(t, fps=scene.fps)) for t in targets]
+        # Named by what it writes: scenes made in one folder (the transfer and rotoscope
+        # results, the checkerboard with and without its hole) shared its name.
         frames = _common.progress(scene.frames(), count, quiet=quiet,
-                                  desc=Path(scene_path).parent.name)
+                                  desc=Path(targets[0]).stem if targets else Path(scene_path).stem)
         for frame in frames:
             for writer in writers:
                 writer.write(frame)
