@@ -547,11 +547,17 @@ def run(args: argparse.Namespace) -> int:
     print("Press Ctrl+C to stop.", flush=True)
     if not args.no_browser:
         threading.Thread(target=webbrowser.open, args=(url,), daemon=True).start()
+    # Served from a thread of its own while this one waits in short steps: Ctrl+C and SIGTERM
+    # then always reach the command (a rare SIGTERM left the server in its select, running).
+    serving = threading.Thread(target=server.serve_forever, name="inkwarp-edit-server", daemon=True)
+    serving.start()
     try:
-        server.serve_forever()
+        while serving.is_alive():
+            serving.join(0.5)
     except KeyboardInterrupt:
         pass
     finally:
+        server.shutdown()
         server.server_close()
     return 0
 
