@@ -163,6 +163,13 @@ def tracked_saying(video, scene, **options):
     return doc, [str(w.message) for w in caught if issubclass(w.category, InkwarpWarning)]
 
 
+def lost_frames(said: list[str], fid: str) -> set[int]:
+    """The frames a lost-track warning names for feature ``fid``."""
+    named = [m for text in said if "lost track" in text for m in re.findall(rf"'{fid}' at frames? ([\d ,-]+)", text)]
+    return {k for part in ",".join(named).split(",") if part.strip()
+            for a, _, b in [part.strip().partition("-")] for k in range(int(a), int(b or a) + 1)}
+
+
 def test_a_correction_names_no_frame_where_its_far_track_barely_counts():
     # The rotoscope example's outline corrected at frame 56 (its truth there): between the
     # traced frame 0 and the correction, the track from 56 strays a few pixels near frame 0,
@@ -176,9 +183,7 @@ def test_a_correction_names_no_frame_where_its_far_track_barely_counts():
     head = next(f for f in doc["features"] if f["id"] == "head")
     head["keys"] = [{"t": 56 / 24, "points": truth[56]}]
     tracked, said = tracked_saying(actor / "actor.mp4", doc, relative_to=actor)
-    named = [m for text in said if "lost track" in text for m in re.findall(r"'head' at frames? ([\d ,-]+)", text)]
-    frames = {k for part in ",".join(named).split(",") if part.strip()
-              for a, _, b in [part.strip().partition("-")] for k in range(int(a), int(b or a) + 1)}
+    frames = lost_frames(said, "head")
     keys = next(f for f in tracked["features"] if f["id"] == "head")["keys"]
     off = {round(key["t"] * 24): float(np.linalg.norm(np.subtract(key["points"], truth[round(key["t"] * 24)]), axis=1).max())
            for key in keys}
@@ -186,15 +191,26 @@ def test_a_correction_names_no_frame_where_its_far_track_barely_counts():
     assert all(off[k] > 1.5 for k in frames), {k: round(off[k], 2) for k in sorted(frames)}
 
 
-def test_a_covered_spot_and_one_leaving_the_picture_are_lost_and_the_spot_found_again(tmp_path):
-    # A flat grey box covers a textured spot on frames 3-8 of a still picture; from frame
-    # 12 the picture slides right, 3 px a frame, and a point near its right edge leaves it.
-    slide = lambda p, k: p + [3.0 * max(0, k - 11), 0.0]  # noqa: E731
+def slide(p, k):
+    """Where the covered video's picture puts rest point(s) ``p`` at frame ``k``: still, then
+    sliding right 3 px a frame from frame 12."""
+    return p + [3.0 * max(0, k - 11), 0.0]
+
+
+def covered_video(tmp_path):
+    """A textured picture, a flat grey box over (20..60, 30..70) on frames 3-8, then the
+    picture sliding right (`slide`)."""
     motion = sv.Motion("slide", slide, lambda p, k: p - [3.0 * max(0, k - 11), 0.0])
     frames = sv.render(sv.picture(W, H, seed=5), motion, FRAMES)
     for k in range(3, 9):
         frames[k][30:70, 20:60] = 128
-    video = sv.write_mp4(tmp_path / "covered.mp4", frames)
+    return sv.write_mp4(tmp_path / "covered.mp4", frames)
+
+
+def test_a_covered_spot_and_one_leaving_the_picture_are_lost_and_the_spot_found_again(tmp_path):
+    # A flat grey box covers a textured spot on frames 3-8 of a still picture; from frame
+    # 12 the picture slides right, 3 px a frame, and a point near its right edge leaves it.
+    video = covered_video(tmp_path)
     features = [{"id": "spot", "kind": "point", "rest": [[40.0, 50.0]]},
                 {"id": "edge", "kind": "point", "rest": [[150.0, 60.0]]},
                 {"id": "seen", "kind": "spline", "rest": [[30.0, 95.0], [50.0, 105.0], [70.0, 92.0]]}]
@@ -223,12 +239,7 @@ def test_a_correction_where_a_flat_box_covers_the_point_spoils_no_frame_tracked_
     # frames tracked well before the box and used alone after it (tens of px off, unnamed).
     # A curve's points run off under the box were confirmed there: the backward check
     # started from the very place it was to come back to.
-    slide = lambda p, k: p + [3.0 * max(0, k - 11), 0.0]  # noqa: E731
-    motion = sv.Motion("slide", slide, lambda p, k: p - [3.0 * max(0, k - 11), 0.0])
-    frames = sv.render(sv.picture(W, H, seed=5), motion, FRAMES)
-    for k in range(3, 9):
-        frames[k][30:70, 20:60] = 128
-    video = sv.write_mp4(tmp_path / "covered.mp4", frames)
+    video = covered_video(tmp_path)
     rest = np.array([[40.0, 50.0]] if kind == "point" else [[30.0, 45.0], [40.0, 52.0], [50.0, 45.0]])
     features = [{"id": "spot", "kind": kind, "rest": rest.tolist(), "keys": [{"t": 5 / 24, "points": rest.tolist()}]},
                 {"id": "seen", "kind": "spline", "rest": [[30.0, 95.0], [50.0, 105.0], [70.0, 92.0]]}]
@@ -275,13 +286,6 @@ def test_a_point_near_the_edge_covered_for_a_while_is_found_again(tmp_path):
     assert lost_frames(said, "rim") == set(range(8, 13)), said
     rim = np.array([k["points"][0] for k in doc["features"][0]["keys"]])
     assert np.abs(rim[13:] - [5.0, 60.0]).max() < 0.1
-
-
-def lost_frames(said: list[str], fid: str) -> set[int]:
-    """The frames a lost-track warning names for feature ``fid``."""
-    named = [m for text in said if "lost track" in text for m in re.findall(rf"'{fid}' at frames? ([\d ,-]+)", text)]
-    return {k for part in ",".join(named).split(",") if part.strip()
-            for a, _, b in [part.strip().partition("-")] for k in range(int(a), int(b or a) + 1)}
 
 
 @pytest.mark.parametrize("seed", [1, 6, 7])

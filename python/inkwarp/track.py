@@ -697,8 +697,9 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     # where the feature shows again).
     # (A feature on no texture where traced is followed by the points around it everywhere: its
     # corrections are what moves it, and are kept as any correction is.)
+    flat = {f.id for f in features if _untextured(tracker, frame, f, f.rest)}  # where traced
     blind_at = {f.id: {a for a, pose in f.keys.items() if a != frame and _untextured(tracker, a, f, pose)}
-                if f.keys and not _untextured(tracker, frame, f, f.rest) else set() for f in features}
+                if f.id not in flat else set() for f in features}
     union = sorted({k for a in anchors_of.values() for k in a})
     ranges: dict[int, tuple[int, int]] = {}
     for f in features:
@@ -751,9 +752,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     outside = {f.id for f in features if beside[f.rows].all()}
     partly = {f.id: int(beside[f.rows][:len(f.rest)].sum()) for f in features
               if f.id not in outside and beside[f.rows].any()}
-    eig = _bilinear(tracker.min_eig(frame)[..., None], at_k)[:, 0]
-    blind = [f.id for f in features
-             if f.id not in outside and np.mean(eig[f.rows][~beside[f.rows]] <= TRUST_MIN_EIG) > 0.5]
+    blind = [f.id for f in features if f.id not in outside and f.id in flat]
     lost: dict[str, list[int]] = {}
     for i, f in tracked:  # doc["features"][i] gets the keys
         series = np.empty((count, len(f.rest), 2))

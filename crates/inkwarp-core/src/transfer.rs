@@ -205,15 +205,7 @@ fn least_squares_affine<'a>(pairs: impl Iterator<Item = (&'a Point, &'a Point)>)
     if spread.is_nan() || spread <= 1e-9 * (c[0] + c[1]).powi(2) {
         return None; // on one line (or none): no linear map to tell
     }
-    let (mut m, mut rhs) = (vec![vec![0.0; 3]; 3], vec![[0.0; 2]; 3]);
-    for (p, q) in &pairs {
-        let b = [1.0, p[0], p[1]];
-        for r in 0..3 {
-            m[r].iter_mut().zip(b).for_each(|(m, c)| *m += b[r] * c);
-            rhs[r] = [rhs[r][0] + b[r] * q[0], rhs[r][1] + b[r] * q[1]];
-        }
-    }
-    let a = crate::solve::dense_solve(m, rhs)?;
+    let a = crate::solve::affine_least_squares(pairs.iter().map(|(p, q)| (**p, **q)))?;
     let misfit = pairs.iter().map(|(p, q)| (0..2).map(|k| (a[0][k] + a[1][k] * p[0] + a[2][k] * p[1] - q[k]).powi(2)).sum::<f64>()).sum::<f64>() / n;
     Some(([[a[1][0], a[2][0]], [a[1][1], a[2][1]]], misfit))
 }

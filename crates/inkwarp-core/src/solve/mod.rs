@@ -841,16 +841,7 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
     // Coordinates about the first constraint, for conditioning.
     let o = at(value.first()?.0);
     let rel = |j: usize| [at(j)[0] - o[0], at(j)[1] - o[1]];
-    let (mut m, mut rhs) = (vec![vec![0.0; 3]; 3], vec![[0.0; 2]; 3]);
-    for &(j, v) in value {
-        let [x, y] = rel(j);
-        let b = [1.0, x, y];
-        for r in 0..3 {
-            m[r].iter_mut().zip(b).for_each(|(m, c)| *m += b[r] * c);
-            rhs[r] = [rhs[r][0] + b[r] * v[0], rhs[r][1] + b[r] * v[1]];
-        }
-    }
-    let a = dense_solve(m, rhs)?;
+    let a = affine_least_squares(value.iter().map(|&(j, v)| (rel(j), v)))?;
     let map = move |[x, y]: [f64; 2]| [a[0][0] + a[1][0] * x + a[2][0] * y, a[0][1] + a[1][1] * x + a[2][1] * y];
     let scale = value.iter().fold(1.0f64, |s, (_, v)| s.max(v[0].abs()).max(v[1].abs()));
     let fits = value.iter().all(|&(j, v)| {
@@ -1106,6 +1097,20 @@ fn line_correction(grid: &Grid, labels: &[u32], piece: u32, a: [i64; 2], d: [i64
         v[at(x, y)][0] += c[0] * l;
         v[at(x, y)][1] += c[1] * l;
     }
+}
+
+/// The least-squares affine map `p ↦ a₀ + a₁ p.x + a₂ p.y` (each `aᵢ` a pair) taking each
+/// pair's point to its value, by the normal equations; none where they are singular.
+pub(crate) fn affine_least_squares(pairs: impl Iterator<Item = ([f64; 2], V2)>) -> Option<Vec<V2>> {
+    let (mut m, mut rhs) = (vec![vec![0.0; 3]; 3], vec![[0.0; 2]; 3]);
+    for (p, v) in pairs {
+        let b = [1.0, p[0], p[1]];
+        for r in 0..3 {
+            m[r].iter_mut().zip(b).for_each(|(m, c)| *m += b[r] * c);
+            rhs[r] = [rhs[r][0] + b[r] * v[0], rhs[r][1] + b[r] * v[1]];
+        }
+    }
+    dense_solve(m, rhs)
 }
 
 /// Gaussian elimination with partial pivoting for two right-hand sides.
