@@ -372,6 +372,64 @@ def test_a_video_cut_short_is_refused_not_tracked_as_a_shorter_clip(tmp_path, ca
     assert run(capsys, "frame", cut, "--frame", "1", "-o", tmp_path / "f.png")[0] == 0
 
 
+def test_a_variable_frame_rate_keeps_the_videos_timing_and_says_so(tmp_path, capsys):
+    # 40 frames, the first 20 at 50 fps and the rest at 12.5 fps (1.92 s). ffmpeg hands them
+    # on at the time base's 50 fps (100 frames) while the scene was timed at the average
+    # 21.98 fps: 4.55 s, the motion played 2.3 times slower, without a word.
+    import subprocess
+
+    import imageio_ffmpeg
+
+    vfr = tmp_path / "vfr.mp4"
+    subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-y", "-f", "lavfi", "-i",
+                    f"testsrc=size={W}x{H}:rate=50", "-frames:v", "40", "-vf",
+                    "setpts='if(lt(N,20),N*0.02,0.4+(N-20)*0.08)/TB'", "-fps_mode", "passthrough",
+                    "-c:v", "libx264", "-pix_fmt", "yuv420p", "-video_track_timescale", "1000", str(vfr)],
+                   check=True)
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(sv.scene(W, H, [{"id": "a", "kind": "point", "rest": [[60.0, 60.0]]}])))
+    code, _, err = run(capsys, "track", vfr, "--scene", scene, "-o", tmp_path / "out.json", "-q")
+    assert code == 0, err
+    assert "vfr.mp4: its frame rate varies (on average 21.98 fps); its frames are taken at an even 21.98" in err
+    assert "-fps_mode cfr -r 50 " in err, err
+    doc = json.loads((tmp_path / "out.json").read_text())
+    assert doc["fps"] == pytest.approx(21.98) and 1.9 <= doc["duration"] <= 2.1, (doc["fps"], doc["duration"])
+    assert len(doc["features"][0]["keys"]) == round(doc["duration"] * doc["fps"])
+    last = len(doc["features"][0]["keys"]) - 1
+    code, _, err = run(capsys, "frame", vfr, "--frame", str(last), "-o", tmp_path / "f.png")
+    assert code == 0 and "its frame rate varies" in err, err
+    # A constant rate says nothing.
+    whole = sv.write_mp4(tmp_path / "whole.mp4", sv.render(sv.picture(W, H, seed=5), sv.translate(), 4))
+    assert run(capsys, "frame", whole, "-o", tmp_path / "g.png")[2] == ""
+
+
+def test_a_video_decoded_with_errors_but_every_frame_is_named_damaged(tmp_path, capsys):
+    # Bytes in the middle of the stream flipped: ffmpeg decodes every frame, smeared, and
+    # prints its errors; frame and track took it without a word.
+    frames = sv.render(sv.picture(W, H, seed=5), sv.translate(), FRAMES)
+    data = bytearray(sv.write_mp4(tmp_path / "whole.mp4", frames).read_bytes())
+    rng = np.random.default_rng(1)
+    for at in rng.integers(len(data) // 3, len(data) * 2 // 3, 40):
+        data[at] ^= 0xFF
+    bad = tmp_path / "flipped.mp4"
+    bad.write_bytes(bytes(data))
+    code, _, err = run(capsys, "frame", bad, "--frame", str(FRAMES - 1), "-o", tmp_path / "f.png")
+    assert code == 0 and "flipped.mp4: ffmpeg found errors while decoding it (" in err, err
+    assert "some frames may be damaged" in err and " @ 0x" not in err, err
+
+
+def test_a_key_within_the_last_frames_span_is_that_frame(videos, tmp_path):
+    # 24 frames at 24 fps last 1 s; a key at 0.98 s (frame 23.5, rounded to 24) was refused
+    # as outside frames 0 to 23.
+    path, motion = videos["translate"]
+    rest = [60.0, 60.0]
+    key = (motion.forward(np.array(rest), 23) + [0.0, 3.0]).tolist()
+    features = [{"id": "a", "kind": "point", "rest": [rest], "keys": [{"t": 0.98, "points": [key]}]},
+                *({"id": f"b{i}", "kind": "point", "rest": [at]} for i, at in enumerate([[20.0, 20.0], [140.0, 100.0], [20.0, 100.0]]))]
+    doc, _ = tracked_saying(path, sv.scene(W, H, features))
+    assert doc["features"][0]["keys"][23]["points"][0] == pytest.approx(key, abs=1e-3)
+
+
 def test_a_flat_point_carried_off_the_picture_is_lost(tmp_path):
     # A textured square slides right, 4 px a frame, over a flat background that stays; a
     # point traced on the background follows the square's thin plate (nothing there to

@@ -48,6 +48,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import warnings
 from collections.abc import Callable, Container, Sequence
 from dataclasses import dataclass, field
@@ -124,9 +125,11 @@ def _unreadable(path: str, reason: str) -> ValueError:
                       "ffmpeg decodes, such as an .mp4")
 
 
-def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | None]:
-    """``(path, fps, width, height, frames)`` of a video (``frames``: as many as its header's
-    duration holds at that rate, None where it gives none), or a ValueError naming it."""
+def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | None, float | None]:
+    """``(path, fps, width, height, frames, variable)`` of a video (``frames``: as many as
+    its header's duration holds at that rate, None where it gives none; ``variable``: where
+    its frame rate varies, the rate of its time base, apart from its average ``fps``), or a
+    ValueError naming it."""
     import imageio_ffmpeg
 
     name = os.fspath(path)
@@ -134,7 +137,6 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | No
         raise FileNotFoundError(2, "No such file or directory", name)
     if os.path.isdir(name):
         raise IsADirectoryError(21, "is a directory, not a video", name)
-    import re
     import subprocess
 
     done = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-nostdin", "-hide_banner", "-i", name],
@@ -150,14 +152,20 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | No
                  and "At least one output file" not in line]
         raise _unreadable(name, lines[-1] if lines else "ffmpeg found no video stream")
     size = re.search(r", (\d+)x(\d+)[ ,]", stream)
-    rate = re.search(r", ([\d.]+) fps", stream) or re.search(r", ([\d.]+)k? tbr", stream)
+    average = re.search(r", ([\d.]+) fps", stream)
+    base = re.search(r", ([\d.]+)(k?) tbr", stream)
+    rate = average or base
     if size is None or rate is None or not float(rate.group(1)) > 0:
         raise _unreadable(name, "ffmpeg finds no frame size or frame rate in it")
     width, height, fps = int(size.group(1)), int(size.group(2)), float(rate.group(1))
+    # A time base's rate ("tbr") apart from the average: frames come at uneven times (a
+    # phone's variable frame rate), and ffmpeg would otherwise hand them on at that rate.
+    tbr = float(base.group(1)) * (1000 if base.group(2) else 1) if base else fps
+    variable = tbr if average is not None and abs(tbr - fps) > 0.01 * fps else None
     took = re.search(r"Duration: (\d+):(\d\d):(\d\d(?:\.\d+)?)", log)
     seconds = 3600 * int(took.group(1)) + 60 * int(took.group(2)) + float(took.group(3)) if took else None
     fps = _exact_rate(fps)
-    return name, fps, width, height, round(seconds * fps) if seconds else None
+    return name, fps, width, height, round(seconds * fps) if seconds else None, variable
 
 
 def _exact_rate(fps: float) -> float:
@@ -171,15 +179,19 @@ def _exact_rate(fps: float) -> float:
 
 
 def _decode(name: str, pix_fmt: str, *, frames: int | None = None, promised: int | None = None,
-            size: int = 1) -> bytes:
-    """Raw frames from ffmpeg (the first ``frames`` of them, or all). A file that decodes
-    with errors into fewer frames of ``size`` bytes than the ``promised`` ones (its header's)
-    is damaged or cut short: a ValueError naming it."""
+            size: int = 1, rate: float | None = None) -> bytes:
+    """Raw frames from ffmpeg (the first ``frames`` of them, or all; at an even ``rate``
+    where given, frames repeated or skipped to keep their times). A file that decodes with
+    errors into fewer frames of ``size`` bytes than the ``promised`` ones (its header's) is
+    damaged or cut short: a ValueError naming it; with errors but every frame, a warning."""
     import subprocess
+    from fractions import Fraction
 
     import imageio_ffmpeg
 
     cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-nostdin", "-v", "error", "-i", name]
+    if rate is not None:
+        cmd += ["-r", str(Fraction(rate).limit_denominator(1001))]
     if frames is not None:
         cmd += ["-frames:v", str(frames)]
     cmd += ["-f", "rawvideo", "-pix_fmt", pix_fmt, "-"]
@@ -192,7 +204,20 @@ def _decode(name: str, pix_fmt: str, *, frames: int | None = None, promised: int
         raise ValueError(f"{name}: damaged or cut short: ffmpeg decoded {len(done.stdout) // size} "
                          f"frames, with errors, of the {promised} its header gives ({said[0][:120]}); "
                          "copy or export the video again")
+    if said:
+        first = re.sub(r"^\[[^]]*@ 0x[0-9a-f]+\] *", "", said[0])[:120]  # its decoder's address left out
+        warnings.warn(f"{name}: ffmpeg found errors while decoding it ({first}); some frames "
+                      "may be damaged (smeared or frozen): look at them, or copy or export the video "
+                      "again", InkwarpWarning, stacklevel=caller_outside())
     return done.stdout
+
+
+def _variable_rate(name: str, fps: float, base: float) -> None:
+    warnings.warn(f"{name}: its frame rate varies (on average {fps:g} fps); its frames are taken at an "
+                  f"even {fps:g} fps, repeated or skipped where it runs slower or faster, so that frame "
+                  f"k is at {1 / fps:.4g} k s. To keep every frame, convert it to a constant rate first "
+                  f"(frames repeated): ffmpeg -i {Path(name).name} -fps_mode cfr -r {base:g} constant.mp4",
+                  InkwarpWarning, stacklevel=caller_outside())
 
 
 def read_video(path: str | os.PathLike[str]) -> Video:
@@ -205,8 +230,10 @@ def read_video(path: str | os.PathLike[str]) -> Video:
     ValueError
         ffmpeg cannot decode it, or it has no frames (the message names the file).
     """
-    name, fps, width, height, promised = _probe(path)
-    raw = _decode(name, "gray", promised=promised, size=width * height)
+    name, fps, width, height, promised, variable = _probe(path)
+    if variable:
+        _variable_rate(name, fps, variable)
+    raw = _decode(name, "gray", promised=promised, size=width * height, rate=fps if variable else None)
     count = len(raw) // (width * height)
     if count == 0:
         raise _unreadable(name, "it has no frames")
@@ -224,11 +251,13 @@ def read_frame(path: str | os.PathLike[str], frame: int = 0) -> np.ndarray:
     """
     if frame < 0:
         raise ValueError(f"frame {frame}: frames are numbered from 0")
-    name, _, width, height, promised = _probe(path)
-    size = width * height * 3
-    raw = _decode(name, "rgb24", frames=frame + 1, promised=promised, size=size)
+    name, fps, width, height, promised, variable = _probe(path)
+    size, rate = width * height * 3, fps if variable else None
+    if variable:
+        _variable_rate(name, fps, variable)
+    raw = _decode(name, "rgb24", frames=frame + 1, promised=promised, size=size, rate=rate)
     if len(raw) < size * (frame + 1):
-        count = len(_decode(name, "gray", promised=promised, size=width * height)) // (width * height)
+        count = len(_decode(name, "gray", promised=promised, size=width * height, rate=rate)) // (width * height)
         raise ValueError(f"frame {frame}: {name} has frames 0 to {count - 1}; give a frame "
                          f"number below {count}")
     start = size * frame
@@ -555,6 +584,8 @@ def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: st
         keys: dict[int, np.ndarray] = {}
         for j, key in enumerate(f.get("keys") or []):
             k = int(round(float(key["t"]) * fps))
+            if k == count and float(key["t"]) * fps < count:  # within the last frame's span
+                k = count - 1
             if not 0 <= k < count:
                 raise ValueError(
                     f"{where}: features[{i}].keys[{j}]: t = {key['t']} s is frame {k}, outside "

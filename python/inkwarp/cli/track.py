@@ -62,7 +62,6 @@ def run(args: argparse.Namespace) -> int:
     if args.simplify is not None and not (math.isfinite(args.simplify) and args.simplify >= 0):
         raise ValueError(f"--simplify {args.simplify}: give a distance in pixels, 0 or more")
     check_output(out, source=args.scene)
-    clip = read_video(args.video)
 
     def progress(total: int):
         if args.quiet or total <= 1:
@@ -77,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", InkwarpWarning)
+            clip = read_video(args.video)
             doc = track_dict(clip, args.scene, args.frame, simplify_px=args.simplify,
                              lost_px=args.lost, progress=progress,
                              relative_to=out.resolve().parent)
