@@ -152,7 +152,8 @@ class SolveReport:
         Grid nodes fixed by the points (several points on one node count once; with
         ``grid_step`` > 1, nodes of the coarse grid solved).
     constrained_samples : int
-        Points that constrain a node.
+        Points that constrain a node. With ``grid_step`` > 1, the points on each
+        constrained coarse node, of which the nearest to it sets its value.
     dropped_samples : int
         Points that fell outside the grid or on a masked-out node. With ``grid_step`` > 1,
         also points whose nearest coarse node is masked out; a part of the matte with no

@@ -190,9 +190,11 @@ fn cell_of(x: f64, s: usize, nc: usize, pos: impl Fn(usize) -> usize) -> (usize,
 
 /// The Catmull-Rom taps of one pixel along one axis: its coarse `cell` (its window spans coarse positions `cell − 1 ..=
 /// cell + 2`), the cubic `weights` of the window's four positions, `t` how far across the cell it lies, and the `len`
-/// used taps (inside the grid, nonzero weight): their window positions `slot` and coarse indices `at`.
+/// used taps (inside the grid, nonzero weight): their window positions `slot` and coarse indices `at`. A window cut
+/// short fits its plane with weights `plane` (zero outside the grid): the cubic's, in magnitude, at `t` at least a
+/// pixel inside the cell, so that a pixel on a coarse line fits it over the lines beside too, not along its own.
 #[derive(Clone, Copy, Debug)]
-struct Taps { cell: usize, weights: [f64; 4], t: f64, len: usize, slot: [u8; 4], at: [usize; 4] }
+struct Taps { cell: usize, weights: [f64; 4], t: f64, len: usize, slot: [u8; 4], at: [usize; 4], plane: [f64; 4] }
 
 impl Taps {
     /// The taps of every pixel `0..n` along an axis with `nc` coarse positions at `pos(0..nc)`, `s` apart.
@@ -200,8 +202,13 @@ impl Taps {
         (0..n).map(|x| {
             let (cell, t) = if nc == 1 { (0, 0.0) } else { cell_of(x as f64, s, nc, &pos) }; // (one position: its value)
             let t = t.clamp(0.0, 1.0);
-            let weights = catmull_rom(t, cell == 0, cell + 2 >= nc);
-            let mut taps = Taps { cell, weights, t, len: 0, slot: [0; 4], at: [0; 4] };
+            let (first, last) = (cell == 0, cell + 2 >= nc);
+            let weights = catmull_rom(t, first, last);
+            let inside = |k: usize| (cell + k).checked_sub(1).is_some_and(|c| c < nc);
+            let t_plane = if nc == 1 { t } else { t.clamp(1.0 / s as f64, 1.0 - 1.0 / s as f64) };
+            let plane = catmull_rom(t_plane, first, last).map(f64::abs);
+            let plane = std::array::from_fn(|k| if inside(k) { plane[k] } else { 0.0 });
+            let mut taps = Taps { cell, weights, t, len: 0, slot: [0; 4], at: [0; 4], plane };
             for (k, &wk) in weights.iter().enumerate() {
                 if let Some(c) = (cell + k).checked_sub(1).filter(|&c| c < nc && wk != 0.0) {
                     (taps.slot[taps.len], taps.at[taps.len]) = (k as u8, c);
@@ -353,13 +360,14 @@ fn window_value(fc: &Field, ty: &Taps, tx: &Taps, mask: u16) -> Option<[f32; 2]>
 /// `weight(tx, ka) weight(ty, kb)` (none where either is `None`), those outside `mask` in the whole window only.
 fn window_moments(fc: &Field, ty: &Taps, tx: &Taps, mask: u16, weight: impl Fn(&Taps, usize) -> Option<f64>) -> Moments {
     let mut m = Moments::default();
-    for b in 0..ty.len {
-        let (kb, row) = (ty.slot[b] as usize, ty.at[b] * fc.width);
+    for kb in (0..4).filter(|&kb| ty.plane[kb] != 0.0) {
+        let row = (ty.cell + kb - 1) * fc.width;
         let Some(wy) = weight(ty, kb) else { continue };
-        for a in 0..tx.len {
-            let (ka, c) = (tx.slot[a] as usize, row + tx.at[a]);
+        for ka in (0..4).filter(|&ka| tx.plane[ka] != 0.0) {
+            let c = row + tx.cell + ka - 1;
             let Some(wx) = weight(tx, ka) else { continue };
-            m.add(wx * wy, [ka as f64, kb as f64], (mask & (1 << (4 * kb + ka)) != 0).then(|| [fc.dx[c] as f64, fc.dy[c] as f64]));
+            let f = (mask & (1 << (4 * kb + ka)) != 0).then(|| [fc.dx[c] as f64, fc.dy[c] as f64]);
+            m.add(wx * wy, tx.plane[ka] * ty.plane[kb], [ka as f64, kb as f64], f);
         }
     }
     m
@@ -371,12 +379,12 @@ fn window_moments(fc: &Field, ty: &Taps, tx: &Taps, mask: u16, weight: impl Fn(&
 struct Moments { whole: [f64; 3], allowed: [f64; 5], plane: [f64; 12] }
 
 impl Moments {
-    /// A tap of weight `w` at window position `at`, with its value `f` where it is allowed.
-    fn add(&mut self, w: f64, [x, y]: [f64; 2], f: Option<[f64; 2]>) {
+    /// A tap of weight `w` (`pw` in the plane's fit) at window position `at`, with its value `f` where it is allowed.
+    fn add(&mut self, w: f64, pw: f64, [x, y]: [f64; 2], f: Option<[f64; 2]>) {
         self.whole = [self.whole[0] + w, self.whole[1] + w * x, self.whole[2] + w * y];
         let Some([fx, fy]) = f else { return };
         self.allowed.iter_mut().zip([w, w * fx, w * fy, w * x, w * y]).for_each(|(s, v)| *s += v);
-        self.plane.iter_mut().zip([1.0, x, y, x * x, x * y, y * y, fx, x * fx, y * fx, fy, x * fy, y * fy]).for_each(|(s, v)| *s += w.abs() * v);
+        self.plane.iter_mut().zip([1.0, x, y, x * x, x * y, y * y, fx, x * fx, y * fx, fy, x * fy, y * fy]).for_each(|(s, v)| *s += pw * v);
     }
 
     /// The allowed taps' renormalised value where their weights sum to `least` or more, less the gradient of the
@@ -568,26 +576,27 @@ mod tests {
         let clabel: Vec<u32> = (0..wc * hc)
             .map(|c| if coarse_active[c] { labels[grid.index(px(c % wc), py(c / wc))] } else { u32::MAX })
             .collect();
-        let taps = |x: usize, n: usize, pos: &dyn Fn(usize) -> usize| -> (isize, [f64; 4], f64) {
+        let taps = |x: usize, n: usize, pos: &dyn Fn(usize) -> usize| -> (isize, [f64; 4], f64, [f64; 4]) {
             if n == 1 {
-                return (-1, [0.0, 1.0, 0.0, 0.0], 0.0);
+                return (-1, [0.0, 1.0, 0.0, 0.0], 0.0, [0.0, 1.0, 0.0, 0.0]);
             }
             let x0 = (x / s).min(n - 2);
             let (a, b) = (pos(x0) as f64, pos(x0 + 1) as f64);
             let t = ((x as f64 - a) / (b - a)).clamp(0.0, 1.0);
-            (x0 as isize - 1, catmull_rom(t, x0 == 0, x0 + 2 == n), t)
+            let plane = catmull_rom(t.clamp(1.0 / s as f64, 1.0 - 1.0 / s as f64), x0 == 0, x0 + 2 == n);
+            (x0 as isize - 1, catmull_rom(t, x0 == 0, x0 + 2 == n), t, plane.map(f64::abs))
         };
         let lin = |t: f64, k: usize| if k == 1 { 1.0 - t } else { t };
         let mut field = Field::zeros(w, h);
         let mut resolved = vec![false; w * h];
         for y in 0..h {
-            let (ys, wy, ty) = taps(y, hc, &py);
+            let (ys, wy, ty, qy) = taps(y, hc, &py);
             for x in 0..w {
                 let i = y * w + x;
                 if !grid.active[i] {
                     continue;
                 }
-                let (xs, wx, tx) = taps(x, wc, &px);
+                let (xs, wx, tx, qx) = taps(x, wc, &px);
                 let local = (rule == Rule::Local).then(|| {
                     let clip = |lo: isize, n: usize, pos: &dyn Fn(usize) -> usize| {
                         (pos(lo.max(0) as usize), pos(((lo + 3) as usize).min(n - 1)))
@@ -598,12 +607,12 @@ mod tests {
                 let (mut cubic, mut inner) = (Moments::default(), Moments::default());
                 for (b, &wyb) in wy.iter().enumerate() {
                     let cy = ys + b as isize;
-                    if cy < 0 || cy >= hc as isize || wyb == 0.0 {
+                    if cy < 0 || cy >= hc as isize || (wyb == 0.0 && qy[b] == 0.0) {
                         continue;
                     }
                     for (a, &wxa) in wx.iter().enumerate() {
                         let cx = xs + a as isize;
-                        if cx < 0 || cx >= wc as isize || wxa == 0.0 {
+                        if cx < 0 || cx >= wc as isize || (wxa == 0.0 && qx[a] == 0.0) {
                             continue;
                         }
                         let c = cy as usize * wc + cx as usize;
@@ -614,9 +623,9 @@ mod tests {
                             }
                         };
                         let f = usable.then(|| [fc.dx[c] as f64, fc.dy[c] as f64]);
-                        cubic.add(wxa * wyb, [a as f64, b as f64], f);
+                        cubic.add(wxa * wyb, qx[a] * qy[b], [a as f64, b as f64], f);
                         if (1..3).contains(&a) && (1..3).contains(&b) {
-                            inner.add(lin(tx, a) * lin(ty, b), [a as f64, b as f64], f);
+                            inner.add(lin(tx, a) * lin(ty, b), 0.0, [a as f64, b as f64], f);
                         }
                     }
                 }
