@@ -125,10 +125,14 @@ def _unreadable(path: str, reason: str) -> ValueError:
                       "ffmpeg decodes, such as an .mp4")
 
 
+#: The highest time base rate taken as a video's frame rate (frames per second).
+MAX_TIME_BASE_FPS = 240.0
+
+
 def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | None, float | None]:
     """``(path, fps, width, height, frames, variable)`` of a video (``frames``: as many as
     its header's duration holds at that rate, None where it gives none; ``variable``: where
-    its frame rate varies, the rate of its time base, apart from its average ``fps``), or a
+    its frames must be taken at their average rate ``fps``, its time base's rate), or a
     ValueError naming it."""
     import imageio_ffmpeg
 
@@ -158,10 +162,16 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | No
     if size is None or rate is None or not float(rate.group(1)) > 0:
         raise _unreadable(name, "ffmpeg finds no frame size or frame rate in it")
     width, height, fps = int(size.group(1)), int(size.group(2)), float(rate.group(1))
-    # A time base's rate ("tbr") apart from the average: frames come at uneven times (a
-    # phone's variable frame rate), and ffmpeg would otherwise hand them on at that rate.
+    # ffmpeg hands frames on at the time base's rate ("tbr"): where frames come at uneven
+    # times (a phone's variable frame rate, a GIF's delays) it repeats some, and frame k is
+    # at k / tbr, not at k over the average rate ("fps"). A rate past any video's (timestamps
+    # in milliseconds: "1k tbr") is no frame rate: the frames are then taken at the average.
     tbr = float(base.group(1)) * (1000 if base.group(2) else 1) if base else fps
-    variable = tbr if average is not None and abs(tbr - fps) > 0.01 * fps else None
+    variable = None
+    if tbr <= MAX_TIME_BASE_FPS:
+        fps = tbr
+    elif average is not None and abs(tbr - fps) > 0.01 * fps:
+        variable = tbr
     took = re.search(r"Duration: (\d+):(\d\d):(\d\d(?:\.\d+)?)", log)
     seconds = 3600 * int(took.group(1)) + 60 * int(took.group(2)) + float(took.group(3)) if took else None
     fps = _exact_rate(fps)
@@ -213,10 +223,10 @@ def _decode(name: str, pix_fmt: str, *, frames: int | None = None, promised: int
 
 
 def _variable_rate(name: str, fps: float, base: float) -> None:
-    warnings.warn(f"{name}: its frame rate varies (on average {fps:g} fps); its frames are taken at an "
-                  f"even {fps:g} fps, repeated or skipped where it runs slower or faster, so that frame "
-                  f"k is at {1 / fps:.4g} k s. To keep every frame, convert it to a constant rate first "
-                  f"(frames repeated): ffmpeg -i {Path(name).name} -fps_mode cfr -r {base:g} constant.mp4",
+    warnings.warn(f"{name}: its frame rate varies (on average {fps:g} fps, on a time base of {base:g}); its "
+                  f"frames are taken at an even {fps:g} fps, repeated or skipped where it runs slower or "
+                  f"faster, so that frame k is at {1 / fps:.4g} k s. To keep every frame, convert it to a "
+                  f"constant rate first: ffmpeg -i {Path(name).name} -fps_mode cfr -r 60 constant.mp4",
                   InkwarpWarning, stacklevel=caller_outside())
 
 
