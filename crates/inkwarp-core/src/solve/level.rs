@@ -366,8 +366,7 @@ impl Geometry {
     pub fn coarsen(&self) -> Geometry {
         // ⌊n/2⌋ + 1 coarse nodes: for an even n the last is a ghost at fine position n, so the last fine node
         // sits between two coarse nodes and interpolation reproduces linear functions there.
-        let (w, h, [active, right, down]) = coarse_links(self.w, ((self.w - 1).div_ceil(2) + 1, |x| (2 * x).min(self.w - 1)),
-            ((self.h - 1).div_ceil(2) + 1, |y| (2 * y).min(self.h - 1)), &self.active, &self.right, &self.down);
+        let (w, h, [active, right, down]) = coarse_links(self.w, self.h, 2, &self.active, &self.right, &self.down);
         Geometry::new(w, h, active, right, down, None)
     }
 
@@ -578,12 +577,11 @@ pub(crate) fn solid(w: usize, h: usize, active: &[bool], right: &[bool], down: &
     (0..w * h).all(|i| !active[i] || reach[i]) && crate::grid::Grid::from_active(w, h, core).pieces().1 == 1
 }
 
-/// The `wc × hc` coarse nodes of a `w × h` grid: node (X, Y) on (`px(X)`, `py(Y)`), active where that node is;
-/// neighbours linked where every link of the straight path between them is.
-pub(crate) fn coarse_links(
-    w: usize, (wc, px): (usize, impl Fn(usize) -> usize), (hc, py): (usize, impl Fn(usize) -> usize),
-    active: &[bool], right: &[bool], down: &[bool],
-) -> (usize, usize, [Vec<bool>; 3]) {
+/// Every `s`-th node of a `w × h` grid: node (X, Y) on (min(sX, w − 1), min(sY, h − 1)), active where that node
+/// is; neighbours linked where every link of the straight path between them is.
+pub(crate) fn coarse_links(w: usize, h: usize, s: usize, active: &[bool], right: &[bool], down: &[bool]) -> (usize, usize, [Vec<bool>; 3]) {
+    let (wc, hc) = ((w - 1).div_ceil(s) + 1, (h - 1).div_ceil(s) + 1);
+    let (px, py) = (|x: usize| (x * s).min(w - 1), |y: usize| (y * s).min(h - 1));
     let mut out = [vec![false; wc * hc], vec![false; wc * hc], vec![false; wc * hc]];
     for (yc, xc) in (0..hc).flat_map(|yc| (0..wc).map(move |xc| (yc, xc))) {
         let (c, fx, fy) = (yc * wc + xc, px(xc), py(yc));

@@ -1,10 +1,9 @@
 //! `grid_step = s > 1`: solve on every s-th node and upsample with a tensor-product cubic.
 //!
-//! Coarse node (X, Y) sits at (sX, sY), s at most the picture's side less one along each axis; the last column and
-//! row may lie past the picture's, so that the coarse grid is uniform and an affine motion is one of its plate too
-//! (on the border, a cell short, they bent it). A node stands for pixel (min(sX, W−1), min(sY, H−1)), active when
-//! that pixel is; two coarse neighbours are linked when every fine link between them is. A sample constrains the
-//! nearest coarse node, which takes the nearest of its samples; the tension is scaled by s² (the same energy).
+//! Coarse node (X, Y) sits on pixel (min(sX, W−1), min(sY, H−1)) (so every pixel lies between coarse nodes),
+//! active when that pixel is; two coarse neighbours are linked when every fine link between them is. A sample
+//! constrains the nearest coarse node, which takes the nearest of its samples; the tension is scaled by s²
+//! (the same continuous energy).
 //!
 //! Upsampling is Catmull-Rom in x and y, linear past the border. A pixel uses only the nodes of its 4 × 4
 //! window it reaches through links within the window's block (a tear stays open even where its sides join
@@ -42,11 +41,10 @@ pub(crate) fn solve_coarse(
 fn solve_on_coarse_grid(
     grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool, follow: bool,
 ) -> (Field, SolveReport) {
-    let l = Layout::new(grid.width, grid.height, options.grid_step);
-    let (width, height, [active, link_right, link_down]) =
-        coarse_links(l.w, (l.wc, |x| l.px(x)), (l.hc, |y| l.py(y)), &grid.active, &grid.link_right, &grid.link_down);
+    let (l, sf) = (Layout::new(grid.width, grid.height, options.grid_step), options.grid_step as f64);
+    let (width, height, [active, link_right, link_down]) = coarse_links(l.w, l.h, l.s, &grid.active, &grid.link_right, &grid.link_down);
     let coarse = Grid { width, height, active, link_right, link_down };
-    let at = |p: &Sample| Sample { rest: [coarse_coordinate(p.rest[0], l.w, l.s), coarse_coordinate(p.rest[1], l.h, l.s)], ..*p };
+    let at = |p: &Sample| Sample { rest: [l.coarse(p.rest[0], l.wc, |x| l.px(x)), l.coarse(p.rest[1], l.hc, |y| l.py(y))], ..*p };
     let coarse_samples: Vec<Sample> = samples.iter().filter(|p| nearest_node(grid, p.rest).is_some()).map(at).collect();
     let nearest = nearest_samples(&coarse, &coarse_samples);
     let mut constraints = constrain(&coarse, &nearest);
@@ -56,7 +54,7 @@ fn solve_on_coarse_grid(
         let (dx, dy) = (0..l.wc * l.hc).map(|c| f.at_index(l.py(c / l.wc) * f.width() + l.px(c % l.wc))).map(|v| (v[0], v[1])).unzip();
         Field { width: l.wc, height: l.hc, dx, dy }
     });
-    let options = SolveOptions { tension: options.tension * (spacing(l.w, l.s) * spacing(l.h, l.s)) as f64, grid_step: 1, ..options.clone() };
+    let options = SolveOptions { tension: options.tension * sf * sf, grid_step: 1, ..options.clone() };
     let (mut fc, report) = solve_from(&coarse, &constraints, &options, start.as_ref().map(FieldView::from), solver, warm);
     if follow { follow_held(grid, &l, &coarse, &constraints, &mut fc); }
     (fc, report)
@@ -114,7 +112,8 @@ impl Upsampling {
     pub fn new(grid: &Grid, s: usize) -> Upsampling {
         assert!(s > 1 && grid.width > 0 && grid.height > 0, "an upsampling plan needs a step above 1 and a non-empty grid");
         let layout = Layout::new(grid.width, grid.height, s);
-        let (cols, rows) = (Taps::along(layout.w, layout.wc, s), Taps::along(layout.h, layout.hc, s));
+        let cols = Taps::along(layout.w, layout.wc, s, |x| layout.px(x));
+        let rows = Taps::along(layout.h, layout.hc, s, |y| layout.py(y));
         Upsampling { masks: mask_table(grid, &layout, &cols, &rows), layout, cols, rows }
     }
 
@@ -155,14 +154,19 @@ pub(crate) fn solve_at(
 struct Layout { s: usize, w: usize, h: usize, wc: usize, hc: usize }
 
 impl Layout {
-    fn new(w: usize, h: usize, s: usize) -> Self {
-        Layout { s, w, h, wc: (w - 1).div_ceil(spacing(w, s)) + 1, hc: (h - 1).div_ceil(spacing(h, s)) + 1 }
-    }
+    fn new(w: usize, h: usize, s: usize) -> Self { Layout { s, w, h, wc: (w - 1).div_ceil(s) + 1, hc: (h - 1).div_ceil(s) + 1 } }
 
-    /// The pixel column of coarse column `xc`, and the pixel row of coarse row `yc` (the last ones past the picture's
-    /// stand for its last).
-    fn px(&self, xc: usize) -> usize { (xc * spacing(self.w, self.s)).min(self.w - 1) }
-    fn py(&self, yc: usize) -> usize { (yc * spacing(self.h, self.s)).min(self.h - 1) }
+    /// The pixel column of coarse column `xc`, and the pixel row of coarse row `yc`.
+    fn px(&self, xc: usize) -> usize { (xc * self.s).min(self.w - 1) }
+    fn py(&self, yc: usize) -> usize { (yc * self.s).min(self.h - 1) }
+
+    /// The coarse coordinate of pixel coordinate `x` along an axis of `nc` coarse positions at pixels
+    /// `pos(0..nc)` (so a sample goes to the coarse node nearest to it, in the last, shorter cell too).
+    fn coarse(&self, x: f64, nc: usize, pos: impl Fn(usize) -> usize) -> f64 {
+        if nc < 2 { return 0.0; }
+        let (c, t) = cell_of(x, self.s, nc, pos);
+        c as f64 + t
+    }
 
     /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's pixels) from the
     /// cell's `masks` ([`cell_masks`]; empty where the window is whole).
@@ -176,22 +180,12 @@ impl Layout {
     fn cells(&self) -> (usize, usize) { (self.wc.saturating_sub(1).max(1), self.hc.saturating_sub(1).max(1)) }
 }
 
-/// The step along an axis of `n` pixels: `s`, at most `n − 1` (a step past the picture holds it in one cell).
-fn spacing(n: usize, s: usize) -> usize { s.min(n - 1).max(1) }
-
-/// The coarse coordinate of pixel coordinate `x` along an axis of `n` pixels at step `s`.
-fn coarse_coordinate(x: f64, n: usize, s: usize) -> f64 {
-    let s = spacing(n, s);
-    let c = (x / s as f64).max(0.0) as usize;
-    c as f64 + (x - (c * s) as f64) / s as f64
-}
-
-/// The coarse cell (its first position, at most `nc − 2`) of pixel coordinate `x` along an axis of `n` pixels with
-/// `nc ≥ 2` coarse positions at step `s`, and how far across it `x` lies.
-fn cell_of(x: f64, n: usize, nc: usize, s: usize) -> (usize, f64) {
-    let s = spacing(n, s);
+/// The coarse cell (its first position, at most `nc − 2`) of pixel coordinate `x` along an axis of
+/// `nc ≥ 2` coarse positions at pixels `pos(0..nc)`, `s` apart, and how far across it `x` lies.
+fn cell_of(x: f64, s: usize, nc: usize, pos: impl Fn(usize) -> usize) -> (usize, f64) {
     let c = ((x / s as f64).max(0.0) as usize).min(nc - 2);
-    (c, (x - (c * s) as f64) / s as f64)
+    let (a, b) = (pos(c) as f64, pos(c + 1) as f64);
+    (c, (x - a) / (b - a))
 }
 
 /// The Catmull-Rom taps of one pixel along one axis: its coarse `cell` (its window spans coarse positions `cell − 1 ..=
@@ -204,15 +198,15 @@ fn cell_of(x: f64, n: usize, nc: usize, s: usize) -> (usize, f64) {
 struct Taps { cell: usize, weights: [f64; 4], t: f64, len: usize, slot: [u8; 4], at: [usize; 4], plane: [f64; 4], near: f64 }
 
 impl Taps {
-    /// The taps of every pixel `0..n` along an axis with `nc` coarse positions spread evenly, at most `s` apart.
-    fn along(n: usize, nc: usize, s: usize) -> Vec<Taps> {
+    /// The taps of every pixel `0..n` along an axis with `nc` coarse positions at `pos(0..nc)`, `s` apart.
+    fn along(n: usize, nc: usize, s: usize, pos: impl Fn(usize) -> usize) -> Vec<Taps> {
         (0..n).map(|x| {
-            let (cell, t) = if nc == 1 { (0, 0.0) } else { cell_of(x as f64, n, nc, s) }; // (one position: its value)
+            let (cell, t) = if nc == 1 { (0, 0.0) } else { cell_of(x as f64, s, nc, &pos) }; // (one position: its value)
             let t = t.clamp(0.0, 1.0);
             let (first, last) = (cell == 0, cell + 2 >= nc);
             let weights = catmull_rom(t, first, last);
             let inside = |k: usize| (cell + k).checked_sub(1).is_some_and(|c| c < nc);
-            let margin = (1.0 / spacing(n, s) as f64).min(0.5);
+            let margin = (1.0 / s as f64).min(0.5);
             let near = if nc == 1 { t } else { t.clamp(margin, 1.0 - margin) };
             let plane = catmull_rom(near, first, last).map(f64::abs);
             let plane = std::array::from_fn(|k| if inside(k) { plane[k] } else { 0.0 });
@@ -255,13 +249,10 @@ fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec
     // The cells whose closed block holds pixel (x, y): one or two along each axis.
     let mut mark = |x: usize, y: usize| {
         let (cx, cy) = (cols[x].cell, rows[y].cell);
-        // (a pixel on a cell's first or last column or row is in the next cell's block too)
         let x0 = if cx > 0 && x == layout.px(cx) { cx - 1 } else { cx };
-        let x1 = if cx + 1 < cw && x == layout.px(cx + 1) { cx + 1 } else { cx };
-        let y0 = if cy > 0 && y == layout.py(cy) { cy - 1 } else { cy };
-        let y1 = if cy + 1 < ch && y == layout.py(cy + 1) { cy + 1 } else { cy };
-        for yy in y0..=y1 {
-            touched[yy * cw + x0..=yy * cw + x1].fill(true);
+        let ys = if cy > 0 && y == layout.py(cy) { cy - 1..cy + 1 } else { cy..cy + 1 };
+        for yy in ys {
+            touched[yy * cw + x0..=yy * cw + cx].fill(true);
         }
     };
     // Whether all of `flags` (a stretch of a row) are set, branch-free so that it vectorises.
@@ -588,7 +579,7 @@ mod tests {
         let layout = Layout::new(w, h, s);
         let (wc, hc) = (layout.wc, layout.hc);
         let (px, py) = (|x| layout.px(x), |y| layout.py(y));
-        let (_, _, [coarse_active, ..]) = coarse_links(w, (wc, px), (hc, py), &grid.active, &grid.link_right, &grid.link_down);
+        let (_, _, [coarse_active, ..]) = coarse_links(w, h, s, &grid.active, &grid.link_right, &grid.link_down);
         let mut paths = Paths::default();
         let (labels, count) = grid.pieces();
         let clabel: Vec<u32> = (0..wc * hc)
@@ -598,11 +589,10 @@ mod tests {
             if n == 1 {
                 return (-1, [0.0, 1.0, 0.0, 0.0], 0.0, [0.0, 1.0, 0.0, 0.0], 0.0);
             }
-            // A step apart (the last position past the picture's side stands for its last pixel).
-            let step = pos(1);
-            let x0 = (x / step).min(n - 2);
-            let t = ((x - x0 * step) as f64 / step as f64).clamp(0.0, 1.0);
-            let inside = (1.0 / step as f64).min(0.5);
+            let x0 = (x / s).min(n - 2);
+            let (a, b) = (pos(x0) as f64, pos(x0 + 1) as f64);
+            let t = ((x as f64 - a) / (b - a)).clamp(0.0, 1.0);
+            let inside = (1.0 / s as f64).min(0.5);
             let near = t.clamp(inside, 1.0 - inside);
             let plane = catmull_rom(near, x0 == 0, x0 + 2 == n);
             (x0 as isize - 1, catmull_rom(t, x0 == 0, x0 + 2 == n), t, plane.map(f64::abs), near)
