@@ -458,7 +458,8 @@ class GifWriter(FrameWriter):
     of identical frames is stored once, with the delays added. GIF stores delays in
     hundredths of a second, so they are spread to keep the clip's total length right
     (24 fps plays as 4, 4, 4, 5, 4, ... hundredths); above 50 fps frames are left out
-    (`gif_keeps`).
+    (`gif_keeps`). A delay past GIF's 655.35 s is stored as copies of the frame
+    (`gif_delay_parts`).
     """
 
     def __init__(self, target: Path, fps: float) -> None:
@@ -484,7 +485,7 @@ class GifWriter(FrameWriter):
         # A frame the same as the last (a held pose) adds its delay to it, unencoded.
         digest = hashlib.blake2b(rgba.tobytes(), digest_size=16).digest()
         delay = gif_delay_cs(self.frames_written, self.fps)
-        if self._pending is not None and self._pending[0] == digest and self._pending[2] + delay <= 0xFFFF:
+        if self._pending is not None and self._pending[0] == digest:
             self._pending = (digest, self._pending[1], self._pending[2] + delay)
             return
         clear = rgba[..., 3] < 128 if rgba.shape[2] == 4 else np.zeros(rgba.shape[:2], bool)
@@ -518,8 +519,11 @@ class GifWriter(FrameWriter):
         _, data, delay = self._pending
         # Graphic control: disposal 2 (the canvas is cleared after the frame, so the next
         # one's transparent pixels show nothing of it), the delay, transparent index 255 (on
-        # opaque frames too: decoders then clear to transparent, not to a colour).
-        self._file.write(b"\x21\xf9\x04" + struct.pack("<BHB", 2 << 2 | 1, delay, 255) + b"\x00" + data)
+        # opaque frames too: decoders then clear to transparent, not to a colour). A delay
+        # is 16 bits (655.35 s at most): a longer one (a held pose, a frame at under 0.0015
+        # fps) is the same image repeated, the delay shared evenly between the copies.
+        for part in gif_delay_parts(delay):
+            self._file.write(b"\x21\xf9\x04" + struct.pack("<BHB", 2 << 2 | 1, part, 255) + b"\x00" + data)
         self._file.flush()
         self._pending = None
 
@@ -565,6 +569,24 @@ def gif_delay_cs(i: int, fps: float) -> int:
     if fps > GIF_MAX_FPS:
         return 100 // GIF_MAX_FPS
     return round((i + 1) * 100 / fps) - round(i * 100 / fps)
+
+
+#: The longest delay one GIF frame holds, in hundredths of a second (16 bits: 655.35 s).
+GIF_MAX_DELAY_CS = 0xFFFF
+
+
+def gif_delay_parts(delay: int) -> list[int]:
+    """A delay in hundredths of a second as the delays of the fewest copies of a frame that
+    hold it (each at most :data:`GIF_MAX_DELAY_CS`), shared evenly, so that none is so short
+    that browsers stretch it (they play a delay of 1 or less as 10).
+
+    Examples
+    --------
+    >>> gif_delay_parts(4), gif_delay_parts(100_000), gif_delay_parts(0xFFFF + 1)
+    ([4], [50000, 50000], [32768, 32768])
+    """
+    copies = max(1, -(-delay // GIF_MAX_DELAY_CS))
+    return [delay * (k + 1) // copies - delay * k // copies for k in range(copies)]
 
 
 def warn_gif_frames_left_out(target: Path, frames: int, kept: int, fps: float) -> None:
