@@ -153,6 +153,16 @@ def test_a_gif_frame_longer_than_a_gif_delay_is_repeated_to_keep_its_time(tmp_pa
     assert played("held.gif") == ([30, 30, 200], [500_000, 500_000, 100_000])
 
 
+@pytest.mark.parametrize("suffix", [".gif", ".mp4", ".webm", ".png", "/"])
+@pytest.mark.parametrize("fps", [1e-9, 0, -24, 5000, float("nan")])
+def test_a_writer_takes_the_rates_a_scene_may_have(tmp_path, suffix, fps):
+    from inkwarp.video import open_writer
+
+    with pytest.raises(ValueError, match=r"fps must be a number of frames per second from 0\.001 \(one frame every 1000 s\) to 1000; got "):
+        open_writer(f"{tmp_path / 'out'}{suffix}", fps=fps)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_background_option_overrides_the_scene(capsys, tmp_path, transparent):
     scene, reference = transparent
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "f.png", "--background", "#ff0000")

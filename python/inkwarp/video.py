@@ -232,6 +232,50 @@ def ffmpeg_failure(target: Path, code: int, said: str) -> OSError:
                                                          ": it gave no reason"))
 
 
+def check_fps(fps: float, name: str = "fps") -> float:
+    """``fps`` as a float when it is a rate a scene may have (from ``MIN_FPS``, 0.001: a
+    frame every 1000 s, to ``MAX_FPS``, 1000; see docs/reference/limits.md), else a
+    ``ValueError`` naming ``name``.
+
+    Examples
+    --------
+    >>> check_fps(24)
+    24.0
+    >>> check_fps(1e-9)
+    Traceback (most recent call last):
+    ...
+    ValueError: fps must be a number of frames per second from 0.001 (one frame every 1000 s) to 1000; got 1e-09
+    """
+    from inkwarp._inkwarp import MAX_FPS, MIN_FPS
+
+    try:
+        rate = float(fps)
+    except (TypeError, ValueError):
+        rate = float("nan")
+    if not MIN_FPS <= rate <= MAX_FPS:  # NaN too
+        raise ValueError(f"{name} must be a number of frames per second from {MIN_FPS:g} (one frame every "
+                         f"{1 / MIN_FPS:g} s) to {MAX_FPS:g}; got {fps!r}")
+    return rate
+
+
+def ffmpeg_rate(fps: float) -> str:
+    """``fps`` as the fraction ffmpeg takes for a frame rate, ``NUM/DEN``: the nearest one
+    whose terms stay within what ffmpeg reads exactly (about 10**6), so 0.001 is 1/1000 and
+    NTSC's 30000/1001 stays itself (fractions of terms up to 1001 made 0/1 of a rate under
+    1/2002 fps, which ffmpeg refused, and rounded slow ones: 0.0015 fps as 1/667).
+
+    Examples
+    --------
+    >>> ffmpeg_rate(24), ffmpeg_rate(30000 / 1001), ffmpeg_rate(0.001), ffmpeg_rate(0.0015)
+    ('24/1', '30000/1001', '1/1000', '3/2000')
+    """
+    import math
+    from fractions import Fraction
+
+    fraction = Fraction(fps).limit_denominator(1_001_000 // max(1, math.ceil(fps)))
+    return f"{fraction.numerator}/{fraction.denominator}"
+
+
 #: ffmpeg's arguments that convert RGB frames to Y'CbCr by the BT.709 matrix (limited range)
 #: and tag the video as BT.709 (primaries, transfer and matrix): untagged, ffmpeg used the
 #: BT.601 matrix, which players and editors assume only for standard definition, so HD
@@ -289,8 +333,7 @@ class FrameWriter:
     """
 
     def __init__(self, target: Path, fps: float) -> None:
-        if not (fps > 0 and np.isfinite(fps)):
-            raise ValueError(f"fps must be a positive number; got {fps}")
+        check_fps(fps)
         self.target = target
         self.fps = float(fps)
         self.frames_written = 0
@@ -691,7 +734,7 @@ class Mp4Writer(FrameWriter):
         command = [
             imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-hide_banner", "-loglevel", "error",
             "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}",
-            "-pix_fmt", "rgb24", "-r", f"{self.fps:.12g}", "-i", "-", "-an",
+            "-pix_fmt", "rgb24", "-r", ffmpeg_rate(self.fps), "-i", "-", "-an",
             *BT709, "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf),
             "-movflags", "+faststart", "-f", "mp4", str(self._temp),
         ]
