@@ -527,3 +527,21 @@ def test_the_slowest_rate_plays_its_time_in_every_format(capsys, tmp_path):
                                   capture_output=True, text=True).stderr
             assert "Duration: 00:33:20.00" in said, (suffix, said)
 
+
+@pytest.mark.parametrize("name", ["/dev/stdout", "/dev/stderr", "pipe", "pipe.gif"])
+def test_an_output_that_is_a_stream_is_refused_by_name(capsys, tmp_path, name):
+    # -o /dev/stdout said "is a file, not a directory for PNG frames".
+    import os
+
+    scene = write_scene(tmp_path / "s")
+    if not name.startswith("/"):
+        os.mkfifo(tmp_path / name)
+        name = str(tmp_path / name)
+    code, out, err = run(capsys, "render", scene, "-o", name)
+    what = {"/dev/stdout": "standard output", "/dev/stderr": "standard error"}.get(name, "a pipe")
+    assert code == 2 and out == "" and f"error: {name}: is {what}, not a file; inkwarp writes every output to a file" in err, err
+    assert "Name a file, such as out" in err and "directory for PNG frames" not in err, err
+    from inkwarp.video import open_writer
+
+    with pytest.raises(ValueError, match=f"is {what}, not a file"):
+        open_writer(name, fps=4)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import shutil
 import warnings
 from pathlib import Path
@@ -94,6 +95,7 @@ def check_target(path: str | os.PathLike[str], kind: OutputKind | None = None) -
     target = Path(os.fspath(path))
     if kind != "dir":
         return check_file(target)
+    check_not_a_stream(path)
     parent = _check_parent(target)
     if target.exists() and not target.is_dir():
         raise ValueError(f"{target}: is a file, not a directory for PNG frames")
@@ -114,6 +116,7 @@ def check_file(path: str | os.PathLike[str], suffix: str = "") -> Path:
     has none)."""
     text = os.fspath(path)
     target = Path(text)
+    check_not_a_stream(text, suffix)
     if text.endswith(("/", os.sep)):
         raise ValueError(f"{text}: names a directory (it ends in {text[-1]}); name a file, such as "
                          f"{target / 'out'}{suffix}")
@@ -127,6 +130,48 @@ def check_file(path: str | os.PathLike[str], suffix: str = "") -> Path:
     if not os.access(parent, os.W_OK):
         raise ValueError(f"{target}: the directory {parent} is not writable")
     return target
+
+
+#: Names of the standard streams, which an output cannot be: every output is written under
+#: a temporary name and renamed into place.
+_STREAMS = {"-": "standard output", "/dev/stdout": "standard output", "/dev/fd/1": "standard output",
+            "/proc/self/fd/1": "standard output", "/dev/stderr": "standard error",
+            "/dev/fd/2": "standard error", "/proc/self/fd/2": "standard error",
+            "/dev/stdin": "standard input", "/dev/fd/0": "standard input", "/proc/self/fd/0": "standard input"}
+
+
+def check_not_a_stream(path: str | os.PathLike[str], suffix: str = "") -> None:
+    """Refuse an output that is not a file inkwarp can write: standard output (``-``,
+    ``/dev/stdout``) or another stream, a device or a pipe. Outputs are written under a
+    temporary name beside the target and renamed into place, so they go to files only; the
+    ``ValueError`` says so and names a file to give instead (with ``suffix`` where the path
+    has none).
+
+    Examples
+    --------
+    >>> check_not_a_stream("/dev/stdout")
+    Traceback (most recent call last):
+    ...
+    ValueError: /dev/stdout: is standard output, not a file; inkwarp writes every output to a file (under a temporary name, renamed when complete), so it cannot write to a stream. Name a file, such as out.gif, or a folder for PNG frames, such as frames/
+    """
+    import stat
+
+    text = os.fspath(path)
+    what = _STREAMS.get(text.rstrip("/") or text)
+    if what is None and re.fullmatch(r"/dev/fd/\d+|/proc/(self|\d+)/fd/\d+", text):
+        what = "a stream of a process"
+    if what is None:
+        try:
+            mode = os.stat(text).st_mode
+        except (OSError, ValueError):
+            return
+        if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+            return
+        what = "a pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
+    given = Path(text).suffix if text not in _STREAMS else ""
+    example = f"out{given or suffix}" if given or suffix else "out.gif, or a folder for PNG frames, such as frames/"
+    raise ValueError(f"{text}: is {what}, not a file; inkwarp writes every output to a file (under a temporary "
+                     f"name, renamed when complete), so it cannot write to a stream. Name a file, such as {example}")
 
 
 def _check_parent(target: Path) -> Path:
