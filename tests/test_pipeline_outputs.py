@@ -690,3 +690,19 @@ def test_ray_workers_fit_each_nodes_cpus_and_memory():
         ray_workers([node(8, 8), node(4, 2)], 12 * gib)
     with pytest.raises(ValueError, match="no live node"):
         ray_workers([node(8, 100, alive=False)], gib)
+
+
+def test_the_writers_docs_name_every_kind_they_write():
+    # open_writer's docstring named .png, a directory, .gif and .mp4 only, and its `kind`
+    # four of the seven kinds, though it writes .webm, .mov and .apng too.
+    import re
+    from typing import get_args
+
+    from inkwarp import video
+
+    for function in (video.open_writer, video.output_kind):
+        for suffix in video.FILE_SUFFIXES:
+            assert f"``{suffix}``" in function.__doc__, (function.__name__, suffix)
+    kinds = re.search(r"kind : \{(.*?)\}", video.open_writer.__doc__).group(1)
+    assert {k.strip().strip('"') for k in kinds.split(",")} == set(get_args(video.OutputKind))
+    assert "SpriteSheetWriter" in video.open_writer.__doc__

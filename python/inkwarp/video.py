@@ -1,4 +1,6 @@
-"""Writers for rendered frames: one PNG, a PNG sequence, an animated GIF, an H.264 MP4.
+"""Writers for rendered frames: one PNG, a PNG sequence, an animated GIF, an H.264 MP4
+(:func:`open_writer` hands the formats with alpha, WebM, MOV and APNG, to
+:mod:`inkwarp.outputs`).
 
 Every writer works under a temporary name in the target's own directory and renames it to
 the target only when the last frame is in, so a render that fails or is interrupted leaves
@@ -52,7 +54,8 @@ FRAME_PATTERN = "frame_{:04d}.png"
 def output_kind(path: str | os.PathLike[str]) -> OutputKind:
     """Which writer a path asks for, from its suffix.
 
-    ``.png`` is one frame, ``.gif`` an animated GIF, ``.mp4`` an H.264 video; an existing
+    ``.png`` is one frame, ``.gif`` an animated GIF, ``.mp4`` an H.264 video, ``.webm``,
+    ``.mov`` and ``.apng`` videos with alpha (VP9, ProRes 4444, animated PNG); an existing
     directory, a path ending in a separator, or a path without a suffix is a directory of
     PNG frames. Any other suffix is a ``ValueError``.
 
@@ -840,15 +843,20 @@ class Mp4Writer(FrameWriter):
 
 def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
                 kind: OutputKind | None = None, first_frame: int = 0, frames: int = 1) -> FrameWriter:
-    """The writer for ``path``: ``.png`` (one frame), a directory, ``.gif`` or ``.mp4``.
+    """The writer for ``path``, by its suffix (:func:`output_kind`): ``.png`` (one frame),
+    a directory of PNG frames, ``.gif`` (1-bit alpha), ``.mp4`` (H.264, no alpha: flattened
+    over white), or, with alpha, ``.webm`` (VP9), ``.mov`` (ProRes 4444) and ``.apng``
+    (those three from :mod:`inkwarp.outputs`). A sprite sheet is
+    :class:`inkwarp.outputs.SpriteSheetWriter`'s (``inkwarp render --sprite-sheet``,
+    ``inkwarp.render(..., sprite_sheet=...)``).
 
     Parameters
     ----------
     path : str or path-like
         The output. Its parent directory must exist.
     fps : float
-        Frames per second (GIF and MP4 timing).
-    kind : {"png", "dir", "gif", "mp4"}, optional
+        Frames per second (the timing of a GIF and of a video), from 0.001 to 1000.
+    kind : {"png", "dir", "gif", "mp4", "webm", "mov", "apng"}, optional
         Overrides the guess from the suffix (see :func:`output_kind`).
     first_frame : int
         For a directory: the number of the first frame's file.
