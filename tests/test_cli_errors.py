@@ -261,6 +261,10 @@ def test_a_time_past_the_end_renders_with_a_warning(capsys, tmp_path):
     code, _, stderr = run(capsys, "compare", scene, "-o", tmp_path / "c.png", "--time", "99", "--methods", "tps")
     assert code == 0 and "inkwarp compare: warning: --time 99 is past the scene's end" in stderr, stderr
     assert (tmp_path / "c.png").exists()
+    # Said once: the API's own PastEndWarning is not given again beside the command's line.
+    for command, out in (("render", "y.png"), ("field", "y.npy"), ("compare", "d.png")):
+        code, _, stderr = run(capsys, command, scene, "-o", tmp_path / out, "--time", "99")
+        assert code == 0 and stderr.count("past the scene's end") == 1 and "PastEndWarning" not in stderr, stderr
 
 
 def test_field_errors(capsys, tmp_path):

@@ -484,3 +484,64 @@ def test_progress_without_a_terminal_is_an_occasional_line(capsys, tmp_path, mon
     monkeypatch.setattr(_common, "_clock", lambda: now.__setitem__(0, now[0] + 1.0) or now[0])
     code, out, err = run(capsys, "render", scene, "-o", tmp_path / "b.gif")
     assert code == 0 and len(err.splitlines()) == 2, err
+
+
+def _slow(fps: float, duration: float | None) -> dict:
+    doc = {"inkwarp": 1, "fps": fps, "layers": [{"name": "square", "image": "square.png"}]}
+    return doc if duration is None else doc | {"duration": duration}
+
+
+@pytest.mark.parametrize("suffix", [".webm", ".mov", ".apng", ".mp4", ".gif", ".png", "/"])
+def test_a_rate_under_the_least_is_refused_by_name_before_any_output(capsys, tmp_path, suffix):
+    # 1e-9 fps validated (a 1e9 s scene), then ffmpeg failed with exit status 1 on a rate
+    # of 0/1 that it could not parse.
+    scene = write_scene(tmp_path / "s", _slow(1e-9, None))
+    code, out, err = run(capsys, "validate", scene)
+    assert code == 2 and "scene.json: fps: frames per second must be at least 0.001 (one frame every 1000 s), found 1e-9; use e.g. 24" in out + err, out + err
+    code, out, err = run(capsys, "render", scene, "-o", f"{tmp_path / 'out'}{suffix}")
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert f"error: {scene}: fps: frames per second must be at least 0.001" in err and "ffmpeg" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s"] and leftovers(tmp_path) == []
+
+
+def test_the_slowest_rate_plays_its_time_in_every_format(capsys, tmp_path):
+    # At 0.001 fps a frame lasts 1000 s: a GIF delay holds 655.35 s (the render stopped with
+    # a traceback); the videos are timed by an exact rate (1/1000).
+    import imageio_ffmpeg
+    import subprocess
+
+    scene = write_scene(tmp_path / "s", _slow(0.001, 2000))
+    for suffix in (".gif", ".apng", ".webm", ".mov", ".mp4"):
+        out = tmp_path / f"slow{suffix}"
+        code, _, err = run(capsys, "render", scene, "-o", out, "-q")
+        assert code == 0 and err == "", (suffix, err)
+        if suffix in (".gif", ".apng"):
+            with Image.open(out) as image:
+                delays = []
+                for i in range(image.n_frames):
+                    image.seek(i)
+                    delays.append(image.info["duration"])
+            assert sum(delays) == 2_000_000 and max(delays) <= (655_350 if suffix == ".gif" else 1_000_000), (suffix, delays)
+        else:
+            said = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-i", str(out)],
+                                  capture_output=True, text=True).stderr
+            assert "Duration: 00:33:20.00" in said, (suffix, said)
+
+
+@pytest.mark.parametrize("name", ["/dev/stdout", "/dev/stderr", "pipe", "pipe.gif"])
+def test_an_output_that_is_a_stream_is_refused_by_name(capsys, tmp_path, name):
+    # -o /dev/stdout said "is a file, not a directory for PNG frames".
+    import os
+
+    scene = write_scene(tmp_path / "s")
+    if not name.startswith("/"):
+        os.mkfifo(tmp_path / name)
+        name = str(tmp_path / name)
+    code, out, err = run(capsys, "render", scene, "-o", name)
+    what = {"/dev/stdout": "standard output", "/dev/stderr": "standard error"}.get(name, "a pipe")
+    assert code == 2 and out == "" and f"error: {name}: is {what}, not a file; inkwarp writes every output to a file" in err, err
+    assert "Name a file, such as out" in err and "directory for PNG frames" not in err, err
+    from inkwarp.video import open_writer
+
+    with pytest.raises(ValueError, match=f"is {what}, not a file"):
+        open_writer(name, fps=4)

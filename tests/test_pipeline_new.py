@@ -466,8 +466,9 @@ def test_new_refuses_to_replace_an_existing_scene_unless_forced(capsys, tmp_path
 
 
 @pytest.mark.parametrize("option,value,message", [
-    ("--fps", "inf", "--fps inf: give a number of frames per second > 0"),
+    ("--fps", "inf", "--fps inf: give a number of frames per second from 0.001 to 1000"),
     ("--fps", "5000", "--fps 5000: frames per second may be at most 1000"),
+    ("--fps", "1e-9", "--fps 1e-09: frames per second must be at least 0.001 (one frame every 1000 s)"),
     ("--duration", "inf", "--duration inf: give a length in seconds > 0"),
     ("--duration", "1e9", "--duration 1e+09: the duration may be at most"),
 ])

@@ -129,6 +129,40 @@ def test_a_gif_stores_a_run_of_identical_frames_once_with_its_delays_added(tmp_p
     assert [f.tolist() for f in frames] == [still.tolist(), moved.tolist(), np.where(clear[..., 3:] == 0, 0, clear).tolist(), still.tolist()]
 
 
+def test_a_gif_frame_longer_than_a_gif_delay_is_repeated_to_keep_its_time(tmp_path):
+    # A GIF delay is 16 bits of hundredths (655.35 s at most): a frame of 1000 s (0.001 fps)
+    # stopped the render with a traceback (struct.error); a held pose past it is split too.
+    from inkwarp.video import write_frames
+
+    a, b = np.full((4, 6, 4), 255, np.uint8), np.full((4, 6, 4), 255, np.uint8)
+    a[..., :3], b[..., :3] = 30, 200
+
+    def played(name: str) -> tuple[list[int], list[int]]:
+        shades, delays = [], []
+        with Image.open(tmp_path / name) as gif:
+            for i in range(gif.n_frames):
+                gif.seek(i)
+                shades.append(int(np.asarray(gif.convert("RGBA"))[0, 0, 0]))
+                delays.append(gif.info["duration"])
+        return shades, delays
+
+    write_frames(tmp_path / "slow.gif", [a, b, a], fps=0.001)
+    assert played("slow.gif") == ([30, 30, 200, 200, 30, 30], [500_000] * 6)  # 3000 s in all
+    # Ten held frames of 100 s: 1000 s, as two even copies (not 600 s and 400 s).
+    write_frames(tmp_path / "held.gif", [a] * 10 + [b], fps=0.01)
+    assert played("held.gif") == ([30, 30, 200], [500_000, 500_000, 100_000])
+
+
+@pytest.mark.parametrize("suffix", [".gif", ".mp4", ".webm", ".png", "/"])
+@pytest.mark.parametrize("fps", [1e-9, 0, -24, 5000, float("nan")])
+def test_a_writer_takes_the_rates_a_scene_may_have(tmp_path, suffix, fps):
+    from inkwarp.video import open_writer
+
+    with pytest.raises(ValueError, match=r"fps must be a number of frames per second from 0\.001 \(one frame every 1000 s\) to 1000; got "):
+        open_writer(f"{tmp_path / 'out'}{suffix}", fps=fps)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_background_option_overrides_the_scene(capsys, tmp_path, transparent):
     scene, reference = transparent
     code, _, err = run(capsys, "render", scene, "-o", tmp_path / "f.png", "--background", "#ff0000")
@@ -656,3 +690,19 @@ def test_ray_workers_fit_each_nodes_cpus_and_memory():
         ray_workers([node(8, 8), node(4, 2)], 12 * gib)
     with pytest.raises(ValueError, match="no live node"):
         ray_workers([node(8, 100, alive=False)], gib)
+
+
+def test_the_writers_docs_name_every_kind_they_write():
+    # open_writer's docstring named .png, a directory, .gif and .mp4 only, and its `kind`
+    # four of the seven kinds, though it writes .webm, .mov and .apng too.
+    import re
+    from typing import get_args
+
+    from inkwarp import video
+
+    for function in (video.open_writer, video.output_kind):
+        for suffix in video.FILE_SUFFIXES:
+            assert f"``{suffix}``" in function.__doc__, (function.__name__, suffix)
+    kinds = re.search(r"kind : \{(.*?)\}", video.open_writer.__doc__).group(1)
+    assert {k.strip().strip('"') for k in kinds.split(",")} == set(get_args(video.OutputKind))
+    assert "SpriteSheetWriter" in video.open_writer.__doc__

@@ -155,17 +155,49 @@ def test_a_chunk_whose_worker_dies_is_rendered_again_on_a_new_one(capsys, tmp_pa
                         os.kill(int(pid), signal.SIGKILL)
             return frames
 
+        capsys.readouterr()
         with pytest.warns(inkwarp.errors.InkwarpWarning, match=r"the Ray worker rendering frames \d+:\d+ died \(.*\); rendering them on a new one"):
             frames = render_killing_one()
         assert len(frames) == 40
         for got, want in zip(frames, sequential):
             assert np.abs(got.astype(int) - want).max() <= 1
+        # Ray's own notice of the death ("(raylet) A worker died or was killed ...", in colour)
+        # came on stdout, which holds the command line's summary line only: now on stderr.
+        import time
+
+        out, err = capsys.readouterr()
+        deadline = time.monotonic() + 10
+        while "worker died" not in (out + err).lower() and time.monotonic() < deadline:
+            time.sleep(0.2)
+            more = capsys.readouterr()
+            out, err = out + more.out, err + more.err
+        assert "(raylet)" not in out and "worker died" not in out.lower(), out
+        if "worker died" in err.lower():  # (it came within the wait: Ray gives it a moment after)
+            assert "(raylet) A worker died or was killed" in err and "\x1b[" not in err, err
         # With no restarts allowed the death is said in one line, with the fix.
         monkeypatch.setattr(inkwarp.rendering, "RAY_RESTARTS", 0)
         with pytest.raises(inkwarp.errors.WorkerLostError, match=r"the Ray worker rendering frames \d+:\d+ died 1 time \(\w+: .*run again to resume"):
             render_killing_one()
     finally:
         ray.shutdown()
+
+
+def test_rays_notices_to_the_driver_go_to_stderr_plain_and_its_other_output_as_before(capsys):
+    # Ray's driver printed its nodes' notices ("(raylet) A worker died or was killed ...")
+    # on stdout in colour, though the command line keeps stdout for its summary line.
+    from ray._private import worker
+
+    inkwarp.rendering._ray_notices_to_stderr()
+    inkwarp.rendering._ray_notices_to_stderr()  # once only: not wrapped twice
+    notice = "A worker died or was killed while executing a task by an unexpected system error. \x1b[33mcheck\x1b[0m"
+    worker.print_to_stdstream({"lines": [notice], "pid": "raylet", "is_err": False}, ignore_prefix=False)
+    out, err = capsys.readouterr()
+    assert out == "" and err == "(raylet) A worker died or was killed while executing a task by an unexpected system error. check\n"
+    # A task's own printing (with log_to_driver) still goes where Ray sends it.
+    worker.print_to_stdstream({"lines": ["hello from a task 7f3a"], "pid": 4242, "is_err": False,
+                               "ip": "127.0.0.1", "localhost": "127.0.0.1"}, ignore_prefix=False)
+    out, err = capsys.readouterr()
+    assert "hello from a task 7f3a" in out and err == ""
 
 
 def test_the_workers_convergence_warnings_are_said_here_and_strict_holds(capsys, tmp_path):

@@ -51,8 +51,9 @@ def test_fields_follow_the_drawing(scene):
     assert field.dtype == np.float32 and field.shape == (30, 40, 2)
     np.testing.assert_allclose(field[10, 10], [3, 1], atol=1e-4)     # the dot moved by (3, 1)
     np.testing.assert_allclose(scene.field(time=0.0, layer=1), 0, atol=1e-6)
-    # Before the first key and after the last, features hold.
-    np.testing.assert_allclose(scene.field(time=5.0, layer=0), scene.field(time=2.0, layer=0), atol=1e-6)
+    # Before the first key and after the last, features hold (past the scene's end, said so).
+    with pytest.warns(inkwarp.PastEndWarning):
+        np.testing.assert_allclose(scene.field(time=5.0, layer=0), scene.field(time=scene.duration, layer=0), atol=1e-6)
     with pytest.raises(ValueError, match="2 layers"):
         scene.field(time=1.0)
     with pytest.raises(ValueError, match="no layer is called"):
@@ -245,3 +246,25 @@ def test_save_writes_only_json_names(scene, tmp_path):
     assert picture.read_bytes() == before
     scene.save(tmp_path / "Copy.JSON")
     assert inkwarp.Scene.load(tmp_path / "Copy.JSON").to_dict() == scene.to_dict()
+
+
+def test_a_time_past_the_end_warns_as_the_command_line_does_and_one_before_0_is_a_pose(scene):
+    # `inkwarp render --time 100` warned that it was past the scene's end; Scene.render(time=100)
+    # said nothing. A time before 0 is the drawing before the first frame (keys may lie there,
+    # and inkwarp compare shows it), as docs/reference/limits.md has it.
+    import warnings
+
+    end = scene.duration
+    with pytest.warns(inkwarp.PastEndWarning, match=rf"time 100 s is past the scene's end \({end:g} s\): it shows the poses held") as said:
+        late = scene.render(time=100)
+    assert said[0].filename == __file__  # the warning names the caller's line
+    with pytest.warns(inkwarp.PastEndWarning, match="past the scene's end"):
+        scene.field(time=end + 0.5, layer=0)
+    assert issubclass(inkwarp.PastEndWarning, inkwarp.InkwarpWarning)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_array_equal(scene.render(time=end), late)  # the end itself: no warning
+        scene.render(frame=scene.frame_count - 1)
+        np.testing.assert_array_equal(scene.render(time=-1), scene.render(time=0))  # the first keys held
+    with pytest.raises(ValueError, match=r"time -200000 s is past the times a scene holds"):
+        scene.render(time=-2e5)

@@ -6,6 +6,8 @@ MAX_SIDE_PX: int
 MAX_PIXELS: int
 MAX_COORD_PX: float
 MAX_TIME_S: float
+MIN_FPS: float
+MAX_FPS: float
 
 def check_size(what: str, width: int, height: int) -> None: ...
 

@@ -58,6 +58,13 @@ class InkwarpWarning(UserWarning):
     transfer map that folds the drawing over)."""
 
 
+class PastEndWarning(InkwarpWarning):
+    """A frame or field was asked of a scene at a time past its end (``Scene.duration``):
+    it shows the poses held after the last keys, which may not be what was meant (a time in
+    milliseconds, say). ``inkwarp render``, ``field`` and ``compare`` say the same of
+    ``--time`` as a warning line on stderr."""
+
+
 class ConvergenceWarning(InkwarpWarning):
     """A thin-plate solve stopped before it converged (its cycles ran out, a budget was
     spent, parts were left unsettled: see :attr:`SolveReport.stop`), so its field may be off

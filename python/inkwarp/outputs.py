@@ -85,13 +85,6 @@ def _ffmpeg() -> str:
     return imageio_ffmpeg.get_ffmpeg_exe()
 
 
-def _rate(fps: float) -> str:
-    from fractions import Fraction
-
-    fraction = Fraction(fps).limit_denominator(1001)
-    return f"{fraction.numerator}/{fraction.denominator}"
-
-
 class FfmpegAlphaWriter(FrameWriter):
     """RGBA frames streamed to ffmpeg, encoded with alpha (see the module's list)."""
 
@@ -115,7 +108,7 @@ class FfmpegAlphaWriter(FrameWriter):
         self._log = tempfile.TemporaryFile()
         command = [_ffmpeg(), "-hide_banner", "-loglevel", "error", "-y",
                    "-f", "rawvideo", "-pix_fmt", "rgba", "-s", f"{width}x{height}",
-                   "-r", _rate(self.fps), "-i", "-", *([] if self.kind == "apng" else video.BT709),
+                   "-r", video.ffmpeg_rate(self.fps), "-i", "-", *([] if self.kind == "apng" else video.BT709),
                    *self.CODECS[self.kind], str(self._temp)]
         self._process = subprocess.Popen(command, stdin=subprocess.PIPE,
                                          stdout=subprocess.DEVNULL, stderr=self._log)

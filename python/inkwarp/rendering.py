@@ -25,6 +25,7 @@ import errno
 import math
 import mimetypes
 import os
+import re
 import sys
 import warnings
 from collections.abc import Iterator
@@ -513,11 +514,47 @@ def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
     local = address is True or address in (None, "", "local")
     if not local:
         _check_address(str(address))
+    _ray_notices_to_stderr()
     if ray.is_initialized():
         return ray
     with _sigterm_kept():
         _ray_join(ray, address, local, chatter)
     return ray
+
+
+def _ray_notices_to_stderr() -> None:
+    """Sends the notices Ray's nodes give a driver (``(raylet) A worker died or was killed
+    ...``, ``(raylet) ... memory ...``) to stderr, as plain lines where stderr is no
+    terminal: Ray's driver prints them on stdout, in colour, from a thread that listens to
+    its error channel (``ray._private.worker.listen_error_messages`` calls the module's
+    ``print_to_stdstream`` with ``is_err`` False), even under ``log_to_driver=False``; and
+    the command line's stdout holds its summary line only. The workers' own output (under
+    ``log_to_driver``) goes where Ray sends it. Done once per process, for every Ray
+    session in it; a Ray without that function is left as it is."""
+    try:
+        from ray._private import worker
+    except ImportError:
+        return
+    printer = getattr(worker, "print_to_stdstream", None)
+    if printer is None or getattr(printer, "_inkwarp_original", None) is not None:
+        return
+
+    def print_to_stdstream(data: Any, ignore_prefix: bool) -> Any:
+        if not (isinstance(data, dict) and data.get("pid") == "raylet" and not data.get("is_err")):
+            return printer(data, ignore_prefix)
+        plain = not getattr(sys.stderr, "isatty", lambda: False)()
+        for line in data.get("lines") or []:
+            text = _ANSI.sub("", str(line)) if plain else str(line)
+            sys.stderr.write(f"(raylet) {text}\n")
+        sys.stderr.flush()
+        return None
+
+    print_to_stdstream._inkwarp_original = printer  # type: ignore[attr-defined]
+    worker.print_to_stdstream = print_to_stdstream
+
+
+#: ANSI colour and style codes, which Ray's notices may carry.
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
 
 
 @contextlib.contextmanager

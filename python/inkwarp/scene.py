@@ -36,6 +36,7 @@ import json
 import math
 import os
 import stat
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -631,6 +632,12 @@ class Scene:
         if abs(seconds) > _inkwarp.MAX_TIME_S:
             raise ValueError(f"time {seconds:g} s is past the times a scene holds (±{_inkwarp.MAX_TIME_S:g} s, "
                              "about 27 hours); give a time within its keys, or frame=")
+        if seconds > self.duration:
+            from inkwarp.errors import PastEndWarning, caller_outside
+
+            warnings.warn(f"time {seconds:g} s is past the scene's end ({self.duration:g} s): it shows the poses "
+                          "held after the last keys; give a time up to the end (seconds, not frames: frame "
+                          "N is at N / fps, or give frame=N)", PastEndWarning, stacklevel=caller_outside())
         return seconds
 
     def _layer_index(self, layer: str | int | None) -> int:
@@ -660,7 +667,11 @@ class Scene:
         Parameters
         ----------
         time, frame : optional
-            When (default: time 0). Give one of them.
+            When (default: time 0). Give one of them. ``time`` is in seconds, within ±10⁵ s
+            (``ValueError`` past that); a time before 0 is the drawing before the first
+            frame (keys may lie there), and a time past the scene's end (:attr:`duration`)
+            gives the poses held after the last keys with a :class:`~inkwarp.PastEndWarning`.
+            ``frame`` is one of the scene's frames, 0 to ``frame_count - 1``.
         method : str, optional
             ``"tps"``, ``"tps-exact"``, ``"triangulation"`` or ``"beier-neely"`` for every
             layer instead of the scene's ``solver.method``.
@@ -685,7 +696,8 @@ class Scene:
         Parameters
         ----------
         time, frame : optional
-            When (default: time 0). Give one of them.
+            When (default: time 0). Give one of them, as for :meth:`render` (a time past
+            the scene's end warns).
         layer : str or int, optional
             Layer name or index; may be left out when the scene has one layer.
         method : str, optional

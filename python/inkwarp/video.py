@@ -1,4 +1,6 @@
-"""Writers for rendered frames: one PNG, a PNG sequence, an animated GIF, an H.264 MP4.
+"""Writers for rendered frames: one PNG, a PNG sequence, an animated GIF, an H.264 MP4
+(:func:`open_writer` hands the formats with alpha, WebM, MOV and APNG, to
+:mod:`inkwarp.outputs`).
 
 Every writer works under a temporary name in the target's own directory and renames it to
 the target only when the last frame is in, so a render that fails or is interrupted leaves
@@ -27,6 +29,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import shutil
 import warnings
 from pathlib import Path
@@ -51,7 +54,8 @@ FRAME_PATTERN = "frame_{:04d}.png"
 def output_kind(path: str | os.PathLike[str]) -> OutputKind:
     """Which writer a path asks for, from its suffix.
 
-    ``.png`` is one frame, ``.gif`` an animated GIF, ``.mp4`` an H.264 video; an existing
+    ``.png`` is one frame, ``.gif`` an animated GIF, ``.mp4`` an H.264 video, ``.webm``,
+    ``.mov`` and ``.apng`` videos with alpha (VP9, ProRes 4444, animated PNG); an existing
     directory, a path ending in a separator, or a path without a suffix is a directory of
     PNG frames. Any other suffix is a ``ValueError``.
 
@@ -94,6 +98,7 @@ def check_target(path: str | os.PathLike[str], kind: OutputKind | None = None) -
     target = Path(os.fspath(path))
     if kind != "dir":
         return check_file(target)
+    check_not_a_stream(path)
     parent = _check_parent(target)
     if target.exists() and not target.is_dir():
         raise ValueError(f"{target}: is a file, not a directory for PNG frames")
@@ -114,6 +119,7 @@ def check_file(path: str | os.PathLike[str], suffix: str = "") -> Path:
     has none)."""
     text = os.fspath(path)
     target = Path(text)
+    check_not_a_stream(text, suffix)
     if text.endswith(("/", os.sep)):
         raise ValueError(f"{text}: names a directory (it ends in {text[-1]}); name a file, such as "
                          f"{target / 'out'}{suffix}")
@@ -127,6 +133,48 @@ def check_file(path: str | os.PathLike[str], suffix: str = "") -> Path:
     if not os.access(parent, os.W_OK):
         raise ValueError(f"{target}: the directory {parent} is not writable")
     return target
+
+
+#: Names of the standard streams, which an output cannot be: every output is written under
+#: a temporary name and renamed into place.
+_STREAMS = {"-": "standard output", "/dev/stdout": "standard output", "/dev/fd/1": "standard output",
+            "/proc/self/fd/1": "standard output", "/dev/stderr": "standard error",
+            "/dev/fd/2": "standard error", "/proc/self/fd/2": "standard error",
+            "/dev/stdin": "standard input", "/dev/fd/0": "standard input", "/proc/self/fd/0": "standard input"}
+
+
+def check_not_a_stream(path: str | os.PathLike[str], suffix: str = "") -> None:
+    """Refuse an output that is not a file inkwarp can write: standard output (``-``,
+    ``/dev/stdout``) or another stream, a device or a pipe. Outputs are written under a
+    temporary name beside the target and renamed into place, so they go to files only; the
+    ``ValueError`` says so and names a file to give instead (with ``suffix`` where the path
+    has none).
+
+    Examples
+    --------
+    >>> check_not_a_stream("/dev/stdout")
+    Traceback (most recent call last):
+    ...
+    ValueError: /dev/stdout: is standard output, not a file; inkwarp writes every output to a file (under a temporary name, renamed when complete), so it cannot write to a stream. Name a file, such as out.gif, or a folder for PNG frames, such as frames/
+    """
+    import stat
+
+    text = os.fspath(path)
+    what = _STREAMS.get(text.rstrip("/") or text)
+    if what is None and re.fullmatch(r"/dev/fd/\d+|/proc/(self|\d+)/fd/\d+", text):
+        what = "a stream of a process"
+    if what is None:
+        try:
+            mode = os.stat(text).st_mode
+        except (OSError, ValueError):
+            return
+        if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+            return
+        what = "a pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
+    given = Path(text).suffix if text not in _STREAMS else ""
+    example = f"out{given or suffix}" if given or suffix else "out.gif, or a folder for PNG frames, such as frames/"
+    raise ValueError(f"{text}: is {what}, not a file; inkwarp writes every output to a file (under a temporary "
+                     f"name, renamed when complete), so it cannot write to a stream. Name a file, such as {example}")
 
 
 def _check_parent(target: Path) -> Path:
@@ -232,6 +280,50 @@ def ffmpeg_failure(target: Path, code: int, said: str) -> OSError:
                                                          ": it gave no reason"))
 
 
+def check_fps(fps: float, name: str = "fps") -> float:
+    """``fps`` as a float when it is a rate a scene may have (from ``MIN_FPS``, 0.001: a
+    frame every 1000 s, to ``MAX_FPS``, 1000; see docs/reference/limits.md), else a
+    ``ValueError`` naming ``name``.
+
+    Examples
+    --------
+    >>> check_fps(24)
+    24.0
+    >>> check_fps(1e-9)
+    Traceback (most recent call last):
+    ...
+    ValueError: fps must be a number of frames per second from 0.001 (one frame every 1000 s) to 1000; got 1e-09
+    """
+    from inkwarp._inkwarp import MAX_FPS, MIN_FPS
+
+    try:
+        rate = float(fps)
+    except (TypeError, ValueError):
+        rate = float("nan")
+    if not MIN_FPS <= rate <= MAX_FPS:  # NaN too
+        raise ValueError(f"{name} must be a number of frames per second from {MIN_FPS:g} (one frame every "
+                         f"{1 / MIN_FPS:g} s) to {MAX_FPS:g}; got {fps!r}")
+    return rate
+
+
+def ffmpeg_rate(fps: float) -> str:
+    """``fps`` as the fraction ffmpeg takes for a frame rate, ``NUM/DEN``: the nearest one
+    whose terms stay within what ffmpeg reads exactly (about 10**6), so 0.001 is 1/1000 and
+    NTSC's 30000/1001 stays itself (fractions of terms up to 1001 made 0/1 of a rate under
+    1/2002 fps, which ffmpeg refused, and rounded slow ones: 0.0015 fps as 1/667).
+
+    Examples
+    --------
+    >>> ffmpeg_rate(24), ffmpeg_rate(30000 / 1001), ffmpeg_rate(0.001), ffmpeg_rate(0.0015)
+    ('24/1', '30000/1001', '1/1000', '3/2000')
+    """
+    import math
+    from fractions import Fraction
+
+    fraction = Fraction(fps).limit_denominator(1_001_000 // max(1, math.ceil(fps)))
+    return f"{fraction.numerator}/{fraction.denominator}"
+
+
 #: ffmpeg's arguments that convert RGB frames to Y'CbCr by the BT.709 matrix (limited range)
 #: and tag the video as BT.709 (primaries, transfer and matrix): untagged, ffmpeg used the
 #: BT.601 matrix, which players and editors assume only for standard definition, so HD
@@ -289,8 +381,7 @@ class FrameWriter:
     """
 
     def __init__(self, target: Path, fps: float) -> None:
-        if not (fps > 0 and np.isfinite(fps)):
-            raise ValueError(f"fps must be a positive number; got {fps}")
+        check_fps(fps)
         self.target = target
         self.fps = float(fps)
         self.frames_written = 0
@@ -458,7 +549,8 @@ class GifWriter(FrameWriter):
     of identical frames is stored once, with the delays added. GIF stores delays in
     hundredths of a second, so they are spread to keep the clip's total length right
     (24 fps plays as 4, 4, 4, 5, 4, ... hundredths); above 50 fps frames are left out
-    (`gif_keeps`).
+    (`gif_keeps`). A delay past GIF's 655.35 s is stored as copies of the frame
+    (`gif_delay_parts`).
     """
 
     def __init__(self, target: Path, fps: float) -> None:
@@ -484,7 +576,7 @@ class GifWriter(FrameWriter):
         # A frame the same as the last (a held pose) adds its delay to it, unencoded.
         digest = hashlib.blake2b(rgba.tobytes(), digest_size=16).digest()
         delay = gif_delay_cs(self.frames_written, self.fps)
-        if self._pending is not None and self._pending[0] == digest and self._pending[2] + delay <= 0xFFFF:
+        if self._pending is not None and self._pending[0] == digest:
             self._pending = (digest, self._pending[1], self._pending[2] + delay)
             return
         clear = rgba[..., 3] < 128 if rgba.shape[2] == 4 else np.zeros(rgba.shape[:2], bool)
@@ -518,8 +610,11 @@ class GifWriter(FrameWriter):
         _, data, delay = self._pending
         # Graphic control: disposal 2 (the canvas is cleared after the frame, so the next
         # one's transparent pixels show nothing of it), the delay, transparent index 255 (on
-        # opaque frames too: decoders then clear to transparent, not to a colour).
-        self._file.write(b"\x21\xf9\x04" + struct.pack("<BHB", 2 << 2 | 1, delay, 255) + b"\x00" + data)
+        # opaque frames too: decoders then clear to transparent, not to a colour). A delay
+        # is 16 bits (655.35 s at most): a longer one (a held pose, a frame at under 0.0015
+        # fps) is the same image repeated, the delay shared evenly between the copies.
+        for part in gif_delay_parts(delay):
+            self._file.write(b"\x21\xf9\x04" + struct.pack("<BHB", 2 << 2 | 1, part, 255) + b"\x00" + data)
         self._file.flush()
         self._pending = None
 
@@ -565,6 +660,24 @@ def gif_delay_cs(i: int, fps: float) -> int:
     if fps > GIF_MAX_FPS:
         return 100 // GIF_MAX_FPS
     return round((i + 1) * 100 / fps) - round(i * 100 / fps)
+
+
+#: The longest delay one GIF frame holds, in hundredths of a second (16 bits: 655.35 s).
+GIF_MAX_DELAY_CS = 0xFFFF
+
+
+def gif_delay_parts(delay: int) -> list[int]:
+    """A delay in hundredths of a second as the delays of the fewest copies of a frame that
+    hold it (each at most :data:`GIF_MAX_DELAY_CS`), shared evenly, so that none is so short
+    that browsers stretch it (they play a delay of 1 or less as 10).
+
+    Examples
+    --------
+    >>> gif_delay_parts(4), gif_delay_parts(100_000), gif_delay_parts(0xFFFF + 1)
+    ([4], [50000, 50000], [32768, 32768])
+    """
+    copies = max(1, -(-delay // GIF_MAX_DELAY_CS))
+    return [delay * (k + 1) // copies - delay * k // copies for k in range(copies)]
 
 
 def warn_gif_frames_left_out(target: Path, frames: int, kept: int, fps: float) -> None:
@@ -669,7 +782,7 @@ class Mp4Writer(FrameWriter):
         command = [
             imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-hide_banner", "-loglevel", "error",
             "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}",
-            "-pix_fmt", "rgb24", "-r", f"{self.fps:.12g}", "-i", "-", "-an",
+            "-pix_fmt", "rgb24", "-r", ffmpeg_rate(self.fps), "-i", "-", "-an",
             *BT709, "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf),
             "-movflags", "+faststart", "-f", "mp4", str(self._temp),
         ]
@@ -730,15 +843,20 @@ class Mp4Writer(FrameWriter):
 
 def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
                 kind: OutputKind | None = None, first_frame: int = 0, frames: int = 1) -> FrameWriter:
-    """The writer for ``path``: ``.png`` (one frame), a directory, ``.gif`` or ``.mp4``.
+    """The writer for ``path``, by its suffix (:func:`output_kind`): ``.png`` (one frame),
+    a directory of PNG frames, ``.gif`` (1-bit alpha), ``.mp4`` (H.264, no alpha: flattened
+    over white), or, with alpha, ``.webm`` (VP9), ``.mov`` (ProRes 4444) and ``.apng``
+    (those three from :mod:`inkwarp.outputs`). A sprite sheet is
+    :class:`inkwarp.outputs.SpriteSheetWriter`'s (``inkwarp render --sprite-sheet``,
+    ``inkwarp.render(..., sprite_sheet=...)``).
 
     Parameters
     ----------
     path : str or path-like
         The output. Its parent directory must exist.
     fps : float
-        Frames per second (GIF and MP4 timing).
-    kind : {"png", "dir", "gif", "mp4"}, optional
+        Frames per second (the timing of a GIF and of a video), from 0.001 to 1000.
+    kind : {"png", "dir", "gif", "mp4", "webm", "mov", "apng"}, optional
         Overrides the guess from the suffix (see :func:`output_kind`).
     first_frame : int
         For a directory: the number of the first frame's file.

@@ -14,6 +14,11 @@ pub const MAX_TIME_S: f64 = 1e5;
 pub const MIN_KEY_SPACING_S: f64 = 1e-6;
 /// The most frames per second.
 pub const MAX_FPS: f64 = 1000.0;
+/// The fewest frames per second: one frame every 1000 s (about 17 minutes). A frame of a
+/// slower scene would outlast what the formats hold in one frame (APNG's delay, 65535 s;
+/// ffmpeg takes rates down to about 1e-6 only) and its derived length (the last key and one
+/// frame) would run far past [`MAX_TIME_S`].
+pub const MIN_FPS: f64 = 0.001;
 /// The most frames a scene may have (duration × fps).
 pub const MAX_FRAMES: usize = 100_000_000;
 /// The widest or tallest picture, canvas or grid, in pixels.

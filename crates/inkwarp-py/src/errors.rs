@@ -24,6 +24,8 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_PIXELS", limits::MAX_PIXELS)?;
     m.add("MAX_COORD_PX", limits::MAX_COORD_PX)?;
     m.add("MAX_TIME_S", limits::MAX_TIME_S)?;
+    m.add("MIN_FPS", limits::MIN_FPS)?;
+    m.add("MAX_FPS", limits::MAX_FPS)?;
     m.add_function(wrap_pyfunction!(crate::limits::check_size, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
     m.add_function(wrap_pyfunction!(_after_fork, m)?)?;

@@ -15,9 +15,10 @@ import signal
 import sys
 import threading
 import traceback
+import warnings
 
 from inkwarp.cli._common import prefixed, problem_parts
-from inkwarp.errors import InkwarpError, InternalError, OutputWriteError, SceneError, WorkerLostError
+from inkwarp.errors import InkwarpError, InternalError, OutputWriteError, PastEndWarning, SceneError, WorkerLostError
 
 # The command modules, in the order `inkwarp --help` lists them.
 COMMANDS: list[str] = ["new", "render", "field", "validate", "schema", "demo", "edit", "compare", "transfer",
@@ -213,7 +214,10 @@ def main(argv: list[str] | None = None) -> int:
               f"standard output; {hint}", file=sys.stderr)
         return 2
     try:
-        with _sigterm_unwinds(), _stdout_said():
+        with _sigterm_unwinds(), _stdout_said(), warnings.catch_warnings():
+            # A --time past the scene's end is said in each command's own words
+            # (_common.warn_past_end), not as the API's warning again.
+            warnings.simplefilter("ignore", PastEndWarning)
             return int(args.func(args) or 0)
     except InternalError as err:
         print(f"inkwarp {args.command}: {err}", file=sys.stderr)

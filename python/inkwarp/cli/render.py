@@ -87,7 +87,7 @@ def convergence_lines(command: str = "render") -> Iterator[list[str]]:
     layer as it happens, then how many more there were), and every other inkwarp warning
     as one line, not as a Python warning, for `inkwarp COMMAND`. Yields the list of those
     solves' warnings, filled as they come (for ``--strict``)."""
-    from inkwarp.errors import ConvergenceWarning, InkwarpWarning
+    from inkwarp.errors import ConvergenceWarning, InkwarpWarning, PastEndWarning
 
     seen: set[str] = set()
     more: list[str] = []  # where the solves after each layer's first did not converge
@@ -97,6 +97,8 @@ def convergence_lines(command: str = "render") -> Iterator[list[str]]:
         if not issubclass(category, InkwarpWarning):
             return shown(message, category, filename, lineno, file, line)
         text = str(message)
+        if issubclass(category, PastEndWarning):
+            return None  # said of --time in the command's own words (_common.warn_past_end)
         if not issubclass(category, ConvergenceWarning):
             _common.say(f"inkwarp {command}: warning: {text}")
             return None

@@ -15,8 +15,9 @@ examples:
 
 The schema is generated from the engine's own types: its keys, types and
 kinds are the ones 'inkwarp validate' and 'inkwarp render' read. They check
-more than a schema can say (fps above 0, ids unique, keys in time order,
-images that exist), so a scene the schema passes may still be refused.
+more than a schema can say (fps from 0.001 to 1000, ids unique, keys in
+time order, images that exist), so a scene the schema passes may still be
+refused.
 """
 
 

@@ -32,7 +32,7 @@ pub struct SceneDoc {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 1))]
     pub height: Option<u32>,
-    /// Frames per second (> 0). Frame `i` shows the drawing at time `i / fps` seconds.
+    /// Frames per second, from 0.001 (one frame every 1000 s) to 1000. Frame `i` shows the drawing at time `i / fps` seconds.
     #[serde(default = "default_fps")]
     pub fps: f64,
     /// Length of the animation in seconds (> 0); it has `ceil(duration * fps)` frames.

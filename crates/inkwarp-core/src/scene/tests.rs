@@ -210,6 +210,7 @@ fn every_kind_of_mistake_is_reported_with_its_path() {
             "solver.tolerance",
         ),
         ("zero fps", with(valid_scene(), "/fps", json!(0)), "fps"),
+        ("fps below the least", with(valid_scene(), "/fps", json!(1e-9)), "fps"),
         (
             "negative duration",
             with(valid_scene(), "/duration", json!(-2)),

@@ -8,7 +8,7 @@ use super::shape::did_you_mean;
 use super::Problem;
 use crate::geometry::{Kind, Point};
 use crate::limits::{
-    self, MAX_BEIER_NEELY_A, MAX_BEIER_NEELY_EXPONENT, MAX_COORD_PX, MAX_FPS, MAX_FRAMES,
+    self, MAX_BEIER_NEELY_A, MAX_BEIER_NEELY_EXPONENT, MAX_COORD_PX, MAX_FPS, MAX_FRAMES, MIN_FPS,
     MAX_TENSION, MAX_TIME_S, MIN_KEY_SPACING_S,
 };
 
@@ -37,6 +37,8 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_
         p.push(Problem::new("fps", format!("frames per second must be a number > 0, found {}; use e.g. 24", doc.fps)));
     } else if doc.fps > MAX_FPS {
         p.push(Problem::new("fps", format!("frames per second may be at most {MAX_FPS}, found {}; use e.g. 24", doc.fps)));
+    } else if doc.fps < MIN_FPS {
+        p.push(Problem::new("fps", format!("frames per second must be at least {MIN_FPS} (one frame every {} s), found {:e}; use e.g. 24", 1.0 / MIN_FPS, doc.fps)));
     }
     if let Some(duration) = doc.duration {
         let why = if !(duration.is_finite() && duration > 0.0) {
