@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import base64
 import http.client
+import errno
 import json
+import re
 import os
 import socket
 import stat
 import threading
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 from pathlib import Path
 
@@ -589,3 +592,121 @@ def test_the_editor_keeps_its_port_from_run_to_run_unless_it_is_taken(editor: Pa
         taken.bind(("127.0.0.1", DEFAULT_PORT))
         taken.listen()
         assert _first_url(editor) not in ("", str(DEFAULT_PORT))
+
+
+def test_a_second_editor_says_which_port_it_took_and_that_the_scene_is_served_already(
+        editor: Path, scene: Path, monkeypatch, capsys) -> None:
+    # Work kept in the browser is kept per address: a run moved off the default port says so,
+    # and one whose scene another run already serves there warns.
+    import inkwarp.cli.edit as edit
+
+    first = serve(scene, editor)  # another run, on what is the default port here
+    port = first.server_address[1]
+    monkeypatch.setattr(edit, "DEFAULT_PORT", port)
+    monkeypatch.setenv("INKWARP_EDITOR_DIR", str(editor))
+    # It prints, then ends at once.
+    monkeypatch.setattr(edit.EditorServer, "serve_forever", lambda self, *a, **k: None)
+    monkeypatch.setattr(edit.EditorServer, "shutdown", lambda self: None)
+    try:
+        for argv, warned in (([str(scene)], True), ([], False)):
+            assert main(["edit", "--no-browser", *argv]) == 0
+            said = capsys.readouterr().out
+            moved = re.search(r"http://127\.0\.0\.1:(\d+)/", said).group(1)
+            assert moved != str(port)
+            assert f"Port {port} is taken" in said and f"serves on port {moved}" in said
+            assert "unsaved work per address" in said and "open the address above" in said
+            assert ("already serves " + str(scene) in said) == warned, said
+    finally:
+        monkeypatch.undo()
+        first.shutdown()
+        first.server_close()
+
+
+def test_the_serving_probe_tells_only_whether_a_scene_is_served(served, scene: Path) -> None:
+    from inkwarp.cli.edit import serving_id
+
+    status, _, body = fetch(api_url(served).replace("scene", "serving"), token=False)
+    assert status == 200 and body.decode() == serving_id(scene) and str(scene).encode() not in body
+
+
+@pytest.mark.parametrize("code, said", [
+    (errno.ENOSPC, "the disk is full: no room to write"),
+    (errno.EROFS, "is on a read-only file system; not saved"),
+])
+def test_a_save_on_a_full_or_read_only_disk_says_so(served, scene: Path, monkeypatch, code, said) -> None:
+    import inkwarp._atomic
+
+    api = api_url(served)
+    doc = json.loads(fetch(api)[2])
+    before = scene.read_bytes()
+    real = os.replace
+
+    def refuse(src, dst):
+        if str(dst) == str(scene):
+            raise OSError(code, os.strerror(code))
+        return real(src, dst)
+
+    monkeypatch.setattr(inkwarp._atomic.os, "replace", refuse)
+    status, _, body = fetch(api, "PUT", json.dumps({**doc, "fps": 12}).encode())
+    text = body.decode()
+    assert status == 422 and said in text and str(scene) in text and "Errno" not in text, text
+    assert "not writable by you" not in text
+    assert scene.read_bytes() == before
+    assert [p.name for p in scene.parent.iterdir() if p.name.startswith(".")] == []
+
+
+def test_a_read_only_mount_is_named_as_such_not_as_permissions(served, scene: Path, monkeypatch) -> None:
+    import inkwarp.cli.edit as edit
+
+    api = api_url(served)
+    doc = json.loads(fetch(api)[2])
+    monkeypatch.setattr(edit, "_read_only_fs", lambda folder: True)
+    monkeypatch.setattr(edit.os, "access", lambda *a, **k: False)
+    status, _, body = fetch(api, "PUT", json.dumps({**doc, "fps": 12}).encode())
+    assert status == 422 and b"read-only file system" in body and b"not writable by you" not in body
+
+
+def test_a_kept_copy_of_a_picture_changed_on_disk_is_written_beside_it(editor: Path, scene: Path) -> None:
+    # Work kept in the browser holds the picture as it was; the file changed since (here to
+    # another size, which the scene cannot take). Marked by the editor as a kept copy, it is
+    # written beside the file under a new name, never inlined in the scene nor mapped back to
+    # the changed file, in the run that read both pictures and in a fresh one alike.
+    old_uri = DOT_URI
+    for fresh in (False, True):
+        server = serve(scene, editor)
+        try:
+            api = api_url(server)
+            if not fresh:
+                fetch(api)  # this run reads the picture as it was
+            from PIL import Image
+
+            Image.new("RGB", (2, 1), (0, 200, 0)).save(scene.parent / "art" / "dot.png")
+            doc = json.loads(scene.read_text())
+            doc["layers"][0]["image"] = old_uri
+            doc["features"] = [{"id": "p", "kind": "point", "rest": [[0, 0]]}]
+            body = json.dumps(doc).encode()
+            # Unmarked, the run that read the old picture still maps it to the changed file,
+            # which no longer fits: refused, nothing written.
+            if not fresh:
+                status, _, said = fetch(api, "PUT", body)
+                assert status == 422 and b"pixels" in said
+            status, headers, _ = fetch(api, "PUT", body, headers={"X-Inkwarp-Kept-Copies": "0.image"})
+            assert status == 200
+            saved = json.loads(scene.read_text())
+            name = "art/dot-kept.png" if not fresh else "art/dot-kept-2.png"
+            assert saved["layers"][0]["image"] == name, saved["layers"][0]["image"][:40]
+            assert (scene.parent / name).read_bytes() == PNG_1x1
+            note = urllib.parse.unquote(headers["X-Inkwarp-Note"])
+            assert f"written beside it as {name}" in note and "art/dot.png is left as it is" in note
+            # A later save of the same scene names the copy by its path, and writes no other.
+            status, headers, _ = fetch(api, "PUT", body, headers={"X-Inkwarp-Kept-Copies": "0.image"},
+                                       token=TOKEN[0])
+            assert status == 200 and "X-Inkwarp-Note" not in headers
+            assert json.loads(scene.read_text())["layers"][0]["image"] in (name, "art/dot.png")
+        finally:
+            server.shutdown()
+            server.server_close()
+        doc = json.loads(scene.read_text())
+        doc["layers"][0]["image"] = "art/dot.png"
+        scene.write_text(json.dumps(doc))
+        (scene.parent / "art" / "dot.png").write_bytes(PNG_1x1)

@@ -1297,16 +1297,10 @@ test('a value typed into a field and not entered is kept when the page is left',
     await p.fill('#duration', '0.5'); // no Enter, the field still focused
     assert((await p.evaluate(() => window.inkwarp.store.doc.duration)) === 1, 'not entered yet');
     // Leaving: the page's own handler enters the value, and then counts the scene unsaved
-    // (so the browser asks). Dispatched here, the kept copy is then written before the reload.
-    const asked = await p.evaluate(() => {
-      const e = new Event('beforeunload', { cancelable: true });
-      window.dispatchEvent(e);
-      return e.defaultPrevented;
-    });
-    assert(asked, 'leaving asks first');
-    assert((await p.evaluate(() => [window.inkwarp.store.doc.duration, window.inkwarp.store.unsaved].join())) === '0.5,true', 'the value was entered');
-    await flush(p);
+    // (so the browser asks, and the test answers Leave). The kept copy written as the page
+    // goes is there for the next one: nothing flushed here beforehand.
     await p.reload();
+    assert(p.dialogs.includes('beforeunload'), `leaving asks first: ${p.dialogs}`);
     await p.waitForSelector('#restore', { timeout: 20000 });
     await restoreYes(p);
     await p.waitForFunction(() => window.inkwarp.store.doc.duration === 0.5, null, { timeout: 10000 });
@@ -1325,15 +1319,17 @@ test('work kept over a server restart takes the picture retouched on disk since,
   const { page: p, context, errors: errs } = await openEditor(browser, own.url);
   // A point drawn and kept, `retouch` done to the picture in another program, the editor's
   // server started again (same port: the same browser storage), the kept work restored.
-  const restoreAfter = async (at, retouch, features) => {
+  const restoreAfter = async (at, retouch, features, restart = true) => {
     await p.keyboard.press('p');
     await click(p, at);
     await idle(p);
     await flush(p);
     retouch();
-    own.proc.kill();
-    await new Promise((r) => own.proc.on('exit', r));
-    own = await startServer([scenePath, '--port', port]);
+    if (restart) {
+      own.proc.kill();
+      await new Promise((r) => own.proc.on('exit', r));
+      own = await startServer([scenePath, '--port', port]);
+    }
     await p.goto(own.url);
     await p.waitForSelector('#restore', { timeout: 20000 });
     await restoreYes(p);
@@ -1354,9 +1350,28 @@ test('work kept over a server restart takes the picture retouched on disk since,
     assert(saved.features.length === 1 && saved.layers[0].image === 'checker.png', `the picture is saved by its path: ${JSON.stringify(saved).slice(0, 120)}`);
     // Retouched to another size, the file does not open (its picture no longer fits): the
     // work is restored with the kept copy of the picture.
-    const kept = readFileSync(picture).toString('base64');
-    await restoreAfter([60, 60], () => copyFileSync(join(repo, 'examples/checkerboard-hole/checkerboard-plates.png'), picture), 2);
-    assert((await p.evaluate(() => window.inkwarp.store.doc.layers[0].image)) === `data:image/png;base64,${kept}`, 'the kept copy of the picture');
+    // Save writes that copy beside the changed file under a new name, and says so (never
+    // inline in the scene, nor refused for the changed file's size), after a restart of the
+    // server as in the same run (which read both pictures).
+    const other = join(repo, 'examples/checkerboard-hole/checkerboard-plates.png');
+    const misfitSaved = async (named, copy, restart) => {
+      const kept = readFileSync(join(dirname(scenePath), named)).toString('base64');
+      const features = JSON.parse(readFileSync(scenePath, 'utf8')).features.length + 1;
+      const said = await restoreAfter([60 + features, 60], () => copyFileSync(other, join(dirname(scenePath), named)), features, restart);
+      assert((await p.evaluate(() => window.inkwarp.store.doc.layers[0].image)) === `data:image/png;base64,${kept}`, 'the kept copy of the picture');
+      assert(/(layer 'checker' changed on disk since and no longer fits the scene .*the copy kept with your work is shown\. Save writes that copy beside the changed file under a new name|its pictures are the copies kept with your work: Save writes any of them that changed on disk since beside its file under a new name)/.test(said), `the restore says what a save does: ${said}`);
+      if (!restart) await p.screenshot({ path: join(screens, 'restore-misfit.png') });
+      await p.keyboard.press('Control+s');
+      await p.waitForFunction(() => /Saved to|Could not|Not saved/.test(document.querySelector('#message')?.textContent ?? ''));
+      const saidSaved = await p.textContent('#message');
+      assert(saidSaved.includes(`the kept copy of its picture was written beside it as ${copy} (${named} is left as it is)`), `the save says where the copy went: ${saidSaved}`);
+      const saved = JSON.parse(readFileSync(scenePath, 'utf8'));
+      assert(saved.layers[0].image === copy && saved.features.length === features, `the scene names the copy: ${JSON.stringify(saved).slice(0, 120)}`);
+      assert(readFileSync(join(dirname(scenePath), copy)).toString('base64') === kept, 'the copy is the kept picture');
+      assert(readFileSync(join(dirname(scenePath), named)).equals(readFileSync(other)), 'the changed file is left as it is');
+    };
+    await misfitSaved('checker.png', 'checker-kept.png', true);
+    await misfitSaved('checker-kept.png', 'checker-kept-kept.png', false);
     assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
   } finally {
     await context.close();
@@ -1404,6 +1419,57 @@ test("work restored in a tab whose link an earlier run gave stays its file's, an
   } finally {
     await context.close();
     own.proc.kill();
+  }
+});
+
+test('an error said goes once a later action succeeds; a region with no area and a cut on one spot are refused and say why', async () => {
+  const { page: p, context, errors: errs } = await openEditor(browser, server.url);
+  const said = () => p.evaluate(() => { const m = document.querySelector('#message'); return m.hidden ? '' : `${m.className}: ${m.textContent}`; });
+  try {
+    await p.keyboard.press('r');
+    // Two clicks on one spot: the cut is refused for its points' place, not their number.
+    await p.keyboard.press('c');
+    await click(p, [30, 30]);
+    await click(p, [30, 30]);
+    await p.keyboard.press('Enter');
+    assert(/error: The cut's 2 points are all at one place \(30, 30\)/.test(await said()), `the cut: ${await said()}`);
+    await p.screenshot({ path: join(screens, 'cut-one-spot.png') });
+    await p.keyboard.press('Escape');
+    // Three points on one line: a region with no area is refused.
+    await p.keyboard.press('g');
+    for (const at of [[20, 20], [40, 40], [60, 60]]) await click(p, at);
+    await p.keyboard.press('Enter');
+    assert(/error: A region needs an area, and its 3 points lie on one line/.test(await said()), `the region: ${await said()}`);
+    assert((await p.evaluate(() => window.inkwarp.store.view.draft.length)) === 3, 'the draft is kept');
+    // One more point off the line: the region is made, and the error goes.
+    await click(p, [20, 60]);
+    await p.keyboard.press('Enter');
+    assert((await p.evaluate(() => window.inkwarp.store.doc.features.some((f) => f.kind === 'region'))), 'the region is made');
+    assert((await said()) === '', `the error went: ${await said()}`);
+    // A refused fps, then one taken.
+    await p.fill('#fps', '500');
+    await p.press('#fps', 'Enter');
+    assert(/error: Frames per second/.test(await said()), `fps refused: ${await said()}`);
+    await p.fill('#fps', '30');
+    await p.press('#fps', 'Enter');
+    assert((await p.evaluate(() => window.inkwarp.store.doc.fps)) === 30 && (await said()) === '', `fps taken, the error gone: ${await said()}`);
+    // A refused key time, then one taken.
+    await p.evaluate(() => {
+      const { store, state } = window.inkwarp;
+      const id = store.doc.features.find((f) => f.kind === 'region').id;
+      store.edit((d) => state.setKey(d, id, 0.5, d.features.find((f) => f.id === id).rest));
+      store.setView({ selection: { feature: id, point: null } });
+    });
+    await p.waitForSelector('input.key-time');
+    await p.fill('input.key-time', '-1');
+    await p.press('input.key-time', 'Enter');
+    assert(/error: A key's time/.test(await said()), `key time refused: ${await said()}`);
+    await p.fill('input.key-time', '0.7');
+    await p.press('input.key-time', 'Enter');
+    assert((await said()) === '', `key time taken, the error gone: ${await said()}`);
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
   }
 });
 

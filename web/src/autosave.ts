@@ -155,6 +155,9 @@ export class IndexedDbStore implements SnapshotStore {
     return new Promise((resolve, reject) => {
       const tx = db.transaction(STORE, mode);
       const req = fn(tx.objectStore(STORE));
+      // Committed at once, not when the page next gets to run: a write started as the page
+      // is left (its "Leave site?" question answered) is then kept, not dropped with it.
+      tx.commit?.();
       tx.oncomplete = () => resolve(req.result);
       tx.onerror = () => reject(tx.error ?? new Error('IndexedDB failed.'));
       tx.onabort = () => reject(tx.error ?? new Error('IndexedDB was aborted (is the disk full?).'));
@@ -231,12 +234,14 @@ export function pictureMarks(doc: SceneDoc): Record<string, string> {
  * change but the file did (retouched on disk since) is taken from the file as it is now
  * (`now`, the scene as this page opened it), so a save keeps naming the file's picture
  * rather than writing the kept, older copy into the scene. Returns the scene and the
- * names of the layers whose pictures were taken.
+ * names of the layers whose pictures were taken, and their keys ("layer name\0image", as
+ * `pictureMarks` names them).
  */
-export function restorePictures(kept: SceneDoc, opened: Record<string, string> | undefined, now: SceneDoc, nowMarks = pictureMarks(now)): { doc: SceneDoc; taken: string[] } {
-  if (!opened) return { doc: kept, taken: [] };
+export function restorePictures(kept: SceneDoc, opened: Record<string, string> | undefined, now: SceneDoc, nowMarks = pictureMarks(now)): { doc: SceneDoc; taken: string[]; keys: string[] } {
+  if (!opened) return { doc: kept, taken: [], keys: [] };
   const keptMarks = pictureMarks(kept);
   const taken = new Set<string>();
+  const keys: string[] = [];
   const layers = kept.layers.map((l) => {
     const fresh = now.layers.find((n) => n.name === l.name);
     const out = { ...l };
@@ -247,11 +252,12 @@ export function restorePictures(kept: SceneDoc, opened: Record<string, string> |
       if (fresh && unchangedHere && changedThere) {
         out[k] = fresh[k];
         taken.add(l.name);
+        keys.push(key);
       }
     }
     return out;
   });
-  return taken.size ? { doc: { ...kept, layers }, taken: [...taken] } : { doc: kept, taken: [] };
+  return taken.size ? { doc: { ...kept, layers }, taken: [...taken], keys } : { doc: kept, taken: [], keys: [] };
 }
 
 /** Fetches a URL into a data: URI. */

@@ -191,7 +191,7 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
   if (previous?.unsaved && restore) {
     try {
       // Into its own file's page: pictures retouched on disk since come from the file.
-      let { doc, taken } = own && openedDoc && pictures ? restorePictures(previous.doc, previous.pictures, openedDoc, pictures) : { doc: previous.doc, taken: [] as string[] };
+      let { doc, taken, keys } = own && openedDoc && pictures ? restorePictures(previous.doc, previous.pictures, openedDoc, pictures) : { doc: previous.doc, taken: [] as string[], keys: [] as string[] };
       let misfit = '';
       // Back to its own file, which a save checks is still as the kept work found it: set
       // with the scene, so that a save made while the page settles goes to the file too.
@@ -199,11 +199,29 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
       try {
         await ui.openScene(doc, previous.fileName, true, back);
       } catch (err) {
-        // A picture retouched to another size no longer fits the kept scene: the kept copy.
+        // A picture retouched to another size no longer fits the kept scene: the kept copy,
+        // which a save writes beside the changed file under a new name (never over it, nor
+        // inline in the scene); kept marked so, a later restore (the server restarted) says
+        // and does the same.
         if (!taken.length) throw err;
-        misfit = `; the picture of ${taken.map((n) => `layer '${n}'`).join(', ')} changed on disk since, but the scene did not open with it (${(err as Error).message}), so the kept copy is shown, and a save writes it into the scene`;
+        const { width, height } = previous.doc;
+        const save = back.origin ? 'Save writes that copy beside the changed file under a new name (which the save names), the changed file left as it is' : 'Save downloads the scene with that copy inside';
+        misfit = `; the picture of ${taken.map((n) => `layer '${n}'`).join(', ')} changed on disk since and no longer fits the scene (${(err as Error).message}), so the copy kept with your work is shown. ${save}; to use the changed picture instead, bring it to ${width}×${height} pixels and reload`;
+        pictures = { ...pictures, ...Object.fromEntries(keys.flatMap((k) => (previous.pictures?.[k] ? [[k, previous.pictures[k]]] : []))) };
         [doc, taken] = [previous.doc, []];
         await ui.openScene(doc, previous.fileName, true, back);
+        ui.keptCopies = new Set(keys);
+      }
+      // Its file did not open as it is now (a picture changed on disk to another size, or
+      // missing): the pictures the work did not change are the copies kept with it, which a
+      // save writes beside their files where those changed since (never over them, nor
+      // inline), and the next restore treats alike.
+      const marks = pictureMarks(previous.doc);
+      const unopened = own && !openedDoc && !misfit && previous.pictures ? Object.keys(previous.pictures).filter((k) => marks[k] === previous.pictures?.[k]) : [];
+      if (unopened.length) {
+        ui.keptCopies = new Set(unopened);
+        pictures = previous.pictures;
+        misfit = `; its file did not open as it is now, so its pictures are the copies kept with your work: ${back.origin ? 'Save writes any of them that changed on disk since beside its file under a new name (which the save names), the file left as it is' : 'Save downloads the scene with them inside'}`;
       }
       if (!store.origin.saveUrl && previous.source) carried = { origin: store.origin, source: previous.source, version: previous.version ?? null, pictures: previous.pictures };
       // Back where the editor was: pose mode stays pose mode, at the same time.

@@ -128,6 +128,14 @@ export function addFeature(
   if (points.length < minPoints(kind, !!closed)) {
     throw new Error(`A ${kind} needs at least ${minPoints(kind, !!closed)} points.`);
   }
+  const flat = flatness(points);
+  if (points.length > 1 && flat.spread < 1e-6) {
+    const [x, y] = points[0];
+    throw new Error(`The ${kind}'s ${points.length} points are all at one place (${+x.toFixed(2)}, ${+y.toFixed(2)}): click them apart along what it traces, or Escape to drop it.`);
+  }
+  if (kind === 'region' && flat.off < 1e-6) {
+    throw new Error(`A region needs an area, and its ${points.length} points lie on one line: add a point off that line (trace around what it should hold), or Escape to drop it.`);
+  }
   const id = opts.id ?? freshId(doc, kind);
   const feature: Feature = { id, kind, rest: points.map((p) => [p[0], p[1]] as Pt) };
   if (closed) feature.closed = true;
@@ -137,6 +145,26 @@ export function addFeature(
     layers = doc.layers.map((l, i) => (i === opts.layer ? { ...l, features: [...(l.features ?? []), id] } : l));
   }
   return { doc: { ...doc, layers, features: [...doc.features, feature] }, id };
+}
+
+/**
+ * How far apart `points` are (`spread`: the largest distance from the first) and how far
+ * the farthest lies off the line through the first and the one farthest from it (`off`).
+ */
+export function flatness(points: Pt[]): { spread: number; off: number } {
+  const [x0, y0] = points[0] ?? [0, 0];
+  let far: Pt = [x0, y0];
+  let spread = 0;
+  for (const p of points) {
+    const d = Math.hypot(p[0] - x0, p[1] - y0);
+    if (d > spread) [spread, far] = [d, p];
+  }
+  let off = 0;
+  if (spread > 0) {
+    const [ux, uy] = [(far[0] - x0) / spread, (far[1] - y0) / spread];
+    for (const p of points) off = Math.max(off, Math.abs((p[0] - x0) * uy - (p[1] - y0) * ux));
+  }
+  return { spread, off };
 }
 
 /** Removes a feature and its mentions in layers. */

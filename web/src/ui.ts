@@ -150,6 +150,12 @@ export class Ui {
   }
   /** The save in progress: saves run one after another, each with the version the last one left. */
   private saving: Promise<void> = Promise.resolve();
+  /**
+   * Pictures ("layer name\0key") the scene holds a kept copy of, whose file changed on disk
+   * since the work was kept (see main.ts): a save asks the server to write each beside its
+   * file under a new name, never back over that file nor inline in the scene.
+   */
+  keptCopies = new Set<string>();
   /** Set when a field's value was refused (see `refuse`). */
   private refused = false;
   private playStart: { wall: number; time: number } | null = null;
@@ -1118,6 +1124,7 @@ export class Ui {
         }
         try {
           this.store.placePoint(p);
+          this.clearError();
         } catch (err) {
           this.message((err as Error).message, 'error');
         }
@@ -1253,9 +1260,13 @@ export class Ui {
 
   private finishDraft(closed: boolean): void {
     // A double-click also placed its point twice: drop exact repeats.
-    const pts = this.store.view.draft.filter((p, i, a) => i === 0 || Math.hypot(p[0] - a[i - 1][0], p[1] - a[i - 1][1]) > 1e-6);
+    const { draft } = this.store.view;
+    const apart = draft.filter((p, i, a) => i === 0 || Math.hypot(p[0] - a[i - 1][0], p[1] - a[i - 1][1]) > 1e-6);
+    // Clicks all on one spot are not too few: the feature is refused for its points' place.
+    const pts = apart.length === 1 && draft.length > 1 ? draft : apart;
     try {
       this.store.finishDraft(pts, closed);
+      this.clearError();
     } catch (err) {
       this.message((err as Error).message, 'error');
     }
@@ -1283,6 +1294,7 @@ export class Ui {
   tryEdit(fn: (d: SceneDoc) => SceneDoc): void {
     try {
       this.store.edit(fn);
+      this.clearError();
     } catch (err) {
       this.message((err as Error).message, 'error');
       this.refresh(false);
@@ -1416,6 +1428,15 @@ export class Ui {
     this.els.help.hidden = !this.els.help.hidden;
   }
 
+  /** An error said before is stale once a later action succeeds: it goes. */
+  clearError(): void {
+    const m = this.els.message;
+    if (m.hidden || !m.classList.contains('error')) return;
+    m.hidden = true;
+    if (this.messageTimer !== null) clearTimeout(this.messageTimer);
+    this.messageTimer = null;
+  }
+
   message(text: string, kind: 'error' | 'info' = 'info'): void {
     const m = this.els.message;
     m.textContent = text;
@@ -1514,6 +1535,7 @@ export class Ui {
     if (validate) await this.throwProblems(doc);
     this.app.resetStats();
     this.store.load(doc, { ...downloadOrigin(name), ...opened.origin });
+    this.keptCopies.clear();
     // At once, not after the wait below: the page takes edits meanwhile.
     if (opened.first) this.store.startHistory();
     if (opened.unsaved) this.store.markUnsaved();
@@ -1775,10 +1797,13 @@ export class Ui {
       try {
         // The file this tab opened goes with the save: a server restarted on the same port
         // with another scene refuses it instead of taking this scene into that file.
+        const copies = this.store.doc.layers.flatMap((l, i) => (['image', 'alpha', 'continuity'] as const)
+          .filter((k) => this.keptCopies.has(`${l.name}\u0000${k}`) && l[k]?.startsWith('data:')).map((k) => `${i}.${k}`));
         const put = (version: string | null) => fetch(origin.saveUrl as string, {
           method: 'PUT', body: text, headers: {
             'Content-Type': 'application/json', ...(version ? { 'If-Match': version } : {}),
             ...(origin.path ? { 'X-Inkwarp-Scene': encodeURIComponent(origin.path) } : {}),
+            ...(copies.length ? { 'X-Inkwarp-Kept-Copies': copies.join(',') } : {}),
           },
         });
         let resp = await put(origin.version);
@@ -1794,7 +1819,9 @@ export class Ui {
         if (!resp.ok) throw new Error(await resp.text());
         this.store.fileSaved(origin, resp.headers.get('ETag'), revision);
         const saved = resp.headers.get('X-Inkwarp-Path');
-        this.message(`Saved to ${saved === null ? where : decodeURIComponent(saved)}.`, 'info');
+        const note = resp.headers.get('X-Inkwarp-Note');
+        this.keptCopies.clear(); // written beside their files: the scene names them now
+        this.message(`Saved to ${saved === null ? where : decodeURIComponent(saved)}${note ? `; ${decodeURIComponent(note)}` : ''}.`, 'info');
       } catch (err) {
         download(blob(), origin.fileName);
         // The page a restarted server opens offers this tab's kept changes once this tab is closed.

@@ -90,12 +90,13 @@ describe('autosave', () => {
     const kept = { ...opened, layers: [opened.layers[0], picture('eyes', 'data:image/png;base64,MINE'), picture('new', 'data:image/png;base64,N')] };
     // On disk since: both pictures retouched.
     const now = { ...opened, layers: [picture('face', 'data:image/png;base64,NEW'), picture('eyes', 'data:image/png;base64,E2')] };
-    const { doc, taken } = restorePictures(kept, marks, now);
+    const { doc, taken, keys } = restorePictures(kept, marks, now);
     expect(doc.layers.map((l) => l.image)).toEqual(['data:image/png;base64,NEW', 'data:image/png;base64,MINE', 'data:image/png;base64,N']);
     expect(taken).toEqual(['face']);
+    expect(keys).toEqual(['face\u0000image']);
     // Nothing changed on disk, or a snapshot from before pictures were marked: as kept.
-    expect(restorePictures(kept, marks, opened)).toEqual({ doc: kept, taken: [] });
-    expect(restorePictures(kept, undefined, now)).toEqual({ doc: kept, taken: [] });
+    expect(restorePictures(kept, marks, opened)).toEqual({ doc: kept, taken: [], keys: [] });
+    expect(restorePictures(kept, undefined, now)).toEqual({ doc: kept, taken: [], keys: [] });
     expect(pictureMarks(now)['face\u0000image']).not.toBe(marks['face\u0000image']);
   });
 

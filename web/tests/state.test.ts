@@ -56,6 +56,23 @@ describe('drawing tools', () => {
     expect(s.doc.features).toHaveLength(0);
   });
 
+  it('a region with no area, or a line whose points are all at one place, is refused and says why', () => {
+    const s = new Store(scene());
+    s.setView({ tool: 'region' });
+    for (const p of [[0, 0], [5, 5], [10, 10]] as Pt[]) s.placePoint(p);
+    expect(() => s.finishDraft()).toThrow(/A region needs an area, and its 3 points lie on one line/);
+    expect(s.view.draft).toHaveLength(3);
+    expect(s.doc.features).toHaveLength(0);
+    s.placePoint([0, 10]);
+    expect(s.finishDraft()).toBe('region1');
+    s.setView({ tool: 'cut' });
+    s.placePoint([4, 4]);
+    s.placePoint([4, 4]);
+    expect(() => s.finishDraft()).toThrow("The cut's 2 points are all at one place (4, 4)");
+    expect(() => addFeature(s.doc, 'polyline', [[1, 1], [1, 1], [1, 1]])).toThrow(/all at one place/);
+    expect(s.doc.features).toHaveLength(1);
+  });
+
   it('new features join a layer that lists its features', () => {
     const doc = scene();
     doc.layers[0].features = [];

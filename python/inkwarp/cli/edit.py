@@ -197,14 +197,70 @@ class SceneFile:
             doc["layers"][i][key] = uri
         return json.dumps(doc).encode("utf-8"), self.version_of(text)
 
-    def write(self, body: bytes, if_match: str | None = None) -> str:
+    def _named_now(self, layer: dict, i: int, key: str) -> str | None:
+        """The path the scene file names now for this key of the same-named layer (else of
+        the layer at the same place), or None where it names none."""
+        try:
+            doc = json.loads(self.path.read_text(encoding="utf-8-sig"))
+        except (OSError, ValueError):
+            return None
+        layers = doc.get("layers") if isinstance(doc, dict) else None
+        layers = [x for x in layers if isinstance(x, dict)] if isinstance(layers, list) else []
+        same = [x for x in layers if x.get("name") == layer.get("name")] or layers[i:i + 1]
+        ref = same[0].get(key) if same else None
+        return ref if isinstance(ref, str) and not ref.startswith("data:") else None
+
+    def _kept_copies(self, doc: dict, kept: list[tuple[int, str]]) -> list[tuple[int, str, bytes, str, str]]:
+        """The kept copies the editor marks (a picture of this file's that was changed on
+        disk since the work was kept): ``(layer, key, bytes, new path, old path)`` for each
+        that is no longer the file's picture; one still the same goes back to its path."""
+        layers = doc.get("layers", [])
+        planned: list[tuple[int, str, bytes, str, str]] = []
+        taken: set[Path] = set()
+        for i, key in kept:
+            layer = layers[i] if isinstance(layers, list) and 0 <= i < len(layers) else None
+            uri = layer.get(key) if isinstance(layer, dict) and key in IMAGE_KEYS else None
+            ref = self._named_now(layer, i, key) if isinstance(uri, str) and uri.startswith("data:") else None
+            if ref is None:
+                continue  # nothing named it: it stays inline, as a new picture does
+            try:
+                data = base64.b64decode(uri.split(",", 1)[1], validate=True)
+            except (IndexError, ValueError):
+                continue
+            try:
+                same = self.image_file(i, key, ref).read_bytes() == data
+            except (OSError, ValueError):
+                same = False
+            if same:
+                layer[key] = ref
+                continue
+            if not data.startswith(IMAGE_MAGIC):
+                continue
+            suffix = ".png" if data.startswith(IMAGE_MAGIC[0]) else ".jpg"
+            old = Path(ref)
+            if not _inside((self.folder / old).resolve().parent, self.folder):
+                old = Path(old.name)  # a picture outside the scene's folder: its copy goes beside the scene
+            for n in range(1, 1000):
+                name = old.with_name(f"{old.stem}-kept{'' if n == 1 else f'-{n}'}{suffix}")
+                file = (self.folder / name).resolve()
+                if not file.exists() and file not in taken:
+                    break
+            taken.add(file)
+            planned.append((i, key, data, name.as_posix(), ref))
+        return planned
+
+    def write(self, body: bytes, if_match: str | None = None,
+              kept: list[tuple[int, str]] | None = None) -> tuple[str, list[str]]:
         """Writes the editor's scene back, restoring the original image paths; returns the
-        file's new version.
+        file's new version and a sentence for each kept copy of a picture written beside it.
 
         The scene is validated first (as ``inkwarp validate`` would); the file is replaced
         atomically and keeps its permissions. With ``if_match`` (a version from
         :meth:`read` or an earlier write; ``*`` for any), a file whose version is another
-        one now is left as it is: :class:`ChangedOnDisk`.
+        one now is left as it is: :class:`ChangedOnDisk`. ``kept`` lists the ``(layer,
+        key)`` pictures the editor holds a kept copy of, whose file was changed on disk
+        since: each is written beside that file under a new name (``pic-kept.png``), the
+        file left as it is, and the scene names the copy; never inlined in its place.
         """
         from inkwarp.scene import validate_scene
 
@@ -214,12 +270,14 @@ class SceneFile:
             raise ValueError(f"The saved scene is not JSON text ({err}).") from None
         if not isinstance(doc, dict):
             raise ValueError("A scene is a JSON object.")
+        planned = self._kept_copies(doc, kept or [])
+        copies = {(i, key) for i, key, *_ in planned}
         layers = doc.get("layers", [])
         for i, layer in enumerate(layers if isinstance(layers, list) else []):
             if isinstance(layer, dict):
                 for key in IMAGE_KEYS:
                     uri = layer.get(key)
-                    if isinstance(uri, str) and uri in self.inlined:
+                    if isinstance(uri, str) and uri in self.inlined and (i, key) not in copies:
                         # The path this key of the same-named layer was read with, else of the
                         # same place's, else the latest read's.
                         froms = self.inlined[uri][::-1]
@@ -233,7 +291,6 @@ class SceneFile:
             lines = "; ".join(f"{p}: {m}" if p else m for p, m in problems[:5])
             more = f" (and {len(problems) - 5} more)" if len(problems) > 5 else ""
             raise ValueError(f"Not saved: the scene is not valid: {lines}{more}.")
-        text = json.dumps(doc, indent=1) + "\n"
         from inkwarp._atomic import write_text
 
         with self.lock:
@@ -253,11 +310,58 @@ class SceneFile:
                 if not mode & 0o222:
                     raise PermissionError(f"{self.path} is read-only (mode {mode:o}); not saved. Make it "
                                           "writable (chmod u+w), or save a copy under another name.")
+                if _read_only_fs(self.folder):
+                    raise PermissionError(f"{self.path} is on a read-only file system; not saved. Save a "
+                                          "copy on a writable disk (or mount this one writable).")
                 if not os.access(self.path, os.W_OK):
                     raise PermissionError(f"{self.path} is not writable by you (mode {mode:o}, owner "
                                           f"{self.path.stat().st_uid}); not saved. Save a copy under another name.")
-            write_text(self.path, text, suffix=".json", mode=mode, sync=True)
-            return self.version() or self.version_of(text)  # the file's, as read back
+            written: list[Path] = []
+            notes: list[str] = []
+            try:
+                for i, key, data, name, ref in planned:
+                    file = self.folder / name
+                    with open(file, "xb") as fh:  # never over a file that is there
+                        written.append(file)
+                        fh.write(data)
+                        fh.flush()
+                        os.fsync(fh.fileno())
+                    layers[i][key] = name
+                    notes.append(f"layers[{i}].{key}: {ref} changed on disk since the work was kept, so the "
+                                 f"kept copy of its picture was written beside it as {name} ({ref} is "
+                                 "left as it is)")
+                text = json.dumps(doc, indent=1) + "\n"
+                write_text(self.path, text, suffix=".json", mode=mode, sync=True)
+            except OSError as err:
+                for file in written:
+                    file.unlink(missing_ok=True)
+                raise _save_error(self.path, err) from None
+            # Later saves name the copy by its path, as a picture read from it.
+            for i, key, data, name, _ in planned:
+                mime = "image/png" if name.endswith(".png") else "image/jpeg"
+                uri = f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
+                self.inlined.setdefault(uri, []).append((name, layers[i].get("name"), i, key))
+            return self.version() or self.version_of(text), notes  # the file's, as read back
+
+
+def _read_only_fs(folder: Path) -> bool:
+    """Whether ``folder`` is on a file system mounted read-only (False where unknown)."""
+    try:
+        return bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except (OSError, AttributeError):
+        return False
+
+
+def _save_error(path: Path, err: OSError) -> OSError:
+    """A failed write of ``path`` in words: a full disk or a read-only file system said so."""
+    code = err.errno or getattr(err.__context__, "errno", None)  # a folder refused names the cause there
+    if code in (errno.ENOSPC, errno.EDQUOT):
+        why = "the disk is full" if code == errno.ENOSPC else "your disk quota is used up"
+        return OSError(f"{why}: no room to write {path}; not saved. Free some space and save again")
+    if code == errno.EROFS:
+        return PermissionError(f"{path} is on a read-only file system; not saved. Save a copy on a "
+                               "writable disk (or mount this one writable)")
+    return err
 
 
 class ChangedOnDisk(Exception):
@@ -392,7 +496,8 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                     f"http://{h}" for h in self._allowed_hosts()}:
                 self._reply(HTTPStatus.FORBIDDEN, b"Forbidden: requests from other sites are refused.")
                 return True
-            if urlsplit(self.path).path.startswith("/api/") and not self._has_token():
+            api = urlsplit(self.path).path
+            if api.startswith("/api/") and api != "/api/serving" and not self._has_token():
                 self._reply(HTTPStatus.FORBIDDEN, b"Forbidden: no valid token (open the URL "
                             b"inkwarp edit printed, with its ?token=).")
                 return True
@@ -446,6 +551,10 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                 return self._reply(HTTPStatus.OK, body, "application/json",
                                    {"X-Inkwarp-Name": quote(scene_file.path.name),
                                     "X-Inkwarp-Path": quote(str(scene_file.path)), "ETag": version})
+            if urlsplit(self.path).path == "/api/serving":
+                # Another `inkwarp edit` asks whether this one serves its scene: a hash of the
+                # path answers only that (no token needed, nothing else told).
+                return self._reply(HTTPStatus.OK, serving_id(scene_file.path if scene_file else None).encode())
             if urlsplit(self.path).path.startswith("/api/"):
                 return self._reply(HTTPStatus.NOT_FOUND, b"No such API.")
             return super().do_GET()
@@ -493,15 +602,23 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
             body = self._body()
             if body is None:
                 return
+            # The pictures the editor holds a kept copy of ("0.image,1.alpha"; see SceneFile.write).
+            kept = []
+            for item in (self.headers.get("X-Inkwarp-Kept-Copies") or "").split(","):
+                at, _, key = item.strip().partition(".")
+                if at.isdigit() and key in IMAGE_KEYS:
+                    kept.append((int(at), key))
             try:
-                version = scene_file.write(body, self.headers.get("If-Match"))
+                version, notes = scene_file.write(body, self.headers.get("If-Match"), kept)
             except ChangedOnDisk as err:
                 return self._reply(HTTPStatus.CONFLICT, str(err).encode(),
                                    headers={"X-Inkwarp-Path": quote(str(scene_file.path))})
             except (OSError, ValueError) as err:
                 return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode())
-            return self._reply(HTTPStatus.OK, b"saved", headers={"X-Inkwarp-Path": quote(str(scene_file.path)),
-                                                                 "ETag": version})
+            headers = {"X-Inkwarp-Path": quote(str(scene_file.path)), "ETag": version}
+            if notes:
+                headers["X-Inkwarp-Note"] = quote("; ".join(notes))
+            return self._reply(HTTPStatus.OK, b"saved", headers=headers)
 
         def _not_allowed(self) -> None:
             self._reply(HTTPStatus.METHOD_NOT_ALLOWED, b"Method not allowed.")
@@ -544,6 +661,15 @@ def run(args: argparse.Namespace) -> int:
                          f"({err.strerror or err}); leave --port out to pick a free one.") from None
     url = editor_url(server, scene is not None)
     print(f"inkwarp editor at {url}" + (f" (editing {scene})" if scene else ""), flush=True)
+    port = server.server_address[1]
+    if args.port is None and port != DEFAULT_PORT:
+        print(f"Port {DEFAULT_PORT} is taken (another inkwarp edit, or another program), so this one "
+              f"serves on port {port}. The browser keeps unsaved work per address: work kept at port "
+              f"{DEFAULT_PORT} is offered there, not here; open the address above.", flush=True)
+        if scene is not None and _serves(args.host, DEFAULT_PORT) == serving_id(scene):
+            print(f"Warning: another inkwarp edit already serves {scene} at http://{args.host}:{DEFAULT_PORT}/ . "
+                  "Edit it in one place (that one's page, or stop it and run this again): two pages saving "
+                  "one file each ask before writing over the other's save.", flush=True)
     print("Press Ctrl+C to stop.", flush=True)
     if not args.no_browser:
         threading.Thread(target=webbrowser.open, args=(url,), daemon=True).start()
@@ -578,6 +704,27 @@ def _serve(scene: Path | None, root: Path, host: str, port: int | None) -> Edito
         if err.errno != errno.EADDRINUSE:
             raise
         return make_server(scene, root, host, 0)
+
+
+def serving_id(scene: Path | None) -> str:
+    """What ``/api/serving`` answers: a hash of the served scene's path ("" for none)."""
+    return hashlib.sha256(str(scene).encode("utf-8")).hexdigest()[:32] if scene is not None else ""
+
+
+def _serves(host: str, port: int) -> str | None:
+    """What an ``inkwarp edit`` on ``host:port`` answers at ``/api/serving`` (None: no answer)."""
+    import http.client
+
+    try:
+        conn = http.client.HTTPConnection(host, port, timeout=1.0)
+        try:
+            conn.request("GET", "/api/serving", headers={"Host": f"{host}:{port}"})
+            resp = conn.getresponse()
+            return resp.read(100).decode("ascii", "replace") if resp.status == 200 else None
+        finally:
+            conn.close()
+    except (OSError, http.client.HTTPException):
+        return None
 
 
 def _port(text: str) -> int:
