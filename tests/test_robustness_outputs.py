@@ -14,6 +14,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -89,10 +90,20 @@ def test_a_render_killed_by_sigkill_leaves_a_part_file_the_next_run_removes(tmp_
 SETPRIV = "/usr/bin/setpriv"
 
 
+@pytest.fixture
+def shared_tmp() -> Iterator[Path]:
+    """A temporary folder outside pytest's own, which is private to root and which another
+    pytest run starting meanwhile makes private again (its folders' modes reset to 0700),
+    so that the unprivileged user below could not reach the case."""
+    folder = Path(tempfile.mkdtemp(prefix="inkwarp-read-only-"))
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def _read_only_case(tmp_path: Path) -> tuple[Path, Path]:
     """A copy of the face scene readable by anyone, and a folder nobody but root may write."""
-    import shutil
-
     home = tmp_path / "case"
     home.mkdir()
     for item in (FACE.parent).iterdir():
@@ -103,10 +114,6 @@ def _read_only_case(tmp_path: Path) -> tuple[Path, Path]:
     for folder in (tmp_path, home):
         folder.chmod(0o755)
     read_only.chmod(0o555)
-    for parent in tmp_path.parents:  # pytest's folders are private to root
-        if parent == Path("/tmp") or parent == Path("/"):
-            break
-        parent.chmod(parent.stat().st_mode | 0o011)
     return home, read_only
 
 
@@ -129,8 +136,8 @@ READ_ONLY_COMMANDS = {
 @pytest.mark.skipif(not (os.path.exists(SETPRIV) and os.geteuid() == 0),
                     reason="needs root and setpriv to run as an unprivileged user")
 @pytest.mark.parametrize("case", sorted(READ_ONLY_COMMANDS))
-def test_a_read_only_output_folder_is_named_in_the_error(tmp_path: Path, case: str) -> None:
-    home, read_only = _read_only_case(tmp_path)
+def test_a_read_only_output_folder_is_named_in_the_error(shared_tmp: Path, case: str) -> None:
+    home, read_only = _read_only_case(shared_tmp)
     argv = READ_ONLY_COMMANDS[case](home, read_only)
     done = subprocess.run([SETPRIV, "--reuid=65534", "--regid=65534", "--clear-groups",
                            sys.executable, "-m", "inkwarp.cli", *argv],
