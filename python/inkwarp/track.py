@@ -130,10 +130,10 @@ MAX_TIME_BASE_FPS = 240.0
 
 
 def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | None, float | None]:
-    """``(path, fps, width, height, frames, variable)`` of a video (``frames``: as many as
-    its header's duration holds at that rate, None where it gives none; ``variable``: where
-    its frames must be taken at their average rate ``fps``, its time base's rate), or a
-    ValueError naming it."""
+    """``(path, fps, width, height, frames, rate)`` of a video (``frames``: as many as its
+    header's duration holds at that rate, None where it gives none; ``rate``: ``fps``
+    where its frames must be decoded at their average rate, with a warning saying so, else
+    None), or a ValueError naming it."""
     import imageio_ffmpeg
 
     name = os.fspath(path)
@@ -167,15 +167,19 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | No
     # at k / tbr, not at k over the average rate ("fps"). A rate past any video's (timestamps
     # in milliseconds: "1k tbr") is no frame rate: the frames are then taken at the average.
     tbr = float(base.group(1)) * (1000 if base.group(2) else 1) if base else fps
-    variable = None
+    variable = tbr > MAX_TIME_BASE_FPS and average is not None and abs(tbr - fps) > 0.01 * fps
     if tbr <= MAX_TIME_BASE_FPS:
         fps = tbr
-    elif average is not None and abs(tbr - fps) > 0.01 * fps:
-        variable = tbr
     took = re.search(r"Duration: (\d+):(\d\d):(\d\d(?:\.\d+)?)", log)
     seconds = 3600 * int(took.group(1)) + 60 * int(took.group(2)) + float(took.group(3)) if took else None
     fps = _exact_rate(fps)
-    return name, fps, width, height, round(seconds * fps) if seconds else None, variable
+    if variable:
+        warnings.warn(f"{name}: its frame rate varies (on average {fps:g} fps, on a time base of {tbr:g}); "
+                      f"its frames are taken at an even {fps:g} fps, repeated or skipped where it runs slower "
+                      f"or faster, so that frame k is at {1 / fps:.4g} k s. To keep every frame, convert it to "
+                      f"a constant rate first: ffmpeg -i {Path(name).name} -fps_mode cfr -r 60 constant.mp4",
+                      InkwarpWarning, stacklevel=caller_outside())
+    return name, fps, width, height, round(seconds * fps) if seconds else None, fps if variable else None
 
 
 def _exact_rate(fps: float) -> float:
@@ -195,13 +199,14 @@ def _decode(name: str, pix_fmt: str, *, frames: int | None = None, promised: int
     errors into fewer frames of ``size`` bytes than the ``promised`` ones (its header's) is
     damaged or cut short: a ValueError naming it; with errors but every frame, a warning."""
     import subprocess
-    from fractions import Fraction
 
     import imageio_ffmpeg
 
+    from inkwarp.video import ffmpeg_rate
+
     cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-nostdin", "-v", "error", "-i", name]
     if rate is not None:
-        cmd += ["-r", str(Fraction(rate).limit_denominator(1001))]
+        cmd += ["-r", ffmpeg_rate(rate)]
     if frames is not None:
         cmd += ["-frames:v", str(frames)]
     cmd += ["-f", "rawvideo", "-pix_fmt", pix_fmt, "-"]
@@ -222,14 +227,6 @@ def _decode(name: str, pix_fmt: str, *, frames: int | None = None, promised: int
     return done.stdout
 
 
-def _variable_rate(name: str, fps: float, base: float) -> None:
-    warnings.warn(f"{name}: its frame rate varies (on average {fps:g} fps, on a time base of {base:g}); its "
-                  f"frames are taken at an even {fps:g} fps, repeated or skipped where it runs slower or "
-                  f"faster, so that frame k is at {1 / fps:.4g} k s. To keep every frame, convert it to a "
-                  f"constant rate first: ffmpeg -i {Path(name).name} -fps_mode cfr -r 60 constant.mp4",
-                  InkwarpWarning, stacklevel=caller_outside())
-
-
 def read_video(path: str | os.PathLike[str]) -> Video:
     """Decode a video into grey frames (through the ffmpeg of ``imageio-ffmpeg``).
 
@@ -240,10 +237,8 @@ def read_video(path: str | os.PathLike[str]) -> Video:
     ValueError
         ffmpeg cannot decode it, or it has no frames (the message names the file).
     """
-    name, fps, width, height, promised, variable = _probe(path)
-    if variable:
-        _variable_rate(name, fps, variable)
-    raw = _decode(name, "gray", promised=promised, size=width * height, rate=fps if variable else None)
+    name, fps, width, height, promised, rate = _probe(path)
+    raw = _decode(name, "gray", promised=promised, size=width * height, rate=rate)
     count = len(raw) // (width * height)
     if count == 0:
         raise _unreadable(name, "it has no frames")
@@ -261,10 +256,8 @@ def read_frame(path: str | os.PathLike[str], frame: int = 0) -> np.ndarray:
     """
     if frame < 0:
         raise ValueError(f"frame {frame}: frames are numbered from 0")
-    name, fps, width, height, promised, variable = _probe(path)
-    size, rate = width * height * 3, fps if variable else None
-    if variable:
-        _variable_rate(name, fps, variable)
+    name, _, width, height, promised, rate = _probe(path)
+    size = width * height * 3
     raw = _decode(name, "rgb24", frames=frame + 1, promised=promised, size=size, rate=rate)
     if len(raw) < size * (frame + 1):
         count = len(_decode(name, "gray", promised=promised, size=width * height, rate=rate)) // (width * height)

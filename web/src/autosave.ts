@@ -7,6 +7,9 @@
 import type { SceneDoc } from './scene';
 import type { Mode } from './state';
 
+/** The layer keys that hold pictures. */
+export const PICTURE_KEYS = ['image', 'alpha', 'continuity'] as const;
+
 /** What is kept: the document, what it was called, and when and whether it was saved. */
 export interface Snapshot {
   doc: SceneDoc;
@@ -204,7 +207,7 @@ export async function inlineImages(doc: SceneDoc, inline: Inliner): Promise<Scen
   const layers = await Promise.all(
     doc.layers.map(async (l) => {
       const out = { ...l };
-      for (const k of ['image', 'alpha', 'continuity'] as const) {
+      for (const k of PICTURE_KEYS) {
         const ref = l[k];
         if (typeof ref === 'string' && !ref.startsWith('data:')) out[k] = await inline(ref);
       }
@@ -218,7 +221,7 @@ export async function inlineImages(doc: SceneDoc, inline: Inliner): Promise<Scen
 export function pictureMarks(doc: SceneDoc): Record<string, string> {
   const marks: Record<string, string> = {};
   for (const l of doc.layers) {
-    for (const k of ['image', 'alpha', 'continuity'] as const) {
+    for (const k of PICTURE_KEYS) {
       const ref = l[k];
       if (typeof ref !== 'string') continue;
       let h = 0x811c9dc5; // FNV-1a over the reference (a data: URI holds the picture's bytes)
@@ -245,7 +248,7 @@ export function restorePictures(kept: SceneDoc, opened: Record<string, string> |
   const layers = kept.layers.map((l) => {
     const fresh = now.layers.find((n) => n.name === l.name);
     const out = { ...l };
-    for (const k of ['image', 'alpha', 'continuity'] as const) {
+    for (const k of PICTURE_KEYS) {
       const key = `${l.name}\u0000${k}`;
       const unchangedHere = keptMarks[key] !== undefined && keptMarks[key] === opened[key];
       const changedThere = nowMarks[key] !== undefined && nowMarks[key] !== opened[key];

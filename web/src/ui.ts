@@ -1,6 +1,7 @@
 // The editor's page: toolbar, layers, stage, inspector, timeline, help; pointer and keys.
 
 import { App } from './app';
+import { PICTURE_KEYS } from './autosave';
 import { clear, h } from './dom';
 import { EngineError, type ViewSpec } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
@@ -1797,7 +1798,7 @@ export class Ui {
       try {
         // The file this tab opened goes with the save: a server restarted on the same port
         // with another scene refuses it instead of taking this scene into that file.
-        const copies = this.store.doc.layers.flatMap((l, i) => (['image', 'alpha', 'continuity'] as const)
+        const copies = this.store.doc.layers.flatMap((l, i) => PICTURE_KEYS
           .filter((k) => this.keptCopies.has(`${l.name}\u0000${k}`) && l[k]?.startsWith('data:')).map((k) => `${i}.${k}`));
         const put = (version: string | null) => fetch(origin.saveUrl as string, {
           method: 'PUT', body: text, headers: {

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import sys
@@ -213,3 +214,22 @@ def prefixed(message: str, prefix: str | None) -> str:
     if not prefix or message.startswith(f"{prefix}: "):
         return message
     return f"{prefix}: {message}"
+
+
+@contextlib.contextmanager
+def warnings_as_lines(command: str) -> Iterator[None]:
+    """Within: inkwarp's warnings collected, then printed as ``inkwarp COMMAND: warning:``
+    lines on stderr once the block has ended (after its progress bars); other warnings go
+    on as Python's. Nothing is printed where the block raises."""
+    import warnings
+
+    from inkwarp.errors import InkwarpWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", InkwarpWarning)
+        yield
+    for warning in caught:
+        if issubclass(warning.category, InkwarpWarning):
+            print(f"inkwarp {command}: warning: {warning.message}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)

@@ -311,8 +311,7 @@ class SceneFile:
                     raise PermissionError(f"{self.path} is read-only (mode {mode:o}); not saved. Make it "
                                           "writable (chmod u+w), or save a copy under another name.")
                 if _read_only_fs(self.folder):
-                    raise PermissionError(f"{self.path} is on a read-only file system; not saved. Save a "
-                                          "copy on a writable disk (or mount this one writable).")
+                    raise _save_error(self.path, OSError(errno.EROFS, os.strerror(errno.EROFS)))
                 if not os.access(self.path, os.W_OK):
                     raise PermissionError(f"{self.path} is not writable by you (mode {mode:o}, owner "
                                           f"{self.path.stat().st_uid}); not saved. Save a copy under another name.")

@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import sys
-import warnings
 from pathlib import Path
 
-from inkwarp.cli._common import formatter
+from inkwarp.cli._common import formatter, warnings_as_lines
 
 EXAMPLE = """\
 examples:
@@ -36,7 +34,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from inkwarp.errors import InkwarpWarning
     from inkwarp.imaging import write_png
     from inkwarp.track import as_option, check_output, read_frame
 
@@ -44,17 +41,11 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix.lower() != ".png":
         raise ValueError(f"the output {out} must be a .png file.")
     check_output(out)
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", InkwarpWarning)
+    with warnings_as_lines("frame"):
+        try:
             rgb = read_frame(args.video, args.frame)
-    except ValueError as err:
-        raise as_option(err, args.frame) from None
-    for warning in caught:
-        if issubclass(warning.category, InkwarpWarning):
-            print(f"inkwarp frame: warning: {warning.message}", file=sys.stderr)
-        else:
-            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+        except ValueError as err:
+            raise as_option(err, args.frame) from None
     write_png(out, rgb)
     if not args.quiet:
         print(f"wrote {out} (frame {args.frame}, {rgb.shape[1]}x{rgb.shape[0]})")

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
-import warnings
 from pathlib import Path
 
-from inkwarp.cli._common import formatter
+from inkwarp.cli._common import formatter, warnings_as_lines
 
 EXAMPLE = """\
 examples:
@@ -51,7 +49,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from inkwarp.errors import InkwarpWarning
     from inkwarp.track import as_option, check_output, read_video, save_json, track_dict
 
     out = Path(args.output)
@@ -73,24 +70,17 @@ def run(args: argparse.Namespace) -> int:
         return lambda: bar.update(1)
 
     bars: list = []
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", InkwarpWarning)
+    with warnings_as_lines("track"):
+        try:
             clip = read_video(args.video)
             doc = track_dict(clip, args.scene, args.frame, simplify_px=args.simplify,
                              lost_px=args.lost, progress=progress,
                              relative_to=out.resolve().parent)
-    except ValueError as err:
-        raise as_option(err, args.frame) from None
-    finally:
-        for bar in bars:
-            bar.close()
-    for warning in caught:
-        if issubclass(warning.category, InkwarpWarning):
-            print(f"inkwarp track: warning: {warning.message}", file=sys.stderr)
-        else:
-            warnings.warn_explicit(warning.message, warning.category, warning.filename,
-                                   warning.lineno)
+        except ValueError as err:
+            raise as_option(err, args.frame) from None
+        finally:
+            for bar in bars:
+                bar.close()
     save_json(doc, out)
     if not args.quiet:
         keys = sum(len(f.get("keys", [])) for f in doc.get("features", []))

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
-import warnings
 from pathlib import Path
 
 EXAMPLE = """\
@@ -35,7 +33,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from inkwarp.errors import InkwarpWarning
+    from inkwarp.cli._common import warnings_as_lines
     from inkwarp.transfer import transfer_dict
 
     out = Path(args.output)
@@ -47,14 +45,8 @@ def run(args: argparse.Namespace) -> int:
     check_file(out)
     for option, given in (("--source", args.source), ("--target", args.target)):
         check_not_the_input(out, given, option, "-transferred")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", InkwarpWarning)
+    with warnings_as_lines("transfer"):
         doc = transfer_dict(args.source, args.target, relative_to=out.resolve().parent)
-    for warning in caught:
-        if issubclass(warning.category, InkwarpWarning):
-            print(f"inkwarp transfer: warning: {warning.message}", file=sys.stderr)
-        else:
-            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
     from inkwarp._atomic import write_text
 
     write_text(out, json.dumps(doc, indent=2) + "\n", suffix=".json")
