@@ -527,7 +527,8 @@ fn solve_piece(
         let alt = (second && !hier.whole).then(|| Box::new(Hierarchy::coarse_space(Level::fine(real.unwrap(), tau).into_plain(), SMOOTHING_STEPS, exact_work)));
         (hier.k_cycles, hier.alt, hier.torn) = (!key.off.has("kcycle"), alt, torn);
         if !hier.whole && !key.off.has("strands") {
-            hier.strands = strands::Strands::new(&hier.levels[0]);
+            // (An untorn finest level wider and taller than a strand has none.)
+            hier.strands = (torn || w.min(h) <= strands::THIN).then(|| strands::Strands::new(&hier.levels[0])).flatten();
             if !key.off.has("coarse_strands") {
                 hier.level_strands = hier.levels.iter().enumerate().map(|(k, l)| if k == 0 || k + 1 == hier.levels.len() { None } else { strands::Strands::new(l) }).collect();
             }

@@ -10,7 +10,7 @@
 use super::level::{bit, Level, Operator, Real, V2, W2, WS};
 
 /// The longest run of linked nodes across a part that still makes it thin.
-const THIN: usize = 16;
+pub(crate) const THIN: usize = 16;
 
 /// The most entries a node's row of a block's factor may hold on average.
 const BAND: usize = 64;
