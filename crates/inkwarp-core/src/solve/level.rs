@@ -774,43 +774,37 @@ impl Level {
     pub fn fine(geo: Geometry, tau: f64) -> Level {
         let (w, h) = (geo.w, geo.h);
         let (wp, n) = (w + 2 * PAD, (w + 2 * PAD) * (h + 2 * PAD));
+        let nodes = || (0..h).flat_map(move |y| (0..w).map(move |x| (x, y)));
         let fixed = |i: usize| geo.fixed.as_ref().is_some_and(|f| f[i]);
-        // Rows in parallel: each node's flags from its links, then its diagonal and regularity from its neighbours'.
         let mut flags = vec![0u8; n];
-        flags[PAD * wp..(PAD + h) * wp].par_chunks_mut(wp).enumerate().for_each(|(y, row)| {
-            for x in (0..w).filter(|&x| geo.active[geo.idx(x, y)]) {
-                let i = geo.idx(x, y);
-                let bits = [
-                    (!fixed(i), bit::FREE),
-                    (geo.right[i], bit::RIGHT),
-                    (geo.down[i], bit::DOWN),
-                    (x > 0 && geo.right[i - 1] && geo.right[i], bit::HTRI),
-                    (y > 0 && geo.down[i - w] && geo.down[i], bit::VTRI),
-                    (geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w], bit::CELL),
-                ];
-                row[x + PAD] = bits.iter().filter(|b| b.0).fold(0, |f, b| f | b.1);
+        for (x, y) in nodes().filter(|&(x, y)| geo.active[geo.idx(x, y)]) {
+            let i = geo.idx(x, y);
+            let bits = [
+                (!fixed(i), bit::FREE),
+                (geo.right[i], bit::RIGHT),
+                (geo.down[i], bit::DOWN),
+                (x > 0 && geo.right[i - 1] && geo.right[i], bit::HTRI),
+                (y > 0 && geo.down[i - w] && geo.down[i], bit::VTRI),
+                (geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w], bit::CELL),
+            ];
+            flags[(y + PAD) * wp + x + PAD] = bits.iter().filter(|b| b.0).fold(0, |f, b| f | b.1);
+        }
+        let (mut inv_diag, mut lam_max) = (vec![0.0; n], 0.0f64);
+        for p in nodes().map(|(x, y)| (y + PAD) * wp + x + PAD) {
+            let has = |q: usize, b: u8| flags[q] & b != 0;
+            if !has(p, bit::FREE) { continue; }
+            if [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
+                && [p - wp, p, p + wp].iter().all(|&q| has(q, bit::VTRI))
+                && [p, p - 1, p - wp, p - wp - 1].iter().all(|&q| has(q, bit::CELL))
+            {
+                flags[p] |= bit::REGULAR;
             }
-        });
-        let mut inv_diag = vec![0.0; n];
-        let (flags_in, mut regular) = (&flags, vec![false; n]);
-        let lam_max = inv_diag[PAD * wp..(PAD + h) * wp].par_chunks_mut(wp).zip(regular[PAD * wp..(PAD + h) * wp].par_chunks_mut(wp)).enumerate().map(|(y, (row, reg))| {
-            let mut lam_max = 0.0f64;
-            for x in PAD..PAD + w {
-                let p = (y + PAD) * wp + x;
-                let has = |q: usize, b: u8| flags_in[q] & b != 0;
-                if !has(p, bit::FREE) { continue; }
-                reg[x] = [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
-                    && [p - wp, p, p + wp].iter().all(|&q| has(q, bit::VTRI))
-                    && [p, p - 1, p - wp, p - wp - 1].iter().all(|&q| has(q, bit::CELL));
-                let (d, s) = fine_diag_and_abs(flags_in, p, wp, tau);
-                if d > 0.0 {
-                    row[x] = 1.0 / d;
-                    lam_max = lam_max.max(s / d);
-                }
+            let (d, s) = fine_diag_and_abs(&flags, p, wp, tau);
+            if d > 0.0 {
+                inv_diag[p] = 1.0 / d;
+                lam_max = lam_max.max(s / d);
             }
-            lam_max
-        }).reduce(|| 0.0, f64::max);
-        flags.iter_mut().zip(&regular).filter(|e| *e.1).for_each(|(f, _)| *f |= bit::REGULAR);
+        }
         let clean = (0..w * h).map(|i| geo.active[i] && geo.right[i] && geo.down[i] && !fixed(i)).collect();
         let kind = |f: u8| if f & bit::FREE == 0 { RunKind::Skip } else if f & bit::REGULAR != 0 { RunKind::Shared } else { RunKind::Own };
         let mut runs = Runs::new(wp, w, h, |p| kind(flags[p]));
