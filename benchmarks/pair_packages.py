@@ -13,7 +13,12 @@ row is the median over the rounds of the time ratio new / old (below 1: the new 
 faster), its middle half in brackets, then the cycles old → new.
 
 Problems: `benchmarks/strands.py`'s `problem` specs, `cuts:SEED:SCALE` (many random float
-cuts), `comb:TOOTH:SCALE` (1 or 2 px teeth), `character:SEED:SCALE` (a matte with hair).
+cuts), `comb:TOOTH:SCALE` (1 or 2 px teeth), `character:SEED:SCALE` (a matte with hair);
+and `benchmarks/ratios.py`'s, `open:POINTS:SIZE` (random points on an open SIZE × SIZE
+grid) and `model:SEED:SIZE` (the disc hole and two-segment cut).
+
+`--repeat K`: each child times K cold solves of a problem after one untimed, and reports
+their median (for solves of tens of milliseconds, where one solve says little).
 """
 
 from __future__ import annotations
@@ -33,19 +38,38 @@ CHILD = """
 import json, sys, time
 sys.path[:0] = [{bench!r}, {tests!r}]
 import inkwarp
+import statistics
 from strands import problem
+from ratios import model_problem, random_problem
+
+def make(name):
+    kind, a, size = name.split(":")
+    if kind == "open":
+        return None, (int(size), int(size)), *random_problem(int(a), int(size), int(size)), None
+    if kind == "model":
+        pts, disp, m, cuts = model_problem(int(size), int(size), seed=int(a))
+        return m, m.shape, pts, disp, cuts
+    m, pts, disp, cuts = problem(name)
+    return m, m.shape, pts, disp, cuts
+
 out = {{}}
 for name in {problems!r}:
-    m, pts, disp, cuts = problem(name)
-    t = time.perf_counter()
-    _, rep = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, cuts=cuts, max_cycles=2000)
-    out[name] = (time.perf_counter() - t, rep.cycles, rep.converged)
+    m, shape, pts, disp, cuts = make(name)
+    solve = lambda: inkwarp.thin_plate_report(pts, disp, shape, mask=m, cuts=cuts, max_cycles=2000)[1]
+    if {repeat} > 1:
+        solve()
+    times = []
+    for _ in range({repeat}):
+        t = time.perf_counter()
+        rep = solve()
+        times.append(time.perf_counter() - t)
+    out[name] = (statistics.median(times), rep.cycles, rep.converged)
 print(json.dumps(out))
 """
 
 
-def run(package_dir: str, problems: list[str]) -> dict:
-    code = CHILD.format(bench=str(ROOT / "benchmarks"), tests=str(ROOT / "tests"), problems=problems)
+def run(package_dir: str, problems: list[str], repeat: int) -> dict:
+    code = CHILD.format(bench=str(ROOT / "benchmarks"), tests=str(ROOT / "tests"), problems=problems, repeat=repeat)
     env = dict(os.environ, PYTHONPATH=package_dir)
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, env=env,
                          cwd=ROOT).stdout
@@ -58,14 +82,16 @@ def main() -> int:
     ap.add_argument("new", nargs="?", default=str(ROOT / "python"))
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--problems", default=DEFAULT)
+    ap.add_argument("--repeat", type=int, default=1, help="cold solves per problem in each child (their median)")
     args = ap.parse_args()
     problems = args.problems.split(",")
     builds = {"old": args.old, "new": args.new}
     results: dict[str, list[dict]] = {k: [] for k in builds}
     for r in range(args.rounds):
         for name in (list(builds) if r % 2 == 0 else list(builds)[::-1]):
-            results[name].append(run(builds[name], problems))
-    print(f"{args.rounds} alternating rounds, one cold solve per problem and build per round\n")
+            results[name].append(run(builds[name], problems, args.repeat))
+    each = "one cold solve" if args.repeat == 1 else f"the median of {args.repeat} cold solves"
+    print(f"{args.rounds} alternating rounds, {each} per problem and build per round\n")
     print("| problem | new / old | cycles old → new | converged old, new |")
     print("|---|---|---|---|")
     for p in problems:
