@@ -14,11 +14,11 @@ faster), its middle half in brackets, then the cycles old → new.
 
 Problems: `benchmarks/strands.py`'s `problem` specs, `cuts:SEED:SCALE` (many random float
 cuts), `comb:TOOTH:SCALE` (1 or 2 px teeth), `character:SEED:SCALE` (a matte with hair);
-and `benchmarks/ratios.py`'s, `open:POINTS:SIZE` (random points on an open SIZE × SIZE
-grid) and `model:SEED:SIZE` (the disc hole and two-segment cut).
+and, made by `benchmarks/ratios.py`'s functions, `open:POINTS:SIZE` (random points of seed 0
+on an open SIZE × SIZE grid) and `model:SEED:SIZE` (the disc hole and two-segment cut).
 
-`--repeat K`: each child times K cold solves of a problem after one untimed, and reports
-their median (for solves of tens of milliseconds, where one solve says little).
+`--repeat K`: with K > 1 each child times K cold solves of a problem after one untimed,
+and reports their median (for solves of tens of milliseconds, where one says little).
 """
 
 from __future__ import annotations
@@ -84,6 +84,8 @@ def main() -> int:
     ap.add_argument("--problems", default=DEFAULT)
     ap.add_argument("--repeat", type=int, default=1, help="cold solves per problem in each child (their median)")
     args = ap.parse_args()
+    if args.repeat < 1 or args.rounds < 1:
+        ap.error("--rounds and --repeat must be at least 1")
     problems = args.problems.split(",")
     builds = {"old": args.old, "new": args.new}
     results: dict[str, list[dict]] = {k: [] for k in builds}

@@ -1366,7 +1366,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let wide = !fine.geo.ext.is_empty() || matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
     let n = if wide { WIDE } else { 5 };
-    let plain_taps = PlainRows::taps(fine);
+    let plain_taps = if wide { Vec::new() } else { PlainRows::shared_taps(fine) };
     // A coarse row's stencils of their own (by column) and far taps.
     type RowOut = (Vec<(usize, [f64; 25])>, Vec<Far>);
     let build_row = |yc: usize| -> RowOut {
@@ -1522,7 +1522,7 @@ struct PlainRows<'a> {
 }
 
 impl PlainRows<'_> {
-    fn taps(fine: &Level) -> Vec<(usize, usize)> {
+    fn shared_taps(fine: &Level) -> Vec<(usize, usize)> {
         let shared = (0..fine.len_padded()).find(|&p| fine.has_shared_stencil(p)).map(|p| fine.row(p));
         shared.map_or_else(Vec::new, |s| (0..25).filter(|&t| s[t] != 0.0).map(|t| (t % 5, t / 5)).collect())
     }
@@ -1537,6 +1537,7 @@ impl PlainRows<'_> {
         if !(fine.has_shared_stencil(fine.pidx(ix, iy)) && self.taps.iter().all(|&t| plain_at(t))) {
             return narrow_ap_row(fine, ix, iy);
         }
+        debug_assert!(!self.taps.is_empty(), "a shared stencil without taps");
         *self.rows[(iy & 1) * 2 + (ix & 1)].get_or_insert_with(|| narrow_ap_row(fine, ix, iy))
     }
 }
@@ -1797,7 +1798,7 @@ mod tests {
             let fine = fine_level(&grid, Some(fixed), tau);
             let coarse = galerkin(&fine);
             for level in [&fine, &coarse] {
-                let taps = PlainRows::taps(level);
+                let taps = PlainRows::shared_taps(level);
                 assert!(!taps.is_empty());
                 let mut plain = PlainRows { taps: &taps, rows: [None; 4] };
                 for (ix, iy) in (1..level.geo.h - 1).flat_map(|y| (1..level.geo.w - 1).map(move |x| (x, y))) {

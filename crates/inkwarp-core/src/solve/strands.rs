@@ -325,6 +325,25 @@ mod tests {
     }
 
     #[test]
+    fn an_untorn_finest_level_wider_and_taller_than_thin_has_no_strands() {
+        // `solve_piece` skips the search on such a level: it must find nothing there, with fixed nodes and tension
+        // as with none; a side of `THIN` or less is all strand.
+        let mut rnd = crate::grid::tests::sequence(29);
+        for (w, h, tau) in [(THIN + 1, THIN + 1, 0.0), (THIN + 1, 90, 0.5), (70, THIN + 1, 0.0), (64, 48, 1e-3)] {
+            for share in [0.0, 0.05, 0.6] {
+                let fixed: Vec<bool> = (0..w * h).map(|_| rnd() < share).collect();
+                assert!(Strands::new(&fine_level(&crate::grid::Grid::new(w, h), Some(fixed), tau)).is_none(), "{w} × {h}, {share}");
+            }
+        }
+        assert!(thin_nodes_of(&fine_level(&crate::grid::Grid::new(THIN, 40), None, 0.0)).iter().any(|&t| t));
+    }
+
+    fn thin_nodes_of(level: &Level) -> Vec<bool> {
+        let Operator::Fine { flags, .. } = &level.op else { unreachable!() };
+        thin_nodes(level, |p, _| flags[p] & bit::RIGHT != 0, |p, _| flags[p] & bit::DOWN != 0)
+    }
+
+    #[test]
     fn the_blocks_solve_the_thin_nodes_own_system() {
         let grid = comb_grid(40, 30);
         let mut fixed = vec![false; grid.len()];
