@@ -378,6 +378,28 @@ test('set two keys and check the frame at the midpoint', async () => {
   await screenshot(page, 'timeline');
 });
 
+test('a single late key is named, and one click keys the rest at 0 s', async () => {
+  const spline = () => page.evaluate(() => window.inkwarp.store.doc.features.find((g) => g.id === 'spline1'));
+  const before = await spline();
+  await page.evaluate(() => window.inkwarp.store.setView({ selection: { feature: 'spline1', point: null } }));
+  // Delete the key at 0 s (the first row): the 1 s pose then holds at every time.
+  await page.click('button[title="Delete this key"]');
+  await page.waitForSelector('#late-key', { timeout: 5000 });
+  const text = await page.textContent('#late-key');
+  assert(/1\.000 s/.test(text) && /every time/.test(text), `the late key's hint reads: ${text}`);
+  await screenshot(page, 'late-key');
+  await page.click('#key-rest');
+  const after = await spline();
+  assert(JSON.stringify(after.keys.map((k) => k.t)) === '[0,1]', `keys after "Key the rest at 0 s": ${after.keys.map((k) => k.t)}`);
+  assert(JSON.stringify(after.keys[0].points) === JSON.stringify(after.rest), `the key at 0 s holds ${JSON.stringify(after.keys[0].points)}, not the rest ${JSON.stringify(after.rest)}`);
+  assert(await page.$('#late-key') === null, 'the hint stays after the rest was keyed');
+  // Both edits undo: the scene is as the earlier tests left it.
+  await page.keyboard.press('Control+z');
+  await page.keyboard.press('Control+z');
+  const restored = await spline();
+  assert(JSON.stringify(restored.keys) === JSON.stringify(before.keys), `undo left keys ${JSON.stringify(restored.keys)}`);
+});
+
 async function cpuFrame(page) {
   const r = await page.evaluate(async () => {
     const { app, engine } = window.inkwarp;

@@ -225,6 +225,21 @@ export function addKeyHere(doc: SceneDoc, id: string, t: number): SceneDoc {
   return setKey(doc, id, t, pointsAt(f, t));
 }
 
+/**
+ * Whether a feature's keys hold one pose at every time although it was keyed away from the
+ * start: a single key, after 0 s (a single key poses the feature at every time, 0 s too).
+ */
+export function heldFromOneLateKey(f: Feature): boolean {
+  return f.kind !== 'cut' && f.keys?.length === 1 && f.keys[0].t >= KEY_EPS;
+}
+
+/** Adds a key at 0 s holding the feature's rest points (no-op if one is there): it then moves from rest. */
+export function keyRestAtStart(doc: SceneDoc, id: string): SceneDoc {
+  const f = getFeature(doc, id);
+  if (!f || keyIndexAt(f, 0) >= 0) return doc;
+  return setKey(doc, id, 0, f.rest);
+}
+
 /** Deletes the key of a feature at time `t` (no-op without one). */
 export function deleteKey(doc: SceneDoc, id: string, t: number): SceneDoc {
   return mapFeature(doc, id, (f) => {

@@ -35,6 +35,8 @@ import {
   addKeyHere,
   deleteKey,
   getFeature,
+  heldFromOneLateKey,
+  keyRestAtStart,
   moveFeature,
   moveKey,
   moveKeys,
@@ -539,7 +541,13 @@ export class Ui {
       ),
       f.kind === 'cut'
         ? h('p.hint', {}, 'A cut is not posed: it tears the picture along its line at rest. Change it in rest mode.')
-        : keys.length === 0 ? h('p.hint', {}, 'No keys: the feature stays at rest. Drag it in pose mode to key it.') : '',
+        : keys.length === 0 ? h('p.hint', {}, 'No keys: the feature stays at rest. Drag it in pose mode to key it.')
+        : heldFromOneLateKey(f) ? h('p#late-key.hint', {}, `One key, at ${keys[0].t.toFixed(3)} s: its pose holds at every time, 0 s too. `,
+          h('button.small#key-rest', {
+            title: 'Add a key at 0 s holding the rest pose: the feature then moves from rest to this key',
+            onclick: () => this.tryEdit((d) => keyRestAtStart(d, f.id)),
+          }, 'Key the rest at 0 s'))
+        : '',
     );
   }
 

@@ -5,6 +5,8 @@ import {
   addFeature,
   addKeyHere,
   deleteKey,
+  heldFromOneLateKey,
+  keyRestAtStart,
   keyIndexAt,
   moveKey,
   moveKeys,
@@ -146,6 +148,24 @@ describe('keys', () => {
     expect(doc.features[0].keys!.map((k) => k.t)).toEqual([0.5, 0.9]);
     doc = moveKey(doc, 'polyline1', 0.9, 0.1 + 0.2);
     expect(doc.features[0].keys!.map((k) => k.t)).toEqual([0.3, 0.5]);
+  });
+
+  it('a single late key is named, and keying the rest at 0 s makes the feature move from rest', () => {
+    let doc = setKey(base(), 'polyline1', 1, [[0, 10], [10, 10]]);
+    const rest = doc.features[0].rest;
+    expect(heldFromOneLateKey(doc.features[0])).toBe(true);
+    // One key poses every time, 0 s included.
+    expect(pointsAt(doc.features[0], 0)).toEqual([[0, 10], [10, 10]]);
+    doc = keyRestAtStart(doc, 'polyline1');
+    const f = doc.features[0];
+    expect(f.keys!.map((k) => k.t)).toEqual([0, 1]);
+    expect(pointsAt(f, 0)).toEqual(rest);
+    expect(pointsAt(f, 1)).toEqual([[0, 10], [10, 10]]);
+    expect(heldFromOneLateKey(f)).toBe(false);
+    // Again: a key is at 0 s already, nothing changes.
+    expect(keyRestAtStart(doc, 'polyline1')).toBe(doc);
+    // A key at 0 s alone holds the pose it was given: no late key.
+    expect(heldFromOneLateKey(setKey(base(), 'polyline1', 0, [[0, 3], [10, 3]]).features[0])).toBe(false);
   });
 
   it('add key here holds the current pose', () => {
