@@ -233,7 +233,7 @@ impl OwnStencils {
 #[derive(Default)]
 struct DistinctStencils {
     table: Vec<[f64; 25]>,
-    index: rustc_hash::FxHashMap<[u64; 25], u32>,
+    index: std::collections::HashMap<[u64; 25], u32>,
 }
 
 impl DistinctStencils {
@@ -890,14 +890,6 @@ impl Level {
         }
     }
 
-    /// Whether unknown `p` has the level's shared stencil: the interior molecule, or a Galerkin level's first.
-    fn has_shared_stencil(&self, p: usize) -> bool {
-        match &self.op {
-            Operator::Fine { flags, .. } => flags[p] & bit::REGULAR != 0,
-            Operator::Stored { ids, .. } => ids[p] == 0 && self.inv_diag[p] != 0.0,
-        }
-    }
-
     /// The far taps of row `p` (see [`Far`]).
     pub fn far(&self, p: usize) -> &[Far] { if let Operator::Stored { far, .. } = &self.op { far_of(far, p) } else { &[] } }
 
@@ -1366,7 +1358,6 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let wide = !fine.geo.ext.is_empty() || matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
     let n = if wide { WIDE } else { 5 };
-    let plain_taps = if wide { Vec::new() } else { PlainRows::shared_taps(fine) };
     // A coarse row's stencils of their own (by column) and far taps.
     type RowOut = (Vec<(usize, [f64; 25])>, Vec<Far>);
     let build_row = |yc: usize| -> RowOut {
@@ -1380,11 +1371,10 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
         let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
         let (mut acc, mut row) = (vec![0.0f64; n * n], vec![0.0f64; AP * AP]);
-        let mut plain = PlainRows { taps: &plain_taps, rows: [None; 4] };
         for &xc in &irregular {
             acc.fill(0.0);
             if !wide {
-                narrow_sums(fine, xc, yc, &mut slot, &mut dense, &mut plain, &mut acc);
+                narrow_sums(fine, xc, yc, &mut slot, &mut dense, &mut acc);
             } else {
                 for iy in rows.clone() {
                     for ix in fine.geo.children(xc, fw) {
@@ -1489,7 +1479,7 @@ fn wide_at(dx: isize, dy: isize) -> usize {
 /// The 5 × 5 Galerkin sums of coarse node (xc, yc) into `acc` where every prolongation row sits on its 2 × 2
 /// corners, from dense rows of `A P` made once per coarse row (`slot` as in [`galerkin`], into `dense`): the
 /// general path's order, adding only exact zeros besides, so bit for bit its stencil.
-fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut Vec<[f64; 16]>, plain: &mut PlainRows, acc: &mut [f64]) {
+fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut Vec<[f64; 16]>, acc: &mut [f64]) {
     let (fw, fh, g) = (fine.geo.w, fine.geo.h, &fine.geo);
     let y_lo = (2 * yc).saturating_sub(1);
     for iy in g.children(yc, fh) {
@@ -1500,7 +1490,7 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
             let k = (iy - y_lo) * fw + ix;
             if slot[k] == u32::MAX {
                 slot[k] = dense.len() as u32;
-                dense.push(plain.row(fine, ix, iy));
+                dense.push(narrow_ap_row(fine, ix, iy));
             }
             // The row's window starts one coarse node left of and above (ix / 2, iy / 2).
             for (ky, line) in dense[slot[k] as usize].chunks_exact(4).enumerate() {
@@ -1510,35 +1500,6 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
                 }
             }
         }
-    }
-}
-
-/// Rows of `A P` (see [`narrow_ap_row`]) kept by parity: where a node has the level's shared stencil and every
-/// node it reaches keeps the plain prolongation, its row depends on the parity of its position alone.
-struct PlainRows<'a> {
-    /// The offsets of the shared stencil's taps (none where the level has no shared stencil).
-    taps: &'a [(usize, usize)],
-    rows: [Option<[f64; 16]>; 4],
-}
-
-impl PlainRows<'_> {
-    fn shared_taps(fine: &Level) -> Vec<(usize, usize)> {
-        let shared = (0..fine.len_padded()).find(|&p| fine.has_shared_stencil(p)).map(|p| fine.row(p));
-        shared.map_or_else(Vec::new, |s| (0..25).filter(|&t| s[t] != 0.0).map(|t| (t % 5, t / 5)).collect())
-    }
-
-    /// Row `(ix, iy)` of `A P`, bit for bit [`narrow_ap_row`]'s.
-    fn row(&mut self, fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
-        let (fw, fh) = (fine.geo.w, fine.geo.h);
-        let plain_at = |(tx, ty): (usize, usize)| match ((ix + tx).checked_sub(2), (iy + ty).checked_sub(2)) {
-            (Some(jx), Some(jy)) if jx < fw && jy < fh => fine.geo.prow[jy * fw + jx] == PLAIN_CODES[(jy & 1) * 2 + (jx & 1)],
-            _ => false,
-        };
-        if !(fine.has_shared_stencil(fine.pidx(ix, iy)) && self.taps.iter().all(|&t| plain_at(t))) {
-            return narrow_ap_row(fine, ix, iy);
-        }
-        debug_assert!(!self.taps.is_empty(), "a shared stencil without taps");
-        *self.rows[(iy & 1) * 2 + (ix & 1)].get_or_insert_with(|| narrow_ap_row(fine, ix, iy))
     }
 }
 
@@ -1784,30 +1745,6 @@ mod tests {
             }
             let x: Vec<W2> = (0..fine.len_padded()).map(|p| if fine.inv_diag[p] != 0.0 { [(rnd() - 0.5) as f32, (rnd() - 0.5) as f32] } else { [0.0; 2] }).collect();
             narrow_product_bits(&fine, &x, tau);
-        }
-    }
-
-    #[test]
-    fn rows_of_a_p_kept_by_parity_are_the_rows_made_node_by_node() {
-        // `PlainRows` hands a plain node the row made at the first node of its parity: it must be that node's
-        // own row, bit for bit, on the finest level and a Galerkin one, with fixed nodes, without and with tension.
-        let mut rnd = crate::grid::tests::sequence(73);
-        for (grid, tau) in [(Grid::new(67, 61), 0.0), (Grid::new(40, 52), 0.4)] {
-            let (w, h) = (grid.width, grid.height);
-            let fixed: Vec<bool> = (0..w * h).map(|_| rnd() < 0.03).collect();
-            let fine = fine_level(&grid, Some(fixed), tau);
-            let coarse = galerkin(&fine);
-            for level in [&fine, &coarse] {
-                let taps = PlainRows::shared_taps(level);
-                assert!(!taps.is_empty());
-                let mut plain = PlainRows { taps: &taps, rows: [None; 4] };
-                for (ix, iy) in (1..level.geo.h - 1).flat_map(|y| (1..level.geo.w - 1).map(move |x| (x, y))) {
-                    if level.inv_diag[level.pidx(ix, iy)] == 0.0 { continue; }
-                    let (kept, own) = (plain.row(level, ix, iy), narrow_ap_row(level, ix, iy));
-                    assert!(kept.iter().zip(&own).all(|(a, b)| a.to_bits() == b.to_bits()), "node ({ix}, {iy})");
-                }
-                assert!(plain.rows.iter().all(Option::is_some), "every parity met a plain node");
-            }
         }
     }
 

@@ -52,14 +52,7 @@ pub(crate) struct Strands {
 impl Strands {
     /// The thin nodes of `level`, or `None` when it has none.
     pub fn new(level: &Level) -> Option<Strands> {
-        let thin = match &level.op {
-            // Links: the operator's own on the finest level, the geometry's between unknowns on coarser ones.
-            Operator::Fine { flags, .. } => thin_nodes(level, |p, _| flags[p] & bit::RIGHT != 0, |p, _| flags[p] & bit::DOWN != 0),
-            Operator::Stored { .. } => {
-                let (g, d, wp) = (&level.geo, &level.inv_diag, level.wp);
-                thin_nodes(level, |p, i| g.right[i] && d[p] != 0.0 && d[p + 1] != 0.0, |p, i| g.down[i] && d[p] != 0.0 && d[p + wp] != 0.0)
-            }
-        };
+        let thin = thin_nodes_of(level);
         if !thin.contains(&true) { return None; }
         let neighbours = |p: usize, out: &mut Vec<usize>| {
             out.clear();
@@ -159,6 +152,18 @@ fn solve_blocks(blocks: &[Envelope], x: &mut [V2]) {
 
 /// The thin nodes: the unknowns whose run of linked nodes along the row or the column is at most [`THIN`]
 /// long, from `right(p, i)` and `down(p, i)` (padded and unpadded index: linked to the right, below).
+/// The level's thin unknowns ([`thin_nodes`]) through its links: the operator's own on the finest level, the
+/// geometry's between unknowns on coarser ones.
+fn thin_nodes_of(level: &Level) -> Vec<bool> {
+    match &level.op {
+        Operator::Fine { flags, .. } => thin_nodes(level, |p, _| flags[p] & bit::RIGHT != 0, |p, _| flags[p] & bit::DOWN != 0),
+        Operator::Stored { .. } => {
+            let (g, d, wp) = (&level.geo, &level.inv_diag, level.wp);
+            thin_nodes(level, |p, i| g.right[i] && d[p] != 0.0 && d[p + 1] != 0.0, |p, i| g.down[i] && d[p] != 0.0 && d[p + wp] != 0.0)
+        }
+    }
+}
+
 fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Vec<bool> {
     let (w, h) = (level.geo.w, level.geo.h);
     let p = |x: usize, y: usize| level.pidx(x, y);
@@ -336,11 +341,6 @@ mod tests {
             }
         }
         assert!(thin_nodes_of(&fine_level(&crate::grid::Grid::new(THIN, 40), None, 0.0)).iter().any(|&t| t));
-    }
-
-    fn thin_nodes_of(level: &Level) -> Vec<bool> {
-        let Operator::Fine { flags, .. } = &level.op else { unreachable!() };
-        thin_nodes(level, |p, _| flags[p] & bit::RIGHT != 0, |p, _| flags[p] & bit::DOWN != 0)
     }
 
     #[test]
