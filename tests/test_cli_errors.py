@@ -201,8 +201,8 @@ def test_missing_scene_file(capsys, tmp_path):
     (["-o", "{tmp}/x.gif", "--frames", "2"], "write a range A:B"),
     (["-o", "{tmp}/x.png", "--frame", "4"], "the scene has frames 0 to 3"),
     (["-o", "{tmp}/x.png", "--time", "nan"], "give a time in seconds"),
-    (["-o", "{tmp}/x.png", "--time", "-1"], "--time -1: give a time in seconds from 0"),
-    (["-o", "{tmp}/x.png", "--time", "2e5"], "--time 200000: give a time in seconds from 0 to 100000"),
+    (["-o", "{tmp}/x.png", "--time", "-200000"], "--time -200000: give a time in seconds from -100000 to 100000"),
+    (["-o", "{tmp}/x.png", "--time", "2e5"], "--time 200000: give a time in seconds from -100000 to 100000"),
     (["-o", "{tmp}/x.png", "--background", ""], "--background '': give transparent, white"),
 ])
 def test_bad_options_say_what_to_do(capsys, tmp_path, args, expected):
@@ -267,13 +267,50 @@ def test_a_time_past_the_end_renders_with_a_warning(capsys, tmp_path):
         assert code == 0 and stderr.count("past the scene's end") == 1 and "PastEndWarning" not in stderr, stderr
 
 
+def test_one_frame_to_a_folder_named_like_a_png_says_it_is_a_folder(capsys, tmp_path):
+    # An existing folder is where a sequence's frames go, whatever its name: one frame to
+    # `isdir.png/` is refused for being a folder, not for not being named .png.
+    scene = write_scene(tmp_path / "s")
+    (tmp_path / "isdir.png").mkdir()
+    for option, value in (("--frame", "1"), ("--time", "0.5")):
+        code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "isdir.png", option, value)
+        assert code == 2 and len(stderr.splitlines()) == 1, stderr
+        assert "isdir.png: is a folder" in stderr and f"{option} writes one .png file" in stderr, stderr
+    assert list((tmp_path / "isdir.png").iterdir()) == []
+
+
+def test_a_time_before_zero_renders_the_drawing_before_the_first_frame(capsys, tmp_path):
+    # Keys may lie before 0 s; `render` and `field` take such a time as the Python API
+    # and `compare` do (they refused it), and give what `Scene.render` / `Scene.field` give.
+    from _cli_scenes import SHIFT_PX, dark_columns
+
+    from inkwarp import Scene
+
+    def early(doc):
+        keys = doc["features"][0]["keys"]
+        keys.insert(0, {"t": -1.0, "points": [[keys[0]["points"][0][0] - SHIFT_PX, keys[0]["points"][0][1]]],
+                        "interpolation": "linear"})
+
+    scene = write_scene(tmp_path / "s", mutated(early))
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "x.png", "--time", "-0.5")
+    assert code == 0 and stderr == "", stderr
+    frame = np.asarray(Image.open(tmp_path / "x.png").convert("RGBA"))
+    want = Scene.load(scene).render(time=-0.5)
+    assert np.array_equal(frame, want)
+    at_zero = Scene.load(scene).render(time=0.0)
+    assert dark_columns(frame)[0] < dark_columns(at_zero)[0] - 0.25 * SHIFT_PX  # moved left of its 0 s place
+    code, _, stderr = run(capsys, "field", scene, "-o", tmp_path / "x.npy", "--time", "-0.5")
+    assert code == 0 and stderr == "", stderr
+    assert np.array_equal(np.load(tmp_path / "x.npy"), Scene.load(scene).field(time=-0.5))
+
+
 def test_field_errors(capsys, tmp_path):
     scene = write_scene(tmp_path / "s")
     code, _, stderr = run(capsys, "field", scene, "--time", "1", "-o", tmp_path / "f.txt")
     assert code == 2 and "name the output .npy" in stderr
     # Past the times a scene holds: refused (it gave a field, with no word, at 1e300 s).
     code, _, stderr = run(capsys, "field", scene, "--time", "1e300", "-o", tmp_path / "f.npy")
-    assert code == 2 and "--time 1e+300: give a time in seconds from 0 to 100000" in stderr, stderr
+    assert code == 2 and "--time 1e+300: give a time in seconds from -100000 to 100000" in stderr, stderr
     assert not (tmp_path / "f.npy").exists()
     code, _, stderr = run(capsys, "field", scene, "--time", "1", "--layer", "nope",
                           "-o", tmp_path / "f.npy")

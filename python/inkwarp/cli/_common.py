@@ -90,9 +90,11 @@ def parse_frames(spec: str, frame_count: int, option: str = "--frames", command:
     return start, min(stop, frame_count)
 
 
-def check_time(time_s: float, option: str = "--time", earliest: float = 0.0) -> float:
-    if not math.isfinite(time_s) or not earliest <= time_s <= MAX_TIME_S:
-        raise ValueError(f"{option} {time_s:g}: give a time in seconds from {earliest:g} to {MAX_TIME_S:g} "
+def check_time(time_s: float, option: str = "--time") -> float:
+    """A time a scene holds, as the Python API takes it: within ±`MAX_TIME_S` (before 0 is
+    the drawing before the first frame, where keys may lie)."""
+    if not math.isfinite(time_s) or not -MAX_TIME_S <= time_s <= MAX_TIME_S:
+        raise ValueError(f"{option} {time_s:g}: give a time in seconds from {-MAX_TIME_S:g} to {MAX_TIME_S:g} "
                          "(about 27 hours), such as 0.5")
     return time_s
 

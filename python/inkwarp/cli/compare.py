@@ -73,11 +73,9 @@ def run(args: argparse.Namespace) -> int:
     video.check_file(out)
     outputs.check_not_an_input(out, args.scene, "comparison sheet")
     scene = Scene.load(args.scene)
-    from inkwarp._inkwarp import MAX_TIME_S
     from inkwarp.cli._common import check_time, warn_past_end
 
-    # Before the first keys too, as Scene.render takes.
-    time = check_time(args.time, earliest=-MAX_TIME_S) if args.time is not None else float(getattr(scene, "duration", 0.0) or 0.0)
+    time = check_time(args.time) if args.time is not None else float(getattr(scene, "duration", 0.0) or 0.0)
     if args.time is not None:
         warn_past_end("compare", args.time, scene, "the sheet shows")
     comparison = compare(scene, time, args.methods, layer=args.layer, max_samples=args.max_samples,
