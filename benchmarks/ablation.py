@@ -3,24 +3,33 @@
 For every switch (`inkwarp.thin_plate_report(..., _off="name")`, a private keyword for this
 benchmark only) and every problem, the solve runs with the mechanism on and off in
 alternating rounds of one process (the order reversed every other round, so that a
-drifting machine treats both sides alike). The table gives the median over the rounds of
-the time ratio off / on, with its middle half, and the cycles on / off. A ratio of 1.10
+drifting machine treats both sides alike), each side's time in a round that of `--repeat`
+calls in a row. The table gives the median over the rounds of the time ratio off / on, with
+its middle half, and the cycles on / off. A ratio of 1.10
 means the mechanism saves a tenth of the solve's time; a mechanism must earn that on at
 least one problem to stay.
 
 Problems: 513×513 with 10, 100, 1000 and 4000 random points, cold (no start) and warm
 (the previous answer as the start, every displacement changed by 2 %, as in
-`ratios.py`), frames of an animation through a `WarmStart` (10 and 1000 points, hole+cut,
-matte, comb, cuts) and, on the torn problems, the warm solve through a `Solver` kept from
-the cold solve before (`kept warm`): the only problems where a solver is kept between
-solves, so the only ones where `cache` and `recycle` can buy anything; the free function
-builds its hierarchy every time; and the issue's 513×513 model problem with a disc hole and a two-segment cut
+`ratios.py`); the issue's 513×513 model problem with a disc hole and a two-segment cut
 (`tests/test_solver_families.py::grid_problem`), cold and warm; a solid matte (an ellipse
-filling most of the picture, 8 points in it), cold, warm and frames; and two problems with thin
-parts, whatever the size: `strands.py`'s comb with 2 px teeth at twice its size
-(80×128) and `test_many_random_cuts`'s float cuts of seed 0 at four times theirs (256×256).
+filling most of the picture, 8 points in it), cold and warm; and two problems with thin
+parts, whatever the size: `strands.py`'s comb with 2 px teeth at twice its size (80×128)
+and `test_many_random_cuts`'s float cuts of seed 0 at four times theirs (256×256). The
+free function builds its hierarchy every call; three kinds of problem keep a solver
+between calls, the only ones where `cache` and `recycle` can buy anything:
 
-Usage: python benchmarks/ablation.py [--rounds 9] [--quick] [--only second,kcycle]
+- frames of an animation through a `WarmStart` (10 and 1000 points, hole+cut, matte,
+  comb, cuts), every displacement scaled by 1 + 0.2 sin(0.3 k) in frame k;
+- `kept warm` (hole+cut, comb, cuts): the warm solve through a `Solver` kept from the cold
+  solve before it, the same values every call (from the second, earlier answers span them);
+- `drag` (10 and 4000 points): a kept `Solver`, each call from the previous answer with
+  every displacement changed by a factor of its own, drawn anew (earlier answers do not
+  span them: the cycles run), as a drag in the editor.
+
+Each side of a pair keeps its own solver, and both start afresh for every switch.
+
+Usage: python benchmarks/ablation.py [--rounds 5] [--repeat 3] [--quick] [--only second,kcycle]
 """
 
 from __future__ import annotations
@@ -107,6 +116,8 @@ def problems(size: int) -> dict:
         out[f"{name} warm"] = warm
         if name in ("hole+cut", "comb", "cuts"):
             out[f"{name} kept warm"] = kept_warm(pts, disp, changed, shape, mask, cuts)
+        if name in ("10 pts", "4000 pts"):
+            out[f"{name} drag"] = drag(pts, disp, shape)
         if name in ("10 pts", "1000 pts", "hole+cut", "matte", "comb", "cuts"):
             out[f"{name} frames"] = frames(pts, disp, shape, mask, cuts)
     return out
@@ -125,13 +136,35 @@ def kept_warm(pts, disp, changed, shape, mask, cuts):
         solver, field = sides[off]
         return inkwarp.thin_plate_report(pts, changed, shape, mask=mask, cuts=cuts, initial=field, solver=solver, _off=off)[1]
 
+    solve.reset = sides.clear
+    return solve
+
+
+def drag(pts, disp, shape):
+    """A drag in the editor: a kept `Solver`, each call from the previous answer with every
+    displacement changed by a factor of its own (1 + 2 % noise, drawn anew each call, so
+    that earlier answers do not span the values and the cycles run); each side of a pair
+    has a solver and a random sequence of its own, the same sequence."""
+    sides: dict[str, list] = {}
+
+    def solve(off):
+        if off not in sides:
+            sides[off] = [inkwarp.Solver(), None, np.random.default_rng(7)]
+        solver, field, rng = sides[off]
+        d = disp * (1 + 0.02 * rng.standard_normal(disp.shape))
+        field, report = inkwarp.thin_plate_report(pts, d, shape, initial=field, solver=solver, _off=off)
+        sides[off][1] = field
+        return report
+
+    solve.reset = sides.clear
     return solve
 
 
 def frames(pts, disp, shape, mask, cuts):
     """An animation's frames through a `WarmStart` (which keeps the solver: its hierarchy
     and history), every displacement scaled by 1 + 0.2 sin(0.3 k) in frame k; each side of a pair has a
-    WarmStart of its own and walks the same frames."""
+    WarmStart of its own and walks the same frames, from the first for every switch (`reset`:
+    else the side with everything on would be many frames and a long history ahead)."""
     sides: dict[str, list] = {}
 
     def solve(off):
@@ -140,18 +173,22 @@ def frames(pts, disp, shape, mask, cuts):
         d = disp * (1 + 0.2 * np.sin(0.3 * k))
         return inkwarp.thin_plate_report(pts, d, shape, mask=mask, cuts=cuts, warm=ws, _off=off)[1]
 
+    solve.reset = sides.clear
     return solve
 
 
-def paired(solve, switch: str, rounds: int):
-    """Ratios off / on of alternating rounds, and the cycles on and off."""
+def paired(solve, switch: str, rounds: int, repeat: int = 1):
+    """Ratios off / on of alternating rounds, each side's time in a round that of `repeat`
+    calls in a row (a drag's or an animation's next ones), and the cycles on and off."""
+    getattr(solve, "reset", lambda: None)()  # both sides from the same first frame or call
     solve(""), solve(switch)  # warm-up: first-call costs are not the steady state
     ratios, cycles = [], {}
     for r in range(rounds):
         t = {}
         for side in ("", switch) if r % 2 == 0 else (switch, ""):
             t0 = time.perf_counter()
-            report = solve(side)
+            for _ in range(repeat):
+                report = solve(side)
             t[side] = time.perf_counter() - t0
             cycles[side] = report.cycles
         ratios.append(t[switch] / t[""])
@@ -165,21 +202,27 @@ def cell(ratios: list[float]) -> str:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rounds", type=int, default=9, help="alternating rounds per switch and problem")
+    ap.add_argument("--rounds", type=int, default=5, help="alternating rounds per switch and problem")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="calls per side in a round, timed together (a solve of a few milliseconds alone "
+                         "is within the machine's noise)")
     ap.add_argument("--size", type=int, default=513)
     ap.add_argument("--quick", action="store_true", help="129×129 and three rounds: a smoke run")
     ap.add_argument("--only", default="", help="comma-separated switches (default: all)")
     args, _ = ap.parse_known_args()  # `make bench` passes every suite the same arguments
-    size, rounds = (129, 3) if args.quick else (args.size, args.rounds)
+    size, rounds, repeat = (129, 3, 1) if args.quick else (args.size, args.rounds, args.repeat)
+    if rounds < 1 or repeat < 1:
+        ap.error("--rounds and --repeat take a whole number of at least 1")
     switches = [s for s in args.only.split(",") if s] or SWITCHES
     probs = problems(size)
-    print(f"### Time off / on, median of {rounds} alternating rounds (middle half); cycles on/off — {size}×{size}\n")
+    print(f"### Time off / on, median of {rounds} alternating rounds of {repeat} calls a side (middle half); "
+          f"cycles on/off — {size}×{size}\n")
     print("| mechanism | " + " | ".join(probs) + " | best |")
     print("|---" * (len(probs) + 2) + "|")
     for switch in switches:
         cells, best = [], 0.0
         for solve in probs.values():
-            ratios, on, off = paired(solve, switch, rounds)
+            ratios, on, off = paired(solve, switch, rounds, repeat)
             best = max(best, statistics.median(ratios))
             cells.append(f"{cell(ratios)} {on}/{off}")
         print(f"| {switch} | " + " | ".join(cells) + f" | {best:.2f} |", flush=True)

@@ -97,7 +97,7 @@ def test_quick_pipeline_benchmark_prints_its_table():
 
 def test_quick_ablation_benchmark_prints_a_row_per_switch():
     # `benchmarks/ablation.py --quick`: every switch's row, a ratio and the cycles on/off
-    # for each of the 25 problems; and the line-count script's totals.
+    # for each of the 27 problems; and the line-count script's totals.
     out = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "ablation.py"), "--quick", "--only", "kcycle,cache"],
         check=True, capture_output=True, text=True, timeout=300).stdout
@@ -105,11 +105,28 @@ def test_quick_ablation_benchmark_prints_a_row_per_switch():
     assert set(rows) == {"kcycle", "cache"}
     for row in rows.values():
         cells = [c.strip() for c in row.strip().strip("|").split("|")]
-        assert len(cells) == 27 and all("/" in c for c in cells[1:26]) and float(cells[26]) > 0
+        assert len(cells) == 29 and all("/" in c for c in cells[1:28]) and float(cells[28]) > 0
     counts = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "line_counts.py")],
         check=True, capture_output=True, text=True, timeout=60).stdout
     assert "| solve/ |" in counts and "| core crate |" in counts
+
+
+def test_ablation_pairs_walk_the_same_frames_for_every_switch():
+    # Both sides of a pair walk an animation from its first frame for every switch, the
+    # same number of frames: the side with everything on once ran on from the switch
+    # before, many frames and a long history ahead of the other.
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import ablation
+
+    pts, disp = np.array([[3.0, 3.0], [12.0, 10.0], [7.0, 13.0]]), np.array([[1.0, 0.0], [0.0, 1.0], [0.5, 0.5]])
+    solve = ablation.frames(pts, disp, (16, 16), None, None)
+    sides = solve.reset.__self__  # the sides' [WarmStart, frames walked]
+    for switch in ("kcycle", "cache"):
+        ratios, _, _ = ablation.paired(solve, switch, 2, 2)
+        assert len(ratios) == 2 and sides[""][1] == sides[switch][1] == 1 + 2 * 2
 
 
 def test_quick_strands_benchmark_prints_a_row_per_family_and_size():
