@@ -24,12 +24,13 @@ between calls, the only ones where `cache` and `recycle` can buy anything:
 - `kept warm` (hole+cut, comb, cuts): the warm solve through a `Solver` kept from the cold
   solve before it, the same values every call (from the second, earlier answers span them);
 - `drag` (10 and 4000 points): a kept `Solver`, each call from the previous answer with
-  every displacement changed by a factor of its own, drawn anew (earlier answers do not
-  span them: the cycles run), as a drag in the editor.
+  every displacement changed by a factor of its own, drawn anew, as a drag in the editor
+  (with 4000 points the cycles run every call; with 10, earlier answers span the values
+  from about the seventh call: one cycle a call).
 
 Each side of a pair keeps its own solver, and both start afresh for every switch.
 
-Usage: python benchmarks/ablation.py [--rounds 5] [--repeat 3] [--quick] [--only second,kcycle]
+Usage: python benchmarks/ablation.py [--rounds 6] [--repeat 3] [--quick] [--only second,kcycle]
 """
 
 from __future__ import annotations
@@ -142,9 +143,10 @@ def kept_warm(pts, disp, changed, shape, mask, cuts):
 
 def drag(pts, disp, shape):
     """A drag in the editor: a kept `Solver`, each call from the previous answer with every
-    displacement changed by a factor of its own (1 + 2 % noise, drawn anew each call, so
-    that earlier answers do not span the values and the cycles run); each side of a pair
-    has a solver and a random sequence of its own, the same sequence."""
+    displacement changed by a factor of its own (1 + 2 % noise, drawn anew each call). With
+    4000 points earlier answers never span the values, so the cycles run; with 10 they do
+    from about the seventh call on (one cycle a call: `answers`). Each side of a pair has a
+    solver and a random sequence of its own, the same sequence."""
     sides: dict[str, list] = {}
 
     def solve(off):
@@ -179,20 +181,21 @@ def frames(pts, disp, shape, mask, cuts):
 
 def paired(solve, switch: str, rounds: int, repeat: int = 1):
     """Ratios off / on of alternating rounds, each side's time in a round that of `repeat`
-    calls in a row (a drag's or an animation's next ones), and the cycles on and off."""
+    calls in a row (a drag's or an animation's next ones), and the cycles on and off over
+    the timed calls ("1–4" where they varied)."""
     getattr(solve, "reset", lambda: None)()  # both sides from the same first frame or call
     solve(""), solve(switch)  # warm-up: first-call costs are not the steady state
-    ratios, cycles = [], {}
+    ratios, cycles = [], {"": [], switch: []}
     for r in range(rounds):
         t = {}
         for side in ("", switch) if r % 2 == 0 else (switch, ""):
             t0 = time.perf_counter()
-            for _ in range(repeat):
-                report = solve(side)
+            reports = [solve(side) for _ in range(repeat)]
             t[side] = time.perf_counter() - t0
-            cycles[side] = report.cycles
+            cycles[side] += [rep.cycles for rep in reports]
         ratios.append(t[switch] / t[""])
-    return ratios, cycles[""], cycles[switch]
+    span = lambda c: f"{min(c)}" if min(c) == max(c) else f"{min(c)}–{max(c)}"  # noqa: E731
+    return ratios, span(cycles[""]), span(cycles[switch])
 
 
 def cell(ratios: list[float]) -> str:
@@ -202,10 +205,11 @@ def cell(ratios: list[float]) -> str:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--rounds", type=int, default=5, help="alternating rounds per switch and problem")
+    ap.add_argument("--rounds", type=int, default=6,
+                    help="alternating rounds per switch and problem (even: each side first as often)")
     ap.add_argument("--repeat", type=int, default=3,
                     help="calls per side in a round, timed together (a solve of a few milliseconds alone "
-                         "is within the machine's noise)")
+                         "is within the machine's noise; 1 with --quick)")
     ap.add_argument("--size", type=int, default=513)
     ap.add_argument("--quick", action="store_true", help="129×129 and three rounds: a smoke run")
     ap.add_argument("--only", default="", help="comma-separated switches (default: all)")

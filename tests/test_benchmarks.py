@@ -125,8 +125,19 @@ def test_ablation_pairs_walk_the_same_frames_for_every_switch():
     solve = ablation.frames(pts, disp, (16, 16), None, None)
     sides = solve.reset.__self__  # the sides' [WarmStart, frames walked]
     for switch in ("kcycle", "cache"):
-        ratios, _, _ = ablation.paired(solve, switch, 2, 2)
+        ratios, on, off = ablation.paired(solve, switch, 2, 2)
         assert len(ratios) == 2 and sides[""][1] == sides[switch][1] == 1 + 2 * 2
+        assert on and off  # the cycles of the timed calls, "1" or "1–4"
+    # The kept solvers too: a drag's sides draw the same displacements, both from the
+    # first call, and a kept warm solve's sides are built again for every switch.
+    drag = ablation.drag(pts, disp, (16, 16))
+    kept = ablation.kept_warm(pts, disp, disp * 1.02, (16, 16), None, None)
+    for switch in ("kcycle", "cache"):
+        ablation.paired(drag, switch, 2, 2)
+        drawn = {side: state[2].bit_generator.state["state"] for side, state in drag.reset.__self__.items()}
+        assert set(drawn) == {"", switch} and drawn[""] == drawn[switch]
+        ablation.paired(kept, switch, 2, 1)
+        assert set(kept.reset.__self__) == {"", switch}
 
 
 def test_quick_strands_benchmark_prints_a_row_per_family_and_size():

@@ -277,6 +277,10 @@ def test_one_frame_to_a_folder_named_like_a_png_says_it_is_a_folder(capsys, tmp_
         assert code == 2 and len(stderr.splitlines()) == 1, stderr
         assert "isdir.png: is a folder" in stderr and f"{option} writes one .png file" in stderr, stderr
     assert list((tmp_path / "isdir.png").iterdir()) == []
+    # A folder that is not there yet (a trailing separator) is not called one that is.
+    code, _, stderr = run(capsys, "render", scene, "-o", f"{tmp_path / 'new.png'}/", "--frame", "1")
+    assert code == 2 and "is a folder" not in stderr and "--frame picks one frame" in stderr, stderr
+    assert not (tmp_path / "new.png").exists()
 
 
 def test_a_time_before_zero_renders_the_drawing_before_the_first_frame(capsys, tmp_path):

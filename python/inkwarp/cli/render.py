@@ -156,7 +156,7 @@ def _run(args: argparse.Namespace) -> int:
                          "--frame N or --time T, or write a .gif, an .mp4 or a directory")
     if kind != "png" and (args.time is not None or args.frame is not None):
         option = "--time" if args.time is not None else "--frame"
-        if kind == "dir" and target.suffix.lower() == ".png":
+        if kind == "dir" and target.suffix.lower() == ".png" and target.is_dir():
             raise ValueError(f"{args.output}: is a folder (a folder takes a sequence's PNG frames); "
                              f"{option} writes one .png file: name one that is not a folder, or remove it")
         raise ValueError(f"{option} picks one frame, which goes to a .png (-o frame.png); "
