@@ -203,6 +203,9 @@ def test_missing_scene_file(capsys, tmp_path):
     (["-o", "{tmp}/x.png", "--time", "nan"], "give a time in seconds"),
     (["-o", "{tmp}/x.png", "--time", "-200000"], "--time -200000: give a time in seconds from -100000 to 100000"),
     (["-o", "{tmp}/x.png", "--time", "2e5"], "--time 200000: give a time in seconds from -100000 to 100000"),
+    # (A negative number with an exponent, which the parser took for an option.)
+    (["-o", "{tmp}/x.png", "--time", "-1e6"], "--time -1e+06: give a time in seconds from -100000 to 100000"),
+    (["-o", "{tmp}/x.png", "--time", "-inf"], "--time -inf: give a time in seconds"),
     (["-o", "{tmp}/x.png", "--background", ""], "--background '': give transparent, white"),
 ])
 def test_bad_options_say_what_to_do(capsys, tmp_path, args, expected):
@@ -303,7 +306,7 @@ def test_a_time_before_zero_renders_the_drawing_before_the_first_frame(capsys, t
     assert np.array_equal(frame, want)
     at_zero = Scene.load(scene).render(time=0.0)
     assert dark_columns(frame)[0] < dark_columns(at_zero)[0] - 0.25 * SHIFT_PX  # moved left of its 0 s place
-    code, _, stderr = run(capsys, "field", scene, "-o", tmp_path / "x.npy", "--time", "-0.5")
+    code, _, stderr = run(capsys, "field", scene, "-o", tmp_path / "x.npy", "--time", "-5e-1")  # an exponent too
     assert code == 0 and stderr == "", stderr
     assert np.array_equal(np.load(tmp_path / "x.npy"), Scene.load(scene).field(time=-0.5))
 

@@ -176,15 +176,26 @@ def _unwritten(err: OSError, output: object) -> OSError:
 
 
 def _ranges_joined(argv: list[str]) -> list[str]:
-    """``--frames -5:3`` as ``--frames=-5:3``: a range starting with a minus sign looks
-    like an option to the parser, which would refuse it without the range's own message."""
+    """``--frames -5:3`` as ``--frames=-5:3`` and ``--time -1e-3`` as ``--time=-1e-3``: a
+    range or a number with an exponent (or ``-inf``) starting with a minus sign looks like
+    an option to the parser, which would refuse it without the option's own message."""
     out: list[str] = []
     for arg in argv:
         if out and out[-1] == "--frames" and arg.startswith("-") and ":" in arg:
             out[-1] = f"--frames={arg}"
+        elif out and out[-1] == "--time" and arg.startswith("-") and _is_number(arg):
+            out[-1] = f"--time={arg}"
         else:
             out.append(arg)
     return out
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def main(argv: list[str] | None = None) -> int:
