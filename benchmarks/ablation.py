@@ -124,21 +124,34 @@ def problems(size: int) -> dict:
     return out
 
 
-def kept_warm(pts, disp, changed, shape, mask, cuts):
-    """The warm solve with a `Solver` kept from the cold solve before it (its hierarchy,
-    and the slow modes that solve found); each side of a pair has a solver of its own."""
-    sides: dict[str, tuple] = {}
+def per_side(start, step):
+    """A problem that keeps state between calls, one state per side of a pair: `start(off)`
+    makes a side's on its first call, `step(state, off)` solves once from it and returns
+    the report. `reset` forgets both, so that every switch's pair starts afresh (else the
+    side with everything on would run on from the switch before)."""
+    sides: dict[str, list] = {}
 
     def solve(off):
         if off not in sides:
-            solver = inkwarp.Solver()
-            field = inkwarp.thin_plate_report(pts, disp, shape, mask=mask, cuts=cuts, solver=solver, _off=off)[0]
-            sides[off] = (solver, field)
-        solver, field = sides[off]
-        return inkwarp.thin_plate_report(pts, changed, shape, mask=mask, cuts=cuts, initial=field, solver=solver, _off=off)[1]
+            sides[off] = start(off)
+        return step(sides[off], off)
 
     solve.reset = sides.clear
     return solve
+
+
+def kept_warm(pts, disp, changed, shape, mask, cuts):
+    """The warm solve with a `Solver` kept from the cold solve before it (its hierarchy,
+    and the slow modes that solve found); each side of a pair has a solver of its own."""
+    def start(off):
+        solver = inkwarp.Solver()
+        return [solver, inkwarp.thin_plate_report(pts, disp, shape, mask=mask, cuts=cuts, solver=solver, _off=off)[0]]
+
+    def step(state, off):
+        solver, field = state
+        return inkwarp.thin_plate_report(pts, changed, shape, mask=mask, cuts=cuts, initial=field, solver=solver, _off=off)[1]
+
+    return per_side(start, step)
 
 
 def drag(pts, disp, shape):
@@ -147,36 +160,26 @@ def drag(pts, disp, shape):
     4000 points earlier answers never span the values, so the cycles run; with 10 they do
     from about the seventh call on (one cycle a call: `answers`). Each side of a pair has a
     solver and a random sequence of its own, the same sequence."""
-    sides: dict[str, list] = {}
-
-    def solve(off):
-        if off not in sides:
-            sides[off] = [inkwarp.Solver(), None, np.random.default_rng(7)]
-        solver, field, rng = sides[off]
+    def step(state, off):
+        solver, field, rng = state
         d = disp * (1 + 0.02 * rng.standard_normal(disp.shape))
-        field, report = inkwarp.thin_plate_report(pts, d, shape, initial=field, solver=solver, _off=off)
-        sides[off][1] = field
+        state[1], report = inkwarp.thin_plate_report(pts, d, shape, initial=field, solver=solver, _off=off)
         return report
 
-    solve.reset = sides.clear
-    return solve
+    return per_side(lambda off: [inkwarp.Solver(), None, np.random.default_rng(7)], step)
 
 
 def frames(pts, disp, shape, mask, cuts):
     """An animation's frames through a `WarmStart` (which keeps the solver: its hierarchy
-    and history), every displacement scaled by 1 + 0.2 sin(0.3 k) in frame k; each side of a pair has a
-    WarmStart of its own and walks the same frames, from the first for every switch (`reset`:
-    else the side with everything on would be many frames and a long history ahead)."""
-    sides: dict[str, list] = {}
-
-    def solve(off):
-        ws, k = sides.setdefault(off, [inkwarp.WarmStart(), 0])
-        sides[off][1] = k + 1
+    and history), every displacement scaled by 1 + 0.2 sin(0.3 k) in frame k; each side of a
+    pair has a WarmStart of its own and walks the same frames, from the first for every switch."""
+    def step(state, off):
+        ws, k = state
+        state[1] = k + 1
         d = disp * (1 + 0.2 * np.sin(0.3 * k))
         return inkwarp.thin_plate_report(pts, d, shape, mask=mask, cuts=cuts, warm=ws, _off=off)[1]
 
-    solve.reset = sides.clear
-    return solve
+    return per_side(lambda off: [inkwarp.WarmStart(), 0], step)
 
 
 def paired(solve, switch: str, rounds: int, repeat: int = 1):

@@ -175,7 +175,7 @@ def _unwritten(err: OSError, output: object) -> OSError:
     return disk_failure(f"{output}: the file", err)
 
 
-def _ranges_joined(argv: list[str]) -> list[str]:
+def _dash_values_joined(argv: list[str]) -> list[str]:
     """``--frames -5:3`` as ``--frames=-5:3`` and ``--time -1e-3`` as ``--time=-1e-3``: a
     range or a number with an exponent (or ``-inf``) starting with a minus sign looks like
     an option to the parser, which would refuse it without the option's own message."""
@@ -200,7 +200,7 @@ def _is_number(text: str) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    words = _ranges_joined(sys.argv[1:] if argv is None else [str(a) for a in argv])
+    words = _dash_values_joined(sys.argv[1:] if argv is None else [str(a) for a in argv])
     args, extra = parser.parse_known_args(words)
     if extra:
         # The command's own usage and name (`inkwarp render ... --fps 12`), unless the word

@@ -150,8 +150,6 @@ fn solve_blocks(blocks: &[Envelope], x: &mut [V2]) {
     }
 }
 
-/// The thin nodes: the unknowns whose run of linked nodes along the row or the column is at most [`THIN`]
-/// long, from `right(p, i)` and `down(p, i)` (padded and unpadded index: linked to the right, below).
 /// The level's thin unknowns ([`thin_nodes`]) through its links: the operator's own on the finest level, the
 /// geometry's between unknowns on coarser ones.
 fn thin_nodes_of(level: &Level) -> Vec<bool> {
@@ -164,6 +162,8 @@ fn thin_nodes_of(level: &Level) -> Vec<bool> {
     }
 }
 
+/// The thin nodes: the unknowns whose run of linked nodes along the row or the column is at most [`THIN`]
+/// long, from `right(p, i)` and `down(p, i)` (padded and unpadded index: linked to the right, below).
 fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Vec<bool> {
     let (w, h) = (level.geo.w, level.geo.h);
     let p = |x: usize, y: usize| level.pidx(x, y);
