@@ -17,6 +17,11 @@ use inkwarp_core::{Grid, Sample};
 
 mod common;
 
+/// The Python module's staggering of large blocks (over the system's allocator here), so a build's time is the
+/// package's.
+#[global_allocator]
+static ALLOCATOR: inkwarp_core::alloc::Staggered<std::alloc::System> = inkwarp_core::alloc::Staggered(std::alloc::System);
+
 fn problem(name: &str, n: usize) -> (Grid, Vec<Sample>) {
     match name {
         "hole+cut" => {

@@ -10,6 +10,7 @@
 //! `methods` holds the other interpolants the paper compares against and `transfer` the
 //! paper's animation transfer. Nothing here knows about Python, the browser or files.
 
+pub mod alloc;
 pub mod anim;
 mod clock;
 pub mod field;

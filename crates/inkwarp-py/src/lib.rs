@@ -11,8 +11,10 @@ mod scene;
 mod render;
 mod solve;
 
+/// mimalloc, with large blocks staggered within the page (`inkwarp_core::alloc`): the solver's vectors on
+/// large grids no longer alias one another's offsets.
 #[global_allocator]
-static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+static ALLOCATOR: inkwarp_core::alloc::Staggered<mimalloc::MiMalloc> = inkwarp_core::alloc::Staggered(mimalloc::MiMalloc);
 
 /// The compiled core of the `inkwarp` Python package.
 #[pymodule]
