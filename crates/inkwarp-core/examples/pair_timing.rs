@@ -17,8 +17,8 @@ use inkwarp_core::{Grid, Sample};
 
 mod common;
 
-/// The Python module's staggering of large blocks (over the system's allocator here), so a build's time is the
-/// package's.
+/// The Python module's staggering of large blocks, over the system's allocator here (which copies where mimalloc
+/// resizes in place).
 #[global_allocator]
 static ALLOCATOR: inkwarp_core::alloc::Staggered<std::alloc::System> = inkwarp_core::alloc::Staggered(std::alloc::System);
 

@@ -2,9 +2,10 @@
 //!
 //! Large blocks come page-aligned (or at one fixed offset), so entry `i` of every vector of a grid lies at the
 //! same offset within its page, and a loop that stores to one vector and then loads from another near the same
-//! index waits on each such store (4K aliasing): the solver's passes over a large grid ran at half the memory's
-//! speed. [`Staggered`] starts each block of at least [`LARGE`] bytes at one of [`SLOTS`] offsets 256 bytes
-//! apart, in turn. The Python module installs it over mimalloc.
+//! index waits on each such store until the processor has told the two addresses apart (4K aliasing).
+//! [`Staggered`] starts each block of at least [`LARGE`] bytes at one of [`SLOTS`] offsets 256 bytes apart, in
+//! turn, so vectors allocated one after the other lie at different offsets. The Python module installs it over
+//! mimalloc (`docs/dev/ablation.md`).
 
 use std::alloc::{GlobalAlloc, Layout};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -14,8 +15,8 @@ pub const LARGE: usize = 1 << 16;
 /// How many offsets blocks take in turn: 64 + 256·k bytes, k < `SLOTS`.
 pub const SLOTS: usize = 15;
 const STEP: usize = 256;
-/// The extra bytes a staggered block takes; its offset is stored in the 8 bytes before it.
-const ROOM: usize = 64 + STEP * SLOTS;
+/// The extra bytes a staggered block takes (up to its largest offset); the offset is stored in the `usize` before it.
+const ROOM: usize = 64 + STEP * (SLOTS - 1);
 
 /// A global allocator over `A` that staggers large blocks (see the module's documentation).
 #[derive(Debug)]
@@ -25,7 +26,8 @@ static NEXT: AtomicUsize = AtomicUsize::new(0);
 
 /// The inner allocator's block for a staggered one of layout `l`, or `None` where `l` is not staggered.
 fn outer(l: Layout) -> Option<Layout> {
-    (l.size() >= LARGE && l.align() <= 64).then(|| Layout::from_size_align(l.size() + ROOM, 64).ok()).flatten()
+    if l.size() < LARGE || l.align() > 64 { return None; }
+    Layout::from_size_align(l.size().checked_add(ROOM)?, 64).ok()
 }
 
 /// The block at the next offset into `base` (null stays null), its offset written before it.
@@ -33,9 +35,12 @@ fn outer(l: Layout) -> Option<Layout> {
 unsafe fn place(base: *mut u8) -> *mut u8 {
     if base.is_null() { return base; }
     let off = 64 + STEP * (NEXT.fetch_add(1, Ordering::Relaxed) % SLOTS);
-    // SAFETY: `base` is 64-aligned with at least `ROOM` > `off` ≥ 64 bytes: `p` and the `usize` before it lie in it.
-    unsafe { base.add(off).cast::<usize>().sub(1).write(off) };
-    base.wrapping_add(off)
+    // SAFETY: `base` is 64-aligned with at least `ROOM` ≥ `off` ≥ 64 bytes: `p` and the `usize` before it lie in it.
+    unsafe {
+        let p = base.add(off);
+        p.cast::<usize>().sub(1).write(off);
+        p
+    }
 }
 
 /// The offset of staggered block `p` within its inner block.
@@ -62,10 +67,11 @@ unsafe impl<A: GlobalAlloc> GlobalAlloc for Staggered<A> {
     }
 
     unsafe fn realloc(&self, p: *mut u8, l: Layout, size: usize) -> *mut u8 {
-        let new = Layout::from_size_align(size, l.align()).expect("a valid layout");
         unsafe {
+            // SAFETY: the caller guarantees `size`, rounded up to `l.align()`, does not overflow `isize`.
+            let new = Layout::from_size_align_unchecked(size, l.align());
             match (outer(l), outer(new)) {
-                // The inner block keeps its bytes, so the block its offset and the offset's record.
+                // The inner realloc keeps the bytes, so the block keeps its offset and its record.
                 (Some(o), Some(n)) => {
                     let off = offset(p);
                     let base = self.0.realloc(p.sub(off), o, n.size());
@@ -101,15 +107,17 @@ mod tests {
             assert!(blocks.iter().all(|&p| !p.is_null() && p as usize % 64 == 0));
             assert!(blocks.iter().all(|&p| std::slice::from_raw_parts(p, LARGE).iter().all(|&b| b == 0)));
             offsets.sort_unstable();
-            offsets.dedup();
-            assert_eq!(offsets.len(), SLOTS, "consecutive blocks share an offset");
-            assert!(offsets.iter().all(|o| o % STEP == 64 && o + 8 <= ROOM));
+            assert_eq!(offsets, (0..SLOTS).map(|k| 64 + STEP * k).collect::<Vec<_>>(), "consecutive blocks, every offset once");
             // Grown, shrunk past the threshold and back: the bytes stay.
-            let mut p = blocks[0];
-            (0..LARGE).for_each(|i| p.add(i).write(i as u8));
-            for (from, to) in [(LARGE, 3 * LARGE), (3 * LARGE, 100), (100, 2 * LARGE)] {
-                p = a.realloc(p, Layout::from_size_align(from, 16).unwrap(), to);
-                assert!(!p.is_null() && (0..100).all(|i| p.add(i).read() == i as u8), "{from} → {to}");
+            // A pattern that does not repeat every `STEP` bytes: a block moved by whole slots would not match it.
+            let mut p = a.alloc(l);
+            (0..LARGE).for_each(|i| p.add(i).write((i % 251) as u8));
+            let sizes = [LARGE, 3 * LARGE, 2 * LARGE, 100, 50, 2 * LARGE];
+            for w in sizes.windows(2) {
+                p = a.realloc(p, Layout::from_size_align(w[0], 16).unwrap(), w[1]);
+                let kept = w[0].min(w[1]);
+                assert!(!p.is_null() && (0..kept).all(|i| p.add(i).read() == (i % 251) as u8), "{} → {}", w[0], w[1]);
+                (kept..w[1]).for_each(|i| p.add(i).write((i % 251) as u8));
             }
             a.dealloc(p, Layout::from_size_align(2 * LARGE, 16).unwrap());
             blocks[1..].iter().for_each(|&p| a.dealloc(p, l));
