@@ -634,36 +634,6 @@ widest! {
     }
 }
 
-widest! {
-    /// `u += α p` and `r += α q` per component; returns the largest `|α p|` (eight running maxima). Two loops, not
-    /// one: where `u` and `r` lie at the same offset within their pages, a load of `r[i]` just after a store to
-    /// `u[i]` waits on that store (4K aliasing; `crate::alloc`).
-    pub(crate) fn step_update(u: &mut [V2], r: &mut [V2], p: &[W2], q: &[V2], alpha: [f64; 2]) -> f64 =>
-    step_update_body {
-        let (u, r, p, q) = (u.as_flattened_mut(), r.as_flattened_mut(), p.as_flattened(), q.as_flattened());
-        assert!(r.len() == u.len() && p.len() == u.len() && q.len() == u.len(), "vectors of one length");
-        let a: [f64; 8] = std::array::from_fn(|l| alpha[l % 2]);
-        let (mut m, n) = ([0.0f64; 8], u.len() / 8 * 8);
-        for (u, p) in u[..n].chunks_exact_mut(8).zip(p.chunks_exact(8)) {
-            for l in 0..8 {
-                let d = a[l] * f64::from(p[l]);
-                u[l] += d;
-                m[l] = larger(m[l], d.abs());
-            }
-        }
-        for (r, q) in r[..n].chunks_exact_mut(8).zip(q.chunks_exact(8)) {
-            (0..8).for_each(|l| r[l] += a[l] * q[l]);
-        }
-        for j in n..u.len() {
-            let d = a[j % 2] * f64::from(p[j]);
-            u[j] += d;
-            r[j] += a[j % 2] * q[j];
-            m[0] = larger(m[0], d.abs());
-        }
-        m.iter().fold(0.0, |a, &b| larger(a, b))
-    }
-}
-
 /// The larger of two values, by a comparison: `f64::max` (which must skip a NaN) is a libm call on WebAssembly.
 #[inline(always)]
 pub(crate) fn larger(a: f64, b: f64) -> f64 { if b > a { b } else { a } }
@@ -1830,8 +1800,8 @@ mod tests {
 
     #[test]
     fn the_vector_passes_copies_match_their_plain_bodies() {
-        // The smoothing step's update, the scaled maximum, the pairs' dot product, the
-        // banded factor's update and the conjugate gradient's step, by the dispatching functions (the AVX2 copy where the
+        // The smoothing step's update, the scaled maximum, the pairs' dot product and the
+        // banded factor's update, by the dispatching functions (the AVX2 copy where the
         // processor has it) and by their plain bodies or definitions, bit for bit, on lengths
         // that leave remainders.
         let mut rnd = crate::grid::tests::sequence(29);
@@ -1866,20 +1836,6 @@ mod tests {
             let mut z = z0.clone();
             sub_scaled(&l, 0.73, &mut z);
             assert!(z.iter().zip(&z0).zip(&l).all(|((z, z0), l)| z.to_bits() == (z0 - l * 0.73).to_bits()), "{n}");
-            // The conjugate gradient's step, against its definition: `u += α p`, `r += α q`, the largest `|α p|`.
-            let widen = |v: &[W2]| -> Vec<V2> { v.iter().map(|a| a.map(f64::from)).collect() };
-            let (u0, r0, q, alpha) = (widen(&d0), widen(&r), widen(&g.iter().map(|&v| [v, -v]).collect::<Vec<_>>()), [0.7, -1.9]);
-            let (mut u1, mut r1, mut u2, mut r2) = (u0.clone(), r0.clone(), u0.clone(), r0.clone());
-            let m1 = step_update(&mut u1, &mut r1, &x, &q, alpha);
-            assert_eq!(m1.to_bits(), step_update_body(&mut u2, &mut r2, &x, &q, alpha).to_bits(), "{n}");
-            let d = |i: usize, c: usize| alpha[c] * f64::from(x[i][c]);
-            assert_eq!(m1, (0..n).flat_map(|i| [d(i, 0).abs(), d(i, 1).abs()]).fold(0.0, f64::max), "{n}");
-            let bits64 = |v: &[V2]| v.iter().flatten().map(|a| a.to_bits()).collect::<Vec<_>>();
-            for (i, (u, r)) in u1.iter().zip(&r1).enumerate() {
-                let def = [0, 1].map(|c| (u0[i][c] + d(i, c), r0[i][c] + alpha[c] * q[i][c]));
-                assert_eq!(bits64(&[*u, *r]), bits64(&[def.map(|v| v.0), def.map(|v| v.1)]), "{n}, node {i}");
-            }
-            assert_eq!((bits64(&u1), bits64(&r1)), (bits64(&u2), bits64(&r2)), "{n}");
         }
     }
 

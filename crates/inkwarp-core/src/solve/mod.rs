@@ -1149,7 +1149,18 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
     if !pq.iter().chain(&rz).all(|v| v.is_finite()) { return (f64::NAN, [0.0; 2]); }
     let alpha = [0, 1].map(|k| if pq[k] < 0.0 { -rz[k] / pq[k] } else { 0.0 });
     let chunks = u.par_chunks_mut(CHUNK).zip(r.par_chunks_mut(CHUNK)).zip(p.par_chunks(CHUNK).zip(q.par_chunks(CHUNK)));
-    let change = chunks.map(|((u, r), (p, q))| level::step_update(u, r, p, q, alpha));
+    let change = chunks.map(|((u, r), (p, q))| {
+        let mut m = 0.0f64;
+        for (((u, r), p), q) in u.iter_mut().zip(r.iter_mut()).zip(p).zip(q) {
+            for k in 0..2 {
+                let d = alpha[k] * p[k].get();
+                u[k] += d;
+                r[k] += alpha[k] * q[k];
+                m = larger(m, d.abs());
+            }
+        }
+        m
+    });
     (change.reduce(|| 0.0, f64::max), alpha)
 }
 

@@ -1,7 +1,7 @@
 //! The solver's hottest loops on the processor's widest vectors. The build targets plain x86-64; [`widest!`]
-//! gives each stencil product, transfer, smoothing update, conjugate-gradient step, dot product and scaled
-//! maximum a second copy compiled for AVX2 with FMA, run where the processor has it. Both copies do the same
-//! operations in the same order: bit for bit the same results. One loop is written out with AVX2 instructions
+//! gives each stencil product, transfer, smoothing update, dot product and scaled maximum a second copy
+//! compiled for AVX2 with FMA, run where the processor has it. Both copies do the same operations in the
+//! same order: bit for bit the same results. One loop is written out with AVX2 instructions
 //! (`Real::four_run` in `level`); a test holds it to the plain sums. See `docs/dev/ablation.md`, "Kernels".
 
 /// Whether the processor has AVX2 and FMA (the standard library caches the answer).
