@@ -1353,8 +1353,31 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let (x1, y1) = (2 * xc + reach + 1, 2 * yc + reach + 1);
         x1 <= fw && y1 <= fh && sat.count([x0, y0], [x1, y1]) as usize == (x1 - x0) * (y1 - y0)
     };
-    let shared = (0..hc * wc).find(|&c| regular(c % wc, c / wc)).map_or([0.0; 25], |c| galerkin_node(fine, c % wc, c / wc));
+    let shared = match &fine.op {
+        // The finest level's: that of an open grid's interior, constrained or not.
+        Operator::Fine { tau, .. } => {
+            let crate::grid::Grid { active, link_right, link_down, .. } = crate::grid::Grid::new(13, 13);
+            galerkin_node(&Level::fine(Geometry::new(13, 13, active, link_right, link_down, None), *tau), 3, 3)
+        }
+        _ => (0..hc * wc).find(|&c| regular(c % wc, c / wc)).map_or([0.0; 25], |c| galerkin_node(fine, c % wc, c / wc)),
+    };
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
+    // On the finest level, coarse nodes whose windows are clean but for fixed nodes: the shared stencil less
+    // each fixed node's terms ([`fixed_terms`]), in place of their sums.
+    let fixed = match &fine.op {
+        Operator::Fine { flags, .. } => {
+            let open = |i: usize| flags[fine.pidx(i % fw, i / fw)] & (bit::RIGHT | bit::DOWN | bit::FREE);
+            let nodes: Vec<u32> = (0..fw * fh).filter(|&i| open(i) == bit::RIGHT | bit::DOWN).map(|i| i as u32).collect();
+            (!nodes.is_empty()).then(|| (nodes, Sat::new(fw, fh, |i| open(i) & (bit::RIGHT | bit::DOWN) == bit::RIGHT | bit::DOWN)))
+        }
+        _ => None,
+    };
+    let pinned = |xc: usize, yc: usize| -> bool {
+        let Some((_, sat)) = &fixed else { return false };
+        let (Some(x0), Some(y0)) = ((2 * xc).checked_sub(reach), (2 * yc).checked_sub(reach)) else { return false };
+        let (x1, y1) = (2 * xc + reach + 1, 2 * yc + reach + 1);
+        x1 <= fw && y1 <= fh && sat.count([x0, y0], [x1, y1]) as usize == (x1 - x0) * (y1 - y0)
+    };
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let wide = !fine.geo.ext.is_empty() || matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
     let n = if wide { WIDE } else { 5 };
@@ -1371,7 +1394,24 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
         let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
         let (mut acc, mut row) = (vec![0.0f64; n * n], vec![0.0f64; AP * AP]);
+        let mut want = vec![false; wc];
+        irregular.iter().for_each(|&xc| want[xc] = pinned(xc, yc));
+        let mut terms = vec![[0.0f64; 25]; if want.contains(&true) { wc } else { 0 }];
+        if let (Some((nodes, _)), false) = (&fixed, terms.is_empty()) {
+            let at = |y: usize| nodes.partition_point(|&f| (f as usize) < y * fw);
+            for &f in &nodes[at((2 * yc).saturating_sub(4))..at((2 * yc + 4).min(fh))] {
+                fixed_terms(fine, f as usize, yc, &want, &mut terms);
+            }
+        }
         for &xc in &irregular {
+            if want[xc] {
+                let s: [f64; 25] = std::array::from_fn(|k| shared[k] + terms[xc][k]);
+                // Every child fixed: the node has no fine functions left, its row exactly zero.
+                let s = if s[12].abs() <= 1e-9 * shared_scale { [0.0; 25] } else { s };
+                if s.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale) { continue; }
+                own.push((xc, s));
+                continue;
+            }
             acc.fill(0.0);
             if !wide {
                 narrow_sums(fine, xc, yc, &mut slot, &mut dense, &mut acc);
@@ -1490,7 +1530,7 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
             let k = (iy - y_lo) * fw + ix;
             if slot[k] == u32::MAX {
                 slot[k] = dense.len() as u32;
-                dense.push(narrow_ap_row(fine, ix, iy));
+                dense.push(narrow_ap_row(fine, ix, iy, false));
             }
             // The row's window starts one coarse node left of and above (ix / 2, iy / 2).
             for (ky, line) in dense[slot[k] as usize].chunks_exact(4).enumerate() {
@@ -1503,14 +1543,49 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
     }
 }
 
-/// Row `(ix, iy)` of `A P` on the 4 × 4 window from offset −1, dense, in the order of [`ap_row`].
-fn narrow_ap_row(fine: &Level, ix: usize, iy: usize) -> [f64; 16] {
+/// The terms of fixed node f of the finest level in the coarse stencils of row `yc` (into `terms`, by column)
+/// that are wanted, whose windows are clean but for fixed nodes. There `P` is the plain bilinear prolongation `Q` with
+/// the fixed nodes' rows zeroed, `P = M Q`, and `Pᵀ A P = Qᵀ A Q − Σ_f (a_f q_fᵀ + q_f b_fᵀ)`: `q_f` row f
+/// of `Q`, `a_f` and `b_f` row f of `A Q` and of `A P` (the second term drops row f of `Qᵀ A P`, the first
+/// column f of `Qᵀ A Q`). `Qᵀ A Q` is the shared stencil on such windows.
+fn fixed_terms(fine: &Level, f: usize, yc: usize, want: &[bool], terms: &mut [[f64; 25]]) {
+    let (fw, wc) = (fine.geo.w, terms.len());
+    let (fx, fy) = (f % fw, f / fw);
+    let (a, q) = (narrow_ap_row(fine, fx, fy, true), PLAIN_CODES[(fy & 1) * 2 + (fx & 1)]);
+    // Row f of A P where f is a wanted node's child, so its taps' rows are plain or zero.
+    let b = (fy / 2 + (fy & 1) >= yc && fy / 2 <= yc && (fx / 2..=fx / 2 + (fx & 1)).any(|c| c < wc && want[c])).then(|| narrow_ap_row(fine, fx, fy, false));
+    // (dx, dy) from coarse node (cx, yc) to the window's (kx, ky) (from offset −1 of (fx / 2, fy / 2)).
+    let mut sub = |cx: isize, kx: usize, ky: usize, v: f64| {
+        if (0..wc as isize).contains(&cx) && want[cx as usize] {
+            let (dx, dy) = ((fx / 2 + kx) as isize - 1 - cx, (fy / 2 + ky) as isize - 1 - yc as isize);
+            terms[cx as usize][((dy + 2) * 5 + dx + 2) as usize] -= v;
+        }
+    };
+    for (s, w) in q.iter().map(|&c| WEIGHTS[c as usize]).enumerate().filter(|e| e.1 != 0.0) {
+        let (qx, qy) = (s & 1, s >> 1);
+        // q_f b_fᵀ: row (fx / 2 + qx, fy / 2 + qy) of the coarse level.
+        if let (Some(b), true) = (&b, fy / 2 + qy == yc) {
+            for (k, &v) in b.iter().enumerate().filter(|e| *e.1 != 0.0) { sub((fx / 2 + qx) as isize, k % 4, k / 4, w * v); }
+        }
+        // a_f q_fᵀ: the rows of a_f's window.
+        let ky = yc as isize + 1 - (fy / 2) as isize;
+        if (0..4).contains(&ky) {
+            for (kx, &v) in a[ky as usize * 4..][..4].iter().enumerate().filter(|e| *e.1 != 0.0) {
+                sub((fx / 2 + kx) as isize - 1, qx + 1, qy + 1, v * w);
+            }
+        }
+    }
+}
+
+/// Row `(ix, iy)` of `A P` on the 4 × 4 window from offset −1, dense, in the order of [`ap_row`] (with the plain
+/// bilinear `P`, fixed nodes' rows too, when `plain`).
+fn narrow_ap_row(fine: &Level, ix: usize, iy: usize, plain: bool) -> [f64; 16] {
     let fw = fine.geo.w;
     let row = fine.row(fine.pidx(ix, iy));
     let mut out = [0.0f64; 16];
     for (t, &a) in row.iter().enumerate().filter(|e| *e.1 != 0.0) {
         let (jx, jy) = (ix + t % 5 - 2, iy + t / 5 - 2);
-        let c = fine.geo.prow[jy * fw + jx];
+        let c = if plain { PLAIN_CODES[(jy & 1) * 2 + (jx & 1)] } else { fine.geo.prow[jy * fw + jx] };
         let (cx, cy) = (jx / 2 + 1 - ix / 2, jy / 2 + 1 - iy / 2);
         for (s, &v) in c.iter().enumerate() { out[(cy + (s >> 1)) * 4 + cx + (s & 1)] += a * WEIGHTS[v as usize]; }
     }

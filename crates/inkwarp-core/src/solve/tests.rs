@@ -431,6 +431,9 @@ fn stored_coarse_stencils_match_their_definition() {
         }
         cases.push(fine_level(&grid, Some((0..w * h).map(|_| rnd() < fixed).collect()), tau));
     }
+    // Dense constraints and a filled block, whose inner coarse nodes have no fine functions left.
+    let block = |i: usize| (10..21).contains(&(i % 48)) && (12..25).contains(&(i / 48));
+    cases.push(fine_level(&Grid::new(48, 50), Some((0..48 * 50).map(|i| block(i) || rnd() < 0.25).collect()), 1e-7));
     // Node (5, 6) keeps only its link down to (5, 7), in its coarse cell, so it takes that
     // node's row, which weighs coarse row 4 = 6 / 2 + 1 (docs/dev/solver-correctness.md).
     // Coded on the 2 × 2 corners, coarse node (2, 4) missed it in its own row (its loops
@@ -453,6 +456,7 @@ fn stored_coarse_stencils_match_their_definition() {
                 let stored = coarse.row(coarse.pidx(xc, yc));
                 let defined = level::galerkin_node(&fine, xc, yc);
                 let scale = defined.iter().fold(1.0f64, |m, a| m.max(a.abs()));
+                assert_eq!(coarse.inv_diag[coarse.pidx(xc, yc)] == 0.0, defined[12] == 0.0, "{w}x{h} level {wc}x{hc} node ({xc},{yc}): an unknown or not");
                 for t in 0..25 {
                     assert!(
                         (stored[t] - defined[t]).abs() <= 1e-10 * scale,
