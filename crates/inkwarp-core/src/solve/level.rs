@@ -1364,19 +1364,18 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
     // On the finest level, coarse nodes whose windows are clean but for fixed nodes: the shared stencil less
     // each fixed node's terms ([`fixed_terms`]), in place of their sums.
-    let fixed = match &fine.op {
-        Operator::Fine { flags, .. } => {
-            let open = |i: usize| flags[fine.pidx(i % fw, i / fw)] & (bit::RIGHT | bit::DOWN | bit::FREE);
-            let nodes: Vec<u32> = (0..fw * fh).filter(|&i| open(i) == bit::RIGHT | bit::DOWN).map(|i| i as u32).collect();
-            (!nodes.is_empty()).then(|| (nodes, Sat::new(fw, fh, |i| open(i) & (bit::RIGHT | bit::DOWN) == bit::RIGHT | bit::DOWN)))
-        }
-        _ => None,
+    // On the finest level, coarse nodes whose windows are clean but for fixed nodes: the shared stencil less
+    // each fixed node's terms ([`fixed_terms`]), in place of their sums. The fixed nodes linked right and down:
+    let fixed: Vec<u32> = match &fine.op {
+        Operator::Fine { flags, .. } => (0..fw * fh)
+            .filter(|&i| !fine.clean[i] && flags[fine.pidx(i % fw, i / fw)] & (bit::RIGHT | bit::DOWN | bit::FREE) == bit::RIGHT | bit::DOWN)
+            .map(|i| i as u32)
+            .collect(),
+        _ => Vec::new(),
     };
-    let pinned = |xc: usize, yc: usize| -> bool {
-        let Some((_, sat)) = &fixed else { return false };
-        let (Some(x0), Some(y0)) = ((2 * xc).checked_sub(reach), (2 * yc).checked_sub(reach)) else { return false };
-        let (x1, y1) = (2 * xc + reach + 1, 2 * yc + reach + 1);
-        x1 <= fw && y1 <= fh && sat.count([x0, y0], [x1, y1]) as usize == (x1 - x0) * (y1 - y0)
+    let fixed_rows = |y0: usize, y1: usize| {
+        let at = |y: usize| fixed.partition_point(|&f| (f as usize) < y * fw);
+        &fixed[at(y0)..at(y1)]
     };
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let wide = !fine.geo.ext.is_empty() || matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
@@ -1394,14 +1393,20 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
         let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
         let (mut acc, mut row) = (vec![0.0f64; n * n], vec![0.0f64; AP * AP]);
+        // The wanted nodes: every node of their windows clean or fixed (counted by column in the window's rows).
         let mut want = vec![false; wc];
-        irregular.iter().for_each(|&xc| want[xc] = pinned(xc, yc));
-        let mut terms = vec![[0.0f64; 25]; if want.contains(&true) { wc } else { 0 }];
-        if let (Some((nodes, _)), false) = (&fixed, terms.is_empty()) {
-            let at = |y: usize| nodes.partition_point(|&f| (f as usize) < y * fw);
-            for &f in &nodes[at((2 * yc).saturating_sub(4))..at((2 * yc + 4).min(fh))] {
-                fixed_terms(fine, f as usize, yc, &want, &mut terms);
+        if let (Some(y0), y1) = ((2 * yc).checked_sub(reach), 2 * yc + reach + 1) {
+            let mut cols = vec![0usize; fw + 1];
+            fixed_rows(y0, y1.min(fh)).iter().for_each(|&f| cols[f as usize % fw + 1] += 1);
+            (0..fw).for_each(|x| cols[x + 1] += cols[x]);
+            for &xc in irregular.iter().filter(|&&xc| 2 * xc >= reach && 2 * xc + reach < fw && y1 <= fh) {
+                let (x0, x1) = (2 * xc - reach, 2 * xc + reach + 1);
+                want[xc] = sat.count([x0, y0], [x1, y1]) as usize + cols[x1] - cols[x0] == (x1 - x0) * (y1 - y0);
             }
+        }
+        let mut terms = vec![[0.0f64; 25]; if want.contains(&true) { wc } else { 0 }];
+        if !terms.is_empty() {
+            fixed_rows((2 * yc).saturating_sub(4), (2 * yc + 4).min(fh)).iter().for_each(|&f| fixed_terms(fine, f as usize, yc, &want, &mut terms));
         }
         for &xc in &irregular {
             if want[xc] {
