@@ -535,13 +535,9 @@ pub(crate) struct Sat { w: usize, h: usize, table: Vec<u32> }
 
 impl Sat {
     pub fn new(w: usize, h: usize, flag: impl Fn(usize) -> bool) -> Sat {
-        let mut table = vec![0u32; (w + 1) * (h + 1)];
-        for y in 0..h {
-            let mut run = 0u32;
-            for x in 0..w {
-                run += flag(y * w + x) as u32;
-                table[(y + 1) * (w + 1) + x + 1] = table[y * (w + 1) + x + 1] + run;
-            }
+        let (mut table, v) = (vec![0u32; (w + 1) * (h + 1)], w + 1);
+        for (y, x) in (0..h).flat_map(|y| (0..w).map(move |x| (y, x))) {
+            table[(y + 1) * v + x + 1] = table[y * v + x + 1] + table[(y + 1) * v + x] - table[y * v + x] + flag(y * w + x) as u32;
         }
         Sat { w, h, table }
     }
@@ -718,21 +714,12 @@ impl Sym {
 
     /// The five coefficients of `s` (each its ring's mean) if it has the square's symmetries up to rounding.
     fn of(s: &[f64; 25]) -> Option<Sym> {
-        let at = |dy: isize, dx: isize| s[((dy + 2) * 5 + dx + 2) as usize];
-        let classes: [&[(isize, isize)]; 5] = [
-            &[(0, 0)],
-            &[(0, 1), (0, -1), (1, 0), (-1, 0)],
-            &[(1, 1), (1, -1), (-1, 1), (-1, -1)],
-            &[(0, 2), (0, -2), (2, 0), (-2, 0)],
-            &[(1, 2), (1, -2), (-1, 2), (-1, -2), (2, 1), (2, -1), (-2, 1), (-2, -1)],
-        ];
-        let scale = s.iter().fold(0.0f64, |m, a| m.max(a.abs()));
-        let mut c = [0.0; 5];
-        for (k, class) in classes.iter().enumerate() {
-            c[k] = class.iter().map(|&(dy, dx)| at(dy, dx)).sum::<f64>() / class.len() as f64;
-            if class.iter().any(|&(dy, dx)| (at(dy, dx) - c[k]).abs() > 1e-13 * scale) { return None; }
-        }
-        Some(Sym(c))
+        // Each tap's ring by its |dx| and |dy| (none for the corners).
+        let ring = |t: usize| [[Some(0), Some(1), Some(3)], [Some(1), Some(2), Some(4)], [Some(3), Some(4), None]][(t % 5).abs_diff(2)][(t / 5).abs_diff(2)];
+        let (scale, mut c, mut n) = (s.iter().fold(0.0f64, |m, a| m.max(a.abs())), [0.0; 5], [0.0; 5]);
+        (0..25).filter_map(|t| Some((ring(t)?, s[t]))).for_each(|(k, a)| (c[k], n[k]) = (c[k] + a, n[k] + 1.0));
+        c.iter_mut().zip(n).for_each(|(c, n)| *c /= n);
+        (0..25).filter_map(|t| Some((ring(t)?, s[t]))).all(|(k, a)| (a - c[k]).abs() <= 1e-13 * scale).then_some(Sym(c))
     }
 }
 
@@ -1348,11 +1335,12 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let sat = Sat::new(fw, fh, |i| fine.clean[i]);
     // Extrapolating rows read links three nodes away: a wider window.
     let reach = if !fine.geo.ext.is_empty() { 10 } else { 4 };
-    let regular = |xc: usize, yc: usize| -> bool {
-        let (Some(x0), Some(y0)) = ((2 * xc).checked_sub(reach), (2 * yc).checked_sub(reach)) else { return false };
-        let (x1, y1) = (2 * xc + reach + 1, 2 * yc + reach + 1);
-        x1 <= fw && y1 <= fh && sat.count([x0, y0], [x1, y1]) as usize == (x1 - x0) * (y1 - y0)
+    // Coarse node (xc, yc)'s window here, if it lies inside, and whether it is all clean.
+    let window = |xc: usize, yc: usize| {
+        let (x0, y0, x1, y1) = ((2 * xc).checked_sub(reach)?, (2 * yc).checked_sub(reach)?, 2 * xc + reach + 1, 2 * yc + reach + 1);
+        (x1 <= fw && y1 <= fh).then_some(([x0, y0], [x1, y1]))
     };
+    let regular = |xc: usize, yc: usize| window(xc, yc).is_some_and(|(a, b)| sat.count(a, b) as usize == (b[0] - a[0]) * (b[1] - a[1]));
     let shared = match &fine.op {
         // The finest level's: that of an open grid's interior, constrained or not.
         Operator::Fine { tau, .. } => {
@@ -1362,10 +1350,8 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         _ => (0..hc * wc).find(|&c| regular(c % wc, c / wc)).map_or([0.0; 25], |c| galerkin_node(fine, c % wc, c / wc)),
     };
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
-    // On the finest level, coarse nodes whose windows are clean but for fixed nodes: the shared stencil less
-    // each fixed node's terms ([`fixed_terms`]), in place of their sums.
-    // On the finest level, coarse nodes whose windows are clean but for fixed nodes: the shared stencil less
-    // each fixed node's terms ([`fixed_terms`]), in place of their sums. The fixed nodes linked right and down:
+    // On the finest level, coarse nodes whose windows are clean but for fixed nodes (linked right and down) take
+    // the shared stencil less each fixed node's terms ([`fixed_terms`]) in place of their sums.
     let fixed: Vec<u32> = match &fine.op {
         Operator::Fine { flags, .. } => (0..fw * fh)
             .filter(|&i| !fine.clean[i] && flags[fine.pidx(i % fw, i / fw)] & (bit::RIGHT | bit::DOWN | bit::FREE) == bit::RIGHT | bit::DOWN)
@@ -1373,10 +1359,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
             .collect(),
         _ => Vec::new(),
     };
-    let fixed_rows = |y0: usize, y1: usize| {
-        let at = |y: usize| fixed.partition_point(|&f| (f as usize) < y * fw);
-        &fixed[at(y0)..at(y1)]
-    };
+    let fixed_rows = |y0: usize, y1: usize| &fixed[fixed.partition_point(|&f| (f as usize) < y0 * fw)..fixed.partition_point(|&f| (f as usize) < y1 * fw)];
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let wide = !fine.geo.ext.is_empty() || matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
     let n = if wide { WIDE } else { 5 };
@@ -1393,16 +1376,14 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let mut slot = vec![u32::MAX; (rows.end() - y_lo + 1) * fw];
         let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
         let (mut acc, mut row) = (vec![0.0f64; n * n], vec![0.0f64; AP * AP]);
-        // The wanted nodes: every node of their windows clean or fixed (counted by column in the window's rows).
-        let mut want = vec![false; wc];
-        if let (Some(y0), y1) = ((2 * yc).checked_sub(reach), 2 * yc + reach + 1) {
-            let mut cols = vec![0usize; fw + 1];
-            fixed_rows(y0, y1.min(fh)).iter().for_each(|&f| cols[f as usize % fw + 1] += 1);
+        // Wanted: the nodes whose windows hold clean and fixed nodes alone (these counted by column in its rows).
+        let (mut want, mut cols) = (vec![false; wc], vec![0usize; fw + 1]);
+        if let (Some(y0), false) = ((2 * yc).checked_sub(reach), fixed.is_empty()) {
+            fixed_rows(y0, (2 * yc + reach + 1).min(fh)).iter().for_each(|&f| cols[f as usize % fw + 1] += 1);
             (0..fw).for_each(|x| cols[x + 1] += cols[x]);
-            for &xc in irregular.iter().filter(|&&xc| 2 * xc >= reach && 2 * xc + reach < fw && y1 <= fh) {
-                let (x0, x1) = (2 * xc - reach, 2 * xc + reach + 1);
-                want[xc] = sat.count([x0, y0], [x1, y1]) as usize + cols[x1] - cols[x0] == (x1 - x0) * (y1 - y0);
-            }
+        }
+        for &xc in &irregular {
+            want[xc] = window(xc, yc).is_some_and(|(a, b)| sat.count(a, b) as usize + cols[b[0]] - cols[a[0]] == (b[0] - a[0]) * (b[1] - a[1]));
         }
         let mut terms = vec![[0.0f64; 25]; if want.contains(&true) { wc } else { 0 }];
         if !terms.is_empty() {
@@ -1410,11 +1391,9 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         }
         for &xc in &irregular {
             if want[xc] {
-                let s: [f64; 25] = std::array::from_fn(|k| shared[k] + terms[xc][k]);
-                // Every child fixed: the node has no fine functions left, its row exactly zero.
-                let s = if s[12].abs() <= 1e-9 * shared_scale { [0.0; 25] } else { s };
-                if s.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale) { continue; }
-                own.push((xc, s));
+                // Every child fixed: no fine functions left, the row exactly zero.
+                let s = if (shared[12] + terms[xc][12]).abs() <= 1e-9 * shared_scale { [0.0; 25] } else { std::array::from_fn(|k| shared[k] + terms[xc][k]) };
+                if s.iter().zip(&shared).any(|(a, b)| (a - b).abs() > 1e-12 * shared_scale) { own.push((xc, s)); }
                 continue;
             }
             acc.fill(0.0);
@@ -1535,7 +1514,7 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
             let k = (iy - y_lo) * fw + ix;
             if slot[k] == u32::MAX {
                 slot[k] = dense.len() as u32;
-                dense.push(narrow_ap_row(fine, ix, iy, false));
+                dense.push(narrow_ap_row(fine, ix, iy, |x, y| g.prow[y * fw + x]));
             }
             // The row's window starts one coarse node left of and above (ix / 2, iy / 2).
             for (ky, line) in dense[slot[k] as usize].chunks_exact(4).enumerate() {
@@ -1548,49 +1527,40 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
     }
 }
 
-/// The terms of fixed node f of the finest level in the coarse stencils of row `yc` (into `terms`, by column)
-/// that are wanted, whose windows are clean but for fixed nodes. There `P` is the plain bilinear prolongation `Q` with
-/// the fixed nodes' rows zeroed, `P = M Q`, and `Pᵀ A P = Qᵀ A Q − Σ_f (a_f q_fᵀ + q_f b_fᵀ)`: `q_f` row f
-/// of `Q`, `a_f` and `b_f` row f of `A Q` and of `A P` (the second term drops row f of `Qᵀ A P`, the first
-/// column f of `Qᵀ A Q`). `Qᵀ A Q` is the shared stencil on such windows.
+/// The terms of fixed node f of the finest level in the stencils of coarse row `yc` (into `terms`, by column) that
+/// are wanted: where a window is clean but for fixed nodes, `P = M Q` (`Q` the plain bilinear prolongation, `M`
+/// zeroing the fixed nodes' rows) and `Pᵀ A P = Qᵀ A Q − Σ_f (a_f q_fᵀ + q_f b_fᵀ)`, `q_f` row f of `Q`, `a_f` and
+/// `b_f` row f of `A Q` and of `A P` (the second term drops row f of `Qᵀ A P`, the first column f of `Qᵀ A Q`,
+/// which is the shared stencil there).
 fn fixed_terms(fine: &Level, f: usize, yc: usize, want: &[bool], terms: &mut [[f64; 25]]) {
-    let (fw, wc) = (fine.geo.w, terms.len());
-    let (fx, fy) = (f % fw, f / fw);
-    let (a, q) = (narrow_ap_row(fine, fx, fy, true), PLAIN_CODES[(fy & 1) * 2 + (fx & 1)]);
-    // Row f of A P where f is a wanted node's child, so its taps' rows are plain or zero.
-    let b = (fy / 2 + (fy & 1) >= yc && fy / 2 <= yc && (fx / 2..=fx / 2 + (fx & 1)).any(|c| c < wc && want[c])).then(|| narrow_ap_row(fine, fx, fy, false));
-    // (dx, dy) from coarse node (cx, yc) to the window's (kx, ky) (from offset −1 of (fx / 2, fy / 2)).
-    let mut sub = |cx: isize, kx: usize, ky: usize, v: f64| {
+    let Operator::Fine { flags, .. } = &fine.op else { unreachable!("the finest level") };
+    let (wc, (fx, fy), y) = (terms.len(), (f % fine.geo.w, f / fine.geo.w), yc as isize);
+    let plain = |x: usize, y: usize| PLAIN_CODES[(y & 1) * 2 + (x & 1)];
+    let a = narrow_ap_row(fine, fx, fy, plain);
+    let b = narrow_ap_row(fine, fx, fy, |x, y| if flags[fine.pidx(x, y)] & bit::FREE != 0 { plain(x, y) } else { [0; 4] });
+    // Less u_c v_k at coarse node (cx, yc), k on the windows' 4 × 4 from offset −1 of (fx / 2, fy / 2).
+    let mut sub = |cx: isize, k: usize, uv: f64| {
         if (0..wc as isize).contains(&cx) && want[cx as usize] {
-            let (dx, dy) = ((fx / 2 + kx) as isize - 1 - cx, (fy / 2 + ky) as isize - 1 - yc as isize);
-            terms[cx as usize][((dy + 2) * 5 + dx + 2) as usize] -= v;
+            let (dx, dy) = ((fx / 2 + k % 4) as isize - 1 - cx, (fy / 2 + k / 4) as isize - 1 - y);
+            terms[cx as usize][((dy + 2) * 5 + dx + 2) as usize] -= uv;
         }
     };
-    for (s, w) in q.iter().map(|&c| WEIGHTS[c as usize]).enumerate().filter(|e| e.1 != 0.0) {
-        let (qx, qy) = (s & 1, s >> 1);
-        // q_f b_fᵀ: row (fx / 2 + qx, fy / 2 + qy) of the coarse level.
-        if let (Some(b), true) = (&b, fy / 2 + qy == yc) {
-            for (k, &v) in b.iter().enumerate().filter(|e| *e.1 != 0.0) { sub((fx / 2 + qx) as isize, k % 4, k / 4, w * v); }
-        }
-        // a_f q_fᵀ: the rows of a_f's window.
-        let ky = yc as isize + 1 - (fy / 2) as isize;
-        if (0..4).contains(&ky) {
-            for (kx, &v) in a[ky as usize * 4..][..4].iter().enumerate().filter(|e| *e.1 != 0.0) {
-                sub((fx / 2 + kx) as isize - 1, qx + 1, qy + 1, v * w);
-            }
-        }
+    for (s, w) in plain(fx, fy).iter().map(|&c| WEIGHTS[c as usize]).enumerate().filter(|e| e.1 != 0.0) {
+        let (qx, qy, ky) = (s & 1, s >> 1, y + 1 - (fy / 2) as isize);
+        // q_f b_fᵀ in coarse row fy / 2 + qy; a_f q_fᵀ in the rows of a_f's window.
+        if fy / 2 + qy == yc { b.iter().enumerate().for_each(|(k, &v)| sub((fx / 2 + qx) as isize, k, w * v)); }
+        if (0..4).contains(&ky) { (0..4).for_each(|kx| sub((fx / 2 + kx) as isize - 1, (qy + 1) * 4 + qx + 1, a[ky as usize * 4 + kx] * w)); }
     }
 }
 
-/// Row `(ix, iy)` of `A P` on the 4 × 4 window from offset −1, dense, in the order of [`ap_row`] (with the plain
-/// bilinear `P`, fixed nodes' rows too, when `plain`).
-fn narrow_ap_row(fine: &Level, ix: usize, iy: usize, plain: bool) -> [f64; 16] {
-    let fw = fine.geo.w;
+/// Row `(ix, iy)` of `A P` on the 4 × 4 window from offset −1, dense, in the order of [`ap_row`], with node j's
+/// row of `P` coded `codes(jx, jy)`.
+fn narrow_ap_row(fine: &Level, ix: usize, iy: usize, codes: impl Fn(usize, usize) -> [u8; 4]) -> [f64; 16] {
     let row = fine.row(fine.pidx(ix, iy));
     let mut out = [0.0f64; 16];
     for (t, &a) in row.iter().enumerate().filter(|e| *e.1 != 0.0) {
         let (jx, jy) = (ix + t % 5 - 2, iy + t / 5 - 2);
-        let c = if plain { PLAIN_CODES[(jy & 1) * 2 + (jx & 1)] } else { fine.geo.prow[jy * fw + jx] };
+        let c = codes(jx, jy);
         let (cx, cy) = (jx / 2 + 1 - ix / 2, jy / 2 + 1 - iy / 2);
         for (s, &v) in c.iter().enumerate() { out[(cy + (s >> 1)) * 4 + cx + (s & 1)] += a * WEIGHTS[v as usize]; }
     }
