@@ -1387,7 +1387,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         }
         let mut terms = vec![[0.0f64; 25]; if want.contains(&true) { wc } else { 0 }];
         if !terms.is_empty() {
-            fixed_rows((2 * yc).saturating_sub(4), (2 * yc + 4).min(fh)).iter().for_each(|&f| fixed_terms(fine, f as usize, yc, &want, &mut terms));
+            fixed_rows((2 * yc).saturating_sub(3), (2 * yc + 4).min(fh)).iter().for_each(|&f| fixed_terms(fine, f as usize, yc, &want, &mut terms));
         }
         for &xc in &irregular {
             if want[xc] {
