@@ -716,10 +716,10 @@ impl Sym {
     fn of(s: &[f64; 25]) -> Option<Sym> {
         // Each tap's ring by its |dx| and |dy| (none for the corners).
         let ring = |t: usize| [[Some(0), Some(1), Some(3)], [Some(1), Some(2), Some(4)], [Some(3), Some(4), None]][(t % 5).abs_diff(2)][(t / 5).abs_diff(2)];
-        let (scale, mut c, mut n) = (s.iter().fold(0.0f64, |m, a| m.max(a.abs())), [0.0; 5], [0.0; 5]);
-        (0..25).filter_map(|t| Some((ring(t)?, s[t]))).for_each(|(k, a)| (c[k], n[k]) = (c[k] + a, n[k] + 1.0));
+        let (scale, mut c, mut n, taps) = (s.iter().fold(0.0f64, |m, a| m.max(a.abs())), [0.0; 5], [0.0; 5], || (0..25).filter_map(|t| Some((ring(t)?, s[t]))));
+        taps().for_each(|(k, a)| (c[k], n[k]) = (c[k] + a, n[k] + 1.0));
         c.iter_mut().zip(n).for_each(|(c, n)| *c /= n);
-        (0..25).filter_map(|t| Some((ring(t)?, s[t]))).all(|(k, a)| (a - c[k]).abs() <= 1e-13 * scale).then_some(Sym(c))
+        taps().all(|(k, a)| (a - c[k]).abs() <= 1e-13 * scale).then_some(Sym(c))
     }
 }
 
@@ -1351,15 +1351,22 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     };
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
     // On the finest level, coarse nodes whose windows are clean but for fixed nodes (linked right and down) take
-    // the shared stencil less each fixed node's terms ([`fixed_terms`]) in place of their sums.
-    let fixed: Vec<u32> = match &fine.op {
+    // the shared stencil less each fixed node's terms ([`fixed_terms`], from its rows of `A Q` and `A P`).
+    let fixed: Vec<(usize, [[f64; 16]; 2])> = match &fine.op {
         Operator::Fine { flags, .. } => (0..fw * fh)
             .filter(|&i| !fine.clean[i] && flags[fine.pidx(i % fw, i / fw)] & (bit::RIGHT | bit::DOWN | bit::FREE) == bit::RIGHT | bit::DOWN)
-            .map(|i| i as u32)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|f| {
+                let code = |x: usize, y: usize, masked: bool| if masked && flags[fine.pidx(x, y)] & bit::FREE == 0 { [0; 4] } else { PLAIN_CODES[(y & 1) * 2 + (x & 1)] };
+                (f, [false, true].map(|masked| narrow_ap_row(fine, f % fw, f / fw, |x, y| code(x, y, masked))))
+            })
             .collect(),
         _ => Vec::new(),
     };
-    let fixed_rows = |y0: usize, y1: usize| &fixed[fixed.partition_point(|&f| (f as usize) < y0 * fw)..fixed.partition_point(|&f| (f as usize) < y1 * fw)];
+    let fixed_rows = |y0: usize, y1: usize| &fixed[fixed.partition_point(|f| f.0 < y0 * fw)..fixed.partition_point(|f| f.0 < y1 * fw)];
+    // A stencil equal to the shared one up to rounding is regular (the window tests are conservative).
+    let like_shared = |s: &[f64]| shared_scale > 0.0 && s.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale);
     // Rows that reach past their 2 × 2 corners, or far taps here, need the wide windows.
     let wide = !fine.geo.ext.is_empty() || matches!(&fine.op, Operator::Stored { far, .. } if !far.is_empty());
     let n = if wide { WIDE } else { 5 };
@@ -1377,23 +1384,24 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         let (mut ap, mut nz, mut dense) = (Vec::new(), Vec::new(), Vec::new());
         let (mut acc, mut row) = (vec![0.0f64; n * n], vec![0.0f64; AP * AP]);
         // Wanted: the nodes whose windows hold clean and fixed nodes alone (these counted by column in its rows).
-        let (mut want, mut cols) = (vec![false; wc], vec![0usize; fw + 1]);
+        let mut want = vec![false; wc];
         if let (Some(y0), false) = ((2 * yc).checked_sub(reach), fixed.is_empty()) {
-            fixed_rows(y0, (2 * yc + reach + 1).min(fh)).iter().for_each(|&f| cols[f as usize % fw + 1] += 1);
+            let mut cols = vec![0usize; fw + 1];
+            fixed_rows(y0, (2 * yc + reach + 1).min(fh)).iter().for_each(|f| cols[f.0 % fw + 1] += 1);
             (0..fw).for_each(|x| cols[x + 1] += cols[x]);
-        }
-        for &xc in &irregular {
-            want[xc] = window(xc, yc).is_some_and(|(a, b)| sat.count(a, b) as usize + cols[b[0]] - cols[a[0]] == (b[0] - a[0]) * (b[1] - a[1]));
+            for &xc in &irregular {
+                want[xc] = window(xc, yc).is_some_and(|(a, b)| sat.count(a, b) as usize + cols[b[0]] - cols[a[0]] == (b[0] - a[0]) * (b[1] - a[1]));
+            }
         }
         let mut terms = vec![[0.0f64; 25]; if want.contains(&true) { wc } else { 0 }];
         if !terms.is_empty() {
-            fixed_rows((2 * yc).saturating_sub(3), (2 * yc + 4).min(fh)).iter().for_each(|&f| fixed_terms(fine, f as usize, yc, &want, &mut terms));
+            fixed_rows((2 * yc).saturating_sub(3), (2 * yc + 4).min(fh)).iter().for_each(|(f, ab)| fixed_terms(fw, *f, ab, yc, &want, &mut terms));
         }
         for &xc in &irregular {
             if want[xc] {
                 // Every child fixed: no fine functions left, the row exactly zero.
                 let s = if (shared[12] + terms[xc][12]).abs() <= 1e-9 * shared_scale { [0.0; 25] } else { std::array::from_fn(|k| shared[k] + terms[xc][k]) };
-                if s.iter().zip(&shared).any(|(a, b)| (a - b).abs() > 1e-12 * shared_scale) { own.push((xc, s)); }
+                if !like_shared(&s) { own.push((xc, s)); }
                 continue;
             }
             acc.fill(0.0);
@@ -1420,10 +1428,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
                 }
             }
             let (acc, far_taps) = split_taps(&acc, n);
-            // The window test is conservative: a stencil equal to the shared one up to rounding is regular.
-            if far_taps.is_empty() && shared_scale > 0.0 && acc.iter().zip(&shared).all(|(a, b)| (a - b).abs() <= 1e-12 * shared_scale) {
-                continue;
-            }
+            if far_taps.is_empty() && like_shared(&acc) { continue; }
             let p = (yc + PAD) * wpc + xc + PAD;
             for (dx, dy, a) in far_taps {
                 let (qx, qy) = (xc as isize + dx, yc as isize + dy);
@@ -1532,12 +1537,8 @@ fn narrow_sums(fine: &Level, xc: usize, yc: usize, slot: &mut [u32], dense: &mut
 /// zeroing the fixed nodes' rows) and `Pᵀ A P = Qᵀ A Q − Σ_f (a_f q_fᵀ + q_f b_fᵀ)`, `q_f` row f of `Q`, `a_f` and
 /// `b_f` row f of `A Q` and of `A P` (the second term drops row f of `Qᵀ A P`, the first column f of `Qᵀ A Q`,
 /// which is the shared stencil there).
-fn fixed_terms(fine: &Level, f: usize, yc: usize, want: &[bool], terms: &mut [[f64; 25]]) {
-    let Operator::Fine { flags, .. } = &fine.op else { unreachable!("the finest level") };
-    let (wc, (fx, fy), y) = (terms.len(), (f % fine.geo.w, f / fine.geo.w), yc as isize);
-    let plain = |x: usize, y: usize| PLAIN_CODES[(y & 1) * 2 + (x & 1)];
-    let a = narrow_ap_row(fine, fx, fy, plain);
-    let b = narrow_ap_row(fine, fx, fy, |x, y| if flags[fine.pidx(x, y)] & bit::FREE != 0 { plain(x, y) } else { [0; 4] });
+fn fixed_terms(fw: usize, f: usize, [a, b]: &[[f64; 16]; 2], yc: usize, want: &[bool], terms: &mut [[f64; 25]]) {
+    let (wc, (fx, fy), y) = (terms.len(), (f % fw, f / fw), yc as isize);
     // Less u_c v_k at coarse node (cx, yc), k on the windows' 4 × 4 from offset −1 of (fx / 2, fy / 2).
     let mut sub = |cx: isize, k: usize, uv: f64| {
         if (0..wc as isize).contains(&cx) && want[cx as usize] {
@@ -1545,7 +1546,7 @@ fn fixed_terms(fine: &Level, f: usize, yc: usize, want: &[bool], terms: &mut [[f
             terms[cx as usize][((dy + 2) * 5 + dx + 2) as usize] -= uv;
         }
     };
-    for (s, w) in plain(fx, fy).iter().map(|&c| WEIGHTS[c as usize]).enumerate().filter(|e| e.1 != 0.0) {
+    for (s, w) in PLAIN_CODES[(fy & 1) * 2 + (fx & 1)].iter().map(|&c| WEIGHTS[c as usize]).enumerate().filter(|e| e.1 != 0.0) {
         let (qx, qy, ky) = (s & 1, s >> 1, y + 1 - (fy / 2) as isize);
         // q_f b_fᵀ in coarse row fy / 2 + qy; a_f q_fᵀ in the rows of a_f's window.
         if fy / 2 + qy == yc { b.iter().enumerate().for_each(|(k, &v)| sub((fx / 2 + qx) as isize, k, w * v)); }
