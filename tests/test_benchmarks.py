@@ -204,3 +204,18 @@ def test_quick_honesty_sweep_counts_every_claim():
         solves, not_converged, claimed = cells[:3]
         assert solves == expected and not_converged + claimed == solves and cells[5] > 0
         assert ("against the direct solve" in out) == bool({"--direct", "--oracle"} & set(extra)), out
+
+
+def test_prolongation_study_prints_both_spaces_and_the_smoother_one_needs_fewer_cycles():
+    # `benchmarks/prolongation_study.py` on 65²: a row per prolongation, V- and K-cycles each
+    # within the study's cap; the cubic B-spline space takes fewer V-cycles than the bilinear
+    # one there (3 against 7 when written), which is what the study measures at larger sizes.
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "prolongation_study.py"), "--sizes", "65"],
+        check=True, capture_output=True, text=True, timeout=300).stdout
+    rows = {r.split("|")[3].strip(): [c.strip() for c in r.strip("|").split("|")]
+            for r in out.splitlines() if r.startswith("| 65 ")}
+    assert set(rows) == {"lin", "bspl0", "bspl"}
+    for cells in rows.values():
+        assert all(c.isdigit() for c in cells[3:7]) and float(cells[7]) > 1.0
+    assert int(rows["bspl"][3]) < int(rows["lin"][3])
