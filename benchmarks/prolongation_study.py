@@ -20,6 +20,11 @@ conjugate gradient outside. `Q` is
   ones kink;
 - `bspl0`: the B-spline one from the first coarse level to the finest only, bilinear below.
 
+Into the finest level the B-spline prolongation is built as `S Q` (`smoothing`: `S`
+smooths only across straight linked triples), so that `--hole` (the model problem's disc
+hole and its 10 points; the nodes inside are not unknowns) keeps affine functions in the
+space; cuts would need the engine's link-aware prolongation and are not modelled.
+
 Each is run as V-cycles and as K-cycles (two flexible steps on every level between the
 finest and the one above the coarsest, the second where the first left more than 0.3 of
 the residual), with the finest correction unscaled or line-searched (`+LS`). A cell counts
@@ -29,6 +34,7 @@ finest's), `taps` the widest row on each level.
 
     python benchmarks/prolongation_study.py                       # 129², 257², 513², 10 points
     python benchmarks/prolongation_study.py --sizes 257 --points 1000
+    python benchmarks/prolongation_study.py --hole --sizes 129 257 513
 """
 
 from __future__ import annotations
@@ -45,7 +51,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 import test_solver_oracle as orc  # noqa: E402
-from ratios import random_problem  # noqa: E402
+from ratios import model_problem, random_problem  # noqa: E402
 
 TOLERANCE_PX = 0.01
 COARSEST = 300
@@ -83,13 +89,39 @@ class Level:
         self.solve = None
 
 
-def hierarchy(a: sp.csr_matrix, unknowns: np.ndarray, n: int, kind: str) -> list[Level]:
+def smoothing(right: np.ndarray, down: np.ndarray) -> sp.csr_matrix:
+    """`S = S_y S_x`: `1/4, 1/2, 1/4` along a row (a column) at each node centred on two links
+    of it, the identity elsewhere (so affine functions stay affine). On an open grid `S Q` is
+    the B-spline subdivision."""
+    h, w = right.shape
+    n = h * w
+    p = np.arange(n)
+
+    def along(link: np.ndarray, step: int) -> sp.csr_matrix:
+        before = np.zeros_like(link)
+        if step == 1:
+            before[:, 1:] = link[:, :-1]
+        else:
+            before[1:, :] = link[:-1, :]
+        tri = (before & link).ravel()
+        rows = np.concatenate([p[~tri], p[tri], p[tri], p[tri]])
+        cols = np.concatenate([p[~tri], p[tri], p[tri] - step, p[tri] + step])
+        vals = np.concatenate([np.ones((~tri).sum()), np.full(tri.sum(), 0.5), np.full(2 * tri.sum(), 0.25)])
+        return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
+
+    return (along(down, w) @ along(right, 1)).tocsr()
+
+
+def hierarchy(a: sp.csr_matrix, unknowns: np.ndarray, n: int, kind: str, smooth: sp.csr_matrix) -> list[Level]:
     idx = np.flatnonzero(unknowns)
     levels = [Level(a[idx][:, idx].tocsr())]
     while levels[-1].a.shape[0] > COARSEST and n > 5:
         nc = (n + 1) // 2
-        q1 = prolongation_1d(nc, "bspl" if kind == "bspl" or (kind == "bspl0" and len(levels) == 1) else "lin")
-        q = sp.kron(q1, q1).tocsr()[idx]
+        q1 = prolongation_1d(nc, "bspl" if kind == "bspl" and len(levels) > 1 else "lin")
+        q = sp.kron(q1, q1).tocsr()
+        if kind != "lin" and len(levels) == 1:
+            q = smooth @ q
+        q = q.tocsr()[idx]
         coarse = (q.T @ levels[-1].a @ q).tocsr()
         d = coarse.diagonal()
         idx = np.flatnonzero(d > 1e-9 * d.max())
@@ -165,15 +197,20 @@ def main() -> int:
     ap.add_argument("--sizes", type=int, nargs="*", default=[129, 257, 513])
     ap.add_argument("--points", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--hole", action="store_true", help="the model problem's disc hole (ratios.py), its 10 points")
     args = ap.parse_args()
     print("| N | points | prolongation | V | V+LS | K | K+LS | OC | taps by level |")
     print("|---|---|---|---|---|---|---|---|---|")
     for n in args.sizes:
-        pts, disp = random_problem(args.points, n, n, args.seed)
-        problem = orc.Problem(shape=(n, n), points=pts, displacements=disp)
+        if args.hole:
+            pts, disp, mask, _ = model_problem(n, n, hole=True, cut=False, seed=2049)
+        else:
+            (pts, disp), mask = random_problem(args.points, n, n, args.seed), None
+        problem = orc.Problem(shape=(n, n), points=pts, displacements=disp, mask=mask)
         a = orc.energy_matrix(problem).tocsr()
         values, _ = orc.constraints(problem)
-        unknowns = np.ones(n * n, bool)
+        active, right, down = orc.links(problem)
+        unknowns = active.ravel().copy()
         unknowns[list(values)] = False
         held = np.zeros(n * n)
         for i, v in values.items():
@@ -181,12 +218,12 @@ def main() -> int:
         idx = np.flatnonzero(unknowns)
         b = -(a[idx] @ held)
         exact = spla.spsolve(a[idx][:, idx].tocsc(), b)
-        for kind in ("lin", "bspl0", "bspl"):
-            levels = hierarchy(a, unknowns, n, kind)
+        for kind in ("lin", "bspl0") if args.hole else ("lin", "bspl0", "bspl"):
+            levels = hierarchy(a, unknowns, n, kind, smoothing(right, down))
             cells = [iterations(levels, b, exact, kc, ls) for kc in (False, True) for ls in (False, True)]
             oc = sum(lv.a.nnz for lv in levels) / levels[0].a.nnz
             taps = ", ".join(str(int(np.diff(lv.a.indptr).max())) for lv in levels)
-            print(f"| {n} | {args.points} | {kind} | " + " | ".join(cells) + f" | {oc:.2f} | {taps} |", flush=True)
+            print(f"| {n} | {'10, hole' if args.hole else args.points} | {kind} | " + " | ".join(cells) + f" | {oc:.2f} | {taps} |", flush=True)
     return 0
 
 
