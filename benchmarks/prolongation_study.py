@@ -9,11 +9,14 @@ component is solved alone (the x component here).
 
 The hierarchy is the engine's: `P = M Q`, `Q` a tensor-product prolongation from every other
 node, `M` zeroing the rows of nodes that are not unknowns (a coarse node left without
-unknowns is dropped), Galerkin products `Pᵀ A P`, Chebyshev smoothing of degree 2 on
-`[λ/16, λ]` of `D⁻¹A` before and after, a direct solve below 300 unknowns, a flexible
-conjugate gradient outside. `Q` is
+unknowns is dropped), Galerkin products `Pᵀ A P`, Chebyshev smoothing on `[λ/16, λ]` of
+`D⁻¹A` before and after (two steps on the finest level, one on the coarse levels of an open
+grid and two on a torn one's), a direct solve below 300 unknowns, a flexible conjugate
+gradient outside. Not modelled: the engine's coarse-to-fine start (here every solve starts
+from zero), its deflation and strands, and its bounds of `λ` (here ARPACK's estimate, 2 %
+up). `Q` is
 
-- `lin`: bilinear, the engine's (on a torn grid its link-aware version);
+- `lin`: bilinear, the engine's (which is link-aware on torn grids; here plain, and masked);
 - `bspl`: the cubic B-spline subdivision (`1/8, 3/4, 1/8` on even nodes, `1/2, 1/2` on odd
   ones, bilinear at the ends: the bilinear one followed by a `1/4, 1/2, 1/4` smoothing on the
   finer grid), whose coarse functions, composed level by level, are smooth where bilinear
@@ -87,6 +90,7 @@ class Level:
         self.lam = 1.02 * top  # the engine takes an upper bound
         self.p: sp.csr_matrix | None = None
         self.solve = None
+        self.steps = 2
 
 
 def smoothing(right: np.ndarray, down: np.ndarray) -> sp.csr_matrix:
@@ -112,7 +116,7 @@ def smoothing(right: np.ndarray, down: np.ndarray) -> sp.csr_matrix:
     return (along(down, w) @ along(right, 1)).tocsr()
 
 
-def hierarchy(a: sp.csr_matrix, unknowns: np.ndarray, n: int, kind: str, smooth: sp.csr_matrix) -> list[Level]:
+def hierarchy(a: sp.csr_matrix, unknowns: np.ndarray, n: int, kind: str, smooth: sp.csr_matrix, coarse_steps: int) -> list[Level]:
     idx = np.flatnonzero(unknowns)
     levels = [Level(a[idx][:, idx].tocsr())]
     while levels[-1].a.shape[0] > COARSEST and n > 5:
@@ -129,11 +133,13 @@ def hierarchy(a: sp.csr_matrix, unknowns: np.ndarray, n: int, kind: str, smooth:
         levels.append(Level(coarse[idx][:, idx].tocsr()))
         n = nc
     levels[-1].solve = spla.factorized(levels[-1].a.tocsc())
+    for level in levels[1:]:
+        level.steps = coarse_steps
     return levels
 
 
-def chebyshev(level: Level, x: np.ndarray, f: np.ndarray, steps: int = 2) -> np.ndarray:
-    b = level.lam
+def chebyshev(level: Level, x: np.ndarray, f: np.ndarray) -> np.ndarray:
+    steps, b = level.steps, level.lam
     a = b / CHEB_RATIO
     theta, delta = (b + a) / 2, (b - a) / 2
     sigma = theta / delta
@@ -219,7 +225,9 @@ def main() -> int:
         b = -(a[idx] @ held)
         exact = spla.spsolve(a[idx][:, idx].tocsc(), b)
         for kind in ("lin", "bspl0") if args.hole else ("lin", "bspl0", "bspl"):
-            levels = hierarchy(a, unknowns, n, kind, smoothing(right, down))
+            # The engine's smoothing: two steps on the finest level, one on the coarse levels of an
+            # open grid and two on a torn one's.
+            levels = hierarchy(a, unknowns, n, kind, smoothing(right, down), 2 if args.hole else 1)
             cells = [iterations(levels, b, exact, kc, ls) for kc in (False, True) for ls in (False, True)]
             oc = sum(lv.a.nnz for lv in levels) / levels[0].a.nnz
             taps = ", ".join(str(int(np.diff(lv.a.indptr).max())) for lv in levels)

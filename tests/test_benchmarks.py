@@ -206,16 +206,44 @@ def test_quick_honesty_sweep_counts_every_claim():
         assert ("against the direct solve" in out) == bool({"--direct", "--oracle"} & set(extra)), out
 
 
-def test_prolongation_study_prints_both_spaces_and_the_smoother_one_needs_fewer_cycles():
-    # `benchmarks/prolongation_study.py` on 65²: a row per prolongation, V- and K-cycles each
-    # within the study's cap; the cubic B-spline space takes fewer V-cycles than the bilinear
-    # one there (3 against 7 when written), which is what the study measures at larger sizes.
+def _study_rows(*args):
     out = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "prolongation_study.py"), "--sizes", "65"],
+        [sys.executable, str(ROOT / "benchmarks" / "prolongation_study.py"), *args],
         check=True, capture_output=True, text=True, timeout=300).stdout
-    rows = {r.split("|")[3].strip(): [c.strip() for c in r.strip("|").split("|")]
-            for r in out.splitlines() if r.startswith("| 65 ")}
-    assert set(rows) == {"lin", "bspl0", "bspl"}
-    for cells in rows.values():
-        assert all(c.isdigit() for c in cells[3:7]) and float(cells[7]) > 1.0
-    assert int(rows["bspl"][3]) < int(rows["lin"][3])
+    return {r.split("|")[3].strip(): [c.strip() for c in r.strip("|").split("|")]
+            for r in out.splitlines() if r.startswith("| 129 ")}
+
+
+def test_prolongation_study_counts_cycles_for_each_space():
+    # `benchmarks/prolongation_study.py` at 129² (four levels, so the K-cycles' steps run),
+    # open and around the disc hole: a row per prolongation, every count within the study's
+    # cap; the smoother spaces take fewer cycles than the bilinear one, which is what the
+    # study measures at larger sizes.
+    for args, kinds in ((["--sizes", "129"], {"lin", "bspl0", "bspl"}), (["--hole", "--sizes", "129"], {"lin", "bspl0"})):
+        rows = _study_rows(*args)
+        assert set(rows) == kinds
+        for cells in rows.values():
+            assert all(c.isdigit() for c in cells[3:7]) and float(cells[7]) > 1.0
+        # V-cycles (column 3) and K-cycles (column 5).
+        assert int(rows["bspl0"][3]) < int(rows["lin"][3]) and int(rows["bspl0"][5]) < int(rows["lin"][5])
+
+
+def test_the_studys_smoothed_prolongation_is_the_b_spline_subdivision_on_an_open_grid():
+    # `S Q` (S smoothing across straight linked triples) equals the tensor product of the 1-D
+    # subdivision (1/8, 3/4, 1/8 on even nodes, 1/2, 1/2 on odd ones, ends kept) exactly.
+    import importlib.util
+
+    import numpy as np
+    import scipy.sparse as sp
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    spec = importlib.util.spec_from_file_location("prolongation_study", ROOT / "benchmarks" / "prolongation_study.py")
+    study = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(study)
+    n, nc = 9, 5
+    right = np.zeros((n, n), bool)
+    right[:, :-1] = True
+    s = study.smoothing(right, right.T.copy())
+    lin, bspl = study.prolongation_1d(nc, "lin"), study.prolongation_1d(nc, "bspl")
+    assert abs(s @ sp.kron(lin, lin) - sp.kron(bspl, bspl)).max() == 0.0
+    assert np.allclose(bspl.toarray()[4], [0, 0.125, 0.75, 0.125, 0]) and np.allclose(bspl.toarray()[3], [0, 0.5, 0.5, 0, 0])
