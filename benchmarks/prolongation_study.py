@@ -224,10 +224,11 @@ def main() -> int:
         idx = np.flatnonzero(unknowns)
         b = -(a[idx] @ held)
         exact = spla.spsolve(a[idx][:, idx].tocsc(), b)
+        smooth = smoothing(right, down)
         for kind in ("lin", "bspl0") if args.hole else ("lin", "bspl0", "bspl"):
             # The engine's smoothing: two steps on the finest level, one on the coarse levels of an
             # open grid and two on a torn one's.
-            levels = hierarchy(a, unknowns, n, kind, smoothing(right, down), 2 if args.hole else 1)
+            levels = hierarchy(a, unknowns, n, kind, smooth, 2 if args.hole else 1)
             cells = [iterations(levels, b, exact, kc, ls) for kc in (False, True) for ls in (False, True)]
             oc = sum(lv.a.nnz for lv in levels) / levels[0].a.nnz
             taps = ", ".join(str(int(np.diff(lv.a.indptr).max())) for lv in levels)

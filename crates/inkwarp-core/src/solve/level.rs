@@ -1353,10 +1353,10 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     // On the finest level, coarse nodes whose windows are clean but for fixed nodes (linked right and down) take
     // the shared stencil less each fixed node's terms ([`fixed_terms`], from its rows of `A Q` and `A P`).
     let fixed: Vec<(usize, [[f64; 16]; 2])> = match &fine.op {
+        // (In node order: `fixed_rows` finds a row's by bisection.)
         Operator::Fine { flags, .. } => (0..fw * fh)
-            .filter(|&i| !fine.clean[i] && flags[fine.pidx(i % fw, i / fw)] & (bit::RIGHT | bit::DOWN | bit::FREE) == bit::RIGHT | bit::DOWN)
-            .collect::<Vec<_>>()
             .into_par_iter()
+            .filter(|&i| !fine.clean[i] && flags[fine.pidx(i % fw, i / fw)] & (bit::RIGHT | bit::DOWN | bit::FREE) == bit::RIGHT | bit::DOWN)
             .map(|f| {
                 let code = |x: usize, y: usize, masked: bool| if masked && flags[fine.pidx(x, y)] & bit::FREE == 0 { [0; 4] } else { PLAIN_CODES[(y & 1) * 2 + (x & 1)] };
                 (f, [false, true].map(|masked| narrow_ap_row(fine, f % fw, f / fw, |x, y| code(x, y, masked))))
