@@ -583,7 +583,7 @@ fn solve_piece(
     let mut started = !warm;
     if let Some(p) = &resumed { started = p.started } else if warm {
         report.initial_residual = match given { Some(g) if !spanned => g, _ => fine.residual_scaled_max(&u, &mut r) };
-        started = !spanned && !(report.initial_residual <= options.tolerance_px) && cycles > 0;
+        started = !spanned && (report.initial_residual > options.tolerance_px || report.initial_residual.is_nan()) && cycles > 0;
         if started {
             // A start worse than none (huge or unrelated values) gives way to the cold one (`docs/dev/solver-correctness.md`).
             let mut cold = cycle::zeros_in(hier.spare.pop(), len);
