@@ -338,6 +338,32 @@ def test_validate_notes_a_feature_drawn_wholly_on_holes(capsys, tmp_path):
     assert inkwarp.Scene.from_dict(doc, base_dir=tmp_path).notes() == []
 
 
+def test_the_holes_note_is_judged_on_the_layers_drawn(tmp_path):
+    # A pin on a cut-out's transparent pixels that also drives a hidden, opaque layer still
+    # moves nothing that shows: the note is given. Shown, that layer takes the pin.
+    cutout = np.zeros((HEIGHT, WIDTH, 4), np.uint8)
+    cutout[10:30, 11:30] = (200, 60, 60, 255)
+    Image.fromarray(cutout, "RGBA").save(tmp_path / "cutout.png")
+    Image.fromarray(np.full((HEIGHT, WIDTH, 4), 255, np.uint8), "RGBA").save(tmp_path / "opaque.png")
+    doc = {"inkwarp": 1, "fps": 4, "duration": 1, "layers": [
+        {"name": "cutout", "image": "cutout.png"}, {"name": "sketch", "image": "opaque.png", "visible": False}],
+        "features": [{"id": "beside", "kind": "point", "rest": [[30, 20]], "keys": [{"t": 0.5, "points": [[33, 20]]}]}]}
+    notes = inkwarp_scene(doc, tmp_path).notes()
+    assert [(path, message.split(", so it")[0]) for path, message in notes] == [
+        ("features[0]", "'beside' lies wholly on the transparent pixels of layer 'cutout'")], notes
+    doc["layers"][1]["visible"] = True
+    assert inkwarp_scene(doc, tmp_path).notes() == []
+    doc["layers"][0]["visible"] = doc["layers"][1]["visible"] = False  # none drawn: judged on all
+    doc["layers"][1]["image"] = "cutout.png"
+    assert [path for path, _ in inkwarp_scene(doc, tmp_path).notes()] == ["features[0]"]
+
+
+def inkwarp_scene(doc, base):
+    import inkwarp
+
+    return inkwarp.Scene.from_dict(doc, base_dir=base)
+
+
 def test_schema_prints_the_engines_schema(capsys, tmp_path):
     import inkwarp
 

@@ -792,7 +792,8 @@ class Scene:
         """What in this scene is allowed but probably a mistake, as ``(JSON path, message)``:
         a feature drawn wholly off the picture (it moves and tears nothing), one drawn wholly
         on holes of the layers it drives (transparent pixels, by default: the solver drops
-        its samples, so it pins nothing; judged at ``grid_step`` 1 only), a key after the
+        its samples, so it pins nothing; judged on the visible layers it drives, at ``grid_step`` 1
+        only), a key after the
         scene's end (no frame shows it), a feature that drives no layer, a line, curve or
         region whose points are all at one place, a region with no area. ``inkwarp validate``
         prints them as notes after its "ok"; a scene with notes renders as any other (a
@@ -805,6 +806,10 @@ class Scene:
         notes: list[Problem] = []
         # Per layer, the features whose every sample the solver drops (None at grid_step > 1).
         dropped = [None if wholly is None else set(wholly) for _, wholly in self._core.layer_checks()]
+
+        def shown(drives: list[int]) -> list[int]:  # the visible ones, or all where none is
+            return [j for j in drives if layers[j].get("visible", True)] or drives
+
         for i, feature in enumerate(doc.get("features", [])):
             name, rest = feature["id"], np.asarray(feature["rest"], dtype=np.float64).reshape(-1, 2)
             drives = [j for j, layer in enumerate(layers) if layer.get("features") is None or name in layer["features"]]
@@ -825,9 +830,10 @@ class Scene:
                 notes.append((f"features[{i}]", f"{name!r} lies wholly off the picture, so it {does} nothing: its rest "
                               f"points span x {low[0]:g} to {high[0]:g}, y {low[1]:g} to {high[1]:g}, the picture's pixel "
                               f"centres x 0 to {width - 1}, y 0 to {height - 1}"))
-            elif feature["kind"] != "cut" and drives and all(dropped[j] is not None and i in dropped[j] for j in drives):
+            # Judged on the layers it drives that are drawn: a hidden layer's field moves nothing seen.
+            elif feature["kind"] != "cut" and shown(drives) and all(dropped[j] is not None and i in dropped[j] for j in shown(drives)):
                 where = " and ".join(f"the holes of the continuity matte of layer {layers[j]['name']!r}" if layers[j].get("continuity")
-                                     else f"the transparent pixels of layer {layers[j]['name']!r}" for j in drives)
+                                     else f"the transparent pixels of layer {layers[j]['name']!r}" for j in shown(drives))
                 if (low < -0.5).any() or (high > [width - 0.5, height - 0.5]).any():
                     where += " and off the picture"
                 notes.append((f"features[{i}]", f"{name!r} lies wholly on {where}, so it pins and moves nothing; "
