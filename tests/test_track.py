@@ -819,3 +819,44 @@ def test_a_feature_beside_an_object_that_moves_away_stays_where_it_is(tmp_path):
     for key in keys["centre"]:
         k = round(key["t"] * 24)
         assert np.linalg.norm(np.subtract(key["points"][0], [79.5, 89.5]) - (at(k) - at(0))) < 0.5, key
+
+
+@pytest.mark.parametrize("kind", ["region", "polyline", "spline"])
+def test_a_corner_traced_just_inside_a_square_sliding_over_a_still_background_goes_with_it(tmp_path, kind):
+    # A textured square slides 120 px over a textured, still background. A drawing traced
+    # 2 px inside its outline left the corner whose window held the most background behind:
+    # it kept to the background, 120 px off by the last frame, unnamed, while its curve's
+    # samples 4 px away went with the square. The samples now vouch for it.
+    from scipy.ndimage import gaussian_filter
+
+    rng = np.random.default_rng(1)
+    w, h, n = 320, 240, 24
+    background = gaussian_filter(rng.random((h, w, 3)), (2, 2, 0))
+    background = (background - background.min()) / np.ptp(background) * 120 + 60
+    texture = gaussian_filter(rng.random((64, 64, 3)), (1.2, 1.2, 0))
+    texture = (texture - texture.min()) / np.ptp(texture) * 255
+
+    def at(k):  # the square's top-left corner at frame k
+        return np.array([60 + 120 * k / (n - 1), 60 + 40 * np.sin(np.pi * k / (n - 1))])
+
+    frames = []
+    yy, xx = np.mgrid[0:h, 0:w]
+    for k in range(n):
+        u, v = xx - at(k)[0], yy - at(k)[1]
+        inside = (u >= 0) & (u < 63) & (v >= 0) & (v < 63)
+        u, v = np.clip(u, 0, 62.999), np.clip(v, 0, 62.999)
+        i, j = v.astype(int), u.astype(int)
+        a, b = (v - i)[..., None], (u - j)[..., None]
+        moved = (texture[i, j] * (1 - a) * (1 - b) + texture[i + 1, j] * a * (1 - b)
+                 + texture[i, j + 1] * (1 - a) * b + texture[i + 1, j + 1] * a * b)
+        frame = background.copy()
+        frame[inside] = moved[inside]
+        frames.append(np.clip(frame, 0, 255).astype(np.uint8))
+    path = sv.write_mp4(tmp_path / "square.mp4", frames)
+    rest = [[62.0, 62.0], [120.0, 62.0], [120.0, 120.0], [62.0, 120.0]]
+    doc, said = tracked_saying(path, {**sv.scene(w, h, [{"id": "box", "kind": kind, "rest": rest}]), "duration": n / 24})
+    for key in doc["features"][0]["keys"]:
+        k = round(key["t"] * 24)
+        off = np.linalg.norm(np.subtract(key["points"], rest) - (at(k) - at(0)), axis=1)
+        assert off.max() < 1.5, (k, off.round(2))
+    assert not lost_frames(said, "box"), said

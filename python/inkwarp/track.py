@@ -23,7 +23,11 @@ one frame to the next, every such point is
    its forward–backward check say Lucas–Kanade can see it; elsewhere — flat skin, a
    smooth gradient, an occluded spot — it is placed by the continuous thin plate
    (:class:`inkwarp.ThinPlateMap`) fitted from the anchor positions of the trusted points
-   to where they are now: the drawing's own smoothness prior regularises the rest of it.
+   to where they are now: the drawing's own smoothness prior regularises the rest of it;
+5. checked against its curve's neighbours (the feature's points within 10 px): a point
+   whose move from the last frame is more than ``lost_px`` from theirs, where they agree
+   within half of that, is placed by the thin plate too, however well its own checks pass
+   (its window straddles the edge of what moves and holds to what stays still).
 
 Keys the scene already has are **corrections**: the drawing is tracked from each of
 them, forward and backward, as from frame ``K``, and between two anchors of a feature
@@ -388,9 +392,12 @@ class _Tracker:
         return picture, inverse
 
     def run(self, anchor: int, start_points: np.ndarray, stop: int,
-            tick: Callable[[], None]) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+            tick: Callable[[], None], neighbours: np.ndarray | None = None
+            ) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
         """Track from frame ``anchor`` (points ``start_points``) to frame ``stop`` (either
-        way). Returns, per frame, the positions and each point's forward-backward error."""
+        way). Returns, per frame, the positions and each point's forward-backward error.
+        ``neighbours`` (see :func:`_neighbours`) lets the points of a curve vouch for each
+        other (:func:`_odd_ones`)."""
         positions = {anchor: start_points.copy()}
         errors = {anchor: np.zeros(len(start_points))}
         step = 1 if stop >= anchor else -1
@@ -462,6 +469,12 @@ class _Tracker:
             inside = ~_off_picture(best, w, h, 0.0)
             # (the texture at the estimate, or where a lost point was found again)
             trusted = np.where(regained, textured_now, textured) & ((local_fb < TRUST_FB_PX) | use_anchor) & inside
+            # A point its curve's neighbours on both sides disagree with, where they agree with
+            # each other, is not trusted, however well its checks pass: its window straddles
+            # the edge of what moves and holds to what stays (a region's corner traced just
+            # inside a square sliding over a still background kept to the background).
+            odd, vouched = _odd_ones(best - current, neighbours, trusted, self.options.lost_px)
+            trusted &= ~odd
             untrusted = ~trusted
             if untrusted.any() and trusted.sum() >= 3:
                 fill = _thin_plate_fill(start_points, best, trusted, untrusted)
@@ -474,6 +487,10 @@ class _Tracker:
                     small = np.linalg.norm(residual, axis=1) < RESIDUAL_PX
                     fill[small] += residual[small]
                 best[untrusted] = fill
+            else:
+                best[odd] = current[odd] + vouched[odd]
+            # An odd point is checked by its neighbours: how far it lies from their motion.
+            vouch_error = np.linalg.norm(best - current - vouched, axis=1)
             current = best
             positions[k] = best.copy()
             self._eig.pop(k - step, None)
@@ -500,7 +517,8 @@ class _Tracker:
             # it, well enough to pass the looser checks, far from where it went.
             whole = ~_off_picture(best, w, h, -LK_WINDOW_PX / 2) | near_edge
             again = (use_anchor | regained) & whole
-            confirmed = textured_now & inside & (checked <= lost_px) & (~lost | again)
+            checked[odd] = vouch_error[odd]
+            confirmed = (textured_now | odd) & inside & (checked <= lost_px) & (~lost | again | odd)
             lost = textured_at_anchor & ~confirmed
             last_seen[confirmed] = best[confirmed]
             # Any point placed more than `lost_px` off the picture is lost too: nothing there
@@ -518,6 +536,39 @@ class _Tracker:
 def _off_picture(points: np.ndarray, w: int, h: int, margin: float) -> np.ndarray:
     """Which points lie more than ``margin`` pixels off a ``w × h`` picture."""
     return ((points < -margin) | (points > np.array([w - 1, h - 1]) + margin)).any(axis=1)
+
+
+def _neighbours(features: list[_Feature], points: np.ndarray) -> np.ndarray:
+    """For each of the stacked ``points``, the points of its own feature within 2.5 sample
+    spacings of it (two along the curve each way, or two on one side at an end) and not at
+    its place, as rows of indices padded with -1."""
+    near: list[np.ndarray] = [np.empty(0, int)] * len(points)
+    for f in features:
+        rows = np.arange(len(points))[f.rows]
+        d = np.linalg.norm(points[rows, None] - points[None, rows], axis=2)
+        for i, row in zip(rows, (d > 0.5) & (d <= 2.5 * SAMPLE_SPACING_PX)):
+            near[i] = rows[row]
+    out = np.full((len(points), max([len(n) for n in near], default=0)), -1)
+    for i, n in enumerate(near):
+        out[i, :len(n)] = n
+    return out
+
+
+def _odd_ones(motion: np.ndarray, neighbours: np.ndarray | None, trusted: np.ndarray,
+              lost_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """The points whose motion from the last frame is more than ``lost_px`` from the mean
+    motion of their trusted ``neighbours`` (two at least) while those agree within half of
+    it, and that mean motion (zero where there is none)."""
+    odd, vouched = np.zeros(len(motion), bool), np.zeros_like(motion)
+    if neighbours is None or neighbours.shape[1] < 2:
+        return odd, vouched
+    take = (neighbours >= 0) & trusted[neighbours]
+    count = take.sum(axis=1)
+    around = np.where(take[..., None], motion[neighbours], 0.0)
+    vouched = around.sum(axis=1) / np.maximum(count, 1)[:, None]
+    spread = np.where(take, np.linalg.norm(around - vouched[:, None], axis=2), 0.0).max(axis=1)
+    odd = (count >= 2) & (spread <= lost_px / 2) & (np.linalg.norm(motion - vouched, axis=1) > lost_px)
+    return odd, vouched
 
 
 def _thin_plate_fill(rest: np.ndarray, now: np.ndarray, trusted: np.ndarray,
@@ -766,8 +817,9 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             at_k = start
         lo, hi = ranges[a]
         tick()
-        fwd_pos, fwd_err = tracker.run(a, start, hi, tick)
-        back_pos, back_err = tracker.run(a, start, lo, tick)
+        near = _neighbours(features, start)
+        fwd_pos, fwd_err = tracker.run(a, start, hi, tick, near)
+        back_pos, back_err = tracker.run(a, start, lo, tick, near)
         tracks[a] = ({**back_pos, **fwd_pos}, {**back_err, **fwd_err})
         for f in features:
             if a in blind_at[f.id]:
