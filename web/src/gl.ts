@@ -8,7 +8,8 @@
 // field covers every pixel exactly and the two sides of a missing link separate when the
 // field pulls them apart. Where the mesh folds, the part from further down the rest image
 // (within a block row, further right) is in front: each element's depth is its block's
-// place in that order (full frames; drafts and fast frames keep their draw order).
+// place in that order (a fragment of a draft's or fast frame's element of many blocks: the
+// block of its rest position), skirt quarters included.
 // Layers are composited back to front with premultiplied "over" into a 4× multisampled
 // target (coverage antialiasing), resolved into the canvas.
 //
@@ -147,10 +148,14 @@ precision highp int;
 uniform highp sampler2D uImage;
 uniform ivec2 uSize;
 uniform float uOpacity;
+// Fast full frames' elements (see VERT) span many blocks: a fragment takes the order of the
+// block its rest position lies in.
+uniform float uLoose;
 in vec2 vRest;
 flat in vec4 vClamp;
 flat in float vOrder;
 out vec4 outColor;
+${ORDER}
 
 vec4 px(int i, int j) {
   vec4 c = texelFetch(uImage, ivec2(clamp(i, 0, uSize.x - 1), clamp(j, 0, uSize.y - 1)), 0);
@@ -170,13 +175,14 @@ void main() {
   outColor = mix(top, bottom, f.y) * uOpacity;
   // (A see-through part adds nothing, and must not hide what is behind it.)
   if (outColor.a == 0.0) discard;
-  gl_FragDepth = vOrder;
+  gl_FragDepth = uLoose > 0.0 ? order(ivec2(floor(vRest))) : vOrder;
 }
 `;
 
 // Drafts: one filtered fetch from the premultiplied copy of the image, the same bilinear
 // mix of premultiplied pixels as FRAG up to the texture unit's 8-bit weights (the draft
-// mesh has no skirt quarters to clamp to: its quads are whole).
+// mesh has no skirt quarters to clamp to: its quads are whole), each fragment in the order
+// of the block its rest position lies in (an element spans many).
 const DRAFT_FRAG = `#version 300 es
 precision highp float;
 precision highp int;
@@ -185,9 +191,12 @@ uniform ivec2 uSize;
 uniform float uOpacity;
 in vec2 vRest;
 out vec4 outColor;
+${ORDER}
 
 void main() {
   outColor = texture(uPremultiplied, (vRest + 0.5) / vec2(uSize)) * uOpacity;
+  if (outColor.a == 0.0) discard;
+  gl_FragDepth = order(ivec2(floor(vRest)));
 }
 `;
 
@@ -869,7 +878,7 @@ export class GlRenderer {
    * for a large frame while dragging (see `App.draftShrink`).
    */
   draftShrink = 1;
-  /** Full frames draw where a layer folds in the CPU renderer's order (a depth test, see ORDER); off only to measure its cost. */
+  /** Frames draw where a layer folds in the CPU renderer's order (a depth test, see ORDER); off only to measure its cost. */
   orderFolds = true;
   private engine: Engine | null = null;
   private cpuFrame: ImageData | null = null;
@@ -888,6 +897,8 @@ export class GlRenderer {
   private width = 0;
   private height = 0;
   readonly samples: number;
+  /** Whether the canvas has a depth buffer: drafts drawn straight onto it keep the order of folds too. */
+  private readonly canvasDepth: boolean;
 
   constructor(readonly canvas: HTMLCanvasElement | OffscreenCanvas) {
     const gl = canvas.getContext('webgl2', { antialias: false, premultipliedAlpha: true, preserveDrawingBuffer: true, alpha: true }) as WebGL2RenderingContext | null;
@@ -904,6 +915,7 @@ out vec4 o;
 void main() { o = texture(uTex, vPos); }`);
     this.vao = gl.createVertexArray()!;
     this.samples = Math.min(4, gl.getParameter(gl.MAX_SAMPLES) as number);
+    this.canvasDepth = gl.getContextAttributes()?.depth === true;
     const info = gl.getExtension('WEBGL_debug_renderer_info');
     const name = String(gl.getParameter(info ? info.UNMASKED_RENDERER_WEBGL : gl.RENDERER));
     this.softwareGpu = /SwiftShader|llvmpipe|softpipe|Software Rasterizer|Basic Render/i.test(name);
@@ -1027,9 +1039,11 @@ void main() { o = texture(uTex, vPos); }`);
     gl.clear(gl.COLOR_BUFFER_BIT);
     gl.enable(gl.BLEND);
     gl.blendFunc(gl.ONE, gl.ONE_MINUS_SRC_ALPHA);
-    // Full frames keep the CPU renderer's order where a layer folds (see ORDER); drafts and
-    // fast frames (elements of many blocks, ranked by one) keep their draw order.
-    const ordered = this.orderFolds && !draft && !fast && target !== null;
+    // Every frame keeps the CPU renderer's order where a layer folds (see ORDER; a fragment
+    // of a draft's or fast frame's element of many blocks by the block of its rest position).
+    // Drawn in the order given, the skirt quarters along a cut (drawn after every quad) would
+    // show through the side of the cut a drawing pushes over them.
+    const ordered = this.orderFolds && (target !== null || this.canvasDepth);
     if (ordered) {
       gl.enable(gl.DEPTH_TEST);
       gl.depthFunc(gl.GEQUAL);

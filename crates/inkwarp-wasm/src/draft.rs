@@ -7,6 +7,12 @@
 //! vertices), the skirt quarters it draws, its links, and the place of each pixel in the
 //! values of its field (a sparse draft's, or every pixel's). A frame composites layers over a background with
 //! premultiplied "over", rounding to 8 bits at each layer as a GPU's RGBA8 target does.
+//! Where a layer folds, its fragments keep the full frame's order ([`rank`], the editor's
+//! `ORDER`): a triangle's fragment is ranked by the block its rest position lies in (the
+//! full mesh's quad there), a skirt quarter's by the quarter's block, and a fragment is
+//! drawn only over one of no higher rank, as the GPU's depth test draws them. (Drawn in
+//! the order given, the quarters along a cut, drawn after every triangle, showed through
+//! the other side where the drawing pushed one side of the cut under the other.)
 //! Colours are the bilinear mix of the 8-bit premultiplied pixels with 8-bit weights, as
 //! the draft elements' texture unit filters; the skirt quarters' shader premultiplies and
 //! mixes in floating point, which this rounds differently by at most a level.
@@ -294,6 +300,7 @@ pub extern "C" fn iw_draft_draw(
     let premultiply = |c: u8| ((c as u32 * a as u32 + 127) / 255) as u8;
     let background = u32::from_le_bytes([premultiply(r), premultiply(g), premultiply(b), a]);
     let mut frame = vec![background; width * height];
+    let mut ranks = vec![0u32; width * height];
     let drawn = DRAFTS.with(|d| {
         let mut store = d.borrow_mut();
         for arg in args.chunks_exact(6) {
@@ -310,8 +317,10 @@ pub extern "C" fn iw_draft_draw(
                     values.len()
                 ));
             }
+            ranks.fill(0);
             let target = Target {
                 frame: &mut frame,
+                ranks: &mut ranks,
                 width,
                 height,
             };
@@ -335,11 +344,67 @@ pub extern "C" fn iw_draft_draw(
     0
 }
 
-/// The frame being drawn: premultiplied RGBA8 words.
+/// The frame being drawn: premultiplied RGBA8 words, and per pixel the highest [`rank`]
+/// the layer being drawn has put there (0 where it has put nothing).
 struct Target<'a> {
     frame: &'a mut [u32],
+    ranks: &'a mut [u32],
     width: usize,
     height: usize,
+}
+
+/// The place of block (`i`, `j`) (the unit square right of and below pixel (`i`, `j`); −1
+/// for those beyond the top and left edges) of a `width × height` layer in the full
+/// frame's drawing order, from 0: further down, then further right, is in front.
+fn rank(i: i64, j: i64, width: usize, height: usize) -> u32 {
+    let (i, j) = (i.clamp(-1, width as i64), j.clamp(-1, height as i64));
+    ((j + 1) * (width as i64 + 1) + i + 1) as u32
+}
+
+/// How a fragment is ranked in the full frame's order ([`rank`]).
+#[derive(Clone, Copy)]
+enum Rank {
+    /// A skirt quarter's fragments: its block's.
+    Block(u32),
+    /// A triangle's: the block of the fragment's rest position, on a `width × height` layer
+    /// whose positions are drawn `shrink` times smaller (see [`iw_draft_draw`]).
+    Rest {
+        width: usize,
+        height: usize,
+        shrink: usize,
+    },
+}
+
+impl Rank {
+    /// The rank of a fragment at rest position (`x`, `y`) in the frame drawn.
+    fn at(self, x: f64, y: f64) -> u32 {
+        match self {
+            Rank::Block(order) => order,
+            Rank::Rest {
+                width,
+                height,
+                shrink,
+            } => {
+                let layer = |v: f64| ((v + 0.5) * shrink as f64 - 0.5).floor() as i64;
+                rank(layer(x), layer(y), width, height)
+            }
+        }
+    }
+
+    /// [`Rank::at`] a rest position in 16.16 fixed point.
+    fn at_fixed(self, x: i32, y: i32) -> u32 {
+        match self {
+            Rank::Block(order) => order,
+            Rank::Rest {
+                width,
+                height,
+                shrink,
+            } => {
+                let layer = |v: i32| ((v as i64 + 32768) * shrink as i64 - 32768) >> 16;
+                rank(layer(x), layer(y), width, height)
+            }
+        }
+    }
 }
 
 /// A triangle's corners: screen and rest positions.
@@ -361,6 +426,8 @@ struct Shade<'a> {
     opacity: u32,
     /// A skirt quarter's rest box (min x, min y, max x, max y); none for draft elements.
     clamp: Option<[f64; 4]>,
+    /// The fragments' place in the full frame's order.
+    rank: Rank,
 }
 
 fn draw_layer(
@@ -393,6 +460,11 @@ fn draw_layer(
         height: lh,
         opacity,
         clamp: None,
+        rank: Rank::Rest {
+            width: w,
+            height: h,
+            shrink,
+        },
     };
     // The mesh: for a draft, the border's vertices pushed out by half a pixel.
     let push = if layer.push_border { 0.5 } else { 0.0 };
@@ -439,6 +511,7 @@ fn draw_layer(
             quarter[3] as f64,
         );
         let p = j as usize * w + i as usize;
+        let order = rank(i - (sx < 0.0) as i64, j - (sy < 0.0) as i64, w, h);
         let (dx, dy) = field(p);
         let (px, py) = (i as f64 + dx, j as f64 + dy);
         let pos = |q: usize, qi: i64, qj: i64| {
@@ -489,6 +562,7 @@ fn draw_layer(
                 at((i as f64).max(far_x)),
                 at((j as f64).max(far_y)),
             ]),
+            rank: Rank::Block(order),
         };
         for half in quarter.chunks_exact(18) {
             let mut c = [Corner::default(); 3];
@@ -525,7 +599,9 @@ fn owns(a: (f64, f64), b: (f64, f64)) -> bool {
     dy > 0.0 || (dy == 0.0 && b.0 < a.0)
 }
 
-/// Shades the pixel centres inside a triangle.
+/// Shades the pixel centres inside a triangle where the layer has drawn nothing of a
+/// higher rank ([`Shade::rank`]); a fragment with no alpha adds nothing and keeps its
+/// pixel's rank (the GPU discards it).
 fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
     let cross = (c[1].x - c[0].x) * (c[2].y - c[0].y) - (c[1].y - c[0].y) * (c[2].x - c[0].x);
     if cross == 0.0 || !cross.is_finite() {
@@ -605,6 +681,14 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
         }
         let row = &mut t.frame[y * t.width..][..t.width];
         let run = &mut row[lo as usize..=hi as usize];
+        let ranks = &mut t.ranks[y * t.width..][lo as usize..=hi as usize];
+        // A fragment of rank `order` over what the layer put there of no higher rank.
+        let put = |dst: &mut u32, seen: &mut u32, order: u32, src: u32| {
+            if src >> 24 != 0 {
+                *seen = order;
+                *dst = over(src, *dst);
+            }
+        };
         let n = run.len() as f64;
         let (sx, sy) = (
             rx[0] * lo + rx[1] * yf + rx[2],
@@ -612,10 +696,18 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
         );
         if let Some(b) = shade.clamp {
             // A skirt quarter (a few pixels): its rest box clamps every sample.
-            for (k, dst) in run.iter_mut().enumerate() {
-                let x = (sx + rx[0] * k as f64).clamp(b[0], b[2]);
-                let y = (sy + ry[0] * k as f64).clamp(b[1], b[3]);
-                *dst = over(bilinear(pixels, w, h, x, y, shade.opacity), *dst);
+            let order = shade.rank.at(sx, sy);
+            for (k, (dst, seen)) in run.iter_mut().zip(ranks).enumerate() {
+                if *seen <= order {
+                    let x = (sx + rx[0] * k as f64).clamp(b[0], b[2]);
+                    let y = (sy + ry[0] * k as f64).clamp(b[1], b[3]);
+                    put(
+                        dst,
+                        seen,
+                        order,
+                        bilinear(pixels, w, h, x, y, shade.opacity),
+                    );
+                }
             }
         } else if [sx, sy, sx + rx[0] * n, sy + ry[0] * n]
             .iter()
@@ -624,24 +716,28 @@ fn fill(t: &mut Target, c: &[Corner; 3], shade: &Shade) {
             // A draft element: its rest position steps in 16.16 fixed point along the run.
             let fixed = |v: f64| (v * 65536.0).round_ties_even() as i32;
             let (mut fx, mut fy, dfx, dfy) = (fixed(sx), fixed(sy), fixed(rx[0]), fixed(ry[0]));
-            for dst in run.iter_mut() {
-                let src = bilinear_fixed(pixels, w, h, fx, fy, shade.opacity);
-                *dst = over(src, *dst);
+            for (dst, seen) in run.iter_mut().zip(ranks) {
+                let order = shade.rank.at_fixed(fx, fy);
+                if *seen <= order {
+                    let src = bilinear_fixed(pixels, w, h, fx, fy, shade.opacity);
+                    put(dst, seen, order, src);
+                }
                 fx = fx.wrapping_add(dfx);
                 fy = fy.wrapping_add(dfy);
             }
         } else {
             // A sliver folded over (its rest position races along the run) or a huge layer.
-            for (k, dst) in run.iter_mut().enumerate() {
-                let src = bilinear(
-                    pixels,
-                    w,
-                    h,
-                    sx + rx[0] * k as f64,
-                    sy + ry[0] * k as f64,
-                    shade.opacity,
-                );
-                *dst = over(src, *dst);
+            for (k, (dst, seen)) in run.iter_mut().zip(ranks).enumerate() {
+                let (x, y) = (sx + rx[0] * k as f64, sy + ry[0] * k as f64);
+                let order = shade.rank.at(x, y);
+                if *seen <= order {
+                    put(
+                        dst,
+                        seen,
+                        order,
+                        bilinear(pixels, w, h, x, y, shade.opacity),
+                    );
+                }
             }
         }
     }
@@ -746,6 +842,11 @@ mod tests {
             height: h,
             opacity: 256,
             clamp: None,
+            rank: Rank::Rest {
+                width: w,
+                height: h,
+                shrink: 1,
+            },
         };
         let rest = |x: f64| -100_000.0 + 100_004.0 * x;
         let corner = |x, y| Corner {
@@ -760,6 +861,7 @@ mod tests {
         fill(
             &mut Target {
                 frame: &mut frame,
+                ranks: &mut [0; 9],
                 width: 3,
                 height: 3,
             },
@@ -768,6 +870,122 @@ mod tests {
         );
         let (edge, inside) = (pixels[4 * w], pixels[4 * w + 4]);
         assert_eq!(frame, [edge, inside, 0, edge, inside, 0, edge, inside, 0]);
+    }
+
+    #[test]
+    fn a_side_of_a_cut_pushed_under_the_other_stays_behind_it_skirts_included() {
+        // A 12 × 6 layer, red left of a cut between columns 5 and 6, blue right of it; the
+        // drawing pushes the left side 2.75 px right (and a quarter down) under the right
+        // side, which stays. The full frame's order puts the right side in front wherever
+        // they overlap (the same rows, further right), so no red shows right of x = 6: the
+        // left side's skirt quarters along the cut, which the draft draws after its
+        // triangles, are behind the right side as its own quads are. The right side is one
+        // draft element, whose fragments rank as the full mesh's quads under them (ranked
+        // by its top-left block, the left side's quads of every lower row would cover it).
+        let (w, h, cut) = (12usize, 6usize, 5usize);
+        let (red, blue) = ([255u8, 0, 0, 255], [0u8, 0, 255, 255]);
+        let pixels: Vec<u8> = (0..w * h)
+            .flat_map(|p| if p % w <= cut { red } else { blue })
+            .collect();
+        // Per pixel: bit 0 active, bit 1 linked right (not across the cut), bit 2 linked down.
+        let links: Vec<u8> = (0..w * h)
+            .map(|p| {
+                let (i, j) = (p % w, p / w);
+                1 | if i + 1 < w && i != cut { 2 } else { 0 } | if j + 1 < h { 4 } else { 0 }
+            })
+            .collect();
+        // The left side's pixel quads (each triangle ending on its block's top-left pixel),
+        // the right side's element, and the skirt quarters of the blocks along the cut, as
+        // the editor's `buildMesh` lists them.
+        let (w32, corner) = (w as u32, |i: usize, j: usize| (j * w + i) as u32);
+        let (k, right) = (corner(cut + 1, 0), corner(w - 1, 0));
+        let (down, across) = (corner(cut + 1, h - 1), corner(w - 1, h - 1));
+        let mut triangles = Vec::new();
+        let mut skirts = Vec::new();
+        for j in 0..h - 1 {
+            for i in 0..w - 1 {
+                let k = corner(i, j);
+                if i < cut {
+                    triangles.extend([k + 1, k + w32 + 1, k, k + w32 + 1, k + w32, k]);
+                    continue;
+                } else if i > cut {
+                    continue;
+                }
+                for (ci, cj, sx, sy) in [
+                    (i, j, 1.0, 1.0),
+                    (i + 1, j, -1.0, 1.0),
+                    (i, j + 1, 1.0, -1.0),
+                    (i + 1, j + 1, -1.0, -1.0),
+                ] {
+                    for (u, v) in [
+                        (0.0, 0.0),
+                        (1.0, 0.0),
+                        (0.0, 1.0),
+                        (0.0, 1.0),
+                        (1.0, 0.0),
+                        (1.0, 1.0),
+                    ] {
+                        skirts.extend([ci as f32, cj as f32, sx, sy, u, v]);
+                    }
+                }
+            }
+        }
+        triangles.extend([right, across, k, across, down, k]);
+        let index: Vec<u32> = (0..(w * h) as u32).collect();
+        let values: Vec<f32> = (0..w * h)
+            .flat_map(|p| {
+                if p % w <= cut {
+                    [2.75, 0.25]
+                } else {
+                    [0.0, 0.0]
+                }
+            })
+            .collect();
+        let handle = iw_draft_new(
+            w,
+            h,
+            pixels.as_ptr(),
+            triangles.as_ptr(),
+            triangles.len(),
+            skirts.as_ptr(),
+            skirts.len(),
+            links.as_ptr(),
+            index.as_ptr(),
+            w * h,
+            0,
+        );
+        assert!(handle > 0);
+        let layer = [
+            handle as f64,
+            values.as_ptr() as usize as f64,
+            values.len() as f64,
+            0.0,
+            0.0,
+            1.0,
+        ];
+        let mut out = vec![0u8; 4 * w * h];
+        let status = iw_draft_draw(
+            out.as_mut_ptr(),
+            w,
+            h,
+            1,
+            255,
+            255,
+            255,
+            255,
+            layer.as_ptr(),
+            1,
+        );
+        iw_draft_free(handle);
+        assert_eq!(status, 0);
+        let at = |x: usize, y: usize| &out[4 * (y * w + x)..4 * (y * w + x) + 4];
+        // Rows 1 to 4: every centre there lies inside both sides' meshes, none on their edges.
+        for y in 1..h - 1 {
+            assert_eq!(at(4, y), red, "the left side, moved, at (4, {y})");
+            for x in 7..w {
+                assert_eq!(at(x, y), blue, "the right side in front at ({x}, {y})");
+            }
+        }
     }
 
     #[test]
