@@ -860,3 +860,17 @@ def test_a_corner_traced_just_inside_a_square_sliding_over_a_still_background_go
         off = np.linalg.norm(np.subtract(key["points"], rest) - (at(k) - at(0)), axis=1)
         assert off.max() < 1.5, (k, off.round(2))
     assert not lost_frames(said, "box"), said
+
+
+def test_a_video_given_for_a_picture_is_named_and_inkwarp_frame_offered(videos, tmp_path, capsys):
+    # `inkwarp new clip.mp4` said only that '.mp4' files cannot start a scene, and a layer
+    # whose image is a video that it is "not a PNG or JPEG image (unrecognised file contents)".
+    path, _ = videos["translate"]
+    code, _, err = run(capsys, "new", path, "-o", tmp_path / "s.json")
+    assert code == 2 and f"{path}: an MP4 video, not a picture" in err and f"inkwarp frame {path} --frame 0" in err, err
+    assert not (tmp_path / "s.json").exists()
+    (tmp_path / "v.json").write_text(json.dumps({**sv.scene(W, H, [{"id": "p", "kind": "point", "rest": [[5, 5]]}]),
+                                                 "layers": [{"name": "clip", "image": str(path)}]}))
+    code, _, err = run(capsys, "render", tmp_path / "v.json", "-o", tmp_path / "v.png")
+    assert code == 2 and f"layers[0].image" in err and f"{path} is an MP4 video, not a picture" in err, err
+    assert f"inkwarp frame {path} --frame N -o frame.png" in err and "Traceback" not in err

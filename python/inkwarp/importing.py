@@ -101,6 +101,16 @@ def read_picture(path: str | os.PathLike[str]) -> Picture:
         return _read_psd(source)
     if suffix in FLAT_SUFFIXES:
         return _read_flat(source)
+    from inkwarp.scene import _picture_kind, _video_kind
+
+    with open(source, "rb") as file:
+        head = file.read(64)
+    video = None if _picture_kind(head) else _video_kind(head)
+    if video:
+        raise ValueError(f"{source}: {'an' if video in ('MP4', 'AVI') else 'a'} {video} video, not a picture; "
+                         f"take the frame to trace from it (inkwarp frame {source} --frame 0 -o frame.png) and "
+                         f"start the scene from that (inkwarp new frame.png -o scene.json): inkwarp track {source} "
+                         "--scene scene.json then follows the drawing through the video")
     raise ValueError(f"{source}: cannot start a scene from '{suffix or 'no suffix'}' files; "
                      "give a PNG, JPEG, WebP or layered PSD picture")
 
