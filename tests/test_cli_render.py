@@ -216,7 +216,8 @@ def test_validate_ok_prints_the_summary(capsys, scene):
 
 def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path):
     # A feature typed off the picture, a key after the end and a feature no layer lists
-    # all render without a word; validate names each after its "ok" (and still exits 0).
+    # all render; validate names each after its "ok" (and still exits 0), and render the key
+    # after the end, which cuts its animation short.
     path = write_scene(tmp_path / "scene")
     doc = json.loads(path.read_text())
     point = doc["features"][0]
@@ -249,6 +250,11 @@ def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path)
 
     assert [p for p, _ in inkwarp.Scene.load(path).notes()] == ["features[1]", "features[2].keys[0].t", "features[3]",
                                                                "features[5]"]
+    code, _, err = run(capsys, "render", path, "-o", tmp_path / "a.gif")
+    assert code == 0 and err.splitlines()[0] == "inkwarp render: " + notes[1], err
+    assert "'typo'" not in err and "'spare'" not in err
+    code, _, err = run(capsys, "render", path, "-o", tmp_path / "a.gif", "-q")
+    assert code == 0 and err == ""
 
 
 def test_validate_notes_lines_and_regions_with_no_extent(tmp_path):

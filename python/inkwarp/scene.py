@@ -849,10 +849,19 @@ class Scene:
                 notes.append((f"features[{i}].rest", f"{name!r}, a region, has no area (its points lie on one line): "
                               "it holds nothing inside, only its outline, as a polyline does; trace around what "
                               "it should hold"))
+        # By feature, each one's keys last.
+        return sorted(notes + self._late_keys(doc), key=lambda note: int(note[0].split("[")[1].split("]")[0]))
+
+    def _late_keys(self, doc: dict[str, Any] | None = None) -> list[Problem]:
+        """The notes on keys after the scene's end (:meth:`notes`); ``inkwarp render`` gives
+        them too, since they cut the animation short."""
+        notes: list[Problem] = []
+        duration = self.duration
+        for i, feature in enumerate((doc or self.to_dict()).get("features", [])):
             for k, key in enumerate(feature.get("keys", [])):
                 if key["t"] > duration + 1e-9:
                     notes.append((f"features[{i}].keys[{k}].t",
-                                  f"{name!r} has a key at {key['t']:g} s, after the scene's end ({duration:g} s): "
+                                  f"{feature['id']!r} has a key at {key['t']:g} s, after the scene's end ({duration:g} s): "
                                   f"no frame shows it, the frames before it show the move toward it; a duration of "
                                   f"{key['t'] + 1 / self.fps:g} s ends on it, or move the key"))
         return notes

@@ -179,6 +179,11 @@ def _run(args: argparse.Namespace) -> int:
             print(f"inkwarp render: note: --method {args.method} ignores the continuity matte and cuts: "
                   f"{', '.join(torn)} stay{'s' if len(torn) == 1 else ''} whole across {'its' if len(torn) == 1 else 'their'} "
                   "holes and cuts (only tps tears them)", file=sys.stderr, flush=True)
+    if kind != "png" and not args.quiet:
+        # A key after the end cuts the animation short: said here too, not only by validate.
+        for path, message in scene._late_keys():
+            print(f"inkwarp render: note: {_common.prefixed(_common.prefixed(message, path), args.scene)}",
+                  file=sys.stderr, flush=True)
     started = time.perf_counter()
     if kind == "png":
         if args.time is not None:
