@@ -539,18 +539,32 @@ def _off_picture(points: np.ndarray, w: int, h: int, margin: float) -> np.ndarra
 
 
 def _neighbours(features: list[_Feature], points: np.ndarray) -> np.ndarray:
-    """For each of the stacked ``points``, the points of its own feature within 2.5 sample
-    spacings of it (two along the curve each way, or two on one side at an end) and not at
-    its place, as rows of indices padded with -1."""
-    near: list[np.ndarray] = [np.empty(0, int)] * len(points)
+    """For each of the stacked ``points``, the points of its own feature's curve within 2.5
+    sample spacings of it and not at its place, as rows of indices padded with -1: for a
+    curve sample the two samples each way along the curve (two on one side at an open
+    end), for a control point the samples near it."""
+    reach = 2.5 * SAMPLE_SPACING_PX
+    blocks: list[tuple[np.ndarray, np.ndarray]] = []  # (rows, their neighbours, -1 padded)
     for f in features:
         rows = np.arange(len(points))[f.rows]
-        d = np.linalg.norm(points[rows, None] - points[None, rows], axis=2)
-        for i, row in zip(rows, (d > 0.5) & (d <= 2.5 * SAMPLE_SPACING_PX)):
-            near[i] = rows[row]
-    out = np.full((len(points), max([len(n) for n in near], default=0)), -1)
-    for i, n in enumerate(near):
-        out[i, :len(n)] = n
+        control, samples = rows[:len(f.rest)], rows[len(f.rest):]
+        if len(samples) == 0:
+            continue
+        d = np.linalg.norm(points[control, None] - points[None, samples], axis=2)
+        near = (d > 0.5) & (d <= reach)
+        width = max(int(near.sum(axis=1).max(initial=0)), 1)
+        order = np.argsort(~near, axis=1, kind="stable")[:, :width]  # the near ones first
+        blocks.append((control, np.where(np.take_along_axis(near, order, 1), samples[order], -1)))
+        k = np.arange(len(samples))[:, None] + [-2, -1, 1, 2]
+        if f.closed or f.kind == "region":
+            k %= len(samples)
+        inside = (k >= 0) & (k < len(samples))
+        other = samples[np.clip(k, 0, len(samples) - 1)]
+        d = np.linalg.norm(points[other] - points[samples][:, None], axis=2)
+        blocks.append((samples, np.where(inside & (d > 0.5) & (d <= reach), other, -1)))
+    out = np.full((len(points), max([b.shape[1] for _, b in blocks], default=0)), -1)
+    for rows, block in blocks:
+        out[rows, :block.shape[1]] = block
     return out
 
 
