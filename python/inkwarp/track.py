@@ -27,7 +27,9 @@ one frame to the next, every such point is
 5. checked against its curve's neighbours (the feature's points within 10 px): a point
    whose move from the last frame is more than ``lost_px`` from theirs, where they agree
    within half of that, is placed by the thin plate too, however well its own checks pass
-   (its window straddles the edge of what moves and holds to what stays still).
+   (its window straddles the edge of what moves and holds to what stays still), unless the
+   anchor's few pixels around it (:data:`ODD_WINDOW_PX`) match the frame better where it is
+   than where its neighbours' move would take it (it stays beside what moves away).
 
 Keys the scene already has are **corrections**: the drawing is tracked from each of
 them, forward and backward, as from frame ``K``, and between two anchors of a feature
@@ -85,6 +87,10 @@ TRUST_MIN_EIG = 5e-5
 #: A registration to the anchor frame may move a point this far from the frame-to-frame
 #: estimate (pixels): how much drift it can take back.
 REGAIN_PX = 10.0
+
+#: The window (pixels, square) that decides between a point and the neighbours along its curve
+#: that disagree with it: small, so that it sees the point's own side of an object's edge.
+ODD_WINDOW_PX = 7
 
 #: The largest correction of the thin plate's placement of an untrusted point that the
 #: dense flow from the warped anchor picture may make (pixels).
@@ -355,10 +361,11 @@ class _Tracker:
         fb[~(ok1 & ok2) | ~np.isfinite(fb)] = np.inf
         return fwd, fb
 
-    def _mismatch(self, a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarray) -> np.ndarray:
-        """The mean absolute difference of the Lucas-Kanade windows of ``a`` at ``at_a`` and
-        of ``b`` at ``at_b``, point by point."""
-        size, window = (LK_WINDOW_PX, LK_WINDOW_PX), self.cv2.getRectSubPix
+    def _mismatch(self, a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarray,
+                  side: int = LK_WINDOW_PX) -> np.ndarray:
+        """The mean absolute difference of the windows (``side`` pixels square, by default
+        Lucas-Kanade's) of ``a`` at ``at_a`` and of ``b`` at ``at_b``, point by point."""
+        size, window = (side, side), self.cv2.getRectSubPix
         return np.array([float(np.abs(window(a, size, tuple(map(float, p)), patchType=self.cv2.CV_32F)
                                       - window(b, size, tuple(map(float, q)), patchType=self.cv2.CV_32F)).mean())
                          for p, q in zip(at_a, at_b)])
@@ -474,6 +481,15 @@ class _Tracker:
             # the edge of what moves and holds to what stays (a region's corner traced just
             # inside a square sliding over a still background kept to the background).
             odd, vouched = _odd_ones(best - current, neighbours, trusted, self.options.lost_px)
+            if odd.any():
+                # Which of the two is right, the point or its neighbours, the picture close around
+                # it says (a still point beside an object that moves away is the one that stays):
+                # the anchor's few pixels around it match the frame better where it is, or where
+                # its neighbours' move would take it.
+                at = np.flatnonzero(odd)
+                own = self._mismatch(template, start_points[at], b, best[at], ODD_WINDOW_PX)
+                moved_with = self._mismatch(template, start_points[at], b, current[at] + vouched[at], ODD_WINDOW_PX)
+                odd[at[own <= moved_with]] = False
             trusted &= ~odd
             untrusted = ~trusted
             if untrusted.any() and trusted.sum() >= 3:
@@ -489,7 +505,6 @@ class _Tracker:
                 best[untrusted] = fill
             else:
                 best[odd] = current[odd] + vouched[odd]
-            # An odd point is checked by its neighbours: how far it lies from their motion.
             vouch_error = np.linalg.norm(best - current - vouched, axis=1)
             current = best
             positions[k] = best.copy()
@@ -517,7 +532,12 @@ class _Tracker:
             # it, well enough to pass the looser checks, far from where it went.
             whole = ~_off_picture(best, w, h, -LK_WINDOW_PX / 2) | near_edge
             again = (use_anchor | regained) & whole
-            checked[odd] = vouch_error[odd]
+            # An odd point is placed by its neighbours, so its place is checked by theirs: how far it
+            # lies from their move, and no better than the worst of their own checks.
+            if odd.any():
+                take = (neighbours[odd] >= 0) & trusted[neighbours[odd]]
+                theirs = np.where(take, checked[neighbours[odd]], 0.0).max(axis=1)
+                checked[odd] = np.maximum(vouch_error[odd], theirs)
             confirmed = (textured_now | odd) & inside & (checked <= lost_px) & (~lost | again | odd)
             lost = textured_at_anchor & ~confirmed
             last_seen[confirmed] = best[confirmed]
