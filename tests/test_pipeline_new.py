@@ -197,6 +197,122 @@ def test_bad_pictures_and_drawings_get_one_clear_error_and_leave_nothing(capsys,
     assert files(tmp_path) == before
 
 
+def _tiff_orientation(value_type: int) -> bytes:
+    """A big-endian EXIF block whose one entry is Orientation 6, stored as a SHORT (type 3)
+    or as a LONG (type 4)."""
+    import struct
+
+    value = struct.pack(">HH", 6, 0) if value_type == 3 else struct.pack(">I", 6)
+    return (b"MM" + struct.pack(">HI", 42, 8) + struct.pack(">H", 1)
+            + struct.pack(">HHI", 0x0112, value_type, 1) + value + struct.pack(">I", 0))
+
+
+@pytest.mark.parametrize("case", ["webp named .jpg", "jfif", "orientation as a long", "exif after the pixels",
+                                  "orientation read"])
+def test_a_new_scene_reads_its_picture_by_its_contents_as_the_engine_does(capsys, tmp_path, case):
+    # `new` went by the suffix and read pictures with Pillow, the engine by the contents with
+    # its own decoder: a WebP saved as .jpg (as browsers do) made a scene the engine could
+    # not read, and EXIF orientations the two read differently (an Orientation stored as a
+    # LONG, a PNG's eXIf chunk after its pixels) made one of the wrong size, which never
+    # validated. A .jfif (a JPEG) was refused by its name.
+    import struct
+    import zlib
+
+    stored = Image.new("RGB", (24, 32), (90, 140, 200))  # 24 wide, 32 high as stored
+    stored.paste((255, 0, 0), (0, 0, 8, 8))  # a red block at the stored top left
+    upright = (32, 24)  # (width, height) where orientation 6 is applied
+    if case == "webp named .jpg":
+        picture, size = tmp_path / "download.jpg", (24, 32)
+        stored.save(picture, format="WEBP", lossless=True)
+    elif case == "jfif":
+        picture, size = tmp_path / "photo.jfif", (24, 32)
+        stored.save(picture, format="JPEG", quality=95)
+    elif case in ("orientation as a long", "orientation read"):
+        picture = tmp_path / "phone.jpg"
+        stored.save(tmp_path / "t.jpg", quality=95)
+        data, exif = (tmp_path / "t.jpg").read_bytes(), b"Exif\0\0" + _tiff_orientation(4 if case == "orientation as a long" else 3)
+        picture.write_bytes(data[:2] + b"\xff\xe1" + struct.pack(">H", len(exif) + 2) + exif + data[2:])
+        # The engine (and so `new`) reads an Orientation stored as a SHORT only, as the EXIF
+        # standard writes it.
+        size = (24, 32) if case == "orientation as a long" else upright
+    else:
+        picture, size = tmp_path / "late.png", (24, 32)
+        stored.save(tmp_path / "t.png")
+        data, exif = (tmp_path / "t.png").read_bytes(), _tiff_orientation(3)
+        chunk = struct.pack(">I", len(exif)) + b"eXIf" + exif + struct.pack(">I", zlib.crc32(b"eXIf" + exif) & 0xFFFFFFFF)
+        end = data.index(b"IEND") - 4
+        picture.write_bytes(data[:end] + chunk + data[end:])
+    code, _, err = run(capsys, "new", picture, "-o", tmp_path / "s.json")
+    assert code == 0, err
+    doc = json.loads((tmp_path / "s.json").read_text())
+    assert (doc["width"], doc["height"]) == size
+    assert inkwarp.validate_scene(tmp_path / "s.json") == []
+    frame = inkwarp.Scene.load(tmp_path / "s.json").render(time=0.0)
+    assert frame.shape == (size[1], size[0], 4)
+    # The stored top-left red block, where the orientation put it.
+    red = (3, size[0] - 4) if size == upright else (3, 3)
+    assert np.abs(frame[red][:3].astype(int) - (255, 0, 0)).max() < 40, frame[red]
+    assert (inkwarp.imaging.read_image(picture).shape[:2] == (size[1], size[0])) or case == "webp named .jpg"
+
+
+def test_a_picture_of_another_format_under_a_png_or_jpeg_name_is_refused_by_its_format(capsys, tmp_path):
+    Image.new("RGB", (8, 8)).save(tmp_path / "anim.png", format="GIF")
+    code, _, err = run(capsys, "new", tmp_path / "anim.png", "-o", tmp_path / "s.json")
+    assert code == 2 and "anim.png: a GIF picture under a .png name; inkwarp reads PNG, JPEG and WebP" in err, err
+    assert not (tmp_path / "s.json").exists()
+
+
+def _display_p3_profile() -> bytes:
+    """A minimal ICC v2 RGB profile with Display P3's primaries (D50-adapted), gamma 2.2."""
+    import struct
+
+    def s15(v):
+        return struct.pack(">i", round(v * 65536))
+
+    def xyz(x, y, z):
+        return b"XYZ " + b"\0" * 4 + s15(x) + s15(y) + s15(z)
+
+    curve = b"curv" + b"\0" * 4 + struct.pack(">IH", 1, round(2.2 * 256)) + b"\0\0"
+    text = b"Display P3\0"
+    tags = [(b"desc", b"desc" + b"\0" * 4 + struct.pack(">I", len(text)) + text + b"\0" * 78),
+            (b"wtpt", xyz(0.9642, 1.0, 0.8249)), (b"rXYZ", xyz(0.5151, 0.2412, -0.0011)),
+            (b"gXYZ", xyz(0.2920, 0.6922, 0.0419)), (b"bXYZ", xyz(0.1571, 0.0666, 0.7841)),
+            (b"rTRC", curve), (b"gTRC", curve), (b"bTRC", curve), (b"cprt", b"text\0\0\0\0CC0\0")]
+    offset, table, data = 128 + 4 + 12 * len(tags), b"", b""
+    for signature, body in tags:
+        data += b"\0" * (-(offset + len(data)) % 4)
+        table += signature + struct.pack(">II", offset + len(data), len(body))
+        data += body
+    header = (struct.pack(">I", offset + len(data)) + b"lcms" + struct.pack(">I", 0x02100000) + b"mntrRGB XYZ "
+              + b"\0" * 12 + b"acspAPPL" + b"\0" * 24 + s15(0.9642) + s15(1.0) + s15(0.8249) + b"\0" * 48)
+    return header + struct.pack(">I", len(tags)) + table + data
+
+
+def test_a_picture_in_display_p3_renders_as_a_viewer_shows_it(capsys, tmp_path):
+    # A phone's JPEG in Display P3 was rendered as if its numbers were sRGB: a red a viewer
+    # shows as (252, 0, 0) came out (230, 30, 30), every colour duller. The engine reads no
+    # profile, so `new` converts such a picture to sRGB into a PNG beside the scene.
+    from PIL import ImageCms
+
+    icc = _display_p3_profile()
+    pixels = np.zeros((16, 48, 3), np.uint8)
+    pixels[:, :16], pixels[:, 16:32], pixels[:, 32:] = (230, 30, 30), (40, 200, 60), (225, 160, 120)
+    Image.fromarray(pixels).save(tmp_path / "phone.png", icc_profile=icc)
+    shown = np.asarray(ImageCms.profileToProfile(Image.open(tmp_path / "phone.png"), ImageCms.ImageCmsProfile(
+        __import__("io").BytesIO(icc)), ImageCms.createProfile("sRGB"), outputMode="RGB"))
+    assert np.abs(shown[0, 8].astype(int) - (230, 30, 30)).max() > 15  # a real difference to make
+    code, out, err = run(capsys, "new", tmp_path / "phone.png", "-o", tmp_path / "s.json")
+    assert code == 0 and "converted from its colour profile (Display P3) to sRGB" in err, err
+    frame = inkwarp.Scene.load(tmp_path / "s.json").render(time=0.0)
+    assert np.abs(frame[..., :3].astype(int) - shown).max() <= 1
+    # A picture in sRGB stays as it is, where it is.
+    Image.fromarray(pixels).save(tmp_path / "plain.png", icc_profile=ImageCms.ImageCmsProfile(
+        ImageCms.createProfile("sRGB")).tobytes())
+    code, _, err = run(capsys, "new", tmp_path / "plain.png", "-o", tmp_path / "p.json")
+    assert code == 0 and "colour profile" not in err
+    assert json.loads((tmp_path / "p.json").read_text())["layers"][0]["image"] == "plain.png"
+
+
 # --- SVG drawings ----------------------------------------------------------------------------
 
 SVG = """<svg xmlns="http://www.w3.org/2000/svg" xmlns:inkscape="http://www.inkscape.org/namespaces/inkscape"

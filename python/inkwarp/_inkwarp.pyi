@@ -89,6 +89,10 @@ def warp_image(
     """Forward-map C-contiguous uint8 RGBA (H, W, 4) by float32 (H, W, 2) over uint8 matte
     (H, W), its links crossed by the (K, 2) float64 cuts removed; see `inkwarp.warp_image` for the checked, documented entry point."""
 
+def decode_picture(data: bytes) -> npt.NDArray[np.uint8]:
+    """A PNG or JPEG file's bytes as the engine decodes a scene's pictures: straight RGBA
+    (H, W, 4), upright by the EXIF orientation it reads; ValueError says why not."""
+
 # --- methods (comparison interpolants, thin-plate map, transfer) ---
 from typing import Any
 

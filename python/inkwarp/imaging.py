@@ -185,9 +185,10 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
     Parameters
     ----------
     path : str or os.PathLike
-        Any format Pillow reads (PNG, JPEG, ...). Grey, palette and RGB images are
-        converted; images without alpha come back opaque. A photograph tagged with an EXIF
-        orientation comes back upright, as viewers show it and scenes read it.
+        Any format Pillow reads (PNG, JPEG, ...); PNG and JPEG are decoded by the engine,
+        exactly as a scene's pictures are. Grey, palette and RGB images are converted;
+        images without alpha come back opaque. A photograph tagged with an EXIF orientation
+        comes back upright, as scenes read it.
 
     Returns
     -------
@@ -214,8 +215,15 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
 
     try:
         with Image.open(path) as im:
-            return rgba_pixels(upright(im))
+            if im.format not in ("PNG", "JPEG", "MPO"):
+                return rgba_pixels(upright(im))
     except UnidentifiedImageError as e:
+        raise ValueError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
+    # PNG and JPEG as the engine decodes them: the same pixels and orientation as a scene's.
+    try:
+        with open(path, "rb") as file:
+            return _inkwarp.decode_picture(file.read())
+    except ValueError as e:
         raise ValueError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
 
 

@@ -26,6 +26,7 @@ Examples
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
@@ -43,10 +44,9 @@ from inkwarp.errors import InkwarpWarning
 
 __all__ = ["Picture", "PictureLayer", "read_picture", "scene_dict", "write_new_scene"]
 
-#: Suffixes of flat pictures (read with Pillow; one layer).
-FLAT_SUFFIXES = (".png", ".jpg", ".jpeg", ".webp")
-#: Flat pictures the engine decodes itself, so a scene can point at them where they are.
-ENGINE_SUFFIXES = (".png", ".jpg", ".jpeg")
+#: Suffixes of flat pictures (one layer). Their contents decide: PNG and JPEG, which the
+#: engine decodes itself, a scene points at where they are; WebP is converted to a PNG.
+FLAT_SUFFIXES = (".png", ".jpg", ".jpeg", ".jfif", ".jpe", ".webp")
 
 
 @dataclass
@@ -148,15 +148,66 @@ def _read_flat(source: Path) -> Picture:
         raise unreadable(err) from None
     with image:
         _check_size(source, image.size)
+        # By its contents, not its name (a browser saves WebP as .jpg): PNG and JPEG (a phone's
+        # multi-picture JPEG too) the scene keeps as they are, decoded as the engine decodes
+        # them (its EXIF orientation rule included); WebP is converted to a PNG beside the scene.
+        kind = image.format
+        if kind not in ("PNG", "JPEG", "MPO", "WEBP"):
+            raise ValueError(f"{source}: a {kind or 'unknown'} picture under a {source.suffix or 'bare'} name; "
+                             "inkwarp reads PNG, JPEG and WebP: save it as one of those")
+        # The engine reads no colour profile: a picture in another space than sRGB (a phone's
+        # Display P3) is converted here, as a viewer shows it, into a PNG beside the scene.
+        profile, notes = _foreign_profile(image), []
         try:
-            image.load()
-            # Upright, as viewers show it and the engine reads it (a phone's EXIF orientation).
-            rgba = rgba_pixels(upright(image))
+            if kind == "WEBP" or profile is not None:
+                image.load()
+                shown = upright(image)
+                if profile is not None:
+                    shown, said = _to_srgb(shown, profile)
+                    notes.append(f"{source}: {said}")
+                rgba = rgba_pixels(shown)
+            else:
+                from inkwarp import _inkwarp
+
+                rgba = _inkwarp.decode_picture(source.read_bytes())
         except (OSError, SyntaxError, ValueError) as err:
             raise unreadable(err) from None
     height, width = rgba.shape[:2]
-    keep = source if source.suffix.lower() in ENGINE_SUFFIXES else None
-    return Picture(width, height, [PictureLayer(source.stem, rgba, True, keep)])
+    kept = None if kind == "WEBP" or profile is not None else source
+    return Picture(width, height, [PictureLayer(source.stem, rgba, True, kept)], notes)
+
+
+def _foreign_profile(image: Any) -> bytes | None:
+    """The ICC profile of an RGB(A) Pillow image where it is not sRGB's, else None."""
+    icc = image.info.get("icc_profile")
+    if not icc or image.mode not in ("RGB", "RGBA"):
+        return None
+    from PIL import ImageCms
+
+    try:
+        name = ImageCms.getProfileDescription(ImageCms.ImageCmsProfile(io.BytesIO(icc)))
+    except (OSError, ValueError, TypeError, ImageCms.PyCMSError):
+        return icc  # unreadable: said by `_to_srgb`
+    return None if "srgb" in name.lower() else icc
+
+
+def _to_srgb(image: Any, icc: bytes) -> tuple[Any, str]:
+    """``image`` converted from the profile ``icc`` to sRGB (alpha kept), and what was done."""
+    from PIL import Image, ImageCms
+
+    try:
+        source = ImageCms.ImageCmsProfile(io.BytesIO(icc))
+        name = ImageCms.getProfileDescription(source).strip() or "unnamed"
+        rgb = ImageCms.profileToProfile(image.convert("RGB"), source, ImageCms.createProfile("sRGB"),
+                                        renderingIntent=ImageCms.Intent.RELATIVE_COLORIMETRIC, outputMode="RGB")
+    except (OSError, ValueError, TypeError, ImageCms.PyCMSError) as err:
+        return image, (f"its colour profile cannot be read ({' '.join(str(err).split())}); its colours are "
+                       "taken as sRGB, which may shift them: convert it to sRGB in the painting app")
+    if image.mode == "RGBA":
+        rgb.putalpha(image.getchannel("A"))
+    return (rgb if isinstance(rgb, Image.Image) else image,
+            f"converted from its colour profile ({name}) to sRGB, the colours inkwarp renders in, "
+            "into a PNG beside the scene")
 
 
 def _read_psd(source: Path) -> Picture:

@@ -9,6 +9,7 @@ use pyo3::prelude::*;
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(warp_image, m)?)?;
+    m.add_function(wrap_pyfunction!(decode_picture, m)?)?;
     Ok(())
 }
 
@@ -62,5 +63,18 @@ fn warp_image<'py>(
     let out = out.map_err(|e| PyValueError::new_err(e.to_string()))?;
     let array = Array3::from_shape_vec((h, w, 4), out.data)
         .expect("the renderer returns an image of the input's size");
+    Ok(array.into_pyarray(py))
+}
+
+/// A PNG or JPEG file's bytes decoded as the engine decodes a scene's pictures: straight RGBA
+/// (H, W, 4), upright by the EXIF orientation the engine reads. A `ValueError` says why not.
+#[pyfunction]
+fn decode_picture<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    if crate::scene::jpeg_cut_short(data) {
+        return Err(PyValueError::new_err("a JPEG that ends before its end-of-image marker: the file is cut short \
+                                           (copied or synced only in part); copy or save it again"));
+    }
+    let image = py.detach(|| inkwarp_core::scene::images::decode_image(data)).map_err(PyValueError::new_err)?;
+    let array = Array3::from_shape_vec((image.height, image.width, 4), image.data).expect("RGBA8 of its size");
     Ok(array.into_pyarray(py))
 }

@@ -112,7 +112,7 @@ fn video_kind(bytes: &[u8]) -> Option<&'static str> {
 /// end-of-image marker (FF D9). Walked from the start, segment by segment, so that a marker
 /// inside an EXIF thumbnail or an ICC profile, or in data after the end (a motion photo's
 /// video), counts for nothing.
-fn jpeg_cut_short(bytes: &[u8]) -> bool {
+pub(crate) fn jpeg_cut_short(bytes: &[u8]) -> bool {
     if !bytes.starts_with(&[0xFF, 0xD8]) {
         return false;
     }

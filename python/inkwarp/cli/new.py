@@ -19,7 +19,9 @@ A PNG, JPEG or WebP picture gives one layer; a PSD gives one layer per pixel lay
 PSD's order, with its name and visibility, each a canvas-sized image (groups are flattened
 into their layers; layers whose blend mode is not Normal are reported). The layers'
 images are written beside the scene as SCENE-LAYER.png (a PNG or JPEG picture is used
-where it is), or into the scene as data: URIs with --embed. An SVG drawing's shapes
+where it is, unless it carries a colour profile other than sRGB's: it is converted to sRGB,
+as a viewer shows it), or into the scene as data: URIs with --embed. A picture's kind is
+read from its contents, not its name (a WebP saved as .jpg is converted as a .webp is). An SVG drawing's shapes
 become features: closed filled shapes regions, open paths splines or polylines, ids or
 classes with "cut" cuts, small circles points (docs/guides/psd-and-svg.md). The scene's
 background is transparent, so frame 0 is the picture as it is.
@@ -32,7 +34,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description="Start a scene from a picture: one layer for a PNG, JPEG or WebP, one\n"
                     "layer per pixel layer for a PSD; an SVG traced over it gives the drawing.",
         epilog=EPILOG, formatter_class=_common.formatter)
-    parser.add_argument("picture", metavar="PICTURE", help="a .png, .jpg, .webp or .psd file")
+    parser.add_argument("picture", metavar="PICTURE", help="a .png, .jpg (.jpeg, .jfif, .jpe), .webp or .psd file")
     parser.add_argument("-o", "--output", required=True, metavar="SCENE",
                         help="the scene file to write (.json)")
     parser.add_argument("--drawing", metavar="SVG",
