@@ -1333,6 +1333,112 @@ test('a value typed into a field and not entered is kept when the page is left',
   }
 });
 
+test('fields refuse what the scene format refuses, saying its range; kept work that does not open is kept, offered again and downloadable', async () => {
+  const scenePath = checkerScene('limits.json');
+  const own = await startServer([scenePath]);
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  const message = () => p.textContent('#message');
+  const enter = async (field, value) => {
+    await p.fill(field, value);
+    await p.press(field, 'Enter');
+    await idle(p);
+  };
+  try {
+    // Each field takes what the format takes (the engine's limits) and nothing more.
+    await enter('#duration', '150000');
+    assert((await p.evaluate(() => window.inkwarp.store.doc.duration)) === 1, 'a duration past 100000 s is refused');
+    assert(/at most 100000 s/.test(await message()), `the refusal says the range: ${await message()}`);
+    assert((await p.inputValue('#duration')) === '1', 'the field shows the scene\'s duration again');
+    await enter('#fps', '0.0005');
+    assert((await p.evaluate(() => window.inkwarp.store.doc.fps)) === 12, 'fewer than 0.001 fps is refused');
+    assert(/from 0\.001 .* to 1000/.test(await message()), `the refusal says the range: ${await message()}`);
+    await enter('#fps', '500');
+    assert((await p.evaluate(() => window.inkwarp.store.doc.fps)) === 500, 'fps the format takes are taken (500)');
+    await enter('#fps', '12');
+    await enter('#layer-offset-x', '2000000');
+    assert((await p.evaluate(() => window.inkwarp.store.doc.layers[0].offset)) === undefined, 'an offset past 1e6 px is refused');
+    assert(/from -1000000 to 1000000/.test(await message()), `the refusal says the range: ${await message()}`);
+    assert((await p.inputValue('#layer-offset-x')) === '0', 'the field shows the layer\'s offset again');
+    // Work kept with a value the format refuses (as an earlier editor let through): its
+    // restore fails, and the kept copy is neither written over nor dropped.
+    await p.evaluate(() => document.activeElement?.blur());
+    await p.keyboard.press('r');
+    await p.keyboard.press('p');
+    await click(p, [40, 40]);
+    await idle(p);
+    await p.evaluate(() => window.inkwarp.store.edit((d) => ({ ...d, duration: 150000 })));
+    await flush(p);
+    await p.reload();
+    await p.waitForSelector('#restore', { timeout: 10000 });
+    await p.click('#restore-yes');
+    await p.waitForSelector('#unopened', { timeout: 10000 });
+    const said = await p.textContent('#unopened span');
+    assert(/could not be opened: at duration: .*at most 100000 s/.test(said) && /still kept in this browser/.test(said), `the failed restore says why and that the work is kept: ${said}`);
+    const [download] = await Promise.all([p.waitForEvent('download'), p.click('#unopened-download')]);
+    assert(download.suggestedFilename() === 'limits-kept.json', `named apart from the file: ${download.suggestedFilename()}`);
+    const kept = JSON.parse(readFileSync(await download.path(), 'utf8'));
+    assert(kept.duration === 150000 && kept.features.length === 1 && kept.layers[0].image.startsWith('data:'), `the download is the kept work: ${JSON.stringify(kept).slice(0, 160)}`);
+    await p.click('#unopened-close');
+    // The editor goes on with the file; the kept work is offered again on the next load.
+    assert((await p.evaluate(() => window.inkwarp.store.doc.features.length)) === 0, 'the file is shown');
+    await p.reload();
+    await p.waitForSelector('#restore', { timeout: 10000 });
+    await p.click('#restore-yes');
+    await p.waitForSelector('#unopened', { timeout: 10000 });
+    // Declined, it is forgotten.
+    await p.reload();
+    await p.waitForSelector('#restore', { timeout: 10000 });
+    await p.click('#restore-no');
+    await p.reload();
+    await p.waitForSelector('body[data-ready]');
+    await p.waitForTimeout(500);
+    assert((await p.$('#restore')) === null, 'nothing offered once discarded');
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
+test('a line being drawn: Save finishes it first (or says it is not saved); leaving asks, and it is kept to restore', async () => {
+  const scenePath = checkerScene('drawing.json');
+  const own = await startServer([scenePath]);
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  const message = () => p.textContent('#message');
+  try {
+    await p.keyboard.press('r');
+    await p.keyboard.press('l');
+    for (const at of [[20, 20], [60, 30], [90, 60]]) await click(p, at);
+    assert((await p.evaluate(() => window.inkwarp.store.view.draft.length)) === 3, 'three points drawn');
+    await p.keyboard.press('Control+s');
+    await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
+    const saved = JSON.parse(readFileSync(scenePath, 'utf8'));
+    assert(saved.features.length === 1 && saved.features[0].kind === 'polyline' && saved.features[0].rest.length === 3, `the line was finished and saved: ${JSON.stringify(saved.features)}`);
+    assert(!(await p.evaluate(() => window.inkwarp.store.unsaved)), 'saved');
+    // One point is no line: the save says it is not in the file.
+    await click(p, [30, 80]);
+    await p.keyboard.press('Control+s');
+    await p.waitForFunction(() => /is not in it/.test(document.querySelector('#message')?.textContent ?? ''));
+    assert(/The polyline being drawn \(1 point\) is not in it/.test(await message()), `the save says so: ${await message()}`);
+    // Leaving while a line is drawn asks, and the points come back with the restore.
+    await click(p, [70, 90]);
+    p.dialogs.length = 0;
+    await p.reload();
+    await p.waitForSelector('body[data-ready]');
+    assert(p.dialogs.includes('beforeunload'), `leaving while drawing asked first (dialogs: ${p.dialogs})`);
+    await p.waitForSelector('#restore', { timeout: 10000 });
+    await restoreYes(p);
+    const view = await p.evaluate(() => ({ tool: window.inkwarp.store.view.tool, draft: window.inkwarp.store.view.draft }));
+    assert(view.tool === 'polyline' && JSON.stringify(view.draft.map((q) => q.map(Math.round))) === '[[30,80],[70,90]]', `the line being drawn is back: ${JSON.stringify(view)}`);
+    await p.keyboard.press('Enter');
+    assert((await p.evaluate(() => window.inkwarp.store.doc.features.length)) === 2, 'and it finishes as it would have');
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
 test('work kept over a server restart takes the picture retouched on disk since, and saves it by its path', async () => {
   const scenePath = checkerScene('retouched.json');
   const picture = join(dirname(scenePath), 'checker.png');
@@ -1469,7 +1575,7 @@ test('an error said goes once a later action succeeds; a region with no area and
     assert((await p.evaluate(() => window.inkwarp.store.doc.features.some((f) => f.kind === 'region'))), 'the region is made');
     assert((await said()) === '', `the error went: ${await said()}`);
     // A refused fps, then one taken.
-    await p.fill('#fps', '500');
+    await p.fill('#fps', '5000');
     await p.press('#fps', 'Enter');
     assert(/error: Frames per second/.test(await said()), `fps refused: ${await said()}`);
     await p.fill('#fps', '30');

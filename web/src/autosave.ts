@@ -4,8 +4,8 @@
 // The storage is behind a small interface so the logic is tested without a browser; the
 // page uses IndexedDB, where a scene with photographs (tens of megabytes) fits.
 
-import type { SceneDoc } from './scene';
-import type { Mode } from './state';
+import type { Pt, SceneDoc } from './scene';
+import type { Mode, Tool } from './state';
 
 /** The layer keys that hold pictures. */
 export const PICTURE_KEYS = ['image', 'alpha', 'continuity'] as const;
@@ -38,6 +38,9 @@ export interface Snapshot {
 export interface KeptView {
   mode: Mode;
   time: number;
+  /** A feature being drawn (its points clicked, not yet finished) and its tool. */
+  tool?: Tool;
+  draft?: Pt[];
 }
 
 /**
@@ -52,7 +55,15 @@ export interface SnapshotStore {
   left(): Promise<{ key: string; snapshot: Snapshot }[]>;
   /** Forgets another tab's snapshot (restored here, or declined). */
   drop(key: string): Promise<void>;
+  /**
+   * Keeps `s` under a key of its own that no tab holds (returned): never written over by a
+   * tab, and offered on a later load as a closed tab's work is (see `left`).
+   */
+  setAside(s: Snapshot): Promise<string>;
 }
+
+/** A key for a snapshot set aside from `key`'s (see `SnapshotStore.setAside`). */
+const asideKey = (key: string) => `${key}-aside-${Date.now().toString(36)}-${Math.random().toString(36).slice(2, 6)}`;
 
 /** Which of `keys` belong to tabs still open (see `holdTab`); all where the browser cannot tell. */
 export type OpenTabs = (keys: string[]) => Promise<Set<string>>;
@@ -90,6 +101,11 @@ export class MemoryStore implements SnapshotStore {
   }
   async drop(key: string): Promise<void> {
     this.shared.delete(key);
+  }
+  async setAside(s: Snapshot): Promise<string> {
+    const key = asideKey(this.key);
+    this.shared.set(key, s);
+    return key;
   }
 }
 
@@ -196,6 +212,11 @@ export class IndexedDbStore implements SnapshotStore {
   }
   async drop(key: string): Promise<void> {
     await this.run('readwrite', (s) => s.delete(key));
+  }
+  async setAside(snap: Snapshot): Promise<string> {
+    const key = asideKey(this.key);
+    await this.run('readwrite', (s) => s.put(snap, key));
+    return key;
   }
 }
 

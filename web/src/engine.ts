@@ -4,6 +4,7 @@
 // copy results out. JSON results come back through a result buffer.
 
 import { proxySize } from './proxy';
+import type { Limits } from './limits';
 import type { Kind, Method, Pt } from './scene';
 
 interface Exports {
@@ -32,6 +33,7 @@ interface Exports {
   iw_scene_check(json: number, len: number): number;
   iw_points_at(req: number, len: number): number;
   iw_methods(): number;
+  iw_limits(): number;
   iw_decode(ptr: number, len: number): number;
   iw_decoded_take(out: number, len: number): number;
   iw_matte_values(rgba: number, w: number, h: number, out: number): number;
@@ -397,6 +399,13 @@ export class Engine {
       this.x.iw_free(ptr, bytes.length);
     }
   }
+
+  /** The scene format's ranges (inkwarp_core::limits), which the editor's fields hold values to. */
+  limits(): Limits {
+    return (this.limitsKept ??= this.check(this.x.iw_limits()) as Limits);
+  }
+
+  private limitsKept: Limits | undefined;
 
   /** The field methods and whether this build computes them. */
   methods(): { name: Method; available: boolean }[] {

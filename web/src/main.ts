@@ -116,7 +116,8 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
     // A value typed into a field and not yet entered (the field still focused) counts: the
     // blur enters it, as clicking elsewhere would.
     if (document.activeElement instanceof HTMLInputElement) document.activeElement.blur();
-    if (!store.unsaved) return;
+    // A feature being drawn is work too, kept with the scene (see `snapshot`).
+    if (!store.unsaved && !store.view.draft.length) return;
     void keeper?.flush();
     e.preventDefault();
     e.returnValue = '';
@@ -140,7 +141,10 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
   const snapshot = () => {
     const file = store.origin.saveUrl ? { source: store.origin.path, version: store.origin.version, pictures }
       : carried?.origin === store.origin ? carried : { source: null, version: null, pictures: undefined };
-    return { doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved, view: { mode: store.view.mode, time: store.view.time }, source: file.source, version: file.version, pictures: file.pictures };
+    // A feature being drawn is kept with it (and counts as unsaved: it is in no file).
+    const { draft, tool } = store.view;
+    const drawing = draft.length ? { tool, draft } : {};
+    return { doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved || draft.length > 0, view: { mode: store.view.mode, time: store.view.time, ...drawing }, source: file.source, version: file.version, pictures: file.pictures };
   };
   const failed = (err: Error) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error');
   const saver = new Autosaver(kept, snapshot, fetchDataUri, 800, failed);
@@ -174,7 +178,7 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
   let aside: { saver: Autosaver; key: string; release: (() => void) | null } | null = null;
   const watch = store.subscribe(() => {
     showTitle(store);
-    if (!store.unsaved || !(kept instanceof IndexedDbStore)) return;
+    if (!(store.unsaved || store.view.draft.length) || !(kept instanceof IndexedDbStore)) return;
     if (!aside) {
       const key = `${kept.key}-meanwhile-${Date.now().toString(36)}`;
       const made = { key, release: null as (() => void) | null, saver: new Autosaver(new IndexedDbStore(key), snapshot, fetchDataUri, 800, failed) };
@@ -226,13 +230,35 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
       if (!store.origin.saveUrl && previous.source) carried = { origin: store.origin, source: previous.source, version: previous.version ?? null, pictures: previous.pictures };
       // Back where the editor was: pose mode stays pose mode, at the same time.
       if (previous.view) store.setView({ mode: previous.view.mode, time: previous.view.time });
+      // With the feature that was being drawn, to go on clicking its points (a tool picked
+      // clears the points drawn: they come back after).
+      if (previous.view?.draft?.length && previous.view.tool && previous.view.mode === 'rest') {
+        store.setView({ tool: previous.view.tool });
+        store.setView({ draft: previous.view.draft });
+      }
       const meanwhile = aside ? '; Ctrl+Z brings back what you drew while the question waited' : '';
       const retouched = taken.length ? `; the picture of ${taken.map((n) => `layer '${n}'`).join(', ')} changed on disk since, and is shown as the file has it now` : '';
       ui.message(`Restored the scene from ${clockTime(previous.savedAt)}${retouched}${misfit}${meanwhile}.`, misfit ? 'error' : 'info');
       await saver.flush(); // now this tab's, before the other tab's copy goes
       settled = true;
     } catch (err) {
-      ui.fileError('The kept scene', err);
+      // Kept work that does not open (a value the scene format refuses, from an older
+      // editor): never written over nor dropped. This tab's own copy is set aside under a key
+      // no tab writes to, offered again on a later load as a closed tab's work is (another
+      // tab's copy stays where it is, not dropped); meanwhile it can be downloaded as it
+      // was kept, to mend by hand and open.
+      let where = 'It is still kept in this browser and offered again the next time the editor opens without other unsaved work';
+      if (!claimed) {
+        try {
+          await kept.setAside(previous);
+          await kept.clear();
+        } catch {
+          where = 'This browser could not keep it apart: download it now, as it will be written over';
+        }
+      }
+      const why = err instanceof scene.SceneFileError && err.path ? `at ${err.path}: ${err.message.slice(err.path.length + 2)}` : String((err as Error)?.message ?? err);
+      const message = `The work kept from ${clockTime(previous.savedAt)} could not be opened: ${why.replace(/[.\s]+$/, '')}. ${where}; download it to mend that value in a text editor, then open the file.`;
+      ui.offerUnopened(message, previous.doc, previous.fileName);
     }
   }
   if (claimed && settled) await kept.drop(claimed).catch(() => {});
@@ -242,17 +268,21 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
   release?.();
   let revision = store.revision;
   let unsaved = store.unsaved;
+  let draft = JSON.stringify(store.view.draft);
   showTitle(store);
   store.subscribe(() => {
     showTitle(store);
-    if (store.revision === revision && store.unsaved === unsaved) return;
+    // The points of a feature being drawn are kept too (a click is work).
+    const drawn = JSON.stringify(store.view.draft);
+    if (store.revision === revision && store.unsaved === unsaved && drawn === draft) return;
     revision = store.revision;
     unsaved = store.unsaved;
+    draft = drawn;
     // Saved to its file: the file's pictures are now the document's.
     if (!unsaved && store.origin.saveUrl && pictures) pictures = pictureMarks(store.doc);
     saver.changed();
   });
-  if (store.unsaved) saver.changed();
+  if (store.unsaved || store.view.draft.length) saver.changed();
   keeper = saver;
   const apart = aside as { saver: Autosaver; key: string; release: (() => void) | null } | null;
   if (apart) {

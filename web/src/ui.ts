@@ -12,6 +12,7 @@ import type { FullFrame } from './solver';
 import { proxyFactor, viewFor } from './proxy';
 import { canEncodeWebm, encodeWebm } from './webm';
 import { PROBE_DWELL_MS } from './probe';
+import { durationProblem, fpsProblem, offsetProblem } from './limits';
 import {
   INTERPOLATIONS,
   METHODS,
@@ -226,6 +227,8 @@ export class Ui {
   // -- Building --------------------------------------------------------------------------
 
   private build(root: HTMLElement): void {
+    // The scene format's ranges: the fields' spinners stop there (typed values are checked too).
+    const limits = this.app.engine.limits();
     const fileInput = h('input', { type: 'file', accept: '.json,application/json,image/png,image/jpeg,.psd,image/vnd.adobe.photoshop', hidden: true, onchange: () => {
       const f = fileInput.files?.[0];
       if (f) void this.openFile(f);
@@ -313,8 +316,8 @@ export class Ui {
         (this.els.play = h('button#play', { title: 'Play / pause (Space)', onclick: () => this.togglePlay() }, '▶')),
         (this.els.scrub = h('input#scrub', { type: 'range', min: 0, step: 'any', oninput: (e: Event) => this.setTime(this.snapTime(Number((e.target as HTMLInputElement).value)), true) })),
         (this.els.timeText = h('span#time.time')),
-        h('label', {}, 'fps ', (this.els.fps = h('input#fps', { type: 'number', min: 1, max: 240, step: 1, onchange: (e: Event) => this.setFps(Number((e.target as HTMLInputElement).value)) }))),
-        h('label', {}, 'duration ', (this.els.duration = h('input#duration', { type: 'number', min: 0.05, step: 0.05, onchange: (e: Event) => this.setDuration(Number((e.target as HTMLInputElement).value)) })), ' s'),
+        h('label', {}, 'fps ', (this.els.fps = h('input#fps', { type: 'number', min: limits.min_fps, max: limits.max_fps, step: 'any', onchange: (e: Event) => this.setFps(Number((e.target as HTMLInputElement).value)) }))),
+        h('label', {}, 'duration ', (this.els.duration = h('input#duration', { type: 'number', min: 0.05, max: limits.max_time_s, step: 0.05, onchange: (e: Event) => this.setDuration(Number((e.target as HTMLInputElement).value)) })), ' s'),
         h('button#key-add', { title: 'Key the selected feature here (K)', onclick: () => this.keyHere() }, '◆ Key'),
         h('button#key-delete', { title: 'Delete the selected feature’s key here (Shift+K)', onclick: () => this.unkeyHere() }, '◇ Unkey'),
       ),
@@ -453,8 +456,14 @@ export class Ui {
       h('div.row', { title: 'Where the layer’s top-left pixel is placed in the frame (the scene’s "offset", in pixels); Move: drag on the picture to move the layer' }, 'Offset ',
         ...([0, 1] as const).map((c) => h(`input#layer-offset-${c ? 'y' : 'x'}.offset`, { type: 'number', step: 1, value: String((layer.offset ?? [0, 0])[c]),
           onchange: (e: Event) => {
-            const v = Number((e.target as HTMLInputElement).value);
-            if (!Number.isFinite(v)) return this.message('The offset is a number of pixels.', 'error');
+            const input = e.target as HTMLInputElement;
+            const v = input.value.trim() === '' ? NaN : Number(input.value);
+            const why = offsetProblem(v, this.app.engine.limits());
+            if (why) {
+              // The field shows the layer's offset again (a refused value is never kept).
+              input.value = String((layer.offset ?? [0, 0])[c]);
+              return this.message(why, 'error');
+            }
             const o: Pt = [...(layer.offset ?? [0, 0])] as Pt;
             o[c] = v;
             this.tryEdit((d) => updateLayer(d, i, { offset: o[0] === 0 && o[1] === 0 ? undefined : o }));
@@ -1267,7 +1276,8 @@ export class Ui {
     }, PROBE_DWELL_MS);
   }
 
-  private finishDraft(closed: boolean): void {
+  /** Finishes the feature being drawn; returns why it could not be (also said), or null. */
+  private finishDraft(closed: boolean): string | null {
     // A double-click also placed its point twice: drop exact repeats.
     const { draft } = this.store.view;
     const apart = draft.filter((p, i, a) => i === 0 || Math.hypot(p[0] - a[i - 1][0], p[1] - a[i - 1][1]) > 1e-6);
@@ -1276,8 +1286,10 @@ export class Ui {
     try {
       this.store.finishDraft(pts, closed);
       this.clearError();
+      return null;
     } catch (err) {
       this.message((err as Error).message, 'error');
+      return (err as Error).message;
     }
   }
 
@@ -1346,12 +1358,16 @@ export class Ui {
   }
 
   private setFps(fps: number): void {
-    if (!(fps > 0 && fps <= 240)) return this.refuse('Frames per second must be between 1 and 240.');
+    // Exactly the scene format's range (the engine's limits): a value it refuses would make
+    // the scene, and the work kept in the browser, impossible to open again.
+    const why = fpsProblem(fps, this.store.doc.duration, this.app.engine.limits());
+    if (why) return this.refuse(why);
     this.tryEdit((d) => ({ ...d, fps }));
   }
 
   private setDuration(duration: number): void {
-    if (!(duration > 0)) return this.refuse('The duration must be more than 0 seconds.');
+    const why = durationProblem(duration, this.store.doc.fps, this.app.engine.limits());
+    if (why) return this.refuse(why);
     // A key cannot leave the animation: a shorter duration would hide keys past its end.
     const past = this.store.doc.features.filter((f) => (f.keys ?? []).some((k) => k.t > duration + 1e-9));
     if (past.length) {
@@ -1496,7 +1512,7 @@ export class Ui {
       case 'r': return handled(), this.setMode('rest');
       case 'e': return handled(), this.setMode('pose');
       case 'Tab': return handled(), this.setMode(this.store.view.mode === 'rest' ? 'pose' : 'rest');
-      case 'Enter': return handled(), this.finishDraft(false);
+      case 'Enter': return handled(), void this.finishDraft(false);
       case 'Escape':
         handled();
         if (!this.els.help.hidden) return this.toggleHelp();
@@ -1792,11 +1808,18 @@ export class Ui {
    * copy.
    */
   save(): Promise<void> {
-    this.saving = this.saving.catch(() => {}).then(() => this.saveNow());
+    // A feature being drawn (points clicked, Enter not yet pressed) is finished first, as
+    // picking another tool does: a save never leaves it out without a word. One that cannot
+    // be finished (too few points) stays drawn, and the save says it is not in the file.
+    const drawn = this.store.view.draft.length;
+    const why = drawn ? this.finishDraft(false) : null;
+    const left = why === null ? '' : ` The ${this.store.view.tool} being drawn (${drawn} point${drawn > 1 ? 's' : ''}) is not in it: ${why.replace(/\.$/, '')}.`;
+    this.saving = this.saving.catch(() => {}).then(() => this.saveNow(left));
     return this.saving;
   }
 
-  private async saveNow(): Promise<void> {
+  /** Saves the scene (see `save`); `note` is added to what the save says. */
+  private async saveNow(note = ''): Promise<void> {
     const { origin, revision } = this.store;
     const text = serializeScene(this.store.doc);
     const blob = () => new Blob([text], { type: 'application/json' });
@@ -1828,21 +1851,21 @@ export class Ui {
         if (!resp.ok) throw new Error(await resp.text());
         this.store.fileSaved(origin, resp.headers.get('ETag'), revision);
         const saved = resp.headers.get('X-Inkwarp-Path');
-        const note = resp.headers.get('X-Inkwarp-Note');
+        const said = resp.headers.get('X-Inkwarp-Note');
         this.keptCopies.clear(); // written beside their files: the scene names them now
-        this.message(`Saved to ${saved === null ? where : decodeURIComponent(saved)}${note ? `; ${decodeURIComponent(note)}` : ''}.`, 'info');
+        this.message(`Saved to ${saved === null ? where : decodeURIComponent(saved)}${said ? `; ${decodeURIComponent(said)}` : ''}.${note}`, note ? 'error' : 'info');
       } catch (err) {
         download(blob(), origin.fileName);
         // The page a restarted server opens offers this tab's kept changes once this tab is closed.
         const next = stale ? ' To save into the file, close this tab, then open (or reload) the URL the running inkwarp edit printed: it offers these changes.' : '';
-        this.message(`Could not save to ${where} (${(err as Error).message}). Your changes are kept in this browser, unsaved; a copy was downloaded as ${origin.fileName}.${next}`, 'error');
+        this.message(`Could not save to ${where} (${(err as Error).message}). Your changes are kept in this browser, unsaved; a copy was downloaded as ${origin.fileName}.${next}${note}`, 'error');
       }
       return;
     }
     // The page cannot see whether the browser kept the download (a cancelled "Save as"
     // keeps nothing): the work stays unsaved, kept in this browser and asked about on leaving.
     download(blob(), origin.fileName);
-    this.message(`Downloaded ${origin.fileName}; it stays marked unsaved (●) here, as the editor cannot see whether your browser kept it. This scene has no file the editor writes to (open one with inkwarp edit SCENE to save in place).`, 'info');
+    this.message(`Downloaded ${origin.fileName}; it stays marked unsaved (●) here, as the editor cannot see whether your browser kept it. This scene has no file the editor writes to (open one with inkwarp edit SCENE to save in place).${note}`, note ? 'error' : 'info');
   }
 
   /**
@@ -1862,6 +1885,22 @@ export class Ui {
       );
       document.body.append(box);
     });
+  }
+
+  /**
+   * Work kept in the browser that could not be opened (`why`): says so, and that it is still
+   * kept, with a button that downloads it as it was kept, a scene file to mend by hand and
+   * open. The box stays until closed.
+   */
+  offerUnopened(why: string, doc: SceneDoc, fileName: string): void {
+    document.querySelector('#unopened')?.remove();
+    const name = fileName.replace(/(\.json)?$/i, '-kept.json');
+    const box = h('div#unopened.restore.unopened', { role: 'alertdialog' },
+      h('span', {}, why),
+      h('button#unopened-download', { onclick: () => download(new Blob([serializeScene(doc)], { type: 'application/json' }), name) }, `Download ${name}`),
+      h('button#unopened-close', { onclick: () => box.remove() }, 'Close'),
+    );
+    document.body.append(box);
   }
 
   private baseName(): string {

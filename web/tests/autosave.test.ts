@@ -82,6 +82,20 @@ describe('autosave', () => {
     expect(await c.get()).toBeNull();
   });
 
+  it('a snapshot set aside (kept work that did not open) is never written over, and is offered as a closed tab\'s', async () => {
+    const shared = new Map();
+    const own = new MemoryStore('tab', shared);
+    const refused = { doc: { ...scene(), duration: 150000 }, fileName: 'a.json', unsaved: true, savedAt: 1 };
+    await own.put(refused);
+    const key = await own.setAside(refused);
+    await own.clear();
+    await own.put({ doc: scene(), fileName: 'a.json', unsaved: false, savedAt: 2 });
+    expect(key).not.toBe('tab');
+    expect(shared.get(key)).toEqual(refused);
+    // Another load of the page (this tab's key) finds it among the work left.
+    expect((await new MemoryStore('tab', shared).left()).map((l) => l.snapshot)).toEqual([refused]);
+  });
+
   it('restored work takes the pictures retouched on disk since, and keeps those it changed itself', () => {
     const picture = (name: string, image: string) => ({ name, image });
     const opened = { ...emptyScene(20, 10), layers: [picture('face', 'data:image/png;base64,OLD'), picture('eyes', 'data:image/png;base64,E1')] };

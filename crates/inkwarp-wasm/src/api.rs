@@ -1164,6 +1164,21 @@ pub extern "C" fn iw_scene_check(json_ptr: *const u8, json_len: usize) -> i32 {
     ok_json(&problems)
 }
 
+/// The scene format's ranges (`inkwarp_core::limits`), which the editor's fields hold what
+/// they take to, so that a value a field takes is one a scene may hold: `{"max_coord_px",
+/// "max_time_s", "min_fps", "max_fps", "max_frames"}`. Status 0.
+#[no_mangle]
+pub extern "C" fn iw_limits() -> i32 {
+    use inkwarp_core::limits::{MAX_COORD_PX, MAX_FPS, MAX_FRAMES, MAX_TIME_S, MIN_FPS};
+    ok_json(&serde_json::json!({
+        "max_coord_px": MAX_COORD_PX,
+        "max_time_s": MAX_TIME_S,
+        "min_fps": MIN_FPS,
+        "max_fps": MAX_FPS,
+        "max_frames": MAX_FRAMES,
+    }))
+}
+
 /// The field methods of DESIGN §6 and whether this build computes them, as
 /// `[{"name", "available"}]` in the scene format's names and in the order comparisons show
 /// them. Status 0.
@@ -1189,6 +1204,15 @@ mod tests {
 
     fn result() -> serde_json::Value {
         serde_json::from_slice(view(crate::iw_result_ptr(), crate::iw_result_len())).unwrap()
+    }
+
+    #[test]
+    fn the_limits_are_the_cores() {
+        use inkwarp_core::limits::*;
+        assert_eq!(iw_limits(), 0);
+        let want = serde_json::json!({"max_coord_px": MAX_COORD_PX, "max_time_s": MAX_TIME_S,
+            "min_fps": MIN_FPS, "max_fps": MAX_FPS, "max_frames": MAX_FRAMES});
+        assert_eq!(result(), want);
     }
 
     /// A pulled point, a held one and a held border at grid step 4; `pull` moves the first.
