@@ -1439,6 +1439,54 @@ test('a line being drawn: Save finishes it first (or says it is not saved); leav
   }
 });
 
+test('a save cut off by a reload: no download as the page goes, the file it wrote is not offered back as unsaved, nor a conflict', async () => {
+  const scenePath = checkerScene('cutoff.json');
+  const own = await startServer([scenePath]);
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  try {
+    const downloads = [];
+    p.on('download', (d) => downloads.push(d.suggestedFilename()));
+    await p.keyboard.press('r');
+    await p.keyboard.press('p');
+    await click(p, [40, 40]);
+    await idle(p);
+    await flush(p);
+    // The save reaches the server and writes the file; its answer is held back until the
+    // page is reloaded, which cuts the request off (as a reload right after Ctrl+S does).
+    let written;
+    const wrote = new Promise((r) => (written = r));
+    await p.route('**/*', async (route) => {
+      if (route.request().method() !== 'PUT') return route.continue();
+      await route.fetch();
+      written();
+    });
+    await p.keyboard.press('Control+s');
+    await wrote;
+    assert(JSON.parse(readFileSync(scenePath, 'utf8')).features.length === 1, 'the save wrote the file');
+    await p.reload();
+    await p.waitForSelector('body[data-ready]');
+    await p.unroute('**/*');
+    await p.waitForTimeout(1500);
+    assert(downloads.length === 0, `nothing downloaded as the page went: ${downloads}`);
+    assert((await p.$('#restore')) === null, 'the work the file holds is not offered back');
+    const shown = await p.evaluate(() => ({ unsaved: window.inkwarp.store.unsaved, features: window.inkwarp.store.doc.features.length, title: document.title }));
+    assert(!shown.unsaved && shown.features === 1 && !shown.title.startsWith('●'), `the file is shown, saved: ${JSON.stringify(shown)}`);
+    // The next save is no conflict with "another tab or program".
+    p.dialogs.length = 0;
+    await p.keyboard.press('r');
+    await p.keyboard.press('p');
+    await click(p, [60, 60]);
+    await p.keyboard.press('Control+s');
+    await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
+    assert(!p.dialogs.includes('confirm'), `no conflict asked: ${p.dialogs}`);
+    assert(JSON.parse(readFileSync(scenePath, 'utf8')).features.length === 2, 'saved');
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
 test('work kept over a server restart takes the picture retouched on disk since, and saves it by its path', async () => {
   const scenePath = checkerScene('retouched.json');
   const picture = join(dirname(scenePath), 'checker.png');

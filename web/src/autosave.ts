@@ -4,7 +4,7 @@
 // The storage is behind a small interface so the logic is tested without a browser; the
 // page uses IndexedDB, where a scene with photographs (tens of megabytes) fits.
 
-import type { Pt, SceneDoc } from './scene';
+import { serializeScene, type Pt, type SceneDoc } from './scene';
 import type { Mode, Tool } from './state';
 
 /** The layer keys that hold pictures. */
@@ -236,6 +236,23 @@ export async function inlineImages(doc: SceneDoc, inline: Inliner): Promise<Scen
     }),
   );
   return { ...doc, layers };
+}
+
+/** The scene as a file holds it, its keys in one order: two documents saved alike compare equal. */
+function canonical(doc: SceneDoc): string {
+  const sorted = (v: unknown): unknown => Array.isArray(v) ? v.map(sorted)
+    : v && typeof v === 'object' ? Object.fromEntries(Object.entries(v).filter(([, x]) => x !== undefined).sort(([a], [b]) => (a < b ? -1 : a > b ? 1 : 0)).map(([k, x]) => [k, sorted(x)]))
+    : v;
+  return JSON.stringify(sorted(JSON.parse(serializeScene(doc))));
+}
+
+/**
+ * Whether kept work holds nothing its file does not (`file`: the scene as the page opened it
+ * from the file, pictures inlined as kept work has them): a save that reached the file as the
+ * page was left, its answer never seen, left the work kept as unsaved.
+ */
+export function sameScene(kept: SceneDoc, file: SceneDoc): boolean {
+  return canonical(kept) === canonical(file);
 }
 
 /** A short mark of each layer's pictures (by layer name and key), to tell one changed. */

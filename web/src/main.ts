@@ -2,7 +2,7 @@
 // solving), builds the page, and opens the scene named in the URL or the built-in example.
 
 import { App } from './app';
-import { Autosaver, IndexedDbStore, MemoryStore, type Snapshot, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureMarks, restorePictures, restoreQuestion } from './autosave';
+import { Autosaver, IndexedDbStore, MemoryStore, type Snapshot, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureMarks, restorePictures, restoreQuestion, sameScene } from './autosave';
 import { Engine } from './engine';
 import { builtinScene } from './examples';
 import * as examples from './examples';
@@ -171,6 +171,16 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
     }
   }
   const own = (previous?.source ?? null) === source;
+  // Work its file already holds (a save that reached the file as the page was left, a reload
+  // right after Ctrl+S: its answer was never seen) is not offered: the page shows the file,
+  // whose version a later save starts from (no conflict with the user's own save). A line
+  // being drawn is in no file: work kept with one is offered.
+  if (previous?.unsaved && own && openedDoc && !previous.view?.draft?.length && sameScene(previous.doc, openedDoc)) {
+    if (claimed) await kept.drop(claimed).catch(() => {});
+    else await kept.clear().catch(() => {});
+    release?.();
+    [previous, claimed, release] = [null, null, null];
+  }
   const more = left.length > 1 ? ` (${left.length - 1} more kept from other tabs: open the editor again to be offered them)` : '';
   // Edits made while the offer waits are kept too, apart: under a key of their own that this
   // tab holds, so the offered copy is not written over, and a crash leaves them to be

@@ -214,6 +214,10 @@ export class Ui {
     this.bindPointer();
     this.bindZoomPan();
     this.bindDrop();
+    // When the page was last asked to be left, and whether it is going (see `saveNow`).
+    window.addEventListener('beforeunload', () => (this.leaving.askedAt = performance.now()));
+    window.addEventListener('pagehide', () => (this.leaving.gone = true));
+    window.addEventListener('pageshow', () => (this.leaving.gone = false));
     void listExamples().then((list) => {
       this.examples = list;
       this.refresh(true);
@@ -1800,12 +1804,15 @@ export class Ui {
     }
   }
 
+  /** When the page was last asked to be left (`performance.now()`), and whether it is going. */
+  private leaving = { askedAt: -Infinity, gone: false };
+
   /**
    * Saves the scene where it came from: a scene `inkwarp edit` serves goes back to its
    * file, unless the file changed since it was read (another tab or program: the user
    * chooses whether to overwrite it); any other scene downloads. A save that could not
    * write the file leaves the work unsaved (the browser keeps its copy) and downloads a
-   * copy.
+   * copy (not one cut off by leaving the page, which may have written it).
    */
   save(): Promise<void> {
     // A feature being drawn (points clicked, Enter not yet pressed) is finished first, as
@@ -1855,6 +1862,14 @@ export class Ui {
         this.keptCopies.clear(); // written beside their files: the scene names them now
         this.message(`Saved to ${saved === null ? where : decodeURIComponent(saved)}${said ? `; ${decodeURIComponent(said)}` : ''}.${note}`, note ? 'error' : 'info');
       } catch (err) {
+        // A request cut off by leaving the page (a reload or a closed tab right after
+        // Ctrl+S) may well have written the file: no copy is downloaded as the page goes (the
+        // next page shows the file, and offers the kept work only where the file lacks it).
+        // A page that stays (its "Leave site?" answered Cancel) goes on as below.
+        if (err instanceof TypeError && performance.now() - this.leaving.askedAt < 5000) {
+          await new Promise((r) => setTimeout(r, 1000));
+          if (this.leaving.gone) return;
+        }
         download(blob(), origin.fileName);
         // The page a restarted server opens offers this tab's kept changes once this tab is closed.
         const next = stale ? ' To save into the file, close this tab, then open (or reload) the URL the running inkwarp edit printed: it offers these changes.' : '';

@@ -1,5 +1,5 @@
 import { describe, expect, it, vi } from 'vitest';
-import { Autosaver, MemoryStore, clockTime, inlineImages, pictureMarks, restorePictures, restoreQuestion } from '../src/autosave';
+import { Autosaver, MemoryStore, clockTime, sameScene, inlineImages, pictureMarks, restorePictures, restoreQuestion } from '../src/autosave';
 import { emptyScene, type SceneDoc } from '../src/scene';
 import { Store, copyKeys, moveKey, moveKeys, neighbourKeys, pasteKeys, setKey, toggleKeyRef } from '../src/state';
 
@@ -94,6 +94,17 @@ describe('autosave', () => {
     expect(shared.get(key)).toEqual(refused);
     // Another load of the page (this tab's key) finds it among the work left.
     expect((await new MemoryStore('tab', shared).left()).map((l) => l.snapshot)).toEqual([refused]);
+  });
+
+  it('kept work its file already holds is told apart from work the file lacks', () => {
+    const doc = scene();
+    doc.features.push({ id: 'p1', kind: 'point', rest: [[10.622000000000002, 3]] } as SceneDoc['features'][number]);
+    // The file as the server wrote it: its keys in another order, points to a millionth.
+    const { features: _, ...rest } = doc;
+    const file = JSON.parse(JSON.stringify({ features: [{ rest: [[10.622, 3]], kind: 'point', id: 'p1' }], ...rest, layers: doc.layers.map((l) => ({ image: l.image, ...l })) }));
+    expect(sameScene(doc, file)).toBe(true);
+    expect(sameScene({ ...doc, duration: doc.duration + 1 }, file)).toBe(false);
+    expect(sameScene({ ...doc, features: [] }, file)).toBe(false);
   });
 
   it('restored work takes the pictures retouched on disk since, and keeps those it changed itself', () => {
