@@ -337,3 +337,28 @@ def test_cli_prints_the_fold_warning_on_one_line_and_writes_the_scene(tmp_path, 
     assert code == 0 and (tmp_path / "o.json").exists()
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith('inkwarp transfer: warning: ') and '"brow"' in err
+
+
+@pytest.mark.parametrize("case", ["magnified past the limit", "target at one place"])
+def test_a_transfer_that_cannot_make_a_scene_is_refused_not_written(tmp_path, capsys, case):
+    # A target drawn 2000 times larger than its source magnified a 900 px move to 1.8e6 px:
+    # the scene was written (exit 0) and then refused by validate and render. A target whose
+    # matched points all lie at one place sent every move there, with a warning about
+    # features traced the other way round.
+    source = face_scene()
+    source["features"][0]["keys"] = [{"t": 1.0, "points": [[960, 50]]}]
+    if case == "magnified past the limit":
+        target = retraced(source, lambda p: p * 2000.0)
+        expect = "the key of 'nose' at t = 1 s maps to (1.92e+06, 100000) on the target (features[0].keys[0])"
+    else:
+        source["features"].pop()  # (a cut of zero length would be refused first)
+        target = retraced(source, lambda p: np.array([40.0, 30.0]))
+        expect = "every control point of the target's matched features lies at (40, 30)"
+    target["width"] = target["height"] = 256
+    (tmp_path / "s.json").write_text(json.dumps(source))
+    (tmp_path / "t.json").write_text(json.dumps(target))
+    code = main(["transfer", "--source", str(tmp_path / "s.json"), "--target", str(tmp_path / "t.json"),
+                 "-o", str(tmp_path / "o.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and expect in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.json", "t.json"]

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import copy
 import json
+import math
 import os
 import re
 import warnings
@@ -141,12 +142,32 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
     src_doc, _ = _load(source, "source")
     tgt_doc, tgt_base = _load(target, "target")
     src_features, tgt_features = _features(src_doc, "source"), _features(tgt_doc, "target")
+    name = lambda scene, role: os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else f"the {role} scene"  # noqa: E731
+    files = f"{name(source, 'source')} → {name(target, 'target')}"
     try:
         new_keys = _inkwarp.transfer_keys(src_features, tgt_features)
     except ValueError as err:
         # The engine names the feature and its places; the files they are in come first.
-        name = lambda scene, role: os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else f"the {role} scene"  # noqa: E731
-        raise ValueError(f"{name(source, 'source')} → {name(target, 'target')}: {err}") from None
+        raise ValueError(f"{files}: {err}") from None
+    # A target drawing whose matched points all lie at one place sends every move there.
+    matched = {fid for fid, _, _, _ in src_features}
+    placed = [p for fid, _, rest, _ in tgt_features if fid in matched for p in rest]
+    if len(placed) > 1 and max(math.dist(p, placed[0]) for p in placed) <= 0.5:
+        raise ValueError(f"{files}: every control point of the target's matched features lies at "
+                         f"({placed[0][0]:g}, {placed[0][1]:g}), so the map would send all of the source's "
+                         "motion to that one place; trace the target's features over the parts of its picture "
+                         "they match")
+    # Mapped keys must fit a scene: a target drawn far larger than the source magnifies its moves.
+    for i, (feature, keys) in enumerate(zip(tgt_doc["features"], new_keys)):
+        for k, points in enumerate(keys or []):
+            far = next((p for p in points if not all(math.isfinite(v) and abs(v) <= _inkwarp.MAX_COORD_PX for v in p)), None)
+            if far is not None:
+                t = _key_time(src_doc, str(feature["id"]), k)
+                raise ValueError(f"{files}: the key of {feature['id']!r} at t = {t:g} s maps to ({far[0]:.6g}, "
+                                 f"{far[1]:.6g}) on the target (features[{i}].keys[{k}]), farther than the "
+                                 f"{_inkwarp.MAX_COORD_PX:g} px from the origin a scene may hold: the target's "
+                                 "drawing is so much larger than the source's that the map magnifies its motion "
+                                 "past that; match drawings of like size")
     fold = _inkwarp.transfer_fold(src_features, tgt_features)
     if fold is not None:
         warnings.warn(fold[3], InkwarpWarning, stacklevel=2)
@@ -165,6 +186,12 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
         tgt_doc["duration"] = max(_length(src_doc), _length(tgt_doc))
     _rebase_images(tgt_doc, tgt_base, Path(relative_to).resolve() if relative_to is not None else None)
     return tgt_doc
+
+
+def _key_time(doc: dict[str, Any], fid: str, k: int) -> float:
+    """The time of key ``k`` of feature ``fid`` in a scene document."""
+    feature = next(f for f in doc["features"] if str(f["id"]) == fid)
+    return float(feature["keys"][k]["t"])
 
 
 def _length(doc: dict[str, Any]) -> float:
@@ -196,7 +223,8 @@ def transfer(source: Any, target: Any) -> Any:
     ------
     ValueError
         A source feature missing from the target, of another kind, or with another
-        number of control points (the message names it).
+        number of control points (the message names it); a target whose matched points
+        all lie at one place; a key mapped farther than a scene may hold (1e6 px).
     """
     from inkwarp import Scene
 
