@@ -600,3 +600,20 @@ def test_new_names_every_option_past_the_limits_at_once(capsys, tmp_path):
     code, _, err = run(capsys, "new", psd, "-o", tmp_path / "c.json", "--fps", "5000", "--duration", "1e9")
     assert code == 2 and "--fps 5000: frames per second may be at most 1000" in err, err
     assert "--duration 1e+09: the duration may be at most" in err and "\n  duration" not in err, err
+
+
+def test_validate_notes_a_picture_whose_colour_profile_is_not_applied(capsys, tmp_path):
+    # A scene written by hand that points at a Display P3 picture renders it duller than a
+    # viewer shows it, without a word; `inkwarp new` converts such a picture, validate notes it.
+    Image.fromarray(np.full((16, 24, 3), (230, 30, 30), np.uint8)).save(tmp_path / "phone.png",
+                                                                      icc_profile=_display_p3_profile())
+    Image.fromarray(np.full((16, 24, 3), 200, np.uint8)).save(tmp_path / "plain.png")
+    doc = {"inkwarp": 1, "fps": 4, "duration": 1, "layers": [{"name": "bg", "image": "plain.png"},
+                                                             {"name": "face", "image": "phone.png"}]}
+    (tmp_path / "s.json").write_text(json.dumps(doc))
+    code, out, _ = run(capsys, "validate", tmp_path / "s.json")
+    assert code == 0
+    assert out.splitlines()[1:] == [f"note: {tmp_path / 's.json'}: layers[1].image: layer 'face''s picture carries a "
+                                    "colour profile (Display P3) that inkwarp does not apply: its numbers render as "
+                                    "sRGB, duller than a viewer shows them; convert the picture to sRGB (inkwarp new "
+                                    "does so)"]

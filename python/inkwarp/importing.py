@@ -182,13 +182,18 @@ def _foreign_profile(image: Any) -> bytes | None:
     icc = image.info.get("icc_profile")
     if not icc or image.mode not in ("RGB", "RGBA"):
         return None
+    name = profile_name(icc)
+    return None if name is not None and "srgb" in name.lower() else icc
+
+
+def profile_name(icc: bytes) -> str | None:
+    """The description of an ICC profile, or None where it cannot be read."""
     from PIL import ImageCms
 
     try:
-        name = ImageCms.getProfileDescription(ImageCms.ImageCmsProfile(io.BytesIO(icc)))
+        return ImageCms.getProfileDescription(ImageCms.ImageCmsProfile(io.BytesIO(icc))).strip() or "unnamed"
     except (OSError, ValueError, TypeError, ImageCms.PyCMSError):
-        return icc  # unreadable: said by `_to_srgb`
-    return None if "srgb" in name.lower() else icc
+        return None
 
 
 def _to_srgb(image: Any, icc: bytes) -> tuple[Any, str]:

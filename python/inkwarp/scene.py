@@ -792,10 +792,11 @@ class Scene:
         """What in this scene is allowed but probably a mistake, as ``(JSON path, message)``:
         a feature drawn wholly off the picture (it moves and tears nothing), one drawn wholly
         on holes of the layers it drives (transparent pixels, by default: the solver drops
-        its samples, so it pins nothing; judged on the visible layers it drives, at ``grid_step`` 1
-        only), a key after the
-        scene's end (no frame shows it), a feature that drives no layer, a line, curve or
-        region whose points are all at one place, a region with no area. ``inkwarp validate``
+        its samples, so it pins nothing; judged on the visible layers it drives, at
+        ``grid_step`` 1 only), a key after the scene's end (no frame shows it), a feature that
+        drives no layer, a line, curve or region whose points are all at one place, a region
+        with no area, a layer picture with a colour profile other than sRGB's (not applied:
+        it renders duller than a viewer shows it). ``inkwarp validate``
         prints them as notes after its "ok"; a scene with notes renders as any other (a
         feature off the picture may be there on purpose, as a correspondence point for
         :func:`inkwarp.transfer`).
@@ -850,7 +851,32 @@ class Scene:
                               "it holds nothing inside, only its outline, as a polyline does; trace around what "
                               "it should hold"))
         # By feature, each one's keys last.
-        return sorted(notes + self._late_keys(doc), key=lambda note: int(note[0].split("[")[1].split("]")[0]))
+        return sorted(notes + self._late_keys(doc), key=lambda note: int(note[0].split("[")[1].split("]")[0])) \
+            + self._profile_notes(layers)
+
+    def _profile_notes(self, layers: list[dict[str, Any]]) -> list[Problem]:
+        """Notes on layer pictures (files, not ``data:`` URIs) in a colour space other than
+        sRGB, whose profile the engine does not apply."""
+        from PIL import Image
+
+        from inkwarp.importing import _foreign_profile, profile_name
+
+        notes: list[Problem] = []
+        for j, layer in enumerate(layers):
+            reference = layer.get("image")
+            if not isinstance(reference, str) or reference[:5].lower() == "data:":
+                continue
+            try:
+                with Image.open(Path(self.base_dir or ".") / reference) as image:
+                    icc = _foreign_profile(image)
+            except (OSError, ValueError, SyntaxError):
+                continue
+            if icc is not None:
+                notes.append((f"layers[{j}].image", f"layer {layer.get('name')!r}'s picture carries a colour profile "
+                              f"({profile_name(icc) or 'unreadable'}) that inkwarp does not apply: its numbers render "
+                              "as sRGB, duller than a viewer shows them; convert the picture to sRGB (inkwarp new "
+                              "does so)"))
+        return notes
 
     def _late_keys(self, doc: dict[str, Any] | None = None) -> list[Problem]:
         """The notes on keys after the scene's end (:meth:`notes`); ``inkwarp render`` gives
