@@ -78,6 +78,9 @@ class FrameIter:
 
 def scene_schema() -> str: ...
 def scene_problems(text: str, base_dir: str | None = None) -> list[tuple[str, str]]: ...
+def video_kind(data: bytes) -> str | None:
+    """The kind of video the bytes start as ("MP4", "MOV", "WebM", "Matroska", "AVI"), or None
+    (a HEIC or AVIF picture is not one)."""
 
 # --- render (forward mapping) ---
 def warp_image(

@@ -229,8 +229,10 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
 
 def upright(image: Any) -> Any:
     """A Pillow image turned upright by the orientation in its EXIF block (a JPEG's APP1, a
-    PNG's eXIf chunk), as the engine reads pictures; an orientation written elsewhere (XMP,
-    a PNG text chunk) is read by neither."""
+    PNG's eXIf chunk), as viewers show it; an orientation written elsewhere (XMP, a PNG text
+    chunk) is not read. For the pictures other than PNG and JPEG (the engine decodes those
+    itself, reading an Orientation only where it is stored as a SHORT, and a PNG's eXIf only
+    before its pixels: :func:`read_image`)."""
     from PIL import Image
 
     raw = image.info.get("exif")

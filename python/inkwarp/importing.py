@@ -101,11 +101,10 @@ def read_picture(path: str | os.PathLike[str]) -> Picture:
         return _read_psd(source)
     if suffix in FLAT_SUFFIXES:
         return _read_flat(source)
-    from inkwarp.scene import _picture_kind, _video_kind
+    from inkwarp.scene import _video_kind
 
     with open(source, "rb") as file:
-        head = file.read(64)
-    video = None if _picture_kind(head) else _video_kind(head)
+        video = _video_kind(file.read(64))
     if video:
         raise ValueError(f"{source}: {'an' if video in ('MP4', 'AVI') else 'a'} {video} video, not a picture; "
                          f"take the frame to trace from it (inkwarp frame {source} --frame 0 -o frame.png) and "
@@ -163,7 +162,7 @@ def _read_flat(source: Path) -> Picture:
                 image.load()
                 shown = upright(image)
                 if profile is not None:
-                    shown, said = _to_srgb(shown, profile)
+                    shown, said = _to_srgb(shown, *profile)
                     notes.append(f"{source}: {said}")
                 rgba = rgba_pixels(shown)
             else:
@@ -177,37 +176,36 @@ def _read_flat(source: Path) -> Picture:
     return Picture(width, height, [PictureLayer(source.stem, rgba, True, kept)], notes)
 
 
-def _foreign_profile(image: Any) -> bytes | None:
-    """The ICC profile of an RGB(A) Pillow image where it is not sRGB's, else None."""
+def _foreign_profile(image: Any) -> tuple[Any, str | None] | None:
+    """The ICC profile of an RGB(A) Pillow image where it is not sRGB's, read, with its
+    description (where it cannot be read: why, and None); else None."""
+    from PIL import ImageCms
+
     icc = image.info.get("icc_profile")
     if not icc or image.mode not in ("RGB", "RGBA"):
         return None
-    name = profile_name(icc)
-    return None if name is not None and "srgb" in name.lower() else icc
-
-
-def profile_name(icc: bytes) -> str | None:
-    """The description of an ICC profile, or None where it cannot be read."""
-    from PIL import ImageCms
-
     try:
-        return ImageCms.getProfileDescription(ImageCms.ImageCmsProfile(io.BytesIO(icc))).strip() or "unnamed"
-    except (OSError, ValueError, TypeError, ImageCms.PyCMSError):
-        return None
+        profile = ImageCms.ImageCmsProfile(io.BytesIO(icc))
+        name = ImageCms.getProfileDescription(profile).strip() or "unnamed"
+    except (OSError, ValueError, TypeError, ImageCms.PyCMSError) as err:
+        return " ".join(str(err).split()), None
+    return None if "srgb" in name.lower() else (profile, name)
 
 
-def _to_srgb(image: Any, icc: bytes) -> tuple[Any, str]:
-    """``image`` converted from the profile ``icc`` to sRGB (alpha kept), and what was done."""
+def _to_srgb(image: Any, profile: Any, name: str | None) -> tuple[Any, str]:
+    """``image`` converted from ``profile`` (see :func:`_foreign_profile`) to sRGB (alpha
+    kept), and what was done."""
     from PIL import Image, ImageCms
 
+    unreadable = lambda why: (image, f"its colour profile cannot be read ({why}); its colours are taken as "  # noqa: E731
+                              "sRGB, which may shift them: convert it to sRGB in the painting app")
+    if name is None:
+        return unreadable(profile)
     try:
-        source = ImageCms.ImageCmsProfile(io.BytesIO(icc))
-        name = ImageCms.getProfileDescription(source).strip() or "unnamed"
-        rgb = ImageCms.profileToProfile(image.convert("RGB"), source, ImageCms.createProfile("sRGB"),
+        rgb = ImageCms.profileToProfile(image.convert("RGB"), profile, ImageCms.createProfile("sRGB"),
                                         renderingIntent=ImageCms.Intent.RELATIVE_COLORIMETRIC, outputMode="RGB")
     except (OSError, ValueError, TypeError, ImageCms.PyCMSError) as err:
-        return image, (f"its colour profile cannot be read ({' '.join(str(err).split())}); its colours are "
-                       "taken as sRGB, which may shift them: convert it to sRGB in the painting app")
+        return unreadable(" ".join(str(err).split()))
     if image.mode == "RGBA":
         rgb.putalpha(image.getchannel("A"))
     return (rgb if isinstance(rgb, Image.Image) else image,

@@ -325,12 +325,9 @@ def _picture_kind(data: bytes) -> str | None:
 
 
 def _video_kind(data: bytes) -> str | None:
-    """The kind of video ``data`` starts as (MP4 or MOV, WebM or Matroska, AVI), or None."""
-    if data[4:8] == b"ftyp":
-        return "MOV" if data[8:10] == b"qt" else "MP4"
-    if data.startswith(b"\x1a\x45\xdf\xa3"):
-        return "WebM" if b"webm" in data[:64] else "Matroska"
-    return "AVI" if data[:4] == b"RIFF" and data[8:12] == b"AVI " else None
+    """The kind of video ``data`` starts as (MP4, MOV, WebM, Matroska, AVI), or None, by the
+    engine's rule (a HEIC or AVIF picture is not one)."""
+    return _inkwarp.video_kind(data)
 
 
 #: The engine's warm-start chain length (``WARM_CHAIN_FRAMES`` in the core's scene engine):
@@ -850,16 +847,15 @@ class Scene:
                 notes.append((f"features[{i}].rest", f"{name!r}, a region, has no area (its points lie on one line): "
                               "it holds nothing inside, only its outline, as a polyline does; trace around what "
                               "it should hold"))
-        # By feature, each one's keys last.
-        return sorted(notes + self._late_keys(doc), key=lambda note: int(note[0].split("[")[1].split("]")[0])) \
-            + self._profile_notes(layers)
+            notes += self._late_keys_of(i, feature)
+        return notes + self._profile_notes(layers)
 
     def _profile_notes(self, layers: list[dict[str, Any]]) -> list[Problem]:
         """Notes on layer pictures (files, not ``data:`` URIs) in a colour space other than
         sRGB, whose profile the engine does not apply."""
         from PIL import Image
 
-        from inkwarp.importing import _foreign_profile, profile_name
+        from inkwarp.importing import _foreign_profile
 
         notes: list[Problem] = []
         for j, layer in enumerate(layers):
@@ -868,29 +864,29 @@ class Scene:
                 continue
             try:
                 with Image.open(Path(self.base_dir or ".") / reference) as image:
-                    icc = _foreign_profile(image)
+                    profile = _foreign_profile(image)
             except (OSError, ValueError, SyntaxError):
                 continue
-            if icc is not None:
+            if profile is not None:
                 notes.append((f"layers[{j}].image", f"layer {layer.get('name')!r}'s picture carries a colour profile "
-                              f"({profile_name(icc) or 'unreadable'}) that inkwarp does not apply: its numbers render "
+                              f"({profile[1] or 'unreadable'}) that inkwarp does not apply: its numbers render "
                               "as sRGB, duller than a viewer shows them; convert the picture to sRGB (inkwarp new "
                               "does so)"))
         return notes
 
-    def _late_keys(self, doc: dict[str, Any] | None = None) -> list[Problem]:
+    def _late_keys(self) -> list[Problem]:
         """The notes on keys after the scene's end (:meth:`notes`); ``inkwarp render`` gives
         them too, since they cut the animation short."""
-        notes: list[Problem] = []
+        return [note for i, feature in enumerate(self.to_dict().get("features", [])) for note in self._late_keys_of(i, feature)]
+
+    def _late_keys_of(self, i: int, feature: dict[str, Any]) -> list[Problem]:
+        """The notes on the keys of ``feature`` (``features[i]``) after the scene's end."""
         duration = self.duration
-        for i, feature in enumerate((doc or self.to_dict()).get("features", [])):
-            for k, key in enumerate(feature.get("keys", [])):
-                if key["t"] > duration + 1e-9:
-                    notes.append((f"features[{i}].keys[{k}].t",
-                                  f"{feature['id']!r} has a key at {key['t']:g} s, after the scene's end ({duration:g} s): "
-                                  f"no frame shows it, the frames before it show the move toward it; a duration of "
-                                  f"{key['t'] + 1 / self.fps:g} s ends on it, or move the key"))
-        return notes
+        return [(f"features[{i}].keys[{k}].t",
+                 f"{feature['id']!r} has a key at {key['t']:g} s, after the scene's end ({duration:g} s): "
+                 f"no frame shows it, the frames before it show the move toward it; a duration of "
+                 f"{key['t'] + 1 / self.fps:g} s ends on it, or move the key")
+                for k, key in enumerate(feature.get("keys", [])) if key["t"] > duration + 1e-9]
 
     def validate(self) -> list[Problem]:
         """Every problem of this scene's document now (images are read again).

@@ -157,12 +157,13 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
                          f"({placed[0][0]:g}, {placed[0][1]:g}), so the map would send all of the source's "
                          "motion to that one place; trace the target's features over the parts of its picture "
                          "they match")
+    by_id = {str(f["id"]): f for f in src_doc["features"]}
     # Mapped keys must fit a scene: a target drawn far larger than the source magnifies its moves.
     for i, (feature, keys) in enumerate(zip(tgt_doc["features"], new_keys)):
         for k, points in enumerate(keys or []):
             far = next((p for p in points if not all(math.isfinite(v) and abs(v) <= _inkwarp.MAX_COORD_PX for v in p)), None)
             if far is not None:
-                t = _key_time(src_doc, str(feature["id"]), k)
+                t = float(by_id[str(feature["id"])]["keys"][k]["t"])
                 raise ValueError(f"{files}: the key of {feature['id']!r} at t = {t:g} s maps to ({far[0]:.6g}, "
                                  f"{far[1]:.6g}) on the target (features[{i}].keys[{k}]), farther than the "
                                  f"{_inkwarp.MAX_COORD_PX:g} px from the origin a scene may hold: the target's "
@@ -171,7 +172,6 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
     fold = _inkwarp.transfer_fold(src_features, tgt_features)
     if fold is not None:
         warnings.warn(fold[3], InkwarpWarning, stacklevel=2)
-    by_id = {str(f["id"]): f for f in src_doc["features"]}
     for feature, keys in zip(tgt_doc["features"], new_keys):
         if keys is None:
             continue
@@ -186,12 +186,6 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
         tgt_doc["duration"] = max(_length(src_doc), _length(tgt_doc))
     _rebase_images(tgt_doc, tgt_base, Path(relative_to).resolve() if relative_to is not None else None)
     return tgt_doc
-
-
-def _key_time(doc: dict[str, Any], fid: str, k: int) -> float:
-    """The time of key ``k`` of feature ``fid`` in a scene document."""
-    feature = next(f for f in doc["features"] if str(f["id"]) == fid)
-    return float(feature["keys"][k]["t"])
 
 
 def _length(doc: dict[str, Any]) -> float:

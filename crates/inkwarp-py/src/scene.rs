@@ -83,7 +83,8 @@ fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>,
         }
         let bytes = std::fs::read(&full).map_err(describe)?;
         if let Some(video) = video_kind(&bytes) {
-            return Err(format!("{} is {video} video, not a picture; take the frame you want from it \
+            let an = if matches!(video, "MP4" | "AVI") { "an" } else { "a" };
+            return Err(format!("{} is {an} {video} video, not a picture; take the frame you want from it \
                                 (inkwarp frame {} --frame N -o frame.png) and give that", full.display(), full.display()));
         }
         if jpeg_cut_short(&bytes) {
@@ -95,17 +96,19 @@ fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>,
     }
 }
 
-/// The kind of video `bytes` start as ("an MP4", "a MOV", "a WebM", "a Matroska", "an AVI"), or None. An ISO
-/// file whose brand is a picture's (HEIC, AVIF) is not one.
-fn video_kind(bytes: &[u8]) -> Option<&'static str> {
+/// The kind of video `bytes` start as (MP4, MOV, WebM, Matroska, AVI), or None: the one rule the file
+/// loader and the Python front end (`inkwarp.scene._video_kind`) tell a video by. An ISO file whose brand
+/// is a picture's (HEIC, AVIF) is not one.
+#[pyfunction]
+pub(crate) fn video_kind(bytes: &[u8]) -> Option<&'static str> {
     let brand = bytes.get(8..12).unwrap_or_default();
     if bytes.get(4..8) == Some(b"ftyp") && ![&b"heic"[..], b"heix", b"mif1", b"msf1", b"avif", b"avis"].contains(&brand) {
-        return Some(if brand.starts_with(b"qt") { "a MOV" } else { "an MP4" });
+        return Some(if brand.starts_with(b"qt") { "MOV" } else { "MP4" });
     }
     if bytes.starts_with(&[0x1A, 0x45, 0xDF, 0xA3]) {
-        return Some(if bytes[..bytes.len().min(64)].windows(4).any(|w| w == b"webm") { "a WebM" } else { "a Matroska" });
+        return Some(if bytes[..bytes.len().min(64)].windows(4).any(|w| w == b"webm") { "WebM" } else { "Matroska" });
     }
-    (bytes.starts_with(b"RIFF") && brand == b"AVI ").then_some("an AVI")
+    (bytes.starts_with(b"RIFF") && brand == b"AVI ").then_some("AVI")
 }
 
 /// Whether `bytes` start as a JPEG whose marker segments and scans run out before its
@@ -520,5 +523,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<FrameIter>()?;
     m.add_function(wrap_pyfunction!(scene_schema, m)?)?;
     m.add_function(wrap_pyfunction!(scene_problems, m)?)?;
+    m.add_function(wrap_pyfunction!(video_kind, m)?)?;
     Ok(())
 }

@@ -378,30 +378,21 @@ enum Rank {
 impl Rank {
     /// The rank of a fragment at rest position (`x`, `y`) in the frame drawn.
     fn at(self, x: f64, y: f64) -> u32 {
-        match self {
-            Rank::Block(order) => order,
-            Rank::Rest {
-                width,
-                height,
-                shrink,
-            } => {
-                let layer = |v: f64| ((v + 0.5) * shrink as f64 - 0.5).floor() as i64;
-                rank(layer(x), layer(y), width, height)
-            }
-        }
+        self.of(|shrink| [x, y].map(|v| ((v + 0.5) * shrink as f64 - 0.5).floor() as i64))
     }
 
     /// [`Rank::at`] a rest position in 16.16 fixed point.
     fn at_fixed(self, x: i32, y: i32) -> u32 {
+        self.of(|shrink| [x, y].map(|v| ((v as i64 + 32768) * shrink as i64 - 32768) >> 16))
+    }
+
+    /// The rank of the layer pixel `pixel(shrink)` gives (the draft's rest position taken to the layer's pixels).
+    fn of(self, pixel: impl FnOnce(usize) -> [i64; 2]) -> u32 {
         match self {
             Rank::Block(order) => order,
-            Rank::Rest {
-                width,
-                height,
-                shrink,
-            } => {
-                let layer = |v: i32| ((v as i64 + 32768) * shrink as i64 - 32768) >> 16;
-                rank(layer(x), layer(y), width, height)
+            Rank::Rest { width, height, shrink } => {
+                let [x, y] = pixel(shrink);
+                rank(x, y, width, height)
             }
         }
     }
