@@ -34,7 +34,7 @@ $(BUILD_STAMP): $(DEPS_STAMP) $(RUST_SOURCES) $(shell find python -type f -not -
 
 build: $(BUILD_STAMP) ## Build the engine and install the Python package into .venv.
 
-demo: build ## Render the still demo and the three examples (GIF, MP4) into out/ and print every path.
+demo: build ## Render the still demo and every example scene (GIF, MP4) into out/ and print every path.
 	$(VENV)/bin/inkwarp demo -o out
 
 test: test-rust test-python test-web test-wheel ## Run every test suite (what CI runs).

@@ -93,6 +93,15 @@ def test_every_problem_is_reported_at_once(tmp_path):
     assert str(caught.value).count("\n") == 5
 
 
+def test_a_misspelt_feature_id_is_matched_to_a_feature_that_could_not_be_read():
+    # "brow" has a misspelt kind, so it is set aside; "brw" in the layer still means it.
+    scene = changed("features/1/kind", "splin")
+    scene["layers"][1]["features"] = ["dot", "brw"]
+    problems = dict(inkwarp.validate_scene(scene))
+    assert 'did you mean "brow"?' in problems["layers[1].features[1]"], problems
+    assert '"spline"' in problems["features[1].kind"], problems
+
+
 def test_invalid_json_gives_line_and_column(tmp_path):
     file = tmp_path / "scene.json"
     file.write_text('{"inkwarp": 1,\n  "layers": [\n}')

@@ -144,10 +144,9 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_
                 if other_ids.contains(id) {
                     continue;
                 } else if !first_with_id.contains_key(id.as_str()) {
-                    let hint = did_you_mean(id, doc.features.iter().map(|f| f.id.as_str()));
-                    let hint = hint.map(|s| format!("did you mean \"{s}\"? ")).unwrap_or_default();
                     let ids = doc.features.iter().map(|f| f.id.as_str());
                     let known: Vec<&str> = ids.chain(other_ids.iter().map(String::as_str)).collect();
+                    let hint = did_you_mean(id, known.iter().copied()).map(|s| format!("did you mean \"{s}\"? ")).unwrap_or_default();
                     let known = if known.is_empty() {
                         "the scene has no features".to_string()
                     } else {
