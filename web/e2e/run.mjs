@@ -1400,6 +1400,80 @@ test('fields refuse what the scene format refuses, saying its range; kept work t
   }
 });
 
+test('a point, a feature, picked points or a layer dragged far off the picture stop where a scene\'s coordinates end: the work kept and the file saved open again', async () => {
+  const scenePath = checkerScene('far.json');
+  const own = await startServer([scenePath]);
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  const shiftClick = async (at) => {
+    await p.keyboard.down('Shift');
+    await click(p, at);
+    await p.keyboard.up('Shift');
+  };
+  try {
+    await tracePoint(p, [20, 20]);
+    for (const line of [[[100, 60], [140, 60]], [[100, 150], [150, 150]]]) {
+      await p.keyboard.press('l');
+      for (const at of line) await click(p, at);
+      await p.keyboard.press('Enter');
+    }
+    await p.keyboard.press('v');
+    // Each far past the 1e6 px a scene's coordinates may reach (the pointer 5e6 px away).
+    await drag(p, [20, 20], [5e6, 5e6], 2);
+    await drag(p, [120, 60], [120 - 5e6, 60], 2); // the first line by its line
+    await shiftClick([100, 150]);
+    await shiftClick([150, 150]);
+    await drag(p, [150, 150], [150, 150 + 5e6], 2); // the second line's two points, picked
+    // The layer, left and down: its offset stops at 1e6 px down, and at none left, where the
+    // point at x = 1e6 would lie past 1e6 px in the layer's own pixels.
+    await p.click('#layer-move');
+    await drag(p, [128, 128], [128 - 5e6, 128 + 5e6], 2);
+    await p.click('#layer-move');
+    await idle(p);
+    const doc = await p.evaluate(() => window.inkwarp.store.doc);
+    const rests = doc.features.map((f) => f.rest);
+    assert(JSON.stringify(rests) === JSON.stringify([[[1e6, 1e6]], [[-1e6, 60], [-1e6 + 40, 60]], [[100, 1e6], [150, 1e6]]]), `each stopped at the edge, the line whole: ${JSON.stringify(rests)}`);
+    assert(JSON.stringify(doc.layers[0].offset) === JSON.stringify([0, 1e6]), `the layer too: ${JSON.stringify(doc.layers[0].offset)}`);
+    // The work kept in the browser opens again, and the file saved validates.
+    await flush(p);
+    await p.reload();
+    await p.waitForSelector('#restore', { timeout: 10000 });
+    await restoreYes(p);
+    await p.keyboard.press('Control+s');
+    await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
+    const check = spawnSync(inkwarp, ['validate', scenePath], { encoding: 'utf8' });
+    assert(check.status === 0, `the saved scene validates: ${check.stdout}${check.stderr}`);
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
+test('kept work whose picture does not open names the picture by its layer, not by a data: URI, and says what to do', async () => {
+  const scenePath = checkerScene('damaged.json');
+  const own = await startServer([scenePath]);
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  try {
+    await tracePoint(p, [40, 40]);
+    await idle(p);
+    // The copy of the picture kept with the work cut short (as a damaged browser store would).
+    await p.evaluate(() => window.inkwarp.store.edit((d) => ({ ...d, layers: [{ ...d.layers[0], image: d.layers[0].image.slice(0, d.layers[0].image.indexOf(',') + 200) }] })));
+    await flush(p);
+    await p.reload();
+    await p.waitForSelector('#restore', { timeout: 10000 });
+    await p.click('#restore-yes');
+    await p.waitForSelector('#unopened', { timeout: 10000 });
+    const said = await p.textContent('#unopened span');
+    assert(/could not be opened: at layers\[0\]\.image: cannot use the picture of layer 'checker' kept with it: /.test(said), `the picture is named by its layer: ${said}`);
+    assert(!/data:image/.test(said), `no data: URI is named: ${said}`);
+    assert(said.includes(`replace that picture's data: URI by the path of its file (from where you save the scene, as ${scenePath} names it), then open it with \`inkwarp edit SCENE\`.`), `it says what to do: ${said}`);
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
 test('a line being drawn: Save finishes it first (or says it is not saved); leaving asks, and it is kept to restore', async () => {
   const scenePath = checkerScene('drawing.json');
   const own = await startServer([scenePath]);
@@ -2188,7 +2262,7 @@ test('frames are solved ahead while the editor is left alone: the ready bar fill
   while (Date.now() - t0 < 120000) {
     const frames = await page.getAttribute('#ready', 'data-frames');
     if (frames && !order.includes(frames)) order.push(frames);
-    if (frames === '1'.repeat(12)) break;
+    if (frames === '0-11') break;
     await page.waitForTimeout(50);
   }
   const ready = Number(await page.getAttribute('#ready', 'data-count'));
@@ -2207,6 +2281,36 @@ test('frames are solved ahead while the editor is left alone: the ready bar fill
   perf.readyPlayback = { readyBefore: before, afterEdit, ...pb };
   assert(pb.expected >= 12, `it played: ${JSON.stringify(pb)}`);
   await screenshot(page, 'ready-bar');
+});
+
+test('the ready bar of a scene of 1e8 frames (the most a scene may have) marks the frames solved ahead, each at least a pixel wide', async () => {
+  await page.evaluate(async () => {
+    const { ui, examples, app } = window.inkwarp;
+    const doc = await examples.builtinScene(96);
+    doc.fps = 1000;
+    doc.duration = 1e5;
+    doc.features = [{ id: 'dot', kind: 'point', rest: [[40, 40]], keys: [{ t: 0, points: [[40, 40]] }, { t: 1e5, points: [[60, 50]] }] }];
+    doc.layers[0].border = 'hold';
+    await ui.openScene(doc, 'long.json');
+    ui.setMode('pose');
+    ui.setTime(5e4);
+    await app.idle();
+  });
+  // Solved ahead nearest the playhead (frame 5e7) first: a run of frames around it (beside
+  // frame 0, solved as the scene opened).
+  await page.waitForFunction(() => Number(document.querySelector('#ready')?.dataset.count) >= 8, null, { timeout: 60000, polling: 250 });
+  const bar = await page.evaluate(() => {
+    const ready = document.querySelector('#ready');
+    const r = ready.getBoundingClientRect();
+    return { frames: ready.dataset.frames, marks: [...ready.children].map((s) => ({ at: (s.getBoundingClientRect().left - r.left) / r.width, px: s.getBoundingClientRect().width })) };
+  });
+  const runs = bar.frames.split(',').map((run) => run.split('-').map(Number));
+  const mid = runs.findIndex(([a, b]) => a < 5e7 && 5e7 < b);
+  assert(mid >= 0 && runs.length <= 2, `a run of frames around the playhead's: ${bar.frames.slice(0, 200)}`);
+  assert(bar.marks.length === runs.length && bar.marks.every((m) => m.px >= 1) && Math.abs(bar.marks[mid].at - 0.5) < 0.005, `a mark a run, a pixel wide at least, the playhead's mid-ruler: ${JSON.stringify(bar.marks)}`);
+  await screenshot(page, 'ready-long');
+  // A short scene again: the fields kept for this one's frames are let go.
+  await page.evaluate(async () => window.inkwarp.ui.openScene(await window.inkwarp.examples.builtinScene(96), 'short.json'));
 });
 
 
@@ -2246,14 +2350,14 @@ test('a frame solved ahead on a grid torn by many cuts is the whole solve\'s; a 
   const allReady = async () => {
     const t0 = Date.now();
     let frames = '';
-    while (Date.now() - t0 < 60000 && frames !== '1'.repeat(6)) {
+    while (Date.now() - t0 < 60000 && frames !== '0-5') {
       await page.waitForTimeout(100);
       frames = await page.getAttribute('#ready', 'data-frames');
     }
     return frames;
   };
   let frames = await allReady();
-  assert(frames === '1'.repeat(6), `every frame was solved ahead: ${frames}`);
+  assert(frames === '0-5', `every frame was solved ahead: ${frames}`);
   // Each cached frame against a solve from scratch to a tight tolerance, on a grid of its own.
   const worst = await page.evaluate(() => {
     const { app, engine } = window.inkwarp;
@@ -2299,7 +2403,7 @@ test('a frame solved ahead on a grid torn by many cuts is the whole solve\'s; a 
   assert(cancelled > 0, 'a press ended the frame being solved ahead');
   // Asked again once the editor is left alone, in a fresh worker.
   frames = await allReady();
-  assert(frames === '1'.repeat(6), `every frame was solved ahead again: ${frames}`);
+  assert(frames === '0-5', `every frame was solved ahead again: ${frames}`);
   perf.aheadTorn = { worstPx: worst, cancelled };
 });
 
@@ -2628,7 +2732,7 @@ test('a 4000×3000 photograph opens as a proxy, drags, and settles to the full-r
       readyFrames = n;
       await p.waitForTimeout(1000);
     }
-    const frameTotal = ((await p.getAttribute('#ready', 'data-frames')) ?? '').length;
+    const frameTotal = await p.evaluate(() => window.inkwarp.scene.frameCount(window.inkwarp.store.doc));
     // Where a played frame's time goes on the page's main thread: the time change (the
     // store's views, the cache's fields to the layers) and the frame's drawing, each timed
     // around its synchronous work, and the animation frames the page got in the 2 s.

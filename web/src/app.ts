@@ -6,7 +6,7 @@ import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse, sparseValuesAt }
 import { decodeImage, forgetImage, matteFromAlpha, matteFromImage, OFF_PAGE_DECODE_BYTES, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
-import { type Layer, type Pt, type SceneDoc, layerFeatures, pointsAt, toLayer } from './scene';
+import { type Layer, type Pt, type SceneDoc, frameRuns, layerFeatures, pointsAt, toLayer } from './scene';
 import type { FieldEvent, FullClient, FullFrame } from './solver';
 import { viewCovers } from './proxy';
 import type { ViewSpec } from './engine';
@@ -678,10 +678,13 @@ export class App {
     if (this.drawnFrames.rev !== rev && this.drawnFrames.frames.size > 0) this.drawnFrames = { rev, spec: '', bytes: 0, frames: new Map() };
   }
 
-  /** Which frames have every layer's field cached, so they play at once (the timeline's ready bar). */
-  readyFrames(): boolean[] {
-    const n = Math.max(1, Math.ceil(this.doc.duration * this.doc.fps - 1e-9));
-    return Array.from({ length: n }, (_, i) => this.cached(i) !== undefined);
+  /**
+   * The frames that have every layer's field cached, so they play at once (the timeline's
+   * ready bar), as runs `[first, last]`: read from the cache, never frame by frame over the
+   * scene (up to 1e8 frames).
+   */
+  readyRuns(): [number, number][] {
+    return frameRuns([...this.cache.frames.keys()].filter((f) => this.cached(f)));
   }
 
   /** How many frames have every layer's field cached for playback. */
@@ -735,16 +738,17 @@ export class App {
     }, AHEAD_IDLE_MS);
   }
 
-  /** The next frames, nearest the playhead first, that are not cached for every layer. */
-  private aheadFrames(): number[] {
+  /**
+   * The next frames, nearest the playhead first, that are not cached for every layer: each
+   * found as it is asked for (a scene may have 1e8 frames, and the first is asked for).
+   */
+  private *aheadFrames(): Generator<number> {
     const n = Math.max(1, Math.ceil(this.doc.duration * this.doc.fps - 1e-9));
     const now = Math.min(n - 1, Math.max(0, Math.round(this.store.view.time * this.doc.fps)));
-    const order: number[] = [];
     for (let d = 0; d < n; d++) {
-      if (now + d < n) order.push(now + d);
-      if (d > 0 && now - d >= 0) order.push(now - d);
+      if (now + d < n && !this.cached(now + d)) yield now + d;
+      if (d > 0 && now - d >= 0 && !this.cached(now - d)) yield now - d;
     }
-    return order.filter((f) => !this.cached(f));
   }
 
   private solveAhead(): void {

@@ -332,6 +332,32 @@ export function restoreQuestion(s: Snapshot, now = Date.now(), instead?: string)
   return `Restore the scene you were editing at ${clockTime(s.savedAt)}${day}${other}?`;
 }
 
+/** How the engine names a picture held inline: by its reference, in kept work always a data: URI. */
+const INLINE_PICTURE = /the image in the data:[^,]*,\.\.\. URI/g;
+
+/**
+ * What a restore of `s` that failed says: `why`, the problems one a line ("at PATH: ..."),
+ * each picture named by its layer rather than by the data: URI the work keeps it as (which
+ * the user never saw), then `where` the work is kept now and what to do.
+ */
+export function unopenedMessage(s: Snapshot, why: string, where: string): string {
+  let pictures = false;
+  const named = why.split('\n').map((line) => {
+    const at = /^at layers\[(\d+)\]\.(image|alpha|continuity):/.exec(line);
+    const layer = at && s.doc.layers[Number(at[1])];
+    if (!layer) return line;
+    const what = at[2] === 'image' ? 'picture' : `${at[2]} matte`;
+    return line.replace(INLINE_PICTURE, () => {
+      pictures = true;
+      return `the ${what} of layer '${layer.name}' kept with it`;
+    });
+  });
+  const mend = pictures
+    ? `download it and, in a text editor, replace that picture's data: URI by the path of its file (from where you save the scene${s.source ? `, as ${s.source} names it` : ''}), then open it with \`inkwarp edit SCENE\``
+    : 'download it to mend that value in a text editor, then open the file';
+  return `The work kept from ${clockTime(s.savedAt)} could not be opened: ${named.join('\n').replace(/[.\s]+$/, '')}. ${where}; ${mend}.`;
+}
+
 /**
  * Keeps the snapshot up to date: `changed()` after each edit schedules a write
  * `delayMs` later (edits in between are written together); `flush()` writes now.

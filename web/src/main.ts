@@ -2,7 +2,7 @@
 // solving), builds the page, and opens the scene named in the URL or the built-in example.
 
 import { App } from './app';
-import { Autosaver, IndexedDbStore, MemoryStore, type Snapshot, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureMarks, restorePictures, restoreQuestion, sameScene } from './autosave';
+import { Autosaver, IndexedDbStore, MemoryStore, type Snapshot, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureMarks, restorePictures, restoreQuestion, sameScene, unopenedMessage } from './autosave';
 import { Engine } from './engine';
 import { builtinScene } from './examples';
 import * as examples from './examples';
@@ -267,8 +267,7 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
         }
       }
       const why = err instanceof scene.SceneFileError && err.path ? `at ${err.path}: ${err.message.slice(err.path.length + 2)}` : String((err as Error)?.message ?? err);
-      const message = `The work kept from ${clockTime(previous.savedAt)} could not be opened: ${why.replace(/[.\s]+$/, '')}. ${where}; download it to mend that value in a text editor, then open the file.`;
-      ui.offerUnopened(message, previous.doc, previous.fileName);
+      ui.offerUnopened(unopenedMessage(previous, why, where), previous.doc, previous.fileName);
     }
   }
   if (claimed && settled) await kept.drop(claimed).catch(() => {});

@@ -191,6 +191,21 @@ export function frameCount(doc: SceneDoc): number {
   return Math.max(1, Math.ceil(doc.duration * doc.fps - 1e-9));
 }
 
+/**
+ * `frames` (frame numbers, any order, none twice) as runs of consecutive frames, `[first,
+ * last]`, in order: a few runs tell which of a scene's frames (up to 1e8) are in a set that
+ * is itself small, such as the frames solved for playback.
+ */
+export function frameRuns(frames: Iterable<number>): [number, number][] {
+  const runs: [number, number][] = [];
+  for (const f of [...frames].sort((a, b) => a - b)) {
+    const last = runs.at(-1);
+    if (last && f === last[1] + 1) last[1] = f;
+    else runs.push([f, f]);
+  }
+  return runs;
+}
+
 const lerp = (a: Pt, b: Pt, s: number): Pt => [a[0] + (b[0] - a[0]) * s, a[1] + (b[1] - a[1]) * s];
 
 /**

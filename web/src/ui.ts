@@ -12,7 +12,7 @@ import type { FullFrame } from './solver';
 import { proxyFactor, viewFor } from './proxy';
 import { canEncodeWebm, encodeWebm } from './webm';
 import { PROBE_DWELL_MS } from './probe';
-import { durationProblem, fpsProblem, offsetProblem } from './limits';
+import { clampMove, clampPoint, durationProblem, featureBox, fpsProblem, offsetBox, offsetProblem } from './limits';
 import {
   INTERPOLATIONS,
   METHODS,
@@ -502,6 +502,7 @@ export class Ui {
       const q = this.toScene(ev.clientX, ev.clientY);
       let o: Pt = [o0[0] + q[0] - p[0], o0[1] + q[1] - p[1]];
       if (!ev.altKey) o = [Math.round(o[0]), Math.round(o[1])];
+      o = clampPoint(o, offsetBox(this.store.doc, i, this.app.engine.limits()));
       this.store.apply(updateLayer(this.store.doc, i, { offset: o[0] === 0 && o[1] === 0 ? undefined : o }));
     };
     // (A cancelled pointer, a pen lifted out of range say, ends the drag as a release does.)
@@ -625,24 +626,21 @@ export class Ui {
     else if (r.bottom > b.bottom) box.scrollTop += r.bottom - b.bottom;
   }
 
-  /** The ready bar: a mark under every frame whose fields are solved (playback needs no solve there). */
+  /**
+   * The ready bar: a mark under every run of frames whose fields are solved (playback needs
+   * no solve there), at least a pixel wide (a frame of a long scene is narrower).
+   */
   renderReady(): void {
     const bar = this.els.ready;
     if (!bar) return;
-    const ready = this.app.readyFrames();
-    const key = ready.map((r) => (r ? '1' : '0')).join('');
+    const runs = this.app.readyRuns();
+    const key = runs.map(([a, b]) => `${a}-${b}`).join(',');
     if (bar.dataset.frames === key) return;
     bar.dataset.frames = key;
-    bar.dataset.count = String(ready.filter(Boolean).length);
+    bar.dataset.count = String(runs.reduce((sum, [a, b]) => sum + b - a + 1, 0));
     clear(bar);
-    const n = ready.length;
-    for (let i = 0; i < n; i++) {
-      if (!ready[i]) continue;
-      let j = i;
-      while (j + 1 < n && ready[j + 1]) j++;
-      bar.append(h('span', { style: { left: `${(100 * i) / n}%`, width: `${(100 * (j - i + 1)) / n}%` } }));
-      i = j;
-    }
+    const n = frameCount(this.store.doc);
+    for (const [a, b] of runs) bar.append(h('span', { style: { left: `${(100 * a) / n}%`, width: `${(100 * (b - a + 1)) / n}%` } }));
   }
 
   /**
@@ -1100,22 +1098,25 @@ export class Ui {
     d.at = p;
     const { mode, time } = this.store.view;
     this.app.lastPointerAt = e.timeStamp || performance.now();
+    // Dragged far out, the points stop where a scene's coordinates end.
+    const box = (id: string) => featureBox(this.store.doc, id, this.app.engine.limits());
     try {
       if (d.group) {
-        const delta: Pt = [p[0] - d.start[0], p[1] - d.start[1]];
+        let delta: Pt = [p[0] - d.start[0], p[1] - d.start[1]];
         if (this.store.view.snap && d.point !== null) {
           const base = d.base[d.point];
           delta[0] = Math.round(base[0] + delta[0]) - base[0];
           delta[1] = Math.round(base[1] + delta[1]) - base[1];
         }
         const picked = this.store.view.pointSelection;
+        for (const [id, base] of d.group) delta = clampMove(base.filter((_, i) => hasPointRef(picked, { feature: id, point: i })), delta, box(id));
         this.store.edit((doc) => movePoints(doc, mode, time, d.group!, picked, delta));
       } else if (d.point !== null) {
         const base = d.base[d.point];
         const q: Pt = [base[0] + p[0] - d.start[0], base[1] + p[1] - d.start[1]];
-        this.store.edit((doc) => movePoint(doc, mode, time, d.id, d.point!, this.store.view.snap ? [Math.round(q[0]), Math.round(q[1])] : q));
+        this.store.edit((doc) => movePoint(doc, mode, time, d.id, d.point!, clampPoint(this.store.view.snap ? [Math.round(q[0]), Math.round(q[1])] : q, box(d.id))));
       } else {
-        this.store.edit((doc) => moveFeature(doc, mode, time, d.id, d.base, [p[0] - d.start[0], p[1] - d.start[1]]));
+        this.store.edit((doc) => moveFeature(doc, mode, time, d.id, d.base, clampMove(d.base, [p[0] - d.start[0], p[1] - d.start[1]], box(d.id))));
       }
     } catch (err) {
       this.message((err as Error).message, 'error');

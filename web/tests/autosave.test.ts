@@ -1,7 +1,8 @@
 import { describe, expect, it, vi } from 'vitest';
-import { Autosaver, MemoryStore, clockTime, sameScene, inlineImages, pictureMarks, restorePictures, restoreQuestion } from '../src/autosave';
-import { emptyScene, type SceneDoc } from '../src/scene';
+import { Autosaver, MemoryStore, clockTime, sameScene, inlineImages, pictureMarks, restorePictures, restoreQuestion, unopenedMessage } from '../src/autosave';
+import { emptyScene, serializeScene, type SceneDoc } from '../src/scene';
 import { Store, copyKeys, moveKey, moveKeys, neighbourKeys, pasteKeys, setKey, toggleKeyRef } from '../src/state';
+import { loadEngine } from './wasm';
 
 function scene(): SceneDoc {
   const doc = emptyScene(20, 10);
@@ -136,6 +137,38 @@ describe('autosave', () => {
     // Two files of one name are told apart by their paths.
     expect(restoreQuestion({ ...snap, source: '/shots/cat/scene.json' }, at + 60_000, '/shots/dog/scene.json'))
       .toBe('Restore the scene you were editing at 14:32 (/shots/cat/scene.json) instead of /shots/dog/scene.json?');
+  });
+});
+
+describe('kept work that does not open', () => {
+  /** A 4 × 4 grey PNG, and the same cut short (a damaged copy). */
+  const PNG = 'data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAQAAAAECAAAAACMmsGiAAAAC0lEQVR4nGNgwAQAABQAAX3+Hu4AAAAASUVORK5CYII=';
+  const CUT = PNG.slice(0, 40);
+  const where = 'It is still kept in this browser';
+  /** The restore's message for `doc` as kept work of `source`, from the engine's own problems. */
+  async function said(doc: SceneDoc, source: string | null = '/shots/cat/scene.json'): Promise<string> {
+    const problems = (await loadEngine()).validate(JSON.parse(serializeScene(doc)));
+    expect(problems.length).toBeGreaterThan(0);
+    const why = problems.map((p) => `at ${p.path}: ${p.message}`).join('\n');
+    return unopenedMessage({ doc, fileName: 'scene.json', savedAt: new Date(2026, 10, 27, 14, 32).getTime(), unsaved: true, source }, why, where);
+  }
+
+  it('names a picture by its layer, never by the data: URI it is kept as, and says what to do', async () => {
+    const doc = { ...emptyScene(4, 4), layers: [{ name: 'sky', image: PNG }, { name: 'cat', image: PNG, continuity: CUT }] };
+    const message = await said(doc);
+    expect(message).toMatch(/^The work kept from 14:32 could not be opened: at layers\[1\]\.continuity: cannot use the continuity matte of layer 'cat' kept with it: /);
+    expect(message).not.toMatch(/data:image/);
+    expect(message).toContain(`${where}; download it and, in a text editor, replace that picture's data: URI by the path of its file (from where you save the scene, as /shots/cat/scene.json names it), then open it with \`inkwarp edit SCENE\`.`);
+    // A picture of another size than the scene's, of a scene made in the browser (no file).
+    const wide = await said({ ...doc, width: 5, layers: [{ name: 'sky', image: PNG }] }, null);
+    expect(wide).toMatch(/at layers\[0\]\.image: the picture of layer 'sky' kept with it is 4×4 pixels but the scene is 5×4/);
+    expect(wide).toContain('by the path of its file (from where you save the scene), then');
+  });
+
+  it('a value that is not a picture is named as the engine names it', async () => {
+    const message = await said({ ...emptyScene(4, 4), duration: 150000, layers: [{ name: 'sky', image: PNG }] });
+    expect(message).toMatch(/^The work kept from 14:32 could not be opened: at duration: .*at most 100000 s/);
+    expect(message).toMatch(/; download it to mend that value in a text editor, then open the file\.$/);
   });
 });
 

@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { emptyScene, pointsAt, parseScene, serializeScene, type Pt, type SceneDoc } from '../src/scene';
+import { emptyScene, frameRuns, pointsAt, parseScene, serializeScene, type Pt, type SceneDoc } from '../src/scene';
 import {
   Store,
   addFeature,
@@ -207,6 +207,14 @@ describe('keys', () => {
       const right = (pointsAt(f, t + h)[0][1] - pointsAt(f, t)[0][1]) / h;
       expect(Math.abs(left - right)).toBeLessThan(1e-2);
     }
+  });
+});
+
+describe('frames', () => {
+  it('tells the frames ready to play as runs, from those frames alone (a scene may have 1e8)', () => {
+    expect(frameRuns([])).toEqual([]);
+    expect(frameRuns([5, 0, 2, 1, 99_999_999, 6, 99_999_998, 50_000_000])).toEqual([[0, 2], [5, 6], [50_000_000, 50_000_000], [99_999_998, 99_999_999]]);
+    expect(frameRuns(new Set(Array.from({ length: 12 }, (_, i) => 11 - i)))).toEqual([[0, 11]]);
   });
 });
 
