@@ -57,6 +57,7 @@ MISTAKES = [
     ("no layers", changed("layers", []), "layers", "at least one layer"),
     ("a width alone, not the images'", changed("width", 50), "width", "50 does not match the images, which are 40×30"),
     ("a height alone, not the images'", changed("height", 31), "height", "31 does not match the images, which are 40×30"),
+    ("features past the limit in a layer's pixels", changed("layers/1/offset", [0, -1e6]), "layers[1].offset", 'feature "dot" lies more than 1e6 px'),
     ("a width alone, no image", changed("layers", [{"name": "plain"}]) | {"width": 64}, "height", 'no layer has an image to take the frame size from'),
 ]
 

@@ -39,9 +39,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from inkwarp.errors import SceneError
 
+    notes: list = []
     try:
         scene = _common.load_scene(args.scene)
         problems = [_common.problem_parts(p) for p in (scene.validate() or [])]
+        notes = [] if problems else scene.notes()  # before "ok": a note's checks may still refuse the scene
     except SceneError as err:
         problems = [_common.problem_parts(p) for p in err.problems] or [(err.path, str(err))]
     def say(path: str, message: str, lead: str = "") -> None:
@@ -54,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{args.scene}: {count} problem{'s' if count > 1 else ''}", file=sys.stderr)
         return 2
     print(f"ok: {args.scene}: {summary(scene, _read_json(args.scene))}")
-    for path, message in scene.notes():
+    for path, message in notes:
         say(path, message, "note: ")
     return 0
 

@@ -23,10 +23,8 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_
         let why = format!("this inkwarp reads scene format {FORMAT_VERSION}, found {}; set \"inkwarp\": {FORMAT_VERSION} (and convert the scene if it was written for another format)", doc.inkwarp);
         p.push(Problem::new("inkwarp", why));
     }
-    for (key, value) in [("width", doc.width), ("height", doc.height)] {
-        if value == Some(0) {
-            p.push(Problem::new(key, format!("the frame {key} must be at least 1 pixel, found 0")));
-        }
+    for (key, _) in [("width", doc.width), ("height", doc.height)].into_iter().filter(|e| e.1 == Some(0)) {
+        p.push(Problem::new(key, format!("the frame {key} must be at least 1 pixel, found 0")));
     }
     if let (Some(w @ 1..), Some(h @ 1..)) = (doc.width, doc.height) {
         if let Err(why) = limits::check_size("the canvas", w as usize, h as usize) {
@@ -131,6 +129,13 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_
                 p.push(Problem::new(format!("{path}.offset[{c}]"), why));
             }
         }
+        // The engine reads a layer's features in its own pixels (less its offset), so they must be within the limit there too.
+        let listed = |f: &&super::doc::FeatureDoc| layer.features.as_ref().map_or(true, |ids| ids.contains(&f.id));
+        let far = |q: &Point| q.iter().zip(layer.offset).any(|(v, o)| v.is_finite() && o.is_finite() && !limits::coordinate_ok(v - o));
+        if let Some(f) = doc.features.iter().filter(listed).find(|f| f.rest.iter().chain(f.keys.iter().flat_map(|k| &k.points)).any(far)) {
+            let why = format!("feature \"{}\" lies more than {MAX_COORD_PX:e} px from this layer's origin once its offset is taken off; bring the offset and the feature's points closer", f.id);
+            p.push(Problem::new(format!("{path}.offset"), why));
+        }
         for (key, reference) in [("image", &layer.image), ("alpha", &layer.alpha), ("continuity", &layer.continuity)] {
             if reference.as_ref().is_some_and(|r| r.trim().is_empty()) {
                 let why = "an empty image reference; give a path relative to the scene file or a data: URI";
@@ -147,11 +152,7 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_
                     let ids = doc.features.iter().map(|f| f.id.as_str());
                     let known: Vec<&str> = ids.chain(other_ids.iter().map(String::as_str)).collect();
                     let hint = did_you_mean(id, known.iter().copied()).map(|s| format!("did you mean \"{s}\"? ")).unwrap_or_default();
-                    let known = if known.is_empty() {
-                        "the scene has no features".to_string()
-                    } else {
-                        format!("the feature ids are {}", known.join(", "))
-                    };
+                    let known = if known.is_empty() { "the scene has no features".to_string() } else { format!("the feature ids are {}", known.join(", ")) };
                     p.push(Problem::new(id_path, format!("no feature has the id \"{id}\"; {hint}{known}")));
                 } else if let Some(&first) = seen.get(id.as_str()) {
                     let why = format!("\"{id}\" is listed twice (also at {path}.features[{first}]); list it once");
