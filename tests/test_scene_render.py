@@ -246,6 +246,9 @@ def test_save_writes_only_json_names(scene, tmp_path):
     assert picture.read_bytes() == before
     scene.save(tmp_path / "Copy.JSON")
     assert inkwarp.Scene.load(tmp_path / "Copy.JSON").to_dict() == scene.to_dict()
+    for wrong in (None, 3, b"copy.json"):  # a ValueError naming the argument, not pathlib's TypeError
+        with pytest.raises(ValueError, match=rf"Scene.save's path must be a path .*; got {type(wrong).__name__}"):
+            scene.save(wrong)
 
 
 def test_a_time_past_the_end_warns_as_the_command_line_does_and_one_before_0_is_a_pose(scene):

@@ -103,6 +103,11 @@ def test_a_misspelt_feature_id_is_matched_to_a_feature_that_could_not_be_read():
     assert '"spline"' in problems["features[1].kind"], problems
 
 
+def test_a_point_past_the_limit_is_named_once_not_also_at_its_layers_offset():
+    scene = changed("features/0/rest", [[1e300, 1]])
+    assert [path for path, _ in inkwarp.validate_scene(scene) if "image" not in path] == ["features[0].rest[0][0]"]
+
+
 def test_invalid_json_gives_line_and_column(tmp_path):
     file = tmp_path / "scene.json"
     file.write_text('{"inkwarp": 1,\n  "layers": [\n}')

@@ -769,7 +769,7 @@ class Scene:
         The file name must end in ``.json`` (``ValueError`` otherwise): a slip such as
         ``save("cat.png")`` would replace the scene's own picture with text.
         """
-        target = Path(path)
+        target = Path(_path_argument(path, "Scene.save's path"))
         if target.suffix.lower() != ".json":
             raise ValueError(f"{target}: a scene is saved as JSON; name the file .json, such as "
                              f"{target.with_suffix('.json').name}")

@@ -131,7 +131,7 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_
         }
         // The engine reads a layer's features in its own pixels (less its offset), so they must be within the limit there too.
         let listed = |f: &&super::doc::FeatureDoc| layer.features.as_ref().map_or(true, |ids| ids.contains(&f.id));
-        let far = |q: &Point| q.iter().zip(layer.offset).any(|(v, o)| v.is_finite() && o.is_finite() && !limits::coordinate_ok(v - o));
+        let far = |q: &Point| q.iter().zip(layer.offset).any(|(&v, o)| limits::coordinate_ok(v) && o.is_finite() && !limits::coordinate_ok(v - o));
         if let Some(f) = doc.features.iter().filter(listed).find(|f| f.rest.iter().chain(f.keys.iter().flat_map(|k| &k.points)).any(far)) {
             let why = format!("feature \"{}\" lies more than {MAX_COORD_PX:e} px from this layer's origin once its offset is taken off; bring the offset and the feature's points closer", f.id);
             p.push(Problem::new(format!("{path}.offset"), why));
