@@ -129,6 +129,28 @@ def test_scene_images_are_inlined_and_paths_restored_on_save(editor: Path, scene
         server.server_close()
 
 
+def test_each_inlined_picture_is_named_by_its_path_and_saved_back_to_it(editor: Path, scene: Path) -> None:
+    # The editor's messages name a picture by its file: the server says which path (as the
+    # scene file writes it) each data: URI stands for; a save writes those paths back.
+    (scene.parent / "art" / "猫.png").write_bytes(PNG_1x1)
+    doc = {"inkwarp": 1, "width": 1, "height": 1, "features": [], "layers": [
+        {"name": "dot", "image": "art/dot.png", "continuity": "./art/猫.png"},
+        {"name": "inline", "image": WHITE_URI, "alpha": "art/dot.png"}]}
+    scene.write_text(json.dumps(doc))
+    server = serve(scene, editor)
+    try:
+        status, headers, body = fetch(api_url(server))
+        assert status == 200
+        files = json.loads(urllib.parse.unquote(headers["X-Inkwarp-Pictures"]))
+        assert files == {"0.image": "art/dot.png", "0.continuity": "./art/猫.png", "1.alpha": "art/dot.png"}
+        assert all(json.loads(body)["layers"][int(at[0])][at[2:]].startswith("data:") for at in files)
+        status, _, _ = fetch(api_url(server), "PUT", body)
+        assert status == 200 and json.loads(scene.read_text()) == doc
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
 def test_missing_image_is_reported_with_its_json_path(editor: Path, scene: Path) -> None:
     (scene.parent / "art" / "dot.png").unlink()
     server = serve(scene, editor)

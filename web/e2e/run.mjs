@@ -1333,6 +1333,29 @@ test('a value typed into a field and not entered is kept when the page is left',
   }
 });
 
+test('the fps and duration fields show the largest values a scene may have whole', async () => {
+  const scenePath = checkerScene('longest.json');
+  const own = await startServer([scenePath]);
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  try {
+    // 1000 fps for 100000 s (1e8 frames, the most a scene may have), then with decimals.
+    for (const [field, value] of [['#duration', '100000'], ['#fps', '1000'], ['#fps', '999.99'], ['#duration', '99999.95']]) {
+      await p.fill(field, value);
+      await p.press(field, 'Enter');
+      await idle(p);
+      const shown = await p.$eval(field, (el) => ({ value: el.value, scroll: el.scrollWidth, width: el.clientWidth }));
+      assert(shown.value === value, `${field} took ${value}: ${JSON.stringify(shown)}`);
+      assert(shown.scroll <= shown.width, `${field} shows ${value} whole: ${JSON.stringify(shown)}`);
+    }
+    const doc = await p.evaluate(() => window.inkwarp.store.doc);
+    assert(doc.fps === 999.99 && doc.duration === 99999.95, `the scene has them: ${doc.fps} fps, ${doc.duration} s`);
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
 test('fields refuse what the scene format refuses, saying its range; kept work that does not open is kept, offered again and downloadable', async () => {
   const scenePath = checkerScene('limits.json');
   const own = await startServer([scenePath]);
@@ -1449,24 +1472,89 @@ test('a point, a feature, picked points or a layer dragged far off the picture s
   }
 });
 
-test('kept work whose picture does not open names the picture by its layer, not by a data: URI, and says what to do', async () => {
+test('kept work whose picture does not open names the picture by its file (else its layer), not by a data: URI, and says what to do', async () => {
   const scenePath = checkerScene('damaged.json');
   const own = await startServer([scenePath]);
   const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  try {
-    await tracePoint(p, [40, 40]);
-    await idle(p);
-    // The copy of the picture kept with the work cut short (as a damaged browser store would).
-    await p.evaluate(() => window.inkwarp.store.edit((d) => ({ ...d, layers: [{ ...d.layers[0], image: d.layers[0].image.slice(0, d.layers[0].image.indexOf(',') + 200) }] })));
-    await flush(p);
-    await p.reload();
+  /** Restores the kept work on a fresh load of the editor; what the restore says. */
+  const restored = async () => {
+    await p.goto(own.url);
     await p.waitForSelector('#restore', { timeout: 10000 });
     await p.click('#restore-yes');
     await p.waitForSelector('#unopened', { timeout: 10000 });
-    const said = await p.textContent('#unopened span');
-    assert(/could not be opened: at layers\[0\]\.image: cannot use the picture of layer 'checker' kept with it: /.test(said), `the picture is named by its layer: ${said}`);
+    return p.textContent('#unopened span');
+  };
+  try {
+    await tracePoint(p, [40, 40]);
+    await idle(p);
+    await flush(p);
+    // The copy of checker.png kept with the work cut short, as a damaged browser store would
+    // have it: from another page of the editor's address, once the editor's is gone.
+    await p.goto(new URL('/no-such-page', own.url).href);
+    await p.evaluate(() => new Promise((resolve, reject) => {
+      const open = indexedDB.open('inkwarp-editor', 1);
+      open.onsuccess = () => {
+        const tx = open.result.transaction('autosave', 'readwrite');
+        tx.objectStore('autosave').openCursor().onsuccess = (e) => {
+          const cursor = e.target.result;
+          if (!cursor) return;
+          const kept = cursor.value;
+          const layer = kept.doc.layers[0];
+          layer.image = layer.image.slice(0, layer.image.indexOf(',') + 200);
+          cursor.update(kept);
+          cursor.continue();
+        };
+        tx.oncomplete = resolve;
+        tx.onerror = () => reject(tx.error);
+      };
+    }));
+    let said = await restored();
+    assert(/could not be opened: at layers\[0\]\.image: cannot use checker\.png of layer 'checker' kept with it: /.test(said), `the picture is named by its file: ${said}`);
     assert(!/data:image/.test(said), `no data: URI is named: ${said}`);
+    assert(said.includes(`download it, move it into the folder of ${scenePath} and, in a text editor, replace that picture's data: URI by the path of its file ("checker.png"), then open it with \`inkwarp edit SCENE\`.`), `it says what to do: ${said}`);
+    // A picture that came from no file (cut short in the editor itself) is named by its layer.
+    await p.evaluate(() => window.inkwarp.store.edit((d) => ({ ...d, layers: [{ ...d.layers[0], image: d.layers[0].image.slice(0, d.layers[0].image.indexOf(',') + 200) }] })));
+    await flush(p);
+    said = await restored();
+    assert(/could not be opened: at layers\[0\]\.image: cannot use the picture of layer 'checker' kept with it: /.test(said), `the picture is named by its layer: ${said}`);
     assert(said.includes(`replace that picture's data: URI by the path of its file (from where you save the scene, as ${scenePath} names it), then open it with \`inkwarp edit SCENE\`.`), `it says what to do: ${said}`);
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+});
+
+test('a served picture the engine cannot use, on opening or later, is named by its file and layer', async () => {
+  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-served-'));
+  // 40000 pixels wide: the server reads it, the engine refuses it (at most 32768 a side).
+  const made = spawnSync(join(repo, '.venv/bin/python'), ['-c', 'import sys; from PIL import Image; Image.new("RGBA", (40000, 1)).save(sys.argv[1])', join(dir, 'strip.png')]);
+  assert(made.status === 0, `the picture is made: ${made.stderr}`);
+  copyFileSync(join(repo, 'examples/checkerboard-hole/checkerboard.png'), join(dir, 'checker.png'));
+  const scenePath = join(dir, 'scene.json');
+  const layers = [{ name: 'checker', image: 'checker.png' }, { name: 'strip', image: 'strip.png' }];
+  writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, width: 256, height: 256, fps: 12, duration: 1, layers, features: [] }));
+  const own = await startServer([scenePath]);
+  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
+  try {
+    const message = () => p.textContent('#message');
+    await p.waitForFunction(() => /at layers\[1\]\.image/.test(document.querySelector('#message')?.textContent ?? ''));
+    assert((await message()).startsWith(`${scenePath}: at layers[1].image: cannot use strip.png of layer 'strip': the picture is 40000×1 pixels;`), `opening names the file: ${await message()}`);
+    // Served without it, the scene opens; a picture that then fails to decode (the engine
+    // out of memory, say) is named by its file, with what to do.
+    writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, fps: 12, duration: 1, layers: layers.slice(0, 1), features: [] }));
+    await p.reload();
+    await p.waitForSelector('body[data-ready]');
+    await idle(p);
+    await p.evaluate(async () => {
+      const { images, store, engine } = window.inkwarp;
+      const image = store.doc.layers[0].image;
+      images.forgetImage(image);
+      images.useDecoder({ decode: () => { throw new Error('out of memory'); }, matteValues: (...a) => engine.matteValues(...a) });
+      store.edit((d) => ({ ...d, layers: [{ ...d.layers[0], continuity: image }] }));
+    });
+    await p.waitForFunction(() => /out of memory/.test(document.querySelector('#message')?.textContent ?? ''));
+    assert(await message() === "Cannot use checker.png of layer 'checker': out of memory. Reload the page to read it again.", `decoding names the file: ${await message()}`);
     assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
   } finally {
     await context.close();

@@ -3,7 +3,7 @@
 
 import type { Engine, FieldData, SolveFeature, SolveOptions } from './engine';
 import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse, sparseValuesAt } from './gl';
-import { decodeImage, forgetImage, matteFromAlpha, matteFromImage, OFF_PAGE_DECODE_BYTES, withAlpha, type Rgba } from './images';
+import { decodeImage, fileOf, forgetImage, ImageFileError, matteFromAlpha, matteFromImage, OFF_PAGE_DECODE_BYTES, pictureName, type PictureKey, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
 import { type Layer, type Pt, type SceneDoc, frameRuns, layerFeatures, pointsAt, toLayer } from './scene';
@@ -480,7 +480,13 @@ export class App {
         mark = now;
       };
       this.stats.open = {};
-      let img = await decodeImage(layer.image);
+      // A picture that does not decode is named by its file (the one to mend), else its layer.
+      const decode = (key: PictureKey) => decodeImage(layer[key]!).catch((err: Error) => {
+        const file = fileOf(layer[key]!);
+        const why = (err instanceof ImageFileError ? err.why : err.message).replace(/[.\s]+$/, '');
+        throw new ImageFileError(`Cannot use ${pictureName(layer.name, key, file)}: ${why}.${file ? ' Reload the page to read it again.' : ''}`);
+      });
+      let img = await decode('image');
       step('decode');
       const { width, height } = this.doc;
       const check = (what: string, im: Rgba) => {
@@ -490,13 +496,13 @@ export class App {
       };
       check('image', img);
       if (layer.alpha) {
-        const a = await decodeImage(layer.alpha);
+        const a = await decode('alpha');
         check('alpha matte', a);
         img = withAlpha(img, a);
       }
       let matte: Uint8Array;
       if (layer.continuity) {
-        const c = await decodeImage(layer.continuity);
+        const c = await decode('continuity');
         check('continuity matte', c);
         matte = matteFromImage(c);
       } else {

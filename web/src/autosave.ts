@@ -4,6 +4,7 @@
 // The storage is behind a small interface so the logic is tested without a browser; the
 // page uses IndexedDB, where a scene with photographs (tens of megabytes) fits.
 
+import { fileOf, pictureName, withPictureNamed } from './images';
 import { serializeScene, type Pt, type SceneDoc } from './scene';
 import type { Mode, Tool } from './state';
 
@@ -32,6 +33,11 @@ export interface Snapshot {
    * a restore takes a picture changed on disk since from the file (see `restorePictures`).
    */
   pictures?: Record<string, string>;
+  /**
+   * The file each of the work's pictures came from, where it came from one (its path as the
+   * scene file names it; see `pictureFiles`): a restore that fails names it.
+   */
+  files?: Record<string, string>;
 }
 
 /** The part of the editor's view a snapshot keeps. */
@@ -270,6 +276,18 @@ export function pictureMarks(doc: SceneDoc): Record<string, string> {
   return marks;
 }
 
+/** The file each of `doc`'s pictures came from, where it is known (`fileOf`), keyed as `pictureMarks` keys them. */
+export function pictureFiles(doc: SceneDoc): Record<string, string> {
+  const files: Record<string, string> = {};
+  for (const l of doc.layers) {
+    for (const k of PICTURE_KEYS) {
+      const file = l[k] === undefined ? undefined : fileOf(l[k]);
+      if (file) files[`${l.name}\u0000${k}`] = file;
+    }
+  }
+  return files;
+}
+
 /**
  * Kept work, restored into the page that opened its file: every picture the work did not
  * change but the file did (retouched on disk since) is taken from the file as it is now
@@ -332,29 +350,25 @@ export function restoreQuestion(s: Snapshot, now = Date.now(), instead?: string)
   return `Restore the scene you were editing at ${clockTime(s.savedAt)}${day}${other}?`;
 }
 
-/** How the engine names a picture held inline: by its reference, in kept work always a data: URI. */
-const INLINE_PICTURE = /the image in the data:[^,]*,\.\.\. URI/g;
-
 /**
  * What a restore of `s` that failed says: `why`, the problems one a line ("at PATH: ..."),
- * each picture named by its layer rather than by the data: URI the work keeps it as (which
- * the user never saw), then `where` the work is kept now and what to do.
+ * each picture named by its file (else its layer) rather than by the data: URI the work
+ * keeps it as (which the user never saw), then `where` the work is kept now and what to do.
  */
 export function unopenedMessage(s: Snapshot, why: string, where: string): string {
-  let pictures = false;
+  const files: (string | undefined)[] = [];
   const named = why.split('\n').map((line) => {
-    const at = /^at layers\[(\d+)\]\.(image|alpha|continuity):/.exec(line);
-    const layer = at && s.doc.layers[Number(at[1])];
-    if (!layer) return line;
-    const what = at[2] === 'image' ? 'picture' : `${at[2]} matte`;
-    return line.replace(INLINE_PICTURE, () => {
-      pictures = true;
-      return `the ${what} of layer '${layer.name}' kept with it`;
-    });
+    const at = /^at (\S+): /.exec(line);
+    return at ? withPictureNamed(s.doc, at[1], line, (layer, key) => {
+      const file = s.files?.[`${layer.name}\u0000${key}`];
+      files.push(file);
+      return `${pictureName(layer.name, key, file)} kept with it`;
+    }) : line;
   });
-  const mend = pictures
-    ? `download it and, in a text editor, replace that picture's data: URI by the path of its file (from where you save the scene${s.source ? `, as ${s.source} names it` : ''}), then open it with \`inkwarp edit SCENE\``
-    : 'download it to mend that value in a text editor, then open the file';
+  const paths = [...new Set(files)].map((f) => JSON.stringify(f)).join(', ');
+  const mend = !files.length ? 'download it to mend that value in a text editor, then open the file'
+    : s.source && files.every(Boolean) ? `download it, move it into the folder of ${s.source} and, in a text editor, replace ${files.length === 1 ? "that picture's data: URI by the path of its file" : "those pictures' data: URIs by the paths of their files"} (${paths}), then open it with \`inkwarp edit SCENE\``
+    : `download it and, in a text editor, replace that picture's data: URI by the path of its file (from where you save the scene${s.source ? `, as ${s.source} names it` : ''}), then open it with \`inkwarp edit SCENE\``;
   return `The work kept from ${clockTime(s.savedAt)} could not be opened: ${named.join('\n').replace(/[.\s]+$/, '')}. ${where}; ${mend}.`;
 }
 

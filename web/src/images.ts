@@ -1,5 +1,7 @@
 // Images in and out: decoding pictures to straight RGBA8, mattes, data: URIs, PNG export.
 
+import type { Layer, SceneDoc } from './scene';
+
 export interface Rgba {
   width: number;
   height: number;
@@ -8,7 +10,8 @@ export interface Rgba {
 }
 
 export class ImageFileError extends Error {
-  constructor(message: string) {
+  /** `why`: what is wrong with the picture, without naming it. */
+  constructor(message: string, readonly why = message) {
     super(message);
     this.name = 'ImageFileError';
   }
@@ -41,6 +44,46 @@ export function useOffPageDecoder(decode: ((bytes: Uint8Array) => Promise<Rgba>)
 
 const cache = new Map<string, Promise<Rgba>>();
 const enc = new TextEncoder();
+/**
+ * The file each picture came from (its path as the scene file names it), by its data: URI:
+ * `inkwarp edit` inlines a scene's pictures, and says which file each one is.
+ */
+let files = new Map<string, string>();
+
+/** Names the files pictures came from (`[data: URI, path]`), in place of those named before. */
+export function nameFiles(named: Iterable<[string, string]>): void {
+  files = new Map(named);
+}
+
+/** The file a picture came from (see `nameFiles`), where it is known. */
+export function fileOf(src: string): string | undefined {
+  return files.get(src);
+}
+
+/** The keys of a layer that hold pictures. */
+export type PictureKey = 'image' | 'alpha' | 'continuity';
+
+/**
+ * How a message names the picture at `key` of layer `layer`: by its file where it came from
+ * one ("cat.png of layer 'cat'"), else by its layer ("the continuity matte of layer 'cat'").
+ */
+export function pictureName(layer: string, key: PictureKey, file?: string): string {
+  return `${file ?? `the ${key === 'image' ? 'picture' : `${key} matte`}`} of layer '${layer}'`;
+}
+
+/** How the engine names a picture held inline: by its reference, a data: URI cut short. */
+const INLINE_PICTURE = /the image in the data:[^,]*,\.\.\. URI/g;
+
+/**
+ * The engine's `message` about `path` of `doc` (a scene document, maybe not a sound one),
+ * where that is a layer's picture ("layers[0].image"), with the picture named by
+ * `name(layer, key)` instead of by its data: URI, which the user never saw.
+ */
+export function withPictureNamed(doc: unknown, path: string, message: string, name: (layer: Layer, key: PictureKey) => string): string {
+  const at = /^layers\[(\d+)\]\.(image|alpha|continuity)$/.exec(path);
+  const layer = at && (doc as SceneDoc).layers?.[Number(at[1])];
+  return layer ? message.replace(INLINE_PICTURE, () => name(layer, at[2] as PictureKey)) : message;
+}
 
 /** Decodes an image reference (a data: URI or a URL) to straight RGBA8, cached. */
 export function decodeImage(src: string): Promise<Rgba> {
@@ -86,7 +129,8 @@ async function decodeBytes(bytes: Uint8Array, name: string): Promise<Rgba> {
   try {
     return offPage && bytes.length >= OFF_PAGE_DECODE_BYTES ? await offPage(bytes) : decoder.decode(bytes);
   } catch (err) {
-    throw new ImageFileError(`${name} is not an image inkwarp can read (use PNG or JPEG): ${(err as Error).message}`);
+    const why = (err as Error).message;
+    throw new ImageFileError(`${name} is not an image inkwarp can read (use PNG or JPEG): ${why}`, why);
   }
 }
 

@@ -2,7 +2,7 @@
 // solving), builds the page, and opens the scene named in the URL or the built-in example.
 
 import { App } from './app';
-import { Autosaver, IndexedDbStore, MemoryStore, type Snapshot, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureMarks, restorePictures, restoreQuestion, sameScene, unopenedMessage } from './autosave';
+import { Autosaver, IndexedDbStore, MemoryStore, type Snapshot, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureFiles, pictureMarks, restorePictures, restoreQuestion, sameScene, unopenedMessage } from './autosave';
 import { Engine } from './engine';
 import { builtinScene } from './examples';
 import * as examples from './examples';
@@ -73,6 +73,7 @@ async function start(): Promise<void> {
         await ui.openSceneText(text, header('X-Inkwarp-Name') ?? 'scene.json', {
           origin: { path: named, version: resp.headers.get('ETag'), saveUrl: served?.saveUrl ?? null },
           first: true,
+          files: JSON.parse(header('X-Inkwarp-Pictures') ?? '{}'),
         });
         opened = true;
       }
@@ -144,7 +145,7 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
     // A feature being drawn is kept with it (and counts as unsaved: it is in no file).
     const { draft, tool } = store.view;
     const drawing = draft.length ? { tool, draft } : {};
-    return { doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved || draft.length > 0, view: { mode: store.view.mode, time: store.view.time, ...drawing }, source: file.source, version: file.version, pictures: file.pictures };
+    return { doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved || draft.length > 0, view: { mode: store.view.mode, time: store.view.time, ...drawing }, source: file.source, version: file.version, pictures: file.pictures, files: pictureFiles(store.doc) };
   };
   const failed = (err: Error) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error');
   const saver = new Autosaver(kept, snapshot, fetchDataUri, 800, failed);

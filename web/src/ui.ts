@@ -5,7 +5,7 @@ import { PICTURE_KEYS } from './autosave';
 import { clear, h } from './dom';
 import { EngineError, type ViewSpec } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
-import { blobToDataUri, decodeBlob, decodeImage, fileToDataUri, rememberImage, rgbaToPngBlob, type Rgba } from './images';
+import { blobToDataUri, decodeBlob, decodeImage, fileOf, fileToDataUri, nameFiles, type PictureKey, pictureName, rememberImage, rgbaToPngBlob, type Rgba, withPictureNamed } from './images';
 import { isPsdName, readLayeredPsd, uniqueNames } from './psd';
 import { Overlay } from './overlay';
 import type { FullFrame } from './solver';
@@ -26,6 +26,7 @@ import {
   serializeScene,
   sortedKeys,
   type Interpolation,
+  type Layer,
   type Method,
   type Pt,
   type SceneDoc,
@@ -120,10 +121,14 @@ export interface Opened {
   first?: boolean;
   /** Opened as unsaved work (a restore): marked so with the scene, before the page settles. */
   unsaved?: boolean;
+  /** The file each picture came from, by its place ("0.image"): `inkwarp edit` says so. */
+  files?: Record<string, string>;
 }
 
 /** A drag moves the drawing on at most one raw pointer update this often (ms). */
 const RAW_GAP_MS = 4;
+/** A number field wide enough for `max` with a point and two decimals (and its arrows). */
+const fieldWidth = (max: number): string => `calc(${String(max).length + 3}ch + 34px)`;
 const WEBM_TITLE = 'Export the animation as WebM video';
 
 export class Ui {
@@ -320,8 +325,8 @@ export class Ui {
         (this.els.play = h('button#play', { title: 'Play / pause (Space)', onclick: () => this.togglePlay() }, '▶')),
         (this.els.scrub = h('input#scrub', { type: 'range', min: 0, step: 'any', oninput: (e: Event) => this.setTime(this.snapTime(Number((e.target as HTMLInputElement).value)), true) })),
         (this.els.timeText = h('span#time.time')),
-        h('label', {}, 'fps ', (this.els.fps = h('input#fps', { type: 'number', min: limits.min_fps, max: limits.max_fps, step: 'any', onchange: (e: Event) => this.setFps(Number((e.target as HTMLInputElement).value)) }))),
-        h('label', {}, 'duration ', (this.els.duration = h('input#duration', { type: 'number', min: 0.05, max: limits.max_time_s, step: 0.05, onchange: (e: Event) => this.setDuration(Number((e.target as HTMLInputElement).value)) })), ' s'),
+        h('label', {}, 'fps ', (this.els.fps = h('input#fps', { type: 'number', min: limits.min_fps, max: limits.max_fps, step: 'any', style: { width: fieldWidth(limits.max_fps) }, onchange: (e: Event) => this.setFps(Number((e.target as HTMLInputElement).value)) }))),
+        h('label', {}, 'duration ', (this.els.duration = h('input#duration', { type: 'number', min: 0.05, max: limits.max_time_s, step: 0.05, style: { width: fieldWidth(limits.max_time_s) }, onchange: (e: Event) => this.setDuration(Number((e.target as HTMLInputElement).value)) })), ' s'),
         h('button#key-add', { title: 'Key the selected feature here (K)', onclick: () => this.keyHere() }, '◆ Key'),
         h('button#key-delete', { title: 'Delete the selected feature’s key here (Shift+K)', onclick: () => this.unkeyHere() }, '◇ Unkey'),
       ),
@@ -1584,7 +1589,15 @@ export class Ui {
     } catch (err) {
       throw new SceneFileError(`This is not a JSON file (${(err as Error).message}).`);
     }
-    await this.throwProblems(raw);
+    // Messages name the pictures `inkwarp edit` inlined by their files.
+    if (opened.files) {
+      const { layers } = raw as SceneDoc;
+      nameFiles(Object.entries(opened.files).map(([at, file]) => {
+        const [i, key] = at.split('.');
+        return [layers[Number(i)][key as PictureKey]!, file];
+      }));
+    }
+    await this.throwProblems(raw, true);
     const doc = parseScene(text);
     if (!doc.width || !doc.height) {
       const first = doc.layers.find((l) => l.image);
@@ -1595,8 +1608,13 @@ export class Ui {
     await this.openScene(doc, name, false, opened);
   }
 
-  private async throwProblems(doc: unknown): Promise<void> {
-    const problems = await this.app.checkScene(doc);
+  /**
+   * Throws `doc`'s problems, if any. `byFile`: a picture is named by its file (else its
+   * layer), not by the data: URI it is held as (kept work, restored, names its own).
+   */
+  private async throwProblems(doc: unknown, byFile = false): Promise<void> {
+    const name = (layer: Layer, key: PictureKey) => pictureName(layer.name, key, fileOf(layer[key]!));
+    const problems = (await this.app.checkScene(doc)).map((p) => (byFile ? { ...p, message: withPictureNamed(doc, p.path, p.message, name) } : p));
     if (problems.length) {
       const [first] = problems;
       // Every problem, one a line, so that one round of fixes is enough.

@@ -1,5 +1,6 @@
 import { describe, expect, it, vi } from 'vitest';
-import { Autosaver, MemoryStore, clockTime, sameScene, inlineImages, pictureMarks, restorePictures, restoreQuestion, unopenedMessage } from '../src/autosave';
+import { Autosaver, MemoryStore, clockTime, sameScene, inlineImages, pictureFiles, pictureMarks, restorePictures, restoreQuestion, unopenedMessage } from '../src/autosave';
+import { nameFiles } from '../src/images';
 import { emptyScene, serializeScene, type SceneDoc } from '../src/scene';
 import { Store, copyKeys, moveKey, moveKeys, neighbourKeys, pasteKeys, setKey, toggleKeyRef } from '../src/state';
 import { loadEngine } from './wasm';
@@ -146,11 +147,11 @@ describe('kept work that does not open', () => {
   const CUT = PNG.slice(0, 40);
   const where = 'It is still kept in this browser';
   /** The restore's message for `doc` as kept work of `source`, from the engine's own problems. */
-  async function said(doc: SceneDoc, source: string | null = '/shots/cat/scene.json'): Promise<string> {
+  async function said(doc: SceneDoc, source: string | null = '/shots/cat/scene.json', files?: Record<string, string>): Promise<string> {
     const problems = (await loadEngine()).validate(JSON.parse(serializeScene(doc)));
     expect(problems.length).toBeGreaterThan(0);
     const why = problems.map((p) => `at ${p.path}: ${p.message}`).join('\n');
-    return unopenedMessage({ doc, fileName: 'scene.json', savedAt: new Date(2026, 10, 27, 14, 32).getTime(), unsaved: true, source }, why, where);
+    return unopenedMessage({ doc, fileName: 'scene.json', savedAt: new Date(2026, 10, 27, 14, 32).getTime(), unsaved: true, source, files }, why, where);
   }
 
   it('names a picture by its layer, never by the data: URI it is kept as, and says what to do', async () => {
@@ -163,6 +164,23 @@ describe('kept work that does not open', () => {
     const wide = await said({ ...doc, width: 5, layers: [{ name: 'sky', image: PNG }] }, null);
     expect(wide).toMatch(/at layers\[0\]\.image: the picture of layer 'sky' kept with it is 4×4 pixels but the scene is 5×4/);
     expect(wide).toContain('by the path of its file (from where you save the scene), then');
+  });
+
+  it('names a picture that came from a file by that file, kept with the work, and says where to put the path', async () => {
+    const doc = { ...emptyScene(4, 4), layers: [{ name: 'sky', image: PNG }, { name: 'cat', image: CUT, continuity: CUT }] };
+    // The files the served scene's pictures came from, as the server named them; the work
+    // keeps them by layer, so its copy of a picture, cut short since, is still named.
+    nameFiles([[PNG, 'art/sky.png'], [CUT, 'art/cat.png']]);
+    const files = pictureFiles(doc);
+    nameFiles([]);
+    expect(files).toEqual({ 'sky\u0000image': 'art/sky.png', 'cat\u0000image': 'art/cat.png', 'cat\u0000continuity': 'art/cat.png' });
+    const message = await said(doc, '/shots/cat/scene.json', files);
+    expect(message).toMatch(/^The work kept from 14:32 could not be opened: at layers\[1\]\.image: cannot use art\/cat\.png of layer 'cat' kept with it: .*\nat layers\[1\]\.continuity: cannot use art\/cat\.png of layer 'cat' kept with it: /s);
+    expect(message).toContain(`${where}; download it, move it into the folder of /shots/cat/scene.json and, in a text editor, replace those pictures' data: URIs by the paths of their files ("art/cat.png"), then open it with \`inkwarp edit SCENE\`.`);
+    // One whose file is not known (added in the editor) is named by its layer, as before.
+    const mixed = await said(doc, '/shots/cat/scene.json', { 'cat\u0000image': 'art/cat.png' });
+    expect(mixed).toMatch(/at layers\[1\]\.image: cannot use art\/cat\.png of layer 'cat' kept with it: .*at layers\[1\]\.continuity: cannot use the continuity matte of layer 'cat' kept with it: /s);
+    expect(mixed).toContain("replace that picture's data: URI by the path of its file (from where you save the scene, as /shots/cat/scene.json names it)");
   });
 
   it('a value that is not a picture is named as the engine names it', async () => {

@@ -3,8 +3,10 @@
 The editor is a static web application shipped inside the package (``inkwarp/editor/``,
 built from ``web/`` by ``make editor``). This command serves it on 127.0.0.1 at a free
 port. Given a scene, it also serves ``/api/scene``: the scene with its images inlined as
-``data:`` URIs (GET), and a way to save it back (PUT) — images that came from files keep
-their relative paths when the scene is written back, new ones stay inline.
+``data:`` URIs (GET), each one's path as the scene file names it beside it (the header
+``X-Inkwarp-Pictures``, for the editor's messages), and a way to save it back (PUT) — images
+that came from files keep their relative paths when the scene is written back, new ones stay
+inline.
 
 Every GET and PUT answers the file's version (``ETag``: a hash of its text); a PUT that
 carries ``If-Match`` with another version is refused (409), so a save never overwrites
@@ -162,9 +164,10 @@ class SceneFile:
         except (OSError, ValueError):
             return None
 
-    def read(self) -> tuple[bytes, str]:
-        """The scene as JSON with every relative image path replaced by a data: URI, and
-        the version of the file's text it was made from."""
+    def read(self) -> tuple[bytes, str, dict[str, str]]:
+        """The scene as JSON with every relative image path replaced by a data: URI, the
+        version of the file's text it was made from, and the path each data: URI replaced,
+        by its place (``{"0.image": "art/cat.png"}``)."""
         from inkwarp.scene import _repeated_keys, read_scene_text
 
         # The scene files' one reader: a picture given as the scene, bytes that are not
@@ -181,6 +184,7 @@ class SceneFile:
         if repeated:
             where, message = repeated[0]
             raise ValueError(f"{self.path}: {where}: {message}.")
+        files: dict[str, str] = {}
         for i, key, ref in list(self._image_refs(doc)):
             file = self.image_file(i, key, ref)
             data = file.read_bytes()
@@ -195,7 +199,8 @@ class SceneFile:
                 froms.remove(entry)
             froms.append(entry)  # the latest read last
             doc["layers"][i][key] = uri
-        return json.dumps(doc).encode("utf-8"), self.version_of(text)
+            files[f"{i}.{key}"] = ref
+        return json.dumps(doc).encode("utf-8"), self.version_of(text), files
 
     def _named_now(self, layer: dict, i: int, key: str) -> str | None:
         """The path the scene file names now for this key of the same-named layer (else of
@@ -542,14 +547,15 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                 if scene_file is None:
                     return self._reply(HTTPStatus.NOT_FOUND, b"No scene was given to inkwarp edit.")
                 try:
-                    body, version = scene_file.read()
+                    body, version, files = scene_file.read()
                 except (OSError, ValueError) as err:
                     # Named even so: work the browser kept from this file saves back to it.
                     return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode(),
                                        headers={"X-Inkwarp-Path": quote(str(scene_file.path))})
                 return self._reply(HTTPStatus.OK, body, "application/json",
                                    {"X-Inkwarp-Name": quote(scene_file.path.name),
-                                    "X-Inkwarp-Path": quote(str(scene_file.path)), "ETag": version})
+                                    "X-Inkwarp-Path": quote(str(scene_file.path)), "ETag": version,
+                                    "X-Inkwarp-Pictures": quote(json.dumps(files))})
             if urlsplit(self.path).path == "/api/serving":
                 # Another `inkwarp edit` asks whether this one serves its scene: a hash of the
                 # path answers only that (no token needed, nothing else told).
