@@ -256,7 +256,7 @@ impl Scene {
                 let step = if solver.grid_step == 1 && cap >= DEFAULT_MAX_CYCLES { ", solve every other pixel (solver.grid_step 2: mattes with hair need the most cycles)" } else { "" };
                 format!("raise {setting}{step}, or use another method")
             }
-            Stop::Unsettled if solver.grid_step > 1 => format!("at grid_step {} parts of the matte thinner than the step (hair, strands) are too many to settle; use grid_step 1 for this layer, or hold those parts with points of their own", solver.grid_step),
+            Stop::Unsettled if solver.grid_step > 1 => format!("at grid_step {} parts of the matte thinner than the step (hair, strands) are too many to settle, so they may be torn apart; use grid_step 1 for this layer (with a higher solver.max_cycles if it stops there), or hold those parts with points of their own", solver.grid_step),
             Stop::Unsettled => "parts of the surface joined to the rest at single points or by 1 px strands are too many to settle, or did not settle; hold those parts with points of their own, or use another method".to_string(),
             Stop::Precision => "the tolerance is finer than the field's precision; use a coarser solver.tolerance".to_string(),
             Stop::Residual => "its residual stayed above the tolerance; lower solver.tolerance, or use another method".to_string(),

@@ -910,7 +910,8 @@ fn the_warning_says_why_the_solve_stopped() {
         (1, Stop::MaxCycles, "raise layers[1].solver.max_cycles (the layer's own, 7), or use another method"),
         (0, Stop::MaxCycles, "raise solver.max_cycles (the default, 300), or use another method"),
         (1, Stop::Budget, "fixed budget of relaxations"),
-        (0, Stop::Unsettled, "at grid_step 2 parts of the matte thinner than the step"),
+        // Not back to the cap the step was offered for without a way past it.
+        (0, Stop::Unsettled, "at grid_step 2 parts of the matte thinner than the step (hair, strands) are too many to settle, so they may be torn apart; use grid_step 1 for this layer (with a higher solver.max_cycles if it stops there)"),
         (1, Stop::Unsettled, "1 px strands are too many to settle, or did not settle; hold those parts with points of their own, or"),
         (1, Stop::Precision, "finer than the field's precision"),
         (1, Stop::Residual, "residual stayed above the tolerance"),
