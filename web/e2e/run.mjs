@@ -474,6 +474,7 @@ test('the method switch: each method draws its own frame, the one the CPU render
     assert(gpu.ok, `${m}: GPU and CPU frames differ: mean ${gpu.stats.mean.toFixed(3)}, p99 ${gpu.stats.p99} (see test-results/gpu-vs-cpu-${m}-diff.png)`);
     // Saved, the scene keeps the method: `inkwarp render` (no --method) draws the same frame.
     const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
+    await page.click('#message'); // dismissed: it would cover the screenshots
     const scenePath = join(dir, `${m}.json`);
     await download.saveAs(scenePath);
     const saved = JSON.parse(readFileSync(scenePath, 'utf8'));
