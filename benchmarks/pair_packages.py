@@ -15,7 +15,9 @@ faster), its middle half in brackets, then the cycles old → new.
 Problems: `benchmarks/strands.py`'s `problem` specs, `cuts:SEED:SCALE` (many random float
 cuts), `comb:TOOTH:SCALE` (1 or 2 px teeth), `character:SEED:SCALE` (a matte with hair);
 and, made by `benchmarks/ratios.py`'s functions, `open:POINTS:SIZE` (random points of seed 0
-on an open SIZE × SIZE grid) and `model:SEED:SIZE` (the disc hole and two-segment cut).
+on an open SIZE × SIZE grid) and `model:SEED:SIZE` (the disc hole and two-segment cut);
+`tangle:STRANDS:WIDTH` (`tests/test_solver_families.py::hair_tangle`: a head with STRANDS
+crossing hair strands, WIDTH × 3/4 WIDTH).
 
 `--repeat K`: with K > 1 each child times K cold solves of a problem after one untimed,
 and reports their median (for solves of tens of milliseconds, where one says little).
@@ -49,6 +51,10 @@ def make(name):
     if kind == "model":
         pts, disp, m, cuts = model_problem(int(size), int(size), seed=int(a))
         return m, m.shape, pts, disp, cuts
+    if kind == "tangle":
+        from test_solver_families import hair_tangle
+        m, pts, disp = hair_tangle(int(size), int(size) * 3 // 4, int(a))
+        return m, m.shape, pts, disp, None
     m, pts, disp, cuts = problem(name)
     return m, m.shape, pts, disp, cuts
 

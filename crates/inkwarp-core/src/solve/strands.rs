@@ -13,7 +13,7 @@ use super::level::{bit, Level, Operator, Real, V2, W2, WS};
 pub(crate) const THIN: usize = 16;
 
 /// The most entries a node's row of a block's factor may hold on average.
-const BAND: usize = 64;
+const BAND: usize = 128;
 
 /// The finest level's blocks not factored exactly are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant hair's
 /// response to what the `f32` search direction can hold.
