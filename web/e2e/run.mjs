@@ -96,6 +96,23 @@ async function openEditor(browser, url, viewport = { width: 1400, height: 900 })
   return { page, context, errors };
 }
 
+/**
+ * `body({ page, context, errors, own })` on the editor that a fresh `inkwarp edit ARGS` (`own`:
+ * its process and URL) serves, in a browser context of its own; then no page errors. The
+ * context and the server are closed after, whatever happened.
+ */
+async function withServedEditor(args, body) {
+  const own = await startServer(args);
+  const { page, context, errors } = await openEditor(browser, own.url);
+  try {
+    await body({ page, context, errors, own });
+    assert(errors.length === 0, `page errors: ${errors.join('; ')}`);
+  } finally {
+    await context.close();
+    own.proc.kill();
+  }
+}
+
 const idle = (page) => page.evaluate(() => window.inkwarp.app.idle());
 // Restores the offered work and waits for the restore to finish (its message), not only for
 // its scene to show: the page marks it unsaved and points it at its file after that.
@@ -1224,13 +1241,11 @@ function checkerScene(name) {
 
 test('a scene opened by inkwarp edit is where Undo stops, and Undo after a restore brings it back as saved', async () => {
   const scenePath = checkerScene('history.json');
-  const own = await startServer([scenePath]);
-  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  const state = () => p.evaluate(() => ({
-    layer: window.inkwarp.store.doc.layers[0]?.name, features: window.inkwarp.store.doc.features.length,
-    unsaved: window.inkwarp.store.unsaved, title: document.title, undo: !document.querySelector('#undo').disabled,
-  }));
-  try {
+  await withServedEditor([scenePath], async ({ page: p }) => {
+    const state = () => p.evaluate(() => ({
+      layer: window.inkwarp.store.doc.layers[0]?.name, features: window.inkwarp.store.doc.features.length,
+      unsaved: window.inkwarp.store.unsaved, title: document.title, undo: !document.querySelector('#undo').disabled,
+    }));
     // (Before, the built-in example shown while the scene loaded was an undo step: Ctrl+Z
     // swapped the scene for it, and a save then downloaded the example under its name.)
     let now = await state();
@@ -1256,18 +1271,12 @@ test('a scene opened by inkwarp edit is where Undo stops, and Undo after a resto
     now = await state();
     assert(now.layer === 'checker' && now.features === 0 && !now.unsaved && !now.title.startsWith('● ') && !now.undo,
       `Undo after the restore: the file's scene, saved: ${JSON.stringify(now)}`);
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-    own.proc.kill();
-  }
+  });
 });
 
 test('a scene opened by inkwarp edit: a reload offers its unsaved work back, which saves to the file', async () => {
   const scenePath = checkerScene('kept.json');
-  const own = await startServer([scenePath]);
-  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  try {
+  await withServedEditor([scenePath], async ({ page: p, own }) => {
     await p.keyboard.press('p');
     await click(p, [40, 40]);
     await idle(p);
@@ -1305,18 +1314,12 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
     await p.keyboard.press('Control+s');
     await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
     assert(JSON.parse(readFileSync(scenePath, 'utf8')).features.length === 2, 'the work went back to its file');
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-    own.proc.kill();
-  }
+  });
 });
 
 test('a value typed into a field and not entered is kept when the page is left', async () => {
   const scenePath = checkerScene('typed.json');
-  const own = await startServer([scenePath]);
-  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  try {
+  await withServedEditor([scenePath], async ({ page: p, own }) => {
     await p.fill('#duration', '0.5'); // no Enter, the field still focused
     assert((await p.evaluate(() => window.inkwarp.store.doc.duration)) === 1, 'not entered yet');
     // Leaving: the page's own handler enters the value, and then counts the scene unsaved
@@ -1327,18 +1330,12 @@ test('a value typed into a field and not entered is kept when the page is left',
     await p.waitForSelector('#restore', { timeout: 20000 });
     await restoreYes(p);
     await p.waitForFunction(() => window.inkwarp.store.doc.duration === 0.5, null, { timeout: 10000 });
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-    own.proc.kill();
-  }
+  });
 });
 
 test('the fps and duration fields show the largest values a scene may have whole', async () => {
   const scenePath = checkerScene('longest.json');
-  const own = await startServer([scenePath]);
-  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  try {
+  await withServedEditor([scenePath], async ({ page: p }) => {
     // 1000 fps for 100000 s (1e8 frames, the most a scene may have), then with decimals.
     for (const [field, value] of [['#duration', '100000'], ['#fps', '1000'], ['#fps', '999.99'], ['#duration', '99999.95']]) {
       await p.fill(field, value);
@@ -1350,24 +1347,18 @@ test('the fps and duration fields show the largest values a scene may have whole
     }
     const doc = await p.evaluate(() => window.inkwarp.store.doc);
     assert(doc.fps === 999.99 && doc.duration === 99999.95, `the scene has them: ${doc.fps} fps, ${doc.duration} s`);
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-    own.proc.kill();
-  }
+  });
 });
 
 test('fields refuse what the scene format refuses, saying its range; kept work that does not open is kept, offered again and downloadable', async () => {
   const scenePath = checkerScene('limits.json');
-  const own = await startServer([scenePath]);
-  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  const message = () => p.textContent('#message');
-  const enter = async (field, value) => {
-    await p.fill(field, value);
-    await p.press(field, 'Enter');
-    await idle(p);
-  };
-  try {
+  await withServedEditor([scenePath], async ({ page: p }) => {
+    const message = () => p.textContent('#message');
+    const enter = async (field, value) => {
+      await p.fill(field, value);
+      await p.press(field, 'Enter');
+      await idle(p);
+    };
     // Each field takes what the format takes (the engine's limits) and nothing more.
     await enter('#duration', '150000');
     assert((await p.evaluate(() => window.inkwarp.store.doc.duration)) === 1, 'a duration past 100000 s is refused');
@@ -1417,23 +1408,17 @@ test('fields refuse what the scene format refuses, saying its range; kept work t
     await p.waitForSelector('body[data-ready]');
     await p.waitForTimeout(500);
     assert((await p.$('#restore')) === null, 'nothing offered once discarded');
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-    own.proc.kill();
-  }
+  });
 });
 
 test('a point, a feature, picked points or a layer dragged far off the picture stop where a scene\'s coordinates end: the work kept and the file saved open again', async () => {
   const scenePath = checkerScene('far.json');
-  const own = await startServer([scenePath]);
-  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  const shiftClick = async (at) => {
-    await p.keyboard.down('Shift');
-    await click(p, at);
-    await p.keyboard.up('Shift');
-  };
-  try {
+  await withServedEditor([scenePath], async ({ page: p, own }) => {
+    const shiftClick = async (at) => {
+      await p.keyboard.down('Shift');
+      await click(p, at);
+      await p.keyboard.up('Shift');
+    };
     await tracePoint(p, [20, 20]);
     for (const line of [[[100, 60], [140, 60]], [[100, 150], [150, 150]]]) {
       await p.keyboard.press('l');
@@ -1466,26 +1451,20 @@ test('a point, a feature, picked points or a layer dragged far off the picture s
     await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
     const check = spawnSync(inkwarp, ['validate', scenePath], { encoding: 'utf8' });
     assert(check.status === 0, `the saved scene validates: ${check.stdout}${check.stderr}`);
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-    own.proc.kill();
-  }
+  });
 });
 
 test('kept work whose picture does not open names the picture by its file (else its layer), not by a data: URI, and says what to do', async () => {
   const scenePath = checkerScene('damaged.json');
-  const own = await startServer([scenePath]);
-  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  /** Restores the kept work on a fresh load of the editor; what the restore says. */
-  const restored = async () => {
-    await p.goto(own.url);
-    await p.waitForSelector('#restore', { timeout: 10000 });
-    await p.click('#restore-yes');
-    await p.waitForSelector('#unopened', { timeout: 10000 });
-    return p.textContent('#unopened span');
-  };
-  try {
+  await withServedEditor([scenePath], async ({ page: p, own }) => {
+    /** Restores the kept work on a fresh load of the editor; what the restore says. */
+    const restored = async () => {
+      await p.goto(own.url);
+      await p.waitForSelector('#restore', { timeout: 10000 });
+      await p.click('#restore-yes');
+      await p.waitForSelector('#unopened', { timeout: 10000 });
+      return p.textContent('#unopened span');
+    };
     await tracePoint(p, [40, 40]);
     await idle(p);
     await flush(p);
@@ -1519,11 +1498,7 @@ test('kept work whose picture does not open names the picture by its file (else 
     said = await restored();
     assert(/could not be opened: at layers\[0\]\.image: cannot use the picture of layer 'checker' kept with it: /.test(said), `the picture is named by its layer: ${said}`);
     assert(said.includes(`replace that picture's data: URI by the path of its file (from where you save the scene, as ${scenePath} names it), then open it with \`inkwarp edit SCENE\`.`), `it says what to do: ${said}`);
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-    own.proc.kill();
-  }
+  });
 });
 
 test('a served picture the engine cannot use, on opening or later, is named by its file and layer', async () => {
@@ -1535,9 +1510,7 @@ test('a served picture the engine cannot use, on opening or later, is named by i
   const scenePath = join(dir, 'scene.json');
   const layers = [{ name: 'checker', image: 'checker.png' }, { name: 'strip', image: 'strip.png' }];
   writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, width: 256, height: 256, fps: 12, duration: 1, layers, features: [] }));
-  const own = await startServer([scenePath]);
-  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  try {
+  await withServedEditor([scenePath], async ({ page: p }) => {
     const message = () => p.textContent('#message');
     await p.waitForFunction(() => /at layers\[1\]\.image/.test(document.querySelector('#message')?.textContent ?? ''));
     assert((await message()).startsWith(`${scenePath}: at layers[1].image: cannot use strip.png of layer 'strip': the picture is 40000×1 pixels;`), `opening names the file: ${await message()}`);
@@ -1556,19 +1529,13 @@ test('a served picture the engine cannot use, on opening or later, is named by i
     });
     await p.waitForFunction(() => /out of memory/.test(document.querySelector('#message')?.textContent ?? ''));
     assert(await message() === "Cannot use checker.png of layer 'checker': out of memory. Reload the page to read it again.", `decoding names the file: ${await message()}`);
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-    own.proc.kill();
-  }
+  });
 });
 
 test('a line being drawn: Save finishes it first (or says it is not saved); leaving asks, and it is kept to restore', async () => {
   const scenePath = checkerScene('drawing.json');
-  const own = await startServer([scenePath]);
-  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  const message = () => p.textContent('#message');
-  try {
+  await withServedEditor([scenePath], async ({ page: p }) => {
+    const message = () => p.textContent('#message');
     await p.keyboard.press('r');
     await p.keyboard.press('l');
     for (const at of [[20, 20], [60, 30], [90, 60]]) await click(p, at);
@@ -1595,18 +1562,12 @@ test('a line being drawn: Save finishes it first (or says it is not saved); leav
     assert(view.tool === 'polyline' && JSON.stringify(view.draft.map((q) => q.map(Math.round))) === '[[30,80],[70,90]]', `the line being drawn is back: ${JSON.stringify(view)}`);
     await p.keyboard.press('Enter');
     assert((await p.evaluate(() => window.inkwarp.store.doc.features.length)) === 2, 'and it finishes as it would have');
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-    own.proc.kill();
-  }
+  });
 });
 
 test('a save cut off by a reload: no download as the page goes, the file it wrote is not offered back as unsaved, nor a conflict', async () => {
   const scenePath = checkerScene('cutoff.json');
-  const own = await startServer([scenePath]);
-  const { page: p, context, errors: errs } = await openEditor(browser, own.url);
-  try {
+  await withServedEditor([scenePath], async ({ page: p }) => {
     const downloads = [];
     p.on('download', (d) => downloads.push(d.suggestedFilename()));
     await p.keyboard.press('r');
@@ -1643,11 +1604,7 @@ test('a save cut off by a reload: no download as the page goes, the file it wrot
     await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
     assert(!p.dialogs.includes('confirm'), `no conflict asked: ${p.dialogs}`);
     assert(JSON.parse(readFileSync(scenePath, 'utf8')).features.length === 2, 'saved');
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-    own.proc.kill();
-  }
+  });
 });
 
 test('work kept over a server restart takes the picture retouched on disk since, and saves it by its path', async () => {

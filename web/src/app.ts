@@ -6,7 +6,7 @@ import { type DrawLayer, GlRenderer, type GlLayer, holdsSparse, sparseValuesAt }
 import { decodeImage, fileOf, forgetImage, ImageFileError, matteFromAlpha, matteFromImage, OFF_PAGE_DECODE_BYTES, pictureName, type PictureKey, withAlpha, type Rgba } from './images';
 import { type Quality, solverOptions } from './options';
 export type { Quality } from './options';
-import { type Layer, type Pt, type SceneDoc, frameRuns, layerFeatures, pointsAt, toLayer } from './scene';
+import { type Layer, type Pt, type SceneDoc, frameCount, frameRuns, layerFeatures, pointsAt, toLayer } from './scene';
 import type { FieldEvent, FullClient, FullFrame } from './solver';
 import { viewCovers } from './proxy';
 import type { ViewSpec } from './engine';
@@ -706,7 +706,7 @@ export class App {
    */
   prefetch(): void {
     if (!this.store.view.playing || this.solver.busy) return;
-    const n = Math.max(1, Math.ceil(this.doc.duration * this.doc.fps - 1e-9));
+    const n = frameCount(this.doc);
     const now = this.frameOf(this.store.view.time) ?? 0;
     for (let k = 1; k < n; k++) {
       const frame = (now + k) % n;
@@ -749,7 +749,7 @@ export class App {
    * found as it is asked for (a scene may have 1e8 frames, and the first is asked for).
    */
   private *aheadFrames(): Generator<number> {
-    const n = Math.max(1, Math.ceil(this.doc.duration * this.doc.fps - 1e-9));
+    const n = frameCount(this.doc);
     const now = Math.min(n - 1, Math.max(0, Math.round(this.store.view.time * this.doc.fps)));
     for (let d = 0; d < n; d++) {
       if (now + d < n && !this.cached(now + d)) yield now + d;

@@ -4,12 +4,10 @@
 // The storage is behind a small interface so the logic is tested without a browser; the
 // page uses IndexedDB, where a scene with photographs (tens of megabytes) fits.
 
-import { fileOf, pictureName, withPictureNamed } from './images';
+import { fileOf, PICTURE_KEYS, pictureName, pictureSlot, withPictureNamed } from './images';
 import { serializeScene, type Pt, type SceneDoc } from './scene';
 import type { Mode, Tool } from './state';
 
-/** The layer keys that hold pictures. */
-export const PICTURE_KEYS = ['image', 'alpha', 'continuity'] as const;
 
 /** What is kept: the document, what it was called, and when and whether it was saved. */
 export interface Snapshot {
@@ -270,7 +268,7 @@ export function pictureMarks(doc: SceneDoc): Record<string, string> {
       if (typeof ref !== 'string') continue;
       let h = 0x811c9dc5; // FNV-1a over the reference (a data: URI holds the picture's bytes)
       for (let i = 0; i < ref.length; i++) h = Math.imul(h ^ ref.charCodeAt(i), 0x01000193);
-      marks[`${l.name}\u0000${k}`] = `${ref.length}:${(h >>> 0).toString(36)}`;
+      marks[pictureSlot(l.name, k)] = `${ref.length}:${(h >>> 0).toString(36)}`;
     }
   }
   return marks;
@@ -282,7 +280,7 @@ export function pictureFiles(doc: SceneDoc): Record<string, string> {
   for (const l of doc.layers) {
     for (const k of PICTURE_KEYS) {
       const file = l[k] === undefined ? undefined : fileOf(l[k]);
-      if (file) files[`${l.name}\u0000${k}`] = file;
+      if (file) files[pictureSlot(l.name, k)] = file;
     }
   }
   return files;
@@ -305,7 +303,7 @@ export function restorePictures(kept: SceneDoc, opened: Record<string, string> |
     const fresh = now.layers.find((n) => n.name === l.name);
     const out = { ...l };
     for (const k of PICTURE_KEYS) {
-      const key = `${l.name}\u0000${k}`;
+      const key = pictureSlot(l.name, k);
       const unchangedHere = keptMarks[key] !== undefined && keptMarks[key] === opened[key];
       const changedThere = nowMarks[key] !== undefined && nowMarks[key] !== opened[key];
       if (fresh && unchangedHere && changedThere) {
@@ -360,7 +358,7 @@ export function unopenedMessage(s: Snapshot, why: string, where: string): string
   const named = why.split('\n').map((line) => {
     const at = /^at (\S+): /.exec(line);
     return at ? withPictureNamed(s.doc, at[1], line, (layer, key) => {
-      const file = s.files?.[`${layer.name}\u0000${key}`];
+      const file = s.files?.[pictureSlot(layer.name, key)];
       files.push(file);
       return `${pictureName(layer.name, key, file)} kept with it`;
     }) : line;

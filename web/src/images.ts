@@ -60,8 +60,12 @@ export function fileOf(src: string): string | undefined {
   return files.get(src);
 }
 
-/** The keys of a layer that hold pictures. */
-export type PictureKey = 'image' | 'alpha' | 'continuity';
+/** The layer keys that hold pictures. */
+export const PICTURE_KEYS = ['image', 'alpha', 'continuity'] as const;
+export type PictureKey = (typeof PICTURE_KEYS)[number];
+
+/** A layer's picture at `key`, by its layer's name: how kept work marks and names its pictures. */
+export const pictureSlot = (layer: string, key: PictureKey): string => `${layer}\u0000${key}`;
 
 /**
  * How a message names the picture at `key` of layer `layer`: by its file where it came from
@@ -80,7 +84,7 @@ const INLINE_PICTURE = /the image in the data:[^,]*,\.\.\. URI/g;
  * `name(layer, key)` instead of by its data: URI, which the user never saw.
  */
 export function withPictureNamed(doc: unknown, path: string, message: string, name: (layer: Layer, key: PictureKey) => string): string {
-  const at = /^layers\[(\d+)\]\.(image|alpha|continuity)$/.exec(path);
+  const at = new RegExp(`^layers\\[(\\d+)\\]\\.(${PICTURE_KEYS.join('|')})$`).exec(path);
   const layer = at && (doc as SceneDoc).layers?.[Number(at[1])];
   return layer ? message.replace(INLINE_PICTURE, () => name(layer, at[2] as PictureKey)) : message;
 }

@@ -1,11 +1,10 @@
 // The editor's page: toolbar, layers, stage, inspector, timeline, help; pointer and keys.
 
 import { App } from './app';
-import { PICTURE_KEYS } from './autosave';
 import { clear, h } from './dom';
 import { EngineError, type ViewSpec } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
-import { blobToDataUri, decodeBlob, decodeImage, fileOf, fileToDataUri, nameFiles, type PictureKey, pictureName, rememberImage, rgbaToPngBlob, type Rgba, withPictureNamed } from './images';
+import { blobToDataUri, decodeBlob, decodeImage, fileOf, fileToDataUri, nameFiles, PICTURE_KEYS, type PictureKey, pictureName, pictureSlot, rememberImage, rgbaToPngBlob, type Rgba, withPictureNamed } from './images';
 import { isPsdName, readLayeredPsd, uniqueNames } from './psd';
 import { Overlay } from './overlay';
 import type { FullFrame } from './solver';
@@ -1856,7 +1855,7 @@ export class Ui {
         // The file this tab opened goes with the save: a server restarted on the same port
         // with another scene refuses it instead of taking this scene into that file.
         const copies = this.store.doc.layers.flatMap((l, i) => PICTURE_KEYS
-          .filter((k) => this.keptCopies.has(`${l.name}\u0000${k}`) && l[k]?.startsWith('data:')).map((k) => `${i}.${k}`));
+          .filter((k) => this.keptCopies.has(pictureSlot(l.name, k)) && l[k]?.startsWith('data:')).map((k) => `${i}.${k}`));
         const put = (version: string | null) => fetch(origin.saveUrl as string, {
           method: 'PUT', body: text, headers: {
             'Content-Type': 'application/json', ...(version ? { 'If-Match': version } : {}),
