@@ -17,7 +17,8 @@ cuts), `comb:TOOTH:SCALE` (1 or 2 px teeth), `character:SEED:SCALE` (a matte wit
 and, made by `benchmarks/ratios.py`'s functions, `open:POINTS:SIZE` (random points of seed 0
 on an open SIZE × SIZE grid) and `model:SEED:SIZE` (the disc hole and two-segment cut);
 `tangle:STRANDS:WIDTH` (`tests/test_solver_families.py::hair_tangle`: a head with STRANDS
-crossing hair strands, WIDTH × 3/4 WIDTH).
+crossing hair strands, WIDTH × 3/4 WIDTH); `scribble:STRANDS:WIDTH` (`strand_scribble`: STRANDS
+long strands crossing into a mesh, WIDTH × 3/4 WIDTH).
 
 `--repeat K`: with K > 1 each child times K cold solves of a problem after one untimed,
 and reports their median (for solves of tens of milliseconds, where one says little).
@@ -54,6 +55,10 @@ def make(name):
     if kind == "tangle":
         from test_solver_families import hair_tangle
         m, pts, disp = hair_tangle(int(size), int(size) * 3 // 4, int(a))
+        return m, m.shape, pts, disp, None
+    if kind == "scribble":
+        from test_solver_families import strand_scribble
+        m, pts, disp = strand_scribble(int(size), int(size) * 3 // 4, int(a))
         return m, m.shape, pts, disp, None
     m, pts, disp, cuts = problem(name)
     return m, m.shape, pts, disp, cuts

@@ -528,9 +528,9 @@ fn solve_piece(
         (hier.k_cycles, hier.alt, hier.torn) = (!key.off.has("kcycle"), alt, torn);
         if !hier.whole && !key.off.has("strands") {
             // (An untorn finest level wider and taller than a strand has none.)
-            hier.strands = (torn || w.min(h) <= strands::THIN).then(|| strands::Strands::new(&hier.levels[0])).flatten();
+            hier.strands = (torn || w.min(h) <= strands::THIN).then(|| strands::Strands::new(&hier.levels[0], false)).flatten();
             if !key.off.has("coarse_strands") {
-                hier.level_strands = hier.levels.iter().enumerate().map(|(k, l)| if k == 0 || k + 1 == hier.levels.len() { None } else { strands::Strands::new(l) }).collect();
+                hier.level_strands = hier.levels.iter().enumerate().map(|(k, l)| if k == 0 || k + 1 == hier.levels.len() { None } else { strands::Strands::new(l, false) }).collect();
             }
         }
         if torn && !hier.whole && settled.is_none() && !key.off.has("affine") {
@@ -664,6 +664,11 @@ fn solve_piece(
             };
             for cycle in base + 1..=base + cycles {
                 if crate::interrupt::requested() { break; }
+                if cycle == HALVE_AT && hier.strands.as_ref().is_some_and(|s| s.wide) {
+                    // A slow solve whose finest level left meshes of strands to the cycle: solved in parts from here.
+                    hier.strands = strands::Strands::new(&hier.levels[0], true);
+                    rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
+                }
                 if may_probe && (cycle == PROBE_AT || probe_now) && !hier.probed {
                     // A slow solve: its operator probed once for slow modes its residual may not show, then deflated.
                     (hier.probed, found) = (true, true);
@@ -795,6 +800,9 @@ pub(crate) struct Paused {
 /// its first claim if that comes sooner), and the probe's cycles.
 const PROBE_AT: usize = 20;
 const PROBE_CYCLES: usize = 24;
+
+/// The cycle at which a solve still running halves the meshes of strands its finest level left to the cycle.
+const HALVE_AT: usize = 2 * PROBE_AT;
 
 /// What the iteration on `A x = 0` leaves of a pseudo-random start, by component: a torn piece's slow modes. The
 /// start, unlike a residual, holds every mode (a weakly held part's bending, however little a right side shows it).

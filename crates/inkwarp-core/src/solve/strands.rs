@@ -15,6 +15,9 @@ pub(crate) const THIN: usize = 16;
 /// The most entries a node's row of a block's factor may hold on average.
 const BAND: usize = 128;
 
+/// How many links a halved set's part reaches into its neighbours.
+const OVERLAP: usize = 8;
+
 /// The finest level's blocks not factored exactly are `A_SS + SHIFT · diag(A_SS)`: it bounds a compliant hair's
 /// response to what the `f32` search direction can hold.
 const SHIFT: f64 = 1e-8;
@@ -45,65 +48,67 @@ pub(crate) struct Strands {
     taps: Vec<(u32, f64)>,
     at: Vec<usize>,
     blocks: Vec<Envelope>,
+    /// The couplings `(i, j, a_ij)` of each node `i` to the nodes `j` of earlier blocks (a halved set's), by `i`.
+    earlier: Vec<(u32, u32, f64)>,
     /// The finest level's first solve's correction (from [`Strands::before`] to [`Strands::after`]).
     first_pass: Vec<V2>,
+    /// Whether a mesh of strands too wide a band to factor was left to the cycle. Halved instead (its parts
+    /// overlapping by [`OVERLAP`] links, solved one after another: block Gauss–Seidel), it costs more than the
+    /// cycles it saves unless they are many.
+    pub wide: bool,
 }
 
 impl Strands {
-    /// The thin nodes of `level`, or `None` when it has none.
-    pub fn new(level: &Level) -> Option<Strands> {
+    /// The thin nodes of `level`, or `None` when it has none; `halve`: meshes of strands too wide a band to
+    /// factor whole are solved in parts ([`Strands::wide`]).
+    pub fn new(level: &Level, halve: bool) -> Option<Strands> {
         let thin = thin_nodes_of(level);
         if !thin.contains(&true) { return None; }
         let neighbours = |p: usize, out: &mut Vec<usize>| {
             out.clear();
             level.taps(p, |q, _| if q != p && thin[q] { out.push(q) });
         };
-        let (mut nodes, mut starts) = (Vec::new(), Vec::new());
-        for block in blocks_in_order(thin.len(), |p| thin[p], neighbours) {
-            starts.push(nodes.len());
-            nodes.extend(block.into_iter().map(|p| p as u32));
-        }
-        let mut local = vec![u32::MAX; thin.len()];
-        nodes.iter().enumerate().for_each(|(i, &p)| local[p as usize] = i as u32);
-        // Each block factored; a set whose order is no narrow band is two-dimensional (a region riddled with
-        // pinholes), not a strand: the cycle serves it, and its nodes leave the lists.
-        starts.push(nodes.len());
+        let sets = blocks_in_order(thin.len(), |p| thin[p], neighbours);
         let fine = matches!(level.op, Operator::Fine { .. });
-        let shift = if fine { SHIFT } else { 0.0 };
-        let (mut kept, mut taps, mut at, mut blocks) = (Vec::new(), Vec::new(), vec![0], Vec::new());
-        for pair in starts.windows(2) {
-            let ids = &nodes[pair[0]..pair[1]];
-            let entries: Vec<_> = ids.iter().map(|&p| {
-                let mut row = Vec::new();
-                level.taps(p as usize, |q, a| if (pair[0]..pair[1]).contains(&(local[q] as usize)) { row.push((local[q] as usize - pair[0], a)) });
-                row
-            }).collect();
-            // On the finest level a straight 1 px line is factored exactly (its pivots fall as its length cubed:
-            // dropped or shifted, its slowest bending is left to the cycle); past [`EXACT_PIVOT`], shifted.
-            let wp = level.wp;
-            let straight = ids.iter().all(|&p| p as usize % wp == ids[0] as usize % wp) || ids.iter().all(|&p| p as usize / wp == ids[0] as usize / wp);
-            let exact = (fine && ids.len() > 1 && straight).then(|| Envelope::factor(&entries, 0.0, EXACT_PIVOT, BAND * ids.len()));
-            let exact = exact.flatten().filter(|b| !b.dropped());
-            let Some(b) = exact.or_else(|| Envelope::factor(&entries, shift, PIVOT, BAND * ids.len())) else { continue };
-            blocks.push(b);
-            for &p in ids {
-                kept.push(p);
-                level.taps(p as usize, |q, a| taps.push((q as u32, a)));
-                at.push(taps.len());
+        let n = thin.len();
+        let mut b = Builder { level, thin, fine, mark: vec![u32::MAX; n], last: vec![u32::MAX; if halve { n } else { 0 }], prev: Vec::new(), s: Strands { nodes: Vec::new(), taps: Vec::new(), at: vec![0], blocks: Vec::new(), earlier: Vec::new(), first_pass: Vec::new(), wide: false } };
+        let mut todo: Vec<(Vec<u32>, bool)> = sets.into_iter().rev().map(|s| (s.into_iter().map(|p| p as u32).collect(), false)).collect();
+        while let Some((ids, halved)) = todo.pop() {
+            // A half overlaps its neighbours by [`OVERLAP`] links where its band allows.
+            if halved {
+                let wider = b.widened(&ids, OVERLAP);
+                if b.keep(&wider) { continue; }
             }
+            // A set too wide a band to factor is left to the cycle, but for a mesh of strands (holes wider than a
+            // node; not a region riddled with pinholes, which the cycle serves well) halved where asked.
+            if b.keep(&ids) || !(halved || fine && b.open_holes(&ids)) { continue; }
+            if halve || halved {
+                todo.extend(b.halves(&ids).into_iter().rev().map(|h| (h, true)));
+            } else { b.s.wide = true }
         }
-        if kept.is_empty() { return None; }
-        Some(Strands { first_pass: vec![[0.0; 2]; kept.len()], nodes: kept, taps, at, blocks })
+        let mut s = b.s;
+        s.first_pass = vec![[0.0; 2]; s.nodes.len()];
+        (!s.nodes.is_empty() || s.wide).then_some(s)
     }
 
     /// Node `i`'s taps.
     fn row(&self, i: usize) -> &[(u32, f64)] { &self.taps[self.at[i]..self.at[i + 1]] }
 
-    /// Before the finest level's cycle: solves the thin blocks on `r` and takes the correction's product out
-    /// of the cycle's right-hand side `f` (`r` in `f32`).
+    /// Before the finest level's cycle: solves the thin blocks on `r` (in order, each from the earlier ones'
+    /// answers) and takes the correction's product out of the cycle's right-hand side `f` (`r` in `f32`).
     pub fn before(&mut self, level: &Level, r: &[V2], f: &mut [W2]) {
         self.first_pass.iter_mut().zip(&self.nodes).for_each(|(z, &p)| *z = r[p as usize]);
-        solve_blocks(&self.blocks, &mut self.first_pass);
+        let (z, mut e, mut start) = (&mut self.first_pass, 0, 0);
+        for b in &self.blocks {
+            let end = start + b.d_inv.len();
+            for &(i, j, a) in self.earlier[e..].iter().take_while(|c| (c.0 as usize) < end) {
+                let zj = z[j as usize];
+                z[i as usize] = [z[i as usize][0] - a * zj[0], z[i as usize][1] - a * zj[1]];
+                e += 1;
+            }
+            b.solve(&mut z[start..end]);
+            start = end;
+        }
         for (i, z) in self.first_pass.iter().enumerate() {
             for &(q, a) in self.row(i).iter().filter(|&&(q, _)| level.inv_diag[q as usize] != 0.0) {
                 f[q as usize][0] -= WS::of(a * z[0]);
@@ -112,9 +117,10 @@ impl Strands {
         }
     }
 
-    /// After the finest level's cycle: adds the first correction to its `x` and relaxes the blocks again.
+    /// After the finest level's cycle: adds the first correction to its `x` and relaxes the blocks again, in
+    /// reverse.
     pub fn after(&self, r: &[V2], x: &mut [W2]) {
-        self.add(&self.first_pass, x);
+        self.add(0, &self.first_pass, x);
         self.relax_from(|p| r[p], x);
     }
 
@@ -123,30 +129,150 @@ impl Strands {
         self.relax_from(|p| [f[p][0].get(), f[p][1].get()], x);
     }
 
-    /// `x_S += A_SS⁻¹ (b − A x)_S`, `b(p)` the right-hand side at padded node `p`.
+    /// Each block `x_B += A_BB⁻¹ (b − A x)_B` in turn, the last first, `b(p)` the right-hand side at padded node `p`.
     fn relax_from(&self, b: impl Fn(usize) -> V2, x: &mut [W2]) {
-        let mut z: Vec<V2> = (0..self.nodes.len()).map(|i| {
-            self.row(i).iter().fold(b(self.nodes[i] as usize), |s, &(q, a)| [s[0] - a * x[q as usize][0].get(), s[1] - a * x[q as usize][1].get()])
-        }).collect();
-        solve_blocks(&self.blocks, &mut z);
-        self.add(&z, x);
+        let (mut z, mut end) = (Vec::new(), self.nodes.len());
+        for block in self.blocks.iter().rev() {
+            let rows = end - block.d_inv.len()..end;
+            end = rows.start;
+            z.clear();
+            z.extend(rows.clone().map(|i| {
+                self.row(i).iter().fold(b(self.nodes[i] as usize), |s, &(q, a)| [s[0] - a * x[q as usize][0].get(), s[1] - a * x[q as usize][1].get()])
+            }));
+            block.solve(&mut z);
+            self.add(rows.start, &z, x);
+        }
     }
 
-    /// `x_S += z`.
-    fn add(&self, z: &[V2], x: &mut [W2]) {
-        for (&p, z) in self.nodes.iter().zip(z) {
+    /// `x_S += z` on the nodes from the `from`-th.
+    fn add(&self, from: usize, z: &[V2], x: &mut [W2]) {
+        for (&p, z) in self.nodes[from..].iter().zip(z) {
             let xp = &mut x[p as usize];
             *xp = [WS::of(xp[0].get() + z[0]), WS::of(xp[1].get() + z[1])];
         }
     }
 }
 
-/// `x = A_SS⁻¹ x` (`x` over [`Strands::nodes`]), block by block.
-fn solve_blocks(blocks: &[Envelope], x: &mut [V2]) {
-    let mut start = 0;
-    for b in blocks {
-        b.solve(&mut x[start..start + b.d_inv.len()]);
-        start += b.d_inv.len();
+/// [`Strands::new`]'s lists as they are made.
+struct Builder<'a> {
+    level: &'a Level,
+    thin: Vec<bool>,
+    fine: bool,
+    /// A node's place in the set being tried (`u32::MAX` off it).
+    mark: Vec<u32>,
+    /// A node's last entry in the lists, and each entry's previous one of the same node (`u32::MAX`: none; empty
+    /// where nothing is halved).
+    last: Vec<u32>,
+    prev: Vec<u32>,
+    s: Strands,
+}
+
+impl Builder<'_> {
+    /// Marks `ids` as the set tried.
+    fn mark(&mut self, ids: &[u32], on: bool) {
+        ids.iter().enumerate().for_each(|(i, &p)| self.mark[p as usize] = if on { i as u32 } else { u32::MAX });
+    }
+
+    /// `ids`' nodes linked within the set tried (`same(p, q)`), in their places.
+    fn links<'s>(&'s self, ids: &'s [u32], same: impl Fn(usize, usize) -> bool + 's) -> impl FnMut(usize, &mut Vec<usize>) + 's {
+        move |i, out| {
+            let p = ids[i] as usize;
+            out.clear();
+            self.level.taps(p, |q, _| if q != p && self.mark[q] != u32::MAX && same(p, q) { out.push(self.mark[q] as usize) });
+        }
+    }
+
+    /// Factors the set `ids` (an elimination order) and adds it to the lists, or `false` when its band is too wide.
+    fn keep(&mut self, ids: &[u32]) -> bool {
+        self.mark(ids, true);
+        let (level, wp) = (self.level, self.level.wp);
+        let entries: Vec<_> = ids.iter().map(|&p| {
+            let mut row = Vec::new();
+            level.taps(p as usize, |q, a| if self.mark[q] != u32::MAX { row.push((self.mark[q] as usize, a)) });
+            row
+        }).collect();
+        self.mark(ids, false);
+        // On the finest level a straight 1 px line is factored exactly (its pivots fall as its length cubed:
+        // dropped or shifted, its slowest bending is left to the cycle); past [`EXACT_PIVOT`], shifted.
+        let straight = ids.iter().all(|&p| p as usize % wp == ids[0] as usize % wp) || ids.iter().all(|&p| p as usize / wp == ids[0] as usize / wp);
+        let max = BAND * ids.len();
+        let exact = (self.fine && ids.len() > 1 && straight).then(|| Envelope::factor(&entries, 0.0, EXACT_PIVOT, max));
+        let exact = exact.flatten().filter(|b| !b.dropped());
+        let Some(block) = exact.or_else(|| Envelope::factor(&entries, if self.fine { SHIFT } else { 0.0 }, PIVOT, max)) else { return false };
+        let s = &mut self.s;
+        s.blocks.push(block);
+        let base = s.nodes.len();
+        for (i, &p) in ids.iter().enumerate() {
+            level.taps(p as usize, |q, a| {
+                s.taps.push((q as u32, a));
+                let mut j = self.last.get(q).copied().unwrap_or(u32::MAX);
+                while j != u32::MAX {
+                    s.earlier.push(((base + i) as u32, j, a));
+                    j = self.prev[j as usize];
+                }
+            });
+            s.at.push(s.taps.len());
+        }
+        // (Only sets being halved can overlap.)
+        let halving = !self.last.is_empty();
+        for (i, &p) in ids.iter().enumerate().filter(|_| halving) {
+            self.prev.push(self.last[p as usize]);
+            self.last[p as usize] = (base + i) as u32;
+        }
+        s.nodes.extend(ids);
+        true
+    }
+
+    /// Whether most holes beside `ids` (nodes across a side that are no unknowns) are wider than a node.
+    fn open_holes(&self, ids: &[u32]) -> bool {
+        let (d, wp) = (&self.level.inv_diag, self.level.wp);
+        let (mut holes, mut open) = (0, 0);
+        for p in ids.iter().map(|&p| p as usize) {
+            for (q, r) in [(p + 1, p + 2), (p - 1, p - 2), (p + wp, p + 2 * wp), (p - wp, p - 2 * wp)] {
+                if d[q] == 0.0 {
+                    holes += 1;
+                    open += usize::from(d[r] == 0.0);
+                }
+            }
+        }
+        2 * open > holes
+    }
+
+    /// The connected parts of the halves of `ids` across the longer side of its box, each in its order.
+    fn halves(&mut self, ids: &[u32]) -> Vec<Vec<u32>> {
+        let wp = self.level.wp;
+        let (mut lo, mut hi) = ([usize::MAX; 2], [0; 2]);
+        for &p in ids {
+            let c = [p as usize % wp, p as usize / wp];
+            (0..2).for_each(|k| (lo[k], hi[k]) = (lo[k].min(c[k]), hi[k].max(c[k])));
+        }
+        let k = usize::from(hi[1] - lo[1] > hi[0] - lo[0]);
+        let (mid, side) = ((lo[k] + hi[k]).div_ceil(2), move |p: usize| [p % wp, p / wp][k]);
+        self.mark(ids, true);
+        let parts = blocks_in_order(ids.len(), |_| true, self.links(ids, |p, q| (side(q) >= mid) == (side(p) >= mid)));
+        self.mark(ids, false);
+        parts.into_iter().map(|h| h.into_iter().map(|i| ids[i]).collect()).collect()
+    }
+
+    /// `ids` with the thin nodes `depth` links or fewer from it, in an elimination order.
+    fn widened(&mut self, ids: &[u32], depth: usize) -> Vec<u32> {
+        let mut all = ids.to_vec();
+        self.mark(&all, true);
+        let mut from = 0;
+        for _ in 0..depth {
+            let to = all.len();
+            for i in from..to {
+                let p = all[i] as usize;
+                self.level.taps(p, |q, _| if q != p && self.thin[q] && self.mark[q] == u32::MAX {
+                    self.mark[q] = all.len() as u32;
+                    all.push(q as u32);
+                });
+            }
+            from = to;
+        }
+        let order = blocks_in_order(all.len(), |_| true, self.links(&all, |_, _| true));
+        self.mark(&all, false);
+        order.into_iter().flatten().map(|i| all[i]).collect()
     }
 }
 
@@ -302,8 +428,11 @@ mod tests {
     /// with the diagonal raised by [`SHIFT`].
     fn blocks_answer(level: &Level, s: &Strands) -> Vec<(usize, bool, bool)> {
         let rhs: Vec<V2> = (0..s.nodes.len()).map(|i| [(i % 7) as f64 - 3.0, (i % 5) as f64 * 0.5]).collect();
-        let mut z = rhs.clone();
-        solve_blocks(&s.blocks, &mut z);
+        let (mut z, mut start) = (rhs.clone(), 0);
+        for b in &s.blocks {
+            b.solve(&mut z[start..start + b.d_inv.len()]);
+            start += b.d_inv.len();
+        }
         let mut x = vec![[0.0; 2]; level.len_padded()];
         for (i, &p) in s.nodes.iter().enumerate() {
             x[p as usize] = z[i];
@@ -329,6 +458,45 @@ mod tests {
         }).collect()
     }
 
+    /// An `n` × `n` grid of the nodes `keep(x, y)`, one in 97 fixed.
+    fn matte_level(n: usize, keep: impl Fn(usize, usize) -> bool) -> Level {
+        let grid = crate::grid::Grid::from_active(n, n, (0..n * n).map(|i| keep(i % n, i / n)).collect());
+        fine_level(&grid, Some((0..n * n).map(|i| i * 31 % 97 == 0).collect()), 0.0)
+    }
+
+    #[test]
+    fn a_mesh_of_strands_too_wide_a_band_is_halved_and_its_sweeps_converge() {
+        // Diagonal strands 3 px wide 10 px apart, crossing: one thin set whose band is too wide, left to the
+        // cycle, or, halved, solved in overlapping parts one after another; sweeps from zero (the rest held)
+        // reach its own system's answer (to the rounding of `x` in `f32`, 5·10⁻⁴ of the start's residual after
+        // 5 sweeps).
+        let level = matte_level(600, |x, y| (x + y) % 10 < 3 || (x + 600 - y) % 10 < 3);
+        let whole = Strands::new(&level, false).expect("the lines are thin");
+        assert!(whole.wide && whole.blocks.is_empty(), "{} blocks", whole.blocks.len());
+        let s = Strands::new(&level, true).expect("the lines are thin");
+        assert!(!s.wide);
+        assert!(s.blocks.len() > 2 && !s.earlier.is_empty(), "{} blocks", s.blocks.len());
+        let mut on = vec![false; level.len_padded()];
+        s.nodes.iter().for_each(|&p| on[p as usize] = true);
+        assert!(s.nodes.len() > on.iter().filter(|&&o| o).count(), "the parts overlap");
+        let f: Vec<W2> = (0..on.len()).map(|p| if on[p] { [WS::of((p % 7) as f64 - 3.0), WS::of((p % 5) as f64)] } else { [WS::of(0.0); 2] }).collect();
+        let size = |x: &[W2]| {
+            let mut r = vec![[WS::of(0.0); 2]; on.len()];
+            level.residual(x, Some(&f), &mut r);
+            (0..on.len()).filter(|&p| on[p]).map(|p| r[p][0].get().powi(2) + r[p][1].get().powi(2)).sum::<f64>().sqrt()
+        };
+        let mut x = vec![[WS::of(0.0); 2]; on.len()];
+        let start = size(&x);
+        (0..10).for_each(|_| s.relax(&mut x, &f));
+        assert!(size(&x) < 2e-3 * start, "{} of {start}", size(&x));
+    }
+
+    #[test]
+    fn a_region_riddled_with_pinholes_is_left_to_the_cycle() {
+        let level = matte_level(300, |x, y| (x * 7 + y * 13) % 11 != 0);
+        assert!(Strands::new(&level, true).is_none());
+    }
+
     #[test]
     fn an_untorn_finest_level_wider_and_taller_than_thin_has_no_strands() {
         // `solve_piece` skips the search on such a level: it must find nothing there, with fixed nodes and tension
@@ -337,7 +505,7 @@ mod tests {
         for (w, h, tau) in [(THIN + 1, THIN + 1, 0.0), (THIN + 1, 90, 0.5), (70, THIN + 1, 0.0), (64, 48, 1e-3)] {
             for share in [0.0, 0.05, 0.6] {
                 let fixed: Vec<bool> = (0..w * h).map(|_| rnd() < share).collect();
-                assert!(Strands::new(&fine_level(&crate::grid::Grid::new(w, h), Some(fixed), tau)).is_none(), "{w} × {h}, {share}");
+                assert!(Strands::new(&fine_level(&crate::grid::Grid::new(w, h), Some(fixed), tau), true).is_none(), "{w} × {h}, {share}");
             }
         }
         assert!(thin_nodes_of(&fine_level(&crate::grid::Grid::new(THIN, 40), None, 0.0)).iter().any(|&t| t));
@@ -351,7 +519,7 @@ mod tests {
             fixed[i] = true;
         }
         let level = fine_level(&grid, Some(fixed), 0.0);
-        let s = Strands::new(&level).expect("the teeth are thin");
+        let s = Strands::new(&level, false).expect("the teeth are thin");
         assert!(s.blocks.len() > 10 && s.blocks.iter().all(|b| b.d_inv.iter().all(|&d| d > 0.0)));
         // Each block answers its own system: the straight teeth exactly, the others shifted.
         let answers = blocks_answer(&level, &s);
@@ -374,7 +542,7 @@ mod tests {
                 fixed[i] = true;
             }
             let level = fine_level(&grid, Some(fixed), 0.0);
-            let s = Strands::new(&level).expect("the teeth are thin");
+            let s = Strands::new(&level, false).expect("the teeth are thin");
             let answers = blocks_answer(&level, &s);
             let teeth: Vec<_> = answers.iter().filter(|b| b.0 >= len).collect();
             assert_eq!(teeth.len(), 20, "{len}: {answers:?}");
