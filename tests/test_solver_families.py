@@ -477,17 +477,36 @@ def test_long_straight_free_strands_take_a_bounded_number_of_cycles(length):
     assert report.cycles <= 40, report
 
 
+def solve_near_tight(m, pts, disp, tolerance=1e-5, max_cycles=400, solver=None):
+    """The default solve of a matte too large for the direct solve, checked against a far
+    tighter one: both converge, and every active node is within the contract of the tight
+    answer. Returns the default solve's report."""
+    field, report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, solver=solver)
+    tight, tight_report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, tolerance=tolerance, max_cycles=max_cycles)
+    assert report.converged and tight_report.converged, (report, tight_report)
+    assert float(np.abs(field - tight)[m > 0].max()) < TOLERANCE_PX
+    return report
+
+
+def drawn_matte(width, height, draw):
+    """The matte (alpha > 0) of what `draw(ImageDraw.Draw, k)` draws at k = 4 times the size,
+    box-filtered down: strokes antialiased as a painting's are."""
+    from PIL import Image, ImageDraw
+
+    k = 4
+    big = Image.new("L", (width * k, height * k))
+    draw(ImageDraw.Draw(big), k)
+    return (np.array(big.resize((width, height), Image.BOX)) > 0).astype(np.uint8)
+
+
 def test_a_hairy_matte_at_photograph_size_converges_to_the_tight_answer():
     # The character at 12x (864 x 768, 48+ hairs up to 170 px long on a 1 px root): beyond
     # the direct solve's reach, so the default solve is checked against a solve a thousand
     # times tighter. Solved exactly, a hair's response swamped the search direction and the
     # solve stalled at its cycle limit (see `solve/strands.rs`, SHIFT).
     m, pts, disp = character_problem(2, 12)
-    field, report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m)
-    tight, tight_report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, tolerance=1e-5, max_cycles=400)
-    assert report.converged and tight_report.converged, (report, tight_report)
+    report = solve_near_tight(m, pts, disp)
     assert report.cycles <= 60, report
-    assert float(np.abs(field - tight)[m > 0].max()) < TOLERANCE_PX
 
 
 def hair_tangle(width, height, strands, seed=1):
@@ -496,19 +515,18 @@ def hair_tangle(width, height, strands, seed=1):
     points on the head turn it 8 degrees, 2 pull strands near their tips. At 480 x 360 with
     200 strands that set's band was too wide to factor at 64 entries a row (242 cycles; 21
     factored at 128)."""
-    from PIL import Image, ImageDraw
-
-    rng, k = np.random.default_rng(seed), 4
-    big = Image.new("L", (width * k, height * k))
-    draw = ImageDraw.Draw(big)
+    rng = np.random.default_rng(seed)
     cx, cy, rx, ry = width / 2, height * 0.75, width * 0.19, height * 0.33
-    draw.ellipse([(cx - rx) * k, (cy - ry) * k, (cx + rx) * k, (cy + ry) * k], fill=255)
-    for _ in range(strands):
-        a, length, bend = rng.uniform(np.pi * 1.1, np.pi * 1.9), rng.uniform(0.1, 0.28) * width * k, rng.uniform(-0.6, 0.6)
-        x0, y0 = (cx + rx * 0.93 * np.cos(a)) * k, (cy + ry * 0.95 * np.sin(a)) * k
-        line = [(x0 + length * t * np.cos(a + bend * t), y0 + length * t * np.sin(a + bend * t)) for t in np.linspace(0, 1, 30)]
-        draw.line(line, fill=255, width=int(rng.choice([1, 2]) * k))
-    m = (np.array(big.resize((width, height), Image.BOX)) > 0).astype(np.uint8)
+
+    def head(draw, k):
+        draw.ellipse([(cx - rx) * k, (cy - ry) * k, (cx + rx) * k, (cy + ry) * k], fill=255)
+        for _ in range(strands):
+            a, length, bend = rng.uniform(np.pi * 1.1, np.pi * 1.9), rng.uniform(0.1, 0.28) * width * k, rng.uniform(-0.6, 0.6)
+            x0, y0 = (cx + rx * 0.93 * np.cos(a)) * k, (cy + ry * 0.95 * np.sin(a)) * k
+            line = [(x0 + length * t * np.cos(a + bend * t), y0 + length * t * np.sin(a + bend * t)) for t in np.linspace(0, 1, 30)]
+            draw.line(line, fill=255, width=int(rng.choice([1, 2]) * k))
+
+    m = drawn_matte(width, height, head)
     pts = np.array([[cx - rx / 2, cy - ry / 2], [cx + rx / 2, cy - ry / 2], [cx + rx / 2, cy + ry / 2], [cx - rx / 2, cy + ry / 2]])
     turn = np.radians(8)
     rotation = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
@@ -529,11 +547,8 @@ def test_a_tangle_of_crossing_strands_at_photograph_size_converges_in_few_cycles
     # Its thin set was too wide a band to factor (more than 64 entries a row): left to the
     # cycles, it took over 2,000 of them at 800 x 600 (the default cap of 300 stopped 0.83 px off).
     m, pts, disp = hair_tangle(480, 360, 200)
-    field, report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m)
-    tight, tight_report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, tolerance=1e-5, max_cycles=400)
-    assert report.converged and tight_report.converged, (report, tight_report)
+    report = solve_near_tight(m, pts, disp)
     assert report.cycles <= 40, report
-    assert float(np.abs(field - tight)[m > 0].max()) < TOLERANCE_PX
 
 
 def strand_scribble(width, height, strands, seed=1):
@@ -541,17 +556,16 @@ def strand_scribble(width, height, strands, seed=1):
     and box-filtered (matte = alpha > 0), crossing into one mesh of strands too wide a band to
     factor whole; 6 points on them with random displacements. At 400 x 300 with 120 strands
     the cycle alone stopped at 600 cycles unconverged; halved at cycle 40, converged at 52."""
-    from PIL import Image, ImageDraw
+    rng = np.random.default_rng(seed)
 
-    rng, k = np.random.default_rng(seed), 4
-    big = Image.new("L", (width * k, height * k))
-    draw = ImageDraw.Draw(big)
-    for _ in range(strands):
-        x0, y0 = rng.uniform(0, width), rng.uniform(0, height)
-        a, length, bend = rng.uniform(0, 2 * np.pi), rng.uniform(0.3, 0.8) * width, rng.uniform(-1.5, 1.5)
-        line = [((x0 + length * t * np.cos(a + bend * t)) * k, (y0 + length * t * np.sin(a + bend * t)) * k) for t in np.linspace(0, 1, 40)]
-        draw.line(line, fill=255, width=int(rng.choice([1, 2]) * k))
-    m = (np.array(big.resize((width, height), Image.BOX)) > 0).astype(np.uint8)
+    def scribble(draw, k):
+        for _ in range(strands):
+            x0, y0 = rng.uniform(0, width), rng.uniform(0, height)
+            a, length, bend = rng.uniform(0, 2 * np.pi), rng.uniform(0.3, 0.8) * width, rng.uniform(-1.5, 1.5)
+            line = [((x0 + length * t * np.cos(a + bend * t)) * k, (y0 + length * t * np.sin(a + bend * t)) * k) for t in np.linspace(0, 1, 40)]
+            draw.line(line, fill=255, width=int(rng.choice([1, 2]) * k))
+
+    m = drawn_matte(width, height, scribble)
     ys, xs = np.nonzero(m)
     pick = rng.choice(len(xs), 6, replace=False)
     pts = np.column_stack([xs[pick], ys[pick]]).astype(float)
@@ -564,14 +578,10 @@ def test_a_mesh_of_crossing_strands_too_wide_to_factor_converges():
     # solves it in overlapping parts from there (their sweeps are checked against the set's own
     # system in the crate's tests), and lands within the contract of a tight solve.
     m, pts, disp = strand_scribble(400, 300, 120)
-    field, report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m)
-    tight, tight_report = inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, tolerance=1e-4, max_cycles=600)
-    assert report.converged and tight_report.converged, (report, tight_report)
-    assert 40 < report.cycles <= 80, report
-    assert float(np.abs(field - tight)[m > 0].max()) < TOLERANCE_PX
-    # The next frame with a kept solver starts from the parts.
     solver = inkwarp.Solver()
-    inkwarp.thin_plate_report(pts, disp, m.shape, mask=m, solver=solver)
+    report = solve_near_tight(m, pts, disp, tolerance=1e-4, max_cycles=600, solver=solver)
+    assert 40 < report.cycles <= 80, report
+    # The next frame with the kept solver starts from the parts.
     _, second = inkwarp.thin_plate_report(pts, disp * 1.02, m.shape, mask=m, solver=solver)
     assert second.converged and second.cycles < 40, second
 

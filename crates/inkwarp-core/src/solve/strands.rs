@@ -168,8 +168,8 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
-    /// Marks `ids` as the set tried.
-    fn mark(&mut self, ids: &[u32], on: bool) {
+    /// Marks `ids` as the set tried, each by its place (`on`), or clears them.
+    fn place(&mut self, ids: &[u32], on: bool) {
         ids.iter().enumerate().for_each(|(i, &p)| self.mark[p as usize] = if on { i as u32 } else { u32::MAX });
     }
 
@@ -184,14 +184,14 @@ impl Builder<'_> {
 
     /// Factors the set `ids` (an elimination order) and adds it to the lists, or `false` when its band is too wide.
     fn keep(&mut self, ids: &[u32]) -> bool {
-        self.mark(ids, true);
+        self.place(ids, true);
         let (level, wp) = (self.level, self.level.wp);
         let entries: Vec<_> = ids.iter().map(|&p| {
             let mut row = Vec::new();
             level.taps(p as usize, |q, a| if self.mark[q] != u32::MAX { row.push((self.mark[q] as usize, a)) });
             row
         }).collect();
-        self.mark(ids, false);
+        self.place(ids, false);
         // On the finest level a straight 1 px line is factored exactly (its pivots fall as its length cubed:
         // dropped or shifted, its slowest bending is left to the cycle); past [`EXACT_PIVOT`], shifted.
         let straight = ids.iter().all(|&p| p as usize % wp == ids[0] as usize % wp) || ids.iter().all(|&p| p as usize / wp == ids[0] as usize / wp);
@@ -248,16 +248,16 @@ impl Builder<'_> {
         }
         let k = usize::from(hi[1] - lo[1] > hi[0] - lo[0]);
         let (mid, side) = ((lo[k] + hi[k]).div_ceil(2), move |p: usize| [p % wp, p / wp][k]);
-        self.mark(ids, true);
+        self.place(ids, true);
         let parts = blocks_in_order(ids.len(), |_| true, self.links(ids, |p, q| (side(q) >= mid) == (side(p) >= mid)));
-        self.mark(ids, false);
+        self.place(ids, false);
         parts.into_iter().map(|h| h.into_iter().map(|i| ids[i]).collect()).collect()
     }
 
     /// `ids` with the thin nodes `depth` links or fewer from it, in an elimination order.
     fn widened(&mut self, ids: &[u32], depth: usize) -> Vec<u32> {
         let mut all = ids.to_vec();
-        self.mark(&all, true);
+        self.place(&all, true);
         let mut from = 0;
         for _ in 0..depth {
             let to = all.len();
@@ -271,7 +271,7 @@ impl Builder<'_> {
             from = to;
         }
         let order = blocks_in_order(all.len(), |_| true, self.links(&all, |_, _| true));
-        self.mark(&all, false);
+        self.place(&all, false);
         order.into_iter().flatten().map(|i| all[i]).collect()
     }
 }
