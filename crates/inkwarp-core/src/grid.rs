@@ -77,20 +77,9 @@ impl Grid {
     /// is no link).
     pub fn linked(&self, i: usize) -> [usize; 4] {
         let (w, right, down) = (self.width, &self.link_right, &self.link_down);
-        let mut nbrs = [usize::MAX; 4];
-        if right[i] {
-            nbrs[0] = i + 1;
-        }
-        if i % w > 0 && right[i - 1] {
-            nbrs[1] = i - 1;
-        }
-        if down[i] {
-            nbrs[2] = i + w;
-        }
-        if i >= w && down[i - w] {
-            nbrs[3] = i - w;
-        }
-        nbrs
+        let (left, up) = (i % w > 0 && right[i - 1], i >= w && down[i - w]);
+        let links = [(right[i], i + 1), (left, i.wrapping_sub(1)), (down[i], i + w), (up, i.wrapping_sub(w))];
+        links.map(|(linked, j)| if linked { j } else { usize::MAX })
     }
 
     /// Number of nodes (`width × height`).

@@ -138,17 +138,11 @@ pub fn find_fold(source: &[TransferFeature], target: &[TransferFeature]) -> Resu
     if !(hi[0] > lo[0] && hi[1] > lo[1]) || sign == 0.0 {
         return Ok(None);
     }
-    let mut worst: Option<(Point, f64)> = None;
-    for iy in 0..FOLD_GRID {
-        for ix in 0..FOLD_GRID {
-            let t = |i: usize| i as f64 / (FOLD_GRID - 1) as f64;
-            let p = [lo[0] + t(ix) * (hi[0] - lo[0]), lo[1] + t(iy) * (hi[1] - lo[1])];
-            let d = sign * det(map.jacobian(p));
-            if d < 0.0 && worst.map_or(true, |(_, w)| d < w) {
-                worst = Some((p, d));
-            }
-        }
-    }
+    // The grid row by row; the first of equally deep folds.
+    let t = |i: usize| i as f64 / (FOLD_GRID - 1) as f64;
+    let point = |ix: usize, iy: usize| [lo[0] + t(ix) * (hi[0] - lo[0]), lo[1] + t(iy) * (hi[1] - lo[1])];
+    let grid = (0..FOLD_GRID).flat_map(|iy| (0..FOLD_GRID).map(move |ix| point(ix, iy)));
+    let worst = grid.map(|p| (p, sign * det(map.jacobian(p)))).filter(|&(_, d)| d < 0.0).min_by(|a, b| a.1.total_cmp(&b.1));
     Ok(worst.map(|(at, det)| {
         // The feature that runs against the affine map of all the others, among those where
         // leaving it out fits the others best by a map that keeps orientation (from four

@@ -225,19 +225,9 @@ fn catmull_rom_span(a: Point, b: Point, c: Point, d: Point) -> Span {
     // t0 = (c − b) + d1·[(b − a)/d0 − (c − a)/(d0 + d1)]. As a → b the bracket tends to
     // −(c − b)/d1 ((b − a)/d0 = |b − a|^½·e vanishes), so a coincident neighbour gives a
     // zero tangent.
-    let mut t0 = [0.0; 2];
-    if d0 > 0.0 {
-        for k in 0..2 {
-            t0[k] = chord[k] + d1 * ((b[k] - a[k]) / d0 - (c[k] - a[k]) / (d0 + d1));
-        }
-    }
+    let t0 = if d0 > 0.0 { [0, 1].map(|k| chord[k] + d1 * ((b[k] - a[k]) / d0 - (c[k] - a[k]) / (d0 + d1))) } else { [0.0; 2] };
     // t1 = (c − b) − d1·(d − b)/(d1 + d2) + d1·(d − c)/d2
-    let mut t1 = [0.0; 2];
-    if d2 > 0.0 {
-        for k in 0..2 {
-            t1[k] = chord[k] + d1 * ((d[k] - c[k]) / d2 - (d[k] - b[k]) / (d1 + d2));
-        }
-    }
+    let t1 = if d2 > 0.0 { [0, 1].map(|k| chord[k] + d1 * ((d[k] - c[k]) / d2 - (d[k] - b[k]) / (d1 + d2))) } else { [0.0; 2] };
     Span { p0: b, t0, t1, p1: c }
 }
 

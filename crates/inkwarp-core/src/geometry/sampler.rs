@@ -81,24 +81,12 @@ impl FeatureSampler {
         check_points(kind, rest, "rest")?;
         let spacing = check_spacing(opts.spacing_px)?;
         let (closed, spline) = kind.curve_shape(opts.closed, opts.spline_outline);
-        let mut me = FeatureSampler {
-            kind,
-            closed,
-            spline,
-            rest: rest.to_vec(),
-            rest_curve: None,
-            params: Vec::new(),
-            rest_points: Vec::new(),
-            hermite: Vec::new(),
-            interior: Interior::None,
-        };
-        if matches!(kind, Kind::Polyline | Kind::Spline | Kind::Region) {
-            let curve = Curve::new(rest, closed, spline);
-            me.params = curve.sample_parameters(spacing);
-            me.rest_points = me.params.iter().map(|p| curve.point_at(p.span, p.u)).collect();
-            me.hermite = me.params.iter().map(|p| hermite_basis(p.u)).collect();
-            me.rest_curve = Some(curve);
-        }
+        let rest_curve = matches!(kind, Kind::Polyline | Kind::Spline | Kind::Region).then(|| Curve::new(rest, closed, spline));
+        let params: Vec<CurveParameter> = rest_curve.as_ref().map_or_else(Vec::new, |curve| curve.sample_parameters(spacing));
+        let rest_points = rest_curve.iter().flat_map(|curve| params.iter().map(|p| curve.point_at(p.span, p.u))).collect();
+        let hermite = params.iter().map(|p| hermite_basis(p.u)).collect();
+        let (rest, interior) = (rest.to_vec(), Interior::None);
+        let mut me = FeatureSampler { kind, closed, spline, rest, rest_curve, params, rest_points, hermite, interior };
         if kind == Kind::Region {
             let grid = domain.ok_or(GeometryError::RegionWithoutDomain)?;
             me.interior = me.prepare_interior(grid, max_coefficients);
@@ -193,39 +181,31 @@ impl FeatureSampler {
             return Err(GeometryError::CountMismatch { rest: self.rest.len(), pose: pose.len() });
         }
         check_points(self.kind, pose, "posed")?;
-        let mut out = Vec::with_capacity(self.len());
         match self.kind {
-            Kind::Cut => return Ok(out),
-            Kind::Point => {
-                out.push(Sample { rest: self.rest[0], displacement: sub(pose[0], self.rest[0]) });
-                return Ok(out);
-            }
+            Kind::Cut => return Ok(Vec::new()),
+            Kind::Point => return Ok(vec![Sample { rest: self.rest[0], displacement: sub(pose[0], self.rest[0]) }]),
             _ => {}
         }
+        let mut out = Vec::with_capacity(self.len());
         let posed = Curve::new(pose, self.closed, self.spline);
         let curve = self.params.iter().zip(&self.rest_points);
         out.extend(curve.map(|(p, &r)| Sample { rest: r, displacement: sub(posed.point_at(p.span, p.u), r) }));
         match &self.interior {
             Interior::None => {}
             Interior::Coefficients { nodes, coefficients, width } => {
-                let change = self.basis_change(pose, &posed);
+                let change = &self.basis_change(pose, &posed);
                 debug_assert_eq!(change.len(), *width);
                 let chunks = nodes.par_chunks(1024).zip(coefficients.par_chunks(1024 * width));
-                let pieces: Vec<Vec<Sample>> = chunks
-                    .map(|(ns, cs)| {
-                        let rows = ns.iter().zip(cs.chunks_exact(*width));
-                        rows.map(|(&rest, row)| {
-                            let (mut dx, mut dy) = (0.0, 0.0);
-                            for (&c, b) in row.iter().zip(&change) {
-                                dx += c as f64 * b[0];
-                                dy += c as f64 * b[1];
-                            }
-                            Sample { rest, displacement: [dx, dy] }
-                        })
-                        .collect()
+                out.par_extend(chunks.flat_map_iter(|(ns, cs)| {
+                    ns.iter().zip(cs.chunks_exact(*width)).map(move |(&rest, row)| {
+                        let (mut dx, mut dy) = (0.0, 0.0);
+                        for (&c, b) in row.iter().zip(change) {
+                            dx += c as f64 * b[0];
+                            dy += c as f64 * b[1];
+                        }
+                        Sample { rest, displacement: [dx, dy] }
                     })
-                    .collect();
-                out.extend(pieces.into_iter().flatten());
+                }));
             }
             Interior::Direct { nodes, vertices } => {
                 let values: Vec<Point> = if self.spline {

@@ -87,12 +87,7 @@ impl Method {
     /// The interpolant of this module that implements the method, or `None` for `tps`
     /// (the grid solver).
     pub fn interpolant(self) -> Option<Interpolant> {
-        match self {
-            Method::Tps => None,
-            Method::TpsExact => Some(Interpolant::TpsExact),
-            Method::Triangulation => Some(Interpolant::Triangulation),
-            Method::BeierNeely => Some(Interpolant::BeierNeely),
-        }
+        [Interpolant::TpsExact, Interpolant::Triangulation, Interpolant::BeierNeely].into_iter().find(|&i| Method::from(i) == self)
     }
 }
 

@@ -261,10 +261,8 @@ impl ThinPlateMap {
                         *sy += wy * u;
                     }
                 }
-                for x in 0..width {
-                    row_x[x] = acc_x[x] as f32;
-                    row_y[x] = acc_y[x] as f32;
-                }
+                row_x.iter_mut().zip(&acc_x).for_each(|(r, &a)| *r = a as f32);
+                row_y.iter_mut().zip(&acc_y).for_each(|(r, &a)| *r = a as f32);
             },
         );
         f

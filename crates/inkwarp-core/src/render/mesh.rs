@@ -146,16 +146,10 @@ pub(super) fn shading_mask(present: u8, links: u8, k: usize) -> u8 {
     let start = CYCLE.iter().position(|&c| c == k).expect("corner index below 4");
     let mut mask = 1u8 << k;
     // Clockwise, then counter-clockwise, until a broken side.
-    for step in 1..4 {
-        if broken((start + step - 1) % 4) {
-            break;
-        }
+    for step in (1..4).take_while(|step| !broken((start + step - 1) % 4)) {
         mask |= 1 << CYCLE[(start + step) % 4];
     }
-    for step in 1..4 {
-        if broken((start + 4 - step) % 4) {
-            break;
-        }
+    for step in (1..4).take_while(|step| !broken((start + 4 - step) % 4)) {
         mask |= 1 << CYCLE[(start + 4 - step) % 4];
     }
     mask & present
@@ -166,23 +160,15 @@ pub(super) fn shading_mask(present: u8, links: u8, k: usize) -> u8 {
 #[inline]
 pub(super) fn shade(col: &[Rgba; 4], mask: u8, own: usize, u: f32, v: f32) -> Rgba {
     let w = [(1.0 - u) * (1.0 - v), u * (1.0 - v), (1.0 - u) * v, u * v];
-    let mut out = [0.0f32; 4];
-    if mask == 0b1111 {
-        for k in 0..4 {
-            for ch in 0..4 {
-                out[ch] += w[k] * col[k][ch];
-            }
+    let (mut out, mut sum) = ([0.0f32; 4], 0.0f32);
+    for k in (0..4).filter(|k| mask >> k & 1 != 0) {
+        sum += w[k];
+        for ch in 0..4 {
+            out[ch] += w[k] * col[k][ch];
         }
-        return out;
     }
-    let mut sum = 0.0f32;
-    for k in 0..4 {
-        if mask >> k & 1 != 0 {
-            sum += w[k];
-            for ch in 0..4 {
-                out[ch] += w[k] * col[k][ch];
-            }
-        }
+    if mask == 0b1111 {
+        return out;
     }
     if sum > 1e-12 {
         let inv = 1.0 / sum;
@@ -214,18 +200,10 @@ impl<'a> Layer<'a> {
             let here = &px[r.clone()];
             let below = if y + 1 < h { &px[r.end..r.end + w] } else { here };
             let (right, down) = (&grid.link_right[r.clone()], &grid.link_down[r]);
-            for x in 0..w {
-                if here[x].is_nan() {
-                    continue;
-                }
-                let mut l = 0;
-                if x + 1 < w && right[x] && !here[x + 1].is_nan() {
-                    l |= LINK_RIGHT;
-                }
-                if y + 1 < h && down[x] && !below[x].is_nan() {
-                    l |= LINK_DOWN;
-                }
-                lrow[x] = l;
+            for x in (0..w).filter(|&x| !here[x].is_nan()) {
+                let linked_right = x + 1 < w && right[x] && !here[x + 1].is_nan();
+                let linked_down = y + 1 < h && down[x] && !below[x].is_nan();
+                lrow[x] = (u8::from(linked_right) * LINK_RIGHT) | (u8::from(linked_down) * LINK_DOWN);
             }
         });
         Layer { w, h, px, py, rgba: &image.data, links, offset: [ox, oy] }
@@ -344,11 +322,9 @@ impl<'a> Layer<'a> {
             }
             let members = component(b.links, k);
             let (mut sum, mut n) = ([0.0f32; 2], 0.0f32);
-            for j in 0..4 {
-                if members >> j & 1 != 0 {
-                    sum = [sum[0] + completion[j][0], sum[1] + completion[j][1]];
-                    n += 1.0;
-                }
+            for j in (0..4).filter(|j| members >> j & 1 != 0) {
+                sum = [sum[0] + completion[j][0], sum[1] + completion[j][1]];
+                n += 1.0;
             }
             s.c[k] = [sum[0] / n, sum[1] / n];
         }

@@ -357,10 +357,7 @@ impl Band {
                     let byte = row[bc];
                     if byte & SIMPLE != 0 {
                         // A run of interior quads (so `br ≥ 1` and `bc ≥ 1`).
-                        let mut run_end = bc + 1;
-                        while run_end < end && row[run_end] & SIMPLE != 0 {
-                            run_end += 1;
-                        }
+                        let run_end = (bc + 1..end).find(|&i| row[i] & SIMPLE == 0).unwrap_or(end);
                         self.simple_run(layer, br, bc, run_end);
                         bc = run_end;
                         continue;
@@ -458,29 +455,27 @@ impl Band {
         let flipped = byte & 1 != 0;
         let (mut outline, mut n) = ([[0.0f32; 2]; 8], 0);
         let (mut edges, mut ne) = ([([0.0f32; 2], [0.0f32; 2]); 8], 0);
+        // A side is an edge where the element beside it is the other way round.
+        let mut edge = |e, neighbour_flipped: bool| {
+            if neighbour_flipped != flipped {
+                edges[ne] = e;
+                ne += 1;
+            }
+        };
         for (side, &(nbyte, ka, kb)) in neighbours.iter().enumerate() {
             let (a, z) = (q[side], q[(side + 1) % 4]);
             outline[n] = a;
             n += 1;
             if nbyte & COMPLETE != 0 {
-                if (nbyte & 1 != 0) != flipped {
-                    edges[ne] = (a, z);
-                    ne += 1;
-                }
+                edge((a, z), nbyte & 1 != 0);
             } else {
                 // The neighbour is split into quarters at the link's midpoint: split here
                 // too, so that both sides rasterise the same segments.
                 let m = mid(a, z);
                 outline[n] = m;
                 n += 1;
-                if (nbyte >> ka & 1 != 0) != flipped {
-                    edges[ne] = (a, m);
-                    ne += 1;
-                }
-                if (nbyte >> kb & 1 != 0) != flipped {
-                    edges[ne] = (m, z);
-                    ne += 1;
-                }
+                edge((a, m), nbyte >> ka & 1 != 0);
+                edge((m, z), nbyte >> kb & 1 != 0);
             }
         }
         let last = outline[n - 1];

@@ -55,10 +55,7 @@ fn level(image: &RgbaImage, field: &Field, grid: &Grid, k: usize) -> (RgbaImage,
                 let (li, p) = (j * lw + i.0, i.1);
                 let rgba: [u8; 4] = image.data[4 * p..4 * p + 4].try_into().expect("four channels");
                 let pm = premultiply(rgba);
-                let c = &mut col[i.0];
-                for ch in 0..4 {
-                    c[ch] += pm[ch] as f64;
-                }
+                col[i.0].iter_mut().zip(pm).for_each(|(c, v)| *c += v as f64);
                 count[i.0] += 1;
                 let on = grid.active[p];
                 active[li] |= on;

@@ -3,7 +3,7 @@
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::mpsc::{sync_channel, Receiver};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
@@ -157,8 +157,8 @@ impl Scene {
     pub fn layer_feature_samples(&self, layer: usize, time_s: f64) -> Result<Vec<FeatureSamples>, SceneError> {
         let layer_ref = &self.layers()[layer];
         let spacing_px = layer_ref.solver.grid_step as f64;
-        let mut out = Vec::with_capacity(layer_ref.drivers.len());
-        for (&i, sampler) in layer_ref.drivers.iter().zip(&layer_ref.samplers) {
+        let drivers = layer_ref.drivers.iter().zip(&layer_ref.samplers);
+        drivers.map(|(&i, sampler)| {
             let f = &self.doc().features[i];
             let fail = |e: String| SceneError::one(format!("features[{i}]"), format!("at t = {time_s} s: {e}"));
             // The rest geometry is prepared once per layer (for a region: its interior
@@ -173,9 +173,9 @@ impl Scene {
                 .map_err(|e| fail(e.clone()))?;
             let pose = to_layer(&self.pose_at(i, time_s), layer_ref.offset);
             let samples = sampler.sample(&pose).map_err(|e| fail(e.to_string()))?;
-            out.push(FeatureSamples { feature: i, samples });
-        }
-        Ok(out)
+            Ok(FeatureSamples { feature: i, samples })
+        })
+        .collect()
     }
 
     /// All the constraints that drive layer `layer` at time `time_s` (see
@@ -404,13 +404,9 @@ impl FrameStream {
     /// waiting on a worker: it may call `next` from outside any pool.
     pub fn new(scene: Arc<Scene>, frames: Range<usize>, threads: usize, overrides: SolverOverrides, pool: Option<&'static rayon::ThreadPool>) -> Self {
         let end = frames.end.min(scene.frame_count());
-        let mut chains = Vec::new();
-        let mut start = frames.start;
-        while start < end {
-            let stop = ((start / WARM_CHAIN_FRAMES + 1) * WARM_CHAIN_FRAMES).min(end);
-            chains.push(start..stop);
-            start = stop;
-        }
+        let next = |start: usize| (start / WARM_CHAIN_FRAMES + 1) * WARM_CHAIN_FRAMES;
+        let starts = std::iter::successors(Some(frames.start), |&start| Some(next(start))).take_while(|&start| start < end);
+        let chains: Vec<Range<usize>> = starts.map(|start| start..next(start).min(end)).collect();
         let threads = if threads == 0 { default_frame_threads() } else { threads }.min(chains.len());
         let (receivers, workers, warnings) = (Vec::new(), Vec::new(), Vec::new());
         let mut stream =
@@ -433,13 +429,10 @@ impl FrameStream {
 
     fn start_workers(&mut self, threads: usize) {
         let pool = self.pool;
-        let mut senders: Vec<Option<SyncSender<WorkerResult>>> = Vec::with_capacity(self.chains.len());
-        for _ in &self.chains {
-            // Two frames of slack per chain bound the memory held by workers running ahead.
-            let (tx, rx) = sync_channel::<WorkerResult>(2);
-            senders.push(Some(tx));
-            self.receivers.push(rx);
-        }
+        // Two frames of slack per chain bound the memory held by workers running ahead.
+        let channels = self.chains.iter().map(|_| sync_channel::<WorkerResult>(2));
+        let (senders, receivers): (Vec<_>, Vec<_>) = channels.map(|(tx, rx)| (Some(tx), rx)).unzip();
+        self.receivers = receivers;
         let senders = Arc::new(Mutex::new(senders));
         let next = Arc::new(AtomicUsize::new(0));
         let chains = Arc::new(self.chains.clone());
@@ -520,9 +513,7 @@ impl Iterator for FrameStream {
                 Err(_) => Some(Err(SceneError::one("", "a rendering thread stopped unexpectedly (this is a bug in inkwarp)"))),
             }
         };
-        if matches!(item, Some(Err(_))) {
-            self.failed = true;
-        }
+        self.failed = matches!(item, Some(Err(_)));
         item
     }
 }

@@ -33,10 +33,7 @@ struct Walker<'a> {
 /// `schema` with a `$ref` into `root`'s `$defs` followed, and the definition's name.
 pub(crate) fn resolve_ref<'a>(schema: &'a Value, root: &'a Value) -> (&'a Value, Option<&'a str>) {
     let name = schema.get("$ref").and_then(Value::as_str).and_then(|r| r.strip_prefix("#/$defs/"));
-    match name.and_then(|name| Some((root.get("$defs")?.get(name)?, name))) {
-        Some((def, name)) => (def, Some(name)),
-        None => (schema, None),
-    }
+    name.and_then(|name| Some((root.get("$defs")?.get(name)?, Some(name)))).unwrap_or((schema, None))
 }
 
 impl<'a> Walker<'a> {
@@ -142,9 +139,7 @@ impl<'a> Walker<'a> {
             let closed = schema.get("additionalProperties") == Some(&Value::Bool(false));
             for (key, value) in map {
                 match properties.get(key) {
-                    Some(property) => {
-                        self.walk(value, property, &join_key(path, key), None);
-                    }
+                    Some(property) => _ = self.walk(value, property, &join_key(path, key), None),
                     None if closed => {
                         let names = properties.keys().map(String::as_str);
                         let hint = did_you_mean(key, names.clone()).map(|s| format!("did you mean \"{s}\"? ")).unwrap_or_default();
@@ -267,10 +262,7 @@ fn expected_types(types: &Value) -> String {
     match types {
         Value::String(t) => name(t).to_string(),
         // `Option<T>` is "T or null": null means "absent", so name only T.
-        Value::Array(ts) => {
-            let names: Vec<&str> = ts.iter().filter_map(Value::as_str).filter(|t| *t != "null").map(name).collect();
-            names.join(" or ")
-        }
+        Value::Array(ts) => ts.iter().filter_map(Value::as_str).filter(|t| *t != "null").map(name).collect::<Vec<_>>().join(" or "),
         _ => "a value".to_string(),
     }
 }
@@ -301,10 +293,7 @@ fn fmt_num(x: f64) -> String {
 
 fn first_sentence(text: &str) -> String {
     let text = text.replace('\n', " ");
-    match text.find(". ") {
-        Some(i) => text[..i].to_string(),
-        None => text.trim_end_matches('.').to_string(),
-    }
+    text.find(". ").map_or_else(|| text.trim_end_matches('.').to_string(), |i| text[..i].to_string())
 }
 
 /// The candidate closest to `word` by edit distance, when it is close enough to be a typo.

@@ -27,9 +27,7 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_
         p.push(Problem::new(key, format!("the frame {key} must be at least 1 pixel, found 0")));
     }
     if let (Some(w @ 1..), Some(h @ 1..)) = (doc.width, doc.height) {
-        if let Err(why) = limits::check_size("the canvas", w as usize, h as usize) {
-            p.push(Problem::new("width", why));
-        }
+        p.extend(limits::check_size("the canvas", w as usize, h as usize).err().map(|why| Problem::new("width", why)));
     }
     if !(doc.fps.is_finite() && doc.fps > 0.0) {
         p.push(Problem::new("fps", format!("frames per second must be a number > 0, found {}; use e.g. 24", doc.fps)));
