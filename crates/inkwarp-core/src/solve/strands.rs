@@ -15,6 +15,9 @@ pub(crate) const THIN: usize = 16;
 /// The most entries a node's row of a block's factor may hold on average.
 const BAND: usize = 128;
 
+/// The factors this large (entries) solve their two components on two threads.
+const PAR_ENTRIES: usize = 1 << 16;
+
 /// How many links a halved set's part reaches into its neighbours.
 const OVERLAP: usize = 8;
 
@@ -391,29 +394,31 @@ impl Envelope {
     /// Whether a pivot was dropped.
     pub(crate) fn dropped(&self) -> bool { self.d_inv.contains(&0.0) }
 
-    /// `x = (L D Lᵀ)⁻¹ x`.
+    /// `x = (L D Lᵀ)⁻¹ x`: a large factor's two components on two threads.
     pub(crate) fn solve(&self, x: &mut [V2]) {
-        let n = x.len();
-        for i in 0..n {
+        if self.l.len() < PAR_ENTRIES { return self.solve_lanes(x) }
+        let (mut a, mut b): (Vec<[f64; 1]>, Vec<[f64; 1]>) = x.iter().map(|v| ([v[0]], [v[1]])).unzip();
+        rayon::join(|| self.solve_lanes(&mut a), || self.solve_lanes(&mut b));
+        x.iter_mut().zip(a.into_iter().zip(b)).for_each(|(x, (a, b))| *x = [a[0], b[0]]);
+    }
+
+    /// `x = (L D Lᵀ)⁻¹ x` for `C` components side by side (the same operations on each).
+    fn solve_lanes<const C: usize>(&self, x: &mut [[f64; C]]) {
+        for i in 0..x.len() {
             let fi = self.first[i] as usize;
             let mut s = x[i];
             for k in fi..i {
                 let lik = self.l[self.at[i] + k - fi];
-                s[0] -= lik * x[k][0];
-                s[1] -= lik * x[k][1];
+                (0..C).for_each(|c| s[c] -= lik * x[k][c]);
             }
             x[i] = s;
         }
-        for (x, &d) in x.iter_mut().zip(&self.d_inv) {
-            *x = [x[0] * d, x[1] * d];
-        }
-        for i in (0..n).rev() {
-            let fi = self.first[i] as usize;
-            let xi = x[i];
+        x.iter_mut().zip(&self.d_inv).for_each(|(x, &d)| x.iter_mut().for_each(|x| *x *= d));
+        for i in (0..x.len()).rev() {
+            let (fi, xi) = (self.first[i] as usize, x[i]);
             for k in fi..i {
                 let lik = self.l[self.at[i] + k - fi];
-                x[k][0] -= lik * xi[0];
-                x[k][1] -= lik * xi[1];
+                (0..C).for_each(|c| x[k][c] -= lik * xi[c]);
             }
         }
     }
@@ -548,6 +553,26 @@ mod tests {
             assert_eq!(teeth.len(), 20, "{len}: {answers:?}");
             assert!(teeth.iter().all(|&&(_, exact, shifted)| if exact_teeth { exact } else { shifted && !exact }), "{len}: {teeth:?}");
             assert!(answers.iter().all(|b| b.1 || b.2), "{len}: {answers:?}");
+        }
+    }
+
+    #[test]
+    fn a_large_factor_solves_its_components_on_two_threads_as_it_does_both_side_by_side() {
+        // A banded matrix with a factor past PAR_ENTRIES: its two components on two threads, bit for bit the
+        // pair kernel's answer, which solves the system.
+        let (n, band) = (2000usize, 40usize);
+        let a = |i: usize, j: usize| if i == j { 4.0 * band as f64 } else { -1.0 - ((i * j) % 3) as f64 * 0.25 };
+        let entries: Vec<Vec<(usize, f64)>> = (0..n).map(|i| (i.saturating_sub(band)..(i + band + 1).min(n)).map(|j| (j, a(i.min(j), i.max(j)))).collect()).collect();
+        let factor = Envelope::factor(&entries, 0.0, PIVOT, usize::MAX).expect("no limit");
+        assert!(factor.l.len() >= PAR_ENTRIES && !factor.dropped());
+        let rhs: Vec<V2> = (0..n).map(|i| [(i % 7) as f64 - 3.0, (i % 5) as f64 * 0.5 + 1.0]).collect();
+        let (mut threads, mut pairs) = (rhs.clone(), rhs.clone());
+        factor.solve(&mut threads);
+        factor.solve_lanes(&mut pairs);
+        assert_eq!(threads, pairs);
+        for (i, row) in entries.iter().enumerate() {
+            let ax = row.iter().fold([0.0f64; 2], |s, &(j, v)| [s[0] + v * pairs[j][0], s[1] + v * pairs[j][1]]);
+            assert!((0..2).all(|k| (ax[k] - rhs[i][k]).abs() < 1e-9), "row {i}: {ax:?} against {:?}", rhs[i]);
         }
     }
 }
