@@ -53,7 +53,12 @@ impl<'a> Walker<'a> {
         if let Some(types) = schema.get("type") {
             if !type_matches(value, types) {
                 let expected = expected_types(types);
-                let hint = if expected == "a whole number" && value.as_f64().is_some_and(|f| f.fract() == 0.0) { "; write it without a decimal point or exponent (2, not 2.0)" } else { "" };
+                // A whole number past 64 bits reads as a float: it is too large, however it was written.
+                let hint = match value.as_f64().filter(|f| expected == "a whole number" && f.fract() == 0.0) {
+                    Some(f) if f.abs() >= 2f64.powi(63) => ", too large to be one here; use a smaller number",
+                    Some(_) => "; write it without a decimal point or exponent (2, not 2.0)",
+                    None => "",
+                };
                 self.push(path, format!("expected {expected}, found {}{hint}", describe(value)));
                 return false;
             }

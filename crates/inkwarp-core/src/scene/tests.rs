@@ -1006,6 +1006,17 @@ fn a_whole_number_written_as_a_float_is_told_how_to_write_it() {
 }
 
 #[test]
+fn a_whole_number_past_64_bits_is_called_too_large_not_a_float() {
+    // serde reads it as a float, however it was written; the decimal-point hint would send the user in a circle.
+    let huge: Value = serde_json::from_str("100000000000000000000000000000").unwrap();
+    for (pointer, path) in [("/width", "width"), ("/solver", "solver.grid_step")] {
+        let value = if path == "width" { huge.clone() } else { json!({"grid_step": huge}) };
+        let found = problems_of(&with(valid_scene(), pointer, value));
+        assert_eq!(found, [format!("{path}: expected a whole number, found the number 1e+29, too large to be one here; use a smaller number")]);
+    }
+}
+
+#[test]
 fn places_in_messages_are_the_original_documents_past_a_layer_set_aside() {
     // The duplicate name's first use is layers[1]; the rebuilt document (without layers[0])
     // called it layers[0].
