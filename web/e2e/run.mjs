@@ -7,11 +7,20 @@
 // Timings are measured and reported (web/test-results/perf.json), never asserted.
 
 import { spawn, spawnSync } from 'node:child_process';
-import { copyFileSync, mkdirSync, mkdtempSync, readFileSync, renameSync, writeFileSync } from 'node:fs';
+import { copyFileSync, mkdirSync, mkdtempSync, readFileSync, renameSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { dirname, join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { chromium } from 'playwright-core';
+
+/** The tests' scratch folders, removed when the run ends (pass or fail). */
+const scratch = [];
+function scratchDir(prefix) {
+  const dir = mkdtempSync(join(tmpdir(), prefix));
+  scratch.push(dir);
+  return dir;
+}
+process.on('exit', () => scratch.forEach((dir) => rmSync(dir, { recursive: true, force: true })));
 
 const here = dirname(fileURLToPath(import.meta.url));
 const repo = resolve(here, '../..');
@@ -448,7 +457,7 @@ test('the GPU frame matches the CPU reference renderer', async () => {
 });
 
 test('save the scene and render it with `inkwarp render`: same frame', async () => {
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-e2e-'));
+  const dir = scratchDir('inkwarp-e2e-');
   const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
   const scenePath = join(dir, 'scene.json');
   await download.saveAs(scenePath);
@@ -465,7 +474,7 @@ test('save the scene and render it with `inkwarp render`: same frame', async () 
 });
 
 test('the method switch: each method draws its own frame, the one the CPU renderer and `inkwarp render` draw', async () => {
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-methods-'));
+  const dir = scratchDir('inkwarp-methods-');
   const time = await page.evaluate(() => window.inkwarp.store.view.time);
   const tps = await frame(page);
   const { width, height } = tps;
@@ -1024,7 +1033,7 @@ test('every bundled example opens', async () => {
 });
 
 test('`inkwarp edit SCENE` opens the scene and Save writes it back', async () => {
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-edit-'));
+  const dir = scratchDir('inkwarp-edit-');
   const png = await page.evaluate(async () => {
     const c = new OffscreenCanvas(64, 48);
     const ctx = c.getContext('2d');
@@ -1083,7 +1092,7 @@ test('`inkwarp edit SCENE` opens the scene and Save writes it back', async () =>
 });
 
 test('`inkwarp edit SCENE` on a scene with a mistake names the file and shows the example instead', async () => {
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-edit-bad-'));
+  const dir = scratchDir('inkwarp-edit-bad-');
   const black = new Uint8Array(64 * 48 * 4).map((_, i) => (i % 4 === 3 ? 255 : 0));
   await savePng(page, image(64, 48, Buffer.from(black).toString('base64')), join(dir, 'black.png'));
   const scenePath = join(dir, 'keycount.json');
@@ -1232,7 +1241,7 @@ test('edits made while the restore offer waits: leaving asks, and the offered wo
 
 /** A scene file `name` in a new folder: the checkerboard picture beside it, no features. */
 function checkerScene(name) {
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-served-'));
+  const dir = scratchDir('inkwarp-served-');
   copyFileSync(join(repo, 'examples/checkerboard-hole/checkerboard.png'), join(dir, 'checker.png'));
   const scenePath = join(dir, name);
   writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, fps: 12, duration: 1, layers: [{ name: 'checker', image: 'checker.png' }], features: [] }));
@@ -1502,7 +1511,7 @@ test('kept work whose picture does not open names the picture by its file (else 
 });
 
 test('a served picture the engine cannot use, on opening or later, is named by its file and layer', async () => {
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-served-'));
+  const dir = scratchDir('inkwarp-served-');
   // 40000 pixels wide: the server reads it, the engine refuses it (at most 32768 a side).
   const made = spawnSync(join(repo, '.venv/bin/python'), ['-c', 'import sys; from PIL import Image; Image.new("RGBA", (40000, 1)).save(sys.argv[1])', join(dir, 'strip.png')]);
   assert(made.status === 0, `the picture is made: ${made.stderr}`);
@@ -2090,7 +2099,7 @@ test('WebM export: a 2.5 s, 24 fps scene lasts 2.5 s ± one frame and has 60 fra
     await app.idle();
   });
   const [download] = await Promise.all([page.waitForEvent('download', { timeout: 300000 }), page.evaluate(() => window.inkwarp.ui.exportWebm())]);
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-webm-'));
+  const dir = scratchDir('inkwarp-webm-');
   const file = join(dir, download.suggestedFilename());
   await download.saveAs(file);
   const r = spawnSync(ffmpegExe(), ['-hide_banner', '-i', file, '-f', 'null', '-'], { encoding: 'utf8' });
@@ -2901,7 +2910,7 @@ test('a layer smaller than the scene is placed by its offset (numeric fields, Mo
   assert(left[0] > 150 && left[1] < 100 && inside[1] > 150, `the sticker follows the point traced over it in the frame: ${left} at x + 1 (red), ${inside} at x + 4 (green)`);
   await screenshot(page, 'layer-offset');
   // The same frame from the command line.
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-e2e-'));
+  const dir = scratchDir('inkwarp-e2e-');
   const [download] = await Promise.all([page.waitForEvent('download'), page.click('#save')]);
   const scenePath = join(dir, 'scene.json');
   await download.saveAs(scenePath);
@@ -3118,7 +3127,7 @@ test('a region is dragged by its fill: the whole region moves', async () => {
 });
 
 test('a layered PSD opens as `inkwarp new` reads it: a layer each, PSD order, names, visibility, opacity in alpha, blend modes noted', async () => {
-  const dir = mkdtempSync(join(tmpdir(), 'inkwarp-psd-'));
+  const dir = scratchDir('inkwarp-psd-');
   const file = join(dir, 'figure.psd');
   const made = spawnSync(join(repo, '.venv/bin/python'), [join(here, 'make_psd.py'), file], { encoding: 'utf8' });
   assert(made.status === 0, `psd-tools wrote the PSD: ${made.stderr}`);
