@@ -136,10 +136,7 @@ pub fn points_at(rest: &[Point], keys: &[Key], time_s: f64) -> Vec<Point> {
             let m0 = velocity(keys, i, j, true);
             let m1 = velocity(keys, i + 1, j, false);
             let (p0, p1) = (a.points[j], b.points[j]);
-            [
-                h00 * p0[0] + h10 * duration * m0[0] + h01 * p1[0] + h11 * duration * m1[0],
-                h00 * p0[1] + h10 * duration * m0[1] + h01 * p1[1] + h11 * duration * m1[1],
-            ]
+            [0, 1].map(|c| h00 * p0[c] + h10 * duration * m0[c] + h01 * p1[c] + h11 * duration * m1[c])
         })
         .collect()
 }

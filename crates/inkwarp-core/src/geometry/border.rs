@@ -23,24 +23,18 @@ pub fn border_samples(width: usize, height: usize, spacing_px: f64) -> Vec<Sampl
     // positions 0, step, 2·step, … along an edge of length `len`, its far end included
     let along = |len: f64| -> Vec<f64> {
         let count = (len / step).ceil() as usize;
-        let mut v: Vec<f64> = (0..count).map(|k| (k as f64 * step).min(len)).collect();
-        v.push(len);
-        v
+        (0..count).map(|k| (k as f64 * step).min(len)).chain([len]).collect()
     };
     let at = |x: f64, y: f64| Sample { rest: [x, y], displacement: [0.0, 0.0] };
     let mut out = Vec::new();
     for x in along(right) {
         out.push(at(x, 0.0));
-        if bottom > 0.0 {
-            out.push(at(x, bottom));
-        }
+        out.extend((bottom > 0.0).then(|| at(x, bottom)));
     }
     // the columns without their end nodes (the rows above have them)
     for y in along(bottom).into_iter().filter(|&y| y > 0.0 && y < bottom) {
         out.push(at(0.0, y));
-        if right > 0.0 {
-            out.push(at(right, y));
-        }
+        out.extend((right > 0.0).then(|| at(right, y)));
     }
     out
 }

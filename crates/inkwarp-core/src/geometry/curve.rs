@@ -243,10 +243,7 @@ pub fn hermite_basis(u: f64) -> [f64; 4] {
 #[inline]
 fn hermite(s: &Span, u: f64) -> Point {
     let [h00, h10, h11, h01] = hermite_basis(u);
-    [
-        h00 * s.p0[0] + h10 * s.t0[0] + h01 * s.p1[0] + h11 * s.t1[0],
-        h00 * s.p0[1] + h10 * s.t0[1] + h01 * s.p1[1] + h11 * s.t1[1],
-    ]
+    [0, 1].map(|k| h00 * s.p0[k] + h10 * s.t0[k] + h01 * s.p1[k] + h11 * s.t1[k])
 }
 
 #[inline]
@@ -256,8 +253,7 @@ fn speed(s: &Span, u: f64) -> f64 {
     let g10 = 3.0 * u2 - 4.0 * u + 1.0;
     let g01 = -g00;
     let g11 = 3.0 * u2 - 2.0 * u;
-    let dx = g00 * s.p0[0] + g10 * s.t0[0] + g01 * s.p1[0] + g11 * s.t1[0];
-    let dy = g00 * s.p0[1] + g10 * s.t0[1] + g01 * s.p1[1] + g11 * s.t1[1];
+    let [dx, dy] = [0, 1].map(|k| g00 * s.p0[k] + g10 * s.t0[k] + g01 * s.p1[k] + g11 * s.t1[k]);
     (dx * dx + dy * dy).sqrt()
 }
 

@@ -304,9 +304,7 @@ pub fn curve_polyline(kind: Kind, points: &[Point], closed: bool, spline_outline
     if spline {
         return Curve::spline(points, closed).to_polyline(spacing);
     }
-    let mut out = points.to_vec();
-    out.extend(closed.then_some(points[0]));
-    out
+    points.iter().copied().chain(closed.then_some(points[0])).collect()
 }
 
 #[cfg(test)]

@@ -126,10 +126,7 @@ impl FeatureSampler {
             let mut coefficients = Vec::with_capacity(chunk.len() * width);
             for n in chunk {
                 let x = [n[0] as f64, n[1] as f64];
-                let Some(sum) = mvc.unnormalized_weights_at(x, &mut scratch, &mut weights)
-                else {
-                    continue;
-                };
+                let Some(sum) = mvc.unnormalized_weights_at(x, &mut scratch, &mut weights) else { continue };
                 if self.spline {
                     // each outline sample's weight spread over its span's Hermite data
                     row.iter_mut().for_each(|c| *c = 0.0);
