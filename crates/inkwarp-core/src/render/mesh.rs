@@ -281,10 +281,7 @@ impl<'a> Layer<'a> {
         let mut s = Skirts { h: [[0.0; 2]; 4], v: [[0.0; 2]; 4], c: [[0.0; 2]; 4] };
         // The parallelogram completion of each corner.
         let mut completion = [[0.0f32; 2]; 4];
-        for k in 0..4 {
-            if b.present >> k & 1 == 0 {
-                continue;
-            }
+        for k in (0..4).filter(|k| b.present >> k & 1 != 0) {
             let p = b.p[k];
             let h_side = if k < 2 { TOP } else { BOTTOM };
             let v_side = if k & 1 == 0 { LEFT } else { RIGHT };
@@ -316,10 +313,7 @@ impl<'a> Layer<'a> {
             s.v[k] = towards(v_side, k ^ 2, |f| f.1, if k < 2 { 0.5 } else { -0.5 }, 1, reach_y);
             completion[k] = [s.h[k][0] + s.v[k][0] - p[0], s.h[k][1] + s.v[k][1] - p[1]];
         }
-        for k in 0..4 {
-            if b.present >> k & 1 == 0 {
-                continue;
-            }
+        for k in (0..4).filter(|k| b.present >> k & 1 != 0) {
             let members = component(b.links, k);
             let (mut sum, mut n) = ([0.0f32; 2], 0.0f32);
             for j in (0..4).filter(|j| members >> j & 1 != 0) {

@@ -208,8 +208,7 @@ impl<'a> PreparedLayer<'a> {
     pub fn new(image: &'a RgbaImage, field: Field, grid: &Grid, offset: [f64; 2]) -> Result<Self, RenderError> {
         check_layer(image, &field, grid)?;
         let layer = mesh::Layer::prepare(image, field.dx, field.dy, grid, offset);
-        let plan = layer.plan();
-        Ok(PreparedLayer { layer, plan })
+        Ok(PreparedLayer { plan: layer.plan(), layer })
     }
 }
 
@@ -257,8 +256,7 @@ pub fn draw_frame(
 fn check_layer(image: &RgbaImage, field: &Field, grid: &Grid) -> Result<(), RenderError> {
     let (width, height) = (image.width, image.height);
     if image.data.len() != width * height * 4 {
-        let (expected, actual) = (width * height * 4, image.data.len());
-        return Err(RenderError::ImageDataLength { width, height, expected, actual });
+        return Err(RenderError::ImageDataLength { width, height, expected: width * height * 4, actual: image.data.len() });
     }
     let mismatch = |what, got_width, got_height| RenderError::SizeMismatch { what, got_width, got_height, width, height };
     let n = width * height;

@@ -491,10 +491,7 @@ impl Band {
         let s = layer.skirts(&b);
         let w = layer.w;
         let byte = plan.signs[br * (w + 1) + bc];
-        for k in 0..4 {
-            if b.present >> k & 1 == 0 {
-                continue;
-            }
+        for k in (0..4).filter(|k| b.present >> k & 1 != 0) {
             let q = quarter_corners(&b, &s, k);
             let bb = bbox(&q);
             if !self.reaches(bb) {

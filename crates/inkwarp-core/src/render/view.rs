@@ -68,20 +68,14 @@ fn level(image: &RgbaImage, field: &Field, grid: &Grid, k: usize) -> (RgbaImage,
                     q[2] += 1.0;
                 }
                 // Links inside the block (not across its right or lower side).
-                if x % k != k - 1 && x + 1 < w && !grid.link_right[p] {
-                    whole_right[li] = false;
-                }
-                if y % k != k - 1 && y + 1 < h && !grid.link_down[p] {
-                    whole_down[li] = false;
-                }
+                whole_right[li] &= x % k == k - 1 || x + 1 >= w || grid.link_right[p];
+                whole_down[li] &= y % k == k - 1 || y + 1 >= h || grid.link_down[p];
             }
         }
         for i in 0..lw {
             let li = j * lw + i;
             let inv = 1.0 / count[i].max(1) as f64;
-            let c = col[i];
-            let px = unpremultiply(c.map(|v| (v * inv) as f32));
-            data[4 * li..4 * li + 4].copy_from_slice(&px);
+            data[4 * li..4 * li + 4].copy_from_slice(&unpremultiply(col[i].map(|v| (v * inv) as f32)));
             let q = pos[i];
             if q[2] > 0.0 {
                 let kf = k as f64;
