@@ -288,10 +288,7 @@ pub fn field(
     let f = match interpolant {
         Interpolant::TpsExact => thin_plate_field(&controls.all_samples(), width, height, params.max_samples, &mut report),
         Interpolant::Triangulation => triangulation_field(&controls.all_samples(), width, height, &mut report),
-        Interpolant::BeierNeely => {
-            let (samples, lines) = (&controls.samples, &controls.line_pairs);
-            beier_neely_field(samples, lines, width, height, &params.beier_neely, &mut report)
-        }
+        Interpolant::BeierNeely => beier_neely_field(&controls.samples, &controls.line_pairs, width, height, &params.beier_neely, &mut report),
     };
     // The dense loops skip their remaining rows (and the elimination its remaining pivots)
     // once a stop is requested.

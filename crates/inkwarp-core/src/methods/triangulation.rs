@@ -41,10 +41,8 @@ pub fn triangulation_field(samples: &[Sample], width: usize, height: usize, repo
             merged.push(Sample { rest: corner, displacement: [0.0, 0.0] });
         }
     }
-    let vertices: Vec<Vertex> = merged
-        .iter()
-        .map(|s| Vertex { position: Point2::new(s.rest[0], s.rest[1]), value: s.displacement })
-        .collect();
+    let vertex = |s: &Sample| Vertex { position: Point2::new(s.rest[0], s.rest[1]), value: s.displacement };
+    let vertices: Vec<Vertex> = merged.iter().map(vertex).collect();
     let why = |e: spade::InsertionError| match e {
         spade::InsertionError::TooSmall => "a point's coordinates are too close to zero (below 1e-100 pixels); round them to 0",
         spade::InsertionError::TooLarge => "a point's coordinates are too large; keep them within ±1e6 pixels",
@@ -60,11 +58,8 @@ pub fn triangulation_field(samples: &[Sample], width: usize, height: usize, repo
         fill_collinear(&tri, &mut f);
         return Ok(f);
     }
-    for face in tri.inner_faces() {
-        let v = face.vertices();
-        let p = v.map(|h| h.position());
-        let val = v.map(|h| h.data().value);
-        rasterize(&mut f, [[p[0].x, p[0].y], [p[1].x, p[1].y], [p[2].x, p[2].y]], val);
+    for v in tri.inner_faces().map(|face| face.vertices()) {
+        rasterize(&mut f, v.map(|h| [h.position().x, h.position().y]), v.map(|h| h.data().value));
     }
     Ok(f)
 }
