@@ -338,13 +338,11 @@ impl<'a> Animator<'a> {
 
     /// The frame at `time_s`: every drawn layer solved (warm) and composited.
     pub fn render(&mut self, time_s: f64) -> Result<RgbaImage, SceneError> {
-        for layer in 0..self.scene.layers().len() {
-            if self.scene.layer_is_drawn(layer) {
-                let solved = self.layer_field(layer, time_s)?;
-                self.fields[layer] = Some(solved.field);
-            }
+        let scene = self.scene;
+        for layer in (0..scene.layers().len()).filter(|&j| scene.layer_is_drawn(j)) {
+            self.fields[layer] = Some(self.layer_field(layer, time_s)?.field);
         }
-        self.scene.composite(&self.fields)
+        scene.composite(&self.fields)
     }
 
     /// The warnings of the solves since the last call (a solve that did not converge).

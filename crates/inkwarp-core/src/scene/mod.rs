@@ -182,9 +182,8 @@ fn parse_value(value: &Value) -> Parsed {
     if parsed.problems.is_empty() {
         match serde_path_to_error::deserialize::<_, SceneDoc>(value) {
             Ok(doc) => {
-                let problems = validate_doc(&doc);
+                parsed.extend(validate_doc(&doc));
                 parsed.doc = Some(doc);
-                parsed.extend(problems);
             }
             Err(err) => {
                 let path = err.path().to_string();
@@ -265,9 +264,8 @@ fn parse_value(value: &Value) -> Parsed {
     map.entry("layers").or_insert(Value::Array(Vec::new()));
     if let Ok(doc) = serde_json::from_value::<SceneDoc>(Value::Object(map)) {
         // Layers set aside for their problems are no missing layer.
-        let problems = validate::validate_doc_knowing(&doc, &set_aside_ids, had_layers);
+        parsed.extend(validate::validate_doc_knowing(&doc, &set_aside_ids, had_layers));
         parsed.doc = Some(doc);
-        parsed.extend(problems);
     }
     // Ids and names are unique across every item: the meaning check saw the kept ones only, so
     // an item set aside for its problems and another with its id or name are told here.
@@ -300,20 +298,16 @@ fn strip_unknown_keys(value: &mut Value, schema: &Value, root: &Value) {
         }
         return;
     }
-    match value {
-        Value::Object(map) => {
-            if let Some(properties) = schema.get("properties").and_then(Value::as_object) {
-                map.retain(|key, _| properties.contains_key(key));
-                for (key, child) in map.iter_mut() {
-                    strip_unknown_keys(child, &properties[key], root);
-                }
+    match (value, schema.get("properties").and_then(Value::as_object), schema.get("items")) {
+        (Value::Object(map), Some(properties), _) => {
+            map.retain(|key, _| properties.contains_key(key));
+            for (key, child) in map.iter_mut() {
+                strip_unknown_keys(child, &properties[key], root);
             }
         }
-        Value::Array(items) => {
-            if let Some(item_schema) = schema.get("items") {
-                for item in items {
-                    strip_unknown_keys(item, item_schema, root);
-                }
+        (Value::Array(items), _, Some(item_schema)) => {
+            for item in items {
+                strip_unknown_keys(item, item_schema, root);
             }
         }
         _ => {}
@@ -457,12 +451,10 @@ impl Scene {
             layers.push(Layer { name, image, grid, drivers, offset, solver, visible, border, samplers });
         }
 
-        let fps = doc.fps;
         let duration_s = doc.duration.unwrap_or_else(|| {
-            let last_key = doc.features.iter().flat_map(|f| f.keys.iter().map(|k| k.time_s)).fold(0.0, f64::max);
-            last_key + 1.0 / fps
+            doc.features.iter().flat_map(|f| f.keys.iter().map(|k| k.time_s)).fold(0.0, f64::max) + 1.0 / doc.fps
         });
-        let frame_count = ((duration_s * fps - 1e-9).ceil() as usize).max(1);
+        let frame_count = ((duration_s * doc.fps - 1e-9).ceil() as usize).max(1);
         Ok(Scene { doc, width, height, duration_s, frame_count, layers })
     }
 

@@ -18,8 +18,7 @@ pub(crate) fn check_detailed(doc: &Value, schema: &Value) -> (Vec<Problem>, Vec<
     if doc.is_object() {
         walker.walk(doc, schema, "", Some("the scene"));
     } else {
-        let found = describe(doc);
-        walker.push("", format!("a scene is a JSON object such as {{\"inkwarp\": 1, \"layers\": [...]}}, found {found}"));
+        walker.push("", format!("a scene is a JSON object such as {{\"inkwarp\": 1, \"layers\": [...]}}, found {}", describe(doc)));
     }
     (walker.problems, walker.unknown_keys)
 }
@@ -50,18 +49,16 @@ impl<'a> Walker<'a> {
         if let Some(alternatives) = schema.get("oneOf").or_else(|| schema.get("anyOf")).and_then(Value::as_array) {
             return self.alternatives(value, alternatives, path, what);
         }
-        if let Some(types) = schema.get("type") {
-            if !type_matches(value, types) {
-                let expected = expected_types(types);
-                // A whole number past 64 bits reads as a float: it is too large, however it was written.
-                let hint = match value.as_f64().filter(|f| expected == "a whole number" && f.fract() == 0.0) {
-                    Some(f) if f.abs() >= 2f64.powi(63) => ", too large to be one here; use a smaller number",
-                    Some(_) => "; write it without a decimal point or exponent (2, not 2.0)",
-                    None => "",
-                };
-                self.push(path, format!("expected {expected}, found {}{hint}", describe(value)));
-                return false;
-            }
+        if let Some(types) = schema.get("type").filter(|types| !type_matches(value, types)) {
+            let expected = expected_types(types);
+            // A whole number past 64 bits reads as a float: it is too large, however it was written.
+            let hint = match value.as_f64().filter(|f| expected == "a whole number" && f.fract() == 0.0) {
+                Some(f) if f.abs() >= 2f64.powi(63) => ", too large to be one here; use a smaller number",
+                Some(_) => "; write it without a decimal point or exponent (2, not 2.0)",
+                None => "",
+            };
+            self.push(path, format!("expected {expected}, found {}{hint}", describe(value)));
+            return false;
         }
         if let Some(constant) = schema.get("const").filter(|&c| c != value) {
             let found = describe(value);
@@ -73,11 +70,9 @@ impl<'a> Walker<'a> {
             self.push(path, why);
             return false;
         }
-        if let Some(options) = schema.get("enum").and_then(Value::as_array) {
-            if !options.contains(value) {
-                self.push(path, format!("{} is not allowed here; use one of {}", describe(value), list(options)));
-                return false;
-            }
+        if let Some(options) = schema.get("enum").and_then(Value::as_array).filter(|options| !options.contains(value)) {
+            self.push(path, format!("{} is not allowed here; use one of {}", describe(value), list(options)));
+            return false;
         }
         match value {
             Value::Object(map) => self.object(map, schema, path, what),
@@ -158,16 +153,14 @@ impl<'a> Walker<'a> {
             }
         }
         if let Some(required) = schema.get("required").and_then(Value::as_array) {
-            for key in required.iter().filter_map(Value::as_str) {
-                if !map.contains_key(key) {
-                    let about = properties
-                        .and_then(|p| p.get(key))
-                        .and_then(|p| p.get("description"))
-                        .and_then(Value::as_str)
-                        .map(|d| format!(" ({})", first_sentence(d)))
-                        .unwrap_or_default();
-                    self.push(&join_key(path, key), format!("{what} needs \"{key}\"{about}; add it"));
-                }
+            for key in required.iter().filter_map(Value::as_str).filter(|key| !map.contains_key(*key)) {
+                let about = properties
+                    .and_then(|p| p.get(key))
+                    .and_then(|p| p.get("description"))
+                    .and_then(Value::as_str)
+                    .map(|d| format!(" ({})", first_sentence(d)))
+                    .unwrap_or_default();
+                self.push(&join_key(path, key), format!("{what} needs \"{key}\"{about}; add it"));
             }
         }
     }

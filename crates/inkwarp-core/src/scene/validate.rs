@@ -121,11 +121,9 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_
     for (j, layer) in doc.layers.iter().enumerate() {
         let path = format!("layers[{j}]");
         check_unique(&layer.name, j, ("layer", "name", "layers"), &mut first_with_name, &mut p);
-        for (c, v) in layer.offset.iter().enumerate() {
-            if !limits::coordinate_ok(*v) {
-                let why = format!("the offset must be a finite number of pixels within ±{MAX_COORD_PX:e}, found {}", limits::show(*v));
-                p.push(Problem::new(format!("{path}.offset[{c}]"), why));
-            }
+        for (c, v) in layer.offset.iter().enumerate().filter(|(_, v)| !limits::coordinate_ok(**v)) {
+            let why = format!("the offset must be a finite number of pixels within ±{MAX_COORD_PX:e}, found {}", limits::show(*v));
+            p.push(Problem::new(format!("{path}.offset[{c}]"), why));
         }
         // The engine reads a layer's features in its own pixels (less its offset), so they must be within the limit there too.
         let listed = |f: &&super::doc::FeatureDoc| layer.features.as_ref().map_or(true, |ids| ids.contains(&f.id));
