@@ -352,15 +352,11 @@ pub fn constrain(grid: &Grid, samples: &[Sample]) -> Constraints {
     // node in the samples' order (so their average is summed in that order).
     assert!(grid.len() as u64 <= 1 << 32 && samples.len() as u64 <= 1 << 32, "a node or sample index past 2³²");
     let mut keyed: Vec<u64> = Vec::with_capacity(samples.len());
-    for (k, s) in samples.iter().enumerate() {
+    keyed.extend(samples.iter().enumerate().filter_map(|(k, s)| {
+        let i = nearest_node(grid, s.rest).map(|(x, y)| grid.index(x, y))?;
         let finite = s.displacement[0].is_finite() && s.displacement[1].is_finite();
-        if let Some((x, y)) = nearest_node(grid, s.rest) {
-            let i = grid.index(x, y);
-            if finite && grid.active[i] {
-                keyed.push(((i as u64) << 32) | k as u64);
-            }
-        }
-    }
+        (finite && grid.active[i]).then_some(((i as u64) << 32) | k as u64)
+    }));
     let used = keyed.len();
     keyed.sort_unstable();
     let mut out = Constraints { used_samples: used, dropped_samples: samples.len() - used, ..Default::default() };
