@@ -345,18 +345,16 @@ impl<'a> Layer<'a> {
                 (a, b, &self.links[a..a + w], &self.links[b..b + w])
             });
             for bc in 0..bw {
-                if let Some((a, b, l0, l1)) = rows {
-                    if bc >= 1 && bc < w {
-                        let x = bc - 1;
-                        if l0[x] & (LINK_RIGHT | LINK_DOWN) == LINK_RIGHT | LINK_DOWN
-                            && l0[x + 1] & LINK_DOWN != 0
-                            && l1[x] & LINK_RIGHT != 0
-                        {
-                            let q = [self.pos(a + x), self.pos(a + x + 1), self.pos(b + x + 1), self.pos(b + x)];
-                            srow[bc] = COMPLETE | ANY | is_flipped(&q) as u8;
-                            extend(&mut rrow[bc / CHUNK], &q);
-                            continue;
-                        }
+                if let Some((a, b, l0, l1)) = rows.filter(|_| bc >= 1 && bc < w) {
+                    let x = bc - 1;
+                    if l0[x] & (LINK_RIGHT | LINK_DOWN) == LINK_RIGHT | LINK_DOWN
+                        && l0[x + 1] & LINK_DOWN != 0
+                        && l1[x] & LINK_RIGHT != 0
+                    {
+                        let q = [self.pos(a + x), self.pos(a + x + 1), self.pos(b + x + 1), self.pos(b + x)];
+                        srow[bc] = COMPLETE | ANY | is_flipped(&q) as u8;
+                        extend(&mut rrow[bc / CHUNK], &q);
+                        continue;
                     }
                 }
                 let b = self.block(bc, br);

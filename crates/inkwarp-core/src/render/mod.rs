@@ -180,9 +180,7 @@ impl Canvas {
         const CHUNK: usize = 1 << 14;
         let mut data = vec![0u8; self.data.len() * 4];
         data.par_chunks_mut(4 * CHUNK).zip(self.data.par_chunks(CHUNK)).for_each(|(out, pixels)| {
-            for (o, &p) in out.chunks_exact_mut(4).zip(pixels) {
-                o.copy_from_slice(&unpremultiply(p));
-            }
+            out.chunks_exact_mut(4).zip(pixels).for_each(|(o, &p)| o.copy_from_slice(&unpremultiply(p)));
         });
         RgbaImage { width: self.width, height: self.height, data }
     }

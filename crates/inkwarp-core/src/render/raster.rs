@@ -84,9 +84,7 @@ pub(super) fn draw_frame(width: usize, background: Rgba, layers: &[(&Layer<'_>, 
             dst.clear();
             dst.resize(out.len() / 4, background);
             draw_band(layers, width, y0 + band * BAND_ROWS, &mut dst);
-            for (o, &p) in out.chunks_exact_mut(4).zip(dst.iter()) {
-                o.copy_from_slice(&unpremultiply(p));
-            }
+            out.chunks_exact_mut(4).zip(dst.iter()).for_each(|(o, &p)| o.copy_from_slice(&unpremultiply(p)));
         })
     });
 }

@@ -137,9 +137,7 @@ pub fn draw_view(
     if out.len() != expected {
         return Err(RenderError::OutputLength { width: x1 - x0, first: y0, end: y1, expected, actual: out.len() });
     }
-    for l in layers {
-        check_layer(l.image, l.field, l.grid)?;
-    }
+    layers.iter().try_for_each(|l| check_layer(l.image, l.field, l.grid))?;
     // Above 1, each layer's level: its picture and grid (borrowed by the prepared layer)
     // and its field (taken).
     let levels = layers.iter().filter(|_| k > 1).map(|l| level(l.image, l.field, l.grid, k));
@@ -157,9 +155,6 @@ pub fn draw_view(
     }
     let mut rows = vec![0u8; 4 * vw * (y1 - y0)];
     draw_frame(vw, vh, background, &prepared, y0..y1, &mut rows)?;
-    let span = 4 * (x1 - x0);
-    for (o, r) in out.chunks_exact_mut(span).zip(rows.chunks_exact(4 * vw)) {
-        o.copy_from_slice(&r[4 * x0..4 * x1]);
-    }
+    out.chunks_exact_mut(4 * (x1 - x0)).zip(rows.chunks_exact(4 * vw)).for_each(|(o, r)| o.copy_from_slice(&r[4 * x0..4 * x1]));
     Ok(())
 }
