@@ -192,11 +192,8 @@ pub fn line_pairs_from_chain(chain: &[Sample], closed: bool, min_length_px: f64)
     }
     let pair = |a: &Sample, b: &Sample| LinePair { rest: [a.rest, b.rest], pose: [pose(a), pose(b)] };
     let mut pairs: Vec<LinePair> = kept.windows(2).map(|w| pair(w[0], w[1])).collect();
-    if closed && kept.len() > 2 {
-        let (a, b) = (kept[kept.len() - 1], kept[0]);
-        if dist(a.rest, b.rest) > 0.0 {
-            pairs.push(pair(a, b));
-        }
+    if closed && kept.len() > 2 && dist(kept[kept.len() - 1].rest, kept[0].rest) > 0.0 {
+        pairs.push(pair(kept[kept.len() - 1], kept[0]));
     }
     pairs
 }

@@ -58,10 +58,8 @@ pub fn hold_border(controls: &mut Controls, interpolant: Interpolant, width: usi
     if interpolant == Interpolant::BeierNeely {
         let (r, b) = ((width - 1) as f64, (height - 1) as f64);
         let corners = [[0.0, 0.0], [r, 0.0], [r, b], [0.0, b]];
-        for k in 0..4 {
-            let edge = [corners[k], corners[(k + 1) % 4]];
-            if edge[0] != edge[1] { controls.line_pairs.push(super::LinePair { rest: edge, pose: edge }); }
-        }
+        let edges = (0..4).map(|k| [corners[k], corners[(k + 1) % 4]]).filter(|e| e[0] != e[1]);
+        controls.line_pairs.extend(edges.map(|edge| super::LinePair { rest: edge, pose: edge }));
     } else {
         controls.samples.extend(crate::geometry::border_samples(width, height, spacing_px));
     }

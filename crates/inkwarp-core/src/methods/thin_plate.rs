@@ -332,13 +332,10 @@ fn linear_basis(q: &[[f64; 2]]) -> Vec<[f64; 2]> {
     let n = q.len() as f64;
     let mx = q.iter().map(|p| p[0]).sum::<f64>() / n;
     let my = q.iter().map(|p| p[1]).sum::<f64>() / n;
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for p in q {
+    let [sxx, sxy, syy] = q.iter().fold([0.0; 3], |[xx, xy, yy], p| {
         let (dx, dy) = (p[0] - mx, p[1] - my);
-        sxx += dx * dx;
-        sxy += dx * dy;
-        syy += dy * dy;
-    }
+        [xx + dx * dx, xy + dx * dy, yy + dy * dy]
+    });
     // Eigenvalues of the 2 × 2 scatter matrix.
     let tr = sxx + syy;
     let disc = (sq(sxx - syy) + 4.0 * sxy * sxy).sqrt();
