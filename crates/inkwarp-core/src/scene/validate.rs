@@ -158,9 +158,7 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_
                 }
             }
         }
-        if let Some(overrides) = &layer.solver {
-            p.extend(validate_overrides(overrides, &format!("{path}.solver")));
-        }
+        p.extend(layer.solver.iter().flat_map(|overrides| validate_overrides(overrides, &format!("{path}.solver"))));
     }
     p
 }
