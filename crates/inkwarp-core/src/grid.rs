@@ -69,7 +69,6 @@ impl Grid {
         Grid { width, height, active, link_right, link_down }
     }
 
-    /// Index of node `(x, y)`.
     #[inline]
     pub fn index(&self, x: usize, y: usize) -> usize { y * self.width + x }
 
@@ -313,10 +312,8 @@ pub struct Constraints {
 }
 
 impl Constraints {
-    /// Number of constrained nodes.
     pub fn len(&self) -> usize { self.nodes.len() }
 
-    /// `true` when no node is constrained.
     pub fn is_empty(&self) -> bool { self.nodes.is_empty() }
 }
 

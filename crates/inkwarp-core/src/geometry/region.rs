@@ -91,10 +91,8 @@ impl MeanValueInterpolator {
         MeanValueInterpolator { xs, ys, lengths, vertices, values }
     }
 
-    /// How many vertices the outline has.
     pub fn len(&self) -> usize { self.vertices.len() }
 
-    /// Whether the outline has no vertices.
     pub fn is_empty(&self) -> bool { self.vertices.is_empty() }
 
     #[cfg(test)]

@@ -213,7 +213,6 @@ impl<'a> Layer<'a> {
     #[inline(always)]
     pub fn pos(&self, i: usize) -> V2 { [self.px[i], self.py[i]] }
 
-    /// Whether pixel `i` is drawn.
     #[inline(always)]
     pub fn drawn(&self, i: usize) -> bool { !self.px[i].is_nan() }
 

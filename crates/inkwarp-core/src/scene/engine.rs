@@ -422,7 +422,6 @@ impl FrameStream {
     /// frame; see [`Scene::convergence_warning`]).
     pub fn take_warnings(&mut self) -> Vec<String> { std::mem::take(&mut self.warnings) }
 
-    /// Whether the stream delivers no frame at all.
     pub fn is_empty(&self) -> bool { self.len() == 0 }
 
     fn start_workers(&mut self, threads: usize) {

@@ -52,7 +52,6 @@ pub struct Problem {
 }
 
 impl Problem {
-    /// A problem at `path`.
     pub fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
         Problem { path: path.into(), message: message.into() }
     }
@@ -75,7 +74,6 @@ pub struct SceneError {
 }
 
 impl SceneError {
-    /// An error with one problem.
     pub fn one(path: impl Into<String>, message: impl Into<String>) -> Self {
         SceneError { problems: vec![Problem::new(path, message)] }
     }
