@@ -364,6 +364,36 @@ def test_the_holes_note_is_judged_on_the_layers_drawn(tmp_path):
     assert [path for path, _ in inkwarp_scene(doc, tmp_path).notes()] == ["features[0]"]
 
 
+def test_validate_notes_a_matte_that_falls_apart_at_its_grid_step(tmp_path):
+    # Hair 1 px wide on odd rows has no node on the coarse grid of grid_step 2, and a
+    # diagonal strand no straight link between its nodes there: their pixels move with a
+    # neighbouring part, unbent (on a tangle of hair, most of them over 1 px off the full
+    # solve). The note counts the pieces on either grid; at grid_step 1, none.
+    cutout = np.zeros((HEIGHT, WIDTH, 4), np.uint8)
+    cutout[20:36, 4:16] = (200, 60, 60, 255)  # a head
+    cutout[21, 16:46] = cutout[27, 16:46] = (90, 60, 30, 255)  # two straight hairs on odd rows
+    for k in range(24):
+        cutout[19 - k // 2 - k % 2, 10 + k // 2] = (90, 60, 30, 255)  # a diagonal hair, 4-connected
+    Image.fromarray(cutout, "RGBA").save(tmp_path / "hair.png")
+    doc = {"inkwarp": 1, "fps": 4, "duration": 1, "solver": {"grid_step": 2}, "layers": [{"name": "head", "image": "hair.png"}],
+           "features": [{"id": "pin", "kind": "point", "rest": [[8, 28]], "keys": [{"t": 0.5, "points": [[9, 28]]}]}]}
+    (note,) = inkwarp_scene(doc, tmp_path).notes()
+    assert note[0] == "layers[0]", note
+    assert note[1].startswith("at grid_step 2 the matte of layer 'head' falls into "), note
+    pieces = re.match(r".* falls into (\d+) pieces on the coarse grid it is solved on, against (\d+) at full resolution", note[1])
+    assert pieces and int(pieces[1]) > int(pieces[2]) == 1, note
+    assert note[1].endswith("use grid_step 1 for this layer"), note
+    doc["layers"][0]["solver"] = {"grid_step": 1}
+    assert inkwarp_scene(doc, tmp_path).notes() == []
+    # A solid cut-out at grid_step 2 (its antialiased rim included) keeps its one piece: no note.
+    disc = np.zeros((HEIGHT, WIDTH, 4), np.uint8)
+    yy, xx = np.mgrid[:HEIGHT, :WIDTH]
+    disc[..., 3] = np.clip((15.5 - np.hypot(xx - 24, yy - 20)) * 255, 0, 255).astype(np.uint8)
+    Image.fromarray(disc, "RGBA").save(tmp_path / "disc.png")
+    doc["layers"] = [{"name": "disc", "image": "disc.png"}]
+    assert inkwarp_scene(doc, tmp_path).notes() == []
+
+
 def inkwarp_scene(doc, base):
     import inkwarp
 

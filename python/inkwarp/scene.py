@@ -793,7 +793,9 @@ class Scene:
         ``grid_step`` 1 only), a key after the scene's end (no frame shows it), a feature that
         drives no layer, a line, curve or region whose points are all at one place, a region
         with no area, a layer picture with a colour profile other than sRGB's (not applied:
-        it renders duller than a viewer shows it). ``inkwarp validate``
+        it renders duller than a viewer shows it), a layer whose matte falls into more pieces
+        on the coarse grid of its ``grid_step`` than at full resolution (hair and thin
+        strands come apart there). ``inkwarp validate``
         prints them as notes after its "ok"; a scene with notes renders as any other (a
         feature off the picture may be there on purpose, as a correspondence point for
         :func:`inkwarp.transfer`).
@@ -803,7 +805,8 @@ class Scene:
         layers = doc.get("layers", [])
         notes: list[Problem] = []
         # Per layer, the features whose every sample the solver drops (None at grid_step > 1).
-        dropped = [None if wholly is None else set(wholly) for _, wholly in self._core.layer_checks()]
+        checks = self._core.layer_checks()
+        dropped = [None if wholly is None else set(wholly) for _, wholly, _ in checks]
 
         def shown(drives: list[int]) -> list[int]:  # the visible ones, or all where none is
             return [j for j in drives if layers[j].get("visible", True)] or drives
@@ -848,6 +851,14 @@ class Scene:
                               "it holds nothing inside, only its outline, as a polyline does; trace around what "
                               "it should hold"))
             notes += self._late_keys_of(i, feature)
+        # At a grid_step above 1: a matte that falls apart on the coarse grid (hair, strands).
+        for j, (_, _, pieces) in enumerate(checks):
+            if pieces is not None and pieces[2] > pieces[1]:
+                step, fine, coarse = pieces
+                notes.append((f"layers[{j}]", f"at grid_step {step} the matte of layer {layers[j]['name']!r} falls "
+                              f"into {coarse} pieces on the coarse grid it is solved on, against {fine} at full "
+                              "resolution: parts thinner than the step (hair, strands, thin necks) come apart there, "
+                              "and their pixels move with a neighbouring part, unbent; use grid_step 1 for this layer"))
         return notes + self._profile_notes(layers)
 
     def _profile_notes(self, layers: list[dict[str, Any]]) -> list[Problem]:

@@ -289,21 +289,25 @@ impl SceneCore {
     }
 
     /// Per layer: whether its grid is torn (an inactive node, or a cut between two active
-    /// neighbours: what `tps` tears and the other methods ignore), and the features that
-    /// drive it of which every sample is dropped (off the grid or on inactive nodes), or
-    /// None at a `grid_step` above 1, whose samples go to the coarse nodes.
-    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(bool, Option<Vec<usize>>)>> {
+    /// neighbours: what `tps` tears and the other methods ignore), the features that drive
+    /// it of which every sample is dropped (off the grid or on inactive nodes), or None at a
+    /// `grid_step` above 1, whose samples go to the coarse nodes; and at such a step, the step
+    /// and the pieces of its grid and of the coarse grid it is solved on (None at step 1).
+    #[allow(clippy::type_complexity)]
+    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(bool, Option<Vec<usize>>, Option<(usize, usize, usize)>)>> {
         let scene = Arc::clone(&self.scene);
         let checks = run_engine(py, move || {
             let check = |(i, layer): (usize, &scene::Layer)| -> Result<_, SceneError> {
                 let g = &layer.grid;
                 let torn = inkwarp_core::grid::torn(g.width, &g.active, &g.link_right, &g.link_down);
-                if layer.solver.grid_step > 1 {
-                    return Ok((torn, None));
+                let step = layer.solver.grid_step;
+                if step > 1 {
+                    let pieces = (step as usize, g.pieces().1, inkwarp_core::solve::coarse_grid(g, step as usize).pieces().1);
+                    return Ok((torn, None, Some(pieces)));
                 }
                 let features = scene.layer_feature_samples(i, 0.0)?;
                 let dropped = features.iter().filter(|f| inkwarp_core::grid::constrain(g, &f.samples).used_samples == 0);
-                Ok((torn, Some(dropped.map(|f| f.feature).collect())))
+                Ok((torn, Some(dropped.map(|f| f.feature).collect()), None))
             };
             scene.layers().iter().enumerate().map(check).collect::<Result<Vec<_>, _>>()
         })?;

@@ -25,7 +25,7 @@ mod upsample;
 mod wide;
 
 pub use history::{WarmHistory, HISTORY_FRAMES};
-pub use upsample::Upsampling;
+pub use upsample::{coarse_grid, Upsampling};
 
 use rayon::prelude::*;
 use thiserror::Error;

@@ -42,8 +42,7 @@ fn solve_on_coarse_grid(
     grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool, follow: bool,
 ) -> (Field, SolveReport) {
     let (l, sf) = (Layout::new(grid.width, grid.height, options.grid_step), options.grid_step as f64);
-    let (width, height, [active, link_right, link_down]) = coarse_links(l.w, l.h, l.s, &grid.active, &grid.link_right, &grid.link_down);
-    let coarse = Grid { width, height, active, link_right, link_down };
+    let coarse = coarse_grid(grid, l.s);
     let at = |p: &Sample| Sample { rest: [l.coarse(p.rest[0], l.wc, |x| l.px(x)), l.coarse(p.rest[1], l.hc, |y| l.py(y))], ..*p };
     let coarse_samples: Vec<Sample> = samples.iter().filter(|p| nearest_node(grid, p.rest).is_some()).map(at).collect();
     let nearest = nearest_samples(&coarse, &coarse_samples);
@@ -58,6 +57,12 @@ fn solve_on_coarse_grid(
     let (mut fc, report) = solve_from(&coarse, &constraints, &options, start.as_ref().map(FieldView::from), solver, warm);
     if follow { follow_held(grid, &l, &coarse, &constraints, &mut fc); }
     (fc, report)
+}
+
+/// The grid a solve at `grid_step = s` runs on (see the module docs).
+pub fn coarse_grid(grid: &Grid, s: usize) -> Grid {
+    let (width, height, [active, link_right, link_down]) = coarse_links(grid.width, grid.height, s, &grid.active, &grid.link_right, &grid.link_down);
+    Grid { width, height, active, link_right, link_down }
 }
 
 /// The samples that count on the coarse grid: of those that round to one active node, the nearest to it (ties
