@@ -291,12 +291,14 @@ pub(crate) struct Membrane {
 impl Membrane {
     pub(crate) fn new(g: &BoxGeo, basis: Vec<Sparse>) -> Self {
         let (k, n) = (basis.len(), g.w * g.h);
-        // Rows of the basis by node: (function, value).
-        let mut at: std::collections::HashMap<usize, Vec<(usize, f64)>> = std::collections::HashMap::new();
-        for (j, z) in basis.iter().enumerate() {
-            for &(i, v) in z {
-                at.entry(i).or_default().push((j, v));
-            }
+        // Rows of the basis by node, `(function, value)` from `start[i]` to `start[i + 1]`.
+        let mut start = vec![0; n + 1];
+        basis.iter().flatten().for_each(|&(i, _)| start[i + 1] += 1);
+        (0..n).for_each(|i| start[i + 1] += start[i]);
+        let (mut rows, mut fill) = (vec![(0, 0.0); start[n]], start.clone());
+        for (j, &(i, v)) in basis.iter().enumerate().flat_map(|(j, z)| z.iter().map(move |e| (j, e))) {
+            rows[fill[i]] = (j, v);
+            fill[i] += 1;
         }
         // The membrane Gram matrix by columns, its entries where two functions meet.
         let (mut gram, mut products): (Vec<Sparse>, Vec<Sparse>) = (vec![Vec::new(); k], Vec::with_capacity(k));
@@ -305,7 +307,7 @@ impl Membrane {
         for (j, z) in basis.iter().enumerate() {
             let touched = membrane_sparse(g, z, &mut dense, &mut y);
             for &p in &touched {
-                for &(i, v) in at.get(&p).into_iter().flatten() {
+                for &(i, v) in &rows[start[p]..start[p + 1]] {
                     if !std::mem::replace(&mut seen[i], true) {
                         hit.push(i);
                     }
@@ -329,8 +331,12 @@ impl Membrane {
         Membrane { basis, products, blocks }
     }
 
-    /// The nodes the functions touch (with repeats).
-    pub(crate) fn support(&self) -> Vec<usize> { self.basis.iter().flat_map(|z| z.iter().map(|e| e.0)).collect() }
+    /// The nodes of the box's `n` the functions touch, in order.
+    pub(crate) fn support(&self, n: usize) -> Vec<usize> {
+        let mut on = vec![false; n];
+        self.basis.iter().flatten().for_each(|&(i, _)| on[i] = true);
+        (0..n).filter(|&i| on[i]).collect()
+    }
 
     /// Whether every block is settled (none too large or singular).
     pub(crate) fn settles_all(&self) -> bool { self.blocks.iter().all(|b| b.1.is_some()) }
@@ -340,28 +346,36 @@ impl Membrane {
 
     /// `n` for the field read by `read` (box node → value), added by `add(node, value)`; false when a block
     /// was not settled (too large or singular: it is left as it is).
-    pub(crate) fn settle(&self, read: impl Fn(usize) -> V2, mut add: impl FnMut(usize, V2)) -> bool {
+    pub(crate) fn settle(&self, read: impl Fn(usize) -> V2, add: impl FnMut(usize, V2)) -> bool {
+        self.add(self.coefficients(read), add)
+    }
+
+    /// Settles `u` (dense over the box); false when a block was not settled.
+    pub(crate) fn apply(&self, u: &mut [V2]) -> bool {
+        self.add(self.coefficients(|i| u[i]), |i, v| u[i] = [u[i][0] + v[0], u[i][1] + v[1]])
+    }
+
+    /// Each settled function's coefficient in `n` for the field read by `read`, block by block.
+    fn coefficients(&self, read: impl Fn(usize) -> V2) -> Vec<(usize, V2)> {
+        let mut coefficients = Vec::new();
         for (members, l) in self.blocks.iter().filter_map(|(m, l)| Some((m, l.as_ref()?))) {
             let mut c: Vec<V2> = members.iter().map(|&j| self.products[j].iter().fold([0.0; 2], |s, &(p, y)| {
                 let v = read(p);
                 [s[0] - y * v[0], s[1] - y * v[1]]
             })).collect();
             l.solve(&mut c);
-            for (&j, c) in members.iter().zip(c) {
-                for &(i, v) in &self.basis[j] {
-                    add(i, [c[0] * v, c[1] * v]);
-                }
-            }
+            coefficients.extend(members.iter().copied().zip(c));
         }
-        self.settles_all()
+        coefficients
     }
 
-    /// Settles `u` (dense over the box); false when a block was not settled.
-    pub(crate) fn apply(&self, u: &mut [V2]) -> bool {
-        let mut n: Vec<(usize, V2)> = Vec::new();
-        let all = self.settle(|i| u[i], |i, v| n.push((i, v)));
-        n.into_iter().for_each(|(i, v)| u[i] = [u[i][0] + v[0], u[i][1] + v[1]]);
-        all
+    /// `n = Σ c_j z_j` term by term through `add(node, value)` (no node-sized buffer: a hair's functions reach
+    /// far, and their terms outnumber the nodes many times); false when a block was not settled.
+    fn add(&self, coefficients: Vec<(usize, V2)>, mut add: impl FnMut(usize, V2)) -> bool {
+        for (j, c) in coefficients {
+            self.basis[j].iter().for_each(|&(i, v)| add(i, [c[0] * v, c[1] * v]));
+        }
+        self.settles_all()
     }
 }
 
