@@ -157,6 +157,19 @@ def test_quick_strands_benchmark_prints_a_row_per_family_and_size():
         assert int(cells[2]) >= 1 and cells[3] in ("True", "False")
 
 
+def test_quick_memory_benchmark_prints_a_row_per_problem():
+    # `benchmarks/memory.py --quick`: the estimate against a child's peak memory over one solve;
+    # how close it comes is what the table reports, not asserted.
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "memory.py"), "--quick"],
+        check=True, capture_output=True, text=True, timeout=300).stdout
+    assert "| problem | grid | thin nodes | grew (MiB) | estimate ÷ grew | first term ÷ grew | cycles |" in out
+    for row in ("| open:10:200 | 200×150 | 0 |", "| comb:1:2 |", "| character:0:2 |"):
+        line = next(r for r in out.splitlines() if r.startswith(row))
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        assert float(cells[4]) > 0 and int(cells[6]) >= 1
+
+
 def test_pair_packages_compares_a_build_with_itself():
     # `benchmarks/pair_packages.py`: this checkout's package against itself, one round on
     # two small problems; the same build solves each problem in the same cycles.

@@ -394,6 +394,30 @@ def test_validate_notes_a_matte_that_falls_apart_at_its_grid_step(tmp_path):
     assert inkwarp_scene(doc, tmp_path).notes() == []
 
 
+def test_the_memory_estimate_counts_thin_parts_and_a_torn_grids_slow_modes(tmp_path):
+    # The solver factors a matte's thin parts exactly (nodes whose run of linked nodes along
+    # the row or the column is at most 16: strands, teeth, outlines), about 1,300 bytes a
+    # node, and a long solve on a torn grid keeps slow modes, 160 bytes a node (at most
+    # 256 MiB, once): `inkwarp_core::limits`. A comb's estimate is the opaque picture's plus both.
+    opaque = np.full((HEIGHT, WIDTH, 4), 255, np.uint8)
+    comb = np.zeros_like(opaque)
+    comb[:20] = comb[20:, ::4] = 255  # a bar, and teeth 1 px wide below it
+    runs = [np.zeros((HEIGHT, WIDTH), int), np.zeros((WIDTH, HEIGHT), int)]
+    for alpha, run in zip((comb[..., 3] > 0, (comb[..., 3] > 0).T), runs):
+        for row, out in zip(alpha, run):
+            edges = np.flatnonzero(np.diff(np.concatenate([[0], row, [0]])))
+            for start, stop in zip(edges[::2], edges[1::2]):
+                out[start:stop] = stop - start
+    thin = int(((comb[..., 3] > 0) & (np.minimum(runs[0], runs[1].T) <= 16)).sum())
+    assert thin == (HEIGHT - 20) * len(range(0, WIDTH, 4))
+    for name, picture in (("opaque.png", opaque), ("comb.png", comb)):
+        Image.fromarray(picture, "RGBA").save(tmp_path / name)
+    doc = {"inkwarp": 1, "fps": 4, "duration": 1, "layers": [{"name": "layer", "image": "opaque.png"}], "features": []}
+    plain = inkwarp_scene(doc, tmp_path).render_bytes
+    doc["layers"][0]["image"] = "comb.png"
+    assert inkwarp_scene(doc, tmp_path).render_bytes - plain == thin * 1300 + WIDTH * HEIGHT * 160
+
+
 def inkwarp_scene(doc, base):
     import inkwarp
 

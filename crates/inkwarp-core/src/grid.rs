@@ -179,6 +179,14 @@ impl Grid {
         w > 0 && h > 0 && all(&self.active) && right() && all(&self.link_down[..(h - 1) * w])
     }
 
+    /// How many active nodes are *thin*: their run of linked nodes along the row or the
+    /// column is at most `longest` (strands, teeth, outlines, slivers between cuts).
+    pub fn thin_nodes(&self, longest: usize) -> usize {
+        let w = self.width;
+        let runs = shorter_runs(w, self.height, |x, y| self.link_right[y * w + x], |x, y| self.link_down[y * w + x]);
+        runs.iter().zip(&self.active).filter(|&(&r, &a)| a && r as usize <= longest).count()
+    }
+
     /// Connected pieces: `labels[i]` is the piece of node `i` (`u32::MAX` for inactive
     /// nodes), pieces numbered `0..count` in order of their first node. Links are taken to
     /// join active nodes (as [`Grid::is_consistent`] checks).
@@ -367,6 +375,29 @@ pub fn constrain(grid: &Grid, samples: &[Sample]) -> Constraints {
         out.values.push([sum[0] / count, sum[1] / count]);
     }
     out
+}
+
+/// Each node's shorter run of linked nodes, along its row or along its column, on a `w × h` grid whose node
+/// `(x, y)` is linked to the next by `right(x, y)` and to the one below by `down(x, y)`; indexed `y * w + x`.
+pub(crate) fn shorter_runs(w: usize, h: usize, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Vec<u32> {
+    let mut runs = vec![u32::MAX; w * h];
+    for y in 0..h {
+        each_run(w, |x| right(x, y), |x, e| runs[y * w + x..=y * w + e].fill((e - x + 1) as u32));
+    }
+    for x in 0..w {
+        each_run(h, |y| down(x, y), |y, e| (y..=e).for_each(|i| runs[i * w + x] = runs[i * w + x].min((e - y + 1) as u32)));
+    }
+    runs
+}
+
+/// `f(start, end)` for each maximal run `start..=end` of `0..n` joined by `linked(i)` (`i` to `i + 1`).
+fn each_run(n: usize, linked: impl Fn(usize) -> bool, mut f: impl FnMut(usize, usize)) {
+    let mut s = 0;
+    while s < n {
+        let e = (s..n - 1).find(|&e| !linked(e)).unwrap_or(n - 1);
+        f(s, e);
+        s = e + 1;
+    }
 }
 
 /// Whether a `w`-wide grid with activity `active` and links `right` and `down` (as in

@@ -40,6 +40,26 @@ pub const LAYER_BYTES_PER_PIXEL: u64 = 12;
 /// and work vectors a render keeps for the layer's next frame.
 pub const SOLVER_BYTES_PER_NODE: u64 = 148;
 
+/// And per *thin* node of a solver grid (its run of linked nodes along the row or the column
+/// at most 16 long: strands, teeth, outlines, slivers between cuts): the exact factor the
+/// solver keeps for those parts (up to 128 entries a node, with its rows and order).
+pub const THIN_BYTES_PER_NODE: u64 = 1_300;
+/// And per node of a torn solver grid (a matte, a hole or a cut): the slow modes a long solve
+/// deflates, at most [`DEFLATION_MAX_BYTES`], counted once (one grid solves at a time).
+pub const DEFLATION_BYTES_PER_NODE: u64 = 160;
+/// The most the deflated modes of one solve take.
+pub const DEFLATION_MAX_BYTES: u64 = 256 << 20;
+
+/// What solving on `grids` needs beyond their bytes per node: every grid's thin nodes'
+/// factors ([`THIN_BYTES_PER_NODE`]) and the largest torn grid's deflated modes.
+pub fn thin_and_slow_bytes<'a>(grids: impl IntoIterator<Item = &'a crate::grid::Grid>) -> u64 {
+    grids.into_iter().fold([0u64; 2], |[thin, slow], g| {
+        let factors = (g.thin_nodes(crate::solve::strands::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE);
+        let modes = if g.is_open() { 0 } else { (g.len() as u64).saturating_mul(DEFLATION_BYTES_PER_NODE).min(DEFLATION_MAX_BYTES) };
+        [thin.saturating_add(factors), slow.max(modes)]
+    }).iter().fold(0, |a, &b| a.saturating_add(b))
+}
+
 /// Checks a `width × height` size against [`MAX_SIDE_PX`] and [`MAX_PIXELS`]; the message
 /// says what was found and what to do (it starts with `what`, such as "the canvas").
 ///
@@ -136,6 +156,23 @@ mod tests {
     fn coordinates() {
         assert!(coordinate_ok(-MAX_COORD_PX) && coordinate_ok(0.5));
         assert!(!coordinate_ok(1e308) && !coordinate_ok(f64::NAN) && !coordinate_ok(2f64.powi(64)));
+    }
+
+    #[test]
+    fn thin_parts_add_their_factors_and_a_torn_grid_its_slow_modes_once() {
+        use crate::grid::Grid;
+        // A bar 40 wide and 30 tall with ten teeth 1 px wide and 20 long below it.
+        let (w, h) = (40, 60);
+        let comb = Grid::from_active(w, h, (0..w * h).map(|i| i / w < 30 || (i % w % 4 == 0 && i / w < 50)).collect());
+        let (teeth, nodes) = (200, (w * h) as u64);
+        assert_eq!(comb.thin_nodes(16), teeth);
+        let comb_bytes = teeth as u64 * THIN_BYTES_PER_NODE + nodes * DEFLATION_BYTES_PER_NODE;
+        assert_eq!(thin_and_slow_bytes([&comb]), comb_bytes);
+        assert_eq!(thin_and_slow_bytes([&Grid::new(w, h)]), 0);
+        // An open strip 10 nodes tall is thin throughout, with nothing torn.
+        assert_eq!(thin_and_slow_bytes([&Grid::new(1000, 10)]), 10_000 * THIN_BYTES_PER_NODE);
+        // Every grid's factors, the slow modes of one.
+        assert_eq!(thin_and_slow_bytes([&comb, &comb, &Grid::new(w, h)]), comb_bytes + teeth as u64 * THIN_BYTES_PER_NODE);
     }
 
     #[test]

@@ -7,7 +7,8 @@ use pyo3::prelude::*;
 
 /// Rough peak memory of a grid solve per pixel (the field, its levels, work vectors and
 /// matte): about 150 bytes on an open grid, 210 with a hole and a cut (2049 × 2049 and
-/// 3840 × 2160, peak resident memory of the process).
+/// 3840 × 2160, peak resident memory of the process). A matte's thin parts and a torn
+/// grid's slow modes add `inkwarp_core::limits::thin_and_slow_bytes`.
 pub const SOLVE_BYTES_PER_PIXEL: u64 = 220;
 /// The same for the other methods' fields (`interpolate`): the field and the method's own
 /// per-pixel work.
@@ -76,9 +77,9 @@ pub fn memory_problem(needed: u64) -> Option<String> {
 }
 
 /// ValueError unless a solve or field of `width × height` fits in free memory
-/// (`bytes_per_pixel` of it per pixel).
-pub fn check_memory(width: usize, height: usize, bytes_per_pixel: u64) -> PyResult<()> {
-    let needed = (width as u64).saturating_mul(height as u64).saturating_mul(bytes_per_pixel);
+/// (`bytes_per_pixel` of it per pixel, and `extra` bytes).
+pub fn check_memory(width: usize, height: usize, bytes_per_pixel: u64, extra: u64) -> PyResult<()> {
+    let needed = (width as u64).saturating_mul(height as u64).saturating_mul(bytes_per_pixel).saturating_add(extra);
     match available_bytes() {
         Some(free) if needed > free => Err(PyValueError::new_err(format!(
             "a {width}×{height} grid needs about {} GiB of memory but {} GiB is free; use \

@@ -71,7 +71,7 @@ fn interpolate_field<'py>(
     p: f64,
 ) -> PyResult<(Bound<'py, PyArray3<f32>>, Bound<'py, PyDict>)> {
     crate::limits::check_grid(width, height)?;
-    crate::limits::check_memory(width, height, crate::limits::INTERPOLATE_BYTES_PER_PIXEL)?;
+    crate::limits::check_memory(width, height, crate::limits::INTERPOLATE_BYTES_PER_PIXEL, 0)?;
     let method: methods::Method = method.parse().map_err(value_error)?;
     let Some(interpolant) = method.interpolant() else {
         return Err(PyValueError::new_err(

@@ -2,6 +2,7 @@
 //! validator. Image paths are read here, relative to the scene's folder; the core only sees
 //! bytes. Core `SceneError`s become `inkwarp.SceneError` with the file, path and problems.
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -154,10 +155,16 @@ fn resolve_checked(text: &str, base_dir: Option<PathBuf>) -> Result<Scene, Scene
     }
 }
 
-/// The rough peak memory of rendering `scene` ([`inkwarp_core::limits::render_bytes`]).
+/// The rough peak memory of rendering `scene` ([`inkwarp_core::limits::render_bytes`], and
+/// [`inkwarp_core::limits::thin_and_slow_bytes`] of the layers' solver grids).
 fn render_bytes(scene: &Scene) -> u64 {
     let layers = scene.layers().iter().map(|l| ([l.grid.width, l.grid.height], l.solver.grid_step as usize));
-    inkwarp_core::limits::render_bytes(scene.width(), scene.height(), layers)
+    let grids: Vec<_> = scene.layers().iter().map(|l| match l.solver.grid_step as usize {
+        1 => Cow::Borrowed(&l.grid),
+        s => Cow::Owned(inkwarp_core::solve::coarse_grid(&l.grid, s)),
+    }).collect();
+    let solves = inkwarp_core::limits::thin_and_slow_bytes(grids.iter().map(|g| g.as_ref()));
+    inkwarp_core::limits::render_bytes(scene.width(), scene.height(), layers).saturating_add(solves)
 }
 
 fn image_to_numpy<'py>(py: Python<'py>, image: scene::RgbaImage) -> PyResult<Bound<'py, PyAny>> {

@@ -137,7 +137,7 @@ fn thin_plate_solve<'py>(
         }
     };
     crate::limits::check_grid(width, height)?;
-    crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL)?;
+    crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL, 0)?;
     let pts = points.as_array();
     let disp = displacements.as_array();
     if pts.ncols() != 2 || disp.ncols() != 2 || pts.nrows() != disp.nrows() {
@@ -167,6 +167,10 @@ fn thin_plate_solve<'py>(
             None => Grid::new(width, height),
         };
         crate::limits::cuts_of(&cuts)?.iter().for_each(|p| grid.add_cut(p));
+        // Thin parts and slow modes, on the grid the solve runs on.
+        let coarse = (grid_step > 1).then(|| inkwarp_core::solve::coarse_grid(&grid, grid_step));
+        let extra = inkwarp_core::limits::thin_and_slow_bytes([coarse.as_ref().unwrap_or(&grid)]);
+        crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL, extra)?;
         Arc::new(grid)
     };
     if let Some(f) = &initial {

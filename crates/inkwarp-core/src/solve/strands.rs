@@ -8,6 +8,7 @@
 //! by [`SHIFT`] (a straight strand's exactly); a vanishing pivot (a free function, at τ = 0) is dropped.
 
 use super::level::{bit, Level, Operator, Real, V2, W2, WS};
+use crate::grid::shorter_runs;
 
 /// The longest run of linked nodes across a part that still makes it thin.
 pub(crate) const THIN: usize = 16;
@@ -296,25 +297,10 @@ fn thin_nodes_of(level: &Level) -> Vec<bool> {
 fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Vec<bool> {
     let (w, h) = (level.geo.w, level.geo.h);
     let p = |x: usize, y: usize| level.pidx(x, y);
-    // Each node's shorter run (`u32::MAX` off the nodes).
-    let mut across = vec![u32::MAX; level.len_padded()];
-    for y in 0..h {
-        each_run(w, |x| right(p(x, y), y * w + x), |x, e| across[p(x, y)..=p(e, y)].fill((e - x + 1) as u32));
-    }
-    for x in 0..w {
-        each_run(h, |y| down(p(x, y), y * w + x), |y, e| (y..=e).for_each(|i| across[p(x, i)] = across[p(x, i)].min((e - y + 1) as u32)));
-    }
-    (0..across.len()).map(|p| level.inv_diag[p] != 0.0 && across[p] as usize <= THIN).collect()
-}
-
-/// `f(start, end)` for each maximal run `start..=end` of `0..n` joined by `linked(i)` (`i` to `i + 1`).
-fn each_run(n: usize, linked: impl Fn(usize) -> bool, mut f: impl FnMut(usize, usize)) {
-    let mut s = 0;
-    while s < n {
-        let e = (s..n - 1).find(|&e| !linked(e)).unwrap_or(n - 1);
-        f(s, e);
-        s = e + 1;
-    }
+    let runs = shorter_runs(w, h, |x, y| right(p(x, y), y * w + x), |x, y| down(p(x, y), y * w + x));
+    let mut thin = vec![false; level.len_padded()];
+    (0..w * h).for_each(|i| thin[p(i % w, i / w)] = level.inv_diag[p(i % w, i / w)] != 0.0 && runs[i] as usize <= THIN);
+    thin
 }
 
 /// The connected sets of the nodes `0..n` with `include` (`next(p, out)`: `p`'s neighbours, all included),
