@@ -416,6 +416,13 @@ def test_the_memory_estimate_counts_thin_parts_and_a_torn_grids_slow_modes(tmp_p
     plain = inkwarp_scene(doc, tmp_path).render_bytes
     doc["layers"][0]["image"] = "comb.png"
     assert inkwarp_scene(doc, tmp_path).render_bytes - plain == thin * 1300 + WIDTH * HEIGHT * 160
+    # At grid_step 2 both count on the 25 × 21 grid the layer is solved on: the teeth keep
+    # 12 × 11 nodes, and the bar, 10 nodes tall there, is thin too in the 13 columns
+    # without a tooth.
+    doc["solver"] = {"grid_step": 2}
+    comb_bytes = inkwarp_scene(doc, tmp_path).render_bytes
+    doc["layers"][0]["image"] = "opaque.png"
+    assert comb_bytes - inkwarp_scene(doc, tmp_path).render_bytes == (12 * 11 + 13 * 10) * 1300 + 25 * 21 * 160
 
 
 def inkwarp_scene(doc, base):

@@ -71,8 +71,9 @@ mask and cuts) with the same points: the coarse levels it built for the first ca
 a grid with holes or cuts the free functions it found (hinges, strands), are reused for
 every piece of the grid, which takes the later calls' setup away; as many of the points
 before stay too, for an undo (within about 4 million nodes). What the latest call used is
-kept whatever the grid's size, about 150 bytes a node of the grid it solves on, until the
-``Solver`` is dropped. A solve that looked for slow modes (past about a dozen cycles: hair,
+kept whatever the grid's size, about 150 bytes a node of the grid it solves on (and about
+1,300 more a node of its thin parts: strands, teeth and outlines, factored exactly), until
+the ``Solver`` is dropped. A solve that looked for slow modes (past about a dozen cycles: hair,
 combs, many cuts; or a warm start on a torn grid's new levels) also leaves the modes it
 found (parts turning on thin necks; up to 64 bytes a node more), and the next call with
 that grid, points and tension starts corrected on them: it takes fewer cycles (a call

@@ -183,6 +183,7 @@ impl Grid {
     /// column is at most `longest` (strands, teeth, outlines, slivers between cuts).
     pub fn thin_nodes(&self, longest: usize) -> usize {
         let w = self.width;
+        if self.is_open() { return if w.min(self.height) <= longest { self.len() } else { 0 }; }
         let runs = shorter_runs(w, self.height, |x, y| self.link_right[y * w + x], |x, y| self.link_down[y * w + x]);
         runs.iter().zip(&self.active).filter(|&(&r, &a)| a && r as usize <= longest).count()
     }

@@ -126,7 +126,8 @@ pub fn solver_nodes(width: usize, height: usize, grid_step: usize) -> u64 {
 }
 
 /// The rough peak memory, in bytes, of rendering a `width × height` frame with `layers`,
-/// each given by its size and its `grid_step` (see [`RENDER_BYTES_PER_PIXEL`]).
+/// each given by its size and its `grid_step` (see [`RENDER_BYTES_PER_PIXEL`]), less the
+/// layers' thin parts and slow modes ([`thin_and_slow_bytes`] of their solver grids).
 pub fn render_bytes(width: usize, height: usize, layers: impl IntoIterator<Item = ([usize; 2], usize)>) -> u64 {
     let pixels = |w: usize, h: usize| (w as u64).saturating_mul(h as u64);
     layers.into_iter().fold(pixels(width, height).saturating_mul(RENDER_BYTES_PER_PIXEL), |sum, ([w, h], step)| {

@@ -167,12 +167,12 @@ fn thin_plate_solve<'py>(
             None => Grid::new(width, height),
         };
         crate::limits::cuts_of(&cuts)?.iter().for_each(|p| grid.add_cut(p));
-        // Thin parts and slow modes, on the grid the solve runs on.
-        let coarse = (grid_step > 1).then(|| inkwarp_core::solve::coarse_grid(&grid, grid_step));
-        let extra = inkwarp_core::limits::thin_and_slow_bytes([coarse.as_ref().unwrap_or(&grid)]);
-        crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL, extra)?;
         Arc::new(grid)
     };
+    // Thin parts and slow modes, on the grid the solve runs on (an open one's are a narrow strip's).
+    let coarse = (grid_step > 1).then(|| inkwarp_core::solve::coarse_grid(&grid, grid_step));
+    let extra = inkwarp_core::limits::thin_and_slow_bytes([coarse.as_ref().unwrap_or(&*grid)]);
+    crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL, extra)?;
     if let Some(f) = &initial {
         if f.shape() != [height, width, 2] {
             return Err(PyValueError::new_err(format!(
