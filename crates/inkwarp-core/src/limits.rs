@@ -54,7 +54,7 @@ pub const DEFLATION_MAX_BYTES: u64 = 256 << 20;
 /// factors ([`THIN_BYTES_PER_NODE`]) and the largest torn grid's deflated modes.
 pub fn thin_and_slow_bytes<'a>(grids: impl IntoIterator<Item = &'a crate::grid::Grid>) -> u64 {
     grids.into_iter().fold([0u64; 2], |[thin, slow], g| {
-        let factors = (g.thin_nodes(crate::solve::strands::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE);
+        let factors = (g.thin_nodes(crate::solve::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE);
         let modes = if g.is_open() { 0 } else { (g.len() as u64).saturating_mul(DEFLATION_BYTES_PER_NODE).min(DEFLATION_MAX_BYTES) };
         [thin.saturating_add(factors), slow.max(modes)]
     }).iter().fold(0, |a, &b| a.saturating_add(b))
@@ -126,8 +126,8 @@ pub fn solver_nodes(width: usize, height: usize, grid_step: usize) -> u64 {
 }
 
 /// The rough peak memory, in bytes, of rendering a `width × height` frame with `layers`,
-/// each given by its size and its `grid_step` (see [`RENDER_BYTES_PER_PIXEL`]), less the
-/// layers' thin parts and slow modes ([`thin_and_slow_bytes`] of their solver grids).
+/// each given by its size and its `grid_step` (see [`RENDER_BYTES_PER_PIXEL`]), without
+/// the layers' thin parts and slow modes ([`thin_and_slow_bytes`] of their solver grids).
 pub fn render_bytes(width: usize, height: usize, layers: impl IntoIterator<Item = ([usize; 2], usize)>) -> u64 {
     let pixels = |w: usize, h: usize| (w as u64).saturating_mul(h as u64);
     layers.into_iter().fold(pixels(width, height).saturating_mul(RENDER_BYTES_PER_PIXEL), |sum, ([w, h], step)| {

@@ -144,14 +144,15 @@ pub(crate) fn jpeg_cut_short(bytes: &[u8]) -> bool {
     true
 }
 
-/// The scene from JSON text, refused when rendering it would not fit in free memory (so
-/// that validating and loading say so before a render aborts).
-fn resolve_checked(text: &str, base_dir: Option<PathBuf>) -> Result<Scene, SceneError> {
+/// The scene from JSON text and the rough peak memory of rendering it, refused when that
+/// would not fit in free memory (so that validating and loading say so before a render aborts).
+fn resolve_checked(text: &str, base_dir: Option<PathBuf>) -> Result<(Scene, u64), SceneError> {
     let mut load = file_loader(base_dir);
     let scene = Scene::from_json(text, &mut load)?;
-    match memory_problem(render_bytes(&scene)) {
+    let bytes = render_bytes(&scene);
+    match memory_problem(bytes) {
         Some(why) => Err(SceneError::one("width", why)),
-        None => Ok(scene),
+        None => Ok((scene, bytes)),
     }
 }
 
@@ -203,6 +204,8 @@ fn method_named(name: Option<&str>) -> PyResult<Option<Method>> {
 pub struct SceneCore {
     scene: Arc<Scene>,
     file: Option<String>,
+    /// The rough peak memory of rendering it, in bytes (found when it was loaded).
+    render_bytes: u64,
 }
 
 impl SceneCore {
@@ -228,9 +231,10 @@ impl SceneCore {
     ) -> PyResult<Self> {
         let result = run_engine(py, move || resolve_checked(&text, base_dir))?;
         match result {
-            Ok(scene) => Ok(SceneCore {
+            Ok((scene, render_bytes)) => Ok(SceneCore {
                 scene: Arc::new(scene),
                 file,
+                render_bytes,
             }),
             Err(err) => Err(scene_error(py, &err, file.as_deref())),
         }
@@ -264,7 +268,7 @@ impl SceneCore {
     /// The rough peak memory of rendering the scene in one process, in bytes.
     #[getter]
     fn render_bytes(&self) -> u64 {
-        render_bytes(&self.scene)
+        self.render_bytes
     }
 
     #[getter]
@@ -423,7 +427,7 @@ impl SceneCore {
         let method = method_named(method)?;
         let threads = match (threads, available_bytes()) {
             (0, Some(free)) => {
-                let fit = (free / render_bytes(&self.scene).max(1)).max(1);
+                let fit = (free / self.render_bytes.max(1)).max(1);
                 inkwarp_core::scene::default_frame_threads().min(fit as usize)
             }
             _ => threads,

@@ -137,7 +137,6 @@ fn thin_plate_solve<'py>(
         }
     };
     crate::limits::check_grid(width, height)?;
-    crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL, 0)?;
     let pts = points.as_array();
     let disp = displacements.as_array();
     if pts.ncols() != 2 || disp.ncols() != 2 || pts.nrows() != disp.nrows() {
@@ -150,7 +149,8 @@ fn thin_plate_solve<'py>(
     let samples: Vec<Sample> = (0..pts.nrows())
         .map(|k| Sample { rest: [pts[[k, 0]], pts[[k, 1]]], displacement: [disp[[k, 0]], disp[[k, 1]]] })
         .collect();
-    let grid = if mask.is_none() && cuts.is_empty() {
+    let open = mask.is_none() && cuts.is_empty();
+    let grid = if open {
         open_grid(width, height)
     } else {
         let mut grid = match &mask {
@@ -169,9 +169,14 @@ fn thin_plate_solve<'py>(
         crate::limits::cuts_of(&cuts)?.iter().for_each(|p| grid.add_cut(p));
         Arc::new(grid)
     };
-    // Thin parts and slow modes, on the grid the solve runs on (an open one's are a narrow strip's).
-    let coarse = (grid_step > 1).then(|| inkwarp_core::solve::coarse_grid(&grid, grid_step));
-    let extra = inkwarp_core::limits::thin_and_slow_bytes([coarse.as_ref().unwrap_or(&*grid)]);
+    // Thin parts and slow modes, on the grid the solve runs on. An open grid has none unless a side
+    // is narrow: the kept open grid is not read again on every call.
+    let extra = if open && width.min(height) > inkwarp_core::solve::THIN * grid_step.max(1) {
+        0
+    } else {
+        let coarse = (grid_step > 1).then(|| inkwarp_core::solve::coarse_grid(&grid, grid_step));
+        inkwarp_core::limits::thin_and_slow_bytes([coarse.as_ref().unwrap_or(&*grid)])
+    };
     crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL, extra)?;
     if let Some(f) = &initial {
         if f.shape() != [height, width, 2] {

@@ -20,11 +20,12 @@ mod history;
 mod level;
 mod nullspace;
 mod southwell;
-pub(crate) mod strands;
+mod strands;
 mod upsample;
 mod wide;
 
 pub use history::{WarmHistory, HISTORY_FRAMES};
+pub use strands::THIN;
 pub use upsample::{coarse_grid, Upsampling};
 
 use rayon::prelude::*;
@@ -645,7 +646,7 @@ fn solve_piece(
             let membrane = settled;
             let settled = settled.and_then(|m| Settled::new(m, &hier.levels[0]));
             if let Some(s) = settled.as_ref().filter(|_| resumed.is_none()) {
-                s.project(&mut u);
+                s.project(&hier.levels[0], &mut u);
                 hier.levels[0].residual(&u, None, &mut r);
             }
             // (Not where free functions are left unsettled: the probe's start would keep them.)
@@ -710,7 +711,7 @@ fn solve_piece(
                 if !started {
                     started = true;
                     hier.coarse_to_fine(&mut u, &mut r, true);
-                    if let Some(s) = &settled { s.project(&mut u) }
+                    if let Some(s) = &settled { s.project(&hier.levels[0], &mut u) }
                     hier.levels[0].residual(&u, None, &mut r);
                     slow.correct(&mut u, &mut r);
                     rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
@@ -816,7 +817,7 @@ fn probe(hier: &mut Hierarchy, settled: Option<&Settled>, len: usize, ran: &mut 
         (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     };
     let mut u: Vec<V2> = fine.inv_diag.iter().map(|&d| if d != 0.0 { [next(), next()] } else { [0.0; 2] }).collect();
-    if let Some(s) = settled { s.project(&mut u) }
+    if let Some(s) = settled { s.project(fine, &mut u) }
     let (mut r, mut q) = (vec![[0.0; 2]; len], vec![[0.0; 2]; len]);
     fine.residual(&u, None, &mut r);
     let mut p = cycle::zeros_in(None, len);
@@ -1179,9 +1180,7 @@ fn energy_step(hier: &Hierarchy, u: &mut [V2], r: &mut [V2], p: &[W2], q: &mut [
 /// energy sees, and the iteration no longer drifts along them.
 struct Settled<'m> {
     membrane: &'m nullspace::Membrane,
-    /// Each box node's padded index; the box nodes the free functions touch, and each box node's place among them
-    /// (`u32::MAX` off them).
-    padded: Vec<u32>,
+    /// The box nodes the free functions touch, and each one's place among them by padded node (`u32::MAX` off them).
     nodes: Vec<usize>,
     slot: Vec<u32>,
 }
@@ -1190,22 +1189,24 @@ impl<'m> Settled<'m> {
     /// `None` where a block cannot be settled (a factor past `nullspace::MAX_BLOCK_ENTRIES`, or singular).
     fn new(membrane: &'m nullspace::Membrane, level: &Level) -> Option<Self> {
         if !membrane.settles_all() { return None; }
-        let (w, n) = (level.geo.w, level.geo.w * level.geo.h);
-        let nodes = membrane.support(n);
-        let mut slot = vec![u32::MAX; n];
-        nodes.iter().enumerate().for_each(|(k, &i)| slot[i] = k as u32);
-        Some(Settled { membrane, padded: (0..n).map(|i| level.pidx(i % w, i / w) as u32).collect(), nodes, slot })
+        let w = level.geo.w;
+        let nodes = membrane.support(w * level.geo.h);
+        let mut slot = vec![u32::MAX; level.len_padded()];
+        nodes.iter().enumerate().for_each(|(k, &i)| slot[level.pidx(i % w, i / w)] = k as u32);
+        Some(Settled { membrane, nodes, slot })
     }
 
     /// Settles `v` (padded, on `level`'s nodes), each entry summed in `f64` and rounded once.
-    fn project<T: Real>(&self, v: &mut [[T; 2]]) {
-        let read = |i: usize| v[self.padded[i] as usize].map(|x| x.get());
+    fn project<T: Real>(&self, level: &Level, v: &mut [[T; 2]]) {
+        let w = level.geo.w;
+        let at = |i: usize| level.pidx(i % w, i / w);
+        let read = |i: usize| [v[at(i)][0].get(), v[at(i)][1].get()];
         let mut moved: Vec<V2> = self.nodes.iter().map(|&i| read(i)).collect();
         self.membrane.settle(read, |i, c| {
-            let m = &mut moved[self.slot[i] as usize];
+            let m = &mut moved[self.slot[at(i)] as usize];
             *m = [m[0] + c[0], m[1] + c[1]];
         });
-        self.nodes.iter().zip(&moved).for_each(|(&i, m)| v[self.padded[i] as usize] = [T::of(m[0]), T::of(m[1])]);
+        self.nodes.iter().zip(&moved).for_each(|(&i, m)| v[at(i)] = [T::of(m[0]), T::of(m[1])]);
     }
 }
 
@@ -1228,7 +1229,7 @@ fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2], settled: Option
     let z = hier.precondition(r);
     p.copy_from_slice(z);
     let rz = dot_z(r, z);
-    keep_to(p, settled, slow);
+    keep_to(&hier.levels[0], p, settled, slow);
     rz
 }
 
@@ -1236,7 +1237,7 @@ fn fresh_direction(hier: &mut Hierarchy, r: &[V2], p: &mut [W2], settled: Option
 /// directions; returns `rᵀz`.
 fn restart_directions(hier: &mut Hierarchy, u: &mut [V2], r: &mut [V2], p: &mut [W2], settled: Option<&Settled>, slow: &mut deflate::Deflation) -> [f64; 2] {
     if let Some(s) = settled {
-        s.project(u);
+        s.project(&hier.levels[0], u);
         hier.levels[0].residual(u, None, r);
     }
     slow.beta(None);
@@ -1253,15 +1254,15 @@ fn next_direction(hier: &mut Hierarchy, r: &[V2], q: &[V2], p: &mut [W2], (alpha
     let (rz, zq) = (dot_z(r, z), dot_z(q, z));
     let beta = [0, 1].map(|k| if along[k] > 0.0 { ((alpha[k] * zq[k]) / along[k]).max(0.0) } else { 0.0 });
     widen_into(p, z, beta);
-    keep_to(p, settled, slow);
+    keep_to(&hier.levels[0], p, settled, slow);
     (rz, beta)
 }
 
 /// Keeps the direction `p` `A`-orthogonal to the kept slow modes and to the settled answers (settled last: the
 /// `f32` rounding would put free functions back in).
-fn keep_to(p: &mut [W2], settled: Option<&Settled>, slow: Option<&deflate::Deflation>) {
+fn keep_to(level: &Level, p: &mut [W2], settled: Option<&Settled>, slow: Option<&deflate::Deflation>) {
     if let Some(d) = slow { d.project(p) }
-    if let Some(s) = settled { s.project(p) }
+    if let Some(s) = settled { s.project(level, p) }
 }
 
 #[cfg(test)]

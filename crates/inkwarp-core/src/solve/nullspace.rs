@@ -369,8 +369,8 @@ impl Membrane {
         coefficients
     }
 
-    /// `n = Σ c_j z_j` term by term through `add(node, value)` (no node-sized buffer: a hair's functions reach
-    /// far, and their terms outnumber the nodes many times); false when a block was not settled.
+    /// `n = Σ c_j z_j` term by term through `add(node, value)` (no list of the terms: a hair's functions reach
+    /// far, and their terms can outnumber the nodes many times); false when a block was not settled.
     fn add(&self, coefficients: Vec<(usize, V2)>, mut add: impl FnMut(usize, V2)) -> bool {
         for (j, c) in coefficients {
             self.basis[j].iter().for_each(|&(i, v)| add(i, [c[0] * v, c[1] * v]));

@@ -11,7 +11,7 @@ use super::level::{bit, Level, Operator, Real, V2, W2, WS};
 use crate::grid::shorter_runs;
 
 /// The longest run of linked nodes across a part that still makes it thin.
-pub(crate) const THIN: usize = 16;
+pub const THIN: usize = 16;
 
 /// The most entries a node's row of a block's factor may hold on average.
 const BAND: usize = 128;
@@ -299,7 +299,9 @@ fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn
     let p = |x: usize, y: usize| level.pidx(x, y);
     let runs = shorter_runs(w, h, |x, y| right(p(x, y), y * w + x), |x, y| down(p(x, y), y * w + x));
     let mut thin = vec![false; level.len_padded()];
-    (0..w * h).for_each(|i| thin[p(i % w, i / w)] = level.inv_diag[p(i % w, i / w)] != 0.0 && runs[i] as usize <= THIN);
+    for (y, x) in (0..h).flat_map(|y| (0..w).map(move |x| (y, x))) {
+        thin[p(x, y)] = level.inv_diag[p(x, y)] != 0.0 && runs[y * w + x] as usize <= THIN;
+    }
     thin
 }
 

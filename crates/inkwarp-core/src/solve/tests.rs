@@ -1896,14 +1896,14 @@ fn the_settling_projection_keeps_fixed_nodes_and_is_idempotent() {
         v[level.pidx(i % w, i / w)] = [rng.next() - 0.5, 10.0 * rng.next()];
     }
     let before = v.clone();
-    settled.project(&mut v);
+    settled.project(&level, &mut v);
     assert!(v != before, "the projection moved nothing");
     for i in (0..w * h).filter(|&i| fixed[i] || !grid.active[i]) {
         assert_eq!(v[level.pidx(i % w, i / w)], [0.0; 2], "node {i} is fixed or inactive");
     }
     // Settled: the membrane energy no longer falls along any free function.
     let once = v.clone();
-    settled.project(&mut v);
+    settled.project(&level, &mut v);
     let moved = v.iter().zip(&once).fold(0.0f64, |m, (a, b)| m.max((a[0] - b[0]).abs()).max((a[1] - b[1]).abs()));
     assert!(moved < 1e-12, "a second projection moved a node by {moved}");
 }
