@@ -170,14 +170,7 @@ impl Grid {
 
     /// Whether every node is active and linked to each of its neighbours (no matte, no
     /// cut): one piece, the most common grid, which [`Grid::pieces`] answers at once.
-    pub fn is_open(&self) -> bool {
-        let (w, h) = (self.width, self.height);
-        // Without early exits, so that the passes vectorise.
-        let all = |v: &[bool]| v.iter().fold(true, |a, &b| a & b);
-        // Every right link but the last column's, every down link but the last row's.
-        let right = || self.link_right.chunks_exact(w).fold(true, |a, r| a & all(&r[..w - 1]));
-        w > 0 && h > 0 && all(&self.active) && right() && all(&self.link_down[..(h - 1) * w])
-    }
+    pub fn is_open(&self) -> bool { !self.is_empty() && !torn(self.width, &self.active, &self.link_right, &self.link_down) }
 
     /// How many active nodes are *thin*: their run of linked nodes along the row or the
     /// column is at most `longest` (strands, teeth, outlines, slivers between cuts).
@@ -404,8 +397,10 @@ fn each_run(n: usize, linked: impl Fn(usize) -> bool, mut f: impl FnMut(usize, u
 /// Whether a `w`-wide grid with activity `active` and links `right` and `down` (as in
 /// [`Grid`]) has an inactive node or a missing link between two active neighbours.
 pub fn torn(w: usize, active: &[bool], right: &[bool], down: &[bool]) -> bool {
-    let n = active.len();
-    (0..n).any(|i| !active[i] || (i % w + 1 < w && !right[i]) || (i + w < n && !down[i]))
+    // Without early exits, so that the passes vectorise: every right link but the last
+    // column's, every down link but the last row's.
+    let (n, all) = (active.len(), |v: &[bool]| v.iter().fold(true, |a, &b| a & b));
+    n > 0 && !(all(active) && right.chunks_exact(w).fold(true, |a, r| a & all(&r[..w - 1])) && all(&down[..n - w]))
 }
 
 /// The root of `i`'s set in a union-find forest (`parent[r] == r` at a root), halving the
