@@ -402,7 +402,46 @@ def test_an_svg_with_every_element_kind_becomes_the_expected_features(tmp_path):
     angle = np.radians(-30)
     u = ring @ np.array([[np.cos(angle), np.sin(angle)], [-np.sin(angle), np.cos(angle)]])
     assert np.allclose((u[:, 0] / 4) ** 2 + (u[:, 1] / 2.5) ** 2, 1, atol=2e-3)
-    assert notes == []
+    # The one note names the cuts, which move nothing and tear the picture.
+    assert len(notes) == 1 and "'shoulder-cut', 'cut-1' are cuts (the word 'cut'" in notes[0], notes
+
+
+def test_fills_from_a_style_sheet_and_clear_fills_make_outlines_not_regions(tmp_path):
+    # Illustrator's default SVG: fills set by class rules in a <style> sheet. An outline
+    # with `fill: none` there moved its inside as a region.
+    svg = tmp_path / "ai.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 48"><defs><style>'
+                   '/* Illustrator */ .cls-1{fill:none;stroke:#231f20;stroke-miterlimit:10}'
+                   '.cls-2,.cls-3{fill:#fff} polygon.wire{fill:none} #lid{fill:red !important}'
+                   'g .deep{fill:none}</style></defs>'
+                   '<circle id="head" class="cls-1" cx="32" cy="20" r="10"/>'
+                   '<polygon id="body" class="cls-3 x" points="20,30 44,30 44,46"/>'
+                   '<polygon id="wire" class="wire" points="2,2 10,2 10,10"/>'
+                   '<polygon id="lid" class="cls-1" points="2,20 10,20 10,28"/>'
+                   '<polygon id="inline" class="cls-1" style="fill:#0f0" points="2,30 10,30 10,38"/>'
+                   '<rect id="clear" x="50" y="2" width="8" height="8" fill="transparent"/>'
+                   '<rect id="faded" x="50" y="12" width="8" height="8" fill="red" fill-opacity="0"/>'
+                   '<rect id="rgba" x="50" y="22" width="8" height="8" fill="rgba(0, 0, 0, 0)"/>'
+                   '<rect id="deep" class="deep" x="50" y="32" width="8" height="8"/></svg>')
+    features, notes = read_drawing(svg, 64, 48)
+    kinds = {f["id"]: f["kind"] for f in features}
+    assert kinds == {"head": "spline", "body": "region", "wire": "polyline", "lid": "region",
+                     "inline": "region", "clear": "polyline", "faded": "polyline",
+                     "rgba": "polyline", "deep": "region"}, kinds
+    assert len(notes) == 1 and "the style rule 'g .deep' is not applied" in notes[0], notes
+
+
+@pytest.mark.parametrize("name, cut", [("neck-cut", True), ("cut2", True), ("neckCut", True),
+                                       ("Cuts", True), ("neck_x5F_cut", True), ("cute-smile", False),
+                                       ("haircut-line", False), ("shortcut", False)])
+def test_a_cut_is_named_by_the_word_cut_not_by_those_letters(tmp_path, name, cut):
+    # An id such as "cute-smile" made a cut that tore the picture and moved nothing.
+    svg = tmp_path / "d.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 48">'
+                   f'<path id="{name}" d="M 10 10 Q 20 20 30 10" fill="none"/></svg>')
+    features, notes = read_drawing(svg, 64, 48)
+    assert (features[0]["kind"] == "cut") is cut
+    assert any(f"{name!r} is a cut" in n for n in notes) is cut, notes
 
 
 def test_text_and_pictures_in_a_drawing_are_named_as_left_out(tmp_path):

@@ -4,17 +4,20 @@ of an SVG traced over a picture (in Inkscape, Illustrator, ...) become a scene's
 How each element becomes a feature:
 
 - a closed, filled shape (a closed path, a polygon, a rectangle, a circle, an ellipse, with
-  a fill that is not ``none``) becomes a ``region``;
+  a fill that is not ``none``, ``transparent`` or of opacity 0) becomes a ``region``;
 - an open path becomes a ``spline`` when it has curves (its Béziers are fitted by the
   centripetal Catmull-Rom curve that the engine draws, within 0.25 px) or a ``polyline``
   when it is made of straight segments; a closed shape without fill becomes a closed
   ``spline`` or ``polyline``;
 - an element whose ``id`` or ``class`` (or a group around it, by id, class or Inkscape
-  layer name) contains ``cut`` becomes a ``cut`` (an open polyline, curves flattened
-  within 0.25 px; a closed shape's back to its start);
+  layer name) has the word ``cut`` or ``cuts`` (``neck-cut``, ``cut2``, ``neckCut``; not
+  ``cute`` or ``haircut``) becomes a ``cut`` (an open polyline, curves flattened within
+  0.25 px; a closed shape's back to its start), and a note names the features that did;
 - a single-point marker (a path of one point, or a circle or ellipse of radius at most
   3 px) becomes a ``point`` at its centre.
 
+Fills are read from presentation attributes, ``<style>`` sheets (rules on element, class
+and id selectors, as Illustrator writes them) and ``style`` attributes, in CSS's order.
 The SVG's ``viewBox`` (or, without one, its ``width`` and ``height``) is stretched over the
 picture, and every ``transform`` is applied. SVG puts pixel ``c`` between ``c`` and
 ``c + 1`` while a scene puts its centre at ``c``, so SVG coordinates are moved by half a
@@ -120,6 +123,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
         raise ValueError(f"{source}: the file's root element is <{_tag(root)}>, not <svg>; "
                          "give an SVG drawing")
     notes: list[str] = []
+    rules = _stylesheet(root, source, notes)
     root_transform = _viewport(root, width, height, source, notes)
     # A scene's pixel centre c is SVG's c + 0.5.
     root_transform = _compose(_translate(-0.5, -0.5), root_transform)
@@ -127,11 +131,11 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
     ids: set[str] = set()
     counts: dict[str, int] = {}
 
-    def visit(element: ET.Element, transform: Affine, fill: str, cut: bool) -> None:
+    def visit(element: ET.Element, transform: Affine, fill: str, opacity: str, cut: bool) -> None:
         tag = _tag(element)
         if tag in SKIPPED:
             return
-        style = _style(element)
+        style = _style(element, rules)
         if style.get("display") == "none":
             notes.append(f"{source}: <{tag}> {_name(element)} is hidden (display: none) and "
                          "left out")
@@ -139,6 +143,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
         here = _compose(transform, _parse_transform(element.get("transform", ""), source,
                                                     element))
         fill = style.get("fill", fill)
+        opacity = style.get("fill-opacity", opacity)
         cut = cut or _says_cut(element)
         if tag in ("text", "image", "foreignObject"):
             why = {"text": "text makes no feature (Inkscape: Path > Object to Path turns it into paths)",
@@ -152,7 +157,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
             return
         if tag in SHAPES:
             subpaths = _shape_subpaths(element, tag, source)
-            filled = fill.strip().lower() != "none"
+            filled = _painted(fill, opacity)
             base = element.get("id") or ""
             for index, subpath in enumerate(subpaths):
                 feature = _feature(subpath, here, filled, cut, tag)
@@ -171,18 +176,26 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
                                  f"this {tag} is {name!r}")
                 ids.add(name)
                 features.append({"id": name, **feature})
+                if feature["kind"] == "cut":
+                    cuts.append(name)
             if len(subpaths) > 1:
                 notes.append(f"{source}: <{tag}> {_name(element)} has {len(subpaths)} "
                              "pieces, each a feature of its own")
         for child in element:
-            visit(child, here, fill, cut)
+            visit(child, here, fill, opacity, cut)
 
+    cuts: list[str] = []
+    top = _style(root, rules)
     for child in root:
-        visit(child, root_transform, _style(root).get("fill", "black"), _says_cut(root))
+        visit(child, root_transform, top.get("fill", "black"), top.get("fill-opacity", "1"), _says_cut(root))
     if not features:
         raise ValueError(f"{source}: the SVG has no paths, lines, polylines, polygons, "
                          "rectangles or circles to make features of; trace the features "
                          "with the pen or shape tools and save the drawing as SVG")
+    if cuts:
+        notes.append(f"{source}: {', '.join(map(repr, cuts))} "
+                     f"{'is a cut' if len(cuts) == 1 else 'are cuts'} (the word 'cut' in an id, "
+                     "class or layer name): the surface tears along them and they move nothing")
     return features, notes
 
 
@@ -194,19 +207,74 @@ def _name(element: ET.Element) -> str:
     return f"id={element.get('id')!r}" if element.get("id") else "(without id)"
 
 
-def _style(element: ET.Element) -> dict[str, str]:
-    """Presentation attributes, overridden by the ``style`` attribute."""
-    out = {key: element.get(key, "") for key in ("fill", "display") if element.get(key)}
-    for item in element.get("style", "").split(";"):
+#: The properties read from an element's style: whether it shows, and its fill.
+STYLED = ("fill", "fill-opacity", "display")
+
+#: A style sheet rule: (specificity, selector's tag, its classes, its id, declarations).
+_Rule = tuple[tuple[int, int, int], str, frozenset[str], str, dict[str, str]]
+
+
+def _declarations(text: str) -> dict[str, str]:
+    out = {}
+    for item in text.split(";"):
         key, _, value = item.partition(":")
-        if key.strip() in ("fill", "display") and value.strip():
-            out[key.strip()] = value.strip()
+        value = value.replace("!important", "").strip()
+        if key.strip().lower() in STYLED and value:
+            out[key.strip().lower()] = value
     return out
 
 
+def _stylesheet(root: ET.Element, source: Path, notes: list[str]) -> list[_Rule]:
+    """The rules of the drawing's ``<style>`` elements that set a fill or display, in
+    the order CSS applies them (by specificity, then document order). Selectors other than
+    an element, class or id (or those joined: ``path.cls-1``) get a note."""
+    rules: list[_Rule] = []
+    text = " ".join("".join(e.itertext()) for e in root.iter() if _tag(e) == "style")
+    text = re.sub(r"/\*.*?\*/", " ", text, flags=re.S)
+    for selectors, body in re.findall(r"([^{}]*)\{([^{}]*)\}", text):
+        declared = _declarations(body)
+        for selector in filter(None, (part.strip() for part in selectors.split(",")) if declared else ()):
+            match = re.fullmatch(r"(\*|[A-Za-z][\w-]*)?((?:\.[\w-]+)*)(#[\w-]+)?((?:\.[\w-]+)*)", selector)
+            if match is None:
+                notes.append(f"{source}: the style rule {selector!r} is not applied (inkwarp reads "
+                             "rules on an element, a class or an id); give the shapes a class")
+                continue
+            tag, classes = match[1] or "*", frozenset((match[2] + match[4]).split(".")) - {""}
+            ident = (match[3] or "#")[1:]
+            rules.append(((int(bool(ident)), len(classes), int(tag != "*")), tag, classes, ident, declared))
+    return sorted(rules, key=lambda rule: rule[0])  # stable: document order within a specificity
+
+
+def _style(element: ET.Element, rules: list[_Rule]) -> dict[str, str]:
+    """Presentation attributes, overridden by the style sheet's matching rules, overridden
+    by the ``style`` attribute."""
+    out = {key: element.get(key, "").strip() for key in STYLED if element.get(key, "").strip()}
+    classes, tag = set(element.get("class", "").split()), _tag(element)
+    for _, rule_tag, rule_classes, ident, declared in rules:
+        if rule_tag in ("*", tag) and rule_classes <= classes and ident in ("", element.get("id")):
+            out.update(declared)
+    out.update(_declarations(element.get("style", "")))
+    return out
+
+
+def _painted(fill: str, opacity: str) -> bool:
+    """Whether a shape with this ``fill`` and ``fill-opacity`` shows a fill."""
+    fill = fill.strip().lower().replace(" ", "")
+    try:
+        opaque = float(opacity.strip().rstrip("%")) > 0
+    except ValueError:
+        opaque = True
+    clear = (fill in ("none", "transparent") or re.fullmatch(r"#[0-9a-f]{3}0|#[0-9a-f]{6}00", fill)
+             or re.fullmatch(r"(rgba|hsla)\(.*,0*\.?0*%?\)", fill))
+    return opaque and not clear
+
+
 def _says_cut(element: ET.Element) -> bool:
-    words = " ".join(element.get(key, "") for key in ("id", "class", INKSCAPE_LABEL))
-    return "cut" in words.lower()
+    """Whether the element's id, class or Inkscape layer name has the word ``cut`` or
+    ``cuts`` (words split at anything but a letter, and at a capital after a small letter)."""
+    names = " ".join(element.get(key, "") for key in ("id", "class", INKSCAPE_LABEL))
+    words = re.sub(r"([a-z])([A-Z])", r"\1 \2", names)
+    return any(word in ("cut", "cuts") for word in re.split(r"[^a-z]+", words.lower()))
 
 
 _UNITS = {"": 1.0, "px": 1.0, "pt": 96 / 72, "pc": 16.0, "mm": 96 / 25.4, "cm": 96 / 2.54,
