@@ -87,6 +87,20 @@ def test_a_render_killed_by_sigkill_leaves_a_part_file_the_next_run_removes(tmp_
     assert _parts(tmp_path, out.name) == []
 
 
+def test_a_skip_existing_render_removes_a_killed_folder_renders_hidden_folder(tmp_path: Path) -> None:
+    # A farm renders chunks with --skip-existing only: the hidden folder that a killed
+    # whole-folder render of the same output left stayed there, render after render.
+    out = tmp_path / "frames"
+    dead = tmp_path / f".frames.{_dead_pid()}.0123456789ab.part"
+    dead.mkdir()
+    (dead / "frame_0000.png").write_bytes(b"half a render")
+    done = subprocess.run([sys.executable, "-m", "inkwarp.cli", "render", str(FACE), "-o", f"{out}/",
+                           "-q", "--frames", "0:1", "--skip-existing"], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert not dead.exists() and sorted(p.name for p in out.iterdir()) == ["frame_0000.png"]
+
+
 SETPRIV = "/usr/bin/setpriv"
 
 

@@ -347,10 +347,12 @@ def _note_frames_past_the_end(folder: Path, stop: int, frame_count: int) -> None
 
 def _render_missing(scene: Any, target: Path, start: int, stop: int, *, method: str | None,
                     ray: str | bool | None, progress: bool) -> list[Path]:
-    from inkwarp import video
+    from inkwarp import _atomic, video
     from inkwarp.cli import _common
 
     target.mkdir(exist_ok=True)
+    # A whole-folder render of this output killed half-way left its hidden folder beside it.
+    _atomic.clean_stale(target)
     names = {i: target / video.FRAME_PATTERN.format(i) for i in range(start, stop)}
     size = (scene.width, scene.height)
     missing = [i for i in range(start, stop) if not frame_file_complete(names[i], size)]
