@@ -88,7 +88,9 @@ def test_each_progress_bar_is_named_by_what_it_writes(capsys, tmp_path):
 
 @pytest.mark.parametrize("args, expected", [
     (["--formats", "webm"], "unknown format 'webm'"),
-    (["--only", "face", "--examples", "{tmp}"], "no example scenes there"),
+    # Not "pass --examples DIR", which it was given.
+    (["--only", "face", "--examples", "{tmp}"], "no example scenes there (face/scene.json is missing); "
+                                                "give the examples/ folder of a source checkout"),
 ])
 def test_demo_mistakes_exit_2(capsys, tmp_path, args, expected):
     args = [a.format(tmp=tmp_path) for a in args]

@@ -331,6 +331,17 @@ def test_field_errors(capsys, tmp_path):
     assert not (tmp_path / "f.npy").exists()
 
 
+def test_compare_names_its_own_options_in_errors(capsys, tmp_path):
+    # Weights out of range blamed the scene's solver.beier_neely.a, and an unknown layer
+    # named no file.
+    scene = write_scene(tmp_path / "s")
+    code, _, stderr = run(capsys, "compare", scene, "--beier-neely", "a=0", "-o", tmp_path / "c.png")
+    assert code == 2 and "--beier-neely a=0: Beier–Neely's a must be" in stderr and "solver." not in stderr, stderr
+    code, _, stderr = run(capsys, "compare", scene, "--layer", "fac", "-o", tmp_path / "c.png")
+    assert code == 2 and f"{scene}: --layer fac: no layer is called that; the layers are square" in stderr, stderr
+    assert not (tmp_path / "c.png").exists() and leftovers(tmp_path) == []
+
+
 class _Breaks:
     """A scene whose frames fail (with ``error``) after ``good`` frames."""
 

@@ -112,6 +112,14 @@ def test_byte_order_mark_and_non_utf8(tmp_path: Path, capsys) -> None:
     assert main(["render", str(latin), "-o", str(tmp_path / "l.png")]) == 2
     err = capsys.readouterr()
     assert f"{latin}: not UTF-8 text" in err.out and f"{latin}: not UTF-8 text" in err.err
+    # An empty file (a save that did not finish) said "not valid JSON: EOF while parsing".
+    empty = tmp_path / "empty.json"
+    empty.write_text(" \n")
+    assert main(["validate", str(empty)]) == 2
+    assert main(["render", str(empty), "-o", str(tmp_path / "e.png")]) == 2
+    err = capsys.readouterr()
+    assert f"{empty}: the file is empty" in err.out and f"{empty}: the file is empty" in err.err, err
+    assert not (tmp_path / "e.png").exists()
 
 
 def test_a_picture_given_as_the_scene_is_named_a_picture(tmp_path: Path, capsys) -> None:

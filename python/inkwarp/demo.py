@@ -43,6 +43,7 @@ def find_examples(path: str | os.PathLike[str] | None = None) -> Path:
     checkout this package runs from, else the copy a wheel ships (``inkwarp/examples/``,
     put there by ``make wheel``).
     """
+    given = path
     if path is None:
         checkout = Path(__file__).resolve().parents[2] / "examples"
         shipped = Path(__file__).resolve().parent / "examples"
@@ -50,9 +51,9 @@ def find_examples(path: str | os.PathLike[str] | None = None) -> Path:
             checkout if (checkout / "face" / "scene.json").is_file() else shipped)
     found = Path(path)
     if not (found / "face" / "scene.json").is_file():
-        raise ValueError(f"{found}: no example scenes there (examples/face/scene.json is "
-                         "missing); run the demo from a source checkout of inkwarp, or pass "
-                         "--examples DIR")
+        fix = ("give the examples/ folder of a source checkout of inkwarp" if given is not None else
+               "run the demo from a source checkout of inkwarp, or pass --examples DIR")
+        raise ValueError(f"{found}: no example scenes there (face/scene.json is missing); {fix}")
     return found
 
 

@@ -227,7 +227,7 @@ def validate_scene(source: str | os.PathLike[str] | Mapping[str, Any], base_dir:
     --------
     >>> validate_scene({"inkwarp": 1, "fps": 0, "width": 8, "height": 8,
     ...                 "layers": [{"name": "main"}]})
-    [('fps', 'frames per second must be a number > 0, found 0; use e.g. 24')]
+    [('fps', 'frames per second must be a number from 0.001 (one frame every 1000 s) to 1000, found 0; use e.g. 24')]
     """
     if isinstance(source, Mapping):
         text, problems = _dict_to_json(source)
@@ -260,7 +260,7 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
         When there is no such file.
     inkwarp.SceneError
         When it is not a regular file (a FIFO or a device such as /dev/zero would block or
-        never end), is too large, or is not UTF-8 text.
+        never end), is too large, empty, or not UTF-8 text.
     """
     name = os.fspath(file)
     info = os.stat(name)
@@ -287,6 +287,9 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
         line = data[: err.start].count(b"\n") + 1
         raise SceneError(f"{name}: not UTF-8 text (byte {err.start}, line {line}); save the "
                          "scene as UTF-8", file=name) from None
+    if not text.strip():
+        raise SceneError(f"{name}: the file is empty (a save that did not finish?); write the scene "
+                         f"again, or make one with inkwarp new PICTURE -o {name}", file=name)
     if text.lstrip().startswith("<") and "<svg" in text[:4096]:
         raise SceneError(f"{name}: an SVG drawing, not a scene; trace it over its picture into a "
                          f"scene with inkwarp new PICTURE --drawing {name} -o scene.json", file=name)
@@ -652,7 +655,8 @@ class Scene:
             return int(layer)
         if layer in names:
             return names.index(layer)
-        raise ValueError(f"no layer is called {layer!r}; the layers are {', '.join(names)}")
+        where = f"{self.file}: " if self.file else ""
+        raise ValueError(f"{where}no layer is called {layer!r}; the layers are {', '.join(names)}")
 
     def render(self, time: float | None = None, frame: int | None = None, *, method: str | None = None) -> np.ndarray:
         """The frame at ``time`` seconds (or frame number ``frame``; default: time 0).

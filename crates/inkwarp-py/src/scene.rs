@@ -54,6 +54,18 @@ fn scene_error(py: Python<'_>, err: &SceneError, file: Option<&str>) -> PyErr {
     build().unwrap_or_else(|e| e)
 }
 
+/// How to write a picture's path that was not found: the fix for the two ways it is
+/// written wrong (a Windows path, a `file:` URI), else where a relative one is read from.
+fn path_hint(reference: &str) -> &'static str {
+    if reference.starts_with("file:") {
+        "; give a path, not a file: URI (art/cat.png beside the scene, or /home/me/cat.png)"
+    } else if reference.contains('\\') {
+        "; write the path with forward slashes (art/cat.png), which every system reads"
+    } else {
+        "; a relative path is read from the scene's folder"
+    }
+}
+
 /// Reads image references relative to `base_dir` (absolute paths as they are).
 fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>, String> {
     move |reference: &str| {
@@ -63,7 +75,7 @@ fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>,
             _ => path.to_path_buf(),
         };
         let describe = |e: std::io::Error| match e.kind() {
-            std::io::ErrorKind::NotFound => format!("no such file (looked for {})", full.display()),
+            std::io::ErrorKind::NotFound => format!("no such file (looked for {}){}", full.display(), path_hint(reference)),
             _ => format!("cannot read {} ({e})", full.display()),
         };
         // Regular files only: reading a FIFO or a device could block forever or never end.

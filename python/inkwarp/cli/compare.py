@@ -73,13 +73,22 @@ def run(args: argparse.Namespace) -> int:
     video.check_file(out)
     outputs.check_not_an_input(out, args.scene, "comparison sheet")
     scene = Scene.load(args.scene)
+    if args.layer is not None and args.layer not in scene.layers:
+        raise ValueError(f"{args.scene}: --layer {args.layer}: no layer is called that; the layers are "
+                         f"{', '.join(scene.layers)}")
     from inkwarp.cli._common import check_time, warn_past_end
 
     time = check_time(args.time) if args.time is not None else float(getattr(scene, "duration", 0.0) or 0.0)
     if args.time is not None:
         warn_past_end("compare", args.time, scene, "the sheet shows")
-    comparison = compare(scene, time, args.methods, layer=args.layer, max_samples=args.max_samples,
-                         **(_weights(args.beier_neely) if args.beier_neely is not None else {}))
+    try:
+        comparison = compare(scene, time, args.methods, layer=args.layer, max_samples=args.max_samples,
+                             **(_weights(args.beier_neely) if args.beier_neely is not None else {}))
+    except ValueError as err:
+        # The scene loaded, so weights out of range are the command line's, not its solver's.
+        if not str(err).startswith("solver.beier_neely.") or args.beier_neely is None:
+            raise
+        raise ValueError(f"--beier-neely {args.beier_neely}: {str(err).split(': ', 1)[-1]}") from None
     from inkwarp._atomic import temp_path
 
     tmp = temp_path(out, ".png")

@@ -30,7 +30,7 @@ pub(crate) fn validate_doc_knowing(doc: &SceneDoc, other_ids: &[String], layers_
         p.extend(limits::check_size("the canvas", w as usize, h as usize).err().map(|why| Problem::new("width", why)));
     }
     if !(doc.fps.is_finite() && doc.fps > 0.0) {
-        p.push(Problem::new("fps", format!("frames per second must be a number > 0, found {}; use e.g. 24", doc.fps)));
+        p.push(Problem::new("fps", format!("frames per second must be a number from {MIN_FPS} (one frame every {} s) to {MAX_FPS}, found {}; use e.g. 24", 1.0 / MIN_FPS, doc.fps)));
     } else if doc.fps > MAX_FPS {
         p.push(Problem::new("fps", format!("frames per second may be at most {MAX_FPS}, found {}; use e.g. 24", doc.fps)));
     } else if doc.fps < MIN_FPS {
