@@ -74,9 +74,14 @@ function startServer(args = []) {
   });
 }
 
-async function openEditor(browser, url, viewport = { width: 1400, height: 900 }) {
-  const context = await browser.newContext({ viewport, acceptDownloads: true, deviceScaleFactor: 1 });
-  const page = await context.newPage();
+async function openEditor(browser, url, viewport = { width: 1400, height: 900 }, profile = null) {
+  const options = { viewport, acceptDownloads: true, deviceScaleFactor: 1 };
+  // A profile on disk where asked (as a user's browser keeps its storage), else a fresh
+  // context in memory.
+  const context = profile
+    ? await chromium.launchPersistentContext(profile, { executablePath: '/usr/bin/chromium', args: CHROMIUM_ARGS, ...options })
+    : await browser.newContext(options);
+  const page = context.pages()[0] ?? (await context.newPage());
   const errors = [];
   // "Open over unsaved work?" and "Leave the page?": the tests answer yes unless they set
   // `page.declineDialogs`; `page.dialogs` lists the kinds asked.
@@ -110,9 +115,9 @@ async function openEditor(browser, url, viewport = { width: 1400, height: 900 })
  * its process and URL) serves, in a browser context of its own; then no page errors. The
  * context and the server are closed after, whatever happened.
  */
-async function withServedEditor(args, body) {
+async function withServedEditor(args, body, profile = null) {
   const own = await startServer(args);
-  const { page, context, errors } = await openEditor(browser, own.url);
+  const { page, context, errors } = await openEditor(browser, own.url, undefined, profile);
   try {
     await body({ page, context, errors, own });
     assert(errors.length === 0, `page errors: ${errors.join('; ')}`);
@@ -1324,6 +1329,38 @@ test('a scene opened by inkwarp edit: a reload offers its unsaved work back, whi
     await p.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
     assert(JSON.parse(readFileSync(scenePath, 'utf8')).features.length === 2, 'the work went back to its file');
   });
+});
+
+test('a scene with a large picture: every reload offers its work back and keeps what is drawn after', async () => {
+  // Its kept copy holds the picture (1.5 MB of noise here, as a photograph is): a browser
+  // profile on disk stores so large a value apart, and its read outlasted a committed
+  // transaction, so after the first reload the editor kept nothing and offered nothing.
+  const dir = scratchDir('inkwarp-large-');
+  const made = spawnSync(join(repo, '.venv/bin/python'), ['-c', `import numpy as np; from PIL import Image
+Image.fromarray(np.random.default_rng(0).integers(0, 256, (700, 700, 3), dtype=np.uint8)).save('${join(dir, 'noise.png')}')`], { encoding: 'utf8' });
+  assert(made.status === 0, `the picture was made: ${made.stderr}`);
+  const scenePath = join(dir, 'large.json');
+  writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, fps: 12, duration: 1, layers: [{ name: 'noise', image: 'noise.png' }], features: [] }));
+  await withServedEditor([scenePath], async ({ page: p, errors }) => {
+    await p.waitForTimeout(1000);
+    await p.reload(); // with nothing changed: the tab's own kept copy is read back
+    await p.waitForSelector('body[data-ready]');
+    await idle(p);
+    for (const at of [[40, 40], [80, 80]]) {
+      await p.keyboard.press('p');
+      await click(p, at);
+      await idle(p);
+      await p.waitForFunction(() => document.title.startsWith('●'), null, { timeout: 10000 });
+      const count = await p.evaluate(() => window.inkwarp.store.doc.features.length);
+      await flush(p);
+      await p.reload();
+      await p.waitForSelector('body[data-ready]');
+      await p.waitForSelector('#restore', { timeout: 10000 });
+      await restoreYes(p);
+      await p.waitForFunction((n) => window.inkwarp.store.doc.features.length === n, count, { timeout: 10000 });
+      assert(errors.length === 0, `page errors after reload with ${count} features: ${errors.join('; ')}`);
+    }
+  }, scratchDir('inkwarp-profile-'));
 });
 
 test('a value typed into a field and not entered is kept when the page is left', async () => {

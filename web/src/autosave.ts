@@ -178,10 +178,17 @@ export class IndexedDbStore implements SnapshotStore {
     return new Promise((resolve, reject) => {
       const tx = db.transaction(STORE, mode);
       const req = fn(tx.objectStore(STORE));
-      // Committed at once, not when the page next gets to run: a write started as the page
-      // is left (its "Leave site?" question answered) is then kept, not dropped with it.
-      tx.commit?.();
-      tx.oncomplete = () => resolve(req.result);
+      if (mode === 'readonly') {
+        // A read answers when its request does: a large value (a kept copy with its picture)
+        // is stored apart on disk, and a committed transaction could complete before its
+        // request had its result.
+        req.onsuccess = () => resolve(req.result);
+      } else {
+        // Committed at once, not when the page next gets to run: a write started as the page
+        // is left (its "Leave site?" question answered) is then kept, not dropped with it.
+        tx.commit?.();
+        tx.oncomplete = () => resolve(req.result);
+      }
       tx.onerror = () => reject(tx.error ?? new Error('IndexedDB failed.'));
       tx.onabort = () => reject(tx.error ?? new Error('IndexedDB was aborted (is the disk full?).'));
     });
