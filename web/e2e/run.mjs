@@ -2125,12 +2125,13 @@ function ffmpegExe() {
   return r.stdout.trim();
 }
 
-test('WebM export: a 2.5 s, 24 fps scene lasts 2.5 s ± one frame and has 60 frames', async () => {
+test('WebM export: a 2.5 s, 24 fps scene lasts 2.5 s ± one frame and has 60 frames; transparency over white', async () => {
   await page.evaluate(async () => {
     const { ui, examples, app } = window.inkwarp;
     const doc = await examples.builtinScene(96);
     doc.fps = 24;
     doc.duration = 2.5;
+    doc.background = [0, 0, 0, 0]; // the picture pulled away from the top left leaves it clear
     doc.features = [{ id: 'dot', kind: 'point', rest: [[40, 40]], keys: [{ t: 0, points: [[40, 40]] }, { t: 2.5, points: [[60, 50]] }] }];
     await ui.openScene(doc, 'timing.json');
     await app.idle();
@@ -2148,6 +2149,14 @@ test('WebM export: a 2.5 s, 24 fps scene lasts 2.5 s ± one frame and has 60 fra
   assert(r.status === 0, `ffmpeg could not decode the WebM: ${log.slice(-400)}`);
   assert(frames === 60, `the WebM has ${frames} frames; expected 60`);
   assert(Math.abs(duration - 2.5) <= 1 / 24 + 1e-6, `the WebM lasts ${duration} s; expected 2.5 s ± one frame`);
+  // The last frame's clear corner is white, as an MP4 from inkwarp render (it was black), and
+  // the message says why.
+  const last = spawnSync(ffmpegExe(), ['-v', 'error', '-i', file, '-vf', 'select=eq(n\\,59)', '-frames:v', '1', '-f', 'rawvideo', '-pix_fmt', 'rgb24', '-'], { maxBuffer: 1 << 24 });
+  assert(last.status === 0 && last.stdout.length === 96 * 96 * 3, `the last frame decoded: ${last.stderr}`);
+  const corner = [...last.stdout.subarray(3 * (2 * 96 + 2), 3 * (2 * 96 + 2) + 3)];
+  assert(corner.every((v) => v >= 235), `the clear corner is white: ${corner}`);
+  const said = await page.textContent('#message');
+  assert(/transparent areas are white, as a WebM made in the browser keeps no alpha/.test(said), `the message says so: ${said}`);
 });
 
 test('a WebM export is cancelled by Escape or its button: no download, the editor as it was', async () => {

@@ -9,7 +9,7 @@ import { isPsdName, readLayeredPsd, uniqueNames } from './psd';
 import { Overlay } from './overlay';
 import type { FullFrame } from './solver';
 import { proxyFactor, viewFor } from './proxy';
-import { canEncodeWebm, encodeWebm } from './webm';
+import { canEncodeWebm, encodeWebm, overWhite } from './webm';
 import { PROBE_DWELL_MS } from './probe';
 import { clampMove, clampPoint, durationProblem, featureBox, fpsProblem, offsetBox, offsetProblem } from './limits';
 import {
@@ -1974,6 +1974,7 @@ export class Ui {
     const button = this.els.exportWebm as HTMLButtonElement;
     [button.textContent, button.title] = ['Cancel', 'Stop the WebM export (Escape); nothing is downloaded'];
     let done = 0;
+    let clear = false; // whether a frame had transparent pixels (drawn over white)
     this.app.exporting = true;
     this.store.setView({ mode: 'pose', playing: false });
     this.message(`Exporting ${n} frames… (Escape cancels)`, 'info');
@@ -1984,14 +1985,17 @@ export class Ui {
         this.store.setView({ time: i / doc.fps });
         await this.app.idle();
         this.app.renderNow(false);
-        return this.app.gl.readPixels();
+        const pixels = this.app.gl.readPixels();
+        clear = overWhite(pixels) || clear;
+        return pixels;
       }, (i) => {
         done = i + 1;
         if (i % 12 === 11) this.message(`Exported ${i + 1} of ${n} frames… (Escape cancels)`, 'info');
       }, stop.signal);
       download(blob, `${this.baseName()}.webm`);
       const size = this.app.proxy > 1 ? ` at the preview's ${width}×${height}; \`inkwarp render scene.json -o out.mp4\` renders ${doc.width}×${doc.height}` : '';
-      this.message(`Exported ${n} frames as WebM (${(n / doc.fps).toFixed(2)} s at ${doc.fps} fps${size}).`, 'info');
+      const white = clear ? '; its transparent areas are white, as a WebM made in the browser keeps no alpha (`inkwarp render scene.json -o out.webm` keeps it)' : '';
+      this.message(`Exported ${n} frames as WebM (${(n / doc.fps).toFixed(2)} s at ${doc.fps} fps${size})${white}.`, 'info');
       return blob;
     } catch (err) {
       if (stop.signal.aborted) this.message(`WebM export cancelled after ${done} of ${n} frames; nothing was saved.`, 'info');

@@ -14,6 +14,23 @@ export function canEncodeWebm(): boolean {
   return typeof VideoEncoder !== 'undefined' && typeof VideoFrame !== 'undefined';
 }
 
+/**
+ * Composites straight RGBA8 pixels over white in place, as `inkwarp render` flattens an MP4:
+ * a WebM encoded in the browser keeps no alpha, and its transparent pixels came out black.
+ * Whether any pixel was not opaque.
+ */
+export function overWhite(px: Uint8Array): boolean {
+  let clear = false;
+  for (let i = 3; i < px.length; i += 4) {
+    const a = px[i];
+    if (a === 255) continue;
+    clear = true;
+    for (let c = i - 3; c < i; c++) px[c] = Math.round((px[c] * a + 255 * (255 - a)) / 255);
+    px[i] = 255;
+  }
+  return clear;
+}
+
 /** The microsecond timestamp of frame `i` at `fps`: exactly `i / fps` s, rounded once. */
 export function frameTimestampUs(i: number, fps: number): number {
   return Math.round((i * 1e6) / fps);
