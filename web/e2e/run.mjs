@@ -2384,6 +2384,39 @@ test('frames are solved ahead while the editor is left alone: the ready bar fill
   await screenshot(page, 'ready-bar');
 });
 
+test('playing in Rest mode shows the drawing posed, as the picture plays; stopped, at rest again', async () => {
+  // The picture played posed while the drawing stayed at rest, over the wrong places.
+  await page.evaluate(async () => {
+    const { ui, examples, app } = window.inkwarp;
+    const doc = await examples.builtinScene(96);
+    doc.features = [{ id: 'dot', kind: 'point', rest: [[20, 20]], keys: [{ t: 0, points: [[70, 70]] }, { t: 2, points: [[70, 70]] }] }];
+    await ui.openScene(doc, 'rest-play.json');
+    ui.setMode('rest');
+    await app.idle();
+    app.renderNow();
+  });
+  // How many overlay pixels about scene pixel (x, y) are drawn.
+  const drawnAt = (x, y) => page.evaluate(([x, y]) => {
+    const { ui, store } = window.inkwarp;
+    const c = ui.overlayCanvas;
+    const s = c.width / store.doc.width;
+    const d = c.getContext('2d').getImageData(Math.floor((x + 0.5) * s) - 3, Math.floor((y + 0.5) * s) - 3, 7, 7).data;
+    let n = 0;
+    for (let i = 3; i < d.length; i += 4) if (d[i] > 128) n++;
+    return n;
+  }, [x, y]);
+  const still = [await drawnAt(20, 20), await drawnAt(70, 70)];
+  assert(still[0] > 0 && still[1] === 0, `at rest, the point at its rest place: ${still}`);
+  await page.keyboard.press('Space');
+  await page.waitForTimeout(400);
+  const playing = [await page.evaluate(() => window.inkwarp.store.view.playing), await drawnAt(70, 70)];
+  await page.keyboard.press('Space');
+  await page.evaluate(() => window.inkwarp.app.idle());
+  assert(playing[0] && playing[1] > 0, `playing, the point drawn at its pose: ${playing}`);
+  const stopped = [await drawnAt(20, 20), await drawnAt(70, 70), await page.evaluate(() => window.inkwarp.store.view.mode)];
+  assert(stopped[0] > 0 && stopped[1] === 0 && stopped[2] === 'rest', `stopped, at rest again: ${stopped}`);
+});
+
 test('the ready bar of a scene of 1e8 frames (the most a scene may have) marks the frames solved ahead, each at least a pixel wide', async () => {
   await page.evaluate(async () => {
     const { ui, examples, app } = window.inkwarp;

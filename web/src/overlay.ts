@@ -76,13 +76,15 @@ export class Overlay {
     const pw = Math.ceil(sceneWidth / proxy), ph = Math.ceil(sceneHeight / proxy);
     const { ctx, canvas } = this;
     const view = store.view;
+    // Playing shows the pose in either mode, the picture and the drawing alike.
+    const mode = view.playing ? 'pose' : view.mode;
     ctx.clearRect(0, 0, canvas.width, canvas.height);
     const s = this.scale;
     // The active layer's matte, field and mesh are in its own pixels: placed by its offset,
     // as the frame draws it (the drawing is in the frame's).
     const o = store.doc.layers[view.activeLayer]?.offset ?? [0, 0];
     this.shift = [o[0] * s, o[1] * s];
-    if (rt && view.overlays.matte && rt.matte) this.drawMatte(rt, pw, ph, view.mode === 'pose');
+    if (rt && view.overlays.matte && rt.matte) this.drawMatte(rt, pw, ph, mode === 'pose');
     if (rt && view.overlays.heat !== 'off' && rt.field) this.drawHeat(rt, view.overlays.heat, pw, ph);
     if (rt && view.overlays.mesh && rt.links) {
       ctx.save();
@@ -91,7 +93,7 @@ export class Overlay {
       ctx.restore();
     }
     if (!view.overlays.drawing) return;
-    const posed = view.mode === 'pose';
+    const posed = mode === 'pose';
     for (const f of store.doc.features) {
       const selected = f.id === view.selection.feature;
       if (posed && f.kind !== 'cut') this.drawFeature(f, f.rest, s, false, true);
@@ -101,7 +103,7 @@ export class Overlay {
         if (prev) this.drawFeature(f, prev.points, s, false, true, '#ff5a5a');
         if (next) this.drawFeature(f, next.points, s, false, true, '#5aff7a');
       }
-      const pts = shownPoints(f, view.mode, view.time);
+      const pts = shownPoints(f, mode, view.time);
       this.drawFeature(f, pts, s, selected, false);
       if (posed && f.keys?.some((k) => Math.abs(k.t - view.time) < 1e-4)) {
         const [x, y] = this.toCanvas(pts[0]);
@@ -121,7 +123,7 @@ export class Overlay {
     // The picked control points (a marquee, Shift-click): a white ring each.
     for (const r of view.pointSelection) {
       const f = store.doc.features.find((g) => g.id === r.feature);
-      const q = f && shownPoints(f, view.mode, view.time)[r.point];
+      const q = f && shownPoints(f, mode, view.time)[r.point];
       if (!q) continue;
       const [x, y] = this.toCanvas(q);
       ctx.lineWidth = 3;
