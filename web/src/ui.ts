@@ -1656,7 +1656,8 @@ export class Ui {
         return;
       }
       if (!this.confirmReplace(file.name)) return;
-      await this.openScene(this.sceneFromImage(uri, img, file.name), file.name.replace(/\.[^.]*$/, '') + '.json');
+      // A scene made of a picture is in no file: unsaved work, kept in the browser (● until saved).
+      await this.openScene(this.sceneFromImage(uri, img, file.name), file.name.replace(/\.[^.]*$/, '') + '.json', true, { unsaved: true });
       this.message(`Opened ${file.name} (${img.width}×${img.height}). Pick a tool and trace.`, 'info');
     } catch (err) {
       this.fileError(file.name, err);
@@ -1680,7 +1681,7 @@ export class Ui {
       const image = await blobToDataUri(await rgbaToPngBlob(layer.image));
       doc.layers.push(layer.visible ? { name: names[i], image } : { name: names[i], image, visible: false });
     }
-    await this.openScene(doc, file.name.replace(/\.[^.]*$/, '') + '.json');
+    await this.openScene(doc, file.name.replace(/\.[^.]*$/, '') + '.json', true, { unsaved: true });
     this.psdNotes = picture.notes;
     for (const note of picture.notes) console.warn(note);
     const warned = picture.notes.filter((n) => /blend mode/.test(n));
