@@ -581,7 +581,13 @@ test('bad files get a clear message with the JSON path', async () => {
   await page.setInputFiles('input[type=file][accept^=".json"]', { name: 'notes.png', mimeType: 'image/png', buffer: Buffer.from('this is not a picture') });
   await page.waitForFunction(() => /notes\.png/.test(document.querySelector('#message')?.textContent ?? ''));
   const text2 = await page.textContent('#message');
-  assert(/not an image/.test(text2), `message: ${text2}`);
+  // Once the file's name, one piece of advice (it read "notes.png: notes.png is not an image
+  // … (use PNG or JPEG): … save it as PNG or JPEG"), and the PSDs Open… reads.
+  assert(/^notes\.png: not a PNG or JPEG image .*; save it as PNG or JPEG \(Open… also reads a layered PSD\)$/.test(text2) && text2.split('notes.png').length === 2, `message: ${text2}`);
+  await page.setInputFiles('input[type=file][accept^=".json"]', { name: 'readme.psd', mimeType: 'image/vnd.adobe.photoshop', buffer: Buffer.from('not a psd') });
+  await page.waitForFunction(() => /readme\.psd/.test(document.querySelector('#message')?.textContent ?? ''));
+  const text3 = await page.textContent('#message');
+  assert(/^readme\.psd: not a readable PSD file/.test(text3) && text3.split('readme.psd').length === 2, `message: ${text3}`);
   await page.click('#message');
 });
 

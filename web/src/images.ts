@@ -134,7 +134,7 @@ async function decodeBytes(bytes: Uint8Array, name: string): Promise<Rgba> {
     return offPage && bytes.length >= OFF_PAGE_DECODE_BYTES ? await offPage(bytes) : decoder.decode(bytes);
   } catch (err) {
     const why = (err as Error).message;
-    throw new ImageFileError(`${name} is not an image inkwarp can read (use PNG or JPEG): ${why}`, why);
+    throw new ImageFileError(`${name}: ${why}`, why);
   }
 }
 

@@ -2,7 +2,7 @@
 
 import { App } from './app';
 import { clear, h } from './dom';
-import { EngineError, type ViewSpec } from './engine';
+import type { ViewSpec } from './engine';
 import { BUILTIN, builtinScene, listExamples, type ExampleEntry } from './examples';
 import { blobToDataUri, decodeBlob, decodeImage, fileOf, fileToDataUri, nameFiles, PICTURE_KEYS, type PictureKey, pictureName, pictureSlot, rememberImage, rgbaToPngBlob, type Rgba, withPictureNamed } from './images';
 import { isPsdName, readLayeredPsd, uniqueNames } from './psd';
@@ -1660,7 +1660,9 @@ export class Ui {
       await this.openScene(this.sceneFromImage(uri, img, file.name), file.name.replace(/\.[^.]*$/, '') + '.json', true, { unsaved: true });
       this.message(`Opened ${file.name} (${img.width}×${img.height}). Pick a tool and trace.`, 'info');
     } catch (err) {
-      this.fileError(file.name, err);
+      // Open… reads layered PSDs too, which a picture's own message does not name.
+      const psd = err instanceof Error && !isPsdName(file.name) && /PNG or JPEG/.test(err.message) ? ' (Open… also reads a layered PSD)' : '';
+      this.fileError(file.name, err, psd);
     }
   }
 
@@ -1689,13 +1691,13 @@ export class Ui {
     this.message(warned.length ? `${summary} ${warned.join(' ')}` : `${summary} Pick a tool and trace.`, 'info');
   }
 
-  fileError(name: string, err: unknown): void {
+  fileError(name: string, err: unknown, more = ''): void {
     if (err instanceof SceneFileError) {
-      this.message(`${name}: ${err.path ? `at ${err.path}: ` : ''}${err.message.slice(err.path ? err.path.length + 2 : 0)}`, 'error');
-    } else if (err instanceof EngineError || err instanceof Error) {
-      this.message(`${name}: ${err.message}`, 'error');
+      this.message(`${name}: ${err.path ? `at ${err.path}: ` : ''}${err.message.slice(err.path ? err.path.length + 2 : 0)}${more}`, 'error');
     } else {
-      this.message(`${name}: ${String(err)}`, 'error');
+      // A message that names the file already is not prefixed with it again.
+      const text = err instanceof Error ? err.message : String(err);
+      this.message(`${text.startsWith(`${name}: `) ? text : `${name}: ${text}`}${more}`, 'error');
     }
   }
 
