@@ -394,6 +394,30 @@ def test_validate_notes_a_matte_that_falls_apart_at_its_grid_step(tmp_path):
     assert inkwarp_scene(doc, tmp_path).notes() == []
 
 
+def test_validate_notes_features_that_clash_on_the_coarse_grid_of_its_grid_step(tmp_path, capsys):
+    # The face example's lids close in a blink and its lips part: at grid_step 8 each lid's
+    # samples share coarse nodes with the other lid's, and each node holds one of them, so
+    # the closed lids tore open over the eyes and the teeth showed as blocks, with no note.
+    face = Path(__file__).resolve().parents[1] / "examples" / "face"
+    doc = json.loads((face / "scene.json").read_text())
+    doc["solver"] = {**doc.get("solver", {}), "grid_step": 8}
+    notes = inkwarp_scene(doc, face).notes()
+    clash = [m for p, m in notes if p.startswith("layers[") and "move apart" in m]
+    assert clash and any("'lid_l_upper' and 'lid_l_lower'" in m or "'lid_r_upper' and 'lid_r_lower'" in m for m in clash), notes
+    assert all(m.startswith("at grid_step 8, on layer ") and m.endswith("use a smaller grid_step (1 solves every pixel)")
+               for m in clash), clash
+    doc["solver"]["grid_step"] = 1
+    assert inkwarp_scene(doc, face).notes() == []
+    # Features closer than the step that move together (a feature traced twice, both keyed
+    # alike) are held alike: no note.
+    doc = {"inkwarp": 1, "fps": 4, "duration": 1, "solver": {"grid_step": 8}, "layers": [{"name": "main", "image": str(face / "face.png")}],
+           "features": [{"id": f"line{k}", "kind": "polyline", "rest": [[40, 40 + 2 * k], [120, 40 + 2 * k]],
+                         "keys": [{"t": 0.5, "points": [[45, 40 + 2 * k], [125, 40 + 2 * k]]}]} for k in range(2)]}
+    assert [m for _, m in inkwarp_scene(doc, tmp_path).notes() if "move apart" in m] == []
+    doc["features"][1]["keys"][0]["points"] = [[40, 50], [120, 50]]  # the second one moves down, apart
+    assert [m for _, m in inkwarp_scene(doc, tmp_path).notes() if "'line0' and 'line1' lie within 8 px" in m]
+
+
 def test_the_memory_estimate_counts_thin_parts_and_a_torn_grids_slow_modes(tmp_path):
     # The solver factors a matte's thin parts exactly (nodes whose run of linked nodes along
     # the row or the column is at most 16: strands, teeth, outlines), about 1,300 bytes a

@@ -858,13 +858,25 @@ class Scene:
                               "it should hold"))
             notes += self._late_keys_of(i, feature)
         # At a grid_step above 1: a matte that falls apart on the coarse grid (hair, strands).
+        features = doc.get("features", [])
         for j, (_, _, pieces) in enumerate(checks):
-            if pieces is not None and pieces[2] > pieces[1]:
-                step, fine, coarse = pieces
+            if pieces is None:
+                continue
+            step, fine, coarse, clashes = pieces
+            if coarse > fine:
                 notes.append((f"layers[{j}]", f"at grid_step {step} the matte of layer {layers[j]['name']!r} falls "
                               f"into {coarse} pieces on the coarse grid it is solved on, against {fine} at full "
                               "resolution: parts thinner than the step (hair, strands, thin necks) come apart there, "
                               "and their pixels move with a neighbouring part, unbent; use grid_step 1 for this layer"))
+            # Features closer than the step that move apart (lids that close, lips): the coarse
+            # grid holds one of them where they meet, and the picture tears between them.
+            if clashes:
+                named = [f"{features[a]['id']!r} and {features[b]['id']!r}" for a, b in clashes[:3]]
+                more = f" (and {len(clashes) - 3} more pairs)" if len(clashes) > 3 else ""
+                notes.append((f"layers[{j}]", f"at grid_step {step}, on layer {layers[j]['name']!r}, {'; '.join(named)}{more} "
+                              f"lie within {step} px of each other and move apart: the coarse grid holds only one of "
+                              "each pair where they meet, and the picture tears between them; use a smaller "
+                              "grid_step (1 solves every pixel)"))
         return notes + self._profile_notes(layers)
 
     def _profile_notes(self, layers: list[dict[str, Any]]) -> list[Problem]:

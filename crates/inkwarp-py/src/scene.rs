@@ -66,6 +66,39 @@ fn path_hint(reference: &str) -> &'static str {
     }
 }
 
+/// The pairs of features driving layer `layer` (`a < b`, scene indices) that a solve at
+/// `grid_step = step` cannot both hold: samples of each round to one coarse node (every
+/// `step`-th pixel), and there, at time 0 or at one of their keys, their displacements
+/// differ by more than a pixel. A coarse node takes the nearest of its samples, so the other
+/// feature is let go there and the picture tears between them (lids that close, lips).
+fn clashes(scene: &Scene, layer: usize, step: f64) -> Result<Vec<(usize, usize)>, SceneError> {
+    let features = &scene.doc().features;
+    let drivers = &scene.layers()[layer].drivers;
+    let mut times: Vec<f64> = drivers.iter().flat_map(|&f| features[f].keys.iter().map(|k| k.time_s)).chain([0.0]).collect();
+    times.sort_by(f64::total_cmp);
+    times.dedup();
+    let mut pairs = std::collections::BTreeSet::new();
+    for t in times {
+        // Per coarse node, each feature's first sample there.
+        let mut at: std::collections::HashMap<(i64, i64), Vec<(usize, [f64; 2])>> = Default::default();
+        for f in scene.layer_feature_samples(layer, t)? {
+            for p in &f.samples {
+                let node = ((p.rest[0] / step).round() as i64, (p.rest[1] / step).round() as i64);
+                let here = at.entry(node).or_default();
+                if here.iter().all(|&(g, _)| g != f.feature) { here.push((f.feature, p.displacement)) }
+            }
+        }
+        for here in at.values() {
+            for (k, &(a, da)) in here.iter().enumerate() {
+                for &(b, db) in &here[k + 1..] {
+                    if (da[0] - db[0]).hypot(da[1] - db[1]) > 1.0 { pairs.insert((a.min(b), a.max(b))); }
+                }
+            }
+        }
+    }
+    Ok(pairs.into_iter().collect())
+}
+
 /// Reads image references relative to `base_dir` (absolute paths as they are).
 fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>, String> {
     move |reference: &str| {
@@ -314,10 +347,11 @@ impl SceneCore {
     /// Per layer: whether its grid is torn (an inactive node, or a cut between two active
     /// neighbours: what `tps` tears and the other methods ignore), the features that drive
     /// it of which every sample is dropped (off the grid or on inactive nodes), or None at a
-    /// `grid_step` above 1, whose samples go to the coarse nodes; and at such a step, the step
-    /// and the pieces of its grid and of the coarse grid it is solved on (None at step 1).
+    /// `grid_step` above 1, whose samples go to the coarse nodes; and at such a step, the step,
+    /// the pieces of its grid and of the coarse grid it is solved on and the features that
+    /// clash there ([`clashes`]) (None at step 1).
     #[allow(clippy::type_complexity)]
-    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(bool, Option<Vec<usize>>, Option<(usize, usize, usize)>)>> {
+    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(bool, Option<Vec<usize>>, Option<(usize, usize, usize, Vec<(usize, usize)>)>)>> {
         let scene = Arc::clone(&self.scene);
         let checks = run_engine(py, move || {
             let check = |(i, layer): (usize, &scene::Layer)| -> Result<_, SceneError> {
@@ -325,8 +359,8 @@ impl SceneCore {
                 let torn = inkwarp_core::grid::torn(g.width, &g.active, &g.link_right, &g.link_down);
                 let step = layer.solver.grid_step;
                 if step > 1 {
-                    let pieces = (step as usize, g.pieces().1, inkwarp_core::solve::coarse_grid(g, step as usize).pieces().1);
-                    return Ok((torn, None, Some(pieces)));
+                    let coarse = inkwarp_core::solve::coarse_grid(g, step as usize).pieces().1;
+                    return Ok((torn, None, Some((step as usize, g.pieces().1, coarse, clashes(&scene, i, step as f64)?))));
                 }
                 let features = scene.layer_feature_samples(i, 0.0)?;
                 let dropped = features.iter().filter(|f| inkwarp_core::grid::constrain(g, &f.samples).used_samples == 0);
