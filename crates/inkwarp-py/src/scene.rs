@@ -80,11 +80,11 @@ fn clashes(scene: &Scene, layer: usize, step: f64) -> Result<Vec<(usize, usize)>
     let mut pairs = std::collections::BTreeSet::new();
     for t in times {
         // Per coarse node, each feature's first sample there.
-        let mut at: std::collections::HashMap<(i64, i64), Vec<(usize, [f64; 2])>> = Default::default();
+        let mut at = std::collections::HashMap::new();
         for f in scene.layer_feature_samples(layer, t)? {
             for p in &f.samples {
                 let node = ((p.rest[0] / step).round() as i64, (p.rest[1] / step).round() as i64);
-                let here = at.entry(node).or_default();
+                let here: &mut Vec<(usize, [f64; 2])> = at.entry(node).or_default();
                 if here.iter().all(|&(g, _)| g != f.feature) { here.push((f.feature, p.displacement)) }
             }
         }
