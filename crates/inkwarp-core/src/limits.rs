@@ -45,18 +45,23 @@ pub const SOLVER_BYTES_PER_NODE: u64 = 148;
 /// solver keeps for those parts (up to 128 entries a node, with its rows and order).
 pub const THIN_BYTES_PER_NODE: u64 = 1_300;
 /// And per node of a torn solver grid (a matte, a hole or a cut): the slow modes a long solve
-/// deflates, at most [`DEFLATION_MAX_BYTES`], counted once (one grid solves at a time).
+/// deflates, at most [`DEFLATION_MAX_BYTES`].
 pub const DEFLATION_BYTES_PER_NODE: u64 = 160;
 /// The most the deflated modes of one solve take.
 pub const DEFLATION_MAX_BYTES: u64 = 256 << 20;
+/// Of those, per node, the slow modes a torn grid's solver keeps for its next solve, where
+/// the budget holds them beside a window (96 bytes a node): every layer's solver keeps its own.
+pub const KEPT_BYTES_PER_NODE: u64 = 64;
 
 /// What solving on `grids` needs beyond their bytes per node: every grid's thin nodes'
-/// factors ([`THIN_BYTES_PER_NODE`]) and the largest torn grid's deflated modes.
+/// factors ([`THIN_BYTES_PER_NODE`]) and kept slow modes, and the rest of the largest torn
+/// grid's deflated modes (one grid solves at a time).
 pub fn thin_and_slow_bytes<'a>(grids: impl IntoIterator<Item = &'a crate::grid::Grid>) -> u64 {
-    grids.into_iter().fold([0u64; 2], |[thin, slow], g| {
-        let factors = (g.thin_nodes(crate::solve::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE);
-        let modes = if g.is_open() { 0 } else { (g.len() as u64).saturating_mul(DEFLATION_BYTES_PER_NODE).min(DEFLATION_MAX_BYTES) };
-        [thin.saturating_add(factors), slow.max(modes)]
+    grids.into_iter().fold([0u64; 3], |[thin, kept, slow], g| {
+        let (factors, len, torn) = ((g.thin_nodes(crate::solve::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE), g.len() as u64, !g.is_open());
+        let modes = if torn { len.saturating_mul(DEFLATION_BYTES_PER_NODE).min(DEFLATION_MAX_BYTES) } else { 0 };
+        let keeps = if torn && len.saturating_mul(96) <= DEFLATION_MAX_BYTES { len * KEPT_BYTES_PER_NODE } else { 0 };
+        [thin.saturating_add(factors), kept.saturating_add(keeps), slow.max(modes.saturating_sub(keeps))]
     }).iter().fold(0, |a, &b| a.saturating_add(b))
 }
 
@@ -160,7 +165,7 @@ mod tests {
     }
 
     #[test]
-    fn thin_parts_add_their_factors_and_a_torn_grid_its_slow_modes_once() {
+    fn thin_parts_add_their_factors_and_torn_grids_their_slow_modes() {
         use crate::grid::Grid;
         // A bar 40 wide and 30 tall with ten teeth 1 px wide and 20 long below it.
         let (w, h) = (40, 60);
@@ -172,8 +177,12 @@ mod tests {
         assert_eq!(thin_and_slow_bytes([&Grid::new(w, h)]), 0);
         // An open strip 10 nodes tall is thin throughout, with nothing torn.
         assert_eq!(thin_and_slow_bytes([&Grid::new(1000, 10)]), 10_000 * THIN_BYTES_PER_NODE);
-        // Every grid's factors, the slow modes of one.
-        assert_eq!(thin_and_slow_bytes([&comb, &comb, &Grid::new(w, h)]), comb_bytes + teeth as u64 * THIN_BYTES_PER_NODE);
+        // Every grid's factors and kept modes; the rest of one solve's modes.
+        let kept = nodes * KEPT_BYTES_PER_NODE;
+        assert_eq!(thin_and_slow_bytes([&comb, &comb, &Grid::new(w, h)]), comb_bytes + teeth as u64 * THIN_BYTES_PER_NODE + kept);
+        // Past the nodes the budget keeps modes for, a grid keeps none.
+        let big = Grid::from_active(2000, 1500, (0..3_000_000).map(|i| i != 0).collect());
+        assert_eq!(thin_and_slow_bytes([&big, &comb]), DEFLATION_MAX_BYTES + kept + teeth as u64 * THIN_BYTES_PER_NODE);
     }
 
     #[test]
