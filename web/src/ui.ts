@@ -1901,7 +1901,7 @@ export class Ui {
     // The page cannot see whether the browser kept the download (a cancelled "Save as"
     // keeps nothing): the work stays unsaved, kept in this browser and asked about on leaving.
     download(blob(), origin.fileName);
-    this.message(`Downloaded ${origin.fileName}; it stays marked unsaved (●) here, as the editor cannot see whether your browser kept it. This scene has no file the editor writes to (open one with inkwarp edit SCENE to save in place).${note}`, note ? 'error' : 'info');
+    this.message(`Downloaded ${origin.fileName}; it stays marked unsaved (●) here, as the editor cannot see whether your browser kept it. This scene is in no file the editor writes to (a scene file opened with inkwarp edit SCENE saves in place).${note}`, note ? 'error' : 'info');
   }
 
   /**
