@@ -318,6 +318,10 @@ def test_cli_compare_takes_method_settings_and_prints_notes(tmp_path, capsys):
     assert main(args + ["--beier-neely", "a=0"]) == 2
     err = capsys.readouterr().err
     assert "--beier-neely a=0: Beier–Neely's a must be" in err and "solver." not in err, err
+    # Every bad setting named by its option, none by the scene's solver.
+    assert main(args + ["--beier-neely", "a=0,b=-1", "--max-samples", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("--beier-neely a=0,b=-1: ") == 2 and "--max-samples: " in err and "solver." not in err, err
     assert main(args + ["--beier-neely", "c=1"]) == 2
     assert "a=A,b=B,p=P" in capsys.readouterr().err
 

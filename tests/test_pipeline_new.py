@@ -442,6 +442,29 @@ def test_a_cut_is_named_by_the_word_cut_not_by_those_letters(tmp_path, name, cut
     features, notes = read_drawing(svg, 64, 48)
     assert (features[0]["kind"] == "cut") is cut
     assert any(f"{name!r} is a cut" in n for n in notes) is cut, notes
+    # A name with those letters that is not a cut says so, and how to name one.
+    assert any(f"{name!r} has the letters 'cut' in a name but is not a cut" in n for n in notes) is not cut, notes
+
+
+def test_style_sheet_importance_at_rules_and_inherited_fills_are_read_as_css_reads_them(tmp_path):
+    svg = tmp_path / "css.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 48"><style>'
+                   '@import url(more.css); @charset "utf-8";'
+                   '.o{fill:none ! IMPORTANT} .p{fill:none}'
+                   '@media print{.q{fill:none}} .r{fill:#fff}</style>'
+                   '<polygon id="important" class="o" style="fill:#fff" points="2,2 10,2 10,10"/>'
+                   '<polygon id="inline" class="p" style="fill:#fff" points="2,12 10,12 10,20"/>'
+                   '<polygon id="print-only" class="q" points="2,22 10,22 10,30"/>'
+                   '<polygon id="after-import" class="r" points="2,32 10,32 10,40"/>'
+                   '<g fill="none"><polygon id="inherits" fill="inherit" points="20,2 28,2 28,10"/>'
+                   '<polygon id="initial" style="fill:initial" points="20,12 28,12 28,20"/></g></svg>')
+    features, notes = read_drawing(svg, 64, 48)
+    kinds = {f["id"]: f["kind"] for f in features}
+    # !important beats the style attribute; a rule inside @media print is not the screen's;
+    # a rule after an @import still applies; inherit takes the group's none, initial black.
+    assert kinds == {"important": "polyline", "inline": "region", "print-only": "region",
+                     "after-import": "region", "inherits": "polyline", "initial": "region"}, kinds
+    assert notes == [], notes
 
 
 def test_text_and_pictures_in_a_drawing_are_named_as_left_out(tmp_path):
@@ -622,8 +645,8 @@ def test_new_refuses_to_replace_an_existing_scene_unless_forced(capsys, tmp_path
 
 @pytest.mark.parametrize("option,value,message", [
     ("--fps", "inf", "--fps inf: give a number of frames per second from 0.001 to 1000"),
-    ("--fps", "5000", "--fps 5000: frames per second may be at most 1000"),
-    ("--fps", "1e-9", "--fps 1e-09: frames per second must be at least 0.001 (one frame every 1000 s)"),
+    ("--fps", "5000", "--fps 5000: frames per second must be a number from 0.001 (one frame every 1000 s) to 1000, found 5000.0"),
+    ("--fps", "1e-9", "--fps 1e-09: frames per second must be a number from 0.001 (one frame every 1000 s) to 1000"),
     ("--duration", "inf", "--duration inf: give a length in seconds > 0"),
     ("--duration", "1e9", "--duration 1e+09: the duration may be at most"),
 ])
@@ -637,7 +660,7 @@ def test_new_names_the_option_past_a_scenes_limits(capsys, tmp_path, option, val
 def test_new_names_every_option_past_the_limits_at_once(capsys, tmp_path):
     psd = write_psd(tmp_path / "character.psd")
     code, _, err = run(capsys, "new", psd, "-o", tmp_path / "c.json", "--fps", "5000", "--duration", "1e9")
-    assert code == 2 and "--fps 5000: frames per second may be at most 1000" in err, err
+    assert code == 2 and "--fps 5000: frames per second must be a number from 0.001 (one frame every 1000 s) to 1000, found 5000.0" in err, err
     assert "--duration 1e+09: the duration may be at most" in err and "\n  duration" not in err, err
 
 

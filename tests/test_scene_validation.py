@@ -41,9 +41,9 @@ MISTAKES = [
     ("unknown feature id", changed("layers/1/features/1", "brw"), "layers[1].features[1]", 'did you mean "brow"'),
     ("duplicate id", changed("features/3", {"id": "dot", "kind": "point", "rest": [[1, 1]]}), "features[3].id", "already used"),
     ("negative tension", changed("solver", {"tension": -0.1}), "solver.tension", "at least 0"),
-    ("zero fps", changed("fps", 0), "fps", "from 0.001 (one frame every 1000 s) to 1000, found 0"),
+    ("zero fps", changed("fps", 0), "fps", "from 0.001 (one frame every 1000 s) to 1000, found 0.0"),
     # A billionth of a frame a second validated, then failed in ffmpeg (a rate of 0/1).
-    ("fps below the least", changed("fps", 1e-9), "fps", "at least 0.001 (one frame every 1000 s), found 1e-9"),
+    ("fps below the least", changed("fps", 1e-9), "fps", "from 0.001 (one frame every 1000 s) to 1000, found 1e-9"),
     ("zero duration", changed("duration", 0), "duration", "> 0"),
     ("bad grid step", changed("solver", {"grid_step": 0}), "solver.grid_step", "at least 1"),
     ("fractional grid step", changed("solver", {"grid_step": 2.5}), "solver.grid_step", "whole number"),

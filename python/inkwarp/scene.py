@@ -227,7 +227,7 @@ def validate_scene(source: str | os.PathLike[str] | Mapping[str, Any], base_dir:
     --------
     >>> validate_scene({"inkwarp": 1, "fps": 0, "width": 8, "height": 8,
     ...                 "layers": [{"name": "main"}]})
-    [('fps', 'frames per second must be a number from 0.001 (one frame every 1000 s) to 1000, found 0; use e.g. 24')]
+    [('fps', 'frames per second must be a number from 0.001 (one frame every 1000 s) to 1000, found 0.0; use e.g. 24')]
     """
     if isinstance(source, Mapping):
         text, problems = _dict_to_json(source)
@@ -289,7 +289,7 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
                          "scene as UTF-8", file=name) from None
     if not text.strip():
         raise SceneError(f"{name}: the file is empty (a save that did not finish?); write the scene "
-                         f"again, or make one with inkwarp new PICTURE -o {name}", file=name)
+                         f"again, or make one over it with inkwarp new PICTURE -o {name} --force", file=name)
     if text.lstrip().startswith("<") and "<svg" in text[:4096]:
         raise SceneError(f"{name}: an SVG drawing, not a scene; trace it over its picture into a "
                          f"scene with inkwarp new PICTURE --drawing {name} -o scene.json", file=name)
@@ -872,7 +872,8 @@ class Scene:
             # Features closer than the step that move apart (lids that close, lips): the coarse
             # grid holds one of them where they meet, and the picture tears between them.
             if clashes:
-                named = [f"{features[a]['id']!r} and {features[b]['id']!r}" for a, b in clashes[:3]]
+                named = [f"{features[a]['id']!r} and {features[b]['id']!r}" if a != b else
+                         f"two parts of {features[a]['id']!r}" for a, b in clashes[:3]]
                 more = f" (and {len(clashes) - 3} more pairs)" if len(clashes) > 3 else ""
                 notes.append((f"layers[{j}]", f"at grid_step {step}, on layer {layers[j]['name']!r}, {'; '.join(named)}{more} "
                               f"lie within {step} px of each other and move apart: the coarse grid holds only one of "

@@ -44,14 +44,13 @@ pub const SOLVER_BYTES_PER_NODE: u64 = 148;
 /// at most 16 long: strands, teeth, outlines, slivers between cuts): the exact factor the
 /// solver keeps for those parts (up to 128 entries a node, with its rows and order).
 pub const THIN_BYTES_PER_NODE: u64 = 1_300;
-/// And per node of a torn solver grid (a matte, a hole or a cut): the slow modes a long solve
-/// deflates, at most [`DEFLATION_MAX_BYTES`].
+/// And per node of a torn solver grid (a matte, a hole or a cut): the slow modes a long solve deflates, at most [`DEFLATION_MAX_BYTES`].
 pub const DEFLATION_BYTES_PER_NODE: u64 = 160;
 /// The most the deflated modes of one solve take.
-pub const DEFLATION_MAX_BYTES: u64 = 256 << 20;
-/// Of those, per node, the slow modes a torn grid's solver keeps for its next solve, where
-/// the budget holds them beside a window (96 bytes a node): every layer's solver keeps its own.
-pub const KEPT_BYTES_PER_NODE: u64 = 64;
+pub const DEFLATION_MAX_BYTES: u64 = crate::solve::deflate::BUDGET_BYTES as u64;
+/// Of those, per node, the slow modes a torn grid's solver keeps for its next solve (`KEEP` vectors and their
+/// products in `f32`), where the budget holds them beside a window: every layer's solver keeps its own.
+pub const KEPT_BYTES_PER_NODE: u64 = 8 * crate::solve::deflate::KEEP as u64;
 
 /// What solving on `grids` needs beyond their bytes per node: every grid's thin nodes'
 /// factors ([`THIN_BYTES_PER_NODE`]) and kept slow modes, and the rest of the largest torn
@@ -60,7 +59,7 @@ pub fn thin_and_slow_bytes<'a>(grids: impl IntoIterator<Item = &'a crate::grid::
     grids.into_iter().fold([0u64; 3], |[thin, kept, slow], g| {
         let (factors, len, torn) = ((g.thin_nodes(crate::solve::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE), g.len() as u64, !g.is_open());
         let modes = if torn { len.saturating_mul(DEFLATION_BYTES_PER_NODE).min(DEFLATION_MAX_BYTES) } else { 0 };
-        let keeps = if torn && len.saturating_mul(96) <= DEFLATION_MAX_BYTES { len * KEPT_BYTES_PER_NODE } else { 0 };
+        let keeps = if torn && len.saturating_mul(KEPT_BYTES_PER_NODE + 8 * crate::solve::deflate::WINDOW as u64) <= DEFLATION_MAX_BYTES { len * KEPT_BYTES_PER_NODE } else { 0 };
         [thin.saturating_add(factors), kept.saturating_add(keeps), slow.max(modes.saturating_sub(keeps))]
     }).iter().fold(0, |a, &b| a.saturating_add(b))
 }

@@ -55,44 +55,52 @@ fn scene_error(py: Python<'_>, err: &SceneError, file: Option<&str>) -> PyErr {
 }
 
 /// How to write a picture's path that was not found: the fix for the two ways it is
-/// written wrong (a Windows path, a `file:` URI), else where a relative one is read from.
-fn path_hint(reference: &str) -> &'static str {
+/// written wrong (a `file:` URI, a Windows path off Windows), else where a relative one is
+/// read from (the scene's folder, or without one the current folder).
+fn path_hint(reference: &str, scene_folder: bool) -> &'static str {
     if reference.starts_with("file:") {
         "; give a path, not a file: URI (art/cat.png beside the scene, or /home/me/cat.png)"
-    } else if reference.contains('\\') {
+    } else if reference.contains('\\') && !cfg!(windows) {
         "; write the path with forward slashes (art/cat.png), which every system reads"
-    } else {
+    } else if Path::new(reference).is_absolute() {
+        ""
+    } else if scene_folder {
         "; a relative path is read from the scene's folder"
+    } else {
+        "; a relative path is read from the current folder (give base_dir for another)"
     }
 }
 
-/// The pairs of features driving layer `layer` (`a < b`, scene indices) that a solve at
-/// `grid_step = step` cannot both hold: samples of each round to one coarse node (every
-/// `step`-th pixel), and there, at time 0 or at one of their keys, their displacements
-/// differ by more than a pixel. A coarse node takes the nearest of its samples, so the other
-/// feature is let go there and the picture tears between them (lids that close, lips).
-fn clashes(scene: &Scene, layer: usize, step: f64) -> Result<Vec<(usize, usize)>, SceneError> {
-    let features = &scene.doc().features;
+/// The pairs of features driving layer `layer` (`a ≤ b`, scene indices; `a == b`: two parts of
+/// one feature, apart along it) that a solve at `grid_step = step` cannot both hold: each coarse
+/// node holds the nearest of the samples it takes (as the solver assigns them), and at time 0 or
+/// at a key another sample there moves more than a pixel apart from it, so that feature is let go
+/// there and the picture tears between them (lids that close, lips that part).
+fn clashes(scene: &Scene, layer: usize, step: usize) -> Result<Vec<(usize, usize)>, SceneError> {
+    let (features, g) = (&scene.doc().features, &scene.layers()[layer].grid);
+    let coarse = inkwarp_core::solve::coarse_grid(g, step);
     let drivers = &scene.layers()[layer].drivers;
     let mut times: Vec<f64> = drivers.iter().flat_map(|&f| features[f].keys.iter().map(|k| k.time_s)).chain([0.0]).collect();
     times.sort_by(f64::total_cmp);
     times.dedup();
     let mut pairs = std::collections::BTreeSet::new();
     for t in times {
-        // Per coarse node, each feature's first sample there.
+        // Per active coarse node, its samples: distance to it, feature, place along the feature, displacement.
         let mut at = std::collections::HashMap::new();
         for f in scene.layer_feature_samples(layer, t)? {
-            for p in &f.samples {
-                let node = ((p.rest[0] / step).round() as i64, (p.rest[1] / step).round() as i64);
-                let here: &mut Vec<(usize, [f64; 2])> = at.entry(node).or_default();
-                if here.iter().all(|&(g, _)| g != f.feature) { here.push((f.feature, p.displacement)) }
+            for (k, p) in f.samples.iter().enumerate().filter(|(_, p)| inkwarp_core::grid::nearest_node(g, p.rest).is_some()) {
+                let c = inkwarp_core::solve::coarse_point(g.width, g.height, step, p.rest);
+                let Some(i) = inkwarp_core::grid::nearest_node(&coarse, c).map(|(x, y)| coarse.index(x, y)).filter(|&i| coarse.active[i]) else { continue };
+                let here: &mut Vec<(f64, usize, usize, usize, [f64; 2])> = at.entry(i).or_default();
+                here.push(((c[0] - (i % coarse.width) as f64).hypot(c[1] - (i / coarse.width) as f64), f.feature, k, f.samples.len(), p.displacement));
             }
         }
         for here in at.values() {
-            for (k, &(a, da)) in here.iter().enumerate() {
-                for &(b, db) in &here[k + 1..] {
-                    if (da[0] - db[0]).hypot(da[1] - db[1]) > 1.0 { pairs.insert((a.min(b), a.max(b))); }
-                }
+            let &(_, a, ka, n, da) = here.iter().min_by(|p, q| p.0.total_cmp(&q.0)).expect("a node's samples");
+            for &(_, b, kb, _, db) in here {
+                // Samples of one feature next to each other along it are one part of it.
+                let apart = a != b || ka.abs_diff(kb).min(n - ka.abs_diff(kb)) > 2;
+                if apart && (da[0] - db[0]).hypot(da[1] - db[1]) > 1.0 { pairs.insert((a.min(b), a.max(b))); }
             }
         }
     }
@@ -108,7 +116,7 @@ fn file_loader(base_dir: Option<PathBuf>) -> impl FnMut(&str) -> Result<Vec<u8>,
             _ => path.to_path_buf(),
         };
         let describe = |e: std::io::Error| match e.kind() {
-            std::io::ErrorKind::NotFound => format!("no such file (looked for {}){}", full.display(), path_hint(reference)),
+            std::io::ErrorKind::NotFound => format!("no such file (looked for {}){}", full.display(), path_hint(reference, base_dir.is_some())),
             _ => format!("cannot read {} ({e})", full.display()),
         };
         // Regular files only: reading a FIFO or a device could block forever or never end.
@@ -360,7 +368,7 @@ impl SceneCore {
                 let step = layer.solver.grid_step;
                 if step > 1 {
                     let coarse = inkwarp_core::solve::coarse_grid(g, step as usize).pieces().1;
-                    return Ok((torn, None, Some((step as usize, g.pieces().1, coarse, clashes(&scene, i, step as f64)?))));
+                    return Ok((torn, None, Some((step as usize, g.pieces().1, coarse, clashes(&scene, i, step as usize)?))));
                 }
                 let features = scene.layer_feature_samples(i, 0.0)?;
                 let dropped = features.iter().filter(|f| inkwarp_core::grid::constrain(g, &f.samples).used_samples == 0);

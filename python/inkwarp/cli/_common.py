@@ -198,6 +198,12 @@ def progress(frames: Iterable[Any], total: int, *, quiet: bool, desc: str) -> It
         bar.close()
 
 
+def check_layer(scene: str, layer: str | None, names: list[str]) -> None:
+    """Refuses a ``--layer`` the scene does not have, naming the scene and its layers."""
+    if layer is not None and layer not in names:
+        raise ValueError(f"{scene}: --layer {layer}: no layer is called that; the layers are {', '.join(names)}")
+
+
 def scene_size(scene: Any) -> str:
     return f"{scene.width}x{scene.height}"
 

@@ -63,6 +63,7 @@ def _weights(text: str) -> dict[str, float]:
 
 def run(args: argparse.Namespace) -> int:
     from inkwarp import Scene
+    from inkwarp.errors import SceneError
     from inkwarp.compare import compare, comparison_sheet
 
     out = Path(args.output)
@@ -73,9 +74,9 @@ def run(args: argparse.Namespace) -> int:
     video.check_file(out)
     outputs.check_not_an_input(out, args.scene, "comparison sheet")
     scene = Scene.load(args.scene)
-    if args.layer is not None and args.layer not in scene.layers:
-        raise ValueError(f"{args.scene}: --layer {args.layer}: no layer is called that; the layers are "
-                         f"{', '.join(scene.layers)}")
+    from inkwarp.cli._common import check_layer
+
+    check_layer(args.scene, args.layer, scene.layers)
     from inkwarp.cli._common import check_time, warn_past_end
 
     time = check_time(args.time) if args.time is not None else float(getattr(scene, "duration", 0.0) or 0.0)
@@ -84,11 +85,14 @@ def run(args: argparse.Namespace) -> int:
     try:
         comparison = compare(scene, time, args.methods, layer=args.layer, max_samples=args.max_samples,
                              **(_weights(args.beier_neely) if args.beier_neely is not None else {}))
-    except ValueError as err:
-        # The scene loaded, so weights out of range are the command line's, not its solver's.
-        if not str(err).startswith("solver.beier_neely.") or args.beier_neely is None:
+    except SceneError as err:
+        # The scene loaded, so settings out of range are the command line's, not its solver's.
+        options = {"solver.beier_neely.": f"--beier-neely {args.beier_neely}", "solver.tps_exact.max_samples": "--max-samples"}
+        named = [next((f"{option}: {message}" for where, option in options.items() if path.startswith(where)), None)
+                 for path, message in err.problems]
+        if None in named:
             raise
-        raise ValueError(f"--beier-neely {args.beier_neely}: {str(err).split(': ', 1)[-1]}") from None
+        raise ValueError("; ".join(dict.fromkeys(named))) from None
     from inkwarp._atomic import temp_path
 
     tmp = temp_path(out, ".png")

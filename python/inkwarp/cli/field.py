@@ -78,9 +78,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.layer is None and len(names) > 1:
         raise ValueError(f"{args.scene}: the scene has {len(names)} layers ({', '.join(names)}), each with "
                          "its own field; choose one with --layer NAME")
-    if args.layer is not None and args.layer not in names:
-        raise ValueError(f"{args.scene}: --layer {args.layer}: no layer is called that; the layers are "
-                         f"{', '.join(names)}")
+    _common.check_layer(args.scene, args.layer, names)
     started = time.perf_counter()
     field = np.asarray(scene.field(time=time_s, layer=args.layer, method=args.method),
                        dtype=np.float32)

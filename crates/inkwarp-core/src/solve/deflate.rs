@@ -16,7 +16,7 @@ use super::level::{dot, Level, Real, V2, W2, WS};
 /// stops only after its first look at them.
 const START: usize = 10;
 /// Cycles per window.
-const WINDOW: usize = 4;
+pub(crate) const WINDOW: usize = 4;
 /// Rayleigh–Ritz steps a torn piece's slow solve waits for before it may stop where its rate floor exceeds
 /// [`WAIT_RATE`] (an `early` one waits for one always).
 const LOOKS: usize = 2;
@@ -24,10 +24,10 @@ const WAIT_RATE: f64 = 0.5;
 /// The smallest Ritz value has settled when a cycle lowers it by less than 5 % (only before a deflating restart).
 const SETTLED: f64 = 0.95;
 /// Ritz vectors kept, and from the third Rayleigh–Ritz step on.
-pub(super) const KEEP: usize = 8;
+pub(crate) const KEEP: usize = 8;
 const KEEP_SLOW: usize = 16;
 /// Most bytes the kept vectors may take.
-const BUDGET_BYTES: usize = 256 << 20;
+pub(crate) const BUDGET_BYTES: usize = 256 << 20;
 /// Rayleigh quotients below this fraction of the largest diagonal entry are `f32` rounding ([`Modes::with`]).
 const NULL_FLOOR: f64 = 1e-12;
 /// Node chunk for the fused passes.

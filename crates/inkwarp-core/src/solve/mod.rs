@@ -15,7 +15,7 @@
 //! mechanism. The hierarchies a later solve can reuse are kept by the caller's [`Solver`], never by the process.
 
 mod cycle;
-mod deflate;
+pub(crate) mod deflate;
 mod history;
 mod level;
 mod nullspace;
@@ -26,7 +26,7 @@ mod wide;
 
 pub use history::{WarmHistory, HISTORY_FRAMES};
 pub use strands::THIN;
-pub use upsample::{coarse_grid, Upsampling};
+pub use upsample::{coarse_grid, coarse_point, Upsampling};
 
 use rayon::prelude::*;
 use thiserror::Error;

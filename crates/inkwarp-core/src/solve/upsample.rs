@@ -43,7 +43,7 @@ fn solve_on_coarse_grid(
 ) -> (Field, SolveReport) {
     let (l, sf) = (Layout::new(grid.width, grid.height, options.grid_step), options.grid_step as f64);
     let coarse = coarse_grid(grid, l.s);
-    let at = |p: &Sample| Sample { rest: [l.coarse(p.rest[0], l.wc, |x| l.px(x)), l.coarse(p.rest[1], l.hc, |y| l.py(y))], ..*p };
+    let at = |p: &Sample| Sample { rest: coarse_point(grid.width, grid.height, l.s, p.rest), ..*p };
     let coarse_samples: Vec<Sample> = samples.iter().filter(|p| nearest_node(grid, p.rest).is_some()).map(at).collect();
     let nearest = nearest_samples(&coarse, &coarse_samples);
     let mut constraints = constrain(&coarse, &nearest);
@@ -63,6 +63,12 @@ fn solve_on_coarse_grid(
 pub fn coarse_grid(grid: &Grid, s: usize) -> Grid {
     let (width, height, [active, link_right, link_down]) = coarse_links(grid.width, grid.height, s, &grid.active, &grid.link_right, &grid.link_down);
     Grid { width, height, active, link_right, link_down }
+}
+
+/// Where a sample at pixel `rest` goes on the coarse grid of step `s` of a `w × h` grid, in coarse coordinates.
+pub fn coarse_point(w: usize, h: usize, s: usize, [x, y]: crate::geometry::Point) -> crate::geometry::Point {
+    let l = Layout::new(w, h, s);
+    [l.coarse(x, l.wc, |c| l.px(c)), l.coarse(y, l.hc, |c| l.py(c))]
 }
 
 /// The samples that count on the coarse grid: of those that round to one active node, the nearest to it (ties
