@@ -145,6 +145,8 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
         fill = style.get("fill", fill)
         opacity = style.get("fill-opacity", opacity)
         cut = cut or _says_cut(element)
+        if not cut and "cut" in _names(element).lower():
+            near_cuts.append(element.get("id") or element.get("class") or element.get(INKSCAPE_LABEL) or tag)
         if tag in ("text", "image", "foreignObject"):
             why = {"text": "text makes no feature (Inkscape: Path > Object to Path turns it into paths)",
                    "image": "a picture in the drawing makes no feature (the scene's pictures are its layers)"
@@ -185,6 +187,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
             visit(child, here, fill, opacity, cut)
 
     cuts: list[str] = []
+    near_cuts: list[str] = []  # names with the letters "cut" that are not cuts
     top = _style(root, rules)
     for child in root:
         visit(child, root_transform, top.get("fill", "black"), top.get("fill-opacity", "1"), _says_cut(root))
@@ -196,6 +199,11 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
         notes.append(f"{source}: {', '.join(map(repr, cuts))} "
                      f"{'is a cut' if len(cuts) == 1 else 'are cuts'} (the word 'cut' in an id, "
                      "class or layer name): the surface tears along them and they move nothing")
+    if near_cuts:
+        notes.append(f"{source}: {', '.join(map(repr, dict.fromkeys(near_cuts)))} "
+                     f"{'has' if len(near_cuts) == 1 else 'have'} the letters 'cut' in a name but "
+                     f"{'is' if len(near_cuts) == 1 else 'are'} not a cut: a cut is named by the word "
+                     "(neck-cut, cut2, neckCut)")
     return features, notes
 
 
@@ -210,30 +218,41 @@ def _name(element: ET.Element) -> str:
 #: The properties read from an element's style: whether it shows, and its fill.
 STYLED = ("fill", "fill-opacity", "display")
 
-#: A style sheet rule: (specificity, selector's tag, its classes, its id, declarations).
-_Rule = tuple[tuple[int, int, int], str, frozenset[str], str, dict[str, str]]
+#: A style sheet rule: (specificity, selector's tag, its classes, its id, its declarations,
+#: its ``!important`` ones).
+_Rule = tuple[tuple[int, int, int], str, frozenset[str], str, dict[str, str], dict[str, str]]
+
+#: A value that takes the parent's (the key dropped, so the inherited fill stands), and
+#: what ``initial`` sets.
+_INHERITED = ("inherit", "unset")
+_INITIAL = {"fill": "black", "fill-opacity": "1", "display": "inline"}
 
 
-def _declarations(text: str) -> dict[str, str]:
-    out = {}
+def _declarations(text: str) -> tuple[dict[str, str], dict[str, str]]:
+    """The declarations of ``text`` that inkwarp reads: ``(normal, important)``."""
+    out: tuple[dict[str, str], dict[str, str]] = ({}, {})
     for item in text.split(";"):
         key, _, value = item.partition(":")
-        value = value.replace("!important", "").strip()
-        if key.strip().lower() in STYLED and value:
-            out[key.strip().lower()] = value
+        key, value = key.strip().lower(), value.strip()
+        important = re.search(r"!\s*important\s*$", value, flags=re.I)
+        value = value[:important.start()].strip() if important else value
+        if key in STYLED and value:
+            out[bool(important)][key] = value
     return out
 
 
 def _stylesheet(root: ET.Element, source: Path, notes: list[str]) -> list[_Rule]:
     """The rules of the drawing's ``<style>`` elements that set a fill or display, in
-    the order CSS applies them (by specificity, then document order). Selectors other than
-    an element, class or id (or those joined: ``path.cls-1``) get a note."""
+    the order CSS applies them (by specificity, then document order). At-rules are left
+    out (``@media`` blocks and their rules too); selectors other than an element, class
+    or id (or those joined: ``path.cls-1``) get a note."""
     rules: list[_Rule] = []
     text = " ".join("".join(e.itertext()) for e in root.iter() if _tag(e) == "style")
     text = re.sub(r"/\*.*?\*/", " ", text, flags=re.S)
+    text = re.sub(r"@[\w-]+[^;{}]*\{(?:[^{}]*\{[^{}]*\})*[^{}]*\}|@[\w-]+[^;{}]*;", " ", text)
     for selectors, body in re.findall(r"([^{}]*)\{([^{}]*)\}", text):
-        declared = _declarations(body)
-        for selector in filter(None, (part.strip() for part in selectors.split(",")) if declared else ()):
+        normal, important = _declarations(body)
+        for selector in filter(None, (part.strip() for part in selectors.split(",")) if normal or important else ()):
             match = re.fullmatch(r"(\*|[A-Za-z][\w-]*)?((?:\.[\w-]+)*)(#[\w-]+)?((?:\.[\w-]+)*)", selector)
             if match is None:
                 notes.append(f"{source}: the style rule {selector!r} is not applied (inkwarp reads "
@@ -241,19 +260,27 @@ def _stylesheet(root: ET.Element, source: Path, notes: list[str]) -> list[_Rule]
                 continue
             tag, classes = match[1] or "*", frozenset((match[2] + match[4]).split(".")) - {""}
             ident = (match[3] or "#")[1:]
-            rules.append(((int(bool(ident)), len(classes), int(tag != "*")), tag, classes, ident, declared))
+            rules.append(((int(bool(ident)), len(classes), int(tag != "*")), tag, classes, ident, normal, important))
     return sorted(rules, key=lambda rule: rule[0])  # stable: document order within a specificity
 
 
 def _style(element: ET.Element, rules: list[_Rule]) -> dict[str, str]:
-    """Presentation attributes, overridden by the style sheet's matching rules, overridden
-    by the ``style`` attribute."""
+    """What the element's style says of :data:`STYLED`, in CSS's order: presentation
+    attributes, the style sheet's matching rules, the ``style`` attribute, then the
+    ``!important`` rules and the ``style`` attribute's ``!important`` declarations. A
+    property that inherits is left out (its parent's stands)."""
     out = {key: element.get(key, "").strip() for key in STYLED if element.get(key, "").strip()}
     classes, tag = set(element.get("class", "").split()), _tag(element)
-    for _, rule_tag, rule_classes, ident, declared in rules:
-        if rule_tag in ("*", tag) and rule_classes <= classes and ident in ("", element.get("id")):
-            out.update(declared)
-    out.update(_declarations(element.get("style", "")))
+    matching = [rule for rule in rules
+                if rule[1] in ("*", tag) and rule[2] <= classes and rule[3] in ("", element.get("id"))]
+    inline = _declarations(element.get("style", ""))
+    for declared in [rule[4] for rule in matching] + [inline[0]] + [rule[5] for rule in matching] + [inline[1]]:
+        out.update(declared)
+    for key, value in list(out.items()):
+        if value.lower() in _INHERITED:
+            del out[key]
+        elif value.lower() == "initial":
+            out[key] = _INITIAL[key]
     return out
 
 
@@ -269,11 +296,14 @@ def _painted(fill: str, opacity: str) -> bool:
     return opaque and not clear
 
 
+def _names(element: ET.Element) -> str:
+    return " ".join(element.get(key, "") for key in ("id", "class", INKSCAPE_LABEL))
+
+
 def _says_cut(element: ET.Element) -> bool:
     """Whether the element's id, class or Inkscape layer name has the word ``cut`` or
     ``cuts`` (words split at anything but a letter, and at a capital after a small letter)."""
-    names = " ".join(element.get(key, "") for key in ("id", "class", INKSCAPE_LABEL))
-    words = re.sub(r"([a-z])([A-Z])", r"\1 \2", names)
+    words = re.sub(r"([a-z])([A-Z])", r"\1 \2", _names(element))
     return any(word in ("cut", "cuts") for word in re.split(r"[^a-z]+", words.lower()))
 
 
