@@ -1179,26 +1179,6 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
   }
 });
 
-test('a picture opened is unsaved work: ● in the title, and a reload offers it back', async () => {
-  // It counted as saved: no ●, nothing kept, and Save's download said it "stays marked unsaved (●)".
-  const { page: p, context, errors: errs } = await openEditor(browser, server.url);
-  try {
-    await p.setInputFiles('input[type=file][accept^=".json"]', join(repo, 'examples/checkerboard-hole/checkerboard.png'));
-    await p.waitForFunction(() => window.inkwarp.store.doc.layers[0]?.name === 'checkerboard');
-    await idle(p);
-    const opened = await p.evaluate(() => ({ unsaved: window.inkwarp.store.unsaved, title: document.title }));
-    assert(opened.unsaved && opened.title.startsWith('●'), `opened as unsaved work: ${JSON.stringify(opened)}`);
-    await flush(p);
-    await p.reload();
-    await p.waitForSelector('#restore', { timeout: 10000 });
-    await restoreYes(p);
-    await p.waitForFunction(() => window.inkwarp.store.doc.layers[0]?.name === 'checkerboard', null, { timeout: 10000 });
-    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
-  } finally {
-    await context.close();
-  }
-});
-
 test('edits made while the restore offer waits: leaving asks, and the offered work stays', async () => {
   const { page: p, context, errors: errs } = await openEditor(browser, server.url);
   try {

@@ -179,9 +179,9 @@ export class IndexedDbStore implements SnapshotStore {
       const tx = db.transaction(STORE, mode);
       const req = fn(tx.objectStore(STORE));
       if (mode === 'readonly') {
-        // A read answers when its request does: a large value (a kept copy with its picture)
-        // is stored apart on disk, and a committed transaction could complete before its
-        // request had its result.
+        // A read answers when its request does, and is not committed by hand: in Chromium a
+        // large value (a kept copy with its picture, stored apart in a profile on disk) read in
+        // a transaction committed with `commit()` completed before its request had a result.
         req.onsuccess = () => resolve(req.result);
       } else {
         // Committed at once, not when the page next gets to run: a write started as the page

@@ -1656,12 +1656,11 @@ export class Ui {
         return;
       }
       if (!this.confirmReplace(file.name)) return;
-      // A scene made of a picture is in no file: unsaved work, kept in the browser (● until saved).
-      await this.openScene(this.sceneFromImage(uri, img, file.name), file.name.replace(/\.[^.]*$/, '') + '.json', true, { unsaved: true });
+      await this.openScene(this.sceneFromImage(uri, img, file.name), file.name.replace(/\.[^.]*$/, '') + '.json');
       this.message(`Opened ${file.name} (${img.width}×${img.height}). Pick a tool and trace.`, 'info');
     } catch (err) {
       // Open… reads layered PSDs too, which a picture's own message does not name.
-      const psd = err instanceof Error && !isPsdName(file.name) && /PNG or JPEG/.test(err.message) ? ' (Open… also reads a layered PSD)' : '';
+      const psd = err instanceof Error && !isPsdName(file.name) && /PNG (or|and) JPEG/.test(err.message) ? ' (Open… also reads a layered PSD)' : '';
       this.fileError(file.name, err, psd);
     }
   }
@@ -1683,7 +1682,7 @@ export class Ui {
       const image = await blobToDataUri(await rgbaToPngBlob(layer.image));
       doc.layers.push(layer.visible ? { name: names[i], image } : { name: names[i], image, visible: false });
     }
-    await this.openScene(doc, file.name.replace(/\.[^.]*$/, '') + '.json', true, { unsaved: true });
+    await this.openScene(doc, file.name.replace(/\.[^.]*$/, '') + '.json');
     this.psdNotes = picture.notes;
     for (const note of picture.notes) console.warn(note);
     const warned = picture.notes.filter((n) => /blend mode/.test(n));
@@ -1901,7 +1900,8 @@ export class Ui {
     // The page cannot see whether the browser kept the download (a cancelled "Save as"
     // keeps nothing): the work stays unsaved, kept in this browser and asked about on leaving.
     download(blob(), origin.fileName);
-    this.message(`Downloaded ${origin.fileName}; it stays marked unsaved (●) here, as the editor cannot see whether your browser kept it. This scene is in no file the editor writes to (a scene file opened with inkwarp edit SCENE saves in place).${note}`, note ? 'error' : 'info');
+    const kept = this.store.unsaved ? '; it stays marked unsaved (●) here, as the editor cannot see whether your browser kept it' : '';
+    this.message(`Downloaded ${origin.fileName}${kept}. This scene is in no file the editor writes to (a scene file opened with inkwarp edit SCENE saves in place).${note}`, note ? 'error' : 'info');
   }
 
   /**

@@ -14,17 +14,21 @@ export function canEncodeWebm(): boolean {
   return typeof VideoEncoder !== 'undefined' && typeof VideoFrame !== 'undefined';
 }
 
+/** Alpha below this is transparency worth a word (as `inkwarp render` judges an MP4's frames): the
+ * squeezed edges of an opaque picture come out at 252–254. */
+const SEE_THROUGH_ALPHA = 250;
+
 /**
  * Composites straight RGBA8 pixels over white in place, as `inkwarp render` flattens an MP4:
  * a WebM encoded in the browser keeps no alpha, and its transparent pixels came out black.
- * Whether any pixel was not opaque.
+ * Whether any pixel was see-through (alpha below 250).
  */
 export function overWhite(px: Uint8Array): boolean {
   let clear = false;
   for (let i = 3; i < px.length; i += 4) {
     const a = px[i];
     if (a === 255) continue;
-    clear = true;
+    clear ||= a < SEE_THROUGH_ALPHA;
     for (let c = i - 3; c < i; c++) px[c] = Math.round((px[c] * a + 255 * (255 - a)) / 255);
     px[i] = 255;
   }

@@ -17,5 +17,9 @@ describe('WebM pixels', () => {
     expect(overWhite(px)).toBe(true);
     expect([...px]).toEqual([10, 20, 30, 255, 255, 255, 255, 255, 227, 127, 177, 255]);
     expect(overWhite(new Uint8Array([1, 2, 3, 255]))).toBe(false);
+    // An opaque picture's squeezed edge (alpha 252) is drawn over white, with no word.
+    const edge = new Uint8Array([0, 0, 0, 252]);
+    expect(overWhite(edge)).toBe(false);
+    expect([...edge]).toEqual([3, 3, 3, 255]);
   });
 });
