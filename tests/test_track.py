@@ -438,6 +438,11 @@ def test_a_key_within_the_last_frames_span_is_that_frame(videos, tmp_path):
                 *({"id": f"b{i}", "kind": "point", "rest": [at]} for i, at in enumerate([[20.0, 20.0], [140.0, 100.0], [20.0, 100.0]]))]
     doc, _ = tracked_saying(path, sv.scene(W, H, features))
     assert doc["features"][0]["keys"][23]["points"][0] == pytest.approx(key, abs=1e-3)
+    # A key at the video's end, 1 s (where a scene's last keys often are, at its duration),
+    # was refused as frame 24; it is the last frame too.
+    features[0]["keys"][0]["t"] = 1.0
+    doc, _ = tracked_saying(path, sv.scene(W, H, features))
+    assert doc["features"][0]["keys"][23]["points"][0] == pytest.approx(key, abs=1e-3)
 
 
 def test_a_flat_point_carried_off_the_picture_is_lost(tmp_path):
@@ -505,7 +510,8 @@ def test_cli_writes_the_tracked_scene_and_a_frame(videos, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("case", ["unreadable", "sound only", "missing", "frame past end", "size", "simplify",
-                                  "frame cmd past end", "key past end", "no features", "only a cut"])
+                                  "frame cmd past end", "key past end", "no features", "only a cut",
+                                  "no frames.avi", "no frames.mp4", "no frames.mkv", "no frames.webm"])
 def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
     path, _ = videos["translate"]
     doc = sv.scene(W, H, sv.drawing(W, H, seed=7))
@@ -526,6 +532,16 @@ def test_bad_input_exits_2_with_a_clear_message(videos, tmp_path, capsys, case):
                         "-i", "sine=frequency=440:duration=0.3", "-c:a", "aac", str(bad)], check=True)
         args[1] = bad
         expect = f"{bad}: has sound but no video stream; give the video itself"
+    elif case.startswith("no frames"):  # an export that wrote no frame: it gave ffmpeg's words, an address too
+        import subprocess
+
+        import imageio_ffmpeg
+
+        bad = tmp_path / f"empty{Path(case).suffix}"
+        subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-v", "error", "-f", "lavfi", "-i",
+                        "color=c=black:s=32x32:r=24", "-frames:v", "0", str(bad)], check=True)
+        args[1] = bad
+        expect = f"{bad}: the video has no frames (it is empty, or cut short before its first frame); export or copy it again"
     elif case == "missing":
         args[1] = tmp_path / "nothing.mp4"
         expect = "nothing.mp4: no such file"

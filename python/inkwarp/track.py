@@ -128,7 +128,11 @@ class Video:
 
 
 def _unreadable(path: str, reason: str) -> ValueError:
-    reason = " ".join(str(reason).split())
+    # A video that ends before its first frame: ffmpeg's words for it, per container.
+    if re.search(r"received no packets|Nothing was written|End of file|^Duration: N/A", str(reason)):
+        return ValueError(f"{path}: the video has no frames (it is empty, or cut short before its first "
+                          "frame); export or copy it again")
+    reason = re.sub(r"\[[^]]*@ 0x[0-9a-f]+\] *", "", " ".join(str(reason).split()))  # no decoder's address
     if len(reason) > 160:
         reason = reason[:157] + "..."
     return ValueError(f"{path}: cannot be read as a video ({reason}); give a video file that "
@@ -251,7 +255,7 @@ def read_video(path: str | os.PathLike[str]) -> Video:
     raw = _decode(name, "gray", promised=promised, size=width * height, rate=rate)
     count = len(raw) // (width * height)
     if count == 0:
-        raise _unreadable(name, "it has no frames")
+        raise _unreadable(name, "Nothing was written")
     data = np.frombuffer(raw, np.uint8)[:count * width * height].reshape(count, height, width)
     return Video(name, fps, width, height, list(data))
 
@@ -672,7 +676,9 @@ def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: st
         keys: dict[int, np.ndarray] = {}
         for j, key in enumerate(f.get("keys") or []):
             k = int(round(float(key["t"]) * fps))
-            if k == count and float(key["t"]) * fps < count:  # within the last frame's span
+            # Within the last frame's span, or at its end (the scene's duration, where a
+            # scene's last keys often are): the last frame.
+            if k == count and float(key["t"]) * fps <= count * (1 + 1e-12):
                 k = count - 1
             if not 0 <= k < count:
                 raise ValueError(
