@@ -471,6 +471,15 @@ def test_a_flat_point_carried_off_the_picture_is_lost(tmp_path):
     blind = [str(w.message) for w in caught if "on no texture" in str(w.message)]
     assert len(blind) == 1 and "'background' lies on no texture at frame 0" in blind[0], blind
     assert "'square'" not in blind[0]
+    # One corner of a feature on the background, the others on the square: carried off the
+    # picture, it was not named (its feature's median error stayed small).
+    features[1] = {"id": "strap", "kind": "polyline", "rest": [[45.0, 45.0], [45.0, 75.0], [150.0, 20.0]]}
+    with pytest.warns(InkwarpWarning) as caught:
+        doc = track_dict(video, sv.scene(W, H, features))
+    where = np.array([k["points"][2] for k in doc["features"][1]["keys"]])
+    gone = [k for k in range(FRAMES) if where[k, 0] > W - 1 + 2.0]
+    said = " ".join(str(w.message) for w in caught if "lost track" in str(w.message))
+    assert gone and re.search(rf"'strap' at frames? {gone[0]}", said), (said, where[:, 0])
 
 
 def test_cli_writes_the_tracked_scene_and_a_frame(videos, tmp_path, capsys):

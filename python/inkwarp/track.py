@@ -888,9 +888,11 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             if err is None or f.id in outside:
                 continue
             # Lost where most of its points are, or where a point its keys are made of was
-            # checked and found off (not merely unseen: a corner on the picture's edge).
+            # checked and found off (not merely unseen: a corner on the picture's edge), or is
+            # placed more than `lost_px` off the picture (a still corner the others carry out).
             keys = err[:len(f.rest)][seen[:len(f.rest)]]
-            keys_off = bool(np.any(np.isfinite(keys) & (keys > lost_px)))
+            carried = _off_picture(series[k], clip.width, clip.height, lost_px)[seen[:len(f.rest)]]
+            keys_off = bool(np.any(np.isfinite(keys) & (keys > lost_px)) or carried.any())
             if np.median(err[seen]) > lost_px or keys_off:
                 lost.setdefault(f.id, []).append(k)
         kept = range(count)
