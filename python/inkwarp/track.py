@@ -403,12 +403,13 @@ class _Tracker:
         return picture, inverse
 
     def run(self, anchor: int, start_points: np.ndarray, stop: int,
-            tick: Callable[[], None], neighbours: np.ndarray | None = None
-            ) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+            tick: Callable[[], None], neighbours: np.ndarray | None = None,
+            groups: np.ndarray | None = None) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
         """Track from frame ``anchor`` (points ``start_points``) to frame ``stop`` (either
         way). Returns, per frame, the positions and each point's forward-backward error.
         ``neighbours`` (see :func:`_neighbours`) lets the points of a curve vouch for each
-        other (:func:`_odd_ones`)."""
+        other (:func:`_odd_ones`); ``groups`` (each point's feature) warps the windows a
+        feature's turned points are registered with by that feature's own thin plate."""
         positions = {anchor: start_points.copy()}
         errors = {anchor: np.zeros(len(start_points))}
         step = 1 if stop >= anchor else -1
@@ -451,15 +452,32 @@ class _Tracker:
                         inverse(estimate + axis) - here - axis, axis=1))
                 turned = bent > 0.2
                 if turned.any():
-                    again, again_fb = self._lk_checked(picture, b, estimate[turned],
-                                                       estimate[turned])
-                    # The warped picture is the thin plate's guess of how the window turned: kept
+                    at_turned = estimate[turned]
+                    again, again_fb = self._lk_checked(picture, b, at_turned, at_turned)
+                    misfit = self._mismatch(picture, at_turned, b, again)
+                    # The whole drawing's plate bends between a thing that turns and a still point
+                    # elsewhere, and a window warped by it is registered a few pixels off, passing
+                    # every check: a feature that moves as one piece (its followed points span an
+                    # area and fit one affine map within a pixel: a disk that turns, not lids that
+                    # close) also tries its own plate, and each point keeps the warp whose window
+                    # matches this frame better.
+                    for group in (np.unique(groups[turned]) if groups is not None else []):
+                        mine = good & (groups == group)
+                        rigid = _spans_area(start_points[mine]) and _affine_misfit(start_points[mine], estimate[mine]) <= 1.0
+                        own = self.predicted(template, start_points, estimate, mine) if rigid else None
+                        if own is None:
+                            continue
+                        at = np.flatnonzero(groups[turned] == group)
+                        found, found_fb = self._lk_checked(own[0], b, at_turned[at], at_turned[at])
+                        fits = self._mismatch(own[0], at_turned[at], b, found)
+                        better = (found_fb < TRUST_FB_PX) & (fits < misfit[at])
+                        again[at[better]], again_fb[at[better]], misfit[at[better]] = found[better], found_fb[better], fits[better]
+                    # A warped picture is the thin plate's guess of how the window turned: kept
                     # unless the anchor's picture as it is matches this frame better (a still
                     # point beside an object that moves away is bent by the plate, not in the
                     # picture).
                     plain = (refined_fb[turned] < TRUST_FB_PX) & (
-                        self._mismatch(template, start_points[turned], b, refined[turned])
-                        <= self._mismatch(picture, estimate[turned], b, again))
+                        self._mismatch(template, start_points[turned], b, refined[turned]) <= misfit)
                     take = np.flatnonzero(turned)[~plain]
                     refined[take], refined_fb[take] = again[~plain], again_fb[~plain]
             use_anchor = (refined_fb < TRUST_FB_PX) & (np.linalg.norm(refined - estimate, axis=1) < REGAIN_PX)
@@ -555,6 +573,23 @@ class _Tracker:
             errors[k] = np.where(unseen, np.inf, np.where(textured_at_anchor, checked, dense_fb))
             tick()
         return positions, errors
+
+
+def _spans_area(points: np.ndarray) -> bool:
+    """Whether points (three at least) spread over an area: their spread across their main
+    line at least a quarter of that along it, and at least half a Lucas-Kanade window."""
+    if len(points) < 3:
+        return False
+    along, across = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)[:2] / np.sqrt(len(points))
+    return bool(across >= 0.25 * along and across >= LK_WINDOW_PX / 4)
+
+
+def _affine_misfit(rest: np.ndarray, now: np.ndarray) -> float:
+    """How far the best affine map taking ``rest`` to ``now`` leaves the points (least
+    squares; the median distance, which a stray point does not sway)."""
+    a = np.column_stack([rest, np.ones(len(rest))])
+    fit, *_ = np.linalg.lstsq(a, now, rcond=None)
+    return float(np.median(np.linalg.norm(a @ fit - now, axis=1)))
 
 
 def _off_picture(points: np.ndarray, w: int, h: int, margin: float) -> np.ndarray:
@@ -858,8 +893,9 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         lo, hi = ranges[a]
         tick()
         near = _neighbours(features, start)
-        fwd_pos, fwd_err = tracker.run(a, start, hi, tick, near)
-        back_pos, back_err = tracker.run(a, start, lo, tick, near)
+        groups = np.concatenate([np.full(f.rows.stop - f.rows.start, j) for j, f in enumerate(features)])
+        fwd_pos, fwd_err = tracker.run(a, start, hi, tick, near, groups)
+        back_pos, back_err = tracker.run(a, start, lo, tick, near, groups)
         tracks[a] = ({**back_pos, **fwd_pos}, {**back_err, **fwd_err})
         for f in features:
             if a in blind_at[f.id]:
