@@ -383,7 +383,7 @@ def test_a_variable_frame_rate_keeps_the_videos_timing(tmp_path, capsys):
 
     def encode(name, rate, pts):
         subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-y", "-f", "lavfi", "-i",
-                        f"testsrc=size={W}x{H}:rate={rate}", "-frames:v", "40", "-vf", f"setpts='({pts})/TB'",
+                        f"testsrc=size={W}x{H}:rate={rate}", "-frames:v", "48" if rate == 24 else "40", "-vf", f"setpts='({pts})/TB'",
                         "-fps_mode", "passthrough", "-c:v", "libx264", "-pix_fmt", "yuv420p",
                         "-video_track_timescale", "1000", str(tmp_path / name)], check=True)
         return tmp_path / name
@@ -404,6 +404,16 @@ def test_a_variable_frame_rate_keeps_the_videos_timing(tmp_path, capsys):
     assert json.loads((tmp_path / "out.json").read_text())["fps"] == pytest.approx(30.98)
     code, _, err = run(capsys, "frame", jitter, "--frame", "3", "-o", tmp_path / "f.png")
     assert code == 0 and "its frame rate varies" in err, err
+    # 24 frames at 24 fps, then 24 at 12, in Matroska: ffmpeg guesses 16.7 fps, and every
+    # fourth frame of the first second was dropped without a word. Taken at the fastest rate,
+    # every frame is kept, repeated where slower: at 24 fps, the last (at 2.917 s) is frame 70.
+    mkv = tmp_path / "vfr.mkv"
+    subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-y", "-i", encode("steps.mp4", 24, "if(lt(N,24),N/24,1+(N-24)/12)"),
+                    "-c", "copy", str(mkv)], check=True)
+    code, _, err = run(capsys, "track", mkv, "--scene", scene, "-o", tmp_path / "out.json", "-q")
+    assert code == 0 and "vfr.mkv: its frame rate varies (up to 24 fps, on average 16" in err, err
+    doc = json.loads((tmp_path / "out.json").read_text())
+    assert doc["fps"] == 24 and len(doc["features"][0]["keys"]) == 71, (doc["fps"], len(doc["features"][0]["keys"]))
     # A constant rate, and a GIF inkwarp wrote at 24 fps (delays of 4 and 5 hundredths), say nothing.
     whole = sv.write_mp4(tmp_path / "whole.mp4", sv.render(sv.picture(W, H, seed=5), sv.translate(), 4))
     assert run(capsys, "frame", whole, "-o", tmp_path / "g.png")[2] == ""

@@ -184,16 +184,58 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | No
     variable = tbr > MAX_TIME_BASE_FPS and average is not None and abs(tbr - fps) > 0.01 * fps
     if tbr <= MAX_TIME_BASE_FPS:
         fps = tbr
+    # A coarse time base (a Matroska or WebM file's milliseconds) that ffmpeg took an even
+    # rate from: the frames' own times say whether some come faster than that rate, whose
+    # frames ffmpeg would drop without a word. They are then taken at their fastest rate,
+    # repeated where it runs slower.
+    tbn = re.search(r", ([\d.]+)(k?) tbn", stream)
+    if not variable and tbn and float(tbn.group(1)) * (1000 if tbn.group(2) else 1) <= 1000:
+        gaps, tick = _frame_gaps(name)
+        fastest = None if gaps is None else _fastest_gap(gaps, tick)
+        if fastest is not None and gaps.max() > 1.5 * gaps.min() + 2 * tick and 1 / fastest > 1.01 * fps:
+            tbr, fps, variable = 1 / float(np.mean(gaps)), 1 / fastest, True
     took = re.search(r"Duration: (\d+):(\d\d):(\d\d(?:\.\d+)?)", log)
     seconds = 3600 * int(took.group(1)) + 60 * int(took.group(2)) + float(took.group(3)) if took else None
     fps = _exact_rate(fps)
-    if variable:
+    if variable and tbr < fps:  # taken at its fastest rate: every frame kept
+        warnings.warn(f"{name}: its frame rate varies (up to {fps:g} fps, on average {tbr:.4g}); its frames are "
+                      f"taken at an even {fps:g} fps, repeated where it runs slower, so that frame k is at "
+                      f"{1 / fps:.4g} k s", InkwarpWarning, stacklevel=caller_outside())
+    elif variable:
         warnings.warn(f"{name}: its frame rate varies (on average {fps:g} fps, on a time base of {tbr:g}); "
                       f"its frames are taken at an even {fps:g} fps, repeated or skipped where it runs slower "
                       f"or faster, so that frame k is at {1 / fps:.4g} k s. To keep every frame, convert it to "
                       f"a constant rate first: ffmpeg -i {Path(name).name} -fps_mode cfr -r 60 constant.mp4",
                       InkwarpWarning, stacklevel=caller_outside())
     return name, fps, width, height, round(seconds * fps) if seconds else None, fps if variable else None
+
+
+def _frame_gaps(name: str) -> tuple[np.ndarray | None, float]:
+    """The seconds between a video's frames in time order, from its packets' timestamps
+    (read without decoding), or None where ffmpeg gives fewer than three; and the time
+    base's tick (the timestamps' rounding)."""
+    import subprocess
+
+    import imageio_ffmpeg
+
+    done = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-nostdin", "-v", "error", "-i", name, "-map", "0:v:0",
+                           "-c", "copy", "-f", "framecrc", "-"], capture_output=True, stdin=subprocess.DEVNULL)
+    text = done.stdout.decode(errors="replace")
+    base = re.search(r"^#tb 0: (\d+)/(\d+)", text, flags=re.M)
+    times = [int(line.split(",")[2]) for line in text.splitlines() if line.startswith("0,")]
+    if base is None or len(times) < 3:
+        return None, 0.0
+    tick = int(base.group(1)) / int(base.group(2))
+    return np.diff(np.sort(times)) * tick, tick
+
+
+def _fastest_gap(gaps: np.ndarray, tick: float) -> float:
+    """The time between frames where they come fastest: the mean gap over the longest run
+    of gaps within 1.5 ticks of the shortest (timestamps rounded to ticks alternate)."""
+    fast = np.concatenate([[False], gaps <= gaps.min() + 1.5 * tick, [False]])
+    edges = np.flatnonzero(np.diff(fast.astype(int)))
+    start, stop = max(zip(edges[::2], edges[1::2]), key=lambda run: run[1] - run[0])
+    return float(np.mean(gaps[start:stop]))
 
 
 def _exact_rate(fps: float) -> float:
