@@ -127,8 +127,14 @@ def test_thin_plate_map_reproduces_affine_maps():
         ({"points": [[np.nan, 1.0]]}, r"points\[0\] is not finite"),
         ({"displacements": [[1.0, 1.0], [0.0, 0.0]]}, "same length"),
         ({"shape": (0, 5)}, "at least"),
-        ({"method": "beier-neely", "a": 0.0}, "parameter a = 0 is out of range"),
-        ({"max_samples": 0}, "max_samples must be a whole number, at least 1"),
+        ({"method": "beier-neely", "a": 0.0}, "a must be a number above 0 and at most 1e6; got 0.0"),
+        ({"max_samples": 0}, "max_samples must be a whole number from 1 to 4294967295"),
+        # Each named, with its range (they were bare TypeErrors and OverflowErrors, or "2" taken as 2).
+        ({"method": "beier-neely", "a": None}, "a must be a number above 0"),
+        ({"method": "beier-neely", "p": [1]}, "p must be a number from 0 to 16"),
+        ({"method": "beier-neely", "p": 10**400}, "p must be a number from 0 to 16"),
+        ({"method": "beier-neely", "b": "2"}, "b must be a number from 0 to 16; got '2'"),
+        ({"max_samples": 10**30}, "max_samples must be a whole number from 1 to 4294967295"),
         ({"lines": ([[[0, 0], [1, 1]]], [])}, "the rest and pose segments must match"),
     ],
 )
@@ -145,3 +151,9 @@ def test_no_samples():
     assert not inkwarp.interpolate(none, none, (3, 3), method="triangulation").any()
     with pytest.raises(ValueError, match="needs at least one point or line pair"):
         inkwarp.interpolate(none, none, (3, 3), method="beier-neely")
+
+
+def test_the_tps_report_gives_its_seconds():
+    # It gave NaN, where the other methods give the time taken.
+    _, report = inkwarp.interpolate_report([[4, 4], [40, 4], [20, 25]], [[1, 0], [0, 1], [2, 2]], (32, 48), method="tps")
+    assert 0 < report["seconds"] < 60

@@ -218,6 +218,9 @@ def test_the_default_matte_is_the_alpha():
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.ones((3, 4)), r"\(4, 4\)"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.array([["a"] * 4] * 4), "matte"),
         (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.full((4, 4), np.nan), "finite"),
+        # As thin_plate's mask says them (it read "matte must have shape (H, W) = (4, 4) ..., got ()").
+        (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), "a.png", r"matte must be an \(H, W\) array, got the path 'a.png'; read the picture first"),
+        (np.zeros((4, 4, 4), np.uint8), np.zeros((4, 4, 2)), np.ones((4, 4, 4)), r"a picture's alpha is matte\[\.\.\., 3\]"),
         (None, None, None, r"image must be an \(H, W\), \(H, W, 3\) or \(H, W, 4\) uint8 array \(grey, RGB or RGBA\), got None"),
         ("cat.png", None, None, r"got the path 'cat.png'; read the picture first, with inkwarp.imaging.read_image"),
         (b"\x89PNG" + bytes(1000), None, None, r"got 1004 bytes of a file; decode them first, with inkwarp.imaging.read_image\(io.BytesIO\(data\)\)"),

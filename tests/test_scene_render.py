@@ -215,6 +215,12 @@ def test_the_method_can_be_chosen_per_call(scene):
     np.testing.assert_array_equal(scene.field(time=0.7, layer=0, method="tps"), scene.field(time=0.7, layer=0))
     with pytest.raises(ValueError, match='unknown method "rbf"; use one of "tps"'):
         scene.render(time=0.7, method="rbf")
+    # Not a name at all: a ValueError naming the argument (it was the binding's TypeError).
+    for call in (lambda: scene.render(method=5), lambda: scene.field(layer=0, method=b"tps"), lambda: scene.frames(method=5)):
+        with pytest.raises(ValueError, match="method must be one of 'tps', 'tps-exact'"):
+            call()
+    with pytest.raises(ValueError, match="base_dir must be a path"):
+        inkwarp.Scene.from_dict(scene.to_dict(), base_dir=5)
     assert len(list(scene.frames(0, 3, method="tps"))) == 3
 
 

@@ -218,6 +218,7 @@ def test_solves_run_in_parallel_threads():
         ({"shape": (5.5, 3)}, r"shape must be \(height, width\)"),
         ({"mask": np.ones((3, 3))}, r"mask has shape \(3, 3\)"),
         ({"mask": np.full(SHAPE, np.nan)}, "mask has NaN"),
+        ({"mask": np.ones((*SHAPE, 4))}, r"a picture's channels; pass one of them, an \(H, W\) array \(a picture's alpha is mask\[\.\.\., 3\]\)"),
         ({"cuts": [[[1, 1]]]}, r"cuts\[0\] has 1 point"),
         ({"cuts": np.zeros((3, 2))}, "wrap a single cut in a list"),
         ({"cuts": [[0, 20], [60, 20]]}, "wrap a single cut in a list"),  # pointed at a reshape to one point
@@ -463,7 +464,8 @@ def test_thin_plate_warns_of_what_its_hidden_report_would_say():
     # grid (a field of zeros), are said in a warning; thin_plate_report says them in its report.
     rng = np.random.default_rng(0)
     pts, disp = rng.uniform(0, 255, (20, 2)), rng.normal(0, 3, (20, 2))
-    with pytest.warns(inkwarp.InkwarpWarning, match=r"did not converge \(stopped: max_cycles, after 1 cycle\)"):
+    # A ConvergenceWarning, as scenes warn, so that one filter catches both.
+    with pytest.warns(inkwarp.ConvergenceWarning, match=r"did not converge \(stopped: max_cycles, after 1 cycle\)"):
         inkwarp.thin_plate(pts, disp, (256, 256), max_cycles=1)
     with pytest.warns(inkwarp.InkwarpWarning, match="all 2 points lie off the grid or on masked-out nodes, so the field is zero"):
         field = inkwarp.thin_plate([[100, 100], [200, 3]], [[5, 5], [1, 1]], (32, 32))

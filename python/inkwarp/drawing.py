@@ -151,22 +151,16 @@ def sample(
         )
     try:
         spacing_px = float(spacing)
-    except (TypeError, ValueError):
-        raise ValueError(f"spacing must be a positive number of pixels; got {spacing!r}.") from None
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"spacing must be a positive, finite number of pixels; got {spacing!r}.") from None
     if not (spacing_px > 0 and math.isfinite(spacing_px)):
         raise ValueError(f"spacing must be a positive, finite number of pixels; got {spacing!r}.")
-    grid_shape: tuple[int, int] | None = None
-    if shape is not None:
-        try:
-            h, w = (int(v) for v in shape)
-        except (TypeError, ValueError):
-            raise ValueError(f"shape must be (H, W), two positive integers; got {shape!r}.") from None
-        if h <= 0 or w <= 0:
-            raise ValueError(f"shape must be (H, W), two positive integers; got {shape!r}.")
-        if max(h, w) > _inkwarp.MAX_SIDE_PX:
-            raise ValueError(f"shape {shape!r}: each side may be at most {_inkwarp.MAX_SIDE_PX} "
-                             "pixels; use a smaller grid.")
-        grid_shape = (h, w)
+    if not isinstance(closed, (bool, np.bool_)):
+        raise ValueError(f"closed must be True or False; got {closed!r}.")
+    from inkwarp.methods import _shape
+    from inkwarp.plate import _mask_u8
+
+    grid_shape = None if shape is None else _shape(shape)
     if kind == "region" and grid_shape is None:
         raise ValueError(
             "a region needs shape=(H, W), the image's height and width, to find the grid nodes "
@@ -176,13 +170,7 @@ def sample(
     if mask is not None:
         if grid_shape is None:
             raise ValueError("mask needs shape: pass shape=(H, W) with the mask.")
-        mask_arr = np.asarray(mask)
-        if mask_arr.shape != grid_shape:
-            raise ValueError(
-                f"mask has shape {mask_arr.shape} but shape is {grid_shape}; give a mask of the "
-                "image's (H, W)."
-            )
-        mask_arr = np.ascontiguousarray(mask_arr != 0, dtype=np.uint8)
+        mask_arr = _mask_u8(mask, *grid_shape)
     return _inkwarp.sample_feature(
         kind,
         rest_arr,

@@ -162,17 +162,9 @@ def warp_image(
     if matte is None:
         connected = (rgba[..., 3] > 0).astype(np.uint8)
     else:
-        m = np.asarray(matte)
-        if m.shape != (height, width):
-            raise ValueError(
-                f"matte must have shape (H, W) = ({height}, {width}) to match the image, "
-                f"got {m.shape}"
-            )
-        if m.dtype.kind not in "biuf":
-            raise ValueError(f"matte must be a boolean or numeric array, got dtype {m.dtype}")
-        if m.dtype.kind == "f" and not np.isfinite(m).all():
-            raise ValueError("matte must be finite, but holds NaN or infinity")
-        connected = np.ascontiguousarray(m != 0, dtype=np.uint8)
+        from inkwarp.plate import _mask_u8
+
+        connected = _mask_u8(matte, height, width, "matte")
 
     from inkwarp.plate import _cuts
 

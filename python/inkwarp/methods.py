@@ -21,6 +21,8 @@ See ``docs/concepts/comparison.md`` for pictures of each.
 
 from __future__ import annotations
 
+import math
+
 from typing import Any, Sequence
 
 import numpy as np
@@ -156,6 +158,10 @@ def interpolate_report(
     (20, 'tps-exact thinned 50 distinct sample pos')
     """
     check_method(method)
+    if isinstance(max_samples, (bool, np.bool_)) or not isinstance(max_samples, (int, np.integer)) \
+            or not 1 <= max_samples <= 2**32 - 1:
+        raise ValueError(f"max_samples must be a whole number from 1 to {2**32 - 1}; got {max_samples!r}.")
+    weights = [_weight("a", a, 1e6, above_zero=True), _weight("b", b, 16.0), _weight("p", p, 16.0)]
     pts = _points("points", points)
     disp = _points("displacements", displacements)
     if len(pts) != len(disp):
@@ -183,23 +189,35 @@ def interpolate_report(
             pts = np.concatenate([pts, ends])
             disp = np.concatenate([disp, pose.reshape(-1, 2) - ends])
         if len(pts) == 0:
-            return np.zeros((height, width, 2), np.float32), _tps_report(0, 0)
+            return np.zeros((height, width, 2), np.float32), _tps_report(0, 0, 0.0)
         field, solved = thin_plate_report(pts, disp, (height, width))
-        report = _tps_report(len(pts), solved.constrained_samples)
+        report = _tps_report(len(pts), solved.constrained_samples, solved.seconds)
         report["dropped"] = solved.dropped_samples
         if not solved.converged:
             report["notes"].append(f"the thin-plate solve did not converge (stopped: {solved.stop}, after "
                                    f"{solved.cycles} cycles)")
         return field, report
-    if isinstance(max_samples, (bool, np.bool_)) or not isinstance(max_samples, (int, np.integer)) or max_samples < 1:
-        raise ValueError(f"max_samples must be a whole number, at least 1; got {max_samples!r}.")
-    field, report = _inkwarp.interpolate_field(
-        method, pts, disp, height, width, rest, pose, int(max_samples), float(a), float(b), float(p)
-    )
+    field, report = _inkwarp.interpolate_field(method, pts, disp, height, width, rest, pose, int(max_samples), *weights)
     return field, report
 
 
-def _tps_report(given: int, used: int) -> dict[str, Any]:
+def _weight(name: str, value: Any, most: float, above_zero: bool = False) -> float:
+    """A Beier–Neely weight as a float: a real number from 0 (above it where ``above_zero``)
+    to ``most``, or a ValueError naming it and its range."""
+    span = f"above 0 and at most {most:.0e}".replace("e+0", "e") if above_zero else f"from 0 to {most:g}"
+    why = ValueError(f"{name} must be a number {span}; got {value!r}.")
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise why
+    try:
+        number = float(value)
+    except OverflowError:  # a Python int past any float
+        number = math.inf
+    if not (math.isfinite(number) and (number > 0 if above_zero else number >= 0) and number <= most):
+        raise why
+    return number
+
+
+def _tps_report(given: int, used: int, seconds: float) -> dict[str, Any]:
     return {
         "method": "tps",
         "samples_given": given,
@@ -208,7 +226,7 @@ def _tps_report(given: int, used: int) -> dict[str, Any]:
         "dropped": 0,
         "ignored_matte": False,
         "notes": [],
-        "seconds": float("nan"),
+        "seconds": seconds,
     }
 
 

@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from inkwarp import _inkwarp
-from inkwarp.errors import ArrayValuesError, InkwarpWarning, real_array
+from inkwarp.errors import ArrayValuesError, ConvergenceWarning, InkwarpWarning, real_array
 
 __all__ = ["SolveReport", "Solver", "WarmStart", "thin_plate", "thin_plate_report"]
 
@@ -276,6 +276,28 @@ def _cuts(cuts: Any) -> list[np.ndarray]:
     return cut_list
 
 
+def _mask_u8(mask: Any, height: int, width: int, name: str = "mask") -> np.ndarray:
+    """An ``(H, W)`` mask or matte as uint8 (1 where nonzero), or a ValueError naming
+    ``name`` and the fix."""
+    if isinstance(mask, (str, bytes, os.PathLike)):
+        raise ValueError(f"{name} must be an (H, W) array, got the path {os.fspath(mask)!r}; read the picture "
+                         "first (its alpha, for example np.asarray(PIL.Image.open(path).convert('RGBA'))[..., 3]).")
+    try:
+        m = np.asarray(mask)
+    except (TypeError, ValueError) as exc:  # rows of different lengths, for example
+        raise ValueError(f"{name} must be an (H, W) array of numbers ({_first_line(exc)}).") from None
+    if m.ndim == 3 and m.shape[:2] == (height, width):
+        raise ValueError(f"{name} has shape {m.shape}: a picture's channels; pass one of them, an (H, W) array "
+                         f"(a picture's alpha is {name}[..., 3]).")
+    if m.shape != (height, width):
+        raise ValueError(f"{name} has shape {m.shape} but shape is {(height, width)}; pass an (H, W) {name}.")
+    if m.dtype.kind == "f" and not np.all(np.isfinite(m)):
+        raise ValueError(f"{name} has NaN or infinite values; use 0 for holes and nonzero for connected pixels.")
+    if m.dtype.kind not in "biuf":
+        raise ValueError(f"{name} must hold numbers or booleans (nonzero = connected), got dtype {m.dtype}.")
+    return np.ascontiguousarray(m != 0, dtype=np.uint8)
+
+
 def _check_args(
     points: Any,
     displacements: Any,
@@ -307,22 +329,7 @@ def _check_args(
         raise ValueError(
             f"points has {len(pts)} rows but displacements has {len(disp)}; pass one displacement per point."
         )
-    mask_u8 = None
-    if mask is not None:
-        if isinstance(mask, (str, bytes, os.PathLike)):
-            raise ValueError(f"mask must be an (H, W) array, got the path {os.fspath(mask)!r}; read the picture "
-                             "first (its alpha, for example np.asarray(PIL.Image.open(path).convert('RGBA'))[..., 3]).")
-        try:
-            m = np.asarray(mask)
-        except (TypeError, ValueError) as exc:  # rows of different lengths, for example
-            raise ValueError(f"mask must be an (H, W) array of numbers ({_first_line(exc)}).") from None
-        if m.shape != (height, width):
-            raise ValueError(f"mask has shape {m.shape} but shape is {(height, width)}; pass an (H, W) mask.")
-        if m.dtype.kind == "f" and not np.all(np.isfinite(m)):
-            raise ValueError("mask has NaN or infinite values; use 0 for holes and nonzero for connected pixels.")
-        if m.dtype.kind not in "biuf":
-            raise ValueError(f"mask must hold numbers or booleans (nonzero = connected), got dtype {m.dtype}.")
-        mask_u8 = np.ascontiguousarray(m != 0, dtype=np.uint8)
+    mask_u8 = None if mask is None else _mask_u8(mask, height, width)
     cut_list = _cuts(cuts)
     for name, value in (("tension", tension), ("tolerance", tolerance)):
         if not _finite(value) or value < 0:
@@ -533,10 +540,11 @@ def thin_plate(
 
     Warns
     -----
-    InkwarpWarning
+    ConvergenceWarning
         When the solve stopped before it converged (the report's ``stop``: ``max_cycles``,
-        ``unsettled``, ``residual`` or ``breakdown``), or when every point missed the grid
-        (off it, or on masked-out nodes: the field is zero).
+        ``unsettled``, ``residual`` or ``breakdown``), as scenes warn.
+    InkwarpWarning
+        When every point missed the grid (off it, or on masked-out nodes: the field is zero).
         :func:`thin_plate_report` says these in its report instead.
 
     See Also
@@ -591,5 +599,5 @@ def thin_plate(
     elif report.stop in ("max_cycles", "unsettled", "residual", "breakdown"):
         warnings.warn(f"the thin-plate solve did not converge (stopped: {report.stop}, after {report.cycles} "
                       f"cycle{'s' if report.cycles != 1 else ''}), so the field may be off by more than 5 times "
-                      "the tolerance; thin_plate_report says more", InkwarpWarning, stacklevel=2)
+                      "the tolerance; thin_plate_report says more", ConvergenceWarning, stacklevel=2)
     return field

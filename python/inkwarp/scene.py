@@ -417,6 +417,17 @@ def _path_argument(path: Any, what: str) -> str:
     raise ValueError(f"{what} must be a path (str or os.PathLike); got {type(path).__name__}")
 
 
+def _method_argument(method: Any) -> str | None:
+    """``method`` if it is None or a string (the engine names an unknown one), else a
+    ValueError naming the methods."""
+    from inkwarp.methods import METHODS
+
+    if method is not None and not isinstance(method, str):
+        raise ValueError(f"method must be one of {', '.join(map(repr, METHODS))} (or None for each layer's "
+                         f"solver.method); got {method!r}")
+    return method
+
+
 def _integer_argument(value: Any, name: str) -> int:
     """``value`` as an int, or a ValueError naming the argument."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
@@ -529,7 +540,7 @@ class Scene:
         (3, 4, 4)
         """
         text, problems = _dict_to_json(data)
-        base = os.fspath(base_dir) if base_dir is not None else None
+        base = _path_argument(base_dir, "base_dir") if base_dir is not None else None
         if problems:
             others = _inkwarp.scene_problems(text, base)
             _raise_for(problems + [p for p in others if p[0] not in {q[0] for q in problems}], None)
@@ -685,7 +696,7 @@ class Scene:
         ndarray
             RGBA uint8 ``(height, width, 4)``, straight alpha.
         """
-        return self._core.render(self._time(time, frame), method)
+        return self._core.render(self._time(time, frame), _method_argument(method))
 
     def field(
         self,
@@ -715,7 +726,7 @@ class Scene:
         """
         index = self._layer_index(layer)
         at = self._time(time, frame)
-        field = self._core.field(index, at, method)
+        field = self._core.field(index, at, _method_argument(method))
         _check_finite_field(field, f"layer {self.layers[index]!r} at t = {at:g} s")
         return field
 
@@ -758,6 +769,7 @@ class Scene:
                              "is cut to it)")
         if threads is not None and not 1 <= _integer_argument(threads, "threads") <= 4096:
             raise ValueError(f"threads must be from 1 to 4096, got {threads}")
+        method = _method_argument(method)
         first = preroll_start(start) if start < stop and self._core.warm_starts(method) else start
         core = self._core.frames(first, stop, 0 if threads is None else int(threads), method)
         return Frames(core, start, start - first)

@@ -28,7 +28,7 @@ fn each_probed_case_is_a_clear_problem() {
         (r#", "solver": {"tension": 1e300}"#, "solver.tension: the tension must be a number from 0 to 1e6, found 1e300"),
         (r#", "solver": {"method": "beier-neely", "beier_neely": {"b": 1e308}}"#, "solver.beier_neely.b"),
         (r#", "duration": 1e308"#, "duration: the duration may be at most 100000 s"),
-        (r#", "fps": 1e9"#, "fps: frames per second may be at most 1000"),
+        (r#", "fps": 1e9"#, "fps: frames per second must be a number from 0.001 (one frame every 1000 s) to 1000, found 1000000000.0"),
     ];
     for (extra, expected) in cases {
         let found = problems(&scene(extra));
