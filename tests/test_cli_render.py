@@ -428,6 +428,10 @@ def test_validate_notes_features_that_clash_on_the_coarse_grid_of_its_grid_step(
     eye = {"id": "eye", "kind": "polyline", "closed": True, "rest": [[30, 28], [60, 28], [60, 32], [30, 32]],
            "keys": [{"t": 0.5, "points": [[30, 24], [60, 24], [60, 36], [30, 36]]}]}
     assert [m for m in clashes([eye]) if "two parts of 'eye'" in m]
+    # A region that grows moves its inside smoothly (its interior samples are every pixel's): no note.
+    square = [[30, 20], [60, 20], [60, 44], [30, 44]]
+    grown = {"id": "r", "kind": "region", "rest": square, "keys": [{"t": 0.5, "points": [[45 + 1.3 * (x - 45), 32 + 1.3 * (y - 32)] for x, y in square]}]}
+    assert clashes([grown]) == []
 
 
 def test_the_memory_estimate_counts_thin_parts_and_a_torn_grids_slow_modes(tmp_path):

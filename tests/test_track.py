@@ -414,6 +414,7 @@ def test_a_variable_frame_rate_keeps_the_videos_timing(tmp_path, capsys):
     assert code == 0 and "vfr.mkv: its frame rate varies (up to 24 fps, on average 16" in err, err
     doc = json.loads((tmp_path / "out.json").read_text())
     assert doc["fps"] == 24 and len(doc["features"][0]["keys"]) == 71, (doc["fps"], len(doc["features"][0]["keys"]))
+
     # A constant rate, and a GIF inkwarp wrote at 24 fps (delays of 4 and 5 hundredths), say nothing.
     whole = sv.write_mp4(tmp_path / "whole.mp4", sv.render(sv.picture(W, H, seed=5), sv.translate(), 4))
     assert run(capsys, "frame", whole, "-o", tmp_path / "g.png")[2] == ""
@@ -421,6 +422,16 @@ def test_a_variable_frame_rate_keeps_the_videos_timing(tmp_path, capsys):
 
     gif = read_video(ROOT / "examples" / "face" / "face.gif")
     assert gif.fps == 24 and len(gif) == 60
+
+def test_the_fastest_rate_is_a_run_of_frames_not_one_early_frame():
+    from inkwarp.track import _fastest_gap
+
+    ms = 0.001
+    steps = np.array([42, 41, 42] * 8 + [83, 84, 83] * 8) * ms  # 24 fps, then 12: 24
+    assert 1 / _fastest_gap(steps, ms) == pytest.approx(24, rel=2e-3)
+    # One frame 30 ms early in a steady 30 fps (a 3 ms gap) decoded the clip at 333 fps.
+    early = np.array([33, 34, 33] * 10 + [3, 64] + [33, 34, 33] * 10) * ms
+    assert _fastest_gap(early, ms) is None
 
 
 def test_a_video_decoded_with_errors_but_every_frame_is_named_damaged(tmp_path, capsys):

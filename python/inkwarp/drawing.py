@@ -155,7 +155,7 @@ def sample(
         raise ValueError(f"spacing must be a positive, finite number of pixels; got {spacing!r}.") from None
     if not (spacing_px > 0 and math.isfinite(spacing_px)):
         raise ValueError(f"spacing must be a positive, finite number of pixels; got {spacing!r}.")
-    if not isinstance(closed, (bool, np.bool_)):
+    if not (isinstance(closed, (bool, np.bool_)) or (isinstance(closed, (int, np.integer)) and closed in (0, 1))):
         raise ValueError(f"closed must be True or False; got {closed!r}.")
     from inkwarp.methods import _shape
     from inkwarp.plate import _mask_u8

@@ -22,6 +22,7 @@ See ``docs/concepts/comparison.md`` for pictures of each.
 from __future__ import annotations
 
 import math
+import numbers
 
 from typing import Any, Sequence
 
@@ -161,7 +162,6 @@ def interpolate_report(
     if isinstance(max_samples, (bool, np.bool_)) or not isinstance(max_samples, (int, np.integer)) \
             or not 1 <= max_samples <= 2**32 - 1:
         raise ValueError(f"max_samples must be a whole number from 1 to {2**32 - 1}; got {max_samples!r}.")
-    weights = [_weight("a", a, 1e6, above_zero=True), _weight("b", b, 16.0), _weight("p", p, 16.0)]
     pts = _points("points", points)
     disp = _points("displacements", displacements)
     if len(pts) != len(disp):
@@ -197,6 +197,9 @@ def interpolate_report(
             report["notes"].append(f"the thin-plate solve did not converge (stopped: {solved.stop}, after "
                                    f"{solved.cycles} cycles)")
         return field, report
+    # Beier–Neely's weights (the other methods take none).
+    weights = [_weight("a", a, 1e6, above_zero=True), _weight("b", b, 16.0), _weight("p", p, 16.0)] \
+        if method == "beier-neely" else [1.0, 2.0, 0.0]
     field, report = _inkwarp.interpolate_field(method, pts, disp, height, width, rest, pose, int(max_samples), *weights)
     return field, report
 
@@ -206,7 +209,9 @@ def _weight(name: str, value: Any, most: float, above_zero: bool = False) -> flo
     to ``most``, or a ValueError naming it and its range."""
     span = f"above 0 and at most {most:.0e}".replace("e+0", "e") if above_zero else f"from 0 to {most:g}"
     why = ValueError(f"{name} must be a number {span}; got {value!r}.")
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise why
     try:
         number = float(value)

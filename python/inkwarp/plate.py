@@ -287,10 +287,11 @@ def _mask_u8(mask: Any, height: int, width: int, name: str = "mask") -> np.ndarr
     except (TypeError, ValueError) as exc:  # rows of different lengths, for example
         raise ValueError(f"{name} must be an (H, W) array of numbers ({_first_line(exc)}).") from None
     if m.ndim == 3 and m.shape[:2] == (height, width):
-        raise ValueError(f"{name} has shape {m.shape}: a picture's channels; pass one of them, an (H, W) array "
-                         f"(a picture's alpha is {name}[..., 3]).")
+        one = f"a picture's alpha is {name}[..., 3]" if m.shape[2] == 4 else f"such as {name}[..., 0]"
+        raise ValueError(f"{name} has shape {m.shape}: a picture's channels; pass one of them, an (H, W) array ({one}).")
     if m.shape != (height, width):
-        raise ValueError(f"{name} has shape {m.shape} but shape is {(height, width)}; pass an (H, W) {name}.")
+        against = "the image is" if name == "matte" else "shape is"
+        raise ValueError(f"{name} has shape {m.shape} but {against} {(height, width)}; pass an (H, W) {name}.")
     if m.dtype.kind == "f" and not np.all(np.isfinite(m)):
         raise ValueError(f"{name} has NaN or infinite values; use 0 for holes and nonzero for connected pixels.")
     if m.dtype.kind not in "biuf":

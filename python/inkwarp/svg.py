@@ -145,7 +145,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
         fill = style.get("fill", fill)
         opacity = style.get("fill-opacity", opacity)
         cut = cut or _says_cut(element)
-        if not cut and "cut" in _names(element).lower():
+        if not cut and any(w.startswith("cut") or w.endswith("cut") for w in _words(element)):
             near_cuts.append(element.get("id") or element.get("class") or element.get(INKSCAPE_LABEL) or tag)
         if tag in ("text", "image", "foreignObject"):
             why = {"text": "text makes no feature (Inkscape: Path > Object to Path turns it into paths)",
@@ -249,6 +249,10 @@ def _stylesheet(root: ET.Element, source: Path, notes: list[str]) -> list[_Rule]
     rules: list[_Rule] = []
     text = " ".join("".join(e.itertext()) for e in root.iter() if _tag(e) == "style")
     text = re.sub(r"/\*.*?\*/", " ", text, flags=re.S)
+    at_rules = re.findall(r"@[\w-]+[^;{}]*\{(?:[^{}]*\{[^{}]*\})*[^{}]*\}", text)
+    if any(_declarations(body)[0] or _declarations(body)[1] for block in at_rules for body in re.findall(r"\{([^{}]*)\}", block)):
+        notes.append(f"{source}: style rules inside @media or @supports blocks are not applied; "
+                     "move the fills the drawing needs out of them")
     text = re.sub(r"@[\w-]+[^;{}]*\{(?:[^{}]*\{[^{}]*\})*[^{}]*\}|@[\w-]+[^;{}]*;", " ", text)
     for selectors, body in re.findall(r"([^{}]*)\{([^{}]*)\}", text):
         normal, important = _declarations(body)
@@ -300,11 +304,15 @@ def _names(element: ET.Element) -> str:
     return " ".join(element.get(key, "") for key in ("id", "class", INKSCAPE_LABEL))
 
 
+def _words(element: ET.Element) -> list[str]:
+    """The words of the element's id, class and Inkscape layer name, in small letters (split
+    at anything but a letter, and at a capital after a small letter)."""
+    return re.split(r"[^a-z]+", re.sub(r"([a-z])([A-Z])", r"\1 \2", _names(element)).lower())
+
+
 def _says_cut(element: ET.Element) -> bool:
-    """Whether the element's id, class or Inkscape layer name has the word ``cut`` or
-    ``cuts`` (words split at anything but a letter, and at a capital after a small letter)."""
-    words = re.sub(r"([a-z])([A-Z])", r"\1 \2", _names(element))
-    return any(word in ("cut", "cuts") for word in re.split(r"[^a-z]+", words.lower()))
+    """Whether the element's id, class or Inkscape layer name has the word ``cut`` or ``cuts``."""
+    return any(word in ("cut", "cuts") for word in _words(element))
 
 
 _UNITS = {"": 1.0, "px": 1.0, "pt": 96 / 72, "pc": 16.0, "mm": 96 / 25.4, "cm": 96 / 2.54,

@@ -184,15 +184,15 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | No
     variable = tbr > MAX_TIME_BASE_FPS and average is not None and abs(tbr - fps) > 0.01 * fps
     if tbr <= MAX_TIME_BASE_FPS:
         fps = tbr
-    # A coarse time base (a Matroska or WebM file's milliseconds) that ffmpeg took an even
-    # rate from: the frames' own times say whether some come faster than that rate, whose
-    # frames ffmpeg would drop without a word. They are then taken at their fastest rate,
-    # repeated where it runs slower.
+    # A coarse time base (milliseconds, as in every Matroska or WebM file) that ffmpeg took
+    # an even rate from: the frames' own times say whether some come faster than that rate,
+    # whose frames ffmpeg would drop without a word. They are then taken at their fastest
+    # steady rate (a run of frames, not one early frame), repeated where it runs slower.
     tbn = re.search(r", ([\d.]+)(k?) tbn", stream)
     if not variable and tbn and float(tbn.group(1)) * (1000 if tbn.group(2) else 1) <= 1000:
         gaps, tick = _frame_gaps(name)
         fastest = None if gaps is None else _fastest_gap(gaps, tick)
-        if fastest is not None and gaps.max() > 1.5 * gaps.min() + 2 * tick and 1 / fastest > 1.01 * fps:
+        if fastest is not None and gaps.max() > 1.5 * gaps.min() + 2 * tick and 1.01 * fps < 1 / fastest <= MAX_TIME_BASE_FPS:
             tbr, fps, variable = 1 / float(np.mean(gaps)), 1 / fastest, True
     took = re.search(r"Duration: (\d+):(\d\d):(\d\d(?:\.\d+)?)", log)
     seconds = 3600 * int(took.group(1)) + 60 * int(took.group(2)) + float(took.group(3)) if took else None
@@ -222,19 +222,25 @@ def _frame_gaps(name: str) -> tuple[np.ndarray | None, float]:
                            "-c", "copy", "-f", "framecrc", "-"], capture_output=True, stdin=subprocess.DEVNULL)
     text = done.stdout.decode(errors="replace")
     base = re.search(r"^#tb 0: (\d+)/(\d+)", text, flags=re.M)
-    times = [int(line.split(",")[2]) for line in text.splitlines() if line.startswith("0,")]
+    # Packets without a timestamp (-2⁶³, as some AVIs' B-frames) say nothing; repeated ones neither.
+    times = np.unique([t for line in text.splitlines() if line.startswith("0,")
+                       for t in [int(line.split(",")[2])] if t > -2**62])
     if base is None or len(times) < 3:
         return None, 0.0
     tick = int(base.group(1)) / int(base.group(2))
-    return np.diff(np.sort(times)) * tick, tick
+    return np.diff(times) * tick, tick
 
 
-def _fastest_gap(gaps: np.ndarray, tick: float) -> float:
+def _fastest_gap(gaps: np.ndarray, tick: float) -> float | None:
     """The time between frames where they come fastest: the mean gap over the longest run
-    of gaps within 1.5 ticks of the shortest (timestamps rounded to ticks alternate)."""
+    of gaps within 1.5 ticks of the shortest (timestamps rounded to ticks alternate), or
+    None where that run is too short to be a rate (5 gaps, and a tenth of them all): one
+    early frame is no faster rate."""
     fast = np.concatenate([[False], gaps <= gaps.min() + 1.5 * tick, [False]])
     edges = np.flatnonzero(np.diff(fast.astype(int)))
     start, stop = max(zip(edges[::2], edges[1::2]), key=lambda run: run[1] - run[0])
+    if stop - start < max(5, len(gaps) / 10):
+        return None
     return float(np.mean(gaps[start:stop]))
 
 
@@ -271,12 +277,12 @@ def _decode(name: str, pix_fmt: str, *, frames: int | None = None, promised: int
     if done.returncode != 0:
         raise _unreadable(name, said[-1] if said else f"ffmpeg exited with {done.returncode}")
     wanted = promised if frames is None else min(frames, promised or frames)
+    first = re.sub(r"^\[[^]]*@ 0x[0-9a-f]+\] *", "", said[0])[:120] if said else ""  # no decoder's address
     if said and wanted and len(done.stdout) // size < wanted - 1:
         raise ValueError(f"{name}: damaged or cut short: ffmpeg decoded {len(done.stdout) // size} "
-                         f"frames, with errors, of the {promised} its header gives ({said[0][:120]}); "
+                         f"frames, with errors, of the {promised} its header gives ({first}); "
                          "copy or export the video again")
     if said:
-        first = re.sub(r"^\[[^]]*@ 0x[0-9a-f]+\] *", "", said[0])[:120]  # its decoder's address left out
         warnings.warn(f"{name}: ffmpeg found errors while decoding it ({first}); some frames "
                       "may be damaged (smeared or frozen): look at them, or copy or export the video "
                       "again", InkwarpWarning, stacklevel=caller_outside())
@@ -755,7 +761,7 @@ def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: st
             k = int(round(float(key["t"]) * fps))
             # Within the last frame's span, or at its end (the scene's duration, where a
             # scene's last keys often are): the last frame.
-            if k == count and float(key["t"]) * fps <= count * (1 + 1e-12):
+            if k == count and float(key["t"]) * fps <= count * (1 + 1e-6):
                 k = count - 1
             if not 0 <= k < count:
                 raise ValueError(

@@ -1179,6 +1179,23 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
   }
 });
 
+test('a picture just opened is no unsaved work: no ●, and opening another asks nothing', async () => {
+  const { page: p, context, errors: errs } = await openEditor(browser, server.url);
+  try {
+    for (const name of ['checkerboard.png', 'checkerboard.png']) {
+      await p.setInputFiles('input[type=file][accept^=".json"]', join(repo, 'examples/checkerboard-hole', name));
+      await p.waitForFunction(() => window.inkwarp.store.doc.layers[0]?.name === 'checkerboard');
+      await idle(p);
+    }
+    const state = await p.evaluate(() => ({ unsaved: window.inkwarp.store.unsaved, title: document.title }));
+    assert(!state.unsaved && !state.title.startsWith('●'), `opened, not marked: ${JSON.stringify(state)}`);
+    assert(!p.dialogs.includes('confirm'), `opening over an untouched picture asked: ${p.dialogs}`);
+    assert(errs.length === 0, `page errors: ${errs.join('; ')}`);
+  } finally {
+    await context.close();
+  }
+});
+
 test('edits made while the restore offer waits: leaving asks, and the offered work stays', async () => {
   const { page: p, context, errors: errs } = await openEditor(browser, server.url);
   try {

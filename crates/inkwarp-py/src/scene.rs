@@ -77,6 +77,7 @@ fn path_hint(reference: &str, scene_folder: bool) -> &'static str {
 /// at a key another sample there moves more than a pixel apart from it, so that feature is let go
 /// there and the picture tears between them (lids that close, lips that part).
 fn clashes(scene: &Scene, layer: usize, step: usize) -> Result<Vec<(usize, usize)>, SceneError> {
+    type Sampled = (f64, usize, usize, Option<usize>, [f64; 2]);
     let (features, g) = (&scene.doc().features, &scene.layers()[layer].grid);
     let coarse = inkwarp_core::solve::coarse_grid(g, step);
     let drivers = &scene.layers()[layer].drivers;
@@ -85,21 +86,25 @@ fn clashes(scene: &Scene, layer: usize, step: usize) -> Result<Vec<(usize, usize
     times.dedup();
     let mut pairs = std::collections::BTreeSet::new();
     for t in times {
-        // Per active coarse node, its samples: distance to it, feature, place along the feature, displacement.
+        // Per active coarse node, its samples: distance to it, feature, place along the feature (None where
+        // its parts are not judged against each other: a region's interior samples are every pixel's, and
+        // it moves as a whole), samples along it (a closed curve's wrap around), displacement.
         let mut at = std::collections::HashMap::new();
         for f in scene.layer_feature_samples(layer, t)? {
+            let doc = &features[f.feature];
+            let along = (doc.kind != inkwarp_core::geometry::Kind::Region).then_some(if doc.closed { f.samples.len() } else { usize::MAX });
             for (k, p) in f.samples.iter().enumerate().filter(|(_, p)| inkwarp_core::grid::nearest_node(g, p.rest).is_some()) {
                 let c = inkwarp_core::solve::coarse_point(g.width, g.height, step, p.rest);
                 let Some(i) = inkwarp_core::grid::nearest_node(&coarse, c).map(|(x, y)| coarse.index(x, y)).filter(|&i| coarse.active[i]) else { continue };
-                let here: &mut Vec<(f64, usize, usize, usize, [f64; 2])> = at.entry(i).or_default();
-                here.push(((c[0] - (i % coarse.width) as f64).hypot(c[1] - (i / coarse.width) as f64), f.feature, k, f.samples.len(), p.displacement));
+                let here: &mut Vec<Sampled> = at.entry(i).or_default();
+                here.push(((c[0] - (i % coarse.width) as f64).hypot(c[1] - (i / coarse.width) as f64), f.feature, k, along, p.displacement));
             }
         }
         for here in at.values() {
             let &(_, a, ka, n, da) = here.iter().min_by(|p, q| p.0.total_cmp(&q.0)).expect("a node's samples");
             for &(_, b, kb, _, db) in here {
                 // Samples of one feature next to each other along it are one part of it.
-                let apart = a != b || ka.abs_diff(kb).min(n - ka.abs_diff(kb)) > 2;
+                let apart = a != b || n.is_some_and(|n| ka.abs_diff(kb).min(n.saturating_sub(ka.abs_diff(kb))) > 2);
                 if apart && (da[0] - db[0]).hypot(da[1] - db[1]) > 1.0 { pairs.insert((a.min(b), a.max(b))); }
             }
         }
