@@ -423,10 +423,10 @@ class _Tracker:
                          for p, q in zip(at_a, at_b)])
 
     def predicted(self, template: np.ndarray, rest: np.ndarray, now: np.ndarray,
-                  good: np.ndarray) -> tuple[np.ndarray, Any] | None:
+                  good: np.ndarray, box: tuple[int, int, int, int] | None = None) -> tuple[np.ndarray, Any] | None:
         """The anchor frame warped by the thin plate taking ``rest[good]`` to ``now[good]``
         (evaluated every 8 px and interpolated) and that map's inverse, or None with too
-        few points."""
+        few points; only the pixels of ``box`` (``x0, y0, x1, y1``) where given."""
         from inkwarp.methods import ThinPlateMap
 
         idx = _spread(np.flatnonzero(good), rest)
@@ -436,11 +436,11 @@ class _Tracker:
             inverse = ThinPlateMap(now[idx], rest[idx])
         except ValueError:
             return None
-        h, w = template.shape
-        step = 8
+        x0, y0, x1, y1 = box if box is not None else (0, 0, template.shape[1], template.shape[0])
+        w, h, step = x1 - x0, y1 - y0, 8
         gx = np.append(np.arange(0, w - 1, step, dtype=np.float64), w - 1)
         gy = np.append(np.arange(0, h - 1, step, dtype=np.float64), h - 1)
-        xx, yy = np.meshgrid(gx, gy)
+        xx, yy = np.meshgrid(gx + x0, gy + y0)
         src = inverse(np.stack([xx.ravel(), yy.ravel()], axis=1)).reshape(len(gy), len(gx), 2)
         # Bilinear upsampling of the coarse map: cv2.resize with the corners aligned.
         full = np.empty((h, w, 2), np.float32)
@@ -512,12 +512,17 @@ class _Tracker:
                     for group in (np.unique(groups[turned]) if groups is not None else []):
                         mine = good & (groups == group)
                         rigid = _spans_area(start_points[mine]) and _affine_misfit(start_points[mine], estimate[mine]) <= 1.0
-                        own = self.predicted(template, start_points, estimate, mine) if rigid else None
+                        at = np.flatnonzero(groups[turned] == group)
+                        # Warped only about the feature's turned points (as far as Lucas-Kanade looks).
+                        pad = 3 * LK_WINDOW_PX * 2 ** LK_LEVELS
+                        lo = np.maximum(np.floor(at_turned[at].min(axis=0)) - pad, 0).astype(int)
+                        hi = np.minimum(np.ceil(at_turned[at].max(axis=0)) + pad + 1, [w, h]).astype(int)
+                        own = self.predicted(template, start_points, estimate, mine, (*lo, *hi)) if rigid else None
                         if own is None:
                             continue
-                        at = np.flatnonzero(groups[turned] == group)
-                        found, found_fb = self._lk_checked(own[0], b, at_turned[at], at_turned[at])
-                        fits = self._mismatch(own[0], at_turned[at], b, found)
+                        found, found_fb = self._lk_checked(own[0], b[lo[1]:hi[1], lo[0]:hi[0]], at_turned[at] - lo, at_turned[at] - lo)
+                        found = found + lo
+                        fits = self._mismatch(own[0], at_turned[at] - lo, b, found)
                         better = (found_fb < TRUST_FB_PX) & (fits < misfit[at])
                         again[at[better]], again_fb[at[better]], misfit[at[better]] = found[better], found_fb[better], fits[better]
                     # A warped picture is the thin plate's guess of how the window turned: kept
