@@ -221,6 +221,9 @@ def test_solves_run_in_parallel_threads():
         ({"mask": np.ones((*SHAPE, 4))}, r"a picture's channels; pass one of them, an \(H, W\) array \(a picture's alpha is mask\[\.\.\., 3\]\)"),
         ({"cuts": [[[1, 1]]]}, r"cuts\[0\] has 1 point"),
         ({"cuts": np.zeros((3, 2))}, "wrap a single cut in a list"),
+        # (They said "got shape (); reshape it, e.g. np.asarray(points).reshape(-1, 2)", which fails on None.)
+        ({"points": None}, r"points must be an \(N, 2\) array with one \(x, y\) pair per row, got None"),
+        ({"cuts": [10, 0, 10, 31]}, r"got a list of numbers \[10, 0, 10, 31\]; give each cut's points as pairs"),
         ({"cuts": [[0, 20], [60, 20]]}, "wrap a single cut in a list"),  # pointed at a reshape to one point
         ({"cuts": [[[1, 1], [np.nan, 2]]]}, r"cuts\[0\] has a value that is not a finite number"),
         ({"tension": -1.0}, "tension must be a finite number >= 0"),
@@ -457,6 +460,13 @@ def test_a_start_past_float32_is_refused_without_numpy_warnings():
         warnings.simplefilter("error")
         with pytest.raises(ValueError, match="initial has NaN or infinite"):
             inkwarp.thin_plate(PTS, DISP, SHAPE, initial=np.full(SHAPE + (2,), 1e300))
+
+
+def test_a_number_in_a_zero_dimensional_array_is_a_number():
+    # tolerance=np.array(0.01) was refused where np.float32(0.5) was taken.
+    pts, disp = [[4, 4], [40, 4], [20, 25]], [[1, 0], [0, 1], [2, 2]]
+    np.testing.assert_array_equal(inkwarp.thin_plate(pts, disp, (32, 48), tolerance=np.array(0.01), tension=np.array(0.5)),
+                                  inkwarp.thin_plate(pts, disp, (32, 48), tolerance=0.01, tension=0.5))
 
 
 def test_thin_plate_warns_of_what_its_hidden_report_would_say():

@@ -201,8 +201,11 @@ def _size(value: Any) -> int:
 
 
 def _finite(value: Any) -> bool:
-    """Whether ``value`` is a real number (not a bool) that a float holds finitely."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+    """Whether ``value`` is a real number (not a bool; a 0-d array holding one counts) that a
+    float holds finitely."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         return False
     try:
         return math.isfinite(value)
@@ -238,6 +241,8 @@ def _points(name: str, value: Any) -> npt.NDArray[np.float64]:
         raise ValueError(f"{name} must be an (N, 2) array of numbers ({exc}).") from None
     if arr.size == 0:
         arr = arr.reshape(0, 2)  # an empty list: "empty", below, not a shape to fix
+    if arr.ndim == 0:  # None, or one number: no reshaping makes positions of it
+        raise ValueError(f"{name} must be an (N, 2) array with one (x, y) pair per row, got {value!r:.40}.")
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise ValueError(
             f"{name} must have shape (N, 2) with one (x, y) pair per row, got shape "
@@ -267,6 +272,9 @@ def _cuts(cuts: Any) -> list[np.ndarray]:
         single = False
     if single and len(cuts) > 0 and all(np.ndim(c) == 1 for c in cuts):
         raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")
+    if len(cuts) > 0 and all(np.ndim(c) == 0 for c in cuts):  # numbers: [x0, y0, x1, y1]
+        raise ValueError(f"cuts must be a list of (K, 2) polylines, got a list of numbers {cuts!r:.40}; give each "
+                         "cut's points as pairs, such as cuts=[[[x0, y0], [x1, y1]]].")
     cut_list = []
     for k, cut in enumerate(cuts):
         c = _points(f"cuts[{k}]", cut)
