@@ -406,11 +406,18 @@ def test_an_svg_with_every_element_kind_becomes_the_expected_features(tmp_path):
     assert len(notes) == 1 and "'shoulder-cut', 'cut-1' are cuts (the word 'cut'" in notes[0], notes
 
 
+def drawn_kinds(tmp_path, inside):
+    """Each feature's kind, and the notes, of a 64 × 48 drawing of the SVG elements `inside`."""
+    svg = tmp_path / "drawing.svg"
+    svg.write_text(f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 48">{inside}</svg>')
+    features, notes = read_drawing(svg, 64, 48)
+    return {f["id"]: f["kind"] for f in features}, notes
+
+
 def test_fills_from_a_style_sheet_and_clear_fills_make_outlines_not_regions(tmp_path):
     # Illustrator's default SVG: fills set by class rules in a <style> sheet. An outline
     # with `fill: none` there moved its inside as a region.
-    svg = tmp_path / "ai.svg"
-    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 48"><defs><style>'
+    kinds, notes = drawn_kinds(tmp_path, '<defs><style>'
                    '/* Illustrator */ .cls-1{fill:none;stroke:#231f20;stroke-miterlimit:10}'
                    '.cls-2,.cls-3{fill:#fff} polygon.wire{fill:none} #lid{fill:red !important}'
                    'g .deep{fill:none}</style></defs>'
@@ -422,9 +429,7 @@ def test_fills_from_a_style_sheet_and_clear_fills_make_outlines_not_regions(tmp_
                    '<rect id="clear" x="50" y="2" width="8" height="8" fill="transparent"/>'
                    '<rect id="faded" x="50" y="12" width="8" height="8" fill="red" fill-opacity="0"/>'
                    '<rect id="rgba" x="50" y="22" width="8" height="8" fill="rgba(0, 0, 0, 0)"/>'
-                   '<rect id="deep" class="deep" x="50" y="32" width="8" height="8"/></svg>')
-    features, notes = read_drawing(svg, 64, 48)
-    kinds = {f["id"]: f["kind"] for f in features}
+                   '<rect id="deep" class="deep" x="50" y="32" width="8" height="8"/>')
     assert kinds == {"head": "spline", "body": "region", "wire": "polyline", "lid": "region",
                      "inline": "region", "clear": "polyline", "faded": "polyline",
                      "rgba": "polyline", "deep": "region"}, kinds
@@ -436,11 +441,8 @@ def test_fills_from_a_style_sheet_and_clear_fills_make_outlines_not_regions(tmp_
                                        ("haircut-line", False), ("shortcut", False), ("executeGroup", None)])
 def test_a_cut_is_named_by_the_word_cut_not_by_those_letters(tmp_path, name, cut):
     # An id such as "cute-smile" made a cut that tore the picture and moved nothing.
-    svg = tmp_path / "d.svg"
-    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 48">'
-                   f'<path id="{name}" d="M 10 10 Q 20 20 30 10" fill="none"/></svg>')
-    features, notes = read_drawing(svg, 64, 48)
-    assert (features[0]["kind"] == "cut") is bool(cut)
+    kinds, notes = drawn_kinds(tmp_path, f'<path id="{name}" d="M 10 10 Q 20 20 30 10" fill="none"/>')
+    assert (kinds[name] == "cut") is bool(cut)
     assert any(f"{name!r} is a cut" in n for n in notes) is bool(cut), notes
     # A name with a word that starts or ends with those letters says it is not a cut, and how
     # to name one (not one with them inside a word: "executeGroup").
@@ -448,8 +450,7 @@ def test_a_cut_is_named_by_the_word_cut_not_by_those_letters(tmp_path, name, cut
 
 
 def test_style_sheet_importance_at_rules_and_inherited_fills_are_read_as_css_reads_them(tmp_path):
-    svg = tmp_path / "css.svg"
-    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 64 48"><style>'
+    kinds, notes = drawn_kinds(tmp_path, '<style>'
                    '@import url(more.css); @charset "utf-8";'
                    '.o{fill:none ! IMPORTANT} .p{fill:none}'
                    '@media print{.q{fill:none}} .r{fill:#fff}</style>'
@@ -458,9 +459,7 @@ def test_style_sheet_importance_at_rules_and_inherited_fills_are_read_as_css_rea
                    '<polygon id="print-only" class="q" points="2,22 10,22 10,30"/>'
                    '<polygon id="after-import" class="r" points="2,32 10,32 10,40"/>'
                    '<g fill="none"><polygon id="inherits" fill="inherit" points="20,2 28,2 28,10"/>'
-                   '<polygon id="initial" style="fill:initial" points="20,12 28,12 28,20"/></g></svg>')
-    features, notes = read_drawing(svg, 64, 48)
-    kinds = {f["id"]: f["kind"] for f in features}
+                   '<polygon id="initial" style="fill:initial" points="20,12 28,12 28,20"/></g>')
     # !important beats the style attribute; a rule inside @media print is not the screen's;
     # a rule after an @import still applies; inherit takes the group's none, initial black.
     assert kinds == {"important": "polyline", "inline": "region", "print-only": "region",

@@ -250,7 +250,7 @@ def _stylesheet(root: ET.Element, source: Path, notes: list[str]) -> list[_Rule]
     text = " ".join("".join(e.itertext()) for e in root.iter() if _tag(e) == "style")
     text = re.sub(r"/\*.*?\*/", " ", text, flags=re.S)
     at_rules = re.findall(r"@[\w-]+[^;{}]*\{(?:[^{}]*\{[^{}]*\})*[^{}]*\}", text)
-    if any(_declarations(body)[0] or _declarations(body)[1] for block in at_rules for body in re.findall(r"\{([^{}]*)\}", block)):
+    if any(any(_declarations(body)) for block in at_rules for body in re.findall(r"\{([^{}]*)\}", block)):
         notes.append(f"{source}: style rules inside @media or @supports blocks are not applied; "
                      "move the fills the drawing needs out of them")
     text = re.sub(r"@[\w-]+[^;{}]*\{(?:[^{}]*\{[^{}]*\})*[^{}]*\}|@[\w-]+[^;{}]*;", " ", text)

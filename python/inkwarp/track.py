@@ -127,11 +127,15 @@ class Video:
         return len(self.frames)
 
 
+def _no_frames(path: str) -> ValueError:
+    return ValueError(f"{path}: the video has no frames (it is empty, or cut short before its first "
+                      "frame); export or copy it again")
+
+
 def _unreadable(path: str, reason: str) -> ValueError:
     # A video that ends before its first frame: ffmpeg's words for it, per container.
     if re.search(r"received no packets|Nothing was written|End of file|^Duration: N/A", str(reason)):
-        return ValueError(f"{path}: the video has no frames (it is empty, or cut short before its first "
-                          "frame); export or copy it again")
+        return _no_frames(path)
     reason = re.sub(r"\[[^]]*@ 0x[0-9a-f]+\] *", "", " ".join(str(reason).split()))  # no decoder's address
     if len(reason) > 160:
         reason = reason[:157] + "..."
@@ -303,7 +307,7 @@ def read_video(path: str | os.PathLike[str]) -> Video:
     raw = _decode(name, "gray", promised=promised, size=width * height, rate=rate)
     count = len(raw) // (width * height)
     if count == 0:
-        raise _unreadable(name, "Nothing was written")
+        raise _no_frames(name)
     data = np.frombuffer(raw, np.uint8)[:count * width * height].reshape(count, height, width)
     return Video(name, fps, width, height, list(data))
 
@@ -511,13 +515,14 @@ class _Tracker:
                     # matches this frame better.
                     for group in (np.unique(groups[turned]) if groups is not None else []):
                         mine = good & (groups == group)
-                        rigid = _spans_area(start_points[mine]) and _affine_misfit(start_points[mine], estimate[mine]) <= 1.0
+                        if not (_spans_area(start_points[mine]) and _affine_misfit(start_points[mine], estimate[mine]) <= 1.0):
+                            continue
                         at = np.flatnonzero(groups[turned] == group)
                         # Warped only about the feature's turned points (as far as Lucas-Kanade looks).
                         pad = 3 * LK_WINDOW_PX * 2 ** LK_LEVELS
                         lo = np.maximum(np.floor(at_turned[at].min(axis=0)) - pad, 0).astype(int)
                         hi = np.minimum(np.ceil(at_turned[at].max(axis=0)) + pad + 1, [w, h]).astype(int)
-                        own = self.predicted(template, start_points, estimate, mine, (*lo, *hi)) if rigid else None
+                        own = self.predicted(template, start_points, estimate, mine, (*lo, *hi))
                         if own is None:
                             continue
                         found, found_fb = self._lk_checked(own[0], b[lo[1]:hi[1], lo[0]:hi[0]], at_turned[at] - lo, at_turned[at] - lo)
@@ -928,6 +933,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     tick = tick or (lambda: None)
 
     tracks: dict[int, tuple[dict[int, np.ndarray], dict[int, np.ndarray]]] = {}
+    groups = np.concatenate([np.full(f.rows.stop - f.rows.start, j) for j, f in enumerate(features)])  # each point's feature
     at_k = np.empty((0, 2))  # every feature's points where traced (none: only cuts)
     # Frame K first: the anchors at corrections start features without a key there
     # from its track.
@@ -946,7 +952,6 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         lo, hi = ranges[a]
         tick()
         near = _neighbours(features, start)
-        groups = np.concatenate([np.full(f.rows.stop - f.rows.start, j) for j, f in enumerate(features)])
         fwd_pos, fwd_err = tracker.run(a, start, hi, tick, near, groups)
         back_pos, back_err = tracker.run(a, start, lo, tick, near, groups)
         tracks[a] = ({**back_pos, **fwd_pos}, {**back_err, **fwd_err})

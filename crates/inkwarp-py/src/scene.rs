@@ -72,40 +72,46 @@ fn path_hint(reference: &str, scene_folder: bool) -> &'static str {
 }
 
 /// The pairs of features driving layer `layer` (`a ≤ b`, scene indices; `a == b`: two parts of
-/// one feature, apart along it) that a solve at `grid_step = step` cannot both hold: each coarse
-/// node holds the nearest of the samples it takes (as the solver assigns them), and at time 0 or
-/// at a key another sample there moves more than a pixel apart from it, so that feature is let go
-/// there and the picture tears between them (lids that close, lips that part).
-fn clashes(scene: &Scene, layer: usize, step: usize) -> Result<Vec<(usize, usize)>, SceneError> {
-    type Sampled = (f64, usize, usize, Option<usize>, [f64; 2]);
-    let (features, g) = (&scene.doc().features, &scene.layers()[layer].grid);
-    let coarse = inkwarp_core::solve::coarse_grid(g, step);
-    let drivers = &scene.layers()[layer].drivers;
-    let mut times: Vec<f64> = drivers.iter().flat_map(|&f| features[f].keys.iter().map(|k| k.time_s)).chain([0.0]).collect();
+/// one feature, apart along it) that a solve at `grid_step = step`, on `coarse`, cannot both hold:
+/// each coarse node holds the nearest of the samples it takes (as the solver assigns them), and at
+/// time 0 or at a key another sample there moves more than a pixel apart from it, so that feature
+/// is let go there and the picture tears between them (lids that close, lips that part).
+fn clashes(scene: &Scene, layer: usize, coarse: &inkwarp_core::Grid, step: usize) -> Result<Vec<(usize, usize)>, SceneError> {
+    let (features, l) = (&scene.doc().features, &scene.layers()[layer]);
+    let g = &l.grid;
+    let mut times: Vec<f64> = l.drivers.iter().flat_map(|&f| features[f].keys.iter().map(|k| k.time_s)).chain([0.0]).collect();
     times.sort_by(f64::total_cmp);
     times.dedup();
+    // The samples rest where they are at every time: each active coarse node's, the nearest first, as
+    // (feature in the list, sample, distance); the pairs of samples there that are two parts of the drawing.
+    let at_rest = scene.layer_feature_samples(layer, 0.0)?;
+    let mut nodes: std::collections::HashMap<usize, Vec<(usize, usize, f64)>> = Default::default();
+    for (j, f) in at_rest.iter().enumerate() {
+        for (k, p) in f.samples.iter().enumerate().filter(|(_, p)| inkwarp_core::grid::nearest_node(g, p.rest).is_some()) {
+            let c = inkwarp_core::solve::coarse_point(g.width, g.height, step, p.rest);
+            let Some(i) = inkwarp_core::grid::nearest_node(coarse, c).map(|(x, y)| coarse.index(x, y)).filter(|&i| coarse.active[i]) else { continue };
+            nodes.entry(i).or_default().push((j, k, (c[0] - (i % coarse.width) as f64).hypot(c[1] - (i / coarse.width) as f64)));
+        }
+    }
+    // Samples of one feature next to each other along it (a closed curve's wrap around) are one part of it; a
+    // region's are never apart (its interior samples are every pixel's, and it moves as a whole).
+    let apart = |(ja, ka): (usize, usize), (jb, kb): (usize, usize)| {
+        let (f, n) = (&features[at_rest[ja].feature], at_rest[ja].samples.len());
+        let d = ka.abs_diff(kb);
+        ja != jb || (f.kind != inkwarp_core::Kind::Region && (if f.closed { d.min(n - d) } else { d }) > 2)
+    };
+    let pairs_at: Vec<((usize, usize), (usize, usize))> = nodes.values().flat_map(|here| {
+        let &(ja, ka, _) = here.iter().min_by(|p, q| p.2.total_cmp(&q.2)).expect("a node's samples");
+        here.iter().filter(move |&&(jb, kb, _)| apart((ja, ka), (jb, kb))).map(move |&(jb, kb, _)| ((ja, ka), (jb, kb)))
+    }).collect();
     let mut pairs = std::collections::BTreeSet::new();
     for t in times {
-        // Per active coarse node, its samples: distance to it, feature, place along the feature (None where
-        // its parts are not judged against each other: a region's interior samples are every pixel's, and
-        // it moves as a whole), samples along it (a closed curve's wrap around), displacement.
-        let mut at = std::collections::HashMap::new();
-        for f in scene.layer_feature_samples(layer, t)? {
-            let doc = &features[f.feature];
-            let along = (doc.kind != inkwarp_core::geometry::Kind::Region).then_some(if doc.closed { f.samples.len() } else { usize::MAX });
-            for (k, p) in f.samples.iter().enumerate().filter(|(_, p)| inkwarp_core::grid::nearest_node(g, p.rest).is_some()) {
-                let c = inkwarp_core::solve::coarse_point(g.width, g.height, step, p.rest);
-                let Some(i) = inkwarp_core::grid::nearest_node(&coarse, c).map(|(x, y)| coarse.index(x, y)).filter(|&i| coarse.active[i]) else { continue };
-                let here: &mut Vec<Sampled> = at.entry(i).or_default();
-                here.push(((c[0] - (i % coarse.width) as f64).hypot(c[1] - (i / coarse.width) as f64), f.feature, k, along, p.displacement));
-            }
-        }
-        for here in at.values() {
-            let &(_, a, ka, n, da) = here.iter().min_by(|p, q| p.0.total_cmp(&q.0)).expect("a node's samples");
-            for &(_, b, kb, _, db) in here {
-                // Samples of one feature next to each other along it are one part of it.
-                let apart = a != b || n.is_some_and(|n| ka.abs_diff(kb).min(n.saturating_sub(ka.abs_diff(kb))) > 2);
-                if apart && (da[0] - db[0]).hypot(da[1] - db[1]) > 1.0 { pairs.insert((a.min(b), a.max(b))); }
+        let now = if t == 0.0 { Cow::Borrowed(&at_rest) } else { Cow::Owned(scene.layer_feature_samples(layer, t)?) };
+        for &((ja, ka), (jb, kb)) in &pairs_at {
+            let (da, db) = (now[ja].samples[ka].displacement, now[jb].samples[kb].displacement);
+            if (da[0] - db[0]).hypot(da[1] - db[1]) > 1.0 {
+                let (a, b) = (at_rest[ja].feature, at_rest[jb].feature);
+                pairs.insert((a.min(b), a.max(b)));
             }
         }
     }
@@ -372,8 +378,9 @@ impl SceneCore {
                 let torn = inkwarp_core::grid::torn(g.width, &g.active, &g.link_right, &g.link_down);
                 let step = layer.solver.grid_step;
                 if step > 1 {
-                    let coarse = inkwarp_core::solve::coarse_grid(g, step as usize).pieces().1;
-                    return Ok((torn, None, Some((step as usize, g.pieces().1, coarse, clashes(&scene, i, step as usize)?))));
+                    let coarse = inkwarp_core::solve::coarse_grid(g, step as usize);
+                    let clashing = clashes(&scene, i, &coarse, step as usize)?;
+                    return Ok((torn, None, Some((step as usize, g.pieces().1, coarse.pieces().1, clashing))));
                 }
                 let features = scene.layer_feature_samples(i, 0.0)?;
                 let dropped = features.iter().filter(|f| inkwarp_core::grid::constrain(g, &f.samples).used_samples == 0);

@@ -74,10 +74,9 @@ def run(args: argparse.Namespace) -> int:
     video.check_file(out)
     outputs.check_not_an_input(out, args.scene, "comparison sheet")
     scene = Scene.load(args.scene)
-    from inkwarp.cli._common import check_layer
+    from inkwarp.cli._common import check_layer, check_time, warn_past_end
 
     check_layer(args.scene, args.layer, scene.layers)
-    from inkwarp.cli._common import check_time, warn_past_end
 
     time = check_time(args.time) if args.time is not None else float(getattr(scene, "duration", 0.0) or 0.0)
     if args.time is not None:
