@@ -56,14 +56,10 @@ impl Grid {
         for y in 0..height {
             let row = y * width..(y + 1) * width;
             let (a, r) = (&active[row.clone()], &mut link_right[row.clone()]);
-            for ((l, &p), &q) in r.iter_mut().zip(a).zip(a.get(1..).unwrap_or_default()) {
-                *l = p & q;
-            }
+            for ((l, &p), &q) in r.iter_mut().zip(a).zip(a.get(1..).unwrap_or_default()) { *l = p & q; }
             if y + 1 < height {
                 let below = &active[row.start + width..row.end + width];
-                for ((l, &p), &q) in link_down[row].iter_mut().zip(a).zip(below) {
-                    *l = p & q;
-                }
+                for ((l, &p), &q) in link_down[row].iter_mut().zip(a).zip(below) { *l = p & q; }
             }
         }
         Grid { width, height, active, link_right, link_down }
@@ -103,14 +99,10 @@ impl Grid {
             let row = y * w..(y + 1) * w;
             let (a, right, down) = (&self.active[row.clone()], &self.link_right[row.clone()], &self.link_down[row]);
             bad |= right[w - 1];
-            for x in 0..w - 1 {
-                bad |= right[x] & !(a[x] & a[x + 1]);
-            }
+            for x in 0..w - 1 { bad |= right[x] & !(a[x] & a[x + 1]); }
             if y + 1 < h {
                 let below = &self.active[(y + 1) * w..(y + 2) * w];
-                for x in 0..w {
-                    bad |= down[x] & !(a[x] & below[x]);
-                }
+                for x in 0..w { bad |= down[x] & !(a[x] & below[x]); }
             } else {
                 bad |= down.iter().any(|&d| d);
             }
@@ -139,32 +131,24 @@ impl Grid {
     pub fn add_cut(&mut self, polyline: &[Point]) {
         for seg in polyline.windows(2) {
             let (a, b) = (seg[0], seg[1]);
-            if a.iter().chain(b.iter()).all(|v| v.is_finite()) {
-                self.cut_segment(a, b);
-            }
+            if a.iter().chain(b.iter()).all(|v| v.is_finite()) { self.cut_segment(a, b); }
         }
     }
 
     fn cut_segment(&mut self, a: Point, b: Point) {
         let (w, h) = (self.width, self.height);
-        if w == 0 || h == 0 || a == b {
-            return;
-        }
+        if w == 0 || h == 0 || a == b { return; }
         // Horizontal links of row y lie on the line Y = y + ε²: the segment crosses it iff
         // exactly one end has a coordinate ≤ y (exact comparisons of a float with an
         // integer). Along the row the nudged nodes change side of the cut's line at most
         // once; the link where they do is the one crossed.
         for y in crossed_lines(a[1], b[1], h) {
-            if let Some(x) = side_change(w, |x| node_side(a, b, x, y)) {
-                self.link_right[y * w + x] = false;
-            }
+            if let Some(x) = side_change(w, |x| node_side(a, b, x, y)) { self.link_right[y * w + x] = false; }
         }
         // Vertical links of column x lie on X = x + ε: crossed iff exactly one end has a
         // coordinate ≤ x.
         for x in crossed_lines(a[0], b[0], w) {
-            if let Some(y) = side_change(h, |y| node_side(a, b, x, y)) {
-                self.link_down[y * w + x] = false;
-            }
+            if let Some(y) = side_change(h, |y| node_side(a, b, x, y)) { self.link_down[y * w + x] = false; }
         }
     }
 
@@ -193,9 +177,7 @@ impl Grid {
     /// answers an open grid at once, told to the caller (the solver keys and writes an open
     /// grid's piece without reading labels).
     pub(crate) fn pieces_and_open(&self) -> (Vec<u32>, usize, bool) {
-        if !self.is_empty() && self.is_open() {
-            return (vec![0; self.len()], 1, true);
-        }
+        if !self.is_empty() && self.is_open() { return (vec![0; self.len()], 1, true); }
         // Union-find over runs (maximal row segments joined by right links) rather than
         // nodes: a row of a connected picture is one run, so there are few elements and
         // each vertical link between the same two runs is looked at once.
@@ -223,9 +205,7 @@ impl Grid {
             let mut last = (u32::MAX, u32::MAX);
             for i in y * w..(y + 1) * w {
                 let pair = (run[i], run[i + w]);
-                if !self.link_down[i] || pair == last || pair.0 == u32::MAX || pair.1 == u32::MAX {
-                    continue;
-                }
+                if !self.link_down[i] || pair == last || pair.0 == u32::MAX || pair.1 == u32::MAX { continue; }
                 last = pair;
                 join(&mut parent, pair.0, pair.1);
             }
@@ -280,13 +260,9 @@ fn crossed_lines(u: f64, v: f64, count: usize) -> std::ops::Range<usize> {
 /// `0..count` (nodes of one grid line against one straight cut), found by bisection with
 /// exact predicates; `None` when all nodes are on one side.
 fn side_change(count: usize, side: impl Fn(usize) -> bool) -> Option<usize> {
-    if count < 2 {
-        return None;
-    }
+    if count < 2 { return None; }
     let first = side(0);
-    if side(count - 1) == first {
-        return None;
-    }
+    if side(count - 1) == first { return None; }
     // Invariant: side(lo) == first, side(hi) != first.
     let (mut lo, mut hi) = (0, count - 1);
     while hi - lo > 1 {
@@ -326,9 +302,7 @@ pub fn nearest_node(grid: &Grid, point: Point) -> Option<(usize, usize)> {
     // two agree): the floor is a library call on plain x86-64. The comparisons also reject
     // NaN and the infinities.
     let (x, y) = (point[0] + 0.5, point[1] + 0.5);
-    if !(x >= 0.0 && y >= 0.0 && x < grid.width as f64 && y < grid.height as f64) {
-        return None;
-    }
+    if !(x >= 0.0 && y >= 0.0 && x < grid.width as f64 && y < grid.height as f64) { return None; }
     Some((x as usize, y as usize))
 }
 
@@ -375,9 +349,7 @@ pub fn constrain(grid: &Grid, samples: &[Sample]) -> Constraints {
 /// `(x, y)` is linked to the next by `right(x, y)` and to the one below by `down(x, y)`; indexed `y * w + x`.
 pub(crate) fn shorter_runs(w: usize, h: usize, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Vec<u32> {
     let mut runs = vec![u32::MAX; w * h];
-    for y in 0..h {
-        each_run(w, |x| right(x, y), |x, e| runs[y * w + x..=y * w + e].fill((e - x + 1) as u32));
-    }
+    for y in 0..h { each_run(w, |x| right(x, y), |x, e| runs[y * w + x..=y * w + e].fill((e - x + 1) as u32)); }
     for x in 0..w {
         each_run(h, |y| down(x, y), |y, e| (y..=e).for_each(|i| runs[i * w + x] = runs[i * w + x].min((e - y + 1) as u32)));
     }
@@ -417,9 +389,7 @@ pub(crate) fn find(parent: &mut [u32], mut i: u32) -> u32 {
 /// Joins the sets of `a` and `b` in a union-find forest under the smaller root.
 pub(crate) fn join(parent: &mut [u32], a: u32, b: u32) {
     let (ra, rb) = (find(parent, a), find(parent, b));
-    if ra != rb {
-        parent[ra.max(rb) as usize] = ra.min(rb);
-    }
+    if ra != rb { parent[ra.max(rb) as usize] = ra.min(rb); }
 }
 
 #[cfg(test)]

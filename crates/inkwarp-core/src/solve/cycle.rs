@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use super::level::{dot, dot_pairs, galerkin, sub_scaled, prolong_add_scaled, restrict, Level, Operator, Real, StepRule, PAD, V2, W2, WS};
+use super::level::{dot, dot_pairs, galerkin, sub_scaled, prolong_add_scaled, restrict, Geometry, Level, Operator, Real, StepRule, PAD, V2, W2, WS};
 use super::strands::Strands;
 
 /// Ratio between the top of the smoothed spectrum of D⁻¹A and its bottom.
@@ -16,6 +16,8 @@ const K_SECOND_STEP: f64 = 0.3;
 const LANCZOS_STEPS: usize = 12;
 /// Power steps of the finest level's Collatz–Wielandt bound.
 const COLLATZ_STEPS: usize = 3;
+/// An open finest level takes the bound of an open box at most this many nodes a side (`collatz_bound`).
+const MODEL: usize = 64;
 /// The smallest pivot of the coarsest factor, relative to its diagonal, not taken as zero: about the `f32` work
 /// vectors' resolution, whose rounding a smaller one would magnify (`docs/dev/solver-correctness.md`, "Tiny tensions").
 const PIVOT_FLOOR: f64 = 1e-7;
@@ -334,7 +336,19 @@ fn line_step(coarse: &Level, c: &mut Work) -> [f64; 2] {
 /// An upper bound of the largest eigenvalue of the finest level's D⁻¹A (Collatz–Wielandt): for any g > 0 on the
 /// unknowns, λ_max(D⁻¹A) ≤ ρ(D⁻¹|A|) ≤ max_p (D⁻¹|A| g)_p / g_p; the least bound of [`COLLATZ_STEPS`] power steps
 /// g ← D⁻¹|A| g from g = D^-1/2 𝟙. Where A's signs alternate as its top mode's do, |A| loses nothing.
+/// The bound is the largest of a quantity each node takes from nodes a dozen away, and fixed nodes only lower ρ (a
+/// principal submatrix): an open level takes that of an open box at most [`MODEL`] nodes a side, the same but for them.
 pub(crate) fn collatz_bound(level: &Level) -> f64 {
+    let (w, h) = (level.geo.w, level.geo.h);
+    if let Some(tau) = level.open_tension().filter(|_| w.max(h) > MODEL) {
+        let g = crate::grid::Grid::new(w.min(MODEL), h.min(MODEL));
+        return power_bound(&Level::fine(Geometry::new(g.width, g.height, g.active, g.link_right, g.link_down, None), tau));
+    }
+    power_bound(level)
+}
+
+/// The bound of [`collatz_bound`] from the power steps on `level` itself.
+fn power_bound(level: &Level) -> f64 {
     let inv_d = &level.inv_diag;
     let mut g: Vec<f64> = inv_d.par_iter().map(|&i| i.sqrt()).collect();
     let (mut y, mut bound) = (vec![0.0; g.len()], f64::INFINITY);
@@ -595,6 +609,24 @@ mod tests {
             let banded = Banded::new(&fine_level(&Grid::new(w, h), None, 0.0));
             assert!(banded.bw <= 2 * w.min(h) + 2, "{w} × {h}: bandwidth {}", banded.bw);
         }
+    }
+
+    #[test]
+    fn an_open_level_takes_the_small_open_box_bound() {
+        // Open boxes wider or taller than the model, without fixed nodes: the model's bound is the level's own, bit
+        // for bit. With fixed nodes it still lies above the top of the spectrum (Lanczos finds a lower bound of
+        // it), and a level with a node off is not taken for an open one.
+        for (w, h, tau) in [(200, 90, 0.0), (70, 300, 0.3), (65, 20, 1e-3)] {
+            let level = fine_level(&Grid::new(w, h), None, tau);
+            assert_eq!(level.open_tension(), Some(tau));
+            assert_eq!(collatz_bound(&level).to_bits(), power_bound(&level).to_bits(), "{w} × {h}");
+            let mut rnd = crate::grid::tests::sequence(5);
+            let fixed = fine_level(&Grid::new(w, h), Some((0..w * h).map(|_| rnd() < 0.05).collect()), tau);
+            assert!(collatz_bound(&fixed) >= lanczos_estimate(&fixed), "{w} × {h} with fixed nodes");
+        }
+        // Its bottom-right corner off: no link shows on that node itself, its neighbours lose theirs.
+        let corner = Grid::from_active(100, 80, (0..8000).map(|i| i + 1 < 8000).collect());
+        assert_eq!(fine_level(&corner, None, 0.0).open_tension(), None);
     }
 
     #[test]

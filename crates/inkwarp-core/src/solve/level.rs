@@ -761,42 +761,50 @@ impl Level {
     pub fn fine(geo: Geometry, tau: f64) -> Level {
         let (w, h) = (geo.w, geo.h);
         let (wp, n) = (w + 2 * PAD, (w + 2 * PAD) * (h + 2 * PAD));
-        let nodes = || (0..h).flat_map(move |y| (0..w).map(move |x| (x, y)));
         let fixed = |i: usize| geo.fixed.as_ref().is_some_and(|f| f[i]);
         let mut flags = vec![0u8; n];
-        for (x, y) in nodes().filter(|&(x, y)| geo.active[geo.idx(x, y)]) {
-            let i = geo.idx(x, y);
-            let bits = [
-                (!fixed(i), bit::FREE),
-                (geo.right[i], bit::RIGHT),
-                (geo.down[i], bit::DOWN),
-                (x > 0 && geo.right[i - 1] && geo.right[i], bit::HTRI),
-                (y > 0 && geo.down[i - w] && geo.down[i], bit::VTRI),
-                (geo.right[i] && geo.down[i] && geo.down[i + 1] && geo.right[i + w], bit::CELL),
-            ];
-            flags[(y + PAD) * wp + x + PAD] = bits.iter().filter(|b| b.0).fold(0, |f, b| f | b.1);
-        }
-        let (mut inv_diag, mut lam_max) = (vec![0.0; n], 0.0f64);
-        for p in nodes().map(|(x, y)| (y + PAD) * wp + x + PAD) {
+        flags.par_chunks_mut(wp).skip(PAD).take(h).enumerate().for_each(|(y, row)| {
+            for (x, i) in (0..w).map(|x| (x, geo.idx(x, y))).filter(|&(_, i)| geo.active[i]) {
+                let (r, d) = (&geo.right, &geo.down);
+                let bits = [(!fixed(i), bit::FREE), (r[i], bit::RIGHT), (d[i], bit::DOWN), (x > 0 && r[i - 1] && r[i], bit::HTRI),
+                    (y > 0 && d[i - w] && d[i], bit::VTRI), (r[i] && d[i] && d[i + 1] && r[i + w], bit::CELL)];
+                row[x + PAD] = bits.iter().filter(|b| b.0).fold(0, |f, b| f | b.1);
+            }
+        });
+        // Row by row: the free nodes' diagonals (a regular node's, the interior molecule's, is the same everywhere)
+        // and which are regular, marked in `flags` after.
+        let molecule = fine_diag_and_abs(&[u8::MAX; 25], 12, 5, tau);
+        let (mut inv_diag, mut regular) = (vec![0.0; n], vec![false; n]);
+        let rows = inv_diag.par_chunks_mut(wp).zip(regular.par_chunks_mut(wp)).enumerate().skip(PAD).take(h);
+        let lam_max = rows.map(|(y, (diag, regular))| {
             let has = |q: usize, b: u8| flags[q] & b != 0;
-            if !has(p, bit::FREE) { continue; }
-            if [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
-                && [p - wp, p, p + wp].iter().all(|&q| has(q, bit::VTRI))
-                && [p, p - 1, p - wp, p - wp - 1].iter().all(|&q| has(q, bit::CELL))
-            {
-                flags[p] |= bit::REGULAR;
+            let mut top = 0.0f64;
+            for (x, p) in (PAD..PAD + w).map(|x| (x, y * wp + x)).filter(|&(_, p)| has(p, bit::FREE)) {
+                regular[x] = [p - 1, p, p + 1].iter().all(|&q| has(q, bit::HTRI))
+                    && [p - wp, p, p + wp].iter().all(|&q| has(q, bit::VTRI))
+                    && [p, p - 1, p - wp, p - wp - 1].iter().all(|&q| has(q, bit::CELL));
+                let (d, s) = if regular[x] { molecule } else { fine_diag_and_abs(&flags, p, wp, tau) };
+                if d > 0.0 {
+                    diag[x] = 1.0 / d;
+                    top = top.max(s / d);
+                }
             }
-            let (d, s) = fine_diag_and_abs(&flags, p, wp, tau);
-            if d > 0.0 {
-                inv_diag[p] = 1.0 / d;
-                lam_max = lam_max.max(s / d);
-            }
-        }
+            top
+        }).reduce(|| 0.0, f64::max);
+        flags.iter_mut().zip(&regular).filter(|(_, &r)| r).for_each(|(f, _)| *f |= bit::REGULAR);
         let clean = (0..w * h).map(|i| geo.active[i] && geo.right[i] && geo.down[i] && !fixed(i)).collect();
         let kind = |f: u8| if f & bit::FREE == 0 { RunKind::Skip } else if f & bit::REGULAR != 0 { RunKind::Shared } else { RunKind::Own };
         let mut runs = Runs::new(wp, w, h, |p| kind(flags[p]));
         let own = OwnStencils::new(&mut runs, wp, |p| fine_row(&flags, p, wp, tau));
         Level { inv_diag_w: narrow_diag(&inv_diag), geo, wp, op: Operator::Fine { flags, tau, runs, own }, inv_diag, lam_max, clean }
+    }
+
+    /// The finest level's tension where its operator is the open box's (every node linked right and down but on the
+    /// last column and row; fixed nodes aside). Links join active nodes, so an inactive corner shows too.
+    pub fn open_tension(&self) -> Option<f64> {
+        let (Operator::Fine { flags, tau, .. }, w, h) = (&self.op, self.geo.w, self.geo.h) else { return None };
+        let linked = |x: usize, y: usize| (x + 1 == w || flags[self.pidx(x, y)] & bit::RIGHT != 0) && (y + 1 == h || flags[self.pidx(x, y)] & bit::DOWN != 0);
+        (0..h).all(|y| (0..w).all(|x| linked(x, y))).then_some(*tau)
     }
 
     /// This finest level with the plain bilinear prolongation of its box without holes or cuts: a coarse
@@ -1355,8 +1363,9 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let fixed: Vec<(usize, [[f64; 16]; 2])> = match &fine.op {
         // (In node order: `fixed_rows` finds a row's by bisection.)
         Operator::Fine { flags, .. } => (0..fw * fh)
-            .into_par_iter()
             .filter(|&i| !fine.clean[i] && flags[fine.pidx(i % fw, i / fw)] & (bit::RIGHT | bit::DOWN | bit::FREE) == bit::RIGHT | bit::DOWN)
+            .collect::<Vec<_>>()
+            .into_par_iter()
             .map(|f| {
                 let code = |x: usize, y: usize, masked: bool| if masked && flags[fine.pidx(x, y)] & bit::FREE == 0 { [0; 4] } else { PLAIN_CODES[(y & 1) * 2 + (x & 1)] };
                 (f, [false, true].map(|masked| narrow_ap_row(fine, f % fw, f / fw, |x, y| code(x, y, masked))))
@@ -1452,13 +1461,14 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
         far.extend(row_far);
     }
     let table = distinct.table;
+    let sums: Vec<f64> = table.iter().map(|s| s.iter().map(|a| a.abs()).sum()).collect();
     let (mut inv_diag, mut lam_max, mut clean) = (vec![0.0; wpc * hpc], 0.0f64, vec![false; wc * hc]);
     for i in (0..wc * hc).filter(|&i| geo.active[i]) {
         let p = (i / wc + PAD) * wpc + i % wc + PAD;
         let (s, far_p) = (&table[ids[p] as usize], far_of(&far, p));
         // A vanishing diagonal: the coarse node has no fine children left.
         if s[12] > 1e-300 {
-            let sum: f64 = s.iter().map(|a| a.abs()).sum::<f64>() + far_p.iter().map(|e| e.2.abs()).sum::<f64>();
+            let sum = sums[ids[p] as usize] + far_p.iter().map(|e| e.2.abs()).sum::<f64>();
             inv_diag[p] = 1.0 / s[12];
             lam_max = lam_max.max(sum / s[12]);
         }
