@@ -257,6 +257,38 @@ def test_validate_notes_what_is_allowed_but_probably_a_mistake(capsys, tmp_path)
     assert code == 0 and err == ""
 
 
+def test_validate_notes_keys_before_the_start_empty_layers_and_every_layer_hidden(capsys, tmp_path):
+    # A key before 0 s with one after it leaves frame 0 part way between them; a shown
+    # layer wholly transparent draws nothing; with every layer hidden each frame is the
+    # background alone. Each renders, with a note; a key before 0 s that a key at 0 s
+    # follows, and a hidden empty layer, get none. (`--time` before 0 s renders the
+    # drawing then without a word: keys before 0 s are a pre-roll.)
+    path = write_scene(tmp_path / "scene")
+    doc = json.loads(path.read_text())
+    grip = doc["features"][0]
+    grip["keys"] = [{"t": -1.0, "points": grip["rest"]}, {"t": 0.5, "points": grip["rest"]}]
+    doc["features"].append({"id": "held", "kind": "point", "rest": grip["rest"],
+                            "keys": [{"t": -1.0, "points": grip["rest"]}, {"t": 0.0, "points": grip["rest"]}]})
+    Image.new("RGBA", (WIDTH, HEIGHT)).save(tmp_path / "scene" / "empty.png")
+    doc["layers"] += [{"name": "blank", "image": "empty.png"}, {"name": "off", "image": "empty.png", "visible": False}]
+    path.write_text(json.dumps(doc))
+    code, stdout, _ = run(capsys, "validate", path)
+    assert code == 0
+    assert stdout.splitlines()[1:] == [
+        f"note: {path}: features[0].keys[0].t: 'grip' has a key at -1 s, before the scene's start (0 s): no frame "
+        "shows it, and frame 0 is already part way to the key at 0.5 s; unless that is meant, move the key to 0 s",
+        f"note: {path}: layers[1]: layer 'blank' has no pixel to draw or move (its picture is wholly transparent): "
+        "it shows nothing; give it a picture with opaque pixels, or remove it",
+    ]
+    for layer in doc["layers"]:
+        layer["visible"] = False
+    path.write_text(json.dumps(doc))
+    import inkwarp
+
+    assert ("layers", "every layer is hidden (\"visible\": false), so every frame shows the background alone; set "
+            "\"visible\": true on the layers to draw") in inkwarp.Scene.load(path).notes()
+
+
 def test_validate_notes_lines_and_regions_with_no_extent(tmp_path):
     # A spline whose points coincide holds one pixel; a region whose points lie on one line
     # holds only its outline. Both validated without a word.
@@ -361,7 +393,7 @@ def test_the_holes_note_is_judged_on_the_layers_drawn(tmp_path):
     assert inkwarp_scene(doc, tmp_path).notes() == []
     doc["layers"][0]["visible"] = doc["layers"][1]["visible"] = False  # none drawn: judged on all
     doc["layers"][1]["image"] = "cutout.png"
-    assert [path for path, _ in inkwarp_scene(doc, tmp_path).notes()] == ["features[0]"]
+    assert [path for path, _ in inkwarp_scene(doc, tmp_path).notes()] == ["features[0]", "layers"]  # and all hidden
 
 
 def test_validate_notes_a_matte_that_falls_apart_at_its_grid_step(tmp_path):

@@ -148,6 +148,12 @@ def test_scene_new_warns_about_blend_modes_naming_the_layer(tmp_path):
     with pytest.warns(inkwarp.InkwarpWarning, match="layer 'square' uses the blend mode Multiply"):
         scene = inkwarp.Scene.new(path, fps=12, duration=1)
     assert scene.layers == ["backdrop", "square", "ghost"] and scene.frame_count == 12
+    # A hidden layer's mode is said too (it composites as Normal once shown).
+    psd = PSDImage.open(path)
+    psd[1].blend_mode, psd[2].blend_mode = BlendMode.NORMAL, BlendMode.SCREEN
+    psd.save(path)
+    with pytest.warns(inkwarp.InkwarpWarning, match=r"layer 'ghost' \(hidden now\) uses the blend mode Screen"):
+        inkwarp.Scene.new(path)
 
 
 @pytest.mark.parametrize("case", ["cut short", "not-a-psd", "png-named-psd", "cmyk", "svg-without-paths", "bad-suffix", "too large", "far too large"])
@@ -516,6 +522,7 @@ def test_a_repeated_id_is_renamed_with_a_note(tmp_path):
 def test_groups_are_flattened_with_their_opacity_and_a_note(tmp_path):
     from psd_tools import PSDImage
     from psd_tools.api.layers import Group, PixelLayer
+    from psd_tools.constants import BlendMode
 
     psd = PSDImage.new("RGB", (32, 24))
     psd.append(PixelLayer.frompil(Image.new("RGBA", (32, 24), (200, 0, 0, 255)), psd, "back", 0, 0))
@@ -524,9 +531,15 @@ def test_groups_are_flattened_with_their_opacity_and_a_note(tmp_path):
     group = Group.group_layers(psd, [eye], name="face")
     group.opacity = 128
     psd.save(tmp_path / "g.psd")
+    eye.blend_mode = BlendMode.MULTIPLY
+    psd.save(tmp_path / "m.psd")
     with pytest.warns(inkwarp.InkwarpWarning, match="group 'face' is flattened into its layers"):
         scene = inkwarp.Scene.new(tmp_path / "g.psd")
     assert scene.layers == ["back", "eye"]
+    # A grouped layer is named as the scene names it, its group beside.
+    with pytest.warns(inkwarp.InkwarpWarning) as said:
+        inkwarp.Scene.new(tmp_path / "m.psd")
+    assert any("layer 'eye' (in group 'face') uses the blend mode Multiply" in str(w.message) for w in said), said
     assert np.abs(scene.render().astype(int) - psd_composite(tmp_path / "g.psd")).max() <= 2
 
 

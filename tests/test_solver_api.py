@@ -226,6 +226,8 @@ def test_solves_run_in_parallel_threads():
         ({"cuts": [10, 0, 10, 31]}, r"got a list of numbers \[10, 0, 10, 31\]; give each cut's points as pairs"),
         ({"cuts": [[0, 20], [60, 20]]}, "wrap a single cut in a list"),  # pointed at a reshape to one point
         ({"cuts": [[[1, 1], [np.nan, 2]]]}, r"cuts\[0\] has a value that is not a finite number"),
+        # A ragged cut named (numpy's "inhomogeneous shape" came up from a check of all cuts).
+        ({"cuts": [[[1, 2], [3]]]}, r"cuts\[0\] must be an \(N, 2\) array of numbers"),
         ({"tension": -1.0}, "tension must be a finite number >= 0"),
         ({"tension": np.inf}, "tension must be a finite number >= 0"),
         ({"tolerance": -0.1}, "tolerance must be a finite number >= 0"),
@@ -269,6 +271,14 @@ def test_bad_arguments_say_what_to_fix(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         inkwarp.thin_plate_report(args.pop("points"), args.pop("displacements"), args.pop("shape"), **args)
+
+
+def test_cuts_given_as_a_generator_are_read_once():
+    # (A generator has no len(): "object of type 'generator' has no len()" came up.)
+    cut = [[5.5, -1.0], [5.5, 40.0]]
+    as_list, _ = inkwarp.thin_plate_report(PTS, DISP, SHAPE, cuts=[cut])
+    as_generator, _ = inkwarp.thin_plate_report(PTS, DISP, SHAPE, cuts=(c for c in [cut]))
+    assert np.array_equal(as_list, as_generator)
 
 
 def test_southwell_stops_once_nothing_is_left_to_relax():

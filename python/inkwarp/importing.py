@@ -260,6 +260,9 @@ def _read_psd(source: Path) -> Picture:
     layers: list[PictureLayer] = []
     normal = {BlendMode.NORMAL, BlendMode.PASS_THROUGH}
 
+    def named(here: list[str]) -> str:  # as the scene names it (groups are flattened, names kept)
+        return f"'{here[-1]}'" + (f" (in group '{' / '.join(here[:-1])}')" if len(here) > 1 else "")
+
     def walk(group: Iterable[Any], path: list[str], opacity: float, visible: bool) -> None:
         # The layers the last unclipped item of this group gave (its base for the clipped
         # layers above it), its name and whether it shows.
@@ -276,22 +279,23 @@ def _read_psd(source: Path) -> Picture:
             if clipped:
                 _clip(layers[first:], layers[base[0]:base[1]])
                 notes.append(f"{source}: {'group' if layer.is_group() else 'layer'} "
-                             f"'{' / '.join(here)}' is clipped to '{base[2]}': it is cut to "
+                             f"{named(here)} is clipped to '{base[2]}': it is cut to "
                              "that layer's shape as the PSD shows it, and stays a layer of its own")
             else:
                 base = (first, len(layers), name, shown)
 
     def walk_one(layer: Any, here: list[str], opacity: float, shown: bool) -> None:
         alpha = opacity * int(layer.opacity) / 255.0
-        if layer.blend_mode not in normal and shown:
+        if layer.blend_mode not in normal:
             mode = getattr(layer.blend_mode, "name", str(layer.blend_mode))
             kind = "group" if layer.is_group() else "layer"
-            notes.append(f"{source}: {kind} '{' / '.join(here)}' uses the blend mode "
+            hidden = "" if shown else " (hidden now)"
+            notes.append(f"{source}: {kind} {named(here)}{hidden} uses the blend mode "
                          f"{mode.replace('_', ' ').title()}; inkwarp composites it as "
                          "Normal, so it will look different: merge it into the layer "
                          "below or set it to Normal")
         if layer.is_group():
-            notes.append(f"{source}: group '{' / '.join(here)}' is flattened into its "
+            notes.append(f"{source}: group {named(here)} is flattened into its "
                          "layers (names kept, its opacity and visibility applied to each of them, "
                          "which shows where they overlap)")
             walk(layer, here, alpha, shown)
@@ -299,16 +303,16 @@ def _read_psd(source: Path) -> Picture:
         try:
             image = layer.topil()
         except Exception as err:  # noqa: BLE001 - a damaged layer record
-            raise ValueError(f"{source}: layer '{' / '.join(here)}' cannot be read ({err}); "
+            raise ValueError(f"{source}: layer {named(here)} cannot be read ({err}); "
                              "save the PSD again from the painting app") from None
         if image is None:  # an empty layer, or an adjustment or fill layer without pixels
             if layer.kind not in ("pixel", "type", "shape", "smartobject"):
-                notes.append(f"{source}: layer '{' / '.join(here)}' ({layer.kind}) has no "
+                notes.append(f"{source}: layer {named(here)} ({layer.kind}) has no "
                              "pixels and is left out; rasterise it to keep it")
                 return
             image = None
         if layer.kind != "pixel" and image is not None:
-            notes.append(f"{source}: layer '{' / '.join(here)}' ({layer.kind}) is taken as "
+            notes.append(f"{source}: layer {named(here)} ({layer.kind}) is taken as "
                          "the pixels the PSD stores for it")
         canvas = np.zeros((height, width, 4), np.uint8)
         if image is not None:

@@ -243,9 +243,10 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
         written, so a frame that another process (an overlapping farm chunk) wrote
         meanwhile is left as it is; only the paths this call wrote are returned.
     ray : True or address, optional
-        Render on a Ray cluster (``True``: start a local one; or an address such as
-        ``"auto"``, ``"HOST:6379"`` or ``"ray://HOST:10001"``), in contiguous chunks, one
-        actor per chunk.
+        Render on a Ray cluster (``True``: the one ``RAY_ADDRESS`` names, else the one
+        ``ray start --head`` left running on this machine, else a local one started for
+        this render; or an address such as ``"auto"``, ``"HOST:6379"`` or
+        ``"ray://HOST:10001"``), in contiguous chunks, one actor per chunk.
     progress : bool
         Show a progress bar on stderr.
 

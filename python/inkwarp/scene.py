@@ -809,12 +809,14 @@ class Scene:
         a feature drawn wholly off the picture (it moves and tears nothing), one drawn wholly
         on holes of the layers it drives (transparent pixels, by default: the solver drops
         its samples, so it pins nothing; judged on the visible layers it drives, at
-        ``grid_step`` 1 only), a key after the scene's end (no frame shows it), a feature that
+        ``grid_step`` 1 only), a key after the scene's end (no frame shows it) or one before
+        its start that frame 0 is part way from, a feature that
         drives no layer, a line, curve or region whose points are all at one place, a region
         with no area, a layer picture with a colour profile other than sRGB's (not applied:
         it renders duller than a viewer shows it), a layer whose matte falls into more pieces
         on the coarse grid of its ``grid_step`` than at full resolution (hair and thin
-        strands come apart there). ``inkwarp validate``
+        strands come apart there), a shown layer with no opaque pixel, every layer hidden.
+        ``inkwarp validate``
         prints them as notes after its "ok"; a scene with notes renders as any other (a
         feature off the picture may be there on purpose, as a correspondence point for
         :func:`inkwarp.transfer`).
@@ -825,7 +827,7 @@ class Scene:
         notes: list[Problem] = []
         # Per layer, the features whose every sample the solver drops (None at grid_step > 1).
         checks = self._core.layer_checks()
-        dropped = [None if wholly is None else set(wholly) for _, wholly, _ in checks]
+        dropped = [None if wholly is None else set(wholly) for _, wholly, _, _ in checks]
 
         def shown(drives: list[int]) -> list[int]:  # the visible ones, or all where none is
             return [j for j in drives if layers[j].get("visible", True)] or drives
@@ -872,7 +874,12 @@ class Scene:
             notes += self._late_keys_of(i, feature)
         # At a grid_step above 1: a matte that falls apart on the coarse grid (hair, strands).
         features = doc.get("features", [])
-        for j, (_, _, pieces) in enumerate(checks):
+        for j, (_, _, pieces, empty) in enumerate(checks):
+            if empty and layers[j].get("visible", True):
+                what = "its continuity matte is" if layers[j].get("continuity") else "its picture is"
+                notes.append((f"layers[{j}]", f"layer {layers[j]['name']!r} has no pixel to draw or move ({what} "
+                              "wholly transparent): it shows nothing; give it a picture with opaque pixels, or "
+                              "remove it"))
             if pieces is None:
                 continue
             step, fine, coarse, clashes = pieces
@@ -891,6 +898,9 @@ class Scene:
                               f"lie within {step} px of each other and move apart: the coarse grid holds only one of "
                               "each pair where they meet, and the picture tears between them; use a smaller "
                               "grid_step (1 solves every pixel)"))
+        if layers and not any(layer.get("visible", True) for layer in layers):
+            notes.append(("layers", "every layer is hidden (\"visible\": false), so every frame shows the background "
+                          "alone; set \"visible\": true on the layers to draw"))
         return notes + self._profile_notes(layers)
 
     def _profile_notes(self, layers: list[dict[str, Any]]) -> list[Problem]:
@@ -923,13 +933,22 @@ class Scene:
         return [note for i, feature in enumerate(self.to_dict().get("features", [])) for note in self._late_keys_of(i, feature)]
 
     def _late_keys_of(self, i: int, feature: dict[str, Any]) -> list[Problem]:
-        """The notes on the keys of ``feature`` (``features[i]``) after the scene's end."""
-        duration = self.duration
-        return [(f"features[{i}].keys[{k}].t",
-                 f"{feature['id']!r} has a key at {key['t']:g} s, after the scene's end ({duration:g} s): "
-                 f"no frame shows it, the frames before it show the move toward it; a duration of "
-                 f"{key['t'] + 1 / self.fps:g} s ends on it, or move the key")
-                for k, key in enumerate(feature.get("keys", [])) if key["t"] > duration + 1e-9]
+        """The notes on the keys of ``feature`` (``features[i]``) after the scene's end, or
+        before its start (0 s)."""
+        duration, keys, notes = self.duration, feature.get("keys", []), []
+        for k, key in enumerate(keys):
+            if key["t"] > duration + 1e-9:
+                notes.append((f"features[{i}].keys[{k}].t",
+                              f"{feature['id']!r} has a key at {key['t']:g} s, after the scene's end ({duration:g} s): "
+                              f"no frame shows it, the frames before it show the move toward it; a duration of "
+                              f"{key['t'] + 1 / self.fps:g} s ends on it, or move the key"))
+            # The last key before 0 s with one after 0 s: frame 0 is part way between them.
+            elif key["t"] < 0 and k + 1 < len(keys) and keys[k + 1]["t"] > 0:
+                notes.append((f"features[{i}].keys[{k}].t",
+                              f"{feature['id']!r} has a key at {key['t']:g} s, before the scene's start (0 s): no "
+                              f"frame shows it, and frame 0 is already part way to the key at {keys[k + 1]['t']:g} s; "
+                              "unless that is meant, move the key to 0 s"))
+        return notes
 
     def validate(self) -> list[Problem]:
         """Every problem of this scene's document now (images are read again).

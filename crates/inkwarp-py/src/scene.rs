@@ -368,23 +368,24 @@ impl SceneCore {
     /// it of which every sample is dropped (off the grid or on inactive nodes), or None at a
     /// `grid_step` above 1, whose samples go to the coarse nodes; and at such a step, the step,
     /// the pieces of its grid and of the coarse grid it is solved on and the features that
-    /// clash there ([`clashes`]) (None at step 1).
+    /// clash there ([`clashes`]) (None at step 1); and whether its grid has no active node
+    /// (a picture or continuity matte wholly transparent).
     #[allow(clippy::type_complexity)]
-    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(bool, Option<Vec<usize>>, Option<(usize, usize, usize, Vec<(usize, usize)>)>)>> {
+    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(bool, Option<Vec<usize>>, Option<(usize, usize, usize, Vec<(usize, usize)>)>, bool)>> {
         let scene = Arc::clone(&self.scene);
         let checks = run_engine(py, move || {
             let check = |(i, layer): (usize, &scene::Layer)| -> Result<_, SceneError> {
                 let g = &layer.grid;
                 let torn = inkwarp_core::grid::torn(g.width, &g.active, &g.link_right, &g.link_down);
-                let step = layer.solver.grid_step;
+                let (step, empty) = (layer.solver.grid_step, !g.active.contains(&true));
                 if step > 1 {
                     let coarse = inkwarp_core::solve::coarse_grid(g, step as usize);
                     let clashing = clashes(&scene, i, &coarse, step as usize)?;
-                    return Ok((torn, None, Some((step as usize, g.pieces().1, coarse.pieces().1, clashing))));
+                    return Ok((torn, None, Some((step as usize, g.pieces().1, coarse.pieces().1, clashing)), empty));
                 }
                 let features = scene.layer_feature_samples(i, 0.0)?;
                 let dropped = features.iter().filter(|f| inkwarp_core::grid::constrain(g, &f.samples).used_samples == 0);
-                Ok((torn, Some(dropped.map(|f| f.feature).collect()), None))
+                Ok((torn, Some(dropped.map(|f| f.feature).collect()), None, empty))
             };
             scene.layers().iter().enumerate().map(check).collect::<Result<Vec<_>, _>>()
         })?;

@@ -84,7 +84,7 @@ pub struct SolverDoc {
     #[serde(default = "default_tolerance")]
     pub tolerance: f64,
     /// Solve on every `grid_step`-th pixel and upsample (≥ 1; 1 solves on every pixel).
-    /// The drawing is also sampled every `grid_step` pixels. Parts of the matte thinner than the step (hair, 1–2 px strands) come apart on the coarse grid and move unbent with what they hang from, or, where strands cross or lie close, with a neighbouring strand (a point on one may be dropped): keep 1 where they must bend. Features closer than the step that move apart (lids that close, lips that part) share coarse nodes, each of which holds only one of them: the picture tears between them; `inkwarp validate` notes such pairs.
+    /// The drawing is also sampled every `grid_step` pixels. Parts of the matte thinner than the step (hair, 1–2 px strands) come apart on the coarse grid and move unbent with what they hang from, or, where strands cross or lie close, with a neighbouring strand (a point on one may be dropped): keep 1 where they must bend. Features closer than the step that move apart (lids that close, lips that part) share coarse nodes, each of which holds only one of them: the picture tears between them; `inkwarp validate` notes such pairs. Where `width − 1` or `height − 1` is no multiple of the step, the last coarse cell, r pixels wide, is solved as a full one: a motion that scales by k bends by up to k × (step − r) px along the right or bottom edge (0.6 px for a 10 % scale at step 7 on 65 × 65); choose such a size, or 1, where that matters.
     #[serde(default = "default_grid_step")]
     #[schemars(range(min = 1, max = 64))]
     pub grid_step: u32,

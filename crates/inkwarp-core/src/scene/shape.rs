@@ -55,6 +55,7 @@ impl<'a> Walker<'a> {
             let hint = match value.as_f64().filter(|f| expected == "a whole number" && f.fract() == 0.0) {
                 Some(f) if f.abs() >= 2f64.powi(63) => ", too large to be one here; use a smaller number",
                 Some(_) => "; write it without a decimal point or exponent (2, not 2.0)",
+                None if expected.starts_with("a list") && value.as_str().is_some_and(|s| s.starts_with('#')) => "; write a colour as a list [r, g, b, a] of 0–255 (\"#ff8000\" is [255, 128, 0, 255])",
                 None => "",
             };
             self.push(path, format!("expected {expected}, found {}{hint}", describe(value)));
@@ -297,8 +298,8 @@ fn first_sentence(text: &str) -> String {
 /// The candidate closest to `word` by edit distance, when it is close enough to be a typo.
 pub(crate) fn did_you_mean<'b>(word: &str, candidates: impl Iterator<Item = &'b str> + Clone) -> Option<&'b str> {
     // A drawing program's word for a kind first ("dot" is nearer "cut" by its letters).
-    const SYNONYMS: [(&str, &str); 10] = [("dot", "point"), ("pin", "point"), ("line", "polyline"), ("path", "polyline"),
-        ("curve", "spline"), ("bezier", "spline"), ("shape", "region"), ("area", "region"), ("polygon", "region"), ("tear", "cut")];
+    const SYNONYMS: [(&str, &str); 11] = [("dot", "point"), ("pin", "point"), ("line", "polyline"), ("path", "polyline"),
+        ("curve", "spline"), ("bezier", "spline"), ("shape", "region"), ("area", "region"), ("polygon", "region"), ("tear", "cut"), ("time", "t")];
     let word_l = word.to_lowercase();
     if let Some(&(_, to)) = SYNONYMS.iter().find(|(from, _)| *from == word_l) {
         if let Some(c) = candidates.clone().find(|c| *c == to) { return Some(c) }

@@ -1068,6 +1068,18 @@ fn a_drawing_programs_word_for_a_kind_is_suggested_as_that_kind() {
 }
 
 #[test]
+fn a_key_written_as_time_is_suggested_as_t_and_a_hex_colour_as_a_list() {
+    let mut scene = valid_scene();
+    let key = scene["features"][0]["keys"][0].as_object_mut().unwrap();
+    let t = key.remove("t").unwrap();
+    key.insert("time".into(), t);
+    let text = problems_of(&scene).join("\n");
+    assert!(text.contains("did you mean \"t\"?"), "{text}");
+    let text = problems_of(&with(valid_scene(), "/background", json!("#808080"))).join("\n");
+    assert!(text.contains("write a colour as a list [r, g, b, a] of 0–255 (\"#ff8000\" is [255, 128, 0, 255])"), "{text}");
+}
+
+#[test]
 fn a_name_written_without_its_hyphens_is_suggested() {
     let text = problems_of(&with(valid_scene(), "/features/0/keys/0/interpolation", json!("easeinout"))).join("\n");
     assert!(text.contains("(did you mean \"ease-in-out\"?)"), "{text}");
