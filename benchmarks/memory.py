@@ -2,11 +2,11 @@
 
 `inkwarp.thin_plate` refuses a grid whose estimate does not fit in free memory, and a render
 runs as many frames at once as free memory holds its estimate. The estimate is
-`inkwarp_core::limits`: 220 bytes per pixel, plus 1,300 per thin node (a node whose run of
-linked nodes along its row or its column is at most 16: strands, teeth, outlines; the solver
-factors them exactly) and, on a torn grid (a matte, a hole or a cut), 160 per node for the
-slow modes a long solve keeps (at most 256 MiB). The problems here have a matte and no cut,
-so the thin nodes are counted on the matte alone, as the engine counts them.
+`inkwarp_core::limits` (read from the engine here): 220 bytes per pixel, plus 1,300 per thin
+node (a node whose run of linked nodes along its row or its column is at most 16: strands,
+teeth, outlines; the solver factors them exactly) and, on a torn grid (a matte, a hole or a
+cut), 160 per node for the slow modes a long solve keeps, where they fit its budget. The
+thin nodes column is counted here on the matte, as the engine counts them.
 
 Each problem is solved once in a child process, after a small solve that starts the thread
 pool; the figure is the growth of the child's peak resident memory over the solve. Columns:
@@ -65,15 +65,16 @@ def runs(alpha):
 active = np.ones(shape, bool) if m is None else m > 0
 thin = int((active & (np.minimum(runs(active), runs(active.T).T) <= 16)).sum())
 pixels = shape[0] * shape[1]
-torn = not active.all()
 warm = np.zeros((64, 64), np.uint8)
 warm[10:50, 10:30] = warm[20, 30:60] = 1
 inkwarp.thin_plate_report(np.array([[12.0, 12.0], [28.0, 40.0], [58.0, 20.0]]), np.ones((3, 2)), (64, 64), mask=warm)
 before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 _, report = inkwarp.thin_plate_report(pts, disp, shape, mask=m, max_cycles=2000)
 grew = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) * 1024
-estimate = 220 * pixels + 1300 * thin + (min(160 * pixels, 256 << 20) if torn else 0)
-print(json.dumps(dict(shape=shape, thin=thin, grew=grew, estimate=estimate, plain=220 * pixels,
+from inkwarp import _inkwarp
+
+estimate = _inkwarp._solve_bytes(shape[1], shape[0], None if m is None else (m > 0).astype(np.uint8))
+print(json.dumps(dict(shape=shape, thin=thin, grew=grew, estimate=estimate, plain=_inkwarp._solve_bytes(shape[1], shape[0]),
                       cycles=report.cycles, converged=report.converged)))
 """
 

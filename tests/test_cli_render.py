@@ -262,7 +262,7 @@ def test_validate_notes_keys_before_the_start_empty_layers_and_every_layer_hidde
     # layer wholly transparent draws nothing; with every layer hidden each frame is the
     # background alone. Each renders, with a note; a key before 0 s that a key at 0 s
     # follows, and a hidden empty layer, get none. (`--time` before 0 s renders the
-    # drawing then without a word: keys before 0 s are a pre-roll.)
+    # drawing then without a word, as keys before 0 s may be meant.)
     path = write_scene(tmp_path / "scene")
     doc = json.loads(path.read_text())
     grip = doc["features"][0]
@@ -277,14 +277,22 @@ def test_validate_notes_keys_before_the_start_empty_layers_and_every_layer_hidde
     assert stdout.splitlines()[1:] == [
         f"note: {path}: features[0].keys[0].t: 'grip' has a key at -1 s, before the scene's start (0 s): no frame "
         "shows it, and frame 0 is already part way to the key at 0.5 s; unless that is meant, move the key to 0 s",
-        f"note: {path}: layers[1]: layer 'blank' has no pixel to draw or move (its picture is wholly transparent): "
-        "it shows nothing; give it a picture with opaque pixels, or remove it",
+        f"note: {path}: layers[1]: layer 'blank' has no opaque pixel (its picture is wholly transparent): it shows "
+        "nothing; give it a picture with opaque pixels, or remove it",
     ]
+    # A key that holds its pose until the next is what frame 0 shows; an opaque picture
+    # with an empty continuity matte shows, unmoved.
+    import inkwarp
+
+    grip["keys"][0]["interpolation"] = "hold"
+    doc["layers"][1] = {"name": "still", "image": "square.png", "continuity": "empty.png"}
+    path.write_text(json.dumps(doc))
+    assert inkwarp.Scene.load(path).notes() == [
+        ("layers[1]", "layer 'still''s continuity matte has no nonzero pixel: its picture shows, but nothing moves it; "
+         "give the matte nonzero pixels where the picture should move, or drop \"continuity\"")]
     for layer in doc["layers"]:
         layer["visible"] = False
     path.write_text(json.dumps(doc))
-    import inkwarp
-
     assert ("layers", "every layer is hidden (\"visible\": false), so every frame shows the background alone; set "
             "\"visible\": true on the layers to draw") in inkwarp.Scene.load(path).notes()
 

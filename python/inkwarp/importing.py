@@ -260,7 +260,7 @@ def _read_psd(source: Path) -> Picture:
     layers: list[PictureLayer] = []
     normal = {BlendMode.NORMAL, BlendMode.PASS_THROUGH}
 
-    def named(here: list[str]) -> str:  # as the scene names it (groups are flattened, names kept)
+    def named(here: list[str]) -> str:  # its own name (groups are flattened, names kept), its group beside
         return f"'{here[-1]}'" + (f" (in group '{' / '.join(here[:-1])}')" if len(here) > 1 else "")
 
     def walk(group: Iterable[Any], path: list[str], opacity: float, visible: bool) -> None:

@@ -827,7 +827,7 @@ class Scene:
         notes: list[Problem] = []
         # Per layer, the features whose every sample the solver drops (None at grid_step > 1).
         checks = self._core.layer_checks()
-        dropped = [None if wholly is None else set(wholly) for _, wholly, _, _ in checks]
+        dropped = [None if wholly is None else set(wholly) for _, wholly, *_ in checks]
 
         def shown(drives: list[int]) -> list[int]:  # the visible ones, or all where none is
             return [j for j in drives if layers[j].get("visible", True)] or drives
@@ -871,15 +871,17 @@ class Scene:
                 notes.append((f"features[{i}].rest", f"{name!r}, a region, has no area (its points lie on one line): "
                               "it holds nothing inside, only its outline, as a polyline does; trace around what "
                               "it should hold"))
-            notes += self._late_keys_of(i, feature)
+            notes += self._outside_keys_of(i, feature)
         # At a grid_step above 1: a matte that falls apart on the coarse grid (hair, strands).
         features = doc.get("features", [])
-        for j, (_, _, pieces, empty) in enumerate(checks):
-            if empty and layers[j].get("visible", True):
-                what = "its continuity matte is" if layers[j].get("continuity") else "its picture is"
-                notes.append((f"layers[{j}]", f"layer {layers[j]['name']!r} has no pixel to draw or move ({what} "
-                              "wholly transparent): it shows nothing; give it a picture with opaque pixels, or "
-                              "remove it"))
+        for j, (_, _, pieces, blank, still) in enumerate(checks):
+            if blank and layers[j].get("visible", True):
+                notes.append((f"layers[{j}]", f"layer {layers[j]['name']!r} has no opaque pixel (its picture is wholly "
+                              "transparent): it shows nothing; give it a picture with opaque pixels, or remove it"))
+            elif still and layers[j].get("continuity"):
+                notes.append((f"layers[{j}]", f"layer {layers[j]['name']!r}'s continuity matte has no nonzero pixel: "
+                              "its picture shows, but nothing moves it; give the matte nonzero pixels where the "
+                              "picture should move, or drop \"continuity\""))
             if pieces is None:
                 continue
             step, fine, coarse, clashes = pieces
@@ -927,12 +929,12 @@ class Scene:
                               "does so)"))
         return notes
 
-    def _late_keys(self) -> list[Problem]:
-        """The notes on keys after the scene's end (:meth:`notes`); ``inkwarp render`` gives
-        them too, since they cut the animation short."""
-        return [note for i, feature in enumerate(self.to_dict().get("features", [])) for note in self._late_keys_of(i, feature)]
+    def _outside_keys(self) -> list[Problem]:
+        """The notes on keys after the scene's end or before its start (:meth:`notes`);
+        ``inkwarp render`` gives them too, since they cut the animation short at either end."""
+        return [note for i, feature in enumerate(self.to_dict().get("features", [])) for note in self._outside_keys_of(i, feature)]
 
-    def _late_keys_of(self, i: int, feature: dict[str, Any]) -> list[Problem]:
+    def _outside_keys_of(self, i: int, feature: dict[str, Any]) -> list[Problem]:
         """The notes on the keys of ``feature`` (``features[i]``) after the scene's end, or
         before its start (0 s)."""
         duration, keys, notes = self.duration, feature.get("keys", []), []
@@ -942,8 +944,9 @@ class Scene:
                               f"{feature['id']!r} has a key at {key['t']:g} s, after the scene's end ({duration:g} s): "
                               f"no frame shows it, the frames before it show the move toward it; a duration of "
                               f"{key['t'] + 1 / self.fps:g} s ends on it, or move the key"))
-            # The last key before 0 s with one after 0 s: frame 0 is part way between them.
-            elif key["t"] < 0 and k + 1 < len(keys) and keys[k + 1]["t"] > 0:
+            # The last key before 0 s with one after 0 s: frame 0 is part way between them
+            # (unless the key holds its pose until the next).
+            elif key["t"] < -1e-9 and k + 1 < len(keys) and keys[k + 1]["t"] > 1e-9 and key.get("interpolation") != "hold":
                 notes.append((f"features[{i}].keys[{k}].t",
                               f"{feature['id']!r} has a key at {key['t']:g} s, before the scene's start (0 s): no "
                               f"frame shows it, and frame 0 is already part way to the key at {keys[k + 1]['t']:g} s; "

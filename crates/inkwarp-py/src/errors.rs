@@ -27,6 +27,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MIN_FPS", limits::MIN_FPS)?;
     m.add("MAX_FPS", limits::MAX_FPS)?;
     m.add_function(wrap_pyfunction!(crate::limits::check_size, m)?)?;
+    m.add_function(wrap_pyfunction!(crate::limits::_solve_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_for_tests, m)?)?;
     m.add_function(wrap_pyfunction!(_after_fork, m)?)?;
     Ok(())

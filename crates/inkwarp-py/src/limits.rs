@@ -55,6 +55,23 @@ pub fn check_size(what: &str, width: usize, height: usize) -> PyResult<()> {
     limits::check_size(what, width, height).map_err(PyValueError::new_err)
 }
 
+/// The memory estimate `inkwarp.thin_plate` checks for a `width × height` grid with `mask`
+/// (nonzero: active) solved at `grid_step`, in bytes: the benchmarks weigh it against what a
+/// solve takes, from the engine's own count rather than a copy of it.
+#[pyfunction]
+#[pyo3(signature = (width, height, mask=None, grid_step=1))]
+pub fn _solve_bytes(width: usize, height: usize, mask: Option<numpy::PyReadonlyArray2<'_, u8>>, grid_step: usize) -> PyResult<u64> {
+    check_grid(width, height)?;
+    let grid = match mask {
+        Some(m) if m.as_array().shape() != [height, width] => return Err(PyValueError::new_err("mask must be an (H, W) array.")),
+        Some(m) => inkwarp_core::Grid::from_matte(width, height, &m.as_array().iter().copied().collect::<Vec<_>>()),
+        None => inkwarp_core::Grid::new(width, height),
+    };
+    let coarse = (grid_step > 1).then(|| inkwarp_core::solve::coarse_grid(&grid, grid_step));
+    let pixels = (width as u64).saturating_mul(height as u64);
+    Ok(pixels.saturating_mul(SOLVE_BYTES_PER_PIXEL).saturating_add(limits::thin_and_slow_bytes([coarse.as_ref().unwrap_or(&grid)])))
+}
+
 /// The memory this machine has free for new work, in bytes (None when unknown).
 pub fn available_bytes() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;

@@ -368,24 +368,25 @@ impl SceneCore {
     /// it of which every sample is dropped (off the grid or on inactive nodes), or None at a
     /// `grid_step` above 1, whose samples go to the coarse nodes; and at such a step, the step,
     /// the pieces of its grid and of the coarse grid it is solved on and the features that
-    /// clash there ([`clashes`]) (None at step 1); and whether its grid has no active node
-    /// (a picture or continuity matte wholly transparent).
+    /// clash there ([`clashes`]) (None at step 1); whether its picture is wholly transparent
+    /// (it draws nothing); and whether its grid has no active node (nothing moves it).
     #[allow(clippy::type_complexity)]
-    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(bool, Option<Vec<usize>>, Option<(usize, usize, usize, Vec<(usize, usize)>)>, bool)>> {
+    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(bool, Option<Vec<usize>>, Option<(usize, usize, usize, Vec<(usize, usize)>)>, bool, bool)>> {
         let scene = Arc::clone(&self.scene);
         let checks = run_engine(py, move || {
             let check = |(i, layer): (usize, &scene::Layer)| -> Result<_, SceneError> {
                 let g = &layer.grid;
                 let torn = inkwarp_core::grid::torn(g.width, &g.active, &g.link_right, &g.link_down);
-                let (step, empty) = (layer.solver.grid_step, !g.active.contains(&true));
+                let (step, still) = (layer.solver.grid_step, !g.active.contains(&true));
+                let blank = layer.image.as_ref().is_some_and(|im| im.data.chunks_exact(4).all(|p| p[3] == 0));
                 if step > 1 {
                     let coarse = inkwarp_core::solve::coarse_grid(g, step as usize);
                     let clashing = clashes(&scene, i, &coarse, step as usize)?;
-                    return Ok((torn, None, Some((step as usize, g.pieces().1, coarse.pieces().1, clashing)), empty));
+                    return Ok((torn, None, Some((step as usize, g.pieces().1, coarse.pieces().1, clashing)), blank, still));
                 }
                 let features = scene.layer_feature_samples(i, 0.0)?;
                 let dropped = features.iter().filter(|f| inkwarp_core::grid::constrain(g, &f.samples).used_samples == 0);
-                Ok((torn, Some(dropped.map(|f| f.feature).collect()), None, empty))
+                Ok((torn, Some(dropped.map(|f| f.feature).collect()), None, blank, still))
             };
             scene.layers().iter().enumerate().map(check).collect::<Result<Vec<_>, _>>()
         })?;

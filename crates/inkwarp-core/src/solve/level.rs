@@ -317,6 +317,12 @@ pub(crate) struct Geometry {
 }
 
 impl Geometry {
+    /// An open `w × h` box: every node active and linked, none fixed.
+    pub fn open(w: usize, h: usize) -> Geometry {
+        let crate::grid::Grid { active, link_right, link_down, .. } = crate::grid::Grid::new(w, h);
+        Geometry::new(w, h, active, link_right, link_down, None)
+    }
+
     #[inline]
     fn idx(&self, x: usize, y: usize) -> usize { y * self.w + x }
 
@@ -811,8 +817,7 @@ impl Level {
     /// space of functions smooth across holes and cuts, where the link-aware one extrapolates a constant.
     pub fn into_plain(self) -> Level {
         let (w, h) = (self.geo.w, self.geo.h);
-        let crate::grid::Grid { active, link_right, link_down, .. } = crate::grid::Grid::new(w, h);
-        self.with_prolongation(Geometry::new(w, h, active, link_right, link_down, None))
+        self.with_prolongation(Geometry::open(w, h))
     }
 
     /// The level with the prolongation rows of `geo` (more nodes or links), zero on its inactive and fixed nodes.
@@ -1351,10 +1356,7 @@ pub(crate) fn galerkin(fine: &Level) -> Level {
     let regular = |xc: usize, yc: usize| window(xc, yc).is_some_and(|(a, b)| sat.count(a, b) as usize == (b[0] - a[0]) * (b[1] - a[1]));
     let shared = match &fine.op {
         // The finest level's: that of an open grid's interior, constrained or not.
-        Operator::Fine { tau, .. } => {
-            let crate::grid::Grid { active, link_right, link_down, .. } = crate::grid::Grid::new(13, 13);
-            galerkin_node(&Level::fine(Geometry::new(13, 13, active, link_right, link_down, None), *tau), 3, 3)
-        }
+        Operator::Fine { tau, .. } => galerkin_node(&Level::fine(Geometry::open(13, 13), *tau), 3, 3),
         _ => (0..hc * wc).find(|&c| regular(c % wc, c / wc)).map_or([0.0; 25], |c| galerkin_node(fine, c % wc, c / wc)),
     };
     let shared_scale = shared.iter().fold(0.0f64, |m, a| m.max(a.abs()));
