@@ -360,7 +360,9 @@ class _Breaks:
 
 @pytest.mark.parametrize("output", ["anim.gif", "anim.mp4", "frames", "frames/"])
 @pytest.mark.parametrize("error, code", [(RuntimeError("boom"), 1), (KeyboardInterrupt(), 130),
-                                         (ValueError("the solve failed"), 2)])
+                                         (ValueError("the solve failed"), 2),
+                                         # Python's own words for a program's mistake: a bug, not bad input.
+                                         (ValueError("not enough values to unpack (expected 4, got 3)"), 1)])
 def test_a_failed_render_leaves_nothing_behind(capsys, tmp_path, monkeypatch, output, error,
                                                code):
     import inkwarp

@@ -250,6 +250,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except (InkwarpError, ValueError, FileNotFoundError, PermissionError, IsADirectoryError,
             NotADirectoryError) as err:
+        if isinstance(err, ValueError) and _a_bug(err):
+            return _internal_error(args.command)
         print(f"inkwarp {args.command}: error: {error_message(err)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -264,7 +266,25 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 1
     except Exception:  # noqa: BLE001 - the last line of defence: report the bug, exit 1
-        traceback.print_exc()
-        print(f"inkwarp {args.command}: internal error (a bug in inkwarp; the traceback above "
-              "says where): please report it", file=sys.stderr)
-        return 1
+        return _internal_error(args.command)
+
+
+#: The words of ValueErrors that Python and numpy raise for a program's own mistakes, never
+#: for a scene's or an argument's (inkwarp says those in its own words): such an error is a
+#: bug, reported as one (exit 1, with its traceback), not as bad input (exit 2), which a
+#: render farm would not retry.
+_BUG_WORDS = ("values to unpack", "math domain error", "operands could not be broadcast",
+              "truth value of an array", "zero-size array to reduction operation",
+              "arg is an empty sequence")
+
+
+def _a_bug(err: ValueError) -> bool:
+    return any(words in str(err) for words in _BUG_WORDS)
+
+
+def _internal_error(command: str) -> int:
+    """Print the traceback of the exception being handled and say it is a bug; exit 1."""
+    traceback.print_exc()
+    print(f"inkwarp {command}: internal error (a bug in inkwarp; the traceback above "
+          "says where): please report it", file=sys.stderr)
+    return 1
