@@ -93,6 +93,9 @@ def test_a_report_says_why_its_solve_stopped():
         ({"tolerance": 1e-9}, "precision"),
         # No number of cycles meets that tolerance: the reason, though the cycles ran out too.
         ({"tolerance": 1e-9, "max_cycles": 3}, "precision"),
+        # None allowed: the start comes back, and why is that, not its size (it said "precision").
+        ({"max_cycles": 0}, "max_cycles"),
+        ({"max_cycles": 0, "initial": np.full((257, 257, 2), 1e30, np.float32)}, "max_cycles"),
     ]
     for kwargs, stop in cases:
         _, report = inkwarp.thin_plate_report(pts, disp, (257, 257), **kwargs)

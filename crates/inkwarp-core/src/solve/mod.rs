@@ -768,10 +768,10 @@ fn solve_piece(
         // The loop ran out: its cycles, the interrupt, or Southwell's budget.
         report.stop = if crate::interrupt::requested() { Stop::Interrupted } else if southwell_spent { Stop::Budget } else { Stop::MaxCycles };
     }
-    // A field not finite, or a tolerance finer than its `f32` resolution, is the reason whatever stopped the loop; a
-    // scaled residual above 4 tolerances fails too: |D⁻¹A e| ≤ 4 max|e| (each energy term's coefficients sum to at
-    // most 4 times the one at the row's node).
-    if !finite || options.tolerance_px < FINEST_TOLERANCE * largest {
+    // A field not finite, or a tolerance finer than its `f32` resolution, is the reason whatever stopped the loop (but
+    // `max_cycles` 0, which ran none); a scaled residual above 4 tolerances fails too: |D⁻¹A e| ≤ 4 max|e| (each
+    // energy term's coefficients sum to at most 4 times the one at the row's node).
+    if !finite || (options.tolerance_px < FINEST_TOLERANCE * largest && (cycles > 0 || report.converged)) {
         (report.converged, report.stop) = (false, if finite { Stop::Precision } else { Stop::Breakdown });
     } else if residual > 4.0 * options.tolerance_px {
         report.fail(Stop::Residual);
