@@ -21,7 +21,7 @@ import synthetic_video as sv  # noqa: E402
 
 from inkwarp.cli import main  # noqa: E402
 from inkwarp.errors import InkwarpWarning  # noqa: E402
-from inkwarp.track import simplify_keys, track_dict  # noqa: E402
+from inkwarp.track import REFOUND_FRAMES, _held_lost, simplify_keys, track_dict  # noqa: E402
 
 W, H, FRAMES = 160, 120, 24
 ROOT = Path(__file__).resolve().parents[1]
@@ -963,3 +963,14 @@ def test_a_video_given_for_a_picture_is_named_and_inkwarp_frame_offered(videos, 
     code, _, err = run(capsys, "render", tmp_path / "v.json", "-o", tmp_path / "v.png")
     assert code == 2 and f"layers[0].image" in err and f"{path} is an MP4 video, not a picture" in err, err
     assert f"inkwarp frame {path} --frame N -o frame.png" in err and "Traceback" not in err
+
+
+def test_a_lost_feature_stays_lost_until_its_checks_pass_for_a_while():
+    # A track left on the wrong texture passed its checks at single frames 28-39 px off
+    # (frame 38 between 37 and 39, frames 57-60 between two lost runs): a gap of at most
+    # REFOUND_FRAMES between lost frames is lost too, unless an anchor (exact) lies in it.
+    gap = REFOUND_FRAMES
+    assert _held_lost([35, 37, 39, 40], set()) == [35, 36, 37, 38, 39, 40]
+    assert _held_lost([10, 10 + gap + 1], set()) == list(range(10, 12 + gap))
+    assert _held_lost([10, 10 + gap + 2], set()) == [10, 12 + gap]  # found again for longer
+    assert _held_lost([10, 14], {12}) == [10, 14]  # the anchor between them is exact

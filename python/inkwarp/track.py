@@ -40,8 +40,9 @@ over ``lost_px``: a textured point's error is the smaller of its two Lucas–Kan
 infinite where it is out of the picture or on no texture (once lost it stays lost until
 the anchor registration confirms it again, tried also where it was last seen), an
 untextured point's that of the dense flow, infinite where it is placed more than
-``lost_px`` off the picture. A :class:`~inkwarp.InkwarpWarning` names the
-features and the frames. Between two anchors, a track that has lost the feature at a
+``lost_px`` off the picture; once lost, a feature counts as lost until its checks pass at
+more than :data:`REFOUND_FRAMES` frames in a row. A :class:`~inkwarp.InkwarpWarning`
+names the features and the frames. Between two anchors, a track that has lost the feature at a
 frame gives way to the other's; else the two tracks' errors are blended as their places
 are. Points of a feature that lie off the picture where traced are named apart and
 judged by nothing (nothing there can be seen).
@@ -800,6 +801,24 @@ def _range_of(anchor: int, anchors: Sequence[int], count: int) -> tuple[int, int
     return lo, hi
 
 
+#: A feature lost at a frame counts as lost until its checks pass at more than this many
+#: frames in a row (or at an anchor): a check that passes at a few frames between lost
+#: ones does not vouch for it (a track left on the wrong texture passed at single frames
+#: 28-39 px off).
+REFOUND_FRAMES = 5
+
+
+def _held_lost(frames: Sequence[int], anchors: Container[int]) -> list[int]:
+    """The lost ``frames`` (ascending) with the gaps of at most :data:`REFOUND_FRAMES`
+    between them filled, where no anchor lies in the gap."""
+    out: list[int] = []
+    for k in frames:
+        if out and k - out[-1] - 1 <= REFOUND_FRAMES and not any(a in anchors for a in range(out[-1] + 1, k)):
+            out.extend(range(out[-1] + 1, k))
+        out.append(k)
+    return out
+
+
 def _frames_text(frames: Sequence[int]) -> str:
     runs: list[str] = []
     start = prev = None
@@ -989,6 +1008,8 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             keys_off = bool(np.any(np.isfinite(keys) & (keys > lost_px)) or carried.any())
             if np.median(err[seen]) > lost_px or keys_off:
                 lost.setdefault(f.id, []).append(k)
+        if f.id in lost:
+            lost[f.id] = _held_lost(lost[f.id], set(anchors_of[f.id]))
         kept = range(count)
         if simplify_px is not None:
             kept = simplify_keys(series, simplify_px, keep=anchors_of[f.id])
