@@ -5,8 +5,8 @@ runs as many frames at once as free memory holds its estimate. The estimate is
 `inkwarp_core::limits` (read from the engine here): 220 bytes per pixel, plus 1,300 per thin
 node (a node whose run of linked nodes along its row or its column is at most 16: strands,
 teeth, outlines; the solver factors them exactly) and, on a torn grid (a matte, a hole or a
-cut), 160 per node for the slow modes a long solve keeps, where they fit its budget. The
-thin nodes column is counted here on the matte, as the engine counts them.
+cut), 160 per node for the slow modes a long solve deflates (at most 256 MiB). The thin nodes
+column is counted here on the matte, as the engine counts them.
 
 Each problem is solved once in a child process, after a small solve that starts the thread
 pool; the figure is the growth of the child's peak resident memory over the solve. Columns:
@@ -73,7 +73,7 @@ _, report = inkwarp.thin_plate_report(pts, disp, shape, mask=m, max_cycles=2000)
 grew = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) * 1024
 from inkwarp import _inkwarp
 
-estimate = _inkwarp._solve_bytes(shape[1], shape[0], None if m is None else (m > 0).astype(np.uint8))
+estimate = _inkwarp._solve_bytes(shape[1], shape[0], None if m is None else active.astype(np.uint8))
 print(json.dumps(dict(shape=shape, thin=thin, grew=grew, estimate=estimate, plain=_inkwarp._solve_bytes(shape[1], shape[0]),
                       cycles=report.cycles, converged=report.converged)))
 """

@@ -455,6 +455,14 @@ def test_a_cut_is_named_by_the_word_cut_not_by_those_letters(tmp_path, name, cut
     assert any(f"{name!r} has the letters 'cut' in a name but is not a cut" in n for n in notes) is (cut is False), notes
 
 
+def test_a_name_with_the_letters_cut_on_two_elements_is_named_once_in_the_singular(tmp_path):
+    # ("'shortcut' have the letters 'cut' in a name but are not a cut": counted before the
+    # repeated name was left out.)
+    _, notes = drawn_kinds(tmp_path, '<path class="shortcut" d="M 10 10 L 30 10" fill="none"/>'
+                                     '<path class="shortcut" d="M 10 20 L 30 20" fill="none"/>')
+    assert any("'shortcut' has the letters 'cut' in a name but is not a cut" in n for n in notes), notes
+
+
 def test_style_sheet_importance_at_rules_and_inherited_fills_are_read_as_css_reads_them(tmp_path):
     kinds, notes = drawn_kinds(tmp_path, '<style>'
                    '@import url(more.css); @charset "utf-8";'

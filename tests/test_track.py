@@ -965,7 +965,7 @@ def test_a_video_given_for_a_picture_is_named_and_inkwarp_frame_offered(videos, 
     assert f"inkwarp frame {path} --frame N -o frame.png" in err and "Traceback" not in err
 
 
-def test_a_lost_feature_stays_lost_until_its_checks_pass_for_a_while():
+def test_a_short_gap_between_lost_frames_is_lost_too():
     # A track left on the wrong texture passed its checks at single frames 28-39 px off
     # (frame 38 between 37 and 39, frames 57-60 between two lost runs): a gap of at most
     # REFOUND_FRAMES between lost frames is lost too, unless an anchor (exact) lies in it.

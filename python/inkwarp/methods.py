@@ -22,7 +22,6 @@ See ``docs/concepts/comparison.md`` for pictures of each.
 from __future__ import annotations
 
 import math
-import numbers
 
 from typing import Any, Sequence
 
@@ -208,17 +207,11 @@ def _weight(name: str, value: Any, most: float, above_zero: bool = False) -> flo
     """A Beier–Neely weight as a float: a real number from 0 (above it where ``above_zero``)
     to ``most``, or a ValueError naming it and its range."""
     span = f"above 0 and at most {most:.0e}".replace("e+0", "e") if above_zero else f"from 0 to {most:g}"
-    why = ValueError(f"{name} must be a number {span}; got {value!r}.")
-    if isinstance(value, np.ndarray) and value.ndim == 0:
-        value = value[()]
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise why
-    try:
-        number = float(value)
-    except OverflowError:  # a Python int past any float
-        number = math.inf
-    if not (math.isfinite(number) and (number > 0 if above_zero else number >= 0) and number <= most):
-        raise why
+    from inkwarp.plate import _finite
+
+    number = float(value) if _finite(value) else math.nan
+    if not ((number > 0 if above_zero else number >= 0) and number <= most):
+        raise ValueError(f"{name} must be a number {span}; got {value!r}.")
     return number
 
 

@@ -267,20 +267,13 @@ def _cuts(cuts: Any) -> list[np.ndarray]:
     if not polylines:
         raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.")
     cuts = cuts if isinstance(cuts, np.ndarray) else list(cuts)  # a generator is read once
-
-    def ndim(c: Any) -> int:  # -1 for a ragged one, said by name below
-        try:
-            return np.ndim(c)
-        except (TypeError, ValueError):
-            return -1
-
-    try:  # one polyline given without the list around it (an array, or a list of pairs)
-        single = np.asarray(cuts, dtype=float).ndim == 2
+    try:  # its depth: 2 is one polyline without the list around it, 1 a list of numbers
+        depth = np.asarray(cuts, dtype=float).ndim if len(cuts) > 0 else None
     except (TypeError, ValueError, OverflowError):  # ragged polylines, or a value said below by name
-        single = False
-    if single and len(cuts) > 0 and all(ndim(c) == 1 for c in cuts):
+        depth = None
+    if depth == 2:
         raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")
-    if len(cuts) > 0 and all(ndim(c) == 0 for c in cuts):  # numbers: [x0, y0, x1, y1]
+    if depth == 1:  # numbers: [x0, y0, x1, y1]
         raise ValueError(f"cuts must be a list of (K, 2) polylines, got a list of numbers {cuts!r:.40}; give each "
                          "cut's points as pairs, such as cuts=[[[x0, y0], [x1, y1]]].")
     cut_list = []

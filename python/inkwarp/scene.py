@@ -827,7 +827,7 @@ class Scene:
         notes: list[Problem] = []
         # Per layer, the features whose every sample the solver drops (None at grid_step > 1).
         checks = self._core.layer_checks()
-        dropped = [None if wholly is None else set(wholly) for _, wholly, *_ in checks]
+        dropped = [None if wholly is None else set(wholly) for wholly, *_ in checks]
 
         def shown(drives: list[int]) -> list[int]:  # the visible ones, or all where none is
             return [j for j in drives if layers[j].get("visible", True)] or drives
@@ -874,7 +874,7 @@ class Scene:
             notes += self._outside_keys_of(i, feature)
         # At a grid_step above 1: a matte that falls apart on the coarse grid (hair, strands).
         features = doc.get("features", [])
-        for j, (_, _, pieces, blank, still) in enumerate(checks):
+        for j, (_, pieces, blank, still) in enumerate(checks):
             if blank and layers[j].get("visible", True):
                 notes.append((f"layers[{j}]", f"layer {layers[j]['name']!r} has no opaque pixel (its picture is wholly "
                               "transparent): it shows nothing; give it a picture with opaque pixels, or remove it"))

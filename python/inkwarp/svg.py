@@ -144,8 +144,9 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
                                                     element))
         fill = style.get("fill", fill)
         opacity = style.get("fill-opacity", opacity)
-        cut = cut or _says_cut(element)
-        if not cut and any(w.startswith("cut") or w.endswith("cut") for w in _words(element)):
+        words = _words(element)
+        cut = cut or _says_cut(words)
+        if not cut and any(w.startswith("cut") or w.endswith("cut") for w in words):
             near_cuts.append(element.get("id") or element.get("class") or element.get(INKSCAPE_LABEL) or tag)
         if tag in ("text", "image", "foreignObject"):
             why = {"text": "text makes no feature (Inkscape: Path > Object to Path turns it into paths)",
@@ -190,7 +191,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
     near_cuts: list[str] = []  # names with the letters "cut" that are not cuts
     top = _style(root, rules)
     for child in root:
-        visit(child, root_transform, top.get("fill", "black"), top.get("fill-opacity", "1"), _says_cut(root))
+        visit(child, root_transform, top.get("fill", "black"), top.get("fill-opacity", "1"), _says_cut(_words(root)))
     if not features:
         raise ValueError(f"{source}: the SVG has no paths, lines, polylines, polygons, "
                          "rectangles or circles to make features of; trace the features "
@@ -199,8 +200,9 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
         notes.append(f"{source}: {', '.join(map(repr, cuts))} "
                      f"{'is a cut' if len(cuts) == 1 else 'are cuts'} (the word 'cut' in an id, "
                      "class or layer name): the surface tears along them and they move nothing")
+    near_cuts = list(dict.fromkeys(near_cuts))  # one name once, and counted once
     if near_cuts:
-        notes.append(f"{source}: {', '.join(map(repr, dict.fromkeys(near_cuts)))} "
+        notes.append(f"{source}: {', '.join(map(repr, near_cuts))} "
                      f"{'has' if len(near_cuts) == 1 else 'have'} the letters 'cut' in a name but "
                      f"{'is' if len(near_cuts) == 1 else 'are'} not a cut: a cut is named by the word "
                      "(neck-cut, cut2, neckCut)")
@@ -249,11 +251,11 @@ def _stylesheet(root: ET.Element, source: Path, notes: list[str]) -> list[_Rule]
     rules: list[_Rule] = []
     text = " ".join("".join(e.itertext()) for e in root.iter() if _tag(e) == "style")
     text = re.sub(r"/\*.*?\*/", " ", text, flags=re.S)
-    at_rules = re.findall(r"@[\w-]+[^;{}]*\{(?:[^{}]*\{[^{}]*\})*[^{}]*\}", text)
+    at_rules = _AT_BLOCK.findall(text)
     if any(any(_declarations(body)) for block in at_rules for body in re.findall(r"\{([^{}]*)\}", block)):
         notes.append(f"{source}: style rules inside @media or @supports blocks are not applied; "
                      "move the fills the drawing needs out of them")
-    text = re.sub(r"@[\w-]+[^;{}]*\{(?:[^{}]*\{[^{}]*\})*[^{}]*\}|@[\w-]+[^;{}]*;", " ", text)
+    text = re.sub(_AT_BLOCK.pattern + r"|@[\w-]+[^;{}]*;", " ", text)
     for selectors, body in re.findall(r"([^{}]*)\{([^{}]*)\}", text):
         normal, important = _declarations(body)
         for selector in filter(None, (part.strip() for part in selectors.split(",")) if normal or important else ()):
@@ -310,9 +312,10 @@ def _words(element: ET.Element) -> list[str]:
     return re.split(r"[^a-z]+", re.sub(r"([a-z])([A-Z])", r"\1 \2", _names(element)).lower())
 
 
-def _says_cut(element: ET.Element) -> bool:
-    """Whether the element's id, class or Inkscape layer name has the word ``cut`` or ``cuts``."""
-    return any(word in ("cut", "cuts") for word in _words(element))
+def _says_cut(words: list[str]) -> bool:
+    """Whether an element's words (:func:`_words`: its id, class and Inkscape layer name) have
+    the word ``cut`` or ``cuts``."""
+    return any(word in ("cut", "cuts") for word in words)
 
 
 _UNITS = {"": 1.0, "px": 1.0, "pt": 96 / 72, "pc": 16.0, "mm": 96 / 25.4, "cm": 96 / 2.54,
@@ -350,6 +353,8 @@ def _viewport(root: ET.Element, width: int, height: int, source: Path, notes: li
     return np.array([[sx, 0.0, -x0 * sx], [0.0, sy, -y0 * sy]])
 
 
+#: An at-rule's block (``@media ... { rules }``), one level of rules inside.
+_AT_BLOCK = re.compile(r"@[\w-]+[^;{}]*\{(?:[^{}]*\{[^{}]*\})*[^{}]*\}")
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 

@@ -40,8 +40,8 @@ over ``lost_px``: a textured point's error is the smaller of its two Lucas–Kan
 infinite where it is out of the picture or on no texture (once lost it stays lost until
 the anchor registration confirms it again, tried also where it was last seen), an
 untextured point's that of the dense flow, infinite where it is placed more than
-``lost_px`` off the picture; once lost, a feature counts as lost until its checks pass at
-more than :data:`REFOUND_FRAMES` frames in a row. A :class:`~inkwarp.InkwarpWarning`
+``lost_px`` off the picture; a gap of at most :data:`REFOUND_FRAMES` frames between two
+frames where a feature is lost counts as lost too. A :class:`~inkwarp.InkwarpWarning`
 names the features and the frames. Between two anchors, a track that has lost the feature at a
 frame gives way to the other's; else the two tracks' errors are blended as their places
 are. Points of a feature that lie off the picture where traced are named apart and
@@ -128,6 +128,10 @@ class Video:
         return len(self.frames)
 
 
+#: The decoder's address ffmpeg puts before its messages (``[h264 @ 0x55d0...]``): not for a user.
+_DECODER_ADDRESS = re.compile(r"\[[^]]*@ 0x[0-9a-f]+\] *")
+
+
 def _no_frames(path: str) -> ValueError:
     return ValueError(f"{path}: the video has no frames (it is empty, or cut short before its first "
                       "frame); export or copy it again")
@@ -137,7 +141,7 @@ def _unreadable(path: str, reason: str) -> ValueError:
     # A video that ends before its first frame: ffmpeg's words for it, per container.
     if re.search(r"received no packets|Nothing was written|End of file|^Duration: N/A", str(reason)):
         return _no_frames(path)
-    reason = re.sub(r"\[[^]]*@ 0x[0-9a-f]+\] *", "", " ".join(str(reason).split()))  # no decoder's address
+    reason = _DECODER_ADDRESS.sub("", " ".join(str(reason).split()))
     if len(reason) > 160:
         reason = reason[:157] + "..."
     return ValueError(f"{path}: cannot be read as a video ({reason}); give a video file that "
@@ -282,7 +286,7 @@ def _decode(name: str, pix_fmt: str, *, frames: int | None = None, promised: int
     if done.returncode != 0:
         raise _unreadable(name, said[-1] if said else f"ffmpeg exited with {done.returncode}")
     wanted = promised if frames is None else min(frames, promised or frames)
-    first = re.sub(r"^\[[^]]*@ 0x[0-9a-f]+\] *", "", said[0])[:120] if said else ""  # no decoder's address
+    first = _DECODER_ADDRESS.sub("", said[0])[:120] if said else ""
     if said and wanted and len(done.stdout) // size < wanted - 1:
         raise ValueError(f"{name}: damaged or cut short: ffmpeg decoded {len(done.stdout) // size} "
                          f"frames, with errors, of the {promised} its header gives ({first}); "
@@ -801,10 +805,9 @@ def _range_of(anchor: int, anchors: Sequence[int], count: int) -> tuple[int, int
     return lo, hi
 
 
-#: A feature lost at a frame counts as lost until its checks pass at more than this many
-#: frames in a row (or at an anchor): a check that passes at a few frames between lost
-#: ones does not vouch for it (a track left on the wrong texture passed at single frames
-#: 28-39 px off).
+#: A gap of at most this many frames between two frames where a feature is lost (no anchor
+#: in it) counts as lost too: a check that passes at a few frames between lost ones does not
+#: vouch for it (a track left on the wrong texture passed at single frames 28-39 px off).
 REFOUND_FRAMES = 5
 
 

@@ -59,7 +59,7 @@ pub fn thin_and_slow_bytes<'a>(grids: impl IntoIterator<Item = &'a crate::grid::
     grids.into_iter().fold([0u64; 3], |[thin, kept, slow], g| {
         let (factors, len, torn) = ((g.thin_nodes(crate::solve::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE), g.len() as u64, !g.is_open());
         let modes = if torn { len.saturating_mul(DEFLATION_BYTES_PER_NODE).min(DEFLATION_MAX_BYTES) } else { 0 };
-        let keeps = if torn && len.saturating_mul(KEPT_BYTES_PER_NODE + 8 * crate::solve::deflate::WINDOW as u64) <= DEFLATION_MAX_BYTES { len * KEPT_BYTES_PER_NODE } else { 0 };
+        let keeps = if torn && crate::solve::deflate::room(g.len()) >= crate::solve::deflate::KEEP { len * KEPT_BYTES_PER_NODE } else { 0 };
         [thin.saturating_add(factors), kept.saturating_add(keeps), slow.max(modes.saturating_sub(keeps))]
     }).iter().fold(0, |a, &b| a.saturating_add(b))
 }

@@ -55,21 +55,25 @@ pub fn check_size(what: &str, width: usize, height: usize) -> PyResult<()> {
     limits::check_size(what, width, height).map_err(PyValueError::new_err)
 }
 
+/// What a thin-plate solve on `grid` at `grid_step` needs beyond [`SOLVE_BYTES_PER_PIXEL`]:
+/// the thin parts and slow modes of the grid it runs on (the coarse one at a step above 1).
+pub fn solve_extra_bytes(grid: &inkwarp_core::Grid, grid_step: usize) -> u64 {
+    let coarse = (grid_step > 1).then(|| inkwarp_core::solve::coarse_grid(grid, grid_step));
+    limits::thin_and_slow_bytes([coarse.as_ref().unwrap_or(grid)])
+}
+
 /// The memory estimate `inkwarp.thin_plate` checks for a `width × height` grid with `mask`
-/// (nonzero: active) solved at `grid_step`, in bytes: the benchmarks weigh it against what a
-/// solve takes, from the engine's own count rather than a copy of it.
+/// (nonzero: active) and no cuts, solved at `grid_step`, in bytes: the benchmarks weigh it
+/// against what a solve takes, from the engine's own count rather than a copy of it.
 #[pyfunction]
 #[pyo3(signature = (width, height, mask=None, grid_step=1))]
 pub fn _solve_bytes(width: usize, height: usize, mask: Option<numpy::PyReadonlyArray2<'_, u8>>, grid_step: usize) -> PyResult<u64> {
     check_grid(width, height)?;
     let grid = match mask {
-        Some(m) if m.as_array().shape() != [height, width] => return Err(PyValueError::new_err("mask must be an (H, W) array.")),
-        Some(m) => inkwarp_core::Grid::from_matte(width, height, &m.as_array().iter().copied().collect::<Vec<_>>()),
+        Some(m) => crate::solve::matte_grid(&m, width, height)?,
         None => inkwarp_core::Grid::new(width, height),
     };
-    let coarse = (grid_step > 1).then(|| inkwarp_core::solve::coarse_grid(&grid, grid_step));
-    let pixels = (width as u64).saturating_mul(height as u64);
-    Ok(pixels.saturating_mul(SOLVE_BYTES_PER_PIXEL).saturating_add(limits::thin_and_slow_bytes([coarse.as_ref().unwrap_or(&grid)])))
+    Ok(needed_bytes(width, height, SOLVE_BYTES_PER_PIXEL, solve_extra_bytes(&grid, grid_step)))
 }
 
 /// The memory this machine has free for new work, in bytes (None when unknown).
@@ -93,10 +97,15 @@ pub fn memory_problem(needed: u64) -> Option<String> {
     })
 }
 
+/// `bytes_per_pixel` for each of `width × height` pixels, and `extra`.
+fn needed_bytes(width: usize, height: usize, bytes_per_pixel: u64, extra: u64) -> u64 {
+    (width as u64).saturating_mul(height as u64).saturating_mul(bytes_per_pixel).saturating_add(extra)
+}
+
 /// ValueError unless a solve or field of `width × height` fits in free memory
 /// (`bytes_per_pixel` of it per pixel, and `extra` bytes).
 pub fn check_memory(width: usize, height: usize, bytes_per_pixel: u64, extra: u64) -> PyResult<()> {
-    let needed = (width as u64).saturating_mul(height as u64).saturating_mul(bytes_per_pixel).saturating_add(extra);
+    let needed = needed_bytes(width, height, bytes_per_pixel, extra);
     match available_bytes() {
         Some(free) if needed > free => Err(PyValueError::new_err(format!(
             "a {width}×{height} grid needs about {} GiB of memory but {} GiB is free; use \

@@ -104,6 +104,7 @@ fn clashes(scene: &Scene, layer: usize, coarse: &inkwarp_core::Grid, step: usize
         let &(ja, ka, _) = here.iter().min_by(|p, q| p.2.total_cmp(&q.2)).expect("a node's samples");
         here.iter().filter(move |&&(jb, kb, _)| apart((ja, ka), (jb, kb))).map(move |&(jb, kb, _)| ((ja, ka), (jb, kb)))
     }).collect();
+    if pairs_at.is_empty() { return Ok(Vec::new()) } // nothing to pose
     let mut pairs = std::collections::BTreeSet::new();
     for t in times {
         let now = if t == 0.0 { Cow::Borrowed(&at_rest) } else { Cow::Owned(scene.layer_feature_samples(layer, t)?) };
@@ -363,30 +364,33 @@ impl SceneCore {
         Ok(self.scene.layers().iter().any(|l| method.unwrap_or(l.solver.method).interpolant().is_none()))
     }
 
-    /// Per layer: whether its grid is torn (an inactive node, or a cut between two active
-    /// neighbours: what `tps` tears and the other methods ignore), the features that drive
-    /// it of which every sample is dropped (off the grid or on inactive nodes), or None at a
+    /// Per layer, whether its grid is torn (an inactive node, or a cut between two active
+    /// neighbours: what `tps` tears and the other methods ignore).
+    fn torn_layers(&self) -> Vec<bool> {
+        self.scene.layers().iter().map(|l| inkwarp_core::grid::torn(l.grid.width, &l.grid.active, &l.grid.link_right, &l.grid.link_down)).collect()
+    }
+
+    /// Per layer: the features that drive it of which every sample is dropped (off the grid or on inactive nodes), or None at a
     /// `grid_step` above 1, whose samples go to the coarse nodes; and at such a step, the step,
     /// the pieces of its grid and of the coarse grid it is solved on and the features that
     /// clash there ([`clashes`]) (None at step 1); whether its picture is wholly transparent
     /// (it draws nothing); and whether its grid has no active node (nothing moves it).
     #[allow(clippy::type_complexity)]
-    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(bool, Option<Vec<usize>>, Option<(usize, usize, usize, Vec<(usize, usize)>)>, bool, bool)>> {
+    fn layer_checks(&self, py: Python<'_>) -> PyResult<Vec<(Option<Vec<usize>>, Option<(usize, usize, usize, Vec<(usize, usize)>)>, bool, bool)>> {
         let scene = Arc::clone(&self.scene);
         let checks = run_engine(py, move || {
             let check = |(i, layer): (usize, &scene::Layer)| -> Result<_, SceneError> {
                 let g = &layer.grid;
-                let torn = inkwarp_core::grid::torn(g.width, &g.active, &g.link_right, &g.link_down);
                 let (step, still) = (layer.solver.grid_step, !g.active.contains(&true));
                 let blank = layer.image.as_ref().is_some_and(|im| im.data.chunks_exact(4).all(|p| p[3] == 0));
                 if step > 1 {
                     let coarse = inkwarp_core::solve::coarse_grid(g, step as usize);
                     let clashing = clashes(&scene, i, &coarse, step as usize)?;
-                    return Ok((torn, None, Some((step as usize, g.pieces().1, coarse.pieces().1, clashing)), blank, still));
+                    return Ok((None, Some((step as usize, g.pieces().1, coarse.pieces().1, clashing)), blank, still));
                 }
                 let features = scene.layer_feature_samples(i, 0.0)?;
                 let dropped = features.iter().filter(|f| inkwarp_core::grid::constrain(g, &f.samples).used_samples == 0);
-                Ok((torn, Some(dropped.map(|f| f.feature).collect()), None, blank, still))
+                Ok((Some(dropped.map(|f| f.feature).collect()), None, blank, still))
             };
             scene.layers().iter().enumerate().map(check).collect::<Result<Vec<_>, _>>()
         })?;

@@ -102,6 +102,17 @@ fn open_grid(width: usize, height: usize) -> Arc<Grid> {
     }
 }
 
+/// The grid of an `(H, W)` mask (nonzero: active), or a ValueError naming its shape.
+pub(crate) fn matte_grid(mask: &PyReadonlyArray2<'_, u8>, width: usize, height: usize) -> PyResult<Grid> {
+    if mask.shape() != [height, width] {
+        return Err(PyValueError::new_err(format!(
+            "mask has shape {:?} but the grid is ({height}, {width}); pass an (H, W) mask.",
+            mask.shape()
+        )));
+    }
+    Ok(Grid::from_matte(width, height, &mask.as_array().iter().copied().collect::<Vec<u8>>()))
+}
+
 /// Solves the thin plate; returns the float32 (H, W, 2) field and the report as a dict.
 #[pyfunction]
 #[pyo3(signature = (points, displacements, height, width, mask, cuts, tension, tolerance,
@@ -154,16 +165,7 @@ fn thin_plate_solve<'py>(
         open_grid(width, height)
     } else {
         let mut grid = match &mask {
-            Some(m) => {
-                if m.shape() != [height, width] {
-                    return Err(PyValueError::new_err(format!(
-                        "mask has shape {:?} but the grid is ({height}, {width}); pass an (H, W) mask.",
-                        m.shape()
-                    )));
-                }
-                let data: Vec<u8> = m.as_array().iter().copied().collect();
-                Grid::from_matte(width, height, &data)
-            }
+            Some(m) => matte_grid(m, width, height)?,
             None => Grid::new(width, height),
         };
         crate::limits::cuts_of(&cuts)?.iter().for_each(|p| grid.add_cut(p));
@@ -174,8 +176,7 @@ fn thin_plate_solve<'py>(
     let extra = if open && width.min(height) > inkwarp_core::solve::THIN * grid_step.max(1) {
         0
     } else {
-        let coarse = (grid_step > 1).then(|| inkwarp_core::solve::coarse_grid(&grid, grid_step));
-        inkwarp_core::limits::thin_and_slow_bytes([coarse.as_ref().unwrap_or(&*grid)])
+        crate::limits::solve_extra_bytes(&grid, grid_step)
     };
     crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL, extra)?;
     if let Some(f) = &initial {

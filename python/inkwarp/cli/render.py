@@ -235,4 +235,4 @@ def _run(args: argparse.Namespace) -> int:
 
 def _torn_layers(scene) -> list[str]:
     """The layers whose grid a cut or a hole tears, as "layer 'NAME'"."""
-    return [f"layer {name!r}" for name, (torn, *_) in zip(scene.layers, scene._core.layer_checks()) if torn]
+    return [f"layer {name!r}" for name, torn in zip(scene.layers, scene._core.torn_layers()) if torn]

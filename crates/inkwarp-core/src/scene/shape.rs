@@ -297,7 +297,7 @@ fn first_sentence(text: &str) -> String {
 
 /// The candidate closest to `word` by edit distance, when it is close enough to be a typo.
 pub(crate) fn did_you_mean<'b>(word: &str, candidates: impl Iterator<Item = &'b str> + Clone) -> Option<&'b str> {
-    // A drawing program's word for a kind first ("dot" is nearer "cut" by its letters).
+    // A drawing program's word for a kind, and the usual word for a key's `t`, first ("dot" is nearer "cut" by its letters).
     const SYNONYMS: [(&str, &str); 11] = [("dot", "point"), ("pin", "point"), ("line", "polyline"), ("path", "polyline"),
         ("curve", "spline"), ("bezier", "spline"), ("shape", "region"), ("area", "region"), ("polygon", "region"), ("tear", "cut"), ("time", "t")];
     let word_l = word.to_lowercase();

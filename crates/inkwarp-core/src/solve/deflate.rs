@@ -67,9 +67,12 @@ pub(super) struct Deflation {
     changes: Vec<f64>,
 }
 
+/// How many vectors (each with its product, in `f32`) the budget holds on `len` nodes beside a window.
+pub(crate) fn room(len: usize) -> usize { (BUDGET_BYTES / (4 * len).max(1)).saturating_sub(2 * WINDOW) / 2 }
+
 impl Deflation {
     pub fn new(len: usize, off: bool, wait: bool, early: bool) -> Deflation {
-        let room = (BUDGET_BYTES / (4 * len).max(1)).saturating_sub(2 * WINDOW) / 2;
+        let room = room(len);
         Deflation { on: !off && room >= 4, wait, early: early && wait, room, low: f64::INFINITY, before: f64::INFINITY, ..Default::default() }
     }
 

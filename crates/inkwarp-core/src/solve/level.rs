@@ -809,8 +809,8 @@ impl Level {
     /// last column and row; fixed nodes aside). Links join active nodes, so an inactive corner shows too.
     pub fn open_tension(&self) -> Option<f64> {
         let (Operator::Fine { flags, tau, .. }, w, h) = (&self.op, self.geo.w, self.geo.h) else { return None };
-        let linked = |x: usize, y: usize| (x + 1 == w || flags[self.pidx(x, y)] & bit::RIGHT != 0) && (y + 1 == h || flags[self.pidx(x, y)] & bit::DOWN != 0);
-        (0..h).all(|y| (0..w).all(|x| linked(x, y))).then_some(*tau)
+        let linked = |f: u8, x: usize, y: usize| (x + 1 == w || f & bit::RIGHT != 0) && (y + 1 == h || f & bit::DOWN != 0);
+        (0..h).all(|y| (0..w).all(|x| linked(flags[self.pidx(x, y)], x, y))).then_some(*tau)
     }
 
     /// This finest level with the plain bilinear prolongation of its box without holes or cuts: a coarse
