@@ -73,7 +73,7 @@ fn path_hint(reference: &str, scene_folder: bool) -> &'static str {
 
 /// The pairs of features driving layer `layer` (`a ≤ b`, scene indices; `a == b`: two parts of
 /// one feature, apart along it) that a solve at `grid_step = step`, on `coarse`, cannot both hold:
-/// each coarse node holds the nearest of the samples it takes (as the solver assigns them), and at
+/// each coarse node holds the nearest of the samples it takes (ties together, as the solver does), and at
 /// time 0 or at a key another sample there moves more than a pixel apart from it, so that feature
 /// is let go there and the picture tears between them (lids that close, lips that part).
 fn clashes(scene: &Scene, layer: usize, coarse: &inkwarp_core::Grid, step: usize) -> Result<Vec<(usize, usize)>, SceneError> {
@@ -82,16 +82,17 @@ fn clashes(scene: &Scene, layer: usize, coarse: &inkwarp_core::Grid, step: usize
     let mut times: Vec<f64> = l.drivers.iter().flat_map(|&f| features[f].keys.iter().map(|k| k.time_s)).chain([0.0]).collect();
     times.sort_by(f64::total_cmp);
     times.dedup();
-    // The samples rest where they are at every time: each active coarse node's, the nearest first, as
-    // (feature in the list, sample, distance); the pairs of samples there that are two parts of the drawing.
+    // The samples rest where they are at every time: each coarse node's, as the solver assigns them
+    // ([`inkwarp_core::solve::coarse_nodes`]), as (feature in the list, sample, whether it holds the node).
     let at_rest = scene.layer_feature_samples(layer, 0.0)?;
-    let mut nodes: std::collections::HashMap<usize, Vec<(usize, usize, f64)>> = Default::default();
-    for (j, f) in at_rest.iter().enumerate() {
-        for (k, p) in f.samples.iter().enumerate().filter(|(_, p)| inkwarp_core::grid::nearest_node(g, p.rest).is_some()) {
-            let c = inkwarp_core::solve::coarse_point(g.width, g.height, step, p.rest);
-            let Some(i) = inkwarp_core::grid::nearest_node(coarse, c).map(|(x, y)| coarse.index(x, y)).filter(|&i| coarse.active[i]) else { continue };
-            nodes.entry(i).or_default().push((j, k, (c[0] - (i % coarse.width) as f64).hypot(c[1] - (i / coarse.width) as f64)));
-        }
+    let on_grid: Vec<(usize, usize, inkwarp_core::Sample)> = at_rest.iter().enumerate().flat_map(|(j, f)| {
+        let placed = f.samples.iter().enumerate().filter(|(_, p)| inkwarp_core::grid::nearest_node(g, p.rest).is_some());
+        placed.map(move |(k, p)| (j, k, inkwarp_core::Sample { rest: inkwarp_core::solve::coarse_point(g.width, g.height, step, p.rest), ..*p }))
+    }).collect();
+    let placed: Vec<inkwarp_core::Sample> = on_grid.iter().map(|e| e.2).collect();
+    let mut nodes: std::collections::HashMap<usize, Vec<(usize, usize, bool)>> = Default::default();
+    for (&(j, k, _), n) in on_grid.iter().zip(inkwarp_core::solve::coarse_nodes(coarse, &placed)) {
+        if let Some((i, holds)) = n { nodes.entry(i).or_default().push((j, k, holds)); }
     }
     // Samples of one feature next to each other along it (a closed curve's wrap around) are one part of it; a
     // region's are never apart (its interior samples are every pixel's, and it moves as a whole).
@@ -100,8 +101,10 @@ fn clashes(scene: &Scene, layer: usize, coarse: &inkwarp_core::Grid, step: usize
         let d = ka.abs_diff(kb);
         ja != jb || (f.kind != inkwarp_core::Kind::Region && (if f.closed { d.min(n - d) } else { d }) > 2)
     };
+    // A node's first holder with every other sample there apart from it (holders tie where features meet end to end:
+    // one part, averaged).
     let pairs_at: Vec<((usize, usize), (usize, usize))> = nodes.values().flat_map(|here| {
-        let &(ja, ka, _) = here.iter().min_by(|p, q| p.2.total_cmp(&q.2)).expect("a node's samples");
+        let &(ja, ka, _) = here.iter().find(|e| e.2).expect("a node's holder");
         here.iter().filter(move |&&(jb, kb, _)| apart((ja, ka), (jb, kb))).map(move |&(jb, kb, _)| ((ja, ka), (jb, kb)))
     }).collect();
     if pairs_at.is_empty() { return Ok(Vec::new()) } // nothing to pose

@@ -26,7 +26,7 @@ mod wide;
 
 pub use history::{WarmHistory, HISTORY_FRAMES};
 pub use strands::THIN;
-pub use upsample::{coarse_grid, coarse_point, Upsampling};
+pub use upsample::{coarse_grid, coarse_nodes, coarse_point, Upsampling};
 
 use rayon::prelude::*;
 use thiserror::Error;

@@ -45,7 +45,7 @@ fn solve_on_coarse_grid(
     let coarse = coarse_grid(grid, l.s);
     let at = |p: &Sample| Sample { rest: coarse_point(grid.width, grid.height, l.s, p.rest), ..*p };
     let coarse_samples: Vec<Sample> = samples.iter().filter(|p| nearest_node(grid, p.rest).is_some()).map(at).collect();
-    let nearest = nearest_samples(&coarse, &coarse_samples);
+    let nearest: Vec<Sample> = coarse_samples.iter().zip(coarse_nodes(&coarse, &coarse_samples)).filter(|(_, n)| n.is_none_or(|n| n.1)).map(|(p, _)| *p).collect();
     let mut constraints = constrain(&coarse, &nearest);
     constraints.dropped_samples += samples.len() - coarse_samples.len();
     constraints.used_samples += coarse_samples.len() - nearest.len();
@@ -71,14 +71,15 @@ pub fn coarse_point(w: usize, h: usize, s: usize, [x, y]: crate::geometry::Point
     [l.coarse(x, l.wc, |c| l.px(c)), l.coarse(y, l.hc, |c| l.py(c))]
 }
 
-/// The samples that count on the coarse grid: of those that round to one active node, the nearest to it (ties
-/// averaged, as on a full grid's node). The mean of all is the displacement at their centre: up to s/2 off.
-fn nearest_samples(coarse: &Grid, samples: &[Sample]) -> Vec<Sample> {
+/// The node of `coarse` each sample (at [`coarse_point`]) falls on and whether it holds it: a node takes the nearest
+/// of its samples, ties together (averaged, as on a full grid's node); none where a sample lies off the grid or on an
+/// inactive node, or is not finite. The mean of all is the displacement at their centre: up to s/2 off.
+pub fn coarse_nodes(coarse: &Grid, samples: &[Sample]) -> Vec<Option<(usize, bool)>> {
     let nodes: Vec<Option<(usize, f64)>> = samples.iter().map(|p| nearest_node(coarse, p.rest).map(|(x, y)| (coarse.index(x, y), (p.rest[0] - x as f64).hypot(p.rest[1] - y as f64)))
         .filter(|&(i, _)| coarse.active[i] && p.displacement.iter().all(|d| d.is_finite()))).collect();
     let mut least = vec![f64::INFINITY; coarse.len()];
     nodes.iter().flatten().for_each(|&(i, d)| least[i] = least[i].min(d));
-    samples.iter().zip(&nodes).filter(|(_, n)| n.map_or(true, |(i, d)| d <= least[i] + 1e-9)).map(|(p, _)| *p).collect()
+    nodes.iter().map(|n| n.map(|(i, d)| (i, d <= least[i] + 1e-9))).collect()
 }
 
 /// A coarse piece no sample holds that joins a held one on the full grid (a strand thinner than the step) moves
