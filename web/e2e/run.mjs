@@ -1182,9 +1182,10 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
 test('a picture just opened is no unsaved work: no ●, and opening another asks nothing', async () => {
   const { page: p, context, errors: errs } = await openEditor(browser, server.url);
   try {
-    for (const name of ['checkerboard.png', 'checkerboard.png']) {
-      await p.setInputFiles('input[type=file][accept^=".json"]', join(repo, 'examples/checkerboard-hole', name));
-      await p.waitForFunction(() => window.inkwarp.store.doc.layers[0]?.name === 'checkerboard');
+    // Two different pictures, so that the second open is waited for (a dialog would come before it).
+    for (const [path, name] of [['checkerboard-hole/checkerboard.png', 'checkerboard'], ['face/face.png', 'face']]) {
+      await p.setInputFiles('input[type=file][accept^=".json"]', join(repo, 'examples', path));
+      await p.waitForFunction((n) => window.inkwarp.store.doc.layers[0]?.name === n, name);
       await idle(p);
     }
     const state = await p.evaluate(() => ({ unsaved: window.inkwarp.store.unsaved, title: document.title }));
