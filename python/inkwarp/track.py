@@ -520,7 +520,8 @@ class _Tracker:
                     # matches this frame better.
                     for group in (np.unique(groups[turned]) if groups is not None else []):
                         mine = good & (groups == group)
-                        if not (_spans_area(start_points[mine]) and _affine_misfit(start_points[mine], estimate[mine]) <= 1.0):
+                        # (Not where it holds every good point: its plate is the drawing's.)
+                        if (mine == good).all() or not (_spans_area(start_points[mine]) and _affine_misfit(start_points[mine], estimate[mine]) <= 1.0):
                             continue
                         at = np.flatnonzero(groups[turned] == group)
                         # Warped only about the feature's turned points (as far as Lucas-Kanade looks).
