@@ -244,6 +244,26 @@ def test_a_frame_range_past_the_end_is_cut_to_it_with_a_warning(capsys, tmp_path
     assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == ["frame_0002.png", "frame_0003.png"]
     written = inkwarp.render(inkwarp.Scene.load(scene), tmp_path / "py/", frames=(2, 16), progress=False)
     assert [p.name for p in written] == ["frame_0002.png", "frame_0003.png"]
+    # A chunk wholly past the end renders nothing into a folder and succeeds (a farm's list
+    # of fixed-size chunks overshot: no failed job); a video of no frames stays refused.
+    for spec in ("4:8", "6:"):
+        code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "frames/", "--frames", spec, "--skip-existing")
+        assert code == 0 and stderr == (f"inkwarp render: warning: --frames {spec} starts past the scene's last frame (3): "
+                                        "no frame to render\n"), stderr
+    assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == ["frame_0002.png", "frame_0003.png"]
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "late.gif", "--frames", "4:8")
+    assert code == 2 and "is not a range of the scene, which has frames 0 to 3" in stderr, stderr
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "none/", "--frames", "8:4")
+    assert code == 2 and "is not a range of the scene" in stderr and not (tmp_path / "none").exists(), stderr
+
+
+def test_one_png_frame_with_ray_renders_here_with_a_note(capsys, tmp_path):
+    # A farm's job template may pass --ray to every render: one frame was refused (exit 2).
+    scene = write_scene(tmp_path / "s")
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "one.png", "--frame", "2", "--ray")
+    assert code == 0 and stderr == ("inkwarp render: note: --ray renders animations; one .png frame renders on this "
+                                    "machine\n"), stderr
+    assert (tmp_path / "one.png").exists()
 
 
 def test_a_background_of_three_numbers_says_what_to_write(capsys, tmp_path):

@@ -156,7 +156,7 @@ def test_scene_new_warns_about_blend_modes_naming_the_layer(tmp_path):
         inkwarp.Scene.new(path)
 
 
-@pytest.mark.parametrize("case", ["cut short", "not-a-psd", "png-named-psd", "cmyk", "svg-without-paths", "bad-suffix", "too large", "far too large"])
+@pytest.mark.parametrize("case", ["cut short", "empty", "not-a-psd", "png-named-psd", "cmyk", "svg-without-paths", "bad-suffix", "too large", "far too large"])
 def test_bad_pictures_and_drawings_get_one_clear_error_and_leave_nothing(capsys, tmp_path, case):
     picture = tmp_path / "in.psd"
     args = []
@@ -164,6 +164,9 @@ def test_bad_pictures_and_drawings_get_one_clear_error_and_leave_nothing(capsys,
         data = write_psd(picture).read_bytes()
         picture.write_bytes(data[: len(data) // 3])
         expect = f"in.psd: the file is cut short ({len(data) // 3:,} bytes, where its layers need"
+    elif case == "empty":  # a save that failed: said so, not "not a PSD file"
+        picture.write_bytes(b"")
+        expect = "in.psd: the file is empty (0 bytes: a save, copy or download that did not finish?); save or copy it again"
     elif case == "not-a-psd":
         # (psd-tools' own words, "24864 is not a valid ColorMode", meant nothing to a user.)
         picture.write_text("notes, saved under the wrong name\n")
@@ -641,6 +644,8 @@ def test_layer_names_that_share_a_file_name_or_are_long_each_get_an_image(capsys
     assert all(len(image) <= 80 for image in images)
     # An accented letter keeps its base letter, and a few others are spelled out.
     assert images[-3:] == ["n-Ebauche-1.png", "n-OEil.png", "n-Strasse.png"]
+    # A name's next file is numbered by a count of its own, not by the layer's place.
+    assert images[:5] == ["n-a-b.png", "n-a-b-2.png", "n-a-b-3.png", "n-arm.png", "n-Arm-2.png"]
     for i, image in enumerate(images):  # each layer's own pixels under its own file
         pixels = np.asarray(Image.open(out / image))
         assert pixels[i, i, 3] == 255 and pixels[i, i, 0] == 10 + 20 * i
@@ -664,8 +669,39 @@ def test_new_refuses_to_replace_an_existing_scene_unless_forced(capsys, tmp_path
     assert code == 2 and "character-square.png" in err and "already exist;" in err and str(tmp_path) not in err, err
 
 
+def test_a_forced_new_scene_names_the_images_of_the_one_it_replaced_that_it_leaves(capsys, tmp_path):
+    # `new --force` over a scene of another picture left that scene's layer images beside
+    # the new one without a word.
+    psd = write_psd(tmp_path / "character.psd")
+    code, _, err = run(capsys, "new", psd, "-o", tmp_path / "s.json", "-q")
+    assert code == 0, err
+    flat = tmp_path / "flat.png"
+    Image.new("RGBA", (W, H), (9, 9, 9, 255)).save(flat)
+    code, _, err = run(capsys, "new", flat, "-o", tmp_path / "s.json", "--force")
+    assert code == 0, err
+    assert ("s.json: the scene it replaced used s-backdrop.png, s-ghost.png, s-square.png, which the new one "
+            "does not; left in place (delete them if nothing else uses them)") in err, err
+    assert files(tmp_path) == ["character.psd", "flat.png", "s-backdrop.png", "s-ghost.png", "s-square.png", "s.json"]
+    # Replaced by a scene that writes the same images again: nothing to say.
+    code, _, err = run(capsys, "new", psd, "-o", tmp_path / "s.json", "--force")
+    code, _, err = run(capsys, "new", psd, "-o", tmp_path / "s.json", "--force")
+    assert code == 0 and "replaced" not in err, err
+
+
+def test_a_photoshop_document_under_another_name_is_read_as_one(capsys, tmp_path):
+    # The kind is read from the contents (as a WebP named .jpg is converted): it was refused
+    # with "inkwarp reads PNG, JPEG and WebP", though inkwarp reads PSD files.
+    psd = write_psd(tmp_path / "character.psd")
+    named = tmp_path / "character.png"
+    named.write_bytes(psd.read_bytes())
+    code, _, err = run(capsys, "new", named, "-o", tmp_path / "c.json", "-q")
+    assert code == 0, err
+    assert inkwarp.Scene.load(tmp_path / "c.json").layers == inkwarp.Scene.new(psd).layers
+
+
 @pytest.mark.parametrize("option,value,message", [
-    ("--fps", "inf", "--fps inf: give a number of frames per second from 0.001 to 1000"),
+    ("--fps", "inf", "--fps inf: numbers must be finite, found inf"),
+    ("--fps", "0", "--fps 0: frames per second must be a number from 0.001 (one frame every 1000 s) to 1000, found 0.0"),
     ("--fps", "5000", "--fps 5000: frames per second must be a number from 0.001 (one frame every 1000 s) to 1000, found 5000.0"),
     ("--fps", "1e-9", "--fps 1e-09: frames per second must be a number from 0.001 (one frame every 1000 s) to 1000"),
     ("--duration", "inf", "--duration inf: give a length in seconds > 0"),

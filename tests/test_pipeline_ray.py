@@ -42,6 +42,10 @@ def test_an_address_nobody_answers_at_is_a_clear_error(capsys, tmp_path):
     assert code == 2 and f"--ray 127.0.0.1:{port}: no Ray cluster answers there" in err
     assert "Traceback" not in err and not (tmp_path / "a.gif").exists()
     assert leftovers(tmp_path) == []
+    # In Python the message names the argument, not the command line's option.
+    with pytest.raises(ValueError, match=rf"^ray='127\.0\.0\.1:{port}': no Ray cluster answers there"):
+        inkwarp.render(inkwarp.Scene.load(scene), tmp_path / "a.gif", ray=f"127.0.0.1:{port}", progress=False)
+    assert not (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []
 
 
 def test_an_address_where_something_else_answers_is_a_clear_error(capsys, tmp_path):
@@ -290,3 +294,35 @@ def test_sigterm_mid_render_on_ray_ends_it_as_it_ends_a_local_render(tmp_path):
     _, stderr = process.communicate(timeout=120)
     assert process.returncode == 143 and stderr.strip().endswith("inkwarp render: terminated"), stderr
     assert sorted(os.listdir(tmp_path)) == ["s"]
+
+
+def test_a_local_start_interrupted_stops_what_it_had_started(monkeypatch):
+    # Ctrl-C while Ray was starting a local cluster (before it knew its processes) left its
+    # dashboard and runtime-env agents running for a minute after inkwarp had exited.
+    import subprocess
+    import time
+
+    from inkwarp import rendering
+
+    started = []
+
+    def interrupted_init(**_):
+        # A process of the cluster with one of its own, as the raylet starts its agents.
+        started.append(subprocess.Popen(["sh", "-c", "sleep 60 & wait"]))
+        time.sleep(0.3)
+        started.extend(rendering._descendants() - {started[0].pid})
+        raise KeyboardInterrupt
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    monkeypatch.setattr(rendering, "_left_by_ray_start", lambda: None)
+    monkeypatch.setattr(ray, "init", interrupted_init)
+    assert not ray.is_initialized()
+    with pytest.raises(KeyboardInterrupt):
+        rendering._ray_join(ray, True, True, False)
+    shell, *below = started
+    assert shell.wait(timeout=10) is not None and below  # stopped, not left to run its minute
+    for _ in range(100):  # (the shell's own child, reaped by init)
+        if not any(Path(f"/proc/{pid}").exists() for pid in below):
+            break
+        time.sleep(0.05)
+    assert not any(Path(f"/proc/{pid}").exists() for pid in below)

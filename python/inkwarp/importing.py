@@ -97,14 +97,19 @@ def read_picture(path: str | os.PathLike[str]) -> Picture:
     if source.is_dir():
         raise IsADirectoryError(21, "is a directory, not a picture", str(source))
     suffix = source.suffix.lower()
-    if suffix == ".psd":
+    with open(source, "rb") as file:
+        start = file.read(64)
+    if not start:
+        raise ValueError(f"{source}: the file is empty (0 bytes: a save, copy or download that did not "
+                         "finish?); save or copy it again")
+    # By its contents, as a flat picture is: a Photoshop document under another name is one.
+    if suffix == ".psd" or start.startswith(b"8BPS"):
         return _read_psd(source)
     if suffix in FLAT_SUFFIXES:
         return _read_flat(source)
     from inkwarp.scene import _video_kind
 
-    with open(source, "rb") as file:
-        video = _video_kind(file.read(64))
+    video = _video_kind(start)
     if video:
         raise ValueError(f"{source}: {'an' if video in ('MP4', 'AVI') else 'a'} {video} video, not a picture; "
                          f"take the frame to trace from it (inkwarp frame {source} --frame 0 -o frame.png) and "
@@ -519,7 +524,7 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
                 # Different names can share a slug ("a b", "a-b"); a case-insensitive
                 # file system also takes "Arm" for "arm".
                 file_name = f"{target.stem}-{_slug(name)}.png"
-                suffix = index
+                suffix = 2  # the second of a name is -2, the third -3
                 while file_name.casefold() in used:
                     file_name = f"{target.stem}-{_slug(name)}-{suffix}.png"
                     suffix += 1
@@ -534,8 +539,26 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
         verb = "exists" if len(existing) == 1 else "exist"
         raise ValueError(f"{names}: already {verb}; choose another scene name, or replace "
                          f"{'it' if len(existing) == 1 else 'them'} with --force (in Python, force=True)")
+    left = _left_behind(target, data) if force else []
     _write_all(files)
+    if left:
+        it = "it" if len(left) == 1 else "them"
+        notes.append(f"{target}: the scene it replaced used {', '.join(left)}, which the new one does not; "
+                     f"left in place (delete {it} if nothing else uses {it})")
     return [path for path, _ in files], notes
+
+
+def _left_behind(target: Path, data: dict[str, Any]) -> list[str]:
+    """The layer images beside ``target`` that the scene there now refers to and ``data``
+    (the scene replacing it) does not: a forced ``new`` leaves them, and says so."""
+    try:
+        old = json.loads(target.read_text(encoding="utf-8"))
+        given = [layer.get("image") for layer in old.get("layers", []) if isinstance(layer, dict)]
+    except (OSError, ValueError, AttributeError):
+        return []
+    kept = {layer["image"] for layer in data["layers"]}
+    return sorted({image for image in given if isinstance(image, str) and image not in kept
+                   and not image.startswith("data:") and (target.parent / image).is_file()})
 
 
 def _write_all(files: list[tuple[Path, bytes]]) -> None:

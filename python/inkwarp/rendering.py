@@ -21,11 +21,13 @@ from __future__ import annotations
 
 import base64
 import contextlib
+import contextvars
 import errno
 import math
 import mimetypes
 import os
 import re
+import signal
 import sys
 import warnings
 from collections.abc import Iterator
@@ -416,13 +418,29 @@ RAY_AHEAD_FRAMES = 32
 RAY_RESTARTS = 2
 
 
+#: How messages name the Ray option: the Python argument (``ray=``), or ``--ray`` while the
+#: command line renders.
+RAY_OPTION: contextvars.ContextVar[str] = contextvars.ContextVar("ray_option", default="ray=")
+
+
+def _ray_said(address: str | bool | None = None) -> str:
+    """The Ray option as given (``--ray HOST:PORT``, ``ray='HOST:PORT'``); without an address,
+    the option alone, and ``True`` as the option that starts or finds a cluster."""
+    cli = RAY_OPTION.get() == "--ray"
+    if address is None:
+        return "--ray" if cli else "ray="
+    if address is True:
+        return "--ray without an address" if cli else "ray=True"
+    return f"--ray {address}" if cli else f"ray={address!r}"
+
+
 def _check_address(address: str, where: str | None = None, fix: str | None = None) -> None:
     """A quick connection test, so that an address nobody answers at fails in seconds
     with a clear message instead of Ray's long retries. Messages start with ``where`` (the
     option that gave the address) and say ``fix`` where nothing answers."""
     import socket
 
-    where = where or f"--ray {address}"
+    where = where or _ray_said(address)
 
     if address in ("auto", "local"):
         return
@@ -512,7 +530,7 @@ def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
     try:
         import ray
     except ImportError:
-        raise ValueError("--ray needs Ray: install it with 'pip install \"inkwarp[ray]\"'"
+        raise ValueError(f"{_ray_said()} needs Ray: install it with 'pip install \"inkwarp[ray]\"'"
                          ) from None
     local = address is True or address in (None, "", "local")
     if not local:
@@ -589,6 +607,24 @@ def _signals_raised() -> Iterator[None]:
         raise
 
 
+def _descendants() -> set[int]:
+    """The process ids of this process's children and theirs, from ``/proc`` (none where
+    there is no ``/proc``)."""
+    children: dict[int, list[int]] = {}
+    with contextlib.suppress(OSError):
+        for entry in os.scandir("/proc"):
+            with contextlib.suppress(OSError, ValueError, IndexError):
+                with open(f"/proc/{entry.name}/stat", "rb") as stat:  # "pid (name) state ppid ..."
+                    children.setdefault(int(stat.read().rsplit(b")", 1)[1].split()[1]), []).append(int(entry.name))
+    found, todo = set(), [os.getpid()]
+    while todo:
+        for pid in children.get(todo.pop(), []):
+            if pid not in found:
+                found.add(pid)
+                todo.append(pid)
+    return found
+
+
 def _ray_join(ray: Any, address: str | bool | None, local: bool, chatter: bool) -> None:
     """``ray.init`` for :func:`_ray_init`."""
     if local:
@@ -598,7 +634,7 @@ def _ray_join(ray: Any, address: str | bool | None, local: bool, chatter: bool) 
         # passed over for one started here.
         target, named = None, os.environ.get("RAY_ADDRESS")
         if named:
-            _check_address(named, f"RAY_ADDRESS={named}, the cluster --ray without an address joins",
+            _check_address(named, f"RAY_ADDRESS={named}, the cluster {_ray_said(True)} joins",
                            "start it, or unset RAY_ADDRESS to start a local one")
         elif (left := _left_by_ray_start()) is not None:
             try:
@@ -606,11 +642,21 @@ def _ray_join(ray: Any, address: str | bool | None, local: bool, chatter: bool) 
             except ValueError:
                 target = "local"
         said: list[str] = []
+        before = _descendants()
         try:
             with _stderr_held() as said:
                 ray.init(address=target, include_dashboard=False, log_to_driver=False, configure_logging=False)
-        except BaseException:
-            sys.stderr.write("".join(said))  # Ray's own account of a local start that failed
+        except BaseException as err:
+            if isinstance(err, Exception):
+                sys.stderr.write("".join(said))  # Ray's own account of a local start that failed
+            # What had started of the cluster stops with it: interrupted before Ray knew its
+            # processes, its agents ran on for a minute after this process ended.
+            started = _descendants() - before
+            with contextlib.suppress(Exception):
+                ray.shutdown()
+            for pid in started:
+                with contextlib.suppress(OSError):
+                    os.kill(pid, signal.SIGTERM)
             raise
         if chatter:
             sys.stderr.write(said[0])
@@ -625,7 +671,7 @@ def _ray_join(ray: Any, address: str | bool | None, local: bool, chatter: bool) 
             # this process sends only under RAY_AUTH_MODE=token; Ray says so only in its log.
             token = not os.environ.get("RAY_AUTH_MODE") and (Path.home() / ".ray" / "auth_token").exists()
             hint = "; or, since this machine has a Ray token (~/.ray/auth_token), set RAY_AUTH_MODE=token" if token else ""
-            raise ValueError(f"--ray {address}: cannot join the Ray cluster there ({err}); "
+            raise ValueError(f"{_ray_said(address)}: cannot join the Ray cluster there ({err}); "
                              f"check the address 'ray status' prints on the head node{hint}") from None
 
 

@@ -101,7 +101,8 @@ def check_time(time_s: float, option: str = "--time") -> float:
 
 def warn_past_end(command: str, given: float, scene: Any, shows: str) -> None:
     """Warn on stderr when ``--time given`` is past the scene's end: what ``shows`` (such
-    as "the frame shows") is the poses held after the last keys."""
+    as "the frame shows") is the poses held after the last keys. (A time before 0 is said
+    nothing of: keys may lie there, and without them it is the first keys' drawing.)"""
     if given > scene.duration:
         print(f"inkwarp {command}: warning: --time {given:g} is past the scene's end ({scene.duration:g} s); "
               f"{shows} the poses held after the last keys", file=sys.stderr, flush=True)

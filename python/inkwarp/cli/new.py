@@ -57,8 +57,6 @@ def run(args: argparse.Namespace) -> int:
 
     from inkwarp.errors import SceneError
 
-    if not (math.isfinite(args.fps) and args.fps > 0):
-        raise ValueError(f"--fps {args.fps}: give a number of frames per second from 0.001 to 1000, such as 24")
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise ValueError(f"--duration {args.duration}: give a length in seconds > 0, such as 2")
     try:

@@ -167,7 +167,11 @@ def _run(args: argparse.Namespace) -> int:
         raise ValueError("--skip-existing works with a directory of PNG frames (-o DIR/), "
                          "whose frames are separate files")
     if args.ray is not None and kind == "png":
-        raise ValueError("--ray renders animations; a single .png frame renders here")
+        # (A farm's job template may pass --ray to every render.)
+        if not args.quiet:
+            print("inkwarp render: note: --ray renders animations; one .png frame renders on this machine",
+                  file=sys.stderr, flush=True)
+        args.ray = None
     background = outputs.parse_background(args.background) if args.background is not None else None
 
     scene = _common.load_scene(args.scene)
@@ -204,6 +208,11 @@ def _run(args: argparse.Namespace) -> int:
                   f"{time.perf_counter() - started:.2f} s")
         return 0
 
+    if kind == "dir" and args.frames is not None and _past_the_end(args.frames, scene.frame_count):
+        # A farm's chunks of a fixed size may run wholly past the end: nothing to do, and no failed job.
+        print(f"inkwarp render: warning: --frames {args.frames} starts past the scene's last frame "
+              f"({scene.frame_count - 1}): no frame to render", file=sys.stderr, flush=True)
+        return 0
     start, stop = (_common.parse_frames(args.frames, scene.frame_count, command="render")
                    if args.frames is not None else (0, scene.frame_count))
     if kind == "sheet":  # refused here in the command line's words, before rendering
@@ -211,9 +220,13 @@ def _run(args: argparse.Namespace) -> int:
         outputs.check_sheet_size(*outputs.sheet_layout(stop - start, layout, size=(scene.width, scene.height)),
                                  scene.width, scene.height, layout)
     # The output as given: a trailing / makes shot_v1.2/ a directory.
-    paths = rendering.render(scene, args.output, frames=(start, stop), method=args.method,
-                             sprite_sheet=args.sprite_sheet, skip_existing=args.skip_existing,
-                             ray=args.ray, progress=not args.quiet)
+    said = rendering.RAY_OPTION.set("--ray")  # (messages name the option as given here)
+    try:
+        paths = rendering.render(scene, args.output, frames=(start, stop), method=args.method,
+                                 sprite_sheet=args.sprite_sheet, skip_existing=args.skip_existing,
+                                 ray=args.ray, progress=not args.quiet)
+    finally:
+        rendering.RAY_OPTION.reset(said)
     count = stop - start
     if not args.quiet:
         seconds = time.perf_counter() - started
@@ -231,6 +244,16 @@ def _run(args: argparse.Namespace) -> int:
                   f"{start}:{stop}, {size}, {scene.fps:g} fps){where} in "
                   f"{seconds:.2f} s ({count / max(seconds, 1e-9):.1f} frames/s)")
     return 0
+
+
+def _past_the_end(spec: str, frame_count: int) -> bool:
+    """Whether ``--frames A:B`` is a range (A < B) that starts at or past ``frame_count``."""
+    first, _, last = spec.strip().partition(":")
+    try:
+        start, stop = int(first), (int(last) if last.strip() else None)
+    except ValueError:
+        return False
+    return start >= frame_count and (stop is None or stop > start)
 
 
 def _torn_layers(scene) -> list[str]:
