@@ -93,6 +93,15 @@ REGAIN_PX = 10.0
 #: that disagree with it: small, so that it sees the point's own side of an object's edge.
 ODD_WINDOW_PX = 7
 
+#: A lost point is found again only where its window differs from the anchor's by at most
+#: this much of the anchor window's contrast (mean absolute differences).
+REGAIN_MATCH = 0.5
+
+#: A curve's points that move from one frame to the next farther than this from their
+#: feature's affine move are not trusted (a stretch jumped a period of a repeating texture);
+#: within it, a fast blink or a bending curve.
+JUMP_PX = 5.0
+
 #: The largest correction of the thin plate's placement of an untrusted point that the
 #: dense flow from the warped anchor picture may make (pixels).
 RESIDUAL_PX = 2.0
@@ -474,6 +483,10 @@ class _Tracker:
         template = self.frames[anchor]
         eig0 = _bilinear(self.min_eig(anchor)[..., None], start_points)[:, 0]
         textured_at_anchor = eig0 > TRUST_MIN_EIG
+        # Each point's window's contrast at the anchor: its mean distance from its mean.
+        contrast = np.array([float(np.abs(win - win.mean()).mean()) for win in (
+            self.cv2.getRectSubPix(template, (LK_WINDOW_PX, LK_WINDOW_PX), tuple(map(float, p)), patchType=self.cv2.CV_32F)
+            for p in start_points)])
         # Points whose window reached past the picture's edge where traced (see `whole` below).
         near_edge = _off_picture(start_points, w, h, -LK_WINDOW_PX / 2)
         current = start_points.copy()
@@ -576,7 +589,10 @@ class _Tracker:
                 own = self._mismatch(template, start_points[at], b, best[at], ODD_WINDOW_PX)
                 moved_with = self._mismatch(template, start_points[at], b, current[at] + vouched[at], ODD_WINDOW_PX)
                 odd[at[own <= moved_with]] = False
-            trusted &= ~odd
+            # A stretch of a curve that jumped, as one, a period of a repeating texture off (every
+            # check passes there, the anchor's too) is no odd one to its neighbours: its feature's
+            # move as a whole says so.
+            trusted &= ~odd & ~_off_its_feature(groups, trusted, current, best - current, JUMP_PX)
             untrusted = ~trusted
             if untrusted.any() and trusted.sum() >= 3:
                 fill = _thin_plate_fill(start_points, best, trusted, untrusted)
@@ -625,6 +641,14 @@ class _Tracker:
                 theirs = np.where(take, checked[neighbours[odd]], 0.0).max(axis=1)
                 checked[odd] = np.maximum(vouch_error[odd], theirs)
             confirmed = (textured_now | odd) & inside & (checked <= lost_px) & (~lost | again | odd)
+            # Found again only where it looks as it did: a window of another texture (the
+            # background where an object left, a stripe a period off) passes Lucas-Kanade's
+            # checks, about as unlike the anchor's as two textures are (1.2-1.5 times its
+            # contrast; a window found again, a tenth of it).
+            back = np.flatnonzero(confirmed & lost)
+            if len(back):
+                unlike = self._mismatch(template, start_points[back], b, best[back]) > REGAIN_MATCH * contrast[back]
+                confirmed[back[unlike]] = False
             lost = textured_at_anchor & ~confirmed
             last_seen[confirmed] = best[confirmed]
             # Any point placed more than `lost_px` off the picture is lost too: nothing there
@@ -706,6 +730,31 @@ def _odd_ones(motion: np.ndarray, neighbours: np.ndarray | None, trusted: np.nda
     spread = np.where(take, np.linalg.norm(around - vouched[:, None], axis=2), 0.0).max(axis=1)
     odd = (count >= 2) & (spread <= lost_px / 2) & (np.linalg.norm(motion - vouched, axis=1) > lost_px)
     return odd, vouched
+
+
+def _off_its_feature(groups: np.ndarray | None, trusted: np.ndarray, at: np.ndarray, motion: np.ndarray,
+                     limit: float) -> np.ndarray:
+    """The trusted points whose ``motion`` from ``at`` lies more than ``limit`` from their
+    feature's, where the rest of it moves as one piece: the affine map fitted to the moves of
+    its trusted points (four at least) within ``limit`` of their median move, and then within
+    ``limit`` of that map, leaves those within a pixel (not a lid that closes, which bends)."""
+    off = np.zeros(len(motion), bool)
+    for group in (np.unique(groups[trusted]) if groups is not None else []):
+        mine = np.flatnonzero(trusted & (groups == group))
+        if len(mine) < 4:
+            continue
+        a, move = np.column_stack([at[mine], np.ones(len(mine))]), motion[mine]
+        near = np.linalg.norm(move - np.median(move, axis=0), axis=1) <= limit
+        for _ in range(2):
+            if near.sum() < 4:
+                break
+            fit, *_ = np.linalg.lstsq(a[near], move[near], rcond=None)
+            left = np.linalg.norm(a @ fit - move, axis=1)
+            near = left <= limit
+        else:
+            if near.any() and left[near].max() <= 1.0:
+                off[mine[~near]] = True
+    return off
 
 
 def _thin_plate_fill(rest: np.ndarray, now: np.ndarray, trusted: np.ndarray,
