@@ -94,7 +94,7 @@ def test_a_flat_picture_is_one_layer_used_where_it_is(capsys, tmp_path):
     assert code == 0, err
     assert files(tmp_path / "scenes") == ["p.json"]
     doc = json.loads((tmp_path / "scenes" / "p.json").read_text())
-    assert doc["layers"] == [{"name": "photo", "image": "../photo.png"}]
+    assert doc["layers"] == [{"name": "photo", "image": "../photo.png", "border": "hold"}]
     frame = inkwarp.Scene.load(tmp_path / "scenes" / "p.json").render()
     assert (frame[..., :3] == art).all() and (frame[..., 3] == 255).all()
     # WebP, which scenes do not read, is converted to a PNG beside the scene.

@@ -29,7 +29,11 @@ def quiet_local_render(scene: Path, out: Path) -> int:
     """`inkwarp render SCENE -o OUT --frames 0:2 --ray -q` on a cluster it starts; its exit status."""
     assert not ray.is_initialized()
     try:
-        return main(["render", str(scene), "-o", str(out), "--frames", "0:2", "--ray", "-q"])
+        code = main(["render", str(scene), "-o", str(out), "--frames", "0:2", "--ray", "-q"])
+        # Left before the command returns, not at the interpreter's exit (where a Ctrl-C in
+        # Ray's own shutdown printed a traceback and left the local cluster's agents running).
+        assert not ray.is_initialized()
+        return code
     finally:
         ray.shutdown()
 

@@ -432,12 +432,13 @@ def scene_dict(picture: Picture, images: list[str], *, fps: float = 24.0,
     """The scene of a picture whose layers' images are at ``images`` (paths or data URIs).
 
     The background is transparent (alpha 0), so frame 0 of the scene is the picture's
-    composite, transparency included.
+    composite, transparency included. Every layer holds its border, as a picture opened in
+    the editor does: a drawing pulled near the edge does not drag the frame's edge along.
     """
     names = _unique_names([layer.name for layer in picture.layers])
     layers: list[dict[str, Any]] = []
     for name, layer, image in zip(names, picture.layers, images):
-        entry: dict[str, Any] = {"name": name, "image": image}
+        entry: dict[str, Any] = {"name": name, "image": image, "border": "hold"}
         if not layer.visible:
             entry["visible"] = False
         layers.append(entry)

@@ -522,6 +522,9 @@ export function downloadOrigin(fileName = 'scene.json'): Origin {
   return { fileName, saveUrl: null, path: null, version: null };
 }
 
+/** How many changes Undo goes back per scene (besides each scene an Open replaced, all kept). */
+export const UNDO_STEPS = 500;
+
 interface Step {
   doc: SceneDoc;
   origin: Origin;
@@ -629,8 +632,14 @@ export class Store {
   }
 
   private pushUndo(doc: SceneDoc, base = this.revision): void {
-    this.undoStack.push({ doc, origin: this.origin, revision: base });
-    if (this.undoStack.length > 500) this.undoStack.shift();
+    const steps = this.undoStack;
+    steps.push({ doc, origin: this.origin, revision: base });
+    if (steps.length > UNDO_STEPS) {
+      // The oldest step but the last of its scene: that one is the scene an Open replaced,
+      // which may be work in no file (dropped, Undo no longer reached it, without a word).
+      const k = steps.findIndex((step, i) => i + 1 < steps.length && steps[i + 1].origin === step.origin);
+      if (k >= 0) steps.splice(k, 1);
+    }
     this.redoStack = [];
   }
 

@@ -1,6 +1,7 @@
 import { describe, expect, it } from 'vitest';
 import { emptyScene, frameRuns, pointsAt, parseScene, serializeScene, type Pt, type SceneDoc } from '../src/scene';
 import {
+  UNDO_STEPS,
   Store,
   addFeature,
   addKeyHere,
@@ -304,6 +305,28 @@ describe('undo', () => {
     expect(s.origin).toBe(file);
     expect(s.doc.features).toHaveLength(2);
     expect(s.unsaved).toBe(true);
+  });
+
+  it('past UNDO_STEPS changes Undo still reaches the scene an Open replaced', () => {
+    // The oldest steps were dropped whatever they were: 500 clicks after opening a picture
+    // over unsaved work, that work was out of Undo's reach and in no file.
+    const s = new Store(scene());
+    s.setView({ tool: 'point' });
+    s.placePoint([1, 1]);
+    const work = s.doc;
+    s.load(scene(), downloadOrigin('face.json'));
+    s.setView({ tool: 'point' });
+    for (let i = 0; i < UNDO_STEPS + 5; i++) s.placePoint([2 + (i % 40), 2 + Math.floor(i / 40)]);
+    let undos = 0;
+    while (s.canUndo()) {
+      s.undo();
+      undos++;
+    }
+    expect(s.doc).toBe(work);
+    expect(s.unsaved).toBe(true);
+    // The picture's newest changes and its opening, UNDO_STEPS steps in all; the work's own
+    // first step (the empty scene) was the oldest, and went.
+    expect(undos).toBe(UNDO_STEPS);
   });
 
   it('markSaved marks the revision that was written, not edits made while it was written', () => {

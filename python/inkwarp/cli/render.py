@@ -225,6 +225,10 @@ def _run(args: argparse.Namespace) -> int:
         paths = rendering.render(scene, args.output, frames=(start, stop), method=args.method,
                                  sprite_sheet=args.sprite_sheet, skip_existing=args.skip_existing,
                                  ray=args.ray, progress=not args.quiet)
+    except BaseException:
+        if args.ray is not None:
+            rendering.ray_shutdown()
+        raise
     finally:
         rendering.RAY_OPTION.reset(said)
     count = stop - start
@@ -243,6 +247,8 @@ def _run(args: argparse.Namespace) -> int:
             print(f"wrote {target}{also} ({count} frame{'s' if count != 1 else ''} "
                   f"{start}:{stop}, {size}, {scene.fps:g} fps){where} in "
                   f"{seconds:.2f} s ({count / max(seconds, 1e-9):.1f} frames/s)")
+    if args.ray is not None:
+        rendering.ray_shutdown()
     return 0
 
 
