@@ -447,6 +447,22 @@ def test_saves_are_validated_size_limited_and_keep_the_mode(served, scene: Path)
     assert [p.name for p in scene.parent.iterdir() if p.name.startswith(".")] == []
 
 
+def test_a_save_into_a_folder_that_is_gone_says_so(served, scene: Path) -> None:
+    # Moved or deleted while the editor was open: the message named a missing picture.
+    api = api_url(served)
+    doc = json.loads(fetch(api)[2])
+    moved = scene.parent.with_name(scene.parent.name + "-moved")
+    scene.parent.rename(moved)
+    try:
+        status, _, body = fetch(api, "PUT", json.dumps({**doc, "fps": 12}).encode())
+        assert status == 422 and body.decode().startswith(f"The scene's folder {scene.parent} is gone (moved, renamed or "
+                                                          "deleted), so scene.json cannot be saved there"), body
+        assert b"does not exist" not in body and not scene.parent.exists()
+    finally:
+        moved.rename(scene.parent)
+    assert fetch(api, "PUT", json.dumps({**doc, "fps": 12}).encode())[0] == 200
+
+
 def test_a_read_only_scene_file_is_not_replaced(served, scene: Path) -> None:
     # A rename replaces a file whatever its mode: a file locked against writing (even for a
     # user the system lets write anything) is left alone, with a message saying why.

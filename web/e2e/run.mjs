@@ -1163,8 +1163,12 @@ test('a reload restores the work; leaving asks first; opening over unsaved work 
     p.declineDialogs = false;
     await p.evaluate(() => window.inkwarp.ui.openExample('builtin'));
     assert((await p.evaluate(() => window.inkwarp.store.doc.features.length)) === 5, 'accepted: the example opened');
+    const opened = await p.$eval('#message', (m) => (!m.hidden && m.classList.contains('info') ? m.textContent : null));
     await p.keyboard.press('Control+z');
     await idle(p);
+    // The note about the scene just opened goes with it (it said "Opened ..." over the work brought back).
+    const left = await p.$eval('#message', (m) => (m.hidden ? null : m.textContent));
+    assert(opened !== null && left !== opened, `the opening's note left with it: ${JSON.stringify([opened, left])}`);
     assert((await p.evaluate(() => JSON.stringify(window.inkwarp.store.doc.features))) === before, 'Undo brought the work back after opening');
     // A saved scene is not offered again.
     await p.evaluate(() => window.inkwarp.store.markSaved());

@@ -294,8 +294,8 @@ export class Ui {
         h('label', { title: 'Snap control points to pixel centres' }, (this.els.snap = h('input#snap', { type: 'checkbox', onchange: (e: Event) => this.store.setView({ snap: (e.target as HTMLInputElement).checked }) })), 'Snap'),
       ),
       h('div.group', {},
-        (this.els.undo = h('button#undo', { title: 'Undo (Ctrl+Z)', onclick: () => this.store.undo() }, '↶ Undo')),
-        (this.els.redo = h('button#redo', { title: 'Redo (Ctrl+Shift+Z)', onclick: () => this.store.redo() }, '↷ Redo')),
+        (this.els.undo = h('button#undo', { title: 'Undo (Ctrl+Z)', onclick: () => this.history('undo') }, '↶ Undo')),
+        (this.els.redo = h('button#redo', { title: 'Redo (Ctrl+Shift+Z)', onclick: () => this.history('redo') }, '↷ Redo')),
         h('button#help-button', { title: 'Keyboard shortcuts (?)', onclick: () => this.toggleHelp() }, '?'),
       ),
       h('div.group.zoom', {},
@@ -1471,6 +1471,13 @@ export class Ui {
     this.messageTimer = null;
   }
 
+  /** Undo or Redo; a note about the scene it leaves ("Opened face.png ...") goes with it. */
+  private history(step: 'undo' | 'redo'): void {
+    const origin = this.store.origin;
+    this.store[step]();
+    if (this.store.origin !== origin && this.els.message.classList.contains('info')) this.els.message.hidden = true;
+  }
+
   message(text: string, kind: 'error' | 'info' = 'info'): void {
     const m = this.els.message;
     m.textContent = text;
@@ -1501,11 +1508,10 @@ export class Ui {
       // A drag is one step: undone once it ends (undoing in the middle made the rest of it
       // a step per move).
       if (this.store.inGesture) return this.message('Undo and redo wait for the drag to end.', 'info');
-      if (k === 'y') return this.store.redo();
+      if (k === 'y') return this.history('redo');
       // While drawing, the last click goes (the feature before it stays).
       if (!e.shiftKey && this.store.view.draft.length) return this.store.setView({ draft: this.store.view.draft.slice(0, -1) });
-      if (e.shiftKey) this.store.redo();
-      else this.store.undo();
+      this.history(e.shiftKey ? 'redo' : 'undo');
       return;
     }
     // (Ctrl+Shift with these letters stays the browser's: bookmarks, the inspector.)

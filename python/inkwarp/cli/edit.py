@@ -275,6 +275,10 @@ class SceneFile:
             raise ValueError(f"The saved scene is not JSON text ({err}).") from None
         if not isinstance(doc, dict):
             raise ValueError("A scene is a JSON object.")
+        if not self.folder.is_dir():
+            # (Not "the image 'face.png' does not exist" of every picture beside it.)
+            raise ValueError(f"The scene's folder {self.folder} is gone (moved, renamed or deleted), so "
+                             f"{self.path.name} cannot be saved there; put the folder back, or download the scene.")
         planned = self._kept_copies(doc, kept or [])
         copies = {(i, key) for i, key, *_ in planned}
         layers = doc.get("layers", [])
