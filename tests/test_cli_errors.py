@@ -378,6 +378,31 @@ class _Breaks:
             yield frame
 
 
+@pytest.mark.parametrize("skip", [False, True])
+def test_an_interrupt_while_a_frame_is_written_ends_with_the_word(capsys, tmp_path, monkeypatch, skip):
+    # The progress display of frames cut short was closed by the garbage collector, after
+    # the command had said "interrupted": its last line came after that word.
+    from inkwarp import rendering, video
+
+    scene = write_scene(tmp_path / "s")
+    calls = []
+
+    def third_interrupted(write):
+        def counted(*args):
+            calls.append(1)
+            if len(calls) == 3:
+                raise KeyboardInterrupt
+            return write(*args)
+        return counted
+
+    if skip:  # (frames written one by one: `_write_new_frame`)
+        monkeypatch.setattr(rendering, "_write_new_frame", third_interrupted(rendering._write_new_frame))
+    else:
+        monkeypatch.setattr(video.PngSequenceWriter, "write", third_interrupted(video.PngSequenceWriter.write))
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "frames/", *(["--skip-existing"] if skip else []))
+    assert code == 130 and stderr.endswith("inkwarp render: interrupted\n") and "(2/" in stderr, stderr
+
+
 @pytest.mark.parametrize("output", ["anim.gif", "anim.mp4", "frames", "frames/"])
 @pytest.mark.parametrize("error, code", [(RuntimeError("boom"), 1), (KeyboardInterrupt(), 130),
                                          (ValueError("the solve failed"), 2),

@@ -324,7 +324,7 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
                                                                        method=method)),
                                            count, quiet=not progress,
                                            desc=f"render {target.name or target}"))
-    with writer:
+    with writer, contextlib.closing(source):  # (closed first: see _render_missing)
         for frame in source:
             writer.write(frame)
         if writer.frames_written != count:
@@ -393,10 +393,13 @@ def _render_missing(scene: Any, target: Path, start: int, stop: int, *, method: 
             finally:
                 source.close()
 
-    for index, frame in _common.progress(frames(), len(missing), quiet=not progress,
-                                         desc=f"render {target.name}"):
-        if frame is not None and _write_new_frame(names[index], frame):
-            written.append(names[index])
+    # Closed as the loop ends, however: a progress display left to the garbage collector
+    # printed its last line after the command's "interrupted".
+    with contextlib.closing(_common.progress(frames(), len(missing), quiet=not progress,
+                                             desc=f"render {target.name}")) as shown:
+        for index, frame in shown:
+            if frame is not None and _write_new_frame(names[index], frame):
+                written.append(names[index])
     return written
 
 
