@@ -253,6 +253,8 @@ def test_a_frame_range_past_the_end_is_cut_to_it_with_a_warning(capsys, tmp_path
     assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == ["frame_0002.png", "frame_0003.png"]
     code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "late.gif", "--frames", "4:8")
     assert code == 2 and "is not a range of the scene, which has frames 0 to 3" in stderr, stderr
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "frames/", "--frames", "50")  # no range at all
+    assert code == 2 and "write a range A:B" in stderr, stderr
     code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "none/", "--frames", "8:4")
     assert code == 2 and "is not a range of the scene" in stderr and not (tmp_path / "none").exists(), stderr
 

@@ -448,10 +448,10 @@ def test_validate_notes_features_that_clash_on_the_coarse_grid_of_its_grid_step(
     doc["solver"]["grid_step"] = 1
     assert inkwarp_scene(doc, face).notes() == []
 
-    def clashes(features, width=100, step=8):
+    def clashes(features, width=100, step=8, border="free"):
         Image.new("RGBA", (width, 60), (200, 150, 120, 255)).save(tmp_path / "opaque.png")
         doc = {"inkwarp": 1, "fps": 4, "duration": 1, "solver": {"grid_step": step},
-               "layers": [{"name": "main", "image": "opaque.png"}], "features": features}
+               "layers": [{"name": "main", "image": "opaque.png", "border": border}], "features": features}
         return [m for _, m in inkwarp_scene(doc, tmp_path).notes() if "move apart" in m]
 
     def line(name, x, dx):  # a vertical line at x, moved dx at the key
@@ -461,6 +461,10 @@ def test_validate_notes_features_that_clash_on_the_coarse_grid_of_its_grid_step(
     assert [m for m in clashes([line("a", 41, -3), line("b", 43.5, 3)]) if "'a' and 'b' lie within 8 px" in m]
     # ... and alike they do not (a feature traced twice).
     assert clashes([line("a", 41, 3), line("b", 43.5, 3)]) == []
+    # At the edge of a layer that holds its border, the border's own samples hold the coarse
+    # nodes (as the solver's do): both lines are let go there, the picture held, no tear.
+    assert [m for m in clashes([line("a", 1, -3), line("b", 3.5, 3)]) if "'a' and 'b' lie within 8 px" in m]
+    assert clashes([line("a", 1, -3), line("b", 3.5, 3)], border="hold") == []
     # In the last, shorter coarse cell the solver puts them on two nodes (97.5 rounds to the
     # last, at pixel 99): no clash, though both lie within one step.
     assert clashes([line("a", 94, -3), line("b", 97.5, 3)]) == []

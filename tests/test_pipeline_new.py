@@ -686,6 +686,13 @@ def test_a_forced_new_scene_names_the_images_of_the_one_it_replaced_that_it_leav
     code, _, err = run(capsys, "new", psd, "-o", tmp_path / "s.json", "--force")
     code, _, err = run(capsys, "new", psd, "-o", tmp_path / "s.json", "--force")
     assert code == 0 and "replaced" not in err, err
+    # The same picture spelled another way is the new scene's own; a scene that is no scene
+    # (what --force is for) is replaced with nothing to say.
+    for old in ({"layers": [{"name": "f", "image": "./flat.png"}, {"name": "g", "image": str(flat)}]},
+                {"layers": None}, [1, 2], "not json"):
+        (tmp_path / "t.json").write_text(old if isinstance(old, str) else json.dumps(old))
+        code, _, err = run(capsys, "new", flat, "-o", tmp_path / "t.json", "--force")
+        assert code == 0 and "replaced" not in err, (old, err)
 
 
 def test_a_photoshop_document_under_another_name_is_read_as_one(capsys, tmp_path):

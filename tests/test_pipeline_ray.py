@@ -300,6 +300,7 @@ def test_sigterm_mid_render_on_ray_ends_it_as_it_ends_a_local_render(tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["s"]
 
 
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="the processes are found through /proc (Linux)")
 def test_a_local_start_interrupted_stops_what_it_had_started(monkeypatch):
     # Ctrl-C while Ray was starting a local cluster (before it knew its processes) left its
     # dashboard and runtime-env agents running for a minute after inkwarp had exited.

@@ -554,12 +554,17 @@ def _left_behind(target: Path, data: dict[str, Any]) -> list[str]:
     (the scene replacing it) does not: a forced ``new`` leaves them, and says so."""
     try:
         old = json.loads(target.read_text(encoding="utf-8"))
-        given = [layer.get("image") for layer in old.get("layers", []) if isinstance(layer, dict)]
-    except (OSError, ValueError, AttributeError):
+        layers = old.get("layers") if isinstance(old, dict) else None
+        given = [layer.get("image") for layer in layers if isinstance(layer, dict)] if isinstance(layers, list) else []
+    except (OSError, ValueError):  # (an old scene that is no scene: nothing to name)
         return []
-    kept = {layer["image"] for layer in data["layers"]}
-    return sorted({image for image in given if isinstance(image, str) and image not in kept
-                   and not image.startswith("data:") and (target.parent / image).is_file()})
+
+    def file(image: str) -> Path:
+        return (target.parent / image).resolve()
+
+    kept = {file(layer["image"]) for layer in data["layers"] if not layer["image"].startswith("data:")}
+    return sorted({image for image in given if isinstance(image, str) and not image.startswith("data:")
+                   and "\0" not in image and file(image).is_file() and file(image) not in kept})
 
 
 def _write_all(files: list[tuple[Path, bytes]]) -> None:

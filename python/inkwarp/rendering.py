@@ -547,21 +547,21 @@ def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
 
 
 def ray_shutdown() -> None:
-    """Leaves the Ray cluster a render joined or started (stopping a local one), Ctrl-C and
-    SIGTERM held off meanwhile. Left to Ray's own shutdown at the interpreter's exit, a
-    Ctrl-C there printed a traceback and left the local cluster's processes running, and a
-    render interrupted at times ended in a segmentation fault (exit -11) after saying so."""
+    """Leaves the Ray cluster a render joined or started (stopping a local one), Ctrl-C held
+    off meanwhile (not SIGTERM: a farm cancelling a job whose cluster hangs is obeyed). Left
+    to Ray's own shutdown at the interpreter's exit, a Ctrl-C there printed a traceback and
+    left the local cluster's processes running."""
     ray = sys.modules.get("ray")
     if ray is None or not ray.is_initialized():
         return
-    held = {}
+    held = None
     with contextlib.suppress(ValueError):  # (signals are set from the main thread only)
-        held = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
+        held = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         ray.shutdown()
     finally:
-        for s, handler in held.items():
-            signal.signal(s, handler)
+        if held is not None:
+            signal.signal(signal.SIGINT, held)
 
 
 def _ray_notices_to_stderr() -> None:
@@ -630,7 +630,8 @@ def _signals_raised() -> Iterator[None]:
 
 def _descendants() -> set[int]:
     """The process ids of this process's children and theirs, from ``/proc`` (none where
-    there is no ``/proc``)."""
+    there is no ``/proc``, as on macOS: there an interrupted start leaves Ray's agents to
+    stop on their own, about a minute later)."""
     children: dict[int, list[int]] = {}
     with contextlib.suppress(OSError):
         for entry in os.scandir("/proc"):
@@ -673,11 +674,13 @@ def _ray_join(ray: Any, address: str | bool | None, local: bool, chatter: bool) 
             # What had started of the cluster stops with it: interrupted before Ray knew its
             # processes, its agents ran on for a minute after this process ended.
             started = _descendants() - before
-            with contextlib.suppress(Exception):
-                ray.shutdown()
-            for pid in started:
-                with contextlib.suppress(OSError):
-                    os.kill(pid, signal.SIGTERM)
+            try:
+                with contextlib.suppress(Exception):
+                    ray.shutdown()
+            finally:  # (a second Ctrl-C too)
+                for pid in started:
+                    with contextlib.suppress(OSError):
+                        os.kill(pid, signal.SIGTERM)
             raise
         if chatter:
             sys.stderr.write(said[0])

@@ -93,9 +93,10 @@ REGAIN_PX = 10.0
 #: that disagree with it: small, so that it sees the point's own side of an object's edge.
 ODD_WINDOW_PX = 7
 
-#: A lost point is found again only where its window differs from the anchor's by at most
-#: this much of the anchor window's contrast (mean absolute differences).
-REGAIN_MATCH = 0.5
+#: A lost point is found again only where its window correlates with the anchor's at least
+#: this much (two unrelated textures: at most 0.45; the same one 10° turned 0.7, 15° 0.47,
+#: 20 % larger 0.75, darker or lighter 1).
+REGAIN_LIKENESS = 0.5
 
 #: A curve's points that move from one frame to the next farther than this from their
 #: feature's affine move are not trusted (a stretch jumped a period of a repeating texture);
@@ -440,6 +441,17 @@ class _Tracker:
                                       - window(b, size, tuple(map(float, q)), patchType=self.cv2.CV_32F)).mean())
                          for p, q in zip(at_a, at_b)])
 
+    def _likeness(self, a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarray) -> np.ndarray:
+        """The correlation of the Lucas-Kanade windows of ``a`` at ``at_a`` and of ``b`` at
+        ``at_b`` (each less its mean: a change of brightness does not count), point by point."""
+        size, window = (LK_WINDOW_PX, LK_WINDOW_PX), self.cv2.getRectSubPix
+        out = []
+        for p, q in zip(at_a, at_b):
+            u, v = (window(x, size, tuple(map(float, r)), patchType=self.cv2.CV_32F) for x, r in ((a, p), (b, q)))
+            u, v = u - u.mean(), v - v.mean()
+            out.append(float((u * v).sum() / max(np.sqrt((u * u).sum() * (v * v).sum()), 1e-12)))
+        return np.array(out)
+
     def predicted(self, template: np.ndarray, rest: np.ndarray, now: np.ndarray,
                   good: np.ndarray, box: tuple[int, int, int, int] | None = None) -> tuple[np.ndarray, Any] | None:
         """The anchor frame warped by the thin plate taking ``rest[good]`` to ``now[good]``
@@ -483,10 +495,6 @@ class _Tracker:
         template = self.frames[anchor]
         eig0 = _bilinear(self.min_eig(anchor)[..., None], start_points)[:, 0]
         textured_at_anchor = eig0 > TRUST_MIN_EIG
-        # Each point's window's contrast at the anchor: its mean distance from its mean.
-        contrast = np.array([float(np.abs(win - win.mean()).mean()) for win in (
-            self.cv2.getRectSubPix(template, (LK_WINDOW_PX, LK_WINDOW_PX), tuple(map(float, p)), patchType=self.cv2.CV_32F)
-            for p in start_points)])
         # Points whose window reached past the picture's edge where traced (see `whole` below).
         near_edge = _off_picture(start_points, w, h, -LK_WINDOW_PX / 2)
         current = start_points.copy()
@@ -642,13 +650,11 @@ class _Tracker:
                 checked[odd] = np.maximum(vouch_error[odd], theirs)
             confirmed = (textured_now | odd) & inside & (checked <= lost_px) & (~lost | again | odd)
             # Found again only where it looks as it did: a window of another texture (the
-            # background where an object left, a stripe a period off) passes Lucas-Kanade's
-            # checks, about as unlike the anchor's as two textures are (1.2-1.5 times its
-            # contrast; a window found again, a tenth of it).
+            # background where an object left) passes Lucas-Kanade's checks, correlated with
+            # the anchor's as two textures are (below 0.45; the same window 10° turned, 0.7).
             back = np.flatnonzero(confirmed & lost)
             if len(back):
-                unlike = self._mismatch(template, start_points[back], b, best[back]) > REGAIN_MATCH * contrast[back]
-                confirmed[back[unlike]] = False
+                confirmed[back[self._likeness(template, start_points[back], b, best[back]) < REGAIN_LIKENESS]] = False
             lost = textured_at_anchor & ~confirmed
             last_seen[confirmed] = best[confirmed]
             # Any point placed more than `lost_px` off the picture is lost too: nothing there

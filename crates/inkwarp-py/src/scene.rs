@@ -84,11 +84,16 @@ fn clashes(scene: &Scene, layer: usize, coarse: &inkwarp_core::Grid, step: usize
     times.dedup();
     // The samples rest where they are at every time: each coarse node's, as the solver assigns them
     // ([`inkwarp_core::solve::coarse_nodes`]), as (feature in the list, sample, whether it holds the node).
+    // A held border's samples (the solver's, still) compete too, as feature `BORDER`: a node they hold lets every
+    // feature there go, by the layer's choice, with no tear between features.
+    const BORDER: usize = usize::MAX;
     let at_rest = scene.layer_feature_samples(layer, 0.0)?;
-    let on_grid: Vec<(usize, usize, inkwarp_core::Sample)> = at_rest.iter().enumerate().flat_map(|(j, f)| {
-        let placed = f.samples.iter().enumerate().filter(|(_, p)| inkwarp_core::grid::nearest_node(g, p.rest).is_some());
-        placed.map(move |(k, p)| (j, k, inkwarp_core::Sample { rest: inkwarp_core::solve::coarse_point(g.width, g.height, step, p.rest), ..*p }))
-    }).collect();
+    let border = if l.border == inkwarp_core::scene::Border::Hold { inkwarp_core::geometry::border_samples(g.width, g.height, step as f64) } else { Vec::new() };
+    let drawn = at_rest.iter().enumerate().flat_map(|(j, f)| f.samples.iter().enumerate().map(move |(k, p)| (j, k, p)));
+    let on_grid: Vec<(usize, usize, inkwarp_core::Sample)> = drawn.chain(border.iter().map(|p| (BORDER, 0, p)))
+        .filter(|(_, _, p)| inkwarp_core::grid::nearest_node(g, p.rest).is_some())
+        .map(|(j, k, p)| (j, k, inkwarp_core::Sample { rest: inkwarp_core::solve::coarse_point(g.width, g.height, step, p.rest), ..*p }))
+        .collect();
     let placed: Vec<inkwarp_core::Sample> = on_grid.iter().map(|e| e.2).collect();
     let mut nodes: std::collections::HashMap<usize, Vec<(usize, usize, bool)>> = Default::default();
     for (&(j, k, _), n) in on_grid.iter().zip(inkwarp_core::solve::coarse_nodes(coarse, &placed)) {
@@ -105,7 +110,8 @@ fn clashes(scene: &Scene, layer: usize, coarse: &inkwarp_core::Grid, step: usize
     // one part, averaged).
     let pairs_at: Vec<((usize, usize), (usize, usize))> = nodes.values().flat_map(|here| {
         let &(ja, ka, _) = here.iter().find(|e| e.2).expect("a node's holder");
-        here.iter().filter(move |&&(jb, kb, _)| apart((ja, ka), (jb, kb))).map(move |&(jb, kb, _)| ((ja, ka), (jb, kb)))
+        let drawn = here.iter().filter(move |&&(jb, _, _)| ja != BORDER && jb != BORDER);
+        drawn.filter(move |&&(jb, kb, _)| apart((ja, ka), (jb, kb))).map(move |&(jb, kb, _)| ((ja, ka), (jb, kb)))
     }).collect();
     if pairs_at.is_empty() { return Ok(Vec::new()) } // nothing to pose
     let mut pairs = std::collections::BTreeSet::new();

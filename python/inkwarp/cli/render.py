@@ -253,8 +253,11 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _past_the_end(spec: str, frame_count: int) -> bool:
-    """Whether ``--frames A:B`` is a range (A < B) that starts at or past ``frame_count``."""
-    first, _, last = spec.strip().partition(":")
+    """Whether ``--frames A:B`` is a range (A < B) that starts at or past ``frame_count``
+    (not ``A`` alone, which is no range: said so by :func:`_common.parse_frames`)."""
+    first, colon, last = spec.strip().partition(":")
+    if not colon:
+        return False
     try:
         start, stop = int(first), (int(last) if last.strip() else None)
     except ValueError:
