@@ -557,7 +557,8 @@ class Scene:
 
         The layers' images are held as ``data:`` URIs; :meth:`save` writes the scene as
         one file (``inkwarp new`` writes the images beside it instead). The background is
-        transparent. Notes about the picture (flattened groups, blend modes other than
+        transparent, and every layer holds its border (``"border": "hold"``, as a picture
+        opened in the editor does). Notes about the picture (flattened groups, blend modes other than
         Normal) are issued as :class:`inkwarp.InkwarpWarning`.
         """
         from inkwarp.importing import new_scene
