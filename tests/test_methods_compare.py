@@ -331,3 +331,19 @@ def test_compare_draws_the_top_layer_of_a_layered_scene():
     c = inkwarp.compare(cat, 0.95, "tps-exact")
     np.testing.assert_array_equal(c.fields["tps-exact"], cat.field(time=0.95, layer="face", method="tps-exact"))
     assert c.notes["tps-exact"][0].startswith('layer "face": tps-exact thinned')
+
+
+def test_compare_says_a_tps_solve_that_did_not_converge(tmp_path):
+    # `Scene.field` warned; `compare` returned the same unconverged field with no note.
+    path = checkerboard_scene(tmp_path, hole=True)
+    doc = json.loads(path.read_text())
+    doc["solver"]["max_cycles"] = 1
+    path.write_text(json.dumps(doc))
+    with pytest.warns(inkwarp.ConvergenceWarning, match=r"at t = 1 s \(frame 4\)") as caught:
+        compared = inkwarp.compare(path, 1.0, ["tps", "triangulation"])
+    assert all(w.filename == __file__ for w in caught), [w.filename for w in caught]  # the caller's line
+    stopped = [n for n in compared.notes["tps"] if "max_cycles" in n]
+    assert len(stopped) == 1 and compared.notes["triangulation"] == [n for n in compared.notes["triangulation"] if "max_cycles" not in n]
+    with pytest.warns(inkwarp.ConvergenceWarning):
+        field = inkwarp.Scene.load(path).field(time=1.0)
+    np.testing.assert_array_equal(compared.fields["tps"], field)

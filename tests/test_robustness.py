@@ -382,3 +382,22 @@ def test_the_engine_works_in_processes_forked_after_it_ran(tmp_path: Path) -> No
     done = subprocess.run([sys.executable, str(script), str(scene)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "forked: same" in done.stdout
+
+
+def test_wrong_argument_types_are_value_errors_naming_the_argument(tmp_path: Path) -> None:
+    # docs/reference/limits.md: a wrong argument is a ValueError naming it, never a bare
+    # TypeError or AttributeError from inside (pathlib's, the engine's, matplotlib's).
+    import inkwarp
+
+    scene = inkwarp.Scene.from_dict({"inkwarp": 1, "width": 8, "height": 8, "layers": [{"name": "main"}]})
+    for call, named in [(lambda: inkwarp.Scene.new(None), "picture"),
+                        (lambda: inkwarp.validate_scene(None), "source"),
+                        (lambda: inkwarp.Scene.from_json(None), "text"),
+                        (lambda: inkwarp.Scene.from_json("{}", base_dir=5), "base_dir"),
+                        (lambda: inkwarp.compare(scene, 0.0, 5), "methods"),
+                        (lambda: inkwarp.comparison_sheet(None), "comparison"),
+                        (lambda: inkwarp.transfer_dict(scene, scene, relative_to=5), "relative_to")]:
+        with pytest.raises(ValueError, match=rf"^{named}\b"):
+            call()
+    # A scene's JSON as bytes, as a file is read, is taken.
+    assert inkwarp.Scene.from_json(b'{"inkwarp": 1, "width": 8, "height": 8, "layers": [{"name": "m"}]}').width == 8

@@ -742,7 +742,9 @@ def test_python_api_names_its_own_arguments_in_errors(videos):
     scene = sv.scene(W, H, sv.drawing(W, H, seed=7))
     for kwargs, expect in [({"lost_px": 0.0}, r"lost_px 0.0: give a distance in pixels above 0"),
                            ({"simplify_px": -1.0}, r"simplify_px -1.0: give a distance in pixels, 0 or more"),
-                           ({"frame": 24}, r"^frame 24: .* has frames 0 to 23")]:
+                           ({"frame": 24}, r"^frame 24: .* has frames 0 to 23"),
+                           ({"progress": 5}, r"^progress must be a function of the number of steps"),
+                           ({"relative_to": 5}, r"^relative_to must be a path")]:
         with pytest.raises(ValueError, match=expect):
             inkwarp.track(path, scene, **kwargs)
 

@@ -13,6 +13,7 @@ import json
 import math
 import os
 import textwrap
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Sequence
 
@@ -47,7 +48,8 @@ class Comparison:
     drawing : list of numpy.ndarray
         The posed drawing at ``time`` as ``(K, 2)`` polylines, for overlays.
     notes : dict of str to list of str
-        Per method the remarks its solve made (an ignored matte, a thinning).
+        Per method the remarks its solve made (an ignored matte, a thinning, a solve that
+        did not converge).
     """
 
     time: float
@@ -63,6 +65,9 @@ def _methods(methods: Iterable[str] | str | None) -> list[str]:
         return list(METHODS)
     if isinstance(methods, str):
         methods = [m.strip() for m in methods.split(",") if m.strip()]
+    elif not isinstance(methods, Iterable):
+        raise ValueError(f"methods must be a list of method names or a comma-separated string, such as "
+                         f"'tps,triangulation'; got {type(methods).__name__} {methods!r:.40}")
     out = [check_method(m) for m in methods]
     if not out:
         raise ValueError("give at least one method to compare.")
@@ -106,7 +111,9 @@ def compare(
     Comparison
         Frames, fields, the posed drawing, and per method the notes of its interpolant
         (``"tps-exact ignores the continuity matte and cuts: ..."``, a thinning), each
-        prefixed with its layer's name when the scene has several layers.
+        prefixed with its layer's name when the scene has several layers. A ``tps`` solve
+        that stopped before it converged is noted there too, and said as an
+        :class:`inkwarp.ConvergenceWarning`, as :meth:`Scene.render` says it.
 
     Raises
     ------
@@ -132,16 +139,22 @@ def compare(
         scene = Scene.load(scene)
     elif not isinstance(scene, Scene):
         raise ValueError(f"the scene must be an inkwarp.Scene or the path of a scene file; got {type(scene).__name__}")
-    time = scene.duration if time is None else scene._time(time, None)  # NaN and past ±27 h refused by name
+    time = scene.duration if time is None else scene._time(time, None, frame_too=False)  # NaN and past ±27 h refused by name
     chosen = _methods(methods)
     index = _compared_layer(scene, layer)
     settings = _settings(scene, a=a, b=b, p=p, max_samples=max_samples)
     frames: dict[str, np.ndarray] = {}
     fields: dict[str, np.ndarray] = {}
     notes: dict[str, list[str]] = {}
+    from inkwarp.errors import ConvergenceWarning, caller_outside
+
     for method in chosen:
         overrides = json.dumps({"method": method, **settings})
-        frame, field, said = scene._core.render_detailed(float(time), index, overrides)
+        with warnings.catch_warnings(record=True) as stopped:
+            warnings.simplefilter("always", ConvergenceWarning)
+            frame, field, said = scene._core.render_detailed(float(time), index, overrides)
+        for w in stopped:  # a solve that stopped short, said at the caller's line (and noted)
+            warnings.warn(w.message, w.category, stacklevel=caller_outside())
         frames[method], fields[method], notes[method] = np.asarray(frame), np.asarray(field), list(said)
     return Comparison(time=float(time), methods=chosen, frames=frames, fields=fields,
                       drawing=_drawing(scene, time), notes=notes)
@@ -223,6 +236,8 @@ def comparison_sheet(
     except ImportError:  # pragma: no cover - matplotlib is an optional dependency
         raise ImportError("comparison sheets need matplotlib: pip install 'inkwarp[compare]'") from None
 
+    if not isinstance(comparison, Comparison):
+        raise ValueError(f"comparison must be what inkwarp.compare returns; got {type(comparison).__name__}")
     if isinstance(dpi, bool) or not isinstance(dpi, (int, np.integer)) or not 10 <= dpi <= 600:
         raise ValueError(f"dpi must be a whole number from 10 to 600, got {dpi!r}; the default is 100")
     # A surface under a hundredth of a pixel is drawn flat: scaled up, rounding (a field at

@@ -233,7 +233,7 @@ def validate_scene(source: str | os.PathLike[str] | Mapping[str, Any], base_dir:
         text, problems = _dict_to_json(source)
         base = os.fspath(base_dir) if base_dir is not None else None
     else:
-        path = Path(source)
+        path = Path(_path_argument(source, "source (a scene file or dict)"))
         try:
             text = read_scene_text(path)
         except FileNotFoundError:
@@ -563,12 +563,21 @@ class Scene:
         """
         from inkwarp.importing import new_scene
 
+        picture = _path_argument(picture, "picture")
+        drawing = _path_argument(drawing, "drawing") if drawing is not None else None
         return cls.from_dict(new_scene(picture, drawing=drawing, fps=fps, duration=duration))
 
     @classmethod
     def from_json(cls, text: str, base_dir: str | os.PathLike[str] | None = None) -> Scene:
-        """Builds a scene from JSON text (see :meth:`from_dict`)."""
-        base = os.fspath(base_dir) if base_dir is not None else None
+        """Builds a scene from JSON text, ``str`` or UTF-8 ``bytes`` (see :meth:`from_dict`)."""
+        if isinstance(text, (bytes, bytearray)):
+            try:
+                text = bytes(text).decode("utf-8-sig")
+            except UnicodeDecodeError as err:
+                raise SceneError(f"the scene's bytes are not UTF-8 text ({err}); save the scene as UTF-8") from None
+        if not isinstance(text, str):
+            raise ValueError(f"text must be the scene's JSON text (str or bytes); got {type(text).__name__}")
+        base = _path_argument(base_dir, "base_dir") if base_dir is not None else None
         return cls(_core_from_json(text, base, None), base_dir=os.path.abspath(base if base is not None else os.curdir))
 
     # ---- what it is ---------------------------------------------------------------------
@@ -633,7 +642,9 @@ class Scene:
 
     # ---- rendering ----------------------------------------------------------------------
 
-    def _time(self, time: float | None, frame: int | None) -> float:
+    def _time(self, time: float | None, frame: int | None, frame_too: bool = True) -> float:
+        """``time`` or ``frame``'s time, checked (a time past the end warned of; ``frame_too``:
+        the caller takes ``frame=`` too, which the warning then offers)."""
         if time is not None and frame is not None:
             raise ValueError("give either time= or frame=, not both")
         if frame is not None:
@@ -652,7 +663,7 @@ class Scene:
 
             warnings.warn(f"time {seconds:g} s is past the scene's end ({self.duration:g} s): it shows the poses "
                           "held after the last keys; give a time up to the end (seconds, not frames: frame "
-                          "N is at N / fps, or give frame=N)", PastEndWarning, stacklevel=caller_outside())
+                          f"N is at N / fps{', or give frame=N' if frame_too else ''})", PastEndWarning, stacklevel=caller_outside())
         return seconds
 
     def _layer_index(self, layer: str | int | None) -> int:

@@ -942,6 +942,9 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)):
         raise ValueError(f"frame must be a whole number (the frame the drawing is traced on); got {frame!r:.40}")
     frame = int(frame)
+    if progress is not None and not callable(progress):
+        raise ValueError(f"progress must be a function of the number of steps that returns one to call each step "
+                         f"(or None); got {type(progress).__name__} {progress!r:.40}")
     where = os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else "the scene"
     loaded = None
     if isinstance(scene, (str, os.PathLike)):
@@ -1106,7 +1109,9 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
                       "(a flat area the tracker cannot see move): followed by the tracked points around, "
                       "not by the picture; check them, and add a correction key where they stray",
                       InkwarpWarning, stacklevel=caller_outside())
-    _rebase_images(doc, base, Path(relative_to).resolve() if relative_to is not None else None)
+    from inkwarp.scene import _path_argument
+
+    _rebase_images(doc, base, Path(_path_argument(relative_to, "relative_to")).resolve() if relative_to is not None else None)
     return doc
 
 

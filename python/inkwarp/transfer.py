@@ -139,6 +139,9 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
     >>> [round(v, 6) for v in out["features"][2]["keys"][0]["points"][0]]
     [6.0, 30.0]
     """
+    from inkwarp.scene import _path_argument
+
+    rebased = Path(_path_argument(relative_to, "relative_to")).resolve() if relative_to is not None else None
     src_doc, _ = _load(source, "source")
     tgt_doc, tgt_base = _load(target, "target")
     src_features, tgt_features = _features(src_doc, "source"), _features(tgt_doc, "target")
@@ -184,7 +187,7 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
     # key (as `Scene.duration` reads it): a target's shorter duration cut the source's motion.
     if any(isinstance(d.get("duration"), (int, float)) for d in (src_doc, tgt_doc)):
         tgt_doc["duration"] = max(_length(src_doc), _length(tgt_doc))
-    _rebase_images(tgt_doc, tgt_base, Path(relative_to).resolve() if relative_to is not None else None)
+    _rebase_images(tgt_doc, tgt_base, rebased)
     return tgt_doc
 
 

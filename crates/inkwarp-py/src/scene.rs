@@ -478,19 +478,27 @@ impl SceneCore {
         let result = run_engine(py, move || -> Result<_, SceneError> {
             let rendered = scene.render_overridden(time, &overrides)?;
             let mut notes = rendered.notes(&scene);
+            // A solve that stopped short is said, as `Scene.render` says it (and noted with the rest).
+            let mut stopped: Vec<String> = rendered.layers.iter().enumerate()
+                .filter_map(|(j, s)| s.as_ref().and_then(|s| scene.convergence_warning(j, time, s))).collect();
             let field = match rendered.layers[layer].as_ref() {
                 Some(solved) => solved.field.clone(),
                 None => {
                     // A layer that is not drawn (no image, or hidden) is solved here alone.
                     let solved = scene.layer_field_overridden(layer, time, None, &overrides)?;
                     notes.extend(scene.layer_notes(layer, &solved));
+                    stopped.extend(scene.convergence_warning(layer, time, &solved));
                     solved.field
                 }
             };
-            Ok((rendered.image, field, notes))
+            notes.extend(stopped.iter().cloned());
+            Ok((rendered.image, field, notes, stopped))
         })?;
         match result {
-            Ok((image, field, notes)) => Ok((image_to_numpy(py, image)?, field_to_numpy(py, &field)?, notes)),
+            Ok((image, field, notes, stopped)) => {
+                warn_convergence(py, &stopped)?;
+                Ok((image_to_numpy(py, image)?, field_to_numpy(py, &field)?, notes))
+            }
             Err(err) => Err(scene_error(py, &err, self.file.as_deref())),
         }
     }
