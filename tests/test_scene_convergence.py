@@ -35,6 +35,10 @@ def test_render_field_and_frames_warn_with_layer_and_frame(tmp_path):
     assert len(frames) == 3 and frames[0].shape == (30, 40, 4)
     messages = [str(w.message) for w in caught if issubclass(w.category, inkwarp.ConvergenceWarning)]
     assert any("(frame 4)" in m for m in messages) and all('layer "front"' in m for m in messages)
+    # Each at the caller's line, inkwarp.render's too (it named the loop in rendering.py).
+    with pytest.warns(inkwarp.ConvergenceWarning) as caught:
+        inkwarp.render(scene, tmp_path / "frames/", frames=(3, 5), progress=False)
+    assert {w.filename for w in caught} == {__file__}, {(w.filename, w.lineno) for w in caught}
 
 
 def test_a_converged_scene_does_not_warn(tmp_path):

@@ -22,11 +22,15 @@ fn warn_convergence(py: Python<'_>, messages: &[String]) -> PyResult<()> {
     if messages.is_empty() {
         return Ok(());
     }
-    let category = py.import("inkwarp.errors")?.getattr("ConvergenceWarning")?;
+    let errors = py.import("inkwarp.errors")?;
+    let category = errors.getattr("ConvergenceWarning")?;
+    // At the first line outside the package (the user's `inkwarp.render(...)`, not the loop in
+    // `rendering.py` that drew the frames).
+    let level: i32 = errors.getattr("caller_outside")?.call0()?.extract()?;
     for message in messages {
         let message = std::ffi::CString::new(message.replace('\0', " "))
             .expect("NUL bytes were replaced");
-        PyErr::warn(py, &category, &message, 2)?;
+        PyErr::warn(py, &category, &message, level)?;
     }
     Ok(())
 }
