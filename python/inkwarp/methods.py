@@ -56,10 +56,18 @@ class ThinPlateMap:
     [[10.0, 10.0]]
     >>> w.field(3, 4).shape
     (3, 4, 2)
+    >>> import pickle
+    >>> pickle.loads(pickle.dumps(w))([[5, 5]]).round(9).tolist()
+    [[10.0, 10.0]]
     """
 
     def __init__(self, source: Any, target: Any) -> None:
-        self._map = _inkwarp.ThinPlateMap(_points("source", source), _points("target", target))
+        self._points = (_points("source", source), _points("target", target))
+        self._map = _inkwarp.ThinPlateMap(*self._points)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickled (to a process pool, say) and copied as its points, fitted again."""
+        return (ThinPlateMap, self._points)
 
     def __call__(self, points: Any) -> np.ndarray:
         """Map ``(N, 2)`` points; returns float64 ``(N, 2)``."""

@@ -268,9 +268,13 @@ def _cuts(cuts: Any) -> list[np.ndarray]:
         raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.")
     cuts = cuts if isinstance(cuts, np.ndarray) else list(cuts)  # a generator is read once
     try:  # its depth: 2 is one polyline without the list around it, 1 a list of numbers
-        depth = np.asarray(cuts, dtype=float).ndim if len(cuts) > 0 else None
+        with warnings.catch_warnings():  # (numpy's ComplexWarning: complex values are said below, by name)
+            warnings.simplefilter("ignore")
+            depth = np.asarray(cuts, dtype=float).ndim if len(cuts) > 0 else None
     except (TypeError, ValueError, OverflowError):  # ragged polylines, or a value said below by name
         depth = None
+    if depth == 2 and len(cuts) > 0 and all(np.size(c) == 0 for c in cuts):
+        depth = None  # (empty cuts, said below as such)
     if depth == 2:
         raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")
     if depth == 1:  # numbers: [x0, y0, x1, y1]
