@@ -157,3 +157,12 @@ def test_the_tps_report_gives_its_seconds():
     # It gave NaN, where the other methods give the time taken.
     _, report = inkwarp.interpolate_report([[4, 4], [40, 4], [20, 25]], [[1, 0], [0, 1], [2, 2]], (32, 48), method="tps")
     assert 0 < report["seconds"] < 60
+
+
+def test_lines_that_are_not_numbers_are_named():
+    # numpy's "could not convert string to float: np.str_('a')" named neither the argument nor the fix.
+    args = ([[1, 1], [5, 5], [9, 1]], [[0, 0], [1, 1], [0, 1]], (12, 12))
+    with pytest.raises(ValueError, match=r"^lines must be a pair \(rest, pose\)"):
+        inkwarp.interpolate(*args, method="beier-neely", lines="ab")
+    with pytest.raises(ValueError, match=r"^lines\[0\] \(rest\) must be an \(L, 2, 2\) array of numbers"):
+        inkwarp.interpolate(*args, method="beier-neely", lines=("ab", "cd"))

@@ -28,7 +28,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from inkwarp import _inkwarp
-from inkwarp.errors import real_array
+from inkwarp.errors import ArrayValuesError, real_array
 
 __all__ = ["METHODS", "ThinPlateMap", "interpolate", "interpolate_report"]
 
@@ -106,7 +106,13 @@ def _points(name: str, value: Any) -> np.ndarray:
 
 
 def _segments(name: str, value: Any) -> np.ndarray:
-    arr = real_array(name, value, np.float64)
+    try:
+        arr = real_array(name, value, np.float64)
+    except ArrayValuesError:
+        raise
+    except (TypeError, ValueError):  # text, None, ragged nesting: numpy's words would not name it
+        raise ValueError(f"{name} must be an (L, 2, 2) array of numbers: L segments of two (x, y) end points; "
+                         f"got {value!r:.40}") from None
     if arr.size == 0:
         arr = arr.reshape(0, 2, 2)
     if arr.ndim != 3 or arr.shape[1:] != (2, 2):
@@ -180,6 +186,8 @@ def interpolate_report(
     rest = pose = None
     if lines is not None:
         try:
+            if isinstance(lines, (str, bytes)):
+                raise TypeError
             rest_in, pose_in = lines
         except (TypeError, ValueError):
             raise ValueError("lines must be a pair (rest, pose) of (L, 2, 2) segment arrays.") from None
