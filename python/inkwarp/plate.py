@@ -273,7 +273,7 @@ def _cuts(cuts: Any) -> list[np.ndarray]:
             depth = np.asarray(cuts, dtype=float).ndim if len(cuts) > 0 else None
     except (TypeError, ValueError, OverflowError):  # ragged polylines, or a value said below by name
         depth = None
-    if depth == 2 and len(cuts) > 0 and all(np.size(c) == 0 for c in cuts):
+    if depth == 2 and all(np.size(c) == 0 for c in cuts):
         depth = None  # (empty cuts, said below as such)
     if depth == 2:
         raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")

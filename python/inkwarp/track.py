@@ -57,7 +57,7 @@ import math
 import os
 import re
 import warnings
-from collections.abc import Callable, Container, Sequence
+from collections.abc import Callable, Container, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -436,21 +436,20 @@ class _Tracker:
                   side: int = LK_WINDOW_PX) -> np.ndarray:
         """The mean absolute difference of the windows (``side`` pixels square, by default
         Lucas-Kanade's) of ``a`` at ``at_a`` and of ``b`` at ``at_b``, point by point."""
-        size, window = (side, side), self.cv2.getRectSubPix
-        return np.array([float(np.abs(window(a, size, tuple(map(float, p)), patchType=self.cv2.CV_32F)
-                                      - window(b, size, tuple(map(float, q)), patchType=self.cv2.CV_32F)).mean())
-                         for p, q in zip(at_a, at_b)])
+        return np.array([float(np.abs(u - v).mean()) for u, v in self._window_pairs(a, at_a, b, at_b, side)])
 
     def _likeness(self, a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarray) -> np.ndarray:
         """The correlation of the Lucas-Kanade windows of ``a`` at ``at_a`` and of ``b`` at
         ``at_b`` (each less its mean: a change of brightness does not count), point by point."""
-        size, window = (LK_WINDOW_PX, LK_WINDOW_PX), self.cv2.getRectSubPix
-        out = []
+        pairs = ((u - u.mean(), v - v.mean()) for u, v in self._window_pairs(a, at_a, b, at_b, LK_WINDOW_PX))
+        return np.array([float((u * v).sum() / max(np.sqrt((u * u).sum() * (v * v).sum()), 1e-12)) for u, v in pairs])
+
+    def _window_pairs(self, a: np.ndarray, at_a: np.ndarray, b: np.ndarray, at_b: np.ndarray, side: int) -> Iterator[Any]:
+        """``side``-pixel square windows of ``a`` at ``at_a`` and of ``b`` at ``at_b``, point by point."""
+        size, window = (side, side), self.cv2.getRectSubPix
         for p, q in zip(at_a, at_b):
-            u, v = (window(x, size, tuple(map(float, r)), patchType=self.cv2.CV_32F) for x, r in ((a, p), (b, q)))
-            u, v = u - u.mean(), v - v.mean()
-            out.append(float((u * v).sum() / max(np.sqrt((u * u).sum() * (v * v).sum()), 1e-12)))
-        return np.array(out)
+            yield (window(a, size, tuple(map(float, p)), patchType=self.cv2.CV_32F),
+                   window(b, size, tuple(map(float, q)), patchType=self.cv2.CV_32F))
 
     def predicted(self, template: np.ndarray, rest: np.ndarray, now: np.ndarray,
                   good: np.ndarray, box: tuple[int, int, int, int] | None = None) -> tuple[np.ndarray, Any] | None:
@@ -945,6 +944,10 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     if progress is not None and not callable(progress):
         raise ValueError(f"progress must be a function of the number of steps that returns one to call each step "
                          f"(or None); got {type(progress).__name__} {progress!r:.40}")
+    from inkwarp.scene import _path_argument
+
+    # (Checked here, not after the track: a wrong one is said before minutes of work.)
+    rebased = Path(_path_argument(relative_to, "relative_to")).resolve() if relative_to is not None else None
     where = os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else "the scene"
     loaded = None
     if isinstance(scene, (str, os.PathLike)):
@@ -1109,9 +1112,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
                       "(a flat area the tracker cannot see move): followed by the tracked points around, "
                       "not by the picture; check them, and add a correction key where they stray",
                       InkwarpWarning, stacklevel=caller_outside())
-    from inkwarp.scene import _path_argument
-
-    _rebase_images(doc, base, Path(_path_argument(relative_to, "relative_to")).resolve() if relative_to is not None else None)
+    _rebase_images(doc, base, rebased)
     return doc
 
 

@@ -225,30 +225,27 @@ def _run(args: argparse.Namespace) -> int:
         paths = rendering.render(scene, args.output, frames=(start, stop), method=args.method,
                                  sprite_sheet=args.sprite_sheet, skip_existing=args.skip_existing,
                                  ray=args.ray, progress=not args.quiet)
-    except BaseException:
+        count = stop - start
+        if not args.quiet:
+            seconds = time.perf_counter() - started
+            where = " on Ray" if args.ray is not None else ""
+            if args.skip_existing:
+                done = len(paths)
+                print(f"wrote {done} new frame{'s' if done != 1 else ''} of {start}:{stop} into "
+                      f"{target} ({count - done} already there){where} in {seconds:.2f} s")
+            else:
+                also = f" and {paths[1]}" if kind == "sheet" else ""
+                size = _common.scene_size(scene)
+                if kind == "mp4" and (scene.width % 2 or scene.height % 2):  # H.264 wants even sides
+                    size += f" padded to {scene.width + scene.width % 2}x{scene.height + scene.height % 2}"
+                print(f"wrote {target}{also} ({count} frame{'s' if count != 1 else ''} "
+                      f"{start}:{stop}, {size}, {scene.fps:g} fps){where} in "
+                      f"{seconds:.2f} s ({count / max(seconds, 1e-9):.1f} frames/s)")
+    finally:
+        # Ray left here, after the summary (its shutdown is no part of the render's time).
+        rendering.RAY_OPTION.reset(said)
         if args.ray is not None:
             rendering.ray_shutdown()
-        raise
-    finally:
-        rendering.RAY_OPTION.reset(said)
-    count = stop - start
-    if not args.quiet:
-        seconds = time.perf_counter() - started
-        where = " on Ray" if args.ray is not None else ""
-        if args.skip_existing:
-            done = len(paths)
-            print(f"wrote {done} new frame{'s' if done != 1 else ''} of {start}:{stop} into "
-                  f"{target} ({count - done} already there){where} in {seconds:.2f} s")
-        else:
-            also = f" and {paths[1]}" if kind == "sheet" else ""
-            size = _common.scene_size(scene)
-            if kind == "mp4" and (scene.width % 2 or scene.height % 2):  # H.264 wants even sides
-                size += f" padded to {scene.width + scene.width % 2}x{scene.height + scene.height % 2}"
-            print(f"wrote {target}{also} ({count} frame{'s' if count != 1 else ''} "
-                  f"{start}:{stop}, {size}, {scene.fps:g} fps){where} in "
-                  f"{seconds:.2f} s ({count / max(seconds, 1e-9):.1f} frames/s)")
-    if args.ray is not None:
-        rendering.ray_shutdown()
     return 0
 
 
