@@ -176,6 +176,8 @@ def test_region_interior_nodes_and_displacements_match_independent_oracles():
         (("point", [[0, 0], [1, 1]], [[0, 0], [1, 1]]), {}, "exactly one position"),
         (("polyline", [[0, 0], [1, 1]], [[0, 0], [1, 1]]), {"spacing": 0}, "spacing must be a positive"),
         (("polyline", [[0, 0], [1, 1]], [[0, 0], [1, 1]]), {"spacing": float("nan")}, "spacing must be"),
+        (("polyline", [[0, 0], [1, 1]], [[0, 0], [1, 1]]), {"spacing": "1"}, "spacing must be a positive, finite number"),
+        (("polyline", [[0, 0], [1, 1]], [[0, 0], [1, 1]]), {"spacing": True}, "spacing must be a positive, finite number"),
         (("region", [[0, 0], [4, 0], [0, 4]], [[0, 0], [4, 0], [0, 4]]), {}, r"a region needs shape=\(H, W\)"),
         (("region", [[0, 0], [4, 0], [0, 4]], [[0, 0], [4, 0], [0, 4]]), {"shape": (0, 4)}, r"shape must be at least \(1, 1\)"),
         # As thin_plate takes them (a float shape was cut, a NaN mask and closed="no" taken).

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from typing import Literal
 
 import numpy as np
@@ -10,6 +9,7 @@ import numpy.typing as npt
 
 from inkwarp import _inkwarp
 from inkwarp.errors import ArrayValuesError, real_array
+from inkwarp.plate import _finite
 
 #: The feature kinds, in the order the documentation lists them.
 KINDS: tuple[str, ...] = ("point", "polyline", "spline", "region", "cut")
@@ -149,12 +149,9 @@ def sample(
             f"pose has {_count(pose_arr.shape[0])} but rest has {_count(rest_arr.shape[0])}; a pose "
             "moves the same control points as the rest, so give both the same number of rows."
         )
-    try:
-        spacing_px = float(spacing)
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"spacing must be a positive, finite number of pixels; got {spacing!r}.") from None
-    if not (spacing_px > 0 and math.isfinite(spacing_px)):
+    if not (_finite(spacing) and spacing > 0):
         raise ValueError(f"spacing must be a positive, finite number of pixels; got {spacing!r}.")
+    spacing_px = float(spacing)
     if not (isinstance(closed, (bool, np.bool_)) or (isinstance(closed, (int, np.integer)) and closed in (0, 1))):
         raise ValueError(f"closed must be True or False; got {closed!r}.")
     from inkwarp.methods import _shape
