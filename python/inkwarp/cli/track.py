@@ -15,7 +15,7 @@ examples:
 
 SCENE's drawing (its features' rest geometry) is traced over frame K of the video, in a
 scene of the video's size ('inkwarp frame VIDEO --frame K -o frame.png' gives the picture). OUT is SCENE with the video's fps and duration and, for every
-feature, a key at every video frame (t = k / fps). Keys SCENE already has at other frames
+feature but the cuts, a key at every video frame (t = k / fps). Keys SCENE already has at other frames
 are corrections: the track passes through them. See docs/guides/rotoscoping.md.
 """
 

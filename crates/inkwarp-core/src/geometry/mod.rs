@@ -50,8 +50,8 @@ pub enum Kind {
     Spline,
     /// A filled closed shape (≥ 3 points): outline and interior move together.
     Region,
-    /// An open polyline (≥ 2 points) that moves nothing and breaks the surface along its
-    /// rest geometry.
+    /// A polyline (≥ 2 points) that moves nothing and breaks the surface along its rest
+    /// geometry; a `closed` one frees what it encloses.
     Cut,
 }
 
