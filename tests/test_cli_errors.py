@@ -292,6 +292,47 @@ def test_a_time_past_the_end_renders_with_a_warning(capsys, tmp_path):
         assert code == 0 and stderr.count("past the scene's end") == 1 and "PastEndWarning" not in stderr, stderr
 
 
+def test_a_time_before_zero_and_every_key_renders_with_a_warning(capsys, tmp_path):
+    # A sign slipped on a farm (--time -1 for 1) gave the first keys' poses with no word.
+    scene = write_scene(tmp_path / "s")
+    for command, out, shows in (("render", "x.png", "the frame shows"), ("field", "x.npy", "the field is"),
+                                ("compare", "c.png", "the sheet shows")):
+        code, _, stderr = run(capsys, command, scene, "-o", tmp_path / out, "--time", "-1")
+        assert code == 0 and (tmp_path / out).exists(), stderr
+        assert stderr.count(f"inkwarp {command}: warning: --time -1 is before the scene's start (0 s); {shows} "
+                            "the poses held before the first keys") == 1, stderr
+        assert "PastEndWarning" not in stderr, stderr
+    from inkwarp import PastEndWarning, Scene
+
+    with pytest.warns(PastEndWarning, match="before the scene's start"):
+        Scene.load(scene).render(time=-0.25)
+
+
+def test_a_sprite_sheet_into_a_folder_named_like_a_png_says_it_is_a_folder(capsys, tmp_path):
+    scene = write_scene(tmp_path / "s")
+    (tmp_path / "adir.png").mkdir()
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "adir.png", "--sprite-sheet")
+    assert code == 2 and "adir.png: is a folder" in stderr and "adir.png/sheet.png" in stderr, stderr
+    assert list((tmp_path / "adir.png").iterdir()) == []
+
+
+def test_frames_into_a_file_or_a_locked_folder_say_the_fix(capsys, tmp_path, monkeypatch):
+    scene = write_scene(tmp_path / "s")
+    (tmp_path / "afile").write_text("x")
+    code, _, stderr = run(capsys, "render", scene, "-o", tmp_path / "afile")
+    assert code == 2 and "is a file, not a directory for PNG frames; name a new folder" in stderr, stderr
+    assert (tmp_path / "afile").read_text() == "x"
+    # A folder this user may not write in (as root writes anywhere, the check is told so).
+    from inkwarp import video
+
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    monkeypatch.setattr(video.os, "access", lambda path, mode: Path(path) != locked)
+    for out in (locked, locked / "new/", locked / "x.gif"):
+        code, _, stderr = run(capsys, "render", scene, "-o", out)
+        assert code == 2 and "is not writable; choose a writable folder or change its permissions" in stderr, stderr
+
+
 def test_one_frame_to_a_folder_named_like_a_png_says_it_is_a_folder(capsys, tmp_path):
     # An existing folder is where a sequence's frames go, whatever its name: one frame to
     # `isdir.png/` is refused for being a folder, not for not being named .png.

@@ -257,10 +257,10 @@ def test_save_writes_only_json_names(scene, tmp_path):
             scene.save(wrong)
 
 
-def test_a_time_past_the_end_warns_as_the_command_line_does_and_one_before_0_is_a_pose(scene):
+def test_a_time_past_the_end_or_before_0_and_every_key_warns_as_the_command_line_does(scene):
     # `inkwarp render --time 100` warned that it was past the scene's end; Scene.render(time=100)
-    # said nothing. A time before 0 is the drawing before the first frame (keys may lie there,
-    # and inkwarp compare shows it), as docs/reference/limits.md has it.
+    # said nothing. A time before 0 is the drawing before the first frame (keys may lie there:
+    # then no warning), and before every key it is the first keys' poses held, said so.
     import warnings
 
     end = scene.duration
@@ -274,6 +274,9 @@ def test_a_time_past_the_end_warns_as_the_command_line_does_and_one_before_0_is_
         warnings.simplefilter("error")
         np.testing.assert_array_equal(scene.render(time=end), late)  # the end itself: no warning
         scene.render(frame=scene.frame_count - 1)
-        np.testing.assert_array_equal(scene.render(time=-1), scene.render(time=0))  # the first keys held
+    with pytest.warns(inkwarp.PastEndWarning, match=r"time -1 s is before the scene's start \(0 s\)") as said:
+        early = scene.render(time=-1)
+    assert said[0].filename == __file__
+    np.testing.assert_array_equal(early, scene.render(time=0))  # the first keys held
     with pytest.raises(ValueError, match=r"time -200000 s is past the times a scene holds"):
         scene.render(time=-2e5)

@@ -59,9 +59,9 @@ class InkwarpWarning(UserWarning):
 
 
 class PastEndWarning(InkwarpWarning):
-    """A frame or field was asked of a scene at a time past its end (``Scene.duration``):
-    it shows the poses held after the last keys, which may not be what was meant (a time in
-    milliseconds, say). ``inkwarp render``, ``field`` and ``compare`` say the same of
+    """A frame or field was asked of a scene at a time past its end (``Scene.duration``), or
+    before 0 and every key: it shows the poses held after the last keys (or before the
+    first), which may not be what was meant (a time in milliseconds, say, or a sign slip). ``inkwarp render``, ``field`` and ``compare`` say the same of
     ``--time`` as a warning line on stderr."""
 
 

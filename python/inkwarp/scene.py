@@ -664,7 +664,21 @@ class Scene:
             warnings.warn(f"time {seconds:g} s is past the scene's end ({self.duration:g} s): it shows the poses "
                           "held after the last keys; give a time up to the end (seconds, not frames: frame "
                           f"N is at N / fps{', or give frame=N' if frame_too else ''})", PastEndWarning, stacklevel=caller_outside())
+        elif self._before_every_key(seconds):
+            from inkwarp.errors import PastEndWarning, caller_outside
+
+            warnings.warn(f"time {seconds:g} s is before the scene's start (0 s): it shows the poses held "
+                          "before the first keys; give a time from 0 to the end", PastEndWarning,
+                          stacklevel=caller_outside())
         return seconds
+
+    def _before_every_key(self, seconds: float) -> bool:
+        """Whether ``seconds`` is before 0 and before every key (so it shows the first keys'
+        poses held; keys may lie before 0 on purpose, and between them a time there moves)."""
+        if seconds >= 0:
+            return False
+        times = [key["t"] for feature in self.to_dict().get("features", []) for key in feature.get("keys", [])]
+        return seconds < min(times, default=0.0)
 
     def _layer_index(self, layer: str | int | None) -> int:
         names = self.layers

@@ -101,14 +101,17 @@ def check_target(path: str | os.PathLike[str], kind: OutputKind | None = None) -
     check_not_a_stream(path)
     parent = _check_parent(target)
     if target.exists() and not target.is_dir():
-        raise ValueError(f"{target}: is a file, not a directory for PNG frames")
+        raise ValueError(f"{target}: is a file, not a directory for PNG frames; name a new folder "
+                         f"(end it with /) or the file to write, such as {target.name}.mp4")
     # An existing folder takes the frames itself (its parent may be read-only, as a
     # writable frames folder in a locked shot folder is); a new one is made in the parent.
     if target.is_dir():
         if not os.access(target, os.W_OK):
-            raise ValueError(f"{target}: the directory is not writable")
+            raise ValueError(f"{target}: the directory is not writable; choose a writable folder or "
+                             "change its permissions")
     elif not os.access(parent, os.W_OK):
-        raise ValueError(f"{target}: the directory {parent} is not writable")
+        raise ValueError(f"{target}: the directory {parent} is not writable; choose a writable folder "
+                         "or change its permissions")
     return target
 
 
@@ -131,7 +134,8 @@ def check_file(path: str | os.PathLike[str], suffix: str = "") -> Path:
     if folder:
         raise ValueError(f"{target}: is a directory; name a file, such as {target / 'out'}{target.suffix or suffix}")
     if not os.access(parent, os.W_OK):
-        raise ValueError(f"{target}: the directory {parent} is not writable")
+        raise ValueError(f"{target}: the directory {parent} is not writable; choose a writable folder or "
+                         "change its permissions")
     return target
 
 

@@ -100,12 +100,15 @@ def check_time(time_s: float, option: str = "--time") -> float:
 
 
 def warn_past_end(command: str, given: float, scene: Any, shows: str) -> None:
-    """Warn on stderr when ``--time given`` is past the scene's end: what ``shows`` (such
-    as "the frame shows") is the poses held after the last keys. (A time before 0 is said
-    nothing of: keys may lie there, and without them it is the first keys' drawing.)"""
+    """Warn on stderr when ``--time given`` is past the scene's end, or before its start and
+    every key (keys may lie before 0 on purpose): what ``shows`` (such as "the frame shows")
+    is the poses held after the last keys, or before the first."""
     if given > scene.duration:
         print(f"inkwarp {command}: warning: --time {given:g} is past the scene's end ({scene.duration:g} s); "
               f"{shows} the poses held after the last keys", file=sys.stderr, flush=True)
+    elif scene._before_every_key(given):
+        print(f"inkwarp {command}: warning: --time {given:g} is before the scene's start (0 s); "
+              f"{shows} the poses held before the first keys", file=sys.stderr, flush=True)
 
 
 def check_frame(frame: int, frame_count: int) -> int:

@@ -146,6 +146,9 @@ def _run(args: argparse.Namespace) -> int:
     if kind == "png" and args.sprite_sheet is None:  # (animations are checked by rendering.render)
         outputs.check_not_an_input(target, args.scene)
     if args.sprite_sheet is not None:
+        if kind == "dir" and target.suffix.lower() == ".png":
+            raise ValueError(f"{target}: is a folder; --sprite-sheet writes one .png atlas (and a .json "
+                             f"beside it): name a new file, such as {target / 'sheet.png'}")
         if kind != "png":
             raise ValueError(f"--sprite-sheet writes a .png atlas (and a .json beside it); "
                              f"name the output sheet.png, not {target.name}")
