@@ -463,6 +463,18 @@ def test_a_save_into_a_folder_that_is_gone_says_so(served, scene: Path) -> None:
     assert fetch(api, "PUT", json.dumps({**doc, "fps": 12}).encode())[0] == 200
 
 
+def test_a_scene_file_deleted_while_served_is_said_in_words(served, scene: Path) -> None:
+    # A reload after the file went showed Python's "[Errno 2] No such file or directory".
+    api = api_url(served)
+    doc = json.loads(fetch(api)[2])
+    scene.unlink()
+    status, headers, body = fetch(api)
+    assert status == 422 and body.decode().startswith(f"{scene}: no such file (deleted or moved since "
+                                                      "inkwarp edit opened it); Save writes it there again"), body
+    assert b"Errno" not in body
+    assert fetch(api, "PUT", json.dumps(doc).encode())[0] == 200 and scene.exists()
+
+
 def test_a_read_only_scene_file_is_not_replaced(served, scene: Path) -> None:
     # A rename replaces a file whatever its mode: a file locked against writing (even for a
     # user the system lets write anything) is left alone, with a message saying why.

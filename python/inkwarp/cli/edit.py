@@ -554,7 +554,11 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                     body, version, files = scene_file.read()
                 except (OSError, ValueError) as err:
                     # Named even so: work the browser kept from this file saves back to it.
-                    return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, str(err).encode(),
+                    said = (f"{scene_file.path}: no such file (deleted or moved since inkwarp edit "
+                            "opened it); Save writes it there again, or start inkwarp edit on its new "
+                            "place" if isinstance(err, FileNotFoundError) and err.filename == str(scene_file.path)
+                            else str(err))
+                    return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, said.encode(),
                                        headers={"X-Inkwarp-Path": quote(str(scene_file.path))})
                 return self._reply(HTTPStatus.OK, body, "application/json",
                                    {"X-Inkwarp-Name": quote(scene_file.path.name),
