@@ -17,7 +17,7 @@ filling most of the picture, 8 points in it), cold and warm; and two problems wi
 parts, whatever the size: `strands.py`'s comb with 2 px teeth at twice its size (80×128)
 and `test_many_random_cuts`'s float cuts of seed 0 at four times theirs (256×256). The
 free function builds its hierarchy every call; three kinds of problem keep a solver
-between calls, the only ones where `cache` and `recycle` can buy anything:
+between calls, the only ones where `cache` can buy anything:
 
 - frames of an animation through a `WarmStart` (10 and 1000 points, hole+cut, matte,
   comb, cuts), every displacement scaled by 1 + 0.2 sin(0.3 k) in frame k;
@@ -45,7 +45,7 @@ import numpy as np
 
 import inkwarp
 
-SWITCHES = ["second", "recycle", "kcycle", "cache", "fours", "strands", "coarse_strands", "outside", "whole", "exact_coarsest", "answers"]
+SWITCHES = ["second", "kcycle", "cache", "fours", "strands", "coarse_strands", "outside", "whole", "exact_coarsest", "answers"]
 
 
 def random_problem(n: int, size: int, seed: int = 0):

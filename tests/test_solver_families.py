@@ -445,7 +445,8 @@ def test_an_animation_of_long_free_strands_converges_at_the_default_cap():
     # 750 px long, the first frame needs over 100 cycles. At the old default cap of 100 it stopped there, so
     # every next frame started cold (an unconverged answer is no start) and stopped there
     # too. At the default cap the first converges, and the next ones start warm: the second
-    # from the first (most of its cycles again), the third from the two before (a few). (If
+    # from the first (most of its cycles again), the third from the two before (fewer: its
+    # slow modes are found again, not carried over from the earlier solves). (If
     # the solver gets faster than 100 cycles here, the case no longer tests the cap: take
     # another family; 1 px strands 750 px long served until straight 1 px strands were
     # factored exactly.)
@@ -456,7 +457,8 @@ def test_an_animation_of_long_free_strands_converges_at_the_default_cap():
         field, report = inkwarp.thin_plate_report(pts, disp * (1 + 0.05 * k), m.shape, mask=m, warm=warm)
         fields.append(field)
         reports.append(report)
-    assert all(r.converged for r in reports) and reports[0].cycles > 100 and reports[2].cycles <= 5, reports
+    assert all(r.converged for r in reports) and reports[0].cycles > 100, reports
+    assert reports[2].cycles < reports[1].cycles < reports[0].cycles, reports
     for k in range(3):
         exact, skipped, _ = oracle(Problem(m.shape, pts, disp * (1 + 0.05 * k), mask=m))
         assert not skipped.any()
@@ -779,7 +781,8 @@ def test_no_claim_builds_on_an_answer_that_did_not_converge():
 
 def test_no_cycle_leaves_a_start_and_a_kept_solvers_slow_modes_alone():
     # max_cycles=0 returns the start: a kept solver's slow modes (found by an earlier slow
-    # solve of the same operator) corrected it all the same, and they stay for the next solve.
+    # solve of the same operator, kept then) corrected it all the same. What the solver
+    # keeps stays for the next solve as it was.
     pts, disp, cuts = random_cuts(0, False, 4)
     shape, a, b = (256, 256), inkwarp.Solver(), inkwarp.Solver()
     field, first = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=a)

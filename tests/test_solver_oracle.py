@@ -787,9 +787,9 @@ def test_a_warm_start_off_in_a_hanging_part_is_not_claimed_early(tension):
     # 3.7 px off at the matte's far edge, mostly in the cap's turn. The cycles took the tilt
     # out and then moved the field by 0.002-0.004 px a cycle while the cap stayed 0.09 px
     # off: converged=True after 9 cycles. Now a warm start on a hierarchy that has not
-    # solved before keeps its directions from its first cycle and, past that cycle, stops
-    # only after its first look at them; a kept `Solver` starts from the slow modes its
-    # cold solve found.
+    # solved before, or whose earlier solves found slow modes (the kept `Solver`'s cold
+    # solve), keeps its directions from its first cycle and, past that cycle, stops only
+    # after its first look at them.
     first = hanging_cap(tension)
     moved = dataclasses.replace(first, displacements=first.displacements * 1.02 + 0.05)
     exact, skipped, _ = oracle(moved)
@@ -802,5 +802,3 @@ def test_a_warm_start_off_in_a_hanging_part_is_not_claimed_early(tension):
     for field, report in ((fresh, fresh_report), (kept, kept_report)):
         assert report.converged, report
         assert float(np.abs(field - exact)[first.mask > 0].max()) < TOLERANCE_PX, report
-    # The kept modes take the slow part of the start's error away at once.
-    assert kept_report.cycles < min(cold.cycles, fresh_report.cycles), (kept_report, fresh_report, cold)

@@ -73,11 +73,10 @@ every piece of the grid, which takes the later calls' setup away; as many of the
 before stay too, for an undo (within about 4 million nodes). What the latest call used is
 kept whatever the grid's size, about 150 bytes a node of the grid it solves on (and about
 1,300 more a node of its thin parts: strands, teeth and outlines, factored exactly), until
-the ``Solver`` is dropped. A solve that looked for slow modes (past about a dozen cycles: hair,
-combs, many cuts; or a warm start on a torn grid's new levels) also leaves the modes it
-found (parts turning on thin necks; up to 64 bytes a node more), and the next call with
-that grid, points and tension starts corrected on them: it takes fewer cycles (a call
-that did not converge leaves none).
+the ``Solver`` is dropped. The slow modes a long solve finds (parts turning on thin necks)
+are not kept for the next call (corrected on against another call's residual they moved
+hair strands by hundreds of pixels); a call on a grid where they were found keeps its own
+search directions from its first cycle instead, to find them again before it stops.
 
 A ``Solver`` also keeps each piece's converged answers from its second call on (one field
 per point of the piece at most, and none past 64 MB a piece). The answer is linear in the
@@ -94,7 +93,7 @@ points) or a gauge pin, nor with ``method="southwell"`` or ``max_cycles=0`` (the
 then the start).
 
 So answers through a ``Solver`` agree with calls without it within the tolerance, and bit
-for bit where no earlier call left slow modes or answers that span the new displacements.
+for bit where no earlier call left answers that span the new displacements.
 ``clear()`` forgets the answers (the next call starts from ``initial`` or from scratch) and
 keeps the levels. Without a ``Solver`` every call builds its levels afresh and keeps
 nothing. A ``WarmStart`` keeps a solver of its own, so the two are not passed together.

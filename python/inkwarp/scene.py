@@ -612,9 +612,8 @@ class Scene:
         """The rough peak memory of rendering the scene in one process, in bytes: about 80
         per pixel of the frame, and per layer 12 per pixel and 148 per node of its solver
         grid (every ``grid_step``-th pixel), 1,300 per thin node of that grid (strands,
-        teeth, outlines: factored exactly) and 64 per node of a torn grid (the slow modes its
-        solver keeps, up to 2.8 million nodes); and once, the rest of 160 per node of the
-        largest torn grid (at most 256 MiB). Loading refuses a scene whose estimate does not fit in the memory
+        teeth, outlines: factored exactly); and once, 160 per node of the largest torn grid
+        (the slow modes a long solve deflates, at most 256 MiB). Loading refuses a scene whose estimate does not fit in the memory
         free now; a Ray render gives each worker this much."""
         return int(self._core.render_bytes)
 

@@ -48,20 +48,17 @@ pub const THIN_BYTES_PER_NODE: u64 = 1_300;
 pub const DEFLATION_BYTES_PER_NODE: u64 = 160;
 /// The most the deflated modes of one solve take.
 pub const DEFLATION_MAX_BYTES: u64 = crate::solve::deflate::BUDGET_BYTES as u64;
-/// Of those, per node, the slow modes a torn grid's solver keeps for its next solve (`KEEP` vectors and their
-/// products in `f32`), where the budget holds them beside a window: every layer's solver keeps its own.
-pub const KEPT_BYTES_PER_NODE: u64 = 8 * crate::solve::deflate::KEEP as u64;
 
 /// What solving on `grids` needs beyond their bytes per node: every grid's thin nodes'
-/// factors ([`THIN_BYTES_PER_NODE`]) and kept slow modes, and the rest of the largest torn
-/// grid's deflated modes (one grid solves at a time).
+/// factors ([`THIN_BYTES_PER_NODE`]) and the largest torn grid's deflated modes (one grid
+/// solves at a time, and no solve keeps its modes for the next).
 pub fn thin_and_slow_bytes<'a>(grids: impl IntoIterator<Item = &'a crate::grid::Grid>) -> u64 {
-    grids.into_iter().fold([0u64; 3], |[thin, kept, slow], g| {
-        let (factors, len, torn) = ((g.thin_nodes(crate::solve::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE), g.len() as u64, !g.is_open());
-        let modes = if torn { len.saturating_mul(DEFLATION_BYTES_PER_NODE).min(DEFLATION_MAX_BYTES) } else { 0 };
-        let keeps = if torn && crate::solve::deflate::room(g.len()) >= crate::solve::deflate::KEEP { len * KEPT_BYTES_PER_NODE } else { 0 };
-        [thin.saturating_add(factors), kept.saturating_add(keeps), slow.max(modes.saturating_sub(keeps))]
-    }).iter().fold(0, |a, &b| a.saturating_add(b))
+    let [thin, slow] = grids.into_iter().fold([0u64; 2], |[thin, slow], g| {
+        let (factors, len) = ((g.thin_nodes(crate::solve::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE), g.len() as u64);
+        let modes = if g.is_open() { 0 } else { len.saturating_mul(DEFLATION_BYTES_PER_NODE).min(DEFLATION_MAX_BYTES) };
+        [thin.saturating_add(factors), slow.max(modes)]
+    });
+    thin.saturating_add(slow)
 }
 
 /// Checks a `width × height` size against [`MAX_SIDE_PX`] and [`MAX_PIXELS`]; the message
@@ -176,12 +173,10 @@ mod tests {
         assert_eq!(thin_and_slow_bytes([&Grid::new(w, h)]), 0);
         // An open strip 10 nodes tall is thin throughout, with nothing torn.
         assert_eq!(thin_and_slow_bytes([&Grid::new(1000, 10)]), 10_000 * THIN_BYTES_PER_NODE);
-        // Every grid's factors and kept modes; the rest of one solve's modes.
-        let kept = nodes * KEPT_BYTES_PER_NODE;
-        assert_eq!(thin_and_slow_bytes([&comb, &comb, &Grid::new(w, h)]), comb_bytes + teeth as u64 * THIN_BYTES_PER_NODE + kept);
-        // Past the nodes the budget keeps modes for, a grid keeps none.
+        // Every grid's factors; one solve's modes (the largest), at most the budget.
+        assert_eq!(thin_and_slow_bytes([&comb, &comb, &Grid::new(w, h)]), comb_bytes + teeth as u64 * THIN_BYTES_PER_NODE);
         let big = Grid::from_active(2000, 1500, (0..3_000_000).map(|i| i != 0).collect());
-        assert_eq!(thin_and_slow_bytes([&big, &comb]), DEFLATION_MAX_BYTES + kept + teeth as u64 * THIN_BYTES_PER_NODE);
+        assert_eq!(thin_and_slow_bytes([&big, &comb]), DEFLATION_MAX_BYTES + teeth as u64 * THIN_BYTES_PER_NODE);
     }
 
     #[test]

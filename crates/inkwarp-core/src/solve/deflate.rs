@@ -5,15 +5,15 @@
 //! `W` ([`KEEP_SLOW`] from the third step). The iterate is corrected on `span W` (`u += W E⁻¹ Wᵀ r`,
 //! `E = Wᵀ A W`) and later directions made `A`-orthogonal to `W` (deflated CG, Saad et al. 2000). It also gives
 //! the stopping rule a rate floor and the last window's largest change and rate. Memory: at most
-//! `2·WINDOW + 2·KEEP_SLOW` `f32` vectors within [`BUDGET_BYTES`], shared with a probe's kept modes.
+//! `2·WINDOW + 2·KEEP_SLOW` `f32` vectors within [`BUDGET_BYTES`].
 
 use rayon::prelude::*;
 
 use super::level::{dot, Level, Real, V2, W2, WS};
 
 /// Cycles before directions are kept (solves that end by then pay nothing). An `early` solve (a warm start on
-/// a torn piece new to its hierarchy: often all slow modes) keeps them from its first cycle and, past it,
-/// stops only after its first look at them.
+/// a torn piece new to its hierarchy, or whose operator showed slow modes before: often all slow modes) keeps
+/// them from its first cycle and, past it, stops only after its first look at them.
 const START: usize = 10;
 /// Cycles per window.
 pub(crate) const WINDOW: usize = 4;
@@ -78,9 +78,6 @@ impl Deflation {
 
     /// Whether vectors may be kept (not switched off, and the budget leaves room).
     pub fn on(&self) -> bool { self.on }
-
-    /// How many modes (a probe's, for the next solve) fit beside the most vectors kept here, at most [`KEEP`].
-    pub fn spare(&self) -> usize { KEEP.min(self.room.saturating_sub(KEEP_SLOW)) }
 
     /// Whether [`Deflation::project`] changes directions (vectors are kept).
     pub fn projects(&self) -> bool { !self.w.is_empty() }
@@ -154,15 +151,6 @@ impl Deflation {
         }
         (self.w, self.v) = (Vec::new(), Vec::new());
         self.adopt(Modes::of(fine, w), u, r);
-    }
-
-    /// The kept vectors, in `f64`.
-    pub fn vectors(&self) -> impl Iterator<Item = Vec<f64>> + '_ { self.w.iter().map(|v| v.iter().map(|&x| f64::from(x)).collect()) }
-
-    /// The vectors kept, for the next solve of the same operator: at most the [`KEEP`] smallest; none where the
-    /// budget leaves room for fewer than [`KEEP`] (both measured: `docs/dev/ablation.md`, `solver-correctness.md`).
-    pub fn modes(self) -> Option<Modes> {
-        (!self.w.is_empty() && self.room >= KEEP).then(|| Modes(self.w, self.aw, self.e).first(KEEP))
     }
 
     /// Keeps `modes` (the Ritz vectors, or an earlier solve's) as the vectors, a new basis (`Bᵀ B = I`,
@@ -453,31 +441,8 @@ mod tests {
     }
 
     #[test]
-    fn a_probes_kept_modes_count_within_the_budget() {
-        // The modes a probe keeps for the next solve (with their products) fit beside the most
-        // the deflation may keep: all 8 at 1024², 2 at 1.5 million nodes (room for 18), none
-        // at 2.65 million (room for 8: the solve's own vectors take it).
-        for (len, kept) in [(1 << 20, KEEP), (1_500_000, 2), (2_650_000, 0)] {
-            let d = Deflation::new(len, false, true, false);
-            let held = d.spare();
-            assert_eq!(held, kept, "{len} nodes");
-            assert!((2 * WINDOW + 2 * (d.room.min(KEEP_SLOW) + held)) * 4 * len <= BUDGET_BYTES, "{len} nodes");
-        }
-    }
-
-    #[test]
-    fn a_deflation_squeezed_by_the_budget_hands_no_modes_on() {
-        // Room for 8 Ritz vectors up to 2.8 million nodes: its modes go to the next solve. Past
-        // that (room for 4 to 7, up to 4.19 million) it deflates its own solve but keeps none.
-        let kept = |len: usize| {
-            let mut d = Deflation::new(len, false, true, false);
-            assert!(d.on(), "{len} nodes");
-            d.w = vec![vec![1.0; 4]];
-            (d.aw, d.e) = (vec![vec![1.0; 4]], vec![vec![1.0]]);
-            d.modes().is_some()
-        };
-        assert!(kept(2_700_000));
-        assert!(!kept(2_900_000) && !kept(4_100_000));
+    fn a_deflation_is_off_where_its_budget_holds_fewer_than_four_vectors() {
+        assert!(Deflation::new(4_100_000, false, true, false).on());
         assert!(!Deflation::new(4_300_000, false, true, false).on());
     }
 }

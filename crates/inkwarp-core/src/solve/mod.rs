@@ -72,7 +72,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 14] = ["second", "recycle", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole", "probe", "exact_coarsest", "answers"];
+    pub const NAMES: [&'static str; 13] = ["second", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole", "probe", "exact_coarsest", "answers"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -651,16 +651,15 @@ fn solve_piece(
             }
             // (Not where free functions are left unsettled: the probe's start would keep them.)
             let unsettled = settled.is_none() && membrane.is_some_and(|m| m.len() > 0);
-            let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && fresh);
+            let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && (fresh || hier.slow && !spanned));
             // (Nor where the deflation's budget leaves no room: nothing could use what it finds.)
             let may_probe = hier.torn && !hier.whole && !unsettled && !options.off.has("probe") && slow.on();
-            let (mut probed, mut probe_now) = (None, false);
+            let (mut probe_now, mut probed_here) = (false, resumed.as_ref().is_some_and(|p| p.found));
             let mut rz = if let Some(was) = resumed {
-                (u, r, q, slow, probed, found, hier.probed, probe_now) = (was.u, was.r, was.q, was.slow, was.probed, was.found, was.probed_before, was.probe_now);
+                (u, r, q, slow, found, hier.probed, probe_now) = (was.u, was.r, was.q, was.slow, was.found, was.probed_before, was.probe_now);
                 report.initial_residual = scaled_max(&r, &hier.levels[0].inv_diag);
                 was.rz
             } else {
-                if let Some(modes) = hier.modes.take_if(|_| cycles > 0).filter(|_| !options.off.has("recycle")) { slow.adopt(modes, &mut u, &mut r) }
                 fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow))
             };
             for cycle in base + 1..=base + cycles {
@@ -670,17 +669,13 @@ fn solve_piece(
                     hier.strands = strands::Strands::new(&hier.levels[0], true);
                     rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
                 }
-                if may_probe && (cycle == PROBE_AT || probe_now) && !hier.probed {
-                    // A slow solve: its operator probed once for slow modes its residual may not show, then deflated.
-                    (hier.probed, found) = (true, true);
+                // A slow solve probes (each solve: a start may carry slow modes an earlier one's probe found and did
+                // not keep); a weakly held piece's claim only while its operator is unprobed.
+                if may_probe && ((cycle == PROBE_AT && !probed_here) || (probe_now && !hier.probed)) {
+                    (hier.probed, found, probed_here) = (true, true, true);
                     if let Some(rest) = probe(&mut hier, settled.as_ref(), len, &mut report.probe_cycles) {
-                        // Deflated here: what the probe left. Kept for the next solve of this operator: the slowest
-                        // of those and the deflation's vectors, as many as its budget leaves room for beside its own.
-                        let (fine, spare) = (&hier.levels[0], slow.spare());
-                        if spare > 0 {
-                            probed = deflate::Modes::with(rest.iter().cloned().chain(slow.vectors()).collect(), fine).map(|m| m.first(spare));
-                        }
-                        if let Some(modes) = deflate::Modes::with(rest, fine) {
+                        // Deflated here: what the probe left.
+                        if let Some(modes) = deflate::Modes::with(rest, &hier.levels[0]) {
                             slow.adopt(modes, &mut u, &mut r);
                             rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
                         }
@@ -723,13 +718,12 @@ fn solve_piece(
                 slow.beta(Some(beta));
             }
             if !report.converged && report.stop == Stop::Converged && report.cycles > 0 && !crate::interrupt::requested() {
-                // Out of cycles: where it stands, for a next solve that goes on (its modes its own). Its probe counts
+                // Out of cycles: where it stands, for a next solve that goes on (its deflation its own). Its probe counts
                 // for that solve only: the hierarchy is unprobed for any other.
-                pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, probed, found, probed_before: hier.probed, probe_now, value: constraints.to_vec(), tolerance: options.tolerance_px });
+                pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, found, probed_before: hier.probed, probe_now, value: constraints.to_vec(), tolerance: options.tolerance_px });
                 hier.probed = false;
             } else {
                 found |= slow.restarts > 0;
-                hier.modes = probed.or_else(|| slow.modes()).or(hier.modes.take());
             }
         }
         SolveMethod::Southwell => {
@@ -776,9 +770,8 @@ fn solve_piece(
     } else if residual > 4.0 * options.tolerance_px {
         report.fail(Stop::Residual);
     }
-    // A solve that did not converge keeps neither its slow modes (adopted, they quieted the next solve's changes
-    // before the mode that stopped this one showed: a false claim) nor its probe (the next slow solve probes again).
-    if found && !report.converged { (hier.modes, hier.probed) = (None, false) }
+    // A solve that did not converge does not keep its probe (the next slow solve probes again).
+    if found { (hier.probed, hier.slow) = (hier.probed && report.converged, hier.slow || report.converged) }
     if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
     // Not from a hierarchy's first solve: a solver used once (or keeping no hierarchy) would only pay for it.
     if linear && report.converged && !fresh { hier.answers.add(value, &u, tail, options.tolerance_px) }
@@ -794,7 +787,7 @@ fn solve_piece(
 #[derive(Debug)]
 pub(crate) struct Paused {
     u: Vec<V2>, r: Vec<V2>, q: Vec<V2>, rz: [f64; 2], slow: deflate::Deflation, cycle: usize, ratios: [f64; 2], last_change: f64,
-    started: bool, probed: Option<deflate::Modes>, found: bool, probed_before: bool, probe_now: bool, value: Vec<(usize, V2)>, tolerance: f64,
+    started: bool, found: bool, probed_before: bool, probe_now: bool, value: Vec<(usize, V2)>, tolerance: f64,
 }
 
 /// The cycle at which a torn piece's solve still running probes its operator (one with free functions probes before
@@ -867,9 +860,8 @@ const KEPT_MAX_NODES: usize = 1 << 22;
 
 /// The solver a caller keeps between the solves of one surface (an animated layer, the editor's drags): the
 /// hierarchies and free functions of its recent solves' pieces (they depend on the grid, the fixed nodes and the
-/// tension, never on the values, so an animation's frames share them; as many before them stay, for an undo), the
-/// slow modes a hierarchy's last slow solve found (the next starts corrected on them; not on the largest pieces:
-/// see `deflate`), each piece's converged answers (a later solve whose values they span starts from their
+/// tension, never on the values, so an animation's frames share them; as many before them stay, for an undo),
+/// each piece's converged answers (a later solve whose values they span starts from their
 /// combination: `history::Answers`) and the warm-start history ([`WarmHistory`]). Nothing is kept between solves
 /// outside it: [`solve`] uses a temporary one.
 ///
@@ -931,8 +923,8 @@ impl Solver {
     /// The earlier solves a warm solve starts from.
     pub fn history(&self) -> &WarmHistory { &self.history }
 
-    /// Forgets the history and the pieces' earlier answers (the next solve starts cold). The hierarchies (with their
-    /// slow modes), free functions and work vectors stay.
+    /// Forgets the history and the pieces' earlier answers (the next solve starts cold). The hierarchies, free
+    /// functions and work vectors stay.
     pub fn clear(&mut self) {
         self.history.clear();
         self.store.hierarchies.0.iter_mut().for_each(|e| e.1.answers = Default::default());
