@@ -356,7 +356,7 @@ def test_warm_start_mistakes_say_what_to_do():
 def test_a_kept_solver_gives_a_fresh_solves_answer_on_torn_grids_and_other_grids():
     # Its coarse levels are reused for the same grid and points and rebuilt for others;
     # either way each answer is bit for bit the answer of a call without it (none of these
-    # solves is slow enough to leave slow modes for the next).
+    # solves is slow enough to make the next keep its directions early).
     rng = np.random.default_rng(3)
     mask = np.ones((40, 48), np.uint8)
     mask[15:22, 20:30] = 0

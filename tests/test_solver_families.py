@@ -738,7 +738,7 @@ def test_a_capped_solve_goes_on_where_it_stopped(case, steps):
     chunked = field
     # Stopped again, then asked for other displacements from there: a solve of its own,
     # whose claim holds (the exact answer is linear in the displacements). Capped at 4 at
-    # most: started on the slow modes the kept Solver found, this solve takes 7 to 45 cycles.
+    # most: this solve takes 7 to 45 cycles.
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", inkwarp.InkwarpWarning)
         field, report = inkwarp.thin_plate_report(pts, disp, shape, cuts=cuts, solver=kept, max_cycles=min(steps, 4), _off=off)
@@ -755,8 +755,8 @@ def test_no_claim_builds_on_an_answer_that_did_not_converge():
     # started from that answer and claimed convergence after one cycle, 0.70 px off; the
     # same call again through a kept Solver adopted the slow modes the first call had found
     # and claimed it at cycle 20, 0.64 px off. (At 512² a user's sweep found both at the
-    # default cap of 100.) Now such a frame starts afresh, and no Solver keeps modes found
-    # by a solve that did not converge.
+    # default cap of 100.) Now such a frame starts afresh, and no Solver carries slow modes
+    # from one solve to the next.
     pts, disp, cuts, _ = torn_case("flap_on_a_border_strip")
     shape = (256, 256)
     exact = torn_exact("flap_on_a_border_strip")

@@ -93,7 +93,8 @@ points) or a gauge pin, nor with ``method="southwell"`` or ``max_cycles=0`` (the
 then the start).
 
 So answers through a ``Solver`` agree with calls without it within the tolerance, and bit
-for bit where no earlier call left answers that span the new displacements.
+for bit where no earlier call left answers that span the new displacements, probed a
+weakly held piece, or ran long enough to make a warm start keep its search directions early.
 ``clear()`` forgets the answers (the next call starts from ``initial`` or from scratch) and
 keeps the levels. Without a ``Solver`` every call builds its levels afresh and keeps
 nothing. A ``WarmStart`` keeps a solver of its own, so the two are not passed together.
@@ -175,8 +176,8 @@ class SolveReport:
         ``"interrupted"``. With several pieces, the first reason found.
     probe_cycles : int
         Cycles a slow solve of a piece with holes or cuts spent probing its operator for
-        slow modes (24, once, on a random start, from cycle 20 or before a weakly held
-        piece's first claim), beside ``cycles``: they are not counted there, nor against
+        slow modes (24 a probe, on a random start: at cycle 20, and once before a weakly
+        held piece's first claim), beside ``cycles``: they are not counted there, nor against
         ``max_cycles``. With several pieces, the sum over them.
     """
 

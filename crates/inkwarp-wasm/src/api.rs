@@ -787,7 +787,7 @@ const KEPT_SOLVER_MAX_NODES: u64 = 1 << 20;
 /// [`iw_solve_at`] requests.
 const LEVELS_MAX_NODES: u64 = 1 << 22;
 
-/// Drops `solver`'s levels (about 150 bytes a node, 64 more with slow modes; its history stays) when its grid, `grid`
+/// Drops `solver`'s levels (about 150 bytes a node; its history stays) when its grid, `grid`
 /// at `step`, has more than [`LEVELS_MAX_NODES`] nodes: the module's memory is short.
 fn release_large(solver: &mut Solver, grid: &Grid, step: usize) {
     if inkwarp_core::limits::solver_nodes(grid.width, grid.height, step) > LEVELS_MAX_NODES {

@@ -52,8 +52,8 @@ pub(crate) struct Hierarchy {
     pub affine: Option<Affine>,
     /// Whether a solve has probed its operator for slow modes (see `super::probe`), and converged.
     pub probed: bool,
-    /// Whether a converged solve of this operator found slow modes (deflated or probed): a warm start on it (not
-    /// from earlier answers) keeps its directions from its first cycle, as one on a new hierarchy does.
+    /// Whether a solve of this operator ran long enough to deflate or probe: a warm start on it (not from earlier
+    /// answers, whose combination is already judged) keeps its directions from its first cycle, as on a new one.
     pub slow: bool,
     /// Whether the finest level is the only one, solved by its banded factor.
     pub whole: bool,

@@ -33,7 +33,7 @@ const NULL_FLOOR: f64 = 1e-12;
 /// Node chunk for the fused passes.
 const CHUNK: usize = 4096;
 
-/// Slow modes an earlier solve found: the kept vectors `W`, their products and `Wᵀ A W`.
+/// Slow modes a probe or this solve's deflation found: the vectors `W`, their products and `Wᵀ A W`.
 #[derive(Debug)]
 pub(crate) struct Modes(Vec<Vec<f32>>, Vec<Vec<f32>>, Vec<Vec<f64>>);
 
@@ -153,7 +153,7 @@ impl Deflation {
         self.adopt(Modes::of(fine, w), u, r);
     }
 
-    /// Keeps `modes` (the Ritz vectors, or an earlier solve's) as the vectors, a new basis (`Bᵀ B = I`,
+    /// Keeps `modes` (the Ritz vectors, or a probe's) as the vectors, a new basis (`Bᵀ B = I`,
     /// `Bᵀ A B = E`, no window), as many as the budget allows; corrects `u` and `r` on them.
     pub fn adopt(&mut self, modes: Modes, u: &mut [V2], r: &mut [V2]) {
         if !self.on || modes.0[0].len() != u.len() { return; }

@@ -720,6 +720,7 @@ fn solve_piece(
             if !report.converged && report.stop == Stop::Converged && report.cycles > 0 && !crate::interrupt::requested() {
                 // Out of cycles: where it stands, for a next solve that goes on (its deflation its own). Its probe counts
                 // for that solve only: the hierarchy is unprobed for any other.
+                // (`found` here is this solve's probe alone: a resumed solve's `probed_here`.)
                 pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, found, probed_before: hier.probed, probe_now, value: constraints.to_vec(), tolerance: options.tolerance_px });
                 hier.probed = false;
             } else {
@@ -771,7 +772,7 @@ fn solve_piece(
         report.fail(Stop::Residual);
     }
     // A solve that did not converge does not keep its probe (the next slow solve probes again).
-    if found { (hier.probed, hier.slow) = (hier.probed && report.converged, hier.slow || report.converged) }
+    if found { (hier.probed, hier.slow) = (hier.probed && report.converged, true) }
     if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
     // Not from a hierarchy's first solve: a solver used once (or keeping no hierarchy) would only pay for it.
     if linear && report.converged && !fresh { hier.answers.add(value, &u, tail, options.tolerance_px) }
