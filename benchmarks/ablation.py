@@ -142,7 +142,7 @@ def per_side(start, step):
 
 def kept_warm(pts, disp, changed, shape, mask, cuts):
     """The warm solve with a `Solver` kept from the cold solve before it (its hierarchy,
-    and whether that solve ran long); each side of a pair has a solver of its own."""
+    and whether that solve probed it); each side of a pair has a solver of its own."""
     def start(off):
         solver = inkwarp.Solver()
         return [solver, inkwarp.thin_plate_report(pts, disp, shape, mask=mask, cuts=cuts, solver=solver, _off=off)[0]]

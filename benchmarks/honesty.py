@@ -12,7 +12,7 @@ residual), so it scales the displacements down:
   `--seeds`, displacements times 0.02 and 0.2, each solved cold at the default settings;
 - the same at 4x with the displacements changed by 2 % and 0.05 px, warm from the
   previous answer (an animation's next frame), and times 1.1 through a `Solver` kept from
-  the solve of the displacements (its levels, and whether that solve ran long);
+  the solve of the displacements (its levels, and whether that solve probed them);
 - with `--families`, the oracle tests' thin-part families at larger sizes (the 4×
   characters past the direct solve's practical reach): the antialiased characters
   (`character_problem`, seeds `--seeds`, scales 1, 2 and 4) and the combs with 1 and 2 px

@@ -93,8 +93,8 @@ points) or a gauge pin, nor with ``method="southwell"`` or ``max_cycles=0`` (the
 then the start).
 
 So answers through a ``Solver`` agree with calls without it within the tolerance, and bit
-for bit where no earlier call left answers that span the new displacements, probed a
-weakly held piece, or ran long enough to make a warm start keep its search directions early.
+for bit where no earlier call left answers that span the new displacements or probed the
+piece (a later warm start then keeps its search directions from its first cycle).
 ``clear()`` forgets the answers (the next call starts from ``initial`` or from scratch) and
 keeps the levels. Without a ``Solver`` every call builds its levels afresh and keeps
 nothing. A ``WarmStart`` keeps a solver of its own, so the two are not passed together.

@@ -50,11 +50,10 @@ pub(crate) struct Hierarchy {
     pub direction: Vec<W2>,
     /// The finest level's affine functions, corrected exactly after every cycle (see [`Affine`]).
     pub affine: Option<Affine>,
-    /// Whether a solve has probed its operator for slow modes (see `super::probe`), and converged.
+    /// Whether a solve has probed its operator for slow modes (see `super::probe`), and converged: a warm start on
+    /// it (not from earlier answers, whose combination is already judged) keeps its directions from its first
+    /// cycle, as one on a new hierarchy does.
     pub probed: bool,
-    /// Whether a solve of this operator ran long enough to deflate or probe: a warm start on it (not from earlier
-    /// answers, whose combination is already judged) keeps its directions from its first cycle, as on a new one.
-    pub slow: bool,
     /// Whether the finest level is the only one, solved by its banded factor.
     pub whole: bool,
     /// Where the last solve stood if its cycle limit stopped it, for the next to go on.
@@ -112,7 +111,7 @@ impl Hierarchy {
         let bound = |(k, l): (usize, &mut Level)| l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
         levels.iter_mut().enumerate().skip(if smooth_fine && !whole { 0 } else { 1 }).for_each(bound);
         let coarsest = factor.unwrap_or_else(|| Banded::new(levels.last().unwrap()));
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, probed: false, slow: false, whole, paused: None, answers: Default::default() }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, probed: false, whole, paused: None, answers: Default::default() }
     }
 
     /// `z ≈ A⁻¹ r` on the finest level by one symmetric cycle from zero in `f32`, valid until the next call.

@@ -651,7 +651,7 @@ fn solve_piece(
             }
             // (Not where free functions are left unsettled: the probe's start would keep them.)
             let unsettled = settled.is_none() && membrane.is_some_and(|m| m.len() > 0);
-            let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && (fresh || hier.slow && !spanned));
+            let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && (fresh || hier.probed && !spanned));
             // (Nor where the deflation's budget leaves no room: nothing could use what it finds.)
             let may_probe = hier.torn && !hier.whole && !unsettled && !options.off.has("probe") && slow.on();
             let (mut probe_now, mut probed_here) = (false, resumed.as_ref().is_some_and(|p| p.found));
@@ -772,7 +772,7 @@ fn solve_piece(
         report.fail(Stop::Residual);
     }
     // A solve that did not converge does not keep its probe (the next slow solve probes again).
-    if found { (hier.probed, hier.slow) = (hier.probed && report.converged, true) }
+    if found && !report.converged { hier.probed = false }
     if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
     // Not from a hierarchy's first solve: a solver used once (or keeping no hierarchy) would only pay for it.
     if linear && report.converged && !fresh { hier.answers.add(value, &u, tail, options.tolerance_px) }
