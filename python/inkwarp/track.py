@@ -1276,9 +1276,9 @@ def check_output(path: str | os.PathLike[str], *, source: str | os.PathLike[str]
     folder = above
     if not folder.is_dir():
         raise ValueError(f"{out}: {folder} is a file, not a directory; choose another output path")
-    if not os.access(folder, os.W_OK):
-        raise ValueError(f"{out}: the directory {folder} is not writable; choose a writable folder or "
-                         "change its permissions")
+    from inkwarp.video import check_writable
+
+    check_writable(out, folder)
     if source is not None:
         from inkwarp.outputs import check_not_the_input
 

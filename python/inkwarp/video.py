@@ -106,12 +106,9 @@ def check_target(path: str | os.PathLike[str], kind: OutputKind | None = None) -
     # An existing folder takes the frames itself (its parent may be read-only, as a
     # writable frames folder in a locked shot folder is); a new one is made in the parent.
     if target.is_dir():
-        if not os.access(target, os.W_OK):
-            raise ValueError(f"{target}: the directory is not writable; choose a writable folder or "
-                             "change its permissions")
-    elif not os.access(parent, os.W_OK):
-        raise ValueError(f"{target}: the directory {parent} is not writable; choose a writable folder "
-                         "or change its permissions")
+        check_writable(target, target, "the directory")
+    else:
+        check_writable(target, parent)
     return target
 
 
@@ -133,9 +130,7 @@ def check_file(path: str | os.PathLike[str], suffix: str = "") -> Path:
         raise ValueError(f"{target}: {err.strerror or err}; name the output otherwise") from None
     if folder:
         raise ValueError(f"{target}: is a directory; name a file, such as {target / 'out'}{target.suffix or suffix}")
-    if not os.access(parent, os.W_OK):
-        raise ValueError(f"{target}: the directory {parent} is not writable; choose a writable folder or "
-                         "change its permissions")
+    check_writable(target, parent)
     return target
 
 
@@ -179,6 +174,14 @@ def check_not_a_stream(path: str | os.PathLike[str], suffix: str = "") -> None:
     example = f"out{given or suffix}" if given or suffix else "out.gif, or a folder for PNG frames, such as frames/"
     raise ValueError(f"{text}: is {what}, not a file; inkwarp writes every output to a file (under a temporary "
                      f"name, renamed when complete), so it cannot write to a stream. Name a file, such as {example}")
+
+
+def check_writable(target: Path, folder: Path, named: str | None = None) -> None:
+    """A ``ValueError`` naming ``target`` and the fix unless ``folder`` (said as ``named``,
+    by default "the directory FOLDER") may be written in."""
+    if not os.access(folder, os.W_OK):
+        raise ValueError(f"{target}: {named or f'the directory {folder}'} is not writable; choose a writable "
+                         "folder or change its permissions")
 
 
 def _check_parent(target: Path) -> Path:

@@ -12,8 +12,8 @@ use rayon::prelude::*;
 use super::level::{dot, Level, Real, V2, W2, WS};
 
 /// Cycles before directions are kept (solves that end by then pay nothing). An `early` solve (a warm start on
-/// a torn piece new to its hierarchy, or whose operator showed slow modes before: often all slow modes) keeps
-/// them from its first cycle and, past it, stops only after its first look at them.
+/// a torn piece new to its hierarchy, or not from earlier answers on one an earlier solve probed: often all slow
+/// modes) keeps them from its first cycle and, past it, stops only after its first look at them.
 const START: usize = 10;
 /// Cycles per window.
 pub(crate) const WINDOW: usize = 4;

@@ -654,7 +654,7 @@ fn solve_piece(
             let mut slow = deflate::Deflation::new(len, options.off.has("deflate"), hier.torn, warm && (fresh || hier.probed && !spanned));
             // (Nor where the deflation's budget leaves no room: nothing could use what it finds.)
             let may_probe = hier.torn && !hier.whole && !unsettled && !options.off.has("probe") && slow.on();
-            let (mut probe_now, mut probed_here) = (false, resumed.as_ref().is_some_and(|p| p.found));
+            let mut probe_now = false;
             let mut rz = if let Some(was) = resumed {
                 (u, r, q, slow, found, hier.probed, probe_now) = (was.u, was.r, was.q, was.slow, was.found, was.probed_before, was.probe_now);
                 report.initial_residual = scaled_max(&r, &hier.levels[0].inv_diag);
@@ -669,10 +669,10 @@ fn solve_piece(
                     hier.strands = strands::Strands::new(&hier.levels[0], true);
                     rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
                 }
-                // A slow solve probes (each solve: a start may carry slow modes an earlier one's probe found and did
-                // not keep); a weakly held piece's claim only while its operator is unprobed.
-                if may_probe && ((cycle == PROBE_AT && !probed_here) || (probe_now && !hier.probed)) {
-                    (hier.probed, found, probed_here) = (true, true, true);
+                // A slow solve probes (each solve, `found` till the loop ends: a start may carry slow modes an earlier
+                // one's probe found and did not keep); a weakly held piece's claim only while its operator is unprobed.
+                if may_probe && ((cycle == PROBE_AT && !found) || (probe_now && !hier.probed)) {
+                    (hier.probed, found) = (true, true);
                     if let Some(rest) = probe(&mut hier, settled.as_ref(), len, &mut report.probe_cycles) {
                         // Deflated here: what the probe left.
                         if let Some(modes) = deflate::Modes::with(rest, &hier.levels[0]) {
@@ -720,7 +720,6 @@ fn solve_piece(
             if !report.converged && report.stop == Stop::Converged && report.cycles > 0 && !crate::interrupt::requested() {
                 // Out of cycles: where it stands, for a next solve that goes on (its deflation its own). Its probe counts
                 // for that solve only: the hierarchy is unprobed for any other.
-                // (`found` here is this solve's probe alone: a resumed solve's `probed_here`.)
                 pause = Some(Paused { u: u.clone(), r: Vec::new(), q: Vec::new(), rz, slow, cycle: base + report.cycles, ratios, last_change, started, found, probed_before: hier.probed, probe_now, value: constraints.to_vec(), tolerance: options.tolerance_px });
                 hier.probed = false;
             } else {
