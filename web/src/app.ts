@@ -248,6 +248,12 @@ export class App {
   lastReport: FieldEvent | null = null;
   /** The frame shown now came from the playback cache (fields solved ahead), not from `lastReport`'s solve. */
   shownFromCache = false;
+  /**
+   * The scene time of the fields the picture shows (null before any): while playing, a frame
+   * not solved yet keeps the picture of an earlier one, and the drawing is drawn at this
+   * time, with the picture it moves, not ahead of it.
+   */
+  shownTime: number | null = null;
   /** Full-resolution fields by frame, for the document revision they were solved for. */
   private cache = { rev: -1, bytes: 0, frames: new Map<number, Map<string, KeptField>>() };
 
@@ -983,6 +989,7 @@ export class App {
     const hit = quality === 'final' ? this.cached(frame) : undefined;
     if (hit) {
       this.shownFromCache = true;
+      this.shownTime = time;
       for (const [key, kept] of hit) {
         const rt = this.runtimes.get(key);
         if (!rt?.gl) continue;
@@ -1290,6 +1297,7 @@ export class App {
     if (rt && ev.tag.gen === rt.gridGen && this.posed && rt.gl && seq > rt.shownSeq) {
       rt.shownSeq = seq;
       this.shownFromCache = false;
+      this.shownTime = typeof ev.tag.time === 'number' ? ev.tag.time : null;
       rt.field = ev.field;
       rt.notes = ev.report.notes ?? [];
       rt.error = null;

@@ -378,14 +378,21 @@ export function unopenedMessage(s: Snapshot, why: string, where: string): string
 }
 
 /**
- * Keeps the snapshot up to date: `changed()` after each edit schedules a write
- * `delayMs` later (edits in between are written together); `flush()` writes now.
- * Writes never overlap, and a failed write is reported once through `onError`.
+ * Keeps the snapshot up to date: `changed()` after each edit schedules a write `delayMs`
+ * after the last of a burst of edits, and at most `maxWaitMs` after the first one not yet
+ * written (a long drag is kept as it goes); `flush()` writes now. A picture is read and
+ * inlined once: the writes after the first start at once, so a write asked for as the
+ * page goes (`pagehide`) is begun before it has gone. Writes never overlap, and a failed
+ * write is reported once through `onError`.
  */
 export class Autosaver {
   private timer: ReturnType<typeof setTimeout> | null = null;
+  /** When the first change not yet written was made (ms, `now`), or null. */
+  private firstPending: number | null = null;
   private writing: Promise<void> = Promise.resolve();
   private reported = false;
+  /** Pictures inlined before, by reference (a failed read is not kept). */
+  private inlined = new Map<string, Promise<string>>();
   /** When the last snapshot was written (ms since the epoch), or null. */
   lastSavedAt: number | null = null;
 
@@ -393,18 +400,21 @@ export class Autosaver {
     private store: SnapshotStore,
     private current: () => Omit<Snapshot, 'savedAt'>,
     private inline: Inliner,
-    private delayMs = 800,
+    private delayMs = 150,
     private onError: (err: Error) => void = () => {},
     private now: () => number = Date.now,
+    private maxWaitMs = 1000,
   ) {}
 
   /** The document changed: write it soon. */
   changed(): void {
     if (this.timer !== null) clearTimeout(this.timer);
+    this.firstPending ??= this.now();
+    const wait = Math.max(0, Math.min(this.delayMs, this.firstPending + this.maxWaitMs - this.now()));
     this.timer = setTimeout(() => {
       this.timer = null;
       void this.flush();
-    }, this.delayMs);
+    }, wait);
   }
 
   /** Whether a write is scheduled but not yet started. */
@@ -418,10 +428,11 @@ export class Autosaver {
       clearTimeout(this.timer);
       this.timer = null;
     }
+    this.firstPending = null;
     this.writing = this.writing.then(async () => {
       const { doc, ...rest } = this.current();
       try {
-        const inlined = await inlineImages(doc, this.inline);
+        const inlined = await inlineImages(doc, (ref) => this.inlineOnce(ref, doc));
         const savedAt = this.now();
         await this.store.put({ ...rest, doc: inlined, savedAt });
         this.lastSavedAt = savedAt;
@@ -432,5 +443,18 @@ export class Autosaver {
       }
     });
     return this.writing;
+  }
+
+  /** `ref` inlined, read once; pictures `doc` no longer names are forgotten. */
+  private inlineOnce(ref: string, doc: SceneDoc): Promise<string> {
+    const named = new Set(doc.layers.flatMap((l) => PICTURE_KEYS.map((k) => l[k])));
+    for (const old of this.inlined.keys()) if (!named.has(old)) this.inlined.delete(old);
+    let got = this.inlined.get(ref);
+    if (!got) {
+      got = this.inline(ref);
+      this.inlined.set(ref, got);
+      got.catch(() => this.inlined.delete(ref));
+    }
+    return got;
   }
 }

@@ -68,9 +68,10 @@ export class Overlay {
 
   /**
    * Draws the overlays; `proxy` is the factor a large picture's layers are scaled down by
-   * (their matte, links and field are the proxy's: see `proxy.ts`).
+   * (their matte, links and field are the proxy's: see `proxy.ts`); the drawing is posed at
+   * `time` (the scene's time unless given).
    */
-  draw(store: Store, rt: LayerRuntime | undefined, sceneWidth: number, sceneHeight: number, proxy = 1): void {
+  draw(store: Store, rt: LayerRuntime | undefined, sceneWidth: number, sceneHeight: number, proxy = 1, time = store.view.time): void {
     this.sceneWidth = sceneWidth;
     this.proxy = proxy;
     const pw = Math.ceil(sceneWidth / proxy), ph = Math.ceil(sceneHeight / proxy);
@@ -99,13 +100,13 @@ export class Overlay {
       if (posed && f.kind !== 'cut') this.drawFeature(f, f.rest, s, false, true);
       if (posed && selected && view.onion && f.kind !== 'cut') {
         // Onion skin: where the feature was at its previous key (red) and will be at its next (green).
-        const { prev, next } = neighbourKeys(f, view.time);
+        const { prev, next } = neighbourKeys(f, time);
         if (prev) this.drawFeature(f, prev.points, s, false, true, '#ff5a5a');
         if (next) this.drawFeature(f, next.points, s, false, true, '#5aff7a');
       }
-      const pts = shownPoints(f, mode, view.time);
+      const pts = shownPoints(f, mode, time);
       this.drawFeature(f, pts, s, selected, false);
-      if (posed && f.keys?.some((k) => Math.abs(k.t - view.time) < 1e-4)) {
+      if (posed && f.keys?.some((k) => Math.abs(k.t - time) < 1e-4)) {
         const [x, y] = this.toCanvas(pts[0]);
         ctx.fillStyle = '#fff';
         ctx.strokeStyle = '#000';
@@ -123,7 +124,7 @@ export class Overlay {
     // The picked control points (a marquee, Shift-click): a white ring each.
     for (const r of view.pointSelection) {
       const f = store.doc.features.find((g) => g.id === r.feature);
-      const q = f && shownPoints(f, mode, view.time)[r.point];
+      const q = f && shownPoints(f, mode, time)[r.point];
       if (!q) continue;
       const [x, y] = this.toCanvas(q);
       ctx.lineWidth = 3;

@@ -1028,7 +1028,10 @@ export class Ui {
   drawOverlay(): void {
     const doc = this.store.doc;
     const layer = doc.layers[this.store.view.activeLayer];
-    this.overlay.draw(this.store, layer ? this.app.runtimes.get(layer.name) : undefined, doc.width, doc.height, this.app.proxy);
+    // Playing, the drawing goes with the picture: at the time of the frame shown, which a
+    // frame not solved yet leaves behind the playhead.
+    const shown = this.store.view.playing ? this.app.shownTime : null;
+    this.overlay.draw(this.store, layer ? this.app.runtimes.get(layer.name) : undefined, doc.width, doc.height, this.app.proxy, shown ?? this.store.view.time);
   }
 
   /** Client (CSS px) → scene coordinates (pixel centres at integers). */

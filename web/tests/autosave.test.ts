@@ -51,6 +51,62 @@ describe('autosave', () => {
     }
   });
 
+  it('a long burst of changes (a drag) is written as it goes, at most a second apart', async () => {
+    vi.useFakeTimers();
+    try {
+      const kept = new MemoryStore();
+      let fps = 1;
+      const saver = new Autosaver(kept, () => ({ doc: { ...scene(), fps }, fileName: 'x', unsaved: true }), async () => 'data:,', 150);
+      const put = vi.spyOn(kept, 'put');
+      for (let i = 0; i < 30; i++) {
+        fps = i + 1;
+        saver.changed();
+        await vi.advanceTimersByTimeAsync(100);
+      }
+      // 3 s of changes 0.1 s apart: a write each second, none waiting for the burst's end.
+      expect(put.mock.calls.length).toBeGreaterThanOrEqual(2);
+      expect(put.mock.calls.length).toBeLessThanOrEqual(3);
+      await vi.advanceTimersByTimeAsync(150);
+      expect(kept.value?.doc.fps).toBe(30);
+    } finally {
+      vi.useRealTimers();
+    }
+  });
+
+  it('reads each picture once: a later write waits for no read (it begins as the page goes)', async () => {
+    const kept = new MemoryStore();
+    const reads: string[] = [];
+    let hang = false;
+    const inline = (ref: string) => {
+      reads.push(ref);
+      return hang ? new Promise<string>(() => {}) : Promise.resolve(`data:,${ref}`);
+    };
+    const saver = new Autosaver(kept, () => ({ doc: scene(), fileName: 'x', unsaved: true }), inline, 0);
+    await saver.flush();
+    hang = true; // a read now would never end: the second write must not need one
+    const put = vi.spyOn(kept, 'put');
+    await saver.flush();
+    expect(put).toHaveBeenCalledTimes(1);
+    expect(reads).toEqual(['pictures/b.png', 'm.png']);
+    expect(kept.value?.doc.layers[1].continuity).toBe('data:,m.png');
+  });
+
+  it('a picture whose read failed is read again at the next write', async () => {
+    const errors: string[] = [];
+    const kept = new MemoryStore();
+    let fail = true;
+    const saver = new Autosaver(kept, () => ({ doc: scene(), fileName: 'x', unsaved: true }), async (ref) => {
+      if (fail) throw new Error(`HTTP 404 for ${ref}`);
+      return 'data:,ok';
+    }, 0, (e) => errors.push(e.message));
+    await saver.flush();
+    expect(kept.value).toBeNull();
+    fail = false;
+    await saver.flush();
+    expect(kept.value?.doc.layers[1].image).toBe('data:,ok');
+    expect(errors).toEqual(['HTTP 404 for pictures/b.png']);
+  });
+
   it('reports a failed write once and keeps trying', async () => {
     const errors: string[] = [];
     const kept = new MemoryStore();
