@@ -452,17 +452,18 @@ class _Tracker:
                    window(b, size, tuple(map(float, q)), patchType=self.cv2.CV_32F))
 
     def predicted(self, template: np.ndarray, rest: np.ndarray, now: np.ndarray,
-                  good: np.ndarray, box: tuple[int, int, int, int] | None = None) -> tuple[np.ndarray, Any] | None:
+                  good: np.ndarray, box: tuple[int, int, int, int] | None = None) -> tuple[np.ndarray, Any, Any] | None:
         """The anchor frame warped by the thin plate taking ``rest[good]`` to ``now[good]``
-        (evaluated every 8 px and interpolated) and that map's inverse, or None with too
-        few points; only the pixels of ``box`` (``x0, y0, x1, y1``) where given."""
+        (evaluated every 8 px and interpolated), that map's inverse and the map itself, or
+        None with too few points; only the pixels of ``box`` (``x0, y0, x1, y1``) where
+        given."""
         from inkwarp.methods import ThinPlateMap
 
         idx = _spread(np.flatnonzero(good), rest)
         if len(idx) < 3:
             return None
         try:
-            inverse = ThinPlateMap(now[idx], rest[idx])
+            inverse, forward = ThinPlateMap(now[idx], rest[idx]), ThinPlateMap(rest[idx], now[idx])
         except ValueError:
             return None
         x0, y0, x1, y1 = box if box is not None else (0, 0, template.shape[1], template.shape[0])
@@ -477,7 +478,7 @@ class _Tracker:
             full[..., c] = _upsample(src[..., c], gx, gy, w, h)
         picture = self.cv2.remap(template, full[..., 0], full[..., 1], self.cv2.INTER_CUBIC,
                                  borderMode=self.cv2.BORDER_REPLICATE)
-        return picture, inverse
+        return picture, inverse, forward
 
     def run(self, anchor: int, start_points: np.ndarray, stop: int,
             tick: Callable[[], None], neighbours: np.ndarray | None = None,
@@ -520,7 +521,7 @@ class _Tracker:
             refined, refined_fb = self._lk_checked(template, b, start_points, estimate)
             warped = self.predicted(template, start_points, estimate, good)
             if warped is not None:
-                picture, inverse = warped
+                picture, inverse, forward = warped
                 half = LK_WINDOW_PX / 2
                 here = inverse(estimate)
                 bent = np.zeros(len(estimate))
@@ -530,8 +531,14 @@ class _Tracker:
                 turned = bent > 0.2
                 if turned.any():
                     at_turned = estimate[turned]
-                    again, again_fb = self._lk_checked(picture, b, at_turned, at_turned)
-                    misfit = self._mismatch(picture, at_turned, b, again)
+                    # Registered from where the warped picture shows the point's anchor window
+                    # (the plate's image of its rest place), not from the estimate: the plate
+                    # interpolates only the points `_spread` keeps, and a point off them,
+                    # registered from its estimate, was confirmed where its drift had taken it
+                    # (the warped picture matches the frame everywhere the plate is right).
+                    in_picture = forward(start_points[turned])
+                    again, again_fb = self._lk_checked(picture, b, in_picture, at_turned)
+                    misfit = self._mismatch(picture, in_picture, b, again)
                     # The whole drawing's plate bends between a thing that turns and a still point
                     # elsewhere, and a window warped by it is registered a few pixels off, passing
                     # every check: a feature that moves as one piece (its followed points span an
@@ -551,9 +558,10 @@ class _Tracker:
                         own = self.predicted(template, start_points, estimate, mine, (*lo, *hi))
                         if own is None:
                             continue
-                        found, found_fb = self._lk_checked(own[0], b[lo[1]:hi[1], lo[0]:hi[0]], at_turned[at] - lo, at_turned[at] - lo)
+                        in_own = own[2](start_points[turned][at]) - lo
+                        found, found_fb = self._lk_checked(own[0], b[lo[1]:hi[1], lo[0]:hi[0]], in_own, at_turned[at] - lo)
                         found = found + lo
-                        fits = self._mismatch(own[0], at_turned[at] - lo, b, found)
+                        fits = self._mismatch(own[0], in_own, b, found)
                         better = (found_fb < TRUST_FB_PX) & (fits < misfit[at])
                         again[at[better]], again_fb[at[better]], misfit[at[better]] = found[better], found_fb[better], fits[better]
                     # A warped picture is the thin plate's guess of how the window turned: kept
@@ -974,8 +982,8 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             f"{clip.width}x{clip.height}; trace the drawing on a frame of this video "
             f"(inkwarp frame {clip.path} -o frame.png) in a scene of its size")
     if not 0 <= frame < count:
-        raise ValueError(f"frame {frame}: {clip.path} has frames 0 to {count - 1}; give a frame "
-                         f"number below {count}")
+        raise ValueError(f"frame {frame}: {clip.path} has frames 0 to {count - 1} (numbered from 0); give "
+                         f"a frame number from 0 to {count - 1}")
     if simplify_px is not None and not (math.isfinite(simplify_px) and simplify_px >= 0):
         raise ValueError(f"simplify_px {simplify_px}: give a distance in pixels, 0 or more")
     if not (math.isfinite(lost_px) and lost_px > 0):
