@@ -566,6 +566,8 @@ fn solve_piece(
     // A capped solve goes on when the next starts from its answer (`solve_constrained`) with the same constraints
     // (not the gauge, whose value is the start's) and tolerance: started over, a series could stop far from the answer.
     let constraints = &value[..value.len() - usize::from(cold_gauge.is_some())];
+    // Solved again from exactly its last answer, converged for the same values: that claim was probed.
+    let again = hier.converged_on.take().is_some_and(|(v, t)| store.goes_on && v == constraints && t == options.tolerance_px);
     let resumed = hier.paused.take().filter(|p| {
         store.goes_on && options.method == SolveMethod::Multigrid && p.tolerance == options.tolerance_px && p.value == constraints
     });
@@ -669,14 +671,14 @@ fn solve_piece(
                     hier.strands = strands::Strands::new(&hier.levels[0], true);
                     rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
                 }
-                // A slow solve probes (each solve, `found` till the loop ends: a start may carry slow modes an earlier
-                // one's probe found and did not keep); a weakly held piece's claim only while its operator is unprobed.
-                if may_probe && ((cycle == PROBE_AT && !found) || (probe_now && !hier.probed)) {
+                // A slow solve probes, and so does a weakly held piece's first claim: each solve (`found` till the loop
+                // ends), as no solve keeps the slow modes an earlier one's probe found.
+                if may_probe && !found && (cycle == PROBE_AT || probe_now) {
                     (hier.probed, found) = (true, true);
                     if let Some(rest) = probe(&mut hier, settled.as_ref(), len, &mut report.probe_cycles) {
                         // Deflated here: what the probe left.
                         if let Some(modes) = deflate::Modes::with(rest, &hier.levels[0]) {
-                            slow.adopt(modes, &mut u, &mut r);
+                            slow.adopt(&hier.levels[0], modes, &mut u, &mut r);
                             rz = restart_directions(&mut hier, &mut u, &mut r, &mut p, settled.as_ref(), &mut slow);
                         }
                     }
@@ -694,7 +696,7 @@ fn solve_piece(
                 slow.step(alpha);
                 if stop(slow.judged(change), cycle, &mut report, slow.rate_floor(), [alpha[0] * along[0], alpha[1] * along[1]]) {
                     // A piece with free functions is weakly held (slow motions the changes do not show): probe first.
-                    probe_now = may_probe && settled.is_some() && !hier.probed;
+                    probe_now = may_probe && settled.is_some() && !found && !again;
                     if !probe_now { report.converged = true; break }
                 }
                 if slow.record(cycle, &p, &q) {
@@ -708,7 +710,7 @@ fn solve_piece(
                     hier.coarse_to_fine(&mut u, &mut r, true);
                     if let Some(s) = &settled { s.project(&hier.levels[0], &mut u) }
                     hier.levels[0].residual(&u, None, &mut r);
-                    slow.correct(&mut u, &mut r);
+                    slow.correct(&hier.levels[0], &mut u, &mut r);
                     rz = fresh_direction(&mut hier, &r, &mut p, settled.as_ref(), Some(&slow));
                     slow.beta(None);
                     continue;
@@ -772,6 +774,7 @@ fn solve_piece(
     }
     // A solve that did not converge does not keep its probe (the next slow solve probes again).
     if found && !report.converged { hier.probed = false }
+    hier.converged_on = report.converged.then(|| (constraints.to_vec(), options.tolerance_px));
     if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
     // Not from a hierarchy's first solve: a solver used once (or keeping no hierarchy) would only pay for it.
     if linear && report.converged && !fresh { hier.answers.add(value, &u, tail, options.tolerance_px) }
