@@ -176,8 +176,8 @@ class SolveReport:
         ``"interrupted"``. With several pieces, the first reason found.
     probe_cycles : int
         Cycles a slow solve of a piece with holes or cuts spent probing its operator for
-        slow modes (24 a probe, on a random start: at cycle 20, and once before a weakly
-        held piece's first claim), beside ``cycles``: they are not counted there, nor against
+        slow modes (24 a probe, on a random start: in every solve still running at cycle 20,
+        or before a weakly held piece's first claim), beside ``cycles``: they are not counted there, nor against
         ``max_cycles``. With several pieces, the sum over them.
     """
 

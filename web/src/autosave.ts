@@ -377,6 +377,9 @@ export function unopenedMessage(s: Snapshot, why: string, where: string): string
   return `The work kept from ${clockTime(s.savedAt)} could not be opened: ${named.join('\n').replace(/[.\s]+$/, '')}. ${where}; ${mend}.`;
 }
 
+/** How long after the last of a burst of edits the kept copy is written (ms). */
+export const KEEP_DELAY_MS = 150;
+
 /**
  * Keeps the snapshot up to date: `changed()` after each edit schedules a write `delayMs`
  * after the last of a burst of edits, and at most `maxWaitMs` after the first one not yet
@@ -400,7 +403,7 @@ export class Autosaver {
     private store: SnapshotStore,
     private current: () => Omit<Snapshot, 'savedAt'>,
     private inline: Inliner,
-    private delayMs = 150,
+    private delayMs = KEEP_DELAY_MS,
     private onError: (err: Error) => void = () => {},
     private now: () => number = Date.now,
     private maxWaitMs = 1000,
@@ -431,8 +434,11 @@ export class Autosaver {
     this.firstPending = null;
     this.writing = this.writing.then(async () => {
       const { doc, ...rest } = this.current();
+      // Pictures the document no longer names are forgotten.
+      const named = new Set<unknown>(doc.layers.flatMap((l) => PICTURE_KEYS.map((k) => l[k])));
+      for (const old of this.inlined.keys()) if (!named.has(old)) this.inlined.delete(old);
       try {
-        const inlined = await inlineImages(doc, (ref) => this.inlineOnce(ref, doc));
+        const inlined = await inlineImages(doc, (ref) => this.inlineOnce(ref));
         const savedAt = this.now();
         await this.store.put({ ...rest, doc: inlined, savedAt });
         this.lastSavedAt = savedAt;
@@ -445,10 +451,8 @@ export class Autosaver {
     return this.writing;
   }
 
-  /** `ref` inlined, read once; pictures `doc` no longer names are forgotten. */
-  private inlineOnce(ref: string, doc: SceneDoc): Promise<string> {
-    const named = new Set(doc.layers.flatMap((l) => PICTURE_KEYS.map((k) => l[k])));
-    for (const old of this.inlined.keys()) if (!named.has(old)) this.inlined.delete(old);
+  /** `ref` inlined, read once. */
+  private inlineOnce(ref: string): Promise<string> {
     let got = this.inlined.get(ref);
     if (!got) {
       got = this.inline(ref);

@@ -2,7 +2,7 @@
 // solving), builds the page, and opens the scene named in the URL or the built-in example.
 
 import { App } from './app';
-import { Autosaver, IndexedDbStore, MemoryStore, type Snapshot, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureFiles, pictureMarks, restorePictures, restoreQuestion, sameScene, unopenedMessage } from './autosave';
+import { Autosaver, IndexedDbStore, KEEP_DELAY_MS, MemoryStore, type Snapshot, type SnapshotStore, claimTab, clockTime, fetchDataUri, holdTab, pictureFiles, pictureMarks, restorePictures, restoreQuestion, sameScene, unopenedMessage } from './autosave';
 import { Engine } from './engine';
 import { builtinScene } from './examples';
 import * as examples from './examples';
@@ -97,7 +97,7 @@ function showTitle(store: Store): void {
 }
 
 /**
- * Never lose work: the scene is kept in IndexedDB 0.15 s after each change (images
+ * Never lose work: the scene is kept in IndexedDB `KEEP_DELAY_MS` after each change (images
  * inlined), offered back on the next load when it held unsaved changes, and leaving the
  * page with unsaved changes asks first.
  */
@@ -148,7 +148,7 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
     return { doc: store.doc, fileName: store.origin.fileName, unsaved: store.unsaved || draft.length > 0, view: { mode: store.view.mode, time: store.view.time, ...drawing }, source: file.source, version: file.version, pictures: file.pictures, files: pictureFiles(store.doc) };
   };
   const failed = (err: Error) => ui.message(`Could not keep a copy of the scene in the browser (${err.message}); save it to a file.`, 'error');
-  const saver = new Autosaver(kept, snapshot, fetchDataUri, 150, failed);
+  const saver = new Autosaver(kept, snapshot, fetchDataUri, KEEP_DELAY_MS, failed);
   // Unsaved work is offered back whatever the page opened: it is the file's own (the same
   // path), or it names itself and what it would replace, and then saves by download. This
   // tab's own work (a reload) first, else the newest that a closed tab left.
@@ -192,7 +192,7 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
     if (!(store.unsaved || store.view.draft.length) || !(kept instanceof IndexedDbStore)) return;
     if (!aside) {
       const key = `${kept.key}-meanwhile-${Date.now().toString(36)}`;
-      const made = { key, release: null as (() => void) | null, saver: new Autosaver(new IndexedDbStore(key), snapshot, fetchDataUri, 150, failed) };
+      const made = { key, release: null as (() => void) | null, saver: new Autosaver(new IndexedDbStore(key), snapshot, fetchDataUri, KEEP_DELAY_MS, failed) };
       void claimTab(key).then((r) => { made.release = r; });
       aside = made;
       keeper = made.saver;
