@@ -1136,8 +1136,9 @@ def kept_families():
 def test_a_kept_solvers_later_frame_among_many_cuts_probes_before_its_claim():
     # A kept solver's second frame on 20-50 random cuts (tension 0, small displacements)
     # claimed convergence after 10 cycles 2.8 px from the direct solve: the probe that a
-    # weakly held piece's claim waits for ran in the hierarchy's first solve only, and no
-    # solve keeps the slow modes it found. Now each solve's claim is probed (`probe_cycles`).
+    # weakly held piece's claim waits for ran in the hierarchy's first solve only. Now a later
+    # claim is checked on the slow modes the first solve found: here they would move it by
+    # pixels, so it goes on, and probes at cycle 20 (`probe_cycles`).
     pts, _, cuts = random_cuts(49, False, 2)
     rng = np.random.default_rng(0)
     a, b = rng.normal(0, 4, (40, 2)), rng.normal(0, 4, (40, 2))

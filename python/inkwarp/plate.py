@@ -177,7 +177,8 @@ class SolveReport:
     probe_cycles : int
         Cycles a slow solve of a piece with holes or cuts spent probing its operator for
         slow modes (24 a probe, on a random start: in every solve still running at cycle 20,
-        or before a weakly held piece's first claim), beside ``cycles``: they are not counted there, nor against
+        or before a weakly held piece's first claim where no earlier solve of the ``Solver``
+        found its slow modes), beside ``cycles``: they are not counted there, nor against
         ``max_cycles``. With several pieces, the sum over them.
     """
 

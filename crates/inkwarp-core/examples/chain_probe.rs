@@ -1,22 +1,26 @@
 //! Development probe: walk a scene's frames as a render's warm-start chain does and print each
-//! frame's solve report: `cargo run --release -p inkwarp-core --example chain_probe -- SCENE [LAST]`.
+//! frame's solve report: `cargo run --release -p inkwarp-core --example chain_probe -- SCENE [LAST]`. With `COLD`
+//! set, each frame is compared with a cold solve of the same scene, or of the scene file `REF` names (the same
+//! scene at a tighter tolerance, say).
 
 use inkwarp_core::scene::{Animator, Scene};
 
 fn main() {
     let path = std::env::args().nth(1).expect("a scene file");
-    let last: usize = std::env::args().nth(2).and_then(|s| s.parse().ok()).unwrap_or(usize::MAX);
+    let last: usize = std::env::args().nth(2).and_then(|s| s.parse().ok()).unwrap_or(usize::MAX - 1);
     let dir = std::path::Path::new(&path).parent().unwrap().to_path_buf();
     let text = std::fs::read_to_string(&path).unwrap();
     let mut load = |r: &str| std::fs::read(dir.join(r)).map_err(|e| e.to_string());
     let scene = Scene::from_json(&text, &mut load).unwrap();
+    let reference = std::env::var("REF").map(|r| Scene::from_json(&std::fs::read_to_string(r).unwrap(), &mut load).unwrap());
+    let reference = reference.as_ref().unwrap_or(&scene);
     let mut animator = Animator::new(&scene);
     for i in 0..scene.frame_count().min(last + 1) {
         let t = scene.frame_time_s(i);
         for layer in 0..scene.layers().len() {
             let solved = animator.layer_field(layer, t).unwrap();
             let big = solved.field.dx.iter().chain(&solved.field.dy).fold(0f32, |m, v| m.max(v.abs()));
-            let cold = if std::env::var("COLD").is_ok() { scene.layer_field(layer, t, None).ok() } else { None };
+            let cold = if std::env::var("COLD").is_ok() { reference.layer_field(layer, t, None).ok() } else { None };
             if let Some(c) = &cold {
                 let n = c.field.dx.len();
                 let (mut gap, mut at) = (0f32, 0);

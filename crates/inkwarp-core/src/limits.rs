@@ -49,14 +49,17 @@ pub const DEFLATION_BYTES_PER_NODE: u64 = 160;
 /// The most the deflated modes of one solve take.
 pub const DEFLATION_MAX_BYTES: u64 = crate::solve::deflate::BUDGET_BYTES as u64;
 
+/// And per node of a torn solver grid: the slowest modes its solver keeps to check later claims.
+pub const CHECKED_BYTES_PER_NODE: u64 = 4 * crate::solve::deflate::CHECKED as u64;
+
 /// What solving on `grids` needs beyond their bytes per node: every grid's thin nodes'
-/// factors ([`THIN_BYTES_PER_NODE`]) and the largest torn grid's deflated modes (one grid
-/// solves at a time, and no solve keeps its modes for the next).
+/// factors ([`THIN_BYTES_PER_NODE`]) and kept modes ([`CHECKED_BYTES_PER_NODE`]), and the
+/// largest torn grid's deflated modes (one grid solves at a time).
 pub fn thin_and_slow_bytes<'a>(grids: impl IntoIterator<Item = &'a crate::grid::Grid>) -> u64 {
     let [thin, slow] = grids.into_iter().fold([0u64; 2], |[thin, slow], g| {
-        let (factors, len) = ((g.thin_nodes(crate::solve::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE), g.len() as u64);
-        let modes = if g.is_open() { 0 } else { len.saturating_mul(DEFLATION_BYTES_PER_NODE).min(DEFLATION_MAX_BYTES) };
-        [thin.saturating_add(factors), slow.max(modes)]
+        let torn = if g.is_open() { 0 } else { g.len() as u64 };
+        let kept = (g.thin_nodes(crate::solve::THIN) as u64).saturating_mul(THIN_BYTES_PER_NODE).saturating_add(torn.saturating_mul(CHECKED_BYTES_PER_NODE));
+        [thin.saturating_add(kept), slow.max(torn.saturating_mul(DEFLATION_BYTES_PER_NODE).min(DEFLATION_MAX_BYTES))]
     });
     thin.saturating_add(slow)
 }
@@ -90,9 +93,7 @@ pub fn check_size(what: &str, width: usize, height: usize) -> Result<(), String>
 /// use inkwarp_core::limits::show;
 /// assert_eq!((show(0.5), show(1e308), show(-2e9)), ("0.5".into(), "1e308".into(), "-2e9".into()));
 /// ```
-pub fn show(v: f64) -> String {
-    if v.is_finite() && v.abs() >= 1e7 { format!("{v:e}") } else { format!("{v}") }
-}
+pub fn show(v: f64) -> String { if v.is_finite() && v.abs() >= 1e7 { format!("{v:e}") } else { format!("{v}") } }
 
 /// The most samples one feature's curve may be cut into.
 pub const MAX_CURVE_SAMPLES: f64 = 1e7;
@@ -168,15 +169,16 @@ mod tests {
         let comb = Grid::from_active(w, h, (0..w * h).map(|i| i / w < 30 || (i % w % 4 == 0 && i / w < 50)).collect());
         let (teeth, nodes) = (200, (w * h) as u64);
         assert_eq!(comb.thin_nodes(16), teeth);
-        let comb_bytes = teeth as u64 * THIN_BYTES_PER_NODE + nodes * DEFLATION_BYTES_PER_NODE;
+        let kept = teeth as u64 * THIN_BYTES_PER_NODE + nodes * CHECKED_BYTES_PER_NODE;
+        let comb_bytes = kept + nodes * DEFLATION_BYTES_PER_NODE;
         assert_eq!(thin_and_slow_bytes([&comb]), comb_bytes);
         assert_eq!(thin_and_slow_bytes([&Grid::new(w, h)]), 0);
         // An open strip 10 nodes tall is thin throughout, with nothing torn.
         assert_eq!(thin_and_slow_bytes([&Grid::new(1000, 10)]), 10_000 * THIN_BYTES_PER_NODE);
-        // Every grid's factors; one solve's modes (the largest), at most the budget.
-        assert_eq!(thin_and_slow_bytes([&comb, &comb, &Grid::new(w, h)]), comb_bytes + teeth as u64 * THIN_BYTES_PER_NODE);
+        // Every grid's factors and kept modes; one solve's deflated modes (the largest), at most the budget.
+        assert_eq!(thin_and_slow_bytes([&comb, &comb, &Grid::new(w, h)]), comb_bytes + kept);
         let big = Grid::from_active(2000, 1500, (0..3_000_000).map(|i| i != 0).collect());
-        assert_eq!(thin_and_slow_bytes([&big, &comb]), DEFLATION_MAX_BYTES + teeth as u64 * THIN_BYTES_PER_NODE);
+        assert_eq!(thin_and_slow_bytes([&big, &comb]), DEFLATION_MAX_BYTES + 3_000_000 * CHECKED_BYTES_PER_NODE + kept);
     }
 
     #[test]

@@ -210,9 +210,7 @@ pub struct MethodParams {
 }
 
 impl Default for MethodParams {
-    fn default() -> Self {
-        MethodParams { max_samples: DEFAULT_MAX_SAMPLES, beier_neely: BeierNeelyParams::default() }
-    }
+    fn default() -> Self { MethodParams { max_samples: DEFAULT_MAX_SAMPLES, beier_neely: BeierNeelyParams::default() } }
 }
 
 /// What an interpolant did.

@@ -72,9 +72,7 @@ pub struct RgbaImage {
 
 impl RgbaImage {
     /// A fully transparent image.
-    pub fn new(width: usize, height: usize) -> Self {
-        RgbaImage { width, height, data: vec![0; width * height * 4] }
-    }
+    pub fn new(width: usize, height: usize) -> Self { RgbaImage { width, height, data: vec![0; width * height * 4] } }
 
     /// An image from raw RGBA bytes.
     ///

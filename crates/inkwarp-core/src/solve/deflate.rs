@@ -26,6 +26,8 @@ const SETTLED: f64 = 0.95;
 /// Ritz vectors kept, and from the third Rayleigh–Ritz step on.
 pub(crate) const KEEP: usize = 8;
 const KEEP_SLOW: usize = 16;
+/// Vectors a hierarchy keeps for later solves' checks.
+pub(crate) const CHECKED: usize = 4;
 /// Most bytes the kept vectors may take.
 pub(crate) const BUDGET_BYTES: usize = 256 << 20;
 /// Rayleigh quotients below this fraction of the largest diagonal entry are `f32` rounding ([`Modes::with`]).
@@ -170,10 +172,7 @@ impl Deflation {
     /// wrong answer and claimed it: 0.075 px off on a warm start among random cuts.)
     pub fn correct(&self, fine: &Level, u: &mut [V2], r: &mut [V2]) -> bool {
         if self.w.is_empty() { return true; }
-        let rhs = dots(&self.w, u.len(), |i| r[i]);
-        let Some(c) = super::dense_solve(self.e.clone(), rhs).filter(|c| c.iter().all(|v| v[0].is_finite() && v[1].is_finite())) else {
-            return false;
-        };
+        let Some(c) = coefficients(&self.w, &self.e, r) else { return false };
         u.par_chunks_mut(CHUNK).enumerate().for_each(|(ch, u)| {
             let d = combination(&self.w, &c, ch * CHUNK, u.len());
             for (u, d) in u.iter_mut().zip(d) {
@@ -183,6 +182,9 @@ impl Deflation {
         fine.residual(u, None, r);
         true
     }
+
+    /// The [`CHECKED`] slowest kept vectors and their `E`, for later solves' checks ([`Modes::largest_move`]).
+    pub fn modes(&self) -> Option<Modes> { (!self.w.is_empty()).then(|| Modes(self.w[..self.w.len().min(CHECKED)].to_vec(), Vec::new(), self.e.clone()).first(CHECKED)) }
 
     /// The change the stopping rule is to judge and its rate a cycle: once deflated (changes in bursts), the
     /// last window's largest and the rate from the window before (a sliding maximum's ratios stay 1); else none.
@@ -282,6 +284,14 @@ impl Modes {
         (!w.is_empty()).then(|| Modes::of(fine, w))
     }
 
+    /// The largest node move of the correction `W E⁻¹ Wᵀ r` on these modes (not made); infinite if `E` is singular.
+    pub fn largest_move(&self, r: &[V2]) -> f64 {
+        let Some(c) = coefficients(&self.0, &self.2, r) else { return f64::INFINITY };
+        r.par_chunks(CHUNK).enumerate().map(|(ch, r)| {
+            combination(&self.0, &c, ch * CHUNK, r.len()).iter().fold(0.0f64, |m, d| m.max(d[0].abs()).max(d[1].abs()))
+        }).reduce(|| 0.0, f64::max)
+    }
+
     /// The first `k` modes.
     pub fn first(mut self, k: usize) -> Modes {
         [&mut self.0, &mut self.1].into_iter().for_each(|v| v.truncate(k));
@@ -313,6 +323,11 @@ fn dots(vs: &[Vec<f32>], len: usize, x: impl Fn(usize) -> V2 + Sync) -> Vec<V2> 
         }
     });
     s.chunks_exact(2).map(|d| [d[0], d[1]]).collect()
+}
+
+/// `c = E⁻¹ Wᵀ r` for the vectors `w` with `E = Wᵀ A W`, if `E` is regular.
+fn coefficients(w: &[Vec<f32>], e: &[Vec<f64>], r: &[V2]) -> Option<Vec<V2>> {
+    super::dense_solve(e.to_vec(), dots(w, r.len(), |i| r[i])).filter(|c| c.iter().all(|v| v[0].is_finite() && v[1].is_finite()))
 }
 
 /// `Σ_l c_l v_l` per component on the `len` nodes from `a`, `l` ascending, vector by vector (it vectorises).

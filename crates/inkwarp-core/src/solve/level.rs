@@ -830,9 +830,7 @@ impl Level {
     }
 
     /// Drops the four-node layout of its own stencils (the ablation's switch `fours`).
-    pub fn drop_fours(&mut self) {
-        if let Operator::Stored { fours, .. } = &mut self.op { *fours = Fours::default(); }
-    }
+    pub fn drop_fours(&mut self) { if let Operator::Stored { fours, .. } = &mut self.op { *fours = Fours::default(); } }
 
     /// The same level with the prolongation of a geometry whose wide holes (clear of the border, more than
     /// four nodes per link to an active node) are made active and linked all round. The operator stays the

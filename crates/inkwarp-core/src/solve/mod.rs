@@ -695,9 +695,11 @@ fn solve_piece(
                 }
                 slow.step(alpha);
                 if stop(slow.judged(change), cycle, &mut report, slow.rate_floor(), [alpha[0] * along[0], alpha[1] * along[1]]) {
-                    // A piece with free functions is weakly held (slow motions the changes do not show): probe first.
-                    probe_now = may_probe && settled.is_some() && !found && !again;
-                    if !probe_now { report.converged = true; break }
+                    // A piece with free functions is weakly held (slow motions the changes do not show): its claim is
+                    // checked on the slow modes an earlier solve found (it goes on where they move it), or probed first.
+                    let weak = may_probe && settled.is_some() && !found && !again;
+                    probe_now = weak && hier.checks.is_none();
+                    if !weak || hier.checks.as_ref().is_some_and(|m| margin * m.largest_move(&r) <= options.tolerance_px) { report.converged = true; break }
                 }
                 if slow.record(cycle, &p, &q) {
                     // A window of directions kept: correct on the slow modes found, restart the directions deflated.
@@ -726,6 +728,7 @@ fn solve_piece(
                 hier.probed = false;
             } else {
                 found |= slow.restarts > 0;
+                if report.converged && found && may_probe { hier.checks = slow.modes() }
             }
         }
         SolveMethod::Southwell => {
@@ -773,7 +776,7 @@ fn solve_piece(
         report.fail(Stop::Residual);
     }
     // A solve that did not converge does not keep its probe (the next slow solve probes again).
-    if found && !report.converged { hier.probed = false }
+    if found && !report.converged { (hier.probed, hier.checks) = (false, None) }
     hier.converged_on = report.converged.then(|| (constraints.to_vec(), options.tolerance_px));
     if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
     // Not from a hierarchy's first solve: a solver used once (or keeping no hierarchy) would only pay for it.
