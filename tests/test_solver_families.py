@@ -749,6 +749,23 @@ def test_a_capped_solve_goes_on_where_it_stopped(case, steps):
     assert not report.converged or float(np.abs(field - 1.02 * exact).max()) < TOLERANCE_PX, report
 
 
+def test_a_kept_solver_from_its_last_answer_keeps_to_growing_values():
+    # Frames through a kept Solver, each from the last answer (`initial=`), every value 2 %
+    # larger than the frame before: the later frames' claims were probed and corrected on the
+    # probe's modes against a residual already small, and the border-strip flap's third frame
+    # ended 0.067 px off, reported converged. A later claim is now checked on the first
+    # frame's slow modes and goes on where they would move it.
+    case, scale = "flap_on_a_border_strip", 2.5
+    pts, disp, cuts, _ = torn_case(case)
+    exact = torn_exact(case) * scale
+    solver, field = inkwarp.Solver(), None
+    for k in range(5):
+        values = disp * scale * 1.02**k
+        field, report = inkwarp.thin_plate_report(pts, values, (256, 256), cuts=cuts, solver=solver, initial=field)
+        off = float(np.abs(field - exact * 1.02**k).max())
+        assert report.converged and off < TOLERANCE_PX, (k, off, report)
+
+
 def test_no_claim_builds_on_an_answer_that_did_not_converge():
     # The border-strip flap stopped by a cap of 30 cycles is 0.69 px off, honestly
     # unconverged. The next frame through a WarmStart (every displacement 2 % larger)
