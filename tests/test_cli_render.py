@@ -482,7 +482,8 @@ def test_the_memory_estimate_counts_thin_parts_and_a_torn_grids_slow_modes(tmp_p
     # The solver factors a matte's thin parts exactly (nodes whose run of linked nodes along
     # the row or the column is at most 16: strands, teeth, outlines), about 1,300 bytes a
     # node, and a long solve on a torn grid keeps slow modes, 160 bytes a node (at most
-    # 256 MiB, once): `inkwarp_core::limits`. A comb's estimate is the opaque picture's plus both.
+    # 256 MiB, once), its solver the 4 slowest to check later claims on, 16 bytes a node
+    # (each torn layer): `inkwarp_core::limits`. A comb's estimate is the opaque picture's plus all.
     opaque = np.full((HEIGHT, WIDTH, 4), 255, np.uint8)
     comb = np.zeros_like(opaque)
     comb[:20] = comb[20:, ::4] = 255  # a bar, and teeth 1 px wide below it
@@ -499,14 +500,14 @@ def test_the_memory_estimate_counts_thin_parts_and_a_torn_grids_slow_modes(tmp_p
     doc = {"inkwarp": 1, "fps": 4, "duration": 1, "layers": [{"name": "layer", "image": "opaque.png"}], "features": []}
     plain = inkwarp_scene(doc, tmp_path).render_bytes
     doc["layers"][0]["image"] = "comb.png"
-    assert inkwarp_scene(doc, tmp_path).render_bytes - plain == thin * 1300 + WIDTH * HEIGHT * 160
+    assert inkwarp_scene(doc, tmp_path).render_bytes - plain == thin * 1300 + WIDTH * HEIGHT * (160 + 16)
     # At grid_step 2 both count on the 25 × 21 grid the layer is solved on: the teeth keep
     # 12 × 11 nodes, and the bar, 10 nodes tall there, is thin too in the 13 columns
     # without a tooth.
     doc["solver"] = {"grid_step": 2}
     comb_bytes = inkwarp_scene(doc, tmp_path).render_bytes
     doc["layers"][0]["image"] = "opaque.png"
-    assert comb_bytes - inkwarp_scene(doc, tmp_path).render_bytes == (12 * 11 + 13 * 10) * 1300 + 25 * 21 * 160
+    assert comb_bytes - inkwarp_scene(doc, tmp_path).render_bytes == (12 * 11 + 13 * 10) * 1300 + 25 * 21 * (160 + 16)
 
 
 def inkwarp_scene(doc, base):
