@@ -1150,7 +1150,7 @@ def kept_families():
     yield "character", Problem(m.shape, pts, disp, mask=m), False
 
 
-def test_a_kept_solvers_later_frame_among_many_cuts_probes_before_its_claim():
+def test_a_kept_solvers_later_frame_among_many_cuts_is_checked_before_its_claim():
     # A kept solver's second frame on 20-50 random cuts (tension 0, small displacements)
     # claimed convergence after 10 cycles 2.8 px from the direct solve: the probe that a
     # weakly held piece's claim waits for ran in the hierarchy's first solve only. Now a later

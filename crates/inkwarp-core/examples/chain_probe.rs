@@ -7,7 +7,7 @@ use inkwarp_core::scene::{Animator, Scene};
 
 fn main() {
     let path = std::env::args().nth(1).expect("a scene file");
-    let last: usize = std::env::args().nth(2).and_then(|s| s.parse().ok()).unwrap_or(usize::MAX - 1);
+    let last: usize = std::env::args().nth(2).and_then(|s| s.parse().ok()).unwrap_or(usize::MAX);
     let dir = std::path::Path::new(&path).parent().unwrap().to_path_buf();
     let text = std::fs::read_to_string(&path).unwrap();
     let mut load = |r: &str| std::fs::read(dir.join(r)).map_err(|e| e.to_string());
@@ -15,7 +15,7 @@ fn main() {
     let reference = std::env::var("REF").map(|r| Scene::from_json(&std::fs::read_to_string(r).unwrap(), &mut load).unwrap());
     let reference = reference.as_ref().unwrap_or(&scene);
     let mut animator = Animator::new(&scene);
-    for i in 0..scene.frame_count().min(last + 1) {
+    for i in 0..scene.frame_count().min(last.saturating_add(1)) {
         let t = scene.frame_time_s(i);
         for layer in 0..scene.layers().len() {
             let solved = animator.layer_field(layer, t).unwrap();

@@ -58,9 +58,6 @@ pub(crate) struct Hierarchy {
     pub whole: bool,
     /// Where the last solve stood if its cycle limit stopped it, for the next to go on.
     pub paused: Option<Box<super::Paused>>,
-    /// The constrained values and tolerance of the last solve if it converged: solved again from exactly its answer
-    /// (a capped series' later calls), its claim needs no probe.
-    pub converged_on: Option<(Vec<(usize, V2)>, f64)>,
     /// Slow modes a converged solve found, on which later weakly held claims are checked (`super::solve_piece`).
     pub checks: Option<super::deflate::Modes>,
     /// The earlier solves' answers, for starts.
@@ -116,7 +113,7 @@ impl Hierarchy {
         let bound = |(k, l): (usize, &mut Level)| l.lam_max = l.lam_max.min(if k == 0 { collatz_bound(l) } else { lanczos_estimate(l) });
         levels.iter_mut().enumerate().skip(if smooth_fine && !whole { 0 } else { 1 }).for_each(bound);
         let coarsest = factor.unwrap_or_else(|| Banded::new(levels.last().unwrap()));
-        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, probed: false, whole, paused: None, converged_on: None, checks: None, answers: Default::default() }
+        Hierarchy { levels, work, coarsest, degree, coarse_degree, k_cycles: true, alt: None, torn: false, second_steps_skipped: Default::default(), strands: None, level_strands: Vec::new(), spare: Vec::new(), direction: Vec::new(), affine: None, probed: false, whole, paused: None, checks: None, answers: Default::default() }
     }
 
     /// `z ≈ A⁻¹ r` on the finest level by one symmetric cycle from zero in `f32`, valid until the next call.

@@ -566,8 +566,6 @@ fn solve_piece(
     // A capped solve goes on when the next starts from its answer (`solve_constrained`) with the same constraints
     // (not the gauge, whose value is the start's) and tolerance: started over, a series could stop far from the answer.
     let constraints = &value[..value.len() - usize::from(cold_gauge.is_some())];
-    // Solved again from exactly its last answer, converged for the same values: that claim was probed.
-    let again = hier.converged_on.take().is_some_and(|(v, t)| store.goes_on && v == constraints && t == options.tolerance_px);
     let resumed = hier.paused.take().filter(|p| {
         store.goes_on && options.method == SolveMethod::Multigrid && p.tolerance == options.tolerance_px && p.value == constraints
     });
@@ -697,7 +695,7 @@ fn solve_piece(
                 if stop(slow.judged(change), cycle, &mut report, slow.rate_floor(), [alpha[0] * along[0], alpha[1] * along[1]]) {
                     // A piece with free functions is weakly held (slow motions the changes do not show): its claim is
                     // checked on the slow modes an earlier solve found (it goes on where they move it), or probed first.
-                    let weak = may_probe && settled.is_some() && !found && !again;
+                    let weak = may_probe && settled.is_some() && !found;
                     probe_now = weak && hier.checks.is_none();
                     if !weak || hier.checks.as_ref().is_some_and(|m| margin * m.largest_move(&r) <= options.tolerance_px) { report.converged = true; break }
                 }
@@ -777,7 +775,6 @@ fn solve_piece(
     }
     // A solve that did not converge does not keep its probe (the next slow solve probes again).
     if found && !report.converged { (hier.probed, hier.checks) = (false, None) }
-    hier.converged_on = report.converged.then(|| (constraints.to_vec(), options.tolerance_px));
     if let Some(at) = pause.filter(|_| report.stop == Stop::MaxCycles) { hier.paused = Some(Box::new(Paused { r, q, ..at })) } else { hier.spare.extend([r, q]) }
     // Not from a hierarchy's first solve: a solver used once (or keeping no hierarchy) would only pay for it.
     if linear && report.converged && !fresh { hier.answers.add(value, &u, tail, options.tolerance_px) }
