@@ -260,6 +260,37 @@ def test_a_save_over_a_file_changed_since_it_was_read_is_refused(editor: Path, s
         server.server_close()
 
 
+def test_the_files_version_alone_follows_every_writer(editor: Path, scene: Path) -> None:
+    # What a tab asks every few seconds to notice another writer: the version the scene's
+    # GET and PUT answer, nothing read into the answer, and a file gone said as such.
+    server = serve(scene, editor)
+    try:
+        api = api_url(server)
+        read_version = fetch(api)[1]["ETag"]
+        status, headers, body = fetch(api + "/version")
+        assert status == 200 and body.decode() == headers["ETag"] == read_version
+        assert headers["Cache-Control"] == "no-store"
+        assert fetch(api + "/version", token=False)[0] == 403
+        doc = json.loads(fetch(api)[2])
+        doc["features"] = [{"id": "a", "kind": "point", "rest": [[0, 0]]}]
+        saved = fetch(api, "PUT", json.dumps(doc).encode(), {"If-Match": read_version})[1]["ETag"]
+        assert fetch(api + "/version")[1]["ETag"] == saved != read_version
+        scene.write_text(scene.read_text().replace('"a"', '"nose"'))
+        assert fetch(api + "/version")[1]["ETag"] not in (saved, read_version)
+        scene.unlink()
+        status, _, body = fetch(api + "/version")
+        assert status == 422 and str(scene).encode() in body and b"cannot be read" in body
+    finally:
+        server.shutdown()
+        server.server_close()
+    server = serve(None, editor)
+    try:
+        assert fetch(api_url(server) + "/version")[0] == 404
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
 def test_a_tab_that_opened_another_file_never_writes_this_one(editor: Path, scene: Path, tmp_path: Path) -> None:
     # inkwarp edit stopped and started again on the same port with another scene, the old
     # tab still open: its save (with "overwrite" answered to the version conflict) wrote

@@ -1977,6 +1977,18 @@ test('Save writes each scene to its own file: undo past opening, two tabs, a fil
     await q.keyboard.press('Control+s');
     await q.waitForFunction(() => /Saved to/.test(document.querySelector('#message')?.textContent ?? ''));
     assert(features().length === 1 && features()[0][0] > 30, `tab B's scene overwrote the file when told to: ${JSON.stringify(features())}`);
+    // Tab A, marked saved, learns that its file no longer holds its scene (on coming back to
+    // it, or within seconds): marked unsaved, so closing it asks, and told why.
+    await p.evaluate(() => window.dispatchEvent(new Event('focus')));
+    await p.waitForFunction(() => window.inkwarp.store.unsaved && /was changed by another tab or program/.test(document.querySelector('#message')?.textContent ?? ''), null, { timeout: 10000 });
+    assert((await message(p)).startsWith(scenePath) && (await p.title()).startsWith('● '), `tab A says which file and marks the title: ${await message(p)} ${await p.title()}`);
+    // Its Save asks before writing over tab B's, and Cancel keeps B's.
+    const asked = p.dialogs.length;
+    p.declineDialogs = true;
+    await p.keyboard.press('Control+s');
+    await p.waitForFunction(() => /^Not saved: .*changed on disk/.test(document.querySelector('#message')?.textContent ?? ''));
+    assert(p.dialogs.length === asked + 1 && features()[0][0] > 30 && await p.evaluate(() => window.inkwarp.store.unsaved), `tab A asked and kept B's save: ${JSON.stringify(features())}`);
+    p.declineDialogs = false;
     // Ctrl+S from a number field saves too, with the value just typed.
     await q.fill('#duration', '2');
     await q.focus('#duration');

@@ -16,6 +16,9 @@ import { Ui } from './ui';
 import wasmUrl from './generated/inkwarp.wasm?url';
 import './style.css';
 
+/** How often a showing tab asks whether another tab or program wrote its scene's file (see `Ui.checkFile`). */
+const FILE_CHECK_MS = 3000;
+
 async function start(): Promise<void> {
   const root = document.getElementById('app')!;
   const absWasm = new URL(wasmUrl, document.baseURI).href;
@@ -86,6 +89,12 @@ async function start(): Promise<void> {
     ui.refresh(true);
   }
   document.body.dataset.ready = 'true';
+  // What another tab or program writes to the scene's file is noticed: on coming back to this
+  // tab, and every few seconds while it shows.
+  const checkFile = () => { if (document.visibilityState === 'visible') void ui.checkFile(); };
+  window.addEventListener('focus', checkFile);
+  document.addEventListener('visibilitychange', checkFile);
+  setInterval(checkFile, FILE_CHECK_MS);
   // After "ready": the restore offer waits for the user, the editor works meanwhile.
   await keepWork(store, ui, served, opened ? store.doc : null);
 }

@@ -506,6 +506,8 @@ export interface Origin {
   path: string | null;
   /** The version of that file the document was read from or last written as (its ETag). */
   version: string | null;
+  /** The version another tab or program left in the file since (null: it could not be read), once noticed. */
+  changedTo?: string | null;
 }
 
 /** Whether two documents hold the same values (edits share unchanged parts, so this walks only what differs). */
@@ -626,9 +628,26 @@ export class Store {
    */
   fileSaved(origin: Origin, version: string | null, revision: number): void {
     for (const o of [this.origin, ...this.undoStack.map((s) => s.origin), ...this.redoStack.map((s) => s.origin)]) {
-      if (o.saveUrl === origin.saveUrl && o.path === origin.path) o.version = version;
+      if (o.saveUrl === origin.saveUrl && o.path === origin.path) [o.version, o.changedTo] = [version, undefined];
     }
     if (this.origin === origin) this.markSaved(revision);
+  }
+
+  /**
+   * The file the document saves to is now at `version` (null: it could not be read), written
+   * by another tab or program: none of this history is what it holds, so the document counts as
+   * unsaved, Undo included, until it is saved again. `origin.version` stays the one this tab
+   * knew, so that save asks before it overwrites. Returns whether this is news and the document
+   * had counted as saved (what the editor then says).
+   */
+  fileChanged(version: string | null): boolean {
+    const origin = this.origin;
+    if (version === origin.version || (origin.changedTo !== undefined && origin.changedTo === version)) return false;
+    const wasSaved = !this.unsaved;
+    origin.changedTo = version;
+    [this.savedRevision, this.savedBeforeLoad] = [-1, -1];
+    this.emit(false);
+    return wasSaved;
   }
 
   private pushUndo(doc: SceneDoc, base = this.revision): void {

@@ -1854,6 +1854,33 @@ export class Ui {
     return this.saving;
   }
 
+  /**
+   * Asks `inkwarp edit` for the version of the file the scene saves to. One another tab or
+   * program wrote since this tab read or saved it marks the scene unsaved (the file no longer
+   * holds it: closing the tab asks, Save asks before overwriting), said once where the scene
+   * had counted as saved. Quiet where nothing answers (no server, an older one, a stale link).
+   * Queued with the saves, so a save in flight is never taken for another writer's.
+   */
+  checkFile(): Promise<void> {
+    this.saving = this.saving.catch(() => {}).then(() => this.checkFileNow()).catch(() => {});
+    return this.saving;
+  }
+
+  private async checkFileNow(): Promise<void> {
+    const { origin } = this.store;
+    if (!origin.saveUrl) return;
+    const url = new URL(origin.saveUrl, location.href);
+    url.pathname = `${url.pathname.replace(/\/$/, '')}/version`;
+    const resp = await fetch(url, { cache: 'no-store' });
+    if (resp.status !== 200 && resp.status !== 422) return;
+    const version = resp.status === 200 ? resp.headers.get('ETag') : null;
+    if (this.store.origin !== origin || !this.store.fileChanged(version)) return;
+    const where = origin.path ?? origin.fileName;
+    this.message(version === null
+      ? `${where} can no longer be read (deleted or moved?): the scene here is marked unsaved (●); Save writes it there again.`
+      : `${where} was changed by another tab or program since this tab saved or opened it: the scene here is marked unsaved (●), as the file no longer holds it. Save asks before writing over it; open the file again to see what was written.`, 'error');
+  }
+
   /** Saves the scene (see `save`); `note` is added to what the save says. */
   private async saveNow(note = ''): Promise<void> {
     const { origin, revision } = this.store;

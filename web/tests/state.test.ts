@@ -341,6 +341,27 @@ describe('undo', () => {
     expect(s.unsaved).toBe(false);
   });
 
+  it('a file another writer changed leaves no revision counted as saved, till a save of this tab', () => {
+    const s = new Store(scene());
+    s.origin = { fileName: 'a.json', saveUrl: '/api/scene', path: '/tmp/a.json', version: '"v1"' };
+    s.setView({ tool: 'point' });
+    s.placePoint([1, 1]);
+    s.markSaved();
+    // The file still at the version this tab knows: nothing changes.
+    expect([s.fileChanged('"v1"'), s.unsaved]).toEqual([false, false]);
+    // Another writer's version: news, and unsaved; Save still sends the version it knew (it asks).
+    expect([s.fileChanged('"v2"'), s.unsaved, s.origin.version]).toEqual([true, true, '"v1"']);
+    // Said once; a later writer's is recorded, not said again (the scene is unsaved already).
+    expect([s.fileChanged('"v2"'), s.fileChanged('"v3"'), s.fileChanged(null)]).toEqual([false, false, false]);
+    // Undo back to what this tab saved: still not in the file.
+    s.placePoint([2, 2]);
+    s.undo();
+    expect(s.unsaved).toBe(true);
+    // This tab's save writes the file again: saved, and its version the file's.
+    s.fileSaved(s.origin, '"v4"', s.revision);
+    expect([s.unsaved, s.origin.version, s.origin.changedTo]).toEqual([false, '"v4"', undefined]);
+  });
+
   it('a document undone or redone back to what was saved counts as saved', () => {
     const s = new Store(scene());
     s.setView({ tool: 'point' });

@@ -10,7 +10,9 @@ inline.
 
 Every GET and PUT answers the file's version (``ETag``: a hash of its text); a PUT that
 carries ``If-Match`` with another version is refused (409), so a save never overwrites
-what another tab or program wrote to the file since the editor read it.
+what another tab or program wrote to the file since the editor read it. ``/api/scene/version``
+answers the version alone, which a tab asks for every few seconds: a scene marked saved
+whose file another writer changed is marked unsaved again.
 """
 
 from __future__ import annotations
@@ -564,6 +566,17 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                                    {"X-Inkwarp-Name": quote(scene_file.path.name),
                                     "X-Inkwarp-Path": quote(str(scene_file.path)), "ETag": version,
                                     "X-Inkwarp-Pictures": quote(json.dumps(files))})
+            if urlsplit(self.path).path == "/api/scene/version":
+                # The file's version alone (nothing read into the answer): a tab asks it every
+                # few seconds to notice what another tab or program wrote.
+                version = scene_file.version() if scene_file is not None else None
+                if version is None:
+                    said = (f"{scene_file.path} cannot be read (deleted or moved?)" if scene_file is not None
+                            else "No scene was given to inkwarp edit.")
+                    return self._reply(HTTPStatus.NOT_FOUND if scene_file is None else HTTPStatus.UNPROCESSABLE_ENTITY,
+                                       said.encode())
+                return self._reply(HTTPStatus.OK, version.encode(), "text/plain",
+                                   {"ETag": version, "Cache-Control": "no-store"})
             if urlsplit(self.path).path == "/api/serving":
                 # Another `inkwarp edit` asks whether this one serves its scene: a hash of the
                 # path answers only that (no token needed, nothing else told).
