@@ -44,7 +44,8 @@ untextured point's that of the dense flow, infinite where it is placed more than
 frames where a feature is lost counts as lost too. A :class:`~inkwarp.InkwarpWarning`
 names the features and the frames. Between two anchors, a track that has lost the feature at a
 frame gives way to the other's; else the two tracks' errors are blended as their places
-are. Points of a feature that lie off the picture where traced are named apart and
+are. At a frame where it is named lost, a feature keeps the shape it has at the frames
+around, moved by its points whose checks passed (see :func:`_kept_in_shape`). Points of a feature that lie off the picture where traced are named apart and
 judged by nothing (nothing there can be seen).
 
 The video's grey frames are held in memory (1 byte per pixel per frame).
@@ -874,6 +875,35 @@ def _range_of(anchor: int, anchors: Sequence[int], count: int) -> tuple[int, int
 REFOUND_FRAMES = 5
 
 
+def _kept_in_shape(series: np.ndarray, errors: Sequence[np.ndarray | None], lost: Sequence[int],
+                   anchors: Container[int], lost_px: float) -> None:
+    """A feature's control points in ``series`` at its ``lost`` frames (not its anchors): the
+    shape it has at the frames just before and after each run of them, blended linearly in
+    time (held where the run starts or ends the clip), moved as a whole by the mean move of
+    the points whose checks passed there (left as blended where none did). Where the checks
+    fail, the points as tracked can fold and cross (a lip pulled over the jaw of a mouth that
+    opens); kept in shape, the keys stay a drawing to correct."""
+    count, n = len(series), series.shape[1]
+    runs: list[list[int]] = []
+    for k in lost:
+        if k in anchors:
+            continue
+        if runs and runs[-1][-1] == k - 1:
+            runs[-1].append(k)
+        else:
+            runs.append([k])
+    for run in runs:
+        a, b = run[0] - 1, run[-1] + 1
+        if a < 0 and b >= count:
+            continue
+        for k in run:
+            s = 0.0 if b >= count else 1.0 if a < 0 else (k - a) / (b - a)
+            shape = (1 - s) * series[max(a, 0)] + s * series[min(b, count - 1)]
+            err = errors[k]
+            passed = np.zeros(n, bool) if err is None else np.isfinite(err[:n]) & (err[:n] <= lost_px)
+            series[k] = shape + (series[k][passed] - shape[passed]).mean(axis=0) if passed.any() else shape
+
+
 def _held_lost(frames: Sequence[int], anchors: Container[int]) -> list[int]:
     """The lost ``frames`` (ascending) with the gaps of at most :data:`REFOUND_FRAMES`
     between them filled, where no anchor lies in the gap."""
@@ -1068,9 +1098,11 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     lost: dict[str, list[int]] = {}
     for i, f in tracked:  # doc["features"][i] gets the keys
         series = np.empty((count, len(f.rest), 2))
+        errors: list[np.ndarray | None] = []
         seen = ~beside[f.rows]
         for k in range(count):
             series[k], err = _blend(tracks, anchors_of[f.id], f, k, lost_px, blind_at[f.id])
+            errors.append(err)
             if err is None or f.id in outside:
                 continue
             # Lost where most of its points are, or where a point its keys are made of was
@@ -1083,6 +1115,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
                 lost.setdefault(f.id, []).append(k)
         if f.id in lost:
             lost[f.id] = _held_lost(lost[f.id], set(anchors_of[f.id]))
+            _kept_in_shape(series, errors, lost[f.id], anchors_of[f.id], lost_px)
         kept = range(count)
         if simplify_px is not None:
             kept = simplify_keys(series, simplify_px, keep=anchors_of[f.id])
