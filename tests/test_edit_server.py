@@ -269,6 +269,7 @@ def test_the_files_version_alone_follows_every_writer(editor: Path, scene: Path)
         read_version = fetch(api)[1]["ETag"]
         status, headers, body = fetch(api + "/version")
         assert status == 200 and body.decode() == headers["ETag"] == read_version
+        assert urllib.parse.unquote(headers["X-Inkwarp-Path"]) == str(scene)  # a tab asks only of its own file
         assert headers["Cache-Control"] == "no-store"
         assert fetch(api + "/version", token=False)[0] == 403
         doc = json.loads(fetch(api)[2])

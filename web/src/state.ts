@@ -637,15 +637,18 @@ export class Store {
    * The file the document saves to is now at `version` (null: it could not be read), written
    * by another tab or program: none of this history is what it holds, so the document counts as
    * unsaved, Undo included, until it is saved again. `origin.version` stays the one this tab
-   * knew, so that save asks before it overwrites. Returns whether this is news and the document
-   * had counted as saved (what the editor then says).
+   * knew, so that save asks before it overwrites. (A saved revision of another origin on the
+   * same file that is at `version`, a restore's opened file, still counts.) Returns whether this
+   * is news and the document had counted as saved (what the editor then says).
    */
   fileChanged(version: string | null): boolean {
     const origin = this.origin;
     if (version === origin.version || (origin.changedTo !== undefined && origin.changedTo === version)) return false;
     const wasSaved = !this.unsaved;
     origin.changedTo = version;
-    [this.savedRevision, this.savedBeforeLoad] = [-1, -1];
+    const steps = [{ origin, revision: this.revision }, ...this.undoStack, ...this.redoStack];
+    const saved = steps.find((step) => step.revision === this.savedRevision)?.origin;
+    if (!saved || (saved.saveUrl === origin.saveUrl && saved.path === origin.path && saved.version !== version)) this.savedRevision = -1;
     this.emit(false);
     return wasSaved;
   }

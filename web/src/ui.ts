@@ -1862,9 +1862,14 @@ export class Ui {
    * Queued with the saves, so a save in flight is never taken for another writer's.
    */
   checkFile(): Promise<void> {
-    this.saving = this.saving.catch(() => {}).then(() => this.checkFileNow()).catch(() => {});
+    // One at a time: a server that hangs does not pile them up.
+    if (this.checking) return this.saving;
+    this.checking = true;
+    this.saving = this.saving.catch(() => {}).then(() => this.checkFileNow()).catch(() => {}).finally(() => { this.checking = false; });
     return this.saving;
   }
+
+  private checking = false;
 
   private async checkFileNow(): Promise<void> {
     const { origin } = this.store;
@@ -1872,12 +1877,14 @@ export class Ui {
     const url = new URL(origin.saveUrl, location.href);
     url.pathname = `${url.pathname.replace(/\/$/, '')}/version`;
     const resp = await fetch(url, { cache: 'no-store' });
-    if (resp.status !== 200 && resp.status !== 422) return;
+    // Only the file this tab opened (a server restarted on the port may serve another).
+    const path = resp.headers.get('X-Inkwarp-Path');
+    if ((resp.status !== 200 && resp.status !== 422) || path === null || decodeURIComponent(path) !== origin.path) return;
     const version = resp.status === 200 ? resp.headers.get('ETag') : null;
     if (this.store.origin !== origin || !this.store.fileChanged(version)) return;
     const where = origin.path ?? origin.fileName;
     this.message(version === null
-      ? `${where} can no longer be read (deleted or moved?): the scene here is marked unsaved (●); Save writes it there again.`
+      ? `${where} can no longer be read (deleted, moved, or being written by another program?): the scene here is marked unsaved (●), as the file no longer holds it. Save asks before writing it there.`
       : `${where} was changed by another tab or program since this tab saved or opened it: the scene here is marked unsaved (●), as the file no longer holds it. Save asks before writing over it; open the file again to see what was written.`, 'error');
   }
 

@@ -362,6 +362,19 @@ describe('undo', () => {
     expect([s.unsaved, s.origin.version, s.origin.changedTo]).toEqual([false, '"v4"', undefined]);
   });
 
+  it('a restore from an older version of the file keeps the file as opened counted as saved', () => {
+    // The page opens the file at v2; kept work made from v1 (another tab saved since) is
+    // restored over it, unsaved. The file is at v2: Undo back to it is still saved.
+    const s = new Store(scene());
+    const file = { fileName: 'a.json', saveUrl: '/api/scene', path: '/tmp/a.json', version: '"v2"' };
+    s.load(scene(), file);
+    s.load({ ...scene(), duration: 3 }, { ...file, version: '"v1"' });
+    s.markUnsaved();
+    expect([s.fileChanged('"v2"'), s.unsaved]).toEqual([false, true]);
+    s.undo();
+    expect([s.origin, s.unsaved]).toEqual([file, false]);
+  });
+
   it('a document undone or redone back to what was saved counts as saved', () => {
     const s = new Store(scene());
     s.setView({ tool: 'point' });

@@ -113,6 +113,7 @@ class SceneFile:
         self.inlined: dict[str, list[tuple[str, Any, int, str]]] = {}
         # A save's check of the file's version and its write happen together.
         self.lock = threading.Lock()
+        self._version: tuple[tuple[int, int, int], str] | None = None
         # The images the user's own file names (such as ../cat/cat.png) stay readable.
         self.trusted: set[Path] = set()
         try:
@@ -157,12 +158,21 @@ class SceneFile:
         """The version of a scene file's text, as the ``ETag`` the editor sends back."""
         return '"' + hashlib.sha256(text.encode("utf-8")).hexdigest()[:24] + '"'
 
-    def version(self) -> str | None:
-        """The version of the file as it is now (None when it cannot be read)."""
+    def version(self, cached: bool = False) -> str | None:
+        """The version of the file as it is now (None when it cannot be read). ``cached``: read
+        and hashed again only where its inode, size or modification time changed (for the tabs'
+        checks every few seconds, as a scene with inlined pictures can be tens of MiB; never
+        for a save's check, which two quick writes of one size could fool)."""
         from inkwarp.scene import read_scene_text
 
         try:
-            return self.version_of(read_scene_text(self.path))
+            st = os.stat(self.path)
+            key = (st.st_ino, st.st_size, st.st_mtime_ns)
+            if cached and self._version is not None and self._version[0] == key:
+                return self._version[1]
+            version = self.version_of(read_scene_text(self.path))
+            self._version = (key, version)
+            return version
         except (OSError, ValueError):
             return None
 
@@ -569,14 +579,14 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
             if urlsplit(self.path).path == "/api/scene/version":
                 # The file's version alone (nothing read into the answer): a tab asks it every
                 # few seconds to notice what another tab or program wrote.
-                version = scene_file.version() if scene_file is not None else None
+                if scene_file is None:
+                    return self._reply(HTTPStatus.NOT_FOUND, b"No scene was given to inkwarp edit.")
+                version = scene_file.version(cached=True)
+                named = {"X-Inkwarp-Path": quote(str(scene_file.path))}
                 if version is None:
-                    said = (f"{scene_file.path} cannot be read (deleted or moved?)" if scene_file is not None
-                            else "No scene was given to inkwarp edit.")
-                    return self._reply(HTTPStatus.NOT_FOUND if scene_file is None else HTTPStatus.UNPROCESSABLE_ENTITY,
-                                       said.encode())
-                return self._reply(HTTPStatus.OK, version.encode(), "text/plain",
-                                   {"ETag": version, "Cache-Control": "no-store"})
+                    return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY,
+                                       f"{scene_file.path} cannot be read (deleted or moved?)".encode(), headers=named)
+                return self._reply(HTTPStatus.OK, version.encode(), "text/plain", {"ETag": version, **named})
             if urlsplit(self.path).path == "/api/serving":
                 # Another `inkwarp edit` asks whether this one serves its scene: a hash of the
                 # path answers only that (no token needed, nothing else told).
