@@ -375,6 +375,59 @@ def test_a_disc_that_leaves_and_comes_back_is_lost_wherever_it_is_off(tmp_path):
     assert off[:25].max() < 0.5 and lost, (off.round(1), said)
 
 
+def test_a_disc_under_a_flat_bar_keeps_its_shape_and_a_correction_after_it_places_it(tmp_path):
+    # A textured disc (radius 18) slides (+3, +1) px a frame over a textured background; a
+    # flat grey bar covers x 100-130 on frames 15-24, and the disc stays lost after it. As
+    # the failed checks had them, the ring's 8 points were flung 76-235 px from its centre at
+    # frames 15-16 and folded to 6-21 px after (its radius is 12). Keyed at frame 30, where it
+    # shows again, the ring and its centre were still 9-82 px off at frames 15-24: the track
+    # from the key, checked where it crossed the bar, outvoted the frames around the stretch.
+    rng = np.random.default_rng(1)
+    width, height, count = 192, 144, 40
+
+    def texture(h, w, s):
+        return np.kron(rng.random((h // s + 2, w // s + 2)), np.ones((s, s)))[:h, :w]
+
+    back = texture(height, width, 6) * 0.5 + texture(height, width, 2) * 0.5
+    back = np.stack([back * 200, back * 120 + 40, back * 80 + 60], -1)
+    skin = texture(40, 40, 3)
+    skin = np.stack([skin * 255, skin * 50, 255 - skin * 200], -1)
+    yy, xx = np.mgrid[0:40, 0:40]
+    disc = (xx - 20) ** 2 + (yy - 20) ** 2 < 18 ** 2
+    frames = []
+    for k in range(count):
+        img = back.copy()
+        img[50 + k:90 + k, 30 + 3 * k:70 + 3 * k][disc] = skin[disc]
+        if 15 <= k <= 24:
+            img[:, 100:130] = 128
+        frames.append(np.clip(img, 0, 255).astype(np.uint8))
+    video = sv.write_mp4(tmp_path / "bar.mp4", frames)
+    ring = [[50 + 12 * np.cos(a * np.pi / 4), 70 + 12 * np.sin(a * np.pi / 4)] for a in range(8)]
+    features = [{"id": "ring", "kind": "region", "curve": "spline", "rest": ring},
+                {"id": "centre", "kind": "point", "rest": [[50.0, 70.0]]},
+                {"id": "still", "kind": "point", "rest": [[20.0, 20.0]]}]
+
+    def ring_at(doc):
+        keys = next(f for f in doc["features"] if f["id"] == "ring")["keys"]
+        return np.array([k["points"] for k in keys])
+
+    doc, said = tracked_saying(video, sv.scene(width, height, features))
+    assert lost_frames(said, "ring") == set(range(15, count)), said
+    at = ring_at(doc)
+    radius = np.linalg.norm(at - at.mean(axis=1, keepdims=True), axis=2)
+    assert np.abs(radius - 12).max() < 0.6, radius.round(1)
+    truth = np.array([[50 + 3 * k, 70 + k] for k in range(count)], float)
+    assert np.linalg.norm(at.mean(axis=1) - truth, axis=1)[:17].max() < 2.0
+    # Keyed where it shows again, every frame before the key is placed by the frames around.
+    for f in features[:2]:
+        f["keys"] = [{"t": 30 / 24, "points": [[x + 90, y + 30] for x, y in f["rest"]]}]
+    doc, said = tracked_saying(video, sv.scene(width, height, features))
+    off = np.linalg.norm(ring_at(doc).mean(axis=1) - truth, axis=1)
+    centre = np.array([k["points"][0] for k in doc["features"][1]["keys"]])
+    assert off[15:25].max() < 0.5 and off.max() < 2.0, off.round(1)
+    assert np.linalg.norm(centre - truth, axis=1).max() < 0.5
+
+
 def test_a_bar_appearing_far_from_every_feature_loses_none(tmp_path):
     # A textured patch slides over a flat background; a flat bar covers the right of the
     # picture on frames 25-34, 60 px and more from the points. Lucas-Kanade's coarse pyramid
@@ -540,14 +593,8 @@ def test_a_flat_point_carried_off_the_picture_is_lost(tmp_path):
         doc = track_dict(video, sv.scene(W, H, features))
     said = str(caught[0].message)
     where = np.array([k["points"][0] for k in doc["features"][1]["keys"]])
-    # Named lost from the frame its thin plate would carry it off the picture to the end; its
-    # keys there stay where it was last placed (by the frames around a lost run: none after
-    # this one), not carried off as the checks that failed had it.
-    found = re.search(r"'background' at frames? (\d+)-(\d+)", said)
-    assert found and int(found[2]) == FRAMES - 1, said
-    first = int(found[1])
-    assert where[first - 1, 0] <= W - 1 + 2.0 < where[first - 1, 0] + 4.5, where[:, 0]
-    assert (where[first:] == where[first - 1]).all() and where[first - 1, 0] <= W - 1, where[:, 0]
+    gone = [k for k in range(FRAMES) if where[k, 0] > W - 1 + 2.0]
+    assert gone and re.search(rf"'background' at frames? {gone[0]}", said), (said, where[:, 0])
     assert "'square' at frame" not in said
     # It is also named as untracked from the start: on no texture where traced, it follows
     # the square (before it is lost, too).

@@ -879,10 +879,12 @@ def _kept_in_shape(series: np.ndarray, errors: Sequence[np.ndarray | None], lost
                    anchors: Container[int], lost_px: float) -> None:
     """A feature's control points in ``series`` at its ``lost`` frames (not its anchors): the
     shape it has at the frames just before and after each run of them, blended linearly in
-    time (held where the run starts or ends the clip), moved as a whole by the mean move of
-    the points whose checks passed there (left as blended where none did). Where the checks
-    fail, the points as tracked can fold and cross (a lip pulled over the jaw of a mouth that
-    opens); kept in shape, the keys stay a drawing to correct."""
+    time, moved as a whole by the mean move of the points whose checks passed there where
+    they are at least half of them (else left as blended). A run that starts or ends the
+    clip holds the shape of its one side, moved by the points that passed, or where none
+    did by all its points as placed (the drawing's thin plate). Where the checks fail, the
+    points as tracked can fold and cross (a lip pulled over the jaw of a mouth that opens);
+    kept in shape, the keys stay a drawing to correct."""
     count, n = len(series), series.shape[1]
     runs: list[list[int]] = []
     for k in lost:
@@ -901,6 +903,12 @@ def _kept_in_shape(series: np.ndarray, errors: Sequence[np.ndarray | None], lost
             shape = (1 - s) * series[max(a, 0)] + s * series[min(b, count - 1)]
             err = errors[k]
             passed = np.zeros(n, bool) if err is None else np.isfinite(err[:n]) & (err[:n] <= lost_px)
+            if 0 <= a and b < count:
+                # Between two places it was confirmed at, the blend holds unless most points say otherwise.
+                passed &= passed.sum() * 2 >= n
+            elif not passed.any():
+                # Past the last confirmed frame (or before the first): moved as the rest of the drawing places it.
+                passed[:] = True
             series[k] = shape + (series[k][passed] - shape[passed]).mean(axis=0) if passed.any() else shape
 
 
