@@ -278,6 +278,15 @@ def test_the_files_version_alone_follows_every_writer(editor: Path, scene: Path)
         assert fetch(api + "/version")[1]["ETag"] == saved != read_version
         scene.write_text(scene.read_text().replace('"a"', '"nose"'))
         assert fetch(api + "/version")[1]["ETag"] not in (saved, read_version)
+        # Each picture the scene names is stamped: the same until another program writes it.
+        opened = json.loads(urllib.parse.unquote(fetch(api)[1]["X-Inkwarp-Stamps"]))
+        stamps = lambda: json.loads(urllib.parse.unquote(fetch(api + "/version")[1]["X-Inkwarp-Stamps"]))  # noqa: E731
+        assert list(opened) == ["art/dot.png"] and opened["art/dot.png"] and stamps() == opened
+        picture = scene.parent / "art" / "dot.png"
+        picture.write_bytes(PNG_1x1 + b"\0")
+        assert stamps()["art/dot.png"] not in ("", opened["art/dot.png"])
+        picture.unlink()
+        assert stamps() == {"art/dot.png": ""}
         scene.unlink()
         status, _, body = fetch(api + "/version")
         assert status == 422 and str(scene).encode() in body and b"cannot be read" in body

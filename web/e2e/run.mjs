@@ -1281,6 +1281,24 @@ function checkerScene(name) {
   return scenePath;
 }
 
+test('a picture of the scene retouched by another program is told, the scene left as it was', async () => {
+  const scenePath = checkerScene('retouch.json');
+  await withServedEditor([scenePath], async ({ page: p }) => {
+    const message = () => p.textContent('#message');
+    assert(!/changed/.test(await message()), `nothing told at first: ${await message()}`);
+    // Another program writes the picture (another PNG under the same name).
+    copyFileSync(join(repo, 'examples/checkerboard-hole/matte-hole.png'), join(dirname(scenePath), 'checker.png'));
+    await p.evaluate(() => window.dispatchEvent(new Event('focus')));
+    await p.waitForFunction(() => /checker\.png of layer 'checker' was changed or removed on disk since this tab opened it/.test(document.querySelector('#message')?.textContent ?? ''), null, { timeout: 10000 });
+    assert(/Reload the page to see it/.test(await message()), `what to do is said: ${await message()}`);
+    // The scene file is as it was: still saved, and the notice is not repeated.
+    assert(!(await p.evaluate(() => window.inkwarp.store.unsaved)), 'the scene stays saved');
+    await p.evaluate(() => window.inkwarp.ui.message('seen', 'info'));
+    await p.evaluate(() => window.inkwarp.ui.checkFile());
+    assert(await message() === 'seen', `told once: ${await message()}`);
+  });
+});
+
 test('a scene opened by inkwarp edit is where Undo stops, and Undo after a restore brings it back as saved', async () => {
   const scenePath = checkerScene('history.json');
   await withServedEditor([scenePath], async ({ page: p }) => {

@@ -78,6 +78,7 @@ async function start(): Promise<void> {
           first: true,
           files: JSON.parse(header('X-Inkwarp-Pictures') ?? '{}'),
         });
+        ui.watchPictures(JSON.parse(header('X-Inkwarp-Stamps') ?? '{}'), JSON.parse(header('X-Inkwarp-Pictures') ?? '{}'));
         opened = true;
       }
     } catch (err) {

@@ -1871,6 +1871,22 @@ export class Ui {
 
   private checking = false;
 
+  /**
+   * The pictures the scene file `inkwarp edit` served names, by their paths: their stamps
+   * when this tab opened it and the layer each is of (for `checkFile`, which tells a retouch).
+   */
+  private pictures = { path: null as string | null, stamps: new Map<string, { stamp: string; of: string }>() };
+
+  /** Watches the pictures an opened scene file names (`stamps` by path, `files` by place: `{"0.image": "cat.png"}`). */
+  watchPictures(stamps: Record<string, string>, files: Record<string, string>): void {
+    this.pictures = { path: this.store.origin.path, stamps: new Map() };
+    for (const [place, ref] of Object.entries(files)) {
+      const [i, key] = place.split('.');
+      const of = `layer '${this.store.doc.layers[Number(i)]?.name ?? i}'${key === 'image' ? '' : ` (its ${key})`}`;
+      if (typeof stamps[ref] === 'string' && !this.pictures.stamps.has(ref)) this.pictures.stamps.set(ref, { stamp: stamps[ref], of });
+    }
+  }
+
   private async checkFileNow(): Promise<void> {
     const { origin } = this.store;
     if (!origin.saveUrl) return;
@@ -1881,11 +1897,24 @@ export class Ui {
     const path = resp.headers.get('X-Inkwarp-Path');
     if ((resp.status !== 200 && resp.status !== 422) || path === null || decodeURIComponent(path) !== origin.path) return;
     const version = resp.status === 200 ? resp.headers.get('ETag') : null;
-    if (this.store.origin !== origin || !this.store.fileChanged(version)) return;
+    if (this.store.origin !== origin) return;
+    const said: string[] = [];
     const where = origin.path ?? origin.fileName;
-    this.message(version === null
-      ? `${where} can no longer be read (deleted, moved, or being written by another program?): the scene here is marked unsaved (●), as the file no longer holds it. Save asks before writing it there.`
-      : `${where} was changed by another tab or program since this tab saved or opened it: the scene here is marked unsaved (●), as the file no longer holds it. Save asks before writing over it; open the file again to see what was written.`, 'error');
+    if (this.store.fileChanged(version)) {
+      said.push(version === null
+        ? `${where} can no longer be read (deleted, moved, or being written by another program?): the scene here is marked unsaved (●), as the file no longer holds it. Save asks before writing it there.`
+        : `${where} was changed by another tab or program since this tab saved or opened it: the scene here is marked unsaved (●), as the file no longer holds it. Save asks before writing over it; open the file again to see what was written.`);
+    }
+    // Pictures another program retouched: told once for each change.
+    const stamps = JSON.parse(decodeURIComponent(resp.headers.get('X-Inkwarp-Stamps') ?? '%7B%7D')) as Record<string, string>;
+    const retouched = this.pictures.path === origin.path ? [...this.pictures.stamps].filter(([ref, p]) => typeof stamps[ref] === 'string' && stamps[ref] !== p.stamp) : [];
+    for (const [ref, p] of retouched) p.stamp = stamps[ref];
+    if (retouched.length) {
+      const named = retouched.map(([ref, p]) => `${ref} of ${p.of}`).join(', ');
+      const one = retouched.length === 1;
+      said.push(`${named} ${one ? 'was' : 'were'} changed or removed on disk since this tab opened ${one ? 'it' : 'them'}: the editor shows ${one ? 'it' : 'them'} as ${one ? 'it was' : 'they were'} then, while the scene names the file${one ? '' : 's'}, so inkwarp render draws ${one ? 'it' : 'them'} as ${one ? 'it is' : 'they are'} now. Reload the page to see ${one ? 'it' : 'them'} (unsaved changes are kept and offered back).`);
+    }
+    if (said.length) this.message(said.join(' '), 'error');
   }
 
   /** Saves the scene (see `save`); `note` is added to what the save says. */

@@ -12,7 +12,9 @@ Every GET and PUT answers the file's version (``ETag``: a hash of its text); a P
 carries ``If-Match`` with another version is refused (409), so a save never overwrites
 what another tab or program wrote to the file since the editor read it. ``/api/scene/version``
 answers the version alone, which a tab asks for every few seconds: a scene marked saved
-whose file another writer changed is marked unsaved again.
+whose file another writer changed is marked unsaved again. Both answer each picture's stamp
+(``X-Inkwarp-Stamps``: inode, size and modification time), so a tab tells a picture
+retouched by another program since it opened it.
 """
 
 from __future__ import annotations
@@ -114,6 +116,8 @@ class SceneFile:
         # A save's check of the file's version and its write happen together.
         self.lock = threading.Lock()
         self._version: tuple[tuple[int, int, int], str] | None = None
+        # Each picture a read inlined, by the path the scene names it by: its file and stamp then.
+        self.pictures: dict[str, tuple[Path, str]] = {}
         # The images the user's own file names (such as ../cat/cat.png) stay readable.
         self.trusted: set[Path] = set()
         try:
@@ -152,6 +156,20 @@ class SceneFile:
         if not stat.S_ISREG(st.st_mode):
             raise ValueError(f"{where}: the image {ref!r} is not a regular file.")
         return file
+
+    @staticmethod
+    def stamp(file: Path) -> str:
+        """A picture file's stamp, new whenever another program writes it (inode, size and
+        modification time); empty where it cannot be read."""
+        try:
+            st = file.stat()
+        except OSError:
+            return ""
+        return f"{st.st_ino:x}.{st.st_size:x}.{st.st_mtime_ns:x}"
+
+    def stamps(self) -> dict[str, str]:
+        """The stamp of every picture a read inlined, as its file is now."""
+        return {ref: self.stamp(file) for ref, (file, _) in self.pictures.items()}
 
     @staticmethod
     def version_of(text: str) -> str:
@@ -199,6 +217,7 @@ class SceneFile:
         files: dict[str, str] = {}
         for i, key, ref in list(self._image_refs(doc)):
             file = self.image_file(i, key, ref)
+            self.pictures[ref] = (file, self.stamp(file))  # taken before the bytes: a change while reading is told
             data = file.read_bytes()
             if not data.startswith(IMAGE_MAGIC):
                 raise ValueError(f"{self.path}: layers[{i}].{key}: {ref!r} is not a PNG or JPEG "
@@ -572,17 +591,20 @@ def make_server(scene: Path | None, root: Path, host: str = "127.0.0.1", port: i
                             else str(err))
                     return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY, said.encode(),
                                        headers={"X-Inkwarp-Path": quote(str(scene_file.path))})
+                stamps = {ref: scene_file.pictures[ref][1] for ref in files.values()}
                 return self._reply(HTTPStatus.OK, body, "application/json",
                                    {"X-Inkwarp-Name": quote(scene_file.path.name),
                                     "X-Inkwarp-Path": quote(str(scene_file.path)), "ETag": version,
-                                    "X-Inkwarp-Pictures": quote(json.dumps(files))})
+                                    "X-Inkwarp-Pictures": quote(json.dumps(files)),
+                                    "X-Inkwarp-Stamps": quote(json.dumps(stamps))})
             if urlsplit(self.path).path == "/api/scene/version":
                 # The file's version alone (nothing read into the answer): a tab asks it every
                 # few seconds to notice what another tab or program wrote.
                 if scene_file is None:
                     return self._reply(HTTPStatus.NOT_FOUND, b"No scene was given to inkwarp edit.")
                 version = scene_file.version(cached=True)
-                named = {"X-Inkwarp-Path": quote(str(scene_file.path))}
+                named = {"X-Inkwarp-Path": quote(str(scene_file.path)),
+                         "X-Inkwarp-Stamps": quote(json.dumps(scene_file.stamps()))}
                 if version is None:
                     return self._reply(HTTPStatus.UNPROCESSABLE_ENTITY,
                                        f"{scene_file.path} cannot be read (deleted or moved?)".encode(), headers=named)
