@@ -378,10 +378,10 @@ def test_a_disc_that_leaves_and_comes_back_is_lost_wherever_it_is_off(tmp_path):
 def test_a_disc_under_a_flat_bar_keeps_its_shape_and_a_correction_after_it_places_it(tmp_path):
     # A textured disc (radius 18) slides (+3, +1) px a frame over a textured background; a
     # flat grey bar covers x 100-130 on frames 15-24, and the disc stays lost after it. As
-    # the failed checks had them, the ring's 8 points were flung 76-235 px from its centre at
-    # frames 15-16 and folded to 6-21 px after (its radius is 12). Keyed at frame 30, where it
-    # shows again, the ring and its centre were still 9-82 px off at frames 15-24: the track
-    # from the key, checked where it crossed the bar, outvoted the frames around the stretch.
+    # the failed checks had them, the ring's 8 points folded to 3.0-15.5 px from its centre
+    # (its radius is 12). Keyed at frame 30, where it shows again, the ring and its centre
+    # were still 9-23 px off at frames 15-24: the track from the key, checked where it
+    # crossed the bar, outvoted the frames around the stretch.
     rng = np.random.default_rng(1)
     width, height, count = 192, 144, 40
 
@@ -401,11 +401,22 @@ def test_a_disc_under_a_flat_bar_keeps_its_shape_and_a_correction_after_it_place
         if 15 <= k <= 24:
             img[:, 100:130] = 128
         frames.append(np.clip(img, 0, 255).astype(np.uint8))
-    video = sv.write_mp4(tmp_path / "bar.mp4", frames)
+    # Encoded as imageio's default quality does (the clip a user made, where it showed).
+    import imageio_ffmpeg
+
+    video = tmp_path / "bar.mp4"
+    writer = imageio_ffmpeg.write_frames(str(video), (width, height), fps=24, codec="libx264", quality=9,
+                                         macro_block_size=16, ffmpeg_log_level="error")
+    writer.send(None)
+    for frame in frames:
+        writer.send(np.ascontiguousarray(frame))
+    writer.close()
     ring = [[50 + 12 * np.cos(a * np.pi / 4), 70 + 12 * np.sin(a * np.pi / 4)] for a in range(8)]
     features = [{"id": "ring", "kind": "region", "curve": "spline", "rest": ring},
                 {"id": "centre", "kind": "point", "rest": [[50.0, 70.0]]},
-                {"id": "still", "kind": "point", "rest": [[20.0, 20.0]]}]
+                {"id": "still", "kind": "point", "rest": [[20.0, 20.0]]},
+                {"id": "under", "kind": "polyline", "rest": [[108.0, 20.0], [115.0, 30.0], [122.0, 20.0]]},
+                {"id": "line", "kind": "polyline", "rest": [[20.0, 130.0], [90.0, 130.0], [170.0, 130.0]]}]
 
     def ring_at(doc):
         keys = next(f for f in doc["features"] if f["id"] == "ring")["keys"]
@@ -413,6 +424,14 @@ def test_a_disc_under_a_flat_bar_keeps_its_shape_and_a_correction_after_it_place
 
     doc, said = tracked_saying(video, sv.scene(width, height, features))
     assert lost_frames(said, "ring") == set(range(15, count)), said
+    # A polyline on the background under the bar (29-35 px off while covered, as tracked):
+    # its third point, placed meanwhile by the plate of the disc moving past, was still 35 px
+    # off at frame 25, the bar gone and its neighbours found, and no warning named that frame.
+    # It stays lost until found again.
+    under = np.array([k["points"] for k in next(f for f in doc["features"] if f["id"] == "under")["keys"]])
+    named = lost_frames(said, "under")
+    assert named == set(range(15, 26)), said
+    assert np.abs(under - np.array(features[3]["rest"])).max() < 1.0, under.round(1)
     at = ring_at(doc)
     radius = np.linalg.norm(at - at.mean(axis=1, keepdims=True), axis=2)
     assert np.abs(radius - 12).max() < 0.6, radius.round(1)

@@ -875,6 +875,33 @@ def _range_of(anchor: int, anchors: Sequence[int], count: int) -> tuple[int, int
 REFOUND_FRAMES = 5
 
 
+def _stray_after(lost: Sequence[int], series: np.ndarray, errors: Sequence[np.ndarray | None],
+                 seen: np.ndarray, anchors: Container[int], lost_px: float) -> list[int]:
+    """The ``lost`` frames (ascending) of a feature with the frames on either side of each
+    run where it is still lost in part: a control point on the picture not yet confirmed
+    again lies more than ``lost_px`` from where the feature's confirmed points carry it from
+    the frame beside the run (a point under a cover, placed meanwhile by the plate of what
+    moved past, stays there a frame after the cover goes while its neighbours are found)."""
+    count, n, out = len(series), series.shape[1], set(lost)
+    for step in (1, -1):
+        for k in sorted(out, reverse=step < 0):
+            if k + step in out or k + step in anchors or not 0 <= k + step < count:
+                continue
+            start = next((j for j in range(k, -1 if step > 0 else count, -step) if j not in out), None)
+            j = k + step
+            while start is not None and 0 <= j < count and j not in anchors and errors[j] is not None:
+                err = errors[j][:n]
+                confirmed, unseen = seen & np.isfinite(err) & (err <= lost_px), seen & ~np.isfinite(err)
+                if not (confirmed.any() and unseen.any()):
+                    break
+                move = (series[j][confirmed] - series[start][confirmed]).mean(axis=0)
+                if np.linalg.norm(series[j][unseen] - series[start][unseen] - move, axis=1).max() <= lost_px:
+                    break
+                out.add(j)
+                j += step
+    return sorted(out)
+
+
 def _kept_in_shape(series: np.ndarray, errors: Sequence[np.ndarray | None], lost: Sequence[int],
                    anchors: Container[int], lost_px: float) -> None:
     """A feature's control points in ``series`` at its ``lost`` frames (not its anchors): the
@@ -1122,7 +1149,8 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             if np.median(err[seen]) > lost_px or keys_off:
                 lost.setdefault(f.id, []).append(k)
         if f.id in lost:
-            lost[f.id] = _held_lost(lost[f.id], set(anchors_of[f.id]))
+            lost[f.id] = _held_lost(_stray_after(lost[f.id], series, errors, seen[:len(f.rest)],
+                                                 set(anchors_of[f.id]), lost_px), set(anchors_of[f.id]))
             _kept_in_shape(series, errors, lost[f.id], anchors_of[f.id], lost_px)
         kept = range(count)
         if simplify_px is not None:
