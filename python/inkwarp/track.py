@@ -41,7 +41,8 @@ infinite where it is out of the picture or on no texture (once lost it stays los
 the anchor registration confirms it again, tried also where it was last seen), an
 untextured point's that of the dense flow, infinite where it is placed more than
 ``lost_px`` off the picture; a gap of at most :data:`REFOUND_FRAMES` frames between two
-frames where a feature is lost counts as lost too. A :class:`~inkwarp.InkwarpWarning`
+frames where a feature is lost counts as lost too, and so do the frames beside a lost
+stretch where a point not yet found again strays from its feature (:func:`_stray_after`). A :class:`~inkwarp.InkwarpWarning`
 names the features and the frames. Between two anchors, a track that has lost the feature at a
 frame gives way to the other's; else the two tracks' errors are blended as their places
 are. At a frame where it is named lost, a feature keeps the shape it has at the frames
