@@ -1318,11 +1318,15 @@ test('a scene opened by inkwarp edit is where Undo stops, and Undo after a resto
     await click(p, [40, 40]);
     await idle(p);
     await flush(p);
+    // Meanwhile another program writes the file (a longer duration): the restore says so.
+    writeFileSync(scenePath, JSON.stringify({ inkwarp: 1, fps: 12, duration: 2, layers: [{ name: 'checker', image: 'checker.png' }], features: [] }));
     await p.reload();
     await p.waitForSelector('body[data-ready]');
     await p.waitForSelector('#restore', { timeout: 10000 });
     await restoreYes(p);
     await p.waitForFunction(() => window.inkwarp.store.doc.features.length === 1, null, { timeout: 10000 });
+    const said = await p.textContent('#message');
+    assert(/history\.json was changed since \(by another tab or program\), so Save asks before writing over it/.test(said), `the restore says the file changed: ${said}`);
     now = await state();
     assert(now.unsaved && now.title.startsWith('● '), `restored, unsaved: ${JSON.stringify(now)}`);
     // Undo brings back the scene as its file has it: saved, unmarked; and nothing before it.
@@ -1331,6 +1335,10 @@ test('a scene opened by inkwarp edit is where Undo stops, and Undo after a resto
     now = await state();
     assert(now.layer === 'checker' && now.features === 0 && !now.unsaved && !now.title.startsWith('● ') && !now.undo,
       `Undo after the restore: the file's scene, saved: ${JSON.stringify(now)}`);
+    assert(await p.evaluate(() => window.inkwarp.store.doc.duration) === 2, 'as the file has it now');
+    // The tab's checks of the file leave it so (the restored work's origin knew the older version).
+    await p.evaluate(() => window.inkwarp.ui.checkFile());
+    assert(!(await state()).unsaved, 'still saved after a check of the file');
   });
 });
 

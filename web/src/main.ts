@@ -214,6 +214,8 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
   // Another tab's work, once restored here or declined, is not offered again.
   let settled = !restore;
   if (previous?.unsaved && restore) {
+    // The version of its file as this page opened it: another than the kept work's, the file changed since.
+    const fileNow = own && openedDoc && store.origin.saveUrl ? store.origin.version : null;
     try {
       // Into its own file's page: pictures retouched on disk since come from the file.
       let { doc, taken, keys } = own && openedDoc && pictures ? restorePictures(previous.doc, previous.pictures, openedDoc, pictures) : { doc: previous.doc, taken: [] as string[], keys: [] as string[] };
@@ -258,8 +260,9 @@ async function keepWork(store: Store, ui: Ui, served: Served | null, openedDoc: 
         store.setView({ draft: previous.view.draft });
       }
       const meanwhile = aside ? '; Ctrl+Z brings back what you drew while the question waited' : '';
+      const changed = fileNow && previous.version && fileNow !== previous.version ? `; ${served?.path ?? 'its file'} was changed since (by another tab or program), so Save asks before writing over it (Ctrl+Z shows the file as it is now)` : '';
       const retouched = taken.length ? `; the picture of ${taken.map((n) => `layer '${n}'`).join(', ')} changed on disk since, and is shown as the file has it now` : '';
-      ui.message(`Restored the scene from ${clockTime(previous.savedAt)}${retouched}${misfit}${meanwhile}.`, misfit ? 'error' : 'info');
+      ui.message(`Restored the scene from ${clockTime(previous.savedAt)}${retouched}${changed}${misfit}${meanwhile}.`, misfit ? 'error' : 'info');
       await saver.flush(); // now this tab's, before the other tab's copy goes
       settled = true;
     } catch (err) {
