@@ -869,6 +869,22 @@ def test_a_key_on_the_traced_frame_that_differs_from_the_rest_is_warned_about(vi
     assert doc["features"][0]["keys"][0]["points"] == rest.tolist()
 
 
+def test_a_correction_far_off_the_picture_is_named_as_such(videos):
+    # A key typed 5000 px off a 160 px picture was tracked from where nothing can be seen:
+    # only the lost-track warning came, whose advice is to add the key that was the fault.
+    path, _ = videos["translate"]
+    features = sv.drawing(W, H, seed=7)
+    rest = np.asarray(features[0]["rest"], float)
+    features[0]["keys"] = [{"t": 0.5, "points": (rest + [5000.0, 0.0]).tolist()}]
+    features[1]["keys"] = [{"t": 0.5, "points": (np.asarray(features[1]["rest"]) + [-30.0, 0.0]).tolist()}]  # near: no word
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        track_dict(path, sv.scene(W, H, features))
+    said = [str(w.message) for w in caught if "off the" in str(w.message) and "picture, where the tracker" in str(w.message)]
+    assert len(said) == 1 and "features[0]" in said[0] and f"off the {W}x{H} picture" in said[0], said
+    assert re.search(r"a point (49\d\d|50\d\d) px off", said[0]), said
+
+
 def test_a_still_picture_is_refused_as_a_video(tmp_path, capsys):
     # ffmpeg reads a PNG as a one-frame video, which was "tracked" into keys at t = 0 only.
     picture = tmp_path / "still.png"

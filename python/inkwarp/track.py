@@ -831,8 +831,8 @@ class TrackOptions:
     lost_px: float = 2.0
 
 
-def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: str
-              ) -> list[_Feature]:
+def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: str,
+              size: tuple[int, int]) -> list[_Feature]:
     out = []
     for i, f in enumerate(doc.get("features") or []):
         rest = np.asarray(f["rest"], dtype=np.float64).reshape(-1, 2)
@@ -857,6 +857,15 @@ def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: st
                                   "Trace on another frame with --frame, or move the key off it",
                                   InkwarpWarning, stacklevel=caller_outside())
                 continue
+            # A correction far off the picture (a typed coordinate gone wrong) is tracked from
+            # where nothing can be seen, and the lost track's warning would point back at it.
+            w, h = size
+            far = float(np.hypot(np.maximum(np.maximum(-points[:, 0], points[:, 0] - (w - 1)), 0),
+                                 np.maximum(np.maximum(-points[:, 1], points[:, 1] - (h - 1)), 0)).max())
+            if f.get("kind") != "cut" and far > max(w, h):
+                warnings.warn(f"{where}: features[{i}] ({f['id']}): its key at t = {key['t']} s (frame {k}) "
+                              f"has a point {far:.0f} px off the {w}x{h} picture, where the tracker sees "
+                              "nothing to follow; check the key's points", InkwarpWarning, stacklevel=caller_outside())
             keys[k] = points
         out.append(_Feature(str(f["id"]), str(f["kind"]), bool(f.get("closed", False)), rest, keys))
     return out
@@ -1056,7 +1065,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
         raise ValueError(f"lost_px {lost_px}: give a distance in pixels above 0")
     # A cut moves nothing (it tears the picture along its rest line): it is not tracked, and
     # keeps no keys.
-    tracked = [(i, f) for i, f in enumerate(_features(doc, clip.fps, count, frame, where)) if f.kind != "cut"]
+    tracked = [(i, f) for i, f in enumerate(_features(doc, clip.fps, count, frame, where, (clip.width, clip.height))) if f.kind != "cut"]
     features = [f for _, f in tracked]
     if not features:
         cuts = " (cuts are not tracked: they tear the picture along their rest line)" if doc["features"] else ""
