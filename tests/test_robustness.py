@@ -401,3 +401,25 @@ def test_wrong_argument_types_are_value_errors_naming_the_argument(tmp_path: Pat
             call()
     # A scene's JSON as bytes, as a file is read, is taken.
     assert inkwarp.Scene.from_json(b'{"inkwarp": 1, "width": 8, "height": 8, "layers": [{"name": "m"}]}').width == 8
+
+
+def test_every_refusal_of_the_api_is_an_inkwarp_error_and_a_value_error(tmp_path: Path) -> None:
+    # A pipeline catches `inkwarp.InkwarpError`, as its docstring invites ("every error
+    # inkwarp raises on purpose"): a layer name that is not there, a frame range, an output's
+    # extension and the grid solve's argument checks (in Python and in the engine) raised
+    # plain ValueErrors that it let through.
+    scene = inkwarp.Scene.load(scene_with(tmp_path, "s.json", lambda d: None))
+    refusals = {
+        "layer": lambda: scene.field(time=0.5, layer="nope"),
+        "frames": lambda: list(scene.frames(5, 2)),
+        "extension": lambda: inkwarp.render(scene, tmp_path / "out.xyz"),
+        "shape": lambda: inkwarp.thin_plate([[1, 1]], [[1, 1]], (0, 5)),
+        "tolerance": lambda: inkwarp.thin_plate([[1, 1]], [[1, 1]], (8, 8), tolerance=float("nan")),
+        "engine": lambda: inkwarp.thin_plate([[1e12, 1]], [[1, 1]], (8, 8)),
+        "warp": lambda: inkwarp.warp_image(np.zeros((8, 8, 4), np.uint8), np.full((8, 8, 2), np.nan)),
+    }
+    for name, refused in refusals.items():
+        with pytest.raises(inkwarp.InkwarpError) as caught:
+            refused()
+        assert isinstance(caught.value, ValueError) and type(caught.value).__name__ in ("InputError", "SceneError"), (
+            name, type(caught.value))

@@ -8,7 +8,7 @@ import os as _os
 
 from inkwarp._inkwarp import __version__, _after_fork
 from inkwarp.drawing import sample
-from inkwarp.errors import ConvergenceWarning, InkwarpError, InkwarpWarning, PastEndWarning, SceneError
+from inkwarp.errors import ConvergenceWarning, InkwarpError, InkwarpWarning, InputError, PastEndWarning, SceneError
 from inkwarp.compare import Comparison, compare, comparison_sheet
 from inkwarp.methods import METHODS, ThinPlateMap, interpolate, interpolate_report
 from inkwarp.imaging import warp_image
@@ -27,6 +27,7 @@ __all__ = [
     "Frames",
     "InkwarpError",
     "InkwarpWarning",
+    "InputError",
     "PastEndWarning",
     "METHODS",
     "Scene",

@@ -19,6 +19,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
+from inkwarp.errors import InputError
 from inkwarp.methods import METHODS, check_method
 
 __all__ = ["Comparison", "checkerboard_plates", "compare", "comparison_sheet"]
@@ -66,11 +67,11 @@ def _methods(methods: Iterable[str] | str | None) -> list[str]:
     if isinstance(methods, str):
         methods = [m.strip() for m in methods.split(",") if m.strip()]
     elif not isinstance(methods, Iterable):
-        raise ValueError(f"methods must be a list of method names or a comma-separated string, such as "
+        raise InputError(f"methods must be a list of method names or a comma-separated string, such as "
                          f"'tps,triangulation'; got {type(methods).__name__} {methods!r:.40}")
     out = [check_method(m) for m in methods]
     if not out:
-        raise ValueError("give at least one method to compare.")
+        raise InputError("give at least one method to compare.")
     return out
 
 
@@ -138,7 +139,7 @@ def compare(
     if isinstance(scene, (str, os.PathLike)):
         scene = Scene.load(scene)
     elif not isinstance(scene, Scene):
-        raise ValueError(f"the scene must be an inkwarp.Scene or the path of a scene file; got {type(scene).__name__}")
+        raise InputError(f"the scene must be an inkwarp.Scene or the path of a scene file; got {type(scene).__name__}")
     time = scene.duration if time is None else scene._time(time, None, frame_too=False)  # NaN and past ±27 h refused by name
     chosen = _methods(methods)
     index = _compared_layer(scene, layer)
@@ -176,13 +177,13 @@ def _settings(scene: Any, *, a: float | None, b: float | None, p: float | None,
     weights = {k: v for k, v in (("a", a), ("b", b), ("p", p)) if v is not None}
     for name, value in weights.items():
         if not math.isfinite(float(value)):
-            raise ValueError(f"Beier–Neely's {name} must be a finite number; got {value}.")
+            raise InputError(f"Beier–Neely's {name} must be a finite number; got {value}.")
     if weights:
         out["beier_neely"] = {**{"a": 1.0, "b": 2.0, "p": 0.0}, **solver.get("beier_neely", {}),
                               **{k: float(v) for k, v in weights.items()}}
     if max_samples is not None:
         if isinstance(max_samples, bool) or int(max_samples) != max_samples:
-            raise ValueError(f"max_samples must be a whole number; got {max_samples!r}.")
+            raise InputError(f"max_samples must be a whole number; got {max_samples!r}.")
         out["tps_exact"] = {"max_samples": int(max_samples)}
     return out
 
@@ -237,9 +238,9 @@ def comparison_sheet(
         raise ImportError("comparison sheets need matplotlib: pip install 'inkwarp[compare]'") from None
 
     if not isinstance(comparison, Comparison):
-        raise ValueError(f"comparison must be what inkwarp.compare returns; got {type(comparison).__name__}")
+        raise InputError(f"comparison must be what inkwarp.compare returns; got {type(comparison).__name__}")
     if isinstance(dpi, bool) or not isinstance(dpi, (int, np.integer)) or not 10 <= dpi <= 600:
-        raise ValueError(f"dpi must be a whole number from 10 to 600, got {dpi!r}; the default is 100")
+        raise InputError(f"dpi must be a whole number from 10 to 600, got {dpi!r}; the default is 100")
     # A surface under a hundredth of a pixel is drawn flat: scaled up, rounding (a field at
     # rest of 1e-14 px) filled the panel with speckle.
     largest = max((float(np.abs(comparison.fields[m][..., 0]).max()) for m in comparison.methods), default=0.0)

@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from inkwarp.errors import InputError
+
 #: The example scenes, by example name (the directory in ``examples/``).
 EXAMPLES: dict[str, tuple[str, ...]] = {
     "face": ("scene.json",),
@@ -53,7 +55,7 @@ def find_examples(path: str | os.PathLike[str] | None = None) -> Path:
     if not (found / "face" / "scene.json").is_file():
         fix = ("give the examples/ folder of a source checkout of inkwarp" if given is not None else
                "run the demo from a source checkout of inkwarp, or pass --examples DIR")
-        raise ValueError(f"{found}: no example scenes there (face/scene.json is missing); {fix}")
+        raise InputError(f"{found}: no example scenes there (face/scene.json is missing); {fix}")
     return found
 
 
@@ -79,18 +81,18 @@ def run(out_dir: str | os.PathLike[str] = "out", *, only: Sequence[str] | None =
     """
     for fmt in formats:
         if fmt not in FORMATS:
-            raise ValueError(f"--formats: unknown format '{fmt}'; use "
+            raise InputError(f"--formats: unknown format '{fmt}'; use "
                              + " or ".join(FORMATS))
     if not formats:
-        raise ValueError("--formats: give at least one of " + ", ".join(FORMATS))
+        raise InputError("--formats: give at least one of " + ", ".join(FORMATS))
     parts = list(only) if only else ["stills", *EXAMPLES, *EXTRA_PARTS]
     for part in parts:
         if part != "stills" and part not in EXAMPLES and part not in EXTRA_PARTS:
-            raise ValueError(f"unknown demo part '{part}'; use stills or "
+            raise InputError(f"unknown demo part '{part}'; use stills or "
                              + ", ".join([*EXAMPLES, *EXTRA_PARTS]))
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
-        raise ValueError(f"{out}: is a file; name a directory for the demo's output")
+        raise InputError(f"{out}: is a file; name a directory for the demo's output")
     root = None
     if any(part != "stills" for part in parts):
         root = find_examples(examples_dir)

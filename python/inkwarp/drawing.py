@@ -8,7 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from inkwarp import _inkwarp
-from inkwarp.errors import ArrayValuesError, real_array
+from inkwarp.errors import ArrayValuesError, InputError, real_array
 from inkwarp.plate import _finite
 
 #: The feature kinds, in the order the documentation lists them.
@@ -30,20 +30,20 @@ def _points(name: str, value: npt.ArrayLike) -> npt.NDArray[np.float64]:
     except ArrayValuesError:
         raise
     except (TypeError, ValueError) as exc:
-        raise ValueError(
+        raise InputError(
             f"{name} must be an (N, 2) array of (x, y) numbers; it could not be read as numbers ({exc})."
         ) from None
     if arr.ndim != 2 or arr.shape[1] != 2:
         hint = " For a single point, write [[x, y]]." if arr.shape == (2,) else ""
-        raise ValueError(
+        raise InputError(
             f"{name} must be an (N, 2) array of (x, y) control points; got shape {arr.shape}.{hint}"
         )
     if arr.shape[0] == 0:
-        raise ValueError(f"{name} is empty; give the feature's control points as an (N, 2) array.")
+        raise InputError(f"{name} is empty; give the feature's control points as an (N, 2) array.")
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise ValueError(
+        raise InputError(
             f"{name}[{i}] is ({arr[i, 0]}, {arr[i, 1]}); every coordinate must be a finite number. "
             "Fix or remove that point."
         )
@@ -134,39 +134,39 @@ def sample(
     (25, True)
     """
     if not isinstance(kind, str) or kind not in KINDS:
-        raise ValueError(f"unknown feature kind {kind!r}; the kinds are {', '.join(KINDS)}.")
+        raise InputError(f"unknown feature kind {kind!r}; the kinds are {', '.join(KINDS)}.")
     if not isinstance(curve, str) or curve not in CURVES:
-        raise ValueError(f"unknown curve {curve!r}; a region's outline is 'polyline' or 'spline'.")
+        raise InputError(f"unknown curve {curve!r}; a region's outline is 'polyline' or 'spline'.")
     if curve == "spline" and kind != "region":
-        raise ValueError(
+        raise InputError(
             f"curve='spline' is for region outlines only; for a spline feature use kind='spline' "
             f"(this feature is a {kind})."
         )
     rest_arr = _points("rest", rest)
     pose_arr = _points("pose", pose)
     if rest_arr.shape[0] != pose_arr.shape[0]:
-        raise ValueError(
+        raise InputError(
             f"pose has {_count(pose_arr.shape[0])} but rest has {_count(rest_arr.shape[0])}; a pose "
             "moves the same control points as the rest, so give both the same number of rows."
         )
     if not (_finite(spacing) and spacing > 0):
-        raise ValueError(f"spacing must be a positive, finite number of pixels; got {spacing!r}.")
+        raise InputError(f"spacing must be a positive, finite number of pixels; got {spacing!r}.")
     spacing_px = float(spacing)
     if not (isinstance(closed, (bool, np.bool_)) or (isinstance(closed, (int, np.integer)) and closed in (0, 1))):
-        raise ValueError(f"closed must be True or False; got {closed!r}.")
+        raise InputError(f"closed must be True or False; got {closed!r}.")
     from inkwarp.methods import _shape
     from inkwarp.plate import _mask_u8
 
     grid_shape = None if shape is None else _shape(shape)
     if kind == "region" and grid_shape is None:
-        raise ValueError(
+        raise InputError(
             "a region needs shape=(H, W), the image's height and width, to find the grid nodes "
             "inside its outline."
         )
     mask_arr = None
     if mask is not None:
         if grid_shape is None:
-            raise ValueError("mask needs shape: pass shape=(H, W) with the mask.")
+            raise InputError("mask needs shape: pass shape=(H, W) with the mask.")
         mask_arr = _mask_u8(mask, *grid_shape)
     return _inkwarp.sample_feature(
         kind,

@@ -12,6 +12,12 @@ class InkwarpError(Exception):
     """Base class of every error inkwarp raises on purpose."""
 
 
+class InputError(InkwarpError, ValueError):
+    """An argument or an input inkwarp refuses (a value, shape, file name or format it
+    cannot use): the message names it and the fix. A ``ValueError`` too, as Python's own
+    argument errors are, so ``except ValueError`` goes on catching it."""
+
+
 class SceneError(InkwarpError, ValueError):
     """A scene file (or dict) is invalid.
 
@@ -73,7 +79,7 @@ class ConvergenceWarning(InkwarpWarning):
     it as one line on stderr."""
 
 
-class ArrayValuesError(ValueError):
+class ArrayValuesError(InputError):
     """Values :func:`real_array` refuses, its message naming the array."""
 
 

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from inkwarp import _inkwarp
+from inkwarp.errors import InputError
 
 __all__ = ["read_image", "warp_image", "write_png"]
 
@@ -26,14 +27,14 @@ def _as_rgba(image: ArrayLike, name: str = "image", *, grey: bool = False, limit
     before anything is copied."""
     shapes = "(H, W), (H, W, 3) or (H, W, 4)" if grey else "(H, W, 3) or (H, W, 4)"
     if isinstance(image, (bytes, bytearray)):
-        raise ValueError(f"{name} must be an {shapes} uint8 array, got {len(image)} bytes of a "
+        raise InputError(f"{name} must be an {shapes} uint8 array, got {len(image)} bytes of a "
                          "file; decode them first, with inkwarp.imaging.read_image(io.BytesIO(data))")
     if isinstance(image, (str, os.PathLike)):
-        raise ValueError(f"{name} must be an {shapes} uint8 array, got the path {os.fspath(image)!r:.200}; "
+        raise InputError(f"{name} must be an {shapes} uint8 array, got the path {os.fspath(image)!r:.200}; "
                          "read the picture first, with inkwarp.imaging.read_image(path)")
     array = np.asarray(image)
     if array.dtype.kind not in "biuf":
-        raise ValueError(f"{name} must be an {shapes} uint8 array ({'grey, ' if grey else ''}RGB or RGBA), got "
+        raise InputError(f"{name} must be an {shapes} uint8 array ({'grey, ' if grey else ''}RGB or RGBA), got "
                          f"{'None' if image is None else type(image).__name__ + ' of dtype ' + str(array.dtype)}")
     if array.dtype != np.uint8:
         # The fix for the values it holds: 16-bit levels, levels 0-255 already (integers, or
@@ -50,7 +51,7 @@ def _as_rgba(image: ArrayLike, name: str = "image", *, grey: bool = False, limit
             fix = "levels 0-255 with np.clip(np.round(image), 0, 255).astype(np.uint8)"
         else:
             fix = "a float image in [0, 1] with (np.clip(image, 0, 1) * 255).round().astype(np.uint8)"
-        raise ValueError(f"{name} must be a uint8 array, got dtype {array.dtype}; convert {fix}")
+        raise InputError(f"{name} must be a uint8 array, got dtype {array.dtype}; convert {fix}")
     if not ((array.ndim == 3 and array.shape[2] in (3, 4)) or (grey and array.ndim == 2)):
         if array.ndim == 2:
             fix = "; make a grey image RGB with np.dstack([image] * 3)"
@@ -61,7 +62,7 @@ def _as_rgba(image: ArrayLike, name: str = "image", *, grey: bool = False, limit
             fix = "; make grey and alpha RGBA with np.dstack([image[..., 0]] * 3 + [image[..., 1]])"
         else:
             fix = ""
-        raise ValueError(
+        raise InputError(
             f"{name} must have shape {shapes} ({'grey, ' if grey else ''}RGB or RGBA), got {array.shape}{fix}"
         )
     if limit:
@@ -143,18 +144,18 @@ def warp_image(
 
     array = np.asarray(field)
     if array.dtype.kind not in "fiu":
-        raise ValueError(
+        raise InputError(
             f"field must be a real numeric array (float32 preferred), got dtype {array.dtype}"
         )
     if array.shape != (height, width, 2):
-        raise ValueError(
+        raise InputError(
             f"field must have shape (H, W, 2) = ({height}, {width}, 2) to match the image, "
             f"got {array.shape}"
         )
     displacement = np.ascontiguousarray(array, dtype=np.float32)
     if not np.isfinite(displacement).all():
         bad = np.argwhere(~np.isfinite(displacement).all(axis=2))[0]
-        raise ValueError(
+        raise InputError(
             f"field must be finite, but holds NaN or infinity (first at row {bad[0]}, "
             f"column {bad[1]})"
         )
@@ -210,13 +211,13 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
             if im.format not in ("PNG", "JPEG", "MPO"):
                 return rgba_pixels(upright(im))
     except UnidentifiedImageError as e:
-        raise ValueError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
+        raise InputError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
     # PNG and JPEG as the engine decodes them: the same pixels and orientation as a scene's.
     try:
         with open(path, "rb") as file:
             return _inkwarp.decode_picture(file.read())
     except ValueError as e:
-        raise ValueError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
+        raise InputError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
 
 
 def upright(image: Any) -> Any:

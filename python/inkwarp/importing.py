@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from inkwarp._atomic import temp_path
-from inkwarp.errors import InkwarpWarning
+from inkwarp.errors import InkwarpWarning, InputError
 
 __all__ = ["Picture", "PictureLayer", "read_picture", "scene_dict", "write_new_scene"]
 
@@ -100,7 +100,7 @@ def read_picture(path: str | os.PathLike[str]) -> Picture:
     with open(source, "rb") as file:
         start = file.read(64)
     if not start:
-        raise ValueError(f"{source}: the file is empty (0 bytes: a save, copy or download that did not "
+        raise InputError(f"{source}: the file is empty (0 bytes: a save, copy or download that did not "
                          "finish?); save or copy it again")
     # By its contents, as a flat picture is: a Photoshop document under another name is one.
     if suffix == ".psd" or start.startswith(b"8BPS"):
@@ -111,11 +111,11 @@ def read_picture(path: str | os.PathLike[str]) -> Picture:
 
     video = _video_kind(start)
     if video:
-        raise ValueError(f"{source}: {'an' if video in ('MP4', 'AVI') else 'a'} {video} video, not a picture; "
+        raise InputError(f"{source}: {'an' if video in ('MP4', 'AVI') else 'a'} {video} video, not a picture; "
                          f"take the frame to trace from it (inkwarp frame {source} --frame 0 -o frame.png) and "
                          f"start the scene from that (inkwarp new frame.png -o scene.json): inkwarp track {source} "
                          "--scene scene.json then follows the drawing through the video")
-    raise ValueError(f"{source}: cannot start a scene from '{suffix or 'no suffix'}' files; "
+    raise InputError(f"{source}: cannot start a scene from '{suffix or 'no suffix'}' files; "
                      "give a PNG, JPEG, WebP or layered PSD picture")
 
 
@@ -126,7 +126,7 @@ def _check_size(source: Path, size: tuple[int, int] | None) -> None:
 
     if size is None or size[0] * size[1] > MAX_PIXELS:
         what = f"is {size[0]}×{size[1]} pixels," if size is not None else "has"
-        raise ValueError(f"{source}: the picture {what} more than the {MAX_PIXELS >> 20} megapixels inkwarp "
+        raise InputError(f"{source}: the picture {what} more than the {MAX_PIXELS >> 20} megapixels inkwarp "
                          "handles; scale it down first")
 
 
@@ -157,7 +157,7 @@ def _read_flat(source: Path) -> Picture:
         # them (its EXIF orientation rule included); WebP is converted to a PNG beside the scene.
         kind = image.format
         if kind not in ("PNG", "JPEG", "MPO", "WEBP"):
-            raise ValueError(f"{source}: a {kind or 'unknown'} picture under a {source.suffix or 'bare'} name; "
+            raise InputError(f"{source}: a {kind or 'unknown'} picture under a {source.suffix or 'bare'} name; "
                              "inkwarp reads PNG, JPEG and WebP: save it as one of those")
         # The engine reads no colour profile: a picture in another space than sRGB (a phone's
         # Display P3) is converted here, as a viewer shows it, into a PNG beside the scene.
@@ -223,7 +223,7 @@ def _read_psd(source: Path) -> Picture:
         from psd_tools import PSDImage
         from psd_tools.constants import BlendMode, ColorMode
     except ImportError:  # pragma: no cover - psd-tools is a dependency
-        raise ValueError(f"{source}: reading PSD files needs psd-tools; "
+        raise InputError(f"{source}: reading PSD files needs psd-tools; "
                          "install it with 'pip install psd-tools'") from None
     start: bytes | None = None  # unreadable: said below, as psd-tools meets it
     try:
@@ -235,29 +235,29 @@ def _read_psd(source: Path) -> Picture:
         named = {b"\x89PNG": ("a PNG picture", ".png"), b"\xff\xd8\xff": ("a JPEG picture", ".jpg")}
         found = next((kind for sig, kind in named.items() if start.startswith(sig)), None)
         if found:
-            raise ValueError(f"{source}: is {found[0]} under a .psd name; rename it to "
+            raise InputError(f"{source}: is {found[0]} under a .psd name; rename it to "
                              f"{source.with_suffix(found[1]).name}")
-        raise ValueError(f"{source}: not a PSD file (it does not start as one does); save it from "
+        raise InputError(f"{source}: not a PSD file (it does not start as one does); save it from "
                          "the painting app as a Photoshop document (RGB, 8 bits), or give a PNG or JPEG")
     try:
         psd = PSDImage.open(source)
     except Exception as err:  # noqa: BLE001 - psd-tools raises many kinds on a broken file
         size, needs = source.stat().st_size, _psd_layers_end(source)
         if needs is not None and size < needs:
-            raise ValueError(f"{source}: the file is cut short ({size:,} bytes, where its layers "
+            raise InputError(f"{source}: the file is cut short ({size:,} bytes, where its layers "
                              f"need {needs:,}: a copy or download that did not finish?); copy it "
                              "again, or save it again from the painting app") from None
         reason = " ".join(str(err).split()) or type(err).__name__
-        raise ValueError(f"{source}: not a readable PSD file ({reason}); save it again from "
+        raise InputError(f"{source}: not a readable PSD file ({reason}); save it again from "
                          "the painting app as a Photoshop document (RGB, 8 bits)") from None
     _check_size(source, (psd.width, psd.height))
     if psd.color_mode != ColorMode.RGB:
         mode = getattr(psd.color_mode, "name", str(psd.color_mode))
-        raise ValueError(f"{source}: the PSD is in {mode} colour mode; inkwarp reads RGB "
+        raise InputError(f"{source}: the PSD is in {mode} colour mode; inkwarp reads RGB "
                          "documents: convert it (Photoshop: Image > Mode > RGB Color) and "
                          "save it again")
     if psd.depth != 8:
-        raise ValueError(f"{source}: the PSD has {psd.depth} bits per channel; inkwarp reads "
+        raise InputError(f"{source}: the PSD has {psd.depth} bits per channel; inkwarp reads "
                          "8-bit documents: convert it (Photoshop: Image > Mode > 8 Bits/Channel)"
                          " and save it again")
     width, height = int(psd.width), int(psd.height)
@@ -308,7 +308,7 @@ def _read_psd(source: Path) -> Picture:
         try:
             image = layer.topil()
         except Exception as err:  # noqa: BLE001 - a damaged layer record
-            raise ValueError(f"{source}: layer {named(here)} cannot be read ({err}); "
+            raise InputError(f"{source}: layer {named(here)} cannot be read ({err}); "
                              "save the PSD again from the painting app") from None
         if image is None:  # an empty layer, or an adjustment or fill layer without pixels
             if layer.kind not in ("pixel", "type", "shape", "smartobject"):
@@ -341,7 +341,7 @@ def _read_psd(source: Path) -> Picture:
 
     walk(psd, [], 1.0, True)
     if not layers:
-        raise ValueError(f"{source}: the PSD has no pixel layers; add a layer with the picture "
+        raise InputError(f"{source}: the PSD has no pixel layers; add a layer with the picture "
                          "and save it again")
     return Picture(width, height, layers, notes)
 
@@ -501,7 +501,7 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
 
     target = Path(os.fspath(output))
     if target.suffix.lower() != ".json":
-        raise ValueError(f"{target}: name the scene file .json, such as {target.with_suffix('.json').name}")
+        raise InputError(f"{target}: name the scene file .json, such as {target.with_suffix('.json').name}")
     from inkwarp.video import check_file
 
     check_file(target, ".json")
@@ -538,7 +538,7 @@ def write_new_scene(picture_path: str | os.PathLike[str], output: str | os.PathL
     if existing and not force:
         names = ", ".join(str(path) for path in existing)
         verb = "exists" if len(existing) == 1 else "exist"
-        raise ValueError(f"{names}: already {verb}; choose another scene name, or replace "
+        raise InputError(f"{names}: already {verb}; choose another scene name, or replace "
                          f"{'it' if len(existing) == 1 else 'them'} with --force (in Python, force=True)")
     left = _left_behind(target, data) if force else []
     _write_all(files)

@@ -28,7 +28,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from inkwarp import _inkwarp
-from inkwarp.errors import ArrayValuesError, real_array
+from inkwarp.errors import ArrayValuesError, InputError, real_array
 
 __all__ = ["METHODS", "ThinPlateMap", "interpolate", "interpolate_report"]
 
@@ -89,7 +89,7 @@ def check_method(method: str) -> str:
     """Return ``method`` if it is a known method name, else raise ``ValueError``."""
     if method not in METHODS:
         known = ", ".join(f'"{m}"' for m in METHODS)
-        raise ValueError(f'unknown method "{method}": use one of {known}.')
+        raise InputError(f'unknown method "{method}": use one of {known}.')
     return method
 
 
@@ -98,10 +98,10 @@ def _points(name: str, value: Any) -> np.ndarray:
     if arr.size == 0:
         arr = arr.reshape(0, 2)
     if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ValueError(f"{name} must be an (N, 2) array of (x, y) pairs; got shape {arr.shape}.")
+        raise InputError(f"{name} must be an (N, 2) array of (x, y) pairs; got shape {arr.shape}.")
     if not np.isfinite(arr).all():
         row = int(np.argwhere(~np.isfinite(arr))[0][0])
-        raise ValueError(f"{name}[{row}] is not finite ({arr[row].tolist()}); remove it or fix it.")
+        raise InputError(f"{name}[{row}] is not finite ({arr[row].tolist()}); remove it or fix it.")
     return np.ascontiguousarray(arr)
 
 
@@ -111,16 +111,16 @@ def _segments(name: str, value: Any) -> np.ndarray:
     except ArrayValuesError:
         raise
     except (TypeError, ValueError):  # text, None, ragged nesting: numpy's words would not name it
-        raise ValueError(f"{name} must be an (L, 2, 2) array of numbers: L segments of two (x, y) end points; "
+        raise InputError(f"{name} must be an (L, 2, 2) array of numbers: L segments of two (x, y) end points; "
                          f"got {value!r:.40}") from None
     if arr.size == 0:
         arr = arr.reshape(0, 2, 2)
     if arr.ndim != 3 or arr.shape[1:] != (2, 2):
-        raise ValueError(
+        raise InputError(
             f"{name} must be an (L, 2, 2) array: L segments of two (x, y) end points; got shape {arr.shape}."
         )
     if not np.isfinite(arr).all():
-        raise ValueError(f"{name} holds a value that is not finite; every end point must be a finite number.")
+        raise InputError(f"{name} holds a value that is not finite; every end point must be a finite number.")
     return np.ascontiguousarray(arr)
 
 
@@ -130,11 +130,11 @@ def _shape(shape: Sequence[int]) -> tuple[int, int]:
     try:
         height, width = (_size(v) for v in shape)  # whole numbers: 16.7 is refused, not cut
     except (TypeError, ValueError):
-        raise ValueError(f"shape must be (H, W); got {shape!r}.") from None
+        raise InputError(f"shape must be (H, W); got {shape!r}.") from None
     if height < 1 or width < 1:
-        raise ValueError(f"shape must be at least (1, 1); got ({height}, {width}).")
+        raise InputError(f"shape must be at least (1, 1); got ({height}, {width}).")
     if max(height, width) > _inkwarp.MAX_SIDE_PX:
-        raise ValueError(f"shape ({height}, {width}): each side may be at most "
+        raise InputError(f"shape ({height}, {width}): each side may be at most "
                          f"{_inkwarp.MAX_SIDE_PX} pixels; use a smaller grid.")
     return height, width
 
@@ -174,11 +174,11 @@ def interpolate_report(
     check_method(method)
     if isinstance(max_samples, (bool, np.bool_)) or not isinstance(max_samples, (int, np.integer)) \
             or not 1 <= max_samples <= 2**32 - 1:
-        raise ValueError(f"max_samples must be a whole number from 1 to {2**32 - 1}; got {max_samples!r}.")
+        raise InputError(f"max_samples must be a whole number from 1 to {2**32 - 1}; got {max_samples!r}.")
     pts = _points("points", points)
     disp = _points("displacements", displacements)
     if len(pts) != len(disp):
-        raise ValueError(
+        raise InputError(
             f"points and displacements must have the same length; got {len(pts)} points "
             f"and {len(disp)} displacements."
         )
@@ -190,10 +190,10 @@ def interpolate_report(
                 raise TypeError
             rest_in, pose_in = lines
         except (TypeError, ValueError):
-            raise ValueError("lines must be a pair (rest, pose) of (L, 2, 2) segment arrays.") from None
+            raise InputError("lines must be a pair (rest, pose) of (L, 2, 2) segment arrays.") from None
         rest, pose = _segments("lines[0] (rest)", rest_in), _segments("lines[1] (pose)", pose_in)
         if rest.shape != pose.shape:
-            raise ValueError(
+            raise InputError(
                 f"lines: the rest and pose segments must match; got {len(rest)} and {len(pose)} segments."
             )
     if method == "tps":
@@ -227,7 +227,7 @@ def _weight(name: str, value: Any, most: float, above_zero: bool = False) -> flo
 
     number = float(value) if _finite(value) else math.nan
     if not ((number > 0 if above_zero else number >= 0) and number <= most):
-        raise ValueError(f"{name} must be a number {span}; got {value!r}.")
+        raise InputError(f"{name} must be a number {span}; got {value!r}.")
     return number
 
 

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from inkwarp import video
+from inkwarp.errors import InputError
 from inkwarp.video import FrameWriter, _temp_name
 
 __all__ = ["ALPHA_KINDS", "SpriteSheetWriter", "open_writer", "parse_background",
@@ -63,7 +64,7 @@ def parse_background(text: str, option: str = "--background") -> list[int]:
     parts = [p.strip() for p in spec.split(",")]
     if len(parts) in (3, 4) and all(p.isdigit() and int(p) <= 255 for p in parts):
         return [int(p) for p in parts] + [255] * (4 - len(parts))
-    raise ValueError(f"{given(option, text if spec else repr(text))}: give transparent, white, black, #RRGGBB, "
+    raise InputError(f"{given(option, text if spec else repr(text))}: give transparent, white, black, #RRGGBB, "
                      "#RRGGBBAA or R,G,B[,A] with numbers 0-255")
 
 
@@ -183,7 +184,7 @@ def check_sheet_size(columns: int, rows: int, width: int, height: int, spec: str
         else:
             what = option if cli else f"{option}=True"
         frames = "--frames" if cli else "frames=(A, B)"
-        raise ValueError(f"{what}: {columns}x{rows} frames of {width}x{height} make a "
+        raise InputError(f"{what}: {columns}x{rows} frames of {width}x{height} make a "
                          f"{w}x{h} sheet, over the {MAX_SHEET_SIDE_PX} px a side that game "
                          f"engines load; pick fewer frames with {frames}, another COLSxROWS, "
                          "or render a smaller scene")
@@ -195,7 +196,7 @@ def check_sheet_json(target: str | os.PathLike[str], scene_path: str | os.PathLi
     out = Path(os.fspath(target))
     sheet_json = out.with_suffix(".json")
     if scene_path is not None and sheet_json.exists() and os.path.exists(scene_path) and os.path.samefile(sheet_json, scene_path):
-        raise ValueError(f"{target}: the sprite sheet's {sheet_json.name} would replace the "
+        raise InputError(f"{target}: the sprite sheet's {sheet_json.name} would replace the "
                          f"scene {scene_path}; name the sheet otherwise, such as "
                          f"{sheet_json.stem}-sheet.png")
     # Another scene, or any JSON that is not an earlier sheet's atlas, is not replaced either.
@@ -243,7 +244,7 @@ def check_not_an_input(target: str | os.PathLike[str], scene: Any, written: str 
     for path in inputs:
         if path.exists() and os.path.samefile(out, path):
             what = "the scene" if path == own else "an image of the scene"
-            raise ValueError(f"{target}: is {what} being rendered ({path}); writing the {written} "
+            raise InputError(f"{target}: is {what} being rendered ({path}); writing the {written} "
                              f"there would replace it. Name the output otherwise, such as "
                              f"{out.stem}-{written.split()[-1]}{out.suffix}")
 
@@ -267,7 +268,7 @@ def check_frames_not_inputs(folder: str | os.PathLike[str], first: int, stop: in
             continue
         frame = out / FRAME_PATTERN.format(index)
         if path.exists() and frame.exists() and os.path.samefile(frame, path):
-            raise ValueError(f"{folder}: frame {index} would be written over {path}, an "
+            raise InputError(f"{folder}: frame {index} would be written over {path}, an "
                              f"image of the scene being rendered. Render into another folder, such "
                              f"as {out / 'frames'}/")
 
@@ -278,7 +279,7 @@ def check_not_the_input(target: str | os.PathLike[str], given: str | os.PathLike
     writing it would replace that file."""
     out = Path(os.fspath(target))
     if out.exists() and os.path.exists(given) and os.path.samefile(out, given):
-        raise ValueError(f"{out}: is the input ({option} {given}); writing there would replace "
+        raise InputError(f"{out}: is the input ({option} {given}); writing there would replace "
                          f"it. Name the output otherwise, such as {out.stem}{suffix}{out.suffix}")
 
 
@@ -297,7 +298,7 @@ def check_ours(target: str | os.PathLike[str], ours: Callable[[dict[str, Any]], 
     if isinstance(doc, dict) and ours(doc):
         return
     what = "a scene" if isinstance(doc, dict) and "layers" in doc else "a file inkwarp did not write"
-    raise ValueError(f"{lead or str(target) + ':'} is {what}; writing the {written} there would replace it. "
+    raise InputError(f"{lead or str(target) + ':'} is {what}; writing the {written} there would replace it. "
                      f"Name it otherwise, such as {instead or out.stem + '-' + written + out.suffix}, or "
                      "remove the file first")
 
@@ -334,12 +335,12 @@ def sheet_layout(count: int, spec: str | None, option: str = "--sprite-sheet",
             c = int(text)
             r = math.ceil(count / c) if c > 0 else 0
     except ValueError:
-        raise ValueError(f"{given(option, spec)}: give COLSxROWS (such as 8x4) or COLS"
+        raise InputError(f"{given(option, spec)}: give COLSxROWS (such as 8x4) or COLS"
                          ) from None
     if c < 1 or r < 1:
-        raise ValueError(f"{given(option, spec)}: columns and rows must be at least 1")
+        raise InputError(f"{given(option, spec)}: columns and rows must be at least 1")
     if c * r < count:
-        raise ValueError(f"{given(option, spec)}: {c}x{r} holds {_frames(c * r)}, the render "
+        raise InputError(f"{given(option, spec)}: {c}x{r} holds {_frames(c * r)}, the render "
                          f"has {count}; give more rows or columns, or pick fewer with "
                          f"{'--frames' if option.startswith('-') else 'frames=(A, B)'}")
     return c, r
@@ -369,7 +370,7 @@ class SpriteSheetWriter(FrameWriter):
 
     def _write(self, frame: np.ndarray) -> None:
         if self.frames_written >= self.columns * self.rows:
-            raise ValueError(f"{self.target}: the sheet holds {_frames(self.columns * self.rows)}")
+            raise InputError(f"{self.target}: the sheet holds {_frames(self.columns * self.rows)}")
         h, w = frame.shape[:2]
         if self._sheet is None:
             self._sheet = np.zeros((h * self.rows, w * self.columns, 4), np.uint8)

@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from inkwarp import _inkwarp
-from inkwarp.errors import ArrayValuesError, ConvergenceWarning, InkwarpWarning, real_array
+from inkwarp.errors import ArrayValuesError, ConvergenceWarning, InkwarpWarning, InputError, real_array
 
 __all__ = ["SolveReport", "Solver", "WarmStart", "thin_plate", "thin_plate_report"]
 
@@ -239,19 +239,19 @@ def _points(name: str, value: Any) -> npt.NDArray[np.float64]:
     except ArrayValuesError:
         raise
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be an (N, 2) array of numbers ({exc}).") from None
+        raise InputError(f"{name} must be an (N, 2) array of numbers ({exc}).") from None
     if arr.size == 0:
         arr = arr.reshape(0, 2)  # an empty list: "empty", below, not a shape to fix
     if arr.ndim == 0:  # None, or one number: no reshaping makes positions of it
-        raise ValueError(f"{name} must be an (N, 2) array with one (x, y) pair per row, got {value!r:.40}.")
+        raise InputError(f"{name} must be an (N, 2) array with one (x, y) pair per row, got {value!r:.40}.")
     if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ValueError(
+        raise InputError(
             f"{name} must have shape (N, 2) with one (x, y) pair per row, got shape "
             f"{arr.shape}; reshape it, e.g. np.asarray({name}).reshape(-1, 2)."
         )
     if not np.all(np.isfinite(arr)):
         row = int(np.argwhere(~np.isfinite(arr))[0][0])
-        raise ValueError(f"{name} has a value that is not a finite number (NaN, None or infinite) in row {row}; "
+        raise InputError(f"{name} has a value that is not a finite number (NaN, None or infinite) in row {row}; "
                          "every value must be a finite number.")
     return np.ascontiguousarray(arr)
 
@@ -266,7 +266,7 @@ def _cuts(cuts: Any) -> list[np.ndarray]:
     except TypeError:  # not iterable
         polylines = False
     if not polylines:
-        raise ValueError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.")
+        raise InputError(f"cuts must be a list of (K, 2) polylines, got {cuts!r:.40}.")
     cuts = cuts if isinstance(cuts, np.ndarray) else list(cuts)  # a generator is read once
     try:  # its depth: 2 is one polyline without the list around it, 1 a list of numbers
         with warnings.catch_warnings():  # (numpy's ComplexWarning: complex values are said below, by name)
@@ -277,15 +277,15 @@ def _cuts(cuts: Any) -> list[np.ndarray]:
     if depth == 2 and all(np.size(c) == 0 for c in cuts):
         depth = None  # (empty cuts, said below as such)
     if depth == 2:
-        raise ValueError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")
+        raise InputError("cuts must be a list of (K, 2) polylines; wrap a single cut in a list: cuts=[cut].")
     if depth == 1:  # numbers: [x0, y0, x1, y1]
-        raise ValueError(f"cuts must be a list of (K, 2) polylines, got a list of numbers {cuts!r:.40}; give each "
+        raise InputError(f"cuts must be a list of (K, 2) polylines, got a list of numbers {cuts!r:.40}; give each "
                          "cut's points as pairs, such as cuts=[[[x0, y0], [x1, y1]]].")
     cut_list = []
     for k, cut in enumerate(cuts):
         c = _points(f"cuts[{k}]", cut)
         if len(c) < 2:
-            raise ValueError(f"cuts[{k}] has {len(c)} point(s); a cut needs at least two (x, y) points.")
+            raise InputError(f"cuts[{k}] has {len(c)} point(s); a cut needs at least two (x, y) points.")
         cut_list.append(c)
     return cut_list
 
@@ -294,22 +294,22 @@ def _mask_u8(mask: Any, height: int, width: int, name: str = "mask") -> np.ndarr
     """An ``(H, W)`` mask or matte as uint8 (1 where nonzero), or a ValueError naming
     ``name`` and the fix."""
     if isinstance(mask, (str, bytes, os.PathLike)):
-        raise ValueError(f"{name} must be an (H, W) array, got the path {os.fspath(mask)!r}; read the picture "
+        raise InputError(f"{name} must be an (H, W) array, got the path {os.fspath(mask)!r}; read the picture "
                          "first (its alpha, for example np.asarray(PIL.Image.open(path).convert('RGBA'))[..., 3]).")
     try:
         m = np.asarray(mask)
     except (TypeError, ValueError) as exc:  # rows of different lengths, for example
-        raise ValueError(f"{name} must be an (H, W) array of numbers ({_first_line(exc)}).") from None
+        raise InputError(f"{name} must be an (H, W) array of numbers ({_first_line(exc)}).") from None
     if m.ndim == 3 and m.shape[:2] == (height, width):
         one = f"a picture's alpha is {name}[..., 3]" if m.shape[2] == 4 else f"such as {name}[..., 0]"
-        raise ValueError(f"{name} has shape {m.shape}: a picture's channels; pass one of them, an (H, W) array ({one}).")
+        raise InputError(f"{name} has shape {m.shape}: a picture's channels; pass one of them, an (H, W) array ({one}).")
     if m.shape != (height, width):
         against = "the image is" if name == "matte" else "shape is"
-        raise ValueError(f"{name} has shape {m.shape} but {against} {(height, width)}; pass an (H, W) {name}.")
+        raise InputError(f"{name} has shape {m.shape} but {against} {(height, width)}; pass an (H, W) {name}.")
     if m.dtype.kind == "f" and not np.all(np.isfinite(m)):
-        raise ValueError(f"{name} has NaN or infinite values; use 0 for holes and nonzero for connected pixels.")
+        raise InputError(f"{name} has NaN or infinite values; use 0 for holes and nonzero for connected pixels.")
     if m.dtype.kind not in "biuf":
-        raise ValueError(f"{name} must hold numbers or booleans (nonzero = connected), got dtype {m.dtype}.")
+        raise InputError(f"{name} must hold numbers or booleans (nonzero = connected), got dtype {m.dtype}.")
     return np.ascontiguousarray(m != 0, dtype=np.uint8)
 
 
@@ -330,41 +330,41 @@ def _check_args(
     try:
         height, width = (_size(v) for v in shape)
     except (TypeError, ValueError):
-        raise ValueError(f"shape must be (height, width), two positive integers, got {shape!r}.") from None
+        raise InputError(f"shape must be (height, width), two positive integers, got {shape!r}.") from None
     if height < 1 or width < 1:
-        raise ValueError(f"shape must be (height, width), two positive integers, got {shape!r}.")
+        raise InputError(f"shape must be (height, width), two positive integers, got {shape!r}.")
     if max(height, width) > _inkwarp.MAX_SIDE_PX:
-        raise ValueError(f"shape {shape!r}: each side may be at most {_inkwarp.MAX_SIDE_PX} "
+        raise InputError(f"shape {shape!r}: each side may be at most {_inkwarp.MAX_SIDE_PX} "
                          "pixels; use a smaller grid.")
     pts = _points("points", points)
     disp = _points("displacements", displacements)
     if len(pts) == 0:
-        raise ValueError("points is empty: pass at least one (x, y) point with its displacement.")
+        raise InputError("points is empty: pass at least one (x, y) point with its displacement.")
     if len(pts) != len(disp):
-        raise ValueError(
+        raise InputError(
             f"points has {len(pts)} rows but displacements has {len(disp)}; pass one displacement per point."
         )
     mask_u8 = None if mask is None else _mask_u8(mask, height, width)
     cut_list = _cuts(cuts)
     for name, value in (("tension", tension), ("tolerance", tolerance)):
         if not _finite(value) or value < 0:
-            raise ValueError(f"{name} must be a finite number >= 0, got {_shown(value)}.")
+            raise InputError(f"{name} must be a finite number >= 0, got {_shown(value)}.")
     if tension > 1e6:
-        raise ValueError(f"tension must be a number from 0 to 1e6 (0 is a pure thin plate), got {_shown(tension)}.")
+        raise InputError(f"tension must be a number from 0 to 1e6 (0 is a pure thin plate), got {_shown(tension)}.")
     if (isinstance(grid_step, bool) or not isinstance(grid_step, numbers.Integral) or grid_step < 1
             or grid_step > _inkwarp.MAX_SIDE_PX):
-        raise ValueError(f"grid_step must be an integer from 1 to {_inkwarp.MAX_SIDE_PX} (1 solves on every "
+        raise InputError(f"grid_step must be an integer from 1 to {_inkwarp.MAX_SIDE_PX} (1 solves on every "
                          f"pixel), got {_shown(grid_step)}.")
     if max_cycles is not None and (
         isinstance(max_cycles, bool) or not isinstance(max_cycles, numbers.Integral)
         or not 0 <= max_cycles <= MAX_CYCLES
     ):
-        raise ValueError(f"max_cycles must be None (the default cap, 300) or an integer from 0 to {MAX_CYCLES:,}, "
+        raise InputError(f"max_cycles must be None (the default cap, 300) or an integer from 0 to {MAX_CYCLES:,}, "
                          f"got {_shown(max_cycles)}.")
     if method not in _METHODS:
-        raise ValueError(f"method must be one of {_METHODS}, got {method!r}.")
+        raise InputError(f"method must be one of {_METHODS}, got {method!r}.")
     if not _finite(southwell_sweeps) or southwell_sweeps < 0:
-        raise ValueError(f"southwell_sweeps must be a finite number >= 0, got {_shown(southwell_sweeps)}.")
+        raise InputError(f"southwell_sweeps must be a finite number >= 0, got {_shown(southwell_sweeps)}.")
     init = None
     if initial is not None:
         try:
@@ -372,9 +372,9 @@ def _check_args(
         except ArrayValuesError:
             raise
         except (TypeError, ValueError) as exc:
-            raise ValueError(f"initial must be an (H, W, 2) array of numbers ({_first_line(exc)}).") from None
+            raise InputError(f"initial must be an (H, W, 2) array of numbers ({_first_line(exc)}).") from None
         if init.shape != (height, width, 2):
-            raise ValueError(
+            raise InputError(
                 f"initial has shape {init.shape} but must be {(height, width, 2)}: a previous field of this grid."
             )
         # Its finiteness is checked by the core, in parallel, before the solve reads it (the
@@ -441,14 +441,14 @@ def thin_plate_report(
     )
     if warm is not None:
         if not isinstance(warm, WarmStart):
-            raise ValueError(f"warm must be an inkwarp.WarmStart (or None), got {type(warm).__name__}.")
+            raise InputError(f"warm must be an inkwarp.WarmStart (or None), got {type(warm).__name__}.")
         if initial is not None:
-            raise ValueError("Pass initial or warm, not both: warm already starts from the earlier frames.")
+            raise InputError("Pass initial or warm, not both: warm already starts from the earlier frames.")
     if solver is not None:
         if not isinstance(solver, Solver):
-            raise ValueError(f"solver must be an inkwarp.Solver (or None), got {type(solver).__name__}.")
+            raise InputError(f"solver must be an inkwarp.Solver (or None), got {type(solver).__name__}.")
         if warm is not None:
-            raise ValueError("Pass solver or warm, not both: a WarmStart keeps a solver of its own.")
+            raise InputError("Pass solver or warm, not both: a WarmStart keeps a solver of its own.")
     field, rep = _inkwarp.thin_plate_solve(
         args["points"],
         args["displacements"],

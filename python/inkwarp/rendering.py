@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from inkwarp.errors import InkwarpWarning, InternalError, WorkerLostError
+from inkwarp.errors import InkwarpWarning, InputError, InternalError, WorkerLostError
 from inkwarp.scene import WARM_CHAIN_FRAMES, preroll_start
 
 __all__ = ["WARM_CHAIN_FRAMES", "chunk_ranges", "frame_file_complete", "portable_scene",
@@ -114,7 +114,7 @@ def _background_argument(background: Any) -> list[int]:
                and not isinstance(v, bool)]
     if len(numbers) == len(values) == 4 and not all(whole) and all(0 <= v <= 1 for v in numbers):
         fix += "; for levels 0 to 1, scale them: [round(v * 255) for v in background]"
-    raise ValueError(f"background={background!r:.80} is not a colour; {fix}")
+    raise InputError(f"background={background!r:.80} is not a colour; {fix}")
 
 
 def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[int, int]:
@@ -127,10 +127,10 @@ def _frame_indices(scene: Any, frames: tuple[int, int] | str | None) -> tuple[in
     from inkwarp.scene import _integer_argument
 
     if not isinstance(frames, (tuple, list)) or len(frames) != 2:
-        raise ValueError(f'frames must be (start, stop) or "A:B", got {frames!r:.40}')
+        raise InputError(f'frames must be (start, stop) or "A:B", got {frames!r:.40}')
     start, stop = (_integer_argument(v, f"frames[{i}]") for i, v in enumerate(frames))
     if not 0 <= start < min(stop, scene.frame_count):
-        raise ValueError(f"frames=({start}, {stop}) is not a range of the scene, which has frames 0 to "
+        raise InputError(f"frames=({start}, {stop}) is not a range of the scene, which has frames 0 to "
                          f"{scene.frame_count - 1}; give 0 <= A < B with A < {scene.frame_count}")
     return start, min(stop, scene.frame_count)  # a stop past the end cut to it, as Scene.frames does
 
@@ -266,11 +266,11 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
     from inkwarp.cli import _common
 
     if not isinstance(output, (str, os.PathLike)):
-        raise ValueError(f"the output must be a path (a video file, a folder of PNGs or a sprite sheet); "
+        raise InputError(f"the output must be a path (a video file, a folder of PNGs or a sprite sheet); "
                          f"got {type(output).__name__}")
     if not hasattr(scene, "frames"):
         if not isinstance(scene, (str, os.PathLike)):
-            raise ValueError(f"the scene must be an inkwarp.Scene or the path of a scene file; "
+            raise InputError(f"the scene must be an inkwarp.Scene or the path of a scene file; "
                              f"got {type(scene).__name__}")
         if sprite_sheet:
             outputs.check_sheet_json(output, scene)
@@ -294,7 +294,7 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
         outputs.check_not_an_input(target, scene)
     if sprite_sheet:
         if target.suffix.lower() != ".png":
-            raise ValueError(f"{target}: a sprite sheet is a .png (with a .json beside it); "
+            raise InputError(f"{target}: a sprite sheet is a .png (with a .json beside it); "
                              "name the output sheet.png")
         layout = None if sprite_sheet is True else str(sprite_sheet)
         # A bad layout, or a sheet too big to load, fails before rendering.
@@ -303,13 +303,13 @@ def render(scene: Any, output: str | os.PathLike[str], *, frames: tuple[int, int
                                  scene.width, scene.height, layout, "sprite_sheet")
         writer: Any = outputs.SpriteSheetWriter(target, scene.fps, stop - start, layout, start, size)
     elif kind == "png":
-        raise ValueError(f"{target}: a .png holds one frame (save Scene.render(time=T) for one; "
+        raise InputError(f"{target}: a .png holds one frame (save Scene.render(time=T) for one; "
                          "inkwarp render --time or --frame); render an animation to a .gif, "
                          ".mp4, .webm, .mov, .apng, a directory, or a sprite sheet "
                          "(sprite_sheet=True; inkwarp render --sprite-sheet)")
     elif skip_existing:
         if kind != "dir":
-            raise ValueError(f"{target}: skip_existing=True works with a directory of PNG "
+            raise InputError(f"{target}: skip_existing=True works with a directory of PNG "
                              "frames (an output ending in /), whose frames are separate files")
         written = _render_missing(scene, target, start, stop, method=method, ray=ray,
                                   progress=progress)
@@ -450,13 +450,13 @@ def _check_address(address: str, where: str | None = None, fix: str | None = Non
     text = address.split("://", 1)[-1]
     host, _, port = text.rpartition(":")
     if not host or not port.isdigit():
-        raise ValueError(f"{where}: give the cluster's address as HOST:PORT (such as "
+        raise InputError(f"{where}: give the cluster's address as HOST:PORT (such as "
                          "10.0.0.5:6379), ray://HOST:PORT, or auto")
     try:
         with socket.create_connection((host.strip("[]"), int(port)), timeout=5) as conn:
             reply = _http2_reply(conn)
     except OSError as err:
-        raise ValueError(f"{where}: no Ray cluster answers there ({err.strerror or err}); " + (
+        raise InputError(f"{where}: no Ray cluster answers there ({err.strerror or err}); " + (
             fix or "start one with 'ray start --head' (or 'ray up cluster.yaml') and give its "
             "address, or leave the address out to start a local one")) from None
     # Ray's head (and its client server) speak gRPC: HTTP/2, which answers the connection
@@ -465,7 +465,7 @@ def _check_address(address: str, where: str | None = None, fix: str | None = Non
     tls = os.environ.get("RAY_USE_TLS", "").lower() in ("1", "true")
     if not tls and (len(reply) < 4 or reply[3] != 4):
         said = (reply.splitlines() or [b"nothing"])[0].decode("latin-1")[:60]
-        raise ValueError(f"{where}: something answers there, but not a Ray cluster (it "
+        raise InputError(f"{where}: something answers there, but not a Ray cluster (it "
                          f"replied {said!r}); give the address 'ray status' prints on the head "
                          "node (port 6379 unless it was started with another)")
 
@@ -533,7 +533,7 @@ def _ray_init(address: str | bool | None, chatter: bool = False) -> Any:
     try:
         import ray
     except ImportError:
-        raise ValueError(f"{_ray_said()} needs Ray: install it with 'pip install \"inkwarp[ray]\"'"
+        raise InputError(f"{_ray_said()} needs Ray: install it with 'pip install \"inkwarp[ray]\"'"
                          ) from None
     local = address is True or address in (None, "", "local")
     if not local:
@@ -695,7 +695,7 @@ def _ray_join(ray: Any, address: str | bool | None, local: bool, chatter: bool) 
             # this process sends only under RAY_AUTH_MODE=token; Ray says so only in its log.
             token = not os.environ.get("RAY_AUTH_MODE") and (Path.home() / ".ray" / "auth_token").exists()
             hint = "; or, since this machine has a Ray token (~/.ray/auth_token), set RAY_AUTH_MODE=token" if token else ""
-            raise ValueError(f"{_ray_said(address)}: cannot join the Ray cluster there ({err}); "
+            raise InputError(f"{_ray_said(address)}: cannot join the Ray cluster there ({err}); "
                              f"check the address 'ray status' prints on the head node{hint}") from None
 
 
@@ -714,11 +714,11 @@ def ray_workers(nodes: list[dict[str, Any]], need: int) -> int:
         largest, alive = max(largest, memory), True
         slots += min(int(resources.get("CPU", 0)), int(memory // max(need, 1)))
     if not alive:
-        raise ValueError("the Ray cluster has no live node to render on; start one "
+        raise InputError("the Ray cluster has no live node to render on; start one "
                          "('ray start --address=HEAD_IP:6379') and render again")
     if slots == 0:
         size = lambda b: f"{b / (1 << 30):.1f} GiB" if b >= 1 << 30 else f"{b / (1 << 20):.0f} MiB"
-        raise ValueError(
+        raise InputError(
             f"rendering this scene needs one CPU and about {size(need)} of memory a worker, but "
             f"no live Ray node has both (the largest has {size(largest)} for tasks); use a "
             "larger solver.grid_step, fewer layers or a smaller picture")

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from inkwarp import _inkwarp
-from inkwarp.errors import SceneError
+from inkwarp.errors import InputError, SceneError
 
 __all__ = ["WARM_CHAIN_FRAMES", "Frames", "Scene", "image_data_uri", "preroll_start", "scene_schema",
            "validate_scene"]
@@ -97,7 +97,7 @@ def image_data_uri(image: np.ndarray) -> str:
 
     array = np.asarray(image)
     if array.dtype != np.uint8 or array.ndim not in (2, 3) or (array.ndim == 3 and array.shape[2] not in (3, 4)):
-        raise ValueError(
+        raise InputError(
             f"expected a uint8 image of shape (H, W), (H, W, 3) or (H, W, 4), got {array.dtype} {array.shape}"
         )
     buffer = io.BytesIO()
@@ -414,7 +414,7 @@ def _path_argument(path: Any, what: str) -> str:
         text = os.fspath(path)
         if isinstance(text, str):
             return text
-    raise ValueError(f"{what} must be a path (str or os.PathLike); got {type(path).__name__}")
+    raise InputError(f"{what} must be a path (str or os.PathLike); got {type(path).__name__}")
 
 
 def _method_argument(method: Any) -> str | None:
@@ -423,7 +423,7 @@ def _method_argument(method: Any) -> str | None:
     from inkwarp.methods import METHODS
 
     if method is not None and not isinstance(method, str):
-        raise ValueError(f"method must be one of {', '.join(map(repr, METHODS))} (or None for each layer's "
+        raise InputError(f"method must be one of {', '.join(map(repr, METHODS))} (or None for each layer's "
                          f"solver.method); got {method!r}")
     return method
 
@@ -433,20 +433,20 @@ def _integer_argument(value: Any, name: str) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         if isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
             return int(value)
-        raise ValueError(f"{name} must be a whole number; got {value!r:.40}")
+        raise InputError(f"{name} must be a whole number; got {value!r:.40}")
     return int(value)
 
 
 def _number_argument(value: Any, name: str) -> float:
     """``value`` as a finite float, or a ValueError naming the argument."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} must be a number; got {type(value).__name__} {value!r:.40}")
+        raise InputError(f"{name} must be a number; got {type(value).__name__} {value!r:.40}")
     try:
         number = float(value)
     except OverflowError:
-        raise ValueError(f"{name} must be a finite number; got {value!r:.40}") from None
+        raise InputError(f"{name} must be a finite number; got {value!r:.40}") from None
     if not math.isfinite(number):
-        raise ValueError(f"{name} must be a finite number; got {value!r:.40}")
+        raise InputError(f"{name} must be a finite number; got {value!r:.40}")
     return number
 
 def _check_finite_field(field: Any, where: str) -> None:
@@ -454,7 +454,7 @@ def _check_finite_field(field: Any, where: str) -> None:
     values = np.asarray(field)
     if values.dtype.kind == "f" and not np.isfinite(values).all():
         bad = int(values.size - np.count_nonzero(np.isfinite(values)))
-        raise ValueError(
+        raise InputError(
             f"the displacement field of {where} is not finite ({bad} of {values.size} values): "
             "the keys around this time or the solver settings overflow; move keys that are "
             "almost at the same time apart, or lower solver.tension / beier_neely weights")
@@ -576,7 +576,7 @@ class Scene:
             except UnicodeDecodeError as err:
                 raise SceneError(f"the scene's bytes are not UTF-8 text ({err}); save the scene as UTF-8") from None
         if not isinstance(text, str):
-            raise ValueError(f"text must be the scene's JSON text (str or bytes); got {type(text).__name__}")
+            raise InputError(f"text must be the scene's JSON text (str or bytes); got {type(text).__name__}")
         base = _path_argument(base_dir, "base_dir") if base_dir is not None else None
         return cls(_core_from_json(text, base, None), base_dir=os.path.abspath(base if base is not None else os.curdir))
 
@@ -645,17 +645,17 @@ class Scene:
         """``time`` or ``frame``'s time, checked (a time past the end warned of; ``frame_too``:
         the caller takes ``frame=`` too, which the warning then offers)."""
         if time is not None and frame is not None:
-            raise ValueError("give either time= or frame=, not both")
+            raise InputError("give either time= or frame=, not both")
         if frame is not None:
             index = _integer_argument(frame, "frame")
             if not 0 <= index < self.frame_count:
-                raise ValueError(f"frame {index} is out of range; the scene has frames 0 to {self.frame_count - 1}")
+                raise InputError(f"frame {index} is out of range; the scene has frames 0 to {self.frame_count - 1}")
             return float(self._core.frame_time(index))
         if time is None:
             return 0.0
         seconds = _number_argument(time, "time (seconds)")
         if abs(seconds) > _inkwarp.MAX_TIME_S:
-            raise ValueError(f"time {seconds:g} s is past the times a scene holds (±{_inkwarp.MAX_TIME_S:g} s, "
+            raise InputError(f"time {seconds:g} s is past the times a scene holds (±{_inkwarp.MAX_TIME_S:g} s, "
                              "about 27 hours); give a time within its keys, or frame=")
         if seconds > self.duration:
             from inkwarp.errors import PastEndWarning, caller_outside
@@ -684,16 +684,16 @@ class Scene:
         if layer is None:
             if len(names) == 1:
                 return 0
-            raise ValueError(f"the scene has {len(names)} layers ({', '.join(names)}); choose one with layer=NAME")
+            raise InputError(f"the scene has {len(names)} layers ({', '.join(names)}); choose one with layer=NAME")
         if isinstance(layer, (int, np.integer)) and not isinstance(layer, bool):
             if not 0 <= int(layer) < len(names):
-                raise ValueError(f"layer index {layer} is out of range; the scene has {len(names)} "
+                raise InputError(f"layer index {layer} is out of range; the scene has {len(names)} "
                                  f"layer{'s' if len(names) != 1 else ''}")
             return int(layer)
         if layer in names:
             return names.index(layer)
         where = f"{self.file}: " if self.file else ""
-        raise ValueError(f"{where}no layer is called {layer!r}; the layers are {', '.join(names)}")
+        raise InputError(f"{where}no layer is called {layer!r}; the layers are {', '.join(names)}")
 
     def render(self, time: float | None = None, frame: int | None = None, *, method: str | None = None) -> np.ndarray:
         """The frame at ``time`` seconds (or frame number ``frame``; default: time 0).
@@ -789,11 +789,11 @@ class Scene:
         given = self.frame_count if stop is None else _integer_argument(stop, "stop")
         start, stop = _integer_argument(start, "start"), min(given, self.frame_count)
         if start < 0 or stop < start:
-            raise ValueError(f"frames({start}, {given}) is not a range of this scene's frames 0 to "
+            raise InputError(f"frames({start}, {given}) is not a range of this scene's frames 0 to "
                              f"{self.frame_count - 1}: give 0 <= start <= stop (a stop past the end "
                              "is cut to it)")
         if threads is not None and not 1 <= _integer_argument(threads, "threads") <= 4096:
-            raise ValueError(f"threads must be from 1 to 4096, got {threads}")
+            raise InputError(f"threads must be from 1 to 4096, got {threads}")
         method = _method_argument(method)
         first = preroll_start(start) if start < stop and self._core.warm_starts(method) else start
         core = self._core.frames(first, stop, 0 if threads is None else int(threads), method)
@@ -815,7 +815,7 @@ class Scene:
         """
         target = Path(_path_argument(path, "Scene.save's path"))
         if target.suffix.lower() != ".json":
-            raise ValueError(f"{target}: a scene is saved as JSON; name the file .json, such as "
+            raise InputError(f"{target}: a scene is saved as JSON; name the file .json, such as "
                              f"{target.with_suffix('.json').name}")
         data = self.to_dict()
         if self.base_dir is not None:

@@ -49,6 +49,8 @@ from typing import Any
 
 import numpy as np
 
+from inkwarp.errors import InputError
+
 __all__ = ["TOLERANCE_PX", "read_drawing"]
 
 #: How far a fitted spline or a flattened polyline may stray from the SVG's curve.
@@ -117,10 +119,10 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
     try:
         root = ET.parse(source).getroot()
     except ET.ParseError as err:
-        raise ValueError(f"{source}: not a readable SVG file ({err}); save it again as "
+        raise InputError(f"{source}: not a readable SVG file ({err}); save it again as "
                          "plain SVG") from None
     if _tag(root) != "svg":
-        raise ValueError(f"{source}: the file's root element is <{_tag(root)}>, not <svg>; "
+        raise InputError(f"{source}: the file's root element is <{_tag(root)}>, not <svg>; "
                          "give an SVG drawing")
     notes: list[str] = []
     rules = _stylesheet(root, source, notes)
@@ -193,7 +195,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
     for child in root:
         visit(child, root_transform, top.get("fill", "black"), top.get("fill-opacity", "1"), _says_cut(_words(root)))
     if not features:
-        raise ValueError(f"{source}: the SVG has no paths, lines, polylines, polygons, "
+        raise InputError(f"{source}: the SVG has no paths, lines, polylines, polygons, "
                          "rectangles or circles to make features of; trace the features "
                          "with the pen or shape tools and save the drawing as SVG")
     if cuts:
@@ -338,7 +340,7 @@ def _viewport(root: ET.Element, width: int, height: int, source: Path, notes: li
     if box:
         numbers = _numbers(box)
         if len(numbers) != 4 or numbers[2] <= 0 or numbers[3] <= 0:
-            raise ValueError(f"{source}: viewBox={box!r} is not 'min-x min-y width height' "
+            raise InputError(f"{source}: viewBox={box!r} is not 'min-x min-y width height' "
                              "with a positive width and height; fix the svg element's viewBox")
         x0, y0, w, h = numbers
     else:
@@ -397,7 +399,7 @@ def _parse_transform(text: str, source: Path, element: ET.Element) -> Affine:
             else:
                 m = np.array([[1.0, 0.0, 0.0], [math.tan(math.radians(v[0])), 1.0, 0.0]])
         except (ValueError, IndexError):
-            raise ValueError(f"{source}: <{_tag(element)}> {_name(element)}: transform "
+            raise InputError(f"{source}: <{_tag(element)}> {_name(element)}: transform "
                              f"{name}({args}) has the wrong number of values; fix the "
                              "element's transform") from None
         result = _compose(result, m)
@@ -411,7 +413,7 @@ def _attr(element: ET.Element, key: str, source: Path, default: float | None = N
     if value is None:
         if default is not None and element.get(key) is None:
             return default
-        raise ValueError(f"{source}: <{_tag(element)}> {_name(element)}: {key}="
+        raise InputError(f"{source}: <{_tag(element)}> {_name(element)}: {key}="
                          f"{element.get(key)!r} is not a length; give a number")
     return value
 
@@ -426,7 +428,7 @@ def _shape_subpaths(element: ET.Element, tag: str, source: Path) -> list[_Subpat
     if tag in ("polyline", "polygon"):
         v = _numbers(element.get("points", ""))
         if len(v) < 2 or len(v) % 2:
-            raise ValueError(f"{source}: <{tag}> {_name(element)}: points="
+            raise InputError(f"{source}: <{tag}> {_name(element)}: points="
                              f"{element.get('points')!r} is not a list of x,y pairs; fix it")
         pts = list(zip(v[::2], v[1::2]))
         s = _Subpath(pts[0])

@@ -66,7 +66,7 @@ from typing import Any
 
 import numpy as np
 
-from inkwarp.errors import InkwarpWarning, caller_outside
+from inkwarp.errors import InkwarpWarning, InputError, caller_outside
 
 __all__ = ["Video", "read_video", "read_frame", "track", "track_dict", "simplify_keys",
            "SAMPLE_SPACING_PX"]
@@ -119,7 +119,7 @@ def _cv2() -> Any:
     try:
         import cv2
     except ImportError:  # pragma: no cover - the [track] extra is missing
-        raise ValueError("inkwarp track needs OpenCV: pip install 'inkwarp[track]' "
+        raise InputError("inkwarp track needs OpenCV: pip install 'inkwarp[track]' "
                          "(opencv-contrib-python-headless)") from None
     return cv2
 
@@ -185,7 +185,7 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | No
                    if re.search(r"Stream #.*: Video:", line)), None)
     if stream is None:
         if re.search(r"Stream #.*: Audio:", log):  # a sound file, or a video's sound alone
-            raise ValueError(f"{name}: has sound but no video stream; give the video itself "
+            raise InputError(f"{name}: has sound but no video stream; give the video itself "
                              "(any format ffmpeg decodes, such as an .mp4)")
         lines = [line.strip() for line in log.splitlines() if line.strip()
                  and "At least one output file" not in line]
@@ -300,7 +300,7 @@ def _decode(name: str, pix_fmt: str, *, frames: int | None = None, promised: int
     wanted = promised if frames is None else min(frames, promised or frames)
     first = _DECODER_ADDRESS.sub("", said[0])[:120] if said else ""
     if said and wanted and len(done.stdout) // size < wanted - 1:
-        raise ValueError(f"{name}: damaged or cut short: ffmpeg decoded {len(done.stdout) // size} "
+        raise InputError(f"{name}: damaged or cut short: ffmpeg decoded {len(done.stdout) // size} "
                          f"frames, with errors, of the {promised} its header gives ({first}); "
                          "copy or export the video again")
     if said:
@@ -338,13 +338,13 @@ def read_frame(path: str | os.PathLike[str], frame: int = 0) -> np.ndarray:
         The video cannot be decoded, or has no such frame (the message says how many it has).
     """
     if frame < 0:
-        raise ValueError(f"frame {frame}: frames are numbered from 0")
+        raise InputError(f"frame {frame}: frames are numbered from 0")
     name, _, width, height, promised, rate = _probe(path)
     size = width * height * 3
     raw = _decode(name, "rgb24", frames=frame + 1, promised=promised, size=size, rate=rate)
     if len(raw) < size * (frame + 1):
         count = len(_decode(name, "gray", promised=promised, size=width * height, rate=rate)) // (width * height)
-        raise ValueError(f"frame {frame}: {name} has frames 0 to {count - 1}; give a frame "
+        raise InputError(f"frame {frame}: {name} has frames 0 to {count - 1}; give a frame "
                          f"number below {count}")
     start = size * frame
     return np.frombuffer(raw, np.uint8)[start:start + size].reshape(height, width, 3).copy()
@@ -844,7 +844,7 @@ def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: st
             if k == count and float(key["t"]) * fps <= count * (1 + 1e-6):
                 k = count - 1
             if not 0 <= k < count:
-                raise ValueError(
+                raise InputError(
                     f"{where}: features[{i}].keys[{j}]: t = {key['t']} s is frame {k}, outside "
                     f"the video's frames 0 to {count - 1}; remove the key or move it inside")
             points = np.asarray(key["points"], dtype=np.float64).reshape(-1, 2)
@@ -1020,12 +1020,12 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     from inkwarp.transfer import _load, _rebase_images
 
     if not isinstance(video, (str, os.PathLike, Video)):
-        raise ValueError(f"the video must be a path or an inkwarp.track.Video; got {type(video).__name__}")
+        raise InputError(f"the video must be a path or an inkwarp.track.Video; got {type(video).__name__}")
     if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)):
-        raise ValueError(f"frame must be a whole number (the frame the drawing is traced on); got {frame!r:.40}")
+        raise InputError(f"frame must be a whole number (the frame the drawing is traced on); got {frame!r:.40}")
     frame = int(frame)
     if progress is not None and not callable(progress):
-        raise ValueError(f"progress must be a function of the number of steps that returns one to call each step "
+        raise InputError(f"progress must be a function of the number of steps that returns one to call each step "
                          f"(or None); got {type(progress).__name__} {progress!r:.40}")
     from inkwarp.scene import _path_argument
 
@@ -1041,7 +1041,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     clip = video if isinstance(video, Video) else read_video(video)
     count = len(clip)
     if count < 2:
-        raise ValueError(f"{clip.path}: has one frame (a still picture?); track follows the drawing "
+        raise InputError(f"{clip.path}: has one frame (a still picture?); track follows the drawing "
                          "through a video's frames: give a video (any format ffmpeg reads)")
     size = (doc.get("width"), doc.get("height"))
     if None in size:  # the size of its images
@@ -1052,24 +1052,24 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     # An MP4 of an odd-sized scene (inkwarp's own) carries one more column or row, the edge
     # repeated: H.264 wants even sides. Its pixels are the scene's where they overlap.
     if size != (clip.width, clip.height) and tuple(v + v % 2 for v in size) != (clip.width, clip.height):
-        raise ValueError(
+        raise InputError(
             f"{where}: the scene is {size[0]}x{size[1]} but the video {clip.path} is "
             f"{clip.width}x{clip.height}; trace the drawing on a frame of this video "
             f"(inkwarp frame {clip.path} -o frame.png) in a scene of its size")
     if not 0 <= frame < count:
-        raise ValueError(f"frame {frame}: {clip.path} has frames 0 to {count - 1} (numbered from 0); give "
+        raise InputError(f"frame {frame}: {clip.path} has frames 0 to {count - 1} (numbered from 0); give "
                          f"a frame number from 0 to {count - 1}")
     if simplify_px is not None and not (math.isfinite(simplify_px) and simplify_px >= 0):
-        raise ValueError(f"simplify_px {simplify_px}: give a distance in pixels, 0 or more")
+        raise InputError(f"simplify_px {simplify_px}: give a distance in pixels, 0 or more")
     if not (math.isfinite(lost_px) and lost_px > 0):
-        raise ValueError(f"lost_px {lost_px}: give a distance in pixels above 0")
+        raise InputError(f"lost_px {lost_px}: give a distance in pixels above 0")
     # A cut moves nothing (it tears the picture along its rest line): it is not tracked, and
     # keeps no keys.
     tracked = [(i, f) for i, f in enumerate(_features(doc, clip.fps, count, frame, where, (clip.width, clip.height))) if f.kind != "cut"]
     features = [f for _, f in tracked]
     if not features:
         cuts = " (cuts are not tracked: they tear the picture along their rest line)" if doc["features"] else ""
-        raise ValueError(f"{where}: has no features to track{cuts}; trace points or curves over frame {frame} "
+        raise InputError(f"{where}: has no features to track{cuts}; trace points or curves over frame {frame} "
                          f"of {clip.path} first (inkwarp frame {clip.path} --frame {frame} -o frame.png; "
                          "inkwarp new frame.png -o scene.json; inkwarp edit scene.json)")
     _layout(features)
@@ -1353,16 +1353,16 @@ def check_output(path: str | os.PathLike[str], *, source: str | os.PathLike[str]
     ``source`` (given as ``option``), which writing would replace."""
     out = Path(path)
     if out.is_dir():
-        raise ValueError(f"{out}: is a directory; name a file, such as {out / ('out' + out.suffix)}")
+        raise InputError(f"{out}: is a directory; name a file, such as {out / ('out' + out.suffix)}")
     folder = out.absolute().parent
     above = folder
     while not above.exists() and above != above.parent:
         above = above.parent
     if above.is_dir() and not folder.exists():
-        raise ValueError(f"{out}: the directory {folder} does not exist; create it first")
+        raise InputError(f"{out}: the directory {folder} does not exist; create it first")
     folder = above
     if not folder.is_dir():
-        raise ValueError(f"{out}: {folder} is a file, not a directory; choose another output path")
+        raise InputError(f"{out}: {folder} is a file, not a directory; choose another output path")
     from inkwarp.video import check_writable
 
     check_writable(out, folder)

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from inkwarp import _inkwarp
-from inkwarp.errors import InkwarpWarning
+from inkwarp.errors import InkwarpWarning, InputError
 
 __all__ = ["transfer", "transfer_dict", "transfer_example"]
 
@@ -57,7 +57,7 @@ def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
         try:
             doc = json.loads(text)
         except json.JSONDecodeError as err:
-            raise ValueError(f"the {role} scene {path} is not valid JSON: {err}.") from None
+            raise InputError(f"the {role} scene {path} is not valid JSON: {err}.") from None
         # The pictures play no part in a transfer: one missing or moved is not a problem here.
         _raise_for(_repeated_keys(text) + [p for p in validate_scene(doc, base_dir=path.resolve().parent)
                     if not re.fullmatch(r"layers\[\d+\]\.(image|alpha|continuity)", p[0])], os.fspath(path))
@@ -67,7 +67,7 @@ def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
     to_dict = getattr(scene, "to_dict", None)
     if callable(to_dict):
         return to_dict(), _folder(scene)
-    raise ValueError(f"the {role} scene must be a path, a dict or an inkwarp.Scene; got {type(scene).__name__}.")
+    raise InputError(f"the {role} scene must be a path, a dict or an inkwarp.Scene; got {type(scene).__name__}.")
 
 
 def _folder(scene: Any) -> Path | None:
@@ -85,14 +85,14 @@ def _folder(scene: Any) -> Path | None:
 def _features(doc: dict[str, Any], role: str) -> list[tuple[str, str, list, list]]:
     features = doc.get("features")
     if not isinstance(features, list):
-        raise ValueError(f"the {role} scene has no features list.")
+        raise InputError(f"the {role} scene has no features list.")
     out = []
     for i, f in enumerate(features):
         try:
             keys = [k["points"] for k in f.get("keys", [])]
             out.append((str(f["id"]), str(f["kind"]), f["rest"], keys))
         except (KeyError, TypeError, AttributeError):
-            raise ValueError(
+            raise InputError(
                 f"{role} features[{i}] needs an id, a kind, rest points and keys with points."
             ) from None
     return out
@@ -151,12 +151,12 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
         new_keys = _inkwarp.transfer_keys(src_features, tgt_features)
     except ValueError as err:
         # The engine names the feature and its places; the files they are in come first.
-        raise ValueError(f"{files}: {err}") from None
+        raise InputError(f"{files}: {err}") from None
     # A target drawing whose matched points all lie at one place sends every move there.
     matched = {fid for fid, _, _, _ in src_features}
     placed = [p for fid, _, rest, _ in tgt_features if fid in matched for p in rest]
     if len(placed) > 1 and max(math.dist(p, placed[0]) for p in placed) <= 0.5:
-        raise ValueError(f"{files}: every control point of the target's matched features lies at "
+        raise InputError(f"{files}: every control point of the target's matched features lies at "
                          f"({placed[0][0]:g}, {placed[0][1]:g}), so the map would send all of the source's "
                          "motion to that one place; trace the target's features over the parts of its picture "
                          "they match")
@@ -167,7 +167,7 @@ def transfer_dict(source: Any, target: Any, *, relative_to: str | os.PathLike | 
             far = next((p for p in points if not all(math.isfinite(v) and abs(v) <= _inkwarp.MAX_COORD_PX for v in p)), None)
             if far is not None:
                 t = float(by_id[str(feature["id"])]["keys"][k]["t"])
-                raise ValueError(f"{files}: the key of {feature['id']!r} at t = {t:g} s maps to ({far[0]:.6g}, "
+                raise InputError(f"{files}: the key of {feature['id']!r} at t = {t:g} s maps to ({far[0]:.6g}, "
                                  f"{far[1]:.6g}) on the target (features[{i}].keys[{k}]), farther than the "
                                  f"{_inkwarp.MAX_COORD_PX:g} px from the origin a scene may hold: the target's "
                                  "drawing is so much larger than the source's that the map magnifies its motion "

@@ -39,6 +39,7 @@ from typing import Any, Literal
 import numpy as np
 
 from inkwarp._atomic import clean_stale, temp_path
+from inkwarp.errors import InputError
 
 OutputKind = Literal["png", "dir", "gif", "mp4", "webm", "mov", "apng"]
 
@@ -75,10 +76,10 @@ def output_kind(path: str | os.PathLike[str]) -> OutputKind:
         return "dir"
     if suffix == ".json":
         # A scene's own name given as the output, most likely: no folder hint.
-        raise ValueError(f"{text}: a .json name is a scene, not an output; name the output .png (one "
+        raise InputError(f"{text}: a .json name is a scene, not an output; name the output .png (one "
                          f"frame), .gif, .mp4, .webm, .mov, .apng, or a folder of PNG frames (end it with /); "
                          f"such as {p.with_suffix('.gif').name}")
-    raise ValueError(
+    raise InputError(
         f"{text}: cannot write '{suffix}' files; name the output .png (one frame), "
         ".gif, .mp4, .webm, .mov, .apng, or a directory (a PNG sequence: end the name with "
         f"/, as in {text}{os.sep}, for a folder whose name has a dot)"
@@ -101,7 +102,7 @@ def check_target(path: str | os.PathLike[str], kind: OutputKind | None = None) -
     check_not_a_stream(path)
     parent = _check_parent(target)
     if target.exists() and not target.is_dir():
-        raise ValueError(f"{target}: is a file, not a directory for PNG frames; name a new folder "
+        raise InputError(f"{target}: is a file, not a directory for PNG frames; name a new folder "
                          f"(end it with /) or the file to write, such as {target.name}.mp4")
     # An existing folder takes the frames itself (its parent may be read-only, as a
     # writable frames folder in a locked shot folder is); a new one is made in the parent.
@@ -121,15 +122,15 @@ def check_file(path: str | os.PathLike[str], suffix: str = "") -> Path:
     target = Path(text)
     check_not_a_stream(text, suffix)
     if text.endswith(("/", os.sep)):
-        raise ValueError(f"{text}: names a directory (it ends in {text[-1]}); name a file, such as "
+        raise InputError(f"{text}: names a directory (it ends in {text[-1]}); name a file, such as "
                          f"{target / 'out'}{suffix}")
     parent = _check_parent(target)
     try:
         folder = target.is_dir()
     except OSError as err:  # a name too long for the file system, ...
-        raise ValueError(f"{target}: {err.strerror or err}; name the output otherwise") from None
+        raise InputError(f"{target}: {err.strerror or err}; name the output otherwise") from None
     if folder:
-        raise ValueError(f"{target}: is a directory; name a file, such as {target / 'out'}{target.suffix or suffix}")
+        raise InputError(f"{target}: is a directory; name a file, such as {target / 'out'}{target.suffix or suffix}")
     check_writable(target, parent)
     return target
 
@@ -172,7 +173,7 @@ def check_not_a_stream(path: str | os.PathLike[str], suffix: str = "") -> None:
         what = "a pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
     given = Path(text).suffix if text not in _STREAMS else ""
     example = f"out{given or suffix}" if given or suffix else "out.gif, or a folder for PNG frames, such as frames/"
-    raise ValueError(f"{text}: is {what}, not a file; inkwarp writes every output to a file (under a temporary "
+    raise InputError(f"{text}: is {what}, not a file; inkwarp writes every output to a file (under a temporary "
                      f"name, renamed when complete), so it cannot write to a stream. Name a file, such as {example}")
 
 
@@ -180,16 +181,16 @@ def check_writable(target: Path, folder: Path, named: str | None = None) -> None
     """A ``ValueError`` naming ``target`` and the fix unless ``folder`` (said as ``named``,
     by default "the directory FOLDER") may be written in."""
     if not os.access(folder, os.W_OK):
-        raise ValueError(f"{target}: {named or f'the directory {folder}'} is not writable; choose a writable "
+        raise InputError(f"{target}: {named or f'the directory {folder}'} is not writable; choose a writable "
                          "folder or change its permissions")
 
 
 def _check_parent(target: Path) -> Path:
     parent = target.absolute().parent
     if not parent.exists():
-        raise ValueError(f"{target}: the directory {parent} does not exist; create it first")
+        raise InputError(f"{target}: the directory {parent} does not exist; create it first")
     if not parent.is_dir():
-        raise ValueError(f"{target}: {parent} is not a directory")
+        raise InputError(f"{target}: {parent} is not a directory")
     return parent
 
 
@@ -216,7 +217,7 @@ def flatten(rgba: np.ndarray, background: tuple[int, int, int] = (255, 255, 255)
 def _as_frame(frame: np.ndarray) -> np.ndarray:
     arr = np.asarray(frame)
     if arr.dtype != np.uint8 or arr.ndim != 3 or arr.shape[2] not in (3, 4):
-        raise ValueError(
+        raise InputError(
             f"a frame must be a uint8 array of shape (H, W, 4) or (H, W, 3); got {arr.dtype} "
             f"{arr.shape}"
         )
@@ -308,7 +309,7 @@ def check_fps(fps: float, name: str = "fps") -> float:
     except (TypeError, ValueError):
         rate = float("nan")
     if not MIN_FPS <= rate <= MAX_FPS:  # NaN too
-        raise ValueError(f"{name} must be a number of frames per second from {MIN_FPS:g} (one frame every "
+        raise InputError(f"{name} must be a number of frames per second from {MIN_FPS:g} (one frame every "
                          f"{1 / MIN_FPS:g} s) to {MAX_FPS:g}; got {fps!r}")
     return rate
 
@@ -403,7 +404,7 @@ class FrameWriter:
         if self.size is None:
             self.size = size
         elif size != self.size:
-            raise ValueError(f"frame {self.frames_written} is {size[0]}x{size[1]}; the others "
+            raise InputError(f"frame {self.frames_written} is {size[0]}x{size[1]}; the others "
                              f"are {self.size[0]}x{self.size[1]}")
         try:
             self._write(arr)
@@ -417,7 +418,7 @@ class FrameWriter:
         self._closed = True
         if self.frames_written == 0:
             self._discard()
-            raise ValueError(f"{self.target}: no frames to write")
+            raise InputError(f"{self.target}: no frames to write")
         try:
             self.paths = self._commit()
         except OSError as err:
@@ -473,7 +474,7 @@ class PngWriter(FrameWriter):
 
     def _write(self, frame: np.ndarray) -> None:
         if self.frames_written:
-            raise ValueError(f"{self.target}: a .png holds one frame; write a .gif, an .mp4 or "
+            raise InputError(f"{self.target}: a .png holds one frame; write a .gif, an .mp4 or "
                              "a directory for more")
         self._frame = frame
 
@@ -517,7 +518,7 @@ class PngSequenceWriter(FrameWriter):
         for i in range(count):
             path = self.target / self._name(i)
             if path.is_dir() and not path.is_symlink():
-                raise ValueError(f"{path}: a folder stands where frame {self.first_frame + i} goes; "
+                raise InputError(f"{path}: a folder stands where frame {self.first_frame + i} goes; "
                                  "move it away or render into another folder")
 
     def _name(self, i: int) -> str:
@@ -719,7 +720,7 @@ def _gif_image_block(data: bytes) -> tuple[bytes, bytes]:
             pos += data[pos] + 1
         pos += 1
     if data[pos] != 0x2C:
-        raise ValueError("Pillow wrote a GIF without an image block")
+        raise InputError("Pillow wrote a GIF without an image block")
     descriptor = bytearray(data[pos:pos + 10])
     local = descriptor[9]
     pos += 10
@@ -890,7 +891,7 @@ def open_writer(path: str | os.PathLike[str], *, fps: float = 24.0,
         from inkwarp.outputs import open_writer as open_alpha_writer
 
         return open_alpha_writer(target, fps=fps, kind=kind)
-    raise ValueError(f"unknown output kind {kind!r}")
+    raise InputError(f"unknown output kind {kind!r}")
 
 
 def write_frames(path: str | os.PathLike[str], frames, *, fps: float = 24.0) -> list[Path]:
@@ -938,7 +939,7 @@ def field_picture(field: np.ndarray, *, arrows: int = 24, scale_px: float | None
 
     f = np.asarray(field, dtype=np.float64)
     if f.ndim != 3 or f.shape[2] != 2:
-        raise ValueError(f"a field must have shape (H, W, 2); got {f.shape}")
+        raise InputError(f"a field must have shape (H, W, 2); got {f.shape}")
     f = np.where(np.isfinite(f), f, 0.0)
     dx, dy = f[..., 0], f[..., 1]
     length = np.hypot(dx, dy)

@@ -73,6 +73,17 @@ pub fn internal_error(py: Python<'_>, payload: &(dyn Any + Send)) -> PyErr {
     build().unwrap_or_else(|e| e)
 }
 
+/// `inkwarp.errors.InputError` (an `InkwarpError` and a `ValueError`) for an argument or input the engine
+/// refuses; a plain `ValueError` where that class cannot be had.
+pub fn input_error(message: impl Into<String>) -> PyErr {
+    let message = message.into();
+    Python::attach(|py| {
+        let class = py.import("inkwarp.errors").and_then(|m| m.getattr("InputError"));
+        class.and_then(|c| c.call1((message.as_str(),))).map(PyErr::from_value)
+            .unwrap_or_else(|_| pyo3::exceptions::PyValueError::new_err(message))
+    })
+}
+
 /// The engine's thread pool and the process it belongs to.
 struct Pool {
     pid: u32,

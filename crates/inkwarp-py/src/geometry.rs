@@ -5,20 +5,19 @@ use inkwarp_core::geometry::{self, GeometryError, Kind, SampleOptions};
 use inkwarp_core::{Grid, Point};
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 /// A pair of `(N, 2)` float64 arrays: points and displacements.
 type PointPair<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
 
 fn value_error(e: GeometryError) -> PyErr {
-    PyValueError::new_err(e.to_string())
+    crate::errors::input_error(e.to_string())
 }
 
 fn points_of(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> {
     let shape = a.shape();
     if shape[1] != 2 {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::errors::input_error(format!(
             "{name} must be an (N, 2) array of (x, y) control points; got shape ({}, {}).",
             shape[0], shape[1]
         )));
@@ -68,7 +67,7 @@ fn sample_feature<'py>(
         (Some((height, width)), Some(mask)) => {
             let s = mask.shape();
             if s != [height, width] {
-                return Err(PyValueError::new_err(format!(
+                return Err(crate::errors::input_error(format!(
                     "mask has shape ({}, {}) but shape is ({height}, {width}); give a mask of the image's (H, W).",
                     s[0], s[1]
                 )));
@@ -82,7 +81,7 @@ fn sample_feature<'py>(
         }
         (Some((height, width)), None) => Some(Grid::new(width, height)),
         (None, Some(_)) => {
-            return Err(PyValueError::new_err(
+            return Err(crate::errors::input_error(
                 "mask needs shape: pass shape=(H, W) with the mask.",
             ));
         }

@@ -6,18 +6,17 @@ use inkwarp_core::transfer::{self, TransferFeature};
 use inkwarp_core::{Kind, Point, Sample};
 use numpy::ndarray::{Array2, Array3};
 use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 fn value_error(e: impl ToString) -> PyErr {
-    PyValueError::new_err(e.to_string())
+    crate::errors::input_error(e.to_string())
 }
 
 fn points_of(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> {
     let shape = a.shape();
     if shape[1] != 2 {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::errors::input_error(format!(
             "{name} must have shape (N, 2) of (x, y) pairs; got shape ({}, {}).",
             shape[0], shape[1]
         )));
@@ -30,7 +29,7 @@ fn points_of(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> 
 fn segments_of(name: &str, a: &PyReadonlyArray3<'_, f64>) -> PyResult<Vec<[Point; 2]>> {
     let shape = a.shape();
     if shape[1] != 2 || shape[2] != 2 {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::errors::input_error(format!(
             "{name} must have shape (L, 2, 2): L segments of two (x, y) end points; got shape ({}, {}, {}).",
             shape[0], shape[1], shape[2]
         )));
@@ -74,14 +73,14 @@ fn interpolate_field<'py>(
     crate::limits::check_memory(width, height, crate::limits::INTERPOLATE_BYTES_PER_PIXEL, 0)?;
     let method: methods::Method = method.parse().map_err(value_error)?;
     let Some(interpolant) = method.interpolant() else {
-        return Err(PyValueError::new_err(
+        return Err(crate::errors::input_error(
             "interpolate_field does not run the grid thin plate: use thin_plate for method \"tps\".",
         ));
     };
     let rest = points_of("points", &points)?;
     let disp = points_of("displacements", &displacements)?;
     if rest.len() != disp.len() {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::errors::input_error(format!(
             "points and displacements must have the same length; got {} points and {} displacements.",
             rest.len(),
             disp.len()
@@ -93,7 +92,7 @@ fn interpolate_field<'py>(
         (Some(r), Some(q)) => {
             let (r, q) = (segments_of("lines_rest", &r)?, segments_of("lines_pose", &q)?);
             if r.len() != q.len() {
-                return Err(PyValueError::new_err(format!(
+                return Err(crate::errors::input_error(format!(
                     "lines_rest and lines_pose must hold the same number of segments; got {} and {}.",
                     r.len(),
                     q.len()
@@ -102,7 +101,7 @@ fn interpolate_field<'py>(
             r.into_iter().zip(q).map(|(rest, pose)| LinePair { rest, pose }).collect()
         }
         _ => {
-            return Err(PyValueError::new_err(
+            return Err(crate::errors::input_error(
                 "give both lines_rest and lines_pose (the segments before and after), or neither.",
             ))
         }

@@ -4,7 +4,6 @@ use inkwarp_core::render::{try_warp_image, RgbaImage};
 use inkwarp_core::{Field, Grid};
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -31,24 +30,24 @@ fn warp_image<'py>(
     let shape = image.shape();
     let (h, w) = (shape[0], shape[1]);
     if shape[2] != 4 {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::errors::input_error(format!(
             "image must have 4 channels (RGBA), got {}",
             shape[2]
         )));
     }
     if field.shape() != [h, w, 2] {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::errors::input_error(format!(
             "field must have shape ({h}, {w}, 2) to match the image, got {:?}",
             field.shape()
         )));
     }
     if matte.shape() != [h, w] {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::errors::input_error(format!(
             "matte must have shape ({h}, {w}) to match the image, got {:?}",
             matte.shape()
         )));
     }
-    let contiguous = |name: &str| PyValueError::new_err(format!("{name} must be C-contiguous"));
+    let contiguous = |name: &str| crate::errors::input_error(format!("{name} must be C-contiguous"));
     let pixels = image.as_slice().map_err(|_| contiguous("image"))?;
     let displacement = field.as_slice().map_err(|_| contiguous("field"))?;
     let matte = matte.as_slice().map_err(|_| contiguous("matte"))?;
@@ -60,7 +59,7 @@ fn warp_image<'py>(
         polylines.iter().for_each(|p| grid.add_cut(p));
         try_warp_image(&image, &field, &grid)
     })?;
-    let out = out.map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let out = out.map_err(|e| crate::errors::input_error(e.to_string()))?;
     let array = Array3::from_shape_vec((h, w, 4), out.data)
         .expect("the renderer returns an image of the input's size");
     Ok(array.into_pyarray(py))
@@ -71,10 +70,10 @@ fn warp_image<'py>(
 #[pyfunction]
 fn decode_picture<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyArray3<u8>>> {
     if crate::scene::jpeg_cut_short(data) {
-        return Err(PyValueError::new_err("a JPEG that ends before its end-of-image marker: the file is cut short \
+        return Err(crate::errors::input_error("a JPEG that ends before its end-of-image marker: the file is cut short \
                                            (copied or synced only in part); copy or save it again"));
     }
-    let image = py.detach(|| inkwarp_core::scene::images::decode_image(data)).map_err(PyValueError::new_err)?;
+    let image = py.detach(|| inkwarp_core::scene::images::decode_image(data)).map_err(crate::errors::input_error)?;
     let array = Array3::from_shape_vec((image.height, image.width, 4), image.data).expect("RGBA8 of its size");
     Ok(array.into_pyarray(py))
 }

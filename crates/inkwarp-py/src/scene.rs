@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex};
 use inkwarp_core::scene::{self, FrameStream, Method, Scene, SceneError, SolverOverrides};
 use inkwarp_core::Field;
 use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::{PyIndexError, PyValueError};
+use pyo3::exceptions::PyIndexError;
 use pyo3::prelude::*;
 use pyo3::types::PyList;
 
@@ -267,7 +267,7 @@ fn method_named(name: Option<&str>) -> PyResult<Option<Method>> {
                 .iter()
                 .map(|m| format!("\"{}\"", m.name()))
                 .collect();
-            PyValueError::new_err(format!(
+            crate::errors::input_error(format!(
                 "unknown method \"{n}\"; use one of {}",
                 names.join(", ")
             ))

@@ -3,7 +3,6 @@
 //! which the core checks in its own pass; this adapter converts and calls the core).
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -105,7 +104,7 @@ fn open_grid(width: usize, height: usize) -> Arc<Grid> {
 /// The grid of an `(H, W)` mask (nonzero: active), or a ValueError naming its shape.
 pub(crate) fn matte_grid(mask: &PyReadonlyArray2<'_, u8>, width: usize, height: usize) -> PyResult<Grid> {
     if mask.shape() != [height, width] {
-        return Err(PyValueError::new_err(format!(
+        return Err(crate::errors::input_error(format!(
             "mask has shape {:?} but the grid is ({height}, {width}); pass an (H, W) mask.",
             mask.shape()
         )));
@@ -137,12 +136,12 @@ fn thin_plate_solve<'py>(
     off: &str,
     solver: Option<PyRef<'py, PySolver>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
-    let off = inkwarp_core::solve::Ablation::parse(off).map_err(|e| PyValueError::new_err(format!("_off: {e}.")))?;
+    let off = inkwarp_core::solve::Ablation::parse(off).map_err(|e| crate::errors::input_error(format!("_off: {e}.")))?;
     let method = match method {
         "multigrid" => SolveMethod::Multigrid,
         "southwell" => SolveMethod::Southwell,
         other => {
-            return Err(PyValueError::new_err(format!(
+            return Err(crate::errors::input_error(format!(
                 "method must be \"multigrid\" or \"southwell\", got {other:?}."
             )))
         }
@@ -151,7 +150,7 @@ fn thin_plate_solve<'py>(
     let pts = points.as_array();
     let disp = displacements.as_array();
     if pts.ncols() != 2 || disp.ncols() != 2 || pts.nrows() != disp.nrows() {
-        return Err(PyValueError::new_err(
+        return Err(crate::errors::input_error(
             "points and displacements must both be (N, 2) arrays of the same length.",
         ));
     }
@@ -181,7 +180,7 @@ fn thin_plate_solve<'py>(
     crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL, extra)?;
     if let Some(f) = &initial {
         if f.shape() != [height, width, 2] {
-            return Err(PyValueError::new_err(format!(
+            return Err(crate::errors::input_error(format!(
                 "initial has shape {:?} but must be ({height}, {width}, 2).",
                 f.shape()
             )));
@@ -218,13 +217,13 @@ fn thin_plate_solve<'py>(
     let (field, report) = result?.map_err(|e| match e {
         // `inkwarp.thin_plate` leaves this check to the core (one pass over the field fewer).
         SolveError::NonFiniteInitial => {
-            PyValueError::new_err(
+            crate::errors::input_error(
                 "initial has NaN or infinite values (it is read as float32, where anything beyond \
                  ±3.4e38 is infinite); pass a finite field (or None).",
             )
         }
         SolveError::Interrupted => crate::errors::interrupted("the thin-plate solve"),
-        e => PyValueError::new_err(e.to_string()),
+        e => crate::errors::input_error(e.to_string()),
     })?;
     let array = PyArray1::from_vec(py, field).reshape([height, width, 2])?;
     let d = PyDict::new(py);
