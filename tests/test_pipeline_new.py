@@ -544,9 +544,22 @@ def test_groups_are_flattened_with_their_opacity_and_a_note(tmp_path):
     psd.save(tmp_path / "g.psd")
     eye.blend_mode = BlendMode.MULTIPLY
     psd.save(tmp_path / "m.psd")
-    with pytest.warns(inkwarp.InkwarpWarning, match="group 'face' is flattened into its layers"):
+    with pytest.warns(inkwarp.InkwarpWarning, match=r"group 'face' is flattened into its layers \(names kept, its opacity \(50 %\)"):
         scene = inkwarp.Scene.new(tmp_path / "g.psd")
     assert scene.layers == ["back", "eye"]
+    # At full opacity no overlap shows differently, and the note says only what it does.
+    group.opacity = 255
+    eye.blend_mode = BlendMode.NORMAL
+    far = PixelLayer.frompil(Image.new("RGBA", (6, 6), (0, 200, 0, 255)), psd, "far", 500, 500)
+    psd.append(far)
+    psd.save(tmp_path / "full.psd")
+    with pytest.warns(inkwarp.InkwarpWarning) as said:
+        full = inkwarp.Scene.new(tmp_path / "full.psd")
+    notes = [str(w.message) for w in said]
+    assert any("group 'face' is flattened into its layers (names kept, its visibility applied to each of them)" in n
+               for n in notes) and not any("overlap" in n for n in notes), notes
+    # A layer wholly off the canvas comes in empty, and is said to.
+    assert "far" in full.layers and any("layer 'far' lies wholly off the 32x24 canvas" in n for n in notes), notes
     # A grouped layer is named as the scene names it, its group beside.
     with pytest.warns(inkwarp.InkwarpWarning) as said:
         inkwarp.Scene.new(tmp_path / "m.psd")

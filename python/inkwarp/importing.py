@@ -300,9 +300,12 @@ def _read_psd(source: Path) -> Picture:
                          "Normal, so it will look different: merge it into the layer "
                          "below or set it to Normal")
         if layer.is_group():
-            notes.append(f"{source}: group {named(here)} is flattened into its "
-                         "layers (names kept, its opacity and visibility applied to each of them, "
-                         "which shows where they overlap)")
+            # At full opacity nothing of the group shows differently; below it, each layer is
+            # faded alone, so where they overlap the lower ones show through.
+            faded = (f"its opacity ({round(100 * int(layer.opacity) / 255)} %) and visibility applied to "
+                     "each of them, which shows where they overlap") if int(layer.opacity) < 255 else \
+                "its visibility applied to each of them"
+            notes.append(f"{source}: group {named(here)} is flattened into its layers (names kept, {faded})")
             walk(layer, here, alpha, shown)
             return
         try:
@@ -323,6 +326,10 @@ def _read_psd(source: Path) -> Picture:
         if image is not None:
             rgba = np.asarray(image.convert("RGBA"))
             _paste(canvas, rgba, int(layer.left), int(layer.top))
+            if rgba[..., 3].any() and not canvas[..., 3].any():
+                notes.append(f"{source}: layer {named(here)} lies wholly off the {width}x{height} canvas "
+                             f"(its box at x {int(layer.left)}, y {int(layer.top)}), so it comes in empty; "
+                             "move it onto the canvas to keep it")
         mask = layer.mask if layer.has_mask() else None
         if mask is not None and not mask.disabled:
             # A layer mask (psd-tools keeps a layer's transparency in one too) scales
