@@ -89,7 +89,7 @@ def _unwritable(parent: Path, err: OSError) -> OSError:
         return FileNotFoundError(err.errno, "the folder does not exist; create it first", str(parent))
     # Any other refusal (a folder of the system's, such as /proc): name the folder, not the
     # hidden temporary name nobody asked for.
-    why = (err.strerror or str(err)).lower()
+    why = "it takes no new files" if err.errno == errno.ENOENT else (err.strerror or str(err)).lower()
     return PermissionError(f"{parent}: cannot create a file in this output folder ({why}); "
                            "choose an output in an ordinary writable folder")
 
