@@ -42,12 +42,13 @@ the anchor registration confirms it again, tried also where it was last seen), a
 untextured point's that of the dense flow, infinite where it is placed more than
 ``lost_px`` off the picture; a gap of at most :data:`REFOUND_FRAMES` frames between two
 frames where a feature is lost counts as lost too, and so do the frames beside a lost
-stretch where a point not yet found again strays from its feature (:func:`_stray_after`). A :class:`~inkwarp.InkwarpWarning`
-names the features and the frames. Between two anchors, a track that has lost the feature at a
-frame gives way to the other's; else the two tracks' errors are blended as their places
-are. At a frame where it is named lost, a feature keeps the shape it has at the frames
-around, moved by its points whose checks passed (see :func:`_kept_in_shape`). Points of a feature that lie off the picture where traced are named apart and
-judged by nothing (nothing there can be seen).
+stretch where a point not yet found again strays from its feature (:func:`_stray_after`).
+A :class:`~inkwarp.InkwarpWarning` names the features and the frames. Between two anchors,
+a track that has lost the feature at a frame gives way to the other's; else the two
+tracks' errors are blended as their places are. At a frame where it is named lost, a
+feature keeps the shape it has at the frames around, moved by its points whose checks
+passed (see :func:`_kept_in_shape`). Points of a feature that lie off the picture where
+traced are named apart and judged by nothing (nothing there can be seen).
 
 The video's grey frames are held in memory (1 byte per pixel per frame).
 """
@@ -59,7 +60,7 @@ import math
 import os
 import re
 import warnings
-from collections.abc import Callable, Container, Iterator, Sequence
+from collections.abc import Callable, Container, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -833,7 +834,7 @@ class TrackOptions:
 
 def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: str,
               size: tuple[int, int]) -> list[_Feature]:
-    out = []
+    out, (w, h) = [], size
     for i, f in enumerate(doc.get("features") or []):
         rest = np.asarray(f["rest"], dtype=np.float64).reshape(-1, 2)
         keys: dict[int, np.ndarray] = {}
@@ -859,10 +860,8 @@ def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: st
                 continue
             # A correction far off the picture (a typed coordinate gone wrong) is tracked from
             # where nothing can be seen, and the lost track's warning would point back at it.
-            w, h = size
-            far = float(np.hypot(np.maximum(np.maximum(-points[:, 0], points[:, 0] - (w - 1)), 0),
-                                 np.maximum(np.maximum(-points[:, 1], points[:, 1] - (h - 1)), 0)).max())
-            if f.get("kind") != "cut" and far > max(w, h):
+            if f.get("kind") != "cut" and _off_picture(points, w, h, max(w, h)).any():
+                far = float(np.max(np.maximum(-points, points - [w - 1, h - 1])))
                 warnings.warn(f"{where}: features[{i}] ({f['id']}): its key at t = {key['t']} s (frame {k}) "
                               f"has a point {far:.0f} px off the {w}x{h} picture, where the tracker sees "
                               "nothing to follow; check the key's points", InkwarpWarning, stacklevel=caller_outside())
@@ -901,7 +900,7 @@ def _stray_after(lost: Sequence[int], series: np.ndarray, errors: Sequence[np.nd
             j = k + step
             while start is not None and 0 <= j < count and j not in anchors and errors[j] is not None:
                 err = errors[j][:n]
-                confirmed, unseen = seen & np.isfinite(err) & (err <= lost_px), seen & ~np.isfinite(err)
+                confirmed, unseen = seen & (err <= lost_px), seen & ~np.isfinite(err)
                 if not (confirmed.any() and unseen.any()):
                     break
                 move = (series[j][confirmed] - series[start][confirmed]).mean(axis=0)
@@ -923,15 +922,7 @@ def _kept_in_shape(series: np.ndarray, errors: Sequence[np.ndarray | None], lost
     points as tracked can fold and cross (a lip pulled over the jaw of a mouth that opens);
     kept in shape, the keys stay a drawing to correct."""
     count, n = len(series), series.shape[1]
-    runs: list[list[int]] = []
-    for k in lost:
-        if k in anchors:
-            continue
-        if runs and runs[-1][-1] == k - 1:
-            runs[-1].append(k)
-        else:
-            runs.append([k])
-    for run in runs:
+    for run in _runs(k for k in lost if k not in anchors):
         a, b = run[0] - 1, run[-1] + 1
         if a < 0 and b >= count:
             continue
@@ -939,7 +930,7 @@ def _kept_in_shape(series: np.ndarray, errors: Sequence[np.ndarray | None], lost
             s = 0.0 if b >= count else 1.0 if a < 0 else (k - a) / (b - a)
             shape = (1 - s) * series[max(a, 0)] + s * series[min(b, count - 1)]
             err = errors[k]
-            passed = np.zeros(n, bool) if err is None else np.isfinite(err[:n]) & (err[:n] <= lost_px)
+            passed = np.zeros(n, bool) if err is None else err[:n] <= lost_px
             if 0 <= a and b < count:
                 # Between two places it was confirmed at, the blend holds unless most points say otherwise.
                 passed &= passed.sum() * 2 >= n
@@ -960,17 +951,19 @@ def _held_lost(frames: Sequence[int], anchors: Container[int]) -> list[int]:
     return out
 
 
+def _runs(frames: Iterable[int]) -> list[list[int]]:
+    """The ascending ``frames`` in runs of consecutive ones."""
+    runs: list[list[int]] = []
+    for k in frames:
+        if runs and runs[-1][-1] == k - 1:
+            runs[-1].append(k)
+        else:
+            runs.append([k])
+    return runs
+
+
 def _frames_text(frames: Sequence[int]) -> str:
-    runs: list[str] = []
-    start = prev = None
-    for k in list(frames) + [None]:
-        if start is not None and (k is None or k != prev + 1):
-            runs.append(f"{start}" if start == prev else f"{start}-{prev}")
-            start = None
-        if k is not None and start is None:
-            start = k
-        prev = k
-    return ", ".join(runs)
+    return ", ".join(f"{r[0]}" if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in _runs(frames))
 
 
 def as_option(err: ValueError, frame: int) -> ValueError:
@@ -1159,9 +1152,10 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             if np.median(err[seen]) > lost_px or keys_off:
                 lost.setdefault(f.id, []).append(k)
         if f.id in lost:
-            lost[f.id] = _held_lost(_stray_after(lost[f.id], series, errors, seen[:len(f.rest)],
-                                                 set(anchors_of[f.id]), lost_px), set(anchors_of[f.id]))
-            _kept_in_shape(series, errors, lost[f.id], anchors_of[f.id], lost_px)
+            anchors = set(anchors_of[f.id])
+            stray = _stray_after(lost[f.id], series, errors, seen[:len(f.rest)], anchors, lost_px)
+            lost[f.id] = _held_lost(stray, anchors)
+            _kept_in_shape(series, errors, lost[f.id], anchors, lost_px)
         kept = range(count)
         if simplify_px is not None:
             kept = simplify_keys(series, simplify_px, keep=anchors_of[f.id])

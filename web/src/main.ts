@@ -71,14 +71,15 @@ async function start(): Promise<void> {
         ui.message(text + stale, 'error');
       } else {
         named = path ?? sceneUrl;
+        const files = JSON.parse(header('X-Inkwarp-Pictures') ?? '{}') as Record<string, string>;
         // The file it came from (its path on the machine `inkwarp edit` serves it from),
         // where the history starts.
         await ui.openSceneText(text, header('X-Inkwarp-Name') ?? 'scene.json', {
           origin: { path: named, version: resp.headers.get('ETag'), saveUrl: served?.saveUrl ?? null },
           first: true,
-          files: JSON.parse(header('X-Inkwarp-Pictures') ?? '{}'),
+          files,
         });
-        ui.watchPictures(JSON.parse(header('X-Inkwarp-Stamps') ?? '{}'), JSON.parse(header('X-Inkwarp-Pictures') ?? '{}'));
+        ui.watchPictures(JSON.parse(header('X-Inkwarp-Stamps') ?? '{}'), files);
         opened = true;
       }
     } catch (err) {

@@ -643,7 +643,7 @@ export class Store {
    */
   fileChanged(version: string | null): boolean {
     const origin = this.origin;
-    if (version === origin.version || (origin.changedTo !== undefined && origin.changedTo === version)) return false;
+    if (version === origin.version || origin.changedTo === version) return false;
     const wasSaved = !this.unsaved;
     origin.changedTo = version;
     const steps = [{ origin, revision: this.revision }, ...this.undoStack, ...this.redoStack];

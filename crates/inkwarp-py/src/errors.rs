@@ -66,22 +66,19 @@ pub fn internal_error(py: Python<'_>, payload: &(dyn Any + Send)) -> PyErr {
         "internal error in inkwarp's engine ({what}); this is a bug in inkwarp, please report \
          it with the input that caused it"
     );
-    let build = || -> PyResult<PyErr> {
-        let class = py.import("inkwarp.errors")?.getattr("InternalError")?;
-        Ok(PyErr::from_value(class.call1((message.clone(),))?))
-    };
-    build().unwrap_or_else(|e| e)
+    inkwarp_error(py, "InternalError", &message).unwrap_or_else(|e| e)
 }
 
 /// `inkwarp.errors.InputError` (an `InkwarpError` and a `ValueError`) for an argument or input the engine
 /// refuses; a plain `ValueError` where that class cannot be had.
-pub fn input_error(message: impl Into<String>) -> PyErr {
-    let message = message.into();
-    Python::attach(|py| {
-        let class = py.import("inkwarp.errors").and_then(|m| m.getattr("InputError"));
-        class.and_then(|c| c.call1((message.as_str(),))).map(PyErr::from_value)
-            .unwrap_or_else(|_| pyo3::exceptions::PyValueError::new_err(message))
-    })
+pub fn input_error(message: impl std::fmt::Display) -> PyErr {
+    let message = message.to_string();
+    Python::attach(|py| inkwarp_error(py, "InputError", &message).unwrap_or_else(|_| pyo3::exceptions::PyValueError::new_err(message)))
+}
+
+/// The exception `inkwarp.errors.<class>` carrying `message`.
+fn inkwarp_error(py: Python<'_>, class: &str, message: &str) -> PyResult<PyErr> {
+    Ok(PyErr::from_value(py.import("inkwarp.errors")?.getattr(class)?.call1((message,))?))
 }
 
 /// The engine's thread pool and the process it belongs to.

@@ -1,23 +1,21 @@
 //! Bindings of `inkwarp_core::geometry`: sampling features into constraints, and the
 //! dense polyline of a curve.
 
-use inkwarp_core::geometry::{self, GeometryError, Kind, SampleOptions};
+use inkwarp_core::geometry::{self, Kind, SampleOptions};
 use inkwarp_core::{Grid, Point};
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
+use crate::errors::input_error;
+
 /// A pair of `(N, 2)` float64 arrays: points and displacements.
 type PointPair<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
-
-fn value_error(e: GeometryError) -> PyErr {
-    crate::errors::input_error(e.to_string())
-}
 
 fn points_of(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> {
     let shape = a.shape();
     if shape[1] != 2 {
-        return Err(crate::errors::input_error(format!(
+        return Err(input_error(format!(
             "{name} must be an (N, 2) array of (x, y) control points; got shape ({}, {}).",
             shape[0], shape[1]
         )));
@@ -55,7 +53,7 @@ fn sample_feature<'py>(
     shape: Option<(usize, usize)>,
     mask: Option<PyReadonlyArray2<'py, u8>>,
 ) -> PyResult<PointPair<'py>> {
-    let kind: Kind = kind.parse().map_err(value_error)?;
+    let kind: Kind = kind.parse().map_err(input_error)?;
     let rest = points_of("rest", &rest)?;
     let pose = points_of("pose", &pose)?;
     crate::limits::check_sampling(&rest, closed, spacing)?;
@@ -67,7 +65,7 @@ fn sample_feature<'py>(
         (Some((height, width)), Some(mask)) => {
             let s = mask.shape();
             if s != [height, width] {
-                return Err(crate::errors::input_error(format!(
+                return Err(input_error(format!(
                     "mask has shape ({}, {}) but shape is ({height}, {width}); give a mask of the image's (H, W).",
                     s[0], s[1]
                 )));
@@ -81,7 +79,7 @@ fn sample_feature<'py>(
         }
         (Some((height, width)), None) => Some(Grid::new(width, height)),
         (None, Some(_)) => {
-            return Err(crate::errors::input_error(
+            return Err(input_error(
                 "mask needs shape: pass shape=(H, W) with the mask.",
             ));
         }
@@ -95,7 +93,7 @@ fn sample_feature<'py>(
     let samples = crate::errors::run_engine(py, || {
         geometry::sample_feature(kind, &rest, &pose, &opts, grid.as_ref())
     })?
-    .map_err(value_error)?;
+    .map_err(input_error)?;
     Ok((
         array_of(py, samples.iter().map(|s| s.rest)),
         array_of(py, samples.iter().map(|s| s.displacement)),
@@ -116,7 +114,7 @@ fn curve_polyline<'py>(
     spline_outline: bool,
     spacing: f64,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let kind: Kind = kind.parse().map_err(value_error)?;
+    let kind: Kind = kind.parse().map_err(input_error)?;
     let points = points_of("points", &points)?;
     crate::limits::check_sampling(&points, closed, spacing)?;
     let line = geometry::curve_polyline(kind, &points, closed, spline_outline, spacing);

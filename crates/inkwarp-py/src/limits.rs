@@ -4,6 +4,8 @@
 use inkwarp_core::limits;
 use pyo3::prelude::*;
 
+use crate::errors::input_error;
+
 /// Rough peak memory of a grid solve per pixel (the field, its levels, work vectors and
 /// matte): about 150 bytes on an open grid, 210 with a hole and a cut (2049 × 2049 and
 /// 3840 × 2160, peak resident memory of the process). A matte's thin parts and a torn
@@ -17,7 +19,7 @@ pub const INTERPOLATE_BYTES_PER_PIXEL: u64 = 48;
 pub fn check_coordinates<'a>(name: &str, values: impl Iterator<Item = &'a f64>) -> PyResult<()> {
     for &v in values {
         if !limits::coordinate_ok(v) {
-            return Err(crate::errors::input_error(format!(
+            return Err(input_error(format!(
                 "{name} must be finite numbers of pixels within ±{:e}, found {}.",
                 limits::MAX_COORD_PX,
                 limits::show(v)
@@ -35,7 +37,7 @@ pub fn cuts_of(cuts: &[numpy::PyReadonlyArray2<'_, f64>]) -> PyResult<Vec<Vec<[f
     cuts.iter().enumerate().map(|(k, cut)| {
         let c = cut.as_array();
         if c.ncols() != 2 {
-            return Err(crate::errors::input_error("every cut must be a (K, 2) array of (x, y) points."));
+            return Err(input_error("every cut must be a (K, 2) array of (x, y) points."));
         }
         check_coordinates(&format!("cuts[{k}]"), c.iter())?;
         Ok((0..c.nrows()).map(|k| [c[[k, 0]], c[[k, 1]]]).collect())
@@ -51,7 +53,7 @@ pub fn check_grid(width: usize, height: usize) -> PyResult<()> {
 /// core's words (`inkwarp_core::limits::check_size`; its message starts with `what`).
 #[pyfunction]
 pub fn check_size(what: &str, width: usize, height: usize) -> PyResult<()> {
-    limits::check_size(what, width, height).map_err(crate::errors::input_error)
+    limits::check_size(what, width, height).map_err(input_error)
 }
 
 /// What a thin-plate solve on `grid` at `grid_step` needs beyond [`SOLVE_BYTES_PER_PIXEL`]:
@@ -106,7 +108,7 @@ fn needed_bytes(width: usize, height: usize, bytes_per_pixel: u64, extra: u64) -
 pub fn check_memory(width: usize, height: usize, bytes_per_pixel: u64, extra: u64) -> PyResult<()> {
     let needed = needed_bytes(width, height, bytes_per_pixel, extra);
     match available_bytes() {
-        Some(free) if needed > free => Err(crate::errors::input_error(format!(
+        Some(free) if needed > free => Err(input_error(format!(
             "a {width}×{height} grid needs about {} GiB of memory but {} GiB is free; use \
              grid_step or a smaller grid",
             limits::gib(needed),
@@ -122,5 +124,5 @@ pub fn check_sampling(points: &[[f64; 2]], closed: bool, spacing: f64) -> PyResu
     if !(spacing.is_finite() && spacing > 0.0) {
         return Ok(()); // the core says what is wrong with it
     }
-    limits::check_curve_samples(points, closed, spacing).map_err(crate::errors::input_error)
+    limits::check_curve_samples(points, closed, spacing).map_err(input_error)
 }

@@ -9,14 +9,12 @@ use numpy::{PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArr
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-fn value_error(e: impl ToString) -> PyErr {
-    crate::errors::input_error(e.to_string())
-}
+use crate::errors::input_error;
 
 fn points_of(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> {
     let shape = a.shape();
     if shape[1] != 2 {
-        return Err(crate::errors::input_error(format!(
+        return Err(input_error(format!(
             "{name} must have shape (N, 2) of (x, y) pairs; got shape ({}, {}).",
             shape[0], shape[1]
         )));
@@ -29,7 +27,7 @@ fn points_of(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Point>> 
 fn segments_of(name: &str, a: &PyReadonlyArray3<'_, f64>) -> PyResult<Vec<[Point; 2]>> {
     let shape = a.shape();
     if shape[1] != 2 || shape[2] != 2 {
-        return Err(crate::errors::input_error(format!(
+        return Err(input_error(format!(
             "{name} must have shape (L, 2, 2): L segments of two (x, y) end points; got shape ({}, {}, {}).",
             shape[0], shape[1], shape[2]
         )));
@@ -71,16 +69,16 @@ fn interpolate_field<'py>(
 ) -> PyResult<(Bound<'py, PyArray3<f32>>, Bound<'py, PyDict>)> {
     crate::limits::check_grid(width, height)?;
     crate::limits::check_memory(width, height, crate::limits::INTERPOLATE_BYTES_PER_PIXEL, 0)?;
-    let method: methods::Method = method.parse().map_err(value_error)?;
+    let method: methods::Method = method.parse().map_err(input_error)?;
     let Some(interpolant) = method.interpolant() else {
-        return Err(crate::errors::input_error(
+        return Err(input_error(
             "interpolate_field does not run the grid thin plate: use thin_plate for method \"tps\".",
         ));
     };
     let rest = points_of("points", &points)?;
     let disp = points_of("displacements", &displacements)?;
     if rest.len() != disp.len() {
-        return Err(crate::errors::input_error(format!(
+        return Err(input_error(format!(
             "points and displacements must have the same length; got {} points and {} displacements.",
             rest.len(),
             disp.len()
@@ -92,7 +90,7 @@ fn interpolate_field<'py>(
         (Some(r), Some(q)) => {
             let (r, q) = (segments_of("lines_rest", &r)?, segments_of("lines_pose", &q)?);
             if r.len() != q.len() {
-                return Err(crate::errors::input_error(format!(
+                return Err(input_error(format!(
                     "lines_rest and lines_pose must hold the same number of segments; got {} and {}.",
                     r.len(),
                     q.len()
@@ -101,7 +99,7 @@ fn interpolate_field<'py>(
             r.into_iter().zip(q).map(|(rest, pose)| LinePair { rest, pose }).collect()
         }
         _ => {
-            return Err(crate::errors::input_error(
+            return Err(input_error(
                 "give both lines_rest and lines_pose (the segments before and after), or neither.",
             ))
         }
@@ -113,9 +111,9 @@ fn interpolate_field<'py>(
     })?
     .map_err(|e| match e {
         methods::MethodError::Interrupted => crate::errors::interrupted("the interpolation"),
-        e => value_error(e),
+        e => input_error(e),
     })?;
-    let arr = Array3::from_shape_vec((height, width, 2), field.to_interleaved()).map_err(value_error)?;
+    let arr = Array3::from_shape_vec((height, width, 2), field.to_interleaved()).map_err(input_error)?;
     Ok((PyArray3::from_owned_array(py, arr), report_dict(py, &report)?))
 }
 
@@ -132,7 +130,7 @@ impl PyThinPlateMap {
         let src = points_of("source", &source)?;
         let dst = points_of("target", &target)?;
         // Its dense solve runs in parallel for many points: on the engine's pool.
-        let map = crate::errors::run_engine(py, || methods::ThinPlateMap::fit(&src, &dst))?.map_err(value_error)?;
+        let map = crate::errors::run_engine(py, || methods::ThinPlateMap::fit(&src, &dst))?.map_err(input_error)?;
         Ok(PyThinPlateMap { map })
     }
 
@@ -140,7 +138,7 @@ impl PyThinPlateMap {
     fn __call__<'py>(&self, py: Python<'py>, points: PyReadonlyArray2<'py, f64>) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let pts = points_of("points", &points)?;
         let out: Vec<f64> = pts.iter().flat_map(|&p| self.map.apply(p)).collect();
-        let arr = Array2::from_shape_vec((pts.len(), 2), out).map_err(value_error)?;
+        let arr = Array2::from_shape_vec((pts.len(), 2), out).map_err(input_error)?;
         Ok(PyArray2::from_owned_array(py, arr))
     }
 
@@ -148,7 +146,7 @@ impl PyThinPlateMap {
     fn field<'py>(&self, py: Python<'py>, height: usize, width: usize) -> PyResult<Bound<'py, PyArray3<f32>>> {
         crate::limits::check_grid(width, height)?;
         let f = crate::errors::run_engine(py, || self.map.field(width, height))?;
-        let arr = Array3::from_shape_vec((height, width, 2), f.to_interleaved()).map_err(value_error)?;
+        let arr = Array3::from_shape_vec((height, width, 2), f.to_interleaved()).map_err(input_error)?;
         Ok(PyArray3::from_owned_array(py, arr))
     }
 
@@ -158,7 +156,7 @@ impl PyThinPlateMap {
 }
 
 fn kind_of(name: &str) -> PyResult<Kind> {
-    name.parse().map_err(value_error)
+    name.parse().map_err(input_error)
 }
 
 type FeatureTuple = (String, String, Vec<Point>, Vec<Vec<Point>>);
@@ -179,7 +177,7 @@ fn transfer_keys(
     target: Vec<FeatureTuple>,
 ) -> PyResult<Vec<Option<Vec<Vec<Point>>>>> {
     let (s, t) = (features_of(source)?, features_of(target)?);
-    crate::errors::run_engine(py, || transfer::transfer_keys(&s, &t))?.map_err(value_error)
+    crate::errors::run_engine(py, || transfer::transfer_keys(&s, &t))?.map_err(input_error)
 }
 
 /// transfer_fold(source, target) -> (x, y, feature_id, message) or None
@@ -192,7 +190,7 @@ fn transfer_fold(
     target: Vec<FeatureTuple>,
 ) -> PyResult<Option<(f64, f64, String, String)>> {
     let (s, t) = (features_of(source)?, features_of(target)?);
-    let fold = crate::errors::run_engine(py, || transfer::find_fold(&s, &t))?.map_err(value_error)?;
+    let fold = crate::errors::run_engine(py, || transfer::find_fold(&s, &t))?.map_err(input_error)?;
     Ok(fold.map(|f| (f.at[0], f.at[1], f.feature.clone(), f.to_string())))
 }
 
@@ -210,12 +208,12 @@ fn posed_drawing<'py>(
     time: f64,
     spacing: f64,
 ) -> PyResult<Vec<DrawingLine<'py>>> {
-    let doc = inkwarp_core::scene::parse_doc(doc_json).map_err(value_error)?;
+    let doc = inkwarp_core::scene::parse_doc(doc_json).map_err(input_error)?;
     methods::scene::posed_drawing(&doc, time, spacing)
         .into_iter()
         .map(|(id, kind, line)| {
             let n = line.len();
-            let arr = Array2::from_shape_vec((n, 2), line.into_iter().flatten().collect()).map_err(value_error)?;
+            let arr = Array2::from_shape_vec((n, 2), line.into_iter().flatten().collect()).map_err(input_error)?;
             Ok((id, kind.name(), PyArray2::from_owned_array(py, arr)))
         })
         .collect()

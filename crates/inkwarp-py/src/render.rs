@@ -6,6 +6,8 @@ use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
+use crate::errors::input_error;
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(warp_image, m)?)?;
     m.add_function(wrap_pyfunction!(decode_picture, m)?)?;
@@ -30,24 +32,24 @@ fn warp_image<'py>(
     let shape = image.shape();
     let (h, w) = (shape[0], shape[1]);
     if shape[2] != 4 {
-        return Err(crate::errors::input_error(format!(
+        return Err(input_error(format!(
             "image must have 4 channels (RGBA), got {}",
             shape[2]
         )));
     }
     if field.shape() != [h, w, 2] {
-        return Err(crate::errors::input_error(format!(
+        return Err(input_error(format!(
             "field must have shape ({h}, {w}, 2) to match the image, got {:?}",
             field.shape()
         )));
     }
     if matte.shape() != [h, w] {
-        return Err(crate::errors::input_error(format!(
+        return Err(input_error(format!(
             "matte must have shape ({h}, {w}) to match the image, got {:?}",
             matte.shape()
         )));
     }
-    let contiguous = |name: &str| crate::errors::input_error(format!("{name} must be C-contiguous"));
+    let contiguous = |name: &str| input_error(format!("{name} must be C-contiguous"));
     let pixels = image.as_slice().map_err(|_| contiguous("image"))?;
     let displacement = field.as_slice().map_err(|_| contiguous("field"))?;
     let matte = matte.as_slice().map_err(|_| contiguous("matte"))?;
@@ -59,7 +61,7 @@ fn warp_image<'py>(
         polylines.iter().for_each(|p| grid.add_cut(p));
         try_warp_image(&image, &field, &grid)
     })?;
-    let out = out.map_err(|e| crate::errors::input_error(e.to_string()))?;
+    let out = out.map_err(input_error)?;
     let array = Array3::from_shape_vec((h, w, 4), out.data)
         .expect("the renderer returns an image of the input's size");
     Ok(array.into_pyarray(py))
@@ -70,10 +72,10 @@ fn warp_image<'py>(
 #[pyfunction]
 fn decode_picture<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyArray3<u8>>> {
     if crate::scene::jpeg_cut_short(data) {
-        return Err(crate::errors::input_error("a JPEG that ends before its end-of-image marker: the file is cut short \
+        return Err(input_error("a JPEG that ends before its end-of-image marker: the file is cut short \
                                            (copied or synced only in part); copy or save it again"));
     }
-    let image = py.detach(|| inkwarp_core::scene::images::decode_image(data)).map_err(crate::errors::input_error)?;
+    let image = py.detach(|| inkwarp_core::scene::images::decode_image(data)).map_err(input_error)?;
     let array = Array3::from_shape_vec((image.height, image.width, 4), image.data).expect("RGBA8 of its size");
     Ok(array.into_pyarray(py))
 }

@@ -13,7 +13,7 @@ use pyo3::exceptions::PyIndexError;
 use pyo3::prelude::*;
 use pyo3::types::PyList;
 
-use crate::errors::run_engine;
+use crate::errors::{input_error, run_engine};
 use crate::limits::{available_bytes, memory_problem, MAX_IMAGE_FILE_BYTES};
 
 /// Issues each of `messages` as an `inkwarp.errors.ConvergenceWarning` (an error when
@@ -267,7 +267,7 @@ fn method_named(name: Option<&str>) -> PyResult<Option<Method>> {
                 .iter()
                 .map(|m| format!("\"{}\"", m.name()))
                 .collect();
-            crate::errors::input_error(format!(
+            input_error(format!(
                 "unknown method \"{n}\"; use one of {}",
                 names.join(", ")
             ))

@@ -11,6 +11,8 @@ use std::sync::{Arc, Mutex};
 use inkwarp_core::solve::{in_pool, SolveError, SolveMethod, SolveOptions, Solver, Stop};
 use inkwarp_core::{FieldView, Grid, Sample};
 
+use crate::errors::input_error;
+
 /// Earlier solves of one animated surface (`inkwarp.WarmStart`): the next solve starts
 /// from the combination of their fields that best matches its displacements, and reuses
 /// their hierarchy and work vectors (its [`Solver`]).
@@ -104,7 +106,7 @@ fn open_grid(width: usize, height: usize) -> Arc<Grid> {
 /// The grid of an `(H, W)` mask (nonzero: active), or a ValueError naming its shape.
 pub(crate) fn matte_grid(mask: &PyReadonlyArray2<'_, u8>, width: usize, height: usize) -> PyResult<Grid> {
     if mask.shape() != [height, width] {
-        return Err(crate::errors::input_error(format!(
+        return Err(input_error(format!(
             "mask has shape {:?} but the grid is ({height}, {width}); pass an (H, W) mask.",
             mask.shape()
         )));
@@ -136,12 +138,12 @@ fn thin_plate_solve<'py>(
     off: &str,
     solver: Option<PyRef<'py, PySolver>>,
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyDict>)> {
-    let off = inkwarp_core::solve::Ablation::parse(off).map_err(|e| crate::errors::input_error(format!("_off: {e}.")))?;
+    let off = inkwarp_core::solve::Ablation::parse(off).map_err(|e| input_error(format!("_off: {e}.")))?;
     let method = match method {
         "multigrid" => SolveMethod::Multigrid,
         "southwell" => SolveMethod::Southwell,
         other => {
-            return Err(crate::errors::input_error(format!(
+            return Err(input_error(format!(
                 "method must be \"multigrid\" or \"southwell\", got {other:?}."
             )))
         }
@@ -150,7 +152,7 @@ fn thin_plate_solve<'py>(
     let pts = points.as_array();
     let disp = displacements.as_array();
     if pts.ncols() != 2 || disp.ncols() != 2 || pts.nrows() != disp.nrows() {
-        return Err(crate::errors::input_error(
+        return Err(input_error(
             "points and displacements must both be (N, 2) arrays of the same length.",
         ));
     }
@@ -180,7 +182,7 @@ fn thin_plate_solve<'py>(
     crate::limits::check_memory(width, height, crate::limits::SOLVE_BYTES_PER_PIXEL, extra)?;
     if let Some(f) = &initial {
         if f.shape() != [height, width, 2] {
-            return Err(crate::errors::input_error(format!(
+            return Err(input_error(format!(
                 "initial has shape {:?} but must be ({height}, {width}, 2).",
                 f.shape()
             )));
@@ -217,13 +219,13 @@ fn thin_plate_solve<'py>(
     let (field, report) = result?.map_err(|e| match e {
         // `inkwarp.thin_plate` leaves this check to the core (one pass over the field fewer).
         SolveError::NonFiniteInitial => {
-            crate::errors::input_error(
+            input_error(
                 "initial has NaN or infinite values (it is read as float32, where anything beyond \
                  ±3.4e38 is infinite); pass a finite field (or None).",
             )
         }
         SolveError::Interrupted => crate::errors::interrupted("the thin-plate solve"),
-        e => crate::errors::input_error(e.to_string()),
+        e => input_error(e.to_string()),
     })?;
     let array = PyArray1::from_vec(py, field).reshape([height, width, 2])?;
     let d = PyDict::new(py);
