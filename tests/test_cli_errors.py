@@ -504,26 +504,34 @@ def test_no_command_prints_help_and_exits_2(capsys):
     assert "usage: inkwarp" in capsys.readouterr().err
 
 
-def test_sigterm_mid_render_leaves_nothing_behind(tmp_path):
+@pytest.mark.parametrize("name, said", [("SIGTERM", "terminated"), ("SIGHUP", "hung up")])
+def test_sigterm_mid_render_leaves_nothing_behind(tmp_path, name, said):
+    # SIGHUP: the terminal closed or the SSH session was lost. Its default action killed the
+    # render with its temporary file left beside the output.
     import signal
     import time
 
     from _cli_scenes import square_doc
 
+    number = getattr(signal, name, None)
+    if number is None:
+        pytest.skip(f"no {name} here")
     doc = square_doc()
     doc["duration"] = 500.0  # 2000 frames: far more than the time it takes to stop it
     scene = write_scene(tmp_path / "s", doc)
     out = tmp_path / "frames"
+    # (The signal's default action in the child, though this run may ignore SIGHUP, as under nohup.)
     process = subprocess.Popen([sys.executable, "-m", "inkwarp.cli", "render", str(scene),
-                                "-o", str(out), "-q"], stderr=subprocess.PIPE, text=True)
+                                "-o", str(out), "-q"], stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(number, signal.SIG_DFL))
     deadline = time.monotonic() + 120
     while not leftovers(tmp_path) and process.poll() is None and time.monotonic() < deadline:
         time.sleep(0.02)
     time.sleep(0.2)  # a few frames in
-    process.send_signal(signal.SIGTERM)
+    process.send_signal(number)
     _, stderr = process.communicate(timeout=120)
-    assert process.returncode == 128 + signal.SIGTERM, stderr
-    assert stderr.strip().endswith("inkwarp render: terminated")
+    assert process.returncode == 128 + number, stderr
+    assert stderr.strip().endswith(f"inkwarp render: {said}")
     assert sorted(os.listdir(tmp_path)) == ["s"]
 
 

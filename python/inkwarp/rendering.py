@@ -601,19 +601,22 @@ _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 
 @contextlib.contextmanager
 def _sigterm_kept() -> Iterator[None]:
-    """Keeps the SIGTERM handler of the command line: joining Ray installs Ray's own (one that
-    exits with status 1, and one in its core that prints a crash dump), so a render a farm's
-    scheduler cancelled left no word of its own and an exit status that said it crashed."""
+    """Keeps the SIGTERM and SIGHUP handlers of the command line: joining Ray installs Ray's
+    own (one that exits with status 1, and one in its core that prints a crash dump), so a
+    render a farm's scheduler cancelled left no word of its own and an exit status that said
+    it crashed."""
     import signal
     import threading
 
-    handler = signal.getsignal(signal.SIGTERM)
+    handlers = {number: signal.getsignal(number) for number in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if number}
     try:
         yield
     finally:
         # (A handler of the caller's own, as the command line's; Python's default gives way to Ray's.)
-        if callable(handler) and threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGTERM, handler)
+        if threading.current_thread() is threading.main_thread():
+            for number, handler in handlers.items():
+                if callable(handler):
+                    signal.signal(number, handler)
 
 
 @contextlib.contextmanager

@@ -86,25 +86,37 @@ def error_message(err: BaseException) -> str:
 
 
 class Terminated(BaseException):
-    """SIGTERM, raised where the program is, so that writers delete their partial output."""
+    """SIGTERM, or SIGHUP (the terminal closed, an SSH session lost), raised where the program
+    is, so that writers delete their partial output. ``signum`` is the signal's number."""
+
+    def __init__(self, signum: int = signal.SIGTERM) -> None:
+        super().__init__(signum)
+        self.signum = signum
 
 
-def _on_sigterm(signum: int, frame: object) -> None:
-    raise Terminated
+def _on_signal(signum: int, frame: object) -> None:
+    raise Terminated(signum)
+
+
+#: The signals that end a command as Ctrl-C does: a scheduler's SIGTERM, and SIGHUP where
+#: a terminal or session closes (left alone where it is ignored, as under ``nohup``).
+UNWINDING = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
 @contextlib.contextmanager
 def _sigterm_unwinds():
-    """While a command runs, SIGTERM unwinds the stack like Ctrl-C does (the default
-    action would kill the process with its temporary files in place)."""
+    """While a command runs, SIGTERM and SIGHUP unwind the stack like Ctrl-C does (their
+    default action would kill the process with its temporary files in place)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    previous = {number: signal.signal(number, _on_signal) for number in UNWINDING
+                if signal.getsignal(number) is not signal.SIG_IGN}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for number, handler in previous.items():
+            signal.signal(number, handler)
 
 
 def _stdout_closed() -> bool:
@@ -257,9 +269,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"inkwarp {args.command}: interrupted", file=sys.stderr)
         return 130
-    except Terminated:
-        print(f"inkwarp {args.command}: terminated", file=sys.stderr)
-        return 128 + signal.SIGTERM
+    except Terminated as err:
+        hung_up = err.signum == getattr(signal, "SIGHUP", None)
+        with contextlib.suppress(OSError, ValueError):  # (a closed terminal takes no more)
+            print(f"inkwarp {args.command}: {'hung up' if hung_up else 'terminated'}", file=sys.stderr)
+        return 128 + err.signum
     except OSError as err:
         # Not the user's input and not a bug: a full disk, ffmpeg dying.
         print(f"inkwarp {args.command}: error: {error_message(_unwritten(err, getattr(args, 'output', None)))}",
