@@ -498,6 +498,29 @@ def test_text_and_pictures_in_a_drawing_are_named_as_left_out(tmp_path):
     assert "<image> id='ref' is left out: a picture in the drawing makes no feature" in notes[1], notes
 
 
+def test_hidden_shapes_of_a_drawing_are_left_out_with_a_note(tmp_path):
+    # A shape hidden with visibility became a feature without a word, where one hidden with
+    # display: none was left out with a note. Visibility inherits, and a shape inside a
+    # hidden group may show itself again.
+    svg = tmp_path / "drawing.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="64" height="48">'
+                   '<style>.off { visibility: collapse }</style>'
+                   '<path id="brow" d="M 10 10 L 30 12" fill="none"/>'
+                   '<path id="old" visibility="hidden" d="M 10 20 L 30 22" fill="none"/>'
+                   '<path id="spare" class="off" d="M 10 25 L 30 27" fill="none"/>'
+                   '<g id="sketch" style="visibility:hidden"><path id="inner" d="M 10 30 L 30 32" fill="none"/>'
+                   '<path id="lip" visibility="visible" d="M 10 40 L 30 42" fill="none"/></g>'
+                   '<g display="none"><path id="gone" d="M 5 5 L 9 9"/></g></svg>')
+    features, notes = read_drawing(svg, 64, 48)
+    assert [f["id"] for f in features] == ["brow", "lip"]
+    assert [n.split(": ", 1)[1] for n in notes] == [
+        "<path> id='old' is hidden (visibility: hidden) and left out",
+        "<path> id='spare' is hidden (visibility: collapse) and left out",
+        "<g> id='sketch' is hidden (visibility: hidden) and left out, with what it holds but shapes set to "
+        "visibility: visible",
+        "<g> (without id) is hidden (display: none) and left out"], notes
+
+
 def test_new_with_a_drawing_makes_a_scene_that_renders(capsys, tmp_path):
     psd = write_psd(tmp_path / "character.psd")
     (tmp_path / "drawing.svg").write_text(SVG)

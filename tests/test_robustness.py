@@ -417,9 +417,32 @@ def test_every_refusal_of_the_api_is_an_inkwarp_error_and_a_value_error(tmp_path
         "tolerance": lambda: inkwarp.thin_plate([[1, 1]], [[1, 1]], (8, 8), tolerance=float("nan")),
         "engine": lambda: inkwarp.thin_plate([[1e12, 1]], [[1, 1]], (8, 8)),
         "warp": lambda: inkwarp.warp_image(np.zeros((8, 8, 4), np.uint8), np.full((8, 8, 2), np.nan)),
+        "frames text": lambda: inkwarp.render(scene, tmp_path / "a.gif", frames="x"),
     }
     for name, refused in refusals.items():
         with pytest.raises(inkwarp.InkwarpError) as caught:
             refused()
         assert isinstance(caught.value, ValueError) and type(caught.value).__name__ in ("InputError", "SceneError"), (
             name, type(caught.value))
+
+
+def test_a_missing_file_is_an_inkwarp_error_and_a_file_not_found_error(tmp_path: Path) -> None:
+    # Scene.load, Scene.new (picture, PSD, drawing), read_image, track, transfer and a save
+    # into a folder that does not exist raised bare FileNotFoundErrors, which a pipeline's
+    # `except inkwarp.InkwarpError` let through.
+    scene = inkwarp.Scene.load(scene_with(tmp_path, "s.json", lambda d: None))
+    gone = tmp_path / "gone"
+    missing = {
+        "load": lambda: inkwarp.Scene.load(gone / "scene.json"),
+        "new": lambda: inkwarp.Scene.new(gone / "picture.png"),
+        "psd": lambda: inkwarp.Scene.new(gone / "layers.psd"),
+        "image": lambda: inkwarp.imaging.read_image(gone / "picture.png"),
+        "track": lambda: inkwarp.track(gone / "clip.mp4", scene),
+        "transfer": lambda: inkwarp.transfer(gone / "a.json", gone / "b.json"),
+        "save": lambda: scene.save(gone / "out.json"),
+    }
+    for name, refused in missing.items():
+        with pytest.raises(inkwarp.InkwarpError) as caught:
+            refused()
+        assert isinstance(caught.value, FileNotFoundError) and str(gone) in str(caught.value), (name, caught.value)
+    assert not gone.exists()

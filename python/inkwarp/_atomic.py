@@ -17,6 +17,8 @@ import shutil
 import time
 from pathlib import Path
 
+from inkwarp.errors import MissingFileError
+
 #: Temporary files without a process id (older versions) are removed after this long.
 LEGACY_AGE_S = 24 * 3600
 
@@ -86,7 +88,7 @@ def _unwritable(parent: Path, err: OSError) -> OSError:
             err.errno, f"cannot write in this output folder ({why}); choose an output in a "
             "writable folder or change the folder's permissions", str(parent))
     if err.errno == errno.ENOENT and not parent.exists():
-        return FileNotFoundError(err.errno, "the folder does not exist; create it first", str(parent))
+        return MissingFileError(err.errno, "the folder does not exist; create it first", str(parent))
     # Any other refusal (a folder of the system's, such as /proc): name the folder, not the
     # hidden temporary name nobody asked for.
     why = "it takes no new files" if err.errno == errno.ENOENT else (err.strerror or str(err)).lower()

@@ -18,6 +18,12 @@ class InputError(InkwarpError, ValueError):
     argument errors are, so ``except ValueError`` goes on catching it."""
 
 
+class MissingFileError(InkwarpError, FileNotFoundError):
+    """A file or folder inkwarp was given (a scene, a picture, a drawing, a video, an output's
+    folder) does not exist; ``filename`` names it. A ``FileNotFoundError`` too, as Python's
+    own ``open`` raises, so ``except FileNotFoundError`` goes on catching it."""
+
+
 class SceneError(InkwarpError, ValueError):
     """A scene file (or dict) is invalid.
 

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from inkwarp import _inkwarp
-from inkwarp.errors import InputError
+from inkwarp.errors import InputError, MissingFileError
 
 __all__ = ["read_image", "warp_image", "write_png"]
 
@@ -189,7 +189,7 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
 
     Raises
     ------
-    FileNotFoundError
+    inkwarp.errors.MissingFileError
         If there is no such file.
     ValueError
         If the file is not an image Pillow can read.
@@ -212,6 +212,8 @@ def read_image(path: PathLike) -> NDArray[np.uint8]:
                 return rgba_pixels(upright(im))
     except UnidentifiedImageError as e:
         raise InputError(f"{os.fspath(path)} is not an image that can be read: {e}") from None
+    except FileNotFoundError as e:
+        raise MissingFileError(e.errno, e.strerror, os.fspath(path)) from None
     # PNG and JPEG as the engine decodes them: the same pixels and orientation as a scene's.
     try:
         with open(path, "rb") as file:

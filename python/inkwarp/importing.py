@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from inkwarp._atomic import temp_path
-from inkwarp.errors import InkwarpWarning, InputError
+from inkwarp.errors import InkwarpWarning, InputError, MissingFileError
 
 __all__ = ["Picture", "PictureLayer", "read_picture", "scene_dict", "write_new_scene"]
 
@@ -86,14 +86,14 @@ def read_picture(path: str | os.PathLike[str]) -> Picture:
 
     Raises
     ------
-    FileNotFoundError
+    inkwarp.errors.MissingFileError
         When there is no such file.
     ValueError
         When the file cannot be read, naming the file and what to do.
     """
     source = Path(os.fspath(path))
     if not source.exists():
-        raise FileNotFoundError(2, "No such file or directory", str(source))
+        raise MissingFileError(2, "No such file or directory", str(source))
     if source.is_dir():
         raise IsADirectoryError(21, "is a directory, not a picture", str(source))
     suffix = source.suffix.lower()

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from inkwarp import _inkwarp
-from inkwarp.errors import InputError, SceneError
+from inkwarp.errors import InputError, MissingFileError, SceneError
 
 __all__ = ["WARM_CHAIN_FRAMES", "Frames", "Scene", "image_data_uri", "preroll_start", "scene_schema",
            "validate_scene"]
@@ -256,14 +256,17 @@ def read_scene_text(file: str | os.PathLike[str]) -> str:
 
     Raises
     ------
-    FileNotFoundError
+    inkwarp.errors.MissingFileError
         When there is no such file.
     inkwarp.SceneError
         When it is not a regular file (a FIFO or a device such as /dev/zero would block or
         never end), is too large, empty, or not UTF-8 text.
     """
     name = os.fspath(file)
-    info = os.stat(name)
+    try:
+        info = os.stat(name)
+    except FileNotFoundError as err:
+        raise MissingFileError(err.errno, err.strerror, name) from None
     if not stat.S_ISREG(info.st_mode):
         raise SceneError(f"{name}: not a regular file (a folder, FIFO or device); give a scene's "
                          "JSON file", file=name)
@@ -507,7 +510,7 @@ class Scene:
 
         Raises
         ------
-        FileNotFoundError
+        inkwarp.errors.MissingFileError
             When there is no such file.
         inkwarp.SceneError
             When the scene has problems (all of them are listed).

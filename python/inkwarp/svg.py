@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from inkwarp.errors import InputError
+from inkwarp.errors import InputError, MissingFileError
 
 __all__ = ["TOLERANCE_PX", "read_drawing"]
 
@@ -109,13 +109,13 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
 
     Raises
     ------
-    FileNotFoundError, ValueError
+    inkwarp.errors.MissingFileError, inkwarp.InputError
         A missing file, a file that is not SVG, bad path data (naming the element), or an
         SVG without anything to turn into features.
     """
     source = Path(os.fspath(path))
     if not source.exists():
-        raise FileNotFoundError(2, "No such file or directory", str(source))
+        raise MissingFileError(2, "No such file or directory", str(source))
     try:
         root = ET.parse(source).getroot()
     except ET.ParseError as err:
@@ -133,7 +133,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
     ids: set[str] = set()
     counts: dict[str, int] = {}
 
-    def visit(element: ET.Element, transform: Affine, fill: str, opacity: str, cut: bool) -> None:
+    def visit(element: ET.Element, transform: Affine, fill: str, opacity: str, cut: bool, shown: bool) -> None:
         tag = _tag(element)
         if tag in SKIPPED:
             return
@@ -142,6 +142,13 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
             notes.append(f"{source}: <{tag}> {_name(element)} is hidden (display: none) and "
                          "left out")
             return
+        # Visibility inherits, and a child may show itself again (unlike display: none).
+        visibility = style.get("visibility", "").lower()
+        if visibility and shown != (visibility == "visible"):
+            shown = visibility == "visible"
+            if not shown:
+                notes.append(f"{source}: <{tag}> {_name(element)} is hidden (visibility: {visibility}) and left out"
+                             + (", with what it holds but shapes set to visibility: visible" if len(element) else ""))
         here = _compose(transform, _parse_transform(element.get("transform", ""), source,
                                                     element))
         fill = style.get("fill", fill)
@@ -160,7 +167,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
             notes.append(f"{source}: <use> {_name(element)} is left out; unlink the clone "
                          "(Inkscape: Edit > Clone > Unlink Clone) to trace it")
             return
-        if tag in SHAPES:
+        if tag in SHAPES and shown:
             subpaths = _shape_subpaths(element, tag, source)
             filled = _painted(fill, opacity)
             base = element.get("id") or ""
@@ -187,13 +194,14 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
                 notes.append(f"{source}: <{tag}> {_name(element)} has {len(subpaths)} "
                              "pieces, each a feature of its own")
         for child in element:
-            visit(child, here, fill, opacity, cut)
+            visit(child, here, fill, opacity, cut, shown)
 
     cuts: list[str] = []
     near_cuts: list[str] = []  # names with the letters "cut" that are not cuts
     top = _style(root, rules)
     for child in root:
-        visit(child, root_transform, top.get("fill", "black"), top.get("fill-opacity", "1"), _says_cut(_words(root)))
+        visit(child, root_transform, top.get("fill", "black"), top.get("fill-opacity", "1"), _says_cut(_words(root)),
+              top.get("visibility", "visible").lower() == "visible")
     if not features:
         raise InputError(f"{source}: the SVG has no paths, lines, polylines, polygons, "
                          "rectangles or circles to make features of; trace the features "
@@ -220,7 +228,7 @@ def _name(element: ET.Element) -> str:
 
 
 #: The properties read from an element's style: whether it shows, and its fill.
-STYLED = ("fill", "fill-opacity", "display")
+STYLED = ("fill", "fill-opacity", "display", "visibility")
 
 #: A style sheet rule: (specificity, selector's tag, its classes, its id, its declarations,
 #: its ``!important`` ones).
@@ -229,7 +237,7 @@ _Rule = tuple[tuple[int, int, int], str, frozenset[str], str, dict[str, str], di
 #: A value that takes the parent's (the key dropped, so the inherited fill stands), and
 #: what ``initial`` sets.
 _INHERITED = ("inherit", "unset")
-_INITIAL = {"fill": "black", "fill-opacity": "1", "display": "inline"}
+_INITIAL = {"fill": "black", "fill-opacity": "1", "display": "inline", "visibility": "visible"}
 
 
 def _declarations(text: str) -> tuple[dict[str, str], dict[str, str]]:

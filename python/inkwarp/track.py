@@ -67,7 +67,7 @@ from typing import Any
 
 import numpy as np
 
-from inkwarp.errors import InkwarpWarning, InputError, caller_outside
+from inkwarp.errors import InkwarpWarning, InputError, MissingFileError, caller_outside
 
 __all__ = ["Video", "read_video", "read_frame", "track", "track_dict", "simplify_keys",
            "SAMPLE_SPACING_PX"]
@@ -174,7 +174,7 @@ def _probe(path: str | os.PathLike[str]) -> tuple[str, float, int, int, int | No
 
     name = os.fspath(path)
     if not os.path.exists(name):
-        raise FileNotFoundError(2, "No such file or directory", name)
+        raise MissingFileError(2, "No such file or directory", name)
     if os.path.isdir(name):
         raise IsADirectoryError(21, "is a directory, not a video", name)
     import subprocess
@@ -316,7 +316,7 @@ def read_video(path: str | os.PathLike[str]) -> Video:
 
     Raises
     ------
-    FileNotFoundError
+    inkwarp.errors.MissingFileError
         No such file.
     ValueError
         ffmpeg cannot decode it, or it has no frames (the message names the file).

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from inkwarp import _inkwarp
-from inkwarp.errors import InkwarpWarning, InputError
+from inkwarp.errors import InkwarpWarning, InputError, MissingFileError
 
 __all__ = ["transfer", "transfer_dict", "transfer_example"]
 
@@ -50,7 +50,7 @@ def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
 
         path = Path(scene)
         if not path.exists():
-            raise FileNotFoundError(f"the {role} scene {path} does not exist.")
+            raise MissingFileError(f"the {role} scene {path} does not exist.")
         # The scene files' one reader and checks: a picture given as the scene, a folder,
         # bytes that are not UTF-8, and every mistake with its place, as render says them.
         text = read_scene_text(path)

@@ -12,6 +12,7 @@ from collections.abc import Iterable, Iterator
 from typing import Any
 
 from inkwarp._inkwarp import MAX_TIME_S
+from inkwarp.errors import InputError, MissingFileError
 
 #: The surfaces a drawing can drive (DESIGN §6); ``tps`` is the grid thin plate.
 METHODS = ("tps", "tps-exact", "triangulation", "beier-neely")
@@ -42,7 +43,7 @@ def load_scene(path: str) -> Any:
     import inkwarp
 
     if not os.path.exists(path):
-        raise FileNotFoundError(2, "No such file or directory", path)
+        raise MissingFileError(2, "No such file or directory", path)
     if os.path.isdir(path):
         raise IsADirectoryError(21, "is a directory, not a scene file", path)
     return inkwarp.Scene.load(path)
@@ -73,16 +74,16 @@ def parse_frames(spec: str, frame_count: int, option: str = "--frames", command:
     """
     text = spec.strip()
     if ":" not in text:
-        raise ValueError(f"{given(option, spec)}: write a range A:B (frames A to B-1), such as 0:24")
+        raise InputError(f"{given(option, spec)}: write a range A:B (frames A to B-1), such as 0:24")
     first, _, last = text.partition(":")
     try:
         start = int(first) if first.strip() else 0
         stop = int(last) if last.strip() else frame_count
     except ValueError:
-        raise ValueError(f"{given(option, spec)}: A and B must be whole frame numbers, such as 0:24"
+        raise InputError(f"{given(option, spec)}: A and B must be whole frame numbers, such as 0:24"
                          ) from None
     if start < 0 or start >= min(stop, frame_count):
-        raise ValueError(f"{given(option, spec)} is not a range of the scene, which has frames 0 to {frame_count - 1}; give "
+        raise InputError(f"{given(option, spec)} is not a range of the scene, which has frames 0 to {frame_count - 1}; give "
                          f"0 <= A < B with A < {frame_count}")
     if stop > frame_count and command:
         print(f"inkwarp {command}: warning: {given(option, spec)} runs past the scene's last frame ({frame_count - 1}); "
@@ -94,7 +95,7 @@ def check_time(time_s: float, option: str = "--time") -> float:
     """A time a scene holds, as the Python API takes it: within ±`MAX_TIME_S` (before 0 is
     the drawing before the first frame, where keys may lie)."""
     if not math.isfinite(time_s) or not -MAX_TIME_S <= time_s <= MAX_TIME_S:
-        raise ValueError(f"{option} {time_s:g}: give a time in seconds from {-MAX_TIME_S:g} to {MAX_TIME_S:g} "
+        raise InputError(f"{option} {time_s:g}: give a time in seconds from {-MAX_TIME_S:g} to {MAX_TIME_S:g} "
                          "(about 27 hours), such as 0.5")
     return time_s
 
@@ -113,7 +114,7 @@ def warn_past_end(command: str, given: float, scene: Any, shows: str) -> None:
 
 def check_frame(frame: int, frame_count: int) -> int:
     if not 0 <= frame < frame_count:
-        raise ValueError(f"--frame {frame}: the scene has frames 0 to {frame_count - 1}")
+        raise InputError(f"--frame {frame}: the scene has frames 0 to {frame_count - 1}")
     return frame
 
 
@@ -205,7 +206,7 @@ def progress(frames: Iterable[Any], total: int, *, quiet: bool, desc: str) -> It
 def check_layer(scene: str, layer: str | None, names: list[str]) -> None:
     """Refuses a ``--layer`` the scene does not have, naming the scene and its layers."""
     if layer is not None and layer not in names:
-        raise ValueError(f"{scene}: --layer {layer}: no layer is called that; the layers are {', '.join(names)}")
+        raise InputError(f"{scene}: --layer {layer}: no layer is called that; the layers are {', '.join(names)}")
 
 
 def scene_size(scene: Any) -> str:
