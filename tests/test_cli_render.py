@@ -297,6 +297,32 @@ def test_validate_notes_keys_before_the_start_empty_layers_and_every_layer_hidde
             "\"visible\": true on the layers to draw") in inkwarp.Scene.load(path).notes()
 
 
+def test_a_key_far_off_the_picture_is_noted_and_its_stalled_solve_blames_it(capsys, tmp_path):
+    # A key pasted from a tracing 20 times larger: validate said ok, a still frame rendered
+    # smeared without a word. At a million pixels the solve stops at the field's precision,
+    # and the warning advised a coarser tolerance (the default's) instead of naming the keys.
+    path = write_scene(tmp_path / "scene")
+    doc = json.loads(path.read_text())
+    grip = doc["features"][0]
+    grip["keys"] = [{"t": 0.0, "points": grip["rest"]}, {"t": 0.5, "points": [[x * 20, y * 20] for x, y in grip["rest"]]},
+                    {"t": 0.75, "points": [[x * 30, y * 30] for x, y in grip["rest"]]}]
+    path.write_text(json.dumps(doc))
+    (x, y), = grip["rest"]
+    note = (f"features[0].keys[1].points: 'grip' has a key at 0.5 s (and 1 more of its keys) whose points reach x {x * 20:g} "
+            f"to {x * 20:g}, y {y * 20:g} to {y * 20:g}, further off the picture ({WIDTH} x {HEIGHT}) than its longer side: "
+            "the surface is pulled that far, and the picture smears; were the points traced on a larger picture? scale "
+            "them to this one")
+    code, stdout, _ = run(capsys, "validate", path)
+    assert code == 0 and stdout.splitlines()[1:] == [f"note: {path}: {note}"]
+    code, _, err = run(capsys, "render", path, "--frame", "2", "-o", tmp_path / "f.png")
+    assert code == 0 and err.splitlines()[0] == f"inkwarp render: note: {path}: {note}", err
+    grip["keys"][1]["points"] = [[1e6, 1e6]]
+    path.write_text(json.dumps(doc))
+    code, _, err = run(capsys, "render", path, "--frame", "2", "-o", tmp_path / "f.png")
+    assert code == 0 and "did not converge" in err and "too large for the field's precision (keys far off the picture?)" in err
+    assert "coarser solver.tolerance" not in err, err
+
+
 def test_validate_notes_lines_and_regions_with_no_extent(tmp_path):
     # A spline whose points coincide holds one pixel; a region whose points lie on one line
     # holds only its outline. Both validated without a word.

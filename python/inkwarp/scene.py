@@ -838,7 +838,8 @@ class Scene:
         on holes of the layers it drives (transparent pixels, by default: the solver drops
         its samples, so it pins nothing; judged on the visible layers it drives, at
         ``grid_step`` 1 only), a key after the scene's end (no frame shows it) or one before
-        its start that frame 0 is part way from, a feature that
+        its start that frame 0 is part way from, or one whose points lie further off the picture
+        than its longer side, a feature that
         drives no layer, a line, curve or region whose points are all at one place, a region
         with no area, a layer picture with a colour profile other than sRGB's (not applied:
         it renders duller than a viewer shows it), a layer whose matte falls into more pieces
@@ -964,8 +965,24 @@ class Scene:
 
     def _outside_keys_of(self, i: int, feature: dict[str, Any]) -> list[Problem]:
         """The notes on the keys of ``feature`` (``features[i]``) after the scene's end, or
-        before its start (0 s)."""
+        before its start (0 s), and on its keys whose points lie further off the picture
+        than its longer side (pasted from a larger tracing, or in other units)."""
         duration, keys, notes = self.duration, feature.get("keys", []), []
+        # (A feature at rest off the picture pulls nothing: its samples are dropped.)
+        reach, rest = max(self.width, self.height), np.asarray(feature["rest"], dtype=np.float64).reshape(-1, 2)
+        pulls = feature["kind"] != "cut" and ((rest >= -0.5) & (rest <= [self.width - 0.5, self.height - 0.5])).all(axis=1).any()
+        far = [k for k, key in enumerate(keys) if pulls and (key.get("points") or []) and (
+            (np.asarray(key["points"], dtype=np.float64) < -reach)
+            | (np.asarray(key["points"], dtype=np.float64) > np.array([self.width - 1, self.height - 1]) + reach)).any()]
+        if far:
+            points = np.asarray(keys[far[0]]["points"], dtype=np.float64).reshape(-1, 2)
+            (x0, y0), (x1, y1) = points.min(axis=0), points.max(axis=0)
+            more = f" (and {len(far) - 1} more of its keys)" if len(far) > 1 else ""
+            notes.append((f"features[{i}].keys[{far[0]}].points",
+                          f"{feature['id']!r} has a key at {keys[far[0]]['t']:g} s{more} whose points reach x {x0:g} to "
+                          f"{x1:g}, y {y0:g} to {y1:g}, further off the picture ({self.width} x {self.height}) than its "
+                          "longer side: the surface is pulled that far, and the picture smears; were the points "
+                          "traced on a larger picture? scale them to this one"))
         for k, key in enumerate(keys):
             if key["t"] > duration + 1e-9:
                 notes.append((f"features[{i}].keys[{k}].t",

@@ -186,10 +186,12 @@ def _run(args: argparse.Namespace) -> int:
             print(f"inkwarp render: note: --method {args.method} ignores the continuity matte and cuts: "
                   f"{', '.join(torn)} stay{'s' if len(torn) == 1 else ''} whole across {'its' if len(torn) == 1 else 'their'} "
                   "holes and cuts (only tps tears them)", file=sys.stderr, flush=True)
-    if kind != "png" and not args.quiet:
-        # A key after the end (or before the start) cuts the animation short: said here too,
-        # not only by validate.
+    if not args.quiet:
+        # A key after the end (or before the start) cuts the animation short, one far off the
+        # picture smears it (a still frame too): said here too, not only by validate.
         for path, message in scene._outside_keys():
+            if kind == "png" and not path.endswith(".points"):
+                continue
             print(f"inkwarp render: note: {_common.prefixed(_common.prefixed(message, path), args.scene)}",
                   file=sys.stderr, flush=True)
     started = time.perf_counter()

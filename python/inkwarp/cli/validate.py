@@ -19,8 +19,9 @@ On success it prints one line, such as
   10 spline), 60 frames at 24 fps (2.5 s)
 then a line "note: FILE: JSON.PATH: ..." for each thing that is allowed but probably
 a mistake (a feature wholly off the picture or on transparent pixels, a key after the
-scene's end, a feature that drives no layer, a line or region with no extent, a matte
-that falls apart on the coarse grid of its grid_step), and exits 0.
+scene's end or far off the picture, a feature that drives no layer, a line or region
+with no extent, a matte that falls apart on the coarse grid of its grid_step), and
+exits 0.
 Otherwise it prints each problem as
 FILE: JSON.PATH: what is wrong and how to fix it, then the count, and exits 2.
 """
