@@ -532,6 +532,20 @@ def test_new_with_a_drawing_makes_a_scene_that_renders(capsys, tmp_path):
     assert np.abs(scene.render().astype(int) - psd_composite(psd)).max() <= 2
 
 
+def test_new_says_what_validate_would_note_of_the_scene_it_wrote(capsys, tmp_path):
+    # A traced point wholly off the picture (a drawing for a larger picture): new printed
+    # only "wrote s.json"; the note came at the first validate.
+    Image.fromarray(np.full((H, W, 4), 255, np.uint8)).save(tmp_path / "p.png")
+    (tmp_path / "d.svg").write_text(f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}">'
+                                    '<path id="lip" d="M 4 4 L 20 4" fill="none"/><circle id="far" cx="500" cy="9" r="1"/></svg>')
+    out = tmp_path / "s.json"
+    code, stdout, err = run(capsys, "new", tmp_path / "p.png", "-o", out, "--drawing", tmp_path / "d.svg")
+    assert code == 0 and stdout.startswith(f"wrote {out}"), (stdout, err)
+    assert err.splitlines() == [f"inkwarp new: note: {out}: features[1]: 'far' lies wholly off the picture, so it moves "
+                                f"nothing: its rest points span x 499.5 to 499.5, y 8.5 to 8.5, the picture's pixel "
+                                f"centres x 0 to {W - 1}, y 0 to {H - 1}"], err
+
+
 def test_bad_path_data_names_the_element(capsys, tmp_path):
     Image.fromarray(np.zeros((H, W, 4), np.uint8)).save(tmp_path / "p.png")
     (tmp_path / "d.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg">'

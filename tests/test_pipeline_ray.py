@@ -50,6 +50,10 @@ def test_an_address_nobody_answers_at_is_a_clear_error(capsys, tmp_path):
     with pytest.raises(ValueError, match=rf"^ray='127\.0\.0\.1:{port}': no Ray cluster answers there"):
         inkwarp.render(inkwarp.Scene.load(scene), tmp_path / "a.gif", ray=f"127.0.0.1:{port}", progress=False)
     assert not (tmp_path / "a.gif").exists() and leftovers(tmp_path) == []
+    # A port out of range is named as such (it read "Connection refused", or an overflow).
+    for bad in ("99999", "0"):
+        code, _, err = run(capsys, "render", scene, "-o", tmp_path / "a.gif", "--ray", f"127.0.0.1:{bad}")
+        assert code == 2 and f"--ray 127.0.0.1:{bad}: {bad} is not a port (ports run from 1 to 65535)" in err, err
 
 
 def test_an_address_where_something_else_answers_is_a_clear_error(capsys, tmp_path):

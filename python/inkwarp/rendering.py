@@ -452,6 +452,9 @@ def _check_address(address: str, where: str | None = None, fix: str | None = Non
     if not host or not port.isdigit():
         raise InputError(f"{where}: give the cluster's address as HOST:PORT (such as "
                          "10.0.0.5:6379), ray://HOST:PORT, or auto")
+    if not 0 < int(port) < 65536:
+        raise InputError(f"{where}: {port} is not a port (ports run from 1 to 65535); give the "
+                         "port 'ray status' prints on the head node (6379 unless it was started with another)")
     try:
         with socket.create_connection((host.strip("[]"), int(port)), timeout=5) as conn:
             reply = _http2_reply(conn)

@@ -71,6 +71,13 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         for note in notes:
             print(f"inkwarp new: note: {note}", file=sys.stderr)
+        # What validate would note of the new scene (a traced feature off the picture or on
+        # its transparent pixels), said now rather than at the first render.
+        from inkwarp.cli._common import prefixed
+        from inkwarp.scene import Scene
+
+        for path, message in Scene.load(paths[-1]).notes():
+            print(f"inkwarp new: note: {prefixed(prefixed(message, path), str(paths[-1]))}", file=sys.stderr)
         images = len(paths) - 1
         print(f"wrote {paths[-1]}" + (f" and {images} layer image{'s' if images != 1 else ''}"
                                       if images else ""))

@@ -400,6 +400,11 @@ fn image_problems() {
     entries.push(("matte.png", b"GIF89a....".to_vec()));
     let problems = problems_with(&scene, entries);
     insta::assert_snapshot!(problems.join("\n"), @r#"layers[0].continuity: cannot use "matte.png": a Gif image; inkwarp reads PNG and JPEG, save it as one of those"#);
+    // A layered PSD given as a picture: `inkwarp new` is what reads it.
+    let scene = with(valid_scene(), "/layers/0/image", json!("art.psd"));
+    let mut entries = valid_files();
+    entries.push(("art.psd", b"8BPS\x00\x01....".to_vec()));
+    assert!(problems_with(&scene, entries).join("\n").contains("cannot use \"art.psd\": a Photoshop PSD; 'inkwarp new FILE.psd' makes a scene"));
     let scene = with(
         valid_scene(),
         "/layers/1/alpha",
@@ -913,7 +918,7 @@ fn the_warning_says_why_the_solve_stopped() {
         // Not back to the cap the step was offered for without a way past it.
         (0, Stop::Unsettled, "at grid_step 2 parts of the matte thinner than the step (hair, strands) are too many to settle, so they may be torn apart; use grid_step 1 for this layer (with a higher solver.max_cycles if it stops there)"),
         (1, Stop::Unsettled, "1 px strands are too many to settle, or did not settle; hold those parts with points of their own, or"),
-        (1, Stop::Precision, "finer than the field's precision"),
+        (1, Stop::Precision, "too large for the field's precision (keys far off the picture?)"),
         (1, Stop::Residual, "residual stayed above the tolerance"),
         (1, Stop::Breakdown, "broke down"),
     ] {
