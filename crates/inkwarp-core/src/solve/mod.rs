@@ -72,7 +72,7 @@ pub struct Ablation(u32);
 
 impl Ablation {
     /// The switches' names, in bit order.
-    pub const NAMES: [&'static str; 13] = ["second", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole", "probe", "exact_coarsest", "answers"];
+    pub const NAMES: [&'static str; 14] = ["second", "kcycle", "cache", "fours", "deflate", "strands", "coarse_strands", "affine", "outside", "whole", "probe", "exact_coarsest", "answers", "relative"];
 
     /// The set named by a comma-separated list of [`Ablation::NAMES`] (empty: none).
     pub fn parse(text: &str) -> Result<Ablation, String> {
@@ -608,6 +608,8 @@ fn solve_piece(
     let (mut last_change, mut ratios) = resumed.as_ref().map_or((f64::INFINITY, [0.0f64; 2]), |p| (p.last_change, p.ratios));
     let base = resumed.as_ref().map_or(0, |p| p.cycle); // the cycles run before it
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
+    let scale = if hier.torn && !options.off.has("relative") { constraints.iter().fold(0.0f64, |s, &(_, v)| s.max(v[0].abs()).max(v[1].abs())) } else { f64::INFINITY };
+    let claim = options.tolerance_px.min((RELATIVE_CLAIM * scale).max(0.1 * options.tolerance_px));
     // A single level whose dropped pivots are all free functions' is an exact solve: after its first step only
     // rounding moves, in which neither the ratios nor the Lanczos floor tell a rate.
     let direct = hier.levels.len() == 1 && hier.dropped() <= settled.map_or(0, |m| m.len());
@@ -633,7 +635,7 @@ fn solve_piece(
         let two = if fell && rate.is_none() { two.min(energy_rates[0].max(energy_rates[1])) } else { two };
         let rho = if direct { 0.0 } else { floor.max(two) };
         (last_change, tail) = (change, change * (rho / (1.0 - rho)));
-        (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change.max(tail) <= options.tolerance_px
+        (cycle > 1 || first_may_stop) && change.is_finite() && rho < 0.99 && margin * change.max(tail) <= claim
     };
     // The search direction p is kept in `f32` and its product `q = −A p` in `f64` (the concept doc's Precision).
     let (mut q, mut p) = if resumed.is_some() { (Vec::new(), std::mem::take(&mut hier.direction)) } else {
@@ -697,7 +699,7 @@ fn solve_piece(
                     // checked on the slow modes an earlier solve found (it goes on where they move it), or probed first.
                     let weak = may_probe && settled.is_some() && !found;
                     probe_now = weak && hier.checks.is_none();
-                    if !weak || hier.checks.as_ref().is_some_and(|m| margin * m.largest_move(&r) <= options.tolerance_px) { report.converged = true; break }
+                    if !weak || hier.checks.as_ref().is_some_and(|m| margin * m.largest_move(&r) <= claim) { report.converged = true; break }
                 }
                 if slow.record(cycle, &p, &q) {
                     // A window of directions kept: correct on the slow modes found, restart the directions deflated.
@@ -1036,6 +1038,9 @@ impl Free {
 /// least per cycle (`docs/dev/ablation.md`, "Constants").
 const STOP_MARGIN: f64 = 1.5;
 const TORN_STOP_MARGIN: f64 = 3.0;
+/// A torn piece's claim needs changes within this part of its largest constrained value too: a weakly held part's slow
+/// mode hides for as many cycles whatever the displacements' size (`docs/dev/solver-correctness.md`).
+const RELATIVE_CLAIM: f64 = 1e-3;
 /// The finest tolerance a solve can claim, relative to its answer's largest displacement: about an `f32`'s resolution.
 const FINEST_TOLERANCE: f64 = 1e-7;
 /// The cycles a solve runs at most where `SolveOptions::max_cycles` does not say: well above what the slowest
