@@ -535,6 +535,31 @@ def test_sigterm_mid_render_leaves_nothing_behind(tmp_path, name, said):
     assert sorted(os.listdir(tmp_path)) == ["s"]
 
 
+@pytest.mark.skipif(not hasattr(__import__("signal"), "SIGHUP"), reason="no SIGHUP here")
+def test_a_render_under_nohup_goes_on_when_its_terminal_closes(tmp_path):
+    # nohup starts it with SIGHUP ignored: the render must not take it back.
+    import signal
+    import time
+
+    from _cli_scenes import square_doc
+
+    doc = square_doc()
+    doc["duration"] = 500.0
+    scene = write_scene(tmp_path / "s", doc)
+    process = subprocess.Popen([sys.executable, "-m", "inkwarp.cli", "render", str(scene), "-o", str(tmp_path / "frames"),
+                                "-q"], stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN))
+    deadline = time.monotonic() + 120
+    while not leftovers(tmp_path) and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    process.send_signal(signal.SIGHUP)
+    time.sleep(1.0)
+    assert process.poll() is None, process.communicate()
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 128 + signal.SIGTERM and sorted(os.listdir(tmp_path)) == ["s"], stderr
+
+
 @pytest.mark.parametrize("command", [["render", "{scene}"], ["new", "{picture}"], ["field", "{scene}", "--time", "1"]])
 def test_an_empty_output_is_refused_not_taken_for_here(capsys, tmp_path, monkeypatch, command):
     # -o "$OUT" with OUT unset: nothing is written into the working directory.

@@ -519,6 +519,15 @@ def test_hidden_shapes_of_a_drawing_are_left_out_with_a_note(tmp_path):
         "<g> id='sketch' is hidden (visibility: hidden) and left out, with what it holds but shapes set to "
         "visibility: visible",
         "<g> (without id) is hidden (display: none) and left out"], notes
+    # A value CSS does not know is ignored; a hidden <svg> hides all, and saying so beats
+    # "the SVG has no paths".
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="64" height="48">'
+                   '<path id="brow" visibility="bogus" d="M 10 10 L 30 12" fill="none"/></svg>')
+    assert [f["id"] for f in read_drawing(svg, 64, 48)[0]] == ["brow"]
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="64" height="48" visibility="hidden">'
+                   '<path id="brow" d="M 10 10 L 30 12" fill="none"/></svg>')
+    with pytest.raises(inkwarp.InputError, match="every shape of the SVG is hidden"):
+        read_drawing(svg, 64, 48)
 
 
 def test_new_with_a_drawing_makes_a_scene_that_renders(capsys, tmp_path):

@@ -87,7 +87,7 @@ def test_inkwarp_field_prints_the_same_one_line(tmp_path, capsys):
     assert err.startswith('inkwarp field: warning: layer "front" at t = 1 s (frame 20)')
     # The layer's small torn piece is solved exactly in its one cycle: what stops it is a
     # tolerance finer than the field's float32 precision, and the advice says so.
-    assert "finer than the field's precision; use a coarser solver.tolerance" in err and "max_cycles" not in err
+    assert "finer than the field's precision at these displacements; use a coarser solver.tolerance" in err and "max_cycles" not in err
 
 
 def test_a_solve_that_runs_out_of_cycles_says_raise_max_cycles(tmp_path):

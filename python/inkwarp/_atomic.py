@@ -2,7 +2,7 @@
 
 Every writer in inkwarp writes under a hidden name beside its output,
 ``.<name>.<pid>.<random>.part<suffix>``, and renames it at the end. A run killed by
-SIGKILL or SIGHUP cannot delete its temporary file; the next write to the same output
+SIGKILL (or by SIGHUP outside the command line) cannot delete its temporary file; the next write to the same output
 removes every such file whose process is no longer alive (and, for names written before
 the process id was part of them, those untouched for a day).
 """

@@ -618,7 +618,7 @@ def _sigterm_kept() -> Iterator[None]:
         # (A handler of the caller's own, as the command line's; Python's default gives way to Ray's.)
         if threading.current_thread() is threading.main_thread():
             for number, handler in handlers.items():
-                if callable(handler):
+                if callable(handler) or handler is signal.SIG_IGN:  # (nohup's SIGHUP stays ignored)
                     signal.signal(number, handler)
 
 

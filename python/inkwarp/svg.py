@@ -142,9 +142,10 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
             notes.append(f"{source}: <{tag}> {_name(element)} is hidden (display: none) and "
                          "left out")
             return
-        # Visibility inherits, and a child may show itself again (unlike display: none).
+        # Visibility inherits, and a child may show itself again (unlike display: none); a
+        # value CSS does not know is ignored, as CSS ignores it.
         visibility = style.get("visibility", "").lower()
-        if visibility and shown != (visibility == "visible"):
+        if visibility in ("visible", "hidden", "collapse") and shown != (visibility == "visible"):
             shown = visibility == "visible"
             if not shown:
                 notes.append(f"{source}: <{tag}> {_name(element)} is hidden (visibility: {visibility}) and left out"
@@ -199,9 +200,16 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
     cuts: list[str] = []
     near_cuts: list[str] = []  # names with the letters "cut" that are not cuts
     top = _style(root, rules)
+    hidden = top.get("visibility", "").lower() in ("hidden", "collapse")
+    if hidden:
+        notes.append(f"{source}: the <svg> is hidden (visibility: {top['visibility'].lower()}): its shapes are left out "
+                     "but those set to visibility: visible")
     for child in root:
         visit(child, root_transform, top.get("fill", "black"), top.get("fill-opacity", "1"), _says_cut(_words(root)),
-              top.get("visibility", "visible").lower() == "visible")
+              not hidden)
+    if not features and any(" is hidden (" in note for note in notes):
+        raise InputError(f"{source}: every shape of the SVG is hidden (display: none, or visibility: hidden or "
+                         "collapse), so none makes a feature; show the layers that hold the tracing and save again")
     if not features:
         raise InputError(f"{source}: the SVG has no paths, lines, polylines, polygons, "
                          "rectangles or circles to make features of; trace the features "

@@ -50,7 +50,7 @@ def _load(scene: Any, role: str) -> tuple[dict[str, Any], Path | None]:
 
         path = Path(scene)
         if not path.exists():
-            raise MissingFileError(f"the {role} scene {path} does not exist.")
+            raise MissingFileError(2, f"the {role} scene does not exist", str(path))
         # The scene files' one reader and checks: a picture given as the scene, a folder,
         # bytes that are not UTF-8, and every mistake with its place, as render says them.
         text = read_scene_text(path)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import importlib
 import os
 import signal
@@ -79,7 +80,9 @@ def error_message(err: BaseException) -> str:
             line += f" (and {more} more problem{'s' if more > 1 else ''}: '{where}' lists all)"
         return " ".join(line.split())
     if isinstance(err, FileNotFoundError) and err.filename:
-        return f"{err.filename}: no such file or directory"
+        # (Python's own words lower-cased; inkwarp's own, such as "the source scene does not exist", kept.)
+        why = err.strerror if err.strerror and err.strerror != os.strerror(errno.ENOENT) else "no such file or directory"
+        return f"{err.filename}: {why}"
     if isinstance(err, OSError) and err.filename and err.strerror:
         return f"{err.filename}: {err.strerror}"
     return " ".join(str(err).split()) or type(err).__name__
@@ -95,6 +98,10 @@ class Terminated(BaseException):
 
 
 def _on_signal(signum: int, frame: object) -> None:
+    # A closed terminal often sends SIGHUP twice (the shell's, then the kernel's): the second
+    # must not land in the cleanup the first starts.
+    for number in UNWINDING:
+        signal.signal(number, signal.SIG_IGN)
     raise Terminated(signum)
 
 

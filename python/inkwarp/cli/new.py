@@ -55,7 +55,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from inkwarp.importing import write_new_scene
 
-    from inkwarp.errors import SceneError
+    from inkwarp.errors import InkwarpError, SceneError
 
     if not (math.isfinite(args.duration) and args.duration > 0):
         raise ValueError(f"--duration {args.duration}: give a length in seconds > 0, such as 2")
@@ -76,7 +76,12 @@ def run(args: argparse.Namespace) -> int:
         from inkwarp.cli._common import prefixed
         from inkwarp.scene import Scene
 
-        for path, message in Scene.load(paths[-1]).notes():
+        # (The scene is written: a failure to read it back, a file removed at once, is not this command's.)
+        try:
+            written = Scene.load(paths[-1]).notes()
+        except (InkwarpError, OSError):
+            written = []
+        for path, message in written:
             print(f"inkwarp new: note: {prefixed(prefixed(message, path), str(paths[-1]))}", file=sys.stderr)
         images = len(paths) - 1
         print(f"wrote {paths[-1]}" + (f" and {images} layer image{'s' if images != 1 else ''}"

@@ -224,9 +224,7 @@ impl ThinPlateMap {
     }
 
     /// `p` in the normalised coordinates of the fit.
-    fn normalised(&self, p: Point) -> Point {
-        [(p[0] - self.origin[0]) / self.scale, (p[1] - self.origin[1]) / self.scale]
-    }
+    fn normalised(&self, p: Point) -> Point { [(p[0] - self.origin[0]) / self.scale, (p[1] - self.origin[1]) / self.scale] }
 
     /// `I + g / scale`: a gradient in normalised coordinates as a Jacobian in pixels.
     fn identity_plus(&self, g: [[f64; 2]; 2]) -> [[f64; 2]; 2] {

@@ -194,9 +194,7 @@ pub struct PreparedLayer<'a> {
 }
 
 impl std::fmt::Debug for PreparedLayer<'_> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("PreparedLayer").field("width", &self.layer.w).field("height", &self.layer.h).finish_non_exhaustive()
-    }
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result { f.debug_struct("PreparedLayer").field("width", &self.layer.w).field("height", &self.layer.h).finish_non_exhaustive() }
 }
 
 impl<'a> PreparedLayer<'a> {

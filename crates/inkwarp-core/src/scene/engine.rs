@@ -258,7 +258,8 @@ impl Scene {
             }
             Stop::Unsettled if solver.grid_step > 1 => format!("at grid_step {} parts of the matte thinner than the step (hair, strands) are too many to settle, so they may be torn apart; use grid_step 1 for this layer (with a higher solver.max_cycles if it stops there), or hold those parts with points of their own", solver.grid_step),
             Stop::Unsettled => "parts of the surface joined to the rest at single points or by 1 px strands are too many to settle, or did not settle; hold those parts with points of their own, or use another method".to_string(),
-            Stop::Precision => if solver.tolerance >= 0.01 { "its displacements are too large for the field's precision (keys far off the picture?); scale such keys to the picture" } else { "the tolerance is finer than the field's precision; use a coarser solver.tolerance" }.to_string(),
+            // (From the default tolerance up, only displacements of 10⁵ px and more reach the f32 field's precision.)
+            Stop::Precision => if solver.tolerance >= 0.01 { "its displacements are too large for the field's precision (keys far off the picture?); scale such keys to the picture" } else { "the tolerance is finer than the field's precision at these displacements; use a coarser solver.tolerance (or scale keys far off the picture to it)" }.to_string(),
             Stop::Residual => "its residual stayed above the tolerance; lower solver.tolerance, or use another method".to_string(),
             Stop::Interrupted => "it was interrupted".to_string(),
             Stop::Breakdown | Stop::Converged => "its iteration broke down; give the layer a tension, or use another method".to_string(),

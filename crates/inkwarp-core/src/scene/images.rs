@@ -28,7 +28,7 @@ pub fn data_uri_bytes(uri: &str) -> Result<Vec<u8>, String> {
 
 /// Decodes a PNG or JPEG into straight-alpha RGBA8, upright by its EXIF orientation.
 pub fn decode_image(bytes: &[u8]) -> Result<RgbaImage, String> {
-    if bytes.starts_with(b"8BPS") { return Err("a Photoshop PSD; 'inkwarp new FILE.psd' makes a scene of its layers (a PNG each), or save it as PNG".into()) }
+    if bytes.starts_with(b"8BPS") { return Err("a Photoshop PSD, not a PNG or JPEG image; save it, or each of its layers, as PNG".into()) }
     let format = image::guess_format(bytes)
         .map_err(|_| "not a PNG or JPEG image (unrecognised file contents); save it as PNG or JPEG")?;
     if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {

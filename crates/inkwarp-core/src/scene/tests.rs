@@ -404,7 +404,7 @@ fn image_problems() {
     let scene = with(valid_scene(), "/layers/0/image", json!("art.psd"));
     let mut entries = valid_files();
     entries.push(("art.psd", b"8BPS\x00\x01....".to_vec()));
-    assert!(problems_with(&scene, entries).join("\n").contains("cannot use \"art.psd\": a Photoshop PSD; 'inkwarp new FILE.psd' makes a scene"));
+    insta::assert_snapshot!(problems_with(&scene, entries).join("\n"), @r#"layers[0].image: cannot use "art.psd": a Photoshop PSD, not a PNG or JPEG image; save it, or each of its layers, as PNG"#);
     let scene = with(
         valid_scene(),
         "/layers/1/alpha",
