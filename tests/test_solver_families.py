@@ -470,13 +470,14 @@ def test_long_straight_free_strands_take_a_bounded_number_of_cycles(length):
     # A straight 1 px strand that no point holds extends its root's slope: its own system
     # is factored exactly (shifted, or with its smallest pivots dropped, its slowest bending
     # was left to the cycle: 67 / 960 cycles at 600 / 1000 px). Every strand length up to
-    # about 1,400 px takes about as many cycles (1,200: 26). Judged by the direct solve (a
+    # about 1,400 px takes about as many cycles (1,200: 49, 36 of them before a torn piece's
+    # claim waited for changes under 10⁻³ of its displacements). Judged by the direct solve (a
     # solve to a tighter tolerance is no reference here: on such strands it can claim
     # convergence it has not reached, see docs/dev/solver-correctness.md).
     m, pts = straight_comb(length)
     disp = np.random.default_rng(0).normal(0, 4, pts.shape)
     _, report = check_against_oracle(Problem(m.shape, pts, disp, mask=m), f"straight strands {length} px", _off="")
-    assert report.cycles <= 40, report
+    assert report.cycles <= 50, report
 
 
 def solve_near_tight(m, pts, disp, tolerance=1e-5, max_cycles=400, solver=None):
