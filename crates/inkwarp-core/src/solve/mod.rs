@@ -608,9 +608,7 @@ fn solve_piece(
     let (mut last_change, mut ratios) = resumed.as_ref().map_or((f64::INFINITY, [0.0f64; 2]), |p| (p.last_change, p.ratios));
     let base = resumed.as_ref().map_or(0, |p| p.cycle); // the cycles run before it
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
-    // (Half the constrained values' range: a translation is solved exactly, whatever its size.)
-    let range = |c: usize| constraints.iter().fold([f64::INFINITY, -f64::INFINITY], |[lo, hi], &(_, v)| [lo.min(v[c]), hi.max(v[c])]);
-    let scale = if hier.torn && !options.off.has("relative") { (0..2).map(|c| { let [lo, hi] = range(c); 0.5 * (hi - lo) }).fold(0.0, f64::max) } else { f64::INFINITY };
+    let scale = if hier.torn && !options.off.has("relative") { constraints.iter().fold(0.0f64, |s, &(_, v)| s.max(v[0].abs()).max(v[1].abs())) } else { f64::INFINITY };
     let claim = options.tolerance_px.min((RELATIVE_CLAIM * scale).max(0.1 * options.tolerance_px));
     // A single level whose dropped pivots are all free functions' is an exact solve: after its first step only
     // rounding moves, in which neither the ratios nor the Lanczos floor tell a rate.
@@ -1040,8 +1038,8 @@ impl Free {
 /// least per cycle (`docs/dev/ablation.md`, "Constants").
 const STOP_MARGIN: f64 = 1.5;
 const TORN_STOP_MARGIN: f64 = 3.0;
-/// A torn piece's claim needs changes within this part of its constrained values' half range too: a weakly held part's
-/// slow mode hides for as many cycles whatever the displacements' size (`docs/dev/solver-correctness.md`).
+/// A torn piece's claim needs changes within this part of its largest constrained value too: a weakly held part's slow
+/// mode hides for as many cycles whatever the displacements' size (`docs/dev/solver-correctness.md`).
 const RELATIVE_CLAIM: f64 = 1e-3;
 /// The finest tolerance a solve can claim, relative to its answer's largest displacement: about an `f32`'s resolution.
 const FINEST_TOLERANCE: f64 = 1e-7;
