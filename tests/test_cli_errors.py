@@ -544,7 +544,7 @@ def test_a_render_under_nohup_goes_on_when_its_terminal_closes(tmp_path):
     from _cli_scenes import square_doc
 
     doc = square_doc()
-    doc["duration"] = 500.0
+    doc["duration"] = 5000.0  # 20,000 frames: running still when it is looked at
     scene = write_scene(tmp_path / "s", doc)
     process = subprocess.Popen([sys.executable, "-m", "inkwarp.cli", "render", str(scene), "-o", str(tmp_path / "frames"),
                                 "-q"], stderr=subprocess.PIPE, text=True,
@@ -553,7 +553,7 @@ def test_a_render_under_nohup_goes_on_when_its_terminal_closes(tmp_path):
     while not leftovers(tmp_path) and process.poll() is None and time.monotonic() < deadline:
         time.sleep(0.02)
     process.send_signal(signal.SIGHUP)
-    time.sleep(1.0)
+    time.sleep(0.5)
     assert process.poll() is None, process.communicate()
     process.send_signal(signal.SIGTERM)
     _, stderr = process.communicate(timeout=120)
