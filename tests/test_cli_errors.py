@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -504,29 +505,36 @@ def test_no_command_prints_help_and_exits_2(capsys):
     assert "usage: inkwarp" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("name, said", [("SIGTERM", "terminated"), ("SIGHUP", "hung up")])
-def test_sigterm_mid_render_leaves_nothing_behind(tmp_path, name, said):
-    # SIGHUP: the terminal closed or the SSH session was lost. Its default action killed the
-    # render with its temporary file left beside the output.
-    import signal
+def render_underway(tmp_path, duration, signum, action):
+    """A render of the square scene lasting `duration` seconds (4 frames a second) into PNG
+    frames, in a child process whose signal `signum` starts as `action` (a run may ignore
+    SIGHUP, as under nohup, and its children with it), once its first temporary file is there."""
     import time
 
     from _cli_scenes import square_doc
 
-    number = getattr(signal, name, None)
-    if number is None:
-        pytest.skip(f"no {name} here")
     doc = square_doc()
-    doc["duration"] = 500.0  # 2000 frames: far more than the time it takes to stop it
+    doc["duration"] = duration
     scene = write_scene(tmp_path / "s", doc)
-    out = tmp_path / "frames"
-    # (The signal's default action in the child, though this run may ignore SIGHUP, as under nohup.)
-    process = subprocess.Popen([sys.executable, "-m", "inkwarp.cli", "render", str(scene),
-                                "-o", str(out), "-q"], stderr=subprocess.PIPE, text=True,
-                               preexec_fn=lambda: signal.signal(number, signal.SIG_DFL))
+    process = subprocess.Popen([sys.executable, "-m", "inkwarp.cli", "render", str(scene), "-o", str(tmp_path / "frames"),
+                                "-q"], stderr=subprocess.PIPE, text=True, preexec_fn=lambda: signal.signal(signum, action))
     deadline = time.monotonic() + 120
     while not leftovers(tmp_path) and process.poll() is None and time.monotonic() < deadline:
         time.sleep(0.02)
+    return process
+
+
+@pytest.mark.parametrize("name, said", [("SIGTERM", "terminated"), ("SIGHUP", "hung up")])
+def test_sigterm_mid_render_leaves_nothing_behind(tmp_path, name, said):
+    # SIGHUP: the terminal closed or the SSH session was lost. Its default action killed the
+    # render with its temporary file left beside the output.
+    import time
+
+    number = getattr(signal, name, None)
+    if number is None:
+        pytest.skip(f"no {name} here")
+    # 2000 frames: far more than the time it takes to stop it.
+    process = render_underway(tmp_path, 500.0, number, signal.SIG_DFL)
     time.sleep(0.2)  # a few frames in
     process.send_signal(number)
     _, stderr = process.communicate(timeout=120)
@@ -535,23 +543,13 @@ def test_sigterm_mid_render_leaves_nothing_behind(tmp_path, name, said):
     assert sorted(os.listdir(tmp_path)) == ["s"]
 
 
-@pytest.mark.skipif(not hasattr(__import__("signal"), "SIGHUP"), reason="no SIGHUP here")
+@pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="no SIGHUP here")
 def test_a_render_under_nohup_goes_on_when_its_terminal_closes(tmp_path):
     # nohup starts it with SIGHUP ignored: the render must not take it back.
-    import signal
     import time
 
-    from _cli_scenes import square_doc
-
-    doc = square_doc()
-    doc["duration"] = 5000.0  # 20,000 frames: running still when it is looked at
-    scene = write_scene(tmp_path / "s", doc)
-    process = subprocess.Popen([sys.executable, "-m", "inkwarp.cli", "render", str(scene), "-o", str(tmp_path / "frames"),
-                                "-q"], stderr=subprocess.PIPE, text=True,
-                               preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN))
-    deadline = time.monotonic() + 120
-    while not leftovers(tmp_path) and process.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.02)
+    # 20,000 frames: running still when it is looked at.
+    process = render_underway(tmp_path, 5000.0, signal.SIGHUP, signal.SIG_IGN)
     process.send_signal(signal.SIGHUP)
     time.sleep(0.5)
     assert process.poll() is None, process.communicate()

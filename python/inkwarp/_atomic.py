@@ -2,9 +2,10 @@
 
 Every writer in inkwarp writes under a hidden name beside its output,
 ``.<name>.<pid>.<random>.part<suffix>``, and renames it at the end. A run killed by
-SIGKILL (or by SIGHUP outside the command line) cannot delete its temporary file; the next write to the same output
-removes every such file whose process is no longer alive (and, for names written before
-the process id was part of them, those untouched for a day).
+SIGKILL (or by SIGHUP outside the command line) cannot delete its temporary file; the
+next write to the same output removes every such file whose process is no longer alive
+(and, for names written before the process id was part of them, those untouched for a
+day).
 """
 
 from __future__ import annotations

@@ -20,6 +20,12 @@ CURVES: tuple[str, ...] = ("polyline", "spline")
 Kind = Literal["point", "polyline", "spline", "region", "cut"]
 
 
+def off_picture(points: np.ndarray, w: int, h: int, margin: float) -> np.ndarray:
+    """Which of the ``(N, 2)`` points lie more than ``margin`` pixels off a ``w × h``
+    picture (pixel centres 0 to w − 1, 0 to h − 1; a negative margin reaches inside it)."""
+    return ((points < -margin) | (points > np.array([w - 1, h - 1]) + margin)).any(axis=1)
+
+
 def _count(n: int) -> str:
     return f"{n} point" if n == 1 else f"{n} points"
 

@@ -611,7 +611,9 @@ def _sigterm_kept() -> Iterator[None]:
     import signal
     import threading
 
-    handlers = {number: signal.getsignal(number) for number in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if number}
+    from inkwarp.cli._common import UNWINDING
+
+    handlers = {number: signal.getsignal(number) for number in UNWINDING}
     try:
         yield
     finally:

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from inkwarp import _inkwarp
+from inkwarp.drawing import off_picture
 from inkwarp.errors import InputError, MissingFileError, SceneError
 
 __all__ = ["WARM_CHAIN_FRAMES", "Frames", "Scene", "image_data_uri", "preroll_start", "scene_schema",
@@ -958,32 +959,30 @@ class Scene:
                               "does so)"))
         return notes
 
-    def _outside_keys(self) -> list[Problem]:
-        """The notes on keys after the scene's end or before its start (:meth:`notes`);
-        ``inkwarp render`` gives them too, since they cut the animation short at either end."""
-        return [note for i, feature in enumerate(self.to_dict().get("features", [])) for note in self._outside_keys_of(i, feature)]
+    def _outside_keys(self, still: bool = False) -> list[Problem]:
+        """The notes on keys after the scene's end or before its start, or far off the picture
+        (:meth:`notes`); ``inkwarp render`` gives them too, since they cut the animation short
+        at either end or smear it. ``still``: only those a single frame shows (far off)."""
+        return [note for i, feature in enumerate(self.to_dict().get("features", [])) for note in self._outside_keys_of(i, feature, still)]
 
-    def _outside_keys_of(self, i: int, feature: dict[str, Any]) -> list[Problem]:
-        """The notes on the keys of ``feature`` (``features[i]``) after the scene's end, or
-        before its start (0 s), and on its keys whose points lie further off the picture
-        than its longer side (pasted from a larger tracing, or in other units)."""
+    def _outside_keys_of(self, i: int, feature: dict[str, Any], still: bool = False) -> list[Problem]:
+        """The notes on the keys of ``feature`` (``features[i]``) whose points lie further off
+        the picture than its longer side (pasted from a larger tracing, or in other units), and
+        unless ``still``, on those after the scene's end or before its start (0 s)."""
         duration, keys, notes = self.duration, feature.get("keys", []), []
+        (w, h), points = (self.width, self.height), [np.asarray(key.get("points") or [], np.float64).reshape(-1, 2) for key in keys]
         # (A feature at rest off the picture pulls nothing: its samples are dropped.)
-        reach, rest = max(self.width, self.height), np.asarray(feature["rest"], dtype=np.float64).reshape(-1, 2)
-        pulls = feature["kind"] != "cut" and ((rest >= -0.5) & (rest <= [self.width - 0.5, self.height - 0.5])).all(axis=1).any()
-        far = [k for k, key in enumerate(keys) if pulls and (key.get("points") or []) and (
-            (np.asarray(key["points"], dtype=np.float64) < -reach)
-            | (np.asarray(key["points"], dtype=np.float64) > np.array([self.width - 1, self.height - 1]) + reach)).any()]
+        pulls = feature["kind"] != "cut" and not off_picture(np.asarray(feature["rest"], np.float64).reshape(-1, 2), w, h, 0.5).all()
+        far = [k for k, p in enumerate(points) if pulls and off_picture(p, w, h, max(w, h)).any()]
         if far:
-            points = np.asarray(keys[far[0]]["points"], dtype=np.float64).reshape(-1, 2)
-            (x0, y0), (x1, y1) = points.min(axis=0), points.max(axis=0)
+            (x0, y0), (x1, y1) = points[far[0]].min(axis=0), points[far[0]].max(axis=0)
             more = f" (and {len(far) - 1} more of its keys)" if len(far) > 1 else ""
             notes.append((f"features[{i}].keys[{far[0]}].points",
                           f"{feature['id']!r} has a key at {keys[far[0]]['t']:g} s{more} whose points reach x {x0:g} to "
-                          f"{x1:g}, y {y0:g} to {y1:g}, further off the picture ({self.width} x {self.height}) than its "
+                          f"{x1:g}, y {y0:g} to {y1:g}, further off the picture ({w} x {h}) than its "
                           "longer side: the surface is pulled that far, and the picture smears; were the points "
                           "traced on a larger picture? scale them to this one"))
-        for k, key in enumerate(keys):
+        for k, key in enumerate(keys if not still else []):
             if key["t"] > duration + 1e-9:
                 notes.append((f"features[{i}].keys[{k}].t",
                               f"{feature['id']!r} has a key at {key['t']:g} s, after the scene's end ({duration:g} s): "

@@ -132,6 +132,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
     features: list[dict[str, Any]] = []
     ids: set[str] = set()
     counts: dict[str, int] = {}
+    hidden: list[str] = []  # what display or visibility hides, named for the error if nothing shows
 
     def visit(element: ET.Element, transform: Affine, fill: str, opacity: str, cut: bool, shown: bool) -> None:
         tag = _tag(element)
@@ -139,6 +140,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
             return
         style = _style(element, rules)
         if style.get("display") == "none":
+            hidden.append(_name(element))
             notes.append(f"{source}: <{tag}> {_name(element)} is hidden (display: none) and "
                          "left out")
             return
@@ -148,6 +150,7 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
         if visibility in ("visible", "hidden", "collapse") and shown != (visibility == "visible"):
             shown = visibility == "visible"
             if not shown:
+                hidden.append(_name(element))
                 notes.append(f"{source}: <{tag}> {_name(element)} is hidden (visibility: {visibility}) and left out"
                              + (", with what it holds but shapes set to visibility: visible" if len(element) else ""))
         here = _compose(transform, _parse_transform(element.get("transform", ""), source,
@@ -200,16 +203,18 @@ def read_drawing(path: str | os.PathLike[str], width: int, height: int
     cuts: list[str] = []
     near_cuts: list[str] = []  # names with the letters "cut" that are not cuts
     top = _style(root, rules)
-    hidden = top.get("visibility", "").lower() in ("hidden", "collapse")
-    if hidden:
+    root_shown = top.get("visibility", "").lower() not in ("hidden", "collapse")
+    if not root_shown:
+        hidden.append("<svg>")
         notes.append(f"{source}: the <svg> is hidden (visibility: {top['visibility'].lower()}): its shapes are left out "
                      "but those set to visibility: visible")
     for child in root:
         visit(child, root_transform, top.get("fill", "black"), top.get("fill-opacity", "1"), _says_cut(_words(root)),
-              not hidden)
-    if not features and any(" is hidden (" in note for note in notes):
+              root_shown)
+    if not features and hidden:
         raise InputError(f"{source}: every shape of the SVG is hidden (display: none, or visibility: hidden or "
-                         "collapse), so none makes a feature; show the layers that hold the tracing and save again")
+                         f"collapse: {', '.join(hidden[:3])}{', ...' if len(hidden) > 3 else ''}), so none makes a "
+                         "feature; show the layers that hold the tracing and save again")
     if not features:
         raise InputError(f"{source}: the SVG has no paths, lines, polylines, polygons, "
                          "rectangles or circles to make features of; trace the features "

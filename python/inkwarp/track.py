@@ -67,6 +67,7 @@ from typing import Any
 
 import numpy as np
 
+from inkwarp.drawing import off_picture
 from inkwarp.errors import InkwarpWarning, InputError, MissingFileError, caller_outside
 
 __all__ = ["Video", "read_video", "read_frame", "track", "track_dict", "simplify_keys",
@@ -499,7 +500,7 @@ class _Tracker:
         eig0 = _bilinear(self.min_eig(anchor)[..., None], start_points)[:, 0]
         textured_at_anchor = eig0 > TRUST_MIN_EIG
         # Points whose window reached past the picture's edge where traced (see `whole` below).
-        near_edge = _off_picture(start_points, w, h, -LK_WINDOW_PX / 2)
+        near_edge = off_picture(start_points, w, h, -LK_WINDOW_PX / 2)
         current = start_points.copy()
         # Where each point was last confirmed: a lost point is looked for there again.
         last_seen = start_points.copy()
@@ -590,7 +591,7 @@ class _Tracker:
             # a flat box, or slid onto flat skin, passes any forward-backward check).
             textured_now = textured_at_anchor & (
                 _bilinear(self.min_eig(k)[..., None], best)[:, 0] > TRUST_MIN_EIG)
-            inside = ~_off_picture(best, w, h, 0.0)
+            inside = ~off_picture(best, w, h, 0.0)
             # (the texture at the estimate, or where a lost point was found again)
             trusted = np.where(regained, textured_now, textured) & ((local_fb < TRUST_FB_PX) | use_anchor) & inside
             # A point its curve's neighbours on both sides disagree with, where they agree with
@@ -650,7 +651,7 @@ class _Tracker:
             # Kanade trusts, with its whole window on the picture: one leaving it matches what
             # is left of its texture at the edge (border pixels repeated), or an edge beside
             # it, well enough to pass the looser checks, far from where it went.
-            whole = ~_off_picture(best, w, h, -LK_WINDOW_PX / 2) | near_edge
+            whole = ~off_picture(best, w, h, -LK_WINDOW_PX / 2) | near_edge
             again = (use_anchor | regained) & whole
             # An odd point is placed by its neighbours, so its place is checked by theirs: how far it
             # lies from their move, and no better than the worst of their own checks.
@@ -670,7 +671,7 @@ class _Tracker:
             # Any point placed more than `lost_px` off the picture is lost too: nothing there
             # confirms it (an untextured one follows the thin plate of the others, which can
             # carry it out of the frame over a background that stays).
-            off = _off_picture(best, w, h, lost_px)
+            off = off_picture(best, w, h, lost_px)
             # A lost point's error is what its check found (a drift, a failed check), or
             # infinite where nothing could be checked (no texture, off the picture).
             unseen = off | (lost & (checked <= lost_px))
@@ -694,11 +695,6 @@ def _affine_misfit(rest: np.ndarray, now: np.ndarray) -> float:
     a = np.column_stack([rest, np.ones(len(rest))])
     fit, *_ = np.linalg.lstsq(a, now, rcond=None)
     return float(np.median(np.linalg.norm(a @ fit - now, axis=1)))
-
-
-def _off_picture(points: np.ndarray, w: int, h: int, margin: float) -> np.ndarray:
-    """Which points lie more than ``margin`` pixels off a ``w × h`` picture."""
-    return ((points < -margin) | (points > np.array([w - 1, h - 1]) + margin)).any(axis=1)
 
 
 def _neighbours(features: list[_Feature], points: np.ndarray) -> np.ndarray:
@@ -860,7 +856,7 @@ def _features(doc: dict[str, Any], fps: float, count: int, frame: int, where: st
                 continue
             # A correction far off the picture (a typed coordinate gone wrong) is tracked from
             # where nothing can be seen, and the lost track's warning would point back at it.
-            if f.get("kind") != "cut" and _off_picture(points, w, h, max(w, h)).any():
+            if f.get("kind") != "cut" and off_picture(points, w, h, max(w, h)).any():
                 far = float(np.max(np.maximum(-points, points - [w - 1, h - 1])))
                 warnings.warn(f"{where}: features[{i}] ({f['id']}): its key at t = {key['t']} s (frame {k}) "
                               f"has a point {far:.0f} px off the {w}x{h} picture, where the tracker sees "
@@ -1128,7 +1124,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
     # A feature partly off the picture where traced (a shoulder running out of the frame):
     # its points there are unseen in the same way, named so, and only its points on the
     # picture are judged for texture and for a lost track.
-    beside = _off_picture(at_k, clip.width, clip.height, 0.5)
+    beside = off_picture(at_k, clip.width, clip.height, 0.5)
     outside = {f.id for f in features if beside[f.rows].all()}
     partly = {f.id: int(beside[f.rows][:len(f.rest)].sum()) for f in features
               if f.id not in outside and beside[f.rows].any()}
@@ -1147,7 +1143,7 @@ def track_dict(video: str | os.PathLike[str] | Video, scene: Any, frame: int = 0
             # checked and found off (not merely unseen: a corner on the picture's edge), or is
             # placed more than `lost_px` off the picture (a still corner the others carry out).
             keys = err[:len(f.rest)][seen[:len(f.rest)]]
-            carried = _off_picture(series[k], clip.width, clip.height, lost_px)[seen[:len(f.rest)]]
+            carried = off_picture(series[k], clip.width, clip.height, lost_px)[seen[:len(f.rest)]]
             keys_off = bool(np.any(np.isfinite(keys) & (keys > lost_px)) or carried.any())
             if np.median(err[seen]) > lost_px or keys_off:
                 lost.setdefault(f.id, []).append(k)
@@ -1202,7 +1198,7 @@ def _untextured(tracker: _Tracker, k: int, f: _Feature, pose: np.ndarray) -> boo
     texture (a flat area the tracker cannot see move)."""
     points = _all_points([f], [pose])
     h, w = tracker.frames[k].shape
-    on = ~_off_picture(points, w, h, 0.5)
+    on = ~off_picture(points, w, h, 0.5)
     eig = _bilinear(tracker.min_eig(k)[..., None], points)[:, 0]
     return bool(on.any() and np.mean(eig[on] <= TRUST_MIN_EIG) > 0.5)
 

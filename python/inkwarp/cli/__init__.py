@@ -18,7 +18,7 @@ import threading
 import traceback
 import warnings
 
-from inkwarp.cli._common import prefixed, problem_parts
+from inkwarp.cli._common import UNWINDING, prefixed, problem_parts
 from inkwarp.errors import InkwarpError, InternalError, OutputWriteError, PastEndWarning, SceneError, WorkerLostError
 
 # The command modules, in the order `inkwarp --help` lists them.
@@ -92,7 +92,7 @@ class Terminated(BaseException):
     """SIGTERM, or SIGHUP (the terminal closed, an SSH session lost), raised where the program
     is, so that writers delete their partial output. ``signum`` is the signal's number."""
 
-    def __init__(self, signum: int = signal.SIGTERM) -> None:
+    def __init__(self, signum: int) -> None:
         super().__init__(signum)
         self.signum = signum
 
@@ -103,11 +103,6 @@ def _on_signal(signum: int, frame: object) -> None:
     for number in UNWINDING:
         signal.signal(number, signal.SIG_IGN)
     raise Terminated(signum)
-
-
-#: The signals that end a command as Ctrl-C does: a scheduler's SIGTERM, and SIGHUP where
-#: a terminal or session closes (left alone where it is ignored, as under ``nohup``).
-UNWINDING = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
 @contextlib.contextmanager

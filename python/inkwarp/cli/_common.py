@@ -6,13 +6,18 @@ import argparse
 import contextlib
 import math
 import os
+import signal
 import sys
 import time
 from collections.abc import Iterable, Iterator
 from typing import Any
 
 from inkwarp._inkwarp import MAX_TIME_S
-from inkwarp.errors import InputError, MissingFileError
+from inkwarp.errors import InputError
+
+#: The signals that end a command as Ctrl-C does: a scheduler's SIGTERM, and SIGHUP where
+#: a terminal or session closes (left alone where it is ignored, as under ``nohup``).
+UNWINDING = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 #: The surfaces a drawing can drive (DESIGN §6); ``tps`` is the grid thin plate.
 METHODS = ("tps", "tps-exact", "triangulation", "beier-neely")
@@ -38,12 +43,11 @@ def load_scene(path: str) -> Any:
     """``inkwarp.Scene`` from a file.
 
     The engine's errors pass through unchanged (a :class:`~inkwarp.SceneError` names the
-    file and the JSON path); a missing file is a ``FileNotFoundError`` naming it.
+    file and the JSON path); a missing file is
+    :meth:`~inkwarp.Scene.load`'s ``MissingFileError`` naming it.
     """
     import inkwarp
 
-    if not os.path.exists(path):
-        raise MissingFileError(2, "No such file or directory", path)
     if os.path.isdir(path):
         raise IsADirectoryError(21, "is a directory, not a scene file", path)
     return inkwarp.Scene.load(path)

@@ -189,9 +189,7 @@ def _run(args: argparse.Namespace) -> int:
     if not args.quiet:
         # A key after the end (or before the start) cuts the animation short, one far off the
         # picture smears it (a still frame too): said here too, not only by validate.
-        for path, message in scene._outside_keys():
-            if kind == "png" and not path.endswith(".points"):
-                continue
+        for path, message in scene._outside_keys(still=kind == "png"):
             print(f"inkwarp render: note: {_common.prefixed(_common.prefixed(message, path), args.scene)}",
                   file=sys.stderr, flush=True)
     started = time.perf_counter()
