@@ -695,11 +695,12 @@ fn solve_piece(
                 }
                 slow.step(alpha);
                 if stop(slow.judged(change), cycle, &mut report, slow.rate_floor(), [alpha[0] * along[0], alpha[1] * along[1]]) {
-                    // A piece with free functions is weakly held (slow motions the changes do not show): its claim is
-                    // checked on the slow modes an earlier solve found (it goes on where they move it), or probed first.
+                    // A claim is checked on the slow modes an earlier solve found (it goes on where they move it): a
+                    // warm start's error can lie in them, unseen by the changes before and after this solve's own
+                    // probe. A piece with free functions is weakly held: with nothing to check, it probes first.
                     let weak = may_probe && settled.is_some() && !found;
                     probe_now = weak && hier.checks.is_none();
-                    if !weak || hier.checks.as_ref().is_some_and(|m| margin * m.largest_move(&r) <= claim) { report.converged = true; break }
+                    if hier.checks.as_ref().map_or(!weak, |m| margin * m.largest_move(&r) <= claim) { report.converged = true; break }
                 }
                 if slow.record(cycle, &p, &q) {
                     // A window of directions kept: correct on the slow modes found, restart the directions deflated.
