@@ -288,7 +288,7 @@ impl Modes {
     pub fn largest_move(&self, r: &[V2]) -> f64 {
         let Some(c) = coefficients(&self.0, &self.2, r) else { return f64::INFINITY };
         r.par_chunks(CHUNK).enumerate().map(|(ch, r)| {
-            combination(&self.0, &c, ch * CHUNK, r.len()).iter().fold(0.0f64, |m, d| m.max(d[0].abs()).max(d[1].abs()))
+            super::largest(combination(&self.0, &c, ch * CHUNK, r.len()).into_iter())
         }).reduce(|| 0.0, f64::max)
     }
 

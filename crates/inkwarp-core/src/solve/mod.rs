@@ -332,7 +332,7 @@ pub(crate) fn solve_constrained(
             let mut values: Vec<V2> = (0..bw * bh).map(|j| m(j % bw, j / bw)).collect();
             // The constrained nodes hold their values exactly, not to the map's rounding.
             value.iter().for_each(|&(j, v)| values[j] = v);
-            exact = values.iter().fold(exact, |m, v| m.max(v[0].abs()).max(v[1].abs()));
+            exact = exact.max(largest(values.iter().copied()));
             write_piece(&mut field, &labels, l as u32, boxes[l], &BoxValues { values, stride: bw, first: 0 });
             if keep { store.free.put(store.solve, key, free) }
             continue;
@@ -606,9 +606,9 @@ fn solve_piece(
     let (mut last_change, mut ratios) = resumed.as_ref().map_or((f64::INFINITY, [0.0f64; 2]), |p| (p.last_change, p.ratios));
     let base = resumed.as_ref().map_or(0, |p| p.cycle); // the cycles run before it
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
-    // A torn piece's claim is relative to its largest constrained value; a warm start's on a new hierarchy (nothing
-    // to check it on) to how far its constrained values move: the size of the correction it solves.
-    let moved = |(f, x0, y0): (FieldView<'_>, usize, usize)| largest(value.iter().map(|&(i, v)| { let o = f.at_index((y0 + i / w) * f.width() + x0 + i % w); [v[0] - o[0] as f64, v[1] - o[1] as f64] }));
+    // A torn piece's claim is relative to its largest constrained value; a warm start's on a new hierarchy (no earlier
+    // solve's slow modes to check it on) to how far its constrained values move: the size of the correction it solves.
+    let moved = |(f, x0, y0): (FieldView<'_>, usize, usize)| largest(constraints.iter().map(|&(i, v)| { let o = f.at_index((y0 + i / w) * f.width() + x0 + i % w); [v[0] - o[0] as f64, v[1] - o[1] as f64] }));
     let scale = if !hier.torn || options.off.has("relative") { f64::INFINITY } else { largest(constraints.iter().map(|p| p.1)).min(initial.filter(|_| warm && fresh && !spanned).map_or(f64::INFINITY, moved)) };
     let claim = options.tolerance_px.min((RELATIVE_CLAIM * scale).max(0.1 * options.tolerance_px));
     // A single level whose dropped pivots are all free functions' is an exact solve: after its first step only
@@ -853,7 +853,7 @@ fn affine_fit(value: &[(usize, V2)], bw: usize) -> Option<impl Fn(usize, usize) 
     let rel = |j: usize| [at(j)[0] - o[0], at(j)[1] - o[1]];
     let a = affine_least_squares(value.iter().map(|&(j, v)| (rel(j), v)))?;
     let map = move |[x, y]: [f64; 2]| [a[0][0] + a[1][0] * x + a[2][0] * y, a[0][1] + a[1][1] * x + a[2][1] * y];
-    let scale = value.iter().fold(1.0f64, |s, (_, v)| s.max(v[0].abs()).max(v[1].abs()));
+    let scale = largest(value.iter().map(|p| p.1)).max(1.0);
     let fits = value.iter().all(|&(j, v)| {
         let p = map(rel(j));
         (p[0] - v[0]).abs().max((p[1] - v[1]).abs()) <= 1e-9 * scale
@@ -1082,7 +1082,7 @@ fn on_one_line(w: usize, nodes: impl Iterator<Item = usize> + Clone) -> Option<(
     nodes.map(xy).all(|p| cross(a, d, p) == 0).then_some((a, d))
 }
 
-fn largest(values: impl Iterator<Item = V2>) -> f64 { values.fold(0.0, |s, v| s.max(v[0].abs()).max(v[1].abs())) }
+pub(crate) fn largest(values: impl Iterator<Item = V2>) -> f64 { values.fold(0.0, |s, v| s.max(v[0].abs()).max(v[1].abs())) }
 
 /// `ℓ(p) = d × (p − a)`: zero on the line through `a` with direction `d`.
 fn cross(a: [i64; 2], d: [i64; 2], p: [i64; 2]) -> i64 { d[0] * (p[1] - a[1]) - d[1] * (p[0] - a[0]) }
