@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 import inkwarp
+import test_solver_oracle
 from test_solver_oracle import TOLERANCE_PX, Problem, links, oracle, piece_labels, solve
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -612,6 +613,28 @@ def test_many_random_cuts(seed, integer):
     pts, disp, cuts = random_cuts(seed, integer)
     problem = Problem((64, 64), pts, disp, cuts=cuts)
     check_against_oracle(problem, f"{len(cuts)} cuts")
+
+
+def test_a_slow_mode_far_below_the_oracles_kernel_bound_is_not_taken_for_a_free_function():
+    # Float cuts of seed 390 at 4x, displacements scaled to a tenth: a piece of 5,764 nodes
+    # has a plate eigenvalue of 4.3e-12, under the oracle's KERNEL_BELOW, yet proved
+    # positive by its residual (7.5e-15). Taken for a free function, the oracle settled it
+    # by the membrane and stood hundreds of px from the solver, whose answer had the lower
+    # plate energy; told apart, the two agree.
+    pts, disp, cuts = random_cuts(390, False, 4)
+    problem = Problem((256, 256), pts, disp * 0.1, cuts=cuts)
+    kernel_values = []
+    real = test_solver_oracle.plate_kernel
+
+    def watched(a):
+        z = real(a)
+        kernel_values.extend(np.einsum("ij,ij->j", z, a @ z))
+        return z
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(test_solver_oracle, "plate_kernel", watched)
+        check_against_oracle(problem, "a slow mode among float cuts", _off="")
+    assert kernel_values and max(kernel_values) < 1e-13, max(kernel_values, default=None)
 
 
 def test_three_close_points_on_a_piece_of_many_cuts_small_displacements():

@@ -222,9 +222,11 @@ def _fixed_solve(a: sp.csr_matrix, piece: np.ndarray, fixed: dict[int, np.ndarra
 
 
 # Eigenvalues of a plate block below this are its kernel (exactly zero, up to rounding of
-# order 1e-14); the slow modes that must not be mistaken for it lie far above (a wedge
-# bending against a distant arm: 3.5e-7). A spectrum with eigenvalues between the two
-# bounds is refused rather than guessed.
+# order 1e-14) unless their own residuals prove them positive (a piece among float cuts has
+# a slow mode at 4.3e-12, its residual 7.5e-15); the slow modes that must not be mistaken
+# for it mostly lie far above (a wedge bending against a distant arm: 3.5e-7). A spectrum
+# with eigenvalues between the two bounds and not proved positive is refused rather than
+# guessed.
 KERNEL_BELOW = 1e-11
 SLOW_ABOVE = 1e-8
 _SHIFT = 1e-6  # shift-invert Lanczos factors A + _SHIFT I
@@ -251,8 +253,9 @@ def plate_kernel(a: sp.csr_matrix) -> np.ndarray:
     n = a.shape[0]
     if n <= 100:
         vals, vecs = np.linalg.eigh(a.toarray())
-        unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE) & ~_proved_positive(a, vals, vecs)
-        kernel = vecs[:, vals < KERNEL_BELOW]
+        positive = _proved_positive(a, vals, vecs)
+        unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE) & ~positive
+        kernel = vecs[:, (vals < KERNEL_BELOW) & ~positive]
     else:
         lu = spla.splu((a + _SHIFT * sp.identity(n, format="csr")).tocsc())
         kernel = np.zeros((n, 0))
@@ -274,8 +277,9 @@ def plate_kernel(a: sp.csr_matrix) -> np.ndarray:
                     raise
                 vectors *= 2
                 continue
-            unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE) & ~_proved_positive(a, vals, vecs)
-            new = vecs[:, vals < KERNEL_BELOW]
+            positive = _proved_positive(a, vals, vecs)
+            unsure = (vals >= KERNEL_BELOW) & (vals < SLOW_ABOVE) & ~positive
+            new = vecs[:, (vals < KERNEL_BELOW) & ~positive]
             if unsure.any() or not new.shape[1]:
                 break
             new = new - kernel @ (kernel.T @ new)
