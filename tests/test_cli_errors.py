@@ -500,6 +500,26 @@ def test_the_installed_command_exits_2_without_a_traceback(tmp_path):
         assert done.returncode == 2 and f"{scene}: fps: " in done.stdout
 
 
+def test_ctrl_c_while_the_command_starts_exits_130_without_a_traceback(tmp_path):
+    # Ctrl+C within the few tenths of a second of the command's imports printed numpy's
+    # traceback. As the `inkwarp` command (argv[0]), a SIGINT right after `import inkwarp`,
+    # before `main` runs, ends it with one line; once `main` runs, Ctrl+C is the command's
+    # own again (a render says "interrupted", tested above), and a program of another name
+    # keeps Python's KeyboardInterrupt.
+    start = ("import os, signal, sys, time; sys.argv[0] = {name!r}; import inkwarp{then}; "
+             "os.kill(os.getpid(), signal.SIGINT); time.sleep(5); print('not interrupted')")
+    done = subprocess.run([sys.executable, "-c", start.format(name="/usr/bin/inkwarp", then="")],
+                          capture_output=True, text=True, timeout=60)
+    assert (done.returncode, done.stderr, done.stdout) == (130, "inkwarp: interrupted\n", "")
+    after_main = "; from inkwarp.cli import main; main(['schema', '-o', {out!r}])".format(out=str(tmp_path / "s.json"))
+    done = subprocess.run([sys.executable, "-c", start.format(name="inkwarp", then=after_main)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode != 130 and "KeyboardInterrupt" in done.stderr, done.stderr
+    done = subprocess.run([sys.executable, "-c", start.format(name="my_tool.py", then="")],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode != 130 and "KeyboardInterrupt" in done.stderr, done.stderr
+
+
 def test_no_command_prints_help_and_exits_2(capsys):
     assert main([]) == 2
     assert "usage: inkwarp" in capsys.readouterr().err

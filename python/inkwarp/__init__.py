@@ -5,6 +5,23 @@ SIGGRAPH '94), solved by multigrid in a compiled core.
 """
 
 import os as _os
+import signal as _signal
+import sys as _sys
+
+
+def _interrupted_while_starting(signum, frame):
+    """Ctrl+C during the command line's imports (a few tenths of a second, before its own
+    handling begins): the command's exit status and one line, not a traceback. Nothing is
+    written yet, so nothing is left behind."""
+    _sys.stderr.write("inkwarp: interrupted\n")
+    _os._exit(130)
+
+
+# Only in the `inkwarp` command (its console script), and only where Ctrl+C still raises
+# KeyboardInterrupt; `inkwarp.cli.main` puts Python's handler back as it starts.
+if (_os.path.basename(_sys.argv[0] if _sys.argv else "").removesuffix(".exe") == "inkwarp"
+        and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler):
+    _signal.signal(_signal.SIGINT, _interrupted_while_starting)
 
 from inkwarp._inkwarp import __version__, _after_fork
 from inkwarp.drawing import sample

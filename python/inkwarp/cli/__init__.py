@@ -213,6 +213,11 @@ def _is_number(text: str) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
+    import inkwarp
+
+    if signal.getsignal(signal.SIGINT) is inkwarp._interrupted_while_starting:
+        # The imports are done: from here Ctrl+C is the command's (exit 130, its own words).
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     parser = build_parser()
     words = _dash_values_joined(sys.argv[1:] if argv is None else [str(a) for a in argv])
     args, extra = parser.parse_known_args(words)
