@@ -65,10 +65,12 @@ pub fn coarse_grid(grid: &Grid, s: usize) -> Grid {
     Grid { width, height, active, link_right, link_down }
 }
 
-/// Where a sample at pixel `rest` goes on the coarse grid of step `s` of a `w × h` grid, in coarse coordinates.
+/// Where a sample at pixel `rest` goes on the coarse grid of step `s` of a `w × h` grid, in coarse coordinates
+/// (so that it goes to the coarse node nearest to it, in the last, shorter cell too).
 pub fn coarse_point(w: usize, h: usize, s: usize, [x, y]: crate::geometry::Point) -> crate::geometry::Point {
     let l = Layout::new(w, h, s);
-    [l.coarse(x, l.wc, |c| l.px(c)), l.coarse(y, l.hc, |c| l.py(c))]
+    let coarse = |(c, t): (usize, f64)| c as f64 + t;
+    [coarse(cell_of(x, s, l.wc, |c| l.px(c))), coarse(cell_of(y, s, l.hc, |c| l.py(c)))]
 }
 
 /// The node of `coarse` each sample (at [`coarse_point`]) falls on and whether it holds it: a node takes the nearest
@@ -172,14 +174,6 @@ impl Layout {
     fn px(&self, xc: usize) -> usize { (xc * self.s).min(self.w - 1) }
     fn py(&self, yc: usize) -> usize { (yc * self.s).min(self.h - 1) }
 
-    /// The coarse coordinate of pixel coordinate `x` along an axis of `nc` coarse positions at pixels
-    /// `pos(0..nc)` (so a sample goes to the coarse node nearest to it, in the last, shorter cell too).
-    fn coarse(&self, x: f64, nc: usize, pos: impl Fn(usize) -> usize) -> f64 {
-        if nc < 2 { return 0.0; }
-        let (c, t) = cell_of(x, self.s, nc, pos);
-        c as f64 + t
-    }
-
     /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's pixels) from the
     /// cell's `masks` ([`cell_masks`]; empty where the window is whole).
     fn mask(&self, masks: &[u16], cx: usize, cy: usize, x: usize, y: usize) -> u16 {
@@ -193,8 +187,9 @@ impl Layout {
 }
 
 /// The coarse cell (its first position, at most `nc − 2`) of pixel coordinate `x` along an axis of
-/// `nc ≥ 2` coarse positions at pixels `pos(0..nc)`, `s` apart, and how far across it `x` lies.
+/// `nc` coarse positions at pixels `pos(0..nc)`, `s` apart, and how far across it `x` lies.
 fn cell_of(x: f64, s: usize, nc: usize, pos: impl Fn(usize) -> usize) -> (usize, f64) {
+    if nc < 2 { return (0, 0.0); } // (one position: its value)
     let c = ((x / s as f64).max(0.0) as usize).min(nc - 2);
     let (a, b) = (pos(c) as f64, pos(c + 1) as f64);
     (c, (x - a) / (b - a))
@@ -213,7 +208,7 @@ impl Taps {
     /// The taps of every pixel `0..n` along an axis with `nc` coarse positions at `pos(0..nc)`, `s` apart.
     fn along(n: usize, nc: usize, s: usize, pos: impl Fn(usize) -> usize) -> Vec<Taps> {
         (0..n).map(|x| {
-            let (cell, t) = if nc == 1 { (0, 0.0) } else { cell_of(x as f64, s, nc, &pos) }; // (one position: its value)
+            let (cell, t) = cell_of(x as f64, s, nc, &pos);
             let t = t.clamp(0.0, 1.0);
             let (first, last) = (cell == 0, cell + 2 >= nc);
             let weights = catmull_rom(t, first, last);
