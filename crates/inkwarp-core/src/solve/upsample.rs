@@ -114,12 +114,7 @@ fn follow_held(grid: &Grid, l: &Layout, coarse: &Grid, constraints: &crate::grid
 /// row's taps and the usable-tap masks of cells along missing links. Kept per grid and step, it also evaluates
 /// chosen pixels only ([`Solver::solve_warm_at`]).
 #[derive(Debug)]
-pub struct Upsampling {
-    layout: Layout,
-    cols: Vec<Taps>,
-    rows: Vec<Taps>,
-    masks: Vec<Vec<u16>>,
-}
+pub struct Upsampling { layout: Layout, cols: Vec<Taps>, rows: Vec<Taps>, masks: Vec<Vec<u16>> }
 
 impl Upsampling {
     /// The plan of `grid` at step `s` (at least 2) on a non-empty grid.
@@ -135,11 +130,17 @@ impl Upsampling {
     /// `None` where its window has no usable node (the full upsampling then fills it along the links).
     fn at(&self, grid: &Grid, fc: &Field, i: usize) -> Option<[f32; 2]> {
         if !grid.active[i] { return Some([0.0; 2]); }
-        let l = &self.layout;
-        let (x, y) = (i % l.w, i / l.w);
-        let (tx, ty) = (&self.cols[x], &self.rows[y]);
-        let mask = l.mask(&self.masks[ty.cell * l.cells().0 + tx.cell], tx.cell, ty.cell, x, y);
-        window_value(fc, ty, tx, mask)
+        let (x, y) = (i % self.layout.w, i / self.layout.w);
+        window_value(fc, &self.rows[y], &self.cols[x], self.mask(x, y))
+    }
+
+    /// The usable taps of pixel (`x`, `y`) from its cell's masks ([`cell_masks`]; empty where the window is whole).
+    fn mask(&self, x: usize, y: usize) -> u16 {
+        let (l, cx, cy) = (&self.layout, self.cols[x].cell, self.rows[y].cell);
+        let masks = &self.masks[cy * l.cells().0 + cx];
+        if masks.is_empty() { return ALL_TAPS; }
+        let ix0 = l.px(cx);
+        masks[(y - l.py(cy)) * (l.px((cx + 1).min(l.wc - 1)) - ix0 + 1) + (x - ix0)]
     }
 }
 
@@ -173,14 +174,6 @@ impl Layout {
     /// The pixel column of coarse column `xc`, and the pixel row of coarse row `yc`.
     fn px(&self, xc: usize) -> usize { (xc * self.s).min(self.w - 1) }
     fn py(&self, yc: usize) -> usize { (yc * self.s).min(self.h - 1) }
-
-    /// The usable taps of pixel (`x`, `y`) of cell (`cx`, `cy`) (one of its closed block's pixels) from the
-    /// cell's `masks` ([`cell_masks`]; empty where the window is whole).
-    fn mask(&self, masks: &[u16], cx: usize, cy: usize, x: usize, y: usize) -> u16 {
-        if masks.is_empty() { return ALL_TAPS; }
-        let ix0 = self.px(cx);
-        masks[(y - self.py(cy)) * (self.px((cx + 1).min(self.wc - 1)) - ix0 + 1) + (x - ix0)]
-    }
 
     /// Coarse cells across and down (at least one each, even on a one-node axis).
     fn cells(&self) -> (usize, usize) { (self.wc.saturating_sub(1).max(1), self.hc.saturating_sub(1).max(1)) }
@@ -459,9 +452,8 @@ fn upsample(grid: &Grid, plan: &Upsampling, fc: &Field, samples: &[Sample]) -> F
         }
         // ... then the pixels of windows with a missing link: the taps each reaches inside its window.
         for &cx in &masked[ty.cell] {
-            let cell = &masks[ty.cell * cw + cx];
             for x in cell_x[cx].0..cell_x[cx].1 {
-                let mask = layout.mask(cell, cx, ty.cell, x, y);
+                let mask = plan.mask(x, y);
                 if active[x] && mask != ALL_TAPS {
                     (dx[x], dy[x], resolved[x]) = window_value(fc, ty, &cols[x], mask).map_or((0.0, 0.0, false), |[vx, vy]| (vx, vy, true));
                 }
@@ -767,7 +759,7 @@ mod tests {
                     let want = turn((i % w) as f64, (i / w) as f64);
                     let (x, y) = (i % w, i / w);
                     let (tx, ty) = (&plan.cols[x], &plan.rows[y]);
-                    let mask = plan.layout.mask(&plan.masks[ty.cell * plan.layout.cells().0 + tx.cell], tx.cell, ty.cell, x, y);
+                    let mask = plan.mask(x, y);
                     // (Where the taps it may use lie on one line, the slope across it is unknown.)
                     let used: Vec<[usize; 2]> = (0..ty.len).flat_map(|b| (0..tx.len).map(move |a| [tx.slot[a] as usize, ty.slot[b] as usize]))
                         .filter(|&[a, b]| mask & (1 << (4 * b + a)) != 0).collect();
