@@ -211,16 +211,13 @@ impl Taps {
             let plane = catmull_rom(near, first, last).map(f64::abs);
             let plane = std::array::from_fn(|k| if inside(k) { plane[k] } else { 0.0 });
             let mut taps = Taps { cell, weights, t, len: 0, slot: [0; 4], at: [0; 4], plane, near };
-            for (k, &wk) in weights.iter().enumerate() {
-                if let Some(c) = (cell + k).checked_sub(1).filter(|&c| c < nc && wk != 0.0) {
-                    (taps.slot[taps.len], taps.at[taps.len]) = (k as u8, c);
-                    taps.len += 1;
-                }
+            for k in (0..4).filter(|&k| inside(k) && weights[k] != 0.0) {
+                (taps.slot[taps.len], taps.at[taps.len]) = (k as u8, cell + k - 1);
+                taps.len += 1;
             }
             taps
         }).collect()
     }
-
 }
 
 /// The bilinear weight of window position `k` (1 or 2) of a pixel `t` across its cell.
@@ -289,7 +286,7 @@ fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec
 /// grid), as bits of [`ALL_TAPS`]. One mask per pixel of the cell's closed block, row by row; zero for
 /// inactive pixels, [`ALL_TAPS`] for those reaching every node.
 fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Vec<u32>, stack: &mut Vec<usize>) -> Vec<u16> {
-    let (w, wc, hc) = (grid.width, layout.wc, layout.hc);
+    let (wc, hc) = (layout.wc, layout.hc);
     let (bx0, bx1) = (layout.px(cx.saturating_sub(1)), layout.px((cx + 2).min(wc - 1)));
     let (by0, by1) = (layout.py(cy.saturating_sub(1)), layout.py((cy + 2).min(hc - 1)));
     let (ix0, ix1) = (layout.px(cx), layout.px((cx + 1).min(wc - 1)));
@@ -307,16 +304,10 @@ fn cell_masks(grid: &Grid, layout: &Layout, cx: usize, cy: usize, label: &mut Ve
             stack.push(b);
             while let Some(b) = stack.pop() {
                 let (lx, ly) = (b % bw, b / bw);
-                let i = grid.index(bx0 + lx, by0 + ly);
                 // Right, left, down, up (not linked where off the block).
-                let links = [
-                    (lx + 1 < bw && grid.link_right[i], b + 1),
-                    (lx > 0 && grid.link_right[i - 1], b.wrapping_sub(1)),
-                    (ly + 1 < bh && grid.link_down[i], b + bw),
-                    (ly > 0 && grid.link_down[i - w], b.wrapping_sub(bw)),
-                ];
-                for (linked, nb) in links {
-                    if linked && label[nb] == u32::MAX {
+                let (links, inside) = (grid.linked(grid.index(bx0 + lx, by0 + ly)), [lx + 1 < bw, lx > 0, ly + 1 < bh, ly > 0]);
+                for (k, nb) in [b + 1, b.wrapping_sub(1), b + bw, b.wrapping_sub(bw)].into_iter().enumerate() {
+                    if inside[k] && links[k] != usize::MAX && label[nb] == u32::MAX {
                         label[nb] = count;
                         stack.push(nb);
                     }
