@@ -29,9 +29,7 @@ use super::{in_pool, validate, SolveError, SolveOptions, SolveReport, Solver};
 pub(crate) fn solve_coarse(
     grid: &Grid, samples: &[Sample], options: &SolveOptions, initial: Option<FieldView<'_>>, solver: &mut Solver, warm: bool,
 ) -> (Field, SolveReport) {
-    if grid.width == 0 || grid.height == 0 {
-        return (Field::zeros(grid.width, grid.height), SolveReport { converged: true, ..Default::default() });
-    }
+    if grid.is_empty() { return (Field::zeros(grid.width, grid.height), SolveReport { converged: true, ..Default::default() }) }
     let (fc, report) = solve_on_coarse_grid(grid, samples, options, initial, solver, warm, true);
     (upsample(grid, &Upsampling::new(grid, options.grid_step), &fc, samples), report)
 }
@@ -248,9 +246,7 @@ fn mask_table(grid: &Grid, layout: &Layout, cols: &[Taps], rows: &[Taps]) -> Vec
         let (cx, cy) = (cols[x].cell, rows[y].cell);
         let x0 = if cx > 0 && x == layout.px(cx) { cx - 1 } else { cx };
         let ys = if cy > 0 && y == layout.py(cy) { cy - 1..cy + 1 } else { cy..cy + 1 };
-        for yy in ys {
-            touched[yy * cw + x0..=yy * cw + cx].fill(true);
-        }
+        ys.for_each(|yy| touched[yy * cw + x0..=yy * cw + cx].fill(true));
     };
     // Whether all of `flags` (a stretch of a row) are set, branch-free so that it vectorises.
     let all = |flags: &[bool]| flags.iter().fold(true, |a, &b| a & b);
