@@ -67,10 +67,9 @@ impl WarmHistory {
         let alpha = [self.fit(&c.values, 0), self.fit(&c.values, 1)];
         let mut out = Field::zeros(grid.width, grid.height);
         for (i, (_, f)) in self.entries.iter().enumerate() {
-            for (out, v, a) in [(&mut out.dx, &f.dx, alpha[0][i] as f32), (&mut out.dy, &f.dy, alpha[1][i] as f32)] {
-                if a != 0.0 {
-                    out.iter_mut().zip(v).for_each(|(o, v)| *o += a * v);
-                }
+            let terms = [(&mut out.dx, &f.dx, alpha[0][i] as f32), (&mut out.dy, &f.dy, alpha[1][i] as f32)];
+            for (out, v, a) in terms.into_iter().filter(|t| t.2 != 0.0) {
+                out.iter_mut().zip(v).for_each(|(o, v)| *o += a * v);
             }
         }
         Some(out)
@@ -100,13 +99,7 @@ impl WarmHistory {
         let nodes = target.len() as f64;
         // The root mean square miss of weights `w`, from ‖t − Σ wᵢ vᵢ‖² = tᵀt − 2 wᵀb + wᵀG w, and their gain.
         let miss = |w: &[f64; HISTORY_FRAMES]| {
-            let mut sq = tt;
-            for i in 0..k {
-                sq -= 2.0 * w[i] * b[i];
-                for j in 0..k {
-                    sq += w[i] * g[i][j] * w[j];
-                }
-            }
+            let sq = (0..k).fold(tt, |sq, i| (0..k).fold(sq - 2.0 * w[i] * b[i], |sq, j| sq + w[i] * g[i][j] * w[j]));
             (sq.max(0.0) / nodes).sqrt()
         };
         let gain = |w: &[f64; HISTORY_FRAMES]| w[..k].iter().map(|a| a.abs()).sum::<f64>();
@@ -123,9 +116,7 @@ impl WarmHistory {
             frames.iter().zip(&x).for_each(|(&i, v)| w[i] = v[0]);
             if subset == all && gain(&w) <= 16.0 { return if miss(&w) < miss(&latest) { w } else { latest }; }
             let score = miss(&w) + FRAME_ERROR_PX * gain(&w);
-            if score < best.0 {
-                best = (score, w);
-            }
+            if score < best.0 { best = (score, w) }
         }
         best.1
     }
@@ -172,11 +163,7 @@ const INDEPENDENT: f64 = 1e-9;
 /// stopping rule's estimates, combined in quadrature). The hierarchy's key holds the fixed nodes, so every
 /// value lists the same nodes in the same order.
 #[derive(Debug, Default)]
-pub(crate) struct Answers {
-    basis: Vec<Vec<f64>>,
-    fields: Vec<Vec<f32>>,
-    error: Vec<f64>,
-}
+pub(crate) struct Answers { basis: Vec<Vec<f64>>, fields: Vec<Vec<f32>>, error: Vec<f64> }
 
 impl Answers {
     /// The combination answering `value` (the constrained nodes and their values) where both components lie
