@@ -99,7 +99,11 @@ impl WarmHistory {
         let nodes = target.len() as f64;
         // The root mean square miss of weights `w`, from ‖t − Σ wᵢ vᵢ‖² = tᵀt − 2 wᵀb + wᵀG w, and their gain.
         let miss = |w: &[f64; HISTORY_FRAMES]| {
-            let sq = (0..k).fold(tt, |sq, i| (0..k).fold(sq - 2.0 * w[i] * b[i], |sq, j| sq + w[i] * g[i][j] * w[j]));
+            let mut sq = tt;
+            for i in 0..k {
+                sq -= 2.0 * w[i] * b[i];
+                (0..k).for_each(|j| sq += w[i] * g[i][j] * w[j]);
+            }
             (sq.max(0.0) / nodes).sqrt()
         };
         let gain = |w: &[f64; HISTORY_FRAMES]| w[..k].iter().map(|a| a.abs()).sum::<f64>();
