@@ -148,16 +148,14 @@ impl Hierarchy {
             self.coarsest.solve(&work[0].f, &mut work[0].x);
             return;
         }
-        let (head, tail) = work.split_at_mut(1);
-        let w = &mut head[0];
-        let Work { x, f, r, d, .. } = &mut *w;
-        smooth(level, x, f, r, d, self.steps_at(k), x_zero);
-        if let Some(Some(s)) = self.level_strands.get(k) { s.relax(x, f); }
+        let (w, tail) = work.split_first_mut().expect("a level's work vectors");
+        smooth(level, w, self.steps_at(k), x_zero);
+        if let Some(Some(s)) = self.level_strands.get(k) { s.relax(&mut w.x, &w.f); }
         // From a given `x` (the coarse-to-fine start's whole answer) below the finest level in `f64` sums
         // (`Level::residual_f64`); from zero, `x` is one smoothing of `f`, its product's rounding small.
         if k > 0 && !x_zero {
-            level.residual_f64(x, Some(f), r);
-        } else { level.residual(x, Some(f), r); }
+            level.residual_f64(&w.x, Some(&w.f), &mut w.r);
+        } else { level.residual(&w.x, Some(&w.f), &mut w.r); }
         // No K-cycle on the finest level (the conjugate gradient runs around the cycle) nor above the coarsest
         // (its coarse solve is exact).
         if k > 0 && k + 2 < self.levels.len() && self.k_cycles {
@@ -177,9 +175,8 @@ impl Hierarchy {
             let alpha = line_step(&alt.levels[1], &mut aw[1]);
             prolong_add_scaled(&alt.levels[0], &alt.levels[1], &aw[1].x, &mut w.x, alpha);
         }
-        let Work { x, f, r, d, .. } = w;
-        if let Some(Some(s)) = self.level_strands.get(k) { s.relax(x, f); }
-        smooth(level, x, f, r, d, self.steps_at(k), false);
+        if let Some(Some(s)) = self.level_strands.get(k) { s.relax(&mut w.x, &w.f); }
+        smooth(level, w, self.steps_at(k), false);
     }
 
     /// Level k + 1's cycle from zero on the restriction of level k's residual `r` (`tail`: from level k + 1).
@@ -342,10 +339,9 @@ fn line_step(coarse: &Level, c: &mut Work) -> [f64; 2] {
 /// principal submatrix): an open level takes that of an open box at most [`MODEL`] nodes a side, the same but for them.
 pub(crate) fn collatz_bound(level: &Level) -> f64 {
     let (w, h) = (level.geo.w, level.geo.h);
-    if let Some(tau) = (w.max(h) > MODEL).then(|| level.open_tension()).flatten() {
-        return power_bound(&Level::fine(Geometry::open(w.min(MODEL), h.min(MODEL)), tau));
-    }
-    power_bound(level)
+    let open = (w.max(h) > MODEL).then(|| level.open_tension()).flatten();
+    let model = open.map(|tau| Level::fine(Geometry::open(w.min(MODEL), h.min(MODEL)), tau));
+    power_bound(model.as_ref().unwrap_or(level))
 }
 
 /// The bound of [`collatz_bound`] from the power steps on `level` itself.
@@ -466,10 +462,11 @@ fn update<S: Real, T: Real>(x: &mut [[T; 2]], y: &[[S; 2]], f: impl Fn(&mut [T; 
     x.par_chunks_mut(PASS_CHUNK).zip(y.par_chunks(PASS_CHUNK)).for_each(|(x, y)| x.iter_mut().zip(y).for_each(|(x, &y)| f(x, y)));
 }
 
-/// Chebyshev smoothing of `A x = f` preconditioned by the diagonal: `steps` steps aimed at `[λ/CHEB_RATIO, λ]` of
-/// D⁻¹A's spectrum, one pass each ([`Level::smoothing_step`]). `r`, `d` are scratch; `x`, `r` may come back swapped.
-fn smooth(level: &Level, x: &mut Vec<W2>, f: &[W2], r: &mut Vec<W2>, d: &mut [W2], mut steps: usize, x_zero: bool) {
+/// Chebyshev smoothing of `A x = f` (in `w`) preconditioned by the diagonal: `steps` steps aimed at `[λ/CHEB_RATIO, λ]`
+/// of D⁻¹A's spectrum, one pass each ([`Level::smoothing_step`]). `w.r`, `w.d` are scratch; `x`, `r` may come back swapped.
+fn smooth(level: &Level, w: &mut Work, mut steps: usize, x_zero: bool) {
     if steps == 0 || level.lam_max <= 0.0 { return; }
+    let Work { x, f, r, d, .. } = w;
     let (b, a) = (level.lam_max, level.lam_max / CHEB_RATIO);
     let (theta, delta) = (0.5 * (b + a), 0.5 * (b - a));
     let (sigma, inv_theta) = (theta / delta, WS::of(1.0 / theta));
