@@ -38,7 +38,7 @@ const EXACT_PIVOT: f64 = 1e-9;
 pub(crate) struct Envelope {
     first: Vec<u32>,
     at: Vec<usize>,
-    /// `L`'s rows (the diagonal slot unused) and `D⁻¹` (zero where a pivot was dropped).
+    /// `L`'s rows (the diagonal slot left holding the matrix's entry) and `D⁻¹` (zero where a pivot was dropped).
     l: Vec<f64>,
     d_inv: Vec<f64>,
 }
@@ -90,9 +90,7 @@ impl Strands {
                 todo.extend(b.halves(&ids).into_iter().rev().map(|h| (h, true)));
             } else { b.s.wide = true }
         }
-        let mut s = b.s;
-        s.first_pass = vec![[0.0; 2]; s.nodes.len()];
-        (!s.nodes.is_empty() || s.wide).then_some(s)
+        (!b.s.nodes.is_empty() || b.s.wide).then_some(b.s)
     }
 
     /// Node `i`'s taps.
@@ -101,7 +99,8 @@ impl Strands {
     /// Before the finest level's cycle: solves the thin blocks on `r` (in order, each from the earlier ones'
     /// answers) and takes the correction's product out of the cycle's right-hand side `f` (`r` in `f32`).
     pub fn before(&mut self, level: &Level, r: &[V2], f: &mut [W2]) {
-        self.first_pass.iter_mut().zip(&self.nodes).for_each(|(z, &p)| *z = r[p as usize]);
+        self.first_pass.clear();
+        self.first_pass.extend(self.nodes.iter().map(|&p| r[p as usize]));
         let (z, mut e, mut start) = (&mut self.first_pass, 0, 0);
         for b in &self.blocks {
             let end = start + b.d_inv.len();
@@ -296,11 +295,10 @@ fn thin_nodes_of(level: &Level) -> Vec<bool> {
 /// long, from `right(p, i)` and `down(p, i)` (padded and unpadded index: linked to the right, below).
 fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn(usize, usize) -> bool) -> Vec<bool> {
     let (w, h) = (level.geo.w, level.geo.h);
-    let p = |x: usize, y: usize| level.pidx(x, y);
-    let runs = shorter_runs(w, h, |x, y| right(p(x, y), y * w + x), |x, y| down(p(x, y), y * w + x));
+    let runs = shorter_runs(w, h, |x, y| right(level.pidx(x, y), y * w + x), |x, y| down(level.pidx(x, y), y * w + x));
     let mut thin = vec![false; level.len_padded()];
     for (y, x) in (0..h).flat_map(|y| (0..w).map(move |x| (y, x))) {
-        thin[p(x, y)] = level.inv_diag[p(x, y)] != 0.0 && runs[y * w + x] as usize <= THIN;
+        thin[level.pidx(x, y)] = level.inv_diag[level.pidx(x, y)] != 0.0 && runs[y * w + x] as usize <= THIN;
     }
     thin
 }
@@ -344,18 +342,13 @@ impl Envelope {
         }
         let total = at[n];
         if total > max_entries { return None; }
-        let (mut l, mut diag) = (vec![0.0; total], vec![0.0; n]);
-        for i in 0..n {
-            for &(j, a) in &entries[i] {
-                if j < i {
-                    l[at[i] + j - first[i] as usize] += a;
-                } else if j == i {
-                    diag[i] += a;
-                }
-            }
+        // Row i's entries up to the diagonal, which is summed in its slot (row i's last) and read out raised.
+        let mut l = vec![0.0; total];
+        for (i, e) in entries.iter().enumerate() {
+            e.iter().filter(|&&(j, _)| j <= i).for_each(|&(j, a)| l[at[i] + j - first[i] as usize] += a);
         }
+        let diag: Vec<f64> = (0..n).map(|i| l[at[i + 1] - 1] * (1.0 + shift)).collect();
         let mut d_inv = vec![0.0; n];
-        diag.iter_mut().for_each(|d| *d *= 1.0 + shift);
         for i in 0..n {
             let fi = first[i] as usize;
             // g_ij = l_ij d_j, row i in place: g_ij = a_ij − Σ_k g_ik l_jk.
