@@ -12,6 +12,8 @@
 //! At τ > 0 the same functions are the operator's smallest eigenvectors (eigenvalues of order τ), which an
 //! iteration barely moves: an exact Galerkin correction in their span removes that error.
 
+use std::{cmp::Reverse, collections::BinaryHeap};
+
 use super::level::V2;
 use super::strands::{blocks_in_order, Envelope};
 use crate::grid::{find, join};
@@ -32,25 +34,6 @@ pub(crate) struct BoxGeo<'a> {
     pub down: &'a [bool],
 }
 
-impl BoxGeo<'_> {
-    fn full_cell(&self, i: usize) -> bool {
-        let (x, y) = (i % self.w, i / self.w);
-        x + 1 < self.w && y + 1 < self.h && self.right[i] && self.down[i] && self.down[i + 1] && self.right[i + self.w]
-    }
-
-    /// The ends of the linked horizontal and vertical triples centred on `i`.
-    fn triples(&self, i: usize) -> impl Iterator<Item = (usize, usize)> {
-        let (x, y, w) = (i % self.w, i / self.w, self.w);
-        let h = (x > 0 && self.right[i - 1] && self.right[i]).then(|| (i - 1, i + 1));
-        h.into_iter().chain((y > 0 && self.down[i - w] && self.down[i]).then(|| (i - w, i + w)))
-    }
-
-    /// The linked neighbours right and down of `i`.
-    fn links(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
-        self.right[i].then_some(i + 1).into_iter().chain(self.down[i].then_some(i + self.w))
-    }
-}
-
 /// A basis function: (node, value) pairs.
 pub(crate) type Sparse = Vec<(usize, f64)>;
 
@@ -59,7 +42,7 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
     let (w, n) = (g.w, g.w * g.h);
     // Clusters: union-find over full cells joined through shared edges.
     let mut parent: Vec<u32> = (0..n as u32).collect();
-    let full: Vec<bool> = (0..n).map(|i| g.full_cell(i)).collect();
+    let full: Vec<bool> = (0..n).map(|i| i % w + 1 < w && i / w + 1 < g.h && g.right[i] && g.down[i] && g.down[i + 1] && g.right[i + w]).collect();
     for i in (0..n).filter(|&i| full[i]) {
         let (x, y) = (i % w, i / w);
         for j in [(x > 0).then(|| i - 1), (y > 0).then(|| i - w)].into_iter().flatten().filter(|&j| full[j]) {
@@ -125,7 +108,10 @@ pub(crate) fn plate_null_space(g: &BoxGeo, fixed: &[bool], max: usize) -> Option
         }
         if fixed[i] { equation(&[(i, 1.0)], &[]); }
         let shared = |a: usize, b: usize| member[i].iter().any(|&c| c != u32::MAX && member[a].contains(&c) && member[b].contains(&c));
-        for (a, b) in g.triples(i).filter(|&(a, b)| !shared(a, b)) {
+        // The ends of the linked horizontal and vertical triples centred on `i`.
+        let across = (i % w > 0 && g.right[i - 1] && g.right[i]).then(|| (i - 1, i + 1));
+        let triples = across.into_iter().chain((i / w > 0 && g.down[i - w] && g.down[i]).then(|| (i - w, i + w)));
+        for (a, b) in triples.filter(|&(a, b)| !shared(a, b)) {
             equation(&[(a, 1.0), (i, -2.0), (b, 1.0)], &[]);
         }
     }
@@ -167,7 +153,6 @@ impl Echelon {
     }
 
     fn add(&mut self, row: &[(usize, f64)]) {
-        use std::{cmp::Reverse, collections::BinaryHeap};
         let (mut heap, mut scale) = (BinaryHeap::new(), 0.0f64);
         let (seen, touched, pivot_of) = (&mut self.seen, &mut self.touched, &self.pivot_of);
         let mut visit = |c: usize, heap: &mut BinaryHeap<Reverse<u32>>| {
@@ -209,7 +194,6 @@ impl Echelon {
     /// One sparse basis vector per free column, or `None` past `max`. Back-substitution from the last row up
     /// visits only the rows that read an entry already nonzero (free columns and later rows' pivots).
     fn null_space(&self, max: usize) -> Option<Vec<Vec<(usize, f64)>>> {
-        use std::collections::BinaryHeap;
         let vars = self.pivot_of.len();
         let free: Vec<usize> = (0..vars).filter(|&c| self.pivot_of[c] == u32::MAX).collect();
         if free.len() > max { return None; }
@@ -263,7 +247,7 @@ fn membrane_sparse(g: &BoxGeo, z: &Sparse, dense: &mut [f64], y: &mut [f64]) -> 
     };
     for &(i, _) in z {
         let (x, yy) = (i % w, i / w);
-        g.links(i).for_each(|j| link(i, j));
+        g.right[i].then_some(i + 1).into_iter().chain(g.down[i].then_some(i + w)).for_each(|j| link(i, j));
         // Links from the left and above, where the other end is outside the support (inside, it lists them).
         let outer = [(x > 0 && g.right[i - 1]).then(|| i - 1), (yy > 0 && g.down[i - w]).then(|| i - w)];
         for j in outer.into_iter().flatten().filter(|&j| dense[j] == 0.0) {
