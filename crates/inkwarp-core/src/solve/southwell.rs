@@ -4,7 +4,7 @@
 //! order, every node whose drop is still at least that when reached: Southwell's greedy rule in bulk, one
 //! residual and one scan a pass where picking one node at a time would cost a search per relaxation.
 
-use super::level::{Level, V2, PAD};
+use super::level::{Level, V2};
 
 /// Spends at most `budget` relaxations on the finest level; returns the largest single change made, and
 /// whether it stopped because nothing was left to relax (every residual exactly zero) rather than because
@@ -27,19 +27,16 @@ pub(crate) fn relax(level: &Level, u: &mut [V2], budget: usize, unknowns: usize)
         let threshold = kth.max(f64::MIN_POSITIVE);
         left -= k;
         let mut relaxed = 0;
-        'pass: for y in 0..h {
-            for x in 0..w {
-                let p = (y + PAD) * level.wp + x + PAD;
-                let d = level.inv_diag[p];
-                if d == 0.0 { continue; }
-                let ri = level.fine_residual_at(u, p);
-                if (ri[0] * ri[0] + ri[1] * ri[1]) * d >= threshold {
-                    u[p][0] += ri[0] * d;
-                    u[p][1] += ri[1] * d;
-                    largest = largest.max((ri[0] * d).abs()).max((ri[1] * d).abs());
-                    relaxed += 1;
-                    if relaxed == k { break 'pass; }
-                }
+        for p in (0..h).flat_map(|y| (0..w).map(move |x| level.pidx(x, y))) {
+            let d = level.inv_diag[p];
+            if d == 0.0 { continue; }
+            let ri = level.fine_residual_at(u, p);
+            if (ri[0] * ri[0] + ri[1] * ri[1]) * d >= threshold {
+                u[p][0] += ri[0] * d;
+                u[p][1] += ri[1] * d;
+                largest = largest.max((ri[0] * d).abs()).max((ri[1] * d).abs());
+                relaxed += 1;
+                if relaxed == k { break; }
             }
         }
         // The largest drops can vanish before their nodes are reached (their neighbours relaxed first, or
