@@ -307,7 +307,7 @@ impl Membrane {
         // Each block in an order keeping its envelope narrow; one with a dropped pivot (dependent functions)
         // is not settled.
         let mut local = vec![0; k];
-        let blocks = blocks_in_order(k, |_| true, |j, out| { out.clear(); out.extend(gram[j].iter().map(|e| e.0)) }).into_iter().map(|members| {
+        let blocks = blocks_in_order(k, |_| true, |j, out| out.extend(gram[j].iter().map(|e| e.0))).into_iter().map(|members| {
             members.iter().enumerate().for_each(|(l, &j)| local[j] = l);
             let entries: Vec<_> = members.iter().map(|&j| gram[j].iter().map(|&(i, v)| (local[i], v)).collect()).collect();
             (members, Envelope::factor(&entries, 0.0, 1e-12, MAX_BLOCK_ENTRIES).filter(|f| !f.dropped()))

@@ -68,11 +68,7 @@ impl Strands {
     pub fn new(level: &Level, halve: bool) -> Option<Strands> {
         let thin = thin_nodes_of(level);
         if !thin.contains(&true) { return None; }
-        let neighbours = |p: usize, out: &mut Vec<usize>| {
-            out.clear();
-            level.taps(p, |q, _| if q != p && thin[q] { out.push(q) });
-        };
-        let sets = blocks_in_order(thin.len(), |p| thin[p], neighbours);
+        let sets = blocks_in_order(thin.len(), |p| thin[p], |p, out| level.taps(p, |q, _| if q != p && thin[q] { out.push(q) }));
         let fine = matches!(level.op, Operator::Fine { .. });
         let n = thin.len();
         let mut b = Builder { level, thin, fine, mark: vec![u32::MAX; n], last: vec![u32::MAX; if halve { n } else { 0 }], prev: Vec::new(), s: Strands { nodes: Vec::new(), taps: Vec::new(), at: vec![0], blocks: Vec::new(), earlier: Vec::new(), first_pass: Vec::new(), wide: false } };
@@ -180,7 +176,6 @@ impl Builder<'_> {
     fn links<'s>(&'s self, ids: &'s [u32], same: impl Fn(usize, usize) -> bool + 's) -> impl FnMut(usize, &mut Vec<usize>) + 's {
         move |i, out| {
             let p = ids[i] as usize;
-            out.clear();
             self.level.taps(p, |q, _| if q != p && self.mark[q] != u32::MAX && same(p, q) { out.push(self.mark[q] as usize) });
         }
     }
@@ -303,16 +298,16 @@ fn thin_nodes(level: &Level, right: impl Fn(usize, usize) -> bool, down: impl Fn
     thin
 }
 
-/// The connected sets of the nodes `0..n` with `include` (`next(p, out)`: `p`'s neighbours, all included),
-/// each in reverse Cuthill–McKee order: breadth first from the last node of a breadth-first search (a
-/// pseudo-peripheral one), reversed. Along a strand that keeps a factor's envelope narrow.
+/// The connected sets of the nodes `0..n` with `include` (`next(p, out)`: `p`'s neighbours, all included, pushed
+/// to an empty `out`), each in reverse Cuthill–McKee order: breadth first from the last node of a breadth-first
+/// search (a pseudo-peripheral one), reversed. Along a strand that keeps a factor's envelope narrow.
 pub(crate) fn blocks_in_order(n: usize, include: impl Fn(usize) -> bool, mut next: impl FnMut(usize, &mut Vec<usize>)) -> Vec<Vec<usize>> {
     let mut bfs = |s: usize, seen: &mut [bool]| {
         let (mut order, mut buf, mut i) = (vec![s], Vec::new(), 0);
         seen[s] = true;
         while i < order.len() {
             next(order[i], &mut buf);
-            order.extend(buf.iter().copied().filter(|&q| !std::mem::replace(&mut seen[q], true)));
+            order.extend(buf.drain(..).filter(|&q| !std::mem::replace(&mut seen[q], true)));
             i += 1;
         }
         order
@@ -340,10 +335,9 @@ impl Envelope {
         for i in 0..n {
             at.push(at[i] + i + 1 - first[i] as usize);
         }
-        let total = at[n];
-        if total > max_entries { return None; }
+        if at[n] > max_entries { return None; }
         // Row i's entries up to the diagonal, which is summed in its slot (row i's last) and read out raised.
-        let mut l = vec![0.0; total];
+        let mut l = vec![0.0; at[n]];
         for (i, e) in entries.iter().enumerate() {
             e.iter().filter(|&&(j, _)| j <= i).for_each(|&(j, a)| l[at[i] + j - first[i] as usize] += a);
         }
