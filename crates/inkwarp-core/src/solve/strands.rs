@@ -224,15 +224,9 @@ impl Builder<'_> {
     /// Whether most holes beside `ids` (nodes across a side that are no unknowns) are wider than a node.
     fn open_holes(&self, ids: &[u32]) -> bool {
         let (d, wp) = (&self.level.inv_diag, self.level.wp);
-        let (mut holes, mut open) = (0, 0);
-        for p in ids.iter().map(|&p| p as usize) {
-            for (q, r) in [(p + 1, p + 2), (p - 1, p - 2), (p + wp, p + 2 * wp), (p - wp, p - 2 * wp)] {
-                if d[q] == 0.0 {
-                    holes += 1;
-                    open += usize::from(d[r] == 0.0);
-                }
-            }
-        }
+        // Each side's next node `q` and the one past it, `r`.
+        let sides = ids.iter().map(|&p| p as usize).flat_map(|p| [(p + 1, p + 2), (p - 1, p - 2), (p + wp, p + 2 * wp), (p - wp, p - 2 * wp)]);
+        let (holes, open) = sides.filter(|&(q, _)| d[q] == 0.0).fold((0, 0), |(h, o), (_, r)| (h + 1, o + usize::from(d[r] == 0.0)));
         2 * open > holes
     }
 
