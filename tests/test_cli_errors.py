@@ -508,15 +508,17 @@ def test_ctrl_c_while_the_command_starts_exits_130_without_a_traceback(tmp_path)
     # keeps Python's KeyboardInterrupt.
     start = ("import os, signal, sys, time; sys.argv[0] = {name!r}; import inkwarp{then}; "
              "os.kill(os.getpid(), signal.SIGINT); time.sleep(5); print('not interrupted')")
-    done = subprocess.run([sys.executable, "-c", start.format(name="/usr/bin/inkwarp", then="")],
-                          capture_output=True, text=True, timeout=60)
+
+    def run_as(name, then=""):
+        # SIGINT as a terminal gives it (a test run in the background may have it ignored).
+        return subprocess.run([sys.executable, "-c", start.format(name=name, then=then)], capture_output=True,
+                              text=True, timeout=60, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+    done = run_as("/usr/bin/inkwarp")
     assert (done.returncode, done.stderr, done.stdout) == (130, "inkwarp: interrupted\n", "")
-    after_main = "; from inkwarp.cli import main; main(['schema', '-o', {out!r}])".format(out=str(tmp_path / "s.json"))
-    done = subprocess.run([sys.executable, "-c", start.format(name="inkwarp", then=after_main)],
-                          capture_output=True, text=True, timeout=60)
+    done = run_as("inkwarp", "; from inkwarp.cli import main; main(['schema', '-o', {!r}])".format(str(tmp_path / "s.json")))
     assert done.returncode != 130 and "KeyboardInterrupt" in done.stderr, done.stderr
-    done = subprocess.run([sys.executable, "-c", start.format(name="my_tool.py", then="")],
-                          capture_output=True, text=True, timeout=60)
+    done = run_as("my_tool.py")
     assert done.returncode != 130 and "KeyboardInterrupt" in done.stderr, done.stderr
 
 
