@@ -615,7 +615,7 @@ def test_many_random_cuts(seed, integer):
     check_against_oracle(problem, f"{len(cuts)} cuts")
 
 
-def test_a_slow_mode_far_below_the_oracles_kernel_bound_is_not_taken_for_a_free_function():
+def test_a_slow_mode_under_the_oracles_kernel_bound_is_not_taken_for_a_free_function():
     # Float cuts of seed 390 at 4x, displacements scaled to a tenth: a piece of 5,764 nodes
     # has a plate eigenvalue of 4.3e-12, under the oracle's KERNEL_BELOW, yet proved
     # positive by its residual (7.5e-15). Taken for a free function, the oracle settled it

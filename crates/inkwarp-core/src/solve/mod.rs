@@ -135,7 +135,9 @@ pub enum Stop {
 
 impl SolveReport {
     /// Not converged, for `why` unless an earlier reason stands.
-    fn fail(&mut self, why: Stop) { (self.stop, self.converged) = (if self.stop == Stop::Converged { why } else { self.stop }, false) }
+    fn fail(&mut self, why: Stop) {
+        (self.stop, self.converged) = (if self.stop == Stop::Converged { why } else { self.stop }, false);
+    }
 
     /// Takes in a piece's report: the most cycles, the largest change and residuals, its failure unless one stands.
     fn worst_of(&mut self, r: &SolveReport) {
@@ -608,8 +610,14 @@ fn solve_piece(
     let margin = if hier.torn { TORN_STOP_MARGIN } else { STOP_MARGIN };
     // A torn piece's claim is relative to its largest constrained value; a warm start's on a new hierarchy (no earlier
     // solve's slow modes to check it on) to how far its constrained values move: the size of the correction it solves.
-    let moved = |(f, x0, y0): (FieldView<'_>, usize, usize)| largest(constraints.iter().map(|&(i, v)| { let o = f.at_index((y0 + i / w) * f.width() + x0 + i % w); [v[0] - o[0] as f64, v[1] - o[1] as f64] }));
-    let scale = if !hier.torn || options.off.has("relative") { f64::INFINITY } else { largest(constraints.iter().map(|p| p.1)).min(initial.filter(|_| warm && fresh && !spanned).map_or(f64::INFINITY, moved)) };
+    let moved = |(f, x0, y0): (FieldView<'_>, usize, usize)| {
+        largest(constraints.iter().map(|&(i, v)| {
+            let o = f.at_index((y0 + i / w) * f.width() + x0 + i % w);
+            [v[0] - o[0] as f64, v[1] - o[1] as f64]
+        }))
+    };
+    let correction = initial.filter(|_| warm && fresh && !spanned).map_or(f64::INFINITY, moved);
+    let scale = if !hier.torn || options.off.has("relative") { f64::INFINITY } else { largest(constraints.iter().map(|p| p.1)).min(correction) };
     let claim = options.tolerance_px.min((RELATIVE_CLAIM * scale).max(0.1 * options.tolerance_px));
     // A single level whose dropped pivots are all free functions' is an exact solve: after its first step only
     // rounding moves, in which neither the ratios nor the Lanczos floor tell a rate.
@@ -1082,6 +1090,7 @@ fn on_one_line(w: usize, nodes: impl Iterator<Item = usize> + Clone) -> Option<(
     nodes.map(xy).all(|p| cross(a, d, p) == 0).then_some((a, d))
 }
 
+/// The largest absolute component of a sequence of pairs (0 for none).
 pub(crate) fn largest(values: impl Iterator<Item = V2>) -> f64 { values.fold(0.0, |s, v| s.max(v[0].abs()).max(v[1].abs())) }
 
 /// `ℓ(p) = d × (p − a)`: zero on the line through `a` with direction `d`.
@@ -1216,7 +1225,8 @@ impl<'m> Settled<'m> {
 
 /// `Σ a_i z_i` per component, `z` the preconditioner's `f32` output; the chunks' sums added in order, whatever the threads.
 fn dot_z(a: &[V2], z: &[W2]) -> [f64; 2] {
-    let parts: Vec<[f64; 2]> = a.par_chunks(CHUNK).zip(z.par_chunks(CHUNK)).map(|(a, z)| level::pair_sums(a.as_flattened(), z.as_flattened(), |x: f64, y: WS| x * y.get())).collect();
+    let parts: Vec<[f64; 2]> =
+        a.par_chunks(CHUNK).zip(z.par_chunks(CHUNK)).map(|(a, z)| level::pair_sums(a.as_flattened(), z.as_flattened(), |x: f64, y: WS| x * y.get())).collect();
     parts.iter().fold([0.0; 2], |s, t| [s[0] + t[0], s[1] + t[1]])
 }
 
